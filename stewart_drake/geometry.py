@@ -1,0 +1,176 @@
+"""Geometry and inertial parameters of the rotary Stewart platform.
+
+The default :class:`StewartGeometry` is exactly ``shared/paper/reference_geometry.md``: the layout
+the paper leaves open, with the paper's Table I masses and inertias. Frames: world = base frame B
+(origin at the centre of the base plate's top face, z up); platform frame E (origin at the centre
+of the circle of platform joints). Leg index i = 2k + (s+1)/2, k = 0, 1, 2, s = -1, +1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InvalidGeometryError
+
+#: Table I of the paper, principal moments about the COM in kg m^2, as printed.
+TABLE_I_CRANK_INERTIA = (1e-6, 5.8e-5, 6e-5)
+
+#: Home pose [phi, theta, psi, X, Y, Z] in rad and m (reference_geometry.md).
+X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+
+
+def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[float, float, float]:
+    """Nearest principal moments (Euclidean norm) that satisfy the triangle inequality.
+
+    Args:
+        moments: (3,) principal moments of inertia about the COM, kg m^2.
+        margin: slack in kg m^2 kept above equality so that rounding cannot fail Drake's check.
+    Returns:
+        (3,) moments, unchanged if already valid. For Table I's crank (1e-6, 5.8e-5, 6e-5), whose
+        Ixx + Iyy < Izz, the deficit is spread equally: (1.334e-6, 5.8334e-5, 5.9666e-5).
+    Source: paper Table I fails ``RotationalInertia.CouldBePhysicallyValid``; docs/paper_notes.md.
+    """
+    m = np.asarray(moments, dtype=float).copy()
+    if m.shape != (3,) or np.any(m < 0) or not np.all(np.isfinite(m)):
+        raise InvalidGeometryError(f"principal moments must be 3 finite values >= 0, got {moments}")
+    for _ in range(3):  # each projection fixes the largest violation; at most three are needed
+        deficits = np.array([m[1] + m[2] - m[0], m[0] + m[2] - m[1], m[0] + m[1] - m[2]])
+        j = int(np.argmin(deficits))
+        if deficits[j] >= margin:
+            break
+        # Project onto the half-space sum_k sign_k m_k >= margin, normal n with n[j] = -1.
+        n = np.ones(3)
+        n[j] = -1.0
+        m += n * (margin - deficits[j]) / 3.0
+    return tuple(float(v) for v in m)
+
+
+def _ring(radius: float, angles_deg, z: float = 0.0) -> np.ndarray:
+    a = np.deg2rad(np.asarray(angles_deg, dtype=float))
+    return np.stack([radius * np.cos(a), radius * np.sin(a), np.full_like(a, z)], axis=1)
+
+
+def _leg_angles(spread_deg: float) -> tuple[float, ...]:
+    """Angles 120 k + spread * s in leg order i = 2k + (s+1)/2, degrees."""
+    return tuple(120.0 * k + spread_deg * s for k in range(3) for s in (-1, 1))
+
+
+@dataclass(frozen=True)
+class StewartGeometry:
+    """Layout, link lengths and inertias of a 6-RSS rotary Stewart platform; SI units.
+
+    Defaults equal ``reference_geometry.md``. Angles of the layout are in degrees, as there.
+
+    Attributes:
+        base_radius: radius of the circle of crank pivots P_i, m.
+        pivot_z: height of the motor shafts in the base frame, m (negative: under the plate).
+        pivot_angles_deg: (6,) b_i, azimuth of P_i.
+        platform_radius: radius of the circle of platform joints p_i, m.
+        platform_angles_deg: (6,) c_i, azimuth of p_i in E.
+        crank_angles_deg: (6,) beta_i, azimuth of the crank direction d_i at theta_i = 0.
+        crank_length: a, pivot to crank-tip joint, m.
+        rod_length: s, joint centre to joint centre, m.
+        *_mass: kg. *_inertia: principal moments about the COM, kg m^2, body axes of
+            reference_geometry.md (rod: z along the rod; crank: x along the crank).
+        gravity: magnitude of g, m/s^2, acting along -z.
+    Raises:
+        InvalidGeometryError: non-positive lengths or masses, wrong counts, or an inertia that
+            fails the triangle inequality (use :func:`nearest_valid_principal_moments`).
+    """
+
+    base_radius: float = 0.20
+    pivot_z: float = -0.07
+    pivot_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(10.0))
+    platform_radius: float = 0.11
+    platform_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(55.0))
+    crank_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(90.0))
+    crank_length: float = 0.11
+    rod_length: float = 0.404
+    rod_mass: float = 0.08
+    rod_inertia: tuple[float, float, float] = (0.0016, 0.0016, 0.000001)
+    crank_mass: float = 0.04
+    crank_inertia: tuple[float, float, float] = field(
+        default_factory=lambda: nearest_valid_principal_moments(TABLE_I_CRANK_INERTIA))
+    platform_mass: float = 1.0
+    platform_inertia: tuple[float, float, float] = (0.003, 0.003, 0.006)
+    base_mass: float = 7.0
+    base_inertia: tuple[float, float, float] = (0.027, 0.027, 0.054)
+    base_plate_radius: float = 0.20
+    gravity: float = 9.81
+
+    def __post_init__(self):
+        for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
+                     "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise InvalidGeometryError(f"{name} must be a finite positive number, got {value}")
+        if not (np.isfinite(self.gravity) and self.gravity >= 0):
+            raise InvalidGeometryError(f"gravity must be finite and >= 0, got {self.gravity}")
+        if self.rod_length <= self.crank_length:
+            raise InvalidGeometryError(
+                f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)")
+        for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
+            angles = np.asarray(getattr(self, name), dtype=float)
+            if angles.shape != (6,) or not np.all(np.isfinite(angles)):
+                raise InvalidGeometryError(f"{name} needs 6 finite angles, got {angles.tolist()}")
+            object.__setattr__(self, name, tuple(float(v) for v in angles))
+        for name in ("rod_inertia", "crank_inertia", "platform_inertia", "base_inertia"):
+            moments = np.asarray(getattr(self, name), dtype=float)
+            if moments.shape != (3,) or not np.all(np.isfinite(moments)) or np.any(moments <= 0):
+                raise InvalidGeometryError(f"{name} needs 3 positive moments, got {moments.tolist()}")
+            a, b, c = moments
+            if a + b < c * (1 - 1e-12) or a + c < b * (1 - 1e-12) or b + c < a * (1 - 1e-12):
+                fix = nearest_valid_principal_moments(moments)
+                raise InvalidGeometryError(
+                    f"{name} = {moments.tolist()} kg m^2 fails the triangle inequality "
+                    f"(no rigid body has it); the nearest valid one is {list(fix)}")
+            object.__setattr__(self, name, tuple(float(v) for v in moments))
+        # Assembly at home must be possible, or nothing downstream can work.
+        from .kinematics import leg_reach_ratio  # local import: kinematics imports geometry
+
+        ratio = leg_reach_ratio(self, X_HOME)
+        if np.any(~np.isfinite(ratio)) or np.any(np.abs(ratio) > 1):
+            leg = int(np.argmax(np.where(np.isfinite(ratio), np.abs(ratio), np.inf)))
+            raise InvalidGeometryError(
+                f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
+                f"|L|/sqrt(M^2+N^2) = {ratio[leg]:.4g} > 1; change the rod or crank length "
+                f"or the anchor radii")
+
+    def replace(self, **changes) -> "StewartGeometry":
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    @property
+    def P_B(self) -> np.ndarray:
+        """(6, 3) crank pivots (motor shaft points) P_i in the base frame, m."""
+        return _ring(self.base_radius, self.pivot_angles_deg, self.pivot_z)
+
+    @property
+    def p_E(self) -> np.ndarray:
+        """(6, 3) platform joint centres p_i in the platform frame E, m."""
+        return _ring(self.platform_radius, self.platform_angles_deg)
+
+    @property
+    def d_B(self) -> np.ndarray:
+        """(6, 3) unit crank directions d_i at theta_i = 0, base frame."""
+        return _ring(1.0, self.crank_angles_deg)
+
+    @property
+    def u_B(self) -> np.ndarray:
+        """(6, 3) unit motor shaft axes u_i = d_i x z_hat; positive theta_i raises the crank tip."""
+        return np.cross(self.d_B, np.array([0.0, 0.0, 1.0]))
+
+    def crank_tips(self, theta) -> np.ndarray:
+        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base frame."""
+        theta = np.asarray(theta, dtype=float)[..., None]
+        return self.P_B + self.crank_length * (
+            np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0]))
+
+
+#: The reference robot of reference_geometry.md.
+def reference_geometry() -> StewartGeometry:
+    """The default robot, exactly ``shared/paper/reference_geometry.md``."""
+    return StewartGeometry()

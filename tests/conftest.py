@@ -1,0 +1,28 @@
+import numpy as np
+import pytest
+
+from stewart_drake.geometry import X_HOME, StewartGeometry
+from stewart_drake import kinematics
+
+
+@pytest.fixture(scope="session")
+def geometry():
+    return StewartGeometry()
+
+
+def random_reachable_poses(geometry, n, seed=0, margin=0.95):
+    """n poses around home whose legs all have |ratio| < margin (deterministic)."""
+    rng = np.random.default_rng(seed)
+    scale = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
+    out = []
+    while len(out) < n:
+        x = X_HOME + rng.uniform(-1, 1, (4 * n, 6)) * scale
+        ok = np.all(np.abs(kinematics.leg_reach_ratio(geometry, x)) < margin, axis=1)
+        cond = np.linalg.cond(kinematics.jacobian(geometry, x[ok]))
+        out.extend(x[ok][cond < 200])
+    return np.array(out[:n])
+
+
+@pytest.fixture(scope="session")
+def random_poses(geometry):
+    return random_reachable_poses(geometry, 200)
