@@ -1,0 +1,93 @@
+"""The ``stewart-drake`` command: run the paper's experiment, sweep the workspace, and more.
+
+Each subcommand parses its arguments here and calls one function of the module that owns the idea;
+bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .errors import StewartError
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def _cmd_sdf(args) -> int:
+    from .plant import REFERENCE_SDF, write_sdf
+
+    out = Path(args.out) if args.out else REFERENCE_SDF
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(write_sdf())
+    print(f"wrote {out}")
+    return 0
+
+
+def _cmd_run(args) -> int:
+    from .experiments import run_cli
+
+    return run_cli(args)
+
+
+def _cmd_workspace(args) -> int:
+    from .workspace import workspace_cli
+
+    return workspace_cli(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="stewart-drake",
+        description="Rotary Stewart platform on a Drake closed-chain plant, LQI + ANN control.")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    run = sub.add_parser("run", help="run the paper's experiment (eqs. 37-38) and plot Fig. 7")
+    run.add_argument("--duration", type=_positive_float, default=10.0, help="simulated s (10)")
+    run.add_argument("--trajectory", default="paper", help="reference trajectory name (paper)")
+    run.add_argument("--omega-q", type=_positive_float, default=1.0, help="omega_Q (1)")
+    run.add_argument("--omega-r", type=_positive_float, default=1.0, help="omega_R (1)")
+    run.add_argument("--tuner", choices=["none", "ann"], default="none",
+                     help="ANN tuner of omega_Q, omega_R (none)")
+    run.add_argument("--out", default="results", help="output folder (results/)")
+    run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.set_defaults(func=_cmd_run)
+
+    ws = sub.add_parser("workspace", help="workspace of states and holding torques")
+    ws.add_argument("--out", default="results/workspace", help="output folder")
+    ws.add_argument("--resolution", type=int, default=41, help="grid points per axis (41)")
+    ws.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    ws.set_defaults(func=_cmd_workspace)
+
+    sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
+    sdf.add_argument("--out", default=None, help="file to write instead")
+    sdf.set_defaults(func=_cmd_sdf)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except StewartError as err:
+        print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"stewart-drake {args.command}: interrupted; partial outputs were not written",
+              file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
