@@ -1,0 +1,296 @@
+"""LQI regulator of paper section III as a Drake LeafSystem, with online gain re-scheduling.
+
+Error model (paper eqs. 19-25). Per pose coordinate the error is a double integrator driven by the
+motor torques through B(x) = M_x(x)^-1 tau(x) (tau = J^T, eq. 18 corrected; M_x the task-space
+inertia of platform, cranks and rods); gravity is the constant disturbance d of eq. 19 and is
+cancelled by a virtual-work feed-forward. With the integral of the pose error z (eq. 23) the
+state is e = [e_x (6), e_x_dot (6), z (6)] (block order; the paper interleaves e_x and e_x_dot).
+Sampled at h with zero-order hold, the double integrator has the closed form
+
+    e_x+     = e_x + h e_x_dot + h^2/2 B u
+    e_x_dot+ = e_x_dot + h B u
+    z+       = z + h e_x               (the controller's own rectangle-rule integrator)
+
+so no matrix exponential is needed. Gains come from Drake's DiscreteAlgebraicRiccatiEquation
+(eqs. 31-32, with eq. 32's missing "B^T P A" restored) and the law is u = T_ff - K_p e_bar - K_I z
+(eq. 34).
+
+Weights (departure from eq. 27, docs/paper_notes.md): Q = omega_Q I and R = omega_R I on errors in
+SI units make the torque far too cheap relative to a 1 mm error, so the gains cannot hold the
+platform. We apply eq. 27 to *normalized* errors and torques (Bryson's rule):
+Q = omega_Q diag(1/s_e^2, 1/s_v^2, 1/s_z^2), R = omega_R diag(1/s_T^2), with the scales of
+:class:`LqiScales` (1 mrad / 1 mm of pose error by default). omega_Q and omega_R in {0.1, 1, 10}
+then span soft to stiff controllers that all hold the platform.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.math import DiscreteAlgebraicRiccatiEquation
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from . import kinematics
+from .errors import InvalidConfigError, RiccatiSolveError, UnreachablePoseError
+from .geometry import X_HOME, StewartGeometry
+
+N_E = 18        # error-model states [e_x, e_x_dot, z]
+OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
+
+
+@dataclass(frozen=True)
+class LqiScales:
+    """Normalization of the LQI cost (Bryson's rule); SI units.
+
+    Attributes:
+        pose: (6,) acceptable pose error [rad, rad, rad, m, m, m].
+        rate: (6,) acceptable rate error [rad/s x3, m/s x3].
+        integral: (6,) acceptable integral of the pose error [rad s x3, m s x3].
+        torque: acceptable motor torque, N m (same for the six motors).
+    """
+
+    pose: tuple = (1e-3, 1e-3, 1e-3, 1e-3, 1e-3, 1e-3)
+    rate: tuple = (1.0, 1.0, 1.0, 0.1, 0.1, 0.1)
+    integral: tuple = (2e-5, 2e-5, 2e-5, 2e-5, 2e-5, 2e-5)
+    torque: float = 0.3
+
+    def __post_init__(self):
+        for name in ("pose", "rate", "integral"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != (6,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
+                raise InvalidConfigError(f"LqiScales.{name} needs 6 positive values, got {v}")
+        if not (np.isfinite(self.torque) and self.torque > 0):
+            raise InvalidConfigError(f"LqiScales.torque must be > 0 N m, got {self.torque}")
+
+    def Q_unit(self) -> np.ndarray:
+        """(18, 18) state weight at omega_Q = 1."""
+        s = np.concatenate([self.pose, self.rate, self.integral])
+        return np.diag(1.0 / s**2)
+
+    def R_unit(self) -> np.ndarray:
+        """(6, 6) torque weight at omega_R = 1."""
+        return np.eye(6) / self.torque**2
+
+
+def error_model(B_c: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Discrete error model (A, B) at sample time h for continuous input matrix B_c (6, 6).
+
+    Returns:
+        A (18, 18), B (18, 6) of e+ = A e + B u, e = [e_x, e_x_dot, z]; paper eqs. 21-25 with
+        an exact zero-order hold of the double integrators.
+    """
+    I = np.eye(6)
+    A = np.zeros((N_E, N_E))
+    A[0:6, 0:6] = I
+    A[0:6, 6:12] = h * I
+    A[6:12, 6:12] = I
+    A[12:18, 0:6] = h * I
+    A[12:18, 12:18] = I
+    B = np.zeros((N_E, 6))
+    B[0:6] = 0.5 * h * h * B_c
+    B[6:12] = h * B_c
+    return A, B
+
+
+def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+    """B_c(x) = M_x(x)^-1 tau(x): pose acceleration per unit motor torque, (6, 6).
+
+    Source: paper eq. 22 (b = tau / inertia), with the legs' inertia in M_x
+    (:func:`kinematics.task_inertia`) and tau = J^T (eq. 18 corrected).
+    """
+    theta = kinematics.ik(geometry, x) if theta is None else theta
+    return np.linalg.solve(kinematics.task_inertia(geometry, x, theta),
+                           kinematics.tau(geometry, x, theta))
+
+
+def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9) -> dict:
+    """Stabilizability of (A, B) and detectability of (A, C) by the Hautus test (eqs. 28-29).
+
+    Every eigenvalue with |lambda| >= 1 (here all are 1: chains of integrators) must satisfy
+    rank [lambda I - A, B] = n and rank [lambda I - A; C] = n.
+    Returns:
+        dict with ``stabilizable``, ``detectable`` (bool) and the minimum ranks found.
+    """
+    n = A.shape[0]
+    eigs = np.linalg.eigvals(A)
+    unstable = np.unique(np.round(eigs[np.abs(eigs) >= 1 - 1e-9], 9))
+    rank_ab, rank_ac = n, n
+    for lam in unstable:
+        M = lam * np.eye(n) - A
+        rank_ab = min(rank_ab, np.linalg.matrix_rank(np.hstack([M, B]), tol))
+        rank_ac = min(rank_ac, np.linalg.matrix_rank(np.vstack([M, C]), tol))
+    return {"stabilizable": rank_ab == n, "detectable": rank_ac == n,
+            "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
+
+
+def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Optimal gain K = (R + B^T P B)^-1 B^T P A (eqs. 31-32); u = -K e.
+
+    Raises:
+        RiccatiSolveError: Drake's solver failed, or the result is not finite or not stabilizing.
+    """
+    try:
+        P = DiscreteAlgebraicRiccatiEquation(A, B, Q, R)
+    except (RuntimeError, ValueError) as err:
+        raise RiccatiSolveError(f"DiscreteAlgebraicRiccatiEquation failed: {err}") from None
+    K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+    if not np.all(np.isfinite(K)):
+        raise RiccatiSolveError("Riccati gain is not finite")
+    rho = np.max(np.abs(np.linalg.eigvals(A - B @ K)))
+    if not rho < 1.0:
+        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})")
+    return K
+
+
+class LqiController(LeafSystem):
+    """LQI torque controller of the platform pose, re-scheduled online (paper section III).
+
+    Input ports:
+        ``x`` (12,): measured pose and rate [phi, theta, psi, X, Y, Z, their rates], rad, m, /s.
+        ``x_d`` (18,): reference pose, rate and acceleration (same units, /s^2 for the last 6).
+        ``omega`` (2,): [omega_Q, omega_R] > 0 (the ANN tuner drives it; else a constant).
+    Output ports:
+        ``T`` (6,): motor torques, N m, sampled at ``offset_s`` after each plant step and held.
+        ``status`` (5,): [omega_Q, omega_R in use, gain solves, failed solves, |z|].
+    Discrete state: u (6), z (6), K (108, row-major 6 x 18), status (4).
+
+    Args:
+        geometry: the robot (for B(x), tau and the gravity feed-forward).
+        period_s: control period h in s (paper: 1 ms).
+        schedule_period_s: re-solve the DARE from the measured pose this often (a multiple of
+            period_s). Set equal to period_s to re-schedule every step.
+        scales: normalization of Q and R (:class:`LqiScales`).
+        feedforward: "gravity" (static virtual-work compensation at x_d, default), "inverse_dynamics"
+            (also M_x(x_d) xdd_d), or "none".
+        offset_s: time of the sample within the period. The diagram uses half a plant step, so
+            the controller reads the state the plant just produced and its torque acts from the
+            next plant step on: the zero-order-hold model above is then exact, with no extra
+            step of delay (offset 0 would read the state one plant step old).
+        x_initial: pose of the first gain (default home).
+    Raises:
+        InvalidConfigError: bad periods or feedforward; RiccatiSolveError: no gain at home;
+        RuntimeError: the Hautus checks fail at home.
+    """
+
+    def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3,
+                 schedule_period_s: float = 1e-2, scales: LqiScales | None = None,
+                 feedforward: str = "gravity", offset_s: float = 0.0, x_initial=None):
+        super().__init__()
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
+        ratio = schedule_period_s / period_s
+        if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+            raise InvalidConfigError(
+                f"schedule_period_s ({schedule_period_s}) must be a whole multiple of the control "
+                f"period ({period_s})")
+        if feedforward not in ("gravity", "inverse_dynamics", "none"):
+            raise InvalidConfigError(
+                f"feedforward must be 'gravity', 'inverse_dynamics' or 'none', got {feedforward!r}")
+        self.geometry = geometry
+        self.h = float(period_s)
+        self.steps_per_schedule = int(round(ratio))
+        self.scales = scales or LqiScales()
+        self.feedforward = feedforward
+        self._Q1, self._R1 = self.scales.Q_unit(), self.scales.R_unit()
+        x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
+
+        A, B = error_model(input_matrix(geometry, x0), self.h)
+        self.hautus = hautus_checks(A, B, np.linalg.cholesky(self._Q1).T)
+        if not (self.hautus["stabilizable"] and self.hautus["detectable"]):
+            raise RuntimeError(f"Hautus checks (eqs. 28-29) fail at {x0}: {self.hautus}")
+        K0 = lqi_gain(A, B, self._Q1, self._R1)
+        self.K_initial = K0
+
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._omega = self.DeclareVectorInputPort("omega", 2)
+        T0 = kinematics.holding_torques(geometry, x0)
+        self._u_index = self.DeclareDiscreteState(T0)
+        self._z_index = self.DeclareDiscreteState(6)
+        self._K_index = self.DeclareDiscreteState(K0.reshape(-1))
+        # status: omega_Q, omega_R in use, solves, failures
+        self._s_index = self.DeclareDiscreteState(np.array([1.0, 1.0, 1.0, 0.0]))
+        self._k_index = self.DeclareDiscreteState(1)      # step counter
+        self.DeclareStateOutputPort("T", self._u_index)
+        self.DeclareVectorOutputPort("status", 5, self._CalcStatus,
+                                     prerequisites_of_calc={self.xd_ticket()})
+        if not (0 <= offset_s < period_s):
+            raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
+                                                update=self._Update)
+
+    # -- ports -------------------------------------------------------------------------------
+    def get_x_input_port(self):
+        return self._x
+
+    def get_x_d_input_port(self):
+        return self._x_d
+
+    def get_omega_input_port(self):
+        return self._omega
+
+    # -- gain ----------------------------------------------------------------------------------
+    def gain(self, x, omega_Q: float = 1.0, omega_R: float = 1.0) -> np.ndarray:
+        """(6, 18) LQI gain K = [K_p | K_I] at pose x for weights omega_Q, omega_R (eq. 33).
+
+        Raises:
+            InvalidConfigError: weights not in [1e-3, 1e3]; RiccatiSolveError: see lqi_gain.
+        """
+        for name, w in (("omega_Q", omega_Q), ("omega_R", omega_R)):
+            if not (np.isfinite(w) and OMEGA_MIN <= w <= OMEGA_MAX):
+                raise InvalidConfigError(f"{name} must be in [{OMEGA_MIN}, {OMEGA_MAX}], got {w}")
+        A, B = error_model(input_matrix(self.geometry, x), self.h)
+        return lqi_gain(A, B, omega_Q * self._Q1, omega_R * self._R1)
+
+    def feedforward_torques(self, x_d, xdd_d) -> np.ndarray:
+        """(6,) feed-forward torques at the reference pose, N m (see class docstring)."""
+        if self.feedforward == "none":
+            return np.zeros(6)
+        g = self.geometry
+        theta = kinematics.ik(g, x_d)
+        J = kinematics.jacobian(g, x_d, theta)
+        w = kinematics.gravity_gradient(g, x_d, theta)
+        if self.feedforward == "inverse_dynamics":
+            w = w + kinematics.task_inertia(g, x_d, theta) @ xdd_d
+        return np.linalg.solve(J.T, w)
+
+    # -- update --------------------------------------------------------------------------------
+    def _Update(self, context, discrete_state):
+        x = self._x.Eval(context)
+        ref = self._x_d.Eval(context)
+        omega = self._omega.Eval(context)
+        z = context.get_discrete_state(self._z_index).get_value()
+        K = context.get_discrete_state(self._K_index).get_value().reshape(6, N_E)
+        status = context.get_discrete_state(self._s_index).get_value().copy()
+        k = int(context.get_discrete_state(self._k_index).get_value()[0])
+
+        if k % self.steps_per_schedule == 0 or not np.array_equal(omega, status[:2]):
+            try:
+                K_new = self.gain(x[:6], float(omega[0]), float(omega[1]))
+                K = K_new
+                status[0:2] = omega
+                status[2] += 1
+                discrete_state.set_value(self._K_index, K.reshape(-1))
+            except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError,
+                    np.linalg.LinAlgError) as err:
+                status[3] += 1
+                if status[3] == 1 or status[3] % 100 == 0:
+                    warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed "
+                                  f"({err}); keeping the last good gain "
+                                  f"({int(status[3])} failures so far)", RuntimeWarning)
+
+        e_x = x[:6] - ref[:6]
+        e_v = x[6:12] - ref[6:12]
+        e = np.concatenate([e_x, e_v, z])
+        u = self.feedforward_torques(ref[:6], ref[12:18]) - K @ e
+        discrete_state.set_value(self._u_index, u)
+        discrete_state.set_value(self._z_index, z + self.h * e_x)
+        discrete_state.set_value(self._s_index, status)
+        discrete_state.set_value(self._k_index, [k + 1])
+
+    def _CalcStatus(self, context, output: BasicVector):
+        s = context.get_discrete_state(self._s_index).get_value()
+        z = context.get_discrete_state(self._z_index).get_value()
+        output.SetFromVector([s[0], s[1], s[2], s[3], float(np.linalg.norm(z))])

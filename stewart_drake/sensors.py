@@ -1,0 +1,47 @@
+"""Measurement of the platform pose from the plant state, as a Drake LeafSystem."""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.common.eigen_geometry import Quaternion
+from pydrake.math import RollPitchYaw
+from pydrake.systems.framework import BasicVector, LeafSystem
+
+from .plant import StewartPlantHandles
+
+
+class PlatformPoseSensor(LeafSystem):
+    """Platform pose and rate from the plant's state vector.
+
+    Input port:  ``plant_state`` (nq + nv,) the MultibodyPlant state.
+    Output port: ``x`` (12,) [phi, theta, psi, X, Y, Z] (rad, m) and their time derivatives
+    (rad/s, m/s); roll-pitch-yaw as Drake's RollPitchYaw, rates from the angular velocity.
+
+    Args:
+        plant: the finalized MultibodyPlant; handles: from ``add_stewart_plant``.
+        noise_std: optional (12,) standard deviation of additive white noise on ``x`` (for
+            robustness studies), drawn from a seeded generator at each evaluation.
+    """
+
+    def __init__(self, plant, handles: StewartPlantHandles, noise_std=None, seed: int = 0):
+        super().__init__()
+        body = handles.platform
+        nq = plant.num_positions()
+        self._iq = body.floating_positions_start()
+        self._iv = nq + body.floating_velocities_start_in_v()
+        self._state = self.DeclareVectorInputPort("plant_state", nq + plant.num_velocities())
+        self._noise = None if noise_std is None else np.asarray(noise_std, dtype=float)
+        self._rng = np.random.default_rng(seed)
+        self.DeclareVectorOutputPort("x", 12, self._Calc)
+
+    def _Calc(self, context, output: BasicVector):
+        s = self._state.Eval(context)
+        q = s[self._iq:self._iq + 4]
+        rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
+        w_WE = s[self._iv:self._iv + 3]
+        rpy_dot = rpy.CalcRpyDtFromAngularVelocityInParent(w_WE)
+        x = np.concatenate([rpy.vector(), s[self._iq + 4:self._iq + 7], rpy_dot,
+                            s[self._iv + 3:self._iv + 6]])
+        if self._noise is not None:
+            x = x + self._noise * self._rng.standard_normal(12)
+        output.SetFromVector(x)
