@@ -131,9 +131,13 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     Raises:
         RiccatiSolveError: Drake's solver failed, or the result is not finite or not stabilizing.
     """
+    for name, M in (("A", A), ("B", B), ("Q", Q), ("R", R)):
+        if not np.all(np.isfinite(M)):
+            raise RiccatiSolveError(f"{name} has non-finite entries; no gain computed")
     try:
         P = DiscreteAlgebraicRiccatiEquation(A, B, Q, R)
-    except (RuntimeError, ValueError) as err:
+    except (RuntimeError, ValueError, SystemExit) as err:
+        # pydrake reports a failed precondition (e.g. (A, B) not stabilizable) as SystemExit.
         raise RiccatiSolveError(f"DiscreteAlgebraicRiccatiEquation failed: {err}") from None
     K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
     if not np.all(np.isfinite(K)):

@@ -1,0 +1,105 @@
+"""LQI: error model, Hautus checks, Riccati gains, re-scheduling."""
+
+import numpy as np
+import pytest
+from scipy.linalg import expm, solve_discrete_are
+
+from stewart_drake.controller import (LqiController, LqiScales, error_model, hautus_checks,
+                                      input_matrix, lqi_gain)
+from stewart_drake.errors import InvalidConfigError, RiccatiSolveError
+from stewart_drake.geometry import X_HOME
+
+H = 1e-3
+
+
+def test_closed_form_zoh_equals_matrix_exponential(geometry):
+    """The double-integrator ZOH in closed form agrees with expm of the continuous model."""
+    B_c = input_matrix(geometry, X_HOME)
+    A, B = error_model(B_c, H)
+    Ac = np.zeros((12, 12))
+    Ac[:6, 6:] = np.eye(6)
+    Bc = np.vstack([np.zeros((6, 6)), B_c])
+    big = np.zeros((18, 18))
+    big[:12, :12], big[:12, 12:] = Ac, Bc
+    Phi = expm(big * H)
+    np.testing.assert_allclose(A[:12, :12], Phi[:12, :12], atol=1e-14)
+    np.testing.assert_allclose(B[:12], Phi[:12, 12:], rtol=1e-12, atol=1e-16)
+    np.testing.assert_allclose(A[12:, :6], H * np.eye(6))        # the controller's integrator
+
+
+def test_input_matrix_is_inverse_inertia_times_tau(geometry, random_poses):
+    from stewart_drake import kinematics
+    for x in random_poses[:5]:
+        B_c = input_matrix(geometry, x)
+        np.testing.assert_allclose(kinematics.task_inertia(geometry, x) @ B_c,
+                                   kinematics.tau(geometry, x), atol=1e-10)
+
+
+def test_hautus_checks_pass_and_detect_a_missing_input(geometry):
+    A, B = error_model(input_matrix(geometry, X_HOME), H)
+    C = np.eye(18)
+    assert hautus_checks(A, B, C)["stabilizable"]
+    assert hautus_checks(A, B, C)["detectable"]
+    B_bad = B.copy()
+    B_bad[:, 5] = 0
+    B_bad[:, 4] = 0           # two motors off: rank drops, (A, B) not stabilizable
+    assert not hautus_checks(A, B_bad, C)["stabilizable"]
+    C_bad = np.zeros((6, 18))
+    C_bad[:, 6:12] = np.eye(6)  # rates only: the pose integral modes are not detectable
+    assert not hautus_checks(A, B, C_bad)["detectable"]
+
+
+def test_gain_matches_scipy_riccati(geometry):
+    c = LqiController(geometry)
+    A, B = error_model(input_matrix(geometry, X_HOME), H)
+    Q, R = 3.0 * c.scales.Q_unit(), 0.5 * c.scales.R_unit()
+    P = solve_discrete_are(A, B, Q, R)
+    K_ref = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+    np.testing.assert_allclose(c.gain(X_HOME, 3.0, 0.5), K_ref, rtol=1e-6, atol=1e-6)
+
+
+def test_only_the_weight_ratio_matters(geometry):
+    """LQR gains are invariant to scaling Q and R together: the 9 paper pairs give 5 gains."""
+    c = LqiController(geometry)
+    np.testing.assert_allclose(c.gain(X_HOME, 0.1, 0.1), c.gain(X_HOME, 10, 10), rtol=1e-6)
+    assert not np.allclose(c.gain(X_HOME, 1, 0.1), c.gain(X_HOME, 0.1, 1), rtol=1e-3)
+
+
+@pytest.mark.parametrize("omega_Q,omega_R", [(q, r) for q in (0.1, 1, 10) for r in (0.1, 1, 10)])
+def test_every_paper_weight_pair_stabilizes_the_model(geometry, omega_Q, omega_R):
+    c = LqiController(geometry)
+    A, B = error_model(input_matrix(geometry, X_HOME), H)
+    K = c.gain(X_HOME, omega_Q, omega_R)
+    rho = np.abs(np.linalg.eigvals(A - B @ K)).max()
+    assert rho < 0.999
+
+
+def test_stiffer_weights_give_larger_position_gains(geometry):
+    c = LqiController(geometry)
+    soft, stiff = c.gain(X_HOME, 0.1, 10), c.gain(X_HOME, 10, 0.1)
+    assert np.linalg.norm(stiff[:, :6]) > 5 * np.linalg.norm(soft[:, :6])
+
+
+def test_failed_riccati_raises_typed_error(geometry):
+    A, B = error_model(input_matrix(geometry, X_HOME), H)
+    with pytest.raises(RiccatiSolveError):
+        lqi_gain(A, np.zeros_like(B), np.eye(18), np.eye(6))
+
+
+def test_bad_settings_are_refused(geometry):
+    with pytest.raises(InvalidConfigError, match="multiple"):
+        LqiController(geometry, period_s=1e-3, schedule_period_s=2.5e-3)
+    with pytest.raises(InvalidConfigError, match="feedforward"):
+        LqiController(geometry, feedforward="magic")
+    with pytest.raises(InvalidConfigError, match="omega_Q"):
+        LqiController(geometry).gain(X_HOME, 0.0, 1.0)
+    with pytest.raises(InvalidConfigError):
+        LqiScales(torque=-1)
+
+
+def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
+    from stewart_drake import kinematics
+    c = LqiController(geometry)
+    for x in random_poses[:5]:
+        np.testing.assert_allclose(c.feedforward_torques(x, np.zeros(6)),
+                                   kinematics.holding_torques(geometry, x), atol=1e-12)
