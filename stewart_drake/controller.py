@@ -255,7 +255,7 @@ class LqiController(LeafSystem):
         g = self.geometry
         theta = kinematics.ik(g, x_d)
         J = kinematics.jacobian(g, x_d, theta)
-        w = kinematics.gravity_gradient(g, x_d, theta)
+        w = kinematics.gravity_gradient(g, x_d, theta, J)
         if self.feedforward == "inverse_dynamics":
             w = w + kinematics.task_inertia(g, x_d, theta) @ xdd_d
         return np.linalg.solve(J.T, w)
