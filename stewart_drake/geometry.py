@@ -9,6 +9,7 @@ of the circle of platform joints). Leg index i = 2k + (s+1)/2, k = 0, 1, 2, s = 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +54,12 @@ def _ring(radius: float, angles_deg, z: float = 0.0) -> np.ndarray:
     return np.stack([radius * np.cos(a), radius * np.sin(a), np.full_like(a, z)], axis=1)
 
 
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """Read-only array: the geometry caches its anchors, so callers must not mutate them."""
+    a.setflags(write=False)
+    return a
+
+
 def _leg_angles(spread_deg: float) -> tuple[float, ...]:
     """Angles 120 k + spread * s in leg order i = 2k + (s+1)/2, degrees."""
     return tuple(120.0 * k + spread_deg * s for k in range(3) for s in (-1, 1))
@@ -76,6 +83,16 @@ class StewartGeometry:
         *_mass: kg. *_inertia: principal moments about the COM, kg m^2, body axes of
             reference_geometry.md (rod: z along the rod; crank: x along the crank).
         gravity: magnitude of g, m/s^2, acting along -z.
+        motor_angle_min_deg, motor_angle_max_deg: motor travel, degrees, theta_i wrapped to
+            [-180, 180); default +-90 (a 180 deg servo centred on the horizontal crank; the
+            paper manoeuvre uses -75 .. +58).
+        crank_joint_cone_deg: largest misalignment of the rod end at the crank tip, degrees:
+            its bolt is parallel to the motor shaft u_i, so this bounds asin |e_rod . u_i|, the
+            rod's tilt out of the crank's plane of rotation. Default 35 (a high-misalignment rod
+            end; 19.4 at home, 21.1 at most along the paper manoeuvre).
+        platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
+            socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
+            along the paper manoeuvre). All limits are checked by ``kinematics.limit_margins``.
     Raises:
         InvalidGeometryError: non-positive lengths or masses, wrong counts, or an inertia that
             fails the triangle inequality (use :func:`nearest_valid_principal_moments`).
@@ -100,6 +117,10 @@ class StewartGeometry:
     base_inertia: tuple[float, float, float] = (0.027, 0.027, 0.054)
     base_plate_radius: float = 0.20
     gravity: float = 9.81
+    motor_angle_min_deg: float = -90.0
+    motor_angle_max_deg: float = 90.0
+    crank_joint_cone_deg: float = 35.0
+    platform_joint_cone_deg: float = 40.0
 
     def __post_init__(self):
         for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
@@ -128,6 +149,14 @@ class StewartGeometry:
                     f"{name} = {moments.tolist()} kg m^2 fails the triangle inequality "
                     f"(no rigid body has it); the nearest valid one is {list(fix)}")
             object.__setattr__(self, name, tuple(float(v) for v in moments))
+        lo, hi = self.motor_angle_min_deg, self.motor_angle_max_deg
+        if not (np.isfinite(lo) and np.isfinite(hi) and -180.0 <= lo < hi <= 180.0):
+            raise InvalidGeometryError(
+                f"motor angle range [{lo}, {hi}] deg must satisfy -180 <= min < max <= 180")
+        for name in ("crank_joint_cone_deg", "platform_joint_cone_deg"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and 0.0 < value <= 90.0):
+                raise InvalidGeometryError(f"{name} must be in (0, 90] degrees, got {value}")
         # Assembly at home must be possible, or nothing downstream can work.
         from .kinematics import leg_reach_ratio  # local import: kinematics imports geometry
 
@@ -138,30 +167,39 @@ class StewartGeometry:
                 f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
                 f"|L|/sqrt(M^2+N^2) = {ratio[leg]:.4g} > 1; change the rod or crank length "
                 f"or the anchor radii")
+        from .kinematics import LIMITS, limit_margins
+
+        margins = limit_margins(self, X_HOME)
+        for name in LIMITS[1:]:
+            if np.any(margins[name] < 0):
+                leg = int(np.argmin(margins[name]))
+                raise InvalidGeometryError(
+                    f"the home pose violates the {name} limit of leg {leg} by "
+                    f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit")
 
     def replace(self, **changes) -> "StewartGeometry":
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
-    @property
+    @functools.cached_property
     def P_B(self) -> np.ndarray:
         """(6, 3) crank pivots (motor shaft points) P_i in the base frame, m."""
-        return _ring(self.base_radius, self.pivot_angles_deg, self.pivot_z)
+        return _frozen(_ring(self.base_radius, self.pivot_angles_deg, self.pivot_z))
 
-    @property
+    @functools.cached_property
     def p_E(self) -> np.ndarray:
         """(6, 3) platform joint centres p_i in the platform frame E, m."""
-        return _ring(self.platform_radius, self.platform_angles_deg)
+        return _frozen(_ring(self.platform_radius, self.platform_angles_deg))
 
-    @property
+    @functools.cached_property
     def d_B(self) -> np.ndarray:
         """(6, 3) unit crank directions d_i at theta_i = 0, base frame."""
-        return _ring(1.0, self.crank_angles_deg)
+        return _frozen(_ring(1.0, self.crank_angles_deg))
 
-    @property
+    @functools.cached_property
     def u_B(self) -> np.ndarray:
         """(6, 3) unit motor shaft axes u_i = d_i x z_hat; positive theta_i raises the crank tip."""
-        return np.cross(self.d_B, np.array([0.0, 0.0, 1.0]))
+        return _frozen(np.cross(self.d_B, np.array([0.0, 0.0, 1.0])))
 
     def crank_tips(self, theta) -> np.ndarray:
         """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base frame."""

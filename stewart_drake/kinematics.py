@@ -12,9 +12,12 @@ Per leg i (reference_geometry.md):
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
+
 import numpy as np
 
-from .errors import UnreachablePoseError
+from .errors import ForwardKinematicsError, InvalidConfigError, UnreachablePoseError
 from .geometry import StewartGeometry
 
 _Z = np.array([0.0, 0.0, 1.0])
@@ -220,14 +223,15 @@ def wrench_map_paper_eq18(geometry: StewartGeometry, x, theta=None) -> np.ndarra
     return np.swapaxes(tau1 * scale[..., None], -1, -2)
 
 
-def gravity_gradient(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+def gravity_gradient(geometry: StewartGeometry, x, theta=None, J=None) -> np.ndarray:
     """dV/dx of the potential energy of platform, cranks and rods, (..., 6) in N m/rad and N.
 
     V = g [m_p Z + sum_i (m_c z_crank,i + m_r z_rod,i)], COMs at the geometric centres: the
     crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
+    Pass theta and J (the Jacobian at x) when already computed, to save work.
     """
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    J = jacobian(geometry, x, theta)
+    J = jacobian(geometry, x, theta) if J is None else J
     g = geometry.gravity
     a = geometry.crank_length
     dtheta_coeff = g * a * np.cos(theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
@@ -248,7 +252,8 @@ def holding_torques(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     """
     theta = ik(geometry, x) if theta is None else theta
     J = jacobian(geometry, x, theta)
-    return np.linalg.solve(np.swapaxes(J, -1, -2), gravity_gradient(geometry, x, theta)[..., None])[..., 0]
+    grad = gravity_gradient(geometry, x, theta, J)
+    return np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
 
 
 def task_inertia(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
@@ -279,3 +284,457 @@ def task_inertia(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     M = M + geometry.rod_mass * np.einsum("...ijk,...ijl->...kl", V_com, V_com)
     M = M + geometry.rod_inertia[0] * np.einsum("...ijk,...ijl->...kl", W, W)
     return M
+
+
+# --- Forward kinematics, singularity measure and limits (issue 4) ------------------------------
+
+#: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
+#: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
+#: reachable poses of the tests are drawn below 200.
+DEFAULT_COND_THRESHOLD = 200.0
+
+#: Names of the per-leg limits, in the order reports list them. Margins are >= 0 inside a limit:
+#: ``closure`` 1 - |L|/sqrt(M^2+N^2) (dimensionless); the others in rad.
+LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
+
+
+@dataclass(frozen=True)
+class FkStatus:
+    """How a forward-kinematics solve ended (for a batch: all converged, worst case).
+
+    Attributes:
+        converged: True if max_i |ik(x)_i - theta_i| <= tol.
+        iterations: Newton steps taken (the largest over a batch).
+        residual: max_i |ik(x)_i - theta_i| at the returned pose, rad (largest over a batch).
+    """
+
+    converged: bool
+    iterations: int
+    residual: float
+
+
+def _wrap(angle):
+    """Angles wrapped to [-pi, pi), rad."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _fk_residual(geometry: StewartGeometry, x, theta_target):
+    """(theta of x, wrapped residual (n, 6), 2-norm (n,), max-abs (n,)); inf where unreachable."""
+    theta, _ = ik_unchecked(geometry, x)
+    r = _wrap(theta - theta_target)
+    bad = ~np.all(np.isfinite(r), axis=-1)
+    norm2 = np.where(bad, np.inf, np.linalg.norm(np.where(np.isfinite(r), r, 0.0), axis=-1))
+    norm_max = np.where(bad, np.inf, np.abs(np.where(np.isfinite(r), r, 0.0)).max(axis=-1))
+    return theta, r, norm2, norm_max
+
+
+def fk_unchecked(geometry: StewartGeometry, theta, x0=None, tol: float = 1e-12,
+                 max_iter: int = 50, max_halvings: int = 30):
+    """Vectorized forward kinematics without raising: Newton on the closed-form IK.
+
+    x_{k+1} = x_k - alpha J(x_k)^{-1} wrap(ik(x_k) - theta), alpha = 1, 1/2, 1/4, ... until the
+    iterate is reachable and ||ik(x) - theta||_2 decreases (backtracking). The IK branch is the
+    one of :func:`ik`, so ``fk(ik(x)) = x`` for every reachable x the iteration can reach.
+
+    Args:
+        geometry: the robot.
+        theta: (6,) or (..., 6) motor angles in rad (compared modulo 2 pi).
+        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose X_HOME.
+        tol: convergence threshold on max_i |ik(x)_i - theta_i|, rad.
+        max_iter: Newton steps at most per pose.
+        max_halvings: step halvings at most per Newton step.
+    Returns:
+        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m (the last iterate if failed).
+        converged: (...) bool.
+        iterations: (...) int, Newton steps taken.
+        residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
+    Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
+    """
+    from .geometry import X_HOME
+
+    theta = np.asarray(theta, dtype=float)
+    batch = theta.shape[:-1]
+    target = theta.reshape(-1, 6)
+    n = target.shape[0]
+    x = np.array(np.broadcast_to(X_HOME if x0 is None else np.asarray(x0, dtype=float),
+                                 batch + (6,)), dtype=float).reshape(-1, 6)
+    th_k, r, err2, errmax = _fk_residual(geometry, x, target)
+    iterations = np.zeros(n, dtype=int)
+    failed = ~np.isfinite(err2)                      # the initial pose is unreachable
+    for _ in range(max_iter):
+        idx = np.flatnonzero(~failed & (errmax > tol))
+        if idx.size == 0:
+            break
+        J = jacobian(geometry, x[idx], th_k[idx])
+        finite = np.all(np.isfinite(J), axis=(-2, -1))
+        J = np.where(finite[:, None, None], J, np.eye(6))
+        try:
+            dx = np.linalg.solve(J, r[idx][..., None])[..., 0]
+        except np.linalg.LinAlgError:                # a singular J somewhere in the batch
+            dx = np.einsum("nij,nj->ni", np.linalg.pinv(J), r[idx])
+        ok_dir = finite & np.all(np.isfinite(dx), axis=-1)
+        iterations[idx] += 1
+        alpha = np.ones(idx.size)
+        pending = ok_dir.copy()
+        accepted = np.zeros(idx.size, dtype=bool)
+        for _ in range(max_halvings + 1):
+            p = np.flatnonzero(pending)
+            if p.size == 0:
+                break
+            cand = x[idx[p]] - alpha[p, None] * dx[p]
+            th_c, r_c, e2_c, emax_c = _fk_residual(geometry, cand, target[idx[p]])
+            good = np.isfinite(e2_c) & ((e2_c < err2[idx[p]]) | (emax_c <= tol))
+            g = p[good]
+            x[idx[g]], th_k[idx[g]], r[idx[g]] = cand[good], th_c[good], r_c[good]
+            err2[idx[g]], errmax[idx[g]] = e2_c[good], emax_c[good]
+            accepted[g] = True
+            pending[g] = False
+            alpha[p[~good]] *= 0.5
+        failed[idx[~accepted]] = True                # no descent step: stalled or singular
+    converged = errmax <= tol
+    return (x.reshape(batch + (6,)), converged.reshape(batch), iterations.reshape(batch),
+            errmax.reshape(batch))
+
+
+def fk(geometry: StewartGeometry, theta, x0=None, tol: float = 1e-12,
+       max_iter: int = 50) -> tuple[np.ndarray, FkStatus]:
+    """Forward kinematics: the platform pose whose closed-form IK gives the motor angles theta.
+
+    Args:
+        geometry: the robot.
+        theta: (6,) or (..., 6) motor angles in rad.
+        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose. The solution is the
+            assembly mode Newton reaches from x0 (from home: the robot's working mode).
+        tol: max_i |ik(x)_i - theta_i| at convergence, rad.
+        max_iter: Newton steps at most.
+    Returns:
+        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m.
+        status: :class:`FkStatus` (for a batch: all converged, largest iterations and residual).
+    Raises:
+        ForwardKinematicsError: some pose did not converge (the first one is named, with its
+            residual); also when x0 is unreachable or every step leads out of the workspace.
+    Source: Newton on :func:`ik` with the analytic :func:`jacobian`, backtracking on
+        ||ik(x) - theta|| (see :func:`fk_unchecked`).
+    """
+    x, converged, iterations, residual = fk_unchecked(geometry, theta, x0, tol, max_iter)
+    if not np.all(converged):
+        k = int(np.argmax(~converged.reshape(-1)))
+        th = np.asarray(theta, dtype=float).reshape(-1, 6)[k]
+        if not np.isfinite(residual.reshape(-1)[k]):
+            raise ForwardKinematicsError(
+                f"forward kinematics cannot start (batch index {k}): the initial pose x0 is "
+                f"unreachable; give a reachable x0 (default: the home pose)")
+        raise ForwardKinematicsError(
+            f"forward kinematics did not converge for motor angles "
+            f"[{', '.join(f'{v:.6g}' for v in th)}] rad (batch index {k}): residual "
+            f"{residual.reshape(-1)[k]:.3g} rad after {iterations.reshape(-1)[k]} Newton steps "
+            f"(tol {tol:g}). Give an initial pose x0 closer to the solution, raise max_iter or "
+            f"tol, or check that the angles come from a reachable pose.")
+    status = FkStatus(bool(np.all(converged)), int(iterations.max(initial=0)),
+                      float(residual.max(initial=0.0)))
+    return x, status
+
+
+def _singular_values_of(J: np.ndarray) -> np.ndarray:
+    """(..., 6) descending singular values; NaN rows where J has NaN, inf where J has inf."""
+    flat = J.reshape(-1, 6, 6)
+    out = np.full(flat.shape[:1] + (6,), np.nan)
+    nan = np.any(np.isnan(flat), axis=(-2, -1))
+    inf = ~nan & np.any(np.isinf(flat), axis=(-2, -1))
+    ok = ~nan & ~inf
+    if np.any(ok):
+        out[ok] = np.linalg.svd(flat[ok], compute_uv=False)
+    out[inf, 0] = np.inf                         # a rod orthogonal to its crank-tip velocity
+    out[inf, 1:] = np.nan
+    return out.reshape(J.shape[:-2] + (6,))
+
+
+def singular_values(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+    """Singular values of the Jacobian J = d theta / d x, (..., 6) descending.
+
+    Args:
+        x: (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        (..., 6) in SI units (rows rad, columns rad or m mixed); NaN where x is unreachable;
+        [inf, NaN, ...] where a rod is orthogonal to its crank-tip velocity (J unbounded).
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    return _singular_values_of(jacobian(geometry, x, theta))
+
+
+def singularity_measures(geometry: StewartGeometry, x, theta=None):
+    """How close pose(s) x are to a singularity: cond(J) and sigma_min(J^{-1}) = 1/sigma_max(J).
+
+    cond(J) = sigma_max / sigma_min grows without bound at both kinds of singularity of this
+    parallel robot: where a rod becomes orthogonal to its crank-tip velocity (sigma_max(J) -> inf,
+    the edge of the workspace, where the platform cannot be pushed in some direction: the
+    smallest singular value of J^{-1} -> 0) and where the rods' wrenches become dependent
+    (sigma_min(J) -> 0, the platform gains an uncontrolled motion). When every leg reaches its
+    dead point at once (pure heave at the top or bottom of the workspace) the rows of J grow
+    together and cond(J) stays finite (22 at the bottom edge): watch sigma_min_inv as well.
+
+    Args:
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        cond: (...) condition number of J (SI units, so it weights 1 rad as 1 m), dimensionless;
+            inf at a singularity, NaN where x is unreachable.
+        sigma_min_inv: (...) 1/sigma_max(J), the smallest singular value of J^{-1}, in
+            (rad or m) per rad; 0 at a rod-crank singularity, NaN where unreachable.
+    """
+    sv = singular_values(geometry, x, theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
+        inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])
+    return cond, inv
+
+
+@lru_cache(maxsize=32)
+def _home_rod_in_platform(geometry: StewartGeometry) -> np.ndarray:
+    """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
+    from .geometry import X_HOME
+
+    theta = ik(geometry, X_HOME)
+    q_B, _ = platform_joints(geometry, X_HOME)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    return e_l @ rotation_rpy(X_HOME[:3])            # R^T e_l, row-wise
+
+
+def joint_angles(geometry: StewartGeometry, x, theta=None) -> dict:
+    """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
+
+    Returns a dict:
+        ``motor_angle``: theta_i wrapped to [-pi, pi).
+        ``crank_joint``: misalignment of the rod end at the crank tip, asin |e_l . u_i|. The rod
+            end's bolt is parallel to the motor shaft u_i, so the rod turns freely in the crank's
+            plane of rotation and this angle is its tilt out of that plane (19.4 deg at home).
+        ``platform_joint``: angle between the rod and the axis of its ball socket on the
+            platform; each socket is mounted along its rod's home direction (0 at home).
+    NaN where a leg cannot close.
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    q_B, _ = platform_joints(geometry, x)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    R = rotation_rpy(x[..., :3])
+    e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
+    cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
+    return {
+        "motor_angle": _wrap(theta),
+        "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
+        "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
+    }
+
+
+def limit_margins(geometry: StewartGeometry, x, theta=None, ratio=None) -> dict:
+    """Distance of pose(s) x to every per-leg limit; >= 0 inside, < 0 violated, NaN if no closure.
+
+    Args:
+        x: (6,) or (..., 6) poses [rad, m].
+        theta, ratio: optional outputs of :func:`ik_unchecked` for x (saves one IK).
+    Returns:
+        dict name -> (..., 6) for the names of :data:`LIMITS`:
+        ``closure`` = 1 - |L|/sqrt(M^2+N^2) (dimensionless, < 0: the leg cannot close);
+        ``motor_angle`` = distance of theta_i to [motor_angle_min_deg, motor_angle_max_deg], rad;
+        ``crank_joint`` = crank_joint_cone_deg - misalignment, rad;
+        ``platform_joint`` = platform_joint_cone_deg - socket angle, rad
+        (angles of :func:`joint_angles`; limits are fields of :class:`StewartGeometry`).
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None or ratio is None:
+        theta, ratio = ik_unchecked(geometry, x)
+    angles = joint_angles(geometry, x, theta)
+    lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
+    m = angles["motor_angle"]
+    return {
+        "closure": 1.0 - np.abs(ratio),
+        "motor_angle": np.minimum(m - lo, hi - m),
+        "crank_joint": np.deg2rad(geometry.crank_joint_cone_deg) - angles["crank_joint"],
+        "platform_joint": np.deg2rad(geometry.platform_joint_cone_deg) - angles["platform_joint"],
+    }
+
+
+def _reachable_from_margins(margins: dict) -> np.ndarray:
+    ok = None
+    for name in LIMITS:
+        leg_ok = np.all(margins[name] >= 0.0, axis=-1)     # NaN counts as violated
+        ok = leg_ok if ok is None else ok & leg_ok
+    return ok
+
+
+@dataclass(frozen=True)
+class LimitViolation:
+    """One leg outside one limit.
+
+    Attributes:
+        leg: 0..5, reference_geometry.md order.
+        limit: a name of :data:`LIMITS`.
+        margin: < 0, in the limit's unit (rad; dimensionless for ``closure``).
+        t: time along a trajectory in s, or None.
+    """
+
+    leg: int
+    limit: str
+    margin: float
+    t: float | None = None
+
+    def __str__(self) -> str:
+        where = "" if self.t is None else f" at t = {self.t:.4g} s"
+        amount = (f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)" if self.limit == "closure"
+                  else f"{np.rad2deg(-self.margin):.3g} deg")
+        return f"leg {self.leg} exceeds its {self.limit} limit by {amount}{where}"
+
+
+@dataclass(frozen=True)
+class Reachability:
+    """Result of :func:`is_reachable`; truthy iff every pose is reachable.
+
+    Attributes:
+        reachable: (...) bool, every leg inside every limit of :data:`LIMITS`.
+        margins: dict name -> (..., 6), see :func:`limit_margins`.
+        theta: (..., 6) motor angles in rad (NaN where a leg cannot close).
+    """
+
+    reachable: np.ndarray
+    margins: dict
+    theta: np.ndarray
+
+    def __bool__(self) -> bool:
+        return bool(np.all(self.reachable))
+
+    def violations(self, index: int = 0) -> list:
+        """Violated limits of pose ``index`` of the flattened batch, worst first.
+
+        Returns:
+            list of :class:`LimitViolation`; only ``closure`` for a leg that cannot close.
+        """
+        out = []
+        for name in LIMITS:
+            m = np.asarray(self.margins[name], dtype=float).reshape(-1, 6)[index]
+            for leg in range(6):
+                if name != "closure" and not np.isfinite(m[leg]):
+                    continue                          # the leg does not close: reported above
+                if not m[leg] >= 0.0:
+                    out.append(LimitViolation(leg, name, float(m[leg])))
+        return sorted(out, key=lambda v: v.margin)
+
+
+def is_reachable(geometry: StewartGeometry, x) -> Reachability:
+    """Check pose(s) x against loop closure, motor range and ball-joint cones, before a move.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        x: (6,) or (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
+    Returns:
+        :class:`Reachability`: ``bool(result)``, per-pose ``reachable``, per-leg ``margins`` and
+        ``violations()`` naming the leg, the limit and by how much.
+    """
+    x = np.asarray(x, dtype=float)
+    theta, ratio = ik_unchecked(geometry, x)
+    margins = limit_margins(geometry, x, theta, ratio)
+    return Reachability(_reachable_from_margins(margins), margins, theta)
+
+
+@dataclass(frozen=True)
+class TrajectoryReport:
+    """Result of :func:`validate_trajectory`.
+
+    Attributes:
+        ok: every sample inside every limit and below the condition-number threshold.
+        min_margin: limit name -> smallest margin over samples and legs (rad; 1 for closure).
+        min_margin_leg, min_margin_t: limit name -> leg and time (s) of that smallest margin.
+        first_violation: the earliest :class:`LimitViolation` (worst leg at that time) or None.
+        max_cond, max_cond_t: largest cond(J) along the path and its time (s).
+        first_singular_t: first time (s) with cond(J) > cond_threshold, or None.
+        min_sigma_min_inv: smallest 1/sigma_max(J) along the path ((rad or m) per rad).
+        cond_threshold: the threshold used.
+    """
+
+    ok: bool
+    min_margin: dict
+    min_margin_leg: dict
+    min_margin_t: dict
+    first_violation: LimitViolation | None
+    max_cond: float
+    max_cond_t: float
+    first_singular_t: float | None
+    min_sigma_min_inv: float
+    cond_threshold: float
+
+    def summary(self) -> str:
+        """Human-readable lines: verdict, each limit's smallest margin, singularity."""
+        lines = [("OK" if self.ok else "REFUSED") + ": trajectory validated"]
+        for name in LIMITS:
+            m = self.min_margin[name]
+            unit = f"{m:.4g}" if name == "closure" else f"{np.rad2deg(m):.4g} deg"
+            lines.append(f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
+                         f"t = {self.min_margin_t[name]:.4g} s)")
+        lines.append(f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
+                     f"(threshold {self.cond_threshold:g})")
+        if self.first_singular_t is not None:
+            lines.append(f"  closer to singularity than the threshold first at "
+                         f"t = {self.first_singular_t:.4g} s")
+        if self.first_violation is not None:
+            lines.append(f"  first violation: {self.first_violation}")
+        return "\n".join(lines)
+
+
+def validate_trajectory(geometry: StewartGeometry, t, x,
+                        cond_threshold: float = DEFAULT_COND_THRESHOLD,
+                        raise_unreachable: bool = True) -> TrajectoryReport:
+    """Validate a sampled path before running it: limits, margins and nearness to singularity.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        t: (n,) sample times in s, increasing.
+        x: (n, 6) poses [phi, theta, psi, X, Y, Z] in rad and m. Only the samples are checked:
+            sample finer than the shortest feature of the path.
+        cond_threshold: cond(J) above this counts as too close to a singularity.
+        raise_unreachable: raise on a leg that cannot close (else report it as ``closure``).
+    Returns:
+        :class:`TrajectoryReport` (``summary()`` prints it).
+    Raises:
+        UnreachablePoseError: with ``raise_unreachable``, naming the first time, its worst leg
+            and ratio.
+        InvalidConfigError: t and x of mismatched shapes, or t not increasing.
+    """
+    t = np.asarray(t, dtype=float).reshape(-1)
+    x = np.asarray(x, dtype=float)
+    if x.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+                                 f"t {t.shape} and x {x.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
+    theta, ratio = ik_unchecked(geometry, x)
+    closed = np.abs(ratio) <= 1.0
+    if raise_unreachable and not np.all(closed):
+        k = int(np.argmax(~np.all(closed, axis=1)))
+        leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
+        raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
+    margins = limit_margins(geometry, x, theta, ratio)
+    cond, inv = singularity_measures(geometry, x, theta)
+    min_margin, min_leg, min_t = {}, {}, {}
+    first = None
+    for name in LIMITS:
+        m = np.where(np.isnan(margins[name]), -np.inf, margins[name])
+        k, leg = np.unravel_index(int(np.argmin(m)), m.shape)
+        min_margin[name], min_leg[name], min_t[name] = float(m[k, leg]), int(leg), float(t[k])
+        bad = np.any(m < 0, axis=1)
+        if np.any(bad):
+            kb = int(np.argmax(bad))
+            if first is None or t[kb] < first.t:
+                lb = int(np.argmin(m[kb]))
+                first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
+    cond_f = np.where(np.isnan(cond), np.inf, cond)
+    over = cond_f > cond_threshold
+    kc = int(np.argmax(cond_f))
+    return TrajectoryReport(
+        ok=first is None and not np.any(over), min_margin=min_margin, min_margin_leg=min_leg,
+        min_margin_t=min_t, first_violation=first, max_cond=float(cond_f[kc]),
+        max_cond_t=float(t[kc]), first_singular_t=float(t[int(np.argmax(over))]) if np.any(over)
+        else None, min_sigma_min_inv=float(np.nanmin(inv)) if np.any(np.isfinite(inv)) else np.nan,
+        cond_threshold=float(cond_threshold))
