@@ -1,0 +1,430 @@
+"""Workspace of states and torques: which poses the robot reaches, how well, and at what torque.
+
+Every pose of a grid is classified at once (numpy, no Python loop per pose): loop closure, motor
+travel and ball-joint cones (``kinematics.limit_margins``), nearness to singularity (cond(J)) and
+the static motor torques that hold it against gravity (``kinematics.holding_torques``, virtual
+work over the platform, cranks and rods). Large grids are split in chunks over processes.
+
+Grids (all poses [phi, theta, psi, X, Y, Z] in rad and m, base frame of reference_geometry.md):
+    translation box at fixed orientation -> reachable volume (m^3), extent per axis, slices;
+    orientation box (roll, pitch, yaw) at a fixed position -> extent per angle;
+    tilt about every horizontal axis vs height -> the largest tilt reachable in every direction.
+The ``stewart-drake workspace`` command (:func:`workspace_cli`) writes them as PNG, npz and CSV.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+import tempfile
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from . import kinematics
+from .errors import InvalidConfigError
+from .geometry import X_HOME, StewartGeometry
+
+#: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
+#: that no reachable pose lies on the boundary, so volumes and extents are not clipped).
+TRANSLATION_BOX = ((-0.25, 0.25), (-0.25, 0.25), (0.10, 0.50))   # X, Y, Z in m
+ORIENTATION_BOX = ((-1.0, 1.0), (-1.0, 1.0), (-1.3, 1.3))        # phi, theta, psi in rad
+#: Keys of :func:`classify` results, each (...,) or (..., 6).
+FIELDS = ("reachable", "usable", "cond", "sigma_min_inv", "torques", "max_torque", "bottleneck")
+
+
+def classify(geometry: StewartGeometry, x,
+             cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD) -> dict:
+    """Classify pose(s) x: reachable, conditioning and static holding torques.
+
+    Args:
+        geometry: the robot (its limit fields set the ranges).
+        x: (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
+        cond_threshold: cond(J) above this is "too close to a singularity".
+    Returns:
+        dict of arrays:
+        ``reachable`` (...) bool, every leg inside every limit of ``kinematics.LIMITS``;
+        ``usable`` (...) bool, reachable and cond(J) <= cond_threshold;
+        ``cond`` (...) cond(J), NaN where a leg cannot close;
+        ``sigma_min_inv`` (...) 1/sigma_max(J), (rad or m) per rad;
+        ``torques`` (..., 6) static holding torques in N m, NaN where not reachable;
+        ``max_torque`` (...) max_i |T_i| in N m, NaN where not reachable;
+        ``bottleneck`` (...) int, the motor with the largest |T_i|, -1 where not reachable.
+    """
+    x = np.asarray(x, dtype=float)
+    theta, ratio = kinematics.ik_unchecked(geometry, x)
+    margins = kinematics.limit_margins(geometry, x, theta, ratio)
+    reachable = kinematics._reachable_from_margins(margins)
+    cond, inv = kinematics.singularity_measures(geometry, x, theta)
+    torques = np.full(x.shape[:-1] + (6,), np.nan)
+    ok = reachable & np.isfinite(cond)
+    if np.any(ok):
+        torques[ok] = kinematics.holding_torques(geometry, x[ok], theta[ok])
+    abs_t = np.abs(torques)
+    max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
+    bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
+    return {"reachable": reachable, "usable": reachable & (cond <= cond_threshold), "cond": cond,
+            "sigma_min_inv": inv, "torques": torques, "max_torque": max_torque,
+            "bottleneck": bottleneck}
+
+
+def _classify_chunk(task):
+    geometry, x, cond_threshold = task
+    return classify(geometry, x, cond_threshold)
+
+
+def sweep(geometry: StewartGeometry, x, cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD,
+          jobs: int = 1, chunk: int = 20000, progress=None) -> dict:
+    """:func:`classify` a large batch in chunks, over ``jobs`` processes.
+
+    Args:
+        x: (..., 6) poses [rad, m].
+        jobs: processes; 1 runs here, 0 one per core. Workers are spawned (not forked), so the
+            caller may hold Drake objects and threads.
+        chunk: poses per task.
+        progress: optional object with ``update(n)`` (a tqdm bar), called per finished chunk.
+    Returns:
+        dict like :func:`classify`'s, arrays shaped like x's batch.
+    Raises:
+        InvalidConfigError: jobs < 0 or chunk < 1.
+    """
+    if jobs < 0 or chunk < 1:
+        raise InvalidConfigError(f"sweep needs jobs >= 0 and chunk >= 1, got {jobs}, {chunk}")
+    x = np.asarray(x, dtype=float)
+    batch = x.shape[:-1]
+    flat = x.reshape(-1, 6)
+    tasks = [(geometry, flat[i:i + chunk], cond_threshold) for i in range(0, len(flat), chunk)]
+    jobs = jobs or os.cpu_count() or 1
+    parts = [None] * len(tasks)
+    if jobs == 1 or len(tasks) == 1:
+        for k, task in enumerate(tasks):
+            parts[k] = _classify_chunk(task)
+            if progress is not None:
+                progress.update(len(task[1]))
+    else:
+        with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)),
+                                 mp_context=get_context("spawn")) as pool:
+            futures = {pool.submit(_classify_chunk, task): k for k, task in enumerate(tasks)}
+            for future in as_completed(futures):
+                k = futures[future]
+                parts[k] = future.result()
+                if progress is not None:
+                    progress.update(len(tasks[k][1]))
+    out = {}
+    for key in FIELDS:
+        joined = np.concatenate([p[key] for p in parts], axis=0)
+        out[key] = joined.reshape(batch + joined.shape[1:])
+    return out
+
+
+def grid_axes(box, resolution: int) -> tuple:
+    """Evenly spaced axes, one (resolution,) array per (low, high) of ``box``."""
+    if resolution < 2:
+        raise InvalidConfigError(f"resolution must be >= 2 points per axis, got {resolution}")
+    return tuple(np.linspace(lo, hi, resolution) for lo, hi in box)
+
+
+def translation_grid(axes, orientation=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """Poses (nx, ny, nz, 6) on the X, Y, Z axes (m) at a fixed orientation (rad)."""
+    P = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    x = np.empty(P.shape[:-1] + (6,))
+    x[..., :3] = orientation
+    x[..., 3:] = P
+    return x
+
+
+def orientation_grid(axes, position=tuple(X_HOME[3:])) -> np.ndarray:
+    """Poses (n_phi, n_theta, n_psi, 6) on roll, pitch, yaw axes (rad) at a fixed position (m)."""
+    A = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1)
+    x = np.empty(A.shape[:-1] + (6,))
+    x[..., :3] = A
+    x[..., 3:] = position
+    return x
+
+
+def tilt_grid(heights, tilts, n_azimuth: int = 24) -> np.ndarray:
+    """Poses (n_heights, n_tilts, n_azimuth, 6) at (0, 0, Z), tilted about horizontal axes.
+
+    Tilt alpha (rad) about the axis (cos a, sin a, 0), a = 2 pi k / n_azimuth: the platform normal
+    leans by alpha, with no twist; converted to roll-pitch-yaw (R = Rz Ry Rx).
+    """
+    Z, al, az = np.meshgrid(np.asarray(heights, float), np.asarray(tilts, float),
+                            2 * np.pi * np.arange(n_azimuth) / n_azimuth, indexing="ij")
+    u = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
+    K = kinematics._skew(u)
+    s, c = np.sin(al)[..., None, None], np.cos(al)[..., None, None]
+    R = np.eye(3) + s * K + (1 - c) * (K @ K)
+    x = np.zeros(Z.shape + (6,))
+    x[..., 0] = np.arctan2(R[..., 2, 1], R[..., 2, 2])
+    x[..., 1] = -np.arcsin(np.clip(R[..., 2, 0], -1.0, 1.0))
+    x[..., 2] = np.arctan2(R[..., 1, 0], R[..., 0, 0])
+    x[..., 5] = Z
+    return x
+
+
+def reachable_volume(axes, mask) -> float:
+    """Volume of the set ``mask`` (nx, ny, nz) on a grid with ``axes``: count x cell volume.
+
+    Units: the product of the axes' units (m^3 for a translation grid, rad^3 for orientation).
+    The error is of the order of the boundary's area times half a cell.
+    """
+    cell = np.prod([a[1] - a[0] for a in axes])
+    return float(np.count_nonzero(mask) * cell)
+
+
+def extents(axes, mask) -> np.ndarray:
+    """(3, 2) [min, max] per axis of the grid points in ``mask``; NaN if the set is empty."""
+    out = np.full((len(axes), 2), np.nan)
+    if not np.any(mask):
+        return out
+    idx = np.nonzero(mask)
+    for d, a in enumerate(axes):
+        out[d] = a[idx[d].min()], a[idx[d].max()]
+    return out
+
+
+def max_tilt_vs_height(tilts, mask) -> tuple[np.ndarray, np.ndarray]:
+    """Largest tilt (rad) per height from a :func:`tilt_grid` classification ``mask``.
+
+    Returns:
+        every_direction: (n_heights,) largest alpha such that every tilt <= alpha, about every
+            axis of the grid, is reachable (NaN if even alpha = 0 is not).
+        some_direction: (n_heights,) largest alpha reachable about at least one axis (contiguous
+            from 0 along that axis).
+    """
+    tilts = np.asarray(tilts, dtype=float)
+    all_dirs = np.cumprod(np.all(mask, axis=2), axis=1).astype(bool)       # (h, n_tilt)
+    per_dir = np.cumprod(mask, axis=1).astype(bool)                         # (h, n_tilt, az)
+    n_every = all_dirs.sum(axis=1)
+    n_some = per_dir.sum(axis=1).max(axis=1)
+    pick = lambda n: np.where(n > 0, tilts[np.maximum(n - 1, 0)], np.nan)  # noqa: E731
+    return pick(n_every), pick(n_some)
+
+
+def summarize_dynamic_torques(geometry: StewartGeometry, t, x, T) -> dict:
+    """Peak and RMS motor torques of a logged run, against the static holding torques.
+
+    Args:
+        t: (n,) times in s; x: (n, 6) measured poses [rad, m]; T: (n, 6) applied torques in N m.
+    Returns:
+        dict: ``peak`` (6,) max |T_i| in N m, ``peak_t`` (6,) its time in s, ``rms`` (6,) N m,
+        ``bottleneck`` the motor with the largest peak, ``static_peak`` (6,) max |holding torque|
+        along the same poses (N m), ``dynamic_over_static`` (6,) peak / static_peak.
+    Raises:
+        InvalidConfigError: mismatched shapes. UnreachablePoseError: a logged pose unreachable.
+    """
+    t = np.asarray(t, dtype=float).reshape(-1)
+    x, T = np.asarray(x, dtype=float), np.asarray(T, dtype=float)
+    if x.shape != (t.size, 6) or T.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(f"need t (n,), x (n, 6), T (n, 6); got {t.shape}, {x.shape}, "
+                                 f"{T.shape}")
+    k = np.argmax(np.abs(T), axis=0)
+    peak = np.abs(T)[k, np.arange(6)]
+    static_peak = np.abs(kinematics.holding_torques(geometry, x)).max(axis=0)
+    return {"peak": peak, "peak_t": t[k], "rms": np.sqrt(np.mean(T * T, axis=0)),
+            "bottleneck": int(np.argmax(peak)), "static_peak": static_peak,
+            "dynamic_over_static": peak / static_peak}
+
+
+# --- outputs -------------------------------------------------------------------------------------
+
+def _atomic_write(path: Path, write) -> None:
+    """Call write(binary file) on a temporary file next to ``path``, then os.replace it."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)                # mkstemp makes 0600; keep the usual mode
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+
+
+def _write_csv(path: Path, header, rows) -> None:
+    text = io.StringIO()
+    w = csv.writer(text)
+    w.writerow(header)
+    w.writerows(rows)
+    _atomic_write(path, lambda f: f.write(text.getvalue().encode()))
+
+
+def _save_figure(fig, path: Path) -> None:
+    _atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
+
+
+def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
+    """Map of max |T_i| on one slice with the reachable and usable boundaries."""
+    sl = (slice(None),) * 3
+    sl = list(sl)
+    sl[index[0]] = index[1]
+    sl = tuple(sl)
+    tmax = result["max_torque"][sl].T
+    mesh = ax.pcolormesh(h_axis, v_axis, np.ma.masked_invalid(tmax), shading="auto",
+                         cmap="viridis")
+    for key, style in (("reachable", "-"), ("usable", "--")):
+        m = result[key][sl].T.astype(float)
+        if 0 < m.sum() < m.size:
+            ax.contour(h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style,
+                       linewidths=1.0)
+    ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
+    ax.set_title(title, fontsize=9)
+    ax.set_aspect("equal")
+    return mesh
+
+
+def _plots(out: Path, taxes, trans, oaxes, orient, heights, tilt_every, tilt_some, cond_threshold):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
+    iy = int(np.argmin(np.abs(taxes[1])))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    m = _torque_slice(axes[0], taxes[0], taxes[1], trans, (2, iz), ("X [m]", "Y [m]"),
+                      f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation")
+    fig.colorbar(m, ax=axes[0], shrink=0.8)
+    m = _torque_slice(axes[1], taxes[0], taxes[2], trans, (1, iy), ("X [m]", "Z [m]"),
+                      f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m")
+    fig.colorbar(m, ax=axes[1], shrink=0.8)
+    axes[2].plot(heights, np.rad2deg(tilt_every), "o-", ms=3, label="in every direction")
+    axes[2].plot(heights, np.rad2deg(tilt_some), "s--", ms=3, label="in some direction")
+    axes[2].set_xlabel("Z [m]")
+    axes[2].set_ylabel("max tilt [deg]")
+    axes[2].set_title("reachable tilt at (0, 0, Z)", fontsize=9)
+    axes[2].grid(alpha=0.3)
+    axes[2].legend(fontsize=8)
+    fig.suptitle(f"Workspace of states and holding torques (solid: reachable; dashed: "
+                 f"cond(J) <= {cond_threshold:g})", fontsize=10)
+    fig.tight_layout()
+    _save_figure(fig, out / "workspace.png")
+    plt.close(fig)
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
+    b = trans["bottleneck"][:, :, iz].astype(float).T
+    b[b < 0] = np.nan
+    m = axes[0].pcolormesh(taxes[0], taxes[1], np.ma.masked_invalid(b), shading="auto",
+                           cmap=plt.get_cmap("tab10", 6), vmin=-0.5, vmax=5.5)
+    fig.colorbar(m, ax=axes[0], ticks=range(6), label="motor with max |T_i|")
+    axes[0].set_title(f"bottleneck motor, Z = {taxes[2][iz]:.3f} m", fontsize=9)
+    axes[0].set_xlabel("X [m]")
+    axes[0].set_ylabel("Y [m]")
+    axes[0].set_aspect("equal")
+    ipsi = int(np.argmin(np.abs(oaxes[2])))
+    m = _torque_slice(axes[1], np.rad2deg(oaxes[0]), np.rad2deg(oaxes[1]), orient, (2, ipsi),
+                      ("roll phi [deg]", "pitch theta [deg]"),
+                      f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg")
+    fig.colorbar(m, ax=axes[1], shrink=0.8)
+    fig.tight_layout()
+    _save_figure(fig, out / "bottleneck_and_orientation.png")
+    plt.close(fig)
+
+
+def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int = 1,
+                      cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD,
+                      progress=None, n_azimuth: int = 24) -> dict:
+    """Run the three standard sweeps and reduce them to figures.
+
+    Args:
+        resolution: grid points per axis of each box (translation: resolution^3 poses).
+        jobs, progress: see :func:`sweep`.
+    Returns:
+        dict with the grids (``translation_axes``, ``orientation_axes``, ``heights``, ``tilts``),
+        the classifications (``translation``, ``orientation``, ``tilt``: dicts of :func:`classify`)
+        and the figures: ``volume_m3`` and ``usable_volume_m3`` (home orientation),
+        ``extent_xyz_m`` (3, 2), ``extent_rpy_rad`` (3, 2) at the home position,
+        ``tilt_every_rad`` / ``tilt_some_rad`` (n_heights,), ``max_holding_torque_Nm`` over the
+        reachable translation box and ``bottleneck_share`` (6,) fraction of those poses where
+        each motor carries the largest |T_i|.
+    """
+    taxes = grid_axes(TRANSLATION_BOX, resolution)
+    oaxes = grid_axes(ORIENTATION_BOX, resolution)
+    heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
+    tilts = np.linspace(0.0, np.deg2rad(60.0), resolution)
+    run = lambda x: sweep(geometry, x, cond_threshold, jobs=jobs, progress=progress)  # noqa: E731
+    trans = run(translation_grid(taxes))
+    orient = run(orientation_grid(oaxes))
+    tilt = run(tilt_grid(heights, tilts, n_azimuth))
+    every, some = max_tilt_vs_height(tilts, tilt["reachable"])
+    b = trans["bottleneck"][trans["reachable"]]
+    share = np.bincount(b[b >= 0], minlength=6) / max(b.size, 1)
+    return {
+        "translation_axes": taxes, "orientation_axes": oaxes, "heights": heights, "tilts": tilts,
+        "translation": trans, "orientation": orient, "tilt": tilt,
+        "volume_m3": reachable_volume(taxes, trans["reachable"]),
+        "usable_volume_m3": reachable_volume(taxes, trans["usable"]),
+        "extent_xyz_m": extents(taxes, trans["reachable"]),
+        "extent_rpy_rad": extents(oaxes, orient["reachable"]),
+        "tilt_every_rad": every, "tilt_some_rad": some,
+        "max_holding_torque_Nm": float(np.nanmax(trans["max_torque"])),
+        "bottleneck_share": share, "cond_threshold": float(cond_threshold),
+    }
+
+
+def workspace_cli(args) -> int:
+    """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV to args.out.
+
+    Args (argparse namespace): out (folder), resolution (points per axis), jobs (0: one per
+        core), no_progress (hide the tqdm bar).
+    Writes (each atomically: a temporary file, then os.replace):
+        workspace.npz (grids and classifications), summary.csv (figure, value, unit),
+        tilt_vs_height.csv, workspace.png (torque maps + tilt vs height),
+        bottleneck_and_orientation.png.
+    Returns:
+        0.
+    Raises:
+        InvalidConfigError: resolution < 2 or jobs < 0.
+    """
+    from tqdm import tqdm
+
+    if args.resolution < 2 or args.jobs < 0:
+        raise InvalidConfigError(
+            f"--resolution must be >= 2 and --jobs >= 0 (got {args.resolution}, {args.jobs})")
+    geometry = StewartGeometry()
+    out = Path(args.out)
+    n = args.resolution
+    total = 2 * n ** 3 + n * n * 24
+    with tqdm(total=total, unit="pose", disable=args.no_progress, desc="workspace") as bar:
+        s = workspace_summary(geometry, n, args.jobs, progress=bar)
+    arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
+              "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
+              "orientation_theta": s["orientation_axes"][1],
+              "orientation_psi": s["orientation_axes"][2], "heights": s["heights"],
+              "tilts": s["tilts"], "tilt_every_rad": s["tilt_every_rad"],
+              "tilt_some_rad": s["tilt_some_rad"]}
+    for grid in ("translation", "orientation", "tilt"):
+        for key in FIELDS:
+            arrays[f"{grid}_{key}"] = s[grid][key]
+    _atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
+    ext, rpy = s["extent_xyz_m"], s["extent_rpy_rad"]
+    rows = [("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
+            ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
+            ("cond_threshold", f"{s['cond_threshold']:g}", "1")]
+    rows += [(f"extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
+             for d, a in enumerate("XYZ") for j, side in enumerate(("min", "max"))]
+    rows += [(f"extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
+             for d, a in enumerate(("phi", "theta", "psi")) for j, side in enumerate(("min", "max"))]
+    rows.append(("max_holding_torque", f"{s['max_holding_torque_Nm']:.6g}", "N m"))
+    rows += [(f"bottleneck_share_motor_{i}", f"{v:.4g}", "1")
+             for i, v in enumerate(s["bottleneck_share"])]
+    _write_csv(out / "summary.csv", ("figure", "value", "unit"), rows)
+    _write_csv(out / "tilt_vs_height.csv", ("Z_m", "tilt_every_direction_deg",
+                                            "tilt_some_direction_deg"),
+               [(f"{z:.6g}", f"{np.rad2deg(e):.6g}", f"{np.rad2deg(m):.6g}")
+                for z, e, m in zip(s["heights"], s["tilt_every_rad"], s["tilt_some_rad"])])
+    _plots(out, s["translation_axes"], s["translation"], s["orientation_axes"], s["orientation"],
+           s["heights"], s["tilt_every_rad"], s["tilt_some_rad"], s["cond_threshold"])
+    for name, value, unit in rows[:9]:
+        print(f"{name} {value} {unit}")
+    print(f"wrote {out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
+          f"summary.csv, tilt_vs_height.csv")
+    return 0
