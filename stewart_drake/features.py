@@ -1,0 +1,208 @@
+"""Density features of the tracking error and of the motor torques (paper eqs. 35-36).
+
+Eq. 35 as printed, rho_e(t) = (m + 1) e(t) / sum_{i=n-m}^{n} e(t_i), divides by a *signed* window
+sum: a tracking error that oscillates around zero makes that sum cross zero and rho_e jump to
++-infinity (eq. 36 likewise for torques that change sign). We use the well-posed variant
+
+    rho(t) = |x(t)| / (mean_{i=n-m..n} |x(t_i)| + eps)
+           = (m + 1) |x(t)| / (sum_{i=n-m..n} |x(t_i)| + (m + 1) eps)
+
+per channel (docs/paper_notes.md, "Eqs. 35-36"). It keeps the paper's meaning (about 1 for a
+steady signal, up to m + 1 for a spike above the recent average) and is finite and bounded,
+0 <= rho <= m + 1, for every finite input. :func:`density_features` (numpy, used for the data
+set) and :class:`DensityFeatures` (the Drake system) compute the numbers with one function
+(``_rho``), so the closed loop and the data set cannot disagree.
+
+Non-finite inputs (NaN, +-inf) are an error, never clamped: they mean the simulation or the log
+already diverged, and a clamped feature would hide that.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from .errors import InvalidConfigError, SimulationDivergedError
+
+N_CHANNELS = 6                 # six pose errors, six motor torques
+N_FEATURES = 2 * N_CHANNELS    # rho = [rho_e (6,), rho_T (6,)]
+DEFAULT_WINDOW = 50            # m + 1 samples
+DEFAULT_EPS = 1e-9
+
+
+def _check_window_eps(window: int, eps: float) -> None:
+    if not (isinstance(window, (int, np.integer)) and window >= 1):
+        raise InvalidConfigError(f"window (m + 1 samples) must be an integer >= 1, got {window!r}")
+    if not (np.isfinite(eps) and eps > 0):
+        raise InvalidConfigError(f"eps must be finite and > 0 (it keeps eq. 35 defined when the "
+                                 f"window is all zeros), got {eps!r}")
+
+
+def _check_finite(name: str, x: np.ndarray) -> None:
+    if not np.all(np.isfinite(x)):
+        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(x))[0])
+        raise ValueError(f"{name} has a non-finite value {x[bad]} at index {bad}; density "
+                         f"features need finite samples: drop or fix the diverged run")
+
+
+def _rho(window: np.ndarray, n_valid, eps: float) -> np.ndarray:
+    """Core of eqs. 35-36 (well-posed variant): the one place the numbers are computed.
+
+    Args:
+        window: (..., m + 1, C) samples, oldest first, current last; samples before the first
+            valid one are zeros.
+        n_valid: valid samples at the end of each window (1..m+1), scalar or (...,).
+        eps: > 0, added to the mean of |x|.
+    Returns:
+        (..., C) |x(t)| / (mean of |x| over the valid samples + eps).
+    """
+    a = np.abs(window)
+    n = np.asarray(n_valid, dtype=float)[..., None, None]
+    # Sum of |x| / n rather than sum / n: cannot overflow for finite |x| (each term <= max / n).
+    mean_abs = np.sum(a / n, axis=-2)
+    return a[..., -1, :] / (mean_abs + eps)
+
+
+def density_features(e_window, T_window, eps: float = DEFAULT_EPS, n_valid=None) -> np.ndarray:
+    """Density features rho = [rho_e, rho_T] of windows of pose errors and torques.
+
+    Args:
+        e_window: (..., m + 1, 6) pose errors e_bar [rad, rad, rad, m, m, m], oldest sample
+            first, the current sample e_bar(t) last.
+        T_window: (..., m + 1, 6) motor torques T, N m, same ordering and length.
+        eps: > 0, in the units of each signal: added to the window mean of |x| so that an
+            all-zero window gives rho = 0 (dimensionless output, so eps sets the smallest signal
+            that counts as "not zero").
+        n_valid: how many samples at the end of each window are real (1..m+1), the rest being
+            zero padding at the start of a run; None means all of them. Scalar or (...,).
+    Returns:
+        (..., 12) rho = [rho_e (6,), rho_T (6,)], dimensionless, 0 <= rho <= m + 1;
+        rho_x = |x(t)| / (mean of |x| over the last n_valid samples + eps).
+    Raises:
+        ValueError: a non-finite sample (names the array and index) or mismatched shapes.
+        InvalidConfigError: eps <= 0 or n_valid outside 1..m+1.
+    Source: paper eqs. 35-36, with |.| and eps so the denominator cannot cross zero
+        (docs/paper_notes.md).
+    """
+    e_window = np.asarray(e_window, dtype=float)
+    T_window = np.asarray(T_window, dtype=float)
+    if e_window.ndim < 2 or e_window.shape[-1] != N_CHANNELS or e_window.shape != T_window.shape:
+        raise ValueError(f"e_window and T_window must both be (..., m + 1, 6), got "
+                         f"{e_window.shape} and {T_window.shape}")
+    length = e_window.shape[-2]
+    _check_window_eps(length, eps)
+    _check_finite("e_window", e_window)
+    _check_finite("T_window", T_window)
+    n = length if n_valid is None else np.asarray(n_valid)
+    if np.any(n < 1) or np.any(n > length):
+        raise InvalidConfigError(f"n_valid must be in 1..{length} (the window length), got {n}")
+    return np.concatenate([_rho(e_window, n, eps), _rho(T_window, n, eps)], axis=-1)
+
+
+def density_features_series(e, T, window: int = DEFAULT_WINDOW,
+                            eps: float = DEFAULT_EPS) -> np.ndarray:
+    """Density features at every sample of a time series, as :class:`DensityFeatures` gives them.
+
+    Sample k uses the samples max(0, k - m)..k (a shorter window during the first m samples of a
+    run), exactly like the Drake system sampling the same signals at the same period.
+
+    Args:
+        e: (N, 6) pose errors e_bar [rad, rad, rad, m, m, m], one row per feature period.
+        T: (N, 6) motor torques, N m.
+        window: m + 1, samples per window.
+        eps: see :func:`density_features`.
+    Returns:
+        (N, 12) rho = [rho_e, rho_T] per sample, dimensionless.
+    Raises:
+        ValueError: non-finite samples or shapes other than (N, 6).
+        InvalidConfigError: window < 1 or eps <= 0.
+    Source: paper eqs. 35-36 (well-posed variant, docs/paper_notes.md).
+    """
+    e = np.asarray(e, dtype=float)
+    T = np.asarray(T, dtype=float)
+    if e.ndim != 2 or e.shape[1] != N_CHANNELS or e.shape != T.shape:
+        raise ValueError(f"e and T must both be (N, 6), got {e.shape} and {T.shape}")
+    _check_window_eps(window, eps)
+    pad = np.zeros((window - 1, N_CHANNELS))
+    view = np.lib.stride_tricks.sliding_window_view
+    # (N, 6, window) -> (N, window, 6): same layout as the system's buffer, zeros first.
+    e_win = view(np.vstack([pad, e]), window, axis=0).swapaxes(-1, -2)
+    T_win = view(np.vstack([pad, T]), window, axis=0).swapaxes(-1, -2)
+    n_valid = np.minimum(np.arange(1, len(e) + 1), window)
+    return density_features(e_win, T_win, eps, n_valid)
+
+
+class DensityFeatures(LeafSystem):
+    """Density of the tracking error and of the motor torques (paper eqs. 35-36).
+
+    Input ports:
+        ``e_bar`` (6,): pose error [rad, rad, rad, m, m, m].
+        ``T`` (6,): motor torques, N m.
+    Output port:
+        ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, held between samples.
+    Discrete state (numbers only): e buffer (window * 6), T buffer (window * 6), both oldest
+    sample first; n_valid (1,), samples taken so far capped at window; rho (12,).
+
+    Every period_s (first at t = 0) the inputs are sampled, pushed into the ring buffers and
+    rho is computed by :func:`density_features` on the last min(k + 1, window) samples. The
+    output is the state, so the system has no direct feedthrough (no algebraic loop with the
+    controller that produces T). Eq. 35 divides by a signed window sum that can cross zero; we
+    divide by the window mean of |.| plus ``eps`` instead (docs/paper_notes.md).
+
+    Args:
+        window: m + 1, samples per window (50).
+        period_s: sampling period, s (1 ms, the control period).
+        eps: see :func:`density_features`.
+    Raises:
+        InvalidConfigError: window < 1, period_s <= 0 or eps <= 0.
+        SimulationDivergedError: (during simulation) a non-finite input sample; it is not
+            clamped, because it means the closed loop has already diverged.
+    """
+
+    def __init__(self, window: int = DEFAULT_WINDOW, period_s: float = 1e-3,
+                 eps: float = DEFAULT_EPS):
+        super().__init__()
+        _check_window_eps(window, eps)
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
+        self.window = int(window)
+        self.period_s = float(period_s)
+        self.eps = float(eps)
+        self._e = self.DeclareVectorInputPort("e_bar", N_CHANNELS)
+        self._T = self.DeclareVectorInputPort("T", N_CHANNELS)
+        size = self.window * N_CHANNELS
+        self._e_buf = self.DeclareDiscreteState(size)
+        self._T_buf = self.DeclareDiscreteState(size)
+        self._n_index = self.DeclareDiscreteState(1)
+        self._rho_index = self.DeclareDiscreteState(N_FEATURES)
+        self._rho = self.DeclareStateOutputPort("rho", self._rho_index)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=0.0,
+                                                update=self._Update)
+
+    def get_e_bar_input_port(self):
+        return self._e
+
+    def get_T_input_port(self):
+        return self._T
+
+    def get_rho_output_port(self):
+        return self._rho
+
+    def _Push(self, context, discrete_state, index, port, name) -> np.ndarray:
+        sample = port.Eval(context)
+        if not np.all(np.isfinite(sample)):
+            raise SimulationDivergedError(
+                f"non-finite {name} = {np.array2string(sample, precision=4)} at the "
+                f"DensityFeatures input (features are not computed from diverged signals)",
+                t=context.get_time())
+        buf = context.get_discrete_state(index).get_value().reshape(self.window, N_CHANNELS)
+        buf = np.vstack([buf[1:], sample])       # shift: oldest out, newest last
+        discrete_state.set_value(index, buf.reshape(-1))
+        return buf
+
+    def _Update(self, context, discrete_state):
+        e_win = self._Push(context, discrete_state, self._e_buf, self._e, "e_bar")
+        T_win = self._Push(context, discrete_state, self._T_buf, self._T, "T")
+        n = min(int(context.get_discrete_state(self._n_index).get_value()[0]) + 1, self.window)
+        discrete_state.set_value(self._n_index, [n])
+        discrete_state.set_value(self._rho_index, density_features(e_win, T_win, self.eps, n))
