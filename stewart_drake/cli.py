@@ -39,6 +39,18 @@ def _cmd_run(args) -> int:
     return run_cli(args)
 
 
+def _cmd_collect(args) -> int:
+    from .experiments import collect_cli
+
+    return collect_cli(args)
+
+
+def _cmd_train(args) -> int:
+    from .experiments import train_cli
+
+    return train_cli(args)
+
+
 def _cmd_workspace(args) -> int:
     from .workspace import workspace_cli
 
@@ -58,9 +70,28 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--omega-r", type=_positive_float, default=1.0, help="omega_R (1)")
     run.add_argument("--tuner", choices=["none", "ann"], default="none",
                      help="ANN tuner of omega_Q, omega_R (none)")
+    run.add_argument("--tuner-weights", default=None,
+                     help="ANN weights (default: results/tuner/ann_tuner.npz if present, "
+                          "else the shipped ones)")
     run.add_argument("--out", default="results", help="output folder (results/)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.set_defaults(func=_cmd_run)
+
+    col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
+    col.add_argument("--out", default="results/collect", help="output folder")
+    col.add_argument("--duration", type=_positive_float, default=10.0, help="s per run (10)")
+    col.add_argument("--seed", type=int, default=0, help="trajectory seed (0)")
+    col.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    col.set_defaults(func=_cmd_collect)
+
+    tr = sub.add_parser("train", help="train the ANN tuner on collected runs")
+    tr.add_argument("--data", default="results/collect", help="folder written by collect")
+    tr.add_argument("--mode", choices=["paper", "best_cost"], default="best_cost",
+                    help="label mode of the saved tuner (best_cost)")
+    tr.add_argument("--seed", type=int, default=0, help="split and initialization seed (0)")
+    tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
+    tr.set_defaults(func=_cmd_train)
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")

@@ -115,3 +115,63 @@ class ReferenceSource(LeafSystem):
     def _Calc(self, context, output: BasicVector):
         x, x_dot, x_ddot = self.trajectory.evaluate(context.get_time())
         output.SetFromVector(np.concatenate([x, x_dot, x_ddot]))
+
+
+#: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.
+DATA_ACCEL_CAP = (30.0, 30.0, 30.0, 3.0, 3.0, 3.0)
+#: Amplitudes the paper names for its data (angles +-pi/6 rad, translations 0.3 m).
+PAPER_DATA_AMPLITUDE = (np.pi / 6, np.pi / 6, np.pi / 6, 0.3, 0.3, 0.3)
+
+
+def _max_single_axis_amplitude(geometry: StewartGeometry, axis: int, ratio_max: float) -> float:
+    """Largest a with home +- a e_axis reachable at ratio <= ratio_max (bisection)."""
+    lo, hi = 0.0, PAPER_DATA_AMPLITUDE[axis]
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        x = np.tile(X_HOME, (2, 1))
+        x[0, axis] += mid
+        x[1, axis] -= mid
+        if np.all(np.abs(kinematics.leg_reach_ratio(geometry, x)) <= ratio_max):
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None = None,
+                               duration_s: float = 10.0, ratio_max: float = 0.9) -> SineTrajectory:
+    """Excitation for the tuner's training data (paper section III.D), deterministic in ``seed``.
+
+    Every axis moves at once, one sine each, with a frequency drawn in [1, 5] Hz and a random
+    phase. The paper's amplitudes (+-pi/6 rad, 0.3 m) are far outside this robot's workspace, so
+    each axis's amplitude is (a) capped by what that axis alone admits at |L|/sqrt(M^2+N^2) <=
+    ``ratio_max``, (b) capped by DATA_ACCEL_CAP / (2 pi f)^2 so the torques stay physical, then
+    (c) all amplitudes are scaled by one factor until the whole trajectory stays below
+    ``ratio_max`` over ``duration_s`` (docs/paper_notes.md).
+
+    Returns:
+        SineTrajectory named ``data_seed<seed>``.
+    """
+    geometry = geometry or StewartGeometry()
+    rng = np.random.default_rng(seed)
+    f = rng.uniform(1.0, 5.0, 6)
+    phase = rng.uniform(0, 2 * np.pi, 6)
+    single = np.array([_max_single_axis_amplitude(geometry, k, ratio_max) for k in range(6)])
+    amp = np.minimum(single, np.asarray(DATA_ACCEL_CAP) / (2 * np.pi * f) ** 2)
+    t = np.arange(0.0, duration_s, 1e-3)
+
+    def fits(scale):
+        traj = SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
+                              phase=tuple(phase))
+        ratio = np.abs(kinematics.leg_reach_ratio(geometry, traj.evaluate(t)[0]))
+        return np.all(ratio <= ratio_max)
+
+    lo, hi = 0.0, 1.0
+    if fits(1.0):
+        lo = 1.0
+    else:
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    return SineTrajectory(amplitude=tuple(lo * amp), frequency_hz=tuple(f), phase=tuple(phase),
+                          name=f"data_seed{seed}")

@@ -1,0 +1,69 @@
+"""collect -> train -> run --tuner ann, wired through the real Diagram (short runs)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stewart_drake.diagram import StewartConfig
+from stewart_drake.experiments import SerialRunner, collect, load_records, run_experiment
+from stewart_drake.geometry import StewartGeometry
+from stewart_drake.training import build_dataset
+from stewart_drake.trajectories import data_collection_trajectory, validate_trajectory
+from stewart_drake.tuner import DEFAULT_TUNER_PATH, load_tuner
+
+
+def test_data_trajectory_is_deterministic_reachable_and_in_band():
+    a, b = data_collection_trajectory(3), data_collection_trajectory(3)
+    assert a == b and a != data_collection_trajectory(4)
+    f = np.array(a.frequency_hz)
+    assert np.all((f >= 1) & (f <= 5))
+    report = validate_trajectory(StewartGeometry(), a, 10.0)
+    assert report["max_ratio"] <= 0.9 + 1e-9
+    acc = np.abs(a.evaluate(np.linspace(0, 10, 2001))[2]).max(axis=0)
+    assert np.all(acc <= np.array([30, 30, 30, 3, 3, 3]) * (1 + 1e-9))
+
+
+def test_shipped_tuner_loads_and_says_how_it_was_made():
+    model = load_tuner()
+    assert DEFAULT_TUNER_PATH.exists()
+    omega = model.predict(np.ones((4, 12)))
+    assert np.all((omega >= 0.1) & (omega <= 10))
+    assert model.metadata["label_mode"] == "best_cost"
+    manifest = json.loads((DEFAULT_TUNER_PATH.parent / "ann_tuner_collection.json").read_text())
+    assert len(manifest["runs"]) == 9 and manifest["n_samples"] >= 14400
+
+
+def test_ann_tuned_run_drives_the_weights_and_tracks():
+    result = run_experiment(StewartConfig(tuner="ann", duration_s=1.0))
+    assert result.rho is not None and result.rho.shape[1] == 12
+    assert np.all((result.omega >= 0.1) & (result.omega <= 10))
+    # The LQI uses what the tuner outputs (status columns 0-1 follow the tuner's omega).
+    np.testing.assert_allclose(result.status[-1, :2], result.omega[-1], rtol=1e-12)
+    assert result.metrics["max_closure_m"] < 1e-5
+    assert np.array(result.metrics["rms_error"])[[0, 5]].max() < 2e-3
+
+
+def test_collect_writes_nine_runs_that_build_both_datasets(tmp_path):
+    manifest = collect(tmp_path, duration_s=0.2, sample_period_s=5e-3, runner=SerialRunner(),
+                       progress=False)
+    assert len(manifest["runs"]) == 9
+    records = load_records(tmp_path)
+    pairs = {(r["omega_Q"], r["omega_R"]) for r in records}
+    assert pairs == {(q, r) for q in (0.1, 1, 10) for r in (0.1, 1, 10)}
+    # Equal ratios give the same controller (gains equal to round-off), hence the same run.
+    same = [r for r in records if r["omega_Q"] == r["omega_R"]]
+    differ = [r for r in records if r["omega_Q"] > r["omega_R"]]
+    gap_same = np.abs(same[0]["cost_e"] - same[1]["cost_e"]).max()
+    gap_other = np.abs(same[0]["cost_e"] - differ[0]["cost_e"]).max()
+    assert gap_same < 1e-6 * gap_other
+    for mode in ("paper", "best_cost"):
+        dataset = build_dataset(records, mode=mode)
+        assert dataset.rho.shape == (9 * len(records[0]["t"]), 12)
+        assert np.all(np.isfinite(dataset.rho))
+
+
+def test_train_without_data_says_what_to_run(tmp_path, capsys):
+    from stewart_drake.cli import main
+    assert main(["train", "--data", str(tmp_path / "none")]) == 2
+    assert "stewart-drake collect" in capsys.readouterr().err
