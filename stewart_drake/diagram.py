@@ -110,7 +110,8 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         meshcat: optional pydrake Meshcat; adds the default visualization.
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "x" (measured, 12),
-        "x_d" (reference, 18), "T" (torques, 6), "status" (controller, 5), "state" (plant),
+        "x_d" (the reference the controller sees, 18, leading by half a plant step),
+        "T" (torques, 6), "status" (controller, 5), "state" (plant),
         and with the tuner "omega" (2) and "rho" (12).
     Raises:
         InvalidConfigError: inconsistent periods or names.
@@ -122,7 +123,10 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
     plant.set_name("plant")
     trajectory = config.resolved_trajectory()
     x_d0 = trajectory.evaluate(0.0)[0]
-    reference = builder.AddNamedSystem("reference", ReferenceSource(trajectory))
+    # The LQI samples half a plant step after each plant update, when the plant already holds
+    # the configuration of the next step's time: its reference leads by the same half step.
+    reference = builder.AddNamedSystem("reference", ReferenceSource(
+        trajectory, lead_s=0.5 * config.plant_time_step_s))
     sensor = builder.AddNamedSystem("sensor", PlatformPoseSensor(
         plant, handles, noise_std=config.sensor_noise_std))
     controller = builder.AddNamedSystem("lqi", LqiController(

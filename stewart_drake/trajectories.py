@@ -103,17 +103,25 @@ def validate_trajectory(geometry: StewartGeometry, trajectory, duration_s: float
 class ReferenceSource(LeafSystem):
     """A trajectory as a Drake source.
 
-    Output port: ``x_d`` (18,) = [pose (6,), rate (6,), acceleration (6,)] at the context time.
+    Output port: ``x_d`` (18,) = [pose (6,), rate (6,), acceleration (6,)] at context time
+    t + ``lead_s``.
+
+    Args:
+        trajectory: any object with ``evaluate(t)`` (see module docstring).
+        lead_s: evaluate ahead of the context time, s. A discrete MultibodyPlant stores, from
+            its update at t_n on, the configuration of physical time t_n + h; a controller
+            sampling at t_n + h/2 must compare it with x_d(t_n + h), i.e. lead by h/2.
     """
 
-    def __init__(self, trajectory):
+    def __init__(self, trajectory, lead_s: float = 0.0):
         super().__init__()
         self.trajectory = trajectory
+        self.lead_s = float(lead_s)
         self.DeclareVectorOutputPort("x_d", 18, self._Calc,
                                      prerequisites_of_calc={self.time_ticket()})
 
     def _Calc(self, context, output: BasicVector):
-        x, x_dot, x_ddot = self.trajectory.evaluate(context.get_time())
+        x, x_dot, x_ddot = self.trajectory.evaluate(context.get_time() + self.lead_s)
         output.SetFromVector(np.concatenate([x, x_dot, x_ddot]))
 
 
