@@ -33,28 +33,16 @@ def _cmd_sdf(args) -> int:
     return 0
 
 
-def _cmd_run(args) -> int:
-    from .experiments import run_cli
+def _delegate(module: str, function: str):
+    """A subcommand that imports ``stewart_drake.<module>`` only when it runs, then calls
+    ``<function>(args)``: `stewart-drake sdf` does not pay for torch or the Simulator."""
 
-    return run_cli(args)
+    def command(args) -> int:
+        import importlib
 
+        return getattr(importlib.import_module(f".{module}", __package__), function)(args)
 
-def _cmd_collect(args) -> int:
-    from .experiments import collect_cli
-
-    return collect_cli(args)
-
-
-def _cmd_train(args) -> int:
-    from .experiments import train_cli
-
-    return train_cli(args)
-
-
-def _cmd_workspace(args) -> int:
-    from .workspace import workspace_cli
-
-    return workspace_cli(args)
+    return command
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -75,7 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
                           "else the shipped ones)")
     run.add_argument("--out", default="results", help="output folder (results/)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.set_defaults(func=_cmd_run)
+    run.set_defaults(func=_delegate("experiments", "run_cli"))
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     col.add_argument("--out", default="results/collect", help="output folder")
@@ -83,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--seed", type=int, default=0, help="trajectory seed (0)")
     col.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    col.set_defaults(func=_cmd_collect)
+    col.set_defaults(func=_delegate("experiments", "collect_cli"))
 
     tr = sub.add_parser("train", help="train the ANN tuner on collected runs")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
@@ -91,14 +79,14 @@ def build_parser() -> argparse.ArgumentParser:
                     help="label mode of the saved tuner (best_cost)")
     tr.add_argument("--seed", type=int, default=0, help="split and initialization seed (0)")
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
-    tr.set_defaults(func=_cmd_train)
+    tr.set_defaults(func=_delegate("experiments", "train_cli"))
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")
     ws.add_argument("--resolution", type=int, default=41, help="grid points per axis (41)")
     ws.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    ws.set_defaults(func=_cmd_workspace)
+    ws.set_defaults(func=_delegate("workspace", "workspace_cli"))
 
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
     sdf.add_argument("--out", default=None, help="file to write instead")

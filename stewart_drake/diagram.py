@@ -110,7 +110,6 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         meshcat: optional pydrake Meshcat; adds the default visualization.
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "x" (measured, 12),
-        "x_d" (the reference the controller sees, 18, leading by half a plant step),
         "T" (torques, 6), "status" (controller, 5), "state" (plant),
         and with the tuner "omega" (2) and "rho" (12).
     Raises:
@@ -167,7 +166,6 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
 
     period = config.log_period_s
     loggers["x"] = LogVectorOutput(sensor.get_output_port(), builder, period)
-    loggers["x_d"] = LogVectorOutput(reference.get_output_port(), builder, period)
     loggers["T"] = LogVectorOutput(controller.GetOutputPort("T"), builder, period)
     loggers["status"] = LogVectorOutput(controller.GetOutputPort("status"), builder, period)
     loggers["state"] = LogVectorOutput(plant.get_state_output_port(), builder, period)

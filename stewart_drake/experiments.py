@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +16,7 @@ import numpy as np
 from pydrake.systems.analysis import Simulator
 
 from .diagram import StewartConfig, StewartDiagram, make_stewart_diagram
+from .fileio import atomic_write, save_npz
 from .plant import assemble, loop_closure_errors
 from .trajectories import validate_trajectory
 
@@ -196,19 +196,6 @@ def format_metrics(metrics: dict) -> str:
     return "\n".join(lines)
 
 
-def _atomic_write(path: Path, write):
-    """Write through a temporary file in the same folder, then rename: no half-written file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=path.suffix)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 def save_result(result: RunResult, path: str | Path) -> Path:
     """Write the run to ``path`` (.npz: t, x, x_d, T, status, closure, omega, rho, metrics JSON)."""
     path = Path(path)
@@ -218,13 +205,7 @@ def save_result(result: RunResult, path: str | Path) -> Path:
                   config=np.array(json.dumps(result.config_summary)))
     if result.rho is not None:
         arrays["rho"] = result.rho
-
-    def write(tmp):
-        with open(tmp, "wb") as f:
-            np.savez_compressed(f, **arrays)
-
-    _atomic_write(path, write)
-    return path
+    return save_npz(path, arrays)
 
 
 def load_result(path: str | Path) -> RunResult:
@@ -285,7 +266,7 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
     ax.grid(alpha=0.3)
     fig.tight_layout()
     path = Path(path)
-    _atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"))
+    atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
     plt.close(fig)
     return path
 
@@ -409,12 +390,7 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
         path = out / f"run_{i}.npz"
         arrays = {k: np.asarray(v) for k, v in record.items() if k not in ("metrics",)}
         arrays["metrics"] = np.array(json.dumps(record["metrics"]))
-
-        def write(tmp, arrays=arrays):
-            with open(tmp, "wb") as f:
-                np.savez_compressed(f, **arrays)
-
-        _atomic_write(path, write)
+        save_npz(path, arrays)
         files.append(path.name)
     job_time = sum(r["wall_s"] for r in records)
     manifest = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
@@ -429,8 +405,7 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
                 "n_samples": int(sum(len(r["t"]) for r in records)),
                 "workers": runner.n_workers, "wall_s": wall, "sum_job_s": job_time,
                 "speedup": job_time / wall if wall > 0 else float("nan")}
-    _atomic_write(out / "manifest.json",
-                  lambda tmp: Path(tmp).write_text(json.dumps(manifest, indent=2)))
+    atomic_write(out / "manifest.json", lambda f: f.write(json.dumps(manifest, indent=2).encode()))
     return manifest
 
 

@@ -231,7 +231,12 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
 
 
 def make_plant(geometry: StewartGeometry | None = None, time_step: float = 1e-3):
-    """A standalone finalized plant and a Context assembled at home: (plant, context, handles)."""
+    """A standalone finalized plant assembled at home.
+
+    Returns:
+        (plant, plant_context, handles, diagram, root_context): the plant's Context lives inside
+        the Diagram's (the plant is registered with a SceneGraph), so both are returned.
+    """
     builder = DiagramBuilder()
     plant, _, handles = add_stewart_plant(builder, geometry, time_step)
     diagram = builder.Build()

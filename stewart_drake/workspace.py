@@ -17,7 +17,6 @@ from __future__ import annotations
 import csv
 import io
 import os
-import tempfile
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 from pathlib import Path
@@ -25,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from . import kinematics
+from .fileio import atomic_write
 from .errors import InvalidConfigError
 from .geometry import X_HOME, StewartGeometry
 
@@ -231,33 +231,16 @@ def summarize_dynamic_torques(geometry: StewartGeometry, t, x, T) -> dict:
 
 # --- outputs -------------------------------------------------------------------------------------
 
-def _atomic_write(path: Path, write) -> None:
-    """Call write(binary file) on a temporary file next to ``path``, then os.replace it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)                # mkstemp makes 0600; keep the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-
-
 def _write_csv(path: Path, header, rows) -> None:
     text = io.StringIO()
     w = csv.writer(text)
     w.writerow(header)
     w.writerows(rows)
-    _atomic_write(path, lambda f: f.write(text.getvalue().encode()))
+    atomic_write(path, lambda f: f.write(text.getvalue().encode()))
 
 
 def _save_figure(fig, path: Path) -> None:
-    _atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
 
 
 def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
@@ -404,7 +387,7 @@ def workspace_cli(args) -> int:
     for grid in ("translation", "orientation", "tilt"):
         for key in FIELDS:
             arrays[f"{grid}_{key}"] = s[grid][key]
-    _atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
+    atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
     ext, rpy = s["extent_xyz_m"], s["extent_rpy_rad"]
     rows = [("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
             ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
