@@ -6,15 +6,21 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
+from pydrake.common import RandomDistribution
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
+                                        RandomSource, Saturation)
 
 from .controller import LqiController, LqiScales
 from .errors import InvalidConfigError
 from .geometry import StewartGeometry
 from .plant import add_stewart_plant
+from .reference import FEEDFORWARD_MODES, ReferenceSources, add_reference_sources
 from .sensors import PlatformPoseSensor
-from .trajectories import ReferenceSource, make_trajectory
+from .trajectories import make_trajectory
+
+#: Controllers :func:`make_stewart_diagram` can put behind the same ports.
+CONTROLLERS = ("lqi", "pd")
 
 
 @dataclass(frozen=True)
@@ -30,13 +36,21 @@ class StewartConfig:
         schedule_period_s: gain re-scheduling period, s; a whole multiple of control_period_s.
         omega_Q, omega_R: fixed LQI weights (paper eq. 27), used when ``tuner`` is None.
         scales: normalization of Q and R (controller.LqiScales).
-        feedforward: "gravity", "inverse_dynamics" or "none" (controller.LqiController).
+        feedforward: "gravity", "inverse_dynamics" or "none" (reference.feedforward_torques).
+        controller: "lqi" (paper section III) or "pd" (baselines.CrankPdController).
+        riccati: "warm" (Newton refinement of the last gain) or "cold" (DARE each re-schedule).
+        pd_bandwidth_hz: closed-loop bandwidth of the "pd" baseline, Hz.
         tuner: None for fixed weights, or "ann" for the density-feature ANN tuner.
         tuner_period_s: ANN tuner period, s.
         tuner_weights: path of the tuner's .npz (None: the shipped weights).
         feature_window: samples m + 1 of the density features (eqs. 35-36).
         log_period_s: logging period, s.
-        sensor_noise_std: optional (12,) noise on the measured pose and rate.
+        sensor_noise_std: optional (12,) standard deviation of white Gaussian noise added to
+            the measured pose and rate (rad, m, rad/s, m/s), drawn every control period.
+        noise_seed: seed of that noise (Drake RandomSource).
+        payload_scale: the plant's platform mass and inertia are this multiple of the
+            geometry's; the controller still uses ``geometry`` (an unknown payload).
+        torque_limit_Nm: motor torque saturation, N m, or None.
     """
 
     geometry: StewartGeometry = field(default_factory=StewartGeometry)
@@ -55,6 +69,12 @@ class StewartConfig:
     feature_window: int = 50
     log_period_s: float = 1e-3
     sensor_noise_std: Any = None
+    noise_seed: int = 0
+    controller: str = "lqi"
+    riccati: str = "warm"
+    pd_bandwidth_hz: float = 20.0
+    payload_scale: float = 1.0
+    torque_limit_Nm: float | None = None
 
     def __post_init__(self):
         for name in ("duration_s", "plant_time_step_s", "control_period_s", "schedule_period_s",
@@ -73,6 +93,35 @@ class StewartConfig:
                 raise InvalidConfigError(f"{name} must be in [1e-3, 1e3], got {value}")
         if self.tuner not in (None, "ann"):
             raise InvalidConfigError(f"tuner must be None or 'ann', got {self.tuner!r}")
+        if self.controller not in CONTROLLERS:
+            raise InvalidConfigError(f"controller must be one of {CONTROLLERS}, "
+                                     f"got {self.controller!r}")
+        if self.tuner and self.controller != "lqi":
+            raise InvalidConfigError("the ANN tuner drives the LQI's weights: use "
+                                     "controller='lqi' with tuner='ann'")
+        if self.feedforward not in FEEDFORWARD_MODES:
+            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, "
+                                     f"got {self.feedforward!r}")
+        if not (np.isfinite(self.payload_scale) and 0.1 <= self.payload_scale <= 10):
+            raise InvalidConfigError(
+                f"payload_scale must be in [0.1, 10], got {self.payload_scale}")
+        if self.torque_limit_Nm is not None and not (
+                np.isfinite(self.torque_limit_Nm) and self.torque_limit_Nm > 0):
+            raise InvalidConfigError(
+                f"torque_limit_Nm must be > 0 N m or None, got {self.torque_limit_Nm}")
+        if self.sensor_noise_std is not None:
+            std = np.broadcast_to(np.asarray(self.sensor_noise_std, dtype=float), (12,))
+            if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+                raise InvalidConfigError(
+                    f"sensor_noise_std needs 12 finite values >= 0, got {self.sensor_noise_std}")
+
+    def plant_geometry(self) -> StewartGeometry:
+        """The robot that is simulated: ``geometry`` with the payload scale on the platform."""
+        if self.payload_scale == 1.0:
+            return self.geometry
+        return self.geometry.replace(
+            platform_mass=self.geometry.platform_mass * self.payload_scale,
+            platform_inertia=tuple(self.payload_scale * v for v in self.geometry.platform_inertia))
 
     def resolved_trajectory(self):
         """The trajectory object (names are looked up in trajectories.TRAJECTORIES)."""
@@ -89,8 +138,8 @@ class StewartDiagram:
     plant: Any
     scene_graph: Any
     handles: Any
-    controller: LqiController
-    reference: ReferenceSource
+    controller: Any
+    reference: ReferenceSources
     sensor: PlatformPoseSensor
     loggers: dict
     config: StewartConfig
@@ -101,42 +150,71 @@ class StewartDiagram:
 def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
-    Wiring: ReferenceSource -> LqiController.x_d; MultibodyPlant state -> PlatformPoseSensor ->
-    LqiController.x; LqiController.T -> plant actuation; [omega_Q, omega_R] from a constant
-    source, or from DensityFeatures -> AnnTuner when ``config.tuner == "ann"``.
+    Wiring: reference and feed-forward sources (precomputed, :mod:`~stewart_drake.reference`) ->
+    controller.x_d, controller.T_ff; MultibodyPlant state -> PlatformPoseSensor [+ noise] ->
+    controller.x; controller.T [-> Saturation] -> plant actuation; [omega_Q, omega_R] from a
+    constant source, or from DensityFeatures(controller.e_bar, T) -> AnnTuner when
+    ``config.tuner == "ann"``. The controller is the LQI or the crank-space PD baseline.
 
     Args:
         config: the run's settings (default: the paper's experiment).
         meshcat: optional pydrake Meshcat; adds the default visualization.
     Returns:
-        :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "x" (measured, 12),
-        "T" (torques, 6), "status" (controller, 5), "state" (plant),
-        and with the tuner "omega" (2) and "rho" (12).
+        :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "T" (applied torques, 6),
+        "status" (controller, 5), "state" (plant), and with the tuner "rho" (12). The platform
+        pose is recovered from "state" (``sensor.poses_from_states``), so no logger evaluates the
+        sensor.
     Raises:
-        InvalidConfigError: inconsistent periods or names.
+        InvalidConfigError: inconsistent periods or names. UnreachablePoseError: the reference
+            leaves the workspace (first time and leg).
     """
     config = config or StewartConfig()
     builder = DiagramBuilder()
-    plant, scene_graph, handles = add_stewart_plant(builder, config.geometry,
+    plant, scene_graph, handles = add_stewart_plant(builder, config.plant_geometry(),
                                                     config.plant_time_step_s)
     plant.set_name("plant")
     trajectory = config.resolved_trajectory()
     x_d0 = trajectory.evaluate(0.0)[0]
-    # The LQI samples half a plant step after each plant update, when the plant already holds
-    # the configuration of the next step's time: its reference leads by the same half step.
-    reference = builder.AddNamedSystem("reference", ReferenceSource(
-        trajectory, lead_s=0.5 * config.plant_time_step_s))
-    sensor = builder.AddNamedSystem("sensor", PlatformPoseSensor(
-        plant, handles, noise_std=config.sensor_noise_std))
-    controller = builder.AddNamedSystem("lqi", LqiController(
-        config.geometry, period_s=config.control_period_s,
-        schedule_period_s=config.schedule_period_s, scales=config.scales,
-        feedforward=config.feedforward, offset_s=0.5 * config.plant_time_step_s,
-        x_initial=x_d0))
+    h_plant, h = config.plant_time_step_s, config.control_period_s
+    # The controller samples half a plant step after each plant update, when the plant already
+    # holds the configuration of the next step's time: its reference leads by the same half step.
+    offset = 0.5 * h_plant
+    reference = add_reference_sources(builder, trajectory, config.geometry, config.duration_s,
+                                      period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
+                                      feedforward=config.feedforward)
+    sensor = builder.AddNamedSystem("sensor", PlatformPoseSensor(plant, handles))
+    if config.controller == "lqi":
+        controller = builder.AddNamedSystem("lqi", LqiController(
+            config.geometry, period_s=h, schedule_period_s=config.schedule_period_s,
+            scales=config.scales, offset_s=offset, x_initial=x_d0, riccati=config.riccati))
+    else:
+        from .baselines import CrankPdController
+
+        controller = builder.AddNamedSystem("crank_pd", CrankPdController(
+            config.geometry, period_s=h, offset_s=offset, bandwidth_hz=config.pd_bandwidth_hz,
+            x_initial=x_d0))
     builder.Connect(plant.get_state_output_port(), sensor.get_input_port())
-    builder.Connect(sensor.get_output_port(), controller.get_x_input_port())
-    builder.Connect(reference.get_output_port(), controller.get_x_d_input_port())
-    builder.Connect(controller.GetOutputPort("T"), handles.actuation_port)
+    measured = sensor.get_output_port()
+    if config.sensor_noise_std is not None:
+        std = np.broadcast_to(np.asarray(config.sensor_noise_std, dtype=float), (12,)).copy()
+        noise = builder.AddNamedSystem("sensor_noise", RandomSource(
+            RandomDistribution.kGaussian, 12, sampling_interval_sec=h))
+        scale = builder.AddNamedSystem("noise_std", Gain(std))
+        add = builder.AddNamedSystem("noisy_x", Adder(2, 12))
+        builder.Connect(noise.get_output_port(), scale.get_input_port())
+        builder.Connect(measured, add.get_input_port(0))
+        builder.Connect(scale.get_output_port(), add.get_input_port(1))
+        measured = add.get_output_port()
+    builder.Connect(measured, controller.get_x_input_port())
+    builder.Connect(reference.x_d.get_output_port(), controller.get_x_d_input_port())
+    builder.Connect(reference.T_ff.get_output_port(), controller.get_T_ff_input_port())
+    applied = controller.GetOutputPort("T")
+    if config.torque_limit_Nm is not None:
+        limit = config.torque_limit_Nm * np.ones(6)
+        saturation = builder.AddNamedSystem("saturation", Saturation(-limit, limit))
+        builder.Connect(applied, saturation.get_input_port())
+        applied = saturation.get_output_port()
+    builder.Connect(applied, handles.actuation_port)
 
     features = tuner = None
     loggers = {}
@@ -145,18 +223,13 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         from .tuner import AnnTuner, load_tuner
 
         features = builder.AddNamedSystem("features", DensityFeatures(
-            window=config.feature_window, period_s=config.control_period_s))
+            window=config.feature_window, period_s=h))
         tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
             load_tuner(config.tuner_weights), period_s=config.tuner_period_s))
-        error = builder.AddNamedSystem("pose_error", _PoseError())
-        builder.Connect(sensor.get_output_port(), error.GetInputPort("x"))
-        builder.Connect(reference.get_output_port(), error.GetInputPort("x_d"))
-        builder.Connect(error.get_output_port(), features.GetInputPort("e_bar"))
-        builder.Connect(controller.GetOutputPort("T"), features.GetInputPort("T"))
+        builder.Connect(controller.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
+        builder.Connect(applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
         builder.Connect(tuner.GetOutputPort("omega"), controller.get_omega_input_port())
-        loggers["omega"] = LogVectorOutput(tuner.GetOutputPort("omega"), builder,
-                                           config.log_period_s)
         loggers["rho"] = LogVectorOutput(features.GetOutputPort("rho"), builder,
                                          config.log_period_s)
     else:
@@ -165,8 +238,7 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         builder.Connect(omega.get_output_port(), controller.get_omega_input_port())
 
     period = config.log_period_s
-    loggers["x"] = LogVectorOutput(sensor.get_output_port(), builder, period)
-    loggers["T"] = LogVectorOutput(controller.GetOutputPort("T"), builder, period)
+    loggers["T"] = LogVectorOutput(applied, builder, period)
     loggers["status"] = LogVectorOutput(controller.GetOutputPort("status"), builder, period)
     loggers["state"] = LogVectorOutput(plant.get_state_output_port(), builder, period)
     for name, logger in loggers.items():
@@ -180,16 +252,3 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
     return StewartDiagram(diagram=diagram, plant=plant, scene_graph=scene_graph, handles=handles,
                           controller=controller, reference=reference, sensor=sensor,
                           loggers=loggers, config=config, features=features, tuner=tuner)
-
-
-class _PoseError(LeafSystem):
-    """e_bar = x - x_d on the pose (6,), from the sensor's x (12,) and the reference (18,)."""
-
-    def __init__(self):
-        super().__init__()
-        self._x = self.DeclareVectorInputPort("x", 12)
-        self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self.DeclareVectorOutputPort("e_bar", 6, self._Calc)
-
-    def _Calc(self, context, output: BasicVector):
-        output.SetFromVector(self._x.Eval(context)[:6] - self._x_d.Eval(context)[:6])

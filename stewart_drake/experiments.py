@@ -111,25 +111,26 @@ def run_experiment(config: StewartConfig | None = None, progress: bool = False,
 def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult:
     """Pull the loggers of a simulated Diagram into a :class:`RunResult` with metrics."""
     logs = {name: logger.FindLog(root_context) for name, logger in sd.loggers.items()}
-    t = logs["x"].sample_times()
+    t = logs["state"].sample_times()
     state = logs["state"].data().T
     closure = loop_closures_from_states(sd, state)
     status = logs["status"].data().T
-    omega = logs["omega"].data().T if "omega" in logs else status[:, :2]
     # A logged sample at t_n is the state the plant computed for physical time t_n, so the
-    # tracking error compares it with the analytic reference at t_n (not the logged x_d, which
-    # leads by half a plant step for the controller).
+    # tracking error compares the true pose (from the state, free of sensor noise) with the
+    # analytic reference at t_n (the controller's x_d leads by half a plant step).
     x_d = np.concatenate(sd.config.resolved_trajectory().evaluate(t), axis=1)
-    result = RunResult(t=t, x=logs["x"].data().T, x_d=x_d,
-                       T=logs["T"].data().T, status=status, closure=closure, omega=omega,
-                       rho=logs["rho"].data().T if "rho" in logs else None)
+    result = RunResult(t=t, x=sd.sensor.poses_from_states(state), x_d=x_d,
+                       T=logs["T"].data().T, status=status, closure=closure,
+                       omega=status[:, :2], rho=logs["rho"].data().T if "rho" in logs else None)
     config = sd.config
     result.config_summary = {
         "trajectory": getattr(config.resolved_trajectory(), "name", "custom"),
         "duration_s": config.duration_s, "plant_time_step_s": config.plant_time_step_s,
         "control_period_s": config.control_period_s, "schedule_period_s": config.schedule_period_s,
         "omega_Q": config.omega_Q, "omega_R": config.omega_R, "tuner": config.tuner,
-        "feedforward": config.feedforward}
+        "feedforward": config.feedforward, "controller": config.controller,
+        "payload_scale": config.payload_scale, "torque_limit_Nm": config.torque_limit_Nm,
+        "sensor_noise": config.sensor_noise_std is not None}
     result.metrics = compute_metrics(result, wall_s)
     return result
 

@@ -34,14 +34,22 @@ class PlatformPoseSensor(LeafSystem):
         self._rng = np.random.default_rng(seed)
         self.DeclareVectorOutputPort("x", 12, self._Calc)
 
-    def _Calc(self, context, output: BasicVector):
-        s = self._state.Eval(context)
+    def pose_from_state(self, state) -> np.ndarray:
+        """True (noise-free) pose and rate x (12,) from one plant state vector (nq + nv,)."""
+        s = np.asarray(state, dtype=float)
         q = s[self._iq:self._iq + 4]
         rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
-        w_WE = s[self._iv:self._iv + 3]
-        rpy_dot = rpy.CalcRpyDtFromAngularVelocityInParent(w_WE)
-        x = np.concatenate([rpy.vector(), s[self._iq + 4:self._iq + 7], rpy_dot,
-                            s[self._iv + 3:self._iv + 6]])
+        rpy_dot = rpy.CalcRpyDtFromAngularVelocityInParent(s[self._iv:self._iv + 3])
+        return np.concatenate([rpy.vector(), s[self._iq + 4:self._iq + 7], rpy_dot,
+                               s[self._iv + 3:self._iv + 6]])
+
+    def poses_from_states(self, states) -> np.ndarray:
+        """(N, 12) true poses and rates of logged plant states (N, nq + nv): metrics use these,
+        not the noisy measurement, and the Diagram need not log the sensor at all."""
+        return np.array([self.pose_from_state(s) for s in np.atleast_2d(states)]).reshape(-1, 12)
+
+    def _Calc(self, context, output: BasicVector):
+        x = self.pose_from_state(self._state.Eval(context))
         if self._noise is not None:
             x = x + self._noise * self._rng.standard_normal(12)
         output.SetFromVector(x)

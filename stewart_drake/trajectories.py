@@ -1,7 +1,7 @@
 """Reference trajectories x_d(t) of the platform pose and their validation before a run.
 
 A trajectory maps times t (N,) in s to pose, rate and acceleration, each (N, 6) in
-[rad, rad, rad, m, m, m] (and /s, /s^2). :class:`ReferenceSource` puts one into a Diagram.
+[rad, rad, rad, m, m, m] (and /s, /s^2). :mod:`~stewart_drake.reference` puts one into a Diagram.
 """
 
 from __future__ import annotations
@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.systems.framework import BasicVector, LeafSystem
 
 from . import kinematics
 from .errors import InvalidConfigError
@@ -98,31 +97,6 @@ def validate_trajectory(geometry: StewartGeometry, trajectory, duration_s: float
     ratio = np.abs(kinematics.leg_reach_ratio(geometry, x))
     k, leg = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
     return {"max_ratio": float(ratio[k, leg]), "t_max_ratio": float(t[k]), "leg_max_ratio": int(leg)}
-
-
-class ReferenceSource(LeafSystem):
-    """A trajectory as a Drake source.
-
-    Output port: ``x_d`` (18,) = [pose (6,), rate (6,), acceleration (6,)] at context time
-    t + ``lead_s``.
-
-    Args:
-        trajectory: any object with ``evaluate(t)`` (see module docstring).
-        lead_s: evaluate ahead of the context time, s. A discrete MultibodyPlant stores, from
-            its update at t_n on, the configuration of physical time t_n + h; a controller
-            sampling at t_n + h/2 must compare it with x_d(t_n + h), i.e. lead by h/2.
-    """
-
-    def __init__(self, trajectory, lead_s: float = 0.0):
-        super().__init__()
-        self.trajectory = trajectory
-        self.lead_s = float(lead_s)
-        self.DeclareVectorOutputPort("x_d", 18, self._Calc,
-                                     prerequisites_of_calc={self.time_ticket()})
-
-    def _Calc(self, context, output: BasicVector):
-        x, x_dot, x_ddot = self.trajectory.evaluate(context.get_time() + self.lead_s)
-        output.SetFromVector(np.concatenate([x, x_dot, x_ddot]))
 
 
 #: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.

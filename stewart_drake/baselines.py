@@ -1,0 +1,113 @@
+"""Baseline controllers behind the LQI's ports, for the evaluation of issue 6.
+
+:class:`CrankPdController` is what a rotary Stewart platform ships with: an independent-joint PD
+loop per motor around the crank angle, on top of the same virtual-work gravity feed-forward as
+the LQI. It has the LQI's ports (``x``, ``x_d``, ``T_ff``, ``omega``; ``T``, ``status``, ``e_bar``)
+so :func:`~stewart_drake.diagram.make_stewart_diagram` swaps one for the other.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from . import kinematics
+from .controller import N_STATUS
+from .errors import InvalidConfigError, UnreachablePoseError
+from .geometry import X_HOME, StewartGeometry
+
+
+def crank_inertia_matrix(geometry: StewartGeometry, x=X_HOME) -> np.ndarray:
+    """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
+    theta = kinematics.ik(geometry, x)
+    J_inv = np.linalg.inv(kinematics.jacobian(geometry, x, theta))
+    return J_inv.T @ kinematics.task_inertia(geometry, x, theta) @ J_inv
+
+
+class CrankPdController(LeafSystem):
+    """Crank-space PD + gravity feed-forward: T = T_ff + K_p (theta_d - theta) + K_d (w_d - w).
+
+    theta = IK(x) and w = J(x) x_dot are the crank angles and rates of the measured pose (J the
+    Jacobian d theta / d x); theta_d, w_d those of the reference. The gains place every mode of
+    the linearized chain at home at ``bandwidth_hz`` with damping ``damping``:
+    K_p = (2 pi f)^2 M_theta, K_d = 2 zeta (2 pi f) M_theta, with M_theta the joint-space inertia
+    at home (:func:`crank_inertia_matrix`). There is no integral action: a payload the
+    feed-forward does not know leaves a steady error, which is what the comparison should show.
+
+    Ports: as :class:`~stewart_drake.controller.LqiController`; ``omega`` is accepted and ignored,
+    ``status`` is [0, 0, 0, IK failures, 0] (no gains are solved).
+
+    Args:
+        geometry: the robot the controller believes in.
+        period_s: control period, s. offset_s: sample offset in [0, period_s), s.
+        bandwidth_hz: natural frequency of the closed loop, Hz (20).
+        damping: damping ratio zeta (1, critical).
+        x_initial: initial pose (for the initial torque).
+    Raises:
+        InvalidConfigError: non-positive period, bandwidth or damping, or a bandwidth the
+            sampling cannot carry (2 pi f h > 0.5).
+    """
+
+    def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3, offset_s: float = 0.0,
+                 bandwidth_hz: float = 20.0, damping: float = 1.0, x_initial=None):
+        super().__init__()
+        for name, value in (("period_s", period_s), ("bandwidth_hz", bandwidth_hz),
+                            ("damping", damping)):
+            if not (np.isfinite(value) and value > 0):
+                raise InvalidConfigError(f"{name} must be a finite number > 0, got {value}")
+        w_n = 2 * np.pi * bandwidth_hz
+        if w_n * period_s > 0.5:
+            raise InvalidConfigError(
+                f"bandwidth {bandwidth_hz} Hz is too high for a {period_s} s period "
+                f"(2 pi f h = {w_n * period_s:.2f} > 0.5); lower it or the period")
+        if not (0 <= offset_s < period_s):
+            raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
+        self.geometry = geometry
+        M = crank_inertia_matrix(geometry)
+        self.K_p = w_n ** 2 * M
+        self.K_d = 2 * damping * w_n * M
+        x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
+        self._omega = self.DeclareVectorInputPort("omega", 2)
+        self._u_index = self.DeclareDiscreteState(kinematics.holding_torques(geometry, x0))
+        self._s_index = self.DeclareDiscreteState(N_STATUS)
+        self._e_index = self.DeclareDiscreteState(6)
+        self.DeclareStateOutputPort("T", self._u_index)
+        self.DeclareStateOutputPort("status", self._s_index)
+        self.DeclareStateOutputPort("e_bar", self._e_index)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=period_s, offset_sec=float(offset_s),
+                                                update=self._Update)
+
+    def get_x_input_port(self):
+        return self._x
+
+    def get_x_d_input_port(self):
+        return self._x_d
+
+    def get_T_ff_input_port(self):
+        return self._T_ff
+
+    def get_omega_input_port(self):
+        return self._omega
+
+    def crank_states(self, x) -> tuple[np.ndarray, np.ndarray]:
+        """(theta (6,) rad, w (6,) rad/s) of the cranks for a pose and rate x (12,)."""
+        theta = kinematics.ik(self.geometry, x[:6])
+        return theta, kinematics.jacobian(self.geometry, x[:6], theta) @ x[6:12]
+
+    def _Update(self, context, discrete_state):
+        x = self._x.Eval(context)
+        ref = self._x_d.Eval(context)
+        T = self._T_ff.Eval(context).copy()
+        status = context.get_discrete_state(self._s_index).get_value().copy()
+        try:
+            theta, w = self.crank_states(x)
+            theta_d, w_d = self.crank_states(ref[:12])
+            T += self.K_p @ (theta_d - theta) + self.K_d @ (w_d - w)
+        except UnreachablePoseError:
+            status[3] += 1        # keep the feed-forward alone; the guard sees the pose
+        discrete_state.set_value(self._u_index, T)
+        discrete_state.set_value(self._s_index, status)
+        discrete_state.set_value(self._e_index, x[:6] - ref[:6])
