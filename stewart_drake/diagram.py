@@ -161,7 +161,8 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         meshcat: optional pydrake Meshcat; adds the default visualization.
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "T" (applied torques, 6),
-        "status" (controller, 5), "state" (plant), and with the tuner "rho" (12). The platform
+        "status" (controller, 5), "state" (plant), and with the tuner "rho" (12, every
+        tuner period). The platform
         pose is recovered from "state" (``sensor.poses_from_states``), so no logger evaluates the
         sensor.
     Raises:
@@ -230,8 +231,9 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         builder.Connect(applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
         builder.Connect(tuner.GetOutputPort("omega"), controller.get_omega_input_port())
+        # rho is computed when read: log it where the tuner reads it, not every millisecond.
         loggers["rho"] = LogVectorOutput(features.GetOutputPort("rho"), builder,
-                                         config.log_period_s)
+                                         config.tuner_period_s)
     else:
         omega = builder.AddNamedSystem("omega", ConstantVectorSource(
             np.array([config.omega_Q, config.omega_R])))

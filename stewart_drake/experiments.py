@@ -35,7 +35,8 @@ class RunResult:
         t: (N,) s.  x: (N, 12) measured pose and rate.  x_d: (N, 18) reference pose, rate,
         acceleration.  T: (N, 6) motor torques, N m.  status: (N, 5) controller status.
         closure: (N,) max loop-closure error over the six rods, m.
-        omega: (N, 2) omega_Q, omega_R in use.  rho: (N, 12) density features or None.
+        omega: (N, 2) omega_Q, omega_R in use.  rho: (M, 12) density features at the tuner's
+        instants (every tuner period) or None.
         metrics: dict of the figures printed by the CLI (see :func:`compute_metrics`).
     """
 

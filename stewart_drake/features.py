@@ -139,15 +139,17 @@ class DensityFeatures(LeafSystem):
         ``e_bar`` (6,): pose error [rad, rad, rad, m, m, m].
         ``T`` (6,): motor torques, N m.
     Output port:
-        ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, held between samples.
+        ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, of the samples taken so far.
     Discrete state (numbers only): e buffer (window * 6), T buffer (window * 6), both oldest
-    sample first; n_valid (1,), samples taken so far capped at window; rho (12,).
+    sample first; n_valid (1,), samples taken so far capped at window.
 
-    Every period_s (first at t = 0) the inputs are sampled, pushed into the ring buffers and
-    rho is computed by :func:`density_features` on the last min(k + 1, window) samples. The
-    output is the state, so the system has no direct feedthrough (no algebraic loop with the
-    controller that produces T). Eq. 35 divides by a signed window sum that can cross zero; we
-    divide by the window mean of |.| plus ``eps`` instead (docs/paper_notes.md).
+    Every period_s (first at t = 0) the inputs are sampled and pushed into the ring buffers
+    (cheap); rho is computed by :func:`density_features` on the last min(k + 1, window) samples
+    only when something reads the output (the tuner, every 20 ms), and Drake caches it until the
+    next push. The output depends on the state alone, so the system has no direct feedthrough (no
+    algebraic loop with the controller that produces T). Eq. 35 divides by a signed window sum
+    that can cross zero; we divide by the window mean of |.| plus ``eps`` instead
+    (docs/paper_notes.md).
 
     Args:
         window: m + 1, samples per window (50).
@@ -174,8 +176,8 @@ class DensityFeatures(LeafSystem):
         self._e_buf = self.DeclareDiscreteState(size)
         self._T_buf = self.DeclareDiscreteState(size)
         self._n_index = self.DeclareDiscreteState(1)
-        self._rho_index = self.DeclareDiscreteState(N_FEATURES)
-        self._rho = self.DeclareStateOutputPort("rho", self._rho_index)
+        self._rho = self.DeclareVectorOutputPort("rho", N_FEATURES, self._CalcRho,
+                                                 prerequisites_of_calc={self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=0.0,
                                                 update=self._Update)
 
@@ -188,21 +190,32 @@ class DensityFeatures(LeafSystem):
     def get_rho_output_port(self):
         return self._rho
 
-    def _Push(self, context, discrete_state, index, port, name) -> np.ndarray:
+    def _Push(self, context, discrete_state, index, port, name) -> None:
         sample = port.Eval(context)
-        if not np.all(np.isfinite(sample)):
+        if not np.isfinite(sample.sum()):        # one reduction: the common case is fast
             raise SimulationDivergedError(
                 f"non-finite {name} = {np.array2string(sample, precision=4)} at the "
                 f"DensityFeatures input (features are not computed from diverged signals)",
                 t=context.get_time())
-        buf = context.get_discrete_state(index).get_value().reshape(self.window, N_CHANNELS)
-        buf = np.vstack([buf[1:], sample])       # shift: oldest out, newest last
-        discrete_state.set_value(index, buf.reshape(-1))
-        return buf
+        buf = context.get_discrete_state(index).get_value()
+        k = N_CHANNELS
+        shifted = np.empty_like(buf)             # shift: oldest out, newest last
+        shifted[:-k] = buf[k:]
+        shifted[-k:] = sample
+        discrete_state.set_value(index, shifted)
 
     def _Update(self, context, discrete_state):
-        e_win = self._Push(context, discrete_state, self._e_buf, self._e, "e_bar")
-        T_win = self._Push(context, discrete_state, self._T_buf, self._T, "T")
+        self._Push(context, discrete_state, self._e_buf, self._e, "e_bar")
+        self._Push(context, discrete_state, self._T_buf, self._T, "T")
         n = min(int(context.get_discrete_state(self._n_index).get_value()[0]) + 1, self.window)
         discrete_state.set_value(self._n_index, [n])
-        discrete_state.set_value(self._rho_index, density_features(e_win, T_win, self.eps, n))
+
+    def _CalcRho(self, context, output) -> None:
+        n = int(context.get_discrete_state(self._n_index).get_value()[0])
+        if n == 0:                                # nothing sampled yet
+            output.SetFromVector(np.zeros(N_FEATURES))
+            return
+        shape = (self.window, N_CHANNELS)
+        e_win = context.get_discrete_state(self._e_buf).get_value().reshape(shape)
+        T_win = context.get_discrete_state(self._T_buf).get_value().reshape(shape)
+        output.SetFromVector(density_features(e_win, T_win, self.eps, n))
