@@ -53,7 +53,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run the paper's experiment (eqs. 37-38) and plot Fig. 7")
     run.add_argument("--duration", type=_positive_float, default=10.0, help="simulated s (10)")
-    run.add_argument("--trajectory", default="paper", help="reference trajectory name (paper)")
+    run.add_argument("--trajectory", default="paper",
+                     help="reference: paper, home, helix, step_<axis>, sweep_<axis> (paper)")
+    run.add_argument("--controller", choices=["lqi", "pd"], default="lqi",
+                     help="LQI (paper) or crank-space PD baseline (lqi)")
     run.add_argument("--omega-q", type=_positive_float, default=1.0, help="omega_Q (1)")
     run.add_argument("--omega-r", type=_positive_float, default=1.0, help="omega_R (1)")
     run.add_argument("--tuner", choices=["none", "ann"], default="none",
@@ -80,6 +83,17 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--seed", type=int, default=0, help="split and initialization seed (0)")
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
     tr.set_defaults(func=_delegate("experiments", "train_cli"))
+
+    ev = sub.add_parser("evaluate", help="every controller on every scenario: docs/results.md")
+    ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
+    ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
+    ev.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    ev.add_argument("--controllers", default=None,
+                    help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (all)")
+    ev.add_argument("--quick", action="store_true",
+                    help="1-2 s runs: a smoke test of the pipeline, not figures to quote")
+    ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    ev.set_defaults(func=_delegate("evaluation", "evaluate_cli"))
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")

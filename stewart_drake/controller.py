@@ -125,21 +125,42 @@ def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9
             "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
 
 
+def _balance(A, B, Q, R):
+    """Diagonal scaling e = D_x e~, u = D_u u~ with D = diag(Q)^-1/2, diag(R)^-1/2.
+
+    The LQI's Q spans 1 (rates, 1/(1 rad/s)^2) to 2.5e9 (integrals, 1/(2e-5)^2): unscaled, the
+    Riccati solution has cond(P) ~ 4e9 and the gains carry ~1e-8 relative rounding error; scaled,
+    cond(P) ~ 400. Returns (A~, B~, Q~, R~, d_x, d_u).
+    """
+    qd, rd = np.diag(Q), np.diag(R)
+    d_x = 1.0 / np.sqrt(qd) if np.all(qd > 0) else np.ones(len(qd))
+    d_u = 1.0 / np.sqrt(rd) if np.all(rd > 0) else np.ones(len(rd))
+    return (A * (1 / d_x)[:, None] * d_x[None, :], B * (1 / d_x)[:, None] * d_u[None, :],
+            Q * d_x[:, None] * d_x[None, :], R * d_u[:, None] * d_u[None, :], d_x, d_u)
+
+
+def _check_finite(**arrays) -> None:
+    for name, M in arrays.items():
+        if not np.all(np.isfinite(M)):
+            raise RiccatiSolveError(f"{name} has non-finite entries; no gain computed")
+
+
 def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Optimal gain K = (R + B^T P B)^-1 B^T P A (eqs. 31-32); u = -K e.
 
+    Solved on the diagonally scaled problem (:func:`_balance`) with Drake's
+    DiscreteAlgebraicRiccatiEquation, then scaled back: the same gain, better conditioned.
     Raises:
         RiccatiSolveError: Drake's solver failed, or the result is not finite or not stabilizing.
     """
-    for name, M in (("A", A), ("B", B), ("Q", Q), ("R", R)):
-        if not np.all(np.isfinite(M)):
-            raise RiccatiSolveError(f"{name} has non-finite entries; no gain computed")
+    _check_finite(A=A, B=B, Q=Q, R=R)
+    Ab, Bb, Qb, Rb, d_x, d_u = _balance(A, B, Q, R)
     try:
-        P = DiscreteAlgebraicRiccatiEquation(A, B, Q, R)
+        P = DiscreteAlgebraicRiccatiEquation(Ab, Bb, Qb, Rb)
     except (RuntimeError, ValueError, SystemExit) as err:
         # pydrake reports a failed precondition (e.g. (A, B) not stabilizable) as SystemExit.
         raise RiccatiSolveError(f"DiscreteAlgebraicRiccatiEquation failed: {err}") from None
-    K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
+    K = d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
     if not np.all(np.isfinite(K)):
         raise RiccatiSolveError("Riccati gain is not finite")
     rho = np.max(np.abs(np.linalg.eigvals(A - B @ K)))
@@ -158,8 +179,10 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     converge quadratically to the Riccati gain, so a gain from the previous re-schedule (a pose
     a few ms away) is refined in two iterations, about half the cost of a cold DARE. Newton's
     quadratic convergence makes the last step size an estimate of the previous iterate's error
-    squared: the loop stops once the relative step is below ``tol`` (1e-4 gives ~1e-9 relative to
-    the cold solve, tested along the paper manoeuvre).
+    squared: the loop stops once the relative step is below ``tol`` (1e-4 gives at most 5e-9
+    relative to the cold solve along the paper manoeuvre, in 2.05 iterations on average; tested).
+    It iterates on the diagonally scaled problem (:func:`_balance`), without which the Stein
+    solves' rounding (cond(P) ~ 4e9) alone would leave ~5e-8.
 
     Args:
         A (n, n), B (n, m), Q (n, n), R (m, m): as :func:`lqi_gain`. K_start: (m, n) stabilizing.
@@ -172,9 +195,9 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     Source: G. A. Hewer, IEEE TAC 16(4), 1971; paper eqs. 31-32.
     """
     K = np.asarray(K_start, dtype=float)
-    for name, M in (("A", A), ("B", B), ("Q", Q), ("R", R), ("K_start", K)):
-        if not np.all(np.isfinite(M)):
-            raise RiccatiSolveError(f"{name} has non-finite entries; no gain computed")
+    _check_finite(A=A, B=B, Q=Q, R=R, K_start=K)
+    A, B, Q, R, d_x, d_u = _balance(A, B, Q, R)     # iterate on the well-conditioned problem
+    K = K * d_x[None, :] / d_u[:, None]
     for i in range(1, max_iter + 1):
         A_c = A - B @ K
         W = Q + K.T @ R @ K
@@ -189,7 +212,7 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
         if step < tol:
             if not np.all(np.isfinite(K)):
                 break
-            return K, i
+            return d_u[:, None] * K / d_x[None, :], i
     raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
 
 
@@ -308,7 +331,7 @@ class LqiController(LeafSystem):
 
         Args:
             K_start: optional (6, 18) nearby stabilizing gain: the gain is then refined from it
-                by :func:`lqi_gain_warm` (same K to ~1e-9 relative), with the cold DARE as the
+                by :func:`lqi_gain_warm` (same K to < 1e-8 relative), with the cold DARE as the
                 fallback.
         Raises:
             InvalidConfigError: weights not in [1e-3, 1e3]; RiccatiSolveError: see lqi_gain.

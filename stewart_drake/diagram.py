@@ -145,6 +145,16 @@ class StewartDiagram:
     config: StewartConfig
     features: Any = None
     tuner: Any = None
+    noise: Any = None
+
+    def seed_noise(self, root_context) -> None:
+        """Seed the sensor noise (if any) in ``root_context`` from ``config.noise_seed``: Drake
+        gives every RandomSource a fresh seed otherwise, and two runs would differ."""
+        if self.noise is not None:
+            from pydrake.common import RandomGenerator
+
+            self.noise.SetRandomContext(self.noise.GetMyMutableContextFromRoot(root_context),
+                                        RandomGenerator(self.config.noise_seed))
 
 
 def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> StewartDiagram:
@@ -196,6 +206,7 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
             x_initial=x_d0))
     builder.Connect(plant.get_state_output_port(), sensor.get_input_port())
     measured = sensor.get_output_port()
+    noise = None
     if config.sensor_noise_std is not None:
         std = np.broadcast_to(np.asarray(config.sensor_noise_std, dtype=float), (12,)).copy()
         noise = builder.AddNamedSystem("sensor_noise", RandomSource(
@@ -253,4 +264,5 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
     diagram.set_name("rotary_stewart_lqi")
     return StewartDiagram(diagram=diagram, plant=plant, scene_graph=scene_graph, handles=handles,
                           controller=controller, reference=reference, sensor=sensor,
-                          loggers=loggers, config=config, features=features, tuner=tuner)
+                          loggers=loggers, config=config, features=features, tuner=tuner,
+                          noise=noise)

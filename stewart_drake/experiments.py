@@ -81,6 +81,7 @@ def build_simulator(config: StewartConfig, meshcat=None):
     sd = make_stewart_diagram(config, meshcat=meshcat)
     simulator = Simulator(sd.diagram)
     context = simulator.get_mutable_context()
+    sd.seed_noise(context)
     plant_context = sd.plant.GetMyMutableContextFromRoot(context)
     x0 = config.resolved_trajectory().evaluate(0.0)[0]
     assemble(sd.plant, plant_context, sd.handles, x0)
@@ -280,6 +281,7 @@ def run_cli(args) -> int:
         weights = str(DEFAULT_TUNER_OUT)      # what `stewart-drake train` just wrote
     config = StewartConfig(trajectory=args.trajectory, duration_s=args.duration,
                            omega_Q=args.omega_q, omega_R=args.omega_r,
+                           controller=getattr(args, "controller", "lqi"),
                            tuner=None if args.tuner == "none" else args.tuner,
                            tuner_weights=weights)
     if config.tuner:
@@ -288,7 +290,8 @@ def run_cli(args) -> int:
         print(f"ANN tuner weights: {weights or DEFAULT_TUNER_PATH}")
     result = run_experiment(config, progress=not args.no_progress)
     out = Path(args.out)
-    stem = f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
+    stem = (f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
+            + ("_pd" if config.controller == "pd" else ""))
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
     print(format_metrics(result.metrics))

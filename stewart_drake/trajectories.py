@@ -58,11 +58,131 @@ def hold_home() -> SineTrajectory:
     return SineTrajectory(name="home")
 
 
-TRAJECTORIES = {"paper": paper_manoeuvre, "home": hold_home}
+AXIS_NAMES = ("phi", "theta", "psi", "X", "Y", "Z")
+#: Step sizes of :func:`step` by default: 20 mrad for angles, 5 mm for positions.
+STEP_SIZE = (0.02, 0.02, 0.02, 0.005, 0.005, 0.005)
+
+
+def _axis_index(axis) -> int:
+    if isinstance(axis, str):
+        if axis not in AXIS_NAMES:
+            raise InvalidConfigError(f"unknown axis {axis!r}; choose one of {AXIS_NAMES}")
+        return AXIS_NAMES.index(axis)
+    if not (isinstance(axis, (int, np.integer)) and 0 <= axis < 6):
+        raise InvalidConfigError(f"axis must be 0..5 or one of {AXIS_NAMES}, got {axis!r}")
+    return int(axis)
+
+
+@dataclass(frozen=True)
+class StepTrajectory:
+    """A step of ``size`` on one axis at ``t_step``: x_d = offset + size e_axis H(t - t_step).
+
+    Rate and acceleration are zero (the step is a reference, not a motion plan: its response
+    gives the settling time). Attributes: axis 0..5, size in rad or m, t_step in s, offset (6,).
+    """
+
+    axis: int = 5
+    size: float = 0.005
+    t_step: float = 0.5
+    offset: tuple = tuple(X_HOME)
+    name: str = "step"
+
+    def __post_init__(self):
+        object.__setattr__(self, "axis", _axis_index(self.axis))
+        if not (np.isfinite(self.size) and np.isfinite(self.t_step) and self.t_step >= 0):
+            raise InvalidConfigError(f"{self.name}: size must be finite and t_step >= 0 s, got "
+                                     f"{self.size}, {self.t_step}")
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t: three (..., 6) arrays (t scalar gives (6,))."""
+        t = np.asarray(t, dtype=float)[..., None]
+        e = np.zeros(6)
+        e[self.axis] = self.size
+        x = np.asarray(self.offset) + e * (t >= self.t_step)
+        return x, np.zeros_like(x), np.zeros_like(x)
+
+
+@dataclass(frozen=True)
+class ChirpTrajectory:
+    """Exponential sine sweep on one axis, for the closed loop's frequency response.
+
+    x_d = offset + amplitude sin(phase(t)) e_axis, instantaneous frequency
+    f(t) = f0 (f1/f0)^(t/duration_s) Hz, phase(t) = 2 pi f0 T (k^(t/T) - 1) / ln k, k = f1/f0;
+    after ``duration_s`` the sweep holds f1. Attributes: axis, amplitude (rad or m), f0_hz,
+    f1_hz (> f0_hz), duration_s, offset (6,).
+    """
+
+    axis: int = 5
+    amplitude: float = 2e-4
+    f0_hz: float = 1.0
+    f1_hz: float = 50.0
+    duration_s: float = 8.0
+    offset: tuple = tuple(X_HOME)
+    name: str = "sweep"
+
+    def __post_init__(self):
+        object.__setattr__(self, "axis", _axis_index(self.axis))
+        if not (0 < self.f0_hz < self.f1_hz and np.isfinite(self.f1_hz)
+                and self.duration_s > 0 and np.isfinite(self.amplitude)):
+            raise InvalidConfigError(
+                f"{self.name}: need 0 < f0_hz < f1_hz, duration_s > 0 and a finite amplitude, "
+                f"got {self.f0_hz}, {self.f1_hz}, {self.duration_s}, {self.amplitude}")
+
+    def frequency(self, t) -> np.ndarray:
+        """Instantaneous frequency f(t) in Hz."""
+        t = np.minimum(np.asarray(t, dtype=float), self.duration_s)
+        return self.f0_hz * (self.f1_hz / self.f0_hz) ** (t / self.duration_s)
+
+    def phase(self, t) -> np.ndarray:
+        """phase(t) in rad (continuous; linear in t after duration_s)."""
+        t = np.asarray(t, dtype=float)
+        T, k = self.duration_s, self.f1_hz / self.f0_hz
+        tc = np.minimum(t, T)
+        ph = 2 * np.pi * self.f0_hz * T * (k ** (tc / T) - 1) / np.log(k)
+        return ph + 2 * np.pi * self.f1_hz * np.maximum(t - T, 0.0)
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t: three (..., 6) arrays (t scalar gives (6,))."""
+        t = np.asarray(t, dtype=float)
+        ph = self.phase(t)[..., None]
+        w = 2 * np.pi * self.frequency(t)[..., None]
+        T, k = self.duration_s, self.f1_hz / self.f0_hz
+        w_dot = np.where(t[..., None] < T, w * np.log(k) / T, 0.0)
+        e = np.zeros(6)
+        e[self.axis] = self.amplitude
+        x = np.asarray(self.offset) + e * np.sin(ph)
+        return x, e * w * np.cos(ph), e * (w_dot * np.cos(ph) - w * w * np.sin(ph))
+
+
+def step(axis) -> StepTrajectory:
+    """A step of :data:`STEP_SIZE` on ``axis`` (name or index) at t = 0.5 s from home."""
+    k = _axis_index(axis)
+    return StepTrajectory(axis=k, size=STEP_SIZE[k], name=f"step_{AXIS_NAMES[k]}")
+
+
+def sweep(axis="Z") -> ChirpTrajectory:
+    """A 1 -> 50 Hz sweep over 8 s on ``axis``: 0.2 mm (positions) or 2 mrad (angles)."""
+    k = _axis_index(axis)
+    return ChirpTrajectory(axis=k, amplitude=2e-4 if k >= 3 else 2e-3,
+                           name=f"sweep_{AXIS_NAMES[k]}")
+
+
+def helix() -> SineTrajectory:
+    """Surgical-style path: a 5 mm circle in X-Y at 2 Hz while Z rises and falls 3 mm at
+    0.25 Hz, with a 20 mrad wobble of the tool axis (theta) at 1 Hz; well inside the workspace."""
+    return SineTrajectory(amplitude=(0, 0.02, 0, 0.005, 0.005, 0.003),
+                          frequency_hz=(0, 1.0, 0, 2.0, 2.0, 0.25),
+                          phase=(0, 0, 0, np.pi / 2, 0, 0), name="helix")
+
+
+TRAJECTORIES = {"paper": paper_manoeuvre, "home": hold_home, "helix": helix,
+                **{f"step_{a}": (lambda a=a: step(a)) for a in AXIS_NAMES},
+                **{f"sweep_{a}": (lambda a=a: sweep(a)) for a in AXIS_NAMES}}
 
 
 def make_trajectory(name: str):
-    """A trajectory by name ("paper", "home").
+    """A trajectory by name: "paper", "home", "helix", "step_<axis>", "sweep_<axis>" with axis
+    one of phi, theta, psi, X, Y, Z.
 
     Raises:
         InvalidConfigError: unknown name (the message lists the known ones).

@@ -37,6 +37,9 @@ LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]
 OMEGA_MIN, OMEGA_MAX = 10.0 ** LOG10_MIN, 10.0 ** LOG10_MAX
 Z_CLIP = 1e3                                 # |normalized input| cap, in training stds
 DEFAULT_TUNER_PATH = Path(__file__).resolve().parent / "data" / "ann_tuner.npz"
+#: The same network trained on the paper's labels (each sample labelled with its run's weights),
+#: shipped for the evaluation's comparison of the two label modes.
+PAPER_LABEL_TUNER_PATH = DEFAULT_TUNER_PATH.with_name("ann_tuner_paper.npz")
 ACTIVATIONS = ("tanh", "sigmoid")
 
 

@@ -1,0 +1,542 @@
+"""The evaluation of issue 6: every controller on every scenario, side by side.
+
+``stewart-drake evaluate`` runs a grid of :class:`Case` (controller x scenario x condition) over
+processes with :class:`~stewart_drake.experiments.ProcessRunner`, and writes
+
+- ``docs/results.md``: tables generated from the runs (never edited by hand), with the verdict
+  on the ANN tuner computed from the numbers;
+- ``docs/results_*.png``: the tracking-vs-effort map, frequency responses and step responses;
+- ``results/evaluation/rows.json``: every row, for notebooks and further analysis.
+
+Controllers: the LQI at each of the paper's 9 fixed (omega_Q, omega_R) pairs, the crank-space PD
+with gravity feed-forward, and the ANN-tuned LQI with best-cost and with paper labels.
+Scenarios: the paper manoeuvre (eqs. 37-38), a step on each axis, a helix, and sine sweeps of Z
+and phi for the -3 dB bandwidth. Conditions (on the paper manoeuvre): nominal, +-20 % platform
+mass and inertia unknown to the controller, sensor noise, motor torque saturation.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+import traceback
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .controller import LqiScales
+from .diagram import StewartConfig
+from .errors import InvalidConfigError, StewartError
+from .experiments import AXES, PAPER_WEIGHTS, ProcessRunner, SerialRunner, run_experiment
+from .fileio import atomic_write
+from .trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory, make_trajectory
+
+FIXED_LQI = tuple(f"lqi_{q:g}_{r:g}" for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS)
+CONTROLLERS = FIXED_LQI + ("pd", "ann_best_cost", "ann_paper")
+#: Sensor noise of the "noise" condition: 0.1 mrad, 0.05 mm, 0.01 rad/s, 5 mm/s (1 sigma).
+NOISE_STD = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
+#: Motor torque limit of the "saturation" condition, N m (the paper run peaks at 1.7 N m).
+TORQUE_LIMIT_NM = 1.2
+CONDITIONS = {
+    "nominal": {},
+    "payload+20%": {"payload_scale": 1.2},
+    "payload-20%": {"payload_scale": 0.8},
+    "noise": {"sensor_noise_std": NOISE_STD},
+    f"saturation {TORQUE_LIMIT_NM:g} N m": {"torque_limit_Nm": TORQUE_LIMIT_NM},
+}
+#: Simulated seconds per scenario.
+SCENARIO_DURATION_S = {"paper": 10.0, "helix": 4.0, "sweep_Z": 9.0, "sweep_phi": 9.0,
+                       **{f"step_{a}": 2.5 for a in AXIS_NAMES}}
+#: Settling band of the step responses, as a fraction of the step.
+SETTLING_BAND = 0.02
+
+
+@dataclass(frozen=True)
+class Case:
+    """One run of the grid: a controller name, a scenario name, a condition name, a duration."""
+
+    controller: str
+    scenario: str
+    condition: str = "nominal"
+    duration_s: float = 10.0
+
+    @property
+    def key(self) -> str:
+        return f"{self.controller} | {self.scenario} | {self.condition}"
+
+
+def controller_settings(name: str) -> dict:
+    """StewartConfig fields of a controller name of :data:`CONTROLLERS`.
+
+    Raises:
+        InvalidConfigError: unknown name (the message lists the known ones).
+    """
+    from .tuner import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
+
+    if name.startswith("lqi_"):
+        try:
+            _, q, r = name.split("_")
+            return {"omega_Q": float(q), "omega_R": float(r)}
+        except ValueError:
+            pass
+    elif name == "pd":
+        return {"controller": "pd"}
+    elif name == "ann_best_cost":
+        return {"tuner": "ann", "tuner_weights": str(DEFAULT_TUNER_PATH)}
+    elif name == "ann_paper":
+        return {"tuner": "ann", "tuner_weights": str(PAPER_LABEL_TUNER_PATH)}
+    raise InvalidConfigError(f"unknown controller {name!r}; choose lqi_<omega_Q>_<omega_R> or "
+                             f"one of {CONTROLLERS[-3:]}")
+
+
+def cases(quick: bool = False, controllers=CONTROLLERS) -> list[Case]:
+    """The evaluation grid.
+
+    Every controller runs every scenario in nominal conditions, and the paper manoeuvre under
+    every condition. ``quick`` shortens every run to 1 s (sweeps 2 s) for tests and notebooks:
+    the tables are then only a smoke test, not figures to quote.
+    """
+    out = []
+    for c in controllers:
+        for scenario, duration in SCENARIO_DURATION_S.items():
+            if quick:
+                duration = 2.0 if scenario.startswith("sweep") else 1.0
+            out.append(Case(c, scenario, "nominal", duration))
+        for condition in CONDITIONS:
+            if condition != "nominal":
+                out.append(Case(c, "paper", condition, 1.0 if quick else 10.0))
+    return out
+
+
+def _normalized_rms(rms, scales: LqiScales) -> float:
+    """sqrt(mean_i (rms_i / s_i)^2): one tracking figure, with the LQI's error scales
+    (1 mrad, 1 mm by default), so angles and positions count alike."""
+    return float(np.sqrt(np.mean((np.asarray(rms) / np.asarray(scales.pose)) ** 2)))
+
+
+def settling_time(t, error, size: float, t_step: float, band: float = SETTLING_BAND):
+    """Time after ``t_step`` from which |error| stays within band * |size|, s (None if never).
+
+    Args:
+        t: (N,) s. error: (N,) x - x_d on the stepped axis (rad or m). size: the step.
+    """
+    t = np.asarray(t)
+    after = t >= t_step
+    outside = after & (np.abs(error) > band * abs(size))
+    if not np.any(after):
+        return None
+    if not np.any(outside):
+        return 0.0
+    last = int(np.flatnonzero(outside)[-1])
+    if last == len(t) - 1:
+        return None                                   # still outside at the end of the run
+    return float(t[last + 1] - t_step)
+
+
+def frequency_response(t, y, chirp: ChirpTrajectory, cycles_per_segment: float = 2.0):
+    """Gain and phase of y against a sine sweep, segment by segment.
+
+    Each segment spans ``cycles_per_segment`` cycles of the sweep; on it y - offset is fitted by
+    least squares with a sin(phase) + b cos(phase) + c, and the gain is |a + i b| / amplitude.
+
+    Returns:
+        (f (K,) Hz, gain (K,), phase (K,) rad).
+    """
+    t = np.asarray(t)
+    y = np.asarray(y) - chirp.offset[chirp.axis]
+    m = t <= chirp.duration_s
+    t, y = t[m], y[m]
+    ph = chirp.phase(t)
+    seg = np.floor(ph / (2 * np.pi * cycles_per_segment)).astype(int)
+    f, gain, phase = [], [], []
+    for k in np.unique(seg)[1:]:                      # the first segment holds the start transient
+        sel = seg == k
+        if sel.sum() < 8:
+            continue
+        basis = np.stack([np.sin(ph[sel]), np.cos(ph[sel]), np.ones(sel.sum())], axis=1)
+        (a, b, _), *_ = np.linalg.lstsq(basis, y[sel], rcond=None)
+        f.append(float(np.mean(chirp.frequency(t[sel]))))
+        gain.append(float(np.hypot(a, b) / chirp.amplitude))
+        phase.append(float(np.arctan2(b, a)))
+    return np.array(f), np.array(gain), np.array(phase)
+
+
+def bandwidth_hz(f, gain):
+    """Lowest frequency where the gain falls below -3 dB (1/sqrt 2), log-interpolated; None if
+    the gain stays above it over the whole sweep."""
+    below = np.flatnonzero(gain < 1 / np.sqrt(2))
+    if len(below) == 0:
+        return None
+    k = int(below[0])
+    if k == 0:
+        return float(f[0])
+    g0, g1 = np.log(gain[k - 1]), np.log(gain[k])
+    w = (np.log(1 / np.sqrt(2)) - g0) / (g1 - g0)
+    return float(np.exp(np.log(f[k - 1]) + w * (np.log(f[k]) - np.log(f[k - 1]))))
+
+
+def run_case(case: Case) -> dict:
+    """Simulate one case and reduce it to a row of figures (a plain, picklable dict).
+
+    A run that fails (a typed error or a diverged simulation) gives a row with ``error`` set and
+    no figures, so one bad case never loses the grid.
+    """
+    row = {"case": asdict(case)}
+    try:
+        config = StewartConfig(trajectory=case.scenario, duration_s=case.duration_s,
+                               **controller_settings(case.controller),
+                               **CONDITIONS[case.condition])
+        result = run_experiment(config)
+    except (StewartError, RuntimeError, ValueError, np.linalg.LinAlgError) as err:
+        row["error"] = f"{type(err).__name__}: {err}"
+        row["traceback"] = traceback.format_exc(limit=3)
+        return row
+    m = result.metrics
+    row.update({k: m[k] for k in ("rms_error", "peak_error", "peak_torque", "sum_T2_dt",
+                                  "max_closure_m", "gain_solves", "gain_failures",
+                                  "realtime_factor", "finite", "window_s")})
+    row["normalized_rms"] = _normalized_rms(m["rms_error"], config.scales)
+    # The controller's own effort: what it adds to the gravity feed-forward of the nominal robot
+    # (Sum T^2 dt is dominated by holding the platform up, the same for every controller).
+    from .reference import feedforward_torques
+
+    dT = result.T - feedforward_torques(config.geometry, result.x_d[:, :6])
+    dt = np.diff(result.t, prepend=result.t[0])
+    row["sum_dT2_dt"] = float(np.sum(dT ** 2 * dt[:, None]))
+    row["mean_omega"] = [float(v) for v in np.mean(result.omega, axis=0)]
+    trajectory = config.resolved_trajectory()
+    if isinstance(trajectory, StepTrajectory):
+        k = trajectory.axis
+        err = result.x[:, k] - result.x_d[:, k]
+        row["settling_time_s"] = settling_time(result.t, err, trajectory.size, trajectory.t_step)
+        row["overshoot"] = float(max(0.0, np.max(np.sign(trajectory.size) * err)
+                                     / abs(trajectory.size)))
+        stride = max(1, len(result.t) // 400)
+        row["trace"] = {"t": result.t[::stride].tolist(),
+                        "y": (result.x[::stride, k] - trajectory.offset[k]).tolist()}
+    if isinstance(trajectory, ChirpTrajectory):
+        f, gain, phase = frequency_response(result.t, result.x[:, trajectory.axis], trajectory)
+        row["bandwidth_hz"] = bandwidth_hz(f, gain)
+        row["peak_gain_db"] = float(20 * np.log10(gain.max())) if len(gain) else None
+        row["response"] = {"f": f.tolist(), "gain": gain.tolist(), "phase": phase.tolist()}
+    return row
+
+
+# -- the report -----------------------------------------------------------------------------------
+
+def _fmt(v, scale=1.0, digits=3) -> str:
+    if v is None:
+        return "-"
+    if isinstance(v, float) and not np.isfinite(v):
+        return "inf"
+    return f"{scale * v:.{digits}g}"
+
+
+def _index(rows) -> dict:
+    return {(r["case"]["controller"], r["case"]["scenario"], r["case"]["condition"]): r
+            for r in rows}
+
+
+def ann_verdict(rows, scenario: str = "paper", condition: str = "nominal") -> dict:
+    """Does the ANN-tuned LQI beat the best fixed-gain LQI on tracking at no more effort?
+
+    "Best fixed-gain LQI" is the fixed pair with the lowest normalized RMS among those whose
+    Sum T^2 dt is no more than the ANN run's (the fair comparison); the ANN wins if its normalized
+    RMS is lower. Returns a dict per ANN variant with both figures and the ratio.
+    """
+    by = _index(rows)
+    out = {}
+    for ann in ("ann_best_cost", "ann_paper"):
+        a = by.get((ann, scenario, condition))
+        if a is None or "error" in a:
+            continue
+        fixed = [by[(c, scenario, condition)] for c in FIXED_LQI
+                 if (c, scenario, condition) in by and "error" not in by[(c, scenario, condition)]]
+        admissible = [r for r in fixed if r["sum_T2_dt"] <= a["sum_T2_dt"] * (1 + 1e-9)]
+        best_overall = min(fixed, key=lambda r: r["normalized_rms"]) if fixed else None
+        best = min(admissible, key=lambda r: r["normalized_rms"]) if admissible else None
+        dominated_by = [r["case"]["controller"] for r in fixed
+                        if r["normalized_rms"] < a["normalized_rms"]
+                        and r["sum_T2_dt"] < a["sum_T2_dt"]]
+        out[ann] = {
+            "ann": a, "best_fixed": best, "best_fixed_overall": best_overall,
+            "dominated_by": dominated_by,
+            "beats": bool(best is not None and a["normalized_rms"] < best["normalized_rms"]),
+            "ratio": (a["normalized_rms"] / best["normalized_rms"]) if best else None,
+        }
+    return out
+
+
+def render_markdown(rows, info: dict) -> str:
+    """The text of docs/results.md from the grid's rows (see module docstring)."""
+    by = _index(rows)
+    ctrls = [c for c in CONTROLLERS if any(k[0] == c for k in by)]
+    L = ["# Evaluation results", "",
+         "Generated by `stewart-drake evaluate` "
+         f"({info['n_cases']} runs, {info['wall_s']:.0f} s wall on {info['workers']} processes"
+         f"{', QUICK mode: smoke-test durations, not figures to quote' if info['quick'] else ''})."
+         " Do not edit by hand: rerun the command.", "",
+         "Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. RMS and "
+         "peak errors are over the second half of each run (the true pose from the plant state, "
+         "not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with the LQI's error "
+         "scales s = 1 mrad | 1 mm. RTF = real-time factor of that run in its worker process.",
+         ""]
+
+    def errors_row(r):
+        return f"| {r['case']['controller']} | failed: {r['error'].splitlines()[0][:120]} |"
+
+    # 1. Paper manoeuvre, nominal.
+    L += ["## Paper manoeuvre (eqs. 37-38), nominal", "",
+          "| controller | phi | theta | psi | X | Y | Z | peak phi | peak Z | nRMS | Sum T^2 dt | "
+          "feedback Sum dT^2 dt | peak T | max closure [m] | RTF |",
+          "|---|" + "---|" * 14]
+    for c in ctrls:
+        r = by.get((c, "paper", "nominal"))
+        if r is None:
+            continue
+        if "error" in r:
+            L.append(errors_row(r))
+            continue
+        rms, peak = r["rms_error"], r["peak_error"]
+        L.append(f"| {c} | " + " | ".join(_fmt(v, 1e3) for v in rms)
+                 + f" | {_fmt(peak[0], 1e3)} | {_fmt(peak[5], 1e3)} | {_fmt(r['normalized_rms'])}"
+                 f" | {_fmt(r['sum_T2_dt'])} | {_fmt(r['sum_dT2_dt'])}"
+                 f" | {_fmt(max(r['peak_torque']))} | {_fmt(r['max_closure_m'], digits=2)} | {_fmt(r['realtime_factor'], digits=2)} |")
+    L.append("")
+
+    # 2. Verdict.
+    L += ["## Does the ANN tuner beat the best fixed-gain LQI?", ""]
+    for ann, v in ann_verdict(rows).items():
+        a, b = v["ann"], v["best_fixed"]
+        if b is None:
+            L.append(f"- **{ann}**: no fixed-gain LQI uses as little effort (Sum T^2 dt "
+                     f"{_fmt(a['sum_T2_dt'])}); the closest in effort is compared in the table.")
+            continue
+        verdict = "beats" if v["beats"] else "does not beat"
+        L.append(f"- **{ann} {verdict}** the best fixed-gain LQI at no more effort, "
+                 f"{b['case']['controller']}: nRMS {_fmt(a['normalized_rms'])} vs "
+                 f"{_fmt(b['normalized_rms'])} (ratio {_fmt(v['ratio'])}), Sum T^2 dt "
+                 f"{_fmt(a['sum_T2_dt'])} vs {_fmt(b['sum_T2_dt'])}. Best fixed pair regardless of "
+                 f"effort: {v['best_fixed_overall']['case']['controller']} (nRMS "
+                 f"{_fmt(v['best_fixed_overall']['normalized_rms'])}). "
+                 + (f"Fixed pairs better on both tracking and effort: "
+                    f"{', '.join(v['dominated_by'])}." if v["dominated_by"] else
+                    "No fixed pair is better on both tracking and effort (the ANN run is on the "
+                    "fixed pairs' Pareto front)."))
+    L += ["", "Sum T^2 dt is mostly the torque that holds the platform up, the same for every "
+          "controller; `feedback Sum dT^2 dt` in the table counts only what the controller adds "
+          "to the nominal gravity feed-forward. The 9 fixed pairs are 5 distinct controllers: "
+          "only omega_Q / omega_R matters (scaling Q and R together leaves the gain unchanged), "
+          "so rows with the same ratio repeat.", ""]
+
+    # 3. Steps.
+    L += ["## Steps (20 mrad on angles, 5 mm on positions, at t = 0.5 s)", "",
+          f"Settling time to a {100 * SETTLING_BAND:g} % band, s (`-`: not settled in the run), and "
+          "Sum T^2 dt of all six step runs.", "",
+          "| controller | " + " | ".join(AXIS_NAMES) + " | max overshoot | Sum T^2 dt |",
+          "|---|" + "---|" * 8]
+    for c in ctrls:
+        rs = [by.get((c, f"step_{a}", "nominal")) for a in AXIS_NAMES]
+        if any(r is None for r in rs):
+            continue
+        if any("error" in r for r in rs):
+            L.append(errors_row(next(r for r in rs if "error" in r)))
+            continue
+        L.append(f"| {c} | " + " | ".join(_fmt(r["settling_time_s"]) for r in rs)
+                 + f" | {_fmt(100 * max(r['overshoot'] for r in rs))} %"
+                 f" | {_fmt(sum(r['sum_T2_dt'] for r in rs))} |")
+    L.append("")
+
+    # 4. Helix.
+    L += ["## Helix (5 mm circle in X-Y at 2 Hz, Z 3 mm at 0.25 Hz, theta 20 mrad at 1 Hz)", "",
+          "| controller | theta RMS | X RMS | Y RMS | Z RMS | X peak | Y peak | nRMS | Sum T^2 dt "
+          "| peak T |", "|---|" + "---|" * 9]
+    for c in ctrls:
+        r = by.get((c, "helix", "nominal"))
+        if r is None:
+            continue
+        if "error" in r:
+            L.append(errors_row(r))
+            continue
+        rms, peak = r["rms_error"], r["peak_error"]
+        L.append(f"| {c} | {_fmt(rms[1], 1e3)} | {_fmt(rms[3], 1e3)} | {_fmt(rms[4], 1e3)} | "
+                 f"{_fmt(rms[5], 1e3)} | {_fmt(peak[3], 1e3)} | {_fmt(peak[4], 1e3)} | "
+                 f"{_fmt(r['normalized_rms'])} | {_fmt(r['sum_T2_dt'])} | "
+                 f"{_fmt(max(r['peak_torque']))} |")
+    L.append("")
+
+    # 5. Bandwidth.
+    L += ["## Bandwidth (sine sweep 1 -> 50 Hz: 0.2 mm on Z, 2 mrad on phi)", "",
+          "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
+          "and the peak gain, dB.", "",
+          "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
+          "|---|---|---|---|---|"]
+    for c in ctrls:
+        rz, rp = by.get((c, "sweep_Z", "nominal")), by.get((c, "sweep_phi", "nominal"))
+        if rz is None or rp is None:
+            continue
+        if "error" in rz or "error" in rp:
+            L.append(errors_row(rz if "error" in rz else rp))
+            continue
+
+        def bw(r):
+            return _fmt(r["bandwidth_hz"]) if r["bandwidth_hz"] is not None else "> 50"
+
+        L.append(f"| {c} | {bw(rz)} | {_fmt(rz['peak_gain_db'], digits=2)} | {bw(rp)} | "
+                 f"{_fmt(rp['peak_gain_db'], digits=2)} |")
+    L.append("")
+
+    # 6. Robustness.
+    conds = list(CONDITIONS)
+    L += ["## Robustness on the paper manoeuvre", "",
+          "nRMS (and Sum T^2 dt) per condition. Payload: platform mass and inertia scaled, unknown "
+          f"to the controller. Noise: 1 sigma {NOISE_STD[0] * 1e3:g} mrad, {NOISE_STD[3] * 1e3:g} "
+          f"mm, {NOISE_STD[6]:g} rad/s, {NOISE_STD[9]:g} m/s on the measured pose and rate. "
+          f"Saturation: |T_i| <= {TORQUE_LIMIT_NM:g} N m.", "",
+          "| controller | " + " | ".join(conds) + " | worst phi RMS [mrad] | worst Z RMS [mm] |",
+          "|---|" + "---|" * (len(conds) + 2)]
+    for c in ctrls:
+        rs = [by.get((c, "paper", k)) for k in conds]
+        if any(r is None for r in rs):
+            continue
+        cells = []
+        for r in rs:
+            cells.append("failed" if "error" in r else
+                         f"{_fmt(r['normalized_rms'])} ({_fmt(r['sum_T2_dt'])})")
+        ok = [r for r in rs if "error" not in r]
+        worst_phi = max((r["rms_error"][0] for r in ok), default=None)
+        worst_z = max((r["rms_error"][5] for r in ok), default=None)
+        L.append(f"| {c} | " + " | ".join(cells) + f" | {_fmt(worst_phi, 1e3)} | "
+                 f"{_fmt(worst_z, 1e3)} |")
+    L.append("")
+    failed = [r for r in rows if "error" in r]
+    L += ["## Runs that failed", ""]
+    L += ([f"- {r['case']['controller']} / {r['case']['scenario']} / {r['case']['condition']}: "
+           f"{r['error'].splitlines()[0]}" for r in failed] or ["None."])
+    L += ["", "## Pictures", "",
+          "![tracking vs effort](results_tradeoff.png)", "",
+          "![frequency responses](results_bandwidth.png)", "",
+          "![step responses](results_steps.png)", ""]
+    return "\n".join(L)
+
+
+def plot_results(rows, out_dir: str | Path) -> list[Path]:
+    """Three PNGs in out_dir: tracking vs effort (paper manoeuvre), frequency responses (Z
+    sweep), step responses (Z step). Returns their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out_dir = Path(out_dir)
+    by = _index(rows)
+    paths = []
+
+    def save(fig, name):
+        path = out_dir / name
+        atomic_write(path, lambda f: fig.savefig(f, dpi=100, format="png"))
+        plt.close(fig)
+        paths.append(path)
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    for c in CONTROLLERS:
+        r = by.get((c, "paper", "nominal"))
+        if r is None or "error" in r:
+            continue
+        style = "o" if c.startswith("lqi") else ("s" if c == "pd" else "*")
+        ax.loglog(r["sum_T2_dt"], r["normalized_rms"], style, ms=10 if style == "*" else 7)
+        ax.annotate(c, (r["sum_T2_dt"], r["normalized_rms"]), fontsize=7,
+                    xytext=(4, 2), textcoords="offset points")
+    ax.set_xlabel(r"$\sum T^2 \Delta t$ [N$^2$ m$^2$ s]")
+    ax.set_ylabel("normalized RMS tracking error (1 = 1 mrad | 1 mm)")
+    ax.set_title("Paper manoeuvre: tracking vs effort (lower left is better)")
+    ax.grid(alpha=0.3, which="both")
+    save(fig, "results_tradeoff.png")
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharey=True)
+    for ax, scen in zip(axes, ("sweep_Z", "sweep_phi")):
+        for c in CONTROLLERS:
+            r = by.get((c, scen, "nominal"))
+            if r is None or "error" in r or not r["response"]["f"]:
+                continue
+            ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
+                        lw=1.5 if not c.startswith("lqi") else 0.8, label=c)
+        ax.axhline(-3, color="k", ls=":", lw=1)
+        ax.set_xlabel("frequency [Hz]")
+        ax.set_title(scen.replace("sweep_", "reference -> pose, "))
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("gain [dB]")
+    axes[1].legend(fontsize=7, ncol=2)
+    save(fig, "results_bandwidth.png")
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for c in CONTROLLERS:
+        r = by.get((c, "step_Z", "nominal"))
+        if r is None or "error" in r:
+            continue
+        ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]),
+                lw=1.5 if not c.startswith("lqi") else 0.8, label=c)
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("Z - Z_home [mm]")
+    ax.set_title("5 mm step on Z at t = 0.5 s")
+    ax.legend(fontsize=7, ncol=2)
+    ax.grid(alpha=0.3)
+    save(fig, "results_steps.png")
+    return paths
+
+
+def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evaluation",
+             runner=None, progress: bool = True, quick: bool = False,
+             controllers=CONTROLLERS) -> dict:
+    """Run the grid and write the report (see module docstring).
+
+    Args:
+        docs_dir: where results.md and the PNGs go. out_dir: where rows.json goes.
+        runner: :class:`~stewart_drake.experiments.ProcessRunner` (default) or :class:`SerialRunner`.
+        quick: 1-2 s runs (smoke test), flagged in the report.
+        controllers: subset of :data:`CONTROLLERS`.
+    Returns:
+        dict with ``rows``, ``wall_s``, ``paths`` and ``verdict``.
+    """
+    from tqdm import tqdm
+
+    for c in controllers:
+        controller_settings(c)                        # unknown names fail before any run
+    grid = cases(quick, controllers)
+    grid.sort(key=lambda c: -c.duration_s)            # longest first: better load balance
+    runner = runner or ProcessRunner()
+    wall0 = time.perf_counter()
+    rows = []
+    for row in tqdm(runner.map(run_case, grid), total=len(grid), desc="evaluation runs",
+                    unit="run", disable=not progress):
+        rows.append(row)
+    wall = time.perf_counter() - wall0
+    info = {"n_cases": len(grid), "wall_s": wall, "workers": runner.n_workers, "quick": quick}
+    docs_dir, out_dir = Path(docs_dir), Path(out_dir)
+    text = render_markdown(rows, info)
+    md = docs_dir / "results.md"
+    atomic_write(md, lambda f: f.write(text.encode()))
+    payload = json.dumps({"info": info, "rows": rows}, indent=1, default=float)
+    atomic_write(out_dir / "rows.json", lambda f: f.write(payload.encode()))
+    paths = [md, out_dir / "rows.json"] + plot_results(rows, docs_dir)
+    return {"rows": rows, "wall_s": wall, "paths": paths, "verdict": ann_verdict(rows),
+            "info": info}
+
+
+def evaluate_cli(args) -> int:
+    """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
+    controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
+    runner = SerialRunner() if args.jobs == 1 else ProcessRunner(args.jobs)
+    report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
+                      quick=args.quick, controllers=controllers)
+    failed = sum("error" in r for r in report["rows"])
+    print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
+    for ann, v in report["verdict"].items():
+        b = v["best_fixed"]
+        print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
+              + (f"best fixed LQI at no more effort {b['case']['controller']} "
+                 f"{b['normalized_rms']:.3g} -> {'beats' if v['beats'] else 'does not beat'} it"
+                 if b else "no fixed LQI at that effort"))
+    print("wrote " + ", ".join(str(p) for p in report["paths"]))
+    return 0

@@ -1,0 +1,149 @@
+"""Issue 6: baselines behind the same ports, robustness conditions, metrics and the report."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stewart_drake.cli import main
+from stewart_drake.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.evaluation import (ann_verdict, bandwidth_hz, cases, controller_settings,
+                                      evaluate, frequency_response, settling_time)
+from stewart_drake.experiments import SerialRunner, run_experiment
+from stewart_drake.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
+
+
+def test_pd_baseline_tracks_the_paper_manoeuvre():
+    r = run_experiment(StewartConfig(controller="pd", duration_s=2.0))
+    m = r.metrics
+    assert m["max_closure_m"] < 1e-5 and m["finite"]
+    assert m["rms_error"][0] < 5e-4 and m["rms_error"][5] < 5e-5   # phi < 0.5 mrad, Z < 50 um
+    assert m["gain_solves"] == 0                                     # no Riccati in a PD
+
+
+def test_unknown_payload_sags_the_pd_but_not_the_lqi():
+    """+20 % platform mass the feed-forward does not know: the PD (no integral) holds home with a
+    steady sag close to the statics' prediction; the LQI's integral removes it."""
+    from stewart_drake.baselines import CrankPdController, crank_inertia_matrix
+    from stewart_drake import kinematics
+    from stewart_drake.geometry import X_HOME, StewartGeometry
+
+    g = StewartGeometry()
+    cfg = dict(trajectory="home", duration_s=1.5, payload_scale=1.2)
+    sd = make_stewart_diagram(StewartConfig(**cfg))
+    assert sd.plant.GetBodyByName("platform").default_mass() == pytest.approx(1.2)
+    assert sd.controller.geometry.platform_mass == pytest.approx(1.0)
+    pd = run_experiment(StewartConfig(controller="pd", **cfg))
+    lqi = run_experiment(StewartConfig(**cfg))
+    sag_pd = pd.x[-1, 5] - X_HOME[5]
+    # Predicted: extra weight 0.2 g through the crank stiffness K_p = w^2 M_theta, mapped to Z.
+    pd_ctrl = CrankPdController(g)
+    J = kinematics.jacobian(g, X_HOME)
+    K_x = J.T @ pd_ctrl.K_p @ J
+    predicted = -np.linalg.solve(K_x, np.r_[0, 0, 0, 0, 0, 0.2 * g.gravity])[5]
+    assert sag_pd == pytest.approx(predicted, rel=0.1)
+    assert abs(lqi.x[-1, 5] - X_HOME[5]) < 0.01 * abs(sag_pd)
+    assert crank_inertia_matrix(g).shape == (6, 6)
+
+
+def test_torque_saturation_limits_the_applied_torque():
+    r = run_experiment(StewartConfig(duration_s=1.0, torque_limit_Nm=1.0))
+    assert np.abs(r.T).max() <= 1.0 + 1e-12
+    assert np.abs(r.T).max() == pytest.approx(1.0)        # the paper run needs up to 1.7 N m
+
+
+def test_sensor_noise_is_seeded_and_metrics_use_the_true_pose():
+    noise = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
+    a = run_experiment(StewartConfig(duration_s=0.5, sensor_noise_std=noise))
+    b = run_experiment(StewartConfig(duration_s=0.5, sensor_noise_std=noise))
+    c = run_experiment(StewartConfig(duration_s=0.5, sensor_noise_std=noise, noise_seed=1))
+    clean = run_experiment(StewartConfig(duration_s=0.5))
+    np.testing.assert_array_equal(a.x, b.x)
+    assert not np.array_equal(a.T, c.T) and not np.array_equal(a.T, clean.T)
+    # The logged pose is the plant's, not the measurement: the step-to-step change of a white
+    # 0.05 mm measurement noise would have a std of 0.05 mm sqrt 2 = 71 um.
+    assert np.std(np.diff(a.x[:, 5] - a.x_d[:, 5])) < 0.5 * 5e-5 * np.sqrt(2)
+    with pytest.raises(InvalidConfigError, match="sensor_noise_std"):
+        StewartConfig(sensor_noise_std=[-1.0] * 12)
+
+
+def test_settling_time_and_frequency_response_on_known_signals():
+    t = np.arange(0, 2, 1e-3)
+    err = np.where(t < 0.5, 0.0, -0.005 * np.exp(-(t - 0.5) / 0.05))
+    # |e| = 5 mm exp(-tau/50 ms) leaves the 2 % band at tau = 50 ms ln 50 = 0.1956 s.
+    assert settling_time(t, err, 0.005, 0.5) == pytest.approx(0.05 * np.log(50), abs=2e-3)
+    assert settling_time(t, np.full_like(t, 1.0), 0.005, 0.5) is None
+
+    chirp = ChirpTrajectory(axis=5, amplitude=1e-3, f0_hz=1, f1_hz=50, duration_s=8)
+    t = np.arange(0, 8, 1e-3)
+    f_c = 10.0                                       # a first-order low-pass at 10 Hz
+    f_t = chirp.frequency(t)
+    g = 1 / np.sqrt(1 + (f_t / f_c) ** 2)
+    y = chirp.offset[5] + chirp.amplitude * g * np.sin(chirp.phase(t) - np.arctan(f_t / f_c))
+    f, gain, phase = frequency_response(t, y, chirp)
+    np.testing.assert_allclose(gain, 1 / np.sqrt(1 + (f / f_c) ** 2), rtol=0.02)
+    assert bandwidth_hz(f, gain) == pytest.approx(f_c, rel=0.05)
+    assert bandwidth_hz(f, np.ones_like(f)) is None
+
+
+def test_scenarios_are_reachable_and_named():
+    from stewart_drake.trajectories import validate_trajectory
+    from stewart_drake.geometry import StewartGeometry
+
+    g = StewartGeometry()
+    for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):
+        traj = make_trajectory(name)
+        assert traj.name == name
+        validate_trajectory(g, traj, 10.0)
+    s = make_trajectory("step_X")
+    assert isinstance(s, StepTrajectory) and s.axis == 3
+    x, xd, _ = make_trajectory("sweep_Z").evaluate(np.array([0.0, 1e-3]))
+    assert xd[0, 5] == pytest.approx((x[1, 5] - x[0, 5]) / 1e-3, rel=1e-3)
+    with pytest.raises(InvalidConfigError, match="axis"):
+        StepTrajectory(axis="W")
+
+
+def test_grid_and_controller_names():
+    grid = cases()
+    assert len(grid) == 12 * (10 + 4)           # 10 nominal scenarios + 4 conditions each
+    assert {c.controller for c in grid} >= {"lqi_0.1_10", "pd", "ann_best_cost", "ann_paper"}
+    assert controller_settings("lqi_10_0.1") == {"omega_Q": 10.0, "omega_R": 0.1}
+    with pytest.raises(InvalidConfigError, match="unknown controller"):
+        controller_settings("lqr")
+
+
+def test_verdict_compares_at_no_more_effort():
+    def row(c, nrms, effort):
+        return {"case": {"controller": c, "scenario": "paper", "condition": "nominal"},
+                "normalized_rms": nrms, "sum_T2_dt": effort}
+
+    rows = [row("lqi_1_1", 1.0, 1.0), row("lqi_10_0.1", 0.1, 2.0), row("ann_best_cost", 0.5, 1.5),
+            row("ann_paper", 2.0, 0.9)]
+    v = ann_verdict(rows)
+    assert v["ann_best_cost"]["beats"] and v["ann_best_cost"]["best_fixed"]["case"]["controller"] \
+        == "lqi_1_1"
+    assert v["ann_best_cost"]["ratio"] == pytest.approx(0.5)
+    assert v["ann_paper"]["best_fixed"] is None and not v["ann_paper"]["beats"]
+
+
+def test_evaluate_writes_the_report(tmp_path):
+    report = evaluate(tmp_path / "docs", tmp_path / "out", runner=SerialRunner(), progress=False,
+                      quick=True, controllers=("lqi_1_1", "pd"))
+    md = (tmp_path / "docs" / "results.md").read_text()
+    assert "QUICK mode" in md and "| lqi_1_1 |" in md and "| pd |" in md
+    for name in ("results_tradeoff.png", "results_bandwidth.png", "results_steps.png"):
+        assert (tmp_path / "docs" / name).stat().st_size > 10_000
+    rows = json.loads((tmp_path / "out" / "rows.json").read_text())["rows"]
+    assert len(rows) == len(report["rows"]) == 28
+    assert not any("error" in r for r in rows)
+    step = next(r for r in rows if r["case"]["scenario"] == "step_Z"
+                and r["case"]["controller"] == "pd")
+    assert 0.01 < step["settling_time_s"] < 0.3
+
+
+def test_evaluate_cli_refuses_unknown_controllers(capsys, tmp_path):
+    code = main(["evaluate", "--controllers", "lqi_1_1,magic", "--docs", str(tmp_path),
+                 "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown controller 'magic'" in err and len(err.splitlines()) == 1
