@@ -66,6 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                           "else the shipped ones)")
     run.add_argument("--out", default="results", help="output folder (results/)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    run.add_argument("--html", default=None,
+                     help="also write a standalone Meshcat replay of the run to this .html")
     run.set_defaults(func=_delegate("experiments", "run_cli"))
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
@@ -101,6 +103,11 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_delegate("workspace", "workspace_cli"))
+
+    dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
+    dg.add_argument("--out", default=None, help="folder (default: the repo's diagrams/)")
+    dg.add_argument("--dot-only", action="store_true", help="write the .dot sources only")
+    dg.set_defaults(func=_delegate("visualize", "diagrams_cli"))
 
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
     sdf.add_argument("--out", default=None, help="file to write instead")

@@ -59,3 +59,7 @@ class SimulationDivergedError(StewartError, RuntimeError):
 
 class ForwardKinematicsError(StewartError, RuntimeError):
     """Newton iteration of the forward kinematics did not converge."""
+
+
+class RenderToolMissingError(StewartError, RuntimeError):
+    """An external renderer (Graphviz ``dot``, a browser) needed for a picture is not installed."""

@@ -288,7 +288,13 @@ def run_cli(args) -> int:
         from .tuner import DEFAULT_TUNER_PATH
 
         print(f"ANN tuner weights: {weights or DEFAULT_TUNER_PATH}")
-    result = run_experiment(config, progress=not args.no_progress)
+    if getattr(args, "html", None):          # the same run, replayed into a standalone HTML
+        from .visualize import record_html
+
+        result, html = record_html(config, args.html, progress=not args.no_progress)
+        print(f"wrote {html} (Meshcat replay, opens in any browser)")
+    else:
+        result = run_experiment(config, progress=not args.no_progress)
     out = Path(args.out)
     stem = (f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
             + ("_pd" if config.controller == "pd" else ""))

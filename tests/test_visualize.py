@@ -1,0 +1,139 @@
+"""See it: the Meshcat replay is a standalone HTML of the run; the Diagram pictures are current."""
+
+import re
+
+import numpy as np
+import pytest
+from meshcat_html import read_meshcat_commands
+from pydrake.math import RollPitchYaw
+
+from stewart_drake import visualize
+from stewart_drake.cli import main
+from stewart_drake.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.errors import InvalidConfigError, RenderToolMissingError
+from stewart_drake.experiments import load_result
+
+DURATION = 0.3
+
+
+@pytest.fixture(scope="module")
+def replay(tmp_path_factory):
+    out = tmp_path_factory.mktemp("replay")
+    html = out / "replay.html"
+    code = main(["run", "--duration", str(DURATION), "--html", str(html), "--out", str(out),
+                 "--no-progress"])
+    assert code == 0
+    text = html.read_text()
+    return {"html": html, "text": text, "commands": read_meshcat_commands(text),
+            "result": load_result(out / "run_paper.npz")}
+
+
+def test_frame_indices_pick_the_nearest_logged_sample():
+    t = np.arange(1001) * 1e-3                             # 1 kHz log over 1 s
+    frame_times, idx = visualize.frame_indices(t, 30.0)
+    assert len(frame_times) == 31 and frame_times[-1] == pytest.approx(1.0)
+    np.testing.assert_array_equal(idx, np.round(np.arange(31) / 30 * 1e3).astype(int))
+    frame_times, idx = visualize.frame_indices(np.array([0.0, 0.1, 0.25]), 10.0)
+    np.testing.assert_allclose(frame_times, [0.0, 0.1, 0.2])
+    np.testing.assert_array_equal(idx, [0, 1, 2])           # 0.2 is nearer 0.25 than 0.1
+    with pytest.raises(InvalidConfigError, match="fps"):
+        visualize.frame_indices(t, 0.0)
+    with pytest.raises(InvalidConfigError, match="no logged samples"):
+        visualize.frame_indices(np.array([]), 30.0)
+
+
+def test_replay_html_is_standalone_and_small(replay):
+    text, size = replay["text"], replay["html"].stat().st_size
+    # The viewer (~2.2 MB of three.js + meshcat) is inlined; 10 frames add a few tens of kB.
+    assert 2.0e6 < size < 2.6e6, size
+    assert "MeshCat.Viewer" in text and "<script src" not in text.replace(" ", "")
+    # Scene and animation come from data: URIs; nothing is fetched, nothing connects to a server.
+    assert text.count('fetch("data:application/octet-binary;base64,') == len(replay["commands"])
+    assert not re.findall(r'fetch\("(?!data:)', text)
+    viewer_script = text.rsplit("<script>", 1)[1]
+    assert "new MeshCat.Viewer" in viewer_script and "connect(" not in viewer_script
+    assert "http://localhost" not in text
+    types = [c["type"] for c in replay["commands"]]
+    assert types.count("set_animation") == 1 and "set_object" in types
+
+
+def test_replay_shows_only_the_illustration_geometry(replay):
+    objects = sorted(c["path"].split("rotary_stewart/", 1)[1]
+                     for c in replay["commands"] if c["type"] == "set_object")
+    expected = sorted(["base/plate", "platform/disc", "platform/tool"]
+                      + [f"crank_{i}/{v}" for i in range(6) for v in ("arm", "motor")]
+                      + [f"rod_{i}/{v}" for i in range(6) for v in ("rod", "ball_bottom",
+                                                                    "ball_top")])
+    assert [o.split("/", 1)[0].split("/")[0] + "/" + o.rsplit("/", 1)[1] for o in objects] \
+        == expected
+    assert all(c["path"].startswith(f"/drake/{visualize.REPLAY_PREFIX}/")
+               for c in replay["commands"] if c["type"] == "set_object")
+
+
+def test_replay_animation_follows_the_logged_run(replay):
+    (animation,) = [c for c in replay["commands"] if c["type"] == "set_animation"]
+    tracks = {a["path"].rsplit("/", 1)[1]: a["clip"] for a in animation["animations"]}
+    assert {f"crank_{i}" for i in range(6)} | {f"rod_{i}" for i in range(6)} | {"platform"} \
+        <= set(tracks)
+    n_frames = int(DURATION * visualize.REPLAY_FPS) + 1
+    clip = tracks["platform"]
+    assert clip["fps"] == visualize.REPLAY_FPS
+    position, quaternion = ({t["name"]: t["keys"] for t in clip["tracks"]}[k]
+                            for k in (".position", ".quaternion"))
+    assert [k["time"] for k in position] == list(range(n_frames))   # no frame lost or doubled
+    result = replay["result"]
+    for k in (0, n_frames // 2, n_frames - 1):
+        i = int(np.argmin(np.abs(result.t - k / visualize.REPLAY_FPS)))
+        np.testing.assert_allclose(position[k]["value"], result.x[i, 3:6], atol=1e-9)
+        q = RollPitchYaw(result.x[i, :3]).ToQuaternion()
+        q_xyzw = np.array([q.x(), q.y(), q.z(), q.w()])
+        q_rec = np.array(quaternion[k]["value"])
+        assert min(np.abs(q_rec - q_xyzw).max(), np.abs(q_rec + q_xyzw).max()) < 1e-9
+    # The platform really moves in the replay (paper eqs. 37-38: Z rises from 0.30 m).
+    assert position[-1]["value"][2] - position[0]["value"][2] > 1e-3
+
+
+def test_record_states_refuses_states_of_another_shape():
+    from pydrake.geometry import Meshcat
+
+    with pytest.raises(InvalidConfigError, match="same geometry"):
+        visualize.record_states(Meshcat(), StewartConfig().geometry, np.arange(3) * 1e-3,
+                                np.zeros((3, 5)))
+
+
+def test_committed_diagram_pictures_are_current():
+    dots = visualize.diagram_dots()
+    assert {"diagram_fixed", "diagram_ann", "lqi_controller"} <= set(dots)
+    for name, dot in dots.items():
+        dot_path = visualize.DIAGRAMS_DIR / f"{name}.dot"
+        svg_path = dot_path.with_suffix(".svg")
+        hint = "run `stewart-drake diagrams` (with Graphviz installed) and commit diagrams/"
+        assert dot_path.exists() and dot_path.read_text() == dot, f"{dot_path} is stale: {hint}"
+        assert svg_path.exists(), f"{svg_path} is missing: {hint}"
+        assert visualize.svg_dot_hash(svg_path.read_text()) == visualize.dot_hash(dot), \
+            f"{svg_path} was rendered from another .dot: {hint}"
+
+
+def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
+    first, second = (make_stewart_diagram(StewartConfig()).diagram for _ in range(2))
+    raw = [d.GetGraphvizString(max_depth=1) for d in (first, second)]
+    assert raw[0] != raw[1]                               # Drake's system ids differ ...
+    dots = [visualize.normalize_dot(r) for r in raw]
+    assert dots[0] == dots[1]                             # ... the normalized text does not
+    assert dots[0].count(" -> ") == len(first.connection_map())
+    for name in ("plant", "lqi", "reference", "sensor", "omega", "log_T"):
+        assert f"name={name}" in dots[0]
+
+
+def test_svg_rendering_needs_graphviz_and_says_so(monkeypatch):
+    monkeypatch.setattr(visualize.shutil, "which", lambda name: None)
+    with pytest.raises(RenderToolMissingError, match="install graphviz"):
+        visualize.render_svg("digraph { a -> b }")
+
+
+def test_diagrams_cli_writes_the_dot_sources(tmp_path):
+    assert main(["diagrams", "--dot-only", "--out", str(tmp_path)]) == 0
+    for name in ("diagram_fixed", "diagram_ann", "lqi_controller"):
+        assert (tmp_path / f"{name}.dot").read_text() == \
+            (visualize.DIAGRAMS_DIR / f"{name}.dot").read_text()
+    assert not list(tmp_path.glob("*.svg"))
