@@ -191,20 +191,20 @@ def diagram_dots() -> dict[str, str]:
     Returns:
         {name: DOT text}: ``diagram_fixed`` and ``diagram_ann`` (the whole closed loop, one level
         deep, with fixed weights and with the ANN tuner), ``lqi_controller``,
-        ``density_features``, ``ann_tuner`` and ``pose_error`` (the controller systems and their
-        ports).
+        ``density_features``, ``ann_tuner`` and ``crank_pd`` (the controller systems and their
+        ports; the PD baseline has the LQI's ports, so either plugs into the same Diagram).
     """
     from .diagram import StewartConfig, make_stewart_diagram
 
     fixed = make_stewart_diagram(StewartConfig())
     ann = make_stewart_diagram(StewartConfig(tuner="ann"))
-    pose_error = ann.diagram.GetSubsystemByName("pose_error")
+    pd = make_stewart_diagram(StewartConfig(controller="pd"))
     raw = {"diagram_fixed": fixed.diagram.GetGraphvizString(max_depth=1),
            "diagram_ann": ann.diagram.GetGraphvizString(max_depth=1),
            "lqi_controller": fixed.controller.GetGraphvizString(),
            "density_features": ann.features.GetGraphvizString(),
            "ann_tuner": ann.tuner.GetGraphvizString(),
-           "pose_error": pose_error.GetGraphvizString()}
+           "crank_pd": pd.controller.GetGraphvizString()}
     return {name: normalize_dot(dot) for name, dot in raw.items()}
 
 
