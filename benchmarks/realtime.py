@@ -1,33 +1,68 @@
-"""Real-time factor of the `run` Diagram and the cost of one gain re-schedule.
+"""Real-time factor of the `run` Diagram, the warm/cold Riccati cost and the profile's top entries.
 
-Prints one line per figure, e.g. ``realtime_factor 2.31 (10.0 s sim / 4.33 s wall)``.
-Target (issue 6): real-time factor >= 2 on one core for the full Diagram.
+Prints one line per figure, e.g. ``realtime_factor 2.47 (10.0 s sim / 4.05 s wall, tuner=ann)``.
+Target (issue 6): real-time factor >= 2 on one core for the full Diagram (plant 1 ms + LQI 1 kHz +
+density features + ANN tuner), i.e. ``--tuner ann``.
 
-Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--profile 15]
+Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--riccati warm|cold]
+       [--profile 15]
 """
 
 import argparse
 import cProfile
 import io
+import os
 import pstats
 import time
 
 import numpy as np
 
+from stewart_drake.controller import error_model, input_matrix, lqi_gain, lqi_gain_warm
 from stewart_drake.diagram import StewartConfig
 from stewart_drake.experiments import build_simulator
-from stewart_drake.geometry import X_HOME
+from stewart_drake.trajectories import paper_manoeuvre
+
+
+def riccati_costs(controller, n: int = 200) -> dict:
+    """Mean cold and warm solve times (ms) along the paper manoeuvre, re-scheduled every 10 ms,
+    and the worst relative gain difference between them."""
+    g, h = controller.geometry, controller.h
+    Q, R = controller.scales.Q_unit(), controller.scales.R_unit()
+    poses = paper_manoeuvre().evaluate(np.arange(n) * 0.01)[0]
+    models = [error_model(input_matrix(g, x), h) for x in poses]
+    t0 = time.perf_counter()
+    cold = [lqi_gain(A, B, Q, R) for A, B in models]
+    t_cold = (time.perf_counter() - t0) / n
+    K, iterations, worst = cold[0], 0, 0.0
+    t0 = time.perf_counter()
+    warm = []
+    for A, B in models[1:]:
+        K, it = lqi_gain_warm(A, B, Q, R, K)
+        warm.append(K)
+        iterations += it
+    t_warm = (time.perf_counter() - t0) / (n - 1)
+    for K_w, K_c in zip(warm, cold[1:]):
+        worst = max(worst, np.abs(K_w - K_c).max() / np.abs(K_c).max())
+    t0 = time.perf_counter()
+    for x in poses:
+        input_matrix(g, x)
+    t_b = (time.perf_counter() - t0) / n
+    return {"cold_ms": 1e3 * t_cold, "warm_ms": 1e3 * t_warm, "B_ms": 1e3 * t_b,
+            "iterations": iterations / (n - 1), "worst_rel": worst}
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=10.0)
-    parser.add_argument("--tuner", choices=["none", "ann"], default="none")
+    parser.add_argument("--tuner", choices=["none", "ann"], default="ann")
+    parser.add_argument("--riccati", choices=["warm", "cold"], default="warm")
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
     args = parser.parse_args()
-    config = StewartConfig(duration_s=args.duration,
+    config = StewartConfig(duration_s=args.duration, riccati=args.riccati,
                            tuner=None if args.tuner == "none" else args.tuner)
+    t0 = time.perf_counter()
     sd, simulator = build_simulator(config)
+    build = time.perf_counter() - t0
     profiler = cProfile.Profile() if args.profile else None
     t0 = time.perf_counter()
     if profiler:
@@ -37,18 +72,16 @@ def main():
         profiler.disable()
     wall = time.perf_counter() - t0
     print(f"realtime_factor {config.duration_s / wall:.2f} "
-          f"({config.duration_s:.1f} s sim / {wall:.2f} s wall, tuner={args.tuner})")
-
-    controller = sd.controller
-    n = 200
-    t0 = time.perf_counter()
-    for k in range(n):
-        controller.gain(X_HOME + 1e-4 * np.sin(k) * np.ones(6), 1.0, 1.0)
-    per = (time.perf_counter() - t0) / n
-    print(f"gain_reschedule_ms {1e3 * per:.3f} (mean of {n}, DARE + B(x) on 18 states)")
-    steps = config.duration_s / config.schedule_period_s
-    print(f"reschedule_share_of_wall {steps * per / wall:.3f} "
-          f"({steps:.0f} re-schedules x {1e3 * per:.3f} ms / {wall:.2f} s)")
+          f"({config.duration_s:.1f} s sim / {wall:.2f} s wall, tuner={args.tuner}, "
+          f"riccati={args.riccati}, {os.cpu_count()} cores on the machine, one used)")
+    print(f"build_s {build:.2f} (reference + feed-forward tables, Diagram, assembly)")
+    stats = sd.controller.solve_stats
+    print(f"gain_solves warm {stats['warm']} (mean {stats['warm_iterations'] / max(stats['warm'], 1):.2f}"
+          f" Newton iterations) cold {stats['cold']}")
+    c = riccati_costs(sd.controller)
+    print(f"riccati_cold_ms {c['cold_ms']:.3f}  riccati_warm_ms {c['warm_ms']:.3f}  "
+          f"warm/cold {c['warm_ms'] / c['cold_ms']:.2f}  (B(x) {c['B_ms']:.3f} ms not included; "
+          f"{c['iterations']:.2f} iterations; max |K_warm - K_cold| / |K_cold| {c['worst_rel']:.1e})")
     if profiler:
         s = io.StringIO()
         pstats.Stats(profiler, stream=s).sort_stats("tottime").print_stats(args.profile)
