@@ -12,9 +12,11 @@ from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput
 from .controller import LqiController, LqiScales
 from .errors import InvalidConfigError
 from .geometry import StewartGeometry
+from .guard import GuardConfig
 from .plant import add_stewart_plant
 from .sensors import PlatformPoseSensor
 from .trajectories import ReferenceSource, make_trajectory
+from .validation import check_config
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,13 @@ class StewartConfig:
         feature_window: samples m + 1 of the density features (eqs. 35-36).
         log_period_s: logging period, s.
         sensor_noise_std: optional (12,) noise on the measured pose and rate.
+        guard: checks before and during the run: singularity thresholds of the reference,
+            bounds on loop closure and tracking error, where a diverged run is saved
+            (:class:`~stewart_drake.guard.GuardConfig`).
+    Raises:
+        InvalidConfigError: a field out of range, a period that is not a whole multiple of the
+            one it runs on, an unknown name (``validation.check_config``).
+        MissingFileError: tuner_weights names no file.
     """
 
     geometry: StewartGeometry = field(default_factory=StewartGeometry)
@@ -55,8 +64,10 @@ class StewartConfig:
     feature_window: int = 50
     log_period_s: float = 1e-3
     sensor_noise_std: Any = None
+    guard: GuardConfig = field(default_factory=GuardConfig)
 
     def __post_init__(self):
+        check_config(self)
         for name in ("duration_s", "plant_time_step_s", "control_period_s", "schedule_period_s",
                      "tuner_period_s", "log_period_s"):
             value = getattr(self, name)
@@ -96,6 +107,7 @@ class StewartDiagram:
     config: StewartConfig
     features: Any = None
     tuner: Any = None
+    guard: Any = None          # guard.DivergenceGuard, attached by experiments.build_simulator
 
 
 def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> StewartDiagram:
