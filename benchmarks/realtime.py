@@ -3,7 +3,7 @@
 Prints one line per figure, e.g. ``realtime_factor 2.31 (10.0 s sim / 4.33 s wall)``.
 Target (issue 6): real-time factor >= 2 on one core for the full Diagram.
 
-Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--profile 15]
+Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--profile 15] [--guard-overhead]
 """
 
 import argparse
@@ -24,6 +24,8 @@ def main():
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--tuner", choices=["none", "ann"], default="none")
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
+    parser.add_argument("--guard-overhead", action="store_true",
+                        help="also time runs with and without the divergence guard, interleaved")
     args = parser.parse_args()
     config = StewartConfig(duration_s=args.duration,
                            tuner=None if args.tuner == "none" else args.tuner)
@@ -49,10 +51,31 @@ def main():
     steps = config.duration_s / config.schedule_period_s
     print(f"reschedule_share_of_wall {steps * per / wall:.3f} "
           f"({steps:.0f} re-schedules x {1e3 * per:.3f} ms / {wall:.2f} s)")
+    if args.guard_overhead:
+        guard_overhead(config)
     if profiler:
         s = io.StringIO()
         pstats.Stats(profiler, stream=s).sort_stats("tottime").print_stats(args.profile)
         print(s.getvalue())
+
+
+def guard_overhead(config, repeats: int = 5):
+    """Wall time of the same run with the DivergenceGuard as monitor and without, interleaved so
+    that a busy machine slows both alike; prints the ratio of the fastest runs (the least
+    disturbed) and of the medians."""
+    walls = {"guarded": [], "bare": []}
+    for _ in range(repeats):
+        for mode in walls:
+            sd, simulator = build_simulator(config)
+            if mode == "bare":
+                simulator.clear_monitor()
+            t0 = time.perf_counter()
+            simulator.AdvanceTo(config.duration_s)
+            walls[mode].append(time.perf_counter() - t0)
+    guarded, bare = min(walls["guarded"]), min(walls["bare"])
+    median = np.median(walls["guarded"]) / np.median(walls["bare"]) - 1
+    print(f"guard_overhead {guarded / bare - 1:+.3f} (fastest of {repeats}: {guarded:.2f} s "
+          f"guarded / {bare:.2f} s bare, {config.duration_s:.1f} s sim; medians {median:+.3f})")
 
 
 if __name__ == "__main__":

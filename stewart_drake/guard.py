@@ -144,6 +144,7 @@ class DivergenceGuard:
         self._root_id = id(root)
         self._contexts = tuple(s.GetMyContextFromRoot(root) for s in (
             sd.plant, sd.controller, sd.sensor, sd.reference))
+        self._T_port = sd.controller.GetOutputPort("T")
 
     def __call__(self, root) -> EventStatus | None:
         """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`."""
@@ -165,7 +166,7 @@ class DivergenceGuard:
             k = int(np.argmax(~np.isfinite(state)))
             return (f"the plant state is not finite (entry {k} of {state.size} = {state[k]}); "
                     f"the loop lost its stability")
-        T = self.sd.controller.GetOutputPort("T").Eval(ctrl_ctx)
+        T = self._T_port.Eval(ctrl_ctx)
         if not math.isfinite(T.sum()):
             return (f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
                     f"N m: the controller received or produced NaN")
