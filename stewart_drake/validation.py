@@ -107,6 +107,25 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
     return n
 
 
+def check_sine_bounds(trajectory) -> None:
+    """Refuse a sine whose pose, rate or acceleration would overflow float64.
+
+    Args:
+        trajectory: a SineTrajectory (amplitude, frequency_hz, offset: 6 finite floats each).
+    Raises:
+        InvalidConfigError: |offset| + |A|, |A| 2 pi f or |A| (2 pi f)^2 not finite, naming the
+            axis, so that ``evaluate`` is finite at every finite time.
+    """
+    A, f = np.abs(trajectory.amplitude), np.abs(trajectory.frequency_hz)
+    with np.errstate(over="ignore", invalid="ignore"):
+        w = 2 * np.pi * f
+        peaks = np.stack([np.abs(trajectory.offset) + A, A * w, A * w * w])
+    if not np.isfinite(peaks).all():
+        axis = int(np.argwhere(~np.isfinite(peaks))[0][1])
+        raise InvalidConfigError(f"{trajectory.name}: axis {axis} overflows float64 (amplitude "
+                                 f"{A[axis]:.3g}, frequency {f[axis]:.3g} Hz); use SI units")
+
+
 def check_config(config) -> None:
     """Validate a StewartConfig before anything is built or simulated.
 
