@@ -286,7 +286,8 @@ def run_cli(args) -> int:
     config = StewartConfig(trajectory=args.trajectory, duration_s=args.duration,
                            omega_Q=args.omega_q, omega_R=args.omega_r,
                            tuner=None if args.tuner == "none" else args.tuner,
-                           tuner_weights=weights)
+                           tuner_weights=weights,
+                           guard=guard.GuardConfig(divergence_dir=Path(args.out) / "diverged"))
     if config.tuner:
         from .tuner import DEFAULT_TUNER_PATH
 
