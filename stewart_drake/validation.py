@@ -76,6 +76,8 @@ def as_number(name: str, value, lo: float | None = None, hi: float | None = None
     """
     if isinstance(value, (bool, np.bool_)) or not np.isscalar(value) and np.ndim(value) != 0:
         raise error(f"{name} must be one number, got {value!r:.80}")
+    if isinstance(value, (str, bytes)):
+        raise error(f"{name} must be a number, got {value!r:.80} (a string)")
     try:
         v = float(value)
     except (TypeError, ValueError):
