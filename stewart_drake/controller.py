@@ -85,10 +85,11 @@ def error_model(B_c: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         A (18, 18), B (18, 6) of e+ = A e + B u, e = [e_x, e_x_dot, z]; paper eqs. 21-25 with
         an exact zero-order hold of the double integrators.
     Raises:
-        InvalidConfigError: B_c not a finite (6, 6) array, h not a finite number > 0.
+        InvalidConfigError: B_c not a finite (6, 6) array, h not in (0, 1] s (a slower
+            controller cannot hold the platform; the bound also keeps h^2 B_c finite).
     """
     B_c = as_array("input matrix B_c", B_c, shape=(6, 6))
-    h = as_number("sample time h [s]", h, 0.0, lo_open=True)
+    h = as_number("sample time h [s]", h, 0.0, 1.0, lo_open=True)
     I = np.eye(6)
     A = np.zeros((N_E, N_E))
     A[0:6, 0:6] = I

@@ -101,7 +101,7 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
             with the nearest valid value in the message.
     """
     ratio = period_s / base_s
-    n = int(round(ratio))
+    n = int(round(ratio)) if 0 < ratio < 1e12 else 0       # 1e12 steps: far past any run
     if n < 1 or abs(ratio - n) > 1e-6 * max(1.0, ratio):
         nearest = max(n, 1) * base_s
         raise InvalidConfigError(f"{name} ({period_s:g} s) must be a whole multiple of {base_name} "
