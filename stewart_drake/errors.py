@@ -33,10 +33,9 @@ class UnreachablePoseError(StewartError, ValueError):
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
         self.ratio = float(ratio)
-        self.t = None if t is None else float(t)
-        self.pose = None if pose is None else [float(v) for v in pose]
+        where = _locate(self, t, pose)
         super().__init__(
-            f"leg {self.leg} cannot reach the pose{_where(self.t, self.pose)}: "
+            f"leg {self.leg} cannot reach the pose{where}: "
             f"|L|/sqrt(M^2+N^2) = {self.ratio:.4g} > 1. Bring the pose closer to home "
             f"[0, 0, 0, 0, 0, 0.30] or reduce the trajectory's amplitude.")
 
@@ -81,11 +80,10 @@ class JointLimitError(StewartError, ValueError):
         self.leg = int(leg)
         self.limit = str(limit)
         self.margin = float(margin)
-        self.t = None if t is None else float(t)
-        self.pose = None if pose is None else [float(v) for v in pose]
+        where = _locate(self, t, pose)
         super().__init__(
             f"leg {self.leg} leaves its {self.limit} limit by {math.degrees(-self.margin):.3g}"
-            f" deg{_where(self.t, self.pose)}. Reduce the trajectory's amplitude, or widen "
+            f" deg{where}. Reduce the trajectory's amplitude, or widen "
             f"StewartGeometry.{self._FIELD.get(self.limit, self.limit)} if the hardware allows.")
 
 
@@ -109,8 +107,7 @@ class SingularPoseError(StewartError, ValueError):
         self.measure = str(measure)
         self.value = float(value)
         self.threshold = float(threshold)
-        self.t = None if t is None else float(t)
-        self.pose = None if pose is None else [float(v) for v in pose]
+        where = _locate(self, t, pose)
         what = {"cond": f"cond(J) = {self.value:.4g} > {self.threshold:g} (the motors are about to "
                         f"lose the ability to hold the platform in some direction)",
                 "sigma_min_inv": f"1/sigma_max(J) = {self.value:.4g} < {self.threshold:g} "
@@ -118,7 +115,7 @@ class SingularPoseError(StewartError, ValueError):
                                  f"are about to lose the ability to move the platform)"}.get(
             self.measure, f"{self.measure} = {self.value:.4g} is not finite (a singular pose)")
         super().__init__(
-            f"the pose is too close to a singularity{_where(self.t, self.pose)}: {what}. Keep the "
+            f"the pose is too close to a singularity{where}: {what}. Keep the "
             f"path nearer the home pose [0, 0, 0, 0, 0, 0.30], or change the threshold "
             f"(GuardConfig.cond_threshold / min_sigma_min_inv) if you know the margin is enough.")
 
@@ -127,8 +124,12 @@ class MissingFileError(StewartError, FileNotFoundError):
     """An input file (tuner weights, collected runs) that does not exist; says what makes it."""
 
 
-def _where(t: float | None, pose) -> str:
-    where = "" if t is None else f" at t = {t:.4g} s"
-    if pose is not None:
-        where += " (pose [phi, theta, psi, X, Y, Z] = [" + ", ".join(f"{v:.4g}" for v in pose) + "])"
+def _locate(error: StewartError, t: float | None, pose) -> str:
+    """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return " at t = ... (pose ...)"."""
+    error.t = None if t is None else float(t)
+    error.pose = None if pose is None else [float(v) for v in pose]
+    where = "" if error.t is None else f" at t = {error.t:.4g} s"
+    if error.pose is not None:
+        where += (" (pose [phi, theta, psi, X, Y, Z] = ["
+                  + ", ".join(f"{v:.4g}" for v in error.pose) + "])")
     return where
