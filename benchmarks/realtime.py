@@ -5,7 +5,7 @@ Target (issue 6): real-time factor >= 2 on one core for the full Diagram (plant 
 density features + ANN tuner), i.e. ``--tuner ann``.
 
 Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--riccati warm|cold]
-       [--profile 15]
+       [--profile 15] [--guard-overhead]
 """
 
 import argparse
@@ -57,6 +57,8 @@ def main():
     parser.add_argument("--tuner", choices=["none", "ann"], default="ann")
     parser.add_argument("--riccati", choices=["warm", "cold"], default="warm")
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
+    parser.add_argument("--guard-overhead", action="store_true",
+                        help="also time runs with and without the divergence guard, interleaved")
     args = parser.parse_args()
     config = StewartConfig(duration_s=args.duration, riccati=args.riccati,
                            tuner=None if args.tuner == "none" else args.tuner)
@@ -82,10 +84,31 @@ def main():
     print(f"riccati_cold_ms {c['cold_ms']:.3f}  riccati_warm_ms {c['warm_ms']:.3f}  "
           f"warm/cold {c['warm_ms'] / c['cold_ms']:.2f}  (B(x) {c['B_ms']:.3f} ms not included; "
           f"{c['iterations']:.2f} iterations; max |K_warm - K_cold| / |K_cold| {c['worst_rel']:.1e})")
+    if args.guard_overhead:
+        guard_overhead(config)
     if profiler:
         s = io.StringIO()
         pstats.Stats(profiler, stream=s).sort_stats("tottime").print_stats(args.profile)
         print(s.getvalue())
+
+
+def guard_overhead(config, repeats: int = 5):
+    """Wall time of the same run with the DivergenceGuard as monitor and without, interleaved so
+    that a busy machine slows both alike; prints the ratio of the fastest runs (the least
+    disturbed) and of the medians."""
+    walls = {"guarded": [], "bare": []}
+    for _ in range(repeats):
+        for mode in walls:
+            sd, simulator = build_simulator(config)
+            if mode == "bare":
+                simulator.clear_monitor()
+            t0 = time.perf_counter()
+            simulator.AdvanceTo(config.duration_s)
+            walls[mode].append(time.perf_counter() - t0)
+    guarded, bare = min(walls["guarded"]), min(walls["bare"])
+    median = np.median(walls["guarded"]) / np.median(walls["bare"]) - 1
+    print(f"guard_overhead {guarded / bare - 1:+.3f} (fastest of {repeats}: {guarded:.2f} s "
+          f"guarded / {bare:.2f} s bare, {config.duration_s:.1f} s sim; medians {median:+.3f})")
 
 
 if __name__ == "__main__":

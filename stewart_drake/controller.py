@@ -33,8 +33,9 @@ from pydrake.math import DiscreteAlgebraicRiccatiEquation, RealDiscreteLyapunovE
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from . import kinematics
-from .errors import InvalidConfigError, RiccatiSolveError, UnreachablePoseError
+from .errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
 from .geometry import X_HOME, StewartGeometry
+from .validation import as_array, as_number
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
@@ -58,11 +59,14 @@ class LqiScales:
 
     def __post_init__(self):
         for name in ("pose", "rate", "integral"):
-            v = np.asarray(getattr(self, name), dtype=float)
-            if v.shape != (6,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
-                raise InvalidConfigError(f"LqiScales.{name} needs 6 positive values, got {v}")
-        if not (np.isfinite(self.torque) and self.torque > 0):
-            raise InvalidConfigError(f"LqiScales.torque must be > 0 N m, got {self.torque}")
+            v = as_array(f"LqiScales.{name}", getattr(self, name), shape=(6,))
+            # 1/s^2 must stay finite and > 0: scales within 1e-100 .. 1e100.
+            if np.any(v < 1e-100) or np.any(v > 1e100):
+                raise InvalidConfigError(f"LqiScales.{name} needs 6 values in [1e-100, 1e100], "
+                                         f"got {v}")
+            object.__setattr__(self, name, tuple(float(c) for c in v))
+        object.__setattr__(self, "torque", as_number("LqiScales.torque [N m]", self.torque,
+                                                     1e-100, 1e100))
 
     def Q_unit(self) -> np.ndarray:
         """(18, 18) state weight at omega_Q = 1."""
@@ -80,7 +84,12 @@ def error_model(B_c: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
     Returns:
         A (18, 18), B (18, 6) of e+ = A e + B u, e = [e_x, e_x_dot, z]; paper eqs. 21-25 with
         an exact zero-order hold of the double integrators.
+    Raises:
+        InvalidConfigError: B_c not a finite (6, 6) array, h not in (0, 1] s (a slower
+            controller cannot hold the platform; the bound also keeps h^2 B_c finite).
     """
+    B_c = as_array("input matrix B_c", B_c, shape=(6, 6))
+    h = as_number("sample time h [s]", h, 0.0, 1.0, lo_open=True)
     I = np.eye(6)
     A = np.zeros((N_E, N_E))
     A[0:6, 0:6] = I
@@ -97,12 +106,24 @@ def error_model(B_c: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
 def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     """B_c(x) = M_x(x)^-1 tau(x): pose acceleration per unit motor torque, (6, 6).
 
+    Args:
+        x: (6,) pose [rad, m]; theta: optional (6,) motor angles of x.
+    Returns:
+        (6, 6) finite, (rad/s^2 or m/s^2) per N m.
+    Raises:
+        UnreachablePoseError, SingularPoseError, InvalidConfigError: see kinematics.jacobian.
     Source: paper eq. 22 (b = tau / inertia), with the legs' inertia in M_x
     (:func:`kinematics.task_inertia`) and tau = J^T (eq. 18 corrected).
     """
+    tau = kinematics.tau(geometry, x, theta)         # validates x and theta
     theta = kinematics.ik(geometry, x) if theta is None else theta
-    return np.linalg.solve(kinematics.task_inertia(geometry, x, theta),
-                           kinematics.tau(geometry, x, theta))
+    try:
+        B_c = np.linalg.solve(kinematics.task_inertia(geometry, x, theta), tau)
+    except np.linalg.LinAlgError:
+        B_c = np.full((6, 6), np.inf)
+    if not np.isfinite(B_c).all():
+        raise SingularPoseError("B_c", np.inf, np.inf, pose=np.ravel(x))
+    return B_c
 
 
 def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9) -> dict:
@@ -112,15 +133,27 @@ def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9
     rank [lambda I - A, B] = n and rank [lambda I - A; C] = n.
     Returns:
         dict with ``stabilizable``, ``detectable`` (bool) and the minimum ranks found.
+    Raises:
+        InvalidConfigError: A not (n, n), B not (n, m), C not (p, n), or non-finite entries.
     """
-    n = A.shape[0]
-    eigs = np.linalg.eigvals(A)
-    unstable = np.unique(np.round(eigs[np.abs(eigs) >= 1 - 1e-9], 9))
-    rank_ab, rank_ac = n, n
-    for lam in unstable:
-        M = lam * np.eye(n) - A
-        rank_ab = min(rank_ab, np.linalg.matrix_rank(np.hstack([M, B]), tol))
-        rank_ac = min(rank_ac, np.linalg.matrix_rank(np.vstack([M, C]), tol))
+    A = as_array("A", A)
+    n = A.shape[0] if A.ndim == 2 else -1
+    if A.shape != (n, n) or n < 1:
+        raise InvalidConfigError(f"A must be square (n, n), got {A.shape}")
+    B, C = as_array("B", B), as_array("C", C)
+    if B.ndim != 2 or B.shape[0] != n or C.ndim != 2 or C.shape[1] != n:
+        raise InvalidConfigError(f"B must be ({n}, m) and C (p, {n}); got {B.shape} and {C.shape}")
+    tol = as_number("tol", tol, 0.0)
+    try:
+        eigs = np.linalg.eigvals(A)
+        unstable = np.unique(np.round(eigs[np.abs(eigs) >= 1 - 1e-9], 9))
+        rank_ab, rank_ac = n, n
+        for lam in unstable:
+            M = lam * np.eye(n) - A
+            rank_ab = min(rank_ab, np.linalg.matrix_rank(np.hstack([M, B]), tol))
+            rank_ac = min(rank_ac, np.linalg.matrix_rank(np.vstack([M, C]), tol))
+    except np.linalg.LinAlgError as err:
+        raise InvalidConfigError(f"Hautus test failed numerically ({err}); scale A, B, C") from None
     return {"stabilizable": rank_ab == n, "detectable": rank_ac == n,
             "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
 
@@ -150,20 +183,37 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
 
     Solved on the diagonally scaled problem (:func:`_balance`) with Drake's
     DiscreteAlgebraicRiccatiEquation, then scaled back: the same gain, better conditioned.
+
+    Args:
+        A: (n, n), B: (n, m), Q: (n, n) symmetric >= 0, R: (m, m) symmetric > 0.
+    Returns:
+        (m, n) finite gain K with spectral radius of A - B K < 1.
     Raises:
         RiccatiSolveError: Drake's solver failed, or the result is not finite or not stabilizing.
+        InvalidConfigError: shapes that do not match (n, n), (n, m), (n, n), (m, m).
     """
     _check_finite(A=A, B=B, Q=Q, R=R)
+    n, m = np.shape(B) if np.ndim(B) == 2 else (-1, -1)
+    if (np.shape(A), np.shape(Q), np.shape(R)) != ((n, n), (n, n), (m, m)) or min(n, m) < 1:
+        raise InvalidConfigError(f"lqi_gain needs A (n, n), B (n, m), Q (n, n), R (m, m); got "
+                                 f"{np.shape(A)}, {np.shape(B)}, {np.shape(Q)}, {np.shape(R)}")
     Ab, Bb, Qb, Rb, d_x, d_u = _balance(A, B, Q, R)
     try:
         P = DiscreteAlgebraicRiccatiEquation(Ab, Bb, Qb, Rb)
     except (RuntimeError, ValueError, SystemExit) as err:
         # pydrake reports a failed precondition (e.g. (A, B) not stabilizable) as SystemExit.
         raise RiccatiSolveError(f"DiscreteAlgebraicRiccatiEquation failed: {err}") from None
-    K = d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
+    try:
+        K = d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
+    except np.linalg.LinAlgError as err:
+        raise RiccatiSolveError(f"R + B^T P B is singular ({err}); make R positive definite") \
+            from None
     if not np.all(np.isfinite(K)):
         raise RiccatiSolveError("Riccati gain is not finite")
-    rho = np.max(np.abs(np.linalg.eigvals(A - B @ K)))
+    try:
+        rho = np.max(np.abs(np.linalg.eigvals(A - B @ K)))
+    except np.linalg.LinAlgError:
+        rho = np.nan
     if not rho < 1.0:
         raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})")
     return K
@@ -321,10 +371,9 @@ class LqiController(LeafSystem):
         return self._omega
 
     # -- gain ----------------------------------------------------------------------------------
-    def _check_weights(self, omega_Q: float, omega_R: float) -> None:
-        for name, w in (("omega_Q", omega_Q), ("omega_R", omega_R)):
-            if not (np.isfinite(w) and OMEGA_MIN <= w <= OMEGA_MAX):
-                raise InvalidConfigError(f"{name} must be in [{OMEGA_MIN}, {OMEGA_MAX}], got {w}")
+    def _check_weights(self, omega_Q: float, omega_R: float) -> tuple[float, float]:
+        return (as_number("omega_Q", omega_Q, OMEGA_MIN, OMEGA_MAX),
+                as_number("omega_R", omega_R, OMEGA_MIN, OMEGA_MAX))
 
     def gain(self, x, omega_Q: float = 1.0, omega_R: float = 1.0, K_start=None) -> np.ndarray:
         """(6, 18) LQI gain K = [K_p | K_I] at pose x for weights omega_Q, omega_R (eq. 33).
@@ -336,7 +385,7 @@ class LqiController(LeafSystem):
         Raises:
             InvalidConfigError: weights not in [1e-3, 1e3]; RiccatiSolveError: see lqi_gain.
         """
-        self._check_weights(omega_Q, omega_R)
+        omega_Q, omega_R = self._check_weights(omega_Q, omega_R)
         A, B = error_model(input_matrix(self.geometry, x), self.h)
         Q, R = omega_Q * self._Q1, omega_R * self._R1
         if K_start is not None:
@@ -349,6 +398,11 @@ class LqiController(LeafSystem):
                 pass                                    # fall back to the cold solve
         self.solve_stats["cold"] += 1
         return lqi_gain(A, B, Q, R)
+
+    def feedforward(self, context) -> np.ndarray:
+        """(6,) feed-forward torques of this step, N m: the ``T_ff`` input (one place to read
+        it, so a test can inject a fault there)."""
+        return self._T_ff.Eval(context)
 
     # -- update --------------------------------------------------------------------------------
     def _Update(self, context, discrete_state):
@@ -377,7 +431,7 @@ class LqiController(LeafSystem):
 
         e_x = x[:6] - ref[:6]
         e = np.concatenate([e_x, x[6:12] - ref[6:12], z])
-        discrete_state.set_value(self._u_index, self._T_ff.Eval(context) - K @ e)
+        discrete_state.set_value(self._u_index, self.feedforward(context) - K @ e)
         discrete_state.set_value(self._z_index, z + self.h * e_x)
         discrete_state.set_value(self._s_index, status)
         discrete_state.set_value(self._e_index, e_x)

@@ -14,10 +14,12 @@ from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVe
 from .controller import LqiController, LqiScales
 from .errors import InvalidConfigError
 from .geometry import StewartGeometry
+from .guard import GuardConfig
 from .plant import add_stewart_plant
-from .reference import FEEDFORWARD_MODES, ReferenceSources, add_reference_sources
+from .reference import ReferenceSources, add_reference_sources
 from .sensors import PlatformPoseSensor
 from .trajectories import make_trajectory
+from .validation import check_config
 
 #: Controllers :func:`make_stewart_diagram` can put behind the same ports.
 CONTROLLERS = ("lqi", "pd")
@@ -51,6 +53,13 @@ class StewartConfig:
         payload_scale: the plant's platform mass and inertia are this multiple of the
             geometry's; the controller still uses ``geometry`` (an unknown payload).
         torque_limit_Nm: motor torque saturation, N m, or None.
+        guard: checks before and during the run: singularity thresholds of the reference,
+            bounds on loop closure and tracking error, where a diverged run is saved
+            (:class:`~stewart_drake.guard.GuardConfig`).
+    Raises:
+        InvalidConfigError: a field out of range, a period that is not a whole multiple of the
+            one it runs on, an unknown name (``validation.check_config``).
+        MissingFileError: tuner_weights names no file.
     """
 
     geometry: StewartGeometry = field(default_factory=StewartGeometry)
@@ -75,45 +84,10 @@ class StewartConfig:
     pd_bandwidth_hz: float = 20.0
     payload_scale: float = 1.0
     torque_limit_Nm: float | None = None
+    guard: GuardConfig = field(default_factory=GuardConfig)
 
     def __post_init__(self):
-        for name in ("duration_s", "plant_time_step_s", "control_period_s", "schedule_period_s",
-                     "tuner_period_s", "log_period_s"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidConfigError(f"{name} must be a finite number > 0, got {value}")
-        ratio = self.control_period_s / self.plant_time_step_s
-        if abs(ratio - round(ratio)) > 1e-6 or round(ratio) < 1:
-            raise InvalidConfigError(
-                f"control_period_s ({self.control_period_s}) must be a whole multiple of "
-                f"plant_time_step_s ({self.plant_time_step_s})")
-        for name in ("omega_Q", "omega_R"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and 1e-3 <= value <= 1e3):
-                raise InvalidConfigError(f"{name} must be in [1e-3, 1e3], got {value}")
-        if self.tuner not in (None, "ann"):
-            raise InvalidConfigError(f"tuner must be None or 'ann', got {self.tuner!r}")
-        if self.controller not in CONTROLLERS:
-            raise InvalidConfigError(f"controller must be one of {CONTROLLERS}, "
-                                     f"got {self.controller!r}")
-        if self.tuner and self.controller != "lqi":
-            raise InvalidConfigError("the ANN tuner drives the LQI's weights: use "
-                                     "controller='lqi' with tuner='ann'")
-        if self.feedforward not in FEEDFORWARD_MODES:
-            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, "
-                                     f"got {self.feedforward!r}")
-        if not (np.isfinite(self.payload_scale) and 0.1 <= self.payload_scale <= 10):
-            raise InvalidConfigError(
-                f"payload_scale must be in [0.1, 10], got {self.payload_scale}")
-        if self.torque_limit_Nm is not None and not (
-                np.isfinite(self.torque_limit_Nm) and self.torque_limit_Nm > 0):
-            raise InvalidConfigError(
-                f"torque_limit_Nm must be > 0 N m or None, got {self.torque_limit_Nm}")
-        if self.sensor_noise_std is not None:
-            std = np.broadcast_to(np.asarray(self.sensor_noise_std, dtype=float), (12,))
-            if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-                raise InvalidConfigError(
-                    f"sensor_noise_std needs 12 finite values >= 0, got {self.sensor_noise_std}")
+        check_config(self)
 
     def plant_geometry(self) -> StewartGeometry:
         """The robot that is simulated: ``geometry`` with the payload scale on the platform."""
@@ -146,6 +120,7 @@ class StewartDiagram:
     features: Any = None
     tuner: Any = None
     noise: Any = None
+    guard: Any = None          # guard.DivergenceGuard, attached by experiments.build_simulator
 
     def seed_noise(self, root_context) -> None:
         """Seed the sensor noise (if any) in ``root_context`` from ``config.noise_seed``: Drake

@@ -5,6 +5,8 @@ All inherit from :class:`StewartError` so callers can catch the family at once.
 
 from __future__ import annotations
 
+import math
+
 
 class StewartError(Exception):
     """Base class of every error raised on purpose by stewart-drake."""
@@ -31,14 +33,9 @@ class UnreachablePoseError(StewartError, ValueError):
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
         self.ratio = float(ratio)
-        self.t = None if t is None else float(t)
-        self.pose = None if pose is None else [float(v) for v in pose]
-        where = "" if self.t is None else f" at t = {self.t:.4g} s"
-        at = "" if self.pose is None else (
-            " (pose [phi, theta, psi, X, Y, Z] = ["
-            + ", ".join(f"{v:.4g}" for v in self.pose) + "])")
+        where = _locate(self, t, pose)
         super().__init__(
-            f"leg {self.leg} cannot reach the pose{where}{at}: "
+            f"leg {self.leg} cannot reach the pose{where}: "
             f"|L|/sqrt(M^2+N^2) = {self.ratio:.4g} > 1. Bring the pose closer to home "
             f"[0, 0, 0, 0, 0, 0.30] or reduce the trajectory's amplitude.")
 
@@ -51,6 +48,7 @@ class SimulationDivergedError(StewartError, RuntimeError):
     """A simulation left its safe envelope; the data up to then is saved at ``path``."""
 
     def __init__(self, message: str, t: float, path: str | None = None):
+        self.message = str(message)
         self.t = float(t)
         self.path = path
         saved = f"; data up to then saved in {path}" if path else ""
@@ -63,3 +61,79 @@ class ForwardKinematicsError(StewartError, RuntimeError):
 
 class RenderToolMissingError(StewartError, RuntimeError):
     """An external renderer (Graphviz ``dot``, a browser) needed for a picture is not installed."""
+
+
+class JointLimitError(StewartError, ValueError):
+    """A pose every leg can close but where a leg leaves the range of a joint.
+
+    The limits are fields of :class:`~stewart_drake.geometry.StewartGeometry` (motor travel,
+    ball-joint cones); ``kinematics.limit_margins`` computes them.
+
+    Attributes:
+        leg: index 0..5 of the leg (reference_geometry.md order).
+        limit: "motor_angle", "crank_joint" or "platform_joint" (``kinematics.LIMITS``).
+        margin: how far inside the limit, rad; < 0 here.
+        t: time in s along a trajectory, or None.
+        pose: the (6,) pose [phi, theta, psi, X, Y, Z] that failed, if known.
+    """
+
+    _FIELD = {"motor_angle": "motor_angle_min_deg / motor_angle_max_deg",
+              "crank_joint": "crank_joint_cone_deg", "platform_joint": "platform_joint_cone_deg"}
+
+    def __init__(self, leg: int, limit: str, margin: float, t: float | None = None, pose=None):
+        self.leg = int(leg)
+        self.limit = str(limit)
+        self.margin = float(margin)
+        where = _locate(self, t, pose)
+        super().__init__(
+            f"leg {self.leg} leaves its {self.limit} limit by {math.degrees(-self.margin):.3g}"
+            f" deg{where}. Reduce the trajectory's amplitude, or widen "
+            f"StewartGeometry.{self._FIELD.get(self.limit, self.limit)} if the hardware allows.")
+
+
+class SingularPoseError(StewartError, ValueError):
+    """A pose (or a path) too close to a singularity of the Jacobian J = d theta / d x.
+
+    Two measures (``kinematics.singularity_measures``): ``cond`` = cond(J), large where the
+    rods' wrenches become dependent (the motors cannot hold the platform in some direction)
+    and ``sigma_min_inv`` = 1 / sigma_max(J), small at a dead point (a crank aligned with its
+    rod: the motors cannot move the platform in some direction; cond(J) can stay moderate there
+    when every leg reaches it at once).
+
+    Attributes:
+        measure: "cond" or "sigma_min_inv" (or "J" for a Jacobian that is not finite).
+        value: the measure at the pose. threshold: the bound it crossed.
+        t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
+    """
+
+    def __init__(self, measure: str, value: float, threshold: float, t: float | None = None,
+                 pose=None):
+        self.measure = str(measure)
+        self.value = float(value)
+        self.threshold = float(threshold)
+        where = _locate(self, t, pose)
+        what = {"cond": f"cond(J) = {self.value:.4g} > {self.threshold:g} (the motors are about to "
+                        f"lose the ability to hold the platform in some direction)",
+                "sigma_min_inv": f"1/sigma_max(J) = {self.value:.4g} < {self.threshold:g} "
+                                 f"(rad or m) per rad (a crank near its dead point: the motors "
+                                 f"are about to lose the ability to move the platform)"}.get(
+            self.measure, f"{self.measure} = {self.value:.4g} is not finite (a singular pose)")
+        super().__init__(
+            f"the pose is too close to a singularity{where}: {what}. Keep the "
+            f"path nearer the home pose [0, 0, 0, 0, 0, 0.30], or change the threshold "
+            f"(GuardConfig.cond_threshold / min_sigma_min_inv) if you know the margin is enough.")
+
+
+class MissingFileError(StewartError, FileNotFoundError):
+    """An input file (tuner weights, collected runs) that does not exist; says what makes it."""
+
+
+def _locate(error: StewartError, t: float | None, pose) -> str:
+    """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return " at t = ... (pose ...)"."""
+    error.t = None if t is None else float(t)
+    error.pose = None if pose is None else [float(v) for v in pose]
+    where = "" if error.t is None else f" at t = {error.t:.4g} s"
+    if error.pose is not None:
+        where += (" (pose [phi, theta, psi, X, Y, Z] = ["
+                  + ", ".join(f"{v:.4g}" for v in error.pose) + "])")
+    return where

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
+from . import guard
 from .diagram import StewartConfig, StewartDiagram, make_stewart_diagram
 from .fileio import atomic_write, save_npz
 from .plant import assemble, loop_closure_errors
-from .trajectories import validate_trajectory
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: Where ``stewart-drake train`` writes the tuner and ``run --tuner ann`` looks first.
@@ -70,14 +70,17 @@ def _advance(simulator: Simulator, t_end: float, progress: bool, desc: str):
 
 
 def build_simulator(config: StewartConfig, meshcat=None):
-    """(StewartDiagram, Simulator) with the loops assembled at x_d(0), at rest.
+    """(StewartDiagram, Simulator) with the loops assembled at x_d(0), at rest, guarded.
 
+    The reference is checked first (:func:`guard.check_reference`); ``sd.guard``, a
+    :class:`guard.DivergenceGuard`, is the Simulator's monitor (advance with :func:`guard.advance`
+    to get the logs saved when it trips).
     Raises:
-        UnreachablePoseError: the reference leaves the workspace (first time and leg), checked
-            before anything is simulated.
+        UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
+            workspace, a joint range or nears a singularity (first time, leg or measure),
+            checked before anything is simulated.
     """
-    validate_trajectory(config.geometry, config.resolved_trajectory(), config.duration_s,
-                        dt=config.control_period_s)
+    guard.check_reference(config)
     sd = make_stewart_diagram(config, meshcat=meshcat)
     simulator = Simulator(sd.diagram)
     context = simulator.get_mutable_context()
@@ -85,6 +88,7 @@ def build_simulator(config: StewartConfig, meshcat=None):
     plant_context = sd.plant.GetMyMutableContextFromRoot(context)
     x0 = config.resolved_trajectory().evaluate(0.0)[0]
     assemble(sd.plant, plant_context, sd.handles, x0)
+    sd.guard = guard.DivergenceGuard(sd).attach(simulator)
     simulator.Initialize()
     return sd, simulator
 
@@ -100,12 +104,15 @@ def run_experiment(config: StewartConfig | None = None, progress: bool = False,
     Returns:
         :class:`RunResult`.
     Raises:
-        UnreachablePoseError before simulating if the reference is unreachable.
+        UnreachablePoseError, JointLimitError, SingularPoseError before simulating (see
+        :func:`build_simulator`); SimulationDivergedError when the guard stops the run (the
+        logs up to then are saved, the path is in the error).
     """
     config = config or StewartConfig()
     sd, simulator = build_simulator(config, meshcat)
     wall0 = time.perf_counter()
-    _advance(simulator, config.duration_s, progress, desc="simulating")
+    guard.advance(sd, simulator,
+                  lambda: _advance(simulator, config.duration_s, progress, desc="simulating"))
     wall = time.perf_counter() - wall0
     return collect_result(sd, simulator.get_context(), wall)
 
@@ -283,7 +290,8 @@ def run_cli(args) -> int:
                            omega_Q=args.omega_q, omega_R=args.omega_r,
                            controller=getattr(args, "controller", "lqi"),
                            tuner=None if args.tuner == "none" else args.tuner,
-                           tuner_weights=weights)
+                           tuner_weights=weights,
+                           guard=guard.GuardConfig(divergence_dir=Path(args.out) / "diverged"))
     if config.tuner:
         from .tuner import DEFAULT_TUNER_PATH
 

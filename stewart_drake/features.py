@@ -23,6 +23,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from .errors import InvalidConfigError, SimulationDivergedError
+from .validation import as_array, as_number
 
 N_CHANNELS = 6                 # six pose errors, six motor torques
 N_FEATURES = 2 * N_CHANNELS    # rho = [rho_e (6,), rho_T (6,)]
@@ -31,18 +32,15 @@ DEFAULT_EPS = 1e-9
 
 
 def _check_window_eps(window: int, eps: float) -> None:
-    if not (isinstance(window, (int, np.integer)) and window >= 1):
+    if isinstance(window, bool) or not (isinstance(window, (int, np.integer)) and window >= 1):
         raise InvalidConfigError(f"window (m + 1 samples) must be an integer >= 1, got {window!r}")
-    if not (np.isfinite(eps) and eps > 0):
-        raise InvalidConfigError(f"eps must be finite and > 0 (it keeps eq. 35 defined when the "
-                                 f"window is all zeros), got {eps!r}")
+    # eps > 0 keeps eq. 35 defined when the window is all zeros.
+    as_number("eps (> 0, the floor of eq. 35's denominator)", eps, 0.0, lo_open=True)
 
 
-def _check_finite(name: str, x: np.ndarray) -> None:
-    if not np.all(np.isfinite(x)):
-        bad = tuple(int(i) for i in np.argwhere(~np.isfinite(x))[0])
-        raise ValueError(f"{name} has a non-finite value {x[bad]} at index {bad}; density "
-                         f"features need finite samples: drop or fix the diverged run")
+def _signals(name: str, x) -> np.ndarray:
+    """Finite float samples; density features need them: drop or fix a diverged run."""
+    return as_array(f"{name} (density features need finite samples)", x)
 
 
 def _rho(window: np.ndarray, n_valid, eps: float) -> np.ndarray:
@@ -79,21 +77,19 @@ def density_features(e_window, T_window, eps: float = DEFAULT_EPS, n_valid=None)
         (..., 12) rho = [rho_e (6,), rho_T (6,)], dimensionless, 0 <= rho <= m + 1;
         rho_x = |x(t)| / (mean of |x| over the last n_valid samples + eps).
     Raises:
-        ValueError: a non-finite sample (names the array and index) or mismatched shapes.
-        InvalidConfigError: eps <= 0 or n_valid outside 1..m+1.
+        InvalidConfigError (a ValueError): a non-finite sample (names the array and index),
+            mismatched shapes, eps <= 0 or n_valid outside 1..m+1.
     Source: paper eqs. 35-36, with |.| and eps so the denominator cannot cross zero
         (docs/paper_notes.md).
     """
-    e_window = np.asarray(e_window, dtype=float)
-    T_window = np.asarray(T_window, dtype=float)
+    e_window = _signals("e_window", e_window)
+    T_window = _signals("T_window", T_window)
     if e_window.ndim < 2 or e_window.shape[-1] != N_CHANNELS or e_window.shape != T_window.shape:
-        raise ValueError(f"e_window and T_window must both be (..., m + 1, 6), got "
-                         f"{e_window.shape} and {T_window.shape}")
+        raise InvalidConfigError(f"e_window and T_window must both be (..., m + 1, 6), got "
+                                 f"{e_window.shape} and {T_window.shape}")
     length = e_window.shape[-2]
     _check_window_eps(length, eps)
-    _check_finite("e_window", e_window)
-    _check_finite("T_window", T_window)
-    n = length if n_valid is None else np.asarray(n_valid)
+    n = length if n_valid is None else as_array("n_valid", n_valid)
     if np.any(n < 1) or np.any(n > length):
         raise InvalidConfigError(f"n_valid must be in 1..{length} (the window length), got {n}")
     return np.concatenate([_rho(e_window, n, eps), _rho(T_window, n, eps)], axis=-1)
@@ -114,14 +110,14 @@ def density_features_series(e, T, window: int = DEFAULT_WINDOW,
     Returns:
         (N, 12) rho = [rho_e, rho_T] per sample, dimensionless.
     Raises:
-        ValueError: non-finite samples or shapes other than (N, 6).
-        InvalidConfigError: window < 1 or eps <= 0.
+        InvalidConfigError (a ValueError): non-finite samples, shapes other than (N, 6),
+            window < 1 or eps <= 0.
     Source: paper eqs. 35-36 (well-posed variant, docs/paper_notes.md).
     """
-    e = np.asarray(e, dtype=float)
-    T = np.asarray(T, dtype=float)
+    e = _signals("e", e)
+    T = _signals("T", T)
     if e.ndim != 2 or e.shape[1] != N_CHANNELS or e.shape != T.shape:
-        raise ValueError(f"e and T must both be (N, 6), got {e.shape} and {T.shape}")
+        raise InvalidConfigError(f"e and T must both be (N, 6), got {e.shape} and {T.shape}")
     _check_window_eps(window, eps)
     pad = np.zeros((window - 1, N_CHANNELS))
     view = np.lib.stride_tricks.sliding_window_view

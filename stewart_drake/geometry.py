@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InvalidGeometryError
+from .validation import as_array, as_number
 
 #: Table I of the paper, principal moments about the COM in kg m^2, as printed.
 TABLE_I_CRANK_INERTIA = (1e-6, 5.8e-5, 6e-5)
@@ -34,8 +35,8 @@ def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[floa
         Ixx + Iyy < Izz, the deficit is spread equally: (1.334e-6, 5.8334e-5, 5.9666e-5).
     Source: paper Table I fails ``RotationalInertia.CouldBePhysicallyValid``; docs/paper_notes.md.
     """
-    m = np.asarray(moments, dtype=float).copy()
-    if m.shape != (3,) or np.any(m < 0) or not np.all(np.isfinite(m)):
+    m = as_array("principal moments", moments, shape=(3,), error=InvalidGeometryError).copy()
+    if np.any(m < 0):
         raise InvalidGeometryError(f"principal moments must be 3 finite values >= 0, got {moments}")
     for _ in range(3):  # each projection fixes the largest violation; at most three are needed
         deficits = np.array([m[1] + m[2] - m[0], m[0] + m[2] - m[1], m[0] + m[1] - m[2]])
@@ -94,8 +95,10 @@ class StewartGeometry:
             socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
             along the paper manoeuvre). All limits are checked by ``kinematics.limit_margins``.
     Raises:
-        InvalidGeometryError: non-positive lengths or masses, wrong counts, or an inertia that
-            fails the triangle inequality (use :func:`nearest_valid_principal_moments`).
+        InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
+            inertia that fails the triangle inequality (use
+            :func:`nearest_valid_principal_moments`), legs that cannot close at the home pose,
+            or a home pose outside a joint limit; each message names the field to change.
     """
 
     base_radius: float = 0.20
@@ -125,22 +128,24 @@ class StewartGeometry:
     def __post_init__(self):
         for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
                      "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidGeometryError(f"{name} must be a finite positive number, got {value}")
-        if not (np.isfinite(self.gravity) and self.gravity >= 0):
-            raise InvalidGeometryError(f"gravity must be finite and >= 0, got {self.gravity}")
+            object.__setattr__(self, name, as_number(name, getattr(self, name), 0.0, lo_open=True,
+                                                     error=InvalidGeometryError))
+        for name, lo in (("gravity", 0.0), ("pivot_z", None)):
+            object.__setattr__(self, name, as_number(name, getattr(self, name), lo,
+                                                     error=InvalidGeometryError))
+        for name in ("motor_angle_min_deg", "motor_angle_max_deg", "crank_joint_cone_deg",
+                     "platform_joint_cone_deg"):
+            object.__setattr__(self, name, as_number(name, getattr(self, name),
+                                                     error=InvalidGeometryError))
         if self.rod_length <= self.crank_length:
             raise InvalidGeometryError(
                 f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)")
         for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
-            angles = np.asarray(getattr(self, name), dtype=float)
-            if angles.shape != (6,) or not np.all(np.isfinite(angles)):
-                raise InvalidGeometryError(f"{name} needs 6 finite angles, got {angles.tolist()}")
+            angles = as_array(name, getattr(self, name), shape=(6,), error=InvalidGeometryError)
             object.__setattr__(self, name, tuple(float(v) for v in angles))
         for name in ("rod_inertia", "crank_inertia", "platform_inertia", "base_inertia"):
-            moments = np.asarray(getattr(self, name), dtype=float)
-            if moments.shape != (3,) or not np.all(np.isfinite(moments)) or np.any(moments <= 0):
+            moments = as_array(name, getattr(self, name), shape=(3,), error=InvalidGeometryError)
+            if np.any(moments <= 0):
                 raise InvalidGeometryError(f"{name} needs 3 positive moments, got {moments.tolist()}")
             a, b, c = moments
             if a + b < c * (1 - 1e-12) or a + c < b * (1 - 1e-12) or b + c < a * (1 - 1e-12):

@@ -17,8 +17,10 @@ from functools import lru_cache
 
 import numpy as np
 
-from .errors import ForwardKinematicsError, InvalidConfigError, UnreachablePoseError
+from .errors import (ForwardKinematicsError, InvalidConfigError, JointLimitError,
+                     SingularPoseError, UnreachablePoseError)
 from .geometry import StewartGeometry
+from .validation import as_array, as_number, as_poses
 
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -98,11 +100,23 @@ def _lmn(geometry: StewartGeometry, x):
 def leg_reach_ratio(geometry: StewartGeometry, x) -> np.ndarray:
     """(..., 6) ratio L / sqrt(M^2 + N^2) per leg; |ratio| > 1 means the leg cannot close.
 
+    Args:
+        x: (6,) or (..., 6) finite poses [phi, theta, psi, X, Y, Z] in rad and m.
+    Returns:
+        (..., 6), never NaN: +-inf only for a platform joint exactly on its motor's shaft
+        axis (M = N = 0) at the wrong distance (no crank angle closes the leg); 0 there at the
+        right distance (every crank angle does).
+    Raises:
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
     Source: reference_geometry.md, "Closed-form inverse kinematics"; paper eq. 6's C/sqrt(A^2+B^2).
     """
-    L, M, N, _, _ = _lmn(geometry, x)
+    L, M, N, _, _ = _lmn(geometry, as_poses("pose x", x))
+    h = np.hypot(M, N)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return L / np.hypot(M, N)
+        ratio = L / h
+    if not np.isfinite(ratio).all():            # only where h == 0 (finite poses, |p| <= 1 km)
+        ratio = np.where(h == 0, np.where(L == 0, 0.0, np.copysign(np.inf, L)), ratio)
+    return ratio
 
 
 def ik_unchecked(geometry: StewartGeometry, x) -> tuple[np.ndarray, np.ndarray]:
@@ -133,9 +147,10 @@ def ik(geometry: StewartGeometry, x, t=None) -> np.ndarray:
     Raises:
         UnreachablePoseError: naming the first pose (and time) and the first leg with
             |L| / sqrt(M^2 + N^2) > 1.
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
     Source: paper eq. 6, rewritten for the reference geometry (docs/paper_notes.md).
     """
-    x = np.asarray(x, dtype=float)
+    x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
     bad = ~(np.abs(ratio) <= 1.0)                # also catches NaN
     if np.any(bad):
@@ -166,18 +181,46 @@ def _leg_terms(geometry: StewartGeometry, x, theta=None):
     return theta, q_B, r_B, tip, ell, e_N, E, Gq
 
 
+def _checked(geometry: StewartGeometry, x, theta):
+    """(x, theta) validated for the public Jacobian-based functions; theta from :func:`ik`."""
+    x = as_poses("pose x", x)
+    if theta is None:
+        return x, ik(geometry, x)
+    theta = as_array("motor angles theta", theta, last=6)
+    if theta.shape != x.shape:
+        raise InvalidConfigError(f"theta {theta.shape} must match the poses x {x.shape}")
+    return x, theta
+
+
+def _finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``value`` if finite, else SingularPoseError naming the first pose of x where it is not."""
+    if np.isfinite(value).all():
+        return value
+    bad = ~np.isfinite(value.reshape(x.reshape(-1, 6).shape[0], -1)).all(axis=1)
+    raise SingularPoseError(name, np.inf, np.inf, pose=x.reshape(-1, 6)[int(np.argmax(bad))])
+
+
 def jacobian(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     """Analytic Jacobian J = d theta / d x of the inverse kinematics.
 
     Args:
         x: (..., 6) pose; theta: optional (..., 6) motor angles of x (saves one IK).
     Returns:
-        (..., 6, 6), row i = (ell_i . dq_i/dx) / (a ell_i . e_N,i), rad per (rad or m);
+        (..., 6, 6), finite, row i = (ell_i . dq_i/dx) / (a ell_i . e_N,i), rad per (rad or m);
         theta_dot = J @ x_dot with x_dot = [phi_dot, theta_dot, psi_dot, X_dot, Y_dot, Z_dot].
     Raises:
         UnreachablePoseError: if x is unreachable.
-    Entries are inf at a singular pose (rod orthogonal to the crank-tip velocity).
+        SingularPoseError: at a pose where a rod is exactly orthogonal to its crank-tip
+            velocity (J unbounded; :func:`singular_values` reports it as inf instead).
+        InvalidConfigError: x or theta not (..., 6) or not finite.
     """
+    x, theta = _checked(geometry, x, theta)
+    return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
+
+
+def _jacobian(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+    """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
+    unreachable; for Newton steps and singular values, which handle those themselves."""
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
     num = np.einsum("...ik,...ikl->...il", ell, Gq)
     den = geometry.crank_length * np.sum(ell * e_N, axis=-1)
@@ -192,6 +235,9 @@ def tau(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     x = [phi, theta, psi, X, Y, Z] (N m per rad of roll/pitch/yaw, N along X, Y, Z).
     This is paper eq. 18 with its tau_2 corrected (1 / (a e_l . e_N) instead of e_l . e_N / a)
     and expressed in roll-pitch-yaw coordinates: tau = blockdiag(E^T, I) @ wrench_map(x).
+
+    Raises:
+        as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
     """
     return np.swapaxes(jacobian(geometry, x, theta), -1, -2)
 
@@ -202,13 +248,18 @@ def wrench_map(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     M_B is the moment about E's origin and F_B the force on the platform, both in the base frame,
     for motor torques T (N m). Column i = [r_i x e_l,i ; e_l,i] / (a e_l,i . e_N,i), e_l the rod
     direction: a massless rod carries force F_i = T_i / (a e_l . e_N) along itself.
+    Raises:
+        as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
     Source: paper eqs. 11-18; the paper's eq. 15 multiplies by e_l . e_N where it must divide.
     """
+    x, theta = _checked(geometry, x, theta)
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
     tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)       # (..., 6 legs, 6)
-    scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
-    return np.swapaxes(tau1 * scale[..., None], -1, -2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
+        W = np.swapaxes(tau1 * scale[..., None], -1, -2)
+    return _finite_or_singular("W", W, x)
 
 
 def wrench_map_paper_eq18(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
@@ -231,7 +282,7 @@ def gravity_gradient(geometry: StewartGeometry, x, theta=None, J=None) -> np.nda
     Pass theta and J (the Jacobian at x) when already computed, to save work.
     """
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    J = jacobian(geometry, x, theta) if J is None else J
+    J = _jacobian(geometry, x, theta) if J is None else J
     g = geometry.gravity
     a = geometry.crank_length
     dtheta_coeff = g * a * np.cos(theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
@@ -246,14 +297,26 @@ def holding_torques(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
 
     Solves J^T T = dV/dx (virtual work through the Jacobian; Drake's tree gravity term ignores the
     loop constraints). Includes the weight of the cranks and rods, not only the platform's.
+    Args:
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        (..., 6) finite torques, N m.
     Raises:
         UnreachablePoseError: if x is unreachable.
-        numpy.linalg.LinAlgError: at a singular pose.
+        SingularPoseError: J^T is singular (no torques hold the pose) or J is unbounded.
+        InvalidConfigError: x or theta not (..., 6) or not finite.
     """
-    theta = ik(geometry, x) if theta is None else theta
+    x, theta = _checked(geometry, x, theta)
     J = jacobian(geometry, x, theta)
     grad = gravity_gradient(geometry, x, theta, J)
-    return np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
+    try:
+        T = np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        cond = np.linalg.cond(J.reshape(-1, 6, 6))
+        k = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
+        raise SingularPoseError("cond", np.inf, DEFAULT_COND_THRESHOLD,
+                                pose=x.reshape(-1, 6)[k]) from None
+    return _finite_or_singular("T", T, x)
 
 
 def task_inertia(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
@@ -265,7 +328,7 @@ def task_inertia(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     are not included.
     """
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    J = jacobian(geometry, x, theta)
+    J = _jacobian(geometry, x, theta)
     a, s = geometry.crank_length, geometry.rod_length
     x = np.asarray(x, dtype=float)
     R = rotation_rpy(x[..., :3])
@@ -292,6 +355,17 @@ def task_inertia(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
 #: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
 #: reachable poses of the tests are drawn below 200.
 DEFAULT_COND_THRESHOLD = 200.0
+
+#: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
+#: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
+#: with the crank-tip velocity's normal plane): there the motors cannot *move* the platform along
+#: the matching direction, the edge of the workspace. cond(J) misses it when all six legs reach
+#: the dead point together (pure heave: cond 26 at Z = 0.20 m, 30 at Z = 0.41 m), so this second
+#: measure is checked too. cond(J) -> inf with sigma_max bounded is the other singularity, where
+#: sigma_min(J) -> 0 and the motors cannot *hold* the platform against some wrench (T = J^{-T} w).
+#: Reference robot: 0.044 at home, 0.021 at least along the paper manoeuvre (2x margin), 0.041
+#: along the data-collection excitation; 0.011 at Z = 0.20 m and 0.019 at Z = 0.41 m in heave.
+DEFAULT_MIN_SIGMA_MIN_INV = 0.01
 
 #: Names of the per-leg limits, in the order reports list them. Margins are >= 0 inside a limit:
 #: ``closure`` 1 - |L|/sqrt(M^2+N^2) (dimensionless); the others in rad.
@@ -330,7 +404,7 @@ def _fk_residual(geometry: StewartGeometry, x, theta_target):
 
 def _assembly_mode(geometry: StewartGeometry, x, theta) -> np.ndarray:
     """(n,) sign of det J(x): +-1, 0 where J is singular or not finite."""
-    J = jacobian(geometry, x, theta)
+    J = _jacobian(geometry, x, theta)
     finite = np.all(np.isfinite(J), axis=(-2, -1))
     return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
 
@@ -376,7 +450,7 @@ def fk_unchecked(geometry: StewartGeometry, theta, x0=None, tol: float = 1e-12,
         idx = np.flatnonzero(~failed & (errmax > tol))
         if idx.size == 0:
             break
-        J = jacobian(geometry, x[idx], th_k[idx])
+        J = _jacobian(geometry, x[idx], th_k[idx])
         finite = np.all(np.isfinite(J), axis=(-2, -1))
         J = np.where(finite[:, None, None], J, np.eye(6))
         try:
@@ -425,9 +499,15 @@ def fk(geometry: StewartGeometry, theta, x0=None, tol: float = 1e-12,
     Raises:
         ForwardKinematicsError: some pose did not converge (the first one is named, with its
             residual); also when x0 is unreachable or every step leads out of the workspace.
+        InvalidConfigError: theta or x0 not (..., 6) or not finite, tol <= 0, max_iter < 1.
     Source: Newton on :func:`ik` with the analytic :func:`jacobian`, backtracking on
         ||ik(x) - theta|| (see :func:`fk_unchecked`).
     """
+    theta = as_array("motor angles theta", theta, last=6)
+    x0 = None if x0 is None else as_poses("initial pose x0", x0)
+    tol = as_number("tol", tol, 0.0, lo_open=True)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise InvalidConfigError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     x, converged, iterations, residual = fk_unchecked(geometry, theta, x0, tol, max_iter)
     if not np.all(converged):
         k = int(np.argmax(~converged.reshape(-1)))
@@ -470,10 +550,10 @@ def singular_values(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
         (..., 6) in SI units (rows rad, columns rad or m mixed); NaN where x is unreachable;
         [inf, NaN, ...] where a rod is orthogonal to its crank-tip velocity (J unbounded).
     """
-    x = np.asarray(x, dtype=float)
+    x = as_poses("pose x", x)
     if theta is None:
         theta, _ = ik_unchecked(geometry, x)
-    return _singular_values_of(jacobian(geometry, x, theta))
+    return _singular_values_of(_jacobian(geometry, x, theta))
 
 
 def singularity_measures(geometry: StewartGeometry, x, theta=None):
@@ -495,7 +575,7 @@ def singularity_measures(geometry: StewartGeometry, x, theta=None):
         sigma_min_inv: (...) 1/sigma_max(J), the smallest singular value of J^{-1}, in
             (rad or m) per rad; 0 at a rod-crank singularity, NaN where unreachable.
     """
-    sv = singular_values(geometry, x, theta)
+    sv = singular_values(geometry, x, theta)       # validates x
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
         inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])
@@ -644,8 +724,10 @@ def is_reachable(geometry: StewartGeometry, x) -> Reachability:
     Returns:
         :class:`Reachability`: ``bool(result)``, per-pose ``reachable``, per-leg ``margins`` and
         ``violations()`` naming the leg, the limit and by how much.
+    Raises:
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
     """
-    x = np.asarray(x, dtype=float)
+    x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
     margins = limit_margins(geometry, x, theta, ratio)
     return Reachability(_reachable_from_margins(margins), margins, theta)
@@ -664,6 +746,9 @@ class TrajectoryReport:
         first_singular_t: first time (s) with cond(J) > cond_threshold, or None.
         min_sigma_min_inv: smallest 1/sigma_max(J) along the path ((rad or m) per rad).
         cond_threshold: the threshold used.
+        min_sigma_min_inv_t: time (s) of ``min_sigma_min_inv``.
+        first_weak_t: first time (s) with 1/sigma_max(J) < sigma_min_inv_threshold, or None.
+        sigma_min_inv_threshold: the threshold used ((rad or m) per rad).
     """
 
     ok: bool
@@ -676,6 +761,9 @@ class TrajectoryReport:
     first_singular_t: float | None
     min_sigma_min_inv: float
     cond_threshold: float
+    min_sigma_min_inv_t: float = float("nan")
+    first_weak_t: float | None = None
+    sigma_min_inv_threshold: float = 0.0
 
     def summary(self) -> str:
         """Human-readable lines: verdict, each limit's smallest margin, singularity."""
@@ -687,9 +775,15 @@ class TrajectoryReport:
                          f"t = {self.min_margin_t[name]:.4g} s)")
         lines.append(f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
                      f"(threshold {self.cond_threshold:g})")
+        lines.append(f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
+                     f"t = {self.min_sigma_min_inv_t:.4g} s "
+                     f"(threshold {self.sigma_min_inv_threshold:g})")
         if self.first_singular_t is not None:
             lines.append(f"  closer to singularity than the threshold first at "
                          f"t = {self.first_singular_t:.4g} s")
+        if self.first_weak_t is not None:
+            lines.append(f"  1/sigma_max(J) below its threshold first at "
+                         f"t = {self.first_weak_t:.4g} s")
         if self.first_violation is not None:
             lines.append(f"  first violation: {self.first_violation}")
         return "\n".join(lines)
@@ -697,7 +791,9 @@ class TrajectoryReport:
 
 def validate_trajectory(geometry: StewartGeometry, t, x,
                         cond_threshold: float = DEFAULT_COND_THRESHOLD,
-                        raise_unreachable: bool = True) -> TrajectoryReport:
+                        raise_unreachable: bool = True,
+                        min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
+                        raise_refused: bool = False) -> TrajectoryReport:
     """Validate a sampled path before running it: limits, margins and nearness to singularity.
 
     Args:
@@ -705,17 +801,27 @@ def validate_trajectory(geometry: StewartGeometry, t, x,
         t: (n,) sample times in s, increasing.
         x: (n, 6) poses [phi, theta, psi, X, Y, Z] in rad and m. Only the samples are checked:
             sample finer than the shortest feature of the path.
-        cond_threshold: cond(J) above this counts as too close to a singularity.
+        cond_threshold: cond(J) above this counts as too close to a singularity (> 1).
         raise_unreachable: raise on a leg that cannot close (else report it as ``closure``).
+        min_sigma_min_inv: 1/sigma_max(J) below this ((rad or m) per rad, >= 0) counts as too
+            close to a dead point (see :data:`DEFAULT_MIN_SIGMA_MIN_INV`).
+        raise_refused: raise on the first refused sample (what a run needs) instead of only
+            reporting it.
     Returns:
         :class:`TrajectoryReport` (``summary()`` prints it).
     Raises:
         UnreachablePoseError: with ``raise_unreachable``, naming the first time, its worst leg
             and ratio.
-        InvalidConfigError: t and x of mismatched shapes, or t not increasing.
+        JointLimitError: with ``raise_refused``, the first time a leg leaves a joint limit.
+        SingularPoseError: with ``raise_refused``, the first time cond(J) > cond_threshold or
+            1/sigma_max(J) < min_sigma_min_inv, naming the measure (whichever comes first).
+        InvalidConfigError: t and x of mismatched shapes or not finite, t not increasing, or a
+            threshold out of range.
     """
-    t = np.asarray(t, dtype=float).reshape(-1)
-    x = np.asarray(x, dtype=float)
+    t = as_array("sample times t", t).reshape(-1)
+    x = as_poses("poses x", x)
+    cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
+    min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
     if x.shape != (t.size, 6) or t.size == 0:
         raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
                                  f"t {t.shape} and x {x.shape}")
@@ -742,11 +848,39 @@ def validate_trajectory(geometry: StewartGeometry, t, x,
                 lb = int(np.argmin(m[kb]))
                 first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
     cond_f = np.where(np.isnan(cond), np.inf, cond)
+    inv_f = np.where(np.isnan(inv), 0.0, inv)
     over = cond_f > cond_threshold
-    kc = int(np.argmax(cond_f))
-    return TrajectoryReport(
-        ok=first is None and not np.any(over), min_margin=min_margin, min_margin_leg=min_leg,
-        min_margin_t=min_t, first_violation=first, max_cond=float(cond_f[kc]),
-        max_cond_t=float(t[kc]), first_singular_t=float(t[int(np.argmax(over))]) if np.any(over)
-        else None, min_sigma_min_inv=float(np.nanmin(inv)) if np.any(np.isfinite(inv)) else np.nan,
-        cond_threshold=float(cond_threshold))
+    weak = inv_f < min_sigma_min_inv
+    kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
+    report = TrajectoryReport(
+        ok=first is None and not np.any(over) and not np.any(weak), min_margin=min_margin,
+        min_margin_leg=min_leg, min_margin_t=min_t, first_violation=first,
+        max_cond=float(cond_f[kc]), max_cond_t=float(t[kc]),
+        first_singular_t=float(t[int(np.argmax(over))]) if np.any(over) else None,
+        min_sigma_min_inv=float(inv_f[ki]), cond_threshold=float(cond_threshold),
+        min_sigma_min_inv_t=float(t[ki]),
+        first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
+        sigma_min_inv_threshold=float(min_sigma_min_inv))
+    if raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f)
+    return report
+
+
+def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv):
+    """Raise the typed error of the earliest refused sample of a validated path."""
+    candidates = []
+    v = report.first_violation
+    if v is not None:
+        k = int(np.searchsorted(t, v.t))
+        error = (UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k]) if v.limit == "closure"
+                 else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k]))
+        candidates.append((v.t, 0, error))
+    if report.first_singular_t is not None:
+        k = int(np.searchsorted(t, report.first_singular_t))
+        candidates.append((t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold,
+                                                      t[k], x[k])))
+    if report.first_weak_t is not None:
+        k = int(np.searchsorted(t, report.first_weak_t))
+        candidates.append((t[k], 2, SingularPoseError(
+            "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k])))
+    raise min(candidates, key=lambda c: c[:2])[2]

@@ -13,6 +13,7 @@ import numpy as np
 from . import kinematics
 from .errors import InvalidConfigError
 from .geometry import X_HOME, StewartGeometry
+from .validation import as_array, check_sine_bounds
 
 
 @dataclass(frozen=True)
@@ -32,10 +33,9 @@ class SineTrajectory:
 
     def __post_init__(self):
         for attr in ("amplitude", "frequency_hz", "phase", "offset"):
-            v = np.asarray(getattr(self, attr), dtype=float)
-            if v.shape != (6,) or not np.all(np.isfinite(v)):
-                raise InvalidConfigError(f"{self.name}: {attr} needs 6 finite values, got {v}")
+            v = as_array(f"{self.name}: {attr}", getattr(self, attr), shape=(6,))
             object.__setattr__(self, attr, tuple(float(c) for c in v))
+        check_sine_bounds(self)
 
     def evaluate(self, t):
         """Pose, rate, acceleration at times t: three (..., 6) arrays (t scalar gives (6,))."""

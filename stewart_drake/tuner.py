@@ -29,8 +29,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from .errors import InvalidConfigError
+from .errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES
+from .fileio import atomic_write
+from .validation import as_array
 
 FORMAT_VERSION = 1
 LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]
@@ -108,17 +110,18 @@ class TunerModel:
             (..., 2) log10 of [omega_Q, omega_R] in [-1, 1]; finite for every finite rho
             (normalized inputs are capped at +-1000 training standard deviations).
         Raises:
-            ValueError: rho not (..., 12) or not finite.
+            InvalidConfigError (a ValueError): rho not (..., 12) or not finite, or weights so
+                large that the network's sums overflow (inf - inf).
         """
-        rho = np.asarray(rho, dtype=np.float64)
-        if rho.shape[-1:] != (N_FEATURES,):
-            raise ValueError(f"rho must be (..., 12), got {rho.shape}")
-        if not np.all(np.isfinite(rho)):
-            raise ValueError("rho has non-finite entries; the tuner needs finite features")
-        with np.errstate(over="ignore"):
+        rho = as_array("rho (the tuner needs finite features)", rho, last=N_FEATURES)
+        with np.errstate(over="ignore", invalid="ignore"):
             z = np.clip((rho - self.x_mean) / self.x_std, -Z_CLIP, Z_CLIP)
-        h = _activation(self.activation, z @ self.W1.T + self.b1)
-        return np.clip(h @ self.W2.T + self.b2, LOG10_MIN, LOG10_MAX)
+            h = _activation(self.activation, z @ self.W1.T + self.b1)
+            y = np.clip(h @ self.W2.T + self.b2, LOG10_MIN, LOG10_MAX)
+        if not np.isfinite(y).all():
+            raise InvalidConfigError("the tuner's output is NaN: its weights overflow float64 "
+                                     "sums; retrain with `stewart-drake train`")
+        return y
 
     def predict(self, rho) -> np.ndarray:
         """[omega_Q, omega_R] for features rho.
@@ -128,7 +131,7 @@ class TunerModel:
         Returns:
             (..., 2) [omega_Q, omega_R], dimensionless LQI weights in [0.1, 10] (eq. 27).
         Raises:
-            ValueError: see :meth:`predict_log10`.
+            InvalidConfigError: see :meth:`predict_log10`.
         """
         return np.clip(10.0 ** self.predict_log10(rho), OMEGA_MIN, OMEGA_MAX)
 
@@ -184,18 +187,19 @@ def build_mlp(hidden: int = 10, activation: str = "tanh"):
 def save_tuner(model: TunerModel, path) -> Path:
     """Write ``model`` to a ``.npz`` (format in the module docstring); returns the path.
 
+    Written atomically (a temporary file, then a rename): an interrupted save leaves the old file.
+
     Raises:
         TypeError: metadata that JSON cannot encode.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with open(path, "wb") as f:       # a file object keeps np.savez from appending ".npz"
-        np.savez(f, W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2,
-                 x_mean=model.x_mean, x_std=model.x_std,
-                 log10_min=np.float64(LOG10_MIN), log10_max=np.float64(LOG10_MAX),
-                 activation=np.str_(model.activation),
-                 format_version=np.int64(FORMAT_VERSION),
-                 metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
+    arrays = dict(W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2,
+                  x_mean=model.x_mean, x_std=model.x_std,
+                  log10_min=np.float64(LOG10_MIN), log10_max=np.float64(LOG10_MAX),
+                  activation=np.str_(model.activation),
+                  format_version=np.int64(FORMAT_VERSION),
+                  metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
+    atomic_write(path, lambda f: np.savez(f, **arrays))   # a file object: no ".npz" appended
     return path
 
 
@@ -207,8 +211,8 @@ def load_tuner(path=None) -> TunerModel:
     Returns:
         the :class:`TunerModel`.
     Raises:
-        FileNotFoundError: no such file; for the shipped weights it names the command that
-            makes them (``stewart-drake collect && stewart-drake train``).
+        MissingFileError (a FileNotFoundError): no such file; for the shipped weights it names
+            the command that makes them (``stewart-drake collect && stewart-drake train``).
         InvalidConfigError: a file of another format version or clamp range, or bad weights.
     """
     default = path is None
@@ -217,7 +221,7 @@ def load_tuner(path=None) -> TunerModel:
         how = ("run `stewart-drake collect && stewart-drake train` to collect the 9 closed-loop "
                "runs and train it" if default else "check the path, or pass none for the "
                "shipped weights")
-        raise FileNotFoundError(f"no ANN tuner weights at {path}: {how}")
+        raise MissingFileError(f"no ANN tuner weights at {path}: {how}")
     with np.load(path, allow_pickle=False) as data:
         version = int(data["format_version"])
         if version != FORMAT_VERSION:
@@ -291,8 +295,8 @@ class AnnTuner(LeafSystem):
 
     def _Update(self, context, discrete_state):
         rho = self._rho.Eval(context)
-        if np.all(np.isfinite(rho)):
+        try:
             discrete_state.set_value(self._omega_index, self.model.predict(rho))
-        else:
+        except InvalidConfigError:                   # rho (or the output) not finite
             count = context.get_discrete_state(self._count_index).get_value()[0]
             discrete_state.set_value(self._count_index, [count + 1.0])

@@ -1,0 +1,140 @@
+"""Issue 8: bad CLI input ends in one line and a non-zero exit; outputs are written atomically."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stewart_drake import cli
+from stewart_drake.controller import LqiController
+from stewart_drake.fileio import atomic_write, save_npz
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _one_line_error(capsys, argv, code=2):
+    """Run the CLI in-process; the exit code and its only stderr line."""
+    try:
+        rc = cli.main(argv)
+    except SystemExit as exit_:                     # argparse's own errors
+        rc = exit_.code
+    err = capsys.readouterr().err
+    assert rc == code, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["run", "--duration", "-1"], "--duration: must be > 0, got -1"),
+    (["run", "--duration", "nan"], "--duration: must be > 0, got nan"),
+    (["run", "--omega-q", "abc"], "--omega-q: expected a number, got 'abc'"),
+    (["run", "--tuner", "fuzzy"], "invalid choice: 'fuzzy'"),
+    (["collect", "--jobs", "-2"], "--jobs: must be >= 0, got -2"),
+    (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
+    (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
+    (["workspace", "--resolution", "1"], "--resolution: must be >= 2, got 1"),
+    (["workspace", "--jobs", "many"], "--jobs: expected an integer, got 'many'"),
+    (["train", "--mode", "best"], "invalid choice: 'best'"),
+    (["nonsense"], "invalid choice: 'nonsense'"),
+])
+def test_bad_arguments_give_one_line_and_exit_2(capsys, argv, expected):
+    line = _one_line_error(capsys, argv)
+    assert expected in line and line.startswith("stewart-drake")
+
+
+def test_bad_values_found_after_parsing_give_one_line(capsys, tmp_path):
+    out = ["--out", str(tmp_path / "r")]
+    assert "unknown trajectory 'circle'; choose one of" in _one_line_error(
+        capsys, ["run", "--trajectory", "circle", "--no-progress"] + out)
+    assert "omega_Q must be a finite number in [0.001, 1000], got 5000.0" in _one_line_error(
+        capsys, ["run", "--omega-q", "5000", "--no-progress"] + out)
+    assert f"no ANN tuner weights at {tmp_path / 'w.npz'}" in _one_line_error(
+        capsys, ["run", "--tuner", "ann", "--tuner-weights", str(tmp_path / "w.npz")] + out)
+    assert "no collected runs in" in _one_line_error(
+        capsys, ["train", "--data", str(tmp_path / "nothing"), "--out", str(tmp_path / "w.npz")])
+    assert not (tmp_path / "r").exists()                  # refused before anything was written
+
+
+@pytest.mark.parametrize("argv", [["run"], ["collect"], ["workspace"], ["train"], ["sdf"]])
+def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    line = _one_line_error(capsys, argv + ["--out", str(blocker / "sub" / "out.x")])
+    assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
+
+
+def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch):
+    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    line = _one_line_error(capsys, ["run", "--duration", "0.1", "--no-progress",
+                                    "--out", str(tmp_path)])
+    assert "simulation diverged at t = 0.001 s: the motor torques are not finite" in line
+    saved = sorted((tmp_path / "diverged").glob("diverged_paper_*.npz"))
+    assert len(saved) == 1 and str(saved[0]) in line
+    assert not (tmp_path / "run_paper.npz").exists()      # no result file, no plot of a NaN
+
+
+def test_no_traceback_from_the_installed_command_line(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "stewart_drake.cli", "run", "--duration", "-3"],
+                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "stewart-drake run: error: argument --duration: must be > 0, got -3 "
+        "(see stewart-drake run --help)"]
+
+
+# -- atomic writes --------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("interruption", [OSError(28, "No space left on device"),
+                                          KeyboardInterrupt()])
+def test_an_interrupted_write_leaves_the_old_file_and_no_partial_one(tmp_path, interruption):
+    path = tmp_path / "result.npz"
+    save_npz(path, {"t": np.arange(3.0)})
+    before = path.read_bytes()
+
+    def writer(f):
+        f.write(b"PK\x03\x04 half of a zip")             # some bytes reach the disk, then...
+        raise interruption
+
+    with pytest.raises(type(interruption)):
+        atomic_write(path, writer)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.npz"]   # no temporary left
+    with np.load(path) as data:
+        assert data["t"].tolist() == [0.0, 1.0, 2.0]
+
+
+def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkeypatch):
+    from stewart_drake import tuner
+
+    model = tuner.load_tuner()
+    path = tmp_path / "ann_tuner.npz"
+    tuner.save_tuner(model, path)
+    before = path.read_bytes()
+
+    def savez_then_ctrl_c(f, **arrays):
+        f.write(b"partial")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(tuner.np, "savez", savez_then_ctrl_c)
+    with pytest.raises(KeyboardInterrupt):
+        tuner.save_tuner(model, path)
+    assert path.read_bytes() == before and len(list(tmp_path.iterdir())) == 1
+
+
+def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
+    from stewart_drake import plant
+
+    out = tmp_path / "robot.sdf"
+    assert cli.main(["sdf", "--out", str(out)]) == 0
+    good = out.read_text()
+    assert good == plant.write_sdf()
+
+    def broken():
+        raise OSError(5, "Input/output error")
+
+    monkeypatch.setattr(plant, "write_sdf", broken)
+    assert "Input/output error" in _one_line_error(capsys, ["sdf", "--out", str(out)], code=1)
+    assert out.read_text() == good

@@ -1,0 +1,207 @@
+"""Issue 8: faults before and during a run end in a typed error, and the data is not lost."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stewart_drake import guard, kinematics
+from stewart_drake.controller import LqiController
+from stewart_drake.diagram import StewartConfig
+from stewart_drake.errors import (JointLimitError, SimulationDivergedError, SingularPoseError,
+                                  StewartError, UnreachablePoseError)
+from stewart_drake.experiments import build_simulator, run_experiment
+from stewart_drake.geometry import X_HOME, StewartGeometry
+from stewart_drake.guard import GuardConfig
+from stewart_drake.plant import assemble
+from stewart_drake.trajectories import SineTrajectory, paper_manoeuvre
+
+HEAVE_TO_DEAD_POINT = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.117),
+                                     frequency_hz=(0, 0, 0, 0, 0, 0.25), name="heave")
+
+
+def _config(tmp_path, duration_s=0.3, **guard_fields):
+    return StewartConfig(duration_s=duration_s,
+                         guard=GuardConfig(divergence_dir=tmp_path / "diverged", **guard_fields))
+
+
+def _load(path):
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+def _check_saved(err, tmp_path, t_fault):
+    """The file named in the error holds the logs up to the fault and the last state."""
+    assert err.path is not None and str(tmp_path / "diverged") in err.path
+    assert err.path in str(err)
+    saved = _load(err.path)
+    for key in ("t", "x", "T", "status", "state", "state_last", "t_last", "reason", "config"):
+        assert key in saved, key
+    t = saved["t"]
+    assert saved["x"].shape == (t.size, 12) and saved["T"].shape == (t.size, 6)
+    assert saved["status"].shape == (t.size, 5)
+    assert t[0] == 0.0 and t[-1] <= float(saved["t_last"]) + 1e-12
+    assert float(saved["t_last"]) == pytest.approx(err.t)
+    assert t_fault <= err.t <= t_fault + 0.011           # caught within one check period
+    assert t.size >= int(t_fault / 1e-3)                  # nothing before the fault is lost
+    assert saved["state_last"].shape == saved["state"].shape[1:]
+    assert str(saved["reason"]) in str(err)
+    assert json.loads(str(saved["config"]))["trajectory"] == "paper"
+    return saved
+
+
+def test_nan_torque_stops_the_run_and_saves_the_logs(tmp_path, monkeypatch):
+    original = LqiController.feedforward
+    calls = {"n": 0}
+
+    def faulty(self, context):                        # the 101st control step (t = 0.1005 s)
+        calls["n"] += 1
+        return np.full(6, np.nan) if calls["n"] > 100 else original(self, context)
+
+    monkeypatch.setattr(LqiController, "feedforward", faulty)
+    with pytest.raises(SimulationDivergedError, match="motor torques are not finite") as info:
+        run_experiment(_config(tmp_path))
+    saved = _check_saved(info.value, tmp_path, 0.1)
+    # Drake applies the update of t = 0.1005 s at the start of the step that ends at 0.101 s,
+    # where the monitor runs: before the plant's update uses the torque.
+    assert info.value.t == pytest.approx(0.101)
+    assert np.all(np.isnan(saved["T_last"]))
+    # The loggers publish at 0.101 s before the monitor runs: the last row is the fault itself,
+    # everything before it is finite, and the plant never used the NaN.
+    assert saved["t"][-1] == pytest.approx(0.101) and np.all(np.isnan(saved["T"][-1]))
+    assert np.all(np.isfinite(saved["T"][:-1])) and np.all(np.isfinite(saved["x"]))
+    assert np.all(np.isfinite(saved["state_last"]))
+
+
+def test_nan_state_stops_the_run(tmp_path):
+    sd, simulator = build_simulator(_config(tmp_path))
+    simulator.AdvanceTo(0.1005)      # between plant updates: the next step is the controller's
+    plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    state = plant_context.get_mutable_discrete_state_vector()
+    k = state.size() - 1                                   # a rod's angular rate
+    state.SetAtIndex(k, np.nan)
+    with pytest.raises(SimulationDivergedError, match=f"plant state is not finite \\(entry {k}"
+                       ) as info:
+        guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
+    saved = _check_saved(info.value, tmp_path, 0.1)
+    assert np.isnan(saved["state_last"][k])
+    assert np.all(np.isfinite(saved["state"][:-1]))       # logged before the fault
+    assert np.isnan(saved["state"][-1, k])                # the log at 0.101 s shows it
+
+
+def test_broken_loop_trips_the_closure_bound(tmp_path):
+    # SAP pulls a broken loop back within a few steps: check every step to see the 5 mm.
+    sd, simulator = build_simulator(_config(tmp_path, check_period_s=1e-3))
+    simulator.AdvanceTo(0.1)
+    plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    X_WE = sd.plant.GetFreeBodyPose(plant_context, sd.handles.platform)
+    X_WE.set_translation(X_WE.translation() + [0.0, 0.0, 0.005])   # 5 mm off its six rods
+    sd.plant.SetFreeBodyPose(plant_context, sd.handles.platform, X_WE)
+    with pytest.raises(SimulationDivergedError, match=r"loop-closure error .* exceeds "
+                       r"GuardConfig.max_closure_error_m = 0.001 m") as info:
+        guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
+    _check_saved(info.value, tmp_path, 0.1)
+
+
+def test_a_lost_platform_trips_the_tracking_bound(tmp_path):
+    sd, simulator = build_simulator(_config(tmp_path, check_period_s=1e-3))
+    simulator.AdvanceTo(0.1)
+    plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
+    x = paper_manoeuvre().evaluate(0.1)[0] + [0.3, 0, 0, 0, 0, 0]     # 0.3 rad of roll off
+    assemble(sd.plant, plant_context, sd.handles, x)                  # loops closed: only phi
+    with pytest.raises(SimulationDivergedError, match=r"\|phi - phi_d\| = 0.\d+ rad exceeds "
+                       r"GuardConfig.max_tracking_error = 0.2 rad") as info:
+        guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
+    _check_saved(info.value, tmp_path, 0.1)
+
+
+def test_another_drake_failure_keeps_its_type_and_saves_the_logs(tmp_path, monkeypatch):
+    def broken(self, context):
+        raise RuntimeError("actuator driver fault")
+
+    sd, simulator = build_simulator(_config(tmp_path))
+    simulator.AdvanceTo(0.05)
+    monkeypatch.setattr(LqiController, "feedforward", broken)
+    with pytest.raises(RuntimeError, match="actuator driver fault") as info:
+        guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
+    assert not isinstance(info.value, StewartError)     # a bug is not relabelled "diverged"
+    note = " ".join(getattr(info.value, "__notes__", []))
+    path = note.split("saved in ")[-1]
+    saved = _load(path)
+    assert saved["t"][-1] == pytest.approx(0.05) and "actuator driver fault" in str(saved["reason"])
+
+
+def test_a_closure_bound_below_the_solver_compliance_trips_at_the_first_check(tmp_path):
+    """SAP closes the loops to ~1e-7 m along the paper run; a 1e-9 m bound cannot hold."""
+    with pytest.raises(SimulationDivergedError, match=r"loop-closure error \d.* m at rod \d "
+                       r"exceeds GuardConfig.max_closure_error_m = 1e-09 m") as info:
+        run_experiment(_config(tmp_path, max_closure_error_m=1e-9))
+    assert info.value.t <= 0.011
+    saved = _load(info.value.path)
+    assert saved["t"].size >= 1 and np.all(np.isfinite(saved["x"]))
+
+
+def test_a_normal_run_is_checked_and_writes_nothing(tmp_path):
+    result = run_experiment(_config(tmp_path, duration_s=0.2))
+    assert result.metrics["finite"]
+    assert not (tmp_path / "diverged").exists()
+
+
+def test_guard_checks_closure_and_tracking_at_its_period(tmp_path):
+    sd, simulator = build_simulator(_config(tmp_path, duration_s=0.2, check_period_s=0.02))
+    simulator.AdvanceTo(0.2)
+    assert sd.guard.reason is None
+    assert sd.guard.checks == pytest.approx(0.2 / 0.02 + 1, abs=1)
+
+
+# -- the reference, before anything is simulated --------------------------------------------------
+
+def test_reference_beyond_the_motor_range_names_time_leg_and_limit():
+    config = StewartConfig(geometry=StewartGeometry(motor_angle_min_deg=-60.0), duration_s=10.0)
+    with pytest.raises(JointLimitError, match=r"leg \d leaves its motor_angle limit") as info:
+        guard.check_reference(config)
+    err = info.value
+    t = np.arange(0.0, 10.0005, 1e-3)
+    theta = kinematics.ik(config.geometry, paper_manoeuvre().evaluate(t)[0])
+    first = int(np.argmax(np.any(np.rad2deg(theta) < -60.0, axis=1)))
+    assert err.t == pytest.approx(t[first])
+    assert np.rad2deg(theta[first, err.leg]) < -60.0
+    assert err.limit == "motor_angle" and err.margin < 0
+    assert "motor_angle_min_deg" in str(err)
+
+
+def test_heave_to_the_dead_point_is_refused_although_cond_is_moderate():
+    """The known gap of cond(J): all six legs reach the dead point together."""
+    config = StewartConfig(trajectory=HEAVE_TO_DEAD_POINT, duration_s=2.0)
+    t = np.arange(0.0, 2.0005, 1e-3)
+    x = HEAVE_TO_DEAD_POINT.evaluate(t)[0]
+    cond, inv = kinematics.singularity_measures(config.geometry, x)
+    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(config.geometry, x)).max() < 1
+    with pytest.raises(SingularPoseError, match=r"1/sigma_max\(J\) = 0.00\d+ < 0.01") as info:
+        guard.check_reference(config)
+    first = int(np.argmax(inv < kinematics.DEFAULT_MIN_SIGMA_MIN_INV))
+    assert info.value.measure == "sigma_min_inv" and info.value.t == pytest.approx(t[first])
+    assert info.value.pose[5] > 0.415
+    # Without the second measure the path passes: that is the gap it closes.
+    report = kinematics.validate_trajectory(config.geometry, t, x, min_sigma_min_inv=0.0)
+    assert report.ok
+
+
+def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
+    config = StewartConfig(duration_s=10.0, guard=GuardConfig(cond_threshold=60.0))
+    with pytest.raises(SingularPoseError, match=r"cond\(J\) = 60.\d+ > 60") as info:
+        guard.check_reference(config)
+    t = np.arange(0.0, 10.0005, 1e-3)
+    cond, _ = kinematics.singularity_measures(config.geometry, paper_manoeuvre().evaluate(t)[0])
+    assert info.value.t == pytest.approx(t[int(np.argmax(cond > 60.0))])
+    assert guard.check_reference(StewartConfig(duration_s=10.0)).max_cond == pytest.approx(77.69,
+                                                                                           abs=0.01)
+
+
+def test_unreachable_reference_fails_before_any_simulation(tmp_path):
+    too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 1.0))
+    with pytest.raises(UnreachablePoseError) as info:
+        run_experiment(StewartConfig(trajectory=too_high, duration_s=1.0,
+                                     guard=GuardConfig(divergence_dir=tmp_path / "d")))
+    assert 0.0 < info.value.t < 0.25 and info.value.ratio > 1
+    assert not (tmp_path / "d").exists()
