@@ -29,19 +29,24 @@ class CrankPdController(LeafSystem):
 
     theta = IK(x) and w = J(x) x_dot are the crank angles and rates of the measured pose (J the
     Jacobian d theta / d x); theta_d, w_d those of the reference. The gains place every mode of
-    the linearized chain at home at ``bandwidth_hz`` with damping ``damping``:
+    the linearized chain at ``bandwidth_hz`` with damping ``damping``:
     K_p = (2 pi f)^2 M_theta, K_d = 2 zeta (2 pi f) M_theta, with M_theta the joint-space inertia
-    at home (:func:`crank_inertia_matrix`). There is no integral action: a payload the
-    feed-forward does not know leaves a steady error, which is what the comparison should show.
+    (:func:`crank_inertia_matrix`) at the reference pose, re-scheduled every
+    ``schedule_period_s`` like the LQI's gains. Gains fixed at home diverge on the paper
+    manoeuvre: at phi = -0.52 rad, Z = 0.25 m one mode's inertia is 24 times smaller than at home,
+    its frequency five times higher, and the derivative term no longer fits the 1 ms sampling.
+    There is no integral action: a payload the feed-forward does not know leaves a steady error,
+    which is what the comparison should show.
 
     Ports: as :class:`~stewart_drake.controller.LqiController`; ``omega`` is accepted and ignored,
-    ``status`` is [0, 0, 0, IK failures, 0] (no gains are solved).
+    ``status`` is [0, 0, gain re-schedules, failures (IK or singular inertia), 0].
 
     Args:
         geometry: the robot the controller believes in.
         period_s: control period, s. offset_s: sample offset in [0, period_s), s.
         bandwidth_hz: natural frequency of the closed loop, Hz (20).
         damping: damping ratio zeta (1, critical).
+        schedule_period_s: re-schedule the gains from the reference pose this often, s (10 ms).
         x_initial: initial pose (for the initial torque).
     Raises:
         InvalidConfigError: non-positive period, bandwidth or damping, or a bandwidth the
@@ -49,7 +54,8 @@ class CrankPdController(LeafSystem):
     """
 
     def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3, offset_s: float = 0.0,
-                 bandwidth_hz: float = 20.0, damping: float = 1.0, x_initial=None):
+                 bandwidth_hz: float = 20.0, damping: float = 1.0, x_initial=None,
+                 schedule_period_s: float = 1e-2):
         super().__init__()
         for name, value in (("period_s", period_s), ("bandwidth_hz", bandwidth_hz),
                             ("damping", damping)):
@@ -63,10 +69,12 @@ class CrankPdController(LeafSystem):
         if not (0 <= offset_s < period_s):
             raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
         self.geometry = geometry
-        M = crank_inertia_matrix(geometry)
-        self.K_p = w_n ** 2 * M
-        self.K_d = 2 * damping * w_n * M
+        self._kp, self._kd = w_n ** 2, 2 * damping * w_n
+        self.steps_per_schedule = max(1, int(round(schedule_period_s / period_s)))
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
+        M = crank_inertia_matrix(geometry, x0)
+        #: Gains at the initial pose, (6, 6) each (the running ones are in the discrete state).
+        self.K_p, self.K_d = self._kp * M, self._kd * M
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
@@ -74,6 +82,8 @@ class CrankPdController(LeafSystem):
         self._u_index = self.DeclareDiscreteState(kinematics.holding_torques(geometry, x0))
         self._s_index = self.DeclareDiscreteState(N_STATUS)
         self._e_index = self.DeclareDiscreteState(6)
+        self._M_index = self.DeclareDiscreteState(M.reshape(-1))   # M_theta of the gains
+        self._k_index = self.DeclareDiscreteState(1)               # step counter
         self.DeclareStateOutputPort("T", self._u_index)
         self.DeclareStateOutputPort("status", self._s_index)
         self.DeclareStateOutputPort("e_bar", self._e_index)
@@ -102,12 +112,19 @@ class CrankPdController(LeafSystem):
         ref = self._x_d.Eval(context)
         T = self._T_ff.Eval(context).copy()
         status = context.get_discrete_state(self._s_index).get_value().copy()
+        M = context.get_discrete_state(self._M_index).get_value().reshape(6, 6)
+        k = int(context.get_discrete_state(self._k_index).get_value()[0])
         try:
+            if k % self.steps_per_schedule == 0:
+                M = crank_inertia_matrix(self.geometry, ref[:6])
+                status[2] += 1
+                discrete_state.set_value(self._M_index, M.reshape(-1))
             theta, w = self.crank_states(x)
             theta_d, w_d = self.crank_states(ref[:12])
-            T += self.K_p @ (theta_d - theta) + self.K_d @ (w_d - w)
-        except UnreachablePoseError:
-            status[3] += 1        # keep the feed-forward alone; the guard sees the pose
+            T += M @ (self._kp * (theta_d - theta) + self._kd * (w_d - w))
+        except (UnreachablePoseError, np.linalg.LinAlgError):
+            status[3] += 1        # keep the last gains / the feed-forward; the guard sees the pose
+        discrete_state.set_value(self._k_index, [k + 1])
         discrete_state.set_value(self._u_index, T)
         discrete_state.set_value(self._s_index, status)
         discrete_state.set_value(self._e_index, x[:6] - ref[:6])

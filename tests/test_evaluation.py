@@ -15,11 +15,13 @@ from stewart_drake.trajectories import ChirpTrajectory, StepTrajectory, make_tra
 
 
 def test_pd_baseline_tracks_the_paper_manoeuvre():
-    r = run_experiment(StewartConfig(controller="pd", duration_s=2.0))
+    """Through t = 2.4 s (phi = -0.52 rad, Z = 0.25 m), where gains fixed at home diverge: one
+    mode's joint-space inertia is 24x smaller there (docs of CrankPdController)."""
+    r = run_experiment(StewartConfig(controller="pd", duration_s=3.0))
     m = r.metrics
     assert m["max_closure_m"] < 1e-5 and m["finite"]
     assert m["rms_error"][0] < 5e-4 and m["rms_error"][5] < 5e-5   # phi < 0.5 mrad, Z < 50 um
-    assert m["gain_solves"] == 0                                     # no Riccati in a PD
+    assert m["gain_solves"] == 300 and m["gain_failures"] == 0     # re-scheduled every 10 ms
 
 
 def test_unknown_payload_sags_the_pd_but_not_the_lqi():
