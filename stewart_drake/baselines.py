@@ -9,10 +9,8 @@ so :func:`~stewart_drake.diagram.make_stewart_diagram` swaps one for the other.
 from __future__ import annotations
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
-
 from . import kinematics
-from .controller import N_STATUS
+from .controller import N_STATUS, PoseTorqueController
 from .errors import InvalidConfigError, UnreachablePoseError
 from .geometry import X_HOME, StewartGeometry
 
@@ -24,7 +22,7 @@ def crank_inertia_matrix(geometry: StewartGeometry, x=X_HOME) -> np.ndarray:
     return J_inv.T @ kinematics.task_inertia(geometry, x, theta) @ J_inv
 
 
-class CrankPdController(LeafSystem):
+class CrankPdController(PoseTorqueController):
     """Crank-space PD + gravity feed-forward: T = T_ff + K_p (theta_d - theta) + K_d (w_d - w).
 
     theta = IK(x) and w = J(x) x_dot are the crank angles and rates of the measured pose (J the
@@ -75,10 +73,6 @@ class CrankPdController(LeafSystem):
         M = crank_inertia_matrix(geometry, x0)
         #: Gains at the initial pose, (6, 6) each (the running ones are in the discrete state).
         self.K_p, self.K_d = self._kp * M, self._kd * M
-        self._x = self.DeclareVectorInputPort("x", 12)
-        self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
-        self._omega = self.DeclareVectorInputPort("omega", 2)
         self._u_index = self.DeclareDiscreteState(kinematics.holding_torques(geometry, x0))
         self._s_index = self.DeclareDiscreteState(N_STATUS)
         self._e_index = self.DeclareDiscreteState(6)
@@ -89,18 +83,6 @@ class CrankPdController(LeafSystem):
         self.DeclareStateOutputPort("e_bar", self._e_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=period_s, offset_sec=float(offset_s),
                                                 update=self._Update)
-
-    def get_x_input_port(self):
-        return self._x
-
-    def get_x_d_input_port(self):
-        return self._x_d
-
-    def get_T_ff_input_port(self):
-        return self._T_ff
-
-    def get_omega_input_port(self):
-        return self._omega
 
     def crank_states(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(theta (6,) rad, w (6,) rad/s) of the cranks for a pose and rate x (12,)."""

@@ -270,7 +270,35 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
 N_STATUS = 5
 
 
-class LqiController(LeafSystem):
+class PoseTorqueController(LeafSystem):
+    """The ports every controller of the Diagram shares, so one swaps for another.
+
+    Input ports ``x`` (12,), ``x_d`` (18,), ``T_ff`` (6,), ``omega`` (2,); a subclass declares
+    the outputs ``T`` (6,), ``status`` (:data:`N_STATUS`,) and ``e_bar`` (6,) (see
+    :class:`LqiController`).
+    """
+
+    def __init__(self):
+        super().__init__()
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
+        self._omega = self.DeclareVectorInputPort("omega", 2)
+
+    def get_x_input_port(self):
+        return self._x
+
+    def get_x_d_input_port(self):
+        return self._x_d
+
+    def get_T_ff_input_port(self):
+        return self._T_ff
+
+    def get_omega_input_port(self):
+        return self._omega
+
+
+class LqiController(PoseTorqueController):
     """LQI torque controller of the platform pose, re-scheduled online (paper section III).
 
     Input ports:
@@ -338,10 +366,6 @@ class LqiController(LeafSystem):
         #: them after a run; they do not affect the simulation).
         self.solve_stats = {"warm": 0, "warm_iterations": 0, "cold": 0}
 
-        self._x = self.DeclareVectorInputPort("x", 12)
-        self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
-        self._omega = self.DeclareVectorInputPort("omega", 2)
         T0 = kinematics.holding_torques(geometry, x0)
         self._u_index = self.DeclareDiscreteState(T0)
         self._z_index = self.DeclareDiscreteState(6)
@@ -356,19 +380,6 @@ class LqiController(LeafSystem):
         self.DeclareStateOutputPort("e_bar", self._e_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
                                                 update=self._Update)
-
-    # -- ports -------------------------------------------------------------------------------
-    def get_x_input_port(self):
-        return self._x
-
-    def get_x_d_input_port(self):
-        return self._x_d
-
-    def get_T_ff_input_port(self):
-        return self._T_ff
-
-    def get_omega_input_port(self):
-        return self._omega
 
     # -- gain ----------------------------------------------------------------------------------
     def _check_weights(self, omega_Q: float, omega_R: float) -> tuple[float, float]:

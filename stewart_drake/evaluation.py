@@ -294,18 +294,24 @@ def render_markdown(rows, info: dict) -> str:
     def errors_row(r):
         return f"| {r['case']['controller']} | failed: {r['error'].splitlines()[0][:120]} |"
 
+    def nominal_rows(scenario):
+        """(controller, row) of the runs of ``scenario`` that succeeded; a failed run's line is
+        written to the table on the way."""
+        for c in ctrls:
+            r = by.get((c, scenario, "nominal"))
+            if r is None:
+                continue
+            if "error" in r:
+                L.append(errors_row(r))
+                continue
+            yield c, r
+
     # 1. Paper manoeuvre, nominal.
     L += ["## Paper manoeuvre (eqs. 37-38), nominal", "",
           "| controller | phi | theta | psi | X | Y | Z | peak phi | peak Z | nRMS | Sum T^2 dt | "
           "feedback Sum dT^2 dt | peak T | max closure [m] | RTF |",
           "|---|" + "---|" * 14]
-    for c in ctrls:
-        r = by.get((c, "paper", "nominal"))
-        if r is None:
-            continue
-        if "error" in r:
-            L.append(errors_row(r))
-            continue
+    for c, r in nominal_rows("paper"):
         rms, peak = r["rms_error"], r["peak_error"]
         L.append(f"| {c} | " + " | ".join(_fmt(v, 1e3) for v in rms)
                  + f" | {_fmt(peak[0], 1e3)} | {_fmt(peak[5], 1e3)} | {_fmt(r['normalized_rms'])}"
@@ -360,13 +366,7 @@ def render_markdown(rows, info: dict) -> str:
     L += ["## Helix (5 mm circle in X-Y at 2 Hz, Z 3 mm at 0.25 Hz, theta 20 mrad at 1 Hz)", "",
           "| controller | theta RMS | X RMS | Y RMS | Z RMS | X peak | Y peak | nRMS | Sum T^2 dt "
           "| peak T |", "|---|" + "---|" * 9]
-    for c in ctrls:
-        r = by.get((c, "helix", "nominal"))
-        if r is None:
-            continue
-        if "error" in r:
-            L.append(errors_row(r))
-            continue
+    for c, r in nominal_rows("helix"):
         rms, peak = r["rms_error"], r["peak_error"]
         L.append(f"| {c} | {_fmt(rms[1], 1e3)} | {_fmt(rms[3], 1e3)} | {_fmt(rms[4], 1e3)} | "
                  f"{_fmt(rms[5], 1e3)} | {_fmt(peak[3], 1e3)} | {_fmt(peak[4], 1e3)} | "
