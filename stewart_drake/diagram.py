@@ -11,6 +11,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
                                         RandomSource, Saturation)
 
+from .baselines import CrankPdController
 from .controller import LqiController, LqiScales
 from .errors import InvalidConfigError
 from .geometry import StewartGeometry
@@ -174,8 +175,6 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
             config.geometry, period_s=h, schedule_period_s=config.schedule_period_s,
             scales=config.scales, offset_s=offset, x_initial=x_d0, riccati=config.riccati))
     else:
-        from .baselines import CrankPdController
-
         controller = builder.AddNamedSystem("crank_pd", CrankPdController(
             config.geometry, period_s=h, offset_s=offset, bandwidth_hz=config.pd_bandwidth_hz,
             x_initial=x_d0))
