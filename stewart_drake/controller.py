@@ -25,12 +25,13 @@ then span soft to stiff controllers that all hold the platform.
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation, RealDiscreteLyapunovEquation
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import LeafSystem
 
 from . import kinematics
 from .errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
@@ -311,7 +312,7 @@ class LqiController(PoseTorqueController):
         ``status`` (5,): [omega_Q, omega_R in use, gain solves, failed solves, |z|].
         ``e_bar`` (6,): the pose error x - x_d the last update acted on (for the density features,
             so they see exactly the controller's error at the controller's instants).
-    Discrete state: u (6), z (6), K (108, row-major 6 x 18), status (4), e_bar (6), step (1).
+    Discrete state: u (6), z (6), K (108, row-major 6 x 18), status (5), e_bar (6), step (1).
 
     Args:
         geometry: the robot (for B(x)).
@@ -370,13 +371,13 @@ class LqiController(PoseTorqueController):
         self._u_index = self.DeclareDiscreteState(T0)
         self._z_index = self.DeclareDiscreteState(6)
         self._K_index = self.DeclareDiscreteState(K0.reshape(-1))
-        # status: omega_Q, omega_R in use, solves, failures
-        self._s_index = self.DeclareDiscreteState(np.array([1.0, 1.0, 1.0, 0.0]))
+        # status: omega_Q, omega_R in use, solves, failures, |z| (a state, so logging it at 1 kHz
+        # calls no Python)
+        self._s_index = self.DeclareDiscreteState(np.array([1.0, 1.0, 1.0, 0.0, 0.0]))
         self._e_index = self.DeclareDiscreteState(6)
         self._k_index = self.DeclareDiscreteState(1)      # step counter
         self.DeclareStateOutputPort("T", self._u_index)
-        self.DeclareVectorOutputPort("status", N_STATUS, self._CalcStatus,
-                                     prerequisites_of_calc={self.xd_ticket()})
+        self.DeclareStateOutputPort("status", self._s_index)
         self.DeclareStateOutputPort("e_bar", self._e_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
                                                 update=self._Update)
@@ -443,12 +444,9 @@ class LqiController(PoseTorqueController):
         e_x = x[:6] - ref[:6]
         e = np.concatenate([e_x, x[6:12] - ref[6:12], z])
         discrete_state.set_value(self._u_index, self.feedforward(context) - K @ e)
-        discrete_state.set_value(self._z_index, z + self.h * e_x)
+        z = z + self.h * e_x
+        discrete_state.set_value(self._z_index, z)
+        status[4] = math.sqrt(z @ z)
         discrete_state.set_value(self._s_index, status)
         discrete_state.set_value(self._e_index, e_x)
         discrete_state.set_value(self._k_index, [k + 1])
-
-    def _CalcStatus(self, context, output: BasicVector):
-        s = context.get_discrete_state(self._s_index).get_value()
-        z = context.get_discrete_state(self._z_index).get_value()
-        output.SetFromVector([s[0], s[1], s[2], s[3], float(np.linalg.norm(z))])

@@ -27,7 +27,7 @@ import numpy as np
 
 from .controller import LqiScales
 from .diagram import StewartConfig
-from .errors import InvalidConfigError, StewartError
+from .errors import InvalidConfigError
 from .experiments import AXES, PAPER_WEIGHTS, ProcessRunner, SerialRunner, run_experiment
 from .fileio import atomic_write
 from .trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory, make_trajectory
@@ -443,6 +443,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
     """Three PNGs in out_dir: tracking vs effort (paper manoeuvre), frequency responses (Z
     sweep), step responses (Z step). Returns their paths."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -457,19 +458,29 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
         plt.close(fig)
         paths.append(path)
 
-    fig, ax = plt.subplots(figsize=(7, 5))
-    for c in CONTROLLERS:
-        r = by.get((c, "paper", "nominal"))
-        if r is None or "error" in r:
-            continue
-        style = "o" if c.startswith("lqi") else ("s" if c == "pd" else "*")
-        ax.loglog(r["sum_T2_dt"], r["normalized_rms"], style, ms=10 if style == "*" else 7)
-        ax.annotate(c, (r["sum_T2_dt"], r["normalized_rms"]), fontsize=7,
-                    xytext=(4, 2), textcoords="offset points")
-    ax.set_xlabel(r"$\sum T^2 \Delta t$ [N$^2$ m$^2$ s]")
-    ax.set_ylabel("normalized RMS tracking error (1 = 1 mrad | 1 mm)")
-    ax.set_title("Paper manoeuvre: tracking vs effort (lower left is better)")
-    ax.grid(alpha=0.3, which="both")
+    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    for ax, condition, title in (
+            (axes[0], "nominal", "nominal: every controller needs the same torque"),
+            (axes[1], "noise", "with sensor noise: stiffness costs torque")):
+        points = {}                       # identical controllers (same omega ratio) share a point
+        for c in CONTROLLERS:
+            r = by.get((c, "paper", condition))
+            if r is None or "error" in r:
+                continue
+            key = (round(r["sum_T2_dt"], 6), round(r["normalized_rms"], 9))
+            points.setdefault(key, []).append(c)
+        for (effort, nrms), names in points.items():
+            c = names[0]
+            style = "o" if c.startswith("lqi") else ("s" if c == "pd" else "*")
+            ax.plot(effort, nrms, style, ms=10 if style == "*" else 7)
+            ax.annotate(" = ".join(names), (effort, nrms), fontsize=7, xytext=(4, 2),
+                        textcoords="offset points")
+        ax.set_yscale("log")
+        ax.ticklabel_format(axis="x", useOffset=False)
+        ax.set_xlabel(r"$\sum T^2 \Delta t$ [N$^2$ m$^2$ s]")
+        ax.set_title(f"paper manoeuvre, {title}", fontsize=10)
+        ax.grid(alpha=0.3, which="both")
+    axes[0].set_ylabel("normalized RMS tracking error (1 = 1 mrad | 1 mm)")
     save(fig, "results_tradeoff.png")
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharey=True)
@@ -481,6 +492,8 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
             ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
                         lw=1.5 if not c.startswith("lqi") else 0.8, label=c)
         ax.axhline(-3, color="k", ls=":", lw=1)
+        ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("frequency [Hz]")
         ax.set_title(scen.replace("sweep_", "reference -> pose, "))
         ax.grid(alpha=0.3, which="both")
@@ -500,6 +513,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
         if rs is not None and c in ("lqi_1_1", "pd", "ann_best_cost"):
             ax.plot(rs["trace"]["t"], 1e3 * np.asarray(rs["trace"]["y"]), ls="--", lw=1,
                     color=line.get_color(), label=f"{c}, |T| <= {TORQUE_LIMIT_NM:g} N m")
+    ax.set_xlim(0.4, 1.2)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("Z - Z_home [mm]")
     ax.set_title("5 mm step on Z at t = 0.5 s")

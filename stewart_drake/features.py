@@ -136,7 +136,7 @@ class DensityFeatures(LeafSystem):
         ``T`` (6,): motor torques, N m.
     Output port:
         ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, of the samples taken so far.
-    Discrete state (numbers only): e buffer (window * 6), T buffer (window * 6), both oldest
+    Discrete state (numbers only): one buffer (window * 12) of [e_bar, T] rows, oldest
     sample first; n_valid (1,), samples taken so far capped at window.
 
     Every period_s (first at t = 0) the inputs are sampled and pushed into the ring buffers
@@ -168,9 +168,7 @@ class DensityFeatures(LeafSystem):
         self.eps = float(eps)
         self._e = self.DeclareVectorInputPort("e_bar", N_CHANNELS)
         self._T = self.DeclareVectorInputPort("T", N_CHANNELS)
-        size = self.window * N_CHANNELS
-        self._e_buf = self.DeclareDiscreteState(size)
-        self._T_buf = self.DeclareDiscreteState(size)
+        self._buf = self.DeclareDiscreteState(self.window * N_FEATURES)
         self._n_index = self.DeclareDiscreteState(1)
         self._rho = self.DeclareVectorOutputPort("rho", N_FEATURES, self._CalcRho,
                                                  prerequisites_of_calc={self.xd_ticket()})
@@ -186,23 +184,19 @@ class DensityFeatures(LeafSystem):
     def get_rho_output_port(self):
         return self._rho
 
-    def _Push(self, context, discrete_state, index, port, name) -> None:
-        sample = port.Eval(context)
-        if not np.isfinite(sample.sum()):        # one reduction: the common case is fast
-            raise SimulationDivergedError(
-                f"non-finite {name} = {np.array2string(sample, precision=4)} at the "
-                f"DensityFeatures input (features are not computed from diverged signals)",
-                t=context.get_time())
-        buf = context.get_discrete_state(index).get_value()
-        k = N_CHANNELS
-        shifted = np.empty_like(buf)             # shift: oldest out, newest last
-        shifted[:-k] = buf[k:]
-        shifted[-k:] = sample
-        discrete_state.set_value(index, shifted)
-
     def _Update(self, context, discrete_state):
-        self._Push(context, discrete_state, self._e_buf, self._e, "e_bar")
-        self._Push(context, discrete_state, self._T_buf, self._T, "T")
+        sample = np.concatenate([self._e.Eval(context), self._T.Eval(context)])
+        if not np.isfinite(sample.sum()):        # one reduction: the common case is fast
+            name = "e_bar" if not np.all(np.isfinite(sample[:N_CHANNELS])) else "T"
+            raise SimulationDivergedError(
+                f"non-finite {name} = {np.array2string(sample, precision=4)} ([e_bar, T]) at "
+                f"the DensityFeatures input (features are not computed from diverged signals)",
+                t=context.get_time())
+        buf = context.get_discrete_state(self._buf).get_value()
+        shifted = np.empty_like(buf)             # shift: oldest row out, newest row last
+        shifted[:-N_FEATURES] = buf[N_FEATURES:]
+        shifted[-N_FEATURES:] = sample
+        discrete_state.set_value(self._buf, shifted)
         n = min(int(context.get_discrete_state(self._n_index).get_value()[0]) + 1, self.window)
         discrete_state.set_value(self._n_index, [n])
 
@@ -211,7 +205,6 @@ class DensityFeatures(LeafSystem):
         if n == 0:                                # nothing sampled yet
             output.SetFromVector(np.zeros(N_FEATURES))
             return
-        shape = (self.window, N_CHANNELS)
-        e_win = context.get_discrete_state(self._e_buf).get_value().reshape(shape)
-        T_win = context.get_discrete_state(self._T_buf).get_value().reshape(shape)
-        output.SetFromVector(density_features(e_win, T_win, self.eps, n))
+        rows = context.get_discrete_state(self._buf).get_value().reshape(self.window, N_FEATURES)
+        output.SetFromVector(density_features(rows[:, :N_CHANNELS], rows[:, N_CHANNELS:],
+                                              self.eps, n))
