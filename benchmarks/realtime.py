@@ -57,25 +57,31 @@ def main():
     parser.add_argument("--tuner", choices=["none", "ann"], default="ann")
     parser.add_argument("--riccati", choices=["warm", "cold"], default="warm")
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
+    parser.add_argument("--repeats", type=int, default=3,
+                        help="timed runs; the median and the best are printed (3)")
     parser.add_argument("--guard-overhead", action="store_true",
                         help="also time runs with and without the divergence guard, interleaved")
     args = parser.parse_args()
     config = StewartConfig(duration_s=args.duration, riccati=args.riccati,
                            tuner=None if args.tuner == "none" else args.tuner)
-    t0 = time.perf_counter()
-    sd, simulator = build_simulator(config)
-    build = time.perf_counter() - t0
+    walls = []
     profiler = cProfile.Profile() if args.profile else None
-    t0 = time.perf_counter()
-    if profiler:
-        profiler.enable()
-    simulator.AdvanceTo(config.duration_s)
-    if profiler:
-        profiler.disable()
-    wall = time.perf_counter() - t0
-    print(f"realtime_factor {config.duration_s / wall:.2f} "
-          f"({config.duration_s:.1f} s sim / {wall:.2f} s wall, tuner={args.tuner}, "
-          f"riccati={args.riccati}, {os.cpu_count()} cores on the machine, one used)")
+    for k in range(max(1, args.repeats)):
+        t0 = time.perf_counter()
+        sd, simulator = build_simulator(config)
+        build = time.perf_counter() - t0
+        if profiler and k == 0:
+            profiler.enable()
+        t0 = time.perf_counter()
+        simulator.AdvanceTo(config.duration_s)
+        walls.append(time.perf_counter() - t0)
+        if profiler and k == 0:
+            profiler.disable()
+    rtf = sorted(config.duration_s / w for w in (walls[1:] if profiler and len(walls) > 1
+                                                  else walls))
+    print(f"realtime_factor {float(np.median(rtf)):.2f} median, {rtf[-1]:.2f} best of {len(rtf)} "
+          f"({config.duration_s:.1f} s sim, tuner={args.tuner}, riccati={args.riccati}, one "
+          f"process; the VM's speed varies, so compare medians)")
     print(f"build_s {build:.2f} (reference + feed-forward tables, Diagram, assembly)")
     stats = sd.controller.solve_stats
     print(f"gain_solves warm {stats['warm']} (mean {stats['warm_iterations'] / max(stats['warm'], 1):.2f}"
