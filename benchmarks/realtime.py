@@ -11,7 +11,6 @@ Usage: python benchmarks/realtime.py [--duration 10] [--tuner ann] [--riccati wa
 import argparse
 import cProfile
 import io
-import os
 import pstats
 import time
 

@@ -13,7 +13,6 @@ from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVe
 
 from .baselines import CrankPdController
 from .controller import LqiController, LqiScales
-from .errors import InvalidConfigError
 from .geometry import StewartGeometry
 from .guard import GuardConfig
 from .plant import add_stewart_plant

@@ -28,9 +28,9 @@ import numpy as np
 from .controller import LqiScales
 from .diagram import StewartConfig
 from .errors import InvalidConfigError
-from .experiments import AXES, PAPER_WEIGHTS, ProcessRunner, SerialRunner, run_experiment
+from .experiments import PAPER_WEIGHTS, ProcessRunner, run_experiment, runner_for_jobs
 from .fileio import atomic_write
-from .trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory, make_trajectory
+from .trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 
 FIXED_LQI = tuple(f"lqi_{q:g}_{r:g}" for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS)
 CONTROLLERS = FIXED_LQI + ("pd", "ann_best_cost", "ann_paper")
@@ -564,7 +564,7 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
 def evaluate_cli(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    runner = SerialRunner() if args.jobs == 1 else ProcessRunner(args.jobs)
+    runner = runner_for_jobs(args.jobs)
     report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
                       quick=args.quick, controllers=controllers)
     failed = sum("error" in r for r in report["rows"])

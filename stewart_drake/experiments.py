@@ -344,6 +344,12 @@ class ProcessRunner:
             yield from pool.map(fn, jobs)
 
 
+def runner_for_jobs(jobs: int):
+    """The runner for a ``--jobs`` value: 1 runs here (:class:`SerialRunner`), 0 one process per
+    core, N that many processes (:class:`ProcessRunner`)."""
+    return SerialRunner() if jobs == 1 else ProcessRunner(jobs)
+
+
 def run_record(result: RunResult, scales, sample_period_s: float, window: int) -> dict:
     """A run as a training record: features and normalized cost parts at ``sample_period_s``.
 
@@ -453,7 +459,7 @@ def load_records(data_dir: str | Path) -> list[dict]:
 
 
 def collect_cli(args) -> int:
-    runner = SerialRunner() if args.jobs == 1 else ProcessRunner(args.jobs)
+    runner = runner_for_jobs(args.jobs)
     manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
                        progress=not args.no_progress)
     print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")

@@ -25,7 +25,7 @@ FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
 
 
 def feedforward_torques(geometry: StewartGeometry, x_d, xdd_d=None,
-                        mode: str = "gravity") -> np.ndarray:
+                        mode: str = "gravity", theta=None) -> np.ndarray:
     """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
 
     Args:
@@ -35,6 +35,7 @@ def feedforward_torques(geometry: StewartGeometry, x_d, xdd_d=None,
         mode: "gravity": J^-T dV/dx, the static virtual-work torques of platform, cranks and rods
             (paper eq. 19's disturbance d, cancelled); "inverse_dynamics": also J^-T M_x(x_d)
             xdd_d (no Coriolis terms); "none": zeros.
+        theta: (..., 6) motor angles of x_d when already known (IK is then skipped).
     Raises:
         InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
     Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
@@ -44,7 +45,7 @@ def feedforward_torques(geometry: StewartGeometry, x_d, xdd_d=None,
     x_d = np.asarray(x_d, dtype=float)
     if mode == "none":
         return np.zeros(x_d.shape)
-    theta = kinematics.ik(geometry, x_d)
+    theta = kinematics.ik(geometry, x_d) if theta is None else theta
     J = kinematics.jacobian(geometry, x_d, theta)
     w = kinematics.gravity_gradient(geometry, x_d, theta, J)
     if mode == "inverse_dynamics":
@@ -92,8 +93,8 @@ def sample_reference(trajectory, geometry: StewartGeometry, duration_s: float, p
     t_sample = np.arange(n) * period_s + offset_s
     t_eval = t_sample + lead_s
     x, xd, xdd = trajectory.evaluate(t_eval)
-    kinematics.ik(geometry, x, t=t_eval)          # names the first unreachable time and leg
-    T_ff = feedforward_torques(geometry, x, xdd, feedforward)
+    theta = kinematics.ik(geometry, x, t=t_eval)  # names the first unreachable time and leg
+    T_ff = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
     return t_sample, t_eval, np.concatenate([x, xd, xdd], axis=1), T_ff
 
 

@@ -19,19 +19,18 @@ class PlatformPoseSensor(LeafSystem):
 
     Args:
         plant: the finalized MultibodyPlant; handles: from ``add_stewart_plant``.
-        noise_std: optional (12,) standard deviation of additive white noise on ``x`` (for
-            robustness studies), drawn from a seeded generator at each evaluation.
+
+    Measurement noise is not added here: the Diagram adds a seeded Drake ``RandomSource``
+    (``StewartConfig.sensor_noise_std``), so a run repeats however often ``x`` is evaluated.
     """
 
-    def __init__(self, plant, handles: StewartPlantHandles, noise_std=None, seed: int = 0):
+    def __init__(self, plant, handles: StewartPlantHandles):
         super().__init__()
         body = handles.platform
         nq = plant.num_positions()
         self._iq = body.floating_positions_start()
         self._iv = nq + body.floating_velocities_start_in_v()
         self._state = self.DeclareVectorInputPort("plant_state", nq + plant.num_velocities())
-        self._noise = None if noise_std is None else np.asarray(noise_std, dtype=float)
-        self._rng = np.random.default_rng(seed)
         self.DeclareVectorOutputPort("x", 12, self._Calc)
 
     def pose_from_state(self, state) -> np.ndarray:
@@ -49,7 +48,4 @@ class PlatformPoseSensor(LeafSystem):
         return np.array([self.pose_from_state(s) for s in np.atleast_2d(states)]).reshape(-1, 12)
 
     def _Calc(self, context, output: BasicVector):
-        x = self.pose_from_state(self._state.Eval(context))
-        if self._noise is not None:
-            x = x + self._noise * self._rng.standard_normal(12)
-        output.SetFromVector(x)
+        output.SetFromVector(self.pose_from_state(self._state.Eval(context)))

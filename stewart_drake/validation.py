@@ -158,12 +158,15 @@ def check_config(config) -> None:
         check_multiple("tuner_period_s", config.tuner_period_s, "control_period_s",
                        config.control_period_s)
     check_multiple("log_period_s", config.log_period_s, "plant_time_step_s", h)
-    if config.feedforward not in ("gravity", "inverse_dynamics", "none"):
+    from .diagram import CONTROLLERS
+    from .reference import FEEDFORWARD_MODES
+
+    if config.feedforward not in FEEDFORWARD_MODES:
         raise InvalidConfigError(f"feedforward must be 'gravity', 'inverse_dynamics' or 'none', "
                                  f"got {config.feedforward!r}")
     if config.tuner not in (None, "ann"):
         raise InvalidConfigError(f"tuner must be None or 'ann', got {config.tuner!r}")
-    if config.controller not in ("lqi", "pd"):
+    if config.controller not in CONTROLLERS:
         raise InvalidConfigError(f"controller must be 'lqi' or 'pd', got {config.controller!r}")
     if config.tuner and config.controller != "lqi":
         raise InvalidConfigError("the ANN tuner drives the LQI's weights: use controller='lqi' "
