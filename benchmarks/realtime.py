@@ -16,10 +16,10 @@ import time
 
 import numpy as np
 
-from stewart_drake.controller import error_model, input_matrix, lqi_gain, lqi_gain_warm
-from stewart_drake.diagram import StewartConfig
-from stewart_drake.experiments import build_simulator
-from stewart_drake.trajectories import paper_manoeuvre
+from stewart_drake.control.lqi import error_model, input_matrix, lqi_gain, lqi_gain_warm
+from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.studies.experiments import build_simulator
+from stewart_drake.simulation.trajectories import paper_manoeuvre
 
 
 def riccati_costs(controller, n: int = 200) -> dict:

@@ -1,13 +1,15 @@
 """stewart-drake: a 6-DOF rotary Stewart platform on a Drake closed-chain MultibodyPlant.
 
-Modules, in the one direction data flows: geometry -> kinematics -> plant -> controller /
-features / tuner -> trajectories -> diagram -> experiments -> cli.
+Layers, imports flowing one way (a test walks them): base (errors, checks, fileio) -> model
+(geometry, kinematics, statics, limits, plant) -> control (LQI, PD, features, tuner) ->
+simulation (trajectories, reference, guard, scenario, station, diagram) -> studies (experiments,
+collection, training, evaluation, workspace, runners) -> interfaces (cli, visualize).
 """
 
 from .errors import (ForwardKinematicsError, InvalidConfigError, InvalidGeometryError,
                      RiccatiSolveError, SimulationDivergedError, StewartError,
                      UnreachablePoseError)
-from .geometry import X_HOME, StewartGeometry, reference_geometry
+from .model.geometry import X_HOME, StewartGeometry, reference_geometry
 
 __all__ = [
     "ForwardKinematicsError", "InvalidConfigError", "InvalidGeometryError", "RiccatiSolveError",

@@ -67,11 +67,11 @@ class JointLimitError(StewartError, ValueError):
     """A pose every leg can close but where a leg leaves the range of a joint.
 
     The limits are fields of :class:`~stewart_drake.geometry.StewartGeometry` (motor travel,
-    ball-joint cones); ``kinematics.limit_margins`` computes them.
+    ball-joint cones); ``limits.limit_margins`` computes them.
 
     Attributes:
         leg: index 0..5 of the leg (reference_geometry.md order).
-        limit: "motor_angle", "crank_joint" or "platform_joint" (``kinematics.LIMITS``).
+        limit: "motor_angle", "crank_joint" or "platform_joint" (``limits.LIMITS``).
         margin: how far inside the limit, rad; < 0 here.
         t: time in s along a trajectory, or None.
         pose: the (6,) pose [phi, theta, psi, X, Y, Z] that failed, if known.

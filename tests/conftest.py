@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from stewart_drake.geometry import X_HOME, StewartGeometry
-from stewart_drake import kinematics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.model import kinematics
 
 
 @pytest.fixture(scope="session")

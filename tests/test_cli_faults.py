@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_drake import cli
-from stewart_drake.controller import LqiController
+from stewart_drake.interfaces import cli
+from stewart_drake.control.lqi import LqiController
 from stewart_drake.fileio import atomic_write, save_npz
 
 REPO = Path(__file__).resolve().parent.parent
@@ -77,7 +77,7 @@ def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, m
 
 
 def test_no_traceback_from_the_installed_command_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "stewart_drake.cli", "run", "--duration", "-3"],
+    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run", "--duration", "-3"],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
@@ -107,7 +107,7 @@ def test_an_interrupted_write_leaves_the_old_file_and_no_partial_one(tmp_path, i
 
 
 def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkeypatch):
-    from stewart_drake import tuner
+    from stewart_drake.control import tuner
 
     model = tuner.load_tuner()
     path = tmp_path / "ann_tuner.npz"
@@ -125,7 +125,7 @@ def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkey
 
 
 def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
-    from stewart_drake import plant
+    from stewart_drake.model import plant
 
     out = tmp_path / "robot.sdf"
     assert cli.main(["sdf", "--out", str(out)]) == 0

@@ -3,11 +3,12 @@
 import numpy as np
 import pytest
 
-from stewart_drake.cli import main
-from stewart_drake.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.model import statics
+from stewart_drake.interfaces.cli import main
+from stewart_drake.simulation.diagram import StewartConfig, make_stewart_diagram
 from stewart_drake.errors import UnreachablePoseError
-from stewart_drake.experiments import load_result, run_experiment
-from stewart_drake.trajectories import SineTrajectory, paper_manoeuvre
+from stewart_drake.studies.experiments import load_result, run_experiment
+from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 
 
 @pytest.fixture(scope="module")
@@ -32,12 +33,12 @@ def test_paper_manoeuvre_meets_tracking_bounds(paper_run):
 
 
 def test_paper_run_torques_are_physical(paper_run, geometry):
-    from stewart_drake import kinematics
+    from stewart_drake.model import kinematics
     # Mean torque over whole periods equals the holding torque at the mean pose within 25 %.
     t = paper_run.t
     m = (t >= 10 - 2 * np.pi) & (t < 10)
     mean_T = paper_run.T[m].mean(axis=0)
-    hold = kinematics.holding_torques(geometry, np.array([0, 0, 0, 0, 0, 0.30]))
+    hold = statics.holding_torques(geometry, np.array([0, 0, 0, 0, 0, 0.30]))
     np.testing.assert_allclose(mean_T.mean(), hold.mean(), rtol=0.25)
     assert np.abs(paper_run.T).max() < 5.0
 

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_discrete_are
 
-from stewart_drake.controller import (LqiController, LqiScales, error_model, hautus_checks,
-                                      input_matrix, lqi_gain)
+from stewart_drake.model import statics
+from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
 from stewart_drake.errors import InvalidConfigError, RiccatiSolveError
-from stewart_drake.geometry import X_HOME
+from stewart_drake.model.geometry import X_HOME
 
 H = 1e-3
 
@@ -28,10 +28,10 @@ def test_closed_form_zoh_equals_matrix_exponential(geometry):
 
 
 def test_input_matrix_is_inverse_inertia_times_tau(geometry, random_poses):
-    from stewart_drake import kinematics
+    from stewart_drake.model import kinematics
     for x in random_poses[:5]:
         B_c = input_matrix(geometry, x)
-        np.testing.assert_allclose(kinematics.task_inertia(geometry, x) @ B_c,
+        np.testing.assert_allclose(statics.task_inertia(geometry, x) @ B_c,
                                    kinematics.tau(geometry, x), atol=1e-10)
 
 
@@ -98,9 +98,9 @@ def test_bad_settings_are_refused(geometry):
 
 
 def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
-    from stewart_drake import kinematics
-    from stewart_drake.reference import feedforward_torques
+    from stewart_drake.model import kinematics
+    from stewart_drake.model.statics import feedforward_torques
     np.testing.assert_allclose(feedforward_torques(geometry, random_poses[:20]),
-                               kinematics.holding_torques(geometry, random_poses[:20]), atol=1e-12)
+                               statics.holding_torques(geometry, random_poses[:20]), atol=1e-12)
     with pytest.raises(InvalidConfigError, match="feedforward"):
         feedforward_torques(geometry, random_poses[:2], mode="magic")

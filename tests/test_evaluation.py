@@ -5,13 +5,13 @@ import json
 import numpy as np
 import pytest
 
-from stewart_drake.cli import main
-from stewart_drake.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.interfaces.cli import main
+from stewart_drake.simulation.diagram import StewartConfig, make_stewart_diagram
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.evaluation import (ann_verdict, bandwidth_hz, cases, controller_settings,
-                                      evaluate, frequency_response, settling_time)
-from stewart_drake.experiments import SerialRunner, run_experiment
-from stewart_drake.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
+from stewart_drake.studies.evaluation import (ann_verdict, bandwidth_hz, cases, controller_settings, evaluate, frequency_response, settling_time)
+from stewart_drake.studies.runners import SerialRunner
+from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.simulation.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
 
 
 def test_pd_baseline_tracks_the_paper_manoeuvre():
@@ -27,9 +27,10 @@ def test_pd_baseline_tracks_the_paper_manoeuvre():
 def test_unknown_payload_sags_the_pd_but_not_the_lqi():
     """+20 % platform mass the feed-forward does not know: the PD (no integral) holds home with a
     steady sag close to the statics' prediction; the LQI's integral removes it."""
-    from stewart_drake.baselines import CrankPdController, crank_inertia_matrix
-    from stewart_drake import kinematics
-    from stewart_drake.geometry import X_HOME, StewartGeometry
+    from stewart_drake.control.pd import CrankPdController
+    from stewart_drake.model.statics import crank_inertia_matrix
+    from stewart_drake.model import kinematics
+    from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
     g = StewartGeometry()
     cfg = dict(trajectory="home", duration_s=1.5, payload_scale=1.2)
@@ -94,14 +95,14 @@ def test_settling_time_and_frequency_response_on_known_signals():
 
 
 def test_scenarios_are_reachable_and_named():
-    from stewart_drake.trajectories import validate_trajectory
-    from stewart_drake.geometry import StewartGeometry
+    from stewart_drake.simulation.trajectories import validate
+    from stewart_drake.model.geometry import StewartGeometry
 
     g = StewartGeometry()
     for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):
         traj = make_trajectory(name)
         assert traj.name == name
-        validate_trajectory(g, traj, 10.0)
+        assert validate(traj, g, 10.0).ok
     s = make_trajectory("step_X")
     assert isinstance(s, StepTrajectory) and s.axis == 3
     x, xd, _ = make_trajectory("sweep_Z").evaluate(np.array([0.0, 1e-3]))

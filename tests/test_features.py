@@ -10,7 +10,7 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource, Sine
 
 from stewart_drake.errors import InvalidConfigError, SimulationDivergedError
-from stewart_drake.features import DensityFeatures, density_features, density_features_series
+from stewart_drake.control.features import (DensityFeatures, density_features, density_features_series)
 
 EPS = 1e-9
 

@@ -7,10 +7,11 @@ from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import IpoptSolver, SolverOptions
 
 from conftest import random_reachable_poses
-from stewart_drake import kinematics
+from stewart_drake.model import kinematics
+from stewart_drake.model import limits
 from stewart_drake.errors import ForwardKinematicsError
-from stewart_drake.geometry import X_HOME
-from stewart_drake.plant import make_plant
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.model.plant import make_plant
 
 
 @pytest.fixture(scope="module")
@@ -95,7 +96,7 @@ def test_fk_over_the_whole_workspace_is_right_or_reports_failure(geometry):
     """Far from home Newton could land in another assembly mode; it must fail loudly instead."""
     rng = np.random.default_rng(0)
     x = X_HOME + rng.uniform(-1, 1, (40_000, 6)) * [0.5, 0.5, 0.8, 0.15, 0.15, 0.12]
-    x = x[kinematics.is_reachable(geometry, x).reachable]
+    x = x[limits.is_reachable(geometry, x).reachable]
     assert len(x) > 2500
     x_fk, converged, _, _ = kinematics.fk_unchecked(geometry, kinematics.ik(geometry, x))
     assert converged.mean() > 0.99

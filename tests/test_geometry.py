@@ -2,8 +2,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.errors import InvalidGeometryError
-from stewart_drake.geometry import (TABLE_I_CRANK_INERTIA, StewartGeometry,
-                                    nearest_valid_principal_moments)
+from stewart_drake.model.geometry import (TABLE_I_CRANK_INERTIA, StewartGeometry, nearest_valid_principal_moments)
 
 
 def test_default_is_reference_geometry(geometry):

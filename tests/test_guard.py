@@ -5,16 +5,17 @@ import json
 import numpy as np
 import pytest
 
-from stewart_drake import guard, kinematics
-from stewart_drake.controller import LqiController
-from stewart_drake.diagram import StewartConfig
-from stewart_drake.errors import (JointLimitError, SimulationDivergedError, SingularPoseError,
-                                  StewartError, UnreachablePoseError)
-from stewart_drake.experiments import build_simulator, run_experiment
-from stewart_drake.geometry import X_HOME, StewartGeometry
-from stewart_drake.guard import GuardConfig
-from stewart_drake.plant import assemble
-from stewart_drake.trajectories import SineTrajectory, paper_manoeuvre
+from stewart_drake.simulation import guard
+from stewart_drake.model import kinematics
+from stewart_drake.model import limits
+from stewart_drake.control.lqi import LqiController
+from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.errors import (JointLimitError, SimulationDivergedError, SingularPoseError, StewartError, UnreachablePoseError)
+from stewart_drake.studies.experiments import build_simulator, run_experiment
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.guard import GuardConfig
+from stewart_drake.model.plant import assemble
+from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 
 HEAVE_TO_DEAD_POINT = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.117),
                                      frequency_hz=(0, 0, 0, 0, 0, 0.25), name="heave")
@@ -179,11 +180,11 @@ def test_heave_to_the_dead_point_is_refused_although_cond_is_moderate():
     assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(config.geometry, x)).max() < 1
     with pytest.raises(SingularPoseError, match=r"1/sigma_max\(J\) = 0.00\d+ < 0.01") as info:
         guard.check_reference(config)
-    first = int(np.argmax(inv < kinematics.DEFAULT_MIN_SIGMA_MIN_INV))
+    first = int(np.argmax(inv < limits.DEFAULT_MIN_SIGMA_MIN_INV))
     assert info.value.measure == "sigma_min_inv" and info.value.t == pytest.approx(t[first])
     assert info.value.pose[5] > 0.415
     # Without the second measure the path passes: that is the gap it closes.
-    report = kinematics.validate_trajectory(config.geometry, t, x, min_sigma_min_inv=0.0)
+    report = limits.validate_trajectory(config.geometry, t, x, min_sigma_min_inv=0.0)
     assert report.ok
 
 

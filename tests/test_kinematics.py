@@ -4,9 +4,10 @@ import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
 
-from stewart_drake import kinematics
+from stewart_drake.model import kinematics
+from stewart_drake.model import statics
 from stewart_drake.errors import UnreachablePoseError
-from stewart_drake.geometry import X_HOME
+from stewart_drake.model.geometry import X_HOME
 
 
 def test_rotation_matches_drake_rollpitchyaw(random_poses):
@@ -90,7 +91,7 @@ def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
                             + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum())
 
     for x in random_poses[:20]:
-        T = kinematics.holding_torques(g, x)
+        T = statics.holding_torques(g, x)
         dx = 1e-6 * rng.normal(size=6)
         d_theta = kinematics.ik(g, x + dx) - kinematics.ik(g, x - dx)
         dV = potential(x + dx) - potential(x - dx)
@@ -98,7 +99,7 @@ def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
 
 
 def test_platform_only_model_is_tens_of_percent_off_at_home(geometry):
-    T_full = kinematics.holding_torques(geometry, X_HOME)
+    T_full = statics.holding_torques(geometry, X_HOME)
     W = kinematics.wrench_map(geometry, X_HOME)
     T_platform = np.linalg.solve(W, [0, 0, 0, 0, 0, geometry.platform_mass * geometry.gravity])
     assert np.all(T_full / T_platform > 1.2)

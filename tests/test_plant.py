@@ -9,10 +9,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from stewart_drake import kinematics
+from stewart_drake.model import kinematics
+from stewart_drake.model import statics
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.plant import (REFERENCE_SDF, add_stewart_plant, assemble, loop_closure_errors,
-                                 make_plant, platform_pose, write_sdf)
+from stewart_drake.model.plant import (REFERENCE_SDF, add_stewart_plant, assemble, loop_closure_errors, make_plant, platform_pose, write_sdf)
 
 
 def test_committed_sdf_equals_generated():
@@ -63,7 +63,7 @@ def test_task_inertia_matches_drake_kinetic_energy(geometry, random_poses):
     for x in random_poses[:25]:
         x_dot = rng.normal(size=6) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
         assemble(plant, context, handles, x, x_dot)
-        M_x = kinematics.task_inertia(geometry, x)
+        M_x = statics.task_inertia(geometry, x)
         # The rods' free spin is set to zero by assemble, so energies must match exactly.
         assert plant.CalcKineticEnergy(context) == pytest.approx(0.5 * x_dot @ M_x @ x_dot,
                                                                   rel=1e-9)
@@ -84,7 +84,7 @@ def _hold(geometry, x, T, duration=0.5):
 
 def test_plant_holds_random_poses_with_virtual_work_torques(geometry, random_poses):
     for x in random_poses[:4]:
-        x_end, closure = _hold(geometry, x, kinematics.holding_torques(geometry, x))
+        x_end, closure = _hold(geometry, x, statics.holding_torques(geometry, x))
         assert np.abs(x_end[3:] - x[3:]).max() < 1e-4          # < 0.1 mm drift in 0.5 s
         assert np.abs(x_end[:3] - x[:3]).max() < 1e-3
         assert closure.max() < 1e-5
@@ -93,5 +93,5 @@ def test_plant_holds_random_poses_with_virtual_work_torques(geometry, random_pos
 def test_platform_only_torques_do_not_hold(geometry):
     """The loop closes on physics, not by accident: 35 % too little torque lets it sag."""
     x = np.array([0, 0, 0, 0, 0, 0.30])
-    x_end, _ = _hold(geometry, x, 0.65 * kinematics.holding_torques(geometry, x), duration=0.3)
+    x_end, _ = _hold(geometry, x, 0.65 * statics.holding_torques(geometry, x), duration=0.3)
     assert x_end[5] < x[5] - 5e-3

@@ -13,16 +13,17 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from stewart_drake import kinematics
-from stewart_drake.controller import (LqiController, LqiScales, error_model, hautus_checks,
-                                      input_matrix, lqi_gain)
-from stewart_drake.diagram import StewartConfig
+from stewart_drake.model import kinematics
+from stewart_drake.model import limits
+from stewart_drake.model import statics
+from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
+from stewart_drake.simulation.diagram import StewartConfig
 from stewart_drake.errors import StewartError, UnreachablePoseError
-from stewart_drake.features import density_features
-from stewart_drake.geometry import X_HOME, StewartGeometry
-from stewart_drake.guard import GuardConfig
-from stewart_drake.trajectories import SineTrajectory
-from stewart_drake.tuner import TunerModel, load_tuner
+from stewart_drake.control.features import density_features
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.guard import GuardConfig
+from stewart_drake.simulation.trajectories import SineTrajectory
+from stewart_drake.control.tuner import TunerModel, load_tuner
 
 GEOMETRY = StewartGeometry()
 EXAMPLES = Counter()
@@ -111,7 +112,7 @@ def test_jacobian_tau_wrench_and_holding_torques(x, with_theta):
     J = _call(kinematics.jacobian, GEOMETRY, x, theta)
     tau = _call(kinematics.tau, GEOMETRY, x, theta)
     W = _call(kinematics.wrench_map, GEOMETRY, x, theta)
-    T = _call(kinematics.holding_torques, GEOMETRY, x, theta)
+    T = _call(statics.holding_torques, GEOMETRY, x, theta)
     if J is not None:
         np.testing.assert_array_equal(tau, np.swapaxes(J, -1, -2))
         assert W is not None and W.shape == J.shape
@@ -154,7 +155,7 @@ def test_validate_trajectory(n, base, step, direction, poison, cond_threshold, s
     elif poison == "shape":
         x = x[:, :5]
     try:
-        report = kinematics.validate_trajectory(GEOMETRY, t, x, cond_threshold=cond_threshold,
+        report = limits.validate_trajectory(GEOMETRY, t, x, cond_threshold=cond_threshold,
                                                 min_sigma_min_inv=sigma, raise_refused=True)
     except StewartError:
         return
@@ -290,7 +291,7 @@ def test_geometry_construction(changes):
         return
     # A geometry that constructs is usable at home: finite IK, Jacobian and torques there.
     _finite(kinematics.ik(g, X_HOME))
-    _finite(kinematics.holding_torques(g, X_HOME))
+    _finite(statics.holding_torques(g, X_HOME))
 
 
 @_settings(200)

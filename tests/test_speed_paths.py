@@ -5,13 +5,14 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-from stewart_drake import kinematics
-from stewart_drake.controller import (LqiController, LqiScales, error_model, input_matrix,
-                                      lqi_gain, lqi_gain_warm)
+from stewart_drake.model import kinematics
+from stewart_drake.model import statics
+from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, input_matrix, lqi_gain, lqi_gain_warm)
 from stewart_drake.errors import RiccatiSolveError
-from stewart_drake.geometry import X_HOME
-from stewart_drake.reference import add_reference_sources, feedforward_torques
-from stewart_drake.trajectories import paper_manoeuvre
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.simulation.reference import add_reference_sources
+from stewart_drake.model.statics import feedforward_torques
+from stewart_drake.simulation.trajectories import paper_manoeuvre
 
 H = 1e-3
 
@@ -86,7 +87,7 @@ def test_precomputed_reference_is_read_at_the_right_step(geometry):
         np.testing.assert_allclose(src.x_d.get_output_port().Eval(ref_ctx),
                                    np.concatenate([x, xd, xdd]), rtol=0, atol=1e-15)
         np.testing.assert_allclose(src.T_ff.get_output_port().Eval(ff_ctx),
-                                   kinematics.holding_torques(geometry, x), rtol=1e-12)
+                                   statics.holding_torques(geometry, x), rtol=1e-12)
 
 
 def test_inverse_dynamics_feedforward_adds_the_inertial_torque(geometry, random_poses):
@@ -94,7 +95,7 @@ def test_inverse_dynamics_feedforward_adds_the_inertial_torque(geometry, random_
     a = np.random.default_rng(1).normal(size=(10, 6))
     theta = kinematics.ik(geometry, x)
     J = kinematics.jacobian(geometry, x, theta)
-    M = kinematics.task_inertia(geometry, x, theta)
+    M = statics.task_inertia(geometry, x, theta)
     extra = np.linalg.solve(np.swapaxes(J, -1, -2), (M @ a[..., None]))[..., 0]
     np.testing.assert_allclose(feedforward_torques(geometry, x, a, "inverse_dynamics"),
                                feedforward_torques(geometry, x) + extra, rtol=1e-10, atol=1e-12)

@@ -6,9 +6,8 @@ import pytest
 import torch
 
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.training import (Dataset, build_dataset, r2_scores, save_tuner, train,
-                                    window_cost)
-from stewart_drake.tuner import load_tuner
+from stewart_drake.studies.training import (Dataset, build_dataset, r2_scores, save_tuner, train, window_cost)
+from stewart_drake.control.tuner import load_tuner
 
 GRID = (0.1, 1.0, 10.0)
 

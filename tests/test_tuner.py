@@ -8,9 +8,9 @@ from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 
-from stewart_drake import tuner as tuner_module
+from stewart_drake.control import tuner as tuner_module
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.tuner import (AnnTuner, TunerModel, build_mlp, load_tuner, save_tuner)
+from stewart_drake.control.tuner import AnnTuner, TunerModel, build_mlp, load_tuner, save_tuner
 
 
 def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:

@@ -5,12 +5,14 @@ import json
 import numpy as np
 import pytest
 
-from stewart_drake.diagram import StewartConfig
-from stewart_drake.experiments import SerialRunner, collect, load_records, run_experiment
-from stewart_drake.geometry import StewartGeometry
-from stewart_drake.training import build_dataset
-from stewart_drake.trajectories import data_collection_trajectory, validate_trajectory
-from stewart_drake.tuner import DEFAULT_TUNER_PATH, load_tuner
+from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.studies.runners import SerialRunner
+from stewart_drake.studies.collection import collect, load_records
+from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.model.geometry import StewartGeometry
+from stewart_drake.studies.training import build_dataset
+from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
+from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 
 
 def test_data_trajectory_is_deterministic_reachable_and_in_band():
@@ -18,8 +20,8 @@ def test_data_trajectory_is_deterministic_reachable_and_in_band():
     assert a == b and a != data_collection_trajectory(4)
     f = np.array(a.frequency_hz)
     assert np.all((f >= 1) & (f <= 5))
-    report = validate_trajectory(StewartGeometry(), a, 10.0)
-    assert report["max_ratio"] <= 0.9 + 1e-9
+    report = validate(a, StewartGeometry(), 10.0, raise_refused=False)
+    assert report.min_margin["closure"] >= 0.1 - 1e-9          # |L|/sqrt(M^2+N^2) <= 0.9
     acc = np.abs(a.evaluate(np.linspace(0, 10, 2001))[2]).max(axis=0)
     assert np.all(acc <= np.array([30, 30, 30, 3, 3, 3]) * (1 + 1e-9))
 
@@ -64,6 +66,6 @@ def test_collect_writes_nine_runs_that_build_both_datasets(tmp_path):
 
 
 def test_train_without_data_says_what_to_run(tmp_path, capsys):
-    from stewart_drake.cli import main
+    from stewart_drake.interfaces.cli import main
     assert main(["train", "--data", str(tmp_path / "none")]) == 2
     assert "stewart-drake collect" in capsys.readouterr().err

@@ -4,15 +4,14 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from stewart_drake import controller as lqi
-from stewart_drake.controller import LqiController, error_model, lqi_gain
-from stewart_drake.diagram import StewartConfig
-from stewart_drake.errors import (InvalidConfigError, InvalidGeometryError, MissingFileError,
-                                  RiccatiSolveError, SingularPoseError)
-from stewart_drake.experiments import format_metrics, run_experiment
-from stewart_drake.geometry import X_HOME, StewartGeometry
-from stewart_drake.kinematics import holding_torques
-from stewart_drake.guard import GuardConfig
+from stewart_drake.control import lqi as lqi
+from stewart_drake.control.lqi import LqiController, error_model, lqi_gain
+from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.errors import (InvalidConfigError, InvalidGeometryError, MissingFileError, RiccatiSolveError, SingularPoseError)
+from stewart_drake.studies.experiments import format_metrics, run_experiment
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.model.statics import holding_torques
+from stewart_drake.simulation.guard import GuardConfig
 
 
 # -- configuration --------------------------------------------------------------------------------
@@ -169,9 +168,9 @@ def test_no_stabilizing_solution_is_a_riccati_error():
 
 
 def test_a_singular_input_matrix_is_a_typed_error(monkeypatch):
-    from stewart_drake import kinematics
+    from stewart_drake.model import statics
 
-    monkeypatch.setattr(kinematics, "task_inertia", lambda g, x, theta=None: np.zeros((6, 6)))
+    monkeypatch.setattr(statics, "task_inertia", lambda g, x, theta=None: np.zeros((6, 6)))
     with pytest.raises(SingularPoseError, match="B_c = inf is not finite"):
         lqi.input_matrix(StewartGeometry(), X_HOME)
 

@@ -7,11 +7,11 @@ import pytest
 from meshcat_html import read_meshcat_commands
 from pydrake.math import RollPitchYaw
 
-from stewart_drake import visualize
-from stewart_drake.cli import main
-from stewart_drake.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.interfaces import visualize
+from stewart_drake.interfaces.cli import main
+from stewart_drake.simulation.diagram import StewartConfig, make_stewart_diagram
 from stewart_drake.errors import InvalidConfigError, RenderToolMissingError
-from stewart_drake.experiments import load_result
+from stewart_drake.studies.experiments import load_result
 
 DURATION = 0.3
 

@@ -7,10 +7,14 @@ import pytest
 from pydrake.multibody.tree import JacobianWrtVariable
 
 from conftest import random_reachable_poses
-from stewart_drake import kinematics, trajectories, workspace
+from stewart_drake.model import kinematics
+from stewart_drake.model import limits
+from stewart_drake.model import statics
+from stewart_drake.simulation import trajectories
+from stewart_drake.studies import workspace
 from stewart_drake.errors import InvalidGeometryError, UnreachablePoseError
-from stewart_drake.geometry import X_HOME
-from stewart_drake.plant import assemble, make_plant
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.model.plant import assemble, make_plant
 from test_plant import _hold
 
 
@@ -65,7 +69,7 @@ def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, 
 # --- limits ----------------------------------------------------------------------------------
 
 def test_home_margins_are_the_documented_angles(geometry):
-    report = kinematics.is_reachable(geometry, X_HOME)
+    report = limits.is_reachable(geometry, X_HOME)
     assert report and report.violations() == []
     m = {k: np.rad2deg(v) for k, v in report.margins.items()}
     theta_home = np.rad2deg(kinematics.ik(geometry, X_HOME))
@@ -83,7 +87,7 @@ def test_home_margins_are_the_documented_angles(geometry):
 ])
 def test_is_reachable_names_leg_limit_and_margin(geometry, change, x, limit):
     g = geometry.replace(**change)
-    report = kinematics.is_reachable(g, x)
+    report = limits.is_reachable(g, x)
     assert not report
     worst = report.violations()[0]
     assert worst.limit == limit and worst.margin < 0
@@ -96,11 +100,11 @@ def test_is_reachable_names_leg_limit_and_margin(geometry, change, x, limit):
 
 
 def test_is_reachable_is_vectorized(geometry, random_poses):
-    report = kinematics.is_reachable(geometry, random_poses.reshape(10, 20, 6))
+    report = limits.is_reachable(geometry, random_poses.reshape(10, 20, 6))
     assert report.reachable.shape == (10, 20)
-    for name in kinematics.LIMITS:
+    for name in limits.LIMITS:
         assert report.margins[name].shape == (10, 20, 6)
-        single = kinematics.limit_margins(geometry, random_poses[57])[name]
+        single = limits.limit_margins(geometry, random_poses[57])[name]
         np.testing.assert_allclose(report.margins[name][2, 17], single, rtol=1e-12)
 
 
@@ -120,7 +124,7 @@ def test_invalid_limits_are_refused(geometry, change):
 
 def test_paper_manoeuvre_validates_with_its_margins(geometry):
     t, x = _paper()
-    report = kinematics.validate_trajectory(geometry, t, x)
+    report = limits.validate_trajectory(geometry, t, x)
     assert report.ok and report.first_violation is None and report.first_singular_t is None
     assert report.min_margin["closure"] == pytest.approx(1 - 0.91, abs=0.01)  # reference_geometry
     assert np.rad2deg(report.min_margin["motor_angle"]) == pytest.approx(90 - 74.94, abs=0.05)
@@ -132,7 +136,7 @@ def test_paper_manoeuvre_validates_with_its_margins(geometry):
 
 def test_first_time_closer_to_singularity_than_threshold(geometry):
     t, x = _paper()
-    report = kinematics.validate_trajectory(geometry, t, x, cond_threshold=60.0)
+    report = limits.validate_trajectory(geometry, t, x, cond_threshold=60.0)
     cond = np.linalg.cond(kinematics.jacobian(geometry, x))
     assert not report.ok
     assert report.first_singular_t == t[np.argmax(cond > 60.0)]
@@ -142,11 +146,11 @@ def test_first_time_closer_to_singularity_than_threshold(geometry):
 def test_unreachable_trajectory_raises_with_time_and_leg(geometry):
     t, x = _paper(scale=2.5)
     with pytest.raises(UnreachablePoseError) as err:
-        kinematics.validate_trajectory(geometry, t, x)
+        limits.validate_trajectory(geometry, t, x)
     ratio = kinematics.leg_reach_ratio(geometry, x)
     k = int(np.argmax(np.any(np.abs(ratio) > 1, axis=1)))
     assert err.value.t == t[k] and abs(ratio[k, err.value.leg]) > 1
-    report = kinematics.validate_trajectory(geometry, t, x, raise_unreachable=False)
+    report = limits.validate_trajectory(geometry, t, x, raise_unreachable=False)
     assert not report.ok and report.first_violation.t <= t[k]
 
 
@@ -155,7 +159,7 @@ def test_every_named_trajectory_validates(geometry, name):
     """The trajectories the runner uses (paper manoeuvre, data collection) pass before a run."""
     t = np.arange(0, 20.0, 2e-3)
     x = trajectories.make_trajectory(name).evaluate(t)[0]
-    report = kinematics.validate_trajectory(geometry, t, x)
+    report = limits.validate_trajectory(geometry, t, x)
     assert report.ok, report.summary()
 
 
@@ -165,7 +169,7 @@ def test_classify_matches_pointwise_functions(geometry, random_poses):
     x = np.concatenate([random_poses[:50], [[0, 0, 0, 0, 0, 0.6], [0.7, 0, 0, 0, 0, 0.3]]])
     c = workspace.classify(geometry, x)
     assert c["reachable"][:50].all() and not c["reachable"][50:].any()
-    np.testing.assert_allclose(c["torques"][:50], kinematics.holding_torques(geometry, x[:50]),
+    np.testing.assert_allclose(c["torques"][:50], statics.holding_torques(geometry, x[:50]),
                                rtol=1e-12)
     assert np.isnan(c["torques"][50:]).all() and (c["bottleneck"][50:] == -1).all()
     np.testing.assert_array_equal(c["bottleneck"][:50], np.argmax(np.abs(c["torques"][:50]), 1))
@@ -197,7 +201,7 @@ def test_reachable_volume_agrees_with_monte_carlo(geometry):
     box = np.array(workspace.TRANSLATION_BOX)
     p = box[:, 0] + rng.uniform(size=(200_000, 3)) * (box[:, 1] - box[:, 0])
     x = np.concatenate([np.zeros_like(p), p], axis=1)
-    mc = kinematics.is_reachable(geometry, x).reachable.mean() * np.prod(box[:, 1] - box[:, 0])
+    mc = limits.is_reachable(geometry, x).reachable.mean() * np.prod(box[:, 1] - box[:, 0])
     assert volume == pytest.approx(mc, rel=0.03)      # both ~7.6e-3 m^3
     ext = workspace.extents(axes, grid)
     assert ext[2, 0] < X_HOME[5] < ext[2, 1] and ext[1, 0] == pytest.approx(-ext[1, 1])
@@ -210,15 +214,15 @@ def test_max_tilt_is_reachable_in_every_direction_and_not_beyond(geometry):
     assert np.all(some >= every) and np.rad2deg(every[1]) == pytest.approx(37.5, abs=1.5)
     for h, alpha in enumerate(every):
         k = int(round(np.rad2deg(alpha)))
-        assert kinematics.is_reachable(geometry, grid[h, : k + 1]).reachable.all()
-        assert not kinematics.is_reachable(geometry, grid[h, k + 1]).reachable.all()
+        assert limits.is_reachable(geometry, grid[h, : k + 1]).reachable.all()
+        assert not limits.is_reachable(geometry, grid[h, k + 1]).reachable.all()
     # a tilt about the X axis is a pure roll
     np.testing.assert_allclose(grid[0, 10, 0], [tilts[10], 0, 0, 0, 0, 0.26], atol=1e-15)
 
 
 def test_dynamic_torque_summary(geometry):
     t, x = _paper(n=501)
-    T = kinematics.holding_torques(geometry, x)
+    T = statics.holding_torques(geometry, x)
     T[:, 4] += 0.5 * np.sin(3 * t)
     s = workspace.summarize_dynamic_torques(geometry, t, x, T)
     assert s["bottleneck"] == 4
@@ -227,10 +231,9 @@ def test_dynamic_torque_summary(geometry):
     np.testing.assert_allclose(s["dynamic_over_static"][[0, 1, 2, 3, 5]], 1.0, rtol=1e-12)
 
 
-def test_workspace_cli_writes_outputs_atomically(tmp_path):
-    class Args:
-        out, resolution, jobs, no_progress = str(tmp_path / "ws"), 9, 1, True
-    assert workspace.workspace_cli(Args) == 0
+def test_workspace_writes_outputs_atomically(tmp_path):
+    rows = workspace.write_workspace(tmp_path / "ws", resolution=9, jobs=1, progress=False)
+    assert rows[0][0] == "reachable_volume"
     names = sorted(p.name for p in (tmp_path / "ws").iterdir())
     assert names == ["bottleneck_and_orientation.png", "summary.csv", "tilt_vs_height.csv",
                      "workspace.npz", "workspace.png"]          # no temporary files left
@@ -267,7 +270,7 @@ def _drake_static_torques(plant, context, handles, x):
 def test_holding_torques_equal_drake_statics_at_12_poses(geometry):
     plant, context, handles, _, _ = make_plant()
     for x in random_reachable_poses(geometry, 12, seed=11):
-        T = kinematics.holding_torques(geometry, x)
+        T = statics.holding_torques(geometry, x)
         u = _drake_static_torques(plant, context, handles, x)
         assert np.abs(u - T).max() < 0.01 * np.abs(T).max()      # measured: ~6e-12 relative
 

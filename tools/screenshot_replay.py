@@ -94,8 +94,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         html = args.html
         if html is None:
-            from stewart_drake.diagram import StewartConfig
-            from stewart_drake.visualize import record_html
+            from stewart_drake.simulation.diagram import StewartConfig
+            from stewart_drake.interfaces.visualize import record_html
 
             t0 = time.perf_counter()
             _, html = record_html(StewartConfig(duration_s=args.duration), Path(tmp) / "replay.html")

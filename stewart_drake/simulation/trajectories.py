@@ -10,10 +10,29 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kinematics
-from .errors import InvalidConfigError
-from .geometry import X_HOME, StewartGeometry
-from .validation import as_array, check_sine_bounds
+from ..checks import as_array
+from ..errors import InvalidConfigError
+from ..model import kinematics, limits
+from ..model.geometry import X_HOME, StewartGeometry
+
+
+def check_sine_bounds(trajectory) -> None:
+    """Refuse a sine whose pose, rate or acceleration would overflow float64.
+
+    Args:
+        trajectory: a SineTrajectory (amplitude, frequency_hz, offset: 6 finite floats each).
+    Raises:
+        InvalidConfigError: |offset| + |A|, |A| 2 pi f or |A| (2 pi f)^2 not finite, naming the
+            axis, so that ``evaluate`` is finite at every finite time.
+    """
+    A, f = np.abs(trajectory.amplitude), np.abs(trajectory.frequency_hz)
+    with np.errstate(over="ignore", invalid="ignore"):
+        w = 2 * np.pi * f
+        peaks = np.stack([np.abs(trajectory.offset) + A, A * w, A * w * w])
+    if not np.isfinite(peaks).all():
+        axis = int(np.argwhere(~np.isfinite(peaks))[0][1])
+        raise InvalidConfigError(f"{trajectory.name}: axis {axis} overflows float64 (amplitude "
+                                 f"{A[axis]:.3g}, frequency {f[axis]:.3g} Hz); use SI units")
 
 
 @dataclass(frozen=True)
@@ -194,29 +213,34 @@ def make_trajectory(name: str):
             f"unknown trajectory {name!r}; choose one of {sorted(TRAJECTORIES)}") from None
 
 
-def validate_trajectory(geometry: StewartGeometry, trajectory, duration_s: float,
-                        dt: float = 1e-3) -> dict:
-    """Check that every sample of the trajectory on [0, duration_s] is reachable.
+def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
+             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+             min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
+             raise_refused: bool = True) -> limits.TrajectoryReport:
+    """Sample a trajectory on [0, duration_s] every ``dt`` and validate it.
 
+    The samples go to :func:`~stewart_drake.model.limits.validate_trajectory`, the one validator
+    of a reference: finite pose, rate and acceleration; loop closure, motor travel, ball-joint
+    cones; cond(J) and 1/sigma_max(J), each failure naming its first time and leg or measure.
+
+    Args:
+        trajectory: an object with ``evaluate(t)`` -> (pose, rate, acceleration), each (n, 6).
+        geometry: the robot. duration_s: s, > 0. dt: sampling period, s (the control period).
+        cond_threshold, min_sigma_min_inv: singularity thresholds (see the validator).
+        raise_refused: raise on the first refused sample (else only report it).
     Returns:
-        dict with ``max_ratio`` (largest |L|/sqrt(M^2+N^2) over legs and time), ``t_max_ratio``
-        and ``leg_max_ratio``.
+        :class:`~stewart_drake.model.limits.TrajectoryReport`.
     Raises:
-        UnreachablePoseError: naming the first time and leg that cannot close.
-        InvalidConfigError: non-positive duration or a non-finite sample.
+        InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError: see
+            :func:`~stewart_drake.model.limits.validate_trajectory`.
     """
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise InvalidConfigError(f"duration must be > 0 s, got {duration_s}")
     t = np.arange(0.0, duration_s + 0.5 * dt, dt)
     x, x_dot, x_ddot = trajectory.evaluate(t)
-    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
-        if not np.all(np.isfinite(arr)):
-            k = int(np.argmax(~np.all(np.isfinite(arr), axis=1)))
-            raise InvalidConfigError(f"trajectory {name} is not finite at t = {t[k]:.4g} s")
-    kinematics.ik(geometry, x, t=t)              # raises at the first unreachable sample
-    ratio = np.abs(kinematics.leg_reach_ratio(geometry, x))
-    k, leg = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
-    return {"max_ratio": float(ratio[k, leg]), "t_max_ratio": float(t[k]), "leg_max_ratio": int(leg)}
+    return limits.validate_trajectory(geometry, t, x, cond_threshold=cond_threshold,
+                                      min_sigma_min_inv=min_sigma_min_inv,
+                                      raise_refused=raise_refused, x_dot=x_dot, x_ddot=x_ddot)
 
 
 #: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.

@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from .errors import InvalidConfigError, SimulationDivergedError
-from .validation import as_array, as_number
+from ..errors import InvalidConfigError, SimulationDivergedError
+from ..checks import as_array, as_number
 
 N_CHANNELS = 6                 # six pose errors, six motor torques
 N_FEATURES = 2 * N_CHANNELS    # rho = [rho_e (6,), rho_T (6,)]

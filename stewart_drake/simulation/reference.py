@@ -17,44 +17,11 @@ import numpy as np
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from . import kinematics
-from .errors import InvalidConfigError
-from .geometry import StewartGeometry
+from ..model import kinematics
+from ..model.statics import FEEDFORWARD_MODES, feedforward_torques
+from ..errors import InvalidConfigError
+from ..model.geometry import StewartGeometry
 
-FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
-
-
-def feedforward_torques(geometry: StewartGeometry, x_d, xdd_d=None,
-                        mode: str = "gravity", theta=None) -> np.ndarray:
-    """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
-
-    Args:
-        geometry: the robot the controller believes in (a payload it does not know is not here).
-        x_d: (..., 6) reference pose [rad, m].
-        xdd_d: (..., 6) reference acceleration [rad/s^2, m/s^2]; used by "inverse_dynamics".
-        mode: "gravity": J^-T dV/dx, the static virtual-work torques of platform, cranks and rods
-            (paper eq. 19's disturbance d, cancelled); "inverse_dynamics": also J^-T M_x(x_d)
-            xdd_d (no Coriolis terms); "none": zeros.
-        theta: (..., 6) motor angles of x_d when already known (IK is then skipped).
-    Raises:
-        InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
-    Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
-    """
-    if mode not in FEEDFORWARD_MODES:
-        raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got {mode!r}")
-    x_d = np.asarray(x_d, dtype=float)
-    if mode == "none":
-        return np.zeros(x_d.shape)
-    theta = kinematics.ik(geometry, x_d) if theta is None else theta
-    J = kinematics.jacobian(geometry, x_d, theta)
-    w = kinematics.gravity_gradient(geometry, x_d, theta, J)
-    if mode == "inverse_dynamics":
-        if xdd_d is None:
-            raise InvalidConfigError("feedforward 'inverse_dynamics' needs the reference "
-                                     "acceleration xdd_d")
-        M = kinematics.task_inertia(geometry, x_d, theta)
-        w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
-    return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
 
 
 @dataclass

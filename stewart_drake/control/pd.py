@@ -9,17 +9,11 @@ so :func:`~stewart_drake.diagram.make_stewart_diagram` swaps one for the other.
 from __future__ import annotations
 
 import numpy as np
-from . import kinematics
-from .controller import N_STATUS, PoseTorqueController
-from .errors import InvalidConfigError, UnreachablePoseError
-from .geometry import X_HOME, StewartGeometry
-
-
-def crank_inertia_matrix(geometry: StewartGeometry, x=X_HOME) -> np.ndarray:
-    """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
-    theta = kinematics.ik(geometry, x)
-    J_inv = np.linalg.inv(kinematics.jacobian(geometry, x, theta))
-    return J_inv.T @ kinematics.task_inertia(geometry, x, theta) @ J_inv
+from ..errors import InvalidConfigError, UnreachablePoseError
+from ..model import kinematics, statics
+from ..model.geometry import X_HOME, StewartGeometry
+from ..model.statics import crank_inertia_matrix
+from .lqi import N_STATUS, PoseTorqueController
 
 
 class CrankPdController(PoseTorqueController):
@@ -73,7 +67,7 @@ class CrankPdController(PoseTorqueController):
         M = crank_inertia_matrix(geometry, x0)
         #: Gains at the initial pose, (6, 6) each (the running ones are in the discrete state).
         self.K_p, self.K_d = self._kp * M, self._kd * M
-        self._u_index = self.DeclareDiscreteState(kinematics.holding_torques(geometry, x0))
+        self._u_index = self.DeclareDiscreteState(statics.holding_torques(geometry, x0))
         self._s_index = self.DeclareDiscreteState(N_STATUS)
         self._e_index = self.DeclareDiscreteState(6)
         self._M_index = self.DeclareDiscreteState(M.reshape(-1))   # M_theta of the gains

@@ -1,15 +1,15 @@
 """Workspace of states and torques: which poses the robot reaches, how well, and at what torque.
 
 Every pose of a grid is classified at once (numpy, no Python loop per pose): loop closure, motor
-travel and ball-joint cones (``kinematics.limit_margins``), nearness to singularity (cond(J)) and
-the static motor torques that hold it against gravity (``kinematics.holding_torques``, virtual
+travel and ball-joint cones (``limits.limit_margins``), nearness to singularity (cond(J)) and
+the static motor torques that hold it against gravity (``statics.holding_torques``, virtual
 work over the platform, cranks and rods). Large grids are split in chunks over processes.
 
 Grids (all poses [phi, theta, psi, X, Y, Z] in rad and m, base frame of reference_geometry.md):
     translation box at fixed orientation -> reachable volume (m^3), extent per axis, slices;
     orientation box (roll, pitch, yaw) at a fixed position -> extent per angle;
     tilt about every horizontal axis vs height -> the largest tilt reachable in every direction.
-The ``stewart-drake workspace`` command (:func:`workspace_cli`) writes them as PNG, npz and CSV.
+The ``stewart-drake workspace`` command (:func:`write_workspace`) writes them as PNG, npz and CSV.
 """
 
 from __future__ import annotations
@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from . import kinematics
-from .fileio import atomic_write
-from .errors import InvalidConfigError
-from .geometry import X_HOME, StewartGeometry
+from ..errors import InvalidConfigError
+from ..fileio import atomic_write
+from ..model import kinematics, limits, statics
+from ..model.geometry import X_HOME, StewartGeometry
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
 #: that no reachable pose lies on the boundary, so volumes and extents are not clipped).
@@ -37,7 +37,7 @@ FIELDS = ("reachable", "usable", "cond", "sigma_min_inv", "torques", "max_torque
 
 
 def classify(geometry: StewartGeometry, x,
-             cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD) -> dict:
+             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD) -> dict:
     """Classify pose(s) x: reachable, conditioning and static holding torques.
 
     Args:
@@ -46,7 +46,7 @@ def classify(geometry: StewartGeometry, x,
         cond_threshold: cond(J) above this is "too close to a singularity".
     Returns:
         dict of arrays:
-        ``reachable`` (...) bool, every leg inside every limit of ``kinematics.LIMITS``;
+        ``reachable`` (...) bool, every leg inside every limit of ``limits.LIMITS``;
         ``usable`` (...) bool, reachable and cond(J) <= cond_threshold;
         ``cond`` (...) cond(J), NaN where a leg cannot close;
         ``sigma_min_inv`` (...) 1/sigma_max(J), (rad or m) per rad;
@@ -56,13 +56,13 @@ def classify(geometry: StewartGeometry, x,
     """
     x = np.asarray(x, dtype=float)
     theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = kinematics.limit_margins(geometry, x, theta, ratio)
-    reachable = kinematics._reachable_from_margins(margins)
+    margins = limits.limit_margins(geometry, x, theta, ratio)
+    reachable = limits._reachable_from_margins(margins)
     cond, inv = kinematics.singularity_measures(geometry, x, theta)
     torques = np.full(x.shape[:-1] + (6,), np.nan)
     ok = reachable & np.isfinite(cond)
     if np.any(ok):
-        torques[ok] = kinematics.holding_torques(geometry, x[ok], theta[ok])
+        torques[ok] = statics.holding_torques(geometry, x[ok], theta[ok])
     abs_t = np.abs(torques)
     max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
     bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
@@ -76,7 +76,7 @@ def _classify_chunk(task):
     return classify(geometry, x, cond_threshold)
 
 
-def sweep(geometry: StewartGeometry, x, cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD,
+def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
           jobs: int = 1, chunk: int = 20000, progress=None) -> dict:
     """:func:`classify` a large batch in chunks, over ``jobs`` processes.
 
@@ -223,7 +223,7 @@ def summarize_dynamic_torques(geometry: StewartGeometry, t, x, T) -> dict:
                                  f"{T.shape}")
     k = np.argmax(np.abs(T), axis=0)
     peak = np.abs(T)[k, np.arange(6)]
-    static_peak = np.abs(kinematics.holding_torques(geometry, x)).max(axis=0)
+    static_peak = np.abs(statics.holding_torques(geometry, x)).max(axis=0)
     return {"peak": peak, "peak_t": t[k], "rms": np.sqrt(np.mean(T * T, axis=0)),
             "bottleneck": int(np.argmax(peak)), "static_peak": static_peak,
             "dynamic_over_static": peak / static_peak}
@@ -313,7 +313,7 @@ def _plots(out: Path, taxes, trans, oaxes, orient, heights, tilt_every, tilt_som
 
 
 def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int = 1,
-                      cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD,
+                      cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
                       progress=None, n_azimuth: int = 24) -> dict:
     """Run the three standard sweeps and reduce them to figures.
 
@@ -353,31 +353,33 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
     }
 
 
-def workspace_cli(args) -> int:
-    """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV to args.out.
+def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = True,
+                    geometry: StewartGeometry | None = None) -> list:
+    """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
-    Args (argparse namespace): out (folder), resolution (points per axis), jobs (0: one per
-        core), no_progress (hide the tqdm bar).
+    Args:
+        out: folder. resolution: grid points per axis (>= 2). jobs: processes (0: one per
+            core). progress: show a tqdm bar. geometry: the robot (default: the reference one).
     Writes (each atomically: a temporary file, then os.replace):
         workspace.npz (grids and classifications), summary.csv (figure, value, unit),
         tilt_vs_height.csv, workspace.png (torque maps + tilt vs height),
         bottleneck_and_orientation.png.
     Returns:
-        0.
+        rows (figure, value, unit) of summary.csv.
     Raises:
         InvalidConfigError: resolution < 2 or jobs < 0.
     """
     from tqdm import tqdm
 
-    if args.resolution < 2 or args.jobs < 0:
+    if resolution < 2 or jobs < 0:
         raise InvalidConfigError(
-            f"--resolution must be >= 2 and --jobs >= 0 (got {args.resolution}, {args.jobs})")
-    geometry = StewartGeometry()
-    out = Path(args.out)
-    n = args.resolution
+            f"--resolution must be >= 2 and --jobs >= 0 (got {resolution}, {jobs})")
+    geometry = geometry or StewartGeometry()
+    out = Path(out)
+    n = resolution
     total = 2 * n ** 3 + n * n * 24
-    with tqdm(total=total, unit="pose", disable=args.no_progress, desc="workspace") as bar:
-        s = workspace_summary(geometry, n, args.jobs, progress=bar)
+    with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
+        s = workspace_summary(geometry, n, jobs, progress=bar)
     arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
               "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
               "orientation_theta": s["orientation_axes"][1],
@@ -406,8 +408,4 @@ def workspace_cli(args) -> int:
                 for z, e, m in zip(s["heights"], s["tilt_every_rad"], s["tilt_some_rad"])])
     _plots(out, s["translation_axes"], s["translation"], s["orientation_axes"], s["orientation"],
            s["heights"], s["tilt_every_rad"], s["tilt_some_rad"], s["cond_threshold"])
-    for name, value, unit in rows[:9]:
-        print(f"{name} {value} {unit}")
-    print(f"wrote {out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
-          f"summary.csv, tilt_vs_height.csv")
-    return 0
+    return rows

@@ -14,14 +14,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InvalidGeometryError
-from .validation import as_array, as_number
+from ..checks import as_array, as_number
+from ..errors import InvalidGeometryError
+from .kinematics import X_HOME, leg_reach_ratio
+from .limits import LIMITS, limit_margins
 
 #: Table I of the paper, principal moments about the COM in kg m^2, as printed.
 TABLE_I_CRANK_INERTIA = (1e-6, 5.8e-5, 6e-5)
-
-#: Home pose [phi, theta, psi, X, Y, Z] in rad and m (reference_geometry.md).
-X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
 
 
 def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[float, float, float]:
@@ -93,7 +92,7 @@ class StewartGeometry:
             end; 19.4 at home, 21.1 at most along the paper manoeuvre).
         platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
             socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
-            along the paper manoeuvre). All limits are checked by ``kinematics.limit_margins``.
+            along the paper manoeuvre). All limits are checked by ``limits.limit_margins``.
     Raises:
         InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
             inertia that fails the triangle inequality (use
@@ -163,8 +162,6 @@ class StewartGeometry:
             if not (np.isfinite(value) and 0.0 < value <= 90.0):
                 raise InvalidGeometryError(f"{name} must be in (0, 90] degrees, got {value}")
         # Assembly at home must be possible, or nothing downstream can work.
-        from .kinematics import leg_reach_ratio  # local import: kinematics imports geometry
-
         ratio = leg_reach_ratio(self, X_HOME)
         if np.any(~np.isfinite(ratio)) or np.any(np.abs(ratio) > 1):
             leg = int(np.argmax(np.where(np.isfinite(ratio), np.abs(ratio), np.inf)))
@@ -172,8 +169,6 @@ class StewartGeometry:
                 f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
                 f"|L|/sqrt(M^2+N^2) = {ratio[leg]:.4g} > 1; change the rod or crank length "
                 f"or the anchor radii")
-        from .kinematics import LIMITS, limit_margins
-
         margins = limit_margins(self, X_HOME)
         for name in LIMITS[1:]:
             if np.any(margins[name] < 0):

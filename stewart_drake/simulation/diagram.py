@@ -11,18 +11,94 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
                                         RandomSource, Saturation)
 
-from .baselines import CrankPdController
-from .controller import LqiController, LqiScales
-from .geometry import StewartGeometry
+from ..control.pd import CrankPdController
+from ..control.lqi import LqiController, LqiScales
+from ..model.geometry import StewartGeometry
 from .guard import GuardConfig
-from .plant import add_stewart_plant
+from ..model.plant import add_stewart_plant
 from .reference import ReferenceSources, add_reference_sources
 from .sensors import PlatformPoseSensor
 from .trajectories import make_trajectory
-from .validation import check_config
+from pathlib import Path
+from ..checks import as_number, check_multiple
+from ..control.lqi import OMEGA_MAX, OMEGA_MIN
+from ..errors import InvalidConfigError, MissingFileError
+from ..model.statics import FEEDFORWARD_MODES
 
 #: Controllers :func:`make_stewart_diagram` can put behind the same ports.
 CONTROLLERS = ("lqi", "pd")
+
+
+def check_config(config) -> None:
+    """Validate a StewartConfig before anything is built or simulated.
+
+    Checks (each raising :class:`InvalidConfigError` that names the field):
+        - every period and the duration are finite numbers > 0 (also refuses strings, bools);
+        - control_period_s is a whole multiple of plant_time_step_s, schedule_period_s and
+          tuner_period_s of control_period_s (the controller and the tuner run on its clock),
+          log_period_s and the guard's check_period_s of plant_time_step_s (a log between plant
+          steps would compare a held state with a later reference);
+        - omega_Q, omega_R in [1e-3, 1e3]; feedforward, tuner names; feature_window >= 1;
+        - a trajectory name that exists, or an object with ``evaluate``;
+        - tuner_weights, when given, names an existing file (:class:`MissingFileError`);
+        - the guard settings (:class:`~stewart_drake.guard.GuardConfig`).
+    """
+    for name in ("duration_s", "plant_time_step_s", "control_period_s", "schedule_period_s",
+                 "tuner_period_s", "log_period_s"):
+        as_number(name, getattr(config, name), lo=0.0, lo_open=True)
+    for name in ("omega_Q", "omega_R"):
+        as_number(name, getattr(config, name), OMEGA_MIN, OMEGA_MAX)
+    h = config.plant_time_step_s
+    check_multiple("control_period_s", config.control_period_s, "plant_time_step_s", h)
+    check_multiple("schedule_period_s", config.schedule_period_s, "control_period_s",
+                   config.control_period_s)
+    if config.tuner is not None:
+        check_multiple("tuner_period_s", config.tuner_period_s, "control_period_s",
+                       config.control_period_s)
+    check_multiple("log_period_s", config.log_period_s, "plant_time_step_s", h)
+    if config.feedforward not in FEEDFORWARD_MODES:
+        raise InvalidConfigError(f"feedforward must be 'gravity', 'inverse_dynamics' or 'none', "
+                                 f"got {config.feedforward!r}")
+    if config.tuner not in (None, "ann"):
+        raise InvalidConfigError(f"tuner must be None or 'ann', got {config.tuner!r}")
+    if config.controller not in CONTROLLERS:
+        raise InvalidConfigError(f"controller must be 'lqi' or 'pd', got {config.controller!r}")
+    if config.tuner and config.controller != "lqi":
+        raise InvalidConfigError("the ANN tuner drives the LQI's weights: use controller='lqi' "
+                                 "with tuner='ann'")
+    if config.riccati not in ("warm", "cold"):
+        raise InvalidConfigError(f"riccati must be 'warm' or 'cold', got {config.riccati!r}")
+    as_number("pd_bandwidth_hz", config.pd_bandwidth_hz, lo=0.0, lo_open=True)
+    as_number("payload_scale", config.payload_scale, 0.1, 10.0)
+    if config.torque_limit_Nm is not None:
+        as_number("torque_limit_Nm", config.torque_limit_Nm, lo=0.0, lo_open=True)
+    if config.sensor_noise_std is not None:
+        try:
+            std = np.broadcast_to(np.asarray(config.sensor_noise_std, dtype=float), (12,))
+        except (TypeError, ValueError):
+            std = np.array([np.nan])
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+            raise InvalidConfigError(f"sensor_noise_std needs 12 finite values >= 0 (rad, m, "
+                                     f"rad/s, m/s), got {config.sensor_noise_std}")
+    seed = config.noise_seed
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise InvalidConfigError(f"noise_seed must be an integer >= 0, got {seed!r}")
+    window = config.feature_window
+    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
+        raise InvalidConfigError(f"feature_window must be an integer >= 1, got {window!r}")
+    if isinstance(config.trajectory, str):
+        make_trajectory(config.trajectory)          # unknown name: lists the known ones
+    elif not callable(getattr(config.trajectory, "evaluate", None)):
+        raise InvalidConfigError(f"trajectory must be a name or an object with evaluate(t), got "
+                                 f"{type(config.trajectory).__name__}")
+    if config.tuner_weights is not None and not Path(config.tuner_weights).is_file():
+        raise MissingFileError(f"no ANN tuner weights at {config.tuner_weights}: check the path, "
+                               f"or leave tuner_weights unset for the shipped weights")
+    guard = getattr(config, "guard", None)
+    if guard is not None:
+        if not isinstance(guard, GuardConfig):
+            raise InvalidConfigError(f"guard must be a GuardConfig, got {type(guard).__name__}")
+        check_multiple("guard.check_period_s", guard.check_period_s, "plant_time_step_s", h)
 
 
 @dataclass(frozen=True)
@@ -204,8 +280,8 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
     features = tuner = None
     loggers = {}
     if config.tuner == "ann":
-        from .features import DensityFeatures
-        from .tuner import AnnTuner, load_tuner
+        from ..control.features import DensityFeatures
+        from ..control.tuner import AnnTuner, load_tuner
 
         features = builder.AddNamedSystem("features", DensityFeatures(
             window=config.feature_window, period_s=h))

@@ -33,10 +33,10 @@ import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation, RealDiscreteLyapunovEquation
 from pydrake.systems.framework import LeafSystem
 
-from . import kinematics
-from .errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
-from .geometry import X_HOME, StewartGeometry
-from .validation import as_array, as_number
+from ..checks import as_array, as_number
+from ..errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
+from ..model import kinematics, statics
+from ..model.geometry import X_HOME, StewartGeometry
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
@@ -114,12 +114,12 @@ def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     Raises:
         UnreachablePoseError, SingularPoseError, InvalidConfigError: see kinematics.jacobian.
     Source: paper eq. 22 (b = tau / inertia), with the legs' inertia in M_x
-    (:func:`kinematics.task_inertia`) and tau = J^T (eq. 18 corrected).
+    (:func:`statics.task_inertia`) and tau = J^T (eq. 18 corrected).
     """
     tau = kinematics.tau(geometry, x, theta)         # validates x and theta
     theta = kinematics.ik(geometry, x) if theta is None else theta
     try:
-        B_c = np.linalg.solve(kinematics.task_inertia(geometry, x, theta), tau)
+        B_c = np.linalg.solve(statics.task_inertia(geometry, x, theta), tau)
     except np.linalg.LinAlgError:
         B_c = np.full((6, 6), np.inf)
     if not np.isfinite(B_c).all():
@@ -367,7 +367,7 @@ class LqiController(PoseTorqueController):
         #: them after a run; they do not affect the simulation).
         self.solve_stats = {"warm": 0, "warm_iterations": 0, "cold": 0}
 
-        T0 = kinematics.holding_torques(geometry, x0)
+        T0 = statics.holding_torques(geometry, x0)
         self._u_index = self.DeclareDiscreteState(T0)
         self._z_index = self.DeclareDiscreteState(6)
         self._K_index = self.DeclareDiscreteState(K0.reshape(-1))

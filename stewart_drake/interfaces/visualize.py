@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InvalidConfigError, RenderToolMissingError
-from .fileio import atomic_write
+from ..errors import InvalidConfigError, RenderToolMissingError
+from ..fileio import atomic_write
 
 #: Replay frame rate, frames per s: smooth to the eye, ~2 kB per frame in the HTML.
 REPLAY_FPS = 30.0
@@ -35,7 +35,7 @@ REPLAY_PREFIX = "stewart"
 CAMERA_POSITION = (0.45, -0.45, 0.45)
 CAMERA_TARGET = (0.0, 0.0, 0.15)
 #: Where the committed Diagram pictures live (``stewart-drake diagrams`` rewrites them).
-DIAGRAMS_DIR = Path(__file__).resolve().parent.parent / "diagrams"
+DIAGRAMS_DIR = Path(__file__).resolve().parents[2] / "diagrams"
 _HASH_COMMENT = "<!-- dot-sha256: {} -->"
 
 
@@ -84,7 +84,7 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS) -> int:
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
     from pydrake.systems.framework import DiagramBuilder
 
-    from .plant import add_stewart_plant
+    from ..model.plant import add_stewart_plant
 
     builder = DiagramBuilder()
     plant, scene_graph, _ = add_stewart_plant(builder, geometry)
@@ -142,8 +142,8 @@ def record_html(config=None, path: str | Path = "results/replay.html", progress:
     """
     from pydrake.geometry import Meshcat
 
-    from .diagram import StewartConfig
-    from .experiments import _advance, build_simulator, collect_result
+    from ..simulation.diagram import StewartConfig
+    from ..studies.experiments import _advance, build_simulator, collect_result
 
     config = config or StewartConfig()
     sd, simulator = build_simulator(config)
@@ -194,7 +194,7 @@ def diagram_dots() -> dict[str, str]:
         ``density_features``, ``ann_tuner`` and ``crank_pd`` (the controller systems and their
         ports; the PD baseline has the LQI's ports, so either plugs into the same Diagram).
     """
-    from .diagram import StewartConfig, make_stewart_diagram
+    from ..simulation.diagram import StewartConfig, make_stewart_diagram
 
     fixed = make_stewart_diagram(StewartConfig())
     ann = make_stewart_diagram(StewartConfig(tuner="ann"))
@@ -259,11 +259,3 @@ def write_diagrams(out_dir: str | Path = DIAGRAMS_DIR, render: bool = True) -> l
             atomic_write(path, lambda f, s=svg: f.write(s.encode("utf-8")))
             written.append(path)
     return written
-
-
-def diagrams_cli(args) -> int:
-    """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
-    written = write_diagrams(args.out or DIAGRAMS_DIR, render=not args.dot_only)
-    for path in written:
-        print(f"wrote {path}")
-    return 0

@@ -7,7 +7,7 @@ from pydrake.common.eigen_geometry import Quaternion
 from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import BasicVector, LeafSystem
 
-from .plant import StewartPlantHandles
+from ..model.plant import StewartPlantHandles
 
 
 class PlatformPoseSensor(LeafSystem):

@@ -25,12 +25,15 @@ from pathlib import Path
 
 import numpy as np
 
-from .controller import LqiScales
-from .diagram import StewartConfig
-from .errors import InvalidConfigError
-from .experiments import PAPER_WEIGHTS, ProcessRunner, run_experiment, runner_for_jobs
-from .fileio import atomic_write
-from .trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
+from ..control.lqi import LqiScales
+from ..errors import InvalidConfigError
+from ..fileio import atomic_write
+from ..model.statics import feedforward_torques
+from ..simulation.diagram import StewartConfig
+from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
+from .collection import PAPER_WEIGHTS
+from .experiments import run_experiment
+from .runners import ProcessRunner
 
 FIXED_LQI = tuple(f"lqi_{q:g}_{r:g}" for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS)
 CONTROLLERS = FIXED_LQI + ("pd", "ann_best_cost", "ann_paper")
@@ -77,7 +80,7 @@ def controller_settings(name: str) -> dict:
     Raises:
         InvalidConfigError: unknown name (the message lists the known ones).
     """
-    from .tuner import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
+    from ..control.tuner import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
 
     if name.startswith("lqi_"):
         try:
@@ -208,8 +211,6 @@ def run_case(case: Case) -> dict:
     row["normalized_rms"] = _normalized_rms(m["rms_error"], config.scales)
     # The controller's own effort: what it adds to the gravity feed-forward of the nominal robot
     # (Sum T^2 dt is dominated by holding the platform up, the same for every controller).
-    from .reference import feedforward_torques
-
     dT = result.T - feedforward_torques(config.geometry, result.x_d[:, :6])
     dt = np.diff(result.t, prepend=result.t[0])
     row["sum_dT2_dt"] = float(np.sum(dT ** 2 * dt[:, None]))
@@ -561,19 +562,3 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
             "info": info}
 
 
-def evaluate_cli(args) -> int:
-    """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
-    controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    runner = runner_for_jobs(args.jobs)
-    report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
-                      quick=args.quick, controllers=controllers)
-    failed = sum("error" in r for r in report["rows"])
-    print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
-    for ann, v in report["verdict"].items():
-        b = v["best_fixed"]
-        print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
-              + (f"best fixed LQI at no more effort {b['case']['controller']} "
-                 f"{b['normalized_rms']:.3g} -> {'beats' if v['beats'] else 'does not beat'} it"
-                 if b else "no fixed LQI at that effort"))
-    print("wrote " + ", ".join(str(p) for p in report["paths"]))
-    return 0

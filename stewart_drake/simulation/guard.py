@@ -23,18 +23,14 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.systems.framework import EventStatus
 
-from . import kinematics
-from .errors import InvalidConfigError, SimulationDivergedError
-from .fileio import save_npz
-from .validation import as_number
-
-if TYPE_CHECKING:                      # diagram imports this module for GuardConfig
-    from .diagram import StewartConfig, StewartDiagram
+from ..checks import as_number
+from ..errors import InvalidConfigError, SimulationDivergedError
+from ..fileio import save_npz
+from ..model import limits
 
 #: Default folder of the files saved when a run diverges (relative to the working directory).
 DEFAULT_DIVERGENCE_DIR = Path("results") / "diverged"
@@ -54,9 +50,9 @@ class GuardConfig:
         check_period_s: closure and tracking are checked this often, s (a whole multiple of the
             plant step; finiteness is checked every step).
         divergence_dir: folder of the saved ``.npz`` when a run diverges.
-        cond_threshold: largest cond(J) along the reference (kinematics.DEFAULT_COND_THRESHOLD).
+        cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
         min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad
-            (kinematics.DEFAULT_MIN_SIGMA_MIN_INV).
+            (limits.DEFAULT_MIN_SIGMA_MIN_INV).
     Raises:
         InvalidConfigError: a bound that is not a finite positive number (or None).
     """
@@ -65,8 +61,8 @@ class GuardConfig:
     max_tracking_error: tuple | None = (0.2, 0.05)
     check_period_s: float = 0.01
     divergence_dir: str | Path = DEFAULT_DIVERGENCE_DIR
-    cond_threshold: float = kinematics.DEFAULT_COND_THRESHOLD
-    min_sigma_min_inv: float = kinematics.DEFAULT_MIN_SIGMA_MIN_INV
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD
+    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV
 
     def __post_init__(self):
         if self.max_closure_error_m is not None:
@@ -87,14 +83,14 @@ class GuardConfig:
                                      f"{self.divergence_dir!r}")
 
 
-def check_reference(config: "StewartConfig") -> kinematics.TrajectoryReport:
+def check_reference(config: "StewartConfig") -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
     motor travel, ball-joint cones and both singularity measures (``config.guard`` thresholds).
 
     Returns:
-        the :class:`~stewart_drake.kinematics.TrajectoryReport` (``summary()`` prints it).
+        the :class:`~stewart_drake.limits.TrajectoryReport` (``summary()`` prints it).
     Raises:
         InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named.
         UnreachablePoseError: first time, leg and ratio |L|/sqrt(M^2+N^2) > 1.
@@ -102,15 +98,11 @@ def check_reference(config: "StewartConfig") -> kinematics.TrajectoryReport:
         SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
             min_sigma_min_inv.
     """
-    from .trajectories import validate_trajectory
+    from .trajectories import validate
 
-    dt = config.control_period_s
-    validate_trajectory(config.geometry, config.resolved_trajectory(), config.duration_s, dt=dt)
-    t = np.arange(0.0, config.duration_s + 0.5 * dt, dt)
-    x = config.resolved_trajectory().evaluate(t)[0]
-    return kinematics.validate_trajectory(
-        config.geometry, t, x, cond_threshold=config.guard.cond_threshold,
-        min_sigma_min_inv=config.guard.min_sigma_min_inv, raise_refused=True)
+    return validate(config.resolved_trajectory(), config.geometry, config.duration_s,
+                    dt=config.control_period_s, cond_threshold=config.guard.cond_threshold,
+                    min_sigma_min_inv=config.guard.min_sigma_min_inv)
 
 
 class DivergenceGuard:
@@ -185,7 +177,7 @@ class DivergenceGuard:
         self.checks += 1
         cfg = self.config
         if cfg.max_closure_error_m is not None:
-            from .plant import loop_closure_errors
+            from ..model.plant import loop_closure_errors
 
             closure = loop_closure_errors(self.sd.plant, plant_ctx, self.sd.handles)
             leg = int(np.argmax(closure))

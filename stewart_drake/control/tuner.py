@@ -29,16 +29,16 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from .errors import InvalidConfigError, MissingFileError
+from ..errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES
-from .fileio import atomic_write
-from .validation import as_array
+from ..fileio import atomic_write
+from ..checks import as_array
 
 FORMAT_VERSION = 1
 LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]
 OMEGA_MIN, OMEGA_MAX = 10.0 ** LOG10_MIN, 10.0 ** LOG10_MAX
 Z_CLIP = 1e3                                 # |normalized input| cap, in training stds
-DEFAULT_TUNER_PATH = Path(__file__).resolve().parent / "data" / "ann_tuner.npz"
+DEFAULT_TUNER_PATH = Path(__file__).resolve().parents[1] / "data" / "ann_tuner.npz"
 #: The same network trained on the paper's labels (each sample labelled with its run's weights),
 #: shipped for the evaluation's comparison of the two label modes.
 PAPER_LABEL_TUNER_PATH = DEFAULT_TUNER_PATH.with_name("ann_tuner_paper.npz")

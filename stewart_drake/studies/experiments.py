@@ -7,7 +7,6 @@
 from __future__ import annotations
 
 import json
-import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,10 +14,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import Simulator
 
-from . import guard
-from .diagram import StewartConfig, StewartDiagram, make_stewart_diagram
-from .fileio import atomic_write, save_npz
-from .plant import assemble, loop_closure_errors
+from ..fileio import atomic_write, save_npz
+from ..model.plant import assemble, loop_closure_errors
+from ..simulation import guard
+from ..simulation.diagram import StewartConfig, StewartDiagram, make_stewart_diagram
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: Where ``stewart-drake train`` writes the tuner and ``run --tuner ann`` looks first.
@@ -284,217 +283,6 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
     return path
 
 
-def run_cli(args) -> int:
-    """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
-    weights = args.tuner_weights
-    if args.tuner == "ann" and weights is None and DEFAULT_TUNER_OUT.exists():
-        weights = str(DEFAULT_TUNER_OUT)      # what `stewart-drake train` just wrote
-    config = StewartConfig(trajectory=args.trajectory, duration_s=args.duration,
-                           omega_Q=args.omega_q, omega_R=args.omega_r,
-                           controller=getattr(args, "controller", "lqi"),
-                           tuner=None if args.tuner == "none" else args.tuner,
-                           tuner_weights=weights,
-                           guard=guard.GuardConfig(divergence_dir=Path(args.out) / "diverged"))
-    if config.tuner:
-        from .tuner import DEFAULT_TUNER_PATH
-
-        print(f"ANN tuner weights: {weights or DEFAULT_TUNER_PATH}")
-    if getattr(args, "html", None):          # the same run, replayed into a standalone HTML
-        from .visualize import record_html
-
-        result, html = record_html(config, args.html, progress=not args.no_progress)
-        print(f"wrote {html} (Meshcat replay, opens in any browser)")
-    else:
-        result = run_experiment(config, progress=not args.no_progress)
-    out = Path(args.out)
-    stem = (f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
-            + ("_pd" if config.controller == "pd" else ""))
-    npz = save_result(result, out / f"{stem}.npz")
-    png = plot_fig7(result, out / f"{stem}.png")
-    print(format_metrics(result.metrics))
-    print(f"wrote {npz} and {png}")
-    return 0
-
-
 # -- data collection for the ANN tuner (paper section III.D) ------------------------------------
 
-PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 
-
-class SerialRunner:
-    """Runs jobs one after the other in this process (``map`` like the builtin)."""
-
-    n_workers = 1
-
-    def map(self, fn, jobs):
-        return map(fn, jobs)
-
-
-class ProcessRunner:
-    """Runs jobs over local processes; any object with the same ``map`` (a Ray or Dask
-    executor's) can take its place, since jobs and results are plain picklable values."""
-
-    def __init__(self, n_workers: int = 0):
-        self.n_workers = n_workers or os.cpu_count() or 1
-
-    def map(self, fn, jobs):
-        from concurrent.futures import ProcessPoolExecutor
-
-        with ProcessPoolExecutor(max_workers=self.n_workers) as pool:
-            yield from pool.map(fn, jobs)
-
-
-def runner_for_jobs(jobs: int):
-    """The runner for a ``--jobs`` value: 1 runs here (:class:`SerialRunner`), 0 one process per
-    core, N that many processes (:class:`ProcessRunner`)."""
-    return SerialRunner() if jobs == 1 else ProcessRunner(jobs)
-
-
-def run_record(result: RunResult, scales, sample_period_s: float, window: int) -> dict:
-    """A run as a training record: features and normalized cost parts at ``sample_period_s``.
-
-    Returns:
-        dict with omega_Q, omega_R, t (N,), rho (N, 12) (density features over ``window``
-        samples of the 1 kHz log, eqs. 35-36), cost_e (N,) = sum (e_x/s_e)^2 + (e_v/s_v)^2 and
-        cost_u (N,) = sum (T/s_T)^2 (eq. 26 on normalized units, unit weights), metrics.
-    """
-    from .features import density_features_series
-
-    e = result.x[:, :6] - result.x_d[:, :6]
-    e_v = result.x[:, 6:12] - result.x_d[:, 6:12]
-    rho = density_features_series(e, result.T, window=window)
-    cost_e = np.sum((e / np.asarray(scales.pose)) ** 2 + (e_v / np.asarray(scales.rate)) ** 2, 1)
-    cost_u = np.sum((result.T / scales.torque) ** 2, axis=1)
-    step = max(1, int(round(sample_period_s / np.median(np.diff(result.t)))))
-    keep = slice(0, None, step)
-    return {"omega_Q": float(result.config_summary["omega_Q"]),
-            "omega_R": float(result.config_summary["omega_R"]),
-            "t": result.t[keep], "rho": rho[keep], "cost_e": cost_e[keep],
-            "cost_u": cost_u[keep], "metrics": result.metrics}
-
-
-def _collect_job(job: dict) -> dict:
-    config = job["config"]
-    t0 = time.perf_counter()
-    result = run_experiment(config)
-    record = run_record(result, config.scales, job["sample_period_s"], config.feature_window)
-    record["wall_s"] = time.perf_counter() - t0
-    return record
-
-
-def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: float = 10.0,
-            sample_period_s: float = 5e-3, runner=None, progress: bool = True) -> dict:
-    """The paper's 9 closed-loop experiments, (omega_Q, omega_R) in {0.1, 1, 10}^2, on the plant.
-
-    All runs track the same :func:`~.trajectories.data_collection_trajectory` (seeded), so the
-    best-cost labels can compare them window by window. 10 s at 5 ms gives 9 x 2000 = 18000
-    samples (the paper used 14400).
-
-    Args:
-        out_dir: folder for ``run_<i>.npz`` records and ``manifest.json`` (config + metrics).
-        runner: :class:`ProcessRunner` (default, one process per core) or anything with ``map``.
-    Returns:
-        the manifest dict (also written), with ``speedup`` = sum of job times / wall time.
-    """
-    from tqdm import tqdm
-
-    from .trajectories import data_collection_trajectory
-
-    out = Path(out_dir)
-    runner = runner or ProcessRunner()
-    trajectory = data_collection_trajectory(seed, duration_s=duration_s)
-    jobs = [{"config": StewartConfig(trajectory=trajectory, duration_s=duration_s,
-                                     omega_Q=q, omega_R=r),
-             "sample_period_s": sample_period_s}
-            for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS]
-    wall0 = time.perf_counter()
-    records = []
-    for record in tqdm(runner.map(_collect_job, jobs), total=len(jobs), desc="closed-loop runs",
-                       unit="run", disable=not progress):
-        records.append(record)
-    wall = time.perf_counter() - wall0
-    files = []
-    for i, record in enumerate(records):
-        path = out / f"run_{i}.npz"
-        arrays = {k: np.asarray(v) for k, v in record.items() if k not in ("metrics",)}
-        arrays["metrics"] = np.array(json.dumps(record["metrics"]))
-        save_npz(path, arrays)
-        files.append(path.name)
-    job_time = sum(r["wall_s"] for r in records)
-    manifest = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
-                "trajectory": {"amplitude": trajectory.amplitude,
-                               "frequency_hz": trajectory.frequency_hz,
-                               "phase": trajectory.phase},
-                "runs": [{"file": f, "omega_Q": r["omega_Q"], "omega_R": r["omega_R"],
-                          "rms_error": r["metrics"]["rms_error"],
-                          "sum_T2_dt": r["metrics"]["sum_T2_dt"],
-                          "max_closure_m": r["metrics"]["max_closure_m"]}
-                         for f, r in zip(files, records)],
-                "n_samples": int(sum(len(r["t"]) for r in records)),
-                "workers": runner.n_workers, "wall_s": wall, "sum_job_s": job_time,
-                "speedup": job_time / wall if wall > 0 else float("nan")}
-    atomic_write(out / "manifest.json", lambda f: f.write(json.dumps(manifest, indent=2).encode()))
-    return manifest
-
-
-def load_records(data_dir: str | Path) -> list[dict]:
-    """The run records written by :func:`collect` (manifest order).
-
-    Raises:
-        InvalidConfigError: no manifest in ``data_dir`` (run ``stewart-drake collect`` first).
-    """
-    from .errors import InvalidConfigError
-
-    data_dir = Path(data_dir)
-    manifest = data_dir / "manifest.json"
-    if not manifest.exists():
-        raise InvalidConfigError(
-            f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first")
-    records = []
-    for run in json.loads(manifest.read_text())["runs"]:
-        with np.load(data_dir / run["file"]) as data:
-            records.append({k: (float(data[k]) if k in ("omega_Q", "omega_R") else data[k])
-                            for k in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")})
-    return records
-
-
-def collect_cli(args) -> int:
-    runner = runner_for_jobs(args.jobs)
-    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
-                       progress=not args.no_progress)
-    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")
-    for run in manifest["runs"]:
-        rms = run["rms_error"]
-        print(f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
-              f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
-              f"sum T^2 dt {run['sum_T2_dt']:.3g}")
-    print(f"speedup over one process: {manifest['speedup']:.2f} "
-          f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
-          f"{manifest['workers']} workers)")
-    return 0
-
-
-
-def train_cli(args) -> int:
-    from .training import build_dataset, train
-    from .tuner import save_tuner
-
-    records = load_records(args.data)
-    reports = {}
-    for mode in ("paper", "best_cost"):
-        dataset = build_dataset(records, mode=mode)
-        model, report = train(dataset, seed=args.seed,
-                              metadata={"label_mode": mode, "data": str(args.data),
-                                        "feature_window": StewartConfig().feature_window,
-                                        "feature_period_s": StewartConfig().control_period_s})
-        reports[mode] = (model, report)
-        r2 = report["val_r2"]
-        r2_text = ", ".join(f"{k} {v:.3f}" for k, v in r2.items()) if isinstance(r2, dict) else r2
-        print(f"{mode:>9} labels: {dataset.info['n_samples']} samples, val loss "
-              f"{report['val_loss']:.4f} (from {report['val_loss_initial']:.4f}), "
-              f"validation R^2: {r2_text}")
-    model, _ = reports[args.mode]
-    out = Path(args.out)
-    save_tuner(model, out)
-    print(f"wrote {out} (label mode {args.mode})")
-    return 0

@@ -23,12 +23,12 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, Multibody
 from pydrake.systems.framework import Context, DiagramBuilder
 
 from . import kinematics
-from .errors import InvalidConfigError
+from ..errors import InvalidConfigError
 from .geometry import X_HOME, StewartGeometry
 
 MODEL_NAME = "rotary_stewart"
 #: The committed SDF of the reference robot; a test checks it equals :func:`write_sdf` output.
-REFERENCE_SDF = Path(__file__).resolve().parent.parent / "sdf" / "rotary_stewart.sdf"
+REFERENCE_SDF = Path(__file__).resolve().parents[2] / "sdf" / "rotary_stewart.sdf"
 _BASE_THICKNESS = 0.02
 _PLATFORM_THICKNESS = 0.01
 

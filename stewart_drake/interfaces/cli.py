@@ -1,6 +1,7 @@
 """The ``stewart-drake`` command: run the paper's experiment, sweep the workspace, and more.
 
-Each subcommand parses its arguments here and calls one function of the module that owns the idea;
+Each subcommand parses its arguments here and calls the functions of the modules that own the idea
+(imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the Simulator);
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
 exit 2 for bad arguments and StewartError (refused input, a diverged run), 1 for a file that
 cannot be read or written, 130 for Ctrl-C. Output folders are checked for writing before any
@@ -14,7 +15,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .errors import StewartError
+from ..errors import StewartError
 
 
 class _Parser(argparse.ArgumentParser):
@@ -45,7 +46,7 @@ def check_writable(folder: Path) -> None:
     Raises:
         InvalidConfigError: a file stands in the path, or the nearest folder is not writable.
     """
-    from .errors import InvalidConfigError
+    from ..errors import InvalidConfigError
 
     existing = folder.absolute()
     while not existing.exists() and existing.parent != existing:
@@ -71,9 +72,8 @@ def _positive_float(text: str) -> float:
 
 
 def _cmd_sdf(args) -> int:
-    from .plant import REFERENCE_SDF, write_sdf
-
-    from .fileio import atomic_write
+    from ..fileio import atomic_write
+    from ..model.plant import REFERENCE_SDF, write_sdf
 
     out = Path(args.out) if args.out else REFERENCE_SDF
     text = write_sdf().encode()
@@ -82,16 +82,131 @@ def _cmd_sdf(args) -> int:
     return 0
 
 
-def _delegate(module: str, function: str):
-    """A subcommand that imports ``stewart_drake.<module>`` only when it runs, then calls
-    ``<function>(args)``: `stewart-drake sdf` does not pay for torch or the Simulator."""
+def _cmd_run(args) -> int:
+    """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
+    from ..simulation import guard
+    from ..simulation.diagram import StewartConfig
+    from ..studies.experiments import (DEFAULT_TUNER_OUT, format_metrics, plot_fig7, run_experiment,
+                                       save_result)
 
-    def command(args) -> int:
-        import importlib
+    weights = args.tuner_weights
+    if args.tuner == "ann" and weights is None and DEFAULT_TUNER_OUT.exists():
+        weights = str(DEFAULT_TUNER_OUT)      # what `stewart-drake train` just wrote
+    config = StewartConfig(trajectory=args.trajectory, duration_s=args.duration,
+                           omega_Q=args.omega_q, omega_R=args.omega_r,
+                           controller=getattr(args, "controller", "lqi"),
+                           tuner=None if args.tuner == "none" else args.tuner,
+                           tuner_weights=weights,
+                           guard=guard.GuardConfig(divergence_dir=Path(args.out) / "diverged"))
+    if config.tuner:
+        from ..control.tuner import DEFAULT_TUNER_PATH
 
-        return getattr(importlib.import_module(f".{module}", __package__), function)(args)
+        print(f"ANN tuner weights: {weights or DEFAULT_TUNER_PATH}")
+    if getattr(args, "html", None):          # the same run, replayed into a standalone HTML
+        from .visualize import record_html
 
-    return command
+        result, html = record_html(config, args.html, progress=not args.no_progress)
+        print(f"wrote {html} (Meshcat replay, opens in any browser)")
+    else:
+        result = run_experiment(config, progress=not args.no_progress)
+    out = Path(args.out)
+    stem = (f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
+            + ("_pd" if config.controller == "pd" else ""))
+    npz = save_result(result, out / f"{stem}.npz")
+    png = plot_fig7(result, out / f"{stem}.png")
+    print(format_metrics(result.metrics))
+    print(f"wrote {npz} and {png}")
+    return 0
+
+
+def _cmd_collect(args) -> int:
+    """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
+    from ..studies.collection import collect
+    from ..studies.runners import runner_for_jobs
+
+    runner = runner_for_jobs(args.jobs)
+    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
+                       progress=not args.no_progress)
+    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")
+    for run in manifest["runs"]:
+        rms = run["rms_error"]
+        print(f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
+              f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
+              f"sum T^2 dt {run['sum_T2_dt']:.3g}")
+    print(f"speedup over one process: {manifest['speedup']:.2f} "
+          f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
+          f"{manifest['workers']} workers)")
+    return 0
+
+
+def _cmd_train(args) -> int:
+    """``stewart-drake train``: fit the tuner in both label modes, save one."""
+    from ..control.tuner import save_tuner
+    from ..simulation.diagram import StewartConfig
+    from ..studies.collection import load_records
+    from ..studies.training import build_dataset, train
+
+    records = load_records(args.data)
+    reports = {}
+    for mode in ("paper", "best_cost"):
+        dataset = build_dataset(records, mode=mode)
+        model, report = train(dataset, seed=args.seed,
+                              metadata={"label_mode": mode, "data": str(args.data),
+                                        "feature_window": StewartConfig().feature_window,
+                                        "feature_period_s": StewartConfig().control_period_s})
+        reports[mode] = (model, report)
+        r2 = report["val_r2"]
+        r2_text = ", ".join(f"{k} {v:.3f}" for k, v in r2.items()) if isinstance(r2, dict) else r2
+        print(f"{mode:>9} labels: {dataset.info['n_samples']} samples, val loss "
+              f"{report['val_loss']:.4f} (from {report['val_loss_initial']:.4f}), "
+              f"validation R^2: {r2_text}")
+    model, _ = reports[args.mode]
+    out = Path(args.out)
+    save_tuner(model, out)
+    print(f"wrote {out} (label mode {args.mode})")
+    return 0
+
+
+def _cmd_evaluate(args) -> int:
+    """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
+    from ..studies.evaluation import CONTROLLERS, evaluate
+    from ..studies.runners import runner_for_jobs
+
+    controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
+    runner = runner_for_jobs(args.jobs)
+    report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
+                      quick=args.quick, controllers=controllers)
+    failed = sum("error" in r for r in report["rows"])
+    print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
+    for ann, v in report["verdict"].items():
+        b = v["best_fixed"]
+        print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
+              + (f"best fixed LQI at no more effort {b['case']['controller']} "
+                 f"{b['normalized_rms']:.3g} -> {'beats' if v['beats'] else 'does not beat'} it"
+                 if b else "no fixed LQI at that effort"))
+    print("wrote " + ", ".join(str(p) for p in report["paths"]))
+    return 0
+
+
+def _cmd_workspace(args) -> int:
+    """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV."""
+    from ..studies.workspace import write_workspace
+
+    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress)
+    for name, value, unit in rows[:9]:
+        print(f"{name} {value} {unit}")
+    print(f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
+          f"summary.csv, tilt_vs_height.csv")
+    return 0
+
+
+def _cmd_diagrams(args) -> int:
+    """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
+    from .visualize import DIAGRAMS_DIR, write_diagrams
+
+    for path in write_diagrams(args.out or DIAGRAMS_DIR, render=not args.dot_only):
+        print(f"wrote {path}")
+    return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -117,7 +232,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
-    run.set_defaults(func=_delegate("experiments", "run_cli"))
+    run.set_defaults(func=_cmd_run)
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     col.add_argument("--out", default="results/collect", help="output folder")
@@ -126,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--jobs", type=_int_at_least(0), default=0,
                      help="processes (0: one per core)")
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    col.set_defaults(func=_delegate("experiments", "collect_cli"))
+    col.set_defaults(func=_cmd_collect)
 
     tr = sub.add_parser("train", help="train the ANN tuner on collected runs")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
@@ -135,7 +250,7 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--seed", type=_int_at_least(0), default=0,
                     help="split and initialization seed (0)")
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
-    tr.set_defaults(func=_delegate("experiments", "train_cli"), out_is_file=True)
+    tr.set_defaults(func=_cmd_train, out_is_file=True)
 
     ev = sub.add_parser("evaluate", help="every controller on every scenario: docs/results.md")
     ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
@@ -146,7 +261,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--quick", action="store_true",
                     help="1-2 s runs: a smoke test of the pipeline, not figures to quote")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    ev.set_defaults(func=_delegate("evaluation", "evaluate_cli"))
+    ev.set_defaults(func=_cmd_evaluate)
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")
@@ -155,12 +270,12 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--jobs", type=_int_at_least(0), default=0,
                     help="processes (0: one per core)")
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    ws.set_defaults(func=_delegate("workspace", "workspace_cli"))
+    ws.set_defaults(func=_cmd_workspace)
 
     dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
     dg.add_argument("--out", default=None, help="folder (default: the repo's diagrams/)")
     dg.add_argument("--dot-only", action="store_true", help="write the .dot sources only")
-    dg.set_defaults(func=_delegate("visualize", "diagrams_cli"))
+    dg.set_defaults(func=_cmd_diagrams)
 
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
     sdf.add_argument("--out", default=None, help="file to write instead")

@@ -1,0 +1,362 @@
+"""Joint limits, nearness to singularity, and the one validator of a reference path.
+
+Per leg: loop closure (|L|/sqrt(M^2+N^2) <= 1), motor travel, and the two ball-joint cones
+(fields of :class:`~stewart_drake.model.geometry.StewartGeometry`); per pose: cond(J) and
+1/sigma_max(J) (:func:`~.kinematics.singularity_measures`). :func:`validate_trajectory` is the
+only check of a sampled reference: every entry point (the run, the collection, the CLI) calls it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..checks import as_array, as_number, as_poses
+from ..errors import InvalidConfigError, JointLimitError, SingularPoseError, UnreachablePoseError
+from .kinematics import (X_HOME, _wrap, ik, ik_unchecked, platform_joints, rotation_rpy,
+                         singularity_measures)
+
+#: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
+#: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
+#: reachable poses of the tests are drawn below 200.
+DEFAULT_COND_THRESHOLD = 200.0
+
+#: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
+#: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
+#: with the crank-tip velocity's normal plane): there the motors cannot *move* the platform along
+#: the matching direction, the edge of the workspace. cond(J) misses it when all six legs reach
+#: the dead point together (pure heave: cond 26 at Z = 0.20 m, 30 at Z = 0.41 m), so this second
+#: measure is checked too. cond(J) -> inf with sigma_max bounded is the other singularity, where
+#: sigma_min(J) -> 0 and the motors cannot *hold* the platform against some wrench (T = J^{-T} w).
+#: Reference robot: 0.044 at home, 0.021 at least along the paper manoeuvre (2x margin), 0.041
+#: along the data-collection excitation; 0.011 at Z = 0.20 m and 0.019 at Z = 0.41 m in heave.
+DEFAULT_MIN_SIGMA_MIN_INV = 0.01
+
+#: Names of the per-leg limits, in the order reports list them. Margins are >= 0 inside a limit:
+#: ``closure`` 1 - |L|/sqrt(M^2+N^2) (dimensionless); the others in rad.
+LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
+
+
+
+@lru_cache(maxsize=32)
+def _home_rod_in_platform(geometry: "StewartGeometry") -> np.ndarray:
+    """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
+    theta = ik(geometry, X_HOME)
+    q_B, _ = platform_joints(geometry, X_HOME)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    return e_l @ rotation_rpy(X_HOME[:3])            # R^T e_l, row-wise
+
+
+
+def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
+    """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
+
+    Returns a dict:
+        ``motor_angle``: theta_i wrapped to [-pi, pi).
+        ``crank_joint``: misalignment of the rod end at the crank tip, asin |e_l . u_i|. The rod
+            end's bolt is parallel to the motor shaft u_i, so the rod turns freely in the crank's
+            plane of rotation and this angle is its tilt out of that plane (19.4 deg at home).
+        ``platform_joint``: angle between the rod and the axis of its ball socket on the
+            platform; each socket is mounted along its rod's home direction (0 at home).
+    NaN where a leg cannot close.
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    q_B, _ = platform_joints(geometry, x)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    R = rotation_rpy(x[..., :3])
+    e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
+    cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
+    return {
+        "motor_angle": _wrap(theta),
+        "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
+        "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
+    }
+
+
+
+def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+    """Distance of pose(s) x to every per-leg limit; >= 0 inside, < 0 violated, NaN if no closure.
+
+    Args:
+        x: (6,) or (..., 6) poses [rad, m].
+        theta, ratio: optional outputs of :func:`ik_unchecked` for x (saves one IK).
+    Returns:
+        dict name -> (..., 6) for the names of :data:`LIMITS`:
+        ``closure`` = 1 - |L|/sqrt(M^2+N^2) (dimensionless, < 0: the leg cannot close);
+        ``motor_angle`` = distance of theta_i to [motor_angle_min_deg, motor_angle_max_deg], rad;
+        ``crank_joint`` = crank_joint_cone_deg - misalignment, rad;
+        ``platform_joint`` = platform_joint_cone_deg - socket angle, rad
+        (angles of :func:`joint_angles`; limits are fields of :class:`StewartGeometry`).
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None or ratio is None:
+        theta, ratio = ik_unchecked(geometry, x)
+    angles = joint_angles(geometry, x, theta)
+    lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
+    m = angles["motor_angle"]
+    return {
+        "closure": 1.0 - np.abs(ratio),
+        "motor_angle": np.minimum(m - lo, hi - m),
+        "crank_joint": np.deg2rad(geometry.crank_joint_cone_deg) - angles["crank_joint"],
+        "platform_joint": np.deg2rad(geometry.platform_joint_cone_deg) - angles["platform_joint"],
+    }
+
+
+
+def _reachable_from_margins(margins: dict) -> np.ndarray:
+    ok = None
+    for name in LIMITS:
+        leg_ok = np.all(margins[name] >= 0.0, axis=-1)     # NaN counts as violated
+        ok = leg_ok if ok is None else ok & leg_ok
+    return ok
+
+
+
+@dataclass(frozen=True)
+class LimitViolation:
+    """One leg outside one limit.
+
+    Attributes:
+        leg: 0..5, reference_geometry.md order.
+        limit: a name of :data:`LIMITS`.
+        margin: < 0, in the limit's unit (rad; dimensionless for ``closure``).
+        t: time along a trajectory in s, or None.
+    """
+
+    leg: int
+    limit: str
+    margin: float
+    t: float | None = None
+
+    def __str__(self) -> str:
+        where = "" if self.t is None else f" at t = {self.t:.4g} s"
+        amount = (f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)" if self.limit == "closure"
+                  else f"{np.rad2deg(-self.margin):.3g} deg")
+        return f"leg {self.leg} exceeds its {self.limit} limit by {amount}{where}"
+
+
+
+@dataclass(frozen=True)
+class Reachability:
+    """Result of :func:`is_reachable`; truthy iff every pose is reachable.
+
+    Attributes:
+        reachable: (...) bool, every leg inside every limit of :data:`LIMITS`.
+        margins: dict name -> (..., 6), see :func:`limit_margins`.
+        theta: (..., 6) motor angles in rad (NaN where a leg cannot close).
+    """
+
+    reachable: np.ndarray
+    margins: dict
+    theta: np.ndarray
+
+    def __bool__(self) -> bool:
+        return bool(np.all(self.reachable))
+
+    def violations(self, index: int = 0) -> list:
+        """Violated limits of pose ``index`` of the flattened batch, worst first.
+
+        Returns:
+            list of :class:`LimitViolation`; only ``closure`` for a leg that cannot close.
+        """
+        out = []
+        for name in LIMITS:
+            m = np.asarray(self.margins[name], dtype=float).reshape(-1, 6)[index]
+            for leg in range(6):
+                if name != "closure" and not np.isfinite(m[leg]):
+                    continue                          # the leg does not close: reported above
+                if not m[leg] >= 0.0:
+                    out.append(LimitViolation(leg, name, float(m[leg])))
+        return sorted(out, key=lambda v: v.margin)
+
+
+
+def is_reachable(geometry: "StewartGeometry", x) -> Reachability:
+    """Check pose(s) x against loop closure, motor range and ball-joint cones, before a move.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        x: (6,) or (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
+    Returns:
+        :class:`Reachability`: ``bool(result)``, per-pose ``reachable``, per-leg ``margins`` and
+        ``violations()`` naming the leg, the limit and by how much.
+    Raises:
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
+    """
+    x = as_poses("pose x", x)
+    theta, ratio = ik_unchecked(geometry, x)
+    margins = limit_margins(geometry, x, theta, ratio)
+    return Reachability(_reachable_from_margins(margins), margins, theta)
+
+
+
+@dataclass(frozen=True)
+class TrajectoryReport:
+    """Result of :func:`validate_trajectory`.
+
+    Attributes:
+        ok: every sample inside every limit and below the condition-number threshold.
+        min_margin: limit name -> smallest margin over samples and legs (rad; 1 for closure).
+        min_margin_leg, min_margin_t: limit name -> leg and time (s) of that smallest margin.
+        first_violation: the earliest :class:`LimitViolation` (worst leg at that time) or None.
+        max_cond, max_cond_t: largest cond(J) along the path and its time (s).
+        first_singular_t: first time (s) with cond(J) > cond_threshold, or None.
+        min_sigma_min_inv: smallest 1/sigma_max(J) along the path ((rad or m) per rad).
+        cond_threshold: the threshold used.
+        min_sigma_min_inv_t: time (s) of ``min_sigma_min_inv``.
+        first_weak_t: first time (s) with 1/sigma_max(J) < sigma_min_inv_threshold, or None.
+        sigma_min_inv_threshold: the threshold used ((rad or m) per rad).
+    """
+
+    ok: bool
+    min_margin: dict
+    min_margin_leg: dict
+    min_margin_t: dict
+    first_violation: LimitViolation | None
+    max_cond: float
+    max_cond_t: float
+    first_singular_t: float | None
+    min_sigma_min_inv: float
+    cond_threshold: float
+    min_sigma_min_inv_t: float = float("nan")
+    first_weak_t: float | None = None
+    sigma_min_inv_threshold: float = 0.0
+
+    def summary(self) -> str:
+        """Human-readable lines: verdict, each limit's smallest margin, singularity."""
+        lines = [("OK" if self.ok else "REFUSED") + ": trajectory validated"]
+        for name in LIMITS:
+            m = self.min_margin[name]
+            unit = f"{m:.4g}" if name == "closure" else f"{np.rad2deg(m):.4g} deg"
+            lines.append(f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
+                         f"t = {self.min_margin_t[name]:.4g} s)")
+        lines.append(f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
+                     f"(threshold {self.cond_threshold:g})")
+        lines.append(f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
+                     f"t = {self.min_sigma_min_inv_t:.4g} s "
+                     f"(threshold {self.sigma_min_inv_threshold:g})")
+        if self.first_singular_t is not None:
+            lines.append(f"  closer to singularity than the threshold first at "
+                         f"t = {self.first_singular_t:.4g} s")
+        if self.first_weak_t is not None:
+            lines.append(f"  1/sigma_max(J) below its threshold first at "
+                         f"t = {self.first_weak_t:.4g} s")
+        if self.first_violation is not None:
+            lines.append(f"  first violation: {self.first_violation}")
+        return "\n".join(lines)
+
+
+
+def validate_trajectory(geometry: "StewartGeometry", t, x,
+                        cond_threshold: float = DEFAULT_COND_THRESHOLD,
+                        raise_unreachable: bool = True,
+                        min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
+                        raise_refused: bool = False, x_dot=None,
+                        x_ddot=None) -> TrajectoryReport:
+    """Validate a sampled path before running it: limits, margins and nearness to singularity.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        t: (n,) sample times in s, increasing.
+        x: (n, 6) poses [phi, theta, psi, X, Y, Z] in rad and m. Only the samples are checked:
+            sample finer than the shortest feature of the path.
+        cond_threshold: cond(J) above this counts as too close to a singularity (> 1).
+        raise_unreachable: raise on a leg that cannot close (else report it as ``closure``).
+        min_sigma_min_inv: 1/sigma_max(J) below this ((rad or m) per rad, >= 0) counts as too
+            close to a dead point (see :data:`DEFAULT_MIN_SIGMA_MIN_INV`).
+        raise_refused: raise on the first refused sample (what a run needs) instead of only
+            reporting it.
+        x_dot, x_ddot: optional (n, 6) rates and accelerations of the path; checked finite.
+    Returns:
+        :class:`TrajectoryReport` (``summary()`` prints it).
+    Raises:
+        UnreachablePoseError: with ``raise_unreachable``, naming the first time, its worst leg
+            and ratio.
+        JointLimitError: with ``raise_refused``, the first time a leg leaves a joint limit.
+        SingularPoseError: with ``raise_refused``, the first time cond(J) > cond_threshold or
+            1/sigma_max(J) < min_sigma_min_inv, naming the measure (whichever comes first).
+        InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
+            pose, rate or acceleration is named with its time), t not increasing, or a
+            threshold out of range.
+    Source: the one validator of a reference: :func:`~stewart_drake.simulation.trajectories.validate`
+        samples a trajectory object and calls it; every run does, before anything is simulated.
+    """
+    t = as_array("sample times t", t).reshape(-1)
+    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
+        arr = None if arr is None else np.asarray(arr, dtype=float)
+        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
+            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
+    x = as_poses("poses x", x)
+    cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
+    min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
+    if x.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+                                 f"t {t.shape} and x {x.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
+    theta, ratio = ik_unchecked(geometry, x)
+    closed = np.abs(ratio) <= 1.0
+    if raise_unreachable and not np.all(closed):
+        k = int(np.argmax(~np.all(closed, axis=1)))
+        leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
+        raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
+    margins = limit_margins(geometry, x, theta, ratio)
+    cond, inv = singularity_measures(geometry, x, theta)
+    min_margin, min_leg, min_t = {}, {}, {}
+    first = None
+    for name in LIMITS:
+        m = np.where(np.isnan(margins[name]), -np.inf, margins[name])
+        k, leg = np.unravel_index(int(np.argmin(m)), m.shape)
+        min_margin[name], min_leg[name], min_t[name] = float(m[k, leg]), int(leg), float(t[k])
+        bad = np.any(m < 0, axis=1)
+        if np.any(bad):
+            kb = int(np.argmax(bad))
+            if first is None or t[kb] < first.t:
+                lb = int(np.argmin(m[kb]))
+                first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
+    cond_f = np.where(np.isnan(cond), np.inf, cond)
+    inv_f = np.where(np.isnan(inv), 0.0, inv)
+    over = cond_f > cond_threshold
+    weak = inv_f < min_sigma_min_inv
+    kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
+    report = TrajectoryReport(
+        ok=first is None and not np.any(over) and not np.any(weak), min_margin=min_margin,
+        min_margin_leg=min_leg, min_margin_t=min_t, first_violation=first,
+        max_cond=float(cond_f[kc]), max_cond_t=float(t[kc]),
+        first_singular_t=float(t[int(np.argmax(over))]) if np.any(over) else None,
+        min_sigma_min_inv=float(inv_f[ki]), cond_threshold=float(cond_threshold),
+        min_sigma_min_inv_t=float(t[ki]),
+        first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
+        sigma_min_inv_threshold=float(min_sigma_min_inv))
+    if raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f)
+    return report
+
+
+
+def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv):
+    """Raise the typed error of the earliest refused sample of a validated path."""
+    candidates = []
+    v = report.first_violation
+    if v is not None:
+        k = int(np.searchsorted(t, v.t))
+        error = (UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k]) if v.limit == "closure"
+                 else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k]))
+        candidates.append((v.t, 0, error))
+    if report.first_singular_t is not None:
+        k = int(np.searchsorted(t, report.first_singular_t))
+        candidates.append((t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold,
+                                                      t[k], x[k])))
+    if report.first_weak_t is not None:
+        k = int(np.searchsorted(t, report.first_weak_t))
+        candidates.append((t[k], 2, SingularPoseError(
+            "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k])))
+    raise min(candidates, key=lambda c: c[:2])[2]
+

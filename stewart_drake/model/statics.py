@@ -1,0 +1,137 @@
+"""Statics and inertia of the closed chain: gravity by virtual work, holding torques, task inertia.
+
+Drake's tree quantities (``CalcMassMatrix``, gravity generalized forces) ignore the six loop
+constraints, so the closed chain's torques come from virtual work through the Jacobian
+J = d theta / d x (:func:`~.kinematics.jacobian`): T . d theta = w . d x, w = J^T T.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidConfigError, SingularPoseError
+from .kinematics import (X_HOME, _checked, _finite_or_singular, _jacobian, _leg_terms, _skew,
+                         ik, jacobian, rotation_rpy)
+from .limits import DEFAULT_COND_THRESHOLD
+
+#: Feed-forward modes of :func:`feedforward_torques`.
+FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
+
+
+def gravity_gradient(geometry: "StewartGeometry", x, theta=None, J=None) -> np.ndarray:
+    """dV/dx of the potential energy of platform, cranks and rods, (..., 6) in N m/rad and N.
+
+    V = g [m_p Z + sum_i (m_c z_crank,i + m_r z_rod,i)], COMs at the geometric centres: the
+    crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
+    Pass theta and J (the Jacobian at x) when already computed, to save work.
+    """
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    J = _jacobian(geometry, x, theta) if J is None else J
+    g = geometry.gravity
+    a = geometry.crank_length
+    dtheta_coeff = g * a * np.cos(theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
+    grad = np.einsum("...i,...ij->...j", dtheta_coeff, J)
+    grad = grad + 0.5 * geometry.rod_mass * g * np.sum(Gq[..., 2, :], axis=-2)
+    grad[..., 5] += geometry.platform_mass * g
+    return grad
+
+
+
+def holding_torques(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+    """Static motor torques that hold pose x against gravity, (..., 6) in N m.
+
+    Solves J^T T = dV/dx (virtual work through the Jacobian; Drake's tree gravity term ignores the
+    loop constraints). Includes the weight of the cranks and rods, not only the platform's.
+    Args:
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        (..., 6) finite torques, N m.
+    Raises:
+        UnreachablePoseError: if x is unreachable.
+        SingularPoseError: J^T is singular (no torques hold the pose) or J is unbounded.
+        InvalidConfigError: x or theta not (..., 6) or not finite.
+    """
+    x, theta = _checked(geometry, x, theta)
+    J = jacobian(geometry, x, theta)
+    grad = gravity_gradient(geometry, x, theta, J)
+    try:
+        T = np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        cond = np.linalg.cond(J.reshape(-1, 6, 6))
+        k = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
+        raise SingularPoseError("cond", np.inf, DEFAULT_COND_THRESHOLD,
+                                pose=x.reshape(-1, 6)[k]) from None
+    return _finite_or_singular("T", T, x)
+
+
+
+def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+    """Task-space mass matrix M_x(x) of the whole closed chain, (..., 6, 6), SI units.
+
+    Kinetic energy T = 1/2 x_dot^T M_x x_dot of the platform (in rpy coordinates), the cranks
+    (about their shafts) and the rods (COM translation + rotation about axes normal to the rod;
+    the rods' free spin carries no energy coupling). Exact for the reduced model; Coriolis terms
+    are not included.
+    """
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    J = _jacobian(geometry, x, theta)
+    a, s = geometry.crank_length, geometry.rod_length
+    x = np.asarray(x, dtype=float)
+    R = rotation_rpy(x[..., :3])
+    I_E = np.diag(geometry.platform_inertia)
+    I_B = R @ I_E @ np.swapaxes(R, -1, -2)
+    M = np.zeros(x.shape[:-1] + (6, 6))
+    M[..., :3, :3] = np.swapaxes(E, -1, -2) @ I_B @ E
+    M[..., 3:, 3:] = geometry.platform_mass * np.eye(3)
+    # Cranks: principal axis y is the shaft (x along the crank, z up at theta = 0).
+    I_shaft = geometry.crank_inertia[1] + geometry.crank_mass * (0.5 * a) ** 2
+    M = M + I_shaft * np.einsum("...ij,...ik->...jk", J, J)
+    # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint.
+    V_tip = a * e_N[..., :, None] * J[..., :, None, :]
+    V_com = 0.5 * (V_tip + Gq)
+    W = np.einsum("...ijk,...ikl->...ijl", _skew(ell), Gq - V_tip) / (s * s)  # rod w, normal part
+    M = M + geometry.rod_mass * np.einsum("...ijk,...ijl->...kl", V_com, V_com)
+    M = M + geometry.rod_inertia[0] * np.einsum("...ijk,...ijl->...kl", W, W)
+    return M
+
+
+def crank_inertia_matrix(geometry: "StewartGeometry", x=X_HOME) -> np.ndarray:
+    """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
+    theta = ik(geometry, x)
+    J_inv = np.linalg.inv(jacobian(geometry, x, theta))
+    return J_inv.T @ task_inertia(geometry, x, theta) @ J_inv
+
+
+
+def feedforward_torques(geometry: "StewartGeometry", x_d, xdd_d=None,
+                        mode: str = "gravity", theta=None) -> np.ndarray:
+    """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
+
+    Args:
+        geometry: the robot the controller believes in (a payload it does not know is not here).
+        x_d: (..., 6) reference pose [rad, m].
+        xdd_d: (..., 6) reference acceleration [rad/s^2, m/s^2]; used by "inverse_dynamics".
+        mode: "gravity": J^-T dV/dx, the static virtual-work torques of platform, cranks and rods
+            (paper eq. 19's disturbance d, cancelled); "inverse_dynamics": also J^-T M_x(x_d)
+            xdd_d (no Coriolis terms); "none": zeros.
+        theta: (..., 6) motor angles of x_d when already known (IK is then skipped).
+    Raises:
+        InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
+    Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
+    """
+    if mode not in FEEDFORWARD_MODES:
+        raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got {mode!r}")
+    x_d = np.asarray(x_d, dtype=float)
+    if mode == "none":
+        return np.zeros(x_d.shape)
+    theta = ik(geometry, x_d) if theta is None else theta
+    J = jacobian(geometry, x_d, theta)
+    w = gravity_gradient(geometry, x_d, theta, J)
+    if mode == "inverse_dynamics":
+        if xdd_d is None:
+            raise InvalidConfigError("feedforward 'inverse_dynamics' needs the reference "
+                                     "acceleration xdd_d")
+        M = task_inertia(geometry, x_d, theta)
+        w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
+    return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
+

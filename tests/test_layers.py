@@ -1,0 +1,88 @@
+"""The package's imports flow one way: base -> model -> control -> simulation -> studies ->
+interfaces. Every import is counted (module level, inside functions, under TYPE_CHECKING)."""
+
+import ast
+import pathlib
+
+import pytest
+
+PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake"
+#: Rank of each layer; a module may import its own layer or a lower one, never a higher one.
+LAYERS = {"base": 0, "model": 1, "control": 2, "simulation": 3, "studies": 4, "interfaces": 5}
+
+
+def _module_name(path: pathlib.Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _layer(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in LAYERS) else "base"
+
+
+def import_graph() -> dict:
+    """{module: {imported stewart_drake modules}} from the source files' ASTs."""
+    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    graph = {}
+    for name, path in modules.items():
+        package = name if path.name == "__init__.py" else name.rsplit(".", 1)[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    root = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    root = node.module or ""
+                candidates = [f"{root}.{a.name}" for a in node.names] + [root]
+            elif isinstance(node, ast.Import):
+                candidates = [a.name for a in node.names]
+            else:
+                continue
+            targets |= {c for c in candidates if c in modules and c != name}
+        graph[name] = targets
+    return graph
+
+
+def test_no_import_goes_up_a_layer():
+    upward = []
+    for module, targets in import_graph().items():
+        if module == "stewart_drake":              # the package facade re-exports base and model
+            assert all(LAYERS[_layer(t)] <= LAYERS["model"] for t in targets), targets
+            continue
+        for target in targets:
+            if LAYERS[_layer(target)] > LAYERS[_layer(module)]:
+                upward.append(f"{module} ({_layer(module)}) imports {target} ({_layer(target)})")
+    assert not upward, "imports against the layers:\n" + "\n".join(sorted(upward))
+
+
+def test_no_import_circle():
+    graph = import_graph()
+    state, circles = {}, []
+
+    def visit(node, path):
+        state[node] = "open"
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == "open":
+                circles.append(path[path.index(nxt):] + [nxt])
+            elif nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = "done"
+
+    for node in sorted(graph):
+        if node not in state:
+            visit(node, [node])
+    assert not circles, "import circles: " + "; ".join(" -> ".join(c) for c in circles)
+
+
+def test_the_walker_sees_local_and_relative_imports():
+    """The test would pass vacuously if the walker missed imports: check known edges."""
+    graph = import_graph()
+    assert "stewart_drake.model.kinematics" in graph["stewart_drake.model.geometry"]
+    assert "stewart_drake.errors" in graph["stewart_drake.model.kinematics"]
+    assert "stewart_drake.studies.experiments" in graph["stewart_drake.interfaces.cli"]  # local
+    assert _layer("stewart_drake.checks") == "base"
+    assert _layer("stewart_drake.control.lqi") == "control"
+    with pytest.raises(KeyError):
+        LAYERS[_layer("stewart_drake.nowhere.x")]
