@@ -128,6 +128,10 @@ class MissingFileError(StewartError, FileNotFoundError):
     """An input file (tuner weights, collected runs) that does not exist; says what makes it."""
 
 
+class MissingExtraError(StewartError, ImportError):
+    """An optional dependency (an extra of the package) is not installed; says which to install."""
+
+
 def _locate(error: StewartError, t: float | None, pose) -> str:
     """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return " at t = ... (pose ...)"."""
     error.t = None if t is None else float(t)

@@ -5,7 +5,8 @@ import pytest
 
 from stewart_drake.model import statics
 from stewart_drake.interfaces.cli import main
-from stewart_drake.simulation.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.simulation.diagram import make_stewart_diagram
+from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.errors import UnreachablePoseError
 from stewart_drake.studies.experiments import load_result, run_experiment
 from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
@@ -13,7 +14,7 @@ from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvr
 
 @pytest.fixture(scope="module")
 def paper_run():
-    return run_experiment(StewartConfig())
+    return run_experiment(Scenario())
 
 
 def test_paper_manoeuvre_meets_tracking_bounds(paper_run):
@@ -47,15 +48,16 @@ def test_unreachable_reference_is_rejected_before_simulating():
     too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 0.25),
                               name="too_high")
     with pytest.raises(UnreachablePoseError) as err:
-        run_experiment(StewartConfig(trajectory=too_high, duration_s=5.0))
+        run_experiment(Scenario(duration_s=5.0), reference=too_high)
     assert err.value.t is not None and 0 < err.value.t < 1.0
     assert "leg" in str(err.value) and "t = " in str(err.value)
 
 
 def test_diagram_has_the_pieces_and_a_discrete_plant():
-    sd = make_stewart_diagram(StewartConfig(duration_s=0.1))
+    sd = make_stewart_diagram(Scenario(duration_s=0.1))
     names = {s.get_name() for s in sd.diagram.GetSystems()}
-    assert {"plant", "reference", "sensor", "lqi", "omega"} <= names
+    assert {"station", "reference", "feedforward", "controller", "omega"} <= names
+    assert {s.get_name() for s in sd.station.GetSystems()} >= {"plant", "platform_sensor"}
     assert sd.plant.time_step() > 0 and sd.plant.num_constraints() == 6
 
 

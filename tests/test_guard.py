@@ -9,11 +9,10 @@ from stewart_drake.simulation import guard
 from stewart_drake.model import kinematics
 from stewart_drake.model import limits
 from stewart_drake.control.lqi import LqiController
-from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.simulation.scenario import GuardConfig, Robot, Scenario
 from stewart_drake.errors import (JointLimitError, SimulationDivergedError, SingularPoseError, StewartError, UnreachablePoseError)
 from stewart_drake.studies.experiments import build_simulator, run_experiment
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.guard import GuardConfig
 from stewart_drake.model.plant import assemble
 from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 
@@ -22,8 +21,8 @@ HEAVE_TO_DEAD_POINT = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.117),
 
 
 def _config(tmp_path, duration_s=0.3, **guard_fields):
-    return StewartConfig(duration_s=duration_s,
-                         guard=GuardConfig(divergence_dir=tmp_path / "diverged", **guard_fields))
+    return Scenario(duration_s=duration_s,
+                    guard=GuardConfig(divergence_dir=str(tmp_path / "diverged"), **guard_fields))
 
 
 def _load(path):
@@ -36,7 +35,8 @@ def _check_saved(err, tmp_path, t_fault):
     assert err.path is not None and str(tmp_path / "diverged") in err.path
     assert err.path in str(err)
     saved = _load(err.path)
-    for key in ("t", "x", "T", "status", "state", "state_last", "t_last", "reason", "config"):
+    for key in ("t", "x", "T", "status", "state", "state_last", "t_last", "reason", "scenario",
+                "T_applied_last", "integral"):
         assert key in saved, key
     t = saved["t"]
     assert saved["x"].shape == (t.size, 12) and saved["T"].shape == (t.size, 6)
@@ -47,7 +47,7 @@ def _check_saved(err, tmp_path, t_fault):
     assert t.size >= int(t_fault / 1e-3)                  # nothing before the fault is lost
     assert saved["state_last"].shape == saved["state"].shape[1:]
     assert str(saved["reason"]) in str(err)
-    assert json.loads(str(saved["config"]))["trajectory"] == "paper"
+    assert "name: paper" in str(saved["scenario"]) and "controller:" in str(saved["scenario"])
     return saved
 
 
@@ -158,12 +158,13 @@ def test_guard_checks_closure_and_tracking_at_its_period(tmp_path):
 # -- the reference, before anything is simulated --------------------------------------------------
 
 def test_reference_beyond_the_motor_range_names_time_leg_and_limit():
-    config = StewartConfig(geometry=StewartGeometry(motor_angle_min_deg=-60.0), duration_s=10.0)
+    config = Scenario(robot=Robot.from_value(StewartGeometry(motor_angle_min_deg=-60.0)),
+                      duration_s=10.0)
     with pytest.raises(JointLimitError, match=r"leg \d leaves its motor_angle limit") as info:
         guard.check_reference(config)
     err = info.value
     t = np.arange(0.0, 10.0005, 1e-3)
-    theta = kinematics.ik(config.geometry, paper_manoeuvre().evaluate(t)[0])
+    theta = kinematics.ik(config.geometry(), paper_manoeuvre().evaluate(t)[0])
     first = int(np.argmax(np.any(np.rad2deg(theta) < -60.0, axis=1)))
     assert err.t == pytest.approx(t[first])
     assert np.rad2deg(theta[first, err.leg]) < -60.0
@@ -173,36 +174,36 @@ def test_reference_beyond_the_motor_range_names_time_leg_and_limit():
 
 def test_heave_to_the_dead_point_is_refused_although_cond_is_moderate():
     """The known gap of cond(J): all six legs reach the dead point together."""
-    config = StewartConfig(trajectory=HEAVE_TO_DEAD_POINT, duration_s=2.0)
+    config = Scenario(duration_s=2.0)
     t = np.arange(0.0, 2.0005, 1e-3)
     x = HEAVE_TO_DEAD_POINT.evaluate(t)[0]
-    cond, inv = kinematics.singularity_measures(config.geometry, x)
-    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(config.geometry, x)).max() < 1
+    cond, inv = kinematics.singularity_measures(config.geometry(), x)
+    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(config.geometry(), x)).max() < 1
     with pytest.raises(SingularPoseError, match=r"1/sigma_max\(J\) = 0.00\d+ < 0.01") as info:
-        guard.check_reference(config)
+        guard.check_reference(config, HEAVE_TO_DEAD_POINT)
     first = int(np.argmax(inv < limits.DEFAULT_MIN_SIGMA_MIN_INV))
     assert info.value.measure == "sigma_min_inv" and info.value.t == pytest.approx(t[first])
     assert info.value.pose[5] > 0.415
     # Without the second measure the path passes: that is the gap it closes.
-    report = limits.validate_trajectory(config.geometry, t, x, min_sigma_min_inv=0.0)
+    report = limits.validate_trajectory(config.geometry(), t, x, min_sigma_min_inv=0.0)
     assert report.ok
 
 
 def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
-    config = StewartConfig(duration_s=10.0, guard=GuardConfig(cond_threshold=60.0))
+    config = Scenario(duration_s=10.0, guard=GuardConfig(cond_threshold=60.0))
     with pytest.raises(SingularPoseError, match=r"cond\(J\) = 60.\d+ > 60") as info:
         guard.check_reference(config)
     t = np.arange(0.0, 10.0005, 1e-3)
-    cond, _ = kinematics.singularity_measures(config.geometry, paper_manoeuvre().evaluate(t)[0])
+    cond, _ = kinematics.singularity_measures(config.geometry(), paper_manoeuvre().evaluate(t)[0])
     assert info.value.t == pytest.approx(t[int(np.argmax(cond > 60.0))])
-    assert guard.check_reference(StewartConfig(duration_s=10.0)).max_cond == pytest.approx(77.69,
-                                                                                           abs=0.01)
+    assert guard.check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69,
+                                                                                      abs=0.01)
 
 
 def test_unreachable_reference_fails_before_any_simulation(tmp_path):
     too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 1.0))
     with pytest.raises(UnreachablePoseError) as info:
-        run_experiment(StewartConfig(trajectory=too_high, duration_s=1.0,
-                                     guard=GuardConfig(divergence_dir=tmp_path / "d")))
+        run_experiment(Scenario(duration_s=1.0, guard=GuardConfig(divergence_dir=str(tmp_path / "d"))),
+                       reference=too_high)
     assert 0.0 < info.value.t < 0.25 and info.value.ratio > 1
     assert not (tmp_path / "d").exists()

@@ -17,11 +17,10 @@ from stewart_drake.model import kinematics
 from stewart_drake.model import limits
 from stewart_drake.model import statics
 from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
-from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
 from stewart_drake.errors import StewartError, UnreachablePoseError
 from stewart_drake.control.features import density_features
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.guard import GuardConfig
 from stewart_drake.simulation.trajectories import SineTrajectory
 from stewart_drake.control.tuner import TunerModel, load_tuner
 
@@ -252,20 +251,22 @@ periods = st.one_of(st.sampled_from([1e-3, 2e-3, 1e-2, 2e-2, 1.5e-3]), any_float
        schedule=periods, log=periods, omega_Q=omegas, omega_R=omegas,
        trajectory=st.sampled_from(["paper", "home", "nope", 3]),
        closure=st.one_of(st.just(1e-3), any_float))
-def test_stewart_config(duration, control, schedule, log, omega_Q, omega_R, trajectory, closure):
-    EXAMPLES["StewartConfig"] += 1
+def test_scenario(duration, control, schedule, log, omega_Q, omega_R, trajectory, closure):
+    EXAMPLES["Scenario"] += 1
     try:
-        config = StewartConfig(duration_s=duration, control_period_s=control,
-                               schedule_period_s=schedule, log_period_s=log, omega_Q=omega_Q,
-                               omega_R=omega_R, trajectory=trajectory,
-                               guard=GuardConfig(max_closure_error_m=closure))
+        config = Scenario(duration_s=duration, control_period_s=control, log_period_s=log,
+                          controller=LqiDriver(omega_Q=omega_Q, omega_R=omega_R,
+                                               schedule_period_s=schedule),
+                          reference=NamedReference(trajectory),
+                          guard=GuardConfig(max_closure_error_m=closure))
     except StewartError:
         return
     assert np.isfinite(config.duration_s) and config.duration_s > 0
-    assert 1e-3 <= config.omega_Q <= 1e3 and 1e-3 <= config.omega_R <= 1e3
-    ratio = config.schedule_period_s / config.control_period_s
+    c = config.controller
+    assert 1e-3 <= c.omega_Q <= 1e3 and 1e-3 <= c.omega_R <= 1e3
+    ratio = c.schedule_period_s / config.control_period_s
     assert abs(ratio - round(ratio)) < 1e-6
-    config.resolved_trajectory().evaluate(0.0)
+    config.make_reference().evaluate(0.0)
 
 
 geometry_fields = {
@@ -344,7 +345,7 @@ def test_tuner_inference(shipped_tuner, rho, weight_scale):
 def test_zz_examples():
     """The examples above ran (>= 2000 in total) unless a subset was selected."""
     expected = {"ik", "jacobian", "fk", "validate_trajectory", "gain", "lqi_gain", "hautus",
-                "LqiScales", "StewartConfig", "StewartGeometry", "SineTrajectory",
+                "LqiScales", "Scenario", "StewartGeometry", "SineTrajectory",
                 "density_features", "AnnTuner"}
     if set(EXAMPLES) != expected:
         pytest.skip(f"only {sorted(EXAMPLES)} ran")

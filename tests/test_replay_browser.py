@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.interfaces.visualize import record_html, write_static_html
 
 _TOOL = Path(__file__).resolve().parent.parent / "tools" / "screenshot_replay.py"
@@ -23,7 +23,7 @@ pytestmark = [
 def test_chromium_screenshot_of_the_replay_shows_the_robot(tmp_path):
     from pydrake.geometry import Meshcat
 
-    _, html = record_html(StewartConfig(duration_s=1.0), tmp_path / "replay.html")
+    _, html = record_html(Scenario(duration_s=1.0), tmp_path / "replay.html")
     shot = screenshot_replay.screenshot(html, tmp_path / "replay.png")
     robot = screenshot_replay.robot_pixel_fractions(shot)
     # Negative control: the same viewer with an empty scene has none of the robot's colors.

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.simulation.scenario import AnnTunerDriver, Scenario
 from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.collection import collect, load_records
 from stewart_drake.studies.experiments import run_experiment
@@ -37,10 +37,11 @@ def test_shipped_tuner_loads_and_says_how_it_was_made():
 
 
 def test_ann_tuned_run_drives_the_weights_and_tracks():
-    result = run_experiment(StewartConfig(tuner="ann", duration_s=1.0))
+    result = run_experiment(Scenario(tuner=AnnTunerDriver(), duration_s=1.0))
     assert result.rho is not None and result.rho.shape[1] == 12
     assert np.all((result.omega >= 0.1) & (result.omega <= 10))
     # The LQI uses what the tuner outputs (status columns 0-1 follow the tuner's omega).
+    assert result.status_names[:2] == ("omega_Q", "omega_R")
     np.testing.assert_allclose(result.status[-1, :2], result.omega[-1], rtol=1e-12)
     assert result.metrics["max_closure_m"] < 1e-5
     assert np.array(result.metrics["rms_error"])[[0, 5]].max() < 2e-3

@@ -6,47 +6,76 @@ from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control import lqi as lqi
 from stewart_drake.control.lqi import LqiController, error_model, lqi_gain
-from stewart_drake.simulation.diagram import StewartConfig
+from stewart_drake.simulation.scenario import (AnnTunerDriver, GuardConfig, LqiDriver, NamedReference,
+                                               Scenario, SensorNoise)
 from stewart_drake.errors import (InvalidConfigError, InvalidGeometryError, MissingFileError, RiccatiSolveError, SingularPoseError)
 from stewart_drake.studies.experiments import format_metrics, run_experiment
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model.statics import holding_torques
-from stewart_drake.simulation.guard import GuardConfig
 
 
 # -- configuration --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("fields, message", [
-    ({"control_period_s": 1.5e-3}, r"control_period_s \(0.0015 s\) must be a whole multiple of "
-                                   r"plant_time_step_s \(0.001 s\); the nearest valid value is "
-                                   r"0.002 s"),
-    ({"schedule_period_s": 0.0125}, r"schedule_period_s \(0.0125 s\) must be a whole multiple of "
-                                    r"control_period_s"),
-    ({"log_period_s": 2.5e-3}, r"log_period_s \(0.0025 s\) must be a whole multiple of "
-                               r"plant_time_step_s"),
-    ({"tuner": "ann", "tuner_period_s": 0.0205}, r"tuner_period_s .* whole multiple of "
-                                                 r"control_period_s"),
-    ({"guard": GuardConfig(check_period_s=0.0105)}, r"guard.check_period_s .* whole multiple"),
-    ({"duration_s": -1.0}, r"duration_s must be a finite number in \(0, inf\], got -1.0"),
-    ({"duration_s": "10"}, r"duration_s must be a number, got '10' \(a string\)"),
-    ({"plant_time_step_s": float("nan")}, r"plant_time_step_s must be a finite number"),
-    ({"omega_Q": float("nan")}, r"omega_Q must be a finite number in \[0.001, 1000\]"),
-    ({"omega_R": 1e4}, r"omega_R must be a finite number in \[0.001, 1000\], got 10000.0"),
-    ({"omega_R": True}, r"omega_R must be one number"),
-    ({"feedforward": "pid"}, r"feedforward must be 'gravity', 'inverse_dynamics' or 'none'"),
-    ({"feature_window": 0}, r"feature_window must be an integer >= 1"),
-    ({"trajectory": "spiral"}, r"unknown trajectory 'spiral'; choose one of \[.*'helix'.*'paper'"),
-    ({"trajectory": 3.0}, r"trajectory must be a name or an object with evaluate"),
-    ({"guard": {"max_closure_error_m": 1}}, r"guard must be a GuardConfig"),
+NAN = float("nan")
+
+
+@pytest.mark.parametrize("path, value, message", [
+    ("control_period_s", 1.5e-3, r"control_period_s \(0.0015 s\) must be a whole multiple of "
+                                 r"plant.time_step \(0.001 s\); the nearest valid value is "
+                                 r"0.002 s"),
+    ("controller.schedule_period_s", 0.0125, r"controller.schedule_period_s \(0.0125 s\) must be "
+                                             r"a whole multiple of control_period_s"),
+    ("log_period_s", 2.5e-3, r"log_period_s \(0.0025 s\) must be a whole multiple of "
+                             r"plant.time_step"),
+    ("tuner", AnnTunerDriver(period_s=0.0205), r"tuner.period_s .* whole multiple of "
+                                               r"control_period_s"),
+    ("guard.check_period_s", 0.0105, r"guard.check_period_s .* whole multiple"),
+    ("duration_s", -1.0, r"duration_s must be a finite number in \(0, inf\], got -1.0"),
+    ("duration_s", "10", r"duration_s must be a number, got '10' \(a string\)"),
+    ("duration_s", 1e-6, r"duration_s \(1e-06 s\) must cover at least two log periods"),
+    ("plant.time_step", NAN, r"plant.time_step must be a finite number"),
+    ("plant.discrete_contact_approximation", "tamsi", r"does not enforce the ball constraints"),
+    ("controller.omega_Q", NAN, r"controller.omega_Q must be a finite number in \[0.001, 1000\]"),
+    ("controller.omega_R", 1e4, r"controller.omega_R must be a finite number in \[0.001, 1000\], "
+                                r"got 10000.0"),
+    ("controller.omega_R", True, r"controller.omega_R must be one number"),
+    ("controller.riccati", "hot", r"controller.riccati must be 'warm' or 'cold'"),
+    ("controller.scales", "x", r"controller.scales must be an LqiScalesConfig, got str"),
+    ("feedforward", "pid", r"feedforward must be one of \('gravity', 'inverse_dynamics', 'none'\)"),
+    ("tuner", AnnTunerDriver(feature_window=0), r"tuner.feature_window must be an integer in "
+                                                r"\[1, 100000\]"),
+    ("reference", NamedReference("spiral"), r"unknown trajectory 'spiral'; choose one of "
+                                            r"\[.*'helix'.*'paper'"),
+    ("reference", 3.0, r"reference must be a NamedReference, CsvReference"),
+    ("guard", {"max_closure_error_m": 1}, r"guard must be a GuardConfig, got dict \(a dict"),
+    ("robot", {"rod_length": 0.4}, r"robot must be a Robot, got dict"),
+    ("sensor_noise", SensorNoise(seed=2**32), r"sensor_noise.seed must be an integer in "
+                                              r"\[0, 4294967295\], got 4294967296"),
+    ("sensor_noise", SensorNoise(std=[0.1] * 7), r"sensor_noise.std needs 12 finite values"),
+    ("payload_scale", 0.0, r"payload_scale must be a finite number in \[0.1, 10\]"),
+    ("controller", "lqi", r"controller must be an LqiDriver, PdDriver or UserController"),
 ])
-def test_bad_settings_are_refused_by_name(fields, message):
+def test_bad_settings_are_refused_by_name(path, value, message):
+    scenario = Scenario()
+    *parents, leaf = path.split(".")
+    target = scenario
+    for name in parents:
+        target = getattr(target, name)
+    setattr(target, leaf, value)
     with pytest.raises(InvalidConfigError, match=message):
-        StewartConfig(**fields)
+        scenario.validate()
+
+
+def test_a_bad_robot_is_refused_with_the_field_of_the_geometry():
+    scenario = Scenario()
+    scenario.robot.rod_length = 0.9
+    with pytest.raises(InvalidGeometryError, match=r"robot: leg \d cannot close at the home pose"):
+        scenario.validate()
 
 
 @pytest.mark.parametrize("fields, message", [
     ({"max_closure_error_m": 0.0}, r"max_closure_error_m must be a finite number in \(0, inf\]"),
-    ({"max_tracking_error": (0.2,)}, r"max_tracking_error must be \(rad, m\)"),
+    ({"max_tracking_error": (0.2,)}, r"max_tracking_error must be \[rad, m\]"),
     ({"max_tracking_error": (0.2, float("inf"))}, r"max_tracking_error\[1\] must be a finite"),
     ({"cond_threshold": 0.5}, r"cond_threshold must be a finite number in \(1, inf\]"),
     ({"divergence_dir": ""}, r"divergence_dir must be a folder path"),
@@ -58,7 +87,7 @@ def test_bad_guard_settings_are_refused(fields, message):
 
 def test_missing_tuner_weights_are_refused_before_building(tmp_path):
     with pytest.raises(MissingFileError, match="no ANN tuner weights at .*w.npz") as info:
-        StewartConfig(tuner="ann", tuner_weights=str(tmp_path / "w.npz"))
+        Scenario(tuner=AnnTunerDriver(weights=str(tmp_path / "w.npz")))
     assert isinstance(info.value, FileNotFoundError)
 
 
@@ -147,12 +176,13 @@ def test_failures_in_a_closed_loop_run_are_reported(monkeypatch, tmp_path):
 
     monkeypatch.setattr(LqiController, "gain", every_other)
     with pytest.warns(RuntimeWarning):
-        result = run_experiment(StewartConfig(duration_s=0.2, guard=GuardConfig(
-            divergence_dir=tmp_path)))
+        result = run_experiment(Scenario(duration_s=0.2, guard=GuardConfig(
+            divergence_dir=str(tmp_path))))
     # 0.2 s / 10 ms: 20 or 21 schedules (t = 0.2 s included or not), every other one failed;
     # gain_solves also counts the solve at build time (lqi_gain, not gain()).
     failures = result.metrics["gain_failures"]
-    assert failures == int(result.status[-1, 3]) == calls["n"] // 2 and failures >= 10
+    assert failures == int(result.status[-1, result.status_names.index("gain_failures")]) \
+        == calls["n"] // 2 and failures >= 10
     assert result.metrics["gain_solves"] + failures == calls["n"] + 1
     assert f"({failures} failed, last good gain kept)" in format_metrics(result.metrics)
     assert result.metrics["finite"] and max(result.metrics["rms_error"]) < 1e-3
@@ -177,5 +207,5 @@ def test_a_singular_input_matrix_is_a_typed_error(monkeypatch):
 
 def test_error_messages_say_what_to_change():
     with pytest.raises(InvalidConfigError) as info:
-        StewartConfig(schedule_period_s=0.0153)
+        Scenario(controller=LqiDriver(schedule_period_s=0.0153))
     assert "the nearest valid value is 0.015 s" in str(info.value)

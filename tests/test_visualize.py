@@ -1,6 +1,7 @@
 """See it: the Meshcat replay is a standalone HTML of the run; the Diagram pictures are current."""
 
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,7 +10,11 @@ from pydrake.math import RollPitchYaw
 
 from stewart_drake.interfaces import visualize
 from stewart_drake.interfaces.cli import main
-from stewart_drake.simulation.diagram import StewartConfig, make_stewart_diagram
+from stewart_drake.simulation.diagram import make_stewart_diagram
+from stewart_drake.simulation.scenario import Scenario
+
+#: The committed pictures (``stewart-drake diagrams`` from the repository's root rewrites them).
+DIAGRAMS = Path(__file__).resolve().parent.parent / "diagrams"
 from stewart_drake.errors import InvalidConfigError, RenderToolMissingError
 from stewart_drake.studies.experiments import load_result
 
@@ -97,15 +102,15 @@ def test_record_states_refuses_states_of_another_shape():
     from pydrake.geometry import Meshcat
 
     with pytest.raises(InvalidConfigError, match="same geometry"):
-        visualize.record_states(Meshcat(), StewartConfig().geometry, np.arange(3) * 1e-3,
+        visualize.record_states(Meshcat(), Scenario().geometry(), np.arange(3) * 1e-3,
                                 np.zeros((3, 5)))
 
 
 def test_committed_diagram_pictures_are_current():
     dots = visualize.diagram_dots()
-    assert {"diagram_fixed", "diagram_ann", "lqi_controller"} <= set(dots)
+    assert {"control_loop", "diagram_fixed", "diagram_ann", "station", "lqi_controller"} <= set(dots)
     for name, dot in dots.items():
-        dot_path = visualize.DIAGRAMS_DIR / f"{name}.dot"
+        dot_path = DIAGRAMS / f"{name}.dot"
         svg_path = dot_path.with_suffix(".svg")
         hint = "run `stewart-drake diagrams` (with Graphviz installed) and commit diagrams/"
         assert dot_path.exists() and dot_path.read_text() == dot, f"{dot_path} is stale: {hint}"
@@ -115,14 +120,25 @@ def test_committed_diagram_pictures_are_current():
 
 
 def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
-    first, second = (make_stewart_diagram(StewartConfig()).diagram for _ in range(2))
+    first, second = (make_stewart_diagram(Scenario()).diagram for _ in range(2))
     raw = [d.GetGraphvizString(max_depth=1) for d in (first, second)]
     assert raw[0] != raw[1]                               # Drake's system ids differ ...
     dots = [visualize.normalize_dot(r) for r in raw]
     assert dots[0] == dots[1]                             # ... the normalized text does not
     assert dots[0].count(" -> ") == len(first.connection_map())
-    for name in ("plant", "lqi", "reference", "sensor", "omega", "log_T"):
+    for name in ("station", "controller", "reference", "feedforward", "omega", "log_T"):
         assert f"name={name}" in dots[0]
+
+
+def test_control_loop_picture_shows_the_ports_in_use_only():
+    sd = make_stewart_diagram(Scenario())
+    dot = visualize.control_loop_dot(sd.diagram)
+    assert '"controller":"out_T" -> "station":"in_motor_torque" [label="T (6)"' in dot
+    assert '"station":"out_platform_state" -> "controller":"in_x"' in dot
+    assert "log_" not in dot                                # loggers left out
+    assert "motor_rate" not in dot                          # a station port the LQI does not use
+    assert dot.count(" -> ") == sum(1 for (dst, _) in sd.diagram.connection_map()
+                                    if type(dst).__name__ != "VectorLogSink")
 
 
 def test_svg_rendering_needs_graphviz_and_says_so(monkeypatch):
@@ -135,5 +151,5 @@ def test_diagrams_cli_writes_the_dot_sources(tmp_path):
     assert main(["diagrams", "--dot-only", "--out", str(tmp_path)]) == 0
     for name in ("diagram_fixed", "diagram_ann", "lqi_controller"):
         assert (tmp_path / f"{name}.dot").read_text() == \
-            (visualize.DIAGRAMS_DIR / f"{name}.dot").read_text()
+            (DIAGRAMS / f"{name}.dot").read_text()
     assert not list(tmp_path.glob("*.svg"))

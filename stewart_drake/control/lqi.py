@@ -37,6 +37,7 @@ from ..checks import as_array, as_number
 from ..errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
+from .contract import LQI_STATUS_NAMES, PoseTorqueController
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
@@ -267,38 +268,6 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
 
 
-#: Size of the ``status`` output of every controller of this package (baselines included).
-N_STATUS = 5
-
-
-class PoseTorqueController(LeafSystem):
-    """The ports every controller of the Diagram shares, so one swaps for another.
-
-    Input ports ``x`` (12,), ``x_d`` (18,), ``T_ff`` (6,), ``omega`` (2,); a subclass declares
-    the outputs ``T`` (6,), ``status`` (:data:`N_STATUS`,) and ``e_bar`` (6,) (see
-    :class:`LqiController`).
-    """
-
-    def __init__(self):
-        super().__init__()
-        self._x = self.DeclareVectorInputPort("x", 12)
-        self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
-        self._omega = self.DeclareVectorInputPort("omega", 2)
-
-    def get_x_input_port(self):
-        return self._x
-
-    def get_x_d_input_port(self):
-        return self._x_d
-
-    def get_T_ff_input_port(self):
-        return self._T_ff
-
-    def get_omega_input_port(self):
-        return self._omega
-
-
 class LqiController(PoseTorqueController):
     """LQI torque controller of the platform pose, re-scheduled online (paper section III).
 
@@ -309,9 +278,12 @@ class LqiController(PoseTorqueController):
         ``omega`` (2,): [omega_Q, omega_R] > 0 (the ANN tuner drives it; else a constant).
     Output ports:
         ``T`` (6,): motor torques, N m, sampled at ``offset_s`` after each plant step and held.
-        ``status`` (5,): [omega_Q, omega_R in use, gain solves, failed solves, |z|].
+        ``status`` (5,): [omega_Q, omega_R in use, gain solves, failed solves, |z|]
+            (``status_names`` = :data:`~.contract.LQI_STATUS_NAMES`).
         ``e_bar`` (6,): the pose error x - x_d the last update acted on (for the density features,
             so they see exactly the controller's error at the controller's instants).
+        ``integral`` (6,): the integral states z of eq. 23 [rad s, m s].
+    The ports follow the controller contract (:mod:`~stewart_drake.control.contract`).
     Discrete state: u (6), z (6), K (108, row-major 6 x 18), status (5), e_bar (6), step (1).
 
     Args:
@@ -340,6 +312,7 @@ class LqiController(PoseTorqueController):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
+        self.status_names = LQI_STATUS_NAMES
         ratio = schedule_period_s / period_s
         if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
             raise InvalidConfigError(
@@ -379,6 +352,7 @@ class LqiController(PoseTorqueController):
         self.DeclareStateOutputPort("T", self._u_index)
         self.DeclareStateOutputPort("status", self._s_index)
         self.DeclareStateOutputPort("e_bar", self._e_index)
+        self.DeclareStateOutputPort("integral", self._z_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
                                                 update=self._Update)
 

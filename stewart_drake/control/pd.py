@@ -2,18 +2,20 @@
 
 :class:`CrankPdController` is what a rotary Stewart platform ships with: an independent-joint PD
 loop per motor around the crank angle, on top of the same virtual-work gravity feed-forward as
-the LQI. It has the LQI's ports (``x``, ``x_d``, ``T_ff``, ``omega``; ``T``, ``status``, ``e_bar``)
+the LQI. It follows the controller contract (:mod:`~stewart_drake.control.contract`) with the
+ports ``x``, ``x_d``, ``T_ff``; ``T``, ``status``, ``e_bar``
 so :func:`~stewart_drake.diagram.make_stewart_diagram` swaps one for the other.
 """
 
 from __future__ import annotations
 
 import numpy as np
+
 from ..errors import InvalidConfigError, UnreachablePoseError
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
 from ..model.statics import crank_inertia_matrix
-from .lqi import N_STATUS, PoseTorqueController
+from .contract import PoseTorqueController
 
 
 class CrankPdController(PoseTorqueController):
@@ -30,8 +32,9 @@ class CrankPdController(PoseTorqueController):
     There is no integral action: a payload the feed-forward does not know leaves a steady error,
     which is what the comparison should show.
 
-    Ports: as :class:`~stewart_drake.controller.LqiController`; ``omega`` is accepted and ignored,
-    ``status`` is [0, 0, gain re-schedules, failures (IK or singular inertia), 0].
+    Ports: inputs ``x`` (12), ``x_d`` (18), ``T_ff`` (6) (no ``omega``: it has no weights);
+    outputs ``T`` (6), ``e_bar`` (6) and ``status`` = [inertia re-schedules, failures (IK or
+    singular inertia)] (``status_names``).
 
     Args:
         geometry: the robot the controller believes in.
@@ -48,7 +51,8 @@ class CrankPdController(PoseTorqueController):
     def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3, offset_s: float = 0.0,
                  bandwidth_hz: float = 20.0, damping: float = 1.0, x_initial=None,
                  schedule_period_s: float = 1e-2):
-        super().__init__()
+        super().__init__(omega=False)
+        self.status_names = ("inertia_reschedules", "failures")
         for name, value in (("period_s", period_s), ("bandwidth_hz", bandwidth_hz),
                             ("damping", damping)):
             if not (np.isfinite(value) and value > 0):
@@ -68,7 +72,7 @@ class CrankPdController(PoseTorqueController):
         #: Gains at the initial pose, (6, 6) each (the running ones are in the discrete state).
         self.K_p, self.K_d = self._kp * M, self._kd * M
         self._u_index = self.DeclareDiscreteState(statics.holding_torques(geometry, x0))
-        self._s_index = self.DeclareDiscreteState(N_STATUS)
+        self._s_index = self.DeclareDiscreteState(2)
         self._e_index = self.DeclareDiscreteState(6)
         self._M_index = self.DeclareDiscreteState(M.reshape(-1))   # M_theta of the gains
         self._k_index = self.DeclareDiscreteState(1)               # step counter
@@ -93,13 +97,13 @@ class CrankPdController(PoseTorqueController):
         try:
             if k % self.steps_per_schedule == 0:
                 M = crank_inertia_matrix(self.geometry, ref[:6])
-                status[2] += 1
+                status[0] += 1
                 discrete_state.set_value(self._M_index, M.reshape(-1))
             theta, w = self.crank_states(x)
             theta_d, w_d = self.crank_states(ref[:12])
             T += M @ (self._kp * (theta_d - theta) + self._kd * (w_d - w))
         except (UnreachablePoseError, np.linalg.LinAlgError):
-            status[3] += 1        # keep the last gains / the feed-forward; the guard sees the pose
+            status[1] += 1        # keep the last gains / the feed-forward; the guard sees the pose
         discrete_state.set_value(self._k_index, [k + 1])
         discrete_state.set_value(self._u_index, T)
         discrete_state.set_value(self._s_index, status)

@@ -73,49 +73,105 @@ def _positive_float(text: str) -> float:
 
 def _cmd_sdf(args) -> int:
     from ..fileio import atomic_write
-    from ..model.plant import REFERENCE_SDF, write_sdf
+    from ..model.plant import write_sdf
 
-    out = Path(args.out) if args.out else REFERENCE_SDF
     text = write_sdf().encode()
-    atomic_write(out, lambda f: f.write(text))
-    print(f"wrote {out}")
+    atomic_write(Path(args.out), lambda f: f.write(text))
+    print(f"wrote {args.out}")
     return 0
+
+
+def run_scenario(args):
+    """The :class:`~stewart_drake.simulation.scenario.Scenario` of ``run``'s arguments: the
+    ``--scenario`` file or name, then ``--set`` overrides, then the shorthand flags (each only
+    when given), validated.
+
+    Raises:
+        InvalidConfigError: a bad override or value; ``--tuner-weights`` without ``--tuner ann``.
+        MissingFileError: no such scenario, weights or CSV file.
+    """
+    from ..errors import InvalidConfigError
+    from ..simulation import scenario as sc
+    from ..studies.experiments import DEFAULT_TUNER_OUT
+
+    scenario = sc.load_scenario(args.scenario, args.set or ())
+    if args.tuner_weights is not None and args.tuner != "ann":
+        raise InvalidConfigError("--tuner-weights needs --tuner ann (the weights are the ANN "
+                                 "tuner's)")
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    if args.trajectory is not None and args.trajectory_file is not None:
+        raise InvalidConfigError("give --trajectory or --trajectory-file, not both")
+    if args.trajectory is not None:
+        scenario.reference = sc.NamedReference(args.trajectory)
+    if args.trajectory_file is not None:
+        scenario.reference = sc.CsvReference(args.trajectory_file)
+    if args.controller == "pd":
+        scenario.controller = sc.PdDriver()
+    elif args.controller == "lqi" and not isinstance(scenario.controller, sc.LqiDriver):
+        scenario.controller = sc.LqiDriver()
+    if args.omega_q is not None or args.omega_r is not None:
+        if not isinstance(scenario.controller, sc.LqiDriver):
+            raise InvalidConfigError("--omega-q and --omega-r are weights of the LQI controller")
+        if args.omega_q is not None:
+            scenario.controller.omega_Q = args.omega_q
+        if args.omega_r is not None:
+            scenario.controller.omega_R = args.omega_r
+    if args.tuner == "ann":
+        weights = args.tuner_weights
+        if weights is None and DEFAULT_TUNER_OUT.exists():
+            weights = str(DEFAULT_TUNER_OUT)          # what `stewart-drake train` just wrote
+        scenario.tuner = sc.AnnTunerDriver(weights=weights or "")
+    elif args.tuner == "none":
+        scenario.tuner = None
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    return scenario.validate()
 
 
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
-    from ..simulation import guard
-    from ..simulation.diagram import StewartConfig
-    from ..studies.experiments import (DEFAULT_TUNER_OUT, format_metrics, plot_fig7, run_experiment,
-                                       save_result)
+    from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
 
-    weights = args.tuner_weights
-    if args.tuner == "ann" and weights is None and DEFAULT_TUNER_OUT.exists():
-        weights = str(DEFAULT_TUNER_OUT)      # what `stewart-drake train` just wrote
-    config = StewartConfig(trajectory=args.trajectory, duration_s=args.duration,
-                           omega_Q=args.omega_q, omega_R=args.omega_r,
-                           controller=getattr(args, "controller", "lqi"),
-                           tuner=None if args.tuner == "none" else args.tuner,
-                           tuner_weights=weights,
-                           guard=guard.GuardConfig(divergence_dir=Path(args.out) / "diverged"))
-    if config.tuner:
+    scenario = run_scenario(args)
+    out = Path(args.out)
+    if args.html:
+        check_writable(Path(args.html).parent)
+    if scenario.tuner is not None:
         from ..control.tuner import DEFAULT_TUNER_PATH
 
-        print(f"ANN tuner weights: {weights or DEFAULT_TUNER_PATH}")
-    if getattr(args, "html", None):          # the same run, replayed into a standalone HTML
+        print(f"ANN tuner weights: {scenario.tuner.weights or DEFAULT_TUNER_PATH}")
+    if args.html:                      # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
-        result, html = record_html(config, args.html, progress=not args.no_progress)
+        result, html = record_html(scenario, args.html, progress=not args.no_progress)
         print(f"wrote {html} (Meshcat replay, opens in any browser)")
     else:
-        result = run_experiment(config, progress=not args.no_progress)
-    out = Path(args.out)
-    stem = (f"run_{config.resolved_trajectory().name}" + ("_ann" if config.tuner else "")
-            + ("_pd" if config.controller == "pd" else ""))
+        result = run_experiment(scenario, progress=not args.no_progress)
+    summary = result.config_summary
+    stem = (f"run_{summary['trajectory']}" + ("_ann" if summary["tuner"] else "")
+            + ("_pd" if summary["controller"] == "PdDriver" else ""))
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
     print(format_metrics(result.metrics))
     print(f"wrote {npz} and {png}")
+    return 0
+
+
+def _cmd_scenario(args) -> int:
+    """``stewart-drake scenario``: list the shipped scenarios, or print one (with overrides) as
+    YAML, to start a file of one's own."""
+    from ..simulation.scenario import dump_scenario, load_scenario, shipped_scenarios
+
+    if args.list:
+        for name, path in sorted(shipped_scenarios().items()):
+            print(f"{name:24s} {path}")
+        return 0
+    scenario = load_scenario(args.source, args.set or ())
+    if args.out:
+        dump_scenario(scenario, args.out)
+        print(f"wrote {args.out}")
+    else:
+        print(dump_scenario(scenario), end="")
     return 0
 
 
@@ -141,8 +197,15 @@ def _cmd_collect(args) -> int:
 
 def _cmd_train(args) -> int:
     """``stewart-drake train``: fit the tuner in both label modes, save one."""
+    from ..errors import MissingExtraError
+
+    try:
+        import torch  # noqa: F401 - only to say which extra is missing
+    except ImportError:
+        raise MissingExtraError("`stewart-drake train` needs torch: pip install "
+                                "'stewart-drake[train]' (torch==2.13.0, the CPU build)") from None
     from ..control.tuner import save_tuner
-    from ..simulation.diagram import StewartConfig
+    from ..simulation.scenario import AnnTunerDriver, Scenario
     from ..studies.collection import load_records
     from ..studies.training import build_dataset, train
 
@@ -152,8 +215,8 @@ def _cmd_train(args) -> int:
         dataset = build_dataset(records, mode=mode)
         model, report = train(dataset, seed=args.seed,
                               metadata={"label_mode": mode, "data": str(args.data),
-                                        "feature_window": StewartConfig().feature_window,
-                                        "feature_period_s": StewartConfig().control_period_s})
+                                        "feature_window": AnnTunerDriver().feature_window,
+                                        "feature_period_s": Scenario().control_period_s})
         reports[mode] = (model, report)
         r2 = report["val_r2"]
         r2_text = ", ".join(f"{k} {v:.3f}" for k, v in r2.items()) if isinstance(r2, dict) else r2
@@ -202,9 +265,9 @@ def _cmd_workspace(args) -> int:
 
 def _cmd_diagrams(args) -> int:
     """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
-    from .visualize import DIAGRAMS_DIR, write_diagrams
+    from .visualize import write_diagrams
 
-    for path in write_diagrams(args.out or DIAGRAMS_DIR, render=not args.dot_only):
+    for path in write_diagrams(args.out, render=not args.dot_only):
         print(f"wrote {path}")
     return 0
 
@@ -215,24 +278,42 @@ def build_parser() -> argparse.ArgumentParser:
         description="Rotary Stewart platform on a Drake closed-chain plant, LQI + ANN control.")
     sub = parser.add_subparsers(dest="command", required=True)
 
-    run = sub.add_parser("run", help="run the paper's experiment (eqs. 37-38) and plot Fig. 7")
-    run.add_argument("--duration", type=_positive_float, default=10.0, help="simulated s (10)")
-    run.add_argument("--trajectory", default="paper",
-                     help="reference: paper, home, helix, step_<axis>, sweep_<axis> (paper)")
-    run.add_argument("--controller", choices=["lqi", "pd"], default="lqi",
-                     help="LQI (paper) or crank-space PD baseline (lqi)")
-    run.add_argument("--omega-q", type=_positive_float, default=1.0, help="omega_Q (1)")
-    run.add_argument("--omega-r", type=_positive_float, default=1.0, help="omega_R (1)")
-    run.add_argument("--tuner", choices=["none", "ann"], default="none",
-                     help="ANN tuner of omega_Q, omega_R (none)")
+    run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment) and "
+                                     "plot Fig. 7")
+    run.add_argument("--scenario", default="paper_ideal",
+                     help="scenario file (.yaml) or shipped name (paper_ideal); see "
+                          "`stewart-drake scenario --list`")
+    run.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario field, YAML value (repeatable): "
+                          "--set controller.omega_Q=10 --set 'controller=!PdDriver {}'")
+    run.add_argument("--duration", type=_positive_float, default=None,
+                     help="simulated s (scenario: 10)")
+    run.add_argument("--trajectory", default=None,
+                     help="reference: paper, home, helix, step_<axis>, sweep_<axis>")
+    run.add_argument("--trajectory-file", default=None, metavar="FILE.csv",
+                     help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, m)")
+    run.add_argument("--controller", choices=["lqi", "pd"], default=None,
+                     help="LQI (paper) or crank-space PD baseline (scenario: lqi)")
+    run.add_argument("--omega-q", type=_positive_float, default=None, help="LQI omega_Q")
+    run.add_argument("--omega-r", type=_positive_float, default=None, help="LQI omega_R")
+    run.add_argument("--tuner", choices=["none", "ann"], default=None,
+                     help="ANN tuner of omega_Q, omega_R (scenario: none)")
     run.add_argument("--tuner-weights", default=None,
-                     help="ANN weights (default: results/tuner/ann_tuner.npz if present, "
-                          "else the shipped ones)")
+                     help="ANN weights, with --tuner ann (default: results/tuner/ann_tuner.npz if "
+                          "present, else the shipped ones)")
     run.add_argument("--out", default="results", help="output folder (results/)")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
     run.set_defaults(func=_cmd_run)
+
+    scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
+    scn.add_argument("source", nargs="?", default="paper_ideal",
+                     help="scenario file or shipped name (paper_ideal)")
+    scn.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a field")
+    scn.add_argument("--list", action="store_true", help="list the shipped scenarios")
+    scn.add_argument("--out", default=None, help="write the YAML to this file")
+    scn.set_defaults(func=_cmd_scenario, out_is_file=True)
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     col.add_argument("--out", default="results/collect", help="output folder")
@@ -273,12 +354,13 @@ def build_parser() -> argparse.ArgumentParser:
     ws.set_defaults(func=_cmd_workspace)
 
     dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
-    dg.add_argument("--out", default=None, help="folder (default: the repo's diagrams/)")
+    dg.add_argument("--out", default="diagrams", help="folder (diagrams/ in the current folder)")
     dg.add_argument("--dot-only", action="store_true", help="write the .dot sources only")
     dg.set_defaults(func=_cmd_diagrams)
 
-    sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
-    sdf.add_argument("--out", default=None, help="file to write instead")
+    sdf = sub.add_parser("sdf", help="write the reference robot's SDF")
+    sdf.add_argument("--out", default="sdf/rotary_stewart.sdf",
+                     help="file (sdf/rotary_stewart.sdf in the current folder)")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
     return parser
 

@@ -1,6 +1,6 @@
 """See it: Meshcat replays of a run as one standalone HTML file, and pictures of the Diagram.
 
-Replay: :func:`record_html` simulates a :class:`~.diagram.StewartConfig` (no visualizer in the
+Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario` (no visualizer in the
 loop, so the run is as fast and as exact as ``run_experiment``), then plays the logged plant
 states through a visualization-only copy of the robot at ``fps`` frames per second into a Meshcat
 animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript and the scene are inlined,
@@ -34,8 +34,9 @@ REPLAY_PREFIX = "stewart"
 #: Default camera position and target in world, m: the robot from the front-left, slightly above.
 CAMERA_POSITION = (0.45, -0.45, 0.45)
 CAMERA_TARGET = (0.0, 0.0, 0.15)
-#: Where the committed Diagram pictures live (``stewart-drake diagrams`` rewrites them).
-DIAGRAMS_DIR = Path(__file__).resolve().parents[2] / "diagrams"
+#: Where ``stewart-drake diagrams`` writes by default: ``diagrams/`` in the current folder (from
+#: the repository's root, the committed pictures).
+DIAGRAMS_DIR = Path("diagrams")
 _HASH_COMMENT = "<!-- dot-sha256: {} -->"
 
 
@@ -126,11 +127,15 @@ def write_static_html(meshcat, path: str | Path) -> Path:
 
 
 def record_html(config=None, path: str | Path = "results/replay.html", progress: bool = False,
-                fps: float = REPLAY_FPS, meshcat=None):
-    """Simulate ``config`` and write its Meshcat replay as a standalone HTML file.
+                fps: float = REPLAY_FPS, meshcat=None, *, reference=None, controller=None):
+    """Simulate a scenario and write its Meshcat replay as a standalone HTML file.
+
+    The run is advanced through the same guard as ``run_experiment``: a diverging run stops with
+    :class:`~stewart_drake.errors.SimulationDivergedError` and its logs saved, and no HTML.
 
     Args:
-        config: a :class:`~.diagram.StewartConfig` (default: the paper's experiment, 10 s).
+        config: a :class:`~stewart_drake.simulation.scenario.Scenario` (default: the paper's
+            experiment, 10 s). reference, controller: as ``run_experiment``.
         path: the .html to write (folders are created).
         progress: show a progress bar while simulating.
         fps: replay frames per s (the 10 s paper run at 30 fps is about 3 MB).
@@ -138,23 +143,24 @@ def record_html(config=None, path: str | Path = "results/replay.html", progress:
     Returns:
         (RunResult, Path of the html): the same result ``run_experiment(config)`` gives.
     Raises:
-        UnreachablePoseError: the reference leaves the workspace (before simulating).
+        UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
+            (before simulating). SimulationDivergedError: the guard stopped the run.
     """
     from pydrake.geometry import Meshcat
 
-    from ..simulation.diagram import StewartConfig
-    from ..studies.experiments import _advance, build_simulator, collect_result
+    from ..simulation import guard
+    from ..studies.experiments import advance, build_simulator, collect_result
 
-    config = config or StewartConfig()
-    sd, simulator = build_simulator(config)
+    sd, simulator = build_simulator(config, reference=reference, controller=controller)
     wall0 = time.perf_counter()
-    _advance(simulator, config.duration_s, progress, desc="simulating")
+    guard.advance(sd, simulator,
+                  lambda: advance(simulator, sd.scenario.duration_s, progress))
     wall = time.perf_counter() - wall0
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
     log = sd.loggers["state"].FindLog(context)
     meshcat = meshcat if meshcat is not None else Meshcat()
-    record_states(meshcat, config.geometry, log.sample_times(), log.data().T, fps)
+    record_states(meshcat, sd.scenario.plant_geometry(), log.sample_times(), log.data().T, fps)
     return result, write_static_html(meshcat, path)
 
 
@@ -173,7 +179,7 @@ def normalize_dot(dot: str) -> str:
     def renumber(match: re.Match) -> str:
         return match.group(1) + ids.setdefault(match.group(2), str(len(ids)))
 
-    lines = re.sub(r"(digraph _|cluster|\bs)(\d+)", renumber, dot).split("\n")
+    lines = re.sub(r"(digraph _|clusters?|\bs)(\d+)", renumber, dot).split("\n")
     out, edges = [], []
     for line in lines + [""]:
         if " -> " in line:
@@ -185,22 +191,65 @@ def normalize_dot(dot: str) -> str:
     return "\n".join(out[:-1])
 
 
+def control_loop_dot(diagram) -> str:
+    """A picture of the control loop: one box per system of the top-level Diagram (loggers left
+    out), the station collapsed to the ports in use, each edge labelled with the signal's name
+    and size. Built from ``Diagram.connection_map()``, so it is always the wiring that runs.
+
+    Returns:
+        DOT text (left to right).
+    """
+    edges, used = [], {}
+    for (dst, i), (src, j) in diagram.connection_map().items():
+        if type(dst).__name__ == "VectorLogSink":
+            continue
+        out, inp = src.get_output_port(j), dst.get_input_port(i)
+        used.setdefault(src.get_name(), (src, set(), set()))[2].add(out.get_name())
+        used.setdefault(dst.get_name(), (dst, set(), set()))[1].add(inp.get_name())
+        size = f" ({out.size()})" if out.get_data_type().name == "kVectorValued" else ""
+        edges.append(f'  "{src.get_name()}":"out_{out.get_name()}" -> '
+                     f'"{dst.get_name()}":"in_{inp.get_name()}" [label="{out.get_name()}{size}", '
+                     f'fontsize=9];')
+    lines = ["digraph control_loop {", "  rankdir=LR;", '  node [shape=none, fontsize=10];']
+    for name in sorted(used):
+        system, inputs, outputs = used[name]
+        rows = max(len(inputs), len(outputs), 1)
+        ins, outs = sorted(inputs), sorted(outputs)
+        cells = "".join(
+            "<TR>"
+            + (f'<TD PORT="in_{ins[k]}" BORDER="1">{ins[k]}</TD>' if k < len(ins)
+               else '<TD BORDER="0"></TD>')
+            + (f'<TD PORT="out_{outs[k]}" BORDER="1">{outs[k]}</TD>' if k < len(outs)
+               else '<TD BORDER="0"></TD>')
+            + "</TR>" for k in range(rows))
+        color = ' BGCOLOR="#dbe9f6"' if name == "station" else ""
+        lines.append(f'  "{name}" [label=<<TABLE BORDER="0" CELLSPACING="0"><TR><TD BORDER="1" '
+                     f'COLSPAN="2"{color}><B>{name}</B><BR/>{type(system).__name__}</TD></TR>'
+                     f"{cells}</TABLE>>];")
+    return "\n".join(lines + sorted(edges) + ["}", ""])
+
+
 def diagram_dots() -> dict[str, str]:
     """Graphviz sources of the Diagram pictures, normalized (:func:`normalize_dot`).
 
     Returns:
-        {name: DOT text}: ``diagram_fixed`` and ``diagram_ann`` (the whole closed loop, one level
-        deep, with fixed weights and with the ANN tuner), ``lqi_controller``,
+        {name: DOT text}: ``control_loop`` (:func:`control_loop_dot` of the fixed-weight LQI
+        loop: the station collapsed to the ports in use), ``diagram_fixed`` and ``diagram_ann``
+        (Drake's picture of the whole closed loop, one level deep, with fixed weights and with
+        the ANN tuner), ``station`` (the robot's Diagram inside), ``lqi_controller``,
         ``density_features``, ``ann_tuner`` and ``crank_pd`` (the controller systems and their
-        ports; the PD baseline has the LQI's ports, so either plugs into the same Diagram).
+        ports: each follows the controller contract, so either plugs into the same Diagram).
     """
-    from ..simulation.diagram import StewartConfig, make_stewart_diagram
+    from ..simulation.diagram import make_stewart_diagram
+    from ..simulation.scenario import AnnTunerDriver, PdDriver, Scenario
 
-    fixed = make_stewart_diagram(StewartConfig())
-    ann = make_stewart_diagram(StewartConfig(tuner="ann"))
-    pd = make_stewart_diagram(StewartConfig(controller="pd"))
-    raw = {"diagram_fixed": fixed.diagram.GetGraphvizString(max_depth=1),
+    fixed = make_stewart_diagram(Scenario())
+    ann = make_stewart_diagram(Scenario(tuner=AnnTunerDriver()))
+    pd = make_stewart_diagram(Scenario(controller=PdDriver()))
+    raw = {"control_loop": control_loop_dot(fixed.diagram),
+           "diagram_fixed": fixed.diagram.GetGraphvizString(max_depth=1),
            "diagram_ann": ann.diagram.GetGraphvizString(max_depth=1),
+           "station": fixed.station.GetGraphvizString(max_depth=1),
            "lqi_controller": fixed.controller.GetGraphvizString(),
            "density_features": ann.features.GetGraphvizString(),
            "ann_tuner": ann.tuner.GetGraphvizString(),

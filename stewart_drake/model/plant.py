@@ -177,22 +177,29 @@ class StewartPlantHandles:
 
 def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None = None,
                       time_step: float = 1e-3, sdf_file: str | Path | None = None,
-                      discrete_contact_approximation: str = "sap"):
+                      discrete_contact_approximation: str = "sap",
+                      plant_config: MultibodyPlantConfig | None = None):
     """Add the robot as a discrete SAP MultibodyPlant (+ SceneGraph) to ``builder``.
 
     Args:
         builder: the DiagramBuilder to add to.
-        geometry: the robot; default reference_geometry.md.
+        geometry: the robot; default reference_geometry.md. Its ``gravity`` (m/s^2, along -z)
+            is the plant's gravity field.
         time_step: plant period in s; must be > 0 (ball constraints need a discrete plant).
         sdf_file: load this SDF instead of the text :func:`write_sdf` makes of ``geometry``
             (its names must follow write_sdf's).
         discrete_contact_approximation: a SAP-family approximation: "sap", "lagged", "similar".
+        plant_config: Drake's ``MultibodyPlantConfig`` (a scenario's ``plant``); when given, its
+            ``time_step`` and ``discrete_contact_approximation`` replace the two arguments above.
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
         pose, assembled.
     Raises:
         InvalidConfigError: time_step <= 0 or a non-SAP approximation (constraints ignored).
     """
+    if plant_config is not None:
+        time_step = plant_config.time_step
+        discrete_contact_approximation = plant_config.discrete_contact_approximation
     if not (np.isfinite(time_step) and time_step > 0):
         raise InvalidConfigError(
             f"time_step must be > 0 s (got {time_step}): Drake enforces ball constraints only in "
@@ -202,10 +209,13 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
             f"discrete_contact_approximation {discrete_contact_approximation!r} does not enforce "
             f"ball constraints; use 'sap', 'lagged' or 'similar'")
     geometry = geometry or StewartGeometry()
-    plant, scene_graph = AddMultibodyPlant(
-        MultibodyPlantConfig(time_step=time_step,
-                             discrete_contact_approximation=discrete_contact_approximation),
-        builder)
+    if plant_config is None:
+        plant_config = MultibodyPlantConfig(
+            time_step=time_step, discrete_contact_approximation=discrete_contact_approximation)
+    plant, scene_graph = AddMultibodyPlant(plant_config, builder)
+    # Drake's default is 9.81 m/s^2 whatever the geometry says; holding torques and feed-forward
+    # use geometry.gravity, so the plant must too.
+    plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -geometry.gravity])
     parser = Parser(plant)
     if sdf_file is None:
         (model,) = parser.AddModelsFromString(write_sdf(geometry), "sdf")

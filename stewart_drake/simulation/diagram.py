@@ -1,263 +1,194 @@
-"""The one Diagram: plant, reference, sensor, LQI (and, optionally, features + ANN tuner), loggers."""
+"""The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Any
+import importlib
+from dataclasses import dataclass
+from typing import Any, Callable
 
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
-                                        RandomSource, Saturation)
+                                        RandomSource)
 
+from ..control.contract import (CONTROLLER_REGISTRY, ControllerContext, check_controller)
+from ..control.lqi import LqiController
 from ..control.pd import CrankPdController
-from ..control.lqi import LqiController, LqiScales
-from ..model.geometry import StewartGeometry
-from .guard import GuardConfig
-from ..model.plant import add_stewart_plant
+from ..errors import InvalidConfigError
 from .reference import ReferenceSources, add_reference_sources
-from .sensors import PlatformPoseSensor
-from .trajectories import make_trajectory
-from pathlib import Path
-from ..checks import as_number, check_multiple
-from ..control.lqi import OMEGA_MAX, OMEGA_MIN
-from ..errors import InvalidConfigError, MissingFileError
-from ..model.statics import FEEDFORWARD_MODES
-
-#: Controllers :func:`make_stewart_diagram` can put behind the same ports.
-CONTROLLERS = ("lqi", "pd")
+from .scenario import LqiDriver, PdDriver, Scenario, UserController
+from .station import StewartStation
+from .trajectories import as_trajectory
 
 
-def check_config(config) -> None:
-    """Validate a StewartConfig before anything is built or simulated.
-
-    Checks (each raising :class:`InvalidConfigError` that names the field):
-        - every period and the duration are finite numbers > 0 (also refuses strings, bools);
-        - control_period_s is a whole multiple of plant_time_step_s, schedule_period_s and
-          tuner_period_s of control_period_s (the controller and the tuner run on its clock),
-          log_period_s and the guard's check_period_s of plant_time_step_s (a log between plant
-          steps would compare a held state with a later reference);
-        - omega_Q, omega_R in [1e-3, 1e3]; feedforward, tuner names; feature_window >= 1;
-        - a trajectory name that exists, or an object with ``evaluate``;
-        - tuner_weights, when given, names an existing file (:class:`MissingFileError`);
-        - the guard settings (:class:`~stewart_drake.guard.GuardConfig`).
-    """
-    for name in ("duration_s", "plant_time_step_s", "control_period_s", "schedule_period_s",
-                 "tuner_period_s", "log_period_s"):
-        as_number(name, getattr(config, name), lo=0.0, lo_open=True)
-    for name in ("omega_Q", "omega_R"):
-        as_number(name, getattr(config, name), OMEGA_MIN, OMEGA_MAX)
-    h = config.plant_time_step_s
-    check_multiple("control_period_s", config.control_period_s, "plant_time_step_s", h)
-    check_multiple("schedule_period_s", config.schedule_period_s, "control_period_s",
-                   config.control_period_s)
-    if config.tuner is not None:
-        check_multiple("tuner_period_s", config.tuner_period_s, "control_period_s",
-                       config.control_period_s)
-    check_multiple("log_period_s", config.log_period_s, "plant_time_step_s", h)
-    if config.feedforward not in FEEDFORWARD_MODES:
-        raise InvalidConfigError(f"feedforward must be 'gravity', 'inverse_dynamics' or 'none', "
-                                 f"got {config.feedforward!r}")
-    if config.tuner not in (None, "ann"):
-        raise InvalidConfigError(f"tuner must be None or 'ann', got {config.tuner!r}")
-    if config.controller not in CONTROLLERS:
-        raise InvalidConfigError(f"controller must be 'lqi' or 'pd', got {config.controller!r}")
-    if config.tuner and config.controller != "lqi":
-        raise InvalidConfigError("the ANN tuner drives the LQI's weights: use controller='lqi' "
-                                 "with tuner='ann'")
-    if config.riccati not in ("warm", "cold"):
-        raise InvalidConfigError(f"riccati must be 'warm' or 'cold', got {config.riccati!r}")
-    as_number("pd_bandwidth_hz", config.pd_bandwidth_hz, lo=0.0, lo_open=True)
-    as_number("payload_scale", config.payload_scale, 0.1, 10.0)
-    if config.torque_limit_Nm is not None:
-        as_number("torque_limit_Nm", config.torque_limit_Nm, lo=0.0, lo_open=True)
-    if config.sensor_noise_std is not None:
-        try:
-            std = np.broadcast_to(np.asarray(config.sensor_noise_std, dtype=float), (12,))
-        except (TypeError, ValueError):
-            std = np.array([np.nan])
-        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-            raise InvalidConfigError(f"sensor_noise_std needs 12 finite values >= 0 (rad, m, "
-                                     f"rad/s, m/s), got {config.sensor_noise_std}")
-    seed = config.noise_seed
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise InvalidConfigError(f"noise_seed must be an integer >= 0, got {seed!r}")
-    window = config.feature_window
-    if isinstance(window, bool) or not isinstance(window, (int, np.integer)) or window < 1:
-        raise InvalidConfigError(f"feature_window must be an integer >= 1, got {window!r}")
-    if isinstance(config.trajectory, str):
-        make_trajectory(config.trajectory)          # unknown name: lists the known ones
-    elif not callable(getattr(config.trajectory, "evaluate", None)):
-        raise InvalidConfigError(f"trajectory must be a name or an object with evaluate(t), got "
-                                 f"{type(config.trajectory).__name__}")
-    if config.tuner_weights is not None and not Path(config.tuner_weights).is_file():
-        raise MissingFileError(f"no ANN tuner weights at {config.tuner_weights}: check the path, "
-                               f"or leave tuner_weights unset for the shipped weights")
-    guard = getattr(config, "guard", None)
-    if guard is not None:
-        if not isinstance(guard, GuardConfig):
-            raise InvalidConfigError(f"guard must be a GuardConfig, got {type(guard).__name__}")
-        check_multiple("guard.check_period_s", guard.check_period_s, "plant_time_step_s", h)
+def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiController]:
+    """The factory of the LQI a scenario's :class:`~.scenario.LqiDriver` describes."""
+    def make(context: ControllerContext) -> LqiController:
+        return LqiController(context.geometry, period_s=context.period_s,
+                             schedule_period_s=driver.schedule_period_s,
+                             scales=driver.scales.build(), offset_s=context.offset_s,
+                             x_initial=context.x_initial, riccati=driver.riccati)
+    return make
 
 
-@dataclass(frozen=True)
-class StewartConfig:
-    """Everything that defines one closed-loop run; SI units.
+def pd_factory(driver: PdDriver) -> Callable[[ControllerContext], CrankPdController]:
+    """The factory of the crank PD a scenario's :class:`~.scenario.PdDriver` describes."""
+    def make(context: ControllerContext) -> CrankPdController:
+        return CrankPdController(context.geometry, period_s=context.period_s,
+                                 offset_s=context.offset_s, bandwidth_hz=driver.bandwidth_hz,
+                                 damping=driver.damping, x_initial=context.x_initial,
+                                 schedule_period_s=driver.schedule_period_s)
+    return make
 
-    Attributes:
-        geometry: the robot (default reference_geometry.md).
-        trajectory: a trajectory object (``evaluate(t)``) or a registered name ("paper").
-        duration_s: simulated time, s.
-        plant_time_step_s: MultibodyPlant period (SAP), s.
-        control_period_s: LQI period h, s; a whole multiple of the plant step.
-        schedule_period_s: gain re-scheduling period, s; a whole multiple of control_period_s.
-        omega_Q, omega_R: fixed LQI weights (paper eq. 27), used when ``tuner`` is None.
-        scales: normalization of Q and R (controller.LqiScales).
-        feedforward: "gravity", "inverse_dynamics" or "none" (reference.feedforward_torques).
-        controller: "lqi" (paper section III) or "pd" (baselines.CrankPdController).
-        riccati: "warm" (Newton refinement of the last gain) or "cold" (DARE each re-schedule).
-        pd_bandwidth_hz: closed-loop bandwidth of the "pd" baseline, Hz.
-        tuner: None for fixed weights, or "ann" for the density-feature ANN tuner.
-        tuner_period_s: ANN tuner period, s.
-        tuner_weights: path of the tuner's .npz (None: the shipped weights).
-        feature_window: samples m + 1 of the density features (eqs. 35-36).
-        log_period_s: logging period, s.
-        sensor_noise_std: optional (12,) standard deviation of white Gaussian noise added to
-            the measured pose and rate (rad, m, rad/s, m/s), drawn every control period.
-        noise_seed: seed of that noise (Drake RandomSource).
-        payload_scale: the plant's platform mass and inertia are this multiple of the
-            geometry's; the controller still uses ``geometry`` (an unknown payload).
-        torque_limit_Nm: motor torque saturation, N m, or None.
-        guard: checks before and during the run: singularity thresholds of the reference,
-            bounds on loop closure and tracking error, where a diverged run is saved
-            (:class:`~stewart_drake.guard.GuardConfig`).
+
+def resolve_factory(name: str) -> Callable:
+    """A controller factory by registered name or ``"package.module:attribute"`` path.
+
     Raises:
-        InvalidConfigError: a field out of range, a period that is not a whole multiple of the
-            one it runs on, an unknown name (``validation.check_config``).
-        MissingFileError: tuner_weights names no file.
+        InvalidConfigError: neither a registered name nor an importable callable (names both).
     """
+    if name in CONTROLLER_REGISTRY:
+        return CONTROLLER_REGISTRY[name]
+    module, sep, attribute = name.partition(":")
+    if sep and module and attribute:
+        try:
+            target = importlib.import_module(module)
+            for part in attribute.split("."):
+                target = getattr(target, part)
+        except (ImportError, AttributeError) as err:
+            raise InvalidConfigError(f"controller factory {name!r} cannot be imported: {err}") \
+                from None
+        if callable(target):
+            return target
+    raise InvalidConfigError(
+        f"controller factory {name!r} is neither a registered name "
+        f"({', '.join(sorted(CONTROLLER_REGISTRY)) or 'none registered'}) nor a "
+        f"'package.module:attribute' path to a callable")
 
-    geometry: StewartGeometry = field(default_factory=StewartGeometry)
-    trajectory: Any = "paper"
-    duration_s: float = 10.0
-    plant_time_step_s: float = 1e-3
-    control_period_s: float = 1e-3
-    schedule_period_s: float = 1e-2
-    omega_Q: float = 1.0
-    omega_R: float = 1.0
-    scales: LqiScales = field(default_factory=LqiScales)
-    feedforward: str = "gravity"
-    tuner: str | None = None
-    tuner_period_s: float = 0.02
-    tuner_weights: str | None = None
-    feature_window: int = 50
-    log_period_s: float = 1e-3
-    sensor_noise_std: Any = None
-    noise_seed: int = 0
-    controller: str = "lqi"
-    riccati: str = "warm"
-    pd_bandwidth_hz: float = 20.0
-    payload_scale: float = 1.0
-    torque_limit_Nm: float | None = None
-    guard: GuardConfig = field(default_factory=GuardConfig)
 
-    def __post_init__(self):
-        check_config(self)
+def controller_factory(scenario: Scenario, controller=None) -> Callable:
+    """The factory ``f(ControllerContext) -> LeafSystem`` of a run.
 
-    def plant_geometry(self) -> StewartGeometry:
-        """The robot that is simulated: ``geometry`` with the payload scale on the platform."""
-        if self.payload_scale == 1.0:
-            return self.geometry
-        return self.geometry.replace(
-            platform_mass=self.geometry.platform_mass * self.payload_scale,
-            platform_inertia=tuple(self.payload_scale * v for v in self.geometry.platform_inertia))
-
-    def resolved_trajectory(self):
-        """The trajectory object (names are looked up in trajectories.TRAJECTORIES)."""
-        if isinstance(self.trajectory, str):
-            return make_trajectory(self.trajectory)
-        return self.trajectory
+    Args:
+        scenario: its ``controller`` is used when ``controller`` is None.
+        controller: a factory callable or a registered name (overrides the scenario).
+    """
+    if controller is not None:
+        return resolve_factory(controller) if isinstance(controller, str) else controller
+    driver = scenario.controller
+    if isinstance(driver, LqiDriver):
+        return lqi_factory(driver)
+    if isinstance(driver, PdDriver):
+        return pd_factory(driver)
+    if isinstance(driver, UserController):
+        factory = resolve_factory(driver.factory)
+        return lambda context: factory(context, **driver.parameters)
+    raise InvalidConfigError(f"unknown controller choice {type(driver).__name__}")
 
 
 @dataclass
 class StewartDiagram:
-    """Handles to the built Diagram and its pieces (see :func:`make_stewart_diagram`)."""
+    """Handles to the built Diagram and its pieces (see :func:`make_stewart_diagram`).
+
+    Attributes:
+        diagram: the Diagram. station: the :class:`~.station.StewartStation` in it.
+        controller: the controller system. reference: its :class:`~.reference.ReferenceSources`.
+        trajectory: the reference object (``evaluate(t)``). loggers: name -> LogVectorOutput.
+        scenario: the scenario built. features, tuner, noise: the systems, or None.
+        guard: the :class:`~.guard.DivergenceGuard`, attached by ``build_simulator``.
+    """
 
     diagram: Any
-    plant: Any
-    scene_graph: Any
-    handles: Any
+    station: StewartStation
     controller: Any
     reference: ReferenceSources
-    sensor: PlatformPoseSensor
+    trajectory: Any
     loggers: dict
-    config: StewartConfig
+    scenario: Scenario
     features: Any = None
     tuner: Any = None
     noise: Any = None
-    guard: Any = None          # guard.DivergenceGuard, attached by experiments.build_simulator
+    guard: Any = None
+
+    @property
+    def plant(self):
+        return self.station.plant
+
+    @property
+    def handles(self):
+        return self.station.handles
+
+    @property
+    def sensor(self):
+        return self.station.sensor
 
     def seed_noise(self, root_context) -> None:
-        """Seed the sensor noise (if any) in ``root_context`` from ``config.noise_seed``: Drake
-        gives every RandomSource a fresh seed otherwise, and two runs would differ."""
+        """Seed the sensor noise (if any) in ``root_context`` from ``scenario.sensor_noise.seed``:
+        Drake gives every RandomSource a fresh seed otherwise, and two runs would differ."""
         if self.noise is not None:
             from pydrake.common import RandomGenerator
 
             self.noise.SetRandomContext(self.noise.GetMyMutableContextFromRoot(root_context),
-                                        RandomGenerator(self.config.noise_seed))
+                                        RandomGenerator(self.scenario.sensor_noise.seed))
 
 
-def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> StewartDiagram:
+def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, reference=None,
+                         controller=None) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
-    Wiring: reference and feed-forward sources (precomputed, :mod:`~stewart_drake.reference`) ->
-    controller.x_d, controller.T_ff; MultibodyPlant state -> PlatformPoseSensor [+ noise] ->
-    controller.x; controller.T [-> Saturation] -> plant actuation; [omega_Q, omega_R] from a
-    constant source, or from DensityFeatures(controller.e_bar, T) -> AnnTuner when
-    ``config.tuner == "ann"``. The controller is the LQI or the crank-space PD baseline.
+    Wiring: the station (:func:`~.station.make_stewart_station`); the reference and its
+    feed-forward (precomputed ``TrajectorySource``s, :mod:`~.reference`); the controller, whose
+    ports are connected by name as the controller contract says
+    (:mod:`~stewart_drake.control.contract`): ``x_d``, ``T_ff``, ``x`` (the station's
+    ``platform_state`` [+ sensor noise]), ``motor_angle``, ``motor_rate``, ``omega`` (constant
+    weights, or DensityFeatures(e_bar, T) -> AnnTuner when the scenario has a tuner); its ``T``
+    drives the station's ``motor_torque``; ``tool_wrench`` is fixed to zero.
 
     Args:
-        config: the run's settings (default: the paper's experiment).
-        meshcat: optional pydrake Meshcat; adds the default visualization.
+        scenario: the run (default: the paper's experiment on the ideal robot).
+        meshcat: optional pydrake Meshcat (Drake's visualization of the station).
+        reference: optional reference object overriding ``scenario.reference``: anything
+            :func:`~.trajectories.as_trajectory` accepts (an object with ``evaluate(t)``, a Drake
+            ``Trajectory``, a CSV path or a name).
+        controller: optional factory ``f(ControllerContext) -> LeafSystem`` or registered name,
+            overriding ``scenario.controller``.
     Returns:
-        :class:`StewartDiagram`; loggers (``LogVectorOutput``) are keyed "T" (applied torques, 6),
-        "status" (controller, 5), "state" (plant), and with the tuner "rho" (12, every
-        tuner period). The platform
-        pose is recovered from "state" (``sensor.poses_from_states``), so no logger evaluates the
-        sensor.
+        :class:`StewartDiagram`; loggers (``LogVectorOutput``) keyed "state" (plant state),
+        "T" (applied torques, 6), and when the controller has them "status", "integral", and
+        with the tuner "rho" (12, every tuner period).
     Raises:
-        InvalidConfigError: inconsistent periods or names. UnreachablePoseError: the reference
-            leaves the workspace (first time and leg).
+        InvalidConfigError: a scenario field out of range, a controller that breaks the contract
+            (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
+        UnreachablePoseError: the reference leaves the workspace (first time and leg).
     """
-    config = config or StewartConfig()
+    scenario = (scenario or Scenario()).validate()
+    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
+    geometry = scenario.geometry()
     builder = DiagramBuilder()
-    plant, scene_graph, handles = add_stewart_plant(builder, config.plant_geometry(),
-                                                    config.plant_time_step_s)
-    plant.set_name("plant")
-    trajectory = config.resolved_trajectory()
-    x_d0 = trajectory.evaluate(0.0)[0]
-    h_plant, h = config.plant_time_step_s, config.control_period_s
+    station = builder.AddSystem(StewartStation(scenario, meshcat))
+    h_plant, h = scenario.plant_time_step_s, scenario.control_period_s
     # The controller samples half a plant step after each plant update, when the plant already
     # holds the configuration of the next step's time: its reference leads by the same half step.
     offset = 0.5 * h_plant
-    reference = add_reference_sources(builder, trajectory, config.geometry, config.duration_s,
-                                      period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
-                                      feedforward=config.feedforward)
-    sensor = builder.AddNamedSystem("sensor", PlatformPoseSensor(plant, handles))
-    if config.controller == "lqi":
-        controller = builder.AddNamedSystem("lqi", LqiController(
-            config.geometry, period_s=h, schedule_period_s=config.schedule_period_s,
-            scales=config.scales, offset_s=offset, x_initial=x_d0, riccati=config.riccati))
-    else:
-        controller = builder.AddNamedSystem("crank_pd", CrankPdController(
-            config.geometry, period_s=h, offset_s=offset, bandwidth_hz=config.pd_bandwidth_hz,
-            x_initial=x_d0))
-    builder.Connect(plant.get_state_output_port(), sensor.get_input_port())
-    measured = sensor.get_output_port()
+    ref = add_reference_sources(builder, trajectory, geometry, scenario.duration_s,
+                                period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
+                                feedforward=scenario.feedforward)
+    context = ControllerContext(geometry=geometry, period_s=h, offset_s=offset,
+                                plant_time_step_s=h_plant,
+                                x_initial=np.asarray(trajectory.evaluate(0.0)[0], dtype=float))
+    system = controller_factory(scenario, controller)(context)
+    check_controller(system)
+    if not system.get_name():
+        system.set_name("controller")
+    system = builder.AddSystem(system)
+    inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
+    outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
+
     noise = None
-    if config.sensor_noise_std is not None:
-        std = np.broadcast_to(np.asarray(config.sensor_noise_std, dtype=float), (12,)).copy()
+    measured = station.GetOutputPort("platform_state")
+    if scenario.sensor_noise is not None and "x" in inputs:
+        std = np.broadcast_to(np.asarray(scenario.sensor_noise.std, dtype=float), (12,)).copy()
         noise = builder.AddNamedSystem("sensor_noise", RandomSource(
             RandomDistribution.kGaussian, 12, sampling_interval_sec=h))
         scale = builder.AddNamedSystem("noise_std", Gain(std))
@@ -266,52 +197,55 @@ def make_stewart_diagram(config: StewartConfig | None = None, meshcat=None) -> S
         builder.Connect(measured, add.get_input_port(0))
         builder.Connect(scale.get_output_port(), add.get_input_port(1))
         measured = add.get_output_port()
-    builder.Connect(measured, controller.get_x_input_port())
-    builder.Connect(reference.x_d.get_output_port(), controller.get_x_d_input_port())
-    builder.Connect(reference.T_ff.get_output_port(), controller.get_T_ff_input_port())
-    applied = controller.GetOutputPort("T")
-    if config.torque_limit_Nm is not None:
-        limit = config.torque_limit_Nm * np.ones(6)
-        saturation = builder.AddNamedSystem("saturation", Saturation(-limit, limit))
-        builder.Connect(applied, saturation.get_input_port())
-        applied = saturation.get_output_port()
-    builder.Connect(applied, handles.actuation_port)
+    sources = {"x_d": ref.x_d.get_output_port(), "T_ff": ref.T_ff.get_output_port(),
+               "x": measured, "motor_angle": station.GetOutputPort("motor_angle"),
+               "motor_rate": station.GetOutputPort("motor_rate")}
+    for name in inputs - {"omega"}:
+        builder.Connect(sources[name], system.GetInputPort(name))
+    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
+    wrench = builder.AddNamedSystem("no_tool_wrench", ConstantVectorSource(np.zeros(6)))
+    builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    applied = station.GetOutputPort("motor_torque_applied")
 
     features = tuner = None
     loggers = {}
-    if config.tuner == "ann":
+    if scenario.tuner is not None:
         from ..control.features import DensityFeatures
         from ..control.tuner import AnnTuner, load_tuner
 
+        missing = [p for p, have in (("omega input", "omega" in inputs),
+                                     ("e_bar output", "e_bar" in outputs)) if not have]
+        if missing:
+            raise InvalidConfigError(f"the ANN tuner needs a controller with an {' and an '.join(missing)} "
+                                     f"(the LQI has both); {system.get_name()} has not")
+        t = scenario.tuner
         features = builder.AddNamedSystem("features", DensityFeatures(
-            window=config.feature_window, period_s=h))
+            window=t.feature_window, period_s=h))
         tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
-            load_tuner(config.tuner_weights), period_s=config.tuner_period_s))
-        builder.Connect(controller.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
+            load_tuner(t.weights or None), period_s=t.period_s))
+        builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
         builder.Connect(applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
-        builder.Connect(tuner.GetOutputPort("omega"), controller.get_omega_input_port())
+        builder.Connect(tuner.GetOutputPort("omega"), system.GetInputPort("omega"))
         # rho is computed when read: log it where the tuner reads it, not every millisecond.
-        loggers["rho"] = LogVectorOutput(features.GetOutputPort("rho"), builder,
-                                         config.tuner_period_s)
-    else:
-        omega = builder.AddNamedSystem("omega", ConstantVectorSource(
-            np.array([config.omega_Q, config.omega_R])))
-        builder.Connect(omega.get_output_port(), controller.get_omega_input_port())
+        loggers["rho"] = LogVectorOutput(features.GetOutputPort("rho"), builder, t.period_s)
+    elif "omega" in inputs:
+        driver = scenario.controller
+        weights = ([driver.omega_Q, driver.omega_R] if isinstance(driver, LqiDriver)
+                   else [1.0, 1.0])
+        omega = builder.AddNamedSystem("omega", ConstantVectorSource(np.array(weights)))
+        builder.Connect(omega.get_output_port(), system.GetInputPort("omega"))
 
-    period = config.log_period_s
+    period = scenario.log_period_s
     loggers["T"] = LogVectorOutput(applied, builder, period)
-    loggers["status"] = LogVectorOutput(controller.GetOutputPort("status"), builder, period)
-    loggers["state"] = LogVectorOutput(plant.get_state_output_port(), builder, period)
+    loggers["state"] = LogVectorOutput(station.GetOutputPort("plant_state"), builder, period)
+    for name in ("status", "integral"):
+        if name in outputs:
+            loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period)
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    if meshcat is not None:
-        from pydrake.visualization import AddDefaultVisualization
-
-        AddDefaultVisualization(builder, meshcat)
     diagram = builder.Build()
-    diagram.set_name("rotary_stewart_lqi")
-    return StewartDiagram(diagram=diagram, plant=plant, scene_graph=scene_graph, handles=handles,
-                          controller=controller, reference=reference, sensor=sensor,
-                          loggers=loggers, config=config, features=features, tuner=tuner,
-                          noise=noise)
+    diagram.set_name("rotary_stewart")
+    return StewartDiagram(diagram=diagram, station=station, controller=system, reference=ref,
+                          trajectory=trajectory, loggers=loggers, scenario=scenario,
+                          features=features, tuner=tuner, noise=noise)

@@ -8,7 +8,7 @@ that leaves the workspace (:class:`~stewart_drake.errors.UnreachablePoseError`),
 During a run, :class:`DivergenceGuard` is the Simulator's monitor (``Simulator.set_monitor``,
 called after every step). Every step it checks that the plant state and the motor torques are
 finite; every ``check_period_s`` that the loop-closure error and the tracking error are within
-:class:`GuardConfig`'s bounds. On the first failure the Simulator stops, :func:`advance` saves the
+:class:`~.scenario.GuardConfig`'s bounds. On the first failure the Simulator stops, :func:`advance` saves the
 logs up to then and the last full plant state to ``GuardConfig.divergence_dir`` (an ``.npz``,
 written atomically) and raises :class:`~stewart_drake.errors.SimulationDivergedError` naming the
 file. A run that ends normally therefore has finite logs: a NaN cannot reach a plot or the
@@ -17,82 +17,35 @@ metrics silently.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import EventStatus
 
-from ..checks import as_number
-from ..errors import InvalidConfigError, SimulationDivergedError
+from ..errors import SimulationDivergedError
 from ..fileio import save_npz
 from ..model import limits
+from ..model.plant import loop_closure_errors
+from .scenario import GuardConfig, dump_scenario
 
-#: Default folder of the files saved when a run diverges (relative to the working directory).
-DEFAULT_DIVERGENCE_DIR = Path("results") / "diverged"
-
-
-@dataclass(frozen=True)
-class GuardConfig:
-    """Bounds of a guarded run; SI units. A field of :class:`~stewart_drake.diagram.StewartConfig`.
-
-    Attributes:
-        max_closure_error_m: largest distance between a rod's top end and its platform joint, m
-            (the paper run stays below 1e-6 m; SAP's constraint compliance is micrometres).
-            None disables the check.
-        max_tracking_error: (rad, m): largest |x - x_d| over the three angles and over the three
-            positions. Loose by default (0.2 rad, 0.05 m): it catches a lost platform, not a
-            poorly tuned one (the paper run tracks to micrometres). None disables the check.
-        check_period_s: closure and tracking are checked this often, s (a whole multiple of the
-            plant step; finiteness is checked every step).
-        divergence_dir: folder of the saved ``.npz`` when a run diverges.
-        cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
-        min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad
-            (limits.DEFAULT_MIN_SIGMA_MIN_INV).
-    Raises:
-        InvalidConfigError: a bound that is not a finite positive number (or None).
-    """
-
-    max_closure_error_m: float | None = 1e-3
-    max_tracking_error: tuple | None = (0.2, 0.05)
-    check_period_s: float = 0.01
-    divergence_dir: str | Path = DEFAULT_DIVERGENCE_DIR
-    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD
-    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV
-
-    def __post_init__(self):
-        if self.max_closure_error_m is not None:
-            as_number("guard.max_closure_error_m", self.max_closure_error_m, 0.0, lo_open=True)
-        if self.max_tracking_error is not None:
-            bounds = self.max_tracking_error
-            if isinstance(bounds, (str, bytes)) or np.ndim(bounds) != 1 or len(bounds) != 2:
-                raise InvalidConfigError(f"guard.max_tracking_error must be (rad, m), got "
-                                         f"{bounds!r}")
-            object.__setattr__(self, "max_tracking_error", tuple(
-                as_number(f"guard.max_tracking_error[{k}]", v, 0.0, lo_open=True)
-                for k, v in enumerate(bounds)))
-        as_number("guard.check_period_s", self.check_period_s, 0.0, lo_open=True)
-        as_number("guard.cond_threshold", self.cond_threshold, 1.0, lo_open=True)
-        as_number("guard.min_sigma_min_inv", self.min_sigma_min_inv, 0.0)
-        if not isinstance(self.divergence_dir, (str, os.PathLike)) or not str(self.divergence_dir):
-            raise InvalidConfigError(f"guard.divergence_dir must be a folder path, got "
-                                     f"{self.divergence_dir!r}")
-
-
-def check_reference(config: "StewartConfig") -> limits.TrajectoryReport:
+def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
-    motor travel, ball-joint cones and both singularity measures (``config.guard`` thresholds).
+    motor travel, ball-joint cones and both singularity measures (``scenario.guard`` thresholds),
+    with :func:`~.trajectories.validate`.
 
+    Args:
+        scenario: the :class:`~.scenario.Scenario`.
+        trajectory: the reference object (default: the one the scenario names).
     Returns:
-        the :class:`~stewart_drake.limits.TrajectoryReport` (``summary()`` prints it).
+        the :class:`~stewart_drake.model.limits.TrajectoryReport` (``summary()`` prints it).
     Raises:
-        InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named.
+        InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named,
+            or a run longer than a bounded reference.
         UnreachablePoseError: first time, leg and ratio |L|/sqrt(M^2+N^2) > 1.
         JointLimitError: first time, leg and limit (motor_angle, crank_joint, platform_joint).
         SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
@@ -100,25 +53,26 @@ def check_reference(config: "StewartConfig") -> limits.TrajectoryReport:
     """
     from .trajectories import validate
 
-    return validate(config.resolved_trajectory(), config.geometry, config.duration_s,
-                    dt=config.control_period_s, cond_threshold=config.guard.cond_threshold,
-                    min_sigma_min_inv=config.guard.min_sigma_min_inv)
+    trajectory = scenario.make_reference() if trajectory is None else trajectory
+    return validate(trajectory, scenario.geometry(), scenario.duration_s,
+                    dt=scenario.control_period_s, cond_threshold=scenario.guard.cond_threshold,
+                    min_sigma_min_inv=scenario.guard.min_sigma_min_inv)
 
 
 class DivergenceGuard:
     """Simulator monitor that stops a run leaving its safe envelope (see module docstring).
 
     Args:
-        sd: the built :class:`~stewart_drake.diagram.StewartDiagram`.
-        config: the bounds (default ``sd.config.guard``).
+        sd: the built :class:`~.diagram.StewartDiagram`.
+        config: the bounds (default ``sd.scenario.guard``).
     Attributes:
         reason: why the run was stopped (None while it is fine).  t_failed: when, s.
         checks: how many closure/tracking checks ran (for tests and benchmarks).
     """
 
-    def __init__(self, sd: "StewartDiagram", config: GuardConfig | None = None):
+    def __init__(self, sd, config: GuardConfig | None = None):
         self.sd = sd
-        self.config = config or sd.config.guard
+        self.config = config or sd.scenario.guard
         self.reason: str | None = None
         self.t_failed: float | None = None
         self.checks = 0
@@ -135,9 +89,10 @@ class DivergenceGuard:
         sd = self.sd
         self._root_id = id(root)
         self._contexts = tuple(s.GetMyContextFromRoot(root) for s in (
-            sd.plant, sd.controller, sd.sensor, sd.reference.x_d))
+            sd.plant, sd.controller, sd.station, sd.reference.x_d))
         self._T_port = sd.controller.GetOutputPort("T")
-        self._h = sd.config.plant_time_step_s
+        self._pose_port = sd.station.GetOutputPort("platform_state")
+        self._h = sd.scenario.plant_time_step_s
 
     def __call__(self, root) -> EventStatus | None:
         """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`."""
@@ -153,7 +108,7 @@ class DivergenceGuard:
         """Run the checks due at ``root``'s time; the first failure's description, or None."""
         if self._contexts is None or id(root) != self._root_id:
             self._bind(root)
-        plant_ctx, ctrl_ctx, sensor_ctx, ref_ctx = self._contexts
+        plant_ctx, ctrl_ctx, station_ctx, ref_ctx = self._contexts
         t = root.get_time()
         # The monitor runs after every event time: the plant's (k h) and the controller's
         # (k h + h/2). The plant state changes only at the first, and a torque the controller
@@ -177,15 +132,13 @@ class DivergenceGuard:
         self.checks += 1
         cfg = self.config
         if cfg.max_closure_error_m is not None:
-            from ..model.plant import loop_closure_errors
-
             closure = loop_closure_errors(self.sd.plant, plant_ctx, self.sd.handles)
             leg = int(np.argmax(closure))
             if not closure[leg] <= cfg.max_closure_error_m:
                 return (f"loop-closure error {closure[leg]:.3g} m at rod {leg} exceeds "
                         f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m")
         if cfg.max_tracking_error is not None:
-            x = self.sd.sensor.get_output_port().Eval(sensor_ctx)
+            x = self._pose_port.Eval(station_ctx)
             x_d = self.sd.reference.x_d.get_output_port().Eval(ref_ctx)
             e = np.abs(x[:6] - x_d[:6])
             for part, bound, unit in ((slice(0, 3), cfg.max_tracking_error[0], "rad"),
@@ -200,10 +153,13 @@ class DivergenceGuard:
     def save(self, root, reason: str) -> Path:
         """Write the logs up to now and the last plant state to ``divergence_dir``.
 
-        The ``.npz`` holds: t (N,), x (N, 12), T (N, 6), status (N, 5), state (N, n) logged
-        plant states, x_d (N, 18) the reference at t (when it can be evaluated), t_last (s) and
-        state_last (n,) the plant state when the run stopped, T_last (6,), reason (str) and
-        config (JSON).
+        The ``.npz`` holds: t (N,), x (N, 12) true pose and rate, T (N, 6) applied torques
+        (after the torque limit), the controller's other logs (status, integral) and rho when
+        tuned, state (N, n) logged plant states, x_d (N, 18) the reference at t (when it can be
+        evaluated), t_last (s) and state_last (n,) the plant state when the run stopped, T_last
+        (6,) the last command and T_applied_last (6,) what the motors applied, reason (str) and
+        scenario (the whole scenario as YAML: robot, payload, torque limit, feed-forward,
+        controller, noise...).
         Returns:
             the path written.
         """
@@ -215,8 +171,10 @@ class DivergenceGuard:
                   .get_discrete_state_vector().CopyToVector(),
                   "T_last": sd.controller.GetOutputPort("T").Eval(
                       sd.controller.GetMyContextFromRoot(root)).copy(),
+                  "T_applied_last": sd.station.GetOutputPort("motor_torque_applied").Eval(
+                      sd.station.GetMyContextFromRoot(root)).copy(),
                   "reason": np.str_(reason),
-                  "config": np.str_(json.dumps(_config_summary(sd.config)))}
+                  "scenario": np.str_(dump_scenario(sd.scenario))}
         for name, log in logs.items():
             arrays[name] = log.data().T.copy()
         try:
@@ -224,10 +182,10 @@ class DivergenceGuard:
         except Exception:               # noqa: BLE001 - a NaN quaternion must not lose the file
             arrays["x"] = np.full((len(t), 12), np.nan)
         try:
-            arrays["x_d"] = np.concatenate(sd.config.resolved_trajectory().evaluate(t), axis=1)
+            arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
         except Exception:               # noqa: BLE001 - the reference itself may be the fault
             pass
-        name = getattr(sd.config.resolved_trajectory(), "name", "custom")
+        name = getattr(sd.trajectory, "name", "custom")
         stamp = time.strftime("%Y%m%d-%H%M%S")
         path = Path(self.config.divergence_dir) / (
             f"diverged_{name}_t{root.get_time():.4f}s_{stamp}_{os.getpid()}"
@@ -235,16 +193,7 @@ class DivergenceGuard:
         return save_npz(path, arrays)
 
 
-def _config_summary(config) -> dict:
-    return {"trajectory": getattr(config.resolved_trajectory(), "name", "custom"),
-            "duration_s": config.duration_s, "omega_Q": config.omega_Q,
-            "omega_R": config.omega_R, "tuner": config.tuner,
-            "guard": {"max_closure_error_m": config.guard.max_closure_error_m,
-                      "max_tracking_error": config.guard.max_tracking_error,
-                      "check_period_s": config.guard.check_period_s}}
-
-
-def advance(sd: "StewartDiagram", simulator, step) -> None:
+def advance(sd, simulator, step) -> None:
     """Call ``step()`` (which advances ``simulator``); on a divergence save and raise.
 
     Args:

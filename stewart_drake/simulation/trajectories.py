@@ -1,14 +1,21 @@
 """Reference trajectories x_d(t) of the platform pose and their validation before a run.
 
-A trajectory maps times t (N,) in s to pose, rate and acceleration, each (N, 6) in
-[rad, rad, rad, m, m, m] (and /s, /s^2). :mod:`~stewart_drake.reference` puts one into a Diagram.
+A trajectory is any object with ``evaluate(t)`` mapping times t (s) to pose, rate and
+acceleration, each ``t.shape + (6,)`` in [rad, rad, rad, m, m, m] (and /s, /s^2).
+:func:`as_trajectory` accepts more and adapts it: an ``evaluate`` that takes one time only, a Drake
+``Trajectory`` (e.g. a ``PiecewisePolynomial``), a CSV file of ``t, phi, theta, psi, X, Y, Z``
+or a registered name. :func:`validate` checks one before a run;
+:mod:`~stewart_drake.simulation.reference` puts one into a Diagram.
 """
 
 from __future__ import annotations
 
+import csv
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+from pydrake.trajectories import PiecewisePolynomial, Trajectory
 
 from ..checks import as_array
 from ..errors import InvalidConfigError
@@ -213,6 +220,151 @@ def make_trajectory(name: str):
             f"unknown trajectory {name!r}; choose one of {sorted(TRAJECTORIES)}") from None
 
 
+class ScalarEvaluate:
+    """Adapter for an ``evaluate(t)`` that takes one time at a time: evaluates it per sample.
+
+    Args:
+        source: object whose ``evaluate(t: float)`` returns (pose, rate, acceleration), each (6,).
+        name: label used in result files (default ``source.name`` or "custom").
+    """
+
+    def __init__(self, source, name: str | None = None):
+        self.source = source
+        self.name = name or getattr(source, "name", "custom")
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
+        t = np.asarray(t, dtype=float)
+        rows = [self.source.evaluate(float(tk)) for tk in t.reshape(-1)]
+        return tuple(np.array([np.reshape(r[k], 6) for r in rows], dtype=float).reshape(
+            t.shape + (6,)) for k in range(3))
+
+
+class DrakeTrajectory:
+    """A Drake ``Trajectory`` of the pose (6 rows, 1 column) as a reference: pose from
+    ``value``, rate and acceleration from ``MakeDerivative(1)`` and ``MakeDerivative(2)``.
+
+    Args:
+        trajectory: a ``pydrake.trajectories.Trajectory`` with rows() == 6, cols() == 1, twice
+            differentiable (e.g. ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``).
+        name: label used in result files.
+    Attributes:
+        end_time: the trajectory's last time, s; a run may not last longer.
+    Raises:
+        InvalidConfigError: not a 6 x 1 trajectory.
+    """
+
+    def __init__(self, trajectory, name: str = "drake_trajectory"):
+        if not isinstance(trajectory, Trajectory) or (trajectory.rows(), trajectory.cols()) != (6, 1):
+            shape = ((trajectory.rows(), trajectory.cols()) if isinstance(trajectory, Trajectory)
+                     else type(trajectory).__name__)
+            raise InvalidConfigError(f"a Drake reference must be a Trajectory of 6 rows and 1 "
+                                     f"column ([phi, theta, psi, X, Y, Z]), got {shape}")
+        self.trajectory = trajectory
+        self._derivatives = (trajectory, trajectory.MakeDerivative(1),
+                             trajectory.MakeDerivative(2))
+        self.start_time, self.end_time = trajectory.start_time(), trajectory.end_time()
+        self.name = name
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
+        t = np.asarray(t, dtype=float)
+        flat = t.reshape(-1).tolist()
+        return tuple(np.asarray(d.vector_values(flat)).T.reshape(t.shape + (6,))
+                     for d in self._derivatives)
+
+
+CSV_COLUMNS = ("t",) + AXIS_NAMES
+
+
+def load_csv_trajectory(path) -> DrakeTrajectory:
+    """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), one row per
+    sample, times strictly increasing from 0; at least 3 rows. The samples are joined by a cubic
+    spline with continuous second derivatives (Drake's
+    ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), which gives the rate and the
+    acceleration the controller and the feed-forward need.
+
+    Returns:
+        :class:`DrakeTrajectory` named after the file's stem; its ``end_time`` bounds the run.
+    Raises:
+        MissingFileError: no such file. InvalidConfigError: another header, a row that is not 7
+            numbers (its line named), a non-finite value, times not increasing from 0, or fewer
+            than 3 rows.
+    """
+    from ..errors import MissingFileError
+
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError(f"no reference CSV at {path}: check the path")
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header = [h.strip() for h in rows[0]] if rows else []
+    if tuple(header) != CSV_COLUMNS:
+        raise InvalidConfigError(f"{path}: the first line must be the header "
+                                 f"{','.join(CSV_COLUMNS)}, got {','.join(header) or 'nothing'}")
+    values = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        try:
+            numbers = [float(c) for c in row]
+        except ValueError:
+            numbers = []
+        if len(numbers) != 7 or not np.all(np.isfinite(numbers)):
+            raise InvalidConfigError(f"{path}, line {line}: expected 7 finite numbers "
+                                     f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got {row}")
+        values.append(numbers)
+    data = np.array(values).reshape(-1, 7)
+    if len(data) < 3:
+        raise InvalidConfigError(f"{path}: a reference needs at least 3 samples, got {len(data)}")
+    t = data[:, 0]
+    if t[0] != 0.0 or np.any(np.diff(t) <= 0):
+        raise InvalidConfigError(f"{path}: times must start at 0 s and strictly increase")
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, data[:, 1:].T, False)
+    return DrakeTrajectory(spline, name=path.stem)
+
+
+def as_trajectory(source):
+    """A reference object with a vectorized ``evaluate`` from whatever the user gives.
+
+    Args:
+        source: a registered name (:data:`TRAJECTORIES`), a path to a ``.csv`` file
+            (:func:`load_csv_trajectory`), a Drake ``Trajectory`` (:class:`DrakeTrajectory`),
+            or an object with ``evaluate(t)``: used as is when it accepts an array of times and
+            returns three ``(n, 6)`` arrays, else wrapped in :class:`ScalarEvaluate`.
+    Returns:
+        an object with ``evaluate(t)`` -> (pose, rate, acceleration), each ``t.shape + (6,)``,
+        and a ``name``.
+    Raises:
+        InvalidConfigError: none of the above, or an ``evaluate`` whose output does not have
+            three (6,) parts; MissingFileError: a CSV path that does not exist.
+    """
+    if isinstance(source, (str, Path)):
+        if str(source).lower().endswith(".csv"):
+            return load_csv_trajectory(source)
+        return make_trajectory(str(source))
+    if isinstance(source, Trajectory):
+        return DrakeTrajectory(source)
+    if not callable(getattr(source, "evaluate", None)):
+        raise InvalidConfigError(f"a reference must be a name, a .csv path, a Drake Trajectory or "
+                                 f"an object with evaluate(t); got {type(source).__name__}")
+    probe = np.array([0.0, 1e-3])
+    try:
+        out = source.evaluate(probe)
+        if len(out) == 3 and all(np.shape(part) == (2, 6) for part in out):
+            return source
+    except Exception:       # noqa: BLE001 - an evaluate that takes one time only fails here
+        pass
+    wrapped = ScalarEvaluate(source)
+    try:
+        wrapped.evaluate(probe)
+    except Exception as err:  # noqa: BLE001 - say what is wrong with the user's object
+        raise InvalidConfigError(
+            f"{type(source).__name__}.evaluate(t) must return (pose, rate, acceleration), each 6 "
+            f"numbers [rad, m, /s, /s^2] for one t (or (n, 6) for n times): {err}") from None
+    return wrapped
+
+
 def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
              cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
              min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
@@ -232,10 +384,15 @@ def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float
         :class:`~stewart_drake.model.limits.TrajectoryReport`.
     Raises:
         InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError: see
-            :func:`~stewart_drake.model.limits.validate_trajectory`.
+            :func:`~stewart_drake.model.limits.validate_trajectory`; InvalidConfigError also for
+            a duration beyond a reference's ``end_time`` (a CSV or Drake trajectory).
     """
     if not (np.isfinite(duration_s) and duration_s > 0):
         raise InvalidConfigError(f"duration must be > 0 s, got {duration_s}")
+    end = getattr(trajectory, "end_time", None)
+    if end is not None and duration_s > end + 1e-9:
+        raise InvalidConfigError(f"the reference {getattr(trajectory, 'name', '')} ends at "
+                                 f"t = {end:g} s: run at most that long (duration_s) or extend it")
     t = np.arange(0.0, duration_s + 0.5 * dt, dt)
     x, x_dot, x_ddot = trajectory.evaluate(t)
     return limits.validate_trajectory(geometry, t, x, cond_threshold=cond_threshold,

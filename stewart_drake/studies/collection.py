@@ -7,6 +7,8 @@ runner and writes one record per run (features and normalized cost parts) plus a
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -16,7 +18,7 @@ import numpy as np
 from ..control.features import density_features_series
 from ..errors import InvalidConfigError
 from ..fileio import atomic_write, save_npz
-from ..simulation.diagram import StewartConfig
+from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
 from ..simulation.trajectories import data_collection_trajectory
 from .experiments import RunResult, run_experiment
 from .runners import ProcessRunner
@@ -45,17 +47,32 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
             "cost_u": cost_u[keep], "metrics": result.metrics}
 
 
+def job_config(base: Scenario | None, seed: int, duration_s: float, omega_Q: float,
+               omega_R: float) -> Scenario:
+    """The scenario of one collection run: ``base`` (default: the ideal paper scenario) tracking
+    the seeded excitation for ``duration_s`` with the LQI at fixed (omega_Q, omega_R)."""
+    scenario = copy.deepcopy(base) if base is not None else Scenario()
+    scenario.reference = DataCollectionReference(seed=seed)
+    scenario.duration_s = duration_s
+    scenario.tuner = None
+    driver = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
+    scenario.controller = dataclasses.replace(driver, omega_Q=omega_Q, omega_R=omega_R)
+    return scenario.validate()
+
+
 def _collect_job(job: dict) -> dict:
     config = job["config"]
     t0 = time.perf_counter()
     result = run_experiment(config)
-    record = run_record(result, config.scales, job["sample_period_s"], config.feature_window)
+    record = run_record(result, config.controller.scales.build(), job["sample_period_s"],
+                        job["feature_window"])
     record["wall_s"] = time.perf_counter() - t0
     return record
 
 
 def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: float = 10.0,
-            sample_period_s: float = 5e-3, runner=None, progress: bool = True) -> dict:
+            sample_period_s: float = 5e-3, runner=None, progress: bool = True,
+            base: Scenario | None = None) -> dict:
     """The paper's 9 closed-loop experiments, (omega_Q, omega_R) in {0.1, 1, 10}^2, on the plant.
 
     All runs track the same :func:`~.trajectories.data_collection_trajectory` (seeded), so the
@@ -65,6 +82,8 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     Args:
         out_dir: folder for ``run_<i>.npz`` records and ``manifest.json`` (config + metrics).
         runner: :class:`ProcessRunner` (default, one process per core) or anything with ``map``.
+        base: the scenario the nine runs share (robot, hardware, noise...); its reference,
+            duration, controller weights and tuner are set here. Default: the ideal paper one.
     Returns:
         the manifest dict (also written), with ``speedup`` = sum of job times / wall time.
     """
@@ -73,9 +92,9 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     out = Path(out_dir)
     runner = runner or ProcessRunner()
     trajectory = data_collection_trajectory(seed, duration_s=duration_s)
-    jobs = [{"config": StewartConfig(trajectory=trajectory, duration_s=duration_s,
-                                     omega_Q=q, omega_R=r),
-             "sample_period_s": sample_period_s}
+    window = AnnTunerDriver().feature_window
+    jobs = [{"config": job_config(base, seed, duration_s, q, r),
+             "sample_period_s": sample_period_s, "feature_window": window}
             for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS]
     wall0 = time.perf_counter()
     records = []

@@ -29,7 +29,8 @@ from ..control.lqi import LqiScales
 from ..errors import InvalidConfigError
 from ..fileio import atomic_write
 from ..model.statics import feedforward_torques
-from ..simulation.diagram import StewartConfig
+from ..simulation.scenario import (AnnTunerDriver, LqiDriver, NamedReference, PdDriver, Scenario,
+                                   SensorNoise)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -44,13 +45,13 @@ NOISE_STD = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
 #: way, any limit below that loses the platform (it rolls past phi = 0.52 rad and falls: physics,
 #: not the controller), and any limit above it never acts.
 TORQUE_LIMIT_NM = 0.6
-#: Conditions: StewartConfig fields and the scenario they run on (robustness is on the paper
+#: Conditions: Scenario fields and the reference they run on (robustness is on the paper
 #: manoeuvre but for the saturation, see TORQUE_LIMIT_NM).
 CONDITIONS = {
     "nominal": ({}, None),
     "payload+20%": ({"payload_scale": 1.2}, "paper"),
     "payload-20%": ({"payload_scale": 0.8}, "paper"),
-    "noise": ({"sensor_noise_std": NOISE_STD}, "paper"),
+    "noise": ({"sensor_noise": SensorNoise(std=list(NOISE_STD))}, "paper"),
     f"saturation {TORQUE_LIMIT_NM:g} N m": ({"torque_limit_Nm": TORQUE_LIMIT_NM}, "step_Z"),
 }
 #: Simulated seconds per scenario.
@@ -75,7 +76,7 @@ class Case:
 
 
 def controller_settings(name: str) -> dict:
-    """StewartConfig fields of a controller name of :data:`CONTROLLERS`.
+    """Scenario fields (``controller``, ``tuner``) of a controller name of :data:`CONTROLLERS`.
 
     Raises:
         InvalidConfigError: unknown name (the message lists the known ones).
@@ -85,15 +86,15 @@ def controller_settings(name: str) -> dict:
     if name.startswith("lqi_"):
         try:
             _, q, r = name.split("_")
-            return {"omega_Q": float(q), "omega_R": float(r)}
+            return {"controller": LqiDriver(omega_Q=float(q), omega_R=float(r))}
         except ValueError:
             pass
     elif name == "pd":
-        return {"controller": "pd"}
+        return {"controller": PdDriver()}
     elif name == "ann_best_cost":
-        return {"tuner": "ann", "tuner_weights": str(DEFAULT_TUNER_PATH)}
+        return {"tuner": AnnTunerDriver(weights=str(DEFAULT_TUNER_PATH))}
     elif name == "ann_paper":
-        return {"tuner": "ann", "tuner_weights": str(PAPER_LABEL_TUNER_PATH)}
+        return {"tuner": AnnTunerDriver(weights=str(PAPER_LABEL_TUNER_PATH))}
     raise InvalidConfigError(f"unknown controller {name!r}; choose lqi_<omega_Q>_<omega_R> or "
                              f"one of {CONTROLLERS[-3:]}")
 
@@ -187,6 +188,12 @@ def bandwidth_hz(f, gain):
     return float(np.exp(np.log(f[k - 1]) + w * (np.log(f[k]) - np.log(f[k - 1]))))
 
 
+def case_config(case: Case) -> Scenario:
+    """The scenario of one case: its reference, duration, controller and condition."""
+    return Scenario(reference=NamedReference(case.scenario), duration_s=case.duration_s,
+                    **controller_settings(case.controller), **CONDITIONS[case.condition][0])
+
+
 def run_case(case: Case) -> dict:
     """Simulate one case and reduce it to a row of figures (a plain, picklable dict).
 
@@ -196,9 +203,7 @@ def run_case(case: Case) -> dict:
     """
     row = {"case": asdict(case)}
     try:
-        config = StewartConfig(trajectory=case.scenario, duration_s=case.duration_s,
-                               **controller_settings(case.controller),
-                               **CONDITIONS[case.condition][0])
+        config = case_config(case)
         result = run_experiment(config)
     except Exception as err:      # noqa: BLE001 - one bad case must not lose the grid; the
         row["error"] = f"{type(err).__name__}: {err}"   # report lists it with its traceback
@@ -206,16 +211,17 @@ def run_case(case: Case) -> dict:
         return row
     m = result.metrics
     row.update({k: m[k] for k in ("rms_error", "peak_error", "peak_torque", "sum_T2_dt",
-                                  "max_closure_m", "gain_solves", "gain_failures",
-                                  "realtime_factor", "finite", "window_s")})
-    row["normalized_rms"] = _normalized_rms(m["rms_error"], config.scales)
+                                  "max_closure_m", "realtime_factor", "finite", "window_s",
+                                  "status")})
+    row["normalized_rms"] = _normalized_rms(m["rms_error"], LqiScales())
     # The controller's own effort: what it adds to the gravity feed-forward of the nominal robot
     # (Sum T^2 dt is dominated by holding the platform up, the same for every controller).
-    dT = result.T - feedforward_torques(config.geometry, result.x_d[:, :6])
+    dT = result.T - feedforward_torques(config.geometry(), result.x_d[:, :6])
     dt = np.diff(result.t, prepend=result.t[0])
     row["sum_dT2_dt"] = float(np.sum(dT ** 2 * dt[:, None]))
-    row["mean_omega"] = [float(v) for v in np.mean(result.omega, axis=0)]
-    trajectory = config.resolved_trajectory()
+    row["mean_omega"] = (None if result.omega is None
+                         else [float(v) for v in np.mean(result.omega, axis=0)])
+    trajectory = config.make_reference()
     if isinstance(trajectory, StepTrajectory):
         k = trajectory.axis
         err = result.x[:, k] - result.x_d[:, k]

@@ -1,7 +1,9 @@
-"""Closed-loop runs: simulate a :class:`StewartConfig`, compute metrics, save data and Fig. 7.
+"""Closed-loop runs: simulate a :class:`~stewart_drake.simulation.scenario.Scenario`, compute
+metrics, save data and Fig. 7.
 
-``run_experiment(config)`` returns a :class:`RunResult` (arrays + metrics); ``save_result`` writes
-``<name>.npz`` (arrays and the metrics as JSON) and ``plot_fig7`` the paper's Fig. 7 panels.
+``run_experiment(scenario)`` returns a :class:`RunResult` (arrays + metrics); ``save_result``
+writes ``<name>.npz`` (arrays, the metrics as JSON and the scenario as YAML) and ``plot_fig7`` the
+paper's Fig. 7 panels.
 """
 
 from __future__ import annotations
@@ -12,12 +14,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.analysis import Simulator
+from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
 from ..fileio import atomic_write, save_npz
-from ..model.plant import assemble, loop_closure_errors
+from ..model.plant import loop_closure_errors
 from ..simulation import guard
-from ..simulation.diagram import StewartConfig, StewartDiagram, make_stewart_diagram
+from ..simulation.diagram import StewartDiagram, make_stewart_diagram
+from ..simulation.scenario import LqiDriver, Scenario, dump_scenario
+from ..simulation.trajectories import as_trajectory
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: Where ``stewart-drake train`` writes the tuner and ``run --tuner ann`` looks first.
@@ -31,27 +35,35 @@ class RunResult:
     """Logged arrays of one run (SI units) and its metrics.
 
     Attributes:
-        t: (N,) s.  x: (N, 12) measured pose and rate.  x_d: (N, 18) reference pose, rate,
-        acceleration.  T: (N, 6) motor torques, N m.  status: (N, 5) controller status.
+        t: (N,) s.  x: (N, 12) true pose and rate (from the plant state, free of sensor noise).
+        x_d: (N, 18) reference pose, rate, acceleration.  T: (N, 6) applied motor torques, N m.
         closure: (N,) max loop-closure error over the six rods, m.
-        omega: (N, 2) omega_Q, omega_R in use.  rho: (M, 12) density features at the tuner's
-        instants (every tuner period) or None.
+        status: (N, k) the controller's ``status`` output, named by ``status_names`` (empty
+            (N, 0) for a controller without one).
+        omega: (N, 2) omega_Q, omega_R in use (from status), or None when the controller
+            reports none.  integral: (N, 6) the controller's integral states, or None.
+        rho: (M, 12) density features at the tuner's instants (every tuner period) or None.
         metrics: dict of the figures printed by the CLI (see :func:`compute_metrics`).
+        config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
+            the whole scenario as YAML.
     """
 
     t: np.ndarray
     x: np.ndarray
     x_d: np.ndarray
     T: np.ndarray
-    status: np.ndarray
     closure: np.ndarray
-    omega: np.ndarray
+    status: np.ndarray
+    status_names: tuple = ()
+    omega: np.ndarray | None = None
+    integral: np.ndarray | None = None
     rho: np.ndarray | None = None
     metrics: dict = field(default_factory=dict)
     config_summary: dict = field(default_factory=dict)
 
 
-def _advance(simulator: Simulator, t_end: float, progress: bool, desc: str):
+def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "simulating"):
+    """``simulator.AdvanceTo(t_end)``, in 200 chunks behind a tqdm bar when ``progress``."""
     if not progress:
         simulator.AdvanceTo(t_end)
         return
@@ -68,41 +80,53 @@ def _advance(simulator: Simulator, t_end: float, progress: bool, desc: str):
             t = t_next
 
 
-def build_simulator(config: StewartConfig, meshcat=None):
+def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,
+                    controller=None):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
     The reference is checked first (:func:`guard.check_reference`); ``sd.guard``, a
     :class:`guard.DivergenceGuard`, is the Simulator's monitor (advance with :func:`guard.advance`
-    to get the logs saved when it trips).
+    to get the logs saved when it trips). ``scenario.simulator`` is applied.
+
+    Args:
+        scenario, meshcat, reference, controller: as
+            :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`.
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
-            checked before anything is simulated.
+            checked before anything is simulated. InvalidConfigError: a bad scenario field.
     """
-    guard.check_reference(config)
-    sd = make_stewart_diagram(config, meshcat=meshcat)
+    scenario = (scenario or Scenario()).validate()
+    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
+    guard.check_reference(scenario, trajectory)
+    sd = make_stewart_diagram(scenario, meshcat=meshcat, reference=trajectory,
+                              controller=controller)
     simulator = Simulator(sd.diagram)
+    ApplySimulatorConfig(scenario.simulator, simulator)
     context = simulator.get_mutable_context()
     sd.seed_noise(context)
-    plant_context = sd.plant.GetMyMutableContextFromRoot(context)
     # Start on the reference, moving with it: a platform at rest under a reference that already
     # moves (eqs. 37-38 start at phi_dot = 2 pi/6 rad/s) makes a torque spike that is not
     # tracking (1.7 N m against 0.41 N m afterwards).
-    x0, x_dot0, _ = config.resolved_trajectory().evaluate(0.0)
-    assemble(sd.plant, plant_context, sd.handles, x0, x_dot0)
+    x0, x_dot0, _ = sd.trajectory.evaluate(0.0)
+    sd.station.assemble(context, x0, x_dot0)
     sd.guard = guard.DivergenceGuard(sd).attach(simulator)
     simulator.Initialize()
     return sd, simulator
 
 
-def run_experiment(config: StewartConfig | None = None, progress: bool = False,
-                   meshcat=None) -> RunResult:
+def run_experiment(scenario: Scenario | None = None, progress: bool = False,
+                   meshcat=None, *, reference=None, controller=None) -> RunResult:
     """Simulate one closed-loop run and collect its logs and metrics.
 
     Args:
-        config: the run (default: the paper's experiment, 10 s).
+        scenario: the run (default: the paper's experiment on the ideal robot, 10 s).
         progress: show a tqdm progress bar.
-        meshcat: optional Meshcat to visualize (and record) the run.
+        meshcat: optional Meshcat to visualize the run.
+        reference: optional reference object overriding ``scenario.reference`` (an object with
+            ``evaluate(t)``, a Drake ``Trajectory``, a CSV path or a name).
+        controller: optional controller factory or registered name (the controller contract,
+            :mod:`~stewart_drake.control.contract`) overriding ``scenario.controller``.
     Returns:
         :class:`RunResult`.
     Raises:
@@ -110,13 +134,30 @@ def run_experiment(config: StewartConfig | None = None, progress: bool = False,
         :func:`build_simulator`); SimulationDivergedError when the guard stops the run (the
         logs up to then are saved, the path is in the error).
     """
-    config = config or StewartConfig()
-    sd, simulator = build_simulator(config, meshcat)
+    sd, simulator = build_simulator(scenario, meshcat, reference=reference, controller=controller)
     wall0 = time.perf_counter()
     guard.advance(sd, simulator,
-                  lambda: _advance(simulator, config.duration_s, progress, desc="simulating"))
+                  lambda: advance(simulator, sd.scenario.duration_s, progress))
     wall = time.perf_counter() - wall0
     return collect_result(sd, simulator.get_context(), wall)
+
+
+def config_summary(sd: StewartDiagram) -> dict:
+    """The settings of a run that results and records carry (plain JSON values)."""
+    scenario, driver = sd.scenario, sd.scenario.controller
+    summary = {"trajectory": getattr(sd.trajectory, "name", "custom"),
+               "duration_s": scenario.duration_s,
+               "plant_time_step_s": scenario.plant_time_step_s,
+               "control_period_s": scenario.control_period_s,
+               "controller": type(driver).__name__, "tuner": scenario.tuner is not None,
+               "feedforward": scenario.feedforward, "payload_scale": scenario.payload_scale,
+               "torque_limit_Nm": scenario.torque_limit_Nm,
+               "sensor_noise": scenario.sensor_noise is not None,
+               "scenario": dump_scenario(scenario)}
+    if isinstance(driver, LqiDriver):
+        summary.update(omega_Q=driver.omega_Q, omega_R=driver.omega_R,
+                       schedule_period_s=driver.schedule_period_s)
+    return summary
 
 
 def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult:
@@ -125,23 +166,20 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
     t = logs["state"].sample_times()
     state = logs["state"].data().T
     closure = loop_closures_from_states(sd, state)
-    status = logs["status"].data().T
+    names = tuple(getattr(sd.controller, "status_names", ())) if "status" in logs else ()
+    status = logs["status"].data().T if "status" in logs else np.zeros((len(t), 0))
+    omega = (status[:, [names.index("omega_Q"), names.index("omega_R")]]
+             if {"omega_Q", "omega_R"} <= set(names) else None)
     # A logged sample at t_n is the state the plant computed for physical time t_n, so the
     # tracking error compares the true pose (from the state, free of sensor noise) with the
     # analytic reference at t_n (the controller's x_d leads by half a plant step).
-    x_d = np.concatenate(sd.config.resolved_trajectory().evaluate(t), axis=1)
+    x_d = np.concatenate(sd.trajectory.evaluate(t), axis=1)
     result = RunResult(t=t, x=sd.sensor.poses_from_states(state), x_d=x_d,
-                       T=logs["T"].data().T, status=status, closure=closure,
-                       omega=status[:, :2], rho=logs["rho"].data().T if "rho" in logs else None)
-    config = sd.config
-    result.config_summary = {
-        "trajectory": getattr(config.resolved_trajectory(), "name", "custom"),
-        "duration_s": config.duration_s, "plant_time_step_s": config.plant_time_step_s,
-        "control_period_s": config.control_period_s, "schedule_period_s": config.schedule_period_s,
-        "omega_Q": config.omega_Q, "omega_R": config.omega_R, "tuner": config.tuner,
-        "feedforward": config.feedforward, "controller": config.controller,
-        "payload_scale": config.payload_scale, "torque_limit_Nm": config.torque_limit_Nm,
-        "sensor_noise": config.sensor_noise_std is not None}
+                       T=logs["T"].data().T, closure=closure, status=status, status_names=names,
+                       omega=omega,
+                       integral=logs["integral"].data().T if "integral" in logs else None,
+                       rho=logs["rho"].data().T if "rho" in logs else None,
+                       config_summary=config_summary(sd))
     result.metrics = compute_metrics(result, wall_s)
     return result
 
@@ -165,12 +203,21 @@ def compute_metrics(result: RunResult, wall_s: float | None = None,
     Returns:
         dict: ``rms_error`` and ``peak_error`` per axis (rad and m) over t >= window_start_s
         (default: the second half of the run, i.e. [5, 10] s for the paper's 10 s), ``peak_torque``
-        (6,) N m, ``sum_T2_dt`` N^2 m^2 s, ``max_closure_m``, ``gain_solves``, ``gain_failures``,
-        ``realtime_factor`` (if wall_s).
+        (6,) N m, ``sum_T2_dt`` N^2 m^2 s, ``max_closure_m``, ``status`` (the controller's
+        status at the end, by name), and for a controller that reports them ``gain_solves`` and
+        ``gain_failures``; ``realtime_factor`` (if wall_s).
+    Raises:
+        InvalidConfigError: fewer than 2 samples in the window (nothing to average: simulate
+            longer than one log period).
     """
+    from ..errors import InvalidConfigError
+
     t = result.t
     start = t[-1] / 2 if window_start_s is None else window_start_s
     m = t >= start - 1e-9
+    if np.count_nonzero(m) < 2:
+        raise InvalidConfigError(f"a run of {t[-1]:g} s has {np.count_nonzero(m)} logged sample(s) "
+                                 f"after t = {start:g} s: too short for metrics; simulate longer")
     err = result.x[:, :6] - result.x_d[:, :6]
     dt = np.diff(t, prepend=t[0])
     metrics = {
@@ -180,10 +227,12 @@ def compute_metrics(result: RunResult, wall_s: float | None = None,
         "peak_torque": np.abs(result.T).max(axis=0).tolist(),
         "sum_T2_dt": float(np.sum(result.T ** 2 * dt[:, None])),
         "max_closure_m": float(result.closure.max()),
-        "gain_solves": int(result.status[-1, 2]),
-        "gain_failures": int(result.status[-1, 3]),
+        "status": {name: float(v) for name, v in zip(result.status_names, result.status[-1])},
         "finite": bool(np.all(np.isfinite(result.x)) and np.all(np.isfinite(result.T))),
     }
+    for name in ("gain_solves", "gain_failures"):
+        if name in metrics["status"]:
+            metrics[name] = int(metrics["status"][name])
     if wall_s is not None:
         metrics["wall_s"] = float(wall_s)
         metrics["realtime_factor"] = float(t[-1] / wall_s) if wall_s > 0 else float("inf")
@@ -200,89 +249,107 @@ def format_metrics(metrics: dict) -> str:
                  + " ".join(f"{v:.3f}" for v in metrics["peak_torque"]))
     lines.append(f"sum T^2 dt: {metrics['sum_T2_dt']:.4g} N^2 m^2 s")
     lines.append(f"max loop-closure error: {metrics['max_closure_m']:.3g} m")
-    lines.append(f"gain re-schedules: {metrics['gain_solves']} "
-                 f"({metrics['gain_failures']} failed, last good gain kept)")
+    status = dict(metrics.get("status", {}))
+    if "gain_solves" in status:
+        lines.append(f"gain re-schedules: {int(status.pop('gain_solves'))} "
+                     f"({int(status.pop('gain_failures', 0))} failed, last good gain kept)")
+    counts = {k: v for k, v in status.items() if k not in ("omega_Q", "omega_R", "integral_norm")}
+    if counts:
+        lines.append("controller status: " + ", ".join(f"{k.replace('_', ' ')} {v:g}"
+                                                       for k, v in counts.items()))
     if "realtime_factor" in metrics:
         lines.append(f"real-time factor: {metrics['realtime_factor']:.2f} "
                      f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)")
     return "\n".join(lines)
 
 
+_OPTIONAL_ARRAYS = ("omega", "integral", "rho")
+
+
 def save_result(result: RunResult, path: str | Path) -> Path:
-    """Write the run to ``path`` (.npz: t, x, x_d, T, status, closure, omega, rho, metrics JSON)."""
-    path = Path(path)
-    arrays = dict(t=result.t, x=result.x, x_d=result.x_d, T=result.T, status=result.status,
-                  closure=result.closure, omega=result.omega,
+    """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
+    rho when present), status_names, metrics (JSON) and config (JSON, with the scenario YAML)."""
+    arrays = dict(t=result.t, x=result.x, x_d=result.x_d, T=result.T, closure=result.closure,
+                  status=result.status, status_names=np.array(result.status_names, dtype=str),
                   metrics=np.array(json.dumps(result.metrics)),
                   config=np.array(json.dumps(result.config_summary)))
-    if result.rho is not None:
-        arrays["rho"] = result.rho
-    return save_npz(path, arrays)
+    arrays.update({k: getattr(result, k) for k in _OPTIONAL_ARRAYS
+                   if getattr(result, k) is not None})
+    return save_npz(Path(path), arrays)
 
 
 def load_result(path: str | Path) -> RunResult:
     """Read a file written by :func:`save_result`."""
     with np.load(path) as data:
         return RunResult(t=data["t"], x=data["x"], x_d=data["x_d"], T=data["T"],
-                         status=data["status"], closure=data["closure"], omega=data["omega"],
-                         rho=data["rho"] if "rho" in data else None,
+                         closure=data["closure"], status=data["status"],
+                         status_names=tuple(str(v) for v in data["status_names"]),
                          metrics=json.loads(str(data["metrics"])),
-                         config_summary=json.loads(str(data["config"])))
+                         config_summary=json.loads(str(data["config"])),
+                         **{k: data[k] for k in _OPTIONAL_ARRAYS if k in data})
 
 
 def plot_fig7(result: RunResult, path: str | Path) -> Path:
-    """Paper Fig. 7 as a PNG: (a) main states vs reference (+ ANN outputs), (b) motor torques."""
+    """Paper Fig. 7 as a PNG, one quantity per panel, plain linear axes.
+
+    Panels: phi and phi_d [rad]; Z and Z_d [m]; angle tracking errors [urad]; position tracking
+    errors [um]; the integral states z (eq. 23) when the controller has them [urad s | um s];
+    omega_Q and omega_R when tuned (log axis: they span decades); motor torques [N m].
+    Returns:
+        the path written (atomically).
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    tuned = result.rho is not None
-    fig, axes = plt.subplots(4 if tuned else 3, 1, figsize=(9, 10 if tuned else 8), sharex=True)
     t = result.t
-    ax = axes[0]
-    ax.plot(t, result.x_d[:, 0], "k--", lw=1, label=r"$\varphi_d$")
-    ax.plot(t, result.x[:, 0], "C0", lw=1.2, label=r"$\varphi$")
-    ax.set_ylabel(r"$\varphi$ [rad]")
-    ax2 = ax.twinx()
-    ax2.plot(t, result.x_d[:, 5], "k:", lw=1, label=r"$Z_d$")
-    ax2.plot(t, result.x[:, 5], "C3", lw=1.2, label="$Z$")
-    ax2.set_ylabel("$Z$ [m]")
-    lines = ax.get_lines() + ax2.get_lines()
-    ax.legend(lines, [ln.get_label() for ln in lines], loc="upper right", ncol=4, fontsize=8)
-    ax.set_title("(a) main states and reference (paper eqs. 37-38)")
-    ax = axes[1]
     err = result.x[:, :6] - result.x_d[:, :6]
-    for k, (axis, unit) in enumerate(zip(AXES, AXIS_UNITS)):
-        ax.plot(t, 1e3 * err[:, k], lw=1, label=f"{axis} [{unit}]")
-    ax.set_ylabel("tracking error\n[mrad | mm]")
-    ax.set_yscale("symlog", linthresh=1e-2)
-    ax.legend(loc="upper right", ncol=6, fontsize=8)
-    ax.grid(alpha=0.3)
-    k = 2
-    if tuned:
-        ax = axes[k]
-        ax.plot(t, result.omega[:, 0], label=r"$\omega_Q$")
-        ax.plot(t, result.omega[:, 1], label=r"$\omega_R$")
-        ax.set_yscale("log")
-        ax.set_ylabel("ANN output")
-        ax.legend(loc="upper right", fontsize=8)
-        k += 1
-    ax = axes[k]
-    for i in range(6):
-        ax.plot(t, result.T[:, i], lw=1, label=f"$T_{i + 1}$")
-    ax.set_ylabel("motor torque [N m]")
-    ax.set_xlabel("t [s]")
-    ax.legend(loc="upper right", ncol=6, fontsize=8)
-    ax.set_title("(b) motor torques")
-    ax.grid(alpha=0.3)
+    panels = ["phi", "Z", "angle_error", "position_error"]
+    if result.integral is not None:
+        panels.append("integral")
+    if result.rho is not None and result.omega is not None:
+        panels.append("omega")
+    panels.append("torque")
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.1 * len(panels) + 0.6), sharex=True)
+    for ax, panel in zip(axes, panels):
+        if panel in ("phi", "Z"):
+            k, unit = (0, "rad") if panel == "phi" else (5, "m")
+            sym = r"\varphi" if panel == "phi" else "Z"
+            ax.plot(t, result.x_d[:, k], "k--", lw=1, label=f"${sym}_d$ (reference)")
+            ax.plot(t, result.x[:, k], "C0" if k == 0 else "C3", lw=1.2, label=f"${sym}$")
+            ax.set_ylabel(f"${sym}$ [{unit}]")
+            ax.legend(loc="upper right", fontsize=8, ncol=2)
+        elif panel in ("angle_error", "position_error"):
+            part = range(3) if panel == "angle_error" else range(3, 6)
+            unit = "urad" if panel == "angle_error" else "um"
+            for k in part:
+                ax.plot(t, 1e6 * err[:, k], lw=1, label=AXES[k])
+            ax.set_ylabel(f"{'angle' if k < 3 else 'position'} error\n[{unit}]")
+            ax.legend(loc="upper right", fontsize=8, ncol=3)
+        elif panel == "integral":
+            for k in range(6):
+                ax.plot(t, 1e6 * result.integral[:, k], lw=1, label=AXES[k])
+            ax.set_ylabel("integral states z\n[urad s | um s]")
+            ax.legend(loc="upper right", fontsize=8, ncol=6)
+        elif panel == "omega":
+            ax.plot(t, result.omega[:, 0], label=r"$\omega_Q$")
+            ax.plot(t, result.omega[:, 1], label=r"$\omega_R$")
+            ax.set_yscale("log")
+            ax.set_ylabel("ANN output")
+            ax.legend(loc="upper right", fontsize=8, ncol=2)
+        else:
+            for i in range(6):
+                ax.plot(t, result.T[:, i], lw=1, label=f"$T_{i + 1}$")
+            ax.set_ylabel("motor torque\n[N m]")
+            ax.legend(loc="upper right", fontsize=8, ncol=6)
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    name = result.config_summary.get("trajectory", "")
+    fig.suptitle(f"Fig. 7: {name} run (paper eqs. 37-38)" if name == "paper"
+                 else f"{name} run", fontsize=11)
     fig.tight_layout()
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
     plt.close(fig)
     return path
-
-
-# -- data collection for the ANN tuner (paper section III.D) ------------------------------------
-
-

@@ -1,0 +1,179 @@
+"""The controller contract: what any controller of the Diagram declares, and what it is given.
+
+A controller is a Drake ``LeafSystem`` made by a **factory** ``factory(context) -> LeafSystem``
+that receives a :class:`ControllerContext`. :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`
+connects its ports **by name**; only ``x_d`` and ``T`` are required, every other port is
+connected when the controller declares it.
+
+Input ports (all vectors; SI units)
+
+========== ====== ===================================================================
+name       size   what the Diagram connects
+========== ====== ===================================================================
+``x_d``    18     required: reference pose [phi, theta, psi, X, Y, Z] (rad, m), its
+                  rate (rad/s, m/s) and acceleration (rad/s^2, m/s^2), evaluated half a
+                  plant step ahead of the sample (see "Sampling")
+``x``      12     the pose estimate and its rate: the station's ``platform_state`` on the
+                  ideal robot (plus sensor noise when the scenario has some)
+``motor_angle`` 6 what the robot measures: the station's ``motor_angle`` output, rad
+``motor_rate``  6 the station's ``motor_rate`` output, rad/s
+``T_ff``   6      feed-forward motor torques along the reference, N m (gravity by virtual
+                  work, or none: ``Scenario.feedforward``)
+``omega``  2      [omega_Q, omega_R] of paper eq. 27: a constant from the scenario, or the
+                  ANN tuner's output when the scenario has a tuner
+========== ====== ===================================================================
+
+Output ports
+
+========== ====== ===================================================================
+``T``      6      required: motor torque command, N m, held between updates
+``status`` any    optional: numbers the metrics report at the end of a run, named by the
+                  controller's ``status_names`` attribute (a tuple of str, one per entry);
+                  the LQI's are :data:`LQI_STATUS_NAMES`
+``e_bar``  6      optional: the pose error the last update acted on; the density
+                  features of the ANN tuner read it (a tuner needs it, and ``omega``)
+``integral`` 6    optional: integral states (the LQI's z, eq. 23), logged and plotted
+========== ====== ===================================================================
+
+Sampling: a controller samples with a periodic discrete update of period
+``context.period_s`` and offset ``context.offset_s`` = half a plant step. A discrete plant updated
+at t_n already holds the state of t_n + h; a controller sampled at the same instants would act on
+a state one step old (one hidden step of delay). Sampled half a step later it reads the state
+the plant just produced, and its torque acts from the next plant step on; the reference it reads
+was evaluated at the sample time plus half a plant step, the time of that state.
+
+The LQI (:class:`~stewart_drake.control.lqi.LqiController`) and the crank PD
+(:class:`~stewart_drake.control.pd.CrankPdController`) follow this contract; a user's controller
+is a factory in Python (``make_stewart_diagram(scenario, controller=factory)``), a name given to
+:func:`register_controller`, or a ``"package.module:attribute"`` path in a scenario's
+``UserController``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from ..errors import InvalidConfigError
+
+#: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
+INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2}
+OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6}
+REQUIRED_INPUTS = ("x_d",)
+REQUIRED_OUTPUTS = ("T",)
+#: ``status`` entries of the LQI (and of controllers that report the same figures).
+LQI_STATUS_NAMES = ("omega_Q", "omega_R", "gain_solves", "gain_failures", "integral_norm")
+
+
+@dataclass(frozen=True)
+class ControllerContext:
+    """What the Diagram tells a controller factory.
+
+    Attributes:
+        geometry: the robot the controller believes in
+            (:class:`~stewart_drake.model.geometry.StewartGeometry`; a payload it does not know
+            is not in it).
+        period_s: control period h, s.
+        offset_s: sample offset within the period, s (half a plant step; see the module
+            docstring).
+        plant_time_step_s: the plant's step, s.
+        x_initial: (6,) pose at t = 0 [rad, m] (the reference's start).
+    """
+
+    geometry: object
+    period_s: float
+    offset_s: float
+    plant_time_step_s: float
+    x_initial: np.ndarray
+
+
+#: Factories registered by name (:func:`register_controller`).
+CONTROLLER_REGISTRY: dict[str, Callable[..., LeafSystem]] = {}
+
+
+def register_controller(name: str, factory: Callable[..., LeafSystem]) -> None:
+    """Make ``factory(context, **parameters) -> LeafSystem`` available to scenarios by ``name``.
+
+    Raises:
+        InvalidConfigError: ``name`` is empty or ``factory`` is not callable.
+    """
+    if not isinstance(name, str) or not name:
+        raise InvalidConfigError(f"a controller name must be a non-empty string, got {name!r}")
+    if not callable(factory):
+        raise InvalidConfigError(f"the factory registered as {name!r} is not callable")
+    CONTROLLER_REGISTRY[name] = factory
+
+
+def check_controller(system) -> None:
+    """Check a controller against the contract before it is wired.
+
+    Raises:
+        InvalidConfigError: not a LeafSystem, a required port missing, a known port of the
+            wrong size, an input port the Diagram cannot connect, or ``status`` without
+            ``status_names`` of its size; the message names the port.
+    """
+    if not isinstance(system, LeafSystem):
+        raise InvalidConfigError(f"a controller factory must return a pydrake LeafSystem, got "
+                                 f"{type(system).__name__}")
+    name = system.get_name() or type(system).__name__
+    inputs = {system.get_input_port(i).get_name(): system.get_input_port(i)
+              for i in range(system.num_input_ports())}
+    outputs = {system.get_output_port(i).get_name(): system.get_output_port(i)
+               for i in range(system.num_output_ports())}
+    for port in REQUIRED_INPUTS:
+        if port not in inputs:
+            raise InvalidConfigError(f"controller {name} has no input port {port!r} "
+                                     f"(required by the contract, control/contract.py)")
+    for port in REQUIRED_OUTPUTS:
+        if port not in outputs:
+            raise InvalidConfigError(f"controller {name} has no output port {port!r} "
+                                     f"(required by the contract, control/contract.py)")
+    for port_name, port in inputs.items():
+        if port_name not in INPUT_PORTS:
+            raise InvalidConfigError(
+                f"controller {name} declares input port {port_name!r}, which the Diagram cannot "
+                f"connect; the contract's inputs are {sorted(INPUT_PORTS)}")
+        if port.size() != INPUT_PORTS[port_name]:
+            raise InvalidConfigError(f"controller {name}: input port {port_name!r} has size "
+                                     f"{port.size()}, the contract says {INPUT_PORTS[port_name]}")
+    for port_name, size in OUTPUT_PORTS.items():
+        if port_name in outputs and size is not None and outputs[port_name].size() != size:
+            raise InvalidConfigError(f"controller {name}: output port {port_name!r} has size "
+                                     f"{outputs[port_name].size()}, the contract says {size}")
+    if "status" in outputs:
+        names = getattr(system, "status_names", None)
+        if names is None or len(tuple(names)) != outputs["status"].size():
+            raise InvalidConfigError(
+                f"controller {name} has a status output of size {outputs['status'].size()}; "
+                f"give it a status_names attribute naming each entry")
+
+
+class PoseTorqueController(LeafSystem):
+    """Base class of the package's pose controllers: declares the input ports ``x`` (12),
+    ``x_d`` (18), ``T_ff`` (6) and ``omega`` (2) of the contract (module docstring).
+
+    A subclass declares the outputs ``T`` (6) and, if it has them, ``status`` (with
+    ``status_names``), ``e_bar`` (6) and ``integral`` (6).
+    """
+
+    def __init__(self, omega: bool = True):
+        super().__init__()
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
+        self._omega = self.DeclareVectorInputPort("omega", 2) if omega else None
+
+    def get_x_input_port(self):
+        return self._x
+
+    def get_x_d_input_port(self):
+        return self._x_d
+
+    def get_T_ff_input_port(self):
+        return self._T_ff
+
+    def get_omega_input_port(self):
+        return self._omega

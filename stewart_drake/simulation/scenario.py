@@ -1,0 +1,579 @@
+"""Scenarios: everything that defines a run, as typed dataclasses that load from YAML.
+
+A :class:`Scenario` is read with ``pydrake.common.yaml.yaml_load_typed`` (:func:`load_scenario`)
+and written with ``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's
+``Scenario`` for ``MakeHardwareStation``. Choices are tagged unions: in YAML,
+``controller: !PdDriver {bandwidth_hz: 20}`` or ``reference: !CsvReference {path: run.csv}``.
+Shipped scenarios live in ``scenarios/`` (``paper_ideal.yaml``: the paper's experiment on the
+ideal robot); :func:`load_scenario` takes their names too.
+
+Drake's YAML loader builds each class with its defaults and then sets fields, so the classes are
+plain mutable dataclasses with concrete field types (this module must not use
+``from __future__ import annotations``), and validation is a separate step:
+:meth:`Scenario.validate` (run by every builder) names the field to fix. The robot's geometry and
+the LQI's scales are frozen value types of the lower layers; :class:`Robot` and
+:class:`LqiScalesConfig` are their YAML mirrors, generated from their fields (same names, units
+and defaults; lists where they have tuples), with ``build()`` to get the value type back.
+"""
+
+import dataclasses
+import importlib.resources
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List, Optional, Union
+
+import numpy as np
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.visualization import VisualizationConfig
+
+from ..checks import as_number, check_multiple
+from ..errors import InvalidConfigError, InvalidGeometryError, MissingFileError, StewartError
+from ..control.lqi import OMEGA_MAX, OMEGA_MIN, LqiScales
+from ..model.geometry import StewartGeometry
+from ..model.limits import DEFAULT_COND_THRESHOLD, DEFAULT_MIN_SIGMA_MIN_INV
+from ..model.statics import FEEDFORWARD_MODES
+
+#: Largest RandomSource seed Drake accepts (a 32-bit unsigned integer).
+MAX_SEED = 2**32 - 1
+
+
+class _Mirror:
+    """Base of the YAML mirrors of frozen value types (see the module docstring)."""
+
+    _value_class: type = object
+
+    def build(self):
+        """The value type with these fields (lists become tuples); validated by its constructor."""
+        return self._value_class(**{
+            f.name: tuple(v) if isinstance(v, list) else v
+            for f in dataclasses.fields(self) for v in [getattr(self, f.name)]})
+
+    @classmethod
+    def from_value(cls, value):
+        """The mirror of a value-type instance (e.g. ``Robot.from_value(StewartGeometry())``)."""
+        return cls(**{f.name: list(v) if isinstance(v, tuple) else v
+                      for f in dataclasses.fields(cls) for v in [getattr(value, f.name)]})
+
+
+def _mirror(value_class: type, name: str, doc: str) -> type:
+    hints = typing.get_type_hints(value_class)
+    prototype = value_class()
+    fields = []
+    for f in dataclasses.fields(value_class):
+        default = getattr(prototype, f.name)
+        kind = hints[f.name]
+        if kind is tuple or typing.get_origin(kind) is tuple:
+            fields.append((f.name, List[float],
+                           field(default_factory=lambda d=tuple(default): list(d))))
+        else:
+            fields.append((f.name, kind, field(default=default)))
+    cls = dataclasses.make_dataclass(name, fields, bases=(_Mirror,))
+    cls.__module__, cls.__qualname__, cls.__doc__ = __name__, name, doc
+    cls._value_class = value_class
+    return cls
+
+
+Robot = _mirror(StewartGeometry, "Robot", """The robot: every field of
+:class:`~stewart_drake.model.geometry.StewartGeometry`, same names, units and defaults
+(docs/reference_geometry.md, Table I); ``build()`` gives the geometry (validated there).""")
+
+LqiScalesConfig = _mirror(LqiScales, "LqiScalesConfig", """Normalization of the LQI's Q and R
+(Bryson's rule): every field of :class:`~stewart_drake.control.lqi.LqiScales` (pose, rate,
+integral: 6 each, SI; torque: N m).""")
+
+
+# -- controllers ---------------------------------------------------------------------------------
+
+@dataclass
+class LqiDriver:
+    """The LQI of paper section III (:class:`~stewart_drake.control.lqi.LqiController`).
+
+    Attributes:
+        omega_Q, omega_R: weights of eq. 27 on normalized errors and torques, in [1e-3, 1e3]
+            (only their ratio matters); the ANN tuner replaces them when the scenario has one.
+        schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
+            whole multiple of the control period); ours, not the paper's.
+        riccati: "warm" (Newton refinement of the last gain) or "cold" (DARE each time).
+        scales: normalization of Q and R.
+    """
+
+    omega_Q: float = 1.0
+    omega_R: float = 1.0
+    schedule_period_s: float = 0.01
+    riccati: str = "warm"
+    scales: LqiScalesConfig = field(default_factory=LqiScalesConfig)
+
+
+@dataclass
+class PdDriver:
+    """The crank-space PD baseline with gravity feed-forward
+    (:class:`~stewart_drake.control.pd.CrankPdController`).
+
+    Attributes:
+        bandwidth_hz: closed-loop natural frequency, Hz. damping: damping ratio.
+        schedule_period_s: re-schedule the inertia-shaped gains this often, s.
+    """
+
+    bandwidth_hz: float = 20.0
+    damping: float = 1.0
+    schedule_period_s: float = 0.01
+
+
+@dataclass
+class UserController:
+    """A controller of the user's: ``factory`` is a name given to
+    :func:`~stewart_drake.control.contract.register_controller` or a ``"package.module:attribute"``
+    path to a callable ``factory(context, **parameters) -> LeafSystem`` following the controller
+    contract (:mod:`~stewart_drake.control.contract`).
+
+    Attributes:
+        factory: the name or path. parameters: keyword arguments of the factory (numbers).
+    """
+
+    factory: str = ""
+    parameters: Dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class AnnTunerDriver:
+    """The ANN tuner of omega_Q, omega_R (paper section III.D) on density features.
+
+    Attributes:
+        weights: the tuner's ``.npz`` (``stewart-drake train``); empty for the shipped weights.
+        period_s: tuner period, s (a whole multiple of the control period).
+        feature_window: samples m + 1 of the density features (eqs. 35-36).
+    """
+
+    weights: str = ""
+    period_s: float = 0.02
+    feature_window: int = 50
+
+
+# -- references ----------------------------------------------------------------------------------
+
+@dataclass
+class NamedReference:
+    """A reference of :data:`~stewart_drake.simulation.trajectories.TRAJECTORIES`: "paper"
+    (eqs. 37-38), "home", "helix", "step_<axis>", "sweep_<axis>"."""
+
+    name: str = "paper"
+
+
+@dataclass
+class CsvReference:
+    """A reference from a CSV file ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), joined by a C2 cubic
+    spline (:func:`~stewart_drake.simulation.trajectories.load_csv_trajectory`). A relative path
+    is relative to the working folder."""
+
+    path: str = ""
+
+
+@dataclass
+class SineReference:
+    """x_d(t) = offset + amplitude sin(2 pi f t + phase), axis by axis (6 values each: rad, m,
+    Hz, rad); see :class:`~stewart_drake.simulation.trajectories.SineTrajectory`."""
+
+    amplitude: List[float] = field(default_factory=lambda: [0.0] * 6)
+    frequency_hz: List[float] = field(default_factory=lambda: [0.0] * 6)
+    phase: List[float] = field(default_factory=lambda: [0.0] * 6)
+    offset: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    name: str = "sine"
+
+
+@dataclass
+class DataCollectionReference:
+    """The seeded excitation of the tuner's data collection (every axis at 1-5 Hz inside the
+    workspace; :func:`~stewart_drake.simulation.trajectories.data_collection_trajectory`), as long
+    as the scenario's duration."""
+
+    seed: int = 0
+
+
+ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference]
+ControllerChoice = Union[LqiDriver, PdDriver, UserController]
+
+
+# -- the rest ------------------------------------------------------------------------------------
+
+@dataclass
+class SensorNoise:
+    """White Gaussian noise on the measured pose and rate, drawn every control period.
+
+    Attributes:
+        std: 12 standard deviations [rad x3, m x3, rad/s x3, m/s x3] (or one for all).
+        seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
+    """
+
+    std: List[float] = field(default_factory=lambda: [0.0] * 12)
+    seed: int = 0
+
+
+@dataclass
+class GuardConfig:
+    """Bounds of a guarded run (:mod:`~stewart_drake.simulation.guard`); SI units.
+
+    Attributes:
+        max_closure_error_m: largest distance between a rod's top end and its platform joint, m
+            (the paper run stays below 1e-6 m); None disables the check.
+        max_tracking_error: [rad, m]: largest |x - x_d| over the three angles and over the three
+            positions. Loose by default (0.2 rad, 0.05 m): it catches a lost platform, not a
+            poorly tuned one. None disables the check.
+        check_period_s: closure and tracking are checked this often, s (a whole multiple of the
+            plant step; finiteness is checked every plant step).
+        divergence_dir: folder of the saved ``.npz`` when a run diverges.
+        cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
+        min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad.
+    Raises:
+        InvalidConfigError: a bound that is not a finite positive number (or None), at
+            construction and in :meth:`validate`.
+    """
+
+    max_closure_error_m: Optional[float] = 1e-3
+    max_tracking_error: Optional[List[float]] = field(default_factory=lambda: [0.2, 0.05])
+    check_period_s: float = 0.01
+    divergence_dir: str = "results/diverged"
+    cond_threshold: float = DEFAULT_COND_THRESHOLD
+    min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV
+
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self, prefix: str = "guard.") -> None:
+        """Check every field; raises InvalidConfigError naming it."""
+        if self.max_closure_error_m is not None:
+            as_number(f"{prefix}max_closure_error_m", self.max_closure_error_m, 0.0, lo_open=True)
+        if self.max_tracking_error is not None:
+            bounds = self.max_tracking_error
+            if isinstance(bounds, (str, bytes)) or np.ndim(bounds) != 1 or len(bounds) != 2:
+                raise InvalidConfigError(f"{prefix}max_tracking_error must be [rad, m], got "
+                                         f"{bounds!r}")
+            self.max_tracking_error = [
+                as_number(f"{prefix}max_tracking_error[{k}]", v, 0.0, lo_open=True)
+                for k, v in enumerate(bounds)]
+        as_number(f"{prefix}check_period_s", self.check_period_s, 0.0, lo_open=True)
+        as_number(f"{prefix}cond_threshold", self.cond_threshold, 1.0, lo_open=True)
+        as_number(f"{prefix}min_sigma_min_inv", self.min_sigma_min_inv, 0.0)
+        if isinstance(self.divergence_dir, Path):
+            self.divergence_dir = str(self.divergence_dir)
+        if not isinstance(self.divergence_dir, str) or not self.divergence_dir:
+            raise InvalidConfigError(f"{prefix}divergence_dir must be a folder path, got "
+                                     f"{self.divergence_dir!r}")
+
+
+def _default_plant() -> MultibodyPlantConfig:
+    return MultibodyPlantConfig(time_step=1e-3, discrete_contact_approximation="sap")
+
+
+@dataclass
+class Scenario:
+    """Everything that defines one closed-loop run; SI units. Defaults: the paper's experiment
+    (eqs. 37-38, 10 s) on the ideal robot, LQI with omega_Q = omega_R = 1.
+
+    Attributes:
+        robot: the geometry and inertias (:class:`Robot`).
+        plant: Drake's ``MultibodyPlantConfig``; ``time_step`` > 0 and a SAP approximation
+            ("sap", "lagged", "similar"): ball constraints need a discrete SAP plant.
+        simulator: Drake's ``SimulatorConfig`` (``target_realtime_rate`` etc.).
+        visualization: Drake's ``VisualizationConfig``, applied when a Meshcat is given.
+        reference: the path x_d(t) (a tagged choice: :class:`NamedReference`,
+            :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`).
+        feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
+        controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
+        tuner: None (fixed weights) or :class:`AnnTunerDriver` (needs a controller with the
+            ``omega`` input and the ``e_bar`` output, e.g. the LQI).
+        duration_s: simulated time, s.
+        control_period_s: controller period h, s (a whole multiple of the plant step).
+        log_period_s: logging period, s (a whole multiple of the plant step).
+        sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
+        payload_scale: the simulated platform's mass and inertia are this multiple of the
+            robot's; the controller still believes in ``robot`` (an unknown payload).
+        torque_limit_Nm: motor torque saturation, N m, or None.
+        guard: checks before and during the run (:class:`GuardConfig`).
+    Raises:
+        InvalidConfigError: (``validate``, run by every builder and at construction) a field
+            out of range, a period that is not a whole multiple of the one it runs on, a wrong
+            type; the message names the field path (e.g. ``controller.omega_Q``).
+        InvalidGeometryError: the robot cannot be built (names the field).
+        MissingFileError: a tuner weights file or a CSV reference that does not exist.
+    """
+
+    robot: Robot = field(default_factory=Robot)
+    plant: MultibodyPlantConfig = field(default_factory=_default_plant)
+    simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
+    visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
+    reference: ReferenceChoice = field(default_factory=NamedReference)
+    feedforward: str = "gravity"
+    controller: ControllerChoice = field(default_factory=LqiDriver)
+    tuner: Optional[AnnTunerDriver] = None
+    duration_s: float = 10.0
+    control_period_s: float = 1e-3
+    log_period_s: float = 1e-3
+    sensor_noise: Optional[SensorNoise] = None
+    payload_scale: float = 1.0
+    torque_limit_Nm: Optional[float] = None
+    guard: GuardConfig = field(default_factory=GuardConfig)
+
+    def __post_init__(self):
+        self.validate()
+
+    # -- derived values ----------------------------------------------------------------------
+    def geometry(self) -> StewartGeometry:
+        """The robot the controller believes in (``robot.build()``)."""
+        return self.robot.build()
+
+    def plant_geometry(self) -> StewartGeometry:
+        """The robot that is simulated: ``geometry()`` with the payload scale on the platform."""
+        g = self.geometry()
+        if self.payload_scale == 1.0:
+            return g
+        return g.replace(platform_mass=g.platform_mass * self.payload_scale,
+                         platform_inertia=tuple(self.payload_scale * v for v in g.platform_inertia))
+
+    def make_reference(self):
+        """The reference object (``evaluate(t)``) the scenario names."""
+        from . import trajectories
+
+        ref = self.reference
+        if isinstance(ref, NamedReference):
+            return trajectories.make_trajectory(ref.name)
+        if isinstance(ref, CsvReference):
+            return trajectories.load_csv_trajectory(ref.path)
+        if isinstance(ref, SineReference):
+            return trajectories.SineTrajectory(amplitude=tuple(ref.amplitude),
+                                               frequency_hz=tuple(ref.frequency_hz),
+                                               phase=tuple(ref.phase), offset=tuple(ref.offset),
+                                               name=ref.name)
+        return trajectories.data_collection_trajectory(ref.seed, self.geometry(),
+                                                       duration_s=self.duration_s)
+
+    @property
+    def plant_time_step_s(self) -> float:
+        """The plant's step, s (``plant.time_step``)."""
+        return self.plant.time_step
+
+    # -- validation --------------------------------------------------------------------------
+    def validate(self) -> "Scenario":
+        """Check every field before anything is built; returns self.
+
+        Raises:
+            InvalidConfigError, InvalidGeometryError, MissingFileError: see the class docstring.
+        """
+        for name, kind in (("robot", Robot), ("plant", MultibodyPlantConfig),
+                           ("simulator", SimulatorConfig), ("visualization", VisualizationConfig),
+                           ("guard", GuardConfig)):
+            if not isinstance(getattr(self, name), kind):
+                raise InvalidConfigError(
+                    f"{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__}"
+                    + (" (a dict: load it with load_scenario, or build the dataclass with "
+                       f"{kind.__name__}(**d))" if isinstance(getattr(self, name), dict) else ""))
+        try:
+            self.robot.build()
+        except InvalidGeometryError as err:
+            raise InvalidGeometryError(f"robot: {err}") from None
+        except TypeError as err:
+            raise InvalidConfigError(f"robot: {err}") from None
+        for name in ("duration_s", "control_period_s", "log_period_s"):
+            as_number(name, getattr(self, name), lo=0.0, lo_open=True)
+        h = as_number("plant.time_step", self.plant.time_step, lo=0.0, lo_open=True)
+        if self.plant.discrete_contact_approximation not in ("sap", "lagged", "similar"):
+            raise InvalidConfigError(
+                f"plant.discrete_contact_approximation "
+                f"{self.plant.discrete_contact_approximation!r} does not enforce the ball "
+                f"constraints that close the loops; use 'sap', 'lagged' or 'similar'")
+        check_multiple("control_period_s", self.control_period_s, "plant.time_step", h)
+        check_multiple("log_period_s", self.log_period_s, "plant.time_step", h)
+        if self.duration_s < 2 * self.log_period_s:
+            raise InvalidConfigError(
+                f"duration_s ({self.duration_s:g} s) must cover at least two log periods "
+                f"({2 * self.log_period_s:g} s): a shorter run has no second sample to measure")
+        self._validate_controller()
+        self._validate_reference()
+        if self.feedforward not in FEEDFORWARD_MODES:
+            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got "
+                                     f"{self.feedforward!r}")
+        if self.tuner is not None:
+            t = self.tuner
+            if not isinstance(t, AnnTunerDriver):
+                raise InvalidConfigError(f"tuner must be None or an AnnTunerDriver, got "
+                                         f"{type(t).__name__}")
+            as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
+            check_multiple("tuner.period_s", t.period_s, "control_period_s",
+                           self.control_period_s)
+            _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
+            if t.weights and not Path(t.weights).is_file():
+                raise MissingFileError(f"no ANN tuner weights at {t.weights} (tuner.weights): "
+                                       f"check the path, or leave it empty for the shipped "
+                                       f"weights")
+            if isinstance(self.controller, PdDriver):
+                raise InvalidConfigError("the ANN tuner drives the LQI's weights (its omega "
+                                         "input): use an LqiDriver controller with a tuner")
+        if self.sensor_noise is not None:
+            noise = self.sensor_noise
+            if not isinstance(noise, SensorNoise):
+                raise InvalidConfigError(f"sensor_noise must be None or a SensorNoise, got "
+                                         f"{type(noise).__name__}")
+            try:
+                std = np.broadcast_to(np.asarray(noise.std, dtype=float), (12,))
+            except (TypeError, ValueError):
+                std = np.array([np.nan])
+            if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+                raise InvalidConfigError(f"sensor_noise.std needs 12 finite values >= 0 (rad, m, "
+                                         f"rad/s, m/s), got {noise.std}")
+            _check_int("sensor_noise.seed", noise.seed, 0, MAX_SEED)
+        as_number("payload_scale", self.payload_scale, 0.1, 10.0)
+        if self.torque_limit_Nm is not None:
+            as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
+        self.guard.validate()
+        check_multiple("guard.check_period_s", self.guard.check_period_s, "plant.time_step", h)
+        return self
+
+    def _validate_controller(self) -> None:
+        c = self.controller
+        if isinstance(c, LqiDriver):
+            for name in ("omega_Q", "omega_R"):
+                as_number(f"controller.{name}", getattr(c, name), OMEGA_MIN, OMEGA_MAX)
+            as_number("controller.schedule_period_s", c.schedule_period_s, 0.0, lo_open=True)
+            check_multiple("controller.schedule_period_s", c.schedule_period_s,
+                           "control_period_s", self.control_period_s)
+            if c.riccati not in ("warm", "cold"):
+                raise InvalidConfigError(f"controller.riccati must be 'warm' or 'cold', got "
+                                         f"{c.riccati!r}")
+            if not isinstance(c.scales, LqiScalesConfig):
+                raise InvalidConfigError(f"controller.scales must be an LqiScalesConfig, got "
+                                         f"{type(c.scales).__name__}")
+            try:
+                c.scales.build()
+            except (StewartError, TypeError) as err:
+                raise InvalidConfigError(f"controller.scales: {err}") from None
+        elif isinstance(c, PdDriver):
+            for name in ("bandwidth_hz", "damping", "schedule_period_s"):
+                as_number(f"controller.{name}", getattr(c, name), 0.0, lo_open=True)
+        elif isinstance(c, UserController):
+            if not isinstance(c.factory, str) or not c.factory:
+                raise InvalidConfigError("controller.factory must name a registered controller "
+                                         "or a 'package.module:attribute' path")
+            for key, value in c.parameters.items():
+                as_number(f"controller.parameters.{key}", value)
+        else:
+            raise InvalidConfigError(f"controller must be an LqiDriver, PdDriver or "
+                                     f"UserController, got {type(c).__name__}")
+
+    def _validate_reference(self) -> None:
+        from . import trajectories
+
+        ref = self.reference
+        if isinstance(ref, NamedReference):
+            trajectories.make_trajectory(ref.name)          # unknown name: lists the known ones
+        elif isinstance(ref, CsvReference):
+            if not ref.path or not Path(ref.path).is_file():
+                raise MissingFileError(f"no reference CSV at {ref.path!r} (reference.path): "
+                                       f"check the path")
+        elif isinstance(ref, SineReference):
+            self.make_reference()                            # checks shapes and overflow
+        elif isinstance(ref, DataCollectionReference):
+            _check_int("reference.seed", ref.seed, 0, MAX_SEED)
+        else:
+            raise InvalidConfigError(f"reference must be a NamedReference, CsvReference, "
+                                     f"SineReference or DataCollectionReference, got "
+                                     f"{type(ref).__name__}")
+
+    # -- pickling through YAML (Drake's config structs do not pickle) -------------------------
+    def __reduce__(self):
+        return (_scenario_from_yaml, (dump_scenario(self),))
+
+
+def _check_int(name: str, value, lo: int, hi: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise InvalidConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
+def _scenario_from_yaml(text: str) -> Scenario:
+    return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
+
+
+def dump_scenario(scenario: Scenario, path=None) -> str:
+    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given."""
+    text = yaml_dump_typed(scenario)
+    if path is not None:
+        from ..fileio import atomic_write
+
+        atomic_write(Path(path), lambda f: f.write(text.encode()))
+    return text
+
+
+#: Where the shipped scenarios are (``scenarios/`` of the repository, installed as package data).
+def shipped_scenarios() -> dict:
+    """{name: path} of the scenarios shipped with the package (``scenarios/*.yaml``)."""
+    folder = importlib.resources.files("stewart_drake.scenarios")
+    return {Path(p.name).stem: Path(str(p)) for p in folder.iterdir() if p.name.endswith(".yaml")}
+
+
+def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) -> Scenario:
+    """Load a scenario from a YAML file or a shipped name, apply ``key=value`` overrides, validate.
+
+    Args:
+        source: a path to a ``.yaml`` file, or the name of a shipped scenario
+            (:func:`shipped_scenarios`, e.g. "paper_ideal").
+        overrides: ``"key.sub=value"`` strings (YAML values: ``controller.omega_Q=10``,
+            ``controller=!PdDriver {}``, ``guard.max_closure_error_m=null``), applied in order.
+    Returns:
+        the validated :class:`Scenario`.
+    Raises:
+        MissingFileError: no such file or name. InvalidConfigError: YAML that does not fit the
+            schema (unknown or mistyped field, named), a bad override, or a value out of range.
+    """
+    shipped = shipped_scenarios()
+    path = Path(source)
+    if not path.is_file():
+        if str(source) in shipped:
+            path = shipped[str(source)]
+        else:
+            raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
+                                   f"name (shipped: {', '.join(sorted(shipped))})")
+    try:
+        scenario = yaml_load_typed(schema=Scenario, filename=str(path),
+                                   allow_schema_with_no_yaml=True)
+    except (RuntimeError, ValueError, TypeError, KeyError) as err:
+        raise InvalidConfigError(f"{path} does not fit the Scenario schema: {err}") from None
+    except StewartError as err:
+        raise type(err)(f"{path}: {err}") from None
+    for override in overrides:
+        apply_override(scenario, override)
+    return scenario.validate()
+
+
+def apply_override(scenario: Scenario, override: str) -> None:
+    """Set one ``key.sub=value`` (value in YAML) on ``scenario`` in place, typed by the schema.
+
+    Raises:
+        InvalidConfigError: no ``=``, a key that is not a field (names it), or a value the field's
+            type does not accept.
+    """
+    key, sep, value = override.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise InvalidConfigError(f"an override must be key=value (e.g. controller.omega_Q=10), "
+                                 f"got {override!r}")
+    *parents, leaf = key.split(".")
+    target = scenario
+    for name in parents:
+        if not dataclasses.is_dataclass(target) or name not in {f.name for f in
+                                                               dataclasses.fields(target)}:
+            raise InvalidConfigError(f"--set {key}: {name!r} is not a field of "
+                                     f"{type(target).__name__}")
+        target = getattr(target, name)
+    fields = {f.name for f in dataclasses.fields(target)} if dataclasses.is_dataclass(target) \
+        else set()
+    if leaf not in fields:
+        raise InvalidConfigError(f"--set {key}: {leaf!r} is not a field of "
+                                 f"{type(target).__name__} (fields: {', '.join(sorted(fields))})")
+    try:
+        updated = yaml_load_typed(schema=type(target), data=f"{leaf}: {value}\n",
+                                  defaults=target, allow_schema_with_no_yaml=True)
+    except Exception as err:       # noqa: BLE001 - yaml and Drake's loader raise several types
+        raise InvalidConfigError(f"--set {key}={value}: {err}") from None
+    setattr(target, leaf, getattr(updated, leaf))
