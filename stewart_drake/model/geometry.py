@@ -1,6 +1,6 @@
 """Geometry and inertial parameters of the rotary Stewart platform.
 
-The default :class:`StewartGeometry` is exactly ``shared/paper/reference_geometry.md``: the layout
+The default :class:`StewartGeometry` is exactly ``docs/reference_geometry.md``: the layout
 the paper leaves open, with the paper's Table I masses and inertias. Frames: world = base frame B
 (origin at the centre of the base plate's top face, z up); platform frame E (origin at the centre
 of the circle of platform joints). Leg index i = 2k + (s+1)/2, k = 0, 1, 2, s = -1, +1.
@@ -210,5 +210,5 @@ class StewartGeometry:
 
 #: The reference robot of reference_geometry.md.
 def reference_geometry() -> StewartGeometry:
-    """The default robot, exactly ``shared/paper/reference_geometry.md``."""
+    """The default robot, exactly ``docs/reference_geometry.md``."""
     return StewartGeometry()

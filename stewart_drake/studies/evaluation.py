@@ -465,7 +465,8 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
         plt.close(fig)
         paths.append(path)
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5))
+    fig, axes = plt.subplots(1, 2, figsize=(14, 5))
+    styles = {}                           # one marker and colour per controller, both panels
     for ax, condition, title in (
             (axes[0], "nominal", "nominal: every controller needs the same torque"),
             (axes[1], "noise", "with sensor noise: stiffness costs torque")):
@@ -477,17 +478,22 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
             key = (round(r["sum_T2_dt"], 6), round(r["normalized_rms"], 9))
             points.setdefault(key, []).append(c)
         for (effort, nrms), names in points.items():
-            c = names[0]
-            style = "o" if c.startswith("lqi") else ("s" if c == "pd" else "*")
-            ax.plot(effort, nrms, style, ms=10 if style == "*" else 7)
-            ax.annotate(" = ".join(names), (effort, nrms), fontsize=7, xytext=(4, 2),
-                        textcoords="offset points")
+            label = " = ".join(names)
+            marker = "o" if names[0].startswith("lqi") else ("s" if names[0] == "pd" else "*")
+            style = styles.setdefault(label, dict(marker=marker, color=f"C{len(styles) % 10}",
+                                                  ms=12 if marker == "*" else 8))
+            ax.plot(effort, nrms, ls="none", label=label, **style)
         ax.set_yscale("log")
         ax.ticklabel_format(axis="x", useOffset=False)
         ax.set_xlabel(r"$\sum T^2 \Delta t$ [N$^2$ m$^2$ s]")
         ax.set_title(f"paper manoeuvre, {title}", fontsize=10)
         ax.grid(alpha=0.3, which="both")
     axes[0].set_ylabel("normalized RMS tracking error (1 = 1 mrad | 1 mm)")
+    # Names in one legend beside the panels, not on the points: labels never overlap.
+    handles = {h.get_label(): h for ax in axes for h in ax.get_lines()}
+    fig.legend(handles.values(), handles.keys(), loc="center right", fontsize=8,
+               title="controller (= same ratio)", title_fontsize=8)
+    fig.tight_layout(rect=(0, 0, 0.8, 1))
     save(fig, "results_tradeoff.png")
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharey=True)

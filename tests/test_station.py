@@ -1,0 +1,337 @@
+"""Issue 12: the open station. Scenarios round-trip through YAML, the station's ports mean what
+they say, a controller written here plugs into the Diagram by the contract, any reference works."""
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.trajectories import PiecewisePolynomial
+
+from stewart_drake.control.contract import (CONTROLLER_REGISTRY, ControllerContext,
+                                            check_controller, register_controller)
+from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.interfaces.cli import main
+from stewart_drake.model import kinematics, statics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.diagram import make_stewart_diagram
+from stewart_drake.simulation.scenario import (CsvReference, LqiDriver, NamedReference, PdDriver,
+                                               Robot, Scenario, UserController, apply_override,
+                                               dump_scenario, load_scenario, shipped_scenarios)
+from stewart_drake.simulation.station import make_stewart_station, p_ETool
+from stewart_drake.simulation.trajectories import (DrakeTrajectory, ScalarEvaluate, as_trajectory,
+                                                   paper_manoeuvre)
+from stewart_drake.studies.experiments import run_experiment
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+# -- scenarios ----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_scenario_round_trips_unchanged(path):
+    text = path.read_text()
+    body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#"))
+    scenario = load_scenario(path)
+    assert yaml_dump_typed(scenario) == body                      # the file is a full dump
+    again = yaml_load_typed(schema=Scenario, data=yaml_dump_typed(scenario))
+    assert dump_scenario(again) == body
+    assert dump_scenario(pickle.loads(pickle.dumps(scenario))) == body  # workers get the same
+    assert path.stem in shipped_scenarios()
+
+
+def test_paper_ideal_is_the_default_scenario():
+    assert dump_scenario(load_scenario("paper_ideal")) == dump_scenario(Scenario())
+
+
+def test_overrides_are_typed_and_named():
+    s = load_scenario("paper_ideal", ["controller.omega_Q=10", "duration_s=2",
+                                      "guard.max_tracking_error=[0.1, 0.02]"])
+    assert s.controller.omega_Q == 10.0 and isinstance(s.controller.omega_Q, float)
+    assert s.duration_s == 2.0 and s.guard.max_tracking_error == [0.1, 0.02]
+    apply_override(s, "controller=!PdDriver {bandwidth_hz: 15}")
+    assert isinstance(s.controller, PdDriver) and s.controller.bandwidth_hz == 15.0
+    apply_override(s, "reference=!CsvReference {path: run.csv}")
+    assert s.reference == CsvReference("run.csv")
+    with pytest.raises(InvalidConfigError, match=r"'omegaQ' is not a field of LqiDriver"):
+        apply_override(Scenario(), "controller.omegaQ=10")
+    with pytest.raises(InvalidConfigError, match=r"--set duration_s=ten"):
+        apply_override(Scenario(), "duration_s=ten")
+    with pytest.raises(InvalidConfigError, match="key=value"):
+        apply_override(Scenario(), "duration_s")
+    with pytest.raises(InvalidConfigError, match=r"controller.omega_Q must be a finite number"):
+        load_scenario("paper_ideal", ["controller.omega_Q=-1"])
+
+
+def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("duration_s: 3\ncontroller: {omega_Q: 2, gain: 5}\n")
+    with pytest.raises(InvalidConfigError, match=r"bad.yaml does not fit .*\['gain'\]"):
+        load_scenario(bad)
+    with pytest.raises(MissingFileError, match="shipped: .*paper_ideal"):
+        load_scenario("paper_nowhere")
+    good = tmp_path / "good.yaml"
+    good.write_text("duration_s: 3\ncontroller: !PdDriver {bandwidth_hz: 12}\n")
+    s = load_scenario(good)
+    assert s.duration_s == 3.0 and s.controller == PdDriver(bandwidth_hz=12.0)
+    assert s.robot == Robot()                          # unspecified fields keep their defaults
+
+
+def test_robot_mirrors_the_geometry_both_ways():
+    g = StewartGeometry(rod_length=0.41, pivot_angles_deg=(-12, 12, 108, 132, 228, 252))
+    robot = Robot.from_value(g)
+    assert robot.rod_length == 0.41 and isinstance(robot.pivot_angles_deg, list)
+    assert robot.build() == g
+    assert Scenario(robot=robot).geometry() == g
+
+
+# -- the station ----------------------------------------------------------------------------------
+
+def _station_sim(scenario, x=X_HOME, T=None, wrench=np.zeros(6)):
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station(scenario))
+    builder.ExportInput(station.GetInputPort("motor_torque"), "T")
+    builder.ExportInput(station.GetInputPort("tool_wrench"), "w")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    station.assemble(context, x)
+    geometry = scenario.geometry()
+    diagram.get_input_port(0).FixValue(context, statics.holding_torques(geometry, x)
+                                       if T is None else T)
+    diagram.get_input_port(1).FixValue(context, wrench)
+    return station, simulator, station.GetMyContextFromRoot(context)
+
+
+def test_station_ports_measure_the_robot():
+    x = X_HOME + np.array([0.05, -0.03, 0.1, 0.01, -0.02, 0.02])
+    station, simulator, ctx = _station_sim(Scenario(), x)
+    simulator.AdvanceTo(0.05)
+    pose = station.GetOutputPort("platform_state").Eval(ctx)
+    theta = station.GetOutputPort("motor_angle").Eval(ctx)
+    np.testing.assert_allclose(pose[:6], x, atol=1e-6)          # held by the holding torques
+    np.testing.assert_allclose(theta, kinematics.ik(StewartGeometry(), pose[:6]), atol=1e-6)
+    np.testing.assert_allclose(station.GetOutputPort("motor_torque_applied").Eval(ctx),
+                               statics.holding_torques(StewartGeometry(), x), rtol=1e-12)
+    assert station.GetOutputPort("plant_state").size() == station.plant.num_multibody_states()
+
+
+def test_tool_wrench_pushes_the_platform_and_the_limit_clips_the_torque():
+    scenario = Scenario(torque_limit_Nm=0.2)                   # below the 0.285 N m to hold home
+    station, simulator, ctx = _station_sim(scenario)
+    simulator.AdvanceTo(0.05)
+    np.testing.assert_allclose(station.GetOutputPort("motor_torque_applied").Eval(ctx), 0.2)
+    assert station.GetOutputPort("platform_state").Eval(ctx)[5] < X_HOME[5] - 1e-3   # sags
+
+    held = _station_sim(Scenario())
+    pushed = _station_sim(Scenario(), wrench=np.array([0, 0, 0, 0, 0, 5.0]))   # 5 N up on the tool
+    twisted = _station_sim(Scenario(), wrench=np.array([0, 0, 0.2, 0, 0, 0]))  # 0.2 N m about z
+    for _, simulator, _ in (held, pushed, twisted):
+        simulator.AdvanceTo(0.05)
+    z = [s.GetOutputPort("platform_state").Eval(c) for s, _, c in (held, pushed, twisted)]
+    assert abs(z[0][5] - X_HOME[5]) < 1e-6
+    # The whole chain is lighter than 5 N / 9.81: the push lifts it by millimetres in 50 ms.
+    assert z[1][5] - X_HOME[5] > 1e-3
+    assert z[2][2] > 1e-3 and abs(z[2][5] - X_HOME[5]) < 1e-3   # a twist turns it about z (yaw)
+    assert p_ETool[2] == pytest.approx(0.08)
+
+
+def test_the_plant_falls_with_the_geometry_s_gravity():
+    """Holding torques for the Moon's gravity hold a Moon robot (they would drop an Earth one)."""
+    moon = Robot.from_value(StewartGeometry(gravity=1.62))
+    _, simulator, ctx = _station_sim(Scenario(robot=moon))
+    station_earth, sim_earth, ctx_earth = _station_sim(
+        Scenario(), T=statics.holding_torques(StewartGeometry(gravity=1.62), X_HOME))
+    simulator.AdvanceTo(0.2)
+    sim_earth.AdvanceTo(0.2)
+    moon_station = simulator.get_system().GetSubsystemByName("station")
+    assert abs(moon_station.GetOutputPort("platform_state").Eval(ctx)[5] - X_HOME[5]) < 1e-6
+    assert station_earth.GetOutputPort("platform_state").Eval(ctx_earth)[5] < X_HOME[5] - 0.05
+
+
+# -- a user's controller ----------------------------------------------------------------------
+
+class TaskSpacePd(LeafSystem):
+    """A controller written here, not in the package: task-space PD on the measured pose with the
+    reference's feed-forward, T = T_ff + J^-T M_x (K_p (x_d - x) + K_d (v_d - v)), with M_x and J
+    re-evaluated at the reference every step. Follows the contract: x, x_d, T_ff in; T out."""
+
+    def __init__(self, context: ControllerContext, bandwidth_hz: float = 15.0):
+        super().__init__()
+        self.geometry = context.geometry
+        w = 2 * np.pi * bandwidth_hz
+        self.k_p, self.k_d = w * w, 2 * w
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
+        state = self.DeclareDiscreteState(statics.holding_torques(self.geometry, context.x_initial))
+        self.DeclareStateOutputPort("T", state)
+        self.DeclarePeriodicDiscreteUpdateEvent(context.period_s, context.offset_s, self._Update)
+
+    def _Update(self, ctx, discrete_state):
+        x, ref = self._x.Eval(ctx), self._x_d.Eval(ctx)
+        J = kinematics.jacobian(self.geometry, ref[:6])
+        M = statics.task_inertia(self.geometry, ref[:6])
+        wrench = M @ (self.k_p * (ref[:6] - x[:6]) + self.k_d * (ref[6:12] - x[6:12]))
+        discrete_state.set_value(0, self._T_ff.Eval(ctx) + np.linalg.solve(J.T, wrench))
+
+
+def test_a_controller_written_in_the_test_runs_the_paper_manoeuvre():
+    result = run_experiment(Scenario(duration_s=2.0), controller=TaskSpacePd)
+    m = result.metrics
+    assert m["finite"] and m["max_closure_m"] < 1e-5
+    assert m["rms_error"][0] < 1e-3 and m["rms_error"][5] < 1e-4    # phi < 1 mrad, Z < 0.1 mm
+    assert m["status"] == {} and result.omega is None and "gain_solves" not in m
+    # A softer PD tracks worse: the parameter reaches the controller.
+    register_controller("task_space_pd", TaskSpacePd)
+    soft = run_experiment(Scenario(duration_s=2.0, controller=UserController(
+        "task_space_pd", {"bandwidth_hz": 5.0})))
+    assert soft.metrics["rms_error"][0] > 2 * m["rms_error"][0]
+    CONTROLLER_REGISTRY.pop("task_space_pd")
+
+
+def test_a_controller_that_breaks_the_contract_is_refused_by_port():
+    class NoTorque(LeafSystem):
+        def __init__(self, context):
+            super().__init__()
+            self.DeclareVectorInputPort("x_d", 18)
+
+    class WrongSize(TaskSpacePd):
+        def __init__(self, context):
+            super().__init__(context)
+            self.DeclareVectorInputPort("motor_angle", 5)
+
+    with pytest.raises(InvalidConfigError, match=r"no output port 'T'"):
+        make_stewart_diagram(Scenario(duration_s=0.1), controller=NoTorque)
+    with pytest.raises(InvalidConfigError, match=r"'motor_angle' has size 5, the contract says 6"):
+        make_stewart_diagram(Scenario(duration_s=0.1), controller=WrongSize)
+    with pytest.raises(InvalidConfigError, match=r"'nope' is neither a registered name"):
+        make_stewart_diagram(Scenario(duration_s=0.1, controller=UserController("nope")))
+    with pytest.raises(InvalidConfigError, match=r"cannot be imported"):
+        make_stewart_diagram(Scenario(duration_s=0.1, controller=UserController("no.such:mod")))
+    with pytest.raises(InvalidConfigError, match=r"must return a pydrake LeafSystem"):
+        check_controller(object())
+
+
+def test_package_controllers_follow_the_contract():
+    sd = make_stewart_diagram(Scenario(duration_s=0.1, controller=PdDriver()))
+    inputs = {sd.controller.get_input_port(i).get_name()
+              for i in range(sd.controller.num_input_ports())}
+    assert inputs == {"x", "x_d", "T_ff"}                  # no omega: the PD has no weights
+    assert make_stewart_diagram(Scenario(duration_s=0.1)).controller.status_names[2] == \
+        "gain_solves"
+
+
+# -- references -----------------------------------------------------------------------------------
+
+def test_csv_and_drake_references_track_like_the_analytic_one(tmp_path):
+    t = np.arange(0.0, 1.0001, 0.01)
+    x = paper_manoeuvre().evaluate(t)[0]
+    csv = tmp_path / "paper.csv"
+    np.savetxt(csv, np.column_stack([t, x]), delimiter=",", header="t,phi,theta,psi,X,Y,Z",
+               comments="")
+    from_csv = as_trajectory(str(csv))
+    assert isinstance(from_csv, DrakeTrajectory) and from_csv.end_time == pytest.approx(1.0)
+    probe = np.linspace(0.05, 0.95, 50)
+    exact = paper_manoeuvre().evaluate(probe)
+    for k, tol in enumerate((1e-6, 1e-4, 1e-2)):           # pose, rate, acceleration of a spline
+        np.testing.assert_allclose(from_csv.evaluate(probe)[k], exact[k], atol=tol)
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, x.T, False)
+    a = run_experiment(Scenario(duration_s=1.0, reference=CsvReference(str(csv))))
+    b = run_experiment(Scenario(duration_s=1.0), reference=spline)
+    c = run_experiment(Scenario(duration_s=1.0))
+    np.testing.assert_allclose(a.x, b.x, atol=1e-12)              # the same spline both ways
+    np.testing.assert_allclose(a.x[:, :6], c.x[:, :6], atol=5e-6)   # ... close to the analytic
+    with pytest.raises(InvalidConfigError, match=r"ends at t = 1 s"):
+        run_experiment(Scenario(duration_s=2.0, reference=CsvReference(str(csv))))
+
+
+def test_bad_csv_files_name_the_line(tmp_path):
+    f = tmp_path / "r.csv"
+    f.write_text("t,x\n0,1\n")
+    with pytest.raises(InvalidConfigError, match=r"header t,phi,theta,psi,X,Y,Z"):
+        as_trajectory(f)
+    f.write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n0.1,0,0,0,0,0,nan\n")
+    with pytest.raises(InvalidConfigError, match=r"line 3: expected 7 finite numbers"):
+        as_trajectory(f)
+    f.write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n0.1,0,0,0,0,0,0.3\n")
+    with pytest.raises(InvalidConfigError, match=r"at least 3 samples"):
+        as_trajectory(f)
+    with pytest.raises(MissingFileError):
+        as_trajectory(tmp_path / "none.csv")
+
+
+def test_an_evaluate_of_one_time_is_wrapped():
+    class OneAtATime:
+        name = "scalar"
+
+        def evaluate(self, t):
+            if np.ndim(t):
+                raise TypeError("one time at a time")
+            return tuple(np.asarray(v)[0] for v in paper_manoeuvre().evaluate(np.array([t])))
+
+    wrapped = as_trajectory(OneAtATime())
+    assert isinstance(wrapped, ScalarEvaluate) and wrapped.name == "scalar"
+    t = np.array([0.1, 0.2, 0.3])
+    for got, want in zip(wrapped.evaluate(t), paper_manoeuvre().evaluate(t)):
+        np.testing.assert_allclose(got, want, rtol=1e-15)
+    result = run_experiment(Scenario(duration_s=0.2), reference=OneAtATime())
+    assert result.config_summary["trajectory"] == "scalar" and result.metrics["finite"]
+    with pytest.raises(InvalidConfigError, match="an object with evaluate"):
+        as_trajectory(3.0)
+
+
+# -- the command ----------------------------------------------------------------------------------
+
+def test_cli_runs_a_scenario_file_with_overrides(tmp_path, capsys):
+    scenario = tmp_path / "mine.yaml"
+    assert main(["scenario", "paper_ideal", "--set", "duration_s=0.3", "--out",
+                 str(scenario)]) == 0
+    assert main(["run", "--scenario", str(scenario), "--set", "controller.omega_Q=10",
+                 "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    assert "gain re-schedules: 31" in capsys.readouterr().out
+    data = np.load(tmp_path / "out" / "run_paper.npz")
+    assert "omega_Q: 10.0" in str(data["config"]) and data["t"][-1] == pytest.approx(0.3)
+    assert main(["run", "--set", "controller.gain=1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and "'gain' is not a field of LqiDriver" in err[0]
+
+
+def test_cli_reference_from_a_csv_file(tmp_path, capsys):
+    t = np.arange(0.0, 0.5001, 0.01)
+    np.savetxt(tmp_path / "ref.csv", np.column_stack([t, paper_manoeuvre().evaluate(t)[0]]),
+               delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments="")
+    assert main(["run", "--trajectory-file", str(tmp_path / "ref.csv"), "--duration", "0.5",
+                 "--out", str(tmp_path), "--no-progress"]) == 0
+    assert (tmp_path / "run_ref.npz").exists()
+
+
+def test_sdf_and_diagrams_write_to_the_current_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert main(["sdf"]) == 0 and (tmp_path / "sdf" / "rotary_stewart.sdf").stat().st_size > 1000
+    assert main(["diagrams", "--dot-only"]) == 0
+    assert (tmp_path / "diagrams" / "control_loop.dot").exists()
+
+
+def test_run_with_the_tuner_needs_no_torch(tmp_path):
+    """torch is the [train] extra: with it unimportable, `run --tuner ann` works and `train` says
+    in one line which extra to install."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['torch'] = None\n"
+            "from stewart_drake.interfaces.cli import main\n"
+            "import stewart_drake.studies.evaluation, stewart_drake.studies.collection\n"
+            f"assert main(['run', '--tuner', 'ann', '--duration', '0.1', '--no-progress', "
+            f"'--out', {str(tmp_path)!r}]) == 0\n"
+            f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        "stewart-drake train: `stewart-drake train` needs torch: pip install "
+        "'stewart-drake[train]' (torch==2.13.0, the CPU build)"]
+    assert (tmp_path / "run_paper_ann.npz").exists()
