@@ -40,7 +40,7 @@ class ToolWrench(LeafSystem):
         self._wrench = self.DeclareVectorInputPort("tool_wrench", 6)
         self.DeclareAbstractOutputPort(
             "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._Calc)
+            self._Calc, prerequisites_of_calc={self.all_input_ports_ticket()})
 
     def _Calc(self, context, output):
         w = self._wrench.Eval(context)
