@@ -13,8 +13,10 @@ and gimbal lock needs the rod to point along +-x_F: 90 deg away from its home di
 measured in the crank's frame. These two *singular directions* are fixed in the crank; this
 module says where they sit relative to the crank joint's misalignment cone
 (``StewartGeometry.crank_joint_cone_deg``, which bounds asin|e . u_i|) and computes the pitch
-at any pose. (Once simulated, a rod can also spin slightly about its own axis; that changes
-the rpy a little, docs/accuracy.md measures it along the paper run.)
+at any pose. Once simulated, a rod also spins about its own axis (nothing holds that angle; the
+paper run leaves the rods up to 20 deg from the no-spin frames), which moves its rpy:
+:func:`rod_turn_from_home` bounds |pitch| for any spin, and docs/accuracy.md reads both along
+the paper run.
 """
 
 from __future__ import annotations
@@ -46,6 +48,19 @@ def _frames_at_home(geometry: StewartGeometry) -> tuple[np.ndarray, np.ndarray]:
     return theta, np.array(R_WF)
 
 
+def _rod_in_F(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+    """(..., 6, 3) unit rod direction (crank tip -> platform joint) in each rod joint's frame F."""
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta, _ = kinematics.ik_unchecked(geometry, x)
+    theta_home, R_WF_home = _frames_at_home(geometry)
+    q_B, _ = kinematics.platform_joints(geometry, x)
+    ell = q_B - geometry.crank_tips(theta)
+    e_W = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    R_WF = _rotation_about(geometry.u_B, theta - theta_home) @ R_WF_home      # (..., 6, 3, 3)
+    return np.einsum("...ji,...j->...i", R_WF, e_W)
+
+
 def rod_ball_rpy(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     """Roll, pitch, yaw of every rod ball joint at pose(s) x, as ``plant.assemble`` writes them.
 
@@ -55,24 +70,27 @@ def rod_ball_rpy(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
         theta: optional (..., 6) motor angles of x (saves one IK).
     Returns:
         (..., 6, 3) [roll, pitch, yaw] in rad per leg, Drake's ``BallRpyJoint.get_angles``
-        convention (R_FM = Rz(yaw) Ry(pitch) Rx(roll)); NaN where a leg cannot close.
+        convention (R_FM = Rz(yaw) Ry(pitch) Rx(roll)), rods without spin; NaN where a leg
+        cannot close.
     Source: F rotates with the crank about u_i, so R_WF(theta) = Rot(u_i, theta_i -
     theta_home,i) R_WF(home); R_FM is the smallest rotation z -> e_F (module docstring).
     """
-    x = np.asarray(x, dtype=float)
-    if theta is None:
-        theta, _ = kinematics.ik_unchecked(geometry, x)
-    theta_home, R_WF_home = _frames_at_home(geometry)
-    q_B, _ = kinematics.platform_joints(geometry, x)
-    ell = q_B - geometry.crank_tips(theta)
-    e_W = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    R_WF = _rotation_about(geometry.u_B, theta - theta_home) @ R_WF_home      # (..., 6, 3, 3)
-    e_F = np.einsum("...ji,...j->...i", R_WF, e_W)
+    e_F = _rod_in_F(geometry, x, theta)
     # Smallest rotation z -> e_F: R = I + K + K^2 / (1 + c), v = z x e_F = (-e_y, e_x, 0).
     ex, ey, ez = e_F[..., 0], e_F[..., 1], e_F[..., 2]
     R20, R21, R22, R10, R00 = -ex, -ey, ez, -ex * ey / (1 + ez), 1 - ex * ex / (1 + ez)
     return np.stack([np.arctan2(R21, R22), np.arcsin(np.clip(-R20, -1.0, 1.0)),
                      np.arctan2(R10, R00)], axis=-1)
+
+
+def rod_turn_from_home(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+    """(..., 6) angle in rad between each rod and its home direction, seen from its crank.
+
+    Bounds |pitch| whatever the rod's spin about its own axis: sin(pitch) = -R_FM[2, 0] is a
+    component of a unit vector normal to the rod, at most sin of this angle. Gimbal lock at any
+    spin therefore needs a rod turned 90 deg from home relative to its crank.
+    """
+    return np.arccos(np.clip(_rod_in_F(geometry, x, theta)[..., 2], -1.0, 1.0))
 
 
 def singular_direction_misalignment(geometry: StewartGeometry) -> np.ndarray:
