@@ -165,6 +165,11 @@ def build_parser() -> argparse.ArgumentParser:
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF (sdf/rotary_stewart.sdf)")
     sdf.add_argument("--out", default=None, help="file to write instead")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
+
+    mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
+    mj.add_argument("--out", default="rotary_stewart.xml",
+                    help="file to write (rotary_stewart.xml in the current folder)")
+    mj.set_defaults(func=_delegate("mjcf", "mjcf_cli"), out_is_file=True)
     return parser
 
 
