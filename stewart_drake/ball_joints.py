@@ -38,22 +38,27 @@ def _rotation_about(u: np.ndarray, angle: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=8)
-def _frames_at_home(geometry: StewartGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """(6,) home motor angles and (6, 3, 3) R_WF of every rod joint's frame F at home."""
+def joint_frames_at_home(geometry: StewartGeometry) -> tuple[np.ndarray, np.ndarray]:
+    """Home motor angles (6,) in rad and R_WF (6, 3, 3) of every rod joint's frame F at home
+    (z_F along the home rod), read from the Drake plant."""
     from .plant import make_plant
 
     plant, context, handles, _, _ = make_plant(geometry)     # assembled at home, rpy = 0
     theta = np.array([joint.get_angle(context) for joint in handles.motors])
-    R_WF = [plant.EvalBodyPoseInWorld(context, rod).rotation().matrix() for rod in handles.rods]
-    return theta, np.array(R_WF)
+    R_WF = np.array([plant.EvalBodyPoseInWorld(context, rod).rotation().matrix()
+                     for rod in handles.rods])
+    theta.setflags(write=False)                               # cached: callers must not mutate
+    R_WF.setflags(write=False)
+    return theta, R_WF
 
 
-def _rod_in_F(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+def _rod_in_F(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np.ndarray:
     """(..., 6, 3) unit rod direction (crank tip -> platform joint) in each rod joint's frame F."""
     x = np.asarray(x, dtype=float)
     if theta is None:
         theta, _ = kinematics.ik_unchecked(geometry, x)
-    theta_home, R_WF_home = _frames_at_home(geometry)
+    theta_home, plant_frames = joint_frames_at_home(geometry)
+    R_WF_home = plant_frames if R_WF_home is None else R_WF_home
     q_B, _ = kinematics.platform_joints(geometry, x)
     ell = q_B - geometry.crank_tips(theta)
     e_W = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
@@ -61,13 +66,15 @@ def _rod_in_F(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     return np.einsum("...ji,...j->...i", R_WF, e_W)
 
 
-def rod_ball_rpy(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
+def rod_ball_rpy(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np.ndarray:
     """Roll, pitch, yaw of every rod ball joint at pose(s) x, as ``plant.assemble`` writes them.
 
     Args:
         geometry: the robot.
         x: (6,) or (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
         theta: optional (..., 6) motor angles of x (saves one IK).
+        R_WF_home: optional (6, 3, 3) orientations of the joint frames F at home, world frame,
+            to study another choice of frames (z along the home rod); default the plant's.
     Returns:
         (..., 6, 3) [roll, pitch, yaw] in rad per leg, Drake's ``BallRpyJoint.get_angles``
         convention (R_FM = Rz(yaw) Ry(pitch) Rx(roll)), rods without spin; NaN where a leg
@@ -75,7 +82,7 @@ def rod_ball_rpy(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     Source: F rotates with the crank about u_i, so R_WF(theta) = Rot(u_i, theta_i -
     theta_home,i) R_WF(home); R_FM is the smallest rotation z -> e_F (module docstring).
     """
-    e_F = _rod_in_F(geometry, x, theta)
+    e_F = _rod_in_F(geometry, x, theta, R_WF_home)
     # Smallest rotation z -> e_F: R = I + K + K^2 / (1 + c), v = z x e_F = (-e_y, e_x, 0).
     ex, ey, ez = e_F[..., 0], e_F[..., 1], e_F[..., 2]
     R20, R21, R22, R10, R00 = -ex, -ey, ez, -ex * ey / (1 + ez), 1 - ex * ex / (1 + ez)
@@ -93,19 +100,19 @@ def rod_turn_from_home(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     return np.arccos(np.clip(_rod_in_F(geometry, x, theta)[..., 2], -1.0, 1.0))
 
 
-def singular_direction_misalignment(geometry: StewartGeometry) -> np.ndarray:
+def singular_direction_misalignment(geometry: StewartGeometry, R_WF_home=None) -> np.ndarray:
     """(6,) crank-joint misalignment asin|x_F . u_i| of each rod joint's singular directions, rad.
 
     A rod along +-x_F puts its ``BallRpyJoint`` at pitch = +-pi/2. Where this angle exceeds
     ``crank_joint_cone_deg`` the singular directions lie outside the rod end's cone, so no pose
     inside the limits can reach them; where it is smaller, only the rod's turn in the crank's
     plane (free in a rod end) separates it from gimbal lock, and :func:`rod_ball_rpy` over the
-    workspace measures that distance.
+    workspace measures that distance. ``R_WF_home`` as in :func:`rod_ball_rpy`.
     """
-    _, R_WF_home = _frames_at_home(geometry)
+    if R_WF_home is None:
+        _, R_WF_home = joint_frames_at_home(geometry)
     return np.arcsin(np.clip(np.abs(np.einsum("ij,ij->i", R_WF_home[:, :, 0], geometry.u_B)),
                              0.0, 1.0))
-
 
 
 def pitch_bound(geometry: StewartGeometry) -> np.ndarray:
