@@ -15,9 +15,9 @@ and the rods' ball quaternions are the identity where Drake's ``BallRpyJoint`` r
 
 The loops are closed by MuJoCo's soft constraints: the ``solref`` time constant, 1e-9 s, is
 raised by MuJoCo to twice the time step (flag ``refsafe``), so the loops stiffen as the step
-shrinks, as SAP's near-rigid constraints do; docs/accuracy.md measures the closure error this leaves.
-``mujoco`` is an optional dependency (``pip install "stewart-drake[mujoco]"``); only
-:func:`load_model`, :func:`assemble` and the readers below import it.
+shrinks, as SAP's near-rigid constraints do; docs/accuracy.md measures the closure error this
+leaves. ``mujoco`` (>= 4.0) is an optional dependency (``pip install "stewart-drake[mujoco]"``);
+only :func:`load_model`, :func:`assemble` and the readers below import it; writing needs Drake.
 """
 
 from __future__ import annotations
@@ -30,8 +30,9 @@ from .geometry import StewartGeometry
 #: Integrators accepted by :func:`write_mjcf` (MuJoCo names).
 INTEGRATORS = ("implicitfast", "RK4", "implicit", "Euler")
 #: RK4: at 1 ms a zero-torque fall from home keeps its energy to 2e-8 and its loops closed to
-#: 2e-7 m for about twice the cost per step of implicitfast, which (first order, like SAP) loses
-#: 1 % of the energy and opens the loops by 2e-5 m; docs/accuracy.md has the figures.
+#: 2e-7 m for about three times the cost per step of implicitfast, which (first order, like SAP)
+#: loses 1 % of the energy and opens the loops by 2e-5 m; docs/accuracy.md has the figures. Needs
+#: MuJoCo >= 4.0, whose RK4 is fourth order for ball and free joints (3.2.7: loops open by 4e-5 m).
 DEFAULT_INTEGRATOR = "RK4"
 #: Default loop-closure constraint parameters (MuJoCo ``solref`` / ``solimp`` of the connects):
 #: time constant 1e-9 s, which MuJoCo raises to twice the time step (flag ``refsafe``, on by
