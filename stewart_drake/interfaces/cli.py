@@ -81,6 +81,17 @@ def _cmd_sdf(args) -> int:
     return 0
 
 
+def _cmd_mjcf(args) -> int:
+    """``stewart-drake mjcf``: the reference robot as a MuJoCo MJCF (no MuJoCo needed to write)."""
+    from ..fileio import atomic_write
+    from ..model.mjcf import DEFAULT_INTEGRATOR, write_mjcf
+
+    text = write_mjcf().encode()
+    atomic_write(Path(args.out), lambda f: f.write(text))
+    print(f"wrote {args.out} (MuJoCo MJCF; integrator {DEFAULT_INTEGRATOR}, time step 1 ms)")
+    return 0
+
+
 def run_scenario(args):
     """The :class:`~stewart_drake.simulation.scenario.Scenario` of ``run``'s arguments: the
     ``--scenario`` file or name, then ``--set`` overrides, then the shorthand flags (each only
@@ -362,6 +373,11 @@ def build_parser() -> argparse.ArgumentParser:
     sdf.add_argument("--out", default="sdf/rotary_stewart.sdf",
                      help="file (sdf/rotary_stewart.sdf in the current folder)")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
+
+    mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
+    mj.add_argument("--out", default="rotary_stewart.xml",
+                    help="file to write (rotary_stewart.xml in the current folder)")
+    mj.set_defaults(func=_cmd_mjcf, out_is_file=True)
     return parser
 
 

@@ -74,15 +74,26 @@ def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _rod_zero_rotations(geometry: StewartGeometry) -> list[np.ndarray]:
-    """R_B_rod at the SDF zero configuration, chosen so the ball joints read rpy = 0 at home."""
+    """R_B_rod at the SDF zero configuration, chosen so the ball joints read rpy = 0 at home.
+
+    At home the rod's z is along the rod and its x along the part of the rod end's bolt axis
+    u_i normal to the rod. Drake's BallRpyJoint is singular where the rod points along +-x of
+    this frame, 90 - 19.4 = 70.6 deg out of the crank's plane at the reference robot: outside
+    the rod end's cone (crank_joint_cone_deg), so |pitch| <= 90 - (70.6 - 35) = 54.4 deg at
+    every pose inside the limits (stewart_drake/model/ball_joints.py, docs/accuracy.md). The rod is
+    axisymmetric, so this spin about its axis changes coordinates only, not the dynamics.
+    """
     theta_home = kinematics.ik(geometry, X_HOME)
     q_B, _ = kinematics.platform_joints(geometry, X_HOME)
     tips = geometry.crank_tips(theta_home)
     rotations = []
     for i in range(6):
+        u = geometry.u_B[i]
         z_rod = (q_B[i] - tips[i]) / geometry.rod_length
-        R_home = _min_rotation(np.array([0.0, 0.0, 1.0]), z_rod)     # rod z along the rod
-        rotations.append(_axis_angle(geometry.u_B[i], -theta_home[i]) @ R_home)
+        x_rod = u - np.dot(u, z_rod) * z_rod                           # bolt axis, normal part
+        x_rod /= np.linalg.norm(x_rod)
+        R_home = np.column_stack([x_rod, np.cross(z_rod, x_rod), z_rod])
+        rotations.append(_axis_angle(u, -theta_home[i]) @ R_home)
     return rotations
 
 
