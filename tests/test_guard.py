@@ -8,6 +8,7 @@ import pytest
 from stewart_drake.simulation import guard
 from stewart_drake.model import kinematics
 from stewart_drake.model import limits
+from stewart_drake.control.contract import LQI_STATUS_NAMES
 from stewart_drake.control.lqi import LqiController
 from stewart_drake.simulation.scenario import GuardConfig, Robot, Scenario
 from stewart_drake.errors import (JointLimitError, SimulationDivergedError, SingularPoseError, StewartError, UnreachablePoseError)
@@ -40,7 +41,7 @@ def _check_saved(err, tmp_path, t_fault):
         assert key in saved, key
     t = saved["t"]
     assert saved["x"].shape == (t.size, 12) and saved["T"].shape == (t.size, 6)
-    assert saved["status"].shape == (t.size, 5)
+    assert saved["status"].shape == (t.size, len(LQI_STATUS_NAMES))
     assert t[0] == 0.0 and t[-1] <= float(saved["t_last"]) + 1e-12
     assert float(saved["t_last"]) == pytest.approx(err.t)
     assert t_fault <= err.t <= t_fault + 0.011           # caught within one check period

@@ -39,7 +39,7 @@ NAN = float("nan")
     ("controller.omega_R", 1e4, r"controller.omega_R must be a finite number in \[0.001, 1000\], "
                                 r"got 10000.0"),
     ("controller.omega_R", True, r"controller.omega_R must be one number"),
-    ("controller.riccati", "hot", r"controller.riccati must be 'warm' or 'cold'"),
+    ("controller.riccati", "hot", r"controller.riccati must be one of \('warm', 'track', 'cold'\)"),
     ("controller.scales", "x", r"controller.scales must be an LqiScalesConfig, got str"),
     ("feedforward", "pid", r"feedforward must be one of \('gravity', 'inverse_dynamics', 'none'\)"),
     ("tuner", AnnTunerDriver(feature_window=0), r"tuner.feature_window must be an integer in "
@@ -144,18 +144,19 @@ def test_a_bad_omega_on_the_port_keeps_the_last_gain(omega):
 
 def test_a_failed_solve_keeps_the_last_good_gain_and_counts(monkeypatch):
     good = {}
-    original = LqiController.gain
+    original = LqiController._gain
     calls = {"n": 0}
 
     def flaky(self, x, omega_Q=1.0, omega_R=1.0, K_start=None):
         calls["n"] += 1
         if calls["n"] > 3:
             raise RiccatiSolveError("forced failure")
-        K = original(self, x, omega_Q, omega_R) * (1.0 + 0.01 * calls["n"])   # each one differs
+        K, J = original(self, x, omega_Q, omega_R, None)
+        K = K * (1.0 + 0.01 * calls["n"])                                      # each one differs
         good["last"] = K
-        return K
+        return K, J
 
-    monkeypatch.setattr(LqiController, "gain", flaky)
+    monkeypatch.setattr(LqiController, "_gain", flaky)
     with pytest.warns(RuntimeWarning, match="forced failure.*keeping the last good gain"):
         controller, status, K, T = _controller_alone((1.0, 1.0), duration_s=0.1)
     np.testing.assert_array_equal(K, good["last"])
@@ -165,16 +166,16 @@ def test_a_failed_solve_keeps_the_last_good_gain_and_counts(monkeypatch):
 
 
 def test_failures_in_a_closed_loop_run_are_reported(monkeypatch, tmp_path):
-    original = LqiController.gain
+    original = LqiController._gain
     calls = {"n": 0}
 
     def every_other(self, x, omega_Q=1.0, omega_R=1.0, K_start=None):
         calls["n"] += 1
         if calls["n"] % 2 == 0:
             raise RiccatiSolveError("forced failure")
-        return original(self, x, omega_Q, omega_R, K_start=K_start)
+        return original(self, x, omega_Q, omega_R, K_start)
 
-    monkeypatch.setattr(LqiController, "gain", every_other)
+    monkeypatch.setattr(LqiController, "_gain", every_other)
     with pytest.warns(RuntimeWarning):
         result = run_experiment(Scenario(duration_s=0.2, guard=GuardConfig(
             divergence_dir=str(tmp_path))))

@@ -125,7 +125,8 @@ def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
     assert raw[0] != raw[1]                               # Drake's system ids differ ...
     dots = [visualize.normalize_dot(r) for r in raw]
     assert dots[0] == dots[1]                             # ... the normalized text does not
-    assert dots[0].count(" -> ") == len(first.connection_map())
+    # every connection, and the exported input (tool_wrench, fixed in the Context) to the station
+    assert dots[0].count(" -> ") == len(first.connection_map()) + first.num_input_ports()
     for name in ("station", "controller", "reference", "feedforward", "omega", "log_T"):
         assert f"name={name}" in dots[0]
 

@@ -65,7 +65,8 @@ OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6}
 REQUIRED_INPUTS = ("x_d",)
 REQUIRED_OUTPUTS = ("T",)
 #: ``status`` entries of the LQI (and of controllers that report the same figures).
-LQI_STATUS_NAMES = ("omega_Q", "omega_R", "gain_solves", "gain_failures", "integral_norm")
+LQI_STATUS_NAMES = ("omega_Q", "omega_R", "gain_solves", "gain_failures", "integral_norm",
+                    "saturated_steps", "governed_steps")
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,15 @@ class ControllerContext:
             docstring).
         plant_time_step_s: the plant's step, s.
         x_initial: (6,) pose at t = 0 [rad, m] (the reference's start).
+        x_dot_initial: (6,) its rate [rad/s, m/s].
+        torque_limit_Nm: the motors' torque limit, N m (None: unlimited).
+        delay_periods: control periods between a measurement and the torque computed from it
+            (the robot's computation delay; 0 on the ideal robot).
+        pose_estimator: on the robot as built, the
+            :class:`~stewart_drake.control.estimator.PoseEstimator` from its encoders (a
+            controller with a ``motor_angle`` input may estimate the pose itself with it; one
+            with an ``x`` input gets the estimate from an FK estimator system); None on the
+            ideal robot.
     """
 
     geometry: object
@@ -88,6 +98,10 @@ class ControllerContext:
     offset_s: float
     plant_time_step_s: float
     x_initial: np.ndarray
+    x_dot_initial: np.ndarray = None
+    torque_limit_Nm: float | None = None
+    delay_periods: int = 0
+    pose_estimator: object = None
 
 
 #: Factories registered by name (:func:`register_controller`).
@@ -152,16 +166,17 @@ def check_controller(system) -> None:
 
 
 class PoseTorqueController(LeafSystem):
-    """Base class of the package's pose controllers: declares the input ports ``x`` (12),
+    """Base class of the package's pose controllers: declares the input ports ``x`` (12) (unless
+    ``pose_input`` is false: a controller that estimates the pose from ``motor_angle`` itself),
     ``x_d`` (18), ``T_ff`` (6) and ``omega`` (2) of the contract (module docstring).
 
     A subclass declares the outputs ``T`` (6) and, if it has them, ``status`` (with
     ``status_names``), ``e_bar`` (6) and ``integral`` (6).
     """
 
-    def __init__(self, omega: bool = True):
+    def __init__(self, omega: bool = True, pose_input: bool = True):
         super().__init__()
-        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x = self.DeclareVectorInputPort("x", 12) if pose_input else None
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         self._T_ff = self.DeclareVectorInputPort("T_ff", 6)
         self._omega = self.DeclareVectorInputPort("omega", 2) if omega else None

@@ -19,6 +19,8 @@ already diverged, and a clamped feature would hide that.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
@@ -136,8 +138,9 @@ class DensityFeatures(LeafSystem):
         ``T`` (6,): motor torques, N m.
     Output port:
         ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, of the samples taken so far.
-    Discrete state (numbers only): one buffer (window * 12) of [e_bar, T] rows, oldest
-    sample first; n_valid (1,), samples taken so far capped at window.
+    Discrete state (numbers only): a ring buffer (window * 12) of [e_bar, T] rows, and
+    [n_valid, head] (2,): the samples taken so far capped at window, and the row the next sample
+    goes to (the oldest).
 
     Every period_s (first at t = 0) the inputs are sampled and pushed into the ring buffers
     (cheap); rho is computed by :func:`density_features` on the last min(k + 1, window) samples
@@ -169,7 +172,7 @@ class DensityFeatures(LeafSystem):
         self._e = self.DeclareVectorInputPort("e_bar", N_CHANNELS)
         self._T = self.DeclareVectorInputPort("T", N_CHANNELS)
         self._buf = self.DeclareDiscreteState(self.window * N_FEATURES)
-        self._n_index = self.DeclareDiscreteState(1)
+        self._n_index = self.DeclareDiscreteState(2)      # n_valid, head
         self._rho = self.DeclareVectorOutputPort("rho", N_FEATURES, self._CalcRho,
                                                  prerequisites_of_calc={self.xd_ticket()})
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=0.0,
@@ -185,26 +188,28 @@ class DensityFeatures(LeafSystem):
         return self._rho
 
     def _Update(self, context, discrete_state):
-        sample = np.concatenate([self._e.Eval(context), self._T.Eval(context)])
-        if not np.isfinite(sample.sum()):        # one reduction: the common case is fast
-            name = "e_bar" if not np.all(np.isfinite(sample[:N_CHANNELS])) else "T"
+        e, T = self._e.Eval(context), self._T.Eval(context)
+        if not math.isfinite(e.sum() + T.sum()):     # one reduction: the common case is fast
+            sample = np.concatenate([e, T])
+            name = "e_bar" if not np.all(np.isfinite(e)) else "T"
             raise SimulationDivergedError(
                 f"non-finite {name} = {np.array2string(sample, precision=4)} ([e_bar, T]) at "
                 f"the DensityFeatures input (features are not computed from diverged signals)",
                 t=context.get_time())
-        buf = context.get_discrete_state(self._buf).get_value()
-        shifted = np.empty_like(buf)             # shift: oldest row out, newest row last
-        shifted[:-N_FEATURES] = buf[N_FEATURES:]
-        shifted[-N_FEATURES:] = sample
-        discrete_state.set_value(self._buf, shifted)
-        n = min(int(context.get_discrete_state(self._n_index).get_value()[0]) + 1, self.window)
-        discrete_state.set_value(self._n_index, [n])
+        counters = discrete_state.get_mutable_value(self._n_index)   # in place: no copies
+        head = int(counters[1])
+        row = discrete_state.get_mutable_value(self._buf)[head * N_FEATURES:
+                                                          (head + 1) * N_FEATURES]
+        row[:N_CHANNELS], row[N_CHANNELS:] = e, T
+        counters[0] = min(counters[0] + 1, self.window)
+        counters[1] = (head + 1) % self.window
 
     def _CalcRho(self, context, output) -> None:
-        n = int(context.get_discrete_state(self._n_index).get_value()[0])
+        n, head = context.get_discrete_state(self._n_index).get_value()
         if n == 0:                                # nothing sampled yet
             output.SetFromVector(np.zeros(N_FEATURES))
             return
-        rows = context.get_discrete_state(self._buf).get_value().reshape(self.window, N_FEATURES)
+        rows = np.roll(context.get_discrete_state(self._buf).get_value().reshape(
+            self.window, N_FEATURES), -int(head), axis=0)      # oldest first
         output.SetFromVector(density_features(rows[:, :N_CHANNELS], rows[:, N_CHANNELS:],
-                                              self.eps, n))
+                                              self.eps, int(n)))

@@ -93,6 +93,10 @@ class StewartGeometry:
         platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
             socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
             along the paper manoeuvre). All limits are checked by ``limits.limit_margins``.
+        motor_reflected_inertia: rotor inertia of each motor seen at its crank shaft (rotor
+            inertia x gear ratio^2), kg m^2; 0 for ideal torque sources. A scenario with
+            hardware sets it from its servo (``model.servo.ServoModel.reflected_inertia``), so
+            the controller's task inertia includes the motors the plant carries.
     Raises:
         InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
             inertia that fails the triangle inequality (use
@@ -123,8 +127,12 @@ class StewartGeometry:
     motor_angle_max_deg: float = 90.0
     crank_joint_cone_deg: float = 35.0
     platform_joint_cone_deg: float = 40.0
+    motor_reflected_inertia: float = 0.0
 
     def __post_init__(self):
+        object.__setattr__(self, "motor_reflected_inertia", as_number(
+            "motor_reflected_inertia", self.motor_reflected_inertia, 0.0,
+            error=InvalidGeometryError))
         for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
                      "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius"):
             object.__setattr__(self, name, as_number(name, getattr(self, name), 0.0, lo_open=True,

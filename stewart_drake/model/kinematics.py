@@ -29,6 +29,7 @@ X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
 X_HOME.setflags(write=False)
 
 _Z = np.array([0.0, 0.0, 1.0])
+_NEXT, _PREV = [1, 2, 0], [2, 0, 1]        # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
 
 
 def rotation_rpy(rpy) -> np.ndarray:
@@ -431,6 +432,70 @@ def fk(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12,
     status = FkStatus(bool(np.all(converged)), int(iterations.max(initial=0)),
                       float(residual.max(initial=0.0)))
     return x, status
+
+
+def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
+    """Motor angles of ONE pose, with what :func:`jacobian_single` reuses.
+
+    The same numbers as :func:`ik` (a test holds them equal to 1e-12), computed with a few
+    3 x 3 and (6, 3) array operations instead of the batched, validated routines: about 10 times
+    faster on a single pose, for the FK estimator and the gain re-scheduling, which run every
+    control period.
+
+    Args:
+        x: (6,) finite pose [phi, theta, psi, X, Y, Z] in rad and m (not validated).
+    Returns:
+        theta (6,) rad, NaN for a leg that cannot close; and the intermediates (x, R_BE, r_B, l,
+        theta) for :func:`jacobian_single` and :func:`leg_vectors_single`.
+    """
+    cr, cp, cy = np.cos(x[:3])
+    sr, sp, sy = np.sin(x[:3])
+    R = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                  [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                  [-sp, cp * sr, cp * cr]])
+    a = geometry.crank_length
+    r_B = geometry.p_E @ R.T
+    l = r_B + (x[3:6] - geometry.P_B)           # pivot to platform joint
+    L = (l * l).sum(axis=1) - (geometry.rod_length ** 2 - a * a)
+    M = 2.0 * a * l[:, 2]
+    N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        theta = np.arcsin(L / np.hypot(M, N)) - np.arctan2(N, M)
+    return theta, (x, R, r_B, l, theta)
+
+
+def leg_vectors_single(geometry: "StewartGeometry", cache: tuple):
+    """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
+    of the pose :func:`ik_single` was given (its cache); as in :func:`_leg_terms`."""
+    x, _, _, l, theta = cache
+    a, d_B = geometry.crank_length, geometry.d_B
+    with np.errstate(invalid="ignore"):
+        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    cp, sp = np.cos(x[1]), np.sin(x[1])
+    cy, sy = np.cos(x[2]), np.sin(x[2])
+    E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+    return l - a * (c * d_B + s * _Z), c * _Z - s * d_B, E
+
+
+def jacobian_single(geometry: "StewartGeometry", cache: tuple) -> np.ndarray:
+    """Jacobian J = d theta / d x (6, 6) of the pose :func:`ik_single` was given (its cache).
+
+    Rows (ell_i . dq_i/dx) / (a ell_i . e_N,i), with ell_i . d(q_i)/d(rpy) = (r_i x ell_i)^T E;
+    inf or NaN at a singular or unreachable pose (not checked). Equal to :func:`jacobian`.
+    """
+    r_B = cache[2]
+    ell, e_N, E = leg_vectors_single(geometry, cache)
+    # r x ell row by row (np.cross costs 15 us on (6, 3) arrays; this, 5)
+    r_x_ell = r_B[:, _NEXT] * ell[:, _PREV] - r_B[:, _PREV] * ell[:, _NEXT]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.hstack([r_x_ell @ E, ell]) / (geometry.crank_length
+                                                 * (ell * e_N).sum(axis=1))[:, None]
+
+
+def ik_jacobian(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndarray]:
+    """(theta (6,), J (6, 6)) of ONE pose: :func:`ik_single` then :func:`jacobian_single`."""
+    theta, cache = ik_single(geometry, x)
+    return theta, jacobian_single(geometry, cache)
 
 
 def _singular_values_of(J: np.ndarray) -> np.ndarray:

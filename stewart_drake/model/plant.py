@@ -20,11 +20,13 @@ import numpy as np
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
+from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, DiagramBuilder
 
 from . import kinematics
 from ..errors import InvalidConfigError
 from .geometry import X_HOME, StewartGeometry
+from .servo import ServoModel
 
 MODEL_NAME = "rotary_stewart"
 #: The committed SDF of the reference robot; a test checks it equals :func:`write_sdf` output.
@@ -183,13 +185,16 @@ class StewartPlantHandles:
     motors: tuple               # 6 RevoluteJoint
     rod_balls: tuple            # 6 BallRpyJoint
     rod_top_in_rod: np.ndarray  # (3,) p_AP of every ball constraint, rod frame
-    actuation_port: object      # plant input port for the (6,) motor torques [N m]
+    actuation_port: object      # plant input port of the model's actuators (see n_actuators)
+    n_actuators: int = 6        # 6 motors, + 6 dry-friction actuators when the servo has friction
+    desired_state_port: object = None   # the friction actuators' desired state (zeros), or None
 
 
 def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None = None,
                       time_step: float = 1e-3, sdf_file: str | Path | None = None,
                       discrete_contact_approximation: str = "sap",
-                      plant_config: MultibodyPlantConfig | None = None):
+                      plant_config: MultibodyPlantConfig | None = None,
+                      servo: ServoModel | None = None):
     """Add the robot as a discrete SAP MultibodyPlant (+ SceneGraph) to ``builder``.
 
     Args:
@@ -202,9 +207,18 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
         discrete_contact_approximation: a SAP-family approximation: "sap", "lagged", "similar".
         plant_config: Drake's ``MultibodyPlantConfig`` (a scenario's ``plant``); when given, its
             ``time_step`` and ``discrete_contact_approximation`` replace the two arguments above.
+        servo: the motors' gearing and friction (:class:`~.servo.ServoModel`), or None for ideal
+            torque sources. The motors' reflected inertia is ``geometry.motor_reflected_inertia``
+            (the JointActuators' rotor inertia x gear ratio^2, which Drake adds to the mass
+            matrix); the servo's viscous friction is Drake joint damping (implicit in SAP); its
+            Coulomb friction is a second actuator on each motor joint, PD-controlled by SAP with
+            no stiffness, damping ``servo.friction_damping`` towards zero velocity and an effort
+            limit of ``servo.coulomb_friction_Nm``: a dry friction SAP solves implicitly (drake
+            1.51 parses no joint dry friction: a non-zero SDF ``<friction>`` is refused).
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
-        pose, assembled.
+        pose, assembled. With friction, ``handles.actuation_port`` takes 12 values (the six
+        motor torques, then six zeros) and ``handles.desired_state_port`` must be fixed to zeros.
     Raises:
         InvalidConfigError: time_step <= 0 or a non-SAP approximation (constraints ignored).
     """
@@ -232,7 +246,22 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
         (model,) = parser.AddModelsFromString(write_sdf(geometry), "sdf")
     else:
         (model,) = parser.AddModels(str(sdf_file))
+    motors = [plant.GetJointByName(f"motor_{i}", model) for i in range(6)]
+    gear = servo.gear_ratio if servo is not None else 1.0
+    if geometry.motor_reflected_inertia > 0:
+        for index in plant.GetJointActuatorIndices(model):
+            actuator = plant.get_joint_actuator(index)
+            actuator.set_default_gear_ratio(gear)
+            actuator.set_default_rotor_inertia(geometry.motor_reflected_inertia / gear ** 2)
+    if servo is not None:
+        for i, joint in enumerate(motors):
+            joint.set_default_damping(servo.viscous_damping)
+            if servo.coulomb_friction_Nm > 0:
+                friction = plant.AddJointActuator(f"friction_{i}", joint,
+                                                  effort_limit=servo.coulomb_friction_Nm)
+                friction.set_controller_gains(PdControllerGains(p=0.0, d=servo.friction_damping))
     plant.Finalize()
+    n_actuators = plant.num_actuators()
     handles = StewartPlantHandles(
         geometry=geometry, model_instance=model,
         platform=plant.GetBodyByName("platform", model),
@@ -241,9 +270,11 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
         motors=tuple(plant.GetJointByName(f"motor_{i}", model) for i in range(6)),
         rod_balls=tuple(plant.GetJointByName(f"rod_ball_{i}", model) for i in range(6)),
         rod_top_in_rod=np.array([0.0, 0.0, geometry.rod_length]),
-        actuation_port=plant.get_actuation_input_port(model))
-    if plant.num_actuators() != 6:
-        raise InvalidConfigError(f"expected 6 motor actuators, the SDF gives {plant.num_actuators()}")
+        actuation_port=plant.get_actuation_input_port(model), n_actuators=n_actuators,
+        desired_state_port=(plant.get_desired_state_input_port(model) if n_actuators > 6
+                            else None))
+    if n_actuators not in (6, 12):
+        raise InvalidConfigError(f"expected 6 motor actuators, the SDF gives {n_actuators}")
     theta_home = kinematics.ik(geometry, X_HOME)
     for joint, angle in zip(handles.motors, theta_home):
         joint.set_default_angle(float(angle))

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError, SingularPoseError
 from .kinematics import (X_HOME, _checked, _finite_or_singular, _jacobian, _leg_terms, _skew,
-                         ik, jacobian, rotation_rpy)
+                         ik, jacobian, leg_vectors_single, rotation_rpy)
 from .limits import DEFAULT_COND_THRESHOLD
 
 #: Feed-forward modes of :func:`feedforward_torques`.
@@ -75,23 +75,40 @@ def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     """
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
     J = _jacobian(geometry, x, theta)
+    R = rotation_rpy(np.asarray(x, dtype=float)[..., :3])
+    return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
+
+
+def task_inertia_single(geometry: "StewartGeometry", cache: tuple, J: np.ndarray) -> np.ndarray:
+    """:func:`task_inertia` (6, 6) of ONE pose, from :func:`~.kinematics.ik_single`'s cache and
+    its Jacobian J (:func:`~.kinematics.jacobian_single`): the per-step path of the gain
+    re-scheduling (equal to the batched function; a test holds them to 1e-12)."""
+    R, r_B = cache[1], cache[2]
+    ell, e_N, E = leg_vectors_single(geometry, cache)
+    Gq = np.zeros((6, 3, 6))
+    Gq[:, :, :3] = -_skew(r_B) @ E
+    Gq[:, :, 3:] = np.eye(3)
+    return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
+
+
+def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
+    """The task inertia from the leg terms (batched or single; see :func:`task_inertia`)."""
     a, s = geometry.crank_length, geometry.rod_length
-    x = np.asarray(x, dtype=float)
-    R = rotation_rpy(x[..., :3])
-    I_E = np.diag(geometry.platform_inertia)
-    I_B = R @ I_E @ np.swapaxes(R, -1, -2)
-    M = np.zeros(x.shape[:-1] + (6, 6))
+    I_B = R @ np.diag(geometry.platform_inertia) @ np.swapaxes(R, -1, -2)
+    M = np.zeros(J.shape[:-2] + (6, 6))
     M[..., :3, :3] = np.swapaxes(E, -1, -2) @ I_B @ E
     M[..., 3:, 3:] = geometry.platform_mass * np.eye(3)
     # Cranks: principal axis y is the shaft (x along the crank, z up at theta = 0).
-    I_shaft = geometry.crank_inertia[1] + geometry.crank_mass * (0.5 * a) ** 2
-    M = M + I_shaft * np.einsum("...ij,...ik->...jk", J, J)
-    # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint.
+    I_shaft = (geometry.crank_inertia[1] + geometry.crank_mass * (0.5 * a) ** 2
+               + geometry.motor_reflected_inertia)       # the motor's rotor behind its gearhead
+    M = M + I_shaft * (np.swapaxes(J, -1, -2) @ J)
+    # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint; sums over the legs
+    # as one (18, 6) product (matmul, several times faster than einsum on one pose).
     V_tip = a * e_N[..., :, None] * J[..., :, None, :]
-    V_com = 0.5 * (V_tip + Gq)
-    W = np.einsum("...ijk,...ikl->...ijl", _skew(ell), Gq - V_tip) / (s * s)  # rod w, normal part
-    M = M + geometry.rod_mass * np.einsum("...ijk,...ijl->...kl", V_com, V_com)
-    M = M + geometry.rod_inertia[0] * np.einsum("...ijk,...ijl->...kl", W, W)
+    V_com = (0.5 * (V_tip + Gq)).reshape(J.shape[:-2] + (18, 6))
+    W = (_skew(ell) @ (Gq - V_tip)).reshape(J.shape[:-2] + (18, 6)) / (s * s)  # rod w, normal
+    M = M + geometry.rod_mass * (np.swapaxes(V_com, -1, -2) @ V_com)
+    M = M + geometry.rod_inertia[0] * (np.swapaxes(W, -1, -2) @ W)
     return M
 
 

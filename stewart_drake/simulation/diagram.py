@@ -10,9 +10,11 @@ import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
-                                        RandomSource)
+                                        RandomSource, TrajectorySource)
+from pydrake.trajectories import PiecewisePolynomial
 
-from ..control.contract import (CONTROLLER_REGISTRY, ControllerContext, check_controller)
+from ..control.contract import CONTROLLER_REGISTRY, ControllerContext, check_controller
+from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.lqi import LqiController
 from ..control.pd import CrankPdController
 from ..errors import InvalidConfigError
@@ -28,7 +30,13 @@ def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiControlle
         return LqiController(context.geometry, period_s=context.period_s,
                              schedule_period_s=driver.schedule_period_s,
                              scales=driver.scales.build(), offset_s=context.offset_s,
-                             x_initial=context.x_initial, riccati=driver.riccati)
+                             x_initial=context.x_initial, riccati=driver.riccati,
+                             torque_limit_Nm=context.torque_limit_Nm,
+                             anti_windup=driver.anti_windup,
+                             delay_periods=context.delay_periods if driver.delay_compensation
+                             else 0, estimator=context.pose_estimator,
+                             x_dot_initial=context.x_dot_initial,
+                             reference_governor=driver.reference_governor)
     return make
 
 
@@ -109,6 +117,7 @@ class StewartDiagram:
     features: Any = None
     tuner: Any = None
     noise: Any = None
+    estimator: Any = None
     guard: Any = None
 
     @property
@@ -123,14 +132,21 @@ class StewartDiagram:
     def sensor(self):
         return self.station.sensor
 
-    def seed_noise(self, root_context) -> None:
-        """Seed the sensor noise (if any) in ``root_context`` from ``scenario.sensor_noise.seed``:
-        Drake gives every RandomSource a fresh seed otherwise, and two runs would differ."""
-        if self.noise is not None:
-            from pydrake.common import RandomGenerator
+    def initialize(self, root_context) -> None:
+        """Set what a Context needs before a run: the tool wrench fixed to zero when the scenario
+        has no disturbance; the sensor and encoder noise seeded from the scenario (Drake gives
+        every RandomSource a fresh seed otherwise, and two runs would differ); the station's
+        torque pipes (delay, current loop) holding the first feed-forward torque."""
+        from pydrake.common import RandomGenerator
 
+        if self.scenario.disturbance is None:
+            self.diagram.GetInputPort("tool_wrench").FixValue(root_context, np.zeros(6))
+        if self.noise is not None:
             self.noise.SetRandomContext(self.noise.GetMyMutableContextFromRoot(root_context),
                                         RandomGenerator(self.scenario.sensor_noise.seed))
+        hw = self.scenario.hardware
+        self.station.initialize(root_context, self.reference.T_ff_table[0],
+                                seed=hw.encoders.seed if hw is not None else 0)
 
 
 def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, reference=None,
@@ -171,12 +187,19 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     # The controller samples half a plant step after each plant update, when the plant already
     # holds the configuration of the next step's time: its reference leads by the same half step.
     offset = 0.5 * h_plant
+    delay = scenario.hardware.computation_delay_periods if scenario.hardware else 0
     ref = add_reference_sources(builder, trajectory, geometry, scenario.duration_s,
                                 period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
-                                feedforward=scenario.feedforward)
+                                feedforward=scenario.feedforward, feedforward_lead_s=delay * h)
+    x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+    hw = scenario.hardware
+    pose_estimator = None if hw is None else PoseEstimator(
+        geometry, h, hw.encoders.quantum_rad, x0, rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
+        tolerance_counts=hw.estimator.fk_tolerance_counts)
     context = ControllerContext(geometry=geometry, period_s=h, offset_s=offset,
-                                plant_time_step_s=h_plant,
-                                x_initial=np.asarray(trajectory.evaluate(0.0)[0], dtype=float))
+                                plant_time_step_s=h_plant, x_initial=x0, x_dot_initial=x_dot0,
+                                torque_limit_Nm=scenario.torque_limit(), delay_periods=delay,
+                                pose_estimator=pose_estimator)
     system = controller_factory(scenario, controller)(context)
     check_controller(system)
     if not system.get_name():
@@ -185,8 +208,13 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
 
-    noise = None
+    noise = estimator = None
     measured = station.GetOutputPort("platform_state")
+    if pose_estimator is not None and "x" in inputs:       # the pose from the encoders
+        estimator = builder.AddNamedSystem("estimator", FkEstimator(pose_estimator, offset, x0,
+                                                                    x_dot0))
+        builder.Connect(station.GetOutputPort("motor_angle"), estimator.get_input_port())
+        measured = estimator.get_output_port()
     if scenario.sensor_noise is not None and "x" in inputs:
         std = np.broadcast_to(np.asarray(scenario.sensor_noise.std, dtype=float), (12,)).copy()
         noise = builder.AddNamedSystem("sensor_noise", RandomSource(
@@ -203,8 +231,15 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-    wrench = builder.AddNamedSystem("no_tool_wrench", ConstantVectorSource(np.zeros(6)))
-    builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    if scenario.disturbance is not None:
+        t = np.arange(0.0, scenario.duration_s + 2 * h_plant, h_plant)
+        wrench = builder.AddNamedSystem("tool_disturbance", TrajectorySource(
+            PiecewisePolynomial.FirstOrderHold(t, scenario.disturbance.wrench(t).T)))
+        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    else:
+        # Exported and fixed to zero in the Context (build_simulator): a fixed input is computed
+        # once, where a constant source would be re-evaluated at every plant step.
+        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
     applied = station.GetOutputPort("motor_torque_applied")
 
     features = tuner = None
@@ -248,4 +283,4 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     diagram.set_name("rotary_stewart")
     return StewartDiagram(diagram=diagram, station=station, controller=system, reference=ref,
                           trajectory=trajectory, loggers=loggers, scenario=scenario,
-                          features=features, tuner=tuner, noise=noise)
+                          features=features, tuner=tuner, noise=noise, estimator=estimator)

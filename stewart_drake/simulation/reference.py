@@ -44,9 +44,14 @@ class ReferenceSources:
 
 
 def sample_reference(trajectory, geometry: StewartGeometry, duration_s: float, period_s: float,
-                     offset_s: float, lead_s: float, feedforward: str = "gravity"):
+                     offset_s: float, lead_s: float, feedforward: str = "gravity",
+                     feedforward_lead_s: float = 0.0):
     """Reference and feed-forward at the sample instants t_k = k h + offset, k = 0..N.
 
+    Args:
+        feedforward_lead_s: the feed-forward is that of the reference this much later than
+            x_d (s): with a computation delay the torque computed now acts one delay later, so
+            it should hold (or drive) the platform where the reference will be then.
     Returns:
         (t_sample (N,), t_eval (N,), x_d (N, 18), T_ff (N, 6)) with t_eval = t_sample + lead_s,
         covering [0, duration_s] plus one period.
@@ -61,13 +66,20 @@ def sample_reference(trajectory, geometry: StewartGeometry, duration_s: float, p
     t_eval = t_sample + lead_s
     x, xd, xdd = trajectory.evaluate(t_eval)
     theta = kinematics.ik(geometry, x, t=t_eval)  # names the first unreachable time and leg
-    T_ff = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
+    if feedforward_lead_s:
+        t_ff = t_eval + feedforward_lead_s
+        x_ff, _, xdd_ff = trajectory.evaluate(t_ff)
+        T_ff = feedforward_torques(geometry, x_ff, xdd_ff, feedforward,
+                                   theta=kinematics.ik(geometry, x_ff, t=t_ff))
+    else:
+        T_ff = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
     return t_sample, t_eval, np.concatenate([x, xd, xdd], axis=1), T_ff
 
 
 def add_reference_sources(builder, trajectory, geometry: StewartGeometry, duration_s: float,
                           period_s: float, offset_s: float = 0.0, lead_s: float = 0.0,
-                          feedforward: str = "gravity") -> ReferenceSources:
+                          feedforward: str = "gravity",
+                          feedforward_lead_s: float = 0.0) -> ReferenceSources:
     """Add the reference x_d and the feed-forward T_ff as zero-order-hold TrajectorySources.
 
     A consumer that samples at t_k = k h + offset_s reads x_d(t_k + lead_s) and the feed-forward
@@ -87,7 +99,8 @@ def add_reference_sources(builder, trajectory, geometry: StewartGeometry, durati
     if not 0.0 <= offset_s < period_s:
         raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
     t_sample, t_eval, x_d, T_ff = sample_reference(trajectory, geometry, duration_s, period_s,
-                                                   offset_s, lead_s, feedforward)
+                                                   offset_s, lead_s, feedforward,
+                                                   feedforward_lead_s)
     breaks = t_sample - offset_s                 # k h: the sample lies inside its interval
     # A zero-order hold keeps the value of break k on [t_k, t_k+1); the last break only closes
     # the last interval, so the tables already extend one period past the run.

@@ -31,8 +31,9 @@ from pydrake.visualization import VisualizationConfig
 
 from ..checks import as_number, check_multiple
 from ..errors import InvalidConfigError, InvalidGeometryError, MissingFileError, StewartError
-from ..control.lqi import OMEGA_MAX, OMEGA_MIN, LqiScales
+from ..control.lqi import OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
+from ..model.servo import ServoModel
 from ..model.limits import DEFAULT_COND_THRESHOLD, DEFAULT_MIN_SIGMA_MIN_INV
 from ..model.statics import FEEDFORWARD_MODES
 
@@ -58,11 +59,13 @@ class _Mirror:
                       for f in dataclasses.fields(cls) for v in [getattr(value, f.name)]})
 
 
-def _mirror(value_class: type, name: str, doc: str) -> type:
+def _mirror(value_class: type, name: str, doc: str, exclude: tuple = ()) -> type:
     hints = typing.get_type_hints(value_class)
     prototype = value_class()
     fields = []
     for f in dataclasses.fields(value_class):
+        if f.name in exclude:
+            continue
         default = getattr(prototype, f.name)
         kind = hints[f.name]
         if kind is tuple or typing.get_origin(kind) is tuple:
@@ -78,7 +81,15 @@ def _mirror(value_class: type, name: str, doc: str) -> type:
 
 Robot = _mirror(StewartGeometry, "Robot", """The robot: every field of
 :class:`~stewart_drake.model.geometry.StewartGeometry`, same names, units and defaults
-(docs/reference_geometry.md, Table I); ``build()`` gives the geometry (validated there).""")
+(docs/reference_geometry.md, Table I), but the motors' reflected inertia, which the scenario's
+``hardware.motors`` sets; ``build()`` gives the geometry (validated there).""",
+                exclude=("motor_reflected_inertia",))
+
+Motors = _mirror(ServoModel, "Motors", """The servo at each crank: every field of
+:class:`~stewart_drake.model.servo.ServoModel` (at the output shaft: gear ratio, rotor inertia
+kg m^2, peak torque N m, current-loop time constant s, viscous N m s/rad and Coulomb N m
+friction, friction regularization N m s/rad); defaults: maxon EC 45 flat 50 W + a 4.3:1
+planetary gearhead (docs/hardware.md).""")
 
 LqiScalesConfig = _mirror(LqiScales, "LqiScalesConfig", """Normalization of the LQI's Q and R
 (Bryson's rule): every field of :class:`~stewart_drake.control.lqi.LqiScales` (pose, rate,
@@ -96,8 +107,16 @@ class LqiDriver:
             (only their ratio matters); the ANN tuner replaces them when the scenario has one.
         schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
             whole multiple of the control period); ours, not the paper's.
-        riccati: "warm" (Newton refinement of the last gain) or "cold" (DARE each time).
+        riccati: "warm" (Newton refinement of the last gain to convergence), "track" (one
+            Newton step per re-schedule) or "cold" (DARE each time).
         scales: normalization of Q and R.
+        anti_windup: stop integrating while the torque is clipped at the motors' limit
+            (clamping); only acts when the scenario has a limit.
+        delay_compensation: augment the error model with the torques still in the pipe when
+            the hardware has a computation delay; false ignores the delay.
+        reference_governor: with a torque limit, hold the last reference the motors can hold
+            while the reference's own feed-forward exceeds 90 % of the limit
+            (:class:`~stewart_drake.control.lqi.LqiController`).
     """
 
     omega_Q: float = 1.0
@@ -105,6 +124,9 @@ class LqiDriver:
     schedule_period_s: float = 0.01
     riccati: str = "warm"
     scales: LqiScalesConfig = field(default_factory=LqiScalesConfig)
+    anti_windup: bool = True
+    delay_compensation: bool = True
+    reference_governor: bool = True
 
 
 @dataclass
@@ -194,6 +216,98 @@ class DataCollectionReference:
 
 ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference]
 ControllerChoice = Union[LqiDriver, PdDriver, UserController]
+
+
+# -- hardware ------------------------------------------------------------------------------------
+
+@dataclass
+class Encoders:
+    """Absolute encoders on the six crank shafts, read at the control period.
+
+    Attributes:
+        counts_per_rev: counts per crank revolution (default 2^17, a 17-bit absolute encoder on
+            the output shaft, RLS AksIM-2 class); the quantum is 2 pi / counts_per_rev rad.
+        noise_counts: standard deviation of white Gaussian noise added before quantization,
+            counts (0: quantization only).
+        seed: seed of that noise (Drake RandomSource), 0 .. 2^32 - 1.
+    """
+
+    counts_per_rev: int = 2**17
+    noise_counts: float = 0.0
+    seed: int = 0
+
+    @property
+    def quantum_rad(self) -> float:
+        """One count, rad."""
+        return 2 * np.pi / self.counts_per_rev
+
+
+@dataclass
+class Estimator:
+    """Pose and rate from the encoders (:class:`~stewart_drake.control.estimator.FkEstimator`).
+
+    Attributes:
+        rate_cutoff_hz: corner of the first-order low-pass on the differentiated FK pose, Hz.
+        fk_tolerance_counts: Newton stops when every motor angle of the estimate is within this
+            many counts of the measurement.
+    """
+
+    rate_cutoff_hz: float = 100.0
+    fk_tolerance_counts: float = 0.01
+
+
+@dataclass
+class Hardware:
+    """The robot as built: encoders, servos, the controller computer's delay.
+
+    Attributes:
+        encoders: the only position measurement (:class:`Encoders`).
+        motors: the servo at each crank (:class:`Motors`).
+        estimator: FK pose and rate estimation from the encoders (:class:`Estimator`).
+        computation_delay_periods: control periods between the measurement and the torque it
+            produces (0: none).
+    """
+
+    encoders: Encoders = field(default_factory=Encoders)
+    motors: Motors = field(default_factory=Motors)
+    estimator: Estimator = field(default_factory=Estimator)
+    computation_delay_periods: int = 1
+
+
+@dataclass
+class ToolDisturbance:
+    """A wrench on the tool tip (world frame) during the run, through the station's
+    ``tool_wrench`` input.
+
+    Attributes:
+        kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
+            oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
+        magnitude: N (push, contact) or N m (twist).
+        direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
+        start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
+        frequency_hz: of the contact force, Hz.
+    """
+
+    kind: str = "push"
+    magnitude: float = 5.0
+    direction: List[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
+    start_s: float = 1.0
+    duration_s: float = 0.0
+    frequency_hz: float = 2.0
+
+    def wrench(self, t) -> np.ndarray:
+        """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        on = (t >= self.start_s) & ((self.duration_s <= 0) | (t < self.start_s + self.duration_s))
+        axis = np.asarray(self.direction, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        level = np.where(on, self.magnitude, 0.0)
+        if self.kind == "contact":
+            level = level * 0.5 * (1 - np.cos(2 * np.pi * self.frequency_hz * (t - self.start_s)))
+        out = np.zeros((t.size, 6))
+        columns = slice(0, 3) if self.kind == "twist" else slice(3, 6)
+        out[:, columns] = level[:, None] * axis
+        return out
 
 
 # -- the rest ------------------------------------------------------------------------------------
@@ -290,8 +404,13 @@ class Scenario:
         sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
         payload_scale: the simulated platform's mass and inertia are this multiple of the
             robot's; the controller still believes in ``robot`` (an unknown payload).
-        torque_limit_Nm: motor torque saturation, N m, or None.
+        torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
+            and the motors' peak torque applies).
         guard: checks before and during the run (:class:`GuardConfig`).
+        hardware: None for the ideal robot (the controller reads the exact pose, ideal torque
+            sources, no friction, no delay), or :class:`Hardware` (encoders, FK estimation,
+            servos with friction, delay).
+        disturbance: None, or a wrench on the tool tip (:class:`ToolDisturbance`).
     Raises:
         InvalidConfigError: (``validate``, run by every builder and at construction) a field
             out of range, a period that is not a whole multiple of the one it runs on, a wrong
@@ -315,14 +434,32 @@ class Scenario:
     payload_scale: float = 1.0
     torque_limit_Nm: Optional[float] = None
     guard: GuardConfig = field(default_factory=GuardConfig)
+    hardware: Optional[Hardware] = None
+    disturbance: Optional[ToolDisturbance] = None
 
     def __post_init__(self):
         self.validate()
 
     # -- derived values ----------------------------------------------------------------------
     def geometry(self) -> StewartGeometry:
-        """The robot the controller believes in (``robot.build()``)."""
-        return self.robot.build()
+        """The robot the controller believes in: ``robot.build()`` with, on the built robot, the
+        motors' reflected inertia (rotor inertia x gear ratio^2)."""
+        g = self.robot.build()
+        if self.hardware is None:
+            return g
+        return g.replace(motor_reflected_inertia=self.servo().reflected_inertia)
+
+    def servo(self) -> ServoModel | None:
+        """The servo of ``hardware.motors`` (None on the ideal robot)."""
+        return None if self.hardware is None else self.hardware.motors.build()
+
+    def torque_limit(self) -> float | None:
+        """The motors' torque saturation in force, N m: ``torque_limit_Nm`` and, with hardware,
+        the servo's peak torque, whichever is lower (None: unlimited)."""
+        limits = [v for v in (self.torque_limit_Nm,
+                              None if self.hardware is None else self.servo().peak_torque_Nm)
+                  if v is not None]
+        return min(limits) if limits else None
 
     def plant_geometry(self) -> StewartGeometry:
         """The robot that is simulated: ``geometry()`` with the payload scale on the platform."""
@@ -428,7 +565,50 @@ class Scenario:
             as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
         self.guard.validate()
         check_multiple("guard.check_period_s", self.guard.check_period_s, "plant.time_step", h)
+        if self.hardware is not None:
+            self._validate_hardware()
+        if self.disturbance is not None:
+            d = self.disturbance
+            if not isinstance(d, ToolDisturbance):
+                raise InvalidConfigError(f"disturbance must be None or a ToolDisturbance, got "
+                                         f"{type(d).__name__}")
+            if d.kind not in ("push", "twist", "contact"):
+                raise InvalidConfigError(f"disturbance.kind must be 'push', 'twist' or "
+                                         f"'contact', got {d.kind!r}")
+            for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
+                as_number(f"disturbance.{name}", getattr(d, name), 0.0)
+            axis = np.asarray(d.direction, dtype=float) if np.ndim(d.direction) == 1 else None
+            if axis is None or axis.shape != (3,) or not np.isfinite(axis).all() \
+                    or np.linalg.norm(axis) == 0:
+                raise InvalidConfigError(f"disturbance.direction must be 3 finite numbers, not "
+                                         f"all zero, got {d.direction!r}")
         return self
+
+    def _validate_hardware(self) -> None:
+        hw = self.hardware
+        if not isinstance(hw, Hardware):
+            raise InvalidConfigError(f"hardware must be None or a Hardware, got "
+                                     f"{type(hw).__name__}")
+        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
+            if not isinstance(getattr(hw, name), kind):
+                raise InvalidConfigError(f"hardware.{name} must be a {kind.__name__}, got "
+                                         f"{type(getattr(hw, name)).__name__}")
+        _check_int("hardware.encoders.counts_per_rev", hw.encoders.counts_per_rev, 16, 2**40)
+        as_number("hardware.encoders.noise_counts", hw.encoders.noise_counts, 0.0, 1e6)
+        _check_int("hardware.encoders.seed", hw.encoders.seed, 0, MAX_SEED)
+        try:
+            hw.motors.build()
+        except (StewartError, TypeError) as err:
+            raise InvalidConfigError(f"hardware.motors: {err}") from None
+        as_number("hardware.estimator.rate_cutoff_hz", hw.estimator.rate_cutoff_hz, 0.0,
+                  0.5 / self.control_period_s, lo_open=True)
+        as_number("hardware.estimator.fk_tolerance_counts", hw.estimator.fk_tolerance_counts,
+                  0.0, 1.0, lo_open=True)
+        _check_int("hardware.computation_delay_periods", hw.computation_delay_periods, 0, 100)
+        if self.sensor_noise is not None:
+            raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot as "
+                                     "built the encoders are noisy: set "
+                                     "hardware.encoders.noise_counts instead")
 
     def _validate_controller(self) -> None:
         c = self.controller
@@ -438,9 +618,13 @@ class Scenario:
             as_number("controller.schedule_period_s", c.schedule_period_s, 0.0, lo_open=True)
             check_multiple("controller.schedule_period_s", c.schedule_period_s,
                            "control_period_s", self.control_period_s)
-            if c.riccati not in ("warm", "cold"):
-                raise InvalidConfigError(f"controller.riccati must be 'warm' or 'cold', got "
-                                         f"{c.riccati!r}")
+            if c.riccati not in RICCATI_MODES:
+                raise InvalidConfigError(f"controller.riccati must be one of {RICCATI_MODES}, "
+                                         f"got {c.riccati!r}")
+            for name in ("anti_windup", "delay_compensation", "reference_governor"):
+                if not isinstance(getattr(c, name), bool):
+                    raise InvalidConfigError(f"controller.{name} must be true or false, got "
+                                             f"{getattr(c, name)!r}")
             if not isinstance(c.scales, LqiScalesConfig):
                 raise InvalidConfigError(f"controller.scales must be an LqiScalesConfig, got "
                                          f"{type(c.scales).__name__}")

@@ -13,8 +13,12 @@ import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
+from pydrake.common import RandomDistribution
+from pydrake.symbolic import Variable, floor
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import MatrixGain, PassThrough, Saturation
+from pydrake.systems.primitives import (Adder, ConstantVectorSource, DiscreteTimeDelay, Gain,
+                                        LinearSystem, MatrixGain, PassThrough, RandomSource,
+                                        Saturation, SymbolicVectorSystem)
 
 from ..model.kinematics import X_HOME
 from ..model.plant import add_stewart_plant, assemble
@@ -51,8 +55,38 @@ class ToolWrench(LeafSystem):
         output.set_value([force])
 
 
+def quantizer(quantum: float, size: int = 6) -> SymbolicVectorSystem:
+    """A memoryless mid-tread quantizer y = q round(u / q), as a C++ ``SymbolicVectorSystem``
+    (no Python per evaluation): the error is within +-q/2."""
+    u = [Variable(f"u{i}") for i in range(size)]
+    return SymbolicVectorSystem(input=u, output=[quantum * floor(ui / quantum + 0.5) for ui in u])
+
+
+def current_loop(time_constant_s: float, period_s: float, size: int = 6) -> LinearSystem:
+    """The drive's first-order current (torque) loop as a discrete ``LinearSystem``.
+
+    The state is the torque at the plant's update instants, x+ = a x + (1 - a) u with
+    a = exp(-h / tau) (exact for a command held over the step); the output is the torque
+    *averaged over the coming step*, y = c x + (1 - c) u with c = (tau / h)(1 - a), the impulse
+    the plant integrates, so the lag adds no extra step of delay.
+    """
+    a = float(np.exp(-period_s / time_constant_s))
+    c = time_constant_s / period_s * (1 - a)
+    I = np.eye(size)
+    return LinearSystem(A=a * I, B=(1 - a) * I, C=c * I, D=(1 - c) * I, time_period=period_s)
+
+
 class StewartStation(Diagram):
     """The robot as built by :func:`make_stewart_station`; a Drake ``Diagram`` named "station".
+
+    With ``scenario.hardware``, the station is the robot as built (docs/hardware.md): the
+    command passes the computation delay (``DiscreteTimeDelay``, whole control periods), the
+    drive's current limit (``Saturation`` at the servo's peak torque) and its current loop
+    (:func:`current_loop`); the plant carries the motors' reflected inertia, viscous and Coulomb
+    friction (:func:`~stewart_drake.model.plant.add_stewart_plant`); ``motor_angle`` is what the
+    absolute encoders read: the crank angles plus optional white noise, quantized
+    (:func:`quantizer`). Without it, the ideal robot: torques applied as commanded (up to
+    ``torque_limit_Nm``), exact angles.
 
     Input ports:
         ``motor_torque`` (6,): motor torque commands, N m (leg order of reference_geometry.md).
@@ -76,21 +110,47 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         geometry = scenario.plant_geometry()
+        hardware, servo = scenario.hardware, scenario.servo()
+        h_plant, h_control = scenario.plant_time_step_s, scenario.control_period_s
         plant, scene_graph, handles = add_stewart_plant(builder, geometry,
-                                                        plant_config=scenario.plant)
+                                                        plant_config=scenario.plant, servo=servo)
         plant.set_name("plant")
         self.plant, self.scene_graph, self.handles, self.scenario = (plant, scene_graph, handles,
                                                                      scenario)
-        # Motor torques: command -> [saturation] -> plant; the applied torques are exported.
+        self.delay = self.lag = None
+        # Motor torques: command -> [delay] -> [current limit] -> [current loop] -> plant; the
+        # applied torques are exported.
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
         applied = command.get_output_port()
-        if scenario.torque_limit_Nm is not None:
-            limit = scenario.torque_limit_Nm * np.ones(6)
-            saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit, limit))
+        if hardware is not None and hardware.computation_delay_periods > 0:
+            # Sampled at k h, half a plant step after the controller wrote it: the sample itself
+            # is one period late, so d periods of delay take d - 1 more (measured in a test).
+            self.delay = builder.AddNamedSystem("computation_delay", DiscreteTimeDelay(
+                h_control, hardware.computation_delay_periods - 1, 6))
+            builder.Connect(applied, self.delay.get_input_port())
+            applied = self.delay.get_output_port()
+        limit = scenario.torque_limit()
+        if limit is not None:
+            saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit * np.ones(6),
+                                                                           limit * np.ones(6)))
             builder.Connect(applied, saturation.get_input_port())
             applied = saturation.get_output_port()
-        builder.Connect(applied, handles.actuation_port)
+        if servo is not None and servo.current_time_constant_s > 0:
+            self.lag = builder.AddNamedSystem("current_loop", current_loop(
+                servo.current_time_constant_s, h_plant))
+            builder.Connect(applied, self.lag.get_input_port())
+            applied = self.lag.get_output_port()
+        if handles.n_actuators > 6:          # the dry-friction actuators take no command
+            to_actuators = builder.AddNamedSystem("actuators", MatrixGain(
+                np.vstack([np.eye(6), np.zeros((handles.n_actuators - 6, 6))])))
+            builder.Connect(applied, to_actuators.get_input_port())
+            builder.Connect(to_actuators.get_output_port(), handles.actuation_port)
+            zero = builder.AddNamedSystem("friction_target", ConstantVectorSource(
+                np.zeros(handles.desired_state_port.size())))
+            builder.Connect(zero.get_output_port(), handles.desired_state_port)
+        else:
+            builder.Connect(applied, handles.actuation_port)
         builder.ExportOutput(applied, "motor_torque_applied")
         # Tool wrench -> plant.
         wrench = builder.AddNamedSystem("tool_wrench", ToolWrench(handles.platform))
@@ -102,10 +162,29 @@ class StewartStation(Diagram):
         for i, joint in enumerate(handles.motors):
             select_q[i, joint.position_start()] = 1.0
             select_v[i, n_q + joint.velocity_start()] = 1.0
+        outputs = {}
         for name, matrix in (("motor_angle", select_q), ("motor_rate", select_v)):
             gain = builder.AddNamedSystem(name, MatrixGain(matrix))
             builder.Connect(plant.get_state_output_port(), gain.get_input_port())
-            builder.ExportOutput(gain.get_output_port(), name)
+            outputs[name] = gain.get_output_port()
+        self.encoder_noise = None
+        if hardware is not None:             # encoders: angle [+ noise] -> quantizer
+            q = hardware.encoders.quantum_rad
+            if hardware.encoders.noise_counts > 0:
+                self.encoder_noise = builder.AddNamedSystem("encoder_noise", RandomSource(
+                    RandomDistribution.kGaussian, 6, sampling_interval_sec=h_control))
+                scale = builder.AddNamedSystem("encoder_noise_std",
+                                               Gain(hardware.encoders.noise_counts * q, 6))
+                noisy = builder.AddNamedSystem("noisy_angle", Adder(2, 6))
+                builder.Connect(self.encoder_noise.get_output_port(), scale.get_input_port())
+                builder.Connect(outputs["motor_angle"], noisy.get_input_port(0))
+                builder.Connect(scale.get_output_port(), noisy.get_input_port(1))
+                outputs["motor_angle"] = noisy.get_output_port()
+            encoders = builder.AddNamedSystem("encoders", quantizer(q))
+            builder.Connect(outputs["motor_angle"], encoders.get_input_port())
+            outputs["motor_angle"] = encoders.get_output_port()
+        for name, port in outputs.items():
+            builder.ExportOutput(port, name)
         self.sensor = builder.AddNamedSystem("platform_sensor", PlatformPoseSensor(plant, handles))
         builder.Connect(plant.get_state_output_port(), self.sensor.get_input_port())
         builder.ExportOutput(self.sensor.get_output_port(), "platform_state")
@@ -116,6 +195,21 @@ class StewartStation(Diagram):
             ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
         builder.BuildInto(self)
         self.set_name("station")
+
+    def initialize(self, root_context, T0, seed: int = 0) -> None:
+        """Start the pipes at rest: the pending commands (delay) and the current loop hold T0
+        (6,) N m, and the encoder noise, if any, is seeded with ``seed``."""
+        for system in (self.delay, self.lag):
+            if system is not None:
+                ctx = system.GetMyMutableContextFromRoot(root_context)
+                size = ctx.get_discrete_state_vector().size()
+                ctx.SetDiscreteState(np.tile(np.asarray(T0, dtype=float), size // 6))
+        if self.encoder_noise is not None:
+            from pydrake.common import RandomGenerator
+
+            self.encoder_noise.SetRandomContext(
+                self.encoder_noise.GetMyMutableContextFromRoot(root_context),
+                RandomGenerator(seed))
 
     def assemble(self, root_context, x=X_HOME, x_dot=None) -> np.ndarray:
         """Write the robot assembled at pose x (6,) [rad, m], moving at x_dot (6,) (default at

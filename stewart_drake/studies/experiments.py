@@ -104,7 +104,7 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
     simulator = Simulator(sd.diagram)
     ApplySimulatorConfig(scenario.simulator, simulator)
     context = simulator.get_mutable_context()
-    sd.seed_noise(context)
+    sd.initialize(context)
     # Start on the reference, moving with it: a platform at rest under a reference that already
     # moves (eqs. 37-38 start at phi_dot = 2 pi/6 rad/s) makes a torque spike that is not
     # tracking (1.7 N m against 0.41 N m afterwards).
