@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
-from pydrake.systems.analysis import Simulator
-from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
 from stewart_drake.control.contract import (CONTROLLER_REGISTRY, ControllerContext,
@@ -18,10 +17,10 @@ from stewart_drake.interfaces.cli import main
 from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import (CsvReference, LqiDriver, NamedReference, PdDriver,
-                                               Robot, Scenario, UserController, apply_override,
-                                               dump_scenario, load_scenario, shipped_scenarios)
-from stewart_drake.simulation.station import make_stewart_station, p_ETool
+from stewart_drake.simulation.scenario import (CsvReference, PdDriver, Robot, Scenario,
+                                               UserController, apply_override, dump_scenario,
+                                               load_scenario, shipped_scenarios)
+from stewart_drake.simulation.station import held_station, p_ETool
 from stewart_drake.simulation.trajectories import (DrakeTrajectory, ScalarEvaluate, as_trajectory,
                                                    paper_manoeuvre)
 from stewart_drake.studies.experiments import run_experiment
@@ -91,19 +90,7 @@ def test_robot_mirrors_the_geometry_both_ways():
 # -- the station ----------------------------------------------------------------------------------
 
 def _station_sim(scenario, x=X_HOME, T=None, wrench=np.zeros(6)):
-    builder = DiagramBuilder()
-    station = builder.AddSystem(make_stewart_station(scenario))
-    builder.ExportInput(station.GetInputPort("motor_torque"), "T")
-    builder.ExportInput(station.GetInputPort("tool_wrench"), "w")
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
-    station.assemble(context, x)
-    geometry = scenario.geometry()
-    diagram.get_input_port(0).FixValue(context, statics.holding_torques(geometry, x)
-                                       if T is None else T)
-    diagram.get_input_port(1).FixValue(context, wrench)
-    return station, simulator, station.GetMyContextFromRoot(context)
+    return held_station(scenario, x, T, wrench)
 
 
 def test_station_ports_measure_the_robot():
@@ -137,6 +124,21 @@ def test_tool_wrench_pushes_the_platform_and_the_limit_clips_the_torque():
     assert z[1][5] - X_HOME[5] > 1e-3
     assert z[2][2] > 1e-3 and abs(z[2][5] - X_HOME[5]) < 1e-3   # a twist turns it about z (yaw)
     assert p_ETool[2] == pytest.approx(0.08)
+
+
+def test_tool_load_torques_hold_the_platform_in_drake_under_the_wrench():
+    """Our statics (virtual work through the wrench map) and Drake's dynamics agree: the torques
+    for gravity + a tool wrench hold the pushed platform still; the gravity ones alone do not."""
+    g = StewartGeometry()
+    x = X_HOME + np.array([0.05, -0.03, 0.1, 0.01, -0.02, 0.02])
+    wrench = np.array([0.05, -0.1, 0.2, 5.0, -3.0, 2.0])           # N m, N at the tool tip
+    T = statics.tool_load_torques(g, x, wrench)
+    drift = []
+    for torques in (T, statics.holding_torques(g, x)):
+        station, simulator, ctx = _station_sim(Scenario(), x, T=torques, wrench=wrench)
+        simulator.AdvanceTo(0.05)
+        drift.append(np.abs(station.GetOutputPort("platform_state").Eval(ctx)[:6] - x).max())
+    assert drift[0] < 1e-6 < 1e-3 < drift[1]
 
 
 def test_the_plant_falls_with_the_geometry_s_gravity():

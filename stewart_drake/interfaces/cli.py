@@ -17,6 +17,9 @@ from pathlib import Path
 
 from ..errors import StewartError
 
+#: The scenario `run`, `collect` and `evaluate` use unless told: the robot as built.
+DEFAULT_SCENARIO = "paper_hardware"
+
 
 class _Parser(argparse.ArgumentParser):
     """argparse with a one-line error (argparse prints the usage block first)."""
@@ -188,12 +191,14 @@ def _cmd_scenario(args) -> int:
 
 def _cmd_collect(args) -> int:
     """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
+    from ..simulation.scenario import load_scenario
     from ..studies.collection import collect
     from ..studies.runners import runner_for_jobs
 
+    base = load_scenario(args.scenario)
     runner = runner_for_jobs(args.jobs)
     manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
-                       progress=not args.no_progress)
+                       progress=not args.no_progress, base=base)
     print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")
     for run in manifest["runs"]:
         rms = run["rms_error"]
@@ -249,7 +254,7 @@ def _cmd_evaluate(args) -> int:
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
     runner = runner_for_jobs(args.jobs)
     report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
-                      quick=args.quick, controllers=controllers)
+                      quick=args.quick, controllers=controllers, base=args.scenario)
     failed = sum("error" in r for r in report["rows"])
     print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
     for ann, v in report["verdict"].items():
@@ -291,9 +296,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment) and "
                                      "plot Fig. 7")
-    run.add_argument("--scenario", default="paper_ideal",
-                     help="scenario file (.yaml) or shipped name (paper_ideal); see "
-                          "`stewart-drake scenario --list`")
+    run.add_argument("--scenario", default=DEFAULT_SCENARIO,
+                     help=f"scenario file (.yaml) or shipped name ({DEFAULT_SCENARIO}: the robot "
+                          f"as built; paper_ideal: the paper's ideal robot); see "
+                          f"`stewart-drake scenario --list`")
     run.add_argument("--set", action="append", metavar="KEY=VALUE",
                      help="override a scenario field, YAML value (repeatable): "
                           "--set controller.omega_Q=10 --set 'controller=!PdDriver {}'")
@@ -319,14 +325,16 @@ def build_parser() -> argparse.ArgumentParser:
     run.set_defaults(func=_cmd_run)
 
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
-    scn.add_argument("source", nargs="?", default="paper_ideal",
-                     help="scenario file or shipped name (paper_ideal)")
+    scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,
+                     help=f"scenario file or shipped name ({DEFAULT_SCENARIO})")
     scn.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a field")
     scn.add_argument("--list", action="store_true", help="list the shipped scenarios")
     scn.add_argument("--out", default=None, help="write the YAML to this file")
     scn.set_defaults(func=_cmd_scenario, out_is_file=True)
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
+    col.add_argument("--scenario", default=DEFAULT_SCENARIO,
+                     help=f"scenario the runs share (file or shipped name; {DEFAULT_SCENARIO})")
     col.add_argument("--out", default="results/collect", help="output folder")
     col.add_argument("--duration", type=_positive_float, default=10.0, help="s per run (10)")
     col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed (0)")
@@ -345,6 +353,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.set_defaults(func=_cmd_train, out_is_file=True)
 
     ev = sub.add_parser("evaluate", help="every controller on every scenario: docs/results.md")
+    ev.add_argument("--scenario", default=DEFAULT_SCENARIO,
+                    help=f"scenario every case starts from (file or shipped name; "
+                         f"{DEFAULT_SCENARIO})")
     ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
     ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
     ev.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError, SingularPoseError
 from .kinematics import (X_HOME, _checked, _finite_or_singular, _jacobian, _leg_terms, _skew,
-                         ik, jacobian, leg_vectors_single, rotation_rpy)
+                         ik, jacobian, leg_vectors_single, rotation_rpy, wrench_map)
 from .limits import DEFAULT_COND_THRESHOLD
 
 #: Feed-forward modes of :func:`feedforward_torques`.
@@ -63,6 +63,33 @@ def holding_torques(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
                                 pose=x.reshape(-1, 6)[k]) from None
     return _finite_or_singular("T", T, x)
 
+
+
+#: The tool tip in the platform frame E, m: the end of the tool drawn on the platform (8 cm up),
+#: where the station's ``tool_wrench`` acts.
+p_ETool = np.array([0.0, 0.0, 0.08])
+
+
+def tool_load_torques(geometry: "StewartGeometry", x, wrench_W, p_EP=p_ETool) -> np.ndarray:
+    """Static motor torques that hold pose x against gravity AND a wrench on the tool, (6,) N m.
+
+    Equilibrium of the platform: the motors' wrench (:func:`~.kinematics.wrench_map`) balances
+    gravity (:func:`holding_torques`) and the external wrench [torque (3) N m, force (3) N] in
+    the world frame, applied at p_EP on the platform (default the tool tip). What a disturbance
+    costs the motors before any control: if it exceeds their peak torque, no controller can
+    hold the pose.
+
+    Args:
+        x: (6,) pose [rad, m]; wrench_W: (6,) [torque, force]; p_EP: (3,) m in the platform frame.
+    Raises:
+        as :func:`holding_torques` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
+    """
+    x = np.asarray(x, dtype=float)
+    w = np.asarray(wrench_W, dtype=float)
+    r_W = rotation_rpy(x[:3]) @ np.asarray(p_EP, dtype=float)
+    moment = w[:3] + np.cross(r_W, w[3:])                # about the platform origin
+    T_ext = np.linalg.solve(wrench_map(geometry, x), -np.concatenate([moment, w[3:]]))
+    return holding_torques(geometry, x) + T_ext
 
 
 def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:

@@ -21,11 +21,10 @@ from pydrake.systems.primitives import (Adder, ConstantVectorSource, DiscreteTim
                                         Saturation, SymbolicVectorSystem)
 
 from ..model.kinematics import X_HOME
+from ..model.statics import p_ETool
 from ..model.plant import add_stewart_plant, assemble
 from .sensors import PlatformPoseSensor
 
-#: The tool tip in the platform frame E, m: the end of the tool drawn on the platform (8 cm up).
-p_ETool = np.array([0.0, 0.0, 0.08])
 
 
 class ToolWrench(LeafSystem):
@@ -240,3 +239,39 @@ def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:
 
     scenario = (scenario or Scenario()).validate()
     return StewartStation(scenario, meshcat)
+
+
+def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
+    """The station alone under constant inputs, ready to simulate: the robot assembled at pose x,
+    ``motor_torque`` fixed to T (default the holding torques of x) and ``tool_wrench`` to wrench
+    (default none); the torque pipes start at T.
+
+    For experiments on the plant itself (drift under friction, statics against Drake's
+    dynamics, the plant-alone speed benchmark).
+
+    Args:
+        scenario: the robot (default the paper's). x: (6,) pose [rad, m]. T: (6,) N m.
+            wrench: (6,) [torque N m, force N] at the tool tip, world frame.
+    Returns:
+        (station, simulator, station_context): simulator.AdvanceTo(t) runs it; read the ports
+        with station_context.
+    Raises:
+        UnreachablePoseError: x cannot be assembled; InvalidConfigError: a bad scenario.
+    """
+    from pydrake.systems.analysis import Simulator
+
+    from ..model.statics import holding_torques
+
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station(scenario))
+    builder.ExportInput(station.GetInputPort("motor_torque"), "motor_torque")
+    builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    station.assemble(context, x)
+    T = holding_torques(station.scenario.geometry(), x) if T is None else np.asarray(T, float)
+    station.initialize(context, T)
+    diagram.get_input_port(0).FixValue(context, T)
+    diagram.get_input_port(1).FixValue(context, np.zeros(6) if wrench is None else wrench)
+    return station, simulator, station.GetMyContextFromRoot(context)

@@ -17,6 +17,7 @@ mass and inertia unknown to the controller, sensor noise, motor torque saturatio
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 import traceback
@@ -28,9 +29,11 @@ import numpy as np
 from ..control.lqi import LqiScales
 from ..errors import InvalidConfigError
 from ..fileio import atomic_write
+from ..model import statics
+from ..model.kinematics import X_HOME
 from ..model.statics import feedforward_torques
 from ..simulation.scenario import (AnnTunerDriver, LqiDriver, NamedReference, PdDriver, Scenario,
-                                   SensorNoise)
+                                   SensorNoise, ToolDisturbance, load_scenario)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -38,25 +41,63 @@ from .runners import ProcessRunner
 
 FIXED_LQI = tuple(f"lqi_{q:g}_{r:g}" for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS)
 CONTROLLERS = FIXED_LQI + ("pd", "ann_best_cost", "ann_paper")
-#: Sensor noise of the "noise" condition: 0.1 mrad, 0.05 mm, 0.01 rad/s, 5 mm/s (1 sigma).
+#: Sensor noise of the "noise" condition on the ideal robot: 0.1 mrad, 0.05 mm, 0.01 rad/s,
+#: 5 mm/s (1 sigma); on the robot as built, encoder noise of ENCODER_NOISE_COUNTS (1 sigma).
 NOISE_STD = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
+ENCODER_NOISE_COUNTS = 2.0
+#: The scenario every case starts from (a shipped name or a path): the robot as built.
+DEFAULT_BASE = "paper_hardware"
+#: Encoder resolutions of the encoder table (bits: 2^bits counts per crank turn), run with the
+#: five distinct weight ratios omega_Q / omega_R on the paper manoeuvre.
+ENCODER_BITS = (12, 14, 16, 17, 20)
+RATIO_LQI = ("lqi_10_0.1", "lqi_10_1", "lqi_1_1", "lqi_1_10", "lqi_0.1_10")
+#: Tool disturbances (world frame, on the tool tip) while holding home: from t = 1 s on.
+DISTURBANCES = {"push 5 N": ToolDisturbance("push", 5.0, [1.0, 0.0, 0.0]),
+                "twist 0.2 N m": ToolDisturbance("twist", 0.2, [0.0, 0.0, 1.0]),
+                "contact 2 Hz": ToolDisturbance("contact", 3.0, [0.0, 0.0, -1.0],
+                                                frequency_hz=2.0)}
 #: Motor torque limit of the "saturation" condition, N m. It runs on the Z step, whose transient
 #: asks for 1.5 to 7.6 N m. On the paper manoeuvre, which needs at most 0.41 N m once on its
 #: way, any limit below that loses the platform (it rolls past phi = 0.52 rad and falls: physics,
 #: not the controller), and any limit above it never acts.
 TORQUE_LIMIT_NM = 0.6
-#: Conditions: Scenario fields and the reference they run on (robustness is on the paper
-#: manoeuvre but for the saturation, see TORQUE_LIMIT_NM).
+def _noise(scenario: Scenario) -> None:
+    if scenario.hardware is not None:
+        scenario.hardware.encoders.noise_counts = ENCODER_NOISE_COUNTS
+    else:
+        scenario.sensor_noise = SensorNoise(std=list(NOISE_STD))
+
+
+def _set(**fields):
+    return lambda scenario: [setattr(scenario, k, v) for k, v in fields.items()]
+
+
+def _encoder_bits(bits: int):
+    def apply(scenario: Scenario) -> None:
+        if scenario.hardware is None:
+            raise InvalidConfigError("the encoder conditions need a scenario with hardware")
+        scenario.hardware.encoders.counts_per_rev = 2 ** bits
+    return apply
+
+
+#: Conditions: a change of the scenario and the reference it runs on (robustness is on the paper
+#: manoeuvre but for the saturation, see TORQUE_LIMIT_NM, and the tool disturbances, while
+#: holding home).
 CONDITIONS = {
-    "nominal": ({}, None),
-    "payload+20%": ({"payload_scale": 1.2}, "paper"),
-    "payload-20%": ({"payload_scale": 0.8}, "paper"),
-    "noise": ({"sensor_noise": SensorNoise(std=list(NOISE_STD))}, "paper"),
-    f"saturation {TORQUE_LIMIT_NM:g} N m": ({"torque_limit_Nm": TORQUE_LIMIT_NM}, "step_Z"),
+    "nominal": (None, None),
+    "payload+20%": (_set(payload_scale=1.2), "paper"),
+    "payload-20%": (_set(payload_scale=0.8), "paper"),
+    "noise": (_noise, "paper"),
+    f"saturation {TORQUE_LIMIT_NM:g} N m": (_set(torque_limit_Nm=TORQUE_LIMIT_NM), "step_Z"),
+    **{name: (_set(disturbance=d), "home") for name, d in DISTURBANCES.items()},
 }
+#: The encoder conditions, run only by RATIO_LQI (the encoder table).
+ENCODER_CONDITIONS = {f"encoders {b}-bit": (_encoder_bits(b), "paper") for b in ENCODER_BITS}
 #: Simulated seconds per scenario.
 SCENARIO_DURATION_S = {"paper": 10.0, "helix": 4.0, "sweep_Z": 9.0, "sweep_phi": 9.0,
                        **{f"step_{a}": 2.5 for a in AXIS_NAMES}}
+#: Simulated seconds of the runs that only hold home (the tool disturbances).
+HOLD_DURATION_S = 3.0
 #: Settling band of the step responses, as a fraction of the step.
 SETTLING_BAND = 0.02
 
@@ -69,6 +110,7 @@ class Case:
     scenario: str
     condition: str = "nominal"
     duration_s: float = 10.0
+    base: str = DEFAULT_BASE
 
     @property
     def key(self) -> str:
@@ -99,25 +141,30 @@ def controller_settings(name: str) -> dict:
                              f"one of {CONTROLLERS[-3:]}")
 
 
-def cases(quick: bool = False, controllers=CONTROLLERS) -> list[Case]:
+def cases(quick: bool = False, controllers=CONTROLLERS, base: str = DEFAULT_BASE) -> list[Case]:
     """The evaluation grid.
 
     Every controller runs every scenario in nominal conditions, and each other condition on its
-    scenario (:data:`CONDITIONS`). ``quick`` shortens every run to 1 s (sweeps 2 s) for tests
-    and notebooks: the tables are then only a smoke test, not figures to quote.
+    scenario (:data:`CONDITIONS`); on a base with hardware the five weight ratios also run the
+    encoder resolutions (:data:`ENCODER_CONDITIONS`). ``quick`` shortens every run to 1 s
+    (sweeps and disturbances 2 s) for tests and notebooks: the tables are then only a smoke
+    test, not figures to quote.
     """
     def duration(scenario):
         if quick:
-            return 2.0 if scenario.startswith("sweep") else 1.0
-        return SCENARIO_DURATION_S[scenario]
+            return 2.0 if scenario.startswith("sweep") or scenario == "home" else 1.0
+        return SCENARIO_DURATION_S.get(scenario, HOLD_DURATION_S)
 
+    hardware = load_scenario(base).hardware is not None
     out = []
     for c in controllers:
         for scenario in SCENARIO_DURATION_S:
-            out.append(Case(c, scenario, "nominal", duration(scenario)))
-        for condition, (_, scenario) in CONDITIONS.items():
+            out.append(Case(c, scenario, "nominal", duration(scenario), base))
+        conditions = dict(CONDITIONS, **(ENCODER_CONDITIONS if hardware and c in RATIO_LQI
+                                         else {}))
+        for condition, (_, scenario) in conditions.items():
             if scenario is not None:
-                out.append(Case(c, scenario, condition, duration(scenario)))
+                out.append(Case(c, scenario, condition, duration(scenario), base))
     return out
 
 
@@ -189,9 +236,23 @@ def bandwidth_hz(f, gain):
 
 
 def case_config(case: Case) -> Scenario:
-    """The scenario of one case: its reference, duration, controller and condition."""
-    return Scenario(reference=NamedReference(case.scenario), duration_s=case.duration_s,
-                    **controller_settings(case.controller), **CONDITIONS[case.condition][0])
+    """The scenario of one case: the base scenario with the case's reference, duration,
+    controller and condition."""
+    scenario = load_scenario(case.base)
+    scenario.reference = NamedReference(case.scenario)
+    scenario.duration_s = case.duration_s
+    settings = controller_settings(case.controller)
+    if "controller" in settings:               # keep the base's LQI options (riccati, ...)
+        driver, base = settings["controller"], scenario.controller
+        if isinstance(driver, LqiDriver) and isinstance(base, LqiDriver):
+            settings["controller"] = dataclasses.replace(base, omega_Q=driver.omega_Q,
+                                                         omega_R=driver.omega_R)
+    for name, value in settings.items():
+        setattr(scenario, name, value)
+    change = {**CONDITIONS, **ENCODER_CONDITIONS}[case.condition][0]
+    if change is not None:
+        change(scenario)
+    return scenario.validate()
 
 
 def run_case(case: Case) -> dict:
@@ -284,6 +345,26 @@ def ann_verdict(rows, scenario: str = "paper", condition: str = "nominal") -> di
     return out
 
 
+def _disturbance_statics(base: str) -> str:
+    """One sentence per tool disturbance: the static crank torque holding home under its peak
+    wrench needs (:func:`~stewart_drake.model.statics.tool_load_torques`), against the motors'
+    limit of the base scenario: above it, no controller can hold the pose."""
+    scenario = load_scenario(base)
+    limit = scenario.torque_limit()
+    g = scenario.geometry()
+    parts = []
+    for name, d in DISTURBANCES.items():
+        need = float(np.abs(statics.tool_load_torques(g, X_HOME, d.wrench(
+            [d.start_s + 0.5 / d.frequency_hz if d.kind == "contact" else d.start_s])[0])).max())
+        verdict = ("" if limit is None else
+                   " (beyond the motors' limit: no controller can hold it)" if need > limit
+                   else " (within the motors' limit)")
+        parts.append(f"{name} {need:.3f} N m{verdict}")
+    return ("Static crank torque needed to hold home under each disturbance's peak wrench "
+            f"(gravity included; motors' limit {'none' if limit is None else f'{limit:.3f} N m'})"
+            ": " + "; ".join(parts) + ".")
+
+
 def render_markdown(rows, info: dict) -> str:
     """The text of docs/results.md from the grid's rows (see module docstring)."""
     by = _index(rows)
@@ -293,6 +374,9 @@ def render_markdown(rows, info: dict) -> str:
          f"({info['n_cases']} runs, {info['wall_s']:.0f} s wall on {info['workers']} processes"
          f"{', QUICK mode: smoke-test durations, not figures to quote' if info['quick'] else ''})."
          " Do not edit by hand: rerun the command.", "",
+         f"Every run starts from the scenario `{info.get('base', DEFAULT_BASE)}` "
+         "(`stewart-drake scenario` prints it; docs/hardware.md describes the robot as built).",
+         "",
          "Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. RMS and "
          "peak errors are over the second half of each run (the true pose from the plant state, "
          "not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with the LQI's error "
@@ -435,6 +519,49 @@ def render_markdown(rows, info: dict) -> str:
         L.append(f"| {c} | " + " | ".join(cells) + f" | {_fmt(worst_phi, 1e3)} | "
                  f"{_fmt(worst_z, 1e3)} | " + " | ".join(sat_cells) + " |")
     L.append("")
+    # 7. Encoders.
+    enc = [k for k in ENCODER_CONDITIONS]
+    if any(key[2] in enc for key in by):
+        L += ["## Encoder resolution (paper manoeuvre)", "",
+              "RMS error per axis in urad and um, the feedback effort Sum (T - T_ff)^2 dt in "
+              "N^2 m^2 s (what the controller adds to the gravity feed-forward) and the peak "
+              "torque in N m, for each encoder resolution and the five distinct weight ratios "
+              "omega_Q / omega_R (100, 10, 1, 0.1, 0.01).", "",
+              "| encoder | controller | phi | theta | psi | X | Y | Z | feedback Sum dT^2 dt | "
+              "peak T |", "|---|---|" + "---|" * 8]
+        for condition in enc:
+            for c in RATIO_LQI:
+                r = by.get((c, "paper", condition))
+                if r is None:
+                    continue
+                if "error" in r:
+                    L.append(f"| {condition} | {c} | failed: {r['error'].splitlines()[0][:90]} |")
+                    continue
+                L.append(f"| {condition.split()[1]} | {c} | "
+                         + " | ".join(_fmt(v, 1e6) for v in r["rms_error"])
+                         + f" | {_fmt(r['sum_dT2_dt'])} | {_fmt(max(r['peak_torque']))} |")
+        L.append("")
+    # 8. Tool disturbances.
+    if any(key[2] in DISTURBANCES for key in by):
+        L += ["## Tool disturbances (holding home; from t = 1 s)", "",
+              "Peak and RMS pose error over the second half of each run: angles in mrad, "
+              "positions in mm. " + "; ".join(
+                  f"{name}: {d.kind} {d.magnitude:g} {'N m' if d.kind == 'twist' else 'N'} along "
+                  f"{d.direction}" + (f" at {d.frequency_hz:g} Hz" if d.kind == "contact" else "")
+                  for name, d in DISTURBANCES.items()) + ".", "",
+              _disturbance_statics(info.get("base", DEFAULT_BASE)), "",
+              "| controller | " + " | ".join(f"{n}: peak angle | peak position | nRMS"
+                                          for n in DISTURBANCES) + " |",
+              "|---|" + "---|" * (3 * len(DISTURBANCES))]
+        for c in ctrls:
+            cells = []
+            for name in DISTURBANCES:
+                r = by.get((c, "home", name))
+                cells += (["-"] * 3 if r is None else ["failed", "-", "-"] if "error" in r else
+                          [_fmt(max(r["peak_error"][:3]), 1e3), _fmt(max(r["peak_error"][3:]), 1e3),
+                           _fmt(r["normalized_rms"])])
+            L.append(f"| {c} | " + " | ".join(cells) + " |")
+        L.append("")
     failed = [r for r in rows if "error" in r]
     L += ["## Runs that failed", ""]
     L += ([f"- {r['case']['controller']} / {r['case']['scenario']} / {r['case']['condition']}: "
@@ -538,7 +665,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
 
 def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evaluation",
              runner=None, progress: bool = True, quick: bool = False,
-             controllers=CONTROLLERS) -> dict:
+             controllers=CONTROLLERS, base: str = DEFAULT_BASE) -> dict:
     """Run the grid and write the report (see module docstring).
 
     Args:
@@ -546,6 +673,8 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
         runner: :class:`~stewart_drake.experiments.ProcessRunner` (default) or :class:`SerialRunner`.
         quick: 1-2 s runs (smoke test), flagged in the report.
         controllers: subset of :data:`CONTROLLERS`.
+        base: the scenario every case starts from (a shipped name or a .yaml path; default the
+            robot as built, ``paper_hardware``).
     Returns:
         dict with ``rows``, ``wall_s``, ``paths`` and ``verdict``.
     """
@@ -553,7 +682,7 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
 
     for c in controllers:
         controller_settings(c)                        # unknown names fail before any run
-    grid = cases(quick, controllers)
+    grid = cases(quick, controllers, base)
     grid.sort(key=lambda c: -c.duration_s)            # longest first: better load balance
     runner = runner or ProcessRunner()
     wall0 = time.perf_counter()
@@ -562,7 +691,8 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
                     unit="run", disable=not progress):
         rows.append(row)
     wall = time.perf_counter() - wall0
-    info = {"n_cases": len(grid), "wall_s": wall, "workers": runner.n_workers, "quick": quick}
+    info = {"n_cases": len(grid), "wall_s": wall, "workers": runner.n_workers, "quick": quick,
+            "base": str(base)}
     docs_dir, out_dir = Path(docs_dir), Path(out_dir)
     text = render_markdown(rows, info)
     md = docs_dir / "results.md"
