@@ -1,0 +1,202 @@
+"""Issue 13: the robot as built. Encoders quantize, FK estimates within the quantum, friction
+holds what it should, the delay is exactly what the scenario says, and the LQI copes."""
+
+import numpy as np
+import pytest
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder, LeafSystem
+
+from stewart_drake.control.estimator import PoseEstimator
+from stewart_drake.errors import SimulationDivergedError
+from stewart_drake.model import kinematics, limits, statics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.model.servo import ServoModel
+from stewart_drake.simulation.scenario import (LqiDriver, Motors, Scenario, load_scenario)
+from stewart_drake.simulation.station import current_loop, held_station, make_stewart_station
+from stewart_drake.simulation.trajectories import paper_manoeuvre
+from stewart_drake.studies.experiments import run_experiment
+
+
+def _nrms(result):
+    return float(np.sqrt(np.mean((np.asarray(result.metrics["rms_error"]) / 1e-3) ** 2)))
+
+
+def _hardware(**changes):
+    """paper_hardware with overrides (``--set`` syntax), validated."""
+    return load_scenario("paper_hardware", [f"{k}={v}" for k, v in changes.items()])
+
+
+def test_clean_hardware_path_tracks_like_the_ideal_robot():
+    """2^24 counts, no noise, delay, friction or limit: encoders + FK + the servos' inertia and
+    current loop track the paper manoeuvre within 10 % of the ideal robot's nRMS (5.5 %
+    measured)."""
+    ideal = run_experiment(Scenario(duration_s=3.0))
+    clean = _hardware(**{"duration_s": 3, "hardware.encoders.counts_per_rev": 2 ** 24,
+                         "hardware.computation_delay_periods": 0,
+                         "hardware.motors.coulomb_friction_Nm": 0,
+                         "hardware.motors.viscous_damping": 0,
+                         "hardware.motors.peak_torque_Nm": 1000})
+    result = run_experiment(clean)
+    assert _nrms(result) == pytest.approx(_nrms(ideal), rel=0.10)
+    # ... and 2^17 counts (the default) costs tracking: the quantization is what it measures.
+    coarse = run_experiment(_hardware(**{"duration_s": 3, "hardware.computation_delay_periods": 0,
+                                         "hardware.motors.coulomb_friction_Nm": 0,
+                                         "hardware.motors.peak_torque_Nm": 1000}))
+    assert _nrms(coarse) > 3 * _nrms(result)
+
+
+def test_fk_estimate_is_within_the_encoder_quantum_mapped_through_the_jacobian():
+    """At 200 random reachable poses: FK of the quantized angles, from a start 1 mrad | 1 mm
+    off, lands within |J^-1| q/2 of the true pose, axis by axis."""
+    g, rng = StewartGeometry(), np.random.default_rng(7)
+    q = 2 * np.pi / 2 ** 17
+    estimator = PoseEstimator(g, 1e-3, q)
+    box = np.array([0.3, 0.3, 0.3, 0.05, 0.05, 0.05])
+    x = X_HOME + rng.uniform(-1, 1, (4000, 6)) * box
+    x = x[limits.is_reachable(g, x).reachable][:200]
+    assert len(x) == 200
+    worst = 0.0
+    for pose in x:
+        theta = kinematics.ik(g, pose)
+        measured = np.round(theta / q) * q
+        estimate, steps, converged = estimator.estimate(measured, pose + 1e-3)
+        bound = np.abs(np.linalg.inv(kinematics.jacobian(g, pose))) @ np.full(6, q / 2)
+        assert converged and steps <= 4
+        worst = max(worst, np.max(np.abs(estimate - pose) / bound))
+    assert worst <= 1.0 + 1e-3                       # within the quantum, to second order
+    assert worst > 0.3                               # ... and the bound is not vacuous
+
+
+def test_chord_step_follows_the_full_newton_along_the_paper_manoeuvre():
+    g, h, q = StewartGeometry(), 1e-3, 2 * np.pi / 2 ** 17
+    t = np.arange(0.0, 4.0, h)
+    X, V, _ = paper_manoeuvre().evaluate(t)
+    measured = np.round(kinematics.ik(g, X) / q) * q
+    estimator = PoseEstimator(g, h, q, X[0])
+    x, v = X[0].copy(), V[0].copy()
+    J_inv = np.linalg.inv(kinematics.jacobian(g, x))
+    chord_gap, truth_gap = 0.0, 0.0
+    for k in range(1, len(t)):
+        newton, _, _ = estimator.estimate(measured[k], x + h * v)
+        x, v = estimator.track(measured[k], x, v, J_inv)
+        chord_gap = max(chord_gap, np.abs(x - newton).max())
+        truth_gap = max(truth_gap, np.abs(x - X[k]).max())
+        if k % 10 == 0:                              # the LQI refreshes J every re-schedule
+            J_inv = np.linalg.inv(kinematics.jacobian(g, x))
+    assert chord_gap < 2e-6                          # 1.0e-6 measured
+    assert truth_gap < 2e-4                          # the quantization: 8e-5 measured
+    assert np.abs(v - V[-1]).max() < 0.05            # the filtered rate follows (rad/s, m/s)
+
+
+def _held(scenario, T, duration_s=1.0):
+    station, simulator, context = held_station(scenario, X_HOME, T)
+    simulator.AdvanceTo(duration_s)
+    return station.GetOutputPort("platform_state").Eval(context)
+
+
+def test_stiction_holds_a_pose_the_frictionless_plant_lets_drift():
+    """Holding torques plus 60 % of the Coulomb friction on every motor: with friction the
+    platform stays put (the net torque is inside the friction band); without it, it moves."""
+    servo = ServoModel()
+    T = statics.holding_torques(StewartGeometry(), X_HOME) + 0.6 * servo.coulomb_friction_Nm
+    stuck = _held(_hardware(), T)
+    slick = _held(_hardware(**{"hardware.motors.coulomb_friction_Nm": 0}), T)
+    assert np.abs(stuck[:6] - X_HOME).max() < 1e-5            # creep T / friction_damping
+    assert np.abs(slick[:6] - X_HOME).max() > 1e-3            # millimetres in a second
+    # ... and 1.5 times the friction band breaks it loose.
+    loose = _held(_hardware(), statics.holding_torques(StewartGeometry(), X_HOME)
+                  + 1.5 * servo.coulomb_friction_Nm)
+    assert np.abs(loose[:6] - X_HOME).max() > 1e-3
+
+
+def test_encoders_report_whole_counts_of_the_crank_angle():
+    scenario = _hardware(**{"hardware.encoders.counts_per_rev": 2 ** 12})
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station(scenario))
+    diagram = builder.Build()
+    context = diagram.CreateDefaultContext()
+    x = X_HOME + np.array([0.02, -0.01, 0.03, 0.004, 0.0, 0.01])
+    theta = station.assemble(context, x)
+    measured = station.GetOutputPort("motor_angle").Eval(station.GetMyContextFromRoot(context))
+    q = 2 * np.pi / 2 ** 12
+    np.testing.assert_allclose(measured / q, np.round(measured / q), atol=1e-9)   # whole counts
+    assert np.abs(measured - theta).max() <= q / 2 + 1e-12
+
+
+class _Clock(LeafSystem):
+    """Writes its sample time (in units of 100 ms, so below the torque limit) at k h + h/2,
+    like the controllers."""
+
+    def __init__(self):
+        super().__init__()
+        self.DeclareStateOutputPort("u", self.DeclareDiscreteState(6))
+        self.DeclarePeriodicDiscreteUpdateEvent(1e-3, 5e-4, lambda c, s: s.set_value(
+            0, np.full(6, round(c.get_time() * 1e4) / 1e3)))
+
+
+@pytest.mark.parametrize("delay", [0, 1, 2])
+def test_the_computation_delay_is_exactly_what_the_scenario_says(delay):
+    """The torque a controller writes at k h + h/2 acts from the plant step (k + 1 + d) h."""
+    scenario = _hardware(**{"hardware.computation_delay_periods": delay,
+                            "hardware.motors.current_time_constant_s": 0})
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station(scenario))
+    clock = builder.AddSystem(_Clock())
+    builder.Connect(clock.get_output_port(), station.GetInputPort("motor_torque"))
+    builder.ExportInput(station.GetInputPort("tool_wrench"))
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    diagram.get_input_port(0).FixValue(context, np.zeros(6))
+    station.initialize(context, np.full(6, -1.0))
+    applied = station.GetOutputPort("motor_torque_applied")
+    for k in range(1, 8):
+        simulator.AdvanceTo(k * 1e-3)          # the plant's update at k h reads this value
+        if k - 1 - delay >= 0:                 # past the start-up: the pipe is full
+            # At the plant step k h the command written at (k - 1 - d) h + h/2 acts.
+            assert applied.Eval(station.GetMyContextFromRoot(context))[0] == pytest.approx(
+                0.01 * (k - 1 - delay + 0.5))
+
+
+def test_current_loop_applies_the_step_average_of_a_first_order_lag():
+    tau, h = 3.85e-4, 1e-3
+    system = current_loop(tau, h, size=1)
+    context = system.CreateDefaultContext()
+    system.get_input_port().FixValue(context, [1.0])
+    # From rest: the torque averaged over the first step of a unit step of the command.
+    expected = 1 - tau / h * (1 - np.exp(-h / tau))
+    assert system.get_output_port().Eval(context)[0] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.xfail(strict=False, reason="marginal: the outcome flips with 1e-13 perturbations "
+                   "(encoder quantization amplifies them); being made robust")
+def test_limit_below_the_peak_demand_slows_the_platform_instead_of_losing_it():
+    """0.35 N m against the manoeuvre's 0.41 N m (0.413 N m just to hold its extreme pose):
+    with anti-windup and the reference governor the 10 s run completes; without anti-windup the
+    platform falls (the guard stops it)."""
+    limited = {"torque_limit_Nm": 0.35}
+    result = run_experiment(_hardware(**limited))
+    m = result.metrics
+    assert m["status"]["governed_steps"] > 1000 and m["status"]["saturated_steps"] > 0
+    error = np.abs(result.x[:, :6] - result.x_d[:, :6]).max(axis=0)
+    assert error[:3].max() < 0.1 and error[3:].max() < 0.03     # slowed, not lost
+    assert np.abs(result.T).max() <= 0.35 + 1e-12
+    with pytest.raises(SimulationDivergedError, match="tracking error"):
+        run_experiment(_hardware(**limited, **{"controller.anti_windup": "false"}))
+
+
+def test_the_lqi_knows_the_motors_and_the_delay():
+    scenario = _hardware(**{"duration_s": 0.1})
+    from stewart_drake.simulation.diagram import make_stewart_diagram
+
+    sd = make_stewart_diagram(scenario)
+    lqi = sd.controller
+    assert lqi.delay == 1 and lqi.n == 24 and lqi.torque_limit == pytest.approx(0.702, abs=1e-3)
+    assert lqi.estimator is not None
+    inputs = {lqi.get_input_port(i).get_name() for i in range(lqi.num_input_ports())}
+    assert "motor_angle" in inputs and "x" not in inputs
+    assert scenario.geometry().motor_reflected_inertia == pytest.approx(2.496e-4, rel=1e-3)
+    off = _hardware(**{"duration_s": 0.1, "controller.delay_compensation": "false"})
+    assert make_stewart_diagram(off).controller.n == 18
+    assert isinstance(scenario.hardware.motors, Motors)
+    assert isinstance(scenario.controller, LqiDriver) and scenario.controller.riccati == "track"
