@@ -109,3 +109,29 @@ def test_batch_and_single_agree(geometry, random_poses):
     J_batch = kinematics.jacobian(geometry, random_poses[:10])
     for k in range(10):
         np.testing.assert_array_equal(J_batch[k], kinematics.jacobian(geometry, random_poses[k]))
+
+
+def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_poses):
+    """The controller's per-step kernels (single-pose numpy, plain-Python floats) give the
+    numbers of the batched, validated functions; an unreachable leg is NaN in all of them."""
+    from stewart_drake.control.lqi import input_matrix, input_matrix_single
+
+    constants = kinematics.leg_constants(geometry)
+    for x in random_poses[:50]:
+        theta = kinematics.ik(geometry, x)
+        th_single, cache = kinematics.ik_single(geometry, x)
+        np.testing.assert_allclose(th_single, theta, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(kinematics.ik_scalar(constants, x.tolist()), theta,
+                                   rtol=0, atol=1e-12)
+        J = kinematics.jacobian(geometry, x)
+        np.testing.assert_allclose(kinematics.jacobian_single(geometry, cache), J,
+                                   rtol=1e-12, atol=1e-12 * np.abs(J).max())
+        M = statics.task_inertia(geometry, x)
+        np.testing.assert_allclose(statics.task_inertia_single(geometry, cache, J), M,
+                                   rtol=1e-11, atol=1e-12 * np.abs(M).max())
+        B = input_matrix(geometry, x)
+        np.testing.assert_allclose(input_matrix_single(geometry, x)[0], B,
+                                   rtol=1e-10, atol=1e-12 * np.abs(B).max())
+    far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])                 # every rod too short
+    assert np.isnan(kinematics.ik_single(geometry, far)[0]).all()
+    assert np.isnan(kinematics.ik_scalar(constants, far.tolist())).all()

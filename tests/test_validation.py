@@ -125,7 +125,7 @@ def _controller_alone(omega, duration_s=0.05):
     controller.get_omega_input_port().FixValue(context, np.asarray(omega, dtype=float))
     simulator.AdvanceTo(duration_s)
     status = controller.GetOutputPort("status").Eval(context)
-    K = context.get_discrete_state(2).get_value().reshape(6, 18)
+    K = controller.gain_in_use(context)
     T = controller.GetOutputPort("T").Eval(context)
     return controller, status, K, T
 

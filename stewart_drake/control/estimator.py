@@ -27,7 +27,8 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..checks import as_array, as_number
-from ..model.kinematics import X_HOME, ik_jacobian, ik_single, jacobian_single
+from ..model.kinematics import (X_HOME, ik_jacobian, ik_scalar, ik_single, jacobian_single,
+                                leg_constants)
 
 
 class PoseEstimator:
@@ -58,6 +59,7 @@ class PoseEstimator:
         #: Weight of the new difference in the rate's low-pass: 1 - exp(-2 pi f_c h).
         self.alpha = 1.0 - math.exp(-2 * math.pi * cutoff * self.h)
         self.max_iterations = int(max_iterations)
+        self._constants = leg_constants(geometry)
         _, J0 = ik_jacobian(geometry, as_array("x_reference", x_reference, shape=(6,)))
         #: sign det J of the assembly mode the estimate stays in (that of the start pose).
         self.mode = float(np.sign(np.linalg.det(J0)))
@@ -107,17 +109,33 @@ class PoseEstimator:
         quantization itself moves the estimate by up to 8e-5 (a test holds these). A correction
         above 1e-3 (a jump, a stale Jacobian) falls back to :meth:`estimate`.
 
+        Args:
+            theta (6,) measured motor angles, rad; x_prev, v_prev (6,) the last estimate;
+            J_inv (6, 6) or (36,) row-major, the inverse Jacobian.
         Returns:
             (x (6,), v (6,)) [rad, m; rad/s, m/s].
         """
-        x0 = x_prev + self.h * v_prev
-        th0, _ = ik_single(self.geometry, x0)
-        dx = J_inv @ ((th0 - theta + np.pi) % (2 * np.pi) - np.pi)
-        if np.abs(dx).max() <= 1e-3:             # also False for NaN
-            x = x0 - dx
+        x, v = self.track_floats(np.asarray(theta, dtype=float).tolist(),
+                                 np.asarray(x_prev, dtype=float).tolist(),
+                                 np.asarray(v_prev, dtype=float).tolist(),
+                                 np.asarray(J_inv, dtype=float).reshape(-1).tolist())
+        return np.array(x), np.array(v)
+
+    def track_floats(self, theta: list, x_prev: list, v_prev: list,
+                     J_inv: list) -> tuple[list, list]:
+        """:meth:`track` on lists of floats (J_inv: 36, row-major), returning lists: the
+        controller's per-period path, in plain Python (:func:`~.kinematics.ik_scalar`)."""
+        h = self.h
+        x0 = [p + h * r for p, r in zip(x_prev, v_prev)]
+        th0 = ik_scalar(self._constants, x0)
+        r = [(a - b + math.pi) % (2 * math.pi) - math.pi for a, b in zip(th0, theta)]
+        dx = [sum(J_inv[6 * i + j] * r[j] for j in range(6)) for i in range(6)]
+        if max(map(abs, dx)) <= 1e-3 and math.isfinite(sum(dx)):    # else the fallback
+            x = [a - b for a, b in zip(x0, dx)]
         else:
-            x, _, _ = self.estimate(theta, x0)
-        return x, v_prev + self.alpha * ((x - x_prev) / self.h - v_prev)
+            x = self.estimate(np.array(theta), np.array(x0))[0].tolist()
+        alpha = self.alpha
+        return x, [v + alpha * ((a - b) / h - v) for a, b, v in zip(x, x_prev, v_prev)]
 
     def update(self, theta, x_prev, v_prev) -> tuple[np.ndarray, np.ndarray]:
         """The next estimate from the encoders theta (6,) and the last estimate x_prev, v_prev:

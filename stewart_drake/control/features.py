@@ -142,7 +142,7 @@ class DensityFeatures(LeafSystem):
     [n_valid, head] (2,): the samples taken so far capped at window, and the row the next sample
     goes to (the oldest).
 
-    Every period_s (first at t = 0) the inputs are sampled and pushed into the ring buffers
+    Every period_s (first at ``offset_s``) the inputs are sampled and pushed into the ring buffer
     (cheap); rho is computed by :func:`density_features` on the last min(k + 1, window) samples
     only when something reads the output (the tuner, every 20 ms), and Drake caches it until the
     next push. The output depends on the state alone, so the system has no direct feedthrough (no
@@ -154,18 +154,24 @@ class DensityFeatures(LeafSystem):
         window: m + 1, samples per window (50).
         period_s: sampling period, s (1 ms, the control period).
         eps: see :func:`density_features`.
+        offset_s: time of the first sample, s, in [0, period_s). The Diagram samples with the
+            controller (half a plant step): the values are those of the instant before (nothing
+            the features read changes in between), and the two Python updates then run back to
+            back, which costs less than two separate instants.
     Raises:
-        InvalidConfigError: window < 1, period_s <= 0 or eps <= 0.
+        InvalidConfigError: window < 1, period_s <= 0, eps <= 0 or offset_s outside [0, period_s).
         SimulationDivergedError: (during simulation) a non-finite input sample; it is not
             clamped, because it means the closed loop has already diverged.
     """
 
     def __init__(self, window: int = DEFAULT_WINDOW, period_s: float = 1e-3,
-                 eps: float = DEFAULT_EPS):
+                 eps: float = DEFAULT_EPS, offset_s: float = 0.0):
         super().__init__()
         _check_window_eps(window, eps)
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
+        if not (np.isfinite(offset_s) and 0 <= offset_s < period_s):
+            raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
         self.window = int(window)
         self.period_s = float(period_s)
         self.eps = float(eps)
@@ -175,7 +181,8 @@ class DensityFeatures(LeafSystem):
         self._n_index = self.DeclareDiscreteState(2)      # n_valid, head
         self._rho = self.DeclareVectorOutputPort("rho", N_FEATURES, self._CalcRho,
                                                  prerequisites_of_calc={self.xd_ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=0.0,
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s,
+                                                offset_sec=float(offset_s),
                                                 update=self._Update)
 
     def get_e_bar_input_port(self):

@@ -335,8 +335,10 @@ class LqiController(PoseTorqueController):
             so they see exactly the controller's error at the controller's instants).
         ``integral`` (6,): the integral states z of eq. 23 [rad s, m s].
     The ports follow the controller contract (:mod:`~stewart_drake.control.contract`).
-    Discrete state: u (6), z (6), K (6 n, row-major 6 x n, n = 18 + 6 d), status (6), e_bar (6),
-    step (1), and with a delay d the d feedback torques commanded but not yet acting (6 d).
+    Discrete state: u (6), z (6), status (7), e_bar (6), with an estimator x_hat (12), and one
+    group the ports do not export: the steps since the last solve, K (6 n, row-major 6 x n,
+    n = 18 + 6 d; :meth:`gain_in_use`), the d feedback torques commanded but not yet acting
+    (6 d), the governor's last reference within reach (24) and the estimator's J^-1 (36).
 
     Args:
         geometry: the robot (for B(x)).
@@ -411,6 +413,8 @@ class LqiController(PoseTorqueController):
         A, B = error_model(np.eye(6), self.h, delay_periods)      # checks delay_periods
         self.delay = int(delay_periods)
         self.n = A.shape[0]
+        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit if self.governor
+                                else np.inf)
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
 
@@ -427,23 +431,32 @@ class LqiController(PoseTorqueController):
         T0 = statics.holding_torques(geometry, x0)
         self._u_index = self.DeclareDiscreteState(T0)
         self._z_index = self.DeclareDiscreteState(6)
-        self._K_index = self.DeclareDiscreteState(K0.reshape(-1))
         # status: omega_Q, omega_R in use, solves, failures, |z|, saturated steps (a state, so
         # logging it at 1 kHz calls no Python)
         self._s_index = self.DeclareDiscreteState(np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
         self._e_index = self.DeclareDiscreteState(6)
-        self._k_index = self.DeclareDiscreteState(1)      # step counter
-        self._pending_index = (self.DeclareDiscreteState(6 * self.delay) if self.delay else None)
-        # The last reference (18) and feed-forward (6) within reach, for the governor.
-        self._hold_index = (self.DeclareDiscreteState(np.concatenate([x0, np.zeros(12), T0]))
-                            if self.governor else None)
         if estimator is not None:
             self._motor_angle = self.DeclareVectorInputPort("motor_angle", 6)
             v0 = np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float)
             self._xhat_index = self.DeclareDiscreteState(np.concatenate([x0, v0]))
-            _, J0 = kinematics.ik_jacobian(geometry, x0)
-            self._Jinv_index = self.DeclareDiscreteState(np.linalg.inv(J0).reshape(-1))
             self.DeclareStateOutputPort("x_hat", self._xhat_index)
+        # What no port exports, in one group (one access per step): the steps since the last
+        # gain solve (the first update re-solves at the measured pose), the gain K (6 n,
+        # row-major), the d pending feedback torques (6 d, newest first), for the governor the
+        # last reference (18) and feed-forward (6) within reach, for the estimator J^-1 (36).
+        parts = {"counter": [float(self.steps_per_schedule)], "K": K0.reshape(-1),
+                 "pending": np.zeros(6 * self.delay)}
+        if self.governor:
+            parts["hold"] = np.concatenate([x0, np.zeros(12), T0])
+        if estimator is not None:
+            _, J0 = kinematics.ik_jacobian(geometry, x0)
+            parts["J_inv"] = np.linalg.inv(J0).reshape(-1)
+        self._mem, start = {}, 0
+        for name, value in parts.items():
+            self._mem[name] = slice(start, start + len(value))
+            start += len(value)
+        self._mem_index = self.DeclareDiscreteState(np.concatenate(
+            [np.asarray(v, dtype=float) for v in parts.values()]))
         self.DeclareStateOutputPort("T", self._u_index)
         self.DeclareStateOutputPort("status", self._s_index)
         self.DeclareStateOutputPort("e_bar", self._e_index)
@@ -539,32 +552,45 @@ class LqiController(PoseTorqueController):
         return self._T_ff.Eval(context)
 
     # -- update --------------------------------------------------------------------------------
-    def _Update(self, context, discrete_state):
-        if self.estimator is None:
-            x = self._x.Eval(context)
-        else:                                   # the pose from the encoders (docstring)
-            x_hat = context.get_discrete_state(self._xhat_index).get_value()
-            J_inv = context.get_discrete_state(self._Jinv_index).get_value().reshape(6, 6)
-            pose, rate = self.estimator.track(self._motor_angle.Eval(context), x_hat[:6],
-                                              x_hat[6:], J_inv)
-            x = np.concatenate([pose, rate])
-            discrete_state.set_value(self._xhat_index, x)
-        ref = self._x_d.Eval(context)
-        omega = self._omega.Eval(context)
-        z = context.get_discrete_state(self._z_index).get_value()
-        K = context.get_discrete_state(self._K_index).get_value().reshape(6, self.n)
-        status = context.get_discrete_state(self._s_index).get_value().copy()
-        k = int(context.get_discrete_state(self._k_index).get_value()[0])
+    def gain_in_use(self, context) -> np.ndarray:
+        """(6, n) the gain K the controller's state holds in ``context`` (its own context)."""
+        memory = context.get_discrete_state(self._mem_index).get_value()
+        return memory[self._mem["K"]].reshape(6, self.n).copy()
 
-        if k % self.steps_per_schedule == 0 or not np.array_equal(omega, status[:2]):
+    def _Update(self, context, discrete_state):
+        # Every step runs here at 1 kHz, between two plant steps that push Python and numpy out
+        # of the CPU caches: the state is read and written in place (views of discrete_state,
+        # which Drake has already filled with the current values), (6,)-sized arithmetic is done
+        # on Python floats (a numpy call costs more than its arithmetic here) and numpy is kept
+        # for the gain product (benchmarks/realtime.py measures the whole Diagram).
+        memory = discrete_state.get_mutable_value(self._mem_index)
+        mem = self._mem
+        if self.estimator is None:
+            x = self._x.Eval(context).tolist()
+        else:                                   # the pose from the encoders (docstring)
+            x_hat = discrete_state.get_mutable_value(self._xhat_index)
+            x_prev = x_hat.tolist()
+            pose, rate = self.estimator.track_floats(
+                self._motor_angle.Eval(context).tolist(), x_prev[:6], x_prev[6:],
+                memory[mem["J_inv"]].tolist())
+            x = pose + rate
+            x_hat[:] = x
+        ref = self._x_d.Eval(context)
+        omega_Q, omega_R = self._omega.Eval(context).tolist()
+        status = discrete_state.get_mutable_value(self._s_index)
+        K = memory[mem["K"]].reshape(6, self.n)
+        # Re-solve every schedule period, and at once when the weights change (the period then
+        # restarts: a tuner updating omega every schedule period costs one solve per period).
+        if memory[0] >= self.steps_per_schedule or omega_Q != status[0] or omega_R != status[1]:
+            memory[0] = 0.0
             try:
-                K, J = self._gain(x[:6], float(omega[0]), float(omega[1]),
-                                  K_start=K if self.riccati != "cold" else None)
-                status[0:2] = omega
+                K_new, J = self._gain(np.array(x[:6]), omega_Q, omega_R,
+                                      K_start=K if self.riccati != "cold" else None)
+                status[0], status[1] = omega_Q, omega_R
                 status[2] += 1
-                discrete_state.set_value(self._K_index, K.reshape(-1))
+                K[:] = K_new
                 if self.estimator is not None:
-                    discrete_state.set_value(self._Jinv_index, np.linalg.inv(J).reshape(-1))
+                    memory[mem["J_inv"]] = np.linalg.inv(J).reshape(-1)
             except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError,
                     SingularPoseError, np.linalg.LinAlgError) as err:
                 status[3] += 1
@@ -572,38 +598,41 @@ class LqiController(PoseTorqueController):
                     warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed "
                                   f"({err}); keeping the last good gain "
                                   f"({int(status[3])} failures so far)", RuntimeWarning)
+        memory[0] += 1.0
 
-        e_x = x[:6] - ref[:6]
-        parts = [e_x, x[6:12] - ref[6:12], z]
-        if self.delay:
-            pending = context.get_discrete_state(self._pending_index).get_value()
-            parts.append(pending)
         T_ff = self.feedforward(context)
         if self.governor:
-            if np.abs(T_ff).max() > GOVERNOR_MARGIN * self.torque_limit:   # out of reach
-                hold = self.govern(context.get_discrete_state(self._hold_index).get_value(), ref)
-                discrete_state.set_value(self._hold_index, hold)
+            hold = memory[mem["hold"]]
+            # out of reach; a non-finite T_ff is not governed (nor clipped below): it reaches
+            # T, where the guard names it
+            if self._governor_bound < abs(T_ff).max() < math.inf:
+                hold[:] = self.govern(hold, ref)
                 ref, T_ff = hold[:18], hold[18:]
                 status[6] += 1
-                parts[0], parts[1] = x[:6] - ref[:6], x[6:12] - ref[6:12]
-            else:
-                discrete_state.set_value(self._hold_index, np.concatenate([ref[:6], np.zeros(12),
-                                                                           T_ff]))
-        T = T_ff - K @ np.concatenate(parts)
+            else:                               # the last reference within reach, at rest
+                hold[:6], hold[6:18], hold[18:] = ref[:6], 0.0, T_ff
+        ref = ref.tolist()
+        e_x = [a - b for a, b in zip(x, ref)]              # [e_x, e_x_dot], 12
+        z = discrete_state.get_mutable_value(self._z_index)
+        z_list = z.tolist()
+        e = e_x + z_list
+        if self.delay:
+            pending = memory[mem["pending"]]
+            e += pending.tolist()
+        feedback = K @ e                                     # K e, (6,)
+        T = discrete_state.get_mutable_value(self._u_index)
+        np.subtract(T_ff, feedback, out=T)
         saturated = False
-        if self.torque_limit is not None:
-            clipped = np.clip(T, -self.torque_limit, self.torque_limit)
-            saturated = not np.array_equal(clipped, T)
-            T = clipped
-            status[5] += saturated
-        discrete_state.set_value(self._u_index, T)
+        if self.torque_limit is not None and self.torque_limit < abs(T).max() < math.inf:
+            np.clip(T, -self.torque_limit, self.torque_limit, out=T)
+            saturated = True
+            status[5] += 1
         if self.delay:                          # newest first: what was just commanded
-            discrete_state.set_value(self._pending_index,
-                                     np.concatenate([T - T_ff, pending[:-6]]))
+            pending[6:] = pending[:-6].copy()
+            pending[:6] = T - T_ff
         if not (saturated and self.anti_windup):   # clamping: z holds while saturated
-            z = z + self.h * parts[0]
-            discrete_state.set_value(self._z_index, z)
-        status[4] = math.sqrt(z @ z)
-        discrete_state.set_value(self._s_index, status)
-        discrete_state.set_value(self._e_index, parts[0])
-        discrete_state.set_value(self._k_index, [k + 1])
+            h = self.h
+            z_list = [a + h * b for a, b in zip(z_list, e_x)]
+            z[:] = z_list
+        status[4] = math.sqrt(sum(v * v for v in z_list))
+        discrete_state.get_mutable_value(self._e_index)[:] = e_x[:6]

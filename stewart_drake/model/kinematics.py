@@ -17,6 +17,7 @@ reference validator in :mod:`.limits`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -434,6 +435,46 @@ def fk(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12,
     return x, status
 
 
+def leg_constants(geometry: "StewartGeometry") -> tuple:
+    """The geometry as plain floats for :func:`ik_scalar`: ((p_E, P_B, d_B) per leg as 9-tuples,
+    crank length a, s^2 - a^2). Compute it once per geometry."""
+    legs = tuple(tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
+                 for i in range(6))
+    a = float(geometry.crank_length)
+    return legs, a, float(geometry.rod_length) ** 2 - a * a
+
+
+def ik_scalar(constants: tuple, x) -> list:
+    """Motor angles of ONE pose in plain Python floats: :func:`ik` without numpy.
+
+    At 1 kHz between two plant steps, numpy's per-call overhead dominates a (6,)-sized problem
+    and its code falls out of the CPU caches: this loop costs a quarter of :func:`ik_single` in
+    a running simulation (benchmarks/realtime.py). The same numbers to 1e-15 (a test).
+
+    Args:
+        constants: :func:`leg_constants` of the geometry. x: 6 floats [rad, m] (not validated).
+    Returns:
+        list of 6 motor angles, rad; NaN for a leg that cannot close.
+    """
+    legs, a, c = constants
+    cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
+    sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
+    r00, r01, r02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    r10, r11, r12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    r20, r21, r22 = -sp, cp * sr, cp * cr
+    X, Y, Z = x[3], x[4], x[5]
+    theta = []
+    for ex, ey, ez, bx, by, bz, dx, dy, dz in legs:
+        lx = r00 * ex + r01 * ey + r02 * ez + X - bx        # pivot to platform joint
+        ly = r10 * ex + r11 * ey + r12 * ez + Y - by
+        lz = r20 * ex + r21 * ey + r22 * ez + Z - bz
+        M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
+        norm = math.hypot(M, N)
+        L = lx * lx + ly * ly + lz * lz - c
+        theta.append(math.asin(L / norm) - math.atan2(N, M) if abs(L) <= norm else math.nan)
+    return theta
+
+
 def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
     """Motor angles of ONE pose, with what :func:`jacobian_single` reuses.
 
@@ -448,8 +489,11 @@ def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
         theta (6,) rad, NaN for a leg that cannot close; and the intermediates (x, R_BE, r_B, l,
         theta) for :func:`jacobian_single` and :func:`leg_vectors_single`.
     """
-    cr, cp, cy = np.cos(x[:3])
-    sr, sp, sy = np.sin(x[:3])
+    # Scalars by math (a numpy call per element costs more than the arithmetic): this runs
+    # every control period, where each microsecond counts (benchmarks/realtime.py).
+    roll, pitch, yaw = float(x[0]), float(x[1]), float(x[2])
+    cr, cp, cy = math.cos(roll), math.cos(pitch), math.cos(yaw)
+    sr, sp, sy = math.sin(roll), math.sin(pitch), math.sin(yaw)
     R = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
                   [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
                   [-sp, cp * sr, cp * cr]])
@@ -459,8 +503,12 @@ def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
     L = (l * l).sum(axis=1) - (geometry.rod_length ** 2 - a * a)
     M = 2.0 * a * l[:, 2]
     N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        theta = np.arcsin(L / np.hypot(M, N)) - np.arctan2(N, M)
+    norm = np.hypot(M, N)
+    if (abs(L) < norm).all():                   # every leg closes (no NaN, no warning)
+        theta = np.arcsin(L / norm) - np.arctan2(N, M)
+    else:                                       # NaN for the legs that cannot close
+        with np.errstate(invalid="ignore", divide="ignore"):
+            theta = np.arcsin(L / norm) - np.arctan2(N, M)
     return theta, (x, R, r_B, l, theta)
 
 

@@ -367,13 +367,11 @@ def _set_velocities(plant, context, handles, x, x_dot, theta):
 def loop_closure_errors(plant: MultibodyPlant, context: Context,
                         handles: StewartPlantHandles) -> np.ndarray:
     """(6,) distance in m between each rod's top end and its platform joint (0 when closed)."""
-    X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
-    p_E = handles.geometry.p_E
-    out = np.empty(6)
-    for i, rod in enumerate(handles.rods):
-        X_WR = plant.EvalBodyPoseInWorld(context, rod)
-        out[i] = np.linalg.norm(X_WR.multiply(handles.rod_top_in_rod) - X_WE.multiply(p_E[i]))
-    return out
+    p_W_joint = plant.EvalBodyPoseInWorld(context, handles.platform).multiply(
+        handles.geometry.p_E.T)                                   # (3, 6) platform joints
+    p_W_top = np.column_stack([plant.EvalBodyPoseInWorld(context, rod).multiply(
+        handles.rod_top_in_rod) for rod in handles.rods])         # (3, 6) rod top ends
+    return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
 
 
 def platform_pose(plant: MultibodyPlant, context: Context, handles: StewartPlantHandles):

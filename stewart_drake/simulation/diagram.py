@@ -255,7 +255,7 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
                                      f"(the LQI has both); {system.get_name()} has not")
         t = scenario.tuner
         features = builder.AddNamedSystem("features", DensityFeatures(
-            window=t.feature_window, period_s=h))
+            window=t.feature_window, period_s=h, offset_s=offset))
         tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
             load_tuner(t.weights or None), period_s=t.period_s))
         builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))

@@ -6,9 +6,11 @@ that leaves the workspace (:class:`~stewart_drake.errors.UnreachablePoseError`),
 (:class:`~stewart_drake.errors.SingularPoseError`), naming the first time and the leg / measure.
 
 During a run, :class:`DivergenceGuard` is the Simulator's monitor (``Simulator.set_monitor``,
-called after every step). Every step it checks that the plant state and the motor torques are
-finite; every ``check_period_s`` that the loop-closure error and the tracking error are within
-:class:`~.scenario.GuardConfig`'s bounds. On the first failure the Simulator stops, :func:`advance` saves the
+called after every step). Every ``check_period_s`` it checks that the plant state and the motor
+torques are finite and that the loop-closure error and the tracking error are within
+:class:`~.scenario.GuardConfig`'s bounds; between checks it costs one time comparison. (A NaN
+torque does not reach the plant in between: Drake refuses a NaN actuation at the step that would
+use it, and :func:`advance` reports that as a divergence.) On the first failure the Simulator stops, :func:`advance` saves the
 logs up to then and the last full plant state to ``GuardConfig.divergence_dir`` (an ``.npz``,
 written atomically) and raises :class:`~stewart_drake.errors.SimulationDivergedError` naming the
 file. A run that ends normally therefore has finite logs: a NaN cannot reach a plot or the
@@ -77,6 +79,7 @@ class DivergenceGuard:
         self.t_failed: float | None = None
         self.checks = 0
         self._next_check_t = 0.0
+        self._last_t = -math.inf           # the monitor's last call (a reset time re-checks)
         self._contexts = None
 
     def attach(self, simulator) -> "DivergenceGuard":
@@ -92,31 +95,36 @@ class DivergenceGuard:
             sd.plant, sd.controller, sd.station, sd.reference.x_d))
         self._T_port = sd.controller.GetOutputPort("T")
         self._pose_port = sd.station.GetOutputPort("platform_state")
-        self._h = sd.scenario.plant_time_step_s
 
     def __call__(self, root) -> EventStatus | None:
-        """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`."""
+        """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`.
+
+        The Simulator calls it after every step (twice per millisecond: the plant's updates and
+        the controller's); between checks it returns after one time comparison (the monitor is
+        the hottest Python call of a run).
+        """
+        t = root.get_time()
+        if self._last_t <= t < self._next_check_t:
+            self._last_t = t
+            return None
+        self._last_t = t
         reason = self.check(root)
         if reason is None:
             return None
-        self.reason, self.t_failed = reason, root.get_time()
+        self.reason, self.t_failed = reason, t
         # Failed(...) must name a System: the Diagram (a LeafSystem defined in Python crashes
         # pydrake 1.51 when its name is formatted into the Simulator's message).
         return EventStatus.Failed(self.sd.diagram, reason)
 
     def check(self, root) -> str | None:
-        """Run the checks due at ``root``'s time; the first failure's description, or None."""
+        """Run every check now; the first failure's description, or None. The next check of the
+        monitor is ``check_period_s`` later."""
         if self._contexts is None or id(root) != self._root_id:
             self._bind(root)
         plant_ctx, ctrl_ctx, station_ctx, ref_ctx = self._contexts
         t = root.get_time()
-        # The monitor runs after every event time: the plant's (k h) and the controller's
-        # (k h + h/2). The plant state changes only at the first, and a torque the controller
-        # writes at the second is used from the next plant step on, which this check precedes:
-        # checking at plant steps alone sees every fault as early, at half the cost.
-        steps = t / self._h
-        if abs(steps - round(steps)) > 1e-6 and t < self._next_check_t:
-            return None
+        self._next_check_t = t + self.config.check_period_s * (1 - 1e-6)
+        self.checks += 1
         state = plant_ctx.get_discrete_state_vector().value()
         if not math.isfinite(state.sum()):
             k = int(np.argmax(~np.isfinite(state)))
@@ -126,10 +134,6 @@ class DivergenceGuard:
         if not math.isfinite(T.sum()):
             return (f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
                     f"N m: the controller received or produced NaN")
-        if t < self._next_check_t:
-            return None
-        self._next_check_t = t + self.config.check_period_s * (1 - 1e-6)
-        self.checks += 1
         cfg = self.config
         if cfg.max_closure_error_m is not None:
             closure = loop_closure_errors(self.sd.plant, plant_ctx, self.sd.handles)
@@ -196,6 +200,11 @@ class DivergenceGuard:
 def advance(sd, simulator, step) -> None:
     """Call ``step()`` (which advances ``simulator``); on a divergence save and raise.
 
+    After ``step()`` the guard checks once more (the monitor checks every ``check_period_s``, so
+    a fault in the last period would otherwise end a run). Drake refuses a NaN actuation itself
+    at the plant step that would use it; such a failure is diagnosed by the guard's checks (the
+    motor torques are not finite) and reported as a divergence.
+
     Args:
         sd: the Diagram; ``sd.guard`` is its :class:`DivergenceGuard` (None: no guard).
         simulator: the Simulator ``step`` advances.
@@ -219,9 +228,19 @@ def advance(sd, simulator, step) -> None:
             raise
         root = simulator.get_context()
         if guard.reason is None:
-            path = guard.save(root, f"{type(err).__name__}: {err}")
-            err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
-                         f"saved in {path}")
-            raise
+            reason = guard.check(root)             # a diverged signal Drake refused to use?
+            if reason is None:
+                path = guard.save(root, f"{type(err).__name__}: {err}")
+                err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
+                             f"saved in {path}")
+                raise
+            guard.reason, guard.t_failed = f"{reason} (Drake: {err})", root.get_time()
         path = guard.save(root, guard.reason)
         raise SimulationDivergedError(guard.reason, guard.t_failed, str(path)) from None
+    if guard is not None:
+        root = simulator.get_context()
+        reason = guard.check(root)
+        if reason is not None:
+            guard.reason, guard.t_failed = reason, root.get_time()
+            path = guard.save(root, reason)
+            raise SimulationDivergedError(reason, guard.t_failed, str(path))
