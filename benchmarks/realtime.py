@@ -11,11 +11,20 @@ times each, medians printed:
 Target (issue 13): ratio full / plant_alone >= 0.5 on the hardware scenario. One line per figure,
 e.g. ``ratio_full_over_plant 0.52 (medians of 5 interleaved pairs)``.
 
+``--breakdown`` adds where the full Diagram's time goes, per control step: the time inside each
+Python callback measured in the running simulation (where each plant step leaves them with cold
+CPU caches, so they cost about twice a microbenchmark's figure), and the ceiling of the ratio
+with this Diagram: the same Diagram holding home with every Python update a no-op (what Drake's
+framework, the station's hardware systems, the loggers and the Python dispatch cost alone).
+
 Usage: python benchmarks/realtime.py [--scenario paper_hardware] [--duration 5] [--repeats 5]
-       [--no-tuner] [--profile 25] [--riccati]
+       [--no-tuner] [--profile 25] [--riccati] [--breakdown]
 """
 
 import argparse
+import collections
+import dataclasses
+import contextlib
 import cProfile
 import io
 import pstats
@@ -23,9 +32,14 @@ import time
 
 import numpy as np
 
-from stewart_drake.control.lqi import error_model, input_matrix, lqi_gain, lqi_gain_warm
+from stewart_drake.control.estimator import PoseEstimator
+from stewart_drake.control.features import DensityFeatures
+from stewart_drake.control.lqi import (LqiController, error_model, input_matrix, lqi_gain,
+                                       lqi_gain_warm)
+from stewart_drake.control.tuner import AnnTuner
+from stewart_drake.simulation.guard import DivergenceGuard
 from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario
+from stewart_drake.simulation.scenario import AnnTunerDriver, NamedReference, load_scenario
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import build_simulator
@@ -76,6 +90,58 @@ def riccati_costs(controller, n: int = 200) -> dict:
             "worst_rel": worst}
 
 
+#: The Python callbacks of the full Diagram: (label, class, method).
+CALLBACKS = (("LQI update (all)", LqiController, "_Update"),
+             ("  of which FK estimator", PoseEstimator, "track_floats"),
+             ("  of which gain solves", LqiController, "_gain"),
+             ("density features", DensityFeatures, "_Update"),
+             ("ANN tuner (and rho)", AnnTuner, "_Update"),
+             ("guard checks", DivergenceGuard, "check"))
+
+
+@contextlib.contextmanager
+def _patched(changes):
+    """Temporarily replace class attributes: changes = [(cls, name, value)]."""
+    saved = [(cls, name, cls.__dict__[name]) for cls, name, _ in changes]
+    try:
+        for cls, name, value in changes:
+            setattr(cls, name, value)
+        yield
+    finally:
+        for cls, name, value in saved:
+            setattr(cls, name, value)
+
+
+def breakdown(scenario, duration_s: float) -> dict:
+    """Seconds inside each Python callback during one full run (label -> s), and its wall s."""
+    spent = collections.defaultdict(float)
+
+    def timed(label, method):
+        def wrapper(*args, **kwargs):
+            t0 = time.perf_counter()
+            try:
+                return method(*args, **kwargs)
+            finally:
+                spent[label] += time.perf_counter() - t0
+        return wrapper
+
+    with _patched([(cls, name, timed(label, cls.__dict__[name]))
+                   for label, cls, name in CALLBACKS]):
+        wall, _ = full(scenario, duration_s)
+    return {"wall": wall, **spent}
+
+
+def noop_floor(scenario, duration_s: float) -> float:
+    """Wall seconds of the full Diagram holding home with every Python update a no-op."""
+    def nothing(self, context, discrete_state):
+        return None
+
+    held = dataclasses.replace(scenario, reference=NamedReference("home"))
+    with _patched([(LqiController, "_Update", nothing), (DensityFeatures, "_Update", nothing),
+                   (AnnTuner, "_Update", nothing)]):
+        return full(held, duration_s)[0]
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="paper_hardware")
@@ -84,6 +150,8 @@ def main():
     parser.add_argument("--no-tuner", action="store_true", help="fixed weights, no ANN tuner")
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
     parser.add_argument("--riccati", action="store_true", help="also time warm vs cold Riccati")
+    parser.add_argument("--breakdown", action="store_true",
+                        help="also time each Python callback and the Diagram's ceiling")
     args = parser.parse_args()
     scenario = load_scenario(args.scenario, [f"duration_s={args.duration}"])
     if not args.no_tuner:
@@ -102,6 +170,17 @@ def main():
           f"best ({args.scenario}, {tuner}, guard on, one process)")
     print(f"ratio_full_over_plant {np.median(ratios):.2f} (median of {len(ratios)} interleaved "
           f"pairs; range {ratios.min():.2f} .. {ratios.max():.2f}; target >= 0.5)")
+    if args.breakdown:
+        steps = args.duration / scenario.control_period_s
+        spent = breakdown(scenario, args.duration)
+        floor = min(noop_floor(scenario, args.duration) for _ in range(max(1, args.repeats)))
+        plant = min(walls["plant"])
+        print(f"per control step in the full Diagram ({spent['wall'] / steps * 1e6:.0f} us of "
+              f"wall; the plant alone {plant / steps * 1e6:.0f} us):")
+        for label, _, _ in CALLBACKS:
+            print(f"  {label:26s} {spent.get(label, 0.0) / steps * 1e6:7.1f} us")
+        print(f"ceiling_ratio {plant / floor:.2f} (the Diagram with no-op Python updates, holding "
+              f"home: {floor / steps * 1e6:.0f} us per step; best of {max(1, args.repeats)})")
     if args.riccati:
         _, sd = full(scenario, 0.01)
         c = riccati_costs(sd.controller)
