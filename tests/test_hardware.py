@@ -200,3 +200,34 @@ def test_the_lqi_knows_the_motors_and_the_delay():
     assert make_stewart_diagram(off).controller.n == 18
     assert isinstance(scenario.hardware.motors, Motors)
     assert isinstance(scenario.controller, LqiDriver) and scenario.controller.riccati == "track"
+
+
+def test_drake_ignores_an_sdf_joint_friction_so_ours_is_an_actuator(tmp_path):
+    """Why the Coulomb friction is a SAP-controlled actuator: drake 1.51 loads a revolute joint's
+    <friction> (strict parsing, no warning) and a free joint then spins under a torque far below
+    that friction, exactly as without it."""
+    from pydrake.multibody.parsing import Parser
+    from pydrake.multibody.plant import MultibodyPlant
+
+    def spin(friction):
+        path = tmp_path / f"joint_{friction}.sdf"
+        path.write_text(f"""<?xml version="1.0"?><sdf version="1.9"><model name="m">
+          <link name="a"><inertial><mass>1</mass><inertia><ixx>0.1</ixx><iyy>0.1</iyy>
+          <izz>0.1</izz><ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia></inertial></link>
+          <joint name="j" type="revolute"><parent>world</parent><child>a</child><axis>
+          <xyz>0 0 1</xyz><dynamics><friction>{friction}</friction></dynamics></axis></joint>
+          </model></sdf>""")
+        plant = MultibodyPlant(1e-3)
+        parser = Parser(plant)
+        parser.SetStrictParsing()
+        parser.AddModels(str(path))                 # the parser gives the joint its actuator
+        plant.Finalize()
+        context = plant.CreateDefaultContext()
+        plant.get_actuation_input_port().FixValue(context, [0.01])   # 0.01 N m << 10 N m
+        simulator = Simulator(plant, context)
+        simulator.AdvanceTo(0.5)
+        return plant.GetJointByName("j").get_angle(context)
+
+    free = spin(0.0)
+    assert free == pytest.approx(0.5 * 0.01 / 0.1 * 0.5 ** 2, rel=1e-2)   # T t^2 / (2 I)
+    assert spin(10.0) == pytest.approx(free, rel=1e-12)

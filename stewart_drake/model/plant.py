@@ -214,7 +214,8 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
             Coulomb friction is a second actuator on each motor joint, PD-controlled by SAP with
             no stiffness, damping ``servo.friction_damping`` towards zero velocity and an effort
             limit of ``servo.coulomb_friction_Nm``: a dry friction SAP solves implicitly (drake
-            1.51 parses no joint dry friction: a non-zero SDF ``<friction>`` is refused).
+            1.51 has no joint dry friction: it loads an SDF joint's ``<dynamics><friction>``
+            without a word, even with strict parsing, and ignores it; a test holds this).
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
         pose, assembled. With friction, ``handles.actuation_port`` takes 12 values (the six
