@@ -142,8 +142,9 @@ def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
         (6, 6) finite, (rad/s^2 or m/s^2) per N m.
     Raises:
         UnreachablePoseError, SingularPoseError, InvalidConfigError: see kinematics.jacobian.
-    Source: paper eq. 22 (b = tau / inertia), with the legs' inertia in M_x
-    (:func:`statics.task_inertia`) and tau = J^T (eq. 18 corrected).
+    Source: paper eq. 22 sets b = tau (unit inertia); dividing by the task inertia M_x, with the
+    legs' inertia (:func:`statics.task_inertia`), is ours (docs/paper_notes.md); tau = J^T (eq. 18
+    corrected).
     """
     tau = kinematics.tau(geometry, x, theta)         # validates x and theta
     theta = kinematics.ik(geometry, x) if theta is None else theta
