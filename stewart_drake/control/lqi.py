@@ -372,6 +372,9 @@ class LqiController(PoseTorqueController):
             (docs/hardware.md). Ours: the paper has no limit.
         delay_periods: control periods between a sample and its torque acting (the computation
             delay); the error model is augmented with the pending torques (:func:`error_model`).
+        schedule_pose: re-schedule B(x) from the measured pose (default). False keeps the input
+            matrix of the start pose, as a plain LQI would (the paper has one B; re-scheduling on
+            the pose is ours): the gain is then re-solved only when omega changes.
         estimator: None to read the pose and rate on the ``x`` input; or a
             :class:`~stewart_drake.control.estimator.PoseEstimator`: the controller then reads
             the encoders on a ``motor_angle`` input (6, rad) and estimates the pose and rate in
@@ -387,7 +390,7 @@ class LqiController(PoseTorqueController):
                  offset_s: float = 0.0, x_initial=None, riccati: str = "warm",
                  torque_limit_Nm: float | None = None, anti_windup: bool = True,
                  delay_periods: int = 0, estimator=None, x_dot_initial=None,
-                 reference_governor: bool = True):
+                 reference_governor: bool = True, schedule_pose: bool = True):
         super().__init__(pose_input=estimator is None)
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
@@ -418,6 +421,8 @@ class LqiController(PoseTorqueController):
                                 else np.inf)
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
+        self.schedule_pose = bool(schedule_pose)
+        self.x_initial = x0.copy()
 
         A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
         self.hautus = hautus_checks(A, B, np.sqrt(self._Q1))
@@ -582,10 +587,12 @@ class LqiController(PoseTorqueController):
         K = memory[mem["K"]].reshape(6, self.n)
         # Re-solve every schedule period, and at once when the weights change (the period then
         # restarts: a tuner updating omega every schedule period costs one solve per period).
-        if memory[0] >= self.steps_per_schedule or omega_Q != status[0] or omega_R != status[1]:
+        if (memory[0] >= self.steps_per_schedule and self.schedule_pose) \
+                or omega_Q != status[0] or omega_R != status[1]:
             memory[0] = 0.0
             try:
-                K_new, J = self._gain(np.array(x[:6]), omega_Q, omega_R,
+                K_new, J = self._gain(np.array(x[:6]) if self.schedule_pose else self.x_initial,
+                                      omega_Q, omega_R,
                                       K_start=K if self.riccati != "cold" else None)
                 status[0], status[1] = omega_Q, omega_R
                 status[2] += 1

@@ -36,7 +36,8 @@ def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiControlle
                              delay_periods=context.delay_periods if driver.delay_compensation
                              else 0, estimator=context.pose_estimator,
                              x_dot_initial=context.x_dot_initial,
-                             reference_governor=driver.reference_governor)
+                             reference_governor=driver.reference_governor,
+                             schedule_pose=driver.schedule_pose)
     return make
 
 

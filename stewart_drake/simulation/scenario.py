@@ -117,6 +117,8 @@ class LqiDriver:
         reference_governor: with a torque limit, hold the last reference the motors can hold
             while the reference's own feed-forward exceeds 90 % of the limit
             (:class:`~stewart_drake.control.lqi.LqiController`).
+        schedule_pose: re-schedule the input matrix B(x) from the measured pose (ours); false
+            keeps the start pose's, as a plain LQI (the gain then changes only with omega).
     """
 
     omega_Q: float = 1.0
@@ -127,6 +129,7 @@ class LqiDriver:
     anti_windup: bool = True
     delay_compensation: bool = True
     reference_governor: bool = True
+    schedule_pose: bool = True
 
 
 @dataclass
@@ -621,7 +624,8 @@ class Scenario:
             if c.riccati not in RICCATI_MODES:
                 raise InvalidConfigError(f"controller.riccati must be one of {RICCATI_MODES}, "
                                          f"got {c.riccati!r}")
-            for name in ("anti_windup", "delay_compensation", "reference_governor"):
+            for name in ("anti_windup", "delay_compensation", "reference_governor",
+                         "schedule_pose"):
                 if not isinstance(getattr(c, name), bool):
                     raise InvalidConfigError(f"controller.{name} must be true or false, got "
                                              f"{getattr(c, name)!r}")
