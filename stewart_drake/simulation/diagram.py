@@ -172,8 +172,9 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             overriding ``scenario.controller``.
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) keyed "state" (plant state),
-        "T" (applied torques, 6), and when the controller has them "status", "integral", and
-        with the tuner "rho" (12, every tuner period).
+        "T" (applied torques, 6), and when the controller has them "status", "integral",
+        "e_bar" (the error the controller acted on: its estimate, on the hardware), and with the
+        tuner "rho" (12, every tuner period).
     Raises:
         InvalidConfigError: a scenario field out of range, a controller that breaks the contract
             (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
@@ -275,7 +276,7 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     period = scenario.log_period_s
     loggers["T"] = LogVectorOutput(applied, builder, period)
     loggers["state"] = LogVectorOutput(station.GetOutputPort("plant_state"), builder, period)
-    for name in ("status", "integral"):
+    for name in ("status", "integral", "e_bar"):
         if name in outputs:
             loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period)
     for name, logger in loggers.items():

@@ -29,6 +29,11 @@ PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 def run_record(result: RunResult, scales, sample_period_s: float, window: int) -> dict:
     """A run as a training record: features and normalized cost parts at ``sample_period_s``.
 
+    The features are those the tuner would see in the loop: of the error the controller acted
+    on (``result.e_bar``: its estimate, on the hardware; the true error when not logged) and of
+    the applied torques, sample for sample as :class:`~stewart_drake.control.features.DensityFeatures`
+    takes them. The cost parts use the true error.
+
     Returns:
         dict with omega_Q, omega_R, t (N,), rho (N, 12) (density features over ``window``
         samples of the 1 kHz log, eqs. 35-36), cost_e (N,) = sum (e_x/s_e)^2 + (e_v/s_v)^2 and
@@ -36,7 +41,8 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
     """
     e = result.x[:, :6] - result.x_d[:, :6]
     e_v = result.x[:, 6:12] - result.x_d[:, 6:12]
-    rho = density_features_series(e, result.T, window=window)
+    seen = result.e_bar if result.e_bar is not None else e
+    rho = density_features_series(seen, result.T, window=window)
     cost_e = np.sum((e / np.asarray(scales.pose)) ** 2 + (e_v / np.asarray(scales.rate)) ** 2, 1)
     cost_u = np.sum((result.T / scales.torque) ** 2, axis=1)
     step = max(1, int(round(sample_period_s / np.median(np.diff(result.t)))))

@@ -43,6 +43,8 @@ class RunResult:
         omega: (N, 2) omega_Q, omega_R in use (from status), or None when the controller
             reports none.  integral: (N, 6) the controller's integral states, or None.
         rho: (M, 12) density features at the tuner's instants (every tuner period) or None.
+        e_bar: (N, 6) the pose error the controller acted on (its estimate of x minus x_d: on
+            the hardware, from the encoders), or None.
         metrics: dict of the figures printed by the CLI (see :func:`compute_metrics`).
         config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
             the whole scenario as YAML.
@@ -58,6 +60,7 @@ class RunResult:
     omega: np.ndarray | None = None
     integral: np.ndarray | None = None
     rho: np.ndarray | None = None
+    e_bar: np.ndarray | None = None
     metrics: dict = field(default_factory=dict)
     config_summary: dict = field(default_factory=dict)
 
@@ -179,6 +182,7 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
                        omega=omega,
                        integral=logs["integral"].data().T if "integral" in logs else None,
                        rho=logs["rho"].data().T if "rho" in logs else None,
+                       e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
                        config_summary=config_summary(sd))
     result.metrics = compute_metrics(result, wall_s)
     return result
