@@ -300,3 +300,169 @@ class AnnTuner(LeafSystem):
         except InvalidConfigError:                   # rho (or the output) not finite
             count = context.get_discrete_state(self._count_index).get_value()[0]
             discrete_state.set_value(self._count_index, [count + 1.0])
+
+
+# -- ours: one ratio from density features and the reference's motion ------------------------------
+
+#: Inputs of :class:`RatioTunerModel`, in order: the 12 density features, then the reference's
+#: speed and acceleration, rotation and translation apart, each over its scale.
+RATIO_INPUTS = tuple(f"rho_{k}" for k in range(N_FEATURES)) + (
+    "|rpy_dot_d| / 1 rad/s", "|p_dot_d| / 0.1 m/s", "|rpy_ddot_d| / 10 rad/s^2",
+    "|p_ddot_d| / 1 m/s^2")
+N_RATIO_INPUTS = len(RATIO_INPUTS)
+RATIO_LOG10_MIN, RATIO_LOG10_MAX = -3.0, 3.0           # omega_Q / omega_R in [1e-3, 1e3]
+RATIO_FORMAT = "ratio_tuner_v1"
+_MOTION_SCALES = np.array([1.0, 0.1, 10.0, 1.0])
+
+
+def ratio_tuner_inputs(rho, x_d) -> np.ndarray:
+    """The inputs of :class:`RatioTunerModel`: rho (..., 12) and the reference's motion.
+
+    Args:
+        rho: (..., 12) density features.  x_d: (..., 18) reference [pose, rate, acceleration].
+    Returns:
+        (..., 16) [rho, |rpy_dot_d|, |p_dot_d|, |rpy_ddot_d|, |p_ddot_d|] over 1 rad/s, 0.1 m/s,
+        10 rad/s^2, 1 m/s^2.
+    """
+    rho, x_d = np.asarray(rho, dtype=float), np.asarray(x_d, dtype=float)
+    motion = np.stack([np.linalg.norm(x_d[..., 6:9], axis=-1),
+                       np.linalg.norm(x_d[..., 9:12], axis=-1),
+                       np.linalg.norm(x_d[..., 12:15], axis=-1),
+                       np.linalg.norm(x_d[..., 15:18], axis=-1)], axis=-1) / _MOTION_SCALES
+    return np.concatenate([rho, motion], axis=-1)
+
+
+@dataclass(frozen=True)
+class RatioTunerModel:
+    """Our tuner's network: 16 inputs (:data:`RATIO_INPUTS`) -> hidden (tanh) -> log10 of the
+    ratio omega_Q / omega_R, clamped to [-3, 3] (the study's grid, wider than the paper's).
+
+    Only the ratio decides the LQI's gain (docs/paper_notes.md), so one output; the paper's
+    network outputs both weights. The reference's speed and acceleration are inputs the paper
+    leaves out: whether the platform moves or holds is what the best ratio depends on most.
+
+    Attributes:
+        W1 (hidden, 16), b1 (hidden,), W2 (1, hidden), b2 (1,): weights.
+        x_mean, x_std: (16,) input normalization (training statistics), x_std > 0.
+        metadata: JSON-able (lambda, training tasks, loss...).
+    Raises:
+        InvalidConfigError: inconsistent shapes, non-finite numbers or x_std <= 0.
+    """
+
+    W1: np.ndarray
+    b1: np.ndarray
+    W2: np.ndarray
+    b2: np.ndarray
+    x_mean: np.ndarray
+    x_std: np.ndarray
+    metadata: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std"):
+            value = np.array(getattr(self, name), dtype=np.float64)
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+            if not np.all(np.isfinite(value)):
+                raise InvalidConfigError(f"ratio tuner weight {name} has non-finite entries")
+        hidden = self.W1.shape[0] if self.W1.ndim == 2 else -1
+        expected = {"W1": (hidden, N_RATIO_INPUTS), "b1": (hidden,), "W2": (1, hidden),
+                    "b2": (1,), "x_mean": (N_RATIO_INPUTS,), "x_std": (N_RATIO_INPUTS,)}
+        for name, shape in expected.items():
+            if hidden < 1 or getattr(self, name).shape != shape:
+                raise InvalidConfigError(f"ratio tuner weight {name} has shape "
+                                         f"{getattr(self, name).shape}, expected {shape}")
+        if not np.all(self.x_std > 0):
+            raise InvalidConfigError("ratio tuner x_std must be > 0")
+
+    def predict_log10(self, inputs) -> np.ndarray:
+        """(...,) log10 omega_Q / omega_R in [-3, 3] for inputs (..., 16) (finite).
+
+        Raises:
+            InvalidConfigError: inputs not (..., 16) or not finite.
+        """
+        inputs = as_array("ratio tuner inputs (must be finite)", inputs, last=N_RATIO_INPUTS)
+        z = np.clip((inputs - self.x_mean) / self.x_std, -Z_CLIP, Z_CLIP)
+        y = np.tanh(z @ self.W1.T + self.b1) @ self.W2.T + self.b2
+        return np.clip(y[..., 0], RATIO_LOG10_MIN, RATIO_LOG10_MAX)
+
+    def predict(self, inputs) -> np.ndarray:
+        """(..., 2) [omega_Q, omega_R] = [ratio, 1] for inputs (..., 16)."""
+        ratio = 10.0 ** self.predict_log10(inputs)
+        return np.stack([ratio, np.ones_like(ratio)], axis=-1)
+
+
+def save_ratio_tuner(model: RatioTunerModel, path) -> Path:
+    """Write ``model`` to a ``.npz`` (atomically); returns the path."""
+    path = Path(path)
+    arrays = dict(W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2, x_mean=model.x_mean,
+                  x_std=model.x_std, format=np.str_(RATIO_FORMAT),
+                  inputs=np.array(RATIO_INPUTS),
+                  metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
+    atomic_write(path, lambda f: np.savez(f, **arrays))
+    return path
+
+
+def load_ratio_tuner(path) -> RatioTunerModel:
+    """Load a :func:`save_ratio_tuner` file; no torch needed.
+
+    Raises:
+        MissingFileError: no such file.  InvalidConfigError: another format or bad weights.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError(f"no ratio tuner weights at {path}: `stewart-drake evaluate` "
+                               f"trains them (the tuner study)")
+    with np.load(path, allow_pickle=False) as data:
+        if "format" not in data.files or str(data["format"]) != RATIO_FORMAT:
+            raise InvalidConfigError(f"{path} is not a ratio tuner ({RATIO_FORMAT}); the paper's "
+                                     f"network is a tuner: AnnTunerDriver")
+        return RatioTunerModel(data["W1"], data["b1"], data["W2"], data["b2"], data["x_mean"],
+                               data["x_std"], json.loads(str(data["metadata_json"])))
+
+
+class RatioTuner(LeafSystem):
+    """Our online tuner: density features and the reference's motion -> [omega_Q / omega_R, 1].
+
+    Input ports:
+        ``rho`` (12,): density features (:class:`~.features.DensityFeatures`).
+        ``x_d`` (18,): the reference [pose, rate, acceleration].
+    Output port:
+        ``omega`` (2,): [ratio, 1], ratio in [1e-3, 1e3], held between updates.
+    Every period_s (first at offset_s) :class:`RatioTunerModel` is evaluated on the sampled
+    inputs; a non-finite input keeps the last omega (counted in ``nonfinite_count``).
+
+    Args:
+        model: the network.  period_s: s (20 ms).  offset_s: s.
+        omega_initial: [omega_Q, omega_R] before the first update.
+    Raises:
+        InvalidConfigError: period_s <= 0, offset_s < 0, a non-finite omega_initial.
+    """
+
+    def __init__(self, model: RatioTunerModel, period_s: float = 0.02, offset_s: float = 0.0,
+                 omega_initial=(1.0, 1.0)):
+        super().__init__()
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
+        if not (np.isfinite(offset_s) and offset_s >= 0):
+            raise InvalidConfigError(f"offset_s must be >= 0 s, got {offset_s}")
+        omega0 = np.asarray(omega_initial, dtype=float)
+        if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
+            raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
+        self.model = model
+        self.period_s = float(period_s)
+        self._rho = self.DeclareVectorInputPort("rho", N_FEATURES)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._omega_index = self.DeclareDiscreteState(omega0)
+        self._count_index = self.DeclareDiscreteState(1)
+        self.DeclareStateOutputPort("omega", self._omega_index)
+        self.DeclareStateOutputPort("nonfinite_count", self._count_index)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=offset_s,
+                                                update=self._Update)
+
+    def _Update(self, context, discrete_state):
+        inputs = ratio_tuner_inputs(self._rho.Eval(context), self._x_d.Eval(context))
+        try:
+            discrete_state.set_value(self._omega_index, self.model.predict(inputs))
+        except InvalidConfigError:                   # a non-finite input
+            count = context.get_discrete_state(self._count_index).get_value()[0]
+            discrete_state.set_value(self._count_index, [count + 1.0])

@@ -19,7 +19,8 @@ from ..control.lqi import LqiController
 from ..control.pd import CrankPdController
 from ..errors import InvalidConfigError
 from .reference import ReferenceSources, add_reference_sources
-from .scenario import LqiDriver, PdDriver, Scenario, UserController
+from .scenario import (LqiDriver, PdDriver, RatioTunerDriver, Scenario, UserController,
+                       WeightSchedule)
 from .station import StewartStation
 from .trajectories import as_trajectory
 
@@ -246,20 +247,35 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
 
     features = tuner = None
     loggers = {}
-    if scenario.tuner is not None:
+    tuner_driver = scenario.tuner
+    if isinstance(tuner_driver, WeightSchedule):
+        if "omega" not in inputs:
+            raise InvalidConfigError(f"a weight schedule drives the omega input; "
+                                     f"{system.get_name()} has none")
+        t_s = np.append(np.asarray(tuner_driver.t, dtype=float), scenario.duration_s + 1.0)
+        values = np.array([tuner_driver.omega_Q, tuner_driver.omega_R], dtype=float)
+        tuner = builder.AddNamedSystem("weight_schedule", TrajectorySource(
+            PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))))
+        builder.Connect(tuner.get_output_port(), system.GetInputPort("omega"))
+    elif tuner_driver is not None:
         from ..control.features import DensityFeatures
-        from ..control.tuner import AnnTuner, load_tuner
+        from ..control.tuner import AnnTuner, RatioTuner, load_ratio_tuner, load_tuner
 
         missing = [p for p, have in (("omega input", "omega" in inputs),
                                      ("e_bar output", "e_bar" in outputs)) if not have]
         if missing:
             raise InvalidConfigError(f"the ANN tuner needs a controller with an {' and an '.join(missing)} "
                                      f"(the LQI has both); {system.get_name()} has not")
-        t = scenario.tuner
+        t = tuner_driver
         features = builder.AddNamedSystem("features", DensityFeatures(
             window=t.feature_window, period_s=h, offset_s=offset))
-        tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
-            load_tuner(t.weights or None), period_s=t.period_s))
+        if isinstance(t, RatioTunerDriver):
+            tuner = builder.AddNamedSystem("ratio_tuner", RatioTuner(
+                load_ratio_tuner(t.weights), period_s=t.period_s))
+            builder.Connect(ref.x_d.get_output_port(), tuner.GetInputPort("x_d"))
+        else:
+            tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
+                load_tuner(t.weights or None), period_s=t.period_s))
         builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
         builder.Connect(applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))

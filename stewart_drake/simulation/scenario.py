@@ -29,7 +29,7 @@ from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
-from ..checks import as_number, check_multiple
+from ..checks import as_array, as_number, check_multiple
 from ..errors import InvalidConfigError, InvalidGeometryError, MissingFileError, StewartError
 from ..control.lqi import OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
@@ -175,6 +175,40 @@ class AnnTunerDriver:
     weights: str = ""
     period_s: float = 0.02
     feature_window: int = 50
+
+
+@dataclass
+class RatioTunerDriver:
+    """Our tuner (:class:`~stewart_drake.control.tuner.RatioTuner`): the density features and the
+    reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
+
+    Attributes:
+        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`), required.
+        period_s: tuner period, s (a whole multiple of the control period).
+        feature_window: samples m + 1 of the density features.
+    """
+
+    weights: str = ""
+    period_s: float = 0.02
+    feature_window: int = 50
+
+
+@dataclass
+class WeightSchedule:
+    """omega_Q and omega_R known in advance, held from each time to the next: the hindsight
+    schedule and the hand-made ones of the tuner study.
+
+    Attributes:
+        t: increasing times, s (the first is 0).  omega_Q, omega_R: the weights from each time
+            on, in [1e-3, 1e3].
+    """
+
+    t: List[float] = field(default_factory=lambda: [0.0])
+    omega_Q: List[float] = field(default_factory=lambda: [1.0])
+    omega_R: List[float] = field(default_factory=lambda: [1.0])
+
+
+TunerChoice = Union[AnnTunerDriver, RatioTunerDriver, WeightSchedule]
 
 
 # -- references ----------------------------------------------------------------------------------
@@ -399,8 +433,10 @@ class Scenario:
             :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`).
         feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
         controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
-        tuner: None (fixed weights) or :class:`AnnTunerDriver` (needs a controller with the
-            ``omega`` input and the ``e_bar`` output, e.g. the LQI).
+        tuner: None (fixed weights), :class:`AnnTunerDriver` (the paper's network),
+            :class:`RatioTunerDriver` (ours) or :class:`WeightSchedule` (weights known in
+            advance); the tuners need a controller with the ``omega`` input and the ``e_bar``
+            output (the LQI), a schedule only the ``omega`` input.
         duration_s: simulated time, s.
         control_period_s: controller period h, s (a whole multiple of the plant step).
         log_period_s: logging period, s (a whole multiple of the plant step).
@@ -429,7 +465,7 @@ class Scenario:
     reference: ReferenceChoice = field(default_factory=NamedReference)
     feedforward: str = "gravity"
     controller: ControllerChoice = field(default_factory=LqiDriver)
-    tuner: Optional[AnnTunerDriver] = None
+    tuner: Optional[TunerChoice] = None
     duration_s: float = 10.0
     control_period_s: float = 1e-3
     log_period_s: float = 1e-3
@@ -535,21 +571,7 @@ class Scenario:
             raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got "
                                      f"{self.feedforward!r}")
         if self.tuner is not None:
-            t = self.tuner
-            if not isinstance(t, AnnTunerDriver):
-                raise InvalidConfigError(f"tuner must be None or an AnnTunerDriver, got "
-                                         f"{type(t).__name__}")
-            as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
-            check_multiple("tuner.period_s", t.period_s, "control_period_s",
-                           self.control_period_s)
-            _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
-            if t.weights and not Path(t.weights).is_file():
-                raise MissingFileError(f"no ANN tuner weights at {t.weights} (tuner.weights): "
-                                       f"check the path, or leave it empty for the shipped "
-                                       f"weights")
-            if isinstance(self.controller, PdDriver):
-                raise InvalidConfigError("the ANN tuner drives the LQI's weights (its omega "
-                                         "input): use an LqiDriver controller with a tuner")
+            self._validate_tuner()
         if self.sensor_noise is not None:
             noise = self.sensor_noise
             if not isinstance(noise, SensorNoise):
@@ -612,6 +634,40 @@ class Scenario:
             raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot as "
                                      "built the encoders are noisy: set "
                                      "hardware.encoders.noise_counts instead")
+
+    def _validate_tuner(self) -> None:
+        t = self.tuner
+        if not isinstance(t, (AnnTunerDriver, RatioTunerDriver, WeightSchedule)):
+            raise InvalidConfigError(f"tuner must be None, an AnnTunerDriver, a RatioTunerDriver "
+                                     f"or a WeightSchedule, got {type(t).__name__}")
+        if isinstance(self.controller, PdDriver):
+            raise InvalidConfigError("a tuner drives the LQI's weights (its omega input): use an "
+                                     "LqiDriver controller with a tuner")
+        if isinstance(t, WeightSchedule):
+            times = as_array("tuner.t", t.t)
+            if times.ndim != 1 or times.size < 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
+                raise InvalidConfigError(f"tuner.t must be increasing times starting at 0 s, got "
+                                         f"{t.t!r:.80}")
+            for name in ("omega_Q", "omega_R"):
+                values = as_array(f"tuner.{name}", getattr(t, name))
+                if values.shape != times.shape:
+                    raise InvalidConfigError(f"tuner.{name} needs one value per time "
+                                             f"({times.size}), got {values.size}")
+                if np.any(values < OMEGA_MIN) or np.any(values > OMEGA_MAX):
+                    raise InvalidConfigError(f"tuner.{name} must be in [{OMEGA_MIN:g}, "
+                                             f"{OMEGA_MAX:g}]")
+            return
+        as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
+        check_multiple("tuner.period_s", t.period_s, "control_period_s", self.control_period_s)
+        _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
+        if isinstance(t, RatioTunerDriver) and not t.weights:
+            raise MissingFileError("a RatioTunerDriver needs its weights (tuner.weights): "
+                                   "`stewart-drake evaluate` trains them")
+        if t.weights and not Path(t.weights).is_file():
+            kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
+            raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
+                                   f"path" + (", or leave it empty for the shipped weights"
+                                              if isinstance(t, AnnTunerDriver) else ""))
 
     def _validate_controller(self) -> None:
         c = self.controller
