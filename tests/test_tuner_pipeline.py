@@ -26,6 +26,23 @@ def test_data_trajectory_is_deterministic_reachable_and_in_band():
     assert np.all(acc <= np.array([30, 30, 30, 3, 3, 3]) * (1 + 1e-9))
 
 
+def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50():
+    """The check a run makes first (GuardConfig's thresholds, sampled at the 1 ms control
+    period): seed 0 used to leave the crank-joint cone by 0.028 deg at t = 0.644 s."""
+    geometry, refused = StewartGeometry(), []
+    for seed in range(51):
+        report = validate(data_collection_trajectory(seed), geometry, 10.0, dt=1e-3,
+                          raise_refused=False)
+        if not report.ok:
+            refused.append((seed, str(report.first_violation), report.first_singular_t,
+                            report.first_weak_t))
+    assert refused == []
+    # Scaled down to the binding limit, not far inside it: seed 0's crank joint ends
+    # 0.018 deg inside its cone (one common factor on the amplitudes, 0.999 of the limit's).
+    report = validate(data_collection_trajectory(0), geometry, 10.0, raise_refused=False)
+    assert 0 < np.rad2deg(report.min_margin["crank_joint"]) < 0.05
+
+
 def test_shipped_tuner_loads_and_says_how_it_was_made():
     model = load_tuner()
     assert DEFAULT_TUNER_PATH.exists()
