@@ -3,19 +3,24 @@
 Each subcommand parses its arguments here and calls the functions of the modules that own the idea
 (imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the Simulator);
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
-exit 2 for bad arguments and StewartError (refused input, a diverged run), 1 for a file that
-cannot be read or written, 130 for Ctrl-C. Output folders are checked for writing before any
+exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
+other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
+the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Output folders are checked for writing before any
 work starts, so a long run never ends in a failed save.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import tempfile
 from pathlib import Path
 
 from ..errors import StewartError
+
+#: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
+RESUMABLE = ("collect", "evaluate")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -119,23 +124,31 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _runner(args):
+    """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``."""
+    from ..studies.runners import make_runner
+
+    return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
+                       retries=args.retries)
+
+
 def _cmd_collect(args) -> int:
     """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
     from ..studies.collection import collect
-    from ..studies.runners import runner_for_jobs
 
-    runner = runner_for_jobs(args.jobs)
-    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
+    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=_runner(args),
                        progress=not args.no_progress)
-    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")
+    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out} "
+          f"({manifest['ran']} run now, {manifest['reused']} found on disk)")
     for run in manifest["runs"]:
         rms = run["rms_error"]
         print(f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
               f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
               f"sum T^2 dt {run['sum_T2_dt']:.3g}")
-    print(f"speedup over one process: {manifest['speedup']:.2f} "
-          f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
-          f"{manifest['workers']} workers)")
+    if manifest["ran"]:
+        print(f"speedup over one process: {manifest['speedup']:.2f} "
+              f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
+              f"{manifest['workers']} workers)")
     return 0
 
 
@@ -170,14 +183,15 @@ def _cmd_train(args) -> int:
 def _cmd_evaluate(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
     from ..studies.evaluation import CONTROLLERS, evaluate
-    from ..studies.runners import runner_for_jobs
 
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    runner = runner_for_jobs(args.jobs)
-    report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
+    check_writable(Path(args.docs))
+    report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
                       quick=args.quick, controllers=controllers)
     failed = sum("error" in r for r in report["rows"])
-    print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
+    info = report["info"]
+    print(f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
+          f"{info['reused']} found on disk; {failed} failed)")
     for ann, v in report["verdict"].items():
         b = v["best_fixed"]
         print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
@@ -192,7 +206,8 @@ def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV."""
     from ..studies.workspace import write_workspace
 
-    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress)
+    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
+                           runner=_runner(args))
     for name, value, unit in rows[:9]:
         print(f"{name} {value} {unit}")
     print(f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
@@ -207,6 +222,26 @@ def _cmd_diagrams(args) -> int:
     for path in write_diagrams(args.out or DIAGRAMS_DIR, render=not args.dot_only):
         print(f"wrote {path}")
     return 0
+
+
+def _add_runner_arguments(parser) -> None:
+    """The options of a study's runner (studies/runners.py)."""
+    from ..studies.runners import DEFAULT_RETRIES, RUNNERS
+
+    parser.add_argument("--runner", choices=RUNNERS, default="processes",
+                        help="where jobs run: local processes, this process, Ray or Dask "
+                             "(processes)")
+    parser.add_argument("--jobs", type=_int_at_least(0), default=0,
+                        help="workers: processes, or the CPUs of a local Ray or Dask cluster "
+                             "(0: one per core)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster to join (--runner ray; default: start a local one)")
+    parser.add_argument("--scheduler", default=None,
+                        help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
+                             "start a local cluster)")
+    parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
+                        help=f"attempts after the first for a job whose worker died "
+                             f"({DEFAULT_RETRIES})")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -238,8 +273,7 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--out", default="results/collect", help="output folder")
     col.add_argument("--duration", type=_positive_float, default=10.0, help="s per run (10)")
     col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed (0)")
-    col.add_argument("--jobs", type=_int_at_least(0), default=0,
-                     help="processes (0: one per core)")
+    _add_runner_arguments(col)
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     col.set_defaults(func=_cmd_collect)
 
@@ -255,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev = sub.add_parser("evaluate", help="every controller on every scenario: docs/results.md")
     ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
     ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
-    ev.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    _add_runner_arguments(ev)
     ev.add_argument("--controllers", default=None,
                     help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (all)")
     ev.add_argument("--quick", action="store_true",
@@ -267,8 +301,7 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--out", default="results/workspace", help="output folder")
     ws.add_argument("--resolution", type=_int_at_least(2), default=41,
                     help="grid points per axis (41)")
-    ws.add_argument("--jobs", type=_int_at_least(0), default=0,
-                    help="processes (0: one per core)")
+    _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
 
@@ -297,10 +330,14 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:                           # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"stewart-drake {args.command}: interrupted; partial outputs were not written",
-              file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:                 # Ctrl-C, or SIGTERM / SIGHUP in a study
+        signum = getattr(err, "signum", signal.SIGINT)
+        kept = (f"finished results are kept in {args.out}: run the same command again to run "
+                f"only the rest" if args.command in RESUMABLE else
+                "partial outputs were not written")
+        print(f"stewart-drake {args.command}: interrupted by {signal.Signals(signum).name}; "
+              f"{kept}", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

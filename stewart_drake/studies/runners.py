@@ -493,9 +493,3 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
     if kind == "dask":
         return DaskRunner(jobs, scheduler, retries)
     return ProcessRunner(jobs, retries, recycle)
-
-
-def runner_for_jobs(jobs: int):
-    """The runner for a plain ``--jobs`` value: 1 runs here (:class:`SerialRunner`), 0 one
-    process per core, N that many processes (:class:`ProcessRunner`)."""
-    return SerialRunner() if jobs == 1 else ProcessRunner(jobs)
