@@ -166,7 +166,8 @@ class _WorkerLost(Exception):
 
 class _PoolRunner:
     """The protocol's loop over a pool of workers; backends supply ``_open`` -> a pool with
-    ``capacity`` (jobs in flight), ``submit(*args)``, ``wait(handles, timeout)`` -> done
+    ``capacity`` (jobs in flight), ``submit(fn, job_id, job)`` (runs ``_call`` of them),
+    ``wait(handles, timeout)`` -> done
     handles, ``outcome(handle)`` (raises :class:`_WorkerLost`), ``recover()`` (after a loss)
     and ``close(pending)`` (cancel and end what is pending)."""
 
@@ -189,7 +190,7 @@ class _PoolRunner:
                     while queue and len(inflight) < pool.capacity:
                         job_id = queue.popleft()
                         attempts[job_id] += 1
-                        inflight[pool.submit(_call, fn, job_id, jobs[job_id])] = job_id
+                        inflight[pool.submit(fn, job_id, jobs[job_id])] = job_id
                     for handle in pool.wait(list(inflight), timeout=0.5):
                         job_id = inflight.pop(handle)
                         try:
@@ -252,7 +253,7 @@ class _LocalPool:
         return ProcessPoolExecutor(**self._args)
 
     def submit(self, *args):
-        return self.executor.submit(*args)
+        return self.executor.submit(_call, *args)
 
     def wait(self, handles, timeout):
         from concurrent.futures import FIRST_COMPLETED, wait
@@ -402,7 +403,7 @@ class _DaskPool:
         self.capacity = capacity
 
     def submit(self, *args):
-        return self.client.submit(*args, pure=False)
+        return self.client.submit(_call, *args, pure=False)
 
     def wait(self, handles, timeout):
         try:
