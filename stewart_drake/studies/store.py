@@ -85,6 +85,7 @@ class ResultStore:
     def __init__(self, folder, study: str, settings: dict, pattern: str):
         self.folder = Path(folder)
         self.study = study
+        settings = json.loads(json.dumps(settings, default=str))   # as the manifest holds it
         self.settings = settings
         self.hash = settings_hash(settings)
         old = read_manifest(self.folder)
