@@ -125,11 +125,12 @@ def _cmd_run(args) -> int:
 
 
 def _runner(args):
-    """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``."""
+    """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
+    ``--recycle``."""
     from ..studies.runners import make_runner
 
     return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
-                       retries=args.retries)
+                       retries=args.retries, recycle=args.recycle)
 
 
 def _cmd_collect(args) -> int:
@@ -226,7 +227,7 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import DEFAULT_RETRIES, RUNNERS
+    from ..studies.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
                         help="where jobs run: local processes, this process, Ray or Dask "
@@ -242,6 +243,9 @@ def _add_runner_arguments(parser) -> None:
     parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
                         help=f"attempts after the first for a job whose worker died "
                              f"({DEFAULT_RETRIES})")
+    parser.add_argument("--recycle", type=_int_at_least(0), default=DEFAULT_RECYCLE,
+                        help=f"jobs a worker runs before it is replaced, to bound leaked memory "
+                             f"(0: never; processes and ray) ({DEFAULT_RECYCLE})")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -46,9 +46,10 @@ from ..errors import InvalidConfigError
 
 #: Names of the backends, for ``--runner``.
 RUNNERS = ("processes", "serial", "ray", "dask")
-#: Jobs a local worker process runs before it is replaced. A Diagram with a Python LeafSystem
-#: leaks about 21 MB per 10 s run on drake 1.51, so this bounds a worker's growth to ~200 MB.
-DEFAULT_RECYCLE = 10
+#: Jobs a worker process runs before it is replaced. A Diagram with a Python LeafSystem leaks
+#: about 21 MB per 10 s run on drake 1.51 (4 MB per 1 s run), so this bounds a worker's growth
+#: to ~420 MB; a replacement costs a fresh interpreter and pydrake import (~1.5 s).
+DEFAULT_RECYCLE = 20
 #: Attempts after the first for a job whose worker died.
 DEFAULT_RETRIES = 2
 #: Signals that cancel a running ``map``.
@@ -475,7 +476,8 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
     Args:
         kind: one of :data:`RUNNERS`. jobs: workers (0: one per core; a local cluster's size
             for ray and dask). address: Ray cluster (ray only). scheduler: Dask scheduler
-            (dask only). retries, recycle: see :class:`ProcessRunner`.
+            (dask only). retries, recycle: see :class:`ProcessRunner` (recycle 0 or None:
+            never; Dask ignores it).
     Raises:
         InvalidConfigError: an unknown kind, an option of another backend, or a negative count.
     """
@@ -489,6 +491,7 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
         raise InvalidConfigError(f"--jobs and --retries must be >= 0, got {jobs}, {retries}")
     if kind == "serial":
         return SerialRunner()
+    recycle = recycle or None
     if kind == "ray":
         return RayRunner(jobs, address, retries, recycle)
     if kind == "dask":
