@@ -31,7 +31,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from stewart_drake.studies.evaluation import CONTROLLERS, SCENARIO_DURATION_S, evaluate  # noqa
-from stewart_drake.studies.runners import ProcessRunner, RayRunner  # noqa: E402
+from stewart_drake.studies.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
 
 
 def _noop(job):
@@ -47,6 +47,22 @@ def _rss_after_run(duration_s: float) -> tuple[int, float]:
 
     run_experiment(StewartConfig(duration_s=duration_s))
     return os.getpid(), psutil.Process().memory_info().rss / 2 ** 20
+
+
+def _busy_cores() -> float:
+    """CPU seconds the whole machine has spent busy so far (all processes, all cores)."""
+    import psutil
+
+    t = psutil.cpu_times()
+    return sum(t) - t.idle - getattr(t, "iowait", 0.0)
+
+
+def _wait_quiet(max_wait_s: float, below: float = 0.3) -> None:
+    """Wait (at most ``max_wait_s``) until the 1-minute load average is below ``below``: other
+    users of a shared machine would take the cores the workers are meant to have."""
+    deadline = time.monotonic() + max_wait_s
+    while os.getloadavg()[0] >= below and time.monotonic() < deadline:
+        time.sleep(5)
 
 
 def _runner(kind: str, workers: int):
@@ -74,23 +90,27 @@ class _RayCluster:
         ray.shutdown()
 
 
-def scaling(controllers, kinds=("processes", "ray")) -> dict:
-    """Wall time of evaluate --quick per backend and worker count; the rows of each."""
+def scaling(controllers, kinds=("processes", "ray"), quiet_wait_s: float = 0.0) -> dict:
+    """Wall time of evaluate --quick per backend and worker count; the rows of each. Each line
+    says how busy the machine was meanwhile (all processes: ours count ``workers`` cores)."""
     measured = {}
     for kind in kinds:
         for workers in (1, 2):
+            _wait_quiet(quiet_wait_s)
             cluster = _RayCluster(workers) if kind == "ray" else contextlib.nullcontext()
             with tempfile.TemporaryDirectory() as tmp, cluster:
-                t0 = time.perf_counter()
+                load0, busy0, t0 = os.getloadavg()[0], _busy_cores(), time.perf_counter()
                 report = evaluate(Path(tmp) / "docs", Path(tmp) / "out",
                                   runner=_runner(kind, workers), progress=False, quick=True,
                                   controllers=controllers)
                 wall = time.perf_counter() - t0
+                busy = (_busy_cores() - busy0) / wall
             rows = report["rows"]
             case_s = sum(r["wall_s"] for r in rows if "wall_s" in r)
             measured[kind, workers] = {"wall": wall, "rows": rows, "case_s": case_s}
             print(f"{kind}_{workers}_workers_wall_s {wall:.1f} ({len(rows)} cases, sum of case "
-                  f"times {case_s:.1f} s, {sum('error' in r for r in rows)} failed)", flush=True)
+                  f"times {case_s:.1f} s, {sum('error' in r for r in rows)} failed; machine "
+                  f"busy {busy:.2f} cores on average, load {load0:.2f} at start)", flush=True)
         one, two = measured[kind, 1], measured[kind, 2]
         n = len(two["rows"])
         print(f"{kind}_speedup_2_over_1 {one['wall'] / two['wall']:.2f}")
@@ -145,7 +165,7 @@ def projection(rows, overhead_s: float) -> None:
 
 def memory(runs: int, duration_s: float) -> None:
     """RSS of one worker after each of ``runs`` consecutive runs, with and without recycling."""
-    for recycle in (None, 10):
+    for recycle in (None, DEFAULT_RECYCLE):
         jobs = {str(k): duration_s for k in range(runs)}
         got = dict(ProcessRunner(1, recycle=recycle).map(_rss_after_run, jobs))
         rss = [got[str(k)][1] for k in range(runs)]
@@ -163,13 +183,16 @@ def main() -> int:
     parser.add_argument("--controllers", default=None, help="comma-separated subset (all)")
     parser.add_argument("--memory-runs", type=int, default=50)
     parser.add_argument("--memory-duration", type=float, default=2.0, help="s per run (2)")
+    parser.add_argument("--wait-quiet", type=float, default=0.0,
+                        help="before each scaling run, wait up to this many s for the load "
+                             "average to drop below 0.3 (a shared machine)")
     args = parser.parse_args()
     parts = set(args.parts.split(","))
     controllers = tuple(args.controllers.split(",")) if args.controllers else CONTROLLERS
     print(f"cpus {os.cpu_count()} load_average_start {os.getloadavg()[0]:.2f}", flush=True)
     measured, overhead = None, {}
     if "scaling" in parts or "projection" in parts:
-        measured = scaling(controllers)
+        measured = scaling(controllers, quiet_wait_s=args.wait_quiet)
     if "noop" in parts:
         noop()
     if "projection" in parts:

@@ -95,24 +95,27 @@ def test_workers_are_recycled_after_n_jobs():
     assert len(set(pids)) == 3 and os.getpid() not in pids
 
 
-def test_sigterm_during_map_ends_the_workers_and_keeps_what_finished():
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT],
+                         ids=lambda s: signal.Signals(s).name)
+def test_a_signal_during_map_ends_the_workers_and_keeps_what_finished(signum):
     got = []
 
     def on_result(job_id, outcome):
         got.append(job_id)
-        os.kill(os.getpid(), signal.SIGTERM)          # as `kill <pid>` would, after one result
+        os.kill(os.getpid(), signum)                  # as `kill <pid>` would, after one result
 
     before = {p.pid for p in psutil.Process().children(recursive=True)}
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     with pytest.raises(Interrupted) as info:
         for _ in ProcessRunner(2).map(pid_after, {"a": 0.0, "b": 30.0, "c": 30.0},
                                       progress=on_result):
             pass
-    assert info.value.signum == signal.SIGTERM and got == ["a"]
+    assert info.value.signum == signum and got == ["a"]
     time.sleep(0.5)
     left = [p for p in psutil.Process().children(recursive=True)
             if p.pid not in before and p.status() != psutil.STATUS_ZOMBIE]
     assert left == []
-    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL     # handlers restored
+    assert {s: signal.getsignal(s) for s in handlers} == handlers   # restored
 
 
 def test_workers_die_with_their_parent(tmp_path):

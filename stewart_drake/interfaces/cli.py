@@ -44,7 +44,7 @@ def _int_at_least(lowest: int):
     return parse
 
 
-def check_writable(folder: Path) -> None:
+def check_writable(folder: Path, option: str = "--out") -> None:
     """Make sure ``folder`` can be created (if missing) and written, without creating it.
 
     Walks up to the nearest existing ancestor and writes a temporary file there.
@@ -63,7 +63,7 @@ def check_writable(folder: Path) -> None:
             pass
     except OSError as err:
         raise InvalidConfigError(f"cannot write to {folder}: {err.strerror or err}; choose "
-                                 f"another output with --out") from None
+                                 f"another output with {option}") from None
 
 
 def _positive_float(text: str) -> float:
@@ -186,7 +186,7 @@ def _cmd_evaluate(args) -> int:
     from ..studies.evaluation import CONTROLLERS, evaluate
 
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    check_writable(Path(args.docs))
+    check_writable(Path(args.docs), "--docs")
     report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
                       quick=args.quick, controllers=controllers)
     failed = sum("error" in r for r in report["rows"])
