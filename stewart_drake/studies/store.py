@@ -96,10 +96,14 @@ class ResultStore:
                     f"stewart-drake, or the manifest was removed): choose another --out or "
                     f"delete them")
             old = {}
-        elif old.get("study") != study:
+        elif "study" not in old or "settings_hash" not in old:
             raise ResultsMismatchError(
-                f"{self.folder} holds results of `stewart-drake {old.get('study', '?')}`, not "
-                f"of `{study}`: choose another --out")
+                f"{self.folder} holds results of an older stewart-drake (no settings hash in "
+                f"its {MANIFEST}): choose another --out or delete the folder")
+        elif old["study"] != study:
+            raise ResultsMismatchError(
+                f"{self.folder} holds results of `stewart-drake {old['study']}`, not of "
+                f"`{study}`: choose another --out")
         elif old.get("settings_hash") != self.hash:
             raise ResultsMismatchError(
                 f"{self.folder} holds {study} results of other settings "
