@@ -193,6 +193,7 @@ def main() -> int:
     parser.add_argument("--controllers", default=None, help="comma-separated subset (all)")
     parser.add_argument("--memory-runs", type=int, default=50)
     parser.add_argument("--memory-duration", type=float, default=2.0, help="s per run (2)")
+    parser.add_argument("--runners", default="processes,ray", help="backends of the scaling part")
     parser.add_argument("--repeat", type=int, default=1,
                         help="interleaved repetitions of the scaling runs; the fastest counts")
     parser.add_argument("--wait-quiet", type=float, default=0.0,
@@ -204,7 +205,8 @@ def main() -> int:
     print(f"cpus {os.cpu_count()} load_average_start {os.getloadavg()[0]:.2f}", flush=True)
     measured, overhead = None, {}
     if "scaling" in parts or "projection" in parts:
-        measured = scaling(controllers, quiet_wait_s=args.wait_quiet, repeat=args.repeat)
+        measured = scaling(controllers, tuple(args.runners.split(",")),
+                           quiet_wait_s=args.wait_quiet, repeat=args.repeat)
     if "noop" in parts:
         noop()
     if "projection" in parts:
