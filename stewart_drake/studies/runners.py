@@ -167,10 +167,10 @@ class _WorkerLost(Exception):
 
 class _PoolRunner:
     """The protocol's loop over a pool of workers; backends supply ``_open`` -> a pool with
-    ``capacity`` (jobs in flight), ``submit(fn, job_id, job)`` (runs ``_call`` of them),
-    ``wait(handles, timeout)`` -> done
-    handles, ``outcome(handle)`` (raises :class:`_WorkerLost`), ``recover()`` (after a loss)
-    and ``close(pending)`` (cancel and end what is pending)."""
+    ``capacity`` (jobs in flight), ``submit(fn, job_id, job)`` (runs ``_call`` of them; raises
+    :class:`_WorkerLost` if the pool broke), ``wait(handles, timeout)`` -> done handles,
+    ``outcome(handle)`` (raises :class:`_WorkerLost`), ``recover()`` (after a loss) and
+    ``close(pending)`` (cancel and end what is pending)."""
 
     n_workers: int = 1
     retries: int = DEFAULT_RETRIES
@@ -189,9 +189,15 @@ class _PoolRunner:
                 while queue or inflight:
                     pool.recover()
                     while queue and len(inflight) < pool.capacity:
+                        try:
+                            handle = pool.submit(fn, queue[0], jobs[queue[0]])
+                        except _WorkerLost:    # the pool broke since recover(): not an attempt
+                            break
                         job_id = queue.popleft()
                         attempts[job_id] += 1
-                        inflight[pool.submit(fn, job_id, jobs[job_id])] = job_id
+                        inflight[handle] = job_id
+                    if not inflight:
+                        continue
                     for handle in pool.wait(list(inflight), timeout=0.5):
                         job_id = inflight.pop(handle)
                         try:
@@ -254,7 +260,13 @@ class _LocalPool:
         return ProcessPoolExecutor(**self._args)
 
     def submit(self, *args):
-        return self.executor.submit(_call, *args)
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return self.executor.submit(_call, *args)
+        except BrokenProcessPool:
+            self._broken = True
+            raise _WorkerLost("the pool broke") from None
 
     def wait(self, handles, timeout):
         from concurrent.futures import FIRST_COMPLETED, wait
