@@ -118,6 +118,18 @@ def test_a_signal_during_map_ends_the_workers_and_keeps_what_finished(signum):
     assert {s: signal.getsignal(s) for s in handlers} == handlers   # restored
 
 
+def test_a_signal_ignored_by_the_process_stays_ignored():
+    """`nohup stewart-drake collect &`: a hangup must not cancel the study."""
+    old = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        seen = []
+        out = dict(SerialRunner().map(square, {"a": 2, "b": 3}, progress=lambda k, o: (
+            seen.append(signal.getsignal(signal.SIGHUP)), os.kill(os.getpid(), signal.SIGHUP))))
+        assert out == {"a": 4, "b": 9} and seen == [signal.SIG_IGN] * 2
+    finally:
+        signal.signal(signal.SIGHUP, old)
+
+
 def test_workers_die_with_their_parent(tmp_path):
     """kill -9 of the parent (no cleanup can run): PR_SET_PDEATHSIG ends its workers."""
     script = textwrap.dedent(f"""

@@ -21,7 +21,8 @@ called as ``progress(job_id, outcome)`` before each yield (or wrap the iterator 
 
 Cancellation: SIGINT (Ctrl-C), SIGTERM and SIGHUP received while ``map`` runs in the main
 thread stop submitting, cancel what is pending, end the workers, and raise :class:`Interrupted`
-(a KeyboardInterrupt that names the signal); what was yielded before is the caller's to keep.
+(a KeyboardInterrupt that names the signal); what was yielded before is the caller's to keep. A
+signal the process ignores (``nohup`` ignores SIGHUP) stays ignored.
 
 Backends: :class:`SerialRunner` (this process), :class:`ProcessRunner` (local processes, the
 default: spawned, recycled after ``recycle`` jobs to bound memory, ignoring Ctrl-C themselves
@@ -124,7 +125,10 @@ def _cancel_on_signals():
     def raise_interrupted(signum, frame):
         raise Interrupted(signum)
 
-    old = {s: signal.signal(s, raise_interrupted) for s in CANCEL_SIGNALS}
+    # A signal the process was started ignoring stays ignored: `nohup` (SIGHUP), a background
+    # job of a script (SIGINT).
+    old = {s: signal.signal(s, raise_interrupted) for s in CANCEL_SIGNALS
+           if signal.getsignal(s) is not signal.SIG_IGN}
     try:
         yield
     finally:
