@@ -3,7 +3,7 @@
 Layers, imports flowing one way (a test walks them): base (errors, checks, fileio) -> model
 (geometry, kinematics, statics, limits, plant) -> control (LQI, PD, features, tuner) ->
 simulation (trajectories, reference, guard, scenario, station, diagram) -> studies (experiments,
-collection, training, evaluation, workspace, runners) -> interfaces (cli, visualize).
+collection, training, evaluation, workspace, runners, store) -> interfaces (cli, visualize).
 """
 
 from .errors import (ForwardKinematicsError, InvalidConfigError, InvalidGeometryError,

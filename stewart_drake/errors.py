@@ -1,6 +1,9 @@
 """Typed errors of stewart-drake; every message says what to change.
 
-All inherit from :class:`StewartError` so callers can catch the family at once.
+All inherit from :class:`StewartError` so callers can catch the family at once. Every one
+pickles with its attributes and message (a refusal inside a worker process comes back to the
+parent as itself): a class whose ``__init__`` takes other arguments than the message says which
+in :meth:`StewartError._init_args`.
 """
 
 from __future__ import annotations
@@ -10,6 +13,17 @@ import math
 
 class StewartError(Exception):
     """Base class of every error raised on purpose by stewart-drake."""
+
+    def _init_args(self) -> tuple:
+        """The arguments that rebuild this error through ``type(self)(*args)``."""
+        return self.args
+
+    def __reduce__(self):
+        # Exception's own reduce calls type(self)(*self.args) with the formatted message, which
+        # a custom __init__ (leg, ratio, ...) refuses: unpickling in the parent would fail and a
+        # process pool would report BrokenProcessPool instead of the refusal. The instance
+        # dict restores the attributes, ``__notes__`` included.
+        return type(self), self._init_args(), self.__dict__
 
 
 class InvalidGeometryError(StewartError, ValueError):
@@ -39,6 +53,9 @@ class UnreachablePoseError(StewartError, ValueError):
             f"|L|/sqrt(M^2+N^2) = {self.ratio:.4g} > 1. Bring the pose closer to home "
             f"[0, 0, 0, 0, 0, 0.30] or reduce the trajectory's amplitude.")
 
+    def _init_args(self) -> tuple:
+        return self.leg, self.ratio, self.t, self.pose
+
 
 class RiccatiSolveError(StewartError, RuntimeError):
     """The discrete algebraic Riccati equation (paper eqs. 31-32) had no stabilizing solution."""
@@ -53,6 +70,9 @@ class SimulationDivergedError(StewartError, RuntimeError):
         self.path = path
         saved = f"; data up to then saved in {path}" if path else ""
         super().__init__(f"simulation diverged at t = {self.t:.4g} s: {message}{saved}")
+
+    def _init_args(self) -> tuple:
+        return self.message, self.t, self.path
 
 
 class ForwardKinematicsError(StewartError, RuntimeError):
@@ -90,6 +110,9 @@ class JointLimitError(StewartError, ValueError):
             f" deg{where}. Reduce the trajectory's amplitude, or widen "
             f"StewartGeometry.{self._FIELD.get(self.limit, self.limit)} if the hardware allows.")
 
+    def _init_args(self) -> tuple:
+        return self.leg, self.limit, self.margin, self.t, self.pose
+
 
 class SingularPoseError(StewartError, ValueError):
     """A pose (or a path) too close to a singularity of the Jacobian J = d theta / d x.
@@ -122,6 +145,22 @@ class SingularPoseError(StewartError, ValueError):
             f"the pose is too close to a singularity{where}: {what}. Keep the "
             f"path nearer the home pose [0, 0, 0, 0, 0, 0.30], or change the threshold "
             f"(GuardConfig.cond_threshold / min_sigma_min_inv) if you know the margin is enough.")
+
+    def _init_args(self) -> tuple:
+        return self.measure, self.value, self.threshold, self.t, self.pose
+
+
+class ResultsMismatchError(StewartError, ValueError):
+    """An output folder that holds results of other settings or of another command.
+
+    Raised before any work (``collect``, ``evaluate``) and before reading (``train``), so runs of
+    two settings are never mixed; the message names the folder and the settings that differ.
+    """
+
+
+class IncompleteResultsError(StewartError, RuntimeError):
+    """A study whose results are not all on disk: jobs lost with their worker, failed, or not
+    run yet. What finished is kept; the same command run again runs only what is missing."""
 
 
 class MissingFileError(StewartError, FileNotFoundError):

@@ -94,11 +94,12 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         html = args.html
         if html is None:
-            from stewart_drake.simulation.diagram import StewartConfig
             from stewart_drake.interfaces.visualize import record_html
+            from stewart_drake.simulation.scenario import Scenario
 
             t0 = time.perf_counter()
-            _, html = record_html(StewartConfig(duration_s=args.duration), Path(tmp) / "replay.html")
+            _, html = record_html(Scenario(duration_s=args.duration),
+                                   Path(tmp) / "replay.html")
             print(f"replay_html_bytes {html.stat().st_size} ({args.duration:g} s run, "
                   f"{time.perf_counter() - t0:.1f} s wall)")
         t0 = time.perf_counter()

@@ -3,14 +3,16 @@
 Each subcommand parses its arguments here and calls the functions of the modules that own the idea
 (imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the Simulator);
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
-exit 2 for bad arguments and StewartError (refused input, a diverged run), 1 for a file that
-cannot be read or written, 130 for Ctrl-C. Output folders are checked for writing before any
+exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
+other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
+the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Output folders are checked for writing before any
 work starts, so a long run never ends in a failed save.
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -19,6 +21,8 @@ from ..errors import StewartError
 
 #: The scenario `run`, `collect` and `evaluate` use unless told: the robot as built.
 DEFAULT_SCENARIO = "paper_hardware"
+#: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
+RESUMABLE = ("collect", "evaluate")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,7 +46,7 @@ def _int_at_least(lowest: int):
     return parse
 
 
-def check_writable(folder: Path) -> None:
+def check_writable(folder: Path, option: str = "--out") -> None:
     """Make sure ``folder`` can be created (if missing) and written, without creating it.
 
     Walks up to the nearest existing ancestor and writes a temporary file there.
@@ -61,7 +65,7 @@ def check_writable(folder: Path) -> None:
             pass
     except OSError as err:
         raise InvalidConfigError(f"cannot write to {folder}: {err.strerror or err}; choose "
-                                 f"another output with --out") from None
+                                 f"another output with {option}") from None
 
 
 def _positive_float(text: str) -> float:
@@ -189,25 +193,37 @@ def _cmd_scenario(args) -> int:
     return 0
 
 
+def _runner(args):
+    """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
+    ``--recycle``."""
+    from ..studies.runners import make_runner
+
+    return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
+                       retries=args.retries, recycle=args.recycle)
+
+
 def _cmd_collect(args) -> int:
     """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
     from ..simulation.scenario import load_scenario
     from ..studies.collection import collect
-    from ..studies.runners import runner_for_jobs
 
-    base = load_scenario(args.scenario)
-    runner = runner_for_jobs(args.jobs)
-    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=runner,
+    base = load_scenario(args.scenario, args.set or ())
+    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=_runner(args),
                        progress=not args.no_progress, base=base)
-    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out}")
+    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out} "
+          f"({manifest['ran']} run now, {manifest['reused']} found on disk)")
     for run in manifest["runs"]:
         rms = run["rms_error"]
-        print(f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
-              f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
+        head = f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
+        if run.get("lost"):
+            print(head + f"lost the platform ({run['lost']}); no data")
+            continue
+        print(head + f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
               f"sum T^2 dt {run['sum_T2_dt']:.3g}")
-    print(f"speedup over one process: {manifest['speedup']:.2f} "
-          f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
-          f"{manifest['workers']} workers)")
+    if manifest["ran"]:
+        print(f"speedup over one process: {manifest['speedup']:.2f} "
+              f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
+              f"{manifest['workers']} workers)")
     return 0
 
 
@@ -226,6 +242,12 @@ def _cmd_train(args) -> int:
     from ..studies.training import build_dataset, train
 
     records = load_records(args.data)
+    if len(records) < 2:
+        from ..errors import InvalidConfigError
+
+        raise InvalidConfigError(
+            f"{len(records)} of the runs in {args.data} kept the platform (the others lost the "
+            f"platform): too few to train on; collect with a scenario the motors can follow")
     reports = {}
     for mode in ("paper", "best_cost"):
         dataset = build_dataset(records, mode=mode)
@@ -249,14 +271,15 @@ def _cmd_train(args) -> int:
 def _cmd_evaluate(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
     from ..studies.evaluation import CONTROLLERS, evaluate
-    from ..studies.runners import runner_for_jobs
 
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    runner = runner_for_jobs(args.jobs)
-    report = evaluate(args.docs, args.out, runner=runner, progress=not args.no_progress,
+    check_writable(Path(args.docs), "--docs")
+    report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
                       quick=args.quick, controllers=controllers, base=args.scenario)
     failed = sum("error" in r for r in report["rows"])
-    print(f"{len(report['rows'])} runs in {report['wall_s']:.0f} s wall ({failed} failed)")
+    info = report["info"]
+    print(f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
+          f"{info['reused']} found on disk; {failed} failed)")
     for ann, v in report["verdict"].items():
         b = v["best_fixed"]
         print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
@@ -271,7 +294,8 @@ def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV."""
     from ..studies.workspace import write_workspace
 
-    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress)
+    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
+                           runner=_runner(args))
     for name, value, unit in rows[:9]:
         print(f"{name} {value} {unit}")
     print(f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
@@ -286,6 +310,29 @@ def _cmd_diagrams(args) -> int:
     for path in write_diagrams(args.out, render=not args.dot_only):
         print(f"wrote {path}")
     return 0
+
+
+def _add_runner_arguments(parser) -> None:
+    """The options of a study's runner (studies/runners.py)."""
+    from ..studies.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
+
+    parser.add_argument("--runner", choices=RUNNERS, default="processes",
+                        help="where jobs run: local processes, this process, Ray or Dask "
+                             "(processes)")
+    parser.add_argument("--jobs", type=_int_at_least(0), default=0,
+                        help="workers: processes, or the CPUs of a local Ray or Dask cluster "
+                             "(0: one per core)")
+    parser.add_argument("--address", default=None,
+                        help="Ray cluster to join (--runner ray; default: start a local one)")
+    parser.add_argument("--scheduler", default=None,
+                        help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
+                             "start a local cluster)")
+    parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
+                        help=f"attempts after the first for a job whose worker died "
+                             f"({DEFAULT_RETRIES})")
+    parser.add_argument("--recycle", type=_int_at_least(0), default=DEFAULT_RECYCLE,
+                        help=f"jobs a worker runs before it is replaced, to bound leaked memory "
+                             f"(0: never; processes and ray) ({DEFAULT_RECYCLE})")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -335,11 +382,12 @@ def build_parser() -> argparse.ArgumentParser:
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     col.add_argument("--scenario", default=DEFAULT_SCENARIO,
                      help=f"scenario the runs share (file or shipped name; {DEFAULT_SCENARIO})")
+    col.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a field of the scenario, e.g. torque_limit_Nm=0.5")
     col.add_argument("--out", default="results/collect", help="output folder")
     col.add_argument("--duration", type=_positive_float, default=10.0, help="s per run (10)")
     col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed (0)")
-    col.add_argument("--jobs", type=_int_at_least(0), default=0,
-                     help="processes (0: one per core)")
+    _add_runner_arguments(col)
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     col.set_defaults(func=_cmd_collect)
 
@@ -358,7 +406,7 @@ def build_parser() -> argparse.ArgumentParser:
                          f"{DEFAULT_SCENARIO})")
     ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
     ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
-    ev.add_argument("--jobs", type=int, default=0, help="processes (0: one per core)")
+    _add_runner_arguments(ev)
     ev.add_argument("--controllers", default=None,
                     help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (all)")
     ev.add_argument("--quick", action="store_true",
@@ -370,8 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--out", default="results/workspace", help="output folder")
     ws.add_argument("--resolution", type=_int_at_least(2), default=41,
                     help="grid points per axis (41)")
-    ws.add_argument("--jobs", type=_int_at_least(0), default=0,
-                    help="processes (0: one per core)")
+    _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
 
@@ -406,10 +453,14 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:                           # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f"stewart-drake {args.command}: interrupted; partial outputs were not written",
-              file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:                 # Ctrl-C, or SIGTERM / SIGHUP in a study
+        signum = getattr(err, "signum", signal.SIGINT)
+        kept = (f"finished results are kept in {args.out}: run the same command again to run "
+                f"only the rest" if args.command in RESUMABLE else
+                "partial outputs were not written")
+        print(f"stewart-drake {args.command}: interrupted by {signal.Signals(signum).name}; "
+              f"{kept}", file=sys.stderr)
+        return 128 + signum
 
 
 if __name__ == "__main__":

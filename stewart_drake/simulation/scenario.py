@@ -523,7 +523,8 @@ class Scenario:
                                                phase=tuple(ref.phase), offset=tuple(ref.offset),
                                                name=ref.name)
         return trajectories.data_collection_trajectory(ref.seed, self.geometry(),
-                                                       duration_s=self.duration_s)
+                                                       duration_s=self.duration_s,
+                                                       torque_limit_Nm=self.torque_limit())
 
     @property
     def plant_time_step_s(self) -> float:

@@ -21,7 +21,7 @@ class PlatformPoseSensor(LeafSystem):
         plant: the finalized MultibodyPlant; handles: from ``add_stewart_plant``.
 
     Measurement noise is not added here: the Diagram adds a seeded Drake ``RandomSource``
-    (``StewartConfig.sensor_noise_std``), so a run repeats however often ``x`` is evaluated.
+    (``Scenario.sensor_noise``), so a run repeats however often ``x`` is evaluated.
     """
 
     def __init__(self, plant, handles: StewartPlantHandles):

@@ -1,8 +1,9 @@
 """Data collection for the ANN tuner (paper section III.D): the nine closed-loop runs.
 
 :func:`collect` runs the paper's 9 experiments, (omega_Q, omega_R) in {0.1, 1, 10}^2, over a
-runner and writes one record per run (features and normalized cost parts) plus a manifest;
-:func:`load_records` reads them back for :mod:`.training`.
+runner and writes one record per run (features and normalized cost parts) as it finishes, with
+a manifest (:mod:`.store`: resume, settings hash); :func:`load_records` reads a complete
+collection back for :mod:`.training` and refuses an incomplete or mixed one.
 """
 
 from __future__ import annotations
@@ -16,12 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from ..control.features import density_features_series
-from ..errors import InvalidConfigError
-from ..fileio import atomic_write, save_npz
+from ..errors import IncompleteResultsError, InvalidConfigError, ResultsMismatchError
 from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
-from ..simulation.trajectories import data_collection_trajectory
 from .experiments import RunResult, run_experiment
-from .runners import ProcessRunner
+from .runners import JobFailure, ProcessRunner
+from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 
@@ -55,9 +55,12 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
 
 def job_config(base: Scenario | None, seed: int, duration_s: float, omega_Q: float,
                omega_R: float) -> Scenario:
-    """The scenario of one collection run: ``base`` (default: the ideal paper scenario) tracking
-    the seeded excitation for ``duration_s`` with the LQI at fixed (omega_Q, omega_R)."""
-    scenario = copy.deepcopy(base) if base is not None else Scenario()
+    """The scenario of one collection run, the only place it is built: ``base`` (default: the
+    robot as built, ``paper_hardware``) tracking the seeded excitation for ``duration_s`` with
+    the LQI at fixed (omega_Q, omega_R)."""
+    from ..simulation.scenario import load_scenario
+
+    scenario = copy.deepcopy(base) if base is not None else load_scenario("paper_hardware")
     scenario.reference = DataCollectionReference(seed=seed)
     scenario.duration_s = duration_s
     scenario.tuner = None
@@ -76,6 +79,30 @@ def _collect_job(job: dict) -> dict:
     return record
 
 
+def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: float = 5e-3,
+                    base: Scenario | None = None) -> tuple[dict, dict]:
+    """The settings (what decides the data, hashed by the store) and the nine jobs.
+
+    Returns:
+        (settings dict, {"q<omega_Q>_r<omega_R>": job}) in the paper's grid order.
+    """
+    from ..simulation.scenario import dump_scenario
+
+    configs = {f"q{q:g}_r{r:g}": job_config(base, seed, duration_s, q, r)
+               for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS}
+    trajectory = next(iter(configs.values())).make_reference()
+    window = AnnTunerDriver().feature_window
+    settings = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
+                "feature_window": window,
+                "trajectory": {"amplitude": trajectory.amplitude,
+                               "frequency_hz": trajectory.frequency_hz,
+                               "phase": trajectory.phase},
+                "scenario": dump_scenario(next(iter(configs.values())))}
+    jobs = {k: {"config": c, "sample_period_s": sample_period_s, "feature_window": window}
+            for k, c in configs.items()}
+    return settings, jobs
+
+
 def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: float = 10.0,
             sample_period_s: float = 5e-3, runner=None, progress: bool = True,
             base: Scenario | None = None) -> dict:
@@ -83,69 +110,101 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
 
     All runs track the same :func:`~.trajectories.data_collection_trajectory` (seeded), so the
     best-cost labels can compare them window by window. 10 s at 5 ms gives 9 x 2000 = 18000
-    samples (the paper used 14400).
+    samples (the paper used 14400). Each run is written to ``out_dir`` the moment it finishes
+    (:class:`~.store.ResultStore`); run again with the same settings, only the missing runs run.
 
     Args:
-        out_dir: folder for ``run_<i>.npz`` records and ``manifest.json`` (config + metrics).
-        runner: :class:`ProcessRunner` (default, one process per core) or anything with ``map``.
+        out_dir: folder of ``run_<job>.npz`` records and ``manifest.json``.
+        runner: :class:`~.runners.ProcessRunner` (default, one process per core) or any runner
+            of :mod:`.runners`.
         base: the scenario the nine runs share (robot, hardware, noise...); its reference,
-            duration, controller weights and tuner are set here. Default: the ideal paper one.
+            duration, controller weights and tuner are set here. Default: ``paper_hardware``.
     Returns:
-        the manifest dict (also written), with ``speedup`` = sum of job times / wall time.
+        the manifest dict (also written): per run its file, weights and figures in ``runs``,
+        ``n_samples``, and for this call ``workers``, ``wall_s``, ``sum_job_s`` and
+        ``speedup`` = sum of job times / wall time.
+    Raises:
+        ResultsMismatchError: ``out_dir`` holds runs of other settings, or not of collect.
+        IncompleteResultsError: runs failed or were lost (named); the others are on disk.
+        Interrupted: Ctrl-C, SIGTERM or SIGHUP; the finished runs are on disk.
     """
-    from tqdm import tqdm
-
     out = Path(out_dir)
     runner = runner or ProcessRunner()
-    trajectory = data_collection_trajectory(seed, duration_s=duration_s)
-    window = AnnTunerDriver().feature_window
-    jobs = [{"config": job_config(base, seed, duration_s, q, r),
-             "sample_period_s": sample_period_s, "feature_window": window}
-            for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS]
-    wall0 = time.perf_counter()
-    records = []
-    for record in tqdm(runner.map(_collect_job, jobs), total=len(jobs), desc="closed-loop runs",
-                       unit="run", disable=not progress):
-        records.append(record)
-    wall = time.perf_counter() - wall0
-    files = []
-    for i, record in enumerate(records):
-        path = out / f"run_{i}.npz"
-        arrays = {k: np.asarray(v) for k, v in record.items() if k not in ("metrics",)}
+    settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
+    store = ResultStore(out, "collect", settings, pattern="run_*.npz")
+
+    def save(job_id, record):
+        if isinstance(record, JobFailure):
+            if record.kind == "error" and record.error_type == "SimulationDivergedError":
+                # The platform was lost at these weights: an outcome of the experiment (the
+                # stiff ratios on the robot as built), kept as such, not a missing run.
+                q, r = (jobs[job_id]["config"].controller.omega_Q,
+                        jobs[job_id]["config"].controller.omega_R)
+                store.put_json(job_id, f"run_{job_id}.json", {"lost": record.message},
+                               omega_Q=q, omega_R=r, lost=record.message.splitlines()[0],
+                               rms_error=None, sum_T2_dt=None, max_closure_m=None,
+                               n_samples=0, wall_s=0.0)
+                return
+            store.mark(record)
+            return
+        arrays = {k: np.asarray(v) for k, v in record.items() if k != "metrics"}
         arrays["metrics"] = np.array(json.dumps(record["metrics"]))
-        save_npz(path, arrays)
-        files.append(path.name)
-    job_time = sum(r["wall_s"] for r in records)
-    manifest = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
-                "trajectory": {"amplitude": trajectory.amplitude,
-                               "frequency_hz": trajectory.frequency_hz,
-                               "phase": trajectory.phase},
-                "runs": [{"file": f, "omega_Q": r["omega_Q"], "omega_R": r["omega_R"],
-                          "rms_error": r["metrics"]["rms_error"],
-                          "sum_T2_dt": r["metrics"]["sum_T2_dt"],
-                          "max_closure_m": r["metrics"]["max_closure_m"]}
-                         for f, r in zip(files, records)],
-                "n_samples": int(sum(len(r["t"]) for r in records)),
-                "workers": runner.n_workers, "wall_s": wall, "sum_job_s": job_time,
-                "speedup": job_time / wall if wall > 0 else float("nan")}
-    atomic_write(out / "manifest.json", lambda f: f.write(json.dumps(manifest, indent=2).encode()))
-    return manifest
+        arrays["settings_hash"] = np.array(store.hash)
+        m = record["metrics"]
+        store.put(job_id, f"run_{job_id}.npz", lambda f: np.savez_compressed(f, **arrays),
+                  omega_Q=record["omega_Q"], omega_R=record["omega_R"],
+                  rms_error=m["rms_error"], sum_T2_dt=m["sum_T2_dt"],
+                  max_closure_m=m["max_closure_m"], n_samples=len(record["t"]),
+                  wall_s=record["wall_s"])
+
+    ran = run_jobs(store, runner, _collect_job, jobs, save, progress, "closed-loop runs", "runs")
+    entries = [store.manifest["jobs"][k] for k in jobs]
+    job_time = sum(store.manifest["jobs"][k]["wall_s"] for k in ran["ran"])
+    wall = ran["wall_s"]
+    return store.finish(
+        True, runs=[{k: e.get(k) for k in ("file", "omega_Q", "omega_R", "rms_error",
+                                           "sum_T2_dt", "max_closure_m", "lost")}
+                    for e in entries],
+        n_samples=int(sum(e["n_samples"] for e in entries)), workers=runner.n_workers,
+        ran=len(ran["ran"]), reused=len(ran["reused"]), wall_s=wall, sum_job_s=job_time,
+        speedup=job_time / wall if ran["ran"] and wall > 0 else float("nan"))
 
 
 def load_records(data_dir: str | Path) -> list[dict]:
-    """The run records written by :func:`collect` (manifest order).
+    """The run records written by :func:`collect` (grid order), all of one collection; runs
+    that lost the platform (``lost`` in the manifest) have no data and are left out.
 
     Raises:
         InvalidConfigError: no manifest in ``data_dir`` (run ``stewart-drake collect`` first).
+        ResultsMismatchError: the folder was not written by ``collect`` (or by an older version),
+            or holds a run file of other settings than its manifest (a mixed folder).
+        IncompleteResultsError: the collection did not finish (runs lost, failed, interrupted).
     """
     data_dir = Path(data_dir)
-    manifest = data_dir / "manifest.json"
-    if not manifest.exists():
+    manifest = read_manifest(data_dir)
+    if manifest is None:
         raise InvalidConfigError(
             f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first")
+    if manifest.get("study") != "collect" or manifest.get("format") != FORMAT:
+        raise ResultsMismatchError(
+            f"{data_dir} was not written by this version of `stewart-drake collect`: collect "
+            f"again into an empty folder")
+    if not manifest.get("complete"):
+        done = sum(v["status"] == "done" for v in manifest["jobs"].values())
+        raise IncompleteResultsError(
+            f"{data_dir} holds {done} of {len(PAPER_WEIGHTS) ** 2} runs (the collection did not "
+            f"finish): run the same `stewart-drake collect --out {data_dir}` again to finish it")
     records = []
-    for run in json.loads(manifest.read_text())["runs"]:
+    for run in manifest["runs"]:
+        if run.get("lost"):
+            continue
         with np.load(data_dir / run["file"]) as data:
+            if "settings_hash" not in data or str(data["settings_hash"]) != \
+                    manifest["settings_hash"]:
+                raise ResultsMismatchError(
+                    f"{data_dir / run['file']} is not of the settings of {data_dir / MANIFEST}: "
+                    f"the folder mixes runs of two collections; collect again into an empty "
+                    f"folder")
             records.append({k: (float(data[k]) if k in ("omega_Q", "omega_R") else data[k])
                             for k in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")})
     return records

@@ -17,16 +17,15 @@ from __future__ import annotations
 import csv
 import io
 import os
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidConfigError
+from ..errors import IncompleteResultsError, InvalidConfigError
 from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
 from ..model.geometry import X_HOME, StewartGeometry
+from .runners import JobFailure, ProcessRunner, SerialRunner
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
 #: that no reachable pose lies on the boundary, so volumes and extents are not clipped).
@@ -77,45 +76,44 @@ def _classify_chunk(task):
 
 
 def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-          jobs: int = 1, chunk: int = 20000, progress=None) -> dict:
-    """:func:`classify` a large batch in chunks, over ``jobs`` processes.
+          jobs: int = 1, chunk: int = 20000, progress=None, runner=None) -> dict:
+    """:func:`classify` a large batch in chunks, over a runner.
 
     Args:
         x: (..., 6) poses [rad, m].
-        jobs: processes; 1 runs here, 0 one per core. Workers are spawned (not forked), so the
-            caller may hold Drake objects and threads.
+        jobs: processes when no ``runner`` is given; 1 runs here, 0 one per core. Workers are
+            spawned (not forked), so the caller may hold Drake objects and threads.
         chunk: poses per task.
         progress: optional object with ``update(n)`` (a tqdm bar), called per finished chunk.
+        runner: any runner of :mod:`.runners` (``--runner``); overrides ``jobs``.
     Returns:
         dict like :func:`classify`'s, arrays shaped like x's batch.
     Raises:
         InvalidConfigError: jobs < 0 or chunk < 1.
+        IncompleteResultsError: a chunk was lost with its worker (a chunk's own error is
+            raised as itself).
     """
     if jobs < 0 or chunk < 1:
         raise InvalidConfigError(f"sweep needs jobs >= 0 and chunk >= 1, got {jobs}, {chunk}")
     x = np.asarray(x, dtype=float)
     batch = x.shape[:-1]
     flat = x.reshape(-1, 6)
-    tasks = [(geometry, flat[i:i + chunk], cond_threshold) for i in range(0, len(flat), chunk)]
-    jobs = jobs or os.cpu_count() or 1
-    parts = [None] * len(tasks)
-    if jobs == 1 or len(tasks) == 1:
-        for k, task in enumerate(tasks):
-            parts[k] = _classify_chunk(task)
-            if progress is not None:
-                progress.update(len(task[1]))
-    else:
-        with ProcessPoolExecutor(max_workers=min(jobs, len(tasks)),
-                                 mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(_classify_chunk, task): k for k, task in enumerate(tasks)}
-            for future in as_completed(futures):
-                k = futures[future]
-                parts[k] = future.result()
-                if progress is not None:
-                    progress.update(len(tasks[k][1]))
+    tasks = {str(k): (geometry, flat[i:i + chunk], cond_threshold)
+             for k, i in enumerate(range(0, len(flat), chunk))}
+    if runner is None:
+        jobs = jobs or os.cpu_count() or 1
+        runner = (SerialRunner() if jobs == 1 or len(tasks) == 1 else
+                  ProcessRunner(min(jobs, len(tasks)), recycle=None))
+    parts = {}
+    for key, outcome in runner.map(_classify_chunk, tasks):
+        if isinstance(outcome, JobFailure):
+            raise outcome.error or IncompleteResultsError(f"workspace chunk {key}: {outcome}")
+        parts[int(key)] = outcome
+        if progress is not None:
+            progress.update(len(tasks[key][1]))
     out = {}
     for key in FIELDS:
-        joined = np.concatenate([p[key] for p in parts], axis=0)
+        joined = np.concatenate([parts[k][key] for k in sorted(parts)], axis=0)
         out[key] = joined.reshape(batch + joined.shape[1:])
     return out
 
@@ -314,12 +312,12 @@ def _plots(out: Path, taxes, trans, oaxes, orient, heights, tilt_every, tilt_som
 
 def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int = 1,
                       cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-                      progress=None, n_azimuth: int = 24) -> dict:
+                      progress=None, n_azimuth: int = 24, runner=None) -> dict:
     """Run the three standard sweeps and reduce them to figures.
 
     Args:
         resolution: grid points per axis of each box (translation: resolution^3 poses).
-        jobs, progress: see :func:`sweep`.
+        jobs, progress, runner: see :func:`sweep`.
     Returns:
         dict with the grids (``translation_axes``, ``orientation_axes``, ``heights``, ``tilts``),
         the classifications (``translation``, ``orientation``, ``tilt``: dicts of :func:`classify`)
@@ -333,7 +331,8 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
     oaxes = grid_axes(ORIENTATION_BOX, resolution)
     heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
     tilts = np.linspace(0.0, np.deg2rad(60.0), resolution)
-    run = lambda x: sweep(geometry, x, cond_threshold, jobs=jobs, progress=progress)  # noqa: E731
+    run = lambda x: sweep(geometry, x, cond_threshold, jobs=jobs, progress=progress,  # noqa: E731
+                          runner=runner)
     trans = run(translation_grid(taxes))
     orient = run(orientation_grid(oaxes))
     tilt = run(tilt_grid(heights, tilts, n_azimuth))
@@ -354,12 +353,13 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
 
 
 def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = True,
-                    geometry: StewartGeometry | None = None) -> list:
+                    geometry: StewartGeometry | None = None, runner=None) -> list:
     """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
     Args:
         out: folder. resolution: grid points per axis (>= 2). jobs: processes (0: one per
             core). progress: show a tqdm bar. geometry: the robot (default: the reference one).
+        runner: any runner of :mod:`.runners` (overrides ``jobs``).
     Writes (each atomically: a temporary file, then os.replace):
         workspace.npz (grids and classifications), summary.csv (figure, value, unit),
         tilt_vs_height.csv, workspace.png (torque maps + tilt vs height),
@@ -379,7 +379,7 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     n = resolution
     total = 2 * n ** 3 + n * n * 24
     with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
-        s = workspace_summary(geometry, n, jobs, progress=bar)
+        s = workspace_summary(geometry, n, jobs, progress=bar, runner=runner)
     arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
               "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
               "orientation_theta": s["orientation_axes"][1],

@@ -1,0 +1,218 @@
+"""Results that persist and resume: one study's folder, a file per finished job, a manifest.
+
+A :class:`ResultStore` claims a folder for one study (``collect``, ``evaluate``) and one set of
+settings, identified by :func:`settings_hash`. Each finished job is written atomically the
+moment it arrives (``put``) and the manifest is rewritten with it, so an interruption, a killed
+worker or a failed report loses nothing that finished. Running the same command again runs only
+the jobs whose file is missing (:func:`run_jobs`); a folder of other settings, or of another
+study, is refused by name (:class:`~stewart_drake.errors.ResultsMismatchError`).
+
+``manifest.json``::
+
+    {"study": "collect", "format": 2, "settings": {...}, "settings_hash": "3f2a...",
+     "complete": false,
+     "jobs": {"<job_id>": {"status": "done", "file": "run_q1_r1.npz", ...},
+              "<job_id>": {"status": "lost", "error": "WorkerLost: ...", "attempts": 3}},
+     ...study fields written at the end (``finish``)}
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+from pathlib import Path
+
+from ..errors import IncompleteResultsError, ResultsMismatchError, SimulationDivergedError
+from ..fileio import atomic_write
+from .runners import JobFailure
+
+MANIFEST = "manifest.json"
+#: Layout version of the folder; 2 = one file per job and a settings hash (issue 15).
+FORMAT = 2
+
+
+def settings_hash(settings: dict) -> str:
+    """16 hex digits of the SHA-256 of ``settings`` as canonical JSON (sorted keys)."""
+    text = json.dumps(settings, sort_keys=True, separators=(",", ":"), default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def file_digest(path) -> str:
+    """16 hex digits of the SHA-256 of a file's bytes (settings that are files: tuner weights)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
+def read_manifest(folder: Path) -> dict | None:
+    """The manifest of ``folder``, None if there is none.
+
+    Raises:
+        ResultsMismatchError: a manifest that is not JSON.
+    """
+    path = Path(folder) / MANIFEST
+    if not path.exists():
+        return None
+    try:
+        return json.loads(path.read_text())
+    except ValueError as err:
+        raise ResultsMismatchError(f"{path} is not a stewart-drake manifest ({err}); choose "
+                                   f"another --out or delete the folder") from None
+
+
+def _difference(old: dict, new: dict) -> str:
+    """'seed 0 there, 1 here; trajectory differs' for the settings that differ."""
+    parts = []
+    for k in sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k)):
+        a, b = old.get(k), new.get(k)
+        scalar = not isinstance(a, (dict, list)) and not isinstance(b, (dict, list))
+        parts.append(f"{k} {a!r:.40} there, {b!r:.40} here" if scalar else f"{k} differs")
+    return "; ".join(parts)
+
+
+class ResultStore:
+    """One study's results in ``folder`` (see the module docstring).
+
+    Args:
+        folder: the study's ``--out``.  study: "collect" or "evaluate".
+        settings: JSON-able dict of everything that decides the results (not the runner).
+        pattern: glob of the study's result files; a folder holding such files but no manifest
+            is refused (an older layout, or a manifest deleted by hand).
+    Raises:
+        ResultsMismatchError: the folder holds another study's results, or results of other
+            settings (the message names the settings that differ).
+    """
+
+    def __init__(self, folder, study: str, settings: dict, pattern: str):
+        self.folder = Path(folder)
+        self.study = study
+        settings = json.loads(json.dumps(settings, default=str))   # as the manifest holds it
+        self.settings = settings
+        self.hash = settings_hash(settings)
+        old = read_manifest(self.folder)
+        if old is None:
+            if any(self.folder.glob(pattern)):
+                raise ResultsMismatchError(
+                    f"{self.folder} holds {pattern} files without a {MANIFEST} (an older "
+                    f"stewart-drake, or the manifest was removed): choose another --out or "
+                    f"delete them")
+            old = {}
+        elif "study" not in old or "settings_hash" not in old:
+            raise ResultsMismatchError(
+                f"{self.folder} holds results of an older stewart-drake (no settings hash in "
+                f"its {MANIFEST}): choose another --out or delete the folder")
+        elif old["study"] != study:
+            raise ResultsMismatchError(
+                f"{self.folder} holds results of `stewart-drake {old['study']}`, not of "
+                f"`{study}`: choose another --out")
+        elif old.get("settings_hash") != self.hash:
+            raise ResultsMismatchError(
+                f"{self.folder} holds {study} results of other settings "
+                f"({_difference(old.get('settings', {}), settings)}): run with those settings "
+                f"to finish them, or choose another --out (or delete the folder)")
+        done = {k: v for k, v in old.get("jobs", {}).items()
+                if v.get("status") == "done" and (self.folder / v["file"]).exists()}
+        self.manifest = {"study": study, "format": FORMAT, "settings": settings,
+                         "settings_hash": self.hash, "complete": False, "jobs": done}
+        self._save()                      # claim the folder before any work
+
+    def _save(self) -> None:
+        text = json.dumps(self.manifest, indent=1, default=float).encode()
+        atomic_write(self.folder / MANIFEST, lambda f: f.write(text))
+
+    def done(self) -> set:
+        """Ids of the jobs whose result is on disk."""
+        return {k for k, v in self.manifest["jobs"].items() if v["status"] == "done"}
+
+    def put(self, job_id: str, name: str, write, **meta) -> Path:
+        """Write a finished job's file atomically (``write(binary file)``), then record it.
+
+        Args:
+            name: file name under the folder (sub-folders allowed).
+            meta: JSON-able facts kept in the manifest beside it (times, figures).
+        """
+        path = self.folder / name
+        atomic_write(path, write)
+        self.manifest["jobs"][job_id] = {"status": "done", "file": name, **meta}
+        self._save()
+        return path
+
+    def put_json(self, job_id: str, name: str, value, **meta) -> Path:
+        """:meth:`put` of a JSON document."""
+        text = json.dumps(value, indent=1, default=float).encode()
+        return self.put(job_id, name, lambda f: f.write(text), **meta)
+
+    def load_json(self, job_id: str):
+        """The JSON document a job's :meth:`put_json` wrote."""
+        return json.loads((self.folder / self.manifest["jobs"][job_id]["file"]).read_text())
+
+    def mark(self, failure: JobFailure) -> None:
+        """Record a job with no result (lost or failed); it runs again next time."""
+        self.manifest["jobs"][failure.job_id] = {"status": failure.kind, "error": str(failure),
+                                                 "attempts": failure.attempts}
+        self._save()
+
+    def keep_files(self, failure: JobFailure) -> list[Path]:
+        """Write the files a failure carried back (divergence dumps) under ``diverged/`` and
+        point its message (and error's ``path``) at them; returns the paths written."""
+        written = []
+        for old, data in failure.files.items():
+            path = self.folder / "diverged" / Path(old).name
+            atomic_write(path, lambda f, data=data: f.write(data))
+            failure.message = failure.message.replace(old, str(path))
+            if isinstance(failure.error, SimulationDivergedError) and failure.error.path == old:
+                failure.error = SimulationDivergedError(failure.error.message, failure.error.t,
+                                                        str(path))
+            written.append(path)
+        return written
+
+    def finish(self, complete: bool, **fields) -> dict:
+        """Write the study's closing fields and whether every job is on disk; the manifest."""
+        self.manifest.update(fields)
+        self.manifest["complete"] = bool(complete)
+        self._save()
+        return self.manifest
+
+
+def run_jobs(store: ResultStore, runner, fn, jobs: dict, save, progress: bool = True,
+             desc: str = "jobs", what: str = "jobs") -> dict:
+    """Run the jobs of ``jobs`` whose result is not in ``store``, storing each as it arrives.
+
+    Args:
+        store: the study's folder.  runner: any runner of :mod:`.runners`.
+        fn: the job function.  jobs: {job_id: job}.
+        save: ``save(job_id, outcome)`` stores a result (or a ``kind="error"`` failure, as the
+            study decides) through ``store``; lost jobs are recorded here.
+        progress: show a tqdm bar (counting the jobs found on disk).
+        desc, what: the bar's label and the noun of the error message.
+    Returns:
+        dict: ``ran`` (ids run now), ``reused`` (ids found on disk), ``wall_s`` of this call.
+    Raises:
+        IncompleteResultsError: some jobs have no result on disk at the end (lost, or failed
+            and not stored by ``save``); the message names the first and says to rerun.
+        Interrupted: a signal stopped the runner; everything finished is on disk.
+    """
+    from tqdm import tqdm
+
+    todo = {k: v for k, v in jobs.items() if k not in store.done()}
+    reused = [k for k in jobs if k not in todo]
+    wall0 = time.perf_counter()
+    with tqdm(total=len(jobs), initial=len(reused), desc=desc, unit="run",
+              disable=not progress) as bar:
+        for job_id, outcome in runner.map(fn, todo):
+            if isinstance(outcome, JobFailure):
+                store.keep_files(outcome)
+                if outcome.kind == "lost":
+                    store.mark(outcome)
+                    bar.update()
+                    continue
+            save(job_id, outcome)
+            bar.update()
+    wall = time.perf_counter() - wall0
+    missing = [k for k in jobs if k not in store.done()]
+    if missing:
+        first = store.manifest["jobs"].get(missing[0], {}).get("error", "not run")
+        raise IncompleteResultsError(
+            f"{len(missing)} of {len(jobs)} {what} have no result ({missing[0]}: "
+            f"{first.splitlines()[0]:.200}); the {len(jobs) - len(missing)} finished are in "
+            f"{store.folder}: run the same command again to run only the missing ones")
+    return {"ran": list(todo), "reused": reused, "wall_s": wall}

@@ -1,0 +1,53 @@
+"""Every typed error survives pickling (a refusal inside a worker comes back as itself)."""
+
+import inspect
+import pickle
+
+import pytest
+
+from stewart_drake import errors
+
+POSE = [0.1, -0.2, 0.3, 0.01, -0.02, 0.31]
+#: One instance per class of errors.py; a new class without an example fails the test below.
+EXAMPLES = {
+    errors.StewartError: errors.StewartError("something to change"),
+    errors.InvalidGeometryError: errors.InvalidGeometryError("rod_length must be > 0"),
+    errors.InvalidConfigError: errors.InvalidConfigError("omega_Q must be in [0.001, 1000]"),
+    errors.UnreachablePoseError: errors.UnreachablePoseError(3, 1.04, t=1.25, pose=POSE),
+    errors.RiccatiSolveError: errors.RiccatiSolveError("no stabilizing solution"),
+    errors.SimulationDivergedError: errors.SimulationDivergedError(
+        "loop-closure error 2e-3 m", 0.644, "results/diverged/d.npz"),
+    errors.ForwardKinematicsError: errors.ForwardKinematicsError("Newton did not converge"),
+    errors.RenderToolMissingError: errors.RenderToolMissingError("install Graphviz"),
+    errors.JointLimitError: errors.JointLimitError(1, "crank_joint", -4.8e-4, t=0.644, pose=POSE),
+    errors.SingularPoseError: errors.SingularPoseError("sigma_min_inv", 0.008, 0.01, t=2.0),
+    errors.ResultsMismatchError: errors.ResultsMismatchError("results/collect holds seed 1"),
+    errors.IncompleteResultsError: errors.IncompleteResultsError("2 of 9 runs lost"),
+    errors.MissingFileError: errors.MissingFileError("no weights at w.npz"),
+    errors.MissingExtraError: errors.MissingExtraError("train needs torch: pip install stewart-drake[train]"),
+}
+
+
+def test_every_error_class_has_an_example():
+    classes = {c for _, c in inspect.getmembers(errors, inspect.isclass)
+               if issubclass(c, errors.StewartError) and c.__module__ == errors.__name__}
+    assert classes == set(EXAMPLES)
+
+
+@pytest.mark.parametrize("error", EXAMPLES.values(), ids=lambda e: type(e).__name__)
+def test_error_round_trips_through_pickle(error):
+    error.add_note("raised in worker 1234")
+    back = pickle.loads(pickle.dumps(error))
+    assert type(back) is type(error)
+    assert str(back) == str(error) and back.args == error.args
+    assert vars(back) == vars(error)                   # leg, ratio, t, pose, path, notes ...
+    assert back.__notes__ == ["raised in worker 1234"]
+
+
+def test_the_attributes_are_the_ones_given():
+    e = pickle.loads(pickle.dumps(EXAMPLES[errors.JointLimitError]))
+    assert (e.leg, e.limit, e.margin, e.t, e.pose) == (1, "crank_joint", -4.8e-4, 0.644, POSE)
+    assert "leaves its crank_joint limit by 0.0275 deg at t = 0.644 s" in str(e)
+    d = pickle.loads(pickle.dumps(EXAMPLES[errors.SimulationDivergedError]))
+    assert (d.message, d.t, d.path) == ("loop-closure error 2e-3 m", 0.644,
+                                       "results/diverged/d.npz")

@@ -1,0 +1,193 @@
+"""Issue 15: studies that survive. Every finished result is on disk as it arrives, the same
+command resumes with only what is missing, a folder of other settings is refused by name,
+SIGTERM leaves no process behind, and kill -9 of a worker loses only its cases."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import psutil
+import pytest
+
+from stewart_drake.control.lqi import LqiController
+from stewart_drake.errors import IncompleteResultsError, ResultsMismatchError
+from stewart_drake.interfaces.cli import main
+from stewart_drake.studies import evaluation
+from stewart_drake.studies.collection import collect, load_records
+from stewart_drake.studies.runners import Interrupted, SerialRunner
+
+REPO = Path(__file__).resolve().parent.parent
+CLI = [sys.executable, "-m", "stewart_drake.interfaces.cli"]
+
+
+class StopAfter(SerialRunner):
+    """A serial runner that is sent SIGTERM after ``n`` results (what `kill <pid>` does)."""
+
+    def __init__(self, n):
+        self.n, self.ran = n, []
+
+    def map(self, fn, jobs, progress=None):
+        for k, (job_id, outcome) in enumerate(super().map(fn, jobs)):
+            self.ran.append(job_id)
+            yield job_id, outcome
+            if k + 1 == self.n:
+                raise Interrupted(signal.SIGTERM)
+
+
+def test_an_interrupted_collect_resumes_and_train_refuses_it_until_then(tmp_path, capsys):
+    out = tmp_path / "collect"
+    first = StopAfter(4)
+    with pytest.raises(Interrupted):
+        collect(out, duration_s=0.2, runner=first, progress=False)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert not manifest["complete"] and len(manifest["jobs"]) == 4
+    assert len(list(out.glob("run_*.npz"))) == 4
+    with pytest.raises(IncompleteResultsError, match="holds 4 of 9 runs"):
+        load_records(out)
+    assert main(["train", "--data", str(out), "--out", str(tmp_path / "w.npz")]) == 2
+    assert "did not finish" in capsys.readouterr().err
+    kept = {p.name: p.stat().st_mtime_ns for p in out.glob("run_*.npz")}
+
+    second = StopAfter(99)
+    manifest = collect(out, duration_s=0.2, runner=second, progress=False)
+    assert sorted(second.ran) == sorted(set(manifest["jobs"]) - set(first.ran))   # only those
+    assert manifest["complete"] and (manifest["ran"], manifest["reused"]) == (5, 4)
+    assert {n: (out / n).stat().st_mtime_ns for n in kept} == kept                # untouched
+    assert len(load_records(out)) == 9
+
+    with pytest.raises(ResultsMismatchError, match="seed 0 there, 1 here"):
+        collect(out, seed=1, duration_s=0.2, runner=SerialRunner(), progress=False)
+    # A run file of another collection in the folder (what a failed save used to leave):
+    path = out / manifest["runs"][3]["file"]
+    with np.load(path) as data:
+        arrays = dict(data)
+    arrays["settings_hash"] = np.array("0123456789abcdef")
+    np.savez_compressed(path, **arrays)
+    with pytest.raises(ResultsMismatchError, match=f"{path.name} is not of the settings"):
+        load_records(out)
+
+
+def test_evaluate_keeps_its_rows_when_the_report_fails_and_brings_back_divergence_dumps(
+        tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)                  # where a worker's guard saves, before the move
+    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    out, blocker = tmp_path / "out", tmp_path / "a_file"
+    blocker.write_text("docs cannot go here")
+    with pytest.raises(OSError):
+        evaluation.evaluate(blocker / "docs", out, runner=SerialRunner(), progress=False,
+                            quick=True, controllers=("lqi_1_1",))
+    rows = sorted((out / "rows").glob("*.json"))
+    n = 10 + 7 + 5          # nominal scenarios, conditions, encoder resolutions (hardware base)
+    assert len(rows) == n                                        # on disk before the report
+    row = json.loads(rows[0].read_text())
+    assert row["error"].startswith("SimulationDivergedError: simulation diverged at t = 0.00")
+    dumps = sorted((out / "diverged").glob("diverged_*.npz"))
+    assert len(dumps) == n and str(dumps[0].parent) in row["error"]
+    assert not list((tmp_path / "results").rglob("*.npz"))       # moved, not copied
+
+    monkeypatch.setattr(evaluation, "run_case", lambda case: pytest.fail("ran again"))
+    report = evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
+                                 quick=True, controllers=("lqi_1_1",))
+    assert (report["info"]["ran"], report["info"]["reused"]) == (0, n)
+    assert "## Runs that failed" in (tmp_path / "docs" / "results.md").read_text()
+    assert main(["evaluate", "--out", str(out), "--docs", str(tmp_path / "docs"),
+                 "--controllers", "lqi_1_1", "--no-progress"]) == 2      # not --quick
+    assert "holds evaluate results of other settings (quick True there, False here" in \
+        capsys.readouterr().err
+
+
+# -- the command line as a user (or CI, or systemd) drives it -------------------------------------
+
+def _start(argv, tmp_path):
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    return subprocess.Popen(CLI + argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
+    """Block until ``n`` jobs are done in ``out``'s manifest; the workers then."""
+    deadline = time.monotonic() + timeout
+    while True:
+        assert proc.poll() is None, proc.communicate()
+        try:
+            jobs = json.loads((out / "manifest.json").read_text())["jobs"]
+        except (OSError, ValueError):
+            jobs = {}
+        if sum(v["status"] == "done" for v in jobs.values()) >= n:
+            return [p for p in psutil.Process(proc.pid).children(recursive=True)
+                    if "spawn_main" in " ".join(p.cmdline())]
+        assert time.monotonic() < deadline, "no result in time"
+        time.sleep(0.1)
+
+
+@pytest.mark.parametrize("argv", [["collect", "--duration", "2"],
+                                  ["evaluate", "--quick", "--controllers", "lqi_1_1", "--docs",
+                                   "docs"]], ids=["collect", "evaluate"])
+def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(tmp_path, argv):
+    out = tmp_path / "out"
+    proc = _start(argv + ["--out", str(out), "--jobs", "2", "--no-progress"], tmp_path)
+    workers = _wait_for_results(proc, out, 1)
+    everything = psutil.Process(proc.pid).children(recursive=True)   # workers, resource tracker
+    assert len(workers) == 2
+    proc.send_signal(signal.SIGTERM)
+    t0 = time.monotonic()
+    _, err = proc.communicate(timeout=5)        # Popen reaps its child: its exit code stays
+    gone, alive = psutil.wait_procs(everything, timeout=max(0.0, 5 - (time.monotonic() - t0)))
+    assert alive == []
+    assert proc.returncode == 128 + signal.SIGTERM
+    assert "interrupted by SIGTERM; finished results are kept in" in err and "Traceback" not in err
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert not manifest["complete"]
+    done = [v["file"] for v in manifest["jobs"].values() if v["status"] == "done"]
+    assert done and all((out / f).exists() for f in done)
+
+
+def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(tmp_path):
+    out = tmp_path / "out"
+    argv = ["evaluate", "--quick", "--controllers", "pd", "--out", str(out), "--docs",
+            str(tmp_path / "docs"), "--jobs", "2", "--retries", "0", "--no-progress"]
+    proc = _start(argv, tmp_path)
+    workers = _wait_for_results(proc, out, 2)
+    workers[0].kill()
+    _, err = proc.communicate(timeout=300)
+    assert proc.returncode == 2 and "have no result" in err, err
+    jobs = json.loads((out / "manifest.json").read_text())["jobs"]
+    lost = sorted(k for k, v in jobs.items() if v["status"] == "lost")
+    done = {v["file"]: (out / v["file"]).stat().st_mtime_ns for v in jobs.values()
+            if v["status"] == "done"}
+    n = 10 + 7                   # pd: the nominal scenarios and the conditions (no encoders)
+    assert 1 <= len(lost) <= 2 and len(done) + len(lost) == n   # in flight on the broken pool
+    assert all("a worker process died" in jobs[k]["error"] for k in lost)
+
+    rerun = _start(argv, tmp_path)
+    stdout, err = rerun.communicate(timeout=300)
+    assert rerun.returncode == 0, err
+    assert f"{n} runs ({len(lost)} run now" in stdout and f"{len(done)} found on disk" in stdout
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] and all(v["status"] == "done" for v in manifest["jobs"].values())
+    assert {f: (out / f).stat().st_mtime_ns for f in done} == done       # not run again
+    assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
+
+
+def test_a_folder_of_another_command_or_an_older_layout_is_refused_by_name(tmp_path):
+    from stewart_drake.studies.store import ResultStore
+
+    ResultStore(tmp_path / "c", "collect", {"seed": 0}, pattern="run_*.npz")
+    with pytest.raises(ResultsMismatchError, match="holds results of `stewart-drake collect`, "
+                                                   "not of `evaluate`"):
+        ResultStore(tmp_path / "c", "evaluate", {"quick": True}, pattern="rows/*.json")
+    old = tmp_path / "old"
+    old.mkdir()
+    (old / "manifest.json").write_text(json.dumps({"seed": 0, "runs": []}))  # before issue 15
+    with pytest.raises(ResultsMismatchError, match="results of an older stewart-drake"):
+        ResultStore(old, "collect", {"seed": 0}, pattern="run_*.npz")
+    (tmp_path / "bare").mkdir()
+    (tmp_path / "bare" / "run_0.npz").write_bytes(b"PK")
+    with pytest.raises(ResultsMismatchError, match="run_\\*.npz files without a manifest.json"):
+        ResultStore(tmp_path / "bare", "collect", {"seed": 0}, pattern="run_*.npz")
