@@ -551,11 +551,14 @@ class LqiController(PoseTorqueController):
         :data:`GOVERNOR_MARGIN` of the limit, moving with the part of the reference's rate that
         keeps them there.
 
-        Sequential quadratic programming from the last governed pose ``hold[:6]`` (so the
-        governed reference moves continuously: started from ``ref`` each time, the set of motors
-        at the bound can switch and the reference jump by centimetres): each of 3 steps moves
-        towards ``ref`` projected exactly onto the motors' bound linearized at the current pose
-        by finite differences (one batched statics call; :func:`project_onto_torque_bound`).
+        One step of sequential quadratic programming per control period, from the last governed
+        pose ``hold[:6]`` (so the governed reference moves continuously: started from ``ref``
+        each time, the set of motors at the bound can switch and the reference jump by
+        centimetres): the step towards ``ref`` projected exactly onto the motors' bound
+        linearized at that pose by finite differences (one batched statics call;
+        :func:`project_onto_torque_bound`). The reference moves little in a period, so one step
+        is within 6 um | 2 urad and 3e-7 N m of three along the paper manoeuvre, at 0.6 ms
+        instead of 1.1 ms.
 
         The projection must be exact: projected only onto the motors the full step would
         overload (motors 1 and 4 near the paper manoeuvre's extreme), a step can push another
@@ -577,12 +580,11 @@ class LqiController(PoseTorqueController):
         bound, eps = GOVERNOR_MARGIN * self.torque_limit, 1e-6
         x = hold[:6] if np.any(hold[18:]) else ref[:6]
         try:
-            for _ in range(3):
-                T = statics.holding_torques(self.geometry, x + np.vstack([np.zeros(6),
-                                                                         eps * np.eye(6)]))
-                G = ((T[1:] - T[0]) / eps).T                       # d T / d x, (6, 6)
-                step, C = project_onto_torque_bound(ref[:6] - x, T[0], G, bound)
-                x = x + step
+            T = statics.holding_torques(self.geometry, x + np.vstack([np.zeros(6),
+                                                                     eps * np.eye(6)]))
+            G = ((T[1:] - T[0]) / eps).T                           # d T / d x, (6, 6)
+            step, C = project_onto_torque_bound(ref[:6] - x, T[0], G, bound)
+            x = x + step
             T0 = statics.holding_torques(self.geometry, x)
             tangent = np.eye(6) - C.T @ np.linalg.solve(C @ C.T, C) if len(C) else np.eye(6)
         except (UnreachablePoseError, SingularPoseError, InvalidConfigError,
