@@ -42,8 +42,15 @@ from .contract import LQI_STATUS_NAMES, PoseTorqueController
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 #: How the gain is re-solved at a re-schedule (see :class:`LqiController`).
 RICCATI_MODES = ("warm", "track", "cold")
-#: The reference governor holds the reference when its feed-forward exceeds this fraction of the
-#: torque limit (the rest is left to the feedback).
+#: The reference governor takes over when the reference's feed-forward exceeds this fraction of
+#: the torque limit, and keeps the holding torques of the pose it follows within it. The rest of
+#: the limit is the headroom of a motor at its bound for feedback: it must exceed the motor's
+#: Coulomb friction (0.018 N m on paper_hardware) for the motor to lift its crank back. At
+#: 0.35 N m (headroom 0.035 N m) the paper manoeuvre completes in every run of a 12-run
+#: perturbation set (tests/test_hardware.py) at 0.85 (8.8 mrad | 29.5 mm from the reference at
+#: most: the platform follows the governed pose closely, which strays further), 0.9 (25.5 mrad |
+#: 21.4 mm) and 0.92; at 0.95 (0.0175 N m, below the friction) it loses the platform in 1 and
+#: strays up to 0.13 rad | 0.0498 m in the others. Ours: the paper has no torque limit.
 GOVERNOR_MARGIN = 0.9
 OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
 
@@ -406,10 +413,17 @@ class LqiController(PoseTorqueController):
         reference_governor: with a torque limit, a reference whose own feed-forward exceeds
             :data:`GOVERNOR_MARGIN` of the limit (a pose the motors cannot even hold: 0.413 N m
             at the paper manoeuvre's extreme, against a 0.35 N m limit) is not followed: the
-            controller follows the nearest pose the motors can hold (:meth:`govern`), until the
-            reference comes back within reach. Anti-windup alone
+            controller follows the nearest pose the motors can hold with that margin
+            (:meth:`govern`), until the reference comes back within reach. Anti-windup alone
             cannot keep such a platform: past that pose gravity wins and it falls
-            (docs/hardware.md). Ours: the paper has no limit.
+            (docs/hardware.md). The margin is what keeps the platform itself holdable: the
+            gains are stiff (10 to 25 N m of demand at 1 to 2 cm of error), so a motor at its
+            bound is the only one whose feedback acts on its crank's error, and its crank sags
+            until gravity and friction balance the bound; a pose whose own holding torque
+            exceeds the limit by more than the friction is a point of no return. With the
+            governed pose's holding torques at 0.9 of the limit, the platform stays within
+            0.026 rad | 0.012 m of it and its own holding torque below 0.336 N m at 0.35 N m
+            (12 perturbed runs). Ours: the paper has no limit.
         delay_periods: control periods between a sample and its torque acting (the computation
             delay); the error model is augmented with the pending torques (:func:`error_model`).
         estimator: None to read the pose and rate on the ``x`` input; or a
