@@ -7,6 +7,7 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from stewart_drake.control.estimator import PoseEstimator
+from stewart_drake.control.lqi import LqiController, project_onto_torque_bound
 from stewart_drake.errors import SimulationDivergedError
 from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
@@ -168,21 +169,121 @@ def test_current_loop_applies_the_step_average_of_a_first_order_lag():
     assert system.get_output_port().Eval(context)[0] == pytest.approx(expected, rel=1e-12)
 
 
-@pytest.mark.xfail(strict=False, reason="marginal: the outcome flips with 1e-13 perturbations "
-                   "(encoder quantization amplifies them); being made robust")
-def test_limit_below_the_peak_demand_slows_the_platform_instead_of_losing_it():
-    """0.35 N m against the manoeuvre's 0.41 N m (0.413 N m just to hold its extreme pose):
-    with anti-windup and the reference governor the 10 s run completes; without anti-windup the
-    platform falls (the guard stops it)."""
-    limited = {"torque_limit_Nm": 0.35}
-    result = run_experiment(_hardware(**limited))
+def test_the_governor_projection_is_the_nearest_point_within_the_bound():
+    """Independent agreement: the active-set projection equals SciPy's SLSQP on the same QP
+    (min |s - d| s.t. |T + G s| <= bound) on random instances, 0 to 3 motors active."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(3)
+    actives = set()
+    for _ in range(40):
+        G = rng.normal(size=(6, 6)) + 3 * np.eye(6)
+        T, d, bound = rng.uniform(0.2, 0.3, 6), rng.normal(scale=0.02, size=6), 0.315
+        s, C = project_onto_torque_bound(d, T, G, bound)
+        below = {"type": "ineq", "fun": lambda v: bound - (T + G @ v), "jac": lambda v: -G}
+        above = {"type": "ineq", "fun": lambda v: bound + (T + G @ v), "jac": lambda v: G}
+        ref = minimize(lambda v: 0.5 * np.sum((v - d) ** 2), np.zeros(6), jac=lambda v: v - d,
+                       method="SLSQP", constraints=[below, above],
+                       options={"ftol": 1e-14, "maxiter": 200})
+        assert ref.success
+        np.testing.assert_allclose(s, ref.x, atol=1e-7)
+        assert np.abs(T + G @ s).max() <= bound * (1 + 1e-9)
+        actives.add(len(C))
+    assert {1, 2, 3} <= actives                      # the bound binds, on several motors
+
+
+def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geometry):
+    """Along the paper manoeuvre at 0.35 N m, every control period the reference is out of reach
+    (t = 0.2..1.4 s and 2.15..2.6 s): the governed pose is found (never the last one held), its
+    holding torques are within 0.9 of the limit, it moves at most the reference's own step plus
+    a fraction, and its rate is the finite difference of its poses (the rate the LQI tracks
+    agrees with the pose it tracks)."""
+    lqi = LqiController(geometry, torque_limit_Nm=0.35)
+    t = np.arange(0.0, 2.8, 1e-3)
+    X, V, A = paper_manoeuvre().evaluate(t)
+    T_ff = statics.holding_torques(geometry, X)
+    hold = np.concatenate([X[0], np.zeros(12), T_ff[0]])
+    poses, rates, governed = [], [], np.abs(T_ff).max(axis=1) > 0.9 * 0.35
+    for k in np.flatnonzero(governed):
+        if not governed[k - 1]:
+            hold = np.concatenate([X[k - 1], np.zeros(12), T_ff[k - 1]])
+        new = lqi.govern(hold, np.concatenate([X[k], V[k], A[k]]))
+        assert not np.array_equal(new[:6], hold[:6])             # found, not held
+        hold = new
+        poses.append(hold[:6].copy())
+        rates.append(hold[6:12].copy())
+        np.testing.assert_allclose(hold[18:], statics.holding_torques(geometry, hold[:6]))
+    assert governed.sum() > 1500
+    poses, rates = np.array(poses), np.array(rates)
+    assert np.abs(statics.holding_torques(geometry, poses)).max() <= 0.9 * 0.35 + 1e-6
+    deviation = np.abs(poses - X[governed]).max(axis=0)
+    assert deviation[:3].max() < 0.003 and deviation[3:].max() < 0.02     # 1.9 mrad, 18.8 mm
+    contiguous = np.flatnonzero(np.diff(np.flatnonzero(governed)) == 1)
+    steps = (poses[contiguous + 1] - poses[contiguous]) / 1e-3
+    assert np.abs(steps).max() < 1.1                 # rad/s | m/s: phi's own 1.05 rad/s
+    # The rate agrees with the poses' finite difference to 0.035 m/s (Z, where the set of motors
+    # at the bound changes; 0.002 median); the reference's own rate is 0.126 m/s off.
+    midpoint_rate = 0.5 * (rates[contiguous + 1] + rates[contiguous])
+    assert np.abs(steps - midpoint_rate).max() < 0.05
+    reference_rate = 0.5 * (V[governed][contiguous + 1] + V[governed][contiguous])
+    assert np.abs(steps - reference_rate).max() > 0.1
+
+
+LIMITED = {"torque_limit_Nm": 0.35}
+#: The perturbation set of the governor (re-schedule period x Riccati refinement x encoder
+#: noise): before the exact projection, 6 of these 12 runs lost the platform.
+PERTURBATIONS = [{"controller.schedule_period_s": period, "controller.riccati": riccati,
+                  "hardware.encoders.noise_counts": noise, "hardware.encoders.seed": seed}
+                 for period in (0.01, 0.02) for riccati in ("track", "warm")
+                 for noise, seed in ((0.0, 0), (0.5, 1), (0.5, 2))]
+
+
+def _check_limited_run(changes):
+    result = run_experiment(_hardware(**LIMITED, **changes))     # raises if the guard fires
     m = result.metrics
-    assert m["status"]["governed_steps"] > 1000 and m["status"]["saturated_steps"] > 0
-    error = np.abs(result.x[:, :6] - result.x_d[:, :6]).max(axis=0)
-    assert error[:3].max() < 0.1 and error[3:].max() < 0.03     # slowed, not lost
+    assert result.t[-1] == pytest.approx(10.0)
+    assert m["status"]["governed_steps"] > 5000 and m["status"]["saturated_steps"] > 5000
     assert np.abs(result.T).max() <= 0.35 + 1e-12
-    with pytest.raises(SimulationDivergedError, match="tracking error"):
-        run_experiment(_hardware(**limited, **{"controller.anti_windup": "false"}))
+    error = np.abs(result.x[:, :6] - result.x_d[:, :6]).max(axis=0)
+    # Measured over the 12 runs: 20.7 to 25.5 mrad, 20.9 to 21.4 mm (of which the governed
+    # pose's own deviation: 1.9 mrad, 18.8 mm); the guard's bounds are 0.2 rad and 0.05 m.
+    assert error[:3].max() < 0.035 and error[3:].max() < 0.025
+    return result
+
+
+@pytest.mark.parametrize("changes", [PERTURBATIONS[6], PERTURBATIONS[1]],
+                         ids=["scenario", "0.01s-noise"])
+def test_limit_below_the_peak_demand_slows_the_platform_instead_of_losing_it(changes):
+    """0.35 N m against the manoeuvre's 0.41 N m (0.413 N m just to hold its extreme pose):
+    with anti-windup and the reference governor the 10 s run completes with every motor within
+    the limit, the platform within 26 mrad | 21.4 mm of the reference. Two of the perturbation
+    set: the scenario as shipped, and re-scheduled every 10 ms with half a count of encoder
+    noise (before the governor's exact projection, the first was lost at 2.87 s and the second
+    at 2.84 s; the whole set is the slow test below)."""
+    _check_limited_run(changes)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("changes", PERTURBATIONS,
+                         ids=[f"{c['controller.schedule_period_s']}s-{c['controller.riccati']}-"
+                              f"noise{c['hardware.encoders.noise_counts']}-seed"
+                              f"{c['hardware.encoders.seed']}" for c in PERTURBATIONS])
+def test_limited_run_completes_across_the_perturbation_set(changes):
+    """Every run of the perturbation set completes within the same bounds (6 of 12 before the
+    governor's exact projection; about 2 minutes on 2 cores)."""
+    _check_limited_run(changes)
+
+
+def test_without_anti_windup_the_limited_platform_falls():
+    """What happens at 0.35 N m without anti-windup: from 0.25 s a motor is clipped at its bound
+    and the integral of the pose error winds up to 50 to 80 N m of demand on it; when the
+    reference brings the load back within reach, the wound-up demand drives the platform
+    through it into an oscillation between the bounds that grows from 30 mrad at 0.8 s to
+    0.1 rad at 1.0 s: the guard stops the run at 1.06 to 1.10 s (|Z - Z_d| > 0.05 m in 9, |Y -
+    Y_d| in 2, |phi - phi_d| > 0.2 rad in 1) in all 12 runs of the perturbation set."""
+    with pytest.raises(SimulationDivergedError, match="tracking error") as err:
+        run_experiment(_hardware(**LIMITED, **{"controller.anti_windup": "false"}))
+    assert 0.9 < err.value.t < 1.3
 
 
 def test_the_lqi_knows_the_motors_and_the_delay():

@@ -114,9 +114,9 @@ class LqiDriver:
             (clamping); only acts when the scenario has a limit.
         delay_compensation: augment the error model with the torques still in the pipe when
             the hardware has a computation delay; false ignores the delay.
-        reference_governor: with a torque limit, hold the last reference the motors can hold
-            while the reference's own feed-forward exceeds 90 % of the limit
-            (:class:`~stewart_drake.control.lqi.LqiController`).
+        reference_governor: with a torque limit, follow the nearest pose whose holding torques
+            are within 90 % of the limit while the reference's own feed-forward exceeds it
+            (:meth:`~stewart_drake.control.lqi.LqiController.govern`).
         schedule_pose: re-schedule the input matrix B(x) from the measured pose (ours); false
             keeps the start pose's, as a plain LQI (the gain then changes only with omega).
     """
