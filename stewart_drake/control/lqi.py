@@ -427,6 +427,9 @@ class LqiController(PoseTorqueController):
             (12 perturbed runs). Ours: the paper has no limit.
         delay_periods: control periods between a sample and its torque acting (the computation
             delay); the error model is augmented with the pending torques (:func:`error_model`).
+        bumpless_transfer: when the gain changes (new weights, a new pose), reset the integral
+            states so that the feedback is continuous (K_I z = K_old e - K_rest e_rest): a
+            gain switch makes no torque step. Ours: the paper switches gains as they come.
         schedule_pose: re-schedule B(x) from the measured pose (default). False keeps the input
             matrix of the start pose, as a plain LQI would (the paper has one B; re-scheduling on
             the pose is ours): the gain is then re-solved only when omega changes.
@@ -445,7 +448,8 @@ class LqiController(PoseTorqueController):
                  offset_s: float = 0.0, x_initial=None, riccati: str = "warm",
                  torque_limit_Nm: float | None = None, anti_windup: bool = True,
                  delay_periods: int = 0, estimator=None, x_dot_initial=None,
-                 reference_governor: bool = True, schedule_pose: bool = True):
+                 reference_governor: bool = True, schedule_pose: bool = True,
+                 bumpless_transfer: bool = True):
         super().__init__(pose_input=estimator is None)
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
@@ -477,6 +481,7 @@ class LqiController(PoseTorqueController):
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
         self.schedule_pose = bool(schedule_pose)
+        self.bumpless = bool(bumpless_transfer)
         self.x_initial = x0.copy()
 
         A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
@@ -658,16 +663,20 @@ class LqiController(PoseTorqueController):
                                       K_start=K if self.riccati != "cold" else None)
                 status[0], status[1] = omega_Q, omega_R
                 status[2] += 1
+                K_old = K.copy()
                 K[:] = K_new
                 if self.estimator is not None:
                     memory[mem["J_inv"]] = np.linalg.inv(J).reshape(-1)
             except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError,
                     SingularPoseError, np.linalg.LinAlgError) as err:
+                K_old = None
                 status[3] += 1
                 if status[3] == 1 or status[3] % 100 == 0:
                     warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed "
                                   f"({err}); keeping the last good gain "
                                   f"({int(status[3])} failures so far)", RuntimeWarning)
+        else:
+            K_old = None
         memory[0] += 1.0
 
         T_ff = self.feedforward(context)
@@ -689,6 +698,19 @@ class LqiController(PoseTorqueController):
         if self.delay:
             pending = memory[mem["pending"]]
             e += pending.tolist()
+        if K_old is not None and self.bumpless:
+            # Bumpless transfer: the new gain starts from the feedback the old one gave, the
+            # integral states taking up the difference (K_I z_new = K_old e - K_rest e_rest),
+            # so a change of weights (the tuner's, every 20 ms) or of pose (every schedule
+            # period) makes no torque step. Ours: the paper switches gains as they come.
+            K_I = K[:, 12:18]
+            target = K_old @ e - (K @ e - K_I @ np.array(z_list))
+            try:
+                z_list = np.linalg.solve(K_I, target).tolist()
+                e[12:18] = z_list
+                z[:] = z_list
+            except np.linalg.LinAlgError:
+                pass                            # keep z: a step rather than no control
         feedback = K @ e                                     # K e, (6,)
         T = discrete_state.get_mutable_value(self._u_index)
         np.subtract(T_ff, feedback, out=T)

@@ -38,7 +38,8 @@ def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiControlle
                              else 0, estimator=context.pose_estimator,
                              x_dot_initial=context.x_dot_initial,
                              reference_governor=driver.reference_governor,
-                             schedule_pose=driver.schedule_pose)
+                             schedule_pose=driver.schedule_pose,
+                             bumpless_transfer=driver.bumpless_transfer)
     return make
 
 
@@ -271,7 +272,7 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             window=t.feature_window, period_s=h, offset_s=offset))
         if isinstance(t, RatioTunerDriver):
             tuner = builder.AddNamedSystem("ratio_tuner", RatioTuner(
-                load_ratio_tuner(t.weights), period_s=t.period_s))
+                load_ratio_tuner(t.weights), period_s=t.period_s, smoothing_s=t.smoothing_s))
             builder.Connect(ref.x_d.get_output_port(), tuner.GetInputPort("x_d"))
         else:
             tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(

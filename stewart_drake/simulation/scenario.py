@@ -119,6 +119,8 @@ class LqiDriver:
             (:meth:`~stewart_drake.control.lqi.LqiController.govern`).
         schedule_pose: re-schedule the input matrix B(x) from the measured pose (ours); false
             keeps the start pose's, as a plain LQI (the gain then changes only with omega).
+        bumpless_transfer: a gain change resets the integral states so the feedback torque is
+            continuous (ours; the paper switches gains as they come).
     """
 
     omega_Q: float = 1.0
@@ -130,6 +132,7 @@ class LqiDriver:
     delay_compensation: bool = True
     reference_governor: bool = True
     schedule_pose: bool = True
+    bumpless_transfer: bool = True
 
 
 @dataclass
@@ -186,11 +189,13 @@ class RatioTunerDriver:
         weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`), required.
         period_s: tuner period, s (a whole multiple of the control period).
         feature_window: samples m + 1 of the density features.
+        smoothing_s: time constant of the low-pass on its log10 ratio, s (0: none).
     """
 
     weights: str = ""
     period_s: float = 0.02
     feature_window: int = 50
+    smoothing_s: float = 0.0
 
 
 @dataclass
@@ -682,7 +687,7 @@ class Scenario:
                 raise InvalidConfigError(f"controller.riccati must be one of {RICCATI_MODES}, "
                                          f"got {c.riccati!r}")
             for name in ("anti_windup", "delay_compensation", "reference_governor",
-                         "schedule_pose"):
+                         "schedule_pose", "bumpless_transfer"):
                 if not isinstance(getattr(c, name), bool):
                     raise InvalidConfigError(f"controller.{name} must be true or false, got "
                                              f"{getattr(c, name)!r}")
