@@ -95,8 +95,9 @@ def test_evaluate_keeps_its_rows_when_the_report_fails_and_brings_back_divergenc
                                  quick=True, controllers=("lqi_1_1",))
     assert (report["info"]["ran"], report["info"]["reused"]) == (0, n)
     assert "## Runs that failed" in (tmp_path / "docs" / "results.md").read_text()
-    assert main(["evaluate", "--out", str(out), "--docs", str(tmp_path / "docs"),
-                 "--controllers", "lqi_1_1", "--no-progress"]) == 2      # not --quick
+    assert main(["evaluate", "--no-tuner-study", "--out", str(out), "--docs",
+                 str(tmp_path / "docs"), "--controllers", "lqi_1_1",
+                 "--no-progress"]) == 2                                 # not --quick
     assert "holds evaluate results of other settings (quick True there, False here" in \
         capsys.readouterr().err
 
@@ -127,8 +128,8 @@ def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
 
 
 @pytest.mark.parametrize("argv", [["collect", "--duration", "2"],
-                                  ["evaluate", "--quick", "--controllers", "lqi_1_1", "--docs",
-                                   "docs"]], ids=["collect", "evaluate"])
+                                  ["evaluate", "--quick", "--no-tuner-study", "--controllers",
+                                   "lqi_1_1", "--docs", "docs"]], ids=["collect", "evaluate"])
 def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(tmp_path, argv):
     out = tmp_path / "out"
     proc = _start(argv + ["--out", str(out), "--jobs", "2", "--no-progress"], tmp_path)
@@ -150,8 +151,8 @@ def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(t
 
 def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(tmp_path):
     out = tmp_path / "out"
-    argv = ["evaluate", "--quick", "--controllers", "pd", "--out", str(out), "--docs",
-            str(tmp_path / "docs"), "--jobs", "2", "--retries", "0", "--no-progress"]
+    argv = ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--out", str(out),
+            "--docs", str(tmp_path / "docs"), "--jobs", "2", "--retries", "0", "--no-progress"]
     proc = _start(argv, tmp_path)
     workers = _wait_for_results(proc, out, 2)
     workers[0].kill()

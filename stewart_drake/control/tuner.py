@@ -429,17 +429,20 @@ class RatioTuner(LeafSystem):
     Output port:
         ``omega`` (2,): [ratio, 1], ratio in [1e-3, 1e3], held between updates.
     Every period_s (first at offset_s) :class:`RatioTunerModel` is evaluated on the sampled
-    inputs; a non-finite input keeps the last omega (counted in ``nonfinite_count``).
+    inputs and its log10 ratio low-passed with time constant ``smoothing_s`` (0: none); a
+    non-finite input keeps the last omega (counted in ``nonfinite_count``).
 
     Args:
         model: the network.  period_s: s (20 ms).  offset_s: s.
         omega_initial: [omega_Q, omega_R] before the first update.
+        smoothing_s: time constant of the low-pass on the predicted log10 ratio, s (0: none):
+            a gain that jumps every 20 ms between distant ratios excites the loop.
     Raises:
         InvalidConfigError: period_s <= 0, offset_s < 0, a non-finite omega_initial.
     """
 
     def __init__(self, model: RatioTunerModel, period_s: float = 0.02, offset_s: float = 0.0,
-                 omega_initial=(1.0, 1.0)):
+                 omega_initial=(1.0, 1.0), smoothing_s: float = 0.0):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
@@ -448,8 +451,12 @@ class RatioTuner(LeafSystem):
         omega0 = np.asarray(omega_initial, dtype=float)
         if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
             raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
+        if not (np.isfinite(smoothing_s) and smoothing_s >= 0):
+            raise InvalidConfigError(f"smoothing_s must be >= 0 s, got {smoothing_s}")
         self.model = model
         self.period_s = float(period_s)
+        #: weight of a new prediction in the low-pass on log10 ratio (1: none)
+        self.alpha = 1.0 if smoothing_s == 0 else 1.0 - np.exp(-self.period_s / smoothing_s)
         self._rho = self.DeclareVectorInputPort("rho", N_FEATURES)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         self._omega_index = self.DeclareDiscreteState(omega0)
@@ -462,7 +469,10 @@ class RatioTuner(LeafSystem):
     def _Update(self, context, discrete_state):
         inputs = ratio_tuner_inputs(self._rho.Eval(context), self._x_d.Eval(context))
         try:
-            discrete_state.set_value(self._omega_index, self.model.predict(inputs))
+            y = float(self.model.predict_log10(inputs))
+            last = np.log10(context.get_discrete_state(self._omega_index).get_value()[0])
+            y = last + self.alpha * (y - last)
+            discrete_state.set_value(self._omega_index, [10.0 ** y, 1.0])
         except InvalidConfigError:                   # a non-finite input
             count = context.get_discrete_state(self._count_index).get_value()[0]
             discrete_state.set_value(self._count_index, [count + 1.0])

@@ -275,11 +275,20 @@ def _cmd_evaluate(args) -> int:
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
     check_writable(Path(args.docs), "--docs")
     report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
-                      quick=args.quick, controllers=controllers, base=args.scenario)
+                      quick=args.quick, controllers=controllers, base=args.scenario,
+                      tuner_study=not args.no_tuner_study)
     failed = sum("error" in r for r in report["rows"])
     info = report["info"]
     print(f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
           f"{info['reused']} found on disk; {failed} failed)")
+    if report.get("tuner"):
+        print("tuner study (held-out tasks, paired against the best fixed ratio per task):")
+        for lam, v in report["tuner"]["verdicts"].items():
+            ours, head = v["controllers"].get(f"ours {lam}"), v["controllers"].get(
+                f"hindsight {lam}")
+            print(f"  lambda {lam}: ours {100 * ours['mean']:+.0f} % +- {100 * ours['std']:.0f} %"
+                  f" ({'meets' if ours['beats'] else 'does not meet'} the 15 % goal); hindsight "
+                  f"headroom {100 * head['mean']:+.0f} % +- {100 * head['std']:.0f} %")
     for ann, v in report["verdict"].items():
         b = v["best_fixed"]
         print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
@@ -407,6 +416,8 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
     ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
     _add_runner_arguments(ev)
+    ev.add_argument("--no-tuner-study", action="store_true",
+                    help="leave out the tuner study (issue 14) that leads the report")
     ev.add_argument("--controllers", default=None,
                     help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (all)")
     ev.add_argument("--quick", action="store_true",

@@ -38,6 +38,21 @@ POSE_BOX = np.array([0.15, 0.15, 0.2, 0.015, 0.015, 0.015])
 LOAD_MARGIN = 0.8
 
 
+#: Fade-in and fade-out time of the tremor-scale motions, s.
+RAMP_S = 0.05
+
+
+def _smoothstep(s, derivative: int = 0):
+    """The min-jerk polynomial 10 s^3 - 15 s^4 + 6 s^5 on [0, 1] or its 1st / 2nd derivative;
+    the derivatives are zero outside (0, 1)."""
+    inside = (s > 0.0) & (s < 1.0)
+    if derivative == 0:
+        return s ** 3 * (10 - 15 * s + 6 * s * s)
+    if derivative == 1:
+        return np.where(inside, 30 * s * s * (1 - s) ** 2, 0.0)
+    return np.where(inside, 60 * s * (1 - s) * (1 - 2 * s), 0.0)
+
+
 @dataclass(frozen=True)
 class WaypointTrajectory:
     """Min-jerk (quintic) segments through waypoints, plus optional tremor-scale sines.
@@ -49,7 +64,8 @@ class WaypointTrajectory:
     Attributes:
         times: (K,) increasing, s. poses: (K, 6) [rad, m].
         tremor: (M, 6 + 6 + 2) rows [amplitude (6), frequency Hz (6), t_on, t_off]: a sine
-            amplitude sin(2 pi f (t - t_on)) added on [t_on, t_off), faded in and out over 50 ms.
+            amplitude sin(2 pi f (t - t_on)) added on [t_on, t_off), faded in and out over
+            :data:`RAMP_S` by the min-jerk polynomial (continuous acceleration).
         name: label used in result files.
     """
 
@@ -76,14 +92,20 @@ class WaypointTrajectory:
         for row in self.tremor:
             A, f, on, off = np.asarray(row[:6]), np.asarray(row[6:12]), row[12], row[13]
             w = 2 * np.pi * f
-            ramp = 0.05
-            g = np.clip(np.minimum(tt - on, off - tt) / ramp, 0.0, 1.0)     # fade in and out
-            dg = np.where((tt > on) & (tt < on + ramp), 1 / ramp,
-                          np.where((tt > off - ramp) & (tt < off), -1 / ramp, 0.0))
+            # Faded in and out over RAMP_S by the min-jerk polynomial: the pose, rate and
+            # acceleration stay continuous (a linear fade would put steps in the acceleration).
+            s_on = np.clip((tt - on) / RAMP_S, 0.0, 1.0)
+            s_off = np.clip((off - tt) / RAMP_S, 0.0, 1.0)
+            q_on, q_off = _smoothstep(s_on), _smoothstep(s_off)
+            d_on, d_off = _smoothstep(s_on, 1) / RAMP_S, -_smoothstep(s_off, 1) / RAMP_S
+            dd_on, dd_off = _smoothstep(s_on, 2) / RAMP_S ** 2, _smoothstep(s_off, 2) / RAMP_S ** 2
+            g = q_on * q_off
+            dg = d_on * q_off + q_on * d_off
+            ddg = dd_on * q_off + 2 * d_on * d_off + q_on * dd_off
             sn, cs = np.sin(w * (tt - on)), np.cos(w * (tt - on))
             x = x + g * A * sn
             v = v + g * A * w * cs + dg * A * sn
-            a = a - g * A * w * w * sn + 2 * dg * A * w * cs
+            a = a - g * A * w * w * sn + 2 * dg * A * w * cs + ddg * A * sn
         return x, v, a
 
 

@@ -374,8 +374,9 @@ def _disturbance_statics(base: str) -> str:
             ": " + "; ".join(parts) + ".")
 
 
-def render_markdown(rows, info: dict) -> str:
-    """The text of docs/results.md from the grid's rows (see module docstring)."""
+def render_markdown(rows, info: dict, tuner: dict | None = None) -> str:
+    """The text of docs/results.md from the grid's rows (see module docstring), led by the tuner
+    study's section when ``tuner`` (its summary) is given."""
     by = _index(rows)
     ctrls = [c for c in CONTROLLERS if any(k[0] == c for k in by)]
     L = ["# Evaluation results", "",
@@ -387,12 +388,16 @@ def render_markdown(rows, info: dict) -> str:
          " Do not edit by hand: rerun the command.", "",
          f"Every run starts from the scenario `{info.get('base', DEFAULT_BASE)}` "
          "(`stewart-drake scenario` prints it; docs/hardware.md describes the robot as built).",
-         "",
-         "Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. RMS and "
-         "peak errors are over the second half of each run (the true pose from the plant state, "
-         "not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with the LQI's error "
-         "scales s = 1 mrad | 1 mm. RTF = real-time factor of that run in its worker process.",
          ""]
+    if tuner is not None:
+        from .tuner_study import render_tuner_markdown
+
+        L += [render_tuner_markdown(tuner), "## The controller grid", ""]
+    L += ["Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. "
+          "RMS and peak errors are over the second half of each run (the true pose from the "
+          "plant state, not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with "
+          "the LQI's error scales s = 1 mrad | 1 mm. RTF = real-time factor of that run in its "
+          "worker process.", ""]
 
     def errors_row(r):
         return f"| {r['case']['controller']} | failed: {r['error'].splitlines()[0][:120]} |"
@@ -689,8 +694,10 @@ def evaluation_settings(quick: bool, base: str = DEFAULT_BASE) -> dict:
 
 def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evaluation",
              runner=None, progress: bool = True, quick: bool = False,
-             controllers=CONTROLLERS, base: str = DEFAULT_BASE) -> dict:
-    """Run the grid, keeping each row on disk as it arrives, then write the report.
+             controllers=CONTROLLERS, base: str = DEFAULT_BASE,
+             tuner_study: bool = False) -> dict:
+    """Run the tuner study and the grid, keeping each result on disk as it arrives, then write
+    the report, which leads with the tuner study's verdict (:mod:`.tuner_study`).
 
     Rows go to ``out_dir/rows/<case_id>.json`` the moment a case finishes (a failed case is a
     row with ``error`` and ``traceback``; a divergence dump goes to ``out_dir/diverged/``), with
@@ -705,9 +712,12 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
         controllers: subset of :data:`CONTROLLERS`.
         base: the scenario every case starts from (a shipped name or a .yaml path; default the
             robot as built, ``paper_hardware``).
+        tuner_study: run the tuner study (issue 14) into ``out_dir/tuner_study`` first and lead
+            the report with it (``stewart-drake evaluate`` does, unless ``--no-tuner-study``).
     Returns:
         dict with ``rows`` (grid order), ``wall_s`` (this call), ``paths``, ``verdict``,
-        ``info`` (``ran`` and ``reused`` count the cases run now and found on disk).
+        ``info`` (``ran`` and ``reused`` count the cases run now and found on disk) and
+        ``tuner`` (the tuner study's summary, or None).
     Raises:
         InvalidConfigError: an unknown controller (before any run).
         ResultsMismatchError: ``out_dir`` holds rows of other settings (e.g. ``--quick``).
@@ -721,6 +731,14 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
     jobs = {case_id(c): c for c in grid}
     runner = runner or ProcessRunner()
     out_dir, docs_dir = Path(out_dir), Path(docs_dir)
+    check_base = load_scenario(base)                  # a bad base fails before any run
+    del check_base
+    tuner = None
+    if tuner_study:
+        from .tuner_study import run_tuner_study
+
+        tuner = run_tuner_study(out_dir / "tuner_study", runner, base=base, quick=quick,
+                                progress=progress)
     store = ResultStore(out_dir, "evaluate", evaluation_settings(quick, base),
                         pattern="rows/*.json")
 
@@ -738,9 +756,14 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
     store.finish(True, info=info)
     payload = json.dumps({"info": info, "rows": rows}, indent=1, default=float)
     atomic_write(out_dir / "rows.json", lambda f: f.write(payload.encode()))
-    text = render_markdown(rows, info)
+    paths = plot_results(rows, docs_dir)
+    if tuner is not None:
+        from .tuner_study import plot_tuner_tradeoff
+
+        paths.append(plot_tuner_tradeoff(tuner, docs_dir / "results_tuner.png"))
+    text = render_markdown(rows, info, tuner)
     md = docs_dir / "results.md"
     atomic_write(md, lambda f: f.write(text.encode()))
-    paths = [md, out_dir / "rows.json"] + plot_results(rows, docs_dir)
+    paths = [md, out_dir / "rows.json"] + paths
     return {"rows": rows, "wall_s": ran["wall_s"], "paths": paths, "verdict": ann_verdict(rows),
-            "info": info}
+            "info": info, "tuner": tuner}

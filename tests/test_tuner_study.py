@@ -1,0 +1,189 @@
+"""Issue 14: the tuner study's pieces (tasks, cost, hindsight, our tuner, verdict) and a small
+study end to end, resumed."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stewart_drake.control.tuner import (N_RATIO_INPUTS, RatioTunerModel, load_ratio_tuner,
+                                         ratio_tuner_inputs, save_ratio_tuner)
+from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.model import limits, statics
+from stewart_drake.model.geometry import StewartGeometry
+from stewart_drake.simulation.scenario import RatioTunerDriver, Scenario, WeightSchedule
+from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
+from stewart_drake.studies import tuner_study as ts
+from stewart_drake.studies.runners import SerialRunner
+
+
+# -- tasks -----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("family", FAMILIES)
+def test_tasks_are_deterministic_valid_and_differ_by_seed(family):
+    g = StewartGeometry()
+    t = np.arange(0.0, 3.0, 1e-3)
+    a, b, c = (make_task(family, s, 3.0, g, 0.702) for s in (7, 7, 8))
+    xa, xb, xc = (task.reference.evaluate(t)[0] for task in (a, b, c))
+    np.testing.assert_array_equal(xa, xb)
+    assert family == "paper" or np.abs(xa - xc).max() > 1e-3
+    x, xd, xdd = a.reference.evaluate(t)
+    assert limits.validate_trajectory(g, t, x, x_dot=xd, x_ddot=xdd, raise_refused=False).ok
+
+
+def test_waypoint_rates_and_accelerations_are_the_derivatives_of_the_pose():
+    task = make_task("surgical", 3, 4.0)              # min-jerk segments and tremor sines
+    t = np.arange(0.0, 4.0, 1e-4)
+    x, v, a = task.reference.evaluate(t)
+    np.testing.assert_allclose(np.gradient(x, t, axis=0)[1:-1], v[1:-1], atol=2e-3)
+    np.testing.assert_allclose(np.gradient(v, t, axis=0)[2:-2], a[2:-2], atol=0.5)
+    still = WaypointTrajectory((0.0, 1.0), ((0, 0, 0, 0, 0, 0.3),) * 2)
+    assert not np.any(still.evaluate(np.linspace(-1, 2, 50))[1])
+
+
+def test_a_disturbed_hold_stays_within_the_motors_reach():
+    g, peak = StewartGeometry(), 0.702
+    for seed in range(4):
+        task = make_task("disturbed_hold", seed, 3.0, g, peak)
+        d = task.disturbance
+        t = np.arange(0.0, 3.0, 0.05)
+        worst = max(np.abs(statics.tool_load_torques(g, x, w)).max()
+                    for x, w in zip(task.reference.evaluate(t)[0], d.wrench(t)))
+        assert worst <= LOAD_MARGIN * peak + 1e-9 and d.magnitude > 0
+
+
+def test_bad_task_requests_are_refused_by_name():
+    with pytest.raises(InvalidConfigError, match="unknown task family 'dance'"):
+        make_task("dance")
+    with pytest.raises(InvalidConfigError, match="task seed must be an integer >= 0"):
+        make_task("dash_hold", -1)
+
+
+# -- cost, schedules, verdict ----------------------------------------------------------------------
+
+def test_window_means_average_each_window():
+    t = np.arange(0.0, 1.0, 1e-3)
+    values = np.floor(t / 0.2 + 1e-9)       # 0, 1, 2, 3, 4 per window (t = 0.6 is in the 4th)
+    np.testing.assert_allclose(ts.window_means(t, values, 1.0), [0, 1, 2, 3, 4])
+
+
+def _records(costs_e, costs_u):
+    """{ratio: record} with window costs (13, n) for e2 and u2."""
+    return {r: {"e2_w": np.asarray(e), "u2_w": np.asarray(u), "e2": float(np.mean(e)),
+                "u2": float(np.mean(u))} for r, e, u in zip(ts.RATIOS, costs_e, costs_u)}
+
+
+def test_hindsight_picks_the_best_ratio_of_each_window_and_skips_lost_runs():
+    rng = np.random.default_rng(0)
+    e, u = rng.uniform(1, 2, (13, 5)), rng.uniform(1, 2, (13, 5))
+    records = _records(e, u)
+    best = e + 0.1 * u
+    lost = int(np.argmin(best[:, 0]))
+    records[ts.RATIOS[lost]] = {"lost": "fell"}
+    best[lost] = np.inf
+    t, ratios = ts.hindsight_schedule(records, 0.1)
+    np.testing.assert_allclose(t, np.arange(5) * ts.WINDOW_S)
+    assert ratios == [ts.RATIOS[k] for k in best.argmin(axis=0)]
+
+
+def test_verdict_is_the_paired_difference_to_the_best_fixed_ratio_of_each_task():
+    tasks = [("dash_hold", 100 + k) for k in range(5)]
+    records = {}
+    for k, task in enumerate(tasks):
+        fixed = {f"fixed {r:.3g}": {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
+                 for r in ts.RATIOS}
+        best = min(v["e2"] for v in fixed.values())
+        records[task] = {**fixed, "ours 0.1": {"e2": 0.7 * best, "u2": 0.0},
+                         "hindsight 0.1": {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
+                         "paper tuner": {"e2": np.inf, "u2": np.inf}}
+    v = ts.verdict(records, tasks, 0.1)
+    ours, head = v["controllers"]["ours 0.1"], v["controllers"]["hindsight 0.1"]
+    assert ours["mean"] == pytest.approx(-0.3) and ours["std"] == pytest.approx(0.0, abs=1e-12)
+    assert ours["beats"]                        # 30 % below, beyond a zero spread
+    assert head["mean"] == pytest.approx(-0.06) and not head["beats"]      # not 15 %
+    assert not v["controllers"]["paper tuner"]["beats"]                    # lost: infinite J
+
+
+def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
+    t, ratios = ts.speed_schedule("dash_hold", 0, 3.0, "paper_hardware")
+    _, v, _ = make_task("dash_hold", 0, 3.0).reference.evaluate(np.asarray(t))
+    still = np.linalg.norm(v, axis=1) == 0
+    assert np.allclose(np.asarray(ratios)[still], ts.R_HOLD)
+    assert max(ratios) == pytest.approx(ts.R_MOVE)
+
+
+# -- our tuner -------------------------------------------------------------------------------------
+
+def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed():
+    """Synthetic windows whose best ratio is 10 when the reference moves and 0.01 when it holds:
+    trained on the interpolated cost, the network picks each side's ratio."""
+    rng = np.random.default_rng(1)
+    n_w, log_r = 40, np.log10(ts.RATIOS)
+    moving = rng.uniform(size=n_w) < 0.5
+    runs = {}
+    for task in range(2):
+        target = np.where(moving, 1.0, -2.0)
+        e2_w = np.array([(lr - target) ** 2 + 0.1 for lr in log_r])      # (13, n_w)
+        records = {}
+        for r in ts.RATIOS:
+            x_d = np.zeros((n_w, 18))
+            x_d[:, 6] = np.where(moving, 1.0, 0.0)                       # |rpy_dot| = 1 rad/s
+            records[r] = {"e2_w": e2_w[ts.RATIOS.index(r)], "u2_w": np.zeros(n_w),
+                          "inputs": ratio_tuner_inputs(rng.uniform(0, 2, (n_w, 12)), x_d),
+                          "input_window": np.arange(n_w)}
+        runs[task] = records
+    model = ts.train_ratio_tuner(runs, 0.1, epochs=400)
+    x_move, x_hold = np.zeros(18), np.zeros(18)
+    x_move[6] = 1.0
+    rho = np.ones(12)
+    assert model.predict_log10(ratio_tuner_inputs(rho, x_move)) == pytest.approx(1.0, abs=0.3)
+    assert model.predict_log10(ratio_tuner_inputs(rho, x_hold)) == pytest.approx(-2.0, abs=0.3)
+
+
+def test_ratio_tuner_file_round_trips_and_refuses_other_files(tmp_path):
+    rng = np.random.default_rng(2)
+    model = RatioTunerModel(rng.normal(size=(4, N_RATIO_INPUTS)), rng.normal(size=4),
+                            rng.normal(size=(1, 4)), rng.normal(size=1),
+                            np.zeros(N_RATIO_INPUTS), np.ones(N_RATIO_INPUTS), {"lambda": 0.1})
+    path = save_ratio_tuner(model, tmp_path / "r.npz")
+    again = load_ratio_tuner(path)
+    inputs = rng.normal(size=(7, N_RATIO_INPUTS))
+    np.testing.assert_array_equal(again.predict(inputs), model.predict(inputs))
+    assert np.all(again.predict(inputs)[:, 1] == 1.0) and again.metadata == {"lambda": 0.1}
+    np.savez(tmp_path / "other.npz", W1=np.zeros(3))
+    with pytest.raises(InvalidConfigError, match="is not a ratio tuner"):
+        load_ratio_tuner(tmp_path / "other.npz")
+    with pytest.raises(MissingFileError, match="no ratio tuner weights"):
+        Scenario(tuner=RatioTunerDriver(weights=str(tmp_path / "none.npz"))).validate()
+
+
+def test_weight_schedules_are_checked_by_field():
+    with pytest.raises(InvalidConfigError, match="tuner.t must be increasing times"):
+        Scenario(tuner=WeightSchedule(t=[0.0, 0.0], omega_Q=[1, 1], omega_R=[1, 1])).validate()
+    with pytest.raises(InvalidConfigError, match=r"tuner.omega_Q must be in \[0.001, 1000\]"):
+        Scenario(tuner=WeightSchedule(t=[0.0], omega_Q=[1e4], omega_R=[1])).validate()
+
+
+# -- a small study end to end ----------------------------------------------------------------------
+
+def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
+    monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
+    monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
+    monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
+    monkeypatch.setattr(ts, "test_tasks", lambda quick=False: [("dash_hold", 100)])
+    summary = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
+    v = summary["verdicts"]["0.1"]
+    labels = set(v["controllers"])
+    assert labels == {"hindsight 0.1", "ours 0.1", "paper tuner", "speed schedule",
+                      "fixed gain 1"}
+    assert v["best_fixed"]["dash_hold_s100"][0] in (0.1, 1.0, 10.0)
+    assert summary["n_runs"] == 2 * 3 + 3 + 2 and summary["lost"] == []
+    assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
+    assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == \
+        json.loads(json.dumps(summary["verdicts"]))
+    monkeypatch.setattr(ts, "study_job", lambda job: pytest.fail("ran again"))
+    again = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
+    assert again["verdicts"] == summary["verdicts"]
+    md = ts.render_tuner_markdown(again)
+    assert "QUICK mode" in md and "| ours |" in md and "**Verdict**" in md
+    assert ts.plot_tuner_tradeoff(again, tmp_path / "t.png").stat().st_size > 10_000
