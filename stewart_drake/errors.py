@@ -34,6 +34,31 @@ class InvalidConfigError(StewartError, ValueError):
     """A simulation or controller setting out of its valid range."""
 
 
+class CorruptFileError(InvalidConfigError):
+    """A file that is not a valid X: truncated, random bytes, empty, an entry missing or of the
+    wrong type, another format version, bad JSON or YAML, a failed CRC.
+
+    One class for every file stewart-drake reads (tuner weights, collected runs and their
+    manifest, evaluation rows, scenario YAML, run results). An :class:`InvalidConfigError` (and
+    so a ``ValueError``): a bad file is bad input.
+
+    Attributes:
+        path: the file (str).  kind: what it should have been ("ANN tuner weights file", ...).
+        problem: what is wrong with it.  remedy: what to do about it ("" if nothing to add).
+    """
+
+    def __init__(self, path, kind: str, problem: str, remedy: str = ""):
+        self.path = str(path)
+        self.kind = str(kind)
+        self.problem = str(problem)
+        self.remedy = str(remedy)
+        super().__init__(f"{self.path} is not a valid {self.kind}: {self.problem}"
+                         + (f"; {self.remedy}" if self.remedy else ""))
+
+    def _init_args(self) -> tuple:
+        return self.path, self.kind, self.problem, self.remedy
+
+
 class UnreachablePoseError(StewartError, ValueError):
     """A pose that one leg cannot reach: |L| / sqrt(M^2 + N^2) > 1 (paper eq. 6).
 

@@ -30,7 +30,8 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from ..checks import as_array, as_number, check_multiple
-from ..errors import InvalidConfigError, InvalidGeometryError, MissingFileError, StewartError
+from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError, MissingFileError,
+                      StewartError)
 from ..control.lqi import OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
 from ..model.servo import ServoModel
@@ -768,8 +769,11 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     Returns:
         the validated :class:`Scenario`.
     Raises:
-        MissingFileError: no such file or name. InvalidConfigError: YAML that does not fit the
-            schema (unknown or mistyped field, named), a bad override, or a value out of range.
+        MissingFileError: no such file or name.
+        CorruptFileError (an InvalidConfigError): the file is empty, not UTF-8, not YAML, or
+            YAML that does not fit the schema (unknown or mistyped field, named).
+        InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
+            out of range (named by file and field path).
     """
     shipped = shipped_scenarios()
     path = Path(source)
@@ -779,16 +783,32 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         else:
             raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
                                    f"name (shipped: {', '.join(sorted(shipped))})")
+    raw = path.read_bytes()
+    remedy = "fix it, or start from `stewart-drake scenario paper_hardware --out FILE.yaml`"
+    if not raw.strip():
+        raise CorruptFileError(path, "scenario file", "it is empty", remedy)
     try:
-        scenario = yaml_load_typed(schema=Scenario, filename=str(path),
-                                   allow_schema_with_no_yaml=True)
-    except (RuntimeError, ValueError, TypeError, KeyError) as err:
-        raise InvalidConfigError(f"{path} does not fit the Scenario schema: {err}") from None
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(path, "scenario file", f"not UTF-8 text ({err.reason} at byte "
+                                                      f"{err.start})", remedy) from None
+    try:
+        scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
-        raise type(err)(f"{path}: {err}") from None
+        raise InvalidConfigError(f"{path}: {err}") from None
+    except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
+        message = " ".join(str(err).split()) or type(err).__name__
+        raise CorruptFileError(path, "scenario file", f"it does not fit the Scenario schema: "
+                                                      f"{message:.300}", remedy) from None
     for override in overrides:
         apply_override(scenario, override)
-    return scenario.validate()
+    try:
+        return scenario.validate()
+    except (InvalidConfigError, InvalidGeometryError, MissingFileError) as err:
+        if type(err) not in (InvalidConfigError, InvalidGeometryError, MissingFileError):
+            raise
+        where = f"{path} with --set {', '.join(overrides)}" if overrides else str(path)
+        raise type(err)(f"{where}: {err}") from None
 
 
 def apply_override(scenario: Scenario, override: str) -> None:

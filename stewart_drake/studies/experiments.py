@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from ..fileio import atomic_write, save_npz
+from ..fileio import CheckedNpz, atomic_write, save_npz
 from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
@@ -283,14 +283,21 @@ def save_result(result: RunResult, path: str | Path) -> Path:
 
 
 def load_result(path: str | Path) -> RunResult:
-    """Read a file written by :func:`save_result`."""
-    with np.load(path) as data:
-        return RunResult(t=data["t"], x=data["x"], x_d=data["x_d"], T=data["T"],
-                         closure=data["closure"], status=data["status"],
-                         status_names=tuple(str(v) for v in data["status_names"]),
-                         metrics=json.loads(str(data["metrics"])),
-                         config_summary=json.loads(str(data["config"])),
-                         **{k: data[k] for k in _OPTIONAL_ARRAYS if k in data})
+    """Read a file written by :func:`save_result`.
+
+    Raises:
+        CorruptFileError: not such a file (damaged archive, an entry missing or of the wrong
+            type, metrics or config that are not JSON); names the file and the fault.
+        OSError: the file cannot be read.
+    """
+    data = CheckedNpz(path, "run result file", "run it again with `stewart-drake run`")
+    arrays = {k: data.array(k) for k in ("t", "x", "x_d", "T", "closure", "status")
+              + tuple(k for k in _OPTIONAL_ARRAYS if k in data)}
+    names = data.arrays.get("status_names")
+    if names is None or names.dtype.kind != "U" or names.ndim != 1:
+        raise data.corrupt("the entry 'status_names' must be a list of strings")
+    return RunResult(**arrays, status_names=tuple(str(v) for v in names),
+                     metrics=data.json("metrics"), config_summary=data.json("config"))
 
 
 def plot_fig7(result: RunResult, path: str | Path) -> Path:
