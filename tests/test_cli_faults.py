@@ -142,3 +142,74 @@ def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(plant, "write_sdf", broken)
     assert "Input/output error" in _one_line_error(capsys, ["sdf", "--out", str(out)], code=1)
     assert out.read_text() == good
+
+
+# -- issue 16: every output path is checked before the work ----------------------------------------
+
+@pytest.mark.parametrize("argv", [["run"], ["collect"], ["evaluate"], ["workspace"], ["train"],
+                                  ["sdf"], ["mjcf"], ["diagrams"], ["scenario"]])
+def test_an_empty_out_is_refused(capsys, argv):
+    assert "--out is empty: give a" in _one_line_error(capsys, argv + ["--out", ""])
+
+
+@pytest.mark.parametrize("argv", [["train"], ["sdf"], ["mjcf"], ["scenario"]])
+def test_a_folder_where_a_file_is_due_is_refused(capsys, tmp_path, argv):
+    line = _one_line_error(capsys, argv + ["--out", str(tmp_path)])
+    assert f"--out {tmp_path} is a folder: give a file name" in line
+
+
+@pytest.mark.parametrize("argv, option, sub", [
+    (["run", "--duration", "0.1"], "--out", "diverged"),
+    (["collect", "--duration", "0.1"], "--out", "diverged"),
+    (["evaluate", "--quick", "--controllers", "pd"], "--out", "rows"),
+    (["evaluate", "--quick", "--controllers", "pd"], "--docs", None),
+    (["run", "--duration", "0.1"], "--html", None),
+])
+def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, monkeypatch,
+                                                               argv, option, sub):
+    from stewart_drake.studies import collection, evaluation, experiments
+
+    for module, name in ((experiments, "build_simulator"), (collection, "collection_jobs"),
+                         (evaluation, "cases")):
+        monkeypatch.setattr(module, name, lambda *a, **k: pytest.fail("work started"))
+    out = tmp_path / "out"
+    blocker = out / sub if sub else tmp_path / "a_file"
+    blocker.parent.mkdir(exist_ok=True)
+    blocker.write_text("a file where a folder or a file's folder is due")
+    target = {"--out": out, "--docs": blocker / "docs", "--html": blocker / "replay.html"}
+    args = argv + ["--no-progress", "--out", str(out)]
+    if option != "--out":
+        args += [option, str(target[option])]
+    before = sorted(tmp_path.rglob("*"))
+    line = _one_line_error(capsys, args)
+    assert f"cannot write to {blocker}" in line and f"{blocker} is a file" in line
+    assert line.endswith(f"choose another output with {option}")
+    assert sorted(tmp_path.rglob("*")) == before                  # nothing written
+
+
+def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch):
+    from stewart_drake.errors import SimulationDivergedError
+    from stewart_drake.simulation.scenario import GuardConfig, Scenario
+    from stewart_drake.studies.experiments import run_experiment
+
+    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    blocker = tmp_path / "diverged"
+    blocker.write_text("a file in the folder's place")
+    scenario = Scenario(duration_s=0.1, guard=GuardConfig(divergence_dir=str(blocker)))
+    with pytest.raises(SimulationDivergedError, match=rf"the motor torques are not finite.* \(the "
+                       rf"logs could not be saved in {blocker}: File exists; set "
+                       rf"guard.divergence_dir") as info:
+        run_experiment(scenario)
+    assert info.value.path is None and blocker.read_text() == "a file in the folder's place"
+
+
+def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch):
+    from stewart_drake.studies.collection import collect
+    from stewart_drake.studies.runners import SerialRunner
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    manifest = collect(tmp_path / "out", duration_s=0.1, runner=SerialRunner(), progress=False)
+    assert all(run["lost"] for run in manifest["runs"])
+    assert len(list((tmp_path / "out" / "diverged").glob("diverged_*.npz"))) == 9
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]   # nothing in the current folder

@@ -116,7 +116,8 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     (:class:`~.store.ResultStore`); run again with the same settings, only the missing runs run.
 
     Args:
-        out_dir: folder of ``run_<job>.npz`` records and ``manifest.json``.
+        out_dir: folder of ``run_<job>.npz`` records and ``manifest.json``; the logs of a run
+            that loses the platform go to ``out_dir/diverged/``.
         runner: :class:`~.runners.ProcessRunner` (default, one process per core) or any runner
             of :mod:`.runners`.
         base: the scenario the nine runs share (robot, hardware, noise...); its reference,
@@ -133,6 +134,8 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     out = Path(out_dir)
     runner = runner or ProcessRunner()
     settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
+    for job in jobs.values():          # not in the settings: a divergence is kept under out_dir
+        job["config"].guard.divergence_dir = str(out / "diverged")
     store = ResultStore(out, "collect", settings, pattern="run_*.npz")
 
     def save(job_id, record):
