@@ -213,3 +213,45 @@ def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch):
     assert all(run["lost"] for run in manifest["runs"])
     assert len(list((tmp_path / "out" / "diverged").glob("diverged_*.npz"))) == 9
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]   # nothing in the current folder
+
+
+# -- issue 16: sizes are bounded before anything is allocated -------------------------------------
+
+@pytest.mark.parametrize("argv, expected", [
+    (["run", "--duration", "1e5"], "a run of 100000 s logged every 0.001 s: about 400 GB of "
+                                   "memory needed, more than the 8 GB available"),
+    (["run", "--duration", "1e9"], "a run of 1e+09 s logged"),
+    (["run", "--duration", "1e300"], "a run of 1e+300 s logged every 0.001 s: about 4e+306 "
+                                     "bytes of memory needed"),
+    (["run", "--duration", "1e5", "--html", "replay.html"], "about 400 GB of memory needed"),
+    (["collect", "--duration", "1e6", "--jobs", "3"], "3 runs at once, each of 1e+06 s logged "
+                                                      "every 0.001 s: about 12 TB of memory"),
+    (["workspace", "--resolution", "100000"], "a workspace sweep at resolution 100000 (2e+15 "
+                                              "poses): about 400 PB of memory needed"),
+])
+def test_a_request_beyond_the_machine_s_memory_is_refused_in_one_line(
+        capsys, tmp_path, monkeypatch, argv, expected):
+    from stewart_drake import checks
+
+    monkeypatch.setattr(checks, "available_memory_bytes", lambda: 8e9)
+    monkeypatch.chdir(tmp_path)
+    line = _one_line_error(capsys, argv + ["--no-progress", "--out", "out"])
+    assert expected in line
+    assert not any(tmp_path.iterdir())                   # refused before anything was written
+
+
+def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch):
+    from stewart_drake import checks
+    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.simulation.scenario import Scenario
+    from stewart_drake.studies.experiments import check_run_memory, run_memory_bytes
+
+    available = checks.available_memory_bytes()
+    assert available is None or available > 1e8
+    assert 3e7 < run_memory_bytes(Scenario()) < 1e8         # 10 s at 1 ms: tens of MB
+    monkeypatch.setattr(checks, "available_memory_bytes", lambda: 1e8)
+    check_run_memory(Scenario())
+    with pytest.raises(InvalidConfigError, match="3 runs at once, each of 10 s"):
+        check_run_memory(Scenario(), runs_at_once=3)
+    monkeypatch.setattr(checks, "available_memory_bytes", lambda: None)   # unknown: no check
+    check_run_memory(Scenario(duration_s=1e300))

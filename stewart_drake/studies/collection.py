@@ -21,7 +21,7 @@ from ..errors import (CorruptFileError, IncompleteResultsError, InvalidConfigErr
                       ResultsMismatchError)
 from ..fileio import CheckedNpz
 from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
-from .experiments import RunResult, run_experiment
+from .experiments import RunResult, check_run_memory, run_experiment
 from .runners import JobFailure, ProcessRunner
 from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 
@@ -127,12 +127,17 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
         ``n_samples``, and for this call ``workers``, ``wall_s``, ``sum_job_s`` and
         ``speedup`` = sum of job times / wall time.
     Raises:
+        InvalidConfigError: the runs at once need more memory than the machine has.
         ResultsMismatchError: ``out_dir`` holds runs of other settings, or not of collect.
         IncompleteResultsError: runs failed or were lost (named); the others are on disk.
         Interrupted: Ctrl-C, SIGTERM or SIGHUP; the finished runs are on disk.
     """
     out = Path(out_dir)
     runner = runner or ProcessRunner()
+    n_runs = len(PAPER_WEIGHTS) ** 2                 # before the reference is planned
+    check_run_memory(job_config(base, seed, duration_s, 1.0, 1.0),
+                     max(1, min(runner.n_workers, n_runs)),
+                     "shorten --duration, or run fewer at once with --jobs")
     settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
     for job in jobs.values():          # not in the settings: a divergence is kept under out_dir
         job["config"].guard.divergence_dir = str(out / "diverged")

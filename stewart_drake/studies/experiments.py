@@ -83,6 +83,40 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
+#: Memory a run holds, measured with ``stewart-drake run`` (paper_hardware, 1 s against 5 s and
+#: 10 s against 110 s): about 3.3 kB per logged sample at the end of the run (the Simulator's
+#: logs of 86 floats, which grow by doubling, the RunResult, the .npz and the plot), and
+#: 3 kB per control-period sample while the reference is checked (``guard.check_reference``,
+#: before the simulation). Upper bounds with some slack:
+LOG_BYTES_PER_SAMPLE = 4.0e3
+REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
+
+
+def run_memory_bytes(scenario: Scenario) -> float:
+    """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
+    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`)."""
+    d = float(scenario.duration_s)
+    return max((d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
+               (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
+
+
+def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
+    """Refuse, before anything is allocated, runs that need more memory than the machine has.
+
+    Args:
+        scenario: the run.  runs_at_once: how many such runs are in memory together (workers).
+        change: what the message tells to change (default: duration_s or log_period_s).
+    Raises:
+        InvalidConfigError: one line with the estimate and the memory available.
+    """
+    from ..checks import check_memory
+
+    what = (f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
+            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s")
+    check_memory(what, runs_at_once * run_memory_bytes(scenario), change or (
+        "shorten duration_s (--duration) or lengthen log_period_s"))
+
+
 def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,
                     controller=None):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
@@ -97,9 +131,11 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
-            checked before anything is simulated. InvalidConfigError: a bad scenario field.
+            checked before anything is simulated. InvalidConfigError: a bad scenario field, or
+            a run that needs more memory than the machine has (:func:`check_run_memory`).
     """
     scenario = (scenario or Scenario()).validate()
+    check_run_memory(scenario)
     trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
     guard.check_reference(scenario, trajectory)
     sd = make_stewart_diagram(scenario, meshcat=meshcat, reference=trajectory,
