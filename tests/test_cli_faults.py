@@ -34,6 +34,7 @@ def _one_line_error(capsys, argv, code=2):
     (["run", "--omega-q", "abc"], "--omega-q: expected a number, got 'abc'"),
     (["run", "--tuner", "fuzzy"], "invalid choice: 'fuzzy'"),
     (["collect", "--jobs", "-2"], "--jobs: must be >= 0, got -2"),
+    (["evaluate", "--jobs", "-1"], "--jobs: must be >= 0, got -1"),
     (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
     (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
     (["workspace", "--resolution", "1"], "--resolution: must be >= 2, got 1"),
@@ -56,6 +57,10 @@ def test_bad_values_found_after_parsing_give_one_line(capsys, tmp_path):
         capsys, ["run", "--tuner", "ann", "--tuner-weights", str(tmp_path / "w.npz")] + out)
     assert "no collected runs in" in _one_line_error(
         capsys, ["train", "--data", str(tmp_path / "nothing"), "--out", str(tmp_path / "w.npz")])
+    assert "duration_s (1e-06 s) must cover at least two log periods (0.002 s)" in \
+        _one_line_error(capsys, ["run", "--duration", "1e-6"] + out)   # not "0 mrad RMS"
+    assert "--tuner-weights needs --tuner ann" in _one_line_error(
+        capsys, ["run", "--tuner-weights", str(REPO / "stewart_drake/data/ann_tuner.npz")] + out)
     assert not (tmp_path / "r").exists()                  # refused before anything was written
 
 

@@ -163,12 +163,13 @@ def test_a_corrupt_weight_file_is_one_line_from_the_cli(tmp_path, capsys):
 
 # -- a collect folder -----------------------------------------------------------------------------
 
-def _collect_folder(folder: Path) -> dict:
-    """A complete two-run collection (what ``collect`` writes, with short synthetic runs)."""
+def _collect_folder(folder: Path, sizes=(20, 21)) -> dict:
+    """A complete two-run collection (what ``collect`` writes, with short synthetic runs of
+    ``sizes`` samples)."""
     store = ResultStore(folder, "collect", {"seed": 0}, pattern="run_*.npz")
     runs = []
     for k, (q, r) in enumerate([(0.1, 1.0), (10.0, 1.0)]):
-        n = 20 + k
+        n = sizes[k]
         arrays = {"omega_Q": np.float64(q), "omega_R": np.float64(r),
                   "t": np.arange(n) * 5e-3, "rho": np.full((n, 12), 0.5),
                   "cost_e": np.ones(n), "cost_u": np.ones(n),
@@ -247,6 +248,18 @@ def test_a_damaged_manifest_stops_a_resumed_study_and_train(tmp_path, capsys):
     code = cli.main(["train", "--data", str(tmp_path), "--out", str(tmp_path / "w.npz")])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and f"{tmp_path / MANIFEST} is not a valid" in err[0]
+
+
+def test_train_on_a_data_set_too_small_to_split_says_so(tmp_path, capsys):
+    pytest.importorskip("torch")
+    from stewart_drake.interfaces import cli
+
+    _collect_folder(tmp_path / "c", sizes=(1, 1))
+    code = cli.main(["train", "--data", str(tmp_path / "c"), "--out", str(tmp_path / "w.npz")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err == ["stewart-drake train: 2 samples cannot be split 70%/30% with "
+                                 "samples on both sides; collect more"]
+    assert not (tmp_path / "w.npz").exists()
 
 
 def test_a_damaged_evaluation_row_is_named(tmp_path):
