@@ -71,12 +71,14 @@ class UnreachablePoseError(StewartError, ValueError):
 
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
-        self.ratio = float(ratio)
+        self.ratio = abs(float(ratio))      # callers may pass the signed L / sqrt(M^2 + N^2)
         where = _locate(self, t, pose)
+        value = (f"= {self.ratio:.4g} > 1" if not math.isnan(self.ratio) else
+                 "is not a number (M = N = 0: the platform joint is on the motor's axis)")
         super().__init__(
-            f"leg {self.leg} cannot reach the pose{where}: "
-            f"|L|/sqrt(M^2+N^2) = {self.ratio:.4g} > 1. Bring the pose closer to home "
-            f"[0, 0, 0, 0, 0, 0.30] or reduce the trajectory's amplitude.")
+            f"leg {self.leg} cannot reach the pose{where}: |L|/sqrt(M^2+N^2) {value}. Bring "
+            f"the pose closer to home [0, 0, 0, 0, 0, 0.30] or reduce the trajectory's "
+            f"amplitude.")
 
     def _init_args(self) -> tuple:
         return self.leg, self.ratio, self.t, self.pose

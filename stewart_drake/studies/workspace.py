@@ -59,9 +59,9 @@ def classify(geometry: StewartGeometry, x,
     """
     x = np.asarray(x, dtype=float)
     theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = limits.limit_margins(geometry, x, theta, ratio)
+    margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     reachable = limits._reachable_from_margins(margins)
-    cond, inv = kinematics.singularity_measures(geometry, x, theta)
+    cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
     torques = np.full(x.shape[:-1] + (6,), np.nan)
     ok = reachable & np.isfinite(cond)
     if np.any(ok):
