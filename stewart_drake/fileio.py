@@ -13,7 +13,10 @@ from __future__ import annotations
 import io
 import json
 import os
+import re
+import socket
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
@@ -21,11 +24,28 @@ import numpy as np
 from .errors import CorruptFileError
 
 
+#: The temporaries of :func:`atomic_write`: ``.<name>.<host>-<pid>.<random>.tmp``, hidden, named
+#: by the writer so that :func:`remove_stale_temporaries` can tell a dead writer's from a live one.
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<host>\w*)-(?P<pid>\d+)\.\w+\.tmp$")
+#: A temporary of the older form ``.<name>.<random>.tmp`` is stale after this long, s.
+_LEGACY_STALE_S = 3600.0
+
+
+def _writer() -> str:
+    return f"{re.sub(r'[^A-Za-z0-9_]', '_', socket.gethostname())}-{os.getpid()}"
+
+
 def atomic_write(path: Path, write) -> None:
-    """Call write(binary file) on a temporary file next to ``path``, then os.replace it."""
+    """Call write(binary file) on a temporary file next to ``path``, then os.replace it.
+
+    The temporary is ``.<name>.<host>-<pid>.<random>.tmp``; an exception (Ctrl-C included)
+    removes it, a kill that Python cannot see (SIGKILL, SIGTERM outside a study) leaves it for
+    :func:`remove_stale_temporaries`.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{_writer()}.",
+                               suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
@@ -37,6 +57,44 @@ def atomic_write(path: Path, write) -> None:
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True                                   # another user's process, or not a pid
+    return True
+
+
+def remove_stale_temporaries(folder, depth: int = 1) -> list[Path]:
+    """Delete the temporaries :func:`atomic_write` left in ``folder`` (and its sub-folders down
+    to ``depth``) when its process was killed mid-write: those of a process of this host that
+    no longer runs, and those of the older unnamed form after an hour. A live writer's file
+    (another command writing there now) and another host's (a shared disk) are left alone.
+
+    Returns:
+        the paths removed (none when the folder does not exist).
+    """
+    folder, host = Path(folder), _writer().rsplit("-", 1)[0]
+    patterns = [".*.tmp"] + ["/".join(["*"] * k + [".*.tmp"]) for k in range(1, depth + 1)]
+    removed = []
+    for pattern in patterns:
+        for path in folder.glob(pattern):
+            match = _TEMPORARY.match(path.name)
+            try:
+                if match:
+                    stale = match["host"] == host and not _alive(int(match["pid"]))
+                else:
+                    stale = time.time() - path.stat().st_mtime > _LEGACY_STALE_S
+                if stale and path.is_file():
+                    path.unlink()
+                    removed.append(path)
+            except FileNotFoundError:                 # its writer renamed or removed it
+                continue
+    return removed
 
 
 def save_npz(path: Path, arrays: dict) -> Path:

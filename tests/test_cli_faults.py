@@ -260,3 +260,43 @@ def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch)
         check_run_memory(Scenario(), runs_at_once=3)
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: None)   # unknown: no check
     check_run_memory(Scenario(duration_s=1e300))
+
+
+def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, capsys):
+    """Issue 16: SIGTERM outside a study kills Python before atomic_write can clean up; the
+    next command writing there removes what the dead writer left, and only that."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "sdf"
+    writer = subprocess.Popen([sys.executable, "-c", (
+        "import sys, time; from pathlib import Path; from stewart_drake.fileio import atomic_write\n"
+        "def slow(f):\n    f.write(b'half a file'); f.flush(); print('writing', flush=True); "
+        "time.sleep(60)\n"
+        f"atomic_write(Path({str(out / 'robot.sdf')!r}), slow)")],
+        stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [str(REPO)] + os.environ.get("PYTHONPATH", "").split(os.pathsep))))
+    assert writer.stdout.readline() == "writing\n"
+    writer.send_signal(signal.SIGTERM)
+    assert writer.wait(timeout=30) == -signal.SIGTERM
+    left = [p.name for p in out.iterdir()]
+    assert len(left) == 1 and left[0].startswith(".robot.sdf.") and left[0].endswith(".tmp")
+    live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1.tmp"
+    live.write_bytes(b"another command writing here now")
+    old_form, fresh_old_form = out / ".a.npz.k2j3h4_a.tmp", out / ".b.npz.k2j3h4_b.tmp"
+    for path in (old_form, fresh_old_form):
+        path.write_bytes(b"")
+    os.utime(old_form, (time.time() - 7200,) * 2)
+    assert cli.main(["sdf", "--out", str(out / "robot.sdf")]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(
+        ["robot.sdf", live.name, fresh_old_form.name])
+
+
+def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys):
+    """Issue 16: the summary printed 'gain re-schedules' (an LQI figure) for a PD run."""
+    assert cli.main(["run", "--controller", "pd", "--duration", "0.1", "--no-progress",
+                     "--out", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "controller status: inertia reschedules 10, failures 0" in out
+    assert "gain" not in out and "omega" not in out

@@ -5,8 +5,9 @@ Each subcommand parses its arguments here and calls the functions of the modules
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
 exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
 other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
-the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Output folders are checked for writing before any
-work starts, so a long run never ends in a failed save.
+the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Every output (folder,
+file, the sub-folders a command writes into) is checked before any work starts, so a long run
+never ends in a failed save, and the hidden temporaries a killed write left there are removed.
 """
 
 from __future__ import annotations
@@ -71,11 +72,15 @@ def check_writable(folder: Path, option: str = "--out") -> None:
 def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
     """Refuse an output before any work: empty, a folder where a file is due, or a place that
     cannot be written (:func:`check_writable`); ``sub`` names sub-folders the command writes
-    into (``diverged``, ``rows``), checked too. Returns the path.
+    into (``diverged``, ``rows``), checked too. Then remove the temporaries an earlier run
+    killed mid-write left there (:func:`~stewart_drake.fileio.remove_stale_temporaries`).
+    Returns the path.
 
     Raises:
         InvalidConfigError: names the option and what to change.
     """
+    from ..fileio import remove_stale_temporaries
+
     from ..errors import InvalidConfigError
 
     if path is None or not str(path).strip():
@@ -87,6 +92,7 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     check_writable(path.parent if is_file else path, option)
     for name in sub:
         check_writable(path / name, option)
+    remove_stale_temporaries(path.parent if is_file else path, depth=0 if is_file else 1)
     return path
 
 
