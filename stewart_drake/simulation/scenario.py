@@ -373,8 +373,9 @@ class GuardConfig:
         max_tracking_error: [rad, m]: largest |x - x_d| over the three angles and over the three
             positions. Loose by default (0.2 rad, 0.05 m): it catches a lost platform, not a
             poorly tuned one. None disables the check.
-        check_period_s: closure and tracking are checked this often, s (a whole multiple of the
-            plant step; finiteness is checked every plant step).
+        check_period_s: the state's and torques' finiteness, closure and tracking are checked
+            this often, s (a whole multiple of the plant step; Drake itself refuses a NaN
+            actuation at the plant step that would use it).
         divergence_dir: folder of the saved ``.npz`` when a run diverges.
         cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
         min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad.
