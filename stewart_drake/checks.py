@@ -108,8 +108,6 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
     return n
 
 
-
-
 def available_memory_bytes() -> float | None:
     """Memory this process may still take, bytes: the kernel's MemAvailable, capped by a cgroup
     limit (containers, CI); None where neither can be read (the check is then skipped)."""

@@ -271,7 +271,7 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
 
     out = tmp_path / "sdf"
     writer = subprocess.Popen([sys.executable, "-c", (
-        "import sys, time; from pathlib import Path; from stewart_drake.fileio import atomic_write\n"
+        "import time; from pathlib import Path; from stewart_drake.fileio import atomic_write\n"
         "def slow(f):\n    f.write(b'half a file'); f.flush(); print('writing', flush=True); "
         "time.sleep(60)\n"
         f"atomic_write(Path({str(out / 'robot.sdf')!r}), slow)")],

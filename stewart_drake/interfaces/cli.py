@@ -79,9 +79,8 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     Raises:
         InvalidConfigError: names the option and what to change.
     """
-    from ..fileio import remove_stale_temporaries
-
     from ..errors import InvalidConfigError
+    from ..fileio import remove_stale_temporaries
 
     if path is None or not str(path).strip():
         raise InvalidConfigError(f"{option} is empty: give a {'file' if is_file else 'folder'} "

@@ -796,7 +796,7 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     try:
         scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
-        raise InvalidConfigError(f"{path}: {err}") from None
+        raise _in_file(err, path) from None
     except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
         message = " ".join(str(err).split()) or type(err).__name__
         raise CorruptFileError(path, "scenario file", f"it does not fit the Scenario schema: "
@@ -805,11 +805,17 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         apply_override(scenario, override)
     try:
         return scenario.validate()
-    except (InvalidConfigError, InvalidGeometryError, MissingFileError) as err:
-        if type(err) not in (InvalidConfigError, InvalidGeometryError, MissingFileError):
-            raise
-        where = f"{path} with --set {', '.join(overrides)}" if overrides else str(path)
-        raise type(err)(f"{where}: {err}") from None
+    except StewartError as err:
+        raise _in_file(err, f"{path} with --set {', '.join(overrides)}" if overrides
+                       else path) from None
+
+
+def _in_file(err: StewartError, where) -> StewartError:
+    """``err`` with "<where>: " in front of its message, when its class takes just a message
+    (InvalidConfigError, InvalidGeometryError, MissingFileError); other errors as they are."""
+    if type(err) not in (InvalidConfigError, InvalidGeometryError, MissingFileError):
+        return err
+    return type(err)(f"{where}: {err}")
 
 
 def apply_override(scenario: Scenario, override: str) -> None:

@@ -216,7 +216,7 @@ def load_records(data_dir: str | Path) -> list[dict]:
             r.get("lost") or isinstance(r.get("file"), str)) for r in runs)):
         raise CorruptFileError(data_dir / MANIFEST, "collect manifest",
                                "it is complete but its 'runs' list is missing or a run names no "
-                               "file", f"delete it and {again}")
+                               "file", "collect again into an empty folder")
     records = []
     for run in runs:
         if run.get("lost"):

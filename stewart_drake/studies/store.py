@@ -46,7 +46,9 @@ def file_digest(path) -> str:
 
 #: What a job's entry in a manifest may record (:meth:`ResultStore.mark` uses a JobFailure's kind).
 JOB_STATUSES = ("done", "lost", "error")
-_REMEDY = "delete it (or the folder) and run the command again"
+#: A damaged manifest cannot be repaired by deleting it alone: the folder's result files would
+#: then be refused as results without a manifest.
+_REMEDY = "delete the folder (or choose another --out) and run the command again"
 
 
 def read_manifest(folder: Path) -> dict | None:
