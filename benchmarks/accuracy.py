@@ -351,7 +351,8 @@ def render(data) -> str:
           "Open loop: the fastest of the four scenario runs (stepping only; the least disturbed "
           "by the machine's other load). Closed loop: the paper "
           "manoeuvre's whole Diagram (plant, LQI at 1 kHz re-scheduled every 10 ms, reference "
-          "sources, loggers, the DivergenceGuard checking every plant step).", "",
+          "sources, loggers, the DivergenceGuard called after every step, checking every "
+          "10 ms).", "",
           "| step [ms] | " + " | ".join(names) + " | paper run, Drake closed loop |",
           "|---|" + "---|" * (len(names) + 1)]
     for h in [*steps, ref]:

@@ -11,6 +11,8 @@ validation of a whole scenario lives beside the scenario's classes.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from .errors import InvalidConfigError
@@ -106,3 +108,57 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
     return n
 
 
+def available_memory_bytes() -> float | None:
+    """Memory this process may still take, bytes: the kernel's MemAvailable, capped by a cgroup
+    limit (containers, CI); None where neither can be read (the check is then skipped)."""
+    available = None
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    available = float(line.split()[1]) * 1024
+                    break
+    except (OSError, ValueError, IndexError):
+        pass
+    if available is None:
+        try:
+            available = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (AttributeError, ValueError, OSError):
+            pass
+    for limit_file, used_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+                                  ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
+                                   "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+        try:
+            with open(limit_file) as f, open(used_file) as g:
+                room = float(f.read().strip()) - float(g.read().strip())
+        except (OSError, ValueError):
+            continue
+        available = room if available is None else min(available, room)
+        break
+    return available
+
+
+def _size(n_bytes: float) -> str:
+    if n_bytes >= 1e18:
+        return f"{n_bytes:.3g} bytes"
+    for unit, scale in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if n_bytes >= scale:
+            return f"{n_bytes / scale:.3g} {unit}"
+    return f"{n_bytes / 1e3:.3g} kB"
+
+
+def check_memory(what: str, need_bytes: float, change: str) -> None:
+    """Refuse a request whose estimated memory exceeds what the machine has available.
+
+    Args:
+        what: the request, e.g. "a run of 1e+05 s logged every 0.001 s".
+        need_bytes: its estimate, bytes (inf and huge values allowed).
+        change: what to change, e.g. "shorten --duration".
+    Raises:
+        InvalidConfigError: one line with the estimate, what is available and ``change``.
+    """
+    available = available_memory_bytes()
+    if available is not None and not need_bytes <= available:
+        need = _size(need_bytes) if np.isfinite(need_bytes) else "more than any machine has"
+        raise InvalidConfigError(f"{what}: about {need} of memory needed, more than the "
+                                 f"{_size(available)} available on this machine; {change}")

@@ -34,6 +34,31 @@ class InvalidConfigError(StewartError, ValueError):
     """A simulation or controller setting out of its valid range."""
 
 
+class CorruptFileError(InvalidConfigError):
+    """A file that is not a valid X: truncated, random bytes, empty, an entry missing or of the
+    wrong type, another format version, bad JSON or YAML, a failed CRC.
+
+    One class for every file stewart-drake reads (tuner weights, collected runs and their
+    manifest, evaluation rows, scenario YAML, run results). An :class:`InvalidConfigError` (and
+    so a ``ValueError``): a bad file is bad input.
+
+    Attributes:
+        path: the file (str).  kind: what it should have been ("ANN tuner weights file", ...).
+        problem: what is wrong with it.  remedy: what to do about it ("" if nothing to add).
+    """
+
+    def __init__(self, path, kind: str, problem: str, remedy: str = ""):
+        self.path = str(path)
+        self.kind = str(kind)
+        self.problem = str(problem)
+        self.remedy = str(remedy)
+        super().__init__(f"{self.path} is not a valid {self.kind}: {self.problem}"
+                         + (f"; {self.remedy}" if self.remedy else ""))
+
+    def _init_args(self) -> tuple:
+        return self.path, self.kind, self.problem, self.remedy
+
+
 class UnreachablePoseError(StewartError, ValueError):
     """A pose that one leg cannot reach: |L| / sqrt(M^2 + N^2) > 1 (paper eq. 6).
 
@@ -46,12 +71,14 @@ class UnreachablePoseError(StewartError, ValueError):
 
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
-        self.ratio = float(ratio)
+        self.ratio = abs(float(ratio))      # callers may pass the signed L / sqrt(M^2 + N^2)
         where = _locate(self, t, pose)
+        value = (f"= {self.ratio:.4g} > 1" if not math.isnan(self.ratio) else
+                 "is not a number (M = N = 0: the platform joint is on the motor's axis)")
         super().__init__(
-            f"leg {self.leg} cannot reach the pose{where}: "
-            f"|L|/sqrt(M^2+N^2) = {self.ratio:.4g} > 1. Bring the pose closer to home "
-            f"[0, 0, 0, 0, 0, 0.30] or reduce the trajectory's amplitude.")
+            f"leg {self.leg} cannot reach the pose{where}: |L|/sqrt(M^2+N^2) {value}. Bring "
+            f"the pose closer to home [0, 0, 0, 0, 0, 0.30] or reduce the trajectory's "
+            f"amplitude.")
 
     def _init_args(self) -> tuple:
         return self.leg, self.ratio, self.t, self.pose

@@ -13,6 +13,8 @@ EXAMPLES = {
     errors.StewartError: errors.StewartError("something to change"),
     errors.InvalidGeometryError: errors.InvalidGeometryError("rod_length must be > 0"),
     errors.InvalidConfigError: errors.InvalidConfigError("omega_Q must be in [0.001, 1000]"),
+    errors.CorruptFileError: errors.CorruptFileError(
+        "w.npz", "ANN tuner weights file", "the entry 'W2' is missing", "retrain"),
     errors.UnreachablePoseError: errors.UnreachablePoseError(3, 1.04, t=1.25, pose=POSE),
     errors.RiccatiSolveError: errors.RiccatiSolveError("no stabilizing solution"),
     errors.SimulationDivergedError: errors.SimulationDivergedError(

@@ -97,6 +97,10 @@ def test_ik_and_reach_ratio(x):
     assert (theta is not None) == reachable
     if theta is not None:
         assert theta.shape == np.shape(x)
+    # issue 16: typed errors where a leg cannot close, never NaN
+    margins = _call(limits.limit_margins, GEOMETRY, x)
+    measures = _call(kinematics.singularity_measures, GEOMETRY, x)
+    assert (margins is not None) == (measures is not None) == reachable
 
 
 @_settings(400)
@@ -353,7 +357,7 @@ def test_zz_examples():
           f"finite results: {dict(RETURNED)}")
     assert sum(EXAMPLES.values()) >= 2000, EXAMPLES
     # ... and reached the non-error branch of every entry point, not only its refusals.
-    assert min(RETURNED.values()) >= 20 and len(RETURNED) == 14, RETURNED
+    assert min(RETURNED.values()) >= 20 and len(RETURNED) == 16, RETURNED
 
 
 def test_reachable_examples_are_not_all_refused():

@@ -68,7 +68,8 @@ def test_overrides_are_typed_and_named():
 def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("duration_s: 3\ncontroller: {omega_Q: 2, gain: 5}\n")
-    with pytest.raises(InvalidConfigError, match=r"bad.yaml does not fit .*\['gain'\]"):
+    with pytest.raises(InvalidConfigError, match=r"bad.yaml is not a valid scenario file: it does "
+                                                 r"not fit .*\['gain'\]"):
         load_scenario(bad)
     with pytest.raises(MissingFileError, match="shipped: .*paper_ideal"):
         load_scenario("paper_nowhere")

@@ -72,15 +72,15 @@ def test_an_interrupted_collect_resumes_and_train_refuses_it_until_then(tmp_path
         load_records(out)
 
 
-def test_evaluate_keeps_its_rows_when_the_report_fails_and_brings_back_divergence_dumps(
+def test_evaluate_keeps_its_rows_and_the_last_report_when_every_case_fails(
         tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)                  # where a worker's guard saves, before the move
+    monkeypatch.chdir(tmp_path)                  # the guard's default folder is relative
     monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
-    out, blocker = tmp_path / "out", tmp_path / "a_file"
-    blocker.write_text("docs cannot go here")
-    with pytest.raises(OSError):
-        evaluation.evaluate(blocker / "docs", out, runner=SerialRunner(), progress=False,
+    out = tmp_path / "out"
+    with pytest.raises(IncompleteResultsError, match="cases failed"):
+        evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
                             quick=True, controllers=("lqi_1_1",))
+    assert not (tmp_path / "docs").exists()                      # no report of failures only
     rows = sorted((out / "rows").glob("*.json"))
     n = 10 + 7 + 5          # nominal scenarios, conditions, encoder resolutions (hardware base)
     assert len(rows) == n                                        # on disk before the report
@@ -88,13 +88,20 @@ def test_evaluate_keeps_its_rows_when_the_report_fails_and_brings_back_divergenc
     assert row["error"].startswith("SimulationDivergedError: simulation diverged at t = 0.00")
     dumps = sorted((out / "diverged").glob("diverged_*.npz"))
     assert len(dumps) == n and str(dumps[0].parent) in row["error"]
-    assert not list((tmp_path / "results").rglob("*.npz"))       # moved, not copied
+    assert not (tmp_path / "results").exists()      # under --out, not the current folder
 
-    monkeypatch.setattr(evaluation, "run_case", lambda case: pytest.fail("ran again"))
-    report = evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
-                                 quick=True, controllers=("lqi_1_1",))
-    assert (report["info"]["ran"], report["info"]["reused"]) == (0, n)
-    assert "## Runs that failed" in (tmp_path / "docs" / "results.md").read_text()
+    monkeypatch.setattr(evaluation, "run_case", lambda case, **_: pytest.fail("ran again"))
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "docs" / "results.md").write_text("the last good report")
+    with pytest.raises(IncompleteResultsError, match=rf"all {n} cases failed \(first: Simulat"):
+        evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
+                            quick=True, controllers=("lqi_1_1",))
+    assert (tmp_path / "docs" / "results.md").read_text() == "the last good report"
+    assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
+    assert main(["evaluate", "--quick", "--no-tuner-study", "--out", str(out), "--docs",
+                 str(tmp_path / "docs"), "--controllers", "lqi_1_1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the report in" in err[0] and "was not replaced" in err[0]
     assert main(["evaluate", "--no-tuner-study", "--out", str(out), "--docs",
                  str(tmp_path / "docs"), "--controllers", "lqi_1_1",
                  "--no-progress"]) == 2                                 # not --quick

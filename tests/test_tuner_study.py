@@ -151,7 +151,7 @@ def test_ratio_tuner_file_round_trips_and_refuses_other_files(tmp_path):
     np.testing.assert_array_equal(again.predict(inputs), model.predict(inputs))
     assert np.all(again.predict(inputs)[:, 1] == 1.0) and again.metadata == {"lambda": 0.1}
     np.savez(tmp_path / "other.npz", W1=np.zeros(3))
-    with pytest.raises(InvalidConfigError, match="is not a ratio tuner"):
+    with pytest.raises(InvalidConfigError, match="is not a valid ratio tuner weights file"):
         load_ratio_tuner(tmp_path / "other.npz")
     with pytest.raises(MissingFileError, match="no ratio tuner weights"):
         Scenario(tuner=RatioTunerDriver(weights=str(tmp_path / "none.npz"))).validate()

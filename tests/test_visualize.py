@@ -106,6 +106,30 @@ def test_record_states_refuses_states_of_another_shape():
                                 np.zeros((3, 5)))
 
 
+def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(tmp_path,
+                                                                            monkeypatch):
+    """Issue 16 items 5 and 6: the HTML replay advances through the guard, and the saved file
+    explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
+    from stewart_drake.control.lqi import LqiController
+    from stewart_drake.errors import SimulationDivergedError
+    from stewart_drake.simulation.scenario import (GuardConfig, PdDriver, _scenario_from_yaml,
+                                                   dump_scenario)
+
+    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    scenario = Scenario(duration_s=0.2, torque_limit_Nm=0.7, payload_scale=1.5,
+                        guard=GuardConfig(divergence_dir=str(tmp_path / "diverged")))
+    with pytest.raises(SimulationDivergedError, match="the motor torques are not finite") as info:
+        visualize.record_html(scenario, tmp_path / "replay.html")
+    assert not (tmp_path / "replay.html").exists()
+    with np.load(info.value.path, allow_pickle=False) as saved:
+        back = _scenario_from_yaml(str(saved["scenario"]))
+        applied, commanded = saved["T_applied_last"], saved["T_last"]
+    assert dump_scenario(back) == dump_scenario(scenario) and not isinstance(back.controller,
+                                                                            PdDriver)
+    assert (back.torque_limit_Nm, back.payload_scale) == (0.7, 1.5)
+    assert np.all(np.isinf(commanded)) and np.all(applied == 0.7)   # the limit clipped it
+
+
 def test_committed_diagram_pictures_are_current():
     dots = visualize.diagram_dots()
     assert {"control_loop", "diagram_fixed", "diagram_ann", "station", "lqi_controller"} <= set(dots)

@@ -12,7 +12,8 @@ from stewart_drake.model import limits
 from stewart_drake.model import statics
 from stewart_drake.simulation import trajectories
 from stewart_drake.studies import workspace
-from stewart_drake.errors import InvalidGeometryError, UnreachablePoseError
+from stewart_drake import errors
+from stewart_drake.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.plant import assemble, make_plant
 from test_plant import _hold
@@ -62,8 +63,11 @@ def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, 
         assert np.all(np.diff(cond) > 0) and cond[-1] > 1e4
     else:
         assert cond[-1] < cond[0]
-    unreachable = kinematics.singularity_measures(geometry, X_HOME + (edge + 1e-3) * direction)
+    beyond = X_HOME + (edge + 1e-3) * direction
+    unreachable = kinematics.singularity_measures_unchecked(geometry, beyond)
     assert np.isnan(unreachable[0]) and np.isnan(unreachable[1])
+    with pytest.raises(UnreachablePoseError, match=r"\|L\|/sqrt\(M\^2\+N\^2\) = 1\.0"):
+        kinematics.singularity_measures(geometry, beyond)        # issue 16: typed, not NaN
 
 
 # --- limits ----------------------------------------------------------------------------------
@@ -106,6 +110,50 @@ def test_is_reachable_is_vectorized(geometry, random_poses):
         assert report.margins[name].shape == (10, 20, 6)
         single = limits.limit_margins(geometry, random_poses[57])[name]
         np.testing.assert_allclose(report.margins[name][2, 17], single, rtol=1e-12)
+
+
+def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
+    """Issue 16: typed errors at the public entry point, NaN only in the sweeps' variant."""
+    far = [0, 0, 0, 0, 0, 0.60]
+    with pytest.raises(UnreachablePoseError, match=r"leg \d cannot reach the pose \(pose .*0\.6\]\)"
+                                                   r": \|L\|/sqrt\(M\^2\+N\^2\) = 2\.155 > 1"):
+        limits.limit_margins(geometry, np.array([X_HOME, far]))
+    assert np.all(limits.limit_margins_unchecked(geometry, far)["closure"] < 0)
+    for bad in ([0, 0, np.nan, 0, 0, 0.3], [0, 0, 0, 0, 0, 0.3, 0]):
+        for function in (limits.limit_margins, kinematics.singularity_measures):
+            with pytest.raises(InvalidConfigError, match="pose x"):
+                function(geometry, bad)
+    with pytest.raises(InvalidConfigError, match="motor angles theta has a non-finite value"):
+        limits.limit_margins(geometry, X_HOME, theta=np.full(6, np.nan), ratio=np.zeros(6))
+    margins = limits.limit_margins(geometry, X_HOME)
+    assert all(np.all(np.isfinite(v) & (v >= 0)) for v in margins.values())
+
+
+def test_the_reach_ratio_is_printed_as_its_absolute_value(geometry):
+    """Issue 16: a platform too low for its rods gives L < 0; the message said '= -1.006 > 1'."""
+    x = np.array([0, 0, 0, 0, 0, 0.10])
+    ratio = kinematics.leg_reach_ratio(geometry, x)
+    assert np.all(ratio < -1)
+    err = errors.UnreachablePoseError(0, -1.006, t=0.5)
+    assert err.ratio == 1.006 and "|L|/sqrt(M^2+N^2) = 1.006 > 1" in str(err)
+    with pytest.raises(UnreachablePoseError) as info:
+        kinematics.ik(geometry, x)
+    assert info.value.ratio == pytest.approx(np.abs(ratio).max()) and "= -" not in str(info.value)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: trajectories.StepTrajectory(offset=(0, 0, 0, 0, 0, np.nan)),
+     r"step: offset has a non-finite value nan at index \(5,\)"),
+    (lambda: trajectories.ChirpTrajectory(offset=(0, 0, 0, np.inf, 0, 0.3)),
+     r"sweep: offset has a non-finite value inf"),
+    (lambda: trajectories.SineTrajectory(offset=(np.nan,) * 6), r"sine: offset has a non-finite"),
+    (lambda: trajectories.StepTrajectory(offset=(0, 0, 0.3)), r"offset must have shape"),
+    (lambda: trajectories.StepTrajectory(size=np.nan), r"step: size must be a finite number"),
+    (lambda: trajectories.ChirpTrajectory(amplitude="big"), r"sweep: amplitude must be a number"),
+])
+def test_trajectories_refuse_a_nan_offset_by_name(make, message):
+    with pytest.raises(InvalidConfigError, match=message):
+        make()
 
 
 @pytest.mark.parametrize("change", [

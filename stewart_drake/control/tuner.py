@@ -31,7 +31,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES
-from ..fileio import atomic_write
+from ..fileio import CheckedNpz, atomic_write
 from ..checks import as_array
 
 FORMAT_VERSION = 1
@@ -213,7 +213,10 @@ def load_tuner(path=None) -> TunerModel:
     Raises:
         MissingFileError (a FileNotFoundError): no such file; for the shipped weights it names
             the command that makes them (``stewart-drake collect && stewart-drake train``).
-        InvalidConfigError: a file of another format version or clamp range, or bad weights.
+        CorruptFileError: the file is not a valid tuner file: truncated, random bytes, empty, an
+            entry missing or of the wrong type (an object array), another format version or
+            clamp range, metadata that is not JSON, a failed CRC, or weights of the wrong shape
+            or not finite; the message names the file and the fault.
     """
     default = path is None
     path = DEFAULT_TUNER_PATH if default else Path(path)
@@ -222,19 +225,21 @@ def load_tuner(path=None) -> TunerModel:
                "runs and train it" if default else "check the path, or pass none for the "
                "shipped weights")
         raise MissingFileError(f"no ANN tuner weights at {path}: {how}")
-    with np.load(path, allow_pickle=False) as data:
-        version = int(data["format_version"])
-        if version != FORMAT_VERSION:
-            raise InvalidConfigError(f"{path} has tuner format {version}, this stewart-drake "
-                                     f"reads {FORMAT_VERSION}; retrain with `stewart-drake train`")
-        clamp = (float(data["log10_min"]), float(data["log10_max"]))
-        if clamp != (LOG10_MIN, LOG10_MAX):
-            raise InvalidConfigError(
-                f"{path} clamps log10 omega to {clamp}, expected {(LOG10_MIN, LOG10_MAX)}; "
-                f"retrain with `stewart-drake train`")
-        return TunerModel(data["W1"], data["b1"], data["W2"], data["b2"], data["x_mean"],
-                          data["x_std"], str(data["activation"]),
-                          json.loads(str(data["metadata_json"])))
+    data = CheckedNpz(path, "ANN tuner weights file",
+                      "retrain with `stewart-drake train` or use the shipped weights")
+    version = data.integer("format_version")
+    if version != FORMAT_VERSION:
+        raise data.corrupt(f"tuner format {version}, this stewart-drake reads {FORMAT_VERSION}")
+    clamp = (data.number("log10_min"), data.number("log10_max"))
+    if clamp != (LOG10_MIN, LOG10_MAX):
+        raise data.corrupt(f"it clamps log10 omega to {clamp}, expected "
+                           f"{(LOG10_MIN, LOG10_MAX)}")
+    weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
+    activation, metadata = data.text("activation"), data.json("metadata_json")
+    try:
+        return TunerModel(*weights, activation, metadata)
+    except InvalidConfigError as err:
+        raise data.corrupt(str(err)) from None
 
 
 class AnnTuner(LeafSystem):
@@ -406,18 +411,25 @@ def load_ratio_tuner(path) -> RatioTunerModel:
     """Load a :func:`save_ratio_tuner` file; no torch needed.
 
     Raises:
-        MissingFileError: no such file.  InvalidConfigError: another format or bad weights.
+        MissingFileError: no such file.
+        CorruptFileError: not a valid ratio tuner file (another format, an entry missing or of
+            the wrong type, bad weights, a damaged archive); names the file and the fault.
     """
     path = Path(path)
     if not path.is_file():
         raise MissingFileError(f"no ratio tuner weights at {path}: `stewart-drake evaluate` "
                                f"trains them (the tuner study)")
-    with np.load(path, allow_pickle=False) as data:
-        if "format" not in data.files or str(data["format"]) != RATIO_FORMAT:
-            raise InvalidConfigError(f"{path} is not a ratio tuner ({RATIO_FORMAT}); the paper's "
-                                     f"network is a tuner: AnnTunerDriver")
-        return RatioTunerModel(data["W1"], data["b1"], data["W2"], data["b2"], data["x_mean"],
-                               data["x_std"], json.loads(str(data["metadata_json"])))
+    data = CheckedNpz(path, "ratio tuner weights file",
+                      "train it again (the tuner study of `stewart-drake evaluate`)")
+    if "format" not in data or data.text("format") != RATIO_FORMAT:
+        raise data.corrupt(f"its format is not {RATIO_FORMAT!r} (the paper's network's weights "
+                           f"go in an AnnTunerDriver)")
+    weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
+    metadata = data.json("metadata_json")
+    try:
+        return RatioTunerModel(*weights, metadata)
+    except InvalidConfigError as err:
+        raise data.corrupt(str(err)) from None
 
 
 class RatioTuner(LeafSystem):

@@ -5,8 +5,9 @@ Each subcommand parses its arguments here and calls the functions of the modules
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
 exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
 other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
-the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Output folders are checked for writing before any
-work starts, so a long run never ends in a failed save.
+the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Every output (folder,
+file, the sub-folders a command writes into) is checked before any work starts, so a long run
+never ends in a failed save, and the hidden temporaries a killed write left there are removed.
 """
 
 from __future__ import annotations
@@ -66,6 +67,32 @@ def check_writable(folder: Path, option: str = "--out") -> None:
     except OSError as err:
         raise InvalidConfigError(f"cannot write to {folder}: {err.strerror or err}; choose "
                                  f"another output with {option}") from None
+
+
+def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
+    """Refuse an output before any work: empty, a folder where a file is due, or a place that
+    cannot be written (:func:`check_writable`); ``sub`` names sub-folders the command writes
+    into (``diverged``, ``rows``), checked too. Then remove the temporaries an earlier run
+    killed mid-write left there (:func:`~stewart_drake.fileio.remove_stale_temporaries`).
+    Returns the path.
+
+    Raises:
+        InvalidConfigError: names the option and what to change.
+    """
+    from ..errors import InvalidConfigError
+    from ..fileio import remove_stale_temporaries
+
+    if path is None or not str(path).strip():
+        raise InvalidConfigError(f"{option} is empty: give a {'file' if is_file else 'folder'} "
+                                 f"to write")
+    path = Path(path)
+    if is_file and path.is_dir():
+        raise InvalidConfigError(f"{option} {path} is a folder: give a file name to write")
+    check_writable(path.parent if is_file else path, option)
+    for name in sub:
+        check_writable(path / name, option)
+    remove_stale_temporaries(path.parent if is_file else path, depth=0 if is_file else 1)
+    return path
 
 
 def _positive_float(text: str) -> float:
@@ -152,8 +179,8 @@ def _cmd_run(args) -> int:
 
     scenario = run_scenario(args)
     out = Path(args.out)
-    if args.html:
-        check_writable(Path(args.html).parent)
+    if args.html is not None:
+        check_output(args.html, "--html", is_file=True)
     if scenario.tuner is not None:
         from ..control.tuner import DEFAULT_TUNER_PATH
 
@@ -273,7 +300,7 @@ def _cmd_evaluate(args) -> int:
     from ..studies.evaluation import CONTROLLERS, evaluate
 
     controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    check_writable(Path(args.docs), "--docs")
+    check_output(args.docs, "--docs")
     report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
                       quick=args.quick, controllers=controllers, base=args.scenario,
                       tuner_study=not args.no_tuner_study)
@@ -378,7 +405,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
-    run.set_defaults(func=_cmd_run)
+    run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
     scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,
@@ -398,7 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed (0)")
     _add_runner_arguments(col)
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    col.set_defaults(func=_cmd_collect)
+    col.set_defaults(func=_cmd_collect, out_sub=("diverged",))
 
     tr = sub.add_parser("train", help="train the ANN tuner on collected runs")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
@@ -423,7 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--quick", action="store_true",
                     help="1-2 s runs: a smoke test of the pipeline, not figures to quote")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    ev.set_defaults(func=_cmd_evaluate)
+    ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")
@@ -454,9 +481,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
-        if getattr(args, "out", None):
-            out = Path(args.out)
-            check_writable(out.parent if getattr(args, "out_is_file", False) else out)
+        if getattr(args, "out", None) is not None:
+            check_output(args.out, "--out", getattr(args, "out_is_file", False),
+                         getattr(args, "out_sub", ()))
         return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)

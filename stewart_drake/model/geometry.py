@@ -175,7 +175,7 @@ class StewartGeometry:
             leg = int(np.argmax(np.where(np.isfinite(ratio), np.abs(ratio), np.inf)))
             raise InvalidGeometryError(
                 f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
-                f"|L|/sqrt(M^2+N^2) = {ratio[leg]:.4g} > 1; change the rod or crank length "
+                f"|L|/sqrt(M^2+N^2) = {abs(ratio[leg]):.4g} > 1; change the rod or crank length "
                 f"or the anchor radii")
         margins = limit_margins(self, X_HOME)
         for name in LIMITS[1:]:

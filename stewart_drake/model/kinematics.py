@@ -587,16 +587,28 @@ def singularity_measures(geometry: "StewartGeometry", x, theta=None):
     together and cond(J) stays finite (22 at the bottom edge): watch sigma_min_inv as well.
 
     Args:
-        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x, rad.
     Returns:
         cond: (...) condition number of J (SI units, so it weights 1 rad as 1 m), dimensionless;
-            inf at a singularity, NaN where x is unreachable.
+            inf exactly at a singularity.
         sigma_min_inv: (...) 1/sigma_max(J), the smallest singular value of J^{-1}, in
-            (rad or m) per rad; 0 at a rod-crank singularity, NaN where unreachable.
+            (rad or m) per rad; 0 exactly at a rod-crank singularity.
+    Raises:
+        UnreachablePoseError: a leg cannot close at a pose (names the first pose and leg).
+        InvalidConfigError: x or theta not (..., 6), not finite, or a position beyond 1 km.
+    (:func:`singularity_measures_unchecked` gives NaN for unreachable poses instead, for sweeps.)
     """
+    x = as_poses("pose x", x)
+    theta = ik(geometry, x) if theta is None else as_array("motor angles theta", theta,
+                                                           shape=x.shape)
+    return singularity_measures_unchecked(geometry, x, theta)
+
+
+def singularity_measures_unchecked(geometry: "StewartGeometry", x, theta=None):
+    """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
+    validator of a path); x must still be finite poses (..., 6)."""
     sv = singular_values(geometry, x, theta)       # validates x
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
         inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])
     return cond, inv
-

@@ -16,7 +16,7 @@ import numpy as np
 from ..checks import as_array, as_number, as_poses
 from ..errors import InvalidConfigError, JointLimitError, SingularPoseError, UnreachablePoseError
 from .kinematics import (X_HOME, _wrap, ik, ik_unchecked, platform_joints, rotation_rpy,
-                         singularity_measures)
+                         singularity_measures_unchecked)
 
 #: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
 #: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
@@ -81,19 +81,42 @@ def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
 
 
 def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
-    """Distance of pose(s) x to every per-leg limit; >= 0 inside, < 0 violated, NaN if no closure.
+    """Distance of reachable pose(s) x to every per-leg limit; >= 0 inside, < 0 violated.
 
     Args:
         x: (6,) or (..., 6) poses [rad, m].
         theta, ratio: optional outputs of :func:`ik_unchecked` for x (saves one IK).
     Returns:
         dict name -> (..., 6) for the names of :data:`LIMITS`:
-        ``closure`` = 1 - |L|/sqrt(M^2+N^2) (dimensionless, < 0: the leg cannot close);
+        ``closure`` = 1 - |L|/sqrt(M^2+N^2) (dimensionless, >= 0 here: every leg closes);
         ``motor_angle`` = distance of theta_i to [motor_angle_min_deg, motor_angle_max_deg], rad;
         ``crank_joint`` = crank_joint_cone_deg - misalignment, rad;
         ``platform_joint`` = platform_joint_cone_deg - socket angle, rad
         (angles of :func:`joint_angles`; limits are fields of :class:`StewartGeometry`).
+    Raises:
+        UnreachablePoseError: a leg cannot close at a pose (names the first pose and leg; the
+            other limits are not defined there). :func:`is_reachable` reports such poses
+            instead, and :func:`limit_margins_unchecked` gives NaN for them.
+        InvalidConfigError: x, theta or ratio not (..., 6), not finite, or a position beyond 1 km.
     """
+    x = as_poses("pose x", x)
+    if theta is None or ratio is None:
+        theta, ratio = ik_unchecked(geometry, x)
+    else:
+        theta = as_array("motor angles theta", theta, shape=x.shape)
+        ratio = as_array("reach ratio", ratio, shape=x.shape)
+    closed = np.abs(ratio) <= 1.0
+    if not np.all(closed):
+        k = int(np.argmax(~np.all(closed.reshape(-1, 6), axis=1)))
+        row = ratio.reshape(-1, 6)[k]
+        leg = int(np.argmax(np.where(np.isfinite(row), np.abs(row), np.inf)))
+        raise UnreachablePoseError(leg, row[leg], pose=x.reshape(-1, 6)[k])
+    return limit_margins_unchecked(geometry, x, theta, ratio)
+
+
+def limit_margins_unchecked(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+    """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
+    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
     x = np.asarray(x, dtype=float)
     if theta is None or ratio is None:
         theta, ratio = ik_unchecked(geometry, x)
@@ -191,7 +214,7 @@ def is_reachable(geometry: "StewartGeometry", x) -> Reachability:
     """
     x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
-    margins = limit_margins(geometry, x, theta, ratio)
+    margins = limit_margins_unchecked(geometry, x, theta, ratio)
     return Reachability(_reachable_from_margins(margins), margins, theta)
 
 
@@ -307,8 +330,8 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         k = int(np.argmax(~np.all(closed, axis=1)))
         leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
         raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
-    margins = limit_margins(geometry, x, theta, ratio)
-    cond, inv = singularity_measures(geometry, x, theta)
+    margins = limit_margins_unchecked(geometry, x, theta, ratio)
+    cond, inv = singularity_measures_unchecked(geometry, x, theta)
     min_margin, min_leg, min_t = {}, {}, {}
     first = None
     for name in LIMITS:

@@ -211,7 +211,8 @@ def advance(sd, simulator, step) -> None:
         step: a callable that advances the simulator (e.g. ``AdvanceTo`` in chunks).
     Raises:
         SimulationDivergedError: the guard stopped the run, or a system raised one (the
-            features of a diverged signal); the logs up to then are saved and named.
+            features of a diverged signal); the logs up to then are saved and named (or, when
+            ``divergence_dir`` cannot be written, the message says why they are not).
         RuntimeError: any other failure inside Drake; the logs are saved all the same and the
             error carries a note with the path.
     """
@@ -221,8 +222,8 @@ def advance(sd, simulator, step) -> None:
     except SimulationDivergedError as err:
         if guard is None or err.path:
             raise
-        path = guard.save(simulator.get_context(), str(err))
-        raise SimulationDivergedError(err.message, err.t, str(path)) from err
+        path, unsaved = _save(guard, simulator.get_context(), str(err))
+        raise SimulationDivergedError(err.message + unsaved, err.t, path) from err
     except RuntimeError as err:
         if guard is None:
             raise
@@ -230,17 +231,28 @@ def advance(sd, simulator, step) -> None:
         if guard.reason is None:
             reason = guard.check(root)             # a diverged signal Drake refused to use?
             if reason is None:
-                path = guard.save(root, f"{type(err).__name__}: {err}")
+                path, unsaved = _save(guard, root, f"{type(err).__name__}: {err}")
                 err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
-                             f"saved in {path}")
+                             f"saved in {path}" if path else f"stewart-drake:{unsaved}")
                 raise
             guard.reason, guard.t_failed = f"{reason} (Drake: {err})", root.get_time()
-        path = guard.save(root, guard.reason)
-        raise SimulationDivergedError(guard.reason, guard.t_failed, str(path)) from None
+        path, unsaved = _save(guard, root, guard.reason)
+        raise SimulationDivergedError(guard.reason + unsaved, guard.t_failed, path) from None
     if guard is not None:
         root = simulator.get_context()
         reason = guard.check(root)
         if reason is not None:
             guard.reason, guard.t_failed = reason, root.get_time()
-            path = guard.save(root, reason)
-            raise SimulationDivergedError(reason, guard.t_failed, str(path))
+            path, unsaved = _save(guard, root, reason)
+            raise SimulationDivergedError(reason + unsaved, guard.t_failed, path)
+
+
+def _save(guard: DivergenceGuard, root, reason: str) -> tuple[str | None, str]:
+    """(path, "") of the saved logs, or (None, " (the logs could not be saved ...: why)"): a
+    divergence folder that cannot be written (a file in its place, a full disk) must not turn
+    the divergence into an OSError."""
+    try:
+        return str(guard.save(root, reason)), ""
+    except OSError as err:
+        return None, (f" (the logs could not be saved in {guard.config.divergence_dir}: "
+                      f"{err.strerror or err}; set guard.divergence_dir to a writable folder)")

@@ -30,7 +30,8 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from ..checks import as_array, as_number, check_multiple
-from ..errors import InvalidConfigError, InvalidGeometryError, MissingFileError, StewartError
+from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError, MissingFileError,
+                      StewartError)
 from ..control.lqi import OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
 from ..model.servo import ServoModel
@@ -377,8 +378,9 @@ class GuardConfig:
         max_tracking_error: [rad, m]: largest |x - x_d| over the three angles and over the three
             positions. Loose by default (0.2 rad, 0.05 m): it catches a lost platform, not a
             poorly tuned one. None disables the check.
-        check_period_s: closure and tracking are checked this often, s (a whole multiple of the
-            plant step; finiteness is checked every plant step).
+        check_period_s: the state's and torques' finiteness, closure and tracking are checked
+            this often, s (a whole multiple of the plant step; Drake itself refuses a NaN
+            actuation at the plant step that would use it).
         divergence_dir: folder of the saved ``.npz`` when a run diverges.
         cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
         min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad.
@@ -773,8 +775,11 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     Returns:
         the validated :class:`Scenario`.
     Raises:
-        MissingFileError: no such file or name. InvalidConfigError: YAML that does not fit the
-            schema (unknown or mistyped field, named), a bad override, or a value out of range.
+        MissingFileError: no such file or name.
+        CorruptFileError (an InvalidConfigError): the file is empty, not UTF-8, not YAML, or
+            YAML that does not fit the schema (unknown or mistyped field, named).
+        InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
+            out of range (named by file and field path).
     """
     shipped = shipped_scenarios()
     path = Path(source)
@@ -784,16 +789,38 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         else:
             raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
                                    f"name (shipped: {', '.join(sorted(shipped))})")
+    raw = path.read_bytes()
+    remedy = "fix it, or start from `stewart-drake scenario paper_hardware --out FILE.yaml`"
+    if not raw.strip():
+        raise CorruptFileError(path, "scenario file", "it is empty", remedy)
     try:
-        scenario = yaml_load_typed(schema=Scenario, filename=str(path),
-                                   allow_schema_with_no_yaml=True)
-    except (RuntimeError, ValueError, TypeError, KeyError) as err:
-        raise InvalidConfigError(f"{path} does not fit the Scenario schema: {err}") from None
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(path, "scenario file", f"not UTF-8 text ({err.reason} at byte "
+                                                      f"{err.start})", remedy) from None
+    try:
+        scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
-        raise type(err)(f"{path}: {err}") from None
+        raise _in_file(err, path) from None
+    except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
+        message = " ".join(str(err).split()) or type(err).__name__
+        raise CorruptFileError(path, "scenario file", f"it does not fit the Scenario schema: "
+                                                      f"{message:.300}", remedy) from None
     for override in overrides:
         apply_override(scenario, override)
-    return scenario.validate()
+    try:
+        return scenario.validate()
+    except StewartError as err:
+        raise _in_file(err, f"{path} with --set {', '.join(overrides)}" if overrides
+                       else path) from None
+
+
+def _in_file(err: StewartError, where) -> StewartError:
+    """``err`` with "<where>: " in front of its message, when its class takes just a message
+    (InvalidConfigError, InvalidGeometryError, MissingFileError); other errors as they are."""
+    if type(err) not in (InvalidConfigError, InvalidGeometryError, MissingFileError):
+        return err
+    return type(err)(f"{where}: {err}")
 
 
 def apply_override(scenario: Scenario, override: str) -> None:

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial, Trajectory
 
-from ..checks import as_array
+from ..checks import as_array, as_number, as_poses
 from ..errors import InvalidConfigError
 from ..model import kinematics, limits
 from ..model.geometry import X_HOME, StewartGeometry
@@ -40,6 +40,16 @@ def check_sine_bounds(trajectory) -> None:
         axis = int(np.argwhere(~np.isfinite(peaks))[0][1])
         raise InvalidConfigError(f"{trajectory.name}: axis {axis} overflows float64 (amplitude "
                                  f"{A[axis]:.3g}, frequency {f[axis]:.3g} Hz); use SI units")
+
+
+def _check_offset(trajectory) -> None:
+    """Set ``trajectory.offset`` to a tuple of 6 floats, or refuse it (NaN, inf, wrong size,
+    a position beyond 1 km) naming the trajectory."""
+    offset = as_poses(f"{trajectory.name}: offset", trajectory.offset)
+    if offset.shape != (6,):
+        raise InvalidConfigError(f"{trajectory.name}: offset must be one pose (6,) [phi, theta, "
+                                 f"psi, X, Y, Z], got shape {offset.shape}")
+    object.__setattr__(trajectory, "offset", tuple(float(v) for v in offset))
 
 
 @dataclass(frozen=True)
@@ -115,9 +125,9 @@ class StepTrajectory:
 
     def __post_init__(self):
         object.__setattr__(self, "axis", _axis_index(self.axis))
-        if not (np.isfinite(self.size) and np.isfinite(self.t_step) and self.t_step >= 0):
-            raise InvalidConfigError(f"{self.name}: size must be finite and t_step >= 0 s, got "
-                                     f"{self.size}, {self.t_step}")
+        object.__setattr__(self, "size", as_number(f"{self.name}: size", self.size))
+        object.__setattr__(self, "t_step", as_number(f"{self.name}: t_step", self.t_step, 0.0))
+        _check_offset(self)
 
     def evaluate(self, t):
         """Pose, rate, acceleration at times t: three (..., 6) arrays (t scalar gives (6,))."""
@@ -148,11 +158,14 @@ class ChirpTrajectory:
 
     def __post_init__(self):
         object.__setattr__(self, "axis", _axis_index(self.axis))
-        if not (0 < self.f0_hz < self.f1_hz and np.isfinite(self.f1_hz)
-                and self.duration_s > 0 and np.isfinite(self.amplitude)):
-            raise InvalidConfigError(
-                f"{self.name}: need 0 < f0_hz < f1_hz, duration_s > 0 and a finite amplitude, "
-                f"got {self.f0_hz}, {self.f1_hz}, {self.duration_s}, {self.amplitude}")
+        for name, lo in (("amplitude", None), ("f0_hz", 0.0), ("f1_hz", 0.0),
+                         ("duration_s", 0.0)):
+            object.__setattr__(self, name, as_number(f"{self.name}: {name}", getattr(self, name),
+                                                     lo, lo_open=lo is not None))
+        if not self.f0_hz < self.f1_hz:
+            raise InvalidConfigError(f"{self.name}: need f0_hz < f1_hz, got {self.f0_hz}, "
+                                     f"{self.f1_hz}")
+        _check_offset(self)
 
     def frequency(self, t) -> np.ndarray:
         """Instantaneous frequency f(t) in Hz."""
@@ -430,7 +443,7 @@ def _slack(geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float
     both ball-joint cones, then (only when every pose passes those: the SVD is the dear part)
     cond(J) and 1/sigma_max(J)."""
     theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = limits.limit_margins(geometry, x, theta, ratio)
+    margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     travel = np.deg2rad(geometry.motor_angle_max_deg - geometry.motor_angle_min_deg) / 2
     slack = np.min(np.concatenate([
         (ratio_max - np.abs(ratio)) / ratio_max, margins["motor_angle"] / travel,
@@ -439,7 +452,7 @@ def _slack(geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float
         axis=-1)
     slack = np.nan_to_num(slack, nan=-np.inf)
     if np.all(slack >= 0):
-        cond, inv = kinematics.singularity_measures(geometry, x, theta)
+        cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
         singular = np.minimum((cond_threshold - cond) / cond_threshold,
                               (inv - min_sigma_min_inv) / max(min_sigma_min_inv, 1e-12))
         slack = np.minimum(slack, np.nan_to_num(singular, nan=-np.inf))

@@ -17,9 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from ..control.features import density_features_series
-from ..errors import IncompleteResultsError, InvalidConfigError, ResultsMismatchError
+from ..errors import (CorruptFileError, IncompleteResultsError, InvalidConfigError,
+                      ResultsMismatchError)
+from ..fileio import CheckedNpz
 from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
-from .experiments import RunResult, run_experiment
+from .experiments import RunResult, check_run_memory, run_experiment
 from .runners import JobFailure, ProcessRunner
 from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 
@@ -114,7 +116,8 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     (:class:`~.store.ResultStore`); run again with the same settings, only the missing runs run.
 
     Args:
-        out_dir: folder of ``run_<job>.npz`` records and ``manifest.json``.
+        out_dir: folder of ``run_<job>.npz`` records and ``manifest.json``; the logs of a run
+            that loses the platform go to ``out_dir/diverged/``.
         runner: :class:`~.runners.ProcessRunner` (default, one process per core) or any runner
             of :mod:`.runners`.
         base: the scenario the nine runs share (robot, hardware, noise...); its reference,
@@ -124,13 +127,20 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
         ``n_samples``, and for this call ``workers``, ``wall_s``, ``sum_job_s`` and
         ``speedup`` = sum of job times / wall time.
     Raises:
+        InvalidConfigError: the runs at once need more memory than the machine has.
         ResultsMismatchError: ``out_dir`` holds runs of other settings, or not of collect.
         IncompleteResultsError: runs failed or were lost (named); the others are on disk.
         Interrupted: Ctrl-C, SIGTERM or SIGHUP; the finished runs are on disk.
     """
     out = Path(out_dir)
     runner = runner or ProcessRunner()
+    n_runs = len(PAPER_WEIGHTS) ** 2                 # before the reference is planned
+    check_run_memory(job_config(base, seed, duration_s, 1.0, 1.0),
+                     max(1, min(runner.n_workers, n_runs)),
+                     "shorten --duration, or run fewer at once with --jobs")
     settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
+    for job in jobs.values():          # not in the settings: a divergence is kept under out_dir
+        job["config"].guard.divergence_dir = str(out / "diverged")
     store = ResultStore(out, "collect", settings, pattern="run_*.npz")
 
     def save(job_id, record):
@@ -174,11 +184,17 @@ def load_records(data_dir: str | Path) -> list[dict]:
     """The run records written by :func:`collect` (grid order), all of one collection; runs
     that lost the platform (``lost`` in the manifest) have no data and are left out.
 
+    Returns:
+        one dict per kept run: omega_Q, omega_R (floats), t (N,) s, rho (N, 12), cost_e (N,),
+        cost_u (N,) (see :func:`run_record`).
     Raises:
         InvalidConfigError: no manifest in ``data_dir`` (run ``stewart-drake collect`` first).
         ResultsMismatchError: the folder was not written by ``collect`` (or by an older version),
             or holds a run file of other settings than its manifest (a mixed folder).
-        IncompleteResultsError: the collection did not finish (runs lost, failed, interrupted).
+        IncompleteResultsError: the collection did not finish (runs lost, failed, interrupted),
+            or a run file it lists is gone.
+        CorruptFileError: a manifest or run file that is truncated, not JSON or not an ``.npz``,
+            or lacks an entry or has one of the wrong type or shape (names the file and entry).
     """
     data_dir = Path(data_dir)
     manifest = read_manifest(data_dir)
@@ -189,22 +205,43 @@ def load_records(data_dir: str | Path) -> list[dict]:
         raise ResultsMismatchError(
             f"{data_dir} was not written by this version of `stewart-drake collect`: collect "
             f"again into an empty folder")
-    if not manifest.get("complete"):
+    again = f"run the same `stewart-drake collect --out {data_dir}` again to finish it"
+    if not manifest["complete"]:
         done = sum(v["status"] == "done" for v in manifest["jobs"].values())
         raise IncompleteResultsError(
             f"{data_dir} holds {done} of {len(PAPER_WEIGHTS) ** 2} runs (the collection did not "
-            f"finish): run the same `stewart-drake collect --out {data_dir}` again to finish it")
+            f"finish): {again}")
+    runs = manifest.get("runs")
+    if not (isinstance(runs, list) and all(isinstance(r, dict) and (
+            r.get("lost") or isinstance(r.get("file"), str)) for r in runs)):
+        raise CorruptFileError(data_dir / MANIFEST, "collect manifest",
+                               "it is complete but its 'runs' list is missing or a run names no "
+                               "file", "collect again into an empty folder")
     records = []
-    for run in manifest["runs"]:
+    for run in runs:
         if run.get("lost"):
             continue
-        with np.load(data_dir / run["file"]) as data:
-            if "settings_hash" not in data or str(data["settings_hash"]) != \
-                    manifest["settings_hash"]:
-                raise ResultsMismatchError(
-                    f"{data_dir / run['file']} is not of the settings of {data_dir / MANIFEST}: "
-                    f"the folder mixes runs of two collections; collect again into an empty "
-                    f"folder")
-            records.append({k: (float(data[k]) if k in ("omega_Q", "omega_R") else data[k])
-                            for k in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")})
+        path = data_dir / run["file"]
+        if not path.is_file():
+            raise IncompleteResultsError(f"{path} is gone (listed in {data_dir / MANIFEST}): "
+                                         f"{again}, which runs only the missing runs")
+        records.append(_read_record(path, manifest["settings_hash"],
+                                    f"delete it and {again}"))
     return records
+
+
+def _read_record(path: Path, settings_hash: str, remedy: str) -> dict:
+    """One run file of :func:`collect`, checked entry by entry (see :func:`load_records`)."""
+    data = CheckedNpz(path, "collected run", remedy)
+    if "settings_hash" not in data or data.text("settings_hash") != settings_hash:
+        raise ResultsMismatchError(
+            f"{path} is not of the settings of {path.parent / MANIFEST}: the folder mixes runs "
+            f"of two collections; collect again into an empty folder")
+    record = {name: data.number(name) for name in ("omega_Q", "omega_R")}
+    record.update({name: data.array(name) for name in ("t", "rho", "cost_e", "cost_u")})
+    n = record["t"].shape[0] if record["t"].ndim == 1 else -1
+    for name, shape in (("t", (n,)), ("rho", (n, 12)), ("cost_e", (n,)), ("cost_u", (n,))):
+        if n < 1 or record[name].shape != shape:
+            raise data.corrupt(f"the entry {name!r} has shape {record[name].shape}, expected "
+                               f"{shape} with N >= 1 samples")
+    return record

@@ -19,6 +19,7 @@ mass and inertia unknown to the controller, sensor noise, motor torque saturatio
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import re
 import time
@@ -28,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from ..control.lqi import LqiScales
-from ..errors import InvalidConfigError
+from ..errors import IncompleteResultsError, InvalidConfigError
 from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import X_HOME
@@ -263,8 +264,12 @@ def case_id(case: Case) -> str:
                   f"{case.condition}")
 
 
-def run_case(case: Case) -> dict:
+def run_case(case: Case, divergence_dir: str | None = None) -> dict:
     """Simulate one case and reduce it to a row of figures (a plain, picklable dict).
+
+    Args:
+        case: the case.  divergence_dir: where the logs of a diverged run go (default: the
+            base scenario's ``guard.divergence_dir``).
 
     Returns:
         the row: ``case`` (its fields), the run's metrics, ``normalized_rms``, the feedback
@@ -277,6 +282,8 @@ def run_case(case: Case) -> dict:
     t0 = time.perf_counter()
     row = {"case": asdict(case)}
     config = case_config(case)
+    if divergence_dir is not None:
+        config.guard.divergence_dir = str(divergence_dir)
     result = run_experiment(config)
     m = result.metrics
     row.update({k: m[k] for k in ("rms_error", "peak_error", "peak_torque", "sum_T2_dt",
@@ -721,7 +728,9 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
     Raises:
         InvalidConfigError: an unknown controller (before any run).
         ResultsMismatchError: ``out_dir`` holds rows of other settings (e.g. ``--quick``).
-        IncompleteResultsError: cases were lost with their worker; the others are on disk.
+        IncompleteResultsError: cases were lost with their worker (the others are on disk), or
+            every case failed (rows.json is written, the report in ``docs_dir`` is left as it
+            was).
         Interrupted: Ctrl-C, SIGTERM or SIGHUP; the finished rows are on disk.
     """
     for c in controllers:
@@ -748,7 +757,8 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
         store.put_json(job_id, f"rows/{job_id}.json", row, wall_s=row.get("wall_s"),
                        failed="error" in row)
 
-    ran = run_jobs(store, runner, run_case, jobs, save, progress, "evaluation runs", "cases")
+    fn = functools.partial(run_case, divergence_dir=str(out_dir / "diverged"))
+    ran = run_jobs(store, runner, fn, jobs, save, progress, "evaluation runs", "cases")
     rows = [store.load_json(k) for k in jobs]
     info = {"n_cases": len(grid), "wall_s": ran["wall_s"], "workers": runner.n_workers,
             "quick": quick, "ran": len(ran["ran"]), "reused": len(ran["reused"]),
@@ -756,6 +766,12 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
     store.finish(True, info=info)
     payload = json.dumps({"info": info, "rows": rows}, indent=1, default=float)
     atomic_write(out_dir / "rows.json", lambda f: f.write(payload.encode()))
+    if rows and all("error" in r for r in rows):
+        first = rows[0]["error"].splitlines()[0]
+        raise IncompleteResultsError(
+            f"all {len(rows)} cases failed (first: {first:.200}); the report in {docs_dir} was "
+            f"not replaced; the failures are in {out_dir / 'rows.json'} (delete {out_dir} to "
+            f"run them again)")
     paths = plot_results(rows, docs_dir)
     if tuner is not None:
         from .tuner_study import plot_tuner_tradeoff

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from ..fileio import atomic_write, save_npz
+from ..fileio import CheckedNpz, atomic_write, save_npz
 from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
@@ -83,6 +83,40 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
+#: Memory a run holds, measured with ``stewart-drake run`` (paper_hardware, 1 s against 5 s and
+#: 10 s against 110 s): about 3.3 kB per logged sample at the end of the run (the Simulator's
+#: logs of 86 floats, which grow by doubling, the RunResult, the .npz and the plot), and
+#: 3 kB per control-period sample while the reference is checked (``guard.check_reference``,
+#: before the simulation). Upper bounds with some slack:
+LOG_BYTES_PER_SAMPLE = 4.0e3
+REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
+
+
+def run_memory_bytes(scenario: Scenario) -> float:
+    """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
+    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`)."""
+    d = float(scenario.duration_s)
+    return max((d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
+               (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
+
+
+def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
+    """Refuse, before anything is allocated, runs that need more memory than the machine has.
+
+    Args:
+        scenario: the run.  runs_at_once: how many such runs are in memory together (workers).
+        change: what the message tells to change (default: duration_s or log_period_s).
+    Raises:
+        InvalidConfigError: one line with the estimate and the memory available.
+    """
+    from ..checks import check_memory
+
+    what = (f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
+            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s")
+    check_memory(what, runs_at_once * run_memory_bytes(scenario), change or (
+        "shorten duration_s (--duration) or lengthen log_period_s"))
+
+
 def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,
                     controller=None):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
@@ -97,9 +131,11 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
-            checked before anything is simulated. InvalidConfigError: a bad scenario field.
+            checked before anything is simulated. InvalidConfigError: a bad scenario field, or
+            a run that needs more memory than the machine has (:func:`check_run_memory`).
     """
     scenario = (scenario or Scenario()).validate()
+    check_run_memory(scenario)
     trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
     guard.check_reference(scenario, trajectory)
     sd = make_stewart_diagram(scenario, meshcat=meshcat, reference=trajectory,
@@ -283,14 +319,21 @@ def save_result(result: RunResult, path: str | Path) -> Path:
 
 
 def load_result(path: str | Path) -> RunResult:
-    """Read a file written by :func:`save_result`."""
-    with np.load(path) as data:
-        return RunResult(t=data["t"], x=data["x"], x_d=data["x_d"], T=data["T"],
-                         closure=data["closure"], status=data["status"],
-                         status_names=tuple(str(v) for v in data["status_names"]),
-                         metrics=json.loads(str(data["metrics"])),
-                         config_summary=json.loads(str(data["config"])),
-                         **{k: data[k] for k in _OPTIONAL_ARRAYS if k in data})
+    """Read a file written by :func:`save_result`.
+
+    Raises:
+        CorruptFileError: not such a file (damaged archive, an entry missing or of the wrong
+            type, metrics or config that are not JSON); names the file and the fault.
+        OSError: the file cannot be read.
+    """
+    data = CheckedNpz(path, "run result file", "run it again with `stewart-drake run`")
+    arrays = {k: data.array(k) for k in ("t", "x", "x_d", "T", "closure", "status")
+              + tuple(k for k in _OPTIONAL_ARRAYS if k in data)}
+    names = data.arrays.get("status_names")
+    if names is None or names.dtype.kind != "U" or names.ndim != 1:
+        raise data.corrupt("the entry 'status_names' must be a list of strings")
+    return RunResult(**arrays, status_names=tuple(str(v) for v in names),
+                     metrics=data.json("metrics"), config_summary=data.json("config"))
 
 
 def plot_fig7(result: RunResult, path: str | Path) -> Path:

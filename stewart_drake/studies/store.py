@@ -23,8 +23,9 @@ import json
 import time
 from pathlib import Path
 
-from ..errors import IncompleteResultsError, ResultsMismatchError, SimulationDivergedError
-from ..fileio import atomic_write
+from ..errors import (CorruptFileError, IncompleteResultsError, ResultsMismatchError,
+                      SimulationDivergedError)
+from ..fileio import atomic_write, read_json
 from .runners import JobFailure
 
 MANIFEST = "manifest.json"
@@ -43,20 +44,60 @@ def file_digest(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
 
 
+#: What a job's entry in a manifest may record (:meth:`ResultStore.mark` uses a JobFailure's kind).
+JOB_STATUSES = ("done", "lost", "error")
+#: A damaged manifest cannot be repaired by deleting it alone: the folder's result files would
+#: then be refused as results without a manifest.
+_REMEDY = "delete the folder (or choose another --out) and run the command again"
+
+
 def read_manifest(folder: Path) -> dict | None:
     """The manifest of ``folder``, None if there is none.
 
+    A manifest of the current layout (with ``study`` and ``settings_hash``) is checked entry by
+    entry: ``jobs`` maps ids to records with a known ``status`` and, when done, a ``file``.
+    An older layout is returned as it is (:class:`ResultStore` refuses it by name).
+
     Raises:
-        ResultsMismatchError: a manifest that is not JSON.
+        CorruptFileError: not JSON (truncated, random bytes, empty), not a JSON object, or an
+            incomplete record (names the entry).
+        OSError: the file cannot be read.
     """
     path = Path(folder) / MANIFEST
     if not path.exists():
         return None
-    try:
-        return json.loads(path.read_text())
-    except ValueError as err:
-        raise ResultsMismatchError(f"{path} is not a stewart-drake manifest ({err}); choose "
-                                   f"another --out or delete the folder") from None
+    manifest = read_json(path, "stewart-drake manifest", _REMEDY)
+    if not isinstance(manifest, dict):
+        raise CorruptFileError(path, "stewart-drake manifest",
+                               f"a JSON {type(manifest).__name__}, not an object", _REMEDY)
+    if "study" in manifest or "settings_hash" in manifest:
+        check_manifest(path, manifest)
+    return manifest
+
+
+def check_manifest(path: Path, manifest: dict) -> None:
+    """Refuse a manifest of the current layout with a missing or mistyped entry.
+
+    Raises:
+        CorruptFileError: names the first entry that is wrong.
+    """
+    def bad(problem):
+        return CorruptFileError(path, "stewart-drake manifest", problem, _REMEDY)
+
+    for key, kind in (("study", str), ("settings_hash", str), ("settings", dict),
+                      ("jobs", dict), ("complete", bool)):
+        if not isinstance(manifest.get(key), kind):
+            raise bad(f"{key!r} must be a JSON {kind.__name__}, got "
+                      f"{type(manifest.get(key)).__name__}" if key in manifest
+                      else f"the entry {key!r} is missing")
+    for job_id, job in manifest["jobs"].items():
+        if not isinstance(job, dict) or job.get("status") not in JOB_STATUSES:
+            raise bad(f"job {job_id!r} has no status of {JOB_STATUSES}")
+        name = job.get("file")
+        if job["status"] == "done" and not (isinstance(name, str) and name
+                                            and not Path(name).is_absolute()
+                                            and ".." not in Path(name).parts):
+            raise bad(f"job {job_id!r} is done but names no file in the folder")
 
 
 def _difference(old: dict, new: dict) -> str:
@@ -142,8 +183,15 @@ class ResultStore:
         return self.put(job_id, name, lambda f: f.write(text), **meta)
 
     def load_json(self, job_id: str):
-        """The JSON document a job's :meth:`put_json` wrote."""
-        return json.loads((self.folder / self.manifest["jobs"][job_id]["file"]).read_text())
+        """The JSON document a job's :meth:`put_json` wrote.
+
+        Raises:
+            CorruptFileError: the file is not JSON (names it; delete it and run again to redo
+                that job).
+        """
+        return read_json(self.folder / self.manifest["jobs"][job_id]["file"],
+                         f"{self.study} result", "delete it and run the same command again to "
+                         "redo that job")
 
     def mark(self, failure: JobFailure) -> None:
         """Record a job with no result (lost or failed); it runs again next time."""

@@ -119,6 +119,8 @@ def task_scenario(job: dict):
     base.controller = dataclasses.replace(driver, omega_Q=ratio, omega_R=1.0,
                                           schedule_pose=kind != "fixed_gain")
     base.disturbance = task.disturbance
+    if job.get("divergence_dir"):
+        base.guard.divergence_dir = job["divergence_dir"]
     if kind == "schedule":
         t, ratios = job["schedule"]
         base.tuner = WeightSchedule(t=list(t), omega_Q=list(ratios), omega_R=[1.0] * len(t))
@@ -392,7 +394,8 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
             return {k: data[k] for k in data.files}
 
     def common(family, seed):
-        return {"family": family, "seed": seed, "duration_s": duration, "base": base}
+        return {"family": family, "seed": seed, "duration_s": duration, "base": base,
+                "divergence_dir": str(out / "diverged")}
 
     wall0 = time.perf_counter()
     # A: the fixed ratios everywhere; the baselines and the paper's tuner on the test tasks.

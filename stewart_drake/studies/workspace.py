@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import check_memory
 from ..errors import IncompleteResultsError, InvalidConfigError
 from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
@@ -32,6 +33,9 @@ from .runners import JobFailure, ProcessRunner, SerialRunner
 TRANSLATION_BOX = ((-0.25, 0.25), (-0.25, 0.25), (0.10, 0.50))   # X, Y, Z in m
 ORIENTATION_BOX = ((-1.0, 1.0), (-1.0, 1.0), (-1.3, 1.3))        # phi, theta, psi in rad
 #: Keys of :func:`classify` results, each (...,) or (..., 6).
+#: Memory a sweep holds per pose of its grids, bytes: the pose (48), the classification (82)
+#: and its concatenation; measured 136 B per pose between resolution 21 and 61.
+BYTES_PER_POSE = 200.0
 FIELDS = ("reachable", "usable", "cond", "sigma_min_inv", "torques", "max_torque", "bottleneck")
 
 
@@ -55,9 +59,9 @@ def classify(geometry: StewartGeometry, x,
     """
     x = np.asarray(x, dtype=float)
     theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = limits.limit_margins(geometry, x, theta, ratio)
+    margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     reachable = limits._reachable_from_margins(margins)
-    cond, inv = kinematics.singularity_measures(geometry, x, theta)
+    cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
     torques = np.full(x.shape[:-1] + (6,), np.nan)
     ok = reachable & np.isfinite(cond)
     if np.any(ok):
@@ -326,7 +330,16 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
         ``tilt_every_rad`` / ``tilt_some_rad`` (n_heights,), ``max_holding_torque_Nm`` over the
         reachable translation box and ``bottleneck_share`` (6,) fraction of those poses where
         each motor carries the largest |T_i|.
+    Raises:
+        InvalidConfigError: resolution < 2, or grids that need more memory than the machine
+            has (:data:`BYTES_PER_POSE`), before any grid is allocated.
     """
+    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
+            or resolution < 2:
+        raise InvalidConfigError(f"resolution must be an integer >= 2, got {resolution!r}")
+    n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
+    check_memory(f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
+                 n_poses * BYTES_PER_POSE, "lower --resolution (default 41)")
     taxes = grid_axes(TRANSLATION_BOX, resolution)
     oaxes = grid_axes(ORIENTATION_BOX, resolution)
     heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
