@@ -7,7 +7,7 @@ from scipy.linalg import expm, solve_discrete_are
 from stewart_drake.model import statics
 from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
 from stewart_drake.errors import InvalidConfigError, RiccatiSolveError
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
 H = 1e-3
 
@@ -104,3 +104,53 @@ def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
                                statics.holding_torques(geometry, random_poses[:20]), atol=1e-12)
     with pytest.raises(InvalidConfigError, match="feedforward"):
         feedforward_torques(geometry, random_poses[:2], mode="magic")
+
+
+def _switch(mode):
+    """A constant 1 mrad / 1 mm error held 50 ms at ratio 10, then the weights drop to ratio 0.01:
+    (z, K, T) just before the switch and (z, K, T) at the switch's update."""
+    from pydrake.systems.analysis import Simulator
+
+    geometry = StewartGeometry()
+    controller = LqiController(geometry, period_s=H, schedule_period_s=1e-2, gain_transfer=mode)
+    simulator = Simulator(controller)
+    context = simulator.get_mutable_context()
+    x = X_HOME + np.array([1e-3, 0, 0, 0, 0, 1e-3])
+    controller.get_x_input_port().FixValue(context, np.concatenate([x, np.zeros(6)]))
+    controller.get_x_d_input_port().FixValue(context, np.concatenate([X_HOME, np.zeros(12)]))
+    controller.get_T_ff_input_port().FixValue(context, statics.holding_torques(geometry, X_HOME))
+    controller.get_omega_input_port().FixValue(context, [10.0, 1.0])
+
+    def read():
+        z = context.get_discrete_state(controller._z_index).get_value().copy()
+        T = controller.GetOutputPort("T").Eval(context).copy()
+        return z, controller.gain_in_use(context).copy(), T
+
+    simulator.AdvanceTo(0.0505)
+    before = read()
+    controller.get_omega_input_port().FixValue(context, [0.1, 10.0])
+    simulator.AdvanceTo(0.0515)
+    return before, read(), x - X_HOME
+
+
+@pytest.mark.parametrize("mode", ["integral", "feedback", "none"])
+def test_a_gain_switch_carries_over_what_its_mode_says(mode):
+    (z0, K0, T0), (z1, K1, T1), e = _switch(mode)
+    assert np.abs(K1[:, :6]).max() < 0.2 * np.abs(K0[:, :6]).max()      # a real switch
+    z_before_update = z1 - H * e                                          # this step's integration
+    if mode == "integral":            # the integral torque is kept, z rescaled
+        np.testing.assert_allclose(K1[:, 12:18] @ z_before_update, K0[:, 12:18] @ z0,
+                                   rtol=1e-9, atol=1e-12)
+        assert np.abs(z_before_update - z0).max() > 0.5 * np.abs(z0).max()
+    elif mode == "feedback":          # no torque step: only this step's integration moves T
+        assert np.abs(T1 - T0).max() < 0.02 * np.abs(T0 - statics.holding_torques(
+            StewartGeometry(), X_HOME)).max()
+    else:                             # the paper: z kept, the torque steps
+        np.testing.assert_allclose(z_before_update, z0, rtol=1e-12, atol=1e-15)
+        assert np.abs(T1 - T0).max() > 0.1 * np.abs(T0 - statics.holding_torques(
+            StewartGeometry(), X_HOME)).max()
+
+
+def test_an_unknown_gain_transfer_is_refused():
+    with pytest.raises(InvalidConfigError, match="gain_transfer must be one of"):
+        LqiController(StewartGeometry(), gain_transfer="smooth")

@@ -338,3 +338,14 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
         "stewart-drake train: `stewart-drake train` needs torch: pip install "
         "'stewart-drake[train]' (torch==2.13.0, the CPU build)"]
     assert (tmp_path / "run_paper_ann.npz").exists()
+
+
+def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
+    from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario, use_paper_tuner
+
+    scenario = load_scenario("paper_hardware")
+    assert scenario.controller.gain_transfer == "integral"               # ours, the default
+    use_paper_tuner(scenario, "", period_s=0.04)
+    assert scenario.controller.gain_transfer == "none"
+    assert isinstance(scenario.tuner, AnnTunerDriver) and scenario.tuner.period_s == 0.04
+    scenario.validate()                                                   # raises if not

@@ -52,6 +52,19 @@ def test_a_disturbed_hold_stays_within_the_motors_reach():
         assert worst <= LOAD_MARGIN * peak + 1e-9 and d.magnitude > 0
 
 
+@pytest.mark.parametrize("family", ["dash_hold", "multisine", "surgical"])
+def test_every_task_reference_is_within_the_motors_reach(family):
+    # Inverse dynamics on a 1 ms grid (finer than the 5 ms check inside make_task), and a
+    # multi-sine still moves: shrinking fits it, it does not flatten it.
+    g, peak = StewartGeometry(), 0.702
+    t = np.arange(0.0, 3.0, 1e-3)
+    for seed in (0, 1, 2, 101, 104):
+        x, _, xdd = make_task(family, seed, 3.0, g, peak).reference.evaluate(t)
+        T = statics.feedforward_torques(g, x, xdd, mode="inverse_dynamics")
+        assert np.abs(T).max() <= LOAD_MARGIN * peak * 1.01
+        assert np.ptp(x[:, :3], axis=0).max() > 0.02           # > 20 mrad of motion
+
+
 def test_bad_task_requests_are_refused_by_name():
     with pytest.raises(InvalidConfigError, match="unknown task family 'dance'"):
         make_task("dance")
@@ -169,15 +182,28 @@ def test_weight_schedules_are_checked_by_field():
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
+    monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))     # quick keeps (-1, 1)
     monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
     monkeypatch.setattr(ts, "test_tasks", lambda quick=False: [("dash_hold", 100)])
     summary = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
     v = summary["verdicts"]["0.1"]
     labels = set(v["controllers"])
-    assert labels == {"hindsight 0.1", "ours 0.1", "paper tuner", "speed schedule",
-                      "fixed gain 1"}
+    assert labels == {"hindsight 0.1", "ours 0.1", "ours closed-loop 0.1", "paper tuner",
+                      "speed schedule", "fixed chosen 0.1", "fixed gain 1"}
     assert v["best_fixed"]["dash_hold_s100"][0] in (0.1, 1.0, 10.0)
-    assert summary["n_runs"] == 2 * 3 + 3 + 2 and summary["lost"] == []
+    # fixed: 2 tasks x 3; test baselines 3; hindsight + ours 2; shifts 2 on the training task;
+    # ours closed-loop 1. "fixed chosen" reuses the fixed runs.
+    assert summary["n_runs"] == 2 * 3 + 3 + 2 + 2 + 1 and summary["lost"] == []
+    chosen = summary["chosen"]["0.1"]
+    assert chosen["shift"] in (-1.0, 1.0) and chosen["fixed_ratio"] in (0.1, 1.0, 10.0)
+    # the chosen fixed ratio is the training task's best one (one training task), and its
+    # verdict on the test task is that ratio's own run
+    assert chosen["fixed_means"][str(chosen["fixed_ratio"])] == pytest.approx(1.0)
+    point = summary["points"]["dash_hold_s100"][f"fixed {chosen['fixed_ratio']:.3g}"]
+    J_best = v["best_fixed"]["dash_hold_s100"][1]
+    assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] == \
+        pytest.approx((point["e2"] + 0.1 * point["u2"]) / J_best - 1.0)
+    assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] >= 0.0
     assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
     assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == \
         json.loads(json.dumps(summary["verdicts"]))
@@ -186,4 +212,5 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     assert again["verdicts"] == summary["verdicts"]
     md = ts.render_tuner_markdown(again)
     assert "QUICK mode" in md and "| ours |" in md and "**Verdict**" in md
+    assert "| ours closed-loop (shift " in md and "| fixed chosen (" in md
     assert ts.plot_tuner_tradeoff(again, tmp_path / "t.png").stat().st_size > 10_000

@@ -42,6 +42,7 @@ from .contract import LQI_STATUS_NAMES, PoseTorqueController
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 #: How the gain is re-solved at a re-schedule (see :class:`LqiController`).
 RICCATI_MODES = ("warm", "track", "cold")
+GAIN_TRANSFER_MODES = ("integral", "feedback", "none")
 #: The reference governor takes over when the reference's feed-forward exceeds this fraction of
 #: the torque limit, and keeps the holding torques of the pose it follows within it. The rest of
 #: the limit is the headroom of a motor at its bound for feedback: it must exceed the motor's
@@ -427,9 +428,16 @@ class LqiController(PoseTorqueController):
             (12 perturbed runs). Ours: the paper has no limit.
         delay_periods: control periods between a sample and its torque acting (the computation
             delay); the error model is augmented with the pending torques (:func:`error_model`).
-        bumpless_transfer: when the gain changes (new weights, a new pose), reset the integral
-            states so that the feedback is continuous (K_I z = K_old e - K_rest e_rest): a
-            gain switch makes no torque step. Ours: the paper switches gains as they come.
+        gain_transfer: what carries over when the gain changes (new weights, a new pose).
+            ``"integral"`` (default): the integral action, K_I,new z_new = K_I,old z_old, so the
+            torque the integrator has learned (friction, model error) stays and only the
+            proportional part follows the new gain. ``"feedback"``: the whole feedback,
+            K_I,new z_new = K_old e - K_rest,new e_rest (no torque step at all); measured worse:
+            switching from a stiff to a soft gain locks the stiff loop's transient torque into
+            the soft integrator, which takes seconds to unwind (hindsight schedule on a
+            multi-sine, J 1838 against 130 with ``"none"``; docs/results.md). ``"none"``: z is
+            kept as is, a torque step K_I,new z - K_I,old z. All three are ours: the paper
+            switches gains as they come (``"none"``).
         schedule_pose: re-schedule B(x) from the measured pose (default). False keeps the input
             matrix of the start pose, as a plain LQI would (the paper has one B; re-scheduling on
             the pose is ours): the gain is then re-solved only when omega changes.
@@ -449,7 +457,7 @@ class LqiController(PoseTorqueController):
                  torque_limit_Nm: float | None = None, anti_windup: bool = True,
                  delay_periods: int = 0, estimator=None, x_dot_initial=None,
                  reference_governor: bool = True, schedule_pose: bool = True,
-                 bumpless_transfer: bool = True):
+                 gain_transfer: str = "integral"):
         super().__init__(pose_input=estimator is None)
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
@@ -481,7 +489,10 @@ class LqiController(PoseTorqueController):
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
         self.schedule_pose = bool(schedule_pose)
-        self.bumpless = bool(bumpless_transfer)
+        if gain_transfer not in GAIN_TRANSFER_MODES:
+            raise InvalidConfigError(f"gain_transfer must be one of {GAIN_TRANSFER_MODES}, got "
+                                     f"{gain_transfer!r}")
+        self.gain_transfer = gain_transfer
         self.x_initial = x0.copy()
 
         A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
@@ -698,13 +709,16 @@ class LqiController(PoseTorqueController):
         if self.delay:
             pending = memory[mem["pending"]]
             e += pending.tolist()
-        if K_old is not None and self.bumpless:
-            # Bumpless transfer: the new gain starts from the feedback the old one gave, the
-            # integral states taking up the difference (K_I z_new = K_old e - K_rest e_rest),
-            # so a change of weights (the tuner's, every 20 ms) or of pose (every schedule
-            # period) makes no torque step. Ours: the paper switches gains as they come.
+        if K_old is not None and self.gain_transfer != "none":
+            # Gain transfer (docstring): the new gain takes over the integral torque the old one
+            # had learned ("integral") or its whole feedback ("feedback"), the integral states
+            # taking up the difference. Ours: the paper switches gains as they come.
             K_I = K[:, 12:18]
-            target = K_old @ e - (K @ e - K_I @ np.array(z_list))
+            z_old = np.array(z_list)
+            if self.gain_transfer == "integral":
+                target = K_old[:, 12:18] @ z_old
+            else:
+                target = K_old @ e - (K @ e - K_I @ z_old)
             try:
                 z_list = np.linalg.solve(K_I, target).tolist()
                 e[12:18] = z_list

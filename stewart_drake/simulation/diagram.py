@@ -39,7 +39,7 @@ def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiControlle
                              x_dot_initial=context.x_dot_initial,
                              reference_governor=driver.reference_governor,
                              schedule_pose=driver.schedule_pose,
-                             bumpless_transfer=driver.bumpless_transfer)
+                             gain_transfer=driver.gain_transfer)
     return make
 
 

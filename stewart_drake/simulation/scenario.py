@@ -32,7 +32,7 @@ from pydrake.visualization import VisualizationConfig
 from ..checks import as_array, as_number, check_multiple
 from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError, MissingFileError,
                       StewartError)
-from ..control.lqi import OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
+from ..control.lqi import GAIN_TRANSFER_MODES, OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
 from ..model.servo import ServoModel
 from ..model.limits import DEFAULT_COND_THRESHOLD, DEFAULT_MIN_SIGMA_MIN_INV
@@ -120,8 +120,9 @@ class LqiDriver:
             (:meth:`~stewart_drake.control.lqi.LqiController.govern`).
         schedule_pose: re-schedule the input matrix B(x) from the measured pose (ours); false
             keeps the start pose's, as a plain LQI (the gain then changes only with omega).
-        bumpless_transfer: a gain change resets the integral states so the feedback torque is
-            continuous (ours; the paper switches gains as they come).
+        gain_transfer: what a gain change carries over: ``integral`` (the integral torque,
+            default), ``feedback`` (the whole feedback, no torque step) or ``none`` (as the
+            paper); see :class:`~stewart_drake.control.lqi.LqiController` (ours).
     """
 
     omega_Q: float = 1.0
@@ -133,7 +134,7 @@ class LqiDriver:
     delay_compensation: bool = True
     reference_governor: bool = True
     schedule_pose: bool = True
-    bumpless_transfer: bool = True
+    gain_transfer: str = "integral"
 
 
 @dataclass
@@ -169,6 +170,13 @@ class UserController:
 @dataclass
 class AnnTunerDriver:
     """The ANN tuner of omega_Q, omega_R (paper section III.D) on density features.
+
+    It moves the weights every period (the ratio by up to 300x within 20 ms on the hardware):
+    run it with the paper's gain switching, ``controller.gain_transfer: none``, as
+    :func:`use_paper_tuner` does (``run --tuner ann``, ``evaluate``, the tuner study). Our
+    ``integral`` transfer re-maps the integral states at every switch; switched that fast the
+    re-maps pile up and the loop chatters at the torque limit (a dash-and-hold task: error
+    0.616 against 0.0121 with ``none``; docs/paper_notes.md).
 
     Attributes:
         weights: the tuner's ``.npz`` (``stewart-drake train``); empty for the shipped weights.
@@ -688,8 +696,11 @@ class Scenario:
             if c.riccati not in RICCATI_MODES:
                 raise InvalidConfigError(f"controller.riccati must be one of {RICCATI_MODES}, "
                                          f"got {c.riccati!r}")
+            if c.gain_transfer not in GAIN_TRANSFER_MODES:
+                raise InvalidConfigError(f"controller.gain_transfer must be one of "
+                                         f"{GAIN_TRANSFER_MODES}, got {c.gain_transfer!r}")
             for name in ("anti_windup", "delay_compensation", "reference_governor",
-                         "schedule_pose", "bumpless_transfer"):
+                         "schedule_pose"):
                 if not isinstance(getattr(c, name), bool):
                     raise InvalidConfigError(f"controller.{name} must be true or false, got "
                                              f"{getattr(c, name)!r}")
@@ -735,6 +746,16 @@ class Scenario:
     # -- pickling through YAML (Drake's config structs do not pickle) -------------------------
     def __reduce__(self):
         return (_scenario_from_yaml, (dump_scenario(self),))
+
+
+def use_paper_tuner(scenario: "Scenario", weights: str = "", **fields) -> "Scenario":
+    """Give ``scenario`` the paper's ANN tuner (:class:`AnnTunerDriver` with ``weights`` and
+    ``fields``) and, for an LQI, the paper's gain switching (``gain_transfer = "none"``; see
+    :class:`AnnTunerDriver`). Returns the scenario (changed in place)."""
+    scenario.tuner = AnnTunerDriver(weights=weights, **fields)
+    if isinstance(scenario.controller, LqiDriver):
+        scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
+    return scenario
 
 
 def _check_int(name: str, value, lo: int, hi: int) -> int:

@@ -252,6 +252,9 @@ def case_config(case: Case) -> Scenario:
                                                          omega_R=driver.omega_R)
     for name, value in settings.items():
         setattr(scenario, name, value)
+    if isinstance(scenario.tuner, AnnTunerDriver) and isinstance(scenario.controller, LqiDriver):
+        # the paper's tuner with the paper's gain switching (see AnnTunerDriver)
+        scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
     change = {**CONDITIONS, **ENCODER_CONDITIONS}[case.condition][0]
     if change is not None:
         change(scenario)

@@ -54,8 +54,8 @@ from ..control.tuner import (N_RATIO_INPUTS, RATIO_LOG10_MAX, RATIO_LOG10_MIN, R
                              ratio_tuner_inputs, save_ratio_tuner)
 from ..errors import InvalidConfigError
 from ..model import statics
-from ..simulation.scenario import (AnnTunerDriver, LqiDriver, RatioTunerDriver, WeightSchedule,
-                                   load_scenario)
+from ..simulation.scenario import (LqiDriver, RatioTunerDriver, WeightSchedule, load_scenario,
+                                   use_paper_tuner)
 from ..simulation.tasks import make_task
 from .experiments import run_experiment
 
@@ -75,6 +75,9 @@ GOAL = 0.15
 #: study from the pilot (holds favour soft, motion favours stiff), not tuned on it.
 R_HOLD, R_MOVE, SPEED_SCALE = 0.1, 1.0, 0.5
 ERROR_SCALE, TORQUE_SCALE = 1e-3, 0.3
+#: Offsets of our tuner's output, log10 of the ratio, searched in closed loop on the training
+#: tasks (:func:`closed_loop_choice`): training on the closed-loop cost, one weight of the network.
+SHIFTS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 
 
 def train_tasks(quick: bool = False) -> list:
@@ -125,7 +128,7 @@ def task_scenario(job: dict):
         t, ratios = job["schedule"]
         base.tuner = WeightSchedule(t=list(t), omega_Q=list(ratios), omega_R=[1.0] * len(t))
     elif kind == "paper_tuner":
-        base.tuner = AnnTunerDriver(weights=job.get("weights", ""), period_s=TUNER_PERIOD_S)
+        use_paper_tuner(base, job.get("weights", ""), period_s=TUNER_PERIOD_S)
     elif kind == "ratio_tuner":
         base.tuner = RatioTunerDriver(weights=job["weights"], period_s=TUNER_PERIOD_S)
     else:
@@ -265,6 +268,35 @@ def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs:
                                        "final_loss": float(loss)})
 
 
+def shifted(model: RatioTunerModel, shift: float) -> RatioTunerModel:
+    """``model`` with its output (log10 ratio) offset by ``shift``: the output bias b2 + shift."""
+    return dataclasses.replace(model, b2=model.b2 + shift,
+                               metadata={**model.metadata, "shift": float(shift)})
+
+
+def normalized_J(record: dict, best_J: float, lam: float) -> float:
+    """J of a run over the task's best fixed J (inf when the run lost the platform)."""
+    return task_J(record, lam) / best_J
+
+
+def closed_loop_choice(candidates: dict, fixed_records: dict, lam: float) -> tuple:
+    """The candidate with the lowest mean J / J_best fixed over the training tasks.
+
+    Training on the closed-loop cost: each candidate ran in closed loop on every training task.
+
+    Args:
+        candidates: {key: {task: record}} (a fixed ratio, an output shift).
+        fixed_records: {task: {ratio: record}} of the same tasks (for J_best fixed).
+    Returns:
+        (key, {key: mean normalized J}).
+    """
+    best = {task: min(task_J(rec, lam) for rec in runs.values())
+            for task, runs in fixed_records.items()}
+    means = {key: float(np.mean([normalized_J(runs[task], best[task], lam) for task in best]))
+             for key, runs in candidates.items()}
+    return min(means, key=means.get), means
+
+
 # -- the verdict -----------------------------------------------------------------------------------
 
 def task_J(record: dict, lam: float) -> float:
@@ -291,8 +323,8 @@ def verdict(records: dict, tasks: list, lam: float) -> dict:
         r_best = min(J_fixed, key=J_fixed.get)
         best[task] = (r_best, J_fixed[r_best])
     out = {}
-    for label in (f"hindsight {lam:g}", f"ours {lam:g}", "paper tuner", "speed schedule",
-                  "fixed gain 1"):
+    for label in (f"hindsight {lam:g}", f"ours {lam:g}", f"ours closed-loop {lam:g}",
+                  "paper tuner", "speed schedule", f"fixed chosen {lam:g}", "fixed gain 1"):
         per_task = {task: task_J(records[task][label], lam) / best[task][1] - 1.0
                     for task in tasks if label in records[task]}
         if not per_task:
@@ -418,14 +450,24 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
     all_jobs = dict(jobs)
     fixed = {task: {r: load(_job_id("fixed", *task, f"{r:.3g}")) for r in RATIOS}
              for task in train + test}
-    # B: our tuners (trained on the training tasks) and the hindsight schedules, per lambda.
+    # B: our tuners (trained on the training tasks' fixed runs, labels from the cost), the
+    # hindsight schedules on the test tasks, and our tuners with their output shifted by each of
+    # SHIFTS on the training tasks (for the closed-loop choice of C).
     trained = {}
     jobs = {}
+    shifts = SHIFTS if not quick else SHIFTS[::2]
     for lam in LAMBDAS:
         path = out / "weights" / f"ratio_tuner_lambda{lam:g}.npz"
         model = train_ratio_tuner({task: fixed[task] for task in train}, lam)
         save_ratio_tuner(model, path)
         trained[f"{lam:g}"] = model.metadata
+        for shift in shifts:
+            shift_path = out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
+            save_ratio_tuner(shifted(model, shift), shift_path)
+            for family, seed in train:
+                jobs[_job_id("ours", family, seed, f"{lam:g}_shift{shift:+g}")] = {
+                    **common(family, seed), "kind": "ratio_tuner",
+                    "label": f"ours {lam:g} shift {shift:+g}", "weights": str(shift_path)}
         for family, seed in test:
             jobs[_job_id("hindsight", family, seed, f"{lam:g}")] = {
                 **common(family, seed), "kind": "schedule", "label": f"hindsight {lam:g}",
@@ -436,11 +478,36 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
     run_jobs(store, runner, study_job, jobs, lambda i, o: save(i, o, jobs), progress=progress,
              desc="tuner study: hindsight and our tuners", what="runs")
     all_jobs.update(jobs)
+    # C: the closed-loop choices on the training tasks: our tuner's output shift (run on the test
+    # tasks) and the single fixed ratio (its test runs exist already).
+    chosen = {}
+    jobs = {}
+    for lam in LAMBDAS:
+        fixed_train = {task: fixed[task] for task in train}
+        r_chosen, r_means = closed_loop_choice(
+            {r: {task: fixed[task][r] for task in train} for r in RATIOS}, fixed_train, lam)
+        shift, shift_means = closed_loop_choice(
+            {sh: {task: load(_job_id("ours", *task, f"{lam:g}_shift{sh:+g}")) for task in train}
+             for sh in shifts}, fixed_train, lam)
+        chosen[f"{lam:g}"] = {"fixed_ratio": r_chosen, "fixed_means": r_means,
+                              "shift": shift, "shift_means": shift_means}
+        path = out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
+        for family, seed in test:
+            jobs[_job_id("ours_closed_loop", family, seed, f"{lam:g}")] = {
+                **common(family, seed), "kind": "ratio_tuner",
+                "label": f"ours closed-loop {lam:g}", "weights": str(path)}
+    run_jobs(store, runner, study_job, jobs, lambda i, o: save(i, o, jobs), progress=progress,
+             desc="tuner study: our tuners as chosen in closed loop", what="runs")
+    all_jobs.update(jobs)
     by_task: dict = {task: {} for task in test}
     for job_id, job in all_jobs.items():
         task = (job["family"], job["seed"])
         if task in by_task:
             by_task[task][_label(job)] = load(job_id)
+    for lam in LAMBDAS:
+        r = chosen[f"{lam:g}"]["fixed_ratio"]
+        for task in test:
+            by_task[task][f"fixed chosen {lam:g}"] = fixed[task][r]
     verdicts = {f"{lam:g}": verdict(by_task, test, lam) for lam in LAMBDAS}
     points = {f"{f}_s{s}": {label: {"e2": float(rec["e2"]), "u2": float(rec["u2"]),
                                     "ratio_mean": float(rec.get("ratio_mean", np.nan))}
@@ -449,7 +516,7 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
     lost = sorted(f"{f}_s{s}: {label}" for (f, s), runs in by_task.items()
                   for label, rec in runs.items() if "lost" in rec)
     summary = _json({"settings": settings, "verdicts": verdicts, "points": points,
-                     "lost": lost, "trained": trained,
+                     "lost": lost, "trained": trained, "chosen": chosen,
                      "wall_s": time.perf_counter() - wall0,
                      "n_runs": len(all_jobs)})
     text = json.dumps(summary, indent=1).encode()
@@ -494,14 +561,22 @@ def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> 
     for lam in st["lambdas"]:
         v = summary["verdicts"][f"{lam:g}"]
         ours = v["controllers"].get(f"ours {lam:g}")
+        ours_cl = v["controllers"].get(f"ours closed-loop {lam:g}")
         head = v["controllers"].get(f"hindsight {lam:g}")
+        chosen = v["controllers"].get(f"fixed chosen {lam:g}")
         if ours is not None:
             verdict_lines.append(
                 f"- lambda = {lam:g}: our tuner {_pct(ours['mean'])} +- {100 * ours['std']:.0f} % "
                 f"against the best fixed ratio: **{'meets' if ours['beats'] else 'does not meet'}"
-                f"** the goal" + (f"; the hindsight schedule (the headroom) "
-                                  f"{_pct(head['mean'])} +- {100 * head['std']:.0f} %"
-                                  if head else "") + ".")
+                f"** the goal"
+                + (f"; its closed-loop choice {_pct(ours_cl['mean'])} +- "
+                   f"{100 * ours_cl['std']:.0f} % (**{'meets' if ours_cl['beats'] else 'does not meet'}"
+                   f"**)" if ours_cl else "")
+                + (f"; the hindsight schedule (the headroom) {_pct(head['mean'])} +- "
+                   f"{100 * head['std']:.0f} %" if head else "")
+                + (f"; the single fixed ratio chosen on the training tasks "
+                   f"{_pct(chosen['mean'])} +- {100 * chosen['std']:.0f} %" if chosen else "")
+                + ".")
     L += ["**Verdict** (computed from the runs below):", ""] + verdict_lines + [""]
     for lam in st["lambdas"]:
         v = summary["verdicts"][f"{lam:g}"]
@@ -518,7 +593,12 @@ def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> 
                 m = c["by_family"].get(fam)
                 cells.append("-" if m is None else
                              f"{_pct(m[0])}" + (f" +- {100 * m[1]:.0f} %" if m[2] > 1 else ""))
-            name = label.rsplit(" ", 1)[0] if label.startswith(("hindsight", "ours")) else label
+            name = (label.rsplit(" ", 1)[0] if label.startswith(("hindsight", "ours", "fixed chosen"))
+                    else label)
+            if name == "fixed chosen" and "chosen" in summary:
+                name += f" ({summary['chosen'][f'{lam:g}']['fixed_ratio']:.3g})"
+            elif name == "ours closed-loop" and "chosen" in summary:
+                name += f" (shift {summary['chosen'][f'{lam:g}']['shift']:+g})"
             L.append(f"| {name} | {_pct(c['mean'])} +- {100 * c['std']:.0f} % | "
                      + " | ".join(cells) + f" | {'yes' if c['beats'] else 'no'} |")
         L.append("")
@@ -527,7 +607,12 @@ def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> 
           "at best learn from these runs); **ours**, `RatioTuner` (density features and the "
           "reference's speed and acceleration -> omega_Q / omega_R in [1e-3, 1e3]), trained per "
           "lambda on the training tasks' fixed-ratio runs with the window's J at the predicted "
-          "ratio as the loss; **paper tuner**, the paper's 12-10-2 network on density features "
+          "ratio as the loss; **ours closed-loop**, the same network with its output (log10 "
+          f"ratio) offset by the one of {list(SHIFTS)} that gave the lowest mean J / J_best "
+          "fixed when run in closed loop on the training tasks (training on the closed-loop "
+          "cost, one weight: the output bias); **fixed chosen**, the one fixed ratio with the "
+          "lowest mean J / J_best fixed over the training tasks (what a user without a tuner "
+          "would deploy); **paper tuner**, the paper's 12-10-2 network on density features "
           "trained on the nine collection runs on the hardware with the paper's labels; "
           f"**speed schedule**, hand-made: ratio {R_HOLD:g} at rest to {R_MOVE:g} at speed; "
           "**fixed gain 1**, ratio 1 with the gain of the start pose (no re-scheduling on B(x), "
