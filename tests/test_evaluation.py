@@ -133,10 +133,11 @@ def test_grid_and_controller_names():
         controller_settings("lqr")
 
 
-def test_verdict_compares_at_no_more_effort():
+def test_verdict_compares_at_no_more_feedback_effort():
+    # the total Sum T^2 dt (gravity's) is the same for all and must not decide admissibility
     def row(c, nrms, effort):
         return {"case": {"controller": c, "scenario": "paper", "condition": "nominal"},
-                "normalized_rms": nrms, "sum_T2_dt": effort}
+                "normalized_rms": nrms, "sum_dT2_dt": effort, "sum_T2_dt": 4.3 - 0.001 * nrms}
 
     rows = [row("lqi_1_1", 1.0, 1.0), row("lqi_10_0.1", 0.1, 2.0), row("ann_best_cost", 0.5, 1.5),
             row("ann_paper", 2.0, 0.9)]
