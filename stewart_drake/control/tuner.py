@@ -45,6 +45,32 @@ PAPER_LABEL_TUNER_PATH = DEFAULT_TUNER_PATH.with_name("ann_tuner_paper.npz")
 ACTIVATIONS = ("tanh", "sigmoid")
 
 
+def _freeze_and_check_mlp(model, kind: str, n_in: int, n_out: int, non_finite: str = "",
+                          shape: str = "", x_std: str = "") -> None:
+    """Make a frozen one-hidden-layer model's weights read-only float64 arrays and check them:
+    finite, W1 (hidden, n_in), b1 (hidden,), W2 (n_out, hidden), b2 (n_out,), x_mean and x_std
+    (n_in,), x_std > 0. ``kind`` names the model in the errors, the other strings end them.
+
+    Raises:
+        InvalidConfigError: the first fault found.
+    """
+    for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std"):
+        value = np.array(getattr(model, name), dtype=np.float64)
+        value.setflags(write=False)
+        object.__setattr__(model, name, value)
+        if not np.all(np.isfinite(value)):
+            raise InvalidConfigError(f"{kind} weight {name} has non-finite entries{non_finite}")
+    hidden = model.W1.shape[0] if model.W1.ndim == 2 else -1
+    expected = {"W1": (hidden, n_in), "b1": (hidden,), "W2": (n_out, hidden), "b2": (n_out,),
+                "x_mean": (n_in,), "x_std": (n_in,)}
+    for name, want in expected.items():
+        if hidden < 1 or getattr(model, name).shape != want:
+            raise InvalidConfigError(f"{kind} weight {name} has shape "
+                                     f"{getattr(model, name).shape}, expected {want}{shape}")
+    if not np.all(model.x_std > 0):
+        raise InvalidConfigError(f"{kind} x_std must be > 0{x_std}")
+
+
 def _activation(name: str, h: np.ndarray) -> np.ndarray:
     if name == "tanh":
         return np.tanh(h)
@@ -76,22 +102,9 @@ class TunerModel:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std"):
-            value = np.array(getattr(self, name), dtype=np.float64)
-            value.setflags(write=False)
-            object.__setattr__(self, name, value)
-            if not np.all(np.isfinite(value)):
-                raise InvalidConfigError(f"tuner weight {name} has non-finite entries; retrain")
-        hidden = self.W1.shape[0] if self.W1.ndim == 2 else -1
-        expected = {"W1": (hidden, N_FEATURES), "b1": (hidden,), "W2": (2, hidden), "b2": (2,),
-                    "x_mean": (N_FEATURES,), "x_std": (N_FEATURES,)}
-        for name, shape in expected.items():
-            if hidden < 1 or getattr(self, name).shape != shape:
-                raise InvalidConfigError(
-                    f"tuner weight {name} has shape {getattr(self, name).shape}, expected {shape} "
-                    f"(12 features -> hidden -> [omega_Q, omega_R])")
-        if not np.all(self.x_std > 0):
-            raise InvalidConfigError("tuner x_std must be > 0 (normalization of rho)")
+        _freeze_and_check_mlp(self, "tuner", N_FEATURES, 2, non_finite="; retrain",
+                              shape=" (12 features -> hidden -> [omega_Q, omega_R])",
+                              x_std=" (normalization of rho)")
         if self.activation not in ACTIVATIONS:
             raise InvalidConfigError(f"activation must be one of {ACTIVATIONS}, "
                                      f"got {self.activation!r}")
@@ -363,21 +376,7 @@ class RatioTunerModel:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std"):
-            value = np.array(getattr(self, name), dtype=np.float64)
-            value.setflags(write=False)
-            object.__setattr__(self, name, value)
-            if not np.all(np.isfinite(value)):
-                raise InvalidConfigError(f"ratio tuner weight {name} has non-finite entries")
-        hidden = self.W1.shape[0] if self.W1.ndim == 2 else -1
-        expected = {"W1": (hidden, N_RATIO_INPUTS), "b1": (hidden,), "W2": (1, hidden),
-                    "b2": (1,), "x_mean": (N_RATIO_INPUTS,), "x_std": (N_RATIO_INPUTS,)}
-        for name, shape in expected.items():
-            if hidden < 1 or getattr(self, name).shape != shape:
-                raise InvalidConfigError(f"ratio tuner weight {name} has shape "
-                                         f"{getattr(self, name).shape}, expected {shape}")
-        if not np.all(self.x_std > 0):
-            raise InvalidConfigError("ratio tuner x_std must be > 0")
+        _freeze_and_check_mlp(self, "ratio tuner", N_RATIO_INPUTS, 1)
 
     def predict_log10(self, inputs) -> np.ndarray:
         """(...,) log10 omega_Q / omega_R in [-3, 3] for inputs (..., 16) (finite).
