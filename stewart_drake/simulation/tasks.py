@@ -138,18 +138,24 @@ def _pose(rng, scale=1.0) -> np.ndarray:
     return X_HOME + scale * rng.uniform(-1, 1, 6) * POSE_BOX
 
 
-def _dash_hold(rng, duration_s):
+def _holds_and_moves(rng, duration_s, hold_s, move_s, pose_scale=1.0) -> WaypointTrajectory:
+    """From home: a hold (duration drawn in ``hold_s``), a move to a random pose (duration drawn
+    in ``move_s``, pose box scaled by ``pose_scale``), repeated until ``duration_s``."""
     times, poses, t, x = [0.0], [X_HOME.copy()], 0.0, X_HOME.copy()
     while t < duration_s:
-        hold = rng.uniform(0.5, 1.0)
+        hold = rng.uniform(*hold_s)
         times.append(t + hold)
         poses.append(x)
-        dash = rng.uniform(0.3, 0.5)
-        x = _pose(rng)
-        times.append(t + hold + dash)
+        move = rng.uniform(*move_s)
+        x = _pose(rng, pose_scale)
+        times.append(t + hold + move)
         poses.append(x)
-        t += hold + dash
-    return WaypointTrajectory(tuple(times), tuple(map(tuple, poses))), None
+        t += hold + move
+    return WaypointTrajectory(tuple(times), tuple(map(tuple, poses)))
+
+
+def _dash_hold(rng, duration_s):
+    return _holds_and_moves(rng, duration_s, (0.5, 1.0), (0.3, 0.5)), None
 
 
 def _surgical(rng, duration_s):
@@ -217,17 +223,7 @@ class _Sum:
 
 
 def _disturbed_hold(rng, duration_s, geometry, peak_torque):
-    times, poses, t, x = [0.0], [X_HOME.copy()], 0.0, X_HOME.copy()
-    while t < duration_s:
-        hold = rng.uniform(1.0, 2.0)
-        times.append(t + hold)
-        poses.append(x)
-        move = rng.uniform(0.8, 1.2)
-        x = _pose(rng, 0.5)
-        times.append(t + hold + move)
-        poses.append(x)
-        t += hold + move
-    reference = WaypointTrajectory(tuple(times), tuple(map(tuple, poses)))
+    reference = _holds_and_moves(rng, duration_s, (1.0, 2.0), (0.8, 1.2), pose_scale=0.5)
     kind = ("push", "twist", "contact")[rng.integers(3)]
     direction = rng.normal(size=3)
     direction /= np.linalg.norm(direction)
