@@ -345,7 +345,7 @@ def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
 
     scenario = load_scenario("paper_hardware")
     assert scenario.controller.gain_transfer == "integral"               # ours, the default
-    use_paper_tuner(scenario, "", period_s=0.04)
+    use_paper_tuner(scenario, AnnTunerDriver(period_s=0.04))
     assert scenario.controller.gain_transfer == "none"
     assert isinstance(scenario.tuner, AnnTunerDriver) and scenario.tuner.period_s == 0.04
     scenario.validate()                                                   # raises if not

@@ -166,7 +166,7 @@ def run_scenario(args):
         weights = args.tuner_weights
         if weights is None and DEFAULT_TUNER_OUT.exists():
             weights = str(DEFAULT_TUNER_OUT)          # what `stewart-drake train` just wrote
-        sc.use_paper_tuner(scenario, weights or "")
+        sc.use_paper_tuner(scenario, sc.AnnTunerDriver(weights=weights or ""))
     elif args.tuner == "none":
         scenario.tuner = None
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")

@@ -749,11 +749,11 @@ class Scenario:
         return (_scenario_from_yaml, (dump_scenario(self),))
 
 
-def use_paper_tuner(scenario: "Scenario", weights: str = "", **fields) -> "Scenario":
-    """Give ``scenario`` the paper's ANN tuner (:class:`AnnTunerDriver` with ``weights`` and
-    ``fields``) and, for an LQI, the paper's gain switching (``gain_transfer = "none"``; see
-    :class:`AnnTunerDriver`). Returns the scenario (changed in place)."""
-    scenario.tuner = AnnTunerDriver(weights=weights, **fields)
+def use_paper_tuner(scenario: "Scenario", tuner: AnnTunerDriver) -> "Scenario":
+    """Give ``scenario`` the paper's ANN ``tuner`` and, for an LQI, the paper's gain switching
+    (``gain_transfer = "none"``; see :class:`AnnTunerDriver`). Returns the scenario (changed in
+    place)."""
+    scenario.tuner = tuner
     if isinstance(scenario.controller, LqiDriver):
         scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
     return scenario

@@ -35,7 +35,8 @@ from ..model import statics
 from ..model.kinematics import X_HOME
 from ..model.statics import feedforward_torques
 from ..simulation.scenario import (AnnTunerDriver, LqiDriver, NamedReference, PdDriver, Scenario,
-                                   SensorNoise, ToolDisturbance, dump_scenario, load_scenario)
+                                   SensorNoise, ToolDisturbance, dump_scenario, load_scenario,
+                                   use_paper_tuner)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -252,9 +253,8 @@ def case_config(case: Case) -> Scenario:
                                                          omega_R=driver.omega_R)
     for name, value in settings.items():
         setattr(scenario, name, value)
-    if isinstance(scenario.tuner, AnnTunerDriver) and isinstance(scenario.controller, LqiDriver):
-        # the paper's tuner with the paper's gain switching (see AnnTunerDriver)
-        scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
+    if isinstance(scenario.tuner, AnnTunerDriver):     # with the paper's gain switching
+        use_paper_tuner(scenario, scenario.tuner)
     change = {**CONDITIONS, **ENCODER_CONDITIONS}[case.condition][0]
     if change is not None:
         change(scenario)

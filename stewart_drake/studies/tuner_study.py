@@ -54,8 +54,8 @@ from ..control.tuner import (N_RATIO_INPUTS, RATIO_LOG10_MAX, RATIO_LOG10_MIN, R
                              ratio_tuner_inputs, save_ratio_tuner)
 from ..errors import InvalidConfigError
 from ..model import statics
-from ..simulation.scenario import (LqiDriver, RatioTunerDriver, WeightSchedule, load_scenario,
-                                   use_paper_tuner)
+from ..simulation.scenario import (AnnTunerDriver, LqiDriver, RatioTunerDriver, WeightSchedule,
+                                   load_scenario, use_paper_tuner)
 from ..simulation.tasks import make_task
 from .experiments import run_experiment
 
@@ -128,7 +128,8 @@ def task_scenario(job: dict):
         t, ratios = job["schedule"]
         base.tuner = WeightSchedule(t=list(t), omega_Q=list(ratios), omega_R=[1.0] * len(t))
     elif kind == "paper_tuner":
-        use_paper_tuner(base, job.get("weights", ""), period_s=TUNER_PERIOD_S)
+        use_paper_tuner(base, AnnTunerDriver(weights=job.get("weights", ""),
+                                             period_s=TUNER_PERIOD_S))
     elif kind == "ratio_tuner":
         base.tuner = RatioTunerDriver(weights=job["weights"], period_s=TUNER_PERIOD_S)
     else:
@@ -417,13 +418,19 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
         store.put(job_id, f"runs/{job_id}.npz", lambda f: np.savez(f, **arrays),
                   label=_label(job), J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS})
 
+    loaded: dict = {}
+
     def load(job_id):
-        entry = store.manifest["jobs"][job_id]
-        path = out / entry["file"]
-        if path.suffix == ".json":
-            return {"lost": json.loads(path.read_text())["lost"], "e2": np.inf, "u2": np.inf}
-        with np.load(path) as data:
-            return {k: data[k] for k in data.files}
+        """A stored run's record, read from disk once (the stages and the summary reuse it)."""
+        if job_id not in loaded:
+            path = out / store.manifest["jobs"][job_id]["file"]
+            if path.suffix == ".json":
+                loaded[job_id] = {"lost": json.loads(path.read_text())["lost"], "e2": np.inf,
+                                  "u2": np.inf}
+            else:
+                with np.load(path) as data:
+                    loaded[job_id] = {k: data[k] for k in data.files}
+        return loaded[job_id]
 
     def common(family, seed):
         return {"family": family, "seed": seed, "duration_s": duration, "base": base,
