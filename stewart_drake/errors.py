@@ -177,6 +177,65 @@ class SingularPoseError(StewartError, ValueError):
         return self.measure, self.value, self.threshold, self.t, self.pose
 
 
+class InterferenceError(StewartError, ValueError):
+    """Two parts of the robot closer than the clearance a reference must keep (or overlapping).
+
+    Measured on the collision geometry by Drake's ``SceneGraph``
+    (:mod:`~stewart_drake.model.clearance`).
+
+    Attributes:
+        part_a, part_b: "link/shape" names, e.g. "rod_2/tube", "base/plate".
+        clearance: their signed distance, m (negative: they overlap).
+        margin: the smallest clearance allowed, m (``GuardConfig.min_clearance_m``).
+        t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
+    """
+
+    def __init__(self, part_a: str, part_b: str, clearance: float, margin: float,
+                 t: float | None = None, pose=None):
+        self.part_a, self.part_b = str(part_a), str(part_b)
+        self.clearance, self.margin = float(clearance), float(margin)
+        where = _locate(self, t, pose)
+        how = (f"overlap by {-self.clearance * 1e3:.3g} mm" if self.clearance < 0
+               else f"are {self.clearance * 1e3:.3g} mm apart")
+        super().__init__(
+            f"{self.part_a} and {self.part_b} {how}{where}, less than the "
+            f"{self.margin * 1e3:.3g} mm the path must keep between parts. Keep the path "
+            f"nearer home, or lower GuardConfig.min_clearance_m if the parts allow it.")
+
+    def _init_args(self) -> tuple:
+        return self.part_a, self.part_b, self.clearance, self.margin, self.t, self.pose
+
+
+class MotorLimitError(StewartError, ValueError):
+    """A motion that needs more torque or speed from a motor than its servo gives.
+
+    The need is the closed chain's inverse dynamics with the motors' reflected inertia and
+    friction (:func:`~stewart_drake.model.statics.motor_effort`).
+
+    Attributes:
+        motor: index 0..5 (reference_geometry.md leg order).
+        quantity: "torque" (N m) or "speed" (rad/s, at the crank).
+        required: what the motion needs (absolute value). limit: what the reference may use
+            (the servo's peak torque or no-load speed times ``GuardConfig.effort_margin``).
+        t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
+    """
+
+    def __init__(self, motor: int, quantity: str, required: float, limit: float,
+                 t: float | None = None, pose=None):
+        self.motor, self.quantity = int(motor), str(quantity)
+        self.required, self.limit = float(required), float(limit)
+        where = _locate(self, t, pose)
+        unit = "N m" if self.quantity == "torque" else "rad/s"
+        super().__init__(
+            f"motor {self.motor} would need {self.required:.3g} {unit} of {self.quantity}{where}, "
+            f"{100 * (self.required / self.limit - 1):.0f} % over the {self.limit:.3g} {unit} a "
+            f"reference may use. Slow the motion or reduce its amplitude, or set "
+            f"guard.allow_infeasible: true to run it anyway (the motors will saturate).")
+
+    def _init_args(self) -> tuple:
+        return self.motor, self.quantity, self.required, self.limit, self.t, self.pose
+
+
 class ResultsMismatchError(StewartError, ValueError):
     """An output folder that holds results of other settings or of another command.
 
@@ -207,3 +266,8 @@ def _locate(error: StewartError, t: float | None, pose) -> str:
         where += (" (pose [phi, theta, psi, X, Y, Z] = ["
                   + ", ".join(f"{v:.4g}" for v in error.pose) + "])")
     return where
+
+
+class FeasibilityWarning(UserWarning):
+    """A reference run although a motor cannot give what it needs (``guard.allow_infeasible``):
+    the motors saturate and the platform falls behind the reference."""

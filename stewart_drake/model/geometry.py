@@ -93,6 +93,12 @@ class StewartGeometry:
         platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
             socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
             along the paper manoeuvre). All limits are checked by ``limits.limit_margins``.
+        base_plate_radius: radius of the base's central plate (the hub), m; arms reach out from
+            it to the motor brackets (:mod:`~.parts`). Not a kinematic parameter: it sets what
+            the rods must clear.
+        rod_radius: radius of the rods' tubes, m. rod_end_radius: radius of the spheres that
+            stand for the rod ends (ball and housing) at the joint centres, m.
+        platform_plate_radius: radius of the platform's plate, m (above the joint centres).
         motor_reflected_inertia: rotor inertia of each motor seen at its crank shaft (rotor
             inertia x gear ratio^2), kg m^2; 0 for ideal torque sources. A scenario with
             hardware sets it from its servo (``model.servo.ServoModel.reflected_inertia``), so
@@ -121,7 +127,10 @@ class StewartGeometry:
     platform_inertia: tuple[float, float, float] = (0.003, 0.003, 0.006)
     base_mass: float = 7.0
     base_inertia: tuple[float, float, float] = (0.027, 0.027, 0.054)
-    base_plate_radius: float = 0.20
+    base_plate_radius: float = 0.125
+    rod_radius: float = 0.005
+    rod_end_radius: float = 0.007
+    platform_plate_radius: float = 0.125
     gravity: float = 9.81
     motor_angle_min_deg: float = -90.0
     motor_angle_max_deg: float = 90.0
@@ -134,7 +143,8 @@ class StewartGeometry:
             "motor_reflected_inertia", self.motor_reflected_inertia, 0.0,
             error=InvalidGeometryError))
         for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
-                     "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius"):
+                     "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius",
+                     "rod_radius", "rod_end_radius", "platform_plate_radius"):
             object.__setattr__(self, name, as_number(name, getattr(self, name), 0.0, lo_open=True,
                                                      error=InvalidGeometryError))
         for name, lo in (("gravity", 0.0), ("pivot_z", None)):

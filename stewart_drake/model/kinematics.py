@@ -226,10 +226,11 @@ def jacobian(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
 
 
-def _jacobian(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def _jacobian(geometry: "StewartGeometry", x, theta=None, terms=None) -> np.ndarray:
     """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
-    unreachable; for Newton steps and singular values, which handle those themselves."""
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    unreachable; for Newton steps and singular values, which handle those themselves. ``terms``:
+    :func:`_leg_terms` of x when already computed."""
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms or _leg_terms(geometry, x, theta)
     num = np.einsum("...ik,...ikl->...il", ell, Gq)
     den = geometry.crank_length * np.sum(ell * e_N, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):

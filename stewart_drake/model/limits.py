@@ -2,8 +2,11 @@
 
 Per leg: loop closure (|L|/sqrt(M^2+N^2) <= 1), motor travel, and the two ball-joint cones
 (fields of :class:`~stewart_drake.model.geometry.StewartGeometry`); per pose: cond(J) and
-1/sigma_max(J) (:func:`~.kinematics.singularity_measures`). :func:`validate_trajectory` is the
-only check of a sampled reference: every entry point (the run, the collection, the CLI) calls it.
+1/sigma_max(J) (:func:`~.kinematics.singularity_measures`); along a path, optionally, the
+clearance between the robot's parts (:mod:`~.clearance`) and the torque and speed the motion needs
+from each motor (:func:`~.statics.motor_effort`) against what its servo gives
+(:class:`MotorLimits`). :func:`validate_trajectory` is the only check of a sampled reference:
+every entry point (the run, the collection, the tasks, ``stewart-drake check``) calls it.
 """
 
 from __future__ import annotations
@@ -14,7 +17,8 @@ from functools import lru_cache
 import numpy as np
 
 from ..checks import as_array, as_number, as_poses
-from ..errors import InvalidConfigError, JointLimitError, SingularPoseError, UnreachablePoseError
+from ..errors import (InterferenceError, InvalidConfigError, JointLimitError, MotorLimitError,
+                      SingularPoseError, UnreachablePoseError)
 from .kinematics import (X_HOME, _wrap, ik, ik_unchecked, platform_joints, rotation_rpy,
                          singularity_measures_unchecked)
 
@@ -33,6 +37,13 @@ DEFAULT_COND_THRESHOLD = 200.0
 #: Reference robot: 0.044 at home, 0.021 at least along the paper manoeuvre (2x margin), 0.041
 #: along the data-collection excitation; 0.011 at Z = 0.20 m and 0.019 at Z = 0.41 m in heave.
 DEFAULT_MIN_SIGMA_MIN_INV = 0.01
+
+#: Default smallest clearance between two parts a reference may leave, m
+#: (``GuardConfig.min_clearance_m``; :mod:`~.clearance`).
+DEFAULT_MIN_CLEARANCE_M = 0.003
+#: Default spacing of the clearance measures along a path: no part moves more than this between
+#: two, m.
+DEFAULT_CLEARANCE_RESOLUTION_M = 0.001
 
 #: Names of the per-leg limits, in the order reports list them. Margins are >= 0 inside a limit:
 #: ``closure`` 1 - |L|/sqrt(M^2+N^2) (dimensionless); the others in rad.
@@ -219,6 +230,28 @@ def is_reachable(geometry: "StewartGeometry", x) -> Reachability:
 
 
 
+#: Default share of the servos' peak torque and no-load speed a reference may use; the rest is
+#: left to the feedback (``GuardConfig.effort_margin``).
+DEFAULT_EFFORT_MARGIN = 0.9
+
+
+@dataclass(frozen=True)
+class MotorLimits:
+    """What the motors give at the crank shafts, and how much of it a reference may use.
+
+    Attributes:
+        peak_torque_Nm: the drive's peak torque, N m, or None (unlimited: not checked).
+        max_speed_rad_s: the no-load speed through the gearbox, rad/s, or None.
+        margin: the share of each a reference may use, in (0, 1].
+        servo: the :class:`~.servo.ServoModel` whose friction the motors also overcome, or None.
+    """
+
+    peak_torque_Nm: float | None = None
+    max_speed_rad_s: float | None = None
+    margin: float = DEFAULT_EFFORT_MARGIN
+    servo: object = None
+
+
 @dataclass(frozen=True)
 class TrajectoryReport:
     """Result of :func:`validate_trajectory`.
@@ -235,6 +268,17 @@ class TrajectoryReport:
         min_sigma_min_inv_t: time (s) of ``min_sigma_min_inv``.
         first_weak_t: first time (s) with 1/sigma_max(J) < sigma_min_inv_threshold, or None.
         sigma_min_inv_threshold: the threshold used ((rad or m) per rad).
+        min_clearance: smallest distance between two parts along the path, m (NaN when not
+            checked), at ``min_clearance_t`` between ``min_clearance_parts`` ("a and b").
+        clearance_threshold: the smallest clearance allowed, m.
+        first_interference: (t, part_a, part_b, clearance) of the first measured pose below it,
+            or None.
+        peak_torque, peak_torque_motor, peak_torque_t: the largest |torque| the motion needs
+            (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
+        peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,
+            rad/s.
+        first_effort_violation: :class:`~stewart_drake.errors.MotorLimitError` of the first time
+            a motor is over its limit, or None.
     """
 
     ok: bool
@@ -250,6 +294,25 @@ class TrajectoryReport:
     min_sigma_min_inv_t: float = float("nan")
     first_weak_t: float | None = None
     sigma_min_inv_threshold: float = 0.0
+    min_clearance: float = float("nan")
+    min_clearance_t: float = float("nan")
+    min_clearance_parts: str = ""
+    clearance_threshold: float = float("nan")
+    first_interference: tuple | None = None
+    peak_torque: float = float("nan")
+    peak_torque_motor: int = -1
+    peak_torque_t: float = float("nan")
+    torque_limit: float = float("nan")
+    peak_speed: float = float("nan")
+    peak_speed_motor: int = -1
+    peak_speed_t: float = float("nan")
+    speed_limit: float = float("nan")
+    first_effort_violation: MotorLimitError | None = None
+
+    @property
+    def feasible(self) -> bool:
+        """No motor over its torque or speed limit (True when they were not checked)."""
+        return self.first_effort_violation is None
 
     def summary(self) -> str:
         """Human-readable lines: verdict, each limit's smallest margin, singularity."""
@@ -270,8 +333,29 @@ class TrajectoryReport:
         if self.first_weak_t is not None:
             lines.append(f"  1/sigma_max(J) below its threshold first at "
                          f"t = {self.first_weak_t:.4g} s")
+        if np.isfinite(self.min_clearance):
+            lines.append(f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
+                         f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
+                         f"threshold {self.clearance_threshold * 1e3:.3g} mm)")
+        for name, unit, peak, motor, when, limit in (
+                ("torque", "N m", self.peak_torque, self.peak_torque_motor, self.peak_torque_t,
+                 self.torque_limit),
+                ("speed", "rad/s", self.peak_speed, self.peak_speed_motor, self.peak_speed_t,
+                 self.speed_limit)):
+            if np.isfinite(peak):
+                bound = f"limit {limit:.3g} {unit}" if np.isfinite(limit) else "no limit"
+                lines.append(f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
+                             f"t = {when:.4g} s; {bound})")
         if self.first_violation is not None:
             lines.append(f"  first violation: {self.first_violation}")
+        if self.first_interference is not None:
+            t, a, b, d = self.first_interference
+            lines.append(f"  first interference: {a} and {b} at {d * 1e3:.3g} mm, t = {t:.4g} s")
+        if self.first_effort_violation is not None:
+            e = self.first_effort_violation
+            lines.append(f"  first motor over its limit: motor {e.motor} needs "
+                         f"{e.required:.3g} {'N m' if e.quantity == 'torque' else 'rad/s'} of "
+                         f"{e.quantity} (limit {e.limit:.3g}) at t = {e.t:.4g} s")
         return "\n".join(lines)
 
 
@@ -281,7 +365,11 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
                         raise_unreachable: bool = True,
                         min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
                         raise_refused: bool = False, x_dot=None,
-                        x_ddot=None) -> TrajectoryReport:
+                        x_ddot=None, clearance=None,
+                        min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
+                        clearance_resolution_m: float = DEFAULT_CLEARANCE_RESOLUTION_M,
+                        motor_limits: MotorLimits | None = None,
+                        allow_infeasible: bool = False) -> TrajectoryReport:
     """Validate a sampled path before running it: limits, margins and nearness to singularity.
 
     Args:
@@ -296,6 +384,16 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         raise_refused: raise on the first refused sample (what a run needs) instead of only
             reporting it.
         x_dot, x_ddot: optional (n, 6) rates and accelerations of the path; checked finite.
+        clearance: a :class:`~.clearance.ClearanceModel` of the robot: check that no two parts
+            come closer than ``min_clearance_m`` (m). The clearance is measured wherever a part
+            has moved ``clearance_resolution_m`` (m) since the last measure
+            (:func:`~.clearance.sample_indices`), so between measures it is at least the smaller
+            measured value minus that resolution.
+        motor_limits: check the torque and crank speed the motion needs
+            (:func:`~.statics.motor_effort`, needs x_dot and x_ddot; with the geometry's
+            reflected inertia and the servo's friction) against :class:`MotorLimits`.
+        allow_infeasible: with ``raise_refused``, a motor over its limit is reported
+            (``first_effort_violation``) but not raised: the run goes on and saturates.
     Returns:
         :class:`TrajectoryReport` (``summary()`` prints it).
     Raises:
@@ -304,6 +402,11 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         JointLimitError: with ``raise_refused``, the first time a leg leaves a joint limit.
         SingularPoseError: with ``raise_refused``, the first time cond(J) > cond_threshold or
             1/sigma_max(J) < min_sigma_min_inv, naming the measure (whichever comes first).
+        InterferenceError: with ``raise_refused`` and ``clearance``, the first time two parts
+            come closer than ``min_clearance_m``, naming them.
+        MotorLimitError: with ``raise_refused`` and ``motor_limits`` (unless
+            ``allow_infeasible``), the first time a motor needs more torque or speed than it may
+            use, naming the motor and by how much.
         InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
             pose, rate or acceleration is named with its time), t not increasing, or a
             threshold out of range.
@@ -349,24 +452,97 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
     over = cond_f > cond_threshold
     weak = inv_f < min_sigma_min_inv
     kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
+    reachable = np.all(closed, axis=1)
+    extra = {}
+    if clearance is not None:
+        extra.update(_clearance_fields(clearance, t, x, reachable,
+                                       as_number("min_clearance_m", min_clearance_m, 0.0),
+                                       clearance_resolution_m))
+    if motor_limits is not None:
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits))
     report = TrajectoryReport(
-        ok=first is None and not np.any(over) and not np.any(weak), min_margin=min_margin,
+        ok=(first is None and not np.any(over) and not np.any(weak)
+            and extra.get("first_interference") is None
+            and extra.get("first_effort_violation") is None), min_margin=min_margin,
         min_margin_leg=min_leg, min_margin_t=min_t, first_violation=first,
         max_cond=float(cond_f[kc]), max_cond_t=float(t[kc]),
         first_singular_t=float(t[int(np.argmax(over))]) if np.any(over) else None,
         min_sigma_min_inv=float(inv_f[ki]), cond_threshold=float(cond_threshold),
         min_sigma_min_inv_t=float(t[ki]),
         first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
-        sigma_min_inv_threshold=float(min_sigma_min_inv))
+        sigma_min_inv_threshold=float(min_sigma_min_inv), **extra)
     if raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f)
+        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
     return report
 
 
+def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float) -> dict:
+    """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`)."""
+    from .clearance import sample_indices
 
-def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv):
-    """Raise the typed error of the earliest refused sample of a validated path."""
+    rows = np.flatnonzero(reachable)
+    if rows.size == 0:
+        return {"clearance_threshold": threshold}
+    rows = rows[sample_indices(model.geometry, x[rows], resolution_m)]
+    # Pairs farther than this need no names: they cannot be the path's critical pair.
+    distance, closest = model.sweep(x[rows], max_distance=max(threshold, 0.0) + 0.02)
+    k = int(np.nanargmin(distance))
+    low = np.flatnonzero(distance < threshold)
+    first = None
+    if low.size:
+        c = closest[low[0]]
+        first = (float(t[rows[low[0]]]), c.part_a, c.part_b, float(c.distance))
+    parts = (f"{closest[k].part_a} and {closest[k].part_b}" if closest[k] is not None
+             else "every pair farther")
+    return {"min_clearance": float(distance[k]), "min_clearance_t": float(t[rows[k]]),
+            "min_clearance_parts": parts, "clearance_threshold": threshold,
+            "first_interference": first}
+
+
+def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits) -> dict:
+    """The torque and speed entries of a :class:`TrajectoryReport` (see
+    :func:`validate_trajectory`)."""
+    from .statics import motor_effort
+
+    if x_dot is None or x_ddot is None:
+        raise InvalidConfigError("checking the motors' torque and speed needs the reference's "
+                                 "rate and acceleration (x_dot, x_ddot)")
+    margin = as_number("effort margin", limits_.margin, 0.0, 1.0, lo_open=True)
+    rows = np.flatnonzero(reachable)
+    if rows.size == 0:
+        return {}
+    T, speed = motor_effort(geometry, x[rows], np.asarray(x_dot, float)[rows],
+                            np.asarray(x_ddot, float)[rows], limits_.servo)
+    out, first = {}, None
+    for name, value, bound in (("torque", np.abs(T), limits_.peak_torque_Nm),
+                               ("speed", np.abs(speed), limits_.max_speed_rad_s)):
+        k, motor = np.unravel_index(int(np.argmax(value)), value.shape)
+        limit = float("nan") if bound is None else margin * float(bound)
+        out.update({f"peak_{name}": float(value[k, motor]), f"peak_{name}_motor": int(motor),
+                    f"peak_{name}_t": float(t[rows[k]]), f"{name}_limit": limit})
+        if bound is not None and np.any(value > limit):
+            kb = int(np.argmax(np.any(value > limit, axis=1)))
+            mb = int(np.argmax(value[kb]))
+            if first is None or t[rows[kb]] < first.t:
+                first = MotorLimitError(mb, name, float(value[kb, mb]), limit,
+                                        float(t[rows[kb]]), x[rows[kb]])
+    out["first_effort_violation"] = first
+    return out
+
+
+
+def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv,
+                         allow_infeasible: bool = False):
+    """Raise the typed error of the earliest refused sample of a validated path (a motor over
+    its limit only without ``allow_infeasible``); nothing when only that remains."""
     candidates = []
+    if report.first_interference is not None:
+        ti, a, b, d = report.first_interference
+        k = int(np.searchsorted(t, ti))
+        candidates.append((ti, 3, InterferenceError(a, b, d, report.clearance_threshold, ti,
+                                                    x[k])))
+    if report.first_effort_violation is not None and not allow_infeasible:
+        candidates.append((report.first_effort_violation.t, 4, report.first_effort_violation))
     v = report.first_violation
     if v is not None:
         k = int(np.searchsorted(t, v.t))
@@ -381,5 +557,6 @@ def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv):
         k = int(np.searchsorted(t, report.first_weak_t))
         candidates.append((t[k], 2, SingularPoseError(
             "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k])))
-    raise min(candidates, key=lambda c: c[:2])[2]
+    if candidates:
+        raise min(candidates, key=lambda c: c[:2])[2]
 

@@ -16,7 +16,8 @@ Derived (each formula in docs/hardware.md): peak output torque 2 x 2.52 A x 36.0
 constant L/R = 0.385 ms (the winding's, an upper bound for the current loop of the drive); the
 no-load friction 36.0 mNm/A x 0.238 A = 8.57 mNm at 654 rad/s split half Coulomb, half viscous
 (an assumption: the datasheet gives only the sum), reflected to the output: Coulomb 4.28 mNm x 4.3
-= 18.4 mN m, viscous (4.28 mNm / 654 rad/s) x 4.3^2 = 1.21e-4 N m s/rad.
+= 18.4 mN m, viscous (4.28 mNm / 654 rad/s) x 4.3^2 = 1.21e-4 N m s/rad; no-load speed at the
+crank 654 rad/s / 4.3 = 152 rad/s.
 """
 
 from __future__ import annotations
@@ -50,6 +51,9 @@ class ServoModel:
         friction_damping: the dry friction's regularization, N m s/rad: below the friction
             torque a joint creeps at (net torque) / friction_damping (Drake's SAP solves it
             implicitly, see :func:`~stewart_drake.model.plant.add_stewart_plant`).
+        no_load_speed_rad_s: the motor's no-load speed through the gearbox, rad/s at the crank
+            (6250 rpm / 4.3 = 152 rad/s): the fastest a reference may turn a crank (less a
+            margin, :class:`~stewart_drake.model.limits.MotorLimits`).
     Raises:
         InvalidConfigError: a value that is not finite, negative (or zero for gear_ratio, peak
             torque, friction_damping), naming the field.
@@ -65,12 +69,13 @@ class ServoModel:
     viscous_damping: float = 0.5 * _friction_motor / _m["no_load_speed"] * GEAR_RATIO ** 2
     coulomb_friction_Nm: float = 0.5 * _friction_motor * GEAR_RATIO
     friction_damping: float = 1e4
+    no_load_speed_rad_s: float = _m["no_load_speed"] / GEAR_RATIO
 
     def __post_init__(self):
         for name, positive in (("gear_ratio", True), ("rotor_inertia", False),
                                ("peak_torque_Nm", True), ("current_time_constant_s", False),
                                ("viscous_damping", False), ("coulomb_friction_Nm", False),
-                               ("friction_damping", True)):
+                               ("friction_damping", True), ("no_load_speed_rad_s", True)):
             object.__setattr__(self, name, as_number(f"servo.{name}", getattr(self, name), 0.0,
                                                      lo_open=positive))
         if not isinstance(self.name, str):

@@ -1,8 +1,11 @@
-"""Statics and inertia of the closed chain: gravity by virtual work, holding torques, task inertia.
+"""Statics and dynamics of the closed chain: gravity by virtual work, holding torques, task
+inertia, velocity-product forces and the motor torques a motion needs.
 
 Drake's tree quantities (``CalcMassMatrix``, gravity generalized forces) ignore the six loop
 constraints, so the closed chain's torques come from virtual work through the Jacobian
-J = d theta / d x (:func:`~.kinematics.jacobian`): T . d theta = w . d x, w = J^T T.
+J = d theta / d x (:func:`~.kinematics.jacobian`): T . d theta = w . d x, w = J^T T. The task-space
+equations of motion are those of the Lagrangian L = 1/2 x_dot^T M_x(x) x_dot - V(x) in the pose
+coordinates x = [rpy, p]: M_x x_ddot + c(x, x_dot) + dV/dx = J^T T (:func:`inverse_dynamics_torques`).
 """
 
 from __future__ import annotations
@@ -100,8 +103,9 @@ def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     the rods' free spin carries no energy coupling). Exact for the reduced model; Coriolis terms
     are not included.
     """
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    J = _jacobian(geometry, x, theta)
+    terms = _leg_terms(geometry, x, theta)
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms
+    J = _jacobian(geometry, x, theta, terms)
     R = rotation_rpy(np.asarray(x, dtype=float)[..., :3])
     return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
 
@@ -139,6 +143,85 @@ def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     return M
 
 
+def coriolis_forces(geometry: "StewartGeometry", x, x_dot, step: float = 1e-7,
+                    M=None) -> np.ndarray:
+    """Velocity-product forces c(x, x_dot) of the task-space dynamics, (..., 6) in N m and N.
+
+    c_i = sum_jk (dM_ij/dx_k - 1/2 dM_jk/dx_i) x_dot_j x_dot_k: the Coriolis and centrifugal
+    terms of the Lagrangian 1/2 x_dot^T M_x(x) x_dot (M_x from :func:`task_inertia`), with the six
+    derivatives dM_x/dx_k by forward differences (six more evaluations of M_x, vectorized over
+    the batch; relative error about ``step``).
+
+    Args:
+        x: (..., 6) reachable poses [rad, m]; x_dot: (..., 6) rates [rad/s, m/s].
+        step: finite-difference step in rad or m.
+        M: M_x(x) when already computed.
+    Raises:
+        UnreachablePoseError: a pose (or a pose ``step`` away) cannot be reached.
+    """
+    x = np.asarray(x, dtype=float)
+    x_dot = np.asarray(x_dot, dtype=float)
+    M = task_inertia(geometry, x) if M is None else M
+    c = np.zeros(np.broadcast_shapes(x.shape, x_dot.shape))
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = step
+        dM = (task_inertia(geometry, x + e) - M) / step                    # dM/dx_k
+        dM_x_dot = np.einsum("...ij,...j->...i", dM, x_dot)
+        c += dM_x_dot * x_dot[..., k:k + 1]                                # (dM/dx_k x_dot) x_dot_k
+        c[..., k] -= 0.5 * np.einsum("...i,...i->...", x_dot, dM_x_dot)   # 1/2 x_dot^T dM/dx_k x_dot
+    return c
+
+
+def inverse_dynamics_torques(geometry: "StewartGeometry", x, x_dot, x_ddot,
+                             theta=None) -> np.ndarray:
+    """Motor torques that move the closed chain along (x, x_dot, x_ddot), (..., 6) in N m.
+
+    T = J^-T (M_x x_ddot + c(x, x_dot) + dV/dx): the task-space equations of motion (module
+    docstring) with the motors' reflected inertia in M_x (``geometry.motor_reflected_inertia``);
+    no friction (:func:`motor_effort` adds a servo's). The rods' free spin about their own axes
+    (Table I: 1e-6 kg m^2) is left out. A test holds this to Drake's inverse dynamics of the tree
+    projected on the closed chain's motions (:func:`~.plant.closed_chain_inverse_dynamics`).
+
+    Args:
+        x, x_dot, x_ddot: (..., 6) pose [rad, m], rate [rad/s, m/s], acceleration [rad/s^2, m/s^2].
+        theta: (..., 6) motor angles of x when already known.
+    Raises:
+        UnreachablePoseError: x leaves the workspace. SingularPoseError: J^T is singular.
+    """
+    x, theta = _checked(geometry, x, theta)
+    J = jacobian(geometry, x, theta)
+    M = task_inertia(geometry, x, theta)
+    w = (gravity_gradient(geometry, x, theta, J)
+         + np.einsum("...ij,...j->...i", M, np.asarray(x_ddot, dtype=float))
+         + coriolis_forces(geometry, x, x_dot, M=M))
+    T = np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
+    return _finite_or_singular("T", T, x)
+
+
+def motor_effort(geometry: "StewartGeometry", x, x_dot, x_ddot, servo=None):
+    """What the motors must give for a motion: torques and speeds at the crank shafts.
+
+    Args:
+        x, x_dot, x_ddot: (..., 6) pose, rate and acceleration of the platform (SI).
+        servo: a :class:`~.servo.ServoModel` whose viscous and Coulomb friction the motors must
+            also overcome, or None (ideal torque sources). Its reflected inertia is the
+            geometry's ``motor_reflected_inertia`` (``Scenario.geometry()`` sets it).
+    Returns:
+        (T, theta_dot): (..., 6) torques in N m (:func:`inverse_dynamics_torques` plus friction
+        b theta_dot + F_c sign(theta_dot)) and (..., 6) crank rates theta_dot = J x_dot in rad/s.
+    Raises:
+        as :func:`inverse_dynamics_torques`.
+    """
+    x, theta = _checked(geometry, x, None)
+    theta_dot = np.einsum("...ij,...j->...i", jacobian(geometry, x, theta),
+                          np.asarray(x_dot, dtype=float))
+    T = inverse_dynamics_torques(geometry, x, x_dot, x_ddot, theta)
+    if servo is not None:
+        T = T + servo.viscous_damping * theta_dot + servo.coulomb_friction_Nm * np.sign(theta_dot)
+    return T, theta_dot
+
+
 def crank_inertia_matrix(geometry: "StewartGeometry", x=X_HOME) -> np.ndarray:
     """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
     theta = ik(geometry, x)
@@ -148,7 +231,7 @@ def crank_inertia_matrix(geometry: "StewartGeometry", x=X_HOME) -> np.ndarray:
 
 
 def feedforward_torques(geometry: "StewartGeometry", x_d, xdd_d=None,
-                        mode: str = "gravity", theta=None) -> np.ndarray:
+                        mode: str = "gravity", theta=None, xd_d=None) -> np.ndarray:
     """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
 
     Args:
@@ -157,8 +240,10 @@ def feedforward_torques(geometry: "StewartGeometry", x_d, xdd_d=None,
         xdd_d: (..., 6) reference acceleration [rad/s^2, m/s^2]; used by "inverse_dynamics".
         mode: "gravity": J^-T dV/dx, the static virtual-work torques of platform, cranks and rods
             (paper eq. 19's disturbance d, cancelled); "inverse_dynamics": also J^-T M_x(x_d)
-            xdd_d (no Coriolis terms); "none": zeros.
+            xdd_d and, when ``xd_d`` is given, the velocity-product forces
+            (:func:`inverse_dynamics_torques`); "none": zeros.
         theta: (..., 6) motor angles of x_d when already known (IK is then skipped).
+        xd_d: (..., 6) reference rate [rad/s, m/s] for the inverse dynamics' Coriolis terms.
     Raises:
         InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
     Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
@@ -175,6 +260,8 @@ def feedforward_torques(geometry: "StewartGeometry", x_d, xdd_d=None,
         if xdd_d is None:
             raise InvalidConfigError("feedforward 'inverse_dynamics' needs the reference "
                                      "acceleration xdd_d")
+        if xd_d is not None:
+            return inverse_dynamics_torques(geometry, x_d, xd_d, xdd_d, theta)
         M = task_inertia(geometry, x_d, theta)
         w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
     return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]

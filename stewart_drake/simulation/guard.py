@@ -22,12 +22,13 @@ from __future__ import annotations
 import math
 import os
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import EventStatus
 
-from ..errors import SimulationDivergedError
+from ..errors import FeasibilityWarning, SimulationDivergedError, StewartError
 from ..fileio import save_npz
 from ..model import limits
 from ..model.plant import loop_closure_errors
@@ -37,8 +38,10 @@ def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
-    motor travel, ball-joint cones and both singularity measures (``scenario.guard`` thresholds),
-    with :func:`~.trajectories.validate`.
+    motor travel, ball-joint cones, both singularity measures, the clearance between the robot's
+    parts and the torque and speed each motor must give (``scenario.guard`` thresholds, the
+    motors of ``scenario.motor_limits()``), with :func:`~.trajectories.validate`, on the robot
+    that is simulated (its payload included).
 
     Args:
         scenario: the :class:`~.scenario.Scenario`.
@@ -52,13 +55,29 @@ def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
         JointLimitError: first time, leg and limit (motor_angle, crank_joint, platform_joint).
         SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
             min_sigma_min_inv.
+        InterferenceError: first time two parts come closer than ``guard.min_clearance_m``.
+        MotorLimitError: first time a motor needs more torque or speed than it may use, unless
+            ``guard.allow_infeasible`` (then a :class:`~stewart_drake.errors.FeasibilityWarning`).
     """
+    from ..model.clearance import clearance_model
     from .trajectories import validate
 
     trajectory = scenario.make_reference() if trajectory is None else trajectory
-    return validate(trajectory, scenario.geometry(), scenario.duration_s,
-                    dt=scenario.control_period_s, cond_threshold=scenario.guard.cond_threshold,
-                    min_sigma_min_inv=scenario.guard.min_sigma_min_inv)
+    geometry, guard = scenario.plant_geometry(), scenario.guard
+    report = validate(trajectory, geometry, scenario.duration_s,
+                      dt=scenario.control_period_s, cond_threshold=guard.cond_threshold,
+                      min_sigma_min_inv=guard.min_sigma_min_inv,
+                      clearance=clearance_model(geometry), min_clearance_m=guard.min_clearance_m,
+                      motor_limits=scenario.motor_limits(),
+                      allow_infeasible=guard.allow_infeasible)
+    if not report.feasible:
+        e = report.first_effort_violation
+        unit = "N m" if e.quantity == "torque" else "rad/s"
+        warnings.warn(FeasibilityWarning(
+            f"running a reference the motors cannot follow (guard.allow_infeasible): motor "
+            f"{e.motor} needs {e.required:.3g} {unit} of {e.quantity} at t = {e.t:.4g} s, over "
+            f"the {e.limit:.3g} {unit} it may use; expect saturation"), stacklevel=2)
+    return report
 
 
 class DivergenceGuard:
@@ -70,6 +89,9 @@ class DivergenceGuard:
     Attributes:
         reason: why the run was stopped (None while it is fine).  t_failed: when, s.
         checks: how many closure/tracking checks ran (for tests and benchmarks).
+        first_contact: with ``scenario.contact``, (t s, part_a, part_b, normal force N) of the
+            first contact between two parts the checks saw, else None. Without contact, two
+            parts that overlap stop the run instead (they would pass through each other).
     """
 
     def __init__(self, sd, config: GuardConfig | None = None):
@@ -78,6 +100,7 @@ class DivergenceGuard:
         self.reason: str | None = None
         self.t_failed: float | None = None
         self.checks = 0
+        self.first_contact: tuple | None = None
         self._next_check_t = 0.0
         self._last_t = -math.inf           # the monitor's last call (a reset time re-checks)
         self._contexts = None
@@ -95,6 +118,18 @@ class DivergenceGuard:
             sd.plant, sd.controller, sd.station, sd.reference.x_d))
         self._T_port = sd.controller.GetOutputPort("T")
         self._pose_port = sd.station.GetOutputPort("platform_state")
+        if sd.scenario.contact:
+            inspector = sd.station.scene_graph.model_inspector()
+            self._part_names = {}
+            for index in sd.plant.GetBodyIndices(sd.handles.model_instance):
+                body = sd.plant.get_body(index)
+                for gid in sd.plant.GetCollisionGeometriesForBody(body):
+                    self._part_names[gid] = (f"{body.name()}/"
+                                             f"{inspector.GetName(gid).split('::')[-1]}")
+        else:
+            from ..model.clearance import clearance_model
+
+            self._clearance = clearance_model(sd.scenario.plant_geometry())
 
     def __call__(self, root) -> EventStatus | None:
         """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`.
@@ -152,6 +187,30 @@ class DivergenceGuard:
                     axis = ("phi", "theta", "psi", "X", "Y", "Z")[k]
                     return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
                             f"GuardConfig.max_tracking_error = {bound:g} {unit}")
+        return self._check_parts(t, plant_ctx, station_ctx)
+
+    def _check_parts(self, t: float, plant_ctx, station_ctx) -> str | None:
+        """With contact: note the first contact between two parts. Without: a failure when two
+        parts overlap (nothing in the plant keeps them apart)."""
+        if self.sd.scenario.contact:
+            if self.first_contact is None:
+                results = self.sd.plant.get_contact_results_output_port().Eval(plant_ctx)
+                if results.num_point_pair_contacts():
+                    info = max((results.point_pair_contact_info(i)
+                                for i in range(results.num_point_pair_contacts())),
+                               key=lambda c: np.linalg.norm(c.contact_force()))
+                    pair = info.point_pair()
+                    names = sorted(self._part_names.get(g, "?") for g in (pair.id_A, pair.id_B))
+                    self.first_contact = (t, *names, float(np.linalg.norm(info.contact_force())))
+            return None
+        x = self._pose_port.Eval(station_ctx)[:6]
+        try:
+            overlaps = self._clearance.contacts(x, max_distance=0.0)
+        except StewartError:             # a pose no leg closes at: the closure check's to report
+            return None
+        if overlaps and overlaps[0].distance < 0:
+            return (f"{overlaps[0]}: parts pass through each other in a plant without contact; "
+                    f"simulate the collision with `contact: true`")
         return None
 
     def save(self, root, reason: str) -> Path:

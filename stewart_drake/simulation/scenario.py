@@ -35,7 +35,8 @@ from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError
 from ..control.lqi import GAIN_TRANSFER_MODES, OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
 from ..model.geometry import StewartGeometry
 from ..model.servo import ServoModel
-from ..model.limits import DEFAULT_COND_THRESHOLD, DEFAULT_MIN_SIGMA_MIN_INV
+from ..model.limits import (DEFAULT_COND_THRESHOLD, DEFAULT_EFFORT_MARGIN,
+                            DEFAULT_MIN_CLEARANCE_M, DEFAULT_MIN_SIGMA_MIN_INV, MotorLimits)
 from ..model.statics import FEEDFORWARD_MODES
 
 #: Largest RandomSource seed Drake accepts (a 32-bit unsigned integer).
@@ -393,6 +394,13 @@ class GuardConfig:
         divergence_dir: folder of the saved ``.npz`` when a run diverges.
         cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
         min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad.
+        min_clearance_m: smallest distance two parts of the robot may come to along the
+            reference, m (collision geometry, :mod:`~stewart_drake.model.clearance`).
+        effort_margin: the share of the motors' peak torque and no-load speed the reference may
+            need (inverse dynamics with the reflected inertia and friction), in (0, 1]; the
+            rest is the feedback's.
+        allow_infeasible: run a reference that needs more than that anyway, with a warning (the
+            motors saturate), instead of refusing it.
     Raises:
         InvalidConfigError: a bound that is not a finite positive number (or None), at
             construction and in :meth:`validate`.
@@ -404,6 +412,9 @@ class GuardConfig:
     divergence_dir: str = "results/diverged"
     cond_threshold: float = DEFAULT_COND_THRESHOLD
     min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV
+    min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M
+    effort_margin: float = DEFAULT_EFFORT_MARGIN
+    allow_infeasible: bool = False
 
     def __post_init__(self):
         self.validate()
@@ -423,6 +434,11 @@ class GuardConfig:
         as_number(f"{prefix}check_period_s", self.check_period_s, 0.0, lo_open=True)
         as_number(f"{prefix}cond_threshold", self.cond_threshold, 1.0, lo_open=True)
         as_number(f"{prefix}min_sigma_min_inv", self.min_sigma_min_inv, 0.0)
+        as_number(f"{prefix}min_clearance_m", self.min_clearance_m, 0.0, 0.05)
+        as_number(f"{prefix}effort_margin", self.effort_margin, 0.0, 1.0, lo_open=True)
+        if not isinstance(self.allow_infeasible, bool):
+            raise InvalidConfigError(f"{prefix}allow_infeasible must be true or false, got "
+                                     f"{self.allow_infeasible!r}")
         if isinstance(self.divergence_dir, Path):
             self.divergence_dir = str(self.divergence_dir)
         if not isinstance(self.divergence_dir, str) or not self.divergence_dir:
@@ -466,6 +482,11 @@ class Scenario:
             sources, no friction, no delay), or :class:`Hardware` (encoders, FK estimation,
             servos with friction, delay).
         disturbance: None, or a wrench on the tool tip (:class:`ToolDisturbance`).
+        contact: simulate contact between the robot's parts (SAP point contact on their
+            collision geometry, :mod:`~stewart_drake.model.parts`): a collision becomes contact
+            forces and the guard reports the first one with the parts' names. False (default,
+            cheaper per step): parts would pass through each other, and the guard stops a run
+            the moment two of them overlap.
     Raises:
         InvalidConfigError: (``validate``, run by every builder and at construction) a field
             out of range, a period that is not a whole multiple of the one it runs on, a wrong
@@ -491,6 +512,7 @@ class Scenario:
     guard: GuardConfig = field(default_factory=GuardConfig)
     hardware: Optional[Hardware] = None
     disturbance: Optional[ToolDisturbance] = None
+    contact: bool = False
 
     def __post_init__(self):
         self.validate()
@@ -515,6 +537,15 @@ class Scenario:
                               None if self.hardware is None else self.servo().peak_torque_Nm)
                   if v is not None]
         return min(limits) if limits else None
+
+    def motor_limits(self) -> MotorLimits:
+        """What a reference may ask of the motors: the torque limit in force
+        (:meth:`torque_limit`), the servo's no-load speed at the crank and its friction, and
+        ``guard.effort_margin`` (all unlimited on the ideal robot without a torque limit)."""
+        servo = self.servo()
+        return MotorLimits(self.torque_limit(),
+                           None if servo is None else servo.no_load_speed_rad_s,
+                           self.guard.effort_margin, servo)
 
     def plant_geometry(self) -> StewartGeometry:
         """The robot that is simulated: ``geometry()`` with the payload scale on the platform."""
@@ -603,6 +634,8 @@ class Scenario:
                                          f"rad/s, m/s), got {noise.std}")
             _check_int("sensor_noise.seed", noise.seed, 0, MAX_SEED)
         as_number("payload_scale", self.payload_scale, 0.1, 10.0)
+        if not isinstance(self.contact, bool):
+            raise InvalidConfigError(f"contact must be true or false, got {self.contact!r}")
         if self.torque_limit_Nm is not None:
             as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
         self.guard.validate()

@@ -112,7 +112,8 @@ class StewartStation(Diagram):
         hardware, servo = scenario.hardware, scenario.servo()
         h_plant, h_control = scenario.plant_time_step_s, scenario.control_period_s
         plant, scene_graph, handles = add_stewart_plant(builder, geometry,
-                                                        plant_config=scenario.plant, servo=servo)
+                                                        plant_config=scenario.plant, servo=servo,
+                                                        contact=scenario.contact)
         plant.set_name("plant")
         self.plant, self.scene_graph, self.handles, self.scenario = (plant, scene_graph, handles,
                                                                      scenario)

@@ -381,22 +381,26 @@ def as_trajectory(source):
 def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
              cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
              min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
-             raise_refused: bool = True) -> limits.TrajectoryReport:
+             raise_refused: bool = True, **checks) -> limits.TrajectoryReport:
     """Sample a trajectory on [0, duration_s] every ``dt`` and validate it.
 
     The samples go to :func:`~stewart_drake.model.limits.validate_trajectory`, the one validator
     of a reference: finite pose, rate and acceleration; loop closure, motor travel, ball-joint
-    cones; cond(J) and 1/sigma_max(J), each failure naming its first time and leg or measure.
+    cones; cond(J) and 1/sigma_max(J); with ``checks``, the clearance between parts and the
+    motors' torque and speed; each failure naming its first time and leg, parts, motor or measure.
 
     Args:
         trajectory: an object with ``evaluate(t)`` -> (pose, rate, acceleration), each (n, 6).
         geometry: the robot. duration_s: s, > 0. dt: sampling period, s (the control period).
         cond_threshold, min_sigma_min_inv: singularity thresholds (see the validator).
         raise_refused: raise on the first refused sample (else only report it).
+        checks: keyword arguments of the validator (``clearance``, ``min_clearance_m``,
+            ``motor_limits``, ``allow_infeasible``).
     Returns:
         :class:`~stewart_drake.model.limits.TrajectoryReport`.
     Raises:
-        InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError: see
+        InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError,
+            InterferenceError, MotorLimitError: see
             :func:`~stewart_drake.model.limits.validate_trajectory`; InvalidConfigError also for
             a duration beyond a reference's ``end_time`` (a CSV or Drake trajectory).
     """
@@ -410,7 +414,8 @@ def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float
     x, x_dot, x_ddot = trajectory.evaluate(t)
     return limits.validate_trajectory(geometry, t, x, cond_threshold=cond_threshold,
                                       min_sigma_min_inv=min_sigma_min_inv,
-                                      raise_refused=raise_refused, x_dot=x_dot, x_ddot=x_ddot)
+                                      raise_refused=raise_refused, x_dot=x_dot, x_ddot=x_ddot,
+                                      **checks)
 
 
 #: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.

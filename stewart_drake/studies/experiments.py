@@ -221,6 +221,10 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
                        e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
                        config_summary=config_summary(sd))
     result.metrics = compute_metrics(result, wall_s)
+    if sd.scenario.contact:
+        first = getattr(getattr(sd, "guard", None), "first_contact", None)
+        result.metrics["first_contact"] = None if first is None else {
+            "t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
     return result
 
 
@@ -297,6 +301,11 @@ def format_metrics(metrics: dict) -> str:
     if counts:
         lines.append("controller status: " + ", ".join(f"{k.replace('_', ' ')} {v:g}"
                                                        for k, v in counts.items()))
+    if "first_contact" in metrics:
+        c = metrics["first_contact"]
+        lines.append("contact between parts: none" if c is None else
+                     f"first contact between parts: {c['parts'][0]} and {c['parts'][1]} at "
+                     f"t = {c['t']:.4g} s ({c['force_N']:.3g} N)")
     if "realtime_factor" in metrics:
         lines.append(f"real-time factor: {metrics['realtime_factor']:.2f} "
                      f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)")
