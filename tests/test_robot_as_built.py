@@ -13,7 +13,8 @@ from pydrake.trajectories import PiecewisePolynomial
 from stewart_drake.errors import (FeasibilityWarning, InterferenceError, MotorLimitError,
                                   SimulationDivergedError)
 from stewart_drake.model import kinematics, statics
-from stewart_drake.model.clearance import ClearanceModel, clearance_model, sample_indices
+from stewart_drake.model.clearance import (ClearanceModel, clearance_model, family,
+                                            sample_indices)
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.model.kinematics import X_HOME
 from stewart_drake.model.plant import (assemble, assembled_positions,
@@ -220,8 +221,13 @@ def test_clearance_along_the_paper_manoeuvre_keeps_the_margin_per_pair():
                                         by_family=True)
     assert np.nanmin(distance) >= 3e-3
     assert families[("base plate", "rod tube")][0] > 0.015          # 17 mm: the hub clears
-    # The rod ends' spheres sit a fixed distance from the platform plate and from each other.
-    assert families[("platform plate", "rod end_top")][0] == pytest.approx(5e-3, abs=1e-9)
+    # The rod ends' spheres on the platform joints sit a fixed distance from the platform's
+    # plate (5 mm) and from each other (5.2 mm): measured once, not per pose.
+    assert model.fixed[0].distance == pytest.approx(5e-3, abs=1e-9)
+    assert {("platform plate", "rod end_top"), ("platform tool", "rod end_top"),
+            ("rod end_top", "rod end_top")} == {(family(c.part_a), family(c.part_b))
+                                               for c in model.fixed}
+    assert ("platform plate", "rod end_top") not in families
 
 
 def test_rod_to_rod_clearance_equals_the_segment_distance_of_the_kinematics(random_poses):

@@ -202,6 +202,32 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_check(args) -> int:
+    """``stewart-drake check``: every check of a reference, over time, without simulating."""
+    from ..simulation import scenario as sc
+    from ..simulation.trajectories import TRAJECTORIES
+    from ..studies.feasibility import check, plot_margins
+
+    source = args.reference
+    if source.lower().endswith(".csv"):
+        scenario = sc.load_scenario(args.scenario, args.set or ())
+        scenario.reference = sc.CsvReference(source)
+    elif source in TRAJECTORIES:
+        scenario = sc.load_scenario(args.scenario, args.set or ())
+        scenario.reference = sc.NamedReference(source)
+    else:                                 # a scenario file or a shipped scenario's name
+        scenario = sc.load_scenario(source, args.set or ())
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    report = check(scenario.validate())
+    print(report.summary())
+    name = Path(source).stem
+    png = plot_margins(report, Path(args.out) / f"check_{name}.png",
+                       f"{name} on {Path(str(args.scenario)).stem}, {scenario.duration_s:g} s")
+    print(f"wrote {png}")
+    return 0 if report.ok else 2
+
+
 def _cmd_scenario(args) -> int:
     """``stewart-drake scenario``: list the shipped scenarios, or print one (with overrides) as
     YAML, to start a file of one's own."""
@@ -406,6 +432,22 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
+
+    chk = sub.add_parser("check", help="check a reference against every limit without "
+                                       "simulating: reach, joints, singularity, clearance, "
+                                       "torque, speed (exit 2 if refused)")
+    chk.add_argument("reference", help="a CSV file (t,phi,theta,psi,X,Y,Z), a named trajectory "
+                                       "(paper, helix, step_<axis>, ...) or a scenario (file or "
+                                       "shipped name)")
+    chk.add_argument("--scenario", default=DEFAULT_SCENARIO,
+                     help=f"the robot to check on, for a CSV or named reference "
+                          f"({DEFAULT_SCENARIO})")
+    chk.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a scenario field, e.g. guard.min_clearance_m=0.005")
+    chk.add_argument("--duration", type=_positive_float, default=None,
+                     help="checked s (the scenario's duration_s)")
+    chk.add_argument("--out", default="results", help="folder of the margins plot (results/)")
+    chk.set_defaults(func=_cmd_check)
 
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
     scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,

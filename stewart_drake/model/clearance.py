@@ -7,8 +7,11 @@ every pair of parts that may collide (``QueryObject.ComputeSignedDistancePairwis
 positive = apart, negative = interpenetrating. Pairs that touch by design are filtered by Drake
 itself: a body and the bodies it is jointed to (base-crank, crank-rod), and the shapes of one body.
 A rod end's sphere and its socket on the platform are not both collision geometry (the socket's
-stud is drawn only), so the rod-platform pairs need no filter and a rod's tube crossing the
-platform's plate is measured like any other pair.
+stud is drawn only), so a rod's tube crossing the platform's plate is measured like any other pair.
+The rod ends' spheres at the platform are centred on the platform joints: their distances to the
+platform's parts and to each other are the same at every pose (:attr:`ClearanceModel.fixed`,
+5 mm on the reference robot). They are measured once, at home, and filtered from the per-pose
+queries, so that a path's clearance is that of the parts its motion brings together.
 
 Every check of the project that asks whether parts collide calls this module: the reference
 validator (:func:`~.limits.validate_trajectory`), the workspace maps, the guard of a run without
@@ -21,7 +24,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from pydrake.geometry import GeometrySet, Role
+from pydrake.geometry import CollisionFilterDeclaration, GeometrySet, Role
 from pydrake.systems.framework import DiagramBuilder
 
 from ..checks import as_number, as_poses
@@ -71,7 +74,10 @@ class ClearanceModel:
         geometry: the robot (its part sizes are fields of
             :class:`~stewart_drake.model.geometry.StewartGeometry`).
     Attributes:
-        geometry; pairs: the (part_a, part_b) names of every pair that may collide.
+        geometry; pairs: the (part_a, part_b) names of every pair whose distance changes with
+            the pose (the per-pose queries).
+        fixed: the pairs whose distance is the same at every pose (rod ends on the platform
+            joints against the platform and each other), :class:`Contact` at home, closest first.
         plant: its MultibodyPlant (with collision geometry): the positions ``q`` that
             :meth:`contacts` takes are this plant's (a station's plant has the same layout).
     """
@@ -94,6 +100,18 @@ class ClearanceModel:
                                             Role.kProximity):
             body = self._plant.GetBodyFromFrameId(inspector.GetFrameId(gid))
             self._names[gid] = f"{body.name()}/{inspector.GetName(gid).split('::')[-1]}"
+        # Pose-independent pairs: measured at home, then filtered from the queries.
+        tops = [gid for gid, name in self._names.items() if name.endswith("/end_top")]
+        platform = [gid for gid, name in self._names.items() if name.startswith("platform/")]
+        query = self._scene_graph.get_query_output_port().Eval(self._sg_context)
+        fixed = [query.ComputeSignedDistancePairClosestPoints(a, b)
+                 for k, a in enumerate(tops) for b in tops[k + 1:] + platform]
+        self.fixed = sorted((self._contact(query, r) for r in fixed), key=lambda c: c.distance)
+        self._scene_graph.collision_filter_manager(
+            self._scene_graph.GetMyMutableContextFromRoot(self._context)).Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(tops))
+            .ExcludeBetween(GeometrySet(tops), GeometrySet(platform)))
+        inspector = self._scene_graph.get_query_output_port().Eval(self._sg_context).inspector()
         self.pairs = tuple(sorted(tuple(sorted((self._names[a], self._names[b])))
                                   for a, b in inspector.GetCollisionCandidates()))
 

@@ -11,7 +11,7 @@ every entry point (the run, the collection, the tasks, ``stewart-drake check``) 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -273,12 +273,18 @@ class TrajectoryReport:
         clearance_threshold: the smallest clearance allowed, m.
         first_interference: (t, part_a, part_b, clearance) of the first measured pose below it,
             or None.
+        design_clearance, design_clearance_parts: the closest of the pairs whose distance is the
+            same at every pose (:attr:`~.clearance.ClearanceModel.fixed`), m, and its parts.
         peak_torque, peak_torque_motor, peak_torque_t: the largest |torque| the motion needs
             (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
         peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,
             rad/s.
         first_effort_violation: :class:`~stewart_drake.errors.MotorLimitError` of the first time
             a motor is over its limit, or None.
+        series: the checks sample by sample, for plots: ``t`` (n,) s; ``margins`` dict name ->
+            (n, 6) as :func:`limit_margins`; ``cond``, ``sigma_min_inv`` (n,); with clearance,
+            ``clearance_t`` (m,) s and ``clearance`` (m,) m at the measured poses; with motor
+            limits, ``torque`` and ``speed`` (n, 6) in N m and rad/s (NaN where unreachable).
     """
 
     ok: bool
@@ -299,6 +305,8 @@ class TrajectoryReport:
     min_clearance_parts: str = ""
     clearance_threshold: float = float("nan")
     first_interference: tuple | None = None
+    design_clearance: float = float("nan")
+    design_clearance_parts: str = ""
     peak_torque: float = float("nan")
     peak_torque_motor: int = -1
     peak_torque_t: float = float("nan")
@@ -308,6 +316,7 @@ class TrajectoryReport:
     peak_speed_t: float = float("nan")
     speed_limit: float = float("nan")
     first_effort_violation: MotorLimitError | None = None
+    series: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def feasible(self) -> bool:
@@ -337,6 +346,9 @@ class TrajectoryReport:
             lines.append(f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
                          f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
                          f"threshold {self.clearance_threshold * 1e3:.3g} mm)")
+        if np.isfinite(self.design_clearance):
+            lines.append(f"                  {self.design_clearance * 1e3:.3g} mm at every pose "
+                         f"({self.design_clearance_parts}: fixed by the design)")
         for name, unit, peak, motor, when, limit in (
                 ("torque", "N m", self.peak_torque, self.peak_torque_motor, self.peak_torque_t,
                  self.torque_limit),
@@ -453,13 +465,15 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
     weak = inv_f < min_sigma_min_inv
     kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
     reachable = np.all(closed, axis=1)
-    extra = {}
+    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
+    extra = {"series": series}
     if clearance is not None:
         extra.update(_clearance_fields(clearance, t, x, reachable,
                                        as_number("min_clearance_m", min_clearance_m, 0.0),
-                                       clearance_resolution_m))
+                                       clearance_resolution_m, series))
     if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits))
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
+                                    series))
     report = TrajectoryReport(
         ok=(first is None and not np.any(over) and not np.any(weak)
             and extra.get("first_interference") is None
@@ -476,8 +490,10 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
     return report
 
 
-def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float) -> dict:
-    """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`)."""
+def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float,
+                      series: dict) -> dict:
+    """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`);
+    adds the measured series to ``series``."""
     from .clearance import sample_indices
 
     rows = np.flatnonzero(reachable)
@@ -486,22 +502,30 @@ def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: fl
     rows = rows[sample_indices(model.geometry, x[rows], resolution_m)]
     # Pairs farther than this need no names: they cannot be the path's critical pair.
     distance, closest = model.sweep(x[rows], max_distance=max(threshold, 0.0) + 0.02)
+    series.update(clearance_t=t[rows], clearance=distance)
     k = int(np.nanargmin(distance))
     low = np.flatnonzero(distance < threshold)
     first = None
     if low.size:
         c = closest[low[0]]
         first = (float(t[rows[low[0]]]), c.part_a, c.part_b, float(c.distance))
+    design = model.fixed[0] if model.fixed else None      # the same at every pose
+    if design is not None and design.distance < threshold:
+        first = (float(t[rows[0]]), design.part_a, design.part_b, float(design.distance))
     parts = (f"{closest[k].part_a} and {closest[k].part_b}" if closest[k] is not None
              else "every pair farther")
     return {"min_clearance": float(distance[k]), "min_clearance_t": float(t[rows[k]]),
             "min_clearance_parts": parts, "clearance_threshold": threshold,
-            "first_interference": first}
+            "first_interference": first,
+            "design_clearance": float("nan") if design is None else design.distance,
+            "design_clearance_parts": "" if design is None else
+            f"{design.part_a} and {design.part_b}"}
 
 
-def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits) -> dict:
+def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits,
+                   series: dict) -> dict:
     """The torque and speed entries of a :class:`TrajectoryReport` (see
-    :func:`validate_trajectory`)."""
+    :func:`validate_trajectory`); adds the torque and speed series to ``series``."""
     from .statics import motor_effort
 
     if x_dot is None or x_ddot is None:
@@ -513,6 +537,9 @@ def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimit
         return {}
     T, speed = motor_effort(geometry, x[rows], np.asarray(x_dot, float)[rows],
                             np.asarray(x_ddot, float)[rows], limits_.servo)
+    for name, value in (("torque", T), ("speed", speed)):
+        series[name] = np.full(x.shape, np.nan)
+        series[name][rows] = value
     out, first = {}, None
     for name, value, bound in (("torque", np.abs(T), limits_.peak_torque_Nm),
                                ("speed", np.abs(speed), limits_.max_speed_rad_s)):

@@ -34,7 +34,8 @@ from ..model import limits
 from ..model.plant import loop_closure_errors
 from .scenario import GuardConfig, dump_scenario
 
-def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
+def check_reference(scenario, trajectory=None,
+                    raise_refused: bool = True) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
@@ -46,6 +47,8 @@ def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
     Args:
         scenario: the :class:`~.scenario.Scenario`.
         trajectory: the reference object (default: the one the scenario names).
+        raise_refused: False reports every refusal in the report instead of raising the first
+            (``stewart-drake check``).
     Returns:
         the :class:`~stewart_drake.model.limits.TrajectoryReport` (``summary()`` prints it).
     Raises:
@@ -66,11 +69,11 @@ def check_reference(scenario, trajectory=None) -> limits.TrajectoryReport:
     geometry, guard = scenario.plant_geometry(), scenario.guard
     report = validate(trajectory, geometry, scenario.duration_s,
                       dt=scenario.control_period_s, cond_threshold=guard.cond_threshold,
-                      min_sigma_min_inv=guard.min_sigma_min_inv,
+                      min_sigma_min_inv=guard.min_sigma_min_inv, raise_refused=raise_refused,
                       clearance=clearance_model(geometry), min_clearance_m=guard.min_clearance_m,
                       motor_limits=scenario.motor_limits(),
                       allow_infeasible=guard.allow_infeasible)
-    if not report.feasible:
+    if raise_refused and not report.feasible:
         e = report.first_effort_violation
         unit = "N m" if e.quantity == "torque" else "rad/s"
         warnings.warn(FeasibilityWarning(

@@ -3,7 +3,9 @@
 Every pose of a grid is classified at once (numpy, no Python loop per pose): loop closure, motor
 travel and ball-joint cones (``limits.limit_margins``), nearness to singularity (cond(J)) and
 the static motor torques that hold it against gravity (``statics.holding_torques``, virtual
-work over the platform, cranks and rods). Large grids are split in chunks over processes.
+work over the platform, cranks and rods); then, pose by pose, the clearance between the robot's
+parts (Drake's ``SceneGraph``, :mod:`~stewart_drake.model.clearance`), a limit of its own. Large
+grids are split in chunks over processes.
 
 Grids (all poses [phi, theta, psi, X, Y, Z] in rad and m, base frame of reference_geometry.md):
     translation box at fixed orientation -> reachable volume (m^3), extent per axis, slices;
@@ -25,6 +27,7 @@ from ..checks import check_memory
 from ..errors import IncompleteResultsError, InvalidConfigError
 from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
+from ..model.clearance import clearance_model
 from ..model.geometry import X_HOME, StewartGeometry
 from .runners import JobFailure, ProcessRunner, SerialRunner
 
@@ -36,21 +39,29 @@ ORIENTATION_BOX = ((-1.0, 1.0), (-1.0, 1.0), (-1.3, 1.3))        # phi, theta, p
 #: Memory a sweep holds per pose of its grids, bytes: the pose (48), the classification (82)
 #: and its concatenation; measured 136 B per pose between resolution 21 and 61.
 BYTES_PER_POSE = 200.0
-FIELDS = ("reachable", "usable", "cond", "sigma_min_inv", "torques", "max_torque", "bottleneck")
+FIELDS = ("reachable", "clear", "usable", "clearance", "cond", "sigma_min_inv", "torques",
+          "max_torque", "bottleneck")
+#: Clearances are measured up to this distance (beyond, the map shows this value), m.
+CLEARANCE_CAP_M = 0.02
 
 
 def classify(geometry: StewartGeometry, x,
-             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD) -> dict:
-    """Classify pose(s) x: reachable, conditioning and static holding torques.
+             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+             min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
+    """Classify pose(s) x: reachable, clear of interference, conditioning and holding torques.
 
     Args:
-        geometry: the robot (its limit fields set the ranges).
+        geometry: the robot (its limit fields set the ranges, its part sizes the clearance).
         x: (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
         cond_threshold: cond(J) above this is "too close to a singularity".
+        min_clearance_m: two parts closer than this, m, interfere.
     Returns:
         dict of arrays:
         ``reachable`` (...) bool, every leg inside every limit of ``limits.LIMITS``;
-        ``usable`` (...) bool, reachable and cond(J) <= cond_threshold;
+        ``clear`` (...) bool, reachable and no two parts closer than ``min_clearance_m``;
+        ``usable`` (...) bool, clear and cond(J) <= cond_threshold;
+        ``clearance`` (...) smallest distance between two parts, m (capped at
+        :data:`CLEARANCE_CAP_M`), NaN where not reachable;
         ``cond`` (...) cond(J), NaN where a leg cannot close;
         ``sigma_min_inv`` (...) 1/sigma_max(J), (rad or m) per rad;
         ``torques`` (..., 6) static holding torques in N m, NaN where not reachable;
@@ -69,18 +80,24 @@ def classify(geometry: StewartGeometry, x,
     abs_t = np.abs(torques)
     max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
     bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
-    return {"reachable": reachable, "usable": reachable & (cond <= cond_threshold), "cond": cond,
-            "sigma_min_inv": inv, "torques": torques, "max_torque": max_torque,
-            "bottleneck": bottleneck}
+    clearance = np.full(x.shape[:-1], np.nan)
+    if np.any(reachable):
+        clearance[reachable] = clearance_model(geometry).sweep(
+            x[reachable], max_distance=CLEARANCE_CAP_M)[0]
+    clear = reachable & (clearance >= min_clearance_m)
+    return {"reachable": reachable, "clear": clear, "usable": clear & (cond <= cond_threshold),
+            "clearance": clearance, "cond": cond, "sigma_min_inv": inv, "torques": torques,
+            "max_torque": max_torque, "bottleneck": bottleneck}
 
 
 def _classify_chunk(task):
-    geometry, x, cond_threshold = task
-    return classify(geometry, x, cond_threshold)
+    geometry, x, cond_threshold, min_clearance_m = task
+    return classify(geometry, x, cond_threshold, min_clearance_m)
 
 
 def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-          jobs: int = 1, chunk: int = 20000, progress=None, runner=None) -> dict:
+          jobs: int = 1, chunk: int = 5000, progress=None, runner=None,
+          min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
     """:func:`classify` a large batch in chunks, over a runner.
 
     Args:
@@ -102,7 +119,7 @@ def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_C
     x = np.asarray(x, dtype=float)
     batch = x.shape[:-1]
     flat = x.reshape(-1, 6)
-    tasks = {str(k): (geometry, flat[i:i + chunk], cond_threshold)
+    tasks = {str(k): (geometry, flat[i:i + chunk], cond_threshold, min_clearance_m)
              for k, i in enumerate(range(0, len(flat), chunk))}
     if runner is None:
         jobs = jobs or os.cpu_count() or 1
@@ -246,19 +263,19 @@ def _save_figure(fig, path: Path) -> None:
 
 
 def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
-    """Map of max |T_i| on one slice with the reachable and usable boundaries."""
-    sl = (slice(None),) * 3
-    sl = list(sl)
+    """Map of max |T_i| on one slice where the pose is clear, with the boundaries of the joint
+    limits (solid), of interference (dotted) and of cond(J) (dashed)."""
+    sl = [slice(None)] * 3
     sl[index[0]] = index[1]
     sl = tuple(sl)
-    tmax = result["max_torque"][sl].T
+    tmax = np.where(result["clear"][sl], result["max_torque"][sl], np.nan).T
     mesh = ax.pcolormesh(h_axis, v_axis, np.ma.masked_invalid(tmax), shading="auto",
                          cmap="viridis")
-    for key, style in (("reachable", "-"), ("usable", "--")):
+    for key, style in (("reachable", "-"), ("clear", ":"), ("usable", "--")):
         m = result[key][sl].T.astype(float)
         if 0 < m.sum() < m.size:
             ax.contour(h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style,
-                       linewidths=1.0)
+                       linewidths=1.2)
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_title(title, fontsize=9)
@@ -266,36 +283,54 @@ def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
     return mesh
 
 
-def _plots(out: Path, taxes, trans, oaxes, orient, heights, tilt_every, tilt_some, cond_threshold):
+def _plots(out: Path, s: dict):
+    """workspace.png and bottleneck_and_orientation.png of a :func:`workspace_summary`."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
+    taxes, trans, oaxes, orient = (s["translation_axes"], s["translation"],
+                                   s["orientation_axes"], s["orientation"])
     iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     iy = int(np.argmin(np.abs(taxes[1])))
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
     m = _torque_slice(axes[0], taxes[0], taxes[1], trans, (2, iz), ("X [m]", "Y [m]"),
                       f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation")
     fig.colorbar(m, ax=axes[0], shrink=0.8)
     m = _torque_slice(axes[1], taxes[0], taxes[2], trans, (1, iy), ("X [m]", "Z [m]"),
                       f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m")
     fig.colorbar(m, ax=axes[1], shrink=0.8)
-    axes[2].plot(heights, np.rad2deg(tilt_every), "o-", ms=3, label="in every direction")
-    axes[2].plot(heights, np.rad2deg(tilt_some), "s--", ms=3, label="in some direction")
+    heights = s["heights"]
+    for key, style, label in (("tilt_every_rad", "o-", "every direction, joint limits"),
+                              ("clear_tilt_every_rad", "o:", "every direction, + clearance"),
+                              ("tilt_some_rad", "s-", "some direction, joint limits"),
+                              ("clear_tilt_some_rad", "s:", "some direction, + clearance")):
+        axes[2].plot(heights, np.rad2deg(s[key]), style, ms=3, label=label,
+                     color="C0" if "every" in key else "C1")
     axes[2].set_xlabel("Z [m]")
     axes[2].set_ylabel("max tilt [deg]")
     axes[2].set_title("reachable tilt at (0, 0, Z)", fontsize=9)
     axes[2].grid(alpha=0.3)
     axes[2].legend(fontsize=8)
-    fig.suptitle(f"Workspace of states and holding torques (solid: reachable; dashed: "
-                 f"cond(J) <= {cond_threshold:g})", fontsize=10)
-    fig.tight_layout()
+    fig.legend(handles=[Line2D([], [], color="k", ls="-", label="joint limits"),
+                        Line2D([], [], color="k", ls=":",
+                               label=f"parts {s['min_clearance_m'] * 1e3:g} mm apart"),
+                        Line2D([], [], color="k", ls="--",
+                               label=f"cond(J) <= {s['cond_threshold']:g}")],
+               loc="lower center", ncol=3, fontsize=9, frameon=False)
+    share = s["interfering_share"]
+    fig.suptitle(f"Workspace of states and holding torques (maps: clear poses only). Interference "
+                 f"removes {100 * share['translation']:.2g} % of the reachable translation box, "
+                 f"{100 * share['orientation']:.2g} % of the orientation box, "
+                 f"{100 * share['tilt']:.2g} % of the tilts", fontsize=10)
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     _save_figure(fig, out / "workspace.png")
     plt.close(fig)
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
-    b = trans["bottleneck"][:, :, iz].astype(float).T
+    b = np.where(trans["clear"], trans["bottleneck"], -1)[:, :, iz].astype(float).T
     b[b < 0] = np.nan
     m = axes[0].pcolormesh(taxes[0], taxes[1], np.ma.masked_invalid(b), shading="auto",
                            cmap=plt.get_cmap("tab10", 6), vmin=-0.5, vmax=5.5)
@@ -316,20 +351,25 @@ def _plots(out: Path, taxes, trans, oaxes, orient, heights, tilt_every, tilt_som
 
 def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int = 1,
                       cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-                      progress=None, n_azimuth: int = 24, runner=None) -> dict:
+                      progress=None, n_azimuth: int = 24, runner=None,
+                      min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
     """Run the three standard sweeps and reduce them to figures.
 
     Args:
         resolution: grid points per axis of each box (translation: resolution^3 poses).
         jobs, progress, runner: see :func:`sweep`.
+        cond_threshold, min_clearance_m: see :func:`classify`.
     Returns:
         dict with the grids (``translation_axes``, ``orientation_axes``, ``heights``, ``tilts``),
         the classifications (``translation``, ``orientation``, ``tilt``: dicts of :func:`classify`)
-        and the figures: ``volume_m3`` and ``usable_volume_m3`` (home orientation),
-        ``extent_xyz_m`` (3, 2), ``extent_rpy_rad`` (3, 2) at the home position,
-        ``tilt_every_rad`` / ``tilt_some_rad`` (n_heights,), ``max_holding_torque_Nm`` over the
-        reachable translation box and ``bottleneck_share`` (6,) fraction of those poses where
-        each motor carries the largest |T_i|.
+        and the figures, by the joint limits alone and (``clear_*``) with interference as a
+        limit too: ``volume_m3``, ``clear_volume_m3`` and ``usable_volume_m3`` (clear and
+        cond(J) within its threshold) at home orientation, ``extent_xyz_m`` (3, 2),
+        ``extent_rpy_rad`` (3, 2) at the home position, ``tilt_every_rad`` / ``tilt_some_rad``
+        (n_heights,), ``max_holding_torque_Nm`` over the clear translation box and
+        ``bottleneck_share`` (6,) fraction of those poses where each motor carries the largest
+        |T_i|; ``interfering_share``: per grid, the fraction of the reachable poses where two
+        parts come closer than ``min_clearance_m``.
     Raises:
         InvalidConfigError: resolution < 2, or grids that need more memory than the machine
             has (:data:`BYTES_PER_POSE`), before any grid is allocated.
@@ -345,23 +385,34 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
     heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
     tilts = np.linspace(0.0, np.deg2rad(60.0), resolution)
     run = lambda x: sweep(geometry, x, cond_threshold, jobs=jobs, progress=progress,  # noqa: E731
-                          runner=runner)
+                          runner=runner, min_clearance_m=min_clearance_m)
     trans = run(translation_grid(taxes))
     orient = run(orientation_grid(oaxes))
     tilt = run(tilt_grid(heights, tilts, n_azimuth))
     every, some = max_tilt_vs_height(tilts, tilt["reachable"])
-    b = trans["bottleneck"][trans["reachable"]]
+    every_clear, some_clear = max_tilt_vs_height(tilts, tilt["clear"])
+    b = trans["bottleneck"][trans["clear"]]
     share = np.bincount(b[b >= 0], minlength=6) / max(b.size, 1)
     return {
         "translation_axes": taxes, "orientation_axes": oaxes, "heights": heights, "tilts": tilts,
         "translation": trans, "orientation": orient, "tilt": tilt,
         "volume_m3": reachable_volume(taxes, trans["reachable"]),
+        "clear_volume_m3": reachable_volume(taxes, trans["clear"]),
         "usable_volume_m3": reachable_volume(taxes, trans["usable"]),
         "extent_xyz_m": extents(taxes, trans["reachable"]),
         "extent_rpy_rad": extents(oaxes, orient["reachable"]),
+        "clear_extent_xyz_m": extents(taxes, trans["clear"]),
+        "clear_extent_rpy_rad": extents(oaxes, orient["clear"]),
         "tilt_every_rad": every, "tilt_some_rad": some,
-        "max_holding_torque_Nm": float(np.nanmax(trans["max_torque"])),
+        "clear_tilt_every_rad": every_clear, "clear_tilt_some_rad": some_clear,
+        "max_holding_torque_Nm": float(np.nanmax(np.where(trans["clear"], trans["max_torque"],
+                                                          np.nan))),
         "bottleneck_share": share, "cond_threshold": float(cond_threshold),
+        "min_clearance_m": float(min_clearance_m),
+        "interfering_share": {grid: float(np.sum(c["reachable"] & ~c["clear"])
+                                          / max(np.sum(c["reachable"]), 1))
+                              for grid, c in (("translation", trans), ("orientation", orient),
+                                              ("tilt", tilt))},
     }
 
 
@@ -397,28 +448,37 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
               "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
               "orientation_theta": s["orientation_axes"][1],
               "orientation_psi": s["orientation_axes"][2], "heights": s["heights"],
-              "tilts": s["tilts"], "tilt_every_rad": s["tilt_every_rad"],
-              "tilt_some_rad": s["tilt_some_rad"]}
+              "tilts": s["tilts"], **{key: s[key] for key in (
+                  "tilt_every_rad", "tilt_some_rad", "clear_tilt_every_rad",
+                  "clear_tilt_some_rad")}}
     for grid in ("translation", "orientation", "tilt"):
         for key in FIELDS:
             arrays[f"{grid}_{key}"] = s[grid][key]
     atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
-    ext, rpy = s["extent_xyz_m"], s["extent_rpy_rad"]
     rows = [("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
+            ("clear_volume", f"{s['clear_volume_m3']:.6g}", "m^3"),
             ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
-            ("cond_threshold", f"{s['cond_threshold']:g}", "1")]
-    rows += [(f"extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
-             for d, a in enumerate("XYZ") for j, side in enumerate(("min", "max"))]
-    rows += [(f"extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
-             for d, a in enumerate(("phi", "theta", "psi")) for j, side in enumerate(("min", "max"))]
+            ("cond_threshold", f"{s['cond_threshold']:g}", "1"),
+            ("min_clearance", f"{s['min_clearance_m']:g}", "m")]
+    for prefix, ext, rpy in (("", s["extent_xyz_m"], s["extent_rpy_rad"]),
+                             ("clear_", s["clear_extent_xyz_m"], s["clear_extent_rpy_rad"])):
+        rows += [(f"{prefix}extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
+                 for d, a in enumerate("XYZ") for j, side in enumerate(("min", "max"))]
+        rows += [(f"{prefix}extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
+                 for d, a in enumerate(("phi", "theta", "psi"))
+                 for j, side in enumerate(("min", "max"))]
+    rows += [(f"interfering_share_{grid}", f"{share:.4g}", "1")
+             for grid, share in s["interfering_share"].items()]
     rows.append(("max_holding_torque", f"{s['max_holding_torque_Nm']:.6g}", "N m"))
     rows += [(f"bottleneck_share_motor_{i}", f"{v:.4g}", "1")
              for i, v in enumerate(s["bottleneck_share"])]
     _write_csv(out / "summary.csv", ("figure", "value", "unit"), rows)
     _write_csv(out / "tilt_vs_height.csv", ("Z_m", "tilt_every_direction_deg",
-                                            "tilt_some_direction_deg"),
-               [(f"{z:.6g}", f"{np.rad2deg(e):.6g}", f"{np.rad2deg(m):.6g}")
-                for z, e, m in zip(s["heights"], s["tilt_every_rad"], s["tilt_some_rad"])])
-    _plots(out, s["translation_axes"], s["translation"], s["orientation_axes"], s["orientation"],
-           s["heights"], s["tilt_every_rad"], s["tilt_some_rad"], s["cond_threshold"])
+                                            "tilt_some_direction_deg",
+                                            "clear_tilt_every_direction_deg",
+                                            "clear_tilt_some_direction_deg"),
+               [(f"{z:.6g}", *(f"{np.rad2deg(v):.6g}" for v in values))
+                for z, *values in zip(s["heights"], s["tilt_every_rad"], s["tilt_some_rad"],
+                                      s["clear_tilt_every_rad"], s["clear_tilt_some_rad"])])
+    _plots(out, s)
     return rows

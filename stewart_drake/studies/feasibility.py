@@ -1,0 +1,114 @@
+"""Whether a reference can be run on the robot, without simulating it: every check, over time.
+
+:func:`check` runs the one reference validator (:func:`~stewart_drake.simulation.guard.check_reference`:
+reach, joint limits, singularity, clearance between the parts, the torque and speed each motor
+must give) without stopping at the first refusal, and :func:`plot_margins` draws each margin over
+time against its limit: the ``stewart-drake check`` command.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..fileio import atomic_write
+from ..model.limits import TrajectoryReport
+from ..simulation.guard import check_reference
+
+
+def check(scenario, reference=None) -> TrajectoryReport:
+    """The validator's whole report of ``reference`` (default the scenario's) on the scenario's
+    robot, every refusal reported instead of raised.
+
+    Raises:
+        InvalidConfigError: a bad scenario, a reference that is not finite or too short.
+    """
+    from ..simulation.trajectories import as_trajectory
+
+    scenario.validate()
+    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
+    return check_reference(scenario, trajectory, raise_refused=False)
+
+
+def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
+    """One panel per check of ``report`` over time, each against its limit (red dashes; the
+    time outside it shaded red): reach, joint angles, singularity, clearance, torque, speed.
+
+    Returns:
+        the PNG written (atomically).
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = report.series
+    t = s["t"]
+    panels = ["reach", "joints", "singularity"]
+    panels += [p for p, key in (("clearance", "clearance"), ("torque", "torque"),
+                                ("speed", "speed")) if key in s]
+    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.0 * len(panels) + 0.6), sharex=True)
+
+    def limit(ax, value, below_is_bad: bool, times, series):
+        ax.axhline(value, color="tab:red", ls="--", lw=1)
+        bad = series < value if below_is_bad else series > value
+        if np.any(bad):
+            ax.fill_between(times, 0, 1, where=bad, color="tab:red", alpha=0.15,
+                            transform=ax.get_xaxis_transform(), step="mid")
+
+    for ax, panel in zip(axes, panels):
+        if panel == "reach":
+            m = np.nanmin(s["margins"]["closure"], axis=1)
+            ax.plot(t, m, color="k")
+            limit(ax, 0.0, True, t, m)
+            ax.set_ylabel("reach margin\n1 - |L|/sqrt(M²+N²)")
+        elif panel == "joints":
+            for name, label in (("motor_angle", "motor travel"), ("crank_joint", "crank rod end"),
+                                ("platform_joint", "platform socket")):
+                ax.plot(t, np.rad2deg(np.nanmin(s["margins"][name], axis=1)), label=label)
+            worst = np.rad2deg(np.nanmin([np.nanmin(s["margins"][n], axis=1) for n in
+                                          ("motor_angle", "crank_joint", "platform_joint")],
+                                         axis=0))
+            limit(ax, 0.0, True, t, worst)
+            ax.set_ylabel("joint margin\n[deg]")
+            ax.legend(fontsize=7, loc="upper right", ncol=3)
+        elif panel == "singularity":
+            ax.plot(t, s["cond"], color="k", label="cond(J)")
+            limit(ax, report.cond_threshold, False, t, s["cond"])
+            ax.set_ylabel("cond(J)")
+            twin = ax.twinx()
+            twin.plot(t, s["sigma_min_inv"], color="tab:blue", lw=1)
+            twin.axhline(report.sigma_min_inv_threshold, color="tab:blue", ls=":", lw=1)
+            twin.set_ylabel("1/sigma_max(J)", color="tab:blue")
+        elif panel == "clearance":
+            tc, c = s["clearance_t"], 1e3 * s["clearance"]
+            ax.plot(tc, c, color="k", drawstyle="steps-mid")
+            limit(ax, 1e3 * report.clearance_threshold, True, tc, c)
+            ax.set_ylabel("closest parts\n[mm]")
+            ax.set_ylim(bottom=min(0.0, np.nanmin(c) - 1))
+        else:
+            values = np.abs(s[panel])
+            unit = "N m" if panel == "torque" else "rad/s"
+            for i in range(6):
+                ax.plot(t, values[:, i], lw=0.8, label=f"motor {i}")
+            bound = report.torque_limit if panel == "torque" else report.speed_limit
+            if np.isfinite(bound):
+                limit(ax, bound, False, t, np.nanmax(values, axis=1))
+            ax.set_ylabel(f"|{panel}| needed\n[{unit}]")
+            if panel == "torque":
+                ax.legend(fontsize=7, loc="lower center", ncol=6, bbox_to_anchor=(0.5, 1.0),
+                          frameon=False)
+            else:                          # the no-load speed is far above a surgical motion's
+                ax.set_yscale("log")
+                ax.set_ylim(1e-2, 2 * max(bound if np.isfinite(bound) else 1.0,
+                                          np.nanmax(values)))
+        ax.grid(alpha=0.3)
+    axes[-1].set_xlabel("t [s]")
+    verdict = "OK" if report.ok else "REFUSED"
+    fig.suptitle(f"{verdict}: {title} (red dashes: limits; shaded: outside)", fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
+    plt.close(fig)
+    return path
