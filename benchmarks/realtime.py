@@ -18,7 +18,7 @@ with this Diagram: the same Diagram holding home with every Python update a no-o
 framework, the station's hardware systems, the loggers and the Python dispatch cost alone).
 
 Usage: python benchmarks/realtime.py [--scenario paper_hardware] [--duration 5] [--repeats 5]
-       [--no-tuner] [--profile 25] [--riccati] [--breakdown]
+       [--no-tuner] [--profile 25] [--riccati] [--breakdown] [--contact]
 """
 
 import argparse
@@ -152,6 +152,8 @@ def main():
     parser.add_argument("--riccati", action="store_true", help="also time warm vs cold Riccati")
     parser.add_argument("--breakdown", action="store_true",
                         help="also time each Python callback and the Diagram's ceiling")
+    parser.add_argument("--contact", action="store_true",
+                        help="also measure both with contact between the parts simulated")
     args = parser.parse_args()
     scenario = load_scenario(args.scenario, [f"duration_s={args.duration}"])
     if not args.no_tuner:
@@ -170,6 +172,20 @@ def main():
           f"best ({args.scenario}, {tuner}, guard on, one process)")
     print(f"ratio_full_over_plant {np.median(ratios):.2f} (median of {len(ratios)} interleaved "
           f"pairs; range {ratios.min():.2f} .. {ratios.max():.2f}; target >= 0.5)")
+    if args.contact:
+        contact = load_scenario(args.scenario, [f"duration_s={args.duration}", "contact=true"])
+        contact.tuner = scenario.tuner
+        on = {"plant": [], "full": []}
+        for _ in range(max(1, args.repeats)):
+            on["plant"].append(plant_alone(contact, args.duration))
+            on["full"].append(full(contact, args.duration)[0])
+        rtf_on = {k: args.duration / np.array(v) for k, v in on.items()}
+        for key, label in (("plant", "plant_alone"), ("full", "full")):
+            print(f"realtime_factor_{label}_contact {np.median(rtf_on[key]):.2f} median "
+                  f"(contact on; off: {np.median(rtf[key]):.2f}; on / off "
+                  f"{np.median(rtf_on[key]) / np.median(rtf[key]):.2f})")
+        print(f"ratio_full_over_plant_contact "
+              f"{np.median(rtf_on['full'] / rtf_on['plant']):.2f} (contact on)")
     if args.breakdown:
         steps = args.duration / scenario.control_period_s
         spent = breakdown(scenario, args.duration)

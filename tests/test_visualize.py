@@ -63,16 +63,55 @@ def test_replay_html_is_standalone_and_small(replay):
 
 
 def test_replay_shows_only_the_illustration_geometry(replay):
+    from stewart_drake.model.parts import robot_parts
+
     objects = sorted(c["path"].split("rotary_stewart/", 1)[1]
-                     for c in replay["commands"] if c["type"] == "set_object")
-    expected = sorted(["base/plate", "platform/disc", "platform/tool"]
-                      + [f"crank_{i}/{v}" for i in range(6) for v in ("arm", "motor")]
-                      + [f"rod_{i}/{v}" for i in range(6) for v in ("rod", "ball_bottom",
-                                                                    "ball_top")])
-    assert [o.split("/", 1)[0].split("/")[0] + "/" + o.rsplit("/", 1)[1] for o in objects] \
-        == expected
+                     for c in replay["commands"]
+                     if c["type"] == "set_object" and "rotary_stewart/" in c["path"])
+    expected = sorted(f"{p.link}/{p.name}" for p in robot_parts())
+    assert [o.split("/", 1)[0] + "/" + o.rsplit("/", 1)[1] for o in objects] == expected
+    markers = [c["path"] for c in replay["commands"] if c["type"] == "set_object"
+               and "rotary_stewart/" not in c["path"]]
+    assert markers == [f"/drake/{visualize.REPLAY_PREFIX}_contacts/{j}"
+                       for j in range(visualize.CONTACT_MARKERS)]
     assert all(c["path"].startswith(f"/drake/{visualize.REPLAY_PREFIX}/")
-               for c in replay["commands"] if c["type"] == "set_object")
+               for c in replay["commands"]
+               if c["type"] == "set_object" and "rotary_stewart/" in c["path"])
+    # The paper run keeps every pair of parts apart: the contact markers never show.
+    (animation,) = [c for c in replay["commands"] if c["type"] == "set_animation"]
+    assert not [a for a in animation["animations"] if "_contacts" in a["path"]]
+
+
+def test_replay_marks_the_parts_that_touch(tmp_path):
+    """A path into the pose where the hub plate and rod 0 overlap: the marker appears (orange
+    while the parts are closer than the margin, red once they touch), between the parts."""
+    from pydrake.geometry import Meshcat
+
+    from stewart_drake.model.geometry import StewartGeometry
+    from stewart_drake.model.kinematics import X_HOME
+    from stewart_drake.model.plant import assembled_positions, make_plant
+
+    overlap = np.array([0.2102, 0.2411, -0.2047, -0.0222, 0.0979, 0.2157])
+    t = np.linspace(0.0, 1.0, 31)
+    x = X_HOME + t[:, None] * (overlap - X_HOME)
+    plant, _, handles, _, _ = make_plant()
+    states = assembled_positions(plant, handles, x)
+    meshcat = Meshcat()
+    visualize.record_states(meshcat, StewartGeometry(), t, states, fps=30.0)
+    html = visualize.write_static_html(meshcat, tmp_path / "touch.html")
+    (animation,) = [c for c in read_meshcat_commands(html.read_text())
+                    if c["type"] == "set_animation"]
+    tracks = {a["path"]: {tr["name"]: tr["keys"] for tr in a["clip"]["tracks"]}
+              for a in animation["animations"]}
+    marker = f"/drake/{visualize.REPLAY_PREFIX}_contacts/0"
+    visible = tracks[marker][".visible"]
+    colours = tracks[marker + "/<object>"][".color"]
+    assert visible[0]["value"] is True and 0 < visible[0]["time"] < 30
+    assert colours[0]["value"][:3] == [1.0, 0.6, 0.0]              # near first
+    assert colours[-1]["value"][:3] == [1.0, 0.0, 0.0]             # then touching
+    # The marker sits between the rod and the hub plate's rim (r ~ 0.125 m, z ~ 0).
+    end = np.array(tracks[marker][".position"][-1]["value"])
+    assert abs(end[2]) < 0.02 and 0.11 < np.hypot(end[0], end[1]) < 0.14
 
 
 def test_replay_animation_follows_the_logged_run(replay):

@@ -26,6 +26,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError, RenderToolMissingError
 from ..fileio import atomic_write
+from ..model.limits import DEFAULT_MIN_CLEARANCE_M
 
 #: Replay frame rate, frames per s: smooth to the eye, ~2 kB per frame in the HTML.
 REPLAY_FPS = 30.0
@@ -63,13 +64,18 @@ def frame_indices(t: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return frame_times, idx
 
 
-def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS) -> int:
-    """Record logged plant states as a Meshcat animation (illustration geometry only).
+def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
+                  clearance_m: float = DEFAULT_MIN_CLEARANCE_M) -> int:
+    """Record logged plant states as a Meshcat animation (illustration geometry), with markers
+    where two parts touch.
 
     A fresh plant of ``geometry`` (same joint order as the simulated one) with a
-    ``MeshcatVisualizer`` of role illustration (no proximity, contact or inertia visuals) is set
-    to the state nearest to each frame time and published into the recording, which is then
-    published to ``meshcat``; the camera is aimed at the robot.
+    ``MeshcatVisualizer`` of role illustration (no proximity or inertia visuals) is set to the
+    state nearest to each frame time and published into the recording, which is then published
+    to ``meshcat``; the camera is aimed at the robot. At every frame the parts closer than
+    ``clearance_m`` (:mod:`~stewart_drake.model.clearance`) get a marker between their closest
+    points, red where they touch or overlap, orange where they are only close (at most
+    :data:`CONTACT_MARKERS` at a time, the closest pairs).
 
     Args:
         meshcat: a pydrake ``Meshcat``.
@@ -77,14 +83,17 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS) -> int:
         t: (N,) log times, s.
         states: (N, nq + nv) or (N, nq) plant states of that geometry's plant.
         fps: frames per s of the animation.
+        clearance_m: parts closer than this are marked, m.
     Returns:
         the number of frames recorded.
     Raises:
         InvalidConfigError: states do not fit the plant, or bad ``fps``.
     """
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
+    from pydrake.math import RigidTransform
     from pydrake.systems.framework import DiagramBuilder
 
+    from ..model.clearance import clearance_model
     from ..model.plant import add_stewart_plant
 
     builder = DiagramBuilder()
@@ -106,16 +115,50 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS) -> int:
     plant_context = plant.GetMyMutableContextFromRoot(context)
     meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
     meshcat.SetProperty("/Axes", "visible", False)    # the world triad would hide the base
+    markers = _contact_markers(meshcat)
+    model = clearance_model(geometry)
     visualizer.StartRecording()
+    animation = visualizer.get_mutable_recording()
+    shown = [None] * len(markers)
     for k, i in enumerate(idx):
         # Meshcat files a transform under frame floor(time * fps); k / fps can land a hair below
         # k and overwrite frame k - 1, so stamp a quarter frame late (round or floor give k).
         context.SetTime((k + 0.25) / fps)
         plant.SetPositions(plant_context, states[i, :nq])
         diagram.ForcedPublish(context)
+        close = model.contacts(None, clearance_m, q=states[i, :nq])
+        for j, (path, colours) in enumerate(markers):
+            contact = close[j] if j < len(close) else None
+            kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
+            if kind is not None:
+                animation.SetTransform(k, path, RigidTransform(0.5 * (contact.p_WA
+                                                                      + contact.p_WB)))
+            if kind != shown[j]:
+                animation.SetProperty(k, path, "visible", kind is not None)
+                if kind is not None:
+                    animation.SetProperty(k, path + "/<object>", "color", colours[kind])
+                shown[j] = kind
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)
+
+
+#: How many pairs of close parts a replay marks at once (the closest ones).
+CONTACT_MARKERS = 4
+
+
+def _contact_markers(meshcat) -> list:
+    """The replay's contact markers, hidden: [(Meshcat path, {"touch": rgba, "near": rgba})]."""
+    from pydrake.geometry import Rgba, Sphere
+
+    colours = {"touch": [1.0, 0.0, 0.0, 0.9], "near": [1.0, 0.6, 0.0, 0.9]}
+    out = []
+    for j in range(CONTACT_MARKERS):
+        path = f"/drake/{REPLAY_PREFIX}_contacts/{j}"
+        meshcat.SetObject(path, Sphere(0.008), Rgba(*colours["touch"]))
+        meshcat.SetProperty(path, "visible", False)
+        out.append((path, colours))
+    return out
 
 
 def write_static_html(meshcat, path: str | Path) -> Path:

@@ -159,8 +159,8 @@ class ClearanceModel:
 
         Args:
             x: (n, 6) poses; unreachable ones get NaN.
-            by_family: also return, per pair of part families ("rod tube" / "base plate"), the
-                smallest distance over the poses and the index of that pose.
+            by_family: also return, per pair of part families (sorted names, e.g. ("base plate",
+                "rod tube")), the smallest distance over the poses and the index of that pose.
             max_distance: m; a pose whose parts are all farther apart reports this distance.
         Returns:
             (distance (n,) m, closest (list of n :class:`Contact` or None)) and, with
@@ -183,7 +183,7 @@ class ClearanceModel:
             distance[k], closest[k] = nearest.distance, self._contact(query, nearest)
             if by_family:
                 for c in (self._contact(query, r) for r in found):
-                    key = (family(c.part_a), family(c.part_b))
+                    key = tuple(sorted((family(c.part_a), family(c.part_b))))
                     if key not in families or c.distance < families[key][0]:
                         families[key] = (c.distance, int(k), c)
         return (distance, closest, families) if by_family else (distance, closest)

@@ -14,11 +14,11 @@ feedback torque). These families alternate the two, each deterministic in its se
 
 :func:`make_task` returns a :class:`Task` (the reference, the disturbance or None, a name). Poses
 stay within a box around home (``POSE_BOX``); every reference is checked by the same validator as
-any run (workspace, joint cones, singularity), and a seed whose draw is refused is redrawn
-deterministically. Every task is also within the motors' reach: the reference's own
-inverse-dynamics torque (gravity and the platform's inertia, :func:`~.statics.feedforward_torques`)
-stays within ``LOAD_MARGIN`` of the peak torque, the rest being left to the rotors' reflected
-inertia, friction and the feedback. A multi-sine is scaled down until it fits; a draw of the other
+any run (workspace, joint cones, singularity, clearance between the parts), and a seed whose draw
+is refused is redrawn deterministically. Every task is also within the motors' reach: the
+reference's own inverse-dynamics torque (gravity, inertia and velocity products, rotors included:
+:func:`~.statics.inverse_dynamics_torques`) stays within ``LOAD_MARGIN`` of the peak torque, the
+rest being left to friction and the feedback. A multi-sine is scaled down until it fits; a draw of the other
 families that does not fit is redrawn. A reference the motors cannot follow measures their
 saturation, not the weights (before this check, three of eight multi-sines needed up to 0.85 N m
 of a 0.70 N m motor and every controller lost 5 to 12 mrad on them). Ours: the paper trains and
@@ -33,6 +33,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError, StewartError
 from ..model import limits, statics
+from ..model.clearance import clearance_model
 from ..model.geometry import StewartGeometry
 from ..model.kinematics import X_HOME
 from .scenario import ToolDisturbance
@@ -204,9 +205,9 @@ def _multisine(rng, duration_s, geometry, peak_torque):
 
 def _within_reach(reference, duration_s, geometry, peak_torque) -> bool:
     """Whether the reference's inverse-dynamics torque stays within LOAD_MARGIN of the peak."""
-    x, _, xdd = reference.evaluate(np.arange(0.0, duration_s + 1e-9, 0.005))
     try:
-        T = statics.feedforward_torques(geometry, x, xdd, mode="inverse_dynamics")
+        T = statics.inverse_dynamics_torques(
+            geometry, *reference.evaluate(np.arange(0.0, duration_s + 1e-9, 0.005)))
     except StewartError:
         return False
     return bool(np.abs(T).max() <= LOAD_MARGIN * peak_torque)
@@ -281,7 +282,8 @@ def make_task(family: str, seed: int = 0, duration_s: float = 5.0,
         x, xd, xdd = reference.evaluate(t)
         try:
             report = limits.validate_trajectory(geometry, t, x, x_dot=xd, x_ddot=xdd,
-                                                raise_refused=False)
+                                                raise_refused=False,
+                                                clearance=clearance_model(geometry))
         except StewartError:
             continue
         if report.ok and _within_reach(reference, duration_s, geometry, peak_torque_Nm):

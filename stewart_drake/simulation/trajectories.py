@@ -488,8 +488,9 @@ def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None =
             (the control period the pre-run check uses).
         cond_threshold, min_sigma_min_inv: singularity thresholds (GuardConfig's defaults).
         torque_limit_Nm: the motors' limit, N m, or None. With one, (d) the amplitudes shrink
-            further until the inverse-dynamics torques of the path (gravity and inertia,
-            rotors included) stay within :data:`DATA_TORQUE_MARGIN` of it: the motors keep
+            further until the inverse-dynamics torques of the path (gravity, inertia and
+            velocity products, rotors included) stay within :data:`DATA_TORQUE_MARGIN` of it
+            (the pre-run check then adds the friction against its own margin): the motors keep
             headroom for feedback (ours: the paper's robot has no limit; on the robot as built,
             without this every run of the collection loses the platform in 0.2 s).
     Returns:
@@ -522,15 +523,14 @@ def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None =
             lo, hi = (mid, hi) if fits else (lo, mid)
         scale = lo * (1 - 1e-3)           # a hair inside: no pass or fail by round-off
     if torque_limit_Nm is not None:
-        from ..model.statics import feedforward_torques
+        from ..model.statics import inverse_dynamics_torques
 
         coarse = t[::5]
 
         def peak(sc):
             traj = SineTrajectory(amplitude=tuple(sc * amp), frequency_hz=tuple(f),
                                   phase=tuple(phase))
-            x, _, xdd = traj.evaluate(coarse)
-            return np.abs(feedforward_torques(geometry, x, xdd, "inverse_dynamics")).max()
+            return np.abs(inverse_dynamics_torques(geometry, *traj.evaluate(coarse))).max()
 
         bound = DATA_TORQUE_MARGIN * torque_limit_Nm
         if peak(scale) > bound:
