@@ -169,7 +169,7 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
     from stewart_drake.model.parts import robot_parts
 
     colliding = [p for p in robot_parts(geometry) if p.collides]
-    assert sum(model.geom(f"{p.link}/{p.name}").contype[0] == 1 for p in colliding) == len(colliding)
+    assert all(model.geom(f"{p.link}/{p.name}").contype[0] == 1 for p in colliding)
     data = mujoco.MjData(model)
     drake = ClearanceModel(geometry)
     overlap = np.array([0.2102, 0.2411, -0.2047, -0.0222, 0.0979, 0.2157])

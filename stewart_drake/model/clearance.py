@@ -189,6 +189,11 @@ class ClearanceModel:
         return (distance, closest, families) if by_family else (distance, closest)
 
 
+    def sample_indices(self, x, resolution_m: float) -> np.ndarray:
+        """:func:`sample_indices` of this model's geometry."""
+        return sample_indices(self.geometry, x, resolution_m)
+
+
 @lru_cache(maxsize=8)
 def clearance_model(geometry: StewartGeometry) -> ClearanceModel:
     """The :class:`ClearanceModel` of ``geometry``, built once per geometry and process."""

@@ -27,6 +27,11 @@ from ..errors import ForwardKinematicsError, InvalidConfigError, SingularPoseErr
 
 #: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
 X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+
+#: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
+#: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
+#: reachable poses of the tests are drawn below 200. Used by :mod:`~.limits` (re-exported there).
+DEFAULT_COND_THRESHOLD = 200.0
 X_HOME.setflags(write=False)
 
 _Z = np.array([0.0, 0.0, 1.0])

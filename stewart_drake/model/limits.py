@@ -19,13 +19,9 @@ import numpy as np
 from ..checks import as_array, as_number, as_poses
 from ..errors import (InterferenceError, InvalidConfigError, JointLimitError, MotorLimitError,
                       SingularPoseError, UnreachablePoseError)
-from .kinematics import (X_HOME, _wrap, ik, ik_unchecked, platform_joints, rotation_rpy,
-                         singularity_measures_unchecked)
+from .kinematics import (DEFAULT_COND_THRESHOLD, X_HOME, _wrap, ik, ik_unchecked,
+                         platform_joints, rotation_rpy, singularity_measures_unchecked)
 
-#: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
-#: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
-#: reachable poses of the tests are drawn below 200.
-DEFAULT_COND_THRESHOLD = 200.0
 
 #: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
 #: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
@@ -494,12 +490,10 @@ def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: fl
                       series: dict) -> dict:
     """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`);
     adds the measured series to ``series``."""
-    from .clearance import sample_indices
-
     rows = np.flatnonzero(reachable)
     if rows.size == 0:
         return {"clearance_threshold": threshold}
-    rows = rows[sample_indices(model.geometry, x[rows], resolution_m)]
+    rows = rows[model.sample_indices(x[rows], resolution_m)]
     # Pairs farther than this need no names: they cannot be the path's critical pair.
     distance, closest = model.sweep(x[rows], max_distance=max(threshold, 0.0) + 0.02)
     series.update(clearance_t=t[rows], clearance=distance)

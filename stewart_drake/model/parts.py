@@ -44,7 +44,7 @@ BASE_THICKNESS = 0.02
 #: 2 x 0.0347 m apart at the reference robot (11 mm of clearance to a crank at its sweep).
 ARM_HALF_WIDTH = 0.015
 #: Crank arm: capsule radius, m, and the offset of its mid-plane from the joint plane, along the
-#: motor's side of the shaft, m (the rod end's ball, radius rod_end_radius, sits in the joint plane).
+#: motor's side of the shaft, m (the rod end's ball, rod_end_radius, sits in the joint plane).
 CRANK_RADIUS = 0.004
 CRANK_OFFSET = 0.011
 #: Motor bracket: plate thickness, width and the offset of its inner face from the joint plane, m.

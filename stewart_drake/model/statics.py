@@ -5,7 +5,8 @@ Drake's tree quantities (``CalcMassMatrix``, gravity generalized forces) ignore 
 constraints, so the closed chain's torques come from virtual work through the Jacobian
 J = d theta / d x (:func:`~.kinematics.jacobian`): T . d theta = w . d x, w = J^T T. The task-space
 equations of motion are those of the Lagrangian L = 1/2 x_dot^T M_x(x) x_dot - V(x) in the pose
-coordinates x = [rpy, p]: M_x x_ddot + c(x, x_dot) + dV/dx = J^T T (:func:`inverse_dynamics_torques`).
+coordinates x = [rpy, p]: M_x x_ddot + c(x, x_dot) + dV/dx = J^T T
+(:func:`inverse_dynamics_torques`).
 """
 
 from __future__ import annotations
@@ -13,9 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidConfigError, SingularPoseError
-from .kinematics import (X_HOME, _checked, _finite_or_singular, _jacobian, _leg_terms, _skew,
-                         ik, jacobian, leg_vectors_single, rotation_rpy, wrench_map)
-from .limits import DEFAULT_COND_THRESHOLD
+from .kinematics import (DEFAULT_COND_THRESHOLD, X_HOME, _checked, _finite_or_singular,
+                         _jacobian, _leg_terms, _skew, ik, jacobian, leg_vectors_single,
+                         rotation_rpy, wrench_map)
 
 #: Feed-forward modes of :func:`feedforward_torques`.
 FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
@@ -169,7 +170,7 @@ def coriolis_forces(geometry: "StewartGeometry", x, x_dot, step: float = 1e-7,
         dM = (task_inertia(geometry, x + e) - M) / step                    # dM/dx_k
         dM_x_dot = np.einsum("...ij,...j->...i", dM, x_dot)
         c += dM_x_dot * x_dot[..., k:k + 1]                                # (dM/dx_k x_dot) x_dot_k
-        c[..., k] -= 0.5 * np.einsum("...i,...i->...", x_dot, dM_x_dot)   # 1/2 x_dot^T dM/dx_k x_dot
+        c[..., k] -= 0.5 * np.einsum("...i,...i->...", x_dot, dM_x_dot)  # 1/2 x_dot^T dM_k x_dot
     return c
 
 

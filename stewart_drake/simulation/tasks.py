@@ -18,11 +18,10 @@ any run (workspace, joint cones, singularity, clearance between the parts), and 
 is refused is redrawn deterministically. Every task is also within the motors' reach: the
 reference's own inverse-dynamics torque (gravity, inertia and velocity products, rotors included:
 :func:`~.statics.inverse_dynamics_torques`) stays within ``LOAD_MARGIN`` of the peak torque, the
-rest being left to friction and the feedback. A multi-sine is scaled down until it fits; a draw of the other
-families that does not fit is redrawn. A reference the motors cannot follow measures their
-saturation, not the weights (before this check, three of eight multi-sines needed up to 0.85 N m
-of a 0.70 N m motor and every controller lost 5 to 12 mrad on them). Ours: the paper trains and
-tests on one sine family only.
+rest being left to friction and the feedback. A multi-sine is scaled down until it fits; a draw
+of the other families that does not fit is redrawn. A reference the motors cannot follow
+measures their saturation, not the weights. Ours: the paper trains and tests on one sine family
+only.
 """
 
 from __future__ import annotations

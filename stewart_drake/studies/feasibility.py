@@ -1,8 +1,9 @@
 """Whether a reference can be run on the robot, without simulating it: every check, over time.
 
-:func:`check` runs the one reference validator (:func:`~stewart_drake.simulation.guard.check_reference`:
-reach, joint limits, singularity, clearance between the parts, the torque and speed each motor
-must give) without stopping at the first refusal, and :func:`plot_margins` draws each margin over
+:func:`check` runs the one reference validator
+(:func:`~stewart_drake.simulation.guard.check_reference`: reach, joint limits, singularity,
+clearance between the parts, the torque and speed each motor must give) without stopping at the
+first refusal, and :func:`plot_margins` draws each margin over
 time against its limit: the ``stewart-drake check`` command.
 """
 
