@@ -135,10 +135,12 @@ def run_scenario(args):
         InvalidConfigError: a bad override or value; ``--tuner-weights`` without ``--tuner ann``.
         MissingFileError: no such scenario, weights or CSV file.
     """
+    from ..control.contract import resolve_controller, use_entry_point_controllers
     from ..errors import InvalidConfigError
     from ..simulation import scenario as sc
     from ..studies.experiments import DEFAULT_TUNER_OUT
 
+    use_entry_point_controllers(args.plugin or ())
     scenario = sc.load_scenario(args.scenario, args.set or ())
     if args.tuner_weights is not None and args.tuner != "ann":
         raise InvalidConfigError("--tuner-weights needs --tuner ann (the weights are the ANN "
@@ -170,6 +172,8 @@ def run_scenario(args):
     elif args.tuner == "none":
         scenario.tuner = None
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    if isinstance(scenario.controller, sc.UserController):
+        resolve_controller(scenario.controller.factory)     # a name never registered: refused
     return scenario.validate()
 
 
@@ -405,6 +409,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
+    run.add_argument("--plugin", action="append", metavar="NAME",
+                     help="make the installed controller entry point NAME (group "
+                          "stewart_drake.controllers) available to the scenario's "
+                          "UserController (repeatable); a scenario never imports code itself")
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")

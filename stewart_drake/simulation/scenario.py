@@ -154,13 +154,15 @@ class PdDriver:
 
 @dataclass
 class UserController:
-    """A controller of the user's: ``factory`` is a name given to
-    :func:`~stewart_drake.control.contract.register_controller` or a ``"package.module:attribute"``
-    path to a callable ``factory(context, **parameters) -> LeafSystem`` following the controller
-    contract (:mod:`~stewart_drake.control.contract`).
+    """A controller of the user's: ``factory`` names a callable ``factory(context,
+    **parameters) -> LeafSystem`` following the controller contract
+    (:mod:`~stewart_drake.control.contract`) that Python code the user ran registered
+    (:func:`~stewart_drake.control.contract.register_controller`), or an installed entry point
+    the user opted into (``--plugin NAME``). Loading the scenario imports and calls nothing: an
+    unknown name is refused when the run is built, listing the registered ones.
 
     Attributes:
-        factory: the name or path. parameters: keyword arguments of the factory (numbers).
+        factory: the registered name. parameters: keyword arguments of the factory (numbers).
     """
 
     factory: str = ""
@@ -718,7 +720,7 @@ class Scenario:
         elif isinstance(c, UserController):
             if not isinstance(c.factory, str) or not c.factory:
                 raise InvalidConfigError("controller.factory must name a registered controller "
-                                         "or a 'package.module:attribute' path")
+                                         "(register_controller, or --plugin NAME)")
             for key, value in c.parameters.items():
                 as_number(f"controller.parameters.{key}", value)
         else:
