@@ -282,15 +282,16 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
     assert writer.wait(timeout=30) == -signal.SIGTERM
     left = [p.name for p in out.iterdir()]
     assert len(left) == 1 and left[0].startswith(".robot.sdf.") and left[0].endswith(".tmp")
-    live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1.tmp"
+    live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1y2z3w4.tmp"
     live.write_bytes(b"another command writing here now")
-    old_form, fresh_old_form = out / ".a.npz.k2j3h4_a.tmp", out / ".b.npz.k2j3h4_b.tmp"
-    for path in (old_form, fresh_old_form):
-        path.write_bytes(b"")
-    os.utime(old_form, (time.time() - 7200,) * 2)
+    # not the tool's own pattern, however old: a user's files (issue 22)
+    users = [out / ".a.npz.k2j3h4_a.tmp", out / ".notes.tmp"]
+    for path in users:
+        path.write_bytes(b"mine")
+        os.utime(path, (time.time() - 3 * 3600,) * 2)
     assert cli.main(["sdf", "--out", str(out / "robot.sdf")]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["robot.sdf", live.name, fresh_old_form.name])
+        ["robot.sdf", live.name] + [p.name for p in users])
 
 
 def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys):

@@ -55,13 +55,16 @@ def check_writable(folder: Path, option: str = "--out") -> None:
         InvalidConfigError: a file stands in the path, or the nearest folder is not writable.
     """
     from ..errors import InvalidConfigError
+    from ..fileio import describe_mode
 
     existing = folder.absolute()
     while not existing.exists() and existing.parent != existing:
         existing = existing.parent
     try:
         if not existing.is_dir():
-            raise NotADirectoryError(20, f"{existing} is a file")
+            kind = describe_mode(existing.stat().st_mode)
+            raise NotADirectoryError(20, f"{existing} is "
+                                         f"{'a file' if kind == 'a regular file' else kind}")
         with tempfile.TemporaryFile(dir=existing):
             pass
     except OSError as err:
@@ -80,7 +83,7 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
         InvalidConfigError: names the option and what to change.
     """
     from ..errors import InvalidConfigError
-    from ..fileio import remove_stale_temporaries
+    from ..fileio import check_replaceable, remove_stale_temporaries
 
     if path is None or not str(path).strip():
         raise InvalidConfigError(f"{option} is empty: give a {'file' if is_file else 'folder'} "
@@ -88,6 +91,8 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     path = Path(path)
     if is_file and path.is_dir():
         raise InvalidConfigError(f"{option} {path} is a folder: give a file name to write")
+    if is_file:
+        check_replaceable(path, f"{option} {path}")
     check_writable(path.parent if is_file else path, option)
     for name in sub:
         check_writable(path / name, option)
@@ -177,14 +182,38 @@ def run_scenario(args):
     return scenario.validate()
 
 
+def _run_stem(trajectory: str, tuner: bool, controller: str) -> str:
+    """``run_<trajectory>[_ann][_pd]``: the name of a run's result files."""
+    return (f"run_{trajectory}" + ("_ann" if tuner else "")
+            + ("_pd" if controller == "PdDriver" else ""))
+
+
+def _reference_name(scenario) -> str:
+    """The name the run's reference will carry (its result files are named after it)."""
+    from ..simulation import scenario as sc
+
+    ref = scenario.reference
+    if isinstance(ref, sc.CsvReference):
+        return Path(ref.path).stem
+    if isinstance(ref, sc.DataCollectionReference):
+        return f"data_seed{ref.seed}"
+    return ref.name
+
+
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
+
+    from ..fileio import check_replaceable
 
     scenario = run_scenario(args)
     out = Path(args.out)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
+    stem = _run_stem(_reference_name(scenario), scenario.tuner is not None,
+                     type(scenario.controller).__name__)
+    for suffix in (".npz", ".png"):
+        check_replaceable(out / f"{stem}{suffix}")
     if scenario.tuner is not None:
         from ..control.tuner import DEFAULT_TUNER_PATH
 
@@ -197,11 +226,10 @@ def _cmd_run(args) -> int:
     else:
         result = run_experiment(scenario, progress=not args.no_progress)
     summary = result.config_summary
-    stem = (f"run_{summary['trajectory']}" + ("_ann" if summary["tuner"] else "")
-            + ("_pd" if summary["controller"] == "PdDriver" else ""))
+    stem = _run_stem(summary["trajectory"], summary["tuner"], summary["controller"])
+    print(format_metrics(result.metrics), flush=True)   # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
-    print(format_metrics(result.metrics))
     print(f"wrote {npz} and {png}")
     return 0
 

@@ -682,7 +682,7 @@ class Scenario:
         if isinstance(t, RatioTunerDriver) and not t.weights:
             raise MissingFileError("a RatioTunerDriver needs its weights (tuner.weights): "
                                    "`stewart-drake evaluate` trains them")
-        if t.weights and not Path(t.weights).is_file():
+        if t.weights and not Path(t.weights).exists():
             kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
             raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
                                    f"path" + (", or leave it empty for the shipped weights"
@@ -734,7 +734,7 @@ class Scenario:
         if isinstance(ref, NamedReference):
             trajectories.make_trajectory(ref.name)          # unknown name: lists the known ones
         elif isinstance(ref, CsvReference):
-            if not ref.path or not Path(ref.path).is_file():
+            if not ref.path or not Path(ref.path).exists():
                 raise MissingFileError(f"no reference CSV at {ref.path!r} (reference.path): "
                                        f"check the path")
         elif isinstance(ref, SineReference):
@@ -805,9 +805,11 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
             out of range (named by file and field path).
     """
+    from ..fileio import read_checked
+
     shipped = shipped_scenarios()
     path = Path(source)
-    if not path.is_file():
+    if not path.exists():
         if str(source) in shipped:
             path = shipped[str(source)]
         else:

@@ -731,7 +731,8 @@ def plot_tuner_tradeoff(summary: dict, path) -> Path:
     fig.suptitle("Held-out tasks: every controller against the fixed-ratio trade-off curve")
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    from ..fileio import atomic_write
+
+    atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
     plt.close(fig)
     return path
