@@ -4,10 +4,12 @@ Each subcommand parses its arguments here and calls the functions of the modules
 (imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the Simulator);
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
 exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
-other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
-the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Every output (folder,
-file, the sub-folders a command writes into) is checked before any work starts, so a long run
-never ends in a failed save, and the hidden temporaries a killed write left there are removed.
+other settings or in use by another study, lost jobs), 1 for a file that cannot be read or
+written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the signal: every command
+handles the three alike, within a second or two). Every output (folder, file, the sub-folders a
+command writes into) is checked before any work starts, so a long run never ends in a failed
+save and a device node, FIFO or socket is never replaced; the hidden temporaries a killed write
+left there (the tool's own, whose writer is gone) are removed.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import argparse
 import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 from ..errors import StewartError
@@ -258,7 +261,8 @@ def _runner(args):
     from ..studies.runners import make_runner
 
     return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
-                       retries=args.retries, recycle=args.recycle)
+                       retries=args.retries, recycle=args.recycle,
+                       connect_timeout_s=args.connect_timeout)
 
 
 def _cmd_collect(args) -> int:
@@ -382,7 +386,8 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
+    from ..studies.runners import (DEFAULT_CONNECT_TIMEOUT_S, DEFAULT_RECYCLE, DEFAULT_RETRIES,
+                                   RUNNERS)
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
                         help="where jobs run: local processes, this process, Ray or Dask "
@@ -395,6 +400,10 @@ def _add_runner_arguments(parser) -> None:
     parser.add_argument("--scheduler", default=None,
                         help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
                              "start a local cluster)")
+    parser.add_argument("--connect-timeout", type=_positive_float,
+                        default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
+                        help=f"seconds for --address or --scheduler to accept a connection "
+                             f"({DEFAULT_CONNECT_TIMEOUT_S:g})")
     parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
                         help=f"attempts after the first for a job whose worker died "
                              f"({DEFAULT_RETRIES})")
@@ -513,9 +522,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interruptible():
+    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.studies.runners.Interrupted` (a
+    KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs; returns the handlers
+    to restore. A signal the process was started ignoring (``nohup``) stays ignored."""
+    from ..studies.runners import raise_interrupted
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: signal.signal(s, raise_interrupted) for s in (signal.SIGTERM, signal.SIGHUP)
+            if signal.getsignal(s) is not signal.SIG_IGN}
+
+
 def main(argv: list[str] | None = None) -> int:
+    restore = _interruptible()
+    try:
+        return _main(argv)
+    finally:
+        for signum, handler in restore.items():
+            signal.signal(signum, handler)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt as err:
+        return _interrupted(err, "", None)
     try:
         if getattr(args, "out", None) is not None:
             check_output(args.out, "--out", getattr(args, "out_is_file", False),
@@ -527,14 +560,18 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:                           # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:                 # Ctrl-C, or SIGTERM / SIGHUP in a study
-        signum = getattr(err, "signum", signal.SIGINT)
-        kept = (f"finished results are kept in {args.out}: run the same command again to run "
-                f"only the rest" if args.command in RESUMABLE else
-                "partial outputs were not written")
-        print(f"stewart-drake {args.command}: interrupted by {signal.Signals(signum).name}; "
-              f"{kept}", file=sys.stderr)
-        return 128 + signum
+    except KeyboardInterrupt as err:                 # Ctrl-C, SIGTERM, SIGHUP
+        return _interrupted(err, args.command, getattr(args, "out", None))
+
+
+def _interrupted(err: KeyboardInterrupt, command: str, out) -> int:
+    """Say which signal ended ``command`` (one line) and return 128 + its number."""
+    signum = getattr(err, "signum", signal.SIGINT)
+    kept = (f"finished results are kept in {out}: run the same command again to run only the "
+            f"rest" if command in RESUMABLE else "partial outputs were not written")
+    name = f"stewart-drake {command}".rstrip()
+    print(f"{name}: interrupted by {signal.Signals(signum).name}; {kept}", file=sys.stderr)
+    return 128 + signum
 
 
 if __name__ == "__main__":
