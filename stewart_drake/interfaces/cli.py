@@ -76,11 +76,11 @@ def check_writable(folder: Path, option: str = "--out") -> None:
 
 
 def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
-    """Refuse an output before any work: empty, a folder where a file is due, or a place that
-    cannot be written (:func:`check_writable`); ``sub`` names sub-folders the command writes
-    into (``diverged``, ``rows``), checked too. Then remove the temporaries an earlier run
-    killed mid-write left there (:func:`~stewart_drake.fileio.remove_stale_temporaries`).
-    Returns the path.
+    """Refuse an output before any work: empty, a folder where a file is due, a device node, a
+    FIFO or a socket (only regular files are replaced), or a place that cannot be written
+    (:func:`check_writable`); ``sub`` names sub-folders the command writes into (``diverged``,
+    ``rows``), checked too. Then remove the temporaries an earlier run killed mid-write left
+    there (:func:`~stewart_drake.fileio.remove_stale_temporaries`). Returns the path.
 
     Raises:
         InvalidConfigError: names the option and what to change.
