@@ -37,7 +37,7 @@ def _one_line_error(capsys, argv, code=2):
     (["evaluate", "--jobs", "-1"], "--jobs: must be >= 0, got -1"),
     (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
     (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
-    (["workspace", "--resolution", "1"], "--resolution: must be >= 2, got 1"),
+    (["workspace", "--resolution", "2"], "--resolution: must be >= 3, got 2"),
     (["workspace", "--jobs", "many"], "--jobs: expected an integer, got 'many'"),
     (["train", "--mode", "best"], "invalid choice: 'best'"),
     (["nonsense"], "invalid choice: 'nonsense'"),

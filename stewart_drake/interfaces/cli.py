@@ -499,7 +499,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")
-    ws.add_argument("--resolution", type=_int_at_least(2), default=41,
+    ws.add_argument("--resolution", type=_int_at_least(3), default=41,
                     help="grid points per axis (41)")
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
