@@ -311,6 +311,7 @@ class _LocalPool:
 
     def _terminate(self):
         processes = list((getattr(self.executor, "_processes", None) or {}).values())
+        results = getattr(self.executor, "_result_queue", None)    # shutdown forgets it
         self.executor.shutdown(wait=False, cancel_futures=True)
         for p in processes:
             p.terminate()
@@ -319,6 +320,13 @@ class _LocalPool:
             if p.is_alive():
                 p.kill()
                 p.join()
+        # A worker killed while it sent a result leaves half a message in the result pipe; the
+        # executor's thread then waits for the rest forever, and the interpreter for that thread
+        # at exit. With every worker gone, closing our write end turns that wait into an EOF.
+        writer = getattr(results, "_writer", None)
+        if writer is not None:
+            with contextlib.suppress(OSError):
+                writer.close()
 
 
 class ProcessRunner(_PoolRunner):
