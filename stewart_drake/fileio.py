@@ -100,7 +100,7 @@ def atomic_write(path: Path, write) -> None:
     except OSError as err:
         if os.path.exists(tmp):
             os.remove(tmp)
-        if err.filename is None or err.filename == tmp:   # a full disk names no file
+        if err.errno is not None and err.filename in (None, tmp):   # a full disk names none
             raise type(err)(err.errno, err.strerror or str(err), str(path)) from None
         raise
     except BaseException:

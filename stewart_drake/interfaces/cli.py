@@ -205,9 +205,8 @@ def _reference_name(scenario) -> str:
 
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
-    from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
-
     from ..fileio import check_replaceable
+    from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
 
     scenario = run_scenario(args)
     out = Path(args.out)

@@ -451,7 +451,7 @@ class RayRunner(_PoolRunner):
         retries: attempts after the first for jobs whose worker died (Ray's own task retries
             are off so that every backend counts alike).
         recycle: tasks per Ray worker process before it is replaced (``max_calls``).
-        connect_timeout_s: seconds for the address to accept a connection (:func:`probe`).
+        connect_timeout_s: seconds for the address to accept a connection (:meth:`probe`).
     Workers must import stewart_drake (install it on every node). A cluster this runner
     started is shut down when ``map`` ends; one it joined is left running. Joining is bounded:
     the address must answer within ``connect_timeout_s`` and Ray must join within
@@ -570,7 +570,7 @@ class DaskRunner(_PoolRunner):
         scheduler: address of a running scheduler ("tcp://host:8786"), or None.
         retries: attempts after the first for jobs whose worker died (on top of the
             scheduler's own ``allowed-failures``).
-        connect_timeout_s: seconds for the scheduler to accept a connection (:func:`probe`),
+        connect_timeout_s: seconds for the scheduler to accept a connection (:meth:`probe`),
             and Dask's own connect timeout.
     Workers must import stewart_drake. Memory: recycle Dask workers with their own
     ``--lifetime`` options. A local cluster this runner started is closed when ``map`` ends.
