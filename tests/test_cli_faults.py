@@ -499,8 +499,10 @@ def test_a_real_time_rate_that_would_never_end_is_refused(home):
      r"--address 'notanaddr' is not an address of the form \[ray://\]host:port \(or auto"),
     (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:99999"],
      r"--scheduler 'tcp://127.0.0.1:99999': the port 99999 is not in 1..65535"),
+    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "inf"],
+     r"--connect-timeout must be a finite number in \(0, 600\], got inf"),
 ], ids=["ray-nothing-listens", "dask-nothing-listens", "scheduler-not-a-url",
-        "address-not-an-address", "port-out-of-range"])
+        "address-not-an-address", "port-out-of-range", "endless-timeout"])
 def test_a_cluster_address_is_checked_within_the_connect_timeout(home, argv, expected):
     """Cases 3, 11 and the last low case: no retry loop, no ValueError traceback."""
     _refused(home, ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--out",

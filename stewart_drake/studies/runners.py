@@ -57,8 +57,10 @@ DEFAULT_RETRIES = 2
 #: Signals that cancel a running ``map``.
 CANCEL_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
                        if hasattr(signal, n))
-#: Seconds to wait for a Ray cluster's or a Dask scheduler's address to accept a connection.
+#: Seconds to wait for a Ray cluster's or a Dask scheduler's address to accept a connection
+#: (``--connect-timeout``: at most :data:`MAX_CONNECT_TIMEOUT_S`).
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
+MAX_CONNECT_TIMEOUT_S = 600.0
 #: Seconds Ray may take to join a cluster whose address answered (its handshake; measured 20 s
 #: on a busy 2-core machine).
 RAY_JOIN_TIMEOUT_S = 60.0
@@ -390,6 +392,17 @@ def parse_address(option: str, address: str, schemes: tuple) -> tuple[str, str, 
     return scheme, match["host"].strip("[]"), port
 
 
+def _connect_timeout(value) -> float:
+    """``value`` as a connect timeout, s, in (0, :data:`MAX_CONNECT_TIMEOUT_S`].
+
+    Raises:
+        InvalidConfigError: not a number in that range.
+    """
+    from ..checks import as_number
+
+    return as_number("--connect-timeout", value, 0.0, MAX_CONNECT_TIMEOUT_S, lo_open=True)
+
+
 def probe_address(option: str, host: str, port: int, timeout_s: float) -> None:
     """Make sure something accepts TCP connections at ``host:port`` within ``timeout_s``.
 
@@ -470,7 +483,7 @@ class RayRunner(_PoolRunner):
         self.address = address
         self.retries = retries
         self.recycle = recycle
-        self.connect_timeout_s = connect_timeout_s
+        self.connect_timeout_s = _connect_timeout(connect_timeout_s)
         self._target = (None if not address or address in self.NAMED_ADDRESSES
                         else parse_address("--address", address, ("ray",)))
 
@@ -584,7 +597,7 @@ class DaskRunner(_PoolRunner):
         self.n_workers = n_workers
         self.scheduler = scheduler
         self.retries = retries
-        self.connect_timeout_s = connect_timeout_s
+        self.connect_timeout_s = _connect_timeout(connect_timeout_s)
         self._target = (parse_address("--scheduler", scheduler, ("tcp", "tls", "ws", "wss"))
                         if scheduler else None)
 
@@ -640,8 +653,7 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
         raise InvalidConfigError(f"--jobs and --retries must be >= 0, got {jobs}, {retries}")
     if kind == "serial":
         return SerialRunner()
-    if not connect_timeout_s > 0:
-        raise InvalidConfigError(f"--connect-timeout must be > 0 s, got {connect_timeout_s}")
+    _connect_timeout(connect_timeout_s)
     recycle = recycle or None
     if kind in ("ray", "dask"):
         runner = (RayRunner(jobs, address, retries, recycle, connect_timeout_s) if kind == "ray"
