@@ -152,7 +152,7 @@ def test_the_cleanup_removes_only_the_tool_s_temporaries_whose_writer_is_gone(tm
     assert all(p.exists() for p in kept) and stat.S_ISFIFO(fifo.lstat().st_mode)
 
 
-# -- case 3: every wait bounded ---------------------------------------------------------------------
+# -- case 3: every wait bounded --------------------------------------------------------------------
 
 @pytest.mark.parametrize("override, message", [
     ("simulator.target_realtime_rate=1e-9", r"simulator.target_realtime_rate must be 0 \(as fast "
@@ -580,7 +580,7 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
     assert time.monotonic() - t0 < 5.0
 
 
-# -- the low cases -----------------------------------------------------------------------------------
+# -- the low cases ---------------------------------------------------------------------------------
 
 def test_a_scenario_file_beyond_the_size_bound_is_refused_unparsed(tmp_path):
     path = tmp_path / "big.yaml"
@@ -606,9 +606,9 @@ def test_drake_config_fields_can_be_set_and_are_listed():
     scenario = load_scenario("paper_ideal", ["plant.time_step=0.0005",
                                              "simulator.target_realtime_rate=2.0"])
     assert scenario.plant.time_step == 0.0005 and scenario.simulator.target_realtime_rate == 2.0
-    with pytest.raises(InvalidConfigError, match=r"--set plant.time_stp: 'time_stp' is not a field "
-                                                 r"of MultibodyPlantConfig \(fields: .*contact_model"
-                                                 r".*time_step"):
+    with pytest.raises(InvalidConfigError, match=r"--set plant.time_stp: 'time_stp' is not a "
+                                                 r"field of MultibodyPlantConfig \(fields: "
+                                                 r".*contact_model.*time_step"):
         apply_override(scenario, "plant.time_stp=1")
 
 
