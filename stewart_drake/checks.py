@@ -138,7 +138,8 @@ def available_memory_bytes() -> float | None:
     return available
 
 
-def _size(n_bytes: float) -> str:
+def format_bytes(n_bytes: float) -> str:
+    """``n_bytes`` for messages: "4.2 GB", "12 kB", "1e+20 bytes"."""
     if n_bytes >= 1e18:
         return f"{n_bytes:.3g} bytes"
     for unit, scale in (("PB", 1e15), ("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
@@ -159,6 +160,7 @@ def check_memory(what: str, need_bytes: float, change: str) -> None:
     """
     available = available_memory_bytes()
     if available is not None and not need_bytes <= available:
-        need = _size(need_bytes) if np.isfinite(need_bytes) else "more than any machine has"
+        need = (format_bytes(need_bytes) if np.isfinite(need_bytes)
+                else "more than any machine has")
         raise InvalidConfigError(f"{what}: about {need} of memory needed, more than the "
-                                 f"{_size(available)} available on this machine; {change}")
+                                 f"{format_bytes(available)} available on this machine; {change}")

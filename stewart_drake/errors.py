@@ -244,6 +244,25 @@ class ResultsMismatchError(StewartError, ValueError):
     """
 
 
+class FolderInUseError(StewartError, RuntimeError):
+    """A study folder another running study is writing (its lock is held); names that writer.
+
+    Attributes:
+        folder: the folder (str).  holder: who holds it, as its lock file says ("pid 1234 on
+            host, `stewart-drake evaluate`, since ..."), or "" if unknown.
+    """
+
+    def __init__(self, folder, holder: str = ""):
+        self.folder = str(folder)
+        self.holder = str(holder)
+        who = self.holder or "its writer did not say who it is"
+        super().__init__(f"{self.folder} is being written by another study ({who}): wait for it "
+                         f"to finish, or choose another --out")
+
+    def _init_args(self) -> tuple:
+        return self.folder, self.holder
+
+
 class IncompleteResultsError(StewartError, RuntimeError):
     """A study whose results are not all on disk: jobs lost with their worker, failed, or not
     run yet. What finished is kept; the same command run again runs only what is missing."""

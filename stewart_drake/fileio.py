@@ -1,9 +1,14 @@
 """Result files written atomically, and read back as valid files or one typed error.
 
-Writing: a reader never sees a half-written file, even after Ctrl-C (:func:`atomic_write`).
-Reading: :class:`CheckedNpz` and :func:`read_json` turn whatever a damaged file raises inside
-numpy, zipfile, zlib or json (BadZipFile, EOFError, KeyError, JSONDecodeError, ValueError ...)
-into a :class:`~stewart_drake.errors.CorruptFileError` naming the file and what is wrong. The
+Writing: a reader never sees a half-written file, even after Ctrl-C (:func:`atomic_write`), and
+only regular files are ever replaced: a device node, a FIFO or a socket where an output is due
+is refused by name (:func:`check_replaceable`), never renamed over.
+Reading: every file the tool reads goes through :func:`read_checked` (a regular file, its size
+bounded before a byte is read: a FIFO cannot block the reader, a sparse 100 GB file cannot
+exhaust the memory). :class:`CheckedNpz` and :func:`read_json` then turn whatever a damaged file
+raises inside numpy, zipfile, zlib or json (BadZipFile, EOFError, KeyError, JSONDecodeError,
+ValueError ...) into a :class:`~stewart_drake.errors.CorruptFileError` naming the file and what
+is wrong; the entries of an ``.npz`` are bounded after decompression before they are read. The
 bytes are read first, so an ``OSError`` is always a real failure to read (permissions, a
 vanished file), never a symptom of the content.
 """
@@ -15,20 +20,53 @@ import json
 import os
 import re
 import socket
+import stat
 import tempfile
-import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-from .errors import CorruptFileError
+from .checks import check_memory, format_bytes
+from .errors import CorruptFileError, InvalidConfigError
 
 
 #: The temporaries of :func:`atomic_write`: ``.<name>.<host>-<pid>.<random>.tmp``, hidden, named
-#: by the writer so that :func:`remove_stale_temporaries` can tell a dead writer's from a live one.
-_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<host>\w*)-(?P<pid>\d+)\.\w+\.tmp$")
-#: A temporary of the older form ``.<name>.<random>.tmp`` is stale after this long, s.
-_LEGACY_STALE_S = 3600.0
+#: by the writer so that :func:`remove_stale_temporaries` can tell a dead writer's from a live one
+#: (``<random>``: the 8 characters of ``tempfile.mkstemp``).
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<host>\w*)-(?P<pid>\d+)\.[a-z0-9_]{8}\.tmp$")
+#: Largest JSON document read (a manifest, an evaluation row, rows.json), bytes.
+MAX_JSON_BYTES = 256e6
+
+
+def describe_mode(mode: int) -> str:
+    """What a file of ``st_mode`` ``mode`` is, for messages: "a folder", "a FIFO (named pipe)"."""
+    for test, name in ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_replaceable(path, what: str | None = None) -> None:
+    """Refuse to write over ``path`` unless it is absent or a regular file (symlinks followed).
+
+    Args:
+        path: the output.  what: how the message names it (default the path), e.g.
+            "--out /tmp/x".
+    Raises:
+        InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder; the tool
+            replaces only regular files, so the message says to choose another output.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return
+    if not stat.S_ISREG(mode):
+        raise InvalidConfigError(f"{what or path} is {describe_mode(mode)}, not a regular file: "
+                                 f"stewart-drake replaces only regular files; choose another "
+                                 f"output")
 
 
 def _writer() -> str:
@@ -39,10 +77,16 @@ def atomic_write(path: Path, write) -> None:
     """Call write(binary file) on a temporary file next to ``path``, then os.replace it.
 
     The temporary is ``.<name>.<host>-<pid>.<random>.tmp``; an exception (Ctrl-C included)
-    removes it, a kill that Python cannot see (SIGKILL, SIGTERM outside a study) leaves it for
+    removes it, a kill that Python cannot see (SIGKILL) leaves it for
     :func:`remove_stale_temporaries`.
+
+    Raises:
+        InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder
+            (:func:`check_replaceable`), before anything is written.
+        OSError: the write failed (a full disk, permissions); its ``filename`` is ``path``.
     """
     path = Path(path)
+    check_replaceable(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{_writer()}.",
                                suffix=".tmp")
@@ -53,6 +97,12 @@ def atomic_write(path: Path, write) -> None:
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)                # mkstemp makes 0600; keep the usual mode
         os.replace(tmp, path)
+    except OSError as err:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        if err.errno is not None and err.filename in (None, tmp):   # a full disk names none
+            raise type(err)(err.errno, err.strerror or str(err), str(path)) from None
+        raise
     except BaseException:
         if os.path.exists(tmp):
             os.remove(tmp)
@@ -71,9 +121,11 @@ def _alive(pid: int) -> bool:
 
 def remove_stale_temporaries(folder, depth: int = 1) -> list[Path]:
     """Delete the temporaries :func:`atomic_write` left in ``folder`` (and its sub-folders down
-    to ``depth``) when its process was killed mid-write: those of a process of this host that
-    no longer runs, and those of the older unnamed form after an hour. A live writer's file
-    (another command writing there now) and another host's (a shared disk) are left alone.
+    to ``depth``) when its process was killed mid-write: regular files named by the writer's
+    pattern ``.<name>.<host>-<pid>.<random>.tmp`` whose writer, a process of this host, no
+    longer runs. Nothing else is touched: a live writer's file (another command writing there
+    now), another host's (a shared disk), and every file of another name (a user's
+    ``.notes.tmp``, however old).
 
     Returns:
         the paths removed (none when the folder does not exist).
@@ -84,12 +136,10 @@ def remove_stale_temporaries(folder, depth: int = 1) -> list[Path]:
     for pattern in patterns:
         for path in folder.glob(pattern):
             match = _TEMPORARY.match(path.name)
+            if not match or match["host"] != host or _alive(int(match["pid"])):
+                continue
             try:
-                if match:
-                    stale = match["host"] == host and not _alive(int(match["pid"]))
-                else:
-                    stale = time.time() - path.stat().st_mtime > _LEGACY_STALE_S
-                if stale and path.is_file():
+                if stat.S_ISREG(path.lstat().st_mode):
                     path.unlink()
                     removed.append(path)
             except FileNotFoundError:                 # its writer renamed or removed it
@@ -108,14 +158,54 @@ def _describe(err: BaseException) -> str:
     return f"{type(err).__name__}: {text[0]:.160}" if text else type(err).__name__
 
 
-def read_json(path, kind: str, remedy: str = ""):
-    """The JSON document in ``path``.
+def read_checked(path, kind: str, max_bytes: float, remedy: str = "") -> bytes:
+    """The bytes of ``path``, read only once it is known to be a regular file of a bounded size.
+
+    The path is checked before it is opened (a device is never opened, a socket cannot be),
+    opened without blocking (a FIFO put there meanwhile would wait for a writer forever) and
+    checked again on the open descriptor, so it cannot be swapped between the check and the
+    read.
+
+    Args:
+        path: the file.  kind: what it should be, for messages ("scenario file").
+        max_bytes: the largest such file, bytes; a larger one is refused unread.
+        remedy: what the user can do about a bad one.
+    Raises:
+        CorruptFileError: a folder, a device node, a FIFO or a socket, or larger than
+            ``max_bytes`` (a sparse file included).
+        InvalidConfigError: more bytes than the machine has memory available.
+        OSError: the file cannot be opened or read (missing, permissions).
+    """
+    def refuse(mode):
+        return CorruptFileError(path, kind, f"it is {describe_mode(mode)}, not a regular file",
+                                remedy)
+
+    mode = os.stat(path).st_mode                 # a device is not even opened, a socket cannot be
+    if not stat.S_ISREG(mode):
+        raise refuse(mode)
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    info = os.fstat(fd)                          # what was opened, if it changed since the stat
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise refuse(info.st_mode)
+    with os.fdopen(fd, "rb") as f:
+        if info.st_size > max_bytes:
+            raise CorruptFileError(path, kind, f"it holds {format_bytes(info.st_size)}, over "
+                                               f"the bound of {format_bytes(max_bytes)} for this "
+                                               f"kind of file", remedy)
+        check_memory(f"reading {path}", info.st_size, "free some memory")
+        return f.read()
+
+
+def read_json(path, kind: str, remedy: str = "", max_bytes: float = MAX_JSON_BYTES):
+    """The JSON document in ``path`` (:func:`read_checked`, at most ``max_bytes``).
 
     Raises:
-        CorruptFileError: not UTF-8 or not JSON (truncated, random bytes, empty).
+        CorruptFileError: not a regular file, too large, not UTF-8 or not JSON (truncated,
+            random bytes, empty).
         OSError: the file cannot be read.
     """
-    raw = Path(path).read_bytes()
+    raw = read_checked(path, kind, max_bytes, remedy)
     try:
         return json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError) as err:
@@ -129,28 +219,47 @@ class CheckedNpz:
     Args:
         path: the file.  kind: what it should be, for messages ("ANN tuner weights file").
         remedy: what the user can do about a bad one (appended to every message).
+        max_bytes: the most its entries may hold together after decompression (and the file
+            on disk), bytes: a few kB of zeros deflate to megabytes, so each entry's size is
+            read from the archive's directory and bounded before it is decompressed.
     Raises:
         CorruptFileError: the bytes are not an ``.npz`` archive whose every entry numpy can
             read without pickle (empty, truncated, random bytes, a bad CRC, an object array, a
-            single ``.npy`` array, an entry too large to hold).
+            single ``.npy`` array, entries larger than ``max_bytes``); not a regular file.
+        InvalidConfigError: entries larger than the memory available.
         OSError: the file cannot be read.
     """
 
-    def __init__(self, path, kind: str, remedy: str = ""):
+    def __init__(self, path, kind: str, remedy: str = "", max_bytes: float = 4e9):
         self.path, self.kind, self.remedy = Path(path), kind, remedy
-        raw = self.path.read_bytes()
+        raw = read_checked(self.path, kind, max_bytes, remedy)
         if not raw:
             raise self.corrupt("it is empty")
         try:
+            if raw[:4] == b"PK\x03\x04":             # numpy opens zip archives as npz
+                self._check_sizes(raw, max_bytes)
             data = np.load(io.BytesIO(raw), allow_pickle=False)
             if not isinstance(data, np.lib.npyio.NpzFile):
                 raise self.corrupt("it holds one .npy array, not an .npz archive")
             with data:
                 self.arrays = {name: data[name] for name in data.files}
-        except CorruptFileError:
+        except InvalidConfigError:                   # CorruptFileError, or too large
             raise
         except Exception as err:                  # noqa: BLE001 - bytes in memory: any failure
             raise self.corrupt(f"not a readable .npz archive ({_describe(err)})") from None
+
+    def _check_sizes(self, raw: bytes, max_bytes: float) -> None:
+        """Refuse entries whose decompressed sizes (the archive's directory says them; zipfile
+        never inflates an entry past its stated size) exceed ``max_bytes`` or the memory."""
+        with zipfile.ZipFile(io.BytesIO(raw)) as archive:
+            sizes = {info.filename: info.file_size for info in archive.infolist()}
+        total = sum(sizes.values())
+        if total > max_bytes:
+            name = max(sizes, key=sizes.get)
+            raise self.corrupt(f"its entries hold {format_bytes(total)} after decompression "
+                               f"({name!r}: {format_bytes(sizes[name])}), over the bound of "
+                               f"{format_bytes(max_bytes)} for this kind of file")
+        check_memory(f"reading {self.path}", total, "free some memory")
 
     def corrupt(self, problem: str) -> CorruptFileError:
         """The error to raise for this file."""

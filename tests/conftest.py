@@ -26,3 +26,17 @@ def random_reachable_poses(geometry, n, seed=0, margin=0.95):
 @pytest.fixture(scope="session")
 def random_poses(geometry):
     return random_reachable_poses(geometry, 200)
+
+
+def install_plugin(site, package: str, entry_points: dict, source: str):
+    """Install in folder ``site`` a distribution ``package`` (a ``.dist-info``, as pip leaves one)
+    whose module ``package`` has ``source`` and whose entry points of the group
+    ``stewart_drake.controllers`` are ``{name: "module:attribute"}``; put ``site`` on the path
+    to see it. Returns ``site``."""
+    info = site / f"{package}-1.0.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {package}\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[stewart_drake.controllers]\n" + "".join(
+        f"{name} = {target}\n" for name, target in entry_points.items()))
+    (site / f"{package}.py").write_text(source)
+    return site

@@ -1,12 +1,24 @@
-"""Issue 8: bad CLI input ends in one line and a non-zero exit; outputs are written atomically."""
+"""Issue 8: bad CLI input ends in one line and a non-zero exit; outputs are written atomically.
+Issue 22: the command as a user runs it on hostile input (the section at the end)."""
 
+import hashlib
+import io
+import os
 import re
+import shutil
+import signal
+import socket
+import stat
 import subprocess
 import sys
+import threading
+import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import install_plugin
 
 from stewart_drake.interfaces import cli
 from stewart_drake.control.lqi import LqiController
@@ -37,7 +49,7 @@ def _one_line_error(capsys, argv, code=2):
     (["evaluate", "--jobs", "-1"], "--jobs: must be >= 0, got -1"),
     (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
     (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
-    (["workspace", "--resolution", "1"], "--resolution: must be >= 2, got 1"),
+    (["workspace", "--resolution", "2"], "--resolution: must be >= 3, got 2"),
     (["workspace", "--jobs", "many"], "--jobs: expected an integer, got 'many'"),
     (["train", "--mode", "best"], "invalid choice: 'best'"),
     (["nonsense"], "invalid choice: 'nonsense'"),
@@ -265,10 +277,6 @@ def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch)
 def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, capsys):
     """Issue 16: SIGTERM outside a study kills Python before atomic_write can clean up; the
     next command writing there removes what the dead writer left, and only that."""
-    import os
-    import signal
-    import time
-
     out = tmp_path / "sdf"
     writer = subprocess.Popen([sys.executable, "-c", (
         "import time; from pathlib import Path; from stewart_drake.fileio import atomic_write\n"
@@ -282,15 +290,16 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
     assert writer.wait(timeout=30) == -signal.SIGTERM
     left = [p.name for p in out.iterdir()]
     assert len(left) == 1 and left[0].startswith(".robot.sdf.") and left[0].endswith(".tmp")
-    live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1.tmp"
+    live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1y2z3w4.tmp"
     live.write_bytes(b"another command writing here now")
-    old_form, fresh_old_form = out / ".a.npz.k2j3h4_a.tmp", out / ".b.npz.k2j3h4_b.tmp"
-    for path in (old_form, fresh_old_form):
-        path.write_bytes(b"")
-    os.utime(old_form, (time.time() - 7200,) * 2)
+    # not the tool's own pattern, however old: a user's files (issue 22)
+    users = [out / ".a.npz.k2j3h4_a.tmp", out / ".notes.tmp"]
+    for path in users:
+        path.write_bytes(b"mine")
+        os.utime(path, (time.time() - 3 * 3600,) * 2)
     assert cli.main(["sdf", "--out", str(out / "robot.sdf")]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["robot.sdf", live.name, fresh_old_form.name])
+        ["robot.sdf", live.name] + [p.name for p in users])
 
 
 def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys):
@@ -300,3 +309,367 @@ def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys)
     out = capsys.readouterr().out
     assert "controller status: inertia reschedules 10, failures 0" in out
     assert "gain" not in out and "omega" not in out
+
+
+# -- issue 22: the command line as a user runs it -------------------------------------------------
+#
+# Each case runs the installed command in a subprocess, in a "home" folder that holds files of the
+# user's (a FIFO, a character device where the machine allows one, an old hidden .tmp, a module
+# that would leave a mark if anything imported it). The command must end in one line on stderr
+# with the stated exit code, no traceback, within the stated bound, and change nothing in the
+# home folder outside --out (snapshotted around the run).
+
+_SCRIPT = Path(sys.executable).parent / "stewart-drake"
+#: The installed console script when there is one (as a user types it), else the module.
+COMMAND = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m",
+                                                     "stewart_drake.interfaces.cli"]
+#: A module the user keeps in the folder: importing it leaves a mark, which the tests look for.
+MARKING_MODULE = ("from pathlib import Path\n"
+                  "Path(__file__).with_name('IMPORTED').write_text('imported')\n"
+                  "def run(*args, **kwargs):\n"
+                  "    Path(__file__).with_name('CALLED').write_text('called')\n")
+
+
+def _snapshot(folder: Path, skip: Path) -> dict:
+    """{relative path: (file type, mode, size, mtime, SHA-256 of a regular file's bytes, up to
+    64 MB: a sparse giant is compared by size and time)} of everything under ``folder`` but
+    ``skip``."""
+    out = {}
+    for path in sorted(folder.rglob("*")):
+        if path == skip or skip in path.parents:
+            continue
+        info = path.lstat()
+        digest = (hashlib.sha256(path.read_bytes()).hexdigest()
+                  if stat.S_ISREG(info.st_mode) and info.st_size < 64e6 else None)
+        out[str(path.relative_to(folder))] = (stat.S_IFMT(info.st_mode), info.st_mode,
+                                              info.st_size, info.st_mtime_ns, digest)
+    return out
+
+
+@pytest.fixture
+def home(tmp_path):
+    """The user's folder: a FIFO, a device node (when the machine lets us make one), an old
+    hidden .tmp of the user's, a marking module; and a socket bound there."""
+    home = tmp_path / "home"
+    home.mkdir()
+    os.mkfifo(home / "pipe")
+    try:
+        os.mknod(home / "null", stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    except (PermissionError, OSError):
+        pass                                            # not root: FIFOs and sockets only
+    sock = socket.socket(socket.AF_UNIX)
+    sock.bind(str(home / "sock"))
+    notes = home / ".notes.tmp"
+    notes.write_text("my notes")
+    os.utime(notes, (time.time() - 3 * 3600,) * 2)
+    (home / "evil.py").write_text(MARKING_MODULE)
+    yield home
+    sock.close()
+
+
+def _user_runs(home: Path, argv, out="out", bound_s=60.0, env=None):
+    """Run the command in ``home`` as a user would; (exit code, stdout, stderr lines, wall s).
+    Asserts nothing outside ``home/out`` changed and no traceback."""
+    before = _snapshot(home, home / out)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [str(home), str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
+                                  if p]), **(env or {})}
+    t0 = time.monotonic()
+    proc = subprocess.run(COMMAND + argv, cwd=home, env=env, capture_output=True, text=True,
+                          timeout=bound_s + 60)
+    wall = time.monotonic() - t0
+    assert wall < bound_s, f"{argv} took {wall:.1f} s"
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert _snapshot(home, home / out) == before, "a file outside --out changed"
+    assert not (home / "IMPORTED").exists() and not (home / "CALLED").exists()
+    return proc.returncode, proc.stdout, proc.stderr.strip().splitlines(), wall
+
+
+def _refused(home, argv, expected, bound_s=60.0, code=2, **kwargs):
+    rc, out, err, wall = _user_runs(home, argv, bound_s=bound_s, **kwargs)
+    assert rc == code and len(err) == 1, (rc, out, err)
+    assert re.search(expected, err[0]), err[0]
+    return err[0]
+
+
+def _scenario(home, name, text):
+    (home / name).write_text(text)
+    return name
+
+
+# case 1: a scenario never imports or calls what it names --------------------------------------
+
+@pytest.mark.parametrize("how", ["file", "set", "zen"])
+def test_a_scenario_that_names_code_runs_none_of_it(home, how):
+    if how == "file":
+        argv = ["run", "--scenario", _scenario(home, "it.yaml", 'controller: !UserController '
+                                                                 '{factory: "evil:run"}\n')]
+    elif how == "set":
+        argv = ["run", "--set", 'controller=!UserController {factory: "evil:run"}']
+    else:
+        argv = ["run", "--scenario", _scenario(home, "zen.yaml", 'controller: !UserController '
+                                                                  '{factory: "this:s"}\n')]
+    line = _refused(home, argv + ["--duration", "0.1", "--out", "out", "--no-progress"],
+                    r"controller factory '(evil:run|this:s)' is an import path, and a scenario "
+                    r"never imports code; it is not a registered controller \(registered: none\)"
+                    r": call register_controller")
+    assert "--plugin NAME" in line
+    assert not (home / "out").exists()                        # refused before any work
+
+
+def _plugin(tmp_path) -> Path:
+    """An installed package with a controller entry point (a dist-info on the path)."""
+    return install_plugin(tmp_path / "site", "sd_demo_plugin", {"demo_pd": "sd_demo_plugin:make"},
+                          "from pathlib import Path\n"
+                          "Path(__file__).with_name('PLUGIN_IMPORTED').write_text('yes')\n"
+                          "def make(context, bandwidth_hz=20.0):\n"
+                          "    from stewart_drake.simulation.diagram import pd_factory\n"
+                          "    from stewart_drake.simulation.scenario import PdDriver\n"
+                          "    return pd_factory(PdDriver(bandwidth_hz=bandwidth_hz))(context)\n")
+
+
+def test_an_installed_controller_runs_only_when_the_user_opts_in(home, tmp_path):
+    site = _plugin(tmp_path)
+    env = {"PYTHONPATH": os.pathsep.join([str(site), str(REPO)])}
+    scenario = _scenario(home, "mine.yaml", "controller: !UserController {factory: demo_pd, "
+                                            "parameters: {bandwidth_hz: 15.0}}\n")
+    argv = ["run", "--scenario", scenario, "--duration", "0.05", "--out", "out", "--no-progress"]
+    _refused(home, argv, r"'demo_pd' is not a registered controller \(registered: none\)",
+             env=env)
+    assert not (site / "PLUGIN_IMPORTED").exists()            # installed, but not opted into
+    rc, out, err, _ = _user_runs(home, argv + ["--plugin", "demo_pd"], env=env)
+    assert rc == 0 and "controller status: inertia reschedules" in out, err
+    assert (site / "PLUGIN_IMPORTED").exists() and (home / "out" / "run_paper.npz").exists()
+    _refused(home, argv + ["--plugin", "nope"], r"--plugin nope: no installed entry point of "
+                                                r"that name .* \(installed: demo_pd\)", env=env)
+
+
+# case 2: only regular files are ever replaced, and only the tool's temporaries removed ---------
+
+@pytest.mark.parametrize("command", ["mjcf", "sdf", "scenario", "train"])
+@pytest.mark.parametrize("target", ["pipe", "null", "sock"])
+def test_an_output_that_is_not_a_regular_file_is_refused_by_name(home, command, target):
+    if not (home / target).exists():
+        pytest.skip("this machine does not let the test make a device node")
+    kind = {"pipe": "a FIFO \\(named pipe\\)", "null": "a character device",
+            "sock": "a socket"}[target]
+    before = home.joinpath(target).lstat()
+    _refused(home, [command, "--out", target], rf"--out {target} is {kind}, not a regular file: "
+                                               rf"stewart-drake replaces only regular files; "
+                                               rf"choose another output", bound_s=30, out=target)
+    after = home.joinpath(target).lstat()
+    assert (after.st_mode, after.st_ino, after.st_rdev) == (before.st_mode, before.st_ino,
+                                                            before.st_rdev)
+
+
+def test_a_fifo_where_run_writes_its_result_is_refused_before_the_run(home):
+    (home / "out").mkdir()
+    os.mkfifo(home / "out" / "run_paper.npz")
+    line = _refused(home, ["run", "--duration", "5", "--no-progress", "--out", "out"],
+                    r"out/run_paper.npz is a FIFO \(named pipe\), not a regular file", bound_s=20)
+    assert line
+    assert stat.S_ISFIFO((home / "out" / "run_paper.npz").lstat().st_mode)
+    assert sorted(p.name for p in (home / "out").iterdir()) == ["run_paper.npz"]
+
+
+def test_the_user_s_hidden_tmp_files_survive_a_command(home):
+    rc, _, err, _ = _user_runs(home, ["mjcf", "--out", "out/robot.xml"])
+    assert rc == 0, err
+    assert (home / ".notes.tmp").read_text() == "my notes"   # _user_runs checked it is unchanged
+
+
+# case 3: every wait is bounded, every signal honoured ------------------------------------------
+
+def test_a_real_time_rate_that_would_never_end_is_refused(home):
+    scenario = _scenario(home, "slow.yaml", "duration_s: 0.2\nsimulator: {target_realtime_rate: "
+                                            "1.0e-9}\n")
+    _refused(home, ["run", "--scenario", scenario, "--out", "out", "--no-progress"],
+             r"simulator.target_realtime_rate must be 0 \(as fast as possible\) or at least 0.01",
+             bound_s=30)
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["--runner", "ray", "--address", "127.0.0.1:1"],
+     r"--address 127.0.0.1:1: nothing accepts a connection there within 2 s"),
+    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1"],
+     r"--scheduler 127.0.0.1:1: nothing accepts a connection there within 2 s"),
+    (["--runner", "dask", "--scheduler", "notaurl"],
+     r"--scheduler 'notaurl' is not an address of the form \[tcp\|tls\|ws\|wss://\]host:port"),
+    (["--runner", "ray", "--address", "notanaddr"],
+     r"--address 'notanaddr' is not an address of the form \[ray://\]host:port \(or auto"),
+    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:99999"],
+     r"--scheduler 'tcp://127.0.0.1:99999': the port 99999 is not in 1..65535"),
+    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "inf"],
+     r"--connect-timeout must be a finite number in \(0, 600\], got inf"),
+], ids=["ray-nothing-listens", "dask-nothing-listens", "scheduler-not-a-url",
+        "address-not-an-address", "port-out-of-range", "endless-timeout"])
+def test_a_cluster_address_is_checked_within_the_connect_timeout(home, argv, expected):
+    """Cases 3, 11 and the last low case: no retry loop, no ValueError traceback."""
+    _refused(home, ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--out",
+                    "out", "--docs", "out/docs", "--connect-timeout", "2"] + argv, expected,
+             bound_s=15)
+    assert not (home / "out").exists()
+
+
+def _stderr_reader(proc, seen: list, marker: str, found: threading.Event):
+    for chunk in iter(lambda: proc.stderr.read(64), ""):
+        seen.append(chunk)
+        if marker in "".join(seen[-4:]):
+            found.set()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP],
+                         ids=lambda s: signal.Signals(s).name)
+def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum):
+    """A run paced at real time (30 s), signalled while it simulates: 128 + signum, one line."""
+    before = _snapshot(home, home / "out")
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen(COMMAND + ["run", "--set", "simulator.target_realtime_rate=1.0",
+                                       "--duration", "30", "--out", "out"], cwd=home, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL))
+    seen, simulating = [], threading.Event()
+    reader = threading.Thread(target=_stderr_reader, args=(proc, seen, "sim s", simulating),
+                              daemon=True)
+    reader.start()
+    try:
+        assert simulating.wait(120), "".join(seen)
+        time.sleep(0.5)
+        proc.send_signal(signum)
+        t0 = time.monotonic()
+        proc.wait(timeout=10)
+        waited = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    reader.join(5)
+    lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
+    assert proc.returncode == 128 + signum and waited < 2.0, (proc.returncode, waited)
+    assert lines[-1] == (f"stewart-drake run: interrupted by {signal.Signals(signum).name}; "
+                         f"partial outputs were not written")
+    assert "Traceback" not in "".join(seen)
+    assert _snapshot(home, home / "out") == before
+    assert not (home / "out" / "run_paper.npz").exists()
+
+
+# cases 4, 10 and the low ones: files the tool reads --------------------------------------------
+
+def test_a_reference_csv_that_crashed_drake_s_spline_is_refused(home):
+    (home / "far.csv").write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n1e300,0,0,0,0,0,0.3\n"
+                                  "2e300,0,0,0,0,0,0.3\n")
+    _refused(home, ["run", "--trajectory-file", "far.csv", "--duration", "0.1", "--no-progress",
+                    "--out", "out"], r"far.csv: the last time is 2e\+300 s; a reference ends by "
+                                     r"1e\+07 s", bound_s=30)
+
+
+def test_a_sparse_100_gb_scenario_is_refused_unread(home):
+    with open(home / "huge.yaml", "wb") as f:
+        f.truncate(100 * 10**9)                          # sparse: no disk space used
+    _refused(home, ["run", "--scenario", "huge.yaml", "--out", "out", "--no-progress"],
+             r"huge.yaml is not a valid scenario file: it holds 100 GB, over the bound of 262 "
+             r"kB for this kind of file", bound_s=30)
+
+
+def test_a_damaged_scenario_file_or_override_is_one_line(home):
+    _refused(home, ["scenario", "--set", "duration_s=[1"],
+             r"--set duration_s=\[1: not YAML \(while parsing a flow sequence expected ',' or "
+             r"'\]', but got '<stream end>' at line 2, column 1\)", bound_s=30)
+    _scenario(home, "twice.yaml", "duration_s: 1.0\nfeedforward: gravity\nduration_s: 2.0\n")
+    _refused(home, ["scenario", "twice.yaml"], r"twice.yaml: the key 'duration_s' appears twice "
+                                               r"in one mapping \(lines 1 and 3\); keep one",
+             bound_s=30)
+    _refused(home, ["scenario", "--set", "simulator.integration_scheme=bogus"],
+             r"simulator.integration_scheme must be one of .*runge_kutta3.*, got 'bogus'",
+             bound_s=30)
+
+
+def _big_scenario(home):
+    text = "tuner: !WeightSchedule\n  t: [" + ", ".join(["0.0"] * 2_500_000) + "]\n"
+    return _scenario(home, "big.yaml", text)                     # 12.5 MB
+
+
+def _bomb(home):
+    """Tuner weights whose entry inflates from a few kB to 100 MB of zeros."""
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False,
+                                                  "shape": (12_500_000,)})
+    with zipfile.ZipFile(home / "w.npz", "w", compression=zipfile.ZIP_DEFLATED) as archive:
+        with archive.open("W1.npy", "w", force_zip64=True) as member:
+            member.write(header.getvalue())
+            for _ in range(100):
+                member.write(bytes(1_000_000))
+    return "w.npz"
+
+
+@pytest.mark.parametrize("make, argv, expected", [
+    (_bomb, ["run", "--tuner", "ann", "--tuner-weights", "{}"],
+     r"w.npz is not a valid ANN tuner weights file: its entries hold 100 MB after decompression "
+     r"\('W1.npy': 100 MB\), over the bound of 16 MB"),
+    (_big_scenario, ["run", "--scenario", "{}"],
+     r"big.yaml is not a valid scenario file: it holds 12.5 MB, over the bound of 262 kB"),
+    (None, ["scenario", "--set", "hardware.computation_delay_periods=100"],
+     r"hardware.computation_delay_periods = 100 with the LQI's delay compensation gives a model "
+     r"of 6 x \(3 \+ 100\) = 618 states"),
+    (None, ["run", "--scenario", "paper_ideal", "--set", "robot.platform_mass=1e9"],
+     r"the LQI cannot control this robot at the start pose: .*check robot.platform_mass"),
+    (None, ["workspace", "--resolution", "2"], r"--resolution: must be >= 3, got 2"),
+], ids=["npz-bomb", "12.5-MB-scenario", "delay-100", "platform-mass-1e9", "resolution-2"])
+def test_more_hostile_input_is_one_line(home, make, argv, expected):
+    """Cases 6 and 10 and low cases, as a user meets them."""
+    name = make(home) if make else None
+    argv = [a.format(name) for a in argv]
+    _refused(home, argv + ["--out", "out", "--no-progress"] if argv[0] != "scenario" else argv,
+             expected, bound_s=30)
+    assert not (home / "out").exists()
+
+
+def test_drake_config_fields_and_a_csv_with_a_byte_order_mark_are_accepted(home):
+    """Low cases: `--set plant.time_step` answered "(fields: )"; a CSV saved with a BOM was
+    refused with a header that looked right."""
+    rc, out, err, _ = _user_runs(home, ["scenario", "paper_ideal", "--set",
+                                        "plant.time_step=0.0005", "--set",
+                                        "simulator.target_realtime_rate=0"])
+    assert rc == 0 and "time_step: 0.0005" in out, err
+    (home / "excel.csv").write_bytes(b"\xef\xbb\xbft,phi,theta,psi,X,Y,Z\r\n0,0,0,0,0,0,0.3\r\n"
+                                     b"0.1,0,0,0,0,0,0.3\r\n0.2,0,0,0,0,0,0.3\r\n")
+    rc, out, err, _ = _user_runs(home, ["run", "--trajectory-file", "excel.csv", "--duration",
+                                        "0.2", "--no-progress", "--out", "out"])
+    assert rc == 0 and (home / "out" / "run_excel.npz").exists(), err
+
+
+# case 8: one study per folder -------------------------------------------------------------------
+
+def test_a_second_study_in_the_same_folder_is_refused_naming_the_first(home):
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    first = subprocess.Popen(COMMAND + ["collect", "--duration", "2", "--jobs", "1", "--out",
+                                        "out", "--no-progress"], cwd=home, env=env,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (home / "out" / "manifest.json").exists():
+            assert first.poll() is None and time.monotonic() < deadline, first.communicate()
+            time.sleep(0.1)
+        line = _refused(home, ["collect", "--duration", "2", "--out", "out", "--no-progress"],
+                        rf"out is being written by another study \(`collect` study, pid "
+                        rf"{first.pid} on {re.escape(socket.gethostname())}, since .*\): wait "
+                        rf"for it to finish, or choose another --out", bound_s=30)
+        assert line
+    finally:
+        first.send_signal(signal.SIGTERM)
+        first.communicate(timeout=30)
+    assert first.returncode == 128 + signal.SIGTERM
+
+
+def test_the_tool_s_own_temporaries_of_a_dead_writer_are_still_removed(home):
+    """The cleanup keeps working for what it is for: a killed write's temporary."""
+    out = home / "out"
+    out.mkdir()
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True).stdout.strip()
+    host = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname())
+    left = out / f".robot.xml.{host}-{dead}.ab12cd34.tmp"
+    left.write_bytes(b"half a file")
+    rc, _, err, _ = _user_runs(home, ["mjcf", "--out", "out/robot.xml"])
+    assert rc == 0 and not left.exists(), err
+    shutil.rmtree(out)

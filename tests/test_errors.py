@@ -28,6 +28,8 @@ EXAMPLES = {
     errors.MotorLimitError: errors.MotorLimitError(4, "torque", 1.21, 0.632, t=0.12, pose=POSE),
     errors.ResultsMismatchError: errors.ResultsMismatchError("results/collect holds seed 1"),
     errors.IncompleteResultsError: errors.IncompleteResultsError("2 of 9 runs lost"),
+    errors.FolderInUseError: errors.FolderInUseError(
+        "results/evaluation", "`evaluate` study, pid 4242 on host, since 2026-01-01 12:00:00"),
     errors.MissingFileError: errors.MissingFileError("no weights at w.npz"),
     errors.MissingExtraError: errors.MissingExtraError("train needs torch: pip install stewart-drake[train]"),
 }

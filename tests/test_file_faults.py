@@ -295,8 +295,11 @@ def test_scenario_file(tmp_path, data):
 def test_scenario_faults_are_named(tmp_path):
     path = tmp_path / "s.yaml"
     for data, problem in ((b"", "it is empty"), (b"\xff\xfe\x00", "not UTF-8"),
-                          (SCENARIO[: SCENARIO.index(b"controller:") + 7], "does not fit"),
-                          (b"duration_s: [1", "does not fit the Scenario schema: while parsing"),
+                          (SCENARIO[: SCENARIO.index(b"controller:") + 7],
+                           r"not YAML \(while scanning a simple key could not find expected ':' "
+                           r"at line \d+, column 8\)"),
+                          (b"duration_s: [1", "not YAML \\(while parsing a flow sequence"),
+                          (b"duration_s: 'one'", "does not fit the Scenario schema"),
                           (b"- 1\n- 2\n", "YAML root was a <class 'list'>")):
         path.write_bytes(data)
         with pytest.raises(CorruptFileError, match=problem) as info:

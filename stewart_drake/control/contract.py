@@ -44,9 +44,13 @@ was evaluated at the sample time plus half a plant step, the time of that state.
 
 The LQI (:class:`~stewart_drake.control.lqi.LqiController`) and the crank PD
 (:class:`~stewart_drake.control.pd.CrankPdController`) follow this contract; a user's controller
-is a factory in Python (``make_stewart_diagram(scenario, controller=factory)``), a name given to
-:func:`register_controller`, or a ``"package.module:attribute"`` path in a scenario's
-``UserController``.
+is a factory in Python (``make_stewart_diagram(scenario, controller=factory)``) or a name in a
+scenario's ``UserController``. Loading a scenario never imports or calls anything it names: a
+name resolves only to a factory that Python code the user runs gave to
+:func:`register_controller`, or to an installed entry point of the group
+:data:`ENTRY_POINT_GROUP` that the user opted into by name (:func:`use_entry_point_controllers`,
+``stewart-drake run --plugin NAME``); any other name is refused, listing the registered ones
+(:func:`resolve_controller`).
 """
 
 from __future__ import annotations
@@ -106,6 +110,9 @@ class ControllerContext:
 
 #: Factories registered by name (:func:`register_controller`).
 CONTROLLER_REGISTRY: dict[str, Callable[..., LeafSystem]] = {}
+#: Entry-point group of installed controller factories (``name = "package.module:factory"``);
+#: one is loaded only when the user names it (:func:`use_entry_point_controllers`).
+ENTRY_POINT_GROUP = "stewart_drake.controllers"
 
 
 def register_controller(name: str, factory: Callable[..., LeafSystem]) -> None:
@@ -119,6 +126,59 @@ def register_controller(name: str, factory: Callable[..., LeafSystem]) -> None:
     if not callable(factory):
         raise InvalidConfigError(f"the factory registered as {name!r} is not callable")
     CONTROLLER_REGISTRY[name] = factory
+
+
+def _registered() -> str:
+    return ", ".join(sorted(CONTROLLER_REGISTRY)) or "none"
+
+
+def resolve_controller(name: str) -> Callable[..., LeafSystem]:
+    """The factory registered as ``name`` (:func:`register_controller`,
+    :func:`use_entry_point_controllers`); nothing is imported or called here.
+
+    Raises:
+        InvalidConfigError: ``name`` is not registered (a ``"module:attribute"`` path included);
+            the message lists the registered names and how to register one.
+    """
+    if isinstance(name, str) and name in CONTROLLER_REGISTRY:
+        return CONTROLLER_REGISTRY[name]
+    path = (" is an import path, and a scenario never imports code; it"
+            if isinstance(name, str) and ":" in name else "")
+    raise InvalidConfigError(
+        f"controller factory {name!r}{path} is not a registered controller (registered: "
+        f"{_registered()}): call register_controller({name!r}, factory) in the Python code "
+        f"that runs the scenario, or install the factory as an entry point of the group "
+        f"{ENTRY_POINT_GROUP!r} and opt into it with --plugin NAME")
+
+
+def use_entry_point_controllers(names) -> list[str]:
+    """Register the installed entry points named ``names`` of :data:`ENTRY_POINT_GROUP`
+    (``importlib.metadata``), each under its own name: the opt-in that makes a package's
+    controller available to scenarios. Only the named entry points are imported.
+
+    Args:
+        names: entry-point names (``stewart-drake run --plugin NAME``).
+    Returns:
+        the names registered.
+    Raises:
+        InvalidConfigError: no installed entry point of that name (the message lists those
+            installed), or one that cannot be imported or is not callable.
+    """
+    from importlib.metadata import entry_points
+
+    installed = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    for name in names:
+        if name not in installed:
+            raise InvalidConfigError(
+                f"--plugin {name}: no installed entry point of that name in the group "
+                f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(sorted(installed)) or 'none'})")
+        try:
+            factory = installed[name].load()
+        except Exception as err:     # noqa: BLE001 - the user's package may raise anything
+            raise InvalidConfigError(f"--plugin {name}: the entry point {installed[name].value} "
+                                     f"cannot be loaded ({type(err).__name__}: {err})") from None
+        register_controller(name, factory)
+    return list(names)
 
 
 def check_controller(system) -> None:

@@ -447,8 +447,9 @@ class LqiController(PoseTorqueController):
             its own update (one Newton chord step per period with the Jacobian of the last
             re-schedule, :meth:`~.estimator.PoseEstimator.track`), exported as ``x_hat`` (12).
     Raises:
-        InvalidConfigError: bad periods, riccati mode, limit or delay; RiccatiSolveError: no gain
-        at home; RuntimeError: the Hautus checks fail at home.
+        InvalidConfigError: bad periods, riccati mode, limit or delay, or the Hautus checks
+        fail at the start pose (a robot the motors barely move); RiccatiSolveError: no gain
+        at home.
     """
 
     def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3,
@@ -498,7 +499,13 @@ class LqiController(PoseTorqueController):
         A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
         self.hautus = hautus_checks(A, B, np.sqrt(self._Q1))
         if not (self.hautus["stabilizable"] and self.hautus["detectable"]):
-            raise RuntimeError(f"Hautus checks (eqs. 28-29) fail at {x0}: {self.hautus}")
+            h = self.hautus
+            raise InvalidConfigError(
+                f"the LQI cannot control this robot at the start pose: its error model fails the "
+                f"Hautus checks (eqs. 28-29; rank [lambda I - A, B] = {h['rank_AB']}, "
+                f"rank [lambda I - A; C] = {h['rank_AC']}, of {h['n']}): the motors barely move "
+                f"the platform; check robot.platform_mass, robot.platform_inertia and the other "
+                f"masses and inertias (kg, kg m^2)")
         K0 = lqi_gain(A, B, self._Q1, self._R1)
         self.K_initial = K0
         #: Newton iterations and cold solves so far (diagnostics, not state: a benchmark reads

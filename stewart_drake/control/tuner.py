@@ -39,6 +39,8 @@ LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]
 OMEGA_MIN, OMEGA_MAX = 10.0 ** LOG10_MIN, 10.0 ** LOG10_MAX
 Z_CLIP = 1e3                                 # |normalized input| cap, in training stds
 DEFAULT_TUNER_PATH = Path(__file__).resolve().parents[1] / "data" / "ann_tuner.npz"
+#: Largest tuner weights file, after decompression, bytes (the networks hold a few kB).
+MAX_WEIGHTS_BYTES = 16e6
 #: The same network trained on the paper's labels (each sample labelled with its run's weights),
 #: shipped for the evaluation's comparison of the two label modes.
 PAPER_LABEL_TUNER_PATH = DEFAULT_TUNER_PATH.with_name("ann_tuner_paper.npz")
@@ -233,13 +235,14 @@ def load_tuner(path=None) -> TunerModel:
     """
     default = path is None
     path = DEFAULT_TUNER_PATH if default else Path(path)
-    if not path.is_file():
+    if not path.exists():
         how = ("run `stewart-drake collect && stewart-drake train` to collect the 9 closed-loop "
                "runs and train it" if default else "check the path, or pass none for the "
                "shipped weights")
         raise MissingFileError(f"no ANN tuner weights at {path}: {how}")
     data = CheckedNpz(path, "ANN tuner weights file",
-                      "retrain with `stewart-drake train` or use the shipped weights")
+                      "retrain with `stewart-drake train` or use the shipped weights",
+                      max_bytes=MAX_WEIGHTS_BYTES)
     version = data.integer("format_version")
     if version != FORMAT_VERSION:
         raise data.corrupt(f"tuner format {version}, this stewart-drake reads {FORMAT_VERSION}")
@@ -415,11 +418,12 @@ def load_ratio_tuner(path) -> RatioTunerModel:
             the wrong type, bad weights, a damaged archive); names the file and the fault.
     """
     path = Path(path)
-    if not path.is_file():
+    if not path.exists():
         raise MissingFileError(f"no ratio tuner weights at {path}: `stewart-drake evaluate` "
                                f"trains them (the tuner study)")
     data = CheckedNpz(path, "ratio tuner weights file",
-                      "train it again (the tuner study of `stewart-drake evaluate`)")
+                      "train it again (the tuner study of `stewart-drake evaluate`)",
+                      max_bytes=MAX_WEIGHTS_BYTES)
     if "format" not in data or data.text("format") != RATIO_FORMAT:
         raise data.corrupt(f"its format is not {RATIO_FORMAT!r} (the paper's network's weights "
                            f"go in an AnnTunerDriver)")

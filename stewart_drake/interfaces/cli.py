@@ -4,10 +4,12 @@ Each subcommand parses its arguments here and calls the functions of the modules
 (imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the Simulator);
 bad arguments and our typed errors end in a one-line message and a non-zero exit, no traceback:
 exit 2 for bad arguments and StewartError (refused input, a diverged run, a results folder of
-other settings, lost jobs), 1 for a file that cannot be read or written, 130 for Ctrl-C (128 +
-the signal for SIGTERM and SIGHUP, which the studies handle like Ctrl-C). Every output (folder,
-file, the sub-folders a command writes into) is checked before any work starts, so a long run
-never ends in a failed save, and the hidden temporaries a killed write left there are removed.
+other settings or in use by another study, lost jobs), 1 for a file that cannot be read or
+written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the signal: every command
+handles the three alike, within a second or two). Every output (folder, file, the sub-folders a
+command writes into) is checked before any work starts, so a long run never ends in a failed
+save and a device node, FIFO or socket is never replaced; the hidden temporaries a killed write
+left there (the tool's own, whose writer is gone) are removed.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import argparse
 import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 from ..errors import StewartError
@@ -55,13 +58,16 @@ def check_writable(folder: Path, option: str = "--out") -> None:
         InvalidConfigError: a file stands in the path, or the nearest folder is not writable.
     """
     from ..errors import InvalidConfigError
+    from ..fileio import describe_mode
 
     existing = folder.absolute()
     while not existing.exists() and existing.parent != existing:
         existing = existing.parent
     try:
         if not existing.is_dir():
-            raise NotADirectoryError(20, f"{existing} is a file")
+            kind = describe_mode(existing.stat().st_mode)
+            raise NotADirectoryError(20, f"{existing} is "
+                                         f"{'a file' if kind == 'a regular file' else kind}")
         with tempfile.TemporaryFile(dir=existing):
             pass
     except OSError as err:
@@ -70,17 +76,17 @@ def check_writable(folder: Path, option: str = "--out") -> None:
 
 
 def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
-    """Refuse an output before any work: empty, a folder where a file is due, or a place that
-    cannot be written (:func:`check_writable`); ``sub`` names sub-folders the command writes
-    into (``diverged``, ``rows``), checked too. Then remove the temporaries an earlier run
-    killed mid-write left there (:func:`~stewart_drake.fileio.remove_stale_temporaries`).
-    Returns the path.
+    """Refuse an output before any work: empty, a folder where a file is due, a device node, a
+    FIFO or a socket (only regular files are replaced), or a place that cannot be written
+    (:func:`check_writable`); ``sub`` names sub-folders the command writes into (``diverged``,
+    ``rows``), checked too. Then remove the temporaries an earlier run killed mid-write left
+    there (:func:`~stewart_drake.fileio.remove_stale_temporaries`). Returns the path.
 
     Raises:
         InvalidConfigError: names the option and what to change.
     """
     from ..errors import InvalidConfigError
-    from ..fileio import remove_stale_temporaries
+    from ..fileio import check_replaceable, remove_stale_temporaries
 
     if path is None or not str(path).strip():
         raise InvalidConfigError(f"{option} is empty: give a {'file' if is_file else 'folder'} "
@@ -88,6 +94,8 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     path = Path(path)
     if is_file and path.is_dir():
         raise InvalidConfigError(f"{option} {path} is a folder: give a file name to write")
+    if is_file:
+        check_replaceable(path, f"{option} {path}")
     check_writable(path.parent if is_file else path, option)
     for name in sub:
         check_writable(path / name, option)
@@ -135,10 +143,12 @@ def run_scenario(args):
         InvalidConfigError: a bad override or value; ``--tuner-weights`` without ``--tuner ann``.
         MissingFileError: no such scenario, weights or CSV file.
     """
+    from ..control.contract import resolve_controller, use_entry_point_controllers
     from ..errors import InvalidConfigError
     from ..simulation import scenario as sc
     from ..studies.experiments import DEFAULT_TUNER_OUT
 
+    use_entry_point_controllers(args.plugin or ())
     scenario = sc.load_scenario(args.scenario, args.set or ())
     if args.tuner_weights is not None and args.tuner != "ann":
         raise InvalidConfigError("--tuner-weights needs --tuner ann (the weights are the ANN "
@@ -170,17 +180,42 @@ def run_scenario(args):
     elif args.tuner == "none":
         scenario.tuner = None
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    if isinstance(scenario.controller, sc.UserController):
+        resolve_controller(scenario.controller.factory)     # a name never registered: refused
     return scenario.validate()
+
+
+def _run_stem(trajectory: str, tuner: bool, controller: str) -> str:
+    """``run_<trajectory>[_ann][_pd]``: the name of a run's result files."""
+    return (f"run_{trajectory}" + ("_ann" if tuner else "")
+            + ("_pd" if controller == "PdDriver" else ""))
+
+
+def _reference_name(scenario) -> str:
+    """The name the run's reference will carry (its result files are named after it)."""
+    from ..simulation import scenario as sc
+
+    ref = scenario.reference
+    if isinstance(ref, sc.CsvReference):
+        return Path(ref.path).stem
+    if isinstance(ref, sc.DataCollectionReference):
+        return f"data_seed{ref.seed}"
+    return ref.name
 
 
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
+    from ..fileio import check_replaceable
     from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
 
     scenario = run_scenario(args)
     out = Path(args.out)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
+    stem = _run_stem(_reference_name(scenario), scenario.tuner is not None,
+                     type(scenario.controller).__name__)
+    for suffix in (".npz", ".png"):
+        check_replaceable(out / f"{stem}{suffix}")
     if scenario.tuner is not None:
         from ..control.tuner import DEFAULT_TUNER_PATH
 
@@ -193,11 +228,10 @@ def _cmd_run(args) -> int:
     else:
         result = run_experiment(scenario, progress=not args.no_progress)
     summary = result.config_summary
-    stem = (f"run_{summary['trajectory']}" + ("_ann" if summary["tuner"] else "")
-            + ("_pd" if summary["controller"] == "PdDriver" else ""))
+    stem = _run_stem(summary["trajectory"], summary["tuner"], summary["controller"])
+    print(format_metrics(result.metrics), flush=True)   # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
-    print(format_metrics(result.metrics))
     print(f"wrote {npz} and {png}")
     return 0
 
@@ -252,7 +286,8 @@ def _runner(args):
     from ..studies.runners import make_runner
 
     return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
-                       retries=args.retries, recycle=args.recycle)
+                       retries=args.retries, recycle=args.recycle,
+                       connect_timeout_s=args.connect_timeout)
 
 
 def _cmd_collect(args) -> int:
@@ -376,7 +411,8 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
+    from ..studies.runners import (DEFAULT_CONNECT_TIMEOUT_S, DEFAULT_RECYCLE, DEFAULT_RETRIES,
+                                   RUNNERS)
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
                         help="where jobs run: local processes, this process, Ray or Dask "
@@ -389,6 +425,10 @@ def _add_runner_arguments(parser) -> None:
     parser.add_argument("--scheduler", default=None,
                         help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
                              "start a local cluster)")
+    parser.add_argument("--connect-timeout", type=_positive_float,
+                        default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
+                        help=f"seconds for --address or --scheduler to accept a connection "
+                             f"({DEFAULT_CONNECT_TIMEOUT_S:g})")
     parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
                         help=f"attempts after the first for a job whose worker died "
                              f"({DEFAULT_RETRIES})")
@@ -431,6 +471,10 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     run.add_argument("--html", default=None,
                      help="also write a standalone Meshcat replay of the run to this .html")
+    run.add_argument("--plugin", action="append", metavar="NAME",
+                     help="make the installed controller entry point NAME (group "
+                          "stewart_drake.controllers) available to the scenario's "
+                          "UserController (repeatable); a scenario never imports code itself")
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
     chk = sub.add_parser("check", help="check a reference against every limit without "
@@ -496,7 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     ws = sub.add_parser("workspace", help="workspace of states and holding torques")
     ws.add_argument("--out", default="results/workspace", help="output folder")
-    ws.add_argument("--resolution", type=_int_at_least(2), default=41,
+    ws.add_argument("--resolution", type=_int_at_least(3), default=41,
                     help="grid points per axis (41)")
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -519,9 +563,33 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _interruptible():
+    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.studies.runners.Interrupted` (a
+    KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs; returns the handlers
+    to restore. A signal the process was started ignoring (``nohup``) stays ignored."""
+    from ..studies.runners import raise_interrupted
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {s: signal.signal(s, raise_interrupted) for s in (signal.SIGTERM, signal.SIGHUP)
+            if signal.getsignal(s) is not signal.SIG_IGN}
+
+
 def main(argv: list[str] | None = None) -> int:
+    restore = _interruptible()
+    try:
+        return _main(argv)
+    finally:
+        for signum, handler in restore.items():
+            signal.signal(signum, handler)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except KeyboardInterrupt as err:
+        return _interrupted(err, "", None)
     try:
         if getattr(args, "out", None) is not None:
             check_output(args.out, "--out", getattr(args, "out_is_file", False),
@@ -533,14 +601,18 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as err:                           # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:                 # Ctrl-C, or SIGTERM / SIGHUP in a study
-        signum = getattr(err, "signum", signal.SIGINT)
-        kept = (f"finished results are kept in {args.out}: run the same command again to run "
-                f"only the rest" if args.command in RESUMABLE else
-                "partial outputs were not written")
-        print(f"stewart-drake {args.command}: interrupted by {signal.Signals(signum).name}; "
-              f"{kept}", file=sys.stderr)
-        return 128 + signum
+    except KeyboardInterrupt as err:                 # Ctrl-C, SIGTERM, SIGHUP
+        return _interrupted(err, args.command, getattr(args, "out", None))
+
+
+def _interrupted(err: KeyboardInterrupt, command: str, out) -> int:
+    """Say which signal ended ``command`` (one line) and return 128 + its number."""
+    signum = getattr(err, "signum", signal.SIGINT)
+    kept = (f"finished results are kept in {out}: run the same command again to run only the "
+            f"rest" if command in RESUMABLE else "partial outputs were not written")
+    name = f"stewart-drake {command}".rstrip()
+    print(f"{name}: interrupted by {signal.Signals(signum).name}; {kept}", file=sys.stderr)
+    return 128 + signum
 
 
 if __name__ == "__main__":

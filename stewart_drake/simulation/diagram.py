@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -13,7 +12,7 @@ from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVe
                                         RandomSource, TrajectorySource)
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..control.contract import CONTROLLER_REGISTRY, ControllerContext, check_controller
+from ..control.contract import ControllerContext, check_controller, resolve_controller
 from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.lqi import LqiController
 from ..control.pd import CrankPdController
@@ -53,31 +52,6 @@ def pd_factory(driver: PdDriver) -> Callable[[ControllerContext], CrankPdControl
     return make
 
 
-def resolve_factory(name: str) -> Callable:
-    """A controller factory by registered name or ``"package.module:attribute"`` path.
-
-    Raises:
-        InvalidConfigError: neither a registered name nor an importable callable (names both).
-    """
-    if name in CONTROLLER_REGISTRY:
-        return CONTROLLER_REGISTRY[name]
-    module, sep, attribute = name.partition(":")
-    if sep and module and attribute:
-        try:
-            target = importlib.import_module(module)
-            for part in attribute.split("."):
-                target = getattr(target, part)
-        except (ImportError, AttributeError) as err:
-            raise InvalidConfigError(f"controller factory {name!r} cannot be imported: {err}") \
-                from None
-        if callable(target):
-            return target
-    raise InvalidConfigError(
-        f"controller factory {name!r} is neither a registered name "
-        f"({', '.join(sorted(CONTROLLER_REGISTRY)) or 'none registered'}) nor a "
-        f"'package.module:attribute' path to a callable")
-
-
 def controller_factory(scenario: Scenario, controller=None) -> Callable:
     """The factory ``f(ControllerContext) -> LeafSystem`` of a run.
 
@@ -86,14 +60,14 @@ def controller_factory(scenario: Scenario, controller=None) -> Callable:
         controller: a factory callable or a registered name (overrides the scenario).
     """
     if controller is not None:
-        return resolve_factory(controller) if isinstance(controller, str) else controller
+        return resolve_controller(controller) if isinstance(controller, str) else controller
     driver = scenario.controller
     if isinstance(driver, LqiDriver):
         return lqi_factory(driver)
     if isinstance(driver, PdDriver):
         return pd_factory(driver)
     if isinstance(driver, UserController):
-        factory = resolve_factory(driver.factory)
+        factory = resolve_controller(driver.factory)
         return lambda context: factory(context, **driver.parameters)
     raise InvalidConfigError(f"unknown controller choice {type(driver).__name__}")
 

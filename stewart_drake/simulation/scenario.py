@@ -17,6 +17,7 @@ and defaults; lists where they have tuples), with ``build()`` to get the value t
 """
 
 import dataclasses
+import functools
 import importlib.resources
 import typing
 from dataclasses import dataclass, field
@@ -155,13 +156,15 @@ class PdDriver:
 
 @dataclass
 class UserController:
-    """A controller of the user's: ``factory`` is a name given to
-    :func:`~stewart_drake.control.contract.register_controller` or a ``"package.module:attribute"``
-    path to a callable ``factory(context, **parameters) -> LeafSystem`` following the controller
-    contract (:mod:`~stewart_drake.control.contract`).
+    """A controller of the user's: ``factory`` names a callable ``factory(context,
+    **parameters) -> LeafSystem`` following the controller contract
+    (:mod:`~stewart_drake.control.contract`) that Python code the user ran registered
+    (:func:`~stewart_drake.control.contract.register_controller`), or an installed entry point
+    the user opted into (``--plugin NAME``). Loading the scenario imports and calls nothing: an
+    unknown name is refused when the run is built, listing the registered ones.
 
     Attributes:
-        factory: the name or path. parameters: keyword arguments of the factory (numbers).
+        factory: the registered name. parameters: keyword arguments of the factory (numbers).
     """
 
     factory: str = ""
@@ -607,6 +610,8 @@ class Scenario:
                 f"plant.discrete_contact_approximation "
                 f"{self.plant.discrete_contact_approximation!r} does not enforce the ball "
                 f"constraints that close the loops; use 'sap', 'lagged' or 'similar'")
+        _validate_plant_config(self.plant)
+        _validate_simulator_config(self.simulator)
         check_multiple("control_period_s", self.control_period_s, "plant.time_step", h)
         check_multiple("log_period_s", self.log_period_s, "plant.time_step", h)
         if self.duration_s < 2 * self.log_period_s:
@@ -679,7 +684,16 @@ class Scenario:
                   0.5 / self.control_period_s, lo_open=True)
         as_number("hardware.estimator.fk_tolerance_counts", hw.estimator.fk_tolerance_counts,
                   0.0, 1.0, lo_open=True)
-        _check_int("hardware.computation_delay_periods", hw.computation_delay_periods, 0, 100)
+        delay = _check_int("hardware.computation_delay_periods", hw.computation_delay_periods,
+                           0, 100)
+        if (delay > MAX_COMPENSATED_DELAY and isinstance(self.controller, LqiDriver)
+                and self.controller.delay_compensation):
+            raise InvalidConfigError(
+                f"hardware.computation_delay_periods = {delay} with the LQI's delay compensation "
+                f"gives a model of 6 x (3 + {delay}) = {6 * (3 + delay)} states whose Riccati "
+                f"equation is re-solved every schedule period (thousands of times slower than "
+                f"real time); at most {MAX_COMPENSATED_DELAY} periods are compensated: set "
+                f"controller.delay_compensation: false, or lengthen control_period_s")
         if self.sensor_noise is not None:
             raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot as "
                                      "built the encoders are noisy: set "
@@ -713,7 +727,7 @@ class Scenario:
         if isinstance(t, RatioTunerDriver) and not t.weights:
             raise MissingFileError("a RatioTunerDriver needs its weights (tuner.weights): "
                                    "`stewart-drake evaluate` trains them")
-        if t.weights and not Path(t.weights).is_file():
+        if t.weights and not Path(t.weights).exists():
             kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
             raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
                                    f"path" + (", or leave it empty for the shipped weights"
@@ -751,7 +765,7 @@ class Scenario:
         elif isinstance(c, UserController):
             if not isinstance(c.factory, str) or not c.factory:
                 raise InvalidConfigError("controller.factory must name a registered controller "
-                                         "or a 'package.module:attribute' path")
+                                         "(register_controller, or --plugin NAME)")
             for key, value in c.parameters.items():
                 as_number(f"controller.parameters.{key}", value)
         else:
@@ -765,7 +779,7 @@ class Scenario:
         if isinstance(ref, NamedReference):
             trajectories.make_trajectory(ref.name)          # unknown name: lists the known ones
         elif isinstance(ref, CsvReference):
-            if not ref.path or not Path(ref.path).is_file():
+            if not ref.path or not Path(ref.path).exists():
                 raise MissingFileError(f"no reference CSV at {ref.path!r} (reference.path): "
                                        f"check the path")
         elif isinstance(ref, SineReference):
@@ -790,6 +804,80 @@ def use_paper_tuner(scenario: "Scenario", tuner: AnnTunerDriver) -> "Scenario":
     if isinstance(scenario.controller, LqiDriver):
         scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
     return scenario
+
+
+#: Largest computation delay the LQI compensates, control periods: its model has 6 (3 + d)
+#: states, and a run's cost grows about as their cube (0.26x real time at 20, 0.02x at 40 on
+#: one core of the reference machine).
+MAX_COMPENSATED_DELAY = 20
+#: Slowest real-time pacing accepted (besides 0, as fast as possible): the Simulator sleeps
+#: between steps in C++, where no signal is handled, so a plant step must not wait more than a
+#: fraction of a second (1 ms at 0.01: 0.1 s).
+MIN_REALTIME_RATE = 0.01
+
+
+def _validate_plant_config(plant: MultibodyPlantConfig) -> None:
+    """The fields of Drake's ``MultibodyPlantConfig`` besides the step and the approximation:
+    numbers here (Drake aborts the process on some), names by Drake's own parser."""
+    as_number("plant.penetration_allowance", plant.penetration_allowance, 0.0, lo_open=True)
+    as_number("plant.stiction_tolerance", plant.stiction_tolerance, 0.0, lo_open=True)
+    as_number("plant.sap_near_rigid_threshold", plant.sap_near_rigid_threshold, 0.0)
+    for name in ("use_sampled_output_ports", "adjacent_bodies_collision_filters"):
+        if not isinstance(getattr(plant, name, False), bool):
+            raise InvalidConfigError(f"plant.{name} must be true or false, got "
+                                     f"{getattr(plant, name)!r}")
+    names = []
+    for name in ("contact_model", "contact_surface_representation"):
+        value = getattr(plant, name)
+        if not isinstance(value, str):
+            raise InvalidConfigError(f"plant.{name} must be a name, got {value!r}")
+        names.append(value)
+    problem = _drake_plant_names_problem(*names)
+    if problem:
+        raise InvalidConfigError(f"plant: {problem} (see Drake's MultibodyPlantConfig for the "
+                                 f"names)")
+
+
+@functools.lru_cache(maxsize=32)
+def _drake_plant_names_problem(contact_model: str, contact_surface_representation: str) -> str:
+    """Drake's own refusal of these names ("Unknown contact_model: 'bogus'"), "" if none: the
+    names a Drake version knows are its own to say."""
+    from pydrake.multibody.plant import AddMultibodyPlant
+    from pydrake.systems.framework import DiagramBuilder
+
+    config = MultibodyPlantConfig(time_step=1e-3, discrete_contact_approximation="sap",
+                                  contact_model=contact_model,
+                                  contact_surface_representation=contact_surface_representation)
+    try:
+        AddMultibodyPlant(config, DiagramBuilder())
+    except RuntimeError as err:
+        return " ".join(str(err).split())
+    return ""
+
+
+def _validate_simulator_config(config: SimulatorConfig) -> None:
+    """The fields of Drake's ``SimulatorConfig``: the scheme among Drake's, a start at 0 s, and a
+    real-time rate of 0 or at least :data:`MIN_REALTIME_RATE` (a slower one hangs the run)."""
+    from pydrake.systems.analysis import GetIntegrationSchemes
+
+    schemes = GetIntegrationSchemes()
+    if config.integration_scheme not in schemes:
+        raise InvalidConfigError(f"simulator.integration_scheme must be one of "
+                                 f"{', '.join(schemes)}, got {config.integration_scheme!r}")
+    as_number("simulator.max_step_size", config.max_step_size, 0.0, lo_open=True)
+    as_number("simulator.accuracy", config.accuracy, 0.0, 1.0, lo_open=True)
+    if as_number("simulator.start_time", config.start_time) != 0.0:
+        raise InvalidConfigError(f"simulator.start_time must be 0 (the reference and duration_s "
+                                 f"count from t = 0), got {config.start_time!r}")
+    rate = as_number("simulator.target_realtime_rate", config.target_realtime_rate, 0.0)
+    if 0.0 < rate < MIN_REALTIME_RATE:
+        raise InvalidConfigError(f"simulator.target_realtime_rate must be 0 (as fast as "
+                                 f"possible) or at least {MIN_REALTIME_RATE:g} (100 times slower "
+                                 f"than real time), got {config.target_realtime_rate!r}")
+    for name in ("use_error_control", "publish_every_time_step"):
+        if not isinstance(getattr(config, name, False), bool):
+            raise InvalidConfigError(f"simulator.{name} must be true or false, got "
+                                     f"{getattr(config, name)!r}")
 
 
 def _check_int(name: str, value, lo: int, hi: int) -> int:
@@ -836,16 +924,19 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
             out of range (named by file and field path).
     """
+    from ..fileio import read_checked
+
     shipped = shipped_scenarios()
     path = Path(source)
-    if not path.is_file():
+    if not path.exists():
         if str(source) in shipped:
             path = shipped[str(source)]
         else:
             raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
                                    f"name (shipped: {', '.join(sorted(shipped))})")
-    raw = path.read_bytes()
     remedy = "fix it, or start from `stewart-drake scenario paper_hardware --out FILE.yaml`"
+    raw = read_checked(path, "scenario file", MAX_SCENARIO_BYTES,
+                       remedy + "; long data (a reference) belongs in a CSV file")
     if not raw.strip():
         raise CorruptFileError(path, "scenario file", "it is empty", remedy)
     try:
@@ -854,13 +945,15 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         raise CorruptFileError(path, "scenario file", f"not UTF-8 text ({err.reason} at byte "
                                                       f"{err.start})", remedy) from None
     try:
+        _refuse_duplicate_keys(text)
         scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
         raise _in_file(err, path) from None
     except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
-        message = " ".join(str(err).split()) or type(err).__name__
-        raise CorruptFileError(path, "scenario file", f"it does not fit the Scenario schema: "
-                                                      f"{message:.300}", remedy) from None
+        problem = _one_line(err)
+        if not problem.startswith("not YAML"):
+            problem = f"it does not fit the Scenario schema: {problem}"
+        raise CorruptFileError(path, "scenario file", problem, remedy) from None
     for override in overrides:
         apply_override(scenario, override)
     try:
@@ -868,6 +961,41 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     except StewartError as err:
         raise _in_file(err, f"{path} with --set {', '.join(overrides)}" if overrides
                        else path) from None
+
+
+#: Largest scenario file read, bytes: a scenario is a few kB; parsing is about 5 s per MB.
+MAX_SCENARIO_BYTES = 256 * 1024
+
+
+def _refuse_duplicate_keys(text: str) -> None:
+    """Refuse a mapping that names a key twice (YAML loaders keep the last silently).
+
+    The document is composed, not constructed (PyYAML's node graph: tags are not resolved,
+    nothing is built), and each node is visited once, so aliases cannot multiply the work.
+    Raises:
+        InvalidConfigError: names the key and its two lines.
+    """
+    import yaml
+
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    seen, stack = set(), [root] if root is not None else []
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            first = {}
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.value != "<<":
+                    if key.value in first:
+                        raise InvalidConfigError(
+                            f"the key {key.value!r} appears twice in one mapping (lines "
+                            f"{first[key.value] + 1} and {key.start_mark.line + 1}); keep one")
+                    first[key.value] = key.start_mark.line
+                stack += [key, value]
+        elif isinstance(node, yaml.SequenceNode):
+            stack += node.value
 
 
 def _in_file(err: StewartError, where) -> StewartError:
@@ -893,13 +1021,11 @@ def apply_override(scenario: Scenario, override: str) -> None:
     *parents, leaf = key.split(".")
     target = scenario
     for name in parents:
-        if not dataclasses.is_dataclass(target) or name not in {f.name for f in
-                                                               dataclasses.fields(target)}:
+        if name not in _field_names(target):
             raise InvalidConfigError(f"--set {key}: {name!r} is not a field of "
                                      f"{type(target).__name__}")
         target = getattr(target, name)
-    fields = {f.name for f in dataclasses.fields(target)} if dataclasses.is_dataclass(target) \
-        else set()
+    fields = _field_names(target)
     if leaf not in fields:
         raise InvalidConfigError(f"--set {key}: {leaf!r} is not a field of "
                                  f"{type(target).__name__} (fields: {', '.join(sorted(fields))})")
@@ -907,5 +1033,27 @@ def apply_override(scenario: Scenario, override: str) -> None:
         updated = yaml_load_typed(schema=type(target), data=f"{leaf}: {value}\n",
                                   defaults=target, allow_schema_with_no_yaml=True)
     except Exception as err:       # noqa: BLE001 - yaml and Drake's loader raise several types
-        raise InvalidConfigError(f"--set {key}={value}: {err}") from None
+        raise InvalidConfigError(f"--set {key}={value}: {_one_line(err)}") from None
     setattr(target, leaf, getattr(updated, leaf))
+
+
+def _field_names(value) -> list[str]:
+    """The fields of a scenario dataclass or of a Drake config struct (``__fields__``, what
+    ``yaml_load_typed`` reads: ``plant.time_step``, ``simulator.target_realtime_rate``)."""
+    if dataclasses.is_dataclass(value):
+        return [f.name for f in dataclasses.fields(value)]
+    return [f.name for f in getattr(type(value), "__fields__", ())]
+
+
+def _one_line(err: BaseException) -> str:
+    """An exception's text on one line, at most 300 characters; for a YAML syntax error its
+    problem and where (PyYAML's message spans several lines with the text it quotes)."""
+    import yaml
+
+    if isinstance(err, yaml.MarkedYAMLError) and err.problem:
+        mark = err.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        text = f"not YAML ({' '.join(filter(None, (err.context, err.problem)))}{where})"
+    else:
+        text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= 300 else text[:297] + "..."

@@ -11,6 +11,7 @@ or a registered name. :func:`validate` checks one before a run;
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -290,31 +291,82 @@ class DrakeTrajectory:
 CSV_COLUMNS = ("t",) + AXIS_NAMES
 
 
+#: Largest reference CSV read, bytes (about six million rows of seven numbers).
+MAX_CSV_BYTES = 1e9
+#: Memory a run holds per row of a reference CSV, bytes: measured 5.9 kB (a 2e5-row file against
+#: a 1e3-row one in `stewart-drake run`: the spline's polynomials, about 4 kB, and the copy the
+#: Diagram's source holds), with slack.
+CSV_BYTES_PER_ROW = 7e3
+#: Closest sample times of a reference CSV, s (Drake's spline refuses 2.2e-16 and its
+#: accelerations reach 1e18 at 1e-9 s), and the latest time, s (cubic terms of 1e300 s segments
+#: overflow inside Drake, which aborts the process).
+CSV_MIN_DT_S = 1e-6
+CSV_MAX_T_S = 1e7
+
+
+def _read_csv_bytes(path: Path) -> bytes:
+    from ..errors import MissingFileError
+    from ..fileio import read_checked
+
+    if not path.exists():
+        raise MissingFileError(f"no reference CSV at {path}: check the path")
+    return read_checked(path, "reference CSV", MAX_CSV_BYTES,
+                        "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)")
+
+
+def csv_reference_bytes(path) -> float:
+    """Memory a run holds for the reference CSV ``path``, bytes (its lines times
+    :data:`CSV_BYTES_PER_ROW`), counted before anything is parsed.
+
+    Raises:
+        MissingFileError: no such file. CorruptFileError: not a regular file, or larger than
+            :data:`MAX_CSV_BYTES`.
+    """
+    return (_read_csv_bytes(Path(path)).count(b"\n") + 1) * CSV_BYTES_PER_ROW
+
+
 def load_csv_trajectory(path) -> DrakeTrajectory:
     """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), one row per
     sample, times strictly increasing from 0; at least 3 rows. The samples are joined by a cubic
     spline with continuous second derivatives (Drake's
     ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), which gives the rate and the
-    acceleration the controller and the feed-forward need.
+    acceleration the controller and the feed-forward need. The file is read through the checked
+    path (a regular file of at most :data:`MAX_CSV_BYTES`), its memory
+    (:func:`csv_reference_bytes`) checked against the machine's before it is parsed; UTF-8, with
+    or without a byte-order mark.
 
     Returns:
         :class:`DrakeTrajectory` named after the file's stem; its ``end_time`` bounds the run.
     Raises:
-        MissingFileError: no such file. InvalidConfigError: another header, a row that is not 7
-            numbers (its line named), a non-finite value, times not increasing from 0, or fewer
-            than 3 rows.
+        MissingFileError: no such file. CorruptFileError: not a regular file, too large, not
+            UTF-8 text, or not CSV (a NUL byte, a field beyond the csv module's limit).
+        InvalidConfigError: another header, a row that is not 7 numbers (its line named), a
+            non-finite value, times not increasing from 0 by at least :data:`CSV_MIN_DT_S` or
+            beyond :data:`CSV_MAX_T_S`, fewer than 3 rows, or more rows than the memory holds.
     """
-    from ..errors import MissingFileError
+    from ..checks import check_memory
+    from ..errors import CorruptFileError
 
     path = Path(path)
-    if not path.is_file():
-        raise MissingFileError(f"no reference CSV at {path}: check the path")
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
+    raw = _read_csv_bytes(path)
+    remedy = "write it as UTF-8 text with the header t,phi,theta,psi,X,Y,Z (s, rad, m)"
+    rows_in_file = raw.count(b"\n") + 1
+    check_memory(f"a reference of {rows_in_file} rows ({path})", rows_in_file * CSV_BYTES_PER_ROW,
+                 "sample the reference more coarsely (one row per control period is plenty)")
+    try:
+        rows = list(csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")))
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(path, "reference CSV", f"not UTF-8 text ({err.reason} at byte "
+                                                      f"{err.start})", remedy) from None
+    except csv.Error as err:
+        raise CorruptFileError(path, "reference CSV", f"not CSV ({err})", remedy) from None
+    del raw
     header = [h.strip() for h in rows[0]] if rows else []
     if tuple(header) != CSV_COLUMNS:
         raise InvalidConfigError(f"{path}: the first line must be the header "
-                                 f"{','.join(CSV_COLUMNS)}, got {','.join(header) or 'nothing'}")
+                                 f"{','.join(CSV_COLUMNS)}, got {','.join(header)[:200]!r}"
+                                 if header else f"{path}: the first line must be the header "
+                                 f"{','.join(CSV_COLUMNS)}, got nothing")
     values = []
     for line, row in enumerate(rows[1:], start=2):
         if not row or all(not c.strip() for c in row):
@@ -325,14 +377,25 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
             numbers = []
         if len(numbers) != 7 or not np.all(np.isfinite(numbers)):
             raise InvalidConfigError(f"{path}, line {line}: expected 7 finite numbers "
-                                     f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got {row}")
+                                     f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got "
+                                     f"{','.join(row)[:200]!r}")
         values.append(numbers)
+    del rows
     data = np.array(values).reshape(-1, 7)
     if len(data) < 3:
         raise InvalidConfigError(f"{path}: a reference needs at least 3 samples, got {len(data)}")
     t = data[:, 0]
     if t[0] != 0.0 or np.any(np.diff(t) <= 0):
         raise InvalidConfigError(f"{path}: times must start at 0 s and strictly increase")
+    if t[-1] > CSV_MAX_T_S:
+        raise InvalidConfigError(f"{path}: the last time is {t[-1]:.6g} s; a reference ends by "
+                                 f"{CSV_MAX_T_S:g} s (times are in s)")
+    k = int(np.argmin(np.diff(t)))
+    if t[k + 1] - t[k] < CSV_MIN_DT_S:
+        raise InvalidConfigError(f"{path}: samples must be at least {CSV_MIN_DT_S:g} s apart; "
+                                 f"those at t = {t[k]:.6g} s and {t[k + 1]:.6g} s are "
+                                 f"{t[k + 1] - t[k]:.3g} s apart (times are in s)")
+    as_poses(f"{path}: the poses", data[:, 1:])
     spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, data[:, 1:].T, False)
     return DrakeTrajectory(spline, name=path.stem)
 

@@ -217,7 +217,7 @@ def load_records(data_dir: str | Path) -> list[dict]:
         raise CorruptFileError(data_dir / MANIFEST, "collect manifest",
                                "it is complete but its 'runs' list is missing or a run names no "
                                "file", "collect again into an empty folder")
-    records = []
+    records, seen = [], {}
     for run in runs:
         if run.get("lost"):
             continue
@@ -225,8 +225,17 @@ def load_records(data_dir: str | Path) -> list[dict]:
         if not path.is_file():
             raise IncompleteResultsError(f"{path} is gone (listed in {data_dir / MANIFEST}): "
                                          f"{again}, which runs only the missing runs")
-        records.append(_read_record(path, manifest["settings_hash"],
-                                    f"delete it and {again}"))
+        record = _read_record(path, manifest["settings_hash"], f"delete it and {again}")
+        weights = (record["omega_Q"], record["omega_R"])
+        if weights != (run.get("omega_Q"), run.get("omega_R")) or weights in seen:
+            raise CorruptFileError(
+                path, "collected run", f"it holds the run at omega_Q = {weights[0]:g}, omega_R = "
+                f"{weights[1]:g}, " + (f"which {seen[weights]} holds too" if weights in seen else
+                                       f"not the one its manifest entry names (omega_Q = "
+                                       f"{run.get('omega_Q')}, omega_R = {run.get('omega_R')})"),
+                f"delete it and {again}")
+        seen[weights] = path.name
+        records.append(record)
     return records
 
 

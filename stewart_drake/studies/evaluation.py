@@ -319,6 +319,61 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
     return row
 
 
+#: What a finished row holds (:func:`run_case`) and the report reads: name -> (JSON types,
+#: or "6" for six numbers), per scenario prefix ("" for every row).
+ROW_FIELDS = {"": {"rms_error": "6", "peak_error": "6", "peak_torque": "6",
+                   "sum_T2_dt": (int, float), "normalized_rms": (int, float),
+                   "sum_dT2_dt": (int, float), "max_closure_m": (int, float)},
+              "step_": {"settling_time_s": (int, float, type(None)), "overshoot": (int, float),
+                        "trace": dict},
+              "sweep_": {"bandwidth_hz": (int, float, type(None)),
+                         "peak_gain_db": (int, float, type(None)), "response": dict}}
+
+
+def load_row(store: ResultStore, job_id: str, case: Case) -> dict:
+    """The row :func:`evaluate` stored for ``case``, checked before it is reused: a JSON object
+    that holds this very case (not another case's row a damaged manifest points at) and either
+    its ``error`` or every figure of :data:`ROW_FIELDS`.
+
+    Raises:
+        CorruptFileError: names the file and what is wrong (delete it and run again).
+    """
+    from ..errors import CorruptFileError
+
+    row = store.load_json(job_id)
+    path = store.folder / store.manifest["jobs"][job_id]["file"]
+
+    def bad(problem):
+        return CorruptFileError(path, "evaluation row", problem, "delete it and run the same "
+                                "command again to redo that case")
+
+    if not isinstance(row, dict):
+        raise bad(f"a JSON {type(row).__name__}, not an object")
+    if "case" not in row:
+        raise bad("the entry 'case' is missing")
+    if row["case"] != json.loads(json.dumps(asdict(case))):
+        other = row["case"]
+        name = (" | ".join(str(other.get(k)) for k in ("controller", "scenario", "condition"))
+                if isinstance(other, dict) else repr(other)[:80])
+        raise bad(f"it holds the row of another case ({name}), not of {case.key}")
+    if "error" in row:
+        if not isinstance(row["error"], str):
+            raise bad("the entry 'error' must be a string")
+        return row
+    for prefix, fields in ROW_FIELDS.items():
+        if not case.scenario.startswith(prefix):
+            continue
+        for name, kind in fields.items():
+            value = row.get(name)
+            ok = (isinstance(value, list) and len(value) == 6 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+                  if kind == "6" else isinstance(value, kind) and not isinstance(value, bool))
+            if not ok:
+                what = "6 numbers" if kind == "6" else "an object" if kind is dict else "a number"
+                raise bad(f"the entry {name!r} is missing or not {what}")
+    return row
+
+
 # -- the report -----------------------------------------------------------------------------------
 
 def _fmt(v, scale=1.0, digits=3) -> str:
@@ -768,7 +823,7 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
 
     fn = functools.partial(run_case, divergence_dir=str(out_dir / "diverged"))
     ran = run_jobs(store, runner, fn, jobs, save, progress, "evaluation runs", "cases")
-    rows = [store.load_json(k) for k in jobs]
+    rows = [load_row(store, k, jobs[k]) for k in jobs]
     info = {"n_cases": len(grid), "wall_s": ran["wall_s"], "workers": runner.n_workers,
             "quick": quick, "ran": len(ran["ran"]), "reused": len(ran["reused"]),
             "base": str(base)}

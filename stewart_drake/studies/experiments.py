@@ -20,8 +20,8 @@ from ..fileio import CheckedNpz, atomic_write, save_npz
 from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
-from ..simulation.scenario import LqiDriver, Scenario, dump_scenario
-from ..simulation.trajectories import as_trajectory
+from ..simulation.scenario import CsvReference, LqiDriver, Scenario, dump_scenario
+from ..simulation.trajectories import as_trajectory, csv_reference_bytes
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: Where ``stewart-drake train`` writes the tuner and ``run --tuner ann`` looks first.
@@ -94,10 +94,14 @@ REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
 
 def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
-    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`)."""
+    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`), plus a
+    CSV reference's spline (:func:`~stewart_drake.simulation.trajectories.csv_reference_bytes`,
+    which counts the file's lines)."""
     d = float(scenario.duration_s)
-    return max((d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
-               (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
+    reference = (csv_reference_bytes(scenario.reference.path)
+                 if isinstance(scenario.reference, CsvReference) else 0.0)
+    return reference + max((d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
+                           (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
 
 
 def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
@@ -112,9 +116,13 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
     from ..checks import check_memory
 
     what = (f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
-            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s")
+            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s"
+            + (f" on the reference {scenario.reference.path}"
+               if isinstance(scenario.reference, CsvReference) else ""))
     check_memory(what, runs_at_once * run_memory_bytes(scenario), change or (
-        "shorten duration_s (--duration) or lengthen log_period_s"))
+        "shorten duration_s (--duration) or lengthen log_period_s"
+        + (", and sample the reference CSV more coarsely"
+           if isinstance(scenario.reference, CsvReference) else "")))
 
 
 def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,

@@ -38,6 +38,7 @@ import os
 import pickle
 import signal
 import threading
+import time
 import traceback
 from collections import Counter, deque
 from dataclasses import dataclass, field
@@ -56,6 +57,13 @@ DEFAULT_RETRIES = 2
 #: Signals that cancel a running ``map``.
 CANCEL_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
                        if hasattr(signal, n))
+#: Seconds to wait for a Ray cluster's or a Dask scheduler's address to accept a connection
+#: (``--connect-timeout``: at most :data:`MAX_CONNECT_TIMEOUT_S`).
+DEFAULT_CONNECT_TIMEOUT_S = 5.0
+MAX_CONNECT_TIMEOUT_S = 600.0
+#: Seconds Ray may take to join a cluster whose address answered (its handshake; measured 20 s
+#: on a busy 2-core machine).
+RAY_JOIN_TIMEOUT_S = 60.0
 
 
 @dataclass
@@ -100,11 +108,20 @@ class JobFailure:
 
 
 class Interrupted(KeyboardInterrupt):
-    """A ``map`` stopped by a signal; ``signum`` says which (exit status 128 + signum)."""
+    """A ``map`` (or a command) stopped by a signal; ``signum`` says which (exit status
+    128 + signum)."""
 
     def __init__(self, signum: int):
         self.signum = int(signum)
         super().__init__(f"interrupted by {signal.Signals(signum).name}")
+
+    def __reduce__(self):
+        return type(self), (self.signum,)
+
+
+def raise_interrupted(signum, frame):
+    """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP)."""
+    raise Interrupted(signum)
 
 
 def _call(fn, job_id: str, job):
@@ -121,9 +138,6 @@ def _cancel_on_signals():
     if threading.current_thread() is not threading.main_thread():
         yield
         return
-
-    def raise_interrupted(signum, frame):
-        raise Interrupted(signum)
 
     # A signal the process was started ignoring stays ignored: `nohup` (SIGHUP), a background
     # job of a script (SIGINT).
@@ -299,6 +313,7 @@ class _LocalPool:
 
     def _terminate(self):
         processes = list((getattr(self.executor, "_processes", None) or {}).values())
+        results = getattr(self.executor, "_result_queue", None)    # shutdown forgets it
         self.executor.shutdown(wait=False, cancel_futures=True)
         for p in processes:
             p.terminate()
@@ -307,6 +322,13 @@ class _LocalPool:
             if p.is_alive():
                 p.kill()
                 p.join()
+        # A worker killed while it sent a result leaves half a message in the result pipe; the
+        # executor's thread then waits for the rest forever, and the interpreter for that thread
+        # at exit. With every worker gone, closing our write end turns that wait into an EOF.
+        writer = getattr(results, "_writer", None)
+        if writer is not None:
+            with contextlib.suppress(OSError):
+                writer.close()
 
 
 class ProcessRunner(_PoolRunner):
@@ -343,6 +365,62 @@ def _import_extra(module: str, extra: str):
     except ImportError:
         raise InvalidConfigError(f"--runner {extra} needs the {extra} extra: "
                                  f"pip install 'stewart-drake[{extra}]'") from None
+
+
+def parse_address(option: str, address: str, schemes: tuple) -> tuple[str, str, int]:
+    """(scheme or "", host, port) of a cluster address ``[scheme://]host:port``.
+
+    Raises:
+        InvalidConfigError: no host, no port or a port outside 1..65535, a scheme not in
+            ``schemes``, or other characters; names the option and the expected form.
+    """
+    import re
+
+    form = f"[{'|'.join(schemes)}://]host:port"
+    match = re.fullmatch(r"(?:(?P<scheme>[A-Za-z]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[\w.-]+)"
+                         r":(?P<port>\d+)/?", str(address).strip())
+    if match is None:
+        raise InvalidConfigError(f"{option} {address!r} is not an address of the form {form}"
+                                 + (" (or auto, local)" if "ray" in schemes else ""))
+    scheme = (match["scheme"] or "").lower()
+    if scheme and scheme not in schemes:
+        raise InvalidConfigError(f"{option} {address!r}: the scheme {scheme!r} is not one of "
+                                 f"{', '.join(schemes)} ({form})")
+    port = int(match["port"])
+    if not 1 <= port <= 65535:
+        raise InvalidConfigError(f"{option} {address!r}: the port {port} is not in 1..65535")
+    return scheme, match["host"].strip("[]"), port
+
+
+def _connect_timeout(value) -> float:
+    """``value`` as a connect timeout, s, in (0, :data:`MAX_CONNECT_TIMEOUT_S`].
+
+    Raises:
+        InvalidConfigError: not a number in that range.
+    """
+    from ..checks import as_number
+
+    return as_number("--connect-timeout", value, 0.0, MAX_CONNECT_TIMEOUT_S, lo_open=True)
+
+
+def probe_address(option: str, host: str, port: int, timeout_s: float) -> None:
+    """Make sure something accepts TCP connections at ``host:port`` within ``timeout_s``.
+
+    Interruptible (Ctrl-C, SIGTERM) and bounded, unlike the cluster clients' own retry loops.
+    Raises:
+        InvalidConfigError: nothing answers in time (refused, unreachable, unknown host).
+    """
+    import socket
+
+    try:
+        with socket.create_connection((host, port), timeout=timeout_s):
+            pass
+    except OSError as err:
+        why = "no answer" if isinstance(err, TimeoutError) else (err.strerror or str(err))
+        raise InvalidConfigError(
+            f"{option} {host}:{port}: nothing accepts a connection there within {timeout_s:g} s "
+            f"({why}); start the cluster first, check the address, or raise "
+            f"--connect-timeout") from None
 
 
 class _RayPool:
@@ -386,23 +464,68 @@ class RayRunner(_PoolRunner):
         retries: attempts after the first for jobs whose worker died (Ray's own task retries
             are off so that every backend counts alike).
         recycle: tasks per Ray worker process before it is replaced (``max_calls``).
+        connect_timeout_s: seconds for the address to accept a connection (:meth:`probe`).
     Workers must import stewart_drake (install it on every node). A cluster this runner
-    started is shut down when ``map`` ends; one it joined is left running.
+    started is shut down when ``map`` ends; one it joined is left running. Joining is bounded:
+    the address must answer within ``connect_timeout_s`` and Ray must join within
+    :data:`RAY_JOIN_TIMEOUT_S`, while Ctrl-C, SIGTERM and SIGHUP end the wait.
+    Raises:
+        InvalidConfigError: an address that is not "auto", "local" or ``[ray://]host:port``.
     """
 
+    #: Addresses Ray resolves itself (the cluster of this machine; a new local one).
+    NAMED_ADDRESSES = ("auto", "local")
+
     def __init__(self, n_workers: int = 0, address: str | None = None,
-                 retries: int = DEFAULT_RETRIES, recycle: int | None = DEFAULT_RECYCLE):
+                 retries: int = DEFAULT_RETRIES, recycle: int | None = DEFAULT_RECYCLE,
+                 connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
         self.n_workers = n_workers
         self.address = address
         self.retries = retries
         self.recycle = recycle
+        self.connect_timeout_s = _connect_timeout(connect_timeout_s)
+        self._target = (None if not address or address in self.NAMED_ADDRESSES
+                        else parse_address("--address", address, ("ray",)))
+
+    def probe(self) -> None:
+        """Refuse an address nothing answers at within ``connect_timeout_s``
+        (:func:`probe_address`); "auto", "local" and no address are Ray's to resolve."""
+        if self._target is not None:
+            probe_address("--address", *self._target[1:], self.connect_timeout_s)
+
+    def _join(self, ray) -> None:
+        """``ray.init(address=...)`` in a helper thread: Ray's handshake waits in C++, where the
+        main thread would neither see a signal nor time out."""
+        self.probe()
+        box = {}
+
+        def join():
+            try:
+                ray.init(address=self.address, log_to_driver=False)
+            except BaseException as err:     # noqa: BLE001 - reported by the main thread
+                box["error"] = err
+
+        thread = threading.Thread(target=join, daemon=True, name="ray-join")
+        thread.start()
+        deadline = time.monotonic() + RAY_JOIN_TIMEOUT_S
+        while thread.is_alive() and time.monotonic() < deadline:
+            thread.join(0.2)
+        if thread.is_alive():
+            raise InvalidConfigError(f"--address {self.address}: it answers, but no Ray cluster "
+                                     f"joined within {RAY_JOIN_TIMEOUT_S:g} s; check the address "
+                                     f"(the head's GCS port, 6379, or ray://host:10001)")
+        if "error" in box:
+            err = box["error"]
+            first = (str(err).strip().splitlines() or [""])[0]
+            raise InvalidConfigError(f"--address {self.address}: Ray cannot join it "
+                                     f"({type(err).__name__}: {first:.200})") from None
 
     def _open(self):
         ray = _import_extra("ray", "ray")
         started = not ray.is_initialized()
         if started:
             if self.address:
-                ray.init(address=self.address, log_to_driver=False)
+                self._join(ray)
             else:
                 ray.init(num_cpus=self.n_workers or os.cpu_count(), include_dashboard=False,
                          log_to_driver=False)
@@ -460,21 +583,40 @@ class DaskRunner(_PoolRunner):
         scheduler: address of a running scheduler ("tcp://host:8786"), or None.
         retries: attempts after the first for jobs whose worker died (on top of the
             scheduler's own ``allowed-failures``).
+        connect_timeout_s: seconds for the scheduler to accept a connection (:meth:`probe`),
+            and Dask's own connect timeout.
     Workers must import stewart_drake. Memory: recycle Dask workers with their own
     ``--lifetime`` options. A local cluster this runner started is closed when ``map`` ends.
+    Raises:
+        InvalidConfigError: a scheduler address that is not ``[tcp|tls|ws|wss://]host:port``.
     """
 
     def __init__(self, n_workers: int = 0, scheduler: str | None = None,
-                 retries: int = DEFAULT_RETRIES):
+                 retries: int = DEFAULT_RETRIES,
+                 connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
         self.n_workers = n_workers
         self.scheduler = scheduler
         self.retries = retries
+        self.connect_timeout_s = _connect_timeout(connect_timeout_s)
+        self._target = (parse_address("--scheduler", scheduler, ("tcp", "tls", "ws", "wss"))
+                        if scheduler else None)
+
+    def probe(self) -> None:
+        """Refuse a scheduler nothing answers at within ``connect_timeout_s``."""
+        if self._target is not None:
+            probe_address("--scheduler", *self._target[1:], self.connect_timeout_s)
 
     def _open(self):
         distributed = _import_extra("distributed", "dask")
         cluster = None
         if self.scheduler:
-            client = distributed.Client(self.scheduler)
+            self.probe()
+            try:
+                client = distributed.Client(self.scheduler, timeout=self.connect_timeout_s)
+            except OSError as err:           # it answered, but not as a Dask scheduler
+                raise InvalidConfigError(f"--scheduler {self.scheduler}: no Dask scheduler "
+                                         f"answered within {self.connect_timeout_s:g} s "
+                                         f"({' '.join(str(err).split())[:200]})") from None
         else:
             cluster = distributed.LocalCluster(n_workers=self.n_workers or os.cpu_count(),
                                                threads_per_worker=1, processes=True,
@@ -486,16 +628,20 @@ class DaskRunner(_PoolRunner):
 
 def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = None,
                 scheduler: str | None = None, retries: int = DEFAULT_RETRIES,
-                recycle: int | None = DEFAULT_RECYCLE):
-    """The runner of the CLI's ``--runner KIND --jobs N [--address A] [--scheduler S]``.
+                recycle: int | None = DEFAULT_RECYCLE,
+                connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
+    """The runner of the CLI's ``--runner KIND --jobs N [--address A] [--scheduler S]``; an
+    address is checked here, before any work: its form, then that it answers within
+    ``connect_timeout_s``.
 
     Args:
         kind: one of :data:`RUNNERS`. jobs: workers (0: one per core; a local cluster's size
             for ray and dask). address: Ray cluster (ray only). scheduler: Dask scheduler
             (dask only). retries, recycle: see :class:`ProcessRunner` (recycle 0 or None:
-            never; Dask ignores it).
+            never; Dask ignores it). connect_timeout_s: see :class:`RayRunner`.
     Raises:
-        InvalidConfigError: an unknown kind, an option of another backend, or a negative count.
+        InvalidConfigError: an unknown kind, an option of another backend, a negative count,
+            a malformed address, or an address where nothing answers in time.
     """
     if kind not in RUNNERS:
         raise InvalidConfigError(f"unknown runner {kind!r}; choose one of {RUNNERS}")
@@ -507,9 +653,11 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
         raise InvalidConfigError(f"--jobs and --retries must be >= 0, got {jobs}, {retries}")
     if kind == "serial":
         return SerialRunner()
+    _connect_timeout(connect_timeout_s)
     recycle = recycle or None
-    if kind == "ray":
-        return RayRunner(jobs, address, retries, recycle)
-    if kind == "dask":
-        return DaskRunner(jobs, scheduler, retries)
+    if kind in ("ray", "dask"):
+        runner = (RayRunner(jobs, address, retries, recycle, connect_timeout_s) if kind == "ray"
+                  else DaskRunner(jobs, scheduler, retries, connect_timeout_s))
+        runner.probe()
+        return runner
     return ProcessRunner(jobs, retries, recycle)

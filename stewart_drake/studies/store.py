@@ -1,7 +1,10 @@
 """Results that persist and resume: one study's folder, a file per finished job, a manifest.
 
 A :class:`ResultStore` claims a folder for one study (``collect``, ``evaluate``) and one set of
-settings, identified by :func:`settings_hash`. Each finished job is written atomically the
+settings, identified by :func:`settings_hash`, and locks it (:data:`LOCK`, ``fcntl.flock``): a
+second study writing there at the same time is refused naming the first
+(:class:`~stewart_drake.errors.FolderInUseError`); the kernel releases the lock when its holder
+ends, however it ends. Each finished job is written atomically the
 moment it arrives (``put``) and the manifest is rewritten with it, so an interruption, a killed
 worker or a failed report loses nothing that finished. Running the same command again runs only
 the jobs whose file is missing (:func:`run_jobs`); a folder of other settings, or of another
@@ -20,15 +23,21 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import socket
 import time
 from pathlib import Path
 
-from ..errors import (CorruptFileError, IncompleteResultsError, ResultsMismatchError,
-                      SimulationDivergedError)
-from ..fileio import atomic_write, read_json
+from ..errors import (CorruptFileError, FolderInUseError, IncompleteResultsError,
+                      ResultsMismatchError, SimulationDivergedError)
+from ..fileio import atomic_write, check_replaceable, read_json
 from .runners import JobFailure
 
 MANIFEST = "manifest.json"
+#: The lock file of a study folder; it holds who locked it last ("`evaluate` study, pid ...").
+LOCK = ".stewart-drake.lock"
+#: Study folders this process holds locked: {real path: open lock file}.
+_HELD: dict = {}
 #: Layout version of the folder; 2 = one file per job and a settings hash (issue 15).
 FORMAT = 2
 
@@ -40,8 +49,53 @@ def settings_hash(settings: dict) -> str:
 
 
 def file_digest(path) -> str:
-    """16 hex digits of the SHA-256 of a file's bytes (settings that are files: tuner weights)."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+    """16 hex digits of the SHA-256 of a file's bytes (settings that are files: tuner weights,
+    read through :func:`~stewart_drake.fileio.read_checked`, at most 64 MB)."""
+    from ..fileio import read_checked
+
+    return hashlib.sha256(read_checked(path, "settings file", 64e6)).hexdigest()[:16]
+
+
+def lock_folder(folder, study: str) -> None:
+    """Hold ``folder``'s study lock (``fcntl.flock`` of :data:`LOCK`) for this process until
+    :func:`unlock_folder` or its end; already held by this process: nothing to do (one process
+    runs its studies one after the other).
+
+    Raises:
+        FolderInUseError: another process holds it; the message says who (the lock file's
+            line: study, pid, host, since when).
+    """
+    try:
+        import fcntl
+    except ImportError:                      # no flock (Windows): the folder stays unlocked
+        return
+    folder = Path(folder)
+    key = os.path.realpath(folder)
+    if key in _HELD:
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    check_replaceable(folder / LOCK)
+    f = open(folder / LOCK, "a+", encoding="utf-8")
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        f.seek(0)
+        holder = " ".join(f.read(300).split())
+        f.close()
+        raise FolderInUseError(folder, holder) from None
+    f.seek(0)
+    f.truncate()
+    f.write(f"`{study}` study, pid {os.getpid()} on {socket.gethostname()}, since "
+            f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n")
+    f.flush()
+    _HELD[key] = f
+
+
+def unlock_folder(folder) -> None:
+    """Release ``folder``'s study lock if this process holds it."""
+    f = _HELD.pop(os.path.realpath(Path(folder)), None)
+    if f is not None:
+        f.close()
 
 
 #: What a job's entry in a manifest may record (:meth:`ResultStore.mark` uses a JobFailure's kind).
@@ -90,6 +144,10 @@ def check_manifest(path: Path, manifest: dict) -> None:
             raise bad(f"{key!r} must be a JSON {kind.__name__}, got "
                       f"{type(manifest.get(key)).__name__}" if key in manifest
                       else f"the entry {key!r} is missing")
+    if settings_hash(manifest["settings"]) != manifest["settings_hash"]:
+        raise bad(f"its settings_hash {manifest['settings_hash']!r} is not the hash of its "
+                  f"settings ({settings_hash(manifest['settings'])!r}): one was edited")
+    owner = {}
     for job_id, job in manifest["jobs"].items():
         if not isinstance(job, dict) or job.get("status") not in JOB_STATUSES:
             raise bad(f"job {job_id!r} has no status of {JOB_STATUSES}")
@@ -98,6 +156,11 @@ def check_manifest(path: Path, manifest: dict) -> None:
                                             and not Path(name).is_absolute()
                                             and ".." not in Path(name).parts):
             raise bad(f"job {job_id!r} is done but names no file in the folder")
+        if job["status"] == "done":
+            if name in owner:
+                raise bad(f"jobs {owner[name]!r} and {job_id!r} both name the file {name!r} "
+                          f"(each job has a file of its own)")
+            owner[name] = job_id
 
 
 def _difference(old: dict, new: dict) -> str:
@@ -121,6 +184,9 @@ class ResultStore:
     Raises:
         ResultsMismatchError: the folder holds another study's results, or results of other
             settings (the message names the settings that differ).
+        FolderInUseError: another process's study is writing the folder (:func:`lock_folder`);
+            this store holds the lock until :meth:`finish` or :meth:`close`.
+        CorruptFileError: a damaged manifest (:func:`read_manifest`).
     """
 
     def __init__(self, folder, study: str, settings: dict, pattern: str):
@@ -129,6 +195,19 @@ class ResultStore:
         settings = json.loads(json.dumps(settings, default=str))   # as the manifest holds it
         self.settings = settings
         self.hash = settings_hash(settings)
+        lock_folder(self.folder, study)
+        try:
+            self._claim(pattern)
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Release the folder's lock (:meth:`finish` does); the store's files stay."""
+        unlock_folder(self.folder)
+
+    def _claim(self, pattern: str) -> None:
+        study, settings = self.study, self.settings
         old = read_manifest(self.folder)
         if old is None:
             if any(self.folder.glob(pattern)):
@@ -214,10 +293,12 @@ class ResultStore:
         return written
 
     def finish(self, complete: bool, **fields) -> dict:
-        """Write the study's closing fields and whether every job is on disk; the manifest."""
+        """Write the study's closing fields and whether every job is on disk, and release the
+        folder's lock; the manifest."""
         self.manifest.update(fields)
         self.manifest["complete"] = bool(complete)
         self._save()
+        self.close()
         return self.manifest
 
 

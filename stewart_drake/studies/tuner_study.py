@@ -376,6 +376,34 @@ def _label(job: dict) -> str:
             "ratio_tuner": job.get("label", "ours")}[kind]
 
 
+def load_run(path: Path, job_id: str) -> dict:
+    """One stored run of the study, through the checked loaders: a lost run's ``.json``
+    (``{"lost": why}``, returned with infinite costs) or a run's ``.npz`` (its arrays; one that
+    names its job must name ``job_id``).
+
+    Raises:
+        CorruptFileError: not JSON or not an ``.npz`` archive, an entry missing or of the wrong
+            type, or the run of another job (names the file; delete it and run again).
+    """
+    from ..errors import CorruptFileError
+    from ..fileio import CheckedNpz, read_json
+
+    remedy = "delete it and run the same command again to redo that run"
+    if path.suffix == ".json":
+        record = read_json(path, "tuner study run", remedy)
+        if not isinstance(record, dict) or not isinstance(record.get("lost"), str):
+            raise CorruptFileError(path, "tuner study run", "it must be {\"lost\": why}", remedy)
+        return {"lost": record["lost"], "e2": np.inf, "u2": np.inf}
+    data = CheckedNpz(path, "tuner study run", remedy)
+    if "job_id" in data and data.text("job_id") != job_id:
+        raise data.corrupt(f"it holds the run {data.text('job_id')!r}, not {job_id!r}")
+    for name in ("e2", "u2", "ratio_mean", "wall_s"):
+        data.number(name)
+    for name in ("e2_w", "u2_w", "inputs", "input_window"):
+        data.array(name)
+    return {k: v for k, v in data.arrays.items() if k != "job_id"}
+
+
 def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool = False,
                     progress: bool = True, paper_weights: str = "") -> dict:
     """Run the whole study (module docstring) into ``out_dir``; resumable.
@@ -415,6 +443,7 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
             store.put_json(job_id, f"runs/{job_id}.json", record, lost=True)
             return
         arrays = {k: np.asarray(v) for k, v in outcome.items()}
+        arrays["job_id"] = np.array(job_id)          # the run says which it is (load checks)
         store.put(job_id, f"runs/{job_id}.npz", lambda f: np.savez(f, **arrays),
                   label=_label(job), J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS})
 
@@ -423,13 +452,7 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
     def load(job_id):
         """A stored run's record, read from disk once (the stages and the summary reuse it)."""
         if job_id not in loaded:
-            path = out / store.manifest["jobs"][job_id]["file"]
-            if path.suffix == ".json":
-                loaded[job_id] = {"lost": json.loads(path.read_text())["lost"], "e2": np.inf,
-                                  "u2": np.inf}
-            else:
-                with np.load(path) as data:
-                    loaded[job_id] = {k: data[k] for k in data.files}
+            loaded[job_id] = load_run(out / store.manifest["jobs"][job_id]["file"], job_id)
         return loaded[job_id]
 
     def common(family, seed):
@@ -731,7 +754,8 @@ def plot_tuner_tradeoff(summary: dict, path) -> Path:
     fig.suptitle("Held-out tasks: every controller against the fixed-ratio trade-off curve")
     fig.tight_layout()
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    from ..fileio import atomic_write
+
+    atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
     plt.close(fig)
     return path

@@ -371,12 +371,13 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
         |T_i|; ``interfering_share``: per grid, the fraction of the reachable poses where two
         parts come closer than ``min_clearance_m``.
     Raises:
-        InvalidConfigError: resolution < 2, or grids that need more memory than the machine
+        InvalidConfigError: resolution < 3, or grids that need more memory than the machine
             has (:data:`BYTES_PER_POSE`), before any grid is allocated.
     """
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
-            or resolution < 2:
-        raise InvalidConfigError(f"resolution must be an integer >= 2, got {resolution!r}")
+            or resolution < 3:                  # 2: the box's corners only, none reachable
+        raise InvalidConfigError(f"resolution must be an integer >= 3 (a grid through the home "
+                                 f"pose), got {resolution!r}")
     n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
     check_memory(f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
                  n_poses * BYTES_PER_POSE, "lower --resolution (default 41)")
@@ -421,7 +422,7 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
     Args:
-        out: folder. resolution: grid points per axis (>= 2). jobs: processes (0: one per
+        out: folder. resolution: grid points per axis (>= 3). jobs: processes (0: one per
             core). progress: show a tqdm bar. geometry: the robot (default: the reference one).
         runner: any runner of :mod:`.runners` (overrides ``jobs``).
     Writes (each atomically: a temporary file, then os.replace):
@@ -431,13 +432,13 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     Returns:
         rows (figure, value, unit) of summary.csv.
     Raises:
-        InvalidConfigError: resolution < 2 or jobs < 0.
+        InvalidConfigError: resolution < 3 or jobs < 0.
     """
     from tqdm import tqdm
 
-    if resolution < 2 or jobs < 0:
+    if resolution < 3 or jobs < 0:
         raise InvalidConfigError(
-            f"--resolution must be >= 2 and --jobs >= 0 (got {resolution}, {jobs})")
+            f"--resolution must be >= 3 and --jobs >= 0 (got {resolution}, {jobs})")
     geometry = geometry or StewartGeometry()
     out = Path(out)
     n = resolution
