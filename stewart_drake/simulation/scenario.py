@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Union
 
 import numpy as np
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
@@ -769,9 +769,53 @@ def _scenario_from_yaml(text: str) -> Scenario:
     return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
 
 
+#: Drake's config structs in a Scenario, and the fields of each that a dump always writes (the
+#: ones the robot needs whatever Drake's defaults are).
+_DRAKE_SECTIONS = {"plant": (MultibodyPlantConfig, ("time_step", "discrete_contact_approximation")),
+                   "simulator": (SimulatorConfig, ()),
+                   "visualization": (VisualizationConfig, ())}
+
+
+def _top_level_blocks(text: str) -> dict:
+    """{key: its lines} of a YAML mapping as ``yaml_dump_typed`` writes it (a key at column 0,
+    its nested lines indented below it), in order."""
+    blocks: dict = {}
+    key = None
+    for line in text.splitlines(keepends=True):
+        if line[:1] not in (" ", "") and ":" in line:
+            key = line.split(":", 1)[0]
+            blocks[key] = ""
+        blocks[key] += line
+    return blocks
+
+
+def _drake_section(name: str, value) -> str:
+    """The ``name:`` block of a Drake config struct: the fields that differ from this Drake's
+    defaults, plus the ones the robot needs (:data:`_DRAKE_SECTIONS`); "" when none."""
+    kind, always = _DRAKE_SECTIONS[name]
+    changed = yaml_load(data=yaml_dump_typed(value, defaults=kind())) or {}
+    keep = set(changed) | set(always)
+    lines = [block for key, block in _top_level_blocks(yaml_dump_typed(value)).items()
+             if key in keep]
+    return (f"{name}:\n" + "".join("  " + line if line.strip() else line
+                                   for block in lines for line in block.splitlines(True))
+            if lines else "")
+
+
 def dump_scenario(scenario: Scenario, path=None) -> str:
-    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given."""
-    text = yaml_dump_typed(scenario)
+    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given.
+
+    Every field of ours is written; of Drake's config structs (``plant``, ``simulator``,
+    ``visualization``) only the fields that differ from the running Drake's defaults, and the
+    plant's ``time_step`` and ``discrete_contact_approximation``. Drake adds, renames and removes
+    fields of these structs between releases (``SimulatorConfig.publish_every_time_step`` is
+    gone in 1.58), so a full dump would load only on the Drake that wrote it; this one loads on
+    every supported Drake unless the user changed a field that one of them lacks.
+    """
+    blocks = _top_level_blocks(yaml_dump_typed(scenario))
+    for name in _DRAKE_SECTIONS:
+        blocks[name] = _drake_section(name, getattr(scenario, name))
+    text = "".join(blocks.values())
     if path is not None:
         from ..fileio import atomic_write
 
