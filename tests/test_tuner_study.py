@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import needs_torch
 
 from stewart_drake.control.tuner import (N_RATIO_INPUTS, RatioTunerModel, load_ratio_tuner,
                                          ratio_tuner_inputs, save_ratio_tuner)
@@ -127,6 +128,7 @@ def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
 
 # -- our tuner -------------------------------------------------------------------------------------
 
+@needs_torch
 def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed():
     """Synthetic windows whose best ratio is 10 when the reference moves and 0.01 when it holds:
     trained on the interpolated cost, the network picks each side's ratio."""
@@ -179,6 +181,7 @@ def test_weight_schedules_are_checked_by_field():
 
 # -- a small study end to end ----------------------------------------------------------------------
 
+@needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
@@ -205,6 +208,11 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
         pytest.approx((point["e2"] + 0.1 * point["u2"]) / J_best - 1.0)
     assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] >= 0.0
     assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
+    shipped = load_ratio_tuner(tmp_path / "weights" / "chosen" / "ratio_tuner_lambda0.1.npz")
+    assert shipped.metadata["shift"] == chosen["shift"]                 # the closed-loop choice
+    data = shipped.metadata["data"]
+    assert data["training_tasks"] == ["dash_hold_s0"] and data["base_scenario"] == "paper_hardware"
+    assert len(data["base_scenario_sha256"]) == 64 and data["quick"] is True
     assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == \
         json.loads(json.dumps(summary["verdicts"]))
     monkeypatch.setattr(ts, "study_job", lambda job: pytest.fail("ran again"))

@@ -196,7 +196,11 @@ class RatioTunerDriver:
     reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
 
     Attributes:
-        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`), required.
+        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`); empty
+            for the shipped weights trained for the cost at lambda = 0.1
+            (:data:`~stewart_drake.control.tuner.DEFAULT_RATIO_TUNER_PATH`; the ones for
+            lambda = 0.01 and 1 ship beside them:
+            :func:`~stewart_drake.control.tuner.ratio_tuner_path`).
         period_s: tuner period, s (a whole multiple of the control period).
         feature_window: samples m + 1 of the density features.
         smoothing_s: time constant of the low-pass on its log10 ratio, s (0: none).
@@ -677,14 +681,10 @@ class Scenario:
         as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
         check_multiple("tuner.period_s", t.period_s, "control_period_s", self.control_period_s)
         _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
-        if isinstance(t, RatioTunerDriver) and not t.weights:
-            raise MissingFileError("a RatioTunerDriver needs its weights (tuner.weights): "
-                                   "`stewart-drake evaluate` trains them")
         if t.weights and not Path(t.weights).is_file():
             kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
             raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
-                                   f"path" + (", or leave it empty for the shipped weights"
-                                              if isinstance(t, AnnTunerDriver) else ""))
+                                   f"path, or leave it empty for the shipped weights")
 
     def _validate_controller(self) -> None:
         c = self.controller
