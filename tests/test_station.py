@@ -357,6 +357,8 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
             "import stewart_drake.studies.evaluation, stewart_drake.studies.collection\n"
             f"assert main(['run', '--tuner', 'ann', '--duration', '0.1', '--no-progress', "
             f"'--out', {str(tmp_path)!r}]) == 0\n"
+            # the data are checked first: pretend the folder holds a collection
+            "stewart_drake.studies.collection.load_records = lambda path: [{}, {}]\n"
             f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n")
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=300)
