@@ -324,7 +324,8 @@ _OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff")
 
 def save_result(result: RunResult, path: str | Path) -> Path:
     """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
-    rho, T_ff when present), status_names, metrics (JSON) and config (JSON, with the scenario YAML)."""
+    rho, T_ff when present), status_names, metrics (JSON) and config (JSON, with the scenario
+    YAML)."""
     arrays = dict(t=result.t, x=result.x, x_d=result.x_d, T=result.T, closure=result.closure,
                   status=result.status, status_names=np.array(result.status_names, dtype=str),
                   metrics=np.array(json.dumps(result.metrics)),
@@ -397,10 +398,8 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
     Returns:
         the path written (atomically).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure without pyplot: no global backend switch (a notebook keeps its inline plots).
+    from matplotlib.figure import Figure
 
     t = result.t
     err = result.x[:, :6] - result.x_d[:, :6]
@@ -413,7 +412,7 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
     if result.T_ff is not None:
         panels.append("feedback")
     heights = [1.2 if p in ("phi", "Z") else 0.8 if p == "feedback" else 1.0 for p in panels]
-    fig = plt.figure(figsize=(10, 1.75 * sum(heights) + 0.8))
+    fig = Figure(figsize=(10, 1.75 * sum(heights) + 0.8))
     # Left: the time series, one width, one time axis. Right: the zooms, legends, colour bar.
     grid = fig.add_gridspec(len(panels), 2, height_ratios=heights, width_ratios=(3.3, 1))
     axes, sides = [], []
@@ -424,10 +423,10 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
         ax.tick_params(labelbottom=False)
     summary = result.config_summary
 
-    def legend_beside(ax, side, **kwargs):
+    def legend_beside(ax, side, loc="center left", **kwargs):
         side.set_axis_off()
-        side.legend(*ax.get_legend_handles_labels(), loc="center left", fontsize=8,
-                    frameon=False, **kwargs)
+        side.legend(*ax.get_legend_handles_labels(), loc=loc, fontsize=8, frameon=False,
+                    **kwargs)
 
     for ax, side, panel in zip(axes, sides, panels):
         if panel in ("phi", "Z"):
@@ -475,7 +474,7 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
                 ax.plot(t_w, mean[:, i], lw=1.2, label=f"$T_{i + 1}$")
             limit = summary.get("motor_limit_Nm")
             ax.set_ylabel(f"motor torque\n{1e3 * TORQUE_WINDOW_S:g} ms means [N m]")
-            legend_beside(ax, side, ncol=2, title="motor")
+            legend_beside(ax, side, loc="upper left", ncol=2, title="motor")
             side.text(0.0, 0.0, f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
                       + (f"\nmotors' limit {limit:.3g} N m" if limit else ""), fontsize=7,
                       transform=side.transAxes, va="bottom")
@@ -503,5 +502,4 @@ def plot_fig7(result: RunResult, path: str | Path) -> Path:
     fig.tight_layout()
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    plt.close(fig)
     return path
