@@ -151,7 +151,7 @@ def render(rows, est, stick, duration_s, wall) -> str:
     clean = next((m for label, m in rows if label.startswith("hardware, sensors only")), None)
     if clean and "error" not in clean and ideal:
         L += ["", f"Sensors-only hardware / ideal nRMS: **{_nrms(clean['rms_error']) / ideal:.3f}**"
-              " (issue 13 asks for within 10 %)."]
+              " (the target: within 10 %)."]
     L += ["", "## FK estimator along the exact manoeuvre (2^17 counts, no control)", "",
           "Pose error RMS and max (urad, um) of the chord-step FK estimate; rate error RMS "
           "(urad/s, um/s) of the 100 Hz filtered difference.", "",

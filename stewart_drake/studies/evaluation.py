@@ -1,4 +1,4 @@
-"""The evaluation of issue 6: every controller on every scenario, side by side.
+"""The evaluation: every controller on every scenario, side by side.
 
 ``stewart-drake evaluate`` runs a grid of :class:`Case` (controller x scenario x condition) over
 a runner (:mod:`.runners`, local processes by default), keeps each row on disk as it arrives
@@ -792,7 +792,7 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
         controllers: subset of :data:`CONTROLLERS`.
         base: the scenario every case starts from (a shipped name or a .yaml path; default the
             robot as built, ``paper_hardware``).
-        tuner_study: run the tuner study (issue 14) into ``out_dir/tuner_study`` first and lead
+        tuner_study: run the tuner study into ``out_dir/tuner_study`` first and lead
             the report with it (``stewart-drake evaluate`` does, unless ``--no-tuner-study``).
     Returns:
         dict with ``rows`` (grid order), ``wall_s`` (this call), ``paths``, ``verdict``,

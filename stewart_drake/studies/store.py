@@ -29,7 +29,7 @@ from ..fileio import atomic_write, read_json
 from .runners import JobFailure
 
 MANIFEST = "manifest.json"
-#: Layout version of the folder; 2 = one file per job and a settings hash (issue 15).
+#: Layout version of the folder; 2 = one file per job and a settings hash.
 FORMAT = 2
 
 

@@ -1,4 +1,4 @@
-"""The tuner study (issue 14): does tuning omega_Q / omega_R online beat the best fixed ratio?
+"""The tuner study: does tuning omega_Q / omega_R online beat the best fixed ratio?
 
 The paper claims that its ANN, fed density features, tracks better at less torque than fixed
 weights. On the ideal robot the test is empty (the stiffest ratio wins everywhere); on the robot
@@ -68,7 +68,7 @@ UNSEEN_FAMILY = "surgical"
 TRAIN_SEEDS = (0, 1, 2)
 TEST_SEEDS = (100, 101, 102, 103, 104)
 TASK_DURATION_S = 3.0
-#: The improvement over the best fixed ratio we set as the goal (issue 14).
+#: The improvement over the best fixed ratio we set as the goal, before any run.
 GOAL = 0.15
 #: The hand-made schedule: ratio R_HOLD when the reference is still, R_MOVE when it moves at or
 #: above SPEED_SCALE (in units of 1 rad/s | 0.1 m/s), log-linear in between. Chosen before the
@@ -591,7 +591,7 @@ def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> 
     """The tuner study's section of docs/results.md, from :func:`run_tuner_study`'s summary."""
     st = summary["settings"]
     test_families = sorted({t[0] for t in st["test"]})
-    L = ["## Does online tuning beat the best fixed weights? (issue 14)", ""]
+    L = ["## Does online tuning beat the best fixed weights?", ""]
     if st["quick"]:
         L += ["**QUICK mode: 1 s tasks, one seed per family. A smoke test, not a verdict.**", ""]
     L += [f"Every run is the LQI on `{st['base']}`. The cost, declared before any run: J = mean "
