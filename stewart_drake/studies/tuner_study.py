@@ -362,7 +362,7 @@ def summary_path(out_dir) -> Path:
 
 # -- the study -------------------------------------------------------------------------------------
 
-def provenance(settings: dict, train: list, out: Path) -> dict:
+def provenance(settings: dict, train: list) -> dict:
     """What a shipped tuner was trained on, for its metadata: the base scenario (name and the
     SHA-256 of its YAML), the training tasks, the runs per task, the cost and the versions."""
     import hashlib
@@ -381,7 +381,7 @@ def provenance(settings: dict, train: list, out: Path) -> dict:
                     f"task (1e-3 .. 1e3), then the output shift chosen in closed loop on the same "
                     f"tasks among {list(SHIFTS)}",
             "cost": "J = mean sum (e / 1 mrad|mm)^2 + lambda sum (u_fb / 0.3 N m)^2",
-            "quick": settings["quick"], "study_folder": str(out),
+            "quick": settings["quick"],
             "stewart_drake": __version__, "drake": _version_of("drake")}
 
 
@@ -540,7 +540,7 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
         model = load_ratio_tuner(path)
         save_ratio_tuner(dataclasses.replace(model, metadata={
             **model.metadata, "closed_loop_means": shift_means,
-            "data": provenance(settings, train, out)}),
+            "data": provenance(settings, train)}),
             out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz")
         for family, seed in test:
             jobs[_job_id("ours_closed_loop", family, seed, f"{lam:g}")] = {
