@@ -19,9 +19,7 @@ import tempfile
 from pathlib import Path
 
 from ..errors import StewartError
-
-#: The scenario `run`, `collect` and `evaluate` use unless told: the robot as built.
-DEFAULT_SCENARIO = "paper_hardware"
+from ..simulation.scenario import DEFAULT_SCENARIO
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
 

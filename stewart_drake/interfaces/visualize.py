@@ -306,9 +306,8 @@ def diagram_dots() -> dict[str, str]:
         the controller contract, so either plugs into the same Diagram).
     """
     from ..simulation.diagram import make_stewart_diagram
-    from ..simulation.scenario import (AnnTunerDriver, PdDriver, load_scenario,
+    from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, PdDriver, load_scenario,
                                        use_paper_tuner)
-    from .cli import DEFAULT_SCENARIO
 
     def scenario(name=DEFAULT_SCENARIO):
         return load_scenario(name)

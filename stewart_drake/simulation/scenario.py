@@ -38,6 +38,9 @@ from ..model.servo import ServoModel
 from ..model.limits import DEFAULT_COND_THRESHOLD, DEFAULT_MIN_SIGMA_MIN_INV
 from ..model.statics import FEEDFORWARD_MODES
 
+#: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:
+#: the robot as built.
+DEFAULT_SCENARIO = "paper_hardware"
 #: Largest RandomSource seed Drake accepts (a 32-bit unsigned integer).
 MAX_SEED = 2**32 - 1
 

@@ -34,9 +34,9 @@ from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import X_HOME
 from ..model.statics import feedforward_torques
-from ..simulation.scenario import (AnnTunerDriver, LqiDriver, NamedReference, PdDriver, Scenario,
-                                   SensorNoise, ToolDisturbance, dump_scenario, load_scenario,
-                                   use_paper_tuner)
+from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, LqiDriver, NamedReference,
+                                   PdDriver, Scenario, SensorNoise, ToolDisturbance, dump_scenario,
+                                   load_scenario, use_paper_tuner)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -52,7 +52,7 @@ QUICK_CONTROLLERS = ("lqi_1_1", "pd", "ann_best_cost")
 NOISE_STD = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
 ENCODER_NOISE_COUNTS = 2.0
 #: The scenario every case starts from (a shipped name or a path): the robot as built.
-DEFAULT_BASE = "paper_hardware"
+DEFAULT_BASE = DEFAULT_SCENARIO
 #: Encoder resolutions of the encoder table (bits: 2^bits counts per crank turn), run with the
 #: five distinct weight ratios omega_Q / omega_R on the paper manoeuvre.
 ENCODER_BITS = (12, 14, 16, 17, 20)
