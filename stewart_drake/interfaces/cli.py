@@ -345,12 +345,14 @@ def _cmd_train(args) -> int:
 def _cmd_evaluate(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, results.md and plots (in --out unless
     --docs names another folder)."""
-    from ..studies.evaluation import CONTROLLERS, QUICK_CONTROLLERS, evaluate
+    from ..studies.evaluation import CONTROLLERS, QUICK_CONTROLLERS, controller_settings, evaluate
 
     if args.controllers:
         controllers = tuple(args.controllers.split(","))
     else:
         controllers = QUICK_CONTROLLERS if args.quick else CONTROLLERS
+    for name in controllers:
+        controller_settings(name)                              # an unknown name, before the rest
     docs = args.out if args.docs is None else args.docs        # never the repository's docs/
     check_output(docs, "--docs")
     tuner_study = not (args.no_tuner_study or args.quick)
