@@ -152,8 +152,8 @@ def paper_study(steps, duration_s):
 
 
 def _smallest_rotation_frames(R_WF: np.ndarray) -> np.ndarray:
-    """Frames with the same z, turned from the world by the smallest rotation (the choice before
-    issue 17)."""
+    """Frames with the same z, turned from the world by the smallest rotation (the obvious choice,
+    for comparison with the SDF's)."""
     from scipy.spatial.transform import Rotation
 
     z = R_WF[:, :, 2]
@@ -430,8 +430,9 @@ def render(data) -> str:
           f"|pitch| {max(plant['max_pitch_deg']):.1f} deg; along the paper manoeuvre "
           f"{plant['paper_max_pitch_deg']:.1f} deg. The test "
           "(`tests/test_accuracy_coordinates.py`) asserts < 45 deg.",
-          f"- **The frames before issue 17** (smallest rotation from the world frame, shown for "
-          f"comparison): singular directions {min(old['singular_misalignment_deg']):.1f} deg out "
+          f"- **Frames turned from the world by the smallest rotation** (the obvious choice, shown "
+          f"for comparison): singular directions "
+          f"{min(old['singular_misalignment_deg']):.1f} deg out "
           f"of the plane for legs 2-5, *inside* the cone; max |pitch| "
           f"{max(old['max_pitch_deg']):.1f} deg over the same poses "
           f"({100 * old['share_above_60_deg']:.1f} % of them above 60 deg), "

@@ -8,7 +8,7 @@ times each, medians printed:
 * ``full``: the whole closed-loop Diagram of the scenario with the ANN tuner (LQI with its
   estimator, density features, tuner, loggers, guard).
 
-Target (issue 13): ratio full / plant_alone >= 0.5 on the hardware scenario. One line per figure,
+Target: ratio full / plant_alone >= 0.5 on the hardware scenario. One line per figure,
 e.g. ``ratio_full_over_plant 0.52 (medians of 5 interleaved pairs)``.
 
 ``--breakdown`` adds where the full Diagram's time goes, per control step: the time inside each

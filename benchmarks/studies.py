@@ -1,4 +1,4 @@
-"""Scaling of the studies over runners (issue 15): speedup, overhead per task, a 64-core
+"""Scaling of the studies over runners: speedup, overhead per task, a 64-core
 projection, and the memory of one worker over many runs.
 
     python benchmarks/studies.py                      # everything, about 10 min on 2 cores

@@ -1,6 +1,6 @@
 """Workspace benchmark: poses classified per second (reachable + cond(J) + holding torques).
 
-Prints one line per figure. Target (issue 4): 1e5 poses in < 10 s on a 2-core machine.
+Prints one line per figure. Target: 1e5 poses in < 10 s on a 2-core machine.
 Run: python benchmarks/workspace.py
 """
 

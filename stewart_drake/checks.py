@@ -1,6 +1,6 @@
 """Checks of user input, shared by every public entry point: typed errors, never NaN out.
 
-The rule (issue 8): a public function given a NaN, an inf, a wrong shape or a non-number raises a
+The rule: a public function given a NaN, an inf, a wrong shape or a non-number raises a
 :class:`~stewart_drake.errors.StewartError` that names the argument and says what to change; it
 never returns NaN and never lets numpy's own ``ValueError``/``TypeError`` escape. The checks are
 one ``np.isfinite(...).all()`` per array, so vectorized paths stay fast.

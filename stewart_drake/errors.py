@@ -113,7 +113,7 @@ class RenderToolMissingError(StewartError, RuntimeError):
 class JointLimitError(StewartError, ValueError):
     """A pose every leg can close but where a leg leaves the range of a joint.
 
-    The limits are fields of :class:`~stewart_drake.geometry.StewartGeometry` (motor travel,
+    The limits are fields of :class:`~stewart_drake.model.geometry.StewartGeometry` (motor travel,
     ball-joint cones); ``limits.limit_margins`` computes them.
 
     Attributes:

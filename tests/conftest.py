@@ -1,8 +1,16 @@
+import importlib.util
+
 import numpy as np
 import pytest
 
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model import kinematics
+
+
+#: torch is the [train] extra, a CPU wheel only for Python 3.11 here: tests that train skip
+#: without it (CI runs the suite on the newest Python without it).
+HAS_TORCH = importlib.util.find_spec("torch") is not None
+needs_torch = pytest.mark.skipif(not HAS_TORCH, reason="needs torch (the [train] extra)")
 
 
 @pytest.fixture(scope="session")

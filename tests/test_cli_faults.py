@@ -61,8 +61,8 @@ def test_bad_arguments_give_one_line_and_exit_2(capsys, argv, expected):
 
 def test_bad_values_found_after_parsing_give_one_line(capsys, tmp_path):
     out = ["--out", str(tmp_path / "r")]
-    assert "unknown trajectory 'circle'; choose one of" in _one_line_error(
-        capsys, ["run", "--trajectory", "circle", "--no-progress"] + out)
+    assert "argument --trajectory: invalid choice: 'circle' (choose from 'helix', 'home'" in \
+        _one_line_error(capsys, ["run", "--trajectory", "circle", "--no-progress"] + out)
     assert "omega_Q must be a finite number in [0.001, 1000], got 5000.0" in _one_line_error(
         capsys, ["run", "--omega-q", "5000", "--no-progress"] + out)
     assert f"no ANN tuner weights at {tmp_path / 'w.npz'}" in _one_line_error(

@@ -71,9 +71,12 @@ def test_cli_run_writes_data_and_plot(tmp_path, capsys):
 
 
 def test_cli_bad_input_is_one_line_and_nonzero(capsys):
-    assert main(["run", "--trajectory", "nope", "--no-progress"]) == 2
+    assert main(["run", "--set", "reference.name=nope", "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown trajectory" in err[0]
+    with pytest.raises(SystemExit) as exit_:
+        main(["run", "--trajectory", "nope"])                # argparse lists the choices
+    assert exit_.value.code == 2 and "invalid choice: 'nope'" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
         main(["run", "--duration", "-1"])
     assert exit_.value.code == 2

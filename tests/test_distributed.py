@@ -33,7 +33,7 @@ def local(tmp_path_factory):
 def ray_runner():
     ray = pytest.importorskip("ray", reason="the ray extra is not installed: "
                                             "pip install -e '.[ray]'")
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield RayRunner()
     ray.shutdown()
 

@@ -1,6 +1,7 @@
 """Issue 6: baselines behind the same ports, robustness conditions, metrics and the report."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -10,11 +11,12 @@ from stewart_drake.simulation.diagram import make_stewart_diagram
 from stewart_drake.simulation.scenario import NamedReference, PdDriver, Scenario, SensorNoise
 from stewart_drake.errors import InvalidConfigError
 from stewart_drake.studies.evaluation import (RATIO_LQI, ann_verdict, bandwidth_hz, cases,
-                                              controller_settings, evaluate, frequency_response,
+                                              controller_settings, frequency_response,
                                               settling_time)
-from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.experiments import run_experiment
 from stewart_drake.simulation.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
+
+REPO = Path(__file__).resolve().parent.parent
 
 
 def test_pd_baseline_tracks_the_paper_manoeuvre():
@@ -148,15 +150,19 @@ def test_verdict_compares_at_no_more_feedback_effort():
     assert v["ann_paper"]["best_fixed"] is None and not v["ann_paper"]["beats"]
 
 
-def test_evaluate_writes_the_report(tmp_path):
-    report = evaluate(tmp_path / "docs", tmp_path / "out", runner=SerialRunner(), progress=False,
-                      quick=True, controllers=("lqi_1_1", "pd"))
-    md = (tmp_path / "docs" / "results.md").read_text()
+def test_evaluate_writes_the_report_under_out_and_never_over_the_docs(tmp_path, capsys):
+    committed = (REPO / "docs" / "results.md").read_bytes()
+    out = tmp_path / "out"
+    assert main(["evaluate", "--quick", "--controllers", "lqi_1_1,pd", "--runner", "serial",
+                 "--out", str(out), "--no-progress"]) == 0
+    assert (REPO / "docs" / "results.md").read_bytes() == committed
+    md = (out / "results.md").read_text()
     assert "QUICK mode" in md and "| lqi_1_1 |" in md and "| pd |" in md
     for name in ("results_tradeoff.png", "results_bandwidth.png", "results_steps.png"):
-        assert (tmp_path / "docs" / name).stat().st_size > 10_000
-    rows = json.loads((tmp_path / "out" / "rows.json").read_text())["rows"]
-    assert len(rows) == len(report["rows"]) == 2 * (10 + 7) + 5     # lqi_1_1: the encoders
+        assert (out / name).stat().st_size > 10_000
+    rows = json.loads((out / "rows.json").read_text())["rows"]
+    assert len(rows) == 2 * (10 + 7) + 5                             # lqi_1_1: the encoders
+    assert f"wrote {out / 'results.md'}" in capsys.readouterr().out
     # The 5 N push at the tool tip needs 0.91 N m at the cranks, beyond the servos' 0.70 N m:
     # it is lost, and only it; the report says why.
     lost = {(r["case"]["controller"], r["case"]["condition"]) for r in rows if "error" in r}

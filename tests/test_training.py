@@ -3,7 +3,8 @@ where the weights are a known function of the features."""
 
 import numpy as np
 import pytest
-import torch
+
+torch = pytest.importorskip("torch", reason="needs torch (the [train] extra)")
 
 from stewart_drake.errors import InvalidConfigError
 from stewart_drake.studies.training import (Dataset, build_dataset, r2_scores, save_tuner, train, window_cost)

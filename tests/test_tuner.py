@@ -3,29 +3,35 @@ in [0.1, 10] and never NaN."""
 
 import numpy as np
 import pytest
-import torch
+from conftest import needs_torch
 from hypothesis import given, settings, strategies as st
 from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control import tuner as tuner_module
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.control.tuner import AnnTuner, TunerModel, build_mlp, load_tuner, save_tuner
+from stewart_drake.control.tuner import AnnTuner, TunerModel, load_tuner, save_tuner
 
 
 def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:
-    """A torch-initialized network with random normalization; scale > 1 drives the clamp."""
-    torch.manual_seed(seed)
-    mlp = build_mlp(10, activation)
-    with torch.no_grad():
-        mlp[2].weight.mul_(scale)
+    """A network initialized as torch's nn.Linear is (uniform in +-1/sqrt(fan_in)), with random
+    normalization; scale > 1 drives the clamp. numpy only: these tests run without torch."""
     rng = np.random.default_rng(seed)
-    return TunerModel.from_torch(mlp, rng.uniform(0.5, 2, 12), rng.uniform(0.1, 1, 12),
-                                 {"note": "test", "val_r2": {"overall": 0.5}})
+
+    def linear(n_out, n_in):
+        bound = 1 / np.sqrt(n_in)
+        return rng.uniform(-bound, bound, (n_out, n_in)), rng.uniform(-bound, bound, n_out)
+
+    (W1, b1), (W2, b2) = linear(10, 12), linear(2, 10)
+    return TunerModel(W1, b1, scale * W2, b2, rng.uniform(0.5, 2, 12), rng.uniform(0.1, 1, 12),
+                      activation, {"note": "test", "val_r2": {"overall": 0.5}})
 
 
+@needs_torch
 @pytest.mark.parametrize("activation", ["tanh", "sigmoid"])
 def test_numpy_inference_equals_torch(activation):
+    import torch
+
     model = random_model(1, activation, scale=5.0)
     rho = np.random.default_rng(2).uniform(0, 50, (500, 12))
     with torch.no_grad():
@@ -36,6 +42,8 @@ def test_numpy_inference_equals_torch(activation):
     assert np.max(np.abs(y_numpy - y_torch)) < 1e-12          # float64 throughout
     assert 0 < np.mean(np.abs(y_numpy) == 1.0) < 1             # the clamp was exercised
     np.testing.assert_allclose(model.predict(rho), 10.0 ** y_numpy, rtol=1e-15)
+    again = TunerModel.from_torch(model.to_torch(), model.x_mean, model.x_std, model.metadata)
+    np.testing.assert_array_equal(again.predict_log10(rho), y_numpy)    # torch round trip
 
 
 def test_save_load_round_trip(tmp_path):

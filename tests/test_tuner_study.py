@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import needs_torch
 
 from stewart_drake.control.tuner import (N_RATIO_INPUTS, RatioTunerModel, load_ratio_tuner,
                                          ratio_tuner_inputs, save_ratio_tuner)
@@ -127,6 +128,7 @@ def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
 
 # -- our tuner -------------------------------------------------------------------------------------
 
+@needs_torch
 def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed():
     """Synthetic windows whose best ratio is 10 when the reference moves and 0.01 when it holds:
     trained on the interpolated cost, the network picks each side's ratio."""
@@ -179,6 +181,7 @@ def test_weight_schedules_are_checked_by_field():
 
 # -- a small study end to end ----------------------------------------------------------------------
 
+@needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
@@ -205,6 +208,11 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
         pytest.approx((point["e2"] + 0.1 * point["u2"]) / J_best - 1.0)
     assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] >= 0.0
     assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
+    shipped = load_ratio_tuner(tmp_path / "weights" / "chosen" / "ratio_tuner_lambda0.1.npz")
+    assert shipped.metadata["shift"] == chosen["shift"]                 # the closed-loop choice
+    data = shipped.metadata["data"]
+    assert data["training_tasks"] == ["dash_hold_s0"] and data["base_scenario"] == "paper_hardware"
+    assert len(data["base_scenario_sha256"]) == 64 and data["quick"] is True
     assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == \
         json.loads(json.dumps(summary["verdicts"]))
     monkeypatch.setattr(ts, "study_job", lambda job: pytest.fail("ran again"))
@@ -214,3 +222,41 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     assert "QUICK mode" in md and "| ours |" in md and "**Verdict**" in md
     assert "| ours closed-loop (shift " in md and "| fixed chosen (" in md
     assert ts.plot_tuner_tradeoff(again, tmp_path / "t.png").stat().st_size > 10_000
+
+
+# -- the shipped tuners ----------------------------------------------------------------------------
+
+def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
+    from stewart_drake.control.tuner import (DEFAULT_RATIO_TUNER_PATH, RATIO_TUNER_LAMBDAS,
+                                             ratio_tuner_path)
+
+    assert DEFAULT_RATIO_TUNER_PATH == ratio_tuner_path(0.1)
+    for lam in RATIO_TUNER_LAMBDAS:
+        model = load_ratio_tuner(ratio_tuner_path(lam))
+        data = model.metadata["data"]
+        assert model.metadata["lambda"] == lam and model.metadata["shift"] in ts.SHIFTS
+        assert data["base_scenario"] == "paper_hardware" and data["quick"] is False
+        assert data["training_tasks"] == [f"{f}_s{s}" for f, s in ts.train_tasks()]
+        assert data["task_duration_s"] == ts.TASK_DURATION_S
+        assert model.metadata["samples"] > 1000
+
+
+def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
+    """`run --tuner ratio` builds the RatioTuner from the shipped lambda = 0.1 file, and the
+    weights it uses move away from the initial [1, 1]."""
+    from stewart_drake.control.tuner import DEFAULT_RATIO_TUNER_PATH, RatioTuner
+    from stewart_drake.interfaces.cli import build_parser, main, run_scenario
+    from stewart_drake.simulation.diagram import make_stewart_diagram
+    from stewart_drake.studies.experiments import load_result
+
+    args = build_parser().parse_args(["run", "--tuner", "ratio", "--duration", "0.3"])
+    sd = make_stewart_diagram(run_scenario(args))
+    assert isinstance(sd.tuner, RatioTuner)
+    assert sd.tuner.model.metadata == load_ratio_tuner(DEFAULT_RATIO_TUNER_PATH).metadata
+    assert main(["run", "--tuner", "ratio", "--duration", "0.3", "--no-progress", "--out",
+                 str(tmp_path)]) == 0
+    assert f"ratio tuner weights: {DEFAULT_RATIO_TUNER_PATH}" in capsys.readouterr().out
+    result = load_result(tmp_path / "run_paper_ratio.npz")
+    ratio = result.omega[:, 0] / result.omega[:, 1]
+    assert np.all((1e-3 <= ratio) & (ratio <= 1e3)) and np.any(ratio != 1.0)
+    assert result.metrics["finite"] and result.metrics["max_closure_m"] < 1e-5

@@ -199,10 +199,41 @@ def test_control_loop_picture_shows_the_ports_in_use_only():
     dot = visualize.control_loop_dot(sd.diagram)
     assert '"controller":"out_T" -> "station":"in_motor_torque" [label="T (6)"' in dot
     assert '"station":"out_platform_state" -> "controller":"in_x"' in dot
+    assert '"inputs":"out_tool_wrench" -> "station":"in_tool_wrench"' in dot   # exported
     assert "log_" not in dot                                # loggers left out
     assert "motor_rate" not in dot                          # a station port the LQI does not use
     assert dot.count(" -> ") == sum(1 for (dst, _) in sd.diagram.connection_map()
-                                    if type(dst).__name__ != "VectorLogSink")
+                                    if type(dst).__name__ != "VectorLogSink") + 1
+
+
+def test_pictures_draw_the_default_scenario_and_label_the_ideal_one():
+    """`run` defaults to the robot as built: the pictures without a suffix show its encoders
+    feeding the LQI; the ideal robot's pictures say so in their caption."""
+    dots = visualize.diagram_dots()
+    loop, ideal = dots["control_loop"], dots["control_loop_ideal"]
+    assert '"station":"out_motor_angle" -> "controller":"in_motor_angle"' in loop
+    assert "platform_state" not in loop and "paper_hardware" in loop
+    assert '"station":"out_platform_state" -> "controller":"in_x"' in ideal
+    assert "the ideal robot (paper_ideal)" in ideal and "paper_hardware" not in ideal
+    for name in ("encoders", "computation_delay", "current_loop", "torque_limit"):
+        assert f'"{name}" [label=' in dots["station"], name
+        assert f'"{name}" [label=' not in dots["station_ideal"], name
+    assert "paper_hardware" in dots["diagram_fixed"] and "paper_hardware" in dots["diagram_ann"]
+
+
+def test_the_station_picture_leaves_out_the_ports_nobody_connects():
+    """Drake releases add ports to the MultibodyPlant (1.58 added surface_speeds and
+    surface_displacements): the station picture draws only the ports in use, so it is the same
+    on every supported Drake."""
+    sd = make_stewart_diagram(Scenario())
+    dot = visualize.wiring_dot(sd.station)
+    plant = sd.station.plant
+    connected = {src.get_output_port(j).get_name() for (_, _), (src, j)
+                 in sd.station.connection_map().items() if src is plant}
+    unused = {plant.get_output_port(k).get_name() for k in range(plant.num_output_ports())}
+    unused -= connected | {"state"}
+    assert unused and not any(f"out_{name}" in dot for name in unused)
+    assert all(f'"out_{name}"' in dot for name in connected)
 
 
 def test_svg_rendering_needs_graphviz_and_says_so(monkeypatch):

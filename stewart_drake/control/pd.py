@@ -1,10 +1,10 @@
-"""Baseline controllers behind the LQI's ports, for the evaluation of issue 6.
+"""Baseline controllers behind the LQI's ports, for the evaluation.
 
 :class:`CrankPdController` is what a rotary Stewart platform ships with: an independent-joint PD
 loop per motor around the crank angle, on top of the same virtual-work gravity feed-forward as
 the LQI. It follows the controller contract (:mod:`~stewart_drake.control.contract`) with the
 ports ``x``, ``x_d``, ``T_ff``; ``T``, ``status``, ``e_bar``
-so :func:`~stewart_drake.diagram.make_stewart_diagram` swaps one for the other.
+so :func:`~stewart_drake.simulation.diagram.make_stewart_diagram` swaps one for the other.
 """
 
 from __future__ import annotations

@@ -6,7 +6,7 @@ omega_Q, omega_R in [0.1, 10] (the range of the 9 training runs, {0.1, 1, 10}^2)
 normalized, z = (rho - x_mean) / x_std, with the statistics of the training split, stored with
 the weights.
 
-Training uses torch (:mod:`stewart_drake.training`); inference does not: :class:`TunerModel`
+Training uses torch (:mod:`stewart_drake.studies.training`); inference does not: :class:`TunerModel`
 holds numpy arrays and :class:`AnnTuner` evaluates them, so ``run --tuner ann`` never imports
 torch. torch is imported lazily, only by :func:`build_mlp`, :meth:`TunerModel.from_torch` and
 :meth:`TunerModel.to_torch`.
@@ -333,6 +333,19 @@ RATIO_INPUTS = tuple(f"rho_{k}" for k in range(N_FEATURES)) + (
 N_RATIO_INPUTS = len(RATIO_INPUTS)
 RATIO_LOG10_MIN, RATIO_LOG10_MAX = -3.0, 3.0           # omega_Q / omega_R in [1e-3, 1e3]
 RATIO_FORMAT = "ratio_tuner_v1"
+#: The lambdas of the tuner study's cost (J = tracking + lambda effort) whose tuners ship.
+RATIO_TUNER_LAMBDAS = (0.01, 0.1, 1.0)
+
+
+def ratio_tuner_path(lam: float) -> Path:
+    """The shipped weights of our tuner trained for the cost at ``lam``:
+    ``stewart_drake/data/ratio_tuner_lambda<lam>.npz`` (its metadata name the data it came
+    from)."""
+    return DEFAULT_TUNER_PATH.with_name(f"ratio_tuner_lambda{lam:g}.npz")
+
+
+#: What ``run --tuner ratio`` and an empty ``RatioTunerDriver.weights`` load: the balanced cost.
+DEFAULT_RATIO_TUNER_PATH = ratio_tuner_path(0.1)
 _MOTION_SCALES = np.array([1.0, 0.1, 10.0, 1.0])
 
 
@@ -409,18 +422,22 @@ def save_ratio_tuner(model: RatioTunerModel, path) -> Path:
     return path
 
 
-def load_ratio_tuner(path) -> RatioTunerModel:
+def load_ratio_tuner(path=None) -> RatioTunerModel:
     """Load a :func:`save_ratio_tuner` file; no torch needed.
 
+    Args:
+        path: the ``.npz``; None loads the shipped weights for lambda = 0.1
+            (:data:`DEFAULT_RATIO_TUNER_PATH`).
     Raises:
         MissingFileError: no such file.
         CorruptFileError: not a valid ratio tuner file (another format, an entry missing or of
             the wrong type, bad weights, a damaged archive); names the file and the fault.
     """
-    path = Path(path)
+    path = DEFAULT_RATIO_TUNER_PATH if path is None else Path(path)
     if not path.exists():
-        raise MissingFileError(f"no ratio tuner weights at {path}: `stewart-drake evaluate` "
-                               f"trains them (the tuner study)")
+        raise MissingFileError(f"no ratio tuner weights at {path}: the tuner study of "
+                               f"`stewart-drake evaluate` trains them (its out folder, "
+                               f"tuner_study/weights/chosen/)")
     data = CheckedNpz(path, "ratio tuner weights file",
                       "train it again (the tuner study of `stewart-drake evaluate`)",
                       max_bytes=MAX_WEIGHTS_BYTES)

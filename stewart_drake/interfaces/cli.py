@@ -22,18 +22,48 @@ import threading
 from pathlib import Path
 
 from ..errors import StewartError
-
-#: The scenario `run`, `collect` and `evaluate` use unless told: the robot as built.
-DEFAULT_SCENARIO = "paper_hardware"
+from ..simulation.scenario import DEFAULT_SCENARIO
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
 
 
+class _HelpFormatter(argparse.HelpFormatter):
+    """Every option's help ends with its default, ``(default: ...)``, unless it says its default
+    itself (an option whose default is None says what applies then, e.g. "the scenario's")."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if ("default" in text or any(action.default is v for v in (None, False,
+                                                                    argparse.SUPPRESS))
+                or not action.option_strings):
+            return text
+        return text + " (default: %(default)s)"
+
+
 class _Parser(argparse.ArgumentParser):
-    """argparse with a one-line error (argparse prints the usage block first)."""
+    """argparse with a one-line error (argparse prints the usage block first) and the defaults
+    in the help (:class:`_HelpFormatter`)."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def version_text() -> str:
+    """``stewart-drake --version``: this package's, Drake's and Python's versions."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from .. import __version__
+
+    try:
+        drake = version("drake")
+    except PackageNotFoundError:                    # a Drake built from source
+        drake = "not from pip"
+    return (f"stewart-drake {__version__} (drake {drake}, Python "
+            f"{'.'.join(map(str, sys.version_info[:3]))})")
 
 
 def _int_at_least(lowest: int):
@@ -113,6 +143,13 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def has_torch() -> bool:
+    """Whether torch (the [train] extra) can be imported, without importing it."""
+    import importlib.util
+
+    return importlib.util.find_spec("torch") is not None
+
+
 def _cmd_sdf(args) -> int:
     from ..fileio import atomic_write
     from ..model.plant import write_sdf
@@ -150,9 +187,9 @@ def run_scenario(args):
 
     use_entry_point_controllers(args.plugin or ())
     scenario = sc.load_scenario(args.scenario, args.set or ())
-    if args.tuner_weights is not None and args.tuner != "ann":
-        raise InvalidConfigError("--tuner-weights needs --tuner ann (the weights are the ANN "
-                                 "tuner's)")
+    if args.tuner_weights is not None and args.tuner not in ("ann", "ratio"):
+        raise InvalidConfigError("--tuner-weights needs --tuner ann or --tuner ratio (the "
+                                 "weights are a tuner's)")
     if args.duration is not None:
         scenario.duration_s = args.duration
     if args.trajectory is not None and args.trajectory_file is not None:
@@ -161,6 +198,11 @@ def run_scenario(args):
         scenario.reference = sc.NamedReference(args.trajectory)
     if args.trajectory_file is not None:
         scenario.reference = sc.CsvReference(args.trajectory_file)
+        if args.duration is None:                   # the run lasts as long as the file
+            from ..simulation.trajectories import load_csv_trajectory
+
+            trajectory = load_csv_trajectory(args.trajectory_file)
+            scenario.duration_s = trajectory.end_time - trajectory.start_time
     if args.controller == "pd":
         scenario.controller = sc.PdDriver()
     elif args.controller == "lqi" and not isinstance(scenario.controller, sc.LqiDriver):
@@ -177,6 +219,8 @@ def run_scenario(args):
         if weights is None and DEFAULT_TUNER_OUT.exists():
             weights = str(DEFAULT_TUNER_OUT)          # what `stewart-drake train` just wrote
         sc.use_paper_tuner(scenario, sc.AnnTunerDriver(weights=weights or ""))
+    elif args.tuner == "ratio":
+        scenario.tuner = sc.RatioTunerDriver(weights=args.tuner_weights or "")
     elif args.tuner == "none":
         scenario.tuner = None
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
@@ -185,10 +229,14 @@ def run_scenario(args):
     return scenario.validate()
 
 
-def _run_stem(trajectory: str, tuner: bool, controller: str) -> str:
-    """``run_<trajectory>[_ann][_pd]``: the name of a run's result files."""
-    return (f"run_{trajectory}" + ("_ann" if tuner else "")
-            + ("_pd" if controller == "PdDriver" else ""))
+def _run_stem(trajectory: str, tuner, controller: str) -> str:
+    """``run_<trajectory>[_ann|_ratio|_tuned][_pd]``: the name of a run's result files, from the
+    scenario's tuner (None, or its driver) and the controller driver's class name."""
+    from ..simulation.scenario import AnnTunerDriver, RatioTunerDriver
+
+    suffix = "" if tuner is None else {AnnTunerDriver: "_ann",
+                                       RatioTunerDriver: "_ratio"}.get(type(tuner), "_tuned")
+    return f"run_{trajectory}{suffix}" + ("_pd" if controller == "PdDriver" else "")
 
 
 def _reference_name(scenario) -> str:
@@ -206,20 +254,24 @@ def _reference_name(scenario) -> str:
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..fileio import check_replaceable
+    from ..simulation.scenario import AnnTunerDriver, RatioTunerDriver
     from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
 
     scenario = run_scenario(args)
     out = Path(args.out)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
-    stem = _run_stem(_reference_name(scenario), scenario.tuner is not None,
+    stem = _run_stem(_reference_name(scenario), scenario.tuner,
                      type(scenario.controller).__name__)
     for suffix in (".npz", ".png"):
         check_replaceable(out / f"{stem}{suffix}")
-    if scenario.tuner is not None:
-        from ..control.tuner import DEFAULT_TUNER_PATH
+    if isinstance(scenario.tuner, (AnnTunerDriver, RatioTunerDriver)):
+        from ..control.tuner import DEFAULT_RATIO_TUNER_PATH, DEFAULT_TUNER_PATH
 
-        print(f"ANN tuner weights: {scenario.tuner.weights or DEFAULT_TUNER_PATH}")
+        ann = isinstance(scenario.tuner, AnnTunerDriver)
+        weights = scenario.tuner.weights or (DEFAULT_TUNER_PATH if ann
+                                             else DEFAULT_RATIO_TUNER_PATH)
+        print(f"{'ANN' if ann else 'ratio'} tuner weights: {weights}")
     if args.html:                      # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
@@ -228,7 +280,7 @@ def _cmd_run(args) -> int:
     else:
         result = run_experiment(scenario, progress=not args.no_progress)
     summary = result.config_summary
-    stem = _run_stem(summary["trajectory"], summary["tuner"], summary["controller"])
+    stem = _run_stem(summary["trajectory"], scenario.tuner, summary["controller"])
     print(format_metrics(result.metrics), flush=True)   # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
@@ -316,9 +368,16 @@ def _cmd_collect(args) -> int:
 
 
 def _cmd_train(args) -> int:
-    """``stewart-drake train``: fit the tuner in both label modes, save one."""
-    from ..errors import MissingExtraError
+    """``stewart-drake train``: fit the tuner in both label modes, save one. The data are
+    checked first, then that torch is there."""
+    from ..errors import InvalidConfigError, MissingExtraError
+    from ..studies import collection
 
+    records = collection.load_records(args.data)
+    if len(records) < 2:
+        raise InvalidConfigError(
+            f"{len(records)} of the runs in {args.data} kept the platform (the others lost the "
+            f"platform): too few to train on; collect with a scenario the motors can follow")
     try:
         import torch  # noqa: F401 - only to say which extra is missing
     except ImportError:
@@ -326,16 +385,7 @@ def _cmd_train(args) -> int:
                                 "'stewart-drake[train]' (torch==2.13.0, the CPU build)") from None
     from ..control.tuner import save_tuner
     from ..simulation.scenario import AnnTunerDriver, Scenario
-    from ..studies.collection import load_records
     from ..studies.training import build_dataset, train
-
-    records = load_records(args.data)
-    if len(records) < 2:
-        from ..errors import InvalidConfigError
-
-        raise InvalidConfigError(
-            f"{len(records)} of the runs in {args.data} kept the platform (the others lost the "
-            f"platform): too few to train on; collect with a scenario the motors can follow")
     reports = {}
     for mode in ("paper", "best_cost"):
         dataset = build_dataset(records, mode=mode)
@@ -357,14 +407,27 @@ def _cmd_train(args) -> int:
 
 
 def _cmd_evaluate(args) -> int:
-    """``stewart-drake evaluate``: the grid in parallel, docs/results.md and plots."""
-    from ..studies.evaluation import CONTROLLERS, evaluate
+    """``stewart-drake evaluate``: the grid in parallel, results.md and plots (in --out unless
+    --docs names another folder)."""
+    from ..studies.evaluation import CONTROLLERS, QUICK_CONTROLLERS, controller_settings, evaluate
 
-    controllers = CONTROLLERS if not args.controllers else tuple(args.controllers.split(","))
-    check_output(args.docs, "--docs")
-    report = evaluate(args.docs, args.out, runner=_runner(args), progress=not args.no_progress,
+    if args.controllers:
+        controllers = tuple(args.controllers.split(","))
+    else:
+        controllers = QUICK_CONTROLLERS if args.quick else CONTROLLERS
+    for name in controllers:
+        controller_settings(name)                              # an unknown name, before the rest
+    docs = args.out if args.docs is None else args.docs        # never the repository's docs/
+    check_output(docs, "--docs")
+    tuner_study = not (args.no_tuner_study or args.quick)
+    if tuner_study and not has_torch():
+        print("stewart-drake evaluate: the tuner study is left out: it trains our tuner with "
+              "torch (pip install 'stewart-drake[train]'); --no-tuner-study hides this note",
+              file=sys.stderr)
+        tuner_study = False
+    report = evaluate(docs, args.out, runner=_runner(args), progress=not args.no_progress,
                       quick=args.quick, controllers=controllers, base=args.scenario,
-                      tuner_study=not args.no_tuner_study)
+                      tuner_study=tuner_study)
     failed = sum("error" in r for r in report["rows"])
     info = report["info"]
     print(f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
@@ -388,11 +451,13 @@ def _cmd_evaluate(args) -> int:
 
 
 def _cmd_workspace(args) -> int:
-    """``stewart-drake workspace``: sweep the reference robot, write PNG, npz and CSV."""
+    """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
+    from ..simulation.scenario import load_scenario
     from ..studies.workspace import write_workspace
 
+    geometry = load_scenario(args.scenario, args.set or ()).geometry()
     rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
-                           runner=_runner(args))
+                           geometry=geometry, runner=_runner(args))
     for name, value, unit in rows[:9]:
         print(f"{name} {value} {unit}")
     print(f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
@@ -415,11 +480,10 @@ def _add_runner_arguments(parser) -> None:
                                    RUNNERS)
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
-                        help="where jobs run: local processes, this process, Ray or Dask "
-                             "(processes)")
+                        help="where jobs run: local processes, this process, Ray or Dask")
     parser.add_argument("--jobs", type=_int_at_least(0), default=0,
                         help="workers: processes, or the CPUs of a local Ray or Dask cluster "
-                             "(0: one per core)")
+                             "(default: 0, one per core)")
     parser.add_argument("--address", default=None,
                         help="Ray cluster to join (--runner ray; default: start a local one)")
     parser.add_argument("--scheduler", default=None,
@@ -430,51 +494,73 @@ def _add_runner_arguments(parser) -> None:
                         help=f"seconds for --address or --scheduler to accept a connection "
                              f"({DEFAULT_CONNECT_TIMEOUT_S:g})")
     parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
-                        help=f"attempts after the first for a job whose worker died "
-                             f"({DEFAULT_RETRIES})")
+                        help="attempts after the first for a job whose worker died")
     parser.add_argument("--recycle", type=_int_at_least(0), default=DEFAULT_RECYCLE,
-                        help=f"jobs a worker runs before it is replaced, to bound leaked memory "
-                             f"(0: never; processes and ray) ({DEFAULT_RECYCLE})")
+                        help="jobs a worker runs before it is replaced, to bound leaked memory "
+                             "(0: never; processes and ray)")
+
+
+def _add_scenario_arguments(parser, what: str) -> None:
+    """``--scenario`` and ``--set``, the same for every command that starts from a scenario."""
+    parser.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="FILE|NAME",
+                        help=f"{what}: a .yaml file or a shipped name ({DEFAULT_SCENARIO}: the "
+                             f"robot as built; paper_ideal: the paper's ideal robot; "
+                             f"`stewart-drake scenario --list`)")
+    parser.add_argument("--set", action="append", metavar="KEY=VALUE",
+                        help="override a scenario field with a YAML value (repeatable): "
+                             "--set controller.omega_Q=10 --set 'controller=!PdDriver {}' "
+                             "(default: none)")
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .. import __doc__ as summary
+    from ..simulation.trajectories import TRAJECTORIES
+
     parser = _Parser(
         prog="stewart-drake",
-        description="Rotary Stewart platform on a Drake closed-chain plant, LQI + ANN control.")
-    sub = parser.add_subparsers(dest="command", required=True)
+        description=summary.splitlines()[0] + " Run `stewart-drake COMMAND --help` for a "
+        "command's options.")
+    parser.add_argument("--version", action="version", version=version_text())
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
-    run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment) and "
-                                     "plot Fig. 7")
-    run.add_argument("--scenario", default=DEFAULT_SCENARIO,
-                     help=f"scenario file (.yaml) or shipped name ({DEFAULT_SCENARIO}: the robot "
-                          f"as built; paper_ideal: the paper's ideal robot); see "
-                          f"`stewart-drake scenario --list`")
-    run.add_argument("--set", action="append", metavar="KEY=VALUE",
-                     help="override a scenario field, YAML value (repeatable): "
-                          "--set controller.omega_Q=10 --set 'controller=!PdDriver {}'")
-    run.add_argument("--duration", type=_positive_float, default=None,
-                     help="simulated s (scenario: 10)")
-    run.add_argument("--trajectory", default=None,
-                     help="reference: paper, home, helix, step_<axis>, sweep_<axis>")
+    run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment on "
+                                     "the robot as built) and plot Fig. 7")
+    _add_scenario_arguments(run, "the run")
+    run.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
+                     help="simulated time, s (default: the scenario's duration_s, 10 s in the "
+                          "shipped ones; with --trajectory-file, the file's length)")
+    run.add_argument("--trajectory", default=None, choices=sorted(TRAJECTORIES),
+                     metavar="NAME",
+                     help=f"reference, one of: {', '.join(sorted(TRAJECTORIES))} (default: the "
+                          f"scenario's, paper)")
     run.add_argument("--trajectory-file", default=None, metavar="FILE.csv",
-                     help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, m)")
+                     help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, "
+                          "m); the run lasts as long as the file unless --duration says "
+                          "otherwise (default: none)")
     run.add_argument("--controller", choices=["lqi", "pd"], default=None,
-                     help="LQI (paper) or crank-space PD baseline (scenario: lqi)")
-    run.add_argument("--omega-q", type=_positive_float, default=None, help="LQI omega_Q")
-    run.add_argument("--omega-r", type=_positive_float, default=None, help="LQI omega_R")
-    run.add_argument("--tuner", choices=["none", "ann"], default=None,
-                     help="ANN tuner of omega_Q, omega_R (scenario: none)")
-    run.add_argument("--tuner-weights", default=None,
-                     help="ANN weights, with --tuner ann (default: results/tuner/ann_tuner.npz if "
-                          "present, else the shipped ones)")
-    run.add_argument("--out", default="results", help="output folder (results/)")
+                     help="the LQI of the paper or the crank-space PD baseline (default: the "
+                          "scenario's, lqi)")
+    run.add_argument("--omega-q", type=_positive_float, default=None,
+                     help="LQI omega_Q (default: the scenario's, 1)")
+    run.add_argument("--omega-r", type=_positive_float, default=None,
+                     help="LQI omega_R (default: the scenario's, 1)")
+    run.add_argument("--tuner", choices=["none", "ann", "ratio"], default=None,
+                     help="online tuner of the LQI's weights: ann, the paper's network; ratio, "
+                          "ours from the tuner study (default: the scenario's, none)")
+    run.add_argument("--tuner-weights", default=None, metavar="FILE.npz",
+                     help="the tuner's weights (default: for ann, results/tuner/ann_tuner.npz "
+                          "if `train` wrote it, else the shipped ones; for ratio, the shipped "
+                          "lambda = 0.1 ones)")
+    run.add_argument("--out", default="results", help="output folder")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--html", default=None,
-                     help="also write a standalone Meshcat replay of the run to this .html")
+    run.add_argument("--html", default=None, metavar="FILE.html",
+                     help="also write a standalone Meshcat replay of the run to this file "
+                          "(default: none)")
     run.add_argument("--plugin", action="append", metavar="NAME",
                      help="make the installed controller entry point NAME (group "
                           "stewart_drake.controllers) available to the scenario's "
-                          "UserController (repeatable); a scenario never imports code itself")
+                          "UserController (repeatable; default: none); a scenario never imports "
+                          "code itself")
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
     chk = sub.add_parser("check", help="check a reference against every limit without "
@@ -484,81 +570,89 @@ def build_parser() -> argparse.ArgumentParser:
                                        "(paper, helix, step_<axis>, ...) or a scenario (file or "
                                        "shipped name)")
     chk.add_argument("--scenario", default=DEFAULT_SCENARIO,
-                     help=f"the robot to check on, for a CSV or named reference "
-                          f"({DEFAULT_SCENARIO})")
+                     help="the robot to check on, for a CSV or named reference")
     chk.add_argument("--set", action="append", metavar="KEY=VALUE",
-                     help="override a scenario field, e.g. guard.min_clearance_m=0.005")
+                     help="override a scenario field, e.g. guard.min_clearance_m=0.005 "
+                          "(repeatable; default: none)")
     chk.add_argument("--duration", type=_positive_float, default=None,
-                     help="checked s (the scenario's duration_s)")
-    chk.add_argument("--out", default="results", help="folder of the margins plot (results/)")
+                     help="checked s (default: the scenario's duration_s)")
+    chk.add_argument("--out", default="results", help="folder of the margins plot")
     chk.set_defaults(func=_cmd_check)
 
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
     scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,
-                     help=f"scenario file or shipped name ({DEFAULT_SCENARIO})")
-    scn.add_argument("--set", action="append", metavar="KEY=VALUE", help="override a field")
+                     help=f"scenario file or shipped name (default: {DEFAULT_SCENARIO})")
+    scn.add_argument("--set", action="append", metavar="KEY=VALUE",
+                     help="override a field, as for run (default: none)")
     scn.add_argument("--list", action="store_true", help="list the shipped scenarios")
-    scn.add_argument("--out", default=None, help="write the YAML to this file")
+    scn.add_argument("--out", default=None, metavar="FILE.yaml",
+                     help="write the YAML to this file (default: print it)")
     scn.set_defaults(func=_cmd_scenario, out_is_file=True)
 
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
-    col.add_argument("--scenario", default=DEFAULT_SCENARIO,
-                     help=f"scenario the runs share (file or shipped name; {DEFAULT_SCENARIO})")
-    col.add_argument("--set", action="append", metavar="KEY=VALUE",
-                     help="override a field of the scenario, e.g. torque_limit_Nm=0.5")
+    _add_scenario_arguments(col, "the scenario the runs share")
     col.add_argument("--out", default="results/collect", help="output folder")
-    col.add_argument("--duration", type=_positive_float, default=10.0, help="s per run (10)")
-    col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed (0)")
+    col.add_argument("--duration", type=_positive_float, default=10.0, metavar="SECONDS",
+                     help="simulated s per run")
+    col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed")
     _add_runner_arguments(col)
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     col.set_defaults(func=_cmd_collect, out_sub=("diverged",))
 
-    tr = sub.add_parser("train", help="train the ANN tuner on collected runs")
+    tr = sub.add_parser("train", help="train the ANN tuner on collected runs (needs torch)")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
     tr.add_argument("--mode", choices=["paper", "best_cost"], default="best_cost",
-                    help="label mode of the saved tuner (best_cost)")
+                    help="label mode of the saved tuner")
     tr.add_argument("--seed", type=_int_at_least(0), default=0,
-                    help="split and initialization seed (0)")
+                    help="split and initialization seed")
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
     tr.set_defaults(func=_cmd_train, out_is_file=True)
 
-    ev = sub.add_parser("evaluate", help="every controller on every scenario: docs/results.md")
-    ev.add_argument("--scenario", default=DEFAULT_SCENARIO,
-                    help=f"scenario every case starts from (file or shipped name; "
-                         f"{DEFAULT_SCENARIO})")
-    ev.add_argument("--docs", default="docs", help="folder of results.md and its plots (docs/)")
-    ev.add_argument("--out", default="results/evaluation", help="folder of rows.json")
+    ev = sub.add_parser("evaluate", help="every controller on every scenario, and the tuner "
+                                         "study: results.md and its plots")
+    ev.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="FILE|NAME",
+                    help="scenario every case starts from (a .yaml file or a shipped name)")
+    ev.add_argument("--out", default="results/evaluation",
+                    help="folder of the runs (kept as they finish: run again to resume), "
+                         "rows.json and, unless --docs, results.md and its plots")
+    ev.add_argument("--docs", default=None, metavar="FOLDER",
+                    help="write results.md and its plots here instead (default: --out; the "
+                         "repository's report is regenerated with --docs docs)")
     _add_runner_arguments(ev)
     ev.add_argument("--no-tuner-study", action="store_true",
-                    help="leave out the tuner study (issue 14) that leads the report")
-    ev.add_argument("--controllers", default=None,
-                    help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (all)")
+                    help="leave out the tuner study that leads the report")
+    ev.add_argument("--controllers", default=None, metavar="NAME,NAME",
+                    help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (default: all "
+                         "12; with --quick, lqi_1_1,pd,ann_best_cost)")
     ev.add_argument("--quick", action="store_true",
-                    help="1-2 s runs: a smoke test of the pipeline, not figures to quote")
+                    help="a smoke test of about a minute on 2 cores: 1-2 s runs of three "
+                         "controllers, no tuner study; not figures to quote")
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
 
-    ws = sub.add_parser("workspace", help="workspace of states and holding torques")
+    ws = sub.add_parser("workspace", help="reachable poses, singularities and holding torques "
+                                          "of the scenario's robot")
+    _add_scenario_arguments(ws, "the robot to sweep (its robot: fields)")
     ws.add_argument("--out", default="results/workspace", help="output folder")
     ws.add_argument("--resolution", type=_int_at_least(3), default=41,
-                    help="grid points per axis (41)")
+                    help="grid points per axis")
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
 
     dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
-    dg.add_argument("--out", default="diagrams", help="folder (diagrams/ in the current folder)")
+    dg.add_argument("--out", default="diagrams", help="folder (in the current folder)")
     dg.add_argument("--dot-only", action="store_true", help="write the .dot sources only")
     dg.set_defaults(func=_cmd_diagrams)
 
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF")
     sdf.add_argument("--out", default="sdf/rotary_stewart.sdf",
-                     help="file (sdf/rotary_stewart.sdf in the current folder)")
+                     help="file (in the current folder)")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
 
     mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
     mj.add_argument("--out", default="rotary_stewart.xml",
-                    help="file to write (rotary_stewart.xml in the current folder)")
+                    help="file to write (in the current folder)")
     mj.set_defaults(func=_cmd_mjcf, out_is_file=True)
     return parser
 

@@ -234,65 +234,145 @@ def normalize_dot(dot: str) -> str:
     return "\n".join(out[:-1])
 
 
-def control_loop_dot(diagram) -> str:
-    """A picture of the control loop: one box per system of the top-level Diagram (loggers left
-    out), the station collapsed to the ports in use, each edge labelled with the signal's name
-    and size. Built from ``Diagram.connection_map()``, so it is always the wiring that runs.
+def _html_node(name: str, kind: str, inputs, outputs, color: str = "") -> str:
+    """A Graphviz node: a title cell, then the input ports left and the output ports right."""
+    ins, outs = sorted(inputs), sorted(outputs)
+    cells = "".join(
+        "<TR>"
+        + (f'<TD PORT="in_{ins[k]}" BORDER="1">{ins[k]}</TD>' if k < len(ins)
+           else '<TD BORDER="0"></TD>')
+        + (f'<TD PORT="out_{outs[k]}" BORDER="1">{outs[k]}</TD>' if k < len(outs)
+           else '<TD BORDER="0"></TD>')
+        + "</TR>" for k in range(max(len(ins), len(outs), 1)))
+    color = f' BGCOLOR="{color}"' if color else ""
+    return (f'  "{name}" [label=<<TABLE BORDER="0" CELLSPACING="0"><TR><TD BORDER="1" '
+            f'COLSPAN="2"{color}><B>{name}</B><BR/>{kind}</TD></TR>{cells}</TABLE>>];')
 
+
+def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str:
+    """A picture of a Diagram's wiring: one box per subsystem (loggers left out) with only the
+    ports in use, each edge labelled with the signal's name and size, and the Diagram's own
+    exported ports as the boxes ``inputs`` and ``outputs``. Built from ``connection_map()`` and
+    the exported ports' locators, so it is always the wiring that runs, and it leaves out the
+    ports nobody connects (a Drake release that adds ports to the plant draws the same picture).
+
+    Args:
+        diagram: a built Drake ``Diagram``.
+        title: a caption drawn above the picture ("" for none).
+        highlight: names of subsystems drawn shaded (the station in a closed loop).
     Returns:
         DOT text (left to right).
     """
+    from pydrake.systems.framework import InputPortIndex, OutputPortIndex
+
+    def vector_size(port) -> str:
+        return f" ({port.size()})" if port.get_data_type().name == "kVectorValued" else ""
+
     edges, used = [], {}
+
+    def edge(src, out_name, dst, in_name, label):
+        used.setdefault(src[0], (src[1], set(), set()))[2].add(out_name)
+        used.setdefault(dst[0], (dst[1], set(), set()))[1].add(in_name)
+        edges.append(f'  "{src[0]}":"out_{out_name}" -> "{dst[0]}":"in_{in_name}" '
+                     f'[label="{label}", fontsize=9];')
+
     for (dst, i), (src, j) in diagram.connection_map().items():
         if type(dst).__name__ == "VectorLogSink":
             continue
         out, inp = src.get_output_port(j), dst.get_input_port(i)
-        used.setdefault(src.get_name(), (src, set(), set()))[2].add(out.get_name())
-        used.setdefault(dst.get_name(), (dst, set(), set()))[1].add(inp.get_name())
-        size = f" ({out.size()})" if out.get_data_type().name == "kVectorValued" else ""
-        edges.append(f'  "{src.get_name()}":"out_{out.get_name()}" -> '
-                     f'"{dst.get_name()}":"in_{inp.get_name()}" [label="{out.get_name()}{size}", '
-                     f'fontsize=9];')
-    lines = ["digraph control_loop {", "  rankdir=LR;", '  node [shape=none, fontsize=10];']
+        edge((src.get_name(), type(src).__name__), out.get_name(),
+             (dst.get_name(), type(dst).__name__), inp.get_name(),
+             out.get_name() + vector_size(out))
+    for i in range(diagram.num_input_ports()):
+        port = diagram.get_input_port(i)
+        for dst, j in diagram.GetInputPortLocators(InputPortIndex(i)):
+            edge(("inputs", "exported"), port.get_name(), (dst.get_name(), type(dst).__name__),
+                 dst.get_input_port(j).get_name(), port.get_name() + vector_size(port))
+    for i in range(diagram.num_output_ports()):
+        port = diagram.get_output_port(i)
+        src, j = diagram.get_output_port_locator(OutputPortIndex(i))
+        edge((src.get_name(), type(src).__name__), src.get_output_port(j).get_name(),
+             ("outputs", "exported"), port.get_name(), port.get_name() + vector_size(port))
+    lines = [f"digraph {_dot_id(diagram.get_name())} {{", "  rankdir=LR;",
+             "  node [shape=none, fontsize=10];"]
+    if title:
+        lines.append(f'  labelloc=t; fontsize=12; label="{title}";')
     for name in sorted(used):
-        system, inputs, outputs = used[name]
-        rows = max(len(inputs), len(outputs), 1)
-        ins, outs = sorted(inputs), sorted(outputs)
-        cells = "".join(
-            "<TR>"
-            + (f'<TD PORT="in_{ins[k]}" BORDER="1">{ins[k]}</TD>' if k < len(ins)
-               else '<TD BORDER="0"></TD>')
-            + (f'<TD PORT="out_{outs[k]}" BORDER="1">{outs[k]}</TD>' if k < len(outs)
-               else '<TD BORDER="0"></TD>')
-            + "</TR>" for k in range(rows))
-        color = ' BGCOLOR="#dbe9f6"' if name == "station" else ""
-        lines.append(f'  "{name}" [label=<<TABLE BORDER="0" CELLSPACING="0"><TR><TD BORDER="1" '
-                     f'COLSPAN="2"{color}><B>{name}</B><BR/>{type(system).__name__}</TD></TR>'
-                     f"{cells}</TABLE>>];")
+        kind, inputs, outputs = used[name]
+        lines.append(_html_node(name, kind, inputs, outputs,
+                                "#dbe9f6" if name in highlight else
+                                "#eeeeee" if name in ("inputs", "outputs") else ""))
     return "\n".join(lines + sorted(edges) + ["}", ""])
+
+
+def _dot_id(name: str) -> str:
+    return re.sub(r"\W", "_", name) or "diagram"
+
+
+def control_loop_dot(diagram, title: str = "") -> str:
+    """The control loop: :func:`wiring_dot` of the whole closed-loop Diagram, the station drawn
+    with the ports in use only.
+
+    Returns:
+        DOT text (left to right).
+    """
+    return wiring_dot(diagram, title)
+
+
+def titled(dot: str, title: str) -> str:
+    """A Drake ``GetGraphvizString`` picture with ``title`` as its caption."""
+    head, sep, rest = dot.partition("\n")
+    return f'{head}{sep}labelloc=t\nfontsize=12\nlabel="{title}"\n{rest}'
+
+
+#: The captions of the pictures of the two shipped robots (DOT "\\n" breaks the line).
+HARDWARE_CAPTION = ("the robot as built (paper_hardware, the default of stewart-drake run)\\n"
+                    "station: encoders, computation delay, servos with current loop, friction "
+                    "and torque limit; the LQI estimates the pose from the encoders (FK)")
+IDEAL_CAPTION = ("the ideal robot (paper_ideal)\\nthe controller reads the exact pose; ideal "
+                 "torque sources, no friction, no delay")
 
 
 def diagram_dots() -> dict[str, str]:
     """Graphviz sources of the Diagram pictures, normalized (:func:`normalize_dot`).
 
+    Every picture is built from the default scenario of ``stewart-drake run``, the robot as
+    built (``paper_hardware``), but the ones whose name ends in ``_ideal`` (``paper_ideal``).
+
     Returns:
-        {name: DOT text}: ``control_loop`` (:func:`control_loop_dot` of the fixed-weight LQI
-        loop: the station collapsed to the ports in use), ``diagram_fixed`` and ``diagram_ann``
-        (Drake's picture of the whole closed loop, one level deep, with fixed weights and with
-        the ANN tuner), ``station`` (the robot's Diagram inside), ``lqi_controller``,
-        ``density_features``, ``ann_tuner`` and ``crank_pd`` (the controller systems and their
-        ports: each follows the controller contract, so either plugs into the same Diagram).
+        {name: DOT text}: ``control_loop`` and ``control_loop_ideal`` (:func:`control_loop_dot`
+        of the fixed-weight LQI loop: the station with the ports in use), ``station`` and
+        ``station_ideal`` (:func:`wiring_dot` of the robot's Diagram inside), ``diagram_fixed``
+        and ``diagram_ann`` (Drake's picture of the whole closed loop, one level deep, with fixed
+        weights and with the ANN tuner), ``lqi_controller``, ``density_features``,
+        ``ann_tuner`` and ``crank_pd`` (the controller systems and their ports: each follows
+        the controller contract, so either plugs into the same Diagram).
     """
     from ..simulation.diagram import make_stewart_diagram
-    from ..simulation.scenario import AnnTunerDriver, PdDriver, Scenario
+    from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, PdDriver, load_scenario,
+                                       use_paper_tuner)
 
-    fixed = make_stewart_diagram(Scenario())
-    ann = make_stewart_diagram(Scenario(tuner=AnnTunerDriver()))
-    pd = make_stewart_diagram(Scenario(controller=PdDriver()))
-    raw = {"control_loop": control_loop_dot(fixed.diagram),
-           "diagram_fixed": fixed.diagram.GetGraphvizString(max_depth=1),
-           "diagram_ann": ann.diagram.GetGraphvizString(max_depth=1),
-           "station": fixed.station.GetGraphvizString(max_depth=1),
+    def scenario(name=DEFAULT_SCENARIO):
+        return load_scenario(name)
+
+    fixed = make_stewart_diagram(scenario())
+    ideal = make_stewart_diagram(scenario("paper_ideal"))
+    ann = make_stewart_diagram(use_paper_tuner(scenario(), AnnTunerDriver()))
+    pd = scenario()
+    pd.controller = PdDriver()
+    pd = make_stewart_diagram(pd)
+    raw = {"control_loop": control_loop_dot(fixed.diagram, f"closed loop with the LQI: "
+                                                           f"{HARDWARE_CAPTION}"),
+           "control_loop_ideal": control_loop_dot(ideal.diagram, f"closed loop with the LQI: "
+                                                                 f"{IDEAL_CAPTION}"),
+           "station": wiring_dot(fixed.station, f"inside the station: {HARDWARE_CAPTION}",
+                                 highlight=()),
+           "station_ideal": wiring_dot(ideal.station, f"inside the station: {IDEAL_CAPTION}",
+                                       highlight=()),
+           "diagram_fixed": titled(fixed.diagram.GetGraphvizString(max_depth=1),
+                                   f"fixed weights: {HARDWARE_CAPTION}"),
+           "diagram_ann": titled(ann.diagram.GetGraphvizString(max_depth=1),
+                                 f"the paper's ANN tuner: {HARDWARE_CAPTION}"),
            "lqi_controller": fixed.controller.GetGraphvizString(),
            "density_features": ann.features.GetGraphvizString(),
            "ann_tuner": ann.tuner.GetGraphvizString(),

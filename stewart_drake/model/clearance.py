@@ -9,7 +9,7 @@ itself: a body and the bodies it is jointed to (base-crank, crank-rod), and the 
 A rod end's sphere and its socket on the platform are not both collision geometry (the socket's
 stud is drawn only), so a rod's tube crossing the platform's plate is measured like any other pair.
 The rod ends' spheres at the platform are centred on the platform joints: their distances to the
-platform's parts and to each other are the same at every pose (:attr:`ClearanceModel.fixed`,
+platform's parts and to each other are the same at every pose (``ClearanceModel.fixed``,
 5 mm on the reference robot). They are measured once, at home, and filtered from the per-pose
 queries, so that a path's clearance is that of the parts its motion brings together.
 

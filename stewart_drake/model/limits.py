@@ -270,7 +270,7 @@ class TrajectoryReport:
         first_interference: (t, part_a, part_b, clearance) of the first measured pose below it,
             or None.
         design_clearance, design_clearance_parts: the closest of the pairs whose distance is the
-            same at every pose (:attr:`~.clearance.ClearanceModel.fixed`), m, and its parts.
+            same at every pose (the clearance model's ``fixed`` pairs), m, and its parts.
         peak_torque, peak_torque_motor, peak_torque_t: the largest |torque| the motion needs
             (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
         peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,

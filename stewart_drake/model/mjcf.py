@@ -1,6 +1,6 @@
 """The same robot in MuJoCo: an MJCF written from a :class:`StewartGeometry`, assembly, closure.
 
-Model (names as in :func:`stewart_drake.plant.write_sdf`): bodies ``base`` (fixed to the world),
+Model (names as in :func:`.plant.write_sdf`): bodies ``base`` (fixed to the world),
 ``crank_i`` on hinge joints ``motor_i`` (axis u_i), ``rod_i`` on ball joints ``rod_ball_i`` at
 the crank tips, ``platform`` on a free joint; six ``<equality><connect>`` pull site ``rod_top_i``
 (rod top end) onto site ``platform_joint_i`` (platform joint p_i); six ``<motor>`` actuators
@@ -10,7 +10,7 @@ collision ones in group 0 with contact on (MuJoCo skips parent-child pairs, as D
 bodies), the drawn-only ones in group 1 without.
 
 Body frames, masses, COM offsets and rotational inertias are read from the Drake plant that
-:func:`stewart_drake.plant.add_stewart_plant` builds from the same geometry at its home pose, so
+:func:`.plant.add_stewart_plant` builds from the same geometry at its home pose, so
 both engines simulate one set of numbers (paper Table I, crank inertia corrected as in the SDF).
 Joint coordinates match Drake's: ``motor_i`` reads the motor angle theta_i in rad (the hinge's
 ``ref`` is the home angle, so the model's configuration ``qpos0`` is the home pose, assembled),
@@ -203,7 +203,7 @@ def _qpos_addresses(model, prefix: str) -> list:
 def assemble(model, data, geometry: StewartGeometry | None, x) -> np.ndarray:
     """Write the assembled configuration of platform pose x into ``data`` (at rest, ctrl 0).
 
-    As :func:`stewart_drake.plant.assemble`: cranks from the closed-form IK, each rod along
+    As :func:`.plant.assemble`: cranks from the closed-form IK, each rod along
     crank tip -> platform joint by the smallest rotation from its home direction (no spin, so
     the ball quaternion equals Drake's rpy), platform at x. Ends with ``mj_forward``.
     Args:

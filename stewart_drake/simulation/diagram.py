@@ -246,7 +246,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             window=t.feature_window, period_s=h, offset_s=offset))
         if isinstance(t, RatioTunerDriver):
             tuner = builder.AddNamedSystem("ratio_tuner", RatioTuner(
-                load_ratio_tuner(t.weights), period_s=t.period_s, smoothing_s=t.smoothing_s))
+                load_ratio_tuner(t.weights or None), period_s=t.period_s,
+                smoothing_s=t.smoothing_s))
             builder.Connect(ref.x_d.get_output_port(), tuner.GetInputPort("x_d"))
         else:
             tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Dict, List, Optional, Union
 
 import numpy as np
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
@@ -40,6 +40,9 @@ from ..model.limits import (DEFAULT_COND_THRESHOLD, DEFAULT_EFFORT_MARGIN,
                             DEFAULT_MIN_CLEARANCE_M, DEFAULT_MIN_SIGMA_MIN_INV, MotorLimits)
 from ..model.statics import FEEDFORWARD_MODES
 
+#: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:
+#: the robot as built.
+DEFAULT_SCENARIO = "paper_hardware"
 #: Largest RandomSource seed Drake accepts (a 32-bit unsigned integer).
 MAX_SEED = 2**32 - 1
 
@@ -200,7 +203,11 @@ class RatioTunerDriver:
     reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
 
     Attributes:
-        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`), required.
+        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`); empty
+            for the shipped weights trained for the cost at lambda = 0.1
+            (:data:`~stewart_drake.control.tuner.DEFAULT_RATIO_TUNER_PATH`; the ones for
+            lambda = 0.01 and 1 ship beside them:
+            :func:`~stewart_drake.control.tuner.ratio_tuner_path`).
         period_s: tuner period, s (a whole multiple of the control period).
         feature_window: samples m + 1 of the density features.
         smoothing_s: time constant of the low-pass on its log10 ratio, s (0: none).
@@ -724,14 +731,10 @@ class Scenario:
         as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
         check_multiple("tuner.period_s", t.period_s, "control_period_s", self.control_period_s)
         _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
-        if isinstance(t, RatioTunerDriver) and not t.weights:
-            raise MissingFileError("a RatioTunerDriver needs its weights (tuner.weights): "
-                                   "`stewart-drake evaluate` trains them")
         if t.weights and not Path(t.weights).exists():
             kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
             raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
-                                   f"path" + (", or leave it empty for the shipped weights"
-                                              if isinstance(t, AnnTunerDriver) else ""))
+                                   f"path, or leave it empty for the shipped weights")
 
     def _validate_controller(self) -> None:
         c = self.controller
@@ -890,9 +893,53 @@ def _scenario_from_yaml(text: str) -> Scenario:
     return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
 
 
+#: Drake's config structs in a Scenario, and the fields of each that a dump always writes (the
+#: ones the robot needs whatever Drake's defaults are).
+_DRAKE_SECTIONS = {"plant": (MultibodyPlantConfig, ("time_step", "discrete_contact_approximation")),
+                   "simulator": (SimulatorConfig, ()),
+                   "visualization": (VisualizationConfig, ())}
+
+
+def _top_level_blocks(text: str) -> dict:
+    """{key: its lines} of a YAML mapping as ``yaml_dump_typed`` writes it (a key at column 0,
+    its nested lines indented below it), in order."""
+    blocks: dict = {}
+    key = None
+    for line in text.splitlines(keepends=True):
+        if line[:1] not in (" ", "") and ":" in line:
+            key = line.split(":", 1)[0]
+            blocks[key] = ""
+        blocks[key] += line
+    return blocks
+
+
+def _drake_section(name: str, value) -> str:
+    """The ``name:`` block of a Drake config struct: the fields that differ from this Drake's
+    defaults, plus the ones the robot needs (:data:`_DRAKE_SECTIONS`); "" when none."""
+    kind, always = _DRAKE_SECTIONS[name]
+    changed = yaml_load(data=yaml_dump_typed(value, defaults=kind())) or {}
+    keep = set(changed) | set(always)
+    lines = [block for key, block in _top_level_blocks(yaml_dump_typed(value)).items()
+             if key in keep]
+    return (f"{name}:\n" + "".join("  " + line if line.strip() else line
+                                   for block in lines for line in block.splitlines(True))
+            if lines else "")
+
+
 def dump_scenario(scenario: Scenario, path=None) -> str:
-    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given."""
-    text = yaml_dump_typed(scenario)
+    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given.
+
+    Every field of ours is written; of Drake's config structs (``plant``, ``simulator``,
+    ``visualization``) only the fields that differ from the running Drake's defaults, and the
+    plant's ``time_step`` and ``discrete_contact_approximation``. Drake adds, renames and removes
+    fields of these structs between releases (``SimulatorConfig.publish_every_time_step`` is
+    gone in 1.58), so a full dump would load only on the Drake that wrote it; this one loads on
+    every supported Drake unless the user changed a field that one of them lacks.
+    """
+    blocks = _top_level_blocks(yaml_dump_typed(scenario))
+    for name in _DRAKE_SECTIONS:
+        blocks[name] = _drake_section(name, getattr(scenario, name))
+    text = "".join(blocks.values())
     if path is not None:
         from ..fileio import atomic_write
 

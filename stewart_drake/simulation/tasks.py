@@ -1,4 +1,4 @@
-"""Task families for the tuner study (issue 14): references that need adaptation, with seeds.
+"""Task families for the tuner study: references that need adaptation, with seeds.
 
 A fixed weight ratio omega_Q / omega_R is a compromise between moving fast (a stiff loop tracks
 the motion) and holding still (a soft loop amplifies less encoder quantization and spends less

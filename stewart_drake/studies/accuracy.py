@@ -79,8 +79,8 @@ class Run:
 
 
 class DrakeEngine:
-    """The Drake plant of :func:`stewart_drake.plant.add_stewart_plant` under constant torques,
-    run by Drake's Simulator (gravity: Drake's default 9.81 m/s^2)."""
+    """The Drake plant of :func:`.plant.add_stewart_plant` under constant torques, run by
+    Drake's Simulator (gravity: Drake's default 9.81 m/s^2)."""
 
     name = "drake_sap"
 
@@ -244,7 +244,7 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
         dict: ``rms_error`` (6,) over the second half [rad, m], ``max_closure_m``,
         ``wall_per_sim_s`` (wall s per simulated s), ``max_pitch_rad`` the largest |pitch| of
         the rods' BallRpyJoints read from the logged plant states, and
-        ``max_pitch_no_spin_rad`` the same from :func:`ball_joints.rod_ball_rpy` of the logged
+        ``max_pitch_no_spin_rad`` the same from :func:`.ball_joints.rod_ball_rpy` of the logged
         poses (rods without spin); their difference is the spin the rods pick up.
     Raises:
         InvalidConfigError: 1 ms is not a whole multiple of ``time_step``.

@@ -1,4 +1,4 @@
-"""The evaluation of issue 6: every controller on every scenario, side by side.
+"""The evaluation: every controller on every scenario, side by side.
 
 ``stewart-drake evaluate`` runs a grid of :class:`Case` (controller x scenario x condition) over
 a runner (:mod:`.runners`, local processes by default), keeps each row on disk as it arrives
@@ -34,9 +34,9 @@ from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import X_HOME
 from ..model.statics import feedforward_torques
-from ..simulation.scenario import (AnnTunerDriver, LqiDriver, NamedReference, PdDriver, Scenario,
-                                   SensorNoise, ToolDisturbance, dump_scenario, load_scenario,
-                                   use_paper_tuner)
+from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, LqiDriver, NamedReference,
+                                   PdDriver, Scenario, SensorNoise, ToolDisturbance, dump_scenario,
+                                   load_scenario, use_paper_tuner)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -45,12 +45,14 @@ from .store import ResultStore, file_digest, run_jobs
 
 FIXED_LQI = tuple(f"lqi_{q:g}_{r:g}" for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS)
 CONTROLLERS = FIXED_LQI + ("pd", "ann_best_cost", "ann_paper")
+#: The controllers of ``evaluate --quick``: one of each kind, enough to draw every table and plot.
+QUICK_CONTROLLERS = ("lqi_1_1", "pd", "ann_best_cost")
 #: Sensor noise of the "noise" condition on the ideal robot: 0.1 mrad, 0.05 mm, 0.01 rad/s,
 #: 5 mm/s (1 sigma); on the robot as built, encoder noise of ENCODER_NOISE_COUNTS (1 sigma).
 NOISE_STD = (1e-4,) * 3 + (5e-5,) * 3 + (1e-2,) * 3 + (5e-3,) * 3
 ENCODER_NOISE_COUNTS = 2.0
 #: The scenario every case starts from (a shipped name or a path): the robot as built.
-DEFAULT_BASE = "paper_hardware"
+DEFAULT_BASE = DEFAULT_SCENARIO
 #: Encoder resolutions of the encoder table (bits: 2^bits counts per crank turn), run with the
 #: five distinct weight ratios omega_Q / omega_R on the paper manoeuvre.
 ENCODER_BITS = (12, 14, 16, 17, 20)
@@ -660,92 +662,154 @@ def render_markdown(rows, info: dict, tuner: dict | None = None) -> str:
     return "\n".join(L)
 
 
-def plot_results(rows, out_dir: str | Path) -> list[Path]:
-    """Three PNGs in out_dir: tracking vs effort (paper manoeuvre), frequency responses (Z
-    sweep), step responses (Z step). Returns their paths."""
-    import matplotlib
-    import matplotlib.ticker
+def _ratio(controller: str) -> float | None:
+    """omega_Q / omega_R of a fixed LQI name (``lqi_10_1`` -> 10), None for the others."""
+    if not controller.startswith("lqi_"):
+        return None
+    _, q, r = controller.split("_")
+    return float(q) / float(r)
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+#: How the controllers that are not a fixed LQI are drawn in the plots: label, marker, colour.
+_OTHERS = {"pd": ("crank-space PD", "s", "C3"),
+           "ann_best_cost": ("ANN tuner, best-cost labels", "*", "C1"),
+           "ann_paper": ("ANN tuner, paper labels", "D", "C6")}
+
+
+def _ratio_colors(ratios) -> dict:
+    """One colour per omega_Q / omega_R, soft (yellow) to stiff (purple): viridis, which the
+    red, orange and pink of the other controllers do not resemble."""
+    import matplotlib
+
+    ratios = sorted(set(ratios))
+    shades = matplotlib.colormaps["viridis"](np.linspace(0.9, 0.05, max(len(ratios), 2)))
+    return {r: shades[k] for k, r in enumerate(ratios)}
+
+
+def _by_ratio(by: dict, scenario: str, condition: str) -> dict:
+    """{ratio: row} of the fixed LQIs that ran (scenario, condition); pairs of one ratio are one
+    controller (only the ratio sets the gain), the first one stands for them."""
+    out = {}
+    for c in FIXED_LQI:
+        r = by.get((c, scenario, condition))
+        if r is not None and "error" not in r:
+            out.setdefault(_ratio(c), r)
+    return dict(sorted(out.items()))
+
+
+def plot_results(rows, out_dir: str | Path) -> list[Path]:
+    """Three PNGs in out_dir: tracking vs feedback effort (paper manoeuvre, nominal and with
+    noise), frequency responses (Z and phi sweeps), step responses (Z step). Fixed LQIs are one
+    line or point per weight ratio omega_Q / omega_R (the nine pairs are five controllers).
+    Returns their paths."""
+    import matplotlib.ticker
+    from matplotlib.figure import Figure        # no pyplot: no global backend switch
 
     out_dir = Path(out_dir)
     by = _index(rows)
     paths = []
+    colors = _ratio_colors(_ratio(c) for c in FIXED_LQI)
 
     def save(fig, name):
         path = out_dir / name
         atomic_write(path, lambda f: fig.savefig(f, dpi=100, format="png"))
-        plt.close(fig)
         paths.append(path)
 
-    fig, axes = plt.subplots(1, 2, figsize=(14, 5))
-    styles = {}                           # one marker and colour per controller, both panels
-    for ax, condition, title in (
-            (axes[0], "nominal", "nominal: every controller needs the same torque"),
-            (axes[1], "noise", "with sensor noise: stiffness costs torque")):
-        points = {}                       # identical controllers (same omega ratio) share a point
-        for c in CONTROLLERS:
+    # 1. Tracking against the feedback effort, the figure of the ANN verdict.
+    fig = Figure(figsize=(12, 5.2))
+    axes = fig.subplots(1, 2)
+    for ax, condition, title in ((axes[0], "nominal", "nominal"),
+                                 (axes[1], "noise", "with sensor noise")):
+        fixed = _by_ratio(by, "paper", condition)
+        if fixed:
+            x = [r["sum_dT2_dt"] for r in fixed.values()]
+            y = [r["normalized_rms"] for r in fixed.values()]
+            ax.plot(x, y, "-", color="0.75", lw=1, zorder=1)
+            ax.scatter(x, y, s=60, c=[colors[k] for k in fixed], edgecolors="k", lw=0.5,
+                       zorder=2, label=r"fixed LQI, labelled by $\omega_Q/\omega_R$")
+            for ratio, xi, yi in zip(fixed, x, y):
+                ax.annotate(f"{ratio:g}", (xi, yi), xytext=(6, -3), textcoords="offset points",
+                            fontsize=8, color="0.25")
+        for c, (label, marker, color) in _OTHERS.items():
             r = by.get((c, "paper", condition))
             if r is None or "error" in r:
                 continue
-            key = (round(r["sum_T2_dt"], 6), round(r["normalized_rms"], 9))
-            points.setdefault(key, []).append(c)
-        for (effort, nrms), names in points.items():
-            label = " = ".join(names)
-            marker = "o" if names[0].startswith("lqi") else ("s" if names[0] == "pd" else "*")
-            style = styles.setdefault(label, dict(marker=marker, color=f"C{len(styles) % 10}",
-                                                  ms=12 if marker == "*" else 8))
-            ax.plot(effort, nrms, ls="none", label=label, **style)
+            # hollow, drawn on top: a point under it stays visible
+            ax.plot(r["sum_dT2_dt"], r["normalized_rms"], marker, mfc="none", mec=color,
+                    mew=1.8, ms=15 if marker == "*" else 10, ls="none", zorder=3, label=label)
+        ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.ticklabel_format(axis="x", useOffset=False)
-        ax.set_xlabel(r"$\sum T^2 \Delta t$ [N$^2$ m$^2$ s]")
+        for axis in (ax.xaxis, ax.yaxis):             # 0.02, not 2 x 10^-2
+            axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            axis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+                lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+        ax.set_xlabel(r"feedback effort $\sum (T - T_{ff})^2 \Delta t$ [N$^2$ m$^2$ s]")
         ax.set_title(f"paper manoeuvre, {title}", fontsize=10)
         ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=8, loc="upper left")
     axes[0].set_ylabel("normalized RMS tracking error (1 = 1 mrad | 1 mm)")
-    # Names in one legend beside the panels, not on the points: labels never overlap.
-    handles = {h.get_label(): h for ax in axes for h in ax.get_lines()}
-    fig.legend(handles.values(), handles.keys(), loc="center right", fontsize=8,
-               title="controller (= same ratio)", title_fontsize=8)
-    fig.tight_layout(rect=(0, 0, 0.8, 1))
+    fig.suptitle("Tracking against feedback effort: lower left is better", fontsize=11)
+    fig.tight_layout()
     save(fig, "results_tradeoff.png")
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharey=True)
+    # 2. Frequency responses.
+    fig = Figure(figsize=(12, 4.8))
+    axes = fig.subplots(1, 2, sharey=True)
     for ax, scen in zip(axes, ("sweep_Z", "sweep_phi")):
-        for c in CONTROLLERS:
+        for ratio, r in _by_ratio(by, scen, "nominal").items():
+            if r["response"]["f"]:
+                ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
+                            color=colors[ratio], lw=1.2,
+                            label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}")
+        for c, (label, _, color) in _OTHERS.items():
             r = by.get((c, scen, "nominal"))
             if r is None or "error" in r or not r["response"]["f"]:
                 continue
-            ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
-                        lw=1.5 if not c.startswith("lqi") else 0.8, label=c)
+            ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]), color=color,
+                        lw=1.2, ls="--", label=label)
         ax.axhline(-3, color="k", ls=":", lw=1)
+        ax.annotate("-3 dB: the bandwidth is where a gain crosses it", (0.01, -3),
+                    xycoords=("axes fraction", "data"), xytext=(0, -10),
+                    textcoords="offset points", fontsize=8, ha="left")
+        ax.xaxis.set_major_locator(matplotlib.ticker.FixedLocator([1, 2, 5, 10, 20, 50]))
         ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel("frequency [Hz]")
-        ax.set_title(scen.replace("sweep_", "reference -> pose, "))
+        axis = scen.replace("sweep_", "")
+        ax.set_title(f"reference to pose, {axis}: sine sweep 1 to 50 Hz", fontsize=10)
         ax.grid(alpha=0.3, which="both")
     axes[0].set_ylabel("gain [dB]")
-    axes[1].legend(fontsize=7, ncol=2)
+    axes[1].legend(fontsize=8, loc="lower left")
+    fig.tight_layout()
     save(fig, "results_bandwidth.png")
 
-    fig, ax = plt.subplots(figsize=(8, 4.5))
-    for c in CONTROLLERS:
+    # 3. Step responses.
+    fig = Figure(figsize=(9, 4.8))
+    ax = fig.subplots()
+    for ratio, r in _by_ratio(by, "step_Z", "nominal").items():
+        ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]), color=colors[ratio], lw=1,
+                label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}")
+    for c, (label, _, color) in _OTHERS.items():
         r = by.get((c, "step_Z", "nominal"))
         if r is None or "error" in r:
             continue
-        line, = ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]),
-                        lw=1.5 if not c.startswith("lqi") else 0.8, label=c)
+        ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]), color=color, lw=1.5,
+                label=label)
+    for c in ("lqi_1_1", "pd", "ann_best_cost"):
         rs = next((v for k, v in by.items() if k[0] == c and k[1] == "step_Z"
                    and k[2] != "nominal" and "error" not in v), None)
-        if rs is not None and c in ("lqi_1_1", "pd", "ann_best_cost"):
+        if rs is not None:
             ax.plot(rs["trace"]["t"], 1e3 * np.asarray(rs["trace"]["y"]), ls="--", lw=1,
-                    color=line.get_color(), label=f"{c}, |T| <= {TORQUE_LIMIT_NM:g} N m")
+                    color=_OTHERS.get(c, (None, None, colors[1.0]))[2],
+                    label=f"{_OTHERS.get(c, ('LQI ratio 1',))[0]}, |T| <= "
+                          f"{TORQUE_LIMIT_NM:g} N m")
     ax.set_xlim(0.4, 1.2)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("Z - Z_home [mm]")
     ax.set_title("5 mm step on Z at t = 0.5 s")
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, ncol=2, loc="lower right")
     ax.grid(alpha=0.3)
+    fig.tight_layout()
     save(fig, "results_steps.png")
     return paths
 
@@ -783,7 +847,7 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
         controllers: subset of :data:`CONTROLLERS`.
         base: the scenario every case starts from (a shipped name or a .yaml path; default the
             robot as built, ``paper_hardware``).
-        tuner_study: run the tuner study (issue 14) into ``out_dir/tuner_study`` first and lead
+        tuner_study: run the tuner study into ``out_dir/tuner_study`` first and lead
             the report with it (``stewart-drake evaluate`` does, unless ``--no-tuner-study``).
     Returns:
         dict with ``rows`` (grid order), ``wall_s`` (this call), ``paths``, ``verdict``,

@@ -45,6 +45,8 @@ class RunResult:
         rho: (M, 12) density features at the tuner's instants (every tuner period) or None.
         e_bar: (N, 6) the pose error the controller acted on (its estimate of x minus x_d: on
             the hardware, from the encoders), or None.
+        T_ff: (N, 6) the feed-forward torques of the reference at each logged time, N m (T -
+            T_ff is the feedback's share), or None.
         metrics: dict of the figures printed by the CLI (see :func:`compute_metrics`).
         config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
             the whole scenario as YAML.
@@ -61,6 +63,7 @@ class RunResult:
     integral: np.ndarray | None = None
     rho: np.ndarray | None = None
     e_bar: np.ndarray | None = None
+    T_ff: np.ndarray | None = None
     metrics: dict = field(default_factory=dict)
     config_summary: dict = field(default_factory=dict)
 
@@ -199,7 +202,9 @@ def config_summary(sd: StewartDiagram) -> dict:
                "controller": type(driver).__name__, "tuner": scenario.tuner is not None,
                "feedforward": scenario.feedforward, "payload_scale": scenario.payload_scale,
                "torque_limit_Nm": scenario.torque_limit_Nm,
+               "motor_limit_Nm": scenario.torque_limit(),
                "sensor_noise": scenario.sensor_noise is not None,
+               "hardware": scenario.hardware is not None,
                "scenario": dump_scenario(scenario)}
     if isinstance(driver, LqiDriver):
         summary.update(omega_Q=driver.omega_Q, omega_R=driver.omega_R,
@@ -227,13 +232,24 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
                        integral=logs["integral"].data().T if "integral" in logs else None,
                        rho=logs["rho"].data().T if "rho" in logs else None,
                        e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
-                       config_summary=config_summary(sd))
+                       T_ff=feedforward_at(sd, t), config_summary=config_summary(sd))
     result.metrics = compute_metrics(result, wall_s)
     if sd.scenario.contact:
         first = getattr(getattr(sd, "guard", None), "first_contact", None)
         result.metrics["first_contact"] = None if first is None else {
             "t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
     return result
+
+
+def feedforward_at(sd: StewartDiagram, t: np.ndarray) -> np.ndarray:
+    """(N, 6) the feed-forward torques the reference asks for at times t (s), N m: the
+    Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
+    reference time plus the computation delay), linearly interpolated."""
+    scenario = sd.scenario
+    delay = scenario.hardware.computation_delay_periods if scenario.hardware else 0
+    t_act = sd.reference.t_eval + delay * scenario.control_period_s
+    table = sd.reference.T_ff_table
+    return np.stack([np.interp(t, t_act, table[:, i]) for i in range(table.shape[1])], axis=1)
 
 
 def loop_closures_from_states(sd: StewartDiagram, states: np.ndarray) -> np.ndarray:
@@ -320,12 +336,13 @@ def format_metrics(metrics: dict) -> str:
     return "\n".join(lines)
 
 
-_OPTIONAL_ARRAYS = ("omega", "integral", "rho")
+_OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff")
 
 
 def save_result(result: RunResult, path: str | Path) -> Path:
     """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
-    rho when present), status_names, metrics (JSON) and config (JSON, with the scenario YAML)."""
+    rho, T_ff when present), status_names, metrics (JSON) and config (JSON, with the scenario
+    YAML)."""
     arrays = dict(t=result.t, x=result.x, x_d=result.x_d, T=result.T, closure=result.closure,
                   status=result.status, status_names=np.array(result.status_names, dtype=str),
                   metrics=np.array(json.dumps(result.metrics)),
@@ -353,67 +370,153 @@ def load_result(path: str | Path) -> RunResult:
                      metrics=data.json("metrics"), config_summary=data.json("config"))
 
 
+#: Window of the torque panel's means and of the feedback map, s.
+TORQUE_WINDOW_S = 0.05
+
+
+def _window_stats(t: np.ndarray, values: np.ndarray, window_s: float):
+    """(t_w (W,), mean (W, k), rms (W, k)) of values (N, k) over consecutive windows of
+    ``window_s``: the 1 kHz torque chatter of an encoder's quantum averaged out (mean) and
+    measured (rms)."""
+    index = ((t - t[0]) / window_s + 1e-9).astype(int)
+    n = index[-1] + 1
+    counts = np.maximum(np.bincount(index, minlength=n), 1)[:, None]
+    mean = np.stack([np.bincount(index, weights=v, minlength=n) for v in values.T], 1) / counts
+    square = np.stack([np.bincount(index, weights=v ** 2, minlength=n) for v in values.T], 1)
+    t_w = t[0] + (np.arange(n) + 0.5) * window_s
+    return t_w, mean, np.sqrt(square / counts)
+
+
+def _zoom_window(t: np.ndarray, ref: np.ndarray, err: np.ndarray) -> slice:
+    """Samples around the largest |err| over which the reference moves by about four times that
+    error, so that reference and achieved value are told apart in a zoom (5 ms .. 1 s)."""
+    k = int(np.argmax(np.abs(err)))
+    peak = max(abs(err[k]), 1e-15)
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+    half = max(int(round(0.005 / dt)), 2)
+    while half * dt < 1.0:
+        window = ref[max(k - half, 0):k + half + 1]
+        if np.ptp(window) > 4 * peak:
+            break
+        half = int(half * 1.5) + 1
+    return slice(max(k - half, 0), min(k + half + 1, len(t)))
+
+
 def plot_fig7(result: RunResult, path: str | Path) -> Path:
     """Paper Fig. 7 as a PNG, one quantity per panel, plain linear axes.
 
-    Panels: phi and phi_d [rad]; Z and Z_d [m]; angle tracking errors [urad]; position tracking
-    errors [um]; the integral states z (eq. 23) when the controller has them [urad s | um s];
-    omega_Q and omega_R when tuned (log axis: they span decades); motor torques [N m].
+    Panels: phi and Z with their references, each with a zoom on the instant of its largest
+    error where the two curves part (mrad, mm); the angle and position tracking errors (urad,
+    um); the integral states z (eq. 23) when the controller has them; omega_Q and omega_R when
+    tuned (log axis: they span decades); the motor torques as 20 ms means with the motors'
+    limit; and, when the feed-forward is known, the feedback torque T - T_ff per motor as a map
+    of its 20 ms RMS (the chatter of the encoders' quantum, which drawn raw hides the six
+    motors in one band).
     Returns:
         the path written (atomically).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # A Figure without pyplot: no global backend switch (a notebook keeps its inline plots).
+    from matplotlib.figure import Figure
 
     t = result.t
     err = result.x[:, :6] - result.x_d[:, :6]
     panels = ["phi", "Z", "angle_error", "position_error"]
     if result.integral is not None:
         panels.append("integral")
-    if result.rho is not None and result.omega is not None:
+    if result.omega is not None and np.ptp(result.omega) > 0:
         panels.append("omega")
     panels.append("torque")
-    fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.1 * len(panels) + 0.6), sharex=True)
-    for ax, panel in zip(axes, panels):
+    if result.T_ff is not None:
+        panels.append("feedback")
+    heights = [1.2 if p in ("phi", "Z") else 0.8 if p == "feedback" else 1.0 for p in panels]
+    fig = Figure(figsize=(10, 1.75 * sum(heights) + 0.8))
+    # Left: the time series, one width, one time axis. Right: the zooms, legends, colour bar.
+    grid = fig.add_gridspec(len(panels), 2, height_ratios=heights, width_ratios=(3.3, 1))
+    axes, sides = [], []
+    for row in range(len(panels)):
+        axes.append(fig.add_subplot(grid[row, 0], sharex=axes[0] if axes else None))
+        sides.append(fig.add_subplot(grid[row, 1]))
+    for ax in axes[:-1]:
+        ax.tick_params(labelbottom=False)
+    summary = result.config_summary
+
+    def legend_beside(ax, side, loc="center left", **kwargs):
+        side.set_axis_off()
+        side.legend(*ax.get_legend_handles_labels(), loc=loc, fontsize=8, frameon=False,
+                    **kwargs)
+
+    for ax, side, panel in zip(axes, sides, panels):
         if panel in ("phi", "Z"):
-            k, unit = (0, "rad") if panel == "phi" else (5, "m")
+            k, unit, scale, zoom_unit = ((0, "rad", 1e3, "mrad") if panel == "phi"
+                                         else (5, "m", 1e3, "mm"))
             sym = r"\varphi" if panel == "phi" else "Z"
-            ax.plot(t, result.x_d[:, k], "k--", lw=1, label=f"${sym}_d$ (reference)")
-            ax.plot(t, result.x[:, k], "C0" if k == 0 else "C3", lw=1.2, label=f"${sym}$")
+            color = "C0" if k == 0 else "C3"
+            ax.plot(t, result.x_d[:, k], color="0.75", lw=3.5, label=f"${sym}_d$ reference")
+            ax.plot(t, result.x[:, k], color, lw=1.0, label=f"${sym}$ achieved")
             ax.set_ylabel(f"${sym}$ [{unit}]")
-            ax.legend(loc="upper right", fontsize=8, ncol=2)
+            ax.legend(loc="upper left", fontsize=8, ncol=2)
+            # The error is a thousandth of the motion: only a zoom shows both curves apart.
+            w = _zoom_window(t, result.x_d[:, k], err[:, k])
+            ax.axvspan(t[w][0], t[w][-1], color="k", alpha=0.3, lw=0)
+            base = result.x_d[w, k][len(result.x_d[w, k]) // 2]
+            side.plot(t[w], scale * (result.x_d[w, k] - base), color="0.75", lw=3.5)
+            side.plot(t[w], scale * (result.x[w, k] - base), color, lw=1.0)
+            side.set_title(f"zoom at the largest error (grey band),\naround ${sym}$ = {base:.4g} "
+                           f"{unit}", fontsize=8)
+            side.set_ylabel(f"[{zoom_unit}]", fontsize=8)
+            side.set_xlabel("t [s]", fontsize=8, labelpad=1)
+            side.tick_params(labelsize=7)
+            side.grid(alpha=0.3)
         elif panel in ("angle_error", "position_error"):
             part = range(3) if panel == "angle_error" else range(3, 6)
             unit = "urad" if panel == "angle_error" else "um"
             for k in part:
-                ax.plot(t, 1e6 * err[:, k], lw=1, label=AXES[k])
-            ax.set_ylabel(f"{'angle' if k < 3 else 'position'} error\n[{unit}]")
-            ax.legend(loc="upper right", fontsize=8, ncol=3)
+                ax.plot(t, 1e6 * err[:, k], lw=0.8, label=AXES[k])
+            ax.set_ylabel(f"{'angle' if k < 3 else 'position'} error\nx - x_d [{unit}]")
+            legend_beside(ax, side, title="axis")
         elif panel == "integral":
             for k in range(6):
-                ax.plot(t, 1e6 * result.integral[:, k], lw=1, label=AXES[k])
+                ax.plot(t, 1e6 * result.integral[:, k], lw=0.8, label=AXES[k])
             ax.set_ylabel("integral states z\n[urad s | um s]")
-            ax.legend(loc="upper right", fontsize=8, ncol=6)
+            legend_beside(ax, side, ncol=2, title="axis")
         elif panel == "omega":
             ax.plot(t, result.omega[:, 0], label=r"$\omega_Q$")
             ax.plot(t, result.omega[:, 1], label=r"$\omega_R$")
             ax.set_yscale("log")
-            ax.set_ylabel("ANN output")
-            ax.legend(loc="upper right", fontsize=8, ncol=2)
-        else:
+            ax.set_ylabel("tuner output")
+            legend_beside(ax, side)
+        elif panel == "torque":
+            t_w, mean, _ = _window_stats(t, result.T, TORQUE_WINDOW_S)
             for i in range(6):
-                ax.plot(t, result.T[:, i], lw=1, label=f"$T_{i + 1}$")
-            ax.set_ylabel("motor torque\n[N m]")
-            ax.legend(loc="upper right", fontsize=8, ncol=6)
-        ax.grid(alpha=0.3)
+                ax.plot(t_w, mean[:, i], lw=1.2, label=f"$T_{i + 1}$")
+            limit = summary.get("motor_limit_Nm")
+            ax.set_ylabel(f"motor torque\n{1e3 * TORQUE_WINDOW_S:g} ms means [N m]")
+            legend_beside(ax, side, loc="upper left", ncol=2, title="motor")
+            side.text(0.0, 0.0, f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
+                      + (f"\nmotors' limit {limit:.3g} N m" if limit else ""), fontsize=7,
+                      transform=side.transAxes, va="bottom")
+        else:
+            t_w, _, rms = _window_stats(t, result.T - result.T_ff, TORQUE_WINDOW_S)
+            image = ax.imshow(rms.T, aspect="auto", origin="lower", cmap="viridis",
+                              extent=(t_w[0] - TORQUE_WINDOW_S / 2,
+                                      t_w[-1] + TORQUE_WINDOW_S / 2, 0.5, 6.5),
+                              interpolation="nearest")
+            ax.set_yticks(range(1, 7))
+            ax.set_ylabel("feedback T - T_ff\nper motor")
+            side.set_axis_off()
+            bar = fig.colorbar(image, cax=side.inset_axes([0.0, 0.05, 0.06, 0.9]))
+            bar.set_label(f"{1e3 * TORQUE_WINDOW_S:g} ms RMS [N m]", fontsize=8)
+            bar.ax.tick_params(labelsize=7)
+        if panel != "feedback":
+            ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
-    name = result.config_summary.get("trajectory", "")
-    fig.suptitle(f"Fig. 7: {name} run (paper eqs. 37-38)" if name == "paper"
-                 else f"{name} run", fontsize=11)
+    axes[-1].set_xlim(t[0], t[-1])
+    name = summary.get("trajectory", "")
+    robot = ("robot as built (encoders, servos, delay)" if summary.get("hardware")
+             else "ideal robot")
+    what = "Fig. 7: paper manoeuvre (eqs. 37-38)" if name == "paper" else f"{name} run"
+    fig.suptitle(f"{what}, {robot}", fontsize=11)
     fig.tight_layout()
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    plt.close(fig)
     return path

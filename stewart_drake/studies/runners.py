@@ -527,8 +527,10 @@ class RayRunner(_PoolRunner):
             if self.address:
                 self._join(ray)
             else:
-                ray.init(num_cpus=self.n_workers or os.cpu_count(), include_dashboard=False,
-                         log_to_driver=False)
+                # "local": a cluster of our own even when another one runs on this machine
+                # (Ray would join that one and refuse num_cpus).
+                ray.init(address="local", num_cpus=self.n_workers or os.cpu_count(),
+                         include_dashboard=False, log_to_driver=False)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.n_workers = cpus
         remote = ray.remote(num_cpus=1, max_retries=0, max_calls=self.recycle or 0)(_call)

@@ -38,7 +38,7 @@ MANIFEST = "manifest.json"
 LOCK = ".stewart-drake.lock"
 #: Study folders this process holds locked: {real path: open lock file}.
 _HELD: dict = {}
-#: Layout version of the folder; 2 = one file per job and a settings hash (issue 15).
+#: Layout version of the folder; 2 = one file per job and a settings hash.
 FORMAT = 2
 
 

@@ -1,4 +1,4 @@
-"""The tuner study (issue 14): does tuning omega_Q / omega_R online beat the best fixed ratio?
+"""The tuner study: does tuning omega_Q / omega_R online beat the best fixed ratio?
 
 The paper claims that its ANN, fed density features, tracks better at less torque than fixed
 weights. On the ideal robot the test is empty (the stiffest ratio wins everywhere); on the robot
@@ -51,7 +51,7 @@ import numpy as np
 
 from ..control.features import density_features_series
 from ..control.tuner import (N_RATIO_INPUTS, RATIO_LOG10_MAX, RATIO_LOG10_MIN, RatioTunerModel,
-                             ratio_tuner_inputs, save_ratio_tuner)
+                             load_ratio_tuner, ratio_tuner_inputs, save_ratio_tuner)
 from ..errors import InvalidConfigError
 from ..model import statics
 from ..simulation.scenario import (AnnTunerDriver, LqiDriver, RatioTunerDriver, WeightSchedule,
@@ -68,7 +68,7 @@ UNSEEN_FAMILY = "surgical"
 TRAIN_SEEDS = (0, 1, 2)
 TEST_SEEDS = (100, 101, 102, 103, 104)
 TASK_DURATION_S = 3.0
-#: The improvement over the best fixed ratio we set as the goal (issue 14).
+#: The improvement over the best fixed ratio we set as the goal, before any run.
 GOAL = 0.15
 #: The hand-made schedule: ratio R_HOLD when the reference is still, R_MOVE when it moves at or
 #: above SPEED_SCALE (in units of 1 rad/s | 0.1 m/s), log-linear in between. Chosen before the
@@ -362,6 +362,38 @@ def summary_path(out_dir) -> Path:
 
 # -- the study -------------------------------------------------------------------------------------
 
+def provenance(settings: dict, train: list) -> dict:
+    """What a shipped tuner was trained on, for its metadata: the base scenario (name and the
+    SHA-256 of its YAML), the training tasks, the runs per task, the cost and the versions."""
+    import hashlib
+
+    from .. import __version__
+    from ..simulation.scenario import dump_scenario
+
+    scenario = dump_scenario(load_scenario(settings["base"]))
+    return {"made_by": "the tuner study of `stewart-drake evaluate` (stewart_drake.studies."
+                       "tuner_study.run_tuner_study)",
+            "base_scenario": settings["base"],
+            "base_scenario_sha256": hashlib.sha256(scenario.encode()).hexdigest(),
+            "training_tasks": [f"{f}_s{s}" for f, s in train],
+            "task_duration_s": settings["duration_s"],
+            "runs": f"{len(settings['ratios'])} fixed ratios omega_Q / omega_R per training "
+                    f"task (1e-3 .. 1e3), then the output shift chosen in closed loop on the same "
+                    f"tasks among {list(SHIFTS)}",
+            "cost": "J = mean sum (e / 1 mrad|mm)^2 + lambda sum (u_fb / 0.3 N m)^2",
+            "quick": settings["quick"],
+            "stewart_drake": __version__, "drake": _version_of("drake")}
+
+
+def _version_of(package: str) -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version(package)
+    except PackageNotFoundError:
+        return "unknown"
+
+
 def _job_id(kind: str, family: str, seed: int, tag: str = "") -> str:
     return f"{family}_s{seed}/{kind}{('_' + tag) if tag else ''}"
 
@@ -405,8 +437,12 @@ def load_run(path: Path, job_id: str) -> dict:
 
 
 def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool = False,
-                    progress: bool = True, paper_weights: str = "") -> dict:
+                    progress: bool = True, paper_weights: str = "", test: bool = True) -> dict:
     """Run the whole study (module docstring) into ``out_dir``; resumable.
+
+    Our tuner as chosen in closed loop, one per lambda, is written to
+    ``weights/chosen/ratio_tuner_lambda<lambda>.npz`` with the data it came from in its metadata
+    (:func:`provenance`): the files ``stewart_drake/data/`` ships.
 
     Args:
         out_dir: folder of the runs (``runs/``), our tuners' weights (``weights/``) and
@@ -415,6 +451,8 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
         quick: one seed per family and 1 s tasks (tests, notebooks): a smoke test, not figures.
         paper_weights: the paper tuner's ``.npz`` (default the shipped one trained on the
             paper's labels, ``stewart_drake/data/ann_tuner_paper.npz``).
+        test: run the held-out tasks and the verdict; False runs the training tasks only, to
+            train our tuners (the same weights: the training runs are the same).
     Returns:
         the summary (also written to ``tuner_study.json``): settings, per-lambda verdicts,
         the hindsight headroom, every run's J, our tuners' training losses, wall times.
@@ -426,7 +464,7 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
 
     out = Path(out_dir)
     duration = 1.0 if quick else TASK_DURATION_S
-    train, test = train_tasks(quick), test_tasks(quick)
+    train, test = train_tasks(quick), (test_tasks(quick) if test else [])
     from ..control.tuner import PAPER_LABEL_TUNER_PATH
 
     weights_file = str(paper_weights or PAPER_LABEL_TUNER_PATH)   # the paper's labels
@@ -522,6 +560,11 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
         chosen[f"{lam:g}"] = {"fixed_ratio": r_chosen, "fixed_means": r_means,
                               "shift": shift, "shift_means": shift_means}
         path = out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
+        model = load_ratio_tuner(path)
+        save_ratio_tuner(dataclasses.replace(model, metadata={
+            **model.metadata, "closed_loop_means": shift_means,
+            "data": provenance(settings, train)}),
+            out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz")
         for family, seed in test:
             jobs[_job_id("ours_closed_loop", family, seed, f"{lam:g}")] = {
                 **common(family, seed), "kind": "ratio_tuner",
@@ -571,7 +614,7 @@ def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> 
     """The tuner study's section of docs/results.md, from :func:`run_tuner_study`'s summary."""
     st = summary["settings"]
     test_families = sorted({t[0] for t in st["test"]})
-    L = ["## Does online tuning beat the best fixed weights? (issue 14)", ""]
+    L = ["## Does online tuning beat the best fixed weights?", ""]
     if st["quick"]:
         L += ["**QUICK mode: 1 s tasks, one seed per family. A smoke test, not a verdict.**", ""]
     L += [f"Every run is the LQI on `{st['base']}`. The cost, declared before any run: J = mean "
@@ -705,22 +748,45 @@ def _why_lines(summary: dict) -> list:
     return L
 
 
+#: Markers of the tuner study's controllers by kind (the lambda they were made for is the colour).
+_KIND_MARKERS = {"hindsight": ("s", "hindsight schedule (the headroom)"),
+                 "ours": ("^", "our tuner"),
+                 "ours closed-loop": ("v", "our tuner, shift chosen in closed loop"),
+                 "fixed chosen": ("P", "one fixed ratio chosen on the training tasks"),
+                 "paper tuner": ("D", "the paper's ANN tuner"),
+                 "speed schedule": ("o", "speed schedule (hand-made)"),
+                 "fixed gain 1": ("X", "ratio 1 with the start pose's gain")}
+
+
+def _kind_and_lambda(label: str) -> tuple:
+    """("ours closed-loop", "0.1") of "ours closed-loop 0.1"; (label, None) without a lambda."""
+    for kind in sorted(_KIND_MARKERS, key=len, reverse=True):
+        if label == kind:
+            return kind, None
+        if label.startswith(kind + " "):
+            return kind, label[len(kind) + 1:]
+    return label, None
+
+
 def plot_tuner_tradeoff(summary: dict, path) -> Path:
     """Tracking (mean e2) against feedback effort (mean u2), one panel per held-out family: the
     13 fixed ratios as a curve, every other controller as a point (means over the family's
-    tasks). Returns the path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    tasks); the marker says what a controller is, the colour the lambda it was made for, and
+    the legends sit in a panel of their own. Returns the path."""
+    from matplotlib.figure import Figure        # no pyplot: no global backend switch
+    from matplotlib.lines import Line2D
 
     points = summary["points"]
+    lambdas = [f"{lam:g}" for lam in summary["settings"]["lambdas"]]
+    lambda_colors = dict(zip(lambdas, ("C0", "C1", "C2", "C4", "C5")))
     families = sorted({k.rsplit("_s", 1)[0] for k in points})
-    ncols = min(3, len(families))
-    nrows = -(-len(families) // ncols)
-    fig, axes = plt.subplots(nrows, ncols, figsize=(5.0 * ncols, 4.2 * nrows), squeeze=False)
+    ncols = min(3, len(families) + 1)
+    nrows = -(-(len(families) + 1) // ncols)
+    fig = Figure(figsize=(5.0 * ncols, 4.2 * nrows))
+    axes = fig.subplots(nrows, ncols, squeeze=False)
     for ax in axes.flat[len(families):]:
-        ax.set_visible(False)
+        ax.set_axis_off()
+    kinds_seen = set()
     for ax, fam in zip(axes.flat, families):
         tasks = [k for k in points if k.rsplit("_s", 1)[0] == fam]
         labels = sorted({lab for k in tasks for lab in points[k]})
@@ -732,30 +798,46 @@ def plot_tuner_tradeoff(summary: dict, path) -> Path:
         fixed = [f"fixed {r:.3g}" for r in RATIOS if f"fixed {r:.3g}" in labels]
         xs = [mean(lab, "u2") for lab in fixed]
         ys = [mean(lab, "e2") for lab in fixed]
-        ax.loglog(xs, ys, "o-", color="0.6", ms=3, label="fixed ratios (1e-3 .. 1e3)")
+        ax.loglog(xs, ys, "o-", color="0.6", ms=3, zorder=1)
         for lab, x, y in zip(fixed, xs, ys):
             names = {"fixed 0.001": "1e-3", "fixed 1": "1", "fixed 1e+03": "1e3"}
             if lab in names:
                 ax.annotate(names[lab], (x, y), fontsize=8, color="0.35",
                             xytext=(4, 4), textcoords="offset points")
-        others = [lab for lab in labels if not lab.startswith("fixed ") or lab == "fixed gain 1"]
-        colors = plt.cm.tab20(np.linspace(0.0, 1.0, max(len(others), 2)))
-        for lab, color in zip(others, colors):
-            marker = ("s" if "hindsight" in lab else "v" if "closed-loop" in lab
-                      else "^" if lab.startswith("ours") else "D" if "paper" in lab else "o")
-            ax.loglog(mean(lab, "u2"), mean(lab, "e2"), marker, color=color,
-                      ms=5 if marker == "v" else 7, mec="k", mew=0.4, label=lab)
-        ax.set_title(fam)
+        for lab in labels:
+            kind, lam = _kind_and_lambda(lab)
+            if kind not in _KIND_MARKERS:
+                continue
+            kinds_seen.add(kind)
+            marker = _KIND_MARKERS[kind][0]
+            color = lambda_colors.get(lam, "0.2")
+            ax.loglog(mean(lab, "u2"), mean(lab, "e2"), marker, mfc="none", mec=color, mew=1.5,
+                      ms=8, zorder=3, ls="none")
+        ax.set_title(f"held-out family: {fam}" if fam != "paper" else "the paper manoeuvre",
+                     fontsize=10)
         ax.set_xlabel("feedback effort: mean sum (u / 0.3 N m)^2")
         ax.grid(True, which="both", alpha=0.3)
     for row in axes:
         row[0].set_ylabel("tracking: mean sum (e / 1 mrad|mm)^2")
-    axes.flat[0].legend(fontsize=7, loc="best")
-    fig.suptitle("Held-out tasks: every controller against the fixed-ratio trade-off curve")
+    side = axes.flat[len(families)]
+    kinds = [Line2D([], [], color="0.6", marker="o", ms=3,
+                    label="fixed ratios 1e-3 .. 1e3 (the trade-off curve)")]
+    kinds += [Line2D([], [], marker=m, mfc="none", mec="0.2", mew=1.5, ms=8, ls="none",
+                     label=text) for kind, (m, text) in _KIND_MARKERS.items()
+              if kind in kinds_seen]
+    first = side.legend(handles=kinds, loc="upper left", fontsize=8, title="controller",
+                        title_fontsize=9, frameon=False)
+    side.add_artist(first)
+    side.legend(handles=[Line2D([], [], marker="s", color=c, ls="none", label=f"lambda = {lam}")
+                         for lam, c in lambda_colors.items()],
+                loc="lower left", fontsize=8, frameon=False,
+                title="colour: the lambda of the cost\nthe controller was made for",
+                title_fontsize=9)
+    fig.suptitle("Held-out tasks: every controller against the fixed-ratio trade-off curve "
+                 "(lower left is better)")
     fig.tight_layout()
     path = Path(path)
     from ..fileio import atomic_write
 
     atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    plt.close(fig)
     return path
