@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model import kinematics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
 
 @pytest.fixture(scope="session")
@@ -26,3 +26,22 @@ def random_reachable_poses(geometry, n, seed=0, margin=0.95):
 @pytest.fixture(scope="session")
 def random_poses(geometry):
     return random_reachable_poses(geometry, 200)
+
+
+@pytest.fixture
+def feedforward_fault(monkeypatch):
+    """``feedforward_fault(fn)``: from then on every LQI acts on ``fn(T_ff)`` instead of the
+    feed-forward on its port (fault injection at the one place the LQI reads its ports,
+    ``LqiController.inputs``). ``fn`` may also raise."""
+    from stewart_drake.control.lqi import LqiController
+
+    def install(fn):
+        original = LqiController.inputs
+
+        def faulty(self, context):
+            u = original(self, context)
+            u[self.layout.T_ff] = fn(u[self.layout.T_ff])
+            return u
+
+        monkeypatch.setattr(LqiController, "inputs", faulty)
+    return install
