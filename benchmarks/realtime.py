@@ -10,16 +10,17 @@ each, medians printed:
 * ``full_fixed``: the same with fixed weights (no features, no tuner);
 * ``noop``: the ANN Diagram holding home with every Python callback a no-op: what Drake's
   framework, the station's hardware systems, the loggers and the Python dispatch cost alone,
-  the ceiling of the ratio.
+  the ceiling of the ratio;
+* ``moving``: the station alone replaying, open loop, the torques of 2 s of a closed-loop run:
+  the plant's own cost on the manoeuvre (SAP iterates more on a moving platform than on one
+  held at home), the denominator of a second ratio that compares the same plant work.
 
 Each ratio (full / plant_alone) is taken within a pair measured back to back; the medians of
 ``--repeats`` pairs are printed, one line per figure, e.g.
 ``ratio_ann_over_plant 0.62 (median of 5 interleaved pairs; range 0.58 .. 0.66; target >= 0.6)``.
 
 ``--breakdown`` adds where the full Diagram's time goes per control step (the time inside each
-Python callback of a running simulation, where each plant step leaves them with cold caches),
-and the station's own cost on the moving manoeuvre (the station replaying the torques a closed
-loop applied): the plant works harder moving than holding, which no controller can save.
+Python callback of a running simulation, where each plant step leaves them with cold caches).
 ``--riccati`` times the gain re-solve: the Stein equation by Drake, scipy and the compiled
 squared Smith iteration, and one Newton step in numpy against the compiled one.
 
@@ -107,11 +108,11 @@ def noop(scenario, duration_s: float) -> float:
         return full(held, duration_s)[0]
 
 
-def station_moving(scenario, duration_s: float) -> float:
-    """Wall seconds of the station alone replaying the torques a closed loop of ``scenario``
-    applied (zero-order hold): the plant's cost on the moving manoeuvre. At most 2 s (open loop,
-    the platform drifts off the manoeuvre and falls after a few seconds)."""
-    duration_s = min(duration_s, 2.0)
+def moving_station(scenario, duration_s: float = 2.0):
+    """A function returning the wall seconds of the station alone replaying, open loop, the
+    torques a closed loop of ``scenario`` applied over ``duration_s`` (zero-order hold): the
+    plant's own cost on the moving manoeuvre, which the held station does not pay. At most 2 s
+    (open loop, the platform drifts off the manoeuvre and falls a few seconds later)."""
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
     from pydrake.systems.primitives import TrajectorySource
@@ -119,25 +120,28 @@ def station_moving(scenario, duration_s: float) -> float:
 
     from stewart_drake.simulation.station import make_stewart_station
 
-    fixed = dataclasses.replace(scenario, tuner=None, duration_s=duration_s)
+    fixed = dataclasses.replace(scenario, tuner=None, duration_s=min(duration_s, 2.0))
     result = run_experiment(fixed)
-    builder = DiagramBuilder()
-    station = builder.AddSystem(make_stewart_station(fixed))
-    torques = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
-        result.t, result.T.T)))
-    builder.Connect(torques.get_output_port(), station.GetInputPort("motor_torque"))
-    builder.ExportInput(station.GetInputPort("tool_wrench"))
-    diagram = builder.Build()
-    simulator = Simulator(diagram)
-    context = simulator.get_mutable_context()
     x0, v0, _ = fixed.make_reference().evaluate(0.0)
-    station.assemble(context, x0, v0)
-    station.initialize(context, result.T[0])
-    diagram.get_input_port(0).FixValue(context, np.zeros(6))
-    simulator.Initialize()
-    t0 = time.perf_counter()
-    simulator.AdvanceTo(duration_s)
-    return time.perf_counter() - t0
+
+    def replay() -> float:
+        builder = DiagramBuilder()
+        station = builder.AddSystem(make_stewart_station(fixed))
+        torques = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
+            result.t, result.T.T)))
+        builder.Connect(torques.get_output_port(), station.GetInputPort("motor_torque"))
+        builder.ExportInput(station.GetInputPort("tool_wrench"))
+        diagram = builder.Build()
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        station.assemble(context, x0, v0)
+        station.initialize(context, result.T[0])
+        diagram.get_input_port(0).FixValue(context, np.zeros(6))
+        simulator.Initialize()
+        t0 = time.perf_counter()
+        simulator.AdvanceTo(fixed.duration_s)
+        return (time.perf_counter() - t0) / fixed.duration_s
+    return replay
 
 
 #: The Python callbacks of the full Diagram: (label, class, method).
@@ -240,6 +244,7 @@ def main():
     ann = dataclasses.replace(fixed, tuner=AnnTunerDriver())
     D = args.duration
     full(ann, 0.01)                              # compile (or load) the kernels first
+    replay = moving_station(fixed)
     load = os.getloadavg()[0]
     walls = collections.defaultdict(list)
     for _ in range(max(1, args.repeats)):
@@ -247,6 +252,7 @@ def main():
         walls["ann"].append(full(ann, D)[0])
         walls["fixed"].append(full(fixed, D)[0])
         walls["noop"].append(noop(ann, D))
+        walls["moving"].append(replay() * D)
     w = {k: np.array(v) for k, v in walls.items()}
     rtf = {k: D / v for k, v in w.items()}
     print(f"realtime_factor_plant_alone {np.median(rtf['plant']):.2f} median ({D:g} s sim, "
@@ -261,14 +267,21 @@ def main():
         print(f"realtime_factor_{key} {np.median(rtf[key]):.2f} median ({label})")
         print(f"{name} {np.median(ratios):.2f} (median of {len(ratios)} interleaved pairs; range "
               f"{ratios.min():.2f} .. {ratios.max():.2f}{target})")
+    moving = w["plant"] / w["moving"]
+    print(f"station_moving_over_held {np.median(w['moving'] / w['plant']):.2f} (the station "
+          f"replaying a run's torques costs this many times the held station: the plant works "
+          f"harder on the manoeuvre)")
+    for key in ("ann", "fixed"):
+        print(f"ratio_{key}_over_moving_station {np.median(w['moving'] / w[key]):.2f} (the "
+              f"same plant work: the cost of everything but the plant; held ratio "
+              f"{np.median(w['plant'] / w[key]):.2f} x {np.median(1 / moving):.2f})")
     print(f"load_average_1min {os.getloadavg()[0]:.1f} at the end")
     if args.breakdown:
         steps = D / fixed.control_period_s
         plant = np.median(w["plant"])
-        moving = np.median([station_moving(fixed, D) for _ in range(3)]) / min(D, 2.0) * D
         print(f"per control step: station alone {plant / steps * 1e6:.0f} us holding, "
-              f"{moving / steps * 1e6:.0f} us on the manoeuvre (replaying 2 s of a run's torques); "
-              f"no-op Diagram {np.median(w['noop']) / steps * 1e6:.0f} us")
+              f"{np.median(w['moving']) / steps * 1e6:.0f} us on the manoeuvre (replaying 2 s of "
+              f"a run's torques); no-op Diagram {np.median(w['noop']) / steps * 1e6:.0f} us")
         for key, scenario in (("ann", ann), ("fixed", fixed)):
             spent = breakdown(scenario, D)
             print(f"  {labels[key]}: {spent['wall'] / steps * 1e6:.0f} us of wall per step")

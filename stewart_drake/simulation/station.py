@@ -9,6 +9,8 @@ composes station + reference + controller (+ features + tuner) + loggers.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
@@ -27,6 +29,19 @@ from .sensors import PlatformPoseSensor
 
 
 
+def _weak(method):
+    """``method`` (a bound method of a system) as a callback that does not keep its system
+    alive. pydrake stores a system's callbacks in C++, where Python's garbage collector cannot
+    see the cycle system -> callback -> system; drake 1.58 breaks it for events and vector
+    outputs, not for abstract outputs (drake#24162), so a Diagram with this system would
+    otherwise live as long as the process."""
+    ref = weakref.WeakMethod(method)
+
+    def callback(*args):
+        return ref()(*args)
+    return callback
+
+
 class ToolWrench(LeafSystem):
     """A wrench on the tool tip, as the plant's externally applied spatial force.
 
@@ -43,7 +58,7 @@ class ToolWrench(LeafSystem):
         self._wrench = self.DeclareVectorInputPort("tool_wrench", 6)
         self.DeclareAbstractOutputPort(
             "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._Calc, prerequisites_of_calc={self.all_input_ports_ticket()})
+            _weak(self._Calc), prerequisites_of_calc={self.all_input_ports_ticket()})
 
     def _Calc(self, context, output):
         w = self._wrench.Eval(context)
