@@ -1,4 +1,4 @@
-"""Real-time factors of the station alone and of the full Diagram, their ratios, and where time goes.
+"""Real-time factors of the station alone and of the full Diagram, their ratios, where time goes.
 
 Measured in ONE process and interleaved (so a busy machine slows all alike), ``--repeats`` times
 each, medians printed:
@@ -179,8 +179,8 @@ def riccati_costs(controller, n: int = 100) -> dict:
     import scipy.linalg
     from pydrake.math import RealDiscreteLyapunovEquation
 
+    from stewart_drake.control.lqi import balance
     from stewart_drake.control.lqi_kernels import stein
-    from stewart_drake.control.lqi_step import balance
 
     g, h, d = controller.geometry, controller.h, controller.delay
     Q, R = controller.scales.Q_unit(d), controller.scales.R_unit()

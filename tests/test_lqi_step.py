@@ -18,6 +18,7 @@ from stewart_drake.control import lqi_kernels, lqi_step
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.control.lqi import (
     LqiController,
+    balance,
     body_constants,
     error_model,
     input_matrix_single,
@@ -167,7 +168,7 @@ def test_the_compiled_stein_solve_equals_drakes():
 
     c = _controller(False, 1, None, None)
     A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3, 1)
-    Ab, Bb, Qb, Rb, d_x, d_u = lqi_step.balance(A, B, c._Q1, c._R1)
+    Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, c._Q1, c._R1)
     K = c.K_initial * d_x[None, :] / d_u[:, None]
     A_c, W = np.ascontiguousarray(Ab - Bb @ K), Qb + K.T @ Rb @ K
     P, steps = lqi_kernels.stein(A_c, W, 1e-16, 64)

@@ -138,8 +138,8 @@ def check_controller(system) -> None:
     """Check a controller against the contract before it is wired.
 
     Raises:
-        InvalidConfigError: not a LeafSystem or Diagram, a required port missing, a known port of the
-            wrong size, an input port the Diagram cannot connect, or ``status`` without
+        InvalidConfigError: not a LeafSystem or Diagram, a required port missing, a known port of
+            the wrong size, an input port the Diagram cannot connect, or ``status`` without
             ``status_names`` of its size; the message names the port.
     """
     if not isinstance(system, (LeafSystem, Diagram)):

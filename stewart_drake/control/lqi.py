@@ -46,7 +46,7 @@ from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
 from . import lqi_step
 from .contract import LQI_STATUS_NAMES
-from .lqi_step import LqiStatus, balance
+from .lqi_step import LqiStatus
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 #: How the gain is re-solved at a re-schedule (see :class:`LqiController`).
@@ -243,6 +243,24 @@ def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9
             "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
 
 
+def balance(A, B, Q, R):
+    """Diagonal scaling e = D_x e~, u = D_u u~ with D = diag(Q)^-1/2, diag(R)^-1/2 of the
+    Riccati problem (A, B, Q, R) (the compiled Newton step, :func:`~.lqi_kernels.newton_gain`,
+    scales the same way).
+
+    The LQI's Q spans 1 (rates, 1/(1 rad/s)^2) to 2.5e9 (integrals, 1/(2e-5)^2): unscaled, the
+    Riccati solution has cond(P) ~ 4e9 and the gains carry ~1e-8 relative rounding error; scaled,
+    cond(P) ~ 400. Returns (A~, B~, Q~, R~, d_x, d_u).
+    """
+    qd, rd = np.diag(Q).copy(), np.diag(R).copy()
+    d_x = 1.0 / np.sqrt(qd) if np.all(qd > 0) else np.ones(len(qd))
+    d_u = 1.0 / np.sqrt(rd) if np.all(rd > 0) else np.ones(len(rd))
+    return (A * (1 / d_x).reshape(-1, 1) * d_x.reshape(1, -1),
+            B * (1 / d_x).reshape(-1, 1) * d_u.reshape(1, -1),
+            Q * d_x.reshape(-1, 1) * d_x.reshape(1, -1),
+            R * d_u.reshape(-1, 1) * d_u.reshape(1, -1), d_x, d_u)
+
+
 def _check_finite(**arrays) -> None:
     for name, M in arrays.items():
         if not np.all(np.isfinite(M)):
@@ -252,7 +270,7 @@ def _check_finite(**arrays) -> None:
 def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Optimal gain K = (R + B^T P B)^-1 B^T P A (eqs. 31-32); u = -K e.
 
-    Solved on the diagonally scaled problem (:func:`~.lqi_step.balance`) with Drake's
+    Solved on the diagonally scaled problem (:func:`balance`) with Drake's
     DiscreteAlgebraicRiccatiEquation, then scaled back: the same gain, better conditioned.
 
     Args:
@@ -297,13 +315,14 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     Each iteration solves one Stein equation P = A_c^T P A_c + Q + K^T R K for A_c = A - B K
     (compiled squared Smith iteration, :func:`~.lqi_kernels.stein`: about 0.05 ms on 24 states,
     a sixth of Drake's RealDiscreteLyapunovEquation and of scipy's, to 1e-12 of them;
-    benchmarks/realtime.py --riccati) and sets K = (R + B^T P B)^-1 B^T P A. From any stabilizing K_start the iterates stay stabilizing and
+    benchmarks/realtime.py --riccati) and sets K = (R + B^T P B)^-1 B^T P A. From any
+    stabilizing K_start the iterates stay stabilizing and
     converge quadratically to the Riccati gain, so a gain from the previous re-schedule (a pose
     a few ms away) is refined in two iterations, about half the cost of a cold DARE. Newton's
     quadratic convergence makes the last step size an estimate of the previous iterate's error
     squared: the loop stops once the relative step is below ``tol`` (1e-4 gives at most 5e-9
     relative to the cold solve along the paper manoeuvre, in 2.05 iterations on average; tested).
-    It iterates on the diagonally scaled problem (:func:`~.lqi_step.balance`), without which the Stein
+    It iterates on the diagonally scaled problem (:func:`balance`), without which the Stein
     solves' rounding (cond(P) ~ 4e9) alone would leave ~5e-8.
 
     Args:
@@ -556,6 +575,8 @@ class LqiController(LeafSystem):
         self._legs.setflags(write=False)
         self._gain_legs = np.array(kinematics.leg_constants(geometry)[0])
         self._body = body_constants(geometry)
+        for constant in (self._gain_legs, self._body):
+            constant.setflags(write=False)
 
     def _initial_state(self, x0, v0, T0, K0) -> np.ndarray:
         """The state at t = 0: holding torques, weights 1 and one solve (K_initial) so far, the
@@ -834,7 +855,8 @@ class LqiDiagram(Diagram):
         return self.GetSubsystemContext(self.lqi, context)
 
     def gain_in_use(self, context) -> np.ndarray:
-        """(6, n) the gain in use in this Diagram's ``context`` (:meth:`LqiController.gain_in_use`)."""
+        """(6, n) the gain in use in this Diagram's ``context``
+        (:meth:`LqiController.gain_in_use`)."""
         return self.lqi.gain_in_use(self.lqi_context(context))
 
     def get_x_input_port(self):

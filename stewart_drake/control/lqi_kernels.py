@@ -85,7 +85,7 @@ def sources_digest() -> str:
 
 
 #: :func:`sources_digest` of the sources this file was last compiled against.
-DEPENDENCIES_DIGEST = "e51ef20fc5776b15"
+DEPENDENCIES_DIGEST = "f158c2cbba724376"
 
 
 def _use_cache() -> bool:
@@ -138,12 +138,66 @@ def part(array, bounds, k):
     return array[bounds[k, 0]:bounds[k, 1]]
 
 
-# -- the gain's re-schedule: B(x), the error model, Newton's step ------------------------------------
+# -- the gain's re-schedule: B(x), the error model, Newton's step ---------------------------------
 
 #: Entries of the ``body`` array of :func:`input_matrix`, in order (see
 #: :func:`~.lqi.inertia_constants`).
 BODY = ("crank_length", "rod_length", "leg_c", "platform_Ixx", "platform_Iyy", "platform_Izz",
         "platform_mass", "shaft_inertia", "rod_mass", "rod_inertia")
+
+
+@_njit
+def lu_solve(A, B):
+    """(X, ok): A X = B for A (m, m), B (m, k) by LU with partial pivoting; ok False where a
+    pivot is exactly zero. Loops: for the 6 x 6 systems of the re-schedule, cheaper to run and
+    to compile than LAPACK's wrappers."""
+    m = A.shape[0]
+    M, X = A.copy(), B.copy()
+    for k in range(m):
+        p = k
+        for i in range(k + 1, m):
+            if abs(M[i, k]) > abs(M[p, k]):
+                p = i
+        if M[p, k] == 0.0:
+            return X, False
+        if p != k:
+            for j in range(m):
+                M[k, j], M[p, j] = M[p, j], M[k, j]
+            for j in range(X.shape[1]):
+                X[k, j], X[p, j] = X[p, j], X[k, j]
+        for i in range(k + 1, m):
+            f = M[i, k] / M[k, k]
+            for j in range(k + 1, m):
+                M[i, j] -= f * M[k, j]
+            for j in range(X.shape[1]):
+                X[i, j] -= f * X[k, j]
+    for k in range(m - 1, -1, -1):
+        for j in range(X.shape[1]):
+            acc = X[k, j]
+            for i in range(k + 1, m):
+                acc -= M[k, i] * X[i, j]
+            X[k, j] = acc / M[k, k]
+    return X, True
+
+
+@_njit
+def _at_b(A, B):
+    """A^T B for small A (r, m), B (r, n), by loops."""
+    out = np.zeros((A.shape[1], B.shape[1]))
+    for k in range(A.shape[0]):
+        for i in range(A.shape[1]):
+            a = A[k, i]
+            for j in range(B.shape[1]):
+                out[i, j] += a * B[k, j]
+    return out
+
+
+@_njit
+def _finite(A):
+    for v in A.ravel():
+        if not math.isfinite(v):
+            return False
+    return True
 
 
 @_njit
@@ -186,12 +240,20 @@ def input_matrix(legs, body, x):
             J[i, j] = (rxl[0] * E[0, j] + rxl[1] * E[1, j] + rxl[2] * E[2, j]) / scale
             J[i, 3 + j] = ell[i, j] / scale
     # Task inertia: platform (rotation in rpy coordinates, translation), cranks, rods.
-    I_B = R @ np.diag(body[3:6]) @ R.T
+    RI = np.empty((3, 3))                       # R diag(I_p): I_B = R diag(I_p) R^T
+    for i in range(3):
+        for j in range(3):
+            RI[i, j] = R[i, j] * body[3 + j]
+    I_B = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for k in range(3):
+                I_B[i, j] += RI[i, k] * R[j, k]
     Mx = np.zeros((6, 6))
-    Mx[:3, :3] = np.ascontiguousarray(E.T) @ I_B @ E
+    Mx[:3, :3] = _at_b(E, _at_b(I_B, E))        # I_B is symmetric: E^T I_B E
     for k in range(3):
         Mx[3 + k, 3 + k] = body[6]
-    Mx += body[7] * (np.ascontiguousarray(J.T) @ J)
+    Mx += body[7] * _at_b(J, J)
     V_com, W = np.empty((18, 6)), np.empty((18, 6))
     for i in range(6):
         # Gq: velocity of platform joint i per unit x rate, (3, 6) = [-skew(r_B) E, I]
@@ -214,10 +276,10 @@ def input_matrix(legs, body, x):
             W[3 * i, j] = (-ez * D[1, j] + ey * D[2, j]) / (s * s)
             W[3 * i + 1, j] = (ez * D[0, j] - ex * D[2, j]) / (s * s)
             W[3 * i + 2, j] = (-ey * D[0, j] + ex * D[1, j]) / (s * s)
-    Mx += body[8] * (np.ascontiguousarray(V_com.T) @ V_com)
-    Mx += body[9] * (np.ascontiguousarray(W.T) @ W)
-    B_c = np.linalg.solve(Mx, np.ascontiguousarray(J.T))
-    return B_c, J, np.all(np.isfinite(B_c)) and np.all(np.isfinite(J))
+    Mx += body[8] * _at_b(V_com, V_com)
+    Mx += body[9] * _at_b(W, W)
+    B_c, ok = lu_solve(Mx, np.ascontiguousarray(J.T))
+    return B_c, J, ok and _finite(B_c) and _finite(J)
 
 
 @_njit
@@ -257,10 +319,11 @@ def warm_gain(legs, body, x, h, d, Q, R, K, tol, max_iter, stein_tol):
         return K, J, -3
     A, B = zoh_model(B_c, h, d)
     K_new, iterations = newton_gain(A, B, Q, R, K, tol, max_iter, stein_tol)
-    return K_new, np.linalg.inv(J), iterations
+    J_inv, ok = lu_solve(J, np.eye(6))
+    return K_new, J_inv, iterations if ok else -3
 
 
-# -- the gain's Newton step ------------------------------------------------------------------------
+# -- the gain's Newton step -----------------------------------------------------------------------
 
 @_njit
 def stein(A, W, tol, max_iter):
@@ -295,35 +358,65 @@ def stein(A, W, tol, max_iter):
     return P, -1
 
 
-balance = _njit(lqi_step.balance)
-
-
 @_njit
 def newton_gain(A, B, Q, R, K, tol, max_iter, stein_tol):
-    """:func:`~.lqi.lqi_gain_warm`'s iteration (Hewer's Newton method on the balanced problem,
-    each step one :func:`stein` solve): (K, iterations), iterations -1 when a Stein series
-    diverges (K does not stabilize), -2 without convergence in ``max_iter``."""
-    Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, Q, R)
-    Kb = K * d_x.reshape(1, -1) / d_u.reshape(-1, 1)
-    for i in range(1, max_iter + 1):
+    """:func:`~.lqi.lqi_gain_warm`'s iteration (Hewer's Newton method on the problem balanced
+    as :func:`~.lqi.balance` does, each step one :func:`stein` solve): (K, iterations),
+    iterations -1 when a Stein series diverges (K does not stabilize), -2 without convergence
+    in ``max_iter``."""
+    n, m = B.shape
+    d_x, d_u = np.ones(n), np.ones(m)
+    q_positive, r_positive = True, True
+    for i in range(n):
+        q_positive = q_positive and Q[i, i] > 0
+    for i in range(m):
+        r_positive = r_positive and R[i, i] > 0
+    if q_positive:
+        for i in range(n):
+            d_x[i] = 1.0 / math.sqrt(Q[i, i])
+    if r_positive:
+        for i in range(m):
+            d_u[i] = 1.0 / math.sqrt(R[i, i])
+    Ab, Qb = np.empty((n, n)), np.empty((n, n))
+    Bb, Kb, Rb = np.empty((n, m)), np.empty((m, n)), np.empty((m, m))
+    for i in range(n):
+        for j in range(n):
+            Ab[i, j] = A[i, j] * (1 / d_x[i]) * d_x[j]
+            Qb[i, j] = Q[i, j] * d_x[i] * d_x[j]
+        for j in range(m):
+            Bb[i, j] = B[i, j] * (1 / d_x[i]) * d_u[j]
+            Kb[j, i] = K[j, i] * d_x[i] / d_u[j]
+    for i in range(m):
+        for j in range(m):
+            Rb[i, j] = R[i, j] * d_u[i] * d_u[j]
+    Bt = np.ascontiguousarray(Bb.T)
+    for it in range(1, max_iter + 1):
         A_c = Ab - Bb @ Kb
-        Kt = np.ascontiguousarray(Kb.T)
-        P, steps = stein(A_c, Qb + Kt @ (Rb @ Kb), stein_tol, 64)
+        P, steps = stein(A_c, Qb + np.ascontiguousarray(Kb.T) @ (Rb @ Kb), stein_tol, 64)
         if steps < 0:
             return K, -1
-        Bt = np.ascontiguousarray(Bb.T)
         BtP = Bt @ P
-        K_next = np.ascontiguousarray(np.linalg.solve(Rb + BtP @ Bb, BtP @ Ab))
-        step = np.abs(K_next - Kb).max() / max(np.abs(K_next).max(), 1e-300)
+        K_next, ok = lu_solve(Rb + BtP @ Bb, BtP @ Ab)
+        if not ok:
+            return K, -2
+        change, size = 0.0, 1e-300
+        for i in range(m):
+            for j in range(n):
+                change = max(change, abs(K_next[i, j] - Kb[i, j]))
+                size = max(size, abs(K_next[i, j]))
         Kb = K_next
-        if step < tol:
-            if not np.all(np.isfinite(Kb)):
+        if change / size < tol:
+            if not _finite(Kb):
                 return K, -2
-            return d_u.reshape(-1, 1) * Kb / d_x.reshape(1, -1), i
+            out = np.empty((m, n))
+            for i in range(m):
+                for j in range(n):
+                    out[i, j] = d_u[i] * Kb[i, j] / d_x[j]
+            return out, it
     return K, -2
 
 
-# -- estimate -----------------------------------------------------------------------------------
+# -- estimate -------------------------------------------------------------------------------------
 
 @_njit
 def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv):
@@ -357,7 +450,7 @@ def filter_rate(h, alpha, x, x_hat):
         x_hat[i] = x[i]
 
 
-# -- re-schedule and govern: what is due ------------------------------------------------------------
+# -- re-schedule and govern: what is due ----------------------------------------------------------
 
 @_njit
 def schedule_due(c, counter, omega, status):
@@ -401,7 +494,7 @@ def observe(c, legs, u, state, bounds):
     return flags
 
 
-# -- act ----------------------------------------------------------------------------------------
+# -- act ------------------------------------------------------------------------------------------
 
 @_njit
 def push_window(window, e_bar, T):
@@ -556,14 +649,12 @@ def warm_up() -> None:
     step(c, legs, u, state, bounds)
     act(c, u, state, bounds, 0)
     filter_rate(1e-3, 0.5, np.zeros(6), state[lay.x_hat])
-    body, x, K = np.ones(len(BODY)), np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]), np.zeros((6, 24))
-    Q, R = np.eye(24), np.eye(6)
-    for legs_type in (legs, np.zeros((6, 9))):
-        try:                          # compiled before it runs; zeros make no pose
-            warm_gain(legs_type, body, x, 1e-3, 1, Q, R, K, np.inf, 1, 1e-16)
-        except (ZeroDivisionError, np.linalg.LinAlgError):
-            pass
-    newton_gain(np.eye(24), np.zeros((24, 6)), Q, R, K, np.inf, 1, 1e-16)
+    body, x, K = _readonly(np.ones(len(BODY))), np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]), \
+        np.zeros((6, 24))
+    try:                              # compiled before it runs; zero legs make no pose
+        warm_gain(legs, body, x, 1e-3, 1, np.eye(24), np.eye(6), K, np.inf, 1, 1e-16)
+    except (ZeroDivisionError, np.linalg.LinAlgError):
+        pass
 
 
 warm_up()

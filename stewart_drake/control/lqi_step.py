@@ -193,25 +193,7 @@ def solve6(A, b):
     return x, True
 
 
-def balance(A, B, Q, R):
-    """Diagonal scaling e = D_x e~, u = D_u u~ with D = diag(Q)^-1/2, diag(R)^-1/2 of the
-    Riccati problem (A, B, Q, R): the gains' problem, here because the compiled Newton step
-    compiles it too.
-
-    The LQI's Q spans 1 (rates, 1/(1 rad/s)^2) to 2.5e9 (integrals, 1/(2e-5)^2): unscaled, the
-    Riccati solution has cond(P) ~ 4e9 and the gains carry ~1e-8 relative rounding error; scaled,
-    cond(P) ~ 400. Returns (A~, B~, Q~, R~, d_x, d_u).
-    """
-    qd, rd = np.diag(Q).copy(), np.diag(R).copy()
-    d_x = 1.0 / np.sqrt(qd) if np.all(qd > 0) else np.ones(len(qd))
-    d_u = 1.0 / np.sqrt(rd) if np.all(rd > 0) else np.ones(len(rd))
-    return (A * (1 / d_x).reshape(-1, 1) * d_x.reshape(1, -1),
-            B * (1 / d_x).reshape(-1, 1) * d_u.reshape(1, -1),
-            Q * d_x.reshape(-1, 1) * d_x.reshape(1, -1),
-            R * d_u.reshape(-1, 1) * d_u.reshape(1, -1), d_x, d_u)
-
-
-# -- estimate -----------------------------------------------------------------------------------
+# -- estimate -------------------------------------------------------------------------------------
 
 def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv) -> bool:
     """Pose and rate from the encoders by one Newton chord step, in place in ``x_hat``.
@@ -250,7 +232,7 @@ def filter_rate(h, alpha, x, x_hat) -> None:
     x_hat[6:] = v_prev + alpha * ((x - x_prev) / h - v_prev)
 
 
-# -- re-schedule and govern: what is due ------------------------------------------------------------
+# -- re-schedule and govern: what is due ----------------------------------------------------------
 
 def schedule_due(c, counter, omega, status) -> bool:
     """A gain re-solve is due: a schedule period has passed (with pose scheduling), or the
@@ -291,7 +273,7 @@ def observe(c, legs, u, state, bounds) -> int:
     return flags
 
 
-# -- act ----------------------------------------------------------------------------------------
+# -- act ------------------------------------------------------------------------------------------
 
 def push_window(window, e_bar, T) -> bool:
     """Buffer one sample [e_bar (6), T (6)] of the density features (eqs. 35-36) in the ring
