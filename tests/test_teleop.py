@@ -73,11 +73,11 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     display_context = run.display.GetMyContextFromRoot(run.simulator.get_context())
     figures = run.display.figures(display_context)
     peak = load_scenario("paper_hardware").torque_limit()
-    assert figures["torque margin [N m]"] == pytest.approx(
+    assert figures["T margin [N m]"] == pytest.approx(
         peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9)
-    assert 0.0 <= figures["tracking error [mm]"] < 0.5
-    assert meshcat.GetSliderValue("torque margin [N m]") == pytest.approx(
-        figures["torque margin [N m]"], abs=peak / 1000)
+    assert 0.0 <= figures["error [mm]"] < 0.5
+    assert meshcat.GetSliderValue("T margin [N m]") == pytest.approx(
+        figures["T margin [N m]"], abs=peak / 10000)
     meshcat.SetSliderValue("y", 0.0)
     meshcat.SetSliderValue("z", 0.30)
 
@@ -85,7 +85,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
 def test_the_default_margins_are_the_holding_torques_against_the_peak():
     geometry = load_scenario("paper_hardware").geometry()
     margins = torque_margins(geometry, 0.7)(X_HOME)
-    assert margins == {"torque margin [N m]": pytest.approx(
+    assert margins == {"T margin [N m]": pytest.approx(
         0.7 - np.abs(holding_torques(geometry, X_HOME)).max())}
     assert torque_margins(geometry, None)(X_HOME) == {}
 

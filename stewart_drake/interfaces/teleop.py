@@ -43,8 +43,8 @@ def torque_margins(geometry, peak_torque_Nm: float | None) -> Callable[[np.ndarr
         try:
             T = holding_torques(geometry, x)
         except ValueError:                    # a pose the statics refuse: no margin at all
-            return {"torque margin [N m]": 0.0}
-        return {"torque margin [N m]": float(peak_torque_Nm - np.abs(T).max())}
+            return {"T margin [N m]": 0.0}
+        return {"T margin [N m]": float(peak_torque_Nm - np.abs(T).max())}
     return margins
 
 
@@ -53,14 +53,14 @@ class TeleopDisplay(LeafSystem):
     event: nothing between).
 
     Input ports: ``x`` (12,) the platform's true pose and rate; ``x_d`` (18,) the reference.
-    Each figure is a gauge of the Meshcat panel (a slider the display sets): "tracking error
-    [mm]" (largest of |X - X_d|, |Y - Y_d|, |Z - Z_d|), "tracking error [mrad]" (largest of the
-    angles), and one per entry of ``margins(x)``.
+    Each figure is a gauge of the Meshcat panel (a slider the display sets; names short enough
+    for the panel): "error [mm]" (the tracking error, largest of |X - X_d|, |Y - Y_d|,
+    |Z - Z_d|), "error [mrad]" (largest of the angles), and one per entry of ``margins(x)``.
 
     Args:
         meshcat: the Meshcat of the run. margins: ``margins(x (6,)) -> {name: value}``, the
             figures to show besides the tracking error (see :func:`torque_margins`).
-        ranges: {name: (min, max)} of the gauges (default: 0 .. 20 mm, 0 .. 50 mrad, and
+        ranges: {name: (min, max)} of the gauges (default: 0 .. 10 mm, 0 .. 20 mrad, and
             0 .. 1 for a margin not named there).
         period_s: refresh period, s.
     """
@@ -69,7 +69,7 @@ class TeleopDisplay(LeafSystem):
                  period_s: float = DISPLAY_PERIOD_S):
         super().__init__()
         self.meshcat, self.margins = meshcat, margins
-        self.ranges = {"tracking error [mm]": (0.0, 20.0), "tracking error [mrad]": (0.0, 50.0),
+        self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0),
                        **(ranges or {})}
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
@@ -80,15 +80,15 @@ class TeleopDisplay(LeafSystem):
         """{name: value} of the display now (the tracking error and the margins)."""
         x, x_d = self._x.Eval(context), self._x_d.Eval(context)
         e = np.abs(x[:6] - x_d[:6])
-        return {"tracking error [mm]": 1e3 * float(e[3:].max()),
-                "tracking error [mrad]": 1e3 * float(e[:3].max()), **self.margins(x[:6])}
+        return {"error [mm]": 1e3 * float(e[3:].max()),
+                "error [mrad]": 1e3 * float(e[:3].max()), **self.margins(x[:6])}
 
     def _Publish(self, context):
         names = set(self.meshcat.GetSliderNames())
         for name, value in self.figures(context).items():
             lo, hi = self.ranges.get(name, (0.0, 1.0))
             if name not in names:
-                self.meshcat.AddSlider(name, lo, hi, (hi - lo) / 1000, lo)
+                self.meshcat.AddSlider(name, lo, hi, (hi - lo) / 10000, lo)
             self.meshcat.SetSliderValue(name, float(np.clip(value, lo, hi)))
 
 
@@ -162,7 +162,7 @@ def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, li
     builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
     display = builder.AddNamedSystem("display", TeleopDisplay(
         meshcat, margins or torque_margins(geometry, peak),
-        ranges={"torque margin [N m]": (0.0, peak or 1.0)}))
+        ranges={"T margin [N m]": (0.0, peak or 1.0)}))
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
     diagram = builder.Build()
