@@ -97,6 +97,13 @@ def test_teleop_command_runs_for_a_duration(capsys, tmp_path):
     assert "http://" in out and "realtime_rate" in out and "over 0.2 s simulated" in out
 
 
+def test_teleop_on_a_taken_port_is_one_line(capsys, tmp_path, meshcat):
+    assert main(["teleop", "--port", str(meshcat.port()), "--duration", "0.1", "--out",
+                 str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and f"port {meshcat.port()}" in err and "--port" in err
+
+
 @pytest.mark.slow
 @pytest.mark.skipif(chromium_cdp.find_chromium() is None,
                     reason="needs Chromium (apt-get install chromium)")

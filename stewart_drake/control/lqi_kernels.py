@@ -1,12 +1,17 @@
 """The stages of :mod:`.lqi_step`, compiled with numba: what the LQI runs every control period.
 
 Same names, signatures and results as the numpy reference (a test holds them equal to 1e-12
-relative); written as loops over the (6,)-sized arrays, where a numpy call costs more than its
-arithmetic. One compiled :func:`observe` and one :func:`act` per period replace some sixty numpy
-and Python calls; the controller's Python update only reads its ports and state and calls them.
+relative; they give the same bits); written as loops over the (6,)-sized arrays, where a numpy
+call costs more than its arithmetic. One compiled :func:`step` per period (:func:`observe`, then
+:func:`act`) replaces some sixty numpy and Python calls; the controller's Python update only
+reads its input, takes its state and calls it. The gain re-schedule is compiled here too
+(:func:`warm_gain`), with no numpy reference of its own: it is tested against the numpy
+functions it replaces (:func:`~.lqi.input_matrix_single`, :func:`~.lqi.error_model`,
+:func:`~.lqi.lqi_gain`).
 
-Compilation is cached on disk (``cache=True``): the first import on a machine compiles for a few
-seconds (README), later processes load the machine code. The cache goes where numba can write:
+Compilation is cached on disk (``cache=True``): the first import on a machine (and Python
+version) compiles for about half a minute (docs/performance.md), later processes load the machine
+code in about a second. The cache goes where numba can write:
 ``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside this file, else the user's cache folder;
 when none of them is writable (a read-only install and home), a folder in the system's temporary
 directory (:func:`_njit`).

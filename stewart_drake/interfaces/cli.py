@@ -356,7 +356,14 @@ def _cmd_teleop(args) -> int:
     params = MeshcatParams()
     if args.port is not None:
         params.port = args.port
-    meshcat = Meshcat(params)
+    try:
+        meshcat = Meshcat(params)
+    except RuntimeError as err:                       # the port is taken
+        from ..errors import InvalidConfigError
+
+        raise InvalidConfigError(f"Meshcat cannot listen on port {args.port}: {err} Choose "
+                                 f"another --port, or leave it out for the first free one") \
+            from None
     run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
     how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
     print(f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
