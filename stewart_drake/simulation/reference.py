@@ -227,7 +227,7 @@ class TeleopReference(LeafSystem):
             X_WE = self._target.Eval(context)
             target = np.concatenate([RollPitchYaw(X_WE.rotation()).vector(),
                                      X_WE.translation()])
-            if np.all(np.isfinite(target)):
+            if np.all(np.isfinite(target)) and np.any(target != state[self.GOAL]):
                 state[self.GOAL] = self.goal_toward(state[self.GOAL], target)
             state[self.T_FF] = holding_torques(self.geometry, state[self.X])
         steps += 1.0
