@@ -18,6 +18,7 @@ import itertools
 import json
 import os
 import select
+import signal
 import subprocess
 import tempfile
 import time
@@ -52,7 +53,8 @@ class HeadlessChromium:
         self._session = None
 
     def __enter__(self) -> "HeadlessChromium":
-        self._profile = tempfile.TemporaryDirectory(prefix="chromium-profile-")
+        self._profile = tempfile.TemporaryDirectory(prefix="chromium-profile-",
+                                                    ignore_cleanup_errors=True)
         self._log = tempfile.TemporaryFile()
         to_browser_r, self._to_browser = os.pipe()
         self._from_browser, from_browser_w = os.pipe()
@@ -63,7 +65,8 @@ class HeadlessChromium:
         self.process = subprocess.Popen(
             ["bash", "-c", f'exec "$0" "$@" 3<&{to_browser_r} 4>&{from_browser_w}',
              self.exe, *args], pass_fds=(to_browser_r, from_browser_w),
-            stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log)
+            stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log,
+            start_new_session=True)                  # its own group: ended with its children
         os.close(to_browser_r)
         os.close(from_browser_w)
         try:
@@ -75,7 +78,10 @@ class HeadlessChromium:
 
     def __exit__(self, *exc) -> None:
         try:
-            self.process.kill()
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)   # the browser and its helpers
+            except ProcessLookupError:
+                pass
             self.process.wait(timeout=30)
         finally:
             for fd in (self._to_browser, self._from_browser):
