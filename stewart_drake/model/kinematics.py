@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -30,9 +29,6 @@ from ..errors import (
     SingularPoseError,
     UnreachablePoseError,
 )
-
-if TYPE_CHECKING:                       # the geometry checks itself with this module
-    from .geometry import StewartGeometry
 
 #: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
 X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
