@@ -12,21 +12,29 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
+from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.common import RandomDistribution
 from pydrake.symbolic import Variable, floor
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import (Adder, ConstantVectorSource, DiscreteTimeDelay, Gain,
-                                        LinearSystem, MatrixGain, PassThrough, RandomSource,
-                                        Saturation, SymbolicVectorSystem)
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    DiscreteTimeDelay,
+    Gain,
+    LinearSystem,
+    MatrixGain,
+    PassThrough,
+    RandomSource,
+    Saturation,
+    SymbolicVectorSystem,
+)
 
 from ..model.kinematics import X_HOME
-from ..model.statics import p_ETool
 from ..model.plant import add_stewart_plant, assemble
+from ..model.statics import p_ETool
 from .sensors import PlatformPoseSensor
-
 
 
 def _weak(method):
