@@ -19,12 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_drake.studies import accuracy as acc
-from stewart_drake.model import ball_joints, limits
-from stewart_drake.model import kinematics
 from stewart_drake.fileio import atomic_write
+from stewart_drake.model import ball_joints, limits
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.simulation.trajectories import paper_manoeuvre
+from stewart_drake.studies import accuracy as acc
 
 AXES_UNITS = (("phi", "mrad"), ("theta", "mrad"), ("psi", "mrad"), ("X", "mm"), ("Y", "mm"),
               ("Z", "mm"))
@@ -351,8 +350,7 @@ def render(data) -> str:
           "Open loop: the fastest of the four scenario runs (stepping only; the least disturbed "
           "by the machine's other load). Closed loop: the paper "
           "manoeuvre's whole Diagram (plant, LQI at 1 kHz re-scheduled every 10 ms, reference "
-          "sources, loggers, the DivergenceGuard called after every step, checking every "
-          "10 ms).", "",
+          "sources, loggers, the DivergenceGuard checking every 10 ms).", "",
           "| step [ms] | " + " | ".join(names) + " | paper run, Drake closed loop |",
           "|---|" + "---|" * (len(names) + 1)]
     for h in [*steps, ref]:
@@ -459,7 +457,6 @@ def plot(data, path: Path):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
     from matplotlib.lines import Line2D
 
     fig, axes = plt.subplots(2, 2, figsize=(11, 8.5))

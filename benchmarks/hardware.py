@@ -17,6 +17,7 @@ Usage: python benchmarks/hardware.py [--out docs/hardware_figures.md] [--duratio
 """
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from stewart_drake.model import kinematics, statics
 from stewart_drake.model.kinematics import X_HOME
 from stewart_drake.model.servo import ServoModel
 from stewart_drake.simulation import diagram
+from stewart_drake.simulation.diagram import lqi_factory
 from stewart_drake.simulation.scenario import load_scenario
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
@@ -45,16 +47,32 @@ def _nrms(rms) -> float:
 
 
 class _Late(PoseEstimator):
-    """The same estimator with its rate one control period late (DiscreteDerivative timing)."""
+    """The same estimator with its rate one control period late (DiscreteDerivative timing), in
+    the open-loop study (``track``) and in the Diagram's FK estimator system (``update``)."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self._previous = None
 
-    def track_floats(self, theta, x_prev, v_prev, J_inv):
-        x, v = super().track_floats(theta, x_prev, v_prev, J_inv)
-        late, self._previous = self._previous or v, v
-        return x, late
+    def _late(self, v):
+        late, self._previous = (v if self._previous is None else self._previous), v
+        return late
+
+    def track(self, theta, x_prev, v_prev, J_inv):
+        x, v = super().track(theta, x_prev, v_prev, J_inv)
+        return x, self._late(v)
+
+    def update(self, theta, x_prev, v_prev):
+        x, v = super().update(theta, x_prev, v_prev)
+        return x, self._late(v)
+
+
+def _lqi_reading_x(driver):
+    """The LQI of ``driver`` without its own estimator: it reads ``x``, which the Diagram then
+    takes from an FK estimator system (where :class:`_Late` can delay the rate)."""
+    def make(context):
+        return lqi_factory(driver)(dataclasses.replace(context, pose_estimator=None))
+    return make
 
 
 def closed_loop(duration_s: float) -> list:
@@ -75,9 +93,11 @@ def closed_loop(duration_s: float) -> list:
         scenario = load_scenario(base, [f"duration_s={duration_s}"]
                                  + ([] if changes == "late" else changes))
         try:
+            controller = None
             if changes == "late":                    # the diagram builds the estimator
                 diagram.PoseEstimator = _Late
-            rows.append((label, run_experiment(scenario).metrics))
+                controller = _lqi_reading_x(scenario.controller)
+            rows.append((label, run_experiment(scenario, controller=controller).metrics))
         except Exception as err:                     # noqa: BLE001 - reported, not hidden
             rows.append((label, {"error": f"{type(err).__name__}: {err}".splitlines()[0]}))
         finally:
@@ -96,13 +116,13 @@ def estimator_open_loop(duration_s: float, counts: int = 2**17) -> dict:
     for name, cls in (("in the controller's update (ours)", PoseEstimator),
                       ("one period late (DiscreteDerivative timing)", _Late)):
         est = cls(g, h, q, X[0])
-        x, v = X[0].tolist(), V[0].tolist()
-        J_inv = np.linalg.inv(kinematics.jacobian(g, X[0])).reshape(-1).tolist()
+        x, v = X[0], V[0]
+        J_inv = np.linalg.inv(kinematics.jacobian(g, X[0]))
         e_x, e_v = [], []
         for k in range(1, len(t)):
-            x, v = est.track_floats(measured[k].tolist(), x, v, J_inv)
+            x, v = est.track(measured[k], x, v, J_inv)
             if k % 20 == 0:                          # the LQI refreshes J^-1 every re-schedule
-                J_inv = np.linalg.inv(kinematics.jacobian(g, np.array(x))).reshape(-1).tolist()
+                J_inv = np.linalg.inv(kinematics.jacobian(g, x))
             e_x.append(np.subtract(x, X[k]))
             e_v.append(np.subtract(v, V[k]))
         e_x, e_v = np.array(e_x), np.array(e_v)

@@ -1,48 +1,65 @@
-"""Real-time factors of the plant alone and of the full Diagram, their ratio, and where time goes.
+"""Real-time factors of the station alone and of the full Diagram, their ratios, where time goes.
 
-Measured in ONE process and interleaved (so a busy machine slows both alike), ``--repeats``
-times each, medians printed:
+Measured in ONE process and interleaved (so a busy machine slows all alike), ``--repeats`` times
+each, medians printed:
 
 * ``plant_alone``: the station of the scenario (the MultibodyPlant with its hardware: servos,
   friction, encoders, delay, current loop) under constant holding torques;
-* ``full``: the whole closed-loop Diagram of the scenario with the ANN tuner (LQI with its
-  estimator, density features, tuner, loggers, guard).
+* ``full_ann``: the whole closed-loop Diagram of the scenario with the ANN tuner (the LQI with
+  its estimator, density features, tuner, loggers, guard);
+* ``full_fixed``: the same with fixed weights (no features, no tuner);
+* ``noop``: the ANN Diagram holding home with every Python callback a no-op: what Drake's
+  framework, the station's hardware systems, the loggers and the Python dispatch cost alone,
+  the ceiling of the ratio;
+* ``moving``: the station alone replaying, open loop, the torques of 2 s of a closed-loop run:
+  the plant's own cost on the manoeuvre (SAP iterates more on a moving platform than on one
+  held at home), the denominator of a second ratio that compares the same plant work.
 
-Target: ratio full / plant_alone >= 0.5 on the hardware scenario. One line per figure,
-e.g. ``ratio_full_over_plant 0.52 (medians of 5 interleaved pairs)``.
+Each ratio (full / plant_alone) is taken within a pair measured back to back; the medians of
+``--repeats`` pairs are printed, one line per figure, e.g.
+``ratio_ann_over_plant 0.62 (median of 5 interleaved pairs; range 0.58 .. 0.66; target >= 0.6)``.
 
-``--breakdown`` adds where the full Diagram's time goes, per control step: the time inside each
-Python callback measured in the running simulation (where each plant step leaves them with cold
-CPU caches, so they cost about twice a microbenchmark's figure), and the ceiling of the ratio
-with this Diagram: the same Diagram holding home with every Python update a no-op (what Drake's
-framework, the station's hardware systems, the loggers and the Python dispatch cost alone).
+``--breakdown`` adds where the full Diagram's time goes per control step (the time inside each
+Python callback of a running simulation, where each plant step leaves them with cold caches).
+``--riccati`` times the gain re-solve: the Stein equation by Drake, scipy and the compiled
+squared Smith iteration, and one Newton step in numpy against the compiled one.
 
 Usage: python benchmarks/realtime.py [--scenario paper_hardware] [--duration 5] [--repeats 5]
-       [--no-tuner] [--profile 25] [--riccati] [--breakdown] [--contact]
+       [--breakdown] [--riccati] [--profile 25] [--contact]
 """
 
 import argparse
 import collections
-import dataclasses
 import contextlib
 import cProfile
+import dataclasses
 import io
+import os
 import pstats
 import time
 
 import numpy as np
 
-from stewart_drake.control.estimator import PoseEstimator
+from stewart_drake.control import lqi
 from stewart_drake.control.features import DensityFeatures
-from stewart_drake.control.lqi import (LqiController, error_model, input_matrix, lqi_gain,
-                                       lqi_gain_warm)
+from stewart_drake.control.lqi import (
+    LqiController,
+    error_model,
+    input_matrix,
+    lqi_gain,
+    lqi_gain_warm,
+)
 from stewart_drake.control.tuner import AnnTuner
-from stewart_drake.simulation.guard import DivergenceGuard
 from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.simulation.scenario import AnnTunerDriver, NamedReference, load_scenario
+from stewart_drake.simulation.guard import DivergenceGuard
+from stewart_drake.simulation.scenario import (
+    AnnTunerDriver,
+    NamedReference,
+    load_scenario,
+)
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
-from stewart_drake.studies.experiments import build_simulator
+from stewart_drake.studies.experiments import build_simulator, run_experiment
 
 
 def plant_alone(scenario, duration_s: float) -> float:
@@ -67,38 +84,6 @@ def full(scenario, duration_s: float, profiler=None):
     return wall, sd
 
 
-def riccati_costs(controller, n: int = 200) -> dict:
-    """Mean cold and warm solve times (ms) along the paper manoeuvre, re-scheduled every 10 ms,
-    and the worst relative gain difference between them."""
-    g, h = controller.geometry, controller.h
-    Q, R = controller.scales.Q_unit(), controller.scales.R_unit()
-    poses = paper_manoeuvre().evaluate(np.arange(n) * 0.01)[0]
-    models = [error_model(input_matrix(g, x), h) for x in poses]
-    t0 = time.perf_counter()
-    cold = [lqi_gain(A, B, Q, R) for A, B in models]
-    t_cold = (time.perf_counter() - t0) / n
-    K, iterations, worst, warm = cold[0], 0, 0.0, []
-    t0 = time.perf_counter()
-    for A, B in models[1:]:
-        K, it = lqi_gain_warm(A, B, Q, R, K)
-        warm.append(K)
-        iterations += it
-    t_warm = (time.perf_counter() - t0) / (n - 1)
-    for K_w, K_c in zip(warm, cold[1:]):
-        worst = max(worst, np.abs(K_w - K_c).max() / np.abs(K_c).max())
-    return {"cold_ms": 1e3 * t_cold, "warm_ms": 1e3 * t_warm, "iterations": iterations / (n - 1),
-            "worst_rel": worst}
-
-
-#: The Python callbacks of the full Diagram: (label, class, method).
-CALLBACKS = (("LQI update (all)", LqiController, "_Update"),
-             ("  of which FK estimator", PoseEstimator, "track_floats"),
-             ("  of which gain solves", LqiController, "_gain"),
-             ("density features", DensityFeatures, "_Update"),
-             ("ANN tuner (and rho)", AnnTuner, "_Update"),
-             ("guard checks", DivergenceGuard, "check"))
-
-
 @contextlib.contextmanager
 def _patched(changes):
     """Temporarily replace class attributes: changes = [(cls, name, value)]."""
@@ -110,6 +95,61 @@ def _patched(changes):
     finally:
         for cls, name, value in saved:
             setattr(cls, name, value)
+
+
+def noop(scenario, duration_s: float) -> float:
+    """Wall seconds of the full Diagram holding home with every Python callback a no-op."""
+    def nothing(self, context, *output):
+        return None
+
+    held = dataclasses.replace(scenario, reference=NamedReference("home"))
+    with _patched([(LqiController, "_Update", nothing), (AnnTuner, "_Update", nothing),
+                   (DensityFeatures, "_CalcRho", nothing), (DivergenceGuard, "_Check", nothing)]):
+        return full(held, duration_s)[0]
+
+
+def moving_station(scenario, duration_s: float = 2.0):
+    """A function returning the wall seconds of the station alone replaying, open loop, the
+    torques a closed loop of ``scenario`` applied over ``duration_s`` (zero-order hold): the
+    plant's own cost on the moving manoeuvre, which the held station does not pay. At most 2 s
+    (open loop, the platform drifts off the manoeuvre and falls a few seconds later)."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from stewart_drake.simulation.station import make_stewart_station
+
+    fixed = dataclasses.replace(scenario, tuner=None, duration_s=min(duration_s, 2.0))
+    result = run_experiment(fixed)
+    x0, v0, _ = fixed.make_reference().evaluate(0.0)
+
+    def replay() -> float:
+        builder = DiagramBuilder()
+        station = builder.AddSystem(make_stewart_station(fixed))
+        torques = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
+            result.t, result.T.T)))
+        builder.Connect(torques.get_output_port(), station.GetInputPort("motor_torque"))
+        builder.ExportInput(station.GetInputPort("tool_wrench"))
+        diagram = builder.Build()
+        simulator = Simulator(diagram)
+        context = simulator.get_mutable_context()
+        station.assemble(context, x0, v0)
+        station.initialize(context, result.T[0])
+        diagram.get_input_port(0).FixValue(context, np.zeros(6))
+        simulator.Initialize()
+        t0 = time.perf_counter()
+        simulator.AdvanceTo(fixed.duration_s)
+        return (time.perf_counter() - t0) / fixed.duration_s
+    return replay
+
+
+#: The Python callbacks of the full Diagram: (label, class, method).
+CALLBACKS = (("LQI update (all)", LqiController, "_Update"),
+             ("  of which gain re-solves", LqiController, "_reschedule"),
+             ("density features (rho)", DensityFeatures, "_CalcRho"),
+             ("ANN tuner", AnnTuner, "_Update"),
+             ("guard checks", DivergenceGuard, "_Check"))
 
 
 def breakdown(scenario, duration_s: float) -> dict:
@@ -131,15 +171,63 @@ def breakdown(scenario, duration_s: float) -> dict:
     return {"wall": wall, **spent}
 
 
-def noop_floor(scenario, duration_s: float) -> float:
-    """Wall seconds of the full Diagram holding home with every Python update a no-op."""
-    def nothing(self, context, discrete_state):
-        return None
+def riccati_costs(controller, n: int = 100) -> dict:
+    """Mean times (ms) along the paper manoeuvre (re-scheduled every 10 ms) of: the cold DARE;
+    the Stein equation of a Newton step by Drake, scipy and the compiled iteration; one Newton
+    step (the 'track' re-solve) in numpy with Drake's Stein solver against the compiled one;
+    and the worst relative differences."""
+    import scipy.linalg
+    from pydrake.math import RealDiscreteLyapunovEquation
 
-    held = dataclasses.replace(scenario, reference=NamedReference("home"))
-    with _patched([(LqiController, "_Update", nothing), (DensityFeatures, "_Update", nothing),
-                   (AnnTuner, "_Update", nothing)]):
-        return full(held, duration_s)[0]
+    from stewart_drake.control.lqi import balance
+    from stewart_drake.control.lqi_kernels import stein
+
+    g, h, d = controller.geometry, controller.h, controller.delay
+    Q, R = controller.scales.Q_unit(d), controller.scales.R_unit()
+    poses = paper_manoeuvre().evaluate(np.arange(n) * 0.01)[0]
+    models = [error_model(input_matrix(g, x), h, d) for x in poses]
+    t0 = time.perf_counter()
+    cold = [lqi_gain(A, B, Q, R) for A, B in models]
+    out = {"cold_ms": 1e3 * (time.perf_counter() - t0) / n}
+
+    def numpy_newton_step(A, B, K):
+        Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, Q, R)
+        Kb = K * d_x[None, :] / d_u[:, None]
+        W = Qb + Kb.T @ Rb @ Kb
+        P = RealDiscreteLyapunovEquation(Ab - Bb @ Kb, 0.5 * (W + W.T))
+        return d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
+
+    lqi_gain_warm(*models[1], Q, R, cold[0], tol=np.inf, max_iter=1)   # loaded before timed
+    steins, times = [], collections.defaultdict(float)
+    worst = collections.defaultdict(float)
+    for (A, B), K_prev in zip(models[1:], cold[:-1]):
+        Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, Q, R)
+        Kb = K_prev * d_x[None, :] / d_u[:, None]
+        A_c, W = np.ascontiguousarray(Ab - Bb @ Kb), Qb + Kb.T @ Rb @ Kb
+        W = 0.5 * (W + W.T)
+        stein(A_c, W, lqi.STEIN_TOL, 64)                  # compiled before it is timed
+        for label, solve in (("drake", lambda: RealDiscreteLyapunovEquation(A_c, W)),
+                             ("scipy", lambda: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
+                             ("compiled", lambda: stein(A_c, W, lqi.STEIN_TOL, 64)[0])):
+            t0 = time.perf_counter()
+            P = solve()
+            times[f"stein_{label}_ms"] += time.perf_counter() - t0
+            steins.append((label, P))
+        P_ref = steins[-3][1]
+        for label, P in steins[-2:]:
+            worst[f"stein_{label}_rel"] = max(worst[f"stein_{label}_rel"],
+                                              np.abs(P - P_ref).max() / np.abs(P_ref).max())
+        t0 = time.perf_counter()
+        K_numpy = numpy_newton_step(A, B, K_prev)
+        times["newton_numpy_ms"] += time.perf_counter() - t0
+        t0 = time.perf_counter()
+        K_compiled, _ = lqi_gain_warm(A, B, Q, R, K_prev, tol=np.inf, max_iter=1)
+        times["newton_compiled_ms"] += time.perf_counter() - t0
+        worst["newton_rel"] = max(worst["newton_rel"],
+                                  np.abs(K_compiled - K_numpy).max() / np.abs(K_numpy).max())
+    out.update({k: 1e3 * v / (n - 1) for k, v in times.items()})
+    out.update(worst)
+    return out
 
 
 def main():
@@ -147,65 +235,88 @@ def main():
     parser.add_argument("--scenario", default="paper_hardware")
     parser.add_argument("--duration", type=float, default=5.0, help="simulated s per run (5)")
     parser.add_argument("--repeats", type=int, default=5, help="interleaved pairs (5)")
-    parser.add_argument("--no-tuner", action="store_true", help="fixed weights, no ANN tuner")
-    parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
-    parser.add_argument("--riccati", action="store_true", help="also time warm vs cold Riccati")
     parser.add_argument("--breakdown", action="store_true",
-                        help="also time each Python callback and the Diagram's ceiling")
+                        help="also time each Python callback and the moving station")
+    parser.add_argument("--riccati", action="store_true",
+                        help="also time the gain re-solve: numpy/scipy/Drake against compiled")
+    parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
     parser.add_argument("--contact", action="store_true",
-                        help="also measure both with contact between the parts simulated")
+                        help="also measure the station and the ANN Diagram with contact between "
+                             "the parts simulated (scenario field contact)")
     args = parser.parse_args()
-    scenario = load_scenario(args.scenario, [f"duration_s={args.duration}"])
-    if not args.no_tuner:
-        scenario.tuner = AnnTunerDriver()
-    walls = {"plant": [], "full": []}
+    fixed = load_scenario(args.scenario, [f"duration_s={args.duration}"])
+    ann = dataclasses.replace(fixed, tuner=AnnTunerDriver())
+    D = args.duration
+    full(ann, 0.01)                              # compile (or load) the kernels first
+    replay = moving_station(fixed)
+    load = os.getloadavg()[0]
+    walls = collections.defaultdict(list)
+    contact = dataclasses.replace(fixed, contact=True)
     for _ in range(max(1, args.repeats)):
-        walls["plant"].append(plant_alone(scenario, args.duration))
-        walls["full"].append(full(scenario, args.duration)[0])
-    rtf = {k: args.duration / np.array(v) for k, v in walls.items()}
-    ratios = rtf["full"] / rtf["plant"]
-    tuner = "no tuner" if args.no_tuner else "ANN tuner"
-    print(f"realtime_factor_plant_alone {np.median(rtf['plant']):.2f} median, "
-          f"{rtf['plant'].max():.2f} best ({args.duration:g} s sim, {args.scenario} station "
-          f"under constant torques)")
-    print(f"realtime_factor_full {np.median(rtf['full']):.2f} median, {rtf['full'].max():.2f} "
-          f"best ({args.scenario}, {tuner}, guard on, one process)")
-    print(f"ratio_full_over_plant {np.median(ratios):.2f} (median of {len(ratios)} interleaved "
-          f"pairs; range {ratios.min():.2f} .. {ratios.max():.2f}; target >= 0.5)")
+        walls["plant"].append(plant_alone(fixed, D))
+        walls["ann"].append(full(ann, D)[0])
+        walls["fixed"].append(full(fixed, D)[0])
+        walls["noop"].append(noop(ann, D))
+        walls["moving"].append(replay() * D)
+        if args.contact:
+            walls["plant_contact"].append(plant_alone(contact, D))
+            walls["ann_contact"].append(full(dataclasses.replace(ann, contact=True), D)[0])
+    w = {k: np.array(v) for k, v in walls.items()}
+    rtf = {k: D / v for k, v in w.items()}
+    print(f"realtime_factor_plant_alone {np.median(rtf['plant']):.2f} median ({D:g} s sim, "
+          f"{args.scenario} station under constant holding torques; load {load:.1f} at start)")
+    labels = {"ann": "full Diagram, ANN tuner", "fixed": "full Diagram, fixed weights",
+              "noop": "ANN Diagram holding home, every Python callback a no-op"}
+    for key, label in labels.items():
+        ratios = w["plant"] / w[key]
+        name = {"ann": "ratio_ann_over_plant", "fixed": "ratio_fixed_over_plant",
+                "noop": "ceiling_ratio_noop_over_plant"}[key]
+        target = "; target >= 0.6" if key != "noop" else ""
+        print(f"realtime_factor_{key} {np.median(rtf[key]):.2f} median ({label})")
+        print(f"{name} {np.median(ratios):.2f} (median of {len(ratios)} interleaved pairs; range "
+              f"{ratios.min():.2f} .. {ratios.max():.2f}{target})")
+    moving = w["plant"] / w["moving"]
+    print(f"station_moving_over_held {np.median(w['moving'] / w['plant']):.2f} (the station "
+          f"replaying a run's torques costs this many times the held station: the plant works "
+          f"harder on the manoeuvre)")
+    for key in ("ann", "fixed"):
+        print(f"ratio_{key}_over_moving_station {np.median(w['moving'] / w[key]):.2f} (the "
+              f"same plant work: the cost of everything but the plant; held ratio "
+              f"{np.median(w['plant'] / w[key]):.2f} x {np.median(1 / moving):.2f})")
     if args.contact:
-        contact = load_scenario(args.scenario, [f"duration_s={args.duration}", "contact=true"])
-        contact.tuner = scenario.tuner
-        on = {"plant": [], "full": []}
-        for _ in range(max(1, args.repeats)):
-            on["plant"].append(plant_alone(contact, args.duration))
-            on["full"].append(full(contact, args.duration)[0])
-        rtf_on = {k: args.duration / np.array(v) for k, v in on.items()}
-        for key, label in (("plant", "plant_alone"), ("full", "full")):
-            print(f"realtime_factor_{label}_contact {np.median(rtf_on[key]):.2f} median "
-                  f"(contact on; off: {np.median(rtf[key]):.2f}; on / off "
-                  f"{np.median(rtf_on[key]) / np.median(rtf[key]):.2f})")
-        print(f"ratio_full_over_plant_contact "
-              f"{np.median(rtf_on['full'] / rtf_on['plant']):.2f} (contact on)")
+        for key, label in (("plant", "station"), ("ann", "full Diagram, ANN tuner")):
+            print(f"realtime_factor_{key}_contact {np.median(rtf[key + '_contact']):.2f} median "
+                  f"({label}, contact on; on / off "
+                  f"{np.median(w[key] / w[key + '_contact']):.2f})")
+        print(f"ratio_ann_over_plant_contact "
+              f"{np.median(w['plant_contact'] / w['ann_contact']):.2f} (contact on, both)")
+    print(f"load_average_1min {os.getloadavg()[0]:.1f} at the end")
     if args.breakdown:
-        steps = args.duration / scenario.control_period_s
-        spent = breakdown(scenario, args.duration)
-        floor = min(noop_floor(scenario, args.duration) for _ in range(max(1, args.repeats)))
-        plant = min(walls["plant"])
-        print(f"per control step in the full Diagram ({spent['wall'] / steps * 1e6:.0f} us of "
-              f"wall; the plant alone {plant / steps * 1e6:.0f} us):")
-        for label, _, _ in CALLBACKS:
-            print(f"  {label:26s} {spent.get(label, 0.0) / steps * 1e6:7.1f} us")
-        print(f"ceiling_ratio {plant / floor:.2f} (the Diagram with no-op Python updates, holding "
-              f"home: {floor / steps * 1e6:.0f} us per step; best of {max(1, args.repeats)})")
+        steps = D / fixed.control_period_s
+        plant = np.median(w["plant"])
+        print(f"per control step: station alone {plant / steps * 1e6:.0f} us holding, "
+              f"{np.median(w['moving']) / steps * 1e6:.0f} us on the manoeuvre (replaying 2 s of "
+              f"a run's torques); no-op Diagram {np.median(w['noop']) / steps * 1e6:.0f} us")
+        for key, scenario in (("ann", ann), ("fixed", fixed)):
+            spent = breakdown(scenario, D)
+            print(f"  {labels[key]}: {spent['wall'] / steps * 1e6:.0f} us of wall per step")
+            for label, _, _ in CALLBACKS:
+                if label in spent:
+                    print(f"    {label:28s} {spent[label] / steps * 1e6:7.1f} us")
     if args.riccati:
-        _, sd = full(scenario, 0.01)
-        c = riccati_costs(sd.controller)
-        print(f"riccati_cold_ms {c['cold_ms']:.3f}  riccati_warm_ms {c['warm_ms']:.3f}  "
-              f"warm/cold {c['warm_ms'] / c['cold_ms']:.2f}  ({c['iterations']:.2f} "
-              f"iterations; max |K_warm - K_cold| / |K_cold| {c['worst_rel']:.1e})")
+        _, sd = full(fixed, 0.01)
+        c = riccati_costs(sd.controller.lqi)
+        print(f"riccati_cold_ms {c['cold_ms']:.3f} (Drake's DARE, {sd.controller.n} states)")
+        print(f"stein_ms drake {c['stein_drake_ms']:.3f}  scipy {c['stein_scipy_ms']:.3f}  "
+              f"compiled {c['stein_compiled_ms']:.3f}  (max relative difference to Drake's: "
+              f"scipy {c['stein_scipy_rel']:.1e}, compiled {c['stein_compiled_rel']:.1e})")
+        print(f"newton_step_ms numpy+drake {c['newton_numpy_ms']:.3f}  compiled "
+              f"{c['newton_compiled_ms']:.3f}  compiled/numpy "
+              f"{c['newton_compiled_ms'] / c['newton_numpy_ms']:.2f}  (max |K_c - K_n| / |K_n| "
+              f"{c['newton_rel']:.1e})")
     if args.profile:
         profiler = cProfile.Profile()
-        full(scenario, args.duration, profiler)
+        full(ann, D, profiler)
         s = io.StringIO()
         pstats.Stats(profiler, stream=s).sort_stats("tottime").print_stats(args.profile)
         print(s.getvalue())

@@ -88,6 +88,43 @@ class RiccatiSolveError(StewartError, RuntimeError):
     """The discrete algebraic Riccati equation (paper eqs. 31-32) had no stabilizing solution."""
 
 
+class NotStabilizableError(StewartError, ValueError):
+    """The LQI's error model fails the Hautus test at a pose (paper eqs. 28-29): some mode with
+    |lambda| >= 1 cannot be moved by the motors (rank [lambda I - A, B] < n) or is not seen by
+    the cost (rank [lambda I - A; C] < n), so no gain stabilizes it.
+
+    Attributes:
+        stabilizable, detectable: the two verdicts.  rank_AB, rank_AC: the smallest ranks
+        found, of n (the error model's states).  pose: the (6,) pose [rad, m], if known.
+    """
+
+    def __init__(self, checks: dict, pose=None):
+        self.checks = dict(checks)
+        self.stabilizable = bool(checks["stabilizable"])
+        self.detectable = bool(checks["detectable"])
+        self.rank_AB, self.rank_AC, self.n = (int(checks[k]) for k in ("rank_AB", "rank_AC", "n"))
+        self.pose = None if pose is None else [float(v) for v in pose]
+        failed = "; ".join(
+            text for ok, text in (
+                (self.stabilizable, f"not stabilizable (rank [lambda I - A, B] = {self.rank_AB}"
+                                    f" < {self.n}): the motors' input matrix B(x) is rank "
+                                    f"deficient there"),
+                (self.detectable, f"not detectable (rank [lambda I - A; C] = {self.rank_AC} < "
+                                  f"{self.n}): a scale of LqiScales is infinite or zero"))
+            if not ok)
+        where = ("" if self.pose is None else " at pose [phi, theta, psi, X, Y, Z] = ["
+                 + ", ".join(f"{v:.4g}" for v in self.pose) + "]")
+        super().__init__(
+            f"the LQI's error model fails the Hautus test (paper eqs. 28-29){where}: {failed}. "
+            f"Start the controller at a pose away from singularities (x_initial, the "
+            f"reference's start) or check the robot's geometry, robot.platform_mass, "
+            f"robot.platform_inertia and the other masses and inertias (kg, kg m^2): motors that "
+            f"barely move the platform leave it uncontrollable")
+
+    def _init_args(self) -> tuple:
+        return self.checks, self.pose
+
+
 class SimulationDivergedError(StewartError, RuntimeError):
     """A simulation left its safe envelope; the data up to then is saved at ``path``."""
 

@@ -3,8 +3,8 @@ import importlib.util
 import numpy as np
 import pytest
 
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model import kinematics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
 
 #: torch is the [train] extra, a CPU wheel only for Python 3.11 here: tests that train skip
@@ -48,3 +48,22 @@ def install_plugin(site, package: str, entry_points: dict, source: str):
         f"{name} = {target}\n" for name, target in entry_points.items()))
     (site / f"{package}.py").write_text(source)
     return site
+
+
+@pytest.fixture
+def feedforward_fault(monkeypatch):
+    """``feedforward_fault(fn)``: from then on every LQI acts on ``fn(T_ff)`` instead of the
+    feed-forward on its port (fault injection at the one place the LQI reads its ports,
+    ``LqiController.inputs``). ``fn`` may also raise."""
+    from stewart_drake.control.lqi import LqiController
+
+    def install(fn):
+        original = LqiController.inputs
+
+        def faulty(self, context):
+            u = original(self, context)
+            u[self.layout.T_ff] = fn(u[self.layout.T_ff])
+            return u
+
+        monkeypatch.setattr(LqiController, "inputs", faulty)
+    return install

@@ -20,9 +20,8 @@ import numpy as np
 import pytest
 from conftest import install_plugin
 
-from stewart_drake.interfaces import cli
-from stewart_drake.control.lqi import LqiController
 from stewart_drake.fileio import atomic_write, save_npz
+from stewart_drake.interfaces import cli
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -84,8 +83,8 @@ def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
     assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
 
 
-def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch, feedforward_fault):
+    feedforward_fault(lambda T_ff: np.full(6, np.inf))
     line = _one_line_error(capsys, ["run", "--duration", "0.1", "--no-progress",
                                     "--out", str(tmp_path)])
     # inf - inf = NaN in the pending torques reaches the plant after the computation delay,
@@ -204,12 +203,12 @@ def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, 
     assert sorted(tmp_path.rglob("*")) == before                  # nothing written
 
 
-def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch):
+def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch, feedforward_fault):
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.scenario import GuardConfig, Scenario
     from stewart_drake.studies.experiments import run_experiment
 
-    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    feedforward_fault(lambda T_ff: np.full(6, np.inf))
     blocker = tmp_path / "diverged"
     blocker.write_text("a file in the folder's place")
     scenario = Scenario(duration_s=0.1, guard=GuardConfig(divergence_dir=str(blocker)))
@@ -220,12 +219,12 @@ def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_pat
     assert info.value.path is None and blocker.read_text() == "a file in the folder's place"
 
 
-def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch):
+def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, feedforward_fault):
     from stewart_drake.studies.collection import collect
     from stewart_drake.studies.runners import SerialRunner
 
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    feedforward_fault(lambda T_ff: np.full(6, np.inf))
     manifest = collect(tmp_path / "out", duration_s=0.1, runner=SerialRunner(), progress=False)
     assert all(run["lost"] for run in manifest["runs"])
     assert len(list((tmp_path / "out" / "diverged").glob("diverged_*.npz"))) == 9

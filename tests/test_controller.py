@@ -4,9 +4,17 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_discrete_are
 
-from stewart_drake.model import statics
-from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
+from stewart_drake.control.lqi import (
+    LqiController,
+    LqiDiagram,
+    LqiScales,
+    error_model,
+    hautus_checks,
+    input_matrix,
+    lqi_gain,
+)
 from stewart_drake.errors import InvalidConfigError, RiccatiSolveError
+from stewart_drake.model import statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
 H = 1e-3
@@ -98,7 +106,6 @@ def test_bad_settings_are_refused(geometry):
 
 
 def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
-    from stewart_drake.model import kinematics
     from stewart_drake.model.statics import feedforward_torques
     np.testing.assert_allclose(feedforward_torques(geometry, random_poses[:20]),
                                statics.holding_torques(geometry, random_poses[:20]), atol=1e-12)
@@ -112,7 +119,7 @@ def _switch(mode):
     from pydrake.systems.analysis import Simulator
 
     geometry = StewartGeometry()
-    controller = LqiController(geometry, period_s=H, schedule_period_s=1e-2, gain_transfer=mode)
+    controller = LqiDiagram(geometry, period_s=H, schedule_period_s=1e-2, gain_transfer=mode)
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     x = X_HOME + np.array([1e-3, 0, 0, 0, 0, 1e-3])
@@ -122,7 +129,7 @@ def _switch(mode):
     controller.get_omega_input_port().FixValue(context, [10.0, 1.0])
 
     def read():
-        z = context.get_discrete_state(controller._z_index).get_value().copy()
+        z = controller.GetOutputPort("integral").Eval(context).copy()
         T = controller.GetOutputPort("T").Eval(context).copy()
         return z, controller.gain_in_use(context).copy(), T
 
@@ -154,3 +161,18 @@ def test_a_gain_switch_carries_over_what_its_mode_says(mode):
 def test_an_unknown_gain_transfer_is_refused():
     with pytest.raises(InvalidConfigError, match="gain_transfer must be one of"):
         LqiController(StewartGeometry(), gain_transfer="smooth")
+
+
+def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
+    """An integral scale of 1e100 leaves the integral modes out of the cost: not detectable
+    (eq. 29), refused with the typed error, which names the pose and pickles."""
+    import pickle
+
+    from stewart_drake.errors import NotStabilizableError
+
+    with pytest.raises(NotStabilizableError, match=r"not detectable .* LqiScales") as info:
+        LqiController(StewartGeometry(), scales=LqiScales(integral=(1e100,) * 6))
+    err = info.value
+    assert err.detectable is False and err.stabilizable is True and err.rank_AC < err.n == 18
+    assert err.pose == pytest.approx(list(X_HOME))
+    assert str(pickle.loads(pickle.dumps(err))) == str(err)

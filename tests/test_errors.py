@@ -17,6 +17,9 @@ EXAMPLES = {
         "w.npz", "ANN tuner weights file", "the entry 'W2' is missing", "retrain"),
     errors.UnreachablePoseError: errors.UnreachablePoseError(3, 1.04, t=1.25, pose=POSE),
     errors.RiccatiSolveError: errors.RiccatiSolveError("no stabilizing solution"),
+    errors.NotStabilizableError: errors.NotStabilizableError(
+        {"stabilizable": False, "detectable": True, "rank_AB": 16, "rank_AC": 18, "n": 18},
+        pose=POSE),
     errors.SimulationDivergedError: errors.SimulationDivergedError(
         "loop-closure error 2e-3 m", 0.644, "results/diverged/d.npz"),
     errors.ForwardKinematicsError: errors.ForwardKinematicsError("Newton did not converge"),

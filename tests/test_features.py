@@ -3,14 +3,19 @@ the Drake system against the numpy function."""
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import ConstantVectorSource, Sine
+from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
+from stewart_drake.control.features import (
+    DensityFeatures,
+    density_features,
+    density_features_series,
+)
 from stewart_drake.errors import InvalidConfigError, SimulationDivergedError
-from stewart_drake.control.features import (DensityFeatures, density_features, density_features_series)
 
 EPS = 1e-9
 
@@ -140,3 +145,47 @@ def test_system_raises_on_non_finite_input():
     e0[4] = np.nan
     with pytest.raises(SimulationDivergedError, match="non-finite e_bar"):
         _simulate([ConstantVectorSource(e0), ConstantVectorSource(np.ones(6))], 5, 1e-3, 0.002)
+
+
+def test_features_from_the_controllers_window_equal_those_it_samples_itself():
+    """The LQI buffers [e_bar, T] at its instants for the features (no callback of theirs per
+    period): rho from that window equals rho of a DensityFeatures sampling the same signals,
+    with a window (5) shorter than the run, so the ring wraps."""
+    from stewart_drake.control.lqi import LqiDiagram
+    from stewart_drake.model.geometry import X_HOME, StewartGeometry
+    from stewart_drake.model.statics import holding_torques
+
+    geometry, offset = StewartGeometry(), 5e-4
+    builder = DiagramBuilder()
+    lqi = builder.AddSystem(LqiDiagram(geometry, period_s=1e-3, offset_s=offset,
+                                       feature_window=5))
+    pose = builder.AddSystem(Sine(np.r_[1e-3 * np.ones(6), np.zeros(6)], 30.0 * np.ones(12),
+                                  np.linspace(0, 1, 12)))
+    shift = builder.AddSystem(ConstantVectorSource(np.r_[X_HOME, np.zeros(6)]))
+    x = builder.AddSystem(Adder(2, 12))
+    builder.Connect(pose.get_output_port(0), x.get_input_port(0))
+    builder.Connect(shift.get_output_port(), x.get_input_port(1))
+    builder.Connect(x.get_output_port(), lqi.GetInputPort("x"))
+    for port, value in (("x_d", np.r_[X_HOME, np.zeros(12)]),
+                        ("T_ff", holding_torques(geometry, X_HOME)), ("omega", [1.0, 1.0])):
+        builder.Connect(builder.AddSystem(ConstantVectorSource(value)).get_output_port(),
+                        lqi.GetInputPort(port))
+    applied = builder.AddSystem(Sine(np.linspace(0.1, 0.6, 6), 25.0 * np.ones(6),
+                                     np.linspace(1, 2, 6)))
+    builder.Connect(applied.get_output_port(0), lqi.GetInputPort("motor_torque_applied"))
+    sampled = builder.AddSystem(DensityFeatures(window=5, period_s=1e-3, offset_s=offset))
+    builder.Connect(lqi.GetOutputPort("e_bar"), sampled.GetInputPort("e_bar"))
+    builder.Connect(applied.get_output_port(0), sampled.GetInputPort("T"))
+    buffered = builder.AddSystem(DensityFeatures(window=5, buffered=True))
+    builder.Connect(lqi.GetOutputPort("feature_window"), buffered.GetInputPort("feature_window"))
+    simulator = Simulator(builder.Build())
+    checked = 0
+    for t in (0.0007, 0.0033, 0.0121, 0.0208):
+        simulator.AdvanceTo(t)
+        root = simulator.get_context()
+        rho = [f.get_rho_output_port().Eval(f.GetMyContextFromRoot(root))
+               for f in (sampled, buffered)]
+        assert np.any(rho[0] != 0.0)
+        np.testing.assert_array_equal(rho[1], rho[0])
+        checked += 1
+    assert checked == 4

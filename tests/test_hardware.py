@@ -12,8 +12,12 @@ from stewart_drake.errors import FeasibilityWarning, SimulationDivergedError
 from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model.servo import ServoModel
-from stewart_drake.simulation.scenario import (LqiDriver, Motors, Scenario, load_scenario)
-from stewart_drake.simulation.station import current_loop, held_station, make_stewart_station
+from stewart_drake.simulation.scenario import LqiDriver, Motors, Scenario, load_scenario
+from stewart_drake.simulation.station import (
+    current_loop,
+    held_station,
+    make_stewart_station,
+)
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import run_experiment
 
@@ -294,10 +298,11 @@ def test_the_lqi_knows_the_motors_and_the_delay():
     from stewart_drake.simulation.diagram import make_stewart_diagram
 
     sd = make_stewart_diagram(scenario)
-    lqi = sd.controller
+    lqi = sd.controller.lqi
     assert lqi.delay == 1 and lqi.n == 24 and lqi.torque_limit == pytest.approx(0.702, abs=1e-3)
     assert lqi.estimator is not None
-    inputs = {lqi.get_input_port(i).get_name() for i in range(lqi.num_input_ports())}
+    inputs = {sd.controller.get_input_port(i).get_name()
+              for i in range(sd.controller.num_input_ports())}
     assert "motor_angle" in inputs and "x" not in inputs
     assert scenario.geometry().motor_reflected_inertia == pytest.approx(2.496e-4, rel=1e-3)
     off = _hardware(**{"duration_s": 0.1, "controller.delay_compensation": "false"})

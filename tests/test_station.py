@@ -10,19 +10,35 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.systems.framework import LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
-from stewart_drake.control.contract import (CONTROLLER_REGISTRY, ControllerContext,
-                                            check_controller, register_controller)
+from stewart_drake.control.contract import (
+    CONTROLLER_REGISTRY,
+    ControllerContext,
+    check_controller,
+    register_controller,
+)
 from stewart_drake.errors import InvalidConfigError, MissingFileError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import (CsvReference, PdDriver, Robot, Scenario,
-                                               UserController, apply_override, dump_scenario,
-                                               load_scenario, shipped_scenarios)
+from stewart_drake.simulation.scenario import (
+    CsvReference,
+    PdDriver,
+    Robot,
+    Scenario,
+    UserController,
+    apply_override,
+    dump_scenario,
+    load_scenario,
+    shipped_scenarios,
+)
 from stewart_drake.simulation.station import held_station, p_ETool
-from stewart_drake.simulation.trajectories import (DrakeTrajectory, ScalarEvaluate, as_trajectory,
-                                                   paper_manoeuvre)
+from stewart_drake.simulation.trajectories import (
+    DrakeTrajectory,
+    ScalarEvaluate,
+    as_trajectory,
+    paper_manoeuvre,
+)
 from stewart_drake.studies.experiments import run_experiment
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
@@ -370,7 +386,11 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
 
 
 def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
-    from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario, use_paper_tuner
+    from stewart_drake.simulation.scenario import (
+        AnnTunerDriver,
+        load_scenario,
+        use_paper_tuner,
+    )
 
     scenario = load_scenario("paper_hardware")
     assert scenario.controller.gain_transfer == "integral"               # ours, the default
@@ -378,3 +398,26 @@ def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
     assert scenario.controller.gain_transfer == "none"
     assert isinstance(scenario.tuner, AnnTunerDriver) and scenario.tuner.period_s == 0.04
     scenario.validate()                                                   # raises if not
+
+
+def test_the_pose_sensor_reads_the_state_as_drakes_roll_pitch_yaw():
+    """The vectorized quaternion -> roll-pitch-yaw and angular velocity -> rpy rates agree with
+    Drake's RollPitchYaw on arbitrary states (near gimbal lock included)."""
+    from pydrake.common.eigen_geometry import Quaternion
+    from pydrake.math import RollPitchYaw
+
+    sd = make_stewart_diagram(Scenario(duration_s=0.1))
+    sensor, plant = sd.sensor, sd.plant
+    states = np.random.default_rng(0).normal(size=(300, plant.num_positions()
+                                                   + plant.num_velocities()))
+
+    def drake(s):
+        q = s[sensor._iq:sensor._iq + 4]
+        rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
+        rates = rpy.CalcRpyDtFromAngularVelocityInParent(s[sensor._iv:sensor._iv + 3])
+        return np.concatenate([rpy.vector(), s[sensor._iq + 4:sensor._iq + 7], rates,
+                               s[sensor._iv + 3:sensor._iv + 6]])
+
+    expected = np.array([drake(s) for s in states])
+    np.testing.assert_allclose(sensor.poses_from_states(states), expected, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sensor.pose_from_state(states[7]), expected[7], rtol=0, atol=1e-12)

@@ -14,7 +14,6 @@ import numpy as np
 import psutil
 import pytest
 
-from stewart_drake.control.lqi import LqiController
 from stewart_drake.errors import IncompleteResultsError, ResultsMismatchError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.studies import evaluation
@@ -73,9 +72,9 @@ def test_an_interrupted_collect_resumes_and_train_refuses_it_until_then(tmp_path
 
 
 def test_evaluate_keeps_its_rows_and_the_last_report_when_every_case_fails(
-        tmp_path, monkeypatch, capsys):
+        tmp_path, monkeypatch, capsys, feedforward_fault):
     monkeypatch.chdir(tmp_path)                  # the guard's default folder is relative
-    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    feedforward_fault(lambda T_ff: np.full(6, np.inf))
     out = tmp_path / "out"
     with pytest.raises(IncompleteResultsError, match="cases failed"):
         evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,

@@ -5,14 +5,25 @@ import pytest
 from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control import lqi as lqi
-from stewart_drake.control.lqi import LqiController, error_model, lqi_gain
-from stewart_drake.simulation.scenario import (AnnTunerDriver, GuardConfig, LqiDriver, NamedReference,
-                                               Scenario, SensorNoise)
-from stewart_drake.errors import (InvalidConfigError, InvalidGeometryError, MissingFileError, RiccatiSolveError, SingularPoseError)
-from stewart_drake.studies.experiments import format_metrics, run_experiment
+from stewart_drake.control.lqi import LqiController, LqiDiagram, error_model, lqi_gain
+from stewart_drake.errors import (
+    InvalidConfigError,
+    InvalidGeometryError,
+    MissingFileError,
+    RiccatiSolveError,
+    SingularPoseError,
+)
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model.statics import holding_torques
-
+from stewart_drake.simulation.scenario import (
+    AnnTunerDriver,
+    GuardConfig,
+    LqiDriver,
+    NamedReference,
+    Scenario,
+    SensorNoise,
+)
+from stewart_drake.studies.experiments import format_metrics, run_experiment
 
 # -- configuration --------------------------------------------------------------------------------
 
@@ -115,8 +126,9 @@ def test_bad_geometry_is_refused_by_name(fields, message):
 # -- the controller: omega input and Riccati failures ---------------------------------------------
 
 def _controller_alone(omega, duration_s=0.05):
-    """An LqiController simulated alone at home, x = x_d, with ``omega`` on its port."""
-    controller = LqiController(StewartGeometry(), period_s=1e-3, schedule_period_s=1e-2)
+    """An LQI (its Diagram with the contract's ports) simulated alone at home, x = x_d, with
+    ``omega`` on its port."""
+    controller = LqiDiagram(StewartGeometry(), period_s=1e-3, schedule_period_s=1e-2)
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     controller.get_x_input_port().FixValue(context, np.concatenate([X_HOME, np.zeros(6)]))
@@ -127,7 +139,7 @@ def _controller_alone(omega, duration_s=0.05):
     status = controller.GetOutputPort("status").Eval(context)
     K = controller.gain_in_use(context)
     T = controller.GetOutputPort("T").Eval(context)
-    return controller, status, K, T
+    return controller.lqi, status, K, T
 
 
 @pytest.mark.parametrize("omega", [(np.nan, 1.0), (1.0, np.inf), (1e5, 1.0), (1.0, 0.0)])

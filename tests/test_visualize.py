@@ -146,15 +146,18 @@ def test_record_states_refuses_states_of_another_shape():
 
 
 def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(tmp_path,
-                                                                            monkeypatch):
+                                                                            monkeypatch, feedforward_fault):
     """Issue 16 items 5 and 6: the HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
-    from stewart_drake.control.lqi import LqiController
     from stewart_drake.errors import SimulationDivergedError
-    from stewart_drake.simulation.scenario import (GuardConfig, PdDriver, _scenario_from_yaml,
-                                                   dump_scenario)
+    from stewart_drake.simulation.scenario import (
+        GuardConfig,
+        PdDriver,
+        _scenario_from_yaml,
+        dump_scenario,
+    )
 
-    monkeypatch.setattr(LqiController, "feedforward", lambda self, context: np.full(6, np.inf))
+    feedforward_fault(lambda T_ff: np.full(6, np.inf))
     scenario = Scenario(duration_s=0.2, torque_limit_Nm=0.7, payload_scale=1.5,
                         guard=GuardConfig(divergence_dir=str(tmp_path / "diverged")))
     with pytest.raises(SimulationDivergedError, match="the motor torques are not finite") as info:

@@ -13,7 +13,6 @@ colors), which is how the slow test decides that the robot, not a blank page, is
 from __future__ import annotations
 
 import argparse
-import shutil
 import subprocess
 import sys
 import tempfile
@@ -22,17 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
+from stewart_drake.interfaces.visualize import find_chromium
+
 REPO = Path(__file__).resolve().parent.parent
-CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
-
-
-def find_chromium() -> str | None:
-    """Path of a Chromium-family browser on PATH, or None."""
-    for name in CHROMIUM_NAMES:
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
 
 
 def screenshot(html: str | Path, png: str | Path, size=(1280, 800), budget_ms: int = 5000,

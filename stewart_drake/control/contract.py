@@ -1,7 +1,8 @@
 """The controller contract: what any controller of the Diagram declares, and what it is given.
 
-A controller is a Drake ``LeafSystem`` made by a **factory** ``factory(context) -> LeafSystem``
-that receives a :class:`ControllerContext`. :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`
+A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the ports, as
+:class:`~stewart_drake.control.lqi.LqiDiagram` does) made by a **factory**
+``factory(context) -> System`` that receives a :class:`ControllerContext`. :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`
 connects its ports **by name**; only ``x_d`` and ``T`` are required, every other port is
 connected when the controller declares it.
 
@@ -21,6 +22,9 @@ name       size   what the Diagram connects
                   work, or none: ``Scenario.feedforward``)
 ``omega``  2      [omega_Q, omega_R] of paper eq. 27: a constant from the scenario, or the
                   ANN tuner's output when the scenario has a tuner
+``motor_torque_applied`` 6 the station's ``motor_torque_applied`` output, N m (what the
+                  motors apply: a controller that buffers the density features' samples
+                  reads it)
 ========== ====== ===================================================================
 
 Output ports
@@ -33,6 +37,11 @@ Output ports
 ``e_bar``  6      optional: the pose error the last update acted on; the density
                   features of the ANN tuner read it (a tuner needs it, and ``omega``)
 ``integral`` 6    optional: integral states (the LQI's z, eq. 23), logged and plotted
+``feature_window`` 12 w + 2  optional, with a tuner: the last w samples of [e_bar,
+                  motor_torque_applied] taken at the controller's instants, a ring buffer
+                  [rows (w x 12, oldest at ``head``), n_valid, head], w =
+                  ``context.feature_window``; the density features then read it instead of
+                  sampling at every period themselves (one Python callback less per period)
 ========== ====== ===================================================================
 
 Sampling: a controller samples with a periodic discrete update of period
@@ -59,13 +68,14 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from pydrake.systems.framework import LeafSystem
+from pydrake.systems.framework import Diagram, LeafSystem
 
 from ..errors import InvalidConfigError
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
-INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2}
-OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6}
+INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2,
+               "motor_torque_applied": 6}
+OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6, "feature_window": None}
 REQUIRED_INPUTS = ("x_d",)
 REQUIRED_OUTPUTS = ("T",)
 #: ``status`` entries of the LQI (and of controllers that report the same figures).
@@ -95,6 +105,8 @@ class ControllerContext:
             controller with a ``motor_angle`` input may estimate the pose itself with it; one
             with an ``x`` input gets the estimate from an FK estimator system); None on the
             ideal robot.
+        feature_window: with a tuner, the samples w of the density features' window (a
+            controller may buffer them on a ``feature_window`` output); None without one.
     """
 
     geometry: object
@@ -106,6 +118,7 @@ class ControllerContext:
     torque_limit_Nm: float | None = None
     delay_periods: int = 0
     pose_estimator: object = None
+    feature_window: int | None = None
 
 
 #: Factories registered by name (:func:`register_controller`).
@@ -185,13 +198,13 @@ def check_controller(system) -> None:
     """Check a controller against the contract before it is wired.
 
     Raises:
-        InvalidConfigError: not a LeafSystem, a required port missing, a known port of the
-            wrong size, an input port the Diagram cannot connect, or ``status`` without
+        InvalidConfigError: not a LeafSystem or Diagram, a required port missing, a known port of
+            the wrong size, an input port the Diagram cannot connect, or ``status`` without
             ``status_names`` of its size; the message names the port.
     """
-    if not isinstance(system, LeafSystem):
-        raise InvalidConfigError(f"a controller factory must return a pydrake LeafSystem, got "
-                                 f"{type(system).__name__}")
+    if not isinstance(system, (LeafSystem, Diagram)):
+        raise InvalidConfigError(f"a controller factory must return a pydrake LeafSystem (or a "
+                                 f"Diagram), got {type(system).__name__}")
     name = system.get_name() or type(system).__name__
     inputs = {system.get_input_port(i).get_name(): system.get_input_port(i)
               for i in range(system.num_input_ports())}

@@ -27,8 +27,18 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..checks import as_array, as_number
-from ..model.kinematics import (X_HOME, ik_jacobian, ik_scalar, ik_single, jacobian_single,
-                                leg_constants)
+from ..model.kinematics import (
+    X_HOME,
+    ik_jacobian,
+    ik_single,
+    jacobian_single,
+    leg_constants,
+)
+from .lqi_step import estimate, filter_rate
+
+#: Largest Newton chord-step correction the estimate accepts per period (rad or m); a larger
+#: one (a jump, a stale Jacobian) is solved by full Newton (:meth:`PoseEstimator.track`).
+CHORD_STEP_MAX = 1e-3
 
 
 class PoseEstimator:
@@ -59,7 +69,12 @@ class PoseEstimator:
         #: Weight of the new difference in the rate's low-pass: 1 - exp(-2 pi f_c h).
         self.alpha = 1.0 - math.exp(-2 * math.pi * cutoff * self.h)
         self.max_iterations = int(max_iterations)
-        self._constants = leg_constants(geometry)
+        legs, self.crank_length, self.leg_c = leg_constants(geometry)
+        #: (6, 9) leg constants of :func:`~.kinematics.ik_scalar`, as the compiled step reads them.
+        self.legs = np.array(legs)
+        self.legs.setflags(write=False)
+        #: Largest chord-step correction accepted (rad or m), else a full Newton solve.
+        self.chord_step_max = CHORD_STEP_MAX
         _, J0 = ik_jacobian(geometry, as_array("x_reference", x_reference, shape=(6,)))
         #: sign det J of the assembly mode the estimate stays in (that of the start pose).
         self.mode = float(np.sign(np.linalg.det(J0)))
@@ -107,7 +122,8 @@ class PoseEstimator:
         old, the corrections are 4e-5 (median) to 1.7e-4 (rad or m) and the chord step differs
         from the full Newton of :meth:`estimate` by 1e-7 (median) to 1e-6, where the
         quantization itself moves the estimate by up to 8e-5 (a test holds these). A correction
-        above 1e-3 (a jump, a stale Jacobian) falls back to :meth:`estimate`.
+        above :data:`CHORD_STEP_MAX` (a jump, a stale Jacobian) falls back to :meth:`estimate`.
+        The LQI runs the same stage compiled (:func:`~.lqi_step.estimate`).
 
         Args:
             theta (6,) measured motor angles, rad; x_prev, v_prev (6,) the last estimate;
@@ -115,27 +131,14 @@ class PoseEstimator:
         Returns:
             (x (6,), v (6,)) [rad, m; rad/s, m/s].
         """
-        x, v = self.track_floats(np.asarray(theta, dtype=float).tolist(),
-                                 np.asarray(x_prev, dtype=float).tolist(),
-                                 np.asarray(v_prev, dtype=float).tolist(),
-                                 np.asarray(J_inv, dtype=float).reshape(-1).tolist())
-        return np.array(x), np.array(v)
-
-    def track_floats(self, theta: list, x_prev: list, v_prev: list,
-                     J_inv: list) -> tuple[list, list]:
-        """:meth:`track` on lists of floats (J_inv: 36, row-major), returning lists: the
-        controller's per-period path, in plain Python (:func:`~.kinematics.ik_scalar`)."""
-        h = self.h
-        x0 = [p + h * r for p, r in zip(x_prev, v_prev)]
-        th0 = ik_scalar(self._constants, x0)
-        r = [(a - b + math.pi) % (2 * math.pi) - math.pi for a, b in zip(th0, theta)]
-        dx = [sum(J_inv[6 * i + j] * r[j] for j in range(6)) for i in range(6)]
-        if max(map(abs, dx)) <= 1e-3 and math.isfinite(sum(dx)):    # else the fallback
-            x = [a - b for a, b in zip(x0, dx)]
-        else:
-            x = self.estimate(np.array(theta), np.array(x0))[0].tolist()
-        alpha = self.alpha
-        return x, [v + alpha * ((a - b) / h - v) for a, b, v in zip(x, x_prev, v_prev)]
+        theta = np.asarray(theta, dtype=float)
+        x_hat = np.concatenate([np.asarray(x_prev, dtype=float), np.asarray(v_prev, dtype=float)])
+        if not estimate(self.legs, self.crank_length, self.leg_c, self.h, self.alpha,
+                        self.chord_step_max, theta, x_hat,
+                        np.asarray(J_inv, dtype=float).reshape(6, 6)):
+            filter_rate(self.h, self.alpha, self.estimate(theta, x_hat[:6] + self.h * x_hat[6:])[0],
+                        x_hat)
+        return x_hat[:6], x_hat[6:]
 
     def update(self, theta, x_prev, v_prev) -> tuple[np.ndarray, np.ndarray]:
         """The next estimate from the encoders theta (6,) and the last estimate x_prev, v_prev:

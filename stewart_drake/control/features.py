@@ -24,8 +24,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..errors import InvalidConfigError, SimulationDivergedError
 from ..checks import as_array, as_number
+from ..errors import InvalidConfigError, SimulationDivergedError
 
 N_CHANNELS = 6                 # six pose errors, six motor torques
 N_FEATURES = 2 * N_CHANNELS    # rho = [rho_e (6,), rho_T (6,)]
@@ -133,22 +133,26 @@ def density_features_series(e, T, window: int = DEFAULT_WINDOW,
 class DensityFeatures(LeafSystem):
     """Density of the tracking error and of the motor torques (paper eqs. 35-36).
 
-    Input ports:
+    Input ports (sampling, the default):
         ``e_bar`` (6,): pose error [rad, rad, rad, m, m, m].
         ``T`` (6,): motor torques, N m.
+    Input port (``buffered=True``):
+        ``feature_window`` (12 window + 2,): the same samples, buffered by the controller at its
+            instants (contract port ``feature_window``: rows [e_bar, T], n_valid, head).
     Output port:
         ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, of the samples taken so far.
-    Discrete state (numbers only): a ring buffer (window * 12) of [e_bar, T] rows, and
+    Discrete state (sampling only; numbers): a ring buffer (window * 12) of [e_bar, T] rows, and
     [n_valid, head] (2,): the samples taken so far capped at window, and the row the next sample
     goes to (the oldest).
 
-    Every period_s (first at ``offset_s``) the inputs are sampled and pushed into the ring buffer
-    (cheap); rho is computed by :func:`density_features` on the last min(k + 1, window) samples
-    only when something reads the output (the tuner, every 20 ms), and Drake caches it until the
-    next push. The output depends on the state alone, so the system has no direct feedthrough (no
-    algebraic loop with the controller that produces T). Eq. 35 divides by a signed window sum
-    that can cross zero; we divide by the window mean of |.| plus ``eps`` instead
-    (docs/paper_notes.md).
+    Sampling, every period_s (first at ``offset_s``) the inputs are pushed into the ring buffer
+    (cheap, but one Python callback per period). Buffered, the controller has pushed them and
+    this system has no event at all. Either way rho is computed by :func:`density_features` on
+    the last min(k + 1, window) samples only when something reads the output (the tuner, every
+    20 ms), and Drake caches it until the next push. The output depends on the state (or the
+    controller's state) alone, so there is no direct feedthrough (no algebraic loop with the
+    controller that produces T). Eq. 35 divides by a signed window sum that can cross zero; we
+    divide by the window mean of |.| plus ``eps`` instead (docs/paper_notes.md).
 
     Args:
         window: m + 1, samples per window (50).
@@ -156,16 +160,17 @@ class DensityFeatures(LeafSystem):
         eps: see :func:`density_features`.
         offset_s: time of the first sample, s, in [0, period_s). The Diagram samples with the
             controller (half a plant step): the values are those of the instant before (nothing
-            the features read changes in between), and the two Python updates then run back to
-            back, which costs less than two separate instants.
+            the features read changes in between).
+        buffered: read the controller's ``feature_window`` instead of sampling.
     Raises:
         InvalidConfigError: window < 1, period_s <= 0, eps <= 0 or offset_s outside [0, period_s).
-        SimulationDivergedError: (during simulation) a non-finite input sample; it is not
-            clamped, because it means the closed loop has already diverged.
+        SimulationDivergedError: (during simulation, sampling) a non-finite input sample; it is
+            not clamped, because it means the closed loop has already diverged (a buffering
+            controller raises it itself).
     """
 
     def __init__(self, window: int = DEFAULT_WINDOW, period_s: float = 1e-3,
-                 eps: float = DEFAULT_EPS, offset_s: float = 0.0):
+                 eps: float = DEFAULT_EPS, offset_s: float = 0.0, buffered: bool = False):
         super().__init__()
         _check_window_eps(window, eps)
         if not (np.isfinite(period_s) and period_s > 0):
@@ -175,6 +180,15 @@ class DensityFeatures(LeafSystem):
         self.window = int(window)
         self.period_s = float(period_s)
         self.eps = float(eps)
+        self.buffered = bool(buffered)
+        if self.buffered:
+            self._e = self._T = None
+            self._window_in = self.DeclareVectorInputPort("feature_window",
+                                                          self.window * N_FEATURES + 2)
+            self._rho = self.DeclareVectorOutputPort(
+                "rho", N_FEATURES, self._CalcRho,
+                prerequisites_of_calc={self.all_input_ports_ticket()})
+            return
         self._e = self.DeclareVectorInputPort("e_bar", N_CHANNELS)
         self._T = self.DeclareVectorInputPort("T", N_CHANNELS)
         self._buf = self.DeclareDiscreteState(self.window * N_FEATURES)
@@ -212,11 +226,21 @@ class DensityFeatures(LeafSystem):
         counters[1] = (head + 1) % self.window
 
     def _CalcRho(self, context, output) -> None:
-        n, head = context.get_discrete_state(self._n_index).get_value()
-        if n == 0:                                # nothing sampled yet
-            output.SetFromVector(np.zeros(N_FEATURES))
-            return
-        rows = np.roll(context.get_discrete_state(self._buf).get_value().reshape(
-            self.window, N_FEATURES), -int(head), axis=0)      # oldest first
-        output.SetFromVector(density_features(rows[:, :N_CHANNELS], rows[:, N_CHANNELS:],
-                                              self.eps, int(n)))
+        if self.buffered:
+            window = self._window_in.Eval(context)
+            buffer, (n, head) = window[:-2], window[-2:]
+        else:
+            buffer = context.get_discrete_state(self._buf).get_value()
+            n, head = context.get_discrete_state(self._n_index).get_value()
+        output.SetFromVector(ring_features(buffer, n, head, self.eps))
+
+
+def ring_features(buffer, n_valid, head, eps: float = DEFAULT_EPS) -> np.ndarray:
+    """rho (12,) of a ring buffer of finite [e_bar, T] rows (window * 12,) whose oldest row is
+    ``head`` and last ``n_valid`` rows are samples (zeros before the first sample): the numbers
+    of :func:`density_features` (the same ``_rho``), without its checks of the inputs (the
+    buffer's writer refuses a non-finite sample)."""
+    if n_valid == 0:                              # nothing sampled yet
+        return np.zeros(N_FEATURES)
+    rows = np.roll(np.asarray(buffer).reshape(-1, N_FEATURES), -int(head), axis=0)  # oldest first
+    return _rho(rows, n_valid, eps)

@@ -25,19 +25,28 @@ then span soft to stiff controllers that all hold the platform.
 
 from __future__ import annotations
 
-import math
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from pydrake.math import DiscreteAlgebraicRiccatiEquation, RealDiscreteLyapunovEquation
-from pydrake.systems.framework import LeafSystem
+from pydrake.math import DiscreteAlgebraicRiccatiEquation
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import Demultiplexer, Multiplexer
 
 from ..checks import as_array, as_number
-from ..errors import InvalidConfigError, RiccatiSolveError, SingularPoseError, UnreachablePoseError
+from ..errors import (
+    InvalidConfigError,
+    NotStabilizableError,
+    RiccatiSolveError,
+    SimulationDivergedError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
-from .contract import LQI_STATUS_NAMES, PoseTorqueController
+from . import lqi_step
+from .contract import LQI_STATUS_NAMES
+from .lqi_step import LqiStatus
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
 #: How the gain is re-solved at a re-schedule (see :class:`LqiController`).
@@ -53,6 +62,8 @@ GAIN_TRANSFER_MODES = ("integral", "feedback", "none")
 #: 21.4 mm) and 0.92; at 0.95 (0.0175 N m, below the friction) it loses the platform in 1 and
 #: strays up to 0.13 rad | 0.0498 m in the others. Ours: the paper has no torque limit.
 GOVERNOR_MARGIN = 0.9
+#: Relative size of the last term at which the Stein series of :func:`lqi_gain_warm` stops.
+STEIN_TOL = 1e-16
 OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
 
 
@@ -187,6 +198,19 @@ def input_matrix_single(geometry: StewartGeometry, x) -> tuple[np.ndarray, np.nd
     return B_c, J
 
 
+def body_constants(geometry: StewartGeometry) -> np.ndarray:
+    """The robot as the compiled B(x) reads it (:data:`~.lqi_kernels.BODY`): crank and rod
+    length, s^2 - a^2, the platform's principal inertia (3) and mass, the crank shaft's inertia
+    (crank about its shaft + the motor's reflected inertia, as
+    :func:`~stewart_drake.model.statics.task_inertia`), the rod's mass and transverse inertia.
+    SI units."""
+    g = geometry
+    a = g.crank_length
+    shaft = g.crank_inertia[1] + g.crank_mass * (0.5 * a) ** 2 + g.motor_reflected_inertia
+    return np.array([a, g.rod_length, g.rod_length ** 2 - a * a, *g.platform_inertia,
+                     g.platform_mass, shaft, g.rod_mass, g.rod_inertia[0]], dtype=float)
+
+
 def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9) -> dict:
     """Stabilizability of (A, B) and detectability of (A, C) by the Hautus test (eqs. 28-29).
 
@@ -219,18 +243,22 @@ def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9
             "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
 
 
-def _balance(A, B, Q, R):
-    """Diagonal scaling e = D_x e~, u = D_u u~ with D = diag(Q)^-1/2, diag(R)^-1/2.
+def balance(A, B, Q, R):
+    """Diagonal scaling e = D_x e~, u = D_u u~ with D = diag(Q)^-1/2, diag(R)^-1/2 of the
+    Riccati problem (A, B, Q, R) (the compiled Newton step, :func:`~.lqi_kernels.newton_gain`,
+    scales the same way).
 
     The LQI's Q spans 1 (rates, 1/(1 rad/s)^2) to 2.5e9 (integrals, 1/(2e-5)^2): unscaled, the
     Riccati solution has cond(P) ~ 4e9 and the gains carry ~1e-8 relative rounding error; scaled,
     cond(P) ~ 400. Returns (A~, B~, Q~, R~, d_x, d_u).
     """
-    qd, rd = np.diag(Q), np.diag(R)
+    qd, rd = np.diag(Q).copy(), np.diag(R).copy()
     d_x = 1.0 / np.sqrt(qd) if np.all(qd > 0) else np.ones(len(qd))
     d_u = 1.0 / np.sqrt(rd) if np.all(rd > 0) else np.ones(len(rd))
-    return (A * (1 / d_x)[:, None] * d_x[None, :], B * (1 / d_x)[:, None] * d_u[None, :],
-            Q * d_x[:, None] * d_x[None, :], R * d_u[:, None] * d_u[None, :], d_x, d_u)
+    return (A * (1 / d_x).reshape(-1, 1) * d_x.reshape(1, -1),
+            B * (1 / d_x).reshape(-1, 1) * d_u.reshape(1, -1),
+            Q * d_x.reshape(-1, 1) * d_x.reshape(1, -1),
+            R * d_u.reshape(-1, 1) * d_u.reshape(1, -1), d_x, d_u)
 
 
 def _check_finite(**arrays) -> None:
@@ -242,7 +270,7 @@ def _check_finite(**arrays) -> None:
 def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.ndarray:
     """Optimal gain K = (R + B^T P B)^-1 B^T P A (eqs. 31-32); u = -K e.
 
-    Solved on the diagonally scaled problem (:func:`_balance`) with Drake's
+    Solved on the diagonally scaled problem (:func:`balance`) with Drake's
     DiscreteAlgebraicRiccatiEquation, then scaled back: the same gain, better conditioned.
 
     Args:
@@ -258,7 +286,7 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     if (np.shape(A), np.shape(Q), np.shape(R)) != ((n, n), (n, n), (m, m)) or min(n, m) < 1:
         raise InvalidConfigError(f"lqi_gain needs A (n, n), B (n, m), Q (n, n), R (m, m); got "
                                  f"{np.shape(A)}, {np.shape(B)}, {np.shape(Q)}, {np.shape(R)}")
-    Ab, Bb, Qb, Rb, d_x, d_u = _balance(A, B, Q, R)
+    Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, Q, R)
     try:
         P = DiscreteAlgebraicRiccatiEquation(Ab, Bb, Qb, Rb)
     except (RuntimeError, ValueError, SystemExit) as err:
@@ -285,14 +313,16 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     """The gain of :func:`lqi_gain` by Newton's method (Hewer's algorithm) from a nearby gain.
 
     Each iteration solves one Stein equation P = A_c^T P A_c + Q + K^T R K for A_c = A - B K
-    (Drake's RealDiscreteLyapunovEquation, about 0.15 ms on 18 states) and sets
-    K = (R + B^T P B)^-1 B^T P A. From any stabilizing K_start the iterates stay stabilizing and
+    (compiled squared Smith iteration, :func:`~.lqi_kernels.stein`: about 0.05 ms on 24 states,
+    a sixth of Drake's RealDiscreteLyapunovEquation and of scipy's, to 1e-12 of them;
+    benchmarks/realtime.py --riccati) and sets K = (R + B^T P B)^-1 B^T P A. From any
+    stabilizing K_start the iterates stay stabilizing and
     converge quadratically to the Riccati gain, so a gain from the previous re-schedule (a pose
     a few ms away) is refined in two iterations, about half the cost of a cold DARE. Newton's
     quadratic convergence makes the last step size an estimate of the previous iterate's error
     squared: the loop stops once the relative step is below ``tol`` (1e-4 gives at most 5e-9
     relative to the cold solve along the paper manoeuvre, in 2.05 iterations on average; tested).
-    It iterates on the diagonally scaled problem (:func:`_balance`), without which the Stein
+    It iterates on the diagonally scaled problem (:func:`balance`), without which the Stein
     solves' rounding (cond(P) ~ 4e9) alone would leave ~5e-8.
 
     Args:
@@ -307,24 +337,15 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     """
     K = np.asarray(K_start, dtype=float)
     _check_finite(A=A, B=B, Q=Q, R=R, K_start=K)
-    A, B, Q, R, d_x, d_u = _balance(A, B, Q, R)     # iterate on the well-conditioned problem
-    K = K * d_x[None, :] / d_u[:, None]
-    for i in range(1, max_iter + 1):
-        A_c = A - B @ K
-        W = Q + K.T @ R @ K
-        try:
-            P = RealDiscreteLyapunovEquation(A_c, 0.5 * (W + W.T))
-            np.linalg.cholesky(0.5 * (P + P.T))   # P > 0 <=> A_c is Schur stable (W > 0)
-        except (RuntimeError, ValueError, SystemExit, np.linalg.LinAlgError) as err:
-            raise RiccatiSolveError(f"warm start does not stabilize the model ({err})") from None
-        K_next = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)
-        step = np.abs(K_next - K).max() / max(np.abs(K_next).max(), 1e-300)
-        K = K_next
-        if step < tol:
-            if not np.all(np.isfinite(K)):
-                break
-            return d_u[:, None] * K / d_x[None, :], i
-    raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
+    K, iterations = _compiled_stages().newton_gain(
+        *(np.ascontiguousarray(M, dtype=float) for M in (A, B, Q, R, K)), float(tol),
+        int(max_iter), STEIN_TOL)
+    if iterations == -1:
+        raise RiccatiSolveError("warm start does not stabilize the model (the Stein equation's "
+                                "series diverges)")
+    if iterations < 0:
+        raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
+    return K, iterations
 
 
 def project_onto_torque_bound(d, T, G, bound: float) -> tuple[np.ndarray, np.ndarray]:
@@ -368,27 +389,44 @@ def project_onto_torque_bound(d, T, G, bound: float) -> tuple[np.ndarray, np.nda
     return s, C
 
 
-class LqiController(PoseTorqueController):
-    """LQI torque controller of the platform pose, re-scheduled online (paper section III).
+class LqiController(LeafSystem):
+    """LQI torque controller of the platform pose, re-scheduled online (paper section III): the
+    system that computes. :class:`LqiDiagram` gives it the controller contract's named ports
+    (:mod:`~stewart_drake.control.contract`); the Diagram uses that.
 
-    Input ports:
-        ``x`` (12,): pose estimate and rate [phi, theta, psi, X, Y, Z, their rates], rad, m, /s.
+    Input port ``u``: the input vector of :class:`~.lqi_step.LqiLayout` (``layout``),
+    [pose_in, x_d, T_ff, omega, T_applied]:
+        ``x`` (12,): pose estimate and rate [phi, theta, psi, X, Y, Z, their rates], rad, m, /s;
+            with an estimator instead ``motor_angle`` (6,), the encoders, rad.
         ``x_d`` (18,): reference pose, rate and acceleration (same units, /s^2 for the last 6).
         ``T_ff`` (6,): feed-forward motor torques, N m (:mod:`~stewart_drake.simulation.reference`).
         ``omega`` (2,): [omega_Q, omega_R] > 0 (the ANN tuner drives it; else a constant).
-    Output ports:
+        ``motor_torque_applied`` (6,): with ``feature_window``, the torques the motors apply, N m.
+    Output port ``state``: the whole state (``layout``), whose first parts :class:`LqiDiagram`
+    exports as:
         ``T`` (6,): motor torques, N m, sampled at ``offset_s`` after each plant step and held;
             within +-torque_limit_Nm when the controller knows the motors' limit.
+        ``integral`` (6,): the integral states z of eq. 23 [rad s, m s].
         ``status`` (7,): [omega_Q, omega_R in use, gain solves, failed solves, |z|, saturated
             steps, governed steps] (``status_names`` = :data:`~.contract.LQI_STATUS_NAMES`).
         ``e_bar`` (6,): the pose error x - x_d the last update acted on (for the density features,
             so they see exactly the controller's error at the controller's instants).
-        ``integral`` (6,): the integral states z of eq. 23 [rad s, m s].
-    The ports follow the controller contract (:mod:`~stewart_drake.control.contract`).
-    Discrete state: u (6), z (6), status (7), e_bar (6), with an estimator x_hat (12), and one
-    group the ports do not export: the steps since the last solve, K (6 n, row-major 6 x n,
-    n = 18 + 6 d; :meth:`gain_in_use`), the d feedback torques commanded but not yet acting
-    (6 d), the governor's last reference within reach (24) and the estimator's J^-1 (36).
+        ``x_hat`` (12,): with an estimator, its pose and rate estimate.
+        ``feature_window`` (12 w + 2,): with ``feature_window`` = w, the last w samples of
+            [e_bar, motor_torque_applied] for :class:`~.features.DensityFeatures` (ring buffer
+            [rows, n_valid, head]), sampled at the controller's instants: the features then cost
+            no callback of their own per period.
+    Discrete state: one vector, named part by part (:class:`~.lqi_step.LqiLayout`, ``LqiStatus``;
+    no bare indices): the exported parts above, then the steps since the last solve, the gain K
+    and the previous one (6 n each, row-major 6 x n, n = 18 + 6 d; :meth:`gain_in_use`), the d
+    feedback torques commanded but not yet acting (6 d), the governor's last reference within
+    reach (24), the estimator's J^-1 (36).
+
+    Each control period runs one Python callback: it reads ``u`` and the state (one port, one
+    vector) and calls the stages of :mod:`.lqi_step` (estimate, re-schedule, govern, feedback,
+    saturate, integrate), compiled (:mod:`.lqi_kernels`, the default) or in numpy
+    (``compiled=False``, the reference); only the gain re-solve (every schedule period), the
+    governor (out of reach) and a refused chord step run in Python.
 
     Args:
         geometry: the robot (for B(x)).
@@ -446,10 +484,15 @@ class LqiController(PoseTorqueController):
             the encoders on a ``motor_angle`` input (6, rad) and estimates the pose and rate in
             its own update (one Newton chord step per period with the Jacobian of the last
             re-schedule, :meth:`~.estimator.PoseEstimator.track`), exported as ``x_hat`` (12).
+        feature_window: None, or the samples w of the density features' window (eqs. 35-36)
+            the controller buffers for them (the Diagram sets it when it has a tuner).
+        compiled: run the compiled stages (:mod:`.lqi_kernels`); False runs the numpy
+            reference (:mod:`.lqi_step`), the same numbers to 1e-12 and about 10 times slower.
     Raises:
-        InvalidConfigError: bad periods, riccati mode, limit or delay, or the Hautus checks
-        fail at the start pose (a robot the motors barely move); RiccatiSolveError: no gain
-        at home.
+        InvalidConfigError: bad periods, riccati mode, limit, delay or window.
+        RiccatiSolveError: no gain at the start pose.
+        NotStabilizableError: the error model fails the Hautus test at the start pose
+            (eqs. 28-29).
     """
 
     def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3,
@@ -458,8 +501,9 @@ class LqiController(PoseTorqueController):
                  torque_limit_Nm: float | None = None, anti_windup: bool = True,
                  delay_periods: int = 0, estimator=None, x_dot_initial=None,
                  reference_governor: bool = True, schedule_pose: bool = True,
-                 gain_transfer: str = "integral"):
-        super().__init__(pose_input=estimator is None)
+                 gain_transfer: str = "integral", feature_window: int | None = None,
+                 compiled: bool = True):
+        super().__init__()
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
         self.status_names = LQI_STATUS_NAMES
@@ -499,54 +543,78 @@ class LqiController(PoseTorqueController):
         A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
         self.hautus = hautus_checks(A, B, np.sqrt(self._Q1))
         if not (self.hautus["stabilizable"] and self.hautus["detectable"]):
-            h = self.hautus
-            raise InvalidConfigError(
-                f"the LQI cannot control this robot at the start pose: its error model fails the "
-                f"Hautus checks (eqs. 28-29; rank [lambda I - A, B] = {h['rank_AB']}, "
-                f"rank [lambda I - A; C] = {h['rank_AC']}, of {h['n']}): the motors barely move "
-                f"the platform; check robot.platform_mass, robot.platform_inertia and the other "
-                f"masses and inertias (kg, kg m^2)")
+            raise NotStabilizableError(self.hautus, x0)
         K0 = lqi_gain(A, B, self._Q1, self._R1)
         self.K_initial = K0
         #: Newton iterations and cold solves so far (diagnostics, not state: a benchmark reads
         #: them after a run; they do not affect the simulation).
         self.solve_stats = {"warm": 0, "warm_iterations": 0, "cold": 0}
 
+        if feature_window is not None and (isinstance(feature_window, bool) or not isinstance(
+                feature_window, (int, np.integer)) or feature_window < 1):
+            raise InvalidConfigError(f"feature_window must be None or an integer >= 1, got "
+                                     f"{feature_window!r}")
         T0 = statics.holding_torques(geometry, x0)
-        self._u_index = self.DeclareDiscreteState(T0)
-        self._z_index = self.DeclareDiscreteState(6)
-        # status: omega_Q, omega_R in use, solves, failures, |z|, saturated steps (a state, so
-        # logging it at 1 kHz calls no Python)
-        self._s_index = self.DeclareDiscreteState(np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
-        self._e_index = self.DeclareDiscreteState(6)
-        if estimator is not None:
-            self._motor_angle = self.DeclareVectorInputPort("motor_angle", 6)
-            v0 = np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float)
-            self._xhat_index = self.DeclareDiscreteState(np.concatenate([x0, v0]))
-            self.DeclareStateOutputPort("x_hat", self._xhat_index)
-        # What no port exports, in one group (one access per step): the steps since the last
-        # gain solve (the first update re-solves at the measured pose), the gain K (6 n,
-        # row-major), the d pending feedback torques (6 d, newest first), for the governor the
-        # last reference (18) and feed-forward (6) within reach, for the estimator J^-1 (36).
-        parts = {"counter": [float(self.steps_per_schedule)], "K": K0.reshape(-1),
-                 "pending": np.zeros(6 * self.delay)}
-        if self.governor:
-            parts["hold"] = np.concatenate([x0, np.zeros(12), T0])
-        if estimator is not None:
-            _, J0 = kinematics.ik_jacobian(geometry, x0)
-            parts["J_inv"] = np.linalg.inv(J0).reshape(-1)
-        self._mem, start = {}, 0
-        for name, value in parts.items():
-            self._mem[name] = slice(start, start + len(value))
-            start += len(value)
-        self._mem_index = self.DeclareDiscreteState(np.concatenate(
-            [np.asarray(v, dtype=float) for v in parts.values()]))
-        self.DeclareStateOutputPort("T", self._u_index)
-        self.DeclareStateOutputPort("status", self._s_index)
-        self.DeclareStateOutputPort("e_bar", self._e_index)
-        self.DeclareStateOutputPort("integral", self._z_index)
+        self.layout = lqi_step.LqiLayout.build(self.n, self.delay, self.governor,
+                                               estimator is not None, feature_window)
+        self.feature_window = feature_window
+        self._u = self.DeclareVectorInputPort("u", self.layout.u_size)
+        self._state_index = self.DeclareDiscreteState(self._initial_state(
+            x0, np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float),
+            T0, K0))
+        self.DeclareStateOutputPort("state", self._state_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
                                                 update=self._Update)
+        # What the stages need and never change (configuration, not state).
+        self.compiled = bool(compiled)
+        self._stages = _compiled_stages() if self.compiled else lqi_step
+        self._constants = self._step_constants()
+        self._bounds = self.layout.bounds()
+        # Read-only, as the compiled stages were compiled for (lqi_kernels.warm_up).
+        self._legs = np.zeros((6, 9)) if estimator is None else estimator.legs.copy()
+        self._legs.setflags(write=False)
+        self._gain_legs = np.array(kinematics.leg_constants(geometry)[0])
+        self._body = body_constants(geometry)
+        for constant in (self._gain_legs, self._body):
+            constant.setflags(write=False)
+
+    def _initial_state(self, x0, v0, T0, K0) -> np.ndarray:
+        """The state at t = 0: holding torques, weights 1 and one solve (K_initial) so far, the
+        estimate at x0 moving at v0, K = K_old = K0, and a counter that makes the first update
+        re-solve at the measured pose."""
+        lay = self.layout
+        state = np.zeros(lay.state_size)
+        state[lay.T] = T0
+        status = LqiStatus(state[lay.status])
+        status.omega_Q = status.omega_R = status.gain_solves = 1.0
+        state[lay.counter] = self.steps_per_schedule
+        state[lay.K] = state[lay.K_old] = K0.reshape(-1)
+        if self.governor:
+            state[lay.hold] = np.concatenate([x0, np.zeros(12), T0])
+        if self.estimator is not None:
+            state[lay.x_hat] = np.concatenate([x0, v0])
+            state[lay.J_inv] = np.linalg.inv(kinematics.ik_jacobian(self.geometry, x0)[1]
+                                             ).reshape(-1)
+        return state
+
+    def _step_constants(self) -> np.ndarray:
+        """The constants of the stages (``lqi_step.StepConstants``) as the array they read."""
+        c = lqi_step.StepConstants(np.zeros(len(lqi_step.StepConstants.get_fields())))
+        c.h = self.h
+        c.torque_limit = np.inf if self.torque_limit is None else self.torque_limit
+        c.governor_bound = self._governor_bound
+        c.steps_per_schedule = self.steps_per_schedule
+        c.schedule_pose = float(self.schedule_pose)
+        c.anti_windup = float(self.anti_windup)
+        c.transfer = lqi_step.TRANSFER_CODES[self.gain_transfer]
+        if self.estimator is not None:
+            c.estimator = 1.0
+            c.alpha = self.estimator.alpha
+            c.crank_length, c.leg_c = self.estimator.crank_length, self.estimator.leg_c
+            c.fk_jump = self.estimator.chord_step_max
+        constants = c[:]
+        constants.setflags(write=False)
+        return constants
 
     # -- gain ----------------------------------------------------------------------------------
     def _check_weights(self, omega_Q: float, omega_R: float) -> tuple[float, float]:
@@ -569,24 +637,32 @@ class LqiController(PoseTorqueController):
         return self._gain(x, omega_Q, omega_R, K_start)[0]
 
     def _gain(self, x, omega_Q, omega_R, K_start):
-        """(K, J): the gain of :meth:`gain` and the Jacobian at x it used."""
+        """(K, J^-1): the gain of :meth:`gain` and the inverse Jacobian at x it used.
+
+        From a start gain, one compiled call (:func:`~.lqi_kernels.warm_gain`: B(x), the error
+        model and Newton's method, the same numbers as :func:`input_matrix_single`,
+        :func:`error_model` and :func:`lqi_gain_warm`), about a fifth of their cost in numpy
+        (benchmarks/realtime.py --riccati); the cold DARE is the fallback.
+        """
         omega_Q, omega_R = self._check_weights(omega_Q, omega_R)
-        B_c, J = input_matrix_single(self.geometry, np.asarray(x, dtype=float))
-        A, B = error_model(B_c, self.h, self.delay)
+        x = np.ascontiguousarray(x, dtype=float)
         Q, R = omega_Q * self._Q1, omega_R * self._R1
         if K_start is not None:
             one_step = self.riccati == "track"
-            try:
-                K, iterations = lqi_gain_warm(A, B, Q, R, K_start,
-                                              tol=np.inf if one_step else 1e-4,
-                                              max_iter=1 if one_step else 8)
+            K, J_inv, iterations = _compiled_stages().warm_gain(
+                self._gain_legs, self._body, x, self.h, self.delay, Q, R,
+                np.ascontiguousarray(K_start, dtype=float), np.inf if one_step else 1e-4,
+                1 if one_step else 8, STEIN_TOL)
+            if iterations > 0:
                 self.solve_stats["warm"] += 1
                 self.solve_stats["warm_iterations"] += iterations
-                return K, J
-            except RiccatiSolveError:
-                pass                                    # fall back to the cold solve
+                return K, J_inv
+            # a singular pose is named by input_matrix_single below; a failed Newton iteration
+            # falls back to the cold solve
+        B_c, J = input_matrix_single(self.geometry, x)
+        A, B = error_model(B_c, self.h, self.delay)
         self.solve_stats["cold"] += 1
-        return lqi_gain(A, B, Q, R), J
+        return lqi_gain(A, B, Q, R), np.linalg.inv(J)
 
     def govern(self, hold, ref) -> np.ndarray:
         """The reference the governor follows when ``ref`` is out of reach: the pose nearest to
@@ -637,115 +713,168 @@ class LqiController(PoseTorqueController):
             return np.concatenate([hold[:6], np.zeros(12), hold[18:]])
         return np.concatenate([x, tangent @ ref[6:12], tangent @ ref[12:18], T0])
 
-    def feedforward(self, context) -> np.ndarray:
-        """(6,) feed-forward torques of this step, N m: the ``T_ff`` input (one place to read
-        it, so a test can inject a fault there)."""
-        return self._T_ff.Eval(context)
+    def inputs(self, context) -> np.ndarray:
+        """The input vector ``u`` of this period (``layout``), read once: the one place the
+        controller reads its ports, so a test can inject a fault there."""
+        return self._u.Eval(context)
 
     # -- update --------------------------------------------------------------------------------
     def gain_in_use(self, context) -> np.ndarray:
         """(6, n) the gain K the controller's state holds in ``context`` (its own context)."""
-        memory = context.get_discrete_state(self._mem_index).get_value()
-        return memory[self._mem["K"]].reshape(6, self.n).copy()
+        state = context.get_discrete_state(self._state_index).get_value()
+        return state[self.layout.K].reshape(6, self.n).copy()
+
+    def state_part(self, context, name: str) -> np.ndarray:
+        """A copy of the named part of the state (:class:`~.lqi_step.LqiLayout`, e.g. "z",
+        "status") in ``context`` (the controller's own)."""
+        state = context.get_discrete_state(self._state_index).get_value()
+        return state[getattr(self.layout, name)].copy()
 
     def _Update(self, context, discrete_state):
-        # Every step runs here at 1 kHz, between two plant steps that push Python and numpy out
-        # of the CPU caches: the state is read and written in place (views of discrete_state,
-        # which Drake has already filled with the current values), (6,)-sized arithmetic is done
-        # on Python floats (a numpy call costs more than its arithmetic here) and numpy is kept
-        # for the gain product (benchmarks/realtime.py measures the whole Diagram).
-        memory = discrete_state.get_mutable_value(self._mem_index)
-        mem = self._mem
-        if self.estimator is None:
-            x = self._x.Eval(context).tolist()
-        else:                                   # the pose from the encoders (docstring)
-            x_hat = discrete_state.get_mutable_value(self._xhat_index)
-            x_prev = x_hat.tolist()
-            pose, rate = self.estimator.track_floats(
-                self._motor_angle.Eval(context).tolist(), x_prev[:6], x_prev[6:],
-                memory[mem["J_inv"]].tolist())
-            x = pose + rate
-            x_hat[:] = x
-        ref = self._x_d.Eval(context)
-        omega_Q, omega_R = self._omega.Eval(context).tolist()
-        status = discrete_state.get_mutable_value(self._s_index)
-        K = memory[mem["K"]].reshape(6, self.n)
-        # Re-solve every schedule period, and at once when the weights change (the period then
-        # restarts: a tuner updating omega every schedule period costs one solve per period).
-        if (memory[0] >= self.steps_per_schedule and self.schedule_pose) \
-                or omega_Q != status[0] or omega_R != status[1]:
-            memory[0] = 0.0
-            try:
-                K_new, J = self._gain(np.array(x[:6]) if self.schedule_pose else self.x_initial,
-                                      omega_Q, omega_R,
-                                      K_start=K if self.riccati != "cold" else None)
-                status[0], status[1] = omega_Q, omega_R
-                status[2] += 1
-                K_old = K.copy()
-                K[:] = K_new
-                if self.estimator is not None:
-                    memory[mem["J_inv"]] = np.linalg.inv(J).reshape(-1)
-            except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError,
-                    SingularPoseError, np.linalg.LinAlgError) as err:
-                K_old = None
-                status[3] += 1
-                if status[3] == 1 or status[3] % 100 == 0:
-                    warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed "
-                                  f"({err}); keeping the last good gain "
-                                  f"({int(status[3])} failures so far)", RuntimeWarning)
-        else:
-            K_old = None
-        memory[0] += 1.0
+        # One port in, the stages (compiled) on the state Drake owns (discrete_state holds the
+        # current values, updated in place), and Python only for the rare stages.
+        u = self.inputs(context)
+        state = discrete_state.get_mutable_value(self._state_index)
+        need, flags = self._stages.step(self._constants, self._legs, u, state, self._bounds)
+        if need:
+            flags = self._stages.act(self._constants, u, state, self._bounds,
+                                     self._python_stages(context, need, u, state))
+        if flags & lqi_step.NONFINITE_SAMPLE:
+            lay = self.layout
+            sample = np.concatenate([state[lay.e_bar], u[lay.T_applied]])
+            raise SimulationDivergedError(
+                f"non-finite {'e_bar' if not np.all(np.isfinite(sample[:6])) else 'T'} = "
+                f"{np.array2string(sample, precision=4)} ([e_bar, T]) at the density features' "
+                f"window (features are not computed from diverged signals)",
+                t=context.get_time())
 
-        T_ff = self.feedforward(context)
-        if self.governor:
-            hold = memory[mem["hold"]]
-            # out of reach; a non-finite T_ff is not governed (nor clipped below): it reaches
-            # T, where the guard names it
-            if self._governor_bound < abs(T_ff).max() < math.inf:
-                hold[:] = self.govern(hold, ref)
-                ref, T_ff = hold[:18], hold[18:]
-                status[6] += 1
-            else:                               # the last reference within reach, at rest
-                hold[:6], hold[6:18], hold[18:] = ref[:6], 0.0, T_ff
-        ref = ref.tolist()
-        e_x = [a - b for a, b in zip(x, ref)]              # [e_x, e_x_dot], 12
-        z = discrete_state.get_mutable_value(self._z_index)
-        z_list = z.tolist()
-        e = e_x + z_list
-        if self.delay:
-            pending = memory[mem["pending"]]
-            e += pending.tolist()
-        if K_old is not None and self.gain_transfer != "none":
-            # Gain transfer (docstring): the new gain takes over the integral torque the old one
-            # had learned ("integral") or its whole feedback ("feedback"), the integral states
-            # taking up the difference. Ours: the paper switches gains as they come.
-            K_I = K[:, 12:18]
-            z_old = np.array(z_list)
-            if self.gain_transfer == "integral":
-                target = K_old[:, 12:18] @ z_old
-            else:
-                target = K_old @ e - (K @ e - K_I @ z_old)
-            try:
-                z_list = np.linalg.solve(K_I, target).tolist()
-                e[12:18] = z_list
-                z[:] = z_list
-            except np.linalg.LinAlgError:
-                pass                            # keep z: a step rather than no control
-        feedback = K @ e                                     # K e, (6,)
-        T = discrete_state.get_mutable_value(self._u_index)
-        np.subtract(T_ff, feedback, out=T)
-        saturated = False
-        if self.torque_limit is not None and self.torque_limit < abs(T).max() < math.inf:
-            np.clip(T, -self.torque_limit, self.torque_limit, out=T)
-            saturated = True
-            status[5] += 1
-        if self.delay:                          # newest first: what was just commanded
-            pending[6:] = pending[:-6].copy()
-            pending[:6] = T - T_ff
-        if not (saturated and self.anti_windup):   # clamping: z holds while saturated
-            h = self.h
-            z_list = [a + h * b for a, b in zip(z_list, e_x)]
-            z[:] = z_list
-        status[4] = math.sqrt(sum(v * v for v in z_list))
-        discrete_state.get_mutable_value(self._e_index)[:] = e_x[:6]
+    # -- the stages that run in Python -------------------------------------------------------
+    def _python_stages(self, context, need: int, u, state) -> int:
+        """Estimate by full Newton, re-schedule, govern, as ``need`` says; returns the mode
+        flags :func:`~.lqi_step.act` needs (GAIN_CHANGED, GOVERNED)."""
+        lay, mode = self.layout, 0
+        if need & lqi_step.NEED_NEWTON:
+            self._estimate_by_newton(u[lay.pose_in], state[lay.x_hat])
+        x = u[lay.pose_in] if self.estimator is None else state[lay.x_hat]
+        if need & lqi_step.NEED_SCHEDULE and self._reschedule(context, x, u[lay.omega], state):
+            mode |= lqi_step.GAIN_CHANGED
+        if need & lqi_step.NEED_GOVERNOR:
+            state[lay.hold] = self.govern(state[lay.hold], u[lay.x_d])
+            mode |= lqi_step.GOVERNED
+        return mode
+
+    def _estimate_by_newton(self, theta, x_hat) -> None:
+        """Estimate: the full Newton solve when the chord step is refused (a jump, a stale
+        Jacobian; :meth:`~.estimator.PoseEstimator.estimate`), then the rate filter."""
+        x0 = x_hat[:6] + self.h * x_hat[6:]
+        x = self.estimator.estimate(np.asarray(theta, dtype=float), x0)[0]
+        self._stages.filter_rate(self.h, self.estimator.alpha, x, x_hat)
+
+    def _reschedule(self, context, x, omega, state) -> bool:
+        """Re-schedule: re-solve the gain at the estimated pose for the weights on the port
+        (eqs. 31-33, :meth:`_gain`), keeping the previous gain for the gain transfer and the
+        Jacobian's inverse for the estimator. A failed solve keeps the last good gain (with a
+        warning, then every hundredth). True if the gain changed."""
+        lay = self.layout
+        status, K = LqiStatus(state[lay.status]), state[lay.K].reshape(6, self.n)
+        try:
+            K_new, J_inv = self._gain(np.array(x[:6]) if self.schedule_pose else self.x_initial,
+                                  omega[0], omega[1],
+                                  K_start=K if self.riccati != "cold" else None)
+        except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError, SingularPoseError,
+                np.linalg.LinAlgError) as err:
+            status.gain_failures += 1
+            if status.gain_failures == 1 or status.gain_failures % 100 == 0:
+                warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed ({err}); "
+                              f"keeping the last good gain ({int(status.gain_failures)} failures "
+                              f"so far)", RuntimeWarning)
+            return False
+        status.omega_Q, status.omega_R = omega
+        status.gain_solves += 1
+        state[lay.K_old] = state[lay.K]
+        K[:] = K_new
+        if self.estimator is not None:
+            state[lay.J_inv] = J_inv.reshape(-1)
+        return True
+
+
+class LqiDiagram(Diagram):
+    """:class:`LqiController` with the controller contract's named ports: a ``Multiplexer``
+    gathers them into its input vector and a ``Demultiplexer`` splits its state into outputs
+    (C++ systems: the controller's Python update reads one port and writes one vector).
+
+    Input ports: ``x`` (12,) or with an estimator ``motor_angle`` (6,); ``x_d`` (18,); ``T_ff``
+    (6,); ``omega`` (2,); with a feature window ``motor_torque_applied`` (6,).
+    Output ports: ``T`` (6,), ``integral`` (6,), ``status`` (7,), ``e_bar`` (6,), with an
+    estimator ``x_hat`` (12,), with a feature window ``feature_window`` (12 w + 2,).
+    Units and meanings: :class:`LqiController`.
+
+    Args:
+        as :class:`LqiController` (geometry first, then keywords).
+    Attributes:
+        lqi: the :class:`LqiController` inside (gains, governor, settings).
+        status_names: :data:`~.contract.LQI_STATUS_NAMES`.
+    """
+
+    def __init__(self, geometry: StewartGeometry, **settings):
+        super().__init__()
+        builder = DiagramBuilder()
+        self.lqi = builder.AddNamedSystem("lqi", LqiController(geometry, **settings))
+        self.status_names = LQI_STATUS_NAMES
+        lay = self.lqi.layout
+        names = ("x" if self.lqi.estimator is None else "motor_angle", "x_d", "T_ff", "omega",
+                 "motor_torque_applied")
+        sizes = [getattr(lay, p).stop - getattr(lay, p).start for p in lqi_step.PARTS[:5]]
+        inputs = [(name, size) for name, size in zip(names, sizes) if size]
+        mux = builder.AddNamedSystem("inputs", Multiplexer([size for _, size in inputs]))
+        for k, (name, _) in enumerate(inputs):
+            builder.ExportInput(mux.get_input_port(k), name)
+        builder.Connect(mux.get_output_port(), self.lqi.get_input_port())
+        parts = [(port, getattr(lay, p)) for p, port in lqi_step.EXPORTED.items()
+                 if getattr(lay, p).stop > getattr(lay, p).start]
+        exported = parts[-1][1].stop
+        sizes = [sl.stop - sl.start for _, sl in parts] + [lay.state_size - exported]
+        demux = builder.AddNamedSystem("outputs", Demultiplexer(sizes))
+        builder.Connect(self.lqi.get_output_port(), demux.get_input_port())
+        for k, (port, _) in enumerate(parts):
+            builder.ExportOutput(demux.get_output_port(k), port)
+        builder.BuildInto(self)
+
+    @property
+    def n(self) -> int:
+        """Columns of the gain, 18 + 6 d."""
+        return self.lqi.n
+
+    @property
+    def geometry(self) -> StewartGeometry:
+        """The robot the controller believes in."""
+        return self.lqi.geometry
+
+    def lqi_context(self, context):
+        """The :class:`LqiController`'s context inside this Diagram's ``context``."""
+        return self.GetSubsystemContext(self.lqi, context)
+
+    def gain_in_use(self, context) -> np.ndarray:
+        """(6, n) the gain in use in this Diagram's ``context``
+        (:meth:`LqiController.gain_in_use`)."""
+        return self.lqi.gain_in_use(self.lqi_context(context))
+
+    def get_x_input_port(self):
+        return self.GetInputPort("x")
+
+    def get_x_d_input_port(self):
+        return self.GetInputPort("x_d")
+
+    def get_T_ff_input_port(self):
+        return self.GetInputPort("T_ff")
+
+    def get_omega_input_port(self):
+        return self.GetInputPort("omega")
+
+
+def _compiled_stages():
+    """The compiled stages (:mod:`.lqi_kernels`), imported when a controller first needs them
+    (numba's import and the first compilation are paid by runs, not by ``import lqi``)."""
+    from . import lqi_kernels
+
+    return lqi_kernels

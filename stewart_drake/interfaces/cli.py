@@ -465,6 +465,34 @@ def _cmd_workspace(args) -> int:
     return 0
 
 
+def _cmd_teleop(args) -> int:
+    """``stewart-drake teleop``: the robot as built at real time in Meshcat, driven by sliders."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    from ..simulation.scenario import load_scenario
+    from .teleop import build_teleop, run_teleop
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    params = MeshcatParams()
+    if args.port is not None:
+        params.port = args.port
+    try:
+        meshcat = Meshcat(params)
+    except RuntimeError as err:                       # the port is taken
+        from ..errors import InvalidConfigError
+
+        raise InvalidConfigError(f"Meshcat cannot listen on port {args.port}: {err} Choose "
+                                 f"another --port, or leave it out for the first free one") \
+            from None
+    run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
+    how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+    print(f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
+          f"J/L I/K U/O), the gauges show the tracking error and the margins; running {how}")
+    run_teleop(run, args.duration)
+    return 0
+
+
 def _cmd_diagrams(args) -> int:
     """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
     from .visualize import write_diagrams
@@ -569,11 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("reference", help="a CSV file (t,phi,theta,psi,X,Y,Z), a named trajectory "
                                        "(paper, helix, step_<axis>, ...) or a scenario (file or "
                                        "shipped name)")
-    chk.add_argument("--scenario", default=DEFAULT_SCENARIO,
-                     help="the robot to check on, for a CSV or named reference")
-    chk.add_argument("--set", action="append", metavar="KEY=VALUE",
-                     help="override a scenario field, e.g. guard.min_clearance_m=0.005 "
-                          "(repeatable; default: none)")
+    _add_scenario_arguments(chk, "the robot to check on, for a CSV or named reference")
     chk.add_argument("--duration", type=_positive_float, default=None,
                      help="checked s (default: the scenario's duration_s)")
     chk.add_argument("--out", default="results", help="folder of the margins plot")
@@ -639,6 +663,17 @@ def build_parser() -> argparse.ArgumentParser:
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
+
+    tel = sub.add_parser("teleop", help="drive the robot live at real time from Meshcat sliders")
+    _add_scenario_arguments(tel, "the robot driven")
+    tel.add_argument("--duration", type=_positive_float, default=None,
+                     help="simulated s (default: until Ctrl-C)")
+    tel.add_argument("--realtime-rate", type=float, default=1.0,
+                     help="target real-time rate (0: as fast as it goes)")
+    tel.add_argument("--port", type=_int_at_least(1), default=None,
+                     help="Meshcat's port (default: the first free from 7000)")
+    tel.add_argument("--out", default="results/teleop", help="folder of a divergence dump")
+    tel.set_defaults(func=_cmd_teleop, out_sub=("diverged",))
 
     dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
     dg.add_argument("--out", default="diagrams", help="folder (in the current folder)")

@@ -39,6 +39,18 @@ CAMERA_TARGET = (0.0, 0.0, 0.15)
 #: the repository's root, the committed pictures).
 DIAGRAMS_DIR = Path("diagrams")
 _HASH_COMMENT = "<!-- dot-sha256: {} -->"
+#: Browsers that can show a Meshcat page headless (tools/screenshot_replay.py,
+#: tools/chromium_cdp.py).
+CHROMIUM_NAMES = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+
+
+def find_chromium() -> str | None:
+    """Path of a Chromium-family browser on PATH (:data:`CHROMIUM_NAMES`), or None."""
+    for name in CHROMIUM_NAMES:
+        path = shutil.which(name)
+        if path:
+            return path
+    return None
 
 
 def frame_indices(t: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:

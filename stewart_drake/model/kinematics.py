@@ -23,7 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..checks import as_array, as_number, as_poses
-from ..errors import ForwardKinematicsError, InvalidConfigError, SingularPoseError, UnreachablePoseError
+from ..errors import (
+    ForwardKinematicsError,
+    InvalidConfigError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
 
 #: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
 X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
@@ -475,7 +480,9 @@ def ik_scalar(constants: tuple, x) -> list:
         ly = r10 * ex + r11 * ey + r12 * ez + Y - by
         lz = r20 * ex + r21 * ey + r22 * ez + Z - bz
         M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
-        norm = math.hypot(M, N)
+        # sqrt, not math.hypot: CPython's hypot has its own rounding, numba's calls libm's, and
+        # the controller compiles this function (the same bits interpreted and compiled).
+        norm = math.sqrt(M * M + N * N)
         L = lx * lx + ly * ly + lz * lz - c
         theta.append(math.asin(L / norm) - math.atan2(N, M) if abs(L) <= norm else math.nan)
     return theta

@@ -8,26 +8,41 @@ from typing import Any, Callable
 import numpy as np
 from pydrake.common import RandomDistribution
 from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import (Adder, ConstantVectorSource, Gain, LogVectorOutput,
-                                        RandomSource, TrajectorySource)
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    Gain,
+    LogVectorOutput,
+    RandomSource,
+    TrajectorySource,
+)
 from pydrake.trajectories import PiecewisePolynomial
 
 from ..control.contract import ControllerContext, check_controller, resolve_controller
 from ..control.estimator import FkEstimator, PoseEstimator
-from ..control.lqi import LqiController
+from ..control.lqi import LqiDiagram
 from ..control.pd import CrankPdController
 from ..errors import InvalidConfigError
-from .reference import ReferenceSources, add_reference_sources
-from .scenario import (LqiDriver, PdDriver, RatioTunerDriver, Scenario, UserController,
-                       WeightSchedule)
+from .guard import DivergenceGuard
+from .reference import add_reference_sources
+from .scenario import (
+    LqiDriver,
+    PdDriver,
+    RatioTunerDriver,
+    Scenario,
+    UserController,
+    WeightSchedule,
+)
 from .station import StewartStation
 from .trajectories import as_trajectory
 
 
-def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiController]:
-    """The factory of the LQI a scenario's :class:`~.scenario.LqiDriver` describes."""
-    def make(context: ControllerContext) -> LqiController:
-        return LqiController(context.geometry, period_s=context.period_s,
+def lqi_factory(driver: LqiDriver, compiled: bool = True
+                ) -> Callable[[ControllerContext], LqiDiagram]:
+    """The factory of the LQI a scenario's :class:`~.scenario.LqiDriver` describes; with
+    ``compiled=False`` the LQI runs its numpy reference step (same numbers, slower)."""
+    def make(context: ControllerContext) -> LqiDiagram:
+        return LqiDiagram(context.geometry, period_s=context.period_s,
                              schedule_period_s=driver.schedule_period_s,
                              scales=driver.scales.build(), offset_s=context.offset_s,
                              x_initial=context.x_initial, riccati=driver.riccati,
@@ -38,7 +53,8 @@ def lqi_factory(driver: LqiDriver) -> Callable[[ControllerContext], LqiControlle
                              x_dot_initial=context.x_dot_initial,
                              reference_governor=driver.reference_governor,
                              schedule_pose=driver.schedule_pose,
-                             gain_transfer=driver.gain_transfer)
+                             gain_transfer=driver.gain_transfer,
+                             feature_window=context.feature_window, compiled=compiled)
     return make
 
 
@@ -78,16 +94,18 @@ class StewartDiagram:
 
     Attributes:
         diagram: the Diagram. station: the :class:`~.station.StewartStation` in it.
-        controller: the controller system. reference: its :class:`~.reference.ReferenceSources`.
-        trajectory: the reference object (``evaluate(t)``). loggers: name -> LogVectorOutput.
+        controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
+        (or the live reference system). trajectory: the reference object (``evaluate(t)``;
+        None with a live reference). loggers: name -> LogVectorOutput.
         scenario: the scenario built. features, tuner, noise: the systems, or None.
-        guard: the :class:`~.guard.DivergenceGuard`, attached by ``build_simulator``.
+        guard: the :class:`~.guard.DivergenceGuard` system checking the run.
+        T_ff_initial: (6,) the feed-forward at t = 0, N m (the torque pipes start there).
     """
 
     diagram: Any
     station: StewartStation
     controller: Any
-    reference: ReferenceSources
+    reference: Any
     trajectory: Any
     loggers: dict
     scenario: Scenario
@@ -96,6 +114,7 @@ class StewartDiagram:
     noise: Any = None
     estimator: Any = None
     guard: Any = None
+    T_ff_initial: Any = None
 
     @property
     def plant(self):
@@ -116,18 +135,19 @@ class StewartDiagram:
         torque pipes (delay, current loop) holding the first feed-forward torque."""
         from pydrake.common import RandomGenerator
 
-        if self.scenario.disturbance is None:
-            self.diagram.GetInputPort("tool_wrench").FixValue(root_context, np.zeros(6))
+        if self.diagram.HasInputPort("tool_wrench"):
+            self.diagram.GetInputPort("tool_wrench").FixValue(
+                self.diagram.GetMyMutableContextFromRoot(root_context), np.zeros(6))
         if self.noise is not None:
             self.noise.SetRandomContext(self.noise.GetMyMutableContextFromRoot(root_context),
                                         RandomGenerator(self.scenario.sensor_noise.seed))
         hw = self.scenario.hardware
-        self.station.initialize(root_context, self.reference.T_ff_table[0],
+        self.station.initialize(root_context, self.T_ff_initial,
                                 seed=hw.encoders.seed if hw is not None else 0)
 
 
 def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, reference=None,
-                         controller=None) -> StewartDiagram:
+                         controller=None, reference_system=None) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
     Wiring: the station (:func:`~.station.make_stewart_station`); the reference and its
@@ -136,7 +156,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     (:mod:`~stewart_drake.control.contract`): ``x_d``, ``T_ff``, ``x`` (the station's
     ``platform_state`` [+ sensor noise]), ``motor_angle``, ``motor_rate``, ``omega`` (constant
     weights, or DensityFeatures(e_bar, T) -> AnnTuner when the scenario has a tuner); its ``T``
-    drives the station's ``motor_torque``; ``tool_wrench`` is fixed to zero.
+    drives the station's ``motor_torque``; ``tool_wrench`` is fixed to zero; a
+    :class:`~.guard.DivergenceGuard` checks the run every ``scenario.guard.check_period_s``.
 
     Args:
         scenario: the run (default: the paper's experiment on the ideal robot).
@@ -146,6 +167,12 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             ``Trajectory``, a CSV path or a name).
         controller: optional factory ``f(ControllerContext) -> LeafSystem`` or registered name,
             overriding ``scenario.controller``.
+        reference_system: a live reference instead of the precomputed one (e.g.
+            :class:`~.reference.TeleopReference`): a system with output ports ``x_d`` (18) and
+            ``T_ff`` (6) and attributes ``x_initial`` (6,) and ``T_ff_initial`` (6,). Its input
+            ports are exported under their names, and the Diagram exports ``platform_state``
+            (12) and ``x_d`` (18) for a display; ``scenario.reference`` and ``duration_s`` are
+            then not used (``trajectory`` is None).
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) keyed "state" (plant state),
         "T" (applied torques, 6), and when the controller has them "status", "integral",
@@ -157,7 +184,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         UnreachablePoseError: the reference leaves the workspace (first time and leg).
     """
     scenario = (scenario or Scenario()).validate()
-    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
+    trajectory = None if reference_system is not None else as_trajectory(
+        reference if reference is not None else scenario.make_reference())
     geometry = scenario.geometry()
     builder = DiagramBuilder()
     station = builder.AddSystem(StewartStation(scenario, meshcat))
@@ -166,18 +194,32 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     # holds the configuration of the next step's time: its reference leads by the same half step.
     offset = 0.5 * h_plant
     delay = scenario.hardware.computation_delay_periods if scenario.hardware else 0
-    ref = add_reference_sources(builder, trajectory, geometry, scenario.duration_s,
-                                period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
-                                feedforward=scenario.feedforward, feedforward_lead_s=delay * h)
-    x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+    if reference_system is None:
+        ref = add_reference_sources(builder, trajectory, geometry, scenario.duration_s,
+                                    period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
+                                    feedforward=scenario.feedforward,
+                                    feedforward_lead_s=delay * h)
+        x_d_port, T_ff_port = ref.x_d.get_output_port(), ref.T_ff.get_output_port()
+        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+        T_ff_initial = ref.T_ff_table[0]
+    else:
+        ref = builder.AddNamedSystem("reference", reference_system)
+        for i in range(ref.num_input_ports()):
+            builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
+        x_d_port, T_ff_port = ref.GetOutputPort("x_d"), ref.GetOutputPort("T_ff")
+        x0, x_dot0 = np.asarray(ref.x_initial, dtype=float), np.zeros(6)
+        T_ff_initial = np.asarray(ref.T_ff_initial, dtype=float)
     hw = scenario.hardware
     pose_estimator = None if hw is None else PoseEstimator(
         geometry, h, hw.encoders.quantum_rad, x0, rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
         tolerance_counts=hw.estimator.fk_tolerance_counts)
+    tuner_driver = scenario.tuner
+    feature_window = (None if tuner_driver is None or isinstance(tuner_driver, WeightSchedule)
+                      else tuner_driver.feature_window)
     context = ControllerContext(geometry=geometry, period_s=h, offset_s=offset,
                                 plant_time_step_s=h_plant, x_initial=x0, x_dot_initial=x_dot0,
                                 torque_limit_Nm=scenario.torque_limit(), delay_periods=delay,
-                                pose_estimator=pose_estimator)
+                                pose_estimator=pose_estimator, feature_window=feature_window)
     system = controller_factory(scenario, controller)(context)
     check_controller(system)
     if not system.get_name():
@@ -203,13 +245,14 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         builder.Connect(measured, add.get_input_port(0))
         builder.Connect(scale.get_output_port(), add.get_input_port(1))
         measured = add.get_output_port()
-    sources = {"x_d": ref.x_d.get_output_port(), "T_ff": ref.T_ff.get_output_port(),
+    applied = station.GetOutputPort("motor_torque_applied")
+    sources = {"x_d": x_d_port, "T_ff": T_ff_port,
                "x": measured, "motor_angle": station.GetOutputPort("motor_angle"),
-               "motor_rate": station.GetOutputPort("motor_rate")}
+               "motor_rate": station.GetOutputPort("motor_rate"), "motor_torque_applied": applied}
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-    if scenario.disturbance is not None:
+    if scenario.disturbance is not None and reference_system is None:
         t = np.arange(0.0, scenario.duration_s + 2 * h_plant, h_plant)
         wrench = builder.AddNamedSystem("tool_disturbance", TrajectorySource(
             PiecewisePolynomial.FirstOrderHold(t, scenario.disturbance.wrench(t).T)))
@@ -218,11 +261,9 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         # Exported and fixed to zero in the Context (build_simulator): a fixed input is computed
         # once, where a constant source would be re-evaluated at every plant step.
         builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
-    applied = station.GetOutputPort("motor_torque_applied")
 
     features = tuner = None
     loggers = {}
-    tuner_driver = scenario.tuner
     if isinstance(tuner_driver, WeightSchedule):
         if "omega" not in inputs:
             raise InvalidConfigError(f"a weight schedule drives the omega input; "
@@ -233,7 +274,7 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))))
         builder.Connect(tuner.get_output_port(), system.GetInputPort("omega"))
     elif tuner_driver is not None:
-        from ..control.features import DensityFeatures
+        from ..control.features import N_FEATURES, DensityFeatures
         from ..control.tuner import AnnTuner, RatioTuner, load_ratio_tuner, load_tuner
 
         missing = [p for p, have in (("omega input", "omega" in inputs),
@@ -242,18 +283,30 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             raise InvalidConfigError(f"the ANN tuner needs a controller with an {' and an '.join(missing)} "
                                      f"(the LQI has both); {system.get_name()} has not")
         t = tuner_driver
+        # A controller that buffers the samples spares the features a callback per period.
+        buffered = "feature_window" in outputs
+        size = N_FEATURES * t.feature_window + 2
+        if buffered and system.GetOutputPort("feature_window").size() != size:
+            raise InvalidConfigError(
+                f"{system.get_name()}: output port 'feature_window' has size "
+                f"{system.GetOutputPort('feature_window').size()}; the tuner's window of "
+                f"{t.feature_window} samples needs {size} (contract, control/contract.py)")
         features = builder.AddNamedSystem("features", DensityFeatures(
-            window=t.feature_window, period_s=h, offset_s=offset))
+            window=t.feature_window, period_s=h, offset_s=offset, buffered=buffered))
         if isinstance(t, RatioTunerDriver):
             tuner = builder.AddNamedSystem("ratio_tuner", RatioTuner(
                 load_ratio_tuner(t.weights or None), period_s=t.period_s,
                 smoothing_s=t.smoothing_s))
-            builder.Connect(ref.x_d.get_output_port(), tuner.GetInputPort("x_d"))
+            builder.Connect(x_d_port, tuner.GetInputPort("x_d"))
         else:
             tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
                 load_tuner(t.weights or None), period_s=t.period_s))
-        builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
-        builder.Connect(applied, features.GetInputPort("T"))
+        if buffered:
+            builder.Connect(system.GetOutputPort("feature_window"),
+                            features.GetInputPort("feature_window"))
+        else:
+            builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
+            builder.Connect(applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
         builder.Connect(tuner.GetOutputPort("omega"), system.GetInputPort("omega"))
         # rho is computed when read: log it where the tuner reads it, not every millisecond.
@@ -273,8 +326,19 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period)
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
+    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, scenario.guard))
+    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
+    builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
+    builder.Connect(x_d_port, guard.GetInputPort("x_d"))
+    if scenario.contact:
+        builder.Connect(station.GetOutputPort("contact_results"),
+                        guard.GetInputPort("contact_results"))
+    if reference_system is not None:
+        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+        builder.ExportOutput(x_d_port, "x_d")
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(diagram=diagram, station=station, controller=system, reference=ref,
                           trajectory=trajectory, loggers=loggers, scenario=scenario,
-                          features=features, tuner=tuner, noise=noise, estimator=estimator)
+                          features=features, tuner=tuner, noise=noise, estimator=estimator,
+                          guard=guard, T_ff_initial=T_ff_initial)

@@ -5,14 +5,15 @@ that leaves the workspace (:class:`~stewart_drake.errors.UnreachablePoseError`),
 (:class:`~stewart_drake.errors.JointLimitError`) or comes too close to a singularity
 (:class:`~stewart_drake.errors.SingularPoseError`), naming the first time and the leg / measure.
 
-During a run, :class:`DivergenceGuard` is the Simulator's monitor (``Simulator.set_monitor``,
-called after every step). Every ``check_period_s`` it checks that the plant state and the motor
-torques are finite and that the loop-closure error and the tracking error are within
-:class:`~.scenario.GuardConfig`'s bounds; between checks it costs one time comparison. (A NaN
-torque does not reach the plant in between: Drake refuses a NaN actuation at the step that would
-use it, and :func:`advance` reports that as a divergence.) On the first failure the Simulator stops, :func:`advance` saves the
-logs up to then and the last full plant state to ``GuardConfig.divergence_dir`` (an ``.npz``,
-written atomically) and raises :class:`~stewart_drake.errors.SimulationDivergedError` naming the
+During a run, :class:`DivergenceGuard`, a system of the Diagram, checks every
+``check_period_s`` (a periodic publish event: one Python call per check, none in between) that
+the plant state and the motor torques are finite and that the loop-closure error and the
+tracking error are within :class:`~.scenario.GuardConfig`'s bounds. (A NaN torque does not reach
+the plant in between: Drake refuses a NaN actuation at the step that would use it, and
+:func:`advance` reports that as a divergence.) On the first failure the check raises
+:class:`~stewart_drake.errors.SimulationDivergedError`, which stops the Simulator;
+:func:`advance` saves the logs up to then and the last full plant state to
+``GuardConfig.divergence_dir`` (an ``.npz``, written atomically) and raises it again naming the
 file. A run that ends normally therefore has finite logs: a NaN cannot reach a plot or the
 metrics silently.
 """
@@ -26,7 +27,9 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from pydrake.systems.framework import EventStatus
+from pydrake.common.value import AbstractValue
+from pydrake.multibody.plant import ContactResults
+from pydrake.systems.framework import LeafSystem
 
 from ..errors import FeasibilityWarning, SimulationDivergedError, StewartError
 from ..fileio import save_npz
@@ -83,106 +86,88 @@ def check_reference(scenario, trajectory=None,
     return report
 
 
-class DivergenceGuard:
-    """Simulator monitor that stops a run leaving its safe envelope (see module docstring).
+class DivergenceGuard(LeafSystem):
+    """The check of a running closed loop (module docstring), as a system of the Diagram.
+
+    Input ports: ``plant_state`` (nq + nv,) the MultibodyPlant's state; ``T`` (6,) the
+    controller's torque command, N m; ``x_d`` (18,) the reference the controller reads; with
+    the scenario's ``contact``, ``contact_results`` (the plant's ``ContactResults``).
+    Every ``config.check_period_s`` (first at t = 0) a publish event runs :meth:`check` and
+    raises :class:`~stewart_drake.errors.SimulationDivergedError` with its reason. Without
+    contact, two parts that overlap are a failure (nothing in the plant keeps them apart); with
+    contact, a discrete update at the same period keeps the first contact in the guard's state
+    (:meth:`first_contact`).
 
     Args:
-        sd: the built :class:`~.diagram.StewartDiagram`.
-        config: the bounds (default ``sd.scenario.guard``).
-    Attributes:
-        reason: why the run was stopped (None while it is fine).  t_failed: when, s.
-        checks: how many closure/tracking checks ran (for tests and benchmarks).
-        first_contact: with ``scenario.contact``, (t s, part_a, part_b, normal force N) of the
-            first contact between two parts the checks saw, else None. Without contact, two
-            parts that overlap stop the run instead (they would pass through each other).
+        station: the :class:`~.station.StewartStation` (its plant, handles and pose sensor).
+        config: the bounds.
     """
 
-    def __init__(self, sd, config: GuardConfig | None = None):
-        self.sd = sd
-        self.config = config or sd.scenario.guard
-        self.reason: str | None = None
-        self.t_failed: float | None = None
-        self.checks = 0
-        self.first_contact: tuple | None = None
-        self._next_check_t = 0.0
-        self._last_t = -math.inf           # the monitor's last call (a reset time re-checks)
-        self._contexts = None
-
-    def attach(self, simulator) -> "DivergenceGuard":
-        """Install as ``simulator``'s monitor (replacing any other); returns self."""
-        self._bind(simulator.get_context())
-        simulator.set_monitor(self)
-        return self
-
-    def _bind(self, root):
-        sd = self.sd
-        self._root_id = id(root)
-        self._contexts = tuple(s.GetMyContextFromRoot(root) for s in (
-            sd.plant, sd.controller, sd.station, sd.reference.x_d))
-        self._T_port = sd.controller.GetOutputPort("T")
-        self._pose_port = sd.station.GetOutputPort("platform_state")
-        if sd.scenario.contact:
-            inspector = sd.station.scene_graph.model_inspector()
-            self._part_names = {}
-            for index in sd.plant.GetBodyIndices(sd.handles.model_instance):
-                body = sd.plant.get_body(index)
-                for gid in sd.plant.GetCollisionGeometriesForBody(body):
-                    self._part_names[gid] = (f"{body.name()}/"
-                                             f"{inspector.GetName(gid).split('::')[-1]}")
+    def __init__(self, station, config: GuardConfig):
+        super().__init__()
+        self.config = config
+        self._plant, self._handles, self._sensor = station.plant, station.handles, station.sensor
+        plant = station.plant
+        self._state = self.DeclareVectorInputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities())
+        self._T = self.DeclareVectorInputPort("T", 6)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        # A context of the plant alone, for the rods' and the platform's positions (configured
+        # from the state each check; no state of the guard).
+        self._scratch = plant.CreateDefaultContext()
+        self.DeclarePeriodicPublishEvent(period_sec=self.config.check_period_s,
+                                         offset_sec=0.0, publish=self._Check)
+        self.contact = station.scenario.contact
+        if self.contact:
+            # The first contact the checks see, kept in the guard's state: [seen (0 or 1), t s,
+            # normal force N, index of part a, index of part b] (indices into part_names).
+            self._contact_results = self.DeclareAbstractInputPort(
+                "contact_results", AbstractValue.Make(ContactResults()))
+            self._first_contact = self.DeclareDiscreteState(5)
+            self.DeclarePeriodicDiscreteUpdateEvent(self.config.check_period_s, 0.0,
+                                                    self._NoteContact)
+            inspector = station.scene_graph.model_inspector()
+            ids = [gid for index in plant.GetBodyIndices(station.handles.model_instance)
+                   for gid in plant.GetCollisionGeometriesForBody(plant.get_body(index))]
+            self.part_names = tuple(
+                f"{plant.GetBodyFromFrameId(inspector.GetFrameId(gid)).name()}/"
+                f"{inspector.GetName(gid).split('::')[-1]}" for gid in ids)
+            self._part_index = {gid: k for k, gid in enumerate(ids)}
         else:
             from ..model.clearance import clearance_model
 
-            self._clearance = clearance_model(sd.scenario.plant_geometry())
+            self._clearance = clearance_model(station.scenario.plant_geometry())
 
-    def __call__(self, root) -> EventStatus | None:
-        """The monitor: None (go on) or ``EventStatus.Failed`` with :attr:`reason`.
+    def _Check(self, context):
+        reason = self.check(context)
+        if reason is not None:
+            raise SimulationDivergedError(reason, t=context.get_time())
 
-        The Simulator calls it after every step (twice per millisecond: the plant's updates and
-        the controller's); between checks it returns after one time comparison (the monitor is
-        the hottest Python call of a run).
-        """
-        t = root.get_time()
-        if self._last_t <= t < self._next_check_t:
-            self._last_t = t
-            return None
-        self._last_t = t
-        reason = self.check(root)
-        if reason is None:
-            return None
-        self.reason, self.t_failed = reason, t
-        # Failed(...) must name a System: the Diagram (a LeafSystem defined in Python crashes
-        # pydrake 1.51 when its name is formatted into the Simulator's message).
-        return EventStatus.Failed(self.sd.diagram, reason)
+    def check_root(self, root) -> str | None:
+        """:meth:`check` in the Diagram's context ``root``."""
+        return self.check(self.GetMyContextFromRoot(root))
 
-    def check(self, root) -> str | None:
-        """Run every check now; the first failure's description, or None. The next check of the
-        monitor is ``check_period_s`` later."""
-        if self._contexts is None or id(root) != self._root_id:
-            self._bind(root)
-        plant_ctx, ctrl_ctx, station_ctx, ref_ctx = self._contexts
-        t = root.get_time()
-        self._next_check_t = t + self.config.check_period_s * (1 - 1e-6)
-        self.checks += 1
-        state = plant_ctx.get_discrete_state_vector().value()
+    def check(self, context) -> str | None:
+        """Run every check on the guard's inputs; the first failure's description, or None."""
+        state = self._state.Eval(context)
         if not math.isfinite(state.sum()):
             k = int(np.argmax(~np.isfinite(state)))
             return (f"the plant state is not finite (entry {k} of {state.size} = {state[k]}); "
                     f"the loop lost its stability")
-        T = self._T_port.Eval(ctrl_ctx)
+        T = self._T.Eval(context)
         if not math.isfinite(T.sum()):
             return (f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
                     f"N m: the controller received or produced NaN")
-        cfg = self.config
+        cfg, plant = self.config, self._plant
         if cfg.max_closure_error_m is not None:
-            closure = loop_closure_errors(self.sd.plant, plant_ctx, self.sd.handles)
+            plant.SetPositions(self._scratch, state[:plant.num_positions()])
+            closure = loop_closure_errors(plant, self._scratch, self._handles)
             leg = int(np.argmax(closure))
             if not closure[leg] <= cfg.max_closure_error_m:
                 return (f"loop-closure error {closure[leg]:.3g} m at rod {leg} exceeds "
                         f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m")
         if cfg.max_tracking_error is not None:
-            x = self._pose_port.Eval(station_ctx)
-            x_d = self.sd.reference.x_d.get_output_port().Eval(ref_ctx)
-            e = np.abs(x[:6] - x_d[:6])
+            e = np.abs(self._sensor.pose_from_state(state)[:6] - self._x_d.Eval(context)[:6])
             for part, bound, unit in ((slice(0, 3), cfg.max_tracking_error[0], "rad"),
                                       (slice(3, 6), cfg.max_tracking_error[1], "m")):
                 k = int(np.argmax(e[part])) + part.start
@@ -190,25 +175,11 @@ class DivergenceGuard:
                     axis = ("phi", "theta", "psi", "X", "Y", "Z")[k]
                     return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
                             f"GuardConfig.max_tracking_error = {bound:g} {unit}")
-        return self._check_parts(t, plant_ctx, station_ctx)
-
-    def _check_parts(self, t: float, plant_ctx, station_ctx) -> str | None:
-        """With contact: note the first contact between two parts. Without: a failure when two
-        parts overlap (nothing in the plant keeps them apart)."""
-        if self.sd.scenario.contact:
-            if self.first_contact is None:
-                results = self.sd.plant.get_contact_results_output_port().Eval(plant_ctx)
-                if results.num_point_pair_contacts():
-                    info = max((results.point_pair_contact_info(i)
-                                for i in range(results.num_point_pair_contacts())),
-                               key=lambda c: np.linalg.norm(c.contact_force()))
-                    pair = info.point_pair()
-                    names = sorted(self._part_names.get(g, "?") for g in (pair.id_A, pair.id_B))
-                    self.first_contact = (t, *names, float(np.linalg.norm(info.contact_force())))
+        if self.contact:
             return None
-        x = self._pose_port.Eval(station_ctx)[:6]
+        # Without contact nothing in the plant keeps two parts apart: overlapping is a failure.
         try:
-            overlaps = self._clearance.contacts(x, max_distance=0.0)
+            overlaps = self._clearance.contacts(None, 0.0, q=state[:plant.num_positions()])
         except StewartError:             # a pose no leg closes at: the closure check's to report
             return None
         if overlaps and overlaps[0].distance < 0:
@@ -216,56 +187,82 @@ class DivergenceGuard:
                     f"simulate the collision with `contact: true`")
         return None
 
-    def save(self, root, reason: str) -> Path:
-        """Write the logs up to now and the last plant state to ``divergence_dir``.
+    def _NoteContact(self, context, discrete_state):
+        """With contact: keep the first contact between two parts (the strongest one then)."""
+        if context.get_discrete_state_vector().GetAtIndex(0):
+            return
+        results = self._contact_results.Eval(context)
+        if not results.num_point_pair_contacts():
+            return
+        info = max((results.point_pair_contact_info(i)
+                    for i in range(results.num_point_pair_contacts())),
+                   key=lambda c: np.linalg.norm(c.contact_force()))
+        pair = info.point_pair()
+        a, b = sorted(self._part_index.get(g, -1) for g in (pair.id_A, pair.id_B))
+        discrete_state.set_value(0, [1.0, context.get_time(),
+                                     float(np.linalg.norm(info.contact_force())), a, b])
 
-        The ``.npz`` holds: t (N,), x (N, 12) true pose and rate, T (N, 6) applied torques
-        (after the torque limit), the controller's other logs (status, integral) and rho when
-        tuned, state (N, n) logged plant states, x_d (N, 18) the reference at t (when it can be
-        evaluated), t_last (s) and state_last (n,) the plant state when the run stopped, T_last
-        (6,) the last command and T_applied_last (6,) what the motors applied, reason (str) and
-        scenario (the whole scenario as YAML: robot, payload, torque limit, feed-forward,
-        controller, noise...).
-        Returns:
-            the path written.
-        """
-        sd = self.sd
-        logs = {name: logger.FindLog(root) for name, logger in sd.loggers.items()}
-        t = logs["state"].sample_times().copy()
-        arrays = {"t": t, "t_last": np.float64(root.get_time()),
-                  "state_last": sd.plant.GetMyContextFromRoot(root)
-                  .get_discrete_state_vector().CopyToVector(),
-                  "T_last": sd.controller.GetOutputPort("T").Eval(
-                      sd.controller.GetMyContextFromRoot(root)).copy(),
-                  "T_applied_last": sd.station.GetOutputPort("motor_torque_applied").Eval(
-                      sd.station.GetMyContextFromRoot(root)).copy(),
-                  "reason": np.str_(reason),
-                  "scenario": np.str_(dump_scenario(sd.scenario))}
-        for name, log in logs.items():
-            arrays[name] = log.data().T.copy()
-        try:
-            arrays["x"] = sd.sensor.poses_from_states(arrays["state"])   # true pose, as metrics
-        except Exception:               # noqa: BLE001 - a NaN quaternion must not lose the file
-            arrays["x"] = np.full((len(t), 12), np.nan)
-        try:
-            arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
-        except Exception:               # noqa: BLE001 - the reference itself may be the fault
-            pass
-        name = getattr(sd.trajectory, "name", "custom")
-        stamp = time.strftime("%Y%m%d-%H%M%S")
-        path = Path(self.config.divergence_dir) / (
-            f"diverged_{name}_t{root.get_time():.4f}s_{stamp}_{os.getpid()}"
-            f"_{time.perf_counter_ns() % 1_000_000:06d}.npz")
-        return save_npz(path, arrays)
+    def first_contact(self, root) -> tuple | None:
+        """(t s, part_a, part_b, normal force N) of the first contact between two parts the
+        checks saw in the Diagram's context ``root``, or None (and None without contact)."""
+        if not self.contact:
+            return None
+        seen, t, force, a, b = self.GetMyContextFromRoot(root).get_discrete_state_vector().value()
+        if not seen:
+            return None
+        return (float(t), self.part_names[int(a)], self.part_names[int(b)], float(force))
+
+
+def save_divergence(sd, root, reason: str) -> Path:
+    """Write the logs of ``sd`` up to now and the last plant state to its guard's
+    ``divergence_dir``.
+
+    The ``.npz`` holds: t (N,), x (N, 12) true pose and rate, T (N, 6) applied torques
+    (after the torque limit), the controller's other logs (status, integral) and rho when
+    tuned, state (N, n) logged plant states, x_d (N, 18) the reference at t (when it can be
+    evaluated), t_last (s) and state_last (n,) the plant state when the run stopped, T_last
+    (6,) the last command and T_applied_last (6,) what the motors applied, reason (str) and
+    scenario (the whole scenario as YAML: robot, payload, torque limit, feed-forward,
+    controller, noise...).
+    Returns:
+        the path written.
+    """
+    logs = {name: logger.FindLog(root) for name, logger in sd.loggers.items()}
+    t = logs["state"].sample_times().copy()
+    arrays = {"t": t, "t_last": np.float64(root.get_time()),
+              "state_last": sd.plant.GetMyContextFromRoot(root)
+              .get_discrete_state_vector().CopyToVector(),
+              "T_last": sd.controller.GetOutputPort("T").Eval(
+                  sd.controller.GetMyContextFromRoot(root)).copy(),
+              "T_applied_last": sd.station.GetOutputPort("motor_torque_applied").Eval(
+                  sd.station.GetMyContextFromRoot(root)).copy(),
+              "reason": np.str_(reason),
+              "scenario": np.str_(dump_scenario(sd.scenario))}
+    for name, log in logs.items():
+        arrays[name] = log.data().T.copy()
+    try:
+        arrays["x"] = sd.sensor.poses_from_states(arrays["state"])   # true pose, as metrics
+    except Exception:               # noqa: BLE001 - a NaN quaternion must not lose the file
+        arrays["x"] = np.full((len(t), 12), np.nan)
+    try:
+        arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
+    except Exception:               # noqa: BLE001 - the reference itself may be the fault
+        pass
+    name = getattr(sd.trajectory, "name", "custom")
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    path = Path(sd.guard.config.divergence_dir) / (
+        f"diverged_{name}_t{root.get_time():.4f}s_{stamp}_{os.getpid()}"
+        f"_{time.perf_counter_ns() % 1_000_000:06d}.npz")
+    return save_npz(path, arrays)
 
 
 def advance(sd, simulator, step) -> None:
     """Call ``step()`` (which advances ``simulator``); on a divergence save and raise.
 
-    After ``step()`` the guard checks once more (the monitor checks every ``check_period_s``, so
-    a fault in the last period would otherwise end a run). Drake refuses a NaN actuation itself
-    at the plant step that would use it; such a failure is diagnosed by the guard's checks (the
-    motor torques are not finite) and reported as a divergence.
+    After ``step()`` the guard checks once more (it checks every ``check_period_s``, so a fault
+    in the last period would otherwise end a run). Drake refuses a NaN actuation itself at the
+    plant step that would use it; such a failure is diagnosed by the guard's checks (the motor
+    torques are not finite) and reported as a divergence.
 
     Args:
         sd: the Diagram; ``sd.guard`` is its :class:`DivergenceGuard` (None: no guard).
@@ -284,37 +281,35 @@ def advance(sd, simulator, step) -> None:
     except SimulationDivergedError as err:
         if guard is None or err.path:
             raise
-        path, unsaved = _save(guard, simulator.get_context(), str(err))
+        path, unsaved = _save(sd, simulator.get_context(), str(err))
         raise SimulationDivergedError(err.message + unsaved, err.t, path) from err
     except RuntimeError as err:
         if guard is None:
             raise
         root = simulator.get_context()
-        if guard.reason is None:
-            reason = guard.check(root)             # a diverged signal Drake refused to use?
-            if reason is None:
-                path, unsaved = _save(guard, root, f"{type(err).__name__}: {err}")
-                err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
-                             f"saved in {path}" if path else f"stewart-drake:{unsaved}")
-                raise
-            guard.reason, guard.t_failed = f"{reason} (Drake: {err})", root.get_time()
-        path, unsaved = _save(guard, root, guard.reason)
-        raise SimulationDivergedError(guard.reason + unsaved, guard.t_failed, path) from None
+        reason = guard.check_root(root)             # a diverged signal Drake refused to use?
+        if reason is None:
+            path, unsaved = _save(sd, root, f"{type(err).__name__}: {err}")
+            err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
+                         f"saved in {path}" if path else f"stewart-drake:{unsaved}")
+            raise
+        reason = f"{reason} (Drake: {err})"
+        path, unsaved = _save(sd, root, reason)
+        raise SimulationDivergedError(reason + unsaved, root.get_time(), path) from None
     if guard is not None:
         root = simulator.get_context()
-        reason = guard.check(root)
+        reason = guard.check_root(root)
         if reason is not None:
-            guard.reason, guard.t_failed = reason, root.get_time()
-            path, unsaved = _save(guard, root, reason)
-            raise SimulationDivergedError(reason + unsaved, guard.t_failed, path)
+            path, unsaved = _save(sd, root, reason)
+            raise SimulationDivergedError(reason + unsaved, root.get_time(), path)
 
 
-def _save(guard: DivergenceGuard, root, reason: str) -> tuple[str | None, str]:
+def _save(sd, root, reason: str) -> tuple[str | None, str]:
     """(path, "") of the saved logs, or (None, " (the logs could not be saved ...: why)"): a
     divergence folder that cannot be written (a file in its place, a full disk) must not turn
     the divergence into an OSError."""
     try:
-        return str(guard.save(root, reason)), ""
+        return str(save_divergence(sd, root, reason)), ""
     except OSError as err:
-        return None, (f" (the logs could not be saved in {guard.config.divergence_dir}: "
+        return None, (f" (the logs could not be saved in {sd.guard.config.divergence_dir}: "
                       f"{err.strerror or err}; set guard.divergence_dir to a writable folder)")

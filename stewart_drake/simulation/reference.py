@@ -14,14 +14,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..model import kinematics
-from ..model.statics import FEEDFORWARD_MODES, feedforward_torques
 from ..errors import InvalidConfigError
+from ..model import kinematics
 from ..model.geometry import StewartGeometry
-
+from ..model.statics import feedforward_torques, holding_torques
 
 
 @dataclass
@@ -110,3 +110,160 @@ def add_reference_sources(builder, trajectory, geometry: StewartGeometry, durati
         PiecewisePolynomial.ZeroOrderHold(breaks, T_ff.T)))
     return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, x_d_table=x_d,
                             T_ff_table=T_ff)
+
+
+@dataclass(frozen=True)
+class ReferenceFilterLimits:
+    """How fast a live reference may move (:class:`TeleopReference`); SI units.
+
+    Attributes:
+        rate: (6,) largest |rate| [rad/s x3, m/s x3].
+        acceleration: (6,) largest |acceleration| [rad/s^2 x3, m/s^2 x3].
+        bandwidth_hz: natural frequency of the critically damped approach to the target, Hz.
+        target_period_s: how often the target is read (and the feed-forward re-computed), s.
+    """
+
+    rate: tuple = (0.5, 0.5, 0.5, 0.05, 0.05, 0.05)
+    acceleration: tuple = (5.0, 5.0, 5.0, 0.5, 0.5, 0.5)
+    bandwidth_hz: float = 2.0
+    target_period_s: float = 0.02
+
+    def __post_init__(self):
+        for name in ("rate", "acceleration"):
+            v = np.asarray(getattr(self, name), dtype=float)
+            if v.shape != (6,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
+                raise InvalidConfigError(f"ReferenceFilterLimits.{name} needs 6 finite values "
+                                         f"> 0, got {getattr(self, name)!r}")
+        for name in ("bandwidth_hz", "target_period_s"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise InvalidConfigError(f"ReferenceFilterLimits.{name} must be > 0, got {v!r}")
+
+
+class TeleopReference(LeafSystem):
+    """A live reference: a target pose (Meshcat sliders) filtered into a pose the robot can
+    follow, with its rate, acceleration and feed-forward, for the closed loop in place of the
+    precomputed sources of :func:`add_reference_sources`.
+
+    Input port:  ``target`` (abstract ``RigidTransform``): the pose wanted, X_WE as Drake's
+        ``MeshcatPoseSliders`` give it (roll-pitch-yaw and position).
+    Output ports (state, held between updates): ``x_d`` (18,) [pose, rate, acceleration]
+        (rad, m, /s, /s^2), ``T_ff`` (6,) the holding torques of the pose, N m.
+    Discrete state, by the index slices below: x (6), v (6), a (6), goal (6), T_ff (6), and the
+    control periods so far (1).
+
+    Every control period the pose approaches the goal as a critically damped second-order
+    system at ``limits.bandwidth_hz``, its acceleration and rate clipped to ``limits``
+    (rate-limited). Every ``limits.target_period_s`` the target is read and becomes the goal
+    when ``admissible`` accepts it; otherwise the goal is the farthest admissible pose on the
+    segment from the last goal to the target (workspace-limited: the robot stops at the
+    boundary rather than the reference leaving it), and the feed-forward is re-computed at the
+    current pose.
+
+    Args:
+        geometry: the robot the controller believes in. x_initial: (6,) start pose [rad, m].
+        period_s: control period, s. limits: :class:`ReferenceFilterLimits`.
+        admissible: ``admissible(x (N, 6)) -> (N,) bool``, the poses the reference may take
+            (:func:`admissible_poses` with the scenario's thresholds, by default).
+    Raises:
+        InvalidConfigError: a bad period or limits; UnreachablePoseError: x_initial.
+    """
+
+    #: Index slices of the parts of the state.
+    X, V, A, GOAL, T_FF, COUNTER = (slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 24),
+                                    slice(24, 30), slice(30, 31))
+
+    def __init__(self, geometry: StewartGeometry, x_initial, period_s: float,
+                 limits: ReferenceFilterLimits | None = None, admissible=None):
+        super().__init__()
+        from pydrake.common.value import AbstractValue
+        from pydrake.math import RigidTransform
+
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
+        self.geometry, self.h = geometry, float(period_s)
+        self.limits = limits or ReferenceFilterLimits()
+        self.admissible = admissible or (lambda x: admissible_poses(geometry, x))
+        self.steps_per_target = max(1, int(round(self.limits.target_period_s / self.h)))
+        self._rate = np.asarray(self.limits.rate, dtype=float)
+        self._acc = np.asarray(self.limits.acceleration, dtype=float)
+        self._omega = 2 * np.pi * self.limits.bandwidth_hz
+        x0 = np.asarray(x_initial, dtype=float)
+        #: (6,) the start pose and its holding torques, N m.
+        self.x_initial = x0.copy()
+        self.T_ff_initial = holding_torques(geometry, x0)
+        state = np.zeros(31)
+        state[self.X], state[self.GOAL], state[self.T_FF] = x0, x0, self.T_ff_initial
+        self._target = self.DeclareAbstractInputPort("target", AbstractValue.Make(RigidTransform()))
+        self._state = self.DeclareDiscreteState(state)
+        self._x_d = self.DeclareVectorOutputPort("x_d", 18, self._CalcXd,
+                                                 prerequisites_of_calc={self.xd_ticket()})
+        self.DeclareVectorOutputPort("T_ff", 6, self._CalcTff,
+                                     prerequisites_of_calc={self.xd_ticket()})
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=0.0,
+                                                update=self._Update)
+
+    def _CalcXd(self, context, output):
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[:18])
+
+    def _CalcTff(self, context, output):
+        output.SetFromVector(context.get_discrete_state(self._state).get_value()[self.T_FF])
+
+    def goal_toward(self, goal, target) -> np.ndarray:
+        """The target if admissible, else the farthest admissible pose on the segment from the
+        (admissible) goal to it, to 1/64 of the segment: (6,)."""
+        s = np.linspace(0.0, 1.0, 65)[:, None]
+        path = goal + s * (target - goal)
+        ok = np.asarray(self.admissible(path), dtype=bool)
+        last = int(np.argmin(ok)) - 1 if not ok.all() else 64
+        return path[max(last, 0)]
+
+    def _Update(self, context, discrete_state):
+        state = discrete_state.get_mutable_value(self._state)
+        steps = state[self.COUNTER]
+        if steps[0] % self.steps_per_target == 0:          # read the target, re-plan
+            from pydrake.math import RollPitchYaw
+
+            X_WE = self._target.Eval(context)
+            target = np.concatenate([RollPitchYaw(X_WE.rotation()).vector(),
+                                     X_WE.translation()])
+            if np.all(np.isfinite(target)) and np.any(target != state[self.GOAL]):
+                state[self.GOAL] = self.goal_toward(state[self.GOAL], target)
+            state[self.T_FF] = holding_torques(self.geometry, state[self.X])
+        steps += 1.0
+        h, w = self.h, self._omega
+        x, v = state[self.X], state[self.V]
+        a = np.clip(w * w * (state[self.GOAL] - x) - 2 * w * v, -self._acc, self._acc)
+        v_next = np.clip(v + h * a, -self._rate, self._rate)
+        state[self.A] = (v_next - v) / h
+        state[self.V] = v_next
+        state[self.X] = x + h * v_next
+
+
+def admissible_poses(geometry: StewartGeometry, x, cond_threshold: float = 200.0,
+                     min_sigma_min_inv: float = 0.01, peak_torque_Nm: float | None = None,
+                     torque_fraction: float = 0.9, clearance=None,
+                     min_clearance_m: float = 0.003) -> np.ndarray:
+    """(N,) bool: poses x (N, 6) inside every joint limit (:func:`~.limits.is_reachable`), away
+    from singularities (cond(J) below ``cond_threshold``, 1/sigma_max(J) above
+    ``min_sigma_min_inv``, the guard's thresholds), given the motors' peak torque held by at
+    most ``torque_fraction`` of it (:func:`~.statics.holding_torques`), and given a
+    :class:`~stewart_drake.model.clearance.ClearanceModel` with no two parts closer than
+    ``min_clearance_m`` (m)."""
+    from ..model import limits
+
+    x = np.atleast_2d(np.asarray(x, dtype=float))
+    ok = np.asarray(limits.is_reachable(geometry, x).reachable, dtype=bool).reshape(-1)
+    if ok.any():
+        cond, inv = kinematics.singularity_measures_unchecked(geometry, x[ok])
+        good = (cond < cond_threshold) & (inv > min_sigma_min_inv)
+        if peak_torque_Nm is not None and good.any():
+            idx = np.flatnonzero(ok)[good]
+            T = holding_torques(geometry, x[idx])
+            good[good] = np.abs(T).max(axis=1) <= torque_fraction * peak_torque_Nm
+        if clearance is not None and good.any():
+            idx = np.flatnonzero(ok)[good]
+            good[good] = clearance.sweep(x[idx], max_distance=min_clearance_m)[0] \
+                >= min_clearance_m
+        ok[np.flatnonzero(ok)] = good
+    return ok

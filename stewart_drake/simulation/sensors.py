@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from pydrake.common.eigen_geometry import Quaternion
-from pydrake.math import RollPitchYaw
 from pydrake.systems.framework import BasicVector, LeafSystem
 
 from ..model.plant import StewartPlantHandles
@@ -34,18 +34,40 @@ class PlatformPoseSensor(LeafSystem):
         self.DeclareVectorOutputPort("x", 12, self._Calc)
 
     def pose_from_state(self, state) -> np.ndarray:
-        """True (noise-free) pose and rate x (12,) from one plant state vector (nq + nv,)."""
-        s = np.asarray(state, dtype=float)
-        q = s[self._iq:self._iq + 4]
-        rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
-        rpy_dot = rpy.CalcRpyDtFromAngularVelocityInParent(s[self._iv:self._iv + 3])
-        return np.concatenate([rpy.vector(), s[self._iq + 4:self._iq + 7], rpy_dot,
-                               s[self._iv + 3:self._iv + 6]])
+        """True (noise-free) pose and rate x (12,) from one plant state vector (nq + nv,), in
+        Python floats (a few microseconds: the guard and an ideal sensor read it at run time)."""
+        s = np.asarray(state, dtype=float)[self._iq:self._iv + 6].tolist()
+        iv = self._iv - self._iq
+        return np.array(_pose_and_rate(s[0:4], s[4:7], s[iv:iv + 3], s[iv + 3:iv + 6],
+                                       math.atan2, math.sqrt))
 
     def poses_from_states(self, states) -> np.ndarray:
-        """(N, 12) true poses and rates of logged plant states (N, nq + nv): metrics use these,
-        not the noisy measurement, and the Diagram need not log the sensor at all."""
-        return np.array([self.pose_from_state(s) for s in np.atleast_2d(states)]).reshape(-1, 12)
+        """(N, 12) true poses and rates of plant states (N, nq + nv), vectorized: metrics use
+        these, not the noisy measurement, and the Diagram need not log the sensor at all."""
+        s = np.atleast_2d(np.asarray(states, dtype=float)).T
+        iq, iv = self._iq, self._iv
+        return np.array(_pose_and_rate(s[iq:iq + 4], s[iq + 4:iq + 7], s[iv:iv + 3],
+                                       s[iv + 3:iv + 6], np.arctan2, np.sqrt)).T
 
     def _Calc(self, context, output: BasicVector):
         output.SetFromVector(self.pose_from_state(self._state.Eval(context)))
+
+
+def _pose_and_rate(q, p, w_WE, v_WE, atan2, sqrt) -> list:
+    """[roll, pitch, yaw, X, Y, Z, their rates] of the platform from its unit quaternion q
+    (w, x, y, z; normalized here), position p, angular velocity w_WE and velocity v_WE (world),
+    as Drake's ``RollPitchYaw`` gives them (R = Rz(yaw) Ry(pitch) Rx(roll); the same to 1e-15,
+    a test). One code for floats (``math``) and arrays (``numpy``): pass atan2 and sqrt.
+    The rates solve w_WE = E(rpy) rpy_dot (:func:`~stewart_drake.model.kinematics.
+    angular_velocity_map`) in closed form (singular at pitch = +-pi/2, gimbal lock)."""
+    qw, qx, qy, qz = q
+    norm = sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    qw, qx, qy, qz = qw / norm, qx / norm, qy / norm, qz / norm
+    R20, R21, R22 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
+    R00, R10 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qw * qz)
+    roll, pitch, yaw = atan2(R21, R22), atan2(-R20, sqrt(R21 * R21 + R22 * R22)), atan2(R10, R00)
+    cy, sy = R00 / sqrt(R00 * R00 + R10 * R10), R10 / sqrt(R00 * R00 + R10 * R10)
+    cp, sp = sqrt(R21 * R21 + R22 * R22), -R20
+    wx, wy, wz = w_WE
+    roll_dot = (cy * wx + sy * wy) / cp
+    return [roll, pitch, yaw, *p, roll_dot, -sy * wx + cy * wy, wz + sp * roll_dot, *v_WE]

@@ -9,22 +9,45 @@ composes station + reference + controller (+ features + tuner) + loggers.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
+from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
-from pydrake.common import RandomDistribution
 from pydrake.symbolic import Variable, floor
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
-from pydrake.systems.primitives import (Adder, ConstantVectorSource, DiscreteTimeDelay, Gain,
-                                        LinearSystem, MatrixGain, PassThrough, RandomSource,
-                                        Saturation, SymbolicVectorSystem)
+from pydrake.systems.primitives import (
+    Adder,
+    ConstantVectorSource,
+    DiscreteTimeDelay,
+    Gain,
+    LinearSystem,
+    MatrixGain,
+    PassThrough,
+    RandomSource,
+    Saturation,
+    SymbolicVectorSystem,
+)
 
 from ..model.kinematics import X_HOME
-from ..model.statics import p_ETool
 from ..model.plant import add_stewart_plant, assemble
+from ..model.statics import p_ETool
 from .sensors import PlatformPoseSensor
 
+
+def _weak(method):
+    """``method`` (a bound method of a system) as a callback that does not keep its system
+    alive. pydrake stores a system's callbacks in C++, where Python's garbage collector cannot
+    see the cycle system -> callback -> system; drake 1.58 breaks it for events and vector
+    outputs, not for abstract outputs (drake#24162), so a Diagram with this system would
+    otherwise live as long as the process."""
+    ref = weakref.WeakMethod(method)
+
+    def callback(*args):
+        return ref()(*args)
+    return callback
 
 
 class ToolWrench(LeafSystem):
@@ -43,7 +66,7 @@ class ToolWrench(LeafSystem):
         self._wrench = self.DeclareVectorInputPort("tool_wrench", 6)
         self.DeclareAbstractOutputPort(
             "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            self._Calc, prerequisites_of_calc={self.all_input_ports_ticket()})
+            _weak(self._Calc), prerequisites_of_calc={self.all_input_ports_ticket()})
 
     def _Calc(self, context, output):
         w = self._wrench.Eval(context)
@@ -100,6 +123,8 @@ class StewartStation(Diagram):
         ``motor_torque_applied`` (6,): the torques the motors apply, N m (after the torque
             limit), what the metrics count as effort.
         ``plant_state`` (nq + nv,): the MultibodyPlant's state (logging, replays).
+        ``contact_results`` (abstract ``ContactResults``), only with the scenario's ``contact``:
+            the contacts between the robot's parts.
     Attributes:
         plant, scene_graph, handles (:class:`~stewart_drake.model.plant.StewartPlantHandles`),
         sensor (the ground-truth :class:`~.sensors.PlatformPoseSensor`), scenario.
@@ -189,6 +214,8 @@ class StewartStation(Diagram):
         builder.Connect(plant.get_state_output_port(), self.sensor.get_input_port())
         builder.ExportOutput(self.sensor.get_output_port(), "platform_state")
         builder.ExportOutput(plant.get_state_output_port(), "plant_state")
+        if scenario.contact:
+            builder.ExportOutput(plant.get_contact_results_output_port(), "contact_results")
         if meshcat is not None:
             from pydrake.visualization import ApplyVisualizationConfig
 

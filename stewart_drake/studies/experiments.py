@@ -132,9 +132,10 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
                     controller=None):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
-    The reference is checked first (:func:`guard.check_reference`); ``sd.guard``, a
-    :class:`guard.DivergenceGuard`, is the Simulator's monitor (advance with :func:`guard.advance`
-    to get the logs saved when it trips). ``scenario.simulator`` is applied.
+    The reference is checked first (:func:`guard.check_reference`); ``sd.guard``, the
+    Diagram's :class:`guard.DivergenceGuard`, checks the run as it goes (advance with
+    :func:`guard.advance` to get the logs saved when it trips). ``scenario.simulator`` is
+    applied.
 
     Args:
         scenario, meshcat, reference, controller: as
@@ -160,7 +161,6 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
     # tracking (1.7 N m against 0.41 N m afterwards).
     x0, x_dot0, _ = sd.trajectory.evaluate(0.0)
     sd.station.assemble(context, x0, x_dot0)
-    sd.guard = guard.DivergenceGuard(sd).attach(simulator)
     simulator.Initialize()
     return sd, simulator
 
@@ -235,7 +235,7 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
                        T_ff=feedforward_at(sd, t), config_summary=config_summary(sd))
     result.metrics = compute_metrics(result, wall_s)
     if sd.scenario.contact:
-        first = getattr(getattr(sd, "guard", None), "first_contact", None)
+        first = sd.guard.first_contact(root_context) if sd.guard is not None else None
         result.metrics["first_contact"] = None if first is None else {
             "t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
     return result

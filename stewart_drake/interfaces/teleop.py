@@ -1,0 +1,237 @@
+"""Drive the robot live: the closed loop at real time in Meshcat, the reference set by sliders.
+
+:func:`run_teleop` builds the scenario's closed loop (:func:`~stewart_drake.simulation.diagram.
+make_stewart_diagram`) with a live reference instead of a precomputed one: Drake's
+``MeshcatPoseSliders`` (roll, pitch, yaw, x, y, z; keys Q/E, W/S, A/D, J/L, I/K, U/O) give a
+target pose, :class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
+the robot can follow (rate-limited, and stopped at the boundary of the admissible workspace),
+and Drake's ``Simulator`` runs the whole at a target real-time rate while Meshcat shows the
+robot. :class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
+its margins (by default the torque margin of the holding torques against the motors' peak
+torque and the clearance between the robot's parts; ``margins`` is the hook for other figures).
+The reference stops where two parts would come closer than ``guard.min_clearance_m``.
+
+The Meshcat panel's gauges are sliders whose values the display writes (dragging them does
+nothing). The run ends after ``duration_s`` or at Ctrl-C, and reports the real-time rate it kept.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import time
+from typing import Callable
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from ..model.kinematics import X_HOME
+from ..model.statics import holding_torques
+
+#: Slider range around the start pose: [roll, pitch, yaw] rad, [x, y, z] m.
+SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
+#: Slider steps: 5 mrad, 1 mm.
+SLIDER_STEP = np.array([0.005, 0.005, 0.005, 0.001, 0.001, 0.001])
+#: How often the display is refreshed, s.
+DISPLAY_PERIOD_S = 0.1
+
+
+def torque_margins(geometry, peak_torque_Nm: float | None) -> Callable[[np.ndarray], dict]:
+    """The default ``margins`` of :class:`TeleopDisplay`: the motors' peak torque minus the
+    largest holding torque of the pose (statics, N m); none without a torque limit."""
+    def margins(x: np.ndarray) -> dict:
+        if peak_torque_Nm is None:
+            return {}
+        try:
+            T = holding_torques(geometry, x)
+        except ValueError:                    # a pose the statics refuse: no margin at all
+            return {"T margin [N m]": 0.0}
+        return {"T margin [N m]": float(peak_torque_Nm - np.abs(T).max())}
+    return margins
+
+
+def robot_margins(geometry, peak_torque_Nm: float | None, clearance) -> Callable:
+    """The default ``margins`` of :class:`TeleopDisplay`: :func:`torque_margins` and the
+    clearance between the robot's closest parts, mm (capped at 20), from ``clearance`` (a
+    :class:`~stewart_drake.model.clearance.ClearanceModel`)."""
+    torque = torque_margins(geometry, peak_torque_Nm)
+
+    def margins(x: np.ndarray) -> dict:
+        out = torque(x)
+        try:
+            out["clearance [mm]"] = 1e3 * clearance.closest(x).distance
+        except ValueError:                    # a pose no leg closes at: no clearance at all
+            out["clearance [mm]"] = 0.0
+        return out
+    return margins
+
+
+class TeleopDisplay(LeafSystem):
+    """Shows the tracking error and the margins in Meshcat, every ``period_s`` (a publish
+    event: nothing between).
+
+    Input ports: ``x`` (12,) the platform's true pose and rate; ``x_d`` (18,) the reference.
+    Each figure is a gauge of the Meshcat panel (a slider the display sets; names short enough
+    for the panel): "error [mm]" (the tracking error, largest of |X - X_d|, |Y - Y_d|,
+    |Z - Z_d|), "error [mrad]" (largest of the angles), and one per entry of ``margins(x)``.
+
+    Args:
+        meshcat: the Meshcat of the run. margins: ``margins(x (6,)) -> {name: value}``, the
+            figures to show besides the tracking error (see :func:`torque_margins`).
+        ranges: {name: (min, max)} of the gauges (default: 0 .. 10 mm, 0 .. 20 mrad, and
+            0 .. 1 for a margin not named there).
+        period_s: refresh period, s.
+    """
+
+    def __init__(self, meshcat, margins: Callable[[np.ndarray], dict], ranges=None,
+                 period_s: float = DISPLAY_PERIOD_S):
+        super().__init__()
+        self.meshcat, self.margins = meshcat, margins
+        self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0),
+                       **(ranges or {})}
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0,
+                                         publish=self._Publish)
+
+    def figures(self, context) -> dict:
+        """{name: value} of the display now (the tracking error and the margins)."""
+        x, x_d = self._x.Eval(context), self._x_d.Eval(context)
+        e = np.abs(x[:6] - x_d[:6])
+        return {"error [mm]": 1e3 * float(e[3:].max()),
+                "error [mrad]": 1e3 * float(e[:3].max()), **self.margins(x[:6])}
+
+    def _Publish(self, context):
+        names = set(self.meshcat.GetSliderNames())
+        for name, value in self.figures(context).items():
+            lo, hi = self.ranges.get(name, (0.0, 1.0))
+            if name not in names:
+                self.meshcat.AddSlider(name, lo, hi, (hi - lo) / 10000, lo)
+            self.meshcat.SetSliderValue(name, float(np.clip(value, lo, hi)))
+
+
+@dataclasses.dataclass
+class TeleopRun:
+    """What :func:`build_teleop` built: ``diagram`` (sliders + closed loop + display),
+    ``loop`` (the :class:`~stewart_drake.simulation.diagram.StewartDiagram` inside),
+    ``sliders``, ``reference`` (the :class:`~stewart_drake.simulation.reference.TeleopReference`),
+    ``display`` and ``simulator`` (initialized, at the target real-time rate)."""
+
+    diagram: object
+    loop: object
+    sliders: object
+    reference: object
+    display: object
+    simulator: object
+
+
+def teleop_scenario(scenario):
+    """The scenario for a live run: the visual geometry only, published at 30 Hz (the collision
+    and inertia views cost real time), logs every 0.1 s (a long session must not fill the
+    memory), the reference's own settings unused."""
+    from pydrake.visualization import VisualizationConfig
+
+    scenario = dataclasses.replace(scenario, log_period_s=0.1)
+    scenario.visualization = VisualizationConfig(
+        publish_period=1.0 / 30, publish_proximity=False, publish_contacts=False,
+        publish_inertia=False, enable_alpha_sliders=False)
+    return scenario.validate()
+
+
+def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, limits=None,
+                 x_initial=X_HOME) -> TeleopRun:
+    """The live closed loop of ``scenario`` in ``meshcat`` (module docstring), ready to run.
+
+    Args:
+        scenario: the robot and its controller (:func:`teleop_scenario` is applied).
+        meshcat: a pydrake ``Meshcat``. realtime_rate: the Simulator's target real-time rate.
+        margins: the display's hook (default :func:`robot_margins`: the torque margin of the
+            scenario's motors and the clearance between the parts).
+        limits: the reference's :class:`~stewart_drake.simulation.reference.ReferenceFilterLimits`.
+        x_initial: (6,) the start pose [rad, m] (home).
+    Raises:
+        InvalidConfigError: a bad scenario or setting; UnreachablePoseError: x_initial.
+    """
+    from pydrake.math import RigidTransform, RollPitchYaw
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.visualization import MeshcatPoseSliders
+
+    from ..model.clearance import clearance_model
+    from ..simulation.diagram import make_stewart_diagram
+    from ..simulation.reference import TeleopReference, admissible_poses
+    from .visualize import CAMERA_POSITION, CAMERA_TARGET
+
+    scenario = teleop_scenario(scenario)
+    meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
+    meshcat.SetProperty("/Axes", "visible", False)       # the world triad would hide the base
+    geometry = scenario.geometry()
+    peak = scenario.torque_limit()
+    x0 = np.asarray(x_initial, dtype=float)
+    guard = scenario.guard
+    clearance = clearance_model(scenario.plant_geometry())
+    reference = TeleopReference(
+        geometry, x0, scenario.control_period_s, limits,
+        admissible=lambda x: admissible_poses(geometry, x, guard.cond_threshold,
+                                              guard.min_sigma_min_inv, peak,
+                                              clearance=clearance,
+                                              min_clearance_m=guard.min_clearance_m))
+    loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
+    builder = DiagramBuilder()
+    builder.AddSystem(loop.diagram)
+    sliders = builder.AddNamedSystem("sliders", MeshcatPoseSliders(
+        meshcat, initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
+        lower_limit=x0 - SLIDER_RANGE, upper_limit=x0 + SLIDER_RANGE, step=SLIDER_STEP))
+    builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
+    display = builder.AddNamedSystem("display", TeleopDisplay(
+        meshcat, margins or robot_margins(geometry, peak, clearance),
+        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)}))
+    builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
+    builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
+    diagram = builder.Build()
+    diagram.set_name("teleop")
+    simulator = Simulator(diagram)
+    simulator.set_target_realtime_rate(realtime_rate)
+    context = simulator.get_mutable_context()
+    loop.initialize(context)
+    loop.station.assemble(context, x0)
+    simulator.Initialize()
+    return TeleopRun(diagram, loop, sliders, reference, display, simulator)
+
+
+def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float = 0.1,
+               report: Callable[[str], None] | None = print) -> dict:
+    """Advance ``run`` in real time until ``duration_s`` (None: until Ctrl-C), guarded.
+
+    Returns:
+        {"sim_s": simulated s, "wall_s": wall s, "realtime_rate": sim_s / wall_s,
+        "worst_rate": the lowest rate over any 10 s of the run (the whole run if shorter)}.
+    Raises:
+        SimulationDivergedError: the guard stopped the run (the logs are saved).
+    """
+    from ..simulation import guard
+
+    simulator = run.simulator
+    simulator.ResetStatistics()       # pace from now: a pause before must not be caught up
+    t_start, wall_start = simulator.get_context().get_time(), time.perf_counter()
+    marks = [(wall_start, t_start)]
+    try:
+        while duration_s is None or simulator.get_context().get_time() < t_start + duration_s:
+            t_next = simulator.get_context().get_time() + chunk_s
+            if duration_s is not None:
+                t_next = min(t_next, t_start + duration_s)
+            guard.advance(run.loop, simulator, lambda: simulator.AdvanceTo(t_next))
+            marks.append((time.perf_counter(), simulator.get_context().get_time()))
+    except KeyboardInterrupt:
+        pass
+    wall = np.array([m[0] for m in marks]) - wall_start
+    sim = np.array([m[1] for m in marks]) - t_start
+    rates = [(sim[j] - sim[i]) / (wall[j] - wall[i])
+             for i in range(len(marks)) for j in (int(np.searchsorted(wall, wall[i] + 10.0)),)
+             if j < len(marks) and wall[j] > wall[i]]
+    total = {"sim_s": float(sim[-1]), "wall_s": float(wall[-1]),
+             "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0}
+    total["worst_rate"] = float(min(rates)) if rates else total["realtime_rate"]
+    if report is not None:
+        report(f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
+               f"in {total['wall_s']:.1f} s wall (lowest over 10 s: {total['worst_rate']:.3f})")
+    return total

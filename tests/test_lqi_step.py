@@ -1,0 +1,243 @@
+"""One reference, two speeds: the LQI's compiled step against its numpy reference.
+
+The controller runs the stages of ``lqi_kernels`` (numba); ``lqi_step`` is the readable numpy
+reference. They must agree to 1e-12 relative on every case the controller meets (they are in
+fact written to give the same bits: the sums that feed back are one shared loop), and so must
+closed-loop runs with either.
+"""
+
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from stewart_drake.control import lqi_kernels, lqi_step
+from stewart_drake.control.estimator import PoseEstimator
+from stewart_drake.control.lqi import (
+    LqiController,
+    balance,
+    body_constants,
+    error_model,
+    input_matrix_single,
+    lqi_gain,
+    lqi_gain_warm,
+)
+from stewart_drake.model import kinematics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.diagram import lqi_factory
+from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario
+from stewart_drake.studies.experiments import run_experiment
+
+RTOL = 1e-12
+GEOMETRY = StewartGeometry()
+
+
+def _controller(estimator: bool, delay: int, limit, window, transfer="integral", governor=True):
+    est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17) if estimator else None
+    return LqiController(GEOMETRY, period_s=1e-3, schedule_period_s=2e-2, torque_limit_Nm=limit,
+                         delay_periods=delay, estimator=est, feature_window=window,
+                         gain_transfer=transfer, reference_governor=governor, riccati="track")
+
+
+def _random_case(c: LqiController, rng):
+    """(u, state) of ``c``'s layout: a pose near home, a reference near it, torques, an
+    integral, pending torques, a window, gains, with the counter due or not."""
+    lay = c.layout
+    x = X_HOME + rng.uniform(-1, 1, 6) * [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]
+    u, state = np.zeros(lay.u_size), c._initial_state(x, np.zeros(6), np.zeros(6), c.K_initial)
+    if c.estimator is not None:
+        u[lay.pose_in] = kinematics.ik(GEOMETRY, x) + rng.normal(0, 2e-5, 6)
+        state[lay.x_hat] = np.concatenate([x + rng.normal(0, 1e-5, 6), rng.normal(0, 0.02, 6)])
+        state[lay.J_inv] = np.linalg.inv(kinematics.jacobian(GEOMETRY, x)).reshape(-1)
+    else:
+        u[lay.pose_in] = np.concatenate([x, rng.normal(0, 0.05, 6)])
+    u[lay.x_d] = np.concatenate([x + rng.normal(0, 2e-3, 6), rng.normal(0, 0.05, 12)])
+    u[lay.T_ff] = rng.normal(0, 0.2, 6)
+    u[lay.omega] = rng.choice([1.0, 2.0]), 1.0           # sometimes new weights
+    u[lay.T_applied] = rng.normal(0, 0.2, lay.T_applied.stop - lay.T_applied.start)
+    state[lay.z] = rng.normal(0, 1e-4, 6)
+    state[lay.e_bar] = rng.normal(0, 1e-3, 6)
+    state[lay.counter] = rng.integers(0, 25)
+    state[lay.K] = (c.K_initial * (1 + 0.1 * rng.normal(size=c.K_initial.shape))).reshape(-1)
+    state[lay.K_old] = c.K_initial.reshape(-1)
+    state[lay.pending] = rng.normal(0, 0.05, lay.pending.stop - lay.pending.start)
+    if lay.window.stop > lay.window.start:
+        w = (lay.window.stop - lay.window.start - 2) // 12
+        window = state[lay.window]
+        window[:-2] = rng.normal(0, 0.1, 12 * w)
+        window[-2], window[-1] = rng.integers(1, w + 1), rng.integers(0, w)
+    return u, state
+
+
+def _agree(a, b):
+    np.testing.assert_allclose(a, b, rtol=RTOL, atol=RTOL * max(1.0, np.abs(b).max()))
+
+
+CASES = [dict(estimator=e, delay=d, limit=lim, window=w, transfer=t)
+         for e in (False, True) for d in (0, 1, 2) for lim in (None, 0.05, 0.7)
+         for w, t in ((None, "integral"), (5, "feedback"), (None, "none"))]
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: "-".join(f"{k}={v}" for k, v in c.items()))
+def test_the_compiled_step_equals_the_numpy_reference(case):
+    """observe, act (every mode) and step on random poses, weights, saturation, delays."""
+    c = _controller(**case)
+    rng = np.random.default_rng(abs(hash(tuple(case.values()))) % 2**32)
+    saturated = 0
+    for trial in range(12):
+        u, state = _random_case(c, rng)
+        args = (c._constants, c._legs, u, None, c._bounds)
+        results = []
+        for stages in (lqi_step, lqi_kernels):
+            s = state.copy()
+            need, flags = stages.step(args[0], args[1], u, s, args[4])
+            acts = []
+            for mode in (lqi_step.GAIN_CHANGED, lqi_step.GOVERNED, 0):
+                a = s.copy()
+                acts.append((stages.act(c._constants, u, a, c._bounds, mode), a))
+            results.append((need, flags, s, acts))
+        (n0, f0, s0, a0), (n1, f1, s1, a1) = results
+        assert (n0, f0) == (n1, f1)
+        _agree(s1, s0)
+        for (fa, sa), (fb, sb) in zip(a0, a1):
+            assert fa == fb
+            _agree(sb, sa)
+        saturated += sum(int(a[c.layout.status][lqi_step.SATURATED_STEPS] > 0)
+                         for _, a in a0 + [(f0, s0)])
+    if case["limit"] == 0.05:
+        assert saturated > 0                                 # the clipping path was taken
+
+
+def test_a_non_finite_sample_is_flagged_by_both():
+    c = _controller(False, 0, None, 5)
+    u, state = _random_case(c, np.random.default_rng(3))
+    u[c.layout.T_applied][2] = np.nan
+    for stages in (lqi_step, lqi_kernels):
+        s = state.copy()
+        assert stages.act(c._constants, u, s, c._bounds, 0) == lqi_step.NONFINITE_SAMPLE
+
+
+def test_the_estimate_equals_the_reference_and_the_full_newton():
+    est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17)
+    rng = np.random.default_rng(4)
+    for _ in range(50):
+        x = X_HOME + rng.uniform(-1, 1, 6) * [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]
+        theta = kinematics.ik(GEOMETRY, x)
+        x_hat = np.concatenate([x + rng.normal(0, 2e-5, 6), np.zeros(6)])
+        J_inv = np.linalg.inv(kinematics.jacobian(GEOMETRY, x))
+        out = []
+        for stages in (lqi_step, lqi_kernels):
+            h = x_hat.copy()
+            assert stages.estimate(est.legs, est.crank_length, est.leg_c, est.h, est.alpha,
+                                   est.chord_step_max, theta, h, J_inv)
+            out.append(h)
+        _agree(out[1], out[0])
+        assert np.abs(out[0][:6] - x).max() < 1e-7       # a chord step lands near the pose
+
+
+def test_the_compiled_gain_pipeline_equals_numpy():
+    """B(x), the error model and a Newton step: compiled against the numpy functions."""
+    c = _controller(False, 1, None, None)
+    legs, body = c._gain_legs, c._body             # the read-only arrays the controller passes
+    np.testing.assert_array_equal(body, body_constants(GEOMETRY))
+    rng = np.random.default_rng(5)
+    for _ in range(20):
+        x = X_HOME + rng.uniform(-1, 1, 6) * [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]
+        B_ref, J_ref = input_matrix_single(GEOMETRY, x)
+        B_c, J, ok = lqi_kernels.input_matrix(legs, body, x)
+        assert ok
+        np.testing.assert_allclose(B_c, B_ref, rtol=1e-12, atol=1e-12 * np.abs(B_ref).max())
+        np.testing.assert_allclose(J, J_ref, rtol=1e-12, atol=1e-12 * np.abs(J_ref).max())
+        A, B = error_model(B_ref, 1e-3, 1)
+        A_c, B_c2 = lqi_kernels.zoh_model(B_ref, 1e-3, 1)
+        assert np.array_equal(A, A_c) and np.array_equal(B, B_c2)
+        Q, R = 2.0 * c._Q1, c._R1
+        K, J_inv, n = lqi_kernels.warm_gain(legs, body, x, 1e-3, 1, Q, R, c.K_initial, 1e-10, 8,
+                                            1e-16)
+        assert n > 0
+        K_cold = lqi_gain(A, B, Q, R)
+        assert np.abs(K - K_cold).max() / np.abs(K_cold).max() < 1e-8
+        np.testing.assert_allclose(J_inv, np.linalg.inv(J_ref), rtol=1e-10, atol=1e-12)
+
+
+def test_the_compiled_stein_solve_equals_drakes():
+    from pydrake.math import RealDiscreteLyapunovEquation
+
+    c = _controller(False, 1, None, None)
+    A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3, 1)
+    Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, c._Q1, c._R1)
+    K = c.K_initial * d_x[None, :] / d_u[:, None]
+    A_c, W = np.ascontiguousarray(Ab - Bb @ K), Qb + K.T @ Rb @ K
+    P, steps = lqi_kernels.stein(A_c, W, 1e-16, 64)
+    P_ref = RealDiscreteLyapunovEquation(A_c, 0.5 * (W + W.T))
+    assert 0 < steps < 30
+    assert np.abs(P - P_ref).max() / np.abs(P_ref).max() < 1e-10
+    assert lqi_kernels.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1   # unstable: no
+
+
+def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
+    from stewart_drake.errors import RiccatiSolveError
+
+    c = _controller(False, 0, None, None)
+    A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3)
+    with pytest.raises(RiccatiSolveError, match="does not stabilize"):
+        lqi_gain_warm(A, B, c._Q1, c._R1, np.zeros((6, 18)))
+
+
+def _metrics(scenario, compiled):
+    m = run_experiment(scenario, controller=lqi_factory(scenario.controller, compiled)).metrics
+    return {k: np.asarray(m[k], dtype=float) for k in ("rms_error", "peak_error", "peak_torque",
+                                                        "sum_T2_dt", "max_closure_m")}
+
+
+def test_closed_loop_runs_give_the_same_metrics_with_either_step():
+    """The ideal robot to 1e-9; the robot as built (encoder quantization turns a last-bit
+    difference into another count) within 1 %; with the ANN tuner too."""
+    for name, tuner, rtol in (("paper_ideal", False, 1e-9), ("paper_hardware", True, 1e-2)):
+        scenario = load_scenario(name, ["duration_s=1.0"])
+        if tuner:
+            scenario.tuner = AnnTunerDriver()
+        reference, compiled = _metrics(scenario, False), _metrics(scenario, True)
+        for key, value in reference.items():
+            np.testing.assert_allclose(compiled[key], value, rtol=rtol, err_msg=f"{name} {key}")
+
+
+def test_the_compiled_code_is_cached_against_the_sources_it_inlines():
+    """numba's cache sees this file only: the digest of what it inlines from other files must
+    be the one recorded, else the cache is bypassed (update DEPENDENCIES_DIGEST)."""
+    assert lqi_kernels.sources_digest() == lqi_kernels.DEPENDENCIES_DIGEST, (
+        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in lqi_kernels.py")
+    assert lqi_kernels._CACHE
+
+
+def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
+    """With no writable __pycache__ and no writable user cache (a read-only install and home),
+    compiled functions cache in the temporary directory instead of failing to import."""
+    module_dir = tmp_path / "readonly"
+    module_dir.mkdir()
+    (module_dir / "__pycache__").write_text("a file where numba wants a folder")
+    (module_dir / "tiny.py").write_text("def double(x):\n    return 2 * x\n")
+    blocked = tmp_path / "home_file"
+    blocked.write_text("")
+    script = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(module_dir)!r})
+        from stewart_drake.control.lqi_kernels import _fallback_cache_dir, _njit
+        import tiny
+        f = _njit(tiny.double)
+        assert f(21) == 42
+        print(_fallback_cache_dir())
+    """)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(XDG_CACHE_HOME=str(blocked / "cache"), HOME=str(blocked),
+               TMPDIR=str(tmp_path / "tmp"))
+    (tmp_path / "tmp").mkdir()
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    cache = out.stdout.strip().splitlines()[-1]
+    assert cache.startswith(str(tmp_path / "tmp"))
+    assert any(name.endswith(".nbi") for _, _, files in os.walk(cache) for name in files)
