@@ -611,7 +611,7 @@ def _bomb(home):
      r"hardware.computation_delay_periods = 100 with the LQI's delay compensation gives a model "
      r"of 6 x \(3 \+ 100\) = 618 states"),
     (None, ["run", "--scenario", "paper_ideal", "--set", "robot.platform_mass=1e9"],
-     r"the LQI cannot control this robot at the start pose: .*check robot.platform_mass"),
+     r"the LQI's error model fails the Hautus test .*robot.platform_mass"),
     (None, ["workspace", "--resolution", "2"], r"--resolution: must be >= 3, got 2"),
 ], ids=["npz-bomb", "12.5-MB-scenario", "delay-100", "platform-mass-1e9", "resolution-2"])
 def test_more_hostile_input_is_one_line(home, make, argv, expected):
