@@ -134,6 +134,18 @@ class ClearanceModel:
         query, found = self._query(q, max_distance)
         return sorted((self._contact(query, r) for r in found), key=lambda c: c.distance)
 
+    def overlaps(self, q) -> list[Contact]:
+        """The pairs of parts that overlap at the plant positions ``q`` (a station's plant has
+        the same layout), deepest first; empty, and cheap (Drake's ``HasCollisions``), when none
+        does. For a check at every step of a run."""
+        self._plant.SetPositions(self._plant_context, q)
+        query = self._scene_graph.get_query_output_port().Eval(self._sg_context)
+        if not query.HasCollisions():
+            return []
+        found = query.ComputeSignedDistancePairwiseClosestPoints(0.0)
+        return sorted((self._contact(query, r) for r in found if r.distance < 0),
+                      key=lambda c: c.distance)
+
     def _query(self, q, max_distance: float):
         """(query object, Drake's signed-distance pairs) with the plant at positions q."""
         self._plant.SetPositions(self._plant_context, q)
