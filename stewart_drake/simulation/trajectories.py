@@ -200,10 +200,17 @@ def step(axis) -> StepTrajectory:
     return StepTrajectory(axis=k, size=STEP_SIZE[k], name=f"step_{AXIS_NAMES[k]}")
 
 
+#: Amplitudes of :func:`sweep`: (rad on an angle, m on a position), the largest the motors
+#: follow to 50 Hz within the pre-run check's margin (90 % of the peak torque), with a 20 %
+#: payload.
+SWEEP_AMPLITUDE = (8e-4, 8e-5)
+
+
 def sweep(axis="Z") -> ChirpTrajectory:
-    """A 1 -> 50 Hz sweep over 8 s on ``axis``: 0.2 mm (positions) or 2 mrad (angles)."""
+    """A 1 -> 50 Hz sweep over 8 s on ``axis``, then held at 50 Hz: :data:`SWEEP_AMPLITUDE`
+    (0.08 mm on a position, 0.8 mrad on an angle)."""
     k = _axis_index(axis)
-    return ChirpTrajectory(axis=k, amplitude=2e-4 if k >= 3 else 2e-3,
+    return ChirpTrajectory(axis=k, amplitude=SWEEP_AMPLITUDE[1 if k >= 3 else 0],
                            name=f"sweep_{AXIS_NAMES[k]}")
 
 

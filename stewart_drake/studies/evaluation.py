@@ -37,7 +37,8 @@ from ..model.statics import feedforward_torques
 from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, LqiDriver, NamedReference,
                                    PdDriver, Scenario, SensorNoise, ToolDisturbance, dump_scenario,
                                    load_scenario, use_paper_tuner)
-from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
+from ..simulation.trajectories import (AXIS_NAMES, SWEEP_AMPLITUDE, ChirpTrajectory,
+                                       StepTrajectory)
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
 from .runners import JobFailure, ProcessRunner
@@ -556,7 +557,8 @@ def render_markdown(rows, info: dict, tuner: dict | None = None) -> str:
     L.append("")
 
     # 5. Bandwidth.
-    L += ["## Bandwidth (sine sweep 1 -> 50 Hz: 0.2 mm on Z, 2 mrad on phi)", "",
+    L += [f"## Bandwidth (sine sweep 1 -> 50 Hz: {1e3 * SWEEP_AMPLITUDE[1]:g} mm on Z, "
+          f"{1e3 * SWEEP_AMPLITUDE[0]:g} mrad on phi)", "",
           "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
           "and the peak gain, dB.", "",
           "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
