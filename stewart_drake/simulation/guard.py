@@ -34,6 +34,8 @@ from pydrake.systems.framework import LeafSystem
 from ..errors import FeasibilityWarning, SimulationDivergedError
 from ..fileio import save_npz
 from ..model import limits
+from ..model.kinematics import ik_scalar
+from ..model.limits import DEFAULT_CLEARANCE_RESOLUTION_M
 from ..model.plant import loop_closure_errors
 from .scenario import GuardConfig, dump_scenario
 
@@ -86,6 +88,11 @@ def check_reference(scenario, trajectory=None,
     return report
 
 
+#: Without contact, the guard asks SceneGraph whether parts overlap at every this many checks,
+#: and at every check where a part may have strayed far enough (:meth:`DivergenceGuard.check`).
+INTERFERENCE_EVERY = 10
+
+
 class DivergenceGuard(LeafSystem):
     """The check of a running closed loop (module docstring), as a system of the Diagram.
 
@@ -94,7 +101,9 @@ class DivergenceGuard(LeafSystem):
     the scenario's ``contact``, ``contact_results`` (the plant's ``ContactResults``).
     Every ``config.check_period_s`` (first at t = 0) a publish event runs :meth:`check` and
     raises :class:`~stewart_drake.errors.SimulationDivergedError` with its reason. Without
-    contact, two parts that overlap are a failure (nothing in the plant keeps them apart); with
+    contact, two parts that overlap are a failure (nothing in the plant keeps them apart; the
+    SceneGraph check runs when a part may have strayed far enough from the validated
+    reference, and at every tenth check: :data:`INTERFERENCE_EVERY`); with
     contact, a discrete update at the same period keeps the first contact in the guard's state
     (:meth:`first_contact`).
 
@@ -135,8 +144,16 @@ class DivergenceGuard(LeafSystem):
             self._part_index = {gid: k for k, gid in enumerate(ids)}
         else:
             from ..model.clearance import clearance_model
+            from ..model.kinematics import leg_constants
 
-            self._clearance = clearance_model(station.scenario.plant_geometry())
+            geometry = station.scenario.plant_geometry()
+            self._clearance = clearance_model(geometry)
+            self._legs = leg_constants(geometry)
+            self._motor_q = [joint.position_start() for joint in station.handles.motors]
+            # The reference keeps guard.min_clearance_m between the parts (the run's check,
+            # sampled within DEFAULT_CLEARANCE_RESOLUTION_M); two parts that each stray less
+            # than half of what is left from where the reference puts them cannot overlap.
+            self._stray_m = 0.5 * (config.min_clearance_m - DEFAULT_CLEARANCE_RESOLUTION_M)
 
     def _Check(self, context):
         reason = self.check(context)
@@ -166,8 +183,10 @@ class DivergenceGuard(LeafSystem):
             if not closure[leg] <= cfg.max_closure_error_m:
                 return (f"loop-closure error {closure[leg]:.3g} m at rod {leg} exceeds "
                         f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m")
+        pose = self._sensor.pose_from_state(state)[:6]
+        x_d = self._x_d.Eval(context)[:6]
         if cfg.max_tracking_error is not None:
-            e = np.abs(self._sensor.pose_from_state(state)[:6] - self._x_d.Eval(context)[:6])
+            e = np.abs(pose - x_d)
             for part, bound, unit in ((slice(0, 3), cfg.max_tracking_error[0], "rad"),
                                       (slice(3, 6), cfg.max_tracking_error[1], "m")):
                 k = int(np.argmax(e[part])) + part.start
@@ -175,7 +194,7 @@ class DivergenceGuard(LeafSystem):
                     axis = ("phi", "theta", "psi", "X", "Y", "Z")[k]
                     return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
                             f"GuardConfig.max_tracking_error = {bound:g} {unit}")
-        if self.contact:
+        if self.contact or not self._may_overlap(context, state, pose, x_d):
             return None
         # Without contact nothing in the plant keeps two parts apart: overlapping is a failure.
         overlaps = self._clearance.overlaps(state[:plant.num_positions()])
@@ -183,6 +202,22 @@ class DivergenceGuard(LeafSystem):
             return (f"{overlaps[0]}: parts pass through each other in a plant without contact; "
                     f"simulate the collision with `contact: true`")
         return None
+
+    def _may_overlap(self, context, state, pose, x_d) -> bool:
+        """Whether two parts may overlap, so that the SceneGraph check is worth its cost: at
+        every tenth check, and whenever a part may have strayed from where the reference puts it
+        by more than half the clearance the reference keeps. A crank's points stray at most
+        (a + 1 cm) |theta - theta_d| (IK of the reference), the platform's |p - p_d| + 0.2 m x 2
+        |rpy - rpy_d| (its parts lie within 0.15 m of E; |E(rpy)| < 2 in the workspace), a
+        rod's the more of its two ends (it is rigid)."""
+        checks = round(context.get_time() / self.config.check_period_s)
+        if checks % INTERFERENCE_EVERY == 0:
+            return True
+        theta_d = ik_scalar(self._legs, x_d.tolist())
+        crank = max(abs(state[k] - t) for k, t in zip(self._motor_q, theta_d))
+        platform = np.abs(pose[3:] - x_d[3:]).max() + 0.4 * np.abs(pose[:3] - x_d[:3]).max()
+        stray = max((self._legs[1] + 0.01) * crank, float(platform))
+        return not stray < self._stray_m                  # NaN included
 
     def _NoteContact(self, context, discrete_state):
         """With contact: keep the first contact between two parts (the strongest one then)."""
