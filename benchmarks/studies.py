@@ -203,7 +203,7 @@ def main() -> int:
     parts = set(args.parts.split(","))
     controllers = tuple(args.controllers.split(",")) if args.controllers else CONTROLLERS
     print(f"cpus {os.cpu_count()} load_average_start {os.getloadavg()[0]:.2f}", flush=True)
-    measured, overhead = None, {}
+    measured = None
     if "scaling" in parts or "projection" in parts:
         measured = scaling(controllers, tuple(args.runners.split(",")),
                            quiet_wait_s=args.wait_quiet, repeat=args.repeat)

@@ -83,7 +83,8 @@ def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
     assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
 
 
-def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch, feedforward_fault):
+def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch,
+                                                              feedforward_fault):
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     line = _one_line_error(capsys, ["run", "--duration", "0.1", "--no-progress",
                                     "--out", str(tmp_path)])
@@ -97,7 +98,8 @@ def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, m
 
 
 def test_no_traceback_from_the_installed_command_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run", "--duration", "-3"],
+    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run",
+                           "--duration", "-3"],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
@@ -203,7 +205,8 @@ def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, 
     assert sorted(tmp_path.rglob("*")) == before                  # nothing written
 
 
-def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch, feedforward_fault):
+def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch,
+                                                                          feedforward_fault):
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.scenario import GuardConfig, Scenario
     from stewart_drake.studies.experiments import run_experiment

@@ -6,15 +6,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stewart_drake.errors import InvalidConfigError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.simulation.diagram import make_stewart_diagram
 from stewart_drake.simulation.scenario import NamedReference, PdDriver, Scenario, SensorNoise
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.studies.evaluation import (RATIO_LQI, ann_verdict, bandwidth_hz, cases,
-                                              controller_settings, frequency_response,
-                                              settling_time)
-from stewart_drake.studies.experiments import run_experiment
 from stewart_drake.simulation.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
+from stewart_drake.studies.evaluation import (
+    RATIO_LQI,
+    ann_verdict,
+    bandwidth_hz,
+    cases,
+    controller_settings,
+    frequency_response,
+    settling_time,
+)
+from stewart_drake.studies.experiments import run_experiment
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -34,9 +40,9 @@ def test_unknown_payload_sags_the_pd_but_not_the_lqi():
     """+20 % platform mass the feed-forward does not know: the PD (no integral) holds home with a
     steady sag close to the statics' prediction; the LQI's integral removes it."""
     from stewart_drake.control.pd import CrankPdController
-    from stewart_drake.model.statics import crank_inertia_matrix
     from stewart_drake.model import kinematics
     from stewart_drake.model.geometry import X_HOME, StewartGeometry
+    from stewart_drake.model.statics import crank_inertia_matrix
 
     g = StewartGeometry()
     cfg = dict(reference=NamedReference("home"), duration_s=1.5, payload_scale=1.2)
@@ -102,8 +108,8 @@ def test_settling_time_and_frequency_response_on_known_signals():
 
 
 def test_scenarios_are_reachable_and_named():
-    from stewart_drake.simulation.trajectories import validate
     from stewart_drake.model.geometry import StewartGeometry
+    from stewart_drake.simulation.trajectories import validate
 
     g = StewartGeometry()
     for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):

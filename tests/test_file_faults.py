@@ -21,8 +21,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stewart_drake.control import tuner
-from stewart_drake.errors import (CorruptFileError, IncompleteResultsError, ResultsMismatchError,
-                                  StewartError)
+from stewart_drake.errors import (
+    CorruptFileError,
+    IncompleteResultsError,
+    ResultsMismatchError,
+    StewartError,
+)
 from stewart_drake.fileio import CheckedNpz
 from stewart_drake.simulation.scenario import Scenario, dump_scenario, load_scenario
 from stewart_drake.studies.collection import load_records

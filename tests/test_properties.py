@@ -13,16 +13,21 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from stewart_drake.model import kinematics
-from stewart_drake.model import limits
-from stewart_drake.model import statics
-from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
-from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
-from stewart_drake.errors import StewartError, UnreachablePoseError
 from stewart_drake.control.features import density_features
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.trajectories import SineTrajectory
+from stewart_drake.control.lqi import (
+    LqiController,
+    LqiScales,
+    error_model,
+    hautus_checks,
+    input_matrix,
+    lqi_gain,
+)
 from stewart_drake.control.tuner import TunerModel, load_tuner
+from stewart_drake.errors import StewartError, UnreachablePoseError
+from stewart_drake.model import kinematics, limits, statics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
+from stewart_drake.simulation.trajectories import SineTrajectory
 
 GEOMETRY = StewartGeometry()
 EXAMPLES = Counter()

@@ -7,8 +7,13 @@ import numpy as np
 import pytest
 from conftest import needs_torch
 
-from stewart_drake.control.tuner import (N_RATIO_INPUTS, RatioTunerModel, load_ratio_tuner,
-                                         ratio_tuner_inputs, save_ratio_tuner)
+from stewart_drake.control.tuner import (
+    N_RATIO_INPUTS,
+    RatioTunerModel,
+    load_ratio_tuner,
+    ratio_tuner_inputs,
+    save_ratio_tuner,
+)
 from stewart_drake.errors import InvalidConfigError, MissingFileError
 from stewart_drake.model import limits, statics
 from stewart_drake.model.geometry import StewartGeometry
@@ -16,7 +21,6 @@ from stewart_drake.simulation.scenario import RatioTunerDriver, Scenario, Weight
 from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 from stewart_drake.studies import tuner_study as ts
 from stewart_drake.studies.runners import SerialRunner
-
 
 # -- tasks -----------------------------------------------------------------------------------------
 
@@ -227,8 +231,11 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
 # -- the shipped tuners ----------------------------------------------------------------------------
 
 def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
-    from stewart_drake.control.tuner import (DEFAULT_RATIO_TUNER_PATH, RATIO_TUNER_LAMBDAS,
-                                             ratio_tuner_path)
+    from stewart_drake.control.tuner import (
+        DEFAULT_RATIO_TUNER_PATH,
+        RATIO_TUNER_LAMBDAS,
+        ratio_tuner_path,
+    )
 
     assert DEFAULT_RATIO_TUNER_PATH == ratio_tuner_path(0.1)
     for lam in RATIO_TUNER_LAMBDAS:

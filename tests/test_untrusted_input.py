@@ -25,11 +25,20 @@ from conftest import install_plugin
 
 from stewart_drake.control import contract, tuner
 from stewart_drake.errors import CorruptFileError, FolderInUseError, InvalidConfigError
-from stewart_drake.fileio import (atomic_write, check_replaceable, read_checked,
-                                  remove_stale_temporaries)
+from stewart_drake.fileio import (
+    atomic_write,
+    check_replaceable,
+    read_checked,
+    remove_stale_temporaries,
+)
 from stewart_drake.interfaces import cli
-from stewart_drake.simulation.scenario import (MAX_SCENARIO_BYTES, Scenario, UserController,
-                                               apply_override, load_scenario)
+from stewart_drake.simulation.scenario import (
+    MAX_SCENARIO_BYTES,
+    Scenario,
+    UserController,
+    apply_override,
+    load_scenario,
+)
 from stewart_drake.simulation.trajectories import load_csv_trajectory
 
 REPO = Path(__file__).resolve().parent.parent

@@ -4,19 +4,17 @@ import csv
 
 import numpy as np
 import pytest
-from pydrake.multibody.tree import JacobianWrtVariable
-
 from conftest import random_reachable_poses
-from stewart_drake.model import kinematics
-from stewart_drake.model import limits
-from stewart_drake.model import statics
-from stewart_drake.simulation import trajectories
-from stewart_drake.studies import workspace
+from pydrake.multibody.tree import JacobianWrtVariable
+from test_plant import _hold
+
 from stewart_drake import errors
 from stewart_drake.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
+from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.plant import assemble, make_plant
-from test_plant import _hold
+from stewart_drake.simulation import trajectories
+from stewart_drake.studies import workspace
 
 
 def _paper(n=4001, duration=10.0, scale=1.0):
@@ -258,7 +256,8 @@ def test_reachable_volume_agrees_with_monte_carlo(geometry):
 def test_max_tilt_is_reachable_in_every_direction_and_not_beyond(geometry):
     heights, tilts = np.array([0.26, 0.30, 0.36]), np.deg2rad(np.arange(0, 61, 1.0))
     grid = workspace.tilt_grid(heights, tilts, n_azimuth=36)
-    every, some = workspace.max_tilt_vs_height(tilts, workspace.classify(geometry, grid)["reachable"])
+    reachable = workspace.classify(geometry, grid)["reachable"]
+    every, some = workspace.max_tilt_vs_height(tilts, reachable)
     assert np.all(some >= every) and np.rad2deg(every[1]) == pytest.approx(37.5, abs=1.5)
     for h, alpha in enumerate(every):
         k = int(round(np.rad2deg(alpha)))

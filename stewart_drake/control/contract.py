@@ -2,9 +2,10 @@
 
 A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the ports, as
 :class:`~stewart_drake.control.lqi.LqiDiagram` does) made by a **factory**
-``factory(context) -> System`` that receives a :class:`ControllerContext`. :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`
-connects its ports **by name**; only ``x_d`` and ``T`` are required, every other port is
-connected when the controller declares it.
+``factory(context) -> System`` that receives a :class:`ControllerContext`.
+:func:`~stewart_drake.simulation.diagram.make_stewart_diagram` connects its ports **by name**;
+only ``x_d`` and ``T`` are required, every other port is connected when the controller declares
+it.
 
 Input ports (all vectors; SI units)
 

@@ -304,7 +304,8 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     except np.linalg.LinAlgError:
         rho = np.nan
     if not rho < 1.0:
-        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})")
+        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius "
+                                f"{rho:.6g})")
     return K
 
 

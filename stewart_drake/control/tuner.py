@@ -29,10 +29,10 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..errors import InvalidConfigError, MissingFileError
-from .features import N_FEATURES
-from ..fileio import CheckedNpz, atomic_write
 from ..checks import as_array
+from ..errors import InvalidConfigError, MissingFileError
+from ..fileio import CheckedNpz, atomic_write
+from .features import N_FEATURES
 
 FORMAT_VERSION = 1
 LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ..errors import StewartError
 from ..simulation.scenario import DEFAULT_SCENARIO
+
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
 
@@ -504,8 +505,12 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import (DEFAULT_CONNECT_TIMEOUT_S, DEFAULT_RECYCLE, DEFAULT_RETRIES,
-                                   RUNNERS)
+    from ..studies.runners import (
+        DEFAULT_CONNECT_TIMEOUT_S,
+        DEFAULT_RECYCLE,
+        DEFAULT_RETRIES,
+        RUNNERS,
+    )
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
                         help="where jobs run: local processes, this process, Ray or Dask")

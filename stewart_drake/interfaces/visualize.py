@@ -1,10 +1,11 @@
 """See it: Meshcat replays of a run as one standalone HTML file, and pictures of the Diagram.
 
-Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario` (no visualizer in the
-loop, so the run is as fast and as exact as ``run_experiment``), then plays the logged plant
-states through a visualization-only copy of the robot at ``fps`` frames per second into a Meshcat
-animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript and the scene are inlined,
-so the file opens in any browser with no server (about 2.2 MB of viewer plus ~2 kB per frame).
+Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario`
+(no visualizer in the loop, so the run is as fast and as exact as ``run_experiment``), then
+plays the logged plant states through a visualization-only copy of the robot at ``fps`` frames
+per second into a Meshcat animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript
+and the scene are inlined, so the file opens in any browser with no server (about 2.2 MB of
+viewer plus ~2 kB per frame).
 
 Diagram pictures: :func:`diagram_dots` returns the Graphviz source of the full Diagram (fixed
 weights and ANN tuner) and of the controller systems, with Drake's process-dependent system ids
@@ -361,8 +362,13 @@ def diagram_dots() -> dict[str, str]:
         the controller contract, so either plugs into the same Diagram).
     """
     from ..simulation.diagram import make_stewart_diagram
-    from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, PdDriver, load_scenario,
-                                       use_paper_tuner)
+    from ..simulation.scenario import (
+        DEFAULT_SCENARIO,
+        AnnTunerDriver,
+        PdDriver,
+        load_scenario,
+        use_paper_tuner,
+    )
 
     def scenario(name=DEFAULT_SCENARIO):
         return load_scenario(name)

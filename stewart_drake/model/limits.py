@@ -17,11 +17,25 @@ from functools import lru_cache
 import numpy as np
 
 from ..checks import as_array, as_number, as_poses
-from ..errors import (InterferenceError, InvalidConfigError, JointLimitError, MotorLimitError,
-                      SingularPoseError, UnreachablePoseError)
-from .kinematics import (DEFAULT_COND_THRESHOLD, X_HOME, _wrap, ik, ik_unchecked,
-                         platform_joints, rotation_rpy, singularity_measures_unchecked)
-
+from ..errors import (
+    InterferenceError,
+    InvalidConfigError,
+    JointLimitError,
+    MotorLimitError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
+from .kinematics import (
+    DEFAULT_COND_THRESHOLD,
+    X_HOME,
+    RobotGeometry,
+    _wrap,
+    ik,
+    ik_unchecked,
+    platform_joints,
+    rotation_rpy,
+    singularity_measures_unchecked,
+)
 
 #: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
 #: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
@@ -48,7 +62,7 @@ LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
 
 
 @lru_cache(maxsize=32)
-def _home_rod_in_platform(geometry: "StewartGeometry") -> np.ndarray:
+def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
     theta = ik(geometry, X_HOME)
     q_B, _ = platform_joints(geometry, X_HOME)
@@ -58,7 +72,7 @@ def _home_rod_in_platform(geometry: "StewartGeometry") -> np.ndarray:
 
 
 
-def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
+def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
     """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
 
     Returns a dict:
@@ -87,7 +101,7 @@ def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
 
 
 
-def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """Distance of reachable pose(s) x to every per-leg limit; >= 0 inside, < 0 violated.
 
     Args:
@@ -121,7 +135,7 @@ def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dic
     return limit_margins_unchecked(geometry, x, theta, ratio)
 
 
-def limit_margins_unchecked(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
     other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
     x = np.asarray(x, dtype=float)
@@ -207,7 +221,7 @@ class Reachability:
 
 
 
-def is_reachable(geometry: "StewartGeometry", x) -> Reachability:
+def is_reachable(geometry: RobotGeometry, x) -> Reachability:
     """Check pose(s) x against loop closure, motor range and ball-joint cones, before a move.
 
     Args:
@@ -368,7 +382,7 @@ class TrajectoryReport:
 
 
 
-def validate_trajectory(geometry: "StewartGeometry", t, x,
+def validate_trajectory(geometry: RobotGeometry, t, x,
                         cond_threshold: float = DEFAULT_COND_THRESHOLD,
                         raise_unreachable: bool = True,
                         min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
@@ -418,8 +432,9 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
             pose, rate or acceleration is named with its time), t not increasing, or a
             threshold out of range.
-    Source: the one validator of a reference: :func:`~stewart_drake.simulation.trajectories.validate`
-        samples a trajectory object and calls it; every run does, before anything is simulated.
+    Source: the one validator of a reference:
+        :func:`~stewart_drake.simulation.trajectories.validate` samples a trajectory object and
+        calls it; every run does, before anything is simulated.
     """
     t = as_array("sample times t", t).reshape(-1)
     for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):

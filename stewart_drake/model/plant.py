@@ -25,8 +25,8 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, Multibody
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, DiagramBuilder
 
-from . import kinematics
 from ..errors import InvalidConfigError
+from . import kinematics
 from .geometry import X_HOME, StewartGeometry
 from .servo import ServoModel
 
@@ -100,7 +100,8 @@ def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     v = np.cross(a, b)
     c = float(np.dot(a, b))
     if c < -1 + 1e-12:
-        raise InvalidConfigError("rod direction flipped by 180 degrees: the pose is not assemblable")
+        raise InvalidConfigError("rod direction flipped by 180 degrees: the pose is not "
+                                 "assemblable")
     K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     return np.eye(3) + K + K @ K / (1 + c)
 
@@ -176,7 +177,8 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
             + "".join(shapes[f"rod_{i}"]) + "    </link>")
         out.append(f'    <joint name="rod_ball_{i}" type="ball"><parent>crank_{i}</parent>'
                    f"<child>rod_{i}</child></joint>")
-    out.append(f'    <link name="platform">\n      <pose>{_vec(X_HOME[3:])} {_vec(X_HOME[:3])}</pose>\n'
+    out.append(f'    <link name="platform">\n      <pose>{_vec(X_HOME[3:])} '
+               f'{_vec(X_HOME[:3])}</pose>\n'
                + _inertial(g.platform_mass, g.platform_inertia, [0, 0, 0])
                + "".join(shapes["platform"]) + "    </link>")
     for i in range(6):
@@ -460,7 +462,8 @@ def _set_velocities(plant, context, handles, x, x_dot, theta):
         X_CF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
         R_WF = X_WC.rotation().multiply(X_CF.rotation())
         # BallRpyJoint's generalized velocity is w_FM expressed in F (not rpy rates).
-        joint.set_angular_velocity(context, np.asarray(R_WF.inverse().multiply(w_rod_W - w_crank_W)))
+        joint.set_angular_velocity(context,
+                                   np.asarray(R_WF.inverse().multiply(w_rod_W - w_crank_W)))
 
 
 def closed_chain_inverse_dynamics(plant: MultibodyPlant, context: Context,

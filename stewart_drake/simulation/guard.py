@@ -37,6 +37,7 @@ from ..model import limits
 from ..model.plant import loop_closure_errors
 from .scenario import GuardConfig, dump_scenario
 
+
 def check_reference(scenario, trajectory=None,
                     raise_refused: bool = True) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.

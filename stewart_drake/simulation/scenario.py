@@ -31,13 +31,23 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from ..checks import as_array, as_number, check_multiple
-from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError, MissingFileError,
-                      StewartError)
 from ..control.lqi import GAIN_TRANSFER_MODES, OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
+from ..errors import (
+    CorruptFileError,
+    InvalidConfigError,
+    InvalidGeometryError,
+    MissingFileError,
+    StewartError,
+)
 from ..model.geometry import StewartGeometry
+from ..model.limits import (
+    DEFAULT_COND_THRESHOLD,
+    DEFAULT_EFFORT_MARGIN,
+    DEFAULT_MIN_CLEARANCE_M,
+    DEFAULT_MIN_SIGMA_MIN_INV,
+    MotorLimits,
+)
 from ..model.servo import ServoModel
-from ..model.limits import (DEFAULT_COND_THRESHOLD, DEFAULT_EFFORT_MARGIN,
-                            DEFAULT_MIN_CLEARANCE_M, DEFAULT_MIN_SIGMA_MIN_INV, MotorLimits)
 from ..model.statics import FEEDFORWARD_MODES
 
 #: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:

@@ -269,7 +269,8 @@ class DrakeTrajectory:
     """
 
     def __init__(self, trajectory, name: str = "drake_trajectory"):
-        if not isinstance(trajectory, Trajectory) or (trajectory.rows(), trajectory.cols()) != (6, 1):
+        if (not isinstance(trajectory, Trajectory)
+                or (trajectory.rows(), trajectory.cols()) != (6, 1)):
             shape = ((trajectory.rows(), trajectory.cols()) if isinstance(trajectory, Trajectory)
                      else type(trajectory).__name__)
             raise InvalidConfigError(f"a Drake reference must be a Trajectory of 6 rows and 1 "

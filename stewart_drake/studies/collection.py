@@ -17,8 +17,12 @@ from pathlib import Path
 import numpy as np
 
 from ..control.features import density_features_series
-from ..errors import (CorruptFileError, IncompleteResultsError, InvalidConfigError,
-                      ResultsMismatchError)
+from ..errors import (
+    CorruptFileError,
+    IncompleteResultsError,
+    InvalidConfigError,
+    ResultsMismatchError,
+)
 from ..fileio import CheckedNpz
 from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
 from .experiments import RunResult, check_run_memory, run_experiment
@@ -33,8 +37,9 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
 
     The features are those the tuner would see in the loop: of the error the controller acted
     on (``result.e_bar``: its estimate, on the hardware; the true error when not logged) and of
-    the applied torques, sample for sample as :class:`~stewart_drake.control.features.DensityFeatures`
-    takes them. The cost parts use the true error.
+    the applied torques, sample for sample as
+    :class:`~stewart_drake.control.features.DensityFeatures` takes them. The cost parts use the
+    true error.
 
     Returns:
         dict with omega_Q, omega_R, t (N,), rho (N, 12) (density features over ``window``

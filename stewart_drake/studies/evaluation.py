@@ -34,9 +34,19 @@ from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import X_HOME
 from ..model.statics import feedforward_torques
-from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, LqiDriver, NamedReference,
-                                   PdDriver, Scenario, SensorNoise, ToolDisturbance, dump_scenario,
-                                   load_scenario, use_paper_tuner)
+from ..simulation.scenario import (
+    DEFAULT_SCENARIO,
+    AnnTunerDriver,
+    LqiDriver,
+    NamedReference,
+    PdDriver,
+    Scenario,
+    SensorNoise,
+    ToolDisturbance,
+    dump_scenario,
+    load_scenario,
+    use_paper_tuner,
+)
 from ..simulation.trajectories import AXIS_NAMES, ChirpTrajectory, StepTrajectory
 from .collection import PAPER_WEIGHTS
 from .experiments import run_experiment
@@ -703,7 +713,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
     line or point per weight ratio omega_Q / omega_R (the nine pairs are five controllers).
     Returns their paths."""
     import matplotlib.ticker
-    from matplotlib.figure import Figure        # no pyplot: no global backend switch
+    from matplotlib.figure import Figure  # no pyplot: no global backend switch
 
     out_dir = Path(out_dir)
     by = _index(rows)

@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InvalidConfigError
 from ..control.features import N_FEATURES
 from ..control.tuner import LOG10_MAX, LOG10_MIN, TunerModel, build_mlp, save_tuner
+from ..errors import InvalidConfigError
 
 LABEL_MODES = ("paper", "best_cost")
 RUN_KEYS = ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")

@@ -50,12 +50,25 @@ from pathlib import Path
 import numpy as np
 
 from ..control.features import density_features_series
-from ..control.tuner import (N_RATIO_INPUTS, RATIO_LOG10_MAX, RATIO_LOG10_MIN, RatioTunerModel,
-                             load_ratio_tuner, ratio_tuner_inputs, save_ratio_tuner)
+from ..control.tuner import (
+    N_RATIO_INPUTS,
+    RATIO_LOG10_MAX,
+    RATIO_LOG10_MIN,
+    RatioTunerModel,
+    load_ratio_tuner,
+    ratio_tuner_inputs,
+    save_ratio_tuner,
+)
 from ..errors import InvalidConfigError
 from ..model import statics
-from ..simulation.scenario import (AnnTunerDriver, LqiDriver, RatioTunerDriver, WeightSchedule,
-                                   load_scenario, use_paper_tuner)
+from ..simulation.scenario import (
+    AnnTunerDriver,
+    LqiDriver,
+    RatioTunerDriver,
+    WeightSchedule,
+    load_scenario,
+    use_paper_tuner,
+)
 from ..simulation.tasks import make_task
 from .experiments import run_experiment
 
@@ -773,7 +786,7 @@ def plot_tuner_tradeoff(summary: dict, path) -> Path:
     13 fixed ratios as a curve, every other controller as a point (means over the family's
     tasks); the marker says what a controller is, the colour the lambda it was made for, and
     the legends sit in a panel of their own. Returns the path."""
-    from matplotlib.figure import Figure        # no pyplot: no global backend switch
+    from matplotlib.figure import Figure  # no pyplot: no global backend switch
     from matplotlib.lines import Line2D
 
     points = summary["points"]

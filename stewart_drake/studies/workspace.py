@@ -342,7 +342,8 @@ def _plots(out: Path, s: dict):
     ipsi = int(np.argmin(np.abs(oaxes[2])))
     m = _torque_slice(axes[1], np.rad2deg(oaxes[0]), np.rad2deg(oaxes[1]), orient, (2, ipsi),
                       ("roll phi [deg]", "pitch theta [deg]"),
-                      f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg")
+                      f"max |T_i| [N m] at home position, yaw = "
+                      f"{np.rad2deg(oaxes[2][ipsi]):.1f} deg")
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     fig.tight_layout()
     _save_figure(fig, out / "bottleneck_and_orientation.png")
@@ -446,7 +447,8 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
         s = workspace_summary(geometry, n, jobs, progress=bar, runner=runner)
     arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
-              "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
+              "translation_Z": s["translation_axes"][2],
+              "orientation_phi": s["orientation_axes"][0],
               "orientation_theta": s["orientation_axes"][1],
               "orientation_psi": s["orientation_axes"][2], "heights": s["heights"],
               "tilts": s["tilts"], **{key: s[key] for key in (
