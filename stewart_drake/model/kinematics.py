@@ -34,6 +34,10 @@ from ..errors import (
 
 #: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
 X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+#: The names of the pose's six coordinates, in order: roll, pitch, yaw (rad), position (m).
+AXIS_NAMES = ("phi", "theta", "psi", "X", "Y", "Z")
+#: Display units of a pose error per axis: mrad for angles, mm for positions.
+AXIS_UNITS = ("mrad", "mrad", "mrad", "mm", "mm", "mm")
 
 #: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
 #: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
@@ -390,6 +394,8 @@ def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
         residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
     Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
     """
+    # Long: Newton, its backtracking and the assembly-mode guard share the batch's masks; apart,
+    # the masks would pass between functions on every iteration.
     theta = np.asarray(theta, dtype=float)
     batch = theta.shape[:-1]
     target = theta.reshape(-1, 6)

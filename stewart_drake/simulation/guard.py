@@ -34,6 +34,7 @@ from pydrake.systems.framework import LeafSystem
 from ..errors import FeasibilityWarning, SimulationDivergedError, StewartError
 from ..fileio import save_npz
 from ..model import limits
+from ..model.kinematics import AXIS_NAMES
 from ..model.plant import loop_closure_errors
 from .scenario import GuardConfig, dump_scenario
 
@@ -173,7 +174,7 @@ class DivergenceGuard(LeafSystem):
                                       (slice(3, 6), cfg.max_tracking_error[1], "m")):
                 k = int(np.argmax(e[part])) + part.start
                 if not e[k] <= bound:
-                    axis = ("phi", "theta", "psi", "X", "Y", "Z")[k]
+                    axis = AXIS_NAMES[k]
                     return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
                             f"GuardConfig.max_tracking_error = {bound:g} {unit}")
         if self.contact:
