@@ -1,4 +1,4 @@
-"""Issue 16, item 1: a damaged file is one typed error naming the file, never a traceback.
+"""A damaged file is one typed error naming the file, never a traceback.
 
 Property-based over the loaders (bytes in, a valid object or a typed error out): the ANN and
 ratio tuner weights, a collect folder (manifest and run files), a scenario YAML, a run result.

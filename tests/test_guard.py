@@ -1,4 +1,4 @@
-"""Issue 8: faults before and during a run end in a typed error, and the data is not lost."""
+"""Faults before and during a run end in a typed error, and the data is not lost."""
 
 
 import numpy as np

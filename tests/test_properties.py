@@ -1,4 +1,4 @@
-"""Issue 8, property-based: every public kinematics and controller entry point returns a finite
+"""Property-based: every public kinematics and controller entry point returns a finite
 result or raises a typed StewartError, for any input (NaN, inf, huge, wrong shapes included).
 
 Reproducible (``derandomize=True``); >= 2000 examples in total, counted by ``test_zz_examples``.
@@ -102,7 +102,7 @@ def test_ik_and_reach_ratio(x):
     assert (theta is not None) == reachable
     if theta is not None:
         assert theta.shape == np.shape(x)
-    # issue 16: typed errors where a leg cannot close, never NaN
+    # typed errors where a leg cannot close, never NaN
     margins = _call(limits.limit_margins, GEOMETRY, x)
     measures = _call(kinematics.singularity_measures, GEOMETRY, x)
     assert (margins is not None) == (measures is not None) == reachable

@@ -1,4 +1,4 @@
-"""The fast paths of issue 6 agree with the slow ones: warm Riccati vs cold DARE, precomputed
+"""The fast paths agree with the slow ones: warm Riccati vs cold DARE, precomputed
 reference and feed-forward vs evaluating them on the spot."""
 
 import numpy as np

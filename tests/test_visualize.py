@@ -147,7 +147,7 @@ def test_record_states_refuses_states_of_another_shape():
 
 def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
         tmp_path, monkeypatch, feedforward_fault):
-    """Issue 16 items 5 and 6: the HTML replay advances through the guard, and the saved file
+    """The HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.scenario import (

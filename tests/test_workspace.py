@@ -65,7 +65,7 @@ def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, 
     unreachable = kinematics.singularity_measures_unchecked(geometry, beyond)
     assert np.isnan(unreachable[0]) and np.isnan(unreachable[1])
     with pytest.raises(UnreachablePoseError, match=r"\|L\|/sqrt\(M\^2\+N\^2\) = 1\.0"):
-        kinematics.singularity_measures(geometry, beyond)        # issue 16: typed, not NaN
+        kinematics.singularity_measures(geometry, beyond)        # typed, not NaN
 
 
 # --- limits ----------------------------------------------------------------------------------
@@ -111,7 +111,7 @@ def test_is_reachable_is_vectorized(geometry, random_poses):
 
 
 def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
-    """Issue 16: typed errors at the public entry point, NaN only in the sweeps' variant."""
+    """Typed errors at the public entry point, NaN only in the sweeps' variant."""
     far = [0, 0, 0, 0, 0, 0.60]
     with pytest.raises(UnreachablePoseError, match=r"leg \d cannot reach the pose \(pose .*0\.6\]\)"
                                                    r": \|L\|/sqrt\(M\^2\+N\^2\) = 2\.155 > 1"):
@@ -128,7 +128,7 @@ def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
 
 
 def test_the_reach_ratio_is_printed_as_its_absolute_value(geometry):
-    """Issue 16: a platform too low for its rods gives L < 0; the message said '= -1.006 > 1'."""
+    """A platform too low for its rods gives L < 0: the message prints |L| / sqrt(M^2 + N^2)."""
     x = np.array([0, 0, 0, 0, 0, 0.10])
     ratio = kinematics.leg_reach_ratio(geometry, x)
     assert np.all(ratio < -1)

@@ -77,6 +77,25 @@ def frame_indices(t: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return frame_times, idx
 
 
+def _mark_contacts(animation, frame: int, markers: list, shown: list, close: list) -> None:
+    """Frame ``frame`` of the animation: marker j between the closest points of the j-th
+    closest pair of ``close`` (red touching, orange near), hidden without one; ``shown`` keeps
+    what each marker shows (only changes are recorded)."""
+    from pydrake.math import RigidTransform
+
+    for j, (path, colours) in enumerate(markers):
+        contact = close[j] if j < len(close) else None
+        kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
+        if kind is not None:
+            animation.SetTransform(frame, path, RigidTransform(0.5 * (contact.p_WA
+                                                                      + contact.p_WB)))
+        if kind != shown[j]:
+            animation.SetProperty(frame, path, "visible", kind is not None)
+            if kind is not None:
+                animation.SetProperty(frame, path + "/<object>", "color", colours[kind])
+            shown[j] = kind
+
+
 def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
                   clearance_m: float = DEFAULT_MIN_CLEARANCE_M) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
@@ -102,8 +121,8 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
     Raises:
         InvalidConfigError: states do not fit the plant, or bad ``fps``.
     """
+    # Long for its docstring; the per-frame markers are _mark_contacts.
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
-    from pydrake.math import RigidTransform
     from pydrake.systems.framework import DiagramBuilder
 
     from ..model.clearance import clearance_model
@@ -139,18 +158,8 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
         context.SetTime((k + 0.25) / fps)
         plant.SetPositions(plant_context, states[i, :nq])
         diagram.ForcedPublish(context)
-        close = model.contacts(None, clearance_m, q=states[i, :nq])
-        for j, (path, colours) in enumerate(markers):
-            contact = close[j] if j < len(close) else None
-            kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
-            if kind is not None:
-                animation.SetTransform(k, path, RigidTransform(0.5 * (contact.p_WA
-                                                                      + contact.p_WB)))
-            if kind != shown[j]:
-                animation.SetProperty(k, path, "visible", kind is not None)
-                if kind is not None:
-                    animation.SetProperty(k, path + "/<object>", "color", colours[kind])
-                shown[j] = kind
+        _mark_contacts(animation, k, markers, shown,
+                       model.contacts(None, clearance_m, q=states[i, :nq]))
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)

@@ -436,20 +436,10 @@ def validate_trajectory(geometry: RobotGeometry, t, x,
         :func:`~stewart_drake.simulation.trajectories.validate` samples a trajectory object and
         calls it; every run does, before anything is simulated.
     """
-    t = as_array("sample times t", t).reshape(-1)
-    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
-        arr = None if arr is None else np.asarray(arr, dtype=float)
-        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
-            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
-            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
-    x = as_poses("poses x", x)
+    # Long for its docstring: the one validator of a reference documents every check and error.
+    t, x = _checked_samples(t, x, x_dot, x_ddot)
     cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
     min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
-    if x.shape != (t.size, 6) or t.size == 0:
-        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
-                                 f"t {t.shape} and x {x.shape}")
-    if np.any(np.diff(t) <= 0):
-        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
     theta, ratio = ik_unchecked(geometry, x)
     closed = np.abs(ratio) <= 1.0
     if raise_unreachable and not np.all(closed):
@@ -458,6 +448,50 @@ def validate_trajectory(geometry: RobotGeometry, t, x,
         raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
     margins = limit_margins_unchecked(geometry, x, theta, ratio)
     cond, inv = singularity_measures_unchecked(geometry, x, theta)
+    cond_f = np.where(np.isnan(cond), np.inf, cond)
+    inv_f = np.where(np.isnan(inv), 0.0, inv)
+    reachable = np.all(closed, axis=1)
+    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
+    extra = {"series": series}
+    if clearance is not None:
+        extra.update(_clearance_fields(clearance, t, x, reachable,
+                                       as_number("min_clearance_m", min_clearance_m, 0.0),
+                                       clearance_resolution_m, series))
+    if motor_limits is not None:
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
+                                    series))
+    report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
+    if raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
+    return report
+
+
+def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
+    """(t (n,), x (n, 6)) checked: finite (the first non-finite pose, rate or acceleration named
+    with its time), matching shapes, n > 0, t strictly increasing.
+
+    Raises:
+        InvalidConfigError: names what is wrong.
+    """
+    t = as_array("sample times t", t).reshape(-1)
+    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
+        arr = None if arr is None else np.asarray(arr, dtype=float)
+        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
+            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
+    x = as_poses("poses x", x)
+    if x.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+                                 f"t {t.shape} and x {x.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
+    return t, x
+
+
+def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float,
+            extra: dict) -> "TrajectoryReport":
+    """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
+    already mapped to the worst value), with the clearance and effort fields in ``extra``."""
     min_margin, min_leg, min_t = {}, {}, {}
     first = None
     for name in LIMITS:
@@ -470,22 +504,10 @@ def validate_trajectory(geometry: RobotGeometry, t, x,
             if first is None or t[kb] < first.t:
                 lb = int(np.argmin(m[kb]))
                 first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
-    cond_f = np.where(np.isnan(cond), np.inf, cond)
-    inv_f = np.where(np.isnan(inv), 0.0, inv)
     over = cond_f > cond_threshold
     weak = inv_f < min_sigma_min_inv
     kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
-    reachable = np.all(closed, axis=1)
-    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
-    extra = {"series": series}
-    if clearance is not None:
-        extra.update(_clearance_fields(clearance, t, x, reachable,
-                                       as_number("min_clearance_m", min_clearance_m, 0.0),
-                                       clearance_resolution_m, series))
-    if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
-                                    series))
-    report = TrajectoryReport(
+    return TrajectoryReport(
         ok=(first is None and not np.any(over) and not np.any(weak)
             and extra.get("first_interference") is None
             and extra.get("first_effort_violation") is None), min_margin=min_margin,
@@ -496,9 +518,6 @@ def validate_trajectory(geometry: RobotGeometry, t, x,
         min_sigma_min_inv_t=float(t[ki]),
         first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
         sigma_min_inv_threshold=float(min_sigma_min_inv), **extra)
-    if raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
-    return report
 
 
 def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float,
