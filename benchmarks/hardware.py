@@ -26,16 +26,14 @@ import numpy as np
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.fileio import atomic_write
 from stewart_drake.model import kinematics, statics
-from stewart_drake.model.kinematics import X_HOME
+from stewart_drake.model.kinematics import AXIS_NAMES, X_HOME
 from stewart_drake.model.servo import ServoModel
 from stewart_drake.simulation import diagram
-from stewart_drake.simulation.diagram import lqi_factory
 from stewart_drake.simulation.scenario import load_scenario
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import run_experiment
 
-AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 CLEAN = ["hardware.encoders.counts_per_rev=16777216", "hardware.computation_delay_periods=0",
          "hardware.motors.coulomb_friction_Nm=0", "hardware.motors.viscous_damping=0",
          "torque_limit_Nm=1000"]
@@ -71,7 +69,7 @@ def _lqi_reading_x(driver):
     """The LQI of ``driver`` without its own estimator: it reads ``x``, which the Diagram then
     takes from an FK estimator system (where :class:`_Late` can delay the rate)."""
     def make(context):
-        return lqi_factory(driver)(dataclasses.replace(context, pose_estimator=None))
+        return driver.make(dataclasses.replace(context, pose_estimator=None))
     return make
 
 
@@ -159,7 +157,7 @@ def render(rows, est, stick, duration_s, wall) -> str:
          f"## Paper manoeuvre, omega_Q = omega_R = 1 ({duration_s:g} s)", "",
          "RMS error over the second half of the run (urad, um), nRMS with the LQI's scales "
          "(1 mrad, 1 mm), peak torque (N m), Sum T^2 dt (N^2 m^2 s), saturated control steps.", "",
-         "| robot | " + " | ".join(AXES) + " | nRMS | peak T | Sum T^2 dt | saturated |",
+         "| robot | " + " | ".join(AXIS_NAMES) + " | nRMS | peak T | Sum T^2 dt | saturated |",
          "|---|" + "---|" * 10]
     ideal = None
     for label, m in rows:

@@ -31,7 +31,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from stewart_drake.studies.evaluation import CONTROLLERS, SCENARIO_DURATION_S, evaluate  # noqa
+from stewart_drake.studies.evaluation import evaluate  # noqa
+from stewart_drake.studies.evaluation_grid import CONTROLLERS, SCENARIO_DURATION_S  # noqa
 from stewart_drake.studies.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
 
 
@@ -203,7 +204,7 @@ def main() -> int:
     parts = set(args.parts.split(","))
     controllers = tuple(args.controllers.split(",")) if args.controllers else CONTROLLERS
     print(f"cpus {os.cpu_count()} load_average_start {os.getloadavg()[0]:.2f}", flush=True)
-    measured, overhead = None, {}
+    measured = None
     if "scaling" in parts or "projection" in parts:
         measured = scaling(controllers, tuple(args.runners.split(",")),
                            quiet_wait_s=args.wait_quiet, repeat=args.repeat)

@@ -6,9 +6,15 @@ simulation (trajectories, reference, guard, scenario, station, diagram) -> studi
 collection, training, evaluation, workspace, runners, store) -> interfaces (cli, visualize).
 """
 
-from .errors import (ForwardKinematicsError, InvalidConfigError, InvalidGeometryError,
-                     RiccatiSolveError, SimulationDivergedError, StewartError,
-                     UnreachablePoseError)
+from .errors import (
+    ForwardKinematicsError,
+    InvalidConfigError,
+    InvalidGeometryError,
+    RiccatiSolveError,
+    SimulationDivergedError,
+    StewartError,
+    UnreachablePoseError,
+)
 from .model.geometry import X_HOME, StewartGeometry, reference_geometry
 
 __all__ = [

@@ -314,7 +314,8 @@ class MissingExtraError(StewartError, ImportError):
 
 
 def _locate(error: StewartError, t: float | None, pose) -> str:
-    """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return " at t = ... (pose ...)"."""
+    """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return
+    " at t = ... (pose ...)"."""
     error.t = None if t is None else float(t)
     error.pose = None if pose is None else [float(v) for v in pose]
     where = "" if error.t is None else f" at t = {error.t:.4g} s"

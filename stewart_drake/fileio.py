@@ -30,7 +30,6 @@ import numpy as np
 from .checks import check_memory, format_bytes
 from .errors import CorruptFileError, InvalidConfigError
 
-
 #: The temporaries of :func:`atomic_write`: ``.<name>.<host>-<pid>.<random>.tmp``, hidden, named
 #: by the writer so that :func:`remove_stale_temporaries` can tell a dead writer's from a live one
 #: (``<random>``: the 8 characters of ``tempfile.mkstemp``).

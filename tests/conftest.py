@@ -6,7 +6,6 @@ import pytest
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
-
 #: torch is the [train] extra, a CPU wheel only for Python 3.11 here: tests that train skip
 #: without it (CI runs the suite on the newest Python without it).
 HAS_TORCH = importlib.util.find_spec("torch") is not None

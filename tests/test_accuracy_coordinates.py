@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from stewart_drake.model import ball_joints, limits
-from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.plant import assemble, make_plant
 from stewart_drake.simulation.trajectories import paper_manoeuvre

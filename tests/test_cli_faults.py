@@ -1,5 +1,5 @@
-"""Issue 8: bad CLI input ends in one line and a non-zero exit; outputs are written atomically.
-Issue 22: the command as a user runs it on hostile input (the section at the end)."""
+"""Bad CLI input ends in one line and a non-zero exit; outputs are written atomically; the
+command as a user runs it on hostile input (the section at the end)."""
 
 import hashlib
 import io
@@ -83,7 +83,8 @@ def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
     assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
 
 
-def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch, feedforward_fault):
+def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch,
+                                                              feedforward_fault):
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     line = _one_line_error(capsys, ["run", "--duration", "0.1", "--no-progress",
                                     "--out", str(tmp_path)])
@@ -97,7 +98,8 @@ def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, m
 
 
 def test_no_traceback_from_the_installed_command_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run", "--duration", "-3"],
+    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run",
+                           "--duration", "-3"],
                           cwd=REPO, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
@@ -160,7 +162,7 @@ def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
     assert out.read_text() == good
 
 
-# -- issue 16: every output path is checked before the work ----------------------------------------
+# -- every output path is checked before the work -------------------------------------------------
 
 @pytest.mark.parametrize("argv", [["run"], ["collect"], ["evaluate"], ["workspace"], ["train"],
                                   ["sdf"], ["mjcf"], ["diagrams"], ["scenario"]])
@@ -203,7 +205,8 @@ def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, 
     assert sorted(tmp_path.rglob("*")) == before                  # nothing written
 
 
-def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch, feedforward_fault):
+def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch,
+                                                                          feedforward_fault):
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.scenario import GuardConfig, Scenario
     from stewart_drake.studies.experiments import run_experiment
@@ -231,7 +234,7 @@ def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, f
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]   # nothing in the current folder
 
 
-# -- issue 16: sizes are bounded before anything is allocated -------------------------------------
+# -- sizes are bounded before anything is allocated ----------------------------------------------
 
 @pytest.mark.parametrize("argv, expected", [
     (["run", "--duration", "1e5"], "a run of 100000 s logged every 0.001 s: about 400 GB of "
@@ -274,7 +277,7 @@ def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch)
 
 
 def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, capsys):
-    """Issue 16: SIGTERM outside a study kills Python before atomic_write can clean up; the
+    """SIGTERM outside a study kills Python before atomic_write can clean up; the
     next command writing there removes what the dead writer left, and only that."""
     out = tmp_path / "sdf"
     writer = subprocess.Popen([sys.executable, "-c", (
@@ -291,7 +294,7 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
     assert len(left) == 1 and left[0].startswith(".robot.sdf.") and left[0].endswith(".tmp")
     live = out / f".robot.sdf.{left[0].split('.')[3].rsplit('-', 1)[0]}-{os.getpid()}.x1y2z3w4.tmp"
     live.write_bytes(b"another command writing here now")
-    # not the tool's own pattern, however old: a user's files (issue 22)
+    # not the tool's own pattern, however old: a user's files
     users = [out / ".a.npz.k2j3h4_a.tmp", out / ".notes.tmp"]
     for path in users:
         path.write_bytes(b"mine")
@@ -302,7 +305,7 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
 
 
 def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys):
-    """Issue 16: the summary printed 'gain re-schedules' (an LQI figure) for a PD run."""
+    """A PD run's summary gives the PD's status, not 'gain re-schedules' (an LQI figure)."""
     assert cli.main(["run", "--controller", "pd", "--duration", "0.1", "--no-progress",
                      "--out", str(tmp_path)]) == 0
     out = capsys.readouterr().out
@@ -310,7 +313,7 @@ def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys)
     assert "gain" not in out and "omega" not in out
 
 
-# -- issue 22: the command line as a user runs it -------------------------------------------------
+# -- the command line as a user runs it ----------------------------------------------------------
 #
 # Each case runs the installed command in a subprocess, in a "home" folder that holds files of the
 # user's (a FIFO, a character device where the machine allows one, an old hidden .tmp, a module
@@ -422,9 +425,8 @@ def _plugin(tmp_path) -> Path:
                           "from pathlib import Path\n"
                           "Path(__file__).with_name('PLUGIN_IMPORTED').write_text('yes')\n"
                           "def make(context, bandwidth_hz=20.0):\n"
-                          "    from stewart_drake.simulation.diagram import pd_factory\n"
                           "    from stewart_drake.simulation.scenario import PdDriver\n"
-                          "    return pd_factory(PdDriver(bandwidth_hz=bandwidth_hz))(context)\n")
+                          "    return PdDriver(bandwidth_hz=bandwidth_hz).make(context)\n")
 
 
 def test_an_installed_controller_runs_only_when_the_user_opts_in(home, tmp_path):

@@ -3,13 +3,13 @@
 import numpy as np
 import pytest
 
-from stewart_drake.model import statics
+from stewart_drake.errors import UnreachablePoseError
 from stewart_drake.interfaces.cli import main
+from stewart_drake.model import statics
 from stewart_drake.simulation.diagram import make_stewart_diagram
 from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.errors import UnreachablePoseError
+from stewart_drake.simulation.trajectories import SineTrajectory
 from stewart_drake.studies.experiments import load_result, run_experiment
-from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,6 @@ def test_paper_manoeuvre_meets_tracking_bounds(paper_run):
 
 
 def test_paper_run_torques_are_physical(paper_run, geometry):
-    from stewart_drake.model import kinematics
     # Mean torque over whole periods equals the holding torque at the mean pose within 25 %.
     t = paper_run.t
     m = (t >= 10 - 2 * np.pi) & (t < 10)

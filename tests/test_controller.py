@@ -7,7 +7,9 @@ from scipy.linalg import expm, solve_discrete_are
 from stewart_drake.control.lqi import (
     LqiController,
     LqiDiagram,
+    LqiDriver,
     LqiScales,
+    LqiScalesConfig,
     error_model,
     hautus_checks,
     input_matrix,
@@ -96,9 +98,9 @@ def test_failed_riccati_raises_typed_error(geometry):
 
 def test_bad_settings_are_refused(geometry):
     with pytest.raises(InvalidConfigError, match="multiple"):
-        LqiController(geometry, period_s=1e-3, schedule_period_s=2.5e-3)
-    with pytest.raises(InvalidConfigError, match="riccati"):
-        LqiController(geometry, riccati="magic")
+        LqiController(geometry, LqiDriver(schedule_period_s=2.5e-3), period_s=1e-3)
+    with pytest.raises(InvalidConfigError, match="driver.riccati must be one of"):
+        LqiController(geometry, LqiDriver(riccati="magic"))
     with pytest.raises(InvalidConfigError, match="omega_Q"):
         LqiController(geometry).gain(X_HOME, 0.0, 1.0)
     with pytest.raises(InvalidConfigError):
@@ -119,7 +121,8 @@ def _switch(mode):
     from pydrake.systems.analysis import Simulator
 
     geometry = StewartGeometry()
-    controller = LqiDiagram(geometry, period_s=H, schedule_period_s=1e-2, gain_transfer=mode)
+    controller = LqiDiagram(geometry, LqiDriver(schedule_period_s=1e-2, gain_transfer=mode),
+                            period_s=H)
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     x = X_HOME + np.array([1e-3, 0, 0, 0, 0, 1e-3])
@@ -160,7 +163,7 @@ def test_a_gain_switch_carries_over_what_its_mode_says(mode):
 
 def test_an_unknown_gain_transfer_is_refused():
     with pytest.raises(InvalidConfigError, match="gain_transfer must be one of"):
-        LqiController(StewartGeometry(), gain_transfer="smooth")
+        LqiController(StewartGeometry(), LqiDriver(gain_transfer="smooth"))
 
 
 def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
@@ -171,7 +174,8 @@ def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
     from stewart_drake.errors import NotStabilizableError
 
     with pytest.raises(NotStabilizableError, match=r"not detectable .* LqiScales") as info:
-        LqiController(StewartGeometry(), scales=LqiScales(integral=(1e100,) * 6))
+        LqiController(StewartGeometry(),
+                      LqiDriver(scales=LqiScalesConfig(integral=[1e100] * 6)))
     err = info.value
     assert err.detectable is False and err.stabilizable is True and err.rank_AC < err.n == 18
     assert err.pose == pytest.approx(list(X_HOME))

@@ -1,4 +1,4 @@
-"""Ray and Dask backends (issue 15) give exactly the local backend's results, on local clusters
+"""Ray and Dask backends give exactly the local backend's results, on local clusters
 of 2 CPUs started once per module; skipped only when their extra is not installed."""
 
 import json

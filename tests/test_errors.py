@@ -34,7 +34,8 @@ EXAMPLES = {
     errors.FolderInUseError: errors.FolderInUseError(
         "results/evaluation", "`evaluate` study, pid 4242 on host, since 2026-01-01 12:00:00"),
     errors.MissingFileError: errors.MissingFileError("no weights at w.npz"),
-    errors.MissingExtraError: errors.MissingExtraError("train needs torch: pip install stewart-drake[train]"),
+    errors.MissingExtraError: errors.MissingExtraError("train needs torch: pip install "
+                                                       "stewart-drake[train]"),
 }
 
 

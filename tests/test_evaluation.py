@@ -1,4 +1,4 @@
-"""Issue 6: baselines behind the same ports, robustness conditions, metrics and the report."""
+"""Baselines behind the same ports, robustness conditions, metrics and the report."""
 
 import json
 from pathlib import Path
@@ -6,15 +6,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stewart_drake.errors import InvalidConfigError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import NamedReference, PdDriver, Scenario, SensorNoise
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.studies.evaluation import (RATIO_LQI, ann_verdict, bandwidth_hz, cases,
-                                              controller_settings, frequency_response,
-                                              settling_time)
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.simulation.scenario import (
+    LqiDriver,
+    NamedReference,
+    PdDriver,
+    Scenario,
+    SensorNoise,
+)
 from stewart_drake.simulation.trajectories import ChirpTrajectory, StepTrajectory, make_trajectory
+from stewart_drake.studies.evaluation_grid import RATIO_LQI, cases, grid_controller
+from stewart_drake.studies.evaluation_report import ann_verdict
+from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.studies.metrics import bandwidth_hz, frequency_response, settling_time
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -34,9 +40,9 @@ def test_unknown_payload_sags_the_pd_but_not_the_lqi():
     """+20 % platform mass the feed-forward does not know: the PD (no integral) holds home with a
     steady sag close to the statics' prediction; the LQI's integral removes it."""
     from stewart_drake.control.pd import CrankPdController
-    from stewart_drake.model.statics import crank_inertia_matrix
     from stewart_drake.model import kinematics
     from stewart_drake.model.geometry import X_HOME, StewartGeometry
+    from stewart_drake.model.statics import crank_inertia_matrix
 
     g = StewartGeometry()
     cfg = dict(reference=NamedReference("home"), duration_s=1.5, payload_scale=1.2)
@@ -102,8 +108,8 @@ def test_settling_time_and_frequency_response_on_known_signals():
 
 
 def test_scenarios_are_reachable_and_named():
-    from stewart_drake.simulation.trajectories import validate
     from stewart_drake.model.geometry import StewartGeometry
+    from stewart_drake.simulation.trajectories import validate
 
     g = StewartGeometry()
     for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):
@@ -123,16 +129,24 @@ def test_grid_and_controller_names():
     # 10 nominal scenarios + 7 conditions (payload +-20 %, noise, saturation, 3 tool
     # disturbances) each, + 5 encoder resolutions for the 5 weight ratios (hardware base)
     assert len(grid) == 12 * (10 + 7) + 5 * 5
-    assert {c.condition for c in grid if c.scenario == "home" and c.condition != "nominal"} \
+    assert {c.condition for c in grid if c.reference == "home" and c.condition != "nominal"} \
         == {"push 5 N", "twist 0.2 N m", "contact 2 Hz"}
-    assert {c.controller for c in grid if c.condition.startswith("encoders")} == set(RATIO_LQI)
-    assert {(c.scenario, c.condition) for c in grid if c.condition.startswith("saturation")} \
+    assert {c.controller.name for c in grid if c.condition.startswith("encoders")} \
+        == set(RATIO_LQI)
+    assert {(c.reference, c.condition) for c in grid if c.condition.startswith("saturation")} \
         == {("step_Z", "saturation 0.6 N m")}
-    assert {c.controller for c in grid} >= {"lqi_0.1_10", "pd", "ann_best_cost", "ann_paper"}
-    lqi = controller_settings("lqi_10_0.1")["controller"]
-    assert (lqi.omega_Q, lqi.omega_R) == (10.0, 0.1)
+    assert {c.controller.name for c in grid} >= {"lqi_0.1_10", "pd", "ann_best_cost",
+                                                  "ann_paper"}
+    # typed: a fixed LQI keeps the base's LQI options at its weights; the ANN tunes the base's
+    base = Scenario(controller=LqiDriver(riccati="cold"))
+    lqi = grid_controller("lqi_10_0.1", base)
+    assert (lqi.controller.omega_Q, lqi.controller.omega_R, lqi.controller.riccati) == \
+        (10.0, 0.1, "cold") and lqi.ratio == 100.0 and lqi.tuner is None
+    ann = grid_controller("ann_paper", base)
+    assert ann.controller == base.controller and ann.tuner.weights.endswith("ann_tuner_paper.npz")
+    assert isinstance(grid_controller("pd", base).controller, PdDriver)
     with pytest.raises(InvalidConfigError, match="unknown controller"):
-        controller_settings("lqr")
+        grid_controller("lqr", Scenario())
 
 
 def test_verdict_compares_at_no_more_feedback_effort():

@@ -7,8 +7,8 @@ import pytest
 from stewart_drake.model import statics
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.simulation.scenario import NamedReference, Scenario, load_scenario
-from stewart_drake.studies.experiments import (_window_stats, _zoom_window, plot_fig7,
-                                               run_experiment)
+from stewart_drake.studies.experiments import plot_fig7, run_experiment
+from stewart_drake.studies.run_report import _window_stats, _zoom_window
 
 
 def test_the_zoom_holds_the_largest_error_where_the_reference_moves_past_it():

@@ -1,4 +1,4 @@
-"""Issue 16, item 1: a damaged file is one typed error naming the file, never a traceback.
+"""A damaged file is one typed error naming the file, never a traceback.
 
 Property-based over the loaders (bytes in, a valid object or a typed error out): the ANN and
 ratio tuner weights, a collect folder (manifest and run files), a scenario YAML, a run result.
@@ -21,8 +21,12 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from stewart_drake.control import tuner
-from stewart_drake.errors import (CorruptFileError, IncompleteResultsError, ResultsMismatchError,
-                                  StewartError)
+from stewart_drake.errors import (
+    CorruptFileError,
+    IncompleteResultsError,
+    ResultsMismatchError,
+    StewartError,
+)
 from stewart_drake.fileio import CheckedNpz
 from stewart_drake.simulation.scenario import Scenario, dump_scenario, load_scenario
 from stewart_drake.studies.collection import load_records

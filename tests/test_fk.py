@@ -2,14 +2,13 @@
 
 import numpy as np
 import pytest
+from conftest import random_reachable_poses
 from pydrake.math import RollPitchYaw
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import IpoptSolver, SolverOptions
 
-from conftest import random_reachable_poses
-from stewart_drake.model import kinematics
-from stewart_drake.model import limits
 from stewart_drake.errors import ForwardKinematicsError
+from stewart_drake.model import kinematics, limits
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.plant import make_plant
 

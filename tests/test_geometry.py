@@ -2,15 +2,19 @@ import numpy as np
 import pytest
 
 from stewart_drake.errors import InvalidGeometryError
-from stewart_drake.model.geometry import (TABLE_I_CRANK_INERTIA, StewartGeometry, nearest_valid_principal_moments)
+from stewart_drake.model.geometry import (
+    TABLE_I_CRANK_INERTIA,
+    StewartGeometry,
+    nearest_valid_principal_moments,
+)
 
 
 def test_default_is_reference_geometry(geometry):
     np.testing.assert_allclose(geometry.pivot_angles_deg, [-10, 10, 110, 130, 230, 250])
     np.testing.assert_allclose(geometry.platform_angles_deg, [-55, 55, 65, 175, 185, 295])
     np.testing.assert_allclose(geometry.crank_angles_deg, [-90, 90, 30, 210, 150, 330])
-    np.testing.assert_allclose(geometry.P_B[1], 0.2 * np.array([np.cos(np.pi / 18),
-                                                                np.sin(np.pi / 18), 0]) + [0, 0, -0.07])
+    np.testing.assert_allclose(geometry.P_B[1], 0.2 * np.array(
+        [np.cos(np.pi / 18), np.sin(np.pi / 18), 0]) + [0, 0, -0.07])
     np.testing.assert_allclose(geometry.u_B, np.cross(geometry.d_B, [0, 0, 1]))
     assert (geometry.crank_length, geometry.rod_length) == (0.11, 0.404)
 
@@ -37,3 +41,21 @@ def test_invalid_inertia_is_rejected_with_the_fix():
 def test_bad_geometry_raises(change):
     with pytest.raises(InvalidGeometryError):
         StewartGeometry(**change)
+
+
+def test_the_geometry_has_every_attribute_the_model_functions_read():
+    """kinematics, limits and statics annotate the robot with the structural type
+    RobotGeometry (they sit below the geometry): each of its attributes is a field of
+    StewartGeometry of the same kind, or one of its derived anchors."""
+    import functools
+    import typing
+
+    from stewart_drake.model.kinematics import RobotGeometry
+
+    assert isinstance(StewartGeometry(), RobotGeometry)
+    fields = typing.get_type_hints(StewartGeometry)
+    for name, kind in typing.get_type_hints(RobotGeometry).items():
+        if name in fields:
+            assert (typing.get_origin(fields[name]) or fields[name]) is kind, name
+        else:
+            assert isinstance(getattr(StewartGeometry, name), functools.cached_property), name

@@ -1,4 +1,4 @@
-"""Issue 8: faults before and during a run end in a typed error, and the data is not lost."""
+"""Faults before and during a run end in a typed error, and the data is not lost."""
 
 
 import numpy as np
@@ -214,7 +214,8 @@ def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
 def test_unreachable_reference_fails_before_any_simulation(tmp_path):
     too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 1.0))
     with pytest.raises(UnreachablePoseError) as info:
-        run_experiment(Scenario(duration_s=1.0, guard=GuardConfig(divergence_dir=str(tmp_path / "d"))),
+        run_experiment(Scenario(duration_s=1.0,
+                                guard=GuardConfig(divergence_dir=str(tmp_path / "d"))),
                        reference=too_high)
     assert 0.0 < info.value.t < 0.25 and info.value.ratio > 1
     assert not (tmp_path / "d").exists()

@@ -1,4 +1,4 @@
-"""Issue 13: the robot as built. Encoders quantize, FK estimates within the quantum, friction
+"""The robot as built. Encoders quantize, FK estimates within the quantum, friction
 holds what it should, the delay is exactly what the scenario says, and the LQI copes."""
 
 import numpy as np

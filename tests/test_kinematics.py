@@ -4,9 +4,8 @@ import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
 
-from stewart_drake.model import kinematics
-from stewart_drake.model import statics
 from stewart_drake.errors import UnreachablePoseError
+from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME
 
 

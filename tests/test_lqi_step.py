@@ -18,6 +18,7 @@ from stewart_drake.control import lqi_kernels, lqi_step
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.control.lqi import (
     LqiController,
+    LqiDriver,
     balance,
     body_constants,
     error_model,
@@ -27,7 +28,6 @@ from stewart_drake.control.lqi import (
 )
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.diagram import lqi_factory
 from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario
 from stewart_drake.studies.experiments import run_experiment
 
@@ -37,9 +37,10 @@ GEOMETRY = StewartGeometry()
 
 def _controller(estimator: bool, delay: int, limit, window, transfer="integral", governor=True):
     est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17) if estimator else None
-    return LqiController(GEOMETRY, period_s=1e-3, schedule_period_s=2e-2, torque_limit_Nm=limit,
-                         delay_periods=delay, estimator=est, feature_window=window,
-                         gain_transfer=transfer, reference_governor=governor, riccati="track")
+    driver = LqiDriver(schedule_period_s=2e-2, gain_transfer=transfer,
+                       reference_governor=governor, riccati="track")
+    return LqiController(GEOMETRY, driver, period_s=1e-3, torque_limit_Nm=limit,
+                         delay_periods=delay, estimator=est, feature_window=window)
 
 
 def _random_case(c: LqiController, rng):
@@ -188,7 +189,8 @@ def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
 
 
 def _metrics(scenario, compiled):
-    m = run_experiment(scenario, controller=lqi_factory(scenario.controller, compiled)).metrics
+    m = run_experiment(scenario, controller=lambda context: scenario.controller.make(
+        context, compiled)).metrics
     return {k: np.asarray(m[k], dtype=float) for k in ("rms_error", "peak_error", "peak_torque",
                                                         "sum_T2_dt", "max_closure_m")}
 

@@ -9,13 +9,13 @@ mujoco = pytest.importorskip(
     "mujoco", minversion="4.0",
     reason='MuJoCo >= 4.0 is an optional extra: pip install -e ".[mujoco]"')
 
-from stewart_drake.studies import accuracy
-from stewart_drake.model import mjcf  # noqa: E402
-from stewart_drake.studies.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
-from stewart_drake.interfaces.cli import main  # noqa: E402
 from stewart_drake.errors import InvalidConfigError  # noqa: E402
+from stewart_drake.interfaces.cli import main  # noqa: E402
+from stewart_drake.model import mjcf  # noqa: E402
 from stewart_drake.model.geometry import X_HOME  # noqa: E402
 from stewart_drake.model.plant import assemble, make_plant  # noqa: E402
+from stewart_drake.studies import accuracy
+from stewart_drake.studies.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
 
 BODIES = ["base"] + [f"{kind}_{i}" for i in range(6) for kind in ("crank", "rod")] + ["platform"]
 
@@ -165,6 +165,7 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
     agrees (both use GJK for some shape pairs: within 0.5 mm, most to 1e-6 m), and MuJoCo
     reports contacts exactly where Drake finds overlaps."""
     import mujoco
+
     from stewart_drake.model.clearance import ClearanceModel
     from stewart_drake.model.parts import robot_parts
 

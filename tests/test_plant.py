@@ -9,10 +9,17 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from stewart_drake.model import kinematics
-from stewart_drake.model import statics
 from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model.plant import (REFERENCE_SDF, add_stewart_plant, assemble, loop_closure_errors, make_plant, platform_pose, write_sdf)
+from stewart_drake.model import statics
+from stewart_drake.model.plant import (
+    REFERENCE_SDF,
+    add_stewart_plant,
+    assemble,
+    loop_closure_errors,
+    make_plant,
+    platform_pose,
+    write_sdf,
+)
 
 
 def test_committed_sdf_equals_generated():

@@ -1,4 +1,4 @@
-"""Issue 8, property-based: every public kinematics and controller entry point returns a finite
+"""Property-based: every public kinematics and controller entry point returns a finite
 result or raises a typed StewartError, for any input (NaN, inf, huge, wrong shapes included).
 
 Reproducible (``derandomize=True``); >= 2000 examples in total, counted by ``test_zz_examples``.
@@ -13,16 +13,21 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
-from stewart_drake.model import kinematics
-from stewart_drake.model import limits
-from stewart_drake.model import statics
-from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, hautus_checks, input_matrix, lqi_gain)
-from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
-from stewart_drake.errors import StewartError, UnreachablePoseError
 from stewart_drake.control.features import density_features
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.trajectories import SineTrajectory
+from stewart_drake.control.lqi import (
+    LqiController,
+    LqiScales,
+    error_model,
+    hautus_checks,
+    input_matrix,
+    lqi_gain,
+)
 from stewart_drake.control.tuner import TunerModel, load_tuner
+from stewart_drake.errors import StewartError, UnreachablePoseError
+from stewart_drake.model import kinematics, limits, statics
+from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
+from stewart_drake.simulation.trajectories import SineTrajectory
 
 GEOMETRY = StewartGeometry()
 EXAMPLES = Counter()
@@ -97,7 +102,7 @@ def test_ik_and_reach_ratio(x):
     assert (theta is not None) == reachable
     if theta is not None:
         assert theta.shape == np.shape(x)
-    # issue 16: typed errors where a leg cannot close, never NaN
+    # typed errors where a leg cannot close, never NaN
     margins = _call(limits.limit_margins, GEOMETRY, x)
     measures = _call(kinematics.singularity_measures, GEOMETRY, x)
     assert (margins is not None) == (measures is not None) == reachable

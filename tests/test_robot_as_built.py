@@ -10,22 +10,32 @@ from pydrake.geometry import Role
 from pydrake.multibody.plant import DiscreteContactApproximation
 from pydrake.trajectories import PiecewisePolynomial
 
-from stewart_drake.errors import (FeasibilityWarning, InterferenceError, MotorLimitError,
-                                  SimulationDivergedError)
+from stewart_drake.errors import (
+    FeasibilityWarning,
+    InterferenceError,
+    MotorLimitError,
+    SimulationDivergedError,
+)
 from stewart_drake.model import kinematics, statics
-from stewart_drake.model.clearance import (ClearanceModel, clearance_model, family,
-                                            sample_indices)
+from stewart_drake.model.clearance import ClearanceModel, clearance_model, family, sample_indices
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.model.plant import (assemble, assembled_positions,
-                                       closed_chain_inverse_dynamics, make_plant)
+from stewart_drake.model.plant import (
+    assemble,
+    assembled_positions,
+    closed_chain_inverse_dynamics,
+    make_plant,
+)
 from stewart_drake.simulation.guard import check_reference
-from stewart_drake.simulation.scenario import (SineReference, ToolDisturbance, load_scenario,
-                                               shipped_scenarios)
+from stewart_drake.simulation.scenario import (
+    SineReference,
+    ToolDisturbance,
+    load_scenario,
+    shipped_scenarios,
+)
 from stewart_drake.simulation.station import held_station, make_stewart_station
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
 from stewart_drake.studies.experiments import run_experiment
-
 
 # -- every scenario value reaches the plant ------------------------------------------------------
 

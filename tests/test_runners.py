@@ -15,8 +15,13 @@ import psutil
 import pytest
 
 from stewart_drake.errors import JointLimitError, SimulationDivergedError
-from stewart_drake.studies.runners import (Interrupted, JobFailure, ProcessRunner, SerialRunner,
-                                           make_runner)
+from stewart_drake.studies.runners import (
+    Interrupted,
+    JobFailure,
+    ProcessRunner,
+    SerialRunner,
+    make_runner,
+)
 
 REPO = Path(__file__).resolve().parent.parent
 

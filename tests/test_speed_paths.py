@@ -1,17 +1,23 @@
-"""The fast paths of issue 6 agree with the slow ones: warm Riccati vs cold DARE, precomputed
+"""The fast paths agree with the slow ones: warm Riccati vs cold DARE, precomputed
 reference and feed-forward vs evaluating them on the spot."""
 
 import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-from stewart_drake.model import kinematics
-from stewart_drake.model import statics
-from stewart_drake.control.lqi import (LqiController, LqiScales, error_model, input_matrix, lqi_gain, lqi_gain_warm)
+from stewart_drake.control.lqi import (
+    LqiController,
+    LqiScales,
+    error_model,
+    input_matrix,
+    lqi_gain,
+    lqi_gain_warm,
+)
 from stewart_drake.errors import RiccatiSolveError
+from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation.reference import add_reference_sources
 from stewart_drake.model.statics import feedforward_torques
+from stewart_drake.simulation.reference import add_reference_sources
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 
 H = 1e-3

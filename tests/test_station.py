@@ -1,4 +1,4 @@
-"""Issue 12: the open station. Scenarios round-trip through YAML, the station's ports mean what
+"""The open station. Scenarios round-trip through YAML, the station's ports mean what
 they say, a controller written here plugs into the Diagram by the contract, any reference works."""
 
 import pickle
@@ -129,6 +129,37 @@ def test_robot_mirrors_the_geometry_both_ways():
     assert robot.rod_length == 0.41 and isinstance(robot.pivot_angles_deg, list)
     assert robot.build() == g
     assert Scenario(robot=robot).geometry() == g
+
+
+@pytest.mark.parametrize("form, value, left_out", [
+    ("Robot", "StewartGeometry", ("motor_reflected_inertia",)),
+    ("Motors", "ServoModel", ()),
+    ("LqiScalesConfig", "LqiScales", ()),
+])
+def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, left_out):
+    """Robot, Motors and LqiScalesConfig are written out in source: the same fields in the same
+    order, a list of floats where the value type has a tuple, the same defaults."""
+    import dataclasses
+    import typing
+
+    from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
+    from stewart_drake.model.servo import ServoModel
+    from stewart_drake.simulation import scenario as sc
+
+    kinds = {"Robot": sc.Robot, "Motors": sc.Motors, "LqiScalesConfig": LqiScalesConfig,
+             "StewartGeometry": StewartGeometry, "ServoModel": ServoModel, "LqiScales": LqiScales}
+    form, value = kinds[form], kinds[value]
+    mine, theirs = typing.get_type_hints(form), typing.get_type_hints(value)
+    names = [f.name for f in dataclasses.fields(value) if f.name not in left_out]
+    assert [f.name for f in dataclasses.fields(form)] == names
+    default_form, default_value = form(), value()
+    for name in names:
+        tuple_field = theirs[name] is tuple or typing.get_origin(theirs[name]) is tuple
+        assert mine[name] == (typing.List[float] if tuple_field else theirs[name]), name
+        expected = getattr(default_value, name)
+        assert getattr(default_form, name) == (list(expected) if tuple_field else expected), name
+    built = default_form.build()
+    assert isinstance(built, value) and form.from_value(built) == default_form
 
 
 # -- the station ----------------------------------------------------------------------------------

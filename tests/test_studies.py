@@ -1,4 +1,4 @@
-"""Issue 15: studies that survive. Every finished result is on disk as it arrives, the same
+"""Studies that survive. Every finished result is on disk as it arrives, the same
 command resumes with only what is missing, a folder of other settings is refused by name,
 SIGTERM leaves no process behind, and kill -9 of a worker loses only its cases."""
 
@@ -191,7 +191,7 @@ def test_a_folder_of_another_command_or_an_older_layout_is_refused_by_name(tmp_p
         ResultStore(tmp_path / "c", "evaluate", {"quick": True}, pattern="rows/*.json")
     old = tmp_path / "old"
     old.mkdir()
-    (old / "manifest.json").write_text(json.dumps({"seed": 0, "runs": []}))  # before issue 15
+    (old / "manifest.json").write_text(json.dumps({"seed": 0, "runs": []}))  # an older format
     with pytest.raises(ResultsMismatchError, match="results of an older stewart-drake"):
         ResultStore(old, "collect", {"seed": 0}, pattern="run_*.npz")
     (tmp_path / "bare").mkdir()

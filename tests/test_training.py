@@ -6,9 +6,16 @@ import pytest
 
 torch = pytest.importorskip("torch", reason="needs torch (the [train] extra)")
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.studies.training import (Dataset, build_dataset, r2_scores, save_tuner, train, window_cost)
 from stewart_drake.control.tuner import load_tuner
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.studies.training import (
+    Dataset,
+    build_dataset,
+    r2_scores,
+    save_tuner,
+    train,
+    window_cost,
+)
 
 GRID = (0.1, 1.0, 10.0)
 

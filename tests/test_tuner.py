@@ -4,13 +4,14 @@ in [0.1, 10] and never NaN."""
 import numpy as np
 import pytest
 from conftest import needs_torch
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control import tuner as tuner_module
-from stewart_drake.errors import InvalidConfigError
 from stewart_drake.control.tuner import AnnTuner, TunerModel, load_tuner, save_tuner
+from stewart_drake.errors import InvalidConfigError
 
 
 def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:

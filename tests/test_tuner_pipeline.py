@@ -3,17 +3,15 @@
 import json
 
 import numpy as np
-import pytest
 
-from stewart_drake.simulation.scenario import AnnTunerDriver, Scenario
-from stewart_drake.studies.runners import SerialRunner
-from stewart_drake.simulation.scenario import load_scenario
+from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
+from stewart_drake.model.geometry import StewartGeometry
+from stewart_drake.simulation.scenario import AnnTunerDriver, Scenario, load_scenario
+from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
 from stewart_drake.studies.collection import collect, load_records
 from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.model.geometry import StewartGeometry
+from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.training import build_dataset
-from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
-from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 
 
 def test_data_trajectory_is_deterministic_reachable_and_in_band():

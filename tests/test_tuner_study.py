@@ -1,4 +1,4 @@
-"""Issue 14: the tuner study's pieces (tasks, cost, hindsight, our tuner, verdict) and a small
+"""The tuner study's pieces (tasks, cost, hindsight, our tuner, verdict) and a small
 study end to end, resumed."""
 
 import json
@@ -7,16 +7,22 @@ import numpy as np
 import pytest
 from conftest import needs_torch
 
-from stewart_drake.control.tuner import (N_RATIO_INPUTS, RatioTunerModel, load_ratio_tuner,
-                                         ratio_tuner_inputs, save_ratio_tuner)
+from stewart_drake.control.tuner import (
+    N_RATIO_INPUTS,
+    RatioTunerModel,
+    load_ratio_tuner,
+    ratio_tuner_inputs,
+    save_ratio_tuner,
+)
 from stewart_drake.errors import InvalidConfigError, MissingFileError
 from stewart_drake.model import limits, statics
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.simulation.scenario import RatioTunerDriver, Scenario, WeightSchedule
 from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 from stewart_drake.studies import tuner_study as ts
+from stewart_drake.studies.metrics import window_means
 from stewart_drake.studies.runners import SerialRunner
-
+from stewart_drake.studies.tuner_report import plot_tuner_tradeoff, render_tuner_markdown
 
 # -- tasks -----------------------------------------------------------------------------------------
 
@@ -78,7 +84,7 @@ def test_bad_task_requests_are_refused_by_name():
 def test_window_means_average_each_window():
     t = np.arange(0.0, 1.0, 1e-3)
     values = np.floor(t / 0.2 + 1e-9)       # 0, 1, 2, 3, 4 per window (t = 0.6 is in the 4th)
-    np.testing.assert_allclose(ts.window_means(t, values, 1.0), [0, 1, 2, 3, 4])
+    np.testing.assert_allclose(window_means(t, values, 1.0, ts.WINDOW_S), [0, 1, 2, 3, 4])
 
 
 def _records(costs_e, costs_u):
@@ -103,15 +109,17 @@ def test_hindsight_picks_the_best_ratio_of_each_window_and_skips_lost_runs():
 def test_verdict_is_the_paired_difference_to_the_best_fixed_ratio_of_each_task():
     tasks = [("dash_hold", 100 + k) for k in range(5)]
     records = {}
+    Arm = ts.StudyArm
     for k, task in enumerate(tasks):
-        fixed = {f"fixed {r:.3g}": {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
+        fixed = {Arm("fixed", ratio=r): {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
                  for r in ts.RATIOS}
         best = min(v["e2"] for v in fixed.values())
-        records[task] = {**fixed, "ours 0.1": {"e2": 0.7 * best, "u2": 0.0},
-                         "hindsight 0.1": {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
-                         "paper tuner": {"e2": np.inf, "u2": np.inf}}
+        records[task] = {**fixed, Arm("ours", lam=0.1): {"e2": 0.7 * best, "u2": 0.0},
+                         Arm("hindsight", lam=0.1): {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
+                         Arm("paper tuner"): {"e2": np.inf, "u2": np.inf}}
     v = ts.verdict(records, tasks, 0.1)
     ours, head = v["controllers"]["ours 0.1"], v["controllers"]["hindsight 0.1"]
+    assert ours["arm"] == {"kind": "ours", "ratio": None, "lam": 0.1, "shift": None}
     assert ours["mean"] == pytest.approx(-0.3) and ours["std"] == pytest.approx(0.0, abs=1e-12)
     assert ours["beats"]                        # 30 % below, beyond a zero spread
     assert head["mean"] == pytest.approx(-0.06) and not head["beats"]      # not 15 %
@@ -218,17 +226,20 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     monkeypatch.setattr(ts, "study_job", lambda job: pytest.fail("ran again"))
     again = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
     assert again["verdicts"] == summary["verdicts"]
-    md = ts.render_tuner_markdown(again)
+    md = render_tuner_markdown(again)
     assert "QUICK mode" in md and "| ours |" in md and "**Verdict**" in md
     assert "| ours closed-loop (shift " in md and "| fixed chosen (" in md
-    assert ts.plot_tuner_tradeoff(again, tmp_path / "t.png").stat().st_size > 10_000
+    assert plot_tuner_tradeoff(again, tmp_path / "t.png").stat().st_size > 10_000
 
 
 # -- the shipped tuners ----------------------------------------------------------------------------
 
 def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
-    from stewart_drake.control.tuner import (DEFAULT_RATIO_TUNER_PATH, RATIO_TUNER_LAMBDAS,
-                                             ratio_tuner_path)
+    from stewart_drake.control.tuner import (
+        DEFAULT_RATIO_TUNER_PATH,
+        RATIO_TUNER_LAMBDAS,
+        ratio_tuner_path,
+    )
 
     assert DEFAULT_RATIO_TUNER_PATH == ratio_tuner_path(0.1)
     for lam in RATIO_TUNER_LAMBDAS:

@@ -1,4 +1,4 @@
-"""Issue 22: nothing runs that the user did not ask for, nothing of theirs is lost, nothing hangs.
+"""Nothing runs that the user did not ask for, nothing of theirs is lost, nothing hangs.
 
 One test (or a parametrized family) per case of the issue, in the library; the same cases as a
 user meets them at the command line are in tests/test_cli_faults.py.
@@ -25,11 +25,20 @@ from conftest import install_plugin
 
 from stewart_drake.control import contract, tuner
 from stewart_drake.errors import CorruptFileError, FolderInUseError, InvalidConfigError
-from stewart_drake.fileio import (atomic_write, check_replaceable, read_checked,
-                                  remove_stale_temporaries)
+from stewart_drake.fileio import (
+    atomic_write,
+    check_replaceable,
+    read_checked,
+    remove_stale_temporaries,
+)
 from stewart_drake.interfaces import cli
-from stewart_drake.simulation.scenario import (MAX_SCENARIO_BYTES, Scenario, UserController,
-                                               apply_override, load_scenario)
+from stewart_drake.simulation.scenario import (
+    MAX_SCENARIO_BYTES,
+    Scenario,
+    UserController,
+    apply_override,
+    load_scenario,
+)
 from stewart_drake.simulation.trajectories import load_csv_trajectory
 
 REPO = Path(__file__).resolve().parent.parent
@@ -379,16 +388,17 @@ def _store(tmp_path, study="evaluate"):
 
 
 def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
-    from stewart_drake.studies.evaluation import Case, case_id, load_row
+    from stewart_drake.studies.evaluation import load_row
+    from stewart_drake.studies.evaluation_grid import case_id, make_case
 
     store = _store(tmp_path)
-    case = Case("pd", "step_Z", duration_s=2.5)
+    case = make_case("pd", "step_Z", duration_s=2.5)
     for value, problem in (({}, "the entry 'case' is missing"),
                            ([], "a JSON list, not an object"),
-                           ({"case": {**Case("pd", "step_Z").__dict__, "duration_s": 2.5}},
+                           ({"case": {**make_case("pd", "step_Z").record(), "duration_s": 2.5}},
                             "the entry 'rms_error' is missing or not 6 numbers"),
-                           ({"case": Case("pd", "step_Z", duration_s=2.5).__dict__,
-                             "error": 3}, "the entry 'error' must be a string")):
+                           ({"case": case.record(), "error": 3},
+                            "the entry 'error' must be a string")):
         store.put_json(case_id(case), f"rows/{case_id(case)}.json", value)
         with pytest.raises(CorruptFileError, match=re.escape(problem)) as info:
             load_row(store, case_id(case), case)
@@ -402,16 +412,17 @@ def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
 def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
     """Case 9: the entry of A names B's row; with B's entry kept (two jobs, one file) the
     manifest is refused; with B's entry gone, the row says it is B's."""
-    from stewart_drake.studies.evaluation import Case, case_id, load_row
+    from stewart_drake.studies.evaluation import load_row
+    from stewart_drake.studies.evaluation_grid import case_id, make_case
     from stewart_drake.studies.store import MANIFEST, read_manifest
 
     store = _store(tmp_path)
-    a, b = Case("pd", "helix", duration_s=4.0), Case("lqi_1_1", "helix", duration_s=4.0)
+    a, b = make_case("pd", "helix", duration_s=4.0), make_case("lqi_1_1", "helix", duration_s=4.0)
     row = {"rms_error": [0.0] * 6, "peak_error": [0.0] * 6, "peak_torque": [0.1] * 6,
            "sum_T2_dt": 1.0, "normalized_rms": 0.1, "sum_dT2_dt": 0.1, "max_closure_m": 1e-7}
     for case in (a, b):
         store.put_json(case_id(case), f"rows/{case_id(case)}.json",
-                       {"case": case.__dict__, **row})
+                       {"case": case.record(), **row})
     assert load_row(store, case_id(a), a)["case"]["controller"] == "pd"
     store.close()
     path = tmp_path / "out" / MANIFEST

@@ -1,4 +1,4 @@
-"""Issue 8: bad settings are refused by name; a failed gain solve never yields a NaN gain."""
+"""Bad settings are refused by name; a failed gain solve never yields a NaN gain."""
 
 import numpy as np
 import pytest
@@ -128,7 +128,7 @@ def test_bad_geometry_is_refused_by_name(fields, message):
 def _controller_alone(omega, duration_s=0.05):
     """An LQI (its Diagram with the contract's ports) simulated alone at home, x = x_d, with
     ``omega`` on its port."""
-    controller = LqiDiagram(StewartGeometry(), period_s=1e-3, schedule_period_s=1e-2)
+    controller = LqiDiagram(StewartGeometry(), LqiDriver(schedule_period_s=1e-2), period_s=1e-3)
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     controller.get_x_input_port().FixValue(context, np.concatenate([X_HOME, np.zeros(6)]))

@@ -145,9 +145,9 @@ def test_record_states_refuses_states_of_another_shape():
                                 np.zeros((3, 5)))
 
 
-def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(tmp_path,
-                                                                            monkeypatch, feedforward_fault):
-    """Issue 16 items 5 and 6: the HTML replay advances through the guard, and the saved file
+def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
+        tmp_path, monkeypatch, feedforward_fault):
+    """The HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.scenario import (
@@ -174,7 +174,8 @@ def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(tmp_
 
 def test_committed_diagram_pictures_are_current():
     dots = visualize.diagram_dots()
-    assert {"control_loop", "diagram_fixed", "diagram_ann", "station", "lqi_controller"} <= set(dots)
+    assert {"control_loop", "diagram_fixed", "diagram_ann", "station",
+            "lqi_controller"} <= set(dots)
     for name, dot in dots.items():
         dot_path = DIAGRAMS / f"{name}.dot"
         svg_path = dot_path.with_suffix(".svg")

@@ -4,19 +4,17 @@ import csv
 
 import numpy as np
 import pytest
-from pydrake.multibody.tree import JacobianWrtVariable
-
 from conftest import random_reachable_poses
-from stewart_drake.model import kinematics
-from stewart_drake.model import limits
-from stewart_drake.model import statics
-from stewart_drake.simulation import trajectories
-from stewart_drake.studies import workspace
+from pydrake.multibody.tree import JacobianWrtVariable
+from test_plant import _hold
+
 from stewart_drake import errors
 from stewart_drake.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
+from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.plant import assemble, make_plant
-from test_plant import _hold
+from stewart_drake.simulation import trajectories
+from stewart_drake.studies import workspace
 
 
 def _paper(n=4001, duration=10.0, scale=1.0):
@@ -67,7 +65,7 @@ def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, 
     unreachable = kinematics.singularity_measures_unchecked(geometry, beyond)
     assert np.isnan(unreachable[0]) and np.isnan(unreachable[1])
     with pytest.raises(UnreachablePoseError, match=r"\|L\|/sqrt\(M\^2\+N\^2\) = 1\.0"):
-        kinematics.singularity_measures(geometry, beyond)        # issue 16: typed, not NaN
+        kinematics.singularity_measures(geometry, beyond)        # typed, not NaN
 
 
 # --- limits ----------------------------------------------------------------------------------
@@ -113,7 +111,7 @@ def test_is_reachable_is_vectorized(geometry, random_poses):
 
 
 def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
-    """Issue 16: typed errors at the public entry point, NaN only in the sweeps' variant."""
+    """Typed errors at the public entry point, NaN only in the sweeps' variant."""
     far = [0, 0, 0, 0, 0, 0.60]
     with pytest.raises(UnreachablePoseError, match=r"leg \d cannot reach the pose \(pose .*0\.6\]\)"
                                                    r": \|L\|/sqrt\(M\^2\+N\^2\) = 2\.155 > 1"):
@@ -130,7 +128,7 @@ def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
 
 
 def test_the_reach_ratio_is_printed_as_its_absolute_value(geometry):
-    """Issue 16: a platform too low for its rods gives L < 0; the message said '= -1.006 > 1'."""
+    """A platform too low for its rods gives L < 0: the message prints |L| / sqrt(M^2 + N^2)."""
     x = np.array([0, 0, 0, 0, 0, 0.10])
     ratio = kinematics.leg_reach_ratio(geometry, x)
     assert np.all(ratio < -1)
@@ -258,7 +256,8 @@ def test_reachable_volume_agrees_with_monte_carlo(geometry):
 def test_max_tilt_is_reachable_in_every_direction_and_not_beyond(geometry):
     heights, tilts = np.array([0.26, 0.30, 0.36]), np.deg2rad(np.arange(0, 61, 1.0))
     grid = workspace.tilt_grid(heights, tilts, n_azimuth=36)
-    every, some = workspace.max_tilt_vs_height(tilts, workspace.classify(geometry, grid)["reachable"])
+    reachable = workspace.classify(geometry, grid)["reachable"]
+    every, some = workspace.max_tilt_vs_height(tilts, reachable)
     assert np.all(some >= every) and np.rad2deg(every[1]) == pytest.approx(37.5, abs=1.5)
     for h, alpha in enumerate(every):
         k = int(round(np.rad2deg(alpha)))

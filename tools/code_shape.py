@@ -1,9 +1,9 @@
 """The shape of the code: the longest functions, and the places that dispatch on a driver type.
 
 Prints the N longest functions and methods of ``stewart_drake/`` (lines from ``def`` to the last
-line of the body, docstring included) and every ``isinstance`` test against a scenario choice
-(controller drivers, tuners, references), by file and function: the figures a refactor of the
-package is measured by.
+line of the body, docstring included, and the same without the docstring) and every
+``isinstance`` test against a scenario choice (controller drivers, tuners, references), by file
+and function: the figures a refactor of the package is measured by.
 
 Usage: python tools/code_shape.py [--top 10] [--package stewart_drake]
 """
@@ -20,7 +20,8 @@ CHOICES = {"LqiDriver", "PdDriver", "UserController", "AnnTunerDriver", "RatioTu
 
 
 def functions(root: Path):
-    """(lines, "file:qualified.name") of every function under ``root``."""
+    """(lines, "file:qualified.name", code lines) of every function under ``root``: lines from
+    ``def`` to the end of the body, and the same without the docstring."""
     out = []
     for path in sorted(root.rglob("*.py")):
         tree = ast.parse(path.read_text())
@@ -29,8 +30,12 @@ def functions(root: Path):
             for child in ast.iter_child_nodes(node):
                 if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                     name = f"{prefix}{child.name}"
-                    out.append((child.end_lineno - child.lineno + 1,
-                                f"{path.relative_to(root.parent)}:{name}"))
+                    lines = child.end_lineno - child.lineno + 1
+                    first = child.body[0]
+                    doc = (first.end_lineno - first.lineno + 1
+                           if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
+                           and isinstance(first.value.value, str) else 0)
+                    out.append((lines, f"{path.relative_to(root.parent)}:{name}", lines - doc))
                     visit(child, name + ".")
                 elif isinstance(child, ast.ClassDef):
                     visit(child, f"{prefix}{child.name}.")
@@ -64,9 +69,9 @@ def main():
                                                  / "stewart_drake"))
     args = parser.parse_args()
     root = Path(args.package)
-    print(f"longest {args.top} functions (lines):")
-    for lines, name in functions(root)[:args.top]:
-        print(f"  {lines:4d}  {name}")
+    print(f"longest {args.top} functions (lines; without the docstring):")
+    for lines, name, code in functions(root)[:args.top]:
+        print(f"  {lines:4d}  {code:4d}  {name}")
     found = dispatches(root)
     print(f"isinstance dispatches on a scenario choice: {len(found)}")
     for place in found:

@@ -1,6 +1,6 @@
 """Load a Meshcat replay in a real (headless) browser and save what it shows as a PNG.
 
-    python tools/screenshot_replay.py                        # 10 s paper run -> docs/replay_screenshot.png
+    python tools/screenshot_replay.py           # 10 s paper run -> docs/replay_screenshot.png
     python tools/screenshot_replay.py --html results/replay.html --out shot.png
 
 Needs Chromium (Debian: `apt install chromium`); WebGL runs on the SwiftShader software
@@ -40,7 +40,8 @@ def screenshot(html: str | Path, png: str | Path, size=(1280, 800), budget_ms: i
     exe = chromium or find_chromium()
     if exe is None:
         raise RenderToolMissingError(
-            "no Chromium on PATH: install it (Debian: `apt install chromium`) to screenshot a replay")
+            "no Chromium on PATH: install it (Debian: `apt install chromium`) to screenshot a "
+            "replay")
     png = Path(png).resolve()
     png.parent.mkdir(parents=True, exist_ok=True)
     png.unlink(missing_ok=True)

@@ -2,9 +2,10 @@
 
 A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the ports, as
 :class:`~stewart_drake.control.lqi.LqiDiagram` does) made by a **factory**
-``factory(context) -> System`` that receives a :class:`ControllerContext`. :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`
-connects its ports **by name**; only ``x_d`` and ``T`` are required, every other port is
-connected when the controller declares it.
+``factory(context) -> System`` that receives a :class:`ControllerContext`.
+:func:`~stewart_drake.simulation.diagram.make_stewart_diagram` connects its ports **by name**;
+only ``x_d`` and ``T`` are required, every other port is connected when the controller declares
+it.
 
 Input ports (all vectors; SI units)
 
@@ -62,14 +63,13 @@ name resolves only to a factory that Python code the user runs gave to
 (:func:`resolve_controller`).
 """
 
-from __future__ import annotations
-
-from dataclasses import dataclass
-from typing import Callable
+from dataclasses import dataclass, field
+from typing import Callable, ClassVar, Dict, Optional
 
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
 
+from ..checks import as_number
 from ..errors import InvalidConfigError
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
@@ -121,6 +121,55 @@ class ControllerContext:
     feature_window: int | None = None
 
 
+class ControllerDriver:
+    """Base of a scenario's controller choices (:class:`~.lqi.LqiDriver`, :class:`~.pd.PdDriver`,
+    :class:`UserController`): each is a dataclass that checks its own options
+    (``validate``) and builds its controller (``make``), the one place it does. A new controller
+    is one such class in the scenario's ``controller`` union.
+    """
+
+    #: Whether the controller has the ``omega`` input a tuner drives (None: known once built).
+    takes_omega: ClassVar[Optional[bool]] = None
+    #: How a run's result files mark the controller (``run_<reference>...<suffix>``).
+    run_suffix: ClassVar[str] = ""
+
+    def validate(self, control_period_s: float, delay_periods: int = 0,
+                 prefix: str = "controller."):
+        """Check the options for a controller of period ``control_period_s`` (s) on a robot with
+        ``delay_periods`` of computation delay; returns self.
+
+        Raises:
+            InvalidConfigError: names the option (``prefix`` + its name).
+        """
+        raise NotImplementedError
+
+    def make(self, context: ControllerContext):
+        """The controller system for the Diagram that ``context`` describes (the contract)."""
+        raise NotImplementedError
+
+    def resolve(self) -> Callable:
+        """The factory ``f(ControllerContext) -> System`` of this choice, resolved now (a name
+        that is not registered is refused here)."""
+        return self.make
+
+    def omega(self) -> tuple:
+        """(omega_Q, omega_R): the constant on an ``omega`` input when no tuner drives it."""
+        return (1.0, 1.0)
+
+    def with_weights(self, **weights) -> "ControllerDriver":
+        """A copy with constant weights ``omega_Q``, ``omega_R`` (the LQI's).
+
+        Raises:
+            InvalidConfigError: the controller has no such weights.
+        """
+        raise InvalidConfigError(f"omega_Q and omega_R are weights of the LQI controller; the "
+                                 f"controller is a {type(self).__name__}")
+
+    def summary(self) -> dict:
+        """Settings a run's results carry besides the controller's name (plain JSON values)."""
+        return {}
+
+
 #: Factories registered by name (:func:`register_controller`).
 CONTROLLER_REGISTRY: dict[str, Callable[..., LeafSystem]] = {}
 #: Entry-point group of installed controller factories (``name = "package.module:factory"``);
@@ -162,6 +211,39 @@ def resolve_controller(name: str) -> Callable[..., LeafSystem]:
         f"{_registered()}): call register_controller({name!r}, factory) in the Python code "
         f"that runs the scenario, or install the factory as an entry point of the group "
         f"{ENTRY_POINT_GROUP!r} and opt into it with --plugin NAME")
+
+
+@dataclass
+class UserController(ControllerDriver):
+    """A controller of the user's as a scenario's controller (``controller: !UserController``):
+    ``factory`` names a callable ``factory(context, **parameters) -> LeafSystem`` following this
+    contract that Python code the user ran registered (:func:`register_controller`), or an
+    installed entry point the user opted into (:func:`use_entry_point_controllers`, ``--plugin
+    NAME``). Loading the scenario imports and calls nothing: an unknown name is refused when the
+    run is built (:meth:`resolve`), listing the registered ones.
+
+    Attributes:
+        factory: the registered name. parameters: keyword arguments of the factory (numbers).
+    """
+
+    factory: str = ""
+    parameters: Dict[str, float] = field(default_factory=dict)
+
+    def validate(self, control_period_s: float, delay_periods: int = 0,
+                 prefix: str = "controller.") -> "UserController":
+        if not isinstance(self.factory, str) or not self.factory:
+            raise InvalidConfigError(f"{prefix}factory must name a registered controller "
+                                     f"(register_controller, or --plugin NAME)")
+        for key, value in self.parameters.items():
+            as_number(f"{prefix}parameters.{key}", value)
+        return self
+
+    def resolve(self) -> Callable:
+        registered = resolve_controller(self.factory)
+        return lambda context: registered(context, **self.parameters)
+
+    def make(self, context: ControllerContext):
+        return self.resolve()(context)
 
 
 def use_entry_point_controllers(names) -> list[str]:

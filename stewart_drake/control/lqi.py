@@ -23,17 +23,17 @@ Q = omega_Q diag(1/s_e^2, 1/s_v^2, 1/s_z^2), R = omega_R diag(1/s_T^2), with the
 then span soft to stiff controllers that all hold the platform.
 """
 
-from __future__ import annotations
-
+import dataclasses
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import ClassVar, List
 
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, Multiplexer
 
-from ..checks import as_array, as_number
+from ..checks import as_array, as_number, check_multiple
 from ..errors import (
     InvalidConfigError,
     NotStabilizableError,
@@ -42,10 +42,11 @@ from ..errors import (
     SingularPoseError,
     UnreachablePoseError,
 )
+from ..mirrors import ValueMirror
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
 from . import lqi_step
-from .contract import LQI_STATUS_NAMES
+from .contract import LQI_STATUS_NAMES, ControllerContext, ControllerDriver
 from .lqi_step import LqiStatus
 
 N_E = 18        # error-model states [e_x, e_x_dot, z]
@@ -54,17 +55,18 @@ RICCATI_MODES = ("warm", "track", "cold")
 GAIN_TRANSFER_MODES = ("integral", "feedback", "none")
 #: The reference governor takes over when the reference's feed-forward exceeds this fraction of
 #: the torque limit, and keeps the holding torques of the pose it follows within it. The rest of
-#: the limit is the headroom of a motor at its bound for feedback: it must exceed the motor's
-#: Coulomb friction (0.018 N m on paper_hardware) for the motor to lift its crank back. At
-#: 0.35 N m (headroom 0.035 N m) the paper manoeuvre completes in every run of a 12-run
-#: perturbation set (tests/test_hardware.py) at 0.85 (8.8 mrad | 29.5 mm from the reference at
-#: most: the platform follows the governed pose closely, which strays further), 0.9 (25.5 mrad |
-#: 21.4 mm) and 0.92; at 0.95 (0.0175 N m, below the friction) it loses the platform in 1 and
-#: strays up to 0.13 rad | 0.0498 m in the others. Ours: the paper has no torque limit.
+#: the limit is the headroom a motor at its bound keeps for feedback: it must exceed the motor's
+#: Coulomb friction (0.018 N m on paper_hardware) for the motor to lift its crank back
+#: (docs/hardware.md measures margins from 0.85 to 0.95). Ours: the paper has no torque limit.
 GOVERNOR_MARGIN = 0.9
 #: Relative size of the last term at which the Stein series of :func:`lqi_gain_warm` stops.
 STEIN_TOL = 1e-16
-OMEGA_MIN, OMEGA_MAX = 1e-3, 1e3
+#: The weights omega_Q, omega_R the LQI accepts (eq. 27; only their ratio sets the gain).
+LQI_OMEGA_MIN, LQI_OMEGA_MAX = 1e-3, 1e3
+#: Largest computation delay the LQI compensates, control periods: its model has 6 (3 + d)
+#: states, and a run's cost grows about as their cube (0.26x real time at 20, 0.02x at 40 on
+#: one core of the reference machine).
+MAX_COMPENSATED_DELAY = 20
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,133 @@ class LqiScales:
     def R_unit(self) -> np.ndarray:
         """(6, 6) torque weight at omega_R = 1."""
         return np.eye(6) / self.torque**2
+
+
+@dataclass
+class LqiScalesConfig(ValueMirror):
+    """The YAML form of :class:`LqiScales` (a scenario's ``controller.scales``): the same fields,
+    units and defaults, lists for its tuples; :meth:`build` gives the :class:`LqiScales`."""
+
+    value_class = LqiScales
+
+    pose: List[float] = field(default_factory=lambda: list(LqiScales.pose))
+    rate: List[float] = field(default_factory=lambda: list(LqiScales.rate))
+    integral: List[float] = field(default_factory=lambda: list(LqiScales.integral))
+    torque: float = LqiScales.torque
+
+
+@dataclass
+class LqiDriver(ControllerDriver):
+    """The LQI of paper section III as a scenario's controller (``controller: !LqiDriver``):
+    its options, checked (:meth:`validate`) and built (:meth:`make`) here, the one place.
+
+    Attributes:
+        omega_Q, omega_R: weights of eq. 27 on normalized errors and torques, in
+            [:data:`LQI_OMEGA_MIN`, :data:`LQI_OMEGA_MAX`] (only their ratio matters): the
+            constant on the controller's ``omega`` input; a tuner replaces them.
+        schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
+            whole multiple of the control period; a change of omega re-solves at once). Ours.
+        riccati: how the gain is re-solved: "warm" refines the last gain by Newton's method
+            (:func:`lqi_gain_warm`) to convergence, falling back to the cold solve if that
+            fails; "track" takes one Newton step per re-schedule (every iterate stabilizes, the
+            gain converges over successive re-schedules); "cold" calls Drake's DARE each time.
+        scales: normalization of Q and R (Bryson's rule, :class:`LqiScalesConfig`).
+        anti_windup: stop integrating z while a command is clipped at the motors' limit
+            (clamping); acts only when the motors have a limit. Ours: the paper has none.
+        delay_compensation: augment the error model with the torques still in the pipe when the
+            robot has a computation delay (:func:`error_model`); false ignores the delay.
+        reference_governor: with a torque limit, do not follow a reference whose own
+            feed-forward exceeds :data:`GOVERNOR_MARGIN` of the limit (a pose the motors cannot
+            hold): follow the nearest pose they can hold (:meth:`LqiController.govern`) until
+            the reference is back within reach. Anti-windup alone cannot keep such a platform:
+            past that pose gravity wins and it falls (docs/hardware.md). Ours.
+        schedule_pose: re-schedule the input matrix B(x) from the measured pose; false keeps the
+            start pose's, as a plain LQI (the gain then changes only with omega). Ours.
+        gain_transfer: what carries over when the gain changes (new weights, a new pose):
+            "integral" keeps the integral torque, K_I,new z_new = K_I,old z_old, so what the
+            integrator learned (friction, model error) stays and only the proportional part
+            follows the new gain; "feedback" keeps the whole feedback, K_I,new z_new = K_old e -
+            K_rest,new e_rest (no torque step); "none" keeps z, a torque step, as the paper
+            does. The three compared: docs/paper_notes.md.
+    """
+
+    omega_Q: float = 1.0
+    omega_R: float = 1.0
+    schedule_period_s: float = 0.01
+    riccati: str = "warm"
+    scales: LqiScalesConfig = field(default_factory=LqiScalesConfig)
+    anti_windup: bool = True
+    delay_compensation: bool = True
+    reference_governor: bool = True
+    schedule_pose: bool = True
+    gain_transfer: str = "integral"
+
+    #: The controller has the ``omega`` input a tuner drives.
+    takes_omega: ClassVar[bool] = True
+
+    def validate(self, control_period_s: float, delay_periods: int = 0,
+                 prefix: str = "controller.",
+                 delay_name: str = "hardware.computation_delay_periods") -> "LqiDriver":
+        """Check every option for a controller of period ``control_period_s`` (s) on a robot
+        with ``delay_periods`` of computation delay (a setting named ``delay_name``); returns
+        self.
+
+        Raises:
+            InvalidConfigError: names the option (``prefix`` + its name) and what to change.
+        """
+        for name in ("omega_Q", "omega_R"):
+            as_number(f"{prefix}{name}", getattr(self, name), LQI_OMEGA_MIN, LQI_OMEGA_MAX)
+        as_number(f"{prefix}schedule_period_s", self.schedule_period_s, 0.0, lo_open=True)
+        check_multiple(f"{prefix}schedule_period_s", self.schedule_period_s, "control_period_s",
+                       control_period_s)
+        for name, modes in (("riccati", RICCATI_MODES), ("gain_transfer", GAIN_TRANSFER_MODES)):
+            if getattr(self, name) not in modes:
+                raise InvalidConfigError(f"{prefix}{name} must be one of {modes}, got "
+                                         f"{getattr(self, name)!r}")
+        for name in ("anti_windup", "delay_compensation", "reference_governor",
+                     "schedule_pose"):
+            if not isinstance(getattr(self, name), bool):
+                raise InvalidConfigError(f"{prefix}{name} must be true or false, got "
+                                         f"{getattr(self, name)!r}")
+        if not isinstance(self.scales, LqiScalesConfig):
+            raise InvalidConfigError(f"{prefix}scales must be an LqiScalesConfig, got "
+                                     f"{type(self.scales).__name__}")
+        try:
+            self.scales.build()
+        except (InvalidConfigError, TypeError) as err:
+            raise InvalidConfigError(f"{prefix}scales: {err}") from None
+        if self.delay_compensation and delay_periods > MAX_COMPENSATED_DELAY:
+            raise InvalidConfigError(
+                f"{delay_name} = {delay_periods} with the LQI's delay compensation gives a "
+                f"model of 6 x (3 + {delay_periods}) = "
+                f"{6 * (3 + delay_periods)} states whose Riccati equation is re-solved every "
+                f"schedule period (thousands of times slower than real time); at most "
+                f"{MAX_COMPENSATED_DELAY} periods are compensated: set "
+                f"{prefix}delay_compensation: false, or lengthen control_period_s")
+        return self
+
+    def make(self, context: ControllerContext, compiled: bool = True) -> "LqiDiagram":
+        """The LQI with the controller contract's ports for the Diagram that ``context``
+        describes; ``compiled=False`` runs its numpy reference step (same numbers, slower)."""
+        return LqiDiagram(context.geometry, self, period_s=context.period_s,
+                          offset_s=context.offset_s, x_initial=context.x_initial,
+                          x_dot_initial=context.x_dot_initial,
+                          torque_limit_Nm=context.torque_limit_Nm,
+                          delay_periods=context.delay_periods, estimator=context.pose_estimator,
+                          feature_window=context.feature_window, compiled=compiled)
+
+    def omega(self) -> tuple:
+        """(omega_Q, omega_R): the constant on the ``omega`` input when no tuner drives it."""
+        return (self.omega_Q, self.omega_R)
+
+    def with_weights(self, **weights) -> "LqiDriver":
+        """A copy with these ``omega_Q`` and ``omega_R`` (either or both)."""
+        return dataclasses.replace(self, **weights)
+
+    def summary(self) -> dict:
+        """The settings a run's results carry (plain JSON values)."""
+        return {"omega_Q": self.omega_Q, "omega_R": self.omega_R,
+                "schedule_period_s": self.schedule_period_s}
 
 
 def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.ndarray,
@@ -304,7 +433,8 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     except np.linalg.LinAlgError:
         rho = np.nan
     if not rho < 1.0:
-        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})")
+        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius "
+                                f"{rho:.6g})")
     return K
 
 
@@ -430,55 +560,21 @@ class LqiController(LeafSystem):
 
     Args:
         geometry: the robot (for B(x)).
-        period_s: control period h in s (paper: 1 ms).
-        schedule_period_s: re-solve the DARE from the measured pose this often (a multiple of
-            period_s). Set equal to period_s to re-schedule every step. A change of omega
-            re-solves at once.
-        scales: normalization of Q and R (:class:`LqiScales`).
-        offset_s: time of the sample within the period. The diagram uses half a plant step, so
+        driver: the options (:class:`LqiDriver`: re-scheduling, Riccati mode, scales,
+            anti-windup, governor, gain transfer; its weights are the Diagram's, on ``omega``);
+            default ``LqiDriver()``.
+        period_s: control period h, s (paper: 1 ms).
+        offset_s: time of the sample within the period. The Diagram uses half a plant step, so
             the controller reads the state the plant just produced and its torque acts from the
             next plant step on: the zero-order-hold model above is then exact, with no extra
             step of delay (offset 0 would read the state one plant step old).
         x_initial: pose of the first gain (default home). x_dot_initial: its rate (the
             estimator's start; default at rest).
-        riccati: "warm" (default) refines the last gain by Newton's method
-            (:func:`lqi_gain_warm`) to convergence, falling back to the cold solve if that fails;
-            "track" takes one Newton step per re-schedule (the gain follows the slowly moving
-            pose and weights, converging over successive re-schedules; every iterate
-            stabilizes); "cold" calls Drake's DARE at every re-schedule.
-        torque_limit_Nm: the motors' torque limit, N m, or None: commands are clipped to it and,
-            with ``anti_windup``, the integral states stop while a command is clipped.
-        anti_windup: clamping (conditional integration) of z while saturated; without it a limit
-            below the demand winds z up (ours: the paper has no limit).
-        reference_governor: with a torque limit, a reference whose own feed-forward exceeds
-            :data:`GOVERNOR_MARGIN` of the limit (a pose the motors cannot even hold: 0.413 N m
-            at the paper manoeuvre's extreme, against a 0.35 N m limit) is not followed: the
-            controller follows the nearest pose the motors can hold with that margin
-            (:meth:`govern`), until the reference comes back within reach. Anti-windup alone
-            cannot keep such a platform: past that pose gravity wins and it falls
-            (docs/hardware.md). The margin is what keeps the platform itself holdable: the
-            gains are stiff (10 to 25 N m of demand at 1 to 2 cm of error), so a motor at its
-            bound is the only one whose feedback acts on its crank's error, and its crank sags
-            until gravity and friction balance the bound; a pose whose own holding torque
-            exceeds the limit by more than the friction is a point of no return. With the
-            governed pose's holding torques at 0.9 of the limit, the platform stays within
-            0.026 rad | 0.012 m of it and its own holding torque below 0.336 N m at 0.35 N m
-            (12 perturbed runs). Ours: the paper has no limit.
+        torque_limit_Nm: the motors' torque limit, N m, or None: commands are clipped to it (the
+            driver's anti-windup and reference governor act only with a limit).
         delay_periods: control periods between a sample and its torque acting (the computation
-            delay); the error model is augmented with the pending torques (:func:`error_model`).
-        gain_transfer: what carries over when the gain changes (new weights, a new pose).
-            ``"integral"`` (default): the integral action, K_I,new z_new = K_I,old z_old, so the
-            torque the integrator has learned (friction, model error) stays and only the
-            proportional part follows the new gain. ``"feedback"``: the whole feedback,
-            K_I,new z_new = K_old e - K_rest,new e_rest (no torque step at all); measured worse:
-            switching from a stiff to a soft gain locks the stiff loop's transient torque into
-            the soft integrator, which takes seconds to unwind (hindsight schedule on a
-            multi-sine, J 1838 against 130 with ``"none"``; docs/results.md). ``"none"``: z is
-            kept as is, a torque step K_I,new z - K_I,old z. All three are ours: the paper
-            switches gains as they come (``"none"``).
-        schedule_pose: re-schedule B(x) from the measured pose (default). False keeps the input
-            matrix of the start pose, as a plain LQI would (the paper has one B; re-scheduling on
-            the pose is ours): the gain is then re-solved only when omega changes.
+            delay); with ``driver.delay_compensation`` the error model carries the pending
+            torques (:func:`error_model`).
         estimator: None to read the pose and rate on the ``x`` input; or a
             :class:`~stewart_drake.control.estimator.PoseEstimator`: the controller then reads
             the encoders on a ``motor_angle`` input (6, rad) and estimates the pose and rate in
@@ -489,71 +585,30 @@ class LqiController(LeafSystem):
         compiled: run the compiled stages (:mod:`.lqi_kernels`); False runs the numpy
             reference (:mod:`.lqi_step`), the same numbers to 1e-12 and about 10 times slower.
     Raises:
-        InvalidConfigError: bad periods, riccati mode, limit, delay or window.
+        InvalidConfigError: a bad period, offset, limit, delay or window, or a bad option of the
+            driver (named ``driver.<option>``).
         RiccatiSolveError: no gain at the start pose.
         NotStabilizableError: the error model fails the Hautus test at the start pose
             (eqs. 28-29).
     """
 
-    def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3,
-                 schedule_period_s: float = 1e-2, scales: LqiScales | None = None,
-                 offset_s: float = 0.0, x_initial=None, riccati: str = "warm",
-                 torque_limit_Nm: float | None = None, anti_windup: bool = True,
-                 delay_periods: int = 0, estimator=None, x_dot_initial=None,
-                 reference_governor: bool = True, schedule_pose: bool = True,
-                 gain_transfer: str = "integral", feature_window: int | None = None,
+    def __init__(self, geometry: StewartGeometry, driver: LqiDriver | None = None, *,
+                 period_s: float = 1e-3, offset_s: float = 0.0, x_initial=None,
+                 x_dot_initial=None, torque_limit_Nm: float | None = None,
+                 delay_periods: int = 0, estimator=None, feature_window: int | None = None,
                  compiled: bool = True):
         super().__init__()
-        if not (np.isfinite(period_s) and period_s > 0):
-            raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
         self.status_names = LQI_STATUS_NAMES
-        ratio = schedule_period_s / period_s
-        if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
-            raise InvalidConfigError(
-                f"schedule_period_s ({schedule_period_s}) must be a whole multiple of the control "
-                f"period ({period_s})")
-        if riccati not in RICCATI_MODES:
-            raise InvalidConfigError(f"riccati must be one of {RICCATI_MODES}, got {riccati!r}")
-        if not (0 <= offset_s < period_s):
-            raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
         self.geometry = geometry
         self.estimator = estimator
-        self.h = float(period_s)
-        self.steps_per_schedule = int(round(ratio))
-        self.scales = scales or LqiScales()
-        self.riccati = riccati
-        self.torque_limit = (None if torque_limit_Nm is None
-                             else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True))
-        self.anti_windup = bool(anti_windup)
-        self.governor = bool(reference_governor) and self.torque_limit is not None
-        A, B = error_model(np.eye(6), self.h, delay_periods)      # checks delay_periods
-        self.delay = int(delay_periods)
-        self.n = A.shape[0]
-        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit if self.governor
-                                else np.inf)
-        self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
+        self._configure(driver or LqiDriver(), period_s, offset_s, torque_limit_Nm,
+                        delay_periods, feature_window)
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
-        self.schedule_pose = bool(schedule_pose)
-        if gain_transfer not in GAIN_TRANSFER_MODES:
-            raise InvalidConfigError(f"gain_transfer must be one of {GAIN_TRANSFER_MODES}, got "
-                                     f"{gain_transfer!r}")
-        self.gain_transfer = gain_transfer
         self.x_initial = x0.copy()
-
-        A, B = error_model(input_matrix(geometry, x0), self.h, self.delay)
-        self.hautus = hautus_checks(A, B, np.sqrt(self._Q1))
-        if not (self.hautus["stabilizable"] and self.hautus["detectable"]):
-            raise NotStabilizableError(self.hautus, x0)
-        K0 = lqi_gain(A, B, self._Q1, self._R1)
-        self.K_initial = K0
+        K0 = self._initial_gain(x0)
         #: Newton iterations and cold solves so far (diagnostics, not state: a benchmark reads
         #: them after a run; they do not affect the simulation).
         self.solve_stats = {"warm": 0, "warm_iterations": 0, "cold": 0}
-
-        if feature_window is not None and (isinstance(feature_window, bool) or not isinstance(
-                feature_window, (int, np.integer)) or feature_window < 1):
-            raise InvalidConfigError(f"feature_window must be None or an integer >= 1, got "
-                                     f"{feature_window!r}")
         T0 = statics.holding_torques(geometry, x0)
         self.layout = lqi_step.LqiLayout.build(self.n, self.delay, self.governor,
                                                estimator is not None, feature_window)
@@ -565,16 +620,62 @@ class LqiController(LeafSystem):
         self.DeclareStateOutputPort("state", self._state_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
                                                 update=self._Update)
-        # What the stages need and never change (configuration, not state).
+        self._load_constants(compiled)
+
+    def _configure(self, driver: LqiDriver, period_s, offset_s, torque_limit_Nm, delay_periods,
+                   feature_window) -> None:
+        """Check the settings and keep what the stages read: the period, the driver's options,
+        the limit, the delay and the unit weights Q_1, R_1."""
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
+        if not (0 <= offset_s < period_s):
+            raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
+        if feature_window is not None and (isinstance(feature_window, bool) or not isinstance(
+                feature_window, (int, np.integer)) or feature_window < 1):
+            raise InvalidConfigError(f"feature_window must be None or an integer >= 1, got "
+                                     f"{feature_window!r}")
+        self.driver = driver.validate(period_s, delay_periods, prefix="driver.",
+                                      delay_name="delay_periods")
+        self.h = float(period_s)
+        self.steps_per_schedule = int(round(driver.schedule_period_s / period_s))
+        self.scales = driver.scales.build()
+        self.riccati = driver.riccati
+        self.torque_limit = (None if torque_limit_Nm is None
+                             else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True))
+        self.anti_windup = driver.anti_windup
+        self.governor = driver.reference_governor and self.torque_limit is not None
+        error_model(np.eye(6), self.h, delay_periods)             # checks delay_periods
+        self.delay = int(delay_periods) if driver.delay_compensation else 0
+        self.n = N_E + 6 * self.delay
+        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit if self.governor
+                                else np.inf)
+        self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
+        self.schedule_pose = driver.schedule_pose
+        self.gain_transfer = driver.gain_transfer
+
+    def _initial_gain(self, x0) -> np.ndarray:
+        """K at the start pose and unit weights, after the Hautus test of the error model there
+        (eqs. 28-29)."""
+        A, B = error_model(input_matrix(self.geometry, x0), self.h, self.delay)
+        self.hautus = hautus_checks(A, B, np.sqrt(self._Q1))
+        if not (self.hautus["stabilizable"] and self.hautus["detectable"]):
+            raise NotStabilizableError(self.hautus, x0)
+        K0 = lqi_gain(A, B, self._Q1, self._R1)
+        self.K_initial = K0
+        return K0
+
+    def _load_constants(self, compiled: bool) -> None:
+        """What the stages need and never change (configuration, not state), read-only as the
+        compiled stages were compiled for (lqi_kernels.warm_up)."""
         self.compiled = bool(compiled)
         self._stages = _compiled_stages() if self.compiled else lqi_step
         self._constants = self._step_constants()
         self._bounds = self.layout.bounds()
-        # Read-only, as the compiled stages were compiled for (lqi_kernels.warm_up).
-        self._legs = np.zeros((6, 9)) if estimator is None else estimator.legs.copy()
+        self._legs = (np.zeros((6, 9)) if self.estimator is None
+                      else self.estimator.legs.copy())
         self._legs.setflags(write=False)
-        self._gain_legs = np.array(kinematics.leg_constants(geometry)[0])
-        self._body = body_constants(geometry)
+        self._gain_legs = np.array(kinematics.leg_constants(self.geometry)[0])
+        self._body = body_constants(self.geometry)
         for constant in (self._gain_legs, self._body):
             constant.setflags(write=False)
 
@@ -618,8 +719,8 @@ class LqiController(LeafSystem):
 
     # -- gain ----------------------------------------------------------------------------------
     def _check_weights(self, omega_Q: float, omega_R: float) -> tuple[float, float]:
-        return (as_number("omega_Q", omega_Q, OMEGA_MIN, OMEGA_MAX),
-                as_number("omega_R", omega_R, OMEGA_MIN, OMEGA_MAX))
+        return (as_number("omega_Q", omega_Q, LQI_OMEGA_MIN, LQI_OMEGA_MAX),
+                as_number("omega_R", omega_R, LQI_OMEGA_MIN, LQI_OMEGA_MAX))
 
     def gain(self, x, omega_Q: float = 1.0, omega_R: float = 1.0, K_start=None) -> np.ndarray:
         """(6, n) LQI gain K = [K_p | K_I (| K_u)] at pose x for weights omega_Q, omega_R (eq. 33);
@@ -679,11 +780,9 @@ class LqiController(LeafSystem):
         is within 6 um | 2 urad and 3e-7 N m of three along the paper manoeuvre, at 0.6 ms
         instead of 1.1 ms.
 
-        The projection must be exact: projected only onto the motors the full step would
-        overload (motors 1 and 4 near the paper manoeuvre's extreme), a step can push another
-        (motor 6) to the limit itself; such poses were refused and the governor held a stale
-        pose with a stale rate, from 0.59 to 0.98 s, with motor 6 at the limit and no headroom:
-        the platform sagged 17 mm and fell in half of the perturbed runs. The rate and
+        The projection is exact, onto every motor's bound at once: a step projected only onto
+        the motors the full step would overload can push another one to the limit itself, and a
+        motor at the limit keeps no headroom for feedback (docs/hardware.md). The rate and
         acceleration are those of the reference projected onto the tangent of the active bounds
         (the derivative of the projection, curvature neglected), so the pose and the rate the
         LQI tracks agree. On the paper manoeuvre's extreme with a 0.35 N m limit the nearest
@@ -810,16 +909,16 @@ class LqiDiagram(Diagram):
     Units and meanings: :class:`LqiController`.
 
     Args:
-        as :class:`LqiController` (geometry first, then keywords).
+        as :class:`LqiController` (geometry, the :class:`LqiDriver`, then keywords).
     Attributes:
         lqi: the :class:`LqiController` inside (gains, governor, settings).
         status_names: :data:`~.contract.LQI_STATUS_NAMES`.
     """
 
-    def __init__(self, geometry: StewartGeometry, **settings):
+    def __init__(self, geometry: StewartGeometry, driver: LqiDriver | None = None, **settings):
         super().__init__()
         builder = DiagramBuilder()
-        self.lqi = builder.AddNamedSystem("lqi", LqiController(geometry, **settings))
+        self.lqi = builder.AddNamedSystem("lqi", LqiController(geometry, driver, **settings))
         self.status_names = LQI_STATUS_NAMES
         lay = self.lqi.layout
         names = ("x" if self.lqi.estimator is None else "motor_angle", "x_d", "T_ff", "omega",

@@ -216,6 +216,8 @@ def input_matrix(legs, body, x):
     Source: paper eqs. 6 and 18 (corrected), the task inertia of
     :func:`~stewart_drake.model.statics.task_inertia` (docs/paper_notes.md).
     """
+    # Long: one compiled kernel, lqi.input_matrix_single (IK, Jacobian, task inertia) as loops,
+    # stage for stage in the same order, so that the two read side by side.
     a, s, leg_c = body[0], body[1], body[2]
     cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
     sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])

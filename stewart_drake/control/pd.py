@@ -7,15 +7,62 @@ ports ``x``, ``x_d``, ``T_ff``; ``T``, ``status``, ``e_bar``
 so :func:`~stewart_drake.simulation.diagram.make_stewart_diagram` swaps one for the other.
 """
 
-from __future__ import annotations
+from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
+from ..checks import as_number
 from ..errors import InvalidConfigError, UnreachablePoseError
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
 from ..model.statics import crank_inertia_matrix
-from .contract import PoseTorqueController
+from .contract import ControllerContext, ControllerDriver, PoseTorqueController
+
+
+@dataclass
+class PdDriver(ControllerDriver):
+    """The crank-space PD baseline with gravity feed-forward as a scenario's controller
+    (``controller: !PdDriver``; :class:`CrankPdController`): its options, checked and built here.
+
+    Attributes:
+        bandwidth_hz: natural frequency of every mode of the closed loop, Hz; at most what the
+            sampling carries, 2 pi f h <= 0.5.
+        damping: damping ratio zeta (1: critical).
+        schedule_period_s: re-schedule the inertia-shaped gains from the reference pose this
+            often, s.
+    """
+
+    bandwidth_hz: float = 20.0
+    damping: float = 1.0
+    schedule_period_s: float = 0.01
+
+    #: The PD has no weights: no ``omega`` input for a tuner.
+    takes_omega: ClassVar[bool] = False
+    run_suffix: ClassVar[str] = "_pd"
+
+    def validate(self, control_period_s: float, delay_periods: int = 0,
+                 prefix: str = "controller.") -> "PdDriver":
+        """Check the options for a controller of period ``control_period_s`` (s); returns self
+        (the PD ignores a computation delay).
+
+        Raises:
+            InvalidConfigError: names the option and what to change.
+        """
+        for name in ("bandwidth_hz", "damping", "schedule_period_s"):
+            as_number(f"{prefix}{name}", getattr(self, name), 0.0, lo_open=True)
+        w_n = 2 * np.pi * self.bandwidth_hz
+        if w_n * control_period_s > 0.5:
+            raise InvalidConfigError(
+                f"{prefix}bandwidth_hz = {self.bandwidth_hz:g} Hz is too high for a "
+                f"{control_period_s:g} s period (2 pi f h = {w_n * control_period_s:.2f} > 0.5); "
+                f"lower it or the period")
+        return self
+
+    def make(self, context: ControllerContext) -> "CrankPdController":
+        """The PD for the Diagram that ``context`` describes."""
+        return CrankPdController(context.geometry, self, period_s=context.period_s,
+                                 offset_s=context.offset_s, x_initial=context.x_initial)
 
 
 class CrankPdController(PoseTorqueController):
@@ -38,32 +85,27 @@ class CrankPdController(PoseTorqueController):
 
     Args:
         geometry: the robot the controller believes in.
+        driver: the gains' bandwidth, damping and re-schedule period (:class:`PdDriver`);
+            default ``PdDriver()``.
         period_s: control period, s. offset_s: sample offset in [0, period_s), s.
-        bandwidth_hz: natural frequency of the closed loop, Hz (20).
-        damping: damping ratio zeta (1, critical).
-        schedule_period_s: re-schedule the gains from the reference pose this often, s (10 ms).
         x_initial: initial pose (for the initial torque).
     Raises:
-        InvalidConfigError: non-positive period, bandwidth or damping, or a bandwidth the
-            sampling cannot carry (2 pi f h > 0.5).
+        InvalidConfigError: a non-positive period, a bad option of the driver (named
+            ``driver.<option>``: a bandwidth the sampling cannot carry, 2 pi f h > 0.5).
     """
 
-    def __init__(self, geometry: StewartGeometry, period_s: float = 1e-3, offset_s: float = 0.0,
-                 bandwidth_hz: float = 20.0, damping: float = 1.0, x_initial=None,
-                 schedule_period_s: float = 1e-2):
+    def __init__(self, geometry: StewartGeometry, driver: PdDriver | None = None, *,
+                 period_s: float = 1e-3, offset_s: float = 0.0, x_initial=None):
         super().__init__(omega=False)
         self.status_names = ("inertia_reschedules", "failures")
-        for name, value in (("period_s", period_s), ("bandwidth_hz", bandwidth_hz),
-                            ("damping", damping)):
-            if not (np.isfinite(value) and value > 0):
-                raise InvalidConfigError(f"{name} must be a finite number > 0, got {value}")
-        w_n = 2 * np.pi * bandwidth_hz
-        if w_n * period_s > 0.5:
-            raise InvalidConfigError(
-                f"bandwidth {bandwidth_hz} Hz is too high for a {period_s} s period "
-                f"(2 pi f h = {w_n * period_s:.2f} > 0.5); lower it or the period")
+        if not (np.isfinite(period_s) and period_s > 0):
+            raise InvalidConfigError(f"period_s must be a finite number > 0, got {period_s}")
         if not (0 <= offset_s < period_s):
             raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
+        driver = (driver or PdDriver()).validate(period_s, prefix="driver.")
+        self.driver = driver
+        w_n = 2 * np.pi * driver.bandwidth_hz
+        damping, schedule_period_s = driver.damping, driver.schedule_period_s
         self.geometry = geometry
         self._kp, self._kd = w_n ** 2, 2 * damping * w_n
         self.steps_per_schedule = max(1, int(round(schedule_period_s / period_s)))

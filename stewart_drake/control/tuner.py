@@ -29,14 +29,16 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..errors import InvalidConfigError, MissingFileError
-from .features import N_FEATURES
-from ..fileio import CheckedNpz, atomic_write
 from ..checks import as_array
+from ..errors import InvalidConfigError, MissingFileError
+from ..fileio import CheckedNpz, atomic_write
+from .features import N_FEATURES
 
 FORMAT_VERSION = 1
-LOG10_MIN, LOG10_MAX = -1.0, 1.0            # omega in [0.1, 10]
-OMEGA_MIN, OMEGA_MAX = 10.0 ** LOG10_MIN, 10.0 ** LOG10_MAX
+#: The paper's ANN outputs log10 omega_Q and log10 omega_R clipped to this range (the paper's
+#: nine training pairs span it), so its weights stay within [ANN_OMEGA_MIN, ANN_OMEGA_MAX].
+ANN_LOG10_MIN, ANN_LOG10_MAX = -1.0, 1.0
+ANN_OMEGA_MIN, ANN_OMEGA_MAX = 10.0 ** ANN_LOG10_MIN, 10.0 ** ANN_LOG10_MAX
 Z_CLIP = 1e3                                 # |normalized input| cap, in training stds
 DEFAULT_TUNER_PATH = Path(__file__).resolve().parents[1] / "data" / "ann_tuner.npz"
 #: Largest tuner weights file, after decompression, bytes (the networks hold a few kB).
@@ -132,7 +134,7 @@ class TunerModel:
         with np.errstate(over="ignore", invalid="ignore"):
             z = np.clip((rho - self.x_mean) / self.x_std, -Z_CLIP, Z_CLIP)
             h = _activation(self.activation, z @ self.W1.T + self.b1)
-            y = np.clip(h @ self.W2.T + self.b2, LOG10_MIN, LOG10_MAX)
+            y = np.clip(h @ self.W2.T + self.b2, ANN_LOG10_MIN, ANN_LOG10_MAX)
         if not np.isfinite(y).all():
             raise InvalidConfigError("the tuner's output is NaN: its weights overflow float64 "
                                      "sums; retrain with `stewart-drake train`")
@@ -148,7 +150,7 @@ class TunerModel:
         Raises:
             InvalidConfigError: see :meth:`predict_log10`.
         """
-        return np.clip(10.0 ** self.predict_log10(rho), OMEGA_MIN, OMEGA_MAX)
+        return np.clip(10.0 ** self.predict_log10(rho), ANN_OMEGA_MIN, ANN_OMEGA_MAX)
 
     # -- torch ---------------------------------------------------------------------------------
     @classmethod
@@ -210,7 +212,7 @@ def save_tuner(model: TunerModel, path) -> Path:
     path = Path(path)
     arrays = dict(W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2,
                   x_mean=model.x_mean, x_std=model.x_std,
-                  log10_min=np.float64(LOG10_MIN), log10_max=np.float64(LOG10_MAX),
+                  log10_min=np.float64(ANN_LOG10_MIN), log10_max=np.float64(ANN_LOG10_MAX),
                   activation=np.str_(model.activation),
                   format_version=np.int64(FORMAT_VERSION),
                   metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
@@ -247,9 +249,9 @@ def load_tuner(path=None) -> TunerModel:
     if version != FORMAT_VERSION:
         raise data.corrupt(f"tuner format {version}, this stewart-drake reads {FORMAT_VERSION}")
     clamp = (data.number("log10_min"), data.number("log10_max"))
-    if clamp != (LOG10_MIN, LOG10_MAX):
+    if clamp != (ANN_LOG10_MIN, ANN_LOG10_MAX):
         raise data.corrupt(f"it clamps log10 omega to {clamp}, expected "
-                           f"{(LOG10_MIN, LOG10_MAX)}")
+                           f"{(ANN_LOG10_MIN, ANN_LOG10_MAX)}")
     weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
     activation, metadata = data.text("activation"), data.json("metadata_json")
     try:
@@ -298,7 +300,8 @@ class AnnTuner(LeafSystem):
         self.model = load_tuner() if model is None else model
         self.period_s = float(period_s)
         self._rho = self.DeclareVectorInputPort("rho", N_FEATURES)
-        self._omega_index = self.DeclareDiscreteState(np.clip(omega0, OMEGA_MIN, OMEGA_MAX))
+        self._omega_index = self.DeclareDiscreteState(np.clip(omega0, ANN_OMEGA_MIN,
+                                                              ANN_OMEGA_MAX))
         self._count_index = self.DeclareDiscreteState(1)
         self._omega = self.DeclareStateOutputPort("omega", self._omega_index)
         self._count = self.DeclareStateOutputPort("nonfinite_count", self._count_index)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from ..errors import StewartError
 from ..simulation.scenario import DEFAULT_SCENARIO
+
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
 
@@ -180,7 +181,7 @@ def run_scenario(args):
         InvalidConfigError: a bad override or value; ``--tuner-weights`` without ``--tuner ann``.
         MissingFileError: no such scenario, weights or CSV file.
     """
-    from ..control.contract import resolve_controller, use_entry_point_controllers
+    from ..control.contract import use_entry_point_controllers
     from ..errors import InvalidConfigError
     from ..simulation import scenario as sc
     from ..studies.experiments import DEFAULT_TUNER_OUT
@@ -205,15 +206,12 @@ def run_scenario(args):
             scenario.duration_s = trajectory.end_time - trajectory.start_time
     if args.controller == "pd":
         scenario.controller = sc.PdDriver()
-    elif args.controller == "lqi" and not isinstance(scenario.controller, sc.LqiDriver):
-        scenario.controller = sc.LqiDriver()
-    if args.omega_q is not None or args.omega_r is not None:
-        if not isinstance(scenario.controller, sc.LqiDriver):
-            raise InvalidConfigError("--omega-q and --omega-r are weights of the LQI controller")
-        if args.omega_q is not None:
-            scenario.controller.omega_Q = args.omega_q
-        if args.omega_r is not None:
-            scenario.controller.omega_R = args.omega_r
+    elif args.controller == "lqi":
+        scenario.controller = scenario.lqi()          # the scenario's LQI options, if it has any
+    weights = {k: v for k, v in (("omega_Q", args.omega_q), ("omega_R", args.omega_r))
+               if v is not None}
+    if weights:
+        scenario.controller = scenario.controller.with_weights(**weights)
     if args.tuner == "ann":
         weights = args.tuner_weights
         if weights is None and DEFAULT_TUNER_OUT.exists():
@@ -224,54 +222,31 @@ def run_scenario(args):
     elif args.tuner == "none":
         scenario.tuner = None
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
-    if isinstance(scenario.controller, sc.UserController):
-        resolve_controller(scenario.controller.factory)     # a name never registered: refused
+    scenario.controller.resolve()                     # a name never registered: refused
     return scenario.validate()
 
 
-def _run_stem(trajectory: str, tuner, controller: str) -> str:
-    """``run_<trajectory>[_ann|_ratio|_tuned][_pd]``: the name of a run's result files, from the
-    scenario's tuner (None, or its driver) and the controller driver's class name."""
-    from ..simulation.scenario import AnnTunerDriver, RatioTunerDriver
-
-    suffix = "" if tuner is None else {AnnTunerDriver: "_ann",
-                                       RatioTunerDriver: "_ratio"}.get(type(tuner), "_tuned")
-    return f"run_{trajectory}{suffix}" + ("_pd" if controller == "PdDriver" else "")
-
-
-def _reference_name(scenario) -> str:
-    """The name the run's reference will carry (its result files are named after it)."""
-    from ..simulation import scenario as sc
-
-    ref = scenario.reference
-    if isinstance(ref, sc.CsvReference):
-        return Path(ref.path).stem
-    if isinstance(ref, sc.DataCollectionReference):
-        return f"data_seed{ref.seed}"
-    return ref.name
+def run_stem(scenario) -> str:
+    """``run_<reference>[_ann|_ratio|_tuned][_pd]``: the name of a run's result files, from the
+    scenario's reference, tuner and controller (``label``, ``run_suffix``)."""
+    tuner = "" if scenario.tuner is None else scenario.tuner.run_suffix
+    return f"run_{scenario.reference.label}{tuner}{scenario.controller.run_suffix}"
 
 
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..fileio import check_replaceable
-    from ..simulation.scenario import AnnTunerDriver, RatioTunerDriver
     from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
 
     scenario = run_scenario(args)
     out = Path(args.out)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
-    stem = _run_stem(_reference_name(scenario), scenario.tuner,
-                     type(scenario.controller).__name__)
+    stem = run_stem(scenario)
     for suffix in (".npz", ".png"):
         check_replaceable(out / f"{stem}{suffix}")
-    if isinstance(scenario.tuner, (AnnTunerDriver, RatioTunerDriver)):
-        from ..control.tuner import DEFAULT_RATIO_TUNER_PATH, DEFAULT_TUNER_PATH
-
-        ann = isinstance(scenario.tuner, AnnTunerDriver)
-        weights = scenario.tuner.weights or (DEFAULT_TUNER_PATH if ann
-                                             else DEFAULT_RATIO_TUNER_PATH)
-        print(f"{'ANN' if ann else 'ratio'} tuner weights: {weights}")
+    if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
+        print(f"{scenario.tuner.kind} weights: {scenario.tuner.weights_path()}")
     if args.html:                      # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
@@ -279,8 +254,6 @@ def _cmd_run(args) -> int:
         print(f"wrote {html} (Meshcat replay, opens in any browser)")
     else:
         result = run_experiment(scenario, progress=not args.no_progress)
-    summary = result.config_summary
-    stem = _run_stem(summary["trajectory"], scenario.tuner, summary["controller"])
     print(format_metrics(result.metrics), flush=True)   # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
@@ -409,14 +382,15 @@ def _cmd_train(args) -> int:
 def _cmd_evaluate(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, results.md and plots (in --out unless
     --docs names another folder)."""
-    from ..studies.evaluation import CONTROLLERS, QUICK_CONTROLLERS, controller_settings, evaluate
+    from ..studies.evaluation import evaluate
+    from ..studies.evaluation_grid import CONTROLLERS, QUICK_CONTROLLERS, check_controllers
+    from ..studies.tuner_study import GOAL, StudyArm
 
     if args.controllers:
         controllers = tuple(args.controllers.split(","))
     else:
         controllers = QUICK_CONTROLLERS if args.quick else CONTROLLERS
-    for name in controllers:
-        controller_settings(name)                              # an unknown name, before the rest
+    check_controllers(controllers)                             # an unknown name, before the rest
     docs = args.out if args.docs is None else args.docs        # never the repository's docs/
     check_output(docs, "--docs")
     tuner_study = not (args.no_tuner_study or args.quick)
@@ -435,11 +409,12 @@ def _cmd_evaluate(args) -> int:
     if report.get("tuner"):
         print("tuner study (held-out tasks, paired against the best fixed ratio per task):")
         for lam, v in report["tuner"]["verdicts"].items():
-            ours, head = v["controllers"].get(f"ours {lam}"), v["controllers"].get(
-                f"hindsight {lam}")
+            ours = v["controllers"][StudyArm("ours", lam=float(lam)).label]
+            head = v["controllers"][StudyArm("hindsight", lam=float(lam)).label]
             print(f"  lambda {lam}: ours {100 * ours['mean']:+.0f} % +- {100 * ours['std']:.0f} %"
-                  f" ({'meets' if ours['beats'] else 'does not meet'} the 15 % goal); hindsight "
-                  f"headroom {100 * head['mean']:+.0f} % +- {100 * head['std']:.0f} %")
+                  f" ({'meets' if ours['beats'] else 'does not meet'} the {100 * GOAL:.0f} % "
+                  f"goal); hindsight headroom {100 * head['mean']:+.0f} % +- "
+                  f"{100 * head['std']:.0f} %")
     for ann, v in report["verdict"].items():
         b = v["best_fixed"]
         print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
@@ -504,8 +479,12 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import (DEFAULT_CONNECT_TIMEOUT_S, DEFAULT_RECYCLE, DEFAULT_RETRIES,
-                                   RUNNERS)
+    from ..studies.runners import (
+        DEFAULT_CONNECT_TIMEOUT_S,
+        DEFAULT_RECYCLE,
+        DEFAULT_RETRIES,
+        RUNNERS,
+    )
 
     parser.add_argument("--runner", choices=RUNNERS, default="processes",
                         help="where jobs run: local processes, this process, Ray or Dask")
@@ -541,8 +520,9 @@ def _add_scenario_arguments(parser, what: str) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``stewart-drake`` parser: one sub-parser per command, each built by its own
+    ``_add_<command>_command``."""
     from .. import __doc__ as summary
-    from ..simulation.trajectories import TRAJECTORIES
 
     parser = _Parser(
         prog="stewart-drake",
@@ -550,6 +530,23 @@ def build_parser() -> argparse.ArgumentParser:
         "command's options.")
     parser.add_argument("--version", action="version", version=version_text())
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_run_command(sub)
+    _add_check_command(sub)
+    _add_scenario_command(sub)
+    _add_collect_command(sub)
+    _add_train_command(sub)
+    _add_evaluate_command(sub)
+    _add_workspace_command(sub)
+    _add_teleop_command(sub)
+    _add_diagrams_command(sub)
+    _add_sdf_command(sub)
+    _add_mjcf_command(sub)
+    return parser
+
+
+def _add_run_command(sub) -> None:
+    """The ``run`` command's options."""
+    from ..simulation.trajectories import TRAJECTORIES
 
     run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment on "
                                      "the robot as built) and plot Fig. 7")
@@ -591,6 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
                           "code itself")
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
+
+def _add_check_command(sub) -> None:
+    """The ``check`` command's options."""
     chk = sub.add_parser("check", help="check a reference against every limit without "
                                        "simulating: reach, joints, singularity, clearance, "
                                        "torque, speed (exit 2 if refused)")
@@ -603,6 +603,9 @@ def build_parser() -> argparse.ArgumentParser:
     chk.add_argument("--out", default="results", help="folder of the margins plot")
     chk.set_defaults(func=_cmd_check)
 
+
+def _add_scenario_command(sub) -> None:
+    """The ``scenario`` command's options."""
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
     scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,
                      help=f"scenario file or shipped name (default: {DEFAULT_SCENARIO})")
@@ -613,6 +616,9 @@ def build_parser() -> argparse.ArgumentParser:
                      help="write the YAML to this file (default: print it)")
     scn.set_defaults(func=_cmd_scenario, out_is_file=True)
 
+
+def _add_collect_command(sub) -> None:
+    """The ``collect`` command's options."""
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     _add_scenario_arguments(col, "the scenario the runs share")
     col.add_argument("--out", default="results/collect", help="output folder")
@@ -623,6 +629,9 @@ def build_parser() -> argparse.ArgumentParser:
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     col.set_defaults(func=_cmd_collect, out_sub=("diverged",))
 
+
+def _add_train_command(sub) -> None:
+    """The ``train`` command's options."""
     tr = sub.add_parser("train", help="train the ANN tuner on collected runs (needs torch)")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
     tr.add_argument("--mode", choices=["paper", "best_cost"], default="best_cost",
@@ -632,6 +641,9 @@ def build_parser() -> argparse.ArgumentParser:
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
     tr.set_defaults(func=_cmd_train, out_is_file=True)
 
+
+def _add_evaluate_command(sub) -> None:
+    """The ``evaluate`` command's options."""
     ev = sub.add_parser("evaluate", help="every controller on every scenario, and the tuner "
                                          "study: results.md and its plots")
     ev.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="FILE|NAME",
@@ -654,6 +666,9 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
 
+
+def _add_workspace_command(sub) -> None:
+    """The ``workspace`` command's options."""
     ws = sub.add_parser("workspace", help="reachable poses, singularities and holding torques "
                                           "of the scenario's robot")
     _add_scenario_arguments(ws, "the robot to sweep (its robot: fields)")
@@ -664,6 +679,9 @@ def build_parser() -> argparse.ArgumentParser:
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
 
+
+def _add_teleop_command(sub) -> None:
+    """The ``teleop`` command's options."""
     tel = sub.add_parser("teleop", help="drive the robot live at real time from Meshcat sliders")
     _add_scenario_arguments(tel, "the robot driven")
     tel.add_argument("--duration", type=_positive_float, default=None,
@@ -675,21 +693,29 @@ def build_parser() -> argparse.ArgumentParser:
     tel.add_argument("--out", default="results/teleop", help="folder of a divergence dump")
     tel.set_defaults(func=_cmd_teleop, out_sub=("diverged",))
 
+
+def _add_diagrams_command(sub) -> None:
+    """The ``diagrams`` command's options."""
     dg = sub.add_parser("diagrams", help="rewrite diagrams/*.dot and render *.svg (Graphviz)")
     dg.add_argument("--out", default="diagrams", help="folder (in the current folder)")
     dg.add_argument("--dot-only", action="store_true", help="write the .dot sources only")
     dg.set_defaults(func=_cmd_diagrams)
 
+
+def _add_sdf_command(sub) -> None:
+    """The ``sdf`` command's options."""
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF")
     sdf.add_argument("--out", default="sdf/rotary_stewart.sdf",
                      help="file (in the current folder)")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
 
+
+def _add_mjcf_command(sub) -> None:
+    """The ``mjcf`` command's options."""
     mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
     mj.add_argument("--out", default="rotary_stewart.xml",
                     help="file to write (in the current folder)")
     mj.set_defaults(func=_cmd_mjcf, out_is_file=True)
-    return parser
 
 
 def _interruptible():

@@ -1,10 +1,11 @@
 """See it: Meshcat replays of a run as one standalone HTML file, and pictures of the Diagram.
 
-Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario` (no visualizer in the
-loop, so the run is as fast and as exact as ``run_experiment``), then plays the logged plant
-states through a visualization-only copy of the robot at ``fps`` frames per second into a Meshcat
-animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript and the scene are inlined,
-so the file opens in any browser with no server (about 2.2 MB of viewer plus ~2 kB per frame).
+Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario`
+(no visualizer in the loop, so the run is as fast and as exact as ``run_experiment``), then
+plays the logged plant states through a visualization-only copy of the robot at ``fps`` frames
+per second into a Meshcat animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript
+and the scene are inlined, so the file opens in any browser with no server (about 2.2 MB of
+viewer plus ~2 kB per frame).
 
 Diagram pictures: :func:`diagram_dots` returns the Graphviz source of the full Diagram (fixed
 weights and ANN tuner) and of the controller systems, with Drake's process-dependent system ids
@@ -76,6 +77,25 @@ def frame_indices(t: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return frame_times, idx
 
 
+def _mark_contacts(animation, frame: int, markers: list, shown: list, close: list) -> None:
+    """Frame ``frame`` of the animation: marker j between the closest points of the j-th
+    closest pair of ``close`` (red touching, orange near), hidden without one; ``shown`` keeps
+    what each marker shows (only changes are recorded)."""
+    from pydrake.math import RigidTransform
+
+    for j, (path, colours) in enumerate(markers):
+        contact = close[j] if j < len(close) else None
+        kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
+        if kind is not None:
+            animation.SetTransform(frame, path, RigidTransform(0.5 * (contact.p_WA
+                                                                      + contact.p_WB)))
+        if kind != shown[j]:
+            animation.SetProperty(frame, path, "visible", kind is not None)
+            if kind is not None:
+                animation.SetProperty(frame, path + "/<object>", "color", colours[kind])
+            shown[j] = kind
+
+
 def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
                   clearance_m: float = DEFAULT_MIN_CLEARANCE_M) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
@@ -101,8 +121,8 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
     Raises:
         InvalidConfigError: states do not fit the plant, or bad ``fps``.
     """
+    # Long for its docstring; the per-frame markers are _mark_contacts.
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
-    from pydrake.math import RigidTransform
     from pydrake.systems.framework import DiagramBuilder
 
     from ..model.clearance import clearance_model
@@ -138,18 +158,8 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
         context.SetTime((k + 0.25) / fps)
         plant.SetPositions(plant_context, states[i, :nq])
         diagram.ForcedPublish(context)
-        close = model.contacts(None, clearance_m, q=states[i, :nq])
-        for j, (path, colours) in enumerate(markers):
-            contact = close[j] if j < len(close) else None
-            kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
-            if kind is not None:
-                animation.SetTransform(k, path, RigidTransform(0.5 * (contact.p_WA
-                                                                      + contact.p_WB)))
-            if kind != shown[j]:
-                animation.SetProperty(k, path, "visible", kind is not None)
-                if kind is not None:
-                    animation.SetProperty(k, path + "/<object>", "color", colours[kind])
-                shown[j] = kind
+        _mark_contacts(animation, k, markers, shown,
+                       model.contacts(None, clearance_m, q=states[i, :nq]))
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)
@@ -361,8 +371,13 @@ def diagram_dots() -> dict[str, str]:
         the controller contract, so either plugs into the same Diagram).
     """
     from ..simulation.diagram import make_stewart_diagram
-    from ..simulation.scenario import (DEFAULT_SCENARIO, AnnTunerDriver, PdDriver, load_scenario,
-                                       use_paper_tuner)
+    from ..simulation.scenario import (
+        DEFAULT_SCENARIO,
+        AnnTunerDriver,
+        PdDriver,
+        load_scenario,
+        use_paper_tuner,
+    )
 
     def scenario(name=DEFAULT_SCENARIO):
         return load_scenario(name)

@@ -156,14 +156,16 @@ class StewartGeometry:
                                                      error=InvalidGeometryError))
         if self.rod_length <= self.crank_length:
             raise InvalidGeometryError(
-                f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)")
+                f"rod_length ({self.rod_length} m) must exceed crank_length "
+                f"({self.crank_length} m)")
         for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
             angles = as_array(name, getattr(self, name), shape=(6,), error=InvalidGeometryError)
             object.__setattr__(self, name, tuple(float(v) for v in angles))
         for name in ("rod_inertia", "crank_inertia", "platform_inertia", "base_inertia"):
             moments = as_array(name, getattr(self, name), shape=(3,), error=InvalidGeometryError)
             if np.any(moments <= 0):
-                raise InvalidGeometryError(f"{name} needs 3 positive moments, got {moments.tolist()}")
+                raise InvalidGeometryError(f"{name} needs 3 positive moments, got "
+                                           f"{moments.tolist()}")
             a, b, c = moments
             if a + b < c * (1 - 1e-12) or a + c < b * (1 - 1e-12) or b + c < a * (1 - 1e-12):
                 fix = nearest_valid_principal_moments(moments)
@@ -220,7 +222,8 @@ class StewartGeometry:
         return _frozen(np.cross(self.d_B, np.array([0.0, 0.0, 1.0])))
 
     def crank_tips(self, theta) -> np.ndarray:
-        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base frame."""
+        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base
+        frame."""
         theta = np.asarray(theta, dtype=float)[..., None]
         return self.P_B + self.crank_length * (
             np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0]))

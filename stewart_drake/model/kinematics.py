@@ -9,9 +9,10 @@ Per leg i (reference_geometry.md):
     tip_i = P_i + a (cos theta_i d_i + sin theta_i z)
     ell_i = q_i - tip_i             rod vector, |ell_i| = s
 
-The functions take the robot as ``geometry``, a :class:`~stewart_drake.model.geometry.StewartGeometry`
-(read through its attributes only: this module sits below the geometry, which checks itself with
-it). Statics (holding torques, task inertia) are in :mod:`.statics`, joint limits and the
+The functions take the robot as ``geometry``, a
+:class:`~stewart_drake.model.geometry.StewartGeometry`, read through the attributes
+:class:`RobotGeometry` names (this module sits below the geometry, which checks itself with it).
+Statics (holding torques, task inertia) are in :mod:`.statics`, joint limits and the
 reference validator in :mod:`.limits`.
 """
 
@@ -19,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -32,12 +34,49 @@ from ..errors import (
 
 #: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
 X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+#: The names of the pose's six coordinates, in order: roll, pitch, yaw (rad), position (m).
+AXIS_NAMES = ("phi", "theta", "psi", "X", "Y", "Z")
+#: Display units of a pose error per axis: mrad for angles, mm for positions.
+AXIS_UNITS = ("mrad", "mrad", "mrad", "mm", "mm", "mm")
 
 #: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
 #: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
 #: reachable poses of the tests are drawn below 200. Used by :mod:`~.limits` (re-exported there).
 DEFAULT_COND_THRESHOLD = 200.0
 X_HOME.setflags(write=False)
+
+@runtime_checkable
+class RobotGeometry(Protocol):
+    """The robot as the functions of the model layer read it: these attributes of
+    :class:`~stewart_drake.model.geometry.StewartGeometry` (names, units and meanings there).
+
+    A structural type: the geometry checks itself with these functions (a robot that cannot
+    close its legs at home is refused when it is built), so this module sits below it and cannot
+    import it.
+    """
+
+    crank_length: float
+    rod_length: float
+    P_B: np.ndarray
+    p_E: np.ndarray
+    d_B: np.ndarray
+    u_B: np.ndarray
+    motor_angle_min_deg: float
+    motor_angle_max_deg: float
+    crank_joint_cone_deg: float
+    platform_joint_cone_deg: float
+    platform_mass: float
+    platform_inertia: tuple
+    crank_mass: float
+    crank_inertia: tuple
+    rod_mass: float
+    rod_inertia: tuple
+    motor_reflected_inertia: float
+    gravity: float
+
+    def crank_tips(self, theta) -> np.ndarray:
+        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6), base frame."""
+
 
 _Z = np.array([0.0, 0.0, 1.0])
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]        # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
@@ -92,7 +131,7 @@ def _skew(v: np.ndarray) -> np.ndarray:
     return S
 
 
-def platform_joints(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndarray]:
+def platform_joints(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     """Platform joint centres of pose x (..., 6).
 
     Returns:
@@ -105,7 +144,7 @@ def platform_joints(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndar
     return r_B + x[..., None, 3:6], r_B
 
 
-def _lmn(geometry: "StewartGeometry", x):
+def _lmn(geometry: RobotGeometry, x):
     q_B, r_B = platform_joints(geometry, x)
     l = q_B - geometry.P_B                       # pivot to platform joint, (..., 6, 3)
     a, s = geometry.crank_length, geometry.rod_length
@@ -115,7 +154,7 @@ def _lmn(geometry: "StewartGeometry", x):
     return L, M, N, q_B, r_B
 
 
-def leg_reach_ratio(geometry: "StewartGeometry", x) -> np.ndarray:
+def leg_reach_ratio(geometry: RobotGeometry, x) -> np.ndarray:
     """(..., 6) ratio L / sqrt(M^2 + N^2) per leg; |ratio| > 1 means the leg cannot close.
 
     Args:
@@ -137,7 +176,7 @@ def leg_reach_ratio(geometry: "StewartGeometry", x) -> np.ndarray:
     return ratio
 
 
-def ik_unchecked(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndarray]:
+def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     """Vectorized IK without raising, for workspace sweeps.
 
     Returns:
@@ -152,7 +191,7 @@ def ik_unchecked(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndarray
     return theta, ratio
 
 
-def ik(geometry: "StewartGeometry", x, t=None) -> np.ndarray:
+def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:
     """Closed-form inverse kinematics: motor angles of the pose(s) x.
 
     Args:
@@ -181,7 +220,7 @@ def ik(geometry: "StewartGeometry", x, t=None) -> np.ndarray:
     return theta
 
 
-def _leg_terms(geometry: "StewartGeometry", x, theta=None):
+def _leg_terms(geometry: RobotGeometry, x, theta=None):
     """Per-leg vectors used by the Jacobian, statics and inertia, all (..., 6, 3)."""
     x = np.asarray(x, dtype=float)
     if theta is None:
@@ -199,7 +238,7 @@ def _leg_terms(geometry: "StewartGeometry", x, theta=None):
     return theta, q_B, r_B, tip, ell, e_N, E, Gq
 
 
-def _checked(geometry: "StewartGeometry", x, theta):
+def _checked(geometry: RobotGeometry, x, theta):
     """(x, theta) validated for the public Jacobian-based functions; theta from :func:`ik`."""
     x = as_poses("pose x", x)
     if theta is None:
@@ -218,7 +257,7 @@ def _finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarr
     raise SingularPoseError(name, np.inf, np.inf, pose=x.reshape(-1, 6)[int(np.argmax(bad))])
 
 
-def jacobian(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Analytic Jacobian J = d theta / d x of the inverse kinematics.
 
     Args:
@@ -236,7 +275,7 @@ def jacobian(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
 
 
-def _jacobian(geometry: "StewartGeometry", x, theta=None, terms=None) -> np.ndarray:
+def _jacobian(geometry: RobotGeometry, x, theta=None, terms=None) -> np.ndarray:
     """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
     unreachable; for Newton steps and singular values, which handle those themselves. ``terms``:
     :func:`_leg_terms` of x when already computed."""
@@ -247,7 +286,7 @@ def _jacobian(geometry: "StewartGeometry", x, theta=None, terms=None) -> np.ndar
         return num / den[..., None]
 
 
-def tau(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def tau(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Wrench map tau: generalized force on the platform per unit motor torque, (..., 6, 6).
 
     By virtual work, T . d theta = w . d x, so w = J^T T and tau = J^T, with w conjugate to
@@ -261,7 +300,7 @@ def tau(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return np.swapaxes(jacobian(geometry, x, theta), -1, -2)
 
 
-def wrench_map(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Corrected paper eq. 18: [M_B; F_B] = W T, (..., 6, 6).
 
     M_B is the moment about E's origin and F_B the force on the platform, both in the base frame,
@@ -281,7 +320,7 @@ def wrench_map(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return _finite_or_singular("W", W, x)
 
 
-def wrench_map_paper_eq18(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Paper eq. 18 exactly as printed: tau_1 diag(e_l . e_N / |a|), (..., 6, 6).
 
     Kept to document the discrepancy (docs/paper_notes.md); use :func:`wrench_map` or :func:`tau`.
@@ -313,7 +352,7 @@ def _wrap(angle):
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
 
-def _fk_residual(geometry: "StewartGeometry", x, theta_target):
+def _fk_residual(geometry: RobotGeometry, x, theta_target):
     """(theta of x, wrapped residual (n, 6), 2-norm (n,), max-abs (n,)); inf where unreachable."""
     theta, _ = ik_unchecked(geometry, x)
     r = _wrap(theta - theta_target)
@@ -323,14 +362,14 @@ def _fk_residual(geometry: "StewartGeometry", x, theta_target):
     return theta, r, norm2, norm_max
 
 
-def _assembly_mode(geometry: "StewartGeometry", x, theta) -> np.ndarray:
+def _assembly_mode(geometry: RobotGeometry, x, theta) -> np.ndarray:
     """(n,) sign of det J(x): +-1, 0 where J is singular or not finite."""
     J = _jacobian(geometry, x, theta)
     finite = np.all(np.isfinite(J), axis=(-2, -1))
     return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
 
 
-def fk_unchecked(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12,
+def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
                  max_iter: int = 50, max_halvings: int = 30):
     """Vectorized forward kinematics without raising: Newton on the closed-form IK.
 
@@ -355,6 +394,8 @@ def fk_unchecked(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12
         residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
     Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
     """
+    # Long: Newton, its backtracking and the assembly-mode guard share the batch's masks; apart,
+    # the masks would pass between functions on every iteration.
     theta = np.asarray(theta, dtype=float)
     batch = theta.shape[:-1]
     target = theta.reshape(-1, 6)
@@ -401,7 +442,7 @@ def fk_unchecked(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12
             errmax.reshape(batch))
 
 
-def fk(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12,
+def fk(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
        max_iter: int = 50) -> tuple[np.ndarray, FkStatus]:
     """Forward kinematics: the platform pose whose closed-form IK gives the motor angles theta.
 
@@ -446,7 +487,7 @@ def fk(geometry: "StewartGeometry", theta, x0=None, tol: float = 1e-12,
     return x, status
 
 
-def leg_constants(geometry: "StewartGeometry") -> tuple:
+def leg_constants(geometry: RobotGeometry) -> tuple:
     """The geometry as plain floats for :func:`ik_scalar`: ((p_E, P_B, d_B) per leg as 9-tuples,
     crank length a, s^2 - a^2). Compute it once per geometry."""
     legs = tuple(tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
@@ -488,7 +529,7 @@ def ik_scalar(constants: tuple, x) -> list:
     return theta
 
 
-def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
+def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
     """Motor angles of ONE pose, with what :func:`jacobian_single` reuses.
 
     The same numbers as :func:`ik` (a test holds them equal to 1e-12), computed with a few
@@ -525,7 +566,7 @@ def ik_single(geometry: "StewartGeometry", x) -> tuple[np.ndarray, tuple]:
     return theta, (x, R, r_B, l, theta)
 
 
-def leg_vectors_single(geometry: "StewartGeometry", cache: tuple):
+def leg_vectors_single(geometry: RobotGeometry, cache: tuple):
     """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
     of the pose :func:`ik_single` was given (its cache); as in :func:`_leg_terms`."""
     x, _, _, l, theta = cache
@@ -538,7 +579,7 @@ def leg_vectors_single(geometry: "StewartGeometry", cache: tuple):
     return l - a * (c * d_B + s * _Z), c * _Z - s * d_B, E
 
 
-def jacobian_single(geometry: "StewartGeometry", cache: tuple) -> np.ndarray:
+def jacobian_single(geometry: RobotGeometry, cache: tuple) -> np.ndarray:
     """Jacobian J = d theta / d x (6, 6) of the pose :func:`ik_single` was given (its cache).
 
     Rows (ell_i . dq_i/dx) / (a ell_i . e_N,i), with ell_i . d(q_i)/d(rpy) = (r_i x ell_i)^T E;
@@ -553,7 +594,7 @@ def jacobian_single(geometry: "StewartGeometry", cache: tuple) -> np.ndarray:
                                                  * (ell * e_N).sum(axis=1))[:, None]
 
 
-def ik_jacobian(geometry: "StewartGeometry", x) -> tuple[np.ndarray, np.ndarray]:
+def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     """(theta (6,), J (6, 6)) of ONE pose: :func:`ik_single` then :func:`jacobian_single`."""
     theta, cache = ik_single(geometry, x)
     return theta, jacobian_single(geometry, cache)
@@ -573,7 +614,7 @@ def _singular_values_of(J: np.ndarray) -> np.ndarray:
     return out.reshape(J.shape[:-2] + (6,))
 
 
-def singular_values(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def singular_values(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Singular values of the Jacobian J = d theta / d x, (..., 6) descending.
 
     Args:
@@ -588,7 +629,7 @@ def singular_values(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return _singular_values_of(_jacobian(geometry, x, theta))
 
 
-def singularity_measures(geometry: "StewartGeometry", x, theta=None):
+def singularity_measures(geometry: RobotGeometry, x, theta=None):
     """How close pose(s) x are to a singularity: cond(J) and sigma_min(J^{-1}) = 1/sigma_max(J).
 
     cond(J) = sigma_max / sigma_min grows without bound at both kinds of singularity of this
@@ -617,7 +658,7 @@ def singularity_measures(geometry: "StewartGeometry", x, theta=None):
     return singularity_measures_unchecked(geometry, x, theta)
 
 
-def singularity_measures_unchecked(geometry: "StewartGeometry", x, theta=None):
+def singularity_measures_unchecked(geometry: RobotGeometry, x, theta=None):
     """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
     validator of a path); x must still be finite poses (..., 6)."""
     sv = singular_values(geometry, x, theta)       # validates x

@@ -17,11 +17,25 @@ from functools import lru_cache
 import numpy as np
 
 from ..checks import as_array, as_number, as_poses
-from ..errors import (InterferenceError, InvalidConfigError, JointLimitError, MotorLimitError,
-                      SingularPoseError, UnreachablePoseError)
-from .kinematics import (DEFAULT_COND_THRESHOLD, X_HOME, _wrap, ik, ik_unchecked,
-                         platform_joints, rotation_rpy, singularity_measures_unchecked)
-
+from ..errors import (
+    InterferenceError,
+    InvalidConfigError,
+    JointLimitError,
+    MotorLimitError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
+from .kinematics import (
+    DEFAULT_COND_THRESHOLD,
+    X_HOME,
+    RobotGeometry,
+    _wrap,
+    ik,
+    ik_unchecked,
+    platform_joints,
+    rotation_rpy,
+    singularity_measures_unchecked,
+)
 
 #: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
 #: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
@@ -48,7 +62,7 @@ LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
 
 
 @lru_cache(maxsize=32)
-def _home_rod_in_platform(geometry: "StewartGeometry") -> np.ndarray:
+def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
     theta = ik(geometry, X_HOME)
     q_B, _ = platform_joints(geometry, X_HOME)
@@ -58,7 +72,7 @@ def _home_rod_in_platform(geometry: "StewartGeometry") -> np.ndarray:
 
 
 
-def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
+def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
     """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
 
     Returns a dict:
@@ -87,7 +101,7 @@ def joint_angles(geometry: "StewartGeometry", x, theta=None) -> dict:
 
 
 
-def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """Distance of reachable pose(s) x to every per-leg limit; >= 0 inside, < 0 violated.
 
     Args:
@@ -121,7 +135,7 @@ def limit_margins(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dic
     return limit_margins_unchecked(geometry, x, theta, ratio)
 
 
-def limit_margins_unchecked(geometry: "StewartGeometry", x, theta=None, ratio=None) -> dict:
+def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
     other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
     x = np.asarray(x, dtype=float)
@@ -207,7 +221,7 @@ class Reachability:
 
 
 
-def is_reachable(geometry: "StewartGeometry", x) -> Reachability:
+def is_reachable(geometry: RobotGeometry, x) -> Reachability:
     """Check pose(s) x against loop closure, motor range and ball-joint cones, before a move.
 
     Args:
@@ -368,7 +382,7 @@ class TrajectoryReport:
 
 
 
-def validate_trajectory(geometry: "StewartGeometry", t, x,
+def validate_trajectory(geometry: RobotGeometry, t, x,
                         cond_threshold: float = DEFAULT_COND_THRESHOLD,
                         raise_unreachable: bool = True,
                         min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
@@ -418,23 +432,14 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
             pose, rate or acceleration is named with its time), t not increasing, or a
             threshold out of range.
-    Source: the one validator of a reference: :func:`~stewart_drake.simulation.trajectories.validate`
-        samples a trajectory object and calls it; every run does, before anything is simulated.
+    Source: the one validator of a reference:
+        :func:`~stewart_drake.simulation.trajectories.validate` samples a trajectory object and
+        calls it; every run does, before anything is simulated.
     """
-    t = as_array("sample times t", t).reshape(-1)
-    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
-        arr = None if arr is None else np.asarray(arr, dtype=float)
-        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
-            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
-            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
-    x = as_poses("poses x", x)
+    # Long for its docstring: the one validator of a reference documents every check and error.
+    t, x = _checked_samples(t, x, x_dot, x_ddot)
     cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
     min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
-    if x.shape != (t.size, 6) or t.size == 0:
-        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
-                                 f"t {t.shape} and x {x.shape}")
-    if np.any(np.diff(t) <= 0):
-        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
     theta, ratio = ik_unchecked(geometry, x)
     closed = np.abs(ratio) <= 1.0
     if raise_unreachable and not np.all(closed):
@@ -443,6 +448,50 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
     margins = limit_margins_unchecked(geometry, x, theta, ratio)
     cond, inv = singularity_measures_unchecked(geometry, x, theta)
+    cond_f = np.where(np.isnan(cond), np.inf, cond)
+    inv_f = np.where(np.isnan(inv), 0.0, inv)
+    reachable = np.all(closed, axis=1)
+    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
+    extra = {"series": series}
+    if clearance is not None:
+        extra.update(_clearance_fields(clearance, t, x, reachable,
+                                       as_number("min_clearance_m", min_clearance_m, 0.0),
+                                       clearance_resolution_m, series))
+    if motor_limits is not None:
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
+                                    series))
+    report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
+    if raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
+    return report
+
+
+def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
+    """(t (n,), x (n, 6)) checked: finite (the first non-finite pose, rate or acceleration named
+    with its time), matching shapes, n > 0, t strictly increasing.
+
+    Raises:
+        InvalidConfigError: names what is wrong.
+    """
+    t = as_array("sample times t", t).reshape(-1)
+    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
+        arr = None if arr is None else np.asarray(arr, dtype=float)
+        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
+            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
+    x = as_poses("poses x", x)
+    if x.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+                                 f"t {t.shape} and x {x.shape}")
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
+    return t, x
+
+
+def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float,
+            extra: dict) -> "TrajectoryReport":
+    """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
+    already mapped to the worst value), with the clearance and effort fields in ``extra``."""
     min_margin, min_leg, min_t = {}, {}, {}
     first = None
     for name in LIMITS:
@@ -455,22 +504,10 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
             if first is None or t[kb] < first.t:
                 lb = int(np.argmin(m[kb]))
                 first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
-    cond_f = np.where(np.isnan(cond), np.inf, cond)
-    inv_f = np.where(np.isnan(inv), 0.0, inv)
     over = cond_f > cond_threshold
     weak = inv_f < min_sigma_min_inv
     kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
-    reachable = np.all(closed, axis=1)
-    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
-    extra = {"series": series}
-    if clearance is not None:
-        extra.update(_clearance_fields(clearance, t, x, reachable,
-                                       as_number("min_clearance_m", min_clearance_m, 0.0),
-                                       clearance_resolution_m, series))
-    if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
-                                    series))
-    report = TrajectoryReport(
+    return TrajectoryReport(
         ok=(first is None and not np.any(over) and not np.any(weak)
             and extra.get("first_interference") is None
             and extra.get("first_effort_violation") is None), min_margin=min_margin,
@@ -481,9 +518,6 @@ def validate_trajectory(geometry: "StewartGeometry", t, x,
         min_sigma_min_inv_t=float(t[ki]),
         first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
         sigma_min_inv_threshold=float(min_sigma_min_inv), **extra)
-    if raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
-    return report
 
 
 def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float,

@@ -115,6 +115,7 @@ def write_mjcf(geometry: StewartGeometry | None = None, time_step: float = 1e-3,
         InvalidConfigError: a time step, integrator or solver parameter out of range.
     Source: body frames and inertias of the Drake plant at home (same SDF, Table I).
     """
+    # Long: one document written element after element, in the order the file reads.
     from .parts import robot_parts
     from .plant import MODEL_NAME, make_plant
 

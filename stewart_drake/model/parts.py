@@ -125,6 +125,7 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
         list of :class:`Part`, links in SDF order (base, then crank_i and rod_i per leg, then
         the platform).
     """
+    # Long: the table of the robot's parts, one entry each, in the order of the SDF's links.
     g = geometry or StewartGeometry()
     parts = []
     eye = np.eye(3)

@@ -25,8 +25,8 @@ from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, Multibody
 from pydrake.multibody.tree import PdControllerGains
 from pydrake.systems.framework import Context, DiagramBuilder
 
-from . import kinematics
 from ..errors import InvalidConfigError
+from . import kinematics
 from .geometry import X_HOME, StewartGeometry
 from .servo import ServoModel
 
@@ -100,7 +100,8 @@ def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     v = np.cross(a, b)
     c = float(np.dot(a, b))
     if c < -1 + 1e-12:
-        raise InvalidConfigError("rod direction flipped by 180 degrees: the pose is not assemblable")
+        raise InvalidConfigError("rod direction flipped by 180 degrees: the pose is not "
+                                 "assemblable")
     K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
     return np.eye(3) + K + K @ K / (1 + c)
 
@@ -143,6 +144,7 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
     inertia corrected to the nearest physically valid tensor, docs/paper_notes.md); the parts'
     shapes are ours (:mod:`~.parts`).
     """
+    # Long: one document written element after element, in the order the file reads.
     from .parts import robot_parts
 
     g = geometry or StewartGeometry()
@@ -176,7 +178,8 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
             + "".join(shapes[f"rod_{i}"]) + "    </link>")
         out.append(f'    <joint name="rod_ball_{i}" type="ball"><parent>crank_{i}</parent>'
                    f"<child>rod_{i}</child></joint>")
-    out.append(f'    <link name="platform">\n      <pose>{_vec(X_HOME[3:])} {_vec(X_HOME[:3])}</pose>\n'
+    out.append(f'    <link name="platform">\n      <pose>{_vec(X_HOME[3:])} '
+               f'{_vec(X_HOME[:3])}</pose>\n'
                + _inertial(g.platform_mass, g.platform_inertia, [0, 0, 0])
                + "".join(shapes["platform"]) + "    </link>")
     for i in range(6):
@@ -246,6 +249,8 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
     Raises:
         InvalidConfigError: time_step <= 0 or a non-SAP approximation (constraints ignored).
     """
+    # Long for its docstring (every argument and Drake's behaviour it relies on); the steps are
+    # functions below.
     if plant_config is not None:
         time_step = plant_config.time_step
         discrete_contact_approximation = plant_config.discrete_contact_approximation
@@ -265,19 +270,39 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
     # Drake's default is 9.81 m/s^2 whatever the geometry says; holding torques and feed-forward
     # use geometry.gravity, so the plant must too.
     plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -geometry.gravity])
+    model = _add_robot_model(plant, scene_graph, geometry, sdf_file, contact)
+    _add_motors(plant, model, geometry, servo)
+    plant.Finalize()
+    handles = _handles(plant, model, geometry)
+    theta_home = kinematics.ik(geometry, X_HOME)
+    for joint, angle in zip(handles.motors, theta_home):
+        joint.set_default_angle(float(angle))
+    plant.SetDefaultFloatingBaseBodyPose(handles.platform, pose_to_transform(X_HOME))
+    return plant, scene_graph, handles
+
+
+def _add_robot_model(plant, scene_graph, geometry: StewartGeometry, sdf_file, contact: bool):
+    """The robot's model instance, from :func:`write_sdf` of ``geometry`` or from ``sdf_file``
+    (its collision geometry filtered out without ``contact``)."""
     parser = Parser(plant)
     if sdf_file is None:
         (model,) = parser.AddModelsFromString(write_sdf(geometry, collision=contact), "sdf")
-    else:
-        (model,) = parser.AddModels(str(sdf_file))
-        if not contact:
-            frames = [plant.GetBodyFrameIdOrThrow(index)
-                      for index in plant.GetBodyIndices(model)]
-            scene_graph.collision_filter_manager().Apply(
-                CollisionFilterDeclaration().ExcludeWithin(GeometrySet(frames)))
-    motors = [plant.GetJointByName(f"motor_{i}", model) for i in range(6)]
+        return model
+    (model,) = parser.AddModels(str(sdf_file))
+    if not contact:
+        frames = [plant.GetBodyFrameIdOrThrow(index) for index in plant.GetBodyIndices(model)]
+        scene_graph.collision_filter_manager().Apply(
+            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(frames)))
+    return model
+
+
+def _add_motors(plant, model, geometry: StewartGeometry, servo: ServoModel | None) -> None:
+    """The servo on each motor joint (before Finalize): viscous friction as joint damping,
+    Coulomb friction as a second, PD-controlled actuator, and the reflected rotor inertia on
+    the joint's last actuator."""
     gear = servo.gear_ratio if servo is not None else 1.0
-    for i, joint in enumerate(motors):
+    for i in range(6):
+        joint = plant.GetJointByName(f"motor_{i}", model)
         # Looked up by name: before Finalize() drake's GetJointActuatorIndices(model) is empty.
         last = plant.GetJointActuatorByName(f"motor_{i}", model)
         if servo is not None:
@@ -291,9 +316,18 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
         # the last actuator of each motor joint; a test reads the mass matrix back.
         last.set_default_gear_ratio(gear)
         last.set_default_rotor_inertia(geometry.motor_reflected_inertia / gear ** 2)
-    plant.Finalize()
+
+
+def _handles(plant, model, geometry: StewartGeometry) -> StewartPlantHandles:
+    """The handles of the finalized plant's robot.
+
+    Raises:
+        InvalidConfigError: the model has other than 6 motor actuators (12 with friction).
+    """
     n_actuators = plant.num_actuators()
-    handles = StewartPlantHandles(
+    if n_actuators not in (6, 12):
+        raise InvalidConfigError(f"expected 6 motor actuators, the SDF gives {n_actuators}")
+    return StewartPlantHandles(
         geometry=geometry, model_instance=model,
         platform=plant.GetBodyByName("platform", model),
         cranks=tuple(plant.GetBodyByName(f"crank_{i}", model) for i in range(6)),
@@ -304,13 +338,6 @@ def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None 
         actuation_port=plant.get_actuation_input_port(model), n_actuators=n_actuators,
         desired_state_port=(plant.get_desired_state_input_port(model) if n_actuators > 6
                             else None))
-    if n_actuators not in (6, 12):
-        raise InvalidConfigError(f"expected 6 motor actuators, the SDF gives {n_actuators}")
-    theta_home = kinematics.ik(geometry, X_HOME)
-    for joint, angle in zip(handles.motors, theta_home):
-        joint.set_default_angle(float(angle))
-    plant.SetDefaultFloatingBaseBodyPose(handles.platform, pose_to_transform(X_HOME))
-    return plant, scene_graph, handles
 
 
 def make_plant(geometry: StewartGeometry | None = None, time_step: float = 1e-3,
@@ -460,7 +487,8 @@ def _set_velocities(plant, context, handles, x, x_dot, theta):
         X_CF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
         R_WF = X_WC.rotation().multiply(X_CF.rotation())
         # BallRpyJoint's generalized velocity is w_FM expressed in F (not rpy rates).
-        joint.set_angular_velocity(context, np.asarray(R_WF.inverse().multiply(w_rod_W - w_crank_W)))
+        joint.set_angular_velocity(context,
+                                   np.asarray(R_WF.inverse().multiply(w_rod_W - w_crank_W)))
 
 
 def closed_chain_inverse_dynamics(plant: MultibodyPlant, context: Context,

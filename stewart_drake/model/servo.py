@@ -1,4 +1,5 @@
-"""The servo at each crank: a brushless motor behind a planetary gearhead, its drive and its friction.
+"""The servo at each crank: a brushless motor behind a planetary gearhead, its drive and its
+friction.
 
 :class:`ServoModel` holds what the plant and the station need, at the **output shaft** (the crank):
 peak torque, reflected rotor inertia, current-loop lag, viscous and Coulomb friction. Its defaults

@@ -14,15 +14,27 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidConfigError, SingularPoseError
-from .kinematics import (DEFAULT_COND_THRESHOLD, X_HOME, _checked, _finite_or_singular,
-                         _jacobian, _leg_terms, _skew, ik, jacobian, leg_vectors_single,
-                         rotation_rpy, wrench_map)
+from .kinematics import (
+    DEFAULT_COND_THRESHOLD,
+    X_HOME,
+    RobotGeometry,
+    _checked,
+    _finite_or_singular,
+    _jacobian,
+    _leg_terms,
+    _skew,
+    ik,
+    jacobian,
+    leg_vectors_single,
+    rotation_rpy,
+    wrench_map,
+)
 
 #: Feed-forward modes of :func:`feedforward_torques`.
 FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
 
 
-def gravity_gradient(geometry: "StewartGeometry", x, theta=None, J=None) -> np.ndarray:
+def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarray:
     """dV/dx of the potential energy of platform, cranks and rods, (..., 6) in N m/rad and N.
 
     V = g [m_p Z + sum_i (m_c z_crank,i + m_r z_rod,i)], COMs at the geometric centres: the
@@ -41,7 +53,7 @@ def gravity_gradient(geometry: "StewartGeometry", x, theta=None, J=None) -> np.n
 
 
 
-def holding_torques(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Static motor torques that hold pose x against gravity, (..., 6) in N m.
 
     Solves J^T T = dV/dx (virtual work through the Jacobian; Drake's tree gravity term ignores the
@@ -74,7 +86,7 @@ def holding_torques(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
 p_ETool = np.array([0.0, 0.0, 0.08])
 
 
-def tool_load_torques(geometry: "StewartGeometry", x, wrench_W, p_EP=p_ETool) -> np.ndarray:
+def tool_load_torques(geometry: RobotGeometry, x, wrench_W, p_EP=p_ETool) -> np.ndarray:
     """Static motor torques that hold pose x against gravity AND a wrench on the tool, (6,) N m.
 
     Equilibrium of the platform: the motors' wrench (:func:`~.kinematics.wrench_map`) balances
@@ -96,7 +108,7 @@ def tool_load_torques(geometry: "StewartGeometry", x, wrench_W, p_EP=p_ETool) ->
     return holding_torques(geometry, x) + T_ext
 
 
-def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
+def task_inertia(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Task-space mass matrix M_x(x) of the whole closed chain, (..., 6, 6), SI units.
 
     Kinetic energy T = 1/2 x_dot^T M_x x_dot of the platform (in rpy coordinates), the cranks
@@ -111,7 +123,7 @@ def task_inertia(geometry: "StewartGeometry", x, theta=None) -> np.ndarray:
     return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
 
 
-def task_inertia_single(geometry: "StewartGeometry", cache: tuple, J: np.ndarray) -> np.ndarray:
+def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) -> np.ndarray:
     """:func:`task_inertia` (6, 6) of ONE pose, from :func:`~.kinematics.ik_single`'s cache and
     its Jacobian J (:func:`~.kinematics.jacobian_single`): the per-step path of the gain
     re-scheduling (equal to the batched function; a test holds them to 1e-12)."""
@@ -144,7 +156,7 @@ def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     return M
 
 
-def coriolis_forces(geometry: "StewartGeometry", x, x_dot, step: float = 1e-7,
+def coriolis_forces(geometry: RobotGeometry, x, x_dot, step: float = 1e-7,
                     M=None) -> np.ndarray:
     """Velocity-product forces c(x, x_dot) of the task-space dynamics, (..., 6) in N m and N.
 
@@ -174,7 +186,7 @@ def coriolis_forces(geometry: "StewartGeometry", x, x_dot, step: float = 1e-7,
     return c
 
 
-def inverse_dynamics_torques(geometry: "StewartGeometry", x, x_dot, x_ddot,
+def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot,
                              theta=None) -> np.ndarray:
     """Motor torques that move the closed chain along (x, x_dot, x_ddot), (..., 6) in N m.
 
@@ -200,7 +212,7 @@ def inverse_dynamics_torques(geometry: "StewartGeometry", x, x_dot, x_ddot,
     return _finite_or_singular("T", T, x)
 
 
-def motor_effort(geometry: "StewartGeometry", x, x_dot, x_ddot, servo=None):
+def motor_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None):
     """What the motors must give for a motion: torques and speeds at the crank shafts.
 
     Args:
@@ -223,7 +235,7 @@ def motor_effort(geometry: "StewartGeometry", x, x_dot, x_ddot, servo=None):
     return T, theta_dot
 
 
-def crank_inertia_matrix(geometry: "StewartGeometry", x=X_HOME) -> np.ndarray:
+def crank_inertia_matrix(geometry: RobotGeometry, x=X_HOME) -> np.ndarray:
     """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
     theta = ik(geometry, x)
     J_inv = np.linalg.inv(jacobian(geometry, x, theta))
@@ -231,7 +243,7 @@ def crank_inertia_matrix(geometry: "StewartGeometry", x=X_HOME) -> np.ndarray:
 
 
 
-def feedforward_torques(geometry: "StewartGeometry", x_d, xdd_d=None,
+def feedforward_torques(geometry: RobotGeometry, x_d, xdd_d=None,
                         mode: str = "gravity", theta=None, xd_d=None) -> np.ndarray:
     """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
 

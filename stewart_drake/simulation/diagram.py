@@ -1,91 +1,44 @@
-"""The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers."""
+"""The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers.
+
+:func:`make_stewart_diagram` builds it in stages, one function each: the reference and its
+feed-forward, the controller (built by its scenario choice), the measurement it reads, the tool
+disturbance, what drives the controller's weights (a tuner choice, or a constant), the loggers and
+the guard. Each scenario choice builds itself (``make``, ``add_to``: simulation/scenario.py); the
+stages here only wire by port name.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
-from pydrake.common import RandomDistribution
-from pydrake.systems.framework import DiagramBuilder
-from pydrake.systems.primitives import (
-    Adder,
-    ConstantVectorSource,
-    Gain,
-    LogVectorOutput,
-    RandomSource,
-    TrajectorySource,
-)
-from pydrake.trajectories import PiecewisePolynomial
+from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
+from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, RandomSource
 
 from ..control.contract import ControllerContext, check_controller, resolve_controller
 from ..control.estimator import FkEstimator, PoseEstimator
-from ..control.lqi import LqiDiagram
-from ..control.pd import CrankPdController
-from ..errors import InvalidConfigError
 from .guard import DivergenceGuard
-from .reference import add_reference_sources
-from .scenario import (
-    LqiDriver,
-    PdDriver,
-    RatioTunerDriver,
-    Scenario,
-    UserController,
-    WeightSchedule,
-)
+from .reference import ReferenceSources, add_reference_sources
+from .scenario import Scenario, TunerPorts
+from .sensors import PlatformPoseSensor, add_white_noise
 from .station import StewartStation
 from .trajectories import as_trajectory
 
 
-def lqi_factory(driver: LqiDriver, compiled: bool = True
-                ) -> Callable[[ControllerContext], LqiDiagram]:
-    """The factory of the LQI a scenario's :class:`~.scenario.LqiDriver` describes; with
-    ``compiled=False`` the LQI runs its numpy reference step (same numbers, slower)."""
-    def make(context: ControllerContext) -> LqiDiagram:
-        return LqiDiagram(context.geometry, period_s=context.period_s,
-                             schedule_period_s=driver.schedule_period_s,
-                             scales=driver.scales.build(), offset_s=context.offset_s,
-                             x_initial=context.x_initial, riccati=driver.riccati,
-                             torque_limit_Nm=context.torque_limit_Nm,
-                             anti_windup=driver.anti_windup,
-                             delay_periods=context.delay_periods if driver.delay_compensation
-                             else 0, estimator=context.pose_estimator,
-                             x_dot_initial=context.x_dot_initial,
-                             reference_governor=driver.reference_governor,
-                             schedule_pose=driver.schedule_pose,
-                             gain_transfer=driver.gain_transfer,
-                             feature_window=context.feature_window, compiled=compiled)
-    return make
-
-
-def pd_factory(driver: PdDriver) -> Callable[[ControllerContext], CrankPdController]:
-    """The factory of the crank PD a scenario's :class:`~.scenario.PdDriver` describes."""
-    def make(context: ControllerContext) -> CrankPdController:
-        return CrankPdController(context.geometry, period_s=context.period_s,
-                                 offset_s=context.offset_s, bandwidth_hz=driver.bandwidth_hz,
-                                 damping=driver.damping, x_initial=context.x_initial,
-                                 schedule_period_s=driver.schedule_period_s)
-    return make
-
-
 def controller_factory(scenario: Scenario, controller=None) -> Callable:
-    """The factory ``f(ControllerContext) -> LeafSystem`` of a run.
+    """The factory ``f(ControllerContext) -> System`` of a run.
 
     Args:
-        scenario: its ``controller`` is used when ``controller`` is None.
+        scenario: its ``controller`` choice is used when ``controller`` is None
+            (:meth:`~stewart_drake.control.contract.ControllerDriver.resolve`).
         controller: a factory callable or a registered name (overrides the scenario).
+    Raises:
+        InvalidConfigError: a name that is not registered (listing the registered ones).
     """
     if controller is not None:
         return resolve_controller(controller) if isinstance(controller, str) else controller
-    driver = scenario.controller
-    if isinstance(driver, LqiDriver):
-        return lqi_factory(driver)
-    if isinstance(driver, PdDriver):
-        return pd_factory(driver)
-    if isinstance(driver, UserController):
-        factory = resolve_controller(driver.factory)
-        return lambda context: factory(context, **driver.parameters)
-    raise InvalidConfigError(f"unknown controller choice {type(driver).__name__}")
+    return scenario.controller.resolve()
 
 
 @dataclass
@@ -95,26 +48,28 @@ class StewartDiagram:
     Attributes:
         diagram: the Diagram. station: the :class:`~.station.StewartStation` in it.
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
-        (or the live reference system). trajectory: the reference object (``evaluate(t)``;
-        None with a live reference). loggers: name -> LogVectorOutput.
-        scenario: the scenario built. features, tuner, noise: the systems, or None.
+            (or the live reference system). trajectory: the reference object (``evaluate(t)``;
+            None with a live reference). loggers: name -> ``LogVectorOutput`` logger.
+        scenario: the scenario built. features, tuner: the tuner's systems, or None.
+        noise: the sensor noise's ``RandomSource``, or None. estimator: the
+            :class:`~stewart_drake.control.estimator.FkEstimator` on the encoders, or None.
         guard: the :class:`~.guard.DivergenceGuard` system checking the run.
         T_ff_initial: (6,) the feed-forward at t = 0, N m (the torque pipes start there).
     """
 
-    diagram: Any
+    diagram: Diagram
     station: StewartStation
-    controller: Any
-    reference: Any
-    trajectory: Any
+    controller: System
+    reference: ReferenceSources | System
+    trajectory: object | None
     loggers: dict
     scenario: Scenario
-    features: Any = None
-    tuner: Any = None
-    noise: Any = None
-    estimator: Any = None
-    guard: Any = None
-    T_ff_initial: Any = None
+    features: System | None = None
+    tuner: System | None = None
+    noise: RandomSource | None = None
+    estimator: FkEstimator | None = None
+    guard: DivergenceGuard | None = None
+    T_ff_initial: np.ndarray | None = None
 
     @property
     def plant(self):
@@ -125,7 +80,7 @@ class StewartDiagram:
         return self.station.handles
 
     @property
-    def sensor(self):
+    def sensor(self) -> PlatformPoseSensor:
         return self.station.sensor
 
     def initialize(self, root_context) -> None:
@@ -154,10 +109,11 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     feed-forward (precomputed ``TrajectorySource``s, :mod:`~.reference`); the controller, whose
     ports are connected by name as the controller contract says
     (:mod:`~stewart_drake.control.contract`): ``x_d``, ``T_ff``, ``x`` (the station's
-    ``platform_state`` [+ sensor noise]), ``motor_angle``, ``motor_rate``, ``omega`` (constant
-    weights, or DensityFeatures(e_bar, T) -> AnnTuner when the scenario has a tuner); its ``T``
-    drives the station's ``motor_torque``; ``tool_wrench`` is fixed to zero; a
-    :class:`~.guard.DivergenceGuard` checks the run every ``scenario.guard.check_period_s``.
+    ``platform_state`` [+ sensor noise], or the FK estimate on the encoders), ``motor_angle``,
+    ``motor_rate``, ``motor_torque_applied``, ``omega`` (constant weights, or what the scenario's
+    tuner adds); its ``T`` drives the station's ``motor_torque``; ``tool_wrench`` is the
+    disturbance or fixed to zero; a :class:`~.guard.DivergenceGuard` checks the run every
+    ``scenario.guard.check_period_s``.
 
     Args:
         scenario: the run (default: the paper's experiment on the ideal robot).
@@ -183,162 +139,183 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
             (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
         UnreachablePoseError: the reference leaves the workspace (first time and leg).
     """
+    # Long for its docstring (every port and choice documented); the stages are functions below.
     scenario = (scenario or Scenario()).validate()
     trajectory = None if reference_system is not None else as_trajectory(
         reference if reference is not None else scenario.make_reference())
-    geometry = scenario.geometry()
     builder = DiagramBuilder()
     station = builder.AddSystem(StewartStation(scenario, meshcat))
-    h_plant, h = scenario.plant_time_step_s, scenario.control_period_s
-    # The controller samples half a plant step after each plant update, when the plant already
-    # holds the configuration of the next step's time: its reference leads by the same half step.
-    offset = 0.5 * h_plant
-    delay = scenario.hardware.computation_delay_periods if scenario.hardware else 0
-    if reference_system is None:
-        ref = add_reference_sources(builder, trajectory, geometry, scenario.duration_s,
-                                    period_s=h, offset_s=offset, lead_s=0.5 * h_plant,
-                                    feedforward=scenario.feedforward,
-                                    feedforward_lead_s=delay * h)
-        x_d_port, T_ff_port = ref.x_d.get_output_port(), ref.T_ff.get_output_port()
-        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
-        T_ff_initial = ref.T_ff_table[0]
-    else:
-        ref = builder.AddNamedSystem("reference", reference_system)
-        for i in range(ref.num_input_ports()):
-            builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
-        x_d_port, T_ff_port = ref.GetOutputPort("x_d"), ref.GetOutputPort("T_ff")
-        x0, x_dot0 = np.asarray(ref.x_initial, dtype=float), np.zeros(6)
-        T_ff_initial = np.asarray(ref.T_ff_initial, dtype=float)
-    hw = scenario.hardware
-    pose_estimator = None if hw is None else PoseEstimator(
-        geometry, h, hw.encoders.quantum_rad, x0, rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
-        tolerance_counts=hw.estimator.fk_tolerance_counts)
-    tuner_driver = scenario.tuner
-    feature_window = (None if tuner_driver is None or isinstance(tuner_driver, WeightSchedule)
-                      else tuner_driver.feature_window)
-    context = ControllerContext(geometry=geometry, period_s=h, offset_s=offset,
-                                plant_time_step_s=h_plant, x_initial=x0, x_dot_initial=x_dot0,
-                                torque_limit_Nm=scenario.torque_limit(), delay_periods=delay,
-                                pose_estimator=pose_estimator, feature_window=feature_window)
-    system = controller_factory(scenario, controller)(context)
-    check_controller(system)
-    if not system.get_name():
-        system.set_name("controller")
-    system = builder.AddSystem(system)
+    ref = _add_reference(builder, scenario, trajectory, reference_system)
+    context = controller_context(scenario, ref.x0, ref.x_dot0)
+    system = _add_controller(builder, controller_factory(scenario, controller)(context))
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
-
-    noise = estimator = None
-    measured = station.GetOutputPort("platform_state")
-    if pose_estimator is not None and "x" in inputs:       # the pose from the encoders
-        estimator = builder.AddNamedSystem("estimator", FkEstimator(pose_estimator, offset, x0,
-                                                                    x_dot0))
-        builder.Connect(station.GetOutputPort("motor_angle"), estimator.get_input_port())
-        measured = estimator.get_output_port()
-    if scenario.sensor_noise is not None and "x" in inputs:
-        std = np.broadcast_to(np.asarray(scenario.sensor_noise.std, dtype=float), (12,)).copy()
-        noise = builder.AddNamedSystem("sensor_noise", RandomSource(
-            RandomDistribution.kGaussian, 12, sampling_interval_sec=h))
-        scale = builder.AddNamedSystem("noise_std", Gain(std))
-        add = builder.AddNamedSystem("noisy_x", Adder(2, 12))
-        builder.Connect(noise.get_output_port(), scale.get_input_port())
-        builder.Connect(measured, add.get_input_port(0))
-        builder.Connect(scale.get_output_port(), add.get_input_port(1))
-        measured = add.get_output_port()
+    measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
-    sources = {"x_d": x_d_port, "T_ff": T_ff_port,
-               "x": measured, "motor_angle": station.GetOutputPort("motor_angle"),
+    sources = {"x_d": ref.x_d, "T_ff": ref.T_ff, "x": measured,
+               "motor_angle": station.GetOutputPort("motor_angle"),
                "motor_rate": station.GetOutputPort("motor_rate"), "motor_torque_applied": applied}
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-    if scenario.disturbance is not None and reference_system is None:
-        t = np.arange(0.0, scenario.duration_s + 2 * h_plant, h_plant)
-        wrench = builder.AddNamedSystem("tool_disturbance", TrajectorySource(
-            PiecewisePolynomial.FirstOrderHold(t, scenario.disturbance.wrench(t).T)))
-        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
-    else:
-        # Exported and fixed to zero in the Context (build_simulator): a fixed input is computed
-        # once, where a constant source would be re-evaluated at every plant step.
-        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
-
-    features = tuner = None
-    loggers = {}
-    if isinstance(tuner_driver, WeightSchedule):
-        if "omega" not in inputs:
-            raise InvalidConfigError(f"a weight schedule drives the omega input; "
-                                     f"{system.get_name()} has none")
-        t_s = np.append(np.asarray(tuner_driver.t, dtype=float), scenario.duration_s + 1.0)
-        values = np.array([tuner_driver.omega_Q, tuner_driver.omega_R], dtype=float)
-        tuner = builder.AddNamedSystem("weight_schedule", TrajectorySource(
-            PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))))
-        builder.Connect(tuner.get_output_port(), system.GetInputPort("omega"))
-    elif tuner_driver is not None:
-        from ..control.features import N_FEATURES, DensityFeatures
-        from ..control.tuner import AnnTuner, RatioTuner, load_ratio_tuner, load_tuner
-
-        missing = [p for p, have in (("omega input", "omega" in inputs),
-                                     ("e_bar output", "e_bar" in outputs)) if not have]
-        if missing:
-            raise InvalidConfigError(f"the ANN tuner needs a controller with an {' and an '.join(missing)} "
-                                     f"(the LQI has both); {system.get_name()} has not")
-        t = tuner_driver
-        # A controller that buffers the samples spares the features a callback per period.
-        buffered = "feature_window" in outputs
-        size = N_FEATURES * t.feature_window + 2
-        if buffered and system.GetOutputPort("feature_window").size() != size:
-            raise InvalidConfigError(
-                f"{system.get_name()}: output port 'feature_window' has size "
-                f"{system.GetOutputPort('feature_window').size()}; the tuner's window of "
-                f"{t.feature_window} samples needs {size} (contract, control/contract.py)")
-        features = builder.AddNamedSystem("features", DensityFeatures(
-            window=t.feature_window, period_s=h, offset_s=offset, buffered=buffered))
-        if isinstance(t, RatioTunerDriver):
-            tuner = builder.AddNamedSystem("ratio_tuner", RatioTuner(
-                load_ratio_tuner(t.weights or None), period_s=t.period_s,
-                smoothing_s=t.smoothing_s))
-            builder.Connect(x_d_port, tuner.GetInputPort("x_d"))
-        else:
-            tuner = builder.AddNamedSystem("ann_tuner", AnnTuner(
-                load_tuner(t.weights or None), period_s=t.period_s))
-        if buffered:
-            builder.Connect(system.GetOutputPort("feature_window"),
-                            features.GetInputPort("feature_window"))
-        else:
-            builder.Connect(system.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
-            builder.Connect(applied, features.GetInputPort("T"))
-        builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
-        builder.Connect(tuner.GetOutputPort("omega"), system.GetInputPort("omega"))
-        # rho is computed when read: log it where the tuner reads it, not every millisecond.
-        loggers["rho"] = LogVectorOutput(features.GetOutputPort("rho"), builder, t.period_s)
-    elif "omega" in inputs:
-        driver = scenario.controller
-        weights = ([driver.omega_Q, driver.omega_R] if isinstance(driver, LqiDriver)
-                   else [1.0, 1.0])
-        omega = builder.AddNamedSystem("omega", ConstantVectorSource(np.array(weights)))
-        builder.Connect(omega.get_output_port(), system.GetInputPort("omega"))
-
-    period = scenario.log_period_s
-    loggers["T"] = LogVectorOutput(applied, builder, period)
-    loggers["state"] = LogVectorOutput(station.GetOutputPort("plant_state"), builder, period)
-    for name in ("status", "integral", "e_bar"):
-        if name in outputs:
-            loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period)
+    _add_disturbance(builder, station, scenario, live=reference_system is not None)
+    features, tuner, loggers = _add_weights(builder, scenario, TunerPorts(
+        controller=system, inputs=frozenset(inputs), outputs=frozenset(outputs), x_d=ref.x_d,
+        T_applied=applied, period_s=context.period_s, offset_s=context.offset_s,
+        duration_s=scenario.duration_s))
+    loggers.update(_add_loggers(builder, station, system, outputs, scenario.log_period_s))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
+    guard = _add_guard(builder, station, system, ref.x_d, scenario)
+    if reference_system is not None:
+        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+        builder.ExportOutput(ref.x_d, "x_d")
+    diagram = builder.Build()
+    diagram.set_name("rotary_stewart")
+    return StewartDiagram(diagram=diagram, station=station, controller=system,
+                          reference=ref.system, trajectory=trajectory, loggers=loggers,
+                          scenario=scenario, features=features, tuner=tuner, noise=noise,
+                          estimator=estimator, guard=guard, T_ff_initial=ref.T_ff_initial)
+
+
+def sample_offset_s(scenario: Scenario) -> float:
+    """When the controller samples within its period, s: half a plant step after each plant
+    update, when the plant already holds the configuration of the next step's time (its
+    reference leads by the same half step; the controller contract, "Sampling")."""
+    return 0.5 * scenario.plant_time_step_s
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """The reference's system and ports, and where the run starts: x0, x_dot0 (6,) and the
+    feed-forward T_ff_initial (6,) N m."""
+
+    system: ReferenceSources | System
+    x_d: OutputPort
+    T_ff: OutputPort
+    x0: np.ndarray
+    x_dot0: np.ndarray
+    T_ff_initial: np.ndarray
+
+
+def _add_reference(builder, scenario: Scenario, trajectory, reference_system) -> _Reference:
+    """The precomputed reference and feed-forward of ``trajectory`` (:mod:`~.reference`), or
+    the live ``reference_system`` with its inputs exported."""
+    h_plant, h = scenario.plant_time_step_s, scenario.control_period_s
+    if reference_system is None:
+        ref = add_reference_sources(builder, trajectory, scenario.geometry(), scenario.duration_s,
+                                    period_s=h, offset_s=sample_offset_s(scenario),
+                                    lead_s=0.5 * h_plant, feedforward=scenario.feedforward,
+                                    feedforward_lead_s=scenario.computation_delay_periods * h)
+        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+        return _Reference(ref, ref.x_d.get_output_port(), ref.T_ff.get_output_port(), x0,
+                          x_dot0, ref.T_ff_table[0])
+    ref = builder.AddNamedSystem("reference", reference_system)
+    for i in range(ref.num_input_ports()):
+        builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
+    return _Reference(ref, ref.GetOutputPort("x_d"), ref.GetOutputPort("T_ff"),
+                      np.asarray(ref.x_initial, dtype=float), np.zeros(6),
+                      np.asarray(ref.T_ff_initial, dtype=float))
+
+
+def controller_context(scenario: Scenario, x0, x_dot0) -> ControllerContext:
+    """What the Diagram of ``scenario`` tells its controller's factory, starting at pose x0 (6,)
+    moving at x_dot0 (6,): on the robot as built, the encoders' pose estimator; with a network
+    tuner, its features' window."""
+    geometry, h, hw = scenario.geometry(), scenario.control_period_s, scenario.hardware
+    pose_estimator = None if hw is None else PoseEstimator(
+        geometry, h, hw.encoders.quantum_rad, x0, rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
+        tolerance_counts=hw.estimator.fk_tolerance_counts)
+    return ControllerContext(
+        geometry=geometry, period_s=h, offset_s=sample_offset_s(scenario),
+        plant_time_step_s=scenario.plant_time_step_s, x_initial=x0, x_dot_initial=x_dot0,
+        torque_limit_Nm=scenario.torque_limit(), delay_periods=scenario.computation_delay_periods,
+        pose_estimator=pose_estimator,
+        feature_window=None if scenario.tuner is None else scenario.tuner.density_window())
+
+
+def _add_controller(builder, system: System) -> System:
+    """The controller, checked against the contract (named "controller" if it has no name)."""
+    check_controller(system)
+    if not system.get_name():
+        system.set_name("controller")
+    return builder.AddSystem(system)
+
+
+def _add_measurement(builder, station: StewartStation, scenario: Scenario,
+                     context: ControllerContext, inputs: set):
+    """The pose and rate a controller with an ``x`` input reads: the station's ground truth, or
+    on the robot as built the FK estimate from the encoders, plus the scenario's sensor noise.
+    Returns (port, estimator or None, noise source or None)."""
+    measured = station.GetOutputPort("platform_state")
+    estimator = noise = None
+    if "x" not in inputs:
+        return measured, estimator, noise
+    if context.pose_estimator is not None:                 # the pose from the encoders
+        estimator = builder.AddNamedSystem("estimator", FkEstimator(
+            context.pose_estimator, context.offset_s, context.x_initial, context.x_dot_initial))
+        builder.Connect(station.GetOutputPort("motor_angle"), estimator.get_input_port())
+        measured = estimator.get_output_port()
+    if scenario.sensor_noise is not None:
+        noise, measured = add_white_noise(builder, measured, scenario.sensor_noise.std_vector(),
+                                          context.period_s, ("sensor_noise", "noise_std",
+                                                             "noisy_x"))
+    return measured, estimator, noise
+
+
+def _add_disturbance(builder, station: StewartStation, scenario: Scenario, live: bool) -> None:
+    """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
+    live reference, which has no end), the input is exported and fixed to zero in the Context
+    (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
+    source would be re-evaluated at every plant step."""
+    if scenario.disturbance is not None and not live:
+        wrench = builder.AddNamedSystem("tool_disturbance", scenario.disturbance.make_source(
+            scenario.duration_s, scenario.plant_time_step_s))
+        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    else:
+        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
+
+
+def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
+    """What drives the controller's ``omega`` input: the scenario's tuner
+    (:meth:`~.scenario.TunerConfig.add_to`), or the controller choice's constant weights.
+    Returns (features or None, tuner or None, loggers: "rho" when the tuner has features)."""
+    if scenario.tuner is not None:
+        added = scenario.tuner.add_to(builder, ports)
+        loggers = {}
+        if added.rho_period_s is not None:
+            loggers["rho"] = LogVectorOutput(added.features.GetOutputPort("rho"), builder,
+                                             added.rho_period_s)
+        return added.features, added.tuner, loggers
+    if "omega" in ports.inputs:
+        omega = builder.AddNamedSystem("omega", ConstantVectorSource(
+            np.array(scenario.controller.omega())))
+        builder.Connect(omega.get_output_port(), ports.controller.GetInputPort("omega"))
+    return None, None, {}
+
+
+def _add_loggers(builder, station: StewartStation, system: System, outputs: set,
+                 period_s: float) -> dict:
+    """Loggers every ``period_s``: the applied torques "T", the plant's "state", and the
+    controller's "status", "integral", "e_bar" when it has them."""
+    loggers = {"T": LogVectorOutput(station.GetOutputPort("motor_torque_applied"), builder,
+                                    period_s),
+               "state": LogVectorOutput(station.GetOutputPort("plant_state"), builder, period_s)}
+    for name in ("status", "integral", "e_bar"):
+        if name in outputs:
+            loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period_s)
+    return loggers
+
+
+def _add_guard(builder, station: StewartStation, system: System, x_d: OutputPort,
+               scenario: Scenario) -> DivergenceGuard:
+    """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
+    reference and, with contact, the contact results."""
     guard = builder.AddNamedSystem("guard", DivergenceGuard(station, scenario.guard))
     builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
     builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
-    builder.Connect(x_d_port, guard.GetInputPort("x_d"))
+    builder.Connect(x_d, guard.GetInputPort("x_d"))
     if scenario.contact:
         builder.Connect(station.GetOutputPort("contact_results"),
                         guard.GetInputPort("contact_results"))
-    if reference_system is not None:
-        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
-        builder.ExportOutput(x_d_port, "x_d")
-    diagram = builder.Build()
-    diagram.set_name("rotary_stewart")
-    return StewartDiagram(diagram=diagram, station=station, controller=system, reference=ref,
-                          trajectory=trajectory, loggers=loggers, scenario=scenario,
-                          features=features, tuner=tuner, noise=noise, estimator=estimator,
-                          guard=guard, T_ff_initial=T_ff_initial)
+    return guard

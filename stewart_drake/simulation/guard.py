@@ -34,10 +34,11 @@ from pydrake.systems.framework import LeafSystem
 from ..errors import FeasibilityWarning, SimulationDivergedError
 from ..fileio import save_npz
 from ..model import limits
-from ..model.kinematics import ik_scalar
+from ..model.kinematics import AXIS_NAMES, ik_scalar
 from ..model.limits import DEFAULT_CLEARANCE_RESOLUTION_M
 from ..model.plant import loop_closure_errors
 from .scenario import GuardConfig, dump_scenario
+
 
 def check_reference(scenario, trajectory=None,
                     raise_refused: bool = True) -> limits.TrajectoryReport:
@@ -191,7 +192,7 @@ class DivergenceGuard(LeafSystem):
                                       (slice(3, 6), cfg.max_tracking_error[1], "m")):
                 k = int(np.argmax(e[part])) + part.start
                 if not e[k] <= bound:
-                    axis = ("phi", "theta", "psi", "X", "Y", "Z")[k]
+                    axis = AXIS_NAMES[k]
                     return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
                             f"GuardConfig.max_tracking_error = {bound:g} {unit}")
         if self.contact or not self._may_overlap(context, state, pose, x_d):

@@ -7,13 +7,24 @@ and written with ``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulat
 Shipped scenarios live in ``scenarios/`` (``paper_ideal.yaml``: the paper's experiment on the
 ideal robot); :func:`load_scenario` takes their names too.
 
+Every choice is one class that checks its own fields and builds what it stands for, the one
+place it does: the controllers (:class:`~stewart_drake.control.lqi.LqiDriver`,
+:class:`~stewart_drake.control.pd.PdDriver`,
+:class:`~stewart_drake.control.contract.UserController`: ``validate`` and ``make``, beside the
+controllers they configure), the references
+(:class:`ReferenceConfig`: ``validate`` and ``make``), the tuners (:class:`TunerConfig`:
+``validate`` and ``add_to``, which wires it into the Diagram) and the tool disturbance. A new
+choice is one such class added to its union (:data:`ControllerChoice`, :data:`ReferenceChoice`,
+:data:`TunerChoice`).
+
 Drake's YAML loader builds each class with its defaults and then sets fields, so the classes are
 plain mutable dataclasses with concrete field types (this module must not use
 ``from __future__ import annotations``), and validation is a separate step:
-:meth:`Scenario.validate` (run by every builder) names the field to fix. The robot's geometry and
-the LQI's scales are frozen value types of the lower layers; :class:`Robot` and
-:class:`LqiScalesConfig` are their YAML mirrors, generated from their fields (same names, units
-and defaults; lists where they have tuples), with ``build()`` to get the value type back.
+:meth:`Scenario.validate` (run by every builder) names the field to fix. The robot's geometry, the
+servo and the LQI's scales are frozen value types of the lower layers; :class:`Robot`,
+:class:`Motors` and :class:`~stewart_drake.control.lqi.LqiScalesConfig` are their YAML forms
+(same names, units and defaults; lists where they have tuples), with ``build()`` to get the value
+type back (:class:`~stewart_drake.mirrors.ValueMirror`).
 """
 
 import dataclasses
@@ -22,7 +33,7 @@ import importlib.resources
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Dict, List, Optional, Union
+from typing import ClassVar, List, Optional, Union
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
@@ -31,13 +42,27 @@ from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
 from ..checks import as_array, as_number, check_multiple
-from ..errors import (CorruptFileError, InvalidConfigError, InvalidGeometryError, MissingFileError,
-                      StewartError)
-from ..control.lqi import GAIN_TRANSFER_MODES, OMEGA_MAX, OMEGA_MIN, RICCATI_MODES, LqiScales
+from ..control.contract import UserController
+from ..control.lqi import LQI_OMEGA_MAX, LQI_OMEGA_MIN, LqiDriver
+from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: controller.scales
+from ..control.pd import PdDriver
+from ..errors import (
+    CorruptFileError,
+    InvalidConfigError,
+    InvalidGeometryError,
+    MissingFileError,
+    StewartError,
+)
+from ..mirrors import ValueMirror
 from ..model.geometry import StewartGeometry
+from ..model.limits import (
+    DEFAULT_COND_THRESHOLD,
+    DEFAULT_EFFORT_MARGIN,
+    DEFAULT_MIN_CLEARANCE_M,
+    DEFAULT_MIN_SIGMA_MIN_INV,
+    MotorLimits,
+)
 from ..model.servo import ServoModel
-from ..model.limits import (DEFAULT_COND_THRESHOLD, DEFAULT_EFFORT_MARGIN,
-                            DEFAULT_MIN_CLEARANCE_M, DEFAULT_MIN_SIGMA_MIN_INV, MotorLimits)
 from ..model.statics import FEEDFORWARD_MODES
 
 #: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:
@@ -46,145 +71,209 @@ DEFAULT_SCENARIO = "paper_hardware"
 #: Largest RandomSource seed Drake accepts (a 32-bit unsigned integer).
 MAX_SEED = 2**32 - 1
 
-
-class _Mirror:
-    """Base of the YAML mirrors of frozen value types (see the module docstring)."""
-
-    _value_class: type = object
-
-    def build(self):
-        """The value type with these fields (lists become tuples); validated by its constructor."""
-        return self._value_class(**{
-            f.name: tuple(v) if isinstance(v, list) else v
-            for f in dataclasses.fields(self) for v in [getattr(self, f.name)]})
-
-    @classmethod
-    def from_value(cls, value):
-        """The mirror of a value-type instance (e.g. ``Robot.from_value(StewartGeometry())``)."""
-        return cls(**{f.name: list(v) if isinstance(v, tuple) else v
-                      for f in dataclasses.fields(cls) for v in [getattr(value, f.name)]})
+_GEOMETRY, _SERVO = StewartGeometry(), ServoModel()
 
 
-def _mirror(value_class: type, name: str, doc: str, exclude: tuple = ()) -> type:
-    hints = typing.get_type_hints(value_class)
-    prototype = value_class()
-    fields = []
-    for f in dataclasses.fields(value_class):
-        if f.name in exclude:
-            continue
-        default = getattr(prototype, f.name)
-        kind = hints[f.name]
-        if kind is tuple or typing.get_origin(kind) is tuple:
-            fields.append((f.name, List[float],
-                           field(default_factory=lambda d=tuple(default): list(d))))
+@dataclass
+class Robot(ValueMirror):
+    """The robot: every field of :class:`~stewart_drake.model.geometry.StewartGeometry`, same
+    names, units and defaults (docs/reference_geometry.md, Table I; meanings there), lists for
+    its tuples, but the motors' reflected inertia, which the scenario's ``hardware.motors`` sets;
+    ``build()`` gives the geometry (validated there)."""
+
+    value_class = StewartGeometry
+
+    base_radius: float = _GEOMETRY.base_radius
+    pivot_z: float = _GEOMETRY.pivot_z
+    pivot_angles_deg: List[float] = field(
+        default_factory=lambda: list(_GEOMETRY.pivot_angles_deg))
+    platform_radius: float = _GEOMETRY.platform_radius
+    platform_angles_deg: List[float] = field(
+        default_factory=lambda: list(_GEOMETRY.platform_angles_deg))
+    crank_angles_deg: List[float] = field(
+        default_factory=lambda: list(_GEOMETRY.crank_angles_deg))
+    crank_length: float = _GEOMETRY.crank_length
+    rod_length: float = _GEOMETRY.rod_length
+    rod_mass: float = _GEOMETRY.rod_mass
+    rod_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.rod_inertia))
+    crank_mass: float = _GEOMETRY.crank_mass
+    crank_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.crank_inertia))
+    platform_mass: float = _GEOMETRY.platform_mass
+    platform_inertia: List[float] = field(
+        default_factory=lambda: list(_GEOMETRY.platform_inertia))
+    base_mass: float = _GEOMETRY.base_mass
+    base_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.base_inertia))
+    base_plate_radius: float = _GEOMETRY.base_plate_radius
+    rod_radius: float = _GEOMETRY.rod_radius
+    rod_end_radius: float = _GEOMETRY.rod_end_radius
+    platform_plate_radius: float = _GEOMETRY.platform_plate_radius
+    gravity: float = _GEOMETRY.gravity
+    motor_angle_min_deg: float = _GEOMETRY.motor_angle_min_deg
+    motor_angle_max_deg: float = _GEOMETRY.motor_angle_max_deg
+    crank_joint_cone_deg: float = _GEOMETRY.crank_joint_cone_deg
+    platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
+
+
+@dataclass
+class Motors(ValueMirror):
+    """The servo at each crank: every field of :class:`~stewart_drake.model.servo.ServoModel`, same
+    names, units and defaults (at the output shaft: gear ratio, rotor inertia kg m^2, peak torque
+    N m, current-loop time constant s, viscous N m s/rad and Coulomb N m friction, friction
+    regularization N m s/rad, no-load speed rad/s); defaults: maxon EC 45 flat 50 W + a 4.3:1
+    planetary gearhead (docs/hardware.md). ``build()`` gives the servo."""
+
+    value_class = ServoModel
+
+    name: str = _SERVO.name
+    gear_ratio: float = _SERVO.gear_ratio
+    rotor_inertia: float = _SERVO.rotor_inertia
+    peak_torque_Nm: float = _SERVO.peak_torque_Nm
+    current_time_constant_s: float = _SERVO.current_time_constant_s
+    viscous_damping: float = _SERVO.viscous_damping
+    coulomb_friction_Nm: float = _SERVO.coulomb_friction_Nm
+    friction_damping: float = _SERVO.friction_damping
+    no_load_speed_rad_s: float = _SERVO.no_load_speed_rad_s
+
+
+# -- tuners ----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TunerPorts:
+    """What a tuner is wired to in the Diagram (:meth:`TunerConfig.add_to`): the controller
+    system with its port names, the reference's ``x_d`` (18) and the applied torques (6), and the
+    control period and sample offset (s)."""
+
+    controller: object
+    inputs: frozenset
+    outputs: frozenset
+    x_d: object
+    T_applied: object
+    period_s: float
+    offset_s: float
+    duration_s: float
+
+
+@dataclass(frozen=True)
+class TunerSystems:
+    """The systems a tuner added: ``features`` (or None), ``tuner`` (what drives ``omega``), and
+    ``rho_period_s``, the period to log the features at (None: nothing to log)."""
+
+    tuner: object
+    features: object = None
+    rho_period_s: Optional[float] = None
+
+
+class TunerConfig:
+    """Base of a scenario's tuner choices (:class:`AnnTunerDriver`, :class:`RatioTunerDriver`,
+    :class:`WeightSchedule`): each checks its fields (:meth:`validate`) and wires what drives the
+    controller's ``omega`` input into the Diagram (:meth:`add_to`), the one place it does."""
+
+    #: How a run's result files mark the tuner (``run_<reference><suffix>``).
+    run_suffix: ClassVar[str] = "_tuned"
+
+    def validate(self, scenario: "Scenario") -> None:
+        """Check the fields against the scenario's controller and periods.
+
+        Raises:
+            InvalidConfigError, MissingFileError: names the field (``tuner.<name>``).
+        """
+        if scenario.controller.takes_omega is False:
+            raise InvalidConfigError("a tuner drives the LQI's weights (its omega input): use an "
+                                     "LqiDriver controller with a tuner")
+
+    def density_window(self) -> Optional[int]:
+        """The samples of the density features' window a controller may buffer for the tuner
+        (None: the tuner reads no features)."""
+        return None
+
+    def weights_path(self) -> Optional[Path]:
+        """The network's weights file the run uses (None: no network)."""
+        return None
+
+    def add_to(self, builder, ports: TunerPorts) -> TunerSystems:
+        """Add the systems that drive ``ports.controller``'s ``omega`` input, connected.
+
+        Raises:
+            InvalidConfigError: the controller lacks a port the tuner needs (named).
+        """
+        raise NotImplementedError
+
+
+class _NetworkTuner(TunerConfig):
+    """A network on the density features of the controller's error and torques (eqs. 35-36)
+    that sets omega every ``period_s``: a subclass has the fields ``weights``, ``period_s`` and
+    ``feature_window``, and makes the network's system (:meth:`make_tuner`)."""
+
+    #: What the messages call it.
+    kind: ClassVar[str] = "tuner"
+    #: The name of its system in the Diagram.
+    system_name: ClassVar[str] = "tuner"
+
+    def validate(self, scenario: "Scenario") -> None:
+        super().validate(scenario)
+        as_number("tuner.period_s", self.period_s, lo=0.0, lo_open=True)
+        check_multiple("tuner.period_s", self.period_s, "control_period_s",
+                       scenario.control_period_s)
+        _check_int("tuner.feature_window", self.feature_window, 1, 100_000)
+        if self.weights and not Path(self.weights).exists():
+            raise MissingFileError(f"no {self.kind} weights at {self.weights} (tuner.weights): "
+                                   f"check the path, or leave it empty for the shipped weights")
+
+    def density_window(self) -> Optional[int]:
+        return self.feature_window
+
+    def make_tuner(self):
+        """The tuner system: input ``rho`` (12) (and ``x_d`` for ours), output ``omega`` (2)."""
+        raise NotImplementedError
+
+    def add_to(self, builder, ports: TunerPorts) -> TunerSystems:
+        from ..control.features import N_FEATURES, DensityFeatures
+
+        missing = [p for p, have in (("omega input", "omega" in ports.inputs),
+                                     ("e_bar output", "e_bar" in ports.outputs)) if not have]
+        name = ports.controller.get_name()
+        if missing:
+            raise InvalidConfigError(f"the {self.kind} needs a controller with an "
+                                     f"{' and an '.join(missing)} (the LQI has both); {name} "
+                                     f"has not")
+        window = self.feature_window
+        # A controller that buffers the samples spares the features a callback per period.
+        buffered = "feature_window" in ports.outputs
+        size = N_FEATURES * window + 2
+        if buffered and ports.controller.GetOutputPort("feature_window").size() != size:
+            raise InvalidConfigError(
+                f"{name}: output port 'feature_window' has size "
+                f"{ports.controller.GetOutputPort('feature_window').size()}; the tuner's window "
+                f"of {window} samples needs {size} (contract, control/contract.py)")
+        features = builder.AddNamedSystem("features", DensityFeatures(
+            window=window, period_s=ports.period_s, offset_s=ports.offset_s, buffered=buffered))
+        tuner = self._add_tuner(builder, ports)
+        if buffered:
+            builder.Connect(ports.controller.GetOutputPort("feature_window"),
+                            features.GetInputPort("feature_window"))
         else:
-            fields.append((f.name, kind, field(default=default)))
-    cls = dataclasses.make_dataclass(name, fields, bases=(_Mirror,))
-    cls.__module__, cls.__qualname__, cls.__doc__ = __name__, name, doc
-    cls._value_class = value_class
-    return cls
+            builder.Connect(ports.controller.GetOutputPort("e_bar"),
+                            features.GetInputPort("e_bar"))
+            builder.Connect(ports.T_applied, features.GetInputPort("T"))
+        builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
+        builder.Connect(tuner.GetOutputPort("omega"), ports.controller.GetInputPort("omega"))
+        # rho is computed when read: log it where the tuner reads it, not every millisecond.
+        return TunerSystems(tuner=tuner, features=features, rho_period_s=self.period_s)
 
-
-Robot = _mirror(StewartGeometry, "Robot", """The robot: every field of
-:class:`~stewart_drake.model.geometry.StewartGeometry`, same names, units and defaults
-(docs/reference_geometry.md, Table I), but the motors' reflected inertia, which the scenario's
-``hardware.motors`` sets; ``build()`` gives the geometry (validated there).""",
-                exclude=("motor_reflected_inertia",))
-
-Motors = _mirror(ServoModel, "Motors", """The servo at each crank: every field of
-:class:`~stewart_drake.model.servo.ServoModel` (at the output shaft: gear ratio, rotor inertia
-kg m^2, peak torque N m, current-loop time constant s, viscous N m s/rad and Coulomb N m
-friction, friction regularization N m s/rad); defaults: maxon EC 45 flat 50 W + a 4.3:1
-planetary gearhead (docs/hardware.md).""")
-
-LqiScalesConfig = _mirror(LqiScales, "LqiScalesConfig", """Normalization of the LQI's Q and R
-(Bryson's rule): every field of :class:`~stewart_drake.control.lqi.LqiScales` (pose, rate,
-integral: 6 each, SI; torque: N m).""")
-
-
-# -- controllers ---------------------------------------------------------------------------------
-
-@dataclass
-class LqiDriver:
-    """The LQI of paper section III (:class:`~stewart_drake.control.lqi.LqiController`).
-
-    Attributes:
-        omega_Q, omega_R: weights of eq. 27 on normalized errors and torques, in [1e-3, 1e3]
-            (only their ratio matters); the ANN tuner replaces them when the scenario has one.
-        schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
-            whole multiple of the control period); ours, not the paper's.
-        riccati: "warm" (Newton refinement of the last gain to convergence), "track" (one
-            Newton step per re-schedule) or "cold" (DARE each time).
-        scales: normalization of Q and R.
-        anti_windup: stop integrating while the torque is clipped at the motors' limit
-            (clamping); only acts when the scenario has a limit.
-        delay_compensation: augment the error model with the torques still in the pipe when
-            the hardware has a computation delay; false ignores the delay.
-        reference_governor: with a torque limit, follow the nearest pose whose holding torques
-            are within 90 % of the limit while the reference's own feed-forward exceeds it
-            (:meth:`~stewart_drake.control.lqi.LqiController.govern`).
-        schedule_pose: re-schedule the input matrix B(x) from the measured pose (ours); false
-            keeps the start pose's, as a plain LQI (the gain then changes only with omega).
-        gain_transfer: what a gain change carries over: ``integral`` (the integral torque,
-            default), ``feedback`` (the whole feedback, no torque step) or ``none`` (as the
-            paper); see :class:`~stewart_drake.control.lqi.LqiController` (ours).
-    """
-
-    omega_Q: float = 1.0
-    omega_R: float = 1.0
-    schedule_period_s: float = 0.01
-    riccati: str = "warm"
-    scales: LqiScalesConfig = field(default_factory=LqiScalesConfig)
-    anti_windup: bool = True
-    delay_compensation: bool = True
-    reference_governor: bool = True
-    schedule_pose: bool = True
-    gain_transfer: str = "integral"
+    def _add_tuner(self, builder, ports: TunerPorts):
+        return builder.AddNamedSystem(self.system_name, self.make_tuner())
 
 
 @dataclass
-class PdDriver:
-    """The crank-space PD baseline with gravity feed-forward
-    (:class:`~stewart_drake.control.pd.CrankPdController`).
+class AnnTunerDriver(_NetworkTuner):
+    """The ANN tuner of omega_Q, omega_R (paper section III.D) on density features
+    (:class:`~stewart_drake.control.tuner.AnnTuner`).
 
-    Attributes:
-        bandwidth_hz: closed-loop natural frequency, Hz. damping: damping ratio.
-        schedule_period_s: re-schedule the inertia-shaped gains this often, s.
-    """
-
-    bandwidth_hz: float = 20.0
-    damping: float = 1.0
-    schedule_period_s: float = 0.01
-
-
-@dataclass
-class UserController:
-    """A controller of the user's: ``factory`` names a callable ``factory(context,
-    **parameters) -> LeafSystem`` following the controller contract
-    (:mod:`~stewart_drake.control.contract`) that Python code the user ran registered
-    (:func:`~stewart_drake.control.contract.register_controller`), or an installed entry point
-    the user opted into (``--plugin NAME``). Loading the scenario imports and calls nothing: an
-    unknown name is refused when the run is built, listing the registered ones.
-
-    Attributes:
-        factory: the registered name. parameters: keyword arguments of the factory (numbers).
-    """
-
-    factory: str = ""
-    parameters: Dict[str, float] = field(default_factory=dict)
-
-
-@dataclass
-class AnnTunerDriver:
-    """The ANN tuner of omega_Q, omega_R (paper section III.D) on density features.
-
-    It moves the weights every period (on a dash-and-hold task its ratio went from 1.8 to 100 to
-    0.45 within 0.2 s):
-    run it with the paper's gain switching, ``controller.gain_transfer: none``, as
-    :func:`use_paper_tuner` does (``run --tuner ann``, ``evaluate``, the tuner study). Our
-    ``integral`` transfer re-maps the integral states at every switch; switched that fast the
-    re-maps pile up and the loop chatters at the torque limit (a dash-and-hold task: error
-    0.616 against 0.0121 with ``none``; docs/paper_notes.md).
+    It moves the weights every period, as fast as the gains can follow: run it with the paper's
+    gain switching, ``controller.gain_transfer: none``, as :func:`use_paper_tuner` does
+    (``run --tuner ann``, ``evaluate``, the tuner study). Our ``integral`` transfer re-maps the
+    integral states at every switch, and switched that fast the re-maps pile up and the loop
+    chatters at the torque limit (docs/paper_notes.md).
 
     Attributes:
         weights: the tuner's ``.npz`` (``stewart-drake train``); empty for the shipped weights.
@@ -196,9 +285,23 @@ class AnnTunerDriver:
     period_s: float = 0.02
     feature_window: int = 50
 
+    run_suffix: ClassVar[str] = "_ann"
+    kind: ClassVar[str] = "ANN tuner"
+    system_name: ClassVar[str] = "ann_tuner"
+
+    def weights_path(self) -> Path:
+        from ..control.tuner import DEFAULT_TUNER_PATH
+
+        return Path(self.weights) if self.weights else DEFAULT_TUNER_PATH
+
+    def make_tuner(self):
+        from ..control.tuner import AnnTuner, load_tuner
+
+        return AnnTuner(load_tuner(self.weights or None), period_s=self.period_s)
+
 
 @dataclass
-class RatioTunerDriver:
+class RatioTunerDriver(_NetworkTuner):
     """Our tuner (:class:`~stewart_drake.control.tuner.RatioTuner`): the density features and the
     reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
 
@@ -218,9 +321,29 @@ class RatioTunerDriver:
     feature_window: int = 50
     smoothing_s: float = 0.0
 
+    run_suffix: ClassVar[str] = "_ratio"
+    kind: ClassVar[str] = "ratio tuner"
+    system_name: ClassVar[str] = "ratio_tuner"
+
+    def weights_path(self) -> Path:
+        from ..control.tuner import DEFAULT_RATIO_TUNER_PATH
+
+        return Path(self.weights) if self.weights else DEFAULT_RATIO_TUNER_PATH
+
+    def make_tuner(self):
+        from ..control.tuner import RatioTuner, load_ratio_tuner
+
+        return RatioTuner(load_ratio_tuner(self.weights or None), period_s=self.period_s,
+                          smoothing_s=self.smoothing_s)
+
+    def _add_tuner(self, builder, ports: TunerPorts):
+        tuner = super()._add_tuner(builder, ports)
+        builder.Connect(ports.x_d, tuner.GetInputPort("x_d"))
+        return tuner
+
 
 @dataclass
-class WeightSchedule:
+class WeightSchedule(TunerConfig):
     """omega_Q and omega_R known in advance, held from each time to the next: the hindsight
     schedule and the hand-made ones of the tuner study.
 
@@ -233,31 +356,127 @@ class WeightSchedule:
     omega_Q: List[float] = field(default_factory=lambda: [1.0])
     omega_R: List[float] = field(default_factory=lambda: [1.0])
 
+    def validate(self, scenario: "Scenario") -> None:
+        super().validate(scenario)
+        times = as_array("tuner.t", self.t)
+        if times.ndim != 1 or times.size < 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
+            raise InvalidConfigError(f"tuner.t must be increasing times starting at 0 s, got "
+                                     f"{self.t!r:.80}")
+        for name in ("omega_Q", "omega_R"):
+            values = as_array(f"tuner.{name}", getattr(self, name))
+            if values.shape != times.shape:
+                raise InvalidConfigError(f"tuner.{name} needs one value per time "
+                                         f"({times.size}), got {values.size}")
+            if np.any(values < LQI_OMEGA_MIN) or np.any(values > LQI_OMEGA_MAX):
+                raise InvalidConfigError(f"tuner.{name} must be in [{LQI_OMEGA_MIN:g}, "
+                                         f"{LQI_OMEGA_MAX:g}]")
+
+    def add_to(self, builder, ports: TunerPorts) -> TunerSystems:
+        from pydrake.systems.primitives import TrajectorySource
+        from pydrake.trajectories import PiecewisePolynomial
+
+        if "omega" not in ports.inputs:
+            raise InvalidConfigError(f"a weight schedule drives the omega input; "
+                                     f"{ports.controller.get_name()} has none")
+        t_s = np.append(np.asarray(self.t, dtype=float), ports.duration_s + 1.0)
+        values = np.array([self.omega_Q, self.omega_R], dtype=float)
+        tuner = builder.AddNamedSystem("weight_schedule", TrajectorySource(
+            PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))))
+        builder.Connect(tuner.get_output_port(), ports.controller.GetInputPort("omega"))
+        return TunerSystems(tuner=tuner)
+
 
 TunerChoice = Union[AnnTunerDriver, RatioTunerDriver, WeightSchedule]
 
 
-# -- references ----------------------------------------------------------------------------------
+# -- references ------------------------------------------------------------------------------------
+
+class ReferenceConfig:
+    """Base of a scenario's reference choices (:class:`NamedReference`, :class:`CsvReference`,
+    :class:`SineReference`, :class:`DataCollectionReference`): each checks its fields
+    (:meth:`validate`) and makes the reference object x_d(t) (:meth:`make`), the one place it
+    does."""
+
+    def validate(self, scenario: "Scenario") -> None:
+        """Check the fields (``reference.<name>``) before anything is built.
+
+        Raises:
+            InvalidConfigError, MissingFileError: names the field.
+        """
+        raise NotImplementedError
+
+    def make(self, scenario: "Scenario"):
+        """The reference object (``evaluate(t)`` -> pose, rate, acceleration) for ``scenario``."""
+        raise NotImplementedError
+
+    @property
+    def label(self) -> str:
+        """The reference's name for display and for a run's file names."""
+        return self.name
+
+    def memory_bytes(self) -> float:
+        """Memory the reference itself holds, bytes, beyond a run's logs (0: negligible)."""
+        return 0.0
+
+    def memory_note(self) -> tuple:
+        """(what, change): phrases for a refused run's memory message (``""`` when none)."""
+        return "", ""
+
 
 @dataclass
-class NamedReference:
+class NamedReference(ReferenceConfig):
     """A reference of :data:`~stewart_drake.simulation.trajectories.TRAJECTORIES`: "paper"
     (eqs. 37-38), "home", "helix", "step_<axis>", "sweep_<axis>"."""
 
     name: str = "paper"
 
+    def validate(self, scenario: "Scenario") -> None:
+        from . import trajectories
+
+        trajectories.make_trajectory(self.name)           # unknown name: lists the known ones
+
+    def make(self, scenario: "Scenario"):
+        from . import trajectories
+
+        return trajectories.make_trajectory(self.name)
+
 
 @dataclass
-class CsvReference:
+class CsvReference(ReferenceConfig):
     """A reference from a CSV file ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), joined by a C2 cubic
     spline (:func:`~stewart_drake.simulation.trajectories.load_csv_trajectory`). A relative path
     is relative to the working folder."""
 
     path: str = ""
 
+    def validate(self, scenario: "Scenario") -> None:
+        if not self.path or not Path(self.path).exists():
+            raise MissingFileError(f"no reference CSV at {self.path!r} (reference.path): check "
+                                   f"the path")
+
+    def make(self, scenario: "Scenario"):
+        from . import trajectories
+
+        return trajectories.load_csv_trajectory(self.path)
+
+    @property
+    def label(self) -> str:
+        return Path(self.path).stem
+
+    def memory_bytes(self) -> float:
+        """The spline of the file's samples
+        (:func:`~stewart_drake.simulation.trajectories.csv_reference_bytes`)."""
+        from .trajectories import csv_reference_bytes
+
+        return csv_reference_bytes(self.path)
+
+    def memory_note(self) -> tuple:
+        return (f" on the reference {self.path}",
+                ", and sample the reference CSV more coarsely")
+
 
 @dataclass
-class SineReference:
+class SineReference(ReferenceConfig):
     """x_d(t) = offset + amplitude sin(2 pi f t + phase), axis by axis (6 values each: rad, m,
     Hz, rad); see :class:`~stewart_drake.simulation.trajectories.SineTrajectory`."""
 
@@ -267,18 +486,48 @@ class SineReference:
     offset: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
     name: str = "sine"
 
+    def validate(self, scenario: "Scenario") -> None:
+        self.make(scenario)                                 # checks shapes and overflow
+
+    def make(self, scenario: "Scenario"):
+        from . import trajectories
+
+        return trajectories.SineTrajectory(amplitude=tuple(self.amplitude),
+                                           frequency_hz=tuple(self.frequency_hz),
+                                           phase=tuple(self.phase), offset=tuple(self.offset),
+                                           name=self.name)
+
 
 @dataclass
-class DataCollectionReference:
+class DataCollectionReference(ReferenceConfig):
     """The seeded excitation of the tuner's data collection (every axis at 1-5 Hz inside the
     workspace; :func:`~stewart_drake.simulation.trajectories.data_collection_trajectory`), as long
     as the scenario's duration."""
 
     seed: int = 0
 
+    def validate(self, scenario: "Scenario") -> None:
+        _check_int("reference.seed", self.seed, 0, MAX_SEED)
+
+    def make(self, scenario: "Scenario"):
+        from . import trajectories
+
+        return trajectories.data_collection_trajectory(
+            self.seed, scenario.geometry(), duration_s=scenario.duration_s,
+            torque_limit_Nm=scenario.torque_limit())
+
+    @property
+    def label(self) -> str:
+        return f"data_seed{self.seed}"
+
 
 ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference]
 ControllerChoice = Union[LqiDriver, PdDriver, UserController]
+
+
+def _choices(union) -> tuple:
+    """The classes of a tagged union (``typing.Union[A, B]`` -> (A, B))."""
+    return typing.get_args(union)
 
 
 # -- hardware ------------------------------------------------------------------------------------
@@ -336,6 +585,32 @@ class Hardware:
     estimator: Estimator = field(default_factory=Estimator)
     computation_delay_periods: int = 1
 
+    def validate(self, control_period_s: float) -> None:
+        """Check every field (``hardware.<path>``) for a controller of period
+        ``control_period_s``.
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
+            if not isinstance(getattr(self, name), kind):
+                raise InvalidConfigError(f"hardware.{name} must be a {kind.__name__}, got "
+                                         f"{type(getattr(self, name)).__name__}")
+        _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
+        as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
+        _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
+        try:
+            self.motors.build()
+        except (StewartError, TypeError) as err:
+            raise InvalidConfigError(f"hardware.motors: {err}") from None
+        as_number("hardware.estimator.rate_cutoff_hz", self.estimator.rate_cutoff_hz, 0.0,
+                  0.5 / control_period_s, lo_open=True)
+        as_number("hardware.estimator.fk_tolerance_counts", self.estimator.fk_tolerance_counts,
+                  0.0, 1.0, lo_open=True)
+        _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
+
+
+# -- disturbance, sensor noise, guard --------------------------------------------------------------
 
 @dataclass
 class ToolDisturbance:
@@ -358,6 +633,23 @@ class ToolDisturbance:
     duration_s: float = 0.0
     frequency_hz: float = 2.0
 
+    def validate(self) -> None:
+        """Check every field (``disturbance.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if self.kind not in ("push", "twist", "contact"):
+            raise InvalidConfigError(f"disturbance.kind must be 'push', 'twist' or 'contact', "
+                                     f"got {self.kind!r}")
+        for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
+            as_number(f"disturbance.{name}", getattr(self, name), 0.0)
+        axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
+        if axis is None or axis.shape != (3,) or not np.isfinite(axis).all() \
+                or np.linalg.norm(axis) == 0:
+            raise InvalidConfigError(f"disturbance.direction must be 3 finite numbers, not all "
+                                     f"zero, got {self.direction!r}")
+
     def wrench(self, t) -> np.ndarray:
         """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -372,8 +664,15 @@ class ToolDisturbance:
         out[:, columns] = level[:, None] * axis
         return out
 
+    def make_source(self, duration_s: float, step_s: float):
+        """A ``TrajectorySource`` of the wrench (6,) over [0, duration_s], sampled every plant
+        step ``step_s`` and joined linearly, for the station's ``tool_wrench`` input."""
+        from pydrake.systems.primitives import TrajectorySource
+        from pydrake.trajectories import PiecewisePolynomial
 
-# -- the rest ------------------------------------------------------------------------------------
+        t = np.arange(0.0, duration_s + 2 * step_s, step_s)
+        return TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, self.wrench(t).T))
+
 
 @dataclass
 class SensorNoise:
@@ -386,6 +685,25 @@ class SensorNoise:
 
     std: List[float] = field(default_factory=lambda: [0.0] * 12)
     seed: int = 0
+
+    def std_vector(self) -> np.ndarray:
+        """(12,) the standard deviations, one broadcast to all."""
+        return np.broadcast_to(np.asarray(self.std, dtype=float), (12,)).copy()
+
+    def validate(self) -> None:
+        """Check the fields (``sensor_noise.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        try:
+            std = self.std_vector()
+        except (TypeError, ValueError):
+            std = np.array([np.nan])
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+            raise InvalidConfigError(f"sensor_noise.std needs 12 finite values >= 0 (rad, m, "
+                                     f"rad/s, m/s), got {self.std}")
+        _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
 
 
 @dataclass
@@ -524,6 +842,7 @@ class Scenario:
     disturbance: Optional[ToolDisturbance] = None
     contact: bool = False
 
+
     def __post_init__(self):
         self.validate()
 
@@ -566,27 +885,37 @@ class Scenario:
                          platform_inertia=tuple(self.payload_scale * v for v in g.platform_inertia))
 
     def make_reference(self):
-        """The reference object (``evaluate(t)``) the scenario names."""
-        from . import trajectories
-
-        ref = self.reference
-        if isinstance(ref, NamedReference):
-            return trajectories.make_trajectory(ref.name)
-        if isinstance(ref, CsvReference):
-            return trajectories.load_csv_trajectory(ref.path)
-        if isinstance(ref, SineReference):
-            return trajectories.SineTrajectory(amplitude=tuple(ref.amplitude),
-                                               frequency_hz=tuple(ref.frequency_hz),
-                                               phase=tuple(ref.phase), offset=tuple(ref.offset),
-                                               name=ref.name)
-        return trajectories.data_collection_trajectory(ref.seed, self.geometry(),
-                                                       duration_s=self.duration_s,
-                                                       torque_limit_Nm=self.torque_limit())
+        """The reference object (``evaluate(t)``) the scenario names
+        (:meth:`ReferenceConfig.make`)."""
+        return self.reference.make(self)
 
     @property
     def plant_time_step_s(self) -> float:
         """The plant's step, s (``plant.time_step``)."""
         return self.plant.time_step
+
+    @property
+    def computation_delay_periods(self) -> int:
+        """Control periods between a measurement and its torque (0 on the ideal robot)."""
+        return self.hardware.computation_delay_periods if self.hardware is not None else 0
+
+    def use_controller(self, controller: ControllerChoice,
+                       tuner: Optional[TunerChoice] = None) -> "Scenario":
+        """Run this scenario with ``controller`` and ``tuner`` (None: fixed weights; the
+        paper's ANN tuner comes with its gain switching, :func:`use_paper_tuner`): the one way
+        the studies put a controller on a base scenario. Changes the scenario in place and
+        returns it (not validated)."""
+        self.controller, self.tuner = controller, None
+        if isinstance(tuner, AnnTunerDriver):
+            return use_paper_tuner(self, tuner)
+        self.tuner = tuner
+        return self
+
+    def lqi(self, **changes) -> LqiDriver:
+        """This scenario's LQI with ``changes`` (e.g. ``omega_Q=10``): its own options when its
+        controller is an LqiDriver, the defaults otherwise. The scenario is not changed."""
+        base = self.controller if isinstance(self.controller, LqiDriver) else LqiDriver()
+        return dataclasses.replace(base, **changes)
 
     # -- validation --------------------------------------------------------------------------
     def validate(self) -> "Scenario":
@@ -595,20 +924,68 @@ class Scenario:
         Raises:
             InvalidConfigError, InvalidGeometryError, MissingFileError: see the class docstring.
         """
-        for name, kind in (("robot", Robot), ("plant", MultibodyPlantConfig),
-                           ("simulator", SimulatorConfig), ("visualization", VisualizationConfig),
-                           ("guard", GuardConfig)):
-            if not isinstance(getattr(self, name), kind):
-                raise InvalidConfigError(
-                    f"{name} must be a {kind.__name__}, got {type(getattr(self, name)).__name__}"
-                    + (" (a dict: load it with load_scenario, or build the dataclass with "
-                       f"{kind.__name__}(**d))" if isinstance(getattr(self, name), dict) else ""))
+        self._validate_types()
         try:
             self.robot.build()
         except InvalidGeometryError as err:
             raise InvalidGeometryError(f"robot: {err}") from None
         except TypeError as err:
             raise InvalidConfigError(f"robot: {err}") from None
+        self._validate_periods()
+        if self.hardware is not None:
+            self.hardware.validate(self.control_period_s)
+            if self.sensor_noise is not None:
+                raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot "
+                                         "as built the encoders are noisy: set "
+                                         "hardware.encoders.noise_counts instead")
+        self.controller.validate(self.control_period_s, self.computation_delay_periods)
+        self.reference.validate(self)
+        if self.feedforward not in FEEDFORWARD_MODES:
+            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got "
+                                     f"{self.feedforward!r}")
+        if self.tuner is not None:
+            self.tuner.validate(self)
+        if self.sensor_noise is not None:
+            self.sensor_noise.validate()
+        as_number("payload_scale", self.payload_scale, 0.1, 10.0)
+        if not isinstance(self.contact, bool):
+            raise InvalidConfigError(f"contact must be true or false, got {self.contact!r}")
+        if self.torque_limit_Nm is not None:
+            as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
+        self.guard.validate()
+        check_multiple("guard.check_period_s", self.guard.check_period_s, "plant.time_step",
+                       self.plant.time_step)
+        if self.disturbance is not None:
+            self.disturbance.validate()
+        return self
+
+    #: The fields that hold a choice or a section, and the classes each may hold.
+    _FIELD_TYPES = {"robot": (Robot,), "plant": (MultibodyPlantConfig,),
+                    "simulator": (SimulatorConfig,), "visualization": (VisualizationConfig,),
+                    "guard": (GuardConfig,), "controller": _choices(ControllerChoice),
+                    "reference": _choices(ReferenceChoice),
+                    "tuner": (type(None),) + _choices(TunerChoice),
+                    "sensor_noise": (type(None), SensorNoise),
+                    "hardware": (type(None), Hardware),
+                    "disturbance": (type(None), ToolDisturbance)}
+
+    def _validate_types(self) -> None:
+        """Each section and choice is of a class its field takes (a dict, say, is not)."""
+        for name, kinds in self._FIELD_TYPES.items():
+            value = getattr(self, name)
+            if isinstance(value, kinds):
+                continue
+            names = [k.__name__ for k in kinds if k is not type(None)]
+            listed = ", ".join(names[:-1]) + (" or " if len(names) > 1 else "") + names[-1]
+            article = "an" if listed[0] in "AEIOU" or listed.startswith("Lqi") else "a"
+            raise InvalidConfigError(
+                f"{name} must be {'None or ' if type(None) in kinds else ''}{article} {listed}, "
+                f"got {type(value).__name__}"
+                + (" (a dict: load it with load_scenario, or build the dataclass with "
+                   f"{names[0]}(**d))" if isinstance(value, dict) else ""))
+
+    def _validate_periods(self) -> None:
+        """The run's durations and periods, and Drake's plant and simulator settings."""
         for name in ("duration_s", "control_period_s", "log_period_s"):
             as_number(name, getattr(self, name), lo=0.0, lo_open=True)
         h = as_number("plant.time_step", self.plant.time_step, lo=0.0, lo_open=True)
@@ -625,181 +1002,13 @@ class Scenario:
             raise InvalidConfigError(
                 f"duration_s ({self.duration_s:g} s) must cover at least two log periods "
                 f"({2 * self.log_period_s:g} s): a shorter run has no second sample to measure")
-        self._validate_controller()
-        self._validate_reference()
-        if self.feedforward not in FEEDFORWARD_MODES:
-            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got "
-                                     f"{self.feedforward!r}")
-        if self.tuner is not None:
-            self._validate_tuner()
-        if self.sensor_noise is not None:
-            noise = self.sensor_noise
-            if not isinstance(noise, SensorNoise):
-                raise InvalidConfigError(f"sensor_noise must be None or a SensorNoise, got "
-                                         f"{type(noise).__name__}")
-            try:
-                std = np.broadcast_to(np.asarray(noise.std, dtype=float), (12,))
-            except (TypeError, ValueError):
-                std = np.array([np.nan])
-            if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-                raise InvalidConfigError(f"sensor_noise.std needs 12 finite values >= 0 (rad, m, "
-                                         f"rad/s, m/s), got {noise.std}")
-            _check_int("sensor_noise.seed", noise.seed, 0, MAX_SEED)
-        as_number("payload_scale", self.payload_scale, 0.1, 10.0)
-        if not isinstance(self.contact, bool):
-            raise InvalidConfigError(f"contact must be true or false, got {self.contact!r}")
-        if self.torque_limit_Nm is not None:
-            as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
-        self.guard.validate()
-        check_multiple("guard.check_period_s", self.guard.check_period_s, "plant.time_step", h)
-        if self.hardware is not None:
-            self._validate_hardware()
-        if self.disturbance is not None:
-            d = self.disturbance
-            if not isinstance(d, ToolDisturbance):
-                raise InvalidConfigError(f"disturbance must be None or a ToolDisturbance, got "
-                                         f"{type(d).__name__}")
-            if d.kind not in ("push", "twist", "contact"):
-                raise InvalidConfigError(f"disturbance.kind must be 'push', 'twist' or "
-                                         f"'contact', got {d.kind!r}")
-            for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
-                as_number(f"disturbance.{name}", getattr(d, name), 0.0)
-            axis = np.asarray(d.direction, dtype=float) if np.ndim(d.direction) == 1 else None
-            if axis is None or axis.shape != (3,) or not np.isfinite(axis).all() \
-                    or np.linalg.norm(axis) == 0:
-                raise InvalidConfigError(f"disturbance.direction must be 3 finite numbers, not "
-                                         f"all zero, got {d.direction!r}")
-        return self
-
-    def _validate_hardware(self) -> None:
-        hw = self.hardware
-        if not isinstance(hw, Hardware):
-            raise InvalidConfigError(f"hardware must be None or a Hardware, got "
-                                     f"{type(hw).__name__}")
-        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
-            if not isinstance(getattr(hw, name), kind):
-                raise InvalidConfigError(f"hardware.{name} must be a {kind.__name__}, got "
-                                         f"{type(getattr(hw, name)).__name__}")
-        _check_int("hardware.encoders.counts_per_rev", hw.encoders.counts_per_rev, 16, 2**40)
-        as_number("hardware.encoders.noise_counts", hw.encoders.noise_counts, 0.0, 1e6)
-        _check_int("hardware.encoders.seed", hw.encoders.seed, 0, MAX_SEED)
-        try:
-            hw.motors.build()
-        except (StewartError, TypeError) as err:
-            raise InvalidConfigError(f"hardware.motors: {err}") from None
-        as_number("hardware.estimator.rate_cutoff_hz", hw.estimator.rate_cutoff_hz, 0.0,
-                  0.5 / self.control_period_s, lo_open=True)
-        as_number("hardware.estimator.fk_tolerance_counts", hw.estimator.fk_tolerance_counts,
-                  0.0, 1.0, lo_open=True)
-        delay = _check_int("hardware.computation_delay_periods", hw.computation_delay_periods,
-                           0, 100)
-        if (delay > MAX_COMPENSATED_DELAY and isinstance(self.controller, LqiDriver)
-                and self.controller.delay_compensation):
-            raise InvalidConfigError(
-                f"hardware.computation_delay_periods = {delay} with the LQI's delay compensation "
-                f"gives a model of 6 x (3 + {delay}) = {6 * (3 + delay)} states whose Riccati "
-                f"equation is re-solved every schedule period (thousands of times slower than "
-                f"real time); at most {MAX_COMPENSATED_DELAY} periods are compensated: set "
-                f"controller.delay_compensation: false, or lengthen control_period_s")
-        if self.sensor_noise is not None:
-            raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot as "
-                                     "built the encoders are noisy: set "
-                                     "hardware.encoders.noise_counts instead")
-
-    def _validate_tuner(self) -> None:
-        t = self.tuner
-        if not isinstance(t, (AnnTunerDriver, RatioTunerDriver, WeightSchedule)):
-            raise InvalidConfigError(f"tuner must be None, an AnnTunerDriver, a RatioTunerDriver "
-                                     f"or a WeightSchedule, got {type(t).__name__}")
-        if isinstance(self.controller, PdDriver):
-            raise InvalidConfigError("a tuner drives the LQI's weights (its omega input): use an "
-                                     "LqiDriver controller with a tuner")
-        if isinstance(t, WeightSchedule):
-            times = as_array("tuner.t", t.t)
-            if times.ndim != 1 or times.size < 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
-                raise InvalidConfigError(f"tuner.t must be increasing times starting at 0 s, got "
-                                         f"{t.t!r:.80}")
-            for name in ("omega_Q", "omega_R"):
-                values = as_array(f"tuner.{name}", getattr(t, name))
-                if values.shape != times.shape:
-                    raise InvalidConfigError(f"tuner.{name} needs one value per time "
-                                             f"({times.size}), got {values.size}")
-                if np.any(values < OMEGA_MIN) or np.any(values > OMEGA_MAX):
-                    raise InvalidConfigError(f"tuner.{name} must be in [{OMEGA_MIN:g}, "
-                                             f"{OMEGA_MAX:g}]")
-            return
-        as_number("tuner.period_s", t.period_s, lo=0.0, lo_open=True)
-        check_multiple("tuner.period_s", t.period_s, "control_period_s", self.control_period_s)
-        _check_int("tuner.feature_window", t.feature_window, 1, 100_000)
-        if t.weights and not Path(t.weights).exists():
-            kind = "ANN tuner" if isinstance(t, AnnTunerDriver) else "ratio tuner"
-            raise MissingFileError(f"no {kind} weights at {t.weights} (tuner.weights): check the "
-                                   f"path, or leave it empty for the shipped weights")
-
-    def _validate_controller(self) -> None:
-        c = self.controller
-        if isinstance(c, LqiDriver):
-            for name in ("omega_Q", "omega_R"):
-                as_number(f"controller.{name}", getattr(c, name), OMEGA_MIN, OMEGA_MAX)
-            as_number("controller.schedule_period_s", c.schedule_period_s, 0.0, lo_open=True)
-            check_multiple("controller.schedule_period_s", c.schedule_period_s,
-                           "control_period_s", self.control_period_s)
-            if c.riccati not in RICCATI_MODES:
-                raise InvalidConfigError(f"controller.riccati must be one of {RICCATI_MODES}, "
-                                         f"got {c.riccati!r}")
-            if c.gain_transfer not in GAIN_TRANSFER_MODES:
-                raise InvalidConfigError(f"controller.gain_transfer must be one of "
-                                         f"{GAIN_TRANSFER_MODES}, got {c.gain_transfer!r}")
-            for name in ("anti_windup", "delay_compensation", "reference_governor",
-                         "schedule_pose"):
-                if not isinstance(getattr(c, name), bool):
-                    raise InvalidConfigError(f"controller.{name} must be true or false, got "
-                                             f"{getattr(c, name)!r}")
-            if not isinstance(c.scales, LqiScalesConfig):
-                raise InvalidConfigError(f"controller.scales must be an LqiScalesConfig, got "
-                                         f"{type(c.scales).__name__}")
-            try:
-                c.scales.build()
-            except (StewartError, TypeError) as err:
-                raise InvalidConfigError(f"controller.scales: {err}") from None
-        elif isinstance(c, PdDriver):
-            for name in ("bandwidth_hz", "damping", "schedule_period_s"):
-                as_number(f"controller.{name}", getattr(c, name), 0.0, lo_open=True)
-        elif isinstance(c, UserController):
-            if not isinstance(c.factory, str) or not c.factory:
-                raise InvalidConfigError("controller.factory must name a registered controller "
-                                         "(register_controller, or --plugin NAME)")
-            for key, value in c.parameters.items():
-                as_number(f"controller.parameters.{key}", value)
-        else:
-            raise InvalidConfigError(f"controller must be an LqiDriver, PdDriver or "
-                                     f"UserController, got {type(c).__name__}")
-
-    def _validate_reference(self) -> None:
-        from . import trajectories
-
-        ref = self.reference
-        if isinstance(ref, NamedReference):
-            trajectories.make_trajectory(ref.name)          # unknown name: lists the known ones
-        elif isinstance(ref, CsvReference):
-            if not ref.path or not Path(ref.path).exists():
-                raise MissingFileError(f"no reference CSV at {ref.path!r} (reference.path): "
-                                       f"check the path")
-        elif isinstance(ref, SineReference):
-            self.make_reference()                            # checks shapes and overflow
-        elif isinstance(ref, DataCollectionReference):
-            _check_int("reference.seed", ref.seed, 0, MAX_SEED)
-        else:
-            raise InvalidConfigError(f"reference must be a NamedReference, CsvReference, "
-                                     f"SineReference or DataCollectionReference, got "
-                                     f"{type(ref).__name__}")
 
     # -- pickling through YAML (Drake's config structs do not pickle) -------------------------
     def __reduce__(self):
         return (_scenario_from_yaml, (dump_scenario(self),))
 
 
-def use_paper_tuner(scenario: "Scenario", tuner: AnnTunerDriver) -> "Scenario":
+def use_paper_tuner(scenario: Scenario, tuner: AnnTunerDriver) -> Scenario:
     """Give ``scenario`` the paper's ANN ``tuner`` and, for an LQI, the paper's gain switching
     (``gain_transfer = "none"``; see :class:`AnnTunerDriver`). Returns the scenario (changed in
     place)."""
@@ -809,10 +1018,6 @@ def use_paper_tuner(scenario: "Scenario", tuner: AnnTunerDriver) -> "Scenario":
     return scenario
 
 
-#: Largest computation delay the LQI compensates, control periods: its model has 6 (3 + d)
-#: states, and a run's cost grows about as their cube (0.26x real time at 20, 0.02x at 40 on
-#: one core of the reference machine).
-MAX_COMPENSATED_DELAY = 20
 #: Slowest real-time pacing accepted (besides 0, as fast as possible): the Simulator sleeps
 #: between steps in C++, where no signal is handled, so a plant step must not wait more than a
 #: fraction of a second (1 ms at 0.01: 0.1 s).

@@ -1,13 +1,39 @@
-"""Measurement of the platform pose from the plant state, as a Drake LeafSystem."""
+"""Measurement: the platform pose from the plant state (a Drake LeafSystem), and white noise on
+a measured signal (the encoders' in the station, the ideal pose sensor's in the Diagram)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from pydrake.common import RandomDistribution
 from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.primitives import Adder, Gain, RandomSource
 
 from ..model.plant import StewartPlantHandles
+
+
+def add_white_noise(builder, port, std, period_s: float, names: tuple):
+    """Add white Gaussian noise of standard deviations ``std`` to the output ``port``, drawn
+    every ``period_s``: RandomSource -> Gain(std) -> Adder(port, noise), C++ systems only.
+
+    Args:
+        builder: the DiagramBuilder. port: the output port measured (size n).
+        std: (n,) standard deviations, the port's units. period_s: s.
+        names: the names of the (source, gain, adder) systems.
+    Returns:
+        (source, noisy output port). The source's Context must be seeded
+        (``SetRandomContext``): Drake gives every RandomSource a fresh seed otherwise.
+    """
+    std = np.asarray(std, dtype=float)
+    source = builder.AddNamedSystem(names[0], RandomSource(
+        RandomDistribution.kGaussian, std.size, sampling_interval_sec=period_s))
+    scale = builder.AddNamedSystem(names[1], Gain(std))
+    add = builder.AddNamedSystem(names[2], Adder(2, std.size))
+    builder.Connect(source.get_output_port(), scale.get_input_port())
+    builder.Connect(port, add.get_input_port(0))
+    builder.Connect(scale.get_output_port(), add.get_input_port(1))
+    return source, add.get_output_port()
 
 
 class PlatformPoseSensor(LeafSystem):

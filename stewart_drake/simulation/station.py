@@ -12,21 +12,17 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.symbolic import Variable, floor
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import (
-    Adder,
     ConstantVectorSource,
     DiscreteTimeDelay,
-    Gain,
     LinearSystem,
     MatrixGain,
     PassThrough,
-    RandomSource,
     Saturation,
     SymbolicVectorSystem,
 )
@@ -34,7 +30,7 @@ from pydrake.systems.primitives import (
 from ..model.kinematics import X_HOME
 from ..model.plant import add_stewart_plant, assemble
 from ..model.statics import p_ETool
-from .sensors import PlatformPoseSensor
+from .sensors import PlatformPoseSensor, add_white_noise
 
 
 def _weak(method):
@@ -98,6 +94,21 @@ def current_loop(time_constant_s: float, period_s: float, size: int = 6) -> Line
     return LinearSystem(A=a * I, B=(1 - a) * I, C=c * I, D=(1 - c) * I, time_period=period_s)
 
 
+def _connect_actuators(builder, applied, handles) -> None:
+    """The applied torques to the plant's actuation input; with the servo's dry-friction
+    actuators (12 in all), those take no command and their desired state is zero."""
+    if handles.n_actuators > 6:
+        to_actuators = builder.AddNamedSystem("actuators", MatrixGain(
+            np.vstack([np.eye(6), np.zeros((handles.n_actuators - 6, 6))])))
+        builder.Connect(applied, to_actuators.get_input_port())
+        builder.Connect(to_actuators.get_output_port(), handles.actuation_port)
+        zero = builder.AddNamedSystem("friction_target", ConstantVectorSource(
+            np.zeros(handles.desired_state_port.size())))
+        builder.Connect(zero.get_output_port(), handles.desired_state_port)
+    else:
+        builder.Connect(applied, handles.actuation_port)
+
+
 class StewartStation(Diagram):
     """The robot as built by :func:`make_stewart_station`; a Drake ``Diagram`` named "station".
 
@@ -133,81 +144,23 @@ class StewartStation(Diagram):
     def __init__(self, scenario, meshcat=None):
         super().__init__()
         builder = DiagramBuilder()
-        geometry = scenario.plant_geometry()
-        hardware, servo = scenario.hardware, scenario.servo()
-        h_plant, h_control = scenario.plant_time_step_s, scenario.control_period_s
-        plant, scene_graph, handles = add_stewart_plant(builder, geometry,
-                                                        plant_config=scenario.plant, servo=servo,
+        plant, scene_graph, handles = add_stewart_plant(builder, scenario.plant_geometry(),
+                                                        plant_config=scenario.plant,
+                                                        servo=scenario.servo(),
                                                         contact=scenario.contact)
         plant.set_name("plant")
         self.plant, self.scene_graph, self.handles, self.scenario = (plant, scene_graph, handles,
                                                                      scenario)
-        self.delay = self.lag = None
-        # Motor torques: command -> [delay] -> [current limit] -> [current loop] -> plant; the
-        # applied torques are exported.
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
-        applied = command.get_output_port()
-        if hardware is not None and hardware.computation_delay_periods > 0:
-            # Sampled at k h, half a plant step after the controller wrote it: the sample itself
-            # is one period late, so d periods of delay take d - 1 more (measured in a test).
-            self.delay = builder.AddNamedSystem("computation_delay", DiscreteTimeDelay(
-                h_control, hardware.computation_delay_periods - 1, 6))
-            builder.Connect(applied, self.delay.get_input_port())
-            applied = self.delay.get_output_port()
-        limit = scenario.torque_limit()
-        if limit is not None:
-            saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit * np.ones(6),
-                                                                           limit * np.ones(6)))
-            builder.Connect(applied, saturation.get_input_port())
-            applied = saturation.get_output_port()
-        if servo is not None and servo.current_time_constant_s > 0:
-            self.lag = builder.AddNamedSystem("current_loop", current_loop(
-                servo.current_time_constant_s, h_plant))
-            builder.Connect(applied, self.lag.get_input_port())
-            applied = self.lag.get_output_port()
-        if handles.n_actuators > 6:          # the dry-friction actuators take no command
-            to_actuators = builder.AddNamedSystem("actuators", MatrixGain(
-                np.vstack([np.eye(6), np.zeros((handles.n_actuators - 6, 6))])))
-            builder.Connect(applied, to_actuators.get_input_port())
-            builder.Connect(to_actuators.get_output_port(), handles.actuation_port)
-            zero = builder.AddNamedSystem("friction_target", ConstantVectorSource(
-                np.zeros(handles.desired_state_port.size())))
-            builder.Connect(zero.get_output_port(), handles.desired_state_port)
-        else:
-            builder.Connect(applied, handles.actuation_port)
+        applied = self._add_torque_pipe(builder, command.get_output_port())
+        _connect_actuators(builder, applied, handles)
         builder.ExportOutput(applied, "motor_torque_applied")
         # Tool wrench -> plant.
         wrench = builder.AddNamedSystem("tool_wrench", ToolWrench(handles.platform))
         builder.ExportInput(wrench.get_input_port(), "tool_wrench")
         builder.Connect(wrench.get_output_port(), plant.get_applied_spatial_force_input_port())
-        # Motor angles and rates, selected from the plant state (C++ systems: no Python per step).
-        n_q, n = plant.num_positions(), plant.num_positions() + plant.num_velocities()
-        select_q, select_v = np.zeros((6, n)), np.zeros((6, n))
-        for i, joint in enumerate(handles.motors):
-            select_q[i, joint.position_start()] = 1.0
-            select_v[i, n_q + joint.velocity_start()] = 1.0
-        outputs = {}
-        for name, matrix in (("motor_angle", select_q), ("motor_rate", select_v)):
-            gain = builder.AddNamedSystem(name, MatrixGain(matrix))
-            builder.Connect(plant.get_state_output_port(), gain.get_input_port())
-            outputs[name] = gain.get_output_port()
-        self.encoder_noise = None
-        if hardware is not None:             # encoders: angle [+ noise] -> quantizer
-            q = hardware.encoders.quantum_rad
-            if hardware.encoders.noise_counts > 0:
-                self.encoder_noise = builder.AddNamedSystem("encoder_noise", RandomSource(
-                    RandomDistribution.kGaussian, 6, sampling_interval_sec=h_control))
-                scale = builder.AddNamedSystem("encoder_noise_std",
-                                               Gain(hardware.encoders.noise_counts * q, 6))
-                noisy = builder.AddNamedSystem("noisy_angle", Adder(2, 6))
-                builder.Connect(self.encoder_noise.get_output_port(), scale.get_input_port())
-                builder.Connect(outputs["motor_angle"], noisy.get_input_port(0))
-                builder.Connect(scale.get_output_port(), noisy.get_input_port(1))
-                outputs["motor_angle"] = noisy.get_output_port()
-            encoders = builder.AddNamedSystem("encoders", quantizer(q))
-            builder.Connect(outputs["motor_angle"], encoders.get_input_port())
-            outputs["motor_angle"] = encoders.get_output_port()
+        outputs = self._add_motor_sensors(builder)
         for name, port in outputs.items():
             builder.ExportOutput(port, name)
         self.sensor = builder.AddNamedSystem("platform_sensor", PlatformPoseSensor(plant, handles))
@@ -222,6 +175,61 @@ class StewartStation(Diagram):
             ApplyVisualizationConfig(scenario.visualization, builder, meshcat=meshcat)
         builder.BuildInto(self)
         self.set_name("station")
+
+    def _add_torque_pipe(self, builder, command):
+        """Motor torques: command -> [computation delay] -> [current limit] -> [current loop];
+        returns the applied torques' port (the delay and the loop are kept: their state starts at
+        the first feed-forward, :meth:`initialize`)."""
+        scenario, servo = self.scenario, self.scenario.servo()
+        hardware, applied = scenario.hardware, command
+        self.delay = self.lag = None
+        if hardware is not None and hardware.computation_delay_periods > 0:
+            # Sampled at k h, half a plant step after the controller wrote it: the sample itself
+            # is one period late, so d periods of delay take d - 1 more (measured in a test).
+            self.delay = builder.AddNamedSystem("computation_delay", DiscreteTimeDelay(
+                scenario.control_period_s, hardware.computation_delay_periods - 1, 6))
+            builder.Connect(applied, self.delay.get_input_port())
+            applied = self.delay.get_output_port()
+        limit = scenario.torque_limit()
+        if limit is not None:
+            saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit * np.ones(6),
+                                                                           limit * np.ones(6)))
+            builder.Connect(applied, saturation.get_input_port())
+            applied = saturation.get_output_port()
+        if servo is not None and servo.current_time_constant_s > 0:
+            self.lag = builder.AddNamedSystem("current_loop", current_loop(
+                servo.current_time_constant_s, scenario.plant_time_step_s))
+            builder.Connect(applied, self.lag.get_input_port())
+            applied = self.lag.get_output_port()
+        return applied
+
+    def _add_motor_sensors(self, builder) -> dict:
+        """{"motor_angle", "motor_rate": port}: the crank angles and rates selected from the
+        plant state (C++ systems: no Python per step); on the robot as built the angles pass
+        the encoders (white noise, if any, then the quantizer)."""
+        plant, hardware = self.plant, self.scenario.hardware
+        n_q, n = plant.num_positions(), plant.num_positions() + plant.num_velocities()
+        select_q, select_v = np.zeros((6, n)), np.zeros((6, n))
+        for i, joint in enumerate(self.handles.motors):
+            select_q[i, joint.position_start()] = 1.0
+            select_v[i, n_q + joint.velocity_start()] = 1.0
+        outputs = {}
+        for name, matrix in (("motor_angle", select_q), ("motor_rate", select_v)):
+            gain = builder.AddNamedSystem(name, MatrixGain(matrix))
+            builder.Connect(plant.get_state_output_port(), gain.get_input_port())
+            outputs[name] = gain.get_output_port()
+        self.encoder_noise = None
+        if hardware is not None:             # encoders: angle [+ noise] -> quantizer
+            q = hardware.encoders.quantum_rad
+            if hardware.encoders.noise_counts > 0:
+                self.encoder_noise, outputs["motor_angle"] = add_white_noise(
+                    builder, outputs["motor_angle"],
+                    np.full(6, hardware.encoders.noise_counts * q), self.scenario.control_period_s,
+                    ("encoder_noise", "encoder_noise_std", "noisy_angle"))
+            encoders = builder.AddNamedSystem("encoders", quantizer(q))
+            builder.Connect(outputs["motor_angle"], encoders.get_input_port())
+            outputs["motor_angle"] = encoders.get_output_port()
+        return outputs
 
     def initialize(self, root_context, T0, seed: int = 0) -> None:
         """Start the pipes at rest: the pending commands (delay) and the current loop hold T0

@@ -22,6 +22,7 @@ from ..checks import as_array, as_number, as_poses
 from ..errors import InvalidConfigError
 from ..model import kinematics, limits
 from ..model.geometry import X_HOME, StewartGeometry
+from ..model.kinematics import AXIS_NAMES
 
 
 def check_sine_bounds(trajectory) -> None:
@@ -95,7 +96,6 @@ def hold_home() -> SineTrajectory:
     return SineTrajectory(name="home")
 
 
-AXIS_NAMES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: Step sizes of :func:`step` by default: 20 mrad for angles, 5 mm for positions.
 STEP_SIZE = (0.02, 0.02, 0.02, 0.005, 0.005, 0.005)
 
@@ -276,7 +276,8 @@ class DrakeTrajectory:
     """
 
     def __init__(self, trajectory, name: str = "drake_trajectory"):
-        if not isinstance(trajectory, Trajectory) or (trajectory.rows(), trajectory.cols()) != (6, 1):
+        if (not isinstance(trajectory, Trajectory)
+                or (trajectory.rows(), trajectory.cols()) != (6, 1)):
             shape = ((trajectory.rows(), trajectory.cols()) if isinstance(trajectory, Trajectory)
                      else type(trajectory).__name__)
             raise InvalidConfigError(f"a Drake reference must be a Trajectory of 6 rows and 1 "
@@ -351,10 +352,25 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
             non-finite value, times not increasing from 0 by at least :data:`CSV_MIN_DT_S` or
             beyond :data:`CSV_MAX_T_S`, fewer than 3 rows, or more rows than the memory holds.
     """
+    path = Path(path)
+    data = _csv_samples(path)
+    _check_csv_times(path, data[:, 0])
+    as_poses(f"{path}: the poses", data[:, 1:])
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(data[:, 0], data[:, 1:].T,
+                                                                     False)
+    return DrakeTrajectory(spline, name=path.stem)
+
+
+def _csv_samples(path: Path) -> np.ndarray:
+    """(n, 7) the rows [t, pose] of a reference CSV, read through the checked path, its memory
+    checked before it is parsed (see :func:`load_csv_trajectory`).
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as load_csv_trajectory.
+    """
     from ..checks import check_memory
     from ..errors import CorruptFileError
 
-    path = Path(path)
     raw = _read_csv_bytes(path)
     remedy = "write it as UTF-8 text with the header t,phi,theta,psi,X,Y,Z (s, rad, m)"
     rows_in_file = raw.count(b"\n") + 1
@@ -388,10 +404,18 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
                                      f"{','.join(row)[:200]!r}")
         values.append(numbers)
     del rows
-    data = np.array(values).reshape(-1, 7)
-    if len(data) < 3:
-        raise InvalidConfigError(f"{path}: a reference needs at least 3 samples, got {len(data)}")
-    t = data[:, 0]
+    return np.array(values).reshape(-1, 7)
+
+
+def _check_csv_times(path: Path, t: np.ndarray) -> None:
+    """At least 3 samples, from 0 s, strictly increasing by at least :data:`CSV_MIN_DT_S`, up
+    to :data:`CSV_MAX_T_S`.
+
+    Raises:
+        InvalidConfigError: names the file and what to change.
+    """
+    if len(t) < 3:
+        raise InvalidConfigError(f"{path}: a reference needs at least 3 samples, got {len(t)}")
     if t[0] != 0.0 or np.any(np.diff(t) <= 0):
         raise InvalidConfigError(f"{path}: times must start at 0 s and strictly increase")
     if t[-1] > CSV_MAX_T_S:
@@ -402,9 +426,6 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
         raise InvalidConfigError(f"{path}: samples must be at least {CSV_MIN_DT_S:g} s apart; "
                                  f"those at t = {t[k]:.6g} s and {t[k + 1]:.6g} s are "
                                  f"{t[k + 1] - t[k]:.3g} s apart (times are in s)")
-    as_poses(f"{path}: the poses", data[:, 1:])
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, data[:, 1:].T, False)
-    return DrakeTrajectory(spline, name=path.stem)
 
 
 def as_trajectory(source):
@@ -573,15 +594,28 @@ def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None =
     single = np.array([_max_single_axis_amplitude(geometry, k, ratio_max) for k in range(6)])
     amp = np.minimum(single, np.asarray(DATA_ACCEL_CAP) / (2 * np.pi * f) ** 2)
     t = np.arange(0.0, duration_s + 0.5 * dt, dt)            # the samples of validate()
-    checks = (ratio_max, cond_threshold, min_sigma_min_inv)
 
-    def path(scale, k=slice(None)):
+    def path(scale, times=t):
         return SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
-                              phase=tuple(phase)).evaluate(t[k])[0]
+                              phase=tuple(phase)).evaluate(times)
 
+    scale = _scale_within_checks(geometry, lambda sc, k=slice(None): path(sc, t[k])[0],
+                                 (ratio_max, cond_threshold, min_sigma_min_inv))
+    if torque_limit_Nm is not None:
+        scale = _scale_within_torque(geometry, lambda sc: path(sc, t[::5]), scale,
+                                     DATA_TORQUE_MARGIN * torque_limit_Nm)
+    return SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
+                          phase=tuple(phase), name=f"data_seed{seed}")
+
+
+def _scale_within_checks(geometry: StewartGeometry, poses, checks: tuple) -> float:
+    """The largest factor s <= 1 (bisection, a hair inside) with which ``poses(s, k)`` (the
+    path's poses at the samples k, all by default) passes the checks of :func:`_slack`. The
+    bisection runs on the samples that refused a scale so far, and each round is confirmed on
+    all of them."""
     scale, critical = 1.0, np.zeros(0, dtype=int)
     for _ in range(20):                   # each round adds the samples that refused the scale
-        slack = _slack(geometry, path(scale), *checks)
+        slack = _slack(geometry, poses(scale), *checks)
         if np.all(slack >= 0):
             break
         critical = np.union1d(critical, np.union1d(np.flatnonzero(slack < 0),
@@ -589,25 +623,24 @@ def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None =
         lo, hi = 0.0, scale
         for _ in range(40):
             mid = 0.5 * (lo + hi)
-            fits = np.all(_slack(geometry, path(mid, critical), *checks) >= 0)
+            fits = np.all(_slack(geometry, poses(mid, critical), *checks) >= 0)
             lo, hi = (mid, hi) if fits else (lo, mid)
         scale = lo * (1 - 1e-3)           # a hair inside: no pass or fail by round-off
-    if torque_limit_Nm is not None:
-        from ..model.statics import inverse_dynamics_torques
+    return scale
 
-        coarse = t[::5]
 
-        def peak(sc):
-            traj = SineTrajectory(amplitude=tuple(sc * amp), frequency_hz=tuple(f),
-                                  phase=tuple(phase))
-            return np.abs(inverse_dynamics_torques(geometry, *traj.evaluate(coarse))).max()
+def _scale_within_torque(geometry: StewartGeometry, motion, scale: float, bound: float) -> float:
+    """``scale``, or the largest factor below it (bisection) with which the inverse-dynamics
+    torques of ``motion(s)`` (pose, rate, acceleration) stay within ``bound``, N m."""
+    from ..model.statics import inverse_dynamics_torques
 
-        bound = DATA_TORQUE_MARGIN * torque_limit_Nm
-        if peak(scale) > bound:
-            lo, hi = 0.0, scale
-            for _ in range(30):
-                mid = 0.5 * (lo + hi)
-                lo, hi = (mid, hi) if peak(mid) <= bound else (lo, mid)
-            scale = lo
-    return SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
-                          phase=tuple(phase), name=f"data_seed{seed}")
+    def peak(sc):
+        return np.abs(inverse_dynamics_torques(geometry, *motion(sc))).max()
+
+    if peak(scale) > bound:
+        lo, hi = 0.0, scale
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if peak(mid) <= bound else (lo, mid)
+        scale = lo
+    return scale

@@ -127,7 +127,8 @@ class DrakeEngine:
 
 
 class MujocoEngine:
-    """The MJCF of :func:`stewart_drake.model.mjcf.write_mjcf` under constant torques, ``mj_step``."""
+    """The MJCF of :func:`stewart_drake.model.mjcf.write_mjcf` under constant torques,
+    ``mj_step``."""
 
     def __init__(self, geometry: StewartGeometry, time_step: float, torques,
                  integrator: str | None = None):

@@ -9,18 +9,22 @@ collection back for :mod:`.training` and refuses an incomplete or mixed one.
 from __future__ import annotations
 
 import copy
-import dataclasses
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..control.features import density_features_series
-from ..errors import (CorruptFileError, IncompleteResultsError, InvalidConfigError,
-                      ResultsMismatchError)
+from ..errors import (
+    CorruptFileError,
+    IncompleteResultsError,
+    InvalidConfigError,
+    ResultsMismatchError,
+)
 from ..fileio import CheckedNpz
-from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, LqiDriver, Scenario
+from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, Scenario
 from .experiments import RunResult, check_run_memory, run_experiment
 from .runners import JobFailure, ProcessRunner
 from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
@@ -33,8 +37,9 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
 
     The features are those the tuner would see in the loop: of the error the controller acted
     on (``result.e_bar``: its estimate, on the hardware; the true error when not logged) and of
-    the applied torques, sample for sample as :class:`~stewart_drake.control.features.DensityFeatures`
-    takes them. The cost parts use the true error.
+    the applied torques, sample for sample as
+    :class:`~stewart_drake.control.features.DensityFeatures` takes them. The cost parts use the
+    true error.
 
     Returns:
         dict with omega_Q, omega_R, t (N,), rho (N, 12) (density features over ``window``
@@ -59,34 +64,48 @@ def job_config(base: Scenario | None, seed: int, duration_s: float, omega_Q: flo
                omega_R: float) -> Scenario:
     """The scenario of one collection run, the only place it is built: ``base`` (default: the
     robot as built, ``paper_hardware``) tracking the seeded excitation for ``duration_s`` with
-    the LQI at fixed (omega_Q, omega_R)."""
+    the base's LQI at fixed (omega_Q, omega_R) (:meth:`~.scenario.Scenario.lqi`)."""
     from ..simulation.scenario import load_scenario
 
     scenario = copy.deepcopy(base) if base is not None else load_scenario("paper_hardware")
     scenario.reference = DataCollectionReference(seed=seed)
     scenario.duration_s = duration_s
-    scenario.tuner = None
-    driver = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
-    scenario.controller = dataclasses.replace(driver, omega_Q=omega_Q, omega_R=omega_R)
+    scenario.use_controller(scenario.lqi(omega_Q=omega_Q, omega_R=omega_R))
     return scenario.validate()
 
 
-def _collect_job(job: dict) -> dict:
-    config = job["config"]
+@dataclass(frozen=True)
+class CollectionRun:
+    """One run of the collection: its scenario (the LQI at its weights, typed, on the seeded
+    excitation), and how its record is sampled (every ``sample_period_s`` s, density features
+    over ``feature_window`` samples)."""
+
+    scenario: Scenario
+    sample_period_s: float
+    feature_window: int
+
+    @property
+    def weights(self) -> tuple:
+        """(omega_Q, omega_R) of the run's LQI."""
+        return self.scenario.controller.omega()
+
+
+def _collect_job(run: CollectionRun) -> dict:
     t0 = time.perf_counter()
-    result = run_experiment(config)
-    record = run_record(result, config.controller.scales.build(), job["sample_period_s"],
-                        job["feature_window"])
+    result = run_experiment(run.scenario)
+    record = run_record(result, run.scenario.controller.scales.build(), run.sample_period_s,
+                        run.feature_window)
     record["wall_s"] = time.perf_counter() - t0
     return record
 
 
 def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: float = 5e-3,
                     base: Scenario | None = None) -> tuple[dict, dict]:
-    """The settings (what decides the data, hashed by the store) and the nine jobs.
+    """The settings (what decides the data, hashed by the store) and the nine runs.
 
     Returns:
-        (settings dict, {"q<omega_Q>_r<omega_R>": job}) in the paper's grid order.
+        (settings dict, {"q<omega_Q>_r<omega_R>": :class:`CollectionRun`}) in the paper's grid
+        order.
     """
     from ..simulation.scenario import dump_scenario
 
@@ -100,8 +119,7 @@ def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: fl
                                "frequency_hz": trajectory.frequency_hz,
                                "phase": trajectory.phase},
                 "scenario": dump_scenario(next(iter(configs.values())))}
-    jobs = {k: {"config": c, "sample_period_s": sample_period_s, "feature_window": window}
-            for k, c in configs.items()}
+    jobs = {k: CollectionRun(c, sample_period_s, window) for k, c in configs.items()}
     return settings, jobs
 
 
@@ -140,32 +158,11 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
                      "shorten --duration, or run fewer at once with --jobs")
     settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
     for job in jobs.values():          # not in the settings: a divergence is kept under out_dir
-        job["config"].guard.divergence_dir = str(out / "diverged")
+        job.scenario.guard.divergence_dir = str(out / "diverged")
     store = ResultStore(out, "collect", settings, pattern="run_*.npz")
 
     def save(job_id, record):
-        if isinstance(record, JobFailure):
-            if record.kind == "error" and record.error_type == "SimulationDivergedError":
-                # The platform was lost at these weights: an outcome of the experiment (the
-                # stiff ratios on the robot as built), kept as such, not a missing run.
-                q, r = (jobs[job_id]["config"].controller.omega_Q,
-                        jobs[job_id]["config"].controller.omega_R)
-                store.put_json(job_id, f"run_{job_id}.json", {"lost": record.message},
-                               omega_Q=q, omega_R=r, lost=record.message.splitlines()[0],
-                               rms_error=None, sum_T2_dt=None, max_closure_m=None,
-                               n_samples=0, wall_s=0.0)
-                return
-            store.mark(record)
-            return
-        arrays = {k: np.asarray(v) for k, v in record.items() if k != "metrics"}
-        arrays["metrics"] = np.array(json.dumps(record["metrics"]))
-        arrays["settings_hash"] = np.array(store.hash)
-        m = record["metrics"]
-        store.put(job_id, f"run_{job_id}.npz", lambda f: np.savez_compressed(f, **arrays),
-                  omega_Q=record["omega_Q"], omega_R=record["omega_R"],
-                  rms_error=m["rms_error"], sum_T2_dt=m["sum_T2_dt"],
-                  max_closure_m=m["max_closure_m"], n_samples=len(record["t"]),
-                  wall_s=record["wall_s"])
+        _save_run(store, job_id, jobs[job_id], record)
 
     ran = run_jobs(store, runner, _collect_job, jobs, save, progress, "closed-loop runs", "runs")
     entries = [store.manifest["jobs"][k] for k in jobs]
@@ -178,6 +175,32 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
         n_samples=int(sum(e["n_samples"] for e in entries)), workers=runner.n_workers,
         ran=len(ran["ran"]), reused=len(ran["reused"]), wall_s=wall, sum_job_s=job_time,
         speedup=job_time / wall if ran["ran"] and wall > 0 else float("nan"))
+
+
+def _save_run(store: ResultStore, job_id: str, run: CollectionRun, record) -> None:
+    """Keep one run's record (``run_<job>.npz``, with the settings' hash) as it arrives; a run
+    that lost the platform is kept as such (``run_<job>.json``), any other failure marked."""
+    if isinstance(record, JobFailure):
+        if record.kind == "error" and record.error_type == "SimulationDivergedError":
+            # The platform was lost at these weights: an outcome of the experiment (the
+            # stiff ratios on the robot as built), kept as such, not a missing run.
+            q, r = run.weights
+            store.put_json(job_id, f"run_{job_id}.json", {"lost": record.message},
+                           omega_Q=q, omega_R=r, lost=record.message.splitlines()[0],
+                           rms_error=None, sum_T2_dt=None, max_closure_m=None,
+                           n_samples=0, wall_s=0.0)
+            return
+        store.mark(record)
+        return
+    arrays = {k: np.asarray(v) for k, v in record.items() if k != "metrics"}
+    arrays["metrics"] = np.array(json.dumps(record["metrics"]))
+    arrays["settings_hash"] = np.array(store.hash)
+    m = record["metrics"]
+    store.put(job_id, f"run_{job_id}.npz", lambda f: np.savez_compressed(f, **arrays),
+              omega_Q=record["omega_Q"], omega_R=record["omega_R"],
+              rms_error=m["rms_error"], sum_T2_dt=m["sum_T2_dt"],
+              max_closure_m=m["max_closure_m"], n_samples=len(record["t"]),
+              wall_s=record["wall_s"])
 
 
 def load_records(data_dir: str | Path) -> list[dict]:

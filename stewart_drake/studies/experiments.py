@@ -1,9 +1,10 @@
-"""Closed-loop runs: simulate a :class:`~stewart_drake.simulation.scenario.Scenario`, compute
-metrics, save data and Fig. 7.
+"""Closed-loop runs: simulate a :class:`~stewart_drake.simulation.scenario.Scenario`, collect its
+logs and metrics, save and load them.
 
-``run_experiment(scenario)`` returns a :class:`RunResult` (arrays + metrics); ``save_result``
-writes ``<name>.npz`` (arrays, the metrics as JSON and the scenario as YAML) and ``plot_fig7`` the
-paper's Fig. 7 panels.
+``run_experiment(scenario)`` returns a :class:`RunResult` (arrays + metrics,
+:func:`~.metrics.compute_metrics`); ``save_result`` writes ``<name>.npz`` (arrays, the metrics as
+JSON and the scenario as YAML). The pictures and the printed summary are made apart, from a
+result (:mod:`.run_report`: ``plot_fig7``, ``format_metrics``, importable from here too).
 """
 
 from __future__ import annotations
@@ -16,18 +17,20 @@ from pathlib import Path
 import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-from ..fileio import CheckedNpz, atomic_write, save_npz
+from ..fileio import CheckedNpz, save_npz
 from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
-from ..simulation.scenario import CsvReference, LqiDriver, Scenario, dump_scenario
-from ..simulation.trajectories import as_trajectory, csv_reference_bytes
+from ..simulation.scenario import Scenario, dump_scenario
+from ..simulation.trajectories import as_trajectory
+from .metrics import compute_metrics
 
-AXES = ("phi", "theta", "psi", "X", "Y", "Z")
+# Re-exported (the redundant aliases say so): the README's users import them from here.
+from .run_report import format_metrics as format_metrics
+from .run_report import plot_fig7 as plot_fig7
+
 #: Where ``stewart-drake train`` writes the tuner and ``run --tuner ann`` looks first.
 DEFAULT_TUNER_OUT = Path("results") / "tuner" / "ann_tuner.npz"
-#: Display units per axis: mrad for angles, mm for positions.
-AXIS_UNITS = ("mrad", "mrad", "mrad", "mm", "mm", "mm")
 
 
 @dataclass
@@ -47,7 +50,8 @@ class RunResult:
             the hardware, from the encoders), or None.
         T_ff: (N, 6) the feed-forward torques of the reference at each logged time, N m (T -
             T_ff is the feedback's share), or None.
-        metrics: dict of the figures printed by the CLI (see :func:`compute_metrics`).
+        metrics: dict of the figures printed by the CLI (see
+            :func:`~.metrics.compute_metrics`).
         config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
             the whole scenario as YAML.
     """
@@ -97,14 +101,13 @@ REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
 
 def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
-    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`), plus a
-    CSV reference's spline (:func:`~stewart_drake.simulation.trajectories.csv_reference_bytes`,
-    which counts the file's lines)."""
+    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`), plus what
+    the reference itself holds (a CSV reference's spline,
+    :meth:`~stewart_drake.simulation.scenario.ReferenceConfig.memory_bytes`)."""
     d = float(scenario.duration_s)
-    reference = (csv_reference_bytes(scenario.reference.path)
-                 if isinstance(scenario.reference, CsvReference) else 0.0)
-    return reference + max((d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
-                           (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
+    return scenario.reference.memory_bytes() + max(
+        (d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
+        (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
 
 
 def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
@@ -118,14 +121,11 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
     """
     from ..checks import check_memory
 
+    on_reference, coarser = scenario.reference.memory_note()
     what = (f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
-            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s"
-            + (f" on the reference {scenario.reference.path}"
-               if isinstance(scenario.reference, CsvReference) else ""))
+            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s{on_reference}")
     check_memory(what, runs_at_once * run_memory_bytes(scenario), change or (
-        "shorten duration_s (--duration) or lengthen log_period_s"
-        + (", and sample the reference CSV more coarsely"
-           if isinstance(scenario.reference, CsvReference) else "")))
+        "shorten duration_s (--duration) or lengthen log_period_s" + coarser))
 
 
 def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,
@@ -194,21 +194,19 @@ def run_experiment(scenario: Scenario | None = None, progress: bool = False,
 
 def config_summary(sd: StewartDiagram) -> dict:
     """The settings of a run that results and records carry (plain JSON values)."""
-    scenario, driver = sd.scenario, sd.scenario.controller
+    scenario = sd.scenario
     summary = {"trajectory": getattr(sd.trajectory, "name", "custom"),
                "duration_s": scenario.duration_s,
                "plant_time_step_s": scenario.plant_time_step_s,
                "control_period_s": scenario.control_period_s,
-               "controller": type(driver).__name__, "tuner": scenario.tuner is not None,
+               "controller": type(scenario.controller).__name__,
+               "tuner": scenario.tuner is not None,
                "feedforward": scenario.feedforward, "payload_scale": scenario.payload_scale,
                "torque_limit_Nm": scenario.torque_limit_Nm,
                "motor_limit_Nm": scenario.torque_limit(),
                "sensor_noise": scenario.sensor_noise is not None,
                "hardware": scenario.hardware is not None,
-               "scenario": dump_scenario(scenario)}
-    if isinstance(driver, LqiDriver):
-        summary.update(omega_Q=driver.omega_Q, omega_R=driver.omega_R,
-                       schedule_period_s=driver.schedule_period_s)
+               "scenario": dump_scenario(scenario), **scenario.controller.summary()}
     return summary
 
 
@@ -264,78 +262,6 @@ def loop_closures_from_states(sd: StewartDiagram, states: np.ndarray) -> np.ndar
     return out
 
 
-def compute_metrics(result: RunResult, wall_s: float | None = None,
-                    window_start_s: float | None = None) -> dict:
-    """Figures of a run.
-
-    Returns:
-        dict: ``rms_error`` and ``peak_error`` per axis (rad and m) over t >= window_start_s
-        (default: the second half of the run, i.e. [5, 10] s for the paper's 10 s), ``peak_torque``
-        (6,) N m, ``sum_T2_dt`` N^2 m^2 s, ``max_closure_m``, ``status`` (the controller's
-        status at the end, by name), and for a controller that reports them ``gain_solves`` and
-        ``gain_failures``; ``realtime_factor`` (if wall_s).
-    Raises:
-        InvalidConfigError: fewer than 2 samples in the window (nothing to average: simulate
-            longer than one log period).
-    """
-    from ..errors import InvalidConfigError
-
-    t = result.t
-    start = t[-1] / 2 if window_start_s is None else window_start_s
-    m = t >= start - 1e-9
-    if np.count_nonzero(m) < 2:
-        raise InvalidConfigError(f"a run of {t[-1]:g} s has {np.count_nonzero(m)} logged sample(s) "
-                                 f"after t = {start:g} s: too short for metrics; simulate longer")
-    err = result.x[:, :6] - result.x_d[:, :6]
-    dt = np.diff(t, prepend=t[0])
-    metrics = {
-        "window_s": [float(start), float(t[-1])],
-        "rms_error": np.sqrt(np.mean(err[m] ** 2, axis=0)).tolist(),
-        "peak_error": np.abs(err[m]).max(axis=0).tolist(),
-        "peak_torque": np.abs(result.T).max(axis=0).tolist(),
-        "sum_T2_dt": float(np.sum(result.T ** 2 * dt[:, None])),
-        "max_closure_m": float(result.closure.max()),
-        "status": {name: float(v) for name, v in zip(result.status_names, result.status[-1])},
-        "finite": bool(np.all(np.isfinite(result.x)) and np.all(np.isfinite(result.T))),
-    }
-    for name in ("gain_solves", "gain_failures"):
-        if name in metrics["status"]:
-            metrics[name] = int(metrics["status"][name])
-    if wall_s is not None:
-        metrics["wall_s"] = float(wall_s)
-        metrics["realtime_factor"] = float(t[-1] / wall_s) if wall_s > 0 else float("inf")
-    return metrics
-
-
-def format_metrics(metrics: dict) -> str:
-    """Human-readable summary (mrad / mm / N m)."""
-    w0, w1 = metrics["window_s"]
-    lines = [f"RMS tracking error over t in [{w0:g}, {w1:g}] s:"]
-    for axis, unit, v, p in zip(AXES, AXIS_UNITS, metrics["rms_error"], metrics["peak_error"]):
-        lines.append(f"  {axis:>5}: {1e3 * v:10.3g} {unit} RMS  (peak {1e3 * p:.3g} {unit})")
-    lines.append("peak |T| per motor [N m]: "
-                 + " ".join(f"{v:.3f}" for v in metrics["peak_torque"]))
-    lines.append(f"sum T^2 dt: {metrics['sum_T2_dt']:.4g} N^2 m^2 s")
-    lines.append(f"max loop-closure error: {metrics['max_closure_m']:.3g} m")
-    status = dict(metrics.get("status", {}))
-    if "gain_solves" in status:
-        lines.append(f"gain re-schedules: {int(status.pop('gain_solves'))} "
-                     f"({int(status.pop('gain_failures', 0))} failed, last good gain kept)")
-    counts = {k: v for k, v in status.items() if k not in ("omega_Q", "omega_R", "integral_norm")}
-    if counts:
-        lines.append("controller status: " + ", ".join(f"{k.replace('_', ' ')} {v:g}"
-                                                       for k, v in counts.items()))
-    if "first_contact" in metrics:
-        c = metrics["first_contact"]
-        lines.append("contact between parts: none" if c is None else
-                     f"first contact between parts: {c['parts'][0]} and {c['parts'][1]} at "
-                     f"t = {c['t']:.4g} s ({c['force_N']:.3g} N)")
-    if "realtime_factor" in metrics:
-        lines.append(f"real-time factor: {metrics['realtime_factor']:.2f} "
-                     f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)")
-    return "\n".join(lines)
-
-
 _OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff")
 
 
@@ -368,155 +294,3 @@ def load_result(path: str | Path) -> RunResult:
         raise data.corrupt("the entry 'status_names' must be a list of strings")
     return RunResult(**arrays, status_names=tuple(str(v) for v in names),
                      metrics=data.json("metrics"), config_summary=data.json("config"))
-
-
-#: Window of the torque panel's means and of the feedback map, s.
-TORQUE_WINDOW_S = 0.05
-
-
-def _window_stats(t: np.ndarray, values: np.ndarray, window_s: float):
-    """(t_w (W,), mean (W, k), rms (W, k)) of values (N, k) over consecutive windows of
-    ``window_s``: the 1 kHz torque chatter of an encoder's quantum averaged out (mean) and
-    measured (rms)."""
-    index = ((t - t[0]) / window_s + 1e-9).astype(int)
-    n = index[-1] + 1
-    counts = np.maximum(np.bincount(index, minlength=n), 1)[:, None]
-    mean = np.stack([np.bincount(index, weights=v, minlength=n) for v in values.T], 1) / counts
-    square = np.stack([np.bincount(index, weights=v ** 2, minlength=n) for v in values.T], 1)
-    t_w = t[0] + (np.arange(n) + 0.5) * window_s
-    return t_w, mean, np.sqrt(square / counts)
-
-
-def _zoom_window(t: np.ndarray, ref: np.ndarray, err: np.ndarray) -> slice:
-    """Samples around the largest |err| over which the reference moves by about four times that
-    error, so that reference and achieved value are told apart in a zoom (5 ms .. 1 s)."""
-    k = int(np.argmax(np.abs(err)))
-    peak = max(abs(err[k]), 1e-15)
-    dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
-    half = max(int(round(0.005 / dt)), 2)
-    while half * dt < 1.0:
-        window = ref[max(k - half, 0):k + half + 1]
-        if np.ptp(window) > 4 * peak:
-            break
-        half = int(half * 1.5) + 1
-    return slice(max(k - half, 0), min(k + half + 1, len(t)))
-
-
-def plot_fig7(result: RunResult, path: str | Path) -> Path:
-    """Paper Fig. 7 as a PNG, one quantity per panel, plain linear axes.
-
-    Panels: phi and Z with their references, each with a zoom on the instant of its largest
-    error where the two curves part (mrad, mm); the angle and position tracking errors (urad,
-    um); the integral states z (eq. 23) when the controller has them; omega_Q and omega_R when
-    tuned (log axis: they span decades); the motor torques as 20 ms means with the motors'
-    limit; and, when the feed-forward is known, the feedback torque T - T_ff per motor as a map
-    of its 20 ms RMS (the chatter of the encoders' quantum, which drawn raw hides the six
-    motors in one band).
-    Returns:
-        the path written (atomically).
-    """
-    # A Figure without pyplot: no global backend switch (a notebook keeps its inline plots).
-    from matplotlib.figure import Figure
-
-    t = result.t
-    err = result.x[:, :6] - result.x_d[:, :6]
-    panels = ["phi", "Z", "angle_error", "position_error"]
-    if result.integral is not None:
-        panels.append("integral")
-    if result.omega is not None and np.ptp(result.omega) > 0:
-        panels.append("omega")
-    panels.append("torque")
-    if result.T_ff is not None:
-        panels.append("feedback")
-    heights = [1.2 if p in ("phi", "Z") else 0.8 if p == "feedback" else 1.0 for p in panels]
-    fig = Figure(figsize=(10, 1.75 * sum(heights) + 0.8))
-    # Left: the time series, one width, one time axis. Right: the zooms, legends, colour bar.
-    grid = fig.add_gridspec(len(panels), 2, height_ratios=heights, width_ratios=(3.3, 1))
-    axes, sides = [], []
-    for row in range(len(panels)):
-        axes.append(fig.add_subplot(grid[row, 0], sharex=axes[0] if axes else None))
-        sides.append(fig.add_subplot(grid[row, 1]))
-    for ax in axes[:-1]:
-        ax.tick_params(labelbottom=False)
-    summary = result.config_summary
-
-    def legend_beside(ax, side, loc="center left", **kwargs):
-        side.set_axis_off()
-        side.legend(*ax.get_legend_handles_labels(), loc=loc, fontsize=8, frameon=False,
-                    **kwargs)
-
-    for ax, side, panel in zip(axes, sides, panels):
-        if panel in ("phi", "Z"):
-            k, unit, scale, zoom_unit = ((0, "rad", 1e3, "mrad") if panel == "phi"
-                                         else (5, "m", 1e3, "mm"))
-            sym = r"\varphi" if panel == "phi" else "Z"
-            color = "C0" if k == 0 else "C3"
-            ax.plot(t, result.x_d[:, k], color="0.75", lw=3.5, label=f"${sym}_d$ reference")
-            ax.plot(t, result.x[:, k], color, lw=1.0, label=f"${sym}$ achieved")
-            ax.set_ylabel(f"${sym}$ [{unit}]")
-            ax.legend(loc="upper left", fontsize=8, ncol=2)
-            # The error is a thousandth of the motion: only a zoom shows both curves apart.
-            w = _zoom_window(t, result.x_d[:, k], err[:, k])
-            ax.axvspan(t[w][0], t[w][-1], color="k", alpha=0.3, lw=0)
-            base = result.x_d[w, k][len(result.x_d[w, k]) // 2]
-            side.plot(t[w], scale * (result.x_d[w, k] - base), color="0.75", lw=3.5)
-            side.plot(t[w], scale * (result.x[w, k] - base), color, lw=1.0)
-            side.set_title(f"zoom at the largest error (grey band),\naround ${sym}$ = {base:.4g} "
-                           f"{unit}", fontsize=8)
-            side.set_ylabel(f"[{zoom_unit}]", fontsize=8)
-            side.set_xlabel("t [s]", fontsize=8, labelpad=1)
-            side.tick_params(labelsize=7)
-            side.grid(alpha=0.3)
-        elif panel in ("angle_error", "position_error"):
-            part = range(3) if panel == "angle_error" else range(3, 6)
-            unit = "urad" if panel == "angle_error" else "um"
-            for k in part:
-                ax.plot(t, 1e6 * err[:, k], lw=0.8, label=AXES[k])
-            ax.set_ylabel(f"{'angle' if k < 3 else 'position'} error\nx - x_d [{unit}]")
-            legend_beside(ax, side, title="axis")
-        elif panel == "integral":
-            for k in range(6):
-                ax.plot(t, 1e6 * result.integral[:, k], lw=0.8, label=AXES[k])
-            ax.set_ylabel("integral states z\n[urad s | um s]")
-            legend_beside(ax, side, ncol=2, title="axis")
-        elif panel == "omega":
-            ax.plot(t, result.omega[:, 0], label=r"$\omega_Q$")
-            ax.plot(t, result.omega[:, 1], label=r"$\omega_R$")
-            ax.set_yscale("log")
-            ax.set_ylabel("tuner output")
-            legend_beside(ax, side)
-        elif panel == "torque":
-            t_w, mean, _ = _window_stats(t, result.T, TORQUE_WINDOW_S)
-            for i in range(6):
-                ax.plot(t_w, mean[:, i], lw=1.2, label=f"$T_{i + 1}$")
-            limit = summary.get("motor_limit_Nm")
-            ax.set_ylabel(f"motor torque\n{1e3 * TORQUE_WINDOW_S:g} ms means [N m]")
-            legend_beside(ax, side, loc="upper left", ncol=2, title="motor")
-            side.text(0.0, 0.0, f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
-                      + (f"\nmotors' limit {limit:.3g} N m" if limit else ""), fontsize=7,
-                      transform=side.transAxes, va="bottom")
-        else:
-            t_w, _, rms = _window_stats(t, result.T - result.T_ff, TORQUE_WINDOW_S)
-            image = ax.imshow(rms.T, aspect="auto", origin="lower", cmap="viridis",
-                              extent=(t_w[0] - TORQUE_WINDOW_S / 2,
-                                      t_w[-1] + TORQUE_WINDOW_S / 2, 0.5, 6.5),
-                              interpolation="nearest")
-            ax.set_yticks(range(1, 7))
-            ax.set_ylabel("feedback T - T_ff\nper motor")
-            side.set_axis_off()
-            bar = fig.colorbar(image, cax=side.inset_axes([0.0, 0.05, 0.06, 0.9]))
-            bar.set_label(f"{1e3 * TORQUE_WINDOW_S:g} ms RMS [N m]", fontsize=8)
-            bar.ax.tick_params(labelsize=7)
-        if panel != "feedback":
-            ax.grid(alpha=0.3)
-    axes[-1].set_xlabel("t [s]")
-    axes[-1].set_xlim(t[0], t[-1])
-    name = summary.get("trajectory", "")
-    robot = ("robot as built (encoders, servos, delay)" if summary.get("hardware")
-             else "ideal robot")
-    what = "Fig. 7: paper manoeuvre (eqs. 37-38)" if name == "paper" else f"{name} run"
-    fig.suptitle(f"{what}, {robot}", fontsize=11)
-    fig.tight_layout()
-    path = Path(path)
-    atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    return path

@@ -45,65 +45,14 @@ def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
     import matplotlib.pyplot as plt
 
     s = report.series
-    t = s["t"]
     panels = ["reach", "joints", "singularity"]
     panels += [p for p, key in (("clearance", "clearance"), ("torque", "torque"),
                                 ("speed", "speed")) if key in s]
     fig, axes = plt.subplots(len(panels), 1, figsize=(9, 2.0 * len(panels) + 0.6), sharex=True)
-
-    def limit(ax, value, below_is_bad: bool, times, series):
-        ax.axhline(value, color="tab:red", ls="--", lw=1)
-        bad = series < value if below_is_bad else series > value
-        if np.any(bad):
-            ax.fill_between(times, 0, 1, where=bad, color="tab:red", alpha=0.15,
-                            transform=ax.get_xaxis_transform(), step="mid")
-
+    draw = {"reach": _draw_reach, "joints": _draw_joints, "singularity": _draw_singularity,
+            "clearance": _draw_clearance, "torque": _draw_effort, "speed": _draw_effort}
     for ax, panel in zip(axes, panels):
-        if panel == "reach":
-            m = np.nanmin(s["margins"]["closure"], axis=1)
-            ax.plot(t, m, color="k")
-            limit(ax, 0.0, True, t, m)
-            ax.set_ylabel("reach margin\n1 - |L|/sqrt(M²+N²)")
-        elif panel == "joints":
-            for name, label in (("motor_angle", "motor travel"), ("crank_joint", "crank rod end"),
-                                ("platform_joint", "platform socket")):
-                ax.plot(t, np.rad2deg(np.nanmin(s["margins"][name], axis=1)), label=label)
-            worst = np.rad2deg(np.nanmin([np.nanmin(s["margins"][n], axis=1) for n in
-                                          ("motor_angle", "crank_joint", "platform_joint")],
-                                         axis=0))
-            limit(ax, 0.0, True, t, worst)
-            ax.set_ylabel("joint margin\n[deg]")
-            ax.legend(fontsize=7, loc="upper right", ncol=3)
-        elif panel == "singularity":
-            ax.plot(t, s["cond"], color="k", label="cond(J)")
-            limit(ax, report.cond_threshold, False, t, s["cond"])
-            ax.set_ylabel("cond(J)")
-            twin = ax.twinx()
-            twin.plot(t, s["sigma_min_inv"], color="tab:blue", lw=1)
-            twin.axhline(report.sigma_min_inv_threshold, color="tab:blue", ls=":", lw=1)
-            twin.set_ylabel("1/sigma_max(J)", color="tab:blue")
-        elif panel == "clearance":
-            tc, c = s["clearance_t"], 1e3 * s["clearance"]
-            ax.plot(tc, c, color="k", drawstyle="steps-mid")
-            limit(ax, 1e3 * report.clearance_threshold, True, tc, c)
-            ax.set_ylabel("closest parts\n[mm]")
-            ax.set_ylim(bottom=min(0.0, np.nanmin(c) - 1))
-        else:
-            values = np.abs(s[panel])
-            unit = "N m" if panel == "torque" else "rad/s"
-            for i in range(6):
-                ax.plot(t, values[:, i], lw=0.8, label=f"motor {i}")
-            bound = report.torque_limit if panel == "torque" else report.speed_limit
-            if np.isfinite(bound):
-                limit(ax, bound, False, t, np.nanmax(values, axis=1))
-            ax.set_ylabel(f"|{panel}| needed\n[{unit}]")
-            if panel == "torque":
-                ax.legend(fontsize=7, loc="lower center", ncol=6, bbox_to_anchor=(0.5, 1.0),
-                          frameon=False)
-            else:                          # the no-load speed is far above a surgical motion's
-                ax.set_yscale("log")
-                ax.set_ylim(1e-2, 2 * max(bound if np.isfinite(bound) else 1.0,
-                                          np.nanmax(values)))
+        draw[panel](ax, report, panel)
         ax.grid(alpha=0.3)
     axes[-1].set_xlabel("t [s]")
     verdict = "OK" if report.ok else "REFUSED"
@@ -113,6 +62,72 @@ def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
     plt.close(fig)
     return path
+
+
+def _limit(ax, value, below_is_bad: bool, times, series) -> None:
+    """A limit as red dashes, and the times ``series`` is outside it shaded red."""
+    ax.axhline(value, color="tab:red", ls="--", lw=1)
+    bad = series < value if below_is_bad else series > value
+    if np.any(bad):
+        ax.fill_between(times, 0, 1, where=bad, color="tab:red", alpha=0.15,
+                        transform=ax.get_xaxis_transform(), step="mid")
+
+
+def _draw_reach(ax, report: TrajectoryReport, panel: str) -> None:
+    s = report.series
+    m = np.nanmin(s["margins"]["closure"], axis=1)
+    ax.plot(s["t"], m, color="k")
+    _limit(ax, 0.0, True, s["t"], m)
+    ax.set_ylabel("reach margin\n1 - |L|/sqrt(M²+N²)")
+
+
+def _draw_joints(ax, report: TrajectoryReport, panel: str) -> None:
+    s, t = report.series, report.series["t"]
+    for name, label in (("motor_angle", "motor travel"), ("crank_joint", "crank rod end"),
+                        ("platform_joint", "platform socket")):
+        ax.plot(t, np.rad2deg(np.nanmin(s["margins"][name], axis=1)), label=label)
+    worst = np.rad2deg(np.nanmin([np.nanmin(s["margins"][n], axis=1) for n in
+                                  ("motor_angle", "crank_joint", "platform_joint")], axis=0))
+    _limit(ax, 0.0, True, t, worst)
+    ax.set_ylabel("joint margin\n[deg]")
+    ax.legend(fontsize=7, loc="upper right", ncol=3)
+
+
+def _draw_singularity(ax, report: TrajectoryReport, panel: str) -> None:
+    s, t = report.series, report.series["t"]
+    ax.plot(t, s["cond"], color="k", label="cond(J)")
+    _limit(ax, report.cond_threshold, False, t, s["cond"])
+    ax.set_ylabel("cond(J)")
+    twin = ax.twinx()
+    twin.plot(t, s["sigma_min_inv"], color="tab:blue", lw=1)
+    twin.axhline(report.sigma_min_inv_threshold, color="tab:blue", ls=":", lw=1)
+    twin.set_ylabel("1/sigma_max(J)", color="tab:blue")
+
+
+def _draw_clearance(ax, report: TrajectoryReport, panel: str) -> None:
+    tc, c = report.series["clearance_t"], 1e3 * report.series["clearance"]
+    ax.plot(tc, c, color="k", drawstyle="steps-mid")
+    _limit(ax, 1e3 * report.clearance_threshold, True, tc, c)
+    ax.set_ylabel("closest parts\n[mm]")
+    ax.set_ylim(bottom=min(0.0, np.nanmin(c) - 1))
+
+
+def _draw_effort(ax, report: TrajectoryReport, panel: str) -> None:
+    """The torque or the crank speed each motor needs, against the motors' limit."""
+    t, values = report.series["t"], np.abs(report.series[panel])
+    unit = "N m" if panel == "torque" else "rad/s"
+    for i in range(6):
+        ax.plot(t, values[:, i], lw=0.8, label=f"motor {i}")
+    bound = report.torque_limit if panel == "torque" else report.speed_limit
+    if np.isfinite(bound):
+        _limit(ax, bound, False, t, np.nanmax(values, axis=1))
+    ax.set_ylabel(f"|{panel}| needed\n[{unit}]")
+    if panel == "torque":
+        ax.legend(fontsize=7, loc="lower center", ncol=6, bbox_to_anchor=(0.5, 1.0),
+                  frameon=False)
+    else:                          # the no-load speed is far above a surgical motion's
+        ax.set_yscale("log")
+        ax.set_ylim(1e-2, 2 * max(bound if np.isfinite(bound) else 1.0, np.nanmax(values)))
 
 
 #: Where :func:`clearance_table` goes in docs/reference_geometry.md (a test keeps it current).

@@ -28,8 +28,13 @@ import socket
 import time
 from pathlib import Path
 
-from ..errors import (CorruptFileError, FolderInUseError, IncompleteResultsError,
-                      ResultsMismatchError, SimulationDivergedError)
+from ..errors import (
+    CorruptFileError,
+    FolderInUseError,
+    IncompleteResultsError,
+    ResultsMismatchError,
+    SimulationDivergedError,
+)
 from ..fileio import atomic_write, check_replaceable, read_json
 from .runners import JobFailure
 

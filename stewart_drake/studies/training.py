@@ -37,9 +37,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InvalidConfigError
 from ..control.features import N_FEATURES
-from ..control.tuner import LOG10_MAX, LOG10_MIN, TunerModel, build_mlp, save_tuner
+from ..control.tuner import ANN_LOG10_MAX, ANN_LOG10_MIN, TunerModel, build_mlp, save_tuner
+from ..errors import InvalidConfigError
 
 LABEL_MODES = ("paper", "best_cost")
 RUN_KEYS = ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")
@@ -78,7 +78,8 @@ def _check_run(i: int, run: dict) -> dict:
     out = {k: np.asarray(run[k], dtype=float) for k in RUN_KEYS}
     for name in ("omega_Q", "omega_R"):
         w = out[name]
-        if w.shape != () or not (np.isfinite(w) and 10 ** LOG10_MIN <= w <= 10 ** LOG10_MAX):
+        if w.shape != () or not (np.isfinite(w)
+                                 and 10 ** ANN_LOG10_MIN <= w <= 10 ** ANN_LOG10_MAX):
             raise InvalidConfigError(f"run {i}: {name} must be a number in [0.1, 10] (the range "
                                      f"the tuner can output), got {run[name]!r}")
     n = out["t"].shape
@@ -234,6 +235,7 @@ def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
         InvalidConfigError: bad settings or too few samples to split.
     Source: paper section III.D (one hidden layer of 10, back-propagation, 70/30 split).
     """
+    # Long for its docstring (every setting, and what the report holds); the fit is _fit.
     import torch
 
     if not (isinstance(epochs, int) and epochs >= 1 and isinstance(batch_size, int)
@@ -256,22 +258,8 @@ def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
         torch.manual_seed(seed)
         mlp = build_mlp(hidden, activation)
         initial = TunerModel.from_torch(mlp, x_mean, x_std)      # for the initial losses
-        z_tr, y_tr = torch.from_numpy(z[train_idx]), torch.from_numpy(dataset.y[train_idx])
-        optimizer = torch.optim.Adam(mlp.parameters(), lr=lr)
-        n_batches = -(-len(train_idx) // batch_size)
-        schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, epochs * n_batches)
-        shuffle = torch.Generator().manual_seed(seed)
-        history = []                  # mean training MSE (unclamped) of each epoch
-        for _ in range(epochs):
-            total = 0.0
-            for batch in torch.randperm(len(train_idx), generator=shuffle).split(batch_size):
-                optimizer.zero_grad()
-                loss = torch.nn.functional.mse_loss(mlp(z_tr[batch]), y_tr[batch])
-                loss.backward()
-                optimizer.step()
-                schedule.step()
-                total += loss.item() * len(batch)
-            history.append(total / len(train_idx))
+        history = _fit(mlp, torch.from_numpy(z[train_idx]),
+                       torch.from_numpy(dataset.y[train_idx]), epochs, lr, batch_size, seed)
     finally:
         torch.set_num_threads(threads_before)
 
@@ -282,15 +270,41 @@ def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
     meta = {**dataset.info, **(metadata or {}), **report}
     model = TunerModel.from_torch(mlp, x_mean, x_std, meta)
     for split, idx in (("train", train_idx), ("val", val_idx)):
-        y = dataset.y[idx]
-        report[f"{split}_loss_initial"] = float(np.mean((initial.predict_log10(dataset.rho[idx])
-                                                         - y) ** 2))
-        pred = model.predict_log10(dataset.rho[idx])
-        report[f"{split}_loss"] = float(np.mean((pred - y) ** 2))
-        report[f"{split}_r2"] = r2_scores(y, pred)
+        report.update(_split_losses(split, initial, model, dataset.rho[idx], dataset.y[idx]))
     report["loss_history"] = history
     report["seconds"] = time.perf_counter() - start
     model.metadata.update({k: report[k] for k in ("train_loss", "val_loss", "train_r2",
                                                    "val_r2")})
     return model, report
+
+
+def _fit(mlp, z, y, epochs: int, lr: float, batch_size: int, seed: int) -> list:
+    """Mini-batch Adam with a cosine learning-rate decay on the MSE of the unclamped outputs of
+    ``mlp`` on (z, y) (torch tensors), batches shuffled by ``seed``; returns the mean training
+    MSE of each epoch."""
+    import torch
+
+    optimizer = torch.optim.Adam(mlp.parameters(), lr=lr)
+    n_batches = -(-len(z) // batch_size)
+    schedule = torch.optim.lr_scheduler.CosineAnnealingLR(optimizer, epochs * n_batches)
+    shuffle = torch.Generator().manual_seed(seed)
+    history = []
+    for _ in range(epochs):
+        total = 0.0
+        for batch in torch.randperm(len(z), generator=shuffle).split(batch_size):
+            optimizer.zero_grad()
+            loss = torch.nn.functional.mse_loss(mlp(z[batch]), y[batch])
+            loss.backward()
+            optimizer.step()
+            schedule.step()
+            total += loss.item() * len(batch)
+        history.append(total / len(z))
+    return history
+
+
+def _split_losses(split: str, initial: TunerModel, model: TunerModel, rho, y) -> dict:
+    """The initial and final MSE (log10 units, clamped outputs) and R^2 of one split."""
+    pred = model.predict_log10(rho)
+    return {f"{split}_loss_initial": float(np.mean((initial.predict_log10(rho) - y) ** 2)),
+            f"{split}_loss": float(np.mean((pred - y) ** 2)), f"{split}_r2": r2_scores(y, pred)}
 

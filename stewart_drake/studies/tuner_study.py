@@ -7,13 +7,14 @@ spends feedback torque, a soft one lags the motion. This module tests the claim 
 declared before any run, on tasks that alternate motion and holding, against the best fixed ratio
 chosen in hindsight for each task, on tasks the tuners never saw.
 
-**The cost** (:func:`sample_costs`), for each lambda of :data:`LAMBDAS`::
+**The cost** (:func:`~.metrics.sample_costs`), for each lambda of :data:`LAMBDAS`::
 
     J = mean over the run's samples of  sum_i (e_i / s_e)^2  +  lambda sum_j (u_j / s_T)^2
 
 with e the true pose error (s_e = 1 mrad | 1 mm, the LQI's scales), u the *feedback* torque,
-the applied torque minus the static holding torque of the reference pose (gravity is the same
-for every controller: counting it would drown the differences), s_T = 0.3 N m. lambda prices
+the applied torque minus the static holding torque of the reference pose
+(:func:`~.metrics.feedback_torque`: gravity is the same for every controller, counting it would
+drown the differences), s_T = 0.3 N m. lambda prices
 0.3 N m of feedback against 1 mrad (or 1 mm) of error: 0.01 tracking first, 0.1 balanced, 1
 effort first; on a pilot of the paper manoeuvre they select the fixed ratios 1, 0.32 and 0.1,
 i.e. they span the trade-off where the choice of weights matters (docs/results.md).
@@ -36,8 +37,10 @@ and the **headroom**: per 0.2 s window the ratio that was best in hindsight over
 family; our tuner "beats" the best fixed ratio at a lambda when its mean over all test tasks is at
 least :data:`GOAL` (15 %) below and the difference exceeds the seed-to-seed spread.
 
-Every run is a job of the study runner (:mod:`.runners`), stored as it arrives
-(:mod:`.store`: an interrupted study resumes).
+Every run is a :class:`StudyJob` (the task, the typed LQI driver and tuner, the
+:class:`StudyArm` it stands for) of the study runner (:mod:`.runners`), stored as it arrives
+(:mod:`.store`: an interrupted study resumes); :func:`run_tuner_study` runs the study's three
+stages (:class:`TunerStudy`). The report is made apart (:mod:`.tuner_report`).
 """
 
 from __future__ import annotations
@@ -45,18 +48,32 @@ from __future__ import annotations
 import dataclasses
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..control.features import density_features_series
-from ..control.tuner import (N_RATIO_INPUTS, RATIO_LOG10_MAX, RATIO_LOG10_MIN, RatioTunerModel,
-                             load_ratio_tuner, ratio_tuner_inputs, save_ratio_tuner)
+from ..control.lqi import LqiDriver
+from ..control.tuner import (
+    N_RATIO_INPUTS,
+    RATIO_LOG10_MAX,
+    RATIO_LOG10_MIN,
+    RatioTunerModel,
+    load_ratio_tuner,
+    ratio_tuner_inputs,
+    save_ratio_tuner,
+)
 from ..errors import InvalidConfigError
-from ..model import statics
-from ..simulation.scenario import (AnnTunerDriver, LqiDriver, RatioTunerDriver, WeightSchedule,
-                                   load_scenario, use_paper_tuner)
+from ..simulation.scenario import (
+    AnnTunerDriver,
+    RatioTunerDriver,
+    TunerChoice,
+    WeightSchedule,
+    load_scenario,
+)
 from ..simulation.tasks import make_task
+from . import metrics
 from .experiments import run_experiment
 
 LAMBDAS = (0.01, 0.1, 1.0)
@@ -74,7 +91,6 @@ GOAL = 0.15
 #: above SPEED_SCALE (in units of 1 rad/s | 0.1 m/s), log-linear in between. Chosen before the
 #: study from the pilot (holds favour soft, motion favours stiff), not tuned on it.
 R_HOLD, R_MOVE, SPEED_SCALE = 0.1, 1.0, 0.5
-ERROR_SCALE, TORQUE_SCALE = 1e-3, 0.3
 #: Offsets of our tuner's output, log10 of the ratio, searched in closed loop on the training
 #: tasks (:func:`closed_loop_choice`): training on the closed-loop cost, one weight of the network.
 SHIFTS = (-1.0, -0.5, 0.0, 0.5, 1.0)
@@ -92,58 +108,96 @@ def test_tasks(quick: bool = False) -> list:
     return [(f, s) for f in TRAIN_FAMILIES + (UNSEEN_FAMILY,) for s in seeds] + [("paper", 0)]
 
 
+# -- the study's controllers and jobs, typed -------------------------------------------------------
+
+@dataclass(frozen=True)
+class StudyArm:
+    """A controller of the study: what a run stands for in the verdict and the report. Its
+    :attr:`label` is made for display (and as a JSON key); nothing parses it back.
+
+    Attributes:
+        kind: "fixed", "fixed gain" (the start pose's gain, no re-scheduling), "speed schedule",
+            "paper tuner", "hindsight", "ours", "ours closed-loop" or "fixed chosen".
+        ratio: omega_Q / omega_R of the fixed kinds. lam: the lambda the controller was made
+            for (hindsight, ours, fixed chosen). shift: the output shift of one of our tuners.
+    """
+
+    kind: str
+    ratio: float | None = None
+    lam: float | None = None
+    shift: float | None = None
+
+    @property
+    def name(self) -> str:
+        """The controller without the lambda it was made for: "fixed 0.1", "ours"."""
+        return f"{self.kind} {self.ratio:.3g}" if self.ratio is not None else self.kind
+
+    @property
+    def label(self) -> str:
+        """The controller for display: "fixed 0.1", "ours 0.1", "ours 0.1 shift +1"."""
+        return (self.name + (f" {self.lam:g}" if self.lam is not None else "")
+                + (f" shift {self.shift:+g}" if self.shift is not None else ""))
+
+    @property
+    def slug(self) -> str:
+        """The run's file stem within its task's folder (a store key: kept as it is)."""
+        stem = {"fixed gain": "fixed_gain", "speed schedule": "speed",
+                "paper tuner": "paper_tuner", "ours closed-loop": "ours_closed_loop"}.get(
+            self.kind, self.kind)
+        tag = (f"{self.ratio:.3g}" if self.kind == "fixed" else
+               "" if self.lam is None else f"{self.lam:g}"
+               + ("" if self.shift is None else f"_shift{self.shift:+g}"))
+        return f"{stem}_{tag}" if tag else stem
+
+
+@dataclass(frozen=True)
+class StudyJob:
+    """One closed-loop run of the study: the LQI (``controller``, its weights the ratio) and its
+    tuner (None: fixed weights) on the task (family, seed) of ``duration_s`` seconds, from the
+    scenario ``base``; ``arm`` is what the run stands for."""
+
+    arm: StudyArm
+    family: str
+    seed: int
+    duration_s: float
+    base: str
+    controller: LqiDriver
+    tuner: TunerChoice | None = None
+    divergence_dir: str = ""
+
+    @property
+    def task(self) -> tuple:
+        return (self.family, self.seed)
+
+    @property
+    def job_id(self) -> str:
+        """``<family>_s<seed>/<arm slug>``: the run's key in the store."""
+        return f"{task_key(self.task)}/{self.arm.slug}"
+
+
+def task_key(task: tuple) -> str:
+    """``<family>_s<seed>``: a task as a JSON key and in file names."""
+    return f"{task[0]}_s{task[1]}"
+
+
 # -- one run ---------------------------------------------------------------------------------------
 
-def sample_costs(result, geometry) -> tuple[np.ndarray, np.ndarray]:
-    """(e2 (N,), u2 (N,)): the normalized squared tracking error and feedback torque per sample
-    (module docstring); J = mean(e2 + lambda u2)."""
-    e = (result.x[:, :6] - result.x_d[:, :6]) / ERROR_SCALE
-    u = (result.T - statics.holding_torques(geometry, result.x_d[:, :6])) / TORQUE_SCALE
-    return (e ** 2).sum(axis=1), (u ** 2).sum(axis=1)
-
-
-def window_means(t: np.ndarray, values: np.ndarray, duration_s: float) -> np.ndarray:
-    """(n_windows,) mean of values (N,) over each WINDOW_S window of [0, duration_s)."""
-    n = int(round(duration_s / WINDOW_S))
-    index = np.minimum((t / WINDOW_S + 1e-9).astype(int), n - 1)
-    sums = np.bincount(index, weights=values, minlength=n)
-    counts = np.maximum(np.bincount(index, minlength=n), 1)
-    return sums / counts
-
-
-def task_scenario(job: dict):
-    """(scenario, task) of a study job (see :func:`study_job`)."""
-    base = load_scenario(job["base"], [f"duration_s={job['duration_s']}"])
-    task = make_task(job["family"], job["seed"], job["duration_s"], base.geometry(),
+def task_scenario(job: StudyJob):
+    """(scenario, task) of a study job: the base scenario for the job's duration, with the
+    job's controller and tuner and the task's disturbance."""
+    base = load_scenario(job.base, [f"duration_s={job.duration_s}"])
+    task = make_task(job.family, job.seed, job.duration_s, base.geometry(),
                      base.torque_limit() or np.inf)
-    driver = base.controller if isinstance(base.controller, LqiDriver) else LqiDriver()
-    kind = job["kind"]
-    ratio = job.get("ratio", 1.0)
-    base.controller = dataclasses.replace(driver, omega_Q=ratio, omega_R=1.0,
-                                          schedule_pose=kind != "fixed_gain")
+    base.use_controller(job.controller, job.tuner)
     base.disturbance = task.disturbance
-    if job.get("divergence_dir"):
-        base.guard.divergence_dir = job["divergence_dir"]
-    if kind == "schedule":
-        t, ratios = job["schedule"]
-        base.tuner = WeightSchedule(t=list(t), omega_Q=list(ratios), omega_R=[1.0] * len(t))
-    elif kind == "paper_tuner":
-        use_paper_tuner(base, AnnTunerDriver(weights=job.get("weights", ""),
-                                             period_s=TUNER_PERIOD_S))
-    elif kind == "ratio_tuner":
-        base.tuner = RatioTunerDriver(weights=job["weights"], period_s=TUNER_PERIOD_S)
-    else:
-        base.tuner = None
+    if job.divergence_dir:
+        base.guard.divergence_dir = job.divergence_dir
     return base.validate(), task
 
 
-def study_job(job: dict) -> dict:
+def study_job(job: StudyJob) -> dict:
     """One closed-loop run of the study.
 
-    Args:
-        job: {"kind": "fixed" | "fixed_gain" | "schedule" | "paper_tuner" | "ratio_tuner",
-            "family", "seed", "duration_s", "base" (scenario name), and "ratio" (fixed kinds),
-            "schedule" ((t, ratios), schedule), "weights" (tuners)}.
     Returns:
         dict of plain arrays: e2_w, u2_w (n_windows,) window means of the cost parts; e2, u2
         means over the run; inputs (K, 16) our tuner's inputs at its instants and their window
@@ -153,15 +207,16 @@ def study_job(job: dict) -> dict:
     t0 = time.perf_counter()
     scenario, task = task_scenario(job)
     result = run_experiment(scenario, reference=task.reference)
-    e2, u2 = sample_costs(result, scenario.geometry())
-    t, duration = result.t, job["duration_s"]
+    e2, u2 = metrics.sample_costs(result, scenario.geometry())
+    t, duration = result.t, job.duration_s
     step = int(round(TUNER_PERIOD_S / scenario.log_period_s))
-    seen = result.e_bar if result.e_bar is not None else result.x[:, :6] - result.x_d[:, :6]
+    seen = result.e_bar if result.e_bar is not None else metrics.tracking_error(result)
     rho = density_features_series(seen, result.T, window=50)
     keep = slice(0, len(t) - 1, step)
     omega = result.omega if result.omega is not None else np.ones((len(t), 2))
     status = result.metrics["status"]
-    return {"e2_w": window_means(t, e2, duration), "u2_w": window_means(t, u2, duration),
+    return {"e2_w": metrics.window_means(t, e2, duration, WINDOW_S),
+            "u2_w": metrics.window_means(t, u2, duration, WINDOW_S),
             "e2": float(e2.mean()), "u2": float(u2.mean()),
             "inputs": ratio_tuner_inputs(rho[keep], result.x_d[keep]),
             "input_window": np.minimum((t[keep] / WINDOW_S + 1e-9).astype(int),
@@ -305,50 +360,62 @@ def task_J(record: dict, lam: float) -> float:
     return float(record["e2"] + lam * record["u2"])
 
 
+def verdict_arms(lam: float) -> tuple:
+    """The arms of the verdict at ``lam``, in the report's order."""
+    return (StudyArm("hindsight", lam=lam), StudyArm("ours", lam=lam),
+            StudyArm("ours closed-loop", lam=lam), StudyArm("paper tuner"),
+            StudyArm("speed schedule"), StudyArm("fixed chosen", lam=lam),
+            StudyArm("fixed gain", ratio=1.0))
+
+
 def verdict(records: dict, tasks: list, lam: float) -> dict:
     """Paired comparison at one lambda over the held-out tasks.
 
     Args:
-        records: {(family, seed): {controller label: record}} with the 13 "fixed r" labels.
+        records: {(family, seed): {StudyArm: record}} with the 13 fixed ratios' arms.
         tasks: the held-out (family, seed).
     Returns:
-        {"best_fixed": {task: (ratio, J)}, "controllers": {label: {"per_task": {task: rel},
-        "mean", "std", "by_family": {family: (mean, std, n)}, "beats"}}} with rel =
-        (J - J_best fixed) / J_best fixed, negative when the controller does better.
+        {"best_fixed": {task key: (ratio, J)}, "controllers": {label: {"arm": the arm's fields,
+        "per_task": {task key: rel}, "mean", "std", "by_family": {family: (mean, std, n)},
+        "beats"}}} with rel = (J - J_best fixed) / J_best fixed, negative when the controller
+        does better (task keys: :func:`task_key`).
     """
     best = {}
     for task in tasks:
         runs = records[task]
-        J_fixed = {r: task_J(runs[f"fixed {r:.3g}"], lam) for r in RATIOS
-                   if f"fixed {r:.3g}" in runs}
+        J_fixed = {r: task_J(runs[StudyArm("fixed", ratio=r)], lam) for r in RATIOS
+                   if StudyArm("fixed", ratio=r) in runs}
         r_best = min(J_fixed, key=J_fixed.get)
         best[task] = (r_best, J_fixed[r_best])
     out = {}
-    for label in (f"hindsight {lam:g}", f"ours {lam:g}", f"ours closed-loop {lam:g}",
-                  "paper tuner", "speed schedule", f"fixed chosen {lam:g}", "fixed gain 1"):
-        per_task = {task: task_J(records[task][label], lam) / best[task][1] - 1.0
-                    for task in tasks if label in records[task]}
-        if not per_task:
-            continue
-        rel = np.array(list(per_task.values()))
+    for arm in verdict_arms(lam):
+        per_task = {task: task_J(records[task][arm], lam) / best[task][1] - 1.0
+                    for task in tasks if arm in records[task]}
+        if per_task:
+            out[arm.label] = {"arm": dataclasses.asdict(arm), **_relative_figures(per_task)}
+    return {"best_fixed": {task_key(t): v for t, v in best.items()}, "controllers": out}
 
-        def mean_std(v):
-            """(mean, sample std); inf for both when a run lost the platform."""
-            if not np.all(np.isfinite(v)):
-                return float("inf"), float("inf")
-            return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
 
-        by_family = {}
-        for family in sorted({f for f, _ in per_task}):
-            v = np.array([x for (f, _), x in per_task.items() if f == family])
-            by_family[family] = (*mean_std(v), len(v))
-        mean, spread = mean_std(rel)
-        if len(rel) < 2:
-            spread = float("inf")
-        out[label] = {"per_task": {f"{f}_s{s}": v for (f, s), v in per_task.items()},
-                      "mean": mean, "std": spread, "by_family": by_family,
-                      "beats": bool(mean <= -GOAL and -mean > spread)}
-    return {"best_fixed": {f"{f}_s{s}": v for (f, s), v in best.items()}, "controllers": out}
+def _relative_figures(per_task: dict) -> dict:
+    """Mean and spread of the relative differences {task: rel}, overall and by family, and
+    whether they meet the :data:`GOAL`: at least that much below, beyond the spread."""
+    def mean_std(v):
+        """(mean, sample std); inf for both when a run lost the platform."""
+        if not np.all(np.isfinite(v)):
+            return float("inf"), float("inf")
+        return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else 0.0
+
+    rel = np.array(list(per_task.values()))
+    by_family = {}
+    for family in sorted({f for f, _ in per_task}):
+        v = np.array([x for (f, _), x in per_task.items() if f == family])
+        by_family[family] = (*mean_std(v), len(v))
+    mean, spread = mean_std(rel)
+    if len(rel) < 2:
+        spread = float("inf")
+    return {"per_task": {task_key(t): v for t, v in per_task.items()}, "mean": mean,
+            "std": spread, "by_family": by_family,
+            "beats": bool(mean <= -GOAL and -mean > spread)}
 
 
 def _json(value):
@@ -392,20 +459,6 @@ def _version_of(package: str) -> str:
         return version(package)
     except PackageNotFoundError:
         return "unknown"
-
-
-def _job_id(kind: str, family: str, seed: int, tag: str = "") -> str:
-    return f"{family}_s{seed}/{kind}{('_' + tag) if tag else ''}"
-
-
-def _label(job: dict) -> str:
-    kind = job["kind"]
-    if kind == "fixed":
-        return f"fixed {job['ratio']:.3g}"
-    if kind == "fixed_gain":
-        return f"fixed gain {job['ratio']:.3g}"
-    return {"schedule": job.get("label", "schedule"), "paper_tuner": "paper tuner",
-            "ratio_tuner": job.get("label", "ours")}[kind]
 
 
 def load_run(path: Path, job_id: str) -> dict:
@@ -459,385 +512,204 @@ def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool =
     Raises:
         IncompleteResultsError: runs lost twice (the message says to rerun); Interrupted.
     """
-    from .runners import JobFailure
-    from .store import ResultStore, file_digest, run_jobs
+    study = TunerStudy(out_dir, runner, base, quick, progress, paper_weights, test)
+    study.run_fixed_and_baselines()
+    study.run_our_tuners()
+    study.run_closed_loop_choices()
+    return study.finish()
 
-    out = Path(out_dir)
-    duration = 1.0 if quick else TASK_DURATION_S
-    train, test = train_tasks(quick), (test_tasks(quick) if test else [])
-    from ..control.tuner import PAPER_LABEL_TUNER_PATH
 
-    weights_file = str(paper_weights or PAPER_LABEL_TUNER_PATH)   # the paper's labels
-    settings = {"base": base, "quick": quick, "duration_s": duration, "lambdas": LAMBDAS,
-                "ratios": RATIOS, "train": train, "test": test, "window_s": WINDOW_S,
-                "speed_schedule": [R_HOLD, R_MOVE, SPEED_SCALE],
-                "paper_weights": file_digest(weights_file)}
-    store = ResultStore(out, "tuner_study", settings, pattern="runs/*/*.npz")
+class TunerStudy:
+    """The study's state between its three stages: the runs' store, the settings, the jobs run
+    so far, the records read back, our tuners' training and the closed-loop choices.
 
-    def save(job_id, outcome, jobs):
-        job = jobs[job_id]
+    Stage A (:meth:`run_fixed_and_baselines`): the fixed ratios on every task, the baselines
+    and the paper's tuner on the held-out tasks. Stage B (:meth:`run_our_tuners`): our tuners
+    trained on the training tasks' fixed runs, their output shifts on the training tasks, the
+    hindsight schedules and our tuners on the held-out tasks. Stage C
+    (:meth:`run_closed_loop_choices`): the shift and the single fixed ratio chosen in closed loop
+    on the training tasks, the chosen tuners on the held-out tasks. :meth:`finish` writes the
+    summary.
+    """
+
+    def __init__(self, out_dir, runner, base: str, quick: bool, progress: bool,
+                 paper_weights: str, test: bool):
+        from ..control.tuner import PAPER_LABEL_TUNER_PATH
+        from .store import ResultStore, file_digest
+
+        self.out, self.runner, self.base, self.quick = Path(out_dir), runner, base, quick
+        self.progress = progress
+        self.duration = 1.0 if quick else TASK_DURATION_S
+        self.train, self.test = train_tasks(quick), (test_tasks(quick) if test else [])
+        self.paper_weights = str(paper_weights or PAPER_LABEL_TUNER_PATH)  # the paper's labels
+        self.lqi = load_scenario(base).lqi()
+        self.settings = {"base": base, "quick": quick, "duration_s": self.duration,
+                         "lambdas": LAMBDAS, "ratios": RATIOS, "train": self.train,
+                         "test": self.test, "window_s": WINDOW_S,
+                         "speed_schedule": [R_HOLD, R_MOVE, SPEED_SCALE],
+                         "paper_weights": file_digest(self.paper_weights)}
+        self.store = ResultStore(self.out, "tuner_study", self.settings, pattern="runs/*/*.npz")
+        self.jobs: dict = {}
+        self.loaded: dict = {}
+        self.trained: dict = {}
+        self.chosen: dict = {}
+        self.wall0 = time.perf_counter()
+
+    # -- jobs ----------------------------------------------------------------------------------
+    def job(self, arm: StudyArm, task: tuple, tuner: TunerChoice | None = None) -> StudyJob:
+        """The run of ``arm`` on ``task``: the base's LQI at the arm's ratio (1 for the tuned
+        ones), without re-scheduling B(x) for the fixed gain."""
+        ratio = arm.ratio if arm.ratio is not None else 1.0
+        controller = dataclasses.replace(self.lqi, omega_Q=ratio, omega_R=1.0,
+                                         schedule_pose=arm.kind != "fixed gain")
+        return StudyJob(arm, task[0], task[1], self.duration, self.base, controller, tuner,
+                        str(self.out / "diverged"))
+
+    def schedule(self, arm: StudyArm, task: tuple, t_ratios: tuple) -> StudyJob:
+        """The run of a weight schedule (t, ratios) of ``arm`` on ``task``."""
+        t, ratios = t_ratios
+        return self.job(arm, task, WeightSchedule(t=list(t), omega_Q=list(ratios),
+                                                  omega_R=[1.0] * len(t)))
+
+    def run(self, jobs: list, desc: str) -> None:
+        """Run the jobs not on disk yet, storing each as it arrives."""
+        from .store import run_jobs
+
+        by_id = {job.job_id: job for job in jobs}
+        run_jobs(self.store, self.runner, study_job, by_id, lambda i, o: self.save(by_id[i], o),
+                 progress=self.progress, desc=desc, what="runs")
+        self.jobs.update(by_id)
+
+    def save(self, job: StudyJob, outcome) -> None:
+        """Store a run's arrays (or that it lost the platform) under its job id."""
+        from .runners import JobFailure
+
         if isinstance(outcome, JobFailure):
             record = {"lost": outcome.message.splitlines()[0][:300]}
-            store.put_json(job_id, f"runs/{job_id}.json", record, lost=True)
+            self.store.put_json(job.job_id, f"runs/{job.job_id}.json", record, lost=True)
             return
         arrays = {k: np.asarray(v) for k, v in outcome.items()}
-        arrays["job_id"] = np.array(job_id)          # the run says which it is (load checks)
-        store.put(job_id, f"runs/{job_id}.npz", lambda f: np.savez(f, **arrays),
-                  label=_label(job), J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS})
+        arrays["job_id"] = np.array(job.job_id)          # the run says which it is (load checks)
+        self.store.put(job.job_id, f"runs/{job.job_id}.npz", lambda f: np.savez(f, **arrays),
+                       label=job.arm.label,
+                       J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS})
 
-    loaded: dict = {}
-
-    def load(job_id):
+    def load(self, job_id: str) -> dict:
         """A stored run's record, read from disk once (the stages and the summary reuse it)."""
-        if job_id not in loaded:
-            loaded[job_id] = load_run(out / store.manifest["jobs"][job_id]["file"], job_id)
-        return loaded[job_id]
+        if job_id not in self.loaded:
+            file = self.store.manifest["jobs"][job_id]["file"]
+            self.loaded[job_id] = load_run(self.out / file, job_id)
+        return self.loaded[job_id]
 
-    def common(family, seed):
-        return {"family": family, "seed": seed, "duration_s": duration, "base": base,
-                "divergence_dir": str(out / "diverged")}
+    def record(self, arm: StudyArm, task: tuple) -> dict:
+        """The record of ``arm``'s run on ``task``."""
+        return self.load(f"{task_key(task)}/{arm.slug}")
 
-    wall0 = time.perf_counter()
-    # A: the fixed ratios everywhere; the baselines and the paper's tuner on the test tasks.
-    jobs = {}
-    for family, seed in train + test:
-        for r in RATIOS:
-            jobs[_job_id("fixed", family, seed, f"{r:.3g}")] = {**common(family, seed),
-                                                                 "kind": "fixed", "ratio": r}
-    for family, seed in test:
-        jobs[_job_id("fixed_gain", family, seed)] = {**common(family, seed),
-                                                     "kind": "fixed_gain", "ratio": 1.0}
-        jobs[_job_id("speed", family, seed)] = {
-            **common(family, seed), "kind": "schedule", "label": "speed schedule",
-            "schedule": speed_schedule(family, seed, duration, base)}
-        jobs[_job_id("paper_tuner", family, seed)] = {**common(family, seed),
-                                                      "kind": "paper_tuner",
-                                                      "weights": weights_file}
-    run_jobs(store, runner, study_job, jobs, lambda i, o: save(i, o, jobs), progress=progress,
-             desc="tuner study: fixed ratios and baselines", what="runs")
-    all_jobs = dict(jobs)
-    fixed = {task: {r: load(_job_id("fixed", *task, f"{r:.3g}")) for r in RATIOS}
-             for task in train + test}
-    # B: our tuners (trained on the training tasks' fixed runs, labels from the cost), the
-    # hindsight schedules on the test tasks, and our tuners with their output shifted by each of
-    # SHIFTS on the training tasks (for the closed-loop choice of C).
-    trained = {}
-    jobs = {}
-    shifts = SHIFTS if not quick else SHIFTS[::2]
-    for lam in LAMBDAS:
-        path = out / "weights" / f"ratio_tuner_lambda{lam:g}.npz"
-        model = train_ratio_tuner({task: fixed[task] for task in train}, lam)
-        save_ratio_tuner(model, path)
-        trained[f"{lam:g}"] = model.metadata
-        for shift in shifts:
-            shift_path = out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
-            save_ratio_tuner(shifted(model, shift), shift_path)
-            for family, seed in train:
-                jobs[_job_id("ours", family, seed, f"{lam:g}_shift{shift:+g}")] = {
-                    **common(family, seed), "kind": "ratio_tuner",
-                    "label": f"ours {lam:g} shift {shift:+g}", "weights": str(shift_path)}
-        for family, seed in test:
-            jobs[_job_id("hindsight", family, seed, f"{lam:g}")] = {
-                **common(family, seed), "kind": "schedule", "label": f"hindsight {lam:g}",
-                "schedule": hindsight_schedule(fixed[(family, seed)], lam)}
-            jobs[_job_id("ours", family, seed, f"{lam:g}")] = {
-                **common(family, seed), "kind": "ratio_tuner", "label": f"ours {lam:g}",
-                "weights": str(path)}
-    run_jobs(store, runner, study_job, jobs, lambda i, o: save(i, o, jobs), progress=progress,
-             desc="tuner study: hindsight and our tuners", what="runs")
-    all_jobs.update(jobs)
-    # C: the closed-loop choices on the training tasks: our tuner's output shift (run on the test
-    # tasks) and the single fixed ratio (its test runs exist already).
-    chosen = {}
-    jobs = {}
-    for lam in LAMBDAS:
-        fixed_train = {task: fixed[task] for task in train}
-        r_chosen, r_means = closed_loop_choice(
-            {r: {task: fixed[task][r] for task in train} for r in RATIOS}, fixed_train, lam)
-        shift, shift_means = closed_loop_choice(
-            {sh: {task: load(_job_id("ours", *task, f"{lam:g}_shift{sh:+g}")) for task in train}
-             for sh in shifts}, fixed_train, lam)
-        chosen[f"{lam:g}"] = {"fixed_ratio": r_chosen, "fixed_means": r_means,
-                              "shift": shift, "shift_means": shift_means}
-        path = out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
-        model = load_ratio_tuner(path)
-        save_ratio_tuner(dataclasses.replace(model, metadata={
-            **model.metadata, "closed_loop_means": shift_means,
-            "data": provenance(settings, train)}),
-            out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz")
-        for family, seed in test:
-            jobs[_job_id("ours_closed_loop", family, seed, f"{lam:g}")] = {
-                **common(family, seed), "kind": "ratio_tuner",
-                "label": f"ours closed-loop {lam:g}", "weights": str(path)}
-    run_jobs(store, runner, study_job, jobs, lambda i, o: save(i, o, jobs), progress=progress,
-             desc="tuner study: our tuners as chosen in closed loop", what="runs")
-    all_jobs.update(jobs)
-    by_task: dict = {task: {} for task in test}
-    for job_id, job in all_jobs.items():
-        task = (job["family"], job["seed"])
-        if task in by_task:
-            by_task[task][_label(job)] = load(job_id)
-    for lam in LAMBDAS:
-        r = chosen[f"{lam:g}"]["fixed_ratio"]
-        for task in test:
-            by_task[task][f"fixed chosen {lam:g}"] = fixed[task][r]
-    verdicts = {f"{lam:g}": verdict(by_task, test, lam) for lam in LAMBDAS}
-    points = {f"{f}_s{s}": {label: {"e2": float(rec["e2"]), "u2": float(rec["u2"]),
-                                    "ratio_mean": float(rec.get("ratio_mean", np.nan))}
-                            for label, rec in runs.items() if "lost" not in rec}
-              for (f, s), runs in by_task.items()}
-    lost = sorted(f"{f}_s{s}: {label}" for (f, s), runs in by_task.items()
-                  for label, rec in runs.items() if "lost" in rec)
-    summary = _json({"settings": settings, "verdicts": verdicts, "points": points,
-                     "lost": lost, "trained": trained, "chosen": chosen,
-                     "wall_s": time.perf_counter() - wall0,
-                     "run_s": sum(float(load(i).get("wall_s", 0.0)) for i in all_jobs),
-                     "n_runs": len(all_jobs)})
-    text = json.dumps(summary, indent=1).encode()
-    from ..fileio import atomic_write
+    def fixed(self, tasks: list) -> dict:
+        """{task: {ratio: record}} of the fixed ratios on ``tasks``."""
+        return {task: {r: self.record(StudyArm("fixed", ratio=r), task) for r in RATIOS}
+                for task in tasks}
 
-    atomic_write(summary_path(out), lambda f: f.write(text))
-    store.finish(True, summary="tuner_study.json")
-    return summary
+    # -- the stages ----------------------------------------------------------------------------
+    def run_fixed_and_baselines(self) -> None:
+        """A: the fixed ratios everywhere; the baselines and the paper's tuner on the test
+        tasks."""
+        jobs = [self.job(StudyArm("fixed", ratio=r), task) for task in self.train + self.test
+                for r in RATIOS]
+        for task in self.test:
+            jobs += [self.job(StudyArm("fixed gain", ratio=1.0), task),
+                     self.schedule(StudyArm("speed schedule"), task,
+                                   speed_schedule(*task, self.duration, self.base)),
+                     self.job(StudyArm("paper tuner"), task, AnnTunerDriver(
+                         weights=self.paper_weights, period_s=TUNER_PERIOD_S))]
+        self.run(jobs, "tuner study: fixed ratios and baselines")
 
+    def run_our_tuners(self) -> None:
+        """B: our tuners (trained on the training tasks' fixed runs, labels from the cost), the
+        hindsight schedules on the test tasks, and our tuners with their output shifted by each
+        of :data:`SHIFTS` on the training tasks (for the closed-loop choice of C)."""
+        fixed_train, fixed_test = self.fixed(self.train), self.fixed(self.test)
+        jobs = []
+        for lam in LAMBDAS:
+            path = self.out / "weights" / f"ratio_tuner_lambda{lam:g}.npz"
+            model = train_ratio_tuner(fixed_train, lam)
+            save_ratio_tuner(model, path)
+            self.trained[f"{lam:g}"] = model.metadata
+            for shift in self.shifts():
+                shift_path = self._shift_path(lam, shift)
+                save_ratio_tuner(shifted(model, shift), shift_path)
+                jobs += [self.job(StudyArm("ours", lam=lam, shift=shift), task,
+                                  RatioTunerDriver(weights=str(shift_path),
+                                                   period_s=TUNER_PERIOD_S))
+                         for task in self.train]
+            for task in self.test:
+                jobs += [self.schedule(StudyArm("hindsight", lam=lam), task,
+                                       hindsight_schedule(fixed_test[task], lam)),
+                         self.job(StudyArm("ours", lam=lam), task, RatioTunerDriver(
+                             weights=str(path), period_s=TUNER_PERIOD_S))]
+        self.run(jobs, "tuner study: hindsight and our tuners")
 
-# -- the report ------------------------------------------------------------------------------------
+    def run_closed_loop_choices(self) -> None:
+        """C: the closed-loop choices on the training tasks: our tuner's output shift (run on
+        the test tasks) and the single fixed ratio (its test runs exist already)."""
+        fixed_train = self.fixed(self.train)
+        jobs = []
+        for lam in LAMBDAS:
+            r_chosen, r_means = closed_loop_choice(
+                {r: {task: fixed_train[task][r] for task in self.train} for r in RATIOS},
+                fixed_train, lam)
+            shift, shift_means = closed_loop_choice(
+                {sh: {task: self.record(StudyArm("ours", lam=lam, shift=sh), task)
+                      for task in self.train} for sh in self.shifts()}, fixed_train, lam)
+            self.chosen[f"{lam:g}"] = {"fixed_ratio": r_chosen, "fixed_means": r_means,
+                                       "shift": shift, "shift_means": shift_means}
+            path = self._shift_path(lam, shift)
+            model = load_ratio_tuner(path)
+            save_ratio_tuner(dataclasses.replace(model, metadata={
+                **model.metadata, "closed_loop_means": shift_means,
+                "data": provenance(self.settings, self.train)}),
+                self.out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz")
+            jobs += [self.job(StudyArm("ours closed-loop", lam=lam), task, RatioTunerDriver(
+                weights=str(path), period_s=TUNER_PERIOD_S)) for task in self.test]
+        self.run(jobs, "tuner study: our tuners as chosen in closed loop")
 
-CONTROLLER_ORDER = ("hindsight", "ours", "paper tuner", "speed schedule", "fixed gain 1")
+    def shifts(self) -> tuple:
+        """The output shifts tried (every other one when quick)."""
+        return SHIFTS if not self.quick else SHIFTS[::2]
 
+    def _shift_path(self, lam: float, shift: float) -> Path:
+        return self.out / "weights" / f"ratio_tuner_lambda{lam:g}_shift{shift:+g}.npz"
 
-def _pct(v: float) -> str:
-    return "lost" if not np.isfinite(v) else f"{100 * v:+.0f} %"
+    # -- the summary ---------------------------------------------------------------------------
+    def finish(self) -> dict:
+        """The verdicts on the held-out tasks and every run's figures, written to
+        ``tuner_study.json`` (the store is closed as complete). Returns the summary."""
+        from ..fileio import atomic_write
 
-
-def render_tuner_markdown(summary: dict, picture: str = "results_tuner.png") -> str:
-    """The tuner study's section of docs/results.md, from :func:`run_tuner_study`'s summary."""
-    st = summary["settings"]
-    test_families = sorted({t[0] for t in st["test"]})
-    L = ["## Does online tuning beat the best fixed weights?", ""]
-    if st["quick"]:
-        L += ["**QUICK mode: 1 s tasks, one seed per family. A smoke test, not a verdict.**", ""]
-    L += [f"Every run is the LQI on `{st['base']}`. The cost, declared before any run: J = mean "
-          "over the run of sum_i (e_i / 1 mrad|mm)^2 + lambda sum_j (u_j / 0.3 N m)^2, e the true "
-          "pose error, u the feedback torque (applied minus the static holding torque of the "
-          "reference). Tasks of "
-          f"{st['duration_s']:g} s (`simulation/tasks.py`): training on seeds "
-          f"{sorted({t[1] for t in st['train']})} of {sorted({t[0] for t in st['train']})}; "
-          f"held out: seeds {sorted({t[1] for t in st['test'] if t[0] != 'paper'})} of those "
-          f"families, the `{UNSEEN_FAMILY}` family never seen in training, and the paper "
-          f"manoeuvre ({len(st['test'])} tasks). The baseline of each task is the **best of the "
-          f"13 fixed ratios omega_Q / omega_R from 1e-3 to 1e3, chosen in hindsight for that "
-          f"task** (the paper's nine pairs are five of these ratios). Each entry is the paired "
-          f"relative difference (J - J_best fixed) / J_best fixed, mean +- standard deviation "
-          f"over the tasks; negative is better. The goal we set: our tuner at least "
-          f"{100 * GOAL:.0f} % below, beyond the spread, at every lambda.", ""]
-    verdict_lines = []
-    for lam in st["lambdas"]:
-        v = summary["verdicts"][f"{lam:g}"]
-        ours = v["controllers"].get(f"ours {lam:g}")
-        ours_cl = v["controllers"].get(f"ours closed-loop {lam:g}")
-        head = v["controllers"].get(f"hindsight {lam:g}")
-        chosen = v["controllers"].get(f"fixed chosen {lam:g}")
-        if ours is not None:
-            verdict_lines.append(
-                f"- lambda = {lam:g}: our tuner {_pct(ours['mean'])} +- {100 * ours['std']:.0f} % "
-                f"against the best fixed ratio: **{'meets' if ours['beats'] else 'does not meet'}"
-                f"** the goal"
-                + (f"; its closed-loop choice {_pct(ours_cl['mean'])} +- "
-                   f"{100 * ours_cl['std']:.0f} % (**{'meets' if ours_cl['beats'] else 'does not meet'}"
-                   f"**)" if ours_cl else "")
-                + (f"; the hindsight schedule (the headroom) {_pct(head['mean'])} +- "
-                   f"{100 * head['std']:.0f} %" if head else "")
-                + (f"; the single fixed ratio chosen on the training tasks "
-                   f"{_pct(chosen['mean'])} +- {100 * chosen['std']:.0f} %" if chosen else "")
-                + ".")
-    L += ["**Verdict** (computed from the runs below):", ""] + verdict_lines + [""]
-    L += _why_lines(summary) + [""]
-    for lam in st["lambdas"]:
-        v = summary["verdicts"][f"{lam:g}"]
-        ratios = [r for r, _ in v["best_fixed"].values()]
-        counts = {f"{r:.3g}": ratios.count(r) for r in sorted(set(ratios))}
-        L += [f"### lambda = {lam:g}", "",
-              "Best fixed ratio per held-out task (ratio: tasks): "
-              + ", ".join(f"{k}: {n}" for k, n in counts.items()) + ".", "",
-              "| controller | all tasks | " + " | ".join(test_families) + " | goal met |",
-              "|---|---|" + "---|" * len(test_families) + "---|"]
-        for label, c in v["controllers"].items():
-            cells = []
-            for fam in test_families:
-                m = c["by_family"].get(fam)
-                cells.append("-" if m is None else
-                             f"{_pct(m[0])}" + (f" +- {100 * m[1]:.0f} %" if m[2] > 1 else ""))
-            name = (label.rsplit(" ", 1)[0] if label.startswith(("hindsight", "ours", "fixed chosen"))
-                    else label)
-            if name == "fixed chosen" and "chosen" in summary:
-                name += f" ({summary['chosen'][f'{lam:g}']['fixed_ratio']:.3g})"
-            elif name == "ours closed-loop" and "chosen" in summary:
-                name += f" (shift {summary['chosen'][f'{lam:g}']['shift']:+g})"
-            L.append(f"| {name} | {_pct(c['mean'])} +- {100 * c['std']:.0f} % | "
-                     + " | ".join(cells) + f" | {'yes' if c['beats'] else 'no'} |")
-        L.append("")
-    L += ["Controllers: **hindsight**, per 0.2 s window the fixed ratio that had the lowest J over "
-          "that window in its own run, replayed in closed loop as a schedule (what any tuner could "
-          "at best learn from these runs); **ours**, `RatioTuner` (density features and the "
-          "reference's speed and acceleration -> omega_Q / omega_R in [1e-3, 1e3]), trained per "
-          "lambda on the training tasks' fixed-ratio runs with the window's J at the predicted "
-          "ratio as the loss; **ours closed-loop**, the same network with its output (log10 "
-          f"ratio) offset by the one of {list(SHIFTS)} that gave the lowest mean J / J_best "
-          "fixed when run in closed loop on the training tasks (training on the closed-loop "
-          "cost, one weight: the output bias); **fixed chosen**, the one fixed ratio with the "
-          "lowest mean J / J_best fixed over the training tasks (what a user without a tuner "
-          "would deploy); **paper tuner**, the paper's 12-10-2 network on density features "
-          "trained on the nine collection runs on the hardware with the paper's labels; "
-          f"**speed schedule**, hand-made: ratio {R_HOLD:g} at rest to {R_MOVE:g} at speed; "
-          "**fixed gain 1**, ratio 1 with the gain of the start pose (no re-scheduling on B(x), "
-          "as the paper's LQI).", ""]
-    if summary["lost"]:
-        L += ["Runs that lost the platform (their J counts as infinite): "
-              + "; ".join(summary["lost"]) + ".", ""]
-    trained = summary.get("trained", {})
-    if trained:
-        L += ["Our tuners' training: " + "; ".join(
-            f"lambda {k}: {m['samples']} samples, final loss {m['final_loss']:.3g}"
-            for k, m in trained.items()) + ".", ""]
-    L += [f"![tracking vs feedback effort per controller]({picture})", "",
-          f"{summary['n_runs']} runs whose own times add up to {summary.get('run_s', 0.0):.0f} s; "
-          f"this call {summary['wall_s']:.0f} s wall (runs are stored as they finish in "
-          "`results/evaluation/tuner_study/` and read back by a later call).", ""]
-    return "\n".join(L)
-
-
-def _why_lines(summary: dict) -> list:
-    """The headroom, the lambdas and what was tried, each sentence computed from the summary."""
-    st = summary["settings"]
-    L = ["**The headroom, the lambdas, what was tried** (computed):", ""]
-    for lam in st["lambdas"]:
-        v = summary["verdicts"][f"{lam:g}"]
-        head = v["controllers"].get(f"hindsight {lam:g}")
-        ratios = [r for r, _ in v["best_fixed"].values()]
-        top = max(set(ratios), key=ratios.count)
-        if head is None:
-            continue
-        inside = np.isfinite(head["mean"]) and abs(head["mean"]) <= head["std"]
-        L.append(f"- lambda = {lam:g}: the best fixed ratio is {top:.3g} on {ratios.count(top)} of "
-                 f"{len(ratios)} held-out tasks; the hindsight schedule is {_pct(head['mean'])} "
-                 f"+- {100 * head['std']:.0f} % against it, "
-                 + ("**within the seed-to-seed spread: there is no headroom for a tuner to "
-                    "gain**" if inside else "outside the spread") + ".")
-    L += ["", "lambda prices 0.3 N m of feedback torque against 1 mrad (or 1 mm) of error: 0.01 "
-          "puts tracking first, 0.1 balances, 1 puts effort first; chosen once before the study so "
-          "that the best fixed ratio moves across the grid with lambda (counts above). Why no "
-          "tuner wins: the best ratio hardly depends on what the platform does (the counts), J is "
-          "flat around it (the trade-off curves below) and a switch of weights costs a transient "
-          "(the hindsight schedule, built from windows of runs that never switched, pays it).", ""]
-    chosen = summary.get("chosen", {})
-    if chosen:
-        L.append("Tried, on the training tasks only: our tuner trained on the declared cost "
-                 "(the window's J at the predicted ratio as the loss, not an argmin label), then "
-                 "its output offset chosen in closed loop (mean J / J_best fixed per offset: "
-                 + "; ".join(f"lambda {k}: " + ", ".join(f"{float(sh):+g}: {m:.3g}"
-                                                         for sh, m in c["shift_means"].items())
-                             for k, c in chosen.items())
-                 + "); and the one fixed ratio best over the training tasks ("
-                 + ", ".join(f"lambda {k}: {c['fixed_ratio']:.3g}" for k, c in chosen.items())
-                 + "). Not tried (open): separate weights for rotation and translation errors, "
-                 "and a closed-loop search over all the network's weights (CMA-ES). The headroom "
-                 "above bounds any schedule of the one ratio, not those: a tuner with two ratios "
-                 "could still find something.")
-        L.append("")
-    return L
-
-
-#: Markers of the tuner study's controllers by kind (the lambda they were made for is the colour).
-_KIND_MARKERS = {"hindsight": ("s", "hindsight schedule (the headroom)"),
-                 "ours": ("^", "our tuner"),
-                 "ours closed-loop": ("v", "our tuner, shift chosen in closed loop"),
-                 "fixed chosen": ("P", "one fixed ratio chosen on the training tasks"),
-                 "paper tuner": ("D", "the paper's ANN tuner"),
-                 "speed schedule": ("o", "speed schedule (hand-made)"),
-                 "fixed gain 1": ("X", "ratio 1 with the start pose's gain")}
-
-
-def _kind_and_lambda(label: str) -> tuple:
-    """("ours closed-loop", "0.1") of "ours closed-loop 0.1"; (label, None) without a lambda."""
-    for kind in sorted(_KIND_MARKERS, key=len, reverse=True):
-        if label == kind:
-            return kind, None
-        if label.startswith(kind + " "):
-            return kind, label[len(kind) + 1:]
-    return label, None
-
-
-def plot_tuner_tradeoff(summary: dict, path) -> Path:
-    """Tracking (mean e2) against feedback effort (mean u2), one panel per held-out family: the
-    13 fixed ratios as a curve, every other controller as a point (means over the family's
-    tasks); the marker says what a controller is, the colour the lambda it was made for, and
-    the legends sit in a panel of their own. Returns the path."""
-    from matplotlib.figure import Figure        # no pyplot: no global backend switch
-    from matplotlib.lines import Line2D
-
-    points = summary["points"]
-    lambdas = [f"{lam:g}" for lam in summary["settings"]["lambdas"]]
-    lambda_colors = dict(zip(lambdas, ("C0", "C1", "C2", "C4", "C5")))
-    families = sorted({k.rsplit("_s", 1)[0] for k in points})
-    ncols = min(3, len(families) + 1)
-    nrows = -(-(len(families) + 1) // ncols)
-    fig = Figure(figsize=(5.0 * ncols, 4.2 * nrows))
-    axes = fig.subplots(nrows, ncols, squeeze=False)
-    for ax in axes.flat[len(families):]:
-        ax.set_axis_off()
-    kinds_seen = set()
-    for ax, fam in zip(axes.flat, families):
-        tasks = [k for k in points if k.rsplit("_s", 1)[0] == fam]
-        labels = sorted({lab for k in tasks for lab in points[k]})
-
-        def mean(label, key):
-            vals = [points[k][label][key] for k in tasks if label in points[k]]
-            return float(np.mean(vals)) if vals else np.nan
-
-        fixed = [f"fixed {r:.3g}" for r in RATIOS if f"fixed {r:.3g}" in labels]
-        xs = [mean(lab, "u2") for lab in fixed]
-        ys = [mean(lab, "e2") for lab in fixed]
-        ax.loglog(xs, ys, "o-", color="0.6", ms=3, zorder=1)
-        for lab, x, y in zip(fixed, xs, ys):
-            names = {"fixed 0.001": "1e-3", "fixed 1": "1", "fixed 1e+03": "1e3"}
-            if lab in names:
-                ax.annotate(names[lab], (x, y), fontsize=8, color="0.35",
-                            xytext=(4, 4), textcoords="offset points")
-        for lab in labels:
-            kind, lam = _kind_and_lambda(lab)
-            if kind not in _KIND_MARKERS:
-                continue
-            kinds_seen.add(kind)
-            marker = _KIND_MARKERS[kind][0]
-            color = lambda_colors.get(lam, "0.2")
-            ax.loglog(mean(lab, "u2"), mean(lab, "e2"), marker, mfc="none", mec=color, mew=1.5,
-                      ms=8, zorder=3, ls="none")
-        ax.set_title(f"held-out family: {fam}" if fam != "paper" else "the paper manoeuvre",
-                     fontsize=10)
-        ax.set_xlabel("feedback effort: mean sum (u / 0.3 N m)^2")
-        ax.grid(True, which="both", alpha=0.3)
-    for row in axes:
-        row[0].set_ylabel("tracking: mean sum (e / 1 mrad|mm)^2")
-    side = axes.flat[len(families)]
-    kinds = [Line2D([], [], color="0.6", marker="o", ms=3,
-                    label="fixed ratios 1e-3 .. 1e3 (the trade-off curve)")]
-    kinds += [Line2D([], [], marker=m, mfc="none", mec="0.2", mew=1.5, ms=8, ls="none",
-                     label=text) for kind, (m, text) in _KIND_MARKERS.items()
-              if kind in kinds_seen]
-    first = side.legend(handles=kinds, loc="upper left", fontsize=8, title="controller",
-                        title_fontsize=9, frameon=False)
-    side.add_artist(first)
-    side.legend(handles=[Line2D([], [], marker="s", color=c, ls="none", label=f"lambda = {lam}")
-                         for lam, c in lambda_colors.items()],
-                loc="lower left", fontsize=8, frameon=False,
-                title="colour: the lambda of the cost\nthe controller was made for",
-                title_fontsize=9)
-    fig.suptitle("Held-out tasks: every controller against the fixed-ratio trade-off curve "
-                 "(lower left is better)")
-    fig.tight_layout()
-    path = Path(path)
-    from ..fileio import atomic_write
-
-    atomic_write(path, lambda f: fig.savefig(f, dpi=110, format="png"))
-    return path
+        by_task: dict = {task: {} for task in self.test}
+        for job in self.jobs.values():
+            if job.task in by_task:
+                by_task[job.task][job.arm] = self.record(job.arm, job.task)
+        fixed_test = self.fixed(self.test)
+        for lam in LAMBDAS:
+            r = self.chosen[f"{lam:g}"]["fixed_ratio"]
+            for task in self.test:
+                by_task[task][StudyArm("fixed chosen", lam=lam)] = fixed_test[task][r]
+        points = {task_key(task): {arm.label: {
+            "arm": dataclasses.asdict(arm), "e2": float(rec["e2"]), "u2": float(rec["u2"]),
+            "ratio_mean": float(rec.get("ratio_mean", np.nan))}
+            for arm, rec in runs.items() if "lost" not in rec} for task, runs in by_task.items()}
+        lost = sorted(f"{task_key(task)}: {arm.label}" for task, runs in by_task.items()
+                      for arm, rec in runs.items() if "lost" in rec)
+        summary = _json({
+            "settings": self.settings,
+            "verdicts": {f"{lam:g}": verdict(by_task, self.test, lam) for lam in LAMBDAS},
+            "tasks": {task_key(t): {"family": t[0], "seed": t[1]} for t in self.test},
+            "points": points, "lost": lost, "trained": self.trained, "chosen": self.chosen,
+            "wall_s": time.perf_counter() - self.wall0,
+            "run_s": sum(float(self.load(i).get("wall_s", 0.0)) for i in self.jobs),
+            "n_runs": len(self.jobs)})
+        text = json.dumps(summary, indent=1).encode()
+        atomic_write(summary_path(self.out), lambda f: f.write(text))
+        self.store.finish(True, summary="tuner_study.json")
+        return summary

@@ -29,6 +29,7 @@ from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
 from ..model.clearance import clearance_model
 from ..model.geometry import X_HOME, StewartGeometry
+from ..model.kinematics import AXIS_NAMES
 from .runners import JobFailure, ProcessRunner, SerialRunner
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
@@ -285,14 +286,20 @@ def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
 
 def _plots(out: Path, s: dict):
     """workspace.png and bottleneck_and_orientation.png of a :func:`workspace_summary`."""
+    _plot_workspace(out, s)
+    _plot_bottleneck(out, s)
+
+
+def _plot_workspace(out: Path, s: dict) -> None:
+    """workspace.png: the holding torques over two slices of the translation box, and the
+    reachable tilt against the height."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.lines import Line2D
 
-    taxes, trans, oaxes, orient = (s["translation_axes"], s["translation"],
-                                   s["orientation_axes"], s["orientation"])
+    taxes, trans = s["translation_axes"], s["translation"]
     iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     iy = int(np.argmin(np.abs(taxes[1])))
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
@@ -329,6 +336,18 @@ def _plots(out: Path, s: dict):
     _save_figure(fig, out / "workspace.png")
     plt.close(fig)
 
+
+def _plot_bottleneck(out: Path, s: dict) -> None:
+    """bottleneck_and_orientation.png: which motor holds the most torque over the translation
+    box at home height, and the holding torques over the orientation box."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    taxes, trans, oaxes, orient = (s["translation_axes"], s["translation"],
+                                   s["orientation_axes"], s["orientation"])
+    iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     b = np.where(trans["clear"], trans["bottleneck"], -1)[:, :, iz].astype(float).T
     b[b < 0] = np.nan
@@ -342,7 +361,8 @@ def _plots(out: Path, s: dict):
     ipsi = int(np.argmin(np.abs(oaxes[2])))
     m = _torque_slice(axes[1], np.rad2deg(oaxes[0]), np.rad2deg(oaxes[1]), orient, (2, ipsi),
                       ("roll phi [deg]", "pitch theta [deg]"),
-                      f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg")
+                      f"max |T_i| [N m] at home position, yaw = "
+                      f"{np.rad2deg(oaxes[2][ipsi]):.1f} deg")
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     fig.tight_layout()
     _save_figure(fig, out / "bottleneck_and_orientation.png")
@@ -374,6 +394,7 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
         InvalidConfigError: resolution < 3, or grids that need more memory than the machine
             has (:data:`BYTES_PER_POSE`), before any grid is allocated.
     """
+    # Long: three sweeps reduced to their figures one after the other, each a few lines.
     if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
             or resolution < 3:                  # 2: the box's corners only, none reachable
         raise InvalidConfigError(f"resolution must be an integer >= 3 (a grid through the home "
@@ -434,6 +455,7 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     Raises:
         InvalidConfigError: resolution < 3 or jobs < 0.
     """
+    # Long for its docstring (each file written and what it holds).
     from tqdm import tqdm
 
     if resolution < 3 or jobs < 0:
@@ -446,7 +468,8 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
     with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
         s = workspace_summary(geometry, n, jobs, progress=bar, runner=runner)
     arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
-              "translation_Z": s["translation_axes"][2], "orientation_phi": s["orientation_axes"][0],
+              "translation_Z": s["translation_axes"][2],
+              "orientation_phi": s["orientation_axes"][0],
               "orientation_theta": s["orientation_axes"][1],
               "orientation_psi": s["orientation_axes"][2], "heights": s["heights"],
               "tilts": s["tilts"], **{key: s[key] for key in (
@@ -466,7 +489,7 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
         rows += [(f"{prefix}extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
                  for d, a in enumerate("XYZ") for j, side in enumerate(("min", "max"))]
         rows += [(f"{prefix}extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
-                 for d, a in enumerate(("phi", "theta", "psi"))
+                 for d, a in enumerate(AXIS_NAMES[:3])
                  for j, side in enumerate(("min", "max"))]
     rows += [(f"interfering_share_{grid}", f"{share:.4g}", "1")
              for grid, share in s["interfering_share"].items()]

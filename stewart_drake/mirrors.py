@@ -1,0 +1,31 @@
+"""YAML forms of frozen value types, and the conversion both ways.
+
+The robot's geometry, the servo and the LQI's scales are frozen dataclasses with tuple fields
+(values a controller keeps and compares). Drake's ``yaml_load_typed`` fills mutable dataclasses
+with concrete field types, so each has a YAML form written out in the scenario's vocabulary,
+with the same field names, units and defaults, lists where the value type has tuples
+(``Robot``, ``Motors`` in ``simulation/scenario.py``, ``LqiScalesConfig`` in
+``control/lqi.py``); a test keeps each form field for field equal to its value type.
+"""
+
+import dataclasses
+from typing import ClassVar
+
+
+class ValueMirror:
+    """Base of a YAML form (a dataclass): :meth:`build` gives the value type back."""
+
+    #: The frozen value type the form mirrors (set by each subclass).
+    value_class: ClassVar[type] = object
+
+    def build(self):
+        """The value type with these fields (lists become tuples); validated by its constructor."""
+        return self.value_class(**{
+            f.name: tuple(v) if isinstance(v, list) else v
+            for f in dataclasses.fields(self) for v in [getattr(self, f.name)]})
+
+    @classmethod
+    def from_value(cls, value):
+        """The form of a value-type instance (e.g. ``Robot.from_value(StewartGeometry())``)."""
+        return cls(**{f.name: list(v) if isinstance(v, tuple) else v
+                      for f in dataclasses.fields(cls) for v in [getattr(value, f.name)]})

@@ -1,0 +1,191 @@
+"""The figures of a closed-loop run, defined once: tracking, effort, the feedback torque, step and
+frequency responses, and the tuner study's cost.
+
+Every study reads its numbers here: ``run_experiment`` (:func:`compute_metrics`), the evaluation
+grid (:func:`normalized_rms`, :func:`feedback_effort`, :func:`settling_time`,
+:func:`frequency_response`, :func:`bandwidth_hz`), the tuner study (:func:`sample_costs`,
+:func:`window_means`). A result is any object with the arrays of
+:class:`~stewart_drake.studies.experiments.RunResult` (``t``, ``x``, ``x_d``, ``T``, ...); SI
+units throughout.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidConfigError
+from ..model.statics import holding_torques
+
+#: Settling band of the step responses, as a fraction of the step.
+SETTLING_BAND = 0.02
+#: The study cost's scales: 1 mrad | 1 mm of pose error, 0.3 N m of feedback torque (the LQI's
+#: default scales, :class:`~stewart_drake.control.lqi.LqiScales`).
+ERROR_SCALE, TORQUE_SCALE = 1e-3, 0.3
+
+
+# -- a run's figures -------------------------------------------------------------------------------
+
+def compute_metrics(result, wall_s: float | None = None,
+                    window_start_s: float | None = None) -> dict:
+    """Figures of a run.
+
+    Returns:
+        dict: ``rms_error`` and ``peak_error`` per axis (rad and m) over t >= window_start_s
+        (default: the second half of the run, i.e. [5, 10] s for the paper's 10 s), ``peak_torque``
+        (6,) N m, ``sum_T2_dt`` N^2 m^2 s, ``max_closure_m``, ``status`` (the controller's
+        status at the end, by name), and for a controller that reports them ``gain_solves`` and
+        ``gain_failures``; ``realtime_factor`` (if wall_s).
+    Raises:
+        InvalidConfigError: fewer than 2 samples in the window (nothing to average: simulate
+            longer than one log period).
+    """
+    t = result.t
+    start = t[-1] / 2 if window_start_s is None else window_start_s
+    m = t >= start - 1e-9
+    if np.count_nonzero(m) < 2:
+        raise InvalidConfigError(f"a run of {t[-1]:g} s has {np.count_nonzero(m)} logged sample(s) "
+                                 f"after t = {start:g} s: too short for metrics; simulate longer")
+    err = tracking_error(result)
+    metrics = {
+        "window_s": [float(start), float(t[-1])],
+        "rms_error": np.sqrt(np.mean(err[m] ** 2, axis=0)).tolist(),
+        "peak_error": np.abs(err[m]).max(axis=0).tolist(),
+        "peak_torque": np.abs(result.T).max(axis=0).tolist(),
+        "sum_T2_dt": effort(result.t, result.T),
+        "max_closure_m": float(result.closure.max()),
+        "status": {name: float(v) for name, v in zip(result.status_names, result.status[-1])},
+        "finite": bool(np.all(np.isfinite(result.x)) and np.all(np.isfinite(result.T))),
+    }
+    for name in ("gain_solves", "gain_failures"):
+        if name in metrics["status"]:
+            metrics[name] = int(metrics["status"][name])
+    if wall_s is not None:
+        metrics["wall_s"] = float(wall_s)
+        metrics["realtime_factor"] = float(t[-1] / wall_s) if wall_s > 0 else float("inf")
+    return metrics
+
+
+def tracking_error(result) -> np.ndarray:
+    """(N, 6) x - x_d of the true pose (from the plant state, free of sensor noise), rad and m."""
+    return result.x[:, :6] - result.x_d[:, :6]
+
+
+def effort(t, T) -> float:
+    """Sum T^2 dt of torques T (N, 6) logged at times t (N,), N^2 m^2 s (rectangle rule, the
+    first sample weighted 0)."""
+    dt = np.diff(t, prepend=t[0])
+    return float(np.sum(T ** 2 * dt[:, None]))
+
+
+def normalized_rms(rms, pose_scales) -> float:
+    """sqrt(mean_i (rms_i / s_i)^2): one tracking figure from the RMS error per axis (6,), with
+    the LQI's error scales ``pose_scales`` (6,) (1 mrad, 1 mm by default), so angles and
+    positions count alike."""
+    return float(np.sqrt(np.mean((np.asarray(rms) / np.asarray(pose_scales)) ** 2)))
+
+
+def feedback_torque(result, geometry) -> np.ndarray:
+    """(N, 6) what the controller adds to holding the platform up, N m: the applied torques
+    minus the static holding torques of the reference pose
+    (:func:`~stewart_drake.model.statics.holding_torques` of the robot the controller believes
+    in). Gravity's share is the same for every controller, so efforts are compared on this."""
+    return result.T - holding_torques(geometry, result.x_d[:, :6])
+
+
+def feedback_effort(result, geometry) -> float:
+    """Sum (T - T_hold)^2 dt, N^2 m^2 s: the effort of :func:`feedback_torque`."""
+    return effort(result.t, feedback_torque(result, geometry))
+
+
+# -- step and frequency responses ------------------------------------------------------------------
+
+def settling_time(t, error, size: float, t_step: float, band: float = SETTLING_BAND):
+    """Time after ``t_step`` from which |error| stays within band * |size|, s (None if never).
+
+    Args:
+        t: (N,) s. error: (N,) x - x_d on the stepped axis (rad or m). size: the step.
+    """
+    t = np.asarray(t)
+    after = t >= t_step
+    outside = after & (np.abs(error) > band * abs(size))
+    if not np.any(after):
+        return None
+    if not np.any(outside):
+        return 0.0
+    last = int(np.flatnonzero(outside)[-1])
+    if last == len(t) - 1:
+        return None                                   # still outside at the end of the run
+    return float(t[last + 1] - t_step)
+
+
+def overshoot(error, size: float) -> float:
+    """The largest excursion of ``error`` (N,) past the target in the step's direction, as a
+    fraction of |size| (0 when it never overshoots)."""
+    return float(max(0.0, np.max(np.sign(size) * error) / abs(size)))
+
+
+def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
+    """Gain and phase of y against a sine sweep, segment by segment.
+
+    Each segment spans ``cycles_per_segment`` cycles of the sweep; on it y - offset is fitted by
+    least squares with a sin(phase) + b cos(phase) + c, and the gain is |a + i b| / amplitude.
+
+    Args:
+        t: (N,) s. y: (N,) the swept axis of the pose. chirp: the
+            :class:`~stewart_drake.simulation.trajectories.ChirpTrajectory`.
+    Returns:
+        (f (K,) Hz, gain (K,), phase (K,) rad).
+    """
+    t = np.asarray(t)
+    y = np.asarray(y) - chirp.offset[chirp.axis]
+    m = t <= chirp.duration_s
+    t, y = t[m], y[m]
+    ph = chirp.phase(t)
+    seg = np.floor(ph / (2 * np.pi * cycles_per_segment)).astype(int)
+    f, gain, phase = [], [], []
+    for k in np.unique(seg)[1:]:                      # the first segment holds the start transient
+        sel = seg == k
+        if sel.sum() < 8:
+            continue
+        basis = np.stack([np.sin(ph[sel]), np.cos(ph[sel]), np.ones(sel.sum())], axis=1)
+        (a, b, _), *_ = np.linalg.lstsq(basis, y[sel], rcond=None)
+        f.append(float(np.mean(chirp.frequency(t[sel]))))
+        gain.append(float(np.hypot(a, b) / chirp.amplitude))
+        phase.append(float(np.arctan2(b, a)))
+    return np.array(f), np.array(gain), np.array(phase)
+
+
+def bandwidth_hz(f, gain):
+    """Lowest frequency where the gain falls below -3 dB (1/sqrt 2), log-interpolated; None if
+    the gain stays above it over the whole sweep."""
+    below = np.flatnonzero(gain < 1 / np.sqrt(2))
+    if len(below) == 0:
+        return None
+    k = int(below[0])
+    if k == 0:
+        return float(f[0])
+    g0, g1 = np.log(gain[k - 1]), np.log(gain[k])
+    w = (np.log(1 / np.sqrt(2)) - g0) / (g1 - g0)
+    return float(np.exp(np.log(f[k - 1]) + w * (np.log(f[k]) - np.log(f[k - 1]))))
+
+
+# -- the tuner study's cost ------------------------------------------------------------------------
+
+def sample_costs(result, geometry) -> tuple[np.ndarray, np.ndarray]:
+    """(e2 (N,), u2 (N,)): per sample, the squared tracking error and the squared
+    :func:`feedback_torque`, each normalized by its scale (:data:`ERROR_SCALE`,
+    :data:`TORQUE_SCALE`) and summed over the axes; the tuner study's cost at lambda is
+    J = mean(e2 + lambda u2)."""
+    e = tracking_error(result) / ERROR_SCALE
+    u = feedback_torque(result, geometry) / TORQUE_SCALE
+    return (e ** 2).sum(axis=1), (u ** 2).sum(axis=1)
+
+
+def window_means(t: np.ndarray, values: np.ndarray, duration_s: float,
+                 window_s: float) -> np.ndarray:
+    """(n_windows,) mean of values (N,) over each ``window_s`` window of [0, duration_s)."""
+    n = int(round(duration_s / window_s))
+    index = np.minimum((t / window_s + 1e-9).astype(int), n - 1)
+    sums = np.bincount(index, weights=values, minlength=n)
+    counts = np.maximum(np.bincount(index, minlength=n), 1)
+    return sums / counts
