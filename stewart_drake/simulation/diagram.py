@@ -81,6 +81,8 @@ class StewartDiagram:
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`.
         trajectory: the reference object (``evaluate(t)``). loggers: name -> LogVectorOutput.
         scenario: the scenario built. features, tuner, noise: the systems, or None.
+        learner: the :class:`~stewart_drake.control.ilc.IterativeLearningController` when the
+            scenario learns (``learning``), or None.
         guard: the :class:`~.guard.DivergenceGuard`, attached by ``build_simulator``.
     """
 
@@ -96,6 +98,7 @@ class StewartDiagram:
     noise: Any = None
     estimator: Any = None
     guard: Any = None
+    learner: Any = None
 
     @property
     def plant(self):
@@ -203,7 +206,13 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         builder.Connect(measured, add.get_input_port(0))
         builder.Connect(scale.get_output_port(), add.get_input_port(1))
         measured = add.get_output_port()
-    sources = {"x_d": ref.x_d.get_output_port(), "T_ff": ref.T_ff.get_output_port(),
+    x_d, learner = ref.x_d.get_output_port(), None
+    if scenario.learning is not None:             # a learned correction on the reference
+        from .learning import add_learning
+
+        learner, x_d = add_learning(builder, scenario, trajectory, x_d,
+                                    station.GetOutputPort("motor_angle"), offset)
+    sources = {"x_d": x_d, "T_ff": ref.T_ff.get_output_port(),
                "x": measured, "motor_angle": station.GetOutputPort("motor_angle"),
                "motor_rate": station.GetOutputPort("motor_rate")}
     for name in inputs - {"omega"}:
@@ -270,10 +279,14 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     for name in ("status", "integral", "e_bar"):
         if name in outputs:
             loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period)
+    if learner is not None:
+        for name in ("ilc_status", "x_d_correction"):
+            loggers[name] = LogVectorOutput(learner.GetOutputPort(name), builder, period)
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(diagram=diagram, station=station, controller=system, reference=ref,
                           trajectory=trajectory, loggers=loggers, scenario=scenario,
-                          features=features, tuner=tuner, noise=noise, estimator=estimator)
+                          features=features, tuner=tuner, noise=noise, estimator=estimator,
+                          learner=learner)
