@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import write_trace
 
 from stewart_drake.errors import InvalidConfigError, MotorLimitError
 from stewart_drake.model.geometry import X_HOME
@@ -143,20 +144,11 @@ def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
 
 # -- traces ------------------------------------------------------------------------------------
 
-def _write_trace(path, t, columns: dict, gap=None):
-    keep = np.ones(len(t), bool) if gap is None else ~((t > gap[0]) & (t < gap[1]))
-    with open(path, "w") as f:
-        f.write(",".join(["time [s]"] + list(columns)) + "\n")
-        for k in np.flatnonzero(keep):
-            f.write(",".join([f"{t[k]:.5f}"] + [f"{v[k]:.6f}" for v in columns.values()]) + "\n")
-    return path
-
-
 def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path):
     t = np.arange(0.0, 12.0, 1 / 30)
     si = 7.5 * np.cos(np.pi * t / 4) ** 2                       # mm
     pitch = 0.5 * np.sin(np.pi * t / 4)                          # deg
-    path = _write_trace(tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch},
+    path = write_trace(tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch},
                         gap=(5.0, 5.5))
     ref = om.load_trace(path, centre_on="none")
     assert isinstance(ref, om.TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
@@ -179,7 +171,7 @@ def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path)
 def test_trace_centring_mapping_and_lowpass(tmp_path):
     t = np.arange(0.0, 8.0, 0.01)
     slow, fast = 5 * np.sin(2 * np.pi * 0.25 * t), 0.5 * np.sin(2 * np.pi * 20 * t)
-    path = _write_trace(tmp_path / "trace.csv", t, {"depth [mm]": 2 + slow + fast})
+    path = write_trace(tmp_path / "trace.csv", t, {"depth [mm]": 2 + slow + fast})
     centre = [0, 0, 0, 0.001, 0, 0.31]
     ref = om.load_trace(path, axis_map={"depth": "-Z"}, centre=centre, lowpass_hz=2.0)
     z = ref.evaluate(t)[0][:, 5]
@@ -217,7 +209,7 @@ def test_a_bad_trace_header_is_refused_naming_the_column(tmp_path, header, row, 
 
 def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
     t = np.arange(0.0, 10.0, 0.1)
-    path = _write_trace(tmp_path / "gap.csv", t, {"Z [mm]": np.sin(t)}, gap=(3.0, 5.0))
+    path = write_trace(tmp_path / "gap.csv", t, {"Z [mm]": np.sin(t)}, gap=(3.0, 5.0))
     with pytest.raises(InvalidConfigError, match=r"no data for 2 s from t = 3 s"):
         om.load_trace(path, max_gap_s=1.0)
     assert om.load_trace(path, max_gap_s=3.0).info.gaps
@@ -226,7 +218,7 @@ def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
 def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
     motion = om.IrregularBreathing(seed=2)
     t = np.arange(0.0, 40.0, 1 / 25)
-    path = _write_trace(tmp_path / "irr.csv", t,
+    path = write_trace(tmp_path / "irr.csv", t,
                         {"X [m]": motion.evaluate(t)[0][:, 3] - X_HOME[3]})
     starts, scale = om.reference_cycles(om.load_trace(path), 40.0)
     true = motion.cycles(40.0)[0]
@@ -260,7 +252,7 @@ def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):
     with pytest.raises(Exception, match="no trace at"):
         Scenario(reference=TraceReference(path=str(tmp_path / "none.csv")))
     t = np.arange(0.0, 3.0, 0.05)
-    path = _write_trace(tmp_path / "z.csv", t, {"AP [mm]": np.sin(2 * np.pi * t)})
+    path = write_trace(tmp_path / "z.csv", t, {"AP [mm]": np.sin(2 * np.pi * t)})
     s = Scenario(reference=TraceReference(path=str(path), scale=0.5))
     ref = s.make_reference()
     assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(0.5 * np.ptp(
