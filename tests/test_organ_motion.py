@@ -13,6 +13,7 @@ from stewart_drake.simulation import organ_motion as om
 from stewart_drake.simulation.scenario import (IlcDriver, OrganMotionReference, Scenario,
                                                TraceReference, dump_scenario, load_scenario)
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
+from stewart_drake.studies.fidelity import scale_to_fit
 
 MOTIONS = [om.Breathing(), om.Breathing(shape_n=1, tilt_rad=0.02, phase_rad=0.3),
            om.Heartbeat(), om.make_motion("breathing_heartbeat"), om.IrregularBreathing(),
@@ -238,14 +239,14 @@ def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes(
     fast = om.Heartbeat(amplitude_m=0.02, rate_bpm=360, harmonics=(1.0,), direction="Z")
     with pytest.raises(MotorLimitError, match=r"motor \d would need .* at t = "):
         check_reference(scenario, fast)
-    scaled, scale = om.scale_to_fit(scenario, fast, tol=0.01)
+    scaled, scale = scale_to_fit(scenario, fast, tol=0.01)
     assert 0.05 < scale < 1.0
     assert check_reference(scenario, scaled, raise_refused=False).ok
     assert not check_reference(scenario, om.ScaledReference(fast, min(1.0, scale + 0.03)),
                                raise_refused=False).ok
     x = scaled.evaluate(np.linspace(0, 1, 10001))[0]
     assert np.ptp(x[:, 5]) == pytest.approx(scale * 0.02, rel=1e-3)
-    assert om.scale_to_fit(scenario, om.Breathing())[1] == 1.0
+    assert scale_to_fit(scenario, om.Breathing())[1] == 1.0
 
 
 def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):

@@ -30,8 +30,9 @@ maps the trace's axes onto the platform's, resamples it to a C2 spline (Drake's
 ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), optionally low-passes it without
 phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose. The project's own CSV
 (``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
-(:func:`~.trajectories.load_csv_trajectory`). :func:`scale_to_fit` shrinks a motion about its
-centre until the one reference validator (:func:`~.guard.check_reference`) accepts it.
+(:func:`~.trajectories.load_csv_trajectory`). :class:`ScaledReference` shrinks a motion about
+its centre (:func:`~stewart_drake.studies.fidelity.scale_to_fit` finds the scale the one reference
+validator accepts).
 """
 
 from __future__ import annotations
@@ -755,8 +756,8 @@ class TraceInfo:
 
 class TraceTrajectory(DrakeTrajectory):
     """A recorded trace as a reference: a :class:`~.trajectories.DrakeTrajectory` (C2 cubic
-    spline) with the trace's import record (``info``, :class:`TraceInfo`), its ``centre`` pose
-    and the displacement of each sample about it, which :func:`scale_to_fit` scales."""
+    spline) with the trace's import record (``info``, :class:`TraceInfo`) and its ``centre``
+    pose, the fixed point of :class:`ScaledReference`."""
 
     def __init__(self, trajectory, info: TraceInfo, centre, name: str):
         super().__init__(trajectory, name=name)
@@ -993,44 +994,9 @@ class ScaledReference:
         return reference_cycles(self.reference, t_end)
 
 
-def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float]:
-    """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
-    (:class:`ScaledReference`), passes every check of :func:`~.guard.check_reference` on the
-    scenario's robot (reach, joint limits, singularity, clearance, motor torque and speed), by
-    bisection to within ``tol``.
-
-    Returns:
-        (reference, scale): the reference itself and 1.0 when it passes as it is.
-    Raises:
-        InvalidConfigError: not even a scale of ``tol`` passes (the centre itself is refused:
-            move it).
-    """
-    from .guard import check_reference
-
-    def fits(s: float) -> bool:
-        candidate = reference if s == 1.0 else ScaledReference(reference, s)
-        try:
-            report = check_reference(scenario, candidate, raise_refused=False)
-        except Exception:           # noqa: BLE001 - unreachable poses raise even when reporting
-            return False
-        return report.ok
-
-    if fits(1.0):
-        return reference, 1.0
-    lo, hi = 0.0, 1.0
-    while hi - lo > tol:
-        mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
-    if lo < tol:
-        raise InvalidConfigError(f"{getattr(reference, 'name', 'the reference')} cannot be "
-                                 f"scaled to fit: even at {tol:g} of its size a check refuses "
-                                 f"it; move its centre")
-    return ScaledReference(reference, lo), lo
-
-
 #: Re-exported for :mod:`~.scenario`'s validation of the trace options.
 CENTRE_MODES = ("mean", "first", "none")
 __all__ = ["Breathing", "Heartbeat", "MotionSum", "IrregularBreathing", "HysteresisBreathing",
            "LIBRARY", "make_motion", "parameter_names", "load_trace", "TraceTrajectory",
-           "TraceInfo", "reference_cycles", "scale_to_fit", "ScaledReference", "axis_index",
+           "TraceInfo", "reference_cycles", "ScaledReference", "axis_index",
            "common_period", "PATIENT_AXES", "CENTRE_MODES"]

@@ -279,6 +279,46 @@ class Reproduction:
     notes: list = field(default_factory=list)
 
 
+def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float]:
+    """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
+    (:class:`~stewart_drake.simulation.organ_motion.ScaledReference`), passes every check of
+    :func:`~stewart_drake.simulation.guard.check_reference` on the
+    scenario's robot (reach, joint limits, singularity, clearance, motor torque and speed), by
+    bisection to within ``tol``.
+
+    Returns:
+        (reference, scale): the reference itself and 1.0 when it passes as it is.
+    Raises:
+        InvalidConfigError: not even a scale of ``tol`` passes (the centre itself is refused:
+            move it).
+    """
+    from ..simulation.guard import check_reference
+    from ..simulation.organ_motion import ScaledReference
+
+    def fits(s: float) -> bool:
+        candidate = reference if s == 1.0 else ScaledReference(reference, s)
+        try:
+            report = check_reference(scenario, candidate, raise_refused=False)
+        except Exception:           # noqa: BLE001 - unreachable poses raise even when reporting
+            return False
+        return report.ok
+
+    if fits(1.0):
+        return reference, 1.0
+    lo, hi = 0.0, 1.0
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    if lo < tol:
+        raise InvalidConfigError(f"{getattr(reference, 'name', 'the reference')} cannot be "
+                                 f"scaled to fit: even at {tol:g} of its size a check refuses "
+                                 f"it; move its centre")
+    return ScaledReference(reference, lo), lo
+
+
+_fit = scale_to_fit          # reproduce's argument of that name is a flag
+
+
 def run(scenario, reference, progress: bool = False, desc: str = "simulating"):
     """Simulate ``scenario`` on ``reference`` (checked first, guarded):
     (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or None, wall s).
@@ -322,7 +362,7 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     singularity, clearance and each motor's torque and speed over the whole run
     (:func:`~stewart_drake.simulation.guard.check_reference`); a reference it refuses raises
     that refusal (which names what is over and when), or, with ``scale_to_fit``, is shrunk
-    about its centre until it passes (:func:`~stewart_drake.simulation.organ_motion.scale_to_fit`).
+    about its centre until it passes (:func:`scale_to_fit`).
     With ``learn_cycles`` the scenario learns (its ``learning`` or the default
     :class:`~stewart_drake.simulation.scenario.IlcDriver`) from that many cycles, then holds
     the correction through the evaluated cycles.
@@ -343,7 +383,7 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
         SimulationDivergedError: the guard stopped the run.
     """
     from ..simulation import guard
-    from ..simulation.organ_motion import reference_cycles, scale_to_fit as fit
+    from ..simulation.organ_motion import reference_cycles
     from ..simulation.scenario import IlcDriver
     from ..simulation.trajectories import as_trajectory
 
@@ -381,7 +421,7 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     scenario.validate()
     scale = 1.0
     if scale_to_fit:
-        reference, scale = fit(scenario, reference)
+        reference, scale = _fit(scenario, reference)
     report = guard.check_reference(scenario, reference)
     result, learner, wall = run(scenario, reference, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
