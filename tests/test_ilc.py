@@ -44,7 +44,8 @@ def test_repeatability_weights_what_repeats():
     assert np.all(w < 0.2)
     assert np.all(ilc.repeatability(r, -r) == 0)           # opposite: nothing learned
     snr1 = ilc.repeatability(r + noise() * np.sqrt(0.5), r + noise() * np.sqrt(0.5))
-    assert np.allclose(snr1, 0.5, atol=0.1)                # |r|^2 / (|r|^2 + |n|^2)
+    f = ilc.REPEATABILITY_FLOOR                            # |r|^2 / (|r|^2 + |n|^2) = 0.5,
+    assert np.allclose(snr1, (0.5 - f) / (1 - f), atol=0.1)   # above the floor
 
 
 def test_learning_converges_on_a_lagging_loop():

@@ -111,12 +111,16 @@ def test_hysteresis_inhale_and_exhale_paths_differ():
 
 def test_make_motion_takes_units_and_names_what_is_wrong():
     m = om.make_motion("breathing", {"amplitude": "20mm", "period": "5 s", "direction": "-Z",
-                                     "tilt": "2deg", "shape_n": "2"})
+                                     "tilt": "2deg", "shape": "2"})
     assert (m.amplitude_m, m.period_s, m.shape_n) == (pytest.approx(0.02), 5.0, 2)
     assert m.direction == (0.0, 0.0, -1.0) and m.tilt_rad == pytest.approx(math.radians(2))
     assert om.make_motion("breathing", {"amplitude_m": 0.01}).amplitude_m == 0.01
     bh = om.make_motion("breathing_heartbeat", {"heart_rate": "1.5Hz", "heart_amplitude": "3mm"})
     assert bh.parts[1].rate_bpm == pytest.approx(90) and bh.parts[1].amplitude_m == 0.003
+    bh = om.make_motion("breathing_heartbeat", {"heart_harmonics": "1,0.3", "shape": "1"})
+    assert bh.parts[1].harmonics == (1.0, 0.3) and bh.parts[0].shape_n == 1
+    with pytest.raises(InvalidConfigError, match="is not a number list"):
+        om.make_motion("breathing_heartbeat", {"heart_harmonics": "1,a"})
     with pytest.raises(InvalidConfigError, match="has no parameter 'depth'.*amplitude"):
         om.make_motion("breathing", {"depth": "1mm"})
     with pytest.raises(InvalidConfigError, match="unknown unit 'furlong'"):

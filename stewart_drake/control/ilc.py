@@ -138,19 +138,28 @@ def learn(learned: np.ndarray, error_phase: np.ndarray, gain: float, ba) -> np.n
     return periodic_filtfilt(ba, learned - gain * error_phase)
 
 
+#: Correlations of two cycles' errors up to this are taken for noise (see :func:`repeatability`).
+REPEATABILITY_FLOOR = 0.3
+
+
 def repeatability(e: np.ndarray, e_previous: np.ndarray) -> np.ndarray:
     """(6,) how much of each axis's error repeats from one cycle to the next, in [0, 1]: the
-    correlation of the two cycles' (filtered) errors over the phase grid, negative clipped to 0.
+    correlation r of the two cycles' (filtered) errors over the phase grid, mapped to
+    (r - f) / (1 - f) clipped to [0, 1] with f = :data:`REPEATABILITY_FLOOR`.
 
     For errors r + n_j with a repeating part r and independent noise n_j of equal power, the
     correlation is |r|^2 / (|r|^2 + |n|^2): the Wiener weight of the repeating part, so a
     learner that scales each axis's update by it learns what repeats and leaves the rest (the
     encoders' quantization and the stick-slip of the motors at rest, which differ from cycle to
-    cycle) instead of accumulating it.
+    cycle) instead of accumulating it. Estimated from two cycles of errors low-passed at 25 Hz,
+    a correlation scatters by about 0.1 around the true one; below the floor an axis learns
+    nothing (on irregular breathing the rotations, all but non-repeating, otherwise gained 4 %
+    with learning; docs/organ_motion.md).
     """
     num = np.sum(e * e_previous, axis=0)
     den = np.sqrt(np.sum(e * e, axis=0) * np.sum(e_previous * e_previous, axis=0))
-    return np.clip(np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0), 0.0, 1.0)
+    r = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    return np.clip((r - REPEATABILITY_FLOOR) / (1 - REPEATABILITY_FLOOR), 0.0, 1.0)
 
 
 class IterativeLearningController(LeafSystem):

@@ -205,11 +205,11 @@ class Breathing(_Motion):
         _set = object.__setattr__
         _set(self, "amplitude_m", as_number(f"{self.name}: amplitude_m", self.amplitude_m, 0.0))
         _set(self, "period_s", as_number(f"{self.name}: period_s", self.period_s, 0.05, 3600.0))
-        if isinstance(self.shape_n, bool) or not isinstance(self.shape_n, (int, np.integer)) \
-                and not float(self.shape_n).is_integer():
-            raise InvalidConfigError(f"{self.name}: shape_n must be a positive integer, got "
+        n = as_number(f"{self.name}: shape_n", self.shape_n, 1, 20)
+        if not n.is_integer():
+            raise InvalidConfigError(f"{self.name}: shape_n must be an integer in [1, 20], got "
                                      f"{self.shape_n!r}")
-        _set(self, "shape_n", int(as_number(f"{self.name}: shape_n", self.shape_n, 1, 20)))
+        _set(self, "shape_n", int(n))
         _set(self, "phase_rad", as_number(f"{self.name}: phase_rad", self.phase_rad))
         _set(self, "direction", _direction(f"{self.name}: direction", self.direction))
         _set(self, "tilt_rad", as_number(f"{self.name}: tilt_rad", self.tilt_rad, -math.pi / 2,
@@ -435,11 +435,11 @@ class IrregularBreathing(_Motion):
         for f in ("amplitude_cv", "period_cv"):
             object.__setattr__(self, f, as_number(f"{self.name}: {f}", getattr(self, f), 0.0,
                                                   0.35))
-        for f, hi in (("seed", 2**32 - 1), ("max_cycles", 10**6)):
-            v = getattr(self, f)
-            if isinstance(v, bool) or not float(v).is_integer() or not 0 <= v <= hi:
-                raise InvalidConfigError(f"{self.name}: {f} must be an integer in [0, {hi}], "
-                                         f"got {v!r}")
+        for f, lo, hi in (("seed", 0, 2**32 - 1), ("max_cycles", 1, 10**6)):
+            v = as_number(f"{self.name}: {f}", getattr(self, f), lo, hi)
+            if not v.is_integer():
+                raise InvalidConfigError(f"{self.name}: {f} must be an integer in [{lo}, {hi}], "
+                                         f"got {getattr(self, f)!r}")
             object.__setattr__(self, f, int(v))
         rng = np.random.default_rng(self.seed)
         g, h = np.clip(rng.standard_normal((2, self.max_cycles)), -2.5, 2.5)
@@ -609,6 +609,7 @@ def _library(motion: str):
 def _parse_value(key: str, field_name: str, value):
     """A parameter value in the unit of ``field_name``'s suffix (SI), from a number or a string
     with a unit ("15mm", "72 bpm", "2deg"); vectors and axis names pass through."""
+    field_name = field_name.removeprefix("heart_")
     suffix = field_name.rsplit("_", 1)[-1] if "_" in field_name else ""
     if not isinstance(value, str):
         return value
@@ -624,16 +625,15 @@ def _parse_value(key: str, field_name: str, value):
             raise InvalidConfigError(f"parameter {key}: unknown unit {m.group(2)!r}; use one of "
                                      f"{', '.join(UNITS[suffix])}")
         return number * (units[unit] if unit else 1.0)
-    if field_name in ("shape_n", "seed", "max_cycles"):
-        return float(text)
-    if field_name in ("harmonics", "harmonic_phases_rad", "centre"):
-        return tuple(float(c) for c in text.split(",") if c.strip())
     if "direction" in field_name or "axis" in field_name:
         return text
     try:
+        if field_name in ("harmonics", "harmonic_phases_rad", "centre"):
+            return tuple(float(c) for c in text.split(",") if c.strip())
         return float(text)
     except ValueError:
-        raise InvalidConfigError(f"parameter {key}: {value!r} is not a number") from None
+        raise InvalidConfigError(f"parameter {key}: {value!r} is not a number"
+                                 + (" list (1,0.5,0.25)" if "," in text else "")) from None
 
 
 def make_motion(motion: str, parameters: dict | None = None):
@@ -660,7 +660,7 @@ def make_motion(motion: str, parameters: dict | None = None):
         key = str(key).strip()
         name = key if key in known else next(
             (n for n in known if "_" in n and n.rsplit("_", 1)[0] == key
-             and n.rsplit("_", 1)[1] in UNITS), None)
+             and n.rsplit("_", 1)[1] in (*UNITS, "n")), None)
         if name is None:
             raise InvalidConfigError(f"{motion} has no parameter {key!r}; its parameters: "
                                      f"{', '.join(known)} (a unit suffix may be left out and "
