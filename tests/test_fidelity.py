@@ -169,3 +169,18 @@ def test_reproduce_learns_on_request(tmp_path, capsys):
 def test_bad_reproduce_arguments_give_one_line(tmp_path, capsys, argv, expected):
     _, err = _run(capsys, argv + ["--out", str(tmp_path)], code=2)
     assert len(err.strip().splitlines()) == 1 and expected in err
+
+
+def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
+    """docs/organ_motion.md's tables are what fidelity_study.tables makes of the figures kept
+    beside them (python tools/organ_motion_tables.py writes both; never edit them by hand)."""
+    from pathlib import Path
+
+    from stewart_drake.studies.fidelity_study import CASES, TABLE_MARKERS, tables
+
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    figures = json.loads((docs / "organ_motion.json").read_text())
+    assert set(figures) == {c.job_id for c in CASES}
+    doc = (docs / "organ_motion.md").read_text()
+    start, end = doc.index(TABLE_MARKERS[0]), doc.index(TABLE_MARKERS[1])
+    assert tables(figures) == doc[start:end + len(TABLE_MARKERS[1])]

@@ -304,9 +304,35 @@ def tables(results: dict) -> str:
     return "\n".join(lines)
 
 
+#: What :func:`tables` reads of each cycle (:func:`compact` keeps only these).
+CYCLE_KEYS = ("window_s", "rms", "p2p", "rms_fraction", "rms_translation_m", "rms_rotation_rad",
+              "nonrepeat_translation_m", "nonrepeat_rotation_rad")
+
+
+def compact(results: dict) -> dict:
+    """The study's results with only what :func:`tables` reads (the figures docs/organ_motion.md
+    is generated from, kept beside it as docs/organ_motion.json)."""
+    out = {}
+    for job, v in results.items():
+        if not isinstance(v, dict):
+            out[job] = v
+            continue
+        out[job] = {"cycles": [{k: c[k] for k in CYCLE_KEYS if k in c} for c in v["cycles"]],
+                    "learner": v["learner"] and [
+                        {k: st[k] for k in ("learned_cycles", "rollbacks", "stopped")}
+                        for st in v["learner"]],
+                    "wall_s": v["wall_s"], "sim_s": v["sim_s"]}
+    return out
+
+
 def write_tables(doc: Path, results: dict) -> Path:
-    """Put :func:`tables` between :data:`TABLE_MARKERS` in ``doc`` (appended when absent)."""
+    """Put :func:`tables` between :data:`TABLE_MARKERS` in ``doc`` (appended when absent) and
+    the figures they come from (:func:`compact`) in ``doc`` with the suffix .json."""
+    import json
+
     doc = Path(doc)
+    figures = json.dumps(compact(results), indent=0, default=float, allow_nan=True)
+    atomic_write(doc.with_suffix(".json"), lambda f: f.write(figures.encode()))
     text = doc.read_text() if doc.exists() else ""
     block = tables(results)
     if TABLE_MARKERS[0] in text and TABLE_MARKERS[1] in text:
