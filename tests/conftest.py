@@ -66,3 +66,14 @@ def feedforward_fault(monkeypatch):
 
         monkeypatch.setattr(LqiController, "inputs", faulty)
     return install
+
+
+def write_trace(path, t, columns: dict, gap=None, time_header: str = "t [s]"):
+    """Write a trace CSV: the time column then ``columns`` ({"SI [mm]": values}), leaving out
+    the rows strictly inside ``gap`` (start, end) s. Returns ``path``."""
+    keep = np.ones(len(t), bool) if gap is None else ~((t > gap[0]) & (t < gap[1]))
+    lines = [",".join([time_header] + list(columns))]
+    lines += [",".join([f"{t[k]:.5f}"] + [f"{v[k]:.6f}" for v in columns.values()])
+              for k in np.flatnonzero(keep)]
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -13,10 +13,10 @@ REPO = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 
 
-def test_the_four_notebooks_exist():
+def test_the_five_notebooks_exist():
     assert [p.name for p in NOTEBOOKS] == [
         "01_kinematics_workspace.ipynb", "02_paper_experiment.ipynb",
-        "03_training_tuner.ipynb", "04_evaluation.ipynb"]
+        "03_training_tuner.ipynb", "04_evaluation.ipynb", "05_organ_motion.ipynb"]
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)

@@ -16,7 +16,7 @@ from pathlib import Path
 #: variant.
 CHOICES = {"LqiDriver", "PdDriver", "UserController", "AnnTunerDriver", "RatioTunerDriver",
            "WeightSchedule", "NamedReference", "CsvReference", "SineReference",
-           "DataCollectionReference"}
+           "DataCollectionReference", "OrganMotionReference", "TraceReference", "IlcDriver"}
 
 
 def functions(root: Path):

@@ -45,6 +45,11 @@ Output ports
                   sampling at every period themselves (one Python callback less per period)
 ========== ====== ===================================================================
 
+When the scenario learns from every cycle (``learning``), the ``x_d`` a controller reads is the
+reference plus the correction of the
+:class:`~stewart_drake.control.ilc.IterativeLearningController` (wired by
+:mod:`~stewart_drake.simulation.learning`); nothing else changes for the controller.
+
 Sampling: a controller samples with a periodic discrete update of period
 ``context.period_s`` and offset ``context.offset_s`` = half a plant step. A discrete plant updated
 at t_n already holds the state of t_n + h; a controller sampled at the same instants would act on

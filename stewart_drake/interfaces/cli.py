@@ -287,6 +287,70 @@ def _cmd_check(args) -> int:
     return 0 if report.ok else 2
 
 
+def _key_values(items, option: str) -> dict:
+    """{key: value} of repeated ``KEY=VALUE`` options (values kept as text)."""
+    from ..errors import InvalidConfigError
+
+    out = {}
+    for item in items or ():
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise InvalidConfigError(f"{option} takes KEY=VALUE, got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def _cmd_reproduce(args) -> int:
+    """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
+    the robot, checked, run (learning on request) and measured: a report with a verdict."""
+    from ..errors import InvalidConfigError
+    from ..fileio import check_replaceable
+    from ..simulation import scenario as sc
+    from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
+
+    tolerance = parse_tolerance(args.tolerance)
+    scenario = sc.load_scenario(args.scenario, args.set or ())
+    source = args.motion
+    params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
+    if source.lower().endswith(".csv"):
+        if params:
+            raise InvalidConfigError("--param sets a library motion's parameters; a trace takes "
+                                     "--map, --lowpass-hz, --centre, --centre-on, --max-gap")
+        centre = ([0.0, 0.0, 0.0, 0.0, 0.0, 0.30] if args.centre is None else
+                  [float(v) for v in args.centre.split(",")])
+        scenario.reference = sc.TraceReference(path=source, axis_map=mapping, centre=centre,
+                                               centre_on=args.centre_on,
+                                               lowpass_hz=args.lowpass_hz or 0.0,
+                                               max_gap_s=args.max_gap)
+        name = Path(source).stem
+    else:
+        if mapping or args.lowpass_hz or args.centre is not None:
+            raise InvalidConfigError("--map, --lowpass-hz and --centre are for a trace file "
+                                     "(.csv); a library motion takes --param")
+        scenario.reference = sc.OrganMotionReference(motion=source, parameters=params)
+        name = source
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    scenario.validate()
+    out = Path(args.out)
+    for suffix in (".md", ".png", ".json"):
+        check_replaceable(out / f"reproduce_{name}{suffix}")
+    rep = reproduce(scenario, learn_cycles=args.learn_cycles, eval_cycles=args.cycles,
+                    scale_to_fit=args.scale_to_fit, duration_s=args.duration,
+                    progress=not args.no_progress)
+    if rep.scale != 1.0:
+        print(f"{name} did not fit the robot: scaled by {rep.scale:.3f} about its centre "
+              f"(every check passes at that size)")
+    fid = rep.fidelity
+    print(f"RMS error over t = {fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
+          f"{fid['rms_translation_m'] * 1e6:.3g} um, rotation {fid['rms_rotation_rad'] * 1e6:.3g} "
+          f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms", flush=True)
+    md, png, js = write_report(rep, out, tolerance)
+    ok, line = verdict(fid, tolerance)
+    print(line)
+    print(f"wrote {md}, {png} and {js}")
+    return 0 if ok else 2
+
+
 def _cmd_scenario(args) -> int:
     """``stewart-drake scenario``: list the shipped scenarios, or print one (with overrides) as
     YAML, to start a file of one's own."""
@@ -532,6 +596,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run_command(sub)
     _add_check_command(sub)
+    _add_reproduce_command(sub)
     _add_scenario_command(sub)
     _add_collect_command(sub)
     _add_train_command(sub)
@@ -602,6 +667,50 @@ def _add_check_command(sub) -> None:
                      help="checked s (default: the scenario's duration_s)")
     chk.add_argument("--out", default="results", help="folder of the margins plot")
     chk.set_defaults(func=_cmd_check)
+
+
+def _add_reproduce_command(sub) -> None:
+    """The ``reproduce`` command's options."""
+    rp = sub.add_parser("reproduce", help="reproduce organ motion (a library motion or a "
+                                          "recorded trace) on the robot and report its fidelity "
+                                          "(exit 2 if beyond --tolerance)")
+    rp.add_argument("motion", help="breathing, heartbeat, breathing_heartbeat, "
+                                   "irregular_breathing, hysteresis, or a trace file (.csv with "
+                                   "a header naming columns and units, or t,phi,theta,psi,X,Y,Z)")
+    rp.add_argument("--param", action="append", metavar="KEY=VALUE",
+                    help="a library motion's parameter with its unit (repeatable): "
+                         "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
+                         "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
+                         "motion's own)")
+    _add_scenario_arguments(rp, "the robot and its controller; e.g. --set learning.gain=0.5 "
+                                "with --learn-cycles")
+    rp.add_argument("--learn-cycles", type=_int_at_least(0), default=0, metavar="N",
+                    help="learn a correction from the first N cycles, then hold it (0: no "
+                         "learning)")
+    rp.add_argument("--cycles", type=_int_at_least(1), default=2, metavar="N",
+                    help="cycles measured after the learned ones (or after one cycle to settle)")
+    rp.add_argument("--tolerance", default="0.1mm,0.1deg",
+                    help="RMS error allowed per axis, a length and an angle")
+    rp.add_argument("--scale-to-fit", action="store_true",
+                    help="shrink a motion the robot cannot follow about its centre until every "
+                         "check passes (instead of refusing it), saying by how much")
+    rp.add_argument("--map", action="append", metavar="COLUMN=AXIS",
+                    help="put a trace's column on a platform axis, with a sign (repeatable): "
+                         "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default")
+    rp.add_argument("--lowpass-hz", type=_positive_float, default=None,
+                    help="zero-phase low-pass of a trace, Hz (default: none)")
+    rp.add_argument("--centre", default=None, metavar="PHI,THETA,PSI,X,Y,Z",
+                    help="the pose a trace is centred on, rad and m (default: home, "
+                         "0,0,0,0,0,0.3)")
+    rp.add_argument("--centre-on", choices=["mean", "first", "none"], default="mean",
+                    help="which pose of a trace goes to --centre")
+    rp.add_argument("--max-gap", type=_positive_float, default=1.0, metavar="S",
+                    help="longest interval without data a trace may have, s")
+    rp.add_argument("--duration", type=_positive_float, default=None,
+                    help="s to run a trace that has no cycles (default: its length)")
+    rp.add_argument("--out", default="results/reproduce", help="report folder")
+    rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
 
 
 def _add_scenario_command(sub) -> None:

@@ -18,6 +18,7 @@ from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, Ra
 
 from ..control.contract import ControllerContext, check_controller, resolve_controller
 from ..control.estimator import FkEstimator, PoseEstimator
+from ..errors import InvalidConfigError
 from .guard import DivergenceGuard
 from .reference import ReferenceSources, add_reference_sources
 from .scenario import Scenario, TunerPorts
@@ -55,6 +56,8 @@ class StewartDiagram:
             :class:`~stewart_drake.control.estimator.FkEstimator` on the encoders, or None.
         guard: the :class:`~.guard.DivergenceGuard` system checking the run.
         T_ff_initial: (6,) the feed-forward at t = 0, N m (the torque pipes start there).
+        learner: the :class:`~stewart_drake.control.ilc.IterativeLearningController` when the
+            scenario learns (``learning``), or None.
     """
 
     diagram: Diagram
@@ -70,6 +73,7 @@ class StewartDiagram:
     estimator: FkEstimator | None = None
     guard: DivergenceGuard | None = None
     T_ff_initial: np.ndarray | None = None
+    learner: System | None = None
 
     @property
     def plant(self):
@@ -152,7 +156,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
-    sources = {"x_d": ref.x_d, "T_ff": ref.T_ff, "x": measured,
+    x_d, learner = _add_learning(builder, station, scenario, trajectory, ref.x_d, context)
+    sources = {"x_d": x_d, "T_ff": ref.T_ff, "x": measured,
                "motor_angle": station.GetOutputPort("motor_angle"),
                "motor_rate": station.GetOutputPort("motor_rate"), "motor_torque_applied": applied}
     for name in inputs - {"omega"}:
@@ -164,6 +169,10 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         T_applied=applied, period_s=context.period_s, offset_s=context.offset_s,
         duration_s=scenario.duration_s))
     loggers.update(_add_loggers(builder, station, system, outputs, scenario.log_period_s))
+    if learner is not None:
+        for name in ("ilc_status", "x_d_correction"):
+            loggers[name] = LogVectorOutput(learner.GetOutputPort(name), builder,
+                                            scenario.log_period_s)
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, scenario)
@@ -175,7 +184,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     return StewartDiagram(diagram=diagram, station=station, controller=system,
                           reference=ref.system, trajectory=trajectory, loggers=loggers,
                           scenario=scenario, features=features, tuner=tuner, noise=noise,
-                          estimator=estimator, guard=guard, T_ff_initial=ref.T_ff_initial)
+                          estimator=estimator, guard=guard, T_ff_initial=ref.T_ff_initial,
+                          learner=learner)
 
 
 def sample_offset_s(scenario: Scenario) -> float:
@@ -261,6 +271,28 @@ def _add_measurement(builder, station: StewartStation, scenario: Scenario,
                                           context.period_s, ("sensor_noise", "noise_std",
                                                              "noisy_x"))
     return measured, estimator, noise
+
+
+def _add_learning(builder, station: StewartStation, scenario: Scenario, trajectory,
+                  x_d: OutputPort, context: ControllerContext):
+    """With ``scenario.learning``, the iterative learning controller between the reference and
+    the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
+    correction, the guard and the tuner keep the reference itself. Returns (the x_d port the
+    controller reads, the learner or None).
+
+    Raises:
+        InvalidConfigError: learning on a live reference (it has no cycles to learn from).
+    """
+    if scenario.learning is None:
+        return x_d, None
+    if trajectory is None:
+        raise InvalidConfigError("learning needs a reference known in advance, with cycles; a "
+                                 "live reference has none: set learning: null")
+    from .learning import add_learning
+
+    learner, corrected = add_learning(builder, scenario, trajectory, x_d,
+                                      station.GetOutputPort("motor_angle"), context.offset_s)
+    return corrected, learner
 
 
 def _add_disturbance(builder, station: StewartStation, scenario: Scenario, live: bool) -> None:

@@ -33,7 +33,7 @@ import importlib.resources
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar, List, Optional, Union
+from typing import ClassVar, Dict, List, Optional, Union
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
@@ -521,13 +521,157 @@ class DataCollectionReference(ReferenceConfig):
         return f"data_seed{self.seed}"
 
 
-ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference]
+@dataclass
+class OrganMotionReference(ReferenceConfig):
+    """A motion of the organ-motion library (:mod:`~.organ_motion`: breathing, heartbeat,
+    breathing_heartbeat, irregular_breathing, hysteresis) with parameters carrying units, e.g.
+    ``{amplitude: 15mm, period: 4s, direction: SI}`` (:func:`~.organ_motion.make_motion`).
+
+    Attributes:
+        motion: the library's name. parameters: name -> value (a number in the field's SI unit,
+            or text with a unit). scale: the motion shrunk about its centre, in (0, 1]
+            (``reproduce --scale-to-fit`` finds it).
+    """
+
+    motion: str = "breathing"
+    parameters: Dict[str, str] = field(default_factory=dict)
+    scale: float = 1.0
+
+    def validate(self, scenario: "Scenario") -> None:
+        as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
+        self.make(scenario)                      # names an unknown motion or parameter
+
+    def make(self, scenario: "Scenario"):
+        from . import organ_motion
+
+        return _scaled(organ_motion.make_motion(self.motion, self.parameters), self.scale)
+
+    @property
+    def label(self) -> str:
+        return self.motion
+
+
+@dataclass
+class TraceReference(ReferenceConfig):
+    """A recorded trace of 1 to 6 axes: a CSV whose header names each column and its unit
+    (:func:`~.organ_motion.load_trace`); the project's own ``t,phi,theta,psi,X,Y,Z`` CSV too.
+
+    Attributes:
+        path: the file (relative to the working folder).
+        axis_map: trace column -> platform axis with an optional sign ({SI: -Z}).
+        centre: (6,) the pose the trace is centred on, rad and m.
+        centre_on: "mean", "first" or "none" (which pose of the trace goes to ``centre``).
+        lowpass_hz: corner of the zero-phase low-pass, Hz (0: none).
+        max_gap_s: longest interval without data an axis may have, s.
+        scale: the trace shrunk about its centre, in (0, 1].
+    """
+
+    path: str = ""
+    axis_map: Dict[str, str] = field(default_factory=dict)
+    centre: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    centre_on: str = "mean"
+    lowpass_hz: float = 0.0
+    max_gap_s: float = 1.0
+    scale: float = 1.0
+
+    def validate(self, scenario: "Scenario") -> None:
+        from .organ_motion import CENTRE_MODES
+
+        as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
+        if not self.path or not Path(self.path).exists():
+            raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")
+        if self.centre_on not in CENTRE_MODES:
+            raise InvalidConfigError(f"reference.centre_on must be one of {CENTRE_MODES}, got "
+                                     f"{self.centre_on!r}")
+        as_number("reference.lowpass_hz", self.lowpass_hz, 0.0)
+        as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
+        as_array("reference.centre", self.centre, shape=(6,))
+
+    def make(self, scenario: "Scenario"):
+        from . import organ_motion
+
+        trace = organ_motion.load_trace(self.path, self.axis_map, self.centre, self.centre_on,
+                                        self.lowpass_hz or None, self.max_gap_s)
+        return _scaled(trace, self.scale)
+
+    @property
+    def label(self) -> str:
+        return Path(self.path).stem
+
+
+def _scaled(motion, scale: float):
+    """``motion`` shrunk about its centre by ``scale`` (itself when 1)."""
+    from . import organ_motion
+
+    return motion if scale == 1.0 else organ_motion.ScaledReference(motion, scale)
+
+
+ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference,
+                        OrganMotionReference, TraceReference]
 ControllerChoice = Union[LqiDriver, PdDriver, UserController]
 
 
 def _choices(union) -> tuple:
     """The classes of a tagged union (``typing.Union[A, B]`` -> (A, B))."""
     return typing.get_args(union)
+
+
+@dataclass
+class IlcDriver:
+    """Learning from every cycle: a correction of the reference learned from the previous
+    cycles' error (:class:`~stewart_drake.control.ilc.IterativeLearningController`), added to
+    the ``x_d`` the controller tracks; needs a reference with cycles (the organ-motion library,
+    a trace that repeats) or ``period_s``.
+
+    Attributes:
+        gain: learning gain gamma, in (0, 2).
+        q_cutoff_hz: corner of the zero-phase Q-filter, Hz.
+        lead_s: phase lead, s (the loop's delay and lag).
+        error: "pose" (forward kinematics of the encoders) or "motor_angle" (the motor-angle
+            error, mapped to the pose by J^-1).
+        sample_period_s: the learner's record period, s (a whole multiple of control_period_s).
+        bound_ratio: no cycle's measured RMS error may exceed this times that of the cycle its
+            correction learned from, plus one encoder count at the crank tip; over it, the
+            correction is rolled back to the best one and the gain halved.
+        max_rollbacks: rollbacks before learning stops and the best correction is held.
+        learn_cycles: learn from the first this many cycles, then hold (0: every cycle).
+        gain_decay_cycles: n: the j-th update uses gain n / (n + j) (0: a constant gain); the
+            correction then averages the cycles' noise out instead of following it.
+        period_s: cycles of this period from t = 0 for a reference that has none of its own
+            (0: the reference's).
+    """
+
+    gain: float = 0.8
+    q_cutoff_hz: float = 25.0
+    lead_s: float = 0.008
+    error: str = "pose"
+    sample_period_s: float = 0.004
+    bound_ratio: float = 1.2
+    max_rollbacks: int = 2
+    learn_cycles: int = 0
+    gain_decay_cycles: float = 4.0
+    period_s: float = 0.0
+
+    def validate(self, control_period_s: float, prefix: str = "learning.") -> None:
+        """Check every field; raises InvalidConfigError naming it."""
+        from ..control.ilc import ERROR_MODES
+
+        as_number(f"{prefix}gain", self.gain, 0.0, 2.0, lo_open=True)
+        if self.gain >= 2.0:
+            raise InvalidConfigError(f"{prefix}gain must be below 2, got {self.gain}")
+        as_number(f"{prefix}q_cutoff_hz", self.q_cutoff_hz, 0.0, lo_open=True)
+        as_number(f"{prefix}lead_s", self.lead_s, 0.0, 1.0)
+        if self.error not in ERROR_MODES:
+            raise InvalidConfigError(f"{prefix}error must be one of {ERROR_MODES}, got "
+                                     f"{self.error!r}")
+        as_number(f"{prefix}sample_period_s", self.sample_period_s, 0.0, 1.0, lo_open=True)
+        check_multiple(f"{prefix}sample_period_s", self.sample_period_s, "control_period_s",
+                       control_period_s)
+        as_number(f"{prefix}bound_ratio", self.bound_ratio, 1.0, 100.0)
+        _check_int(f"{prefix}max_rollbacks", self.max_rollbacks, 0, 1000)
+        _check_int(f"{prefix}learn_cycles", self.learn_cycles, 0, 10**6)
+        as_number(f"{prefix}gain_decay_cycles", self.gain_decay_cycles, 0.0, 1e6)
+        as_number(f"{prefix}period_s", self.period_s, 0.0, 3600.0)
 
 
 # -- hardware ------------------------------------------------------------------------------------
@@ -790,7 +934,8 @@ class Scenario:
         simulator: Drake's ``SimulatorConfig`` (``target_realtime_rate`` etc.).
         visualization: Drake's ``VisualizationConfig``, applied when a Meshcat is given.
         reference: the path x_d(t) (a tagged choice: :class:`NamedReference`,
-            :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`).
+            :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`,
+            :class:`OrganMotionReference`, :class:`TraceReference`).
         feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
         controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
         tuner: None (fixed weights), :class:`AnnTunerDriver` (the paper's network),
@@ -815,6 +960,8 @@ class Scenario:
             forces and the guard reports the first one with the parts' names. False (default,
             cheaper per step): parts would pass through each other, and the guard stops a run
             the moment two of them overlap.
+        learning: None, or learning from every cycle (:class:`IlcDriver`): a correction of
+            the reference the controller tracks, learned from the encoders.
     Raises:
         InvalidConfigError: (``validate``, run by every builder and at construction) a field
             out of range, a period that is not a whole multiple of the one it runs on, a wrong
@@ -841,7 +988,7 @@ class Scenario:
     hardware: Optional[Hardware] = None
     disturbance: Optional[ToolDisturbance] = None
     contact: bool = False
-
+    learning: Optional[IlcDriver] = None
 
     def __post_init__(self):
         self.validate()
@@ -957,6 +1104,8 @@ class Scenario:
                        self.plant.time_step)
         if self.disturbance is not None:
             self.disturbance.validate()
+        if self.learning is not None:
+            self.learning.validate(self.control_period_s)
         return self
 
     #: The fields that hold a choice or a section, and the classes each may hold.
@@ -967,7 +1116,8 @@ class Scenario:
                     "tuner": (type(None),) + _choices(TunerChoice),
                     "sensor_noise": (type(None), SensorNoise),
                     "hardware": (type(None), Hardware),
-                    "disturbance": (type(None), ToolDisturbance)}
+                    "disturbance": (type(None), ToolDisturbance),
+                    "learning": (type(None), IlcDriver)}
 
     def _validate_types(self) -> None:
         """Each section and choice is of a class its field takes (a dict, say, is not)."""

@@ -322,6 +322,24 @@ def _read_csv_bytes(path: Path) -> bytes:
                         "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)")
 
 
+def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:
+    """The rows of CSV bytes (UTF-8, with or without a byte-order mark).
+
+    Raises:
+        CorruptFileError: not UTF-8 text, or not CSV (a NUL byte, a field beyond the csv
+            module's limit); names ``path`` as a ``kind`` and says ``remedy``.
+    """
+    from ..errors import CorruptFileError
+
+    try:
+        return list(csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")))
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(path, kind, f"not UTF-8 text ({err.reason} at byte "
+                                           f"{err.start})", remedy) from None
+    except csv.Error as err:
+        raise CorruptFileError(path, kind, f"not CSV ({err})", remedy) from None
+
+
 def csv_reference_bytes(path) -> float:
     """Memory a run holds for the reference CSV ``path``, bytes (its lines times
     :data:`CSV_BYTES_PER_ROW`), counted before anything is parsed.
@@ -369,20 +387,13 @@ def _csv_samples(path: Path) -> np.ndarray:
         MissingFileError, CorruptFileError, InvalidConfigError: as load_csv_trajectory.
     """
     from ..checks import check_memory
-    from ..errors import CorruptFileError
 
     raw = _read_csv_bytes(path)
     remedy = "write it as UTF-8 text with the header t,phi,theta,psi,X,Y,Z (s, rad, m)"
     rows_in_file = raw.count(b"\n") + 1
     check_memory(f"a reference of {rows_in_file} rows ({path})", rows_in_file * CSV_BYTES_PER_ROW,
                  "sample the reference more coarsely (one row per control period is plenty)")
-    try:
-        rows = list(csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")))
-    except UnicodeDecodeError as err:
-        raise CorruptFileError(path, "reference CSV", f"not UTF-8 text ({err.reason} at byte "
-                                                      f"{err.start})", remedy) from None
-    except csv.Error as err:
-        raise CorruptFileError(path, "reference CSV", f"not CSV ({err})", remedy) from None
+    rows = csv_rows(raw, path, "reference CSV", remedy)
     del raw
     header = [h.strip() for h in rows[0]] if rows else []
     if tuple(header) != CSV_COLUMNS:

@@ -1,0 +1,403 @@
+"""Iterative learning control: a correction of the reference learned from every cycle's error.
+
+Organ motion repeats. What the feedback leaves of one cycle's error (the lag of the loop, the
+motors' friction at every reversal, an unknown payload) comes back in the next at the same
+phase, so a correction learned from the previous cycles can be added before the error happens.
+:class:`IterativeLearningController` does this in front of any controller of the contract
+(:mod:`~.contract`): it reads the reference ``x_d`` and the encoders ``motor_angle`` and
+outputs a correction of the reference (pose, rate, acceleration), which the Diagram adds to the
+``x_d`` the controller tracks (the reference is the feed-forward path of the loop; the
+controller's own gains then turn the correction into torque). Learning the reference rather than
+the torque uses the closed loop as the learning filter: below the loop's bandwidth its
+complementary sensitivity is about one with a lag, so a gain near one and a phase lead
+(``lead_s``) learn without a model of the plant (Bristow, Tharayil and Alleyne, IEEE Control
+Systems Magazine 26(3), 2006, "series" ILC; Longman, Int. J. Control 73, 2000, for the phase lead
+and the zero-phase Q-filter).
+
+The update at the end of cycle j (the plain-numpy :func:`cycle_error`, :func:`repeatability`
+and :func:`learn`):
+
+    e_j(phi)   = Q[the pose error measured over the cycle (from the encoders)], at phase phi in
+                 [0, 1) and led by lead / T_j, divided by the cycle's amplitude scale s_j
+    w_j        = repeatability(e_j, e_{j-1})                   (per axis, in [0, 1])
+    gamma_j    = gamma n / (n + j)                             (n = gain_decay_cycles)
+    L_{j+1}    = Q[L_j - gamma_j w_j e_j]                      (Q: zero-phase low-pass)
+    c(t)       = s_k L(phi(t)), with its rate and acceleration, during cycle k
+
+Only what repeats can be learned. On the robot as built a third of the error does not: the
+encoders' quantization keeps the feedback hunting by a count (30-100 Hz) and the motors stick at
+slightly different places at each rest, and a plain update adds that noise to the correction
+(its variance grows by gamma / (2 - gamma)). Two things keep it out: the weight w_j, the
+correlation of two successive cycles' errors on each axis (the Wiener weight of the repeating
+part), and a gain that decays with the cycles learned (the correction then averages the cycles'
+noise instead of following it; stochastic ILC, Saab, IEEE TAC 46(6), 2001).
+
+Cycles are aligned by phase (irregular breathing: a cycle of 4.4 s and one of 3.6 s share
+the same phase grid), and the correction follows each cycle's amplitude. The measured error is
+the forward kinematics of the encoder angles minus the reference ("pose"), or the motor-angle
+error filtered per motor and mapped to the pose by J^-1 ("motor_angle"); the true pose is never
+known to the learner.
+
+Monitored bound: the learner never lets the error of a cycle exceed ``bound_ratio`` times the
+error of the cycle its correction was learned from, plus one encoder count at the crank tip
+(``floor_m``, ``floor_rad``): both measured RMS errors (translation and rotation) of every cycle
+run with a learned correction are compared with that bound; a cycle over it rolls the
+correction back to the one of the best cycle so far and halves the learning gain, and after
+``max_rollbacks`` rollbacks learning stops and the best correction is held.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from pydrake.common.containers import namedview
+from pydrake.systems.framework import LeafSystem
+
+from ..checks import as_array, as_number
+from ..errors import InvalidConfigError
+from ..model import kinematics
+
+#: What the ``ilc_status`` output holds, in order.
+ILC_STATUS_NAMES = ("cycle", "learned_cycles", "gain", "rollbacks", "stopped", "E_trans_m",
+                    "E_rot_rad", "E_ref_trans_m", "E_ref_rot_rad", "best_score",
+                    "best_trans_m", "best_rot_rad", "E0_trans_m", "E0_rot_rad", "count", "rows")
+IlcStatus = namedview("IlcStatus", ILC_STATUS_NAMES)
+_CYCLE, _COUNT, _ROWS = (ILC_STATUS_NAMES.index(n) for n in ("cycle", "count", "rows"))
+#: Where the learned error comes from (see the module docstring).
+ERROR_MODES = ("pose", "motor_angle")
+
+
+def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
+    """The error a cycle's records measure, (r, 6).
+
+    Args:
+        geometry: the robot the learner believes in.
+        theta: (r, 6) encoder angles, rad. x_d: (r, 6) the reference poses at the same times.
+        mode: "pose": forward kinematics of ``theta`` (Newton from ``x_d``) minus ``x_d``
+            [rad, m]; "motor_angle": ``theta`` minus the motor angles of ``x_d``, rad.
+    Returns:
+        (r, 6) errors; rows whose kinematics fail are zero (nothing learned there).
+    """
+    if mode == "motor_angle":
+        e = kinematics.ik_unchecked(geometry, x_d)[0]
+        e = np.angle(np.exp(1j * (theta - e)))
+    else:
+        x, converged, _, _ = kinematics.fk_unchecked(geometry, theta, x0=x_d, tol=1e-13,
+                                                     max_iter=20)
+        e = np.where(converged[:, None], x - x_d, 0.0)
+    return np.nan_to_num(e, nan=0.0, posinf=0.0, neginf=0.0)
+
+
+def rms_pose_error(e: np.ndarray) -> tuple[float, float]:
+    """(translational, rotational) RMS of pose errors (r, 6): sqrt(mean |e_xyz|^2) in m and
+    sqrt(mean |e_rpy|^2) in rad."""
+    e = np.asarray(e, dtype=float)
+    return (float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
+            float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))))
+
+
+def q_filter(cutoff_hz: float, sample_period_s: float):
+    """(b, a) of the 2nd-order Butterworth low-pass at ``cutoff_hz`` on samples
+    ``sample_period_s`` apart (run forwards and backwards by :func:`learn`: zero phase, the
+    magnitude squared, -6 dB at the cutoff); None when the cutoff is at or above Nyquist."""
+    from scipy.signal import butter
+
+    wn = 2.0 * cutoff_hz * sample_period_s
+    return None if wn >= 1.0 else butter(2, wn)
+
+
+def periodic_filtfilt(ba, y: np.ndarray) -> np.ndarray:
+    """Zero-phase filtering of a periodic signal (M, c): the signal is tiled three times,
+    filtered forwards and backwards (``scipy.signal.filtfilt``) and the middle period kept, so
+    the ends wrap instead of being padded."""
+    from scipy.signal import filtfilt
+
+    if ba is None:
+        return y
+    M = len(y)
+    return filtfilt(*ba, np.concatenate([y, y, y]), axis=0, padtype=None)[M:2 * M]
+
+
+def resample_to_phase(phase: np.ndarray, values: np.ndarray, M: int,
+                      shift: float = 0.0) -> np.ndarray:
+    """(M, c) values at the phases m / M + shift (mod 1), linearly interpolated between the
+    samples at ``phase`` (r,) in [0, 1) (treated as periodic)."""
+    grid = (np.arange(M) / M + shift) % 1.0
+    return np.stack([np.interp(grid, phase, values[:, c], period=1.0)
+                     for c in range(values.shape[1])], axis=1)
+
+
+def learn(learned: np.ndarray, error_phase: np.ndarray, gain: float, ba) -> np.ndarray:
+    """One learning step: Q[L - gain e] (the module docstring), (M, 6).
+
+    Args:
+        learned: (M, 6) the correction over the phase grid. error_phase: (M, 6) the cycle's
+            error on the same grid, already led and scaled. gain: gamma. ba: the Q-filter
+            (:func:`q_filter`).
+    """
+    return periodic_filtfilt(ba, learned - gain * error_phase)
+
+
+#: Correlations of two cycles' errors up to this are taken for noise (see :func:`repeatability`).
+REPEATABILITY_FLOOR = 0.3
+
+
+def repeatability(e: np.ndarray, e_previous: np.ndarray) -> np.ndarray:
+    """(6,) how much of each axis's error repeats from one cycle to the next, in [0, 1]: the
+    correlation r of the two cycles' (filtered) errors over the phase grid, mapped to
+    (r - f) / (1 - f) clipped to [0, 1] with f = :data:`REPEATABILITY_FLOOR`.
+
+    For errors r + n_j with a repeating part r and independent noise n_j of equal power, the
+    correlation is |r|^2 / (|r|^2 + |n|^2): the Wiener weight of the repeating part, so a
+    learner that scales each axis's update by it learns what repeats and leaves the rest (the
+    encoders' quantization and the stick-slip of the motors at rest, which differ from cycle to
+    cycle) instead of accumulating it. Estimated from two cycles of errors low-passed at 25 Hz,
+    a correlation scatters by about 0.1 around the true one; below the floor an axis learns
+    nothing (on irregular breathing the rotations, all but non-repeating, otherwise gained 4 %
+    with learning; docs/organ_motion.md).
+    """
+    num = np.sum(e * e_previous, axis=0)
+    den = np.sqrt(np.sum(e * e, axis=0) * np.sum(e_previous * e_previous, axis=0))
+    r = np.where(den > 0, num / np.where(den > 0, den, 1.0), 0.0)
+    return np.clip((r - REPEATABILITY_FLOOR) / (1 - REPEATABILITY_FLOOR), 0.0, 1.0)
+
+
+class IterativeLearningController(LeafSystem):
+    """A correction of the reference learned from every cycle (module docstring).
+
+    Input ports:
+        ``x_d`` (18,): the reference the controller would track, [pose, rate, acceleration]
+            (rad, m, /s, /s^2), as the reference source gives it to the controller.
+        ``motor_angle`` (6,): the encoder angles, rad.
+    Output ports:
+        ``x_d_correction`` (18,): the correction of the pose, its rate and acceleration, to add
+            to ``x_d`` (rad, m, /s, /s^2); computed one control period ahead (a state output:
+            no feedthrough).
+        ``ilc_status`` (16,): :data:`ILC_STATUS_NAMES`: the current cycle, cycles learned from,
+            the gain in use, rollbacks, stopped (0/1), the last cycle's measured RMS errors
+            (m, rad), those of the cycle the correction learned from, the best cycle's score
+            and errors, the first cycle's errors, and the record counters.
+    Discrete state: the correction (18), the status (16) and one group holding the records of
+    the current cycle (rows of mean encoder angles and reference poses, 12 each, every
+    ``sample_period_s``), their running sum (12), the learned correction, the best one and the
+    last cycle's filtered error (M x 6 each, over the phase grid). Everything changes in one
+    periodic update at the control period; the learning itself runs once per cycle, at its last
+    sample. Drake copies a system's whole discrete state at each of its updates: with the
+    per-step arithmetic that makes 79 us per control period for a 5 s cycle and 196 us for a
+    20 s one (benchmarks/learning.py; 18 % and 47 % of a run without learning).
+
+    Args:
+        geometry: the robot the learner believes in (for the kinematics of the error).
+        period_s: the control period h, s. offset_s: the controller's sample offset, s.
+        cycle_starts: (K + 1,) start of each cycle, s, increasing (the last ends the last
+            cycle); nothing is recorded or corrected outside them.
+        cycle_scale: (K,) amplitude of each cycle over the mean (default ones).
+        gain: learning gain gamma, in (0, 2).
+        q_cutoff_hz: corner of the zero-phase Q-filter, Hz (at or above the Nyquist of the
+            records: none).
+        lead_s: phase lead, s: the error learned at phase phi is the one measured lead_s
+            later (the loop's delay and lag).
+        error: "pose" or "motor_angle" (:data:`ERROR_MODES`).
+        sample_period_s: record period, a whole multiple of period_s.
+        bound_ratio: the monitored bound's factor (>= 1). floor_m, floor_rad: its additive
+            floor on the translational and rotational RMS errors.
+        max_rollbacks: rollbacks before learning stops.
+        learn_cycles: learn from the first this many cycles only, then hold the correction
+            (0: from every cycle).
+        gain_decay_cycles: n of the decaying gain gamma n / (n + j) (0: constant).
+    Raises:
+        InvalidConfigError: a value out of range, cycles that are not increasing or shorter
+            than four records, a record period that is not a whole multiple of period_s.
+    """
+
+    def __init__(self, geometry, period_s: float, offset_s: float, cycle_starts,
+                 cycle_scale=None, gain: float = 0.8, q_cutoff_hz: float = 25.0,
+                 lead_s: float = 0.008, error: str = "pose", sample_period_s: float = 0.004,
+                 bound_ratio: float = 1.2, floor_m: float = 5e-6, floor_rad: float = 5e-5,
+                 max_rollbacks: int = 2, learn_cycles: int = 0, gain_decay_cycles: float = 4.0):
+        super().__init__()
+        self.geometry = geometry
+        self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
+        self.offset = as_number("offset_s", offset_s, 0.0, self.h)
+        starts = as_array("cycle_starts", cycle_starts).reshape(-1)
+        if starts.size < 2 or np.any(np.diff(starts) <= 0) or starts[0] < 0:
+            raise InvalidConfigError("cycle_starts must be at least two increasing times >= 0 s")
+        scale = np.ones(starts.size - 1) if cycle_scale is None else as_array(
+            "cycle_scale", cycle_scale, shape=(starts.size - 1,))
+        if np.any(scale <= 0):
+            raise InvalidConfigError("cycle_scale must be > 0")
+        ratio = sample_period_s / self.h
+        if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+            raise InvalidConfigError(f"sample_period_s ({sample_period_s}) must be a whole "
+                                     f"multiple of the control period ({self.h})")
+        self.R = int(round(ratio))
+        self.step_starts = np.round(starts / self.h).astype(np.int64)
+        self.steps = self.step_starts.tolist()            # Python ints for the per-step path
+        lengths = np.diff(self.step_starts)
+        if lengths.min() < 4 * self.R:
+            raise InvalidConfigError(f"a cycle of {lengths.min() * self.h:g} s is shorter than "
+                                     f"four records of {sample_period_s:g} s")
+        self.scale = scale
+        self.scale_list = scale.tolist()
+        self.gain0 = as_number("gain", gain, 0.0, 2.0, lo_open=True)
+        if self.gain0 >= 2.0:
+            raise InvalidConfigError(f"gain must be below 2, got {gain}")
+        self.lead = as_number("lead_s", lead_s, 0.0, 1.0)
+        if error not in ERROR_MODES:
+            raise InvalidConfigError(f"error must be one of {ERROR_MODES}, got {error!r}")
+        self.error = error
+        self.bound_ratio = as_number("bound_ratio", bound_ratio, 1.0, 100.0)
+        self.floor = (as_number("floor_m", floor_m, 0.0), as_number("floor_rad", floor_rad, 0.0))
+        if isinstance(max_rollbacks, bool) or not float(max_rollbacks).is_integer() \
+                or max_rollbacks < 0:
+            raise InvalidConfigError(f"max_rollbacks must be an integer >= 0, got "
+                                     f"{max_rollbacks!r}")
+        self.max_rollbacks = int(max_rollbacks)
+        if isinstance(learn_cycles, bool) or not float(learn_cycles).is_integer() \
+                or learn_cycles < 0:
+            raise InvalidConfigError(f"learn_cycles must be an integer >= 0, got "
+                                     f"{learn_cycles!r}")
+        self.learn_cycles = int(learn_cycles)
+        self.decay = as_number("gain_decay_cycles", gain_decay_cycles, 0.0)
+        self.M = max(8, int(round(float(np.median(lengths)) / self.R)))
+        self.ba = q_filter(as_number("q_cutoff_hz", q_cutoff_hz, 0.0, lo_open=True),
+                           sample_period_s)
+        rows = int(math.ceil(lengths.max() / self.R))
+        parts = {"buffer": rows * 12, "acc": 12, "learned": self.M * 6, "best": self.M * 6,
+                 "previous": self.M * 6}
+        self._mem, start = {}, 0
+        for name, size in parts.items():
+            self._mem[name] = slice(start, start + size)
+            start += size
+        self.rows_max = rows
+
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._motor_angle = self.DeclareVectorInputPort("motor_angle", 6)
+        self._c_index = self.DeclareDiscreteState(18)
+        status = np.zeros(len(ILC_STATUS_NAMES))
+        status[ILC_STATUS_NAMES.index("gain")] = self.gain0
+        status[ILC_STATUS_NAMES.index("best_score")] = np.inf
+        self._s_index = self.DeclareDiscreteState(status)
+        self._m_index = self.DeclareDiscreteState(start)
+        self.DeclareStateOutputPort("x_d_correction", self._c_index)
+        self.DeclareStateOutputPort("ilc_status", self._s_index)
+        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=self.offset,
+                                                update=self._Update)
+
+    # -- per step ------------------------------------------------------------------------------
+    def _Update(self, context, discrete_state):
+        n = int(round((context.get_time() - self.offset) / self.h))
+        status = discrete_state.get_mutable_value(self._s_index)
+        j = int(status[_CYCLE])
+        S = self.steps
+        if n < S[0] or j >= len(S) - 1:
+            return
+        memory = discrete_state.get_mutable_value(self._m_index)
+        self._Record(context, memory, status, n - S[j], S[j + 1] - S[j])
+        if n + 1 == S[j + 1]:
+            self._EndCycle(memory, IlcStatus(status), j, S[j + 1] - S[j])
+            j += 1
+            status[_CYCLE] = j
+        self._Correct(memory, n + 1, j, discrete_state.get_mutable_value(self._c_index))
+
+    def _Record(self, context, memory, status, k: int, length: int) -> None:
+        """Add this sample to the running sum; every R samples (and at the cycle's end) store
+        their mean as one record row."""
+        acc = memory[self._mem["acc"]]
+        acc[:6] += self._motor_angle.Eval(context)
+        acc[6:] += self._x_d.Eval(context)[:6]
+        status[_COUNT] += 1
+        if (k + 1) % self.R == 0 or k + 1 == length:
+            row = k // self.R
+            start = self._mem["buffer"].start + 12 * row
+            memory[start:start + 12] = acc / status[_COUNT]
+            acc[:] = 0.0
+            status[_COUNT] = 0
+            status[_ROWS] = row + 1
+
+    def _Correct(self, memory, n: int, k: int, correction) -> None:
+        """The correction at step n of cycle k: s_k L(phi) with its rate and acceleration; zero
+        outside the cycles. Python floats on the four table rows around phi (a numpy call per
+        (6,) operation would cost more than the arithmetic)."""
+        S = self.steps
+        if k >= len(S) - 1 or not S[k] <= n < S[k + 1]:
+            correction[:] = 0.0
+            return
+        M, start = self.M, self._mem["learned"].start
+        length = S[k + 1] - S[k]
+        T = length * self.h
+        pos = (n - S[k]) / length * M
+        i = int(pos)
+        f = pos - i
+        r0, r1, r2, r3 = (memory[start + 6 * (m % M):start + 6 * (m % M) + 6].tolist()
+                          for m in (i - 1, i, i + 1, i + 2))
+        s, w = self.scale_list[k], M / T
+        out = [s * (b + f * (c - b)) for b, c in zip(r1, r2)]
+        out += [s * (0.5 * (c - a) + f * (0.5 * (d - b) - 0.5 * (c - a))) * M / T
+                for a, b, c, d in zip(r0, r1, r2, r3)]
+        out += [s * ((c - 2 * b + a) + f * ((d - 2 * c + b) - (c - 2 * b + a))) * w ** 2
+                for a, b, c, d in zip(r0, r1, r2, r3)]
+        correction[:] = out
+
+    # -- per cycle -----------------------------------------------------------------------------
+    def _EndCycle(self, memory, status, j: int, length: int) -> None:
+        """Measure the cycle, check the bound (rollback), learn; see the module docstring."""
+        rows = int(status.rows)
+        buffer = memory[self._mem["buffer"]].reshape(self.rows_max, 12)[:rows]
+        learned = memory[self._mem["learned"]].reshape(self.M, 6)
+        best = memory[self._mem["best"]].reshape(self.M, 6)
+        e = cycle_error(self.geometry, buffer[:, :6], buffer[:, 6:], self.error)
+        e_pose = e if self.error == "pose" else _to_pose(self.geometry, buffer[:, 6:], e)
+        E = rms_pose_error(e_pose)
+        status.E_trans_m, status.E_rot_rad = E
+        if j == 0:
+            status.E0_trans_m, status.E0_rot_rad = E
+        E0 = (max(status.E0_trans_m, 1e-12), max(status.E0_rot_rad, 1e-12))
+        score = E[0] / E0[0] + E[1] / E0[1]
+        corrected = status.learned_cycles > 0
+        over = corrected and (
+            E[0] > self.bound_ratio * status.E_ref_trans_m + self.floor[0]
+            or E[1] > self.bound_ratio * status.E_ref_rot_rad + self.floor[1])
+        if over:                          # roll back to the best cycle's correction
+            learned[:] = best
+            status.rollbacks += 1
+            status.gain *= 0.5
+            status.E_ref_trans_m, status.E_ref_rot_rad = status.best_trans_m, status.best_rot_rad
+            if status.rollbacks > self.max_rollbacks:
+                status.stopped = 1.0
+            return
+        if score < status.best_score:
+            best[:] = learned
+            status.best_score = score
+            status.best_trans_m, status.best_rot_rad = E
+        if status.stopped or (self.learn_cycles and status.learned_cycles >= self.learn_cycles):
+            return
+        counts = np.minimum(self.R, length - self.R * np.arange(rows))
+        phase = (self.R * np.arange(rows) + 0.5 * (counts - 1)) / length
+        shift = self.lead / (length * self.h)
+        e_phase = resample_to_phase(phase, e, self.M, shift) / self.scale[j]
+        if self.error == "motor_angle":       # led in motor space, then mapped to the pose
+            e_phase = _to_pose(self.geometry, resample_to_phase(phase, buffer[:, 6:], self.M),
+                               e_phase)
+        previous = memory[self._mem["previous"]].reshape(self.M, 6)
+        e_phase = periodic_filtfilt(self.ba, e_phase)
+        weight = repeatability(e_phase, previous) if status.learned_cycles > 0 else np.ones(6)
+        previous[:] = e_phase
+        gain = status.gain * (self.decay / (self.decay + status.learned_cycles)
+                              if self.decay > 0 else 1.0)
+        learned[:] = learn(learned, weight * e_phase, gain, self.ba)
+        status.E_ref_trans_m, status.E_ref_rot_rad = E
+        status.learned_cycles += 1
+
+
+def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
+    """Motor-angle errors (r, 6) as pose errors J(x_d)^-1 e_theta (J = d theta / d x); rows
+    where J is singular or x_d unreachable are zero."""
+    J = kinematics._jacobian(geometry, x_d)
+    ok = np.all(np.isfinite(J), axis=(1, 2)) & (np.abs(np.linalg.det(
+        np.where(np.isfinite(J), J, 0.0))) > 1e-12)
+    out = np.zeros_like(e_theta)
+    if np.any(ok):
+        out[ok] = np.linalg.solve(J[ok], e_theta[ok][..., None])[..., 0]
+    return out

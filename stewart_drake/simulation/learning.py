@@ -1,0 +1,80 @@
+"""Learning from every cycle in the Diagram: where the learner's cycles, bound and ports come from.
+
+:func:`add_learning` adds an :class:`~stewart_drake.control.ilc.IterativeLearningController`
+built from a scenario's :class:`~.scenario.IlcDriver` and wires it by port name: it reads the
+reference source's ``x_d`` and the station's ``motor_angle`` (what the robot measures), and an
+``Adder`` puts its ``x_d_correction`` on the reference, whose sum the Diagram gives the
+controller as its ``x_d`` (:mod:`~stewart_drake.control.contract`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.systems.primitives import Adder
+
+from ..control.ilc import IterativeLearningController
+from ..errors import InvalidConfigError
+
+
+def learning_cycles(scenario, trajectory) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over the run: the
+    reference's own (:func:`~.organ_motion.reference_cycles`), or ``learning.period_s`` from
+    t = 0 when given.
+
+    Raises:
+        InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
+            whole cycle in the run.
+    """
+    from .organ_motion import reference_cycles
+
+    driver, duration = scenario.learning, scenario.duration_s
+    if driver.period_s > 0:
+        k = max(1, int(np.floor(duration / driver.period_s + 1e-9)))
+        starts, scale = np.arange(k + 1) * driver.period_s, np.ones(k)
+    else:
+        try:
+            starts, scale = reference_cycles(trajectory, duration)
+        except InvalidConfigError as err:
+            raise InvalidConfigError(f"learning needs a reference that repeats: {err}; give "
+                                     f"learning.period_s for one of your own") from None
+    k = int(np.count_nonzero(starts[:-1] < duration - 1e-9))   # cycles begun within the run
+    if k < 1 or starts[1] > duration + 1e-9:
+        raise InvalidConfigError(f"learning: the run ({duration:g} s) holds no whole cycle of "
+                                 f"the reference (the first ends at {starts[1]:g} s)")
+    return starts[:k + 1], scale[:k]
+
+
+def encoder_floor(scenario) -> tuple[float, float]:
+    """One encoder count at the crank tip, as a translation (m) and as a rotation of the
+    platform (rad): the additive floor of the learner's monitored bound (1 um and 10 urad on
+    the ideal robot, which reads exact angles)."""
+    if scenario.hardware is None:
+        return 1e-6, 1e-5
+    g = scenario.geometry()
+    tip = scenario.hardware.encoders.quantum_rad * g.crank_length
+    return tip, tip / g.platform_radius
+
+
+def add_learning(builder, scenario, trajectory, x_d, motor_angle, offset_s: float):
+    """Add the learner and the Adder; returns (learner, the corrected x_d output port).
+
+    Args:
+        builder: the DiagramBuilder. scenario: with ``learning`` set. trajectory: the reference.
+        x_d: the reference source's output port (18). motor_angle: the station's (6).
+        offset_s: the controllers' sample offset, s.
+    """
+    d = scenario.learning
+    starts, scale = learning_cycles(scenario, trajectory)
+    floor_m, floor_rad = encoder_floor(scenario)
+    learner = builder.AddNamedSystem("learner", IterativeLearningController(
+        scenario.geometry(), scenario.control_period_s, offset_s, starts, scale, gain=d.gain,
+        q_cutoff_hz=d.q_cutoff_hz, lead_s=d.lead_s, error=d.error,
+        sample_period_s=d.sample_period_s, bound_ratio=d.bound_ratio, floor_m=floor_m,
+        floor_rad=floor_rad, max_rollbacks=d.max_rollbacks, learn_cycles=d.learn_cycles,
+        gain_decay_cycles=d.gain_decay_cycles))
+    builder.Connect(x_d, learner.GetInputPort("x_d"))
+    builder.Connect(motor_angle, learner.GetInputPort("motor_angle"))
+    add = builder.AddNamedSystem("learned_x_d", Adder(2, 18))
+    builder.Connect(x_d, add.get_input_port(0))
+    builder.Connect(learner.GetOutputPort("x_d_correction"), add.get_input_port(1))
+    return learner, add.get_output_port()

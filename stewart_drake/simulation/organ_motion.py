@@ -1,0 +1,1008 @@
+"""Organ motion as references of the platform pose: breathing, heartbeat, and recorded traces.
+
+A motion of the library is a frozen dataclass with ``evaluate(t)`` -> (pose, rate,
+acceleration), each ``t.shape + (6,)`` in [rad, rad, rad, m, m, m] (and /s, /s^2), like every
+reference of :mod:`~.trajectories`, plus what fidelity and learning need: ``frequencies_hz()``
+(the fundamentals whose harmonics the report analyses), ``repeat_period_s`` (the time after
+which the motion repeats exactly, or None) and ``cycles(t_end)`` (the start of each cycle and its
+amplitude relative to the mean, for per-cycle errors and the learning controller's alignment).
+
+Motions (every parameter in SI units, its default and source in the class docstring):
+
+=========================  =====================================================================
+``breathing``              :class:`Breathing`, Lujan et al., Med. Phys. 26, 715 (1999):
+                           z(t) = z0 - b cos^(2n)(pi t / tau - phi), with a direction and a tilt
+``heartbeat``              :class:`Heartbeat`: a fundamental at the heart rate and harmonics
+``breathing_heartbeat``    :class:`MotionSum` of the two
+``irregular_breathing``    :class:`IrregularBreathing`: amplitude and period drawn per cycle, seeded
+``hysteresis``             :class:`HysteresisBreathing`: different inhale and exhale paths
+=========================  =====================================================================
+
+Directions are vectors in the platform frame or axis names: the platform's ``X``, ``Y``, ``Z``
+or the patient's ``SI``, ``LR``, ``AP`` (:data:`PATIENT_AXES`: the patient lies supine along
+the platform's X axis, head towards +X, left towards +Y, anterior up), with an optional sign.
+:func:`make_motion` builds a motion from a name and ``key=value`` parameters carrying units
+("amplitude=15mm", "rate=72bpm", "direction=SI"), as the CLI and scenarios give them.
+
+Recorded traces: :func:`load_trace` reads a CSV of 1 to 6 axes whose header names each column
+and its unit (``t [s], SI [mm], AP [mm], pitch [deg]``), at any sample rate and with gaps,
+maps the trace's axes onto the platform's, resamples it to a C2 spline (Drake's
+``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), optionally low-passes it without
+phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose. The project's own CSV
+(``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
+(:func:`~.trajectories.load_csv_trajectory`). :class:`ScaledReference` shrinks a motion about
+its centre (:func:`~stewart_drake.studies.fidelity.scale_to_fit` finds the scale the one reference
+validator accepts).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, fields, replace
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+
+from ..checks import as_array, as_number, as_poses
+from ..errors import InvalidConfigError
+from ..model.geometry import X_HOME
+from .trajectories import (
+    AXIS_NAMES,
+    CSV_BYTES_PER_ROW,
+    CSV_COLUMNS,
+    DrakeTrajectory,
+    csv_rows,
+    load_csv_trajectory,
+)
+
+#: The patient frame in the platform frame: the patient lies supine along the platform's X axis,
+#: head towards +X (superior), left towards +Y, anterior up (+Z). Rotations about the patient's
+#: axes are the platform's roll, pitch and yaw about the same axes.
+PATIENT_AXES = {"SI": "X", "LR": "Y", "AP": "Z", "rot_SI": "phi", "rot_LR": "theta",
+                "rot_AP": "psi"}
+#: Platform axis names accepted besides AXIS_NAMES.
+_AXIS_SYNONYMS = {"roll": "phi", "pitch": "theta", "yaw": "psi", "x": "X", "y": "Y", "z": "Z"}
+
+
+def axis_index(name: str) -> tuple[int, float]:
+    """(platform axis 0..5, sign +-1) of an axis name: ``X``, ``-Z``, ``phi``, ``pitch``, the
+    patient's ``SI``, ``-LR``, ``rot_AP`` (:data:`PATIENT_AXES`).
+
+    Raises:
+        InvalidConfigError: an unknown name (the message lists the known ones).
+    """
+    text = str(name).strip()
+    sign = -1.0 if text.startswith("-") else 1.0
+    key = text.lstrip("+-").strip()
+    key = PATIENT_AXES.get(key, _AXIS_SYNONYMS.get(key, key))
+    if key not in AXIS_NAMES:
+        raise InvalidConfigError(
+            f"unknown axis {name!r}: use a platform axis ({', '.join(AXIS_NAMES)}, roll, pitch, "
+            f"yaw) or a patient axis ({', '.join(PATIENT_AXES)}), with an optional sign")
+    return AXIS_NAMES.index(key), sign
+
+
+def _direction(name: str, value, rotation: bool = False) -> tuple:
+    """A unit 3-vector from a vector or an axis name (translation axes, or rotation axes when
+    ``rotation``)."""
+    if isinstance(value, str) and not re.fullmatch(r"[\s\d.,eE+-]+", value):
+        k, sign = axis_index(value)
+        if (k < 3) != rotation:
+            kind = "a rotation axis (phi, theta, psi, rot_SI...)" if rotation else \
+                "a translation axis (X, Y, Z, SI, LR, AP)"
+            raise InvalidConfigError(f"{name} must be {kind}, got {value!r}")
+        v = np.zeros(3)
+        v[k % 3] = sign
+        return tuple(v)
+    if isinstance(value, str):
+        value = [float(c) for c in value.split(",") if c.strip()]
+    v = as_array(name, value, shape=(3,))
+    norm = float(np.linalg.norm(v))
+    if not norm > 0:
+        raise InvalidConfigError(f"{name} must not be the zero vector")
+    return tuple(float(c) / norm for c in v)
+
+
+def _lujan_shape(u, n: int):
+    """cos^(2n)(u) and its first and second derivatives with respect to u."""
+    c, s = np.cos(u), np.sin(u)
+    c_pow = c ** (2 * n - 2)
+    C = c_pow * c * c
+    dC = -2 * n * c_pow * c * s
+    ddC = 2 * n * ((2 * n - 1) * c_pow * s * s - C)
+    return C, dC, ddC
+
+
+def _check_centre(name: str, centre) -> tuple:
+    c = as_poses(f"{name}: centre", centre)
+    if c.shape != (6,):
+        raise InvalidConfigError(f"{name}: centre must be one pose (6,) [phi, theta, psi, X, Y, "
+                                 f"Z] in rad and m, got shape {c.shape}")
+    return tuple(float(v) for v in c)
+
+
+class _Motion:
+    """What every motion of the library shares: ``evaluate`` = centre + displacement."""
+
+    centre: tuple = tuple(X_HOME)
+    name: str = ""
+
+    def displacement(self, t):           # pragma: no cover - every motion defines it
+        raise NotImplementedError
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t (s): three ``t.shape + (6,)`` arrays, rad and m."""
+        t = np.asarray(t, dtype=float)
+        d, v, a = self.displacement(t.reshape(-1))
+        shape = t.shape + (6,)
+        return ((np.asarray(self.centre) + d).reshape(shape), v.reshape(shape), a.reshape(shape))
+
+    def frequencies_hz(self) -> dict:
+        """{"breathing": Hz, "cardiac": Hz}: the fundamentals present (mean rate if varying)."""
+        return {}
+
+    @property
+    def repeat_period_s(self) -> float | None:
+        """The time after which the motion repeats exactly, s (None: it never does)."""
+        return self.period_s
+
+    def cycles(self, t_end: float) -> tuple[np.ndarray, np.ndarray]:
+        """(starts (K + 1,), scale (K,)): the cycles that begin in [0, t_end), their starts in
+        s (the last entry ends the last cycle) and their amplitude over the mean's; a motion
+        that repeats every :attr:`repeat_period_s` has cycles of that length from t = 0."""
+        period = self.repeat_period_s
+        k = max(1, int(math.ceil(t_end / period - 1e-9)))
+        return np.arange(k + 1) * period, np.ones(k)
+
+
+def _along(direction, shape, ds, dds) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(n, 6) displacement, rate and acceleration of a scalar shape along a 3-vector direction
+    (translation part)."""
+    out = []
+    for part in (shape, ds, dds):
+        a = np.zeros((len(shape), 6))
+        a[:, 3:] = part[:, None] * np.asarray(direction)
+        out.append(a)
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Breathing(_Motion):
+    """Breathing, Lujan et al. (Med. Phys. 26, 715, 1999): z(t) = z0 - b cos^(2n)(pi t/tau - phi).
+
+    The displacement along ``direction`` is b (1/2 - cos^(2n)(pi t / tau - phi)): from +b/2 at
+    end-exhale (where the motion rests longest) to -b/2 at end-inhale, about ``centre``; the
+    platform tilts by ``tilt_rad`` times the same shape about ``tilt_axis``.
+
+    Attributes:
+        amplitude_m: b, peak to peak, m; default 0.015 (Lujan et al.: 10-20 mm for the liver and
+            diaphragm; Seppenwoolde et al., IJROBP 53, 822, 2002: lung tumours up to ~25 mm).
+        period_s: tau, s; default 4 (15 breaths per minute; Lujan et al.: 3-5 s).
+        shape_n: n, a positive integer; default 3 (the value Lujan et al. used for the liver:
+            long rest at exhale, a sharper inhale; n = 1 is cos^2, a shifted sinusoid).
+        phase_rad: phi, rad; default pi/2, so that t = 0 is end-exhale and the cycles (from one
+            end-exhale to the next, where the shape is flattest) start at t = k tau.
+        direction: unit vector or axis name of the motion in the platform frame; default "SI"
+            (the platform's X, :data:`PATIENT_AXES`): breathing moves organs mostly
+            cranio-caudally (Lujan et al., Seppenwoolde et al.).
+        tilt_rad: peak-to-peak rotation with the same shape, rad; default 0 (Lujan et al.'s
+            model is a translation; Belcher et al., Med. Phys. 41, 121704, 2014 reproduce
+            rotations up to 10 deg).
+        tilt_axis: rotation axis (unit vector of [roll, pitch, yaw] or an axis name); default
+            "rot_LR" (the platform's pitch).
+        centre: (6,) the pose the motion is centred on (mid-range), rad and m; default home.
+    Continuity: C-infinity; cycles start where cos = 0, so the irregular variant stays
+    C^(2n-1) across cycles.
+    """
+
+    amplitude_m: float = 0.015
+    period_s: float = 4.0
+    shape_n: int = 3
+    phase_rad: float = math.pi / 2
+    direction: tuple = "SI"
+    tilt_rad: float = 0.0
+    tilt_axis: tuple = "rot_LR"
+    centre: tuple = tuple(X_HOME)
+    name: str = "breathing"
+
+    def __post_init__(self):
+        _set = object.__setattr__
+        _set(self, "amplitude_m", as_number(f"{self.name}: amplitude_m", self.amplitude_m, 0.0))
+        _set(self, "period_s", as_number(f"{self.name}: period_s", self.period_s, 0.05, 3600.0))
+        n = as_number(f"{self.name}: shape_n", self.shape_n, 1, 20)
+        if not n.is_integer():
+            raise InvalidConfigError(f"{self.name}: shape_n must be an integer in [1, 20], got "
+                                     f"{self.shape_n!r}")
+        _set(self, "shape_n", int(n))
+        _set(self, "phase_rad", as_number(f"{self.name}: phase_rad", self.phase_rad))
+        _set(self, "direction", _direction(f"{self.name}: direction", self.direction))
+        _set(self, "tilt_rad", as_number(f"{self.name}: tilt_rad", self.tilt_rad, -math.pi / 2,
+                                         math.pi / 2))
+        _set(self, "tilt_axis", _direction(f"{self.name}: tilt_axis", self.tilt_axis, True))
+        _set(self, "centre", _check_centre(self.name, self.centre))
+
+    def shape(self, t):
+        """(s, ds/dt, d2s/dt2) of s(t) = 1/2 - cos^(2n)(pi t / tau - phi), dimensionless."""
+        w = math.pi / self.period_s
+        C, dC, ddC = _lujan_shape(w * np.asarray(t, dtype=float) - self.phase_rad, self.shape_n)
+        return 0.5 - C, -w * dC, -w * w * ddC
+
+    def displacement(self, t):
+        """(n, 6) displacement, rate, acceleration from the centre at times t (n,)."""
+        s, ds, dds = self.shape(t)
+        d, v, a = _along(np.asarray(self.direction) * self.amplitude_m, s, ds, dds)
+        for arr, part in ((d, s), (v, ds), (a, dds)):
+            arr[:, :3] = part[:, None] * self.tilt_rad * np.asarray(self.tilt_axis)
+        return d, v, a
+
+    def frequencies_hz(self) -> dict:
+        return {"breathing": 1.0 / self.period_s}
+
+    @property
+    def cycle_offset_s(self) -> float:
+        """The first end-exhale at or after t = 0, s (0 with the default phase)."""
+        return (self.period_s * ((self.phase_rad - math.pi / 2) / math.pi)) % self.period_s
+
+    def cycles(self, t_end: float):
+        """Cycles from one end-exhale to the next (see :meth:`_Motion.cycles`)."""
+        t0 = self.cycle_offset_s
+        k = max(1, int(math.ceil((t_end - t0) / self.period_s - 1e-9)))
+        return t0 + np.arange(k + 1) * self.period_s, np.ones(k)
+
+
+#: Relative amplitudes of the heartbeat's harmonics by default (ours; see :class:`Heartbeat`).
+HEARTBEAT_HARMONICS = (1.0, 0.5, 0.25)
+
+
+@dataclass(frozen=True)
+class Heartbeat(_Motion):
+    """Cardiac motion: a fundamental at the heart rate and its harmonics.
+
+    d(t) = amplitude_m / p2p * sum_k a_k sin(2 pi k f t + phi_k) along ``direction``, with
+    f = rate_bpm / 60 and p2p the peak to peak of the sum (so ``amplitude_m`` is the peak to
+    peak of the motion).
+
+    Attributes:
+        amplitude_m: peak to peak, m; default 0.002 (Seppenwoolde et al., IJROBP 53, 822, 2002:
+            a cardiac component of 1-4 mm in lung tumours near the heart).
+        rate_bpm: beats per minute; default 72 (a resting adult).
+        harmonics: relative amplitudes a_1, a_2, ... of the fundamental and its harmonics;
+            default (1, 0.5, 0.25): ours, a beat sharper than a sine (Seppenwoolde et al. give
+            the amplitude, not the shape).
+        harmonic_phases_rad: phi_k, rad (as many as harmonics; default zeros).
+        direction: unit vector or axis name; default "LR" (the platform's Y; Seppenwoolde et
+            al. found the cardiac component mostly left-right).
+        centre: (6,) pose, rad and m; default home.
+    """
+
+    amplitude_m: float = 0.002
+    rate_bpm: float = 72.0
+    harmonics: tuple = HEARTBEAT_HARMONICS
+    harmonic_phases_rad: tuple = ()
+    direction: tuple = "LR"
+    centre: tuple = tuple(X_HOME)
+    name: str = "heartbeat"
+
+    def __post_init__(self):
+        _set = object.__setattr__
+        _set(self, "amplitude_m", as_number(f"{self.name}: amplitude_m", self.amplitude_m, 0.0))
+        _set(self, "rate_bpm", as_number(f"{self.name}: rate_bpm", self.rate_bpm, 1.0, 600.0))
+        a = as_array(f"{self.name}: harmonics", self.harmonics).reshape(-1)
+        if a.size < 1 or a.size > 20 or not np.any(a != 0):
+            raise InvalidConfigError(f"{self.name}: harmonics needs 1 to 20 relative "
+                                     f"amplitudes, not all zero, got {self.harmonics!r}")
+        phases = (np.zeros(a.size) if len(self.harmonic_phases_rad) == 0 else
+                  as_array(f"{self.name}: harmonic_phases_rad", self.harmonic_phases_rad,
+                           shape=(a.size,)))
+        _set(self, "harmonics", tuple(float(v) for v in a))
+        _set(self, "harmonic_phases_rad", tuple(float(v) for v in phases))
+        _set(self, "direction", _direction(f"{self.name}: direction", self.direction))
+        _set(self, "centre", _check_centre(self.name, self.centre))
+        _set(self, "_p2p", self._peak_to_peak())
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.rate_bpm / 60.0
+
+    @property
+    def period_s(self) -> float:
+        return 60.0 / self.rate_bpm
+
+    def _unit(self, t):
+        f, k = self.frequency_hz, np.arange(1, len(self.harmonics) + 1)
+        arg = 2 * np.pi * f * np.asarray(t, dtype=float)[:, None] * k + np.asarray(
+            self.harmonic_phases_rad)
+        w = 2 * np.pi * f * k
+        a = np.asarray(self.harmonics)
+        return (np.sin(arg) @ a, np.cos(arg) @ (a * w), -np.sin(arg) @ (a * w * w))
+
+    def _peak_to_peak(self) -> float:
+        s = self._unit(np.linspace(0.0, self.period_s, 4001))[0]
+        return float(s.max() - s.min())
+
+    def displacement(self, t):
+        """(n, 6) displacement, rate, acceleration from the centre at times t (n,)."""
+        scale = self.amplitude_m / self._p2p
+        s, ds, dds = self._unit(t)
+        return _along(np.asarray(self.direction) * scale, s, ds, dds)
+
+    def frequencies_hz(self) -> dict:
+        return {"cardiac": self.frequency_hz}
+
+
+def common_period(periods, max_ratio_denominator: int = 24) -> float | None:
+    """The shortest time after which every period repeats (their least common multiple), s, or
+    None when two periods are not in a ratio of small integers (denominator up to
+    ``max_ratio_denominator``, within 1e-9 relative)."""
+    periods = [float(p) for p in periods]
+    total = periods[0]
+    for p in periods[1:]:
+        ratio = Fraction(total / p).limit_denominator(max_ratio_denominator)
+        if abs(ratio - total / p) > 1e-9 * total / p:
+            return None
+        total = total * ratio.denominator       # = p * ratio.numerator
+    return total
+
+
+@dataclass(frozen=True)
+class MotionSum(_Motion):
+    """The sum of motions' displacements about one centre (breathing plus heartbeat).
+
+    Attributes:
+        parts: the motions (their own centres are ignored).  centre: (6,) pose; default home.
+    The sum repeats after the common period of its parts (:func:`common_period`: a 4 s breath
+    and a 72 bpm heartbeat repeat every 20 s, 5 breaths and 24 beats), its cycles are those
+    periods; when the parts have no common period it has the cycles of its first part (the
+    rest is not periodic in them).
+    """
+
+    parts: tuple = ()
+    centre: tuple = tuple(X_HOME)
+    name: str = "sum"
+
+    def __post_init__(self):
+        if not self.parts or not all(isinstance(p, _Motion) for p in self.parts):
+            raise InvalidConfigError(f"{self.name}: parts must be motions of the library")
+        object.__setattr__(self, "parts", tuple(self.parts))
+        object.__setattr__(self, "centre", _check_centre(self.name, self.centre))
+
+    def displacement(self, t):
+        out = [np.zeros((len(t), 6)) for _ in range(3)]
+        for part in self.parts:
+            for acc, add in zip(out, part.displacement(t)):
+                acc += add
+        return tuple(out)
+
+    def frequencies_hz(self) -> dict:
+        out = {}
+        for part in self.parts:
+            out.update(part.frequencies_hz())
+        return out
+
+    @property
+    def repeat_period_s(self) -> float | None:
+        periods = [p.repeat_period_s for p in self.parts]
+        return None if any(p is None for p in periods) else common_period(periods)
+
+    def cycles(self, t_end: float):
+        period = self.repeat_period_s
+        first = self.parts[0]
+        if period is None:
+            return first.cycles(t_end)
+        t0 = first.cycles(period)[0][0]
+        k = max(1, int(math.ceil((t_end - t0) / period - 1e-9)))
+        return t0 + np.arange(k + 1) * period, np.ones(k)
+
+
+@dataclass(frozen=True)
+class IrregularBreathing(_Motion):
+    """Breathing whose amplitude and period change from cycle to cycle (seeded).
+
+    Cycle k lasts T_k = period_s (1 + period_cv g_k) and moves b_k = amplitude_m
+    (1 + amplitude_cv h_k), with g_k, h_k standard normal draws of ``numpy.random.default_rng
+    (seed)``, clipped to +-2.5 standard deviations. Within a cycle the shape is
+    :class:`Breathing`'s from end-exhale to end-exhale, b_k deep from the same end-exhale
+    position (Lujan et al.'s z0, +amplitude_m / 2 from the centre: the position the breath comes
+    back to), so the motion is C^(2n-1) where cycles meet (the shape's first 2n - 1 derivatives
+    vanish there).
+
+    Attributes:
+        amplitude_m, period_s, shape_n, direction, tilt_rad, tilt_axis, centre: the mean cycle,
+            as :class:`Breathing` (same defaults and sources).
+        amplitude_cv, period_cv: coefficients of variation from cycle to cycle; default 0.15 and
+            0.10 (ours: free breathing varies by this order from breath to breath, e.g. the
+            irregular patients of Seppenwoolde et al.).
+        seed: of the draws, an integer >= 0.
+        max_cycles: cycles drawn (the motion holds the last cycle's end beyond them).
+    """
+
+    amplitude_m: float = 0.015
+    period_s: float = 4.0
+    shape_n: int = 3
+    direction: tuple = "SI"
+    tilt_rad: float = 0.0
+    tilt_axis: tuple = "rot_LR"
+    amplitude_cv: float = 0.15
+    period_cv: float = 0.10
+    seed: int = 0
+    max_cycles: int = 2000
+    centre: tuple = tuple(X_HOME)
+    name: str = "irregular_breathing"
+
+    def __post_init__(self):
+        mean = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
+                         shape_n=self.shape_n, direction=self.direction, tilt_rad=self.tilt_rad,
+                         tilt_axis=self.tilt_axis, centre=self.centre, name=self.name)
+        for f in ("amplitude_m", "period_s", "shape_n", "direction", "tilt_rad", "tilt_axis",
+                  "centre"):
+            object.__setattr__(self, f, getattr(mean, f))
+        for f in ("amplitude_cv", "period_cv"):
+            object.__setattr__(self, f, as_number(f"{self.name}: {f}", getattr(self, f), 0.0,
+                                                  0.35))
+        for f, lo, hi in (("seed", 0, 2**32 - 1), ("max_cycles", 1, 10**6)):
+            v = as_number(f"{self.name}: {f}", getattr(self, f), lo, hi)
+            if not v.is_integer():
+                raise InvalidConfigError(f"{self.name}: {f} must be an integer in [{lo}, {hi}], "
+                                         f"got {getattr(self, f)!r}")
+            object.__setattr__(self, f, int(v))
+        rng = np.random.default_rng(self.seed)
+        g, h = np.clip(rng.standard_normal((2, self.max_cycles)), -2.5, 2.5)
+        periods = self.period_s * (1 + self.period_cv * g)
+        object.__setattr__(self, "_starts", np.concatenate([[0.0], np.cumsum(periods)]))
+        object.__setattr__(self, "_amplitudes", self.amplitude_m * (1 + self.amplitude_cv * h))
+
+    @property
+    def cycle_periods(self) -> np.ndarray:
+        """(max_cycles,) the drawn periods T_k, s."""
+        return np.diff(self._starts)
+
+    @property
+    def cycle_amplitudes(self) -> np.ndarray:
+        """(max_cycles,) the drawn amplitudes b_k (peak to peak), m."""
+        return self._amplitudes.copy()
+
+    def displacement(self, t):
+        t = np.asarray(t, dtype=float)
+        k = np.clip(np.searchsorted(self._starts, t, side="right") - 1, 0, self.max_cycles - 1)
+        T, b = np.diff(self._starts)[k], self._amplitudes[k]
+        tau = np.clip(t - self._starts[k], 0.0, T)          # held after the last cycle
+        w = math.pi / T
+        C, dC, ddC = _lujan_shape(w * tau - math.pi / 2, self.shape_n)
+        s, ds, dds = 0.5 * self.amplitude_m - b * C, -b * w * dC, -b * w * w * ddC
+        moving = t < self._starts[-1]
+        ds, dds = ds * moving, dds * moving
+        d, v, a = _along(self.direction, s, ds, dds)
+        ratio = self.tilt_rad / self.amplitude_m if self.amplitude_m > 0 else 0.0
+        for arr, part in ((d, s), (v, ds), (a, dds)):
+            arr[:, :3] = part[:, None] * ratio * np.asarray(self.tilt_axis)
+        return d, v, a
+
+    def frequencies_hz(self) -> dict:
+        return {"breathing": 1.0 / self.period_s}
+
+    @property
+    def repeat_period_s(self) -> None:
+        return None
+
+    def cycles(self, t_end: float):
+        """The drawn cycles that begin before ``t_end`` (see :meth:`_Motion.cycles`)."""
+        k = max(1, int(np.searchsorted(self._starts, t_end - 1e-9, side="left")))
+        k = min(k, self.max_cycles)
+        return self._starts[:k + 1].copy(), self._amplitudes[:k] / self.amplitude_m
+
+
+@dataclass(frozen=True)
+class HysteresisBreathing(_Motion):
+    """Breathing whose inhale and exhale follow different paths (a loop), Seppenwoolde et al.
+    (IJROBP 53, 822, 2002: hysteresis of 1-5 mm in lung tumours).
+
+    The main displacement is :class:`Breathing`'s along ``direction``; a second one, of peak to
+    peak ``secondary_amplitude_m`` along ``secondary_direction``, has the same shape delayed by
+    ``lag`` of a period: on inhale it lags the main axis, on exhale it leads, and the path in
+    the plane of the two axes is a loop whose widest opening is :meth:`loop_width_m`.
+
+    Attributes:
+        amplitude_m, period_s, shape_n, phase_rad, direction, centre: as :class:`Breathing`.
+        secondary_amplitude_m: m; default 0.005 (an anterior-posterior excursion of a third of
+            the cranio-caudal one; ours).
+        secondary_direction: unit vector or axis name; default "AP" (the platform's Z).
+        lag: delay of the secondary axis, fraction of a period; default 0.045 (ours: a loop
+            about 2 mm wide with the defaults, mid-range of Seppenwoolde et al.'s 1-5 mm).
+    """
+
+    amplitude_m: float = 0.015
+    period_s: float = 4.0
+    shape_n: int = 3
+    phase_rad: float = math.pi / 2
+    direction: tuple = "SI"
+    secondary_amplitude_m: float = 0.005
+    secondary_direction: tuple = "AP"
+    lag: float = 0.045
+    centre: tuple = tuple(X_HOME)
+    name: str = "hysteresis"
+
+    def __post_init__(self):
+        main = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
+                         shape_n=self.shape_n, phase_rad=self.phase_rad,
+                         direction=self.direction, centre=self.centre, name=self.name)
+        for f in ("amplitude_m", "period_s", "shape_n", "phase_rad", "direction", "centre"):
+            object.__setattr__(self, f, getattr(main, f))
+        object.__setattr__(self, "secondary_amplitude_m", as_number(
+            f"{self.name}: secondary_amplitude_m", self.secondary_amplitude_m, 0.0))
+        object.__setattr__(self, "secondary_direction", _direction(
+            f"{self.name}: secondary_direction", self.secondary_direction))
+        object.__setattr__(self, "lag", as_number(f"{self.name}: lag", self.lag, 0.0, 0.5))
+
+    def _breaths(self):
+        main = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
+                         shape_n=self.shape_n, phase_rad=self.phase_rad,
+                         direction=self.direction, name=self.name)
+        second = replace(main, amplitude_m=self.secondary_amplitude_m,
+                         direction=self.secondary_direction,
+                         phase_rad=self.phase_rad + math.pi * self.lag)
+        return main, second
+
+    def displacement(self, t):
+        main, second = self._breaths()
+        return tuple(a + b for a, b in zip(main.displacement(t), second.displacement(t)))
+
+    def frequencies_hz(self) -> dict:
+        return {"breathing": 1.0 / self.period_s}
+
+    def cycles(self, t_end: float):
+        return self._breaths()[0].cycles(t_end)
+
+    def loop_width_m(self) -> float:
+        """Widest gap between the inhale and the exhale path, measured along the secondary
+        direction at the same main-axis position, m."""
+        main, second = self._breaths()
+        t = main.cycle_offset_s + np.linspace(0.0, self.period_s, 4001)
+        p = main.shape(t)[0] * self.amplitude_m
+        q = second.shape(t)[0] * self.secondary_amplitude_m
+        k = int(np.argmin(p))                       # end-inhale splits the two paths
+        levels = np.linspace(p.min(), p.max(), 201)[1:-1]
+        paths = []
+        for part in (slice(0, k + 1), slice(k, None)):
+            order = np.argsort(p[part])
+            paths.append(np.interp(levels, p[part][order], q[part][order]))
+        return float(np.abs(paths[0] - paths[1]).max())
+
+
+# -- the library by name ---------------------------------------------------------------------------
+
+def _breathing_heartbeat(**kw):
+    heart = {k[len("heart_"):]: v for k, v in kw.items() if k.startswith("heart_")}
+    breath = {k: v for k, v in kw.items() if not k.startswith("heart_") and k != "centre"}
+    centre = kw.get("centre", tuple(X_HOME))
+    return MotionSum(parts=(Breathing(**breath), Heartbeat(**heart)), centre=centre,
+                     name="breathing_heartbeat")
+
+
+#: name -> (factory, the class whose fields are its parameters).
+LIBRARY = {"breathing": (Breathing, Breathing),
+           "heartbeat": (Heartbeat, Heartbeat),
+           "breathing_heartbeat": (_breathing_heartbeat, None),
+           "irregular_breathing": (IrregularBreathing, IrregularBreathing),
+           "hysteresis": (HysteresisBreathing, HysteresisBreathing)}
+
+#: Units a parameter value may carry, by the suffix of the field it sets: factor to SI.
+UNITS = {"m": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6},
+         "rad": {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180},
+         "s": {"s": 1.0, "ms": 1e-3, "min": 60.0},
+         "bpm": {"bpm": 1.0, "/min": 1.0, "hz": 60.0}}
+
+
+def parameter_names(motion: str) -> list[str]:
+    """The parameters :func:`make_motion` takes for ``motion`` (field names; a field with a
+    unit suffix, ``amplitude_m``, is also given without it, ``amplitude=15mm``)."""
+    factory, cls = _library(motion)
+    if cls is None:
+        names = [f.name for f in fields(Breathing) if f.name not in ("name", "centre")]
+        names += [f"heart_{f.name}" for f in fields(Heartbeat) if f.name not in ("name", "centre")]
+        return names + ["centre"]
+    return [f.name for f in fields(cls) if f.name != "name"]
+
+
+def _library(motion: str):
+    if motion not in LIBRARY:
+        raise InvalidConfigError(f"unknown motion {motion!r}; the library has "
+                                 f"{', '.join(LIBRARY)} (or give a trace file, .csv)")
+    return LIBRARY[motion]
+
+
+def _parse_value(key: str, field_name: str, value):
+    """A parameter value in the unit of ``field_name``'s suffix (SI), from a number or a string
+    with a unit ("15mm", "72 bpm", "2deg"); vectors and axis names pass through."""
+    field_name = field_name.removeprefix("heart_")
+    suffix = field_name.rsplit("_", 1)[-1] if "_" in field_name else ""
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    if suffix in UNITS:
+        m = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*([a-zA-Z/]*)", text)
+        if m is None:
+            raise InvalidConfigError(f"parameter {key}: {value!r} is not a number with a unit "
+                                     f"(e.g. 15mm); units: {', '.join(UNITS[suffix])}")
+        number, unit = float(m.group(1)), m.group(2).lower()
+        units = {u.lower(): f for u, f in UNITS[suffix].items()}
+        if unit and unit not in units:
+            raise InvalidConfigError(f"parameter {key}: unknown unit {m.group(2)!r}; use one of "
+                                     f"{', '.join(UNITS[suffix])}")
+        return number * (units[unit] if unit else 1.0)
+    if "direction" in field_name or "axis" in field_name:
+        return text
+    try:
+        if field_name in ("harmonics", "harmonic_phases_rad", "centre"):
+            return tuple(float(c) for c in text.split(",") if c.strip())
+        return float(text)
+    except ValueError:
+        raise InvalidConfigError(f"parameter {key}: {value!r} is not a number"
+                                 + (" list (1,0.5,0.25)" if "," in text else "")) from None
+
+
+def make_motion(motion: str, parameters: dict | None = None):
+    """A motion of the library by name with parameters carrying units.
+
+    Args:
+        motion: one of :data:`LIBRARY` (breathing, heartbeat, breathing_heartbeat,
+            irregular_breathing, hysteresis).
+        parameters: {name: value}: a field of the motion's class (``amplitude_m``: a number in
+            its SI unit) or the field without its unit suffix with a value carrying a unit
+            (``amplitude``: "15mm"; ``rate``: "72bpm"; ``tilt``: "2deg"); directions as axis
+            names ("SI", "-Z") or "x,y,z"; for breathing_heartbeat the heart's parameters
+            start with ``heart_`` (``heart_amplitude``, ``heart_rate``).
+    Returns:
+        the motion (frozen dataclass with ``evaluate``).
+    Raises:
+        InvalidConfigError: an unknown motion or parameter (the known ones listed), a value
+            without a number, an unknown unit, or a value out of range (named).
+    """
+    factory, cls = _library(motion)
+    known = parameter_names(motion)
+    kwargs = {}
+    for key, value in (parameters or {}).items():
+        key = str(key).strip()
+        name = key if key in known else next(
+            (n for n in known if "_" in n and n.rsplit("_", 1)[0] == key
+             and n.rsplit("_", 1)[1] in (*UNITS, "n")), None)
+        if name is None:
+            raise InvalidConfigError(f"{motion} has no parameter {key!r}; its parameters: "
+                                     f"{', '.join(known)} (a unit suffix may be left out and "
+                                     f"given with the value: amplitude=15mm)")
+        kwargs[name] = _parse_value(key, name, value)
+    try:
+        return factory(**kwargs)
+    except TypeError as err:
+        raise InvalidConfigError(f"{motion}: {err}") from None
+
+
+# -- cycles of any reference ---------------------------------------------------------------------
+
+def reference_cycles(reference, t_end: float, dt: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (K + 1,), scale (K,)) of a reference's cycles over [0, t_end] s.
+
+    A motion of the library says its own (``cycles``). Any other reference (a trace, a CSV)
+    is cut where its main motion peaks: the principal component of the pose, sampled every
+    ``dt``, the side whose peaks come most regularly; ``scale`` is each cycle's peak to peak
+    over the median.
+
+    Raises:
+        InvalidConfigError: fewer than two cycles found (a motion that does not repeat).
+    """
+    if callable(getattr(reference, "cycles", None)):
+        starts, scale = reference.cycles(t_end)
+        return np.asarray(starts, dtype=float), np.asarray(scale, dtype=float)
+    from scipy.signal import find_peaks
+
+    t = np.arange(0.0, t_end + 0.5 * dt, dt)
+    x = reference.evaluate(t)[0]
+    x = (x - x.mean(axis=0)) / np.maximum(x.std(axis=0), 1e-12) * (x.std(axis=0) > 1e-9)
+    _, _, vt = np.linalg.svd(x, full_matrices=False)
+    pc = x @ vt[0]
+    spread = np.percentile(pc, 95) - np.percentile(pc, 5)
+    best = None
+    for signal in (pc, -pc):
+        peaks, _ = find_peaks(signal, prominence=0.3 * spread, distance=max(1, int(0.5 / dt)))
+        if len(peaks) >= 3:
+            gaps = np.diff(t[peaks])
+            cv = gaps.std() / gaps.mean()
+            if best is None or cv < best[0]:
+                best = (cv, peaks)
+    if best is None:
+        raise InvalidConfigError(f"the reference {getattr(reference, 'name', '')} does not "
+                                 f"repeat: fewer than two cycles in {t_end:g} s")
+    peaks = best[1]
+    p2p = np.array([np.ptp(pc[a:b + 1]) for a, b in zip(peaks[:-1], peaks[1:])])
+    return t[peaks], p2p / np.median(p2p)
+
+
+# -- recorded traces -----------------------------------------------------------------------------
+
+#: Largest trace file read, bytes (several hours at 100 Hz).
+MAX_TRACE_BYTES = 256e6
+#: Time units of a trace's time column: factor to s.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+
+
+@dataclass(frozen=True)
+class TraceInfo:
+    """What :func:`load_trace` read and did.
+
+    Attributes:
+        path: the file.  columns: the trace's column names (time first).  units: their units.
+        axes: the platform axis each column went to, with its sign ("+X", "-theta").
+        samples: rows read.  sample_rate_hz: median rate of the file.
+        gaps: ((start s, length s), ...) intervals longer than 2.5 samples without data on
+            some axis, bridged by the spline.
+        lowpass_hz: the zero-phase low-pass applied, or None.
+        duration_s: length of the reference, s.  centred_on: "mean", "first" or "none".
+    """
+
+    path: str
+    columns: tuple
+    units: tuple
+    axes: tuple
+    samples: int
+    sample_rate_hz: float
+    gaps: tuple
+    lowpass_hz: float | None
+    duration_s: float
+    centred_on: str
+
+    def summary(self) -> str:
+        gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
+        mapping = ", ".join(f"{c} [{u}] -> {a}" for c, u, a in
+                            zip(self.columns[1:], self.units[1:], self.axes))
+        return (f"{Path(self.path).name}: {self.samples} samples at {self.sample_rate_hz:.4g} Hz "
+                f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
+                f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}")
+
+
+class TraceTrajectory(DrakeTrajectory):
+    """A recorded trace as a reference: a :class:`~.trajectories.DrakeTrajectory` (C2 cubic
+    spline) with the trace's import record (``info``, :class:`TraceInfo`) and its ``centre``
+    pose, the fixed point of :class:`ScaledReference`."""
+
+    def __init__(self, trajectory, info: TraceInfo, centre, name: str):
+        super().__init__(trajectory, name=name)
+        self.info = info
+        self.centre = tuple(float(v) for v in centre)
+
+    def frequencies_hz(self) -> dict:
+        return {}
+
+
+def _parse_header_cell(cell: str) -> tuple[str, str]:
+    """(name, unit) of a header cell: ``SI [mm]``, ``SI (mm)``, ``SI_mm``, ``t``."""
+    text = cell.strip()
+    m = re.fullmatch(r"(.+?)\s*[\[(]\s*([^\])]*)\s*[\])]", text)
+    if m:
+        return m.group(1).strip(), m.group(2).strip()
+    if "_" in text:
+        name, unit = text.rsplit("_", 1)
+        known = {u for table in (UNITS["m"], UNITS["rad"], TIME_UNITS) for u in table}
+        if unit in known:
+            return name, unit
+    return text, ""
+
+
+def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str = "mean",
+               lowpass_hz: float | None = None, max_gap_s: float = 1.0,
+               resample_hz: float = 100.0):
+    """A reference from a recorded trace of 1 to 6 axes.
+
+    The first line names the columns and their units: a time column (``t`` or ``time``, in s,
+    ms or min) and 1 to 6 axes (``SI [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or
+    um, angles in rad, mrad, urad or deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
+    roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP: :data:`PATIENT_AXES`),
+    or any name given a platform axis by ``axis_map``. Times increase but need not be evenly
+    spaced; an empty or ``nan`` cell is a missing sample of that axis. Each axis is joined by a
+    cubic spline through its samples (``scipy.interpolate.CubicSpline``), sampled at
+    ``resample_hz``, optionally low-passed without phase lag (a 2nd-order Butterworth filter run
+    forwards and backwards, ``scipy.signal.filtfilt``), and the samples are joined by Drake's
+    C2 spline. Axes the trace does not have stay at the centre.
+
+    A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m) is read by
+    :func:`~.trajectories.load_csv_trajectory` as always (``centre``, ``axis_map``,
+    ``lowpass_hz`` do not apply to it).
+
+    Args:
+        path: the CSV file (UTF-8, at most :data:`MAX_TRACE_BYTES`).
+        axis_map: {column name: platform axis with an optional sign}, e.g. ``{"SI": "-Z"}``;
+            it takes precedence over the names' own meaning.
+        centre: (6,) the pose the trace is centred on, rad and m; default home.
+        centre_on: which pose of the trace goes to ``centre``: "mean" (its mean), "first" (its
+            first sample) or "none" (the trace's values are displacements from ``centre``).
+        lowpass_hz: corner of the zero-phase low-pass, Hz (None: none); below half
+            ``resample_hz``.
+        max_gap_s: longest interval an axis may go without data, s (longer: refused).
+        resample_hz: rate of the samples joined by the C2 spline, Hz.
+    Returns:
+        :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
+        :class:`~.trajectories.DrakeTrajectory` of a project CSV.
+    Raises:
+        MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
+            UTF-8 or not CSV.
+        InvalidConfigError: no time column, a column without a unit or of an unknown one, an
+            axis the platform does not have, two columns on one axis, a length on an angle or
+            the reverse, a row that is not numbers (its line named), times not increasing, a gap
+            longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
+    """
+    from scipy.interpolate import CubicSpline
+    from scipy.signal import butter, filtfilt
+
+    from ..checks import check_memory
+    from ..errors import MissingFileError
+    from ..fileio import read_checked
+
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(f"no trace at {path}: check the path")
+    remedy = ("write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
+              "t [s],SI [mm],AP [mm]")
+    raw = read_checked(path, "trace CSV", MAX_TRACE_BYTES, remedy)
+    rows = csv_rows(raw, path, "trace CSV", remedy)
+    del raw
+    if rows and tuple(h.strip() for h in rows[0]) == CSV_COLUMNS:
+        return load_csv_trajectory(path)
+    if not rows:
+        raise InvalidConfigError(f"{path}: empty; {remedy}")
+    header = [_parse_header_cell(c) for c in rows[0]]
+    names = [h[0] for h in header]
+    if names[0].lower() not in ("t", "time"):
+        raise InvalidConfigError(f"{path}: the first column must be the time (t [s]), got "
+                                 f"{rows[0][0]!r}; {remedy}")
+    if not 2 <= len(header) <= 7:
+        raise InvalidConfigError(f"{path}: a trace has a time column and 1 to 6 axes, got "
+                                 f"{len(header) - 1} axes")
+    units = [h[1] for h in header]
+    if units[0].lower() not in TIME_UNITS:
+        raise InvalidConfigError(f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
+                                 f"), e.g. 't [s]', got {rows[0][0]!r}")
+    axis_map = dict(axis_map or {})
+    unknown = set(axis_map) - set(names[1:])
+    if unknown:
+        raise InvalidConfigError(f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
+                                 f"the trace has not (its columns: {', '.join(names[1:])})")
+    targets, factors = [], []
+    for name, unit in header[1:]:
+        k, sign = axis_index(axis_map.get(name, name))
+        kind = "m" if k >= 3 else "rad"
+        table = {u.lower(): f for u, f in UNITS[kind].items()}
+        if unit.lower() not in table:
+            other = "rad" if kind == "m" else "m"
+            hint = (f"a {'length' if other == 'm' else 'angle'} on a "
+                    f"{'rotation' if kind == 'rad' else 'translation'} axis"
+                    if unit.lower() in {u.lower() for u in UNITS[other]} else
+                    f"units: {', '.join(UNITS[kind])}")
+            raise InvalidConfigError(f"{path}: column {name!r} goes to the platform's "
+                                     f"{AXIS_NAMES[k]} and needs a unit of "
+                                     f"{'length' if kind == 'm' else 'angle'}, got "
+                                     f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'")
+        if k in targets:
+            raise InvalidConfigError(f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
+                                     f"map one elsewhere with axis_map (--map NAME=AXIS)")
+        targets.append(k)
+        factors.append(sign * table[unit.lower()])
+    values = []
+    for line, row in enumerate(rows[1:], start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != len(header):
+            raise InvalidConfigError(f"{path}, line {line}: {len(row)} fields, the header has "
+                                     f"{len(header)}")
+        try:
+            numbers = [float(c) if c.strip() else math.nan for c in row]
+        except ValueError:
+            raise InvalidConfigError(f"{path}, line {line}: not numbers: "
+                                     f"{','.join(row)[:200]!r}") from None
+        if not math.isfinite(numbers[0]):
+            raise InvalidConfigError(f"{path}, line {line}: the time is missing")
+        if any(math.isinf(v) for v in numbers):
+            raise InvalidConfigError(f"{path}, line {line}: an infinite value")
+        values.append(numbers)
+    del rows
+    data = np.array(values, dtype=float).reshape(-1, len(header))
+    t = data[:, 0] * TIME_UNITS[units[0].lower()]
+    if len(t) < 4 or np.any(np.diff(t) <= 0):
+        raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
+    t = t - t[0]
+    rate = 1.0 / float(np.median(np.diff(t)))
+    max_gap_s = as_number("max_gap_s", max_gap_s, 0.0, lo_open=True)
+    resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
+    if lowpass_hz is not None:
+        lowpass_hz = as_number("lowpass_hz", lowpass_hz, 0.0, 0.5 * resample_hz, lo_open=True)
+    check_memory(f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
+                 (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
+                 "cut the trace into shorter files, or lower the resampling rate")
+    grid = np.arange(0.0, t[-1] - 0.5 / resample_hz, 1.0 / resample_hz)
+    grid = np.append(grid, t[-1])                      # the trace's own end
+    displacement = np.zeros((grid.size, 6))
+    gaps = []
+    for j, (k, factor) in enumerate(zip(targets, factors), start=1):
+        ok = np.isfinite(data[:, j])
+        if np.count_nonzero(ok) < 4:
+            raise InvalidConfigError(f"{path}: column {names[j]!r} has fewer than 4 samples")
+        tk = t[ok]
+        spans = np.diff(np.concatenate([[0.0], tk, [t[-1]]]))
+        starts = np.concatenate([[0.0], tk])
+        for start, span in zip(starts, spans):
+            if span > 2.5 / rate:
+                if span > max_gap_s:
+                    raise InvalidConfigError(
+                        f"{path}: column {names[j]!r} has no data for {span:.3g} s from t = "
+                        f"{start:.4g} s, more than max_gap_s = {max_gap_s:g} s (a spline would "
+                        f"invent that motion); fill the gap or raise max_gap_s (--max-gap)")
+                gaps.append((float(start), float(span)))
+        spline = CubicSpline(tk, data[ok, j] * factor)
+        displacement[:, k] = spline(np.clip(grid, tk[0], tk[-1]))
+    if lowpass_hz is not None and grid.size > 15:
+        b, a = butter(2, lowpass_hz / (0.5 * resample_hz))
+        displacement = filtfilt(b, a, displacement, axis=0, padtype="odd",
+                                padlen=min(grid.size - 1, 3 * int(resample_hz / lowpass_hz)))
+    if centre_on == "mean":
+        displacement -= displacement.mean(axis=0) * np.isin(np.arange(6), targets)
+    elif centre_on == "first":
+        displacement -= displacement[0]
+    elif centre_on != "none":
+        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got "
+                                 f"{centre_on!r}")
+    centre = X_HOME if centre is None else np.asarray(_check_centre("trace", centre))
+    poses = as_poses(f"{path}: the trace's poses", centre + displacement)
+    from pydrake.trajectories import PiecewisePolynomial
+
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)
+    info = TraceInfo(path=str(path), columns=tuple(names), units=tuple(units),
+                     axes=tuple(f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}"
+                                for k, f in zip(targets, factors)),
+                     samples=len(t), sample_rate_hz=rate, gaps=tuple(sorted(set(gaps))),
+                     lowpass_hz=lowpass_hz, duration_s=float(grid[-1]), centred_on=centre_on)
+    return TraceTrajectory(spline, info, centre, name=path.stem)
+
+
+# -- scaling a reference into what the robot can do ----------------------------------------------
+
+class ScaledReference:
+    """A reference shrunk about its centre: centre + scale (x(t) - centre), rates and
+    accelerations scaled alike.
+
+    Args:
+        reference: anything with ``evaluate`` (its ``centre`` attribute, else its pose at t = 0,
+            is the fixed point).  scale: in (0, 1].
+    """
+
+    def __init__(self, reference, scale: float):
+        self.reference = reference
+        self.scale = as_number("scale", scale, 0.0, 1.0, lo_open=True)
+        centre = getattr(reference, "centre", None)
+        self.centre = np.asarray(centre if centre is not None else
+                                 np.ravel(reference.evaluate(0.0)[0]), dtype=float)
+        self.name = getattr(reference, "name", "reference")
+        self.end_time = getattr(reference, "end_time", None)
+
+    def evaluate(self, t):
+        x, v, a = self.reference.evaluate(t)
+        s = self.scale
+        return self.centre + s * (np.asarray(x) - self.centre), s * np.asarray(v), \
+            s * np.asarray(a)
+
+    def frequencies_hz(self) -> dict:
+        f = getattr(self.reference, "frequencies_hz", None)
+        return f() if callable(f) else {}
+
+    @property
+    def repeat_period_s(self):
+        return getattr(self.reference, "repeat_period_s", None)
+
+    def cycles(self, t_end: float):
+        return reference_cycles(self.reference, t_end)
+
+
+#: Re-exported for :mod:`~.scenario`'s validation of the trace options.
+CENTRE_MODES = ("mean", "first", "none")
+__all__ = ["Breathing", "Heartbeat", "MotionSum", "IrregularBreathing", "HysteresisBreathing",
+           "LIBRARY", "make_motion", "parameter_names", "load_trace", "TraceTrajectory",
+           "TraceInfo", "reference_cycles", "ScaledReference", "axis_index",
+           "common_period", "PATIENT_AXES", "CENTRE_MODES"]

@@ -1,0 +1,613 @@
+"""How faithfully the robot reproduces a motion: metrics from the true platform pose, the
+``stewart-drake reproduce`` run and its report.
+
+:func:`fidelity` measures a run against its reference over a window: RMS and peak error per axis
+(um and urad, and as a fraction of each axis's peak-to-peak motion), the time lag (sub-sample, by
+cross-correlation), the amplitude and phase error at each harmonic of the breathing and cardiac
+frequencies, and the error of every cycle. :func:`reproduce` checks a motion against the robot
+(the one validator, :func:`~stewart_drake.simulation.guard.check_reference`), shrinks it on
+request, runs the robot as built with or without learning, and measures it;
+:func:`write_report` writes the Markdown report and its one PNG with a verdict against a
+tolerance. The poses are the plant's (the true platform), never the controller's estimate.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidConfigError
+from ..fileio import atomic_write
+
+AXES = ("phi", "theta", "psi", "X", "Y", "Z")
+#: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
+MOVING_P2P = (5e-5, 5e-5, 5e-5, 1e-5, 1e-5, 1e-5)
+#: A harmonic is reported when its reference amplitude exceeds this share of the axis's
+#: peak to peak.
+HARMONIC_SHARE = 0.01
+#: Largest lag searched by the cross-correlation, s.
+MAX_LAG_S = 0.1
+
+#: The phantom anchor: a built 6-DOF Stewart motion phantom replaying recorded tumour motion
+#: (Belcher et al., Med. Phys. 41, 121704, 2014): (axis, RMSE, range), mm and deg.
+PHANTOM_ANCHOR = (("X", 0.14, 20.0), ("Y", 0.22, 20.0), ("Z", 0.08, 10.0),
+                  ("phi", 0.16, 10.0), ("theta", 0.06, 10.0), ("psi", 0.08, 10.0))
+
+
+def rms_translation_rotation(e: np.ndarray) -> tuple[float, float]:
+    """(sqrt(mean |e_XYZ|^2) m, sqrt(mean |e_rpy|^2) rad) of pose errors (n, 6)."""
+    e = np.asarray(e, dtype=float)
+    return (float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
+            float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))))
+
+
+def time_lag(t: np.ndarray, achieved: np.ndarray, reference: np.ndarray,
+             max_lag_s: float = MAX_LAG_S) -> float:
+    """The delay of ``achieved`` behind ``reference`` (s, > 0: late), sub-sample.
+
+    The cross-correlation of the two (means removed; ``scipy.signal.correlate``) peaks at the
+    delay. The inner part of ``achieved`` (all but ``max_lag_s`` at each end) is correlated
+    with the whole reference, so every lag sums the same samples of it, and each lag's sum is
+    divided by the norm of the reference's samples it met (Cauchy-Schwarz: the peak is then
+    where the two match): an overlap or a norm that changed with the lag would tilt the broad
+    peak of a slow motion by far more than a sample. A parabola
+    through the peak and its two neighbours places it between samples. Returns NaN for a
+    reference that does not move or a window shorter than three times ``max_lag_s``.
+
+    Args:
+        t: (n,) evenly spaced times, s. achieved, reference: (n,) or (n, c) signals (columns
+            summed in the correlation: one lag for several axes).
+    """
+    from scipy.signal import correlate
+
+    a = np.asarray(achieved, dtype=float).reshape(len(t), -1)
+    r = np.asarray(reference, dtype=float).reshape(len(t), -1)
+    a, r = a - a.mean(axis=0), r - r.mean(axis=0)
+    dt = float(np.median(np.diff(t)))
+    L = max(1, int(round(max_lag_s / dt)))
+    if not np.any(r) or len(t) < 3 * L:
+        return math.nan
+    inner = a[L:len(t) - L]
+    c = sum(correlate(r[:, k], inner[:, k], mode="valid", method="fft")
+            for k in range(a.shape[1]))                  # c[j]: achieved late by L - j
+    energy = correlate((r * r).sum(axis=1), np.ones(len(inner)), mode="valid", method="fft")
+    c = c / np.sqrt(np.maximum(energy, 1e-300))         # the reference's part that was summed
+    k = int(np.argmax(c))
+    delta = 0.0
+    if 0 < k < len(c) - 1:
+        den = c[k - 1] - 2 * c[k] + c[k + 1]
+        if den < 0:
+            delta = 0.5 * (c[k - 1] - c[k + 1]) / den
+    return float((L - k - delta) * dt)
+
+
+def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.ndarray:
+    """Complex amplitudes of ``signals`` (n, c) at ``frequencies_hz`` (m,): the least-squares
+    fit of a constant and a cosine and sine at each frequency, all at once, as amplitude
+    e^(i phase) of cos(2 pi f t + phase); (m, c).
+
+    Over a window of whole periods of every frequency this is the DFT at those bins (numpy's
+    FFT gives the same numbers); the joint fit keeps them apart in any other window too.
+    """
+    t = np.asarray(t, dtype=float)
+    f = np.asarray(frequencies_hz, dtype=float).reshape(-1)
+    arg = 2 * np.pi * (t - t[0])[:, None] * f
+    design = np.hstack([np.ones((len(t), 1)), np.cos(arg), np.sin(arg)])
+    y = np.asarray(signals, dtype=float).reshape(len(t), -1)
+    coef = np.linalg.lstsq(design, y, rcond=None)[0]
+    m = len(f)
+    phasor = coef[1:m + 1] - 1j * coef[m + 1:]
+    return phasor * np.exp(2j * np.pi * f[:, None] * t[0])
+
+
+def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):
+    rows = []
+    freqs = [(name, k, k * f0) for name, f0 in frequencies.items() for k in range(1, k_max + 1)
+             if k * f0 < 0.25 / float(np.median(np.diff(t)))]
+    if not freqs:
+        return rows
+    F = [f for _, _, f in freqs]
+    R = harmonic_phasors(t, x_d[:, moving], F)
+    A = harmonic_phasors(t, x[:, moving], F)
+    for (name, k, f), r_row, a_row in zip(freqs, R, A):
+        for j, axis in enumerate(moving):
+            if abs(r_row[j]) < HARMONIC_SHARE * p2p[axis]:
+                continue
+            rows.append({"source": name, "k": k, "f_hz": f, "axis": AXES[axis],
+                         "reference": float(abs(r_row[j])),
+                         "amplitude_error": float(abs(a_row[j]) / abs(r_row[j]) - 1),
+                         "phase_error_rad": float(np.angle(a_row[j] / r_row[j]))})
+    return rows
+
+
+def fidelity(t, x, x_d, window=None, frequencies: dict | None = None, cycle_starts=None,
+             harmonics: int = 5) -> dict:
+    """Fidelity of a run over ``window``, from the true pose.
+
+    Args:
+        t: (n,) s, evenly spaced. x: (n, >= 6) the true pose [rad, m]. x_d: (n, >= 6) the
+            reference at the same times.
+        window: (t0, t1) s (default the whole run).
+        frequencies: {"breathing": Hz, "cardiac": Hz} whose harmonics 1..``harmonics`` are
+            analysed (None or {}: none; give them only for a window of whole periods of a motion
+            that repeats: the fit assumes steady frequencies).
+        cycle_starts: (K + 1,) cycle boundaries, s, for the per-cycle errors (cycles inside the
+            data only).
+    Returns:
+        dict (JSON values): ``window_s``; ``moving`` (axis names whose reference moves more
+        than :data:`MOVING_P2P`); per axis (6 lists, rad and m) ``rms``, ``peak``, ``p2p``,
+        ``rms_fraction`` and ``peak_fraction`` (of the axis's peak to peak; NaN for an axis that
+        does not move); ``rms_translation_m``, ``rms_rotation_rad`` (3-D: sqrt of the mean
+        squared norm), ``peak_translation_m``, ``peak_rotation_rad``; ``lag_s`` {axis: s} per
+        moving axis and ``lag_all_s`` (all moving axes together, weighted by their motion);
+        ``harmonics`` (rows: source, k, f_hz, axis, reference amplitude, amplitude_error as a
+        fraction, phase_error_rad, negative = late); ``cycles`` {"starts", "rms_translation_m",
+        "rms_rotation_rad", "peak_translation_m"}.
+    Raises:
+        InvalidConfigError: fewer than 10 samples in the window, or shapes that differ.
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)[:, :6]
+    x_d = np.asarray(x_d, dtype=float)[:, :6]
+    if x.shape != x_d.shape or x.shape[0] != t.size:
+        raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
+    t0, t1 = (t[0], t[-1]) if window is None else window
+    m = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
+    if np.count_nonzero(m) < 10:
+        raise InvalidConfigError(f"fewer than 10 samples in the window [{t0:g}, {t1:g}] s")
+    tw, xw, rw = t[m], x[m], x_d[m]
+    e = xw - rw
+    p2p = np.ptp(rw, axis=0)
+    moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
+    rms = np.sqrt(np.mean(e ** 2, axis=0))
+    peak = np.abs(e).max(axis=0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        frac = np.where(p2p > np.asarray(MOVING_P2P), rms / p2p, np.nan)
+        peak_frac = np.where(p2p > np.asarray(MOVING_P2P), peak / p2p, np.nan)
+    tr, rot = rms_translation_rotation(e)
+    out = {"window_s": [float(tw[0]), float(tw[-1])], "moving": [AXES[k] for k in moving],
+           "rms": rms.tolist(), "peak": peak.tolist(), "p2p": p2p.tolist(),
+           "rms_fraction": frac.tolist(), "peak_fraction": peak_frac.tolist(),
+           "rms_translation_m": tr, "rms_rotation_rad": rot,
+           "peak_translation_m": float(np.linalg.norm(e[:, 3:], axis=1).max()),
+           "peak_rotation_rad": float(np.linalg.norm(e[:, :3], axis=1).max()),
+           "lag_s": {AXES[k]: time_lag(tw, xw[:, k], rw[:, k]) for k in moving}}
+    weights = np.array([1.0 / p2p[k] for k in moving])
+    out["lag_all_s"] = (time_lag(tw, xw[:, moving] * weights, rw[:, moving] * weights)
+                        if moving else math.nan)
+    out["harmonics"] = (_harmonics(tw, xw, rw, frequencies, moving, p2p, harmonics)
+                        if frequencies and moving else [])
+    cycles = {"starts": [], "rms_translation_m": [], "rms_rotation_rad": [],
+              "peak_translation_m": []}
+    if cycle_starts is not None:
+        starts = np.asarray(cycle_starts, dtype=float)
+        for a, b in zip(starts[:-1], starts[1:]):
+            c = (t >= a - 1e-9) & (t < b - 1e-9)
+            if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or \
+                    np.count_nonzero(c) < 10:
+                continue
+            ec = x[c] - x_d[c]
+            ct, cr = rms_translation_rotation(ec)
+            cycles["starts"].append(float(a))
+            cycles["rms_translation_m"].append(ct)
+            cycles["rms_rotation_rad"].append(cr)
+            cycles["peak_translation_m"].append(float(np.linalg.norm(ec[:, 3:], axis=1).max()))
+    out["cycles"] = cycles
+    return out
+
+
+# -- tolerance -----------------------------------------------------------------------------------
+
+def parse_tolerance(text: str) -> tuple[float, float]:
+    """(m, rad) of a tolerance "0.1mm,0.1deg" (lengths m, cm, mm, um; angles rad, mrad, urad,
+    deg; either order).
+
+    Raises:
+        InvalidConfigError: not one length and one angle, each a positive number with its unit.
+    """
+    from ..simulation.organ_motion import UNITS
+
+    found = {}
+    for part in str(text).split(","):
+        m = re.fullmatch(r"\s*([\d.]+(?:[eE][-+]?\d+)?)\s*([a-zA-Z]+)\s*", part)
+        unit = m.group(2).lower() if m else ""
+        kind = next((k for k in ("m", "rad") if unit in UNITS[k]), None)
+        if m is None or kind is None or kind in found or not float(m.group(1)) > 0:
+            raise InvalidConfigError(f"a tolerance is one length and one angle, e.g. "
+                                     f"0.1mm,0.1deg; got {text!r}")
+        found[kind] = float(m.group(1)) * UNITS[kind][unit]
+    if len(found) != 2:
+        raise InvalidConfigError(f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; "
+                                 f"got {text!r}")
+    return found["m"], found["rad"]
+
+
+def verdict(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
+    """(passed, one line): every axis's RMS error over the window within the tolerance
+    (translations in m, rotations in rad), naming the largest of each kind."""
+    rms = np.asarray(fid["rms"])
+    kt, kr = 3 + int(np.argmax(rms[3:])), int(np.argmax(rms[:3]))
+    ok = rms[3:].max() <= tolerance[0] and rms[:3].max() <= tolerance[1]
+    w0, w1 = fid["window_s"]
+    return ok, (f"{'PASS' if ok else 'FAIL'}: RMS error per axis {'within' if ok else 'beyond'} "
+                f"{_length(tolerance[0])} | {_angle(tolerance[1])} over t = {w0:.4g}-{w1:.4g} s "
+                f"(largest: {AXES[kt]} {_length(rms[kt])}, {AXES[kr]} {_angle(rms[kr])})")
+
+
+def _length(v: float) -> str:
+    return f"{v * 1e3:.3g} mm" if v >= 1e-4 else f"{v * 1e6:.3g} um"
+
+
+def _angle(v: float) -> str:
+    return f"{math.degrees(v):.3g} deg" if v >= 1e-3 else f"{v * 1e6:.3g} urad"
+
+
+# -- a reproduction ----------------------------------------------------------------------------
+
+@dataclass
+class Reproduction:
+    """A motion reproduced by the robot and measured (:func:`reproduce`).
+
+    Attributes:
+        name: the motion's name. reference: the reference run (scaled when it had to be).
+        scale: the scale applied to fit the robot (1: as given).
+        result: the :class:`~.experiments.RunResult` (true pose, reference, torques).
+        cycle_starts: (K + 1,) the cycles of the run, s (empty for a reference without).
+        learn_cycles: cycles learned from (0: no learning).
+        fidelity: :func:`fidelity` over the evaluation window (the last ``eval_cycles``).
+        learner: (n, 16) the learner's ``ilc_status`` log, or None
+            (:data:`~stewart_drake.control.ilc.ILC_STATUS_NAMES`).
+        check: the validator's summary of the reference. wall_s: wall time of the run, s.
+    """
+
+    name: str
+    reference: object
+    scale: float
+    result: object
+    cycle_starts: np.ndarray
+    learn_cycles: int
+    fidelity: dict
+    learner: np.ndarray | None = None
+    check: str = ""
+    wall_s: float = 0.0
+    notes: list = field(default_factory=list)
+
+
+def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float]:
+    """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
+    (:class:`~stewart_drake.simulation.organ_motion.ScaledReference`), passes every check of
+    :func:`~stewart_drake.simulation.guard.check_reference` on the
+    scenario's robot (reach, joint limits, singularity, clearance, motor torque and speed), by
+    bisection to within ``tol``.
+
+    Returns:
+        (reference, scale): the reference itself and 1.0 when it passes as it is.
+    Raises:
+        InvalidConfigError: not even a scale of ``tol`` passes (the centre itself is refused:
+            move it).
+    """
+    from ..simulation.guard import check_reference
+    from ..simulation.organ_motion import ScaledReference
+
+    def fits(s: float) -> bool:
+        candidate = reference if s == 1.0 else ScaledReference(reference, s)
+        try:
+            report = check_reference(scenario, candidate, raise_refused=False)
+        except Exception:           # noqa: BLE001 - unreachable poses raise even when reporting
+            return False
+        return report.ok
+
+    if fits(1.0):
+        return reference, 1.0
+    lo, hi = 0.0, 1.0
+    while hi - lo > tol:
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if fits(mid) else (lo, mid)
+    if lo < tol:
+        raise InvalidConfigError(f"{getattr(reference, 'name', 'the reference')} cannot be "
+                                 f"scaled to fit: even at {tol:g} of its size a check refuses "
+                                 f"it; move its centre")
+    return ScaledReference(reference, lo), lo
+
+
+_fit = scale_to_fit          # reproduce's argument of that name is a flag
+
+
+def run(scenario, reference, progress: bool = False, desc: str = "simulating"):
+    """Simulate ``scenario`` on ``reference`` (checked first, guarded):
+    (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or None, wall s).
+
+    The learner's log ends with its state at the end of the run (the loggers' last sample is
+    one period earlier: the update of a cycle's last sample would otherwise be missing)."""
+    from ..simulation import guard
+    from .experiments import advance, build_simulator, collect_result
+
+    sd, simulator = build_simulator(scenario, reference=reference)
+    wall0 = time.perf_counter()
+    guard.advance(sd, simulator, lambda: advance(simulator, scenario.duration_s, progress,
+                                                 desc=desc))
+    wall = time.perf_counter() - wall0
+    context = simulator.get_context()
+    result = collect_result(sd, context, wall)
+    learner = None
+    if sd.learner is not None:
+        log = sd.loggers["ilc_status"].FindLog(context).data().T
+        final = sd.learner.GetOutputPort("ilc_status").Eval(
+            sd.learner.GetMyContextFromRoot(context))
+        learner = np.vstack([log, final])
+    return result, learner, wall
+
+
+def run_cycles(reference, learn_cycles: int, eval_cycles: int) -> int:
+    """Cycles a reproduction runs: the learned ones (or one to settle without learning) and
+    then the evaluated ones."""
+    return max(learn_cycles, 1) + eval_cycles
+
+
+def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int = 2,
+              scale_to_fit: bool = False, duration_s: float | None = None,
+              progress: bool = False) -> Reproduction:
+    """Check a motion against the robot, run it, measure it.
+
+    The run lasts :func:`run_cycles` cycles of the reference and is measured over the last
+    ``eval_cycles``; a recorded trace (a reference with an ``end_time``) runs whole (or
+    ``duration_s``) without learning and is measured after its first cycle (its first tenth when
+    it has no cycles). Before anything is simulated the one validator checks reach, joint limits,
+    singularity, clearance and each motor's torque and speed over the whole run
+    (:func:`~stewart_drake.simulation.guard.check_reference`); a reference it refuses raises
+    that refusal (which names what is over and when), or, with ``scale_to_fit``, is shrunk
+    about its centre until it passes (:func:`scale_to_fit`).
+    With ``learn_cycles`` the scenario learns (its ``learning`` or the default
+    :class:`~stewart_drake.simulation.scenario.IlcDriver`) from that many cycles, then holds
+    the correction through the evaluated cycles.
+
+    Args:
+        scenario: the robot and its controller (changed in place: duration, learning,
+            divergence folder as given).
+        reference: the motion (default the scenario's).
+        learn_cycles: cycles to learn from (0: none). eval_cycles: cycles measured after.
+        scale_to_fit: shrink a refused motion instead of refusing it.
+        duration_s: length of a run on a reference without cycles, s.
+    Returns:
+        :class:`Reproduction`.
+    Raises:
+        UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+        MotorLimitError: the validator's refusal (without ``scale_to_fit``).
+        InvalidConfigError: learning on a reference that does not repeat, a bad count.
+        SimulationDivergedError: the guard stopped the run.
+    """
+    from ..simulation import guard
+    from ..simulation.organ_motion import reference_cycles
+    from ..simulation.scenario import IlcDriver
+    from ..simulation.trajectories import as_trajectory
+
+    for name, value in (("learn_cycles", learn_cycles), ("eval_cycles", eval_cycles)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise InvalidConfigError(f"{name} must be an integer >= 0, got {value!r}")
+    if eval_cycles < 1:
+        raise InvalidConfigError("eval_cycles must be at least 1")
+    reference = as_trajectory(reference if reference is not None else scenario.make_reference())
+    name = getattr(reference, "name", "reference")
+    end = getattr(reference, "end_time", None)
+    try:
+        starts, _ = reference_cycles(reference, end if end is not None else 3600.0)
+    except InvalidConfigError:
+        if learn_cycles:
+            raise
+        starts = np.zeros(0)
+    total = run_cycles(reference, learn_cycles, eval_cycles)
+    whole = end is not None and not learn_cycles         # a recorded trace: all of it
+    if whole:
+        scenario.duration_s = float(min(duration_s or end, end))
+    elif starts.size > total:
+        scenario.duration_s = float(starts[total])
+    else:
+        scenario.duration_s = float(duration_s or end or scenario.duration_s)
+        if learn_cycles and starts.size <= learn_cycles + 1:
+            raise InvalidConfigError(f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
+                                     f"learn from {learn_cycles} and measure one more")
+    if learn_cycles:
+        driver = scenario.learning or IlcDriver()
+        driver.learn_cycles = learn_cycles
+        scenario.learning = driver
+    else:
+        scenario.learning = None
+    scenario.validate()
+    scale = 1.0
+    if scale_to_fit:
+        reference, scale = _fit(scenario, reference)
+    report = guard.check_reference(scenario, reference)
+    result, learner, wall = run(scenario, reference, progress, f"reproducing {name}")
+    starts = starts[starts <= scenario.duration_s + 1e-9]
+    if whole:                     # after the first cycle (or tenth) to the end
+        window = (starts[1] if starts.size > 2 else 0.1 * scenario.duration_s,
+                  scenario.duration_s)
+    elif starts.size > eval_cycles:
+        window = (starts[-eval_cycles - 1], starts[-1])
+    else:
+        window = (0.1 * scenario.duration_s, scenario.duration_s)
+    repeats = getattr(reference, "repeat_period_s", None) is not None
+    freq = reference.frequencies_hz() if repeats and callable(
+        getattr(reference, "frequencies_hz", None)) else {}
+    fid = fidelity(result.t, result.x, result.x_d, window, freq, starts)
+    return Reproduction(name=name, reference=reference, scale=scale, result=result,
+                        cycle_starts=starts, learn_cycles=learn_cycles, fidelity=fid,
+                        learner=learner, check=report.summary(), wall_s=wall)
+
+
+# -- the report ----------------------------------------------------------------------------------
+
+def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
+    """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
+    the learner, the phantom anchor."""
+    fid = rep.fidelity
+    ok, line = verdict(fid, tolerance)
+    units = ["urad"] * 3 + ["um"] * 3
+    lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
+    lines.append(f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
+                 f"({rep.result.config_summary.get('controller', '')}"
+                 + (f", learning from {rep.learn_cycles} cycles, then held" if rep.learn_cycles
+                    else ", no learning") + f"); measured over t = {fid['window_s'][0]:.4g}-"
+                 f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
+                 f"{rep.wall_s:.0f} s.")
+    if rep.scale != 1.0:
+        lines.append(f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
+                     f"robot (--scale-to-fit).")
+    lines += ["", "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
+              "|---|---|---|---|---|---|"]
+    for k, axis in enumerate(AXES):
+        scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+        lag = fid["lag_s"].get(axis)
+        frac = fid["rms_fraction"][k]
+        lines.append(f"| {axis} | {fid['p2p'][k] * scale:.4g} {unit} | "
+                     f"{fid['rms'][k] * 1e6:.3g} {units[k]} | "
+                     f"{fid['peak'][k] * 1e6:.3g} {units[k]} | "
+                     f"{'-' if not np.isfinite(frac) else f'{100 * frac:.3g} %'} | "
+                     f"{'-' if lag is None else f'{1e3 * lag:.3g}'} |")
+    lines += ["", f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
+                  f"{fid['rms_rotation_rad'] * 1e6:.3g} urad (peaks "
+                  f"{fid['peak_translation_m'] * 1e6:.3g} um, "
+                  f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
+                  f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late)."]
+    if fid["harmonics"]:
+        lines += ["", "| harmonic | f [Hz] | axis | reference amplitude | amplitude error | "
+                      "phase error [deg] |", "|---|---|---|---|---|---|"]
+        for h in fid["harmonics"]:
+            k = AXES.index(h["axis"])
+            amp = h["reference"] * (1e3 if k >= 3 else 180 / math.pi)
+            lines.append(f"| {h['source']} {h['k']} | {h['f_hz']:.4g} | {h['axis']} | "
+                         f"{amp:.4g} {'mm' if k >= 3 else 'deg'} | "
+                         f"{100 * h['amplitude_error']:+.3g} % | "
+                         f"{math.degrees(h['phase_error_rad']):+.3g} |")
+    cyc = fid["cycles"]
+    if cyc["starts"]:
+        lines += ["", "Error per cycle (RMS, translation um | rotation urad): "
+                  + ", ".join(f"{j}: {a * 1e6:.3g} | {b * 1e6:.3g}" for j, (a, b) in enumerate(
+                      zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"])))]
+    if rep.learner is not None:
+        from ..control.ilc import ILC_STATUS_NAMES
+
+        last = dict(zip(ILC_STATUS_NAMES, rep.learner[-1]))
+        lines += ["", f"Learner: learned from {int(last['learned_cycles'])} cycles, "
+                      f"{int(last['rollbacks'])} rollback(s)"
+                      + (", stopped by its bound" if last["stopped"] else "") + "."]
+    lines += ["", "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
+                  "Stewart motion phantom replaying recorded tumour motion):", "",
+              "| axis | phantom RMSE | phantom range | phantom RMSE / range | here RMS / p2p |",
+              "|---|---|---|---|---|"]
+    for axis, rmse, rng in PHANTOM_ANCHOR:
+        k = AXES.index(axis)
+        unit = "mm" if k >= 3 else "deg"
+        frac = fid["rms_fraction"][k]
+        lines.append(f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
+                     f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |")
+    lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
+    return "\n".join(lines)
+
+
+def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
+    """One PNG: reference and achieved pose per moving axis, the error over time, the error per
+    cycle and the harmonic table. Returns the path (written atomically)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fid, r = rep.fidelity, rep.result
+    t = r.t
+    moving = [AXES.index(a) for a in fid["moving"]] or [5]
+    e = r.x[:, :6] - r.x_d[:, :6]
+    n_rows = len(moving) + 2 + (1 if fid["harmonics"] else 0)
+    heights = [1.4] * len(moving) + [1.6, 1.4] + ([0.25 * len(fid["harmonics"]) + 0.6]
+                                                  if fid["harmonics"] else [])
+    fig, axes = plt.subplots(n_rows, 1, figsize=(10, sum(heights) + 1.2),
+                             gridspec_kw={"height_ratios": heights})
+    w0, w1 = fid["window_s"]
+    for ax, k in zip(axes, moving):
+        scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+        ax.plot(t, r.x_d[:, k] * scale, "k--", lw=1, label="reference")
+        ax.plot(t, r.x[:, k] * scale, "C0", lw=0.9, label="achieved")
+        ax.set_ylabel(f"{AXES[k]} [{unit}]")
+        ax.axvspan(w0, w1, color="0.9", zorder=0)
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3)
+    ax = axes[len(moving)]
+    ax.plot(t, np.linalg.norm(e[:, 3:], axis=1) * 1e6, "C3", lw=0.6,
+            label="|translation error| [um]")
+    ax.plot(t, np.linalg.norm(e[:, :3], axis=1) * 1e6, "C2", lw=0.6, alpha=0.7,
+            label="|rotation error| [urad]")
+    ax.axhline(tolerance[0] * 1e6, color="C3", ls=":", lw=1,
+               label=f"tolerance {_length(tolerance[0])}")
+    ax.set_yscale("log")
+    ax.set_ylim(0.1, None)
+    ax.axvspan(w0, w1, color="0.9", zorder=0)
+    ax.set_ylabel("error")
+    ax.set_xlabel("t [s] (shaded: measured window)")
+    ax.legend(loc="upper right", fontsize=7, ncol=2)
+    ax.grid(alpha=0.3, which="both")
+    ax = axes[len(moving) + 1]
+    cyc = fid["cycles"]
+    if cyc["starts"]:
+        j = np.arange(len(cyc["starts"]))
+        ax.plot(j, np.array(cyc["rms_translation_m"]) * 1e6, "o-C3", label="translation [um]")
+        ax.plot(j, np.array(cyc["rms_rotation_rad"]) * 1e6, "s-C2", label="rotation [urad]")
+        ax.set_ylim(bottom=0)
+        if rep.learn_cycles:
+            ax.axvline(rep.learn_cycles - 0.5, color="k", ls=":", lw=1)
+            ax.text(rep.learn_cycles - 0.45, 0.05 * ax.get_ylim()[1], "correction held",
+                    fontsize=7, va="bottom")
+        ax.set_xticks(j)
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+    else:
+        ax.text(0.5, 0.5, "the reference has no cycles", ha="center", va="center",
+                transform=ax.transAxes)
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("RMS error\nper cycle")
+    ax.grid(alpha=0.3)
+    if fid["harmonics"]:
+        ax = axes[-1]
+        ax.axis("off")
+        cells = [[f"{h['source']} {h['k']}", f"{h['f_hz']:.3g}", h["axis"],
+                  f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
+                  f"{100 * h['amplitude_error']:+.2g} %",
+                  f"{math.degrees(h['phase_error_rad']):+.2g}"] for h in fid["harmonics"]]
+        table = ax.table(cellText=cells, colLabels=["harmonic", "f [Hz]", "axis",
+                                                    "amplitude [mm|deg]", "amplitude error",
+                                                    "phase error [deg]"],
+                         loc="center", cellLoc="center")
+        table.auto_set_font_size(False)
+        table.set_fontsize(7)
+    ok, line = verdict(fid, tolerance)
+    fig.suptitle(f"{rep.name}: {line}", fontsize=9, color="k" if ok else "tab:red")
+    fig.tight_layout()
+    path = Path(path)
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
+    plt.close(fig)
+    return path
+
+
+def write_report(rep: Reproduction, out, tolerance: tuple[float, float],
+                 stem: str | None = None) -> tuple[Path, Path, Path]:
+    """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` (the figures) into ``out``.
+
+    Returns:
+        the three paths.
+    """
+    out = Path(out)
+    stem = stem or f"reproduce_{rep.name}"
+    md = out / f"{stem}.md"
+    png = plot_report(rep, out / f"{stem}.png", tolerance)
+    text = report_markdown(rep, tolerance) + f"\n![reference, achieved, errors]({png.name})\n"
+    atomic_write(md, lambda f: f.write(text.encode()))
+    figures = {"name": rep.name, "scale": rep.scale, "learn_cycles": rep.learn_cycles,
+               "tolerance": list(tolerance), "passed": verdict(rep.fidelity, tolerance)[0],
+               "fidelity": rep.fidelity, "wall_s": rep.wall_s}
+    js = out / f"{stem}.json"
+    atomic_write(js, lambda f: f.write(json.dumps(figures, indent=1, default=float).encode()))
+    return md, png, js

@@ -1,0 +1,186 @@
+"""Fidelity metrics against signals whose errors are known, and `stewart-drake reproduce` as a
+user runs it: a library motion, a recorded trace (30 Hz, mm and deg, a gap), a trace beyond the
+motors, scaling to fit, learning."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import write_trace
+
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.interfaces import cli
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.simulation import organ_motion as om
+from stewart_drake.studies import fidelity as fd
+
+
+@pytest.mark.parametrize("delay_s", [0.00037, -0.0021, 0.0125])
+def test_the_lag_is_found_between_samples(delay_s):
+    t = np.arange(0.0, 8.0, 1e-3)
+    motion = om.make_motion("breathing_heartbeat", {"period": "4s"})
+    ref = motion.evaluate(t)[0]
+    late = motion.evaluate(t - delay_s)[0]
+    assert fd.time_lag(t, late[:, 3], ref[:, 3]) == pytest.approx(delay_s, abs=2e-5)
+    assert fd.time_lag(t, late[:, 3:5], ref[:, 3:5]) == pytest.approx(delay_s, abs=2e-5)
+    assert math.isnan(fd.time_lag(t, ref[:, 0], ref[:, 0]))      # an axis that does not move
+
+
+def test_harmonic_phasors_are_the_fft_bins_over_whole_periods():
+    t = np.arange(0.0, 20.0, 1e-3)                       # 5 breaths, 24 beats
+    y = (1.0 + 3.0 * np.cos(2 * np.pi * 0.25 * t + 0.4) + 0.5 * np.cos(2 * np.pi * 0.5 * t - 1)
+         + 0.2 * np.cos(2 * np.pi * 1.2 * t + 2.0))
+    p = fd.harmonic_phasors(t, y[:, None], [0.25, 0.5, 1.2])[:, 0]
+    spectrum = np.fft.rfft(y) * 2 / len(y)
+    bins = [round(f * 20.0) for f in (0.25, 0.5, 1.2)]
+    assert np.allclose(p, spectrum[bins], atol=1e-9)
+    assert np.allclose(np.abs(p), [3.0, 0.5, 0.2]) and np.allclose(np.angle(p), [0.4, -1, 2])
+    # a window of other lengths keeps them apart (no leakage), where one FFT would not
+    w = t < 13.3
+    q = fd.harmonic_phasors(t[w], y[w, None], [0.25, 0.5, 1.2])[:, 0]
+    assert np.allclose(q, p, atol=1e-9)
+
+
+def test_fidelity_of_a_late_and_small_copy():
+    motion = om.make_motion("breathing_heartbeat", {"period": "5s"})
+    t = np.arange(0.0, 10.0, 1e-3)
+    x_d = motion.evaluate(t)[0]
+    delay, gain = 0.004, 0.97
+    x = X_HOME + gain * (motion.evaluate(t - delay)[0] - X_HOME)
+    fid = fd.fidelity(t, x, x_d, (5.0, 10.0 - 1e-9), motion.frequencies_hz(), [0, 5, 10])
+    assert fid["moving"] == ["X", "Y"]
+    assert fid["lag_s"]["X"] == pytest.approx(delay, abs=3e-5)
+    assert fid["lag_all_s"] == pytest.approx(delay, abs=3e-5)
+    for h in fid["harmonics"]:
+        assert h["amplitude_error"] == pytest.approx(gain - 1, abs=1e-6)
+        assert h["phase_error_rad"] == pytest.approx(-2 * np.pi * h["f_hz"] * delay, abs=1e-6)
+    sources = {(h["source"], h["k"], h["axis"]) for h in fid["harmonics"]}
+    assert ("breathing", 1, "X") in sources and ("cardiac", 2, "Y") in sources
+    assert ("cardiac", 1, "X") not in sources                   # not in the reference
+    e = x - x_d
+    w = (t >= 5.0) & (t < 10.0)
+    assert fid["rms"][3] == pytest.approx(np.sqrt(np.mean(e[w, 3] ** 2)), rel=1e-3)
+    assert fid["rms_fraction"][3] == pytest.approx(fid["rms"][3] / 0.015, rel=1e-3)
+    assert fid["rms_translation_m"] == pytest.approx(
+        np.sqrt(np.mean(np.sum(e[w, 3:] ** 2, axis=1))), rel=1e-3)
+    assert math.isnan(fid["rms_fraction"][5]) and fid["rms_rotation_rad"] == 0.0
+    assert len(fid["cycles"]["starts"]) == 2
+
+
+def test_the_tolerance_and_the_verdict():
+    assert fd.parse_tolerance("0.1mm,0.1deg") == pytest.approx((1e-4, math.radians(0.1)))
+    assert fd.parse_tolerance("50urad, 2 um") == pytest.approx((2e-6, 5e-5))
+    for bad in ("0.1mm", "0.1mm,0.2mm", "1deg,-1mm", "fast", "0mm,1deg"):
+        with pytest.raises(InvalidConfigError, match="one length and one angle"):
+            fd.parse_tolerance(bad)
+    fid = {"rms": [1e-5, 2e-5, 1e-5, 3e-6, 9e-6, 1e-6], "window_s": [5.0, 10.0]}
+    ok, line = fd.verdict(fid, (1e-5, 3e-5))
+    assert ok and line.startswith("PASS") and "Y 9 um" in line and "theta 20 urad" in line
+    ok, line = fd.verdict(fid, (5e-6, 3e-5))
+    assert not ok and line.startswith("FAIL")
+
+
+def _run(capsys, argv, code=0):
+    rc = cli.main(argv + ["--no-progress"])
+    out, err = capsys.readouterr()
+    assert rc == code, (out, err)
+    return out, err
+
+
+def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
+    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=1s", "--param",
+                           "amplitude=6mm", "--cycles", "1", "--out", str(tmp_path)])
+    assert "PASS" in out and "wrote" in out
+    md = (tmp_path / "reproduce_breathing.md").read_text()
+    assert "**PASS: RMS error per axis within 0.1 mm | 0.1 deg" in md
+    assert "Belcher et al." in md and "breathing 1" in md and "reproduce_breathing.png" in md
+    figures = json.loads((tmp_path / "reproduce_breathing.json").read_text())
+    assert figures["fidelity"]["window_s"] == pytest.approx([1.0, 2.0], abs=2e-3)
+    assert 1e-6 < figures["fidelity"]["rms"][3] < 1e-4
+    assert (tmp_path / "reproduce_breathing.png").stat().st_size > 20_000
+    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=1s", "--cycles", "1",
+                           "--tolerance", "1um,1urad", "--out", str(tmp_path)], code=2)
+    assert "FAIL" in out
+
+
+def test_a_recorded_trace_round_trip(tmp_path, capsys):
+    """A trace written in mm and deg at 30 Hz with a gap is imported, reproduced, reported."""
+    t = np.arange(0.0, 3.0, 1 / 30)
+    shape = np.cos(np.pi * t / 1.0) ** 4                      # 1 s breaths
+    trace = write_trace(tmp_path / "patient.csv", t, {
+        "SI [mm]": 8 * shape, "AP [mm]": 2 * np.roll(shape, 2), "rot_LR [deg]": 0.3 * shape},
+        gap=(1.3, 1.5))
+    out, _ = _run(capsys, ["reproduce", str(trace), "--lowpass-hz", "8", "--out",
+                           str(tmp_path / "out")])
+    md = (tmp_path / "out" / "reproduce_patient.md").read_text()
+    figures = json.loads((tmp_path / "out" / "reproduce_patient.json").read_text())
+    fid = figures["fidelity"]
+    assert fid["moving"] == ["theta", "X", "Z"]
+    assert fid["p2p"][3] == pytest.approx(0.008, rel=0.03)         # mm -> m
+    assert fid["p2p"][1] == pytest.approx(math.radians(0.3), rel=0.03)   # deg -> rad
+    assert fid["window_s"][1] == pytest.approx(t[-1], abs=2e-3)
+    assert fid["rms"][3] < 1e-4 and "PASS" in md
+
+
+def test_a_trace_beyond_the_motors_is_refused_naming_the_motor_and_the_time(tmp_path, capsys):
+    t = np.arange(0.0, 2.0, 1 / 30)
+    trace = write_trace(tmp_path / "fast.csv", t, {"Z [mm]": 12 * np.sin(2 * np.pi * 6 * t)})
+    _, err = _run(capsys, ["reproduce", str(trace), "--out", str(tmp_path / "out")], code=2)
+    lines = err.strip().splitlines()
+    assert len(lines) == 1
+    assert "motor" in lines[0] and "would need" in lines[0] and "at t = " in lines[0]
+    assert not (tmp_path / "out" / "reproduce_fast.md").exists()
+
+
+def test_scale_to_fit_says_by_how_much(tmp_path, capsys):
+    t = np.arange(0.0, 1.0, 1 / 100)
+    trace = write_trace(tmp_path / "fast.csv", t, {"Z [mm]": 12 * np.sin(2 * np.pi * 6 * t)})
+    rc = cli.main(["reproduce", str(trace), "--scale-to-fit", "--tolerance", "1m,1rad",
+                   "--out", str(tmp_path / "out"), "--no-progress"])
+    out, err = capsys.readouterr()
+    assert rc == 0, err
+    scale = float(out.split("scaled by ")[1].split()[0])
+    assert 0.2 < scale < 1.0
+    figures = json.loads((tmp_path / "out" / "reproduce_fast.json").read_text())
+    assert figures["scale"] == pytest.approx(scale, abs=1e-3)
+    assert figures["fidelity"]["p2p"][5] == pytest.approx(0.024 * scale, rel=0.02)
+
+
+def test_reproduce_learns_on_request(tmp_path, capsys):
+    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=0.6s", "--param",
+                           "amplitude=4mm", "--learn-cycles", "3", "--cycles", "1", "--out",
+                           str(tmp_path)])
+    md = (tmp_path / "reproduce_breathing.md").read_text()
+    assert "Learner: learned from 3 cycles, 0 rollback(s)" in md
+    cycles = json.loads((tmp_path / "reproduce_breathing.json").read_text())["fidelity"]
+    per_cycle = cycles["cycles"]["rms_translation_m"]
+    assert len(per_cycle) == 4 and per_cycle[-1] < 0.3 * per_cycle[0]
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["reproduce", "cough"], "unknown motion 'cough'"),
+    (["reproduce", "breathing", "--param", "depth=3mm"], "has no parameter 'depth'"),
+    (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
+    (["reproduce", "breathing", "--map", "SI=X"], "--map, --lowpass-hz and --centre are for"),
+    (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
+    (["reproduce", "missing.csv"], "no trace at"),
+])
+def test_bad_reproduce_arguments_give_one_line(tmp_path, capsys, argv, expected):
+    _, err = _run(capsys, argv + ["--out", str(tmp_path)], code=2)
+    assert len(err.strip().splitlines()) == 1 and expected in err
+
+
+def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
+    """docs/organ_motion.md's tables are what fidelity_study.tables makes of the figures kept
+    beside them (python tools/organ_motion_tables.py writes both; never edit them by hand)."""
+    from pathlib import Path
+
+    from stewart_drake.studies.fidelity_study import CASES, TABLE_MARKERS, tables
+
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    figures = json.loads((docs / "organ_motion.json").read_text())
+    assert set(figures) == {c.job_id for c in CASES}
+    doc = (docs / "organ_motion.md").read_text()
+    start, end = doc.index(TABLE_MARKERS[0]), doc.index(TABLE_MARKERS[1])
+    assert tables(figures) == doc[start:end + len(TABLE_MARKERS[1])]

@@ -1,0 +1,270 @@
+"""The organ-motion library and recorded traces: the models' own formulas, derivatives that
+agree with finite differences, units, axes, gaps, refusals and scaling by the one validator."""
+
+import math
+
+import numpy as np
+import pytest
+from conftest import write_trace
+
+from stewart_drake.errors import InvalidConfigError, MotorLimitError
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.simulation import organ_motion as om
+from stewart_drake.simulation.scenario import (
+    IlcDriver,
+    OrganMotionReference,
+    Scenario,
+    TraceReference,
+    dump_scenario,
+    load_scenario,
+)
+from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
+from stewart_drake.studies.fidelity import scale_to_fit
+
+MOTIONS = [om.Breathing(), om.Breathing(shape_n=1, tilt_rad=0.02, phase_rad=0.3),
+           om.Heartbeat(), om.make_motion("breathing_heartbeat"), om.IrregularBreathing(),
+           om.IrregularBreathing(shape_n=2, seed=3), om.HysteresisBreathing()]
+
+
+@pytest.mark.parametrize("motion", MOTIONS, ids=lambda m: f"{m.name}")
+def test_rate_and_acceleration_are_the_derivatives_of_the_pose(motion):
+    t = np.linspace(0.01, 30.0, 3001)
+    if isinstance(motion, om.IrregularBreathing):      # also right at the cycle boundaries
+        t = np.sort(np.concatenate([t, motion.cycles(30.0)[0][1:-1]]))
+    h = 1e-5
+    x, v, a = motion.evaluate(t)
+    xp, vp, _ = motion.evaluate(t + h)
+    xm, vm, _ = motion.evaluate(t - h)
+    assert np.abs((xp - xm) / (2 * h) - v).max() < 1e-6 * max(1.0, np.abs(v).max())
+    assert np.abs((vp - vm) / (2 * h) - a).max() < 1e-4 * max(1.0, np.abs(a).max())
+    assert np.abs(xp - xm).max() < 2 * h * np.abs(v).max() + 1e-12     # no jump anywhere
+
+
+def test_breathing_is_lujans_formula():
+    b, tau, n, phi = 0.015, 4.0, 3, math.pi / 2
+    m = om.Breathing(amplitude_m=b, period_s=tau, shape_n=n, phase_rad=phi, direction="Z")
+    t = np.linspace(0.0, 8.0, 801)
+    z0 = X_HOME[5] + b / 2                         # end-exhale, where the motion rests
+    expected = z0 - b * np.cos(np.pi * t / tau - phi) ** (2 * n)
+    x = m.evaluate(t)[0]
+    assert np.allclose(x[:, 5], expected, atol=1e-15)
+    assert np.allclose(np.delete(x, 5, axis=1), np.delete(X_HOME, 5))
+    assert np.ptp(x[:, 5]) == pytest.approx(b, rel=1e-9)
+
+
+def test_default_directions_follow_the_patient_frame():
+    assert om.Breathing().direction == (1.0, 0.0, 0.0)            # SI -> platform X
+    assert om.Heartbeat().direction == (0.0, 1.0, 0.0)            # LR -> platform Y
+    assert om.axis_index("AP") == (5, 1.0)
+    assert om.axis_index("-rot_LR") == (1, -1.0)
+    with pytest.raises(InvalidConfigError, match="unknown axis 'up'"):
+        om.axis_index("up")
+
+
+def test_tilt_follows_the_breathing_shape():
+    m = om.Breathing(tilt_rad=math.radians(2), tilt_axis="pitch")
+    x = m.evaluate(np.linspace(0, 4, 401))[0]
+    assert np.ptp(x[:, 1]) == pytest.approx(math.radians(2), rel=1e-9)
+    assert np.allclose(x[:, 1] / x[:, 1].max(), (x[:, 3] - X_HOME[3]) / x[:, 3].max())
+
+
+def test_heartbeat_amplitude_is_peak_to_peak_and_rate_in_bpm():
+    m = om.Heartbeat(amplitude_m=0.003, rate_bpm=90, harmonics=(1.0, 0.4))
+    t = np.linspace(0.0, 2.0, 20001)
+    y = m.evaluate(t)[0][:, 4]
+    assert np.ptp(y) == pytest.approx(0.003, rel=1e-4)
+    assert m.frequency_hz == pytest.approx(1.5)
+    assert np.allclose(m.evaluate(t + 60 / 90)[0], m.evaluate(t)[0], atol=1e-12)
+
+
+def test_the_sum_repeats_after_the_common_period():
+    m = om.make_motion("breathing_heartbeat")
+    assert m.repeat_period_s == pytest.approx(20.0)            # 5 breaths, 24 beats
+    assert m.frequencies_hz() == {"breathing": 0.25, "cardiac": 1.2}
+    t = np.linspace(0, 20, 2001)
+    assert np.allclose(m.evaluate(t + 20.0)[0], m.evaluate(t)[0], atol=1e-12)
+    assert not np.allclose(m.evaluate(t + 4.0)[0], m.evaluate(t)[0], atol=1e-6)
+    assert om.common_period([4.1, 60 / 72]) is None
+    starts, scale = m.cycles(45.0)
+    assert np.allclose(starts, [0, 20, 40, 60]) and np.allclose(scale, 1)
+
+
+def test_irregular_breathing_cycles_vary_and_are_seeded():
+    m = om.IrregularBreathing(seed=7)
+    starts, scale = m.cycles(60.0)
+    periods = np.diff(starts)
+    assert starts[0] == 0 and starts[-2] < 60.0 <= starts[-1]
+    assert periods.std() > 0.03 * m.period_s and scale.std() > 0.05
+    assert np.allclose(starts, om.IrregularBreathing(seed=7).cycles(60.0)[0])
+    assert not np.allclose(periods, np.diff(om.IrregularBreathing(seed=8).cycles(60.0)[0])[
+        :len(periods)])
+    # each cycle reaches its own depth from the same end-exhale position
+    x = m.evaluate(np.linspace(0.0, starts[-1], 60001))[0][:, 3] - X_HOME[3]
+    t = np.linspace(0.0, starts[-1], 60001)
+    for k in range(len(periods)):
+        inside = (t >= starts[k]) & (t < starts[k + 1])
+        assert x[inside].max() == pytest.approx(m.amplitude_m / 2, abs=1e-9)
+        assert x[inside].max() - x[inside].min() == pytest.approx(
+            m.cycle_amplitudes[k], rel=1e-3)
+
+
+def test_hysteresis_inhale_and_exhale_paths_differ():
+    m = om.HysteresisBreathing()
+    assert 0.0015 < m.loop_width_m() < 0.003                   # Seppenwoolde: 1-5 mm
+    assert om.HysteresisBreathing(lag=0.0).loop_width_m() < 1e-9
+    assert om.HysteresisBreathing(lag=0.1).loop_width_m() > m.loop_width_m()
+
+
+def test_make_motion_takes_units_and_names_what_is_wrong():
+    m = om.make_motion("breathing", {"amplitude": "20mm", "period": "5 s", "direction": "-Z",
+                                     "tilt": "2deg", "shape": "2"})
+    assert (m.amplitude_m, m.period_s, m.shape_n) == (pytest.approx(0.02), 5.0, 2)
+    assert m.direction == (0.0, 0.0, -1.0) and m.tilt_rad == pytest.approx(math.radians(2))
+    assert om.make_motion("breathing", {"amplitude_m": 0.01}).amplitude_m == 0.01
+    bh = om.make_motion("breathing_heartbeat", {"heart_rate": "1.5Hz", "heart_amplitude": "3mm"})
+    assert bh.parts[1].rate_bpm == pytest.approx(90) and bh.parts[1].amplitude_m == 0.003
+    bh = om.make_motion("breathing_heartbeat", {"heart_harmonics": "1,0.3", "shape": "1"})
+    assert bh.parts[1].harmonics == (1.0, 0.3) and bh.parts[0].shape_n == 1
+    with pytest.raises(InvalidConfigError, match="is not a number list"):
+        om.make_motion("breathing_heartbeat", {"heart_harmonics": "1,a"})
+    with pytest.raises(InvalidConfigError, match="has no parameter 'depth'.*amplitude"):
+        om.make_motion("breathing", {"depth": "1mm"})
+    with pytest.raises(InvalidConfigError, match="unknown unit 'furlong'"):
+        om.make_motion("breathing", {"amplitude": "1furlong"})
+    with pytest.raises(InvalidConfigError, match="unknown motion 'cough'"):
+        om.make_motion("cough")
+    with pytest.raises(InvalidConfigError, match="shape_n"):
+        om.make_motion("breathing", {"shape_n": "1.5"})
+
+
+def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
+    s = Scenario(reference=OrganMotionReference("breathing_heartbeat", {"amplitude": "12mm",
+                                                                         "heart_rate": "60bpm"}),
+                 learning=IlcDriver(gain=0.5, learn_cycles=3))
+    path = tmp_path / "s.yaml"
+    dump_scenario(s, path)
+    back = load_scenario(path)
+    assert back.reference == s.reference and back.learning == s.learning
+    motion = back.make_reference()
+    assert motion.parts[0].amplitude_m == pytest.approx(0.012)
+    with pytest.raises(InvalidConfigError, match="learning.gain"):
+        load_scenario(path, ["learning.gain=2.5"])
+    with pytest.raises(InvalidConfigError, match="has no parameter"):
+        load_scenario(path, ["reference.parameters={bogus: 1mm}"])
+
+
+# -- traces ------------------------------------------------------------------------------------
+
+def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path):
+    t = np.arange(0.0, 12.0, 1 / 30)
+    si = 7.5 * np.cos(np.pi * t / 4) ** 2                       # mm
+    pitch = 0.5 * np.sin(np.pi * t / 4)                          # deg
+    path = write_trace(tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch},
+                        gap=(5.0, 5.5))
+    ref = om.load_trace(path, centre_on="none")
+    assert isinstance(ref, om.TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
+    assert ref.info.axes == ("+X", "+theta") and ref.info.units[1:] == ("mm", "deg")
+    assert len(ref.info.gaps) == 1 and 0.5 <= ref.info.gaps[0][1] < 0.6        # both axes
+    assert ref.info.sample_rate_hz == pytest.approx(30.0, rel=1e-3)
+    x, v, a = ref.evaluate(t)
+    assert np.allclose(x[:, 3], X_HOME[3] + si * 1e-3, atol=2e-6)   # mm -> m, also in the gap
+    assert np.allclose(x[:, 1], np.radians(pitch), atol=2e-6)       # deg -> rad
+    assert np.allclose(x[:, [0, 2, 4]], 0.0) and np.allclose(x[:, 5], X_HOME[5])
+    # C2: rate and acceleration continuous across the knots
+    tk = np.arange(0.5, 11.5, 0.01)
+    for part in (v, a):
+        left, right = (np.asarray(ref.evaluate(tk + s)[1 if part is v else 2]) for s in
+                       (-1e-9, 1e-9))
+        assert np.abs(left - right).max() < 1e-5
+    assert "gaps bridged" in ref.info.summary() and "SI [mm] -> +X" in ref.info.summary()
+
+
+def test_trace_centring_mapping_and_lowpass(tmp_path):
+    t = np.arange(0.0, 8.0, 0.01)
+    slow, fast = 5 * np.sin(2 * np.pi * 0.25 * t), 0.5 * np.sin(2 * np.pi * 20 * t)
+    path = write_trace(tmp_path / "trace.csv", t, {"depth [mm]": 2 + slow + fast})
+    centre = [0, 0, 0, 0.001, 0, 0.31]
+    ref = om.load_trace(path, axis_map={"depth": "-Z"}, centre=centre, lowpass_hz=2.0)
+    z = ref.evaluate(t)[0][:, 5]
+    inner = (t > 1) & (t < 7)
+    # mean removed, sign flipped, 20 Hz gone, the slow motion kept without lag
+    assert np.abs(z - (0.31 - (slow + 2 - (2 + slow + fast).mean()) * 1e-3))[inner].max() < 2e-5
+    first = om.load_trace(path, axis_map={"depth": "Z"}, centre_on="first")
+    assert first.evaluate(0.0)[0][5] == pytest.approx(X_HOME[5])
+
+
+def test_the_projects_own_csv_is_read_as_before(tmp_path):
+    path = tmp_path / "ref.csv"
+    rows = ["t,phi,theta,psi,X,Y,Z"] + [f"{k * 0.1},0,0,0,0,0,{0.3 + 0.001 * k}"
+                                         for k in range(5)]
+    path.write_text("\n".join(rows) + "\n")
+    ref = om.load_trace(path)
+    assert isinstance(ref, DrakeTrajectory) and not isinstance(ref, om.TraceTrajectory)
+    assert ref.evaluate(0.2)[0][5] == pytest.approx(0.302)
+
+
+@pytest.mark.parametrize("header,row,match", [
+    ("time [s],SI", "0,1", "needs a unit of length"),
+    ("time [s],SI [deg]", "0,1", "a angle on a translation axis|an angle|angle on a"),
+    ("time [s],SI [mm],X [mm]", "0,1,2", "two columns go to the platform's X"),
+    ("depth [mm],t [s]", "0,1", "first column must be the time"),
+    ("t [furlong],Z [mm]", "0,1", "time column needs its unit"),
+    ("t [s],heart [mm]", "0,1", "unknown axis 'heart'"),
+])
+def test_a_bad_trace_header_is_refused_naming_the_column(tmp_path, header, row, match):
+    path = tmp_path / "bad.csv"
+    path.write_text(header + "\n" + "\n".join([row] * 5) + "\n")
+    with pytest.raises(InvalidConfigError, match=match):
+        om.load_trace(path)
+
+
+def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
+    t = np.arange(0.0, 10.0, 0.1)
+    path = write_trace(tmp_path / "gap.csv", t, {"Z [mm]": np.sin(t)}, gap=(3.0, 5.0))
+    with pytest.raises(InvalidConfigError, match=r"no data for 2 s from t = 3 s"):
+        om.load_trace(path, max_gap_s=1.0)
+    assert om.load_trace(path, max_gap_s=3.0).info.gaps
+
+
+def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
+    motion = om.IrregularBreathing(seed=2)
+    t = np.arange(0.0, 40.0, 1 / 25)
+    path = write_trace(tmp_path / "irr.csv", t,
+                        {"X [m]": motion.evaluate(t)[0][:, 3] - X_HOME[3]})
+    starts, scale = om.reference_cycles(om.load_trace(path), 40.0)
+    true = motion.cycles(40.0)[0]
+    inhale = true[:-1] + 0.5 * np.diff(true)          # end-inhale: mid-cycle of the model
+    inhale = inhale[inhale < 39.5]
+    assert len(starts) >= len(inhale) - 1
+    assert np.abs(starts[:, None] - inhale[None, :]).min(axis=1).max() < 0.05
+    with pytest.raises(InvalidConfigError, match="does not repeat"):
+        om.reference_cycles(make_trajectory("home"), 10.0)
+
+
+def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes():
+    from stewart_drake.simulation.guard import check_reference
+
+    scenario = load_scenario("paper_hardware")
+    scenario.duration_s = 1.0
+    fast = om.Heartbeat(amplitude_m=0.02, rate_bpm=360, harmonics=(1.0,), direction="Z")
+    with pytest.raises(MotorLimitError, match=r"motor \d would need .* at t = "):
+        check_reference(scenario, fast)
+    scaled, scale = scale_to_fit(scenario, fast, tol=0.01)
+    assert 0.05 < scale < 1.0
+    assert check_reference(scenario, scaled, raise_refused=False).ok
+    assert not check_reference(scenario, om.ScaledReference(fast, min(1.0, scale + 0.03)),
+                               raise_refused=False).ok
+    x = scaled.evaluate(np.linspace(0, 1, 10001))[0]
+    assert np.ptp(x[:, 5]) == pytest.approx(scale * 0.02, rel=1e-3)
+    assert scale_to_fit(scenario, om.Breathing())[1] == 1.0
+
+
+def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):
+    with pytest.raises(Exception, match="no trace at"):
+        Scenario(reference=TraceReference(path=str(tmp_path / "none.csv")))
+    t = np.arange(0.0, 3.0, 0.05)
+    path = write_trace(tmp_path / "z.csv", t, {"AP [mm]": np.sin(2 * np.pi * t)})
+    s = Scenario(reference=TraceReference(path=str(path), scale=0.5))
+    ref = s.make_reference()
+    assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(0.5 * np.ptp(
+        om.load_trace(path).evaluate(t)[0][:, 5]))
