@@ -788,6 +788,176 @@ def _parse_header_cell(cell: str) -> tuple[str, str]:
     return text, ""
 
 
+#: How to write a trace file: the remedy of the messages about one that cannot be read.
+_TRACE_REMEDY = ("write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
+                 "t [s],SI [mm],AP [mm]")
+
+
+def _trace_rows(path: Path) -> list:
+    """The rows of a trace file, header first (lists of cell strings; at least the header)."""
+    from ..errors import MissingFileError
+    from ..fileio import read_checked
+
+    if not path.exists():
+        raise MissingFileError(f"no trace at {path}: check the path")
+    raw = read_checked(path, "trace CSV", MAX_TRACE_BYTES, _TRACE_REMEDY)
+    rows = csv_rows(raw, path, "trace CSV", _TRACE_REMEDY)
+    del raw
+    if not rows:
+        raise InvalidConfigError(f"{path}: empty; {_TRACE_REMEDY}")
+    return rows
+
+
+def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int, float]:
+    """(platform axis 0..5, factor to rad or m with the axis's sign) of one axis column."""
+    k, sign = axis_index(axis_map.get(name, name))
+    kind = "m" if k >= 3 else "rad"
+    table = {u.lower(): f for u, f in UNITS[kind].items()}
+    if unit.lower() not in table:
+        other = "rad" if kind == "m" else "m"
+        hint = (f"a {'length' if other == 'm' else 'angle'} on a "
+                f"{'rotation' if kind == 'rad' else 'translation'} axis"
+                if unit.lower() in {u.lower() for u in UNITS[other]} else
+                f"units: {', '.join(UNITS[kind])}")
+        raise InvalidConfigError(f"{path}: column {name!r} goes to the platform's "
+                                 f"{AXIS_NAMES[k]} and needs a unit of "
+                                 f"{'length' if kind == 'm' else 'angle'}, got "
+                                 f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'")
+    return k, sign * table[unit.lower()]
+
+
+def _trace_header(path: Path, cells: list, axis_map: dict | None):
+    """(names, units, targets, factors) of a trace's header row: the column names and units
+    (time first), and for each axis column its platform axis 0..5 and its factor to rad or m
+    (signed)."""
+    header = [_parse_header_cell(c) for c in cells]
+    names = [h[0] for h in header]
+    if names[0].lower() not in ("t", "time"):
+        raise InvalidConfigError(f"{path}: the first column must be the time (t [s]), got "
+                                 f"{cells[0]!r}; {_TRACE_REMEDY}")
+    if not 2 <= len(header) <= 7:
+        raise InvalidConfigError(f"{path}: a trace has a time column and 1 to 6 axes, got "
+                                 f"{len(header) - 1} axes")
+    units = [h[1] for h in header]
+    if units[0].lower() not in TIME_UNITS:
+        raise InvalidConfigError(f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
+                                 f"), e.g. 't [s]', got {cells[0]!r}")
+    axis_map = dict(axis_map or {})
+    unknown = set(axis_map) - set(names[1:])
+    if unknown:
+        raise InvalidConfigError(f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
+                                 f"the trace has not (its columns: {', '.join(names[1:])})")
+    targets, factors = [], []
+    for name, unit in header[1:]:
+        k, factor = _column_axis(path, name, unit, axis_map)
+        if k in targets:
+            raise InvalidConfigError(f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
+                                     f"map one elsewhere with axis_map (--map NAME=AXIS)")
+        targets.append(k)
+        factors.append(factor)
+    return names, units, targets, factors
+
+
+def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
+    """(n, width) the numbers of the data rows in the file's units, NaN where a cell is empty
+    (blank rows skipped)."""
+    values = []
+    for line, row in enumerate(rows, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != width:
+            raise InvalidConfigError(f"{path}, line {line}: {len(row)} fields, the header has "
+                                     f"{width}")
+        try:
+            numbers = [float(c) if c.strip() else math.nan for c in row]
+        except ValueError:
+            raise InvalidConfigError(f"{path}, line {line}: not numbers: "
+                                     f"{','.join(row)[:200]!r}") from None
+        if not math.isfinite(numbers[0]):
+            raise InvalidConfigError(f"{path}, line {line}: the time is missing")
+        if any(math.isinf(v) for v in numbers):
+            raise InvalidConfigError(f"{path}, line {line}: an infinite value")
+        values.append(numbers)
+    return np.array(values, dtype=float).reshape(-1, width)
+
+
+def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
+    """(m,) the times the trace is resampled at, s: every 1 / resample_hz from 0, and the
+    trace's own end (its memory checked first)."""
+    from ..checks import check_memory
+
+    check_memory(f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
+                 (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
+                 "cut the trace into shorter files, or lower the resampling rate")
+    grid = np.arange(0.0, t[-1] - 0.5 / resample_hz, 1.0 / resample_hz)
+    return np.append(grid, t[-1])                      # the trace's own end
+
+
+def _gaps(path: Path, name: str, tk: np.ndarray, t_end: float, rate: float,
+          max_gap_s: float) -> list:
+    """[(start s, length s), ...] the intervals longer than 2.5 samples (at ``rate``, Hz)
+    without data in one column sampled at tk (s) of a trace from 0 to t_end (s); refused
+    beyond max_gap_s."""
+    gaps = []
+    spans = np.diff(np.concatenate([[0.0], tk, [t_end]]))
+    starts = np.concatenate([[0.0], tk])
+    for start, span in zip(starts, spans):
+        if span > 2.5 / rate:
+            if span > max_gap_s:
+                raise InvalidConfigError(
+                    f"{path}: column {name!r} has no data for {span:.3g} s from t = "
+                    f"{start:.4g} s, more than max_gap_s = {max_gap_s:g} s (a spline would "
+                    f"invent that motion); fill the gap or raise max_gap_s (--max-gap)")
+            gaps.append((float(start), float(span)))
+    return gaps
+
+
+def _resampled(path: Path, t, data, names, targets, factors, grid, rate: float,
+               max_gap_s: float) -> tuple[np.ndarray, list]:
+    """(displacement (m, 6) on the grid in rad and m, gaps bridged [(start s, length s)]): each
+    axis column joined by a cubic spline through its samples; axes without a column zero."""
+    from scipy.interpolate import CubicSpline
+
+    displacement = np.zeros((grid.size, 6))
+    gaps = []
+    for j, (k, factor) in enumerate(zip(targets, factors), start=1):
+        ok = np.isfinite(data[:, j])
+        if np.count_nonzero(ok) < 4:
+            raise InvalidConfigError(f"{path}: column {names[j]!r} has fewer than 4 samples")
+        tk = t[ok]
+        gaps += _gaps(path, names[j], tk, t[-1], rate, max_gap_s)
+        spline = CubicSpline(tk, data[ok, j] * factor)
+        displacement[:, k] = spline(np.clip(grid, tk[0], tk[-1]))
+    return displacement, gaps
+
+
+def _lowpassed(displacement: np.ndarray, lowpass_hz: float | None,
+               resample_hz: float) -> np.ndarray:
+    """(m, 6) the displacement low-passed without phase lag (a 2nd-order Butterworth filter run
+    forwards and backwards), or as it is without ``lowpass_hz`` or with 15 samples or fewer."""
+    from scipy.signal import butter, filtfilt
+
+    if lowpass_hz is not None and len(displacement) > 15:
+        b, a = butter(2, lowpass_hz / (0.5 * resample_hz))
+        displacement = filtfilt(b, a, displacement, axis=0, padtype="odd",
+                                padlen=min(len(displacement) - 1,
+                                           3 * int(resample_hz / lowpass_hz)))
+    return displacement
+
+
+def _centred(displacement: np.ndarray, centre_on: str, targets) -> np.ndarray:
+    """(m, 6) the displacement with its mean over the trace's axes (``"mean"``) or its first
+    sample (``"first"``) removed, in place, or as it is (``"none"``)."""
+    if centre_on == "mean":
+        displacement -= displacement.mean(axis=0) * np.isin(np.arange(6), targets)
+    elif centre_on == "first":
+        displacement -= displacement[0]
+    elif centre_on != "none":
+        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got "
+                                 f"{centre_on!r}")
+    return displacement
+
+
 def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str = "mean",
                lowpass_hz: float | None = None, max_gap_s: float = 1.0,
                resample_hz: float = 100.0):
@@ -830,81 +1000,13 @@ def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str =
             the reverse, a row that is not numbers (its line named), times not increasing, a gap
             longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
     """
-    from scipy.interpolate import CubicSpline
-    from scipy.signal import butter, filtfilt
-
-    from ..checks import check_memory
-    from ..errors import MissingFileError
-    from ..fileio import read_checked
-
     path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"no trace at {path}: check the path")
-    remedy = ("write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
-              "t [s],SI [mm],AP [mm]")
-    raw = read_checked(path, "trace CSV", MAX_TRACE_BYTES, remedy)
-    rows = csv_rows(raw, path, "trace CSV", remedy)
-    del raw
-    if rows and tuple(h.strip() for h in rows[0]) == CSV_COLUMNS:
+    rows = _trace_rows(path)
+    if tuple(h.strip() for h in rows[0]) == CSV_COLUMNS:
         return load_csv_trajectory(path)
-    if not rows:
-        raise InvalidConfigError(f"{path}: empty; {remedy}")
-    header = [_parse_header_cell(c) for c in rows[0]]
-    names = [h[0] for h in header]
-    if names[0].lower() not in ("t", "time"):
-        raise InvalidConfigError(f"{path}: the first column must be the time (t [s]), got "
-                                 f"{rows[0][0]!r}; {remedy}")
-    if not 2 <= len(header) <= 7:
-        raise InvalidConfigError(f"{path}: a trace has a time column and 1 to 6 axes, got "
-                                 f"{len(header) - 1} axes")
-    units = [h[1] for h in header]
-    if units[0].lower() not in TIME_UNITS:
-        raise InvalidConfigError(f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
-                                 f"), e.g. 't [s]', got {rows[0][0]!r}")
-    axis_map = dict(axis_map or {})
-    unknown = set(axis_map) - set(names[1:])
-    if unknown:
-        raise InvalidConfigError(f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
-                                 f"the trace has not (its columns: {', '.join(names[1:])})")
-    targets, factors = [], []
-    for name, unit in header[1:]:
-        k, sign = axis_index(axis_map.get(name, name))
-        kind = "m" if k >= 3 else "rad"
-        table = {u.lower(): f for u, f in UNITS[kind].items()}
-        if unit.lower() not in table:
-            other = "rad" if kind == "m" else "m"
-            hint = (f"a {'length' if other == 'm' else 'angle'} on a "
-                    f"{'rotation' if kind == 'rad' else 'translation'} axis"
-                    if unit.lower() in {u.lower() for u in UNITS[other]} else
-                    f"units: {', '.join(UNITS[kind])}")
-            raise InvalidConfigError(f"{path}: column {name!r} goes to the platform's "
-                                     f"{AXIS_NAMES[k]} and needs a unit of "
-                                     f"{'length' if kind == 'm' else 'angle'}, got "
-                                     f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'")
-        if k in targets:
-            raise InvalidConfigError(f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
-                                     f"map one elsewhere with axis_map (--map NAME=AXIS)")
-        targets.append(k)
-        factors.append(sign * table[unit.lower()])
-    values = []
-    for line, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        if len(row) != len(header):
-            raise InvalidConfigError(f"{path}, line {line}: {len(row)} fields, the header has "
-                                     f"{len(header)}")
-        try:
-            numbers = [float(c) if c.strip() else math.nan for c in row]
-        except ValueError:
-            raise InvalidConfigError(f"{path}, line {line}: not numbers: "
-                                     f"{','.join(row)[:200]!r}") from None
-        if not math.isfinite(numbers[0]):
-            raise InvalidConfigError(f"{path}, line {line}: the time is missing")
-        if any(math.isinf(v) for v in numbers):
-            raise InvalidConfigError(f"{path}, line {line}: an infinite value")
-        values.append(numbers)
+    names, units, targets, factors = _trace_header(path, rows[0], axis_map)
+    data = _trace_values(path, rows[1:], len(names))
     del rows
-    data = np.array(values, dtype=float).reshape(-1, len(header))
     t = data[:, 0] * TIME_UNITS[units[0].lower()]
     if len(t) < 4 or np.any(np.diff(t) <= 0):
         raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
@@ -914,41 +1016,11 @@ def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str =
     resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
     if lowpass_hz is not None:
         lowpass_hz = as_number("lowpass_hz", lowpass_hz, 0.0, 0.5 * resample_hz, lo_open=True)
-    check_memory(f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
-                 (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
-                 "cut the trace into shorter files, or lower the resampling rate")
-    grid = np.arange(0.0, t[-1] - 0.5 / resample_hz, 1.0 / resample_hz)
-    grid = np.append(grid, t[-1])                      # the trace's own end
-    displacement = np.zeros((grid.size, 6))
-    gaps = []
-    for j, (k, factor) in enumerate(zip(targets, factors), start=1):
-        ok = np.isfinite(data[:, j])
-        if np.count_nonzero(ok) < 4:
-            raise InvalidConfigError(f"{path}: column {names[j]!r} has fewer than 4 samples")
-        tk = t[ok]
-        spans = np.diff(np.concatenate([[0.0], tk, [t[-1]]]))
-        starts = np.concatenate([[0.0], tk])
-        for start, span in zip(starts, spans):
-            if span > 2.5 / rate:
-                if span > max_gap_s:
-                    raise InvalidConfigError(
-                        f"{path}: column {names[j]!r} has no data for {span:.3g} s from t = "
-                        f"{start:.4g} s, more than max_gap_s = {max_gap_s:g} s (a spline would "
-                        f"invent that motion); fill the gap or raise max_gap_s (--max-gap)")
-                gaps.append((float(start), float(span)))
-        spline = CubicSpline(tk, data[ok, j] * factor)
-        displacement[:, k] = spline(np.clip(grid, tk[0], tk[-1]))
-    if lowpass_hz is not None and grid.size > 15:
-        b, a = butter(2, lowpass_hz / (0.5 * resample_hz))
-        displacement = filtfilt(b, a, displacement, axis=0, padtype="odd",
-                                padlen=min(grid.size - 1, 3 * int(resample_hz / lowpass_hz)))
-    if centre_on == "mean":
-        displacement -= displacement.mean(axis=0) * np.isin(np.arange(6), targets)
-    elif centre_on == "first":
-        displacement -= displacement[0]
-    elif centre_on != "none":
-        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got "
-                                 f"{centre_on!r}")
+    grid = _trace_grid(path, t, resample_hz)
+    displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate,
+                                    max_gap_s)
+    displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on,
+                            targets)
     centre = X_HOME if centre is None else np.asarray(_check_centre("trace", centre))
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
     from pydrake.trajectories import PiecewisePolynomial
