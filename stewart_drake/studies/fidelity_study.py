@@ -166,25 +166,68 @@ def _at(outcome: dict, k: int) -> dict | None:
     return cyc[k] if k < len(cyc) else None
 
 
-def tables(results: dict) -> str:
-    """The Markdown tables and the computed verdicts (between :data:`TABLE_MARKERS`)."""
-    lines = [TABLE_MARKERS[0], ""]
-    lines += ["### Without learning and after 5 and 10 learned cycles", "",
-              "RMS error of one cycle from the true platform pose, translation [um] / rotation "
-              "[urad] (3-D: sqrt of the mean squared norm); without learning the mean over "
-              f"cycles 1-{BASELINE_CYCLES - 1} (cycle 0 settles), with the spread of the "
-              "translation; after k learned cycles, cycle k of a run that learns from every "
-              "cycle. Not repeating: the RMS of half the difference between two successive "
-              "cycles' errors without learning (the part no learner can remove; - where the "
-              "cycles differ in length).", "",
-              "| motion | cycle | no learning | after 5 | after 10 | ratio after 10 "
-              "(translation, rotation) | not repeating, no learning | learner |",
-              "|---|---|---|---|---|---|---|---|"]
+#: The main table's rows: (label, the library's motion).
+_MAIN_MOTIONS = (("breathing 15 mm", "breathing"),
+                 ("breathing + 72 bpm heartbeat", "breathing_heartbeat"),
+                 ("irregular breathing", "irregular_breathing"),
+                 ("hysteresis", "hysteresis"))
+
+
+def _goal_verdict(learn: dict, bt: float, br: float, nt: float, nr: float) -> str:
+    """The verdict line on :data:`GOAL` for breathing plus heartbeat after 10 learned cycles,
+    given the mean RMS errors without learning (bt m, br rad) and their part that does not
+    repeat (nt m, nr rad)."""
+    f10 = _at(learn, 10)
+    t10, r10 = f10["rms_translation_m"], f10["rms_rotation_rad"]
+    lt, lr = (_spread(learn, k, 9)[0] for k in ("nonrepeat_translation_m",
+                                                "nonrepeat_rotation_rad"))
+    return (f"- Breathing plus heartbeat after 10 cycles: translation {t10 * 1e6:.2f} um "
+            f"({'meets' if t10 <= GOAL[0] else 'misses'} <= {GOAL[0] * 1e6:g} um; "
+            f"{bt / t10:.1f}x lower than without learning: "
+            f"{'meets' if bt / t10 >= GOAL[2] else 'misses'} >= {GOAL[2]:g}x), rotation "
+            f"{r10 * 1e6:.1f} urad ({'meets' if r10 <= GOAL[1] else 'misses'} <= "
+            f"{GOAL[1] * 1e6:g} urad; {br / r10:.1f}x lower: "
+            f"{'meets' if br / r10 >= GOAL[2] else 'misses'} >= {GOAL[2]:g}x). The part "
+            f"that does not repeat from cycle to cycle, which no learner can remove: "
+            f"{nt * 1e6:.2f} um and {nr * 1e6:.1f} urad without learning, {lt * 1e6:.2f} um "
+            f"and {lr * 1e6:.1f} urad between cycles 9 and 10 with it.")
+
+
+def _irregular_verdict(none: dict, learn: dict, bt: float, br: float) -> str:
+    """The verdict line on irregular breathing: cycles 5-10 with learning against the mean RMS
+    errors without (bt m, br rad) and the spread of their rotation."""
+    mt, _, _ = _spread(learn, "rms_translation_m", 5)
+    mr, _, _ = _spread(learn, "rms_rotation_rad", 5)
+    _, rlo, rhi = _spread(none, "rms_rotation_rad")
+    rot = ("lower" if mr <= br else
+           f"{100 * (mr / br - 1):.0f} % higher, within the spread of the cycles "
+           f"without learning ({rlo * 1e6:.1f}-{rhi * 1e6:.1f} urad)" if mr <= rhi else
+           f"{100 * (mr / br - 1):.0f} % higher, beyond the spread of the cycles "
+           f"without learning ({rlo * 1e6:.1f}-{rhi * 1e6:.1f} urad)")
+    return (f"- Irregular breathing, cycles 5-10 with learning against cycles 1-"
+            f"{BASELINE_CYCLES - 1} without: translation {mt * 1e6:.2f} against "
+            f"{bt * 1e6:.2f} um ({'lower' if mt <= bt else 'HIGHER'}), rotation "
+            f"{mr * 1e6:.1f} against {br * 1e6:.1f} urad ({rot}): "
+            + ("no worse than without learning." if mt <= bt and mr <= rhi else
+               "worse than without learning."))
+
+
+def _main_table(results: dict) -> list[str]:
+    """The lines of the main table (the library's motions without learning and after 5 and 10
+    learned cycles) and of the verdicts computed from it."""
+    lines = ["### Without learning and after 5 and 10 learned cycles", "",
+             "RMS error of one cycle from the true platform pose, translation [um] / rotation "
+             "[urad] (3-D: sqrt of the mean squared norm); without learning the mean over "
+             f"cycles 1-{BASELINE_CYCLES - 1} (cycle 0 settles), with the spread of the "
+             "translation; after k learned cycles, cycle k of a run that learns from every "
+             "cycle. Not repeating: the RMS of half the difference between two successive "
+             "cycles' errors without learning (the part no learner can remove; - where the "
+             "cycles differ in length).", "",
+             "| motion | cycle | no learning | after 5 | after 10 | ratio after 10 "
+             "(translation, rotation) | not repeating, no learning | learner |",
+             "|---|---|---|---|---|---|---|---|"]
     verdicts = []
-    for label, motion in (("breathing 15 mm", "breathing"),
-                          ("breathing + 72 bpm heartbeat", "breathing_heartbeat"),
-                          ("irregular breathing", "irregular_breathing"),
-                          ("hysteresis", "hysteresis")):
+    for label, motion in _MAIN_MOTIONS:
         none, learn = (results.get(f"main/{label}/{k}") for k in ("none", "learn"))
         if not isinstance(none, dict) or not isinstance(learn, dict):
             lines.append(f"| {label} | | failed: {none if not isinstance(none, dict) else learn}"
@@ -205,45 +248,22 @@ def tables(results: dict) -> str:
                      + f" | {int(st.get('rollbacks', 0))} rollbacks"
                      + (", stopped" if st.get("stopped") else "") + " |")
         if motion == "breathing_heartbeat" and f10:
-            t10, r10 = f10["rms_translation_m"], f10["rms_rotation_rad"]
-            lt, lr = (_spread(learn, k, 9)[0] for k in ("nonrepeat_translation_m",
-                                                        "nonrepeat_rotation_rad"))
-            verdicts.append(
-                f"- Breathing plus heartbeat after 10 cycles: translation {t10 * 1e6:.2f} um "
-                f"({'meets' if t10 <= GOAL[0] else 'misses'} <= {GOAL[0] * 1e6:g} um; "
-                f"{bt / t10:.1f}x lower than without learning: "
-                f"{'meets' if bt / t10 >= GOAL[2] else 'misses'} >= {GOAL[2]:g}x), rotation "
-                f"{r10 * 1e6:.1f} urad ({'meets' if r10 <= GOAL[1] else 'misses'} <= "
-                f"{GOAL[1] * 1e6:g} urad; {br / r10:.1f}x lower: "
-                f"{'meets' if br / r10 >= GOAL[2] else 'misses'} >= {GOAL[2]:g}x). The part "
-                f"that does not repeat from cycle to cycle, which no learner can remove: "
-                f"{nt * 1e6:.2f} um and {nr * 1e6:.1f} urad without learning, {lt * 1e6:.2f} um "
-                f"and {lr * 1e6:.1f} urad between cycles 9 and 10 with it.")
+            verdicts.append(_goal_verdict(learn, bt, br, nt, nr))
         if motion == "irregular_breathing" and f10:
-            mt, _, _ = _spread(learn, "rms_translation_m", 5)
-            mr, _, _ = _spread(learn, "rms_rotation_rad", 5)
-            _, rlo, rhi = _spread(none, "rms_rotation_rad")
-            rot = ("lower" if mr <= br else
-                   f"{100 * (mr / br - 1):.0f} % higher, within the spread of the cycles "
-                   f"without learning ({rlo * 1e6:.1f}-{rhi * 1e6:.1f} urad)" if mr <= rhi else
-                   f"{100 * (mr / br - 1):.0f} % higher, beyond the spread of the cycles "
-                   f"without learning ({rlo * 1e6:.1f}-{rhi * 1e6:.1f} urad)")
-            verdicts.append(
-                f"- Irregular breathing, cycles 5-10 with learning against cycles 1-"
-                f"{BASELINE_CYCLES - 1} without: translation {mt * 1e6:.2f} against "
-                f"{bt * 1e6:.2f} um ({'lower' if mt <= bt else 'HIGHER'}), rotation "
-                f"{mr * 1e6:.1f} against {br * 1e6:.1f} urad ({rot}): "
-                + ("no worse than without learning." if mt <= bt and mr <= rhi else
-                   "worse than without learning."))
-    lines += ["", "Verdicts (computed from the table):", ""] + (verdicts or ["- none"])
+            verdicts.append(_irregular_verdict(none, learn, bt, br))
+    return lines + ["", "Verdicts (computed from the table):", ""] + (verdicts or ["- none"])
 
+
+def _settings_table(results: dict) -> list[str]:
+    """The lines of the table of the learner's settings (one changed at a time, on breathing
+    at 5 s with the heartbeat), a blank line first."""
     fast = results.get("tuning/defaults/none")
-    lines += ["", "### The learner's settings", "",
-              "Breathing at 5 s (12 per minute) with the 72 bpm heartbeat: six beats per breath, "
-              "cycles of 5 s. One setting changed from the defaults (gain 0.8 decaying as "
-              "4 / (4 + j), Q-filter 25 Hz, lead 8 ms, the pose error of the encoders' forward "
-              "kinematics); translation [um] / rotation [urad] RMS of the cycle.", "",
-              "| learner | after 1 | after 2 | after 5 | after 10 |", "|---|---|---|---|---|"]
+    lines = ["", "### The learner's settings", "",
+             "Breathing at 5 s (12 per minute) with the 72 bpm heartbeat: six beats per breath, "
+             "cycles of 5 s. One setting changed from the defaults (gain 0.8 decaying as "
+             "4 / (4 + j), Q-filter 25 Hz, lead 8 ms, the pose error of the encoders' forward "
+             "kinematics); translation [um] / rotation [urad] RMS of the cycle.", "",
+             "| learner | after 1 | after 2 | after 5 | after 10 |", "|---|---|---|---|---|"]
     if isinstance(fast, dict):
         bt, br, _, _ = _baseline(fast)
         lines.append(f"| no learning | {bt * 1e6:.2f} / {br * 1e6:.1f} | | | |")
@@ -254,12 +274,17 @@ def tables(results: dict) -> str:
             continue
         lines.append(f"| {c.label} | " + " | ".join(
             _cell(_at(out, k)) if _at(out, k) else "-" for k in (1, 2, 5, 10)) + " |")
+    return lines
 
-    lines += ["", "### Robustness", "",
-              "Breathing at 5 s with the 72 bpm heartbeat on a robot that differs from the one "
-              "the controller and the learner believe in. Translation [um] / rotation [urad].",
-              "", "| robot | no learning | after 5 | after 10 | worst cycle with learning | "
-              "learner |", "|---|---|---|---|---|---|"]
+
+def _robustness_table(results: dict) -> list[str]:
+    """The lines of the robustness table (a robot unlike the one the controller and the
+    learner believe in), a blank line first."""
+    lines = ["", "### Robustness", "",
+             "Breathing at 5 s with the 72 bpm heartbeat on a robot that differs from the one "
+             "the controller and the learner believe in. Translation [um] / rotation [urad].",
+             "", "| robot | no learning | after 5 | after 10 | worst cycle with learning | "
+             "learner |", "|---|---|---|---|---|---|"]
     for label in ("payload 1.2", "encoder noise 1 count", "payload 1.2 + noise 1 count"):
         none, learn = (results.get(f"robustness/{label}/{k}") for k in ("none", "learn"))
         row = f"| {label} | "
@@ -274,29 +299,42 @@ def tables(results: dict) -> str:
         else:
             row += f" | failed: {learn} | | | |"
         lines.append(row)
+    return lines
 
+
+def _anchor_table(results: dict) -> list[str]:
+    """The lines of the table against the phantom anchor (breathing plus heartbeat after 10
+    learned cycles), a blank line first; none when that run failed or is shorter."""
     learn = results.get("main/breathing + 72 bpm heartbeat/learn")
-    if isinstance(learn, dict) and _at(learn, 10):
-        from .fidelity import AXES, PHANTOM_ANCHOR
+    if not (isinstance(learn, dict) and _at(learn, 10)):
+        return []
+    from .fidelity import AXES, PHANTOM_ANCHOR
 
-        f10 = _at(learn, 10)
-        lines += ["", "### Against the phantom anchor", "",
-                  "Belcher et al. (Med. Phys. 41, 121704, 2014): a built 6-DOF Stewart motion "
-                  "phantom replaying recorded 6-D tumour motion. Here: breathing plus heartbeat "
-                  "after 10 learned cycles (15 mm SI, 2 mm LR, no rotation commanded).", "",
-                  "| axis | phantom RMSE | over | here RMS | over (p2p) | phantom RMSE / range "
-                  "| here RMS / p2p |", "|---|---|---|---|---|---|---|"]
-        for axis, rmse, rng in PHANTOM_ANCHOR:
-            k = AXES.index(axis)
-            rot = k < 3
-            here = f10["rms"][k] * (180 / math.pi if rot else 1e3)
-            p2p = f10["p2p"][k] * (180 / math.pi if rot else 1e3)
-            unit = "deg" if rot else "mm"
-            frac = f10["rms_fraction"][k]
-            lines.append(f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {here:.2g} {unit} | "
-                         f"{p2p:.3g} {unit} | {100 * rmse / rng:.2g} % | "
-                         + ("-" if frac is None or not np.isfinite(frac) else
-                            f"{100 * frac:.2g} %") + " |")
+    f10 = _at(learn, 10)
+    lines = ["", "### Against the phantom anchor", "",
+             "Belcher et al. (Med. Phys. 41, 121704, 2014): a built 6-DOF Stewart motion "
+             "phantom replaying recorded 6-D tumour motion. Here: breathing plus heartbeat "
+             "after 10 learned cycles (15 mm SI, 2 mm LR, no rotation commanded).", "",
+             "| axis | phantom RMSE | over | here RMS | over (p2p) | phantom RMSE / range "
+             "| here RMS / p2p |", "|---|---|---|---|---|---|---|"]
+    for axis, rmse, rng in PHANTOM_ANCHOR:
+        k = AXES.index(axis)
+        rot = k < 3
+        here = f10["rms"][k] * (180 / math.pi if rot else 1e3)
+        p2p = f10["p2p"][k] * (180 / math.pi if rot else 1e3)
+        unit = "deg" if rot else "mm"
+        frac = f10["rms_fraction"][k]
+        lines.append(f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {here:.2g} {unit} | "
+                     f"{p2p:.3g} {unit} | {100 * rmse / rng:.2g} % | "
+                     + ("-" if frac is None or not np.isfinite(frac) else
+                        f"{100 * frac:.2g} %") + " |")
+    return lines
+
+
+def tables(results: dict) -> str:
+    """The Markdown tables and the computed verdicts (between :data:`TABLE_MARKERS`)."""
+    lines = [TABLE_MARKERS[0], ""] + _main_table(results)
+    lines += _settings_table(results) + _robustness_table(results) + _anchor_table(results)
     walls = [v["wall_s"] for v in results.values() if isinstance(v, dict)]
     sims = [v["sim_s"] for v in results.values() if isinstance(v, dict)]
     lines += ["", f"{len(walls)} runs, {sum(sims):.0f} s simulated in {sum(walls):.0f} s of "
