@@ -350,6 +350,82 @@ def run_cycles(reference, learn_cycles: int, eval_cycles: int) -> int:
     return max(learn_cycles, 1) + eval_cycles
 
 
+def _check_counts(learn_cycles, eval_cycles) -> None:
+    """Refuse cycle counts that are not integers >= 0, and no cycle to measure."""
+    for name, value in (("learn_cycles", learn_cycles), ("eval_cycles", eval_cycles)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+            raise InvalidConfigError(f"{name} must be an integer >= 0, got {value!r}")
+    if eval_cycles < 1:
+        raise InvalidConfigError("eval_cycles must be at least 1")
+
+
+def _reference_starts(reference, learn_cycles: int) -> np.ndarray:
+    """(K + 1,) the starts of the reference's cycles over its length (or an hour), s; empty for
+    a reference without cycles, which only a run without learning accepts."""
+    from ..simulation.organ_motion import reference_cycles
+
+    end = getattr(reference, "end_time", None)
+    try:
+        starts, _ = reference_cycles(reference, end if end is not None else 3600.0)
+    except InvalidConfigError:
+        if learn_cycles:
+            raise
+        starts = np.zeros(0)
+    return starts
+
+
+def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: int,
+                  duration_s: float | None) -> bool:
+    """Whether the reference runs whole (a recorded trace without learning); sets the
+    scenario's ``duration_s`` (s) to that, to :func:`run_cycles` cycles or to ``duration_s``."""
+    name = getattr(reference, "name", "reference")
+    end = getattr(reference, "end_time", None)
+    total = run_cycles(reference, learn_cycles, eval_cycles)
+    whole = end is not None and not learn_cycles         # a recorded trace: all of it
+    if whole:
+        scenario.duration_s = float(min(duration_s or end, end))
+    elif starts.size > total:
+        scenario.duration_s = float(starts[total])
+    else:
+        scenario.duration_s = float(duration_s or end or scenario.duration_s)
+        if learn_cycles and starts.size <= learn_cycles + 1:
+            raise InvalidConfigError(f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
+                                     f"learn from {learn_cycles} and measure one more")
+    return whole
+
+
+def _set_learning(scenario, learn_cycles: int) -> None:
+    """Make the scenario learn from ``learn_cycles`` cycles (its ``learning`` or the default
+    :class:`~stewart_drake.simulation.scenario.IlcDriver`), or not at all (0)."""
+    from ..simulation.scenario import IlcDriver
+
+    if learn_cycles:
+        driver = scenario.learning or IlcDriver()
+        driver.learn_cycles = learn_cycles
+        scenario.learning = driver
+    else:
+        scenario.learning = None
+
+
+def _measured_window(starts, duration: float, whole: bool,
+                     eval_cycles: int) -> tuple[float, float]:
+    """(start, end) of the window measured, s: after a whole trace's first cycle (or tenth), or
+    the last ``eval_cycles`` cycles (the last nine tenths of a run without them)."""
+    if whole:                     # after the first cycle (or tenth) to the end
+        return (starts[1] if starts.size > 2 else 0.1 * duration, duration)
+    if starts.size > eval_cycles:
+        return (starts[-eval_cycles - 1], starts[-1])
+    return (0.1 * duration, duration)
+
+
+def _harmonic_frequencies(reference) -> dict:
+    """{"breathing": Hz, "cardiac": Hz}: the fundamentals whose harmonics :func:`fidelity`
+    analyses, those of a reference that repeats ({} for one that does not)."""
+    repeats = getattr(reference, "repeat_period_s", None) is not None
+    return reference.frequencies_hz() if repeats and callable(
+        getattr(reference, "frequencies_hz", None)) else {}
+
+
 def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int = 2,
               scale_to_fit: bool = False, duration_s: float | None = None,
               progress: bool = False) -> Reproduction:
@@ -383,41 +459,14 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
         SimulationDivergedError: the guard stopped the run.
     """
     from ..simulation import guard
-    from ..simulation.organ_motion import reference_cycles
-    from ..simulation.scenario import IlcDriver
     from ..simulation.trajectories import as_trajectory
 
-    for name, value in (("learn_cycles", learn_cycles), ("eval_cycles", eval_cycles)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
-            raise InvalidConfigError(f"{name} must be an integer >= 0, got {value!r}")
-    if eval_cycles < 1:
-        raise InvalidConfigError("eval_cycles must be at least 1")
+    _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference if reference is not None else scenario.make_reference())
     name = getattr(reference, "name", "reference")
-    end = getattr(reference, "end_time", None)
-    try:
-        starts, _ = reference_cycles(reference, end if end is not None else 3600.0)
-    except InvalidConfigError:
-        if learn_cycles:
-            raise
-        starts = np.zeros(0)
-    total = run_cycles(reference, learn_cycles, eval_cycles)
-    whole = end is not None and not learn_cycles         # a recorded trace: all of it
-    if whole:
-        scenario.duration_s = float(min(duration_s or end, end))
-    elif starts.size > total:
-        scenario.duration_s = float(starts[total])
-    else:
-        scenario.duration_s = float(duration_s or end or scenario.duration_s)
-        if learn_cycles and starts.size <= learn_cycles + 1:
-            raise InvalidConfigError(f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
-                                     f"learn from {learn_cycles} and measure one more")
-    if learn_cycles:
-        driver = scenario.learning or IlcDriver()
-        driver.learn_cycles = learn_cycles
-        scenario.learning = driver
-    else:
-        scenario.learning = None
+    starts = _reference_starts(reference, learn_cycles)
+    whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
+    _set_learning(scenario, learn_cycles)
     scenario.validate()
     scale = 1.0
     if scale_to_fit:
@@ -425,16 +474,8 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     report = guard.check_reference(scenario, reference)
     result, learner, wall = run(scenario, reference, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
-    if whole:                     # after the first cycle (or tenth) to the end
-        window = (starts[1] if starts.size > 2 else 0.1 * scenario.duration_s,
-                  scenario.duration_s)
-    elif starts.size > eval_cycles:
-        window = (starts[-eval_cycles - 1], starts[-1])
-    else:
-        window = (0.1 * scenario.duration_s, scenario.duration_s)
-    repeats = getattr(reference, "repeat_period_s", None) is not None
-    freq = reference.frequencies_hz() if repeats and callable(
-        getattr(reference, "frequencies_hz", None)) else {}
+    window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
+    freq = _harmonic_frequencies(reference)
     fid = fidelity(result.t, result.x, result.x_d, window, freq, starts)
     return Reproduction(name=name, reference=reference, scale=scale, result=result,
                         cycle_starts=starts, learn_cycles=learn_cycles, fidelity=fid,
@@ -511,24 +552,11 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     return "\n".join(lines)
 
 
-def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
-    """One PNG: reference and achieved pose per moving axis, the error over time, the error per
-    cycle and the harmonic table. Returns the path (written atomically)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fid, r = rep.fidelity, rep.result
+def _plot_poses(axes, moving: list, r, window) -> None:
+    """Draw the reference and the achieved pose of each moving axis (mm or deg), one axis per
+    row, the measured window shaded."""
     t = r.t
-    moving = [AXES.index(a) for a in fid["moving"]] or [5]
-    e = r.x[:, :6] - r.x_d[:, :6]
-    n_rows = len(moving) + 2 + (1 if fid["harmonics"] else 0)
-    heights = [1.4] * len(moving) + [1.6, 1.4] + ([0.25 * len(fid["harmonics"]) + 0.6]
-                                                  if fid["harmonics"] else [])
-    fig, axes = plt.subplots(n_rows, 1, figsize=(10, sum(heights) + 1.2),
-                             gridspec_kw={"height_ratios": heights})
-    w0, w1 = fid["window_s"]
+    w0, w1 = window
     for ax, k in zip(axes, moving):
         scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
         ax.plot(t, r.x_d[:, k] * scale, "k--", lw=1, label="reference")
@@ -537,7 +565,14 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
         ax.axvspan(w0, w1, color="0.9", zorder=0)
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax.grid(alpha=0.3)
-    ax = axes[len(moving)]
+
+
+def _plot_error(ax, r, window, tolerance: tuple[float, float]) -> None:
+    """Draw the norms of the translation (um) and rotation (urad) errors over time against the
+    translation tolerance, the measured window shaded."""
+    t = r.t
+    e = r.x[:, :6] - r.x_d[:, :6]
+    w0, w1 = window
     ax.plot(t, np.linalg.norm(e[:, 3:], axis=1) * 1e6, "C3", lw=0.6,
             label="|translation error| [um]")
     ax.plot(t, np.linalg.norm(e[:, :3], axis=1) * 1e6, "C2", lw=0.6, alpha=0.7,
@@ -551,16 +586,19 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     ax.set_xlabel("t [s] (shaded: measured window)")
     ax.legend(loc="upper right", fontsize=7, ncol=2)
     ax.grid(alpha=0.3, which="both")
-    ax = axes[len(moving) + 1]
-    cyc = fid["cycles"]
+
+
+def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
+    """Draw the RMS error of each cycle (um and urad), the cycles learned from marked, or say
+    that the reference has none."""
     if cyc["starts"]:
         j = np.arange(len(cyc["starts"]))
         ax.plot(j, np.array(cyc["rms_translation_m"]) * 1e6, "o-C3", label="translation [um]")
         ax.plot(j, np.array(cyc["rms_rotation_rad"]) * 1e6, "s-C2", label="rotation [urad]")
         ax.set_ylim(bottom=0)
-        if rep.learn_cycles:
-            ax.axvline(rep.learn_cycles - 0.5, color="k", ls=":", lw=1)
-            ax.text(rep.learn_cycles - 0.45, 0.05 * ax.get_ylim()[1], "correction held",
+        if learn_cycles:
+            ax.axvline(learn_cycles - 0.5, color="k", ls=":", lw=1)
+            ax.text(learn_cycles - 0.45, 0.05 * ax.get_ylim()[1], "correction held",
                     fontsize=7, va="bottom")
         ax.set_xticks(j)
         ax.legend(loc="upper right", fontsize=7, ncol=2)
@@ -570,19 +608,44 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     ax.set_xlabel("cycle")
     ax.set_ylabel("RMS error\nper cycle")
     ax.grid(alpha=0.3)
+
+
+def _plot_harmonics(ax, harmonics: list) -> None:
+    """Draw the harmonic table: each harmonic's frequency, axis, reference amplitude and its
+    amplitude and phase errors."""
+    ax.axis("off")
+    cells = [[f"{h['source']} {h['k']}", f"{h['f_hz']:.3g}", h["axis"],
+              f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
+              f"{100 * h['amplitude_error']:+.2g} %",
+              f"{math.degrees(h['phase_error_rad']):+.2g}"] for h in harmonics]
+    table = ax.table(cellText=cells, colLabels=["harmonic", "f [Hz]", "axis",
+                                                "amplitude [mm|deg]", "amplitude error",
+                                                "phase error [deg]"],
+                     loc="center", cellLoc="center")
+    table.auto_set_font_size(False)
+    table.set_fontsize(7)
+
+
+def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
+    """One PNG: reference and achieved pose per moving axis, the error over time, the error per
+    cycle and the harmonic table. Returns the path (written atomically)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fid, r = rep.fidelity, rep.result
+    moving = [AXES.index(a) for a in fid["moving"]] or [5]
+    n_rows = len(moving) + 2 + (1 if fid["harmonics"] else 0)
+    heights = [1.4] * len(moving) + [1.6, 1.4] + ([0.25 * len(fid["harmonics"]) + 0.6]
+                                                  if fid["harmonics"] else [])
+    fig, axes = plt.subplots(n_rows, 1, figsize=(10, sum(heights) + 1.2),
+                             gridspec_kw={"height_ratios": heights})
+    _plot_poses(axes, moving, r, fid["window_s"])
+    _plot_error(axes[len(moving)], r, fid["window_s"], tolerance)
+    _plot_cycles(axes[len(moving) + 1], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
-        ax = axes[-1]
-        ax.axis("off")
-        cells = [[f"{h['source']} {h['k']}", f"{h['f_hz']:.3g}", h["axis"],
-                  f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
-                  f"{100 * h['amplitude_error']:+.2g} %",
-                  f"{math.degrees(h['phase_error_rad']):+.2g}"] for h in fid["harmonics"]]
-        table = ax.table(cellText=cells, colLabels=["harmonic", "f [Hz]", "axis",
-                                                    "amplitude [mm|deg]", "amplitude error",
-                                                    "phase error [deg]"],
-                         loc="center", cellLoc="center")
-        table.auto_set_font_size(False)
-        table.set_fontsize(7)
+        _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict(fid, tolerance)
     fig.suptitle(f"{rep.name}: {line}", fontsize=9, color="k" if ok else "tab:red")
     fig.tight_layout()
