@@ -220,13 +220,7 @@ class IterativeLearningController(LeafSystem):
         self.geometry = geometry
         self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
         self.offset = as_number("offset_s", offset_s, 0.0, self.h)
-        starts = as_array("cycle_starts", cycle_starts).reshape(-1)
-        if starts.size < 2 or np.any(np.diff(starts) <= 0) or starts[0] < 0:
-            raise InvalidConfigError("cycle_starts must be at least two increasing times >= 0 s")
-        scale = np.ones(starts.size - 1) if cycle_scale is None else as_array(
-            "cycle_scale", cycle_scale, shape=(starts.size - 1,))
-        if np.any(scale <= 0):
-            raise InvalidConfigError("cycle_scale must be > 0")
+        starts, scale = _checked_cycles(cycle_starts, cycle_scale)
         ratio = sample_period_s / self.h
         if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
             raise InvalidConfigError(f"sample_period_s ({sample_period_s}) must be a whole "
@@ -249,28 +243,14 @@ class IterativeLearningController(LeafSystem):
         self.error = error
         self.bound_ratio = as_number("bound_ratio", bound_ratio, 1.0, 100.0)
         self.floor = (as_number("floor_m", floor_m, 0.0), as_number("floor_rad", floor_rad, 0.0))
-        if isinstance(max_rollbacks, bool) or not float(max_rollbacks).is_integer() \
-                or max_rollbacks < 0:
-            raise InvalidConfigError(f"max_rollbacks must be an integer >= 0, got "
-                                     f"{max_rollbacks!r}")
-        self.max_rollbacks = int(max_rollbacks)
-        if isinstance(learn_cycles, bool) or not float(learn_cycles).is_integer() \
-                or learn_cycles < 0:
-            raise InvalidConfigError(f"learn_cycles must be an integer >= 0, got "
-                                     f"{learn_cycles!r}")
-        self.learn_cycles = int(learn_cycles)
+        self.max_rollbacks = _count("max_rollbacks", max_rollbacks)
+        self.learn_cycles = _count("learn_cycles", learn_cycles)
         self.decay = as_number("gain_decay_cycles", gain_decay_cycles, 0.0)
         self.M = max(8, int(round(float(np.median(lengths)) / self.R)))
         self.ba = q_filter(as_number("q_cutoff_hz", q_cutoff_hz, 0.0, lo_open=True),
                            sample_period_s)
-        rows = int(math.ceil(lengths.max() / self.R))
-        parts = {"buffer": rows * 12, "acc": 12, "learned": self.M * 6, "best": self.M * 6,
-                 "previous": self.M * 6}
-        self._mem, start = {}, 0
-        for name, size in parts.items():
-            self._mem[name] = slice(start, start + size)
-            start += size
-        self.rows_max = rows
+        self.rows_max = int(math.ceil(lengths.max() / self.R))
+        self._mem, size = _memory_layout(self.rows_max, self.M)
 
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         self._motor_angle = self.DeclareVectorInputPort("motor_angle", 6)
@@ -279,7 +259,7 @@ class IterativeLearningController(LeafSystem):
         status[ILC_STATUS_NAMES.index("gain")] = self.gain0
         status[ILC_STATUS_NAMES.index("best_score")] = np.inf
         self._s_index = self.DeclareDiscreteState(status)
-        self._m_index = self.DeclareDiscreteState(start)
+        self._m_index = self.DeclareDiscreteState(size)
         self.DeclareStateOutputPort("x_d_correction", self._c_index)
         self.DeclareStateOutputPort("ilc_status", self._s_index)
         self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=self.offset,
@@ -389,6 +369,39 @@ class IterativeLearningController(LeafSystem):
         learned[:] = learn(learned, weight * e_phase, gain, self.ba)
         status.E_ref_trans_m, status.E_ref_rot_rad = E
         status.learned_cycles += 1
+
+
+def _checked_cycles(cycle_starts, cycle_scale) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (K + 1,) s, scale (K,)) of the learner's cycles: increasing times >= 0 and
+    amplitude scales > 0 (default ones)."""
+    starts = as_array("cycle_starts", cycle_starts).reshape(-1)
+    if starts.size < 2 or np.any(np.diff(starts) <= 0) or starts[0] < 0:
+        raise InvalidConfigError("cycle_starts must be at least two increasing times >= 0 s")
+    scale = np.ones(starts.size - 1) if cycle_scale is None else as_array(
+        "cycle_scale", cycle_scale, shape=(starts.size - 1,))
+    if np.any(scale <= 0):
+        raise InvalidConfigError("cycle_scale must be > 0")
+    return starts, scale
+
+
+def _count(name: str, value) -> int:
+    """``value`` as an int, refused unless a whole number >= 0 (not a bool)."""
+    if isinstance(value, bool) or not float(value).is_integer() or value < 0:
+        raise InvalidConfigError(f"{name} must be an integer >= 0, got {value!r}")
+    return int(value)
+
+
+def _memory_layout(rows: int, M: int) -> tuple[dict, int]:
+    """({part: slice}, size) of the learner's memory state: the records of a cycle (rows x 12),
+    their running sum (12), the learned and the best correction and the last cycle's filtered
+    error (M x 6 each)."""
+    parts = {"buffer": rows * 12, "acc": 12, "learned": M * 6, "best": M * 6,
+             "previous": M * 6}
+    layout, start = {}, 0
+    for name, size in parts.items():
+        layout[name] = slice(start, start + size)
+        start += size
+    return layout, start
 
 
 def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
