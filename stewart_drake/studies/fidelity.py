@@ -376,8 +376,9 @@ def _reference_starts(reference, learn_cycles: int) -> np.ndarray:
 
 def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: int,
                   duration_s: float | None) -> bool:
-    """Whether the reference runs whole (a recorded trace without learning); sets the
-    scenario's ``duration_s`` (s) to that, to :func:`run_cycles` cycles or to ``duration_s``."""
+    """True when a recorded trace runs whole (without learning); sets the scenario's
+    ``duration_s``, s: the trace's length (at most), :func:`run_cycles` cycles or
+    ``duration_s``."""
     name = getattr(reference, "name", "reference")
     end = getattr(reference, "end_time", None)
     total = run_cycles(reference, learn_cycles, eval_cycles)
