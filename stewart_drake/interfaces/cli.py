@@ -562,8 +562,7 @@ def _add_runner_arguments(parser) -> None:
                              "start a local cluster)")
     parser.add_argument("--connect-timeout", type=_positive_float,
                         default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
-                        help=f"seconds for --address or --scheduler to accept a connection "
-                             f"({DEFAULT_CONNECT_TIMEOUT_S:g})")
+                        help="seconds for --address or --scheduler to accept a connection")
     parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
                         help="attempts after the first for a job whose worker died")
     parser.add_argument("--recycle", type=_int_at_least(0), default=DEFAULT_RECYCLE,
