@@ -107,6 +107,37 @@ def test_settling_time_and_frequency_response_on_known_signals():
     assert bandwidth_hz(f, np.ones_like(f)) is None
 
 
+def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
+    """The shipped sweeps: the full amplitude below the corner, a constant acceleration above
+    it, rate and acceleration the derivatives of the pose (finite differences away from the
+    corner's kink and the end of the sweep), and the same low-pass read back through the
+    envelope as through a constant amplitude."""
+    from stewart_drake.simulation.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION, sweep
+
+    chirp = sweep("Z")
+    corner = np.sqrt(SWEEP_MAX_ACCELERATION[1] / SWEEP_AMPLITUDE[1]) / (2 * np.pi)
+    assert corner == pytest.approx(31.6, abs=0.1)
+    t = np.arange(0.01, 9.9, 2.5e-5)
+    x, x_dot, x_ddot = (v[:, 5] for v in chirp.evaluate(t))
+    assert np.max(np.abs(x - chirp.offset[5])) == pytest.approx(2e-4, rel=1e-6)
+    late = t > 8.0                                      # held at 50 Hz: 0.08 mm, 7.9 m/s^2
+    assert np.max(np.abs(x[late] - chirp.offset[5])) == pytest.approx(8e-5, rel=1e-3)
+    assert np.max(np.abs(x_ddot)) == pytest.approx(SWEEP_MAX_ACCELERATION[1], rel=1e-3)
+    t_corner = chirp.duration_s * np.log(corner / chirp.f0_hz) / np.log(chirp.f1_hz / chirp.f0_hz)
+    away = (np.abs(t - t_corner) > 2e-3) & (np.abs(t - chirp.duration_s) > 2e-3)
+    for value, rate in ((x, x_dot), (x_dot, x_ddot)):
+        error = np.abs(np.gradient(value, t) - rate)[away][2:-2]
+        assert error.max() < 2e-3 * np.abs(rate).max()
+
+    f_c = 10.0                                          # the low-pass again, through the envelope
+    t = np.arange(0, 8, 1e-3)
+    f_t = chirp.frequency(t)
+    g = 1 / np.sqrt(1 + (f_t / f_c) ** 2)
+    y = chirp.offset[5] + chirp.envelope(t)[0] * g * np.sin(chirp.phase(t) - np.arctan(f_t / f_c))
+    f, gain, _ = frequency_response(t, y, chirp)
+    np.testing.assert_allclose(gain, 1 / np.sqrt(1 + (f / f_c) ** 2), rtol=0.02)
+
+
 def test_scenarios_are_reachable_and_named():
     from stewart_drake.model.geometry import StewartGeometry
     from stewart_drake.simulation.trajectories import validate

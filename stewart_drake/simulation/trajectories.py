@@ -143,10 +143,15 @@ class StepTrajectory:
 class ChirpTrajectory:
     """Exponential sine sweep on one axis, for the closed loop's frequency response.
 
-    x_d = offset + amplitude sin(phase(t)) e_axis, instantaneous frequency
+    x_d = offset + A(t) sin(phase(t)) e_axis, instantaneous frequency
     f(t) = f0 (f1/f0)^(t/duration_s) Hz, phase(t) = 2 pi f0 T (k^(t/T) - 1) / ln k, k = f1/f0;
-    after ``duration_s`` the sweep holds f1. Attributes: axis, amplitude (rad or m), f0_hz,
-    f1_hz (> f0_hz), duration_s, offset (6,).
+    after ``duration_s`` the sweep holds f1. The envelope A(t) = min(amplitude,
+    max_acceleration / (2 pi f(t))^2) is the shaker test's constant-displacement,
+    constant-acceleration profile: the full amplitude where the motors can give it, an amplitude
+    falling as 1/f^2 above the corner where its acceleration would exceed what they give.
+
+    Attributes: axis, amplitude (rad or m), f0_hz, f1_hz (> f0_hz), duration_s, offset (6,),
+    max_acceleration (rad/s^2 or m/s^2; None: the amplitude at every frequency).
     """
 
     axis: int = 5
@@ -156,6 +161,7 @@ class ChirpTrajectory:
     duration_s: float = 8.0
     offset: tuple = tuple(X_HOME)
     name: str = "sweep"
+    max_acceleration: float | None = None
 
     def __post_init__(self):
         object.__setattr__(self, "axis", _axis_index(self.axis))
@@ -163,6 +169,9 @@ class ChirpTrajectory:
                          ("duration_s", 0.0)):
             object.__setattr__(self, name, as_number(f"{self.name}: {name}", getattr(self, name),
                                                      lo, lo_open=lo is not None))
+        if self.max_acceleration is not None:
+            object.__setattr__(self, "max_acceleration", as_number(
+                f"{self.name}: max_acceleration", self.max_acceleration, 0.0, lo_open=True))
         if not self.f0_hz < self.f1_hz:
             raise InvalidConfigError(f"{self.name}: need f0_hz < f1_hz, got {self.f0_hz}, "
                                      f"{self.f1_hz}")
@@ -181,6 +190,25 @@ class ChirpTrajectory:
         ph = 2 * np.pi * self.f0_hz * T * (k ** (tc / T) - 1) / np.log(k)
         return ph + 2 * np.pi * self.f1_hz * np.maximum(t - T, 0.0)
 
+    def envelope(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The envelope A(t) and its first two time derivatives (rad or m, per s, per s^2)."""
+        t = np.asarray(t, dtype=float)
+        A = np.full(t.shape, float(abs(self.amplitude)))
+        A_dot, A_ddot = np.zeros(t.shape), np.zeros(t.shape)
+        if self.max_acceleration is not None:
+            w = 2 * np.pi * self.frequency(t)
+            limited = self.max_acceleration / (w * w)
+            over = limited < A
+            # A = a_max / w^2 with w = w0 k^(t/T): A' = -2 A ln k / T, A'' = (2 ln k / T)^2 A
+            # while the sweep runs, constant once it holds f1.
+            rate = np.where(t < self.duration_s,
+                            -2 * np.log(self.f1_hz / self.f0_hz) / self.duration_s, 0.0)
+            A = np.where(over, limited, A)
+            A_dot = np.where(over, rate * limited, 0.0)
+            A_ddot = np.where(over, rate * rate * limited, 0.0)
+        sign = 1.0 if self.amplitude >= 0 else -1.0
+        return sign * A, sign * A_dot, sign * A_ddot
+
     def evaluate(self, t):
         """Pose, rate, acceleration at times t: three (..., 6) arrays (t scalar gives (6,))."""
         t = np.asarray(t, dtype=float)
@@ -188,10 +216,14 @@ class ChirpTrajectory:
         w = 2 * np.pi * self.frequency(t)[..., None]
         T, k = self.duration_s, self.f1_hz / self.f0_hz
         w_dot = np.where(t[..., None] < T, w * np.log(k) / T, 0.0)
+        A, A_dot, A_ddot = (v[..., None] for v in self.envelope(t))
         e = np.zeros(6)
-        e[self.axis] = self.amplitude
-        x = np.asarray(self.offset) + e * np.sin(ph)
-        return x, e * w * np.cos(ph), e * (w_dot * np.cos(ph) - w * w * np.sin(ph))
+        e[self.axis] = 1.0
+        s, c = np.sin(ph), np.cos(ph)
+        x = np.asarray(self.offset) + e * A * s
+        x_dot = e * (A_dot * s + A * w * c)
+        x_ddot = e * (A_ddot * s + 2 * A_dot * w * c + A * (w_dot * c - w * w * s))
+        return x, x_dot, x_ddot
 
 
 def step(axis) -> StepTrajectory:
@@ -200,17 +232,22 @@ def step(axis) -> StepTrajectory:
     return StepTrajectory(axis=k, size=STEP_SIZE[k], name=f"step_{AXIS_NAMES[k]}")
 
 
-#: Amplitudes of :func:`sweep`: (rad on an angle, m on a position), the largest the motors
-#: follow to 50 Hz within the pre-run check's margin (90 % of the peak torque), with a 20 %
-#: payload.
-SWEEP_AMPLITUDE = (8e-4, 8e-5)
+#: Amplitudes of :func:`sweep`: (rad on an angle, m on a position), where the motors follow it.
+SWEEP_AMPLITUDE = (2e-3, 2e-4)
+#: Accelerations that cap the sweep's amplitude at high frequency (rad/s^2, m/s^2): the largest
+#: the motors follow at 50 Hz within the pre-run check's margin (90 % of the peak torque) with a
+#: 20 % payload (0.8 mrad and 0.08 mm at 50 Hz); the corner, where the cap takes over, is 31.6 Hz.
+SWEEP_MAX_ACCELERATION = (8e-4 * (2 * np.pi * 50.0) ** 2, 8e-5 * (2 * np.pi * 50.0) ** 2)
 
 
 def sweep(axis="Z") -> ChirpTrajectory:
     """A 1 -> 50 Hz sweep over 8 s on ``axis``, then held at 50 Hz: :data:`SWEEP_AMPLITUDE`
-    (0.08 mm on a position, 0.8 mrad on an angle)."""
+    (0.2 mm on a position, 2 mrad on an angle) up to the corner where its acceleration reaches
+    :data:`SWEEP_MAX_ACCELERATION`, then falling as 1/f^2 (0.08 mm, 0.8 mrad at 50 Hz)."""
     k = _axis_index(axis)
-    return ChirpTrajectory(axis=k, amplitude=SWEEP_AMPLITUDE[1 if k >= 3 else 0],
+    i = 1 if k >= 3 else 0
+    return ChirpTrajectory(axis=k, amplitude=SWEEP_AMPLITUDE[i],
+                           max_acceleration=SWEEP_MAX_ACCELERATION[i],
                            name=f"sweep_{AXIS_NAMES[k]}")
 
 

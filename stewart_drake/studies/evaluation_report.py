@@ -16,7 +16,7 @@ from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import AXIS_NAMES, X_HOME
 from ..simulation.scenario import load_scenario
-from ..simulation.trajectories import SWEEP_AMPLITUDE
+from ..simulation.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION
 from .evaluation_grid import (
     CONDITIONS,
     CONTROLLERS,
@@ -249,10 +249,14 @@ def _helix_table(by: dict, ctrls: list) -> list:
 
 
 def _bandwidth_table(by: dict, ctrls: list) -> list:
+    corner_hz = np.sqrt(SWEEP_MAX_ACCELERATION[1] / SWEEP_AMPLITUDE[1]) / (2 * np.pi)
     L = [f"## Bandwidth (sine sweep 1 -> 50 Hz: {1e3 * SWEEP_AMPLITUDE[1]:g} mm on Z, "
          f"{1e3 * SWEEP_AMPLITUDE[0]:g} mrad on phi)", "",
          "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
-         "and the peak gain, dB.", "",
+         "and the peak gain, dB. Above "
+         f"{corner_hz:.3g} Hz the amplitude falls as 1/f^2 (constant acceleration: "
+         f"{SWEEP_MAX_ACCELERATION[1]:.3g} m/s^2, {SWEEP_MAX_ACCELERATION[0]:.3g} rad/s^2), "
+         "what the motors can give.", "",
          "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
          "|---|---|---|---|---|"]
 

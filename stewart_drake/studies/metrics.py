@@ -128,7 +128,9 @@ def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
     """Gain and phase of y against a sine sweep, segment by segment.
 
     Each segment spans ``cycles_per_segment`` cycles of the sweep; on it y - offset is fitted by
-    least squares with a sin(phase) + b cos(phase) + c, and the gain is |a + i b| / amplitude.
+    least squares with A(t) (a sin(phase) + b cos(phase)) + c, A the sweep's envelope
+    (:meth:`~stewart_drake.simulation.trajectories.ChirpTrajectory.envelope`), and the gain is
+    |a + i b|.
 
     Args:
         t: (N,) s. y: (N,) the swept axis of the pose. chirp: the
@@ -147,10 +149,11 @@ def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
         sel = seg == k
         if sel.sum() < 8:
             continue
-        basis = np.stack([np.sin(ph[sel]), np.cos(ph[sel]), np.ones(sel.sum())], axis=1)
+        A = chirp.envelope(t[sel])[0]
+        basis = np.stack([A * np.sin(ph[sel]), A * np.cos(ph[sel]), np.ones(sel.sum())], axis=1)
         (a, b, _), *_ = np.linalg.lstsq(basis, y[sel], rcond=None)
         f.append(float(np.mean(chirp.frequency(t[sel]))))
-        gain.append(float(np.hypot(a, b) / chirp.amplitude))
+        gain.append(float(np.hypot(a, b)))
         phase.append(float(np.arctan2(b, a)))
     return np.array(f), np.array(gain), np.array(phase)
 
