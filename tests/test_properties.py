@@ -209,7 +209,9 @@ matrices = st.one_of(
     near_home().map(lambda x: np.asarray(x)))
 
 
-@_settings(250)
+# 400 examples: about one in thirteen reaches a finite gain (the rest are refused: bad steps,
+# negative R, unreachable inputs), and test_zz_examples asks for at least 20 of them.
+@_settings(400)
 @given(B_c=matrices, h=st.one_of(st.just(1e-3), st.floats(1e-4, 0.1), any_float),
        q=st.floats(1e-3, 1e3), r=st.one_of(st.floats(1e-3, 1e3), st.floats(1e-3, 1e3),
                                           st.floats(-1.0, 0.0)))
