@@ -84,8 +84,9 @@ def check_reference(scenario, trajectory=None,
         unit = "N m" if e.quantity == "torque" else "rad/s"
         warnings.warn(FeasibilityWarning(
             f"running a reference the motors cannot follow (guard.allow_infeasible): motor "
-            f"{e.motor} needs {e.required:.3g} {unit} of {e.quantity} at t = {e.t:.4g} s, over "
-            f"the {e.limit:.3g} {unit} it may use; expect saturation"), stacklevel=2)
+            f"{e.motor} needs {e.required:.4g} {unit} of {e.quantity} at t = {e.t:.4g} s, "
+            f"{100 * (e.required / e.limit - 1):.2g} % over the {e.limit:.4g} {unit} it may use; "
+            f"expect saturation"), stacklevel=2)
     return report
 
 
