@@ -263,10 +263,13 @@ class MotorLimitError(StewartError, ValueError):
         self.required, self.limit = float(required), float(limit)
         where = _locate(self, t, pose)
         unit = "N m" if self.quantity == "torque" else "rad/s"
+        #: What the motion asks of which motor, when, and by how much over the limit: the
+        #: error's first sentence, and the warning's when the run goes on anyway.
+        self.need = (f"motor {self.motor} would need {self.required:.3g} {unit} of "
+                     f"{self.quantity}{where}, {_percent(100 * (self.required / self.limit - 1))}"
+                     f" % over the {self.limit:.3g} {unit} a reference may use")
         super().__init__(
-            f"motor {self.motor} would need {self.required:.3g} {unit} of {self.quantity}{where}, "
-            f"{100 * (self.required / self.limit - 1):.0f} % over the {self.limit:.3g} {unit} a "
-            f"reference may use. Slow the motion or reduce its amplitude, or set "
+            f"{self.need}. Slow the motion or reduce its amplitude, or set "
             f"guard.allow_infeasible: true to run it anyway (the motors will saturate).")
 
     def _init_args(self) -> tuple:
@@ -311,6 +314,12 @@ class MissingFileError(StewartError, FileNotFoundError):
 
 class MissingExtraError(StewartError, ImportError):
     """An optional dependency (an extra of the package) is not installed; says which to install."""
+
+
+def _percent(p: float) -> str:
+    """A percentage: whole from 1 % up, two significant digits below it (an excess of 0.028 %
+    does not read as "0 %" beside two limits that round alike)."""
+    return f"{p:.0f}" if abs(p) >= 1 else f"{p:.2g}"
 
 
 def _locate(error: StewartError, t: float | None, pose) -> str:

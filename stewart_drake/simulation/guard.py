@@ -80,13 +80,9 @@ def check_reference(scenario, trajectory=None,
                       motor_limits=scenario.motor_limits(),
                       allow_infeasible=guard.allow_infeasible)
     if raise_refused and not report.feasible:
-        e = report.first_effort_violation
-        unit = "N m" if e.quantity == "torque" else "rad/s"
         warnings.warn(FeasibilityWarning(
-            f"running a reference the motors cannot follow (guard.allow_infeasible): motor "
-            f"{e.motor} needs {e.required:.4g} {unit} of {e.quantity} at t = {e.t:.4g} s, "
-            f"{100 * (e.required / e.limit - 1):.2g} % over the {e.limit:.4g} {unit} it may use; "
-            f"expect saturation"), stacklevel=2)
+            f"running a reference the motors cannot follow (guard.allow_infeasible): "
+            f"{report.first_effort_violation.need}; expect saturation"), stacklevel=2)
     return report
 
 
