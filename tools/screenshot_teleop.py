@@ -13,19 +13,15 @@ Needs Chromium (Debian: `apt install chromium`). Prints one line, e.g.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 from pathlib import Path
 
+import chromium_cdp  # tools/, beside this script (on sys.path when run)
 from pydrake.geometry import Meshcat
 
 from stewart_drake.interfaces.teleop import build_teleop, run_teleop
 from stewart_drake.simulation.scenario import load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
-_spec = importlib.util.spec_from_file_location("chromium_cdp",
-                                               REPO / "tools" / "chromium_cdp.py")
-chromium_cdp = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(chromium_cdp)
 
 #: The slider moves, (name, value) in the panel's units (rad, m), one every 1.2 s.
 MOVES = (("roll", 0.15), ("y", 0.02), ("z", 0.315), ("pitch", -0.12))
