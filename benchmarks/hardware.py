@@ -29,7 +29,8 @@ from stewart_drake.model import kinematics, statics
 from stewart_drake.model.kinematics import AXIS_NAMES, X_HOME
 from stewart_drake.model.servo import ServoModel
 from stewart_drake.simulation import diagram
-from stewart_drake.simulation.scenario import load_scenario
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import run_experiment
@@ -105,7 +106,7 @@ def closed_loop(duration_s: float) -> list:
 
 def estimator_open_loop(duration_s: float, counts: int = 2**17) -> dict:
     """Pose and rate errors of the FK estimate along the exact paper manoeuvre (no control)."""
-    g, h = load_scenario("paper_hardware").geometry(), 1e-3
+    g, h = make_plan(load_scenario("paper_hardware")).geometry, 1e-3
     q = 2 * np.pi / counts
     t = np.arange(0.0, duration_s, h)
     X, V, _ = paper_manoeuvre().evaluate(t)
@@ -133,7 +134,7 @@ def estimator_open_loop(duration_s: float, counts: int = 2**17) -> dict:
 def stiction(duration_s: float = 1.0) -> dict:
     """Drift (max |x - x0| in 1 s) of home held with torques 60 % of the Coulomb band off."""
     servo = ServoModel()
-    T = statics.holding_torques(load_scenario("paper_hardware").geometry(), X_HOME) \
+    T = statics.holding_torques(make_plan(load_scenario("paper_hardware")).geometry, X_HOME) \
         + 0.6 * servo.coulomb_friction_Nm * np.array([1, -1, 1, -1, 1, -1])
     out = {}
     for label, changes in (("with Coulomb friction", []),

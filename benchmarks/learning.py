@@ -12,7 +12,10 @@ Usage: python benchmarks/learning.py [--duration 10] [--repeat 2] (runs at least
 import argparse
 import time
 
-from stewart_drake.simulation.scenario import IlcDriver, OrganMotionReference, load_scenario
+from stewart_drake.control.ilc import IlcDriver
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import OrganMotionReference
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.fidelity import run
 
 
@@ -21,7 +24,7 @@ def wall(parameters: dict, learning: bool, duration: float) -> float:
     scenario.reference = OrganMotionReference("breathing_heartbeat", parameters)
     scenario.duration_s = duration
     scenario.learning = IlcDriver() if learning else None
-    return run(scenario.validate(), scenario.make_reference())[2]
+    return run(scenario.validate(), make_plan(scenario).reference)[2]
 
 
 def main() -> None:

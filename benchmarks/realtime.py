@@ -50,13 +50,12 @@ from stewart_drake.control.lqi import (
     lqi_gain_warm,
 )
 from stewart_drake.control.tuner import AnnTuner
+from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.model.kinematics import X_HOME
 from stewart_drake.simulation.guard import DivergenceGuard
-from stewart_drake.simulation.scenario import (
-    AnnTunerDriver,
-    NamedReference,
-    load_scenario,
-)
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import NamedReference
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import build_simulator, run_experiment
@@ -122,7 +121,7 @@ def moving_station(scenario, duration_s: float = 2.0):
 
     fixed = dataclasses.replace(scenario, tuner=None, duration_s=min(duration_s, 2.0))
     result = run_experiment(fixed)
-    x0, v0, _ = fixed.make_reference().evaluate(0.0)
+    x0, v0, _ = make_plan(fixed).reference.evaluate(0.0)
 
     def replay() -> float:
         builder = DiagramBuilder()

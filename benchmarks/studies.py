@@ -44,7 +44,7 @@ def _rss_after_run(duration_s: float) -> tuple[int, float]:
     """(pid, RSS in MB) of this worker after one closed-loop run of ``duration_s``."""
     import psutil
 
-    from stewart_drake.simulation.scenario import load_scenario
+    from stewart_drake.simulation.scenario_io import load_scenario
     from stewart_drake.studies.experiments import run_experiment
 
     run_experiment(load_scenario("paper_hardware", [f"duration_s={duration_s}"]))

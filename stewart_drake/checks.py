@@ -108,6 +108,21 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
     return n
 
 
+#: Largest seed Drake's RandomSource accepts (a 32-bit unsigned integer).
+MAX_SEED = 2**32 - 1
+
+
+def check_int(name: str, value, lo: int, hi: int) -> int:
+    """``value`` as an int, checked to be a whole number (not a bool) in [lo, hi].
+
+    Raises:
+        InvalidConfigError: names ``name``, the range and the value given.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise InvalidConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
 def available_memory_bytes() -> float | None:
     """Memory this process may still take, bytes: the kernel's MemAvailable, capped by a cgroup
     limit (containers, CI); None where neither can be read (the check is then skipped)."""

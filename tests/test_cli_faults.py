@@ -208,7 +208,8 @@ def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, 
 def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch,
                                                                           feedforward_fault):
     from stewart_drake.errors import SimulationDivergedError
-    from stewart_drake.simulation.scenario import GuardConfig, Scenario
+    from stewart_drake.simulation.guard import GuardConfig
+    from stewart_drake.simulation.scenario import Scenario
     from stewart_drake.studies.experiments import run_experiment
 
     feedforward_fault(lambda T_ff: np.full(6, np.inf))

@@ -6,7 +6,9 @@ import pytest
 
 from stewart_drake.model import statics
 from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation.scenario import NamedReference, Scenario, load_scenario
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import NamedReference, Scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.experiments import plot_fig7, run_experiment
 from stewart_drake.studies.run_report import _window_stats, _zoom_window
 
@@ -36,7 +38,7 @@ def test_the_feedforward_is_the_one_the_run_used(tmp_path):
     feedback share T - T_ff is what the integral states add: tiny."""
     result = run_experiment(Scenario(duration_s=0.2, reference=NamedReference("home")))
     np.testing.assert_allclose(result.T_ff, np.tile(statics.holding_torques(
-        Scenario().geometry(), X_HOME), (len(result.t), 1)), rtol=1e-9)
+        make_plan(Scenario()).geometry, X_HOME), (len(result.t), 1)), rtol=1e-9)
     assert np.abs(result.T - result.T_ff).max() < 1e-3
     assert plot_fig7(result, tmp_path / "f.png").stat().st_size > 20_000
 

@@ -28,7 +28,8 @@ from stewart_drake.errors import (
     StewartError,
 )
 from stewart_drake.fileio import CheckedNpz
-from stewart_drake.simulation.scenario import Scenario, dump_scenario, load_scenario
+from stewart_drake.simulation.scenario import Scenario, dump_scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.collection import load_records
 from stewart_drake.studies.store import MANIFEST, ResultStore, read_manifest
 

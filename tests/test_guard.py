@@ -16,7 +16,9 @@ from stewart_drake.model import kinematics, limits
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.model.plant import assemble
 from stewart_drake.simulation import guard
-from stewart_drake.simulation.scenario import GuardConfig, Robot, Scenario
+from stewart_drake.simulation.guard import GuardConfig
+from stewart_drake.simulation.plan import check_reference, make_plan
+from stewart_drake.simulation.scenario import Robot, Scenario
 from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 from stewart_drake.studies.experiments import build_simulator, run_experiment
 
@@ -172,10 +174,10 @@ def test_reference_beyond_the_motor_range_names_time_leg_and_limit():
     config = Scenario(robot=Robot.from_value(StewartGeometry(motor_angle_min_deg=-60.0)),
                       duration_s=10.0)
     with pytest.raises(JointLimitError, match=r"leg \d leaves its motor_angle limit") as info:
-        guard.check_reference(config)
+        check_reference(config)
     err = info.value
     t = np.arange(0.0, 10.0005, 1e-3)
-    theta = kinematics.ik(config.geometry(), paper_manoeuvre().evaluate(t)[0])
+    theta = kinematics.ik(make_plan(config).geometry, paper_manoeuvre().evaluate(t)[0])
     first = int(np.argmax(np.any(np.rad2deg(theta) < -60.0, axis=1)))
     assert err.t == pytest.approx(t[first])
     assert np.rad2deg(theta[first, err.leg]) < -60.0
@@ -188,26 +190,26 @@ def test_heave_to_the_dead_point_is_refused_although_cond_is_moderate():
     config = Scenario(duration_s=2.0)
     t = np.arange(0.0, 2.0005, 1e-3)
     x = HEAVE_TO_DEAD_POINT.evaluate(t)[0]
-    cond, inv = kinematics.singularity_measures(config.geometry(), x)
-    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(config.geometry(), x)).max() < 1
+    cond, inv = kinematics.singularity_measures(make_plan(config).geometry, x)
+    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(make_plan(config).geometry, x)).max() < 1
     with pytest.raises(SingularPoseError, match=r"1/sigma_max\(J\) = 0.00\d+ < 0.01") as info:
-        guard.check_reference(config, HEAVE_TO_DEAD_POINT)
+        check_reference(config, HEAVE_TO_DEAD_POINT)
     first = int(np.argmax(inv < limits.DEFAULT_MIN_SIGMA_MIN_INV))
     assert info.value.measure == "sigma_min_inv" and info.value.t == pytest.approx(t[first])
     assert info.value.pose[5] > 0.415
     # Without the second measure the path passes: that is the gap it closes.
-    report = limits.validate_trajectory(config.geometry(), t, x, min_sigma_min_inv=0.0)
+    report = limits.validate_trajectory(make_plan(config).geometry, t, x, min_sigma_min_inv=0.0)
     assert report.ok
 
 
 def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
     config = Scenario(duration_s=10.0, guard=GuardConfig(cond_threshold=60.0))
     with pytest.raises(SingularPoseError, match=r"cond\(J\) = 60.\d+ > 60") as info:
-        guard.check_reference(config)
+        check_reference(config)
     t = np.arange(0.0, 10.0005, 1e-3)
-    cond, _ = kinematics.singularity_measures(config.geometry(), paper_manoeuvre().evaluate(t)[0])
+    cond, _ = kinematics.singularity_measures(make_plan(config).geometry, paper_manoeuvre().evaluate(t)[0])
     assert info.value.t == pytest.approx(t[int(np.argmax(cond > 60.0))])
-    assert guard.check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69,
+    assert check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69,
                                                                                       abs=0.01)
 
 

@@ -12,7 +12,9 @@ from stewart_drake.errors import FeasibilityWarning, SimulationDivergedError
 from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model.servo import ServoModel
-from stewart_drake.simulation.scenario import LqiDriver, Motors, Scenario, load_scenario
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import LqiDriver, Motors, Scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import (
     current_loop,
     held_station,
@@ -304,7 +306,7 @@ def test_the_lqi_knows_the_motors_and_the_delay():
     inputs = {sd.controller.get_input_port(i).get_name()
               for i in range(sd.controller.num_input_ports())}
     assert "motor_angle" in inputs and "x" not in inputs
-    assert scenario.geometry().motor_reflected_inertia == pytest.approx(2.496e-4, rel=1e-3)
+    assert make_plan(scenario).geometry.motor_reflected_inertia == pytest.approx(2.496e-4, rel=1e-3)
     off = _hardware(**{"duration_s": 0.1, "controller.delay_compensation": "false"})
     assert make_stewart_diagram(off).controller.n == 18
     assert isinstance(scenario.hardware.motors, Motors)

@@ -5,11 +5,14 @@ import numpy as np
 import pytest
 
 from stewart_drake.control import ilc
+from stewart_drake.control.ilc import IlcDriver
 from stewart_drake.errors import InvalidConfigError
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.simulation import guard
-from stewart_drake.simulation.scenario import IlcDriver, OrganMotionReference, load_scenario
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import OrganMotionReference
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.experiments import advance, build_simulator, collect_result
 from stewart_drake.studies.fidelity import rms_translation_rotation
 
@@ -107,7 +110,7 @@ def _learn(cycles, motion="breathing", params=None, **changes):
         for p in path:
             target = getattr(target, p)
         setattr(target, leaf, value)
-    reference = scenario.make_reference()
+    reference = make_plan(scenario).reference
     starts = reference.cycles(1e3)[0][:cycles + 1]
     scenario.duration_s = float(starts[-1])
     scenario.learning = IlcDriver(**learning)

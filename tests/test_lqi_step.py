@@ -26,9 +26,10 @@ from stewart_drake.control.lqi import (
     lqi_gain,
     lqi_gain_warm,
 )
+from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.scenario import AnnTunerDriver, load_scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.experiments import run_experiment
 
 RTOL = 1e-12

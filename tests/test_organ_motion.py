@@ -7,17 +7,18 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
+from stewart_drake.control.ilc import IlcDriver
 from stewart_drake.errors import InvalidConfigError, MotorLimitError
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.simulation import organ_motion as om
+from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.scenario import (
-    IlcDriver,
     OrganMotionReference,
     Scenario,
     TraceReference,
     dump_scenario,
-    load_scenario,
 )
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
 from stewart_drake.studies.fidelity import scale_to_fit
 
@@ -145,7 +146,7 @@ def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
     dump_scenario(s, path)
     back = load_scenario(path)
     assert back.reference == s.reference and back.learning == s.learning
-    motion = back.make_reference()
+    motion = make_plan(back).reference
     assert motion.parts[0].amplitude_m == pytest.approx(0.012)
     with pytest.raises(InvalidConfigError, match="learning.gain"):
         load_scenario(path, ["learning.gain=2.5"])
@@ -242,7 +243,7 @@ def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
 
 
 def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes():
-    from stewart_drake.simulation.guard import check_reference
+    from stewart_drake.simulation.plan import check_reference
 
     scenario = load_scenario("paper_hardware")
     scenario.duration_s = 1.0
@@ -265,6 +266,6 @@ def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):
     t = np.arange(0.0, 3.0, 0.05)
     path = write_trace(tmp_path / "z.csv", t, {"AP [mm]": np.sin(2 * np.pi * t)})
     s = Scenario(reference=TraceReference(path=str(path), scale=0.5))
-    ref = s.make_reference()
+    ref = make_plan(s).reference
     assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(0.5 * np.ptp(
         om.load_trace(path).evaluate(t)[0][:, 5]))

@@ -26,7 +26,9 @@ from stewart_drake.control.tuner import TunerModel, load_tuner
 from stewart_drake.errors import StewartError, UnreachablePoseError
 from stewart_drake.model import kinematics, limits, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.scenario import GuardConfig, LqiDriver, NamedReference, Scenario
+from stewart_drake.simulation.guard import GuardConfig
+from stewart_drake.simulation.plan import make_plan
+from stewart_drake.simulation.scenario import LqiDriver, NamedReference, Scenario
 from stewart_drake.simulation.trajectories import SineTrajectory
 
 GEOMETRY = StewartGeometry()
@@ -277,7 +279,7 @@ def test_scenario(duration, control, schedule, log, omega_Q, omega_R, trajectory
     assert 1e-3 <= c.omega_Q <= 1e3 and 1e-3 <= c.omega_R <= 1e3
     ratio = c.schedule_period_s / config.control_period_s
     assert abs(ratio - round(ratio)) < 1e-6
-    config.make_reference().evaluate(0.0)
+    make_plan(config).reference.evaluate(0.0)
 
 
 geometry_fields = {

@@ -26,13 +26,9 @@ from stewart_drake.model.plant import (
     closed_chain_inverse_dynamics,
     make_plant,
 )
-from stewart_drake.simulation.guard import check_reference
-from stewart_drake.simulation.scenario import (
-    SineReference,
-    ToolDisturbance,
-    load_scenario,
-    shipped_scenarios,
-)
+from stewart_drake.simulation.plan import check_reference, make_plan
+from stewart_drake.simulation.scenario import SineReference, ToolDisturbance
+from stewart_drake.simulation.scenario_io import load_scenario, shipped_scenarios
 from stewart_drake.simulation.station import held_station, make_stewart_station
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
 from stewart_drake.studies.experiments import run_experiment
@@ -51,7 +47,7 @@ def test_every_scenario_value_reaches_the_plant(name):
     station = make_stewart_station(scenario)
     plant, handles = station.plant, station.handles
     context = plant.CreateDefaultContext()
-    g, servo = scenario.plant_geometry(), scenario.servo()
+    g, servo = make_plan(scenario).plant_geometry, make_plan(scenario).servo
     assert plant.time_step() == scenario.plant.time_step
     assert plant.get_discrete_contact_approximation() == DiscreteContactApproximation.kSap
     np.testing.assert_array_equal(plant.gravity_field().gravity_vector(), [0, 0, -g.gravity])
@@ -98,7 +94,7 @@ def test_contact_registers_the_collision_geometry_of_every_part():
 def _rk4_fall(scenario, duration_s=0.1, dt=2.5e-4):
     """The zero-torque fall from home integrated from our task-space model (independent of
     Drake's tree and SAP): M_x x_ddot = J^T tau_friction - c(x, x_dot) - dV/dx."""
-    g, servo = scenario.plant_geometry(), scenario.servo()
+    g, servo = make_plan(scenario).plant_geometry, make_plan(scenario).servo
 
     def f(y):
         x, x_dot = y[:6], y[6:]
@@ -172,8 +168,8 @@ def test_required_torques_are_what_a_well_tracked_run_applies(name, tolerance):
     result = run_experiment(scenario)
     keep = result.t >= 1.0
     x_d = result.x_d[keep]
-    required, _ = statics.motor_effort(scenario.plant_geometry(), x_d[:, :6], x_d[:, 6:12],
-                                       x_d[:, 12:], scenario.servo())
+    required, _ = statics.motor_effort(make_plan(scenario).plant_geometry, x_d[:, :6], x_d[:, 6:12],
+                                       x_d[:, 12:], make_plan(scenario).servo)
     applied = result.T[keep]
     if scenario.hardware is not None:
         required, applied = (uniform_filter1d(a, 20, axis=0) for a in (required, applied))
@@ -202,9 +198,9 @@ def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
                                               r"t = 0\.2 s .* 43 % over the 0\.632 N m") as err:
         check_reference(scenario, fast)
     assert err.value.motor == 2 and err.value.t == pytest.approx(0.2)
-    assert err.value.limit == pytest.approx(0.9 * scenario.servo().peak_torque_Nm)
-    report = validate(fast, scenario.plant_geometry(), 0.7, raise_refused=False,
-                      motor_limits=scenario.motor_limits())
+    assert err.value.limit == pytest.approx(0.9 * make_plan(scenario).servo.peak_torque_Nm)
+    report = validate(fast, make_plan(scenario).plant_geometry, 0.7, raise_refused=False,
+                      motor_limits=make_plan(scenario).motor_limits)
     assert (report.peak_torque_motor, round(report.peak_torque, 2)) == (0, 1.06)
     assert "motor 0" in report.summary() and not report.ok
     # The same move over 1 s is within what the motors give.
@@ -218,7 +214,7 @@ def test_allow_infeasible_runs_it_with_a_warning_and_the_motors_saturate():
     with pytest.warns(FeasibilityWarning, match=r"motor 2 would need 0\.905 N m .* 43 % over"):
         result = run_experiment(scenario, reference=_reposition([0, 0, 0, 0.05, 0, 0]))
     assert result.metrics["status"]["saturated_steps"] > 0
-    assert np.abs(result.T).max() == pytest.approx(scenario.servo().peak_torque_Nm, rel=1e-6)
+    assert np.abs(result.T).max() == pytest.approx(make_plan(scenario).servo.peak_torque_Nm, rel=1e-6)
 
 
 # -- clearance ----------------------------------------------------------------------------------
@@ -350,7 +346,7 @@ def test_with_contact_a_push_drives_a_rod_onto_the_plate_and_it_does_not_pass_th
     assert first["parts"] == ["base/plate", "rod_4/tube"]
     assert 0.2 < first["t"] < 0.3 and first["force_N"] > 1.0
     # No part sinks into another beyond SAP's compliance (tenths of a millimetre at 40 N).
-    model = ClearanceModel(scenario.plant_geometry())
+    model = ClearanceModel(make_plan(scenario).plant_geometry)
     nq = model.plant.num_positions()
     deepest = min(min((c.distance for c in model.contacts(None, 0.0, q=s[:nq])), default=0.0)
                   for s in states)

@@ -21,17 +21,16 @@ from stewart_drake.interfaces.cli import main
 from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.simulation.diagram import make_stewart_diagram
+from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.scenario import (
     CsvReference,
     PdDriver,
     Robot,
     Scenario,
     UserController,
-    apply_override,
     dump_scenario,
-    load_scenario,
-    shipped_scenarios,
 )
+from stewart_drake.simulation.scenario_io import apply_override, load_scenario, shipped_scenarios
 from stewart_drake.simulation.station import held_station, p_ETool
 from stewart_drake.simulation.trajectories import (
     DrakeTrajectory,
@@ -128,7 +127,7 @@ def test_robot_mirrors_the_geometry_both_ways():
     robot = Robot.from_value(g)
     assert robot.rod_length == 0.41 and isinstance(robot.pivot_angles_deg, list)
     assert robot.build() == g
-    assert Scenario(robot=robot).geometry() == g
+    assert make_plan(Scenario(robot=robot)).geometry == g
 
 
 @pytest.mark.parametrize("form, value, left_out", [
@@ -417,11 +416,9 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
 
 
 def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
-    from stewart_drake.simulation.scenario import (
-        AnnTunerDriver,
-        load_scenario,
-        use_paper_tuner,
-    )
+    from stewart_drake.control.tuning import AnnTunerDriver
+    from stewart_drake.simulation.scenario import use_paper_tuner
+    from stewart_drake.simulation.scenario_io import load_scenario
 
     scenario = load_scenario("paper_hardware")
     assert scenario.controller.gain_transfer == "integral"               # ours, the default

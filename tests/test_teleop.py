@@ -11,8 +11,9 @@ from stewart_drake.interfaces.cli import main
 from stewart_drake.interfaces.teleop import build_teleop, run_teleop, torque_margins
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.model.statics import holding_torques
+from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.reference import ReferenceFilterLimits, admissible_poses
-from stewart_drake.simulation.scenario import load_scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 
 _TOOL = Path(__file__).resolve().parent.parent / "tools" / "chromium_cdp.py"
 _spec = importlib.util.spec_from_file_location("chromium_cdp", _TOOL)
@@ -46,7 +47,7 @@ def _advance(run, seconds, step=0.05):
 
 def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshcat):
     limits = ReferenceFilterLimits()
-    geometry = load_scenario("paper_hardware").geometry()
+    geometry = make_plan(load_scenario("paper_hardware")).geometry
     # A workspace that ends at Z = 0.31 m: the reference must stop there.
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0,
                        limits=limits,
@@ -72,7 +73,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     # The display shows the tracking error and the torque margin of the holding torques.
     display_context = run.display.GetMyContextFromRoot(run.simulator.get_context())
     figures = run.display.figures(display_context)
-    peak = load_scenario("paper_hardware").torque_limit()
+    peak = make_plan(load_scenario("paper_hardware")).torque_limit_Nm
     assert figures["T margin [N m]"] == pytest.approx(
         peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9)
     assert 0.0 <= figures["error [mm]"] < 0.5
@@ -83,7 +84,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
 
 
 def test_the_default_margins_are_the_holding_torques_against_the_peak():
-    geometry = load_scenario("paper_hardware").geometry()
+    geometry = make_plan(load_scenario("paper_hardware")).geometry
     margins = torque_margins(geometry, 0.7)(X_HOME)
     assert margins == {"T margin [N m]": pytest.approx(
         0.7 - np.abs(holding_torques(geometry, X_HOME)).max())}

@@ -14,10 +14,11 @@ from stewart_drake.control.tuner import (
     ratio_tuner_inputs,
     save_ratio_tuner,
 )
+from stewart_drake.control.tuning import RatioTunerDriver, WeightSchedule
 from stewart_drake.errors import InvalidConfigError, MissingFileError
 from stewart_drake.model import limits, statics
 from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.simulation.scenario import RatioTunerDriver, Scenario, WeightSchedule
+from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 from stewart_drake.studies import tuner_study as ts
 from stewart_drake.studies.metrics import window_means

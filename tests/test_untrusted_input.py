@@ -32,13 +32,8 @@ from stewart_drake.fileio import (
     remove_stale_temporaries,
 )
 from stewart_drake.interfaces import cli
-from stewart_drake.simulation.scenario import (
-    MAX_SCENARIO_BYTES,
-    Scenario,
-    UserController,
-    apply_override,
-    load_scenario,
-)
+from stewart_drake.simulation.scenario import Scenario, UserController
+from stewart_drake.simulation.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
 from stewart_drake.simulation.trajectories import load_csv_trajectory
 
 REPO = Path(__file__).resolve().parent.parent

@@ -6,6 +6,7 @@ from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control import lqi as lqi
 from stewart_drake.control.lqi import LqiController, LqiDiagram, error_model, lqi_gain
+from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.errors import (
     InvalidConfigError,
     InvalidGeometryError,
@@ -15,14 +16,8 @@ from stewart_drake.errors import (
 )
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.model.statics import holding_torques
-from stewart_drake.simulation.scenario import (
-    AnnTunerDriver,
-    GuardConfig,
-    LqiDriver,
-    NamedReference,
-    Scenario,
-    SensorNoise,
-)
+from stewart_drake.simulation.guard import GuardConfig
+from stewart_drake.simulation.scenario import LqiDriver, NamedReference, Scenario, SensorNoise
 from stewart_drake.studies.experiments import format_metrics, run_experiment
 
 # -- configuration --------------------------------------------------------------------------------

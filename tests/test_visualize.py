@@ -16,6 +16,7 @@ from stewart_drake.simulation.scenario import Scenario
 #: The committed pictures (``stewart-drake diagrams`` from the repository's root rewrites them).
 DIAGRAMS = Path(__file__).resolve().parent.parent / "diagrams"
 from stewart_drake.errors import InvalidConfigError, RenderToolMissingError
+from stewart_drake.simulation.plan import make_plan
 from stewart_drake.studies.experiments import load_result
 
 DURATION = 0.3
@@ -141,7 +142,7 @@ def test_record_states_refuses_states_of_another_shape():
     from pydrake.geometry import Meshcat
 
     with pytest.raises(InvalidConfigError, match="same geometry"):
-        visualize.record_states(Meshcat(), Scenario().geometry(), np.arange(3) * 1e-3,
+        visualize.record_states(Meshcat(), make_plan(Scenario()).geometry, np.arange(3) * 1e-3,
                                 np.zeros((3, 5)))
 
 
@@ -150,12 +151,8 @@ def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
     """The HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
     from stewart_drake.errors import SimulationDivergedError
-    from stewart_drake.simulation.scenario import (
-        GuardConfig,
-        PdDriver,
-        _scenario_from_yaml,
-        dump_scenario,
-    )
+    from stewart_drake.simulation.guard import GuardConfig
+    from stewart_drake.simulation.scenario import PdDriver, _scenario_from_yaml, dump_scenario
 
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     scenario = Scenario(duration_s=0.2, torque_limit_Nm=0.7, payload_scale=1.5,

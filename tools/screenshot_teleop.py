@@ -19,7 +19,7 @@ import chromium_cdp  # tools/, beside this script (on sys.path when run)
 from pydrake.geometry import Meshcat
 
 from stewart_drake.interfaces.teleop import build_teleop, run_teleop
-from stewart_drake.simulation.scenario import load_scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 

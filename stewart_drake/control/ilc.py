@@ -46,15 +46,14 @@ correction back to the one of the best cycle so far and halves the learning gain
 ``max_rollbacks`` rollbacks learning stops and the best correction is held.
 """
 
-from __future__ import annotations
-
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from pydrake.common.containers import namedview
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_array, as_number
+from ..checks import as_array, as_number, check_int, check_multiple
 from ..errors import InvalidConfigError
 from ..model import kinematics
 
@@ -414,3 +413,63 @@ def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
     if np.any(ok):
         out[ok] = np.linalg.solve(J[ok], e_theta[ok][..., None])[..., 0]
     return out
+
+
+# -- the scenario's choice ------------------------------------------------------------------
+# Drake's YAML loader reads IlcDriver's field annotations: this module must not use
+# ``from __future__ import annotations``.
+
+@dataclass
+class IlcDriver:
+    """Learning from every cycle: a correction of the reference learned from the previous
+    cycles' error (:class:`~stewart_drake.control.ilc.IterativeLearningController`), added to
+    the ``x_d`` the controller tracks; needs a reference with cycles (the organ-motion library,
+    a trace that repeats) or ``period_s``.
+
+    Attributes:
+        gain: learning gain gamma, in (0, 2).
+        q_cutoff_hz: corner of the zero-phase Q-filter, Hz.
+        lead_s: phase lead, s (the loop's delay and lag).
+        error: "pose" (forward kinematics of the encoders) or "motor_angle" (the motor-angle
+            error, mapped to the pose by J^-1).
+        sample_period_s: the learner's record period, s (a whole multiple of control_period_s).
+        bound_ratio: no cycle's measured RMS error may exceed this times that of the cycle its
+            correction learned from, plus one encoder count at the crank tip; over it, the
+            correction is rolled back to the best one and the gain halved.
+        max_rollbacks: rollbacks before learning stops and the best correction is held.
+        learn_cycles: learn from the first this many cycles, then hold (0: every cycle).
+        gain_decay_cycles: n: the j-th update uses gain n / (n + j) (0: a constant gain); the
+            correction then averages the cycles' noise out instead of following it.
+        period_s: cycles of this period from t = 0 for a reference that has none of its own
+            (0: the reference's).
+    """
+
+    gain: float = 0.8
+    q_cutoff_hz: float = 25.0
+    lead_s: float = 0.008
+    error: str = "pose"
+    sample_period_s: float = 0.004
+    bound_ratio: float = 1.2
+    max_rollbacks: int = 2
+    learn_cycles: int = 0
+    gain_decay_cycles: float = 4.0
+    period_s: float = 0.0
+
+    def validate(self, control_period_s: float, prefix: str = "learning.") -> None:
+        """Check every field; raises InvalidConfigError naming it."""
+        as_number(f"{prefix}gain", self.gain, 0.0, 2.0, lo_open=True)
+        if self.gain >= 2.0:
+            raise InvalidConfigError(f"{prefix}gain must be below 2, got {self.gain}")
+        as_number(f"{prefix}q_cutoff_hz", self.q_cutoff_hz, 0.0, lo_open=True)
+        as_number(f"{prefix}lead_s", self.lead_s, 0.0, 1.0)
+        if self.error not in ERROR_MODES:
+            raise InvalidConfigError(f"{prefix}error must be one of {ERROR_MODES}, got "
+                                     f"{self.error!r}")
+        as_number(f"{prefix}sample_period_s", self.sample_period_s, 0.0, 1.0, lo_open=True)
+        check_multiple(f"{prefix}sample_period_s", self.sample_period_s, "control_period_s",
+                       control_period_s)
+        as_number(f"{prefix}bound_ratio", self.bound_ratio, 1.0, 100.0)
+        check_int(f"{prefix}max_rollbacks", self.max_rollbacks, 0, 1000)
+        check_int(f"{prefix}learn_cycles", self.learn_cycles, 0, 10**6)
+        as_number(f"{prefix}gain_decay_cycles", self.gain_decay_cycles, 0.0, 1e6)
+        as_number(f"{prefix}period_s", self.period_s, 0.0, 3600.0)

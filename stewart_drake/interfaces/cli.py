@@ -22,7 +22,7 @@ import threading
 from pathlib import Path
 
 from ..errors import StewartError
-from ..simulation.scenario import DEFAULT_SCENARIO
+from ..simulation.scenario_io import DEFAULT_SCENARIO
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
@@ -182,48 +182,16 @@ def run_scenario(args):
         MissingFileError: no such scenario, weights or CSV file.
     """
     from ..control.contract import use_entry_point_controllers
-    from ..errors import InvalidConfigError
-    from ..simulation import scenario as sc
+    from ..simulation.scenario_io import apply_run_options, load_scenario
     from ..studies.experiments import DEFAULT_TUNER_OUT
 
     use_entry_point_controllers(args.plugin or ())
-    scenario = sc.load_scenario(args.scenario, args.set or ())
-    if args.tuner_weights is not None and args.tuner not in ("ann", "ratio"):
-        raise InvalidConfigError("--tuner-weights needs --tuner ann or --tuner ratio (the "
-                                 "weights are a tuner's)")
-    if args.duration is not None:
-        scenario.duration_s = args.duration
-    if args.trajectory is not None and args.trajectory_file is not None:
-        raise InvalidConfigError("give --trajectory or --trajectory-file, not both")
-    if args.trajectory is not None:
-        scenario.reference = sc.NamedReference(args.trajectory)
-    if args.trajectory_file is not None:
-        scenario.reference = sc.CsvReference(args.trajectory_file)
-        if args.duration is None:                   # the run lasts as long as the file
-            from ..simulation.trajectories import load_csv_trajectory
-
-            trajectory = load_csv_trajectory(args.trajectory_file)
-            scenario.duration_s = trajectory.end_time - trajectory.start_time
-    if args.controller == "pd":
-        scenario.controller = sc.PdDriver()
-    elif args.controller == "lqi":
-        scenario.controller = scenario.lqi()          # the scenario's LQI options, if it has any
-    weights = {k: v for k, v in (("omega_Q", args.omega_q), ("omega_R", args.omega_r))
-               if v is not None}
-    if weights:
-        scenario.controller = scenario.controller.with_weights(**weights)
-    if args.tuner == "ann":
-        weights = args.tuner_weights
-        if weights is None and DEFAULT_TUNER_OUT.exists():
-            weights = str(DEFAULT_TUNER_OUT)          # what `stewart-drake train` just wrote
-        sc.use_paper_tuner(scenario, sc.AnnTunerDriver(weights=weights or ""))
-    elif args.tuner == "ratio":
-        scenario.tuner = sc.RatioTunerDriver(weights=args.tuner_weights or "")
-    elif args.tuner == "none":
-        scenario.tuner = None
-    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
-    scenario.controller.resolve()                     # a name never registered: refused
-    return scenario.validate()
+    scenario = load_scenario(args.scenario, args.set or ())
+    return apply_run_options(
+        scenario, duration_s=args.duration, trajectory=args.trajectory,
+        trajectory_file=args.trajectory_file, controller=args.controller, omega_Q=args.omega_q,
+        omega_R=args.omega_r, tuner=args.tuner, tuner_weights=args.tuner_weights,
+        default_ann_weights=DEFAULT_TUNER_OUT, divergence_dir=Path(args.out) / "diverged")
 
 
 def run_stem(scenario) -> str:
@@ -264,18 +232,19 @@ def _cmd_run(args) -> int:
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
     from ..simulation import scenario as sc
+    from ..simulation.scenario_io import load_scenario
     from ..simulation.trajectories import TRAJECTORIES
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
     if source.lower().endswith(".csv"):
-        scenario = sc.load_scenario(args.scenario, args.set or ())
+        scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = sc.CsvReference(source)
     elif source in TRAJECTORIES:
-        scenario = sc.load_scenario(args.scenario, args.set or ())
+        scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = sc.NamedReference(source)
     else:                                 # a scenario file or a shipped scenario's name
-        scenario = sc.load_scenario(source, args.set or ())
+        scenario = load_scenario(source, args.set or ())
     if args.duration is not None:
         scenario.duration_s = args.duration
     report = check(scenario.validate())
@@ -306,10 +275,11 @@ def _cmd_reproduce(args) -> int:
     from ..errors import InvalidConfigError
     from ..fileio import check_replaceable
     from ..simulation import scenario as sc
+    from ..simulation.scenario_io import load_scenario
     from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
 
     tolerance = parse_tolerance(args.tolerance)
-    scenario = sc.load_scenario(args.scenario, args.set or ())
+    scenario = load_scenario(args.scenario, args.set or ())
     source = args.motion
     params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
     if source.lower().endswith(".csv"):
@@ -354,7 +324,8 @@ def _cmd_reproduce(args) -> int:
 def _cmd_scenario(args) -> int:
     """``stewart-drake scenario``: list the shipped scenarios, or print one (with overrides) as
     YAML, to start a file of one's own."""
-    from ..simulation.scenario import dump_scenario, load_scenario, shipped_scenarios
+    from ..simulation.scenario import dump_scenario
+    from ..simulation.scenario_io import load_scenario, shipped_scenarios
 
     if args.list:
         for name, path in sorted(shipped_scenarios().items()):
@@ -381,7 +352,7 @@ def _runner(args):
 
 def _cmd_collect(args) -> int:
     """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
-    from ..simulation.scenario import load_scenario
+    from ..simulation.scenario_io import load_scenario
     from ..studies.collection import collect
 
     base = load_scenario(args.scenario, args.set or ())
@@ -421,7 +392,8 @@ def _cmd_train(args) -> int:
         raise MissingExtraError("`stewart-drake train` needs torch: pip install "
                                 "'stewart-drake[train]' (torch==2.13.0, the CPU build)") from None
     from ..control.tuner import save_tuner
-    from ..simulation.scenario import AnnTunerDriver, Scenario
+    from ..control.tuning import AnnTunerDriver
+    from ..simulation.scenario import Scenario
     from ..studies.training import build_dataset, train
     reports = {}
     for mode in ("paper", "best_cost"):
@@ -491,10 +463,11 @@ def _cmd_evaluate(args) -> int:
 
 def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
-    from ..simulation.scenario import load_scenario
+    from ..simulation.plan import make_plan
+    from ..simulation.scenario_io import load_scenario
     from ..studies.workspace import write_workspace
 
-    geometry = load_scenario(args.scenario, args.set or ()).geometry()
+    geometry = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False).geometry
     rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
                            geometry=geometry, runner=_runner(args))
     for name, value, unit in rows[:9]:
@@ -508,7 +481,7 @@ def _cmd_teleop(args) -> int:
     """``stewart-drake teleop``: the robot as built at real time in Meshcat, driven by sliders."""
     from pydrake.geometry import Meshcat, MeshcatParams
 
-    from ..simulation.scenario import load_scenario
+    from ..simulation.scenario_io import load_scenario
     from .teleop import build_teleop, run_teleop
 
     scenario = load_scenario(args.scenario, args.set or ())

@@ -26,6 +26,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..model.kinematics import X_HOME
 from ..model.statics import holding_torques
+from ..simulation.plan import make_plan
 
 #: Slider range around the start pose: [roll, pitch, yaw] rad, [x, y, z] m.
 SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
@@ -164,11 +165,11 @@ def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, li
     scenario = teleop_scenario(scenario)
     meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
     meshcat.SetProperty("/Axes", "visible", False)       # the world triad would hide the base
-    geometry = scenario.geometry()
-    peak = scenario.torque_limit()
+    plan = make_plan(scenario, with_reference=False)
+    geometry, peak = plan.geometry, plan.torque_limit_Nm
     x0 = np.asarray(x_initial, dtype=float)
     guard = scenario.guard
-    clearance = clearance_model(scenario.plant_geometry())
+    clearance = clearance_model(plan.plant_geometry)
     reference = TeleopReference(
         geometry, x0, scenario.control_period_s, limits,
         admissible=lambda x: admissible_poses(geometry, x, guard.cond_threshold,

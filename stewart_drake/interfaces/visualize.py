@@ -225,7 +225,7 @@ def record_html(config=None, path: str | Path = "results/replay.html", progress:
     result = collect_result(sd, context, wall)
     log = sd.loggers["state"].FindLog(context)
     meshcat = meshcat if meshcat is not None else Meshcat()
-    record_states(meshcat, sd.scenario.plant_geometry(), log.sample_times(), log.data().T, fps)
+    record_states(meshcat, sd.plan.plant_geometry, log.sample_times(), log.data().T, fps)
     return result, write_static_html(meshcat, path)
 
 
@@ -370,14 +370,10 @@ def diagram_dots() -> dict[str, str]:
         ``ann_tuner`` and ``crank_pd`` (the controller systems and their ports: each follows
         the controller contract, so either plugs into the same Diagram).
     """
+    from ..control.tuning import AnnTunerDriver
     from ..simulation.diagram import make_stewart_diagram
-    from ..simulation.scenario import (
-        DEFAULT_SCENARIO,
-        AnnTunerDriver,
-        PdDriver,
-        load_scenario,
-        use_paper_tuner,
-    )
+    from ..simulation.scenario import PdDriver, use_paper_tuner
+    from ..simulation.scenario_io import DEFAULT_SCENARIO, load_scenario
 
     def scenario(name=DEFAULT_SCENARIO):
         return load_scenario(name)

@@ -3,43 +3,30 @@
 :func:`make_stewart_diagram` builds it in stages, one function each: the reference and its
 feed-forward, the controller (built by its scenario choice), the measurement it reads, the tool
 disturbance, what drives the controller's weights (a tuner choice, or a constant), the loggers and
-the guard. Each scenario choice builds itself (``make``, ``add_to``: simulation/scenario.py); the
-stages here only wire by port name.
+the guard. It builds from a :class:`~.plan.RunPlan` (a scenario is planned first): every
+derived value is read from the plan; each scenario choice builds itself (the controller's
+``make``, the tuner's ``add_to``, the reference's ``make``, beside what they build); the stages
+here only wire by port name.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
 from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, RandomSource
 
-from ..control.contract import ControllerContext, check_controller, resolve_controller
-from ..control.estimator import FkEstimator, PoseEstimator
+from ..control.contract import ControllerContext, check_controller
+from ..control.estimator import FkEstimator
+from ..control.tuning import TunerPorts
 from ..errors import InvalidConfigError
 from .guard import DivergenceGuard
+from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_reference_sources
-from .scenario import Scenario, TunerPorts
+from .scenario import Scenario, dump_scenario
 from .sensors import PlatformPoseSensor, add_white_noise
 from .station import StewartStation
-from .trajectories import as_trajectory
-
-
-def controller_factory(scenario: Scenario, controller=None) -> Callable:
-    """The factory ``f(ControllerContext) -> System`` of a run.
-
-    Args:
-        scenario: its ``controller`` choice is used when ``controller`` is None
-            (:meth:`~stewart_drake.control.contract.ControllerDriver.resolve`).
-        controller: a factory callable or a registered name (overrides the scenario).
-    Raises:
-        InvalidConfigError: a name that is not registered (listing the registered ones).
-    """
-    if controller is not None:
-        return resolve_controller(controller) if isinstance(controller, str) else controller
-    return scenario.controller.resolve()
 
 
 @dataclass
@@ -51,7 +38,8 @@ class StewartDiagram:
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
             (or the live reference system). trajectory: the reference object (``evaluate(t)``;
             None with a live reference). loggers: name -> ``LogVectorOutput`` logger.
-        scenario: the scenario built. features, tuner: the tuner's systems, or None.
+        plan: the :class:`~.plan.RunPlan` built (``scenario`` is its scenario). features,
+            tuner: the tuner's systems, or None.
         noise: the sensor noise's ``RandomSource``, or None. estimator: the
             :class:`~stewart_drake.control.estimator.FkEstimator` on the encoders, or None.
         guard: the :class:`~.guard.DivergenceGuard` system checking the run.
@@ -66,7 +54,7 @@ class StewartDiagram:
     reference: ReferenceSources | System
     trajectory: object | None
     loggers: dict
-    scenario: Scenario
+    plan: RunPlan
     features: System | None = None
     tuner: System | None = None
     noise: RandomSource | None = None
@@ -74,6 +62,15 @@ class StewartDiagram:
     guard: DivergenceGuard | None = None
     T_ff_initial: np.ndarray | None = None
     learner: System | None = None
+
+    @property
+    def scenario(self) -> Scenario:
+        """The validated scenario the Diagram was built from (``plan.scenario``)."""
+        return self.plan.scenario
+
+    def scenario_yaml(self) -> str:
+        """The scenario as YAML (:func:`~.scenario.dump_scenario`), e.g. for a saved run."""
+        return dump_scenario(self.plan.scenario)
 
     @property
     def plant(self):
@@ -105,7 +102,8 @@ class StewartDiagram:
                                 seed=hw.encoders.seed if hw is not None else 0)
 
 
-def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, reference=None,
+def make_stewart_diagram(scenario: Scenario | RunPlan | None = None, meshcat=None, *,
+                         reference=None,
                          controller=None, reference_system=None) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
@@ -120,7 +118,8 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     ``scenario.guard.check_period_s``.
 
     Args:
-        scenario: the run (default: the paper's experiment on the ideal robot).
+        scenario: the run: a :class:`~.plan.RunPlan`, or a scenario planned here
+            (:func:`~.plan.make_plan`; default: the paper's experiment on the ideal robot).
         meshcat: optional pydrake Meshcat (Drake's visualization of the station).
         reference: optional reference object overriding ``scenario.reference``: anything
             :func:`~.trajectories.as_trajectory` accepts (an object with ``evaluate(t)``, a Drake
@@ -144,26 +143,27 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
         UnreachablePoseError: the reference leaves the workspace (first time and leg).
     """
     # Long for its docstring (every port and choice documented); the stages are functions below.
-    scenario = (scenario or Scenario()).validate()
-    trajectory = None if reference_system is not None else as_trajectory(
-        reference if reference is not None else scenario.make_reference())
+    plan = make_plan(scenario, reference=reference, controller=controller,
+                     with_reference=reference_system is None)
+    scenario = plan.scenario
+    trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = builder.AddSystem(StewartStation(scenario, meshcat))
-    ref = _add_reference(builder, scenario, trajectory, reference_system)
-    context = controller_context(scenario, ref.x0, ref.x_dot0)
-    system = _add_controller(builder, controller_factory(scenario, controller)(context))
+    station = builder.AddSystem(StewartStation(plan, meshcat))
+    ref = _add_reference(builder, plan, trajectory, reference_system)
+    context = plan.controller_context(ref.x0, ref.x_dot0)
+    system = _add_controller(builder, plan.controller_factory(context))
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
-    x_d, learner = _add_learning(builder, station, scenario, trajectory, ref.x_d, context)
+    x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
     sources = {"x_d": x_d, "T_ff": ref.T_ff, "x": measured,
                "motor_angle": station.GetOutputPort("motor_angle"),
                "motor_rate": station.GetOutputPort("motor_rate"), "motor_torque_applied": applied}
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-    _add_disturbance(builder, station, scenario, live=reference_system is not None)
+    _add_disturbance(builder, station, plan, live=reference_system is not None)
     features, tuner, loggers = _add_weights(builder, scenario, TunerPorts(
         controller=system, inputs=frozenset(inputs), outputs=frozenset(outputs), x_d=ref.x_d,
         T_applied=applied, period_s=context.period_s, offset_s=context.offset_s,
@@ -175,7 +175,7 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
                                             scenario.log_period_s)
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    guard = _add_guard(builder, station, system, ref.x_d, scenario)
+    guard = _add_guard(builder, station, system, ref.x_d, plan)
     if reference_system is not None:
         builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
         builder.ExportOutput(ref.x_d, "x_d")
@@ -183,16 +183,9 @@ def make_stewart_diagram(scenario: Scenario | None = None, meshcat=None, *, refe
     diagram.set_name("rotary_stewart")
     return StewartDiagram(diagram=diagram, station=station, controller=system,
                           reference=ref.system, trajectory=trajectory, loggers=loggers,
-                          scenario=scenario, features=features, tuner=tuner, noise=noise,
+                          plan=plan, features=features, tuner=tuner, noise=noise,
                           estimator=estimator, guard=guard, T_ff_initial=ref.T_ff_initial,
                           learner=learner)
-
-
-def sample_offset_s(scenario: Scenario) -> float:
-    """When the controller samples within its period, s: half a plant step after each plant
-    update, when the plant already holds the configuration of the next step's time (its
-    reference leads by the same half step; the controller contract, "Sampling")."""
-    return 0.5 * scenario.plant_time_step_s
 
 
 @dataclass(frozen=True)
@@ -208,15 +201,15 @@ class _Reference:
     T_ff_initial: np.ndarray
 
 
-def _add_reference(builder, scenario: Scenario, trajectory, reference_system) -> _Reference:
+def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Reference:
     """The precomputed reference and feed-forward of ``trajectory`` (:mod:`~.reference`), or
     the live ``reference_system`` with its inputs exported."""
-    h_plant, h = scenario.plant_time_step_s, scenario.control_period_s
+    h_plant, h = plan.plant_time_step_s, plan.control_period_s
     if reference_system is None:
-        ref = add_reference_sources(builder, trajectory, scenario.geometry(), scenario.duration_s,
-                                    period_s=h, offset_s=sample_offset_s(scenario),
-                                    lead_s=0.5 * h_plant, feedforward=scenario.feedforward,
-                                    feedforward_lead_s=scenario.computation_delay_periods * h)
+        ref = add_reference_sources(builder, trajectory, plan.geometry, plan.duration_s,
+                                    period_s=h, offset_s=plan.sample_offset_s,
+                                    lead_s=0.5 * h_plant, feedforward=plan.scenario.feedforward,
+                                    feedforward_lead_s=plan.delay_periods * h)
         x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
         return _Reference(ref, ref.x_d.get_output_port(), ref.T_ff.get_output_port(), x0,
                           x_dot0, ref.T_ff_table[0])
@@ -226,22 +219,6 @@ def _add_reference(builder, scenario: Scenario, trajectory, reference_system) ->
     return _Reference(ref, ref.GetOutputPort("x_d"), ref.GetOutputPort("T_ff"),
                       np.asarray(ref.x_initial, dtype=float), np.zeros(6),
                       np.asarray(ref.T_ff_initial, dtype=float))
-
-
-def controller_context(scenario: Scenario, x0, x_dot0) -> ControllerContext:
-    """What the Diagram of ``scenario`` tells its controller's factory, starting at pose x0 (6,)
-    moving at x_dot0 (6,): on the robot as built, the encoders' pose estimator; with a network
-    tuner, its features' window."""
-    geometry, h, hw = scenario.geometry(), scenario.control_period_s, scenario.hardware
-    pose_estimator = None if hw is None else PoseEstimator(
-        geometry, h, hw.encoders.quantum_rad, x0, rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
-        tolerance_counts=hw.estimator.fk_tolerance_counts)
-    return ControllerContext(
-        geometry=geometry, period_s=h, offset_s=sample_offset_s(scenario),
-        plant_time_step_s=scenario.plant_time_step_s, x_initial=x0, x_dot_initial=x_dot0,
-        torque_limit_Nm=scenario.torque_limit(), delay_periods=scenario.computation_delay_periods,
-        pose_estimator=pose_estimator,
-        feature_window=None if scenario.tuner is None else scenario.tuner.density_window())
 
 
 def _add_controller(builder, system: System) -> System:
@@ -273,36 +250,39 @@ def _add_measurement(builder, station: StewartStation, scenario: Scenario,
     return measured, estimator, noise
 
 
-def _add_learning(builder, station: StewartStation, scenario: Scenario, trajectory,
+def _add_learning(builder, station: StewartStation, plan: RunPlan, trajectory,
                   x_d: OutputPort, context: ControllerContext):
-    """With ``scenario.learning``, the iterative learning controller between the reference and
-    the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
+    """With the scenario's ``learning``, the iterative learning controller between the reference
+    and the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
     correction, the guard and the tuner keep the reference itself. Returns (the x_d port the
     controller reads, the learner or None).
 
     Raises:
         InvalidConfigError: learning on a live reference (it has no cycles to learn from).
     """
-    if scenario.learning is None:
+    if plan.scenario.learning is None:
         return x_d, None
     if trajectory is None:
         raise InvalidConfigError("learning needs a reference known in advance, with cycles; a "
                                  "live reference has none: set learning: null")
     from .learning import add_learning
 
-    learner, corrected = add_learning(builder, scenario, trajectory, x_d,
-                                      station.GetOutputPort("motor_angle"), context.offset_s)
+    learner, corrected = add_learning(
+        builder, plan.scenario.learning, trajectory, x_d, station.GetOutputPort("motor_angle"),
+        geometry=plan.geometry, period_s=plan.control_period_s, offset_s=context.offset_s,
+        duration_s=plan.duration_s, floor=plan.encoder_count_at_tip())
     return corrected, learner
 
 
-def _add_disturbance(builder, station: StewartStation, scenario: Scenario, live: bool) -> None:
+def _add_disturbance(builder, station: StewartStation, plan: RunPlan, live: bool) -> None:
     """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
     live reference, which has no end), the input is exported and fixed to zero in the Context
     (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
     source would be re-evaluated at every plant step."""
-    if scenario.disturbance is not None and not live:
-        wrench = builder.AddNamedSystem("tool_disturbance", scenario.disturbance.make_source(
-            scenario.duration_s, scenario.plant_time_step_s))
+    disturbance = plan.scenario.disturbance
+    if disturbance is not None and not live:
+        wrench = builder.AddNamedSystem("tool_disturbance", disturbance.make_source(
+            plan.duration_s, plan.plant_time_step_s))
         builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
     else:
         builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
@@ -310,8 +290,9 @@ def _add_disturbance(builder, station: StewartStation, scenario: Scenario, live:
 
 def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
     """What drives the controller's ``omega`` input: the scenario's tuner
-    (:meth:`~.scenario.TunerConfig.add_to`), or the controller choice's constant weights.
-    Returns (features or None, tuner or None, loggers: "rho" when the tuner has features)."""
+    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`), or the controller choice's
+    constant weights. Returns (features or None, tuner or None, loggers: "rho" when the tuner
+    has features)."""
     if scenario.tuner is not None:
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}
@@ -340,14 +321,16 @@ def _add_loggers(builder, station: StewartStation, system: System, outputs: set,
 
 
 def _add_guard(builder, station: StewartStation, system: System, x_d: OutputPort,
-               scenario: Scenario) -> DivergenceGuard:
+               plan: RunPlan) -> DivergenceGuard:
     """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
     reference and, with contact, the contact results."""
-    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, scenario.guard))
+    contact = plan.scenario.contact
+    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan.scenario.guard,
+                                                            plan.plant_geometry, contact))
     builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
     builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
     builder.Connect(x_d, guard.GetInputPort("x_d"))
-    if scenario.contact:
+    if contact:
         builder.Connect(station.GetOutputPort("contact_results"),
                         guard.GetInputPort("contact_results"))
     return guard

@@ -8,7 +8,7 @@ that leaves the workspace (:class:`~stewart_drake.errors.UnreachablePoseError`),
 During a run, :class:`DivergenceGuard`, a system of the Diagram, checks every
 ``check_period_s`` (a periodic publish event: one Python call per check, none in between) that
 the plant state and the motor torques are finite and that the loop-closure error and the
-tracking error are within :class:`~.scenario.GuardConfig`'s bounds. (A NaN torque does not reach
+tracking error are within :class:`GuardConfig`'s bounds. (A NaN torque does not reach
 the plant in between: Drake refuses a NaN actuation at the step that would use it, and
 :func:`advance` reports that as a divergence.) On the first failure the check raises
 :class:`~stewart_drake.errors.SimulationDivergedError`, which stops the Simulator;
@@ -18,41 +18,119 @@ file. A run that ends normally therefore has finite logs: a NaN cannot reach a p
 metrics silently.
 """
 
-from __future__ import annotations
-
 import math
 import os
 import time
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List, Optional
 
 import numpy as np
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.plant import ContactResults
 from pydrake.systems.framework import LeafSystem
 
-from ..errors import FeasibilityWarning, SimulationDivergedError
+from ..checks import as_number
+from ..errors import FeasibilityWarning, InvalidConfigError, SimulationDivergedError
 from ..fileio import save_npz
 from ..model import limits
 from ..model.kinematics import AXIS_NAMES, ik_scalar
-from ..model.limits import DEFAULT_CLEARANCE_RESOLUTION_M
+from ..model.limits import (
+    DEFAULT_CLEARANCE_RESOLUTION_M,
+    DEFAULT_COND_THRESHOLD,
+    DEFAULT_EFFORT_MARGIN,
+    DEFAULT_MIN_CLEARANCE_M,
+    DEFAULT_MIN_SIGMA_MIN_INV,
+)
 from ..model.plant import loop_closure_errors
-from .scenario import GuardConfig, dump_scenario
 
 
-def check_reference(scenario, trajectory=None,
-                    raise_refused: bool = True) -> limits.TrajectoryReport:
+# Drake's YAML loader reads GuardConfig's field annotations: this module must not use
+# ``from __future__ import annotations``.
+@dataclass
+class GuardConfig:
+    """Bounds of a guarded run (:mod:`~stewart_drake.simulation.guard`); SI units.
+
+    Attributes:
+        max_closure_error_m: largest distance between a rod's top end and its platform joint, m
+            (the paper run stays below 1e-6 m); None disables the check.
+        max_tracking_error: [rad, m]: largest |x - x_d| over the three angles and over the three
+            positions. Loose by default (0.2 rad, 0.05 m): it catches a lost platform, not a
+            poorly tuned one. None disables the check.
+        check_period_s: the state's and torques' finiteness, closure and tracking are checked
+            this often, s (a whole multiple of the plant step; Drake itself refuses a NaN
+            actuation at the plant step that would use it).
+        divergence_dir: folder of the saved ``.npz`` when a run diverges.
+        cond_threshold: largest cond(J) along the reference (limits.DEFAULT_COND_THRESHOLD).
+        min_sigma_min_inv: smallest 1/sigma_max(J) along the reference, (rad or m) per rad.
+        min_clearance_m: smallest distance two parts of the robot may come to along the
+            reference, m (collision geometry, :mod:`~stewart_drake.model.clearance`).
+        effort_margin: the share of the motors' peak torque and no-load speed the reference may
+            need (inverse dynamics with the reflected inertia and friction), in (0, 1]; the
+            rest is the feedback's.
+        allow_infeasible: run a reference that needs more than that anyway, with a warning (the
+            motors saturate), instead of refusing it.
+    Raises:
+        InvalidConfigError: a bound that is not a finite positive number (or None), at
+            construction and in :meth:`validate`.
+    """
+
+    max_closure_error_m: Optional[float] = 1e-3
+    max_tracking_error: Optional[List[float]] = field(default_factory=lambda: [0.2, 0.05])
+    check_period_s: float = 0.01
+    divergence_dir: str = "results/diverged"
+    cond_threshold: float = DEFAULT_COND_THRESHOLD
+    min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV
+    min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M
+    effort_margin: float = DEFAULT_EFFORT_MARGIN
+    allow_infeasible: bool = False
+
+    def __post_init__(self):
+        self.validate()
+
+    def validate(self, prefix: str = "guard.") -> None:
+        """Check every field; raises InvalidConfigError naming it."""
+        if self.max_closure_error_m is not None:
+            as_number(f"{prefix}max_closure_error_m", self.max_closure_error_m, 0.0, lo_open=True)
+        if self.max_tracking_error is not None:
+            bounds = self.max_tracking_error
+            if isinstance(bounds, (str, bytes)) or np.ndim(bounds) != 1 or len(bounds) != 2:
+                raise InvalidConfigError(f"{prefix}max_tracking_error must be [rad, m], got "
+                                         f"{bounds!r}")
+            self.max_tracking_error = [
+                as_number(f"{prefix}max_tracking_error[{k}]", v, 0.0, lo_open=True)
+                for k, v in enumerate(bounds)]
+        as_number(f"{prefix}check_period_s", self.check_period_s, 0.0, lo_open=True)
+        as_number(f"{prefix}cond_threshold", self.cond_threshold, 1.0, lo_open=True)
+        as_number(f"{prefix}min_sigma_min_inv", self.min_sigma_min_inv, 0.0)
+        as_number(f"{prefix}min_clearance_m", self.min_clearance_m, 0.0, 0.05)
+        as_number(f"{prefix}effort_margin", self.effort_margin, 0.0, 1.0, lo_open=True)
+        if not isinstance(self.allow_infeasible, bool):
+            raise InvalidConfigError(f"{prefix}allow_infeasible must be true or false, got "
+                                     f"{self.allow_infeasible!r}")
+        if isinstance(self.divergence_dir, Path):
+            self.divergence_dir = str(self.divergence_dir)
+        if not isinstance(self.divergence_dir, str) or not self.divergence_dir:
+            raise InvalidConfigError(f"{prefix}divergence_dir must be a folder path, got "
+                                     f"{self.divergence_dir!r}")
+
+
+def check_path(trajectory, geometry, duration_s: float, period_s: float, config: GuardConfig,
+               motor_limits, raise_refused: bool = True) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
     motor travel, ball-joint cones, both singularity measures, the clearance between the robot's
-    parts and the torque and speed each motor must give (``scenario.guard`` thresholds, the
-    motors of ``scenario.motor_limits()``), with :func:`~.trajectories.validate`, on the robot
-    that is simulated (its payload included).
+    parts and the torque and speed each motor must give (``config``'s thresholds, the motors'
+    ``motor_limits``), with :func:`~.trajectories.validate`. A run checks the robot that is
+    simulated, its payload included (:func:`~.plan.check_reference` passes the plan's values).
 
     Args:
-        scenario: the :class:`~.scenario.Scenario`.
-        trajectory: the reference object (default: the one the scenario names).
+        trajectory: the reference object (``evaluate(t)``). geometry: the robot
+            (:class:`~stewart_drake.model.geometry.StewartGeometry`). duration_s: how long, s.
+        period_s: the sampling period (the control period), s. config: the guard's bounds.
+        motor_limits: :class:`~stewart_drake.model.limits.MotorLimits`.
         raise_refused: False reports every refusal in the report instead of raising the first
             (``stewart-drake check``).
     Returns:
@@ -64,20 +142,19 @@ def check_reference(scenario, trajectory=None,
         JointLimitError: first time, leg and limit (motor_angle, crank_joint, platform_joint).
         SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
             min_sigma_min_inv.
-        InterferenceError: first time two parts come closer than ``guard.min_clearance_m``.
+        InterferenceError: first time two parts come closer than ``config.min_clearance_m``.
         MotorLimitError: first time a motor needs more torque or speed than it may use, unless
-            ``guard.allow_infeasible`` (then a :class:`~stewart_drake.errors.FeasibilityWarning`).
+            ``config.allow_infeasible`` (then a :class:`~stewart_drake.errors.FeasibilityWarning`).
     """
     from ..model.clearance import clearance_model
     from .trajectories import validate
 
-    trajectory = scenario.make_reference() if trajectory is None else trajectory
-    geometry, guard = scenario.plant_geometry(), scenario.guard
-    report = validate(trajectory, geometry, scenario.duration_s,
-                      dt=scenario.control_period_s, cond_threshold=guard.cond_threshold,
+    guard = config
+    report = validate(trajectory, geometry, duration_s,
+                      dt=period_s, cond_threshold=guard.cond_threshold,
                       min_sigma_min_inv=guard.min_sigma_min_inv, raise_refused=raise_refused,
                       clearance=clearance_model(geometry), min_clearance_m=guard.min_clearance_m,
-                      motor_limits=scenario.motor_limits(),
+                      motor_limits=motor_limits,
                       allow_infeasible=guard.allow_infeasible)
     if raise_refused and not report.feasible:
         warnings.warn(FeasibilityWarning(
@@ -96,7 +173,7 @@ class DivergenceGuard(LeafSystem):
 
     Input ports: ``plant_state`` (nq + nv,) the MultibodyPlant's state; ``T`` (6,) the
     controller's torque command, N m; ``x_d`` (18,) the reference the controller reads; with
-    the scenario's ``contact``, ``contact_results`` (the plant's ``ContactResults``).
+    ``contact``, ``contact_results`` (the plant's ``ContactResults``).
     Every ``config.check_period_s`` (first at t = 0) a publish event runs :meth:`check` and
     raises :class:`~stewart_drake.errors.SimulationDivergedError` with its reason. Without
     contact, two parts that overlap are a failure (nothing in the plant keeps them apart; the
@@ -108,9 +185,12 @@ class DivergenceGuard(LeafSystem):
     Args:
         station: the :class:`~.station.StewartStation` (its plant, handles and pose sensor).
         config: the bounds.
+        geometry: the robot that is simulated
+            (:class:`~stewart_drake.model.geometry.StewartGeometry`), for the clearance check.
+        contact: whether the plant simulates contact between the robot's parts.
     """
 
-    def __init__(self, station, config: GuardConfig):
+    def __init__(self, station, config: GuardConfig, geometry, contact: bool):
         super().__init__()
         self.config = config
         self._plant, self._handles, self._sensor = station.plant, station.handles, station.sensor
@@ -124,7 +204,7 @@ class DivergenceGuard(LeafSystem):
         self._scratch = plant.CreateDefaultContext()
         self.DeclarePeriodicPublishEvent(period_sec=self.config.check_period_s,
                                          offset_sec=0.0, publish=self._Check)
-        self.contact = station.scenario.contact
+        self.contact = contact
         if self.contact:
             # The first contact the checks see, kept in the guard's state: [seen (0 or 1), t s,
             # normal force N, index of part a, index of part b] (indices into part_names).
@@ -144,7 +224,6 @@ class DivergenceGuard(LeafSystem):
             from ..model.clearance import clearance_model
             from ..model.kinematics import leg_constants
 
-            geometry = station.scenario.plant_geometry()
             self._clearance = clearance_model(geometry)
             self._legs = leg_constants(geometry)
             self._motor_q = [joint.position_start() for joint in station.handles.motors]
@@ -252,8 +331,8 @@ def save_divergence(sd, root, reason: str) -> Path:
     tuned, state (N, n) logged plant states, x_d (N, 18) the reference at t (when it can be
     evaluated), t_last (s) and state_last (n,) the plant state when the run stopped, T_last
     (6,) the last command and T_applied_last (6,) what the motors applied, reason (str) and
-    scenario (the whole scenario as YAML: robot, payload, torque limit, feed-forward,
-    controller, noise...).
+    scenario (the whole scenario as YAML, ``sd.scenario_yaml()``: robot, payload, torque limit,
+    feed-forward, controller, noise...).
     Returns:
         the path written.
     """
@@ -267,7 +346,7 @@ def save_divergence(sd, root, reason: str) -> Path:
               "T_applied_last": sd.station.GetOutputPort("motor_torque_applied").Eval(
                   sd.station.GetMyContextFromRoot(root)).copy(),
               "reason": np.str_(reason),
-              "scenario": np.str_(dump_scenario(sd.scenario))}
+              "scenario": np.str_(sd.scenario_yaml())}
     for name, log in logs.items():
         arrays[name] = log.data().T.copy()
     try:

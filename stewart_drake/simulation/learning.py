@@ -1,10 +1,10 @@
 """Learning from every cycle in the Diagram: where the learner's cycles, bound and ports come from.
 
 :func:`add_learning` adds an :class:`~stewart_drake.control.ilc.IterativeLearningController`
-built from a scenario's :class:`~.scenario.IlcDriver` and wires it by port name: it reads the
-reference source's ``x_d`` and the station's ``motor_angle`` (what the robot measures), and an
-``Adder`` puts its ``x_d_correction`` on the reference, whose sum the Diagram gives the
-controller as its ``x_d`` (:mod:`~stewart_drake.control.contract`).
+built from a scenario's :class:`~stewart_drake.control.ilc.IlcDriver` and wires it by port name:
+it reads the reference source's ``x_d`` and the station's ``motor_angle`` (what the robot
+measures), and an ``Adder`` puts its ``x_d_correction`` on the reference, whose sum the Diagram
+gives the controller as its ``x_d`` (:mod:`~stewart_drake.control.contract`).
 """
 
 from __future__ import annotations
@@ -12,14 +12,15 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.primitives import Adder
 
-from ..control.ilc import IterativeLearningController
+from ..control.ilc import IlcDriver, IterativeLearningController
 from ..errors import InvalidConfigError
 
 
-def learning_cycles(scenario, trajectory) -> tuple[np.ndarray, np.ndarray]:
-    """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over the run: the
-    reference's own (:func:`~.organ_motion.reference_cycles`), or ``learning.period_s`` from
-    t = 0 when given.
+def learning_cycles(driver: IlcDriver, trajectory, duration: float
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over a run of
+    ``duration`` s: the reference's own (:func:`~.organ_motion.reference_cycles`), or
+    ``driver.period_s`` from t = 0 when given.
 
     Raises:
         InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
@@ -27,7 +28,6 @@ def learning_cycles(scenario, trajectory) -> tuple[np.ndarray, np.ndarray]:
     """
     from .organ_motion import reference_cycles
 
-    driver, duration = scenario.learning, scenario.duration_s
     if driver.period_s > 0:
         k = max(1, int(np.floor(duration / driver.period_s + 1e-9)))
         starts, scale = np.arange(k + 1) * driver.period_s, np.ones(k)
@@ -44,30 +44,24 @@ def learning_cycles(scenario, trajectory) -> tuple[np.ndarray, np.ndarray]:
     return starts[:k + 1], scale[:k]
 
 
-def encoder_floor(scenario) -> tuple[float, float]:
-    """One encoder count at the crank tip, as a translation (m) and as a rotation of the
-    platform (rad): the additive floor of the learner's monitored bound (1 um and 10 urad on
-    the ideal robot, which reads exact angles)."""
-    if scenario.hardware is None:
-        return 1e-6, 1e-5
-    g = scenario.geometry()
-    tip = scenario.hardware.encoders.quantum_rad * g.crank_length
-    return tip, tip / g.platform_radius
-
-
-def add_learning(builder, scenario, trajectory, x_d, motor_angle, offset_s: float):
+def add_learning(builder, d: IlcDriver, trajectory, x_d, motor_angle, *, geometry,
+                 period_s: float, offset_s: float, duration_s: float,
+                 floor: tuple[float, float]):
     """Add the learner and the Adder; returns (learner, the corrected x_d output port).
 
     Args:
-        builder: the DiagramBuilder. scenario: with ``learning`` set. trajectory: the reference.
+        builder: the DiagramBuilder. d: the learner's settings. trajectory: the reference.
         x_d: the reference source's output port (18). motor_angle: the station's (6).
-        offset_s: the controllers' sample offset, s.
+        geometry: the robot the controller believes in. period_s: the control period, s.
+        offset_s: the controllers' sample offset, s. duration_s: the run's length, s.
+        floor: (m, rad) the additive floor of the monitored bound: one encoder count at the
+            crank tip as a translation and as a platform rotation
+            (:meth:`~.plan.RunPlan.encoder_count_at_tip`).
     """
-    d = scenario.learning
-    starts, scale = learning_cycles(scenario, trajectory)
-    floor_m, floor_rad = encoder_floor(scenario)
+    starts, scale = learning_cycles(d, trajectory, duration_s)
+    floor_m, floor_rad = floor
     learner = builder.AddNamedSystem("learner", IterativeLearningController(
-        scenario.geometry(), scenario.control_period_s, offset_s, starts, scale, gain=d.gain,
+        geometry, period_s, offset_s, starts, scale, gain=d.gain,
         q_cutoff_hz=d.q_cutoff_hz, lead_s=d.lead_s, error=d.error,
         sample_period_s=d.sample_period_s, bound_ratio=d.bound_ratio, floor_m=floor_m,
         floor_rad=floor_rad, max_rollbacks=d.max_rollbacks, learn_cycles=d.learn_cycles,

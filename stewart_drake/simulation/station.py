@@ -112,7 +112,7 @@ def _connect_actuators(builder, applied, handles) -> None:
 class StewartStation(Diagram):
     """The robot as built by :func:`make_stewart_station`; a Drake ``Diagram`` named "station".
 
-    With ``scenario.hardware``, the station is the robot as built (docs/hardware.md): the
+    With the scenario's ``hardware``, the station is the robot as built (docs/hardware.md): the
     command passes the computation delay (``DiscreteTimeDelay``, whole control periods), the
     drive's current limit (``Saturation`` at the servo's peak torque) and its current loop
     (:func:`current_loop`); the plant carries the motors' reflected inertia, viscous and Coulomb
@@ -138,19 +138,24 @@ class StewartStation(Diagram):
             the contacts between the robot's parts.
     Attributes:
         plant, scene_graph, handles (:class:`~stewart_drake.model.plant.StewartPlantHandles`),
-        sensor (the ground-truth :class:`~.sensors.PlatformPoseSensor`), scenario.
+        sensor (the ground-truth :class:`~.sensors.PlatformPoseSensor`), plan (the
+        :class:`~.plan.RunPlan` it was built from).
+    Args:
+        plan: the :class:`~.plan.RunPlan` (:func:`make_stewart_station` makes one from a
+            scenario). meshcat: optional pydrake Meshcat.
     """
 
-    def __init__(self, scenario, meshcat=None):
+    def __init__(self, plan, meshcat=None):
         super().__init__()
         builder = DiagramBuilder()
-        plant, scene_graph, handles = add_stewart_plant(builder, scenario.plant_geometry(),
+        scenario = plan.scenario
+        plant, scene_graph, handles = add_stewart_plant(builder, plan.plant_geometry,
                                                         plant_config=scenario.plant,
-                                                        servo=scenario.servo(),
+                                                        servo=plan.servo,
                                                         contact=scenario.contact)
         plant.set_name("plant")
-        self.plant, self.scene_graph, self.handles, self.scenario = (plant, scene_graph, handles,
-                                                                     scenario)
+        self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles,
+                                                                 plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
         applied = self._add_torque_pipe(builder, command.get_output_port())
@@ -180,17 +185,16 @@ class StewartStation(Diagram):
         """Motor torques: command -> [computation delay] -> [current limit] -> [current loop];
         returns the applied torques' port (the delay and the loop are kept: their state starts at
         the first feed-forward, :meth:`initialize`)."""
-        scenario, servo = self.scenario, self.scenario.servo()
-        hardware, applied = scenario.hardware, command
+        plan, servo, applied = self.plan, self.plan.servo, command
         self.delay = self.lag = None
-        if hardware is not None and hardware.computation_delay_periods > 0:
+        if plan.delay_periods > 0:
             # Sampled at k h, half a plant step after the controller wrote it: the sample itself
             # is one period late, so d periods of delay take d - 1 more (measured in a test).
             self.delay = builder.AddNamedSystem("computation_delay", DiscreteTimeDelay(
-                scenario.control_period_s, hardware.computation_delay_periods - 1, 6))
+                plan.control_period_s, plan.delay_periods - 1, 6))
             builder.Connect(applied, self.delay.get_input_port())
             applied = self.delay.get_output_port()
-        limit = scenario.torque_limit()
+        limit = plan.torque_limit_Nm
         if limit is not None:
             saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit * np.ones(6),
                                                                            limit * np.ones(6)))
@@ -198,7 +202,7 @@ class StewartStation(Diagram):
             applied = saturation.get_output_port()
         if servo is not None and servo.current_time_constant_s > 0:
             self.lag = builder.AddNamedSystem("current_loop", current_loop(
-                servo.current_time_constant_s, scenario.plant_time_step_s))
+                servo.current_time_constant_s, plan.plant_time_step_s))
             builder.Connect(applied, self.lag.get_input_port())
             applied = self.lag.get_output_port()
         return applied
@@ -207,7 +211,7 @@ class StewartStation(Diagram):
         """{"motor_angle", "motor_rate": port}: the crank angles and rates selected from the
         plant state (C++ systems: no Python per step); on the robot as built the angles pass
         the encoders (white noise, if any, then the quantizer)."""
-        plant, hardware = self.plant, self.scenario.hardware
+        plant, hardware = self.plant, self.plan.scenario.hardware
         n_q, n = plant.num_positions(), plant.num_positions() + plant.num_velocities()
         select_q, select_v = np.zeros((6, n)), np.zeros((6, n))
         for i, joint in enumerate(self.handles.motors):
@@ -224,7 +228,7 @@ class StewartStation(Diagram):
             if hardware.encoders.noise_counts > 0:
                 self.encoder_noise, outputs["motor_angle"] = add_white_noise(
                     builder, outputs["motor_angle"],
-                    np.full(6, hardware.encoders.noise_counts * q), self.scenario.control_period_s,
+                    np.full(6, hardware.encoders.noise_counts * q), self.plan.control_period_s,
                     ("encoder_noise", "encoder_noise_std", "noisy_angle"))
             encoders = builder.AddNamedSystem("encoders", quantizer(q))
             builder.Connect(outputs["motor_angle"], encoders.get_input_port())
@@ -261,8 +265,9 @@ def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:
     """The robot of ``scenario`` as a Diagram with exported ports (:class:`StewartStation`).
 
     Args:
-        scenario: a :class:`~stewart_drake.simulation.scenario.Scenario` (default: the paper's);
-            its robot, plant, payload and torque limit are used here.
+        scenario: a :class:`~.plan.RunPlan`, or a :class:`~.scenario.Scenario`
+            planned here without its reference (default: the paper's); its robot, plant,
+            payload, motors and torque limit are used.
         meshcat: optional pydrake Meshcat; adds Drake's visualization (``scenario.visualization``).
     Returns:
         the :class:`StewartStation` (a Diagram): ports ``motor_torque``, ``tool_wrench`` in;
@@ -271,10 +276,9 @@ def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:
     Raises:
         InvalidConfigError, InvalidGeometryError: the scenario does not validate.
     """
-    from .scenario import Scenario
+    from .plan import make_plan
 
-    scenario = (scenario or Scenario()).validate()
-    return StewartStation(scenario, meshcat)
+    return StewartStation(make_plan(scenario, with_reference=False), meshcat)
 
 
 def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
@@ -286,7 +290,8 @@ def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
     dynamics, the plant-alone speed benchmark).
 
     Args:
-        scenario: the robot (default the paper's). x: (6,) pose [rad, m]. T: (6,) N m.
+        scenario: the robot, a scenario or a plan (default the paper's). x: (6,) pose [rad, m].
+            T: (6,) N m.
             wrench: (6,) [torque N m, force N] at the tool tip, world frame.
     Returns:
         (station, simulator, station_context): simulator.AdvanceTo(t) runs it; read the ports
@@ -306,7 +311,7 @@ def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     station.assemble(context, x)
-    T = holding_torques(station.scenario.geometry(), x) if T is None else np.asarray(T, float)
+    T = holding_torques(station.plan.geometry, x) if T is None else np.asarray(T, float)
     station.initialize(context, T)
     diagram.get_input_port(0).FixValue(context, T)
     diagram.get_input_port(1).FixValue(context, np.zeros(6) if wrench is None else wrench)

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..model import kinematics, statics
 from ..model.geometry import X_HOME, StewartGeometry
+from ..simulation.plan import make_plan
 
 #: Plant steps of the study, s, and the step of each engine's reference solution.
 STEPS_S = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
@@ -270,7 +271,8 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
     for state in states:
         sd.plant.SetPositions(context, state[:nq])
         pitch = max(pitch, max(abs(joint.get_angles(context)[1]) for joint in sd.handles.rod_balls))
-    no_spin = np.abs(ball_joints.rod_ball_rpy(config.geometry(), result.x[:, :6])[..., 1]).max()
+    geometry = make_plan(config, with_reference=False).geometry
+    no_spin = np.abs(ball_joints.rod_ball_rpy(geometry, result.x[:, :6])[..., 1]).max()
     return {"rms_error": np.asarray(result.metrics["rms_error"]),
             "max_closure_m": result.metrics["max_closure_m"],
             "wall_per_sim_s": wall / duration_s, "max_pitch_rad": float(pitch),

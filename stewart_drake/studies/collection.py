@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..control.features import density_features_series
+from ..control.tuning import AnnTunerDriver
 from ..errors import (
     CorruptFileError,
     IncompleteResultsError,
@@ -24,7 +25,8 @@ from ..errors import (
     ResultsMismatchError,
 )
 from ..fileio import CheckedNpz
-from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, Scenario
+from ..simulation.plan import make_plan
+from ..simulation.scenario import DataCollectionReference, Scenario
 from .experiments import RunResult, check_run_memory, run_experiment
 from .runners import JobFailure, ProcessRunner
 from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
@@ -65,7 +67,7 @@ def job_config(base: Scenario | None, seed: int, duration_s: float, omega_Q: flo
     """The scenario of one collection run, the only place it is built: ``base`` (default: the
     robot as built, ``paper_hardware``) tracking the seeded excitation for ``duration_s`` with
     the base's LQI at fixed (omega_Q, omega_R) (:meth:`~.scenario.Scenario.lqi`)."""
-    from ..simulation.scenario import load_scenario
+    from ..simulation.scenario_io import load_scenario
 
     scenario = copy.deepcopy(base) if base is not None else load_scenario("paper_hardware")
     scenario.reference = DataCollectionReference(seed=seed)
@@ -111,7 +113,7 @@ def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: fl
 
     configs = {f"q{q:g}_r{r:g}": job_config(base, seed, duration_s, q, r)
                for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS}
-    trajectory = next(iter(configs.values())).make_reference()
+    trajectory = make_plan(next(iter(configs.values()))).reference
     window = AnnTunerDriver().feature_window
     settings = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
                 "feature_window": window,

@@ -31,7 +31,9 @@ import numpy as np
 from ..control.lqi import LqiScales
 from ..errors import IncompleteResultsError
 from ..fileio import atomic_write
-from ..simulation.scenario import dump_scenario, load_scenario
+from ..simulation.plan import make_plan
+from ..simulation.scenario import dump_scenario
+from ..simulation.scenario_io import load_scenario
 from ..simulation.trajectories import ChirpTrajectory, StepTrajectory
 from . import metrics
 from .evaluation_grid import (
@@ -78,10 +80,11 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
                                   "max_closure_m", "realtime_factor", "finite", "window_s",
                                   "status")})
     row["normalized_rms"] = metrics.normalized_rms(m["rms_error"], LqiScales().pose)
-    row["sum_dT2_dt"] = metrics.feedback_effort(result, config.geometry())
+    plan = make_plan(config)
+    row["sum_dT2_dt"] = metrics.feedback_effort(result, plan.geometry)
     row["mean_omega"] = (None if result.omega is None
                          else [float(v) for v in np.mean(result.omega, axis=0)])
-    row.update(_response_figures(result, config.make_reference()))
+    row.update(_response_figures(result, plan.reference))
     row["wall_s"] = time.perf_counter() - t0
     return row
 

@@ -12,20 +12,18 @@ import dataclasses
 import re
 from dataclasses import dataclass
 
+from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..errors import InvalidConfigError
 from ..model.kinematics import AXIS_NAMES
 from ..simulation.scenario import (
-    DEFAULT_SCENARIO,
-    AnnTunerDriver,
     ControllerChoice,
     NamedReference,
     PdDriver,
     Scenario,
     SensorNoise,
     ToolDisturbance,
-    TunerChoice,
-    load_scenario,
 )
+from ..simulation.scenario_io import DEFAULT_SCENARIO, load_scenario
 from .collection import PAPER_WEIGHTS
 
 #: The fixed LQIs of the grid by name: (omega_Q, omega_R), the paper's nine pairs.

@@ -15,7 +15,8 @@ import numpy as np
 from ..fileio import atomic_write
 from ..model import statics
 from ..model.kinematics import AXIS_NAMES, X_HOME
-from ..simulation.scenario import load_scenario
+from ..simulation.plan import make_plan
+from ..simulation.scenario_io import load_scenario
 from ..simulation.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION
 from .evaluation_grid import (
     CONDITIONS,
@@ -361,8 +362,8 @@ def _disturbance_statics(base: str) -> str:
     wrench needs (:func:`~stewart_drake.model.statics.tool_load_torques`), against the motors'
     limit of the base scenario: above it, no controller can hold the pose."""
     scenario = load_scenario(base)
-    limit = scenario.torque_limit()
-    g = scenario.geometry()
+    plan = make_plan(scenario, with_reference=False)
+    limit, g = plan.torque_limit_Nm, plan.geometry
     parts = []
     for name, d in DISTURBANCES.items():
         need = float(np.abs(statics.tool_load_torques(g, X_HOME, d.wrench(

@@ -21,8 +21,8 @@ from ..fileio import CheckedNpz, save_npz
 from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
-from ..simulation.scenario import Scenario, dump_scenario
-from ..simulation.trajectories import as_trajectory
+from ..simulation.plan import RunPlan, check_reference, make_plan
+from ..simulation.scenario import Scenario
 from .metrics import compute_metrics
 
 # Re-exported (the redundant aliases say so): the README's users import them from here.
@@ -93,7 +93,7 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
 #: Memory a run holds, measured with ``stewart-drake run`` (paper_hardware, 1 s against 5 s and
 #: 10 s against 110 s): about 3.3 kB per logged sample at the end of the run (the Simulator's
 #: logs of 86 floats, which grow by doubling, the RunResult, the .npz and the plot), and
-#: 3 kB per control-period sample while the reference is checked (``guard.check_reference``,
+#: 3 kB per control-period sample while the reference is checked (``plan.check_reference``,
 #: before the simulation). Upper bounds with some slack:
 LOG_BYTES_PER_SAMPLE = 4.0e3
 REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
@@ -128,11 +128,12 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
         "shorten duration_s (--duration) or lengthen log_period_s" + coarser))
 
 
-def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference=None,
+def build_simulator(scenario: Scenario | RunPlan | None = None, meshcat=None, *, reference=None,
                     controller=None):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
-    The reference is checked first (:func:`guard.check_reference`); ``sd.guard``, the
+    The run's memory is checked first (:func:`check_run_memory`), then the reference
+    (:func:`~stewart_drake.simulation.plan.check_reference`); ``sd.guard``, the
     Diagram's :class:`guard.DivergenceGuard`, checks the run as it goes (advance with
     :func:`guard.advance` to get the logs saved when it trips). ``scenario.simulator`` is
     applied.
@@ -146,14 +147,13 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
             checked before anything is simulated. InvalidConfigError: a bad scenario field, or
             a run that needs more memory than the machine has (:func:`check_run_memory`).
     """
-    scenario = (scenario or Scenario()).validate()
-    check_run_memory(scenario)
-    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
-    guard.check_reference(scenario, trajectory)
-    sd = make_stewart_diagram(scenario, meshcat=meshcat, reference=trajectory,
-                              controller=controller)
+    plan = make_plan(scenario, with_reference=False)           # validated once, here
+    check_run_memory(plan.scenario)
+    plan = make_plan(plan, reference=reference, controller=controller)
+    check_reference(plan)
+    sd = make_stewart_diagram(plan, meshcat=meshcat)
     simulator = Simulator(sd.diagram)
-    ApplySimulatorConfig(scenario.simulator, simulator)
+    ApplySimulatorConfig(plan.scenario.simulator, simulator)
     context = simulator.get_mutable_context()
     sd.initialize(context)
     # Start on the reference, moving with it: a platform at rest under a reference that already
@@ -165,12 +165,13 @@ def build_simulator(scenario: Scenario | None = None, meshcat=None, *, reference
     return sd, simulator
 
 
-def run_experiment(scenario: Scenario | None = None, progress: bool = False,
+def run_experiment(scenario: Scenario | RunPlan | None = None, progress: bool = False,
                    meshcat=None, *, reference=None, controller=None) -> RunResult:
     """Simulate one closed-loop run and collect its logs and metrics.
 
     Args:
-        scenario: the run (default: the paper's experiment on the ideal robot, 10 s).
+        scenario: the run, a scenario or a :class:`~stewart_drake.simulation.plan.RunPlan`
+            (default: the paper's experiment on the ideal robot, 10 s).
         progress: show a tqdm progress bar.
         meshcat: optional Meshcat to visualize the run.
         reference: optional reference object overriding ``scenario.reference`` (an object with
@@ -187,26 +188,26 @@ def run_experiment(scenario: Scenario | None = None, progress: bool = False,
     sd, simulator = build_simulator(scenario, meshcat, reference=reference, controller=controller)
     wall0 = time.perf_counter()
     guard.advance(sd, simulator,
-                  lambda: advance(simulator, sd.scenario.duration_s, progress))
+                  lambda: advance(simulator, sd.plan.duration_s, progress))
     wall = time.perf_counter() - wall0
     return collect_result(sd, simulator.get_context(), wall)
 
 
 def config_summary(sd: StewartDiagram) -> dict:
     """The settings of a run that results and records carry (plain JSON values)."""
-    scenario = sd.scenario
+    plan, scenario = sd.plan, sd.scenario
     summary = {"trajectory": getattr(sd.trajectory, "name", "custom"),
                "duration_s": scenario.duration_s,
-               "plant_time_step_s": scenario.plant_time_step_s,
+               "plant_time_step_s": plan.plant_time_step_s,
                "control_period_s": scenario.control_period_s,
                "controller": type(scenario.controller).__name__,
                "tuner": scenario.tuner is not None,
                "feedforward": scenario.feedforward, "payload_scale": scenario.payload_scale,
                "torque_limit_Nm": scenario.torque_limit_Nm,
-               "motor_limit_Nm": scenario.torque_limit(),
+               "motor_limit_Nm": plan.torque_limit_Nm,
                "sensor_noise": scenario.sensor_noise is not None,
                "hardware": scenario.hardware is not None,
-               "scenario": dump_scenario(scenario), **scenario.controller.summary()}
+               "scenario": sd.scenario_yaml(), **scenario.controller.summary()}
     return summary
 
 
@@ -243,9 +244,7 @@ def feedforward_at(sd: StewartDiagram, t: np.ndarray) -> np.ndarray:
     """(N, 6) the feed-forward torques the reference asks for at times t (s), N m: the
     Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
     reference time plus the computation delay), linearly interpolated."""
-    scenario = sd.scenario
-    delay = scenario.hardware.computation_delay_periods if scenario.hardware else 0
-    t_act = sd.reference.t_eval + delay * scenario.control_period_s
+    t_act = sd.reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
     table = sd.reference.T_ff_table
     return np.stack([np.interp(t, t_act, table[:, i]) for i in range(table.shape[1])], axis=1)
 

@@ -1,7 +1,7 @@
 """Whether a reference can be run on the robot, without simulating it: every check, over time.
 
 :func:`check` runs the one reference validator
-(:func:`~stewart_drake.simulation.guard.check_reference`: reach, joint limits, singularity,
+(:func:`~stewart_drake.simulation.plan.check_reference`: reach, joint limits, singularity,
 clearance between the parts, the torque and speed each motor must give) without stopping at the
 first refusal, and :func:`plot_margins` draws each margin over
 time against its limit: the ``stewart-drake check`` command.
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..fileio import atomic_write
 from ..model.limits import TrajectoryReport
-from ..simulation.guard import check_reference
+from ..simulation.plan import check_reference, make_plan
 
 
 def check(scenario, reference=None) -> TrajectoryReport:
@@ -25,11 +25,7 @@ def check(scenario, reference=None) -> TrajectoryReport:
     Raises:
         InvalidConfigError: a bad scenario, a reference that is not finite or too short.
     """
-    from ..simulation.trajectories import as_trajectory
-
-    scenario.validate()
-    trajectory = as_trajectory(reference if reference is not None else scenario.make_reference())
-    return check_reference(scenario, trajectory, raise_refused=False)
+    return check_reference(make_plan(scenario, reference=reference), raise_refused=False)
 
 
 def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:

@@ -5,7 +5,7 @@
 (um and urad, and as a fraction of each axis's peak-to-peak motion), the time lag (sub-sample, by
 cross-correlation), the amplitude and phase error at each harmonic of the breathing and cardiac
 frequencies, and the error of every cycle. :func:`reproduce` checks a motion against the robot
-(the one validator, :func:`~stewart_drake.simulation.guard.check_reference`), shrinks it on
+(the one validator, :func:`~stewart_drake.simulation.plan.check_reference`), shrinks it on
 request, runs the robot as built with or without learning, and measures it;
 :func:`write_report` writes the Markdown report and its one PNG with a verdict against a
 tolerance. The poses are the plant's (the true platform), never the controller's estimate.
@@ -282,7 +282,7 @@ class Reproduction:
 def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float]:
     """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
     (:class:`~stewart_drake.simulation.organ_motion.ScaledReference`), passes every check of
-    :func:`~stewart_drake.simulation.guard.check_reference` on the
+    :func:`~stewart_drake.simulation.plan.check_reference` on the
     scenario's robot (reach, joint limits, singularity, clearance, motor torque and speed), by
     bisection to within ``tol``.
 
@@ -292,13 +292,15 @@ def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float
         InvalidConfigError: not even a scale of ``tol`` passes (the centre itself is refused:
             move it).
     """
-    from ..simulation.guard import check_reference
     from ..simulation.organ_motion import ScaledReference
+    from ..simulation.plan import check_reference, make_plan
+
+    plan = make_plan(scenario, with_reference=False)
 
     def fits(s: float) -> bool:
         candidate = reference if s == 1.0 else ScaledReference(reference, s)
         try:
-            report = check_reference(scenario, candidate, raise_refused=False)
+            report = check_reference(plan, candidate, raise_refused=False)
         except Exception:           # noqa: BLE001 - unreachable poses raise even when reporting
             return False
         return report.ok
@@ -398,7 +400,7 @@ def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: i
 def _set_learning(scenario, learn_cycles: int) -> None:
     """Make the scenario learn from ``learn_cycles`` cycles (its ``learning`` or the default
     :class:`~stewart_drake.simulation.scenario.IlcDriver`), or not at all (0)."""
-    from ..simulation.scenario import IlcDriver
+    from ..control.ilc import IlcDriver
 
     if learn_cycles:
         driver = scenario.learning or IlcDriver()
@@ -437,7 +439,7 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     ``duration_s``) without learning and is measured after its first cycle (its first tenth when
     it has no cycles). Before anything is simulated the one validator checks reach, joint limits,
     singularity, clearance and each motor's torque and speed over the whole run
-    (:func:`~stewart_drake.simulation.guard.check_reference`); a reference it refuses raises
+    (:func:`~stewart_drake.simulation.plan.check_reference`); a reference it refuses raises
     that refusal (which names what is over and when), or, with ``scale_to_fit``, is shrunk
     about its centre until it passes (:func:`scale_to_fit`).
     With ``learn_cycles`` the scenario learns (its ``learning`` or the default
@@ -459,11 +461,12 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
         InvalidConfigError: learning on a reference that does not repeat, a bad count.
         SimulationDivergedError: the guard stopped the run.
     """
-    from ..simulation import guard
+    from ..simulation.plan import check_reference, make_plan
     from ..simulation.trajectories import as_trajectory
 
     _check_counts(learn_cycles, eval_cycles)
-    reference = as_trajectory(reference if reference is not None else scenario.make_reference())
+    reference = (as_trajectory(reference) if reference is not None
+                 else make_plan(scenario).reference)
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
@@ -472,7 +475,7 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     scale = 1.0
     if scale_to_fit:
         reference, scale = _fit(scenario, reference)
-    report = guard.check_reference(scenario, reference)
+    report = check_reference(scenario, reference)
     result, learner, wall = run(scenario, reference, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)

@@ -64,14 +64,10 @@ from ..control.tuner import (
     ratio_tuner_inputs,
     save_ratio_tuner,
 )
+from ..control.tuning import AnnTunerDriver, RatioTunerDriver, TunerChoice, WeightSchedule
 from ..errors import InvalidConfigError
-from ..simulation.scenario import (
-    AnnTunerDriver,
-    RatioTunerDriver,
-    TunerChoice,
-    WeightSchedule,
-    load_scenario,
-)
+from ..simulation.plan import make_plan
+from ..simulation.scenario_io import load_scenario
 from ..simulation.tasks import make_task
 from . import metrics
 from .experiments import run_experiment
@@ -186,8 +182,9 @@ def task_scenario(job: StudyJob):
     """(scenario, task) of a study job: the base scenario for the job's duration, with the
     job's controller and tuner and the task's disturbance."""
     base = load_scenario(job.base, [f"duration_s={job.duration_s}"])
-    task = make_task(job.family, job.seed, job.duration_s, base.geometry(),
-                     base.torque_limit() or np.inf)
+    plan = make_plan(base, with_reference=False)
+    task = make_task(job.family, job.seed, job.duration_s, plan.geometry,
+                     plan.torque_limit_Nm or np.inf)
     base.use_controller(job.controller, job.tuner)
     base.disturbance = task.disturbance
     if job.divergence_dir:
@@ -207,7 +204,7 @@ def study_job(job: StudyJob) -> dict:
     t0 = time.perf_counter()
     scenario, task = task_scenario(job)
     result = run_experiment(scenario, reference=task.reference)
-    e2, u2 = metrics.sample_costs(result, scenario.geometry())
+    e2, u2 = metrics.sample_costs(result, make_plan(scenario, with_reference=False).geometry)
     t, duration = result.t, job.duration_s
     step = int(round(TUNER_PERIOD_S / scenario.log_period_s))
     seen = result.e_bar if result.e_bar is not None else metrics.tracking_error(result)
@@ -232,8 +229,8 @@ def study_job(job: StudyJob) -> dict:
 def speed_schedule(family: str, seed: int, duration_s: float, base: str) -> tuple:
     """(t, ratios) of the hand-made schedule (module docstring) every tuner period."""
     scenario = load_scenario(base)
-    task = make_task(family, seed, duration_s, scenario.geometry(),
-                     scenario.torque_limit() or np.inf)
+    plan = make_plan(scenario, with_reference=False)
+    task = make_task(family, seed, duration_s, plan.geometry, plan.torque_limit_Nm or np.inf)
     t = np.arange(0.0, duration_s, TUNER_PERIOD_S)
     _, x_dot, _ = task.reference.evaluate(t)
     speed = np.maximum(np.linalg.norm(x_dot[:, :3], axis=1) / 1.0,

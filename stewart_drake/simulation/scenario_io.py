@@ -1,0 +1,254 @@
+"""Scenario files: loading, the shipped names, ``--set`` overrides, and the guards on what is read.
+
+:func:`load_scenario` reads a YAML file or a shipped scenario's name (:func:`shipped_scenarios`,
+``scenarios/*.yaml``) into a validated :class:`~.scenario.Scenario`, refusing before anything is
+built what could hurt: a file over :data:`MAX_SCENARIO_BYTES`, text that is not UTF-8, a key given
+twice in one mapping, a field the schema does not have. Loading never executes: Drake's
+``yaml_load_typed`` builds only the schema's dataclasses. :func:`apply_override` sets one
+``key.sub=value`` typed by the schema; :func:`apply_run_options` applies the shorthand options of
+``stewart-drake run`` (``--duration``, ``--controller``, ``--tuner`` ...) the same way.
+"""
+
+import dataclasses
+import importlib.resources
+import typing
+from pathlib import Path
+
+from pydrake.common.yaml import yaml_load_typed
+
+from ..control.tuning import AnnTunerDriver, RatioTunerDriver
+from ..errors import (
+    CorruptFileError,
+    InvalidConfigError,
+    InvalidGeometryError,
+    MissingFileError,
+    StewartError,
+)
+from .scenario import Scenario, use_paper_tuner
+
+#: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:
+#: the robot as built.
+DEFAULT_SCENARIO = "paper_hardware"
+
+
+#: Where the shipped scenarios are (``scenarios/`` of the repository, installed as package data).
+def shipped_scenarios() -> dict:
+    """{name: path} of the scenarios shipped with the package (``scenarios/*.yaml``)."""
+    folder = importlib.resources.files("stewart_drake.scenarios")
+    return {Path(p.name).stem: Path(str(p)) for p in folder.iterdir() if p.name.endswith(".yaml")}
+
+
+def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) -> Scenario:
+    """Load a scenario from a YAML file or a shipped name, apply ``key=value`` overrides, validate.
+
+    Args:
+        source: a path to a ``.yaml`` file, or the name of a shipped scenario
+            (:func:`shipped_scenarios`, e.g. "paper_ideal").
+        overrides: ``"key.sub=value"`` strings (YAML values: ``controller.omega_Q=10``,
+            ``controller=!PdDriver {}``, ``guard.max_closure_error_m=null``), applied in order.
+    Returns:
+        the validated :class:`Scenario`.
+    Raises:
+        MissingFileError: no such file or name.
+        CorruptFileError (an InvalidConfigError): the file is empty, not UTF-8, not YAML, or
+            YAML that does not fit the schema (unknown or mistyped field, named).
+        InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
+            out of range (named by file and field path).
+    """
+    from ..fileio import read_checked
+
+    shipped = shipped_scenarios()
+    path = Path(source)
+    if not path.exists():
+        if str(source) in shipped:
+            path = shipped[str(source)]
+        else:
+            raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
+                                   f"name (shipped: {', '.join(sorted(shipped))})")
+    remedy = "fix it, or start from `stewart-drake scenario paper_hardware --out FILE.yaml`"
+    raw = read_checked(path, "scenario file", MAX_SCENARIO_BYTES,
+                       remedy + "; long data (a reference) belongs in a CSV file")
+    if not raw.strip():
+        raise CorruptFileError(path, "scenario file", "it is empty", remedy)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(path, "scenario file", f"not UTF-8 text ({err.reason} at byte "
+                                                      f"{err.start})", remedy) from None
+    try:
+        _refuse_duplicate_keys(text)
+        scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
+    except StewartError as err:
+        raise _in_file(err, path) from None
+    except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
+        problem = _one_line(err)
+        if not problem.startswith("not YAML"):
+            problem = f"it does not fit the Scenario schema: {problem}"
+        raise CorruptFileError(path, "scenario file", problem, remedy) from None
+    for override in overrides:
+        apply_override(scenario, override)
+    try:
+        return scenario.validate()
+    except StewartError as err:
+        raise _in_file(err, f"{path} with --set {', '.join(overrides)}" if overrides
+                       else path) from None
+
+
+#: Largest scenario file read, bytes: a scenario is a few kB; parsing is about 5 s per MB.
+MAX_SCENARIO_BYTES = 256 * 1024
+
+
+def _refuse_duplicate_keys(text: str) -> None:
+    """Refuse a mapping that names a key twice (YAML loaders keep the last silently).
+
+    The document is composed, not constructed (PyYAML's node graph: tags are not resolved,
+    nothing is built), and each node is visited once, so aliases cannot multiply the work.
+    Raises:
+        InvalidConfigError: names the key and its two lines.
+    """
+    import yaml
+
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    seen, stack = set(), [root] if root is not None else []
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            first = {}
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode) and key.value != "<<":
+                    if key.value in first:
+                        raise InvalidConfigError(
+                            f"the key {key.value!r} appears twice in one mapping (lines "
+                            f"{first[key.value] + 1} and {key.start_mark.line + 1}); keep one")
+                    first[key.value] = key.start_mark.line
+                stack += [key, value]
+        elif isinstance(node, yaml.SequenceNode):
+            stack += node.value
+
+
+def _in_file(err: StewartError, where) -> StewartError:
+    """``err`` with "<where>: " in front of its message, when its class takes just a message
+    (InvalidConfigError, InvalidGeometryError, MissingFileError); other errors as they are."""
+    if type(err) not in (InvalidConfigError, InvalidGeometryError, MissingFileError):
+        return err
+    return type(err)(f"{where}: {err}")
+
+
+def apply_override(scenario: Scenario, override: str) -> None:
+    """Set one ``key.sub=value`` (value in YAML) on ``scenario`` in place, typed by the schema.
+
+    Raises:
+        InvalidConfigError: no ``=``, a key that is not a field (names it), or a value the field's
+            type does not accept.
+    """
+    key, sep, value = override.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise InvalidConfigError(f"an override must be key=value (e.g. controller.omega_Q=10), "
+                                 f"got {override!r}")
+    *parents, leaf = key.split(".")
+    target = scenario
+    for name in parents:
+        if name not in _field_names(target):
+            raise InvalidConfigError(f"--set {key}: {name!r} is not a field of "
+                                     f"{type(target).__name__}")
+        target = getattr(target, name)
+    fields = _field_names(target)
+    if leaf not in fields:
+        raise InvalidConfigError(f"--set {key}: {leaf!r} is not a field of "
+                                 f"{type(target).__name__} (fields: {', '.join(sorted(fields))})")
+    try:
+        updated = yaml_load_typed(schema=type(target), data=f"{leaf}: {value}\n",
+                                  defaults=target, allow_schema_with_no_yaml=True)
+    except Exception as err:       # noqa: BLE001 - yaml and Drake's loader raise several types
+        raise InvalidConfigError(f"--set {key}={value}: {_one_line(err)}") from None
+    setattr(target, leaf, getattr(updated, leaf))
+
+
+def _field_names(value) -> list[str]:
+    """The fields of a scenario dataclass or of a Drake config struct (``__fields__``, what
+    ``yaml_load_typed`` reads: ``plant.time_step``, ``simulator.target_realtime_rate``)."""
+    if dataclasses.is_dataclass(value):
+        return [f.name for f in dataclasses.fields(value)]
+    return [f.name for f in getattr(type(value), "__fields__", ())]
+
+
+def _one_line(err: BaseException) -> str:
+    """An exception's text on one line, at most 300 characters; for a YAML syntax error its
+    problem and where (PyYAML's message spans several lines with the text it quotes)."""
+    import yaml
+
+    if isinstance(err, yaml.MarkedYAMLError) and err.problem:
+        mark = err.problem_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        text = f"not YAML ({' '.join(filter(None, (err.context, err.problem)))}{where})"
+    else:
+        text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
+                      trajectory_file=None, controller=None, omega_Q=None, omega_R=None,
+                      tuner=None, tuner_weights=None, default_ann_weights=None,
+                      divergence_dir=None) -> Scenario:
+    """Apply the shorthand options of ``stewart-drake run`` to ``scenario`` (each only when not
+    None), in place, after the file and its ``--set`` overrides; returns it validated.
+
+    Args:
+        duration_s: ``--duration``, s. trajectory: ``--trajectory``, a named reference.
+        trajectory_file: ``--trajectory-file``, a CSV reference (the run then lasts as long as
+            the file unless ``duration_s`` is given).
+        controller: ``--controller``: "lqi" (the scenario's LQI options, if it has any) or
+            "pd"; None keeps the scenario's. omega_Q, omega_R: ``--omega-q``, ``--omega-r``.
+        tuner: ``--tuner``: "ann" (with the paper's gain switching), "ratio" or "none".
+        tuner_weights: ``--tuner-weights``, a tuner's ``.npz``. default_ann_weights: the ANN
+            weights used when ``tuner`` is "ann" without ``tuner_weights`` and the file exists
+            (what ``stewart-drake train`` last wrote); else the shipped ones.
+        divergence_dir: ``guard.divergence_dir``, where a diverged run's logs go.
+    Raises:
+        InvalidConfigError: ``tuner_weights`` without an "ann" or "ratio" tuner, both
+            ``trajectory`` and ``trajectory_file``, a controller name never registered, a value
+            out of range. MissingFileError: no such weights or CSV file.
+    """
+    from ..control.pd import PdDriver
+    from .scenario import CsvReference, NamedReference
+    from .trajectories import load_csv_trajectory
+
+    if tuner_weights is not None and tuner not in ("ann", "ratio"):
+        raise InvalidConfigError("--tuner-weights needs --tuner ann or --tuner ratio (the "
+                                 "weights are a tuner's)")
+    if duration_s is not None:
+        scenario.duration_s = duration_s
+    if trajectory is not None and trajectory_file is not None:
+        raise InvalidConfigError("give --trajectory or --trajectory-file, not both")
+    if trajectory is not None:
+        scenario.reference = NamedReference(trajectory)
+    if trajectory_file is not None:
+        scenario.reference = CsvReference(trajectory_file)
+        if duration_s is None:                      # the run lasts as long as the file
+            csv = load_csv_trajectory(trajectory_file)
+            scenario.duration_s = csv.end_time - csv.start_time
+    if controller == "pd":
+        scenario.controller = PdDriver()
+    elif controller == "lqi":
+        scenario.controller = scenario.lqi()          # the scenario's LQI options, if it has any
+    weights = {k: v for k, v in (("omega_Q", omega_Q), ("omega_R", omega_R)) if v is not None}
+    if weights:
+        scenario.controller = scenario.controller.with_weights(**weights)
+    if tuner == "ann":
+        weights_file = tuner_weights
+        if weights_file is None and default_ann_weights is not None \
+                and Path(default_ann_weights).exists():
+            weights_file = str(default_ann_weights)
+        use_paper_tuner(scenario, AnnTunerDriver(weights=weights_file or ""))
+    elif tuner == "ratio":
+        scenario.tuner = RatioTunerDriver(weights=tuner_weights or "")
+    elif tuner == "none":
+        scenario.tuner = None
+    if divergence_dir is not None:
+        scenario.guard.divergence_dir = str(divergence_dir)
+    scenario.controller.resolve()                     # a name never registered: refused
+    return scenario.validate()
