@@ -190,8 +190,9 @@ def test_heave_to_the_dead_point_is_refused_although_cond_is_moderate():
     config = Scenario(duration_s=2.0)
     t = np.arange(0.0, 2.0005, 1e-3)
     x = HEAVE_TO_DEAD_POINT.evaluate(t)[0]
-    cond, inv = kinematics.singularity_measures(make_plan(config).geometry, x)
-    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(make_plan(config).geometry, x)).max() < 1
+    geometry = make_plan(config).geometry
+    cond, inv = kinematics.singularity_measures(geometry, x)
+    assert cond.max() < 45.0 and np.abs(kinematics.leg_reach_ratio(geometry, x)).max() < 1
     with pytest.raises(SingularPoseError, match=r"1/sigma_max\(J\) = 0.00\d+ < 0.01") as info:
         check_reference(config, HEAVE_TO_DEAD_POINT)
     first = int(np.argmax(inv < limits.DEFAULT_MIN_SIGMA_MIN_INV))
@@ -207,7 +208,8 @@ def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
     with pytest.raises(SingularPoseError, match=r"cond\(J\) = 60.\d+ > 60") as info:
         check_reference(config)
     t = np.arange(0.0, 10.0005, 1e-3)
-    cond, _ = kinematics.singularity_measures(make_plan(config).geometry, paper_manoeuvre().evaluate(t)[0])
+    geometry = make_plan(config).geometry
+    cond, _ = kinematics.singularity_measures(geometry, paper_manoeuvre().evaluate(t)[0])
     assert info.value.t == pytest.approx(t[int(np.argmax(cond > 60.0))])
     assert check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69,
                                                                                       abs=0.01)

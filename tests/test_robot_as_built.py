@@ -47,7 +47,8 @@ def test_every_scenario_value_reaches_the_plant(name):
     station = make_stewart_station(scenario)
     plant, handles = station.plant, station.handles
     context = plant.CreateDefaultContext()
-    g, servo = make_plan(scenario).plant_geometry, make_plan(scenario).servo
+    plan = make_plan(scenario)
+    g, servo = plan.plant_geometry, plan.servo
     assert plant.time_step() == scenario.plant.time_step
     assert plant.get_discrete_contact_approximation() == DiscreteContactApproximation.kSap
     np.testing.assert_array_equal(plant.gravity_field().gravity_vector(), [0, 0, -g.gravity])
@@ -94,7 +95,8 @@ def test_contact_registers_the_collision_geometry_of_every_part():
 def _rk4_fall(scenario, duration_s=0.1, dt=2.5e-4):
     """The zero-torque fall from home integrated from our task-space model (independent of
     Drake's tree and SAP): M_x x_ddot = J^T tau_friction - c(x, x_dot) - dV/dx."""
-    g, servo = make_plan(scenario).plant_geometry, make_plan(scenario).servo
+    plan = make_plan(scenario)
+    g, servo = plan.plant_geometry, plan.servo
 
     def f(y):
         x, x_dot = y[:6], y[6:]
@@ -214,7 +216,8 @@ def test_allow_infeasible_runs_it_with_a_warning_and_the_motors_saturate():
     with pytest.warns(FeasibilityWarning, match=r"motor 2 would need 0\.905 N m .* 43 % over"):
         result = run_experiment(scenario, reference=_reposition([0, 0, 0, 0.05, 0, 0]))
     assert result.metrics["status"]["saturated_steps"] > 0
-    assert np.abs(result.T).max() == pytest.approx(make_plan(scenario).servo.peak_torque_Nm, rel=1e-6)
+    peak = make_plan(scenario).servo.peak_torque_Nm
+    assert np.abs(result.T).max() == pytest.approx(peak, rel=1e-6)
 
 
 # -- clearance ----------------------------------------------------------------------------------

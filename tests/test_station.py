@@ -1,12 +1,10 @@
-"""The open station. Scenarios round-trip through YAML, the station's ports mean what
-they say, a controller written here plugs into the Diagram by the contract, any reference works."""
+"""The open station. The station's ports mean what they say, a controller written here plugs into
+the Diagram by the contract, any reference works."""
 
-import pickle
 from pathlib import Path
 
 import numpy as np
 import pytest
-from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 from pydrake.systems.framework import LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -21,16 +19,14 @@ from stewart_drake.interfaces.cli import main
 from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.scenario import (
     CsvReference,
     PdDriver,
     Robot,
     Scenario,
     UserController,
-    dump_scenario,
 )
-from stewart_drake.simulation.scenario_io import apply_override, load_scenario, shipped_scenarios
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import held_station, p_ETool
 from stewart_drake.simulation.trajectories import (
     DrakeTrajectory,
@@ -41,124 +37,6 @@ from stewart_drake.simulation.trajectories import (
 from stewart_drake.studies.experiments import run_experiment
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
-
-
-# -- scenarios ----------------------------------------------------------------------------------
-
-@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
-def test_every_shipped_scenario_round_trips_unchanged(path):
-    text = path.read_text()
-    body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#"))
-    scenario = load_scenario(path)
-    assert dump_scenario(scenario) == body                        # the file is a dump
-    again = yaml_load_typed(schema=Scenario, data=yaml_dump_typed(scenario))
-    assert dump_scenario(again) == body
-    assert dump_scenario(pickle.loads(pickle.dumps(scenario))) == body  # workers get the same
-    assert path.stem in shipped_scenarios()
-
-
-def test_a_dump_names_only_the_drake_settings_it_changes():
-    """Drake adds and removes fields of its config structs between releases (1.58 dropped
-    SimulatorConfig.publish_every_time_step): a dump names only the ones that differ from the
-    running Drake's defaults and the two the robot needs, so it loads on every supported Drake."""
-    from pydrake.common.yaml import yaml_load
-
-    scenario = Scenario()
-    scenario.simulator.target_realtime_rate = 1.0
-    scenario.plant.penetration_allowance = 2e-3
-    text = dump_scenario(scenario)
-    data = yaml_load(data=text)
-    assert data["plant"] == {"time_step": 1e-3, "discrete_contact_approximation": "sap",
-                             "penetration_allowance": 2e-3}
-    assert data["simulator"] == {"target_realtime_rate": 1.0} and "visualization" not in data
-    back = load_scenario_text(text)
-    assert back.simulator.target_realtime_rate == 1.0 and back.plant.penetration_allowance == 2e-3
-    assert back.visualization.publish_period == scenario.visualization.publish_period
-    for path in sorted(SCENARIOS.glob("*.yaml")):
-        data = yaml_load(data=path.read_text())
-        assert set(data["plant"]) == {"time_step", "discrete_contact_approximation"}, path
-        assert "simulator" not in data and "visualization" not in data, path
-
-
-def load_scenario_text(text):
-    return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
-
-
-def test_paper_ideal_is_the_default_scenario():
-    assert dump_scenario(load_scenario("paper_ideal")) == dump_scenario(Scenario())
-
-
-def test_overrides_are_typed_and_named():
-    s = load_scenario("paper_ideal", ["controller.omega_Q=10", "duration_s=2",
-                                      "guard.max_tracking_error=[0.1, 0.02]"])
-    assert s.controller.omega_Q == 10.0 and isinstance(s.controller.omega_Q, float)
-    assert s.duration_s == 2.0 and s.guard.max_tracking_error == [0.1, 0.02]
-    apply_override(s, "controller=!PdDriver {bandwidth_hz: 15}")
-    assert isinstance(s.controller, PdDriver) and s.controller.bandwidth_hz == 15.0
-    apply_override(s, "reference=!CsvReference {path: run.csv}")
-    assert s.reference == CsvReference("run.csv")
-    with pytest.raises(InvalidConfigError, match=r"'omegaQ' is not a field of LqiDriver"):
-        apply_override(Scenario(), "controller.omegaQ=10")
-    with pytest.raises(InvalidConfigError, match=r"--set duration_s=ten"):
-        apply_override(Scenario(), "duration_s=ten")
-    with pytest.raises(InvalidConfigError, match="key=value"):
-        apply_override(Scenario(), "duration_s")
-    with pytest.raises(InvalidConfigError, match=r"controller.omega_Q must be a finite number"):
-        load_scenario("paper_ideal", ["controller.omega_Q=-1"])
-
-
-def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
-    bad = tmp_path / "bad.yaml"
-    bad.write_text("duration_s: 3\ncontroller: {omega_Q: 2, gain: 5}\n")
-    with pytest.raises(InvalidConfigError, match=r"bad.yaml is not a valid scenario file: it does "
-                                                 r"not fit .*\['gain'\]"):
-        load_scenario(bad)
-    with pytest.raises(MissingFileError, match="shipped: .*paper_ideal"):
-        load_scenario("paper_nowhere")
-    good = tmp_path / "good.yaml"
-    good.write_text("duration_s: 3\ncontroller: !PdDriver {bandwidth_hz: 12}\n")
-    s = load_scenario(good)
-    assert s.duration_s == 3.0 and s.controller == PdDriver(bandwidth_hz=12.0)
-    assert s.robot == Robot()                          # unspecified fields keep their defaults
-
-
-def test_robot_mirrors_the_geometry_both_ways():
-    g = StewartGeometry(rod_length=0.41, pivot_angles_deg=(-12, 12, 108, 132, 228, 252))
-    robot = Robot.from_value(g)
-    assert robot.rod_length == 0.41 and isinstance(robot.pivot_angles_deg, list)
-    assert robot.build() == g
-    assert make_plan(Scenario(robot=robot)).geometry == g
-
-
-@pytest.mark.parametrize("form, value, left_out", [
-    ("Robot", "StewartGeometry", ("motor_reflected_inertia",)),
-    ("Motors", "ServoModel", ()),
-    ("LqiScalesConfig", "LqiScales", ()),
-])
-def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, left_out):
-    """Robot, Motors and LqiScalesConfig are written out in source: the same fields in the same
-    order, a list of floats where the value type has a tuple, the same defaults."""
-    import dataclasses
-    import typing
-
-    from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
-    from stewart_drake.model.servo import ServoModel
-    from stewart_drake.simulation import scenario as sc
-
-    kinds = {"Robot": sc.Robot, "Motors": sc.Motors, "LqiScalesConfig": LqiScalesConfig,
-             "StewartGeometry": StewartGeometry, "ServoModel": ServoModel, "LqiScales": LqiScales}
-    form, value = kinds[form], kinds[value]
-    mine, theirs = typing.get_type_hints(form), typing.get_type_hints(value)
-    names = [f.name for f in dataclasses.fields(value) if f.name not in left_out]
-    assert [f.name for f in dataclasses.fields(form)] == names
-    default_form, default_value = form(), value()
-    for name in names:
-        tuple_field = theirs[name] is tuple or typing.get_origin(theirs[name]) is tuple
-        assert mine[name] == (typing.List[float] if tuple_field else theirs[name]), name
-        expected = getattr(default_value, name)
-        assert getattr(default_form, name) == (list(expected) if tuple_field else expected), name
-    built = default_form.build()
-    assert isinstance(built, value) and form.from_value(built) == default_form
 
 
 # -- the station ----------------------------------------------------------------------------------
@@ -418,7 +296,6 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
 def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
     from stewart_drake.control.tuning import AnnTunerDriver
     from stewart_drake.simulation.scenario import use_paper_tuner
-    from stewart_drake.simulation.scenario_io import load_scenario
 
     scenario = load_scenario("paper_hardware")
     assert scenario.controller.gain_transfer == "integral"               # ours, the default

@@ -12,11 +12,13 @@ import argparse
 import ast
 from pathlib import Path
 
-#: The scenario's tagged choices (simulation/scenario.py): isinstance tests on them dispatch on a
-#: variant.
-CHOICES = {"LqiDriver", "PdDriver", "UserController", "AnnTunerDriver", "RatioTunerDriver",
-           "WeightSchedule", "NamedReference", "CsvReference", "SineReference",
-           "DataCollectionReference", "OrganMotionReference", "TraceReference", "IlcDriver"}
+
+def choice_names() -> set:
+    """The class names of the scenario's tagged choices (controllers, references, tuners, the
+    learner), read from the scenario's unions: isinstance tests on them dispatch on a variant."""
+    from stewart_drake.simulation.scenario import choice_classes
+
+    return {kind.__name__ for kinds in choice_classes().values() for kind in kinds}
 
 
 def functions(root: Path):
@@ -44,7 +46,9 @@ def functions(root: Path):
 
 
 def dispatches(root: Path):
-    """["file:function"] of every isinstance test whose class is one of :data:`CHOICES`."""
+    """["file:function"] of every isinstance test whose class is one of the scenario's choices
+    (:func:`choice_names`)."""
+    choices = choice_names()
     out = []
     for path in sorted(root.rglob("*.py")):
         tree = ast.parse(path.read_text())
@@ -56,9 +60,9 @@ def dispatches(root: Path):
                         and len(node.args) == 2):
                     names = {n.id if isinstance(n, ast.Name) else getattr(n, "attr", "")
                              for n in ast.walk(node.args[1])}
-                    if names & CHOICES:
+                    if names & choices:
                         out.append(f"{path.relative_to(root.parent)}:{func.name} "
-                                   f"({', '.join(sorted(names & CHOICES))})")
+                                   f"({', '.join(sorted(names & choices))})")
     return out
 
 

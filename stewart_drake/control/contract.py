@@ -137,6 +137,9 @@ class ControllerDriver:
     takes_omega: ClassVar[Optional[bool]] = None
     #: How a run's result files mark the controller (``run_<reference>...<suffix>``).
     run_suffix: ClassVar[str] = ""
+    #: The choice's name where a command picks it with its defaults (``run --controller NAME``,
+    #: the evaluation grid); "" for a choice that needs options to mean anything.
+    short_name: ClassVar[str] = ""
 
     def validate(self, control_period_s: float, delay_periods: int = 0,
                  prefix: str = "controller."):

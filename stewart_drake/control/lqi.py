@@ -170,6 +170,7 @@ class LqiDriver(ControllerDriver):
 
     #: The controller has the ``omega`` input a tuner drives.
     takes_omega: ClassVar[bool] = True
+    short_name: ClassVar[str] = "lqi"
 
     def validate(self, control_period_s: float, delay_periods: int = 0,
                  prefix: str = "controller.",

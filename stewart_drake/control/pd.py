@@ -40,6 +40,7 @@ class PdDriver(ControllerDriver):
     #: The PD has no weights: no ``omega`` input for a tuner.
     takes_omega: ClassVar[bool] = False
     run_suffix: ClassVar[str] = "_pd"
+    short_name: ClassVar[str] = "pd"
 
     def validate(self, control_period_s: float, delay_periods: int = 0,
                  prefix: str = "controller.") -> "PdDriver":

@@ -467,7 +467,8 @@ def _cmd_workspace(args) -> int:
     from ..simulation.scenario_io import load_scenario
     from ..studies.workspace import write_workspace
 
-    geometry = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False).geometry
+    scenario = load_scenario(args.scenario, args.set or ())
+    geometry = make_plan(scenario, with_reference=False).geometry
     rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
                            geometry=geometry, runner=_runner(args))
     for name, value, unit in rows[:9]:
@@ -583,6 +584,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _add_run_command(sub) -> None:
     """The ``run`` command's options."""
+    from ..simulation.scenario import named_controllers
     from ..simulation.trajectories import TRAJECTORIES
 
     run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment on "
@@ -599,7 +601,7 @@ def _add_run_command(sub) -> None:
                      help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, "
                           "m); the run lasts as long as the file unless --duration says "
                           "otherwise (default: none)")
-    run.add_argument("--controller", choices=["lqi", "pd"], default=None,
+    run.add_argument("--controller", choices=sorted(named_controllers()), default=None,
                      help="the LQI of the paper or the crank-space PD baseline (default: the "
                           "scenario's, lqi)")
     run.add_argument("--omega-q", type=_positive_float, default=None,

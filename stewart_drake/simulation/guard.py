@@ -159,7 +159,7 @@ def check_path(trajectory, geometry, duration_s: float, period_s: float, config:
     if raise_refused and not report.feasible:
         warnings.warn(FeasibilityWarning(
             f"running a reference the motors cannot follow (guard.allow_infeasible): "
-            f"{report.first_effort_violation.need}; expect saturation"), stacklevel=2)
+            f"{report.first_effort_violation.need}; expect saturation"), stacklevel=3)
     return report
 
 

@@ -351,6 +351,20 @@ def _choices(union) -> tuple:
     return typing.get_args(union)
 
 
+def named_controllers() -> dict:
+    """{short name: class} of the controller choices a command can pick by name with their
+    defaults (``run --controller``, the evaluation grid), read from :data:`ControllerChoice`."""
+    return {kind.short_name: kind for kind in _choices(ControllerChoice) if kind.short_name}
+
+
+def choice_classes() -> dict:
+    """{field: its choice classes} of every tagged union of the scenario (``controller``,
+    ``reference``, ``tuner``) and the learner's ``learning``: what dispatching on a choice's
+    type would test (``tools/code_shape.py`` counts such tests)."""
+    return {"controller": _choices(ControllerChoice), "reference": _choices(ReferenceChoice),
+            "tuner": _choices(TunerChoice), "learning": (IlcDriver,)}
+
+
 # -- hardware ------------------------------------------------------------------------------------
 
 @dataclass

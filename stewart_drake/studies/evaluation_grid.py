@@ -18,10 +18,10 @@ from ..model.kinematics import AXIS_NAMES
 from ..simulation.scenario import (
     ControllerChoice,
     NamedReference,
-    PdDriver,
     Scenario,
     SensorNoise,
     ToolDisturbance,
+    named_controllers,
 )
 from ..simulation.scenario_io import DEFAULT_SCENARIO, load_scenario
 from .collection import PAPER_WEIGHTS
@@ -32,7 +32,9 @@ FIXED_LQI = tuple(FIXED_WEIGHTS)
 #: The ANN-tuned LQIs of the grid by name: the file of the tuner's weights, in
 #: ``stewart_drake/data/`` (best-cost labels, the paper's labels).
 ANN_WEIGHTS = {"ann_best_cost": "ann_tuner.npz", "ann_paper": "ann_tuner_paper.npz"}
-CONTROLLERS = FIXED_LQI + ("pd",) + tuple(ANN_WEIGHTS)
+#: The controller choices run with their defaults (the PD), by their short names.
+DEFAULT_DRIVERS = {name: kind for name, kind in named_controllers().items() if name != "lqi"}
+CONTROLLERS = FIXED_LQI + tuple(DEFAULT_DRIVERS) + tuple(ANN_WEIGHTS)
 #: The controllers of ``evaluate --quick``: one of each kind, enough to draw every table and plot.
 QUICK_CONTROLLERS = ("lqi_1_1", "pd", "ann_best_cost")
 #: Sensor noise of the "noise" condition on the ideal robot: 0.1 mrad, 0.05 mm, 0.01 rad/s,
@@ -130,8 +132,8 @@ def grid_controller(name: str, base: Scenario) -> GridController:
     if name in FIXED_WEIGHTS:
         q, r = FIXED_WEIGHTS[name]
         return GridController(name, base.lqi(omega_Q=q, omega_R=r), ratio=q / r)
-    if name == "pd":
-        return GridController(name, PdDriver())
+    if name in DEFAULT_DRIVERS:
+        return GridController(name, DEFAULT_DRIVERS[name]())
     from ..control.tuner import DEFAULT_TUNER_PATH
 
     path = DEFAULT_TUNER_PATH.with_name(ANN_WEIGHTS[name])

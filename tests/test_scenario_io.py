@@ -1,0 +1,106 @@
+"""Scenario files: shipped names load and round-trip, --set overrides are typed and named, a file
+that does not fit the schema is refused naming the field."""
+
+import pickle
+from pathlib import Path
+
+import numpy as np
+import pytest
+from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
+
+from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.simulation.scenario import (
+    CsvReference,
+    PdDriver,
+    Robot,
+    Scenario,
+    dump_scenario,
+)
+from stewart_drake.simulation.scenario_io import apply_override, load_scenario, shipped_scenarios
+
+SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
+
+
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.yaml")), ids=lambda p: p.stem)
+def test_every_shipped_scenario_round_trips_unchanged(path):
+    text = path.read_text()
+    body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#"))
+    scenario = load_scenario(path)
+    assert dump_scenario(scenario) == body                        # the file is a dump
+    again = yaml_load_typed(schema=Scenario, data=yaml_dump_typed(scenario))
+    assert dump_scenario(again) == body
+    assert dump_scenario(pickle.loads(pickle.dumps(scenario))) == body  # workers get the same
+    assert path.stem in shipped_scenarios()
+
+
+def test_overrides_are_typed_and_named():
+    s = load_scenario("paper_ideal", ["controller.omega_Q=10", "duration_s=2",
+                                      "guard.max_tracking_error=[0.1, 0.02]"])
+    assert s.controller.omega_Q == 10.0 and isinstance(s.controller.omega_Q, float)
+    assert s.duration_s == 2.0 and s.guard.max_tracking_error == [0.1, 0.02]
+    apply_override(s, "controller=!PdDriver {bandwidth_hz: 15}")
+    assert isinstance(s.controller, PdDriver) and s.controller.bandwidth_hz == 15.0
+    apply_override(s, "reference=!CsvReference {path: run.csv}")
+    assert s.reference == CsvReference("run.csv")
+    with pytest.raises(InvalidConfigError, match=r"'omegaQ' is not a field of LqiDriver"):
+        apply_override(Scenario(), "controller.omegaQ=10")
+    with pytest.raises(InvalidConfigError, match=r"--set duration_s=ten"):
+        apply_override(Scenario(), "duration_s=ten")
+    with pytest.raises(InvalidConfigError, match="key=value"):
+        apply_override(Scenario(), "duration_s")
+    with pytest.raises(InvalidConfigError, match=r"controller.omega_Q must be a finite number"):
+        load_scenario("paper_ideal", ["controller.omega_Q=-1"])
+
+
+def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("duration_s: 3\ncontroller: {omega_Q: 2, gain: 5}\n")
+    with pytest.raises(InvalidConfigError, match=r"bad.yaml is not a valid scenario file: it does "
+                                                 r"not fit .*\['gain'\]"):
+        load_scenario(bad)
+    with pytest.raises(MissingFileError, match="shipped: .*paper_ideal"):
+        load_scenario("paper_nowhere")
+    good = tmp_path / "good.yaml"
+    good.write_text("duration_s: 3\ncontroller: !PdDriver {bandwidth_hz: 12}\n")
+    s = load_scenario(good)
+    assert s.duration_s == 3.0 and s.controller == PdDriver(bandwidth_hz=12.0)
+    assert s.robot == Robot()                          # unspecified fields keep their defaults
+
+
+def test_the_run_options_apply_in_place_and_validate(tmp_path):
+    from stewart_drake.control.tuning import AnnTunerDriver, RatioTunerDriver
+    from stewart_drake.simulation.scenario_io import apply_run_options
+
+    csv = tmp_path / "ref.csv"
+    t = np.linspace(0.0, 2.5, 26)
+    rows = np.column_stack([t, np.zeros((26, 5)), np.full(26, 0.30)])
+    np.savetxt(csv, rows, delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments="")
+    scenario = apply_run_options(load_scenario("paper_hardware"), trajectory_file=str(csv),
+                                 controller="lqi", omega_Q=10.0, tuner="ratio",
+                                 divergence_dir=tmp_path / "diverged")
+    assert scenario.duration_s == 2.5                              # the file's own length
+    assert isinstance(scenario.reference, CsvReference) and scenario.reference.path == str(csv)
+    assert scenario.controller.omega() == (10.0, 1.0)
+    assert scenario.controller.schedule_period_s == 0.02           # the scenario's LQI options
+    assert isinstance(scenario.tuner, RatioTunerDriver)
+    assert scenario.guard.divergence_dir == str(tmp_path / "diverged")
+    weights = tmp_path / "mine.npz"
+    weights.write_bytes(b"")                    # exists: taken as what `train` last wrote
+    ann = apply_run_options(load_scenario("paper_ideal"), duration_s=1.0, tuner="ann",
+                            default_ann_weights=weights)
+    assert ann.tuner == AnnTunerDriver(weights=str(weights)) and ann.duration_s == 1.0
+    assert ann.controller.gain_transfer == "none"                  # the paper's gain switching
+    pd = apply_run_options(load_scenario("paper_ideal"), controller="pd", tuner="none")
+    assert isinstance(pd.controller, PdDriver) and pd.tuner is None
+
+
+@pytest.mark.parametrize("options, message", [
+    ({"tuner_weights": "w.npz"}, "--tuner-weights needs --tuner ann or --tuner ratio"),
+    ({"trajectory": "paper", "trajectory_file": "r.csv"}, "--trajectory or --trajectory-file"),
+    ({"duration_s": -1.0}, "duration_s must be"),
+])
+def test_bad_run_options_are_refused_by_name(options, message):
+    from stewart_drake.simulation.scenario_io import apply_run_options
+
+    with pytest.raises(InvalidConfigError, match=message):
+        apply_run_options(load_scenario("paper_ideal"), **options)
