@@ -1,4 +1,5 @@
-"""Kinematics: IK against the loop equation, Jacobian against finite differences, statics."""
+"""Kinematics: IK against the loop equation, Jacobian against finite differences, the per-step
+kernels against the batched functions (statics: test_statics.py)."""
 
 import numpy as np
 import pytest
@@ -74,34 +75,6 @@ def test_paper_eq18_as_printed_differs_from_virtual_work(geometry):
     ratio = W_paper[5] / W[5]                 # column scale = (e_l . e_N)^2 per leg
     assert np.all(ratio < 0.9)                # the printed map is > 10 % off at home
     np.testing.assert_allclose(W_paper / ratio, W, atol=1e-12)
-
-
-def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
-    """Energy balance: T . d theta = dV for a small motion, from an independent potential."""
-    rng = np.random.default_rng(2)
-    g = geometry
-
-    def potential(x):
-        th = kinematics.ik(g, x)
-        q_B, _ = kinematics.platform_joints(g, x)
-        tip = g.crank_tips(th)
-        z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
-        return g.gravity * (g.platform_mass * x[5] + g.crank_mass * z_crank.sum()
-                            + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum())
-
-    for x in random_poses[:20]:
-        T = statics.holding_torques(g, x)
-        dx = 1e-6 * rng.normal(size=6)
-        d_theta = kinematics.ik(g, x + dx) - kinematics.ik(g, x - dx)
-        dV = potential(x + dx) - potential(x - dx)
-        assert abs(T @ d_theta - dV) < 1e-6 * abs(dV) + 1e-12
-
-
-def test_platform_only_model_is_tens_of_percent_off_at_home(geometry):
-    T_full = statics.holding_torques(geometry, X_HOME)
-    W = kinematics.wrench_map(geometry, X_HOME)
-    T_platform = np.linalg.solve(W, [0, 0, 0, 0, 0, geometry.platform_mass * geometry.gravity])
-    assert np.all(T_full / T_platform > 1.2)
 
 
 def test_batch_and_single_agree(geometry, random_poses):

@@ -107,14 +107,6 @@ def test_bad_settings_are_refused(geometry):
         LqiScales(torque=-1)
 
 
-def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
-    from stewart_drake.model.statics import feedforward_torques
-    np.testing.assert_allclose(feedforward_torques(geometry, random_poses[:20]),
-                               statics.holding_torques(geometry, random_poses[:20]), atol=1e-12)
-    with pytest.raises(InvalidConfigError, match="feedforward"):
-        feedforward_torques(geometry, random_poses[:2], mode="magic")
-
-
 def _switch(mode):
     """A constant 1 mrad / 1 mm error held 50 ms at ratio 10, then the weights drop to ratio 0.01:
     (z, K, T) just before the switch and (z, K, T) at the switch's update."""
