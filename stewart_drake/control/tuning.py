@@ -163,8 +163,9 @@ class AnnTunerDriver(_NetworkTuner):
     (:class:`~stewart_drake.control.tuner.AnnTuner`).
 
     It moves the weights every period, as fast as the gains can follow: run it with the paper's
-    gain switching, ``controller.gain_transfer: none``, as :func:`use_paper_tuner` does
-    (``run --tuner ann``, ``evaluate``, the tuner study). Our ``integral`` transfer re-maps the
+    gain switching, ``controller.gain_transfer: none``, as
+    :func:`~stewart_drake.simulation.scenario.use_paper_tuner` does (``run --tuner ann``,
+    ``evaluate``, the tuner study). Our ``integral`` transfer re-maps the
     integral states at every switch, and switched that fast the re-maps pile up and the loop
     chatters at the torque limit (docs/paper_notes.md).
 

@@ -1,6 +1,6 @@
 """Guards of a closed-loop run: the reference is checked before, the state during, nothing lost.
 
-Before a run, :func:`check_reference` samples x_d(t) at the control period and refuses a path
+Before a run, :func:`check_path` samples x_d(t) at the control period and refuses a path
 that leaves the workspace (:class:`~stewart_drake.errors.UnreachablePoseError`), a joint range
 (:class:`~stewart_drake.errors.JointLimitError`) or comes too close to a singularity
 (:class:`~stewart_drake.errors.SingularPoseError`), naming the first time and the leg / measure.

@@ -561,10 +561,11 @@ class Scenario:
             :class:`OrganMotionReference`, :class:`TraceReference`).
         feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
         controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
-        tuner: None (fixed weights), :class:`AnnTunerDriver` (the paper's network),
-            :class:`RatioTunerDriver` (ours) or :class:`WeightSchedule` (weights known in
-            advance); the tuners need a controller with the ``omega`` input and the ``e_bar``
-            output (the LQI), a schedule only the ``omega`` input.
+        tuner: None (fixed weights), or a tuner choice of :mod:`~stewart_drake.control.tuning`:
+            ``AnnTunerDriver`` (the paper's network), ``RatioTunerDriver`` (ours) or
+            ``WeightSchedule`` (weights known in advance); the tuners need a controller with the
+            ``omega`` input and the ``e_bar`` output (the LQI), a schedule only the ``omega``
+            input.
         duration_s: simulated time, s.
         control_period_s: controller period h, s (a whole multiple of the plant step).
         log_period_s: logging period, s (a whole multiple of the plant step).
