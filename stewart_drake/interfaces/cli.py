@@ -247,7 +247,7 @@ def _cmd_check(args) -> int:
         scenario = load_scenario(source, args.set or ())
     if args.duration is not None:
         scenario.duration_s = args.duration
-    report = check(scenario.validate())
+    report = check(scenario)
     print(report.summary())
     name = Path(source).stem
     png = plot_margins(report, Path(args.out) / f"check_{name}.png",

@@ -471,12 +471,12 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     starts = _reference_starts(reference, learn_cycles)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
     _set_learning(scenario, learn_cycles)
-    scenario.validate()
+    plan = make_plan(scenario, reference=reference)             # validated once, here
     scale = 1.0
     if scale_to_fit:
-        reference, scale = _fit(scenario, reference)
-    report = check_reference(scenario, reference)
-    result, learner, wall = run(scenario, reference, progress, f"reproducing {name}")
+        reference, scale = _fit(plan, reference)
+    report = check_reference(plan, reference)
+    result, learner, wall = run(plan, reference, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     freq = _harmonic_frequencies(reference)
