@@ -5,12 +5,12 @@ import json
 import numpy as np
 
 from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
+from stewart_drake.jobs.runners import SerialRunner
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.simulation.scenario import AnnTunerDriver, Scenario, load_scenario
 from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
 from stewart_drake.studies.collection import collect, load_records
 from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.training import build_dataset
 
 

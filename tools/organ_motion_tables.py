@@ -14,8 +14,8 @@ import time
 from pathlib import Path
 
 from stewart_drake.fileio import atomic_write
+from stewart_drake.jobs.runners import ProcessRunner
 from stewart_drake.studies.fidelity_study import run_study, write_tables
-from stewart_drake.studies.runners import ProcessRunner
 
 
 def main() -> None:

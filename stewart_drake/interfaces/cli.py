@@ -372,7 +372,7 @@ def _cmd_scenario(args) -> int:
 def _runner(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..studies.runners import make_runner
+    from ..jobs.runners import make_runner
 
     return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
                        retries=args.retries, recycle=args.recycle,
@@ -542,8 +542,8 @@ def _cmd_diagrams(args) -> int:
 
 
 def _add_runner_arguments(parser) -> None:
-    """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import (
+    """The options of a study's runner (jobs/runners.py)."""
+    from ..jobs.runners import (
         DEFAULT_CONNECT_TIMEOUT_S,
         DEFAULT_RECYCLE,
         DEFAULT_RETRIES,
@@ -827,10 +827,10 @@ def _add_mjcf_command(sub) -> None:
 
 
 def _interruptible():
-    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.studies.runners.Interrupted` (a
+    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.jobs.runners.Interrupted` (a
     KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs; returns the handlers
     to restore. A signal the process was started ignoring (``nohup``) stays ignored."""
-    from ..studies.runners import raise_interrupted
+    from ..jobs.runners import raise_interrupted
 
     if threading.current_thread() is not threading.main_thread():
         return {}

@@ -24,10 +24,10 @@ from ..errors import (
     ResultsMismatchError,
 )
 from ..fileio import CheckedNpz
+from ..jobs.runners import JobFailure, ProcessRunner
+from ..jobs.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, Scenario
 from .experiments import RunResult, check_run_memory, run_experiment
-from .runners import JobFailure, ProcessRunner
-from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 

@@ -31,6 +31,8 @@ import numpy as np
 from ..control.lqi import LqiScales
 from ..errors import IncompleteResultsError
 from ..fileio import atomic_write
+from ..jobs.runners import JobFailure, ProcessRunner
+from ..jobs.store import ResultStore, file_digest, run_jobs
 from ..simulation.scenario import dump_scenario, load_scenario
 from ..simulation.trajectories import ChirpTrajectory, StepTrajectory
 from . import metrics
@@ -46,8 +48,6 @@ from .evaluation_grid import (
     cases,
 )
 from .experiments import run_experiment
-from .runners import JobFailure, ProcessRunner
-from .store import ResultStore, file_digest, run_jobs
 
 
 def run_case(case: Case, divergence_dir: str | None = None) -> dict:
