@@ -12,8 +12,8 @@ import argparse
 import ast
 from pathlib import Path
 
-#: The scenario's tagged choices (simulation/scenario.py): isinstance tests on them dispatch on a
-#: variant.
+#: The scenario's tagged choices (the unions of simulation/scenario.py, each class beside what it
+#: builds): isinstance tests on them dispatch on a variant.
 CHOICES = {"LqiDriver", "PdDriver", "UserController", "AnnTunerDriver", "RatioTunerDriver",
            "WeightSchedule", "NamedReference", "CsvReference", "SineReference",
            "DataCollectionReference", "OrganMotionReference", "TraceReference", "IlcDriver"}

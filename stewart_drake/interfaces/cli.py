@@ -184,6 +184,7 @@ def run_scenario(args):
     from ..control.contract import use_entry_point_controllers
     from ..errors import InvalidConfigError
     from ..simulation import scenario as sc
+    from ..simulation.trajectories import CsvReference, NamedReference
     from ..studies.experiments import DEFAULT_TUNER_OUT
 
     use_entry_point_controllers(args.plugin or ())
@@ -196,9 +197,9 @@ def run_scenario(args):
     if args.trajectory is not None and args.trajectory_file is not None:
         raise InvalidConfigError("give --trajectory or --trajectory-file, not both")
     if args.trajectory is not None:
-        scenario.reference = sc.NamedReference(args.trajectory)
+        scenario.reference = NamedReference(args.trajectory)
     if args.trajectory_file is not None:
-        scenario.reference = sc.CsvReference(args.trajectory_file)
+        scenario.reference = CsvReference(args.trajectory_file)
         if args.duration is None:                   # the run lasts as long as the file
             from ..simulation.trajectories import load_csv_trajectory
 
@@ -264,16 +265,16 @@ def _cmd_run(args) -> int:
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
     from ..simulation import scenario as sc
-    from ..simulation.trajectories import TRAJECTORIES
+    from ..simulation.trajectories import TRAJECTORIES, CsvReference, NamedReference
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
     if source.lower().endswith(".csv"):
         scenario = sc.load_scenario(args.scenario, args.set or ())
-        scenario.reference = sc.CsvReference(source)
+        scenario.reference = CsvReference(source)
     elif source in TRAJECTORIES:
         scenario = sc.load_scenario(args.scenario, args.set or ())
-        scenario.reference = sc.NamedReference(source)
+        scenario.reference = NamedReference(source)
     else:                                 # a scenario file or a shipped scenario's name
         scenario = sc.load_scenario(source, args.set or ())
     if args.duration is not None:
@@ -306,6 +307,8 @@ def _cmd_reproduce(args) -> int:
     from ..errors import InvalidConfigError
     from ..fileio import check_replaceable
     from ..simulation import scenario as sc
+    from ..simulation.organ_motion import OrganMotionReference
+    from ..simulation.traces import TraceReference
     from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
 
     tolerance = parse_tolerance(args.tolerance)
@@ -318,16 +321,16 @@ def _cmd_reproduce(args) -> int:
                                      "--map, --lowpass-hz, --centre, --centre-on, --max-gap")
         centre = ([0.0, 0.0, 0.0, 0.0, 0.0, 0.30] if args.centre is None else
                   [float(v) for v in args.centre.split(",")])
-        scenario.reference = sc.TraceReference(path=source, axis_map=mapping, centre=centre,
-                                               centre_on=args.centre_on,
-                                               lowpass_hz=args.lowpass_hz or 0.0,
-                                               max_gap_s=args.max_gap)
+        scenario.reference = TraceReference(path=source, axis_map=mapping, centre=centre,
+                                            centre_on=args.centre_on,
+                                            lowpass_hz=args.lowpass_hz or 0.0,
+                                            max_gap_s=args.max_gap)
         name = Path(source).stem
     else:
         if mapping or args.lowpass_hz or args.centre is not None:
             raise InvalidConfigError("--map, --lowpass-hz and --centre are for a trace file "
                                      "(.csv); a library motion takes --param")
-        scenario.reference = sc.OrganMotionReference(motion=source, parameters=params)
+        scenario.reference = OrganMotionReference(motion=source, parameters=params)
         name = source
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
     scenario.validate()

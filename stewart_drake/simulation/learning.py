@@ -14,19 +14,18 @@ from pydrake.systems.primitives import Adder
 
 from ..control.ilc import IterativeLearningController
 from ..errors import InvalidConfigError
+from .motion import Reference, reference_cycles
 
 
-def learning_cycles(scenario, trajectory) -> tuple[np.ndarray, np.ndarray]:
+def learning_cycles(scenario, trajectory: Reference) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over the run: the
-    reference's own (:func:`~.organ_motion.reference_cycles`), or ``learning.period_s`` from
+    reference's own (:func:`~.motion.reference_cycles`), or ``learning.period_s`` from
     t = 0 when given.
 
     Raises:
         InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
             whole cycle in the run.
     """
-    from .organ_motion import reference_cycles
-
     driver, duration = scenario.learning, scenario.duration_s
     if driver.period_s > 0:
         k = max(1, int(np.floor(duration / driver.period_s + 1e-9)))

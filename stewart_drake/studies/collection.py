@@ -26,7 +26,8 @@ from ..errors import (
 from ..fileio import CheckedNpz
 from ..jobs.runners import JobFailure, ProcessRunner
 from ..jobs.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
-from ..simulation.scenario import AnnTunerDriver, DataCollectionReference, Scenario
+from ..simulation.scenario import AnnTunerDriver, Scenario
+from ..simulation.trajectories import DataCollectionReference
 from .experiments import RunResult, check_run_memory, run_experiment
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)

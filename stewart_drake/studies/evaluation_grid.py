@@ -18,7 +18,6 @@ from ..simulation.scenario import (
     DEFAULT_SCENARIO,
     AnnTunerDriver,
     ControllerChoice,
-    NamedReference,
     PdDriver,
     Scenario,
     SensorNoise,
@@ -26,6 +25,7 @@ from ..simulation.scenario import (
     TunerChoice,
     load_scenario,
 )
+from ..simulation.trajectories import NamedReference
 from .collection import PAPER_WEIGHTS
 
 #: The fixed LQIs of the grid by name: (omega_Q, omega_R), the paper's nine pairs.

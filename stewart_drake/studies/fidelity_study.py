@@ -93,7 +93,8 @@ def run_case(case: FidelityCase) -> dict:
         "learner": [the learner's status at each cycle's end] or None, "wall_s", "sim_s"}.
     """
     from ..control.ilc import ILC_STATUS_NAMES
-    from ..simulation.scenario import IlcDriver, OrganMotionReference, load_scenario
+    from ..simulation.organ_motion import OrganMotionReference
+    from ..simulation.scenario import IlcDriver, load_scenario
     from .fidelity import fidelity, rms_translation_rotation, run
 
     scenario = load_scenario("paper_hardware", case.overrides)
