@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from stewart_drake.studies.evaluation import evaluate  # noqa
 from stewart_drake.studies.evaluation_grid import CONTROLLERS, SCENARIO_DURATION_S  # noqa
-from stewart_drake.studies.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
+from stewart_drake.execution.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
 
 
 def _noop(job):

@@ -20,6 +20,8 @@ from .errors import InvalidConfigError
 #: Largest |position| accepted in a pose, m: a kilometre is far outside any Stewart platform and
 #: keeps squared lengths (|l|^2 in the closed-form IK) far from overflow.
 MAX_POSITION_M = 1e3
+#: Largest seed of a random draw, Drake's RandomSource's included (a 32-bit unsigned integer).
+MAX_SEED = 2**32 - 1
 
 
 def as_array(name: str, value, shape: tuple | None = None, last: int | None = None,
@@ -90,6 +92,23 @@ def as_number(name: str, value, lo: float | None = None, hi: float | None = None
     return v
 
 
+def check_int(name: str, value, lo: int, hi: int) -> int:
+    """``value`` as an int in [lo, hi], or a typed error naming ``name``.
+
+    Args:
+        name: what the caller calls the argument, e.g. the field path ``reference.seed``.
+        value: a Python or numpy integer (a bool or a float is refused, even 3.0).
+        lo, hi: the bounds, inclusive.
+    Returns:
+        ``int(value)``.
+    Raises:
+        InvalidConfigError: not an integer, or outside [lo, hi] (both named in the message).
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
+        raise InvalidConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
+    return int(value)
+
+
 def check_multiple(name: str, period_s: float, base_name: str, base_s: float) -> int:
     """How many ``base_s`` steps make ``period_s``; a typed error if it is not a whole number.
 
@@ -106,21 +125,6 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
         raise InvalidConfigError(f"{name} ({period_s:g} s) must be a whole multiple of {base_name} "
                                  f"({base_s:g} s); the nearest valid value is {nearest:g} s")
     return n
-
-
-#: Largest seed Drake's RandomSource accepts (a 32-bit unsigned integer).
-MAX_SEED = 2**32 - 1
-
-
-def check_int(name: str, value, lo: int, hi: int) -> int:
-    """``value`` as an int, checked to be a whole number (not a bool) in [lo, hi].
-
-    Raises:
-        InvalidConfigError: names ``name``, the range and the value given.
-    """
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not lo <= value <= hi:
-        raise InvalidConfigError(f"{name} must be an integer in [{lo}, {hi}], got {value!r}")
-    return int(value)
 
 
 def available_memory_bytes() -> float | None:

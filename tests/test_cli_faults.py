@@ -224,8 +224,8 @@ def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_pat
 
 
 def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, feedforward_fault):
+    from stewart_drake.execution.runners import SerialRunner
     from stewart_drake.studies.collection import collect
-    from stewart_drake.studies.runners import SerialRunner
 
     monkeypatch.chdir(tmp_path)
     feedforward_fault(lambda T_ff: np.full(6, np.inf))

@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
+from stewart_drake.execution.runners import DaskRunner, ProcessRunner, RayRunner
 from stewart_drake.studies.collection import collect, load_records
 from stewart_drake.studies.evaluation import evaluate
-from stewart_drake.studies.runners import DaskRunner, ProcessRunner, RayRunner
 
 #: Row fields that measure the machine, not the run.
 TIMING = ("wall_s", "realtime_factor")

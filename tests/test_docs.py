@@ -174,16 +174,17 @@ def resolve_short(span: str, names: dict) -> str | None:
     return None
 
 
-#: First words of dotted spans that must be ours: our modules' names, the names the code had
-#: before (a stale page uses them), Scenario's sections.
-EVERY_MODULE_WORD = {"baselines", "controller", "visualize", "plant", "mjcf", "kinematics",
-                     "statics", "limits", "lqi", "pd", "features", "tuner", "estimator",
-                     "trajectories", "tasks", "reference", "sensors", "guard", "evaluation",
-                     "experiments", "collection", "training", "tuner_study", "workspace",
-                     "runners", "store", "accuracy", "cli", "fileio", "checks", "errors",
-                     "geometry", "ball_joints", "servo", "contract", "scenario", "station",
-                     "diagram", "hardware", "model", "control", "simulation", "studies",
-                     "interfaces", "context", "result"}
+def _package_words() -> set:
+    """The names of our modules and packages (``stewart_drake/**/*.py``), read from the tree."""
+    root = Path(stewart_drake.__file__).resolve().parent
+    return ({p.stem for p in root.rglob("*.py") if p.stem != "__init__"}
+            | {p.parent.name for p in root.rglob("__init__.py")})
+
+
+#: First words of dotted spans that must be ours: our modules' names (read from the package), the
+#: names the code had before (a stale page uses them), Scenario's sections.
+EVERY_MODULE_WORD = _package_words() | {"baselines", "controller", "hardware", "context",
+                                        "result", "runners", "store"}
 
 
 def script_options() -> set:

@@ -28,11 +28,11 @@ from stewart_drake.errors import (
     ResultsMismatchError,
     StewartError,
 )
+from stewart_drake.execution.store import MANIFEST, ResultStore, read_manifest
 from stewart_drake.fileio import CheckedNpz
 from stewart_drake.simulation.scenario import Scenario, dump_scenario
 from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.collection import load_records
-from stewart_drake.studies.store import MANIFEST, ResultStore, read_manifest
 
 EXAMPLES = Counter()
 VALID = Counter()             # examples that loaded, per loader (the strategies reach both ends)

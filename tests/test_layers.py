@@ -1,5 +1,6 @@
-"""The package's imports flow one way: base -> model -> control -> simulation -> studies ->
-interfaces. Every import is counted (module level, inside functions, under TYPE_CHECKING)."""
+"""The package's imports flow one way: base -> model -> control -> simulation -> execution ->
+studies -> interfaces. Every import is counted (module level, inside functions, under
+TYPE_CHECKING)."""
 
 import ast
 import pathlib
@@ -8,7 +9,8 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake"
 #: Rank of each layer; a module may import its own layer or a lower one, never a higher one.
-LAYERS = {"base": 0, "model": 1, "control": 2, "simulation": 3, "studies": 4, "interfaces": 5}
+LAYERS = {"base": 0, "model": 1, "control": 2, "simulation": 3, "execution": 4, "studies": 5,
+          "interfaces": 6}
 
 
 def _module_name(path: pathlib.Path) -> str:

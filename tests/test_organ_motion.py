@@ -11,6 +11,7 @@ from stewart_drake.control.ilc import IlcDriver
 from stewart_drake.errors import InvalidConfigError, MotorLimitError
 from stewart_drake.model.geometry import X_HOME
 from stewart_drake.simulation import organ_motion as om
+from stewart_drake.simulation.motion import reference_cycles
 from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.scenario import (
     OrganMotionReference,
@@ -19,6 +20,7 @@ from stewart_drake.simulation.scenario import (
     dump_scenario,
 )
 from stewart_drake.simulation.scenario_io import load_scenario
+from stewart_drake.simulation.traces import TraceTrajectory, load_trace
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
 from stewart_drake.studies.fidelity import scale_to_fit
 
@@ -162,8 +164,8 @@ def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path)
     pitch = 0.5 * np.sin(np.pi * t / 4)                          # deg
     path = write_trace(tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch},
                         gap=(5.0, 5.5))
-    ref = om.load_trace(path, centre_on="none")
-    assert isinstance(ref, om.TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
+    ref = load_trace(path, centre_on="none")
+    assert isinstance(ref, TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
     assert ref.info.axes == ("+X", "+theta") and ref.info.units[1:] == ("mm", "deg")
     assert len(ref.info.gaps) == 1 and 0.5 <= ref.info.gaps[0][1] < 0.6        # both axes
     assert ref.info.sample_rate_hz == pytest.approx(30.0, rel=1e-3)
@@ -185,12 +187,12 @@ def test_trace_centring_mapping_and_lowpass(tmp_path):
     slow, fast = 5 * np.sin(2 * np.pi * 0.25 * t), 0.5 * np.sin(2 * np.pi * 20 * t)
     path = write_trace(tmp_path / "trace.csv", t, {"depth [mm]": 2 + slow + fast})
     centre = [0, 0, 0, 0.001, 0, 0.31]
-    ref = om.load_trace(path, axis_map={"depth": "-Z"}, centre=centre, lowpass_hz=2.0)
+    ref = load_trace(path, axis_map={"depth": "-Z"}, centre=centre, lowpass_hz=2.0)
     z = ref.evaluate(t)[0][:, 5]
     inner = (t > 1) & (t < 7)
     # mean removed, sign flipped, 20 Hz gone, the slow motion kept without lag
     assert np.abs(z - (0.31 - (slow + 2 - (2 + slow + fast).mean()) * 1e-3))[inner].max() < 2e-5
-    first = om.load_trace(path, axis_map={"depth": "Z"}, centre_on="first")
+    first = load_trace(path, axis_map={"depth": "Z"}, centre_on="first")
     assert first.evaluate(0.0)[0][5] == pytest.approx(X_HOME[5])
 
 
@@ -199,8 +201,8 @@ def test_the_projects_own_csv_is_read_as_before(tmp_path):
     rows = ["t,phi,theta,psi,X,Y,Z"] + [f"{k * 0.1},0,0,0,0,0,{0.3 + 0.001 * k}"
                                          for k in range(5)]
     path.write_text("\n".join(rows) + "\n")
-    ref = om.load_trace(path)
-    assert isinstance(ref, DrakeTrajectory) and not isinstance(ref, om.TraceTrajectory)
+    ref = load_trace(path)
+    assert isinstance(ref, DrakeTrajectory) and not isinstance(ref, TraceTrajectory)
     assert ref.evaluate(0.2)[0][5] == pytest.approx(0.302)
 
 
@@ -216,15 +218,15 @@ def test_a_bad_trace_header_is_refused_naming_the_column(tmp_path, header, row, 
     path = tmp_path / "bad.csv"
     path.write_text(header + "\n" + "\n".join([row] * 5) + "\n")
     with pytest.raises(InvalidConfigError, match=match):
-        om.load_trace(path)
+        load_trace(path)
 
 
 def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
     t = np.arange(0.0, 10.0, 0.1)
     path = write_trace(tmp_path / "gap.csv", t, {"Z [mm]": np.sin(t)}, gap=(3.0, 5.0))
     with pytest.raises(InvalidConfigError, match=r"no data for 2 s from t = 3 s"):
-        om.load_trace(path, max_gap_s=1.0)
-    assert om.load_trace(path, max_gap_s=3.0).info.gaps
+        load_trace(path, max_gap_s=1.0)
+    assert load_trace(path, max_gap_s=3.0).info.gaps
 
 
 def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
@@ -232,14 +234,14 @@ def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
     t = np.arange(0.0, 40.0, 1 / 25)
     path = write_trace(tmp_path / "irr.csv", t,
                         {"X [m]": motion.evaluate(t)[0][:, 3] - X_HOME[3]})
-    starts, scale = om.reference_cycles(om.load_trace(path), 40.0)
+    starts, scale = reference_cycles(load_trace(path), 40.0)
     true = motion.cycles(40.0)[0]
     inhale = true[:-1] + 0.5 * np.diff(true)          # end-inhale: mid-cycle of the model
     inhale = inhale[inhale < 39.5]
     assert len(starts) >= len(inhale) - 1
     assert np.abs(starts[:, None] - inhale[None, :]).min(axis=1).max() < 0.05
     with pytest.raises(InvalidConfigError, match="does not repeat"):
-        om.reference_cycles(make_trajectory("home"), 10.0)
+        reference_cycles(make_trajectory("home"), 10.0)
 
 
 def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes():
@@ -268,4 +270,4 @@ def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):
     s = Scenario(reference=TraceReference(path=str(path), scale=0.5))
     ref = make_plan(s).reference
     assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(0.5 * np.ptp(
-        om.load_trace(path).evaluate(t)[0][:, 5]))
+        load_trace(path).evaluate(t)[0][:, 5]))

@@ -1,4 +1,4 @@
-"""The runner protocol (studies/runners.py) on the local backends: results as they complete,
+"""The runner protocol (jobs/runners.py) on the local backends: results as they complete,
 failures as typed records, retries of a dead worker, recycling, cancellation, no orphans."""
 
 import os
@@ -15,7 +15,7 @@ import psutil
 import pytest
 
 from stewart_drake.errors import JointLimitError, SimulationDivergedError
-from stewart_drake.studies.runners import (
+from stewart_drake.execution.runners import (
     Interrupted,
     JobFailure,
     ProcessRunner,
@@ -162,7 +162,7 @@ def test_workers_die_with_their_parent(tmp_path):
         import os, sys
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_runners import pid_after
-        from stewart_drake.studies.runners import ProcessRunner
+        from stewart_drake.execution.runners import ProcessRunner
         for _ in ProcessRunner(2).map(pid_after, {{"a": 60, "b": 60}}):
             pass
     """)

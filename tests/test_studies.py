@@ -15,10 +15,10 @@ import psutil
 import pytest
 
 from stewart_drake.errors import IncompleteResultsError, ResultsMismatchError
+from stewart_drake.execution.runners import Interrupted, SerialRunner
 from stewart_drake.interfaces.cli import main
 from stewart_drake.studies import evaluation
 from stewart_drake.studies.collection import collect, load_records
-from stewart_drake.studies.runners import Interrupted, SerialRunner
 
 REPO = Path(__file__).resolve().parent.parent
 CLI = [sys.executable, "-m", "stewart_drake.interfaces.cli"]
@@ -183,7 +183,7 @@ def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(t
 
 
 def test_a_folder_of_another_command_or_an_older_layout_is_refused_by_name(tmp_path):
-    from stewart_drake.studies.store import ResultStore
+    from stewart_drake.execution.store import ResultStore
 
     ResultStore(tmp_path / "c", "collect", {"seed": 0}, pattern="run_*.npz")
     with pytest.raises(ResultsMismatchError, match="holds results of `stewart-drake collect`, "

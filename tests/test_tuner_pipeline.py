@@ -6,13 +6,13 @@ import numpy as np
 
 from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
+from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
 from stewart_drake.studies.collection import collect, load_records
 from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.training import build_dataset
 
 

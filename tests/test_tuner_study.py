@@ -16,13 +16,13 @@ from stewart_drake.control.tuner import (
 )
 from stewart_drake.control.tuning import RatioTunerDriver, WeightSchedule
 from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.model import limits, statics
 from stewart_drake.model.geometry import StewartGeometry
 from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 from stewart_drake.studies import tuner_study as ts
 from stewart_drake.studies.metrics import window_means
-from stewart_drake.studies.runners import SerialRunner
 from stewart_drake.studies.tuner_report import plot_tuner_tradeoff, render_tuner_markdown
 
 # -- tasks -----------------------------------------------------------------------------------------

@@ -193,7 +193,7 @@ def test_the_real_time_rates_that_are_kept_still_run(monkeypatch):
 
 
 def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout():
-    from stewart_drake.studies.runners import make_runner
+    from stewart_drake.execution.runners import make_runner
 
     for kind, option in (("ray", "address"), ("dask", "scheduler")):
         t0 = time.monotonic()
@@ -206,7 +206,7 @@ def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout()
 def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
     """An address that answers but is no Ray cluster: Ray's handshake retries in C++ for
     minutes; the join waits at most RAY_JOIN_TIMEOUT_S, in a thread the main thread can leave."""
-    from stewart_drake.studies import runners
+    from stewart_drake.execution import runners
 
     server = socket.socket()
     server.bind(("127.0.0.1", 0))
@@ -240,7 +240,7 @@ def test_workers_ended_mid_result_leave_no_thread_that_holds_the_exit():
     SIGTERMed collect printed its message and never ended)."""
     import struct
 
-    from stewart_drake.studies.runners import _LocalPool
+    from stewart_drake.execution.runners import _LocalPool
 
     pool = _LocalPool(1, None, "spawn")
     future = pool.submit(_sleep, "a", 1)
@@ -259,8 +259,8 @@ def test_sigterm_and_sighup_interrupt_any_command_in_process(capsys, monkeypatch
     handlers it found (a library caller's own handlers survive a call of main)."""
     import signal
 
+    from stewart_drake.execution.runners import Interrupted
     from stewart_drake.studies import experiments
-    from stewart_drake.studies.runners import Interrupted
 
     def mine(signum, frame):
         pass
@@ -377,7 +377,7 @@ def test_a_robot_the_motors_cannot_move_is_one_typed_line(capsys, tmp_path):
 # -- cases 7 and 9: study files through the checked loaders, each holding its own id --------------
 
 def _store(tmp_path, study="evaluate"):
-    from stewart_drake.studies.store import ResultStore
+    from stewart_drake.execution.store import ResultStore
 
     return ResultStore(tmp_path / "out", study, {"quick": True}, pattern="rows/*.json")
 
@@ -407,9 +407,9 @@ def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
 def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
     """Case 9: the entry of A names B's row; with B's entry kept (two jobs, one file) the
     manifest is refused; with B's entry gone, the row says it is B's."""
+    from stewart_drake.execution.store import MANIFEST, read_manifest
     from stewart_drake.studies.evaluation import load_row
     from stewart_drake.studies.evaluation_grid import case_id, make_case
-    from stewart_drake.studies.store import MANIFEST, read_manifest
 
     store = _store(tmp_path)
     a, b = make_case("pd", "helix", duration_s=4.0), make_case("lqi_1_1", "helix", duration_s=4.0)
@@ -438,9 +438,9 @@ def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
 
 
 def test_a_collection_whose_manifest_swaps_two_runs_is_refused(tmp_path):
+    from stewart_drake.execution.runners import SerialRunner
+    from stewart_drake.execution.store import MANIFEST
     from stewart_drake.studies.collection import collect, load_records
-    from stewart_drake.studies.runners import SerialRunner
-    from stewart_drake.studies.store import MANIFEST
 
     out = tmp_path / "collect"
     collect(out, duration_s=0.05, runner=SerialRunner(), progress=False)
@@ -483,7 +483,7 @@ def test_a_truncated_tuner_study_run_is_a_corrupt_file(tmp_path):
 def test_an_edited_settings_hash_says_what_is_wrong(tmp_path):
     """The low case: a hash edited by hand was refused with "()" and advice to run with the
     same settings, which could not work."""
-    from stewart_drake.studies.store import MANIFEST, read_manifest
+    from stewart_drake.execution.store import MANIFEST, read_manifest
 
     _store(tmp_path).close()
     path = tmp_path / "out" / MANIFEST
@@ -499,11 +499,11 @@ def test_an_edited_settings_hash_says_what_is_wrong(tmp_path):
 # -- case 8: one writer per study folder -----------------------------------------------------------
 
 def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
-    from stewart_drake.studies.store import LOCK, lock_folder, unlock_folder
+    from stewart_drake.execution.store import LOCK, lock_folder, unlock_folder
 
     folder = tmp_path / "out"
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\nfrom stewart_drake.studies.store import "
+        [sys.executable, "-c", "import sys, time\nfrom stewart_drake.execution.store import "
          f"lock_folder\nlock_folder({str(folder)!r}, 'collect')\nprint('locked', flush=True)\n"
          "time.sleep(60)"], stdout=subprocess.PIPE, text=True,
         env=dict(os.environ, PYTHONPATH=str(REPO)))
@@ -522,7 +522,7 @@ def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
     store.finish(True)                                          # released at the end
     unlock_folder(folder)
     probe = subprocess.run(
-        [sys.executable, "-c", "from stewart_drake.studies.store import lock_folder\n"
+        [sys.executable, "-c", "from stewart_drake.execution.store import lock_folder\n"
          f"lock_folder({str(folder)!r}, 'evaluate'); print('ok')"], capture_output=True,
         text=True, env=dict(os.environ, PYTHONPATH=str(REPO)))
     assert probe.stdout == "ok\n", probe.stderr
@@ -565,8 +565,8 @@ def test_read_checked_bounds_every_file_it_reads(tmp_path):
 
 
 def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specials):
+    from stewart_drake.execution.store import read_manifest
     from stewart_drake.studies.experiments import load_result
-    from stewart_drake.studies.store import read_manifest
 
     loaders = [("reference CSV", load_csv_trajectory), ("scenario file", load_scenario),
                ("ANN tuner weights file", tuner.load_tuner),

@@ -13,9 +13,9 @@ import json
 import time
 from pathlib import Path
 
+from stewart_drake.execution.runners import ProcessRunner
 from stewart_drake.fileio import atomic_write
 from stewart_drake.studies.fidelity_study import run_study, write_tables
-from stewart_drake.studies.runners import ProcessRunner
 
 
 def main() -> None:

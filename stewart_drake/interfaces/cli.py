@@ -231,18 +231,17 @@ def _cmd_run(args) -> int:
 
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
-    from ..simulation import scenario as sc
     from ..simulation.scenario_io import load_scenario
-    from ..simulation.trajectories import TRAJECTORIES
+    from ..simulation.trajectories import TRAJECTORIES, CsvReference, NamedReference
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
     if source.lower().endswith(".csv"):
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario.reference = sc.CsvReference(source)
+        scenario.reference = CsvReference(source)
     elif source in TRAJECTORIES:
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario.reference = sc.NamedReference(source)
+        scenario.reference = NamedReference(source)
     else:                                 # a scenario file or a shipped scenario's name
         scenario = load_scenario(source, args.set or ())
     if args.duration is not None:
@@ -274,8 +273,9 @@ def _cmd_reproduce(args) -> int:
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..errors import InvalidConfigError
     from ..fileio import check_replaceable
-    from ..simulation import scenario as sc
+    from ..simulation.organ_motion import OrganMotionReference
     from ..simulation.scenario_io import load_scenario
+    from ..simulation.traces import TraceReference
     from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
 
     tolerance = parse_tolerance(args.tolerance)
@@ -288,16 +288,16 @@ def _cmd_reproduce(args) -> int:
                                      "--map, --lowpass-hz, --centre, --centre-on, --max-gap")
         centre = ([0.0, 0.0, 0.0, 0.0, 0.0, 0.30] if args.centre is None else
                   [float(v) for v in args.centre.split(",")])
-        scenario.reference = sc.TraceReference(path=source, axis_map=mapping, centre=centre,
-                                               centre_on=args.centre_on,
-                                               lowpass_hz=args.lowpass_hz or 0.0,
-                                               max_gap_s=args.max_gap)
+        scenario.reference = TraceReference(path=source, axis_map=mapping, centre=centre,
+                                            centre_on=args.centre_on,
+                                            lowpass_hz=args.lowpass_hz or 0.0,
+                                            max_gap_s=args.max_gap)
         name = Path(source).stem
     else:
         if mapping or args.lowpass_hz or args.centre is not None:
             raise InvalidConfigError("--map, --lowpass-hz and --centre are for a trace file "
                                      "(.csv); a library motion takes --param")
-        scenario.reference = sc.OrganMotionReference(motion=source, parameters=params)
+        scenario.reference = OrganMotionReference(motion=source, parameters=params)
         name = source
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
     scenario.validate()
@@ -343,7 +343,7 @@ def _cmd_scenario(args) -> int:
 def _runner(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..studies.runners import make_runner
+    from ..execution.runners import make_runner
 
     return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
                        retries=args.retries, recycle=args.recycle,
@@ -516,8 +516,8 @@ def _cmd_diagrams(args) -> int:
 
 
 def _add_runner_arguments(parser) -> None:
-    """The options of a study's runner (studies/runners.py)."""
-    from ..studies.runners import (
+    """The options of a study's runner (jobs/runners.py)."""
+    from ..execution.runners import (
         DEFAULT_CONNECT_TIMEOUT_S,
         DEFAULT_RECYCLE,
         DEFAULT_RETRIES,
@@ -802,10 +802,10 @@ def _add_mjcf_command(sub) -> None:
 
 
 def _interruptible():
-    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.studies.runners.Interrupted` (a
+    """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.execution.runners.Interrupted` (a
     KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs; returns the handlers
     to restore. A signal the process was started ignoring (``nohup``) stays ignored."""
-    from ..studies.runners import raise_interrupted
+    from ..execution.runners import raise_interrupted
 
     if threading.current_thread() is not threading.main_thread():
         return {}

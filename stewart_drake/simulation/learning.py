@@ -14,20 +14,19 @@ from pydrake.systems.primitives import Adder
 
 from ..control.ilc import IlcDriver, IterativeLearningController
 from ..errors import InvalidConfigError
+from .motion import Reference, reference_cycles
 
 
-def learning_cycles(driver: IlcDriver, trajectory, duration: float
+def learning_cycles(driver: IlcDriver, trajectory: Reference, duration: float
                     ) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over a run of
-    ``duration`` s: the reference's own (:func:`~.organ_motion.reference_cycles`), or
+    ``duration`` s: the reference's own (:func:`~.motion.reference_cycles`), or
     ``driver.period_s`` from t = 0 when given.
 
     Raises:
         InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
             whole cycle in the run.
     """
-    from .organ_motion import reference_cycles
-
     if driver.period_s > 0:
         k = max(1, int(np.floor(duration / driver.period_s + 1e-9)))
         starts, scale = np.arange(k + 1) * driver.period_s, np.ones(k)

@@ -33,7 +33,7 @@ import functools
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Dict, List, Optional, Union
+from typing import List, Optional, Union
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
@@ -41,7 +41,7 @@ from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
-from ..checks import MAX_SEED, as_array, as_number, check_multiple
+from ..checks import MAX_SEED, as_number, check_multiple
 from ..checks import check_int as _check_int
 from ..control.contract import UserController
 from ..control.ilc import IlcDriver
@@ -52,7 +52,6 @@ from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..errors import (
     InvalidConfigError,
     InvalidGeometryError,
-    MissingFileError,
     StewartError,
 )
 from ..mirrors import ValueMirror
@@ -60,6 +59,10 @@ from ..model.geometry import StewartGeometry
 from ..model.servo import ServoModel
 from ..model.statics import FEEDFORWARD_MODES
 from .guard import GuardConfig
+from .motion import ReferenceConfig as ReferenceConfig  # re-exported: the choices' base
+from .organ_motion import OrganMotionReference
+from .traces import TraceReference
+from .trajectories import CsvReference, DataCollectionReference, NamedReference, SineReference
 
 _GEOMETRY, _SERVO = StewartGeometry(), ServoModel()
 
@@ -126,220 +129,6 @@ class Motors(ValueMirror):
 
 
 # -- references ------------------------------------------------------------------------------------
-
-class ReferenceConfig:
-    """Base of a scenario's reference choices (:class:`NamedReference`, :class:`CsvReference`,
-    :class:`SineReference`, :class:`DataCollectionReference`): each checks its fields
-    (:meth:`validate`) and makes the reference object x_d(t) (:meth:`make`), the one place it
-    does."""
-
-    def validate(self) -> None:
-        """Check the fields (``reference.<name>``) before anything is built.
-
-        Raises:
-            InvalidConfigError, MissingFileError: names the field.
-        """
-        raise NotImplementedError
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        """The reference object (``evaluate(t)`` -> pose, rate, acceleration) for ``scenario``."""
-        raise NotImplementedError
-
-    @property
-    def label(self) -> str:
-        """The reference's name for display and for a run's file names."""
-        return self.name
-
-    def memory_bytes(self) -> float:
-        """Memory the reference itself holds, bytes, beyond a run's logs (0: negligible)."""
-        return 0.0
-
-    def memory_note(self) -> tuple:
-        """(what, change): phrases for a refused run's memory message (``""`` when none)."""
-        return "", ""
-
-
-@dataclass
-class NamedReference(ReferenceConfig):
-    """A reference of :data:`~stewart_drake.simulation.trajectories.TRAJECTORIES`: "paper"
-    (eqs. 37-38), "home", "helix", "step_<axis>", "sweep_<axis>"."""
-
-    name: str = "paper"
-
-    def validate(self) -> None:
-        from . import trajectories
-
-        trajectories.make_trajectory(self.name)           # unknown name: lists the known ones
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import trajectories
-
-        return trajectories.make_trajectory(self.name)
-
-
-@dataclass
-class CsvReference(ReferenceConfig):
-    """A reference from a CSV file ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), joined by a C2 cubic
-    spline (:func:`~stewart_drake.simulation.trajectories.load_csv_trajectory`). A relative path
-    is relative to the working folder."""
-
-    path: str = ""
-
-    def validate(self) -> None:
-        if not self.path or not Path(self.path).exists():
-            raise MissingFileError(f"no reference CSV at {self.path!r} (reference.path): check "
-                                   f"the path")
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import trajectories
-
-        return trajectories.load_csv_trajectory(self.path)
-
-    @property
-    def label(self) -> str:
-        return Path(self.path).stem
-
-    def memory_bytes(self) -> float:
-        """The spline of the file's samples
-        (:func:`~stewart_drake.simulation.trajectories.csv_reference_bytes`)."""
-        from .trajectories import csv_reference_bytes
-
-        return csv_reference_bytes(self.path)
-
-    def memory_note(self) -> tuple:
-        return (f" on the reference {self.path}",
-                ", and sample the reference CSV more coarsely")
-
-
-@dataclass
-class SineReference(ReferenceConfig):
-    """x_d(t) = offset + amplitude sin(2 pi f t + phase), axis by axis (6 values each: rad, m,
-    Hz, rad); see :class:`~stewart_drake.simulation.trajectories.SineTrajectory`."""
-
-    amplitude: List[float] = field(default_factory=lambda: [0.0] * 6)
-    frequency_hz: List[float] = field(default_factory=lambda: [0.0] * 6)
-    phase: List[float] = field(default_factory=lambda: [0.0] * 6)
-    offset: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
-    name: str = "sine"
-
-    def validate(self) -> None:
-        self.make(None, 0.0, None)                                 # checks shapes and overflow
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import trajectories
-
-        return trajectories.SineTrajectory(amplitude=tuple(self.amplitude),
-                                           frequency_hz=tuple(self.frequency_hz),
-                                           phase=tuple(self.phase), offset=tuple(self.offset),
-                                           name=self.name)
-
-
-@dataclass
-class DataCollectionReference(ReferenceConfig):
-    """The seeded excitation of the tuner's data collection (every axis at 1-5 Hz inside the
-    workspace; :func:`~stewart_drake.simulation.trajectories.data_collection_trajectory`), as long
-    as the scenario's duration."""
-
-    seed: int = 0
-
-    def validate(self) -> None:
-        _check_int("reference.seed", self.seed, 0, MAX_SEED)
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import trajectories
-
-        return trajectories.data_collection_trajectory(
-            self.seed, geometry, duration_s=duration_s, torque_limit_Nm=torque_limit_Nm)
-
-    @property
-    def label(self) -> str:
-        return f"data_seed{self.seed}"
-
-
-@dataclass
-class OrganMotionReference(ReferenceConfig):
-    """A motion of the organ-motion library (:mod:`~.organ_motion`: breathing, heartbeat,
-    breathing_heartbeat, irregular_breathing, hysteresis) with parameters carrying units, e.g.
-    ``{amplitude: 15mm, period: 4s, direction: SI}`` (:func:`~.organ_motion.make_motion`).
-
-    Attributes:
-        motion: the library's name. parameters: name -> value (a number in the field's SI unit,
-            or text with a unit). scale: the motion shrunk about its centre, in (0, 1]
-            (``reproduce --scale-to-fit`` finds it).
-    """
-
-    motion: str = "breathing"
-    parameters: Dict[str, str] = field(default_factory=dict)
-    scale: float = 1.0
-
-    def validate(self) -> None:
-        as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
-        self.make(None, 0.0, None)                      # names an unknown motion or parameter
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import organ_motion
-
-        return _scaled(organ_motion.make_motion(self.motion, self.parameters), self.scale)
-
-    @property
-    def label(self) -> str:
-        return self.motion
-
-
-@dataclass
-class TraceReference(ReferenceConfig):
-    """A recorded trace of 1 to 6 axes: a CSV whose header names each column and its unit
-    (:func:`~.organ_motion.load_trace`); the project's own ``t,phi,theta,psi,X,Y,Z`` CSV too.
-
-    Attributes:
-        path: the file (relative to the working folder).
-        axis_map: trace column -> platform axis with an optional sign ({SI: -Z}).
-        centre: (6,) the pose the trace is centred on, rad and m.
-        centre_on: "mean", "first" or "none" (which pose of the trace goes to ``centre``).
-        lowpass_hz: corner of the zero-phase low-pass, Hz (0: none).
-        max_gap_s: longest interval without data an axis may have, s.
-        scale: the trace shrunk about its centre, in (0, 1].
-    """
-
-    path: str = ""
-    axis_map: Dict[str, str] = field(default_factory=dict)
-    centre: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
-    centre_on: str = "mean"
-    lowpass_hz: float = 0.0
-    max_gap_s: float = 1.0
-    scale: float = 1.0
-
-    def validate(self) -> None:
-        from .organ_motion import CENTRE_MODES
-
-        as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
-        if not self.path or not Path(self.path).exists():
-            raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")
-        if self.centre_on not in CENTRE_MODES:
-            raise InvalidConfigError(f"reference.centre_on must be one of {CENTRE_MODES}, got "
-                                     f"{self.centre_on!r}")
-        as_number("reference.lowpass_hz", self.lowpass_hz, 0.0)
-        as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
-        as_array("reference.centre", self.centre, shape=(6,))
-
-    def make(self, geometry, duration_s: float, torque_limit_Nm):
-        from . import organ_motion
-
-        trace = organ_motion.load_trace(self.path, self.axis_map, self.centre, self.centre_on,
-                                        self.lowpass_hz or None, self.max_gap_s)
-        return _scaled(trace, self.scale)
-
-    @property
-    def label(self) -> str:
-        return Path(self.path).stem
-
-
-def _scaled(motion, scale: float):
-    """``motion`` shrunk about its centre by ``scale`` (itself when 1)."""
-    from . import organ_motion
-
-    return motion if scale == 1.0 else organ_motion.ScaledReference(motion, scale)
-
 
 ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference,
                         OrganMotionReference, TraceReference]

@@ -214,8 +214,7 @@ def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
             out of range. MissingFileError: no such weights or CSV file.
     """
     from ..control.pd import PdDriver
-    from .scenario import CsvReference, NamedReference
-    from .trajectories import load_csv_trajectory
+    from .trajectories import CsvReference, NamedReference, load_csv_trajectory
 
     if tuner_weights is not None and tuner not in ("ann", "ratio"):
         raise InvalidConfigError("--tuner-weights needs --tuner ann or --tuner ratio (the "

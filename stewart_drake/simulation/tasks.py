@@ -35,6 +35,8 @@ from ..model import limits, statics
 from ..model.clearance import clearance_model
 from ..model.geometry import StewartGeometry
 from ..model.kinematics import X_HOME
+from .motion import Reference
+from .organ_motion import MotionSum
 from .scenario import ToolDisturbance
 from .trajectories import SineTrajectory, paper_manoeuvre
 
@@ -121,12 +123,12 @@ class WaypointTrajectory:
 
 @dataclass(frozen=True)
 class Task:
-    """One task: ``reference`` (has ``evaluate(t)``), ``disturbance`` (a ToolDisturbance or
+    """One task: ``reference`` (:class:`~.motion.Reference`), ``disturbance`` (a ToolDisturbance or
     None), ``family`` and ``seed``; ``name`` = "<family>_s<seed>"."""
 
     family: str
     seed: int
-    reference: object
+    reference: Reference
     disturbance: ToolDisturbance | None = None
 
     @property
@@ -195,7 +197,7 @@ def _multisine(rng, duration_s, geometry, peak_torque):
                                 phase=tuple(phase[i]),
                                 offset=tuple(X_HOME if i == 0 else np.zeros(6)))
                  for i in range(3)]
-        reference = _Sum(tuple(parts))
+        reference = MotionSum(parts=tuple(parts), centre=None, name="multisine")
         if _within_reach(reference, duration_s, geometry, peak_torque):
             break
         amp = SHRINK * amp
@@ -210,16 +212,6 @@ def _within_reach(reference, duration_s, geometry, peak_torque) -> bool:
     except StewartError:
         return False
     return bool(np.abs(T).max() <= LOAD_MARGIN * peak_torque)
-
-
-@dataclass(frozen=True)
-class _Sum:
-    parts: tuple
-    name: str = "multisine"
-
-    def evaluate(self, t):
-        out = [p.evaluate(t) for p in self.parts]
-        return tuple(sum(o[i] for o in out) for i in range(3))
 
 
 def _disturbed_hold(rng, duration_s, geometry, peak_torque):

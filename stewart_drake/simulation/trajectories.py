@@ -5,24 +5,29 @@ acceleration, each ``t.shape + (6,)`` in [rad, rad, rad, m, m, m] (and /s, /s^2)
 :func:`as_trajectory` accepts more and adapts it: an ``evaluate`` that takes one time only, a Drake
 ``Trajectory`` (e.g. a ``PiecewisePolynomial``), a CSV file of ``t, phi, theta, psi, X, Y, Z``
 or a registered name. :func:`validate` checks one before a run;
-:mod:`~stewart_drake.simulation.reference` puts one into a Diagram.
-"""
+:mod:`~stewart_drake.simulation.reference` puts one into a Diagram. What a reference is:
+:class:`~.motion.Reference`.
 
-from __future__ import annotations
+A scenario chooses these references by :class:`NamedReference`, :class:`CsvReference`,
+:class:`SineReference` and :class:`DataCollectionReference`, whose field types Drake's YAML
+loader reads: this module must not use ``from __future__ import annotations``.
+"""
 
 import csv
 import io
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial, Trajectory
 
-from ..checks import as_array, as_number, as_poses
+from ..checks import MAX_SEED, as_array, as_number, as_poses, check_int
 from ..errors import InvalidConfigError
 from ..model import kinematics, limits
 from ..model.geometry import X_HOME, StewartGeometry
 from ..model.kinematics import AXIS_NAMES
+from .motion import Reference, ReferenceConfig
 
 
 def check_sine_bounds(trajectory) -> None:
@@ -476,7 +481,7 @@ def _check_csv_times(path: Path, t: np.ndarray) -> None:
                                  f"{t[k + 1] - t[k]:.3g} s apart (times are in s)")
 
 
-def as_trajectory(source):
+def as_trajectory(source) -> Reference:
     """A reference object with a vectorized ``evaluate`` from whatever the user gives.
 
     Args:
@@ -517,7 +522,7 @@ def as_trajectory(source):
     return wrapped
 
 
-def validate(trajectory, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
+def validate(trajectory: Reference, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
              cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
              min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
              raise_refused: bool = True, **checks) -> limits.TrajectoryReport:
@@ -692,3 +697,96 @@ def _scale_within_torque(geometry: StewartGeometry, motion, scale: float, bound:
             lo, hi = (mid, hi) if peak(mid) <= bound else (lo, mid)
         scale = lo
     return scale
+
+
+# -- a scenario's choices of these references ------------------------------------------------------
+
+@dataclass
+class NamedReference(ReferenceConfig):
+    """A reference of :data:`TRAJECTORIES`: "paper" (eqs. 37-38), "home", "helix",
+    "step_<axis>", "sweep_<axis>"."""
+
+    name: str = "paper"
+
+    def validate(self) -> None:
+        make_trajectory(self.name)                        # unknown name: lists the known ones
+
+    def make(self, geometry: StewartGeometry, duration_s: float,
+             torque_limit_Nm: float | None) -> Reference:
+        return make_trajectory(self.name)
+
+
+@dataclass
+class CsvReference(ReferenceConfig):
+    """A reference from a CSV file ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), joined by a C2 cubic
+    spline (:func:`load_csv_trajectory`). A relative path is relative to the working folder."""
+
+    path: str = ""
+
+    def validate(self) -> None:
+        from ..errors import MissingFileError
+
+        if not self.path or not Path(self.path).exists():
+            raise MissingFileError(f"no reference CSV at {self.path!r} (reference.path): check "
+                                   f"the path")
+
+    def make(self, geometry: StewartGeometry, duration_s: float,
+             torque_limit_Nm: float | None) -> Reference:
+        return load_csv_trajectory(self.path)
+
+    @property
+    def label(self) -> str:
+        return Path(self.path).stem
+
+    def memory_bytes(self) -> float:
+        """The spline of the file's samples (:func:`csv_reference_bytes`)."""
+        return csv_reference_bytes(self.path)
+
+    def memory_note(self) -> tuple:
+        return (f" on the reference {self.path}",
+                ", and sample the reference CSV more coarsely")
+
+
+@dataclass
+class SineReference(ReferenceConfig):
+    """x_d(t) = offset + amplitude sin(2 pi f t + phase), axis by axis (6 values each: rad, m,
+    Hz, rad); see :class:`SineTrajectory`."""
+
+    amplitude: List[float] = field(default_factory=lambda: [0.0] * 6)
+    frequency_hz: List[float] = field(default_factory=lambda: [0.0] * 6)
+    phase: List[float] = field(default_factory=lambda: [0.0] * 6)
+    offset: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    name: str = "sine"
+
+    def validate(self) -> None:
+        self._sine()                                        # checks shapes and overflow
+
+    def make(self, geometry: StewartGeometry, duration_s: float,
+             torque_limit_Nm: float | None) -> Reference:
+        return self._sine()
+
+    def _sine(self) -> SineTrajectory:
+        return SineTrajectory(amplitude=tuple(self.amplitude),
+                              frequency_hz=tuple(self.frequency_hz), phase=tuple(self.phase),
+                              offset=tuple(self.offset), name=self.name)
+
+
+@dataclass
+class DataCollectionReference(ReferenceConfig):
+    """The seeded excitation of the tuner's data collection (every axis at 1-5 Hz inside the
+    workspace; :func:`data_collection_trajectory`), as long as the run, within the robot's
+    workspace and its motors' torque limit."""
+
+    seed: int = 0
+
+    def validate(self) -> None:
+        check_int("reference.seed", self.seed, 0, MAX_SEED)
+
+    def make(self, geometry: StewartGeometry, duration_s: float,
+             torque_limit_Nm: float | None) -> Reference:
+        return data_collection_trajectory(self.seed, geometry, duration_s=duration_s,
+                                          torque_limit_Nm=torque_limit_Nm)
+
+    @property
+    def label(self) -> str:
+        return f"data_seed{self.seed}"

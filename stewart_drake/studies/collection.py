@@ -24,12 +24,13 @@ from ..errors import (
     InvalidConfigError,
     ResultsMismatchError,
 )
+from ..execution.runners import JobFailure, ProcessRunner
+from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..fileio import CheckedNpz
 from ..simulation.plan import make_plan
-from ..simulation.scenario import DataCollectionReference, Scenario
+from ..simulation.scenario import Scenario
+from ..simulation.trajectories import DataCollectionReference
 from .experiments import RunResult, check_run_memory, run_experiment
-from .runners import JobFailure, ProcessRunner
-from .store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 

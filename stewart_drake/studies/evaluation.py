@@ -30,6 +30,8 @@ import numpy as np
 
 from ..control.lqi import LqiScales
 from ..errors import IncompleteResultsError
+from ..execution.runners import JobFailure, ProcessRunner
+from ..execution.store import ResultStore, file_digest, run_jobs
 from ..fileio import atomic_write
 from ..simulation.plan import make_plan
 from ..simulation.scenario import dump_scenario
@@ -48,8 +50,6 @@ from .evaluation_grid import (
     cases,
 )
 from .experiments import run_experiment
-from .runners import JobFailure, ProcessRunner
-from .store import ResultStore, file_digest, run_jobs
 
 
 def run_case(case: Case, divergence_dir: str | None = None) -> dict:

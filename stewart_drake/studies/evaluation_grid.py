@@ -17,13 +17,13 @@ from ..errors import InvalidConfigError
 from ..model.kinematics import AXIS_NAMES
 from ..simulation.scenario import (
     ControllerChoice,
-    NamedReference,
     Scenario,
     SensorNoise,
     ToolDisturbance,
     named_controllers,
 )
 from ..simulation.scenario_io import DEFAULT_SCENARIO, load_scenario
+from ..simulation.trajectories import NamedReference
 from .collection import PAPER_WEIGHTS
 
 #: The fixed LQIs of the grid by name: (omega_Q, omega_R), the paper's nine pairs.

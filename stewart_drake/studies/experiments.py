@@ -103,7 +103,7 @@ def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
     the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`), plus what
     the reference itself holds (a CSV reference's spline,
-    :meth:`~stewart_drake.simulation.scenario.ReferenceConfig.memory_bytes`)."""
+    :meth:`~stewart_drake.simulation.motion.ReferenceConfig.memory_bytes`)."""
     d = float(scenario.duration_s)
     return scenario.reference.memory_bytes() + max(
         (d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,

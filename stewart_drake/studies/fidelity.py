@@ -24,6 +24,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError
 from ..fileio import atomic_write
+from ..simulation.motion import Reference
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -267,7 +268,7 @@ class Reproduction:
     """
 
     name: str
-    reference: object
+    reference: Reference
     scale: float
     result: object
     cycle_starts: np.ndarray
@@ -279,7 +280,7 @@ class Reproduction:
     notes: list = field(default_factory=list)
 
 
-def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float]:
+def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Reference, float]:
     """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
     (:class:`~stewart_drake.simulation.organ_motion.ScaledReference`), passes every check of
     :func:`~stewart_drake.simulation.plan.check_reference` on the
@@ -321,7 +322,7 @@ def scale_to_fit(scenario, reference, tol: float = 0.005) -> tuple[object, float
 _fit = scale_to_fit          # reproduce's argument of that name is a flag
 
 
-def run(scenario, reference, progress: bool = False, desc: str = "simulating"):
+def run(scenario, reference: Reference, progress: bool = False, desc: str = "simulating"):
     """Simulate ``scenario`` on ``reference`` (checked first, guarded):
     (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or None, wall s).
 
@@ -346,7 +347,7 @@ def run(scenario, reference, progress: bool = False, desc: str = "simulating"):
     return result, learner, wall
 
 
-def run_cycles(reference, learn_cycles: int, eval_cycles: int) -> int:
+def run_cycles(reference: Reference, learn_cycles: int, eval_cycles: int) -> int:
     """Cycles a reproduction runs: the learned ones (or one to settle without learning) and
     then the evaluated ones."""
     return max(learn_cycles, 1) + eval_cycles
@@ -361,10 +362,10 @@ def _check_counts(learn_cycles, eval_cycles) -> None:
         raise InvalidConfigError("eval_cycles must be at least 1")
 
 
-def _reference_starts(reference, learn_cycles: int) -> np.ndarray:
+def _reference_starts(reference: Reference, learn_cycles: int) -> np.ndarray:
     """(K + 1,) the starts of the reference's cycles over its length (or an hour), s; empty for
     a reference without cycles, which only a run without learning accepts."""
-    from ..simulation.organ_motion import reference_cycles
+    from ..simulation.motion import reference_cycles
 
     end = getattr(reference, "end_time", None)
     try:
@@ -421,7 +422,7 @@ def _measured_window(starts, duration: float, whole: bool,
     return (0.1 * duration, duration)
 
 
-def _harmonic_frequencies(reference) -> dict:
+def _harmonic_frequencies(reference: Reference) -> dict:
     """{"breathing": Hz, "cardiac": Hz}: the fundamentals whose harmonics :func:`fidelity`
     analyses, those of a reference that repeats ({} for one that does not)."""
     repeats = getattr(reference, "repeat_period_s", None) is not None

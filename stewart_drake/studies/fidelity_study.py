@@ -1,9 +1,10 @@
 """The fidelity study: the library's motions on the robot as built, without learning and after
 5 and 10 learned cycles, the learner's settings tried, its robustness, the phantom anchor.
 
-``python tools/organ_motion_tables.py`` runs :data:`CASES` (in parallel, :mod:`~.runners`) and
-writes the tables between the markers of docs/organ_motion.md (:func:`write_tables`); the
-verdicts on the goal are computed here, from the numbers in the tables.
+``python tools/organ_motion_tables.py`` runs :data:`CASES` (in parallel,
+:mod:`~stewart_drake.execution.runners`) and writes the tables between the markers of
+docs/organ_motion.md (:func:`write_tables`); the verdicts on the goal are computed here, from the
+numbers in the tables.
 """
 
 from __future__ import annotations
@@ -93,7 +94,7 @@ def run_case(case: FidelityCase) -> dict:
         "learner": [the learner's status at each cycle's end] or None, "wall_s", "sim_s"}.
     """
     from ..control.ilc import ILC_STATUS_NAMES, IlcDriver
-    from ..simulation.scenario import OrganMotionReference
+    from ..simulation.organ_motion import OrganMotionReference
     from ..simulation.scenario_io import load_scenario
     from .fidelity import fidelity, rms_translation_rotation, run
 
@@ -126,7 +127,7 @@ def run_case(case: FidelityCase) -> dict:
 
 def run_study(cases=CASES, runner=None, progress: bool = True) -> dict:
     """{job id: :func:`run_case` outcome} of every case (a failed one: its error's text)."""
-    from .runners import JobFailure, ProcessRunner
+    from ..execution.runners import JobFailure, ProcessRunner
 
     runner = runner or ProcessRunner(n_workers=2, recycle=1)
     jobs = {c.job_id: c for c in cases}

@@ -532,7 +532,7 @@ class TunerStudy:
     def __init__(self, out_dir, runner, base: str, quick: bool, progress: bool,
                  paper_weights: str, test: bool):
         from ..control.tuner import PAPER_LABEL_TUNER_PATH
-        from .store import ResultStore, file_digest
+        from ..execution.store import ResultStore, file_digest
 
         self.out, self.runner, self.base, self.quick = Path(out_dir), runner, base, quick
         self.progress = progress
@@ -570,7 +570,7 @@ class TunerStudy:
 
     def run(self, jobs: list, desc: str) -> None:
         """Run the jobs not on disk yet, storing each as it arrives."""
-        from .store import run_jobs
+        from ..execution.store import run_jobs
 
         by_id = {job.job_id: job for job in jobs}
         run_jobs(self.store, self.runner, study_job, by_id, lambda i, o: self.save(by_id[i], o),
@@ -579,7 +579,7 @@ class TunerStudy:
 
     def save(self, job: StudyJob, outcome) -> None:
         """Store a run's arrays (or that it lost the platform) under its job id."""
-        from .runners import JobFailure
+        from ..execution.runners import JobFailure
 
         if isinstance(outcome, JobFailure):
             record = {"lost": outcome.message.splitlines()[0][:300]}

@@ -25,12 +25,12 @@ import numpy as np
 
 from ..checks import check_memory
 from ..errors import IncompleteResultsError, InvalidConfigError
+from ..execution.runners import JobFailure, ProcessRunner, SerialRunner
 from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
 from ..model.clearance import clearance_model
 from ..model.geometry import X_HOME, StewartGeometry
 from ..model.kinematics import AXIS_NAMES
-from .runners import JobFailure, ProcessRunner, SerialRunner
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
 #: that no reachable pose lies on the boundary, so volumes and extents are not clipped).

@@ -1,0 +1,405 @@
+"""Recorded traces of organ motion as references of the platform pose.
+
+:func:`load_trace` reads a CSV of 1 to 6 axes whose header names each column and its unit
+(``t [s], SI [mm], AP [mm], pitch [deg]``), at any sample rate and with gaps, maps the trace's
+axes onto the platform's (platform or patient axis names, :data:`~.organ_motion.PATIENT_AXES`,
+or a map of the trace's own names), resamples it to a C2 spline (Drake's
+``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), optionally low-passes it without
+phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose (:data:`CENTRE_MODES`).
+The result is a :class:`TraceTrajectory` that says what was read and done (:class:`TraceInfo`).
+The project's own CSV (``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
+(:func:`~.trajectories.load_csv_trajectory`). :class:`TraceReference` is a scenario's choice of
+a trace.
+
+Drake's YAML loader reads :class:`TraceReference`'s field types: this module must not use
+``from __future__ import annotations``.
+"""
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Dict, List
+
+import numpy as np
+
+from ..checks import as_array, as_number, as_poses
+from ..errors import InvalidConfigError, MissingFileError
+from ..model.geometry import X_HOME, StewartGeometry
+from .motion import Reference, ReferenceConfig
+from .organ_motion import UNITS, axis_index, check_centre, scaled
+from .trajectories import (
+    AXIS_NAMES,
+    CSV_BYTES_PER_ROW,
+    CSV_COLUMNS,
+    DrakeTrajectory,
+    csv_rows,
+    load_csv_trajectory,
+)
+
+#: Which pose of a trace goes to its centre (``centre_on`` of :func:`load_trace`): its mean, its
+#: first sample, or none (the trace's values are displacements from the centre).
+CENTRE_MODES = ("mean", "first", "none")
+
+#: Largest trace file read, bytes (several hours at 100 Hz).
+MAX_TRACE_BYTES = 256e6
+#: Time units of a trace's time column: factor to s.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+
+
+@dataclass(frozen=True)
+class TraceInfo:
+    """What :func:`load_trace` read and did.
+
+    Attributes:
+        path: the file.  columns: the trace's column names (time first).  units: their units.
+        axes: the platform axis each column went to, with its sign ("+X", "-theta").
+        samples: rows read.  sample_rate_hz: median rate of the file.
+        gaps: ((start s, length s), ...) intervals longer than 2.5 samples without data on
+            some axis, bridged by the spline.
+        lowpass_hz: the zero-phase low-pass applied, or None.
+        duration_s: length of the reference, s.  centred_on: "mean", "first" or "none".
+    """
+
+    path: str
+    columns: tuple
+    units: tuple
+    axes: tuple
+    samples: int
+    sample_rate_hz: float
+    gaps: tuple
+    lowpass_hz: float | None
+    duration_s: float
+    centred_on: str
+
+    def summary(self) -> str:
+        gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
+        mapping = ", ".join(f"{c} [{u}] -> {a}" for c, u, a in
+                            zip(self.columns[1:], self.units[1:], self.axes))
+        return (f"{Path(self.path).name}: {self.samples} samples at {self.sample_rate_hz:.4g} Hz "
+                f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
+                f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}")
+
+
+class TraceTrajectory(DrakeTrajectory):
+    """A recorded trace as a reference: a :class:`~.trajectories.DrakeTrajectory` (C2 cubic
+    spline) with the trace's import record (``info``, :class:`TraceInfo`) and its ``centre``
+    pose, the fixed point of :class:`~.organ_motion.ScaledReference`."""
+
+    def __init__(self, trajectory, info: TraceInfo, centre, name: str):
+        super().__init__(trajectory, name=name)
+        self.info = info
+        self.centre = tuple(float(v) for v in centre)
+
+    def frequencies_hz(self) -> dict:
+        return {}
+
+
+def _parse_header_cell(cell: str) -> tuple[str, str]:
+    """(name, unit) of a header cell: ``SI [mm]``, ``SI (mm)``, ``SI_mm``, ``t``."""
+    text = cell.strip()
+    m = re.fullmatch(r"(.+?)\s*[\[(]\s*([^\])]*)\s*[\])]", text)
+    if m:
+        return m.group(1).strip(), m.group(2).strip()
+    if "_" in text:
+        name, unit = text.rsplit("_", 1)
+        known = {u for table in (UNITS["m"], UNITS["rad"], TIME_UNITS) for u in table}
+        if unit in known:
+            return name, unit
+    return text, ""
+
+
+#: How to write a trace file: the remedy of the messages about one that cannot be read.
+_TRACE_REMEDY = ("write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
+                 "t [s],SI [mm],AP [mm]")
+
+
+def _trace_rows(path: Path) -> list:
+    """The rows of a trace file, header first (lists of cell strings; at least the header)."""
+    from ..fileio import read_checked
+
+    if not path.exists():
+        raise MissingFileError(f"no trace at {path}: check the path")
+    raw = read_checked(path, "trace CSV", MAX_TRACE_BYTES, _TRACE_REMEDY)
+    rows = csv_rows(raw, path, "trace CSV", _TRACE_REMEDY)
+    del raw
+    if not rows:
+        raise InvalidConfigError(f"{path}: empty; {_TRACE_REMEDY}")
+    return rows
+
+
+def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int, float]:
+    """(platform axis 0..5, factor to rad or m with the axis's sign) of one axis column."""
+    k, sign = axis_index(axis_map.get(name, name))
+    kind = "m" if k >= 3 else "rad"
+    table = {u.lower(): f for u, f in UNITS[kind].items()}
+    if unit.lower() not in table:
+        other = "rad" if kind == "m" else "m"
+        hint = (f"a {'length' if other == 'm' else 'angle'} on a "
+                f"{'rotation' if kind == 'rad' else 'translation'} axis"
+                if unit.lower() in {u.lower() for u in UNITS[other]} else
+                f"units: {', '.join(UNITS[kind])}")
+        raise InvalidConfigError(f"{path}: column {name!r} goes to the platform's "
+                                 f"{AXIS_NAMES[k]} and needs a unit of "
+                                 f"{'length' if kind == 'm' else 'angle'}, got "
+                                 f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'")
+    return k, sign * table[unit.lower()]
+
+
+def _trace_header(path: Path, cells: list, axis_map: dict | None):
+    """(names, units, targets, factors) of a trace's header row: the column names and units
+    (time first), and for each axis column its platform axis 0..5 and its factor to rad or m
+    (signed)."""
+    header = [_parse_header_cell(c) for c in cells]
+    names = [h[0] for h in header]
+    if names[0].lower() not in ("t", "time"):
+        raise InvalidConfigError(f"{path}: the first column must be the time (t [s]), got "
+                                 f"{cells[0]!r}; {_TRACE_REMEDY}")
+    if not 2 <= len(header) <= 7:
+        raise InvalidConfigError(f"{path}: a trace has a time column and 1 to 6 axes, got "
+                                 f"{len(header) - 1} axes")
+    units = [h[1] for h in header]
+    if units[0].lower() not in TIME_UNITS:
+        raise InvalidConfigError(f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
+                                 f"), e.g. 't [s]', got {cells[0]!r}")
+    axis_map = dict(axis_map or {})
+    unknown = set(axis_map) - set(names[1:])
+    if unknown:
+        raise InvalidConfigError(f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
+                                 f"the trace has not (its columns: {', '.join(names[1:])})")
+    targets, factors = [], []
+    for name, unit in header[1:]:
+        k, factor = _column_axis(path, name, unit, axis_map)
+        if k in targets:
+            raise InvalidConfigError(f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
+                                     f"map one elsewhere with axis_map (--map NAME=AXIS)")
+        targets.append(k)
+        factors.append(factor)
+    return names, units, targets, factors
+
+
+def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
+    """(n, width) the numbers of the data rows in the file's units, NaN where a cell is empty
+    (blank rows skipped)."""
+    values = []
+    for line, row in enumerate(rows, start=2):
+        if not row or all(not c.strip() for c in row):
+            continue
+        if len(row) != width:
+            raise InvalidConfigError(f"{path}, line {line}: {len(row)} fields, the header has "
+                                     f"{width}")
+        try:
+            numbers = [float(c) if c.strip() else math.nan for c in row]
+        except ValueError:
+            raise InvalidConfigError(f"{path}, line {line}: not numbers: "
+                                     f"{','.join(row)[:200]!r}") from None
+        if not math.isfinite(numbers[0]):
+            raise InvalidConfigError(f"{path}, line {line}: the time is missing")
+        if any(math.isinf(v) for v in numbers):
+            raise InvalidConfigError(f"{path}, line {line}: an infinite value")
+        values.append(numbers)
+    return np.array(values, dtype=float).reshape(-1, width)
+
+
+def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
+    """(m,) the times the trace is resampled at, s: every 1 / resample_hz from 0, and the
+    trace's own end (its memory checked first)."""
+    from ..checks import check_memory
+
+    check_memory(f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
+                 (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
+                 "cut the trace into shorter files, or lower the resampling rate")
+    grid = np.arange(0.0, t[-1] - 0.5 / resample_hz, 1.0 / resample_hz)
+    return np.append(grid, t[-1])                      # the trace's own end
+
+
+def _gaps(path: Path, name: str, tk: np.ndarray, t_end: float, rate: float,
+          max_gap_s: float) -> list:
+    """[(start s, length s), ...] the intervals longer than 2.5 samples (at ``rate``, Hz)
+    without data in one column sampled at tk (s) of a trace from 0 to t_end (s); refused
+    beyond max_gap_s."""
+    gaps = []
+    spans = np.diff(np.concatenate([[0.0], tk, [t_end]]))
+    starts = np.concatenate([[0.0], tk])
+    for start, span in zip(starts, spans):
+        if span > 2.5 / rate:
+            if span > max_gap_s:
+                raise InvalidConfigError(
+                    f"{path}: column {name!r} has no data for {span:.3g} s from t = "
+                    f"{start:.4g} s, more than max_gap_s = {max_gap_s:g} s (a spline would "
+                    f"invent that motion); fill the gap or raise max_gap_s (--max-gap)")
+            gaps.append((float(start), float(span)))
+    return gaps
+
+
+def _resampled(path: Path, t, data, names, targets, factors, grid, rate: float,
+               max_gap_s: float) -> tuple[np.ndarray, list]:
+    """(displacement (m, 6) on the grid in rad and m, gaps bridged [(start s, length s)]): each
+    axis column joined by a cubic spline through its samples; axes without a column zero."""
+    from scipy.interpolate import CubicSpline
+
+    displacement = np.zeros((grid.size, 6))
+    gaps = []
+    for j, (k, factor) in enumerate(zip(targets, factors), start=1):
+        ok = np.isfinite(data[:, j])
+        if np.count_nonzero(ok) < 4:
+            raise InvalidConfigError(f"{path}: column {names[j]!r} has fewer than 4 samples")
+        tk = t[ok]
+        gaps += _gaps(path, names[j], tk, t[-1], rate, max_gap_s)
+        spline = CubicSpline(tk, data[ok, j] * factor)
+        displacement[:, k] = spline(np.clip(grid, tk[0], tk[-1]))
+    return displacement, gaps
+
+
+def _lowpassed(displacement: np.ndarray, lowpass_hz: float | None,
+               resample_hz: float) -> np.ndarray:
+    """(m, 6) the displacement low-passed without phase lag (a 2nd-order Butterworth filter run
+    forwards and backwards), or as it is without ``lowpass_hz`` or with 15 samples or fewer."""
+    from scipy.signal import butter, filtfilt
+
+    if lowpass_hz is not None and len(displacement) > 15:
+        b, a = butter(2, lowpass_hz / (0.5 * resample_hz))
+        displacement = filtfilt(b, a, displacement, axis=0, padtype="odd",
+                                padlen=min(len(displacement) - 1,
+                                           3 * int(resample_hz / lowpass_hz)))
+    return displacement
+
+
+def _centred(displacement: np.ndarray, centre_on: str, targets) -> np.ndarray:
+    """(m, 6) the displacement with its mean over the trace's axes (``"mean"``) or its first
+    sample (``"first"``) removed, in place, or as it is (``"none"``)."""
+    if centre_on == "mean":
+        displacement -= displacement.mean(axis=0) * np.isin(np.arange(6), targets)
+    elif centre_on == "first":
+        displacement -= displacement[0]
+    elif centre_on != "none":
+        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got "
+                                 f"{centre_on!r}")
+    return displacement
+
+
+def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str = "mean",
+               lowpass_hz: float | None = None, max_gap_s: float = 1.0,
+               resample_hz: float = 100.0):
+    """A reference from a recorded trace of 1 to 6 axes.
+
+    The first line names the columns and their units: a time column (``t`` or ``time``, in s,
+    ms or min) and 1 to 6 axes (``SI [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or
+    um, angles in rad, mrad, urad or deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
+    roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
+    :data:`~.organ_motion.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
+    Times increase but need not be evenly spaced; an empty or ``nan`` cell is a missing sample
+    of that axis. Each axis is joined by a cubic spline through its samples
+    (``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
+    without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
+    ``scipy.signal.filtfilt``), and the samples are joined by Drake's C2 spline. Axes the trace
+    does not have stay at the centre.
+
+    A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m) is read by
+    :func:`~.trajectories.load_csv_trajectory` as always (``centre``, ``axis_map``,
+    ``lowpass_hz`` do not apply to it).
+
+    Args:
+        path: the CSV file (UTF-8, at most :data:`MAX_TRACE_BYTES`).
+        axis_map: {column name: platform axis with an optional sign}, e.g. ``{"SI": "-Z"}``;
+            it takes precedence over the names' own meaning.
+        centre: (6,) the pose the trace is centred on, rad and m; default home.
+        centre_on: which pose of the trace goes to ``centre``: "mean" (its mean), "first" (its
+            first sample) or "none" (the trace's values are displacements from ``centre``).
+        lowpass_hz: corner of the zero-phase low-pass, Hz (None: none); below half
+            ``resample_hz``.
+        max_gap_s: longest interval an axis may go without data, s (longer: refused).
+        resample_hz: rate of the samples joined by the C2 spline, Hz.
+    Returns:
+        :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
+        :class:`~.trajectories.DrakeTrajectory` of a project CSV.
+    Raises:
+        MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
+            UTF-8 or not CSV.
+        InvalidConfigError: no time column, a column without a unit or of an unknown one, an
+            axis the platform does not have, two columns on one axis, a length on an angle or
+            the reverse, a row that is not numbers (its line named), times not increasing, a gap
+            longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
+    """
+    path = Path(path)
+    rows = _trace_rows(path)
+    if tuple(h.strip() for h in rows[0]) == CSV_COLUMNS:
+        return load_csv_trajectory(path)
+    names, units, targets, factors = _trace_header(path, rows[0], axis_map)
+    data = _trace_values(path, rows[1:], len(names))
+    del rows
+    t = data[:, 0] * TIME_UNITS[units[0].lower()]
+    if len(t) < 4 or np.any(np.diff(t) <= 0):
+        raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
+    t = t - t[0]
+    rate = 1.0 / float(np.median(np.diff(t)))
+    max_gap_s = as_number("max_gap_s", max_gap_s, 0.0, lo_open=True)
+    resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
+    if lowpass_hz is not None:
+        lowpass_hz = as_number("lowpass_hz", lowpass_hz, 0.0, 0.5 * resample_hz, lo_open=True)
+    grid = _trace_grid(path, t, resample_hz)
+    displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate,
+                                    max_gap_s)
+    displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on,
+                            targets)
+    centre = X_HOME if centre is None else np.asarray(check_centre("trace", centre))
+    poses = as_poses(f"{path}: the trace's poses", centre + displacement)
+    from pydrake.trajectories import PiecewisePolynomial
+
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)
+    info = TraceInfo(path=str(path), columns=tuple(names), units=tuple(units),
+                     axes=tuple(f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}"
+                                for k, f in zip(targets, factors)),
+                     samples=len(t), sample_rate_hz=rate, gaps=tuple(sorted(set(gaps))),
+                     lowpass_hz=lowpass_hz, duration_s=float(grid[-1]), centred_on=centre_on)
+    return TraceTrajectory(spline, info, centre, name=path.stem)
+
+# -- a scenario's choice of a trace ----------------------------------------------------------------
+
+@dataclass
+class TraceReference(ReferenceConfig):
+    """A recorded trace of 1 to 6 axes: a CSV whose header names each column and its unit
+    (:func:`load_trace`); the project's own ``t,phi,theta,psi,X,Y,Z`` CSV too.
+
+    Attributes:
+        path: the file (relative to the working folder).
+        axis_map: trace column -> platform axis with an optional sign ({SI: -Z}).
+        centre: (6,) the pose the trace is centred on, rad and m.
+        centre_on: "mean", "first" or "none" (which pose of the trace goes to ``centre``).
+        lowpass_hz: corner of the zero-phase low-pass, Hz (0: none).
+        max_gap_s: longest interval without data an axis may have, s.
+        scale: the trace shrunk about its centre, in (0, 1].
+    """
+
+    path: str = ""
+    axis_map: Dict[str, str] = field(default_factory=dict)
+    centre: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    centre_on: str = "mean"
+    lowpass_hz: float = 0.0
+    max_gap_s: float = 1.0
+    scale: float = 1.0
+
+    def validate(self) -> None:
+        as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
+        if not self.path or not Path(self.path).exists():
+            raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")
+        if self.centre_on not in CENTRE_MODES:
+            raise InvalidConfigError(f"reference.centre_on must be one of {CENTRE_MODES}, got "
+                                     f"{self.centre_on!r}")
+        as_number("reference.lowpass_hz", self.lowpass_hz, 0.0)
+        as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
+        as_array("reference.centre", self.centre, shape=(6,))
+
+    def make(self, geometry: StewartGeometry, duration_s: float,
+             torque_limit_Nm: float | None) -> Reference:
+        trace = load_trace(self.path, self.axis_map, self.centre, self.centre_on,
+                           self.lowpass_hz or None, self.max_gap_s)
+        return scaled(trace, self.scale)
+
+    @property
+    def label(self) -> str:
+        return Path(self.path).stem
+
+
+__all__ = ["load_trace", "TraceTrajectory", "TraceInfo", "CENTRE_MODES", "MAX_TRACE_BYTES",
+           "TIME_UNITS", "TraceReference"]
