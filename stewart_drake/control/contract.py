@@ -68,8 +68,9 @@ name resolves only to a factory that Python code the user runs gave to
 (:func:`resolve_controller`).
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar, Dict, Optional
+from typing import ClassVar
 
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
@@ -134,7 +135,7 @@ class ControllerDriver:
     """
 
     #: Whether the controller has the ``omega`` input a tuner drives (None: known once built).
-    takes_omega: ClassVar[Optional[bool]] = None
+    takes_omega: ClassVar[bool | None] = None
     #: How a run's result files mark the controller (``run_<reference>...<suffix>``).
     run_suffix: ClassVar[str] = ""
 
@@ -232,7 +233,7 @@ class UserController(ControllerDriver):
     """
 
     factory: str = ""
-    parameters: Dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, float] = field(default_factory=dict)
 
     def validate(self, control_period_s: float, delay_periods: int = 0,
                  prefix: str = "controller.") -> "UserController":

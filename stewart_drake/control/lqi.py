@@ -26,7 +26,7 @@ then span soft to stiff controllers that all hold the platform.
 import dataclasses
 import warnings
 from dataclasses import dataclass, field
-from typing import ClassVar, List
+from typing import ClassVar
 
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
@@ -116,9 +116,9 @@ class LqiScalesConfig(ValueMirror):
 
     value_class = LqiScales
 
-    pose: List[float] = field(default_factory=lambda: list(LqiScales.pose))
-    rate: List[float] = field(default_factory=lambda: list(LqiScales.rate))
-    integral: List[float] = field(default_factory=lambda: list(LqiScales.integral))
+    pose: list[float] = field(default_factory=lambda: list(LqiScales.pose))
+    rate: list[float] = field(default_factory=lambda: list(LqiScales.rate))
+    integral: list[float] = field(default_factory=lambda: list(LqiScales.integral))
     torque: float = LqiScales.torque
 
 
@@ -886,7 +886,7 @@ class LqiController(LeafSystem):
             if status.gain_failures == 1 or status.gain_failures % 100 == 0:
                 warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed ({err}); "
                               f"keeping the last good gain ({int(status.gain_failures)} failures "
-                              f"so far)", RuntimeWarning)
+                              f"so far)", RuntimeWarning, stacklevel=1)
             return False
         status.omega_Q, status.omega_R = omega
         status.gain_solves += 1

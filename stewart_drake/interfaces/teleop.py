@@ -18,8 +18,9 @@ nothing). The run ends after ``duration_s`` or at Ctrl-C, and reports the real-t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -219,7 +220,7 @@ def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float =
             t_next = simulator.get_context().get_time() + chunk_s
             if duration_s is not None:
                 t_next = min(t_next, t_start + duration_s)
-            guard.advance(run.loop, simulator, lambda: simulator.AdvanceTo(t_next))
+            guard.advance(run.loop, simulator, functools.partial(simulator.AdvanceTo, t_next))
             marks.append((time.perf_counter(), simulator.get_context().get_time()))
     except KeyboardInterrupt:
         pass

@@ -197,7 +197,7 @@ class StewartGeometry:
                     f"the home pose violates the {name} limit of leg {leg} by "
                     f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit")
 
-    def replace(self, **changes) -> "StewartGeometry":
+    def replace(self, **changes) -> StewartGeometry:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 

@@ -489,7 +489,7 @@ def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
 
 
 def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float,
-            extra: dict) -> "TrajectoryReport":
+            extra: dict) -> TrajectoryReport:
     """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
     already mapped to the worst value), with the clearance and effort fields in ``extra``."""
     min_margin, min_leg, min_t = {}, {}, {}

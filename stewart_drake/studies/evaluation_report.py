@@ -8,6 +8,7 @@ the three pictures (one function each, :func:`plot_results`).
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -420,7 +421,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
                        ("results_steps.png", _plot_steps)):
         fig = draw(by, colors)
         path = Path(out_dir) / name
-        atomic_write(path, lambda f: fig.savefig(f, dpi=100, format="png"))
+        atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
         paths.append(path)
     return paths
 
