@@ -77,6 +77,7 @@ from pydrake.systems.framework import Diagram, LeafSystem
 
 from ..checks import as_number
 from ..errors import InvalidConfigError
+from ..model.geometry import StewartGeometry
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
 INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2,
@@ -115,15 +116,15 @@ class ControllerContext:
             controller may buffer them on a ``feature_window`` output); None without one.
     """
 
-    geometry: object
+    geometry: StewartGeometry
     period_s: float
     offset_s: float
     plant_time_step_s: float
     x_initial: np.ndarray
-    x_dot_initial: np.ndarray = None
+    x_dot_initial: np.ndarray | None = None
     torque_limit_Nm: float | None = None
     delay_periods: int = 0
-    pose_estimator: object = None
+    pose_estimator: LeafSystem | None = None     # a PoseEstimator (its module imports this one)
     feature_window: int | None = None
 
 
@@ -298,13 +299,13 @@ def check_controller(system) -> None:
               for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name(): system.get_output_port(i)
                for i in range(system.num_output_ports())}
-    for port in REQUIRED_INPUTS:
-        if port not in inputs:
-            raise InvalidConfigError(f"controller {name} has no input port {port!r} "
+    for required in REQUIRED_INPUTS:
+        if required not in inputs:
+            raise InvalidConfigError(f"controller {name} has no input port {required!r} "
                                      f"(required by the contract, control/contract.py)")
-    for port in REQUIRED_OUTPUTS:
-        if port not in outputs:
-            raise InvalidConfigError(f"controller {name} has no output port {port!r} "
+    for required in REQUIRED_OUTPUTS:
+        if required not in outputs:
+            raise InvalidConfigError(f"controller {name} has no output port {required!r} "
                                      f"(required by the contract, control/contract.py)")
     for port_name, port in inputs.items():
         if port_name not in INPUT_PORTS:
