@@ -46,7 +46,7 @@ def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[floa
         n = np.ones(3)
         n[j] = -1.0
         m += n * (margin - deficits[j]) / 3.0
-    return tuple(float(v) for v in m)
+    return float(m[0]), float(m[1]), float(m[2])
 
 
 def _ring(radius: float, angles_deg, z: float = 0.0) -> np.ndarray:

@@ -538,10 +538,11 @@ def closed_chain_inverse_dynamics(plant: MultibodyPlant, context: Context,
 def loop_closure_errors(plant: MultibodyPlant, context: Context,
                         handles: StewartPlantHandles) -> np.ndarray:
     """(6,) distance in m between each rod's top end and its platform joint (0 when closed)."""
+    # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
     p_W_joint = plant.EvalBodyPoseInWorld(context, handles.platform).multiply(
-        handles.geometry.p_E.T)                                   # (3, 6) platform joints
+        handles.geometry.p_E.T)  # type: ignore[arg-type]        # (3, 6) platform joints
     p_W_top = np.column_stack([plant.EvalBodyPoseInWorld(context, rod).multiply(
-        handles.rod_top_in_rod) for rod in handles.rods])         # (3, 6) rod top ends
+        handles.rod_top_in_rod) for rod in handles.rods])  # type: ignore[arg-type]  # rod tops
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
 
 
