@@ -70,7 +70,7 @@ name resolves only to a factory that Python code the user runs gave to
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
@@ -124,7 +124,8 @@ class ControllerContext:
     x_dot_initial: np.ndarray | None = None
     torque_limit_Nm: float | None = None
     delay_periods: int = 0
-    pose_estimator: LeafSystem | None = None     # a PoseEstimator (its module imports this one)
+    # A PoseEstimator or None; Any, as estimator.py imports this module (through lqi_step).
+    pose_estimator: Any = None
     feature_window: int | None = None
 
 
