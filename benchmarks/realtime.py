@@ -205,9 +205,11 @@ def riccati_costs(controller, n: int = 100) -> dict:
         A_c, W = np.ascontiguousarray(Ab - Bb @ Kb), Qb + Kb.T @ Rb @ Kb
         W = 0.5 * (W + W.T)
         stein(A_c, W, lqi.STEIN_TOL, 64)                  # compiled before it is timed
-        for label, solve in (("drake", lambda: RealDiscreteLyapunovEquation(A_c, W)),
-                             ("scipy", lambda: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
-                             ("compiled", lambda: stein(A_c, W, lqi.STEIN_TOL, 64)[0])):
+        # Each solve is called in this iteration; the defaults bind A_c and W all the same.
+        for label, solve in (
+                ("drake", lambda A_c=A_c, W=W: RealDiscreteLyapunovEquation(A_c, W)),
+                ("scipy", lambda A_c=A_c, W=W: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
+                ("compiled", lambda A_c=A_c, W=W: stein(A_c, W, lqi.STEIN_TOL, 64)[0])):
             t0 = time.perf_counter()
             P = solve()
             times[f"stein_{label}_ms"] += time.perf_counter() - t0

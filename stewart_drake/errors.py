@@ -72,7 +72,7 @@ class UnreachablePoseError(StewartError, ValueError):
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
         self.ratio = abs(float(ratio))      # callers may pass the signed L / sqrt(M^2 + N^2)
-        where = _locate(self, t, pose)
+        self.t, self.pose, where = _locate(t, pose)
         value = (f"= {self.ratio:.4g} > 1" if not math.isnan(self.ratio) else
                  "is not a number (M = N = 0: the platform joint is on the motor's axis)")
         super().__init__(
@@ -168,7 +168,7 @@ class JointLimitError(StewartError, ValueError):
         self.leg = int(leg)
         self.limit = str(limit)
         self.margin = float(margin)
-        where = _locate(self, t, pose)
+        self.t, self.pose, where = _locate(t, pose)
         super().__init__(
             f"leg {self.leg} leaves its {self.limit} limit by {math.degrees(-self.margin):.3g}"
             f" deg{where}. Reduce the trajectory's amplitude, or widen "
@@ -198,7 +198,7 @@ class SingularPoseError(StewartError, ValueError):
         self.measure = str(measure)
         self.value = float(value)
         self.threshold = float(threshold)
-        where = _locate(self, t, pose)
+        self.t, self.pose, where = _locate(t, pose)
         what = {"cond": f"cond(J) = {self.value:.4g} > {self.threshold:g} (the motors are about to "
                         f"lose the ability to hold the platform in some direction)",
                 "sigma_min_inv": f"1/sigma_max(J) = {self.value:.4g} < {self.threshold:g} "
@@ -231,7 +231,7 @@ class InterferenceError(StewartError, ValueError):
                  t: float | None = None, pose=None):
         self.part_a, self.part_b = str(part_a), str(part_b)
         self.clearance, self.margin = float(clearance), float(margin)
-        where = _locate(self, t, pose)
+        self.t, self.pose, where = _locate(t, pose)
         how = (f"overlap by {-self.clearance * 1e3:.3g} mm" if self.clearance < 0
                else f"are {self.clearance * 1e3:.3g} mm apart")
         super().__init__(
@@ -261,7 +261,7 @@ class MotorLimitError(StewartError, ValueError):
                  t: float | None = None, pose=None):
         self.motor, self.quantity = int(motor), str(quantity)
         self.required, self.limit = float(required), float(limit)
-        where = _locate(self, t, pose)
+        self.t, self.pose, where = _locate(t, pose)
         unit = "N m" if self.quantity == "torque" else "rad/s"
         #: What the motion asks of which motor, when, and by how much over the limit: the
         #: error's first sentence, and the warning's when the run goes on anyway.
@@ -322,16 +322,15 @@ def _percent(p: float) -> str:
     return f"{p:.0f}" if abs(p) >= 1 else f"{p:.2g}"
 
 
-def _locate(error: StewartError, t: float | None, pose) -> str:
-    """Set ``error.t`` (s or None) and ``error.pose`` (list or None); return
-    " at t = ... (pose ...)"."""
-    error.t = None if t is None else float(t)
-    error.pose = None if pose is None else [float(v) for v in pose]
-    where = "" if error.t is None else f" at t = {error.t:.4g} s"
-    if error.pose is not None:
+def _locate(t: float | None, pose) -> tuple[float | None, list[float] | None, str]:
+    """An error's ``t`` (s or None) and ``pose`` (list or None), and " at t = ... (pose ...)"."""
+    t = None if t is None else float(t)
+    pose = None if pose is None else [float(v) for v in pose]
+    where = "" if t is None else f" at t = {t:.4g} s"
+    if pose is not None:
         where += (" (pose [phi, theta, psi, X, Y, Z] = ["
-                  + ", ".join(f"{v:.4g}" for v in error.pose) + "])")
-    return where
+                  + ", ".join(f"{v:.4g}" for v in pose) + "])")
+    return t, pose, where
 
 
 class FeasibilityWarning(UserWarning):

@@ -254,7 +254,7 @@ class CheckedNpz:
             sizes = {info.filename: info.file_size for info in archive.infolist()}
         total = sum(sizes.values())
         if total > max_bytes:
-            name = max(sizes, key=sizes.get)
+            name = max(sizes, key=sizes.__getitem__)
             raise self.corrupt(f"its entries hold {format_bytes(total)} after decompression "
                                f"({name!r}: {format_bytes(sizes[name])}), over the bound of "
                                f"{format_bytes(max_bytes)} for this kind of file")

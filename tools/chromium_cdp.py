@@ -52,7 +52,7 @@ class HeadlessChromium:
         self._buffer = b""
         self._session = None
 
-    def __enter__(self) -> "HeadlessChromium":
+    def __enter__(self) -> HeadlessChromium:
         self._profile = tempfile.TemporaryDirectory(prefix="chromium-profile-",
                                                     ignore_cleanup_errors=True)
         self._log = tempfile.TemporaryFile()

@@ -27,8 +27,9 @@ def functions(root: Path):
     out = []
     for path in sorted(root.rglob("*.py")):
         tree = ast.parse(path.read_text())
+        where = path.relative_to(root.parent)
 
-        def visit(node, prefix=""):
+        def visit(node, prefix="", where=where):    # bound now: a def in a loop
             for child in ast.iter_child_nodes(node):
                 if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                     name = f"{prefix}{child.name}"
@@ -37,7 +38,7 @@ def functions(root: Path):
                     doc = (first.end_lineno - first.lineno + 1
                            if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
                            and isinstance(first.value.value, str) else 0)
-                    out.append((lines, f"{path.relative_to(root.parent)}:{name}", lines - doc))
+                    out.append((lines, f"{where}:{name}", lines - doc))
                     visit(child, name + ".")
                 elif isinstance(child, ast.ClassDef):
                     visit(child, f"{prefix}{child.name}.")

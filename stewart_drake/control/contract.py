@@ -68,14 +68,16 @@ name resolves only to a factory that Python code the user runs gave to
 (:func:`resolve_controller`).
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, ClassVar, Dict, Optional
+from typing import Any, ClassVar
 
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
 
 from ..checks import as_number
 from ..errors import InvalidConfigError
+from ..model.geometry import StewartGeometry
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
 INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2,
@@ -114,15 +116,16 @@ class ControllerContext:
             controller may buffer them on a ``feature_window`` output); None without one.
     """
 
-    geometry: object
+    geometry: StewartGeometry
     period_s: float
     offset_s: float
     plant_time_step_s: float
     x_initial: np.ndarray
-    x_dot_initial: np.ndarray = None
+    x_dot_initial: np.ndarray | None = None
     torque_limit_Nm: float | None = None
     delay_periods: int = 0
-    pose_estimator: object = None
+    # A PoseEstimator or None; Any, as estimator.py imports this module (through lqi_step).
+    pose_estimator: Any = None
     feature_window: int | None = None
 
 
@@ -134,7 +137,7 @@ class ControllerDriver:
     """
 
     #: Whether the controller has the ``omega`` input a tuner drives (None: known once built).
-    takes_omega: ClassVar[Optional[bool]] = None
+    takes_omega: ClassVar[bool | None] = None
     #: How a run's result files mark the controller (``run_<reference>...<suffix>``).
     run_suffix: ClassVar[str] = ""
     #: The choice's name where a command picks it with its defaults (``run --controller NAME``,
@@ -235,7 +238,7 @@ class UserController(ControllerDriver):
     """
 
     factory: str = ""
-    parameters: Dict[str, float] = field(default_factory=dict)
+    parameters: dict[str, float] = field(default_factory=dict)
 
     def validate(self, control_period_s: float, delay_periods: int = 0,
                  prefix: str = "controller.") -> "UserController":
@@ -300,13 +303,13 @@ def check_controller(system) -> None:
               for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name(): system.get_output_port(i)
                for i in range(system.num_output_ports())}
-    for port in REQUIRED_INPUTS:
-        if port not in inputs:
-            raise InvalidConfigError(f"controller {name} has no input port {port!r} "
+    for required in REQUIRED_INPUTS:
+        if required not in inputs:
+            raise InvalidConfigError(f"controller {name} has no input port {required!r} "
                                      f"(required by the contract, control/contract.py)")
-    for port in REQUIRED_OUTPUTS:
-        if port not in outputs:
-            raise InvalidConfigError(f"controller {name} has no output port {port!r} "
+    for required in REQUIRED_OUTPUTS:
+        if required not in outputs:
+            raise InvalidConfigError(f"controller {name} has no output port {required!r} "
                                      f"(required by the contract, control/contract.py)")
     for port_name, port in inputs.items():
         if port_name not in INPUT_PORTS:

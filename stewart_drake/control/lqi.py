@@ -24,9 +24,10 @@ then span soft to stiff controllers that all hold the platform.
 """
 
 import dataclasses
+import typing
 import warnings
 from dataclasses import dataclass, field
-from typing import ClassVar, List
+from typing import ClassVar
 
 import numpy as np
 from pydrake.math import DiscreteAlgebraicRiccatiEquation
@@ -116,9 +117,9 @@ class LqiScalesConfig(ValueMirror):
 
     value_class = LqiScales
 
-    pose: List[float] = field(default_factory=lambda: list(LqiScales.pose))
-    rate: List[float] = field(default_factory=lambda: list(LqiScales.rate))
-    integral: List[float] = field(default_factory=lambda: list(LqiScales.integral))
+    pose: list[float] = field(default_factory=lambda: list(LqiScales.pose))
+    rate: list[float] = field(default_factory=lambda: list(LqiScales.rate))
+    integral: list[float] = field(default_factory=lambda: list(LqiScales.integral))
     torque: float = LqiScales.torque
 
 
@@ -648,7 +649,8 @@ class LqiController(LeafSystem):
         error_model(np.eye(6), self.h, delay_periods)             # checks delay_periods
         self.delay = int(delay_periods) if driver.delay_compensation else 0
         self.n = N_E + 6 * self.delay
-        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit if self.governor
+        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit
+                                if self.governor and self.torque_limit is not None
                                 else np.inf)
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         self.schedule_pose = driver.schedule_pose
@@ -796,7 +798,7 @@ class LqiController(LeafSystem):
         Returns:
             (24,) [pose (6), rate (6), acceleration (6), the pose's holding torques (6)].
         """
-        bound, eps = GOVERNOR_MARGIN * self.torque_limit, 1e-6
+        bound, eps = GOVERNOR_MARGIN * self.torque_limit, 1e-6  # type: ignore[operator]
         x = hold[:6] if np.any(hold[18:]) else ref[:6]
         try:
             T = statics.holding_torques(self.geometry, x + np.vstack([np.zeros(6),
@@ -816,7 +818,7 @@ class LqiController(LeafSystem):
     def inputs(self, context) -> np.ndarray:
         """The input vector ``u`` of this period (``layout``), read once: the one place the
         controller reads its ports, so a test can inject a fault there."""
-        return self._u.Eval(context)
+        return typing.cast(np.ndarray, self._u.Eval(context))
 
     # -- update --------------------------------------------------------------------------------
     def gain_in_use(self, context) -> np.ndarray:
@@ -887,7 +889,7 @@ class LqiController(LeafSystem):
             if status.gain_failures == 1 or status.gain_failures % 100 == 0:
                 warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed ({err}); "
                               f"keeping the last good gain ({int(status.gain_failures)} failures "
-                              f"so far)", RuntimeWarning)
+                              f"so far)", RuntimeWarning, stacklevel=1)
             return False
         status.omega_Q, status.omega_R = omega
         status.gain_solves += 1
@@ -919,7 +921,8 @@ class LqiDiagram(Diagram):
     def __init__(self, geometry: StewartGeometry, driver: LqiDriver | None = None, **settings):
         super().__init__()
         builder = DiagramBuilder()
-        self.lqi = builder.AddNamedSystem("lqi", LqiController(geometry, driver, **settings))
+        self.lqi = LqiController(geometry, driver, **settings)
+        builder.AddNamedSystem("lqi", self.lqi)
         self.status_names = LQI_STATUS_NAMES
         lay = self.lqi.layout
         names = ("x" if self.lqi.estimator is None else "motor_angle", "x_d", "T_ff", "omega",

@@ -90,7 +90,7 @@ def sources_digest() -> str:
 
 
 #: :func:`sources_digest` of the sources this file was last compiled against.
-DEPENDENCIES_DIGEST = "f158c2cbba724376"
+DEPENDENCIES_DIGEST = "750ff229cf98387c"
 
 
 def _use_cache() -> bool:

@@ -114,7 +114,7 @@ class LqiLayout:
 
     @classmethod
     def build(cls, n: int, delay_periods: int, governor: bool, estimator: bool,
-              window: int | None) -> "LqiLayout":
+              window: int | None) -> LqiLayout:
         """The layout for n gain columns, d periods of delay, with or without a governor, an
         estimator and a feature window of ``window`` samples."""
         inputs = (6 if estimator else 12, 18, 6, 2, 6 if window else 0)

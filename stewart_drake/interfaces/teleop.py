@@ -18,8 +18,10 @@ nothing). The run ends after ``duration_s`` or at Ctrl-C, and reports the real-t
 from __future__ import annotations
 
 import dataclasses
+import functools
 import time
-from typing import Callable
+from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -27,6 +29,14 @@ from pydrake.systems.framework import LeafSystem
 from ..model.kinematics import X_HOME
 from ..model.statics import holding_torques
 from ..simulation.plan import make_plan
+
+if TYPE_CHECKING:   # for the annotations only: build_teleop imports these when it runs
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import Diagram
+    from pydrake.visualization import MeshcatPoseSliders
+
+    from ..simulation.diagram import StewartDiagram
+    from ..simulation.reference import TeleopReference
 
 #: Slider range around the start pose: [roll, pitch, yaw] rad, [x, y, z] m.
 SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
@@ -96,7 +106,7 @@ class TeleopDisplay(LeafSystem):
 
     def figures(self, context) -> dict:
         """{name: value} of the display now (the tracking error and the margins)."""
-        x, x_d = self._x.Eval(context), self._x_d.Eval(context)
+        x, x_d = np.asarray(self._x.Eval(context)), np.asarray(self._x_d.Eval(context))
         e = np.abs(x[:6] - x_d[:6])
         return {"error [mm]": 1e3 * float(e[3:].max()),
                 "error [mrad]": 1e3 * float(e[:3].max()), **self.margins(x[:6])}
@@ -117,12 +127,12 @@ class TeleopRun:
     ``sliders``, ``reference`` (the :class:`~stewart_drake.simulation.reference.TeleopReference`),
     ``display`` and ``simulator`` (initialized, at the target real-time rate)."""
 
-    diagram: object
-    loop: object
-    sliders: object
-    reference: object
-    display: object
-    simulator: object
+    diagram: Diagram
+    loop: StewartDiagram
+    sliders: MeshcatPoseSliders
+    reference: TeleopReference
+    display: TeleopDisplay
+    simulator: Simulator
 
 
 def teleop_scenario(scenario):
@@ -179,13 +189,15 @@ def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, li
     loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
-    sliders = builder.AddNamedSystem("sliders", MeshcatPoseSliders(
+    sliders = MeshcatPoseSliders(
         meshcat, initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
-        lower_limit=x0 - SLIDER_RANGE, upper_limit=x0 + SLIDER_RANGE, step=SLIDER_STEP))
+        lower_limit=x0 - SLIDER_RANGE, upper_limit=x0 + SLIDER_RANGE, step=SLIDER_STEP)
+    builder.AddNamedSystem("sliders", sliders)
     builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
-    display = builder.AddNamedSystem("display", TeleopDisplay(
+    display = TeleopDisplay(
         meshcat, margins or robot_margins(geometry, peak, clearance),
-        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)}))
+        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)})
+    builder.AddNamedSystem("display", display)
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
     diagram = builder.Build()
@@ -220,7 +232,7 @@ def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float =
             t_next = simulator.get_context().get_time() + chunk_s
             if duration_s is not None:
                 t_next = min(t_next, t_start + duration_s)
-            guard.advance(run.loop, simulator, lambda: simulator.AdvanceTo(t_next))
+            guard.advance(run.loop, simulator, functools.partial(simulator.AdvanceTo, t_next))
             marks.append((time.perf_counter(), simulator.get_context().get_time()))
     except KeyboardInterrupt:
         pass

@@ -86,7 +86,7 @@ def _mark_contacts(animation, frame: int, markers: list, shown: list, close: lis
     for j, (path, colours) in enumerate(markers):
         contact = close[j] if j < len(close) else None
         kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
-        if kind is not None:
+        if contact is not None:                             # kind is not None
             animation.SetTransform(frame, path, RigidTransform(0.5 * (contact.p_WA
                                                                       + contact.p_WB)))
         if kind != shown[j]:
@@ -290,7 +290,8 @@ def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str
     def vector_size(port) -> str:
         return f" ({port.size()})" if port.get_data_type().name == "kVectorValued" else ""
 
-    edges, used = [], {}
+    edges: list = []
+    used: dict = {}
 
     def edge(src, out_name, dst, in_name, label):
         used.setdefault(src[0], (src[1], set(), set()))[2].add(out_name)
@@ -397,8 +398,9 @@ def diagram_dots() -> dict[str, str]:
            "diagram_ann": titled(ann.diagram.GetGraphvizString(max_depth=1),
                                  f"the paper's ANN tuner: {HARDWARE_CAPTION}"),
            "lqi_controller": fixed.controller.GetGraphvizString(),
-           "density_features": ann.features.GetGraphvizString(),
-           "ann_tuner": ann.tuner.GetGraphvizString(),
+           # With the paper's tuner the loop has both (StewartDiagram types them optional).
+           "density_features": ann.features.GetGraphvizString(),  # type: ignore[union-attr]
+           "ann_tuner": ann.tuner.GetGraphvizString(),  # type: ignore[union-attr]
            "crank_pd": pd.controller.GetGraphvizString()}
     return {name: normalize_dot(dot) for name, dot in raw.items()}
 

@@ -46,7 +46,7 @@ def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[floa
         n = np.ones(3)
         n[j] = -1.0
         m += n * (margin - deficits[j]) / 3.0
-    return tuple(float(v) for v in m)
+    return float(m[0]), float(m[1]), float(m[2])
 
 
 def _ring(radius: float, angles_deg, z: float = 0.0) -> np.ndarray:
@@ -197,7 +197,7 @@ class StewartGeometry:
                     f"the home pose violates the {name} limit of leg {leg} by "
                     f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit")
 
-    def replace(self, **changes) -> "StewartGeometry":
+    def replace(self, **changes) -> StewartGeometry:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 

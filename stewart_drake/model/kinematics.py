@@ -55,27 +55,50 @@ class RobotGeometry(Protocol):
     import it.
     """
 
-    crank_length: float
-    rod_length: float
-    P_B: np.ndarray
-    p_E: np.ndarray
-    d_B: np.ndarray
-    u_B: np.ndarray
-    motor_angle_min_deg: float
-    motor_angle_max_deg: float
-    crank_joint_cone_deg: float
-    platform_joint_cone_deg: float
-    platform_mass: float
-    platform_inertia: tuple
-    crank_mass: float
-    crank_inertia: tuple
-    rod_mass: float
-    rod_inertia: tuple
-    motor_reflected_inertia: float
-    gravity: float
+    # Read-only properties: StewartGeometry is a frozen dataclass (and computes P_B), which a
+    # protocol's plain, settable attributes would not accept.
+    @property
+    def crank_length(self) -> float: ...
+    @property
+    def rod_length(self) -> float: ...
+    @property
+    def P_B(self) -> np.ndarray: ...
+    @property
+    def p_E(self) -> np.ndarray: ...
+    @property
+    def d_B(self) -> np.ndarray: ...
+    @property
+    def u_B(self) -> np.ndarray: ...
+    @property
+    def motor_angle_min_deg(self) -> float: ...
+    @property
+    def motor_angle_max_deg(self) -> float: ...
+    @property
+    def crank_joint_cone_deg(self) -> float: ...
+    @property
+    def platform_joint_cone_deg(self) -> float: ...
+    @property
+    def platform_mass(self) -> float: ...
+    @property
+    def platform_inertia(self) -> tuple: ...
+    @property
+    def crank_mass(self) -> float: ...
+    @property
+    def crank_inertia(self) -> tuple: ...
+    @property
+    def rod_mass(self) -> float: ...
+    @property
+    def rod_inertia(self) -> tuple: ...
+    @property
+    def motor_reflected_inertia(self) -> float: ...
+    @property
+    def gravity(self) -> float: ...
 
     def crank_tips(self, theta) -> np.ndarray:
         """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6), base frame."""
+
+    def __hash__(self) -> int:
+        """Hashable: caches (functools.lru_cache) key on the geometry."""
 
 
 _Z = np.array([0.0, 0.0, 1.0])

@@ -12,7 +12,8 @@ every entry point (the run, the collection, the tasks, ``stewart-drake check``) 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import lru_cache, reduce
+from typing import Any
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from ..errors import (
     JointLimitError,
     MotorLimitError,
     SingularPoseError,
+    StewartError,
     UnreachablePoseError,
 )
 from .kinematics import (
@@ -154,11 +156,8 @@ def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) 
 
 
 def _reachable_from_margins(margins: dict) -> np.ndarray:
-    ok = None
-    for name in LIMITS:
-        leg_ok = np.all(margins[name] >= 0.0, axis=-1)     # NaN counts as violated
-        ok = leg_ok if ok is None else ok & leg_ok
-    return ok
+    # NaN counts as violated.
+    return reduce(np.logical_and, (np.all(margins[name] >= 0.0, axis=-1) for name in LIMITS))
 
 
 
@@ -489,7 +488,7 @@ def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
 
 
 def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float,
-            extra: dict) -> "TrajectoryReport":
+            extra: dict) -> TrajectoryReport:
     """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
     already mapped to the worst value), with the clearance and effort fields in ``extra``."""
     min_margin, min_leg, min_t = {}, {}, {}
@@ -568,7 +567,8 @@ def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimit
     for name, value in (("torque", T), ("speed", speed)):
         series[name] = np.full(x.shape, np.nan)
         series[name][rows] = value
-    out, first = {}, None
+    out: dict = {}
+    first: MotorLimitError | None = None
     for name, value, bound in (("torque", np.abs(T), limits_.peak_torque_Nm),
                                ("speed", np.abs(speed), limits_.max_speed_rad_s)):
         k, motor = np.unravel_index(int(np.argmax(value)), value.shape)
@@ -590,7 +590,7 @@ def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv,
                          allow_infeasible: bool = False):
     """Raise the typed error of the earliest refused sample of a validated path (a motor over
     its limit only without ``allow_infeasible``); nothing when only that remains."""
-    candidates = []
+    candidates: list[tuple[Any, int, StewartError]] = []     # (t, rank, error)
     if report.first_interference is not None:
         ti, a, b, d = report.first_interference
         k = int(np.searchsorted(t, ti))

@@ -116,6 +116,8 @@ def write_mjcf(geometry: StewartGeometry | None = None, time_step: float = 1e-3,
     Source: body frames and inertias of the Drake plant at home (same SDF, Table I).
     """
     # Long: one document written element after element, in the order the file reads.
+    from pydrake.math import RigidTransform
+
     from .parts import robot_parts
     from .plant import MODEL_NAME, make_plant
 
@@ -123,13 +125,13 @@ def write_mjcf(geometry: StewartGeometry | None = None, time_step: float = 1e-3,
     g = geometry or StewartGeometry()
     plant, context, handles, _, _ = make_plant(g)
 
-    def pose(body) -> object:
+    def pose(body) -> RigidTransform:
         return plant.EvalBodyPoseInWorld(context, body)
 
     def frame(X) -> str:                       # pos and quat attributes of a pose
         return f'pos="{_num(X.translation())}" quat="{_num(_quat(X.rotation()))}"'
 
-    shapes = {}
+    shapes: dict[str, list[str]] = {}
     for part in robot_parts(g):
         shapes.setdefault(part.link, []).append(_geom(part))
     out = ['<?xml version="1.0"?>',

@@ -22,8 +22,8 @@ from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
-from pydrake.multibody.tree import PdControllerGains
-from pydrake.systems.framework import Context, DiagramBuilder
+from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains, RigidBody
+from pydrake.systems.framework import Context, DiagramBuilder, InputPort
 
 from ..errors import InvalidConfigError
 from . import kinematics
@@ -199,16 +199,17 @@ class StewartPlantHandles:
     """What a caller needs to address the robot inside a plant (indices are Drake's)."""
 
     geometry: StewartGeometry
-    model_instance: object
-    platform: object            # RigidBody
+    model_instance: ModelInstanceIndex
+    platform: RigidBody
     cranks: tuple               # 6 RigidBody
     rods: tuple                 # 6 RigidBody
     motors: tuple               # 6 RevoluteJoint
     rod_balls: tuple            # 6 BallRpyJoint
     rod_top_in_rod: np.ndarray  # (3,) p_AP of every ball constraint, rod frame
-    actuation_port: object      # plant input port of the model's actuators (see n_actuators)
+    actuation_port: InputPort   # plant input port of the model's actuators (see n_actuators)
     n_actuators: int = 6        # 6 motors, + 6 dry-friction actuators when the servo has friction
-    desired_state_port: object = None   # the friction actuators' desired state (zeros), or None
+    desired_state_port: InputPort | None = None     # the friction actuators' desired state
+                                                    # (zeros), or None
 
 
 def add_stewart_plant(builder: DiagramBuilder, geometry: StewartGeometry | None = None,
@@ -537,10 +538,11 @@ def closed_chain_inverse_dynamics(plant: MultibodyPlant, context: Context,
 def loop_closure_errors(plant: MultibodyPlant, context: Context,
                         handles: StewartPlantHandles) -> np.ndarray:
     """(6,) distance in m between each rod's top end and its platform joint (0 when closed)."""
+    # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
     p_W_joint = plant.EvalBodyPoseInWorld(context, handles.platform).multiply(
-        handles.geometry.p_E.T)                                   # (3, 6) platform joints
+        handles.geometry.p_E.T)  # type: ignore[arg-type]        # (3, 6) platform joints
     p_W_top = np.column_stack([plant.EvalBodyPoseInWorld(context, rod).multiply(
-        handles.rod_top_in_rod) for rod in handles.rods])         # (3, 6) rod top ends
+        handles.rod_top_in_rod) for rod in handles.rods])  # type: ignore[arg-type]  # rod tops
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
 
 

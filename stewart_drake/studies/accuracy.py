@@ -17,6 +17,7 @@ integrator lost (< 0) or made up (> 0).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -172,9 +173,11 @@ class MujocoEngine:
         return self._mjcf.motor_angles(self.model, self.data)
 
 
-ENGINES = {"drake_sap": DrakeEngine,
-           "mujoco_rk4": lambda g, h, T: MujocoEngine(g, h, T, "RK4"),
-           "mujoco_implicitfast": lambda g, h, T: MujocoEngine(g, h, T, "implicitfast")}
+#: The engines by name: (geometry, time step, constant torques) -> an engine.
+ENGINES: dict[str, Callable[..., DrakeEngine | MujocoEngine]] = {
+    "drake_sap": DrakeEngine,
+    "mujoco_rk4": lambda g, h, T: MujocoEngine(g, h, T, "RK4"),
+    "mujoco_implicitfast": lambda g, h, T: MujocoEngine(g, h, T, "implicitfast")}
 
 
 def simulate(engine: str, scenario: OpenLoopCase, time_step: float,

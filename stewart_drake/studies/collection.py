@@ -13,6 +13,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -96,8 +97,8 @@ class CollectionRun:
 def _collect_job(run: CollectionRun) -> dict:
     t0 = time.perf_counter()
     result = run_experiment(run.scenario)
-    record = run_record(result, run.scenario.controller.scales.build(), run.sample_period_s,
-                        run.feature_window)
+    scales = run.scenario.controller.scales.build()     # type: ignore[union-attr]  # an LQI
+    record = run_record(result, scales, run.sample_period_s, run.feature_window)
     record["wall_s"] = time.perf_counter() - t0
     return record
 
@@ -195,7 +196,7 @@ def _save_run(store: ResultStore, job_id: str, run: CollectionRun, record) -> No
             return
         store.mark(record)
         return
-    arrays = {k: np.asarray(v) for k, v in record.items() if k != "metrics"}
+    arrays: dict[str, Any] = {k: np.asarray(v) for k, v in record.items() if k != "metrics"}
     arrays["metrics"] = np.array(json.dumps(record["metrics"]))
     arrays["settings_hash"] = np.array(store.hash)
     m = record["metrics"]
@@ -243,7 +244,8 @@ def load_records(data_dir: str | Path) -> list[dict]:
         raise CorruptFileError(data_dir / MANIFEST, "collect manifest",
                                "it is complete but its 'runs' list is missing or a run names no "
                                "file", "collect again into an empty folder")
-    records, seen = [], {}
+    records: list = []
+    seen: dict = {}
     for run in runs:
         if run.get("lost"):
             continue
@@ -272,7 +274,7 @@ def _read_record(path: Path, settings_hash: str, remedy: str) -> dict:
         raise ResultsMismatchError(
             f"{path} is not of the settings of {path.parent / MANIFEST}: the folder mixes runs "
             f"of two collections; collect again into an empty folder")
-    record = {name: data.number(name) for name in ("omega_Q", "omega_R")}
+    record: dict[str, Any] = {name: data.number(name) for name in ("omega_Q", "omega_R")}
     record.update({name: data.array(name) for name in ("t", "rho", "cost_e", "cost_u")})
     n = record["t"].shape[0] if record["t"].ndim == 1 else -1
     for name, shape in (("t", (n,)), ("rho", (n, 12)), ("cost_e", (n,)), ("cost_u", (n,))):

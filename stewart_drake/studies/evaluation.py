@@ -25,6 +25,7 @@ import functools
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -70,7 +71,7 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
         it into a :class:`~.runners.JobFailure` and :func:`evaluate` into a row with ``error``.
     """
     t0 = time.perf_counter()
-    row = {"case": case.record()}
+    row: dict[str, Any] = {"case": case.record()}
     config = case_config(case)
     if divergence_dir is not None:
         config.guard.divergence_dir = str(divergence_dir)

@@ -209,9 +209,9 @@ def cases(quick: bool = False, controllers=CONTROLLERS, base: str = DEFAULT_BASE
             out.append(Case(c, reference, "nominal", duration(reference), base))
         conditions = dict(CONDITIONS, **(ENCODER_CONDITIONS if hardware and name in RATIO_LQI
                                          else {}))
-        for condition, (_, reference) in conditions.items():
-            if reference is not None:
-                out.append(Case(c, reference, condition, duration(reference), base))
+        for condition, (_, where) in conditions.items():
+            if where is not None:
+                out.append(Case(c, where, condition, duration(where), base))
     return out
 
 

@@ -8,6 +8,7 @@ the three pictures (one function each, :func:`plot_results`).
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 
 import numpy as np
@@ -224,8 +225,9 @@ def _step_table(by: dict, ctrls: list) -> list:
          "| controller | " + " | ".join(AXIS_NAMES) + " | max overshoot | Sum T^2 dt |",
          "|---|" + "---|" * 8]
     for c in ctrls:
-        rs = [by.get((c, f"step_{a}", "nominal")) for a in AXIS_NAMES]
-        if any(r is None for r in rs):
+        found = [by.get((c, f"step_{a}", "nominal")) for a in AXIS_NAMES]
+        rs = [r for r in found if r is not None]
+        if len(rs) < len(found):
             continue
         if any("error" in r for r in rs):
             L.append(_failed_line(next(r for r in rs if "error" in r)))
@@ -292,9 +294,10 @@ def _robustness_table(by: dict, ctrls: list) -> list:
          f"[mm] | {sat}: settling [s] | overshoot |",
          "|---|" + "---|" * (len(paper_conds) + 4)]
     for c in ctrls:
-        rs = [by.get((c, "paper", k)) for k in paper_conds]
+        found = [by.get((c, "paper", k)) for k in paper_conds]
+        rs = [r for r in found if r is not None]
         rsat = by.get((c, "step_Z", sat))
-        if any(r is None for r in rs) or rsat is None:
+        if len(rs) < len(found) or rsat is None:
             continue
         cells = ["failed" if "error" in r else
                  f"{_fmt(r['normalized_rms'])} ({_fmt(r['sum_T2_dt'])})" for r in rs]
@@ -392,7 +395,7 @@ def _ratio_colors(ratios) -> dict:
 def _by_ratio(by: dict, reference: str, condition: str) -> dict:
     """{ratio: row} of the fixed LQIs that ran (reference, condition); pairs of one ratio are one
     controller (only the ratio sets the gain), the first one stands for them."""
-    out = {}
+    out: dict = {}
     for c in FIXED_LQI:
         r = by.get((c, reference, condition))
         if r is not None and "error" not in r:
@@ -421,7 +424,7 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
                        ("results_steps.png", _plot_steps)):
         fig = draw(by, colors)
         path = Path(out_dir) / name
-        atomic_write(path, lambda f: fig.savefig(f, dpi=100, format="png"))
+        atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
         paths.append(path)
     return paths
 

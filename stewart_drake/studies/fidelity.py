@@ -19,12 +19,16 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InvalidConfigError
 from ..fileio import atomic_write
 from ..simulation.motion import Reference
+
+if TYPE_CHECKING:   # for the annotation only: the functions import experiments when they run
+    from .experiments import RunResult
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -108,7 +112,7 @@ def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.n
 
 
 def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):
-    rows = []
+    rows: list = []
     freqs = [(name, k, k * f0) for name, f0 in frequencies.items() for k in range(1, k_max + 1)
              if k * f0 < 0.25 / float(np.median(np.diff(t)))]
     if not freqs:
@@ -184,7 +188,7 @@ def fidelity(t, x, x_d, window=None, frequencies: dict | None = None, cycle_star
                         if moving else math.nan)
     out["harmonics"] = (_harmonics(tw, xw, rw, frequencies, moving, p2p, harmonics)
                         if frequencies and moving else [])
-    cycles = {"starts": [], "rms_translation_m": [], "rms_rotation_rad": [],
+    cycles: dict[str, list] = {"starts": [], "rms_translation_m": [], "rms_rotation_rad": [],
               "peak_translation_m": []}
     if cycle_starts is not None:
         starts = np.asarray(cycle_starts, dtype=float)
@@ -270,7 +274,7 @@ class Reproduction:
     name: str
     reference: Reference
     scale: float
-    result: object
+    result: RunResult
     cycle_starts: np.ndarray
     learn_cycles: int
     fidelity: dict
@@ -386,7 +390,7 @@ def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: i
     end = getattr(reference, "end_time", None)
     total = run_cycles(reference, learn_cycles, eval_cycles)
     whole = end is not None and not learn_cycles         # a recorded trace: all of it
-    if whole:
+    if whole and end is not None:
         scenario.duration_s = float(min(duration_s or end, end))
     elif starts.size > total:
         scenario.duration_s = float(starts[total])

@@ -276,7 +276,7 @@ def _settings_table(results: dict) -> list[str]:
             lines.append(f"| {c.label} | failed: {out} | | | |")
             continue
         lines.append(f"| {c.label} | " + " | ".join(
-            _cell(_at(out, k)) if _at(out, k) else "-" for k in (1, 2, 5, 10)) + " |")
+            _cell(f) if (f := _at(out, k)) else "-" for k in (1, 2, 5, 10)) + " |")
     return lines
 
 

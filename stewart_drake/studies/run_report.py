@@ -108,7 +108,8 @@ def plot_fig7(result, path: str | Path) -> Path:
     fig = Figure(figsize=(10, 1.75 * sum(heights) + 0.8))
     # Left: the time series, one width, one time axis. Right: the zooms, legends, colour bar.
     grid = fig.add_gridspec(len(panels), 2, height_ratios=heights, width_ratios=(3.3, 1))
-    axes, sides = [], []
+    axes: list = []
+    sides: list = []
     for row in range(len(panels)):
         axes.append(fig.add_subplot(grid[row, 0], sharex=axes[0] if axes else None))
         sides.append(fig.add_subplot(grid[row, 1]))

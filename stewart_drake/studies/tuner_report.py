@@ -232,7 +232,7 @@ def plot_tuner_tradeoff(summary: dict, path) -> Path:
 def _draw_family(ax, runs: list, colors: dict) -> set:
     """One family's panel: the fixed ratios' curve and every other controller's point, means
     over the family's tasks (``runs``: {label: point} per task). Returns the kinds drawn."""
-    arms = {}
+    arms: dict = {}
     for task in runs:
         for label, point in task.items():
             arms.setdefault(label, StudyArm(**point["arm"]))

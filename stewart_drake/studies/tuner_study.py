@@ -50,6 +50,7 @@ import json
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -92,13 +93,13 @@ R_HOLD, R_MOVE, SPEED_SCALE = 0.1, 1.0, 0.5
 SHIFTS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 
 
-def train_tasks(quick: bool = False) -> list:
+def train_tasks(quick: bool = False) -> list[tuple[str, int]]:
     """(family, seed) of the training tasks."""
     seeds = TRAIN_SEEDS[:1] if quick else TRAIN_SEEDS
     return [(f, s) for f in TRAIN_FAMILIES for s in seeds]
 
 
-def test_tasks(quick: bool = False) -> list:
+def test_tasks(quick: bool = False) -> list[tuple[str, int]]:
     """(family, seed) of the held-out tasks: other seeds, the unseen family, the paper's."""
     seeds = TEST_SEEDS[:1] if quick else TEST_SEEDS
     return [(f, s) for f in TRAIN_FAMILIES + (UNSEEN_FAMILY,) for s in seeds] + [("paper", 0)]
@@ -277,7 +278,7 @@ def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs:
     """
     import torch
 
-    X, C = [], []
+    Xs, Cs = [], []
     for runs in fixed_records.values():
         J = window_costs(runs, lam)                               # (13, n_w)
         # A ratio that lost the platform costs ten times the worst one that did not.
@@ -287,11 +288,11 @@ def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs:
             rec = runs[r]
             if "lost" in rec:
                 continue
-            X.append(np.asarray(rec["inputs"]))
-            C.append(J[:, np.asarray(rec["input_window"])].T)      # (K, 13)
-    if not X:
+            Xs.append(np.asarray(rec["inputs"]))
+            Cs.append(J[:, np.asarray(rec["input_window"])].T)     # (K, 13)
+    if not Xs:
         raise InvalidConfigError("no training runs for the ratio tuner")
-    X, C = np.concatenate(X), np.concatenate(C)
+    X, C = np.concatenate(Xs), np.concatenate(Cs)
     x_mean, x_std = X.mean(axis=0), X.std(axis=0)
     x_std = np.where(x_std > 1e-12, x_std, 1.0)
     Z = torch.tensor((X - x_mean) / x_std)
@@ -347,7 +348,7 @@ def closed_loop_choice(candidates: dict, fixed_records: dict, lam: float) -> tup
             for task, runs in fixed_records.items()}
     means = {key: float(np.mean([normalized_J(runs[task], best[task], lam) for task in best]))
              for key, runs in candidates.items()}
-    return min(means, key=means.get), means
+    return min(means, key=means.__getitem__), means
 
 
 # -- the verdict -----------------------------------------------------------------------------------
@@ -382,7 +383,7 @@ def verdict(records: dict, tasks: list, lam: float) -> dict:
         runs = records[task]
         J_fixed = {r: task_J(runs[StudyArm("fixed", ratio=r)], lam) for r in RATIOS
                    if StudyArm("fixed", ratio=r) in runs}
-        r_best = min(J_fixed, key=J_fixed.get)
+        r_best = min(J_fixed, key=J_fixed.__getitem__)
         best[task] = (r_best, J_fixed[r_best])
     out = {}
     for arm in verdict_arms(lam):
@@ -585,7 +586,7 @@ class TunerStudy:
             record = {"lost": outcome.message.splitlines()[0][:300]}
             self.store.put_json(job.job_id, f"runs/{job.job_id}.json", record, lost=True)
             return
-        arrays = {k: np.asarray(v) for k, v in outcome.items()}
+        arrays: dict[str, Any] = {k: np.asarray(v) for k, v in outcome.items()}
         arrays["job_id"] = np.array(job.job_id)          # the run says which it is (load checks)
         self.store.put(job.job_id, f"runs/{job.job_id}.npz", lambda f: np.savez(f, **arrays),
                        label=job.arm.label,
