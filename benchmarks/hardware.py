@@ -35,9 +35,13 @@ from stewart_drake.simulation.station import held_station
 from stewart_drake.simulation.trajectories import paper_manoeuvre
 from stewart_drake.studies.experiments import run_experiment
 
-CLEAN = ["hardware.encoders.counts_per_rev=16777216", "hardware.computation_delay_periods=0",
-         "hardware.motors.coulomb_friction_Nm=0", "hardware.motors.viscous_damping=0",
-         "torque_limit_Nm=1000"]
+CLEAN = [
+    "hardware.encoders.counts_per_rev=16777216",
+    "hardware.computation_delay_periods=0",
+    "hardware.motors.coulomb_friction_Nm=0",
+    "hardware.motors.viscous_damping=0",
+    "torque_limit_Nm=1000",
+]
 
 
 def _nrms(rms) -> float:
@@ -69,35 +73,49 @@ class _Late(PoseEstimator):
 def _lqi_reading_x(driver):
     """The LQI of ``driver`` without its own estimator: it reads ``x``, which the Diagram then
     takes from an FK estimator system (where :class:`_Late` can delay the rate)."""
+
     def make(context):
         return driver.make(dataclasses.replace(context, pose_estimator=None))
+
     return make
 
 
 def closed_loop(duration_s: float) -> list:
     """Rows (label, metrics) of the paper manoeuvre on the ideal robot and the hardware."""
-    runs = [("ideal robot (paper_ideal)", "paper_ideal", []),
-            ("hardware, exact sensing (2^40 counts; no delay, friction or limit)",
-             "paper_hardware", CLEAN + ["hardware.encoders.counts_per_rev=1099511627776"]),
-            ("hardware, sensors only (2^24 counts; no delay, friction or limit)",
-             "paper_hardware", CLEAN),
-            ("hardware (paper_hardware)", "paper_hardware", []),
-            ("hardware, LQI not told of the delay", "paper_hardware",
-             ["controller.delay_compensation=false"]),
-            ("hardware, 12-bit encoders", "paper_hardware",
-             ["hardware.encoders.counts_per_rev=4096"])]
+    runs = [
+        ("ideal robot (paper_ideal)", "paper_ideal", []),
+        (
+            "hardware, exact sensing (2^40 counts; no delay, friction or limit)",
+            "paper_hardware",
+            CLEAN + ["hardware.encoders.counts_per_rev=1099511627776"],
+        ),
+        (
+            "hardware, sensors only (2^24 counts; no delay, friction or limit)",
+            "paper_hardware",
+            CLEAN,
+        ),
+        ("hardware (paper_hardware)", "paper_hardware", []),
+        (
+            "hardware, LQI not told of the delay",
+            "paper_hardware",
+            ["controller.delay_compensation=false"],
+        ),
+        ("hardware, 12-bit encoders", "paper_hardware", ["hardware.encoders.counts_per_rev=4096"]),
+    ]
     rows = []
-    for label, base, changes in runs + [("hardware, rate one period late (DiscreteDerivative "
-                                         "timing)", "paper_hardware", "late")]:
-        scenario = load_scenario(base, [f"duration_s={duration_s}"]
-                                 + ([] if changes == "late" else changes))
+    for label, base, changes in runs + [
+        ("hardware, rate one period late (DiscreteDerivative timing)", "paper_hardware", "late")
+    ]:
+        scenario = load_scenario(
+            base, [f"duration_s={duration_s}"] + ([] if changes == "late" else changes)
+        )
         try:
             controller = None
-            if changes == "late":                    # the diagram builds the estimator
+            if changes == "late":  # the diagram builds the estimator
                 diagram.PoseEstimator = _Late
                 controller = _lqi_reading_x(scenario.controller)
             rows.append((label, run_experiment(scenario, controller=controller).metrics))
-        except Exception as err:                     # noqa: BLE001 - reported, not hidden
+        except Exception as err:  # noqa: BLE001 - reported, not hidden
             rows.append((label, {"error": f"{type(err).__name__}: {err}".splitlines()[0]}))
         finally:
             diagram.PoseEstimator = PoseEstimator
@@ -112,35 +130,43 @@ def estimator_open_loop(duration_s: float, counts: int = 2**17) -> dict:
     X, V, _ = paper_manoeuvre().evaluate(t)
     measured = np.round(kinematics.ik(g, X) / q) * q
     out = {}
-    for name, cls in (("in the controller's update (ours)", PoseEstimator),
-                      ("one period late (DiscreteDerivative timing)", _Late)):
+    for name, cls in (
+        ("in the controller's update (ours)", PoseEstimator),
+        ("one period late (DiscreteDerivative timing)", _Late),
+    ):
         est = cls(g, h, q, X[0])
         x, v = X[0], V[0]
         J_inv = np.linalg.inv(kinematics.jacobian(g, X[0]))
         e_x, e_v = [], []
         for k in range(1, len(t)):
             x, v = est.track(measured[k], x, v, J_inv)
-            if k % 20 == 0:                          # the LQI refreshes J^-1 every re-schedule
+            if k % 20 == 0:  # the LQI refreshes J^-1 every re-schedule
                 J_inv = np.linalg.inv(kinematics.jacobian(g, x))
             e_x.append(np.subtract(x, X[k]))
             e_v.append(np.subtract(v, V[k]))
         e_x, e_v = np.array(e_x), np.array(e_v)
-        out[name] = {"pose_rms": np.sqrt((e_x ** 2).mean(axis=0)),
-                     "pose_max": np.abs(e_x).max(axis=0),
-                     "rate_rms": np.sqrt((e_v ** 2).mean(axis=0))}
+        out[name] = {
+            "pose_rms": np.sqrt((e_x**2).mean(axis=0)),
+            "pose_max": np.abs(e_x).max(axis=0),
+            "rate_rms": np.sqrt((e_v**2).mean(axis=0)),
+        }
     return out
 
 
 def stiction(duration_s: float = 1.0) -> dict:
     """Drift (max |x - x0| in 1 s) of home held with torques 60 % of the Coulomb band off."""
     servo = ServoModel()
-    T = statics.holding_torques(make_plan(load_scenario("paper_hardware")).geometry, X_HOME) \
-        + 0.6 * servo.coulomb_friction_Nm * np.array([1, -1, 1, -1, 1, -1])
+    T = statics.holding_torques(
+        make_plan(load_scenario("paper_hardware")).geometry, X_HOME
+    ) + 0.6 * servo.coulomb_friction_Nm * np.array([1, -1, 1, -1, 1, -1])
     out = {}
-    for label, changes in (("with Coulomb friction", []),
-                           ("without", ["hardware.motors.coulomb_friction_Nm=0"])):
-        station, simulator, context = held_station(load_scenario("paper_hardware", changes),
-                                                   X_HOME, T)
+    for label, changes in (
+        ("with Coulomb friction", []),
+        ("without", ["hardware.motors.coulomb_friction_Nm=0"]),
+    ):
+        station, simulator, context = held_station(
+            load_scenario("paper_hardware", changes), X_HOME, T
+        )
         simulator.AdvanceTo(duration_s)
         x = station.GetOutputPort("platform_state").Eval(context)[:6]
         out[label] = float(np.abs(x - X_HOME).max())
@@ -152,14 +178,20 @@ def _fmt(v, scale=1.0, digits=3) -> str:
 
 
 def render(rows, est, stick, duration_s, wall) -> str:
-    L = ["# Hardware figures", "",
-         f"Generated by `python benchmarks/hardware.py` ({wall:.0f} s wall). Do not edit by hand. "
-         "docs/hardware.md explains them.", "",
-         f"## Paper manoeuvre, omega_Q = omega_R = 1 ({duration_s:g} s)", "",
-         "RMS error over the second half of the run (urad, um), nRMS with the LQI's scales "
-         "(1 mrad, 1 mm), peak torque (N m), Sum T^2 dt (N^2 m^2 s), saturated control steps.", "",
-         "| robot | " + " | ".join(AXIS_NAMES) + " | nRMS | peak T | Sum T^2 dt | saturated |",
-         "|---|" + "---|" * 10]
+    L = [
+        "# Hardware figures",
+        "",
+        f"Generated by `python benchmarks/hardware.py` ({wall:.0f} s wall). Do not edit by hand. "
+        "docs/hardware.md explains them.",
+        "",
+        f"## Paper manoeuvre, omega_Q = omega_R = 1 ({duration_s:g} s)",
+        "",
+        "RMS error over the second half of the run (urad, um), nRMS with the LQI's scales "
+        "(1 mrad, 1 mm), peak torque (N m), Sum T^2 dt (N^2 m^2 s), saturated control steps.",
+        "",
+        "| robot | " + " | ".join(AXIS_NAMES) + " | nRMS | peak T | Sum T^2 dt | saturated |",
+        "|---|" + "---|" * 10,
+    ]
     ideal = None
     for label, m in rows:
         if "error" in m:
@@ -167,26 +199,45 @@ def render(rows, est, stick, duration_s, wall) -> str:
             continue
         nrms = _nrms(m["rms_error"])
         ideal = ideal if ideal is not None else nrms
-        L.append(f"| {label} | " + " | ".join(_fmt(v, 1e6) for v in m["rms_error"])
-                 + f" | {nrms:.4g} | {max(m['peak_torque']):.3f} | {m['sum_T2_dt']:.4g} | "
-                 f"{int(m['status'].get('saturated_steps', 0))} |")
+        L.append(
+            f"| {label} | "
+            + " | ".join(_fmt(v, 1e6) for v in m["rms_error"])
+            + f" | {nrms:.4g} | {max(m['peak_torque']):.3f} | {m['sum_T2_dt']:.4g} | "
+            f"{int(m['status'].get('saturated_steps', 0))} |"
+        )
     found = {label.split(" (")[0]: m for label, m in rows if "error" not in m}
     clean, exact = found.get("hardware, sensors only"), found.get("hardware, exact sensing")
     if clean and exact and ideal:
-        L += ["", f"Sensors-only hardware / exact sensing of the same robot, nRMS: "
-              f"**{_nrms(clean['rms_error']) / _nrms(exact['rms_error']):.3f}** (the encoders "
-              f"and the FK estimate cost this much); exact sensing / ideal robot: "
-              f"{_nrms(exact['rms_error']) / ideal:.3f} (the rotors' reflected inertia, with the "
-              f"same weights)."]
-    L += ["", "## FK estimator along the exact manoeuvre (2^17 counts, no control)", "",
-          "Pose error RMS and max (urad, um) of the chord-step FK estimate; rate error RMS "
-          "(urad/s, um/s) of the 100 Hz filtered difference.", "",
-          "| rate taken | pose RMS | pose max | rate RMS phi..Z |", "|---|---|---|---|"]
+        L += [
+            "",
+            f"Sensors-only hardware / exact sensing of the same robot, nRMS: "
+            f"**{_nrms(clean['rms_error']) / _nrms(exact['rms_error']):.3f}** (the encoders "
+            f"and the FK estimate cost this much); exact sensing / ideal robot: "
+            f"{_nrms(exact['rms_error']) / ideal:.3f} (the rotors' reflected inertia, with the "
+            f"same weights).",
+        ]
+    L += [
+        "",
+        "## FK estimator along the exact manoeuvre (2^17 counts, no control)",
+        "",
+        "Pose error RMS and max (urad, um) of the chord-step FK estimate; rate error RMS "
+        "(urad/s, um/s) of the 100 Hz filtered difference.",
+        "",
+        "| rate taken | pose RMS | pose max | rate RMS phi..Z |",
+        "|---|---|---|---|",
+    ]
     for name, r in est.items():
-        L.append(f"| {name} | {_fmt(r['pose_rms'].max(), 1e6)} | {_fmt(r['pose_max'].max(), 1e6)}"
-                 f" | " + ", ".join(_fmt(v, 1e6) for v in r["rate_rms"]) + " |")
-    L += ["", "## Stiction (home held 1 s, torques 60 % of the Coulomb band off balance)", "",
-          "| plant | drift (rad or m) |", "|---|---|"]
+        L.append(
+            f"| {name} | {_fmt(r['pose_rms'].max(), 1e6)} | {_fmt(r['pose_max'].max(), 1e6)}"
+            f" | " + ", ".join(_fmt(v, 1e6) for v in r["rate_rms"]) + " |"
+        )
+    L += [
+        "",
+        "## Stiction (home held 1 s, torques 60 % of the Coulomb band off balance)",
+        "",
+        "| plant | drift (rad or m) |",
+        "|---|---|",
+    ]
     L += [f"| {k} | {v:.3g} |" for k, v in stick.items()]
     return "\n".join(L) + "\n"
 

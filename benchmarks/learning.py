@@ -34,13 +34,17 @@ def main() -> None:
     args = parser.parse_args()
     for name, parameters, cycle in (("5s", {"period": "5s"}, 5.0), ("20s", {}, 20.0)):
         t0 = time.perf_counter()
-        duration = max(args.duration, cycle)           # at least one cycle of the learner
-        with_, without = (min(wall(parameters, learn, duration) for _ in range(args.repeat))
-                          for learn in (True, False))
+        duration = max(args.duration, cycle)  # at least one cycle of the learner
+        with_, without = (
+            min(wall(parameters, learn, duration) for _ in range(args.repeat))
+            for learn in (True, False)
+        )
         per_period_us = 1e6 * (with_ - without) / (duration / 1e-3)
-        print(f"learner_overhead_{name} {with_ / without:.3f} ({with_:.2f} s wall with / "
-              f"{without:.2f} s without, {duration:g} s simulated; "
-              f"{per_period_us:.0f} us per control period; {time.perf_counter() - t0:.0f} s)")
+        print(
+            f"learner_overhead_{name} {with_ / without:.3f} ({with_:.2f} s wall with / "
+            f"{without:.2f} s without, {duration:g} s simulated; "
+            f"{per_period_us:.0f} us per control period; {time.perf_counter() - t0:.0f} s)"
+        )
 
 
 if __name__ == "__main__":

@@ -98,12 +98,19 @@ def _patched(changes):
 
 def noop(scenario, duration_s: float) -> float:
     """Wall seconds of the full Diagram holding home with every Python callback a no-op."""
+
     def nothing(self, context, *output):
         return None
 
     held = dataclasses.replace(scenario, reference=NamedReference("home"))
-    with _patched([(LqiController, "_Update", nothing), (AnnTuner, "_Update", nothing),
-                   (DensityFeatures, "_CalcRho", nothing), (DivergenceGuard, "_Check", nothing)]):
+    with _patched(
+        [
+            (LqiController, "_Update", nothing),
+            (AnnTuner, "_Update", nothing),
+            (DensityFeatures, "_CalcRho", nothing),
+            (DivergenceGuard, "_Check", nothing),
+        ]
+    ):
         return full(held, duration_s)[0]
 
 
@@ -126,8 +133,9 @@ def moving_station(scenario, duration_s: float = 2.0):
     def replay() -> float:
         builder = DiagramBuilder()
         station = builder.AddSystem(make_stewart_station(fixed))
-        torques = builder.AddSystem(TrajectorySource(PiecewisePolynomial.ZeroOrderHold(
-            result.t, result.T.T)))
+        torques = builder.AddSystem(
+            TrajectorySource(PiecewisePolynomial.ZeroOrderHold(result.t, result.T.T))
+        )
         builder.Connect(torques.get_output_port(), station.GetInputPort("motor_torque"))
         builder.ExportInput(station.GetInputPort("tool_wrench"))
         diagram = builder.Build()
@@ -140,15 +148,18 @@ def moving_station(scenario, duration_s: float = 2.0):
         t0 = time.perf_counter()
         simulator.AdvanceTo(fixed.duration_s)
         return (time.perf_counter() - t0) / fixed.duration_s
+
     return replay
 
 
 #: The Python callbacks of the full Diagram: (label, class, method).
-CALLBACKS = (("LQI update (all)", LqiController, "_Update"),
-             ("  of which gain re-solves", LqiController, "_reschedule"),
-             ("density features (rho)", DensityFeatures, "_CalcRho"),
-             ("ANN tuner", AnnTuner, "_Update"),
-             ("guard checks", DivergenceGuard, "_Check"))
+CALLBACKS = (
+    ("LQI update (all)", LqiController, "_Update"),
+    ("  of which gain re-solves", LqiController, "_reschedule"),
+    ("density features (rho)", DensityFeatures, "_CalcRho"),
+    ("ANN tuner", AnnTuner, "_Update"),
+    ("guard checks", DivergenceGuard, "_Check"),
+)
 
 
 def breakdown(scenario, duration_s: float) -> dict:
@@ -162,10 +173,12 @@ def breakdown(scenario, duration_s: float) -> dict:
                 return method(*args, **kwargs)
             finally:
                 spent[label] += time.perf_counter() - t0
+
         return wrapper
 
-    with _patched([(cls, name, timed(label, cls.__dict__[name]))
-                   for label, cls, name in CALLBACKS]):
+    with _patched(
+        [(cls, name, timed(label, cls.__dict__[name])) for label, cls, name in CALLBACKS]
+    ):
         wall, _ = full(scenario, duration_s)
     return {"wall": wall, **spent}
 
@@ -196,7 +209,7 @@ def riccati_costs(controller, n: int = 100) -> dict:
         P = RealDiscreteLyapunovEquation(Ab - Bb @ Kb, 0.5 * (W + W.T))
         return d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
 
-    lqi_gain_warm(*models[1], Q, R, cold[0], tol=np.inf, max_iter=1)   # loaded before timed
+    lqi_gain_warm(*models[1], Q, R, cold[0], tol=np.inf, max_iter=1)  # loaded before timed
     steins, times = [], collections.defaultdict(float)
     worst = collections.defaultdict(float)
     for (A, B), K_prev in zip(models[1:], cold[:-1]):
@@ -204,28 +217,31 @@ def riccati_costs(controller, n: int = 100) -> dict:
         Kb = K_prev * d_x[None, :] / d_u[:, None]
         A_c, W = np.ascontiguousarray(Ab - Bb @ Kb), Qb + Kb.T @ Rb @ Kb
         W = 0.5 * (W + W.T)
-        stein(A_c, W, lqi.STEIN_TOL, 64)                  # compiled before it is timed
+        stein(A_c, W, lqi.STEIN_TOL, 64)  # compiled before it is timed
         # Each solve is called in this iteration; the defaults bind A_c and W all the same.
         for label, solve in (
-                ("drake", lambda A_c=A_c, W=W: RealDiscreteLyapunovEquation(A_c, W)),
-                ("scipy", lambda A_c=A_c, W=W: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
-                ("compiled", lambda A_c=A_c, W=W: stein(A_c, W, lqi.STEIN_TOL, 64)[0])):
+            ("drake", lambda A_c=A_c, W=W: RealDiscreteLyapunovEquation(A_c, W)),
+            ("scipy", lambda A_c=A_c, W=W: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
+            ("compiled", lambda A_c=A_c, W=W: stein(A_c, W, lqi.STEIN_TOL, 64)[0]),
+        ):
             t0 = time.perf_counter()
             P = solve()
             times[f"stein_{label}_ms"] += time.perf_counter() - t0
             steins.append((label, P))
         P_ref = steins[-3][1]
         for label, P in steins[-2:]:
-            worst[f"stein_{label}_rel"] = max(worst[f"stein_{label}_rel"],
-                                              np.abs(P - P_ref).max() / np.abs(P_ref).max())
+            worst[f"stein_{label}_rel"] = max(
+                worst[f"stein_{label}_rel"], np.abs(P - P_ref).max() / np.abs(P_ref).max()
+            )
         t0 = time.perf_counter()
         K_numpy = numpy_newton_step(A, B, K_prev)
         times["newton_numpy_ms"] += time.perf_counter() - t0
         t0 = time.perf_counter()
         K_compiled, _ = lqi_gain_warm(A, B, Q, R, K_prev, tol=np.inf, max_iter=1)
         times["newton_compiled_ms"] += time.perf_counter() - t0
-        worst["newton_rel"] = max(worst["newton_rel"],
-                                  np.abs(K_compiled - K_numpy).max() / np.abs(K_numpy).max())
+        worst["newton_rel"] = max(
+            worst["newton_rel"], np.abs(K_compiled - K_numpy).max() / np.abs(K_numpy).max()
+        )
     out.update({k: 1e3 * v / (n - 1) for k, v in times.items()})
     out.update(worst)
     return out
@@ -236,19 +252,28 @@ def main():
     parser.add_argument("--scenario", default="paper_hardware")
     parser.add_argument("--duration", type=float, default=5.0, help="simulated s per run (5)")
     parser.add_argument("--repeats", type=int, default=5, help="interleaved pairs (5)")
-    parser.add_argument("--breakdown", action="store_true",
-                        help="also time each Python callback and the moving station")
-    parser.add_argument("--riccati", action="store_true",
-                        help="also time the gain re-solve: numpy/scipy/Drake against compiled")
+    parser.add_argument(
+        "--breakdown",
+        action="store_true",
+        help="also time each Python callback and the moving station",
+    )
+    parser.add_argument(
+        "--riccati",
+        action="store_true",
+        help="also time the gain re-solve: numpy/scipy/Drake against compiled",
+    )
     parser.add_argument("--profile", type=int, default=0, help="print the top N profile entries")
-    parser.add_argument("--contact", action="store_true",
-                        help="also measure the station and the ANN Diagram with contact between "
-                             "the parts simulated (scenario field contact)")
+    parser.add_argument(
+        "--contact",
+        action="store_true",
+        help="also measure the station and the ANN Diagram with contact between "
+        "the parts simulated (scenario field contact)",
+    )
     args = parser.parse_args()
     fixed = load_scenario(args.scenario, [f"duration_s={args.duration}"])
     ann = dataclasses.replace(fixed, tuner=AnnTunerDriver())
     D = args.duration
-    full(ann, 0.01)                              # compile (or load) the kernels first
+    full(ann, 0.01)  # compile (or load) the kernels first
     replay = moving_station(fixed)
     load = os.getloadavg()[0]
     walls = collections.defaultdict(list)
@@ -264,40 +289,60 @@ def main():
             walls["ann_contact"].append(full(dataclasses.replace(ann, contact=True), D)[0])
     w = {k: np.array(v) for k, v in walls.items()}
     rtf = {k: D / v for k, v in w.items()}
-    print(f"realtime_factor_plant_alone {np.median(rtf['plant']):.2f} median ({D:g} s sim, "
-          f"{args.scenario} station under constant holding torques; load {load:.1f} at start)")
-    labels = {"ann": "full Diagram, ANN tuner", "fixed": "full Diagram, fixed weights",
-              "noop": "ANN Diagram holding home, every Python callback a no-op"}
+    print(
+        f"realtime_factor_plant_alone {np.median(rtf['plant']):.2f} median ({D:g} s sim, "
+        f"{args.scenario} station under constant holding torques; load {load:.1f} at start)"
+    )
+    labels = {
+        "ann": "full Diagram, ANN tuner",
+        "fixed": "full Diagram, fixed weights",
+        "noop": "ANN Diagram holding home, every Python callback a no-op",
+    }
     for key, label in labels.items():
         ratios = w["plant"] / w[key]
-        name = {"ann": "ratio_ann_over_plant", "fixed": "ratio_fixed_over_plant",
-                "noop": "ceiling_ratio_noop_over_plant"}[key]
+        name = {
+            "ann": "ratio_ann_over_plant",
+            "fixed": "ratio_fixed_over_plant",
+            "noop": "ceiling_ratio_noop_over_plant",
+        }[key]
         target = "; target >= 0.6" if key != "noop" else ""
         print(f"realtime_factor_{key} {np.median(rtf[key]):.2f} median ({label})")
-        print(f"{name} {np.median(ratios):.2f} (median of {len(ratios)} interleaved pairs; range "
-              f"{ratios.min():.2f} .. {ratios.max():.2f}{target})")
+        print(
+            f"{name} {np.median(ratios):.2f} (median of {len(ratios)} interleaved pairs; range "
+            f"{ratios.min():.2f} .. {ratios.max():.2f}{target})"
+        )
     moving = w["plant"] / w["moving"]
-    print(f"station_moving_over_held {np.median(w['moving'] / w['plant']):.2f} (the station "
-          f"replaying a run's torques costs this many times the held station: the plant works "
-          f"harder on the manoeuvre)")
+    print(
+        f"station_moving_over_held {np.median(w['moving'] / w['plant']):.2f} (the station "
+        f"replaying a run's torques costs this many times the held station: the plant works "
+        f"harder on the manoeuvre)"
+    )
     for key in ("ann", "fixed"):
-        print(f"ratio_{key}_over_moving_station {np.median(w['moving'] / w[key]):.2f} (the "
-              f"same plant work: the cost of everything but the plant; held ratio "
-              f"{np.median(w['plant'] / w[key]):.2f} x {np.median(1 / moving):.2f})")
+        print(
+            f"ratio_{key}_over_moving_station {np.median(w['moving'] / w[key]):.2f} (the "
+            f"same plant work: the cost of everything but the plant; held ratio "
+            f"{np.median(w['plant'] / w[key]):.2f} x {np.median(1 / moving):.2f})"
+        )
     if args.contact:
         for key, label in (("plant", "station"), ("ann", "full Diagram, ANN tuner")):
-            print(f"realtime_factor_{key}_contact {np.median(rtf[key + '_contact']):.2f} median "
-                  f"({label}, contact on; on / off "
-                  f"{np.median(w[key] / w[key + '_contact']):.2f})")
-        print(f"ratio_ann_over_plant_contact "
-              f"{np.median(w['plant_contact'] / w['ann_contact']):.2f} (contact on, both)")
+            print(
+                f"realtime_factor_{key}_contact {np.median(rtf[key + '_contact']):.2f} median "
+                f"({label}, contact on; on / off "
+                f"{np.median(w[key] / w[key + '_contact']):.2f})"
+            )
+        print(
+            f"ratio_ann_over_plant_contact "
+            f"{np.median(w['plant_contact'] / w['ann_contact']):.2f} (contact on, both)"
+        )
     print(f"load_average_1min {os.getloadavg()[0]:.1f} at the end")
     if args.breakdown:
         steps = D / fixed.control_period_s
         plant = np.median(w["plant"])
-        print(f"per control step: station alone {plant / steps * 1e6:.0f} us holding, "
-              f"{np.median(w['moving']) / steps * 1e6:.0f} us on the manoeuvre (replaying 2 s of "
-              f"a run's torques); no-op Diagram {np.median(w['noop']) / steps * 1e6:.0f} us")
+        print(
+            f"per control step: station alone {plant / steps * 1e6:.0f} us holding, "
+            f"{np.median(w['moving']) / steps * 1e6:.0f} us on the manoeuvre (replaying 2 s of "
+            f"a run's torques); no-op Diagram {np.median(w['noop']) / steps * 1e6:.0f} us"
+        )
         for key, scenario in (("ann", ann), ("fixed", fixed)):
             spent = breakdown(scenario, D)
             print(f"  {labels[key]}: {spent['wall'] / steps * 1e6:.0f} us of wall per step")
@@ -308,13 +353,17 @@ def main():
         _, sd = full(fixed, 0.01)
         c = riccati_costs(sd.controller.lqi)
         print(f"riccati_cold_ms {c['cold_ms']:.3f} (Drake's DARE, {sd.controller.n} states)")
-        print(f"stein_ms drake {c['stein_drake_ms']:.3f}  scipy {c['stein_scipy_ms']:.3f}  "
-              f"compiled {c['stein_compiled_ms']:.3f}  (max relative difference to Drake's: "
-              f"scipy {c['stein_scipy_rel']:.1e}, compiled {c['stein_compiled_rel']:.1e})")
-        print(f"newton_step_ms numpy+drake {c['newton_numpy_ms']:.3f}  compiled "
-              f"{c['newton_compiled_ms']:.3f}  compiled/numpy "
-              f"{c['newton_compiled_ms'] / c['newton_numpy_ms']:.2f}  (max |K_c - K_n| / |K_n| "
-              f"{c['newton_rel']:.1e})")
+        print(
+            f"stein_ms drake {c['stein_drake_ms']:.3f}  scipy {c['stein_scipy_ms']:.3f}  "
+            f"compiled {c['stein_compiled_ms']:.3f}  (max relative difference to Drake's: "
+            f"scipy {c['stein_scipy_rel']:.1e}, compiled {c['stein_compiled_rel']:.1e})"
+        )
+        print(
+            f"newton_step_ms numpy+drake {c['newton_numpy_ms']:.3f}  compiled "
+            f"{c['newton_compiled_ms']:.3f}  compiled/numpy "
+            f"{c['newton_compiled_ms'] / c['newton_numpy_ms']:.2f}  (max |K_c - K_n| / |K_n| "
+            f"{c['newton_rel']:.1e})"
+        )
     if args.profile:
         profiler = cProfile.Profile()
         full(ann, D, profiler)

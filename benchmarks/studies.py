@@ -48,7 +48,7 @@ def _rss_after_run(duration_s: float) -> tuple[int, float]:
     from stewart_drake.studies.experiments import run_experiment
 
     run_experiment(load_scenario("paper_hardware", [f"duration_s={duration_s}"]))
-    return os.getpid(), psutil.Process().memory_info().rss / 2 ** 20
+    return os.getpid(), psutil.Process().memory_info().rss / 2**20
 
 
 def _busy_cores() -> float:
@@ -83,8 +83,10 @@ class _RayCluster:
 
         t0 = time.perf_counter()
         ray.init(num_cpus=self.workers, include_dashboard=False, log_to_driver=False)
-        print(f"ray_init_{self.workers}_cpus_s {time.perf_counter() - t0:.1f} (not counted "
-              f"below)", flush=True)
+        print(
+            f"ray_init_{self.workers}_cpus_s {time.perf_counter() - t0:.1f} (not counted below)",
+            flush=True,
+        )
 
     def __exit__(self, *exc):
         import ray
@@ -92,8 +94,9 @@ class _RayCluster:
         ray.shutdown()
 
 
-def scaling(controllers, kinds=("processes", "ray"), quiet_wait_s: float = 0.0,
-            repeat: int = 1) -> dict:
+def scaling(
+    controllers, kinds=("processes", "ray"), quiet_wait_s: float = 0.0, repeat: int = 1
+) -> dict:
     """Wall time of evaluate --quick per backend and worker count; the rows of each. Each line
     says how busy the machine was meanwhile (all processes: ours count ``workers`` cores). With
     ``repeat`` > 1 the configurations are interleaved and the fastest of each is kept (on a
@@ -106,29 +109,41 @@ def scaling(controllers, kinds=("processes", "ray"), quiet_wait_s: float = 0.0,
                 cluster = _RayCluster(workers) if kind == "ray" else contextlib.nullcontext()
                 with tempfile.TemporaryDirectory() as tmp, cluster:
                     load0, busy0, t0 = os.getloadavg()[0], _busy_cores(), time.perf_counter()
-                    report = evaluate(Path(tmp) / "docs", Path(tmp) / "out",
-                                      runner=_runner(kind, workers), progress=False, quick=True,
-                                      controllers=controllers)
+                    report = evaluate(
+                        Path(tmp) / "docs",
+                        Path(tmp) / "out",
+                        runner=_runner(kind, workers),
+                        progress=False,
+                        quick=True,
+                        controllers=controllers,
+                    )
                     wall = time.perf_counter() - t0
                     busy = (_busy_cores() - busy0) / wall
                 rows = report["rows"]
                 case_s = sum(r["wall_s"] for r in rows if "wall_s" in r)
-                print(f"{kind}_{workers}_workers_wall_s {wall:.1f} ({len(rows)} cases, sum of "
-                      f"case times {case_s:.1f} s, {sum('error' in r for r in rows)} failed; "
-                      f"machine busy {busy:.2f} cores on average, load {load0:.2f} at start; "
-                      f"run {rep + 1} of {repeat})", flush=True)
+                print(
+                    f"{kind}_{workers}_workers_wall_s {wall:.1f} ({len(rows)} cases, sum of "
+                    f"case times {case_s:.1f} s, {sum('error' in r for r in rows)} failed; "
+                    f"machine busy {busy:.2f} cores on average, load {load0:.2f} at start; "
+                    f"run {rep + 1} of {repeat})",
+                    flush=True,
+                )
                 best = measured.get((kind, workers))
                 if best is None or wall < best["wall"]:
                     measured[kind, workers] = {"wall": wall, "rows": rows, "case_s": case_s}
     for kind in kinds:
         one, two = measured[kind, 1], measured[kind, 2]
         n = len(two["rows"])
-        print(f"{kind}_speedup_2_over_1 {one['wall'] / two['wall']:.2f} (fastest of {repeat}: "
-              f"{one['wall']:.1f} s / {two['wall']:.1f} s)")
+        print(
+            f"{kind}_speedup_2_over_1 {one['wall'] / two['wall']:.2f} (fastest of {repeat}: "
+            f"{one['wall']:.1f} s / {two['wall']:.1f} s)"
+        )
         for w in (1, 2):
             m = measured[kind, w]
-            print(f"{kind}_{w}_workers_overhead_per_task_ms "
-                  f"{1e3 * (w * m['wall'] - m['case_s']) / n:.0f}")
+            print(
+                f"{kind}_{w}_workers_overhead_per_task_ms "
+                f"{1e3 * (w * m['wall'] - m['case_s']) / n:.0f}"
+            )
     return measured
 
 
@@ -139,7 +154,7 @@ def noop(n: int = 200) -> dict:
         cluster = _RayCluster(2) if kind == "ray" else contextlib.nullcontext()
         with cluster:
             it = _runner(kind, 2).map(_noop, {"warm": 0, **{str(k): k for k in range(n)}})
-            next(it)                                   # the pool is up after the first result
+            next(it)  # the pool is up after the first result
             t0 = time.perf_counter()
             for _ in it:
                 pass
@@ -166,12 +181,18 @@ def projection(rows, overhead_s: float) -> None:
         sim_wall = quick_s / r["realtime_factor"]
         build = max(r["wall_s"] - sim_wall, 0.0)
         full.append(build + SCENARIO_DURATION_S[r["case"]["scenario"]] / r["realtime_factor"])
-    print(f"full_evaluation_sum_of_case_times_s {sum(full):.0f} ({len(full)} cases, longest "
-          f"{max(full):.1f} s)")
-    print(f"projected_full_evaluation_64_core_ray_s {_makespan(full, 64, overhead_s):.1f} "
-          f"(overhead {1e3 * overhead_s:.0f} ms per task; cluster already up)")
-    print(f"projected_full_evaluation_2_processes_s {_makespan(full, 2, overhead_s):.0f} "
-          f"(docs/results.md measured 238 s for 168 runs on 2 processes)")
+    print(
+        f"full_evaluation_sum_of_case_times_s {sum(full):.0f} ({len(full)} cases, longest "
+        f"{max(full):.1f} s)"
+    )
+    print(
+        f"projected_full_evaluation_64_core_ray_s {_makespan(full, 64, overhead_s):.1f} "
+        f"(overhead {1e3 * overhead_s:.0f} ms per task; cluster already up)"
+    )
+    print(
+        f"projected_full_evaluation_2_processes_s {_makespan(full, 2, overhead_s):.0f} "
+        f"(docs/results.md measured 238 s for 168 runs on 2 processes)"
+    )
 
 
 def memory(runs: int, duration_s: float) -> None:
@@ -182,10 +203,13 @@ def memory(runs: int, duration_s: float) -> None:
         rss = [got[str(k)][1] for k in range(runs)]
         pids = {got[str(k)][0] for k in range(runs)}
         label = "no_recycling" if recycle is None else f"recycle_{recycle}"
-        print(f"memory_{runs}_runs_{label}_MB first {rss[0]:.0f} max {max(rss):.0f} last "
-              f"{rss[-1]:.0f} growth {max(rss) - rss[0]:.0f} ({len(pids)} worker processes, "
-              f"{duration_s:g} s runs, {(rss[-1] - rss[0]) / max(runs - 1, 1):.2f} MB per run "
-              f"between first and last)", flush=True)
+        print(
+            f"memory_{runs}_runs_{label}_MB first {rss[0]:.0f} max {max(rss):.0f} last "
+            f"{rss[-1]:.0f} growth {max(rss) - rss[0]:.0f} ({len(pids)} worker processes, "
+            f"{duration_s:g} s runs, {(rss[-1] - rss[0]) / max(runs - 1, 1):.2f} MB per run "
+            f"between first and last)",
+            flush=True,
+        )
 
 
 def main() -> int:
@@ -195,19 +219,31 @@ def main() -> int:
     parser.add_argument("--memory-runs", type=int, default=50)
     parser.add_argument("--memory-duration", type=float, default=2.0, help="s per run (2)")
     parser.add_argument("--runners", default="processes,ray", help="backends of the scaling part")
-    parser.add_argument("--repeat", type=int, default=1,
-                        help="interleaved repetitions of the scaling runs; the fastest counts")
-    parser.add_argument("--wait-quiet", type=float, default=0.0,
-                        help="before each scaling run, wait up to this many s for the load "
-                             "average to drop below 0.3 (a shared machine)")
+    parser.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="interleaved repetitions of the scaling runs; the fastest counts",
+    )
+    parser.add_argument(
+        "--wait-quiet",
+        type=float,
+        default=0.0,
+        help="before each scaling run, wait up to this many s for the load "
+        "average to drop below 0.3 (a shared machine)",
+    )
     args = parser.parse_args()
     parts = set(args.parts.split(","))
     controllers = tuple(args.controllers.split(",")) if args.controllers else CONTROLLERS
     print(f"cpus {os.cpu_count()} load_average_start {os.getloadavg()[0]:.2f}", flush=True)
     measured = None
     if "scaling" in parts or "projection" in parts:
-        measured = scaling(controllers, tuple(args.runners.split(",")),
-                           quiet_wait_s=args.wait_quiet, repeat=args.repeat)
+        measured = scaling(
+            controllers,
+            tuple(args.runners.split(",")),
+            quiet_wait_s=args.wait_quiet,
+            repeat=args.repeat,
+        )
     if "noop" in parts:
         noop()
     if "projection" in parts:

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))   # measure this checkout
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this checkout
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 from stewart_drake.studies import workspace
@@ -20,7 +20,7 @@ def main(n: int = 100_000) -> None:
     geometry = StewartGeometry()
     rng = np.random.default_rng(0)
     x = X_HOME + rng.uniform(-1, 1, (n, 6)) * [0.5, 0.5, 0.8, 0.15, 0.15, 0.12]
-    workspace.classify(geometry, x[:1000])                       # warm up
+    workspace.classify(geometry, x[:1000])  # warm up
     t0 = time.perf_counter()
     c = workspace.classify(geometry, x)
     serial = time.perf_counter() - t0
@@ -37,23 +37,33 @@ def main(n: int = 100_000) -> None:
     x_fk, converged, iterations, _ = kinematics.fk_unchecked(geometry, theta)
     dt = time.perf_counter() - t0
     print(f"fk_per_s {len(ok) / dt:.0f} ({len(ok)} poses / {dt:.3f} s, batched Newton from home)")
-    print(f"fk_round_trip_max_error {np.abs(x_fk - ok)[converged].max():.2e} "
-          f"(converged {converged.mean():.4f}, max {iterations.max()} iterations)")
+    print(
+        f"fk_round_trip_max_error {np.abs(x_fk - ok)[converged].max():.2e} "
+        f"(converged {converged.mean():.4f}, max {iterations.max()} iterations)"
+    )
 
     t0 = time.perf_counter()
     s = workspace.workspace_summary(geometry, resolution=41, jobs=1)
     dt = time.perf_counter() - t0
     ext = s["extent_xyz_m"]
-    print(f"workspace_summary_s {dt:.2f} (resolution 41: {2 * 41 ** 3 + 41 * 41 * 24} poses)")
-    print(f"reachable_volume_m3 {s['volume_m3']:.5f} (usable, cond <= 200: "
-          f"{s['usable_volume_m3']:.5f})")
+    print(f"workspace_summary_s {dt:.2f} (resolution 41: {2 * 41**3 + 41 * 41 * 24} poses)")
+    print(
+        f"reachable_volume_m3 {s['volume_m3']:.5f} (usable, cond <= 200: "
+        f"{s['usable_volume_m3']:.5f})"
+    )
     print("extent_m " + " ".join(f"{a} [{lo:+.4f}, {hi:+.4f}]" for a, (lo, hi) in zip("XYZ", ext)))
-    print("extent_rpy_deg " + " ".join(f"{a} [{np.rad2deg(lo):+.1f}, {np.rad2deg(hi):+.1f}]"
-                                       for a, (lo, hi) in zip(("phi", "theta", "psi"),
-                                                              s["extent_rpy_rad"])))
+    print(
+        "extent_rpy_deg "
+        + " ".join(
+            f"{a} [{np.rad2deg(lo):+.1f}, {np.rad2deg(hi):+.1f}]"
+            for a, (lo, hi) in zip(("phi", "theta", "psi"), s["extent_rpy_rad"])
+        )
+    )
     i = int(np.argmin(np.abs(s["heights"] - X_HOME[5])))
-    print(f"max_tilt_every_direction_deg {np.rad2deg(s['tilt_every_rad'][i]):.1f} "
-          f"(at Z = {s['heights'][i]:.3f} m)")
+    print(
+        f"max_tilt_every_direction_deg {np.rad2deg(s['tilt_every_rad'][i]):.1f} "
+        f"(at Z = {s['heights'][i]:.3f} m)"
+    )
     print(f"max_holding_torque_Nm {s['max_holding_torque_Nm']:.3f} (over the reachable box)")
 
 

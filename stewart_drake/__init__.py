@@ -18,8 +18,15 @@ from .errors import (
 from .model.geometry import X_HOME, StewartGeometry, reference_geometry
 
 __all__ = [
-    "ForwardKinematicsError", "InvalidConfigError", "InvalidGeometryError", "RiccatiSolveError",
-    "SimulationDivergedError", "StewartError", "UnreachablePoseError", "StewartGeometry",
-    "X_HOME", "reference_geometry",
+    "ForwardKinematicsError",
+    "InvalidConfigError",
+    "InvalidGeometryError",
+    "RiccatiSolveError",
+    "SimulationDivergedError",
+    "StewartError",
+    "UnreachablePoseError",
+    "StewartGeometry",
+    "X_HOME",
+    "reference_geometry",
 ]
 __version__ = "0.1.0"

@@ -24,8 +24,9 @@ MAX_POSITION_M = 1e3
 MAX_SEED = 2**32 - 1
 
 
-def as_array(name: str, value, shape: tuple | None = None, last: int | None = None,
-             error=InvalidConfigError) -> np.ndarray:
+def as_array(
+    name: str, value, shape: tuple | None = None, last: int | None = None, error=InvalidConfigError
+) -> np.ndarray:
     """``value`` as a finite float64 array, or a typed error naming ``name``.
 
     Args:
@@ -49,8 +50,10 @@ def as_array(name: str, value, shape: tuple | None = None, last: int | None = No
         raise error(f"{name} must have shape (..., {last}), got {a.shape}")
     if not np.isfinite(a).all():
         bad = tuple(int(i) for i in np.argwhere(~np.isfinite(a))[0])
-        raise error(f"{name} has a non-finite value {a[bad] if bad else a} at index {bad}; "
-                    f"give finite numbers")
+        raise error(
+            f"{name} has a non-finite value {a[bad] if bad else a} at index {bad}; "
+            f"give finite numbers"
+        )
     return a
 
 
@@ -62,14 +65,22 @@ def as_poses(name: str, x) -> np.ndarray:
     """
     a = as_array(name, x, last=6)
     if a.size and np.abs(a[..., 3:]).max() > MAX_POSITION_M:
-        raise InvalidConfigError(f"{name} has a position beyond {MAX_POSITION_M:g} m "
-                                 f"(max |X|, |Y|, |Z| = {np.abs(a[..., 3:]).max():.3g} m); "
-                                 f"poses are in m, not mm")
+        raise InvalidConfigError(
+            f"{name} has a position beyond {MAX_POSITION_M:g} m "
+            f"(max |X|, |Y|, |Z| = {np.abs(a[..., 3:]).max():.3g} m); "
+            f"poses are in m, not mm"
+        )
     return a
 
 
-def as_number(name: str, value, lo: float | None = None, hi: float | None = None,
-              lo_open: bool = False, error=InvalidConfigError) -> float:
+def as_number(
+    name: str,
+    value,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    error=InvalidConfigError,
+) -> float:
     """``value`` as a finite float in [lo, hi] ((lo, hi] with ``lo_open``), or a typed error.
 
     Raises:
@@ -87,8 +98,10 @@ def as_number(name: str, value, lo: float | None = None, hi: float | None = None
     if not np.isfinite(v) or below or (hi is not None and v > hi):
         lo_text = "-inf" if lo is None else f"{lo:g}"
         hi_text = "inf" if hi is None else f"{hi:g}"
-        raise error(f"{name} must be a finite number in {'(' if lo_open else '['}{lo_text}, "
-                    f"{hi_text}], got {value!r:.80}")
+        raise error(
+            f"{name} must be a finite number in {'(' if lo_open else '['}{lo_text}, "
+            f"{hi_text}], got {value!r:.80}"
+        )
     return v
 
 
@@ -119,11 +132,13 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
             with the nearest valid value in the message.
     """
     ratio = period_s / base_s
-    n = int(round(ratio)) if 0 < ratio < 1e12 else 0       # 1e12 steps: far past any run
+    n = int(round(ratio)) if 0 < ratio < 1e12 else 0  # 1e12 steps: far past any run
     if n < 1 or abs(ratio - n) > 1e-6 * max(1.0, ratio):
         nearest = max(n, 1) * base_s
-        raise InvalidConfigError(f"{name} ({period_s:g} s) must be a whole multiple of {base_name} "
-                                 f"({base_s:g} s); the nearest valid value is {nearest:g} s")
+        raise InvalidConfigError(
+            f"{name} ({period_s:g} s) must be a whole multiple of {base_name} "
+            f"({base_s:g} s); the nearest valid value is {nearest:g} s"
+        )
     return n
 
 
@@ -144,9 +159,13 @@ def available_memory_bytes() -> float | None:
             available = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
         except (AttributeError, ValueError, OSError):
             pass
-    for limit_file, used_file in (("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
-                                  ("/sys/fs/cgroup/memory/memory.limit_in_bytes",
-                                   "/sys/fs/cgroup/memory/memory.usage_in_bytes")):
+    for limit_file, used_file in (
+        ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
+        (
+            "/sys/fs/cgroup/memory/memory.limit_in_bytes",
+            "/sys/fs/cgroup/memory/memory.usage_in_bytes",
+        ),
+    ):
         try:
             with open(limit_file) as f, open(used_file) as g:
                 room = float(f.read().strip()) - float(g.read().strip())
@@ -179,7 +198,8 @@ def check_memory(what: str, need_bytes: float, change: str) -> None:
     """
     available = available_memory_bytes()
     if available is not None and not need_bytes <= available:
-        need = (format_bytes(need_bytes) if np.isfinite(need_bytes)
-                else "more than any machine has")
-        raise InvalidConfigError(f"{what}: about {need} of memory needed, more than the "
-                                 f"{format_bytes(available)} available on this machine; {change}")
+        need = format_bytes(need_bytes) if np.isfinite(need_bytes) else "more than any machine has"
+        raise InvalidConfigError(
+            f"{what}: about {need} of memory needed, more than the "
+            f"{format_bytes(available)} available on this machine; {change}"
+        )

@@ -52,8 +52,10 @@ class CorruptFileError(InvalidConfigError):
         self.kind = str(kind)
         self.problem = str(problem)
         self.remedy = str(remedy)
-        super().__init__(f"{self.path} is not a valid {self.kind}: {self.problem}"
-                         + (f"; {self.remedy}" if self.remedy else ""))
+        super().__init__(
+            f"{self.path} is not a valid {self.kind}: {self.problem}"
+            + (f"; {self.remedy}" if self.remedy else "")
+        )
 
     def _init_args(self) -> tuple:
         return self.path, self.kind, self.problem, self.remedy
@@ -71,14 +73,18 @@ class UnreachablePoseError(StewartError, ValueError):
 
     def __init__(self, leg: int, ratio: float, t: float | None = None, pose=None):
         self.leg = int(leg)
-        self.ratio = abs(float(ratio))      # callers may pass the signed L / sqrt(M^2 + N^2)
+        self.ratio = abs(float(ratio))  # callers may pass the signed L / sqrt(M^2 + N^2)
         self.t, self.pose, where = _locate(t, pose)
-        value = (f"= {self.ratio:.4g} > 1" if not math.isnan(self.ratio) else
-                 "is not a number (M = N = 0: the platform joint is on the motor's axis)")
+        value = (
+            f"= {self.ratio:.4g} > 1"
+            if not math.isnan(self.ratio)
+            else "is not a number (M = N = 0: the platform joint is on the motor's axis)"
+        )
         super().__init__(
             f"leg {self.leg} cannot reach the pose{where}: |L|/sqrt(M^2+N^2) {value}. Bring "
             f"the pose closer to home [0, 0, 0, 0, 0, 0.30] or reduce the trajectory's "
-            f"amplitude.")
+            f"amplitude."
+        )
 
     def _init_args(self) -> tuple:
         return self.leg, self.ratio, self.t, self.pose
@@ -105,21 +111,36 @@ class NotStabilizableError(StewartError, ValueError):
         self.rank_AB, self.rank_AC, self.n = (int(checks[k]) for k in ("rank_AB", "rank_AC", "n"))
         self.pose = None if pose is None else [float(v) for v in pose]
         failed = "; ".join(
-            text for ok, text in (
-                (self.stabilizable, f"not stabilizable (rank [lambda I - A, B] = {self.rank_AB}"
-                                    f" < {self.n}): the motors' input matrix B(x) is rank "
-                                    f"deficient there"),
-                (self.detectable, f"not detectable (rank [lambda I - A; C] = {self.rank_AC} < "
-                                  f"{self.n}): a scale of LqiScales is infinite or zero"))
-            if not ok)
-        where = ("" if self.pose is None else " at pose [phi, theta, psi, X, Y, Z] = ["
-                 + ", ".join(f"{v:.4g}" for v in self.pose) + "]")
+            text
+            for ok, text in (
+                (
+                    self.stabilizable,
+                    f"not stabilizable (rank [lambda I - A, B] = {self.rank_AB}"
+                    f" < {self.n}): the motors' input matrix B(x) is rank "
+                    f"deficient there",
+                ),
+                (
+                    self.detectable,
+                    f"not detectable (rank [lambda I - A; C] = {self.rank_AC} < "
+                    f"{self.n}): a scale of LqiScales is infinite or zero",
+                ),
+            )
+            if not ok
+        )
+        where = (
+            ""
+            if self.pose is None
+            else " at pose [phi, theta, psi, X, Y, Z] = ["
+            + ", ".join(f"{v:.4g}" for v in self.pose)
+            + "]"
+        )
         super().__init__(
             f"the LQI's error model fails the Hautus test (paper eqs. 28-29){where}: {failed}. "
             f"Start the controller at a pose away from singularities (x_initial, the "
             f"reference's start) or check the robot's geometry, robot.platform_mass, "
             f"robot.platform_inertia and the other masses and inertias (kg, kg m^2): motors that "
-            f"barely move the platform leave it uncontrollable")
+            f"barely move the platform leave it uncontrollable"
+        )
 
     def _init_args(self) -> tuple:
         return self.checks, self.pose
@@ -161,8 +182,11 @@ class JointLimitError(StewartError, ValueError):
         pose: the (6,) pose [phi, theta, psi, X, Y, Z] that failed, if known.
     """
 
-    _FIELD = {"motor_angle": "motor_angle_min_deg / motor_angle_max_deg",
-              "crank_joint": "crank_joint_cone_deg", "platform_joint": "platform_joint_cone_deg"}
+    _FIELD = {
+        "motor_angle": "motor_angle_min_deg / motor_angle_max_deg",
+        "crank_joint": "crank_joint_cone_deg",
+        "platform_joint": "platform_joint_cone_deg",
+    }
 
     def __init__(self, leg: int, limit: str, margin: float, t: float | None = None, pose=None):
         self.leg = int(leg)
@@ -172,7 +196,8 @@ class JointLimitError(StewartError, ValueError):
         super().__init__(
             f"leg {self.leg} leaves its {self.limit} limit by {math.degrees(-self.margin):.3g}"
             f" deg{where}. Reduce the trajectory's amplitude, or widen "
-            f"StewartGeometry.{self._FIELD.get(self.limit, self.limit)} if the hardware allows.")
+            f"StewartGeometry.{self._FIELD.get(self.limit, self.limit)} if the hardware allows."
+        )
 
     def _init_args(self) -> tuple:
         return self.leg, self.limit, self.margin, self.t, self.pose
@@ -193,22 +218,25 @@ class SingularPoseError(StewartError, ValueError):
         t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
     """
 
-    def __init__(self, measure: str, value: float, threshold: float, t: float | None = None,
-                 pose=None):
+    def __init__(
+        self, measure: str, value: float, threshold: float, t: float | None = None, pose=None
+    ):
         self.measure = str(measure)
         self.value = float(value)
         self.threshold = float(threshold)
         self.t, self.pose, where = _locate(t, pose)
-        what = {"cond": f"cond(J) = {self.value:.4g} > {self.threshold:g} (the motors are about to "
-                        f"lose the ability to hold the platform in some direction)",
-                "sigma_min_inv": f"1/sigma_max(J) = {self.value:.4g} < {self.threshold:g} "
-                                 f"(rad or m) per rad (a crank near its dead point: the motors "
-                                 f"are about to lose the ability to move the platform)"}.get(
-            self.measure, f"{self.measure} = {self.value:.4g} is not finite (a singular pose)")
+        what = {
+            "cond": f"cond(J) = {self.value:.4g} > {self.threshold:g} (the motors are about to "
+            f"lose the ability to hold the platform in some direction)",
+            "sigma_min_inv": f"1/sigma_max(J) = {self.value:.4g} < {self.threshold:g} "
+            f"(rad or m) per rad (a crank near its dead point: the motors "
+            f"are about to lose the ability to move the platform)",
+        }.get(self.measure, f"{self.measure} = {self.value:.4g} is not finite (a singular pose)")
         super().__init__(
             f"the pose is too close to a singularity{where}: {what}. Keep the "
             f"path nearer the home pose [0, 0, 0, 0, 0, 0.30], or change the threshold "
-            f"(GuardConfig.cond_threshold / min_sigma_min_inv) if you know the margin is enough.")
+            f"(GuardConfig.cond_threshold / min_sigma_min_inv) if you know the margin is enough."
+        )
 
     def _init_args(self) -> tuple:
         return self.measure, self.value, self.threshold, self.t, self.pose
@@ -227,17 +255,28 @@ class InterferenceError(StewartError, ValueError):
         t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
     """
 
-    def __init__(self, part_a: str, part_b: str, clearance: float, margin: float,
-                 t: float | None = None, pose=None):
+    def __init__(
+        self,
+        part_a: str,
+        part_b: str,
+        clearance: float,
+        margin: float,
+        t: float | None = None,
+        pose=None,
+    ):
         self.part_a, self.part_b = str(part_a), str(part_b)
         self.clearance, self.margin = float(clearance), float(margin)
         self.t, self.pose, where = _locate(t, pose)
-        how = (f"overlap by {-self.clearance * 1e3:.3g} mm" if self.clearance < 0
-               else f"are {self.clearance * 1e3:.3g} mm apart")
+        how = (
+            f"overlap by {-self.clearance * 1e3:.3g} mm"
+            if self.clearance < 0
+            else f"are {self.clearance * 1e3:.3g} mm apart"
+        )
         super().__init__(
             f"{self.part_a} and {self.part_b} {how}{where}, less than the "
             f"{self.margin * 1e3:.3g} mm the path must keep between parts. Keep the path "
-            f"nearer home, or lower GuardConfig.min_clearance_m if the parts allow it.")
+            f"nearer home, or lower GuardConfig.min_clearance_m if the parts allow it."
+        )
 
     def _init_args(self) -> tuple:
         return self.part_a, self.part_b, self.clearance, self.margin, self.t, self.pose
@@ -257,20 +296,30 @@ class MotorLimitError(StewartError, ValueError):
         t: time in s along a trajectory, or None.  pose: the (6,) pose, if known.
     """
 
-    def __init__(self, motor: int, quantity: str, required: float, limit: float,
-                 t: float | None = None, pose=None):
+    def __init__(
+        self,
+        motor: int,
+        quantity: str,
+        required: float,
+        limit: float,
+        t: float | None = None,
+        pose=None,
+    ):
         self.motor, self.quantity = int(motor), str(quantity)
         self.required, self.limit = float(required), float(limit)
         self.t, self.pose, where = _locate(t, pose)
         unit = "N m" if self.quantity == "torque" else "rad/s"
         #: What the motion asks of which motor, when, and by how much over the limit: the
         #: error's first sentence, and the warning's when the run goes on anyway.
-        self.need = (f"motor {self.motor} would need {self.required:.3g} {unit} of "
-                     f"{self.quantity}{where}, {_percent(100 * (self.required / self.limit - 1))}"
-                     f" % over the {self.limit:.3g} {unit} a reference may use")
+        self.need = (
+            f"motor {self.motor} would need {self.required:.3g} {unit} of "
+            f"{self.quantity}{where}, {_percent(100 * (self.required / self.limit - 1))}"
+            f" % over the {self.limit:.3g} {unit} a reference may use"
+        )
         super().__init__(
             f"{self.need}. Slow the motion or reduce its amplitude, or set "
-            f"guard.allow_infeasible: true to run it anyway (the motors will saturate).")
+            f"guard.allow_infeasible: true to run it anyway (the motors will saturate)."
+        )
 
     def _init_args(self) -> tuple:
         return self.motor, self.quantity, self.required, self.limit, self.t, self.pose
@@ -296,8 +345,10 @@ class FolderInUseError(StewartError, RuntimeError):
         self.folder = str(folder)
         self.holder = str(holder)
         who = self.holder or "its writer did not say who it is"
-        super().__init__(f"{self.folder} is being written by another study ({who}): wait for it "
-                         f"to finish, or choose another --out")
+        super().__init__(
+            f"{self.folder} is being written by another study ({who}): wait for it "
+            f"to finish, or choose another --out"
+        )
 
     def _init_args(self) -> tuple:
         return self.folder, self.holder
@@ -328,8 +379,9 @@ def _locate(t: float | None, pose) -> tuple[float | None, list[float] | None, st
     pose = None if pose is None else [float(v) for v in pose]
     where = "" if t is None else f" at t = {t:.4g} s"
     if pose is not None:
-        where += (" (pose [phi, theta, psi, X, Y, Z] = ["
-                  + ", ".join(f"{v:.4g}" for v in pose) + "])")
+        where += (
+            " (pose [phi, theta, psi, X, Y, Z] = [" + ", ".join(f"{v:.4g}" for v in pose) + "])"
+        )
     return t, pose, where
 
 

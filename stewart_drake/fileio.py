@@ -40,9 +40,14 @@ MAX_JSON_BYTES = 256e6
 
 def describe_mode(mode: int) -> str:
     """What a file of ``st_mode`` ``mode`` is, for messages: "a folder", "a FIFO (named pipe)"."""
-    for test, name in ((stat.S_ISDIR, "a folder"), (stat.S_ISCHR, "a character device"),
-                       (stat.S_ISBLK, "a block device"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
-                       (stat.S_ISSOCK, "a socket"), (stat.S_ISREG, "a regular file")):
+    for test, name in (
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISREG, "a regular file"),
+    ):
         if test(mode):
             return name
     return "not a regular file"
@@ -63,9 +68,11 @@ def check_replaceable(path, what: str | None = None) -> None:
     except (FileNotFoundError, NotADirectoryError):
         return
     if not stat.S_ISREG(mode):
-        raise InvalidConfigError(f"{what or path} is {describe_mode(mode)}, not a regular file: "
-                                 f"stewart-drake replaces only regular files; choose another "
-                                 f"output")
+        raise InvalidConfigError(
+            f"{what or path} is {describe_mode(mode)}, not a regular file: "
+            f"stewart-drake replaces only regular files; choose another "
+            f"output"
+        )
 
 
 def _writer() -> str:
@@ -87,19 +94,18 @@ def atomic_write(path: Path, write) -> None:
     path = Path(path)
     check_replaceable(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{_writer()}.",
-                               suffix=".tmp")
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{_writer()}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)                # mkstemp makes 0600; keep the usual mode
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; keep the usual mode
         os.replace(tmp, path)
     except OSError as err:
         if os.path.exists(tmp):
             os.remove(tmp)
-        if err.errno is not None and err.filename in (None, tmp):   # a full disk names none
+        if err.errno is not None and err.filename in (None, tmp):  # a full disk names none
             raise type(err)(err.errno, err.strerror or str(err), str(path)) from None
         raise
     except BaseException:
@@ -114,7 +120,7 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except (PermissionError, OverflowError):
-        return True                                   # another user's process, or not a pid
+        return True  # another user's process, or not a pid
     return True
 
 
@@ -141,7 +147,7 @@ def remove_stale_temporaries(folder, depth: int = 1) -> list[Path]:
                 if stat.S_ISREG(path.lstat().st_mode):
                     path.unlink()
                     removed.append(path)
-            except FileNotFoundError:                 # its writer renamed or removed it
+            except FileNotFoundError:  # its writer renamed or removed it
                 continue
     return removed
 
@@ -175,23 +181,30 @@ def read_checked(path, kind: str, max_bytes: float, remedy: str = "") -> bytes:
         InvalidConfigError: more bytes than the machine has memory available.
         OSError: the file cannot be opened or read (missing, permissions).
     """
-    def refuse(mode):
-        return CorruptFileError(path, kind, f"it is {describe_mode(mode)}, not a regular file",
-                                remedy)
 
-    mode = os.stat(path).st_mode                 # a device is not even opened, a socket cannot be
+    def refuse(mode):
+        return CorruptFileError(
+            path, kind, f"it is {describe_mode(mode)}, not a regular file", remedy
+        )
+
+    mode = os.stat(path).st_mode  # a device is not even opened, a socket cannot be
     if not stat.S_ISREG(mode):
         raise refuse(mode)
     fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
-    info = os.fstat(fd)                          # what was opened, if it changed since the stat
+    info = os.fstat(fd)  # what was opened, if it changed since the stat
     if not stat.S_ISREG(info.st_mode):
         os.close(fd)
         raise refuse(info.st_mode)
     with os.fdopen(fd, "rb") as f:
         if info.st_size > max_bytes:
-            raise CorruptFileError(path, kind, f"it holds {format_bytes(info.st_size)}, over "
-                                               f"the bound of {format_bytes(max_bytes)} for this "
-                                               f"kind of file", remedy)
+            raise CorruptFileError(
+                path,
+                kind,
+                f"it holds {format_bytes(info.st_size)}, over "
+                f"the bound of {format_bytes(max_bytes)} for this "
+                f"kind of file",
+                remedy,
+            )
         check_memory(f"reading {path}", info.st_size, "free some memory")
         return f.read()
 
@@ -235,16 +248,16 @@ class CheckedNpz:
         if not raw:
             raise self.corrupt("it is empty")
         try:
-            if raw[:4] == b"PK\x03\x04":             # numpy opens zip archives as npz
+            if raw[:4] == b"PK\x03\x04":  # numpy opens zip archives as npz
                 self._check_sizes(raw, max_bytes)
             data = np.load(io.BytesIO(raw), allow_pickle=False)
             if not isinstance(data, np.lib.npyio.NpzFile):
                 raise self.corrupt("it holds one .npy array, not an .npz archive")
             with data:
                 self.arrays = {name: data[name] for name in data.files}
-        except InvalidConfigError:                   # CorruptFileError, or too large
+        except InvalidConfigError:  # CorruptFileError, or too large
             raise
-        except Exception as err:                  # noqa: BLE001 - bytes in memory: any failure
+        except Exception as err:  # noqa: BLE001 - bytes in memory: any failure
             raise self.corrupt(f"not a readable .npz archive ({_describe(err)})") from None
 
     def _check_sizes(self, raw: bytes, max_bytes: float) -> None:
@@ -255,9 +268,11 @@ class CheckedNpz:
         total = sum(sizes.values())
         if total > max_bytes:
             name = max(sizes, key=sizes.__getitem__)
-            raise self.corrupt(f"its entries hold {format_bytes(total)} after decompression "
-                               f"({name!r}: {format_bytes(sizes[name])}), over the bound of "
-                               f"{format_bytes(max_bytes)} for this kind of file")
+            raise self.corrupt(
+                f"its entries hold {format_bytes(total)} after decompression "
+                f"({name!r}: {format_bytes(sizes[name])}), over the bound of "
+                f"{format_bytes(max_bytes)} for this kind of file"
+            )
         check_memory(f"reading {self.path}", total, "free some memory")
 
     def corrupt(self, problem: str) -> CorruptFileError:
@@ -298,8 +313,9 @@ class CheckedNpz:
         """Entry ``name`` as one string (a 0-d unicode array)."""
         a = self._entry(name)
         if a.dtype.kind != "U" or a.size != 1:
-            raise self.corrupt(f"the entry {name!r} must be one string, has {a.dtype} "
-                               f"shape {a.shape}")
+            raise self.corrupt(
+                f"the entry {name!r} must be one string, has {a.dtype} shape {a.shape}"
+            )
         return str(a.reshape(()))
 
     def json(self, name: str, kind: type = dict):
@@ -310,6 +326,7 @@ class CheckedNpz:
         except (ValueError, RecursionError) as err:
             raise self.corrupt(f"the entry {name!r} is not JSON ({_describe(err)})") from None
         if not isinstance(value, kind):
-            raise self.corrupt(f"the entry {name!r} must be a JSON {kind.__name__}, got "
-                               f"{type(value).__name__}")
+            raise self.corrupt(
+                f"the entry {name!r} must be a JSON {kind.__name__}, got {type(value).__name__}"
+            )
         return value

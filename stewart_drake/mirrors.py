@@ -20,12 +20,21 @@ class ValueMirror:
 
     def build(self):
         """The value type with these fields (lists become tuples); validated by its constructor."""
-        return self.value_class(**{
-            f.name: tuple(v) if isinstance(v, list) else v
-            for f in dataclasses.fields(self) for v in [getattr(self, f.name)]})
+        return self.value_class(
+            **{
+                f.name: tuple(v) if isinstance(v, list) else v
+                for f in dataclasses.fields(self)
+                for v in [getattr(self, f.name)]
+            }
+        )
 
     @classmethod
     def from_value(cls, value):
         """The form of a value-type instance (e.g. ``Robot.from_value(StewartGeometry())``)."""
-        return cls(**{f.name: list(v) if isinstance(v, tuple) else v
-                      for f in dataclasses.fields(cls) for v in [getattr(value, f.name)]})
+        return cls(
+            **{
+                f.name: list(v) if isinstance(v, tuple) else v
+                for f in dataclasses.fields(cls)
+                for v in [getattr(value, f.name)]
+            }
+        )

@@ -43,8 +43,10 @@ def install_plugin(site, package: str, entry_points: dict, source: str):
     info = site / f"{package}-1.0.dist-info"
     info.mkdir(parents=True)
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {package}\nVersion: 1.0\n")
-    (info / "entry_points.txt").write_text("[stewart_drake.controllers]\n" + "".join(
-        f"{name} = {target}\n" for name, target in entry_points.items()))
+    (info / "entry_points.txt").write_text(
+        "[stewart_drake.controllers]\n"
+        + "".join(f"{name} = {target}\n" for name, target in entry_points.items())
+    )
     (site / f"{package}.py").write_text(source)
     return site
 
@@ -65,6 +67,7 @@ def feedforward_fault(monkeypatch):
             return u
 
         monkeypatch.setattr(LqiController, "inputs", faulty)
+
     return install
 
 
@@ -73,7 +76,9 @@ def write_trace(path, t, columns: dict, gap=None, time_header: str = "t [s]"):
     the rows strictly inside ``gap`` (start, end) s. Returns ``path``."""
     keep = np.ones(len(t), bool) if gap is None else ~((t > gap[0]) & (t < gap[1]))
     lines = [",".join([time_header] + list(columns))]
-    lines += [",".join([f"{t[k]:.5f}"] + [f"{v[k]:.6f}" for v in columns.values()])
-              for k in np.flatnonzero(keep)]
+    lines += [
+        ",".join([f"{t[k]:.5f}"] + [f"{v[k]:.6f}" for v in columns.values()])
+        for k in np.flatnonzero(keep)
+    ]
     path.write_text("\n".join(lines) + "\n")
     return path

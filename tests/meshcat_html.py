@@ -8,13 +8,34 @@ import base64
 import re
 import struct
 
-_FIXED = {0xca: ">f", 0xcb: ">d", 0xcc: ">B", 0xcd: ">H", 0xce: ">I", 0xcf: ">Q",
-          0xd0: ">b", 0xd1: ">h", 0xd2: ">i", 0xd3: ">q"}
+_FIXED = {
+    0xCA: ">f",
+    0xCB: ">d",
+    0xCC: ">B",
+    0xCD: ">H",
+    0xCE: ">I",
+    0xCF: ">Q",
+    0xD0: ">b",
+    0xD1: ">h",
+    0xD2: ">i",
+    0xD3: ">q",
+}
 # first byte -> (bytes of the length field, kind)
-_SIZED = {0xc4: (1, "bin"), 0xc5: (2, "bin"), 0xc6: (4, "bin"), 0xd9: (1, "str"),
-          0xda: (2, "str"), 0xdb: (4, "str"), 0xdc: (2, "array"), 0xdd: (4, "array"),
-          0xde: (2, "map"), 0xdf: (4, "map"), 0xc7: (1, "ext"), 0xc8: (2, "ext"),
-          0xc9: (4, "ext")}
+_SIZED = {
+    0xC4: (1, "bin"),
+    0xC5: (2, "bin"),
+    0xC6: (4, "bin"),
+    0xD9: (1, "str"),
+    0xDA: (2, "str"),
+    0xDB: (4, "str"),
+    0xDC: (2, "array"),
+    0xDD: (4, "array"),
+    0xDE: (2, "map"),
+    0xDF: (4, "map"),
+    0xC7: (1, "ext"),
+    0xC8: (2, "ext"),
+    0xC9: (4, "ext"),
+}
 
 
 def unpackb(data: bytes):
@@ -26,36 +47,36 @@ def unpackb(data: bytes):
 def _decode(b: bytes, i: int):
     c = b[i]
     i += 1
-    if c <= 0x7f:
+    if c <= 0x7F:
         return c, i
-    if c >= 0xe0:
+    if c >= 0xE0:
         return c - 0x100, i
-    if c <= 0x8f:
-        return _container(b, i, c & 0x0f, "map")
-    if c <= 0x9f:
-        return _container(b, i, c & 0x0f, "array")
-    if c <= 0xbf:
-        n = c & 0x1f
-        return b[i:i + n].decode(), i + n
-    if c == 0xc0:
+    if c <= 0x8F:
+        return _container(b, i, c & 0x0F, "map")
+    if c <= 0x9F:
+        return _container(b, i, c & 0x0F, "array")
+    if c <= 0xBF:
+        n = c & 0x1F
+        return b[i : i + n].decode(), i + n
+    if c == 0xC0:
         return None, i
-    if c in (0xc2, 0xc3):
-        return c == 0xc3, i
+    if c in (0xC2, 0xC3):
+        return c == 0xC3, i
     if c in _FIXED:
         n = struct.calcsize(_FIXED[c])
-        return struct.unpack(_FIXED[c], b[i:i + n])[0], i + n
-    if 0xd4 <= c <= 0xd8:                                  # fixext 1..16
-        n = 1 << (c - 0xd4)
-        return ("ext", b[i], b[i + 1:i + 1 + n]), i + 1 + n
+        return struct.unpack(_FIXED[c], b[i : i + n])[0], i + n
+    if 0xD4 <= c <= 0xD8:  # fixext 1..16
+        n = 1 << (c - 0xD4)
+        return ("ext", b[i], b[i + 1 : i + 1 + n]), i + 1 + n
     width, kind = _SIZED[c]
-    n = int.from_bytes(b[i:i + width], "big")
+    n = int.from_bytes(b[i : i + width], "big")
     i += width
     if kind == "bin":
-        return b[i:i + n], i + n
+        return b[i : i + n], i + n
     if kind == "str":
-        return b[i:i + n].decode(), i + n
+        return b[i : i + n].decode(), i + n
     if kind == "ext":
-        return ("ext", b[i], b[i + 1:i + 1 + n]), i + 1 + n
+        return ("ext", b[i], b[i + 1 : i + 1 + n]), i + 1 + n
     return _container(b, i, n, kind)
 
 

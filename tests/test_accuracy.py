@@ -12,16 +12,16 @@ from stewart_drake.studies import accuracy
 
 def test_observed_order_is_the_log_log_slope():
     h = np.array([1e-3, 5e-4, 2e-4, 1e-4])
-    assert accuracy.observed_order(h, 3.0 * h ** 1.5) == pytest.approx(1.5, abs=1e-12)
-    assert np.isnan(accuracy.observed_order(h, [1e-3, 1e-4, 0.0, 1e-16]))   # round-off left out
+    assert accuracy.observed_order(h, 3.0 * h**1.5) == pytest.approx(1.5, abs=1e-12)
+    assert np.isnan(accuracy.observed_order(h, [1e-3, 1e-4, 0.0, 1e-16]))  # round-off left out
 
 
 def test_pose_errors_measure_distance_and_rotation_angle():
     x = np.array([0.1, -0.2, 0.3, 0.01, 0.02, 0.3])
-    moved = x + [0, 0, 1e-9, 3e-3, 4e-3, 0]               # 1 nrad of yaw, 5 mm
+    moved = x + [0, 0, 1e-9, 3e-3, 4e-3, 0]  # 1 nrad of yaw, 5 mm
     position, rotation = accuracy.pose_errors(moved, x)
     assert position == pytest.approx(5e-3, rel=1e-12)
-    assert rotation == pytest.approx(1e-9, rel=1e-6)      # no arccos round-off at 1e-9
+    assert rotation == pytest.approx(1e-9, rel=1e-6)  # no arccos round-off at 1e-9
 
 
 def test_sap_fall_errors_are_first_order_and_lose_one_percent_at_1_ms(geometry):
@@ -34,7 +34,7 @@ def test_sap_fall_errors_are_first_order_and_lose_one_percent_at_1_ms(geometry):
     e_coarse = accuracy.pose_errors(coarse.x, ref.x)[0]
     e_half = accuracy.pose_errors(half.x, ref.x)[0]
     assert np.all((e_coarse / e_half > 1.8) & (e_coarse / e_half < 2.6))
-    assert 3e-4 < e_coarse[1] < 6e-4                     # 0.43 mm of a 49 mm fall
+    assert 3e-4 < e_coarse[1] < 6e-4  # 0.43 mm of a 49 mm fall
     assert X_HOME[5] - ref.x[1, 5] > 0.045
     assert -0.013 < coarse.energy_change < -0.009
     assert coarse.energy_change / half.energy_change == pytest.approx(2.0, rel=0.05)

@@ -26,8 +26,9 @@ def reachable_sample(geometry):
 
 def test_analytic_rpy_equals_drake_joint_angles(geometry, random_poses, reachable_sample):
     plant, context, handles, _, _ = make_plant(geometry)
-    worst_pitch = reachable_sample[np.argmax(
-        np.abs(ball_joints.rod_ball_rpy(geometry, reachable_sample)[..., 1]).max(axis=-1))]
+    worst_pitch = reachable_sample[
+        np.argmax(np.abs(ball_joints.rod_ball_rpy(geometry, reachable_sample)[..., 1]).max(axis=-1))
+    ]
     for x in [X_HOME, worst_pitch, *random_poses[:8]]:
         assemble(plant, context, handles, x)
         drake = np.array([joint.get_angles(context) for joint in handles.rod_balls])
@@ -43,7 +44,7 @@ def test_singular_directions_lie_outside_the_crank_joint_cone(geometry):
 
 
 def test_no_pose_inside_the_limits_comes_near_gimbal_lock(geometry, reachable_sample):
-    assert len(reachable_sample) > 10_000                 # the sample covers the workspace
+    assert len(reachable_sample) > 10_000  # the sample covers the workspace
     spread = reachable_sample.max(axis=0) - reachable_sample.min(axis=0)
     assert np.all(spread > [1.2, 1.2, 1.4, 0.25, 0.3, 0.18])
     pitch = np.abs(ball_joints.rod_ball_rpy(geometry, reachable_sample)[..., 1])

@@ -16,7 +16,7 @@ def test_rod_ball_rpy_is_what_the_plant_s_ball_joints_hold(geometry, random_pose
         assemble(plant, context, handles, x)
         drake = np.array([joint.get_angles(context) for joint in handles.rod_balls])
         np.testing.assert_allclose(expected, drake, rtol=0, atol=1e-9)
-    assert np.abs(rpy).max() > 0.05                     # the poses do turn the rods
+    assert np.abs(rpy).max() > 0.05  # the poses do turn the rods
 
 
 def test_the_rod_s_turn_from_home_bounds_its_pitch(geometry, random_poses):
@@ -32,8 +32,9 @@ def test_the_rod_s_turn_from_home_bounds_its_pitch(geometry, random_poses):
 
 
 def test_pitch_bound_is_ninety_degrees_less_the_gap_to_the_cone(geometry):
-    gap = (ball_joints.singular_direction_misalignment(geometry)
-           - np.deg2rad(geometry.crank_joint_cone_deg))
+    gap = ball_joints.singular_direction_misalignment(geometry) - np.deg2rad(
+        geometry.crank_joint_cone_deg
+    )
     bound = ball_joints.pitch_bound(geometry)
     assert bound.shape == (6,) and np.all((0 < bound) & (bound <= np.pi / 2))
     np.testing.assert_allclose(bound, np.pi / 2 - np.clip(gap, 0, None))

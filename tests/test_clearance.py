@@ -23,13 +23,13 @@ def _segment_distance(a0, a1, b0, b1):
     """Distance of segments a0-a1 and b0-b1: the distance from a point of the first to the
     second (projected and clamped) is convex along the first, so a bounded scalar search finds
     its minimum (no closed form shared with the code under test)."""
+
     def to_b(s):
         p = a0 + s * (a1 - a0)
         t = np.clip((p - b0) @ (b1 - b0) / ((b1 - b0) @ (b1 - b0)), 0.0, 1.0)
         return np.linalg.norm(p - b0 - t * (b1 - b0))
 
-    return minimize_scalar(to_b, bounds=(0.0, 1.0), method="bounded",
-                           options={"xatol": 1e-12}).fun
+    return minimize_scalar(to_b, bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-12}).fun
 
 
 def test_rod_tubes_at_home_are_apart_by_their_axes_distance_less_two_radii(geometry, model):
@@ -44,11 +44,11 @@ def test_rod_tubes_at_home_are_apart_by_their_axes_distance_less_two_radii(geome
     for i, j in itertools.combinations(range(6), 2):
         key = (f"rod_{i}/tube", f"rod_{j}/tube")
         hand = _segment_distance(*axis[i], *axis[j]) - 2 * geometry.rod_radius
-        if hand < 0.1:                                     # within Drake's query distance
-            assert found[key] == pytest.approx(hand, abs=2e-6), key      # FCL GJK: ~1 um
+        if hand < 0.1:  # within Drake's query distance
+            assert found[key] == pytest.approx(hand, abs=2e-6), key  # FCL GJK: ~1 um
             checked += 1
-    assert checked >= 3                                    # at least the three leg pairs
-    assert min(found.values()) == pytest.approx(0.018, abs=5e-4)     # 18 mm at home
+    assert checked >= 3  # at least the three leg pairs
+    assert min(found.values()) == pytest.approx(0.018, abs=5e-4)  # 18 mm at home
 
 
 def test_the_pose_independent_pairs_are_the_rod_ends_under_the_plate(geometry, model):
@@ -57,14 +57,14 @@ def test_the_pose_independent_pairs_are_the_rod_ends_under_the_plate(geometry, m
     by_pair = {(c.part_a, c.part_b): c.distance for c in model.fixed}
     for i in range(6):
         assert by_pair[("platform/plate", f"rod_{i}/end_top")] == pytest.approx(
-            parts.PLATFORM_GAP, abs=1e-9)
+            parts.PLATFORM_GAP, abs=1e-9
+        )
     for i, j in itertools.combinations(range(6), 2):
         hand = np.linalg.norm(geometry.p_E[i] - geometry.p_E[j]) - 2 * geometry.rod_end_radius
         assert by_pair[(f"rod_{i}/end_top", f"rod_{j}/end_top")] == pytest.approx(hand, abs=1e-9)
     assert [c.distance for c in model.fixed] == sorted(c.distance for c in model.fixed)
     assert ("platform/plate", "rod_0/end_top") not in model.pairs
-    assert all(c.part_b.endswith("end_top") or c.part_a.endswith("end_top")
-               for c in model.fixed)
+    assert all(c.part_b.endswith("end_top") or c.part_a.endswith("end_top") for c in model.fixed)
 
 
 def test_the_sweep_and_closest_agree_with_contacts_and_unreachable_is_nan(geometry, model):

@@ -38,7 +38,7 @@ def test_every_option_shows_its_default_in_help():
     missing = []
     for name, command, action in _options():
         if isinstance(action, argparse._StoreTrueAction):
-            continue                                   # a flag: off unless given
+            continue  # a flag: off unless given
         text = command.formatter_class("x")._get_help_string(action) % {"default": action.default}
         if "default" not in text:
             missing.append(f"{name} {action.option_strings[0]}")
@@ -48,8 +48,9 @@ def test_every_option_shows_its_default_in_help():
 
 
 def test_trajectory_lists_its_choices():
-    (action,) = [a for name, _, a in _options() if name == "run" and "--trajectory" in
-                 a.option_strings]
+    (action,) = [
+        a for name, _, a in _options() if name == "run" and "--trajectory" in a.option_strings
+    ]
     assert list(action.choices) == sorted(TRAJECTORIES)
     assert all(name in action.help for name in TRAJECTORIES)
 
@@ -68,30 +69,89 @@ def test_a_csv_reference_sets_the_run_to_its_own_length(tmp_path, capsys):
     """Shorter than the scenario's 10 s: the run lasts as long as the file (it was refused);
     --duration still cuts it."""
     ref = _write_csv(tmp_path / "short.csv", 0.24)
-    assert cli.main(["run", "--trajectory-file", str(ref), "--out", str(tmp_path / "a"),
-                     "--no-progress"]) == 0
+    assert (
+        cli.main(
+            ["run", "--trajectory-file", str(ref), "--out", str(tmp_path / "a"), "--no-progress"]
+        )
+        == 0
+    )
     result = load_result(tmp_path / "a" / "run_short.npz")
     assert result.t[-1] == pytest.approx(0.24) and result.config_summary["duration_s"] == 0.24
-    assert cli.main(["run", "--trajectory-file", str(ref), "--duration", "0.1", "--out",
-                     str(tmp_path / "b"), "--no-progress"]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                "--trajectory-file",
+                str(ref),
+                "--duration",
+                "0.1",
+                "--out",
+                str(tmp_path / "b"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert load_result(tmp_path / "b" / "run_short.npz").t[-1] == pytest.approx(0.1)
     capsys.readouterr()
-    assert cli.main(["run", "--trajectory-file", str(ref), "--duration", "0.5", "--out",
-                     str(tmp_path / "c"), "--no-progress"]) == 2
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1       # longer than the file
+    assert (
+        cli.main(
+            [
+                "run",
+                "--trajectory-file",
+                str(ref),
+                "--duration",
+                "0.5",
+                "--out",
+                str(tmp_path / "c"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1  # longer than the file
 
 
 def test_workspace_sweeps_the_scenario_s_robot(tmp_path, capsys):
     """--scenario and --set as for `run`: a longer rod reaches higher."""
+
     def volume(out, *extra):
-        assert cli.main(["workspace", "--resolution", "5", "--runner", "serial", "--out",
-                         str(tmp_path / out), "--no-progress", *extra]) == 0
-        rows = {r[0]: float(r[1]) for r in csv.reader(open(tmp_path / out / "summary.csv"))
-                if r[0] != "figure"}
+        assert (
+            cli.main(
+                [
+                    "workspace",
+                    "--resolution",
+                    "5",
+                    "--runner",
+                    "serial",
+                    "--out",
+                    str(tmp_path / out),
+                    "--no-progress",
+                    *extra,
+                ]
+            )
+            == 0
+        )
+        rows = {
+            r[0]: float(r[1])
+            for r in csv.reader(open(tmp_path / out / "summary.csv"))
+            if r[0] != "figure"
+        }
         return rows["reachable_volume"]
 
     assert volume("long", "--set", "robot.rod_length=0.45") > 1.5 * volume("default")
     capsys.readouterr()
-    assert cli.main(["workspace", "--set", "robot.rod_length=-1", "--out",
-                     str(tmp_path / "bad"), "--no-progress"]) == 2
+    assert (
+        cli.main(
+            [
+                "workspace",
+                "--set",
+                "robot.rod_length=-1",
+                "--out",
+                str(tmp_path / "bad"),
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     assert "rod_length" in capsys.readouterr().err

@@ -30,7 +30,7 @@ def _one_line_error(capsys, argv, code=2):
     """Run the CLI in-process; the exit code and its only stderr line."""
     try:
         rc = cli.main(argv)
-    except SystemExit as exit_:                     # argparse's own errors
+    except SystemExit as exit_:  # argparse's own errors
         rc = exit_.code
     err = capsys.readouterr().err
     assert rc == code, err
@@ -39,20 +39,23 @@ def _one_line_error(capsys, argv, code=2):
     return lines[0]
 
 
-@pytest.mark.parametrize("argv, expected", [
-    (["run", "--duration", "-1"], "--duration: must be > 0, got -1"),
-    (["run", "--duration", "nan"], "--duration: must be > 0, got nan"),
-    (["run", "--omega-q", "abc"], "--omega-q: expected a number, got 'abc'"),
-    (["run", "--tuner", "fuzzy"], "invalid choice: 'fuzzy'"),
-    (["collect", "--jobs", "-2"], "--jobs: must be >= 0, got -2"),
-    (["evaluate", "--jobs", "-1"], "--jobs: must be >= 0, got -1"),
-    (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
-    (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
-    (["workspace", "--resolution", "2"], "--resolution: must be >= 3, got 2"),
-    (["workspace", "--jobs", "many"], "--jobs: expected an integer, got 'many'"),
-    (["train", "--mode", "best"], "invalid choice: 'best'"),
-    (["nonsense"], "invalid choice: 'nonsense'"),
-])
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "--duration", "-1"], "--duration: must be > 0, got -1"),
+        (["run", "--duration", "nan"], "--duration: must be > 0, got nan"),
+        (["run", "--omega-q", "abc"], "--omega-q: expected a number, got 'abc'"),
+        (["run", "--tuner", "fuzzy"], "invalid choice: 'fuzzy'"),
+        (["collect", "--jobs", "-2"], "--jobs: must be >= 0, got -2"),
+        (["evaluate", "--jobs", "-1"], "--jobs: must be >= 0, got -1"),
+        (["collect", "--duration", "0"], "--duration: must be > 0, got 0"),
+        (["collect", "--seed", "1.5"], "--seed: expected an integer, got '1.5'"),
+        (["workspace", "--resolution", "2"], "--resolution: must be >= 3, got 2"),
+        (["workspace", "--jobs", "many"], "--jobs: expected an integer, got 'many'"),
+        (["train", "--mode", "best"], "invalid choice: 'best'"),
+        (["nonsense"], "invalid choice: 'nonsense'"),
+    ],
+)
 def test_bad_arguments_give_one_line_and_exit_2(capsys, argv, expected):
     line = _one_line_error(capsys, argv)
     assert expected in line and line.startswith("stewart-drake")
@@ -60,19 +63,26 @@ def test_bad_arguments_give_one_line_and_exit_2(capsys, argv, expected):
 
 def test_bad_values_found_after_parsing_give_one_line(capsys, tmp_path):
     out = ["--out", str(tmp_path / "r")]
-    assert "argument --trajectory: invalid choice: 'circle' (choose from 'helix', 'home'" in \
-        _one_line_error(capsys, ["run", "--trajectory", "circle", "--no-progress"] + out)
+    assert (
+        "argument --trajectory: invalid choice: 'circle' (choose from 'helix', 'home'"
+        in _one_line_error(capsys, ["run", "--trajectory", "circle", "--no-progress"] + out)
+    )
     assert "omega_Q must be a finite number in [0.001, 1000], got 5000.0" in _one_line_error(
-        capsys, ["run", "--omega-q", "5000", "--no-progress"] + out)
+        capsys, ["run", "--omega-q", "5000", "--no-progress"] + out
+    )
     assert f"no ANN tuner weights at {tmp_path / 'w.npz'}" in _one_line_error(
-        capsys, ["run", "--tuner", "ann", "--tuner-weights", str(tmp_path / "w.npz")] + out)
+        capsys, ["run", "--tuner", "ann", "--tuner-weights", str(tmp_path / "w.npz")] + out
+    )
     assert "no collected runs in" in _one_line_error(
-        capsys, ["train", "--data", str(tmp_path / "nothing"), "--out", str(tmp_path / "w.npz")])
-    assert "duration_s (1e-06 s) must cover at least two log periods (0.002 s)" in \
-        _one_line_error(capsys, ["run", "--duration", "1e-6"] + out)   # not "0 mrad RMS"
+        capsys, ["train", "--data", str(tmp_path / "nothing"), "--out", str(tmp_path / "w.npz")]
+    )
+    assert "duration_s (1e-06 s) must cover at least two log periods (0.002 s)" in _one_line_error(
+        capsys, ["run", "--duration", "1e-6"] + out
+    )  # not "0 mrad RMS"
     assert "--tuner-weights needs --tuner ann" in _one_line_error(
-        capsys, ["run", "--tuner-weights", str(REPO / "stewart_drake/data/ann_tuner.npz")] + out)
-    assert not (tmp_path / "r").exists()                  # refused before anything was written
+        capsys, ["run", "--tuner-weights", str(REPO / "stewart_drake/data/ann_tuner.npz")] + out
+    )
+    assert not (tmp_path / "r").exists()  # refused before anything was written
 
 
 @pytest.mark.parametrize("argv", [["run"], ["collect"], ["workspace"], ["train"], ["sdf"]])
@@ -83,47 +93,57 @@ def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
     assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
 
 
-def test_a_diverged_run_gives_one_line_naming_the_saved_file(capsys, tmp_path, monkeypatch,
-                                                              feedforward_fault):
+def test_a_diverged_run_gives_one_line_naming_the_saved_file(
+    capsys, tmp_path, monkeypatch, feedforward_fault
+):
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
-    line = _one_line_error(capsys, ["run", "--duration", "0.1", "--no-progress",
-                                    "--out", str(tmp_path)])
+    line = _one_line_error(
+        capsys, ["run", "--duration", "0.1", "--no-progress", "--out", str(tmp_path)]
+    )
     # inf - inf = NaN in the pending torques reaches the plant after the computation delay,
     # where Drake refuses the NaN actuation: the guard names the torques
-    assert re.search(r"simulation diverged at t = 0\.00\d s: the motor torques are not finite",
-                     line)
+    assert re.search(
+        r"simulation diverged at t = 0\.00\d s: the motor torques are not finite", line
+    )
     saved = sorted((tmp_path / "diverged").glob("diverged_paper_*.npz"))
     assert len(saved) == 1 and str(saved[0]) in line
-    assert not (tmp_path / "run_paper.npz").exists()      # no result file, no plot of a NaN
+    assert not (tmp_path / "run_paper.npz").exists()  # no result file, no plot of a NaN
 
 
 def test_no_traceback_from_the_installed_command_line(tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "stewart_drake.interfaces.cli", "run",
-                           "--duration", "-3"],
-                          cwd=REPO, capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-m", "stewart_drake.interfaces.cli", "run", "--duration", "-3"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
         "stewart-drake run: error: argument --duration: must be > 0, got -3 "
-        "(see stewart-drake run --help)"]
+        "(see stewart-drake run --help)"
+    ]
 
 
 # -- atomic writes --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("interruption", [OSError(28, "No space left on device"),
-                                          KeyboardInterrupt()])
+
+@pytest.mark.parametrize(
+    "interruption", [OSError(28, "No space left on device"), KeyboardInterrupt()]
+)
 def test_an_interrupted_write_leaves_the_old_file_and_no_partial_one(tmp_path, interruption):
     path = tmp_path / "result.npz"
     save_npz(path, {"t": np.arange(3.0)})
     before = path.read_bytes()
 
     def writer(f):
-        f.write(b"PK\x03\x04 half of a zip")             # some bytes reach the disk, then...
+        f.write(b"PK\x03\x04 half of a zip")  # some bytes reach the disk, then...
         raise interruption
 
     with pytest.raises(type(interruption)):
         atomic_write(path, writer)
     assert path.read_bytes() == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.npz"]   # no temporary left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["result.npz"]  # no temporary left
     with np.load(path) as data:
         assert data["t"].tolist() == [0.0, 1.0, 2.0]
 
@@ -164,8 +184,21 @@ def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
 
 # -- every output path is checked before the work -------------------------------------------------
 
-@pytest.mark.parametrize("argv", [["run"], ["collect"], ["evaluate"], ["workspace"], ["train"],
-                                  ["sdf"], ["mjcf"], ["diagrams"], ["scenario"]])
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run"],
+        ["collect"],
+        ["evaluate"],
+        ["workspace"],
+        ["train"],
+        ["sdf"],
+        ["mjcf"],
+        ["diagrams"],
+        ["scenario"],
+    ],
+)
 def test_an_empty_out_is_refused(capsys, argv):
     assert "--out is empty: give a" in _one_line_error(capsys, argv + ["--out", ""])
 
@@ -176,19 +209,26 @@ def test_a_folder_where_a_file_is_due_is_refused(capsys, tmp_path, argv):
     assert f"--out {tmp_path} is a folder: give a file name" in line
 
 
-@pytest.mark.parametrize("argv, option, sub", [
-    (["run", "--duration", "0.1"], "--out", "diverged"),
-    (["collect", "--duration", "0.1"], "--out", "diverged"),
-    (["evaluate", "--quick", "--controllers", "pd"], "--out", "rows"),
-    (["evaluate", "--quick", "--controllers", "pd"], "--docs", None),
-    (["run", "--duration", "0.1"], "--html", None),
-])
-def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, monkeypatch,
-                                                               argv, option, sub):
+@pytest.mark.parametrize(
+    "argv, option, sub",
+    [
+        (["run", "--duration", "0.1"], "--out", "diverged"),
+        (["collect", "--duration", "0.1"], "--out", "diverged"),
+        (["evaluate", "--quick", "--controllers", "pd"], "--out", "rows"),
+        (["evaluate", "--quick", "--controllers", "pd"], "--docs", None),
+        (["run", "--duration", "0.1"], "--html", None),
+    ],
+)
+def test_every_output_of_a_command_is_checked_before_the_work(
+    capsys, tmp_path, monkeypatch, argv, option, sub
+):
     from stewart_drake.studies import collection, evaluation, experiments
 
-    for module, name in ((experiments, "build_simulator"), (collection, "collection_jobs"),
-                         (evaluation, "cases")):
+    for module, name in (
+        (experiments, "build_simulator"),
+        (collection, "collection_jobs"),
+        (evaluation, "cases"),
+    ):
         monkeypatch.setattr(module, name, lambda *a, **k: pytest.fail("work started"))
     out = tmp_path / "out"
     blocker = out / sub if sub else tmp_path / "a_file"
@@ -202,11 +242,12 @@ def test_every_output_of_a_command_is_checked_before_the_work(capsys, tmp_path, 
     line = _one_line_error(capsys, args)
     assert f"cannot write to {blocker}" in line and f"{blocker} is a file" in line
     assert line.endswith(f"choose another output with {option}")
-    assert sorted(tmp_path.rglob("*")) == before                  # nothing written
+    assert sorted(tmp_path.rglob("*")) == before  # nothing written
 
 
-def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_path, monkeypatch,
-                                                                          feedforward_fault):
+def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(
+    tmp_path, monkeypatch, feedforward_fault
+):
     from stewart_drake.errors import SimulationDivergedError
     from stewart_drake.simulation.guard import GuardConfig
     from stewart_drake.simulation.scenario import Scenario
@@ -216,9 +257,12 @@ def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(tmp_pat
     blocker = tmp_path / "diverged"
     blocker.write_text("a file in the folder's place")
     scenario = Scenario(duration_s=0.1, guard=GuardConfig(divergence_dir=str(blocker)))
-    with pytest.raises(SimulationDivergedError, match=rf"the motor torques are not finite.* \(the "
-                       rf"logs could not be saved in {blocker}: File exists; set "
-                       rf"guard.divergence_dir") as info:
+    with pytest.raises(
+        SimulationDivergedError,
+        match=rf"the motor torques are not finite.* \(the "
+        rf"logs could not be saved in {blocker}: File exists; set "
+        rf"guard.divergence_dir",
+    ) as info:
         run_experiment(scenario)
     assert info.value.path is None and blocker.read_text() == "a file in the folder's place"
 
@@ -232,32 +276,46 @@ def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, f
     manifest = collect(tmp_path / "out", duration_s=0.1, runner=SerialRunner(), progress=False)
     assert all(run["lost"] for run in manifest["runs"])
     assert len(list((tmp_path / "out" / "diverged").glob("diverged_*.npz"))) == 9
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]   # nothing in the current folder
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]  # nothing in the current folder
 
 
 # -- sizes are bounded before anything is allocated ----------------------------------------------
 
-@pytest.mark.parametrize("argv, expected", [
-    (["run", "--duration", "1e5"], "a run of 100000 s logged every 0.001 s: about 400 GB of "
-                                   "memory needed, more than the 8 GB available"),
-    (["run", "--duration", "1e9"], "a run of 1e+09 s logged"),
-    (["run", "--duration", "1e300"], "a run of 1e+300 s logged every 0.001 s: about 4e+306 "
-                                     "bytes of memory needed"),
-    (["run", "--duration", "1e5", "--html", "replay.html"], "about 400 GB of memory needed"),
-    (["collect", "--duration", "1e6", "--jobs", "3"], "3 runs at once, each of 1e+06 s logged "
-                                                      "every 0.001 s: about 12 TB of memory"),
-    (["workspace", "--resolution", "100000"], "a workspace sweep at resolution 100000 (2e+15 "
-                                              "poses): about 400 PB of memory needed"),
-])
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (
+            ["run", "--duration", "1e5"],
+            "a run of 100000 s logged every 0.001 s: about 400 GB of "
+            "memory needed, more than the 8 GB available",
+        ),
+        (["run", "--duration", "1e9"], "a run of 1e+09 s logged"),
+        (
+            ["run", "--duration", "1e300"],
+            "a run of 1e+300 s logged every 0.001 s: about 4e+306 bytes of memory needed",
+        ),
+        (["run", "--duration", "1e5", "--html", "replay.html"], "about 400 GB of memory needed"),
+        (
+            ["collect", "--duration", "1e6", "--jobs", "3"],
+            "3 runs at once, each of 1e+06 s logged every 0.001 s: about 12 TB of memory",
+        ),
+        (
+            ["workspace", "--resolution", "100000"],
+            "a workspace sweep at resolution 100000 (2e+15 poses): about 400 PB of memory needed",
+        ),
+    ],
+)
 def test_a_request_beyond_the_machine_s_memory_is_refused_in_one_line(
-        capsys, tmp_path, monkeypatch, argv, expected):
+    capsys, tmp_path, monkeypatch, argv, expected
+):
     from stewart_drake import checks
 
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: 8e9)
     monkeypatch.chdir(tmp_path)
     line = _one_line_error(capsys, argv + ["--no-progress", "--out", "out"])
     assert expected in line
-    assert not any(tmp_path.iterdir())                   # refused before anything was written
+    assert not any(tmp_path.iterdir())  # refused before anything was written
 
 
 def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch):
@@ -268,12 +326,12 @@ def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch)
 
     available = checks.available_memory_bytes()
     assert available is None or available > 1e8
-    assert 3e7 < run_memory_bytes(Scenario()) < 1e8         # 10 s at 1 ms: tens of MB
+    assert 3e7 < run_memory_bytes(Scenario()) < 1e8  # 10 s at 1 ms: tens of MB
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: 1e8)
     check_run_memory(Scenario())
     with pytest.raises(InvalidConfigError, match="3 runs at once, each of 10 s"):
         check_run_memory(Scenario(), runs_at_once=3)
-    monkeypatch.setattr(checks, "available_memory_bytes", lambda: None)   # unknown: no check
+    monkeypatch.setattr(checks, "available_memory_bytes", lambda: None)  # unknown: no check
     check_run_memory(Scenario(duration_s=1e300))
 
 
@@ -281,13 +339,28 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
     """SIGTERM outside a study kills Python before atomic_write can clean up; the
     next command writing there removes what the dead writer left, and only that."""
     out = tmp_path / "sdf"
-    writer = subprocess.Popen([sys.executable, "-c", (
-        "import time; from pathlib import Path; from stewart_drake.fileio import atomic_write\n"
-        "def slow(f):\n    f.write(b'half a file'); f.flush(); print('writing', flush=True); "
-        "time.sleep(60)\n"
-        f"atomic_write(Path({str(out / 'robot.sdf')!r}), slow)")],
-        stdout=subprocess.PIPE, text=True, env=dict(os.environ, PYTHONPATH=os.pathsep.join(
-            [str(REPO)] + os.environ.get("PYTHONPATH", "").split(os.pathsep))))
+    writer = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            (
+                "import time; from pathlib import Path; "
+                "from stewart_drake.fileio import atomic_write\n"
+                "def slow(f):\n    f.write(b'half a file'); f.flush(); "
+                "print('writing', flush=True); "
+                "time.sleep(60)\n"
+                f"atomic_write(Path({str(out / 'robot.sdf')!r}), slow)"
+            ),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=dict(
+            os.environ,
+            PYTHONPATH=os.pathsep.join(
+                [str(REPO)] + os.environ.get("PYTHONPATH", "").split(os.pathsep)
+            ),
+        ),
+    )
     assert writer.stdout.readline() == "writing\n"
     writer.send_signal(signal.SIGTERM)
     assert writer.wait(timeout=30) == -signal.SIGTERM
@@ -302,13 +375,27 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
         os.utime(path, (time.time() - 3 * 3600,) * 2)
     assert cli.main(["sdf", "--out", str(out / "robot.sdf")]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["robot.sdf", live.name] + [p.name for p in users])
+        ["robot.sdf", live.name] + [p.name for p in users]
+    )
 
 
 def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys):
     """A PD run's summary gives the PD's status, not 'gain re-schedules' (an LQI figure)."""
-    assert cli.main(["run", "--controller", "pd", "--duration", "0.1", "--no-progress",
-                     "--out", str(tmp_path)]) == 0
+    assert (
+        cli.main(
+            [
+                "run",
+                "--controller",
+                "pd",
+                "--duration",
+                "0.1",
+                "--no-progress",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "controller status: inertia reschedules 10, failures 0" in out
     assert "gain" not in out and "omega" not in out
@@ -324,13 +411,16 @@ def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys)
 
 _SCRIPT = Path(sys.executable).parent / "stewart-drake"
 #: The installed console script when there is one (as a user types it), else the module.
-COMMAND = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m",
-                                                     "stewart_drake.interfaces.cli"]
+COMMAND = (
+    [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "stewart_drake.interfaces.cli"]
+)
 #: A module the user keeps in the folder: importing it leaves a mark, which the tests look for.
-MARKING_MODULE = ("from pathlib import Path\n"
-                  "Path(__file__).with_name('IMPORTED').write_text('imported')\n"
-                  "def run(*args, **kwargs):\n"
-                  "    Path(__file__).with_name('CALLED').write_text('called')\n")
+MARKING_MODULE = (
+    "from pathlib import Path\n"
+    "Path(__file__).with_name('IMPORTED').write_text('imported')\n"
+    "def run(*args, **kwargs):\n"
+    "    Path(__file__).with_name('CALLED').write_text('called')\n"
+)
 
 
 def _snapshot(folder: Path, skip: Path) -> dict:
@@ -342,10 +432,18 @@ def _snapshot(folder: Path, skip: Path) -> dict:
         if path == skip or skip in path.parents:
             continue
         info = path.lstat()
-        digest = (hashlib.sha256(path.read_bytes()).hexdigest()
-                  if stat.S_ISREG(info.st_mode) and info.st_size < 64e6 else None)
-        out[str(path.relative_to(folder))] = (stat.S_IFMT(info.st_mode), info.st_mode,
-                                              info.st_size, info.st_mtime_ns, digest)
+        digest = (
+            hashlib.sha256(path.read_bytes()).hexdigest()
+            if stat.S_ISREG(info.st_mode) and info.st_size < 64e6
+            else None
+        )
+        out[str(path.relative_to(folder))] = (
+            stat.S_IFMT(info.st_mode),
+            info.st_mode,
+            info.st_size,
+            info.st_mtime_ns,
+            digest,
+        )
     return out
 
 
@@ -359,7 +457,7 @@ def home(tmp_path):
     try:
         os.mknod(home / "null", stat.S_IFCHR | 0o666, os.makedev(1, 3))
     except (PermissionError, OSError):
-        pass                                            # not root: FIFOs and sockets only
+        pass  # not root: FIFOs and sockets only
     sock = socket.socket(socket.AF_UNIX)
     sock.bind(str(home / "sock"))
     notes = home / ".notes.tmp"
@@ -374,12 +472,18 @@ def _user_runs(home: Path, argv, out="out", bound_s=60.0, env=None):
     """Run the command in ``home`` as a user would; (exit code, stdout, stderr lines, wall s).
     Asserts nothing outside ``home/out`` changed and no traceback."""
     before = _snapshot(home, home / out)
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
-        [str(home), str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep)
-                                  if p]), **(env or {})}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(
+            [str(home), str(REPO)]
+            + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+        ),
+        **(env or {}),
+    }
     t0 = time.monotonic()
-    proc = subprocess.run(COMMAND + argv, cwd=home, env=env, capture_output=True, text=True,
-                          timeout=bound_s + 60)
+    proc = subprocess.run(
+        COMMAND + argv, cwd=home, env=env, capture_output=True, text=True, timeout=bound_s + 60
+    )
     wall = time.monotonic() - t0
     assert wall < bound_s, f"{argv} took {wall:.1f} s"
     assert "Traceback" not in proc.stderr, proc.stderr
@@ -402,73 +506,109 @@ def _scenario(home, name, text):
 
 # case 1: a scenario never imports or calls what it names --------------------------------------
 
+
 @pytest.mark.parametrize("how", ["file", "set", "zen"])
 def test_a_scenario_that_names_code_runs_none_of_it(home, how):
     if how == "file":
-        argv = ["run", "--scenario", _scenario(home, "it.yaml", 'controller: !UserController '
-                                                                 '{factory: "evil:run"}\n')]
+        argv = [
+            "run",
+            "--scenario",
+            _scenario(home, "it.yaml", 'controller: !UserController {factory: "evil:run"}\n'),
+        ]
     elif how == "set":
         argv = ["run", "--set", 'controller=!UserController {factory: "evil:run"}']
     else:
-        argv = ["run", "--scenario", _scenario(home, "zen.yaml", 'controller: !UserController '
-                                                                  '{factory: "this:s"}\n')]
-    line = _refused(home, argv + ["--duration", "0.1", "--out", "out", "--no-progress"],
-                    r"controller factory '(evil:run|this:s)' is an import path, and a scenario "
-                    r"never imports code; it is not a registered controller \(registered: none\)"
-                    r": call register_controller")
+        argv = [
+            "run",
+            "--scenario",
+            _scenario(home, "zen.yaml", 'controller: !UserController {factory: "this:s"}\n'),
+        ]
+    line = _refused(
+        home,
+        argv + ["--duration", "0.1", "--out", "out", "--no-progress"],
+        r"controller factory '(evil:run|this:s)' is an import path, and a scenario "
+        r"never imports code; it is not a registered controller \(registered: none\)"
+        r": call register_controller",
+    )
     assert "--plugin NAME" in line
-    assert not (home / "out").exists()                        # refused before any work
+    assert not (home / "out").exists()  # refused before any work
 
 
 def _plugin(tmp_path) -> Path:
     """An installed package with a controller entry point (a dist-info on the path)."""
-    return install_plugin(tmp_path / "site", "sd_demo_plugin", {"demo_pd": "sd_demo_plugin:make"},
-                          "from pathlib import Path\n"
-                          "Path(__file__).with_name('PLUGIN_IMPORTED').write_text('yes')\n"
-                          "def make(context, bandwidth_hz=20.0):\n"
-                          "    from stewart_drake.simulation.scenario import PdDriver\n"
-                          "    return PdDriver(bandwidth_hz=bandwidth_hz).make(context)\n")
+    return install_plugin(
+        tmp_path / "site",
+        "sd_demo_plugin",
+        {"demo_pd": "sd_demo_plugin:make"},
+        "from pathlib import Path\n"
+        "Path(__file__).with_name('PLUGIN_IMPORTED').write_text('yes')\n"
+        "def make(context, bandwidth_hz=20.0):\n"
+        "    from stewart_drake.simulation.scenario import PdDriver\n"
+        "    return PdDriver(bandwidth_hz=bandwidth_hz).make(context)\n",
+    )
 
 
 def test_an_installed_controller_runs_only_when_the_user_opts_in(home, tmp_path):
     site = _plugin(tmp_path)
     env = {"PYTHONPATH": os.pathsep.join([str(site), str(REPO)])}
-    scenario = _scenario(home, "mine.yaml", "controller: !UserController {factory: demo_pd, "
-                                            "parameters: {bandwidth_hz: 15.0}}\n")
+    scenario = _scenario(
+        home,
+        "mine.yaml",
+        "controller: !UserController {factory: demo_pd, parameters: {bandwidth_hz: 15.0}}\n",
+    )
     argv = ["run", "--scenario", scenario, "--duration", "0.05", "--out", "out", "--no-progress"]
-    _refused(home, argv, r"'demo_pd' is not a registered controller \(registered: none\)",
-             env=env)
-    assert not (site / "PLUGIN_IMPORTED").exists()            # installed, but not opted into
+    _refused(home, argv, r"'demo_pd' is not a registered controller \(registered: none\)", env=env)
+    assert not (site / "PLUGIN_IMPORTED").exists()  # installed, but not opted into
     rc, out, err, _ = _user_runs(home, argv + ["--plugin", "demo_pd"], env=env)
     assert rc == 0 and "controller status: inertia reschedules" in out, err
     assert (site / "PLUGIN_IMPORTED").exists() and (home / "out" / "run_paper.npz").exists()
-    _refused(home, argv + ["--plugin", "nope"], r"--plugin nope: no installed entry point of "
-                                                r"that name .* \(installed: demo_pd\)", env=env)
+    _refused(
+        home,
+        argv + ["--plugin", "nope"],
+        r"--plugin nope: no installed entry point of "
+        r"that name .* \(installed: demo_pd\)",
+        env=env,
+    )
 
 
 # case 2: only regular files are ever replaced, and only the tool's temporaries removed ---------
+
 
 @pytest.mark.parametrize("command", ["mjcf", "sdf", "scenario", "train"])
 @pytest.mark.parametrize("target", ["pipe", "null", "sock"])
 def test_an_output_that_is_not_a_regular_file_is_refused_by_name(home, command, target):
     if not (home / target).exists():
         pytest.skip("this machine does not let the test make a device node")
-    kind = {"pipe": "a FIFO \\(named pipe\\)", "null": "a character device",
-            "sock": "a socket"}[target]
+    kind = {"pipe": "a FIFO \\(named pipe\\)", "null": "a character device", "sock": "a socket"}[
+        target
+    ]
     before = home.joinpath(target).lstat()
-    _refused(home, [command, "--out", target], rf"--out {target} is {kind}, not a regular file: "
-                                               rf"stewart-drake replaces only regular files; "
-                                               rf"choose another output", bound_s=30, out=target)
+    _refused(
+        home,
+        [command, "--out", target],
+        rf"--out {target} is {kind}, not a regular file: "
+        rf"stewart-drake replaces only regular files; "
+        rf"choose another output",
+        bound_s=30,
+        out=target,
+    )
     after = home.joinpath(target).lstat()
-    assert (after.st_mode, after.st_ino, after.st_rdev) == (before.st_mode, before.st_ino,
-                                                            before.st_rdev)
+    assert (after.st_mode, after.st_ino, after.st_rdev) == (
+        before.st_mode,
+        before.st_ino,
+        before.st_rdev,
+    )
 
 
 def test_a_fifo_where_run_writes_its_result_is_refused_before_the_run(home):
     (home / "out").mkdir()
     os.mkfifo(home / "out" / "run_paper.npz")
-    line = _refused(home, ["run", "--duration", "5", "--no-progress", "--out", "out"],
-                    r"out/run_paper.npz is a FIFO \(named pipe\), not a regular file", bound_s=20)
+    line = _refused(
+        home,
+        ["run", "--duration", "5", "--no-progress", "--out", "out"],
+        r"out/run_paper.npz is a FIFO \(named pipe\), not a regular file",
+        bound_s=20,
+    )
     assert line
     assert stat.S_ISFIFO((home / "out" / "run_paper.npz").lstat().st_mode)
     assert sorted(p.name for p in (home / "out").iterdir()) == ["run_paper.npz"]
@@ -477,39 +617,82 @@ def test_a_fifo_where_run_writes_its_result_is_refused_before_the_run(home):
 def test_the_user_s_hidden_tmp_files_survive_a_command(home):
     rc, _, err, _ = _user_runs(home, ["mjcf", "--out", "out/robot.xml"])
     assert rc == 0, err
-    assert (home / ".notes.tmp").read_text() == "my notes"   # _user_runs checked it is unchanged
+    assert (home / ".notes.tmp").read_text() == "my notes"  # _user_runs checked it is unchanged
 
 
 # case 3: every wait is bounded, every signal honoured ------------------------------------------
 
+
 def test_a_real_time_rate_that_would_never_end_is_refused(home):
-    scenario = _scenario(home, "slow.yaml", "duration_s: 0.2\nsimulator: {target_realtime_rate: "
-                                            "1.0e-9}\n")
-    _refused(home, ["run", "--scenario", scenario, "--out", "out", "--no-progress"],
-             r"simulator.target_realtime_rate must be 0 \(as fast as possible\) or at least 0.01",
-             bound_s=30)
+    scenario = _scenario(
+        home, "slow.yaml", "duration_s: 0.2\nsimulator: {target_realtime_rate: 1.0e-9}\n"
+    )
+    _refused(
+        home,
+        ["run", "--scenario", scenario, "--out", "out", "--no-progress"],
+        r"simulator.target_realtime_rate must be 0 \(as fast as possible\) or at least 0.01",
+        bound_s=30,
+    )
 
 
-@pytest.mark.parametrize("argv, expected", [
-    (["--runner", "ray", "--address", "127.0.0.1:1"],
-     r"--address 127.0.0.1:1: nothing accepts a connection there within 2 s"),
-    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1"],
-     r"--scheduler 127.0.0.1:1: nothing accepts a connection there within 2 s"),
-    (["--runner", "dask", "--scheduler", "notaurl"],
-     r"--scheduler 'notaurl' is not an address of the form \[tcp\|tls\|ws\|wss://\]host:port"),
-    (["--runner", "ray", "--address", "notanaddr"],
-     r"--address 'notanaddr' is not an address of the form \[ray://\]host:port \(or auto"),
-    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:99999"],
-     r"--scheduler 'tcp://127.0.0.1:99999': the port 99999 is not in 1..65535"),
-    (["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "inf"],
-     r"--connect-timeout must be a finite number in \(0, 600\], got inf"),
-], ids=["ray-nothing-listens", "dask-nothing-listens", "scheduler-not-a-url",
-        "address-not-an-address", "port-out-of-range", "endless-timeout"])
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (
+            ["--runner", "ray", "--address", "127.0.0.1:1"],
+            r"--address 127.0.0.1:1: nothing accepts a connection there within 2 s",
+        ),
+        (
+            ["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1"],
+            r"--scheduler 127.0.0.1:1: nothing accepts a connection there within 2 s",
+        ),
+        (
+            ["--runner", "dask", "--scheduler", "notaurl"],
+            r"--scheduler 'notaurl' is not an address of the form \[tcp\|tls\|ws\|wss://\]host:port",
+        ),
+        (
+            ["--runner", "ray", "--address", "notanaddr"],
+            r"--address 'notanaddr' is not an address of the form \[ray://\]host:port \(or auto",
+        ),
+        (
+            ["--runner", "dask", "--scheduler", "tcp://127.0.0.1:99999"],
+            r"--scheduler 'tcp://127.0.0.1:99999': the port 99999 is not in 1..65535",
+        ),
+        (
+            ["--runner", "dask", "--scheduler", "tcp://127.0.0.1:1", "--connect-timeout", "inf"],
+            r"--connect-timeout must be a finite number in \(0, 600\], got inf",
+        ),
+    ],
+    ids=[
+        "ray-nothing-listens",
+        "dask-nothing-listens",
+        "scheduler-not-a-url",
+        "address-not-an-address",
+        "port-out-of-range",
+        "endless-timeout",
+    ],
+)
 def test_a_cluster_address_is_checked_within_the_connect_timeout(home, argv, expected):
     """Cases 3, 11 and the last low case: no retry loop, no ValueError traceback."""
-    _refused(home, ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--out",
-                    "out", "--docs", "out/docs", "--connect-timeout", "2"] + argv, expected,
-             bound_s=15)
+    _refused(
+        home,
+        [
+            "evaluate",
+            "--quick",
+            "--no-tuner-study",
+            "--controllers",
+            "pd",
+            "--out",
+            "out",
+            "--docs",
+            "out/docs",
+            "--connect-timeout",
+            "2",
+        ]
+        + argv,
+        expected,
+        bound_s=15,
+    )
     assert not (home / "out").exists()
 
 
@@ -520,19 +703,35 @@ def _stderr_reader(proc, seen: list, marker: str, found: threading.Event):
             found.set()
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP],
-                         ids=lambda s: signal.Signals(s).name)
+@pytest.mark.parametrize(
+    "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name
+)
 def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum):
     """A run paced at real time (30 s), signalled while it simulates: 128 + signum, one line."""
     before = _snapshot(home, home / "out")
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    proc = subprocess.Popen(COMMAND + ["run", "--set", "simulator.target_realtime_rate=1.0",
-                                       "--duration", "30", "--out", "out"], cwd=home, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL))
+    proc = subprocess.Popen(
+        COMMAND
+        + [
+            "run",
+            "--set",
+            "simulator.target_realtime_rate=1.0",
+            "--duration",
+            "30",
+            "--out",
+            "out",
+        ],
+        cwd=home,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL),
+    )
     seen, simulating = [], threading.Event()
-    reader = threading.Thread(target=_stderr_reader, args=(proc, seen, "sim s", simulating),
-                              daemon=True)
+    reader = threading.Thread(
+        target=_stderr_reader, args=(proc, seen, "sim s", simulating), daemon=True
+    )
     reader.start()
     try:
         assert simulating.wait(120), "".join(seen)
@@ -548,8 +747,10 @@ def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum)
     reader.join(5)
     lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
     assert proc.returncode == 128 + signum and waited < 2.0, (proc.returncode, waited)
-    assert lines[-1] == (f"stewart-drake run: interrupted by {signal.Signals(signum).name}; "
-                         f"partial outputs were not written")
+    assert lines[-1] == (
+        f"stewart-drake run: interrupted by {signal.Signals(signum).name}; "
+        f"partial outputs were not written"
+    )
     assert "Traceback" not in "".join(seen)
     assert _snapshot(home, home / "out") == before
     assert not (home / "out" / "run_paper.npz").exists()
@@ -557,45 +758,76 @@ def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum)
 
 # cases 4, 10 and the low ones: files the tool reads --------------------------------------------
 
+
 def test_a_reference_csv_that_crashed_drake_s_spline_is_refused(home):
-    (home / "far.csv").write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n1e300,0,0,0,0,0,0.3\n"
-                                  "2e300,0,0,0,0,0,0.3\n")
-    _refused(home, ["run", "--trajectory-file", "far.csv", "--duration", "0.1", "--no-progress",
-                    "--out", "out"], r"far.csv: the last time is 2e\+300 s; a reference ends by "
-                                     r"1e\+07 s", bound_s=30)
+    (home / "far.csv").write_text(
+        "t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n1e300,0,0,0,0,0,0.3\n2e300,0,0,0,0,0,0.3\n"
+    )
+    _refused(
+        home,
+        [
+            "run",
+            "--trajectory-file",
+            "far.csv",
+            "--duration",
+            "0.1",
+            "--no-progress",
+            "--out",
+            "out",
+        ],
+        r"far.csv: the last time is 2e\+300 s; a reference ends by "
+        r"1e\+07 s",
+        bound_s=30,
+    )
 
 
 def test_a_sparse_100_gb_scenario_is_refused_unread(home):
     with open(home / "huge.yaml", "wb") as f:
-        f.truncate(100 * 10**9)                          # sparse: no disk space used
-    _refused(home, ["run", "--scenario", "huge.yaml", "--out", "out", "--no-progress"],
-             r"huge.yaml is not a valid scenario file: it holds 100 GB, over the bound of 262 "
-             r"kB for this kind of file", bound_s=30)
+        f.truncate(100 * 10**9)  # sparse: no disk space used
+    _refused(
+        home,
+        ["run", "--scenario", "huge.yaml", "--out", "out", "--no-progress"],
+        r"huge.yaml is not a valid scenario file: it holds 100 GB, over the bound of 262 "
+        r"kB for this kind of file",
+        bound_s=30,
+    )
 
 
 def test_a_damaged_scenario_file_or_override_is_one_line(home):
-    _refused(home, ["scenario", "--set", "duration_s=[1"],
-             r"--set duration_s=\[1: not YAML \(while parsing a flow sequence expected ',' or "
-             r"'\]', but got '<stream end>' at line 2, column 1\)", bound_s=30)
+    _refused(
+        home,
+        ["scenario", "--set", "duration_s=[1"],
+        r"--set duration_s=\[1: not YAML \(while parsing a flow sequence expected ',' or "
+        r"'\]', but got '<stream end>' at line 2, column 1\)",
+        bound_s=30,
+    )
     _scenario(home, "twice.yaml", "duration_s: 1.0\nfeedforward: gravity\nduration_s: 2.0\n")
-    _refused(home, ["scenario", "twice.yaml"], r"twice.yaml: the key 'duration_s' appears twice "
-                                               r"in one mapping \(lines 1 and 3\); keep one",
-             bound_s=30)
-    _refused(home, ["scenario", "--set", "simulator.integration_scheme=bogus"],
-             r"simulator.integration_scheme must be one of .*runge_kutta3.*, got 'bogus'",
-             bound_s=30)
+    _refused(
+        home,
+        ["scenario", "twice.yaml"],
+        r"twice.yaml: the key 'duration_s' appears twice "
+        r"in one mapping \(lines 1 and 3\); keep one",
+        bound_s=30,
+    )
+    _refused(
+        home,
+        ["scenario", "--set", "simulator.integration_scheme=bogus"],
+        r"simulator.integration_scheme must be one of .*runge_kutta3.*, got 'bogus'",
+        bound_s=30,
+    )
 
 
 def _big_scenario(home):
     text = "tuner: !WeightSchedule\n  t: [" + ", ".join(["0.0"] * 2_500_000) + "]\n"
-    return _scenario(home, "big.yaml", text)                     # 12.5 MB
+    return _scenario(home, "big.yaml", text)  # 12.5 MB
 
 
 def _bomb(home):
     """Tuner weights whose entry inflates from a few kB to 100 MB of zeros."""
     header = io.BytesIO()
-    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False,
-                                                  "shape": (12_500_000,)})
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": (12_500_000,)}
+    )
     with zipfile.ZipFile(home / "w.npz", "w", compression=zipfile.ZIP_DEFLATED) as archive:
         with archive.open("W1.npy", "w", force_zip64=True) as member:
             member.write(header.getvalue())
@@ -604,58 +836,109 @@ def _bomb(home):
     return "w.npz"
 
 
-@pytest.mark.parametrize("make, argv, expected", [
-    (_bomb, ["run", "--tuner", "ann", "--tuner-weights", "{}"],
-     r"w.npz is not a valid ANN tuner weights file: its entries hold 100 MB after decompression "
-     r"\('W1.npy': 100 MB\), over the bound of 16 MB"),
-    (_big_scenario, ["run", "--scenario", "{}"],
-     r"big.yaml is not a valid scenario file: it holds 12.5 MB, over the bound of 262 kB"),
-    (None, ["scenario", "--set", "hardware.computation_delay_periods=100"],
-     r"hardware.computation_delay_periods = 100 with the LQI's delay compensation gives a model "
-     r"of 6 x \(3 \+ 100\) = 618 states"),
-    (None, ["run", "--scenario", "paper_ideal", "--set", "robot.platform_mass=1e9"],
-     r"the LQI's error model fails the Hautus test .*robot.platform_mass"),
-    (None, ["workspace", "--resolution", "2"], r"--resolution: must be >= 3, got 2"),
-], ids=["npz-bomb", "12.5-MB-scenario", "delay-100", "platform-mass-1e9", "resolution-2"])
+@pytest.mark.parametrize(
+    "make, argv, expected",
+    [
+        (
+            _bomb,
+            ["run", "--tuner", "ann", "--tuner-weights", "{}"],
+            r"w.npz is not a valid ANN tuner weights file: its entries hold 100 MB after "
+            r"decompression \('W1.npy': 100 MB\), over the bound of 16 MB",
+        ),
+        (
+            _big_scenario,
+            ["run", "--scenario", "{}"],
+            r"big.yaml is not a valid scenario file: it holds 12.5 MB, over the bound of 262 kB",
+        ),
+        (
+            None,
+            ["scenario", "--set", "hardware.computation_delay_periods=100"],
+            r"hardware.computation_delay_periods = 100 with the LQI's delay compensation gives a "
+            r"model of 6 x \(3 \+ 100\) = 618 states",
+        ),
+        (
+            None,
+            ["run", "--scenario", "paper_ideal", "--set", "robot.platform_mass=1e9"],
+            r"the LQI's error model fails the Hautus test .*robot.platform_mass",
+        ),
+        (None, ["workspace", "--resolution", "2"], r"--resolution: must be >= 3, got 2"),
+    ],
+    ids=["npz-bomb", "12.5-MB-scenario", "delay-100", "platform-mass-1e9", "resolution-2"],
+)
 def test_more_hostile_input_is_one_line(home, make, argv, expected):
     """Cases 6 and 10 and low cases, as a user meets them."""
     name = make(home) if make else None
     argv = [a.format(name) for a in argv]
-    _refused(home, argv + ["--out", "out", "--no-progress"] if argv[0] != "scenario" else argv,
-             expected, bound_s=30)
+    _refused(
+        home,
+        argv + ["--out", "out", "--no-progress"] if argv[0] != "scenario" else argv,
+        expected,
+        bound_s=30,
+    )
     assert not (home / "out").exists()
 
 
 def test_drake_config_fields_and_a_csv_with_a_byte_order_mark_are_accepted(home):
     """Low cases: `--set plant.time_step` answered "(fields: )"; a CSV saved with a BOM was
     refused with a header that looked right."""
-    rc, out, err, _ = _user_runs(home, ["scenario", "paper_ideal", "--set",
-                                        "plant.time_step=0.0005", "--set",
-                                        "simulator.target_realtime_rate=0"])
+    rc, out, err, _ = _user_runs(
+        home,
+        [
+            "scenario",
+            "paper_ideal",
+            "--set",
+            "plant.time_step=0.0005",
+            "--set",
+            "simulator.target_realtime_rate=0",
+        ],
+    )
     assert rc == 0 and "time_step: 0.0005" in out, err
-    (home / "excel.csv").write_bytes(b"\xef\xbb\xbft,phi,theta,psi,X,Y,Z\r\n0,0,0,0,0,0,0.3\r\n"
-                                     b"0.1,0,0,0,0,0,0.3\r\n0.2,0,0,0,0,0,0.3\r\n")
-    rc, out, err, _ = _user_runs(home, ["run", "--trajectory-file", "excel.csv", "--duration",
-                                        "0.2", "--no-progress", "--out", "out"])
+    (home / "excel.csv").write_bytes(
+        b"\xef\xbb\xbft,phi,theta,psi,X,Y,Z\r\n0,0,0,0,0,0,0.3\r\n"
+        b"0.1,0,0,0,0,0,0.3\r\n0.2,0,0,0,0,0,0.3\r\n"
+    )
+    rc, out, err, _ = _user_runs(
+        home,
+        [
+            "run",
+            "--trajectory-file",
+            "excel.csv",
+            "--duration",
+            "0.2",
+            "--no-progress",
+            "--out",
+            "out",
+        ],
+    )
     assert rc == 0 and (home / "out" / "run_excel.npz").exists(), err
 
 
 # case 8: one study per folder -------------------------------------------------------------------
 
+
 def test_a_second_study_in_the_same_folder_is_refused_naming_the_first(home):
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    first = subprocess.Popen(COMMAND + ["collect", "--duration", "2", "--jobs", "1", "--out",
-                                        "out", "--no-progress"], cwd=home, env=env,
-                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    first = subprocess.Popen(
+        COMMAND + ["collect", "--duration", "2", "--jobs", "1", "--out", "out", "--no-progress"],
+        cwd=home,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + 120
         while not (home / "out" / "manifest.json").exists():
             assert first.poll() is None and time.monotonic() < deadline, first.communicate()
             time.sleep(0.1)
-        line = _refused(home, ["collect", "--duration", "2", "--out", "out", "--no-progress"],
-                        rf"out is being written by another study \(`collect` study, pid "
-                        rf"{first.pid} on {re.escape(socket.gethostname())}, since .*\): wait "
-                        rf"for it to finish, or choose another --out", bound_s=30)
+        line = _refused(
+            home,
+            ["collect", "--duration", "2", "--out", "out", "--no-progress"],
+            rf"out is being written by another study \(`collect` study, pid "
+            rf"{first.pid} on {re.escape(socket.gethostname())}, since .*\): wait "
+            rf"for it to finish, or choose another --out",
+            bound_s=30,
+        )
         assert line
     finally:
         first.send_signal(signal.SIGTERM)
@@ -667,8 +950,9 @@ def test_the_tool_s_own_temporaries_of_a_dead_writer_are_still_removed(home):
     """The cleanup keeps working for what it is for: a killed write's temporary."""
     out = home / "out"
     out.mkdir()
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True).stdout.strip()
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+    ).stdout.strip()
     host = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname())
     left = out / f".robot.xml.{host}-{dead}.ab12cd34.tmp"
     left.write_bytes(b"half a file")

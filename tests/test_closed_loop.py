@@ -21,16 +21,16 @@ def test_paper_manoeuvre_meets_tracking_bounds(paper_run):
     m = paper_run.metrics
     assert m["window_s"] == pytest.approx([5.0, 10.0])
     rms = np.array(m["rms_error"])
-    assert rms[0] < 2e-3                 # phi < 2 mrad
-    assert rms[5] < 1e-3                 # Z < 1 mm
-    assert np.all(rms[[1, 2]] < 2e-3)    # theta, psi < 2 mrad
-    assert np.all(rms[[3, 4]] < 1e-3)    # X, Y < 1 mm
+    assert rms[0] < 2e-3  # phi < 2 mrad
+    assert rms[5] < 1e-3  # Z < 1 mm
+    assert np.all(rms[[1, 2]] < 2e-3)  # theta, psi < 2 mrad
+    assert np.all(rms[[3, 4]] < 1e-3)  # X, Y < 1 mm
     # Sampling-time bookkeeping: comparing the plant's state with a reference half a step stale
     # gave 0.37 mrad here (velocity x h/2); with the lead it is below 0.01 mrad.
     assert rms[0] < 1e-5 and rms[5] < 1e-5
     assert m["max_closure_m"] < 1e-5
     assert m["finite"] and m["gain_failures"] == 0
-    assert m["gain_solves"] >= 1000      # re-scheduled every 10 ms over 10 s
+    assert m["gain_solves"] >= 1000  # re-scheduled every 10 ms over 10 s
 
 
 def test_paper_run_torques_are_physical(paper_run, geometry):
@@ -44,8 +44,9 @@ def test_paper_run_torques_are_physical(paper_run, geometry):
 
 
 def test_unreachable_reference_is_rejected_before_simulating():
-    too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 0.25),
-                              name="too_high")
+    too_high = SineTrajectory(
+        amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 0.25), name="too_high"
+    )
     with pytest.raises(UnreachablePoseError) as err:
         run_experiment(Scenario(duration_s=5.0), reference=too_high)
     assert err.value.t is not None and 0 < err.value.t < 1.0
@@ -74,7 +75,7 @@ def test_cli_bad_input_is_one_line_and_nonzero(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "unknown trajectory" in err[0]
     with pytest.raises(SystemExit) as exit_:
-        main(["run", "--trajectory", "nope"])                # argparse lists the choices
+        main(["run", "--trajectory", "nope"])  # argparse lists the choices
     assert exit_.value.code == 2 and "invalid choice: 'nope'" in capsys.readouterr().err
     with pytest.raises(SystemExit) as exit_:
         main(["run", "--duration", "-1"])

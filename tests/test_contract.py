@@ -42,21 +42,34 @@ def test_the_smallest_controller_passes_and_the_package_s_controllers_do(geometr
     assert tuple(lqi.status_names) == LQI_STATUS_NAMES
 
 
-@pytest.mark.parametrize("system, says", [
-    (lambda: _system(inputs=()), r"controller mine has no input port 'x_d' \(required"),
-    (lambda: _system(outputs=()), r"controller mine has no output port 'T' \(required"),
-    (lambda: _system(inputs=(("x_d", 18), ("pose", 6))),
-     r"controller mine declares input port 'pose', which the Diagram cannot connect; the "
-     r"contract's inputs are \['T_ff', 'motor_angle'"),
-    (lambda: _system(inputs=(("x_d", 12),)),
-     r"controller mine: input port 'x_d' has size 12, the contract says 18"),
-    (lambda: _system(outputs=(("T", 6), ("e_bar", 3))),
-     r"controller mine: output port 'e_bar' has size 3, the contract says 6"),
-    (lambda: _system(outputs=(("T", 6), ("status", 2))),
-     r"controller mine has a status output of size 2; give it a status_names attribute"),
-    (lambda: _system(outputs=(("T", 6), ("status", 2)), status_names=("a",)),
-     "status output of size 2"),
-])
+@pytest.mark.parametrize(
+    "system, says",
+    [
+        (lambda: _system(inputs=()), r"controller mine has no input port 'x_d' \(required"),
+        (lambda: _system(outputs=()), r"controller mine has no output port 'T' \(required"),
+        (
+            lambda: _system(inputs=(("x_d", 18), ("pose", 6))),
+            r"controller mine declares input port 'pose', which the Diagram cannot connect; the "
+            r"contract's inputs are \['T_ff', 'motor_angle'",
+        ),
+        (
+            lambda: _system(inputs=(("x_d", 12),)),
+            r"controller mine: input port 'x_d' has size 12, the contract says 18",
+        ),
+        (
+            lambda: _system(outputs=(("T", 6), ("e_bar", 3))),
+            r"controller mine: output port 'e_bar' has size 3, the contract says 6",
+        ),
+        (
+            lambda: _system(outputs=(("T", 6), ("status", 2))),
+            r"controller mine has a status output of size 2; give it a status_names attribute",
+        ),
+        (
+            lambda: _system(outputs=(("T", 6), ("status", 2)), status_names=("a",)),
+            "status output of size 2",
+        ),
+    ],
+)
 def test_a_controller_breaking_the_contract_is_refused_naming_the_port(system, says):
     s = system()
     s.set_name("mine")
@@ -75,9 +88,12 @@ def test_a_factory_that_returns_something_else_is_refused():
 
 def test_a_user_controller_resolves_only_a_registered_name(monkeypatch, geometry):
     monkeypatch.setattr(contract, "CONTROLLER_REGISTRY", {})
-    with pytest.raises(InvalidConfigError, match=r"'mypkg.ctl:make' is an import path, and a "
-                                                 r"scenario never imports code; .*registered: "
-                                                 r"none"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"'mypkg.ctl:make' is an import path, and a "
+        r"scenario never imports code; .*registered: "
+        r"none",
+    ):
         resolve_controller("mypkg.ctl:make")
     made = []
 

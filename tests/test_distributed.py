@@ -17,10 +17,18 @@ TIMING = ("wall_s", "realtime_factor")
 def _study(base, runner):
     """collect (0.2 s runs) and evaluate --quick --controllers pd into ``base``."""
     collect(base / "collect", duration_s=0.2, runner=runner, progress=False)
-    report = evaluate(base / "docs", base / "evaluation", runner=runner, progress=False,
-                      quick=True, controllers=("pd",))
-    rows = {json.dumps(r["case"], sort_keys=True): {k: v for k, v in r.items() if k not in TIMING}
-            for r in report["rows"]}
+    report = evaluate(
+        base / "docs",
+        base / "evaluation",
+        runner=runner,
+        progress=False,
+        quick=True,
+        controllers=("pd",),
+    )
+    rows = {
+        json.dumps(r["case"], sort_keys=True): {k: v for k, v in r.items() if k not in TIMING}
+        for r in report["rows"]
+    }
     return load_records(base / "collect"), rows
 
 
@@ -31,8 +39,9 @@ def local(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def ray_runner():
-    ray = pytest.importorskip("ray", reason="the ray extra is not installed: "
-                                            "pip install -e '.[ray]'")
+    ray = pytest.importorskip(
+        "ray", reason="the ray extra is not installed: pip install -e '.[ray]'"
+    )
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield RayRunner()
     ray.shutdown()
@@ -40,10 +49,12 @@ def ray_runner():
 
 @pytest.fixture(scope="module")
 def dask_runner():
-    distributed = pytest.importorskip("distributed", reason="the dask extra is not installed: "
-                                                            "pip install -e '.[dask]'")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  dashboard_address=None) as cluster:
+    distributed = pytest.importorskip(
+        "distributed", reason="the dask extra is not installed: pip install -e '.[dask]'"
+    )
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
         yield DaskRunner(scheduler=cluster.scheduler_address)
 
 
@@ -53,7 +64,7 @@ def test_backend_gives_the_local_results(backend, request, local, tmp_path):
     records, rows = _study(tmp_path, runner)
     assert runner.n_workers == 2
     local_records, local_rows = local
-    assert len(records) == 9 and len(rows) == 10 + 7        # pd: scenarios and conditions
+    assert len(records) == 9 and len(rows) == 10 + 7  # pd: scenarios and conditions
     for mine, theirs in zip(records, local_records):
         for key in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u"):
             np.testing.assert_array_equal(mine[key], theirs[key], err_msg=key)

@@ -15,6 +15,7 @@ import importlib
 import inspect
 import pkgutil
 import re
+import types
 from pathlib import Path
 
 import nbformat
@@ -26,14 +27,26 @@ from stewart_drake.interfaces.cli import build_parser
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = REPO / "stewart_drake"
 #: Folders whose files the docs may name (committed, so a name must exist).
-COMMITTED = ("stewart_drake", "tests", "docs", "notebooks", "scenarios", "benchmarks", "tools",
-             "sdf", "diagrams", ".ci")
+COMMITTED = (
+    "stewart_drake",
+    "tests",
+    "docs",
+    "notebooks",
+    "scenarios",
+    "benchmarks",
+    "tools",
+    "sdf",
+    "diagrams",
+    ".ci",
+)
 #: Packages whose dotted names are checked by importing them.
 PACKAGES = ("stewart_drake", "pydrake")
 
 _DOTTED = re.compile(r"\b(?:stewart_drake|pydrake)(?:\.[A-Za-z_]\w*)+")
-_PATH = re.compile(r"(?<![\w./-])((?:\.{1,2}/|/)?(?:[\w.-]+/)+[\w.-]+\.(?:py|md|yaml|ipynb|sdf|"
-                   r"png|svg|dot|npz|json|toml|txt|csv))\b")
+_PATH = re.compile(
+    r"(?<![\w./-])((?:\.{1,2}/|/)?(?:[\w.-]+/)+[\w.-]+\.(?:py|md|yaml|ipynb|sdf|"
+    r"png|svg|dot|npz|json|toml|txt|csv))\b"
+)
 _LINK = re.compile(r"\]\(([^)\s]+)\)")
 _CODE_SPAN = re.compile(r"`([^`\n]+)`")
 _COMMAND = re.compile(r"stewart-drake((?:[ \t]+[^\s`'\"|;&)#]+)*)")
@@ -43,9 +56,13 @@ _OPTION = re.compile(r"(?<![\w-])(--[a-z][a-z0-9-]*)")
 
 # -- the documents, line by line -----------------------------------------------------------------
 
+
 def documents() -> list[Path]:
-    return ([REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
-            + sorted((REPO / "notebooks").glob("*.ipynb")))
+    return (
+        [REPO / "README.md"]
+        + sorted((REPO / "docs").glob("*.md"))
+        + sorted((REPO / "notebooks").glob("*.ipynb"))
+    )
 
 
 def lines_of(path: Path):
@@ -76,6 +93,7 @@ def code_fragments(text: str, kind: str) -> list[str]:
 
 # -- resolvers ------------------------------------------------------------------------------------
 
+
 def resolve_dotted(name: str):
     """The object a dotted name denotes (the longest importable module, then attributes).
 
@@ -101,7 +119,7 @@ def resolve_dotted(name: str):
         try:
             obj = getattr(obj, part)
         except AttributeError:
-            raise LookupError(f"{'.'.join(parts[:parts.index(part)])} has no {part!r}") from None
+            raise LookupError(f"{'.'.join(parts[: parts.index(part)])} has no {part!r}") from None
     return obj
 
 
@@ -114,7 +132,8 @@ def _field_types(cls, name: str) -> list:
     import typing
 
     hint = typing.get_type_hints(cls).get(name)
-    members = typing.get_args(hint) if typing.get_origin(hint) is typing.Union else (hint,)
+    union = typing.get_origin(hint) in (typing.Union, types.UnionType)
+    members = typing.get_args(hint) if union else (hint,)
     return [m for m in members if isinstance(m, type)]
 
 
@@ -128,8 +147,11 @@ def resolve_field_path(cls, parts) -> bool:
         # Drake's config structs (MultibodyPlantConfig, SimulatorConfig) are not dataclasses:
         # their fields are attributes.
         return len(parts) == 1 or any(
-            resolve_field_path(k, parts[1:]) if dataclass_field_names(k)
-            else len(parts) == 2 and hasattr(k, parts[1]) for k in kinds)
+            resolve_field_path(k, parts[1:])
+            if dataclass_field_names(k)
+            else len(parts) == 2 and hasattr(k, parts[1])
+            for k in kinds
+        )
     return len(parts) == 1 and hasattr(cls, parts[0])
 
 
@@ -141,8 +163,9 @@ def short_names():
     from stewart_drake.studies.experiments import RunResult
 
     names = {m.__name__.rsplit(".", 1)[-1]: m for m in our_modules()}
-    names.update(stewart_drake=stewart_drake, scenario=Scenario, context=ControllerContext,
-                 result=RunResult)
+    names.update(
+        stewart_drake=stewart_drake, scenario=Scenario, context=ControllerContext, result=RunResult
+    )
     return names
 
 
@@ -165,8 +188,7 @@ def resolve_short(span: str, names: dict) -> str | None:
     if target is None:
         return None if first not in EVERY_MODULE_WORD else f"no module or field {first!r}"
     if isinstance(target, type) and dataclass_field_names(target):
-        return None if resolve_field_path(target, parts) else \
-            f"{target.__name__} has no {rest!r}"
+        return None if resolve_field_path(target, parts) else f"{target.__name__} has no {rest!r}"
     try:
         resolve_dotted(f"{getattr(target, '__name__', first)}.{rest}")
     except LookupError as err:
@@ -177,14 +199,22 @@ def resolve_short(span: str, names: dict) -> str | None:
 def _package_words() -> set:
     """The names of our modules and packages (``stewart_drake/**/*.py``), read from the tree."""
     root = Path(stewart_drake.__file__).resolve().parent
-    return ({p.stem for p in root.rglob("*.py") if p.stem != "__init__"}
-            | {p.parent.name for p in root.rglob("__init__.py")})
+    return {p.stem for p in root.rglob("*.py") if p.stem != "__init__"} | {
+        p.parent.name for p in root.rglob("__init__.py")
+    }
 
 
 #: First words of dotted spans that must be ours: our modules' names (read from the package), the
 #: names the code had before (a stale page uses them), Scenario's sections.
-EVERY_MODULE_WORD = _package_words() | {"baselines", "controller", "hardware", "context",
-                                        "result", "runners", "store"}
+EVERY_MODULE_WORD = _package_words() | {
+    "baselines",
+    "controller",
+    "hardware",
+    "context",
+    "result",
+    "runners",
+    "store",
+}
 
 
 def script_options() -> set:
@@ -200,8 +230,10 @@ def commands() -> dict[str, set]:
     parser = build_parser()
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     top = {o for a in parser._actions for o in a.option_strings}
-    return {name: top | {o for a in p._actions for o in a.option_strings}
-            for name, p in sub.choices.items()} | {"": top}
+    return {
+        name: top | {o for a in p._actions for o in a.option_strings}
+        for name, p in sub.choices.items()
+    } | {"": top}
 
 
 # -- the checks ---------------------------------------------------------------------------------
@@ -226,15 +258,24 @@ def broken_names_in_documents() -> list[str]:
                     broken.append(f"{where}: {name}: {err}")
             # files in the repository
             for target in set(_PATH.findall(text)) | {
-                    t.split("#")[0] for t in _LINK.findall(text)
-                    if not t.startswith(("http://", "https://", "mailto:", "#"))}:
-                if not target or any(c in target for c in "<>*{}") or \
-                        target.startswith(("results/", "/tmp/")):
-                    continue                           # an output or a pattern, not a file
-                base = path.parent if target.startswith(".") or "/" not in target \
-                    or not target.split("/")[0] in COMMITTED else REPO
-                candidates = [base / target, path.parent / target, REPO / target,
-                              PACKAGE / target]
+                t.split("#")[0]
+                for t in _LINK.findall(text)
+                if not t.startswith(("http://", "https://", "mailto:", "#"))
+            }:
+                if (
+                    not target
+                    or any(c in target for c in "<>*{}")
+                    or target.startswith(("results/", "/tmp/"))
+                ):
+                    continue  # an output or a pattern, not a file
+                base = (
+                    path.parent
+                    if target.startswith(".")
+                    or "/" not in target
+                    or not target.split("/")[0] in COMMITTED
+                    else REPO
+                )
+                candidates = [base / target, path.parent / target, REPO / target, PACKAGE / target]
                 if not any(c.exists() for c in candidates):
                     broken.append(f"{where}: no file {target}")
             # dotted names in code spans: a module's attribute or a scenario field path
@@ -244,8 +285,11 @@ def broken_names_in_documents() -> list[str]:
                     if re.fullmatch(r"[\w-]+\.py", span):
                         if not any(p.name == span for p in REPO.rglob(span)):
                             broken.append(f"{where}: no file {span} in the repository")
-                    elif _SHORT.match(span) and not span.startswith(PACKAGES) and \
-                            not _FILE_SUFFIX.search(span):
+                    elif (
+                        _SHORT.match(span)
+                        and not span.startswith(PACKAGES)
+                        and not _FILE_SUFFIX.search(span)
+                    ):
                         reason = resolve_short(span, names)
                         if reason:
                             broken.append(f"{where}: {span}: {reason}")
@@ -253,15 +297,13 @@ def broken_names_in_documents() -> list[str]:
             for fragment in fragments:
                 for match in _COMMAND.finditer(fragment):
                     words = match.group(1).split()
-                    sub = words[0].rstrip(":,.") if words and not words[0].startswith("-") \
-                        else ""
+                    sub = words[0].rstrip(":,.") if words and not words[0].startswith("-") else ""
                     if sub not in cmds:
                         broken.append(f"{where}: no command `stewart-drake {sub}`")
                         continue
                     for option in (w.split("=")[0] for w in words if w.startswith("--")):
                         if option not in cmds[sub]:
-                            broken.append(f"{where}: `stewart-drake {sub}` has no option "
-                                          f"{option}")
+                            broken.append(f"{where}: `stewart-drake {sub}` has no option {option}")
                 for match in _SCRIPT.finditer(fragment):
                     script = REPO / match.group(1)
                     if not script.is_file():
@@ -275,7 +317,8 @@ def broken_names_in_documents() -> list[str]:
                 if "stewart-drake" not in fragment and "python" not in fragment:
                     for option in _OPTION.findall(fragment):
                         if option not in every_option and not fragment.lstrip().startswith(
-                                ("pip", "pytest", "jupyter", "git")):
+                            ("pip", "pytest", "jupyter", "git")
+                        ):
                             broken.append(f"{where}: no command has the option {option}")
     broken += broken_imports_in_documents()
     return sorted(set(broken))
@@ -306,14 +349,18 @@ def broken_imports_in_documents() -> list[str]:
                         broken.append(f"{where}: cannot parse {stripped!r}")
                         continue
                 for node in ast.walk(tree):
-                    if isinstance(node, ast.ImportFrom) and node.module and \
-                            node.module.split(".")[0] in PACKAGES:
+                    if (
+                        isinstance(node, ast.ImportFrom)
+                        and node.module
+                        and node.module.split(".")[0] in PACKAGES
+                    ):
                         for alias in node.names:
                             try:
                                 resolve_dotted(f"{node.module}.{alias.name}")
                             except LookupError as err:
-                                broken.append(f"{where}: from {node.module} import "
-                                              f"{alias.name}: {err}")
+                                broken.append(
+                                    f"{where}: from {node.module} import {alias.name}: {err}"
+                                )
                     elif isinstance(node, ast.Import):
                         for alias in node.names:
                             if alias.name.split(".")[0] in PACKAGES:
@@ -343,7 +390,8 @@ def our_modules() -> tuple:
     return (stewart_drake,) + tuple(
         importlib.import_module(info.name)
         for info in pkgutil.walk_packages(stewart_drake.__path__, "stewart_drake.")
-        if not info.name.startswith("stewart_drake.scenarios"))
+        if not info.name.startswith("stewart_drake.scenarios")
+    )
 
 
 _XREF = re.compile(r":(func|mod|class|meth|data|attr|exc):`~?([^`<]+?)(?:\s*<[^>]*>)?`")
@@ -360,20 +408,24 @@ def resolve_xref(target: str, module, owner: str | None):
     name = target.strip().removesuffix("()")
     relative = name.startswith(".")
     name = name.lstrip(".")
-    package = module.__name__.rsplit(".", 1)[0] if module.__name__ != "stewart_drake" \
-        else "stewart_drake"
+    package = (
+        module.__name__.rsplit(".", 1)[0] if module.__name__ != "stewart_drake" else "stewart_drake"
+    )
     candidates = [name, f"{module.__name__}.{name}"]
     if owner:
         candidates.append(f"{module.__name__}.{owner}.{name}")
     parts = package.split(".")
     candidates += [".".join(parts[:k] + [name]) for k in range(len(parts), 0, -1)]
-    if relative:                    # Sphinx: then any object whose dotted name ends so
+    if relative:  # Sphinx: then any object whose dotted name ends so
         candidates.insert(0, f"{package}.{name}")
         first = name.split(".")[0]
-        candidates += [f"{m.__name__}.{name.split('.', 1)[1]}" if "." in name else m.__name__
-                       for m in our_modules() if m.__name__.endswith("." + first)]
+        candidates += [
+            f"{m.__name__}.{name.split('.', 1)[1]}" if "." in name else m.__name__
+            for m in our_modules()
+            if m.__name__.endswith("." + first)
+        ]
         candidates += [f"{m.__name__}.{name}" for m in our_modules()]
-    if owner:                       # an instance attribute its class documents (Attributes:)
+    if owner:  # an instance attribute its class documents (Attributes:)
         doc = getattr(getattr(module, owner, None), "__doc__", "") or ""
         if re.search(rf"(^|\s){re.escape(name)}:", doc):
             return f"{module.__name__}.{owner}.{name}"
@@ -384,7 +436,7 @@ def resolve_xref(target: str, module, owner: str | None):
         except LookupError:
             pass
         head, _, attribute = candidate.rpartition(".")
-        try:                        # a dataclass field: a class attribute only when defaulted
+        try:  # a dataclass field: a class attribute only when defaulted
             if head and attribute in dataclass_field_names(resolve_dotted(head)):
                 return candidate
         except LookupError:
@@ -400,14 +452,20 @@ def docstrings(module):
     for node in ast.walk(tree):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             body = node.body
-            if body and isinstance(body[0], ast.Expr) and isinstance(
-                    getattr(body[0], "value", None), ast.Constant) and isinstance(
-                    body[0].value.value, str):
+            if (
+                body
+                and isinstance(body[0], ast.Expr)
+                and isinstance(getattr(body[0], "value", None), ast.Constant)
+                and isinstance(body[0].value.value, str)
+            ):
                 yield body[0].lineno, body[0].value.value, _owner(tree, node)
-        if isinstance(node, ast.Call):                 # docstrings given to a factory
+        if isinstance(node, ast.Call):  # docstrings given to a factory
             for arg in node.args:
-                if isinstance(arg, ast.Constant) and isinstance(arg.value, str) and \
-                        ":`" in arg.value:
+                if (
+                    isinstance(arg, ast.Constant)
+                    and isinstance(arg.value, str)
+                    and ":`" in arg.value
+                ):
                     yield arg.lineno, arg.value, None
 
 
@@ -436,14 +494,17 @@ def broken_cross_references() -> list[str]:
 
 def test_every_name_in_the_docs_exists():
     broken = broken_names_in_documents()
-    assert not broken, (f"{len(broken)} names in README.md, docs/ and the notebooks do not "
-                        f"exist:\n" + "\n".join(broken))
+    assert not broken, (
+        f"{len(broken)} names in README.md, docs/ and the notebooks do not "
+        f"exist:\n" + "\n".join(broken)
+    )
 
 
 def test_every_cross_reference_in_a_docstring_resolves():
     broken = broken_cross_references()
-    assert not broken, (f"{len(broken)} docstring cross-references do not resolve:\n"
-                        + "\n".join(broken))
+    assert not broken, f"{len(broken)} docstring cross-references do not resolve:\n" + "\n".join(
+        broken
+    )
 
 
 def test_the_checks_catch_a_renamed_module(tmp_path, monkeypatch):
@@ -454,7 +515,8 @@ def test_the_checks_catch_a_renamed_module(tmp_path, monkeypatch):
     (page / "bad.md").write_text(
         "See `stewart_drake.visualize.record_html` and [the notes](missing.md).\n"
         "```python\nfrom stewart_drake.studies.experiments import run_experiments\n```\n"
-        "Run `stewart-drake run --fast` or `stewart-drake simulate`.\n")
+        "Run `stewart-drake run --fast` or `stewart-drake simulate`.\n"
+    )
     (tmp_path / "README.md").write_text("ok: `stewart_drake.interfaces.visualize.record_html`\n")
     (tmp_path / "notebooks").mkdir()
     monkeypatch.setattr(__import__(__name__), "REPO", tmp_path)
@@ -465,12 +527,20 @@ def test_the_checks_catch_a_renamed_module(tmp_path, monkeypatch):
         "docs/bad.md:3: from stewart_drake.studies.experiments import run_experiments: "
         "stewart_drake.studies.experiments has no 'run_experiments'",
         "docs/bad.md:5: `stewart-drake run` has no option --fast",
-        "docs/bad.md:5: no command `stewart-drake simulate`"]
+        "docs/bad.md:5: no command `stewart-drake simulate`",
+    ]
 
 
-@pytest.mark.parametrize("target, ok", [
-    (".runners", True), ("~stewart_drake.control.contract", True), ("LqiTuning", False),
-    ("stewart_drake.studies.evaluation.evaluate", True), ("gone", False)])
+@pytest.mark.parametrize(
+    "target, ok",
+    [
+        (".runners", True),
+        ("~stewart_drake.control.contract", True),
+        ("LqiTuning", False),
+        ("stewart_drake.studies.evaluation.evaluate", True),
+        ("gone", False),
+    ],
+)
 def test_cross_references_resolve_as_sphinx_does(target, ok):
     from stewart_drake.studies import evaluation
 

@@ -12,7 +12,7 @@ from stewart_drake.errors import InvalidConfigError
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME
 
-QUANTUM = 2 * np.pi / 2 ** 40                 # "exact sensing" (docs/hardware_figures.md)
+QUANTUM = 2 * np.pi / 2**40  # "exact sensing" (docs/hardware_figures.md)
 H = 1e-3
 
 
@@ -57,8 +57,7 @@ def test_the_chord_step_agrees_with_the_full_newton_near_the_last_estimate(geome
     J_inv = np.linalg.inv(kinematics.jacobian(geometry, x_prev))
     x, v = estimator.track(kinematics.ik(geometry, x_true), x_prev, v_prev, J_inv)
     np.testing.assert_allclose(x, x_true, atol=1e-8)
-    np.testing.assert_allclose(v, v_prev + estimator.alpha * ((x - x_prev) / H - v_prev),
-                               atol=1e-8)
+    np.testing.assert_allclose(v, v_prev + estimator.alpha * ((x - x_prev) / H - v_prev), atol=1e-8)
 
 
 def test_the_system_outputs_the_estimate_of_its_input(geometry, estimator):
@@ -71,11 +70,16 @@ def test_the_system_outputs_the_estimate_of_its_input(geometry, estimator):
     np.testing.assert_allclose(out[6:], estimator.alpha * (x_true - X_HOME) / H, atol=1e-8)
 
 
-@pytest.mark.parametrize("argument", ["period_s", "quantum_rad", "rate_cutoff_hz",
-                                      "tolerance_counts"])
+@pytest.mark.parametrize(
+    "argument", ["period_s", "quantum_rad", "rate_cutoff_hz", "tolerance_counts"]
+)
 def test_a_non_positive_setting_is_refused_by_name(geometry, argument):
-    settings = {"period_s": H, "quantum_rad": QUANTUM, "rate_cutoff_hz": 100.0,
-                "tolerance_counts": 0.01}
+    settings = {
+        "period_s": H,
+        "quantum_rad": QUANTUM,
+        "rate_cutoff_hz": 100.0,
+        "tolerance_counts": 0.01,
+    }
     settings[argument] = 0.0
     with pytest.raises(InvalidConfigError, match=rf"^{argument} must be a finite number in \(0"):
         PoseEstimator(geometry, **settings)

@@ -31,8 +31,8 @@ def test_pd_baseline_tracks_the_paper_manoeuvre():
     r = run_experiment(Scenario(controller=PdDriver(), duration_s=3.0))
     m = r.metrics
     assert m["max_closure_m"] < 1e-5 and m["finite"]
-    assert m["rms_error"][0] < 5e-4 and m["rms_error"][5] < 5e-5   # phi < 0.5 mrad, Z < 50 um
-    assert m["status"] == {"inertia_reschedules": 300, "failures": 0}   # every 10 ms
+    assert m["rms_error"][0] < 5e-4 and m["rms_error"][5] < 5e-5  # phi < 0.5 mrad, Z < 50 um
+    assert m["status"] == {"inertia_reschedules": 300, "failures": 0}  # every 10 ms
     assert "gain_solves" not in m and r.omega is None
 
 
@@ -65,8 +65,9 @@ def test_unknown_payload_sags_the_pd_but_not_the_lqi():
 def test_torque_saturation_limits_the_applied_torque():
     """The 5 mm Z step asks the LQI (1, 1) for 1.5 N m; limited to 0.6 N m it still settles,
     later than unsaturated (0.103 s)."""
-    r = run_experiment(Scenario(reference=NamedReference("step_Z"), duration_s=1.5,
-                                torque_limit_Nm=0.6))
+    r = run_experiment(
+        Scenario(reference=NamedReference("step_Z"), duration_s=1.5, torque_limit_Nm=0.6)
+    )
     assert np.abs(r.T).max() <= 0.6 + 1e-12
     assert np.abs(r.T).max() == pytest.approx(0.6)
     t_s = settling_time(r.t, r.x[:, 5] - r.x_d[:, 5], 0.005, 0.5)
@@ -97,7 +98,7 @@ def test_settling_time_and_frequency_response_on_known_signals():
 
     chirp = ChirpTrajectory(axis=5, amplitude=1e-3, f0_hz=1, f1_hz=50, duration_s=8)
     t = np.arange(0, 8, 1e-3)
-    f_c = 10.0                                       # a first-order low-pass at 10 Hz
+    f_c = 10.0  # a first-order low-pass at 10 Hz
     f_t = chirp.frequency(t)
     g = 1 / np.sqrt(1 + (f_t / f_c) ** 2)
     y = chirp.offset[5] + chirp.amplitude * g * np.sin(chirp.phase(t) - np.arctan(f_t / f_c))
@@ -120,7 +121,7 @@ def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
     t = np.arange(0.01, 9.9, 2.5e-5)
     x, x_dot, x_ddot = (v[:, 5] for v in chirp.evaluate(t))
     assert np.max(np.abs(x - chirp.offset[5])) == pytest.approx(2e-4, rel=1e-6)
-    late = t > 8.0                                      # held at 50 Hz: 0.08 mm, 7.9 m/s^2
+    late = t > 8.0  # held at 50 Hz: 0.08 mm, 7.9 m/s^2
     assert np.max(np.abs(x[late] - chirp.offset[5])) == pytest.approx(8e-5, rel=1e-3)
     assert np.max(np.abs(x_ddot)) == pytest.approx(SWEEP_MAX_ACCELERATION[1], rel=1e-3)
     t_corner = chirp.duration_s * np.log(corner / chirp.f0_hz) / np.log(chirp.f1_hz / chirp.f0_hz)
@@ -129,7 +130,7 @@ def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
         error = np.abs(np.gradient(value, t) - rate)[away][2:-2]
         assert error.max() < 2e-3 * np.abs(rate).max()
 
-    f_c = 10.0                                          # the low-pass again, through the envelope
+    f_c = 10.0  # the low-pass again, through the envelope
     t = np.arange(0, 8, 1e-3)
     f_t = chirp.frequency(t)
     g = 1 / np.sqrt(1 + (f_t / f_c) ** 2)
@@ -160,19 +161,25 @@ def test_grid_and_controller_names():
     # 10 nominal scenarios + 7 conditions (payload +-20 %, noise, saturation, 3 tool
     # disturbances) each, + 5 encoder resolutions for the 5 weight ratios (hardware base)
     assert len(grid) == 12 * (10 + 7) + 5 * 5
-    assert {c.condition for c in grid if c.reference == "home" and c.condition != "nominal"} \
-        == {"push 5 N", "twist 0.2 N m", "contact 2 Hz"}
-    assert {c.controller.name for c in grid if c.condition.startswith("encoders")} \
-        == set(RATIO_LQI)
-    assert {(c.reference, c.condition) for c in grid if c.condition.startswith("saturation")} \
-        == {("step_Z", "saturation 0.6 N m")}
-    assert {c.controller.name for c in grid} >= {"lqi_0.1_10", "pd", "ann_best_cost",
-                                                  "ann_paper"}
+    assert {c.condition for c in grid if c.reference == "home" and c.condition != "nominal"} == {
+        "push 5 N",
+        "twist 0.2 N m",
+        "contact 2 Hz",
+    }
+    assert {c.controller.name for c in grid if c.condition.startswith("encoders")} == set(RATIO_LQI)
+    assert {(c.reference, c.condition) for c in grid if c.condition.startswith("saturation")} == {
+        ("step_Z", "saturation 0.6 N m")
+    }
+    assert {c.controller.name for c in grid} >= {"lqi_0.1_10", "pd", "ann_best_cost", "ann_paper"}
     # typed: a fixed LQI keeps the base's LQI options at its weights; the ANN tunes the base's
     base = Scenario(controller=LqiDriver(riccati="cold"))
     lqi = grid_controller("lqi_10_0.1", base)
-    assert (lqi.controller.omega_Q, lqi.controller.omega_R, lqi.controller.riccati) == \
-        (10.0, 0.1, "cold") and lqi.ratio == 100.0 and lqi.tuner is None
+    assert (
+        (lqi.controller.omega_Q, lqi.controller.omega_R, lqi.controller.riccati)
+        == (10.0, 0.1, "cold")
+        and lqi.ratio == 100.0
+        and lqi.tuner is None
+    )
     ann = grid_controller("ann_paper", base)
     assert ann.controller == base.controller and ann.tuner.weights.endswith("ann_tuner_paper.npz")
     assert isinstance(grid_controller("pd", base).controller, PdDriver)
@@ -183,14 +190,24 @@ def test_grid_and_controller_names():
 def test_verdict_compares_at_no_more_feedback_effort():
     # the total Sum T^2 dt (gravity's) is the same for all and must not decide admissibility
     def row(c, nrms, effort):
-        return {"case": {"controller": c, "scenario": "paper", "condition": "nominal"},
-                "normalized_rms": nrms, "sum_dT2_dt": effort, "sum_T2_dt": 4.3 - 0.001 * nrms}
+        return {
+            "case": {"controller": c, "scenario": "paper", "condition": "nominal"},
+            "normalized_rms": nrms,
+            "sum_dT2_dt": effort,
+            "sum_T2_dt": 4.3 - 0.001 * nrms,
+        }
 
-    rows = [row("lqi_1_1", 1.0, 1.0), row("lqi_10_0.1", 0.1, 2.0), row("ann_best_cost", 0.5, 1.5),
-            row("ann_paper", 2.0, 0.9)]
+    rows = [
+        row("lqi_1_1", 1.0, 1.0),
+        row("lqi_10_0.1", 0.1, 2.0),
+        row("ann_best_cost", 0.5, 1.5),
+        row("ann_paper", 2.0, 0.9),
+    ]
     v = ann_verdict(rows)
-    assert v["ann_best_cost"]["beats"] and v["ann_best_cost"]["best_fixed"]["case"]["controller"] \
-        == "lqi_1_1"
+    assert (
+        v["ann_best_cost"]["beats"]
+        and v["ann_best_cost"]["best_fixed"]["case"]["controller"] == "lqi_1_1"
+    )
     assert v["ann_best_cost"]["ratio"] == pytest.approx(0.5)
     assert v["ann_paper"]["best_fixed"] is None and not v["ann_paper"]["beats"]
 
@@ -198,28 +215,44 @@ def test_verdict_compares_at_no_more_feedback_effort():
 def test_evaluate_writes_the_report_under_out_and_never_over_the_docs(tmp_path, capsys):
     committed = (REPO / "docs" / "results.md").read_bytes()
     out = tmp_path / "out"
-    assert main(["evaluate", "--quick", "--controllers", "lqi_1_1,pd", "--runner", "serial",
-                 "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "evaluate",
+                "--quick",
+                "--controllers",
+                "lqi_1_1,pd",
+                "--runner",
+                "serial",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert (REPO / "docs" / "results.md").read_bytes() == committed
     md = (out / "results.md").read_text()
     assert "QUICK mode" in md and "| lqi_1_1 |" in md and "| pd |" in md
     for name in ("results_tradeoff.png", "results_bandwidth.png", "results_steps.png"):
         assert (out / name).stat().st_size > 10_000
     rows = json.loads((out / "rows.json").read_text())["rows"]
-    assert len(rows) == 2 * (10 + 7) + 5                             # lqi_1_1: the encoders
+    assert len(rows) == 2 * (10 + 7) + 5  # lqi_1_1: the encoders
     assert f"wrote {out / 'results.md'}" in capsys.readouterr().out
     # The 5 N push at the tool tip needs 0.91 N m at the cranks, beyond the servos' 0.70 N m:
     # it is lost, and only it; the report says why.
     lost = {(r["case"]["controller"], r["case"]["condition"]) for r in rows if "error" in r}
     assert lost == {("lqi_1_1", "push 5 N"), ("pd", "push 5 N")}
     assert "push 5 N 0.907 N m (beyond the motors' limit: no controller can hold it)" in md
-    step = next(r for r in rows if r["case"]["scenario"] == "step_Z"
-                and r["case"]["controller"] == "pd")
+    step = next(
+        r for r in rows if r["case"]["scenario"] == "step_Z" and r["case"]["controller"] == "pd"
+    )
     assert 0.01 < step["settling_time_s"] < 0.3
 
 
 def test_evaluate_cli_refuses_unknown_controllers(capsys, tmp_path):
-    code = main(["evaluate", "--controllers", "lqi_1_1,magic", "--docs", str(tmp_path),
-                 "--no-progress"])
+    code = main(
+        ["evaluate", "--controllers", "lqi_1_1,magic", "--docs", str(tmp_path), "--no-progress"]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "unknown controller 'magic'" in err and len(err.splitlines()) == 1

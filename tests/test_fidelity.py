@@ -24,13 +24,17 @@ def test_the_lag_is_found_between_samples(delay_s):
     late = motion.evaluate(t - delay_s)[0]
     assert fd.time_lag(t, late[:, 3], ref[:, 3]) == pytest.approx(delay_s, abs=2e-5)
     assert fd.time_lag(t, late[:, 3:5], ref[:, 3:5]) == pytest.approx(delay_s, abs=2e-5)
-    assert math.isnan(fd.time_lag(t, ref[:, 0], ref[:, 0]))      # an axis that does not move
+    assert math.isnan(fd.time_lag(t, ref[:, 0], ref[:, 0]))  # an axis that does not move
 
 
 def test_harmonic_phasors_are_the_fft_bins_over_whole_periods():
-    t = np.arange(0.0, 20.0, 1e-3)                       # 5 breaths, 24 beats
-    y = (1.0 + 3.0 * np.cos(2 * np.pi * 0.25 * t + 0.4) + 0.5 * np.cos(2 * np.pi * 0.5 * t - 1)
-         + 0.2 * np.cos(2 * np.pi * 1.2 * t + 2.0))
+    t = np.arange(0.0, 20.0, 1e-3)  # 5 breaths, 24 beats
+    y = (
+        1.0
+        + 3.0 * np.cos(2 * np.pi * 0.25 * t + 0.4)
+        + 0.5 * np.cos(2 * np.pi * 0.5 * t - 1)
+        + 0.2 * np.cos(2 * np.pi * 1.2 * t + 2.0)
+    )
     p = fd.harmonic_phasors(t, y[:, None], [0.25, 0.5, 1.2])[:, 0]
     spectrum = np.fft.rfft(y) * 2 / len(y)
     bins = [round(f * 20.0) for f in (0.25, 0.5, 1.2)]
@@ -57,13 +61,14 @@ def test_fidelity_of_a_late_and_small_copy():
         assert h["phase_error_rad"] == pytest.approx(-2 * np.pi * h["f_hz"] * delay, abs=1e-6)
     sources = {(h["source"], h["k"], h["axis"]) for h in fid["harmonics"]}
     assert ("breathing", 1, "X") in sources and ("cardiac", 2, "Y") in sources
-    assert ("cardiac", 1, "X") not in sources                   # not in the reference
+    assert ("cardiac", 1, "X") not in sources  # not in the reference
     e = x - x_d
     w = (t >= 5.0) & (t < 10.0)
     assert fid["rms"][3] == pytest.approx(np.sqrt(np.mean(e[w, 3] ** 2)), rel=1e-3)
     assert fid["rms_fraction"][3] == pytest.approx(fid["rms"][3] / 0.015, rel=1e-3)
     assert fid["rms_translation_m"] == pytest.approx(
-        np.sqrt(np.mean(np.sum(e[w, 3:] ** 2, axis=1))), rel=1e-3)
+        np.sqrt(np.mean(np.sum(e[w, 3:] ** 2, axis=1))), rel=1e-3
+    )
     assert math.isnan(fid["rms_fraction"][5]) and fid["rms_rotation_rad"] == 0.0
     assert len(fid["cycles"]["starts"]) == 2
 
@@ -89,8 +94,21 @@ def _run(capsys, argv, code=0):
 
 
 def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
-    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=1s", "--param",
-                           "amplitude=6mm", "--cycles", "1", "--out", str(tmp_path)])
+    out, _ = _run(
+        capsys,
+        [
+            "reproduce",
+            "breathing",
+            "--param",
+            "period=1s",
+            "--param",
+            "amplitude=6mm",
+            "--cycles",
+            "1",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert "PASS" in out and "wrote" in out
     md = (tmp_path / "reproduce_breathing.md").read_text()
     assert "**PASS: RMS error per axis within 0.1 mm | 0.1 deg" in md
@@ -99,26 +117,44 @@ def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
     assert figures["fidelity"]["window_s"] == pytest.approx([1.0, 2.0], abs=2e-3)
     assert 1e-6 < figures["fidelity"]["rms"][3] < 1e-4
     assert (tmp_path / "reproduce_breathing.png").stat().st_size > 20_000
-    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=1s", "--cycles", "1",
-                           "--tolerance", "1um,1urad", "--out", str(tmp_path)], code=2)
+    out, _ = _run(
+        capsys,
+        [
+            "reproduce",
+            "breathing",
+            "--param",
+            "period=1s",
+            "--cycles",
+            "1",
+            "--tolerance",
+            "1um,1urad",
+            "--out",
+            str(tmp_path),
+        ],
+        code=2,
+    )
     assert "FAIL" in out
 
 
 def test_a_recorded_trace_round_trip(tmp_path, capsys):
     """A trace written in mm and deg at 30 Hz with a gap is imported, reproduced, reported."""
     t = np.arange(0.0, 3.0, 1 / 30)
-    shape = np.cos(np.pi * t / 1.0) ** 4                      # 1 s breaths
-    trace = write_trace(tmp_path / "patient.csv", t, {
-        "SI [mm]": 8 * shape, "AP [mm]": 2 * np.roll(shape, 2), "rot_LR [deg]": 0.3 * shape},
-        gap=(1.3, 1.5))
-    out, _ = _run(capsys, ["reproduce", str(trace), "--lowpass-hz", "8", "--out",
-                           str(tmp_path / "out")])
+    shape = np.cos(np.pi * t / 1.0) ** 4  # 1 s breaths
+    trace = write_trace(
+        tmp_path / "patient.csv",
+        t,
+        {"SI [mm]": 8 * shape, "AP [mm]": 2 * np.roll(shape, 2), "rot_LR [deg]": 0.3 * shape},
+        gap=(1.3, 1.5),
+    )
+    out, _ = _run(
+        capsys, ["reproduce", str(trace), "--lowpass-hz", "8", "--out", str(tmp_path / "out")]
+    )
     md = (tmp_path / "out" / "reproduce_patient.md").read_text()
     figures = json.loads((tmp_path / "out" / "reproduce_patient.json").read_text())
     fid = figures["fidelity"]
     assert fid["moving"] == ["theta", "X", "Z"]
-    assert fid["p2p"][3] == pytest.approx(0.008, rel=0.03)         # mm -> m
-    assert fid["p2p"][1] == pytest.approx(math.radians(0.3), rel=0.03)   # deg -> rad
+    assert fid["p2p"][3] == pytest.approx(0.008, rel=0.03)  # mm -> m
+    assert fid["p2p"][1] == pytest.approx(math.radians(0.3), rel=0.03)  # deg -> rad
     assert fid["window_s"][1] == pytest.approx(t[-1], abs=2e-3)
     assert fid["rms"][3] < 1e-4 and "PASS" in md
 
@@ -136,8 +172,18 @@ def test_a_trace_beyond_the_motors_is_refused_naming_the_motor_and_the_time(tmp_
 def test_scale_to_fit_says_by_how_much(tmp_path, capsys):
     t = np.arange(0.0, 1.0, 1 / 100)
     trace = write_trace(tmp_path / "fast.csv", t, {"Z [mm]": 12 * np.sin(2 * np.pi * 6 * t)})
-    rc = cli.main(["reproduce", str(trace), "--scale-to-fit", "--tolerance", "1m,1rad",
-                   "--out", str(tmp_path / "out"), "--no-progress"])
+    rc = cli.main(
+        [
+            "reproduce",
+            str(trace),
+            "--scale-to-fit",
+            "--tolerance",
+            "1m,1rad",
+            "--out",
+            str(tmp_path / "out"),
+            "--no-progress",
+        ]
+    )
     out, err = capsys.readouterr()
     assert rc == 0, err
     scale = float(out.split("scaled by ")[1].split()[0])
@@ -148,9 +194,23 @@ def test_scale_to_fit_says_by_how_much(tmp_path, capsys):
 
 
 def test_reproduce_learns_on_request(tmp_path, capsys):
-    out, _ = _run(capsys, ["reproduce", "breathing", "--param", "period=0.6s", "--param",
-                           "amplitude=4mm", "--learn-cycles", "3", "--cycles", "1", "--out",
-                           str(tmp_path)])
+    out, _ = _run(
+        capsys,
+        [
+            "reproduce",
+            "breathing",
+            "--param",
+            "period=0.6s",
+            "--param",
+            "amplitude=4mm",
+            "--learn-cycles",
+            "3",
+            "--cycles",
+            "1",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     md = (tmp_path / "reproduce_breathing.md").read_text()
     assert "Learner: learned from 3 cycles, 0 rollback(s)" in md
     cycles = json.loads((tmp_path / "reproduce_breathing.json").read_text())["fidelity"]
@@ -158,14 +218,17 @@ def test_reproduce_learns_on_request(tmp_path, capsys):
     assert len(per_cycle) == 4 and per_cycle[-1] < 0.3 * per_cycle[0]
 
 
-@pytest.mark.parametrize("argv, expected", [
-    (["reproduce", "cough"], "unknown motion 'cough'"),
-    (["reproduce", "breathing", "--param", "depth=3mm"], "has no parameter 'depth'"),
-    (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
-    (["reproduce", "breathing", "--map", "SI=X"], "--map, --lowpass-hz and --centre are for"),
-    (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
-    (["reproduce", "missing.csv"], "no trace at"),
-])
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["reproduce", "cough"], "unknown motion 'cough'"),
+        (["reproduce", "breathing", "--param", "depth=3mm"], "has no parameter 'depth'"),
+        (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
+        (["reproduce", "breathing", "--map", "SI=X"], "--map, --lowpass-hz and --centre are for"),
+        (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
+        (["reproduce", "missing.csv"], "no trace at"),
+    ],
+)
 def test_bad_reproduce_arguments_give_one_line(tmp_path, capsys, argv, expected):
     _, err = _run(capsys, argv + ["--out", str(tmp_path)], code=2)
     assert len(err.strip().splitlines()) == 1 and expected in err
@@ -183,4 +246,4 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
     assert set(figures) == {c.job_id for c in CASES}
     doc = (docs / "organ_motion.md").read_text()
     start, end = doc.index(TABLE_MARKERS[0]), doc.index(TABLE_MARKERS[1])
-    assert tables(figures) == doc[start:end + len(TABLE_MARKERS[1])]
+    assert tables(figures) == doc[start : end + len(TABLE_MARKERS[1])]

@@ -17,15 +17,15 @@ def test_the_zoom_holds_the_largest_error_where_the_reference_moves_past_it():
     t = np.arange(0.0, 10.0, 1e-3)
     ref = 0.5 * np.sin(2 * t)
     err = 1e-5 * np.sin(40 * t)
-    err[7000] = 3e-4                                     # the largest error, at t = 7 s
+    err[7000] = 3e-4  # the largest error, at t = 7 s
     w = _zoom_window(t, ref, err)
     assert t[w][0] < 7.0 < t[w][-1]
-    assert 4 * 3e-4 < np.ptp(ref[w]) < 40 * 3e-4          # apart, and still a zoom
+    assert 4 * 3e-4 < np.ptp(ref[w]) < 40 * 3e-4  # apart, and still a zoom
     assert t[w][-1] - t[w][0] < 0.1
 
 
 def test_window_stats_are_the_means_and_rms_of_each_window():
-    t = np.arange(0.0, 0.1, 1e-3)                       # 100 samples, two 50 ms windows
+    t = np.arange(0.0, 0.1, 1e-3)  # 100 samples, two 50 ms windows
     values = np.column_stack([np.where(t < 0.05, 1.0, 3.0), np.tile([1.0, -1.0], 50)])
     t_w, mean, rms = _window_stats(t, values, 0.05)
     np.testing.assert_allclose(t_w, [0.025, 0.075])
@@ -37,8 +37,13 @@ def test_the_feedforward_is_the_one_the_run_used(tmp_path):
     """Holding home on the ideal robot the feed-forward is gravity's holding torque, and the
     feedback share T - T_ff is what the integral states add: tiny."""
     result = run_experiment(Scenario(duration_s=0.2, reference=NamedReference("home")))
-    np.testing.assert_allclose(result.T_ff, np.tile(statics.holding_torques(
-        make_plan(Scenario()).geometry, X_HOME), (len(result.t), 1)), rtol=1e-9)
+    np.testing.assert_allclose(
+        result.T_ff,
+        np.tile(
+            statics.holding_torques(make_plan(Scenario()).geometry, X_HOME), (len(result.t), 1)
+        ),
+        rtol=1e-9,
+    )
     assert np.abs(result.T - result.T_ff).max() < 1e-3
     assert plot_fig7(result, tmp_path / "f.png").stat().st_size > 20_000
 

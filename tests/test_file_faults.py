@@ -35,7 +35,7 @@ from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.studies.collection import load_records
 
 EXAMPLES = Counter()
-VALID = Counter()             # examples that loaded, per loader (the strategies reach both ends)
+VALID = Counter()  # examples that loaded, per loader (the strategies reach both ends)
 
 
 def _settings(n, loader: str):
@@ -43,10 +43,13 @@ def _settings(n, loader: str):
     nine in ten examples ran, and the loader met both outcomes (some damaged files still load,
     most are refused). The counters of ``loader`` are reset first, so the check needs no other
     test and no order."""
-    hypothesis_settings = settings(max_examples=n, deadline=None, derandomize=True,
-                                   database=None,
-                                   suppress_health_check=[HealthCheck.too_slow,
-                                                          HealthCheck.function_scoped_fixture])
+    hypothesis_settings = settings(
+        max_examples=n,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+    )
 
     def decorate(test):
         test = hypothesis_settings(test)
@@ -58,13 +61,15 @@ def _settings(n, loader: str):
             assert EXAMPLES[loader] >= 0.9 * n, (loader, n, EXAMPLES[loader])
             # the generated archives carry the time in their zip headers: counts vary a little
             assert 1 <= VALID[loader] < EXAMPLES[loader], (loader, VALID, EXAMPLES)
+
         return counted
+
     return decorate
 
 
 def _npz(arrays: dict) -> bytes:
     buffer = io.BytesIO()
-    np.savez(buffer, **arrays)                    # pickles object arrays: what a reader refuses
+    np.savez(buffer, **arrays)  # pickles object arrays: what a reader refuses
     return buffer.getvalue()
 
 
@@ -74,31 +79,51 @@ def _entries(data: bytes) -> dict:
 
 
 #: Values an entry of an .npz may be replaced by (each wrong for some entry).
-BAD_VALUES = [np.array([object()], dtype=object), np.str_("tanh"), np.zeros((2, 3)),
-              np.full(12, np.nan), np.zeros(0), np.int64(2), np.str_("{not json"),
-              np.str_("[1, 2]"), np.array(["a", "b"]), np.float64(1e300), np.array(True)]
+BAD_VALUES = [
+    np.array([object()], dtype=object),
+    np.str_("tanh"),
+    np.zeros((2, 3)),
+    np.full(12, np.nan),
+    np.zeros(0),
+    np.int64(2),
+    np.str_("{not json"),
+    np.str_("[1, 2]"),
+    np.array(["a", "b"]),
+    np.float64(1e300),
+    np.array(True),
+]
 
 
 def mutations(valid: bytes, text: bool = False):
     """Bytes of ``valid`` damaged in the ways files are damaged."""
     n = len(valid)
-    options = [st.binary(max_size=600),                                   # random, empty
-               st.integers(0, n - 1).map(lambda k: valid[:k]),            # truncated
-               st.tuples(st.integers(0, n - 1), st.integers(1, 255)).map(  # one byte changed
-                   lambda p: valid[:p[0]] + bytes([valid[p[0]] ^ p[1]]) + valid[p[0] + 1:]),
-               st.just(valid)]
+    options = [
+        st.binary(max_size=600),  # random, empty
+        st.integers(0, n - 1).map(lambda k: valid[:k]),  # truncated
+        st.tuples(st.integers(0, n - 1), st.integers(1, 255)).map(  # one byte changed
+            lambda p: valid[: p[0]] + bytes([valid[p[0]] ^ p[1]]) + valid[p[0] + 1 :]
+        ),
+        st.just(valid),
+    ]
     if text:
         lines = valid.decode().splitlines(keepends=True)
-        options += [st.text(max_size=200).map(str.encode),
-                    st.integers(0, len(lines) - 1).map(                   # a line lost
-                        lambda k: "".join(lines[:k] + lines[k + 1:]).encode())]
+        options += [
+            st.text(max_size=200).map(str.encode),
+            st.integers(0, len(lines) - 1).map(  # a line lost
+                lambda k: "".join(lines[:k] + lines[k + 1 :]).encode()
+            ),
+        ]
     else:
         entries = _entries(valid)
         names = sorted(entries)
-        options += [st.sampled_from(names).map(                           # an entry missing
-                        lambda k: _npz({a: v for a, v in entries.items() if a != k})),
-                    st.tuples(st.sampled_from(names), st.sampled_from(BAD_VALUES)).map(
-                        lambda kv: _npz({**entries, kv[0]: kv[1]}))]
+        options += [
+            st.sampled_from(names).map(  # an entry missing
+                lambda k: _npz({a: v for a, v in entries.items() if a != k})
+            ),
+            st.tuples(st.sampled_from(names), st.sampled_from(BAD_VALUES)).map(
+                lambda kv: _npz({**entries, kv[0]: kv[1]})
+            ),
+        ]
     return st.one_of(*options)
 
 
@@ -134,9 +159,15 @@ def test_ann_tuner_file(tmp_path, data):
 
 def _ratio_bytes() -> bytes:
     rng = np.random.default_rng(0)
-    model = tuner.RatioTunerModel(rng.normal(size=(4, 16)), rng.normal(size=4),
-                                  rng.normal(size=(1, 4)), rng.normal(size=1), np.zeros(16),
-                                  np.ones(16), {"note": "test"})
+    model = tuner.RatioTunerModel(
+        rng.normal(size=(4, 16)),
+        rng.normal(size=4),
+        rng.normal(size=(1, 4)),
+        rng.normal(size=1),
+        np.zeros(16),
+        np.ones(16),
+        {"note": "test"},
+    )
     with tempfile.TemporaryDirectory() as folder:
         return tuner.save_ratio_tuner(model, Path(folder) / "r.npz").read_bytes()
 
@@ -152,23 +183,31 @@ def test_ratio_tuner_file(tmp_path, data):
         assert np.all(np.isfinite(model.predict(np.ones(16))))
 
 
-@pytest.mark.parametrize("change, problem", [
-    (lambda e: {k: v for k, v in e.items() if k != "W2"}, "the entry 'W2' is missing"),
-    (lambda e: {**e, "W1": np.array([None], dtype=object)}, "Object arrays cannot be loaded"),
-    (lambda e: {**e, "format_version": np.int64(2)}, "tuner format 2, this stewart-drake reads 1"),
-    (lambda e: {**e, "metadata_json": np.str_('{"mode": ')}, "'metadata_json' is not JSON"),
-    (lambda e: {**e, "x_std": np.zeros(12)}, "x_std must be > 0"),
-])
+@pytest.mark.parametrize(
+    "change, problem",
+    [
+        (lambda e: {k: v for k, v in e.items() if k != "W2"}, "the entry 'W2' is missing"),
+        (lambda e: {**e, "W1": np.array([None], dtype=object)}, "Object arrays cannot be loaded"),
+        (
+            lambda e: {**e, "format_version": np.int64(2)},
+            "tuner format 2, this stewart-drake reads 1",
+        ),
+        (lambda e: {**e, "metadata_json": np.str_('{"mode": ')}, "'metadata_json' is not JSON"),
+        (lambda e: {**e, "x_std": np.zeros(12)}, "x_std must be > 0"),
+    ],
+)
 def test_each_fault_of_a_weight_file_is_named(tmp_path, change, problem):
     path = tmp_path / "w.npz"
     path.write_bytes(_npz(change(_entries(ANN))))
     with pytest.raises(CorruptFileError, match=problem) as info:
         tuner.load_tuner(path)
     assert str(info.value).startswith(f"{path} is not a valid ANN tuner weights file: ")
-    assert str(info.value).endswith("retrain with `stewart-drake train` or use the shipped "
-                                    "weights")
-    for data, problem in ((b"", "it is empty"), (ANN[:3000], "BadZipFile"),
-                          (ANN[:500] + bytes([ANN[500] ^ 1]) + ANN[501:], "Bad CRC-32")):
+    assert str(info.value).endswith("retrain with `stewart-drake train` or use the shipped weights")
+    for data, problem in (
+        (b"", "it is empty"),
+        (ANN[:3000], "BadZipFile"),
+        (ANN[:500] + bytes([ANN[500] ^ 1]) + ANN[501:], "Bad CRC-32"),
+    ):
         path.write_bytes(data)
         with pytest.raises(CorruptFileError, match=problem):
             tuner.load_tuner(path)
@@ -179,14 +218,27 @@ def test_a_corrupt_weight_file_is_one_line_from_the_cli(tmp_path, capsys):
 
     weights = tmp_path / "w.npz"
     weights.write_bytes(ANN[: len(ANN) // 2])
-    code = cli.main(["run", "--tuner", "ann", "--tuner-weights", str(weights), "--duration",
-                     "0.1", "--no-progress", "--out", str(tmp_path / "r")])
+    code = cli.main(
+        [
+            "run",
+            "--tuner",
+            "ann",
+            "--tuner-weights",
+            str(weights),
+            "--duration",
+            "0.1",
+            "--no-progress",
+            "--out",
+            str(tmp_path / "r"),
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1
     assert f"{weights} is not a valid ANN tuner weights file" in err[0]
 
 
 # -- a collect folder -----------------------------------------------------------------------------
+
 
 def _collect_folder(folder: Path, sizes=(20, 21)) -> dict:
     """A complete two-run collection (what ``collect`` writes, with short synthetic runs of
@@ -195,11 +247,16 @@ def _collect_folder(folder: Path, sizes=(20, 21)) -> dict:
     runs = []
     for k, (q, r) in enumerate([(0.1, 1.0), (10.0, 1.0)]):
         n = sizes[k]
-        arrays = {"omega_Q": np.float64(q), "omega_R": np.float64(r),
-                  "t": np.arange(n) * 5e-3, "rho": np.full((n, 12), 0.5),
-                  "cost_e": np.ones(n), "cost_u": np.ones(n),
-                  "metrics": np.array(json.dumps({"rms_error": [0.0] * 6})),
-                  "settings_hash": np.array(store.hash)}
+        arrays = {
+            "omega_Q": np.float64(q),
+            "omega_R": np.float64(r),
+            "t": np.arange(n) * 5e-3,
+            "rho": np.full((n, 12), 0.5),
+            "cost_e": np.ones(n),
+            "cost_u": np.ones(n),
+            "metrics": np.array(json.dumps({"rms_error": [0.0] * 6})),
+            "settings_hash": np.array(store.hash),
+        }
         name = f"run_{k}.npz"
         store.put(str(k), name, lambda f, a=arrays: np.savez_compressed(f, **a), n_samples=n)
         runs.append({"file": name, "omega_Q": q, "omega_R": r, "lost": None})
@@ -227,7 +284,7 @@ def test_collect_folder(tmp_path, which, data):
         assert str(folder) in err.path and err.problem
         assert pickle.loads(pickle.dumps(err)).args == err.args
         return
-    except (IncompleteResultsError, ResultsMismatchError) as err:   # a JSON edit can say so
+    except (IncompleteResultsError, ResultsMismatchError) as err:  # a JSON edit can say so
         assert str(folder) in str(err)
         return
     VALID["load_records"] += 1
@@ -235,19 +292,31 @@ def test_collect_folder(tmp_path, which, data):
     assert all(r["rho"].shape == (len(r["t"]), 12) for r in records)
 
 
-@pytest.mark.parametrize("which, content, problem", [
-    (MANIFEST, lambda b: b[: len(b) // 2], "not JSON"),
-    (MANIFEST, lambda b: b"", "it is empty"),
-    (MANIFEST, lambda b: b"[1, 2]", "a JSON list, not an object"),
-    (MANIFEST, lambda b: b.replace(b'"file": "run_0.npz"', b'"fil": "run_0.npz"'),
-     "job '0' is done but names no file"),
-    (MANIFEST, lambda b: b.replace(b'"runs"', b'"run"'), "'runs' list is missing"),
-    ("run_1.npz", lambda b: b[:100], "BadZipFile"),
-    ("run_1.npz", lambda b: _npz({k: v for k, v in _entries(b).items() if k != "rho"}),
-     "the entry 'rho' is missing"),
-    ("run_1.npz", lambda b: _npz({**_entries(b), "cost_u": np.ones(3)}),
-     r"'cost_u' has shape \(3,\), expected \(21,\)"),
-])
+@pytest.mark.parametrize(
+    "which, content, problem",
+    [
+        (MANIFEST, lambda b: b[: len(b) // 2], "not JSON"),
+        (MANIFEST, lambda b: b"", "it is empty"),
+        (MANIFEST, lambda b: b"[1, 2]", "a JSON list, not an object"),
+        (
+            MANIFEST,
+            lambda b: b.replace(b'"file": "run_0.npz"', b'"fil": "run_0.npz"'),
+            "job '0' is done but names no file",
+        ),
+        (MANIFEST, lambda b: b.replace(b'"runs"', b'"run"'), "'runs' list is missing"),
+        ("run_1.npz", lambda b: b[:100], "BadZipFile"),
+        (
+            "run_1.npz",
+            lambda b: _npz({k: v for k, v in _entries(b).items() if k != "rho"}),
+            "the entry 'rho' is missing",
+        ),
+        (
+            "run_1.npz",
+            lambda b: _npz({**_entries(b), "cost_u": np.ones(3)}),
+            r"'cost_u' has shape \(3,\), expected \(21,\)",
+        ),
+    ],
+)
 def test_a_damaged_collect_folder_names_the_file_and_the_fault(tmp_path, which, content, problem):
     for name, data in COLLECTED.items():
         (tmp_path / name).write_bytes(data)
@@ -282,8 +351,10 @@ def test_train_on_a_data_set_too_small_to_split_says_so(tmp_path, capsys):
     _collect_folder(tmp_path / "c", sizes=(1, 1))
     code = cli.main(["train", "--data", str(tmp_path / "c"), "--out", str(tmp_path / "w.npz")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and err == ["stewart-drake train: 2 samples cannot be split 70%/30% with "
-                                 "samples on both sides; collect more"]
+    assert code == 2 and err == [
+        "stewart-drake train: 2 samples cannot be split 70%/30% with "
+        "samples on both sides; collect more"
+    ]
     assert not (tmp_path / "w.npz").exists()
 
 
@@ -291,8 +362,11 @@ def test_a_damaged_evaluation_row_is_named(tmp_path):
     store = ResultStore(tmp_path, "evaluate", {"quick": True}, pattern="rows/*.json")
     store.put_json("a", "rows/a.json", {"case": {}})
     (tmp_path / "rows" / "a.json").write_text('{"case": {')
-    with pytest.raises(CorruptFileError, match=r"rows/a.json is not a valid evaluate result: "
-                                               r"not JSON .*run the same command again"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"rows/a.json is not a valid evaluate result: "
+        r"not JSON .*run the same command again",
+    ):
         store.load_json("a")
 
 
@@ -309,7 +383,7 @@ def test_scenario_file(tmp_path, data):
     path.write_bytes(data)
     try:
         scenario = load_scenario(path)
-    except StewartError as err:                      # CorruptFileError, or a value out of range
+    except StewartError as err:  # CorruptFileError, or a value out of range
         assert str(path) in str(err), err
         return
     VALID["load_scenario"] += 1
@@ -318,18 +392,23 @@ def test_scenario_file(tmp_path, data):
 
 def test_scenario_faults_are_named(tmp_path):
     path = tmp_path / "s.yaml"
-    for data, problem in ((b"", "it is empty"), (b"\xff\xfe\x00", "not UTF-8"),
-                          (SCENARIO[: SCENARIO.index(b"controller:") + 7],
-                           r"not YAML \(while scanning a simple key could not find expected ':' "
-                           r"at line \d+, column 8\)"),
-                          (b"duration_s: [1", "not YAML \\(while parsing a flow sequence"),
-                          (b"duration_s: 'one'", "does not fit the Scenario schema"),
-                          (b"- 1\n- 2\n", "YAML root was a <class 'list'>")):
+    for data, problem in (
+        (b"", "it is empty"),
+        (b"\xff\xfe\x00", "not UTF-8"),
+        (
+            SCENARIO[: SCENARIO.index(b"controller:") + 7],
+            r"not YAML \(while scanning a simple key could not find expected ':' "
+            r"at line \d+, column 8\)",
+        ),
+        (b"duration_s: [1", "not YAML \\(while parsing a flow sequence"),
+        (b"duration_s: 'one'", "does not fit the Scenario schema"),
+        (b"- 1\n- 2\n", "YAML root was a <class 'list'>"),
+    ):
         path.write_bytes(data)
         with pytest.raises(CorruptFileError, match=problem) as info:
             load_scenario(path)
         assert str(info.value).startswith(f"{path} is not a valid scenario file: ")
-    path.write_bytes(b"duration_s: -2\n")                # YAML fine, a value out of range
+    path.write_bytes(b"duration_s: -2\n")  # YAML fine, a value out of range
     with pytest.raises(StewartError, match=rf"{path}: duration_s must be a finite number"):
         load_scenario(path)
 

@@ -25,7 +25,7 @@ def test_a_writer_that_raises_leaves_the_old_file_and_no_temporary(tmp_path):
 
     def half_then_fail(f):
         f.write(b'{"new": ')
-        raise KeyboardInterrupt                    # Ctrl-C mid-write
+        raise KeyboardInterrupt  # Ctrl-C mid-write
 
     with pytest.raises(KeyboardInterrupt):
         atomic_write(path, half_then_fail)
@@ -55,8 +55,12 @@ def test_an_os_error_of_the_write_names_the_output_not_the_temporary(tmp_path):
 
 
 def test_stale_temporaries_of_a_dead_writer_go_and_nothing_else(tmp_path):
-    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                          capture_output=True, text=True, check=True).stdout.strip()
+    dead = subprocess.run(
+        [sys.executable, "-c", "import os; print(os.getpid())"],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
     host = _writer().rsplit("-", 1)[0]
     stale = tmp_path / f".run.npz.{host}-{dead}.abcd1234.tmp"
     live = tmp_path / f".run.npz.{host}-{os.getpid()}.abcd1234.tmp"
@@ -66,19 +70,30 @@ def test_stale_temporaries_of_a_dead_writer_go_and_nothing_else(tmp_path):
         p.write_bytes(b"x")
     assert remove_stale_temporaries(tmp_path) == [stale]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
-        p.name for p in (live, other_host, users))
+        p.name for p in (live, other_host, users)
+    )
     assert remove_stale_temporaries(tmp_path / "absent") == []
 
 
 def test_an_npz_round_trip_through_the_typed_accessors(tmp_path):
-    path = save_npz(tmp_path / "w.npz", {"W": np.arange(6.0).reshape(2, 3), "n": np.array(7),
-                                        "name": np.array("paper"), "meta": np.array('{"a": 1}')})
+    path = save_npz(
+        tmp_path / "w.npz",
+        {
+            "W": np.arange(6.0).reshape(2, 3),
+            "n": np.array(7),
+            "name": np.array("paper"),
+            "meta": np.array('{"a": 1}'),
+        },
+    )
     npz = CheckedNpz(path, "weights file", remedy="train again")
     np.testing.assert_array_equal(npz.array("W"), [[0, 1, 2], [3, 4, 5]])
     assert npz.integer("n") == 7 and npz.number("n") == 7.0 and "W" in npz and "x" not in npz
     assert npz.text("name") == "paper" and npz.json("meta") == {"a": 1}
-    with pytest.raises(CorruptFileError, match=r"w.npz is not a valid weights file: the entry "
-                                               r"'x' is missing; train again$"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"w.npz is not a valid weights file: the entry "
+        r"'x' is missing; train again$",
+    ):
         npz.array("x")
     with pytest.raises(CorruptFileError, match="'W' must be one number, has shape"):
         npz.number("W")
@@ -88,9 +103,15 @@ def test_an_npz_round_trip_through_the_typed_accessors(tmp_path):
         npz.json("meta", list)
 
 
-@pytest.mark.parametrize("data, problem", [(b"", "it is empty"), (b"  \n", "it is empty"),
-                                           (b'{"a": [1, 2', "not JSON"),
-                                           (b"\xff\xfe{}", "not JSON")])
+@pytest.mark.parametrize(
+    "data, problem",
+    [
+        (b"", "it is empty"),
+        (b"  \n", "it is empty"),
+        (b'{"a": [1, 2', "not JSON"),
+        (b"\xff\xfe{}", "not JSON"),
+    ],
+)
 def test_a_damaged_json_is_one_typed_error_naming_the_file(tmp_path, data, problem):
     path = tmp_path / "rows.json"
     path.write_bytes(data)

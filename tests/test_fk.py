@@ -24,7 +24,7 @@ def test_fk_inverts_ik_at_1000_random_poses_from_home(geometry, poses_1000):
     assert converged.all()
     assert np.abs(x - poses_1000).max() < 1e-9
     assert residual.max() <= 1e-12
-    assert iterations.max() <= 8                     # Newton: quadratic, few steps from home
+    assert iterations.max() <= 8  # Newton: quadratic, few steps from home
 
 
 def test_fk_batch_keeps_shape_and_reports_worst_case(geometry, poses_1000):
@@ -59,8 +59,9 @@ def test_fk_raises_from_an_unreachable_initial_pose(geometry):
 def test_fk_steps_back_into_the_workspace(geometry):
     """From a far initial guess full Newton steps leave the workspace; halving keeps it inside."""
     x_goal = np.array([0.3, -0.2, 0.4, 0.03, -0.04, 0.33])
-    x, status = kinematics.fk(geometry, kinematics.ik(geometry, x_goal),
-                              x0=[-0.3, 0.2, -0.4, -0.05, 0.05, 0.26])
+    x, status = kinematics.fk(
+        geometry, kinematics.ik(geometry, x_goal), x0=[-0.3, 0.2, -0.4, -0.05, 0.05, 0.26]
+    )
     np.testing.assert_allclose(x, x_goal, atol=1e-9)
 
 
@@ -68,7 +69,7 @@ def _drake_fk(plant, context, handles, q_start, theta):
     """Platform pose with the motor joints bounded to theta: Drake IK with the ball constraints."""
     ik = InverseKinematics(plant, with_joint_limits=False)
     prog, q = ik.get_mutable_prog(), ik.q()
-    assert len(prog.GetAllConstraints()) == 7        # 6 ball constraints + unit quaternion
+    assert len(prog.GetAllConstraints()) == 7  # 6 ball constraints + unit quaternion
     for joint, angle in zip(handles.motors, theta):
         prog.AddBoundingBoxConstraint(angle, angle, q[joint.position_start()])
     options = SolverOptions()
@@ -82,12 +83,12 @@ def _drake_fk(plant, context, handles, q_start, theta):
 
 def test_fk_agrees_with_drake_inverse_kinematics(geometry):
     plant, context, handles, _, _ = make_plant()
-    q_home = plant.GetPositions(context)               # assembled at home
+    q_home = plant.GetPositions(context)  # assembled at home
     for x_true in random_reachable_poses(geometry, 12, seed=7):
         theta = kinematics.ik(geometry, x_true)
         x_drake = _drake_fk(plant, context, handles, q_home, theta)
         x_ours, _ = kinematics.fk(geometry, theta)
-        assert np.abs(x_ours - x_drake).max() < 1e-6   # measured: < 1e-11
+        assert np.abs(x_ours - x_drake).max() < 1e-6  # measured: < 1e-11
         assert np.abs(x_ours - x_true).max() < 1e-9
 
 

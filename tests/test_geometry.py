@@ -13,8 +13,9 @@ def test_default_is_reference_geometry(geometry):
     np.testing.assert_allclose(geometry.pivot_angles_deg, [-10, 10, 110, 130, 230, 250])
     np.testing.assert_allclose(geometry.platform_angles_deg, [-55, 55, 65, 175, 185, 295])
     np.testing.assert_allclose(geometry.crank_angles_deg, [-90, 90, 30, 210, 150, 330])
-    np.testing.assert_allclose(geometry.P_B[1], 0.2 * np.array(
-        [np.cos(np.pi / 18), np.sin(np.pi / 18), 0]) + [0, 0, -0.07])
+    np.testing.assert_allclose(
+        geometry.P_B[1], 0.2 * np.array([np.cos(np.pi / 18), np.sin(np.pi / 18), 0]) + [0, 0, -0.07]
+    )
     np.testing.assert_allclose(geometry.u_B, np.cross(geometry.d_B, [0, 0, 1]))
     assert (geometry.crank_length, geometry.rod_length) == (0.11, 0.404)
 
@@ -35,9 +36,16 @@ def test_invalid_inertia_is_rejected_with_the_fix():
         StewartGeometry(crank_inertia=TABLE_I_CRANK_INERTIA)
 
 
-@pytest.mark.parametrize("change", [dict(rod_length=-1), dict(crank_length=0),
-                                    dict(rod_length=0.1), dict(platform_mass=float("nan")),
-                                    dict(rod_length=0.9)])
+@pytest.mark.parametrize(
+    "change",
+    [
+        dict(rod_length=-1),
+        dict(crank_length=0),
+        dict(rod_length=0.1),
+        dict(platform_mass=float("nan")),
+        dict(rod_length=0.9),
+    ],
+)
 def test_bad_geometry_raises(change):
     with pytest.raises(InvalidGeometryError):
         StewartGeometry(**change)

@@ -1,6 +1,5 @@
 """Faults before and during a run end in a typed error, and the data is not lost."""
 
-
 import numpy as np
 import pytest
 
@@ -22,13 +21,16 @@ from stewart_drake.simulation.scenario import Robot, Scenario
 from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
 from stewart_drake.studies.experiments import build_simulator, run_experiment
 
-HEAVE_TO_DEAD_POINT = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.117),
-                                     frequency_hz=(0, 0, 0, 0, 0, 0.25), name="heave")
+HEAVE_TO_DEAD_POINT = SineTrajectory(
+    amplitude=(0, 0, 0, 0, 0, 0.117), frequency_hz=(0, 0, 0, 0, 0, 0.25), name="heave"
+)
 
 
 def _config(tmp_path, duration_s=0.3, **guard_fields):
-    return Scenario(duration_s=duration_s,
-                    guard=GuardConfig(divergence_dir=str(tmp_path / "diverged"), **guard_fields))
+    return Scenario(
+        duration_s=duration_s,
+        guard=GuardConfig(divergence_dir=str(tmp_path / "diverged"), **guard_fields),
+    )
 
 
 def _load(path):
@@ -41,16 +43,27 @@ def _check_saved(err, tmp_path, t_fault):
     assert err.path is not None and str(tmp_path / "diverged") in err.path
     assert err.path in str(err)
     saved = _load(err.path)
-    for key in ("t", "x", "T", "status", "state", "state_last", "t_last", "reason", "scenario",
-                "T_applied_last", "integral"):
+    for key in (
+        "t",
+        "x",
+        "T",
+        "status",
+        "state",
+        "state_last",
+        "t_last",
+        "reason",
+        "scenario",
+        "T_applied_last",
+        "integral",
+    ):
         assert key in saved, key
     t = saved["t"]
     assert saved["x"].shape == (t.size, 12) and saved["T"].shape == (t.size, 6)
     assert saved["status"].shape == (t.size, len(LQI_STATUS_NAMES))
     assert t[0] == 0.0 and t[-1] <= float(saved["t_last"]) + 1e-12
     assert float(saved["t_last"]) == pytest.approx(err.t)
-    assert t_fault <= err.t <= t_fault + 0.011           # caught within one check period
-    assert t.size >= int(t_fault / 1e-3)                  # nothing before the fault is lost
+    assert t_fault <= err.t <= t_fault + 0.011  # caught within one check period
+    assert t.size >= int(t_fault / 1e-3)  # nothing before the fault is lost
     assert saved["state_last"].shape == saved["state"].shape[1:]
     assert str(saved["reason"]) in str(err)
     assert "name: paper" in str(saved["scenario"]) and "controller:" in str(saved["scenario"])
@@ -60,7 +73,7 @@ def _check_saved(err, tmp_path, t_fault):
 def test_nan_torque_stops_the_run_and_saves_the_logs(tmp_path, feedforward_fault):
     calls = {"n": 0}
 
-    def faulty(T_ff):                                 # the 101st control step (t = 0.1005 s)
+    def faulty(T_ff):  # the 101st control step (t = 0.1005 s)
         calls["n"] += 1
         return np.full(6, np.nan) if calls["n"] > 100 else T_ff
 
@@ -81,18 +94,19 @@ def test_nan_torque_stops_the_run_and_saves_the_logs(tmp_path, feedforward_fault
 
 def test_nan_state_stops_the_run(tmp_path):
     sd, simulator = build_simulator(_config(tmp_path))
-    simulator.AdvanceTo(0.1005)      # between plant updates: the next step is the controller's
+    simulator.AdvanceTo(0.1005)  # between plant updates: the next step is the controller's
     plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
     state = plant_context.get_mutable_discrete_state_vector()
-    k = state.size() - 1                                   # a rod's angular rate
+    k = state.size() - 1  # a rod's angular rate
     state.SetAtIndex(k, np.nan)
-    with pytest.raises(SimulationDivergedError, match=f"plant state is not finite \\(entry {k}"
-                       ) as info:
+    with pytest.raises(
+        SimulationDivergedError, match=f"plant state is not finite \\(entry {k}"
+    ) as info:
         guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
     saved = _check_saved(info.value, tmp_path, 0.1)
     assert np.isnan(saved["state_last"][k])
-    assert np.all(np.isfinite(saved["state"][:-1]))       # logged before the fault
-    assert np.isnan(saved["state"][-1, k])                # the log at 0.101 s shows it
+    assert np.all(np.isfinite(saved["state"][:-1]))  # logged before the fault
+    assert np.isnan(saved["state"][-1, k])  # the log at 0.101 s shows it
 
 
 def test_broken_loop_trips_the_closure_bound(tmp_path):
@@ -101,10 +115,13 @@ def test_broken_loop_trips_the_closure_bound(tmp_path):
     simulator.AdvanceTo(0.1)
     plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
     X_WE = sd.plant.GetFreeBodyPose(plant_context, sd.handles.platform)
-    X_WE.set_translation(X_WE.translation() + [0.0, 0.0, 0.005])   # 5 mm off its six rods
+    X_WE.set_translation(X_WE.translation() + [0.0, 0.0, 0.005])  # 5 mm off its six rods
     sd.plant.SetFreeBodyPose(plant_context, sd.handles.platform, X_WE)
-    with pytest.raises(SimulationDivergedError, match=r"loop-closure error .* exceeds "
-                       r"GuardConfig.max_closure_error_m = 0.001 m") as info:
+    with pytest.raises(
+        SimulationDivergedError,
+        match=r"loop-closure error .* exceeds "
+        r"GuardConfig.max_closure_error_m = 0.001 m",
+    ) as info:
         guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
     _check_saved(info.value, tmp_path, 0.1)
 
@@ -113,10 +130,13 @@ def test_a_lost_platform_trips_the_tracking_bound(tmp_path):
     sd, simulator = build_simulator(_config(tmp_path, check_period_s=1e-3))
     simulator.AdvanceTo(0.1)
     plant_context = sd.plant.GetMyMutableContextFromRoot(simulator.get_mutable_context())
-    x = paper_manoeuvre().evaluate(0.1)[0] + [0.3, 0, 0, 0, 0, 0]     # 0.3 rad of roll off
-    assemble(sd.plant, plant_context, sd.handles, x)                  # loops closed: only phi
-    with pytest.raises(SimulationDivergedError, match=r"\|phi - phi_d\| = 0.\d+ rad exceeds "
-                       r"GuardConfig.max_tracking_error = 0.2 rad") as info:
+    x = paper_manoeuvre().evaluate(0.1)[0] + [0.3, 0, 0, 0, 0, 0]  # 0.3 rad of roll off
+    assemble(sd.plant, plant_context, sd.handles, x)  # loops closed: only phi
+    with pytest.raises(
+        SimulationDivergedError,
+        match=r"\|phi - phi_d\| = 0.\d+ rad exceeds "
+        r"GuardConfig.max_tracking_error = 0.2 rad",
+    ) as info:
         guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
     _check_saved(info.value, tmp_path, 0.1)
 
@@ -130,7 +150,7 @@ def test_another_drake_failure_keeps_its_type_and_saves_the_logs(tmp_path, feedf
     feedforward_fault(broken)
     with pytest.raises(RuntimeError, match="actuator driver fault") as info:
         guard.advance(sd, simulator, lambda: simulator.AdvanceTo(0.3))
-    assert not isinstance(info.value, StewartError)     # a bug is not relabelled "diverged"
+    assert not isinstance(info.value, StewartError)  # a bug is not relabelled "diverged"
     note = " ".join(getattr(info.value, "__notes__", []))
     path = note.split("saved in ")[-1]
     saved = _load(path)
@@ -139,8 +159,11 @@ def test_another_drake_failure_keeps_its_type_and_saves_the_logs(tmp_path, feedf
 
 def test_a_closure_bound_below_the_solver_compliance_trips_at_the_first_check(tmp_path):
     """SAP closes the loops to ~1e-7 m along the paper run; a 1e-9 m bound cannot hold."""
-    with pytest.raises(SimulationDivergedError, match=r"loop-closure error \d.* m at rod \d "
-                       r"exceeds GuardConfig.max_closure_error_m = 1e-09 m") as info:
+    with pytest.raises(
+        SimulationDivergedError,
+        match=r"loop-closure error \d.* m at rod \d "
+        r"exceeds GuardConfig.max_closure_error_m = 1e-09 m",
+    ) as info:
         run_experiment(_config(tmp_path, max_closure_error_m=1e-9))
     assert info.value.t <= 0.011
     saved = _load(info.value.path)
@@ -170,9 +193,11 @@ def test_guard_checks_closure_and_tracking_at_its_period(tmp_path, monkeypatch):
 
 # -- the reference, before anything is simulated --------------------------------------------------
 
+
 def test_reference_beyond_the_motor_range_names_time_leg_and_limit():
-    config = Scenario(robot=Robot.from_value(StewartGeometry(motor_angle_min_deg=-60.0)),
-                      duration_s=10.0)
+    config = Scenario(
+        robot=Robot.from_value(StewartGeometry(motor_angle_min_deg=-60.0)), duration_s=10.0
+    )
     with pytest.raises(JointLimitError, match=r"leg \d leaves its motor_angle limit") as info:
         check_reference(config)
     err = info.value
@@ -211,15 +236,15 @@ def test_cond_threshold_refuses_the_paper_path_where_cond_first_exceeds_it():
     geometry = make_plan(config).geometry
     cond, _ = kinematics.singularity_measures(geometry, paper_manoeuvre().evaluate(t)[0])
     assert info.value.t == pytest.approx(t[int(np.argmax(cond > 60.0))])
-    assert check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69,
-                                                                                      abs=0.01)
+    assert check_reference(Scenario(duration_s=10.0)).max_cond == pytest.approx(77.69, abs=0.01)
 
 
 def test_unreachable_reference_fails_before_any_simulation(tmp_path):
     too_high = SineTrajectory(amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 1.0))
     with pytest.raises(UnreachablePoseError) as info:
-        run_experiment(Scenario(duration_s=1.0,
-                                guard=GuardConfig(divergence_dir=str(tmp_path / "d"))),
-                       reference=too_high)
+        run_experiment(
+            Scenario(duration_s=1.0, guard=GuardConfig(divergence_dir=str(tmp_path / "d"))),
+            reference=too_high,
+        )
     assert 0.0 < info.value.t < 0.25 and info.value.ratio > 1
     assert not (tmp_path / "d").exists()

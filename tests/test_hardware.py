@@ -37,19 +37,29 @@ def test_clean_hardware_path_tracks_like_exact_sensing():
     """2^24 counts, no noise, delay, friction or limit: encoders + FK + the current loop track
     the paper manoeuvre within 10 % of the same robot sensed to 2^40 counts. (The rotors' 2.5e-4
     kg m^2 at each crank make both track worse than the ideal robot with the same weights.)"""
-    settings = {"duration_s": 3, "hardware.computation_delay_periods": 0,
-                "hardware.motors.coulomb_friction_Nm": 0, "hardware.motors.viscous_damping": 0,
-                "hardware.motors.peak_torque_Nm": 1000}
-    exact = run_experiment(_hardware(**settings, **{"hardware.encoders.counts_per_rev": 2 ** 40}))
-    result = run_experiment(_hardware(**settings,
-                                      **{"hardware.encoders.counts_per_rev": 2 ** 24}))
+    settings = {
+        "duration_s": 3,
+        "hardware.computation_delay_periods": 0,
+        "hardware.motors.coulomb_friction_Nm": 0,
+        "hardware.motors.viscous_damping": 0,
+        "hardware.motors.peak_torque_Nm": 1000,
+    }
+    exact = run_experiment(_hardware(**settings, **{"hardware.encoders.counts_per_rev": 2**40}))
+    result = run_experiment(_hardware(**settings, **{"hardware.encoders.counts_per_rev": 2**24}))
     assert _nrms(result) == pytest.approx(_nrms(exact), rel=0.10)
     ideal = run_experiment(Scenario(duration_s=3.0))
-    assert _nrms(exact) > 1.1 * _nrms(ideal)                       # the rotors are in the plant
+    assert _nrms(exact) > 1.1 * _nrms(ideal)  # the rotors are in the plant
     # ... and 2^17 counts (the default) costs tracking: the quantization is what it measures.
-    coarse = run_experiment(_hardware(**{"duration_s": 3, "hardware.computation_delay_periods": 0,
-                                         "hardware.motors.coulomb_friction_Nm": 0,
-                                         "hardware.motors.peak_torque_Nm": 1000}))
+    coarse = run_experiment(
+        _hardware(
+            **{
+                "duration_s": 3,
+                "hardware.computation_delay_periods": 0,
+                "hardware.motors.coulomb_friction_Nm": 0,
+                "hardware.motors.peak_torque_Nm": 1000,
+            }
+        )
+    )
     assert _nrms(coarse) > 3 * _nrms(result)
 
 
@@ -57,7 +67,7 @@ def test_fk_estimate_is_within_the_encoder_quantum_mapped_through_the_jacobian()
     """At 200 random reachable poses: FK of the quantized angles, from a start 1 mrad | 1 mm
     off, lands within |J^-1| q/2 of the true pose, axis by axis."""
     g, rng = StewartGeometry(), np.random.default_rng(7)
-    q = 2 * np.pi / 2 ** 17
+    q = 2 * np.pi / 2**17
     estimator = PoseEstimator(g, 1e-3, q)
     box = np.array([0.3, 0.3, 0.3, 0.05, 0.05, 0.05])
     x = X_HOME + rng.uniform(-1, 1, (4000, 6)) * box
@@ -71,12 +81,12 @@ def test_fk_estimate_is_within_the_encoder_quantum_mapped_through_the_jacobian()
         bound = np.abs(np.linalg.inv(kinematics.jacobian(g, pose))) @ np.full(6, q / 2)
         assert converged and steps <= 4
         worst = max(worst, np.max(np.abs(estimate - pose) / bound))
-    assert worst <= 1.0 + 1e-3                       # within the quantum, to second order
-    assert worst > 0.3                               # ... and the bound is not vacuous
+    assert worst <= 1.0 + 1e-3  # within the quantum, to second order
+    assert worst > 0.3  # ... and the bound is not vacuous
 
 
 def test_chord_step_follows_the_full_newton_along_the_paper_manoeuvre():
-    g, h, q = StewartGeometry(), 1e-3, 2 * np.pi / 2 ** 17
+    g, h, q = StewartGeometry(), 1e-3, 2 * np.pi / 2**17
     t = np.arange(0.0, 4.0, h)
     X, V, _ = paper_manoeuvre().evaluate(t)
     measured = np.round(kinematics.ik(g, X) / q) * q
@@ -89,11 +99,11 @@ def test_chord_step_follows_the_full_newton_along_the_paper_manoeuvre():
         x, v = estimator.track(measured[k], x, v, J_inv)
         chord_gap = max(chord_gap, np.abs(x - newton).max())
         truth_gap = max(truth_gap, np.abs(x - X[k]).max())
-        if k % 10 == 0:                              # the LQI refreshes J every re-schedule
+        if k % 10 == 0:  # the LQI refreshes J every re-schedule
             J_inv = np.linalg.inv(kinematics.jacobian(g, x))
-    assert chord_gap < 2e-6                          # 1.0e-6 measured
-    assert truth_gap < 2e-4                          # the quantization: 8e-5 measured
-    assert np.abs(v - V[-1]).max() < 0.05            # the filtered rate follows (rad/s, m/s)
+    assert chord_gap < 2e-6  # 1.0e-6 measured
+    assert truth_gap < 2e-4  # the quantization: 8e-5 measured
+    assert np.abs(v - V[-1]).max() < 0.05  # the filtered rate follows (rad/s, m/s)
 
 
 def _held(scenario, T, duration_s=1.0):
@@ -109,16 +119,18 @@ def test_stiction_holds_a_pose_the_frictionless_plant_lets_drift():
     T = statics.holding_torques(StewartGeometry(), X_HOME) + 0.6 * servo.coulomb_friction_Nm
     stuck = _held(_hardware(), T)
     slick = _held(_hardware(**{"hardware.motors.coulomb_friction_Nm": 0}), T)
-    assert np.abs(stuck[:6] - X_HOME).max() < 1e-5            # creep T / friction_damping
-    assert np.abs(slick[:6] - X_HOME).max() > 1e-3            # millimetres in a second
+    assert np.abs(stuck[:6] - X_HOME).max() < 1e-5  # creep T / friction_damping
+    assert np.abs(slick[:6] - X_HOME).max() > 1e-3  # millimetres in a second
     # ... and 1.5 times the friction band breaks it loose.
-    loose = _held(_hardware(), statics.holding_torques(StewartGeometry(), X_HOME)
-                  + 1.5 * servo.coulomb_friction_Nm)
+    loose = _held(
+        _hardware(),
+        statics.holding_torques(StewartGeometry(), X_HOME) + 1.5 * servo.coulomb_friction_Nm,
+    )
     assert np.abs(loose[:6] - X_HOME).max() > 1e-3
 
 
 def test_encoders_report_whole_counts_of_the_crank_angle():
-    scenario = _hardware(**{"hardware.encoders.counts_per_rev": 2 ** 12})
+    scenario = _hardware(**{"hardware.encoders.counts_per_rev": 2**12})
     builder = DiagramBuilder()
     station = builder.AddSystem(make_stewart_station(scenario))
     diagram = builder.Build()
@@ -126,8 +138,8 @@ def test_encoders_report_whole_counts_of_the_crank_angle():
     x = X_HOME + np.array([0.02, -0.01, 0.03, 0.004, 0.0, 0.01])
     theta = station.assemble(context, x)
     measured = station.GetOutputPort("motor_angle").Eval(station.GetMyContextFromRoot(context))
-    q = 2 * np.pi / 2 ** 12
-    np.testing.assert_allclose(measured / q, np.round(measured / q), atol=1e-9)   # whole counts
+    q = 2 * np.pi / 2**12
+    np.testing.assert_allclose(measured / q, np.round(measured / q), atol=1e-9)  # whole counts
     assert np.abs(measured - theta).max() <= q / 2 + 1e-12
 
 
@@ -138,15 +150,20 @@ class _Clock(LeafSystem):
     def __init__(self):
         super().__init__()
         self.DeclareStateOutputPort("u", self.DeclareDiscreteState(6))
-        self.DeclarePeriodicDiscreteUpdateEvent(1e-3, 5e-4, lambda c, s: s.set_value(
-            0, np.full(6, round(c.get_time() * 1e4) / 1e3)))
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            1e-3, 5e-4, lambda c, s: s.set_value(0, np.full(6, round(c.get_time() * 1e4) / 1e3))
+        )
 
 
 @pytest.mark.parametrize("delay", [0, 1, 2])
 def test_the_computation_delay_is_exactly_what_the_scenario_says(delay):
     """The torque a controller writes at k h + h/2 acts from the plant step (k + 1 + d) h."""
-    scenario = _hardware(**{"hardware.computation_delay_periods": delay,
-                            "hardware.motors.current_time_constant_s": 0})
+    scenario = _hardware(
+        **{
+            "hardware.computation_delay_periods": delay,
+            "hardware.motors.current_time_constant_s": 0,
+        }
+    )
     builder = DiagramBuilder()
     station = builder.AddSystem(make_stewart_station(scenario))
     clock = builder.AddSystem(_Clock())
@@ -159,11 +176,12 @@ def test_the_computation_delay_is_exactly_what_the_scenario_says(delay):
     station.initialize(context, np.full(6, -1.0))
     applied = station.GetOutputPort("motor_torque_applied")
     for k in range(1, 8):
-        simulator.AdvanceTo(k * 1e-3)          # the plant's update at k h reads this value
-        if k - 1 - delay >= 0:                 # past the start-up: the pipe is full
+        simulator.AdvanceTo(k * 1e-3)  # the plant's update at k h reads this value
+        if k - 1 - delay >= 0:  # past the start-up: the pipe is full
             # At the plant step k h the command written at (k - 1 - d) h + h/2 acts.
             assert applied.Eval(station.GetMyContextFromRoot(context))[0] == pytest.approx(
-                0.01 * (k - 1 - delay + 0.5))
+                0.01 * (k - 1 - delay + 0.5)
+            )
 
 
 def test_current_loop_applies_the_step_average_of_a_first_order_lag():
@@ -187,16 +205,30 @@ def test_the_governor_projection_is_the_nearest_point_within_the_bound():
         G = rng.normal(size=(6, 6)) + 3 * np.eye(6)
         T, d, bound = rng.uniform(0.2, 0.3, 6), rng.normal(scale=0.02, size=6), 0.315
         s, C = project_onto_torque_bound(d, T, G, bound)
-        below = {"type": "ineq", "fun": lambda v: bound - (T + G @ v), "jac": lambda v: -G}
-        above = {"type": "ineq", "fun": lambda v: bound + (T + G @ v), "jac": lambda v: G}
-        ref = minimize(lambda v: 0.5 * np.sum((v - d) ** 2), np.zeros(6), jac=lambda v: v - d,
-                       method="SLSQP", constraints=[below, above],
-                       options={"ftol": 1e-14, "maxiter": 200})
+        # Each lambda is used by this iteration's minimize only: bound the values it reads.
+        below = {
+            "type": "ineq",
+            "fun": lambda v, T=T, G=G, b=bound: b - (T + G @ v),
+            "jac": lambda v, G=G: -G,
+        }
+        above = {
+            "type": "ineq",
+            "fun": lambda v, T=T, G=G, b=bound: b + (T + G @ v),
+            "jac": lambda v, G=G: G,
+        }
+        ref = minimize(
+            lambda v, d=d: 0.5 * np.sum((v - d) ** 2),
+            np.zeros(6),
+            jac=lambda v, d=d: v - d,
+            method="SLSQP",
+            constraints=[below, above],
+            options={"ftol": 1e-14, "maxiter": 200},
+        )
         assert ref.success
         np.testing.assert_allclose(s, ref.x, atol=1e-7)
         assert np.abs(T + G @ s).max() <= bound * (1 + 1e-9)
         actives.add(len(C))
-    assert {1, 2, 3} <= actives                      # the bound binds, on several motors
+    assert {1, 2, 3} <= actives  # the bound binds, on several motors
 
 
 def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geometry):
@@ -215,7 +247,7 @@ def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geome
         if not governed[k - 1]:
             hold = np.concatenate([X[k - 1], np.zeros(12), T_ff[k - 1]])
         new = lqi.govern(hold, np.concatenate([X[k], V[k], A[k]]))
-        assert not np.array_equal(new[:6], hold[:6])             # found, not held
+        assert not np.array_equal(new[:6], hold[:6])  # found, not held
         hold = new
         poses.append(hold[:6].copy())
         rates.append(hold[6:12].copy())
@@ -224,10 +256,10 @@ def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geome
     poses, rates = np.array(poses), np.array(rates)
     assert np.abs(statics.holding_torques(geometry, poses)).max() <= 0.9 * 0.35 + 1e-6
     deviation = np.abs(poses - X[governed]).max(axis=0)
-    assert deviation[:3].max() < 0.003 and deviation[3:].max() < 0.02     # 1.9 mrad, 18.8 mm
+    assert deviation[:3].max() < 0.003 and deviation[3:].max() < 0.02  # 1.9 mrad, 18.8 mm
     contiguous = np.flatnonzero(np.diff(np.flatnonzero(governed)) == 1)
     steps = (poses[contiguous + 1] - poses[contiguous]) / 1e-3
-    assert np.abs(steps).max() < 1.1                 # rad/s | m/s: phi's own 1.05 rad/s
+    assert np.abs(steps).max() < 1.1  # rad/s | m/s: phi's own 1.05 rad/s
     # The rate agrees with the poses' finite difference to 0.035 m/s (Z, where the set of motors
     # at the bound changes; 0.002 median); the reference's own rate is 0.126 m/s off.
     midpoint_rate = 0.5 * (rates[contiguous + 1] + rates[contiguous])
@@ -240,10 +272,17 @@ def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geome
 LIMITED = {"torque_limit_Nm": 0.35, "guard.allow_infeasible": "true"}
 #: The perturbation set of the governor (re-schedule period x Riccati refinement x encoder
 #: noise): before the exact projection, 6 of these 12 runs lost the platform.
-PERTURBATIONS = [{"controller.schedule_period_s": period, "controller.riccati": riccati,
-                  "hardware.encoders.noise_counts": noise, "hardware.encoders.seed": seed}
-                 for period in (0.01, 0.02) for riccati in ("track", "warm")
-                 for noise, seed in ((0.0, 0), (0.5, 1), (0.5, 2))]
+PERTURBATIONS = [
+    {
+        "controller.schedule_period_s": period,
+        "controller.riccati": riccati,
+        "hardware.encoders.noise_counts": noise,
+        "hardware.encoders.seed": seed,
+    }
+    for period in (0.01, 0.02)
+    for riccati in ("track", "warm")
+    for noise, seed in ((0.0, 0), (0.5, 1), (0.5, 2))
+]
 
 
 def _check_limited_run(changes):
@@ -260,8 +299,9 @@ def _check_limited_run(changes):
     return result
 
 
-@pytest.mark.parametrize("changes", [PERTURBATIONS[6], PERTURBATIONS[1]],
-                         ids=["scenario", "0.01s-noise"])
+@pytest.mark.parametrize(
+    "changes", [PERTURBATIONS[6], PERTURBATIONS[1]], ids=["scenario", "0.01s-noise"]
+)
 def test_limit_below_the_peak_demand_slows_the_platform_instead_of_losing_it(changes):
     """0.35 N m against the manoeuvre's 0.41 N m (0.413 N m just to hold its extreme pose):
     with anti-windup and the reference governor the 10 s run completes with every motor within
@@ -273,10 +313,16 @@ def test_limit_below_the_peak_demand_slows_the_platform_instead_of_losing_it(cha
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("changes", PERTURBATIONS,
-                         ids=[f"{c['controller.schedule_period_s']}s-{c['controller.riccati']}-"
-                              f"noise{c['hardware.encoders.noise_counts']}-seed"
-                              f"{c['hardware.encoders.seed']}" for c in PERTURBATIONS])
+@pytest.mark.parametrize(
+    "changes",
+    PERTURBATIONS,
+    ids=[
+        f"{c['controller.schedule_period_s']}s-{c['controller.riccati']}-"
+        f"noise{c['hardware.encoders.noise_counts']}-seed"
+        f"{c['hardware.encoders.seed']}"
+        for c in PERTURBATIONS
+    ],
+)
 def test_limited_run_completes_across_the_perturbation_set(changes):
     """Every run of the perturbation set completes within the same bounds (6 of 12 before the
     governor's exact projection; about 2 minutes on 2 cores)."""
@@ -303,8 +349,9 @@ def test_the_lqi_knows_the_motors_and_the_delay():
     lqi = sd.controller.lqi
     assert lqi.delay == 1 and lqi.n == 24 and lqi.torque_limit == pytest.approx(0.702, abs=1e-3)
     assert lqi.estimator is not None
-    inputs = {sd.controller.get_input_port(i).get_name()
-              for i in range(sd.controller.num_input_ports())}
+    inputs = {
+        sd.controller.get_input_port(i).get_name() for i in range(sd.controller.num_input_ports())
+    }
     assert "motor_angle" in inputs and "x" not in inputs
     assert make_plan(scenario).geometry.motor_reflected_inertia == pytest.approx(2.496e-4, rel=1e-3)
     off = _hardware(**{"duration_s": 0.1, "controller.delay_compensation": "false"})
@@ -331,14 +378,14 @@ def test_drake_ignores_an_sdf_joint_friction_so_ours_is_an_actuator(tmp_path):
         plant = MultibodyPlant(1e-3)
         parser = Parser(plant)
         parser.SetStrictParsing()
-        parser.AddModels(str(path))                 # the parser gives the joint its actuator
+        parser.AddModels(str(path))  # the parser gives the joint its actuator
         plant.Finalize()
         context = plant.CreateDefaultContext()
-        plant.get_actuation_input_port().FixValue(context, [0.01])   # 0.01 N m << 10 N m
+        plant.get_actuation_input_port().FixValue(context, [0.01])  # 0.01 N m << 10 N m
         simulator = Simulator(plant, context)
         simulator.AdvanceTo(0.5)
         return plant.GetJointByName("j").get_angle(context)
 
     free = spin(0.0)
-    assert free == pytest.approx(0.5 * 0.01 / 0.1 * 0.5 ** 2, rel=1e-2)   # T t^2 / (2 I)
+    assert free == pytest.approx(0.5 * 0.01 / 0.1 * 0.5**2, rel=1e-2)  # T t^2 / (2 I)
     assert spin(10.0) == pytest.approx(free, rel=1e-12)

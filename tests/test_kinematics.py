@@ -37,7 +37,7 @@ def test_reference_manoeuvre_peak_ratio_is_as_documented(geometry):
     x[:, 0] = np.pi / 6 * np.sin(2 * t)
     x[:, 5] = 0.05 * np.sin(2 * t) + 0.30
     peak = np.abs(kinematics.leg_reach_ratio(geometry, x)).max()
-    assert 0.90 < peak < 0.92          # reference_geometry.md: "about 0.91"
+    assert 0.90 < peak < 0.92  # reference_geometry.md: "about 0.91"
 
 
 def test_unreachable_pose_names_leg_and_ratio(geometry):
@@ -53,9 +53,12 @@ def test_jacobian_agrees_with_finite_differences(geometry, random_poses):
     h = 1e-6
     for x in random_poses[:50]:
         J = kinematics.jacobian(geometry, x)
-        J_fd = np.column_stack([
-            (kinematics.ik(geometry, x + h * e) - kinematics.ik(geometry, x - h * e)) / (2 * h)
-            for e in np.eye(6)])
+        J_fd = np.column_stack(
+            [
+                (kinematics.ik(geometry, x + h * e) - kinematics.ik(geometry, x - h * e)) / (2 * h)
+                for e in np.eye(6)
+            ]
+        )
         assert np.abs(J - J_fd).max() / np.abs(J).max() < 1e-6
 
 
@@ -72,8 +75,8 @@ def test_paper_eq18_as_printed_differs_from_virtual_work(geometry):
     """Eq. 15 multiplies by e_l . e_N where statics divides: the printed map is wrong."""
     W = kinematics.wrench_map(geometry, X_HOME)
     W_paper = kinematics.wrench_map_paper_eq18(geometry, X_HOME)
-    ratio = W_paper[5] / W[5]                 # column scale = (e_l . e_N)^2 per leg
-    assert np.all(ratio < 0.9)                # the printed map is > 10 % off at home
+    ratio = W_paper[5] / W[5]  # column scale = (e_l . e_N)^2 per leg
+    assert np.all(ratio < 0.9)  # the printed map is > 10 % off at home
     np.testing.assert_allclose(W_paper / ratio, W, atol=1e-12)
 
 
@@ -93,17 +96,24 @@ def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_pose
         theta = kinematics.ik(geometry, x)
         th_single, cache = kinematics.ik_single(geometry, x)
         np.testing.assert_allclose(th_single, theta, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(kinematics.ik_scalar(constants, x.tolist()), theta,
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            kinematics.ik_scalar(constants, x.tolist()), theta, rtol=0, atol=1e-12
+        )
         J = kinematics.jacobian(geometry, x)
-        np.testing.assert_allclose(kinematics.jacobian_single(geometry, cache), J,
-                                   rtol=1e-12, atol=1e-12 * np.abs(J).max())
+        np.testing.assert_allclose(
+            kinematics.jacobian_single(geometry, cache), J, rtol=1e-12, atol=1e-12 * np.abs(J).max()
+        )
         M = statics.task_inertia(geometry, x)
-        np.testing.assert_allclose(statics.task_inertia_single(geometry, cache, J), M,
-                                   rtol=1e-11, atol=1e-12 * np.abs(M).max())
+        np.testing.assert_allclose(
+            statics.task_inertia_single(geometry, cache, J),
+            M,
+            rtol=1e-11,
+            atol=1e-12 * np.abs(M).max(),
+        )
         B = input_matrix(geometry, x)
-        np.testing.assert_allclose(input_matrix_single(geometry, x)[0], B,
-                                   rtol=1e-10, atol=1e-12 * np.abs(B).max())
-    far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])                 # every rod too short
+        np.testing.assert_allclose(
+            input_matrix_single(geometry, x)[0], B, rtol=1e-10, atol=1e-12 * np.abs(B).max()
+        )
+    far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])  # every rod too short
     assert np.isnan(kinematics.ik_single(geometry, far)[0]).all()
     assert np.isnan(kinematics.ik_scalar(constants, far.tolist())).all()

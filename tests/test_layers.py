@@ -9,8 +9,15 @@ import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake"
 #: Rank of each layer; a module may import its own layer or a lower one, never a higher one.
-LAYERS = {"base": 0, "model": 1, "control": 2, "simulation": 3, "execution": 4, "studies": 5,
-          "interfaces": 6}
+LAYERS = {
+    "base": 0,
+    "model": 1,
+    "control": 2,
+    "simulation": 3,
+    "execution": 4,
+    "studies": 5,
+    "interfaces": 6,
+}
 
 
 def _module_name(path: pathlib.Path) -> str:
@@ -50,7 +57,7 @@ def import_graph() -> dict:
 def test_no_import_goes_up_a_layer():
     upward = []
     for module, targets in import_graph().items():
-        if module == "stewart_drake":              # the package facade re-exports base and model
+        if module == "stewart_drake":  # the package facade re-exports base and model
             assert all(LAYERS[_layer(t)] <= LAYERS["model"] for t in targets), targets
             continue
         for target in targets:
@@ -67,7 +74,7 @@ def test_no_import_circle():
         state[node] = "open"
         for nxt in sorted(graph[node]):
             if state.get(nxt) == "open":
-                circles.append(path[path.index(nxt):] + [nxt])
+                circles.append(path[path.index(nxt) :] + [nxt])
             elif nxt not in state:
                 visit(nxt, path + [nxt])
         state[node] = "done"

@@ -20,8 +20,12 @@ def test_joint_angles_are_the_angles_of_the_assembled_drake_plant(geometry, rand
     def rods_in_platform(x):
         assemble(plant, context, handles, x)
         R_WE = plant.EvalBodyPoseInWorld(context, handles.platform).rotation().matrix()
-        e_W = np.array([plant.EvalBodyPoseInWorld(context, rod).rotation().matrix()[:, 2]
-                        for rod in handles.rods])
+        e_W = np.array(
+            [
+                plant.EvalBodyPoseInWorld(context, rod).rotation().matrix()[:, 2]
+                for rod in handles.rods
+            ]
+        )
         return e_W, e_W @ R_WE
 
     _, home_E = rods_in_platform(X_HOME)
@@ -29,14 +33,18 @@ def test_joint_angles_are_the_angles_of_the_assembled_drake_plant(geometry, rand
         angles = limits.joint_angles(geometry, x)
         e_W, e_E = rods_in_platform(x)
         np.testing.assert_allclose(
-            angles["crank_joint"], np.arcsin(np.abs(np.sum(e_W * geometry.u_B, axis=1))),
-            atol=1e-9)
+            angles["crank_joint"], np.arcsin(np.abs(np.sum(e_W * geometry.u_B, axis=1))), atol=1e-9
+        )
         np.testing.assert_allclose(
             angles["platform_joint"],
-            np.arccos(np.clip(np.sum(e_E * home_E, axis=1), -1, 1)), atol=1e-7)
+            np.arccos(np.clip(np.sum(e_E * home_E, axis=1), -1, 1)),
+            atol=1e-7,
+        )
         np.testing.assert_allclose(
             angles["motor_angle"],
-            [joint.get_angle(context) for joint in handles.motors], atol=1e-12)
+            [joint.get_angle(context) for joint in handles.motors],
+            atol=1e-12,
+        )
     home = limits.joint_angles(geometry, X_HOME)
     np.testing.assert_allclose(np.rad2deg(home["crank_joint"]), 19.4, atol=0.05)  # docstring
     np.testing.assert_allclose(home["platform_joint"], 0.0, atol=1e-7)
@@ -47,12 +55,14 @@ def test_margins_are_the_distances_to_the_geometry_s_limits(geometry, random_pos
         m = limits.limit_margins(geometry, x)
         a = limits.joint_angles(geometry, x)
         theta = kinematics.ik(geometry, x)
-        np.testing.assert_allclose(m["motor_angle"], np.minimum(theta + np.pi / 2,
-                                                                np.pi / 2 - theta), atol=1e-12)
+        np.testing.assert_allclose(
+            m["motor_angle"], np.minimum(theta + np.pi / 2, np.pi / 2 - theta), atol=1e-12
+        )
         np.testing.assert_allclose(m["crank_joint"], np.deg2rad(35.0) - a["crank_joint"])
         np.testing.assert_allclose(m["platform_joint"], np.deg2rad(40.0) - a["platform_joint"])
-        np.testing.assert_allclose(m["closure"],
-                                   1 - np.abs(kinematics.leg_reach_ratio(geometry, x)))
+        np.testing.assert_allclose(
+            m["closure"], 1 - np.abs(kinematics.leg_reach_ratio(geometry, x))
+        )
     assert limits.is_reachable(geometry, random_poses)
 
 
@@ -76,12 +86,17 @@ def test_a_pose_past_a_limit_is_reported_by_leg_limit_and_amount(geometry):
     assert not result
     found = result.violations()
     margins = limits.limit_margins(geometry, x[k])
-    expected = sorted((float(margins[name][leg]), leg, name) for name in limits.LIMITS
-                      for leg in range(6) if margins[name][leg] < 0)
+    expected = sorted(
+        (float(margins[name][leg]), leg, name)
+        for name in limits.LIMITS
+        for leg in range(6)
+        if margins[name][leg] < 0
+    )
     assert [(v.margin, v.leg, v.limit) for v in found] == expected and found
     worst = found[0]
-    assert str(worst) == (f"leg {worst.leg} exceeds its {worst.limit} limit by "
-                          f"{np.rad2deg(-worst.margin):.3g} deg")
+    assert str(worst) == (
+        f"leg {worst.leg} exceeds its {worst.limit} limit by {np.rad2deg(-worst.margin):.3g} deg"
+    )
     assert limits.is_reachable(geometry, x[k - 1])
 
 
@@ -102,15 +117,18 @@ def test_the_validator_refuses_at_the_first_sample_past_a_limit(geometry):
     """A roll ramp: the sample at which the first margin turns negative, found here pose by
     pose, is the one the report and the JointLimitError name."""
     t, x, k = _roll_ramp(geometry)
-    report = limits.validate_trajectory(geometry, t, x, cond_threshold=1e6,
-                                        min_sigma_min_inv=0.0)
+    report = limits.validate_trajectory(geometry, t, x, cond_threshold=1e6, min_sigma_min_inv=0.0)
     assert not report.ok and report.first_violation.t == t[k]
     assert report.summary().startswith("REFUSED")
-    with pytest.raises(JointLimitError, match=f"leg {report.first_violation.leg} leaves its "
-                                              f"{report.first_violation.limit} limit") as info:
-        limits.validate_trajectory(geometry, t, x, cond_threshold=1e6, min_sigma_min_inv=0.0,
-                                   raise_refused=True)
+    with pytest.raises(
+        JointLimitError,
+        match=f"leg {report.first_violation.leg} leaves its {report.first_violation.limit} limit",
+    ) as info:
+        limits.validate_trajectory(
+            geometry, t, x, cond_threshold=1e6, min_sigma_min_inv=0.0, raise_refused=True
+        )
     assert info.value.margin < 0 and info.value.limit in limits.LIMITS
-    ok = limits.validate_trajectory(geometry, t[:k], x[:k], cond_threshold=1e6,
-                                    min_sigma_min_inv=0.0, raise_refused=True)
+    ok = limits.validate_trajectory(
+        geometry, t[:k], x[:k], cond_threshold=1e6, min_sigma_min_inv=0.0, raise_refused=True
+    )
     assert ok.ok and ok.first_violation is None

@@ -34,15 +34,17 @@ def test_closed_form_zoh_equals_matrix_exponential(geometry):
     Phi = expm(big * H)
     np.testing.assert_allclose(A[:12, :12], Phi[:12, :12], atol=1e-14)
     np.testing.assert_allclose(B[:12], Phi[:12, 12:], rtol=1e-12, atol=1e-16)
-    np.testing.assert_allclose(A[12:, :6], H * np.eye(6))        # the controller's integrator
+    np.testing.assert_allclose(A[12:, :6], H * np.eye(6))  # the controller's integrator
 
 
 def test_input_matrix_is_inverse_inertia_times_tau(geometry, random_poses):
     from stewart_drake.model import kinematics
+
     for x in random_poses[:5]:
         B_c = input_matrix(geometry, x)
-        np.testing.assert_allclose(statics.task_inertia(geometry, x) @ B_c,
-                                   kinematics.tau(geometry, x), atol=1e-10)
+        np.testing.assert_allclose(
+            statics.task_inertia(geometry, x) @ B_c, kinematics.tau(geometry, x), atol=1e-10
+        )
 
 
 def test_hautus_checks_pass_and_detect_a_missing_input(geometry):
@@ -52,7 +54,7 @@ def test_hautus_checks_pass_and_detect_a_missing_input(geometry):
     assert hautus_checks(A, B, C)["detectable"]
     B_bad = B.copy()
     B_bad[:, 5] = 0
-    B_bad[:, 4] = 0           # two motors off: rank drops, (A, B) not stabilizable
+    B_bad[:, 4] = 0  # two motors off: rank drops, (A, B) not stabilizable
     assert not hautus_checks(A, B_bad, C)["stabilizable"]
     C_bad = np.zeros((6, 18))
     C_bad[:, 6:12] = np.eye(6)  # rates only: the pose integral modes are not detectable
@@ -113,8 +115,9 @@ def _switch(mode):
     from pydrake.systems.analysis import Simulator
 
     geometry = StewartGeometry()
-    controller = LqiDiagram(geometry, LqiDriver(schedule_period_s=1e-2, gain_transfer=mode),
-                            period_s=H)
+    controller = LqiDiagram(
+        geometry, LqiDriver(schedule_period_s=1e-2, gain_transfer=mode), period_s=H
+    )
     simulator = Simulator(controller)
     context = simulator.get_mutable_context()
     x = X_HOME + np.array([1e-3, 0, 0, 0, 0, 1e-3])
@@ -138,19 +141,24 @@ def _switch(mode):
 @pytest.mark.parametrize("mode", ["integral", "feedback", "none"])
 def test_a_gain_switch_carries_over_what_its_mode_says(mode):
     (z0, K0, T0), (z1, K1, T1), e = _switch(mode)
-    assert np.abs(K1[:, :6]).max() < 0.2 * np.abs(K0[:, :6]).max()      # a real switch
-    z_before_update = z1 - H * e                                          # this step's integration
-    if mode == "integral":            # the integral torque is kept, z rescaled
-        np.testing.assert_allclose(K1[:, 12:18] @ z_before_update, K0[:, 12:18] @ z0,
-                                   rtol=1e-9, atol=1e-12)
+    assert np.abs(K1[:, :6]).max() < 0.2 * np.abs(K0[:, :6]).max()  # a real switch
+    z_before_update = z1 - H * e  # this step's integration
+    if mode == "integral":  # the integral torque is kept, z rescaled
+        np.testing.assert_allclose(
+            K1[:, 12:18] @ z_before_update, K0[:, 12:18] @ z0, rtol=1e-9, atol=1e-12
+        )
         assert np.abs(z_before_update - z0).max() > 0.5 * np.abs(z0).max()
-    elif mode == "feedback":          # no torque step: only this step's integration moves T
-        assert np.abs(T1 - T0).max() < 0.02 * np.abs(T0 - statics.holding_torques(
-            StewartGeometry(), X_HOME)).max()
-    else:                             # the paper: z kept, the torque steps
+    elif mode == "feedback":  # no torque step: only this step's integration moves T
+        assert (
+            np.abs(T1 - T0).max()
+            < 0.02 * np.abs(T0 - statics.holding_torques(StewartGeometry(), X_HOME)).max()
+        )
+    else:  # the paper: z kept, the torque steps
         np.testing.assert_allclose(z_before_update, z0, rtol=1e-12, atol=1e-15)
-        assert np.abs(T1 - T0).max() > 0.1 * np.abs(T0 - statics.holding_torques(
-            StewartGeometry(), X_HOME)).max()
+        assert (
+            np.abs(T1 - T0).max()
+            > 0.1 * np.abs(T0 - statics.holding_torques(StewartGeometry(), X_HOME)).max()
+        )
 
 
 def test_an_unknown_gain_transfer_is_refused():
@@ -166,8 +174,7 @@ def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
     from stewart_drake.errors import NotStabilizableError
 
     with pytest.raises(NotStabilizableError, match=r"not detectable .* LqiScales") as info:
-        LqiController(StewartGeometry(),
-                      LqiDriver(scales=LqiScalesConfig(integral=[1e100] * 6)))
+        LqiController(StewartGeometry(), LqiDriver(scales=LqiScalesConfig(integral=[1e100] * 6)))
     err = info.value
     assert err.detectable is False and err.stabilizable is True and err.rank_AC < err.n == 18
     assert err.pose == pytest.approx(list(X_HOME))

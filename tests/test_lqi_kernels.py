@@ -12,7 +12,7 @@ from stewart_drake.model.geometry import X_HOME
 def test_the_compiled_ik_equals_the_batched_ik_and_nan_where_unreachable(geometry, random_poses):
     constants = kinematics.leg_constants(geometry)
     legs, crank_length, leg_c = constants
-    compiled = (np.array(legs), crank_length, leg_c)         # as the LQI's estimate passes them
+    compiled = (np.array(legs), crank_length, leg_c)  # as the LQI's estimate passes them
     for x in random_poses[:50]:
         theta = np.asarray(lqi_kernels.ik_compiled(compiled, x))
         np.testing.assert_allclose(theta, kinematics.ik(geometry, x), rtol=0, atol=1e-12)
@@ -29,12 +29,12 @@ def test_solve6_and_matvec_give_the_reference_s_bits_and_numpy_s_numbers():
         x, ok = lqi_kernels.solve6(A, b)
         x_ref, ok_ref = lqi_step.solve6(A, b)
         assert ok and ok_ref
-        np.testing.assert_array_equal(x, x_ref)                       # the same bits
+        np.testing.assert_array_equal(x, x_ref)  # the same bits
         np.testing.assert_allclose(A @ x, b, atol=1e-10 * np.linalg.cond(A))
         np.testing.assert_array_equal(lqi_kernels.matvec(A, b), lqi_step.matvec(A, b))
         np.testing.assert_allclose(lqi_kernels.matvec(A, b), A @ b, rtol=1e-13, atol=1e-14)
     singular = np.ones((6, 6))
-    singular[0] = 0.0                                   # a zero pivot, as dgesv would report
+    singular[0] = 0.0  # a zero pivot, as dgesv would report
     assert not lqi_kernels.solve6(singular, b)[1] and not lqi_step.solve6(singular, b)[1]
 
 
@@ -55,13 +55,13 @@ def test_push_window_writes_the_ring_buffer_like_the_reference():
     rng = np.random.default_rng(13)
     w = 4
     compiled, reference = np.zeros(12 * w + 2), np.zeros(12 * w + 2)
-    for _ in range(7):                                          # wraps around the ring
+    for _ in range(7):  # wraps around the ring
         e, T = rng.normal(size=6), rng.normal(size=6)
         assert lqi_kernels.push_window(compiled, e, T) and lqi_step.push_window(reference, e, T)
         np.testing.assert_array_equal(compiled, reference)
     assert compiled[-2] == w and compiled[-1] == 7 % w
-    np.testing.assert_array_equal(compiled[12 * 2:12 * 2 + 6], e)    # the 7th row at head 2
+    np.testing.assert_array_equal(compiled[12 * 2 : 12 * 2 + 6], e)  # the 7th row at head 2
     e[1] = np.nan
     before = compiled.copy()
-    assert not lqi_kernels.push_window(compiled, e, T)               # a NaN is not buffered
+    assert not lqi_kernels.push_window(compiled, e, T)  # a NaN is not buffered
     np.testing.assert_array_equal(compiled, before)

@@ -38,10 +38,18 @@ GEOMETRY = StewartGeometry()
 
 def _controller(estimator: bool, delay: int, limit, window, transfer="integral", governor=True):
     est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17) if estimator else None
-    driver = LqiDriver(schedule_period_s=2e-2, gain_transfer=transfer,
-                       reference_governor=governor, riccati="track")
-    return LqiController(GEOMETRY, driver, period_s=1e-3, torque_limit_Nm=limit,
-                         delay_periods=delay, estimator=est, feature_window=window)
+    driver = LqiDriver(
+        schedule_period_s=2e-2, gain_transfer=transfer, reference_governor=governor, riccati="track"
+    )
+    return LqiController(
+        GEOMETRY,
+        driver,
+        period_s=1e-3,
+        torque_limit_Nm=limit,
+        delay_periods=delay,
+        estimator=est,
+        feature_window=window,
+    )
 
 
 def _random_case(c: LqiController, rng):
@@ -58,7 +66,7 @@ def _random_case(c: LqiController, rng):
         u[lay.pose_in] = np.concatenate([x, rng.normal(0, 0.05, 6)])
     u[lay.x_d] = np.concatenate([x + rng.normal(0, 2e-3, 6), rng.normal(0, 0.05, 12)])
     u[lay.T_ff] = rng.normal(0, 0.2, 6)
-    u[lay.omega] = rng.choice([1.0, 2.0]), 1.0           # sometimes new weights
+    u[lay.omega] = rng.choice([1.0, 2.0]), 1.0  # sometimes new weights
     u[lay.T_applied] = rng.normal(0, 0.2, lay.T_applied.stop - lay.T_applied.start)
     state[lay.z] = rng.normal(0, 1e-4, 6)
     state[lay.e_bar] = rng.normal(0, 1e-3, 6)
@@ -78,9 +86,13 @@ def _agree(a, b):
     np.testing.assert_allclose(a, b, rtol=RTOL, atol=RTOL * max(1.0, np.abs(b).max()))
 
 
-CASES = [dict(estimator=e, delay=d, limit=lim, window=w, transfer=t)
-         for e in (False, True) for d in (0, 1, 2) for lim in (None, 0.05, 0.7)
-         for w, t in ((None, "integral"), (5, "feedback"), (None, "none"))]
+CASES = [
+    dict(estimator=e, delay=d, limit=lim, window=w, transfer=t)
+    for e in (False, True)
+    for d in (0, 1, 2)
+    for lim in (None, 0.05, 0.7)
+    for w, t in ((None, "integral"), (5, "feedback"), (None, "none"))
+]
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: "-".join(f"{k}={v}" for k, v in c.items()))
@@ -89,7 +101,7 @@ def test_the_compiled_step_equals_the_numpy_reference(case):
     c = _controller(**case)
     rng = np.random.default_rng(abs(hash(tuple(case.values()))) % 2**32)
     saturated = 0
-    for trial in range(12):
+    for _ in range(12):
         u, state = _random_case(c, rng)
         args = (c._constants, c._legs, u, None, c._bounds)
         results = []
@@ -107,10 +119,11 @@ def test_the_compiled_step_equals_the_numpy_reference(case):
         for (fa, sa), (fb, sb) in zip(a0, a1):
             assert fa == fb
             _agree(sb, sa)
-        saturated += sum(int(a[c.layout.status][lqi_step.SATURATED_STEPS] > 0)
-                         for _, a in a0 + [(f0, s0)])
+        saturated += sum(
+            int(a[c.layout.status][lqi_step.SATURATED_STEPS] > 0) for _, a in a0 + [(f0, s0)]
+        )
     if case["limit"] == 0.05:
-        assert saturated > 0                                 # the clipping path was taken
+        assert saturated > 0  # the clipping path was taken
 
 
 def test_a_non_finite_sample_is_flagged_by_both():
@@ -133,17 +146,26 @@ def test_the_estimate_equals_the_reference_and_the_full_newton():
         out = []
         for stages in (lqi_step, lqi_kernels):
             h = x_hat.copy()
-            assert stages.estimate(est.legs, est.crank_length, est.leg_c, est.h, est.alpha,
-                                   est.chord_step_max, theta, h, J_inv)
+            assert stages.estimate(
+                est.legs,
+                est.crank_length,
+                est.leg_c,
+                est.h,
+                est.alpha,
+                est.chord_step_max,
+                theta,
+                h,
+                J_inv,
+            )
             out.append(h)
         _agree(out[1], out[0])
-        assert np.abs(out[0][:6] - x).max() < 1e-7       # a chord step lands near the pose
+        assert np.abs(out[0][:6] - x).max() < 1e-7  # a chord step lands near the pose
 
 
 def test_the_compiled_gain_pipeline_equals_numpy():
     """B(x), the error model and a Newton step: compiled against the numpy functions."""
     c = _controller(False, 1, None, None)
-    legs, body = c._gain_legs, c._body             # the read-only arrays the controller passes
+    legs, body = c._gain_legs, c._body  # the read-only arrays the controller passes
     np.testing.assert_array_equal(body, body_constants(GEOMETRY))
     rng = np.random.default_rng(5)
     for _ in range(20):
@@ -157,8 +179,9 @@ def test_the_compiled_gain_pipeline_equals_numpy():
         A_c, B_c2 = lqi_kernels.zoh_model(B_ref, 1e-3, 1)
         assert np.array_equal(A, A_c) and np.array_equal(B, B_c2)
         Q, R = 2.0 * c._Q1, c._R1
-        K, J_inv, n = lqi_kernels.warm_gain(legs, body, x, 1e-3, 1, Q, R, c.K_initial, 1e-10, 8,
-                                            1e-16)
+        K, J_inv, n = lqi_kernels.warm_gain(
+            legs, body, x, 1e-3, 1, Q, R, c.K_initial, 1e-10, 8, 1e-16
+        )
         assert n > 0
         K_cold = lqi_gain(A, B, Q, R)
         assert np.abs(K - K_cold).max() / np.abs(K_cold).max() < 1e-8
@@ -177,7 +200,7 @@ def test_the_compiled_stein_solve_equals_drakes():
     P_ref = RealDiscreteLyapunovEquation(A_c, 0.5 * (W + W.T))
     assert 0 < steps < 30
     assert np.abs(P - P_ref).max() / np.abs(P_ref).max() < 1e-10
-    assert lqi_kernels.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1   # unstable: no
+    assert lqi_kernels.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1  # unstable: no
 
 
 def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
@@ -190,10 +213,13 @@ def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
 
 
 def _metrics(scenario, compiled):
-    m = run_experiment(scenario, controller=lambda context: scenario.controller.make(
-        context, compiled)).metrics
-    return {k: np.asarray(m[k], dtype=float) for k in ("rms_error", "peak_error", "peak_torque",
-                                                        "sum_T2_dt", "max_closure_m")}
+    m = run_experiment(
+        scenario, controller=lambda context: scenario.controller.make(context, compiled)
+    ).metrics
+    return {
+        k: np.asarray(m[k], dtype=float)
+        for k in ("rms_error", "peak_error", "peak_torque", "sum_T2_dt", "max_closure_m")
+    }
 
 
 def test_closed_loop_runs_give_the_same_metrics_with_either_step():
@@ -212,7 +238,8 @@ def test_the_compiled_code_is_cached_against_the_sources_it_inlines():
     """numba's cache sees this file only: the digest of what it inlines from other files must
     be the one recorded, else the cache is bypassed (update DEPENDENCIES_DIGEST)."""
     assert lqi_kernels.sources_digest() == lqi_kernels.DEPENDENCIES_DIGEST, (
-        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in lqi_kernels.py")
+        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in lqi_kernels.py"
+    )
     assert lqi_kernels._CACHE
 
 
@@ -235,11 +262,13 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
         print(_fallback_cache_dir())
     """)
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
-    env.update(XDG_CACHE_HOME=str(blocked / "cache"), HOME=str(blocked),
-               TMPDIR=str(tmp_path / "tmp"))
+    env.update(
+        XDG_CACHE_HOME=str(blocked / "cache"), HOME=str(blocked), TMPDIR=str(tmp_path / "tmp")
+    )
     (tmp_path / "tmp").mkdir()
-    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
-                         timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     cache = out.stdout.strip().splitlines()[-1]
     assert cache.startswith(str(tmp_path / "tmp"))

@@ -3,7 +3,6 @@
 
 import dataclasses
 from dataclasses import dataclass, field
-from typing import List
 
 import pytest
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
@@ -26,7 +25,7 @@ class Pair:
 @dataclass
 class PairForm(ValueMirror):
     value_class = Pair
-    a: List[float] = field(default_factory=lambda: [1.0, 2.0])
+    a: list[float] = field(default_factory=lambda: [1.0, 2.0])
     b: float = 3.0
 
 
@@ -37,7 +36,7 @@ def test_build_gives_the_value_type_with_tuples_and_from_value_gives_lists():
     assert isinstance(value.a, tuple)
     back = PairForm.from_value(value)
     assert back == form and isinstance(back.a, list)
-    assert PairForm().build() == Pair()                        # the defaults agree
+    assert PairForm().build() == Pair()  # the defaults agree
 
 
 def test_build_is_validated_by_the_value_type():
@@ -52,5 +51,6 @@ def test_lqi_scales_round_trip_through_yaml():
     loaded = yaml_load_typed(schema=LqiScalesConfig, data=text)
     assert loaded.build() == scales
     assert [f.name for f in dataclasses.fields(LqiScalesConfig)] == [
-        f.name for f in dataclasses.fields(LqiScales)]
+        f.name for f in dataclasses.fields(LqiScales)
+    ]
     assert LqiScalesConfig().build() == LqiScales()

@@ -6,8 +6,10 @@ import pytest
 
 # 4.0: RK4 became fourth order for ball and free joints; the bounds below are measured with it.
 mujoco = pytest.importorskip(
-    "mujoco", minversion="4.0",
-    reason='MuJoCo >= 4.0 is an optional extra: pip install -e ".[mujoco]"')
+    "mujoco",
+    minversion="4.0",
+    reason='MuJoCo >= 4.0 is an optional extra: pip install -e ".[mujoco]"',
+)
 
 from stewart_drake.errors import InvalidConfigError  # noqa: E402
 from stewart_drake.interfaces.cli import main  # noqa: E402
@@ -46,16 +48,14 @@ def test_bodies_frames_and_inertias_equal_the_drake_plant_s(model, geometry):
         body, b = plant.GetBodyByName(name), model.body(name).id
         X_WB = plant.EvalBodyPoseInWorld(context, body)
         np.testing.assert_allclose(data.xpos[b], X_WB.translation(), atol=1e-12)
-        np.testing.assert_allclose(data.xmat[b].reshape(3, 3), X_WB.rotation().matrix(),
-                                   atol=1e-12)
+        np.testing.assert_allclose(data.xmat[b].reshape(3, 3), X_WB.rotation().matrix(), atol=1e-12)
         M_BBcm_W = body.CalcSpatialInertiaInBodyFrame(context).ReExpress(X_WB.rotation())
         p_com = M_BBcm_W.get_com()
         I_W = M_BBcm_W.Shift(p_com).CalcRotationalInertia().CopyToFullMatrix3()
-        R_ip = data.ximat[b].reshape(3, 3)             # principal axes of the MuJoCo body
+        R_ip = data.ximat[b].reshape(3, 3)  # principal axes of the MuJoCo body
         assert model.body_mass[b] == pytest.approx(body.default_mass(), rel=1e-15)
         np.testing.assert_allclose(data.xipos[b], X_WB.translation() + p_com, atol=1e-12)
-        np.testing.assert_allclose(R_ip @ np.diag(model.body_inertia[b]) @ R_ip.T, I_W,
-                                   atol=1e-15)
+        np.testing.assert_allclose(R_ip @ np.diag(model.body_inertia[b]) @ R_ip.T, I_W, atol=1e-15)
 
 
 def test_home_is_assembled_and_assemble_closes_any_reachable_pose(model, geometry, random_poses):
@@ -69,35 +69,46 @@ def test_home_is_assembled_and_assemble_closes_any_reachable_pose(model, geometr
         assert mjcf.loop_closure_errors(model, data).max() < 1e-9
         np.testing.assert_allclose(mjcf.platform_pose(model, data), x, atol=1e-12)
         np.testing.assert_allclose(mjcf.motor_angles(model, data), theta, atol=0)
-        assemble(plant, context, handles, x)             # the ball quaternions are Drake's rpy
+        assemble(plant, context, handles, x)  # the ball quaternions are Drake's rpy
         for i, joint in enumerate(handles.rod_balls):
             adr = model.joint(f"rod_ball_{i}").qposadr[0]
             R = np.empty(9)
-            mujoco.mju_quat2Mat(R, data.qpos[adr:adr + 4])
+            mujoco.mju_quat2Mat(R, data.qpos[adr : adr + 4])
             R_FM = joint.frame_on_child().CalcPose(context, joint.frame_on_parent()).rotation()
-            np.testing.assert_allclose(R.reshape(3, 3), R_FM.matrix(),
-                                       atol=1e-12)
+            np.testing.assert_allclose(R.reshape(3, 3), R_FM.matrix(), atol=1e-12)
 
 
-@pytest.mark.parametrize("x0, position_bound, rotation_bound", [
-    # Measured over 1 s at 1 ms (RK4): home 1.2e-8 m, 8.0e-10 rad; tilted 9.2e-8 m, 7.8e-5 rad.
-    # The held pose is an unstable equilibrium (constant torques; fastest mode e^(9.9 t), from
-    # kinematics), so the tilted drift is its first 1e-9 of numerical error grown 2e4 times.
-    (X_HOME, 5e-8, 5e-9), (X_TILTED, 5e-7, 5e-4)])
-def test_virtual_work_torques_hold_a_pose_for_a_second(geometry, x0, position_bound,
-                                                      rotation_bound):
-    run = accuracy.simulate("mujoco_rk4", OpenLoopCase("hold", tuple(x0), 1.0), 1e-3, geometry,
-                            sample_times=(0.25, 0.5, 0.75, 1.0))
+@pytest.mark.parametrize(
+    "x0, position_bound, rotation_bound",
+    [
+        # Measured over 1 s at 1 ms (RK4): home 1.2e-8 m, 8.0e-10 rad; tilted 9.2e-8 m, 7.8e-5 rad.
+        # The held pose is an unstable equilibrium (constant torques; fastest mode e^(9.9 t), from
+        # kinematics), so the tilted drift is its first 1e-9 of numerical error grown 2e4 times.
+        (X_HOME, 5e-8, 5e-9),
+        (X_TILTED, 5e-7, 5e-4),
+    ],
+)
+def test_virtual_work_torques_hold_a_pose_for_a_second(
+    geometry, x0, position_bound, rotation_bound
+):
+    run = accuracy.simulate(
+        "mujoco_rk4",
+        OpenLoopCase("hold", tuple(x0), 1.0),
+        1e-3,
+        geometry,
+        sample_times=(0.25, 0.5, 0.75, 1.0),
+    )
     drift = run.x - x0
     assert np.abs(drift[:, 3:]).max() < position_bound
     assert np.abs(drift[:, :3]).max() < rotation_bound
-    assert run.max_closure_m < 5e-8                       # 1.3e-8 m measured
+    assert run.max_closure_m < 5e-8  # 1.3e-8 m measured
 
 
 def test_too_little_torque_does_not_hold(geometry):
     """The hold is physics, not a frozen model: 10 % less torque sags by millimetres."""
-    run = accuracy.simulate("mujoco_rk4", OpenLoopCase("sag", tuple(X_HOME), 0.9), 1e-3, geometry,
-                            sample_times=(0.1,))
+    run = accuracy.simulate(
+        "mujoco_rk4", OpenLoopCase("sag", tuple(X_HOME), 0.9), 1e-3, geometry, sample_times=(0.1,)
+    )
     assert run.x[0, 5] < X_HOME[5] - 2e-3
 
 
@@ -111,10 +122,10 @@ def test_zero_torque_fall_matches_drake_at_equal_step(geometry):
     fall = accuracy.SCENARIOS[0]
     drake = accuracy.simulate("drake_sap", fall, 1e-4, geometry)
     mj = accuracy.simulate("mujoco_rk4", fall, 1e-4, geometry)
-    assert X_HOME[5] - mj.x[1, 5] > 0.045                 # a real fall
+    assert X_HOME[5] - mj.x[1, 5] > 0.045  # a real fall
     position, rotation = accuracy.pose_errors(mj.x, drake.x)
     assert np.all(position < [5e-5, 1e-4])
-    assert rotation.max() < 1e-9                         # symmetric fall: both stay level
+    assert rotation.max() < 1e-9  # symmetric fall: both stay level
     drake_fine = accuracy.simulate("drake_sap", fall, 5e-5, geometry)
     position, _ = accuracy.pose_errors(mj.x, 2 * drake_fine.x - drake.x)
     assert position.max() < 1e-7
@@ -127,17 +138,19 @@ def test_tilted_fall_agrees_with_drake_extrapolated(geometry):
     """
     fall = accuracy.SCENARIOS[1]
     mj = accuracy.simulate("mujoco_rk4", fall, 1e-4, geometry)
-    x_drake = (2 * accuracy.simulate("drake_sap", fall, 5e-5, geometry).x
-               - accuracy.simulate("drake_sap", fall, 1e-4, geometry).x)
+    x_drake = (
+        2 * accuracy.simulate("drake_sap", fall, 5e-5, geometry).x
+        - accuracy.simulate("drake_sap", fall, 1e-4, geometry).x
+    )
     position, rotation = accuracy.pose_errors(mj.x, x_drake)
     assert position.max() < 1e-7 and rotation.max() < 5e-7
-    assert accuracy.pose_errors(mj.x[1], fall.x0)[1] > 0.01   # it does rotate (0.02 rad)
+    assert accuracy.pose_errors(mj.x[1], fall.x0)[1] > 0.01  # it does rotate (0.02 rad)
 
 
 def test_loops_stay_closed_and_energy_kept_in_a_fall_at_1_ms(geometry):
     run = accuracy.simulate("mujoco_rk4", accuracy.SCENARIOS[0], 1e-3, geometry)
-    assert run.max_closure_m < 1e-6                      # 2.3e-7 m measured
-    assert abs(run.energy_change) < 1e-6                 # 2.0e-8 measured
+    assert run.max_closure_m < 1e-6  # 2.3e-7 m measured
+    assert abs(run.energy_change) < 1e-6  # 2.0e-8 measured
 
 
 def test_bad_options_are_refused():
@@ -179,9 +192,10 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
         mjcf.assemble(model, data, geometry, x)
         pairs = drake.contacts(x, 0.03)
         for c in pairs:
-            theirs = mujoco.mj_geomDistance(model, data, model.geom(c.part_a).id,
-                                            model.geom(c.part_b).id, 0.1, fromto)
+            theirs = mujoco.mj_geomDistance(
+                model, data, model.geom(c.part_a).id, model.geom(c.part_b).id, 0.1, fromto
+            )
             differences.append(abs(theirs - c.distance))
         assert data.ncon == sum(c.distance < 0 for c in pairs)
     assert max(differences) < 5e-4 and np.median(differences) < 1e-6
-    assert data.ncon == 2                                  # the overlapping pose: two rods
+    assert data.ncon == 2  # the overlapping pose: two rods

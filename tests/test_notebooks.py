@@ -15,8 +15,12 @@ NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
 
 def test_the_five_notebooks_exist():
     assert [p.name for p in NOTEBOOKS] == [
-        "01_kinematics_workspace.ipynb", "02_paper_experiment.ipynb",
-        "03_training_tuner.ipynb", "04_evaluation.ipynb", "05_organ_motion.ipynb"]
+        "01_kinematics_workspace.ipynb",
+        "02_paper_experiment.ipynb",
+        "03_training_tuner.ipynb",
+        "04_evaluation.ipynb",
+        "05_organ_motion.ipynb",
+    ]
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
@@ -27,7 +31,8 @@ def test_notebook_is_stored_with_outputs_cleared(path):
         if cell.cell_type == "code":
             assert cell.outputs == [] and cell.execution_count is None, (
                 f"{path.name} cell {k} stores outputs: clear them "
-                f"(jupyter nbconvert --clear-output --inplace {path.relative_to(REPO)})")
+                f"(jupyter nbconvert --clear-output --inplace {path.relative_to(REPO)})"
+            )
     assert nb.metadata.kernelspec.name == "python3"
 
 
@@ -39,15 +44,23 @@ def test_notebook_runs_and_shows_plots(path, monkeypatch):
         pytest.skip(f"{path.name} trains the tuner: needs torch (the [train] extra)")
 
     monkeypatch.setenv("STEWART_DRAKE_QUICK", "1")
-    monkeypatch.delenv("MPLBACKEND", raising=False)       # CI's Agg would hide inline plots
-    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
-        [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
+    monkeypatch.delenv("MPLBACKEND", raising=False)  # CI's Agg would hide inline plots
+    monkeypatch.setenv(
+        "PYTHONPATH",
+        os.pathsep.join(
+            [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+        ),
+    )
     nb = nbformat.read(path, as_version=4)
-    nb.cells.append(nbformat.v4.new_code_cell(
-        "import stewart_drake; print('STEWART_DRAKE_FILE', stewart_drake.__file__)"))
+    nb.cells.append(
+        nbformat.v4.new_code_cell(
+            "import stewart_drake; print('STEWART_DRAKE_FILE', stewart_drake.__file__)"
+        )
+    )
     t0 = time.perf_counter()
-    NotebookClient(nb, timeout=300, kernel_name="python3",
-                   resources={"metadata": {"path": str(REPO)}}).execute()
+    NotebookClient(
+        nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(REPO)}}
+    ).execute()
     wall = time.perf_counter() - t0
     outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.outputs]
     images = [o for o in outputs if "image/png" in o.get("data", {})]

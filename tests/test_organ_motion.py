@@ -24,15 +24,21 @@ from stewart_drake.simulation.traces import TraceTrajectory, load_trace
 from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
 from stewart_drake.studies.fidelity import scale_to_fit
 
-MOTIONS = [om.Breathing(), om.Breathing(shape_n=1, tilt_rad=0.02, phase_rad=0.3),
-           om.Heartbeat(), om.make_motion("breathing_heartbeat"), om.IrregularBreathing(),
-           om.IrregularBreathing(shape_n=2, seed=3), om.HysteresisBreathing()]
+MOTIONS = [
+    om.Breathing(),
+    om.Breathing(shape_n=1, tilt_rad=0.02, phase_rad=0.3),
+    om.Heartbeat(),
+    om.make_motion("breathing_heartbeat"),
+    om.IrregularBreathing(),
+    om.IrregularBreathing(shape_n=2, seed=3),
+    om.HysteresisBreathing(),
+]
 
 
 @pytest.mark.parametrize("motion", MOTIONS, ids=lambda m: f"{m.name}")
 def test_rate_and_acceleration_are_the_derivatives_of_the_pose(motion):
     t = np.linspace(0.01, 30.0, 3001)
-    if isinstance(motion, om.IrregularBreathing):      # also right at the cycle boundaries
+    if isinstance(motion, om.IrregularBreathing):  # also right at the cycle boundaries
         t = np.sort(np.concatenate([t, motion.cycles(30.0)[0][1:-1]]))
     h = 1e-5
     x, v, a = motion.evaluate(t)
@@ -40,14 +46,14 @@ def test_rate_and_acceleration_are_the_derivatives_of_the_pose(motion):
     xm, vm, _ = motion.evaluate(t - h)
     assert np.abs((xp - xm) / (2 * h) - v).max() < 1e-6 * max(1.0, np.abs(v).max())
     assert np.abs((vp - vm) / (2 * h) - a).max() < 1e-4 * max(1.0, np.abs(a).max())
-    assert np.abs(xp - xm).max() < 2 * h * np.abs(v).max() + 1e-12     # no jump anywhere
+    assert np.abs(xp - xm).max() < 2 * h * np.abs(v).max() + 1e-12  # no jump anywhere
 
 
 def test_breathing_is_lujans_formula():
     b, tau, n, phi = 0.015, 4.0, 3, math.pi / 2
     m = om.Breathing(amplitude_m=b, period_s=tau, shape_n=n, phase_rad=phi, direction="Z")
     t = np.linspace(0.0, 8.0, 801)
-    z0 = X_HOME[5] + b / 2                         # end-exhale, where the motion rests
+    z0 = X_HOME[5] + b / 2  # end-exhale, where the motion rests
     expected = z0 - b * np.cos(np.pi * t / tau - phi) ** (2 * n)
     x = m.evaluate(t)[0]
     assert np.allclose(x[:, 5], expected, atol=1e-15)
@@ -56,8 +62,8 @@ def test_breathing_is_lujans_formula():
 
 
 def test_default_directions_follow_the_patient_frame():
-    assert om.Breathing().direction == (1.0, 0.0, 0.0)            # SI -> platform X
-    assert om.Heartbeat().direction == (0.0, 1.0, 0.0)            # LR -> platform Y
+    assert om.Breathing().direction == (1.0, 0.0, 0.0)  # SI -> platform X
+    assert om.Heartbeat().direction == (0.0, 1.0, 0.0)  # LR -> platform Y
     assert om.axis_index("AP") == (5, 1.0)
     assert om.axis_index("-rot_LR") == (1, -1.0)
     with pytest.raises(InvalidConfigError, match="unknown axis 'up'"):
@@ -82,7 +88,7 @@ def test_heartbeat_amplitude_is_peak_to_peak_and_rate_in_bpm():
 
 def test_the_sum_repeats_after_the_common_period():
     m = om.make_motion("breathing_heartbeat")
-    assert m.repeat_period_s == pytest.approx(20.0)            # 5 breaths, 24 beats
+    assert m.repeat_period_s == pytest.approx(20.0)  # 5 breaths, 24 beats
     assert m.frequencies_hz() == {"breathing": 0.25, "cardiac": 1.2}
     t = np.linspace(0, 20, 2001)
     assert np.allclose(m.evaluate(t + 20.0)[0], m.evaluate(t)[0], atol=1e-12)
@@ -99,28 +105,30 @@ def test_irregular_breathing_cycles_vary_and_are_seeded():
     assert starts[0] == 0 and starts[-2] < 60.0 <= starts[-1]
     assert periods.std() > 0.03 * m.period_s and scale.std() > 0.05
     assert np.allclose(starts, om.IrregularBreathing(seed=7).cycles(60.0)[0])
-    assert not np.allclose(periods, np.diff(om.IrregularBreathing(seed=8).cycles(60.0)[0])[
-        :len(periods)])
+    assert not np.allclose(
+        periods, np.diff(om.IrregularBreathing(seed=8).cycles(60.0)[0])[: len(periods)]
+    )
     # each cycle reaches its own depth from the same end-exhale position
     x = m.evaluate(np.linspace(0.0, starts[-1], 60001))[0][:, 3] - X_HOME[3]
     t = np.linspace(0.0, starts[-1], 60001)
     for k in range(len(periods)):
         inside = (t >= starts[k]) & (t < starts[k + 1])
         assert x[inside].max() == pytest.approx(m.amplitude_m / 2, abs=1e-9)
-        assert x[inside].max() - x[inside].min() == pytest.approx(
-            m.cycle_amplitudes[k], rel=1e-3)
+        assert x[inside].max() - x[inside].min() == pytest.approx(m.cycle_amplitudes[k], rel=1e-3)
 
 
 def test_hysteresis_inhale_and_exhale_paths_differ():
     m = om.HysteresisBreathing()
-    assert 0.0015 < m.loop_width_m() < 0.003                   # Seppenwoolde: 1-5 mm
+    assert 0.0015 < m.loop_width_m() < 0.003  # Seppenwoolde: 1-5 mm
     assert om.HysteresisBreathing(lag=0.0).loop_width_m() < 1e-9
     assert om.HysteresisBreathing(lag=0.1).loop_width_m() > m.loop_width_m()
 
 
 def test_make_motion_takes_units_and_names_what_is_wrong():
-    m = om.make_motion("breathing", {"amplitude": "20mm", "period": "5 s", "direction": "-Z",
-                                     "tilt": "2deg", "shape": "2"})
+    m = om.make_motion(
+        "breathing",
+        {"amplitude": "20mm", "period": "5 s", "direction": "-Z", "tilt": "2deg", "shape": "2"},
+    )
     assert (m.amplitude_m, m.period_s, m.shape_n) == (pytest.approx(0.02), 5.0, 2)
     assert m.direction == (0.0, 0.0, -1.0) and m.tilt_rad == pytest.approx(math.radians(2))
     assert om.make_motion("breathing", {"amplitude_m": 0.01}).amplitude_m == 0.01
@@ -141,9 +149,12 @@ def test_make_motion_takes_units_and_names_what_is_wrong():
 
 
 def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
-    s = Scenario(reference=OrganMotionReference("breathing_heartbeat", {"amplitude": "12mm",
-                                                                         "heart_rate": "60bpm"}),
-                 learning=IlcDriver(gain=0.5, learn_cycles=3))
+    s = Scenario(
+        reference=OrganMotionReference(
+            "breathing_heartbeat", {"amplitude": "12mm", "heart_rate": "60bpm"}
+        ),
+        learning=IlcDriver(gain=0.5, learn_cycles=3),
+    )
     path = tmp_path / "s.yaml"
     dump_scenario(s, path)
     back = load_scenario(path)
@@ -158,26 +169,29 @@ def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
 
 # -- traces ------------------------------------------------------------------------------------
 
+
 def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path):
     t = np.arange(0.0, 12.0, 1 / 30)
-    si = 7.5 * np.cos(np.pi * t / 4) ** 2                       # mm
-    pitch = 0.5 * np.sin(np.pi * t / 4)                          # deg
-    path = write_trace(tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch},
-                        gap=(5.0, 5.5))
+    si = 7.5 * np.cos(np.pi * t / 4) ** 2  # mm
+    pitch = 0.5 * np.sin(np.pi * t / 4)  # deg
+    path = write_trace(
+        tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch}, gap=(5.0, 5.5)
+    )
     ref = load_trace(path, centre_on="none")
     assert isinstance(ref, TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
     assert ref.info.axes == ("+X", "+theta") and ref.info.units[1:] == ("mm", "deg")
-    assert len(ref.info.gaps) == 1 and 0.5 <= ref.info.gaps[0][1] < 0.6        # both axes
+    assert len(ref.info.gaps) == 1 and 0.5 <= ref.info.gaps[0][1] < 0.6  # both axes
     assert ref.info.sample_rate_hz == pytest.approx(30.0, rel=1e-3)
     x, v, a = ref.evaluate(t)
-    assert np.allclose(x[:, 3], X_HOME[3] + si * 1e-3, atol=2e-6)   # mm -> m, also in the gap
-    assert np.allclose(x[:, 1], np.radians(pitch), atol=2e-6)       # deg -> rad
+    assert np.allclose(x[:, 3], X_HOME[3] + si * 1e-3, atol=2e-6)  # mm -> m, also in the gap
+    assert np.allclose(x[:, 1], np.radians(pitch), atol=2e-6)  # deg -> rad
     assert np.allclose(x[:, [0, 2, 4]], 0.0) and np.allclose(x[:, 5], X_HOME[5])
     # C2: rate and acceleration continuous across the knots
     tk = np.arange(0.5, 11.5, 0.01)
     for part in (v, a):
-        left, right = (np.asarray(ref.evaluate(tk + s)[1 if part is v else 2]) for s in
-                       (-1e-9, 1e-9))
+        left, right = (
+            np.asarray(ref.evaluate(tk + s)[1 if part is v else 2]) for s in (-1e-9, 1e-9)
+        )
         assert np.abs(left - right).max() < 1e-5
     assert "gaps bridged" in ref.info.summary() and "SI [mm] -> +X" in ref.info.summary()
 
@@ -198,22 +212,24 @@ def test_trace_centring_mapping_and_lowpass(tmp_path):
 
 def test_the_projects_own_csv_is_read_as_before(tmp_path):
     path = tmp_path / "ref.csv"
-    rows = ["t,phi,theta,psi,X,Y,Z"] + [f"{k * 0.1},0,0,0,0,0,{0.3 + 0.001 * k}"
-                                         for k in range(5)]
+    rows = ["t,phi,theta,psi,X,Y,Z"] + [f"{k * 0.1},0,0,0,0,0,{0.3 + 0.001 * k}" for k in range(5)]
     path.write_text("\n".join(rows) + "\n")
     ref = load_trace(path)
     assert isinstance(ref, DrakeTrajectory) and not isinstance(ref, TraceTrajectory)
     assert ref.evaluate(0.2)[0][5] == pytest.approx(0.302)
 
 
-@pytest.mark.parametrize("header,row,match", [
-    ("time [s],SI", "0,1", "needs a unit of length"),
-    ("time [s],SI [deg]", "0,1", "a angle on a translation axis|an angle|angle on a"),
-    ("time [s],SI [mm],X [mm]", "0,1,2", "two columns go to the platform's X"),
-    ("depth [mm],t [s]", "0,1", "first column must be the time"),
-    ("t [furlong],Z [mm]", "0,1", "time column needs its unit"),
-    ("t [s],heart [mm]", "0,1", "unknown axis 'heart'"),
-])
+@pytest.mark.parametrize(
+    "header,row,match",
+    [
+        ("time [s],SI", "0,1", "needs a unit of length"),
+        ("time [s],SI [deg]", "0,1", "a angle on a translation axis|an angle|angle on a"),
+        ("time [s],SI [mm],X [mm]", "0,1,2", "two columns go to the platform's X"),
+        ("depth [mm],t [s]", "0,1", "first column must be the time"),
+        ("t [furlong],Z [mm]", "0,1", "time column needs its unit"),
+        ("t [s],heart [mm]", "0,1", "unknown axis 'heart'"),
+    ],
+)
 def test_a_bad_trace_header_is_refused_naming_the_column(tmp_path, header, row, match):
     path = tmp_path / "bad.csv"
     path.write_text(header + "\n" + "\n".join([row] * 5) + "\n")
@@ -232,11 +248,10 @@ def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
 def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
     motion = om.IrregularBreathing(seed=2)
     t = np.arange(0.0, 40.0, 1 / 25)
-    path = write_trace(tmp_path / "irr.csv", t,
-                        {"X [m]": motion.evaluate(t)[0][:, 3] - X_HOME[3]})
+    path = write_trace(tmp_path / "irr.csv", t, {"X [m]": motion.evaluate(t)[0][:, 3] - X_HOME[3]})
     starts, scale = reference_cycles(load_trace(path), 40.0)
     true = motion.cycles(40.0)[0]
-    inhale = true[:-1] + 0.5 * np.diff(true)          # end-inhale: mid-cycle of the model
+    inhale = true[:-1] + 0.5 * np.diff(true)  # end-inhale: mid-cycle of the model
     inhale = inhale[inhale < 39.5]
     assert len(starts) >= len(inhale) - 1
     assert np.abs(starts[:, None] - inhale[None, :]).min(axis=1).max() < 0.05
@@ -255,8 +270,9 @@ def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes(
     scaled, scale = scale_to_fit(scenario, fast, tol=0.01)
     assert 0.05 < scale < 1.0
     assert check_reference(scenario, scaled, raise_refused=False).ok
-    assert not check_reference(scenario, om.ScaledReference(fast, min(1.0, scale + 0.03)),
-                               raise_refused=False).ok
+    assert not check_reference(
+        scenario, om.ScaledReference(fast, min(1.0, scale + 0.03)), raise_refused=False
+    ).ok
     x = scaled.evaluate(np.linspace(0, 1, 10001))[0]
     assert np.ptp(x[:, 5]) == pytest.approx(scale * 0.02, rel=1e-3)
     assert scale_to_fit(scenario, om.Breathing())[1] == 1.0
@@ -269,5 +285,6 @@ def test_a_trace_reference_in_a_scenario_checks_its_file(tmp_path):
     path = write_trace(tmp_path / "z.csv", t, {"AP [mm]": np.sin(2 * np.pi * t)})
     s = Scenario(reference=TraceReference(path=str(path), scale=0.5))
     ref = make_plan(s).reference
-    assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(0.5 * np.ptp(
-        load_trace(path).evaluate(t)[0][:, 5]))
+    assert np.ptp(ref.evaluate(t)[0][:, 5]) == pytest.approx(
+        0.5 * np.ptp(load_trace(path).evaluate(t)[0][:, 5])
+    )

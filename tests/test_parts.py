@@ -18,7 +18,8 @@ def test_every_part_is_named_once_in_sdf_link_order(geometry):
     assert len(names) == len(set(names))
     links = list(dict.fromkeys(p.link for p in table))
     assert links == ["base"] + [f"{k}_{i}" for i in range(6) for k in ("crank", "rod")] + [
-        "platform"]
+        "platform"
+    ]
     for p in table:
         np.testing.assert_allclose(p.R_LG.T @ p.R_LG, np.eye(3), atol=1e-12)
         assert np.linalg.det(p.R_LG) > 0 and all(v > 0 for v in p.size)
@@ -52,8 +53,9 @@ def test_the_plate_sits_platform_gap_above_the_rod_ends_and_the_tool_reaches_its
     assert np.all(np.linalg.norm(geometry.p_E[:, :2], axis=1) < plate.size[0])  # ends under it
     tool = table[("platform", "tool")]
     assert np.isclose(tool.p_LG[2] + tool.size[1] / 2, p_ETool[2], atol=1e-15)
-    assert np.isclose(tool.p_LG[2] - tool.size[1] / 2, plate.p_LG[2] + plate.size[1] / 2,
-                      atol=1e-15)                                           # on the plate
+    assert np.isclose(
+        tool.p_LG[2] - tool.size[1] / 2, plate.p_LG[2] + plate.size[1] / 2, atol=1e-15
+    )  # on the plate
 
 
 def test_each_motor_sits_outboard_on_its_shaft_beyond_its_bracket(geometry):
@@ -65,9 +67,12 @@ def test_each_motor_sits_outboard_on_its_shaft_beyond_its_bracket(geometry):
     for i in range(6):
         motor = table[("base", f"motor_{i}")]
         along = (motor.p_LG - geometry.P_B[i]) @ o[i]
-        assert np.isclose(along, parts.BRACKET_OFFSET + parts.BRACKET_THICKNESS
-                          + parts.MOTOR_LENGTH / 2, atol=1e-15)
-        np.testing.assert_allclose(motor.R_LG[:, 2], o[i], atol=1e-15)     # axis on the shaft
+        assert np.isclose(
+            along,
+            parts.BRACKET_OFFSET + parts.BRACKET_THICKNESS + parts.MOTOR_LENGTH / 2,
+            atol=1e-15,
+        )
+        np.testing.assert_allclose(motor.R_LG[:, 2], o[i], atol=1e-15)  # axis on the shaft
 
 
 def test_the_part_sizes_follow_the_geometry():

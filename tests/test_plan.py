@@ -15,13 +15,15 @@ from stewart_drake.studies import experiments
 
 @pytest.mark.parametrize("torque_limit", [None, 0.5, 5.0])
 def test_the_plan_derives_the_robot_as_built_from_the_scenario_s_numbers(torque_limit):
-    scenario = load_scenario("paper_hardware", [f"torque_limit_Nm={torque_limit or 'null'}",
-                                                "payload_scale=1.5"])
+    scenario = load_scenario(
+        "paper_hardware", [f"torque_limit_Nm={torque_limit or 'null'}", "payload_scale=1.5"]
+    )
     motors = scenario.hardware.motors
     plan = make_plan(scenario, with_reference=False)
     # The rotor seen at the crank: rotor inertia x gear ratio^2 (2.5e-4 kg m^2 here).
     assert plan.geometry.motor_reflected_inertia == pytest.approx(
-        motors.rotor_inertia * motors.gear_ratio ** 2, rel=1e-15)
+        motors.rotor_inertia * motors.gear_ratio**2, rel=1e-15
+    )
     assert plan.servo.peak_torque_Nm == motors.peak_torque_Nm
     # The lower of the scenario's limit and the motors' peak torque (0.702 N m).
     expected = min(v for v in (torque_limit, motors.peak_torque_Nm) if v is not None)
@@ -31,8 +33,9 @@ def test_the_plan_derives_the_robot_as_built_from_the_scenario_s_numbers(torque_
     assert plan.motor_limits.max_speed_rad_s == motors.no_load_speed_rad_s
     # The payload is on the simulated platform only: the controller believes in the robot.
     assert plan.plant_geometry.platform_mass == pytest.approx(1.5 * plan.geometry.platform_mass)
-    np.testing.assert_allclose(plan.plant_geometry.platform_inertia,
-                               1.5 * np.array(plan.geometry.platform_inertia))
+    np.testing.assert_allclose(
+        plan.plant_geometry.platform_inertia, 1.5 * np.array(plan.geometry.platform_inertia)
+    )
     assert plan.delay_periods == scenario.hardware.computation_delay_periods == 1
     assert plan.sample_offset_s == 0.5 * scenario.plant.time_step
     assert plan.reference is None
@@ -50,14 +53,16 @@ def test_one_encoder_count_at_the_crank_tip():
     plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
     counts = plan.scenario.hardware.encoders.counts_per_rev
     tip = 2 * np.pi / counts * plan.geometry.crank_length
-    assert plan.encoder_count_at_tip() == pytest.approx((tip, tip / plan.geometry.platform_radius),
-                                                        rel=1e-15)
+    assert plan.encoder_count_at_tip() == pytest.approx(
+        (tip, tip / plan.geometry.platform_radius), rel=1e-15
+    )
 
 
 def test_the_station_applies_the_plan_s_torque_limit():
     # Read back from what Drake built: a command above the limit comes out at the limit.
-    scenario = load_scenario("paper_hardware", ["torque_limit_Nm=0.5",
-                                                "hardware.motors.current_time_constant_s=0"])
+    scenario = load_scenario(
+        "paper_hardware", ["torque_limit_Nm=0.5", "hardware.motors.current_time_constant_s=0"]
+    )
     plan = make_plan(scenario, with_reference=False)
     station, _, context = held_station(plan, T=np.full(6, 1.0))
     applied = station.GetOutputPort("motor_torque_applied").Eval(context)
@@ -69,8 +74,9 @@ def test_a_data_collection_reference_is_made_for_the_plan_s_robot_and_limit():
     scenario = load_scenario("paper_hardware", ["duration_s=4"])
     scenario.reference = DataCollectionReference(seed=3)
     plan = make_plan(scenario)
-    direct = data_collection_trajectory(3, plan.geometry, duration_s=4.0,
-                                        torque_limit_Nm=plan.torque_limit_Nm)
+    direct = data_collection_trajectory(
+        3, plan.geometry, duration_s=4.0, torque_limit_Nm=plan.torque_limit_Nm
+    )
     t = np.linspace(0.0, 4.0, 9)
     for a, b in zip(plan.reference.evaluate(t), direct.evaluate(t)):
         np.testing.assert_array_equal(a, b)
@@ -95,7 +101,7 @@ def test_a_run_validates_its_scenario_once(monkeypatch):
         calls.append(1)
         return validate(self)
 
-    scenario = Scenario(duration_s=0.02)              # a dataclass validates when constructed
+    scenario = Scenario(duration_s=0.02)  # a dataclass validates when constructed
     monkeypatch.setattr(Scenario, "validate", counting)
     sd, simulator = experiments.build_simulator(scenario)
     simulator.AdvanceTo(0.02)
@@ -108,7 +114,10 @@ def test_each_controller_context_has_its_own_pose_estimator():
     a, b = (plan.controller_context(X_HOME, np.zeros(6)) for _ in range(2))
     assert a.pose_estimator is not None and a.pose_estimator is not b.pose_estimator
     assert (a.torque_limit_Nm, a.delay_periods, a.offset_s) == (
-        plan.torque_limit_Nm, 1, plan.sample_offset_s)
+        plan.torque_limit_Nm,
+        1,
+        plan.sample_offset_s,
+    )
     assert make_plan(Scenario()).controller_context(X_HOME, np.zeros(6)).pose_estimator is None
 
 

@@ -24,7 +24,8 @@ from stewart_drake.model.plant import (
 
 def test_committed_sdf_equals_generated():
     assert REFERENCE_SDF.read_text() == write_sdf(), (
-        "sdf/rotary_stewart.sdf is stale: run `stewart-drake sdf` to regenerate it")
+        "sdf/rotary_stewart.sdf is stale: run `stewart-drake sdf` to regenerate it"
+    )
 
 
 def test_plant_is_discrete_sap_with_six_ball_constraints():
@@ -80,7 +81,7 @@ def _hold(geometry, x, T, duration=0.5):
 def test_plant_holds_random_poses_with_virtual_work_torques(geometry, random_poses):
     for x in random_poses[:4]:
         x_end, closure = _hold(geometry, x, statics.holding_torques(geometry, x))
-        assert np.abs(x_end[3:] - x[3:]).max() < 1e-4          # < 0.1 mm drift in 0.5 s
+        assert np.abs(x_end[3:] - x[3:]).max() < 1e-4  # < 0.1 mm drift in 0.5 s
         assert np.abs(x_end[:3] - x[:3]).max() < 1e-3
         assert closure.max() < 1e-5
 

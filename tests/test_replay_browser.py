@@ -15,8 +15,9 @@ _spec.loader.exec_module(screenshot_replay)
 
 pytestmark = [
     pytest.mark.slow,
-    pytest.mark.skipif(screenshot_replay.find_chromium() is None,
-                       reason="needs Chromium (apt install chromium)"),
+    pytest.mark.skipif(
+        screenshot_replay.find_chromium() is None, reason="needs Chromium (apt install chromium)"
+    ),
 ]
 
 
@@ -28,10 +29,11 @@ def test_chromium_screenshot_of_the_replay_shows_the_robot(tmp_path):
     robot = screenshot_replay.robot_pixel_fractions(shot)
     # Negative control: the same viewer with an empty scene has none of the robot's colors.
     meshcat = Meshcat()
-    meshcat.SetProperty("/Axes", "visible", False)        # as record_states does
+    meshcat.SetProperty("/Axes", "visible", False)  # as record_states does
     empty = write_static_html(meshcat, tmp_path / "empty.html")
     blank = screenshot_replay.robot_pixel_fractions(
-        screenshot_replay.screenshot(empty, tmp_path / "empty.png"))
+        screenshot_replay.screenshot(empty, tmp_path / "empty.png")
+    )
     assert max(blank.values()) < 1e-4, blank
     # At 1280x800 the platform disc, crank arms and ball joints each cover > 0.05 % of the image
     # (measured: ~0.2 %, 0.15 %, 0.1 %).

@@ -35,6 +35,7 @@ from stewart_drake.studies.experiments import run_experiment
 
 # -- every scenario value reaches the plant ------------------------------------------------------
 
+
 def _motor_inertia(plant, context, handles) -> np.ndarray:
     """(6,) the mass matrix's diagonal at the motor joints: what the simulation integrates."""
     M = plant.CalcMassMatrix(context)
@@ -52,20 +53,22 @@ def test_every_scenario_value_reaches_the_plant(name):
     assert plant.time_step() == scenario.plant.time_step
     assert plant.get_discrete_contact_approximation() == DiscreteContactApproximation.kSap
     np.testing.assert_array_equal(plant.gravity_field().gravity_vector(), [0, 0, -g.gravity])
-    for body, mass, moments in ([(handles.platform, g.platform_mass, g.platform_inertia)]
-                                + [(b, g.crank_mass, g.crank_inertia) for b in handles.cranks]
-                                + [(b, g.rod_mass, g.rod_inertia) for b in handles.rods]):
+    for body, mass, moments in (
+        [(handles.platform, g.platform_mass, g.platform_inertia)]
+        + [(b, g.crank_mass, g.crank_inertia) for b in handles.cranks]
+        + [(b, g.rod_mass, g.rod_inertia) for b in handles.rods]
+    ):
         inertia = body.default_spatial_inertia()
         assert inertia.get_mass() == pytest.approx(mass, rel=1e-12)
         I_com = inertia.Shift(inertia.get_com()).CalcRotationalInertia().CopyToFullMatrix3()
-        np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(I_com)), np.sort(moments),
-                                   rtol=1e-9)
+        np.testing.assert_allclose(np.sort(np.linalg.eigvalsh(I_com)), np.sort(moments), rtol=1e-9)
     # The reflected rotor inertia, as the mass matrix carries it: against the same robot built
     # without motors (2.50e-4 kg m^2 per crank on the robot as built).
     bare = make_plant(g.replace(motor_reflected_inertia=0.0))
-    reflected = (_motor_inertia(plant, context, handles)
-                 - _motor_inertia(bare[0], bare[0].CreateDefaultContext(), bare[2]))
-    expected = 0.0 if servo is None else servo.rotor_inertia * servo.gear_ratio ** 2
+    reflected = _motor_inertia(plant, context, handles) - _motor_inertia(
+        bare[0], bare[0].CreateDefaultContext(), bare[2]
+    )
+    expected = 0.0 if servo is None else servo.rotor_inertia * servo.gear_ratio**2
     np.testing.assert_allclose(reflected, expected, rtol=1e-9, atol=1e-15)
     if servo is not None:
         assert expected == pytest.approx(2.50e-4, rel=2e-3)
@@ -85,12 +88,17 @@ def test_every_scenario_value_reaches_the_plant(name):
 def test_contact_registers_the_collision_geometry_of_every_part():
     station = make_stewart_station(load_scenario("paper_hardware", ["contact=true"]))
     plant, handles = station.plant, station.handles
-    for body in (plant.GetBodyByName("base", handles.model_instance), handles.platform,
-                 *handles.cranks, *handles.rods):
+    for body in (
+        plant.GetBodyByName("base", handles.model_instance),
+        handles.platform,
+        *handles.cranks,
+        *handles.rods,
+    ):
         assert plant.GetCollisionGeometriesForBody(body), body.name()
 
 
 # -- dynamics against independent computations --------------------------------------------------
+
 
 def _rk4_fall(scenario, duration_s=0.1, dt=2.5e-4):
     """The zero-torque fall from home integrated from our task-space model (independent of
@@ -102,11 +110,13 @@ def _rk4_fall(scenario, duration_s=0.1, dt=2.5e-4):
         x, x_dot = y[:6], y[6:]
         J = kinematics.jacobian(g, x)
         theta_dot = J @ x_dot
-        tau = (np.zeros(6) if servo is None else -servo.viscous_damping * theta_dot
-               - servo.coulomb_friction_Nm * np.sign(theta_dot))
+        tau = (
+            np.zeros(6)
+            if servo is None
+            else -servo.viscous_damping * theta_dot - servo.coulomb_friction_Nm * np.sign(theta_dot)
+        )
         M = statics.task_inertia(g, x)
-        rhs = (J.T @ tau - statics.coriolis_forces(g, x, x_dot, M=M)
-               - statics.gravity_gradient(g, x))
+        rhs = J.T @ tau - statics.coriolis_forces(g, x, x_dot, M=M) - statics.gravity_gradient(g, x)
         return np.concatenate([x_dot, np.linalg.solve(M, rhs)])
 
     y = np.concatenate([X_HOME, np.zeros(6)])
@@ -141,8 +151,8 @@ def test_hardware_free_fall_matches_an_independent_integration_with_the_motors()
         np.testing.assert_allclose(2 * h2 - h1, exact, atol=0.01 * step_error)
         falls[name] = X_HOME[5] - exact[5]
         errors.append(step_error)
-    assert falls["paper_ideal"] == pytest.approx(0.04889, abs=2e-5)      # 48.9 mm in 0.1 s
-    assert falls["paper_hardware"] == pytest.approx(0.04217, abs=2e-5)   # 42.2 mm
+    assert falls["paper_ideal"] == pytest.approx(0.04889, abs=2e-5)  # 48.9 mm in 0.1 s
+    assert falls["paper_hardware"] == pytest.approx(0.04217, abs=2e-5)  # 42.2 mm
     assert falls["paper_ideal"] - falls["paper_hardware"] > 10 * max(errors)
 
 
@@ -170,23 +180,34 @@ def test_required_torques_are_what_a_well_tracked_run_applies(name, tolerance):
     result = run_experiment(scenario)
     keep = result.t >= 1.0
     x_d = result.x_d[keep]
-    required, _ = statics.motor_effort(make_plan(scenario).plant_geometry, x_d[:, :6], x_d[:, 6:12],
-                                       x_d[:, 12:], make_plan(scenario).servo)
+    required, _ = statics.motor_effort(
+        make_plan(scenario).plant_geometry,
+        x_d[:, :6],
+        x_d[:, 6:12],
+        x_d[:, 12:],
+        make_plan(scenario).servo,
+    )
     applied = result.T[keep]
     if scenario.hardware is not None:
         required, applied = (uniform_filter1d(a, 20, axis=0) for a in (required, applied))
-    error = np.sqrt(np.mean((applied - required) ** 2)) / np.sqrt(np.mean(required ** 2))
+    error = np.sqrt(np.mean((applied - required) ** 2)) / np.sqrt(np.mean(required**2))
     assert error < tolerance
 
 
 # -- motions the motors cannot follow -------------------------------------------------------
 
+
 def _reposition(dx, move_s=0.3):
     """Hold home 0.2 s, move by dx in move_s (a cubic with zero end rates), hold 0.2 s."""
     target = X_HOME + np.asarray(dx, dtype=float)
-    return DrakeTrajectory(PiecewisePolynomial.CubicHermite(
-        [0.0, 0.2, 0.2 + move_s, 0.4 + move_s], np.column_stack([X_HOME, X_HOME, target, target]),
-        np.zeros((6, 4))), "reposition")
+    return DrakeTrajectory(
+        PiecewisePolynomial.CubicHermite(
+            [0.0, 0.2, 0.2 + move_s, 0.4 + move_s],
+            np.column_stack([X_HOME, X_HOME, target, target]),
+            np.zeros((6, 4)),
+        ),
+        "reposition",
+    )
 
 
 def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
@@ -196,13 +217,21 @@ def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
 
     scenario = load_scenario("paper_hardware", ["duration_s=0.7"])
     fast = _reposition([0, 0, 0, 0.05, 0, 0])
-    with pytest.raises(MotorLimitError, match=r"motor 2 would need 0\.905 N m of torque at "
-                                              r"t = 0\.2 s .* 43 % over the 0\.632 N m") as err:
+    with pytest.raises(
+        MotorLimitError,
+        match=r"motor 2 would need 0\.905 N m of torque at "
+        r"t = 0\.2 s .* 43 % over the 0\.632 N m",
+    ) as err:
         check_reference(scenario, fast)
     assert err.value.motor == 2 and err.value.t == pytest.approx(0.2)
     assert err.value.limit == pytest.approx(0.9 * make_plan(scenario).servo.peak_torque_Nm)
-    report = validate(fast, make_plan(scenario).plant_geometry, 0.7, raise_refused=False,
-                      motor_limits=make_plan(scenario).motor_limits)
+    report = validate(
+        fast,
+        make_plan(scenario).plant_geometry,
+        0.7,
+        raise_refused=False,
+        motor_limits=make_plan(scenario).motor_limits,
+    )
     assert (report.peak_torque_motor, round(report.peak_torque, 2)) == (0, 1.06)
     assert "motor 0" in report.summary() and not report.ok
     # The same move over 1 s is within what the motors give.
@@ -211,8 +240,10 @@ def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
 
 
 def test_allow_infeasible_runs_it_with_a_warning_and_the_motors_saturate():
-    scenario = load_scenario("paper_hardware", ["duration_s=0.7", "guard.allow_infeasible=true",
-                                                "guard.max_tracking_error=[0.5, 0.1]"])
+    scenario = load_scenario(
+        "paper_hardware",
+        ["duration_s=0.7", "guard.allow_infeasible=true", "guard.max_tracking_error=[0.5, 0.1]"],
+    )
     with pytest.warns(FeasibilityWarning, match=r"motor 2 would need 0\.905 N m .* 43 % over"):
         result = run_experiment(scenario, reference=_reposition([0, 0, 0, 0.05, 0, 0]))
     assert result.metrics["status"]["saturated_steps"] > 0
@@ -222,20 +253,22 @@ def test_allow_infeasible_runs_it_with_a_warning_and_the_motors_saturate():
 
 # -- clearance ----------------------------------------------------------------------------------
 
+
 def test_clearance_along_the_paper_manoeuvre_keeps_the_margin_per_pair():
     model = clearance_model(StewartGeometry())
-    t = np.arange(0.0, np.pi + 1e-9, 2e-3)                          # one period of eqs. 37-38
+    t = np.arange(0.0, np.pi + 1e-9, 2e-3)  # one period of eqs. 37-38
     x = make_trajectory("paper").evaluate(t)[0]
-    distance, _, families = model.sweep(x[sample_indices(model.geometry, x, 1e-3)],
-                                        by_family=True)
+    distance, _, families = model.sweep(x[sample_indices(model.geometry, x, 1e-3)], by_family=True)
     assert np.nanmin(distance) >= 3e-3
-    assert families[("base plate", "rod tube")][0] > 0.015          # 17 mm: the hub clears
+    assert families[("base plate", "rod tube")][0] > 0.015  # 17 mm: the hub clears
     # The rod ends' spheres on the platform joints sit a fixed distance from the platform's
     # plate (5 mm) and from each other (5.2 mm): measured once, not per pose.
     assert model.fixed[0].distance == pytest.approx(5e-3, abs=1e-9)
-    assert {("platform plate", "rod end_top"), ("platform tool", "rod end_top"),
-            ("rod end_top", "rod end_top")} == {(family(c.part_a), family(c.part_b))
-                                               for c in model.fixed}
+    assert {
+        ("platform plate", "rod end_top"),
+        ("platform tool", "rod end_top"),
+        ("rod end_top", "rod end_top"),
+    } == {(family(c.part_a), family(c.part_b)) for c in model.fixed}
     assert ("platform plate", "rod end_top") not in families
 
 
@@ -259,13 +292,15 @@ def test_rod_to_rod_clearance_equals_the_segment_distance_of_the_kinematics(rand
         e = (b - a) / g.rod_length
         return a + start * e, b - start * e
 
-    def distance(p, q):                                          # exact up to the optimizer
+    def distance(p, q):  # exact up to the optimizer
         def gap(s):
             s = np.clip(s, 0, 1)
             return np.linalg.norm(p[0] + s[0] * (p[1] - p[0]) - q[0] - s[1] * (q[1] - q[0]))
-        return min(minimize(gap, s0, method="Nelder-Mead",
-                            options={"xatol": 1e-10, "fatol": 1e-12}).fun
-                   for s0 in ([0.5, 0.5], [1.0, 1.0], [0.0, 0.0]))
+
+        return min(
+            minimize(gap, s0, method="Nelder-Mead", options={"xatol": 1e-10, "fatol": 1e-12}).fun
+            for s0 in ([0.5, 0.5], [1.0, 1.0], [0.0, 0.0])
+        )
 
     errors = []
     for x in random_poses[:30]:
@@ -295,7 +330,7 @@ def test_sample_indices_bound_the_motion_between_measures():
     assert 50 < len(keep) < len(t) / 3
     tips = g.crank_tips(kinematics.ik(g, x))
     for a, b in zip(keep[:-1], keep[1:]):
-        assert np.linalg.norm(tips[a + 1:b + 1] - tips[a:b], axis=-1).sum(axis=0).max() <= 1e-3
+        assert np.linalg.norm(tips[a + 1 : b + 1] - tips[a:b], axis=-1).sum(axis=0).max() <= 1e-3
 
 
 #: A pose where the hub plate and rod 0's tube overlap by 11 mm (inside every joint limit).
@@ -320,12 +355,18 @@ PUSH_DOWN = [0.0415, -0.0563, -0.9975]
 
 
 def _push_run(contact: bool):
-    scenario = load_scenario("paper_hardware", [f"contact={str(contact).lower()}",
-                                                "duration_s=0.6",
-                                                "guard.max_tracking_error=[1.0, 0.2]"])
+    scenario = load_scenario(
+        "paper_hardware",
+        [
+            f"contact={str(contact).lower()}",
+            "duration_s=0.6",
+            "guard.max_tracking_error=[1.0, 0.2]",
+        ],
+    )
     scenario.reference = SineReference(offset=list(NEAR_HUB))
-    scenario.disturbance = ToolDisturbance(kind="push", magnitude=40.0, direction=PUSH_DOWN,
-                                           start_s=0.2, duration_s=0.3)
+    scenario.disturbance = ToolDisturbance(
+        kind="push", magnitude=40.0, direction=PUSH_DOWN, start_s=0.2, duration_s=0.3
+    )
     return scenario
 
 
@@ -335,7 +376,7 @@ def _run_with_states(scenario):
     from stewart_drake.studies.experiments import advance, build_simulator, collect_result
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)            # a failed gain re-schedule
+        warnings.simplefilter("ignore", RuntimeWarning)  # a failed gain re-schedule
         sd, simulator = build_simulator(scenario)
         run_guard.advance(sd, simulator, lambda: advance(simulator, scenario.duration_s, False))
     root = simulator.get_context()
@@ -351,15 +392,18 @@ def test_with_contact_a_push_drives_a_rod_onto_the_plate_and_it_does_not_pass_th
     # No part sinks into another beyond SAP's compliance (tenths of a millimetre at 40 N).
     model = ClearanceModel(make_plan(scenario).plant_geometry)
     nq = model.plant.num_positions()
-    deepest = min(min((c.distance for c in model.contacts(None, 0.0, q=s[:nq])), default=0.0)
-                  for s in states)
+    deepest = min(
+        min((c.distance for c in model.contacts(None, 0.0, q=s[:nq])), default=0.0) for s in states
+    )
     assert -5e-4 < deepest < 0
     assert result.metrics["max_closure_m"] < 5e-4
 
 
 def test_without_contact_the_guard_stops_the_run_when_parts_overlap():
-    with pytest.raises(SimulationDivergedError,
-                       match="base/plate and rod_4/tube overlap by .* pass through each other"):
+    with pytest.raises(
+        SimulationDivergedError,
+        match="base/plate and rod_4/tube overlap by .* pass through each other",
+    ):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             run_experiment(_push_run(contact=False))
@@ -372,7 +416,8 @@ def test_committed_clearance_table_is_current():
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "reference_geometry.md").read_text()
     start, end = (doc.index(m) for m in CLEARANCE_TABLE_MARKERS)
-    committed = doc[start:end + len(CLEARANCE_TABLE_MARKERS[1])]
+    committed = doc[start : end + len(CLEARANCE_TABLE_MARKERS[1])]
     assert committed == clearance_table(), (
         "docs/reference_geometry.md's clearance table is stale: paste "
-        "stewart_drake.studies.feasibility.clearance_table() between its markers")
+        "stewart_drake.studies.feasibility.clearance_table() between its markers"
+    )

@@ -74,25 +74,28 @@ def test_every_job_yields_once_with_its_id_and_a_failure_is_a_typed_record(runne
 
 def test_results_arrive_as_they_complete_and_progress_sees_each():
     seen = []
-    order = [k for k, _ in ProcessRunner(2).map(pid_after, {"slow": 1.5, "fast": 0.0},
-                                                progress=lambda k, o: seen.append(k))]
+    order = [
+        k
+        for k, _ in ProcessRunner(2).map(
+            pid_after, {"slow": 1.5, "fast": 0.0}, progress=lambda k, o: seen.append(k)
+        )
+    ]
     assert order == seen == ["fast", "slow"]
 
 
 def test_a_divergence_dump_travels_back_with_the_failure(tmp_path):
-    (_, failure), = ProcessRunner(1).map(diverge, {"d": str(tmp_path)})
+    ((_, failure),) = ProcessRunner(1).map(diverge, {"d": str(tmp_path)})
     assert failure.error_type == "SimulationDivergedError"
-    (path, data), = failure.files.items()
-    assert path == str(tmp_path / "diverged_x.npz") and not Path(path).exists()   # moved
-    assert data[:2] == b"PK"                                                    # the .npz
+    ((path, data),) = failure.files.items()
+    assert path == str(tmp_path / "diverged_x.npz") and not Path(path).exists()  # moved
+    assert data[:2] == b"PK"  # the .npz
 
 
 def test_a_dead_worker_is_retried_then_recorded_as_lost(tmp_path):
     out = dict(ProcessRunner(1, retries=1).map(die_once, {"once": str(tmp_path / "m")}))
-    assert isinstance(out["once"], int)                       # the second attempt finished
+    assert isinstance(out["once"], int)  # the second attempt finished
     out = dict(ProcessRunner(2, retries=1).map(always_die, {"x": 0, "y": 1}))
-    assert {k: (o.kind, o.attempts) for k, o in out.items()} == {"x": ("lost", 2),
-                                                                 "y": ("lost", 2)}
+    assert {k: (o.kind, o.attempts) for k, o in out.items()} == {"x": ("lost", 2), "y": ("lost", 2)}
 
 
 def test_workers_are_recycled_after_n_jobs():
@@ -100,13 +103,15 @@ def test_workers_are_recycled_after_n_jobs():
     assert len(set(pids)) == 3 and os.getpid() not in pids
 
 
-@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT],
-                         ids=lambda s: signal.Signals(s).name)
+@pytest.mark.parametrize(
+    "signum", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT], ids=lambda s: signal.Signals(s).name
+)
 def test_a_signal_during_map_ends_the_workers_and_keeps_what_finished(signum):
     # A signal the shell left at its default (under `nohup`, SIGHUP arrives ignored and stays so:
     # the next test), restored afterwards.
-    inherited = signal.signal(signum, signal.SIG_DFL if signum != signal.SIGINT
-                              else signal.default_int_handler)
+    inherited = signal.signal(
+        signum, signal.SIG_DFL if signum != signal.SIGINT else signal.default_int_handler
+    )
     try:
         _signal_during_map(signum)
     finally:
@@ -127,21 +132,26 @@ def _signal_during_map(signum):
 
     def on_result(job_id, outcome):
         got.append(job_id)
-        os.kill(os.getpid(), signum)                  # as `kill <pid>` would, after one result
+        os.kill(os.getpid(), signum)  # as `kill <pid>` would, after one result
 
     before = {p.pid for p in psutil.Process().children(recursive=True)}
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     with pytest.raises(Interrupted) as info:
-        for _ in ProcessRunner(2).map(pid_after, {"a": 0.0, "b": 30.0, "c": 30.0},
-                                      progress=on_result):
+        for _ in ProcessRunner(2).map(
+            pid_after, {"a": 0.0, "b": 30.0, "c": 30.0}, progress=on_result
+        ):
             pass
     assert info.value.signum == signum and got == ["a"]
     time.sleep(0.5)
-    left = [p for p in psutil.Process().children(recursive=True)
-            if p.pid not in before and p.status() != psutil.STATUS_ZOMBIE
-            and not _is_resource_tracker(p)]
+    left = [
+        p
+        for p in psutil.Process().children(recursive=True)
+        if p.pid not in before
+        and p.status() != psutil.STATUS_ZOMBIE
+        and not _is_resource_tracker(p)
+    ]
     assert left == []
-    assert {s: signal.getsignal(s) for s in handlers} == handlers   # restored
+    assert {s: signal.getsignal(s) for s in handlers} == handlers  # restored
 
 
 def test_a_signal_ignored_by_the_process_stays_ignored():
@@ -149,8 +159,16 @@ def test_a_signal_ignored_by_the_process_stays_ignored():
     old = signal.signal(signal.SIGHUP, signal.SIG_IGN)
     try:
         seen = []
-        out = dict(SerialRunner().map(square, {"a": 2, "b": 3}, progress=lambda k, o: (
-            seen.append(signal.getsignal(signal.SIGHUP)), os.kill(os.getpid(), signal.SIGHUP))))
+        out = dict(
+            SerialRunner().map(
+                square,
+                {"a": 2, "b": 3},
+                progress=lambda k, o: (
+                    seen.append(signal.getsignal(signal.SIGHUP)),
+                    os.kill(os.getpid(), signal.SIGHUP),
+                ),
+            )
+        )
         assert out == {"a": 4, "b": 9} and seen == [signal.SIG_IGN] * 2
     finally:
         signal.signal(signal.SIGHUP, old)
@@ -169,9 +187,17 @@ def test_workers_die_with_their_parent(tmp_path):
     parent = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
     try:
         deadline = time.monotonic() + 60
-        while len(workers := [p for p in psutil.Process(parent.pid).children()
-                              if "multiprocessing" in " ".join(p.cmdline())
-                              and "resource_tracker" not in " ".join(p.cmdline())]) < 2:
+        while (
+            len(
+                workers := [
+                    p
+                    for p in psutil.Process(parent.pid).children()
+                    if "multiprocessing" in " ".join(p.cmdline())
+                    and "resource_tracker" not in " ".join(p.cmdline())
+                ]
+            )
+            < 2
+        ):
             assert time.monotonic() < deadline, "no workers started"
             time.sleep(0.2)
         parent.kill()

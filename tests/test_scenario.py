@@ -38,8 +38,11 @@ def test_a_dump_names_only_the_drake_settings_it_changes():
     scenario.plant.penetration_allowance = 2e-3
     text = dump_scenario(scenario)
     data = yaml_load(data=text)
-    assert data["plant"] == {"time_step": 1e-3, "discrete_contact_approximation": "sap",
-                             "penetration_allowance": 2e-3}
+    assert data["plant"] == {
+        "time_step": 1e-3,
+        "discrete_contact_approximation": "sap",
+        "penetration_allowance": 2e-3,
+    }
     assert data["simulator"] == {"target_realtime_rate": 1.0} and "visualization" not in data
     back = load_scenario_text(text)
     assert back.simulator.target_realtime_rate == 1.0 and back.plant.penetration_allowance == 2e-3
@@ -62,11 +65,14 @@ def test_robot_mirrors_the_geometry_both_ways():
     assert make_plan(Scenario(robot=robot)).geometry == g
 
 
-@pytest.mark.parametrize("form, value, left_out", [
-    ("Robot", "StewartGeometry", ("motor_reflected_inertia",)),
-    ("Motors", "ServoModel", ()),
-    ("LqiScalesConfig", "LqiScales", ()),
-])
+@pytest.mark.parametrize(
+    "form, value, left_out",
+    [
+        ("Robot", "StewartGeometry", ("motor_reflected_inertia",)),
+        ("Motors", "ServoModel", ()),
+        ("LqiScalesConfig", "LqiScales", ()),
+    ],
+)
 def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, left_out):
     """Robot, Motors and LqiScalesConfig are written out in source: the same fields in the same
     order, a list of floats where the value type has a tuple, the same defaults."""
@@ -77,8 +83,14 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     from stewart_drake.model.servo import ServoModel
     from stewart_drake.simulation import scenario as sc
 
-    kinds = {"Robot": sc.Robot, "Motors": sc.Motors, "LqiScalesConfig": LqiScalesConfig,
-             "StewartGeometry": StewartGeometry, "ServoModel": ServoModel, "LqiScales": LqiScales}
+    kinds = {
+        "Robot": sc.Robot,
+        "Motors": sc.Motors,
+        "LqiScalesConfig": LqiScalesConfig,
+        "StewartGeometry": StewartGeometry,
+        "ServoModel": ServoModel,
+        "LqiScales": LqiScales,
+    }
     form, value = kinds[form], kinds[value]
     mine, theirs = typing.get_type_hints(form), typing.get_type_hints(value)
     names = [f.name for f in dataclasses.fields(value) if f.name not in left_out]
@@ -86,7 +98,7 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     default_form, default_value = form(), value()
     for name in names:
         tuple_field = theirs[name] is tuple or typing.get_origin(theirs[name]) is tuple
-        assert mine[name] == (typing.List[float] if tuple_field else theirs[name]), name
+        assert mine[name] == (list[float] if tuple_field else theirs[name]), name
         expected = getattr(default_value, name)
         assert getattr(default_form, name) == (list(expected) if tuple_field else expected), name
     built = default_form.build()
@@ -96,42 +108,89 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
 NAN = float("nan")
 
 
-@pytest.mark.parametrize("path, value, message", [
-    ("control_period_s", 1.5e-3, r"control_period_s \(0.0015 s\) must be a whole multiple of "
-                                 r"plant.time_step \(0.001 s\); the nearest valid value is "
-                                 r"0.002 s"),
-    ("controller.schedule_period_s", 0.0125, r"controller.schedule_period_s \(0.0125 s\) must be "
-                                             r"a whole multiple of control_period_s"),
-    ("log_period_s", 2.5e-3, r"log_period_s \(0.0025 s\) must be a whole multiple of "
-                             r"plant.time_step"),
-    ("tuner", AnnTunerDriver(period_s=0.0205), r"tuner.period_s .* whole multiple of "
-                                               r"control_period_s"),
-    ("guard.check_period_s", 0.0105, r"guard.check_period_s .* whole multiple"),
-    ("duration_s", -1.0, r"duration_s must be a finite number in \(0, inf\], got -1.0"),
-    ("duration_s", "10", r"duration_s must be a number, got '10' \(a string\)"),
-    ("duration_s", 1e-6, r"duration_s \(1e-06 s\) must cover at least two log periods"),
-    ("plant.time_step", NAN, r"plant.time_step must be a finite number"),
-    ("plant.discrete_contact_approximation", "tamsi", r"does not enforce the ball constraints"),
-    ("controller.omega_Q", NAN, r"controller.omega_Q must be a finite number in \[0.001, 1000\]"),
-    ("controller.omega_R", 1e4, r"controller.omega_R must be a finite number in \[0.001, 1000\], "
-                                r"got 10000.0"),
-    ("controller.omega_R", True, r"controller.omega_R must be one number"),
-    ("controller.riccati", "hot", r"controller.riccati must be one of \('warm', 'track', 'cold'\)"),
-    ("controller.scales", "x", r"controller.scales must be an LqiScalesConfig, got str"),
-    ("feedforward", "pid", r"feedforward must be one of \('gravity', 'inverse_dynamics', 'none'\)"),
-    ("tuner", AnnTunerDriver(feature_window=0), r"tuner.feature_window must be an integer in "
-                                                r"\[1, 100000\]"),
-    ("reference", NamedReference("spiral"), r"unknown trajectory 'spiral'; choose one of "
-                                            r"\[.*'helix'.*'paper'"),
-    ("reference", 3.0, r"reference must be a NamedReference, CsvReference"),
-    ("guard", {"max_closure_error_m": 1}, r"guard must be a GuardConfig, got dict \(a dict"),
-    ("robot", {"rod_length": 0.4}, r"robot must be a Robot, got dict"),
-    ("sensor_noise", SensorNoise(seed=2**32), r"sensor_noise.seed must be an integer in "
-                                              r"\[0, 4294967295\], got 4294967296"),
-    ("sensor_noise", SensorNoise(std=[0.1] * 7), r"sensor_noise.std needs 12 finite values"),
-    ("payload_scale", 0.0, r"payload_scale must be a finite number in \[0.1, 10\]"),
-    ("controller", "lqi", r"controller must be an LqiDriver, PdDriver or UserController"),
-])
+@pytest.mark.parametrize(
+    "path, value, message",
+    [
+        (
+            "control_period_s",
+            1.5e-3,
+            r"control_period_s \(0.0015 s\) must be a whole multiple of "
+            r"plant.time_step \(0.001 s\); the nearest valid value is "
+            r"0.002 s",
+        ),
+        (
+            "controller.schedule_period_s",
+            0.0125,
+            r"controller.schedule_period_s \(0.0125 s\) must be "
+            r"a whole multiple of control_period_s",
+        ),
+        (
+            "log_period_s",
+            2.5e-3,
+            r"log_period_s \(0.0025 s\) must be a whole multiple of "
+            r"plant.time_step",
+        ),
+        (
+            "tuner",
+            AnnTunerDriver(period_s=0.0205),
+            r"tuner.period_s .* whole multiple of "
+            r"control_period_s",
+        ),
+        ("guard.check_period_s", 0.0105, r"guard.check_period_s .* whole multiple"),
+        ("duration_s", -1.0, r"duration_s must be a finite number in \(0, inf\], got -1.0"),
+        ("duration_s", "10", r"duration_s must be a number, got '10' \(a string\)"),
+        ("duration_s", 1e-6, r"duration_s \(1e-06 s\) must cover at least two log periods"),
+        ("plant.time_step", NAN, r"plant.time_step must be a finite number"),
+        ("plant.discrete_contact_approximation", "tamsi", r"does not enforce the ball constraints"),
+        (
+            "controller.omega_Q",
+            NAN,
+            r"controller.omega_Q must be a finite number in \[0.001, 1000\]",
+        ),
+        (
+            "controller.omega_R",
+            1e4,
+            r"controller.omega_R must be a finite number in \[0.001, 1000\], "
+            r"got 10000.0",
+        ),
+        ("controller.omega_R", True, r"controller.omega_R must be one number"),
+        (
+            "controller.riccati",
+            "hot",
+            r"controller.riccati must be one of \('warm', 'track', 'cold'\)",
+        ),
+        ("controller.scales", "x", r"controller.scales must be an LqiScalesConfig, got str"),
+        (
+            "feedforward",
+            "pid",
+            r"feedforward must be one of \('gravity', 'inverse_dynamics', 'none'\)",
+        ),
+        (
+            "tuner",
+            AnnTunerDriver(feature_window=0),
+            r"tuner.feature_window must be an integer in "
+            r"\[1, 100000\]",
+        ),
+        (
+            "reference",
+            NamedReference("spiral"),
+            r"unknown trajectory 'spiral'; choose one of "
+            r"\[.*'helix'.*'paper'",
+        ),
+        ("reference", 3.0, r"reference must be a NamedReference, CsvReference"),
+        ("guard", {"max_closure_error_m": 1}, r"guard must be a GuardConfig, got dict \(a dict"),
+        ("robot", {"rod_length": 0.4}, r"robot must be a Robot, got dict"),
+        (
+            "sensor_noise",
+            SensorNoise(seed=2**32),
+            r"sensor_noise.seed must be an integer in "
+            r"\[0, 4294967295\], got 4294967296",
+        ),
+        ("sensor_noise", SensorNoise(std=[0.1] * 7), r"sensor_noise.std needs 12 finite values"),
+        ("payload_scale", 0.0, r"payload_scale must be a finite number in \[0.1, 10\]"),
+        ("controller", "lqi", r"controller must be an LqiDriver, PdDriver or UserController"),
+    ],
+)
 def test_bad_settings_are_refused_by_name(path, value, message):
     scenario = Scenario()
     *parents, leaf = path.split(".")
@@ -150,13 +209,19 @@ def test_a_bad_robot_is_refused_with_the_field_of_the_geometry():
         scenario.validate()
 
 
-@pytest.mark.parametrize("fields, message", [
-    ({"max_closure_error_m": 0.0}, r"max_closure_error_m must be a finite number in \(0, inf\]"),
-    ({"max_tracking_error": (0.2,)}, r"max_tracking_error must be \[rad, m\]"),
-    ({"max_tracking_error": (0.2, float("inf"))}, r"max_tracking_error\[1\] must be a finite"),
-    ({"cond_threshold": 0.5}, r"cond_threshold must be a finite number in \(1, inf\]"),
-    ({"divergence_dir": ""}, r"divergence_dir must be a folder path"),
-])
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        (
+            {"max_closure_error_m": 0.0},
+            r"max_closure_error_m must be a finite number in \(0, inf\]",
+        ),
+        ({"max_tracking_error": (0.2,)}, r"max_tracking_error must be \[rad, m\]"),
+        ({"max_tracking_error": (0.2, float("inf"))}, r"max_tracking_error\[1\] must be a finite"),
+        ({"cond_threshold": 0.5}, r"cond_threshold must be a finite number in \(1, inf\]"),
+        ({"divergence_dir": ""}, r"divergence_dir must be a folder path"),
+    ],
+)
 def test_bad_guard_settings_are_refused(fields, message):
     with pytest.raises(InvalidConfigError, match=message):
         GuardConfig(**fields)
@@ -168,22 +233,28 @@ def test_missing_tuner_weights_are_refused_before_building(tmp_path):
     assert isinstance(info.value, FileNotFoundError)
 
 
-@pytest.mark.parametrize("fields, message", [
-    ({"rod_length": 0.9}, r"leg \d cannot close at the home pose .* change the rod or crank"),
-    ({"rod_length": 0.25}, r"leg \d cannot close at the home pose"),
-    ({"crank_length": -0.11}, r"crank_length must be a finite number in \(0, inf\], got -0.11"),
-    ({"base_radius": 0.0}, r"base_radius must be a finite number in \(0, inf\]"),
-    ({"rod_length": float("inf")}, r"rod_length must be a finite number"),
-    ({"pivot_z": float("nan")}, r"pivot_z must be a finite number"),
-    ({"platform_mass": 0.0}, r"platform_mass must be a finite number in \(0, inf\]"),
-    ({"rod_mass": "heavy"}, r"rod_mass must be a number, got .heavy. \(a string\)"),
-    ({"platform_inertia": (0.001, 0.001, 0.006)}, r"platform_inertia = \[0.001, 0.001, 0.006\] "
-                                                  r"kg m\^2 fails the triangle inequality"),
-    ({"rod_inertia": (0.0016, 0.0016, 0.0)}, r"rod_inertia needs 3 positive moments"),
-    ({"crank_inertia": (1e-6, float("nan"), 6e-5)}, r"crank_inertia has a non-finite value"),
-    ({"pivot_angles_deg": (0.0,) * 5}, r"pivot_angles_deg must have shape \(6,\)"),
-    ({"motor_angle_min_deg": 10.0}, r"the home pose violates the motor_angle limit"),
-])
+@pytest.mark.parametrize(
+    "fields, message",
+    [
+        ({"rod_length": 0.9}, r"leg \d cannot close at the home pose .* change the rod or crank"),
+        ({"rod_length": 0.25}, r"leg \d cannot close at the home pose"),
+        ({"crank_length": -0.11}, r"crank_length must be a finite number in \(0, inf\], got -0.11"),
+        ({"base_radius": 0.0}, r"base_radius must be a finite number in \(0, inf\]"),
+        ({"rod_length": float("inf")}, r"rod_length must be a finite number"),
+        ({"pivot_z": float("nan")}, r"pivot_z must be a finite number"),
+        ({"platform_mass": 0.0}, r"platform_mass must be a finite number in \(0, inf\]"),
+        ({"rod_mass": "heavy"}, r"rod_mass must be a number, got .heavy. \(a string\)"),
+        (
+            {"platform_inertia": (0.001, 0.001, 0.006)},
+            r"platform_inertia = \[0.001, 0.001, 0.006\] "
+            r"kg m\^2 fails the triangle inequality",
+        ),
+        ({"rod_inertia": (0.0016, 0.0016, 0.0)}, r"rod_inertia needs 3 positive moments"),
+        ({"crank_inertia": (1e-6, float("nan"), 6e-5)}, r"crank_inertia has a non-finite value"),
+        ({"pivot_angles_deg": (0.0,) * 5}, r"pivot_angles_deg must have shape \(6,\)"),
+        ({"motor_angle_min_deg": 10.0}, r"the home pose violates the motor_angle limit"),
+    ],
+)
 def test_bad_geometry_is_refused_by_name(fields, message):
     with pytest.raises(InvalidGeometryError, match=message):
         StewartGeometry(**fields)

@@ -26,7 +26,7 @@ def test_every_shipped_scenario_round_trips_unchanged(path):
     text = path.read_text()
     body = "".join(line for line in text.splitlines(keepends=True) if not line.startswith("#"))
     scenario = load_scenario(path)
-    assert dump_scenario(scenario) == body                        # the file is a dump
+    assert dump_scenario(scenario) == body  # the file is a dump
     again = yaml_load_typed(schema=Scenario, data=yaml_dump_typed(scenario))
     assert dump_scenario(again) == body
     assert dump_scenario(pickle.loads(pickle.dumps(scenario))) == body  # workers get the same
@@ -34,8 +34,10 @@ def test_every_shipped_scenario_round_trips_unchanged(path):
 
 
 def test_overrides_are_typed_and_named():
-    s = load_scenario("paper_ideal", ["controller.omega_Q=10", "duration_s=2",
-                                      "guard.max_tracking_error=[0.1, 0.02]"])
+    s = load_scenario(
+        "paper_ideal",
+        ["controller.omega_Q=10", "duration_s=2", "guard.max_tracking_error=[0.1, 0.02]"],
+    )
     assert s.controller.omega_Q == 10.0 and isinstance(s.controller.omega_Q, float)
     assert s.duration_s == 2.0 and s.guard.max_tracking_error == [0.1, 0.02]
     apply_override(s, "controller=!PdDriver {bandwidth_hz: 15}")
@@ -55,8 +57,11 @@ def test_overrides_are_typed_and_named():
 def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("duration_s: 3\ncontroller: {omega_Q: 2, gain: 5}\n")
-    with pytest.raises(InvalidConfigError, match=r"bad.yaml is not a valid scenario file: it does "
-                                                 r"not fit .*\['gain'\]"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"bad.yaml is not a valid scenario file: it does "
+        r"not fit .*\['gain'\]",
+    ):
         load_scenario(bad)
     with pytest.raises(MissingFileError, match="shipped: .*paper_ideal"):
         load_scenario("paper_nowhere")
@@ -64,7 +69,7 @@ def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
     good.write_text("duration_s: 3\ncontroller: !PdDriver {bandwidth_hz: 12}\n")
     s = load_scenario(good)
     assert s.duration_s == 3.0 and s.controller == PdDriver(bandwidth_hz=12.0)
-    assert s.robot == Robot()                          # unspecified fields keep their defaults
+    assert s.robot == Robot()  # unspecified fields keep their defaults
 
 
 def test_the_run_options_apply_in_place_and_validate(tmp_path):
@@ -75,30 +80,39 @@ def test_the_run_options_apply_in_place_and_validate(tmp_path):
     t = np.linspace(0.0, 2.5, 26)
     rows = np.column_stack([t, np.zeros((26, 5)), np.full(26, 0.30)])
     np.savetxt(csv, rows, delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments="")
-    scenario = apply_run_options(load_scenario("paper_hardware"), trajectory_file=str(csv),
-                                 controller="lqi", omega_Q=10.0, tuner="ratio",
-                                 divergence_dir=tmp_path / "diverged")
-    assert scenario.duration_s == 2.5                              # the file's own length
+    scenario = apply_run_options(
+        load_scenario("paper_hardware"),
+        trajectory_file=str(csv),
+        controller="lqi",
+        omega_Q=10.0,
+        tuner="ratio",
+        divergence_dir=tmp_path / "diverged",
+    )
+    assert scenario.duration_s == 2.5  # the file's own length
     assert isinstance(scenario.reference, CsvReference) and scenario.reference.path == str(csv)
     assert scenario.controller.omega() == (10.0, 1.0)
-    assert scenario.controller.schedule_period_s == 0.02           # the scenario's LQI options
+    assert scenario.controller.schedule_period_s == 0.02  # the scenario's LQI options
     assert isinstance(scenario.tuner, RatioTunerDriver)
     assert scenario.guard.divergence_dir == str(tmp_path / "diverged")
     weights = tmp_path / "mine.npz"
-    weights.write_bytes(b"")                    # exists: taken as what `train` last wrote
-    ann = apply_run_options(load_scenario("paper_ideal"), duration_s=1.0, tuner="ann",
-                            default_ann_weights=weights)
+    weights.write_bytes(b"")  # exists: taken as what `train` last wrote
+    ann = apply_run_options(
+        load_scenario("paper_ideal"), duration_s=1.0, tuner="ann", default_ann_weights=weights
+    )
     assert ann.tuner == AnnTunerDriver(weights=str(weights)) and ann.duration_s == 1.0
-    assert ann.controller.gain_transfer == "none"                  # the paper's gain switching
+    assert ann.controller.gain_transfer == "none"  # the paper's gain switching
     pd = apply_run_options(load_scenario("paper_ideal"), controller="pd", tuner="none")
     assert isinstance(pd.controller, PdDriver) and pd.tuner is None
 
 
-@pytest.mark.parametrize("options, message", [
-    ({"tuner_weights": "w.npz"}, "--tuner-weights needs --tuner ann or --tuner ratio"),
-    ({"trajectory": "paper", "trajectory_file": "r.csv"}, "--trajectory or --trajectory-file"),
-    ({"duration_s": -1.0}, "duration_s must be"),
-])
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ({"tuner_weights": "w.npz"}, "--tuner-weights needs --tuner ann or --tuner ratio"),
+        ({"trajectory": "paper", "trajectory_file": "r.csv"}, "--trajectory or --trajectory-file"),
+        ({"duration_s": -1.0}, "duration_s must be"),
+    ],
+)
 def test_bad_run_options_are_refused_by_name(options, message):
     from stewart_drake.simulation.scenario_io import apply_run_options
 

@@ -68,7 +68,7 @@ def test_warm_gain_refuses_a_start_that_does_not_stabilize(geometry):
 
 def test_controller_falls_back_to_the_cold_solve(geometry):
     c = LqiController(geometry)
-    K = c.gain(X_HOME, 1.0, 1.0, K_start=np.zeros((6, 18)))    # warm start refused
+    K = c.gain(X_HOME, 1.0, 1.0, K_start=np.zeros((6, 18)))  # warm start refused
     assert c.solve_stats["cold"] == 1 and c.solve_stats["warm"] == 0
     np.testing.assert_allclose(K, c.K_initial, rtol=1e-9, atol=1e-12)
 
@@ -80,8 +80,9 @@ def test_precomputed_reference_is_read_at_the_right_step(geometry):
 
     builder = DiagramBuilder()
     traj = paper_manoeuvre()
-    src = add_reference_sources(builder, traj, geometry, duration_s=0.5, period_s=H,
-                                offset_s=0.5 * H, lead_s=0.5 * H)
+    src = add_reference_sources(
+        builder, traj, geometry, duration_s=0.5, period_s=H, offset_s=0.5 * H, lead_s=0.5 * H
+    )
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     ref_ctx = src.x_d.GetMyContextFromRoot(context)
@@ -90,10 +91,17 @@ def test_precomputed_reference_is_read_at_the_right_step(geometry):
         t_k = k * H + 0.5 * H
         context.SetTime(t_k)
         x, xd, xdd = traj.evaluate(t_k + 0.5 * H)
-        np.testing.assert_allclose(src.x_d.get_output_port().Eval(ref_ctx),
-                                   np.concatenate([x, xd, xdd]), rtol=0, atol=1e-15)
-        np.testing.assert_allclose(src.T_ff.get_output_port().Eval(ff_ctx),
-                                   statics.holding_torques(geometry, x), rtol=1e-12)
+        np.testing.assert_allclose(
+            src.x_d.get_output_port().Eval(ref_ctx),
+            np.concatenate([x, xd, xdd]),
+            rtol=0,
+            atol=1e-15,
+        )
+        np.testing.assert_allclose(
+            src.T_ff.get_output_port().Eval(ff_ctx),
+            statics.holding_torques(geometry, x),
+            rtol=1e-12,
+        )
 
 
 def test_inverse_dynamics_feedforward_adds_the_inertial_torque(geometry, random_poses):
@@ -103,6 +111,10 @@ def test_inverse_dynamics_feedforward_adds_the_inertial_torque(geometry, random_
     J = kinematics.jacobian(geometry, x, theta)
     M = statics.task_inertia(geometry, x, theta)
     extra = np.linalg.solve(np.swapaxes(J, -1, -2), (M @ a[..., None]))[..., 0]
-    np.testing.assert_allclose(feedforward_torques(geometry, x, a, "inverse_dynamics"),
-                               feedforward_torques(geometry, x) + extra, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        feedforward_torques(geometry, x, a, "inverse_dynamics"),
+        feedforward_torques(geometry, x) + extra,
+        rtol=1e-10,
+        atol=1e-12,
+    )
     assert np.all(feedforward_torques(geometry, x, mode="none") == 0)

@@ -41,8 +41,9 @@ SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
 # -- the station ----------------------------------------------------------------------------------
 
-def _station_sim(scenario, x=X_HOME, T=None, wrench=np.zeros(6)):
-    return held_station(scenario, x, T, wrench)
+
+def _station_sim(scenario, x=X_HOME, T=None, wrench=None):
+    return held_station(scenario, x, T, np.zeros(6) if wrench is None else wrench)
 
 
 def test_station_ports_measure_the_robot():
@@ -51,22 +52,25 @@ def test_station_ports_measure_the_robot():
     simulator.AdvanceTo(0.05)
     pose = station.GetOutputPort("platform_state").Eval(ctx)
     theta = station.GetOutputPort("motor_angle").Eval(ctx)
-    np.testing.assert_allclose(pose[:6], x, atol=1e-6)          # held by the holding torques
+    np.testing.assert_allclose(pose[:6], x, atol=1e-6)  # held by the holding torques
     np.testing.assert_allclose(theta, kinematics.ik(StewartGeometry(), pose[:6]), atol=1e-6)
-    np.testing.assert_allclose(station.GetOutputPort("motor_torque_applied").Eval(ctx),
-                               statics.holding_torques(StewartGeometry(), x), rtol=1e-12)
+    np.testing.assert_allclose(
+        station.GetOutputPort("motor_torque_applied").Eval(ctx),
+        statics.holding_torques(StewartGeometry(), x),
+        rtol=1e-12,
+    )
     assert station.GetOutputPort("plant_state").size() == station.plant.num_multibody_states()
 
 
 def test_tool_wrench_pushes_the_platform_and_the_limit_clips_the_torque():
-    scenario = Scenario(torque_limit_Nm=0.2)                   # below the 0.285 N m to hold home
+    scenario = Scenario(torque_limit_Nm=0.2)  # below the 0.285 N m to hold home
     station, simulator, ctx = _station_sim(scenario)
     simulator.AdvanceTo(0.05)
     np.testing.assert_allclose(station.GetOutputPort("motor_torque_applied").Eval(ctx), 0.2)
-    assert station.GetOutputPort("platform_state").Eval(ctx)[5] < X_HOME[5] - 1e-3   # sags
+    assert station.GetOutputPort("platform_state").Eval(ctx)[5] < X_HOME[5] - 1e-3  # sags
 
     held = _station_sim(Scenario())
-    pushed = _station_sim(Scenario(), wrench=np.array([0, 0, 0, 0, 0, 5.0]))   # 5 N up on the tool
+    pushed = _station_sim(Scenario(), wrench=np.array([0, 0, 0, 0, 0, 5.0]))  # 5 N up on the tool
     twisted = _station_sim(Scenario(), wrench=np.array([0, 0, 0.2, 0, 0, 0]))  # 0.2 N m about z
     for _, simulator, _ in (held, pushed, twisted):
         simulator.AdvanceTo(0.05)
@@ -74,7 +78,7 @@ def test_tool_wrench_pushes_the_platform_and_the_limit_clips_the_torque():
     assert abs(z[0][5] - X_HOME[5]) < 1e-6
     # The whole chain is lighter than 5 N / 9.81: the push lifts it by millimetres in 50 ms.
     assert z[1][5] - X_HOME[5] > 1e-3
-    assert z[2][2] > 1e-3 and abs(z[2][5] - X_HOME[5]) < 1e-3   # a twist turns it about z (yaw)
+    assert z[2][2] > 1e-3 and abs(z[2][5] - X_HOME[5]) < 1e-3  # a twist turns it about z (yaw)
     assert p_ETool[2] == pytest.approx(0.08)
 
 
@@ -83,7 +87,7 @@ def test_tool_load_torques_hold_the_platform_in_drake_under_the_wrench():
     for gravity + a tool wrench hold the pushed platform still; the gravity ones alone do not."""
     g = StewartGeometry()
     x = X_HOME + np.array([0.05, -0.03, 0.1, 0.01, -0.02, 0.02])
-    wrench = np.array([0.05, -0.1, 0.2, 5.0, -3.0, 2.0])           # N m, N at the tool tip
+    wrench = np.array([0.05, -0.1, 0.2, 5.0, -3.0, 2.0])  # N m, N at the tool tip
     T = statics.tool_load_torques(g, x, wrench)
     drift = []
     for torques in (T, statics.holding_torques(g, x)):
@@ -98,7 +102,8 @@ def test_the_plant_falls_with_the_geometry_s_gravity():
     moon = Robot.from_value(StewartGeometry(gravity=1.62))
     _, simulator, ctx = _station_sim(Scenario(robot=moon))
     station_earth, sim_earth, ctx_earth = _station_sim(
-        Scenario(), T=statics.holding_torques(StewartGeometry(gravity=1.62), X_HOME))
+        Scenario(), T=statics.holding_torques(StewartGeometry(gravity=1.62), X_HOME)
+    )
     simulator.AdvanceTo(0.2)
     sim_earth.AdvanceTo(0.2)
     moon_station = simulator.get_system().GetSubsystemByName("station")
@@ -107,6 +112,7 @@ def test_the_plant_falls_with_the_geometry_s_gravity():
 
 
 # -- a user's controller ----------------------------------------------------------------------
+
 
 class TaskSpacePd(LeafSystem):
     """A controller written here, not in the package: task-space PD on the measured pose with the
@@ -137,12 +143,13 @@ def test_a_controller_written_in_the_test_runs_the_paper_manoeuvre():
     result = run_experiment(Scenario(duration_s=2.0), controller=TaskSpacePd)
     m = result.metrics
     assert m["finite"] and m["max_closure_m"] < 1e-5
-    assert m["rms_error"][0] < 1e-3 and m["rms_error"][5] < 1e-4    # phi < 1 mrad, Z < 0.1 mm
+    assert m["rms_error"][0] < 1e-3 and m["rms_error"][5] < 1e-4  # phi < 1 mrad, Z < 0.1 mm
     assert m["status"] == {} and result.omega is None and "gain_solves" not in m
     # A softer PD tracks worse: the parameter reaches the controller.
     register_controller("task_space_pd", TaskSpacePd)
-    soft = run_experiment(Scenario(duration_s=2.0, controller=UserController(
-        "task_space_pd", {"bandwidth_hz": 5.0})))
+    soft = run_experiment(
+        Scenario(duration_s=2.0, controller=UserController("task_space_pd", {"bandwidth_hz": 5.0}))
+    )
     assert soft.metrics["rms_error"][0] > 2 * m["rms_error"][0]
     CONTROLLER_REGISTRY.pop("task_space_pd")
 
@@ -172,33 +179,37 @@ def test_a_controller_that_breaks_the_contract_is_refused_by_port():
 
 def test_package_controllers_follow_the_contract():
     sd = make_stewart_diagram(Scenario(duration_s=0.1, controller=PdDriver()))
-    inputs = {sd.controller.get_input_port(i).get_name()
-              for i in range(sd.controller.num_input_ports())}
-    assert inputs == {"x", "x_d", "T_ff"}                  # no omega: the PD has no weights
-    assert make_stewart_diagram(Scenario(duration_s=0.1)).controller.status_names[2] == \
-        "gain_solves"
+    inputs = {
+        sd.controller.get_input_port(i).get_name() for i in range(sd.controller.num_input_ports())
+    }
+    assert inputs == {"x", "x_d", "T_ff"}  # no omega: the PD has no weights
+    assert (
+        make_stewart_diagram(Scenario(duration_s=0.1)).controller.status_names[2] == "gain_solves"
+    )
 
 
 # -- references -----------------------------------------------------------------------------------
+
 
 def test_csv_and_drake_references_track_like_the_analytic_one(tmp_path):
     t = np.arange(0.0, 1.0001, 0.01)
     x = paper_manoeuvre().evaluate(t)[0]
     csv = tmp_path / "paper.csv"
-    np.savetxt(csv, np.column_stack([t, x]), delimiter=",", header="t,phi,theta,psi,X,Y,Z",
-               comments="")
+    np.savetxt(
+        csv, np.column_stack([t, x]), delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments=""
+    )
     from_csv = as_trajectory(str(csv))
     assert isinstance(from_csv, DrakeTrajectory) and from_csv.end_time == pytest.approx(1.0)
     probe = np.linspace(0.05, 0.95, 50)
     exact = paper_manoeuvre().evaluate(probe)
-    for k, tol in enumerate((1e-6, 1e-4, 1e-2)):           # pose, rate, acceleration of a spline
+    for k, tol in enumerate((1e-6, 1e-4, 1e-2)):  # pose, rate, acceleration of a spline
         np.testing.assert_allclose(from_csv.evaluate(probe)[k], exact[k], atol=tol)
     spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, x.T, False)
     a = run_experiment(Scenario(duration_s=1.0, reference=CsvReference(str(csv))))
     b = run_experiment(Scenario(duration_s=1.0), reference=spline)
     c = run_experiment(Scenario(duration_s=1.0))
-    np.testing.assert_allclose(a.x, b.x, atol=1e-12)              # the same spline both ways
-    np.testing.assert_allclose(a.x[:, :6], c.x[:, :6], atol=5e-6)   # ... close to the analytic
+    np.testing.assert_allclose(a.x, b.x, atol=1e-12)  # the same spline both ways
+    np.testing.assert_allclose(a.x[:, :6], c.x[:, :6], atol=5e-6)  # ... close to the analytic
     with pytest.raises(InvalidConfigError, match=r"ends at t = 1 s"):
         run_experiment(Scenario(duration_s=2.0, reference=CsvReference(str(csv))))
 
@@ -240,12 +251,25 @@ def test_an_evaluate_of_one_time_is_wrapped():
 
 # -- the command ----------------------------------------------------------------------------------
 
+
 def test_cli_runs_a_scenario_file_with_overrides(tmp_path, capsys):
     scenario = tmp_path / "mine.yaml"
-    assert main(["scenario", "paper_ideal", "--set", "duration_s=0.3", "--out",
-                 str(scenario)]) == 0
-    assert main(["run", "--scenario", str(scenario), "--set", "controller.omega_Q=10",
-                 "--out", str(tmp_path / "out"), "--no-progress"]) == 0
+    assert main(["scenario", "paper_ideal", "--set", "duration_s=0.3", "--out", str(scenario)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--scenario",
+                str(scenario),
+                "--set",
+                "controller.omega_Q=10",
+                "--out",
+                str(tmp_path / "out"),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert "gain re-schedules: 31" in capsys.readouterr().out
     data = np.load(tmp_path / "out" / "run_paper.npz")
     assert "omega_Q: 10.0" in str(data["config"]) and data["t"][-1] == pytest.approx(0.3)
@@ -256,10 +280,28 @@ def test_cli_runs_a_scenario_file_with_overrides(tmp_path, capsys):
 
 def test_cli_reference_from_a_csv_file(tmp_path, capsys):
     t = np.arange(0.0, 0.5001, 0.01)
-    np.savetxt(tmp_path / "ref.csv", np.column_stack([t, paper_manoeuvre().evaluate(t)[0]]),
-               delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments="")
-    assert main(["run", "--trajectory-file", str(tmp_path / "ref.csv"), "--duration", "0.5",
-                 "--out", str(tmp_path), "--no-progress"]) == 0
+    np.savetxt(
+        tmp_path / "ref.csv",
+        np.column_stack([t, paper_manoeuvre().evaluate(t)[0]]),
+        delimiter=",",
+        header="t,phi,theta,psi,X,Y,Z",
+        comments="",
+    )
+    assert (
+        main(
+            [
+                "run",
+                "--trajectory-file",
+                str(tmp_path / "ref.csv"),
+                "--duration",
+                "0.5",
+                "--out",
+                str(tmp_path),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     assert (tmp_path / "run_ref.npz").exists()
 
 
@@ -276,20 +318,22 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
     import subprocess
     import sys
 
-    code = ("import sys; sys.modules['torch'] = None\n"
-            "from stewart_drake.interfaces.cli import main\n"
-            "import stewart_drake.studies.evaluation, stewart_drake.studies.collection\n"
-            f"assert main(['run', '--tuner', 'ann', '--duration', '0.1', '--no-progress', "
-            f"'--out', {str(tmp_path)!r}]) == 0\n"
-            # the data are checked first: pretend the folder holds a collection
-            "stewart_drake.studies.collection.load_records = lambda path: [{}, {}]\n"
-            f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n")
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                          timeout=300)
+    code = (
+        "import sys; sys.modules['torch'] = None\n"
+        "from stewart_drake.interfaces.cli import main\n"
+        "import stewart_drake.studies.evaluation, stewart_drake.studies.collection\n"
+        f"assert main(['run', '--tuner', 'ann', '--duration', '0.1', '--no-progress', "
+        f"'--out', {str(tmp_path)!r}]) == 0\n"
+        # the data are checked first: pretend the folder holds a collection
+        "stewart_drake.studies.collection.load_records = lambda path: [{}, {}]\n"
+        f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip().splitlines() == [
         "stewart-drake train: `stewart-drake train` needs torch: pip install "
-        "'stewart-drake[train]' (torch==2.13.0, the CPU build)"]
+        "'stewart-drake[train]' (torch==2.13.0, the CPU build)"
+    ]
     assert (tmp_path / "run_paper_ann.npz").exists()
 
 
@@ -298,11 +342,11 @@ def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
     from stewart_drake.simulation.scenario import use_paper_tuner
 
     scenario = load_scenario("paper_hardware")
-    assert scenario.controller.gain_transfer == "integral"               # ours, the default
+    assert scenario.controller.gain_transfer == "integral"  # ours, the default
     use_paper_tuner(scenario, AnnTunerDriver(period_s=0.04))
     assert scenario.controller.gain_transfer == "none"
     assert isinstance(scenario.tuner, AnnTunerDriver) and scenario.tuner.period_s == 0.04
-    scenario.validate()                                                   # raises if not
+    scenario.validate()  # raises if not
 
 
 def test_the_pose_sensor_reads_the_state_as_drakes_roll_pitch_yaw():
@@ -313,15 +357,22 @@ def test_the_pose_sensor_reads_the_state_as_drakes_roll_pitch_yaw():
 
     sd = make_stewart_diagram(Scenario(duration_s=0.1))
     sensor, plant = sd.sensor, sd.plant
-    states = np.random.default_rng(0).normal(size=(300, plant.num_positions()
-                                                   + plant.num_velocities()))
+    states = np.random.default_rng(0).normal(
+        size=(300, plant.num_positions() + plant.num_velocities())
+    )
 
     def drake(s):
-        q = s[sensor._iq:sensor._iq + 4]
+        q = s[sensor._iq : sensor._iq + 4]
         rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
-        rates = rpy.CalcRpyDtFromAngularVelocityInParent(s[sensor._iv:sensor._iv + 3])
-        return np.concatenate([rpy.vector(), s[sensor._iq + 4:sensor._iq + 7], rates,
-                               s[sensor._iv + 3:sensor._iv + 6]])
+        rates = rpy.CalcRpyDtFromAngularVelocityInParent(s[sensor._iv : sensor._iv + 3])
+        return np.concatenate(
+            [
+                rpy.vector(),
+                s[sensor._iq + 4 : sensor._iq + 7],
+                rates,
+                s[sensor._iv + 3 : sensor._iv + 6],
+            ]
+        )
 
     expected = np.array([drake(s) for s in states])
     np.testing.assert_allclose(sensor.poses_from_states(states), expected, rtol=0, atol=1e-12)

@@ -54,9 +54,9 @@ def test_an_interrupted_collect_resumes_and_train_refuses_it_until_then(tmp_path
 
     second = StopAfter(99)
     manifest = collect(out, duration_s=0.2, runner=second, progress=False)
-    assert sorted(second.ran) == sorted(set(manifest["jobs"]) - set(first.ran))   # only those
+    assert sorted(second.ran) == sorted(set(manifest["jobs"]) - set(first.ran))  # only those
     assert manifest["complete"] and (manifest["ran"], manifest["reused"]) == (5, 4)
-    assert {n: (out / n).stat().st_mtime_ns for n in kept} == kept                # untouched
+    assert {n: (out / n).stat().st_mtime_ns for n in kept} == kept  # untouched
     assert len(load_records(out)) == 9
 
     with pytest.raises(ResultsMismatchError, match="seed 0 there, 1 here"):
@@ -72,49 +72,98 @@ def test_an_interrupted_collect_resumes_and_train_refuses_it_until_then(tmp_path
 
 
 def test_evaluate_keeps_its_rows_and_the_last_report_when_every_case_fails(
-        tmp_path, monkeypatch, capsys, feedforward_fault):
-    monkeypatch.chdir(tmp_path)                  # the guard's default folder is relative
+    tmp_path, monkeypatch, capsys, feedforward_fault
+):
+    monkeypatch.chdir(tmp_path)  # the guard's default folder is relative
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     out = tmp_path / "out"
     with pytest.raises(IncompleteResultsError, match="cases failed"):
-        evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
-                            quick=True, controllers=("lqi_1_1",))
-    assert not (tmp_path / "docs").exists()                      # no report of failures only
+        evaluation.evaluate(
+            tmp_path / "docs",
+            out,
+            runner=SerialRunner(),
+            progress=False,
+            quick=True,
+            controllers=("lqi_1_1",),
+        )
+    assert not (tmp_path / "docs").exists()  # no report of failures only
     rows = sorted((out / "rows").glob("*.json"))
-    n = 10 + 7 + 5          # nominal scenarios, conditions, encoder resolutions (hardware base)
-    assert len(rows) == n                                        # on disk before the report
+    n = 10 + 7 + 5  # nominal scenarios, conditions, encoder resolutions (hardware base)
+    assert len(rows) == n  # on disk before the report
     row = json.loads(rows[0].read_text())
     assert row["error"].startswith("SimulationDivergedError: simulation diverged at t = 0.00")
     dumps = sorted((out / "diverged").glob("diverged_*.npz"))
     assert len(dumps) == n and str(dumps[0].parent) in row["error"]
-    assert not (tmp_path / "results").exists()      # under --out, not the current folder
+    assert not (tmp_path / "results").exists()  # under --out, not the current folder
 
     monkeypatch.setattr(evaluation, "run_case", lambda case, **_: pytest.fail("ran again"))
     (tmp_path / "docs").mkdir()
     (tmp_path / "docs" / "results.md").write_text("the last good report")
     with pytest.raises(IncompleteResultsError, match=rf"all {n} cases failed \(first: Simulat"):
-        evaluation.evaluate(tmp_path / "docs", out, runner=SerialRunner(), progress=False,
-                            quick=True, controllers=("lqi_1_1",))
+        evaluation.evaluate(
+            tmp_path / "docs",
+            out,
+            runner=SerialRunner(),
+            progress=False,
+            quick=True,
+            controllers=("lqi_1_1",),
+        )
     assert (tmp_path / "docs" / "results.md").read_text() == "the last good report"
     assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
-    assert main(["evaluate", "--quick", "--no-tuner-study", "--out", str(out), "--docs",
-                 str(tmp_path / "docs"), "--controllers", "lqi_1_1", "--no-progress"]) == 2
+    assert (
+        main(
+            [
+                "evaluate",
+                "--quick",
+                "--no-tuner-study",
+                "--out",
+                str(out),
+                "--docs",
+                str(tmp_path / "docs"),
+                "--controllers",
+                "lqi_1_1",
+                "--no-progress",
+            ]
+        )
+        == 2
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "the report in" in err[0] and "was not replaced" in err[0]
-    assert main(["evaluate", "--no-tuner-study", "--out", str(out), "--docs",
-                 str(tmp_path / "docs"), "--controllers", "lqi_1_1",
-                 "--no-progress"]) == 2                                 # not --quick
-    assert "holds evaluate results of other settings (quick True there, False here" in \
-        capsys.readouterr().err
+    assert (
+        main(
+            [
+                "evaluate",
+                "--no-tuner-study",
+                "--out",
+                str(out),
+                "--docs",
+                str(tmp_path / "docs"),
+                "--controllers",
+                "lqi_1_1",
+                "--no-progress",
+            ]
+        )
+        == 2
+    )  # not --quick
+    assert (
+        "holds evaluate results of other settings (quick True there, False here"
+        in capsys.readouterr().err
+    )
 
 
 # -- the command line as a user (or CI, or systemd) drives it -------------------------------------
 
+
 def _start(argv, tmp_path):
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]))
-    return subprocess.Popen(CLI + argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    env = dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(
+            [str(REPO)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
+        ),
+    )
+    return subprocess.Popen(
+        CLI + argv, cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
 
 
 def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
@@ -127,24 +176,32 @@ def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
         except (OSError, ValueError):
             jobs = {}
         if sum(v["status"] == "done" for v in jobs.values()) >= n:
-            return [p for p in psutil.Process(proc.pid).children(recursive=True)
-                    if "spawn_main" in " ".join(p.cmdline())]
+            return [
+                p
+                for p in psutil.Process(proc.pid).children(recursive=True)
+                if "spawn_main" in " ".join(p.cmdline())
+            ]
         assert time.monotonic() < deadline, "no result in time"
         time.sleep(0.1)
 
 
-@pytest.mark.parametrize("argv", [["collect", "--duration", "2"],
-                                  ["evaluate", "--quick", "--no-tuner-study", "--controllers",
-                                   "lqi_1_1", "--docs", "docs"]], ids=["collect", "evaluate"])
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["collect", "--duration", "2"],
+        ["evaluate", "--quick", "--no-tuner-study", "--controllers", "lqi_1_1", "--docs", "docs"],
+    ],
+    ids=["collect", "evaluate"],
+)
 def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(tmp_path, argv):
     out = tmp_path / "out"
     proc = _start(argv + ["--out", str(out), "--jobs", "2", "--no-progress"], tmp_path)
     workers = _wait_for_results(proc, out, 1)
-    everything = psutil.Process(proc.pid).children(recursive=True)   # workers, resource tracker
+    everything = psutil.Process(proc.pid).children(recursive=True)  # workers, resource tracker
     assert len(workers) == 2
     proc.send_signal(signal.SIGTERM)
     t0 = time.monotonic()
-    _, err = proc.communicate(timeout=5)        # Popen reaps its child: its exit code stays
+    _, err = proc.communicate(timeout=5)  # Popen reaps its child: its exit code stays
     gone, alive = psutil.wait_procs(everything, timeout=max(0.0, 5 - (time.monotonic() - t0)))
     assert alive == []
     assert proc.returncode == 128 + signal.SIGTERM
@@ -157,8 +214,22 @@ def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(t
 
 def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(tmp_path):
     out = tmp_path / "out"
-    argv = ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--out", str(out),
-            "--docs", str(tmp_path / "docs"), "--jobs", "2", "--retries", "0", "--no-progress"]
+    argv = [
+        "evaluate",
+        "--quick",
+        "--no-tuner-study",
+        "--controllers",
+        "pd",
+        "--out",
+        str(out),
+        "--docs",
+        str(tmp_path / "docs"),
+        "--jobs",
+        "2",
+        "--retries",
+        "0",
+        "--no-progress",
+    ]
     proc = _start(argv, tmp_path)
     workers = _wait_for_results(proc, out, 2)
     workers[0].kill()
@@ -166,10 +237,13 @@ def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(t
     assert proc.returncode == 2 and "have no result" in err, err
     jobs = json.loads((out / "manifest.json").read_text())["jobs"]
     lost = sorted(k for k, v in jobs.items() if v["status"] == "lost")
-    done = {v["file"]: (out / v["file"]).stat().st_mtime_ns for v in jobs.values()
-            if v["status"] == "done"}
-    n = 10 + 7                   # pd: the nominal scenarios and the conditions (no encoders)
-    assert 1 <= len(lost) <= 2 and len(done) + len(lost) == n   # in flight on the broken pool
+    done = {
+        v["file"]: (out / v["file"]).stat().st_mtime_ns
+        for v in jobs.values()
+        if v["status"] == "done"
+    }
+    n = 10 + 7  # pd: the nominal scenarios and the conditions (no encoders)
+    assert 1 <= len(lost) <= 2 and len(done) + len(lost) == n  # in flight on the broken pool
     assert all("a worker process died" in jobs[k]["error"] for k in lost)
 
     rerun = _start(argv, tmp_path)
@@ -178,7 +252,7 @@ def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(t
     assert f"{n} runs ({len(lost)} run now" in stdout and f"{len(done)} found on disk" in stdout
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["complete"] and all(v["status"] == "done" for v in manifest["jobs"].values())
-    assert {f: (out / f).stat().st_mtime_ns for f in done} == done       # not run again
+    assert {f: (out / f).stat().st_mtime_ns for f in done} == done  # not run again
     assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
 
 
@@ -186,8 +260,9 @@ def test_a_folder_of_another_command_or_an_older_layout_is_refused_by_name(tmp_p
     from stewart_drake.execution.store import ResultStore
 
     ResultStore(tmp_path / "c", "collect", {"seed": 0}, pattern="run_*.npz")
-    with pytest.raises(ResultsMismatchError, match="holds results of `stewart-drake collect`, "
-                                                   "not of `evaluate`"):
+    with pytest.raises(
+        ResultsMismatchError, match="holds results of `stewart-drake collect`, not of `evaluate`"
+    ):
         ResultStore(tmp_path / "c", "evaluate", {"quick": True}, pattern="rows/*.json")
     old = tmp_path / "old"
     old.mkdir()

@@ -29,8 +29,10 @@ def meshcat():
 def _pose(run):
     loop = run.loop.diagram
     context = loop.GetMyContextFromRoot(run.simulator.get_context())
-    return (loop.GetOutputPort("platform_state").Eval(context),
-            loop.GetOutputPort("x_d").Eval(context))
+    return (
+        loop.GetOutputPort("platform_state").Eval(context),
+        loop.GetOutputPort("x_d").Eval(context),
+    )
 
 
 def _advance(run, seconds, step=0.05):
@@ -49,23 +51,24 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     limits = ReferenceFilterLimits()
     geometry = make_plan(load_scenario("paper_hardware")).geometry
     # A workspace that ends at Z = 0.31 m: the reference must stop there.
-    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0,
-                       limits=limits,
-                       margins=None)
-    run.reference.admissible = lambda x: admissible_poses(geometry, x) & (np.atleast_2d(x)[:, 5]
-                                                                           <= 0.31)
+    run = build_teleop(
+        load_scenario("paper_hardware"), meshcat, realtime_rate=0.0, limits=limits, margins=None
+    )
+    run.reference.admissible = lambda x: (
+        admissible_poses(geometry, x) & (np.atleast_2d(x)[:, 5] <= 0.31)
+    )
     _advance(run, 0.5)
     x, x_d = _pose(run)
-    np.testing.assert_allclose(x_d[:6], X_HOME, atol=1e-9)         # at rest where it started
+    np.testing.assert_allclose(x_d[:6], X_HOME, atol=1e-9)  # at rest where it started
     meshcat.SetSliderValue("y", 0.03)
     rate, acc = _advance(run, 2.0)
     x, x_d = _pose(run)
-    assert x_d[4] == pytest.approx(0.03, abs=1e-4)                   # the reference arrived
-    assert x[4] == pytest.approx(0.03, abs=5e-4)                     # and the platform with it
-    assert np.all(rate <= np.asarray(limits.rate) + 1e-12)           # rate-limited
-    assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)        # ... and the limit binds
+    assert x_d[4] == pytest.approx(0.03, abs=1e-4)  # the reference arrived
+    assert x[4] == pytest.approx(0.03, abs=5e-4)  # and the platform with it
+    assert np.all(rate <= np.asarray(limits.rate) + 1e-12)  # rate-limited
+    assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)  # ... and the limit binds
     assert np.all(acc <= np.asarray(limits.acceleration) + 1e-9)
-    meshcat.SetSliderValue("z", 0.325)                              # beyond the workspace
+    meshcat.SetSliderValue("z", 0.325)  # beyond the workspace
     _advance(run, 2.0)
     x, x_d = _pose(run)
     assert 0.30 < x_d[5] <= 0.31 and x_d[5] == pytest.approx(0.31, abs=0.03 / 64 + 1e-9)
@@ -75,10 +78,12 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     figures = run.display.figures(display_context)
     peak = make_plan(load_scenario("paper_hardware")).torque_limit_Nm
     assert figures["T margin [N m]"] == pytest.approx(
-        peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9)
+        peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9
+    )
     assert 0.0 <= figures["error [mm]"] < 0.5
     assert meshcat.GetSliderValue("T margin [N m]") == pytest.approx(
-        figures["T margin [N m]"], abs=peak / 10000)
+        figures["T margin [N m]"], abs=peak / 10000
+    )
     meshcat.SetSliderValue("y", 0.0)
     meshcat.SetSliderValue("z", 0.30)
 
@@ -86,28 +91,33 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
 def test_the_default_margins_are_the_holding_torques_against_the_peak():
     geometry = make_plan(load_scenario("paper_hardware")).geometry
     margins = torque_margins(geometry, 0.7)(X_HOME)
-    assert margins == {"T margin [N m]": pytest.approx(
-        0.7 - np.abs(holding_torques(geometry, X_HOME)).max())}
+    assert margins == {
+        "T margin [N m]": pytest.approx(0.7 - np.abs(holding_torques(geometry, X_HOME)).max())
+    }
     assert torque_margins(geometry, None)(X_HOME) == {}
 
 
 def test_teleop_command_runs_for_a_duration(capsys, tmp_path):
-    assert main(["teleop", "--duration", "0.2", "--realtime-rate", "0", "--out",
-                 str(tmp_path)]) == 0
+    assert (
+        main(["teleop", "--duration", "0.2", "--realtime-rate", "0", "--out", str(tmp_path)]) == 0
+    )
     out = capsys.readouterr().out
     assert "http://" in out and "realtime_rate" in out and "over 0.2 s simulated" in out
 
 
 def test_teleop_on_a_taken_port_is_one_line(capsys, tmp_path, meshcat):
-    assert main(["teleop", "--port", str(meshcat.port()), "--duration", "0.1", "--out",
-                 str(tmp_path)]) == 2
+    assert (
+        main(["teleop", "--port", str(meshcat.port()), "--duration", "0.1", "--out", str(tmp_path)])
+        == 2
+    )
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and f"port {meshcat.port()}" in err and "--port" in err
 
 
 @pytest.mark.slow
-@pytest.mark.skipif(chromium_cdp.find_chromium() is None,
-                    reason="needs Chromium (apt-get install chromium)")
+@pytest.mark.skipif(
+    chromium_cdp.find_chromium() is None, reason="needs Chromium (apt-get install chromium)"
+)
 def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path):
     """Headless Chromium opens the live Meshcat page, moves the Z slider as a user would (the
     page's own slider control, whose change travels back over Meshcat's websocket); the
@@ -117,8 +127,9 @@ def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path)
     run_teleop(run, 0.5, report=None)
     with chromium_cdp.HeadlessChromium(meshcat.web_url()) as browser:
         browser.wait_for("typeof viewer !== 'undefined' && 'z' in viewer.gui_controllers", 60)
-        assert browser.evaluate("viewer.gui_controllers['z'].setValue(0.315); "
-                                "viewer.gui_controllers['z'].getValue()") == pytest.approx(0.315)
+        assert browser.evaluate(
+            "viewer.gui_controllers['z'].setValue(0.315); viewer.gui_controllers['z'].getValue()"
+        ) == pytest.approx(0.315)
         stats = run_teleop(run, 4.0, report=None)
         x, x_d = _pose(run)
         shot = browser.screenshot(tmp_path / "teleop.png")

@@ -29,18 +29,33 @@ def synthetic_runs(n=400, seed=0, dt=0.02):
             rho = rng.uniform(0.5, 1.5, (n, 12))
             rho[:, :6] += 0.3 * np.log10(q)
             rho[:, 6:] += 0.3 * np.log10(r)
-            runs.append({"omega_Q": q, "omega_R": r, "t": np.arange(n) * dt, "rho": rho,
-                         "cost_e": rng.uniform(0, 1, n) / q, "cost_u": rng.uniform(0, 1, n) / r})
+            runs.append(
+                {
+                    "omega_Q": q,
+                    "omega_R": r,
+                    "t": np.arange(n) * dt,
+                    "rho": rho,
+                    "cost_e": rng.uniform(0, 1, n) / q,
+                    "cost_u": rng.uniform(0, 1, n) / r,
+                }
+            )
     return runs
 
 
 def test_window_cost_is_eq26_over_windows():
-    t = np.arange(10) * 0.1                      # windows of 0.3 s: samples 0-2, 3-5, 6-8, 9
-    run = {"omega_Q": 1.0, "omega_R": 1.0, "t": t, "rho": np.ones((10, 12)),
-           "cost_e": np.arange(10.0), "cost_u": np.full(10, 0.5)}
+    t = np.arange(10) * 0.1  # windows of 0.3 s: samples 0-2, 3-5, 6-8, 9
+    run = {
+        "omega_Q": 1.0,
+        "omega_R": 1.0,
+        "t": t,
+        "rho": np.ones((10, 12)),
+        "cost_e": np.arange(10.0),
+        "cost_u": np.full(10, 0.5),
+    }
     J = window_cost(run, 2.0, 4.0, 0.3)
-    np.testing.assert_allclose(J, [2 * 3 + 4 * 1.5, 2 * 12 + 4 * 1.5, 2 * 21 + 4 * 1.5,
-                                   2 * 9 + 4 * 0.5])
+    np.testing.assert_allclose(
+        J, [2 * 3 + 4 * 1.5, 2 * 12 + 4 * 1.5, 2 * 21 + 4 * 1.5, 2 * 9 + 4 * 0.5]
+    )
 
 
 def test_paper_labels_are_each_runs_weights():
@@ -48,8 +63,9 @@ def test_paper_labels_are_each_runs_weights():
     ds = build_dataset(runs, "paper")
     assert len(ds) == 270 and ds.rho.shape == (270, 12) and ds.y.shape == (270, 2)
     for i, run in enumerate(runs):
-        np.testing.assert_allclose(ds.y[ds.run_index == i],
-                                   np.log10([[run["omega_Q"], run["omega_R"]]] * 30))
+        np.testing.assert_allclose(
+            ds.y[ds.run_index == i], np.log10([[run["omega_Q"], run["omega_R"]]] * 30)
+        )
     assert ds.info["label_counts"] == {f"{q:g},{r:g}": 30 for q in GRID for r in GRID}
 
 
@@ -60,17 +76,28 @@ def test_best_cost_labels_by_common_weighting():
     # (0.1 x 3 < 1 x 1), so the labels below also show that the common weights decide.
     t = np.arange(40) * 0.01
     cheap, dear = 1.0, 3.0
-    cost = {"A": [cheap, cheap, dear, dear], "B": [dear, dear, cheap, dear],
-            "C": [dear, dear, dear, cheap]}
+    cost = {
+        "A": [cheap, cheap, dear, dear],
+        "B": [dear, dear, cheap, dear],
+        "C": [dear, dear, dear, cheap],
+    }
     weights = {"A": (0.1, 10.0), "B": (10.0, 0.1), "C": (1.0, 1.0)}
-    runs = [{"omega_Q": weights[name][0], "omega_R": weights[name][1], "t": t,
-             "rho": np.ones((40, 12)), "cost_e": np.repeat(cost[name], 10),
-             "cost_u": np.zeros(40)} for name in "ABC"]
+    runs = [
+        {
+            "omega_Q": weights[name][0],
+            "omega_R": weights[name][1],
+            "t": t,
+            "rho": np.ones((40, 12)),
+            "cost_e": np.repeat(cost[name], 10),
+            "cost_u": np.zeros(40),
+        }
+        for name in "ABC"
+    ]
     own = np.array([window_cost(run, run["omega_Q"], run["omega_R"], 0.1) for run in runs])
     assert np.all(np.argmin(own, axis=0) == 0)
     ds = build_dataset(runs, "best_cost", window_s=0.1)
     expected = np.repeat([weights["A"], weights["A"], weights["B"], weights["C"]], 10, axis=0)
-    for i in range(3):                            # every run's samples get the window's winner
+    for i in range(3):  # every run's samples get the window's winner
         np.testing.assert_allclose(ds.y[ds.run_index == i], np.log10(expected))
     assert ds.info["windows_won"] == [2, 1, 1] and ds.info["n_windows"] == 4
     # Weighting only the torque, which is zero everywhere: all tie, the first run wins.
@@ -83,7 +110,7 @@ def test_best_cost_rejects_different_time_bases():
     runs[4]["t"] = runs[4]["t"] * 1.5
     with pytest.raises(InvalidConfigError, match="run 4 has a different time base"):
         build_dataset(runs, "best_cost")
-    build_dataset(runs, "paper")                               # paper mode does not care
+    build_dataset(runs, "paper")  # paper mode does not care
 
 
 def test_malformed_runs_raise():
@@ -113,10 +140,10 @@ def test_r2_scores():
 
 
 def test_training_learns_synthetic_weights(tmp_path):
-    ds = build_dataset(synthetic_runs(n=400), "paper")          # 3600 samples
+    ds = build_dataset(synthetic_runs(n=400), "paper")  # 3600 samples
     threads = torch.get_num_threads()
     model, report = train(ds, seed=0, epochs=60)
-    assert torch.get_num_threads() == threads                   # restored
+    assert torch.get_num_threads() == threads  # restored
     assert report["n_train"] == 2520 and report["n_val"] == 1080
     assert report["train_loss"] < 0.3 * report["train_loss_initial"]
     assert report["val_loss"] < 0.3 * report["val_loss_initial"]
@@ -133,7 +160,6 @@ def test_training_learns_synthetic_weights(tmp_path):
 
 
 def test_too_few_samples_to_split():
-    ds = Dataset(rho=np.ones((2, 12)), y=np.zeros((2, 2)), run_index=np.zeros(2, int),
-                 mode="paper")
+    ds = Dataset(rho=np.ones((2, 12)), y=np.zeros((2, 2)), run_index=np.zeros(2, int), mode="paper")
     with pytest.raises(InvalidConfigError, match="cannot be split"):
         train(ds)

@@ -24,8 +24,16 @@ def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:
         return rng.uniform(-bound, bound, (n_out, n_in)), rng.uniform(-bound, bound, n_out)
 
     (W1, b1), (W2, b2) = linear(10, 12), linear(2, 10)
-    return TunerModel(W1, b1, scale * W2, b2, rng.uniform(0.5, 2, 12), rng.uniform(0.1, 1, 12),
-                      activation, {"note": "test", "val_r2": {"overall": 0.5}})
+    return TunerModel(
+        W1,
+        b1,
+        scale * W2,
+        b2,
+        rng.uniform(0.5, 2, 12),
+        rng.uniform(0.1, 1, 12),
+        activation,
+        {"note": "test", "val_r2": {"overall": 0.5}},
+    )
 
 
 @needs_torch
@@ -40,11 +48,11 @@ def test_numpy_inference_equals_torch(activation):
         y_torch = y_torch.clamp(-1, 1).numpy()
     y_numpy = model.predict_log10(rho)
     np.testing.assert_allclose(y_numpy, y_torch, rtol=0, atol=1e-6)
-    assert np.max(np.abs(y_numpy - y_torch)) < 1e-12          # float64 throughout
-    assert 0 < np.mean(np.abs(y_numpy) == 1.0) < 1             # the clamp was exercised
-    np.testing.assert_allclose(model.predict(rho), 10.0 ** y_numpy, rtol=1e-15)
+    assert np.max(np.abs(y_numpy - y_torch)) < 1e-12  # float64 throughout
+    assert 0 < np.mean(np.abs(y_numpy) == 1.0) < 1  # the clamp was exercised
+    np.testing.assert_allclose(model.predict(rho), 10.0**y_numpy, rtol=1e-15)
     again = TunerModel.from_torch(model.to_torch(), model.x_mean, model.x_std, model.metadata)
-    np.testing.assert_array_equal(again.predict_log10(rho), y_numpy)    # torch round trip
+    np.testing.assert_array_equal(again.predict_log10(rho), y_numpy)  # torch round trip
 
 
 def test_save_load_round_trip(tmp_path):
@@ -55,9 +63,20 @@ def test_save_load_round_trip(tmp_path):
     rho = np.random.default_rng(4).uniform(0, 50, (200, 12))
     np.testing.assert_array_equal(loaded.predict(rho), model.predict(rho))
     assert loaded.metadata == model.metadata and loaded.activation == model.activation
-    with np.load(path, allow_pickle=False) as data:          # plain arrays, no pickle
-        assert set(data.files) == {"W1", "b1", "W2", "b2", "x_mean", "x_std", "log10_min",
-                                   "log10_max", "activation", "format_version", "metadata_json"}
+    with np.load(path, allow_pickle=False) as data:  # plain arrays, no pickle
+        assert set(data.files) == {
+            "W1",
+            "b1",
+            "W2",
+            "b2",
+            "x_mean",
+            "x_std",
+            "log10_min",
+            "log10_max",
+            "activation",
+            "format_version",
+            "metadata_json",
+        }
         assert data["W1"].shape == (10, 12) and data["W2"].shape == (2, 10)
 
 
@@ -101,16 +120,18 @@ class _Stepper:
 
     def step(self, rho):
         self.system.get_rho_input_port().FixValue(self.context, rho)
-        self.simulator.AdvanceTo(self.k * self.period_s + self.period_s / 2)   # update at k T
+        self.simulator.AdvanceTo(self.k * self.period_s + self.period_s / 2)  # update at k T
         self.k += 1
         omega = self.system.get_omega_output_port().Eval(self.context)
         count = self.system.get_nonfinite_count_output_port().Eval(self.context)[0]
         return omega.copy(), count
 
 
-_STEEP = _Stepper(random_model(5, scale=20.0))     # steep network: hits both clamps
-_extreme = st.one_of(st.floats(allow_nan=False, allow_infinity=False),
-                     st.sampled_from([0.0, 1e-300, -1e308, 1e308, 50.0]))
+_STEEP = _Stepper(random_model(5, scale=20.0))  # steep network: hits both clamps
+_extreme = st.one_of(
+    st.floats(allow_nan=False, allow_infinity=False),
+    st.sampled_from([0.0, 1e-300, -1e308, 1e308, 50.0]),
+)
 
 
 @settings(max_examples=300, deadline=None)
@@ -140,7 +161,8 @@ def test_tuner_keeps_last_output_on_non_finite_features(rho):
 def test_tuner_initial_output_and_period():
     stepper = _Stepper(random_model(7), period_s=0.05)
     np.testing.assert_array_equal(
-        stepper.system.get_omega_output_port().Eval(stepper.context), [1.0, 1.0])
+        stepper.system.get_omega_output_port().Eval(stepper.context), [1.0, 1.0]
+    )
     omega, _ = stepper.step(np.ones(12))
     np.testing.assert_array_equal(omega, stepper.system.model.predict(np.ones(12)))
     with pytest.raises(InvalidConfigError):

@@ -22,7 +22,7 @@ def test_data_trajectory_is_deterministic_reachable_and_in_band():
     f = np.array(a.frequency_hz)
     assert np.all((f >= 1) & (f <= 5))
     report = validate(a, StewartGeometry(), 10.0, raise_refused=False)
-    assert report.min_margin["closure"] >= 0.1 - 1e-9          # |L|/sqrt(M^2+N^2) <= 0.9
+    assert report.min_margin["closure"] >= 0.1 - 1e-9  # |L|/sqrt(M^2+N^2) <= 0.9
     acc = np.abs(a.evaluate(np.linspace(0, 10, 2001))[2]).max(axis=0)
     assert np.all(acc <= np.array([30, 30, 30, 3, 3, 3]) * (1 + 1e-9))
 
@@ -32,11 +32,13 @@ def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50():
     period): seed 0 used to leave the crank-joint cone by 0.028 deg at t = 0.644 s."""
     geometry, refused = StewartGeometry(), []
     for seed in range(51):
-        report = validate(data_collection_trajectory(seed), geometry, 10.0, dt=1e-3,
-                          raise_refused=False)
+        report = validate(
+            data_collection_trajectory(seed), geometry, 10.0, dt=1e-3, raise_refused=False
+        )
         if not report.ok:
-            refused.append((seed, str(report.first_violation), report.first_singular_t,
-                            report.first_weak_t))
+            refused.append(
+                (seed, str(report.first_violation), report.first_singular_t, report.first_weak_t)
+            )
     assert refused == []
     # Scaled down to the binding limit, not far inside it: seed 0's crank joint ends
     # 0.018 deg inside its cone (one common factor on the amplitudes, 0.999 of the limit's).
@@ -67,8 +69,14 @@ def test_ann_tuned_run_drives_the_weights_and_tracks():
 
 def test_collect_writes_nine_runs_that_build_both_datasets(tmp_path):
     # The ideal robot: all nine survive (on the robot as built the stiff ones do not, below).
-    manifest = collect(tmp_path, duration_s=0.2, sample_period_s=5e-3, runner=SerialRunner(),
-                       progress=False, base=load_scenario("paper_ideal"))
+    manifest = collect(
+        tmp_path,
+        duration_s=0.2,
+        sample_period_s=5e-3,
+        runner=SerialRunner(),
+        progress=False,
+        base=load_scenario("paper_ideal"),
+    )
     assert len(manifest["runs"]) == 9
     records = load_records(tmp_path)
     pairs = {(r["omega_Q"], r["omega_R"]) for r in records}
@@ -87,6 +95,7 @@ def test_collect_writes_nine_runs_that_build_both_datasets(tmp_path):
 
 def test_train_without_data_says_what_to_run(tmp_path, capsys):
     from stewart_drake.interfaces.cli import main
+
     assert main(["train", "--data", str(tmp_path / "none")]) == 2
     assert "stewart-drake collect" in capsys.readouterr().err
 
@@ -96,9 +105,25 @@ def test_collect_keeps_runs_that_lose_the_platform_as_such(tmp_path, capsys):
     every run is lost; the collection still finishes and says so, and train refuses by name."""
     from stewart_drake.interfaces.cli import main
 
-    assert main(["collect", "--out", str(tmp_path), "--duration", "0.5", "--runner", "serial",
-                 "--no-progress", "--set", "torque_limit_Nm=0.15",
-                 "--set", "guard.allow_infeasible=true"]) == 0
+    assert (
+        main(
+            [
+                "collect",
+                "--out",
+                str(tmp_path),
+                "--duration",
+                "0.5",
+                "--runner",
+                "serial",
+                "--no-progress",
+                "--set",
+                "torque_limit_Nm=0.15",
+                "--set",
+                "guard.allow_infeasible=true",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     manifest = json.loads((tmp_path / "manifest.json").read_text())
     assert manifest["complete"] and all(r["lost"] for r in manifest["runs"])

@@ -27,6 +27,7 @@ from stewart_drake.studies.tuner_report import plot_tuner_tradeoff, render_tuner
 
 # -- tasks -----------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("family", FAMILIES)
 def test_tasks_are_deterministic_valid_and_differ_by_seed(family):
     g = StewartGeometry()
@@ -40,7 +41,7 @@ def test_tasks_are_deterministic_valid_and_differ_by_seed(family):
 
 
 def test_waypoint_rates_and_accelerations_are_the_derivatives_of_the_pose():
-    task = make_task("surgical", 3, 4.0)              # min-jerk segments and tremor sines
+    task = make_task("surgical", 3, 4.0)  # min-jerk segments and tremor sines
     t = np.arange(0.0, 4.0, 1e-4)
     x, v, a = task.reference.evaluate(t)
     np.testing.assert_allclose(np.gradient(x, t, axis=0)[1:-1], v[1:-1], atol=2e-3)
@@ -55,8 +56,10 @@ def test_a_disturbed_hold_stays_within_the_motors_reach():
         task = make_task("disturbed_hold", seed, 3.0, g, peak)
         d = task.disturbance
         t = np.arange(0.0, 3.0, 0.05)
-        worst = max(np.abs(statics.tool_load_torques(g, x, w)).max()
-                    for x, w in zip(task.reference.evaluate(t)[0], d.wrench(t)))
+        worst = max(
+            np.abs(statics.tool_load_torques(g, x, w)).max()
+            for x, w in zip(task.reference.evaluate(t)[0], d.wrench(t))
+        )
         assert worst <= LOAD_MARGIN * peak + 1e-9 and d.magnitude > 0
 
 
@@ -70,7 +73,7 @@ def test_every_task_reference_is_within_the_motors_reach(family):
         x, _, xdd = make_task(family, seed, 3.0, g, peak).reference.evaluate(t)
         T = statics.feedforward_torques(g, x, xdd, mode="inverse_dynamics")
         assert np.abs(T).max() <= LOAD_MARGIN * peak * 1.01
-        assert np.ptp(x[:, :3], axis=0).max() > 0.02           # > 20 mrad of motion
+        assert np.ptp(x[:, :3], axis=0).max() > 0.02  # > 20 mrad of motion
 
 
 def test_bad_task_requests_are_refused_by_name():
@@ -82,16 +85,24 @@ def test_bad_task_requests_are_refused_by_name():
 
 # -- cost, schedules, verdict ----------------------------------------------------------------------
 
+
 def test_window_means_average_each_window():
     t = np.arange(0.0, 1.0, 1e-3)
-    values = np.floor(t / 0.2 + 1e-9)       # 0, 1, 2, 3, 4 per window (t = 0.6 is in the 4th)
+    values = np.floor(t / 0.2 + 1e-9)  # 0, 1, 2, 3, 4 per window (t = 0.6 is in the 4th)
     np.testing.assert_allclose(window_means(t, values, 1.0, ts.WINDOW_S), [0, 1, 2, 3, 4])
 
 
 def _records(costs_e, costs_u):
     """{ratio: record} with window costs (13, n) for e2 and u2."""
-    return {r: {"e2_w": np.asarray(e), "u2_w": np.asarray(u), "e2": float(np.mean(e)),
-                "u2": float(np.mean(u))} for r, e, u in zip(ts.RATIOS, costs_e, costs_u)}
+    return {
+        r: {
+            "e2_w": np.asarray(e),
+            "u2_w": np.asarray(u),
+            "e2": float(np.mean(e)),
+            "u2": float(np.mean(u)),
+        }
+        for r, e, u in zip(ts.RATIOS, costs_e, costs_u)
+    }
 
 
 def test_hindsight_picks_the_best_ratio_of_each_window_and_skips_lost_runs():
@@ -112,19 +123,24 @@ def test_verdict_is_the_paired_difference_to_the_best_fixed_ratio_of_each_task()
     records = {}
     Arm = ts.StudyArm
     for k, task in enumerate(tasks):
-        fixed = {Arm("fixed", ratio=r): {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
-                 for r in ts.RATIOS}
+        fixed = {
+            Arm("fixed", ratio=r): {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
+            for r in ts.RATIOS
+        }
         best = min(v["e2"] for v in fixed.values())
-        records[task] = {**fixed, Arm("ours", lam=0.1): {"e2": 0.7 * best, "u2": 0.0},
-                         Arm("hindsight", lam=0.1): {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
-                         Arm("paper tuner"): {"e2": np.inf, "u2": np.inf}}
+        records[task] = {
+            **fixed,
+            Arm("ours", lam=0.1): {"e2": 0.7 * best, "u2": 0.0},
+            Arm("hindsight", lam=0.1): {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
+            Arm("paper tuner"): {"e2": np.inf, "u2": np.inf},
+        }
     v = ts.verdict(records, tasks, 0.1)
     ours, head = v["controllers"]["ours 0.1"], v["controllers"]["hindsight 0.1"]
     assert ours["arm"] == {"kind": "ours", "ratio": None, "lam": 0.1, "shift": None}
     assert ours["mean"] == pytest.approx(-0.3) and ours["std"] == pytest.approx(0.0, abs=1e-12)
-    assert ours["beats"]                        # 30 % below, beyond a zero spread
-    assert head["mean"] == pytest.approx(-0.06) and not head["beats"]      # not 15 %
-    assert not v["controllers"]["paper tuner"]["beats"]                    # lost: infinite J
+    assert ours["beats"]  # 30 % below, beyond a zero spread
+    assert head["mean"] == pytest.approx(-0.06) and not head["beats"]  # not 15 %
+    assert not v["controllers"]["paper tuner"]["beats"]  # lost: infinite J
 
 
 def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
@@ -137,6 +153,7 @@ def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
 
 # -- our tuner -------------------------------------------------------------------------------------
 
+
 @needs_torch
 def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed():
     """Synthetic windows whose best ratio is 10 when the reference moves and 0.01 when it holds:
@@ -147,14 +164,17 @@ def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed()
     runs = {}
     for task in range(2):
         target = np.where(moving, 1.0, -2.0)
-        e2_w = np.array([(lr - target) ** 2 + 0.1 for lr in log_r])      # (13, n_w)
+        e2_w = np.array([(lr - target) ** 2 + 0.1 for lr in log_r])  # (13, n_w)
         records = {}
         for r in ts.RATIOS:
             x_d = np.zeros((n_w, 18))
-            x_d[:, 6] = np.where(moving, 1.0, 0.0)                       # |rpy_dot| = 1 rad/s
-            records[r] = {"e2_w": e2_w[ts.RATIOS.index(r)], "u2_w": np.zeros(n_w),
-                          "inputs": ratio_tuner_inputs(rng.uniform(0, 2, (n_w, 12)), x_d),
-                          "input_window": np.arange(n_w)}
+            x_d[:, 6] = np.where(moving, 1.0, 0.0)  # |rpy_dot| = 1 rad/s
+            records[r] = {
+                "e2_w": e2_w[ts.RATIOS.index(r)],
+                "u2_w": np.zeros(n_w),
+                "inputs": ratio_tuner_inputs(rng.uniform(0, 2, (n_w, 12)), x_d),
+                "input_window": np.arange(n_w),
+            }
         runs[task] = records
     model = ts.train_ratio_tuner(runs, 0.1, epochs=400)
     x_move, x_hold = np.zeros(18), np.zeros(18)
@@ -166,9 +186,15 @@ def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed()
 
 def test_ratio_tuner_file_round_trips_and_refuses_other_files(tmp_path):
     rng = np.random.default_rng(2)
-    model = RatioTunerModel(rng.normal(size=(4, N_RATIO_INPUTS)), rng.normal(size=4),
-                            rng.normal(size=(1, 4)), rng.normal(size=1),
-                            np.zeros(N_RATIO_INPUTS), np.ones(N_RATIO_INPUTS), {"lambda": 0.1})
+    model = RatioTunerModel(
+        rng.normal(size=(4, N_RATIO_INPUTS)),
+        rng.normal(size=4),
+        rng.normal(size=(1, 4)),
+        rng.normal(size=1),
+        np.zeros(N_RATIO_INPUTS),
+        np.ones(N_RATIO_INPUTS),
+        {"lambda": 0.1},
+    )
     path = save_ratio_tuner(model, tmp_path / "r.npz")
     again = load_ratio_tuner(path)
     inputs = rng.normal(size=(7, N_RATIO_INPUTS))
@@ -190,18 +216,26 @@ def test_weight_schedules_are_checked_by_field():
 
 # -- a small study end to end ----------------------------------------------------------------------
 
+
 @needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
-    monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))     # quick keeps (-1, 1)
+    monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))  # quick keeps (-1, 1)
     monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
     monkeypatch.setattr(ts, "test_tasks", lambda quick=False: [("dash_hold", 100)])
     summary = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
     v = summary["verdicts"]["0.1"]
     labels = set(v["controllers"])
-    assert labels == {"hindsight 0.1", "ours 0.1", "ours closed-loop 0.1", "paper tuner",
-                      "speed schedule", "fixed chosen 0.1", "fixed gain 1"}
+    assert labels == {
+        "hindsight 0.1",
+        "ours 0.1",
+        "ours closed-loop 0.1",
+        "paper tuner",
+        "speed schedule",
+        "fixed chosen 0.1",
+        "fixed gain 1",
+    }
     assert v["best_fixed"]["dash_hold_s100"][0] in (0.1, 1.0, 10.0)
     # fixed: 2 tasks x 3; test baselines 3; hindsight + ours 2; shifts 2 on the training task;
     # ours closed-loop 1. "fixed chosen" reuses the fixed runs.
@@ -213,17 +247,19 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     assert chosen["fixed_means"][str(chosen["fixed_ratio"])] == pytest.approx(1.0)
     point = summary["points"]["dash_hold_s100"][f"fixed {chosen['fixed_ratio']:.3g}"]
     J_best = v["best_fixed"]["dash_hold_s100"][1]
-    assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] == \
-        pytest.approx((point["e2"] + 0.1 * point["u2"]) / J_best - 1.0)
+    assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] == pytest.approx(
+        (point["e2"] + 0.1 * point["u2"]) / J_best - 1.0
+    )
     assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] >= 0.0
     assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
     shipped = load_ratio_tuner(tmp_path / "weights" / "chosen" / "ratio_tuner_lambda0.1.npz")
-    assert shipped.metadata["shift"] == chosen["shift"]                 # the closed-loop choice
+    assert shipped.metadata["shift"] == chosen["shift"]  # the closed-loop choice
     data = shipped.metadata["data"]
     assert data["training_tasks"] == ["dash_hold_s0"] and data["base_scenario"] == "paper_hardware"
     assert len(data["base_scenario_sha256"]) == 64 and data["quick"] is True
-    assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == \
-        json.loads(json.dumps(summary["verdicts"]))
+    assert json.loads((tmp_path / "tuner_study.json").read_text())["verdicts"] == json.loads(
+        json.dumps(summary["verdicts"])
+    )
     monkeypatch.setattr(ts, "study_job", lambda job: pytest.fail("ran again"))
     again = ts.run_tuner_study(tmp_path, SerialRunner(), quick=True, progress=False)
     assert again["verdicts"] == summary["verdicts"]
@@ -234,6 +270,7 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
 
 
 # -- the shipped tuners ----------------------------------------------------------------------------
+
 
 def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
     from stewart_drake.control.tuner import (
@@ -265,8 +302,21 @@ def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     sd = make_stewart_diagram(run_scenario(args))
     assert isinstance(sd.tuner, RatioTuner)
     assert sd.tuner.model.metadata == load_ratio_tuner(DEFAULT_RATIO_TUNER_PATH).metadata
-    assert main(["run", "--tuner", "ratio", "--duration", "0.3", "--no-progress", "--out",
-                 str(tmp_path)]) == 0
+    assert (
+        main(
+            [
+                "run",
+                "--tuner",
+                "ratio",
+                "--duration",
+                "0.3",
+                "--no-progress",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 0
+    )
     assert f"ratio tuner weights: {DEFAULT_RATIO_TUNER_PATH}" in capsys.readouterr().out
     result = load_result(tmp_path / "run_paper_ratio.npz")
     ratio = result.omega[:, 0] / result.omega[:, 1]

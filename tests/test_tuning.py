@@ -16,12 +16,12 @@ from stewart_drake.simulation.scenario import Scenario
 def test_a_tuner_needs_a_controller_with_the_omega_input(tuner):
     with pytest.raises(InvalidConfigError, match="omega input"):
         tuner.validate(PdDriver(), 1e-3)
-    tuner.validate(LqiDriver(), 1e-3)                                    # raises if not
+    tuner.validate(LqiDriver(), 1e-3)  # raises if not
 
 
 def test_a_network_tuner_s_fields_are_checked_by_name(tmp_path):
     with pytest.raises(InvalidConfigError, match="tuner.period_s"):
-        AnnTunerDriver(period_s=0.0105).validate(LqiDriver(), 1e-3)     # not a whole multiple
+        AnnTunerDriver(period_s=0.0105).validate(LqiDriver(), 1e-3)  # not a whole multiple
     with pytest.raises(InvalidConfigError, match=r"tuner.feature_window must be an integer"):
         RatioTunerDriver(feature_window=0).validate(LqiDriver(), 1e-3)
     with pytest.raises(MissingFileError, match="tuner.weights"):
@@ -29,20 +29,31 @@ def test_a_network_tuner_s_fields_are_checked_by_name(tmp_path):
 
 
 def test_a_weight_schedule_drives_omega_held_from_each_time():
-    schedule = WeightSchedule(t=[0.0, 0.05, 0.1], omega_Q=[1.0, 10.0, 0.1],
-                              omega_R=[1.0, 0.1, 10.0])
+    schedule = WeightSchedule(
+        t=[0.0, 0.05, 0.1], omega_Q=[1.0, 10.0, 0.1], omega_R=[1.0, 0.1, 10.0]
+    )
     sd = make_stewart_diagram(Scenario(duration_s=0.2, tuner=schedule))
     source = sd.diagram.GetSubsystemByName("weight_schedule")
     context = source.CreateDefaultContext()
-    for t, expected in ((0.0, [1, 1]), (0.049, [1, 1]), (0.05, [10, 0.1]), (0.12, [0.1, 10]),
-                        (0.2, [0.1, 10])):
+    for t, expected in (
+        (0.0, [1, 1]),
+        (0.049, [1, 1]),
+        (0.05, [10, 0.1]),
+        (0.12, [0.1, 10]),
+        (0.2, [0.1, 10]),
+    ):
         context.SetTime(t)
         np.testing.assert_allclose(source.get_output_port().Eval(context), expected)
     assert sd.tuner is source and sd.features is None
 
 
-@pytest.mark.parametrize("tuner, name", [(AnnTunerDriver(period_s=0.02), "ann_tuner"),
-                                         (RatioTunerDriver(period_s=0.04), "ratio_tuner")])
+@pytest.mark.parametrize(
+    "tuner, name",
+    [
+        (AnnTunerDriver(period_s=0.02), "ann_tuner"),
+        (RatioTunerDriver(period_s=0.04), "ratio_tuner"),
+    ],
+)
 def test_a_network_tuner_adds_its_features_and_logs_them_at_its_period(tuner, name):
     from stewart_drake.studies.experiments import run_experiment
 

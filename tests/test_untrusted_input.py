@@ -49,17 +49,22 @@ def _cli(capsys, argv):
 
 # -- case 1: loading never executes ---------------------------------------------------------------
 
+
 def test_a_scenario_resolves_only_registered_names_and_imports_nothing(tmp_path, monkeypatch):
     (tmp_path / "marking.py").write_text(
         "from pathlib import Path\nPath(__file__).with_name('IMPORTED').touch()\n"
-        "def factory(*a, **k):\n    Path(__file__).with_name('CALLED').touch()\n")
+        "def factory(*a, **k):\n    Path(__file__).with_name('CALLED').touch()\n"
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     path = tmp_path / "shared.yaml"
     path.write_text('controller: !UserController {factory: "marking:factory"}\nduration_s: 0.1\n')
-    scenario = load_scenario(path)                    # loading names, it does not resolve
+    scenario = load_scenario(path)  # loading names, it does not resolve
     assert scenario.controller == UserController("marking:factory")
-    with pytest.raises(InvalidConfigError, match=r"'marking:factory' is an import path, and a "
-                                                 r"scenario never imports code"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"'marking:factory' is an import path, and a "
+        r"scenario never imports code",
+    ):
         contract.resolve_controller(scenario.controller.factory)
     from stewart_drake.simulation.diagram import make_stewart_diagram
 
@@ -74,32 +79,45 @@ def test_a_scenario_resolves_only_registered_names_and_imports_nothing(tmp_path,
     contract.register_controller("mine", mine)
     try:
         assert contract.resolve_controller("mine") is mine
-        with pytest.raises(InvalidConfigError, match=r"'nope' is not a registered controller "
-                                                     r"\(registered: mine\)"):
+        with pytest.raises(
+            InvalidConfigError,
+            match=r"'nope' is not a registered controller "
+            r"\(registered: mine\)",
+        ):
             contract.resolve_controller("nope")
     finally:
         contract.CONTROLLER_REGISTRY.pop("mine")
 
 
 def test_an_entry_point_is_loaded_only_when_named(tmp_path, monkeypatch):
-    site = install_plugin(tmp_path / "site", "sd_ep_demo",
-                          {"demo": "sd_ep_demo:make", "broken": "sd_ep_demo:nothing"},
-                          "from pathlib import Path\nPath(__file__).with_name('IMPORTED').touch()\n"
-                          "def make(context, **p):\n    return 'made'\n")
+    site = install_plugin(
+        tmp_path / "site",
+        "sd_ep_demo",
+        {"demo": "sd_ep_demo:make", "broken": "sd_ep_demo:nothing"},
+        "from pathlib import Path\nPath(__file__).with_name('IMPORTED').touch()\n"
+        "def make(context, **p):\n    return 'made'\n",
+    )
     monkeypatch.syspath_prepend(str(site))
     monkeypatch.setattr(contract, "CONTROLLER_REGISTRY", {})
-    with pytest.raises(InvalidConfigError, match=r"--plugin other: no installed entry point of "
-                                                 r"that name .* \(installed: broken, demo\)"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"--plugin other: no installed entry point of "
+        r"that name .* \(installed: broken, demo\)",
+    ):
         contract.use_entry_point_controllers(["other"])
-    assert not (site / "IMPORTED").exists()            # listing entry points imports nothing
+    assert not (site / "IMPORTED").exists()  # listing entry points imports nothing
     assert contract.use_entry_point_controllers(["demo"]) == ["demo"]
     assert (site / "IMPORTED").exists() and contract.resolve_controller("demo")(None) == "made"
-    with pytest.raises(InvalidConfigError, match=r"--plugin broken: the entry point "
-                                                 r"sd_ep_demo:nothing cannot be loaded"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"--plugin broken: the entry point "
+        r"sd_ep_demo:nothing cannot be loaded",
+    ):
         contract.use_entry_point_controllers(["broken"])
 
 
 # -- case 2: only regular files are replaced; only the tool's temporaries removed ----------------
+
 
 @pytest.fixture
 def specials(tmp_path):
@@ -125,32 +143,40 @@ def test_atomic_write_refuses_every_output_that_is_not_a_regular_file(specials, 
             atomic_write(path, lambda f: f.write(b"x"))
         assert path.lstat().st_mode == mode
     link = tmp_path / "link"
-    link.symlink_to(specials["FIFO"])                 # a symlink is judged by what it points at
+    link.symlink_to(specials["FIFO"])  # a symlink is judged by what it points at
     with pytest.raises(InvalidConfigError, match="FIFO"):
         check_replaceable(link)
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.endswith(".tmp")) == []
-    atomic_write(tmp_path / "fine.txt", lambda f: f.write(b"ok"))   # a regular file: replaced
+    atomic_write(tmp_path / "fine.txt", lambda f: f.write(b"ok"))  # a regular file: replaced
     atomic_write(tmp_path / "fine.txt", lambda f: f.write(b"ok2"))
     assert (tmp_path / "fine.txt").read_bytes() == b"ok2"
 
 
 def test_the_cleanup_removes_only_the_tool_s_temporaries_whose_writer_is_gone(tmp_path):
     host = re.sub(r"[^A-Za-z0-9_]", "_", socket.gethostname())
-    dead = int(subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
-                              capture_output=True, text=True).stdout)
+    dead = int(
+        subprocess.run(
+            [sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True
+        ).stdout
+    )
     sub = tmp_path / "rows"
     sub.mkdir()
-    stale = [tmp_path / f".r.json.{host}-{dead}.a1b2c3d4.tmp",
-             sub / f".x.npz.{host}-{dead}.zz_9yy8x.tmp"]
-    kept = [tmp_path / f".r.json.{host}-{os.getpid()}.a1b2c3d4.tmp",        # a live writer
-            tmp_path / f".r.json.otherhost-{dead}.a1b2c3d4.tmp",            # a shared disk
-            tmp_path / ".notes.tmp", tmp_path / ".a.npz.k2j3h4_a.tmp",      # the user's
-            tmp_path / f".r.json.{host}-{dead}.tooLONGname.tmp",            # not mkstemp's
-            tmp_path / f".r.json.{host}-{dead}.UPPERCAS.tmp"]
+    stale = [
+        tmp_path / f".r.json.{host}-{dead}.a1b2c3d4.tmp",
+        sub / f".x.npz.{host}-{dead}.zz_9yy8x.tmp",
+    ]
+    kept = [
+        tmp_path / f".r.json.{host}-{os.getpid()}.a1b2c3d4.tmp",  # a live writer
+        tmp_path / f".r.json.otherhost-{dead}.a1b2c3d4.tmp",  # a shared disk
+        tmp_path / ".notes.tmp",
+        tmp_path / ".a.npz.k2j3h4_a.tmp",  # the user's
+        tmp_path / f".r.json.{host}-{dead}.tooLONGname.tmp",  # not mkstemp's
+        tmp_path / f".r.json.{host}-{dead}.UPPERCAS.tmp",
+    ]
     for path in stale + kept:
         path.write_bytes(b"x")
         os.utime(path, (time.time() - 3 * 3600,) * 2)
-    fifo = tmp_path / f".f.json.{host}-{dead}.q1w2e3r4.tmp"           # the pattern, not a file
+    fifo = tmp_path / f".f.json.{host}-{dead}.q1w2e3r4.tmp"  # the pattern, not a file
     os.mkfifo(fifo)
     assert sorted(remove_stale_temporaries(tmp_path)) == sorted(stale)
     assert all(p.exists() for p in kept) and stat.S_ISFIFO(fifo.lstat().st_mode)
@@ -158,22 +184,35 @@ def test_the_cleanup_removes_only_the_tool_s_temporaries_whose_writer_is_gone(tm
 
 # -- case 3: every wait bounded --------------------------------------------------------------------
 
-@pytest.mark.parametrize("override, message", [
-    ("simulator.target_realtime_rate=1e-9", r"simulator.target_realtime_rate must be 0 \(as fast "
-                                            r"as possible\) or at least 0.01"),
-    ("simulator.target_realtime_rate=-1", r"target_realtime_rate must be a finite number"),
-    ("simulator.integration_scheme=bogus", r"simulator.integration_scheme must be one of "),
-    ("simulator.start_time=100", r"simulator.start_time must be 0 \(the reference and "
-                                 r"duration_s count from t = 0\), got 100"),
-    ("simulator.max_step_size=0", r"simulator.max_step_size must be a finite number in \(0"),
-    ("simulator.accuracy=nan", r"simulator.accuracy must be a finite number"),
-    ("plant.contact_model=bogus", r"plant: Unknown contact_model: 'bogus'"),
-    ("plant.contact_surface_representation=x", r"plant: Unknown hydroelastic contact "
-                                               r"representation: 'x'"),
-    ("plant.stiction_tolerance=-1", r"plant.stiction_tolerance must be a finite number in \(0"),
-    ("plant.penetration_allowance=0", r"plant.penetration_allowance must be a finite number"),
-    ("plant.sap_near_rigid_threshold=-1", r"plant.sap_near_rigid_threshold must be a finite"),
-])
+
+@pytest.mark.parametrize(
+    "override, message",
+    [
+        (
+            "simulator.target_realtime_rate=1e-9",
+            r"simulator.target_realtime_rate must be 0 \(as fast "
+            r"as possible\) or at least 0.01",
+        ),
+        ("simulator.target_realtime_rate=-1", r"target_realtime_rate must be a finite number"),
+        ("simulator.integration_scheme=bogus", r"simulator.integration_scheme must be one of "),
+        (
+            "simulator.start_time=100",
+            r"simulator.start_time must be 0 \(the reference and "
+            r"duration_s count from t = 0\), got 100",
+        ),
+        ("simulator.max_step_size=0", r"simulator.max_step_size must be a finite number in \(0"),
+        ("simulator.accuracy=nan", r"simulator.accuracy must be a finite number"),
+        ("plant.contact_model=bogus", r"plant: Unknown contact_model: 'bogus'"),
+        (
+            "plant.contact_surface_representation=x",
+            r"plant: Unknown hydroelastic contact "
+            r"representation: 'x'",
+        ),
+        ("plant.stiction_tolerance=-1", r"plant.stiction_tolerance must be a finite number in \(0"),
+        ("plant.penetration_allowance=0", r"plant.penetration_allowance must be a finite number"),
+        ("plant.sap_near_rigid_threshold=-1", r"plant.sap_near_rigid_threshold must be a finite"),
+    ],
+)
 def test_drake_config_values_are_checked_naming_the_field(override, message):
     """Cases 3 and 6: values Drake would hang on, abort on, or answer with a traceback."""
     with pytest.raises(InvalidConfigError, match=message):
@@ -185,11 +224,10 @@ def test_the_real_time_rates_that_are_kept_still_run(monkeypatch):
         load_scenario("paper_ideal", [f"simulator.target_realtime_rate={rate}"])
     from stewart_drake.studies.experiments import run_experiment
 
-    slow = load_scenario("paper_ideal", ["simulator.target_realtime_rate=0.5",
-                                         "duration_s=0.1"])
+    slow = load_scenario("paper_ideal", ["simulator.target_realtime_rate=0.5", "duration_s=0.1"])
     t0 = time.perf_counter()
     result = run_experiment(slow)
-    assert result.metrics["finite"] and time.perf_counter() - t0 >= 0.2   # paced: 0.1 s / 0.5
+    assert result.metrics["finite"] and time.perf_counter() - t0 >= 0.2  # paced: 0.1 s / 0.5
 
 
 def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout():
@@ -197,8 +235,11 @@ def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout()
 
     for kind, option in (("ray", "address"), ("dask", "scheduler")):
         t0 = time.monotonic()
-        with pytest.raises(InvalidConfigError, match=rf"--{option} 127.0.0.1:1: nothing accepts "
-                                                     rf"a connection there within 0.5 s"):
+        with pytest.raises(
+            InvalidConfigError,
+            match=rf"--{option} 127.0.0.1:1: nothing accepts "
+            rf"a connection there within 0.5 s",
+        ):
             make_runner(kind, **{option: "127.0.0.1:1"}, connect_timeout_s=0.5)
         assert time.monotonic() - t0 < 2.0
 
@@ -221,8 +262,11 @@ def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
     runner = runners.RayRunner(address=f"127.0.0.1:{server.getsockname()[1]}")
     t0 = time.monotonic()
     try:
-        with pytest.raises(InvalidConfigError, match=r"it answers, but no Ray cluster joined "
-                                                     r"within 1 s"):
+        with pytest.raises(
+            InvalidConfigError,
+            match=r"it answers, but no Ray cluster joined "
+            r"within 1 s",
+        ):
             runner._join(HangingRay())
     finally:
         release.set()
@@ -246,9 +290,9 @@ def test_workers_ended_mid_result_leave_no_thread_that_holds_the_exit():
     future = pool.submit(_sleep, "a", 1)
     manager = pool.executor._executor_manager_thread
     writer = pool.executor._result_queue._writer
-    os.write(writer.fileno(), struct.pack("!i", 1000) + b"half")   # what the killed one sent
+    os.write(writer.fileno(), struct.pack("!i", 1000) + b"half")  # what the killed one sent
     time.sleep(0.5)
-    assert manager.is_alive()                                          # reading the rest
+    assert manager.is_alive()  # reading the rest
     pool.close([future])
     manager.join(5)
     assert not manager.is_alive()
@@ -268,17 +312,20 @@ def test_sigterm_and_sighup_interrupt_any_command_in_process(capsys, monkeypatch
     old = {s: signal.signal(s, mine) for s in (signal.SIGTERM, signal.SIGHUP)}
     try:
         for signum in (signal.SIGTERM, signal.SIGHUP):
-            def kill_me(*args, **kwargs):
+
+            def kill_me(*args, signum=signum, **kwargs):
                 os.kill(os.getpid(), signum)
                 time.sleep(5)
                 pytest.fail("the signal did not interrupt")
 
             monkeypatch.setattr(experiments, "run_experiment", kill_me)
-            rc, _, err = _cli(capsys, ["run", "--duration", "0.1", "--no-progress", "--out",
-                                       "/tmp/never-written"])
+            rc, _, err = _cli(
+                capsys, ["run", "--duration", "0.1", "--no-progress", "--out", "/tmp/never-written"]
+            )
             assert rc == 128 + signum and err == [
                 f"stewart-drake run: interrupted by {signal.Signals(signum).name}; partial "
-                f"outputs were not written"]
+                f"outputs were not written"
+            ]
             assert signal.getsignal(signum) is mine
         assert pickle.loads(pickle.dumps(Interrupted(signal.SIGTERM))).signum == signal.SIGTERM
     finally:
@@ -288,21 +335,49 @@ def test_sigterm_and_sighup_interrupt_any_command_in_process(capsys, monkeypatch
 
 # -- case 4 and the BOM: reference CSV files -------------------------------------------------------
 
-@pytest.mark.parametrize("data, error, message", [
-    (HEADER + "0,0,0,0,0,0,0.3\n1e300,0,0,0,0,0,0.3\n2e300,0,0,0,0,0,0.3\n", InvalidConfigError,
-     r"the last time is 2e\+300 s; a reference ends by 1e\+07 s"),
-    (HEADER + "0,0,0,0,0,0,0.3\n1e-100,0,0,0,0,0,0.3\n2e-100,0,0,0,0,0,0.3\n", InvalidConfigError,
-     r"samples must be at least 1e-06 s apart; those at t = 0 s and 1e-100 s are 1e-100 s apart"),
-    (bytes(range(256)) * 8, CorruptFileError, r"not UTF-8 text"),
-    ((HEADER + "0,0,0,0,0,0,0.3 # caf\xe9\n").encode("latin-1"), CorruptFileError,
-     r"not UTF-8 text \(invalid continuation byte at byte 43\)"),
-    (HEADER + "x" * 200_000 + "\n", CorruptFileError,
-     r"not CSV \(field larger than field limit \(131072\)\)"),
-    (HEADER + "0,0,0,0,0,0,0.3\n\"a\x00b\n", InvalidConfigError, r"line 3: expected 7 finite"),
-    (HEADER + "0,0,0,0,0,0,3e3\n1,0,0,0,0,0,0.3\n2,0,0,0,0,0,0.3\n", InvalidConfigError,
-     r"has a position beyond 1000 m"),
-], ids=["times-1e300", "times-1e-100", "random-bytes", "latin-1", "field-over-limit", "nul",
-        "km-position"])
+
+@pytest.mark.parametrize(
+    "data, error, message",
+    [
+        (
+            HEADER + "0,0,0,0,0,0,0.3\n1e300,0,0,0,0,0,0.3\n2e300,0,0,0,0,0,0.3\n",
+            InvalidConfigError,
+            r"the last time is 2e\+300 s; a reference ends by 1e\+07 s",
+        ),
+        (
+            HEADER + "0,0,0,0,0,0,0.3\n1e-100,0,0,0,0,0,0.3\n2e-100,0,0,0,0,0,0.3\n",
+            InvalidConfigError,
+            r"samples must be at least 1e-06 s apart; those at t = 0 s and 1e-100 s are "
+            r"1e-100 s apart",
+        ),
+        (bytes(range(256)) * 8, CorruptFileError, r"not UTF-8 text"),
+        (
+            (HEADER + "0,0,0,0,0,0,0.3 # caf\xe9\n").encode("latin-1"),
+            CorruptFileError,
+            r"not UTF-8 text \(invalid continuation byte at byte 43\)",
+        ),
+        (
+            HEADER + "x" * 200_000 + "\n",
+            CorruptFileError,
+            r"not CSV \(field larger than field limit \(131072\)\)",
+        ),
+        (HEADER + '0,0,0,0,0,0,0.3\n"a\x00b\n', InvalidConfigError, r"line 3: expected 7 finite"),
+        (
+            HEADER + "0,0,0,0,0,0,3e3\n1,0,0,0,0,0,0.3\n2,0,0,0,0,0,0.3\n",
+            InvalidConfigError,
+            r"has a position beyond 1000 m",
+        ),
+    ],
+    ids=[
+        "times-1e300",
+        "times-1e-100",
+        "random-bytes",
+        "latin-1",
+        "field-over-limit",
+        "nul",
+        "km-position",
+    ],
+)
 def test_a_damaged_reference_csv_is_one_typed_error(tmp_path, data, error, message):
     path = tmp_path / "ref.csv"
     path.write_bytes(data if isinstance(data, bytes) else data.encode())
@@ -313,8 +388,10 @@ def test_a_damaged_reference_csv_is_one_typed_error(tmp_path, data, error, messa
 
 def test_a_utf8_byte_order_mark_before_the_header_is_read_as_text(tmp_path):
     path = tmp_path / "excel.csv"
-    path.write_bytes(b"\xef\xbb\xbf" + (HEADER + "0,0,0,0,0,0,0.3\n0.5,0,0,0,0,0,0.3\n"
-                                        "1,0,0,0,0,0,0.31\n").encode())
+    path.write_bytes(
+        b"\xef\xbb\xbf"
+        + (HEADER + "0,0,0,0,0,0,0.3\n0.5,0,0,0,0,0,0.3\n1,0,0,0,0,0,0.31\n").encode()
+    )
     reference = load_csv_trajectory(path)
     assert reference.end_time == 1.0
     np.testing.assert_allclose(reference.evaluate(np.array([1.0]))[0][0, 5], 0.31)
@@ -324,19 +401,24 @@ def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
     os.mkfifo(tmp_path / "ref.csv")
     t0 = time.monotonic()
     with pytest.raises(CorruptFileError, match=r"it is a FIFO \(named pipe\), not a regular file"):
-        load_csv_trajectory(tmp_path / "ref.csv")            # would block forever if opened
+        load_csv_trajectory(tmp_path / "ref.csv")  # would block forever if opened
     with open(tmp_path / "big.npz", "wb") as f:
         f.truncate(100 * 10**9)
-    with pytest.raises(CorruptFileError, match=r"ANN tuner weights file: it holds 100 GB, over "
-                                               r"the bound of 16 MB for this kind of file"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"ANN tuner weights file: it holds 100 GB, over "
+        r"the bound of 16 MB for this kind of file",
+    ):
         tuner.load_tuner(tmp_path / "big.npz")
     assert time.monotonic() - t0 < 2.0
 
 
 # -- case 5: the reference is in the memory estimate ---------------------------------------------
 
+
 def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed(
-        tmp_path, capsys, monkeypatch):
+    tmp_path, capsys, monkeypatch
+):
     from stewart_drake import checks
     from stewart_drake.simulation import trajectories
     from stewart_drake.studies.experiments import run_memory_bytes
@@ -344,7 +426,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     path = tmp_path / "long.csv"
     with open(path, "w") as f:
         f.write(HEADER)
-        f.write("0,0,0,0,0,0,0.3\n" * 2_000_000)          # 32 MB, 2e6 rows
+        f.write("0,0,0,0,0,0,0.3\n" * 2_000_000)  # 32 MB, 2e6 rows
     from stewart_drake.simulation.scenario import CsvReference
 
     base = run_memory_bytes(Scenario(duration_s=0.1))
@@ -353,28 +435,59 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: 4e9)
     monkeypatch.setattr(trajectories.csv, "reader", lambda *a, **k: pytest.fail("parsed"))
     t0 = time.monotonic()
-    rc, _, err = _cli(capsys, ["run", "--trajectory-file", str(path), "--duration", "0.1",
-                               "--no-progress", "--out", str(tmp_path / "out")])
+    rc, _, err = _cli(
+        capsys,
+        [
+            "run",
+            "--trajectory-file",
+            str(path),
+            "--duration",
+            "0.1",
+            "--no-progress",
+            "--out",
+            str(tmp_path / "out"),
+        ],
+    )
     assert rc == 2 and len(err) == 1 and time.monotonic() - t0 < 10
-    assert re.search(rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 14 GB "
-                     rf"of memory needed, more than the 4 GB available on this machine; .*sample "
-                     rf"the reference CSV more coarsely", err[0]), err[0]
+    assert re.search(
+        rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 14 GB "
+        rf"of memory needed, more than the 4 GB available on this machine; .*sample "
+        rf"the reference CSV more coarsely",
+        err[0],
+    ), err[0]
     with pytest.raises(InvalidConfigError, match=r"a reference of 2000002 rows"):
-        load_csv_trajectory(path)                          # the loader checks by itself too
+        load_csv_trajectory(path)  # the loader checks by itself too
 
 
 # -- case 6: extreme physics, one typed line -------------------------------------------------------
 
+
 def test_a_robot_the_motors_cannot_move_is_one_typed_line(capsys, tmp_path):
-    rc, _, err = _cli(capsys, ["run", "--scenario", "paper_ideal", "--set",
-                               "robot.platform_mass=1e9", "--duration", "0.01", "--no-progress",
-                               "--out", str(tmp_path)])
+    rc, _, err = _cli(
+        capsys,
+        [
+            "run",
+            "--scenario",
+            "paper_ideal",
+            "--set",
+            "robot.platform_mass=1e9",
+            "--duration",
+            "0.01",
+            "--no-progress",
+            "--out",
+            str(tmp_path),
+        ],
+    )
     assert rc == 2 and len(err) == 1
-    assert re.match(r"stewart-drake run: the LQI's error model fails the Hautus test .*"
-                    r"robot.platform_mass", err[0])
+    assert re.match(
+        r"stewart-drake run: the LQI's error model fails the Hautus test .*"
+        r"robot.platform_mass",
+        err[0],
+    )
 
 
 # -- cases 7 and 9: study files through the checked loaders, each holding its own id --------------
+
 
 def _store(tmp_path, study="evaluate"):
     from stewart_drake.execution.store import ResultStore
@@ -388,12 +501,15 @@ def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
 
     store = _store(tmp_path)
     case = make_case("pd", "step_Z", duration_s=2.5)
-    for value, problem in (({}, "the entry 'case' is missing"),
-                           ([], "a JSON list, not an object"),
-                           ({"case": {**make_case("pd", "step_Z").record(), "duration_s": 2.5}},
-                            "the entry 'rms_error' is missing or not 6 numbers"),
-                           ({"case": case.record(), "error": 3},
-                            "the entry 'error' must be a string")):
+    for value, problem in (
+        ({}, "the entry 'case' is missing"),
+        ([], "a JSON list, not an object"),
+        (
+            {"case": {**make_case("pd", "step_Z").record(), "duration_s": 2.5}},
+            "the entry 'rms_error' is missing or not 6 numbers",
+        ),
+        ({"case": case.record(), "error": 3}, "the entry 'error' must be a string"),
+    ):
         store.put_json(case_id(case), f"rows/{case_id(case)}.json", value)
         with pytest.raises(CorruptFileError, match=re.escape(problem)) as info:
             load_row(store, case_id(case), case)
@@ -413,26 +529,38 @@ def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
 
     store = _store(tmp_path)
     a, b = make_case("pd", "helix", duration_s=4.0), make_case("lqi_1_1", "helix", duration_s=4.0)
-    row = {"rms_error": [0.0] * 6, "peak_error": [0.0] * 6, "peak_torque": [0.1] * 6,
-           "sum_T2_dt": 1.0, "normalized_rms": 0.1, "sum_dT2_dt": 0.1, "max_closure_m": 1e-7}
+    row = {
+        "rms_error": [0.0] * 6,
+        "peak_error": [0.0] * 6,
+        "peak_torque": [0.1] * 6,
+        "sum_T2_dt": 1.0,
+        "normalized_rms": 0.1,
+        "sum_dT2_dt": 0.1,
+        "max_closure_m": 1e-7,
+    }
     for case in (a, b):
-        store.put_json(case_id(case), f"rows/{case_id(case)}.json",
-                       {"case": case.record(), **row})
+        store.put_json(case_id(case), f"rows/{case_id(case)}.json", {"case": case.record(), **row})
     assert load_row(store, case_id(a), a)["case"]["controller"] == "pd"
     store.close()
     path = tmp_path / "out" / MANIFEST
     manifest = json.loads(path.read_text())
     manifest["jobs"][case_id(a)]["file"] = f"rows/{case_id(b)}.json"
     path.write_text(json.dumps(manifest))
-    with pytest.raises(CorruptFileError, match=rf"jobs '{case_id(a)}' and '{case_id(b)}' both "
-                                               rf"name the file 'rows/{case_id(b)}.json'"):
+    with pytest.raises(
+        CorruptFileError,
+        match=rf"jobs '{case_id(a)}' and '{case_id(b)}' both "
+        rf"name the file 'rows/{case_id(b)}.json'",
+    ):
         read_manifest(tmp_path / "out")
     del manifest["jobs"][case_id(b)]
     path.write_text(json.dumps(manifest))
     store = _store(tmp_path)
-    with pytest.raises(CorruptFileError, match=r"it holds the row of another case \(lqi_1_1 \| "
-                                               r"helix \| nominal\), not of pd \| helix \| "
-                                               r"nominal"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"it holds the row of another case \(lqi_1_1 \| "
+        r"helix \| nominal\), not of pd \| helix \| "
+        r"nominal",
+    ):
         load_row(store, case_id(a), a)
     store.close()
 
@@ -446,33 +574,49 @@ def test_a_collection_whose_manifest_swaps_two_runs_is_refused(tmp_path):
     collect(out, duration_s=0.05, runner=SerialRunner(), progress=False)
     manifest = json.loads((out / MANIFEST).read_text())
     runs = manifest["runs"]
-    runs[0]["file"] = runs[1]["file"]                     # one run listed twice, one missed
+    runs[0]["file"] = runs[1]["file"]  # one run listed twice, one missed
     (out / MANIFEST).write_text(json.dumps(manifest))
-    with pytest.raises(CorruptFileError, match=r"it holds the run at omega_Q = 0.1, omega_R = 1, "
-                                               r"not the one its manifest entry names "
-                                               r"\(omega_Q = 0.1, omega_R = 0.1\)"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"it holds the run at omega_Q = 0.1, omega_R = 1, "
+        r"not the one its manifest entry names "
+        r"\(omega_Q = 0.1, omega_R = 0.1\)",
+    ):
         load_records(out)
 
 
 def test_a_truncated_tuner_study_run_is_a_corrupt_file(tmp_path):
     from stewart_drake.studies.tuner_study import load_run
 
-    arrays = {"e2": np.float64(1.0), "u2": np.float64(2.0), "ratio_mean": np.float64(1.0),
-              "wall_s": np.float64(0.1), "e2_w": np.ones(3), "u2_w": np.ones(3),
-              "inputs": np.zeros((2, 16)), "input_window": np.zeros(2),
-              "job_id": np.array("fixed__dash__s0__1")}
+    arrays = {
+        "e2": np.float64(1.0),
+        "u2": np.float64(2.0),
+        "ratio_mean": np.float64(1.0),
+        "wall_s": np.float64(0.1),
+        "e2_w": np.ones(3),
+        "u2_w": np.ones(3),
+        "inputs": np.zeros((2, 16)),
+        "input_window": np.zeros(2),
+        "job_id": np.array("fixed__dash__s0__1"),
+    }
     path = tmp_path / "runs" / "fixed__dash__s0__1.npz"
     path.parent.mkdir()
     buffer = io.BytesIO()
     np.savez(buffer, **arrays)
     path.write_bytes(buffer.getvalue())
     assert load_run(path, "fixed__dash__s0__1")["e2"] == 1.0
-    with pytest.raises(CorruptFileError, match=r"it holds the run 'fixed__dash__s0__1', not "
-                                               r"'fixed__dash__s1__1'"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"it holds the run 'fixed__dash__s0__1', not "
+        r"'fixed__dash__s1__1'",
+    ):
         load_run(path, "fixed__dash__s1__1")
     path.write_bytes(buffer.getvalue()[:300])
-    with pytest.raises(CorruptFileError, match=r"is not a valid tuner study run: not a readable "
-                                               r"\.npz archive \(BadZipFile"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"is not a valid tuner study run: not a readable "
+        r"\.npz archive \(BadZipFile",
+    ):
         load_run(path, "fixed__dash__s0__1")
     lost = path.with_suffix(".json")
     lost.write_text("{}")
@@ -490,68 +634,94 @@ def test_an_edited_settings_hash_says_what_is_wrong(tmp_path):
     manifest = json.loads(path.read_text())
     manifest["settings_hash"] = "0123456789abcdef"
     path.write_text(json.dumps(manifest))
-    with pytest.raises(CorruptFileError, match=r"its settings_hash '0123456789abcdef' is not the "
-                                               r"hash of its settings \('[0-9a-f]{16}'\): one was "
-                                               r"edited; delete the folder"):
+    with pytest.raises(
+        CorruptFileError,
+        match=r"its settings_hash '0123456789abcdef' is not the "
+        r"hash of its settings \('[0-9a-f]{16}'\): one was "
+        r"edited; delete the folder",
+    ):
         read_manifest(tmp_path / "out")
 
 
 # -- case 8: one writer per study folder -----------------------------------------------------------
+
 
 def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
     from stewart_drake.execution.store import LOCK, lock_folder, unlock_folder
 
     folder = tmp_path / "out"
     holder = subprocess.Popen(
-        [sys.executable, "-c", "import sys, time\nfrom stewart_drake.execution.store import "
-         f"lock_folder\nlock_folder({str(folder)!r}, 'collect')\nprint('locked', flush=True)\n"
-         "time.sleep(60)"], stdout=subprocess.PIPE, text=True,
-        env=dict(os.environ, PYTHONPATH=str(REPO)))
+        [
+            sys.executable,
+            "-c",
+            "import sys, time\nfrom stewart_drake.execution.store import "
+            f"lock_folder\nlock_folder({str(folder)!r}, 'collect')\nprint('locked', flush=True)\n"
+            "time.sleep(60)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
     try:
         assert holder.stdout.readline() == "locked\n"
-        with pytest.raises(FolderInUseError, match=rf"{folder} is being written by another study "
-                                                   rf"\(`collect` study, pid {holder.pid} on "):
+        with pytest.raises(
+            FolderInUseError,
+            match=rf"{folder} is being written by another study "
+            rf"\(`collect` study, pid {holder.pid} on ",
+        ):
             _store(tmp_path, "collect")
-        assert not (folder / "manifest.json").exists()        # refused before writing
+        assert not (folder / "manifest.json").exists()  # refused before writing
     finally:
-        holder.kill()                                           # kill -9: the kernel releases
+        holder.kill()  # kill -9: the kernel releases
         holder.wait()
     store = _store(tmp_path, "collect")
     assert f"pid {os.getpid()}" in (folder / LOCK).read_text()
-    lock_folder(folder, "collect")                              # this process again: it holds it
-    store.finish(True)                                          # released at the end
+    lock_folder(folder, "collect")  # this process again: it holds it
+    store.finish(True)  # released at the end
     unlock_folder(folder)
     probe = subprocess.run(
-        [sys.executable, "-c", "from stewart_drake.execution.store import lock_folder\n"
-         f"lock_folder({str(folder)!r}, 'evaluate'); print('ok')"], capture_output=True,
-        text=True, env=dict(os.environ, PYTHONPATH=str(REPO)))
+        [
+            sys.executable,
+            "-c",
+            "from stewart_drake.execution.store import lock_folder\n"
+            f"lock_folder({str(folder)!r}, 'evaluate'); print('ok')",
+        ],
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+    )
     assert probe.stdout == "ok\n", probe.stderr
 
 
 # -- case 10: npz entries bounded after decompression ----------------------------------------------
 
+
 def test_a_weights_file_that_inflates_to_gigabytes_is_refused_before_decompression(tmp_path):
     path = tmp_path / "bomb.npz"
     header = io.BytesIO()
-    np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False,
-                                                  "shape": (12_500_000,)})
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": (12_500_000,)}
+    )
     chunk = bytes(1_000_000)
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as archive:
         with archive.open("W1.npy", "w", force_zip64=True) as member:
             member.write(header.getvalue())
-            for _ in range(100):                               # 100 MB of zeros
+            for _ in range(100):  # 100 MB of zeros
                 member.write(chunk)
     assert path.stat().st_size < 1e6
     tracemalloc.start()
     try:
-        with pytest.raises(CorruptFileError, match=r"its entries hold 100 MB after decompression "
-                                                   r"\('W1.npy': 100 MB\), over the bound of 16 "
-                                                   r"MB for this kind of file"):
+        with pytest.raises(
+            CorruptFileError,
+            match=r"its entries hold 100 MB after decompression "
+            r"\('W1.npy': 100 MB\), over the bound of 16 "
+            r"MB for this kind of file",
+        ):
             tuner.load_tuner(path)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
-    assert peak < 10e6                                          # nothing was inflated
+    assert peak < 10e6  # nothing was inflated
 
 
 def test_read_checked_bounds_every_file_it_reads(tmp_path):
@@ -568,17 +738,23 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
     from stewart_drake.execution.store import read_manifest
     from stewart_drake.studies.experiments import load_result
 
-    loaders = [("reference CSV", load_csv_trajectory), ("scenario file", load_scenario),
-               ("ANN tuner weights file", tuner.load_tuner),
-               ("ratio tuner weights file", tuner.load_ratio_tuner),
-               ("run result file", load_result)]
+    loaders = [
+        ("reference CSV", load_csv_trajectory),
+        ("scenario file", load_scenario),
+        ("ANN tuner weights file", tuner.load_tuner),
+        ("ratio tuner weights file", tuner.load_ratio_tuner),
+        ("run result file", load_result),
+    ]
     t0 = time.monotonic()
     for kind, path in specials.items():
         if kind == "folder":
             continue
         for what, load in loaders:
-            with pytest.raises(CorruptFileError, match=rf"{path} is not a valid {what}: it is a "
-                                                       rf"{kind}"):
+            with pytest.raises(
+                CorruptFileError,
+                match=rf"{path} is not a valid {what}: it is a "
+                rf"{kind}",
+            ):
                 load(path)
     os.mkfifo(specials["folder"] / "manifest.json")
     with pytest.raises(CorruptFileError, match=r"it is a FIFO"):
@@ -588,52 +764,77 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
 
 # -- the low cases ---------------------------------------------------------------------------------
 
+
 def test_a_scenario_file_beyond_the_size_bound_is_refused_unparsed(tmp_path):
     path = tmp_path / "big.yaml"
     path.write_text("tuner: !WeightSchedule\n  t: [" + ", ".join(["0.0"] * 200_000) + "]\n")
     t0 = time.monotonic()
-    with pytest.raises(CorruptFileError, match=rf"it holds 1 MB, over the bound of "
-                                               rf"{MAX_SCENARIO_BYTES / 1e3:.3g} kB"):
+    with pytest.raises(
+        CorruptFileError,
+        match=rf"it holds 1 MB, over the bound of "
+        rf"{MAX_SCENARIO_BYTES / 1e3:.3g} kB",
+    ):
         load_scenario(path)
     assert time.monotonic() - t0 < 1.0
 
 
 def test_a_long_computation_delay_is_refused_where_the_lqi_would_crawl():
-    with pytest.raises(InvalidConfigError, match=r"hardware.computation_delay_periods = 100 with "
-                                                 r"the LQI's delay compensation gives a model of "
-                                                 r"6 x \(3 \+ 100\) = 618 states"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"hardware.computation_delay_periods = 100 with "
+        r"the LQI's delay compensation gives a model of "
+        r"6 x \(3 \+ 100\) = 618 states",
+    ):
         load_scenario("paper_hardware", ["hardware.computation_delay_periods=100"])
     load_scenario("paper_hardware", ["hardware.computation_delay_periods=20"])
-    load_scenario("paper_hardware", ["hardware.computation_delay_periods=100",
-                                     "controller.delay_compensation=false"])
+    load_scenario(
+        "paper_hardware",
+        ["hardware.computation_delay_periods=100", "controller.delay_compensation=false"],
+    )
 
 
 def test_drake_config_fields_can_be_set_and_are_listed():
-    scenario = load_scenario("paper_ideal", ["plant.time_step=0.0005",
-                                             "simulator.target_realtime_rate=2.0"])
+    scenario = load_scenario(
+        "paper_ideal", ["plant.time_step=0.0005", "simulator.target_realtime_rate=2.0"]
+    )
     assert scenario.plant.time_step == 0.0005 and scenario.simulator.target_realtime_rate == 2.0
-    with pytest.raises(InvalidConfigError, match=r"--set plant.time_stp: 'time_stp' is not a "
-                                                 r"field of MultibodyPlantConfig \(fields: "
-                                                 r".*contact_model.*time_step"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=r"--set plant.time_stp: 'time_stp' is not a "
+        r"field of MultibodyPlantConfig \(fields: "
+        r".*contact_model.*time_step",
+    ):
         apply_override(scenario, "plant.time_stp=1")
 
 
-@pytest.mark.parametrize("text, key, lines", [
-    ("duration_s: 1.0\nduration_s: 2.0\n", "duration_s", (1, 2)),
-    ("controller: !LqiDriver\n  omega_Q: 1.0\n  omega_R: 2.0\n  omega_Q: 3.0\n", "omega_Q", (2, 4)),
-])
+@pytest.mark.parametrize(
+    "text, key, lines",
+    [
+        ("duration_s: 1.0\nduration_s: 2.0\n", "duration_s", (1, 2)),
+        (
+            "controller: !LqiDriver\n  omega_Q: 1.0\n  omega_R: 2.0\n  omega_Q: 3.0\n",
+            "omega_Q",
+            (2, 4),
+        ),
+    ],
+)
 def test_a_key_given_twice_is_refused_naming_it(tmp_path, text, key, lines):
     path = tmp_path / "twice.yaml"
     path.write_text(text)
-    with pytest.raises(InvalidConfigError, match=rf"the key '{key}' appears twice in one mapping "
-                                                 rf"\(lines {lines[0]} and {lines[1]}\)"):
+    with pytest.raises(
+        InvalidConfigError,
+        match=rf"the key '{key}' appears twice in one mapping "
+        rf"\(lines {lines[0]} and {lines[1]}\)",
+    ):
         load_scenario(path)
 
 
 def test_anchors_and_merge_keys_are_not_duplicates(tmp_path):
     path = tmp_path / "anchors.yaml"
-    path.write_text("guard: &g {check_period_s: 0.01}\nreference: !NamedReference {name: helix}\n"
-                    "duration_s: 1.0\n")
+    path.write_text(
+        "guard: &g {check_period_s: 0.01}\nreference: !NamedReference {name: helix}\n"
+        "duration_s: 1.0\n"
+    )
     assert load_scenario(path).duration_s == 1.0
 
 
@@ -647,8 +848,7 @@ def test_the_smallest_workspace_sweep_has_finite_extents():
         workspace_summary(StewartGeometry(), 2, jobs=1)
 
 
-def test_a_full_disk_during_run_names_the_file_and_keeps_the_figures(capsys, tmp_path,
-                                                                       monkeypatch):
+def test_a_full_disk_during_run_names_the_file_and_keeps_the_figures(capsys, tmp_path, monkeypatch):
     from stewart_drake import fileio
 
     def full(f, **arrays):
@@ -656,9 +856,11 @@ def test_a_full_disk_during_run_names_the_file_and_keeps_the_figures(capsys, tmp
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(fileio.np, "savez_compressed", full)
-    rc, out, err = _cli(capsys, ["run", "--duration", "0.1", "--no-progress", "--out",
-                                 str(tmp_path)])
-    assert rc == 1 and err == [f"stewart-drake run: [Errno 28] No space left on device: "
-                               f"'{tmp_path / 'run_paper.npz'}'"]
-    assert "RMS tracking error over" in out and "real-time factor" in out   # printed first
-    assert sorted(p.name for p in tmp_path.iterdir()) == []                 # no temporary left
+    rc, out, err = _cli(
+        capsys, ["run", "--duration", "0.1", "--no-progress", "--out", str(tmp_path)]
+    )
+    assert rc == 1 and err == [
+        f"stewart-drake run: [Errno 28] No space left on device: '{tmp_path / 'run_paper.npz'}'"
+    ]
+    assert "RMS tracking error over" in out and "real-time factor" in out  # printed first
+    assert sorted(p.name for p in tmp_path.iterdir()) == []  # no temporary left

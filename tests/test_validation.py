@@ -21,6 +21,7 @@ from stewart_drake.studies.experiments import format_metrics, run_experiment
 
 # -- the controller: omega input and Riccati failures ---------------------------------------------
 
+
 def _controller_alone(omega, duration_s=0.05):
     """An LQI (its Diagram with the contract's ports) simulated alone at home, x = x_d, with
     ``omega`` on its port."""
@@ -44,9 +45,9 @@ def test_a_bad_omega_on_the_port_keeps_the_last_gain(omega):
         controller, status, K, T = _controller_alone(omega)
     assert np.all(np.isfinite(K)) and np.all(np.isfinite(T))
     np.testing.assert_array_equal(K, controller.K_initial)
-    assert status[0:2].tolist() == [1.0, 1.0]           # still the weights of that gain
-    assert status[2] == 1                               # only the initial solve succeeded
-    assert status[3] == 50                              # every one of the 50 steps retried
+    assert status[0:2].tolist() == [1.0, 1.0]  # still the weights of that gain
+    assert status[2] == 1  # only the initial solve succeeded
+    assert status[3] == 50  # every one of the 50 steps retried
     np.testing.assert_allclose(T, holding_torques(StewartGeometry(), X_HOME))
 
 
@@ -60,7 +61,7 @@ def test_a_failed_solve_keeps_the_last_good_gain_and_counts(monkeypatch):
         if calls["n"] > 3:
             raise RiccatiSolveError("forced failure")
         K, J = original(self, x, omega_Q, omega_R, None)
-        K = K * (1.0 + 0.01 * calls["n"])                                      # each one differs
+        K = K * (1.0 + 0.01 * calls["n"])  # each one differs
         good["last"] = K
         return K, J
 
@@ -69,7 +70,7 @@ def test_a_failed_solve_keeps_the_last_good_gain_and_counts(monkeypatch):
         controller, status, K, T = _controller_alone((1.0, 1.0), duration_s=0.1)
     np.testing.assert_array_equal(K, good["last"])
     assert not np.array_equal(K, controller.K_initial)
-    assert status[2] == 1 + 3 and status[3] == 10 - 3    # 10 schedules: 3 solved, 7 failed
+    assert status[2] == 1 + 3 and status[3] == 10 - 3  # 10 schedules: 3 solved, 7 failed
     assert np.all(np.isfinite(T))
 
 
@@ -85,25 +86,30 @@ def test_failures_in_a_closed_loop_run_are_reported(monkeypatch, tmp_path):
 
     monkeypatch.setattr(LqiController, "_gain", every_other)
     with pytest.warns(RuntimeWarning):
-        result = run_experiment(Scenario(duration_s=0.2, guard=GuardConfig(
-            divergence_dir=str(tmp_path))))
+        result = run_experiment(
+            Scenario(duration_s=0.2, guard=GuardConfig(divergence_dir=str(tmp_path)))
+        )
     # 0.2 s / 10 ms: 20 or 21 schedules (t = 0.2 s included or not), every other one failed;
     # gain_solves also counts the solve at build time (lqi_gain, not gain()).
     failures = result.metrics["gain_failures"]
-    assert failures == int(result.status[-1, result.status_names.index("gain_failures")]) \
-        == calls["n"] // 2 and failures >= 10
+    assert (
+        failures
+        == int(result.status[-1, result.status_names.index("gain_failures")])
+        == calls["n"] // 2
+        and failures >= 10
+    )
     assert result.metrics["gain_solves"] + failures == calls["n"] + 1
     assert f"({failures} failed, last good gain kept)" in format_metrics(result.metrics)
     assert result.metrics["finite"] and max(result.metrics["rms_error"]) < 1e-3
 
 
 def test_no_stabilizing_solution_is_a_riccati_error():
-    A, B = error_model(np.zeros((6, 6)), 1e-3)          # B = 0: no torque moves anything
+    A, B = error_model(np.zeros((6, 6)), 1e-3)  # B = 0: no torque moves anything
     with pytest.raises(RiccatiSolveError, match="DiscreteAlgebraicRiccatiEquation failed"):
         lqi_gain(A, B, np.eye(18), np.eye(6))
     A, B = error_model(np.eye(6), 1e-3)
     with pytest.raises(RiccatiSolveError):
-        lqi_gain(A, B, np.eye(18), -np.eye(6))           # R not positive definite
+        lqi_gain(A, B, np.eye(18), -np.eye(6))  # R not positive definite
 
 
 def test_a_singular_input_matrix_is_a_typed_error(monkeypatch):

@@ -26,22 +26,36 @@ DURATION = 0.3
 def replay(tmp_path_factory):
     out = tmp_path_factory.mktemp("replay")
     html = out / "replay.html"
-    code = main(["run", "--duration", str(DURATION), "--html", str(html), "--out", str(out),
-                 "--no-progress"])
+    code = main(
+        [
+            "run",
+            "--duration",
+            str(DURATION),
+            "--html",
+            str(html),
+            "--out",
+            str(out),
+            "--no-progress",
+        ]
+    )
     assert code == 0
     text = html.read_text()
-    return {"html": html, "text": text, "commands": read_meshcat_commands(text),
-            "result": load_result(out / "run_paper.npz")}
+    return {
+        "html": html,
+        "text": text,
+        "commands": read_meshcat_commands(text),
+        "result": load_result(out / "run_paper.npz"),
+    }
 
 
 def test_frame_indices_pick_the_nearest_logged_sample():
-    t = np.arange(1001) * 1e-3                             # 1 kHz log over 1 s
+    t = np.arange(1001) * 1e-3  # 1 kHz log over 1 s
     frame_times, idx = visualize.frame_indices(t, 30.0)
     assert len(frame_times) == 31 and frame_times[-1] == pytest.approx(1.0)
     np.testing.assert_array_equal(idx, np.round(np.arange(31) / 30 * 1e3).astype(int))
     frame_times, idx = visualize.frame_indices(np.array([0.0, 0.1, 0.25]), 10.0)
     np.testing.assert_allclose(frame_times, [0.0, 0.1, 0.2])
-    np.testing.assert_array_equal(idx, [0, 1, 2])           # 0.2 is nearer 0.25 than 0.1
+    np.testing.assert_array_equal(idx, [0, 1, 2])  # 0.2 is nearer 0.25 than 0.1
     with pytest.raises(InvalidConfigError, match="fps"):
         visualize.frame_indices(t, 0.0)
     with pytest.raises(InvalidConfigError, match="no logged samples"):
@@ -66,18 +80,26 @@ def test_replay_html_is_standalone_and_small(replay):
 def test_replay_shows_only_the_illustration_geometry(replay):
     from stewart_drake.model.parts import robot_parts
 
-    objects = sorted(c["path"].split("rotary_stewart/", 1)[1]
-                     for c in replay["commands"]
-                     if c["type"] == "set_object" and "rotary_stewart/" in c["path"])
+    objects = sorted(
+        c["path"].split("rotary_stewart/", 1)[1]
+        for c in replay["commands"]
+        if c["type"] == "set_object" and "rotary_stewart/" in c["path"]
+    )
     expected = sorted(f"{p.link}/{p.name}" for p in robot_parts())
     assert [o.split("/", 1)[0] + "/" + o.rsplit("/", 1)[1] for o in objects] == expected
-    markers = [c["path"] for c in replay["commands"] if c["type"] == "set_object"
-               and "rotary_stewart/" not in c["path"]]
-    assert markers == [f"/drake/{visualize.REPLAY_PREFIX}_contacts/{j}"
-                       for j in range(visualize.CONTACT_MARKERS)]
-    assert all(c["path"].startswith(f"/drake/{visualize.REPLAY_PREFIX}/")
-               for c in replay["commands"]
-               if c["type"] == "set_object" and "rotary_stewart/" in c["path"])
+    markers = [
+        c["path"]
+        for c in replay["commands"]
+        if c["type"] == "set_object" and "rotary_stewart/" not in c["path"]
+    ]
+    assert markers == [
+        f"/drake/{visualize.REPLAY_PREFIX}_contacts/{j}" for j in range(visualize.CONTACT_MARKERS)
+    ]
+    assert all(
+        c["path"].startswith(f"/drake/{visualize.REPLAY_PREFIX}/")
+        for c in replay["commands"]
+        if c["type"] == "set_object" and "rotary_stewart/" in c["path"]
+    )
     # The paper run keeps every pair of parts apart: the contact markers never show.
     (animation,) = [c for c in replay["commands"] if c["type"] == "set_animation"]
     assert not [a for a in animation["animations"] if "_contacts" in a["path"]]
@@ -100,16 +122,19 @@ def test_replay_marks_the_parts_that_touch(tmp_path):
     meshcat = Meshcat()
     visualize.record_states(meshcat, StewartGeometry(), t, states, fps=30.0)
     html = visualize.write_static_html(meshcat, tmp_path / "touch.html")
-    (animation,) = [c for c in read_meshcat_commands(html.read_text())
-                    if c["type"] == "set_animation"]
-    tracks = {a["path"]: {tr["name"]: tr["keys"] for tr in a["clip"]["tracks"]}
-              for a in animation["animations"]}
+    (animation,) = [
+        c for c in read_meshcat_commands(html.read_text()) if c["type"] == "set_animation"
+    ]
+    tracks = {
+        a["path"]: {tr["name"]: tr["keys"] for tr in a["clip"]["tracks"]}
+        for a in animation["animations"]
+    }
     marker = f"/drake/{visualize.REPLAY_PREFIX}_contacts/0"
     visible = tracks[marker][".visible"]
     colours = tracks[marker + "/<object>"][".color"]
     assert visible[0]["value"] is True and 0 < visible[0]["time"] < 30
-    assert colours[0]["value"][:3] == [1.0, 0.6, 0.0]              # near first
-    assert colours[-1]["value"][:3] == [1.0, 0.0, 0.0]             # then touching
+    assert colours[0]["value"][:3] == [1.0, 0.6, 0.0]  # near first
+    assert colours[-1]["value"][:3] == [1.0, 0.0, 0.0]  # then touching
     # The marker sits between the rod and the hub plate's rim (r ~ 0.125 m, z ~ 0).
     end = np.array(tracks[marker][".position"][-1]["value"])
     assert abs(end[2]) < 0.02 and 0.11 < np.hypot(end[0], end[1]) < 0.14
@@ -118,14 +143,16 @@ def test_replay_marks_the_parts_that_touch(tmp_path):
 def test_replay_animation_follows_the_logged_run(replay):
     (animation,) = [c for c in replay["commands"] if c["type"] == "set_animation"]
     tracks = {a["path"].rsplit("/", 1)[1]: a["clip"] for a in animation["animations"]}
-    assert {f"crank_{i}" for i in range(6)} | {f"rod_{i}" for i in range(6)} | {"platform"} \
-        <= set(tracks)
+    assert {f"crank_{i}" for i in range(6)} | {f"rod_{i}" for i in range(6)} | {"platform"} <= set(
+        tracks
+    )
     n_frames = int(DURATION * visualize.REPLAY_FPS) + 1
     clip = tracks["platform"]
     assert clip["fps"] == visualize.REPLAY_FPS
-    position, quaternion = ({t["name"]: t["keys"] for t in clip["tracks"]}[k]
-                            for k in (".position", ".quaternion"))
-    assert [k["time"] for k in position] == list(range(n_frames))   # no frame lost or doubled
+    position, quaternion = (
+        {t["name"]: t["keys"] for t in clip["tracks"]}[k] for k in (".position", ".quaternion")
+    )
+    assert [k["time"] for k in position] == list(range(n_frames))  # no frame lost or doubled
     result = replay["result"]
     for k in (0, n_frames // 2, n_frames - 1):
         i = int(np.argmin(np.abs(result.t - k / visualize.REPLAY_FPS)))
@@ -142,12 +169,14 @@ def test_record_states_refuses_states_of_another_shape():
     from pydrake.geometry import Meshcat
 
     with pytest.raises(InvalidConfigError, match="same geometry"):
-        visualize.record_states(Meshcat(), make_plan(Scenario()).geometry, np.arange(3) * 1e-3,
-                                np.zeros((3, 5)))
+        visualize.record_states(
+            Meshcat(), make_plan(Scenario()).geometry, np.arange(3) * 1e-3, np.zeros((3, 5))
+        )
 
 
 def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
-        tmp_path, monkeypatch, feedforward_fault):
+    tmp_path, monkeypatch, feedforward_fault
+):
     """The HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
     from stewart_drake.errors import SimulationDivergedError
@@ -155,40 +184,47 @@ def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
     from stewart_drake.simulation.scenario import PdDriver, _scenario_from_yaml, dump_scenario
 
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
-    scenario = Scenario(duration_s=0.2, torque_limit_Nm=0.7, payload_scale=1.5,
-                        guard=GuardConfig(divergence_dir=str(tmp_path / "diverged")))
+    scenario = Scenario(
+        duration_s=0.2,
+        torque_limit_Nm=0.7,
+        payload_scale=1.5,
+        guard=GuardConfig(divergence_dir=str(tmp_path / "diverged")),
+    )
     with pytest.raises(SimulationDivergedError, match="the motor torques are not finite") as info:
         visualize.record_html(scenario, tmp_path / "replay.html")
     assert not (tmp_path / "replay.html").exists()
     with np.load(info.value.path, allow_pickle=False) as saved:
         back = _scenario_from_yaml(str(saved["scenario"]))
         applied, commanded = saved["T_applied_last"], saved["T_last"]
-    assert dump_scenario(back) == dump_scenario(scenario) and not isinstance(back.controller,
-                                                                            PdDriver)
+    assert dump_scenario(back) == dump_scenario(scenario) and not isinstance(
+        back.controller, PdDriver
+    )
     assert (back.torque_limit_Nm, back.payload_scale) == (0.7, 1.5)
-    assert np.all(np.isinf(commanded)) and np.all(applied == 0.7)   # the limit clipped it
+    assert np.all(np.isinf(commanded)) and np.all(applied == 0.7)  # the limit clipped it
 
 
 def test_committed_diagram_pictures_are_current():
     dots = visualize.diagram_dots()
-    assert {"control_loop", "diagram_fixed", "diagram_ann", "station",
-            "lqi_controller"} <= set(dots)
+    assert {"control_loop", "diagram_fixed", "diagram_ann", "station", "lqi_controller"} <= set(
+        dots
+    )
     for name, dot in dots.items():
         dot_path = DIAGRAMS / f"{name}.dot"
         svg_path = dot_path.with_suffix(".svg")
         hint = "run `stewart-drake diagrams` (with Graphviz installed) and commit diagrams/"
         assert dot_path.exists() and dot_path.read_text() == dot, f"{dot_path} is stale: {hint}"
         assert svg_path.exists(), f"{svg_path} is missing: {hint}"
-        assert visualize.svg_dot_hash(svg_path.read_text()) == visualize.dot_hash(dot), \
+        assert visualize.svg_dot_hash(svg_path.read_text()) == visualize.dot_hash(dot), (
             f"{svg_path} was rendered from another .dot: {hint}"
+        )
 
 
 def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
     first, second = (make_stewart_diagram(Scenario()).diagram for _ in range(2))
     raw = [d.GetGraphvizString(max_depth=1) for d in (first, second)]
-    assert raw[0] != raw[1]                               # Drake's system ids differ ...
+    assert raw[0] != raw[1]  # Drake's system ids differ ...
     dots = [visualize.normalize_dot(r) for r in raw]
-    assert dots[0] == dots[1]                             # ... the normalized text does not
+    assert dots[0] == dots[1]  # ... the normalized text does not
     # every connection, and the exported input (tool_wrench, fixed in the Context) to the station
     assert dots[0].count(" -> ") == len(first.connection_map()) + first.num_input_ports()
     for name in ("station", "controller", "reference", "feedforward", "omega", "log_T"):
@@ -200,11 +236,16 @@ def test_control_loop_picture_shows_the_ports_in_use_only():
     dot = visualize.control_loop_dot(sd.diagram)
     assert '"controller":"out_T" -> "station":"in_motor_torque" [label="T (6)"' in dot
     assert '"station":"out_platform_state" -> "controller":"in_x"' in dot
-    assert '"inputs":"out_tool_wrench" -> "station":"in_tool_wrench"' in dot   # exported
-    assert "log_" not in dot                                # loggers left out
-    assert "motor_rate" not in dot                          # a station port the LQI does not use
-    assert dot.count(" -> ") == sum(1 for (dst, _) in sd.diagram.connection_map()
-                                    if type(dst).__name__ != "VectorLogSink") + 1
+    assert '"inputs":"out_tool_wrench" -> "station":"in_tool_wrench"' in dot  # exported
+    assert "log_" not in dot  # loggers left out
+    assert "motor_rate" not in dot  # a station port the LQI does not use
+    assert (
+        dot.count(" -> ")
+        == sum(
+            1 for (dst, _) in sd.diagram.connection_map() if type(dst).__name__ != "VectorLogSink"
+        )
+        + 1
+    )
 
 
 def test_pictures_draw_the_default_scenario_and_label_the_ideal_one():
@@ -229,8 +270,11 @@ def test_the_station_picture_leaves_out_the_ports_nobody_connects():
     sd = make_stewart_diagram(Scenario())
     dot = visualize.wiring_dot(sd.station)
     plant = sd.station.plant
-    connected = {src.get_output_port(j).get_name() for (_, _), (src, j)
-                 in sd.station.connection_map().items() if src is plant}
+    connected = {
+        src.get_output_port(j).get_name()
+        for (_, _), (src, j) in sd.station.connection_map().items()
+        if src is plant
+    }
     unused = {plant.get_output_port(k).get_name() for k in range(plant.num_output_ports())}
     unused -= connected | {"state"}
     assert unused and not any(f"out_{name}" in dot for name in unused)
@@ -246,6 +290,5 @@ def test_svg_rendering_needs_graphviz_and_says_so(monkeypatch):
 def test_diagrams_cli_writes_the_dot_sources(tmp_path):
     assert main(["diagrams", "--dot-only", "--out", str(tmp_path)]) == 0
     for name in ("diagram_fixed", "diagram_ann", "lqi_controller"):
-        assert (tmp_path / f"{name}.dot").read_text() == \
-            (DIAGRAMS / f"{name}.dot").read_text()
+        assert (tmp_path / f"{name}.dot").read_text() == (DIAGRAMS / f"{name}.dot").read_text()
     assert not list(tmp_path.glob("*.svg"))

@@ -27,6 +27,7 @@ def _paper(n=4001, duration=10.0, scale=1.0):
 
 # --- singularity measure ---------------------------------------------------------------------
 
+
 def test_singularity_measures_equal_numpy_svd(geometry, random_poses):
     cond, inv = kinematics.singularity_measures(geometry, random_poses)
     J = kinematics.jacobian(geometry, random_poses)
@@ -45,11 +46,14 @@ def _closure_edge(geometry, direction):
     return lo
 
 
-@pytest.mark.parametrize("direction, cond_blows_up", [
-    ([0, 0, 0, 0, 1, 0], True),        # sideways: one leg stretches out first
-    ([0, 0, 0, 0.3, 0.5, 0.4], True),
-    ([0, 0, 0, 0, 0, -1], False),      # pure heave: all six rows of J grow together
-])
+@pytest.mark.parametrize(
+    "direction, cond_blows_up",
+    [
+        ([0, 0, 0, 0, 1, 0], True),  # sideways: one leg stretches out first
+        ([0, 0, 0, 0.3, 0.5, 0.4], True),
+        ([0, 0, 0, 0, 0, -1], False),  # pure heave: all six rows of J grow together
+    ],
+)
 def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, cond_blows_up):
     """Towards a leg's dead point sigma_min(J^-1) -> 0; cond(J) -> inf unless all legs at once."""
     direction = np.array(direction, dtype=float)
@@ -65,10 +69,11 @@ def test_singularity_measures_at_the_edge_of_the_workspace(geometry, direction, 
     unreachable = kinematics.singularity_measures_unchecked(geometry, beyond)
     assert np.isnan(unreachable[0]) and np.isnan(unreachable[1])
     with pytest.raises(UnreachablePoseError, match=r"\|L\|/sqrt\(M\^2\+N\^2\) = 1\.0"):
-        kinematics.singularity_measures(geometry, beyond)        # typed, not NaN
+        kinematics.singularity_measures(geometry, beyond)  # typed, not NaN
 
 
 # --- limits ----------------------------------------------------------------------------------
+
 
 def test_home_margins_are_the_documented_angles(geometry):
     report = limits.is_reachable(geometry, X_HOME)
@@ -76,17 +81,23 @@ def test_home_margins_are_the_documented_angles(geometry):
     m = {k: np.rad2deg(v) for k, v in report.margins.items()}
     theta_home = np.rad2deg(kinematics.ik(geometry, X_HOME))
     np.testing.assert_allclose(m["motor_angle"], 90 - np.abs(theta_home), atol=1e-12)
-    np.testing.assert_allclose(m["crank_joint"], 35 - 19.351, atol=1e-3)   # rod end at 19.35 deg
-    np.testing.assert_allclose(m["platform_joint"], 40, atol=1e-6)         # socket along home rod
+    np.testing.assert_allclose(m["crank_joint"], 35 - 19.351, atol=1e-3)  # rod end at 19.35 deg
+    np.testing.assert_allclose(m["platform_joint"], 40, atol=1e-6)  # socket along home rod
 
 
-@pytest.mark.parametrize("change, x, limit", [
-    ({}, [0, 0, 0, 0, 0, 0.60], "closure"),
-    ({"motor_angle_min_deg": -10, "motor_angle_max_deg": 10}, [0, 0, 0, 0, 0, 0.36],
-     "motor_angle"),
-    ({"crank_joint_cone_deg": 20}, [0, 0, 0, 0.05, 0, 0.30], "crank_joint"),
-    ({}, [0.7, 0, 0, 0, 0, 0.30], "platform_joint"),
-])
+@pytest.mark.parametrize(
+    "change, x, limit",
+    [
+        ({}, [0, 0, 0, 0, 0, 0.60], "closure"),
+        (
+            {"motor_angle_min_deg": -10, "motor_angle_max_deg": 10},
+            [0, 0, 0, 0, 0, 0.36],
+            "motor_angle",
+        ),
+        ({"crank_joint_cone_deg": 20}, [0, 0, 0, 0.05, 0, 0.30], "crank_joint"),
+        ({}, [0.7, 0, 0, 0, 0, 0.30], "platform_joint"),
+    ],
+)
 def test_is_reachable_names_leg_limit_and_margin(geometry, change, x, limit):
     g = geometry.replace(**change)
     report = limits.is_reachable(g, x)
@@ -96,7 +107,7 @@ def test_is_reachable_names_leg_limit_and_margin(geometry, change, x, limit):
     assert worst.margin == pytest.approx(report.margins[limit][worst.leg])
     assert worst.margin == pytest.approx(report.margins[limit].min())
     assert f"leg {worst.leg} exceeds its {limit} limit" in str(worst)
-    if limit == "motor_angle":                        # independent: the IK angle itself
+    if limit == "motor_angle":  # independent: the IK angle itself
         theta = np.rad2deg(kinematics.ik(g, x))
         assert np.rad2deg(worst.margin) == pytest.approx(10 - np.abs(theta).max())
 
@@ -113,8 +124,11 @@ def test_is_reachable_is_vectorized(geometry, random_poses):
 def test_limit_margins_refuse_unreachable_and_nan_poses(geometry):
     """Typed errors at the public entry point, NaN only in the sweeps' variant."""
     far = [0, 0, 0, 0, 0, 0.60]
-    with pytest.raises(UnreachablePoseError, match=r"leg \d cannot reach the pose \(pose .*0\.6\]\)"
-                                                   r": \|L\|/sqrt\(M\^2\+N\^2\) = 2\.155 > 1"):
+    with pytest.raises(
+        UnreachablePoseError,
+        match=r"leg \d cannot reach the pose \(pose .*0\.6\]\)"
+        r": \|L\|/sqrt\(M\^2\+N\^2\) = 2\.155 > 1",
+    ):
         limits.limit_margins(geometry, np.array([X_HOME, far]))
     assert np.all(limits.limit_margins_unchecked(geometry, far)["closure"] < 0)
     for bad in ([0, 0, np.nan, 0, 0, 0.3], [0, 0, 0, 0, 0, 0.3, 0]):
@@ -139,34 +153,51 @@ def test_the_reach_ratio_is_printed_as_its_absolute_value(geometry):
     assert info.value.ratio == pytest.approx(np.abs(ratio).max()) and "= -" not in str(info.value)
 
 
-@pytest.mark.parametrize("make, message", [
-    (lambda: trajectories.StepTrajectory(offset=(0, 0, 0, 0, 0, np.nan)),
-     r"step: offset has a non-finite value nan at index \(5,\)"),
-    (lambda: trajectories.ChirpTrajectory(offset=(0, 0, 0, np.inf, 0, 0.3)),
-     r"sweep: offset has a non-finite value inf"),
-    (lambda: trajectories.SineTrajectory(offset=(np.nan,) * 6), r"sine: offset has a non-finite"),
-    (lambda: trajectories.StepTrajectory(offset=(0, 0, 0.3)), r"offset must have shape"),
-    (lambda: trajectories.StepTrajectory(size=np.nan), r"step: size must be a finite number"),
-    (lambda: trajectories.ChirpTrajectory(amplitude="big"), r"sweep: amplitude must be a number"),
-])
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (
+            lambda: trajectories.StepTrajectory(offset=(0, 0, 0, 0, 0, np.nan)),
+            r"step: offset has a non-finite value nan at index \(5,\)",
+        ),
+        (
+            lambda: trajectories.ChirpTrajectory(offset=(0, 0, 0, np.inf, 0, 0.3)),
+            r"sweep: offset has a non-finite value inf",
+        ),
+        (
+            lambda: trajectories.SineTrajectory(offset=(np.nan,) * 6),
+            r"sine: offset has a non-finite",
+        ),
+        (lambda: trajectories.StepTrajectory(offset=(0, 0, 0.3)), r"offset must have shape"),
+        (lambda: trajectories.StepTrajectory(size=np.nan), r"step: size must be a finite number"),
+        (
+            lambda: trajectories.ChirpTrajectory(amplitude="big"),
+            r"sweep: amplitude must be a number",
+        ),
+    ],
+)
 def test_trajectories_refuse_a_nan_offset_by_name(make, message):
     with pytest.raises(InvalidConfigError, match=message):
         make()
 
 
-@pytest.mark.parametrize("change", [
-    {"motor_angle_min_deg": 10, "motor_angle_max_deg": -10},
-    {"motor_angle_max_deg": 200},
-    {"crank_joint_cone_deg": 0},
-    {"platform_joint_cone_deg": float("nan")},
-    {"crank_joint_cone_deg": 15},                     # home itself needs 19.35 deg
-])
+@pytest.mark.parametrize(
+    "change",
+    [
+        {"motor_angle_min_deg": 10, "motor_angle_max_deg": -10},
+        {"motor_angle_max_deg": 200},
+        {"crank_joint_cone_deg": 0},
+        {"platform_joint_cone_deg": float("nan")},
+        {"crank_joint_cone_deg": 15},  # home itself needs 19.35 deg
+    ],
+)
 def test_invalid_limits_are_refused(geometry, change):
     with pytest.raises(InvalidGeometryError):
         geometry.replace(**change)
 
 
 # --- trajectory validation -------------------------------------------------------------------
+
 
 def test_paper_manoeuvre_validates_with_its_margins(geometry):
     t, x = _paper()
@@ -211,12 +242,14 @@ def test_every_named_trajectory_validates(geometry, name):
 
 # --- workspace -------------------------------------------------------------------------------
 
+
 def test_classify_matches_pointwise_functions(geometry, random_poses):
     x = np.concatenate([random_poses[:50], [[0, 0, 0, 0, 0, 0.6], [0.7, 0, 0, 0, 0, 0.3]]])
     c = workspace.classify(geometry, x)
     assert c["reachable"][:50].all() and not c["reachable"][50:].any()
-    np.testing.assert_allclose(c["torques"][:50], statics.holding_torques(geometry, x[:50]),
-                               rtol=1e-12)
+    np.testing.assert_allclose(
+        c["torques"][:50], statics.holding_torques(geometry, x[:50]), rtol=1e-12
+    )
     assert np.isnan(c["torques"][50:]).all() and (c["bottleneck"][50:] == -1).all()
     np.testing.assert_array_equal(c["bottleneck"][:50], np.argmax(np.abs(c["torques"][:50]), 1))
 
@@ -231,8 +264,10 @@ def test_parallel_sweep_equals_serial(geometry):
 
 
 def test_boxes_contain_the_whole_workspace(geometry):
-    for box, grid in ((workspace.TRANSLATION_BOX, workspace.translation_grid),
-                      (workspace.ORIENTATION_BOX, workspace.orientation_grid)):
+    for box, grid in (
+        (workspace.TRANSLATION_BOX, workspace.translation_grid),
+        (workspace.ORIENTATION_BOX, workspace.orientation_grid),
+    ):
         reach = workspace.classify(geometry, grid(workspace.grid_axes(box, 25)))["reachable"]
         assert reach.any()
         for d in range(3):
@@ -248,7 +283,7 @@ def test_reachable_volume_agrees_with_monte_carlo(geometry):
     p = box[:, 0] + rng.uniform(size=(200_000, 3)) * (box[:, 1] - box[:, 0])
     x = np.concatenate([np.zeros_like(p), p], axis=1)
     mc = limits.is_reachable(geometry, x).reachable.mean() * np.prod(box[:, 1] - box[:, 0])
-    assert volume == pytest.approx(mc, rel=0.03)      # both ~7.6e-3 m^3
+    assert volume == pytest.approx(mc, rel=0.03)  # both ~7.6e-3 m^3
     ext = workspace.extents(axes, grid)
     assert ext[2, 0] < X_HOME[5] < ext[2, 1] and ext[1, 0] == pytest.approx(-ext[1, 1])
 
@@ -282,35 +317,57 @@ def test_workspace_writes_outputs_atomically(tmp_path):
     rows = workspace.write_workspace(tmp_path / "ws", resolution=9, jobs=1, progress=False)
     assert rows[0][0] == "reachable_volume"
     names = sorted(p.name for p in (tmp_path / "ws").iterdir())
-    assert names == ["bottleneck_and_orientation.png", "summary.csv", "tilt_vs_height.csv",
-                     "workspace.npz", "workspace.png"]          # no temporary files left
+    assert names == [
+        "bottleneck_and_orientation.png",
+        "summary.csv",
+        "tilt_vs_height.csv",
+        "workspace.npz",
+        "workspace.png",
+    ]  # no temporary files left
     data = np.load(tmp_path / "ws" / "workspace.npz")
     assert data["translation_reachable"].shape == (9, 9, 9)
-    rows = {r["figure"]: float(r["value"]) for r in csv.DictReader(open(tmp_path / "ws" /
-                                                                        "summary.csv"))}
+    rows = {
+        r["figure"]: float(r["value"])
+        for r in csv.DictReader(open(tmp_path / "ws" / "summary.csv"))
+    }
     assert 0.004 < rows["reachable_volume"] < 0.012
-    assert rows["max_holding_torque"] == pytest.approx(np.nanmax(data["translation_max_torque"]),
-                                                       rel=1e-5)
+    assert rows["max_holding_torque"] == pytest.approx(
+        np.nanmax(data["translation_max_torque"]), rel=1e-5
+    )
 
 
 # --- holding torques against the Drake plant -------------------------------------------------
+
 
 def _drake_static_torques(plant, context, handles, x):
     """Motor torques u with gravity + B u + G^T lambda = 0, G the 6 ball constraints' Jacobian."""
     assemble(plant, context, handles, x)
     W = plant.world_frame()
-    G = np.vstack([
-        plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV,
-                                                handles.rods[i].body_frame(),
-                                                handles.rod_top_in_rod, W, W)
-        - plant.CalcJacobianTranslationalVelocity(context, JacobianWrtVariable.kV,
-                                                  handles.platform.body_frame(),
-                                                  handles.geometry.p_E[i], W, W)
-        for i in range(6)])
+    G = np.vstack(
+        [
+            plant.CalcJacobianTranslationalVelocity(
+                context,
+                JacobianWrtVariable.kV,
+                handles.rods[i].body_frame(),
+                handles.rod_top_in_rod,
+                W,
+                W,
+            )
+            - plant.CalcJacobianTranslationalVelocity(
+                context,
+                JacobianWrtVariable.kV,
+                handles.platform.body_frame(),
+                handles.geometry.p_E[i],
+                W,
+                W,
+            )
+            for i in range(6)
+        ]
+    )
     A = np.hstack([plant.MakeActuationMatrix(), G.T])
     tau_g = plant.CalcGravityGeneralizedForces(context)
     sol = np.linalg.lstsq(A, -tau_g, rcond=None)[0]
-    assert np.abs(A @ sol + tau_g).max() < 1e-9           # the plant is in equilibrium
+    assert np.abs(A @ sol + tau_g).max() < 1e-9  # the plant is in equilibrium
     return sol[:6]
 
 
@@ -319,7 +376,7 @@ def test_holding_torques_equal_drake_statics_at_12_poses(geometry):
     for x in random_reachable_poses(geometry, 12, seed=11):
         T = statics.holding_torques(geometry, x)
         u = _drake_static_torques(plant, context, handles, x)
-        assert np.abs(u - T).max() < 0.01 * np.abs(T).max()      # measured: ~6e-12 relative
+        assert np.abs(u - T).max() < 0.01 * np.abs(T).max()  # measured: ~6e-12 relative
 
 
 def test_plant_stays_still_with_holding_torques_and_not_with_one_percent_less(geometry):

@@ -26,9 +26,18 @@ from pathlib import Path
 
 from stewart_drake.interfaces.visualize import find_chromium
 
-FLAGS = ("--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run",
-         "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--remote-debugging-pipe")
+FLAGS = (
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--remote-debugging-pipe",
+)
 
 
 class HeadlessChromium:
@@ -42,8 +51,9 @@ class HeadlessChromium:
         FileNotFoundError: no Chromium on PATH.
     """
 
-    def __init__(self, url: str, size=(1280, 800), chromium: str | None = None,
-                 timeout_s: float = 60.0):
+    def __init__(
+        self, url: str, size=(1280, 800), chromium: str | None = None, timeout_s: float = 60.0
+    ):
         self.url, self.size, self.timeout_s = url, size, timeout_s
         self.exe = chromium or find_chromium()
         if self.exe is None:
@@ -53,20 +63,34 @@ class HeadlessChromium:
         self._session = None
 
     def __enter__(self) -> HeadlessChromium:
-        self._profile = tempfile.TemporaryDirectory(prefix="chromium-profile-",
-                                                    ignore_cleanup_errors=True)
+        self._profile = tempfile.TemporaryDirectory(
+            prefix="chromium-profile-", ignore_cleanup_errors=True
+        )
         self._log = tempfile.TemporaryFile()
         to_browser_r, self._to_browser = os.pipe()
         self._from_browser, from_browser_w = os.pipe()
         # bash puts the two pipe ends on the browser's fds 3 and 4 (no preexec_fn: this
         # process may run threads, e.g. Meshcat's server).
-        args = [*FLAGS, f"--user-data-dir={self._profile.name}",
-                f"--window-size={self.size[0]},{self.size[1]}", self.url]
+        args = [
+            *FLAGS,
+            f"--user-data-dir={self._profile.name}",
+            f"--window-size={self.size[0]},{self.size[1]}",
+            self.url,
+        ]
         self.process = subprocess.Popen(
-            ["bash", "-c", f'exec "$0" "$@" 3<&{to_browser_r} 4>&{from_browser_w}',
-             self.exe, *args], pass_fds=(to_browser_r, from_browser_w),
-            stdin=subprocess.DEVNULL, stdout=self._log, stderr=self._log,
-            start_new_session=True)                  # its own group: ended with its children
+            [
+                "bash",
+                "-c",
+                f'exec "$0" "$@" 3<&{to_browser_r} 4>&{from_browser_w}',
+                self.exe,
+                *args,
+            ],
+            pass_fds=(to_browser_r, from_browser_w),
+            stdin=subprocess.DEVNULL,
+            stdout=self._log,
+            stderr=self._log,
+            start_new_session=True,
+        )  # its own group: ended with its children
         os.close(to_browser_r)
         os.close(from_browser_w)
         try:
@@ -79,7 +103,7 @@ class HeadlessChromium:
     def __exit__(self, *exc) -> None:
         try:
             try:
-                os.killpg(self.process.pid, signal.SIGKILL)   # the browser and its helpers
+                os.killpg(self.process.pid, signal.SIGKILL)  # the browser and its helpers
             except ProcessLookupError:
                 pass
             self.process.wait(timeout=30)
@@ -97,8 +121,13 @@ class HeadlessChromium:
         self._log.seek(0)
         return self._log.read().decode(errors="replace")[-n:]
 
-    def send(self, method: str, params: dict | None = None, session: bool = True,
-             timeout_s: float | None = None) -> dict:
+    def send(
+        self,
+        method: str,
+        params: dict | None = None,
+        session: bool = True,
+        timeout_s: float | None = None,
+    ) -> dict:
         """Send one DevTools command and return its ``result``.
 
         Raises:
@@ -134,21 +163,29 @@ class HeadlessChromium:
     def _attach(self) -> None:
         deadline = time.monotonic() + self.timeout_s
         while True:
-            pages = [t for t in self.send("Target.getTargets", session=False)["targetInfos"]
-                     if t["type"] == "page"]
+            pages = [
+                t
+                for t in self.send("Target.getTargets", session=False)["targetInfos"]
+                if t["type"] == "page"
+            ]
             if pages:
                 break
             if time.monotonic() > deadline:
                 raise TimeoutError("Chromium opened no page")
             time.sleep(0.2)
-        self._session = self.send("Target.attachToTarget", {"targetId": pages[0]["targetId"],
-                                                            "flatten": True},
-                                  session=False)["sessionId"]
+        self._session = self.send(
+            "Target.attachToTarget",
+            {"targetId": pages[0]["targetId"], "flatten": True},
+            session=False,
+        )["sessionId"]
 
     def evaluate(self, expression: str, timeout_s: float | None = None):
         """The value of a JavaScript expression in the page (promises are awaited)."""
-        result = self.send("Runtime.evaluate", {"expression": expression, "awaitPromise": True,
-                                                "returnByValue": True}, timeout_s=timeout_s)
+        result = self.send(
+            "Runtime.evaluate",
+            {"expression": expression, "awaitPromise": True, "returnByValue": True},
+            timeout_s=timeout_s,
+        )
         if "exceptionDetails" in result:
             raise RuntimeError(f"JavaScript failed: {result['exceptionDetails']}")
         return result["result"].get("value")

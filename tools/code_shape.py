@@ -29,19 +29,24 @@ def functions(root: Path):
         tree = ast.parse(path.read_text())
         where = path.relative_to(root.parent)
 
-        def visit(node, prefix="", where=where):    # bound now: a def in a loop
+        def visit(node, prefix="", where=where):  # bound now: a def in a loop
             for child in ast.iter_child_nodes(node):
                 if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                     name = f"{prefix}{child.name}"
                     lines = child.end_lineno - child.lineno + 1
                     first = child.body[0]
-                    doc = (first.end_lineno - first.lineno + 1
-                           if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant)
-                           and isinstance(first.value.value, str) else 0)
+                    doc = (
+                        first.end_lineno - first.lineno + 1
+                        if isinstance(first, ast.Expr)
+                        and isinstance(first.value, ast.Constant)
+                        and isinstance(first.value.value, str)
+                        else 0
+                    )
                     out.append((lines, f"{where}:{name}", lines - doc))
                     visit(child, name + ".")
                 elif isinstance(child, ast.ClassDef):
                     visit(child, f"{prefix}{child.name}.")
+
         visit(tree)
     return sorted(out, reverse=True)
 
@@ -57,25 +62,33 @@ def dispatches(root: Path):
             if not isinstance(func, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 continue
             for node in ast.walk(func):
-                if (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "isinstance"
-                        and len(node.args) == 2):
-                    names = {n.id if isinstance(n, ast.Name) else getattr(n, "attr", "")
-                             for n in ast.walk(node.args[1])}
+                if (
+                    isinstance(node, ast.Call)
+                    and getattr(node.func, "id", None) == "isinstance"
+                    and len(node.args) == 2
+                ):
+                    names = {
+                        n.id if isinstance(n, ast.Name) else getattr(n, "attr", "")
+                        for n in ast.walk(node.args[1])
+                    }
                     if names & choices:
-                        out.append(f"{path.relative_to(root.parent)}:{func.name} "
-                                   f"({', '.join(sorted(names & choices))})")
+                        out.append(
+                            f"{path.relative_to(root.parent)}:{func.name} "
+                            f"({', '.join(sorted(names & choices))})"
+                        )
     return out
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--top", type=int, default=10)
-    parser.add_argument("--package", default=str(Path(__file__).resolve().parents[1]
-                                                 / "stewart_drake"))
+    parser.add_argument(
+        "--package", default=str(Path(__file__).resolve().parents[1] / "stewart_drake")
+    )
     args = parser.parse_args()
     root = Path(args.package)
     print(f"longest {args.top} functions (lines; without the docstring):")
-    for lines, name, code in functions(root)[:args.top]:
+    for lines, name, code in functions(root)[: args.top]:
         print(f"  {lines:4d}  {code:4d}  {name}")
     found = dispatches(root)
     print(f"isinstance dispatches on a scenario choice: {len(found)}")

@@ -23,8 +23,9 @@ def main() -> None:
     parser.add_argument("--docs", default="docs/organ_motion.md")
     parser.add_argument("--out", default="results/fidelity_study/results.json")
     parser.add_argument("--jobs", type=int, default=2)
-    parser.add_argument("--from-json", default=None,
-                        help="write the tables from a results file instead of running")
+    parser.add_argument(
+        "--from-json", default=None, help="write the tables from a results file instead of running"
+    )
     args = parser.parse_args()
     if args.from_json:
         results = json.loads(Path(args.from_json).read_text())

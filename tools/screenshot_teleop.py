@@ -42,10 +42,9 @@ def main() -> None:
             stats = run_teleop(run, 1.2, report=None)
             simulated += stats["sim_s"]
             rates.append(stats["realtime_rate"])
-        browser.evaluate("viewer.gui.open(); null")           # the panel, as a user opens it
+        browser.evaluate("viewer.gui.open(); null")  # the panel, as a user opens it
         shot = browser.screenshot(Path(args.out))
-    print(f"teleop_screenshot {shot} realtime_rate {min(rates):.3f} ({simulated:.1f} s "
-          f"simulated)")
+    print(f"teleop_screenshot {shot} realtime_rate {min(rates):.3f} ({simulated:.1f} s simulated)")
 
 
 if __name__ == "__main__":

@@ -80,14 +80,28 @@ from ..errors import InvalidConfigError
 from ..model.geometry import StewartGeometry
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
-INPUT_PORTS = {"x_d": 18, "x": 12, "motor_angle": 6, "motor_rate": 6, "T_ff": 6, "omega": 2,
-               "motor_torque_applied": 6}
+INPUT_PORTS = {
+    "x_d": 18,
+    "x": 12,
+    "motor_angle": 6,
+    "motor_rate": 6,
+    "T_ff": 6,
+    "omega": 2,
+    "motor_torque_applied": 6,
+}
 OUTPUT_PORTS = {"T": 6, "status": None, "e_bar": 6, "integral": 6, "feature_window": None}
 REQUIRED_INPUTS = ("x_d",)
 REQUIRED_OUTPUTS = ("T",)
 #: ``status`` entries of the LQI (and of controllers that report the same figures).
-LQI_STATUS_NAMES = ("omega_Q", "omega_R", "gain_solves", "gain_failures", "integral_norm",
-                    "saturated_steps", "governed_steps")
+LQI_STATUS_NAMES = (
+    "omega_Q",
+    "omega_R",
+    "gain_solves",
+    "gain_failures",
+    "integral_norm",
+    "saturated_steps",
+    "governed_steps",
+)
 
 
 @dataclass(frozen=True)
@@ -144,8 +158,9 @@ class ControllerDriver:
     #: the evaluation grid); "" for a choice that needs options to mean anything.
     short_name: ClassVar[str] = ""
 
-    def validate(self, control_period_s: float, delay_periods: int = 0,
-                 prefix: str = "controller."):
+    def validate(
+        self, control_period_s: float, delay_periods: int = 0, prefix: str = "controller."
+    ):
         """Check the options for a controller of period ``control_period_s`` (s) on a robot with
         ``delay_periods`` of computation delay; returns self.
 
@@ -173,8 +188,10 @@ class ControllerDriver:
         Raises:
             InvalidConfigError: the controller has no such weights.
         """
-        raise InvalidConfigError(f"omega_Q and omega_R are weights of the LQI controller; the "
-                                 f"controller is a {type(self).__name__}")
+        raise InvalidConfigError(
+            f"omega_Q and omega_R are weights of the LQI controller; the "
+            f"controller is a {type(self).__name__}"
+        )
 
     def summary(self) -> dict:
         """Settings a run's results carry besides the controller's name (plain JSON values)."""
@@ -215,13 +232,17 @@ def resolve_controller(name: str) -> Callable[..., LeafSystem]:
     """
     if isinstance(name, str) and name in CONTROLLER_REGISTRY:
         return CONTROLLER_REGISTRY[name]
-    path = (" is an import path, and a scenario never imports code; it"
-            if isinstance(name, str) and ":" in name else "")
+    path = (
+        " is an import path, and a scenario never imports code; it"
+        if isinstance(name, str) and ":" in name
+        else ""
+    )
     raise InvalidConfigError(
         f"controller factory {name!r}{path} is not a registered controller (registered: "
         f"{_registered()}): call register_controller({name!r}, factory) in the Python code "
         f"that runs the scenario, or install the factory as an entry point of the group "
-        f"{ENTRY_POINT_GROUP!r} and opt into it with --plugin NAME")
+        f"{ENTRY_POINT_GROUP!r} and opt into it with --plugin NAME"
+    )
 
 
 @dataclass
@@ -240,11 +261,14 @@ class UserController(ControllerDriver):
     factory: str = ""
     parameters: dict[str, float] = field(default_factory=dict)
 
-    def validate(self, control_period_s: float, delay_periods: int = 0,
-                 prefix: str = "controller.") -> "UserController":
+    def validate(
+        self, control_period_s: float, delay_periods: int = 0, prefix: str = "controller."
+    ) -> "UserController":
         if not isinstance(self.factory, str) or not self.factory:
-            raise InvalidConfigError(f"{prefix}factory must name a registered controller "
-                                     f"(register_controller, or --plugin NAME)")
+            raise InvalidConfigError(
+                f"{prefix}factory must name a registered controller "
+                f"(register_controller, or --plugin NAME)"
+            )
         for key, value in self.parameters.items():
             as_number(f"{prefix}parameters.{key}", value)
         return self
@@ -277,12 +301,15 @@ def use_entry_point_controllers(names) -> list[str]:
         if name not in installed:
             raise InvalidConfigError(
                 f"--plugin {name}: no installed entry point of that name in the group "
-                f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(sorted(installed)) or 'none'})")
+                f"{ENTRY_POINT_GROUP!r} (installed: {', '.join(sorted(installed)) or 'none'})"
+            )
         try:
             factory = installed[name].load()
-        except Exception as err:     # noqa: BLE001 - the user's package may raise anything
-            raise InvalidConfigError(f"--plugin {name}: the entry point {installed[name].value} "
-                                     f"cannot be loaded ({type(err).__name__}: {err})") from None
+        except Exception as err:  # noqa: BLE001 - the user's package may raise anything
+            raise InvalidConfigError(
+                f"--plugin {name}: the entry point {installed[name].value} "
+                f"cannot be loaded ({type(err).__name__}: {err})"
+            ) from None
         register_controller(name, factory)
     return list(names)
 
@@ -296,39 +323,55 @@ def check_controller(system) -> None:
             ``status_names`` of its size; the message names the port.
     """
     if not isinstance(system, (LeafSystem, Diagram)):
-        raise InvalidConfigError(f"a controller factory must return a pydrake LeafSystem (or a "
-                                 f"Diagram), got {type(system).__name__}")
+        raise InvalidConfigError(
+            f"a controller factory must return a pydrake LeafSystem (or a "
+            f"Diagram), got {type(system).__name__}"
+        )
     name = system.get_name() or type(system).__name__
-    inputs = {system.get_input_port(i).get_name(): system.get_input_port(i)
-              for i in range(system.num_input_ports())}
-    outputs = {system.get_output_port(i).get_name(): system.get_output_port(i)
-               for i in range(system.num_output_ports())}
+    inputs = {
+        system.get_input_port(i).get_name(): system.get_input_port(i)
+        for i in range(system.num_input_ports())
+    }
+    outputs = {
+        system.get_output_port(i).get_name(): system.get_output_port(i)
+        for i in range(system.num_output_ports())
+    }
     for required in REQUIRED_INPUTS:
         if required not in inputs:
-            raise InvalidConfigError(f"controller {name} has no input port {required!r} "
-                                     f"(required by the contract, control/contract.py)")
+            raise InvalidConfigError(
+                f"controller {name} has no input port {required!r} "
+                f"(required by the contract, control/contract.py)"
+            )
     for required in REQUIRED_OUTPUTS:
         if required not in outputs:
-            raise InvalidConfigError(f"controller {name} has no output port {required!r} "
-                                     f"(required by the contract, control/contract.py)")
+            raise InvalidConfigError(
+                f"controller {name} has no output port {required!r} "
+                f"(required by the contract, control/contract.py)"
+            )
     for port_name, port in inputs.items():
         if port_name not in INPUT_PORTS:
             raise InvalidConfigError(
                 f"controller {name} declares input port {port_name!r}, which the Diagram cannot "
-                f"connect; the contract's inputs are {sorted(INPUT_PORTS)}")
+                f"connect; the contract's inputs are {sorted(INPUT_PORTS)}"
+            )
         if port.size() != INPUT_PORTS[port_name]:
-            raise InvalidConfigError(f"controller {name}: input port {port_name!r} has size "
-                                     f"{port.size()}, the contract says {INPUT_PORTS[port_name]}")
+            raise InvalidConfigError(
+                f"controller {name}: input port {port_name!r} has size "
+                f"{port.size()}, the contract says {INPUT_PORTS[port_name]}"
+            )
     for port_name, size in OUTPUT_PORTS.items():
         if port_name in outputs and size is not None and outputs[port_name].size() != size:
-            raise InvalidConfigError(f"controller {name}: output port {port_name!r} has size "
-                                     f"{outputs[port_name].size()}, the contract says {size}")
+            raise InvalidConfigError(
+                f"controller {name}: output port {port_name!r} has size "
+                f"{outputs[port_name].size()}, the contract says {size}"
+            )
     if "status" in outputs:
         names = getattr(system, "status_names", None)
         if names is None or len(tuple(names)) != outputs["status"].size():
             raise InvalidConfigError(
                 f"controller {name} has a status output of size {outputs['status'].size()}; "
-                f"give it a status_names attribute naming each entry")
+                f"give it a status_names attribute naming each entry"
+            )
 
 
 class PoseTorqueController(LeafSystem):

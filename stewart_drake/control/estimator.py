@@ -57,14 +57,20 @@ class PoseEstimator:
         InvalidConfigError: a non-finite or non-positive setting.
     """
 
-    def __init__(self, geometry, period_s: float, quantum_rad: float, x_reference=X_HOME,
-                 rate_cutoff_hz: float = 100.0, tolerance_counts: float = 0.01,
-                 max_iterations: int = 4):
+    def __init__(
+        self,
+        geometry,
+        period_s: float,
+        quantum_rad: float,
+        x_reference=X_HOME,
+        rate_cutoff_hz: float = 100.0,
+        tolerance_counts: float = 0.01,
+        max_iterations: int = 4,
+    ):
         self.geometry = geometry
         self.h = as_number("period_s", period_s, 0.0, lo_open=True)
         self.quantum = as_number("quantum_rad", quantum_rad, 0.0, lo_open=True)
-        self.tol = as_number("tolerance_counts", tolerance_counts, 0.0, lo_open=True) * \
-            self.quantum
+        self.tol = as_number("tolerance_counts", tolerance_counts, 0.0, lo_open=True) * self.quantum
         cutoff = as_number("rate_cutoff_hz", rate_cutoff_hz, 0.0, lo_open=True)
         #: Weight of the new difference in the rate's low-pass: 1 - exp(-2 pi f_c h).
         self.alpha = 1.0 - math.exp(-2 * math.pi * cutoff * self.h)
@@ -100,11 +106,13 @@ class PoseEstimator:
             if step == self.max_iterations or not np.isfinite(J).all():
                 break
             dx = np.linalg.solve(J, r)
-            for _ in range(20):                 # branch guard and workspace: halve the step
+            for _ in range(20):  # branch guard and workspace: halve the step
                 candidate = x - dx
                 th_c, cache_c = ik_single(self.geometry, candidate)
-                if np.isfinite(th_c).all() and (np.abs(dx).max() < 1e-3 or np.sign(
-                        np.linalg.det(jacobian_single(self.geometry, cache_c))) == self.mode):
+                if np.isfinite(th_c).all() and (
+                    np.abs(dx).max() < 1e-3
+                    or np.sign(np.linalg.det(jacobian_single(self.geometry, cache_c))) == self.mode
+                ):
                     break
                 dx = 0.5 * dx
             else:
@@ -133,11 +141,20 @@ class PoseEstimator:
         """
         theta = np.asarray(theta, dtype=float)
         x_hat = np.concatenate([np.asarray(x_prev, dtype=float), np.asarray(v_prev, dtype=float)])
-        if not estimate(self.legs, self.crank_length, self.leg_c, self.h, self.alpha,
-                        self.chord_step_max, theta, x_hat,
-                        np.asarray(J_inv, dtype=float).reshape(6, 6)):
-            filter_rate(self.h, self.alpha, self.estimate(theta, x_hat[:6] + self.h * x_hat[6:])[0],
-                        x_hat)
+        if not estimate(
+            self.legs,
+            self.crank_length,
+            self.leg_c,
+            self.h,
+            self.alpha,
+            self.chord_step_max,
+            theta,
+            x_hat,
+            np.asarray(J_inv, dtype=float).reshape(6, 6),
+        ):
+            filter_rate(
+                self.h, self.alpha, self.estimate(theta, x_hat[:6] + self.h * x_hat[6:])[0], x_hat
+            )
         return x_hat[:6], x_hat[6:]
 
     def update(self, theta, x_prev, v_prev) -> tuple[np.ndarray, np.ndarray]:
@@ -168,20 +185,28 @@ class FkEstimator(LeafSystem):
     Source: FK by Newton on paper eq. 6 (ours: the paper reads the pose from its ADAMS model).
     """
 
-    def __init__(self, estimator: PoseEstimator, offset_s: float, x_initial=X_HOME,
-                 x_dot_initial=None):
+    def __init__(
+        self, estimator: PoseEstimator, offset_s: float, x_initial=X_HOME, x_dot_initial=None
+    ):
         super().__init__()
         self.estimator = estimator
         x0 = as_array("x_initial", x_initial, shape=(6,))
-        v0 = np.zeros(6) if x_dot_initial is None else as_array("x_dot_initial", x_dot_initial,
-                                                                shape=(6,))
+        v0 = (
+            np.zeros(6)
+            if x_dot_initial is None
+            else as_array("x_dot_initial", x_dot_initial, shape=(6,))
+        )
         self._theta = self.DeclareVectorInputPort("motor_angle", 6)
         self.DeclareDiscreteState(np.concatenate([x0, v0]))
         self._x = self.DeclareVectorOutputPort(
-            "x", 12, self._CalcX,
-            prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=estimator.h, offset_sec=float(offset_s),
-                                                update=self._Update)
+            "x",
+            12,
+            self._CalcX,
+            prerequisites_of_calc={self.all_input_ports_ticket(), self.xd_ticket()},
+        )
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=estimator.h, offset_sec=float(offset_s), update=self._Update
+        )
 
     def _CalcX(self, context, output):
         state = context.get_discrete_state_vector().get_value()
@@ -189,4 +214,4 @@ class FkEstimator(LeafSystem):
         output.SetFromVector(np.concatenate([x, v]))
 
     def _Update(self, context, discrete_state):
-        discrete_state.set_value(self._x.Eval(context))     # computed once: the output's cache
+        discrete_state.set_value(self._x.Eval(context))  # computed once: the output's cache

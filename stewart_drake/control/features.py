@@ -27,9 +27,9 @@ from pydrake.systems.framework import LeafSystem
 from ..checks import as_array, as_number
 from ..errors import InvalidConfigError, SimulationDivergedError
 
-N_CHANNELS = 6                 # six pose errors, six motor torques
-N_FEATURES = 2 * N_CHANNELS    # rho = [rho_e (6,), rho_T (6,)]
-DEFAULT_WINDOW = 50            # m + 1 samples
+N_CHANNELS = 6  # six pose errors, six motor torques
+N_FEATURES = 2 * N_CHANNELS  # rho = [rho_e (6,), rho_T (6,)]
+DEFAULT_WINDOW = 50  # m + 1 samples
 DEFAULT_EPS = 1e-9
 
 
@@ -87,8 +87,10 @@ def density_features(e_window, T_window, eps: float = DEFAULT_EPS, n_valid=None)
     e_window = _signals("e_window", e_window)
     T_window = _signals("T_window", T_window)
     if e_window.ndim < 2 or e_window.shape[-1] != N_CHANNELS or e_window.shape != T_window.shape:
-        raise InvalidConfigError(f"e_window and T_window must both be (..., m + 1, 6), got "
-                                 f"{e_window.shape} and {T_window.shape}")
+        raise InvalidConfigError(
+            f"e_window and T_window must both be (..., m + 1, 6), got "
+            f"{e_window.shape} and {T_window.shape}"
+        )
     length = e_window.shape[-2]
     _check_window_eps(length, eps)
     n = length if n_valid is None else as_array("n_valid", n_valid)
@@ -97,8 +99,9 @@ def density_features(e_window, T_window, eps: float = DEFAULT_EPS, n_valid=None)
     return np.concatenate([_rho(e_window, n, eps), _rho(T_window, n, eps)], axis=-1)
 
 
-def density_features_series(e, T, window: int = DEFAULT_WINDOW,
-                            eps: float = DEFAULT_EPS) -> np.ndarray:
+def density_features_series(
+    e, T, window: int = DEFAULT_WINDOW, eps: float = DEFAULT_EPS
+) -> np.ndarray:
     """Density features at every sample of a time series, as :class:`DensityFeatures` gives them.
 
     Sample k uses the samples max(0, k - m)..k (a shorter window during the first m samples of a
@@ -169,8 +172,14 @@ class DensityFeatures(LeafSystem):
             controller raises it itself).
     """
 
-    def __init__(self, window: int = DEFAULT_WINDOW, period_s: float = 1e-3,
-                 eps: float = DEFAULT_EPS, offset_s: float = 0.0, buffered: bool = False):
+    def __init__(
+        self,
+        window: int = DEFAULT_WINDOW,
+        period_s: float = 1e-3,
+        eps: float = DEFAULT_EPS,
+        offset_s: float = 0.0,
+        buffered: bool = False,
+    ):
         super().__init__()
         _check_window_eps(window, eps)
         if not (np.isfinite(period_s) and period_s > 0):
@@ -183,21 +192,26 @@ class DensityFeatures(LeafSystem):
         self.buffered = bool(buffered)
         if self.buffered:
             self._e = self._T = None
-            self._window_in = self.DeclareVectorInputPort("feature_window",
-                                                          self.window * N_FEATURES + 2)
+            self._window_in = self.DeclareVectorInputPort(
+                "feature_window", self.window * N_FEATURES + 2
+            )
             self._rho = self.DeclareVectorOutputPort(
-                "rho", N_FEATURES, self._CalcRho,
-                prerequisites_of_calc={self.all_input_ports_ticket()})
+                "rho",
+                N_FEATURES,
+                self._CalcRho,
+                prerequisites_of_calc={self.all_input_ports_ticket()},
+            )
             return
         self._e = self.DeclareVectorInputPort("e_bar", N_CHANNELS)
         self._T = self.DeclareVectorInputPort("T", N_CHANNELS)
         self._buf = self.DeclareDiscreteState(self.window * N_FEATURES)
-        self._n_index = self.DeclareDiscreteState(2)      # n_valid, head
-        self._rho = self.DeclareVectorOutputPort("rho", N_FEATURES, self._CalcRho,
-                                                 prerequisites_of_calc={self.xd_ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s,
-                                                offset_sec=float(offset_s),
-                                                update=self._Update)
+        self._n_index = self.DeclareDiscreteState(2)  # n_valid, head
+        self._rho = self.DeclareVectorOutputPort(
+            "rho", N_FEATURES, self._CalcRho, prerequisites_of_calc={self.xd_ticket()}
+        )
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.period_s, offset_sec=float(offset_s), update=self._Update
+        )
 
     def get_e_bar_input_port(self):
         return self._e
@@ -210,17 +224,19 @@ class DensityFeatures(LeafSystem):
 
     def _Update(self, context, discrete_state):
         e, T = self._e.Eval(context), self._T.Eval(context)
-        if not math.isfinite(e.sum() + T.sum()):     # one reduction: the common case is fast
+        if not math.isfinite(e.sum() + T.sum()):  # one reduction: the common case is fast
             sample = np.concatenate([e, T])
             name = "e_bar" if not np.all(np.isfinite(e)) else "T"
             raise SimulationDivergedError(
                 f"non-finite {name} = {np.array2string(sample, precision=4)} ([e_bar, T]) at "
                 f"the DensityFeatures input (features are not computed from diverged signals)",
-                t=context.get_time())
-        counters = discrete_state.get_mutable_value(self._n_index)   # in place: no copies
+                t=context.get_time(),
+            )
+        counters = discrete_state.get_mutable_value(self._n_index)  # in place: no copies
         head = int(counters[1])
-        row = discrete_state.get_mutable_value(self._buf)[head * N_FEATURES:
-                                                          (head + 1) * N_FEATURES]
+        row = discrete_state.get_mutable_value(self._buf)[
+            head * N_FEATURES : (head + 1) * N_FEATURES
+        ]
         row[:N_CHANNELS], row[N_CHANNELS:] = e, T
         counters[0] = min(counters[0] + 1, self.window)
         counters[1] = (head + 1) % self.window
@@ -240,7 +256,7 @@ def ring_features(buffer, n_valid, head, eps: float = DEFAULT_EPS) -> np.ndarray
     ``head`` and last ``n_valid`` rows are samples (zeros before the first sample): the numbers
     of :func:`density_features` (the same ``_rho``), without its checks of the inputs (the
     buffer's writer refuses a non-finite sample)."""
-    if n_valid == 0:                              # nothing sampled yet
+    if n_valid == 0:  # nothing sampled yet
         return np.zeros(N_FEATURES)
     rows = np.roll(np.asarray(buffer).reshape(-1, N_FEATURES), -int(head), axis=0)  # oldest first
     return _rho(rows, n_valid, eps)

@@ -58,9 +58,24 @@ from ..errors import InvalidConfigError
 from ..model import kinematics
 
 #: What the ``ilc_status`` output holds, in order.
-ILC_STATUS_NAMES = ("cycle", "learned_cycles", "gain", "rollbacks", "stopped", "E_trans_m",
-                    "E_rot_rad", "E_ref_trans_m", "E_ref_rot_rad", "best_score",
-                    "best_trans_m", "best_rot_rad", "E0_trans_m", "E0_rot_rad", "count", "rows")
+ILC_STATUS_NAMES = (
+    "cycle",
+    "learned_cycles",
+    "gain",
+    "rollbacks",
+    "stopped",
+    "E_trans_m",
+    "E_rot_rad",
+    "E_ref_trans_m",
+    "E_ref_rot_rad",
+    "best_score",
+    "best_trans_m",
+    "best_rot_rad",
+    "E0_trans_m",
+    "E0_rot_rad",
+    "count",
+    "rows",
+)
 IlcStatus = namedview("IlcStatus", ILC_STATUS_NAMES)
 _CYCLE, _COUNT, _ROWS = (ILC_STATUS_NAMES.index(n) for n in ("cycle", "count", "rows"))
 #: Where the learned error comes from (see the module docstring).
@@ -82,8 +97,9 @@ def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
         e = kinematics.ik_unchecked(geometry, x_d)[0]
         e = np.angle(np.exp(1j * (theta - e)))
     else:
-        x, converged, _, _ = kinematics.fk_unchecked(geometry, theta, x0=x_d, tol=1e-13,
-                                                     max_iter=20)
+        x, converged, _, _ = kinematics.fk_unchecked(
+            geometry, theta, x0=x_d, tol=1e-13, max_iter=20
+        )
         e = np.where(converged[:, None], x - x_d, 0.0)
     return np.nan_to_num(e, nan=0.0, posinf=0.0, neginf=0.0)
 
@@ -92,8 +108,10 @@ def rms_pose_error(e: np.ndarray) -> tuple[float, float]:
     """(translational, rotational) RMS of pose errors (r, 6): sqrt(mean |e_xyz|^2) in m and
     sqrt(mean |e_rpy|^2) in rad."""
     e = np.asarray(e, dtype=float)
-    return (float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
-            float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))))
+    return (
+        float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))),
+    )
 
 
 def q_filter(cutoff_hz: float, sample_period_s: float):
@@ -115,16 +133,18 @@ def periodic_filtfilt(ba, y: np.ndarray) -> np.ndarray:
     if ba is None:
         return y
     M = len(y)
-    return filtfilt(*ba, np.concatenate([y, y, y]), axis=0, padtype=None)[M:2 * M]
+    return filtfilt(*ba, np.concatenate([y, y, y]), axis=0, padtype=None)[M : 2 * M]
 
 
-def resample_to_phase(phase: np.ndarray, values: np.ndarray, M: int,
-                      shift: float = 0.0) -> np.ndarray:
+def resample_to_phase(
+    phase: np.ndarray, values: np.ndarray, M: int, shift: float = 0.0
+) -> np.ndarray:
     """(M, c) values at the phases m / M + shift (mod 1), linearly interpolated between the
     samples at ``phase`` (r,) in [0, 1) (treated as periodic)."""
     grid = (np.arange(M) / M + shift) % 1.0
-    return np.stack([np.interp(grid, phase, values[:, c], period=1.0)
-                     for c in range(values.shape[1])], axis=1)
+    return np.stack(
+        [np.interp(grid, phase, values[:, c], period=1.0) for c in range(values.shape[1])], axis=1
+    )
 
 
 def learn(learned: np.ndarray, error_phase: np.ndarray, gain: float, ba) -> np.ndarray:
@@ -210,11 +230,25 @@ class IterativeLearningController(LeafSystem):
             than four records, a record period that is not a whole multiple of period_s.
     """
 
-    def __init__(self, geometry, period_s: float, offset_s: float, cycle_starts,
-                 cycle_scale=None, gain: float = 0.8, q_cutoff_hz: float = 25.0,
-                 lead_s: float = 0.008, error: str = "pose", sample_period_s: float = 0.004,
-                 bound_ratio: float = 1.2, floor_m: float = 5e-6, floor_rad: float = 5e-5,
-                 max_rollbacks: int = 2, learn_cycles: int = 0, gain_decay_cycles: float = 4.0):
+    def __init__(
+        self,
+        geometry,
+        period_s: float,
+        offset_s: float,
+        cycle_starts,
+        cycle_scale=None,
+        gain: float = 0.8,
+        q_cutoff_hz: float = 25.0,
+        lead_s: float = 0.008,
+        error: str = "pose",
+        sample_period_s: float = 0.004,
+        bound_ratio: float = 1.2,
+        floor_m: float = 5e-6,
+        floor_rad: float = 5e-5,
+        max_rollbacks: int = 2,
+        learn_cycles: int = 0,
+        gain_decay_cycles: float = 4.0,
+    ):
         super().__init__()
         self.geometry = geometry
         self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
@@ -222,15 +256,19 @@ class IterativeLearningController(LeafSystem):
         starts, scale = _checked_cycles(cycle_starts, cycle_scale)
         ratio = sample_period_s / self.h
         if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
-            raise InvalidConfigError(f"sample_period_s ({sample_period_s}) must be a whole "
-                                     f"multiple of the control period ({self.h})")
+            raise InvalidConfigError(
+                f"sample_period_s ({sample_period_s}) must be a whole "
+                f"multiple of the control period ({self.h})"
+            )
         self.R = int(round(ratio))
         self.step_starts = np.round(starts / self.h).astype(np.int64)
-        self.steps = self.step_starts.tolist()            # Python ints for the per-step path
+        self.steps = self.step_starts.tolist()  # Python ints for the per-step path
         lengths = np.diff(self.step_starts)
         if lengths.min() < 4 * self.R:
-            raise InvalidConfigError(f"a cycle of {lengths.min() * self.h:g} s is shorter than "
-                                     f"four records of {sample_period_s:g} s")
+            raise InvalidConfigError(
+                f"a cycle of {lengths.min() * self.h:g} s is shorter than "
+                f"four records of {sample_period_s:g} s"
+            )
         self.scale = scale
         self.scale_list = scale.tolist()
         self.gain0 = as_number("gain", gain, 0.0, 2.0, lo_open=True)
@@ -246,8 +284,9 @@ class IterativeLearningController(LeafSystem):
         self.learn_cycles = _count("learn_cycles", learn_cycles)
         self.decay = as_number("gain_decay_cycles", gain_decay_cycles, 0.0)
         self.M = max(8, int(round(float(np.median(lengths)) / self.R)))
-        self.ba = q_filter(as_number("q_cutoff_hz", q_cutoff_hz, 0.0, lo_open=True),
-                           sample_period_s)
+        self.ba = q_filter(
+            as_number("q_cutoff_hz", q_cutoff_hz, 0.0, lo_open=True), sample_period_s
+        )
         self.rows_max = int(math.ceil(lengths.max() / self.R))
         self._mem, size = _memory_layout(self.rows_max, self.M)
 
@@ -261,8 +300,9 @@ class IterativeLearningController(LeafSystem):
         self._m_index = self.DeclareDiscreteState(size)
         self.DeclareStateOutputPort("x_d_correction", self._c_index)
         self.DeclareStateOutputPort("ilc_status", self._s_index)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=self.offset,
-                                                update=self._Update)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.h, offset_sec=self.offset, update=self._Update
+        )
 
     # -- per step ------------------------------------------------------------------------------
     def _Update(self, context, discrete_state):
@@ -290,7 +330,7 @@ class IterativeLearningController(LeafSystem):
         if (k + 1) % self.R == 0 or k + 1 == length:
             row = k // self.R
             start = self._mem["buffer"].start + 12 * row
-            memory[start:start + 12] = acc / status[_COUNT]
+            memory[start : start + 12] = acc / status[_COUNT]
             acc[:] = 0.0
             status[_COUNT] = 0
             status[_ROWS] = row + 1
@@ -309,14 +349,20 @@ class IterativeLearningController(LeafSystem):
         pos = (n - S[k]) / length * M
         i = int(pos)
         f = pos - i
-        r0, r1, r2, r3 = (memory[start + 6 * (m % M):start + 6 * (m % M) + 6].tolist()
-                          for m in (i - 1, i, i + 1, i + 2))
+        r0, r1, r2, r3 = (
+            memory[start + 6 * (m % M) : start + 6 * (m % M) + 6].tolist()
+            for m in (i - 1, i, i + 1, i + 2)
+        )
         s, w = self.scale_list[k], M / T
         out = [s * (b + f * (c - b)) for b, c in zip(r1, r2)]
-        out += [s * (0.5 * (c - a) + f * (0.5 * (d - b) - 0.5 * (c - a))) * M / T
-                for a, b, c, d in zip(r0, r1, r2, r3)]
-        out += [s * ((c - 2 * b + a) + f * ((d - 2 * c + b) - (c - 2 * b + a))) * w ** 2
-                for a, b, c, d in zip(r0, r1, r2, r3)]
+        out += [
+            s * (0.5 * (c - a) + f * (0.5 * (d - b) - 0.5 * (c - a))) * M / T
+            for a, b, c, d in zip(r0, r1, r2, r3)
+        ]
+        out += [
+            s * ((c - 2 * b + a) + f * ((d - 2 * c + b) - (c - 2 * b + a))) * w**2
+            for a, b, c, d in zip(r0, r1, r2, r3)
+        ]
         correction[:] = out
 
     # -- per cycle -----------------------------------------------------------------------------
@@ -337,8 +383,9 @@ class IterativeLearningController(LeafSystem):
         corrected = status.learned_cycles > 0
         over = corrected and (
             E[0] > self.bound_ratio * status.E_ref_trans_m + self.floor[0]
-            or E[1] > self.bound_ratio * status.E_ref_rot_rad + self.floor[1])
-        if over:                          # roll back to the best cycle's correction
+            or E[1] > self.bound_ratio * status.E_ref_rot_rad + self.floor[1]
+        )
+        if over:  # roll back to the best cycle's correction
             learned[:] = best
             status.rollbacks += 1
             status.gain *= 0.5
@@ -356,15 +403,17 @@ class IterativeLearningController(LeafSystem):
         phase = (self.R * np.arange(rows) + 0.5 * (counts - 1)) / length
         shift = self.lead / (length * self.h)
         e_phase = resample_to_phase(phase, e, self.M, shift) / self.scale[j]
-        if self.error == "motor_angle":       # led in motor space, then mapped to the pose
-            e_phase = _to_pose(self.geometry, resample_to_phase(phase, buffer[:, 6:], self.M),
-                               e_phase)
+        if self.error == "motor_angle":  # led in motor space, then mapped to the pose
+            e_phase = _to_pose(
+                self.geometry, resample_to_phase(phase, buffer[:, 6:], self.M), e_phase
+            )
         previous = memory[self._mem["previous"]].reshape(self.M, 6)
         e_phase = periodic_filtfilt(self.ba, e_phase)
         weight = repeatability(e_phase, previous) if status.learned_cycles > 0 else np.ones(6)
         previous[:] = e_phase
-        gain = status.gain * (self.decay / (self.decay + status.learned_cycles)
-                              if self.decay > 0 else 1.0)
+        gain = status.gain * (
+            self.decay / (self.decay + status.learned_cycles) if self.decay > 0 else 1.0
+        )
         learned[:] = learn(learned, weight * e_phase, gain, self.ba)
         status.E_ref_trans_m, status.E_ref_rot_rad = E
         status.learned_cycles += 1
@@ -376,8 +425,11 @@ def _checked_cycles(cycle_starts, cycle_scale) -> tuple[np.ndarray, np.ndarray]:
     starts = as_array("cycle_starts", cycle_starts).reshape(-1)
     if starts.size < 2 or np.any(np.diff(starts) <= 0) or starts[0] < 0:
         raise InvalidConfigError("cycle_starts must be at least two increasing times >= 0 s")
-    scale = np.ones(starts.size - 1) if cycle_scale is None else as_array(
-        "cycle_scale", cycle_scale, shape=(starts.size - 1,))
+    scale = (
+        np.ones(starts.size - 1)
+        if cycle_scale is None
+        else as_array("cycle_scale", cycle_scale, shape=(starts.size - 1,))
+    )
     if np.any(scale <= 0):
         raise InvalidConfigError("cycle_scale must be > 0")
     return starts, scale
@@ -394,8 +446,7 @@ def _memory_layout(rows: int, M: int) -> tuple[dict, int]:
     """({part: slice}, size) of the learner's memory state: the records of a cycle (rows x 12),
     their running sum (12), the learned and the best correction and the last cycle's filtered
     error (M x 6 each)."""
-    parts = {"buffer": rows * 12, "acc": 12, "learned": M * 6, "best": M * 6,
-             "previous": M * 6}
+    parts = {"buffer": rows * 12, "acc": 12, "learned": M * 6, "best": M * 6, "previous": M * 6}
     layout, start = {}, 0
     for name, size in parts.items():
         layout[name] = slice(start, start + size)
@@ -407,8 +458,9 @@ def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
     """Motor-angle errors (r, 6) as pose errors J(x_d)^-1 e_theta (J = d theta / d x); rows
     where J is singular or x_d unreachable are zero."""
     J = kinematics._jacobian(geometry, x_d)
-    ok = np.all(np.isfinite(J), axis=(1, 2)) & (np.abs(np.linalg.det(
-        np.where(np.isfinite(J), J, 0.0))) > 1e-12)
+    ok = np.all(np.isfinite(J), axis=(1, 2)) & (
+        np.abs(np.linalg.det(np.where(np.isfinite(J), J, 0.0))) > 1e-12
+    )
     out = np.zeros_like(e_theta)
     if np.any(ok):
         out[ok] = np.linalg.solve(J[ok], e_theta[ok][..., None])[..., 0]
@@ -418,6 +470,7 @@ def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
 # -- the scenario's choice ------------------------------------------------------------------
 # Drake's YAML loader reads IlcDriver's field annotations: this module must not use
 # ``from __future__ import annotations``.
+
 
 @dataclass
 class IlcDriver:
@@ -463,11 +516,13 @@ class IlcDriver:
         as_number(f"{prefix}q_cutoff_hz", self.q_cutoff_hz, 0.0, lo_open=True)
         as_number(f"{prefix}lead_s", self.lead_s, 0.0, 1.0)
         if self.error not in ERROR_MODES:
-            raise InvalidConfigError(f"{prefix}error must be one of {ERROR_MODES}, got "
-                                     f"{self.error!r}")
+            raise InvalidConfigError(
+                f"{prefix}error must be one of {ERROR_MODES}, got {self.error!r}"
+            )
         as_number(f"{prefix}sample_period_s", self.sample_period_s, 0.0, 1.0, lo_open=True)
-        check_multiple(f"{prefix}sample_period_s", self.sample_period_s, "control_period_s",
-                       control_period_s)
+        check_multiple(
+            f"{prefix}sample_period_s", self.sample_period_s, "control_period_s", control_period_s
+        )
         as_number(f"{prefix}bound_ratio", self.bound_ratio, 1.0, 100.0)
         check_int(f"{prefix}max_rollbacks", self.max_rollbacks, 0, 1000)
         check_int(f"{prefix}learn_cycles", self.learn_cycles, 0, 10**6)

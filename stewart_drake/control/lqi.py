@@ -50,7 +50,7 @@ from . import lqi_step
 from .contract import LQI_STATUS_NAMES, ControllerContext, ControllerDriver
 from .lqi_step import LqiStatus
 
-N_E = 18        # error-model states [e_x, e_x_dot, z]
+N_E = 18  # error-model states [e_x, e_x_dot, z]
 #: How the gain is re-solved at a re-schedule (see :class:`LqiController`).
 RICCATI_MODES = ("warm", "track", "cold")
 GAIN_TRANSFER_MODES = ("integral", "feedback", "none")
@@ -91,18 +91,21 @@ class LqiScales:
             v = as_array(f"LqiScales.{name}", getattr(self, name), shape=(6,))
             # 1/s^2 must stay finite and > 0: scales within 1e-100 .. 1e100.
             if np.any(v < 1e-100) or np.any(v > 1e100):
-                raise InvalidConfigError(f"LqiScales.{name} needs 6 values in [1e-100, 1e100], "
-                                         f"got {v}")
+                raise InvalidConfigError(
+                    f"LqiScales.{name} needs 6 values in [1e-100, 1e100], got {v}"
+                )
             object.__setattr__(self, name, tuple(float(c) for c in v))
-        object.__setattr__(self, "torque", as_number("LqiScales.torque [N m]", self.torque,
-                                                     1e-100, 1e100))
+        object.__setattr__(
+            self, "torque", as_number("LqiScales.torque [N m]", self.torque, 1e-100, 1e100)
+        )
 
     def Q_unit(self, delay_periods: int = 0) -> np.ndarray:
         """(18 + 6 d, 18 + 6 d) state weight at omega_Q = 1. The d delayed torques of
         :func:`error_model` get 1e-6 of the torque weight: almost free, but not zero, so the
         diagonal scaling of the Riccati solve stays defined."""
-        s = np.concatenate([self.pose, self.rate, self.integral,
-                            np.full(6 * delay_periods, self.torque * 1e3)])
+        s = np.concatenate(
+            [self.pose, self.rate, self.integral, np.full(6 * delay_periods, self.torque * 1e3)]
+        )
         return np.diag(1.0 / s**2)
 
     def R_unit(self) -> np.ndarray:
@@ -173,9 +176,13 @@ class LqiDriver(ControllerDriver):
     takes_omega: ClassVar[bool] = True
     short_name: ClassVar[str] = "lqi"
 
-    def validate(self, control_period_s: float, delay_periods: int = 0,
-                 prefix: str = "controller.",
-                 delay_name: str = "hardware.computation_delay_periods") -> "LqiDriver":
+    def validate(
+        self,
+        control_period_s: float,
+        delay_periods: int = 0,
+        prefix: str = "controller.",
+        delay_name: str = "hardware.computation_delay_periods",
+    ) -> "LqiDriver":
         """Check every option for a controller of period ``control_period_s`` (s) on a robot
         with ``delay_periods`` of computation delay (a setting named ``delay_name``); returns
         self.
@@ -186,20 +193,26 @@ class LqiDriver(ControllerDriver):
         for name in ("omega_Q", "omega_R"):
             as_number(f"{prefix}{name}", getattr(self, name), LQI_OMEGA_MIN, LQI_OMEGA_MAX)
         as_number(f"{prefix}schedule_period_s", self.schedule_period_s, 0.0, lo_open=True)
-        check_multiple(f"{prefix}schedule_period_s", self.schedule_period_s, "control_period_s",
-                       control_period_s)
+        check_multiple(
+            f"{prefix}schedule_period_s",
+            self.schedule_period_s,
+            "control_period_s",
+            control_period_s,
+        )
         for name, modes in (("riccati", RICCATI_MODES), ("gain_transfer", GAIN_TRANSFER_MODES)):
             if getattr(self, name) not in modes:
-                raise InvalidConfigError(f"{prefix}{name} must be one of {modes}, got "
-                                         f"{getattr(self, name)!r}")
-        for name in ("anti_windup", "delay_compensation", "reference_governor",
-                     "schedule_pose"):
+                raise InvalidConfigError(
+                    f"{prefix}{name} must be one of {modes}, got {getattr(self, name)!r}"
+                )
+        for name in ("anti_windup", "delay_compensation", "reference_governor", "schedule_pose"):
             if not isinstance(getattr(self, name), bool):
-                raise InvalidConfigError(f"{prefix}{name} must be true or false, got "
-                                         f"{getattr(self, name)!r}")
+                raise InvalidConfigError(
+                    f"{prefix}{name} must be true or false, got {getattr(self, name)!r}"
+                )
         if not isinstance(self.scales, LqiScalesConfig):
-            raise InvalidConfigError(f"{prefix}scales must be an LqiScalesConfig, got "
-                                     f"{type(self.scales).__name__}")
+            raise InvalidConfigError(
+                f"{prefix}scales must be an LqiScalesConfig, got {type(self.scales).__name__}"
+            )
         try:
             self.scales.build()
         except (InvalidConfigError, TypeError) as err:
@@ -211,18 +224,26 @@ class LqiDriver(ControllerDriver):
                 f"{6 * (3 + delay_periods)} states whose Riccati equation is re-solved every "
                 f"schedule period (thousands of times slower than real time); at most "
                 f"{MAX_COMPENSATED_DELAY} periods are compensated: set "
-                f"{prefix}delay_compensation: false, or lengthen control_period_s")
+                f"{prefix}delay_compensation: false, or lengthen control_period_s"
+            )
         return self
 
     def make(self, context: ControllerContext, compiled: bool = True) -> "LqiDiagram":
         """The LQI with the controller contract's ports for the Diagram that ``context``
         describes; ``compiled=False`` runs its numpy reference step (same numbers, slower)."""
-        return LqiDiagram(context.geometry, self, period_s=context.period_s,
-                          offset_s=context.offset_s, x_initial=context.x_initial,
-                          x_dot_initial=context.x_dot_initial,
-                          torque_limit_Nm=context.torque_limit_Nm,
-                          delay_periods=context.delay_periods, estimator=context.pose_estimator,
-                          feature_window=context.feature_window, compiled=compiled)
+        return LqiDiagram(
+            context.geometry,
+            self,
+            period_s=context.period_s,
+            offset_s=context.offset_s,
+            x_initial=context.x_initial,
+            x_dot_initial=context.x_dot_initial,
+            torque_limit_Nm=context.torque_limit_Nm,
+            delay_periods=context.delay_periods,
+            estimator=context.pose_estimator,
+            feature_window=context.feature_window,
+            compiled=compiled,
+        )
 
     def omega(self) -> tuple:
         """(omega_Q, omega_R): the constant on the ``omega`` input when no tuner drives it."""
@@ -234,12 +255,14 @@ class LqiDriver(ControllerDriver):
 
     def summary(self) -> dict:
         """The settings a run's results carry (plain JSON values)."""
-        return {"omega_Q": self.omega_Q, "omega_R": self.omega_R,
-                "schedule_period_s": self.schedule_period_s}
+        return {
+            "omega_Q": self.omega_Q,
+            "omega_R": self.omega_R,
+            "schedule_period_s": self.schedule_period_s,
+        }
 
 
-def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.ndarray,
-                                                                           np.ndarray]:
+def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Discrete error model (A, B) at sample time h for continuous input matrix B_c (6, 6).
 
     Args:
@@ -257,8 +280,11 @@ def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.n
     """
     B_c = as_array("input matrix B_c", B_c, shape=(6, 6))
     h = as_number("sample time h [s]", h, 0.0, 1.0, lo_open=True)
-    if isinstance(delay_periods, bool) or not isinstance(delay_periods, (int, np.integer)) \
-            or delay_periods < 0:
+    if (
+        isinstance(delay_periods, bool)
+        or not isinstance(delay_periods, (int, np.integer))
+        or delay_periods < 0
+    ):
         raise InvalidConfigError(f"delay_periods must be an integer >= 0, got {delay_periods!r}")
     I = np.eye(6)
     A = np.zeros((N_E, N_E))
@@ -276,10 +302,10 @@ def error_model(B_c: np.ndarray, h: float, delay_periods: int = 0) -> tuple[np.n
     n = N_E + 6 * d
     A_d, B_d = np.zeros((n, n)), np.zeros((n, 6))
     A_d[:N_E, :N_E] = A
-    A_d[:N_E, n - 6:] = B                                   # u_{k-d} acts now
-    for j in range(d - 1):                                  # the history shifts by one
-        A_d[N_E + 6 * (j + 1):N_E + 6 * (j + 2), N_E + 6 * j:N_E + 6 * (j + 1)] = np.eye(6)
-    B_d[N_E:N_E + 6] = np.eye(6)                            # u_k is the newest
+    A_d[:N_E, n - 6 :] = B  # u_{k-d} acts now
+    for j in range(d - 1):  # the history shifts by one
+        A_d[N_E + 6 * (j + 1) : N_E + 6 * (j + 2), N_E + 6 * j : N_E + 6 * (j + 1)] = np.eye(6)
+    B_d[N_E : N_E + 6] = np.eye(6)  # u_k is the newest
     return A_d, B_d
 
 
@@ -296,7 +322,7 @@ def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
     legs' inertia (:func:`statics.task_inertia`), is ours (docs/paper_notes.md); tau = J^T (eq. 18
     corrected).
     """
-    tau = kinematics.tau(geometry, x, theta)         # validates x and theta
+    tau = kinematics.tau(geometry, x, theta)  # validates x and theta
     theta = kinematics.ik(geometry, x) if theta is None else theta
     try:
         B_c = np.linalg.solve(statics.task_inertia(geometry, x, theta), tau)
@@ -338,8 +364,19 @@ def body_constants(geometry: StewartGeometry) -> np.ndarray:
     g = geometry
     a = g.crank_length
     shaft = g.crank_inertia[1] + g.crank_mass * (0.5 * a) ** 2 + g.motor_reflected_inertia
-    return np.array([a, g.rod_length, g.rod_length ** 2 - a * a, *g.platform_inertia,
-                     g.platform_mass, shaft, g.rod_mass, g.rod_inertia[0]], dtype=float)
+    return np.array(
+        [
+            a,
+            g.rod_length,
+            g.rod_length**2 - a * a,
+            *g.platform_inertia,
+            g.platform_mass,
+            shaft,
+            g.rod_mass,
+            g.rod_inertia[0],
+        ],
+        dtype=float,
+    )
 
 
 def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9) -> dict:
@@ -370,8 +407,13 @@ def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9
             rank_ac = min(rank_ac, np.linalg.matrix_rank(np.vstack([M, C]), tol))
     except np.linalg.LinAlgError as err:
         raise InvalidConfigError(f"Hautus test failed numerically ({err}); scale A, B, C") from None
-    return {"stabilizable": rank_ab == n, "detectable": rank_ac == n,
-            "rank_AB": int(rank_ab), "rank_AC": int(rank_ac), "n": n}
+    return {
+        "stabilizable": rank_ab == n,
+        "detectable": rank_ac == n,
+        "rank_AB": int(rank_ab),
+        "rank_AC": int(rank_ac),
+        "n": n,
+    }
 
 
 def balance(A, B, Q, R):
@@ -386,10 +428,14 @@ def balance(A, B, Q, R):
     qd, rd = np.diag(Q).copy(), np.diag(R).copy()
     d_x = 1.0 / np.sqrt(qd) if np.all(qd > 0) else np.ones(len(qd))
     d_u = 1.0 / np.sqrt(rd) if np.all(rd > 0) else np.ones(len(rd))
-    return (A * (1 / d_x).reshape(-1, 1) * d_x.reshape(1, -1),
-            B * (1 / d_x).reshape(-1, 1) * d_u.reshape(1, -1),
-            Q * d_x.reshape(-1, 1) * d_x.reshape(1, -1),
-            R * d_u.reshape(-1, 1) * d_u.reshape(1, -1), d_x, d_u)
+    return (
+        A * (1 / d_x).reshape(-1, 1) * d_x.reshape(1, -1),
+        B * (1 / d_x).reshape(-1, 1) * d_u.reshape(1, -1),
+        Q * d_x.reshape(-1, 1) * d_x.reshape(1, -1),
+        R * d_u.reshape(-1, 1) * d_u.reshape(1, -1),
+        d_x,
+        d_u,
+    )
 
 
 def _check_finite(**arrays) -> None:
@@ -415,8 +461,10 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     _check_finite(A=A, B=B, Q=Q, R=R)
     n, m = np.shape(B) if np.ndim(B) == 2 else (-1, -1)
     if (np.shape(A), np.shape(Q), np.shape(R)) != ((n, n), (n, n), (m, m)) or min(n, m) < 1:
-        raise InvalidConfigError(f"lqi_gain needs A (n, n), B (n, m), Q (n, n), R (m, m); got "
-                                 f"{np.shape(A)}, {np.shape(B)}, {np.shape(Q)}, {np.shape(R)}")
+        raise InvalidConfigError(
+            f"lqi_gain needs A (n, n), B (n, m), Q (n, n), R (m, m); got "
+            f"{np.shape(A)}, {np.shape(B)}, {np.shape(Q)}, {np.shape(R)}"
+        )
     Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, Q, R)
     try:
         P = DiscreteAlgebraicRiccatiEquation(Ab, Bb, Qb, Rb)
@@ -426,8 +474,9 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     try:
         K = d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
     except np.linalg.LinAlgError as err:
-        raise RiccatiSolveError(f"R + B^T P B is singular ({err}); make R positive definite") \
-            from None
+        raise RiccatiSolveError(
+            f"R + B^T P B is singular ({err}); make R positive definite"
+        ) from None
     if not np.all(np.isfinite(K)):
         raise RiccatiSolveError("Riccati gain is not finite")
     try:
@@ -435,13 +484,21 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
     except np.linalg.LinAlgError:
         rho = np.nan
     if not rho < 1.0:
-        raise RiccatiSolveError(f"Riccati gain does not stabilize the model (spectral radius "
-                                f"{rho:.6g})")
+        raise RiccatiSolveError(
+            f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})"
+        )
     return K
 
 
-def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_start,
-                  tol: float = 1e-4, max_iter: int = 8) -> tuple[np.ndarray, int]:
+def lqi_gain_warm(
+    A: np.ndarray,
+    B: np.ndarray,
+    Q: np.ndarray,
+    R: np.ndarray,
+    K_start,
+    tol: float = 1e-4,
+    max_iter: int = 8,
+) -> tuple[np.ndarray, int]:
     """The gain of :func:`lqi_gain` by Newton's method (Hewer's algorithm) from a nearby gain.
 
     Each iteration solves one Stein equation P = A_c^T P A_c + Q + K^T R K for A_c = A - B K
@@ -470,11 +527,15 @@ def lqi_gain_warm(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray, K_
     K = np.asarray(K_start, dtype=float)
     _check_finite(A=A, B=B, Q=Q, R=R, K_start=K)
     K, iterations = _compiled_stages().newton_gain(
-        *(np.ascontiguousarray(M, dtype=float) for M in (A, B, Q, R, K)), float(tol),
-        int(max_iter), STEIN_TOL)
+        *(np.ascontiguousarray(M, dtype=float) for M in (A, B, Q, R, K)),
+        float(tol),
+        int(max_iter),
+        STEIN_TOL,
+    )
     if iterations == -1:
-        raise RiccatiSolveError("warm start does not stabilize the model (the Stein equation's "
-                                "series diverges)")
+        raise RiccatiSolveError(
+            "warm start does not stabilize the model (the Stein equation's series diverges)"
+        )
     if iterations < 0:
         raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
     return K, iterations
@@ -502,7 +563,7 @@ def project_onto_torque_bound(d, T, G, bound: float) -> tuple[np.ndarray, np.nda
     side = np.sign(predicted)
     active = np.abs(predicted) > bound
     s, C = d, G[:0]
-    for _ in range(12):                 # each pass adds or releases one motor
+    for _ in range(12):  # each pass adds or releases one motor
         if active.any():
             C = side[active, None] * G[active]
             lam = np.linalg.solve(C @ C.T, C @ d - (bound - side[active] * T[active]))
@@ -594,17 +655,33 @@ class LqiController(LeafSystem):
             (eqs. 28-29).
     """
 
-    def __init__(self, geometry: StewartGeometry, driver: LqiDriver | None = None, *,
-                 period_s: float = 1e-3, offset_s: float = 0.0, x_initial=None,
-                 x_dot_initial=None, torque_limit_Nm: float | None = None,
-                 delay_periods: int = 0, estimator=None, feature_window: int | None = None,
-                 compiled: bool = True):
+    def __init__(
+        self,
+        geometry: StewartGeometry,
+        driver: LqiDriver | None = None,
+        *,
+        period_s: float = 1e-3,
+        offset_s: float = 0.0,
+        x_initial=None,
+        x_dot_initial=None,
+        torque_limit_Nm: float | None = None,
+        delay_periods: int = 0,
+        estimator=None,
+        feature_window: int | None = None,
+        compiled: bool = True,
+    ):
         super().__init__()
         self.status_names = LQI_STATUS_NAMES
         self.geometry = geometry
         self.estimator = estimator
-        self._configure(driver or LqiDriver(), period_s, offset_s, torque_limit_Nm,
-                        delay_periods, feature_window)
+        self._configure(
+            driver or LqiDriver(),
+            period_s,
+            offset_s,
+            torque_limit_Nm,
+            delay_periods,
+            feature_window,
+        )
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
         self.x_initial = x0.copy()
         K0 = self._initial_gain(x0)
@@ -612,46 +689,64 @@ class LqiController(LeafSystem):
         #: them after a run; they do not affect the simulation).
         self.solve_stats = {"warm": 0, "warm_iterations": 0, "cold": 0}
         T0 = statics.holding_torques(geometry, x0)
-        self.layout = lqi_step.LqiLayout.build(self.n, self.delay, self.governor,
-                                               estimator is not None, feature_window)
+        self.layout = lqi_step.LqiLayout.build(
+            self.n, self.delay, self.governor, estimator is not None, feature_window
+        )
         self.feature_window = feature_window
         self._u = self.DeclareVectorInputPort("u", self.layout.u_size)
-        self._state_index = self.DeclareDiscreteState(self._initial_state(
-            x0, np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float),
-            T0, K0))
+        self._state_index = self.DeclareDiscreteState(
+            self._initial_state(
+                x0,
+                np.zeros(6) if x_dot_initial is None else np.asarray(x_dot_initial, dtype=float),
+                T0,
+                K0,
+            )
+        )
         self.DeclareStateOutputPort("state", self._state_index)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=float(offset_s),
-                                                update=self._Update)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.h, offset_sec=float(offset_s), update=self._Update
+        )
         self._load_constants(compiled)
 
-    def _configure(self, driver: LqiDriver, period_s, offset_s, torque_limit_Nm, delay_periods,
-                   feature_window) -> None:
+    def _configure(
+        self, driver: LqiDriver, period_s, offset_s, torque_limit_Nm, delay_periods, feature_window
+    ) -> None:
         """Check the settings and keep what the stages read: the period, the driver's options,
         the limit, the delay and the unit weights Q_1, R_1."""
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"control period must be > 0 s, got {period_s}")
         if not (0 <= offset_s < period_s):
             raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
-        if feature_window is not None and (isinstance(feature_window, bool) or not isinstance(
-                feature_window, (int, np.integer)) or feature_window < 1):
-            raise InvalidConfigError(f"feature_window must be None or an integer >= 1, got "
-                                     f"{feature_window!r}")
-        self.driver = driver.validate(period_s, delay_periods, prefix="driver.",
-                                      delay_name="delay_periods")
+        if feature_window is not None and (
+            isinstance(feature_window, bool)
+            or not isinstance(feature_window, (int, np.integer))
+            or feature_window < 1
+        ):
+            raise InvalidConfigError(
+                f"feature_window must be None or an integer >= 1, got {feature_window!r}"
+            )
+        self.driver = driver.validate(
+            period_s, delay_periods, prefix="driver.", delay_name="delay_periods"
+        )
         self.h = float(period_s)
         self.steps_per_schedule = int(round(driver.schedule_period_s / period_s))
         self.scales = driver.scales.build()
         self.riccati = driver.riccati
-        self.torque_limit = (None if torque_limit_Nm is None
-                             else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True))
+        self.torque_limit = (
+            None
+            if torque_limit_Nm is None
+            else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True)
+        )
         self.anti_windup = driver.anti_windup
         self.governor = driver.reference_governor and self.torque_limit is not None
-        error_model(np.eye(6), self.h, delay_periods)             # checks delay_periods
+        error_model(np.eye(6), self.h, delay_periods)  # checks delay_periods
         self.delay = int(delay_periods) if driver.delay_compensation else 0
         self.n = N_E + 6 * self.delay
-        self._governor_bound = (GOVERNOR_MARGIN * self.torque_limit
-                                if self.governor and self.torque_limit is not None
-                                else np.inf)
+        self._governor_bound = (
+            GOVERNOR_MARGIN * self.torque_limit
+            if self.governor and self.torque_limit is not None
+            else np.inf
+        )
         self._Q1, self._R1 = self.scales.Q_unit(self.delay), self.scales.R_unit()
         self.schedule_pose = driver.schedule_pose
         self.gain_transfer = driver.gain_transfer
@@ -674,8 +769,7 @@ class LqiController(LeafSystem):
         self._stages = _compiled_stages() if self.compiled else lqi_step
         self._constants = self._step_constants()
         self._bounds = self.layout.bounds()
-        self._legs = (np.zeros((6, 9)) if self.estimator is None
-                      else self.estimator.legs.copy())
+        self._legs = np.zeros((6, 9)) if self.estimator is None else self.estimator.legs.copy()
         self._legs.setflags(write=False)
         self._gain_legs = np.array(kinematics.leg_constants(self.geometry)[0])
         self._body = body_constants(self.geometry)
@@ -697,8 +791,9 @@ class LqiController(LeafSystem):
             state[lay.hold] = np.concatenate([x0, np.zeros(12), T0])
         if self.estimator is not None:
             state[lay.x_hat] = np.concatenate([x0, v0])
-            state[lay.J_inv] = np.linalg.inv(kinematics.ik_jacobian(self.geometry, x0)[1]
-                                             ).reshape(-1)
+            state[lay.J_inv] = np.linalg.inv(kinematics.ik_jacobian(self.geometry, x0)[1]).reshape(
+                -1
+            )
         return state
 
     def _step_constants(self) -> np.ndarray:
@@ -722,8 +817,10 @@ class LqiController(LeafSystem):
 
     # -- gain ----------------------------------------------------------------------------------
     def _check_weights(self, omega_Q: float, omega_R: float) -> tuple[float, float]:
-        return (as_number("omega_Q", omega_Q, LQI_OMEGA_MIN, LQI_OMEGA_MAX),
-                as_number("omega_R", omega_R, LQI_OMEGA_MIN, LQI_OMEGA_MAX))
+        return (
+            as_number("omega_Q", omega_Q, LQI_OMEGA_MIN, LQI_OMEGA_MAX),
+            as_number("omega_R", omega_R, LQI_OMEGA_MIN, LQI_OMEGA_MAX),
+        )
 
     def gain(self, x, omega_Q: float = 1.0, omega_R: float = 1.0, K_start=None) -> np.ndarray:
         """(6, n) LQI gain K = [K_p | K_I (| K_u)] at pose x for weights omega_Q, omega_R (eq. 33);
@@ -737,7 +834,7 @@ class LqiController(LeafSystem):
             InvalidConfigError: weights not in [1e-3, 1e3]; RiccatiSolveError: see lqi_gain.
         """
         x = as_array("pose x", x, shape=(6,))
-        kinematics.ik(self.geometry, x)          # a typed error for a bad or unreachable pose
+        kinematics.ik(self.geometry, x)  # a typed error for a bad or unreachable pose
         return self._gain(x, omega_Q, omega_R, K_start)[0]
 
     def _gain(self, x, omega_Q, omega_R, K_start):
@@ -754,9 +851,18 @@ class LqiController(LeafSystem):
         if K_start is not None:
             one_step = self.riccati == "track"
             K, J_inv, iterations = _compiled_stages().warm_gain(
-                self._gain_legs, self._body, x, self.h, self.delay, Q, R,
-                np.ascontiguousarray(K_start, dtype=float), np.inf if one_step else 1e-4,
-                1 if one_step else 8, STEIN_TOL)
+                self._gain_legs,
+                self._body,
+                x,
+                self.h,
+                self.delay,
+                Q,
+                R,
+                np.ascontiguousarray(K_start, dtype=float),
+                np.inf if one_step else 1e-4,
+                1 if one_step else 8,
+                STEIN_TOL,
+            )
             if iterations > 0:
                 self.solve_stats["warm"] += 1
                 self.solve_stats["warm_iterations"] += iterations
@@ -801,15 +907,15 @@ class LqiController(LeafSystem):
         bound, eps = GOVERNOR_MARGIN * self.torque_limit, 1e-6  # type: ignore[operator]
         x = hold[:6] if np.any(hold[18:]) else ref[:6]
         try:
-            T = statics.holding_torques(self.geometry, x + np.vstack([np.zeros(6),
-                                                                     eps * np.eye(6)]))
-            G = ((T[1:] - T[0]) / eps).T                           # d T / d x, (6, 6)
+            T = statics.holding_torques(
+                self.geometry, x + np.vstack([np.zeros(6), eps * np.eye(6)])
+            )
+            G = ((T[1:] - T[0]) / eps).T  # d T / d x, (6, 6)
             step, C = project_onto_torque_bound(ref[:6] - x, T[0], G, bound)
             x = x + step
             T0 = statics.holding_torques(self.geometry, x)
             tangent = np.eye(6) - C.T @ np.linalg.solve(C @ C.T, C) if len(C) else np.eye(6)
-        except (UnreachablePoseError, SingularPoseError, InvalidConfigError,
-                np.linalg.LinAlgError):
+        except (UnreachablePoseError, SingularPoseError, InvalidConfigError, np.linalg.LinAlgError):
             T0 = np.full(6, np.inf)
         if not np.abs(T0).max() <= self.torque_limit:
             return np.concatenate([hold[:6], np.zeros(12), hold[18:]])
@@ -839,8 +945,13 @@ class LqiController(LeafSystem):
         state = discrete_state.get_mutable_value(self._state_index)
         need, flags = self._stages.step(self._constants, self._legs, u, state, self._bounds)
         if need:
-            flags = self._stages.act(self._constants, u, state, self._bounds,
-                                     self._python_stages(context, need, u, state))
+            flags = self._stages.act(
+                self._constants,
+                u,
+                state,
+                self._bounds,
+                self._python_stages(context, need, u, state),
+            )
         if flags & lqi_step.NONFINITE_SAMPLE:
             lay = self.layout
             sample = np.concatenate([state[lay.e_bar], u[lay.T_applied]])
@@ -848,7 +959,8 @@ class LqiController(LeafSystem):
                 f"non-finite {'e_bar' if not np.all(np.isfinite(sample[:6])) else 'T'} = "
                 f"{np.array2string(sample, precision=4)} ([e_bar, T]) at the density features' "
                 f"window (features are not computed from diverged signals)",
-                t=context.get_time())
+                t=context.get_time(),
+            )
 
     # -- the stages that run in Python -------------------------------------------------------
     def _python_stages(self, context, need: int, u, state) -> int:
@@ -880,16 +992,28 @@ class LqiController(LeafSystem):
         lay = self.layout
         status, K = LqiStatus(state[lay.status]), state[lay.K].reshape(6, self.n)
         try:
-            K_new, J_inv = self._gain(np.array(x[:6]) if self.schedule_pose else self.x_initial,
-                                  omega[0], omega[1],
-                                  K_start=K if self.riccati != "cold" else None)
-        except (RiccatiSolveError, InvalidConfigError, UnreachablePoseError, SingularPoseError,
-                np.linalg.LinAlgError) as err:
+            K_new, J_inv = self._gain(
+                np.array(x[:6]) if self.schedule_pose else self.x_initial,
+                omega[0],
+                omega[1],
+                K_start=K if self.riccati != "cold" else None,
+            )
+        except (
+            RiccatiSolveError,
+            InvalidConfigError,
+            UnreachablePoseError,
+            SingularPoseError,
+            np.linalg.LinAlgError,
+        ) as err:
             status.gain_failures += 1
             if status.gain_failures == 1 or status.gain_failures % 100 == 0:
-                warnings.warn(f"t = {context.get_time():.4f} s: gain re-schedule failed ({err}); "
-                              f"keeping the last good gain ({int(status.gain_failures)} failures "
-                              f"so far)", RuntimeWarning, stacklevel=1)
+                warnings.warn(
+                    f"t = {context.get_time():.4f} s: gain re-schedule failed ({err}); "
+                    f"keeping the last good gain ({int(status.gain_failures)} failures "
+                    f"so far)",
+                    RuntimeWarning,
+                    stacklevel=1,
+                )
             return False
         status.omega_Q, status.omega_R = omega
         status.gain_solves += 1
@@ -925,16 +1049,24 @@ class LqiDiagram(Diagram):
         builder.AddNamedSystem("lqi", self.lqi)
         self.status_names = LQI_STATUS_NAMES
         lay = self.lqi.layout
-        names = ("x" if self.lqi.estimator is None else "motor_angle", "x_d", "T_ff", "omega",
-                 "motor_torque_applied")
+        names = (
+            "x" if self.lqi.estimator is None else "motor_angle",
+            "x_d",
+            "T_ff",
+            "omega",
+            "motor_torque_applied",
+        )
         sizes = [getattr(lay, p).stop - getattr(lay, p).start for p in lqi_step.PARTS[:5]]
         inputs = [(name, size) for name, size in zip(names, sizes) if size]
         mux = builder.AddNamedSystem("inputs", Multiplexer([size for _, size in inputs]))
         for k, (name, _) in enumerate(inputs):
             builder.ExportInput(mux.get_input_port(k), name)
         builder.Connect(mux.get_output_port(), self.lqi.get_input_port())
-        parts = [(port, getattr(lay, p)) for p, port in lqi_step.EXPORTED.items()
-                 if getattr(lay, p).stop > getattr(lay, p).start]
+        parts = [
+            (port, getattr(lay, p))
+            for p, port in lqi_step.EXPORTED.items()
+            if getattr(lay, p).stop > getattr(lay, p).start
+        ]
         exported = parts[-1][1].stop
         sizes = [sl.stop - sl.start for _, sl in parts] + [lay.state_size - exported]
         demux = builder.AddNamedSystem("outputs", Demultiplexer(sizes))

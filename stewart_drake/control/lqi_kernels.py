@@ -90,13 +90,13 @@ def sources_digest() -> str:
 
 
 #: :func:`sources_digest` of the sources this file was last compiled against.
-DEPENDENCIES_DIGEST = "750ff229cf98387c"
+DEPENDENCIES_DIGEST = "61d8b766964469de"
 
 
 def _use_cache() -> bool:
     try:
         return sources_digest() == DEPENDENCIES_DIGEST
-    except (OSError, TypeError):                # sources not shipped: compile every time
+    except (OSError, TypeError):  # sources not shipped: compile every time
         return False
 
 
@@ -140,15 +140,25 @@ solve6 = _njit(lqi_step.solve6)
 @_njit
 def part(array, bounds, k):
     """:func:`.lqi_step.part`."""
-    return array[bounds[k, 0]:bounds[k, 1]]
+    return array[bounds[k, 0] : bounds[k, 1]]
 
 
 # -- the gain's re-schedule: B(x), the error model, Newton's step ---------------------------------
 
 #: Entries of the ``body`` array of :func:`input_matrix`, in order (see
 #: :func:`~.lqi.inertia_constants`).
-BODY = ("crank_length", "rod_length", "leg_c", "platform_Ixx", "platform_Iyy", "platform_Izz",
-        "platform_mass", "shaft_inertia", "rod_mass", "rod_inertia")
+BODY = (
+    "crank_length",
+    "rod_length",
+    "leg_c",
+    "platform_Ixx",
+    "platform_Iyy",
+    "platform_Izz",
+    "platform_mass",
+    "shaft_inertia",
+    "rod_mass",
+    "rod_inertia",
+)
 
 
 @_njit
@@ -221,17 +231,24 @@ def input_matrix(legs, body, x):
     a, s, leg_c = body[0], body[1], body[2]
     cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
     sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
-    R = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                  [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                  [-sp, cp * sr, cp * cr]])
+    R = np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
     E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
     J = np.empty((6, 6))
     r_B, ell, e_N = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
     for i in range(6):
         for k in range(3):
             r_B[i, k] = R[k, 0] * legs[i, 0] + R[k, 1] * legs[i, 1] + R[k, 2] * legs[i, 2]
-        lx, ly, lz = (r_B[i, 0] + x[3] - legs[i, 3], r_B[i, 1] + x[4] - legs[i, 4],
-                      r_B[i, 2] + x[5] - legs[i, 5])
+        lx, ly, lz = (
+            r_B[i, 0] + x[3] - legs[i, 3],
+            r_B[i, 1] + x[4] - legs[i, 4],
+            r_B[i, 2] + x[5] - legs[i, 5],
+        )
         dx, dy, dz = legs[i, 6], legs[i, 7], legs[i, 8]
         L = lx * lx + ly * ly + lz * lz - leg_c
         M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
@@ -239,15 +256,17 @@ def input_matrix(legs, body, x):
         c, sn = math.cos(theta), math.sin(theta)
         ell[i, 0], ell[i, 1], ell[i, 2] = lx - a * c * dx, ly - a * c * dy, lz - a * (c * dz + sn)
         e_N[i, 0], e_N[i, 1], e_N[i, 2] = -sn * dx, -sn * dy, c - sn * dz
-        rxl = (r_B[i, 1] * ell[i, 2] - r_B[i, 2] * ell[i, 1],
-               r_B[i, 2] * ell[i, 0] - r_B[i, 0] * ell[i, 2],
-               r_B[i, 0] * ell[i, 1] - r_B[i, 1] * ell[i, 0])
+        rxl = (
+            r_B[i, 1] * ell[i, 2] - r_B[i, 2] * ell[i, 1],
+            r_B[i, 2] * ell[i, 0] - r_B[i, 0] * ell[i, 2],
+            r_B[i, 0] * ell[i, 1] - r_B[i, 1] * ell[i, 0],
+        )
         scale = a * (ell[i, 0] * e_N[i, 0] + ell[i, 1] * e_N[i, 1] + ell[i, 2] * e_N[i, 2])
         for j in range(3):
             J[i, j] = (rxl[0] * E[0, j] + rxl[1] * E[1, j] + rxl[2] * E[2, j]) / scale
             J[i, 3 + j] = ell[i, j] / scale
     # Task inertia: platform (rotation in rpy coordinates, translation), cranks, rods.
-    RI = np.empty((3, 3))                       # R diag(I_p): I_B = R diag(I_p) R^T
+    RI = np.empty((3, 3))  # R diag(I_p): I_B = R diag(I_p) R^T
     for i in range(3):
         for j in range(3):
             RI[i, j] = R[i, j] * body[3 + j]
@@ -257,7 +276,7 @@ def input_matrix(legs, body, x):
             for k in range(3):
                 I_B[i, j] += RI[i, k] * R[j, k]
     Mx = np.zeros((6, 6))
-    Mx[:3, :3] = _at_b(E, _at_b(I_B, E))        # I_B is symmetric: E^T I_B E
+    Mx[:3, :3] = _at_b(E, _at_b(I_B, E))  # I_B is symmetric: E^T I_B E
     for k in range(3):
         Mx[3 + k, 3 + k] = body[6]
     Mx += body[7] * _at_b(J, J)
@@ -304,13 +323,13 @@ def zoh_model(B_c, h, d):
     if d == 0:
         return A, B
     B_aug = np.zeros((n, 6))
-    for i in range(18):                          # u_{k-d} acts now
+    for i in range(18):  # u_{k-d} acts now
         for j in range(6):
             A[i, n - 6 + j] = B[i, j]
-    for k in range(d - 1):                       # the history shifts by one
+    for k in range(d - 1):  # the history shifts by one
         for j in range(6):
             A[18 + 6 * (k + 1) + j, 18 + 6 * k + j] = 1.0
-    for j in range(6):                           # u_k is the newest
+    for j in range(6):  # u_k is the newest
         B_aug[18 + j, j] = 1.0
     return A, B_aug
 
@@ -331,6 +350,7 @@ def warm_gain(legs, body, x, h, d, Q, R, K, tol, max_iter, stein_tol):
 
 
 # -- the gain's Newton step -----------------------------------------------------------------------
+
 
 @_njit
 def stein(A, W, tol, max_iter):
@@ -425,6 +445,7 @@ def newton_gain(A, B, Q, R, K, tol, max_iter, stein_tol):
 
 # -- estimate -------------------------------------------------------------------------------------
 
+
 @_njit
 def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv):
     """:func:`.lqi_step.estimate`: one Newton chord step and the rate filter (paper eq. 6)."""
@@ -459,11 +480,15 @@ def filter_rate(h, alpha, x, x_hat):
 
 # -- re-schedule and govern: what is due ----------------------------------------------------------
 
+
 @_njit
 def schedule_due(c, counter, omega, status):
     """:func:`.lqi_step.schedule_due` (eqs. 27, 31-33)."""
-    due = (counter[0] >= c[STEPS_PER_SCHEDULE] and c[SCHEDULE_POSE] != 0.0) \
-        or omega[0] != status[OMEGA_Q] or omega[1] != status[OMEGA_R]
+    due = (
+        (counter[0] >= c[STEPS_PER_SCHEDULE] and c[SCHEDULE_POSE] != 0.0)
+        or omega[0] != status[OMEGA_Q]
+        or omega[1] != status[OMEGA_R]
+    )
     counter[0] = 1.0 if due else counter[0] + 1.0
     return due
 
@@ -490,11 +515,20 @@ def observe(c, legs, u, state, bounds):
     """:func:`.lqi_step.observe`."""
     flags = 0
     if c[ESTIMATOR] != 0.0 and not estimate(
-            legs, c[CRANK_LENGTH], c[LEG_C], c[H], c[ALPHA], c[FK_JUMP], part(u, bounds, POSE_IN),
-            part(state, bounds, X_HAT), part(state, bounds, J_INV).reshape((6, 6))):
+        legs,
+        c[CRANK_LENGTH],
+        c[LEG_C],
+        c[H],
+        c[ALPHA],
+        c[FK_JUMP],
+        part(u, bounds, POSE_IN),
+        part(state, bounds, X_HAT),
+        part(state, bounds, J_INV).reshape((6, 6)),
+    ):
         flags |= NEED_NEWTON
-    if schedule_due(c, part(state, bounds, COUNTER), part(u, bounds, OMEGA),
-                    part(state, bounds, STATUS)):
+    if schedule_due(
+        c, part(state, bounds, COUNTER), part(u, bounds, OMEGA), part(state, bounds, STATUS)
+    ):
         flags |= NEED_SCHEDULE
     if governor_needed(c[GOVERNOR_BOUND], part(u, bounds, T_FF)):
         flags |= NEED_GOVERNOR
@@ -502,6 +536,7 @@ def observe(c, legs, u, state, bounds):
 
 
 # -- act ------------------------------------------------------------------------------------------
+
 
 @_njit
 def push_window(window, e_bar, T):
@@ -656,9 +691,12 @@ def warm_up() -> None:
     step(c, legs, u, state, bounds)
     act(c, u, state, bounds, 0)
     filter_rate(1e-3, 0.5, np.zeros(6), state[lay.x_hat])
-    body, x, K = _readonly(np.ones(len(BODY))), np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]), \
-        np.zeros((6, 24))
-    try:                              # compiled before it runs; zero legs make no pose
+    body, x, K = (
+        _readonly(np.ones(len(BODY))),
+        np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]),
+        np.zeros((6, 24)),
+    )
+    try:  # compiled before it runs; zero legs make no pose
         warm_gain(legs, body, x, 1e-3, 1, np.eye(24), np.eye(6), K, np.inf, 1, 1e-16)
     except (ZeroDivisionError, np.linalg.LinAlgError):
         pass

@@ -39,15 +39,42 @@ from .contract import LQI_STATUS_NAMES
 #: The status group, by name (``status.gain_solves += 1``).
 LqiStatus = namedview("LqiStatus", LQI_STATUS_NAMES)
 OMEGA_Q, OMEGA_R, GAIN_SOLVES, GAIN_FAILURES, INTEGRAL_NORM, SATURATED_STEPS, GOVERNED_STEPS = (
-    range(len(LQI_STATUS_NAMES)))
+    range(len(LQI_STATUS_NAMES))
+)
 
 #: The constants of the step, by name; ``governor_bound`` and ``torque_limit`` are inf when
 #: there is none, ``transfer`` a code of :data:`TRANSFER_CODES`, the flags 0.0 or 1.0.
-StepConstants = namedview("StepConstants", (
-    "h", "alpha", "torque_limit", "governor_bound", "steps_per_schedule", "schedule_pose",
-    "anti_windup", "transfer", "estimator", "crank_length", "leg_c", "fk_jump"))
-(H, ALPHA, TORQUE_LIMIT, GOVERNOR_BOUND, STEPS_PER_SCHEDULE, SCHEDULE_POSE, ANTI_WINDUP, TRANSFER,
- ESTIMATOR, CRANK_LENGTH, LEG_C, FK_JUMP) = range(len(StepConstants.get_fields()))
+StepConstants = namedview(
+    "StepConstants",
+    (
+        "h",
+        "alpha",
+        "torque_limit",
+        "governor_bound",
+        "steps_per_schedule",
+        "schedule_pose",
+        "anti_windup",
+        "transfer",
+        "estimator",
+        "crank_length",
+        "leg_c",
+        "fk_jump",
+    ),
+)
+(
+    H,
+    ALPHA,
+    TORQUE_LIMIT,
+    GOVERNOR_BOUND,
+    STEPS_PER_SCHEDULE,
+    SCHEDULE_POSE,
+    ANTI_WINDUP,
+    TRANSFER,
+    ESTIMATOR,
+    CRANK_LENGTH,
+    LEG_C,
+    FK_JUMP,
+) = range(len(StepConstants.get_fields()))
 #: gain_transfer modes (see LqiController) as the codes the compiled stages compare.
 TRANSFER_CODES = {"none": 0.0, "integral": 1.0, "feedback": 2.0}
 TRANSFER_NONE, TRANSFER_INTEGRAL, TRANSFER_FEEDBACK = 0.0, 1.0, 2.0
@@ -60,14 +87,53 @@ GAIN_CHANGED, GOVERNED = 1, 2
 NONFINITE_SAMPLE = 1
 
 #: The named parts of the input vector ``u`` and of the state, in order (:class:`LqiLayout`).
-PARTS = ("pose_in", "x_d", "T_ff", "omega", "T_applied",
-         "T", "z", "status", "e_bar", "x_hat", "window",
-         "counter", "K", "K_old", "pending", "hold", "J_inv")
-(POSE_IN, X_D, T_FF, OMEGA, T_APPLIED, T_PART, Z, STATUS, E_BAR, X_HAT, WINDOW, COUNTER, K_PART,
- K_OLD, PENDING, HOLD, J_INV) = range(len(PARTS))
+PARTS = (
+    "pose_in",
+    "x_d",
+    "T_ff",
+    "omega",
+    "T_applied",
+    "T",
+    "z",
+    "status",
+    "e_bar",
+    "x_hat",
+    "window",
+    "counter",
+    "K",
+    "K_old",
+    "pending",
+    "hold",
+    "J_inv",
+)
+(
+    POSE_IN,
+    X_D,
+    T_FF,
+    OMEGA,
+    T_APPLIED,
+    T_PART,
+    Z,
+    STATUS,
+    E_BAR,
+    X_HAT,
+    WINDOW,
+    COUNTER,
+    K_PART,
+    K_OLD,
+    PENDING,
+    HOLD,
+    J_INV,
+) = range(len(PARTS))
 #: The parts of the state the controller's Diagram exports, in order: state output ports.
-EXPORTED = {"T": "T", "z": "integral", "status": "status", "e_bar": "e_bar", "x_hat": "x_hat",
-            "window": "feature_window"}
+EXPORTED = {
+    "T": "T",
+    "z": "integral",
+    "status": "status",
+    "e_bar": "e_bar",
+    "x_hat": "x_hat",
+    "window": "feature_window",
+}
 #: Columns of a window row: [e_bar (6), T (6)].
 WINDOW_ROW = 12
 
@@ -113,14 +179,26 @@ class LqiLayout:
     J_inv: slice
 
     @classmethod
-    def build(cls, n: int, delay_periods: int, governor: bool, estimator: bool,
-              window: int | None) -> LqiLayout:
+    def build(
+        cls, n: int, delay_periods: int, governor: bool, estimator: bool, window: int | None
+    ) -> LqiLayout:
         """The layout for n gain columns, d periods of delay, with or without a governor, an
         estimator and a feature window of ``window`` samples."""
         inputs = (6 if estimator else 12, 18, 6, 2, 6 if window else 0)
-        state = (6, 6, len(LQI_STATUS_NAMES), 6, 12 if estimator else 0,
-                 WINDOW_ROW * window + 2 if window else 0, 1, 6 * n, 6 * n, 6 * delay_periods,
-                 24 if governor else 0, 36 if estimator else 0)
+        state = (
+            6,
+            6,
+            len(LQI_STATUS_NAMES),
+            6,
+            12 if estimator else 0,
+            WINDOW_ROW * window + 2 if window else 0,
+            1,
+            6 * n,
+            6 * n,
+            6 * delay_periods,
+            24 if governor else 0,
+            36 if estimator else 0,
+        )
         slices = []
         for sizes in (inputs, state):
             stops = np.cumsum(sizes)
@@ -138,13 +216,14 @@ class LqiLayout:
     def bounds(self) -> np.ndarray:
         """(17, 2) int64 [start, stop) of each part in :data:`PARTS` order, for the compiled
         stages (which cannot read a dataclass)."""
-        return np.array([[getattr(self, p).start, getattr(self, p).stop] for p in PARTS],
-                        dtype=np.int64)
+        return np.array(
+            [[getattr(self, p).start, getattr(self, p).stop] for p in PARTS], dtype=np.int64
+        )
 
 
 def part(array: np.ndarray, bounds: np.ndarray, k: int) -> np.ndarray:
     """The view of part ``k`` (an index of :data:`PARTS`) of ``u`` or of the state."""
-    return array[bounds[k, 0]:bounds[k, 1]]
+    return array[bounds[k, 0] : bounds[k, 1]]
 
 
 # -- sums in one order ----------------------------------------------------------------------------
@@ -152,6 +231,7 @@ def part(array: np.ndarray, bounds: np.ndarray, k: int) -> np.ndarray:
 # compiled stages compile these very functions: both implementations then produce the same
 # bits. (BLAS sums a product in another order; on the robot as built a last-bit difference in
 # the estimate or the torque can become another encoder count, and the runs part ways.)
+
 
 def matvec(A, v):
     """A v for A (m, n), v (n,): each row summed left to right."""
@@ -195,6 +275,7 @@ def solve6(A, b):
 
 # -- estimate -------------------------------------------------------------------------------------
 
+
 def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv) -> bool:
     """Pose and rate from the encoders by one Newton chord step, in place in ``x_hat``.
 
@@ -234,12 +315,16 @@ def filter_rate(h, alpha, x, x_hat) -> None:
 
 # -- re-schedule and govern: what is due ----------------------------------------------------------
 
+
 def schedule_due(c, counter, omega, status) -> bool:
     """A gain re-solve is due: a schedule period has passed (with pose scheduling), or the
     weights on the port differ from those in use (eqs. 27, 31-33). Advances ``counter`` (1,),
     which restarts with a re-solve."""
-    due = (counter[0] >= c[STEPS_PER_SCHEDULE] and c[SCHEDULE_POSE] != 0.0) \
-        or omega[0] != status[OMEGA_Q] or omega[1] != status[OMEGA_R]
+    due = (
+        (counter[0] >= c[STEPS_PER_SCHEDULE] and c[SCHEDULE_POSE] != 0.0)
+        or omega[0] != status[OMEGA_Q]
+        or omega[1] != status[OMEGA_R]
+    )
     counter[0] = 1.0 if due else counter[0] + 1.0
     return due
 
@@ -262,11 +347,20 @@ def observe(c, legs, u, state, bounds) -> int:
     """
     flags = 0
     if c[ESTIMATOR] != 0.0 and not estimate(
-            legs, c[CRANK_LENGTH], c[LEG_C], c[H], c[ALPHA], c[FK_JUMP], part(u, bounds, POSE_IN),
-            part(state, bounds, X_HAT), part(state, bounds, J_INV).reshape(6, 6)):
+        legs,
+        c[CRANK_LENGTH],
+        c[LEG_C],
+        c[H],
+        c[ALPHA],
+        c[FK_JUMP],
+        part(u, bounds, POSE_IN),
+        part(state, bounds, X_HAT),
+        part(state, bounds, J_INV).reshape(6, 6),
+    ):
         flags |= NEED_NEWTON
-    if schedule_due(c, part(state, bounds, COUNTER), part(u, bounds, OMEGA),
-                    part(state, bounds, STATUS)):
+    if schedule_due(
+        c, part(state, bounds, COUNTER), part(u, bounds, OMEGA), part(state, bounds, STATUS)
+    ):
         flags |= NEED_SCHEDULE
     if governor_needed(c[GOVERNOR_BOUND], part(u, bounds, T_FF)):
         flags |= NEED_GOVERNOR
@@ -275,6 +369,7 @@ def observe(c, legs, u, state, bounds) -> int:
 
 # -- act ------------------------------------------------------------------------------------------
 
+
 def push_window(window, e_bar, T) -> bool:
     """Buffer one sample [e_bar (6), T (6)] of the density features (eqs. 35-36) in the ring
     ``window`` = [rows (w x 12), n_valid, head]; False (nothing written) if it is not finite."""
@@ -282,7 +377,7 @@ def push_window(window, e_bar, T) -> bool:
         return False
     w = (window.size - 2) // WINDOW_ROW
     head = int(window[-1])
-    row = window[WINDOW_ROW * head:WINDOW_ROW * (head + 1)]
+    row = window[WINDOW_ROW * head : WINDOW_ROW * (head + 1)]
     row[:6], row[6:] = e_bar, T
     window[-2] = min(window[-2] + 1.0, w)
     window[-1] = (head + 1) % w
@@ -360,7 +455,7 @@ def act(c, u, state, bounds, mode) -> int:
         if mode & GOVERNED:
             ref, T_ff = hold[:18], hold[18:]
             status[GOVERNED_STEPS] += 1.0
-        else:                                   # the last reference within reach, at rest
+        else:  # the last reference within reach, at rest
             hold[:6], hold[6:18], hold[18:] = ref[:6], 0.0, T_ff
     x = part(state, bounds, X_HAT) if c[ESTIMATOR] != 0.0 else part(u, bounds, POSE_IN)
     K = part(state, bounds, K_PART).reshape(6, -1)
@@ -374,7 +469,7 @@ def act(c, u, state, bounds, mode) -> int:
         status[SATURATED_STEPS] += 1.0
     if pending.size:
         push_pending(pending, T, T_ff)
-    if not (saturated and c[ANTI_WINDUP] != 0.0):      # clamping: z holds while saturated
+    if not (saturated and c[ANTI_WINDUP] != 0.0):  # clamping: z holds while saturated
         integrate(c[H], e, z)
     status[INTEGRAL_NORM] = np.linalg.norm(z)
     e_bar[:] = e[:6]

@@ -42,8 +42,9 @@ class PdDriver(ControllerDriver):
     run_suffix: ClassVar[str] = "_pd"
     short_name: ClassVar[str] = "pd"
 
-    def validate(self, control_period_s: float, delay_periods: int = 0,
-                 prefix: str = "controller.") -> "PdDriver":
+    def validate(
+        self, control_period_s: float, delay_periods: int = 0, prefix: str = "controller."
+    ) -> "PdDriver":
         """Check the options for a controller of period ``control_period_s`` (s); returns self
         (the PD ignores a computation delay).
 
@@ -57,13 +58,19 @@ class PdDriver(ControllerDriver):
             raise InvalidConfigError(
                 f"{prefix}bandwidth_hz = {self.bandwidth_hz:g} Hz is too high for a "
                 f"{control_period_s:g} s period (2 pi f h = {w_n * control_period_s:.2f} > 0.5); "
-                f"lower it or the period")
+                f"lower it or the period"
+            )
         return self
 
     def make(self, context: ControllerContext) -> "CrankPdController":
         """The PD for the Diagram that ``context`` describes."""
-        return CrankPdController(context.geometry, self, period_s=context.period_s,
-                                 offset_s=context.offset_s, x_initial=context.x_initial)
+        return CrankPdController(
+            context.geometry,
+            self,
+            period_s=context.period_s,
+            offset_s=context.offset_s,
+            x_initial=context.x_initial,
+        )
 
 
 class CrankPdController(PoseTorqueController):
@@ -95,8 +102,15 @@ class CrankPdController(PoseTorqueController):
             ``driver.<option>``: a bandwidth the sampling cannot carry, 2 pi f h > 0.5).
     """
 
-    def __init__(self, geometry: StewartGeometry, driver: PdDriver | None = None, *,
-                 period_s: float = 1e-3, offset_s: float = 0.0, x_initial=None):
+    def __init__(
+        self,
+        geometry: StewartGeometry,
+        driver: PdDriver | None = None,
+        *,
+        period_s: float = 1e-3,
+        offset_s: float = 0.0,
+        x_initial=None,
+    ):
         super().__init__(omega=False)
         self.status_names = ("inertia_reschedules", "failures")
         if not (np.isfinite(period_s) and period_s > 0):
@@ -108,7 +122,7 @@ class CrankPdController(PoseTorqueController):
         w_n = 2 * np.pi * driver.bandwidth_hz
         damping, schedule_period_s = driver.damping, driver.schedule_period_s
         self.geometry = geometry
-        self._kp, self._kd = w_n ** 2, 2 * damping * w_n
+        self._kp, self._kd = w_n**2, 2 * damping * w_n
         self.steps_per_schedule = max(1, int(round(schedule_period_s / period_s)))
         x0 = X_HOME if x_initial is None else np.asarray(x_initial, dtype=float)
         M = crank_inertia_matrix(geometry, x0)
@@ -117,13 +131,14 @@ class CrankPdController(PoseTorqueController):
         self._u_index = self.DeclareDiscreteState(statics.holding_torques(geometry, x0))
         self._s_index = self.DeclareDiscreteState(2)
         self._e_index = self.DeclareDiscreteState(6)
-        self._M_index = self.DeclareDiscreteState(M.reshape(-1))   # M_theta of the gains
-        self._k_index = self.DeclareDiscreteState(1)               # step counter
+        self._M_index = self.DeclareDiscreteState(M.reshape(-1))  # M_theta of the gains
+        self._k_index = self.DeclareDiscreteState(1)  # step counter
         self.DeclareStateOutputPort("T", self._u_index)
         self.DeclareStateOutputPort("status", self._s_index)
         self.DeclareStateOutputPort("e_bar", self._e_index)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=period_s, offset_sec=float(offset_s),
-                                                update=self._Update)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=period_s, offset_sec=float(offset_s), update=self._Update
+        )
 
     def crank_states(self, x) -> tuple[np.ndarray, np.ndarray]:
         """(theta (6,) rad, w (6,) rad/s) of the cranks for a pose and rate x (12,)."""
@@ -146,7 +161,7 @@ class CrankPdController(PoseTorqueController):
             theta_d, w_d = self.crank_states(ref[:12])
             T += M @ (self._kp * (theta_d - theta) + self._kd * (w_d - w))
         except (UnreachablePoseError, np.linalg.LinAlgError):
-            status[1] += 1        # keep the last gains / the feed-forward; the guard sees the pose
+            status[1] += 1  # keep the last gains / the feed-forward; the guard sees the pose
         discrete_state.set_value(self._k_index, [k + 1])
         discrete_state.set_value(self._u_index, T)
         discrete_state.set_value(self._s_index, status)

@@ -38,8 +38,8 @@ FORMAT_VERSION = 1
 #: The paper's ANN outputs log10 omega_Q and log10 omega_R clipped to this range (the paper's
 #: nine training pairs span it), so its weights stay within [ANN_OMEGA_MIN, ANN_OMEGA_MAX].
 ANN_LOG10_MIN, ANN_LOG10_MAX = -1.0, 1.0
-ANN_OMEGA_MIN, ANN_OMEGA_MAX = 10.0 ** ANN_LOG10_MIN, 10.0 ** ANN_LOG10_MAX
-Z_CLIP = 1e3                                 # |normalized input| cap, in training stds
+ANN_OMEGA_MIN, ANN_OMEGA_MAX = 10.0**ANN_LOG10_MIN, 10.0**ANN_LOG10_MAX
+Z_CLIP = 1e3  # |normalized input| cap, in training stds
 DEFAULT_TUNER_PATH = Path(__file__).resolve().parents[1] / "data" / "ann_tuner.npz"
 #: Largest tuner weights file, after decompression, bytes (the networks hold a few kB).
 MAX_WEIGHTS_BYTES = 16e6
@@ -49,8 +49,9 @@ PAPER_LABEL_TUNER_PATH = DEFAULT_TUNER_PATH.with_name("ann_tuner_paper.npz")
 ACTIVATIONS = ("tanh", "sigmoid")
 
 
-def _freeze_and_check_mlp(model, kind: str, n_in: int, n_out: int, non_finite: str = "",
-                          shape: str = "", x_std: str = "") -> None:
+def _freeze_and_check_mlp(
+    model, kind: str, n_in: int, n_out: int, non_finite: str = "", shape: str = "", x_std: str = ""
+) -> None:
     """Make a frozen one-hidden-layer model's weights read-only float64 arrays and check them:
     finite, W1 (hidden, n_in), b1 (hidden,), W2 (n_out, hidden), b2 (n_out,), x_mean and x_std
     (n_in,), x_std > 0. ``kind`` names the model in the errors, the other strings end them.
@@ -65,12 +66,20 @@ def _freeze_and_check_mlp(model, kind: str, n_in: int, n_out: int, non_finite: s
         if not np.all(np.isfinite(value)):
             raise InvalidConfigError(f"{kind} weight {name} has non-finite entries{non_finite}")
     hidden = model.W1.shape[0] if model.W1.ndim == 2 else -1
-    expected = {"W1": (hidden, n_in), "b1": (hidden,), "W2": (n_out, hidden), "b2": (n_out,),
-                "x_mean": (n_in,), "x_std": (n_in,)}
+    expected = {
+        "W1": (hidden, n_in),
+        "b1": (hidden,),
+        "W2": (n_out, hidden),
+        "b2": (n_out,),
+        "x_mean": (n_in,),
+        "x_std": (n_in,),
+    }
     for name, want in expected.items():
         if hidden < 1 or getattr(model, name).shape != want:
-            raise InvalidConfigError(f"{kind} weight {name} has shape "
-                                     f"{getattr(model, name).shape}, expected {want}{shape}")
+            raise InvalidConfigError(
+                f"{kind} weight {name} has shape "
+                f"{getattr(model, name).shape}, expected {want}{shape}"
+            )
     if not np.all(model.x_std > 0):
         raise InvalidConfigError(f"{kind} x_std must be > 0{x_std}")
 
@@ -78,7 +87,7 @@ def _freeze_and_check_mlp(model, kind: str, n_in: int, n_out: int, non_finite: s
 def _activation(name: str, h: np.ndarray) -> np.ndarray:
     if name == "tanh":
         return np.tanh(h)
-    return 0.5 * (1.0 + np.tanh(0.5 * h))    # sigmoid without overflow in exp
+    return 0.5 * (1.0 + np.tanh(0.5 * h))  # sigmoid without overflow in exp
 
 
 @dataclass(frozen=True)
@@ -106,12 +115,19 @@ class TunerModel:
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self):
-        _freeze_and_check_mlp(self, "tuner", N_FEATURES, 2, non_finite="; retrain",
-                              shape=" (12 features -> hidden -> [omega_Q, omega_R])",
-                              x_std=" (normalization of rho)")
+        _freeze_and_check_mlp(
+            self,
+            "tuner",
+            N_FEATURES,
+            2,
+            non_finite="; retrain",
+            shape=" (12 features -> hidden -> [omega_Q, omega_R])",
+            x_std=" (normalization of rho)",
+        )
         if self.activation not in ACTIVATIONS:
-            raise InvalidConfigError(f"activation must be one of {ACTIVATIONS}, "
-                                     f"got {self.activation!r}")
+            raise InvalidConfigError(
+                f"activation must be one of {ACTIVATIONS}, got {self.activation!r}"
+            )
 
     @property
     def hidden(self) -> int:
@@ -136,8 +152,10 @@ class TunerModel:
             h = _activation(self.activation, z @ self.W1.T + self.b1)
             y = np.clip(h @ self.W2.T + self.b2, ANN_LOG10_MIN, ANN_LOG10_MAX)
         if not np.isfinite(y).all():
-            raise InvalidConfigError("the tuner's output is NaN: its weights overflow float64 "
-                                     "sums; retrain with `stewart-drake train`")
+            raise InvalidConfigError(
+                "the tuner's output is NaN: its weights overflow float64 "
+                "sums; retrain with `stewart-drake train`"
+            )
         return y
 
     def predict(self, rho) -> np.ndarray:
@@ -154,15 +172,18 @@ class TunerModel:
 
     # -- torch ---------------------------------------------------------------------------------
     @classmethod
-    def from_torch(cls, mlp, x_mean, x_std, metadata: dict | None = None) -> "TunerModel":
+    def from_torch(cls, mlp, x_mean, x_std, metadata: dict | None = None) -> TunerModel:
         """Numpy copy of a :func:`build_mlp` network and its input normalization."""
         import torch
 
         linears = [m for m in mlp if isinstance(m, torch.nn.Linear)]
         act = "tanh" if any(isinstance(m, torch.nn.Tanh) for m in mlp) else "sigmoid"
         with torch.no_grad():
-            W1, b1, W2, b2 = (p.detach().cpu().double().numpy().copy()
-                              for lin in linears for p in (lin.weight, lin.bias))
+            W1, b1, W2, b2 = (
+                p.detach().cpu().double().numpy().copy()
+                for lin in linears
+                for p in (lin.weight, lin.bias)
+            )
         return cls(W1, b1, W2, b2, x_mean, x_std, act, dict(metadata or {}))
 
     def to_torch(self):
@@ -197,8 +218,9 @@ def build_mlp(hidden: int = 10, activation: str = "tanh"):
     if not (isinstance(hidden, int) and hidden >= 1):
         raise InvalidConfigError(f"hidden must be an integer >= 1, got {hidden!r}")
     act = torch.nn.Tanh() if activation == "tanh" else torch.nn.Sigmoid()
-    return torch.nn.Sequential(torch.nn.Linear(N_FEATURES, hidden), act,
-                               torch.nn.Linear(hidden, 2)).double()
+    return torch.nn.Sequential(
+        torch.nn.Linear(N_FEATURES, hidden), act, torch.nn.Linear(hidden, 2)
+    ).double()
 
 
 def save_tuner(model: TunerModel, path) -> Path:
@@ -210,13 +232,20 @@ def save_tuner(model: TunerModel, path) -> Path:
         TypeError: metadata that JSON cannot encode.
     """
     path = Path(path)
-    arrays = dict(W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2,
-                  x_mean=model.x_mean, x_std=model.x_std,
-                  log10_min=np.float64(ANN_LOG10_MIN), log10_max=np.float64(ANN_LOG10_MAX),
-                  activation=np.str_(model.activation),
-                  format_version=np.int64(FORMAT_VERSION),
-                  metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
-    atomic_write(path, lambda f: np.savez(f, **arrays))   # a file object: no ".npz" appended
+    arrays = dict(
+        W1=model.W1,
+        b1=model.b1,
+        W2=model.W2,
+        b2=model.b2,
+        x_mean=model.x_mean,
+        x_std=model.x_std,
+        log10_min=np.float64(ANN_LOG10_MIN),
+        log10_max=np.float64(ANN_LOG10_MAX),
+        activation=np.str_(model.activation),
+        format_version=np.int64(FORMAT_VERSION),
+        metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)),
+    )
+    atomic_write(path, lambda f: np.savez(f, **arrays))  # a file object: no ".npz" appended
     return path
 
 
@@ -238,20 +267,27 @@ def load_tuner(path=None) -> TunerModel:
     default = path is None
     path = DEFAULT_TUNER_PATH if default else Path(path)
     if not path.exists():
-        how = ("run `stewart-drake collect && stewart-drake train` to collect the 9 closed-loop "
-               "runs and train it" if default else "check the path, or pass none for the "
-               "shipped weights")
+        how = (
+            "run `stewart-drake collect && stewart-drake train` to collect the 9 closed-loop "
+            "runs and train it"
+            if default
+            else "check the path, or pass none for the shipped weights"
+        )
         raise MissingFileError(f"no ANN tuner weights at {path}: {how}")
-    data = CheckedNpz(path, "ANN tuner weights file",
-                      "retrain with `stewart-drake train` or use the shipped weights",
-                      max_bytes=MAX_WEIGHTS_BYTES)
+    data = CheckedNpz(
+        path,
+        "ANN tuner weights file",
+        "retrain with `stewart-drake train` or use the shipped weights",
+        max_bytes=MAX_WEIGHTS_BYTES,
+    )
     version = data.integer("format_version")
     if version != FORMAT_VERSION:
         raise data.corrupt(f"tuner format {version}, this stewart-drake reads {FORMAT_VERSION}")
     clamp = (data.number("log10_min"), data.number("log10_max"))
     if clamp != (ANN_LOG10_MIN, ANN_LOG10_MAX):
-        raise data.corrupt(f"it clamps log10 omega to {clamp}, expected "
-                           f"{(ANN_LOG10_MIN, ANN_LOG10_MAX)}")
+        raise data.corrupt(
+            f"it clamps log10 omega to {clamp}, expected {(ANN_LOG10_MIN, ANN_LOG10_MAX)}"
+        )
     weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
     activation, metadata = data.text("activation"), data.json("metadata_json")
     try:
@@ -286,8 +322,13 @@ class AnnTuner(LeafSystem):
     Source: paper section III.D; the clamp and the non-finite guard are ours.
     """
 
-    def __init__(self, model: TunerModel | None = None, period_s: float = 0.02,
-                 offset_s: float = 0.0, omega_initial=(1.0, 1.0)):
+    def __init__(
+        self,
+        model: TunerModel | None = None,
+        period_s: float = 0.02,
+        offset_s: float = 0.0,
+        omega_initial=(1.0, 1.0),
+    ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
@@ -295,18 +336,17 @@ class AnnTuner(LeafSystem):
             raise InvalidConfigError(f"offset_s must be >= 0 s, got {offset_s}")
         omega0 = np.asarray(omega_initial, dtype=float)
         if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
-            raise InvalidConfigError(
-                f"omega_initial must be 2 finite numbers, got {omega_initial}")
+            raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
         self.model = load_tuner() if model is None else model
         self.period_s = float(period_s)
         self._rho = self.DeclareVectorInputPort("rho", N_FEATURES)
-        self._omega_index = self.DeclareDiscreteState(np.clip(omega0, ANN_OMEGA_MIN,
-                                                              ANN_OMEGA_MAX))
+        self._omega_index = self.DeclareDiscreteState(np.clip(omega0, ANN_OMEGA_MIN, ANN_OMEGA_MAX))
         self._count_index = self.DeclareDiscreteState(1)
         self._omega = self.DeclareStateOutputPort("omega", self._omega_index)
         self._count = self.DeclareStateOutputPort("nonfinite_count", self._count_index)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=offset_s,
-                                                update=self._Update)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.period_s, offset_sec=offset_s, update=self._Update
+        )
 
     def get_rho_input_port(self):
         return self._rho
@@ -321,7 +361,7 @@ class AnnTuner(LeafSystem):
         rho = self._rho.Eval(context)
         try:
             discrete_state.set_value(self._omega_index, self.model.predict(rho))
-        except InvalidConfigError:                   # rho (or the output) not finite
+        except InvalidConfigError:  # rho (or the output) not finite
             count = context.get_discrete_state(self._count_index).get_value()[0]
             discrete_state.set_value(self._count_index, [count + 1.0])
 
@@ -331,10 +371,13 @@ class AnnTuner(LeafSystem):
 #: Inputs of :class:`RatioTunerModel`, in order: the 12 density features, then the reference's
 #: speed and acceleration, rotation and translation apart, each over its scale.
 RATIO_INPUTS = tuple(f"rho_{k}" for k in range(N_FEATURES)) + (
-    "|rpy_dot_d| / 1 rad/s", "|p_dot_d| / 0.1 m/s", "|rpy_ddot_d| / 10 rad/s^2",
-    "|p_ddot_d| / 1 m/s^2")
+    "|rpy_dot_d| / 1 rad/s",
+    "|p_dot_d| / 0.1 m/s",
+    "|rpy_ddot_d| / 10 rad/s^2",
+    "|p_ddot_d| / 1 m/s^2",
+)
 N_RATIO_INPUTS = len(RATIO_INPUTS)
-RATIO_LOG10_MIN, RATIO_LOG10_MAX = -3.0, 3.0           # omega_Q / omega_R in [1e-3, 1e3]
+RATIO_LOG10_MIN, RATIO_LOG10_MAX = -3.0, 3.0  # omega_Q / omega_R in [1e-3, 1e3]
 RATIO_FORMAT = "ratio_tuner_v1"
 #: The lambdas of the tuner study's cost (J = tracking + lambda effort) whose tuners ship.
 RATIO_TUNER_LAMBDAS = (0.01, 0.1, 1.0)
@@ -362,10 +405,18 @@ def ratio_tuner_inputs(rho, x_d) -> np.ndarray:
         10 rad/s^2, 1 m/s^2.
     """
     rho, x_d = np.asarray(rho, dtype=float), np.asarray(x_d, dtype=float)
-    motion = np.stack([np.linalg.norm(x_d[..., 6:9], axis=-1),
-                       np.linalg.norm(x_d[..., 9:12], axis=-1),
-                       np.linalg.norm(x_d[..., 12:15], axis=-1),
-                       np.linalg.norm(x_d[..., 15:18], axis=-1)], axis=-1) / _MOTION_SCALES
+    motion = (
+        np.stack(
+            [
+                np.linalg.norm(x_d[..., 6:9], axis=-1),
+                np.linalg.norm(x_d[..., 9:12], axis=-1),
+                np.linalg.norm(x_d[..., 12:15], axis=-1),
+                np.linalg.norm(x_d[..., 15:18], axis=-1),
+            ],
+            axis=-1,
+        )
+        / _MOTION_SCALES
+    )
     return np.concatenate([rho, motion], axis=-1)
 
 
@@ -417,10 +468,17 @@ class RatioTunerModel:
 def save_ratio_tuner(model: RatioTunerModel, path) -> Path:
     """Write ``model`` to a ``.npz`` (atomically); returns the path."""
     path = Path(path)
-    arrays = dict(W1=model.W1, b1=model.b1, W2=model.W2, b2=model.b2, x_mean=model.x_mean,
-                  x_std=model.x_std, format=np.str_(RATIO_FORMAT),
-                  inputs=np.array(RATIO_INPUTS),
-                  metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)))
+    arrays = dict(
+        W1=model.W1,
+        b1=model.b1,
+        W2=model.W2,
+        b2=model.b2,
+        x_mean=model.x_mean,
+        x_std=model.x_std,
+        format=np.str_(RATIO_FORMAT),
+        inputs=np.array(RATIO_INPUTS),
+        metadata_json=np.str_(json.dumps(model.metadata, sort_keys=True)),
+    )
     atomic_write(path, lambda f: np.savez(f, **arrays))
     return path
 
@@ -438,15 +496,22 @@ def load_ratio_tuner(path=None) -> RatioTunerModel:
     """
     path = DEFAULT_RATIO_TUNER_PATH if path is None else Path(path)
     if not path.exists():
-        raise MissingFileError(f"no ratio tuner weights at {path}: the tuner study of "
-                               f"`stewart-drake evaluate` trains them (its out folder, "
-                               f"tuner_study/weights/chosen/)")
-    data = CheckedNpz(path, "ratio tuner weights file",
-                      "train it again (the tuner study of `stewart-drake evaluate`)",
-                      max_bytes=MAX_WEIGHTS_BYTES)
+        raise MissingFileError(
+            f"no ratio tuner weights at {path}: the tuner study of "
+            f"`stewart-drake evaluate` trains them (its out folder, "
+            f"tuner_study/weights/chosen/)"
+        )
+    data = CheckedNpz(
+        path,
+        "ratio tuner weights file",
+        "train it again (the tuner study of `stewart-drake evaluate`)",
+        max_bytes=MAX_WEIGHTS_BYTES,
+    )
     if "format" not in data or data.text("format") != RATIO_FORMAT:
-        raise data.corrupt(f"its format is not {RATIO_FORMAT!r} (the paper's network's weights "
-                           f"go in an AnnTunerDriver)")
+        raise data.corrupt(
+            f"its format is not {RATIO_FORMAT!r} (the paper's network's weights "
+            f"go in an AnnTunerDriver)"
+        )
     weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
     metadata = data.json("metadata_json")
     try:
@@ -476,8 +541,14 @@ class RatioTuner(LeafSystem):
         InvalidConfigError: period_s <= 0, offset_s < 0, a non-finite omega_initial.
     """
 
-    def __init__(self, model: RatioTunerModel, period_s: float = 0.02, offset_s: float = 0.0,
-                 omega_initial=(1.0, 1.0), smoothing_s: float = 0.0):
+    def __init__(
+        self,
+        model: RatioTunerModel,
+        period_s: float = 0.02,
+        offset_s: float = 0.0,
+        omega_initial=(1.0, 1.0),
+        smoothing_s: float = 0.0,
+    ):
         super().__init__()
         if not (np.isfinite(period_s) and period_s > 0):
             raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
@@ -498,8 +569,9 @@ class RatioTuner(LeafSystem):
         self._count_index = self.DeclareDiscreteState(1)
         self.DeclareStateOutputPort("omega", self._omega_index)
         self.DeclareStateOutputPort("nonfinite_count", self._count_index)
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.period_s, offset_sec=offset_s,
-                                                update=self._Update)
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.period_s, offset_sec=offset_s, update=self._Update
+        )
 
     def _Update(self, context, discrete_state):
         inputs = ratio_tuner_inputs(self._rho.Eval(context), self._x_d.Eval(context))
@@ -507,7 +579,7 @@ class RatioTuner(LeafSystem):
             y = float(self.model.predict_log10(inputs))
             last = np.log10(context.get_discrete_state(self._omega_index).get_value()[0])
             y = last + self.alpha * (y - last)
-            discrete_state.set_value(self._omega_index, [10.0 ** y, 1.0])
-        except InvalidConfigError:                   # a non-finite input
+            discrete_state.set_value(self._omega_index, [10.0**y, 1.0])
+        except InvalidConfigError:  # a non-finite input
             count = context.get_discrete_state(self._count_index).get_value()[0]
             discrete_state.set_value(self._count_index, [count + 1.0])

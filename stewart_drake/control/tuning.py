@@ -12,7 +12,7 @@ use ``from __future__ import annotations``.
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar, List, Optional, Union
+from typing import ClassVar
 
 import numpy as np
 from pydrake.systems.primitives import TrajectorySource
@@ -55,7 +55,7 @@ class TunerSystems:
 
     tuner: object
     features: object = None
-    rho_period_s: Optional[float] = None
+    rho_period_s: float | None = None
 
 
 class TunerConfig:
@@ -74,15 +74,17 @@ class TunerConfig:
             InvalidConfigError, MissingFileError: names the field (``tuner.<name>``).
         """
         if controller.takes_omega is False:
-            raise InvalidConfigError("a tuner drives the LQI's weights (its omega input): use an "
-                                     "LqiDriver controller with a tuner")
+            raise InvalidConfigError(
+                "a tuner drives the LQI's weights (its omega input): use an "
+                "LqiDriver controller with a tuner"
+            )
 
-    def density_window(self) -> Optional[int]:
+    def density_window(self) -> int | None:
         """The samples of the density features' window a controller may buffer for the tuner
         (None: the tuner reads no features)."""
         return None
 
-    def weights_path(self) -> Optional[Path]:
+    def weights_path(self) -> Path | None:
         """The network's weights file the run uses (None: no network)."""
         return None
 
@@ -111,10 +113,12 @@ class _NetworkTuner(TunerConfig):
         check_multiple("tuner.period_s", self.period_s, "control_period_s", control_period_s)
         check_int("tuner.feature_window", self.feature_window, 1, 100_000)
         if self.weights and not Path(self.weights).exists():
-            raise MissingFileError(f"no {self.kind} weights at {self.weights} (tuner.weights): "
-                                   f"check the path, or leave it empty for the shipped weights")
+            raise MissingFileError(
+                f"no {self.kind} weights at {self.weights} (tuner.weights): "
+                f"check the path, or leave it empty for the shipped weights"
+            )
 
-    def density_window(self) -> Optional[int]:
+    def density_window(self) -> int | None:
         return self.feature_window
 
     def make_tuner(self):
@@ -122,13 +126,21 @@ class _NetworkTuner(TunerConfig):
         raise NotImplementedError
 
     def add_to(self, builder, ports: TunerPorts) -> TunerSystems:
-        missing = [p for p, have in (("omega input", "omega" in ports.inputs),
-                                     ("e_bar output", "e_bar" in ports.outputs)) if not have]
+        missing = [
+            p
+            for p, have in (
+                ("omega input", "omega" in ports.inputs),
+                ("e_bar output", "e_bar" in ports.outputs),
+            )
+            if not have
+        ]
         name = ports.controller.get_name()
         if missing:
-            raise InvalidConfigError(f"the {self.kind} needs a controller with an "
-                                     f"{' and an '.join(missing)} (the LQI has both); {name} "
-                                     f"has not")
+            raise InvalidConfigError(
+                f"the {self.kind} needs a controller with an "
+                f"{' and an '.join(missing)} (the LQI has both); {name} "
+                f"has not"
+            )
         window = self.feature_window
         # A controller that buffers the samples spares the features a callback per period.
         buffered = "feature_window" in ports.outputs
@@ -137,16 +149,22 @@ class _NetworkTuner(TunerConfig):
             raise InvalidConfigError(
                 f"{name}: output port 'feature_window' has size "
                 f"{ports.controller.GetOutputPort('feature_window').size()}; the tuner's window "
-                f"of {window} samples needs {size} (contract, control/contract.py)")
-        features = builder.AddNamedSystem("features", DensityFeatures(
-            window=window, period_s=ports.period_s, offset_s=ports.offset_s, buffered=buffered))
+                f"of {window} samples needs {size} (contract, control/contract.py)"
+            )
+        features = builder.AddNamedSystem(
+            "features",
+            DensityFeatures(
+                window=window, period_s=ports.period_s, offset_s=ports.offset_s, buffered=buffered
+            ),
+        )
         tuner = self._add_tuner(builder, ports)
         if buffered:
-            builder.Connect(ports.controller.GetOutputPort("feature_window"),
-                            features.GetInputPort("feature_window"))
+            builder.Connect(
+                ports.controller.GetOutputPort("feature_window"),
+                features.GetInputPort("feature_window"),
+            )
         else:
-            builder.Connect(ports.controller.GetOutputPort("e_bar"),
-                            features.GetInputPort("e_bar"))
+            builder.Connect(ports.controller.GetOutputPort("e_bar"), features.GetInputPort("e_bar"))
             builder.Connect(ports.T_applied, features.GetInputPort("T"))
         builder.Connect(features.GetOutputPort("rho"), tuner.GetInputPort("rho"))
         builder.Connect(tuner.GetOutputPort("omega"), ports.controller.GetInputPort("omega"))
@@ -219,8 +237,11 @@ class RatioTunerDriver(_NetworkTuner):
         return Path(self.weights) if self.weights else DEFAULT_RATIO_TUNER_PATH
 
     def make_tuner(self):
-        return RatioTuner(load_ratio_tuner(self.weights or None), period_s=self.period_s,
-                          smoothing_s=self.smoothing_s)
+        return RatioTuner(
+            load_ratio_tuner(self.weights or None),
+            period_s=self.period_s,
+            smoothing_s=self.smoothing_s,
+        )
 
     def _add_tuner(self, builder, ports: TunerPorts):
         tuner = super()._add_tuner(builder, ports)
@@ -238,35 +259,43 @@ class WeightSchedule(TunerConfig):
             on, in [1e-3, 1e3].
     """
 
-    t: List[float] = field(default_factory=lambda: [0.0])
-    omega_Q: List[float] = field(default_factory=lambda: [1.0])
-    omega_R: List[float] = field(default_factory=lambda: [1.0])
+    t: list[float] = field(default_factory=lambda: [0.0])
+    omega_Q: list[float] = field(default_factory=lambda: [1.0])
+    omega_R: list[float] = field(default_factory=lambda: [1.0])
 
     def validate(self, controller, control_period_s: float) -> None:
         super().validate(controller, control_period_s)
         times = as_array("tuner.t", self.t)
         if times.ndim != 1 or times.size < 1 or times[0] != 0.0 or np.any(np.diff(times) <= 0):
-            raise InvalidConfigError(f"tuner.t must be increasing times starting at 0 s, got "
-                                     f"{self.t!r:.80}")
+            raise InvalidConfigError(
+                f"tuner.t must be increasing times starting at 0 s, got {self.t!r:.80}"
+            )
         for name in ("omega_Q", "omega_R"):
             values = as_array(f"tuner.{name}", getattr(self, name))
             if values.shape != times.shape:
-                raise InvalidConfigError(f"tuner.{name} needs one value per time "
-                                         f"({times.size}), got {values.size}")
+                raise InvalidConfigError(
+                    f"tuner.{name} needs one value per time ({times.size}), got {values.size}"
+                )
             if np.any(values < LQI_OMEGA_MIN) or np.any(values > LQI_OMEGA_MAX):
-                raise InvalidConfigError(f"tuner.{name} must be in [{LQI_OMEGA_MIN:g}, "
-                                         f"{LQI_OMEGA_MAX:g}]")
+                raise InvalidConfigError(
+                    f"tuner.{name} must be in [{LQI_OMEGA_MIN:g}, {LQI_OMEGA_MAX:g}]"
+                )
 
     def add_to(self, builder, ports: TunerPorts) -> TunerSystems:
         if "omega" not in ports.inputs:
-            raise InvalidConfigError(f"a weight schedule drives the omega input; "
-                                     f"{ports.controller.get_name()} has none")
+            raise InvalidConfigError(
+                f"a weight schedule drives the omega input; {ports.controller.get_name()} has none"
+            )
         t_s = np.append(np.asarray(self.t, dtype=float), ports.duration_s + 1.0)
         values = np.array([self.omega_Q, self.omega_R], dtype=float)
-        tuner = builder.AddNamedSystem("weight_schedule", TrajectorySource(
-            PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))))
+        tuner = builder.AddNamedSystem(
+            "weight_schedule",
+            TrajectorySource(
+                PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))
+            ),
+        )
         builder.Connect(tuner.get_output_port(), ports.controller.GetInputPort("omega"))
         return TunerSystems(tuner=tuner)
 
 
-TunerChoice = Union[AnnTunerDriver, RatioTunerDriver, WeightSchedule]
+TunerChoice = AnnTunerDriver | RatioTunerDriver | WeightSchedule

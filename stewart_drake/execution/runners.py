@@ -55,8 +55,9 @@ DEFAULT_RECYCLE = 20
 #: Attempts after the first for a job whose worker died.
 DEFAULT_RETRIES = 2
 #: Signals that cancel a running ``map``.
-CANCEL_SIGNALS = tuple(getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP")
-                       if hasattr(signal, n))
+CANCEL_SIGNALS = tuple(
+    getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)
+)
 #: Seconds to wait for a Ray cluster's or a Dask scheduler's address to accept a connection
 #: (``--connect-timeout``: at most :data:`MAX_CONNECT_TIMEOUT_S`).
 DEFAULT_CONNECT_TIMEOUT_S = 5.0
@@ -91,7 +92,7 @@ class JobFailure:
         return f"{self.error_type}: {self.message}"
 
     @classmethod
-    def from_exception(cls, job_id: str, err: BaseException) -> "JobFailure":
+    def from_exception(cls, job_id: str, err: BaseException) -> JobFailure:
         """The record of ``err`` raised by a job, with the file it names read and removed."""
         files = {}
         path = getattr(err, "path", None)
@@ -101,10 +102,17 @@ class JobFailure:
         try:
             pickle.loads(pickle.dumps(err))
             kept = err
-        except Exception:           # noqa: BLE001 - a foreign exception that will not travel
+        except Exception:  # noqa: BLE001 - a foreign exception that will not travel
             kept = None
-        return cls(job_id, "error", type(err).__name__, str(err),
-                   "".join(traceback.format_exception(err, limit=-6)), error=kept, files=files)
+        return cls(
+            job_id,
+            "error",
+            type(err).__name__,
+            str(err),
+            "".join(traceback.format_exception(err, limit=-6)),
+            error=kept,
+            files=files,
+        )
 
 
 class Interrupted(KeyboardInterrupt):
@@ -128,7 +136,7 @@ def _call(fn, job_id: str, job):
     """Run one job (in the worker): its result, or the :class:`JobFailure` of what it raised."""
     try:
         return fn(job)
-    except Exception as err:        # noqa: BLE001 - a failure is a record, never a lost grid
+    except Exception as err:  # noqa: BLE001 - a failure is a record, never a lost grid
         return JobFailure.from_exception(job_id, err)
 
 
@@ -141,8 +149,11 @@ def _cancel_on_signals():
 
     # A signal the process was started ignoring stays ignored: `nohup` (SIGHUP), a background
     # job of a script (SIGINT).
-    old = {s: signal.signal(s, raise_interrupted) for s in CANCEL_SIGNALS
-           if signal.getsignal(s) is not signal.SIG_IGN}
+    old = {
+        s: signal.signal(s, raise_interrupted)
+        for s in CANCEL_SIGNALS
+        if signal.getsignal(s) is not signal.SIG_IGN
+    }
     try:
         yield
     finally:
@@ -209,7 +220,7 @@ class _PoolRunner:
                     while queue and len(inflight) < pool.capacity:
                         try:
                             handle = pool.submit(fn, queue[0], jobs[queue[0]])
-                        except _WorkerLost:    # the pool broke since recover(): not an attempt
+                        except _WorkerLost:  # the pool broke since recover(): not an attempt
                             break
                         job_id = queue.popleft()
                         attempts[job_id] += 1
@@ -238,6 +249,7 @@ class _PoolRunner:
 
 # -- local processes ------------------------------------------------------------------------------
 
+
 def _die_with_parent(parent_pid: int) -> None:
     """Make this worker end when ``parent_pid`` does: PR_SET_PDEATHSIG on Linux, else a thread
     that polls the parent's pid."""
@@ -245,13 +257,14 @@ def _die_with_parent(parent_pid: int) -> None:
         if ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGKILL)) != 0:  # PDEATHSIG
             raise OSError(ctypes.get_errno(), "prctl")
     except (OSError, AttributeError):
+
         def watch():
             while os.getppid() == parent_pid:
                 threading.Event().wait(1.0)
             os._exit(1)
 
         threading.Thread(target=watch, daemon=True, name="parent-watch").start()
-    if os.getppid() != parent_pid:            # the parent died before the signal was set
+    if os.getppid() != parent_pid:  # the parent died before the signal was set
         os._exit(1)
 
 
@@ -266,9 +279,13 @@ class _LocalPool:
         from multiprocessing import get_context
 
         self.capacity = n_workers
-        self._args = dict(max_workers=n_workers, mp_context=get_context(start_method),
-                          max_tasks_per_child=recycle, initializer=_worker_init,
-                          initargs=(os.getpid(),))
+        self._args = dict(
+            max_workers=n_workers,
+            mp_context=get_context(start_method),
+            max_tasks_per_child=recycle,
+            initializer=_worker_init,
+            initargs=(os.getpid(),),
+        )
         self._broken = False
         self.executor = self._new()
 
@@ -313,7 +330,7 @@ class _LocalPool:
 
     def _terminate(self):
         processes = list((getattr(self.executor, "_processes", None) or {}).values())
-        results = getattr(self.executor, "_result_queue", None)    # shutdown forgets it
+        results = getattr(self.executor, "_result_queue", None)  # shutdown forgets it
         self.executor.shutdown(wait=False, cancel_futures=True)
         for p in processes:
             p.terminate()
@@ -344,8 +361,13 @@ class ProcessRunner(_PoolRunner):
     the parent dies (PR_SET_PDEATHSIG), so none is left orphaned.
     """
 
-    def __init__(self, n_workers: int = 0, retries: int = DEFAULT_RETRIES,
-                 recycle: int | None = DEFAULT_RECYCLE, start_method: str = "spawn"):
+    def __init__(
+        self,
+        n_workers: int = 0,
+        retries: int = DEFAULT_RETRIES,
+        recycle: int | None = DEFAULT_RECYCLE,
+        start_method: str = "spawn",
+    ):
         self.n_workers = n_workers or os.cpu_count() or 1
         self.retries = retries
         self.recycle = recycle
@@ -357,14 +379,16 @@ class ProcessRunner(_PoolRunner):
 
 # -- Ray ------------------------------------------------------------------------------------------
 
+
 def _import_extra(module: str, extra: str):
     import importlib
 
     try:
         return importlib.import_module(module)
     except ImportError:
-        raise InvalidConfigError(f"--runner {extra} needs the {extra} extra: "
-                                 f"pip install 'stewart-drake[{extra}]'") from None
+        raise InvalidConfigError(
+            f"--runner {extra} needs the {extra} extra: pip install 'stewart-drake[{extra}]'"
+        ) from None
 
 
 def parse_address(option: str, address: str, schemes: tuple) -> tuple[str, str, int]:
@@ -377,15 +401,22 @@ def parse_address(option: str, address: str, schemes: tuple) -> tuple[str, str, 
     import re
 
     form = f"[{'|'.join(schemes)}://]host:port"
-    match = re.fullmatch(r"(?:(?P<scheme>[A-Za-z]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[\w.-]+)"
-                         r":(?P<port>\d+)/?", str(address).strip())
+    match = re.fullmatch(
+        r"(?:(?P<scheme>[A-Za-z]+)://)?(?P<host>\[[0-9A-Fa-f:.]+\]|[\w.-]+)"
+        r":(?P<port>\d+)/?",
+        str(address).strip(),
+    )
     if match is None:
-        raise InvalidConfigError(f"{option} {address!r} is not an address of the form {form}"
-                                 + (" (or auto, local)" if "ray" in schemes else ""))
+        raise InvalidConfigError(
+            f"{option} {address!r} is not an address of the form {form}"
+            + (" (or auto, local)" if "ray" in schemes else "")
+        )
     scheme = (match["scheme"] or "").lower()
     if scheme and scheme not in schemes:
-        raise InvalidConfigError(f"{option} {address!r}: the scheme {scheme!r} is not one of "
-                                 f"{', '.join(schemes)} ({form})")
+        raise InvalidConfigError(
+            f"{option} {address!r}: the scheme {scheme!r} is not one of "
+            f"{', '.join(schemes)} ({form})"
+        )
     port = int(match["port"])
     if not 1 <= port <= 65535:
         raise InvalidConfigError(f"{option} {address!r}: the port {port} is not in 1..65535")
@@ -420,7 +451,8 @@ def probe_address(option: str, host: str, port: int, timeout_s: float) -> None:
         raise InvalidConfigError(
             f"{option} {host}:{port}: nothing accepts a connection there within {timeout_s:g} s "
             f"({why}); start the cluster first, check the address, or raise "
-            f"--connect-timeout") from None
+            f"--connect-timeout"
+        ) from None
 
 
 class _RayPool:
@@ -437,10 +469,10 @@ class _RayPool:
         exc = self.ray.exceptions
         try:
             return self.ray.get(ref)
-        except exc.RayTaskError as err:     # _call raised: the job never ran (e.g. an import)
+        except exc.RayTaskError as err:  # _call raised: the job never ran (e.g. an import)
             cause = err.as_instanceof_cause() if hasattr(err, "as_instanceof_cause") else err
             return JobFailure.from_exception("", cause)
-        except exc.RayError as err:          # worker or node died, task cancelled, OOM
+        except exc.RayError as err:  # worker or node died, task cancelled, OOM
             raise _WorkerLost(f"{type(err).__name__}: {str(err).splitlines()[0]}") from None
 
     def recover(self):
@@ -476,16 +508,24 @@ class RayRunner(_PoolRunner):
     #: Addresses Ray resolves itself (the cluster of this machine; a new local one).
     NAMED_ADDRESSES = ("auto", "local")
 
-    def __init__(self, n_workers: int = 0, address: str | None = None,
-                 retries: int = DEFAULT_RETRIES, recycle: int | None = DEFAULT_RECYCLE,
-                 connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
+    def __init__(
+        self,
+        n_workers: int = 0,
+        address: str | None = None,
+        retries: int = DEFAULT_RETRIES,
+        recycle: int | None = DEFAULT_RECYCLE,
+        connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S,
+    ):
         self.n_workers = n_workers
         self.address = address
         self.retries = retries
         self.recycle = recycle
         self.connect_timeout_s = _connect_timeout(connect_timeout_s)
-        self._target = (None if not address or address in self.NAMED_ADDRESSES
-                        else parse_address("--address", address, ("ray",)))
+        self._target = (
+            None
+            if not address or address in self.NAMED_ADDRESSES
+            else parse_address("--address", address, ("ray",))
+        )
 
     def probe(self) -> None:
         """Refuse an address nothing answers at within ``connect_timeout_s``
@@ -502,7 +542,7 @@ class RayRunner(_PoolRunner):
         def join():
             try:
                 ray.init(address=self.address, log_to_driver=False)
-            except BaseException as err:     # noqa: BLE001 - reported by the main thread
+            except BaseException as err:  # noqa: BLE001 - reported by the main thread
                 box["error"] = err
 
         thread = threading.Thread(target=join, daemon=True, name="ray-join")
@@ -511,14 +551,17 @@ class RayRunner(_PoolRunner):
         while thread.is_alive() and time.monotonic() < deadline:
             thread.join(0.2)
         if thread.is_alive():
-            raise InvalidConfigError(f"--address {self.address}: it answers, but no Ray cluster "
-                                     f"joined within {RAY_JOIN_TIMEOUT_S:g} s; check the address "
-                                     f"(the head's GCS port, 6379, or ray://host:10001)")
+            raise InvalidConfigError(
+                f"--address {self.address}: it answers, but no Ray cluster "
+                f"joined within {RAY_JOIN_TIMEOUT_S:g} s; check the address "
+                f"(the head's GCS port, 6379, or ray://host:10001)"
+            )
         if "error" in box:
             err = box["error"]
             first = (str(err).strip().splitlines() or [""])[0]
-            raise InvalidConfigError(f"--address {self.address}: Ray cannot join it "
-                                     f"({type(err).__name__}: {first:.200})") from None
+            raise InvalidConfigError(
+                f"--address {self.address}: Ray cannot join it ({type(err).__name__}: {first:.200})"
+            ) from None
 
     def _open(self):
         ray = _import_extra("ray", "ray")
@@ -529,8 +572,12 @@ class RayRunner(_PoolRunner):
             else:
                 # "local": a cluster of our own even when another one runs on this machine
                 # (Ray would join that one and refuse num_cpus).
-                ray.init(address="local", num_cpus=self.n_workers or os.cpu_count(),
-                         include_dashboard=False, log_to_driver=False)
+                ray.init(
+                    address="local",
+                    num_cpus=self.n_workers or os.cpu_count(),
+                    include_dashboard=False,
+                    log_to_driver=False,
+                )
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.n_workers = cpus
         remote = ray.remote(num_cpus=1, max_retries=0, max_calls=self.recycle or 0)(_call)
@@ -538,6 +585,7 @@ class RayRunner(_PoolRunner):
 
 
 # -- Dask -----------------------------------------------------------------------------------------
+
 
 class _DaskPool:
     def __init__(self, distributed, client, cluster, capacity: int):
@@ -549,8 +597,9 @@ class _DaskPool:
 
     def wait(self, handles, timeout):
         try:
-            return self.distributed.wait(handles, timeout=timeout,
-                                         return_when="FIRST_COMPLETED").done
+            return self.distributed.wait(
+                handles, timeout=timeout, return_when="FIRST_COMPLETED"
+            ).done
         except TimeoutError:
             return set()
 
@@ -559,7 +608,7 @@ class _DaskPool:
             err = future.exception()
             if isinstance(err, self.distributed.KilledWorker):
                 raise _WorkerLost(f"KilledWorker: {err}")
-            return JobFailure.from_exception("", err)   # _call raised: the job never ran
+            return JobFailure.from_exception("", err)  # _call raised: the job never ran
         if future.status == "cancelled":
             raise _WorkerLost("the task was cancelled (its worker or the scheduler went away)")
         return future.result()
@@ -593,15 +642,22 @@ class DaskRunner(_PoolRunner):
         InvalidConfigError: a scheduler address that is not ``[tcp|tls|ws|wss://]host:port``.
     """
 
-    def __init__(self, n_workers: int = 0, scheduler: str | None = None,
-                 retries: int = DEFAULT_RETRIES,
-                 connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
+    def __init__(
+        self,
+        n_workers: int = 0,
+        scheduler: str | None = None,
+        retries: int = DEFAULT_RETRIES,
+        connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S,
+    ):
         self.n_workers = n_workers
         self.scheduler = scheduler
         self.retries = retries
         self.connect_timeout_s = _connect_timeout(connect_timeout_s)
-        self._target = (parse_address("--scheduler", scheduler, ("tcp", "tls", "ws", "wss"))
-                        if scheduler else None)
+        self._target = (
+            parse_address("--scheduler", scheduler, ("tcp", "tls", "ws", "wss"))
+            if scheduler
+            else None
+        )
 
     def probe(self) -> None:
         """Refuse a scheduler nothing answers at within ``connect_timeout_s``."""
@@ -615,23 +671,33 @@ class DaskRunner(_PoolRunner):
             self.probe()
             try:
                 client = distributed.Client(self.scheduler, timeout=self.connect_timeout_s)
-            except OSError as err:           # it answered, but not as a Dask scheduler
-                raise InvalidConfigError(f"--scheduler {self.scheduler}: no Dask scheduler "
-                                         f"answered within {self.connect_timeout_s:g} s "
-                                         f"({' '.join(str(err).split())[:200]})") from None
+            except OSError as err:  # it answered, but not as a Dask scheduler
+                raise InvalidConfigError(
+                    f"--scheduler {self.scheduler}: no Dask scheduler "
+                    f"answered within {self.connect_timeout_s:g} s "
+                    f"({' '.join(str(err).split())[:200]})"
+                ) from None
         else:
-            cluster = distributed.LocalCluster(n_workers=self.n_workers or os.cpu_count(),
-                                               threads_per_worker=1, processes=True,
-                                               dashboard_address=None)
+            cluster = distributed.LocalCluster(
+                n_workers=self.n_workers or os.cpu_count(),
+                threads_per_worker=1,
+                processes=True,
+                dashboard_address=None,
+            )
             client = distributed.Client(cluster)
         self.n_workers = max(1, sum(client.nthreads().values()))
         return _DaskPool(distributed, client, cluster, capacity=2 * self.n_workers)
 
 
-def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = None,
-                scheduler: str | None = None, retries: int = DEFAULT_RETRIES,
-                recycle: int | None = DEFAULT_RECYCLE,
-                connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S):
+def make_runner(
+    kind: str = "processes",
+    jobs: int = 0,
+    address: str | None = None,
+    scheduler: str | None = None,
+    retries: int = DEFAULT_RETRIES,
+    recycle: int | None = DEFAULT_RECYCLE,
+    connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S,
+):
     """The runner of the CLI's ``--runner KIND --jobs N [--address A] [--scheduler S]``; an
     address is checked here, before any work: its form, then that it answers within
     ``connect_timeout_s``.
@@ -658,8 +724,11 @@ def make_runner(kind: str = "processes", jobs: int = 0, address: str | None = No
     _connect_timeout(connect_timeout_s)
     recycle = recycle or None
     if kind in ("ray", "dask"):
-        runner = (RayRunner(jobs, address, retries, recycle, connect_timeout_s) if kind == "ray"
-                  else DaskRunner(jobs, scheduler, retries, connect_timeout_s))
+        runner = (
+            RayRunner(jobs, address, retries, recycle, connect_timeout_s)
+            if kind == "ray"
+            else DaskRunner(jobs, scheduler, retries, connect_timeout_s)
+        )
         runner.probe()
         return runner
     return ProcessRunner(jobs, retries, recycle)

@@ -72,7 +72,7 @@ def lock_folder(folder, study: str) -> None:
     """
     try:
         import fcntl
-    except ImportError:                      # no flock (Windows): the folder stays unlocked
+    except ImportError:  # no flock (Windows): the folder stays unlocked
         return
     folder = Path(folder)
     key = os.path.realpath(folder)
@@ -90,8 +90,10 @@ def lock_folder(folder, study: str) -> None:
         raise FolderInUseError(folder, holder) from None
     f.seek(0)
     f.truncate()
-    f.write(f"`{study}` study, pid {os.getpid()} on {socket.gethostname()}, since "
-            f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n")
+    f.write(
+        f"`{study}` study, pid {os.getpid()} on {socket.gethostname()}, since "
+        f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n"
+    )
     f.flush()
     _HELD[key] = f
 
@@ -127,8 +129,12 @@ def read_manifest(folder: Path) -> dict | None:
         return None
     manifest = read_json(path, "stewart-drake manifest", _REMEDY)
     if not isinstance(manifest, dict):
-        raise CorruptFileError(path, "stewart-drake manifest",
-                               f"a JSON {type(manifest).__name__}, not an object", _REMEDY)
+        raise CorruptFileError(
+            path,
+            "stewart-drake manifest",
+            f"a JSON {type(manifest).__name__}, not an object",
+            _REMEDY,
+        )
     if "study" in manifest or "settings_hash" in manifest:
         check_manifest(path, manifest)
     return manifest
@@ -140,31 +146,46 @@ def check_manifest(path: Path, manifest: dict) -> None:
     Raises:
         CorruptFileError: names the first entry that is wrong.
     """
+
     def bad(problem):
         return CorruptFileError(path, "stewart-drake manifest", problem, _REMEDY)
 
-    for key, kind in (("study", str), ("settings_hash", str), ("settings", dict),
-                      ("jobs", dict), ("complete", bool)):
+    for key, kind in (
+        ("study", str),
+        ("settings_hash", str),
+        ("settings", dict),
+        ("jobs", dict),
+        ("complete", bool),
+    ):
         if not isinstance(manifest.get(key), kind):
-            raise bad(f"{key!r} must be a JSON {kind.__name__}, got "
-                      f"{type(manifest.get(key)).__name__}" if key in manifest
-                      else f"the entry {key!r} is missing")
+            raise bad(
+                f"{key!r} must be a JSON {kind.__name__}, got {type(manifest.get(key)).__name__}"
+                if key in manifest
+                else f"the entry {key!r} is missing"
+            )
     if settings_hash(manifest["settings"]) != manifest["settings_hash"]:
-        raise bad(f"its settings_hash {manifest['settings_hash']!r} is not the hash of its "
-                  f"settings ({settings_hash(manifest['settings'])!r}): one was edited")
+        raise bad(
+            f"its settings_hash {manifest['settings_hash']!r} is not the hash of its "
+            f"settings ({settings_hash(manifest['settings'])!r}): one was edited"
+        )
     owner = {}
     for job_id, job in manifest["jobs"].items():
         if not isinstance(job, dict) or job.get("status") not in JOB_STATUSES:
             raise bad(f"job {job_id!r} has no status of {JOB_STATUSES}")
         name = job.get("file")
-        if job["status"] == "done" and not (isinstance(name, str) and name
-                                            and not Path(name).is_absolute()
-                                            and ".." not in Path(name).parts):
+        if job["status"] == "done" and not (
+            isinstance(name, str)
+            and name
+            and not Path(name).is_absolute()
+            and ".." not in Path(name).parts
+        ):
             raise bad(f"job {job_id!r} is done but names no file in the folder")
         if job["status"] == "done":
             if name in owner:
-                raise bad(f"jobs {owner[name]!r} and {job_id!r} both name the file {name!r} "
-                          f"(each job has a file of its own)")
+                raise bad(
+                    f"jobs {owner[name]!r} and {job_id!r} both name the file {name!r} "
+                    f"(each job has a file of its own)"
+                )
             owner[name] = job_id
 
 
@@ -197,7 +218,7 @@ class ResultStore:
     def __init__(self, folder, study: str, settings: dict, pattern: str):
         self.folder = Path(folder)
         self.study = study
-        settings = json.loads(json.dumps(settings, default=str))   # as the manifest holds it
+        settings = json.loads(json.dumps(settings, default=str))  # as the manifest holds it
         self.settings = settings
         self.hash = settings_hash(settings)
         lock_folder(self.folder, study)
@@ -219,26 +240,39 @@ class ResultStore:
                 raise ResultsMismatchError(
                     f"{self.folder} holds {pattern} files without a {MANIFEST} (an older "
                     f"stewart-drake, or the manifest was removed): choose another --out or "
-                    f"delete them")
+                    f"delete them"
+                )
             old = {}
         elif "study" not in old or "settings_hash" not in old:
             raise ResultsMismatchError(
                 f"{self.folder} holds results of an older stewart-drake (no settings hash in "
-                f"its {MANIFEST}): choose another --out or delete the folder")
+                f"its {MANIFEST}): choose another --out or delete the folder"
+            )
         elif old["study"] != study:
             raise ResultsMismatchError(
                 f"{self.folder} holds results of `stewart-drake {old['study']}`, not of "
-                f"`{study}`: choose another --out")
+                f"`{study}`: choose another --out"
+            )
         elif old.get("settings_hash") != self.hash:
             raise ResultsMismatchError(
                 f"{self.folder} holds {study} results of other settings "
                 f"({_difference(old.get('settings', {}), settings)}): run with those settings "
-                f"to finish them, or choose another --out (or delete the folder)")
-        done = {k: v for k, v in old.get("jobs", {}).items()
-                if v.get("status") == "done" and (self.folder / v["file"]).exists()}
-        self.manifest = {"study": study, "format": FORMAT, "settings": settings,
-                         "settings_hash": self.hash, "complete": False, "jobs": done}
-        self._save()                      # claim the folder before any work
+                f"to finish them, or choose another --out (or delete the folder)"
+            )
+        done = {
+            k: v
+            for k, v in old.get("jobs", {}).items()
+            if v.get("status") == "done" and (self.folder / v["file"]).exists()
+        }
+        self.manifest = {
+            "study": study,
+            "format": FORMAT,
+            "settings": settings,
+            "settings_hash": self.hash,
+            "complete": False,
+            "jobs": done,
+        }
+        self._save()  # claim the folder before any work
 
     def _save(self) -> None:
         text = json.dumps(self.manifest, indent=1, default=float).encode()
@@ -273,14 +307,19 @@ class ResultStore:
             CorruptFileError: the file is not JSON (names it; delete it and run again to redo
                 that job).
         """
-        return read_json(self.folder / self.manifest["jobs"][job_id]["file"],
-                         f"{self.study} result", "delete it and run the same command again to "
-                         "redo that job")
+        return read_json(
+            self.folder / self.manifest["jobs"][job_id]["file"],
+            f"{self.study} result",
+            "delete it and run the same command again to redo that job",
+        )
 
     def mark(self, failure: JobFailure) -> None:
         """Record a job with no result (lost or failed); it runs again next time."""
-        self.manifest["jobs"][failure.job_id] = {"status": failure.kind, "error": str(failure),
-                                                 "attempts": failure.attempts}
+        self.manifest["jobs"][failure.job_id] = {
+            "status": failure.kind,
+            "error": str(failure),
+            "attempts": failure.attempts,
+        }
         self._save()
 
     def keep_files(self, failure: JobFailure) -> list[Path]:
@@ -292,8 +331,9 @@ class ResultStore:
             atomic_write(path, lambda f, data=data: f.write(data))
             failure.message = failure.message.replace(old, str(path))
             if isinstance(failure.error, SimulationDivergedError) and failure.error.path == old:
-                failure.error = SimulationDivergedError(failure.error.message, failure.error.t,
-                                                        str(path))
+                failure.error = SimulationDivergedError(
+                    failure.error.message, failure.error.t, str(path)
+                )
             written.append(path)
         return written
 
@@ -307,8 +347,16 @@ class ResultStore:
         return self.manifest
 
 
-def run_jobs(store: ResultStore, runner, fn, jobs: dict, save, progress: bool = True,
-             desc: str = "jobs", what: str = "jobs") -> dict:
+def run_jobs(
+    store: ResultStore,
+    runner,
+    fn,
+    jobs: dict,
+    save,
+    progress: bool = True,
+    desc: str = "jobs",
+    what: str = "jobs",
+) -> dict:
     """Run the jobs of ``jobs`` whose result is not in ``store``, storing each as it arrives.
 
     Args:
@@ -330,8 +378,9 @@ def run_jobs(store: ResultStore, runner, fn, jobs: dict, save, progress: bool = 
     todo = {k: v for k, v in jobs.items() if k not in store.done()}
     reused = [k for k in jobs if k not in todo]
     wall0 = time.perf_counter()
-    with tqdm(total=len(jobs), initial=len(reused), desc=desc, unit="run",
-              disable=not progress) as bar:
+    with tqdm(
+        total=len(jobs), initial=len(reused), desc=desc, unit="run", disable=not progress
+    ) as bar:
         for job_id, outcome in runner.map(fn, todo):
             if isinstance(outcome, JobFailure):
                 store.keep_files(outcome)
@@ -348,5 +397,6 @@ def run_jobs(store: ResultStore, runner, fn, jobs: dict, save, progress: bool = 
         raise IncompleteResultsError(
             f"{len(missing)} of {len(jobs)} {what} have no result ({missing[0]}: "
             f"{first.splitlines()[0]:.200}); the {len(jobs) - len(missing)} finished are in "
-            f"{store.folder}: run the same command again to run only the missing ones")
+            f"{store.folder}: run the same command again to run only the missing ones"
+        )
     return {"ran": list(todo), "reused": reused, "wall_s": wall}

@@ -34,9 +34,11 @@ class _HelpFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action):
         text = action.help or ""
-        if ("default" in text or any(action.default is v for v in (None, False,
-                                                                    argparse.SUPPRESS))
-                or not action.option_strings):
+        if (
+            "default" in text
+            or any(action.default is v for v in (None, False, argparse.SUPPRESS))
+            or not action.option_strings
+        ):
             return text
         return text + " (default: %(default)s)"
 
@@ -61,10 +63,12 @@ def version_text() -> str:
 
     try:
         drake = version("drake")
-    except PackageNotFoundError:                    # a Drake built from source
+    except PackageNotFoundError:  # a Drake built from source
         drake = "not from pip"
-    return (f"stewart-drake {__version__} (drake {drake}, Python "
-            f"{'.'.join(map(str, sys.version_info[:3]))})")
+    return (
+        f"stewart-drake {__version__} (drake {drake}, Python "
+        f"{'.'.join(map(str, sys.version_info[:3]))})"
+    )
 
 
 def _int_at_least(lowest: int):
@@ -97,13 +101,15 @@ def check_writable(folder: Path, option: str = "--out") -> None:
     try:
         if not existing.is_dir():
             kind = describe_mode(existing.stat().st_mode)
-            raise NotADirectoryError(20, f"{existing} is "
-                                         f"{'a file' if kind == 'a regular file' else kind}")
+            raise NotADirectoryError(
+                20, f"{existing} is {'a file' if kind == 'a regular file' else kind}"
+            )
         with tempfile.TemporaryFile(dir=existing):
             pass
     except OSError as err:
-        raise InvalidConfigError(f"cannot write to {folder}: {err.strerror or err}; choose "
-                                 f"another output with {option}") from None
+        raise InvalidConfigError(
+            f"cannot write to {folder}: {err.strerror or err}; choose another output with {option}"
+        ) from None
 
 
 def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
@@ -120,8 +126,9 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     from ..fileio import check_replaceable, remove_stale_temporaries
 
     if path is None or not str(path).strip():
-        raise InvalidConfigError(f"{option} is empty: give a {'file' if is_file else 'folder'} "
-                                 f"to write")
+        raise InvalidConfigError(
+            f"{option} is empty: give a {'file' if is_file else 'folder'} to write"
+        )
     path = Path(path)
     if is_file and path.is_dir():
         raise InvalidConfigError(f"{option} {path} is a folder: give a file name to write")
@@ -188,10 +195,18 @@ def run_scenario(args):
     use_entry_point_controllers(args.plugin or ())
     scenario = load_scenario(args.scenario, args.set or ())
     return apply_run_options(
-        scenario, duration_s=args.duration, trajectory=args.trajectory,
-        trajectory_file=args.trajectory_file, controller=args.controller, omega_Q=args.omega_q,
-        omega_R=args.omega_r, tuner=args.tuner, tuner_weights=args.tuner_weights,
-        default_ann_weights=DEFAULT_TUNER_OUT, divergence_dir=Path(args.out) / "diverged")
+        scenario,
+        duration_s=args.duration,
+        trajectory=args.trajectory,
+        trajectory_file=args.trajectory_file,
+        controller=args.controller,
+        omega_Q=args.omega_q,
+        omega_R=args.omega_r,
+        tuner=args.tuner,
+        tuner_weights=args.tuner_weights,
+        default_ann_weights=DEFAULT_TUNER_OUT,
+        divergence_dir=Path(args.out) / "diverged",
+    )
 
 
 def run_stem(scenario) -> str:
@@ -215,14 +230,14 @@ def _cmd_run(args) -> int:
         check_replaceable(out / f"{stem}{suffix}")
     if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
         print(f"{scenario.tuner.kind} weights: {scenario.tuner.weights_path()}")
-    if args.html:                      # the same run, replayed into a standalone HTML
+    if args.html:  # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
         result, html = record_html(scenario, args.html, progress=not args.no_progress)
         print(f"wrote {html} (Meshcat replay, opens in any browser)")
     else:
         result = run_experiment(scenario, progress=not args.no_progress)
-    print(format_metrics(result.metrics), flush=True)   # before the files: a full disk keeps them
+    print(format_metrics(result.metrics), flush=True)  # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
     print(f"wrote {npz} and {png}")
@@ -242,15 +257,18 @@ def _cmd_check(args) -> int:
     elif source in TRAJECTORIES:
         scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = NamedReference(source)
-    else:                                 # a scenario file or a shipped scenario's name
+    else:  # a scenario file or a shipped scenario's name
         scenario = load_scenario(source, args.set or ())
     if args.duration is not None:
         scenario.duration_s = args.duration
     report = check(scenario)
     print(report.summary())
     name = Path(source).stem
-    png = plot_margins(report, Path(args.out) / f"check_{name}.png",
-                       f"{name} on {Path(str(args.scenario)).stem}, {scenario.duration_s:g} s")
+    png = plot_margins(
+        report,
+        Path(args.out) / f"check_{name}.png",
+        f"{name} on {Path(str(args.scenario)).stem}, {scenario.duration_s:g} s",
+    )
     print(f"wrote {png}")
     return 0 if report.ok else 2
 
@@ -284,19 +302,30 @@ def _cmd_reproduce(args) -> int:
     params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
     if source.lower().endswith(".csv"):
         if params:
-            raise InvalidConfigError("--param sets a library motion's parameters; a trace takes "
-                                     "--map, --lowpass-hz, --centre, --centre-on, --max-gap")
-        centre = ([0.0, 0.0, 0.0, 0.0, 0.0, 0.30] if args.centre is None else
-                  [float(v) for v in args.centre.split(",")])
-        scenario.reference = TraceReference(path=source, axis_map=mapping, centre=centre,
-                                            centre_on=args.centre_on,
-                                            lowpass_hz=args.lowpass_hz or 0.0,
-                                            max_gap_s=args.max_gap)
+            raise InvalidConfigError(
+                "--param sets a library motion's parameters; a trace takes "
+                "--map, --lowpass-hz, --centre, --centre-on, --max-gap"
+            )
+        centre = (
+            [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
+            if args.centre is None
+            else [float(v) for v in args.centre.split(",")]
+        )
+        scenario.reference = TraceReference(
+            path=source,
+            axis_map=mapping,
+            centre=centre,
+            centre_on=args.centre_on,
+            lowpass_hz=args.lowpass_hz or 0.0,
+            max_gap_s=args.max_gap,
+        )
         name = Path(source).stem
     else:
         if mapping or args.lowpass_hz or args.centre is not None:
-            raise InvalidConfigError("--map, --lowpass-hz and --centre are for a trace file "
-                                     "(.csv); a library motion takes --param")
+            raise InvalidConfigError(
+                "--map, --lowpass-hz and --centre are for a trace file "
+                "(.csv); a library motion takes --param"
+            )
         scenario.reference = OrganMotionReference(motion=source, parameters=params)
         name = source
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
@@ -304,16 +333,26 @@ def _cmd_reproduce(args) -> int:
     out = Path(args.out)
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
-    rep = reproduce(scenario, learn_cycles=args.learn_cycles, eval_cycles=args.cycles,
-                    scale_to_fit=args.scale_to_fit, duration_s=args.duration,
-                    progress=not args.no_progress)
+    rep = reproduce(
+        scenario,
+        learn_cycles=args.learn_cycles,
+        eval_cycles=args.cycles,
+        scale_to_fit=args.scale_to_fit,
+        duration_s=args.duration,
+        progress=not args.no_progress,
+    )
     if rep.scale != 1.0:
-        print(f"{name} did not fit the robot: scaled by {rep.scale:.3f} about its centre "
-              f"(every check passes at that size)")
+        print(
+            f"{name} did not fit the robot: scaled by {rep.scale:.3f} about its centre "
+            f"(every check passes at that size)"
+        )
     fid = rep.fidelity
-    print(f"RMS error over t = {fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
-          f"{fid['rms_translation_m'] * 1e6:.3g} um, rotation {fid['rms_rotation_rad'] * 1e6:.3g} "
-          f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms", flush=True)
+    print(
+        f"RMS error over t = {fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
+        f"{fid['rms_translation_m'] * 1e6:.3g} um, rotation {fid['rms_rotation_rad'] * 1e6:.3g} "
+        f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms",
+        flush=True,
+    )
     md, png, js = write_report(rep, out, tolerance)
     ok, line = verdict(fid, tolerance)
     print(line)
@@ -345,9 +384,15 @@ def _runner(args):
     ``--recycle``."""
     from ..execution.runners import make_runner
 
-    return make_runner(args.runner, args.jobs, address=args.address, scheduler=args.scheduler,
-                       retries=args.retries, recycle=args.recycle,
-                       connect_timeout_s=args.connect_timeout)
+    return make_runner(
+        args.runner,
+        args.jobs,
+        address=args.address,
+        scheduler=args.scheduler,
+        retries=args.retries,
+        recycle=args.recycle,
+        connect_timeout_s=args.connect_timeout,
+    )
 
 
 def _cmd_collect(args) -> int:
@@ -356,22 +401,34 @@ def _cmd_collect(args) -> int:
     from ..studies.collection import collect
 
     base = load_scenario(args.scenario, args.set or ())
-    manifest = collect(args.out, seed=args.seed, duration_s=args.duration, runner=_runner(args),
-                       progress=not args.no_progress, base=base)
-    print(f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out} "
-          f"({manifest['ran']} run now, {manifest['reused']} found on disk)")
+    manifest = collect(
+        args.out,
+        seed=args.seed,
+        duration_s=args.duration,
+        runner=_runner(args),
+        progress=not args.no_progress,
+        base=base,
+    )
+    print(
+        f"{len(manifest['runs'])} runs, {manifest['n_samples']} samples in {args.out} "
+        f"({manifest['ran']} run now, {manifest['reused']} found on disk)"
+    )
     for run in manifest["runs"]:
         rms = run["rms_error"]
         head = f"  omega_Q={run['omega_Q']:<4g} omega_R={run['omega_R']:<4g} "
         if run.get("lost"):
             print(head + f"lost the platform ({run['lost']}); no data")
             continue
-        print(head + f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
-              f"sum T^2 dt {run['sum_T2_dt']:.3g}")
+        print(
+            head + f"RMS phi {1e3 * rms[0]:.3f} mrad, Z {1e3 * rms[5]:.3f} mm, "
+            f"sum T^2 dt {run['sum_T2_dt']:.3g}"
+        )
     if manifest["ran"]:
-        print(f"speedup over one process: {manifest['speedup']:.2f} "
-              f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
-              f"{manifest['workers']} workers)")
+        print(
+            f"speedup over one process: {manifest['speedup']:.2f} "
+            f"({manifest['sum_job_s']:.1f} s of runs in {manifest['wall_s']:.1f} s wall, "
+            f"{manifest['workers']} workers)"
+        )
     return 0
 
 
@@ -385,29 +442,41 @@ def _cmd_train(args) -> int:
     if len(records) < 2:
         raise InvalidConfigError(
             f"{len(records)} of the runs in {args.data} kept the platform (the others lost the "
-            f"platform): too few to train on; collect with a scenario the motors can follow")
+            f"platform): too few to train on; collect with a scenario the motors can follow"
+        )
     try:
         import torch  # noqa: F401 - only to say which extra is missing
     except ImportError:
-        raise MissingExtraError("`stewart-drake train` needs torch: pip install "
-                                "'stewart-drake[train]' (torch==2.13.0, the CPU build)") from None
+        raise MissingExtraError(
+            "`stewart-drake train` needs torch: pip install "
+            "'stewart-drake[train]' (torch==2.13.0, the CPU build)"
+        ) from None
     from ..control.tuner import save_tuner
     from ..control.tuning import AnnTunerDriver
     from ..simulation.scenario import Scenario
     from ..studies.training import build_dataset, train
+
     reports = {}
     for mode in ("paper", "best_cost"):
         dataset = build_dataset(records, mode=mode)
-        model, report = train(dataset, seed=args.seed,
-                              metadata={"label_mode": mode, "data": str(args.data),
-                                        "feature_window": AnnTunerDriver().feature_window,
-                                        "feature_period_s": Scenario().control_period_s})
+        model, report = train(
+            dataset,
+            seed=args.seed,
+            metadata={
+                "label_mode": mode,
+                "data": str(args.data),
+                "feature_window": AnnTunerDriver().feature_window,
+                "feature_period_s": Scenario().control_period_s,
+            },
+        )
         reports[mode] = (model, report)
         r2 = report["val_r2"]
         r2_text = ", ".join(f"{k} {v:.3f}" for k, v in r2.items()) if isinstance(r2, dict) else r2
-        print(f"{mode:>9} labels: {dataset.info['n_samples']} samples, val loss "
-              f"{report['val_loss']:.4f} (from {report['val_loss_initial']:.4f}), "
-              f"validation R^2: {r2_text}")
+        print(
+            f"{mode:>9} labels: {dataset.info['n_samples']} samples, val loss "
+            f"{report['val_loss']:.4f} (from {report['val_loss_initial']:.4f}), "
+            f"validation R^2: {r2_text}"
+        )
     model, _ = reports[args.mode]
     out = Path(args.out)
     save_tuner(model, out)
@@ -426,37 +495,55 @@ def _cmd_evaluate(args) -> int:
         controllers = tuple(args.controllers.split(","))
     else:
         controllers = QUICK_CONTROLLERS if args.quick else CONTROLLERS
-    check_controllers(controllers)                             # an unknown name, before the rest
-    docs = args.out if args.docs is None else args.docs        # never the repository's docs/
+    check_controllers(controllers)  # an unknown name, before the rest
+    docs = args.out if args.docs is None else args.docs  # never the repository's docs/
     check_output(docs, "--docs")
     tuner_study = not (args.no_tuner_study or args.quick)
     if tuner_study and not has_torch():
-        print("stewart-drake evaluate: the tuner study is left out: it trains our tuner with "
-              "torch (pip install 'stewart-drake[train]'); --no-tuner-study hides this note",
-              file=sys.stderr)
+        print(
+            "stewart-drake evaluate: the tuner study is left out: it trains our tuner with "
+            "torch (pip install 'stewart-drake[train]'); --no-tuner-study hides this note",
+            file=sys.stderr,
+        )
         tuner_study = False
-    report = evaluate(docs, args.out, runner=_runner(args), progress=not args.no_progress,
-                      quick=args.quick, controllers=controllers, base=args.scenario,
-                      tuner_study=tuner_study)
+    report = evaluate(
+        docs,
+        args.out,
+        runner=_runner(args),
+        progress=not args.no_progress,
+        quick=args.quick,
+        controllers=controllers,
+        base=args.scenario,
+        tuner_study=tuner_study,
+    )
     failed = sum("error" in r for r in report["rows"])
     info = report["info"]
-    print(f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
-          f"{info['reused']} found on disk; {failed} failed)")
+    print(
+        f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
+        f"{info['reused']} found on disk; {failed} failed)"
+    )
     if report.get("tuner"):
         print("tuner study (held-out tasks, paired against the best fixed ratio per task):")
         for lam, v in report["tuner"]["verdicts"].items():
             ours = v["controllers"][StudyArm("ours", lam=float(lam)).label]
             head = v["controllers"][StudyArm("hindsight", lam=float(lam)).label]
-            print(f"  lambda {lam}: ours {100 * ours['mean']:+.0f} % +- {100 * ours['std']:.0f} %"
-                  f" ({'meets' if ours['beats'] else 'does not meet'} the {100 * GOAL:.0f} % "
-                  f"goal); hindsight headroom {100 * head['mean']:+.0f} % +- "
-                  f"{100 * head['std']:.0f} %")
+            print(
+                f"  lambda {lam}: ours {100 * ours['mean']:+.0f} % +- {100 * ours['std']:.0f} %"
+                f" ({'meets' if ours['beats'] else 'does not meet'} the {100 * GOAL:.0f} % "
+                f"goal); hindsight headroom {100 * head['mean']:+.0f} % +- "
+                f"{100 * head['std']:.0f} %"
+            )
     for ann, v in report["verdict"].items():
         b = v["best_fixed"]
-        print(f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
-              + (f"best fixed LQI at no more effort {b['case']['controller']} "
-                 f"{b['normalized_rms']:.3g} -> {'beats' if v['beats'] else 'does not beat'} it"
-                 if b else "no fixed LQI at that effort"))
+        print(
+            f"{ann}: nRMS {v['ann']['normalized_rms']:.3g}, "
+            + (
+                f"best fixed LQI at no more effort {b['case']['controller']} "
+                f"{b['normalized_rms']:.3g} -> {'beats' if v['beats'] else 'does not beat'} it"
+                if b
+                else "no fixed LQI at that effort"
+            )
+        )
     print("wrote " + ", ".join(str(p) for p in report["paths"]))
     return 0
 
@@ -469,12 +556,20 @@ def _cmd_workspace(args) -> int:
 
     scenario = load_scenario(args.scenario, args.set or ())
     geometry = make_plan(scenario, with_reference=False).geometry
-    rows = write_workspace(args.out, args.resolution, args.jobs, progress=not args.no_progress,
-                           geometry=geometry, runner=_runner(args))
+    rows = write_workspace(
+        args.out,
+        args.resolution,
+        args.jobs,
+        progress=not args.no_progress,
+        geometry=geometry,
+        runner=_runner(args),
+    )
     for name, value, unit in rows[:9]:
         print(f"{name} {value} {unit}")
-    print(f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
-          f"summary.csv, tilt_vs_height.csv")
+    print(
+        f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
+        f"summary.csv, tilt_vs_height.csv"
+    )
     return 0
 
 
@@ -492,16 +587,19 @@ def _cmd_teleop(args) -> int:
         params.port = args.port
     try:
         meshcat = Meshcat(params)
-    except RuntimeError as err:                       # the port is taken
+    except RuntimeError as err:  # the port is taken
         from ..errors import InvalidConfigError
 
-        raise InvalidConfigError(f"Meshcat cannot listen on port {args.port}: {err} Choose "
-                                 f"another --port, or leave it out for the first free one") \
-            from None
+        raise InvalidConfigError(
+            f"Meshcat cannot listen on port {args.port}: {err} Choose "
+            f"another --port, or leave it out for the first free one"
+        ) from None
     run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
     how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
-    print(f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
-          f"J/L I/K U/O), the gauges show the tracking error and the margins; running {how}")
+    print(
+        f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
+        f"J/L I/K U/O), the gauges show the tracking error and the margins; running {how}"
+    )
     run_teleop(run, args.duration)
     return 0
 
@@ -524,36 +622,70 @@ def _add_runner_arguments(parser) -> None:
         RUNNERS,
     )
 
-    parser.add_argument("--runner", choices=RUNNERS, default="processes",
-                        help="where jobs run: local processes, this process, Ray or Dask")
-    parser.add_argument("--jobs", type=_int_at_least(0), default=0,
-                        help="workers: processes, or the CPUs of a local Ray or Dask cluster "
-                             "(default: 0, one per core)")
-    parser.add_argument("--address", default=None,
-                        help="Ray cluster to join (--runner ray; default: start a local one)")
-    parser.add_argument("--scheduler", default=None,
-                        help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
-                             "start a local cluster)")
-    parser.add_argument("--connect-timeout", type=_positive_float,
-                        default=DEFAULT_CONNECT_TIMEOUT_S, metavar="S",
-                        help="seconds for --address or --scheduler to accept a connection")
-    parser.add_argument("--retries", type=_int_at_least(0), default=DEFAULT_RETRIES,
-                        help="attempts after the first for a job whose worker died")
-    parser.add_argument("--recycle", type=_int_at_least(0), default=DEFAULT_RECYCLE,
-                        help="jobs a worker runs before it is replaced, to bound leaked memory "
-                             "(0: never; processes and ray)")
+    parser.add_argument(
+        "--runner",
+        choices=RUNNERS,
+        default="processes",
+        help="where jobs run: local processes, this process, Ray or Dask",
+    )
+    parser.add_argument(
+        "--jobs",
+        type=_int_at_least(0),
+        default=0,
+        help="workers: processes, or the CPUs of a local Ray or Dask cluster "
+        "(default: 0, one per core)",
+    )
+    parser.add_argument(
+        "--address",
+        default=None,
+        help="Ray cluster to join (--runner ray; default: start a local one)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
+        "start a local cluster)",
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=_positive_float,
+        default=DEFAULT_CONNECT_TIMEOUT_S,
+        metavar="S",
+        help="seconds for --address or --scheduler to accept a connection",
+    )
+    parser.add_argument(
+        "--retries",
+        type=_int_at_least(0),
+        default=DEFAULT_RETRIES,
+        help="attempts after the first for a job whose worker died",
+    )
+    parser.add_argument(
+        "--recycle",
+        type=_int_at_least(0),
+        default=DEFAULT_RECYCLE,
+        help="jobs a worker runs before it is replaced, to bound leaked memory "
+        "(0: never; processes and ray)",
+    )
 
 
 def _add_scenario_arguments(parser, what: str) -> None:
     """``--scenario`` and ``--set``, the same for every command that starts from a scenario."""
-    parser.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="FILE|NAME",
-                        help=f"{what}: a .yaml file or a shipped name ({DEFAULT_SCENARIO}: the "
-                             f"robot as built; paper_ideal: the paper's ideal robot; "
-                             f"`stewart-drake scenario --list`)")
-    parser.add_argument("--set", action="append", metavar="KEY=VALUE",
-                        help="override a scenario field with a YAML value (repeatable): "
-                             "--set controller.omega_Q=10 --set 'controller=!PdDriver {}' "
-                             "(default: none)")
+    parser.add_argument(
+        "--scenario",
+        default=DEFAULT_SCENARIO,
+        metavar="FILE|NAME",
+        help=f"{what}: a .yaml file or a shipped name ({DEFAULT_SCENARIO}: the "
+        f"robot as built; paper_ideal: the paper's ideal robot; "
+        f"`stewart-drake scenario --list`)",
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a scenario field with a YAML value (repeatable): "
+        "--set controller.omega_Q=10 --set 'controller=!PdDriver {}' "
+        "(default: none)",
+    )
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -564,7 +696,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="stewart-drake",
         description=summary.splitlines()[0] + " Run `stewart-drake COMMAND --help` for a "
-        "command's options.")
+        "command's options.",
+    )
     parser.add_argument("--version", action="version", version=version_text())
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_run_command(sub)
@@ -587,101 +720,203 @@ def _add_run_command(sub) -> None:
     from ..simulation.scenario import named_controllers
     from ..simulation.trajectories import TRAJECTORIES
 
-    run = sub.add_parser("run", help="simulate a scenario (default: the paper's experiment on "
-                                     "the robot as built) and plot Fig. 7")
+    run = sub.add_parser(
+        "run",
+        help="simulate a scenario (default: the paper's experiment on "
+        "the robot as built) and plot Fig. 7",
+    )
     _add_scenario_arguments(run, "the run")
-    run.add_argument("--duration", type=_positive_float, default=None, metavar="SECONDS",
-                     help="simulated time, s (default: the scenario's duration_s, 10 s in the "
-                          "shipped ones; with --trajectory-file, the file's length)")
-    run.add_argument("--trajectory", default=None, choices=sorted(TRAJECTORIES),
-                     metavar="NAME",
-                     help=f"reference, one of: {', '.join(sorted(TRAJECTORIES))} (default: the "
-                          f"scenario's, paper)")
-    run.add_argument("--trajectory-file", default=None, metavar="FILE.csv",
-                     help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, "
-                          "m); the run lasts as long as the file unless --duration says "
-                          "otherwise (default: none)")
-    run.add_argument("--controller", choices=sorted(named_controllers()), default=None,
-                     help="the LQI of the paper or the crank-space PD baseline (default: the "
-                          "scenario's, lqi)")
-    run.add_argument("--omega-q", type=_positive_float, default=None,
-                     help="LQI omega_Q (default: the scenario's, 1)")
-    run.add_argument("--omega-r", type=_positive_float, default=None,
-                     help="LQI omega_R (default: the scenario's, 1)")
-    run.add_argument("--tuner", choices=["none", "ann", "ratio"], default=None,
-                     help="online tuner of the LQI's weights: ann, the paper's network; ratio, "
-                          "ours from the tuner study (default: the scenario's, none)")
-    run.add_argument("--tuner-weights", default=None, metavar="FILE.npz",
-                     help="the tuner's weights (default: for ann, results/tuner/ann_tuner.npz "
-                          "if `train` wrote it, else the shipped ones; for ratio, the shipped "
-                          "lambda = 0.1 ones)")
+    run.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="simulated time, s (default: the scenario's duration_s, 10 s in the "
+        "shipped ones; with --trajectory-file, the file's length)",
+    )
+    run.add_argument(
+        "--trajectory",
+        default=None,
+        choices=sorted(TRAJECTORIES),
+        metavar="NAME",
+        help=f"reference, one of: {', '.join(sorted(TRAJECTORIES))} (default: the "
+        f"scenario's, paper)",
+    )
+    run.add_argument(
+        "--trajectory-file",
+        default=None,
+        metavar="FILE.csv",
+        help="reference from a CSV file with header t,phi,theta,psi,X,Y,Z (s, rad, "
+        "m); the run lasts as long as the file unless --duration says "
+        "otherwise (default: none)",
+    )
+    run.add_argument(
+        "--controller",
+        choices=sorted(named_controllers()),
+        default=None,
+        help="the LQI of the paper or the crank-space PD baseline (default: the scenario's, lqi)",
+    )
+    run.add_argument(
+        "--omega-q",
+        type=_positive_float,
+        default=None,
+        help="LQI omega_Q (default: the scenario's, 1)",
+    )
+    run.add_argument(
+        "--omega-r",
+        type=_positive_float,
+        default=None,
+        help="LQI omega_R (default: the scenario's, 1)",
+    )
+    run.add_argument(
+        "--tuner",
+        choices=["none", "ann", "ratio"],
+        default=None,
+        help="online tuner of the LQI's weights: ann, the paper's network; ratio, "
+        "ours from the tuner study (default: the scenario's, none)",
+    )
+    run.add_argument(
+        "--tuner-weights",
+        default=None,
+        metavar="FILE.npz",
+        help="the tuner's weights (default: for ann, results/tuner/ann_tuner.npz "
+        "if `train` wrote it, else the shipped ones; for ratio, the shipped "
+        "lambda = 0.1 ones)",
+    )
     run.add_argument("--out", default="results", help="output folder")
     run.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    run.add_argument("--html", default=None, metavar="FILE.html",
-                     help="also write a standalone Meshcat replay of the run to this file "
-                          "(default: none)")
-    run.add_argument("--plugin", action="append", metavar="NAME",
-                     help="make the installed controller entry point NAME (group "
-                          "stewart_drake.controllers) available to the scenario's "
-                          "UserController (repeatable; default: none); a scenario never imports "
-                          "code itself")
+    run.add_argument(
+        "--html",
+        default=None,
+        metavar="FILE.html",
+        help="also write a standalone Meshcat replay of the run to this file (default: none)",
+    )
+    run.add_argument(
+        "--plugin",
+        action="append",
+        metavar="NAME",
+        help="make the installed controller entry point NAME (group "
+        "stewart_drake.controllers) available to the scenario's "
+        "UserController (repeatable; default: none); a scenario never imports "
+        "code itself",
+    )
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
 
 def _add_check_command(sub) -> None:
     """The ``check`` command's options."""
-    chk = sub.add_parser("check", help="check a reference against every limit without "
-                                       "simulating: reach, joints, singularity, clearance, "
-                                       "torque, speed (exit 2 if refused)")
-    chk.add_argument("reference", help="a CSV file (t,phi,theta,psi,X,Y,Z), a named trajectory "
-                                       "(paper, helix, step_<axis>, ...) or a scenario (file or "
-                                       "shipped name)")
+    chk = sub.add_parser(
+        "check",
+        help="check a reference against every limit without "
+        "simulating: reach, joints, singularity, clearance, "
+        "torque, speed (exit 2 if refused)",
+    )
+    chk.add_argument(
+        "reference",
+        help="a CSV file (t,phi,theta,psi,X,Y,Z), a named trajectory "
+        "(paper, helix, step_<axis>, ...) or a scenario (file or "
+        "shipped name)",
+    )
     _add_scenario_arguments(chk, "the robot to check on, for a CSV or named reference")
-    chk.add_argument("--duration", type=_positive_float, default=None,
-                     help="checked s (default: the scenario's duration_s)")
+    chk.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="checked s (default: the scenario's duration_s)",
+    )
     chk.add_argument("--out", default="results", help="folder of the margins plot")
     chk.set_defaults(func=_cmd_check)
 
 
 def _add_reproduce_command(sub) -> None:
     """The ``reproduce`` command's options."""
-    rp = sub.add_parser("reproduce", help="reproduce organ motion (a library motion or a "
-                                          "recorded trace) on the robot and report its fidelity "
-                                          "(exit 2 if beyond --tolerance)")
-    rp.add_argument("motion", help="breathing, heartbeat, breathing_heartbeat, "
-                                   "irregular_breathing, hysteresis, or a trace file (.csv with "
-                                   "a header naming columns and units, or t,phi,theta,psi,X,Y,Z)")
-    rp.add_argument("--param", action="append", metavar="KEY=VALUE",
-                    help="a library motion's parameter with its unit (repeatable): "
-                         "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
-                         "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
-                         "motion's own)")
-    _add_scenario_arguments(rp, "the robot and its controller; e.g. --set learning.gain=0.5 "
-                                "with --learn-cycles")
-    rp.add_argument("--learn-cycles", type=_int_at_least(0), default=0, metavar="N",
-                    help="learn a correction from the first N cycles, then hold it (0: no "
-                         "learning)")
-    rp.add_argument("--cycles", type=_int_at_least(1), default=2, metavar="N",
-                    help="cycles measured after the learned ones (or after one cycle to settle)")
-    rp.add_argument("--tolerance", default="0.1mm,0.1deg",
-                    help="RMS error allowed per axis, a length and an angle")
-    rp.add_argument("--scale-to-fit", action="store_true",
-                    help="shrink a motion the robot cannot follow about its centre until every "
-                         "check passes (instead of refusing it), saying by how much")
-    rp.add_argument("--map", action="append", metavar="COLUMN=AXIS",
-                    help="put a trace's column on a platform axis, with a sign (repeatable): "
-                         "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default")
-    rp.add_argument("--lowpass-hz", type=_positive_float, default=None,
-                    help="zero-phase low-pass of a trace, Hz (default: none)")
-    rp.add_argument("--centre", default=None, metavar="PHI,THETA,PSI,X,Y,Z",
-                    help="the pose a trace is centred on, rad and m (default: home, "
-                         "0,0,0,0,0,0.3)")
-    rp.add_argument("--centre-on", choices=["mean", "first", "none"], default="mean",
-                    help="which pose of a trace goes to --centre")
-    rp.add_argument("--max-gap", type=_positive_float, default=1.0, metavar="S",
-                    help="longest interval without data a trace may have, s")
-    rp.add_argument("--duration", type=_positive_float, default=None,
-                    help="s to run a trace that has no cycles (default: its length)")
+    rp = sub.add_parser(
+        "reproduce",
+        help="reproduce organ motion (a library motion or a "
+        "recorded trace) on the robot and report its fidelity "
+        "(exit 2 if beyond --tolerance)",
+    )
+    rp.add_argument(
+        "motion",
+        help="breathing, heartbeat, breathing_heartbeat, "
+        "irregular_breathing, hysteresis, or a trace file (.csv with "
+        "a header naming columns and units, or t,phi,theta,psi,X,Y,Z)",
+    )
+    rp.add_argument(
+        "--param",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a library motion's parameter with its unit (repeatable): "
+        "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
+        "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
+        "motion's own)",
+    )
+    _add_scenario_arguments(
+        rp, "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles"
+    )
+    rp.add_argument(
+        "--learn-cycles",
+        type=_int_at_least(0),
+        default=0,
+        metavar="N",
+        help="learn a correction from the first N cycles, then hold it (0: no learning)",
+    )
+    rp.add_argument(
+        "--cycles",
+        type=_int_at_least(1),
+        default=2,
+        metavar="N",
+        help="cycles measured after the learned ones (or after one cycle to settle)",
+    )
+    rp.add_argument(
+        "--tolerance",
+        default="0.1mm,0.1deg",
+        help="RMS error allowed per axis, a length and an angle",
+    )
+    rp.add_argument(
+        "--scale-to-fit",
+        action="store_true",
+        help="shrink a motion the robot cannot follow about its centre until every "
+        "check passes (instead of refusing it), saying by how much",
+    )
+    rp.add_argument(
+        "--map",
+        action="append",
+        metavar="COLUMN=AXIS",
+        help="put a trace's column on a platform axis, with a sign (repeatable): "
+        "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default",
+    )
+    rp.add_argument(
+        "--lowpass-hz",
+        type=_positive_float,
+        default=None,
+        help="zero-phase low-pass of a trace, Hz (default: none)",
+    )
+    rp.add_argument(
+        "--centre",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose a trace is centred on, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    rp.add_argument(
+        "--centre-on",
+        choices=["mean", "first", "none"],
+        default="mean",
+        help="which pose of a trace goes to --centre",
+    )
+    rp.add_argument(
+        "--max-gap",
+        type=_positive_float,
+        default=1.0,
+        metavar="S",
+        help="longest interval without data a trace may have, s",
+    )
+    rp.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="s to run a trace that has no cycles (default: its length)",
+    )
     rp.add_argument("--out", default="results/reproduce", help="report folder")
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
@@ -690,13 +925,25 @@ def _add_reproduce_command(sub) -> None:
 def _add_scenario_command(sub) -> None:
     """The ``scenario`` command's options."""
     scn = sub.add_parser("scenario", help="list the shipped scenarios or print one as YAML")
-    scn.add_argument("source", nargs="?", default=DEFAULT_SCENARIO,
-                     help=f"scenario file or shipped name (default: {DEFAULT_SCENARIO})")
-    scn.add_argument("--set", action="append", metavar="KEY=VALUE",
-                     help="override a field, as for run (default: none)")
+    scn.add_argument(
+        "source",
+        nargs="?",
+        default=DEFAULT_SCENARIO,
+        help=f"scenario file or shipped name (default: {DEFAULT_SCENARIO})",
+    )
+    scn.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a field, as for run (default: none)",
+    )
     scn.add_argument("--list", action="store_true", help="list the shipped scenarios")
-    scn.add_argument("--out", default=None, metavar="FILE.yaml",
-                     help="write the YAML to this file (default: print it)")
+    scn.add_argument(
+        "--out",
+        default=None,
+        metavar="FILE.yaml",
+        help="write the YAML to this file (default: print it)",
+    )
     scn.set_defaults(func=_cmd_scenario, out_is_file=True)
 
 
@@ -705,8 +952,13 @@ def _add_collect_command(sub) -> None:
     col = sub.add_parser("collect", help="the 9 closed-loop runs that train the ANN tuner")
     _add_scenario_arguments(col, "the scenario the runs share")
     col.add_argument("--out", default="results/collect", help="output folder")
-    col.add_argument("--duration", type=_positive_float, default=10.0, metavar="SECONDS",
-                     help="simulated s per run")
+    col.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=10.0,
+        metavar="SECONDS",
+        help="simulated s per run",
+    )
     col.add_argument("--seed", type=_int_at_least(0), default=0, help="trajectory seed")
     _add_runner_arguments(col)
     col.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -717,47 +969,76 @@ def _add_train_command(sub) -> None:
     """The ``train`` command's options."""
     tr = sub.add_parser("train", help="train the ANN tuner on collected runs (needs torch)")
     tr.add_argument("--data", default="results/collect", help="folder written by collect")
-    tr.add_argument("--mode", choices=["paper", "best_cost"], default="best_cost",
-                    help="label mode of the saved tuner")
-    tr.add_argument("--seed", type=_int_at_least(0), default=0,
-                    help="split and initialization seed")
+    tr.add_argument(
+        "--mode",
+        choices=["paper", "best_cost"],
+        default="best_cost",
+        help="label mode of the saved tuner",
+    )
+    tr.add_argument(
+        "--seed", type=_int_at_least(0), default=0, help="split and initialization seed"
+    )
     tr.add_argument("--out", default="results/tuner/ann_tuner.npz", help="weights file")
     tr.set_defaults(func=_cmd_train, out_is_file=True)
 
 
 def _add_evaluate_command(sub) -> None:
     """The ``evaluate`` command's options."""
-    ev = sub.add_parser("evaluate", help="every controller on every scenario, and the tuner "
-                                         "study: results.md and its plots")
-    ev.add_argument("--scenario", default=DEFAULT_SCENARIO, metavar="FILE|NAME",
-                    help="scenario every case starts from (a .yaml file or a shipped name)")
-    ev.add_argument("--out", default="results/evaluation",
-                    help="folder of the runs (kept as they finish: run again to resume), "
-                         "rows.json and, unless --docs, results.md and its plots")
-    ev.add_argument("--docs", default=None, metavar="FOLDER",
-                    help="write results.md and its plots here instead (default: --out; the "
-                         "repository's report is regenerated with --docs docs)")
+    ev = sub.add_parser(
+        "evaluate",
+        help="every controller on every scenario, and the tuner study: results.md and its plots",
+    )
+    ev.add_argument(
+        "--scenario",
+        default=DEFAULT_SCENARIO,
+        metavar="FILE|NAME",
+        help="scenario every case starts from (a .yaml file or a shipped name)",
+    )
+    ev.add_argument(
+        "--out",
+        default="results/evaluation",
+        help="folder of the runs (kept as they finish: run again to resume), "
+        "rows.json and, unless --docs, results.md and its plots",
+    )
+    ev.add_argument(
+        "--docs",
+        default=None,
+        metavar="FOLDER",
+        help="write results.md and its plots here instead (default: --out; the "
+        "repository's report is regenerated with --docs docs)",
+    )
     _add_runner_arguments(ev)
-    ev.add_argument("--no-tuner-study", action="store_true",
-                    help="leave out the tuner study that leads the report")
-    ev.add_argument("--controllers", default=None, metavar="NAME,NAME",
-                    help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (default: all "
-                         "12; with --quick, lqi_1_1,pd,ann_best_cost)")
-    ev.add_argument("--quick", action="store_true",
-                    help="a smoke test of about a minute on 2 cores: 1-2 s runs of three "
-                         "controllers, no tuner study; not figures to quote")
+    ev.add_argument(
+        "--no-tuner-study",
+        action="store_true",
+        help="leave out the tuner study that leads the report",
+    )
+    ev.add_argument(
+        "--controllers",
+        default=None,
+        metavar="NAME,NAME",
+        help="comma-separated subset, e.g. lqi_1_1,pd,ann_best_cost (default: all "
+        "12; with --quick, lqi_1_1,pd,ann_best_cost)",
+    )
+    ev.add_argument(
+        "--quick",
+        action="store_true",
+        help="a smoke test of about a minute on 2 cores: 1-2 s runs of three "
+        "controllers, no tuner study; not figures to quote",
+    )
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
 
 
 def _add_workspace_command(sub) -> None:
     """The ``workspace`` command's options."""
-    ws = sub.add_parser("workspace", help="reachable poses, singularities and holding torques "
-                                          "of the scenario's robot")
+    ws = sub.add_parser(
+        "workspace",
+        help="reachable poses, singularities and holding torques of the scenario's robot",
+    )
     _add_scenario_arguments(ws, "the robot to sweep (its robot: fields)")
     ws.add_argument("--out", default="results/workspace", help="output folder")
-    ws.add_argument("--resolution", type=_int_at_least(3), default=41,
-                    help="grid points per axis")
+    ws.add_argument("--resolution", type=_int_at_least(3), default=41, help="grid points per axis")
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
@@ -767,12 +1048,21 @@ def _add_teleop_command(sub) -> None:
     """The ``teleop`` command's options."""
     tel = sub.add_parser("teleop", help="drive the robot live at real time from Meshcat sliders")
     _add_scenario_arguments(tel, "the robot driven")
-    tel.add_argument("--duration", type=_positive_float, default=None,
-                     help="simulated s (default: until Ctrl-C)")
-    tel.add_argument("--realtime-rate", type=float, default=1.0,
-                     help="target real-time rate (0: as fast as it goes)")
-    tel.add_argument("--port", type=_int_at_least(1), default=None,
-                     help="Meshcat's port (default: the first free from 7000)")
+    tel.add_argument(
+        "--duration", type=_positive_float, default=None, help="simulated s (default: until Ctrl-C)"
+    )
+    tel.add_argument(
+        "--realtime-rate",
+        type=float,
+        default=1.0,
+        help="target real-time rate (0: as fast as it goes)",
+    )
+    tel.add_argument(
+        "--port",
+        type=_int_at_least(1),
+        default=None,
+        help="Meshcat's port (default: the first free from 7000)",
+    )
     tel.add_argument("--out", default="results/teleop", help="folder of a divergence dump")
     tel.set_defaults(func=_cmd_teleop, out_sub=("diverged",))
 
@@ -788,16 +1078,16 @@ def _add_diagrams_command(sub) -> None:
 def _add_sdf_command(sub) -> None:
     """The ``sdf`` command's options."""
     sdf = sub.add_parser("sdf", help="write the reference robot's SDF")
-    sdf.add_argument("--out", default="sdf/rotary_stewart.sdf",
-                     help="file (in the current folder)")
+    sdf.add_argument("--out", default="sdf/rotary_stewart.sdf", help="file (in the current folder)")
     sdf.set_defaults(func=_cmd_sdf, out_is_file=True)
 
 
 def _add_mjcf_command(sub) -> None:
     """The ``mjcf`` command's options."""
     mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
-    mj.add_argument("--out", default="rotary_stewart.xml",
-                    help="file to write (in the current folder)")
+    mj.add_argument(
+        "--out", default="rotary_stewart.xml", help="file to write (in the current folder)"
+    )
     mj.set_defaults(func=_cmd_mjcf, out_is_file=True)
 
 
@@ -809,8 +1099,11 @@ def _interruptible():
 
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {s: signal.signal(s, raise_interrupted) for s in (signal.SIGTERM, signal.SIGHUP)
-            if signal.getsignal(s) is not signal.SIG_IGN}
+    return {
+        s: signal.signal(s, raise_interrupted)
+        for s in (signal.SIGTERM, signal.SIGHUP)
+        if signal.getsignal(s) is not signal.SIG_IGN
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -830,24 +1123,28 @@ def _main(argv: list[str] | None) -> int:
         return _interrupted(err, "", None)
     try:
         if getattr(args, "out", None) is not None:
-            check_output(args.out, "--out", getattr(args, "out_is_file", False),
-                         getattr(args, "out_sub", ()))
+            check_output(
+                args.out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ())
+            )
         return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 2
-    except OSError as err:                           # disk full, file vanished, permissions
+    except OSError as err:  # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
-    except KeyboardInterrupt as err:                 # Ctrl-C, SIGTERM, SIGHUP
+    except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
         return _interrupted(err, args.command, getattr(args, "out", None))
 
 
 def _interrupted(err: KeyboardInterrupt, command: str, out) -> int:
     """Say which signal ended ``command`` (one line) and return 128 + its number."""
     signum = getattr(err, "signum", signal.SIGINT)
-    kept = (f"finished results are kept in {out}: run the same command again to run only the "
-            f"rest" if command in RESUMABLE else "partial outputs were not written")
+    kept = (
+        f"finished results are kept in {out}: run the same command again to run only the rest"
+        if command in RESUMABLE
+        else "partial outputs were not written"
+    )
     name = f"stewart-drake {command}".rstrip()
     print(f"{name}: interrupted by {signal.Signals(signum).name}; {kept}", file=sys.stderr)
     return 128 + signum

@@ -30,7 +30,7 @@ from ..model.kinematics import X_HOME
 from ..model.statics import holding_torques
 from ..simulation.plan import make_plan
 
-if TYPE_CHECKING:   # for the annotations only: build_teleop imports these when it runs
+if TYPE_CHECKING:  # for the annotations only: build_teleop imports these when it runs
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import Diagram
     from pydrake.visualization import MeshcatPoseSliders
@@ -49,14 +49,16 @@ DISPLAY_PERIOD_S = 0.1
 def torque_margins(geometry, peak_torque_Nm: float | None) -> Callable[[np.ndarray], dict]:
     """The default ``margins`` of :class:`TeleopDisplay`: the motors' peak torque minus the
     largest holding torque of the pose (statics, N m); none without a torque limit."""
+
     def margins(x: np.ndarray) -> dict:
         if peak_torque_Nm is None:
             return {}
         try:
             T = holding_torques(geometry, x)
-        except ValueError:                    # a pose the statics refuse: no margin at all
+        except ValueError:  # a pose the statics refuse: no margin at all
             return {"T margin [N m]": 0.0}
         return {"T margin [N m]": float(peak_torque_Nm - np.abs(T).max())}
+
     return margins
 
 
@@ -70,9 +72,10 @@ def robot_margins(geometry, peak_torque_Nm: float | None, clearance) -> Callable
         out = torque(x)
         try:
             out["clearance [mm]"] = 1e3 * clearance.closest(x).distance
-        except ValueError:                    # a pose no leg closes at: no clearance at all
+        except ValueError:  # a pose no leg closes at: no clearance at all
             out["clearance [mm]"] = 0.0
         return out
+
     return margins
 
 
@@ -93,23 +96,29 @@ class TeleopDisplay(LeafSystem):
         period_s: refresh period, s.
     """
 
-    def __init__(self, meshcat, margins: Callable[[np.ndarray], dict], ranges=None,
-                 period_s: float = DISPLAY_PERIOD_S):
+    def __init__(
+        self,
+        meshcat,
+        margins: Callable[[np.ndarray], dict],
+        ranges=None,
+        period_s: float = DISPLAY_PERIOD_S,
+    ):
         super().__init__()
         self.meshcat, self.margins = meshcat, margins
-        self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0),
-                       **(ranges or {})}
+        self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0), **(ranges or {})}
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0,
-                                         publish=self._Publish)
+        self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0, publish=self._Publish)
 
     def figures(self, context) -> dict:
         """{name: value} of the display now (the tracking error and the margins)."""
         x, x_d = np.asarray(self._x.Eval(context)), np.asarray(self._x_d.Eval(context))
         e = np.abs(x[:6] - x_d[:6])
-        return {"error [mm]": 1e3 * float(e[3:].max()),
-                "error [mrad]": 1e3 * float(e[:3].max()), **self.margins(x[:6])}
+        return {
+            "error [mm]": 1e3 * float(e[3:].max()),
+            "error [mrad]": 1e3 * float(e[:3].max()),
+            **self.margins(x[:6]),
+        }
 
     def _Publish(self, context):
         names = set(self.meshcat.GetSliderNames())
@@ -143,13 +152,18 @@ def teleop_scenario(scenario):
 
     scenario = dataclasses.replace(scenario, log_period_s=0.1)
     scenario.visualization = VisualizationConfig(
-        publish_period=1.0 / 30, publish_proximity=False, publish_contacts=False,
-        publish_inertia=False, enable_alpha_sliders=False)
+        publish_period=1.0 / 30,
+        publish_proximity=False,
+        publish_contacts=False,
+        publish_inertia=False,
+        enable_alpha_sliders=False,
+    )
     return scenario.validate()
 
 
-def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, limits=None,
-                 x_initial=X_HOME) -> TeleopRun:
+def build_teleop(
+    scenario, meshcat, realtime_rate: float = 1.0, margins=None, limits=None, x_initial=X_HOME
+) -> TeleopRun:
     """The live closed loop of ``scenario`` in ``meshcat`` (module docstring), ready to run.
 
     Args:
@@ -174,29 +188,44 @@ def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, li
 
     scenario = teleop_scenario(scenario)
     meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
-    meshcat.SetProperty("/Axes", "visible", False)       # the world triad would hide the base
+    meshcat.SetProperty("/Axes", "visible", False)  # the world triad would hide the base
     plan = make_plan(scenario, with_reference=False)
     geometry, peak = plan.geometry, plan.torque_limit_Nm
     x0 = np.asarray(x_initial, dtype=float)
     guard = scenario.guard
     clearance = clearance_model(plan.plant_geometry)
     reference = TeleopReference(
-        geometry, x0, scenario.control_period_s, limits,
-        admissible=lambda x: admissible_poses(geometry, x, guard.cond_threshold,
-                                              guard.min_sigma_min_inv, peak,
-                                              clearance=clearance,
-                                              min_clearance_m=guard.min_clearance_m))
+        geometry,
+        x0,
+        scenario.control_period_s,
+        limits,
+        admissible=lambda x: admissible_poses(
+            geometry,
+            x,
+            guard.cond_threshold,
+            guard.min_sigma_min_inv,
+            peak,
+            clearance=clearance,
+            min_clearance_m=guard.min_clearance_m,
+        ),
+    )
     loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
     sliders = MeshcatPoseSliders(
-        meshcat, initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
-        lower_limit=x0 - SLIDER_RANGE, upper_limit=x0 + SLIDER_RANGE, step=SLIDER_STEP)
+        meshcat,
+        initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
+        lower_limit=x0 - SLIDER_RANGE,
+        upper_limit=x0 + SLIDER_RANGE,
+        step=SLIDER_STEP,
+    )
     builder.AddNamedSystem("sliders", sliders)
     builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
     display = TeleopDisplay(
-        meshcat, margins or robot_margins(geometry, peak, clearance),
-        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)})
+        meshcat,
+        margins or robot_margins(geometry, peak, clearance),
+        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)},
+    )
     builder.AddNamedSystem("display", display)
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
@@ -211,8 +240,12 @@ def build_teleop(scenario, meshcat, realtime_rate: float = 1.0, margins=None, li
     return TeleopRun(diagram, loop, sliders, reference, display, simulator)
 
 
-def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float = 0.1,
-               report: Callable[[str], None] | None = print) -> dict:
+def run_teleop(
+    run: TeleopRun,
+    duration_s: float | None = None,
+    chunk_s: float = 0.1,
+    report: Callable[[str], None] | None = print,
+) -> dict:
     """Advance ``run`` in real time until ``duration_s`` (None: until Ctrl-C), guarded.
 
     Returns:
@@ -224,7 +257,7 @@ def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float =
     from ..simulation import guard
 
     simulator = run.simulator
-    simulator.ResetStatistics()       # pace from now: a pause before must not be caught up
+    simulator.ResetStatistics()  # pace from now: a pause before must not be caught up
     t_start, wall_start = simulator.get_context().get_time(), time.perf_counter()
     marks = [(wall_start, t_start)]
     try:
@@ -238,13 +271,21 @@ def run_teleop(run: TeleopRun, duration_s: float | None = None, chunk_s: float =
         pass
     wall = np.array([m[0] for m in marks]) - wall_start
     sim = np.array([m[1] for m in marks]) - t_start
-    rates = [(sim[j] - sim[i]) / (wall[j] - wall[i])
-             for i in range(len(marks)) for j in (int(np.searchsorted(wall, wall[i] + 10.0)),)
-             if j < len(marks) and wall[j] > wall[i]]
-    total = {"sim_s": float(sim[-1]), "wall_s": float(wall[-1]),
-             "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0}
+    rates = [
+        (sim[j] - sim[i]) / (wall[j] - wall[i])
+        for i in range(len(marks))
+        for j in (int(np.searchsorted(wall, wall[i] + 10.0)),)
+        if j < len(marks) and wall[j] > wall[i]
+    ]
+    total = {
+        "sim_s": float(sim[-1]),
+        "wall_s": float(wall[-1]),
+        "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0,
+    }
     total["worst_rate"] = float(min(rates)) if rates else total["realtime_rate"]
     if report is not None:
-        report(f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
-               f"in {total['wall_s']:.1f} s wall (lowest over 10 s: {total['worst_rate']:.3f})")
+        report(
+            f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
+            f"in {total['wall_s']:.1f} s wall (lowest over 10 s: {total['worst_rate']:.3f})"
+        )
     return total

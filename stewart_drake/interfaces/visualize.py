@@ -86,9 +86,8 @@ def _mark_contacts(animation, frame: int, markers: list, shown: list, close: lis
     for j, (path, colours) in enumerate(markers):
         contact = close[j] if j < len(close) else None
         kind = None if contact is None else ("touch" if contact.distance <= 0 else "near")
-        if contact is not None:                             # kind is not None
-            animation.SetTransform(frame, path, RigidTransform(0.5 * (contact.p_WA
-                                                                      + contact.p_WB)))
+        if contact is not None:  # kind is not None
+            animation.SetTransform(frame, path, RigidTransform(0.5 * (contact.p_WA + contact.p_WB)))
         if kind != shown[j]:
             animation.SetProperty(frame, path, "visible", kind is not None)
             if kind is not None:
@@ -96,8 +95,14 @@ def _mark_contacts(animation, frame: int, markers: list, shown: list, close: lis
             shown[j] = kind
 
 
-def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
-                  clearance_m: float = DEFAULT_MIN_CLEARANCE_M) -> int:
+def record_states(
+    meshcat,
+    geometry,
+    t,
+    states,
+    fps: float = REPLAY_FPS,
+    clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
+) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
     where two parts touch.
 
@@ -135,18 +140,19 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
     if states.shape[0] != np.size(t) or states.shape[1] < nq:
         raise InvalidConfigError(
             f"states must be (N, >= {nq}) with N = len(t) = {np.size(t)}, got {states.shape}: "
-            f"pass the plant state log of the same geometry")
+            f"pass the plant state log of the same geometry"
+        )
     frame_times, idx = frame_indices(t, fps)
     params = MeshcatVisualizerParams()
     params.role = Role.kIllustration
-    params.publish_period = 1.0 / fps           # the recording's frames per second
+    params.publish_period = 1.0 / fps  # the recording's frames per second
     params.prefix = REPLAY_PREFIX
     visualizer = MeshcatVisualizer.AddToBuilder(builder, scene_graph, meshcat, params)
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     plant_context = plant.GetMyMutableContextFromRoot(context)
     meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
-    meshcat.SetProperty("/Axes", "visible", False)    # the world triad would hide the base
+    meshcat.SetProperty("/Axes", "visible", False)  # the world triad would hide the base
     markers = _contact_markers(meshcat)
     model = clearance_model(geometry)
     visualizer.StartRecording()
@@ -158,8 +164,9 @@ def record_states(meshcat, geometry, t, states, fps: float = REPLAY_FPS,
         context.SetTime((k + 0.25) / fps)
         plant.SetPositions(plant_context, states[i, :nq])
         diagram.ForcedPublish(context)
-        _mark_contacts(animation, k, markers, shown,
-                       model.contacts(None, clearance_m, q=states[i, :nq]))
+        _mark_contacts(
+            animation, k, markers, shown, model.contacts(None, clearance_m, q=states[i, :nq])
+        )
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)
@@ -191,8 +198,16 @@ def write_static_html(meshcat, path: str | Path) -> Path:
     return path
 
 
-def record_html(config=None, path: str | Path = "results/replay.html", progress: bool = False,
-                fps: float = REPLAY_FPS, meshcat=None, *, reference=None, controller=None):
+def record_html(
+    config=None,
+    path: str | Path = "results/replay.html",
+    progress: bool = False,
+    fps: float = REPLAY_FPS,
+    meshcat=None,
+    *,
+    reference=None,
+    controller=None,
+):
     """Simulate a scenario and write its Meshcat replay as a standalone HTML file.
 
     The run is advanced through the same guard as ``run_experiment``: a diverging run stops with
@@ -218,8 +233,7 @@ def record_html(config=None, path: str | Path = "results/replay.html", progress:
 
     sd, simulator = build_simulator(config, reference=reference, controller=controller)
     wall0 = time.perf_counter()
-    guard.advance(sd, simulator,
-                  lambda: advance(simulator, sd.scenario.duration_s, progress))
+    guard.advance(sd, simulator, lambda: advance(simulator, sd.scenario.duration_s, progress))
     wall = time.perf_counter() - wall0
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
@@ -230,6 +244,7 @@ def record_html(config=None, path: str | Path = "results/replay.html", progress:
 
 
 # -- pictures of the Diagram --------------------------------------------------------------------
+
 
 def normalize_dot(dot: str) -> str:
     """The same Graphviz text for the same Diagram, whatever ran before in the process.
@@ -261,14 +276,24 @@ def _html_node(name: str, kind: str, inputs, outputs, color: str = "") -> str:
     ins, outs = sorted(inputs), sorted(outputs)
     cells = "".join(
         "<TR>"
-        + (f'<TD PORT="in_{ins[k]}" BORDER="1">{ins[k]}</TD>' if k < len(ins)
-           else '<TD BORDER="0"></TD>')
-        + (f'<TD PORT="out_{outs[k]}" BORDER="1">{outs[k]}</TD>' if k < len(outs)
-           else '<TD BORDER="0"></TD>')
-        + "</TR>" for k in range(max(len(ins), len(outs), 1)))
+        + (
+            f'<TD PORT="in_{ins[k]}" BORDER="1">{ins[k]}</TD>'
+            if k < len(ins)
+            else '<TD BORDER="0"></TD>'
+        )
+        + (
+            f'<TD PORT="out_{outs[k]}" BORDER="1">{outs[k]}</TD>'
+            if k < len(outs)
+            else '<TD BORDER="0"></TD>'
+        )
+        + "</TR>"
+        for k in range(max(len(ins), len(outs), 1))
+    )
     color = f' BGCOLOR="{color}"' if color else ""
-    return (f'  "{name}" [label=<<TABLE BORDER="0" CELLSPACING="0"><TR><TD BORDER="1" '
-            f'COLSPAN="2"{color}><B>{name}</B><BR/>{kind}</TD></TR>{cells}</TABLE>>];')
+    return (
+        f'  "{name}" [label=<<TABLE BORDER="0" CELLSPACING="0"><TR><TD BORDER="1" '
+        f'COLSPAN="2"{color}><B>{name}</B><BR/>{kind}</TD></TR>{cells}</TABLE>>];'
+    )
 
 
 def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str:
@@ -296,35 +321,64 @@ def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str
     def edge(src, out_name, dst, in_name, label):
         used.setdefault(src[0], (src[1], set(), set()))[2].add(out_name)
         used.setdefault(dst[0], (dst[1], set(), set()))[1].add(in_name)
-        edges.append(f'  "{src[0]}":"out_{out_name}" -> "{dst[0]}":"in_{in_name}" '
-                     f'[label="{label}", fontsize=9];')
+        edges.append(
+            f'  "{src[0]}":"out_{out_name}" -> "{dst[0]}":"in_{in_name}" '
+            f'[label="{label}", fontsize=9];'
+        )
 
     for (dst, i), (src, j) in diagram.connection_map().items():
         if type(dst).__name__ == "VectorLogSink":
             continue
         out, inp = src.get_output_port(j), dst.get_input_port(i)
-        edge((src.get_name(), type(src).__name__), out.get_name(),
-             (dst.get_name(), type(dst).__name__), inp.get_name(),
-             out.get_name() + vector_size(out))
+        edge(
+            (src.get_name(), type(src).__name__),
+            out.get_name(),
+            (dst.get_name(), type(dst).__name__),
+            inp.get_name(),
+            out.get_name() + vector_size(out),
+        )
     for i in range(diagram.num_input_ports()):
         port = diagram.get_input_port(i)
         for dst, j in diagram.GetInputPortLocators(InputPortIndex(i)):
-            edge(("inputs", "exported"), port.get_name(), (dst.get_name(), type(dst).__name__),
-                 dst.get_input_port(j).get_name(), port.get_name() + vector_size(port))
+            edge(
+                ("inputs", "exported"),
+                port.get_name(),
+                (dst.get_name(), type(dst).__name__),
+                dst.get_input_port(j).get_name(),
+                port.get_name() + vector_size(port),
+            )
     for i in range(diagram.num_output_ports()):
         port = diagram.get_output_port(i)
         src, j = diagram.get_output_port_locator(OutputPortIndex(i))
-        edge((src.get_name(), type(src).__name__), src.get_output_port(j).get_name(),
-             ("outputs", "exported"), port.get_name(), port.get_name() + vector_size(port))
-    lines = [f"digraph {_dot_id(diagram.get_name())} {{", "  rankdir=LR;",
-             "  node [shape=none, fontsize=10];"]
+        edge(
+            (src.get_name(), type(src).__name__),
+            src.get_output_port(j).get_name(),
+            ("outputs", "exported"),
+            port.get_name(),
+            port.get_name() + vector_size(port),
+        )
+    lines = [
+        f"digraph {_dot_id(diagram.get_name())} {{",
+        "  rankdir=LR;",
+        "  node [shape=none, fontsize=10];",
+    ]
     if title:
         lines.append(f'  labelloc=t; fontsize=12; label="{title}";')
     for name in sorted(used):
         kind, inputs, outputs = used[name]
-        lines.append(_html_node(name, kind, inputs, outputs,
-                                "#dbe9f6" if name in highlight else
-                                "#eeeeee" if name in ("inputs", "outputs") else ""))
+        lines.append(
+            _html_node(
+                name,
+                kind,
+                inputs,
+                outputs,
+                "#dbe9f6"
+                if name in highlight
+                else "#eeeeee"
+                if name in ("inputs", "outputs")
+                else "",
+            )
+        )
     return "\n".join(lines + sorted(edges) + ["}", ""])
 
 
@@ -349,11 +403,15 @@ def titled(dot: str, title: str) -> str:
 
 
 #: The captions of the pictures of the two shipped robots (DOT "\\n" breaks the line).
-HARDWARE_CAPTION = ("the robot as built (paper_hardware, the default of stewart-drake run)\\n"
-                    "station: encoders, computation delay, servos with current loop, friction "
-                    "and torque limit; the LQI estimates the pose from the encoders (FK)")
-IDEAL_CAPTION = ("the ideal robot (paper_ideal)\\nthe controller reads the exact pose; ideal "
-                 "torque sources, no friction, no delay")
+HARDWARE_CAPTION = (
+    "the robot as built (paper_hardware, the default of stewart-drake run)\\n"
+    "station: encoders, computation delay, servos with current loop, friction "
+    "and torque limit; the LQI estimates the pose from the encoders (FK)"
+)
+IDEAL_CAPTION = (
+    "the ideal robot (paper_ideal)\\nthe controller reads the exact pose; ideal "
+    "torque sources, no friction, no delay"
+)
 
 
 def diagram_dots() -> dict[str, str]:
@@ -385,23 +443,31 @@ def diagram_dots() -> dict[str, str]:
     pd = scenario()
     pd.controller = PdDriver()
     pd = make_stewart_diagram(pd)
-    raw = {"control_loop": control_loop_dot(fixed.diagram, f"closed loop with the LQI: "
-                                                           f"{HARDWARE_CAPTION}"),
-           "control_loop_ideal": control_loop_dot(ideal.diagram, f"closed loop with the LQI: "
-                                                                 f"{IDEAL_CAPTION}"),
-           "station": wiring_dot(fixed.station, f"inside the station: {HARDWARE_CAPTION}",
-                                 highlight=()),
-           "station_ideal": wiring_dot(ideal.station, f"inside the station: {IDEAL_CAPTION}",
-                                       highlight=()),
-           "diagram_fixed": titled(fixed.diagram.GetGraphvizString(max_depth=1),
-                                   f"fixed weights: {HARDWARE_CAPTION}"),
-           "diagram_ann": titled(ann.diagram.GetGraphvizString(max_depth=1),
-                                 f"the paper's ANN tuner: {HARDWARE_CAPTION}"),
-           "lqi_controller": fixed.controller.GetGraphvizString(),
-           # With the paper's tuner the loop has both (StewartDiagram types them optional).
-           "density_features": ann.features.GetGraphvizString(),  # type: ignore[union-attr]
-           "ann_tuner": ann.tuner.GetGraphvizString(),  # type: ignore[union-attr]
-           "crank_pd": pd.controller.GetGraphvizString()}
+    raw = {
+        "control_loop": control_loop_dot(
+            fixed.diagram, f"closed loop with the LQI: {HARDWARE_CAPTION}"
+        ),
+        "control_loop_ideal": control_loop_dot(
+            ideal.diagram, f"closed loop with the LQI: {IDEAL_CAPTION}"
+        ),
+        "station": wiring_dot(
+            fixed.station, f"inside the station: {HARDWARE_CAPTION}", highlight=()
+        ),
+        "station_ideal": wiring_dot(
+            ideal.station, f"inside the station: {IDEAL_CAPTION}", highlight=()
+        ),
+        "diagram_fixed": titled(
+            fixed.diagram.GetGraphvizString(max_depth=1), f"fixed weights: {HARDWARE_CAPTION}"
+        ),
+        "diagram_ann": titled(
+            ann.diagram.GetGraphvizString(max_depth=1), f"the paper's ANN tuner: {HARDWARE_CAPTION}"
+        ),
+        "lqi_controller": fixed.controller.GetGraphvizString(),
+        # With the paper's tuner the loop has both (StewartDiagram types them optional).
+        "density_features": ann.features.GetGraphvizString(),  # type: ignore[union-attr]
+        "ann_tuner": ann.tuner.GetGraphvizString(),  # type: ignore[union-attr]
+        "crank_pd": pd.controller.GetGraphvizString(),
+    }
     return {name: normalize_dot(dot) for name, dot in raw.items()}
 
 
@@ -426,11 +492,13 @@ def render_svg(dot: str, dot_executable: str | None = None) -> str:
     if exe is None:
         raise RenderToolMissingError(
             "Graphviz `dot` is not on PATH: install graphviz (e.g. `apt install graphviz`) to "
-            "render the .svg pictures; the .dot sources were written")
-    svg = subprocess.run([exe, "-Tsvg"], input=dot, capture_output=True, text=True,
-                         check=True).stdout
+            "render the .svg pictures; the .dot sources were written"
+        )
+    svg = subprocess.run(
+        [exe, "-Tsvg"], input=dot, capture_output=True, text=True, check=True
+    ).stdout
     stamp = _HASH_COMMENT.format(dot_hash(dot))
-    head, sep, rest = svg.partition("?>\n")            # after the XML declaration
+    head, sep, rest = svg.partition("?>\n")  # after the XML declaration
     return head + sep + stamp + "\n" + rest if sep else stamp + "\n" + svg
 
 

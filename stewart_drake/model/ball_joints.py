@@ -43,11 +43,12 @@ def joint_frames_at_home(geometry: StewartGeometry) -> tuple[np.ndarray, np.ndar
     (z_F along the home rod), read from the Drake plant."""
     from .plant import make_plant
 
-    plant, context, handles, _, _ = make_plant(geometry)     # assembled at home, rpy = 0
+    plant, context, handles, _, _ = make_plant(geometry)  # assembled at home, rpy = 0
     theta = np.array([joint.get_angle(context) for joint in handles.motors])
-    R_WF = np.array([plant.EvalBodyPoseInWorld(context, rod).rotation().matrix()
-                     for rod in handles.rods])
-    theta.setflags(write=False)                               # cached: callers must not mutate
+    R_WF = np.array(
+        [plant.EvalBodyPoseInWorld(context, rod).rotation().matrix() for rod in handles.rods]
+    )
+    theta.setflags(write=False)  # cached: callers must not mutate
     R_WF.setflags(write=False)
     return theta, R_WF
 
@@ -62,7 +63,7 @@ def _rod_in_F(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np.nd
     q_B, _ = kinematics.platform_joints(geometry, x)
     ell = q_B - geometry.crank_tips(theta)
     e_W = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    R_WF = _rotation_about(geometry.u_B, theta - theta_home) @ R_WF_home      # (..., 6, 3, 3)
+    R_WF = _rotation_about(geometry.u_B, theta - theta_home) @ R_WF_home  # (..., 6, 3, 3)
     return np.einsum("...ji,...j->...i", R_WF, e_W)
 
 
@@ -86,8 +87,9 @@ def rod_ball_rpy(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np
     # Smallest rotation z -> e_F: R = I + K + K^2 / (1 + c), v = z x e_F = (-e_y, e_x, 0).
     ex, ey, ez = e_F[..., 0], e_F[..., 1], e_F[..., 2]
     R20, R21, R22, R10, R00 = -ex, -ey, ez, -ex * ey / (1 + ez), 1 - ex * ex / (1 + ez)
-    return np.stack([np.arctan2(R21, R22), np.arcsin(np.clip(-R20, -1.0, 1.0)),
-                     np.arctan2(R10, R00)], axis=-1)
+    return np.stack(
+        [np.arctan2(R21, R22), np.arcsin(np.clip(-R20, -1.0, 1.0)), np.arctan2(R10, R00)], axis=-1
+    )
 
 
 def rod_turn_from_home(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
@@ -111,8 +113,9 @@ def singular_direction_misalignment(geometry: StewartGeometry, R_WF_home=None) -
     """
     if R_WF_home is None:
         _, R_WF_home = joint_frames_at_home(geometry)
-    return np.arcsin(np.clip(np.abs(np.einsum("ij,ij->i", R_WF_home[:, :, 0], geometry.u_B)),
-                             0.0, 1.0))
+    return np.arcsin(
+        np.clip(np.abs(np.einsum("ij,ij->i", R_WF_home[:, :, 0], geometry.u_B)), 0.0, 1.0)
+    )
 
 
 def pitch_bound(geometry: StewartGeometry) -> np.ndarray:

@@ -56,14 +56,17 @@ class Contact:
 
 
 def _describe(distance: float) -> str:
-    return (f"{distance * 1e3:.3g} mm apart" if distance >= 0
-            else f"overlap by {-distance * 1e3:.3g} mm")
+    return (
+        f"{distance * 1e3:.3g} mm apart"
+        if distance >= 0
+        else f"overlap by {-distance * 1e3:.3g} mm"
+    )
 
 
 def family(part: str) -> str:
-    """"rod_2/tube" -> "rod tube": a part's kind without its leg number."""
+    """ "rod_2/tube" -> "rod tube": a part's kind without its leg number."""
     link, _, shape = part.partition("/")
-    strip = lambda name: name.rstrip("0123456789").rstrip("_")          # noqa: E731
+    strip = lambda name: name.rstrip("0123456789").rstrip("_")  # noqa: E731
     return f"{strip(link)} {strip(shape)}".strip()
 
 
@@ -87,8 +90,9 @@ class ClearanceModel:
 
         self.geometry = geometry or StewartGeometry()
         builder = DiagramBuilder()
-        self._plant, self._scene_graph, self._handles = add_stewart_plant(builder, self.geometry,
-                                                                          contact=True)
+        self._plant, self._scene_graph, self._handles = add_stewart_plant(
+            builder, self.geometry, contact=True
+        )
         self.plant = self._plant
         self._diagram = builder.Build()
         self._context = self._diagram.CreateDefaultContext()
@@ -96,24 +100,35 @@ class ClearanceModel:
         self._sg_context = self._scene_graph.GetMyContextFromRoot(self._context)
         inspector = self._scene_graph.model_inspector()
         self._names = {}
-        for gid in inspector.GetGeometryIds(GeometrySet(inspector.GetAllGeometryIds()),
-                                            Role.kProximity):
+        for gid in inspector.GetGeometryIds(
+            GeometrySet(inspector.GetAllGeometryIds()), Role.kProximity
+        ):
             body = self._plant.GetBodyFromFrameId(inspector.GetFrameId(gid))
             self._names[gid] = f"{body.name()}/{inspector.GetName(gid).split('::')[-1]}"
         # Pose-independent pairs: measured at home, then filtered from the queries.
         tops = [gid for gid, name in self._names.items() if name.endswith("/end_top")]
         platform = [gid for gid, name in self._names.items() if name.startswith("platform/")]
         query = self._scene_graph.get_query_output_port().Eval(self._sg_context)
-        fixed = [query.ComputeSignedDistancePairClosestPoints(a, b)
-                 for k, a in enumerate(tops) for b in tops[k + 1:] + platform]
+        fixed = [
+            query.ComputeSignedDistancePairClosestPoints(a, b)
+            for k, a in enumerate(tops)
+            for b in tops[k + 1 :] + platform
+        ]
         self.fixed = sorted((self._contact(query, r) for r in fixed), key=lambda c: c.distance)
         self._scene_graph.collision_filter_manager(
-            self._scene_graph.GetMyMutableContextFromRoot(self._context)).Apply(
-            CollisionFilterDeclaration().ExcludeWithin(GeometrySet(tops))
-            .ExcludeBetween(GeometrySet(tops), GeometrySet(platform)))
+            self._scene_graph.GetMyMutableContextFromRoot(self._context)
+        ).Apply(
+            CollisionFilterDeclaration()
+            .ExcludeWithin(GeometrySet(tops))
+            .ExcludeBetween(GeometrySet(tops), GeometrySet(platform))
+        )
         inspector = self._scene_graph.get_query_output_port().Eval(self._sg_context).inspector()
-        self.pairs = tuple(sorted(tuple(sorted((self._names[a], self._names[b])))
-                                  for a, b in inspector.GetCollisionCandidates()))
+        self.pairs = tuple(
+            sorted(
+                tuple(sorted((self._names[a], self._names[b])))
+                for a, b in inspector.GetCollisionCandidates()
+            )
+        )
 
     def contacts(self, x, max_distance: float = QUERY_DISTANCE_M, q=None) -> list[Contact]:
         """Every pair of parts closer than ``max_distance`` at pose x, closest first.
@@ -129,7 +144,7 @@ class ClearanceModel:
 
         if q is None:
             x = as_poses("pose x", x).reshape(6)
-            ik(self.geometry, x)                                # names an unreachable leg
+            ik(self.geometry, x)  # names an unreachable leg
             q = assembled_positions(self._plant, self._handles, x)
         query, found = self._query(q, max_distance)
         return sorted((self._contact(query, r) for r in found), key=lambda c: c.distance)
@@ -143,8 +158,9 @@ class ClearanceModel:
         if not query.HasCollisions():
             return []
         found = query.ComputeSignedDistancePairwiseClosestPoints(0.0)
-        return sorted((self._contact(query, r) for r in found if r.distance < 0),
-                      key=lambda c: c.distance)
+        return sorted(
+            (self._contact(query, r) for r in found if r.distance < 0), key=lambda c: c.distance
+        )
 
     def _query(self, q, max_distance: float):
         """(query object, Drake's signed-distance pairs) with the plant at positions q."""
@@ -153,9 +169,12 @@ class ClearanceModel:
         return query, query.ComputeSignedDistancePairwiseClosestPoints(max_distance)
 
     def _contact(self, query, r) -> Contact:
-        (a, p_A), (b, p_B) = sorted([
-            (self._names[r.id_A], query.GetPoseInWorld(r.id_A) @ r.p_ACa),
-            (self._names[r.id_B], query.GetPoseInWorld(r.id_B) @ r.p_BCb)])
+        (a, p_A), (b, p_B) = sorted(
+            [
+                (self._names[r.id_A], query.GetPoseInWorld(r.id_A) @ r.p_ACa),
+                (self._names[r.id_B], query.GetPoseInWorld(r.id_B) @ r.p_BCb),
+            ]
+        )
         return Contact(float(r.distance), a, b, np.asarray(p_A), np.asarray(p_B))
 
     def closest(self, x) -> Contact:
@@ -200,7 +219,6 @@ class ClearanceModel:
                         families[key] = (c.distance, int(k), c)
         return (distance, closest, families) if by_family else (distance, closest)
 
-
     def sample_indices(self, x, resolution_m: float) -> np.ndarray:
         """:func:`sample_indices` of this model's geometry."""
         return sample_indices(self.geometry, x, resolution_m)
@@ -229,17 +247,19 @@ def sample_indices(geometry: StewartGeometry, x, resolution_m: float) -> np.ndar
     theta, _ = ik_unchecked(geometry, x)
     r_platform = np.hypot(max(geometry.platform_plate_radius, geometry.platform_radius), 0.08)
     turn = np.einsum("kij,kj->ki", angular_velocity_map(x[:-1, :3]), np.diff(x[:, :3], axis=0))
-    step = (np.linalg.norm(np.diff(x[:, 3:], axis=0), axis=1)
-            + np.linalg.norm(turn, axis=1) * r_platform)
+    step = (
+        np.linalg.norm(np.diff(x[:, 3:], axis=0), axis=1)
+        + np.linalg.norm(turn, axis=1) * r_platform
+    )
     crank = geometry.crank_length * np.max(np.abs(np.diff(theta, axis=0)), axis=1)
     step = np.maximum(np.nan_to_num(step, nan=np.inf), np.nan_to_num(crank, nan=np.inf))
     keep, moved = [0], 0.0
     for k, d in enumerate(step, start=1):
         if moved + d > resolution_m and keep[-1] != k - 1:
-            keep.append(k - 1)                       # the last pose within the resolution
+            keep.append(k - 1)  # the last pose within the resolution
             moved = 0.0
         moved += d
-        if moved > resolution_m:                     # one step longer than the resolution
+        if moved > resolution_m:  # one step longer than the resolution
             keep.append(k)
             moved = 0.0
     if keep[-1] != x.shape[0] - 1:

@@ -122,7 +122,8 @@ class StewartGeometry:
     rod_inertia: tuple[float, float, float] = (0.0016, 0.0016, 0.000001)
     crank_mass: float = 0.04
     crank_inertia: tuple[float, float, float] = field(
-        default_factory=lambda: nearest_valid_principal_moments(TABLE_I_CRANK_INERTIA))
+        default_factory=lambda: nearest_valid_principal_moments(TABLE_I_CRANK_INERTIA)
+    )
     platform_mass: float = 1.0
     platform_inertia: tuple[float, float, float] = (0.003, 0.003, 0.006)
     base_mass: float = 7.0
@@ -139,44 +140,74 @@ class StewartGeometry:
     motor_reflected_inertia: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, "motor_reflected_inertia", as_number(
-            "motor_reflected_inertia", self.motor_reflected_inertia, 0.0,
-            error=InvalidGeometryError))
-        for name in ("base_radius", "platform_radius", "crank_length", "rod_length",
-                     "rod_mass", "crank_mass", "platform_mass", "base_mass", "base_plate_radius",
-                     "rod_radius", "rod_end_radius", "platform_plate_radius"):
-            object.__setattr__(self, name, as_number(name, getattr(self, name), 0.0, lo_open=True,
-                                                     error=InvalidGeometryError))
+        object.__setattr__(
+            self,
+            "motor_reflected_inertia",
+            as_number(
+                "motor_reflected_inertia",
+                self.motor_reflected_inertia,
+                0.0,
+                error=InvalidGeometryError,
+            ),
+        )
+        for name in (
+            "base_radius",
+            "platform_radius",
+            "crank_length",
+            "rod_length",
+            "rod_mass",
+            "crank_mass",
+            "platform_mass",
+            "base_mass",
+            "base_plate_radius",
+            "rod_radius",
+            "rod_end_radius",
+            "platform_plate_radius",
+        ):
+            object.__setattr__(
+                self,
+                name,
+                as_number(name, getattr(self, name), 0.0, lo_open=True, error=InvalidGeometryError),
+            )
         for name, lo in (("gravity", 0.0), ("pivot_z", None)):
-            object.__setattr__(self, name, as_number(name, getattr(self, name), lo,
-                                                     error=InvalidGeometryError))
-        for name in ("motor_angle_min_deg", "motor_angle_max_deg", "crank_joint_cone_deg",
-                     "platform_joint_cone_deg"):
-            object.__setattr__(self, name, as_number(name, getattr(self, name),
-                                                     error=InvalidGeometryError))
+            object.__setattr__(
+                self, name, as_number(name, getattr(self, name), lo, error=InvalidGeometryError)
+            )
+        for name in (
+            "motor_angle_min_deg",
+            "motor_angle_max_deg",
+            "crank_joint_cone_deg",
+            "platform_joint_cone_deg",
+        ):
+            object.__setattr__(
+                self, name, as_number(name, getattr(self, name), error=InvalidGeometryError)
+            )
         if self.rod_length <= self.crank_length:
             raise InvalidGeometryError(
-                f"rod_length ({self.rod_length} m) must exceed crank_length "
-                f"({self.crank_length} m)")
+                f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)"
+            )
         for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
             angles = as_array(name, getattr(self, name), shape=(6,), error=InvalidGeometryError)
             object.__setattr__(self, name, tuple(float(v) for v in angles))
         for name in ("rod_inertia", "crank_inertia", "platform_inertia", "base_inertia"):
             moments = as_array(name, getattr(self, name), shape=(3,), error=InvalidGeometryError)
             if np.any(moments <= 0):
-                raise InvalidGeometryError(f"{name} needs 3 positive moments, got "
-                                           f"{moments.tolist()}")
+                raise InvalidGeometryError(
+                    f"{name} needs 3 positive moments, got {moments.tolist()}"
+                )
             a, b, c = moments
             if a + b < c * (1 - 1e-12) or a + c < b * (1 - 1e-12) or b + c < a * (1 - 1e-12):
                 fix = nearest_valid_principal_moments(moments)
                 raise InvalidGeometryError(
                     f"{name} = {moments.tolist()} kg m^2 fails the triangle inequality "
-                    f"(no rigid body has it); the nearest valid one is {list(fix)}")
+                    f"(no rigid body has it); the nearest valid one is {list(fix)}"
+                )
             object.__setattr__(self, name, tuple(float(v) for v in moments))
         lo, hi = self.motor_angle_min_deg, self.motor_angle_max_deg
         if not (np.isfinite(lo) and np.isfinite(hi) and -180.0 <= lo < hi <= 180.0):
             raise InvalidGeometryError(
-                f"motor angle range [{lo}, {hi}] deg must satisfy -180 <= min < max <= 180")
+                f"motor angle range [{lo}, {hi}] deg must satisfy -180 <= min < max <= 180"
+            )
         for name in ("crank_joint_cone_deg", "platform_joint_cone_deg"):
             value = getattr(self, name)
             if not (np.isfinite(value) and 0.0 < value <= 90.0):
@@ -188,14 +219,16 @@ class StewartGeometry:
             raise InvalidGeometryError(
                 f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
                 f"|L|/sqrt(M^2+N^2) = {abs(ratio[leg]):.4g} > 1; change the rod or crank length "
-                f"or the anchor radii")
+                f"or the anchor radii"
+            )
         margins = limit_margins(self, X_HOME)
         for name in LIMITS[1:]:
             if np.any(margins[name] < 0):
                 leg = int(np.argmin(margins[name]))
                 raise InvalidGeometryError(
                     f"the home pose violates the {name} limit of leg {leg} by "
-                    f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit")
+                    f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit"
+                )
 
     def replace(self, **changes) -> StewartGeometry:
         """A copy with some fields changed (validated again)."""
@@ -226,7 +259,8 @@ class StewartGeometry:
         frame."""
         theta = np.asarray(theta, dtype=float)[..., None]
         return self.P_B + self.crank_length * (
-            np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0]))
+            np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0])
+        )
 
 
 #: The reference robot of reference_geometry.md.

@@ -45,6 +45,7 @@ AXIS_UNITS = ("mrad", "mrad", "mrad", "mm", "mm", "mm")
 DEFAULT_COND_THRESHOLD = 200.0
 X_HOME.setflags(write=False)
 
+
 @runtime_checkable
 class RobotGeometry(Protocol):
     """The robot as the functions of the model layer read it: these attributes of
@@ -102,7 +103,7 @@ class RobotGeometry(Protocol):
 
 
 _Z = np.array([0.0, 0.0, 1.0])
-_NEXT, _PREV = [1, 2, 0], [2, 0, 1]        # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
+_NEXT, _PREV = [1, 2, 0], [2, 0, 1]  # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
 
 
 def rotation_rpy(rpy) -> np.ndarray:
@@ -169,7 +170,7 @@ def platform_joints(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]
 
 def _lmn(geometry: RobotGeometry, x):
     q_B, r_B = platform_joints(geometry, x)
-    l = q_B - geometry.P_B                       # pivot to platform joint, (..., 6, 3)
+    l = q_B - geometry.P_B  # pivot to platform joint, (..., 6, 3)
     a, s = geometry.crank_length, geometry.rod_length
     L = np.sum(l * l, axis=-1) - (s * s - a * a)
     M = 2.0 * a * l[..., 2]
@@ -194,7 +195,7 @@ def leg_reach_ratio(geometry: RobotGeometry, x) -> np.ndarray:
     h = np.hypot(M, N)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = L / h
-    if not np.isfinite(ratio).all():            # only where h == 0 (finite poses, |p| <= 1 km)
+    if not np.isfinite(ratio).all():  # only where h == 0 (finite poses, |p| <= 1 km)
         ratio = np.where(h == 0, np.where(L == 0, 0.0, np.copysign(np.inf, L)), ratio)
     return ratio
 
@@ -209,8 +210,9 @@ def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     L, M, N, _, _ = _lmn(geometry, x)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = L / np.hypot(M, N)
-        theta = np.where(np.abs(ratio) <= 1.0,
-                         np.arcsin(np.clip(ratio, -1.0, 1.0)) - np.arctan2(N, M), np.nan)
+        theta = np.where(
+            np.abs(ratio) <= 1.0, np.arcsin(np.clip(ratio, -1.0, 1.0)) - np.arctan2(N, M), np.nan
+        )
     return theta, ratio
 
 
@@ -232,14 +234,15 @@ def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:
     """
     x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
-    bad = ~(np.abs(ratio) <= 1.0)                # also catches NaN
+    bad = ~(np.abs(ratio) <= 1.0)  # also catches NaN
     if np.any(bad):
         flat_bad = bad.reshape(-1, 6)
         k = int(np.argmax(flat_bad.any(axis=1)))
         leg = int(np.argmax(flat_bad[k]))
         t_k = None if t is None else float(np.asarray(t, dtype=float).reshape(-1)[k])
-        raise UnreachablePoseError(leg, ratio.reshape(-1, 6)[k, leg], t=t_k,
-                                   pose=x.reshape(-1, 6)[k])
+        raise UnreachablePoseError(
+            leg, ratio.reshape(-1, 6)[k, leg], t=t_k, pose=x.reshape(-1, 6)[k]
+        )
     return theta
 
 
@@ -252,7 +255,7 @@ def _leg_terms(geometry: RobotGeometry, x, theta=None):
     tip = geometry.crank_tips(theta)
     ell = q_B - tip
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
-    e_N = -s * geometry.d_B + c * _Z           # crank-tip velocity direction per unit theta_dot
+    e_N = -s * geometry.d_B + c * _Z  # crank-tip velocity direction per unit theta_dot
     E = angular_velocity_map(x[..., :3])
     # dq_i/dx = [-[r_i]x E, I]: (..., 6, 3, 6)
     Gq = np.zeros(r_B.shape + (6,))
@@ -336,7 +339,7 @@ def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     x, theta = _checked(geometry, x, theta)
     theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)       # (..., 6 legs, 6)
+    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
     with np.errstate(divide="ignore", invalid="ignore"):
         scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
         W = np.swapaxes(tau1 * scale[..., None], -1, -2)
@@ -392,8 +395,14 @@ def _assembly_mode(geometry: RobotGeometry, x, theta) -> np.ndarray:
     return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
 
 
-def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
-                 max_iter: int = 50, max_halvings: int = 30):
+def fk_unchecked(
+    geometry: RobotGeometry,
+    theta,
+    x0=None,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+    max_halvings: int = 30,
+):
     """Vectorized forward kinematics without raising: Newton on the closed-form IK.
 
     x_{k+1} = x_k - alpha J(x_k)^{-1} wrap(ik(x_k) - theta), alpha = 1, 1/2, 1/4, ... until the
@@ -423,12 +432,14 @@ def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
     batch = theta.shape[:-1]
     target = theta.reshape(-1, 6)
     n = target.shape[0]
-    x = np.array(np.broadcast_to(X_HOME if x0 is None else np.asarray(x0, dtype=float),
-                                 batch + (6,)), dtype=float).reshape(-1, 6)
+    x = np.array(
+        np.broadcast_to(X_HOME if x0 is None else np.asarray(x0, dtype=float), batch + (6,)),
+        dtype=float,
+    ).reshape(-1, 6)
     th_k, r, err2, errmax = _fk_residual(geometry, x, target)
     iterations = np.zeros(n, dtype=int)
-    failed = ~np.isfinite(err2)                      # the initial pose is unreachable
-    mode = _assembly_mode(geometry, x, th_k)         # sign det J: steps may not cross a singularity
+    failed = ~np.isfinite(err2)  # the initial pose is unreachable
+    mode = _assembly_mode(geometry, x, th_k)  # sign det J: steps may not cross a singularity
     for _ in range(max_iter):
         idx = np.flatnonzero(~failed & (errmax > tol))
         if idx.size == 0:
@@ -438,7 +449,7 @@ def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
         J = np.where(finite[:, None, None], J, np.eye(6))
         try:
             dx = np.linalg.solve(J, r[idx][..., None])[..., 0]
-        except np.linalg.LinAlgError:                # a singular J somewhere in the batch
+        except np.linalg.LinAlgError:  # a singular J somewhere in the batch
             dx = np.einsum("nij,nj->ni", np.linalg.pinv(J), r[idx])
         ok_dir = finite & np.all(np.isfinite(dx), axis=-1)
         iterations[idx] += 1
@@ -451,22 +462,30 @@ def fk_unchecked(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
                 break
             cand = x[idx[p]] - alpha[p, None] * dx[p]
             th_c, r_c, e2_c, emax_c = _fk_residual(geometry, cand, target[idx[p]])
-            good = (np.isfinite(e2_c) & ((e2_c < err2[idx[p]]) | (emax_c <= tol))
-                    & (_assembly_mode(geometry, cand, th_c) == mode[idx[p]]))
+            good = (
+                np.isfinite(e2_c)
+                & ((e2_c < err2[idx[p]]) | (emax_c <= tol))
+                & (_assembly_mode(geometry, cand, th_c) == mode[idx[p]])
+            )
             g = p[good]
             x[idx[g]], th_k[idx[g]], r[idx[g]] = cand[good], th_c[good], r_c[good]
             err2[idx[g]], errmax[idx[g]] = e2_c[good], emax_c[good]
             accepted[g] = True
             pending[g] = False
             alpha[p[~good]] *= 0.5
-        failed[idx[~accepted]] = True                # no descent step: stalled or singular
+        failed[idx[~accepted]] = True  # no descent step: stalled or singular
     converged = errmax <= tol
-    return (x.reshape(batch + (6,)), converged.reshape(batch), iterations.reshape(batch),
-            errmax.reshape(batch))
+    return (
+        x.reshape(batch + (6,)),
+        converged.reshape(batch),
+        iterations.reshape(batch),
+        errmax.reshape(batch),
+    )
 
 
-def fk(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
-       max_iter: int = 50) -> tuple[np.ndarray, FkStatus]:
+def fk(
+    geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12, max_iter: int = 50
+) -> tuple[np.ndarray, FkStatus]:
     """Forward kinematics: the platform pose whose closed-form IK gives the motor angles theta.
 
     Args:
@@ -498,23 +517,28 @@ def fk(geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12,
         if not np.isfinite(residual.reshape(-1)[k]):
             raise ForwardKinematicsError(
                 f"forward kinematics cannot start (batch index {k}): the initial pose x0 is "
-                f"unreachable; give a reachable x0 (default: the home pose)")
+                f"unreachable; give a reachable x0 (default: the home pose)"
+            )
         raise ForwardKinematicsError(
             f"forward kinematics did not converge for motor angles "
             f"[{', '.join(f'{v:.6g}' for v in th)}] rad (batch index {k}): residual "
             f"{residual.reshape(-1)[k]:.3g} rad after {iterations.reshape(-1)[k]} Newton steps "
             f"(tol {tol:g}). Give an initial pose x0 closer to the solution, raise max_iter or "
-            f"tol, or check that the angles come from a reachable pose.")
-    status = FkStatus(bool(np.all(converged)), int(iterations.max(initial=0)),
-                      float(residual.max(initial=0.0)))
+            f"tol, or check that the angles come from a reachable pose."
+        )
+    status = FkStatus(
+        bool(np.all(converged)), int(iterations.max(initial=0)), float(residual.max(initial=0.0))
+    )
     return x, status
 
 
 def leg_constants(geometry: RobotGeometry) -> tuple:
     """The geometry as plain floats for :func:`ik_scalar`: ((p_E, P_B, d_B) per leg as 9-tuples,
     crank length a, s^2 - a^2). Compute it once per geometry."""
-    legs = tuple(tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
-                 for i in range(6))
+    legs = tuple(
+        tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
+        for i in range(6)
+    )
     a = float(geometry.crank_length)
     return legs, a, float(geometry.rod_length) ** 2 - a * a
 
@@ -540,7 +564,7 @@ def ik_scalar(constants: tuple, x) -> list:
     X, Y, Z = x[3], x[4], x[5]
     theta = []
     for ex, ey, ez, bx, by, bz, dx, dy, dz in legs:
-        lx = r00 * ex + r01 * ey + r02 * ez + X - bx        # pivot to platform joint
+        lx = r00 * ex + r01 * ey + r02 * ez + X - bx  # pivot to platform joint
         ly = r10 * ex + r11 * ey + r12 * ez + Y - by
         lz = r20 * ex + r21 * ey + r22 * ez + Z - bz
         M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
@@ -571,19 +595,23 @@ def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
     roll, pitch, yaw = float(x[0]), float(x[1]), float(x[2])
     cr, cp, cy = math.cos(roll), math.cos(pitch), math.cos(yaw)
     sr, sp, sy = math.sin(roll), math.sin(pitch), math.sin(yaw)
-    R = np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-                  [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-                  [-sp, cp * sr, cp * cr]])
+    R = np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
     a = geometry.crank_length
     r_B = geometry.p_E @ R.T
-    l = r_B + (x[3:6] - geometry.P_B)           # pivot to platform joint
-    L = (l * l).sum(axis=1) - (geometry.rod_length ** 2 - a * a)
+    l = r_B + (x[3:6] - geometry.P_B)  # pivot to platform joint
+    L = (l * l).sum(axis=1) - (geometry.rod_length**2 - a * a)
     M = 2.0 * a * l[:, 2]
     N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
     norm = np.hypot(M, N)
-    if (abs(L) < norm).all():                   # every leg closes (no NaN, no warning)
+    if (abs(L) < norm).all():  # every leg closes (no NaN, no warning)
         theta = np.arcsin(L / norm) - np.arctan2(N, M)
-    else:                                       # NaN for the legs that cannot close
+    else:  # NaN for the legs that cannot close
         with np.errstate(invalid="ignore", divide="ignore"):
             theta = np.arcsin(L / norm) - np.arctan2(N, M)
     return theta, (x, R, r_B, l, theta)
@@ -613,8 +641,10 @@ def jacobian_single(geometry: RobotGeometry, cache: tuple) -> np.ndarray:
     # r x ell row by row (np.cross costs 15 us on (6, 3) arrays; this, 5)
     r_x_ell = r_B[:, _NEXT] * ell[:, _PREV] - r_B[:, _PREV] * ell[:, _NEXT]
     with np.errstate(invalid="ignore", divide="ignore"):
-        return np.hstack([r_x_ell @ E, ell]) / (geometry.crank_length
-                                                 * (ell * e_N).sum(axis=1))[:, None]
+        return (
+            np.hstack([r_x_ell @ E, ell])
+            / (geometry.crank_length * (ell * e_N).sum(axis=1))[:, None]
+        )
 
 
 def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
@@ -632,7 +662,7 @@ def _singular_values_of(J: np.ndarray) -> np.ndarray:
     ok = ~nan & ~inf
     if np.any(ok):
         out[ok] = np.linalg.svd(flat[ok], compute_uv=False)
-    out[inf, 0] = np.inf                         # a rod orthogonal to its crank-tip velocity
+    out[inf, 0] = np.inf  # a rod orthogonal to its crank-tip velocity
     out[inf, 1:] = np.nan
     return out.reshape(J.shape[:-2] + (6,))
 
@@ -676,15 +706,16 @@ def singularity_measures(geometry: RobotGeometry, x, theta=None):
     (:func:`singularity_measures_unchecked` gives NaN for unreachable poses instead, for sweeps.)
     """
     x = as_poses("pose x", x)
-    theta = ik(geometry, x) if theta is None else as_array("motor angles theta", theta,
-                                                           shape=x.shape)
+    theta = (
+        ik(geometry, x) if theta is None else as_array("motor angles theta", theta, shape=x.shape)
+    )
     return singularity_measures_unchecked(geometry, x, theta)
 
 
 def singularity_measures_unchecked(geometry: RobotGeometry, x, theta=None):
     """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
     validator of a path); x must still be finite poses (..., 6)."""
-    sv = singular_values(geometry, x, theta)       # validates x
+    sv = singular_values(geometry, x, theta)  # validates x
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
         inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])

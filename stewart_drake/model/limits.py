@@ -62,7 +62,6 @@ DEFAULT_CLEARANCE_RESOLUTION_M = 0.001
 LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
 
 
-
 @lru_cache(maxsize=32)
 def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
@@ -70,8 +69,7 @@ def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     q_B, _ = platform_joints(geometry, X_HOME)
     ell = q_B - geometry.crank_tips(theta)
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    return e_l @ rotation_rpy(X_HOME[:3])            # R^T e_l, row-wise
-
+    return e_l @ rotation_rpy(X_HOME[:3])  # R^T e_l, row-wise
 
 
 def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
@@ -100,7 +98,6 @@ def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
         "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
         "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
     }
-
 
 
 def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
@@ -154,11 +151,9 @@ def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) 
     }
 
 
-
 def _reachable_from_margins(margins: dict) -> np.ndarray:
     # NaN counts as violated.
     return reduce(np.logical_and, (np.all(margins[name] >= 0.0, axis=-1) for name in LIMITS))
-
 
 
 @dataclass(frozen=True)
@@ -179,10 +174,12 @@ class LimitViolation:
 
     def __str__(self) -> str:
         where = "" if self.t is None else f" at t = {self.t:.4g} s"
-        amount = (f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)" if self.limit == "closure"
-                  else f"{np.rad2deg(-self.margin):.3g} deg")
+        amount = (
+            f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)"
+            if self.limit == "closure"
+            else f"{np.rad2deg(-self.margin):.3g} deg"
+        )
         return f"leg {self.leg} exceeds its {self.limit} limit by {amount}{where}"
-
 
 
 @dataclass(frozen=True)
@@ -213,11 +210,10 @@ class Reachability:
             m = np.asarray(self.margins[name], dtype=float).reshape(-1, 6)[index]
             for leg in range(6):
                 if name != "closure" and not np.isfinite(m[leg]):
-                    continue                          # the leg does not close: reported above
+                    continue  # the leg does not close: reported above
                 if not m[leg] >= 0.0:
                     out.append(LimitViolation(leg, name, float(m[leg])))
         return sorted(out, key=lambda v: v.margin)
-
 
 
 def is_reachable(geometry: RobotGeometry, x) -> Reachability:
@@ -236,7 +232,6 @@ def is_reachable(geometry: RobotGeometry, x) -> Reachability:
     theta, ratio = ik_unchecked(geometry, x)
     margins = limit_margins_unchecked(geometry, x, theta, ratio)
     return Reachability(_reachable_from_margins(margins), margins, theta)
-
 
 
 #: Default share of the servos' peak torque and no-load speed a reference may use; the rest is
@@ -338,35 +333,63 @@ class TrajectoryReport:
         for name in LIMITS:
             m = self.min_margin[name]
             unit = f"{m:.4g}" if name == "closure" else f"{np.rad2deg(m):.4g} deg"
-            lines.append(f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
-                         f"t = {self.min_margin_t[name]:.4g} s)")
-        lines.append(f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
-                     f"(threshold {self.cond_threshold:g})")
-        lines.append(f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
-                     f"t = {self.min_sigma_min_inv_t:.4g} s "
-                     f"(threshold {self.sigma_min_inv_threshold:g})")
+            lines.append(
+                f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
+                f"t = {self.min_margin_t[name]:.4g} s)"
+            )
+        lines.append(
+            f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
+            f"(threshold {self.cond_threshold:g})"
+        )
+        lines.append(
+            f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
+            f"t = {self.min_sigma_min_inv_t:.4g} s "
+            f"(threshold {self.sigma_min_inv_threshold:g})"
+        )
         if self.first_singular_t is not None:
-            lines.append(f"  closer to singularity than the threshold first at "
-                         f"t = {self.first_singular_t:.4g} s")
+            lines.append(
+                f"  closer to singularity than the threshold first at "
+                f"t = {self.first_singular_t:.4g} s"
+            )
         if self.first_weak_t is not None:
-            lines.append(f"  1/sigma_max(J) below its threshold first at "
-                         f"t = {self.first_weak_t:.4g} s")
+            lines.append(
+                f"  1/sigma_max(J) below its threshold first at t = {self.first_weak_t:.4g} s"
+            )
         if np.isfinite(self.min_clearance):
-            lines.append(f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
-                         f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
-                         f"threshold {self.clearance_threshold * 1e3:.3g} mm)")
+            lines.append(
+                f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
+                f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
+                f"threshold {self.clearance_threshold * 1e3:.3g} mm)"
+            )
         if np.isfinite(self.design_clearance):
-            lines.append(f"                  {self.design_clearance * 1e3:.3g} mm at every pose "
-                         f"({self.design_clearance_parts}: fixed by the design)")
+            lines.append(
+                f"                  {self.design_clearance * 1e3:.3g} mm at every pose "
+                f"({self.design_clearance_parts}: fixed by the design)"
+            )
         for name, unit, peak, motor, when, limit in (
-                ("torque", "N m", self.peak_torque, self.peak_torque_motor, self.peak_torque_t,
-                 self.torque_limit),
-                ("speed", "rad/s", self.peak_speed, self.peak_speed_motor, self.peak_speed_t,
-                 self.speed_limit)):
+            (
+                "torque",
+                "N m",
+                self.peak_torque,
+                self.peak_torque_motor,
+                self.peak_torque_t,
+                self.torque_limit,
+            ),
+            (
+                "speed",
+                "rad/s",
+                self.peak_speed,
+                self.peak_speed_motor,
+                self.peak_speed_t,
+                self.speed_limit,
+            ),
+        ):
             if np.isfinite(peak):
                 bound = f"limit {limit:.3g} {unit}" if np.isfinite(limit) else "no limit"
-                lines.append(f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
-                             f"t = {when:.4g} s; {bound})")
+                lines.append(
+                    f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
+                    f"t = {when:.4g} s; {bound})"
+                )
         if self.first_violation is not None:
             lines.append(f"  first violation: {self.first_violation}")
         if self.first_interference is not None:
@@ -374,23 +397,30 @@ class TrajectoryReport:
             lines.append(f"  first interference: {a} and {b} at {d * 1e3:.3g} mm, t = {t:.4g} s")
         if self.first_effort_violation is not None:
             e = self.first_effort_violation
-            lines.append(f"  first motor over its limit: motor {e.motor} needs "
-                         f"{e.required:.3g} {'N m' if e.quantity == 'torque' else 'rad/s'} of "
-                         f"{e.quantity} (limit {e.limit:.3g}) at t = {e.t:.4g} s")
+            lines.append(
+                f"  first motor over its limit: motor {e.motor} needs "
+                f"{e.required:.3g} {'N m' if e.quantity == 'torque' else 'rad/s'} of "
+                f"{e.quantity} (limit {e.limit:.3g}) at t = {e.t:.4g} s"
+            )
         return "\n".join(lines)
 
 
-
-def validate_trajectory(geometry: RobotGeometry, t, x,
-                        cond_threshold: float = DEFAULT_COND_THRESHOLD,
-                        raise_unreachable: bool = True,
-                        min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
-                        raise_refused: bool = False, x_dot=None,
-                        x_ddot=None, clearance=None,
-                        min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
-                        clearance_resolution_m: float = DEFAULT_CLEARANCE_RESOLUTION_M,
-                        motor_limits: MotorLimits | None = None,
-                        allow_infeasible: bool = False) -> TrajectoryReport:
+def validate_trajectory(
+    geometry: RobotGeometry,
+    t,
+    x,
+    cond_threshold: float = DEFAULT_COND_THRESHOLD,
+    raise_unreachable: bool = True,
+    min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
+    raise_refused: bool = False,
+    x_dot=None,
+    x_ddot=None,
+    clearance=None,
+    min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
+    clearance_resolution_m: float = DEFAULT_CLEARANCE_RESOLUTION_M,
+    motor_limits: MotorLimits | None = None,
+    allow_infeasible: bool = False,
+) -> TrajectoryReport:
     """Validate a sampled path before running it: limits, margins and nearness to singularity.
 
     Args:
@@ -453,12 +483,19 @@ def validate_trajectory(geometry: RobotGeometry, t, x,
     series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
     extra = {"series": series}
     if clearance is not None:
-        extra.update(_clearance_fields(clearance, t, x, reachable,
-                                       as_number("min_clearance_m", min_clearance_m, 0.0),
-                                       clearance_resolution_m, series))
+        extra.update(
+            _clearance_fields(
+                clearance,
+                t,
+                x,
+                reachable,
+                as_number("min_clearance_m", min_clearance_m, 0.0),
+                clearance_resolution_m,
+                series,
+            )
+        )
     if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits,
-                                    series))
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits, series))
     report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
     if raise_refused and not report.ok:
         _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
@@ -480,15 +517,18 @@ def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
             raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
     x = as_poses("poses x", x)
     if x.shape != (t.size, 6) or t.size == 0:
-        raise InvalidConfigError(f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
-                                 f"t {t.shape} and x {x.shape}")
+        raise InvalidConfigError(
+            f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+            f"t {t.shape} and x {x.shape}"
+        )
     if np.any(np.diff(t) <= 0):
         raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
     return t, x
 
 
-def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float,
-            extra: dict) -> TrajectoryReport:
+def _report(
+    t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float, extra: dict
+) -> TrajectoryReport:
     """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
     already mapped to the worst value), with the clearance and effort fields in ``extra``."""
     min_margin, min_leg, min_t = {}, {}, {}
@@ -507,20 +547,32 @@ def _report(t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_mi
     weak = inv_f < min_sigma_min_inv
     kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
     return TrajectoryReport(
-        ok=(first is None and not np.any(over) and not np.any(weak)
+        ok=(
+            first is None
+            and not np.any(over)
+            and not np.any(weak)
             and extra.get("first_interference") is None
-            and extra.get("first_effort_violation") is None), min_margin=min_margin,
-        min_margin_leg=min_leg, min_margin_t=min_t, first_violation=first,
-        max_cond=float(cond_f[kc]), max_cond_t=float(t[kc]),
+            and extra.get("first_effort_violation") is None
+        ),
+        min_margin=min_margin,
+        min_margin_leg=min_leg,
+        min_margin_t=min_t,
+        first_violation=first,
+        max_cond=float(cond_f[kc]),
+        max_cond_t=float(t[kc]),
         first_singular_t=float(t[int(np.argmax(over))]) if np.any(over) else None,
-        min_sigma_min_inv=float(inv_f[ki]), cond_threshold=float(cond_threshold),
+        min_sigma_min_inv=float(inv_f[ki]),
+        cond_threshold=float(cond_threshold),
         min_sigma_min_inv_t=float(t[ki]),
         first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
-        sigma_min_inv_threshold=float(min_sigma_min_inv), **extra)
+        sigma_min_inv_threshold=float(min_sigma_min_inv),
+        **extra,
+    )
 
 
-def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: float,
-                      series: dict) -> dict:
+def _clearance_fields(
+    model, t, x, reachable, threshold: float, resolution_m: float, series: dict
+) -> dict:
     """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`);
     adds the measured series to ``series``."""
     rows = np.flatnonzero(reachable)
@@ -536,82 +588,112 @@ def _clearance_fields(model, t, x, reachable, threshold: float, resolution_m: fl
     if low.size:
         c = closest[low[0]]
         first = (float(t[rows[low[0]]]), c.part_a, c.part_b, float(c.distance))
-    design = model.fixed[0] if model.fixed else None      # the same at every pose
+    design = model.fixed[0] if model.fixed else None  # the same at every pose
     if design is not None and design.distance < threshold:
         first = (float(t[rows[0]]), design.part_a, design.part_b, float(design.distance))
-    parts = (f"{closest[k].part_a} and {closest[k].part_b}" if closest[k] is not None
-             else "every pair farther")
-    return {"min_clearance": float(distance[k]), "min_clearance_t": float(t[rows[k]]),
-            "min_clearance_parts": parts, "clearance_threshold": threshold,
-            "first_interference": first,
-            "design_clearance": float("nan") if design is None else design.distance,
-            "design_clearance_parts": "" if design is None else
-            f"{design.part_a} and {design.part_b}"}
+    parts = (
+        f"{closest[k].part_a} and {closest[k].part_b}"
+        if closest[k] is not None
+        else "every pair farther"
+    )
+    return {
+        "min_clearance": float(distance[k]),
+        "min_clearance_t": float(t[rows[k]]),
+        "min_clearance_parts": parts,
+        "clearance_threshold": threshold,
+        "first_interference": first,
+        "design_clearance": float("nan") if design is None else design.distance,
+        "design_clearance_parts": "" if design is None else f"{design.part_a} and {design.part_b}",
+    }
 
 
-def _effort_fields(geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits,
-                   series: dict) -> dict:
+def _effort_fields(
+    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict
+) -> dict:
     """The torque and speed entries of a :class:`TrajectoryReport` (see
     :func:`validate_trajectory`); adds the torque and speed series to ``series``."""
     from .statics import motor_effort
 
     if x_dot is None or x_ddot is None:
-        raise InvalidConfigError("checking the motors' torque and speed needs the reference's "
-                                 "rate and acceleration (x_dot, x_ddot)")
+        raise InvalidConfigError(
+            "checking the motors' torque and speed needs the reference's "
+            "rate and acceleration (x_dot, x_ddot)"
+        )
     margin = as_number("effort margin", limits_.margin, 0.0, 1.0, lo_open=True)
     rows = np.flatnonzero(reachable)
     if rows.size == 0:
         return {}
-    T, speed = motor_effort(geometry, x[rows], np.asarray(x_dot, float)[rows],
-                            np.asarray(x_ddot, float)[rows], limits_.servo)
+    T, speed = motor_effort(
+        geometry,
+        x[rows],
+        np.asarray(x_dot, float)[rows],
+        np.asarray(x_ddot, float)[rows],
+        limits_.servo,
+    )
     for name, value in (("torque", T), ("speed", speed)):
         series[name] = np.full(x.shape, np.nan)
         series[name][rows] = value
     out: dict = {}
     first: MotorLimitError | None = None
-    for name, value, bound in (("torque", np.abs(T), limits_.peak_torque_Nm),
-                               ("speed", np.abs(speed), limits_.max_speed_rad_s)):
+    for name, value, bound in (
+        ("torque", np.abs(T), limits_.peak_torque_Nm),
+        ("speed", np.abs(speed), limits_.max_speed_rad_s),
+    ):
         k, motor = np.unravel_index(int(np.argmax(value)), value.shape)
         limit = float("nan") if bound is None else margin * float(bound)
-        out.update({f"peak_{name}": float(value[k, motor]), f"peak_{name}_motor": int(motor),
-                    f"peak_{name}_t": float(t[rows[k]]), f"{name}_limit": limit})
+        out.update(
+            {
+                f"peak_{name}": float(value[k, motor]),
+                f"peak_{name}_motor": int(motor),
+                f"peak_{name}_t": float(t[rows[k]]),
+                f"{name}_limit": limit,
+            }
+        )
         if bound is not None and np.any(value > limit):
             kb = int(np.argmax(np.any(value > limit, axis=1)))
             mb = int(np.argmax(value[kb]))
             if first is None or t[rows[kb]] < first.t:
-                first = MotorLimitError(mb, name, float(value[kb, mb]), limit,
-                                        float(t[rows[kb]]), x[rows[kb]])
+                first = MotorLimitError(
+                    mb, name, float(value[kb, mb]), limit, float(t[rows[kb]]), x[rows[kb]]
+                )
     out["first_effort_violation"] = first
     return out
 
 
-
-def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv,
-                         allow_infeasible: bool = False):
+def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv, allow_infeasible: bool = False):
     """Raise the typed error of the earliest refused sample of a validated path (a motor over
     its limit only without ``allow_infeasible``); nothing when only that remains."""
-    candidates: list[tuple[Any, int, StewartError]] = []     # (t, rank, error)
+    candidates: list[tuple[Any, int, StewartError]] = []  # (t, rank, error)
     if report.first_interference is not None:
         ti, a, b, d = report.first_interference
         k = int(np.searchsorted(t, ti))
-        candidates.append((ti, 3, InterferenceError(a, b, d, report.clearance_threshold, ti,
-                                                    x[k])))
+        candidates.append((ti, 3, InterferenceError(a, b, d, report.clearance_threshold, ti, x[k])))
     if report.first_effort_violation is not None and not allow_infeasible:
         candidates.append((report.first_effort_violation.t, 4, report.first_effort_violation))
     v = report.first_violation
     if v is not None:
         k = int(np.searchsorted(t, v.t))
-        error = (UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k]) if v.limit == "closure"
-                 else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k]))
+        error = (
+            UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k])
+            if v.limit == "closure"
+            else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k])
+        )
         candidates.append((v.t, 0, error))
     if report.first_singular_t is not None:
         k = int(np.searchsorted(t, report.first_singular_t))
-        candidates.append((t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold,
-                                                      t[k], x[k])))
+        candidates.append(
+            (t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold, t[k], x[k]))
+        )
     if report.first_weak_t is not None:
         k = int(np.searchsorted(t, report.first_weak_t))
-        candidates.append((t[k], 2, SingularPoseError(
-            "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k])))
+        candidates.append(
+            (
+                t[k],
+                2,
+                SingularPoseError(
+                    "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k]
+                ),
+            )
+        )
     if candidates:
         raise min(candidates, key=lambda c: c[:2])[2]
-

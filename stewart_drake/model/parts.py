@@ -63,10 +63,15 @@ TOOL_RADIUS = 0.006
 TUBE_GAP = 0.008
 
 #: Colours (RGBA) of the part families.
-COLOURS = {"base": (0.55, 0.55, 0.6, 1.0), "motor": (0.2, 0.2, 0.25, 1.0),
-           "crank": (0.85, 0.45, 0.1, 1.0), "rod": (0.75, 0.75, 0.8, 1.0),
-           "rod_end": (0.1, 0.3, 0.8, 1.0), "platform": (0.2, 0.6, 0.3, 1.0),
-           "tool": (0.9, 0.1, 0.1, 1.0)}
+COLOURS = {
+    "base": (0.55, 0.55, 0.6, 1.0),
+    "motor": (0.2, 0.2, 0.25, 1.0),
+    "crank": (0.85, 0.45, 0.1, 1.0),
+    "rod": (0.75, 0.75, 0.8, 1.0),
+    "rod_end": (0.1, 0.3, 0.8, 1.0),
+    "platform": (0.2, 0.6, 0.3, 1.0),
+    "tool": (0.9, 0.1, 0.1, 1.0),
+}
 
 
 @dataclass(frozen=True)
@@ -130,8 +135,17 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
     parts = []
     eye = np.eye(3)
     # Base: hub, one arm per leg pair, a bracket and a motor per leg.
-    parts.append(Part("base", "plate", "cylinder", (g.base_plate_radius, BASE_THICKNESS),
-                      np.array([0.0, 0.0, -BASE_THICKNESS / 2]), eye, COLOURS["base"]))
+    parts.append(
+        Part(
+            "base",
+            "plate",
+            "cylinder",
+            (g.base_plate_radius, BASE_THICKNESS),
+            np.array([0.0, 0.0, -BASE_THICKNESS / 2]),
+            eye,
+            COLOURS["base"],
+        )
+    )
     outward = motor_outward(g)
     bracket_reach = BRACKET_OFFSET + BRACKET_THICKNESS
     for k in range(3):
@@ -139,54 +153,130 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
         direction = np.sum(g.P_B[pair, :2], axis=0)
         direction /= np.linalg.norm(direction)
         # The arm reaches the brackets' outer faces (measured along the arm's direction).
-        reach = float(np.max(g.P_B[pair, :2] @ direction
-                             + bracket_reach * np.abs(outward[pair, :2] @ direction)))
-        R = np.column_stack([[direction[0], direction[1], 0.0],
-                             [-direction[1], direction[0], 0.0], [0.0, 0.0, 1.0]])
-        parts.append(Part("base", f"arm_{k}", "box",
-                          (reach, 2 * ARM_HALF_WIDTH, BASE_THICKNESS),
-                          np.array([reach / 2 * direction[0], reach / 2 * direction[1],
-                                    -BASE_THICKNESS / 2]), R, COLOURS["base"]))
+        reach = float(
+            np.max(
+                g.P_B[pair, :2] @ direction + bracket_reach * np.abs(outward[pair, :2] @ direction)
+            )
+        )
+        R = np.column_stack(
+            [[direction[0], direction[1], 0.0], [-direction[1], direction[0], 0.0], [0.0, 0.0, 1.0]]
+        )
+        parts.append(
+            Part(
+                "base",
+                f"arm_{k}",
+                "box",
+                (reach, 2 * ARM_HALF_WIDTH, BASE_THICKNESS),
+                np.array([reach / 2 * direction[0], reach / 2 * direction[1], -BASE_THICKNESS / 2]),
+                R,
+                COLOURS["base"],
+            )
+        )
     for i in range(6):
         o, P = outward[i], g.P_B[i]
         t = np.cross([0.0, 0.0, 1.0], o)
         R = np.column_stack([o, t / np.linalg.norm(t), [0.0, 0.0, 1.0]])
-        bottom = P[2] - MOTOR_RADIUS - 0.005                 # 5 mm of bracket below the motor
+        bottom = P[2] - MOTOR_RADIUS - 0.005  # 5 mm of bracket below the motor
         centre = P + o * (BRACKET_OFFSET + BRACKET_THICKNESS / 2)
-        parts.append(Part("base", f"bracket_{i}", "box",
-                          (BRACKET_THICKNESS, BRACKET_WIDTH, -BASE_THICKNESS - bottom),
-                          np.array([centre[0], centre[1], 0.5 * (bottom - BASE_THICKNESS)]), R,
-                          COLOURS["base"]))
-        parts.append(Part("base", f"motor_{i}", "cylinder", (MOTOR_RADIUS, MOTOR_LENGTH),
-                          P + o * (bracket_reach + MOTOR_LENGTH / 2), _frame_with_z(o),
-                          COLOURS["motor"]))
+        parts.append(
+            Part(
+                "base",
+                f"bracket_{i}",
+                "box",
+                (BRACKET_THICKNESS, BRACKET_WIDTH, -BASE_THICKNESS - bottom),
+                np.array([centre[0], centre[1], 0.5 * (bottom - BASE_THICKNESS)]),
+                R,
+                COLOURS["base"],
+            )
+        )
+        parts.append(
+            Part(
+                "base",
+                f"motor_{i}",
+                "cylinder",
+                (MOTOR_RADIUS, MOTOR_LENGTH),
+                P + o * (bracket_reach + MOTOR_LENGTH / 2),
+                _frame_with_z(o),
+                COLOURS["motor"],
+            )
+        )
     a, s = g.crank_length, g.rod_length
     for i in range(6):
         # Crank frame: y = -u_i; the motor side o_i = +-u_i is -+y.
         side = -1.0 if np.dot(outward[i], g.u_B[i]) > 0 else 1.0
-        parts.append(Part(f"crank_{i}", "arm", "capsule", (CRANK_RADIUS, a),
-                          np.array([a / 2, side * CRANK_OFFSET, 0.0]), _frame_with_z([1, 0, 0]),
-                          COLOURS["crank"]))
+        parts.append(
+            Part(
+                f"crank_{i}",
+                "arm",
+                "capsule",
+                (CRANK_RADIUS, a),
+                np.array([a / 2, side * CRANK_OFFSET, 0.0]),
+                _frame_with_z([1, 0, 0]),
+                COLOURS["crank"],
+            )
+        )
         r_end, r_rod = g.rod_end_radius, g.rod_radius
         start = r_end + TUBE_GAP
-        parts.append(Part(f"rod_{i}", "tube", "capsule", (r_rod, s - 2 * start - 2 * r_rod),
-                          np.array([0.0, 0.0, s / 2]), eye, COLOURS["rod"]))
-        parts.append(Part(f"rod_{i}", "end_bottom", "sphere", (r_end,), np.zeros(3), eye,
-                          COLOURS["rod_end"]))
-        parts.append(Part(f"rod_{i}", "end_top", "sphere", (r_end,), np.array([0.0, 0.0, s]),
-                          eye, COLOURS["rod_end"]))
+        parts.append(
+            Part(
+                f"rod_{i}",
+                "tube",
+                "capsule",
+                (r_rod, s - 2 * start - 2 * r_rod),
+                np.array([0.0, 0.0, s / 2]),
+                eye,
+                COLOURS["rod"],
+            )
+        )
+        parts.append(
+            Part(f"rod_{i}", "end_bottom", "sphere", (r_end,), np.zeros(3), eye, COLOURS["rod_end"])
+        )
+        parts.append(
+            Part(
+                f"rod_{i}",
+                "end_top",
+                "sphere",
+                (r_end,),
+                np.array([0.0, 0.0, s]),
+                eye,
+                COLOURS["rod_end"],
+            )
+        )
     plate_bottom = g.rod_end_radius + PLATFORM_GAP
-    parts.append(Part("platform", "plate", "cylinder",
-                      (g.platform_plate_radius, PLATFORM_THICKNESS),
-                      np.array([0.0, 0.0, plate_bottom + PLATFORM_THICKNESS / 2]), eye,
-                      COLOURS["platform"]))
+    parts.append(
+        Part(
+            "platform",
+            "plate",
+            "cylinder",
+            (g.platform_plate_radius, PLATFORM_THICKNESS),
+            np.array([0.0, 0.0, plate_bottom + PLATFORM_THICKNESS / 2]),
+            eye,
+            COLOURS["platform"],
+        )
+    )
     for i in range(6):
-        parts.append(Part("platform", f"stud_{i}", "cylinder", (0.004, plate_bottom),
-                          g.p_E[i] + [0.0, 0.0, plate_bottom / 2], eye, COLOURS["platform"],
-                          collides=False))
+        parts.append(
+            Part(
+                "platform",
+                f"stud_{i}",
+                "cylinder",
+                (0.004, plate_bottom),
+                g.p_E[i] + [0.0, 0.0, plate_bottom / 2],
+                eye,
+                COLOURS["platform"],
+                collides=False,
+            )
+        )
     tool_start = plate_bottom + PLATFORM_THICKNESS
-    parts.append(Part("platform", "tool", "cylinder", (TOOL_RADIUS, p_ETool[2] - tool_start),
-                      np.array([0.0, 0.0, 0.5 * (p_ETool[2] + tool_start)]), eye,
-                      COLOURS["tool"]))
+    parts.append(
+        Part(
+            "platform",
+            "tool",
+            "cylinder",
+            (TOOL_RADIUS, p_ETool[2] - tool_start),
+            np.array([0.0, 0.0, 0.5 * (p_ETool[2] + tool_start)]),
+            eye,
+            COLOURS["tool"],
+        )
+    )
     return parts
-

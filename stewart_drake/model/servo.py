@@ -29,12 +29,18 @@ from ..checks import as_number
 from ..errors import InvalidConfigError
 
 #: Motor and gearhead data (SI) the defaults are derived from; docs/hardware.md cites each.
-EC45_FLAT_50W_24V = {"torque_constant": 36.0e-3, "nominal_current": 2.52, "rotor_inertia": 135e-7,
-                     "terminal_resistance": 0.942, "terminal_inductance": 0.363e-3,
-                     "no_load_current": 0.238, "no_load_speed": 6250 * 2 * 3.141592653589793 / 60}
+EC45_FLAT_50W_24V = {
+    "torque_constant": 36.0e-3,
+    "nominal_current": 2.52,
+    "rotor_inertia": 135e-7,
+    "terminal_resistance": 0.942,
+    "terminal_inductance": 0.363e-3,
+    "no_load_current": 0.238,
+    "no_load_speed": 6250 * 2 * 3.141592653589793 / 60,
+}
 GEAR_RATIO, GEAR_EFFICIENCY, CURRENT_LIMIT_FACTOR = 4.3, 0.90, 2.0
 _m = EC45_FLAT_50W_24V
-_friction_motor = _m["torque_constant"] * _m["no_load_current"]          # 8.57 mN m at no load
+_friction_motor = _m["torque_constant"] * _m["no_load_current"]  # 8.57 mN m at no load
 
 
 @dataclass(frozen=True)
@@ -64,25 +70,37 @@ class ServoModel:
     name: str = "maxon EC 45 flat 50 W (24 V) + planetary gearhead 4.3:1"
     gear_ratio: float = GEAR_RATIO
     rotor_inertia: float = _m["rotor_inertia"]
-    peak_torque_Nm: float = (CURRENT_LIMIT_FACTOR * _m["nominal_current"] * _m["torque_constant"]
-                             * GEAR_RATIO * GEAR_EFFICIENCY)
+    peak_torque_Nm: float = (
+        CURRENT_LIMIT_FACTOR
+        * _m["nominal_current"]
+        * _m["torque_constant"]
+        * GEAR_RATIO
+        * GEAR_EFFICIENCY
+    )
     current_time_constant_s: float = _m["terminal_inductance"] / _m["terminal_resistance"]
-    viscous_damping: float = 0.5 * _friction_motor / _m["no_load_speed"] * GEAR_RATIO ** 2
+    viscous_damping: float = 0.5 * _friction_motor / _m["no_load_speed"] * GEAR_RATIO**2
     coulomb_friction_Nm: float = 0.5 * _friction_motor * GEAR_RATIO
     friction_damping: float = 1e4
     no_load_speed_rad_s: float = _m["no_load_speed"] / GEAR_RATIO
 
     def __post_init__(self):
-        for name, positive in (("gear_ratio", True), ("rotor_inertia", False),
-                               ("peak_torque_Nm", True), ("current_time_constant_s", False),
-                               ("viscous_damping", False), ("coulomb_friction_Nm", False),
-                               ("friction_damping", True), ("no_load_speed_rad_s", True)):
-            object.__setattr__(self, name, as_number(f"servo.{name}", getattr(self, name), 0.0,
-                                                     lo_open=positive))
+        for name, positive in (
+            ("gear_ratio", True),
+            ("rotor_inertia", False),
+            ("peak_torque_Nm", True),
+            ("current_time_constant_s", False),
+            ("viscous_damping", False),
+            ("coulomb_friction_Nm", False),
+            ("friction_damping", True),
+            ("no_load_speed_rad_s", True),
+        ):
+            object.__setattr__(
+                self, name, as_number(f"servo.{name}", getattr(self, name), 0.0, lo_open=positive)
+            )
         if not isinstance(self.name, str):
             raise InvalidConfigError(f"servo.name must be a string, got {self.name!r}")
 
     @property
     def reflected_inertia(self) -> float:
         """Rotor inertia seen at the crank, rotor_inertia x gear_ratio^2, kg m^2."""
-        return self.rotor_inertia * self.gear_ratio ** 2
+        return self.rotor_inertia * self.gear_ratio**2

@@ -52,7 +52,6 @@ def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarr
     return grad
 
 
-
 def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Static motor torques that hold pose x against gravity, (..., 6) in N m.
 
@@ -75,10 +74,10 @@ def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     except np.linalg.LinAlgError:
         cond = np.linalg.cond(J.reshape(-1, 6, 6))
         k = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
-        raise SingularPoseError("cond", np.inf, DEFAULT_COND_THRESHOLD,
-                                pose=x.reshape(-1, 6)[k]) from None
+        raise SingularPoseError(
+            "cond", np.inf, DEFAULT_COND_THRESHOLD, pose=x.reshape(-1, 6)[k]
+        ) from None
     return _finite_or_singular("T", T, x)
-
 
 
 #: The tool tip in the platform frame E, m: the end of the tool drawn on the platform (8 cm up),
@@ -103,7 +102,7 @@ def tool_load_torques(geometry: RobotGeometry, x, wrench_W, p_EP=p_ETool) -> np.
     x = np.asarray(x, dtype=float)
     w = np.asarray(wrench_W, dtype=float)
     r_W = rotation_rpy(x[:3]) @ np.asarray(p_EP, dtype=float)
-    moment = w[:3] + np.cross(r_W, w[3:])                # about the platform origin
+    moment = w[:3] + np.cross(r_W, w[3:])  # about the platform origin
     T_ext = np.linalg.solve(wrench_map(geometry, x), -np.concatenate([moment, w[3:]]))
     return holding_torques(geometry, x) + T_ext
 
@@ -143,8 +142,11 @@ def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     M[..., :3, :3] = np.swapaxes(E, -1, -2) @ I_B @ E
     M[..., 3:, 3:] = geometry.platform_mass * np.eye(3)
     # Cranks: principal axis y is the shaft (x along the crank, z up at theta = 0).
-    I_shaft = (geometry.crank_inertia[1] + geometry.crank_mass * (0.5 * a) ** 2
-               + geometry.motor_reflected_inertia)       # the motor's rotor behind its gearhead
+    I_shaft = (
+        geometry.crank_inertia[1]
+        + geometry.crank_mass * (0.5 * a) ** 2
+        + geometry.motor_reflected_inertia
+    )  # the motor's rotor behind its gearhead
     M = M + I_shaft * (np.swapaxes(J, -1, -2) @ J)
     # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint; sums over the legs
     # as one (18, 6) product (matmul, several times faster than einsum on one pose).
@@ -156,8 +158,7 @@ def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     return M
 
 
-def coriolis_forces(geometry: RobotGeometry, x, x_dot, step: float = 1e-7,
-                    M=None) -> np.ndarray:
+def coriolis_forces(geometry: RobotGeometry, x, x_dot, step: float = 1e-7, M=None) -> np.ndarray:
     """Velocity-product forces c(x, x_dot) of the task-space dynamics, (..., 6) in N m and N.
 
     c_i = sum_jk (dM_ij/dx_k - 1/2 dM_jk/dx_i) x_dot_j x_dot_k: the Coriolis and centrifugal
@@ -179,15 +180,14 @@ def coriolis_forces(geometry: RobotGeometry, x, x_dot, step: float = 1e-7,
     for k in range(6):
         e = np.zeros(6)
         e[k] = step
-        dM = (task_inertia(geometry, x + e) - M) / step                    # dM/dx_k
+        dM = (task_inertia(geometry, x + e) - M) / step  # dM/dx_k
         dM_x_dot = np.einsum("...ij,...j->...i", dM, x_dot)
-        c += dM_x_dot * x_dot[..., k:k + 1]                                # (dM/dx_k x_dot) x_dot_k
+        c += dM_x_dot * x_dot[..., k : k + 1]  # (dM/dx_k x_dot) x_dot_k
         c[..., k] -= 0.5 * np.einsum("...i,...i->...", x_dot, dM_x_dot)  # 1/2 x_dot^T dM_k x_dot
     return c
 
 
-def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot,
-                             theta=None) -> np.ndarray:
+def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot, theta=None) -> np.ndarray:
     """Motor torques that move the closed chain along (x, x_dot, x_ddot), (..., 6) in N m.
 
     T = J^-T (M_x x_ddot + c(x, x_dot) + dV/dx): the task-space equations of motion (module
@@ -205,9 +205,11 @@ def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot,
     x, theta = _checked(geometry, x, theta)
     J = jacobian(geometry, x, theta)
     M = task_inertia(geometry, x, theta)
-    w = (gravity_gradient(geometry, x, theta, J)
-         + np.einsum("...ij,...j->...i", M, np.asarray(x_ddot, dtype=float))
-         + coriolis_forces(geometry, x, x_dot, M=M))
+    w = (
+        gravity_gradient(geometry, x, theta, J)
+        + np.einsum("...ij,...j->...i", M, np.asarray(x_ddot, dtype=float))
+        + coriolis_forces(geometry, x, x_dot, M=M)
+    )
     T = np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
     return _finite_or_singular("T", T, x)
 
@@ -227,8 +229,9 @@ def motor_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None):
         as :func:`inverse_dynamics_torques`.
     """
     x, theta = _checked(geometry, x, None)
-    theta_dot = np.einsum("...ij,...j->...i", jacobian(geometry, x, theta),
-                          np.asarray(x_dot, dtype=float))
+    theta_dot = np.einsum(
+        "...ij,...j->...i", jacobian(geometry, x, theta), np.asarray(x_dot, dtype=float)
+    )
     T = inverse_dynamics_torques(geometry, x, x_dot, x_ddot, theta)
     if servo is not None:
         T = T + servo.viscous_damping * theta_dot + servo.coulomb_friction_Nm * np.sign(theta_dot)
@@ -242,9 +245,9 @@ def crank_inertia_matrix(geometry: RobotGeometry, x=X_HOME) -> np.ndarray:
     return J_inv.T @ task_inertia(geometry, x, theta) @ J_inv
 
 
-
-def feedforward_torques(geometry: RobotGeometry, x_d, xdd_d=None,
-                        mode: str = "gravity", theta=None, xd_d=None) -> np.ndarray:
+def feedforward_torques(
+    geometry: RobotGeometry, x_d, xdd_d=None, mode: str = "gravity", theta=None, xd_d=None
+) -> np.ndarray:
     """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
 
     Args:
@@ -271,11 +274,11 @@ def feedforward_torques(geometry: RobotGeometry, x_d, xdd_d=None,
     w = gravity_gradient(geometry, x_d, theta, J)
     if mode == "inverse_dynamics":
         if xdd_d is None:
-            raise InvalidConfigError("feedforward 'inverse_dynamics' needs the reference "
-                                     "acceleration xdd_d")
+            raise InvalidConfigError(
+                "feedforward 'inverse_dynamics' needs the reference acceleration xdd_d"
+            )
         if xd_d is not None:
             return inverse_dynamics_torques(geometry, x_d, xd_d, xdd_d, theta)
         M = task_inertia(geometry, x_d, theta)
         w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
     return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
-

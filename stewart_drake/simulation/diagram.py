@@ -93,18 +93,27 @@ class StewartDiagram:
 
         if self.diagram.HasInputPort("tool_wrench"):
             self.diagram.GetInputPort("tool_wrench").FixValue(
-                self.diagram.GetMyMutableContextFromRoot(root_context), np.zeros(6))
+                self.diagram.GetMyMutableContextFromRoot(root_context), np.zeros(6)
+            )
         if self.noise is not None:
-            self.noise.SetRandomContext(self.noise.GetMyMutableContextFromRoot(root_context),
-                                        RandomGenerator(self.scenario.sensor_noise.seed))
+            self.noise.SetRandomContext(
+                self.noise.GetMyMutableContextFromRoot(root_context),
+                RandomGenerator(self.scenario.sensor_noise.seed),
+            )
         hw = self.scenario.hardware
-        self.station.initialize(root_context, self.T_ff_initial,
-                                seed=hw.encoders.seed if hw is not None else 0)
+        self.station.initialize(
+            root_context, self.T_ff_initial, seed=hw.encoders.seed if hw is not None else 0
+        )
 
 
-def make_stewart_diagram(scenario: Scenario | RunPlan | None = None, meshcat=None, *,
-                         reference=None,
-                         controller=None, reference_system=None) -> StewartDiagram:
+def make_stewart_diagram(
+    scenario: Scenario | RunPlan | None = None,
+    meshcat=None,
+    *,
+    reference=None,
+    controller=None,
+    reference_system=None,
+) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
     Wiring: the station (:func:`~.station.make_stewart_station`); the reference and its
@@ -143,8 +152,12 @@ def make_stewart_diagram(scenario: Scenario | RunPlan | None = None, meshcat=Non
         UnreachablePoseError: the reference leaves the workspace (first time and leg).
     """
     # Long for its docstring (every port and choice documented); the stages are functions below.
-    plan = make_plan(scenario, reference=reference, controller=controller,
-                     with_reference=reference_system is None)
+    plan = make_plan(
+        scenario,
+        reference=reference,
+        controller=controller,
+        with_reference=reference_system is None,
+    )
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
@@ -157,22 +170,38 @@ def make_stewart_diagram(scenario: Scenario | RunPlan | None = None, meshcat=Non
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
     x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
-    sources = {"x_d": x_d, "T_ff": ref.T_ff, "x": measured,
-               "motor_angle": station.GetOutputPort("motor_angle"),
-               "motor_rate": station.GetOutputPort("motor_rate"), "motor_torque_applied": applied}
+    sources = {
+        "x_d": x_d,
+        "T_ff": ref.T_ff,
+        "x": measured,
+        "motor_angle": station.GetOutputPort("motor_angle"),
+        "motor_rate": station.GetOutputPort("motor_rate"),
+        "motor_torque_applied": applied,
+    }
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
     _add_disturbance(builder, station, plan, live=reference_system is not None)
-    features, tuner, loggers = _add_weights(builder, scenario, TunerPorts(
-        controller=system, inputs=frozenset(inputs), outputs=frozenset(outputs), x_d=ref.x_d,
-        T_applied=applied, period_s=context.period_s, offset_s=context.offset_s,
-        duration_s=scenario.duration_s))
+    features, tuner, loggers = _add_weights(
+        builder,
+        scenario,
+        TunerPorts(
+            controller=system,
+            inputs=frozenset(inputs),
+            outputs=frozenset(outputs),
+            x_d=ref.x_d,
+            T_applied=applied,
+            period_s=context.period_s,
+            offset_s=context.offset_s,
+            duration_s=scenario.duration_s,
+        ),
+    )
     loggers.update(_add_loggers(builder, station, system, outputs, scenario.log_period_s))
     if learner is not None:
         for name in ("ilc_status", "x_d_correction"):
-            loggers[name] = LogVectorOutput(learner.GetOutputPort(name), builder,
-                                            scenario.log_period_s)
+            loggers[name] = LogVectorOutput(
+                learner.GetOutputPort(name), builder, scenario.log_period_s
+            )
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, plan)
@@ -181,11 +210,22 @@ def make_stewart_diagram(scenario: Scenario | RunPlan | None = None, meshcat=Non
         builder.ExportOutput(ref.x_d, "x_d")
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
-    return StewartDiagram(diagram=diagram, station=station, controller=system,
-                          reference=ref.system, trajectory=trajectory, loggers=loggers,
-                          plan=plan, features=features, tuner=tuner, noise=noise,
-                          estimator=estimator, guard=guard, T_ff_initial=ref.T_ff_initial,
-                          learner=learner)
+    return StewartDiagram(
+        diagram=diagram,
+        station=station,
+        controller=system,
+        reference=ref.system,
+        trajectory=trajectory,
+        loggers=loggers,
+        plan=plan,
+        features=features,
+        tuner=tuner,
+        noise=noise,
+        estimator=estimator,
+        guard=guard,
+        T_ff_initial=ref.T_ff_initial,
+        learner=learner,
+    )
 
 
 @dataclass(frozen=True)
@@ -206,19 +246,37 @@ def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Ref
     the live ``reference_system`` with its inputs exported."""
     h_plant, h = plan.plant_time_step_s, plan.control_period_s
     if reference_system is None:
-        ref = add_reference_sources(builder, trajectory, plan.geometry, plan.duration_s,
-                                    period_s=h, offset_s=plan.sample_offset_s,
-                                    lead_s=0.5 * h_plant, feedforward=plan.scenario.feedforward,
-                                    feedforward_lead_s=plan.delay_periods * h)
+        ref = add_reference_sources(
+            builder,
+            trajectory,
+            plan.geometry,
+            plan.duration_s,
+            period_s=h,
+            offset_s=plan.sample_offset_s,
+            lead_s=0.5 * h_plant,
+            feedforward=plan.scenario.feedforward,
+            feedforward_lead_s=plan.delay_periods * h,
+        )
         x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
-        return _Reference(ref, ref.x_d.get_output_port(), ref.T_ff.get_output_port(), x0,
-                          x_dot0, ref.T_ff_table[0])
+        return _Reference(
+            ref,
+            ref.x_d.get_output_port(),
+            ref.T_ff.get_output_port(),
+            x0,
+            x_dot0,
+            ref.T_ff_table[0],
+        )
     ref = builder.AddNamedSystem("reference", reference_system)
     for i in range(ref.num_input_ports()):
         builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
-    return _Reference(ref, ref.GetOutputPort("x_d"), ref.GetOutputPort("T_ff"),
-                      np.asarray(ref.x_initial, dtype=float), np.zeros(6),
-                      np.asarray(ref.T_ff_initial, dtype=float))
+    return _Reference(
+        ref,
+        ref.GetOutputPort("x_d"),
+        ref.GetOutputPort("T_ff"),
+        np.asarray(ref.x_initial, dtype=float),
+        np.zeros(6),
+        np.asarray(ref.T_ff_initial, dtype=float),
+    )
 
 
 def _add_controller(builder, system: System) -> System:
@@ -229,8 +287,9 @@ def _add_controller(builder, system: System) -> System:
     return builder.AddSystem(system)
 
 
-def _add_measurement(builder, station: StewartStation, scenario: Scenario,
-                     context: ControllerContext, inputs: set):
+def _add_measurement(
+    builder, station: StewartStation, scenario: Scenario, context: ControllerContext, inputs: set
+):
     """The pose and rate a controller with an ``x`` input reads: the station's ground truth, or
     on the robot as built the FK estimate from the encoders, plus the scenario's sensor noise.
     Returns (port, estimator or None, noise source or None)."""
@@ -238,20 +297,34 @@ def _add_measurement(builder, station: StewartStation, scenario: Scenario,
     estimator = noise = None
     if "x" not in inputs:
         return measured, estimator, noise
-    if context.pose_estimator is not None:                 # the pose from the encoders
-        estimator = builder.AddNamedSystem("estimator", FkEstimator(
-            context.pose_estimator, context.offset_s, context.x_initial, context.x_dot_initial))
+    if context.pose_estimator is not None:  # the pose from the encoders
+        estimator = builder.AddNamedSystem(
+            "estimator",
+            FkEstimator(
+                context.pose_estimator, context.offset_s, context.x_initial, context.x_dot_initial
+            ),
+        )
         builder.Connect(station.GetOutputPort("motor_angle"), estimator.get_input_port())
         measured = estimator.get_output_port()
     if scenario.sensor_noise is not None:
-        noise, measured = add_white_noise(builder, measured, scenario.sensor_noise.std_vector(),
-                                          context.period_s, ("sensor_noise", "noise_std",
-                                                             "noisy_x"))
+        noise, measured = add_white_noise(
+            builder,
+            measured,
+            scenario.sensor_noise.std_vector(),
+            context.period_s,
+            ("sensor_noise", "noise_std", "noisy_x"),
+        )
     return measured, estimator, noise
 
 
-def _add_learning(builder, station: StewartStation, plan: RunPlan, trajectory,
-                  x_d: OutputPort, context: ControllerContext):
+def _add_learning(
+    builder,
+    station: StewartStation,
+    plan: RunPlan,
+    trajectory,
+    x_d: OutputPort,
+    context: ControllerContext,
+):
     """With the scenario's ``learning``, the iterative learning controller between the reference
     and the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
     correction, the guard and the tuner keep the reference itself. Returns (the x_d port the
@@ -263,14 +336,24 @@ def _add_learning(builder, station: StewartStation, plan: RunPlan, trajectory,
     if plan.scenario.learning is None:
         return x_d, None
     if trajectory is None:
-        raise InvalidConfigError("learning needs a reference known in advance, with cycles; a "
-                                 "live reference has none: set learning: null")
+        raise InvalidConfigError(
+            "learning needs a reference known in advance, with cycles; a "
+            "live reference has none: set learning: null"
+        )
     from .learning import add_learning
 
     learner, corrected = add_learning(
-        builder, plan.scenario.learning, trajectory, x_d, station.GetOutputPort("motor_angle"),
-        geometry=plan.geometry, period_s=plan.control_period_s, offset_s=context.offset_s,
-        duration_s=plan.duration_s, floor=plan.encoder_count_at_tip())
+        builder,
+        plan.scenario.learning,
+        trajectory,
+        x_d,
+        station.GetOutputPort("motor_angle"),
+        geometry=plan.geometry,
+        period_s=plan.control_period_s,
+        offset_s=context.offset_s,
+        duration_s=plan.duration_s,
+        floor=plan.encoder_count_at_tip(),
+    )
     return corrected, learner
 
 
@@ -281,8 +364,9 @@ def _add_disturbance(builder, station: StewartStation, plan: RunPlan, live: bool
     source would be re-evaluated at every plant step."""
     disturbance = plan.scenario.disturbance
     if disturbance is not None and not live:
-        wrench = builder.AddNamedSystem("tool_disturbance", disturbance.make_source(
-            plan.duration_s, plan.plant_time_step_s))
+        wrench = builder.AddNamedSystem(
+            "tool_disturbance", disturbance.make_source(plan.duration_s, plan.plant_time_step_s)
+        )
         builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
     else:
         builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
@@ -297,40 +381,47 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}
         if added.rho_period_s is not None:
-            loggers["rho"] = LogVectorOutput(added.features.GetOutputPort("rho"), builder,
-                                             added.rho_period_s)
+            loggers["rho"] = LogVectorOutput(
+                added.features.GetOutputPort("rho"), builder, added.rho_period_s
+            )
         return added.features, added.tuner, loggers
     if "omega" in ports.inputs:
-        omega = builder.AddNamedSystem("omega", ConstantVectorSource(
-            np.array(scenario.controller.omega())))
+        omega = builder.AddNamedSystem(
+            "omega", ConstantVectorSource(np.array(scenario.controller.omega()))
+        )
         builder.Connect(omega.get_output_port(), ports.controller.GetInputPort("omega"))
     return None, None, {}
 
 
-def _add_loggers(builder, station: StewartStation, system: System, outputs: set,
-                 period_s: float) -> dict:
+def _add_loggers(
+    builder, station: StewartStation, system: System, outputs: set, period_s: float
+) -> dict:
     """Loggers every ``period_s``: the applied torques "T", the plant's "state", and the
     controller's "status", "integral", "e_bar" when it has them."""
-    loggers = {"T": LogVectorOutput(station.GetOutputPort("motor_torque_applied"), builder,
-                                    period_s),
-               "state": LogVectorOutput(station.GetOutputPort("plant_state"), builder, period_s)}
+    loggers = {
+        "T": LogVectorOutput(station.GetOutputPort("motor_torque_applied"), builder, period_s),
+        "state": LogVectorOutput(station.GetOutputPort("plant_state"), builder, period_s),
+    }
     for name in ("status", "integral", "e_bar"):
         if name in outputs:
             loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period_s)
     return loggers
 
 
-def _add_guard(builder, station: StewartStation, system: System, x_d: OutputPort,
-               plan: RunPlan) -> DivergenceGuard:
+def _add_guard(
+    builder, station: StewartStation, system: System, x_d: OutputPort, plan: RunPlan
+) -> DivergenceGuard:
     """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
     reference and, with contact, the contact results."""
     contact = plan.scenario.contact
-    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan.scenario.guard,
-                                                            plan.plant_geometry, contact))
+    guard = builder.AddNamedSystem(
+        "guard", DivergenceGuard(station, plan.scenario.guard, plan.plant_geometry, contact)
+    )
     builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
     builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
     builder.Connect(x_d, guard.GetInputPort("x_d"))
     if contact:
-        builder.Connect(station.GetOutputPort("contact_results"),
-                        guard.GetInputPort("contact_results"))
+        builder.Connect(
+            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
+        )
     return guard

@@ -24,7 +24,6 @@ import time
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import List, Optional
 
 import numpy as np
 from pydrake.common.value import AbstractValue
@@ -76,8 +75,8 @@ class GuardConfig:
             construction and in :meth:`validate`.
     """
 
-    max_closure_error_m: Optional[float] = 1e-3
-    max_tracking_error: Optional[List[float]] = field(default_factory=lambda: [0.2, 0.05])
+    max_closure_error_m: float | None = 1e-3
+    max_tracking_error: list[float] | None = field(default_factory=lambda: [0.2, 0.05])
     check_period_s: float = 0.01
     divergence_dir: str = "results/diverged"
     cond_threshold: float = DEFAULT_COND_THRESHOLD
@@ -96,28 +95,39 @@ class GuardConfig:
         if self.max_tracking_error is not None:
             bounds = self.max_tracking_error
             if isinstance(bounds, (str, bytes)) or np.ndim(bounds) != 1 or len(bounds) != 2:
-                raise InvalidConfigError(f"{prefix}max_tracking_error must be [rad, m], got "
-                                         f"{bounds!r}")
+                raise InvalidConfigError(
+                    f"{prefix}max_tracking_error must be [rad, m], got {bounds!r}"
+                )
             self.max_tracking_error = [
                 as_number(f"{prefix}max_tracking_error[{k}]", v, 0.0, lo_open=True)
-                for k, v in enumerate(bounds)]
+                for k, v in enumerate(bounds)
+            ]
         as_number(f"{prefix}check_period_s", self.check_period_s, 0.0, lo_open=True)
         as_number(f"{prefix}cond_threshold", self.cond_threshold, 1.0, lo_open=True)
         as_number(f"{prefix}min_sigma_min_inv", self.min_sigma_min_inv, 0.0)
         as_number(f"{prefix}min_clearance_m", self.min_clearance_m, 0.0, 0.05)
         as_number(f"{prefix}effort_margin", self.effort_margin, 0.0, 1.0, lo_open=True)
         if not isinstance(self.allow_infeasible, bool):
-            raise InvalidConfigError(f"{prefix}allow_infeasible must be true or false, got "
-                                     f"{self.allow_infeasible!r}")
+            raise InvalidConfigError(
+                f"{prefix}allow_infeasible must be true or false, got {self.allow_infeasible!r}"
+            )
         if isinstance(self.divergence_dir, Path):
             self.divergence_dir = str(self.divergence_dir)
         if not isinstance(self.divergence_dir, str) or not self.divergence_dir:
-            raise InvalidConfigError(f"{prefix}divergence_dir must be a folder path, got "
-                                     f"{self.divergence_dir!r}")
+            raise InvalidConfigError(
+                f"{prefix}divergence_dir must be a folder path, got {self.divergence_dir!r}"
+            )
 
 
-def check_path(trajectory, geometry, duration_s: float, period_s: float, config: GuardConfig,
-               motor_limits, raise_refused: bool = True) -> limits.TrajectoryReport:
+def check_path(
+    trajectory,
+    geometry,
+    duration_s: float,
+    period_s: float,
+    config: GuardConfig,
+    motor_limits,
+    raise_refused: bool = True,
+) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
@@ -150,16 +160,27 @@ def check_path(trajectory, geometry, duration_s: float, period_s: float, config:
     from .trajectories import validate
 
     guard = config
-    report = validate(trajectory, geometry, duration_s,
-                      dt=period_s, cond_threshold=guard.cond_threshold,
-                      min_sigma_min_inv=guard.min_sigma_min_inv, raise_refused=raise_refused,
-                      clearance=clearance_model(geometry), min_clearance_m=guard.min_clearance_m,
-                      motor_limits=motor_limits,
-                      allow_infeasible=guard.allow_infeasible)
+    report = validate(
+        trajectory,
+        geometry,
+        duration_s,
+        dt=period_s,
+        cond_threshold=guard.cond_threshold,
+        min_sigma_min_inv=guard.min_sigma_min_inv,
+        raise_refused=raise_refused,
+        clearance=clearance_model(geometry),
+        min_clearance_m=guard.min_clearance_m,
+        motor_limits=motor_limits,
+        allow_infeasible=guard.allow_infeasible,
+    )
     if raise_refused and not report.feasible:
-        warnings.warn(FeasibilityWarning(
-            f"running a reference the motors cannot follow (guard.allow_infeasible): "
-            f"{report.first_effort_violation.need}; expect saturation"), stacklevel=3)
+        warnings.warn(
+            FeasibilityWarning(
+                f"running a reference the motors cannot follow (guard.allow_infeasible): "
+                f"{report.first_effort_violation.need}; expect saturation"
+            ),
+            stacklevel=3,
+        )
     return report
 
 
@@ -196,29 +217,38 @@ class DivergenceGuard(LeafSystem):
         self._plant, self._handles, self._sensor = station.plant, station.handles, station.sensor
         plant = station.plant
         self._state = self.DeclareVectorInputPort(
-            "plant_state", plant.num_positions() + plant.num_velocities())
+            "plant_state", plant.num_positions() + plant.num_velocities()
+        )
         self._T = self.DeclareVectorInputPort("T", 6)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         # A context of the plant alone, for the rods' and the platform's positions (configured
         # from the state each check; no state of the guard).
         self._scratch = plant.CreateDefaultContext()
-        self.DeclarePeriodicPublishEvent(period_sec=self.config.check_period_s,
-                                         offset_sec=0.0, publish=self._Check)
+        self.DeclarePeriodicPublishEvent(
+            period_sec=self.config.check_period_s, offset_sec=0.0, publish=self._Check
+        )
         self.contact = contact
         if self.contact:
             # The first contact the checks see, kept in the guard's state: [seen (0 or 1), t s,
             # normal force N, index of part a, index of part b] (indices into part_names).
             self._contact_results = self.DeclareAbstractInputPort(
-                "contact_results", AbstractValue.Make(ContactResults()))
+                "contact_results", AbstractValue.Make(ContactResults())
+            )
             self._first_contact = self.DeclareDiscreteState(5)
-            self.DeclarePeriodicDiscreteUpdateEvent(self.config.check_period_s, 0.0,
-                                                    self._NoteContact)
+            self.DeclarePeriodicDiscreteUpdateEvent(
+                self.config.check_period_s, 0.0, self._NoteContact
+            )
             inspector = station.scene_graph.model_inspector()
-            ids = [gid for index in plant.GetBodyIndices(station.handles.model_instance)
-                   for gid in plant.GetCollisionGeometriesForBody(plant.get_body(index))]
+            ids = [
+                gid
+                for index in plant.GetBodyIndices(station.handles.model_instance)
+                for gid in plant.GetCollisionGeometriesForBody(plant.get_body(index))
+            ]
             self.part_names = tuple(
                 f"{plant.GetBodyFromFrameId(inspector.GetFrameId(gid)).name()}/"
-                f"{inspector.GetName(gid).split('::')[-1]}" for gid in ids)
+                f"{inspector.GetName(gid).split('::')[-1]}"
+                for gid in ids
+            )
             self._part_index = {gid: k for k, gid in enumerate(ids)}
         else:
             from ..model.clearance import clearance_model
@@ -246,38 +276,50 @@ class DivergenceGuard(LeafSystem):
         state = self._state.Eval(context)
         if not math.isfinite(state.sum()):
             k = int(np.argmax(~np.isfinite(state)))
-            return (f"the plant state is not finite (entry {k} of {state.size} = {state[k]}); "
-                    f"the loop lost its stability")
+            return (
+                f"the plant state is not finite (entry {k} of {state.size} = {state[k]}); "
+                f"the loop lost its stability"
+            )
         T = self._T.Eval(context)
         if not math.isfinite(T.sum()):
-            return (f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
-                    f"N m: the controller received or produced NaN")
+            return (
+                f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
+                f"N m: the controller received or produced NaN"
+            )
         cfg, plant = self.config, self._plant
         if cfg.max_closure_error_m is not None:
-            plant.SetPositions(self._scratch, state[:plant.num_positions()])
+            plant.SetPositions(self._scratch, state[: plant.num_positions()])
             closure = loop_closure_errors(plant, self._scratch, self._handles)
             leg = int(np.argmax(closure))
             if not closure[leg] <= cfg.max_closure_error_m:
-                return (f"loop-closure error {closure[leg]:.3g} m at rod {leg} exceeds "
-                        f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m")
+                return (
+                    f"loop-closure error {closure[leg]:.3g} m at rod {leg} exceeds "
+                    f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m"
+                )
         pose = self._sensor.pose_from_state(state)[:6]
         x_d = self._x_d.Eval(context)[:6]
         if cfg.max_tracking_error is not None:
             e = np.abs(pose - x_d)
-            for part, bound, unit in ((slice(0, 3), cfg.max_tracking_error[0], "rad"),
-                                      (slice(3, 6), cfg.max_tracking_error[1], "m")):
+            for part, bound, unit in (
+                (slice(0, 3), cfg.max_tracking_error[0], "rad"),
+                (slice(3, 6), cfg.max_tracking_error[1], "m"),
+            ):
                 k = int(np.argmax(e[part])) + part.start
                 if not e[k] <= bound:
                     axis = AXIS_NAMES[k]
-                    return (f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
-                            f"GuardConfig.max_tracking_error = {bound:g} {unit}")
+                    return (
+                        f"tracking error |{axis} - {axis}_d| = {e[k]:.3g} {unit} exceeds "
+                        f"GuardConfig.max_tracking_error = {bound:g} {unit}"
+                    )
         if self.contact or not self._may_overlap(context, state, pose, x_d):
             return None
         # Without contact nothing in the plant keeps two parts apart: overlapping is a failure.
-        overlaps = self._clearance.overlaps(state[:plant.num_positions()])
+        overlaps = self._clearance.overlaps(state[: plant.num_positions()])
         if overlaps:
-            return (f"{overlaps[0]}: parts pass through each other in a plant without contact; "
-                    f"simulate the collision with `contact: true`")
+            return (
+                f"{overlaps[0]}: parts pass through each other in a plant without contact; "
+                f"simulate the collision with `contact: true`"
+            )
         return None
 
     def _may_overlap(self, context, state, pose, x_d) -> bool:
@@ -294,7 +336,7 @@ class DivergenceGuard(LeafSystem):
         crank = max(abs(state[k] - t) for k, t in zip(self._motor_q, theta_d))
         platform = np.abs(pose[3:] - x_d[3:]).max() + 0.4 * np.abs(pose[:3] - x_d[:3]).max()
         stray = max((self._legs[1] + 0.01) * crank, float(platform))
-        return not stray < self._stray_m                  # NaN included
+        return not stray < self._stray_m  # NaN included
 
     def _NoteContact(self, context, discrete_state):
         """With contact: keep the first contact between two parts (the strongest one then)."""
@@ -303,13 +345,15 @@ class DivergenceGuard(LeafSystem):
         results = self._contact_results.Eval(context)
         if not results.num_point_pair_contacts():
             return
-        info = max((results.point_pair_contact_info(i)
-                    for i in range(results.num_point_pair_contacts())),
-                   key=lambda c: np.linalg.norm(c.contact_force()))
+        info = max(
+            (results.point_pair_contact_info(i) for i in range(results.num_point_pair_contacts())),
+            key=lambda c: np.linalg.norm(c.contact_force()),
+        )
         pair = info.point_pair()
         a, b = sorted(self._part_index.get(g, -1) for g in (pair.id_A, pair.id_B))
-        discrete_state.set_value(0, [1.0, context.get_time(),
-                                     float(np.linalg.norm(info.contact_force())), a, b])
+        discrete_state.set_value(
+            0, [1.0, context.get_time(), float(np.linalg.norm(info.contact_force())), a, b]
+        )
 
     def first_contact(self, root) -> tuple | None:
         """(t s, part_a, part_b, normal force N) of the first contact between two parts the
@@ -338,30 +382,37 @@ def save_divergence(sd, root, reason: str) -> Path:
     """
     logs = {name: logger.FindLog(root) for name, logger in sd.loggers.items()}
     t = logs["state"].sample_times().copy()
-    arrays = {"t": t, "t_last": np.float64(root.get_time()),
-              "state_last": sd.plant.GetMyContextFromRoot(root)
-              .get_discrete_state_vector().CopyToVector(),
-              "T_last": sd.controller.GetOutputPort("T").Eval(
-                  sd.controller.GetMyContextFromRoot(root)).copy(),
-              "T_applied_last": sd.station.GetOutputPort("motor_torque_applied").Eval(
-                  sd.station.GetMyContextFromRoot(root)).copy(),
-              "reason": np.str_(reason),
-              "scenario": np.str_(sd.scenario_yaml())}
+    arrays = {
+        "t": t,
+        "t_last": np.float64(root.get_time()),
+        "state_last": sd.plant.GetMyContextFromRoot(root)
+        .get_discrete_state_vector()
+        .CopyToVector(),
+        "T_last": sd.controller.GetOutputPort("T")
+        .Eval(sd.controller.GetMyContextFromRoot(root))
+        .copy(),
+        "T_applied_last": sd.station.GetOutputPort("motor_torque_applied")
+        .Eval(sd.station.GetMyContextFromRoot(root))
+        .copy(),
+        "reason": np.str_(reason),
+        "scenario": np.str_(sd.scenario_yaml()),
+    }
     for name, log in logs.items():
         arrays[name] = log.data().T.copy()
     try:
-        arrays["x"] = sd.sensor.poses_from_states(arrays["state"])   # true pose, as metrics
-    except Exception:               # noqa: BLE001 - a NaN quaternion must not lose the file
+        arrays["x"] = sd.sensor.poses_from_states(arrays["state"])  # true pose, as metrics
+    except Exception:  # noqa: BLE001 - a NaN quaternion must not lose the file
         arrays["x"] = np.full((len(t), 12), np.nan)
     try:
         arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
-    except Exception:               # noqa: BLE001 - the reference itself may be the fault
+    except Exception:  # noqa: BLE001 - the reference itself may be the fault
         pass
     name = getattr(sd.trajectory, "name", "custom")
     stamp = time.strftime("%Y%m%d-%H%M%S")
     path = Path(sd.guard.config.divergence_dir) / (
         f"diverged_{name}_t{root.get_time():.4f}s_{stamp}_{os.getpid()}"
-        f"_{time.perf_counter_ns() % 1_000_000:06d}.npz")
+        f"_{time.perf_counter_ns() % 1_000_000:06d}.npz"
+    )
     return save_npz(path, arrays)
 
 
@@ -396,11 +447,14 @@ def advance(sd, simulator, step) -> None:
         if guard is None:
             raise
         root = simulator.get_context()
-        reason = guard.check_root(root)             # a diverged signal Drake refused to use?
+        reason = guard.check_root(root)  # a diverged signal Drake refused to use?
         if reason is None:
             path, unsaved = _save(sd, root, f"{type(err).__name__}: {err}")
-            err.add_note(f"stewart-drake: the logs up to t = {root.get_time():.4g} s are "
-                         f"saved in {path}" if path else f"stewart-drake:{unsaved}")
+            err.add_note(
+                f"stewart-drake: the logs up to t = {root.get_time():.4g} s are saved in {path}"
+                if path
+                else f"stewart-drake:{unsaved}"
+            )
             raise
         reason = f"{reason} (Drake: {err})"
         path, unsaved = _save(sd, root, reason)
@@ -420,5 +474,7 @@ def _save(sd, root, reason: str) -> tuple[str | None, str]:
     try:
         return str(save_divergence(sd, root, reason)), ""
     except OSError as err:
-        return None, (f" (the logs could not be saved in {sd.guard.config.divergence_dir}: "
-                      f"{err.strerror or err}; set guard.divergence_dir to a writable folder)")
+        return None, (
+            f" (the logs could not be saved in {sd.guard.config.divergence_dir}: "
+            f"{err.strerror or err}; set guard.divergence_dir to a writable folder)"
+        )

@@ -17,8 +17,9 @@ from ..errors import InvalidConfigError
 from .motion import Reference, reference_cycles
 
 
-def learning_cycles(driver: IlcDriver, trajectory: Reference, duration: float
-                    ) -> tuple[np.ndarray, np.ndarray]:
+def learning_cycles(
+    driver: IlcDriver, trajectory: Reference, duration: float
+) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over a run of
     ``duration`` s: the reference's own (:func:`~.motion.reference_cycles`), or
     ``driver.period_s`` from t = 0 when given.
@@ -34,18 +35,32 @@ def learning_cycles(driver: IlcDriver, trajectory: Reference, duration: float
         try:
             starts, scale = reference_cycles(trajectory, duration)
         except InvalidConfigError as err:
-            raise InvalidConfigError(f"learning needs a reference that repeats: {err}; give "
-                                     f"learning.period_s for one of your own") from None
-    k = int(np.count_nonzero(starts[:-1] < duration - 1e-9))   # cycles begun within the run
+            raise InvalidConfigError(
+                f"learning needs a reference that repeats: {err}; give "
+                f"learning.period_s for one of your own"
+            ) from None
+    k = int(np.count_nonzero(starts[:-1] < duration - 1e-9))  # cycles begun within the run
     if k < 1 or starts[1] > duration + 1e-9:
-        raise InvalidConfigError(f"learning: the run ({duration:g} s) holds no whole cycle of "
-                                 f"the reference (the first ends at {starts[1]:g} s)")
-    return starts[:k + 1], scale[:k]
+        raise InvalidConfigError(
+            f"learning: the run ({duration:g} s) holds no whole cycle of "
+            f"the reference (the first ends at {starts[1]:g} s)"
+        )
+    return starts[: k + 1], scale[:k]
 
 
-def add_learning(builder, d: IlcDriver, trajectory, x_d, motor_angle, *, geometry,
-                 period_s: float, offset_s: float, duration_s: float,
-                 floor: tuple[float, float]):
+def add_learning(
+    builder,
+    d: IlcDriver,
+    trajectory,
+    x_d,
+    motor_angle,
+    *,
+    geometry,
+    period_s: float,
+    offset_s: float,
+    duration_s: float,
+    floor: tuple[float, float],
+):
     """Add the learner and the Adder; returns (learner, the corrected x_d output port).
 
     Args:
@@ -59,12 +74,27 @@ def add_learning(builder, d: IlcDriver, trajectory, x_d, motor_angle, *, geometr
     """
     starts, scale = learning_cycles(d, trajectory, duration_s)
     floor_m, floor_rad = floor
-    learner = builder.AddNamedSystem("learner", IterativeLearningController(
-        geometry, period_s, offset_s, starts, scale, gain=d.gain,
-        q_cutoff_hz=d.q_cutoff_hz, lead_s=d.lead_s, error=d.error,
-        sample_period_s=d.sample_period_s, bound_ratio=d.bound_ratio, floor_m=floor_m,
-        floor_rad=floor_rad, max_rollbacks=d.max_rollbacks, learn_cycles=d.learn_cycles,
-        gain_decay_cycles=d.gain_decay_cycles))
+    learner = builder.AddNamedSystem(
+        "learner",
+        IterativeLearningController(
+            geometry,
+            period_s,
+            offset_s,
+            starts,
+            scale,
+            gain=d.gain,
+            q_cutoff_hz=d.q_cutoff_hz,
+            lead_s=d.lead_s,
+            error=d.error,
+            sample_period_s=d.sample_period_s,
+            bound_ratio=d.bound_ratio,
+            floor_m=floor_m,
+            floor_rad=floor_rad,
+            max_rollbacks=d.max_rollbacks,
+            learn_cycles=d.learn_cycles,
+            gain_decay_cycles=d.gain_decay_cycles,
+        ),
+    )
     builder.Connect(x_d, learner.GetInputPort("x_d"))
     builder.Connect(motor_angle, learner.GetInputPort("motor_angle"))
     add = builder.AddNamedSystem("learned_x_d", Adder(2, 18))

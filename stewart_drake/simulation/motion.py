@@ -79,8 +79,9 @@ class ReferenceConfig:
         """
         raise NotImplementedError
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
         """The reference x_d(t) (:class:`Reference`).
 
         Args:
@@ -110,8 +111,10 @@ class ReferenceConfig:
 
 # -- cycles of any reference ---------------------------------------------------------------------
 
-def reference_cycles(reference: Reference, t_end: float,
-                     dt: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+
+def reference_cycles(
+    reference: Reference, t_end: float, dt: float = 0.01
+) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of a reference's cycles over [0, t_end] s.
 
     A reference that knows its cycles says them (``cycles``: the motions of the library). Any
@@ -126,8 +129,9 @@ def reference_cycles(reference: Reference, t_end: float,
     return peak_cycles(reference, t_end, dt)
 
 
-def peak_cycles(reference: Reference, t_end: float,
-                dt: float = 0.01) -> tuple[np.ndarray, np.ndarray]:
+def peak_cycles(
+    reference: Reference, t_end: float, dt: float = 0.01
+) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of a reference's cycles over [0, t_end] s, found where its
     main motion peaks: the principal component of the pose, sampled every ``dt`` s, the side
     whose peaks come most regularly; starts in s, ``scale`` each cycle's peak to peak over the
@@ -153,10 +157,12 @@ def peak_cycles(reference: Reference, t_end: float,
             if best is None or cv < best[0]:
                 best = (cv, peaks)
     if best is None:
-        raise InvalidConfigError(f"the reference {getattr(reference, 'name', '')} does not "
-                                 f"repeat: fewer than two cycles in {t_end:g} s")
+        raise InvalidConfigError(
+            f"the reference {getattr(reference, 'name', '')} does not "
+            f"repeat: fewer than two cycles in {t_end:g} s"
+        )
     peaks = best[1]
-    p2p = np.array([np.ptp(pc[a:b + 1]) for a, b in zip(peaks[:-1], peaks[1:])])
+    p2p = np.array([np.ptp(pc[a : b + 1]) for a, b in zip(peaks[:-1], peaks[1:])])
     return t[peaks], p2p / np.median(p2p)
 
 

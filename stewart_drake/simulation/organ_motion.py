@@ -38,7 +38,6 @@ import math
 import re
 from dataclasses import dataclass, field, fields, replace
 from fractions import Fraction
-from typing import Dict
 
 import numpy as np
 
@@ -51,8 +50,14 @@ from .trajectories import AXIS_NAMES
 #: The patient frame in the platform frame: the patient lies supine along the platform's X axis,
 #: head towards +X (superior), left towards +Y, anterior up (+Z). Rotations about the patient's
 #: axes are the platform's roll, pitch and yaw about the same axes.
-PATIENT_AXES = {"SI": "X", "LR": "Y", "AP": "Z", "rot_SI": "phi", "rot_LR": "theta",
-                "rot_AP": "psi"}
+PATIENT_AXES = {
+    "SI": "X",
+    "LR": "Y",
+    "AP": "Z",
+    "rot_SI": "phi",
+    "rot_LR": "theta",
+    "rot_AP": "psi",
+}
 #: Platform axis names accepted besides AXIS_NAMES.
 _AXIS_SYNONYMS = {"roll": "phi", "pitch": "theta", "yaw": "psi", "x": "X", "y": "Y", "z": "Z"}
 
@@ -71,7 +76,8 @@ def axis_index(name: str) -> tuple[int, float]:
     if key not in AXIS_NAMES:
         raise InvalidConfigError(
             f"unknown axis {name!r}: use a platform axis ({', '.join(AXIS_NAMES)}, roll, pitch, "
-            f"yaw) or a patient axis ({', '.join(PATIENT_AXES)}), with an optional sign")
+            f"yaw) or a patient axis ({', '.join(PATIENT_AXES)}), with an optional sign"
+        )
     return AXIS_NAMES.index(key), sign
 
 
@@ -81,8 +87,11 @@ def _direction(name: str, value, rotation: bool = False) -> tuple:
     if isinstance(value, str) and not re.fullmatch(r"[\s\d.,eE+-]+", value):
         k, sign = axis_index(value)
         if (k < 3) != rotation:
-            kind = "a rotation axis (phi, theta, psi, rot_SI...)" if rotation else \
-                "a translation axis (X, Y, Z, SI, LR, AP)"
+            kind = (
+                "a rotation axis (phi, theta, psi, rot_SI...)"
+                if rotation
+                else "a translation axis (X, Y, Z, SI, LR, AP)"
+            )
             raise InvalidConfigError(f"{name} must be {kind}, got {value!r}")
         v = np.zeros(3)
         v[k % 3] = sign
@@ -114,8 +123,10 @@ def check_centre(name: str, centre) -> tuple:
     """
     c = as_poses(f"{name}: centre", centre)
     if c.shape != (6,):
-        raise InvalidConfigError(f"{name}: centre must be one pose (6,) [phi, theta, psi, X, Y, "
-                                 f"Z] in rad and m, got shape {c.shape}")
+        raise InvalidConfigError(
+            f"{name}: centre must be one pose (6,) [phi, theta, psi, X, Y, "
+            f"Z] in rad and m, got shape {c.shape}"
+        )
     return tuple(float(v) for v in c)
 
 
@@ -125,7 +136,7 @@ class _Motion:
     centre: tuple = tuple(X_HOME)
     name: str = ""
 
-    def displacement(self, t):           # pragma: no cover - every motion defines it
+    def displacement(self, t):  # pragma: no cover - every motion defines it
         raise NotImplementedError
 
     def evaluate(self, t):
@@ -209,13 +220,17 @@ class Breathing(_Motion):
         _set(self, "period_s", as_number(f"{self.name}: period_s", self.period_s, 0.05, 3600.0))
         n = as_number(f"{self.name}: shape_n", self.shape_n, 1, 20)
         if not n.is_integer():
-            raise InvalidConfigError(f"{self.name}: shape_n must be an integer in [1, 20], got "
-                                     f"{self.shape_n!r}")
+            raise InvalidConfigError(
+                f"{self.name}: shape_n must be an integer in [1, 20], got {self.shape_n!r}"
+            )
         _set(self, "shape_n", int(n))
         _set(self, "phase_rad", as_number(f"{self.name}: phase_rad", self.phase_rad))
         _set(self, "direction", _direction(f"{self.name}: direction", self.direction))
-        _set(self, "tilt_rad", as_number(f"{self.name}: tilt_rad", self.tilt_rad, -math.pi / 2,
-                                         math.pi / 2))
+        _set(
+            self,
+            "tilt_rad",
+            as_number(f"{self.name}: tilt_rad", self.tilt_rad, -math.pi / 2, math.pi / 2),
+        )
         _set(self, "tilt_axis", _direction(f"{self.name}: tilt_axis", self.tilt_axis, True))
         _set(self, "centre", check_centre(self.name, self.centre))
 
@@ -287,11 +302,17 @@ class Heartbeat(_Motion):
         _set(self, "rate_bpm", as_number(f"{self.name}: rate_bpm", self.rate_bpm, 1.0, 600.0))
         a = as_array(f"{self.name}: harmonics", self.harmonics).reshape(-1)
         if a.size < 1 or a.size > 20 or not np.any(a != 0):
-            raise InvalidConfigError(f"{self.name}: harmonics needs 1 to 20 relative "
-                                     f"amplitudes, not all zero, got {self.harmonics!r}")
-        phases = (np.zeros(a.size) if len(self.harmonic_phases_rad) == 0 else
-                  as_array(f"{self.name}: harmonic_phases_rad", self.harmonic_phases_rad,
-                           shape=(a.size,)))
+            raise InvalidConfigError(
+                f"{self.name}: harmonics needs 1 to 20 relative "
+                f"amplitudes, not all zero, got {self.harmonics!r}"
+            )
+        phases = (
+            np.zeros(a.size)
+            if len(self.harmonic_phases_rad) == 0
+            else as_array(
+                f"{self.name}: harmonic_phases_rad", self.harmonic_phases_rad, shape=(a.size,)
+            )
+        )
         _set(self, "harmonics", tuple(float(v) for v in a))
         _set(self, "harmonic_phases_rad", tuple(float(v) for v in phases))
         _set(self, "direction", _direction(f"{self.name}: direction", self.direction))
@@ -309,7 +330,8 @@ class Heartbeat(_Motion):
     def _unit(self, t):
         f, k = self.frequency_hz, np.arange(1, len(self.harmonics) + 1)
         arg = 2 * np.pi * f * np.asarray(t, dtype=float)[:, None] * k + np.asarray(
-            self.harmonic_phases_rad)
+            self.harmonic_phases_rad
+        )
         w = 2 * np.pi * f * k
         a = np.asarray(self.harmonics)
         return (np.sin(arg) @ a, np.cos(arg) @ (a * w), -np.sin(arg) @ (a * w * w))
@@ -338,7 +360,7 @@ def common_period(periods, max_ratio_denominator: int = 24) -> float | None:
         ratio = Fraction(total / p).limit_denominator(max_ratio_denominator)
         if abs(ratio - total / p) > 1e-9 * total / p:
             return None
-        total = total * ratio.denominator       # = p * ratio.numerator
+        total = total * ratio.denominator  # = p * ratio.numerator
     return total
 
 
@@ -371,10 +393,12 @@ class MotionSum(_Motion):
 
     def __post_init__(self):
         if self.centre is None:
-            if not self.parts or not all(callable(getattr(p, "evaluate", None))
-                                         for p in self.parts):
-                raise InvalidConfigError(f"{self.name}: parts must be references (with "
-                                         f"evaluate(t))")
+            if not self.parts or not all(
+                callable(getattr(p, "evaluate", None)) for p in self.parts
+            ):
+                raise InvalidConfigError(
+                    f"{self.name}: parts must be references (with evaluate(t))"
+                )
         else:
             if not self.parts or not all(isinstance(p, _Motion) for p in self.parts):
                 raise InvalidConfigError(f"{self.name}: parts must be motions of the library")
@@ -459,20 +483,34 @@ class IrregularBreathing(_Motion):
     name: str = "irregular_breathing"
 
     def __post_init__(self):
-        mean = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
-                         shape_n=self.shape_n, direction=self.direction, tilt_rad=self.tilt_rad,
-                         tilt_axis=self.tilt_axis, centre=self.centre, name=self.name)
-        for f in ("amplitude_m", "period_s", "shape_n", "direction", "tilt_rad", "tilt_axis",
-                  "centre"):
+        mean = Breathing(
+            amplitude_m=self.amplitude_m,
+            period_s=self.period_s,
+            shape_n=self.shape_n,
+            direction=self.direction,
+            tilt_rad=self.tilt_rad,
+            tilt_axis=self.tilt_axis,
+            centre=self.centre,
+            name=self.name,
+        )
+        for f in (
+            "amplitude_m",
+            "period_s",
+            "shape_n",
+            "direction",
+            "tilt_rad",
+            "tilt_axis",
+            "centre",
+        ):
             object.__setattr__(self, f, getattr(mean, f))
         for f in ("amplitude_cv", "period_cv"):
-            object.__setattr__(self, f, as_number(f"{self.name}: {f}", getattr(self, f), 0.0,
-                                                  0.35))
+            object.__setattr__(self, f, as_number(f"{self.name}: {f}", getattr(self, f), 0.0, 0.35))
         for f, lo, hi in (("seed", 0, 2**32 - 1), ("max_cycles", 1, 10**6)):
             v = as_number(f"{self.name}: {f}", getattr(self, f), lo, hi)
             if not v.is_integer():
-                raise InvalidConfigError(f"{self.name}: {f} must be an integer in [{lo}, {hi}], "
-                                         f"got {getattr(self, f)!r}")
+                raise InvalidConfigError(
+                    f"{self.name}: {f} must be an integer in [{lo}, {hi}], got {getattr(self, f)!r}"
+                )
             object.__setattr__(self, f, int(v))
         rng = np.random.default_rng(self.seed)
         g, h = np.clip(rng.standard_normal((2, self.max_cycles)), -2.5, 2.5)
@@ -494,7 +532,7 @@ class IrregularBreathing(_Motion):
         t = np.asarray(t, dtype=float)
         k = np.clip(np.searchsorted(self._starts, t, side="right") - 1, 0, self.max_cycles - 1)
         T, b = np.diff(self._starts)[k], self._amplitudes[k]
-        tau = np.clip(t - self._starts[k], 0.0, T)          # held after the last cycle
+        tau = np.clip(t - self._starts[k], 0.0, T)  # held after the last cycle
         w = math.pi / T
         C, dC, ddC = _lujan_shape(w * tau - math.pi / 2, self.shape_n)
         s, ds, dds = 0.5 * self.amplitude_m - b * C, -b * w * dC, -b * w * w * ddC
@@ -517,7 +555,7 @@ class IrregularBreathing(_Motion):
         """The drawn cycles that begin before ``t_end`` (see :meth:`_Motion.cycles`)."""
         k = max(1, int(np.searchsorted(self._starts, t_end - 1e-9, side="left")))
         k = min(k, self.max_cycles)
-        return self._starts[:k + 1].copy(), self._amplitudes[:k] / self.amplitude_m
+        return self._starts[: k + 1].copy(), self._amplitudes[:k] / self.amplitude_m
 
 
 @dataclass(frozen=True)
@@ -551,24 +589,44 @@ class HysteresisBreathing(_Motion):
     name: str = "hysteresis"
 
     def __post_init__(self):
-        main = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
-                         shape_n=self.shape_n, phase_rad=self.phase_rad,
-                         direction=self.direction, centre=self.centre, name=self.name)
+        main = Breathing(
+            amplitude_m=self.amplitude_m,
+            period_s=self.period_s,
+            shape_n=self.shape_n,
+            phase_rad=self.phase_rad,
+            direction=self.direction,
+            centre=self.centre,
+            name=self.name,
+        )
         for f in ("amplitude_m", "period_s", "shape_n", "phase_rad", "direction", "centre"):
             object.__setattr__(self, f, getattr(main, f))
-        object.__setattr__(self, "secondary_amplitude_m", as_number(
-            f"{self.name}: secondary_amplitude_m", self.secondary_amplitude_m, 0.0))
-        object.__setattr__(self, "secondary_direction", _direction(
-            f"{self.name}: secondary_direction", self.secondary_direction))
+        object.__setattr__(
+            self,
+            "secondary_amplitude_m",
+            as_number(f"{self.name}: secondary_amplitude_m", self.secondary_amplitude_m, 0.0),
+        )
+        object.__setattr__(
+            self,
+            "secondary_direction",
+            _direction(f"{self.name}: secondary_direction", self.secondary_direction),
+        )
         object.__setattr__(self, "lag", as_number(f"{self.name}: lag", self.lag, 0.0, 0.5))
 
     def _breaths(self):
-        main = Breathing(amplitude_m=self.amplitude_m, period_s=self.period_s,
-                         shape_n=self.shape_n, phase_rad=self.phase_rad,
-                         direction=self.direction, name=self.name)
-        second = replace(main, amplitude_m=self.secondary_amplitude_m,
-                         direction=self.secondary_direction,
-                         phase_rad=self.phase_rad + math.pi * self.lag)
+        main = Breathing(
+            amplitude_m=self.amplitude_m,
+            period_s=self.period_s,
+            shape_n=self.shape_n,
+            phase_rad=self.phase_rad,
+            direction=self.direction,
+            name=self.name,
+        )
+        second = replace(
+            main,
+            amplitude_m=self.secondary_amplitude_m,
+            direction=self.secondary_direction,
+            phase_rad=self.phase_rad + math.pi * self.lag,
+        )
         return main, second
 
     def displacement(self, t):
@@ -588,7 +646,7 @@ class HysteresisBreathing(_Motion):
         t = main.cycle_offset_s + np.linspace(0.0, self.period_s, 4001)
         p = main.shape(t)[0] * self.amplitude_m
         q = second.shape(t)[0] * self.secondary_amplitude_m
-        k = int(np.argmin(p))                       # end-inhale splits the two paths
+        k = int(np.argmin(p))  # end-inhale splits the two paths
         levels = np.linspace(p.min(), p.max(), 201)[1:-1]
         paths = []
         for part in (slice(0, k + 1), slice(k, None)):
@@ -599,26 +657,32 @@ class HysteresisBreathing(_Motion):
 
 # -- the library by name ---------------------------------------------------------------------------
 
+
 def _breathing_heartbeat(**kw):
-    heart = {k[len("heart_"):]: v for k, v in kw.items() if k.startswith("heart_")}
+    heart = {k[len("heart_") :]: v for k, v in kw.items() if k.startswith("heart_")}
     breath = {k: v for k, v in kw.items() if not k.startswith("heart_") and k != "centre"}
     centre = kw.get("centre", tuple(X_HOME))
-    return MotionSum(parts=(Breathing(**breath), Heartbeat(**heart)), centre=centre,
-                     name="breathing_heartbeat")
+    return MotionSum(
+        parts=(Breathing(**breath), Heartbeat(**heart)), centre=centre, name="breathing_heartbeat"
+    )
 
 
 #: name -> (factory, the class whose fields are its parameters).
-LIBRARY = {"breathing": (Breathing, Breathing),
-           "heartbeat": (Heartbeat, Heartbeat),
-           "breathing_heartbeat": (_breathing_heartbeat, None),
-           "irregular_breathing": (IrregularBreathing, IrregularBreathing),
-           "hysteresis": (HysteresisBreathing, HysteresisBreathing)}
+LIBRARY = {
+    "breathing": (Breathing, Breathing),
+    "heartbeat": (Heartbeat, Heartbeat),
+    "breathing_heartbeat": (_breathing_heartbeat, None),
+    "irregular_breathing": (IrregularBreathing, IrregularBreathing),
+    "hysteresis": (HysteresisBreathing, HysteresisBreathing),
+}
 
 #: Units a parameter value may carry, by the suffix of the field it sets: factor to SI.
-UNITS = {"m": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6},
-         "rad": {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180},
-         "s": {"s": 1.0, "ms": 1e-3, "min": 60.0},
-         "bpm": {"bpm": 1.0, "/min": 1.0, "hz": 60.0}}
+UNITS = {
+    "m": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6},
+    "rad": {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180},
+    "s": {"s": 1.0, "ms": 1e-3, "min": 60.0},
+    "bpm": {"bpm": 1.0, "/min": 1.0, "hz": 60.0},
+}
 
 
 def parameter_names(motion: str) -> list[str]:
@@ -634,8 +698,10 @@ def parameter_names(motion: str) -> list[str]:
 
 def _library(motion: str):
     if motion not in LIBRARY:
-        raise InvalidConfigError(f"unknown motion {motion!r}; the library has "
-                                 f"{', '.join(LIBRARY)} (or give a trace file, .csv)")
+        raise InvalidConfigError(
+            f"unknown motion {motion!r}; the library has "
+            f"{', '.join(LIBRARY)} (or give a trace file, .csv)"
+        )
     return LIBRARY[motion]
 
 
@@ -650,13 +716,17 @@ def _parse_value(key: str, field_name: str, value):
     if suffix in UNITS:
         m = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*([a-zA-Z/]*)", text)
         if m is None:
-            raise InvalidConfigError(f"parameter {key}: {value!r} is not a number with a unit "
-                                     f"(e.g. 15mm); units: {', '.join(UNITS[suffix])}")
+            raise InvalidConfigError(
+                f"parameter {key}: {value!r} is not a number with a unit "
+                f"(e.g. 15mm); units: {', '.join(UNITS[suffix])}"
+            )
         number, unit = float(m.group(1)), m.group(2).lower()
         units = {u.lower(): f for u, f in UNITS[suffix].items()}
         if unit and unit not in units:
-            raise InvalidConfigError(f"parameter {key}: unknown unit {m.group(2)!r}; use one of "
-                                     f"{', '.join(UNITS[suffix])}")
+            raise InvalidConfigError(
+                f"parameter {key}: unknown unit {m.group(2)!r}; use one of "
+                f"{', '.join(UNITS[suffix])}"
+            )
         return number * (units[unit] if unit else 1.0)
     if "direction" in field_name or "axis" in field_name:
         return text
@@ -665,8 +735,10 @@ def _parse_value(key: str, field_name: str, value):
             return tuple(float(c) for c in text.split(",") if c.strip())
         return float(text)
     except ValueError:
-        raise InvalidConfigError(f"parameter {key}: {value!r} is not a number"
-                                 + (" list (1,0.5,0.25)" if "," in text else "")) from None
+        raise InvalidConfigError(
+            f"parameter {key}: {value!r} is not a number"
+            + (" list (1,0.5,0.25)" if "," in text else "")
+        ) from None
 
 
 def make_motion(motion: str, parameters: dict | None = None):
@@ -691,13 +763,26 @@ def make_motion(motion: str, parameters: dict | None = None):
     kwargs = {}
     for key, value in (parameters or {}).items():
         key = str(key).strip()
-        name = key if key in known else next(
-            (n for n in known if "_" in n and n.rsplit("_", 1)[0] == key
-             and n.rsplit("_", 1)[1] in (*UNITS, "n")), None)
+        name = (
+            key
+            if key in known
+            else next(
+                (
+                    n
+                    for n in known
+                    if "_" in n
+                    and n.rsplit("_", 1)[0] == key
+                    and n.rsplit("_", 1)[1] in (*UNITS, "n")
+                ),
+                None,
+            )
+        )
         if name is None:
-            raise InvalidConfigError(f"{motion} has no parameter {key!r}; its parameters: "
-                                     f"{', '.join(known)} (a unit suffix may be left out and "
-                                     f"given with the value: amplitude=15mm)")
+            raise InvalidConfigError(
+                f"{motion} has no parameter {key!r}; its parameters: "
+                f"{', '.join(known)} (a unit suffix may be left out and "
+                f"given with the value: amplitude=15mm)"
+            )
         kwargs[name] = _parse_value(key, name, value)
     try:
         return factory(**kwargs)
@@ -706,6 +791,7 @@ def make_motion(motion: str, parameters: dict | None = None):
 
 
 # -- scaling a reference into what the robot can do ----------------------------------------------
+
 
 class ScaledReference:
     """A reference shrunk about its centre: centre + scale (x(t) - centre), rates and
@@ -722,16 +808,16 @@ class ScaledReference:
         self.reference = reference
         self.scale = as_number("scale", scale, 0.0, 1.0, lo_open=True)
         centre = getattr(reference, "centre", None)
-        self.centre = np.asarray(centre if centre is not None else
-                                 np.ravel(reference.evaluate(0.0)[0]), dtype=float)
+        self.centre = np.asarray(
+            centre if centre is not None else np.ravel(reference.evaluate(0.0)[0]), dtype=float
+        )
         self.name = getattr(reference, "name", "reference")
         self.end_time = getattr(reference, "end_time", None)
 
     def evaluate(self, t):
         x, v, a = self.reference.evaluate(t)
         s = self.scale
-        return self.centre + s * (np.asarray(x) - self.centre), s * np.asarray(v), \
-            s * np.asarray(a)
+        return self.centre + s * (np.asarray(x) - self.centre), s * np.asarray(v), s * np.asarray(a)
 
     def frequencies_hz(self) -> dict:
         f = getattr(self.reference, "frequencies_hz", None)
@@ -753,6 +839,7 @@ def scaled(reference: Reference, scale: float) -> Reference:
 
 # -- a scenario's choice of a motion ---------------------------------------------------------------
 
+
 @dataclass
 class OrganMotionReference(ReferenceConfig):
     """A motion of the organ-motion library (:mod:`~.organ_motion`: breathing, heartbeat,
@@ -766,15 +853,16 @@ class OrganMotionReference(ReferenceConfig):
     """
 
     motion: str = "breathing"
-    parameters: Dict[str, str] = field(default_factory=dict)
+    parameters: dict[str, str] = field(default_factory=dict)
     scale: float = 1.0
 
     def validate(self) -> None:
         as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
-        self._motion()                           # names an unknown motion or parameter
+        self._motion()  # names an unknown motion or parameter
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
         return self._motion()
 
     def _motion(self) -> Reference:
@@ -785,7 +873,21 @@ class OrganMotionReference(ReferenceConfig):
         return self.motion
 
 
-__all__ = ["Breathing", "Heartbeat", "MotionSum", "IrregularBreathing", "HysteresisBreathing",
-           "LIBRARY", "make_motion", "parameter_names", "ScaledReference", "scaled",
-           "axis_index", "check_centre", "common_period", "PATIENT_AXES", "UNITS",
-           "OrganMotionReference"]
+__all__ = [
+    "Breathing",
+    "Heartbeat",
+    "MotionSum",
+    "IrregularBreathing",
+    "HysteresisBreathing",
+    "LIBRARY",
+    "make_motion",
+    "parameter_names",
+    "ScaledReference",
+    "scaled",
+    "axis_index",
+    "check_centre",
+    "common_period",
+    "PATIENT_AXES",
+    "UNITS",
+    "OrganMotionReference",
+]

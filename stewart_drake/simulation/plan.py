@@ -15,8 +15,8 @@ guard, the learner) receives these values and never reads the scenario again.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from ..control.contract import ControllerContext, resolve_controller
 from ..control.estimator import PoseEstimator
@@ -74,17 +74,31 @@ class RunPlan:
         at x_dot0 (6,) [rad/s, m/s]: on the robot as built a new encoders' pose estimator, with
         a network tuner its features' window. A new context (and estimator) each call."""
         hw, h = self.scenario.hardware, self.control_period_s
-        pose_estimator = None if hw is None else PoseEstimator(
-            self.geometry, h, hw.encoders.quantum_rad, x0,
-            rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
-            tolerance_counts=hw.estimator.fk_tolerance_counts)
+        pose_estimator = (
+            None
+            if hw is None
+            else PoseEstimator(
+                self.geometry,
+                h,
+                hw.encoders.quantum_rad,
+                x0,
+                rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
+                tolerance_counts=hw.estimator.fk_tolerance_counts,
+            )
+        )
         tuner = self.scenario.tuner
         return ControllerContext(
-            geometry=self.geometry, period_s=h, offset_s=self.sample_offset_s,
-            plant_time_step_s=self.plant_time_step_s, x_initial=x0, x_dot_initial=x_dot0,
-            torque_limit_Nm=self.torque_limit_Nm, delay_periods=self.delay_periods,
+            geometry=self.geometry,
+            period_s=h,
+            offset_s=self.sample_offset_s,
+            plant_time_step_s=self.plant_time_step_s,
+            x_initial=x0,
+            x_dot_initial=x_dot0,
+            torque_limit_Nm=self.torque_limit_Nm,
+            delay_periods=self.delay_periods,
             pose_estimator=pose_estimator,
-            feature_window=None if tuner is None else tuner.density_window())
+            feature_window=None if tuner is None else tuner.density_window(),
+        )
 
     def encoder_count_at_tip(self) -> tuple[float, float]:
         """One encoder count at the crank tip, as a translation (m) and as a rotation of the
@@ -96,8 +110,13 @@ class RunPlan:
         return tip, tip / self.geometry.platform_radius
 
 
-def make_plan(scenario: Scenario | RunPlan | None = None, *, reference=None, controller=None,
-              with_reference: bool = True) -> RunPlan:
+def make_plan(
+    scenario: Scenario | RunPlan | None = None,
+    *,
+    reference=None,
+    controller=None,
+    with_reference: bool = True,
+) -> RunPlan:
     """Validate ``scenario`` and derive every value of its run (:class:`RunPlan`).
 
     Args:
@@ -119,17 +138,22 @@ def make_plan(scenario: Scenario | RunPlan | None = None, *, reference=None, con
     """
     from .trajectories import as_trajectory
 
-    plan = scenario if isinstance(scenario, RunPlan) else _robot_plan(
-        (scenario if scenario is not None else Scenario()).validate())
+    plan = (
+        scenario
+        if isinstance(scenario, RunPlan)
+        else _robot_plan((scenario if scenario is not None else Scenario()).validate())
+    )
     changes = {}
     if reference is not None:
         changes["reference"] = as_trajectory(reference)
     elif with_reference and plan.reference is None:
-        changes["reference"] = as_trajectory(plan.scenario.reference.make(
-            plan.geometry, plan.duration_s, plan.torque_limit_Nm))
+        changes["reference"] = as_trajectory(
+            plan.scenario.reference.make(plan.geometry, plan.duration_s, plan.torque_limit_Nm)
+        )
     if controller is not None:
-        changes["controller_factory"] = (resolve_controller(controller)
-                                         if isinstance(controller, str) else controller)
+        changes["controller_factory"] = (
+            resolve_controller(controller) if isinstance(controller, str) else controller
+        )
     return dataclasses.replace(plan, **changes) if changes else plan
 
 
@@ -142,29 +166,45 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     plant_geometry = geometry
     if scenario.payload_scale != 1.0:
         k = scenario.payload_scale
-        plant_geometry = geometry.replace(platform_mass=geometry.platform_mass * k,
-                                          platform_inertia=tuple(k * v for v in
-                                                                 geometry.platform_inertia))
-    limits = [v for v in (scenario.torque_limit_Nm,
-                          None if servo is None else servo.peak_torque_Nm) if v is not None]
+        plant_geometry = geometry.replace(
+            platform_mass=geometry.platform_mass * k,
+            platform_inertia=tuple(k * v for v in geometry.platform_inertia),
+        )
+    limits = [
+        v
+        for v in (scenario.torque_limit_Nm, None if servo is None else servo.peak_torque_Nm)
+        if v is not None
+    ]
     torque_limit = min(limits) if limits else None
     h_plant = scenario.plant.time_step
     return RunPlan(
-        scenario=scenario, geometry=geometry, plant_geometry=plant_geometry, servo=servo,
+        scenario=scenario,
+        geometry=geometry,
+        plant_geometry=plant_geometry,
+        servo=servo,
         torque_limit_Nm=torque_limit,
-        motor_limits=MotorLimits(torque_limit,
-                                 None if servo is None else servo.no_load_speed_rad_s,
-                                 scenario.guard.effort_margin, servo),
-        delay_periods=0 if scenario.hardware is None
+        motor_limits=MotorLimits(
+            torque_limit,
+            None if servo is None else servo.no_load_speed_rad_s,
+            scenario.guard.effort_margin,
+            servo,
+        ),
+        delay_periods=0
+        if scenario.hardware is None
         else scenario.hardware.computation_delay_periods,
-        plant_time_step_s=h_plant, control_period_s=scenario.control_period_s,
-        log_period_s=scenario.log_period_s, duration_s=scenario.duration_s,
-        sample_offset_s=0.5 * h_plant, reference=None,
-        controller_factory=scenario.controller.resolve())
+        plant_time_step_s=h_plant,
+        control_period_s=scenario.control_period_s,
+        log_period_s=scenario.log_period_s,
+        duration_s=scenario.duration_s,
+        sample_offset_s=0.5 * h_plant,
+        reference=None,
+        controller_factory=scenario.controller.resolve(),
+    )
 
 
-def check_reference(plan: Scenario | RunPlan, trajectory=None,
-                    raise_refused: bool = True) -> TrajectoryReport:
+def check_reference(
+    plan: Scenario | RunPlan, trajectory=None, raise_refused: bool = True
+) -> TrajectoryReport:
     """Refuse a reference the robot of ``plan`` cannot follow, before anything is simulated:
     :func:`~.guard.check_path` with the plan's robot as simulated (payload included), duration,
     control period, guard bounds and motor limits.
@@ -182,6 +222,12 @@ def check_reference(plan: Scenario | RunPlan, trajectory=None,
 
     plan = make_plan(plan, with_reference=trajectory is None)
     trajectory = plan.reference if trajectory is None else trajectory
-    return check_path(trajectory, plan.plant_geometry, plan.duration_s, plan.control_period_s,
-                      plan.scenario.guard, plan.motor_limits, raise_refused=raise_refused)
-
+    return check_path(
+        trajectory,
+        plan.plant_geometry,
+        plan.duration_s,
+        plan.control_period_s,
+        plan.scenario.guard,
+        plan.motor_limits,
+        raise_refused=raise_refused,
+    )

@@ -43,9 +43,16 @@ class ReferenceSources:
     T_ff_table: np.ndarray
 
 
-def sample_reference(trajectory, geometry: StewartGeometry, duration_s: float, period_s: float,
-                     offset_s: float, lead_s: float, feedforward: str = "gravity",
-                     feedforward_lead_s: float = 0.0):
+def sample_reference(
+    trajectory,
+    geometry: StewartGeometry,
+    duration_s: float,
+    period_s: float,
+    offset_s: float,
+    lead_s: float,
+    feedforward: str = "gravity",
+    feedforward_lead_s: float = 0.0,
+):
     """Reference and feed-forward at the sample instants t_k = k h + offset, k = 0..N.
 
     Args:
@@ -69,17 +76,25 @@ def sample_reference(trajectory, geometry: StewartGeometry, duration_s: float, p
     if feedforward_lead_s:
         t_ff = t_eval + feedforward_lead_s
         x_ff, _, xdd_ff = trajectory.evaluate(t_ff)
-        T_ff = feedforward_torques(geometry, x_ff, xdd_ff, feedforward,
-                                   theta=kinematics.ik(geometry, x_ff, t=t_ff))
+        T_ff = feedforward_torques(
+            geometry, x_ff, xdd_ff, feedforward, theta=kinematics.ik(geometry, x_ff, t=t_ff)
+        )
     else:
         T_ff = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
     return t_sample, t_eval, np.concatenate([x, xd, xdd], axis=1), T_ff
 
 
-def add_reference_sources(builder, trajectory, geometry: StewartGeometry, duration_s: float,
-                          period_s: float, offset_s: float = 0.0, lead_s: float = 0.0,
-                          feedforward: str = "gravity",
-                          feedforward_lead_s: float = 0.0) -> ReferenceSources:
+def add_reference_sources(
+    builder,
+    trajectory,
+    geometry: StewartGeometry,
+    duration_s: float,
+    period_s: float,
+    offset_s: float = 0.0,
+    lead_s: float = 0.0,
+    feedforward: str = "gravity",
+    feedforward_lead_s: float = 0.0,
+) -> ReferenceSources:
     """Add the reference x_d and the feed-forward T_ff as zero-order-hold TrajectorySources.
 
     A consumer that samples at t_k = k h + offset_s reads x_d(t_k + lead_s) and the feed-forward
@@ -98,18 +113,28 @@ def add_reference_sources(builder, trajectory, geometry: StewartGeometry, durati
     """
     if not 0.0 <= offset_s < period_s:
         raise InvalidConfigError(f"offset_s must be in [0, period_s), got {offset_s}")
-    t_sample, t_eval, x_d, T_ff = sample_reference(trajectory, geometry, duration_s, period_s,
-                                                   offset_s, lead_s, feedforward,
-                                                   feedforward_lead_s)
-    breaks = t_sample - offset_s                 # k h: the sample lies inside its interval
+    t_sample, t_eval, x_d, T_ff = sample_reference(
+        trajectory,
+        geometry,
+        duration_s,
+        period_s,
+        offset_s,
+        lead_s,
+        feedforward,
+        feedforward_lead_s,
+    )
+    breaks = t_sample - offset_s  # k h: the sample lies inside its interval
     # A zero-order hold keeps the value of break k on [t_k, t_k+1); the last break only closes
     # the last interval, so the tables already extend one period past the run.
-    ref = builder.AddNamedSystem("reference", TrajectorySource(
-        PiecewisePolynomial.ZeroOrderHold(breaks, x_d.T)))
-    ff = builder.AddNamedSystem("feedforward", TrajectorySource(
-        PiecewisePolynomial.ZeroOrderHold(breaks, T_ff.T)))
-    return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, x_d_table=x_d,
-                            T_ff_table=T_ff)
+    ref = builder.AddNamedSystem(
+        "reference", TrajectorySource(PiecewisePolynomial.ZeroOrderHold(breaks, x_d.T))
+    )
+    ff = builder.AddNamedSystem(
+        "feedforward", TrajectorySource(PiecewisePolynomial.ZeroOrderHold(breaks, T_ff.T))
+    )
+    return ReferenceSources(
+        x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, x_d_table=x_d, T_ff_table=T_ff
+    )
 
 
 @dataclass(frozen=True)
@@ -132,8 +157,10 @@ class ReferenceFilterLimits:
         for name in ("rate", "acceleration"):
             v = np.asarray(getattr(self, name), dtype=float)
             if v.shape != (6,) or not np.all(np.isfinite(v)) or np.any(v <= 0):
-                raise InvalidConfigError(f"ReferenceFilterLimits.{name} needs 6 finite values "
-                                         f"> 0, got {getattr(self, name)!r}")
+                raise InvalidConfigError(
+                    f"ReferenceFilterLimits.{name} needs 6 finite values "
+                    f"> 0, got {getattr(self, name)!r}"
+                )
         for name in ("bandwidth_hz", "target_period_s"):
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
@@ -170,11 +197,23 @@ class TeleopReference(LeafSystem):
     """
 
     #: Index slices of the parts of the state.
-    X, V, A, GOAL, T_FF, COUNTER = (slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 24),
-                                    slice(24, 30), slice(30, 31))
+    X, V, A, GOAL, T_FF, COUNTER = (
+        slice(0, 6),
+        slice(6, 12),
+        slice(12, 18),
+        slice(18, 24),
+        slice(24, 30),
+        slice(30, 31),
+    )
 
-    def __init__(self, geometry: StewartGeometry, x_initial, period_s: float,
-                 limits: ReferenceFilterLimits | None = None, admissible=None):
+    def __init__(
+        self,
+        geometry: StewartGeometry,
+        x_initial,
+        period_s: float,
+        limits: ReferenceFilterLimits | None = None,
+        admissible=None,
+    ):
         super().__init__()
         from pydrake.common.value import AbstractValue
         from pydrake.math import RigidTransform
@@ -196,12 +235,15 @@ class TeleopReference(LeafSystem):
         state[self.X], state[self.GOAL], state[self.T_FF] = x0, x0, self.T_ff_initial
         self._target = self.DeclareAbstractInputPort("target", AbstractValue.Make(RigidTransform()))
         self._state = self.DeclareDiscreteState(state)
-        self._x_d = self.DeclareVectorOutputPort("x_d", 18, self._CalcXd,
-                                                 prerequisites_of_calc={self.xd_ticket()})
-        self.DeclareVectorOutputPort("T_ff", 6, self._CalcTff,
-                                     prerequisites_of_calc={self.xd_ticket()})
-        self.DeclarePeriodicDiscreteUpdateEvent(period_sec=self.h, offset_sec=0.0,
-                                                update=self._Update)
+        self._x_d = self.DeclareVectorOutputPort(
+            "x_d", 18, self._CalcXd, prerequisites_of_calc={self.xd_ticket()}
+        )
+        self.DeclareVectorOutputPort(
+            "T_ff", 6, self._CalcTff, prerequisites_of_calc={self.xd_ticket()}
+        )
+        self.DeclarePeriodicDiscreteUpdateEvent(
+            period_sec=self.h, offset_sec=0.0, update=self._Update
+        )
 
     def _CalcXd(self, context, output):
         output.SetFromVector(context.get_discrete_state(self._state).get_value()[:18])
@@ -221,12 +263,11 @@ class TeleopReference(LeafSystem):
     def _Update(self, context, discrete_state):
         state = discrete_state.get_mutable_value(self._state)
         steps = state[self.COUNTER]
-        if steps[0] % self.steps_per_target == 0:          # read the target, re-plan
+        if steps[0] % self.steps_per_target == 0:  # read the target, re-plan
             from pydrake.math import RollPitchYaw
 
             X_WE = self._target.Eval(context)
-            target = np.concatenate([RollPitchYaw(X_WE.rotation()).vector(),
-                                     X_WE.translation()])
+            target = np.concatenate([RollPitchYaw(X_WE.rotation()).vector(), X_WE.translation()])
             if np.all(np.isfinite(target)) and np.any(target != state[self.GOAL]):
                 state[self.GOAL] = self.goal_toward(state[self.GOAL], target)
             state[self.T_FF] = holding_torques(self.geometry, state[self.X])
@@ -240,10 +281,16 @@ class TeleopReference(LeafSystem):
         state[self.X] = x + h * v_next
 
 
-def admissible_poses(geometry: StewartGeometry, x, cond_threshold: float = 200.0,
-                     min_sigma_min_inv: float = 0.01, peak_torque_Nm: float | None = None,
-                     torque_fraction: float = 0.9, clearance=None,
-                     min_clearance_m: float = 0.003) -> np.ndarray:
+def admissible_poses(
+    geometry: StewartGeometry,
+    x,
+    cond_threshold: float = 200.0,
+    min_sigma_min_inv: float = 0.01,
+    peak_torque_Nm: float | None = None,
+    torque_fraction: float = 0.9,
+    clearance=None,
+    min_clearance_m: float = 0.003,
+) -> np.ndarray:
     """(N,) bool: poses x (N, 6) inside every joint limit (:func:`~.limits.is_reachable`), away
     from singularities (cond(J) below ``cond_threshold``, 1/sigma_max(J) above
     ``min_sigma_min_inv``, the guard's thresholds), given the motors' peak torque held by at
@@ -263,7 +310,6 @@ def admissible_poses(geometry: StewartGeometry, x, cond_threshold: float = 200.0
             good[good] = np.abs(T).max(axis=1) <= torque_fraction * peak_torque_Nm
         if clearance is not None and good.any():
             idx = np.flatnonzero(ok)[good]
-            good[good] = clearance.sweep(x[idx], max_distance=min_clearance_m)[0] \
-                >= min_clearance_m
+            good[good] = clearance.sweep(x[idx], max_distance=min_clearance_m)[0] >= min_clearance_m
         ok[np.flatnonzero(ok)] = good
     return ok

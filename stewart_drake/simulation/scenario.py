@@ -33,7 +33,6 @@ import functools
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import List, Optional, Union
 
 import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
@@ -78,24 +77,22 @@ class Robot(ValueMirror):
 
     base_radius: float = _GEOMETRY.base_radius
     pivot_z: float = _GEOMETRY.pivot_z
-    pivot_angles_deg: List[float] = field(
-        default_factory=lambda: list(_GEOMETRY.pivot_angles_deg))
+    pivot_angles_deg: list[float] = field(default_factory=lambda: list(_GEOMETRY.pivot_angles_deg))
     platform_radius: float = _GEOMETRY.platform_radius
-    platform_angles_deg: List[float] = field(
-        default_factory=lambda: list(_GEOMETRY.platform_angles_deg))
-    crank_angles_deg: List[float] = field(
-        default_factory=lambda: list(_GEOMETRY.crank_angles_deg))
+    platform_angles_deg: list[float] = field(
+        default_factory=lambda: list(_GEOMETRY.platform_angles_deg)
+    )
+    crank_angles_deg: list[float] = field(default_factory=lambda: list(_GEOMETRY.crank_angles_deg))
     crank_length: float = _GEOMETRY.crank_length
     rod_length: float = _GEOMETRY.rod_length
     rod_mass: float = _GEOMETRY.rod_mass
-    rod_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.rod_inertia))
+    rod_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.rod_inertia))
     crank_mass: float = _GEOMETRY.crank_mass
-    crank_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.crank_inertia))
+    crank_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.crank_inertia))
     platform_mass: float = _GEOMETRY.platform_mass
-    platform_inertia: List[float] = field(
-        default_factory=lambda: list(_GEOMETRY.platform_inertia))
+    platform_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.platform_inertia))
     base_mass: float = _GEOMETRY.base_mass
-    base_inertia: List[float] = field(default_factory=lambda: list(_GEOMETRY.base_inertia))
+    base_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.base_inertia))
     base_plate_radius: float = _GEOMETRY.base_plate_radius
     rod_radius: float = _GEOMETRY.rod_radius
     rod_end_radius: float = _GEOMETRY.rod_end_radius
@@ -130,13 +127,19 @@ class Motors(ValueMirror):
 
 # -- references ------------------------------------------------------------------------------------
 
-ReferenceChoice = Union[NamedReference, CsvReference, SineReference, DataCollectionReference,
-                        OrganMotionReference, TraceReference]
-ControllerChoice = Union[LqiDriver, PdDriver, UserController]
+ReferenceChoice = (
+    NamedReference
+    | CsvReference
+    | SineReference
+    | DataCollectionReference
+    | OrganMotionReference
+    | TraceReference
+)
+ControllerChoice = LqiDriver | PdDriver | UserController
 
 
 def _choices(union) -> tuple:
-    """The classes of a tagged union (``typing.Union[A, B]`` -> (A, B))."""
+    """The classes of a tagged union (``A | B`` -> (A, B))."""
     return typing.get_args(union)
 
 
@@ -150,11 +153,16 @@ def choice_classes() -> dict:
     """{field: its choice classes} of every tagged union of the scenario (``controller``,
     ``reference``, ``tuner``) and the learner's ``learning``: what dispatching on a choice's
     type would test (``tools/code_shape.py`` counts such tests)."""
-    return {"controller": _choices(ControllerChoice), "reference": _choices(ReferenceChoice),
-            "tuner": _choices(TunerChoice), "learning": (IlcDriver,)}
+    return {
+        "controller": _choices(ControllerChoice),
+        "reference": _choices(ReferenceChoice),
+        "tuner": _choices(TunerChoice),
+        "learning": (IlcDriver,),
+    }
 
 
 # -- hardware ------------------------------------------------------------------------------------
+
 
 @dataclass
 class Encoders:
@@ -218,8 +226,10 @@ class Hardware:
         """
         for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
             if not isinstance(getattr(self, name), kind):
-                raise InvalidConfigError(f"hardware.{name} must be a {kind.__name__}, got "
-                                         f"{type(getattr(self, name)).__name__}")
+                raise InvalidConfigError(
+                    f"hardware.{name} must be a {kind.__name__}, got "
+                    f"{type(getattr(self, name)).__name__}"
+                )
         _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
         as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
         _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
@@ -227,14 +237,25 @@ class Hardware:
             self.motors.build()
         except (StewartError, TypeError) as err:
             raise InvalidConfigError(f"hardware.motors: {err}") from None
-        as_number("hardware.estimator.rate_cutoff_hz", self.estimator.rate_cutoff_hz, 0.0,
-                  0.5 / control_period_s, lo_open=True)
-        as_number("hardware.estimator.fk_tolerance_counts", self.estimator.fk_tolerance_counts,
-                  0.0, 1.0, lo_open=True)
+        as_number(
+            "hardware.estimator.rate_cutoff_hz",
+            self.estimator.rate_cutoff_hz,
+            0.0,
+            0.5 / control_period_s,
+            lo_open=True,
+        )
+        as_number(
+            "hardware.estimator.fk_tolerance_counts",
+            self.estimator.fk_tolerance_counts,
+            0.0,
+            1.0,
+            lo_open=True,
+        )
         _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
 
 
 # -- disturbance, sensor noise, guard --------------------------------------------------------------
+
 
 @dataclass
 class ToolDisturbance:
@@ -252,7 +273,7 @@ class ToolDisturbance:
 
     kind: str = "push"
     magnitude: float = 5.0
-    direction: List[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
+    direction: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
     start_s: float = 1.0
     duration_s: float = 0.0
     frequency_hz: float = 2.0
@@ -264,15 +285,22 @@ class ToolDisturbance:
             InvalidConfigError: names the field.
         """
         if self.kind not in ("push", "twist", "contact"):
-            raise InvalidConfigError(f"disturbance.kind must be 'push', 'twist' or 'contact', "
-                                     f"got {self.kind!r}")
+            raise InvalidConfigError(
+                f"disturbance.kind must be 'push', 'twist' or 'contact', got {self.kind!r}"
+            )
         for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
             as_number(f"disturbance.{name}", getattr(self, name), 0.0)
         axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
-        if axis is None or axis.shape != (3,) or not np.isfinite(axis).all() \
-                or np.linalg.norm(axis) == 0:
-            raise InvalidConfigError(f"disturbance.direction must be 3 finite numbers, not all "
-                                     f"zero, got {self.direction!r}")
+        if (
+            axis is None
+            or axis.shape != (3,)
+            or not np.isfinite(axis).all()
+            or np.linalg.norm(axis) == 0
+        ):
+            raise InvalidConfigError(
+                f"disturbance.direction must be 3 finite numbers, not all "
+                f"zero, got {self.direction!r}"
+            )
 
     def wrench(self, t) -> np.ndarray:
         """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
@@ -307,7 +335,7 @@ class SensorNoise:
         seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
     """
 
-    std: List[float] = field(default_factory=lambda: [0.0] * 12)
+    std: list[float] = field(default_factory=lambda: [0.0] * 12)
     seed: int = 0
 
     def std_vector(self) -> np.ndarray:
@@ -325,8 +353,9 @@ class SensorNoise:
         except (TypeError, ValueError):
             std = np.array([np.nan])
         if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-            raise InvalidConfigError(f"sensor_noise.std needs 12 finite values >= 0 (rad, m, "
-                                     f"rad/s, m/s), got {self.std}")
+            raise InvalidConfigError(
+                f"sensor_noise.std needs 12 finite values >= 0 (rad, m, rad/s, m/s), got {self.std}"
+            )
         _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
 
 
@@ -390,24 +419,25 @@ class Scenario:
     reference: ReferenceChoice = field(default_factory=NamedReference)
     feedforward: str = "gravity"
     controller: ControllerChoice = field(default_factory=LqiDriver)
-    tuner: Optional[TunerChoice] = None
+    tuner: TunerChoice | None = None
     duration_s: float = 10.0
     control_period_s: float = 1e-3
     log_period_s: float = 1e-3
-    sensor_noise: Optional[SensorNoise] = None
+    sensor_noise: SensorNoise | None = None
     payload_scale: float = 1.0
-    torque_limit_Nm: Optional[float] = None
+    torque_limit_Nm: float | None = None
     guard: GuardConfig = field(default_factory=GuardConfig)
-    hardware: Optional[Hardware] = None
-    disturbance: Optional[ToolDisturbance] = None
+    hardware: Hardware | None = None
+    disturbance: ToolDisturbance | None = None
     contact: bool = False
-    learning: Optional[IlcDriver] = None
+    learning: IlcDriver | None = None
 
     def __post_init__(self):
         self.validate()
 
-    def use_controller(self, controller: ControllerChoice,
-                       tuner: Optional[TunerChoice] = None) -> "Scenario":
+    def use_controller(
+        self, controller: ControllerChoice, tuner: TunerChoice | None = None
+    ) -> "Scenario":
         """Run this scenario with ``controller`` and ``tuner`` (None: fixed weights; the
         paper's ANN tuner comes with its gain switching, :func:`use_paper_tuner`): the one way
         the studies put a controller on a base scenario. Changes the scenario in place and
@@ -442,15 +472,20 @@ class Scenario:
         if self.hardware is not None:
             self.hardware.validate(self.control_period_s)
             if self.sensor_noise is not None:
-                raise InvalidConfigError("sensor_noise is the ideal pose sensor's; on the robot "
-                                         "as built the encoders are noisy: set "
-                                         "hardware.encoders.noise_counts instead")
-        self.controller.validate(self.control_period_s, 0 if self.hardware is None
-                                 else self.hardware.computation_delay_periods)
+                raise InvalidConfigError(
+                    "sensor_noise is the ideal pose sensor's; on the robot "
+                    "as built the encoders are noisy: set "
+                    "hardware.encoders.noise_counts instead"
+                )
+        self.controller.validate(
+            self.control_period_s,
+            0 if self.hardware is None else self.hardware.computation_delay_periods,
+        )
         self.reference.validate()
         if self.feedforward not in FEEDFORWARD_MODES:
-            raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got "
-                                     f"{self.feedforward!r}")
+            raise InvalidConfigError(
+                f"feedforward must be one of {FEEDFORWARD_MODES}, got {self.feedforward!r}"
+            )
         if self.tuner is not None:
             self.tuner.validate(self.controller, self.control_period_s)
         if self.sensor_noise is not None:
@@ -461,8 +496,12 @@ class Scenario:
         if self.torque_limit_Nm is not None:
             as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
         self.guard.validate()
-        check_multiple("guard.check_period_s", self.guard.check_period_s, "plant.time_step",
-                       self.plant.time_step)
+        check_multiple(
+            "guard.check_period_s",
+            self.guard.check_period_s,
+            "plant.time_step",
+            self.plant.time_step,
+        )
         if self.disturbance is not None:
             self.disturbance.validate()
         if self.learning is not None:
@@ -470,15 +509,20 @@ class Scenario:
         return self
 
     #: The fields that hold a choice or a section, and the classes each may hold.
-    _FIELD_TYPES = {"robot": (Robot,), "plant": (MultibodyPlantConfig,),
-                    "simulator": (SimulatorConfig,), "visualization": (VisualizationConfig,),
-                    "guard": (GuardConfig,), "controller": _choices(ControllerChoice),
-                    "reference": _choices(ReferenceChoice),
-                    "tuner": (type(None),) + _choices(TunerChoice),
-                    "sensor_noise": (type(None), SensorNoise),
-                    "hardware": (type(None), Hardware),
-                    "disturbance": (type(None), ToolDisturbance),
-                    "learning": (type(None), IlcDriver)}
+    _FIELD_TYPES = {
+        "robot": (Robot,),
+        "plant": (MultibodyPlantConfig,),
+        "simulator": (SimulatorConfig,),
+        "visualization": (VisualizationConfig,),
+        "guard": (GuardConfig,),
+        "controller": _choices(ControllerChoice),
+        "reference": _choices(ReferenceChoice),
+        "tuner": (type(None),) + _choices(TunerChoice),
+        "sensor_noise": (type(None), SensorNoise),
+        "hardware": (type(None), Hardware),
+        "disturbance": (type(None), ToolDisturbance),
+        "learning": (type(None), IlcDriver),
+    }
 
     def _validate_types(self) -> None:
         """Each section and choice is of a class its field takes (a dict, say, is not)."""
@@ -492,8 +536,13 @@ class Scenario:
             raise InvalidConfigError(
                 f"{name} must be {'None or ' if type(None) in kinds else ''}{article} {listed}, "
                 f"got {type(value).__name__}"
-                + (" (a dict: load it with load_scenario, or build the dataclass with "
-                   f"{names[0]}(**d))" if isinstance(value, dict) else ""))
+                + (
+                    " (a dict: load it with load_scenario, or build the dataclass with "
+                    f"{names[0]}(**d))"
+                    if isinstance(value, dict)
+                    else ""
+                )
+            )
 
     def _validate_periods(self) -> None:
         """The run's durations and periods, and Drake's plant and simulator settings."""
@@ -504,7 +553,8 @@ class Scenario:
             raise InvalidConfigError(
                 f"plant.discrete_contact_approximation "
                 f"{self.plant.discrete_contact_approximation!r} does not enforce the ball "
-                f"constraints that close the loops; use 'sap', 'lagged' or 'similar'")
+                f"constraints that close the loops; use 'sap', 'lagged' or 'similar'"
+            )
         _validate_plant_config(self.plant)
         _validate_simulator_config(self.simulator)
         check_multiple("control_period_s", self.control_period_s, "plant.time_step", h)
@@ -512,7 +562,8 @@ class Scenario:
         if self.duration_s < 2 * self.log_period_s:
             raise InvalidConfigError(
                 f"duration_s ({self.duration_s:g} s) must cover at least two log periods "
-                f"({2 * self.log_period_s:g} s): a shorter run has no second sample to measure")
+                f"({2 * self.log_period_s:g} s): a shorter run has no second sample to measure"
+            )
 
     # -- pickling through YAML (Drake's config structs do not pickle) -------------------------
     def __reduce__(self):
@@ -543,8 +594,9 @@ def _validate_plant_config(plant: MultibodyPlantConfig) -> None:
     as_number("plant.sap_near_rigid_threshold", plant.sap_near_rigid_threshold, 0.0)
     for name in ("use_sampled_output_ports", "adjacent_bodies_collision_filters"):
         if not isinstance(getattr(plant, name, False), bool):
-            raise InvalidConfigError(f"plant.{name} must be true or false, got "
-                                     f"{getattr(plant, name)!r}")
+            raise InvalidConfigError(
+                f"plant.{name} must be true or false, got {getattr(plant, name)!r}"
+            )
     names = []
     for name in ("contact_model", "contact_surface_representation"):
         value = getattr(plant, name)
@@ -553,8 +605,9 @@ def _validate_plant_config(plant: MultibodyPlantConfig) -> None:
         names.append(value)
     problem = _drake_plant_names_problem(*names)
     if problem:
-        raise InvalidConfigError(f"plant: {problem} (see Drake's MultibodyPlantConfig for the "
-                                 f"names)")
+        raise InvalidConfigError(
+            f"plant: {problem} (see Drake's MultibodyPlantConfig for the names)"
+        )
 
 
 @functools.lru_cache(maxsize=32)
@@ -564,9 +617,12 @@ def _drake_plant_names_problem(contact_model: str, contact_surface_representatio
     from pydrake.multibody.plant import AddMultibodyPlant
     from pydrake.systems.framework import DiagramBuilder
 
-    config = MultibodyPlantConfig(time_step=1e-3, discrete_contact_approximation="sap",
-                                  contact_model=contact_model,
-                                  contact_surface_representation=contact_surface_representation)
+    config = MultibodyPlantConfig(
+        time_step=1e-3,
+        discrete_contact_approximation="sap",
+        contact_model=contact_model,
+        contact_surface_representation=contact_surface_representation,
+    )
     try:
         AddMultibodyPlant(config, DiagramBuilder())
     except RuntimeError as err:
@@ -581,22 +637,29 @@ def _validate_simulator_config(config: SimulatorConfig) -> None:
 
     schemes = GetIntegrationSchemes()
     if config.integration_scheme not in schemes:
-        raise InvalidConfigError(f"simulator.integration_scheme must be one of "
-                                 f"{', '.join(schemes)}, got {config.integration_scheme!r}")
+        raise InvalidConfigError(
+            f"simulator.integration_scheme must be one of "
+            f"{', '.join(schemes)}, got {config.integration_scheme!r}"
+        )
     as_number("simulator.max_step_size", config.max_step_size, 0.0, lo_open=True)
     as_number("simulator.accuracy", config.accuracy, 0.0, 1.0, lo_open=True)
     if as_number("simulator.start_time", config.start_time) != 0.0:
-        raise InvalidConfigError(f"simulator.start_time must be 0 (the reference and duration_s "
-                                 f"count from t = 0), got {config.start_time!r}")
+        raise InvalidConfigError(
+            f"simulator.start_time must be 0 (the reference and duration_s "
+            f"count from t = 0), got {config.start_time!r}"
+        )
     rate = as_number("simulator.target_realtime_rate", config.target_realtime_rate, 0.0)
     if 0.0 < rate < MIN_REALTIME_RATE:
-        raise InvalidConfigError(f"simulator.target_realtime_rate must be 0 (as fast as "
-                                 f"possible) or at least {MIN_REALTIME_RATE:g} (100 times slower "
-                                 f"than real time), got {config.target_realtime_rate!r}")
+        raise InvalidConfigError(
+            f"simulator.target_realtime_rate must be 0 (as fast as "
+            f"possible) or at least {MIN_REALTIME_RATE:g} (100 times slower "
+            f"than real time), got {config.target_realtime_rate!r}"
+        )
     for name in ("use_error_control", "publish_every_time_step"):
         if not isinstance(getattr(config, name, False), bool):
-            raise InvalidConfigError(f"simulator.{name} must be true or false, got "
-                                     f"{getattr(config, name)!r}")
+            raise InvalidConfigError(
+                f"simulator.{name} must be true or false, got {getattr(config, name)!r}"
+            )
 
 
 def _scenario_from_yaml(text: str) -> Scenario:
@@ -605,9 +668,11 @@ def _scenario_from_yaml(text: str) -> Scenario:
 
 #: Drake's config structs in a Scenario, and the fields of each that a dump always writes (the
 #: ones the robot needs whatever Drake's defaults are).
-_DRAKE_SECTIONS = {"plant": (MultibodyPlantConfig, ("time_step", "discrete_contact_approximation")),
-                   "simulator": (SimulatorConfig, ()),
-                   "visualization": (VisualizationConfig, ())}
+_DRAKE_SECTIONS = {
+    "plant": (MultibodyPlantConfig, ("time_step", "discrete_contact_approximation")),
+    "simulator": (SimulatorConfig, ()),
+    "visualization": (VisualizationConfig, ()),
+}
 
 
 def _top_level_blocks(text: str) -> dict:
@@ -629,11 +694,19 @@ def _drake_section(name: str, value) -> str:
     kind, always = _DRAKE_SECTIONS[name]
     changed = yaml_load(data=yaml_dump_typed(value, defaults=kind())) or {}
     keep = set(changed) | set(always)
-    lines = [block for key, block in _top_level_blocks(yaml_dump_typed(value)).items()
-             if key in keep]
-    return (f"{name}:\n" + "".join("  " + line if line.strip() else line
-                                   for block in lines for line in block.splitlines(True))
-            if lines else "")
+    lines = [
+        block for key, block in _top_level_blocks(yaml_dump_typed(value)).items() if key in keep
+    ]
+    return (
+        f"{name}:\n"
+        + "".join(
+            "  " + line if line.strip() else line
+            for block in lines
+            for line in block.splitlines(True)
+        )
+        if lines
+        else ""
+    )
 
 
 def dump_scenario(scenario: Scenario, path=None) -> str:

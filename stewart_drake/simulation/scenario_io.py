@@ -63,24 +63,31 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         if str(source) in shipped:
             path = shipped[str(source)]
         else:
-            raise MissingFileError(f"no scenario file {source} and no shipped scenario of that "
-                                   f"name (shipped: {', '.join(sorted(shipped))})")
+            raise MissingFileError(
+                f"no scenario file {source} and no shipped scenario of that "
+                f"name (shipped: {', '.join(sorted(shipped))})"
+            )
     remedy = "fix it, or start from `stewart-drake scenario paper_hardware --out FILE.yaml`"
-    raw = read_checked(path, "scenario file", MAX_SCENARIO_BYTES,
-                       remedy + "; long data (a reference) belongs in a CSV file")
+    raw = read_checked(
+        path,
+        "scenario file",
+        MAX_SCENARIO_BYTES,
+        remedy + "; long data (a reference) belongs in a CSV file",
+    )
     if not raw.strip():
         raise CorruptFileError(path, "scenario file", "it is empty", remedy)
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
-        raise CorruptFileError(path, "scenario file", f"not UTF-8 text ({err.reason} at byte "
-                                                      f"{err.start})", remedy) from None
+        raise CorruptFileError(
+            path, "scenario file", f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
+        ) from None
     try:
         _refuse_duplicate_keys(text)
         scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
         raise _in_file(err, path) from None
-    except Exception as err:      # noqa: BLE001 - yaml and Drake's loader raise several types
+    except Exception as err:  # noqa: BLE001 - yaml and Drake's loader raise several types
         problem = _one_line(err)
         if not problem.startswith("not YAML"):
             problem = f"it does not fit the Scenario schema: {problem}"
@@ -90,8 +97,9 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     try:
         return scenario.validate()
     except StewartError as err:
-        raise _in_file(err, f"{path} with --set {', '.join(overrides)}" if overrides
-                       else path) from None
+        raise _in_file(
+            err, f"{path} with --set {', '.join(overrides)}" if overrides else path
+        ) from None
 
 
 #: Largest scenario file read, bytes: a scenario is a few kB; parsing is about 5 s per MB.
@@ -122,7 +130,8 @@ def _refuse_duplicate_keys(text: str) -> None:
                     if key.value in first:
                         raise InvalidConfigError(
                             f"the key {key.value!r} appears twice in one mapping (lines "
-                            f"{first[key.value] + 1} and {key.start_mark.line + 1}); keep one")
+                            f"{first[key.value] + 1} and {key.start_mark.line + 1}); keep one"
+                        )
                     first[key.value] = key.start_mark.line
                 stack += [key, value]
         elif isinstance(node, yaml.SequenceNode):
@@ -147,23 +156,31 @@ def apply_override(scenario: Scenario, override: str) -> None:
     key, sep, value = override.partition("=")
     key = key.strip()
     if not sep or not key:
-        raise InvalidConfigError(f"an override must be key=value (e.g. controller.omega_Q=10), "
-                                 f"got {override!r}")
+        raise InvalidConfigError(
+            f"an override must be key=value (e.g. controller.omega_Q=10), got {override!r}"
+        )
     *parents, leaf = key.split(".")
     target = scenario
     for name in parents:
         if name not in _field_names(target):
-            raise InvalidConfigError(f"--set {key}: {name!r} is not a field of "
-                                     f"{type(target).__name__}")
+            raise InvalidConfigError(
+                f"--set {key}: {name!r} is not a field of {type(target).__name__}"
+            )
         target = getattr(target, name)
     fields = _field_names(target)
     if leaf not in fields:
-        raise InvalidConfigError(f"--set {key}: {leaf!r} is not a field of "
-                                 f"{type(target).__name__} (fields: {', '.join(sorted(fields))})")
+        raise InvalidConfigError(
+            f"--set {key}: {leaf!r} is not a field of "
+            f"{type(target).__name__} (fields: {', '.join(sorted(fields))})"
+        )
     try:
-        updated = yaml_load_typed(schema=type(target), data=f"{leaf}: {value}\n",
-                                  defaults=target, allow_schema_with_no_yaml=True)
-    except Exception as err:       # noqa: BLE001 - yaml and Drake's loader raise several types
+        updated = yaml_load_typed(
+            schema=type(target),
+            data=f"{leaf}: {value}\n",
+            defaults=target,
+            allow_schema_with_no_yaml=True,
+        )
+    except Exception as err:  # noqa: BLE001 - yaml and Drake's loader raise several types
         raise InvalidConfigError(f"--set {key}={value}: {_one_line(err)}") from None
     setattr(target, leaf, getattr(updated, leaf))
 
@@ -190,10 +207,20 @@ def _one_line(err: BaseException) -> str:
     return text if len(text) <= 300 else text[:297] + "..."
 
 
-def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
-                      trajectory_file=None, controller=None, omega_Q=None, omega_R=None,
-                      tuner=None, tuner_weights=None, default_ann_weights=None,
-                      divergence_dir=None) -> Scenario:
+def apply_run_options(
+    scenario: Scenario,
+    *,
+    duration_s=None,
+    trajectory=None,
+    trajectory_file=None,
+    controller=None,
+    omega_Q=None,
+    omega_R=None,
+    tuner=None,
+    tuner_weights=None,
+    default_ann_weights=None,
+    divergence_dir=None,
+) -> Scenario:
     """Apply the shorthand options of ``stewart-drake run`` to ``scenario`` (each only when not
     None), in place, after the file and its ``--set`` overrides; returns it validated.
 
@@ -217,8 +244,9 @@ def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
     from .trajectories import CsvReference, NamedReference, load_csv_trajectory
 
     if tuner_weights is not None and tuner not in ("ann", "ratio"):
-        raise InvalidConfigError("--tuner-weights needs --tuner ann or --tuner ratio (the "
-                                 "weights are a tuner's)")
+        raise InvalidConfigError(
+            "--tuner-weights needs --tuner ann or --tuner ratio (the weights are a tuner's)"
+        )
     if duration_s is not None:
         scenario.duration_s = duration_s
     if trajectory is not None and trajectory_file is not None:
@@ -227,20 +255,23 @@ def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
         scenario.reference = NamedReference(trajectory)
     if trajectory_file is not None:
         scenario.reference = CsvReference(trajectory_file)
-        if duration_s is None:                      # the run lasts as long as the file
+        if duration_s is None:  # the run lasts as long as the file
             csv = load_csv_trajectory(trajectory_file)
             scenario.duration_s = csv.end_time - csv.start_time
     if controller == "pd":
         scenario.controller = PdDriver()
     elif controller == "lqi":
-        scenario.controller = scenario.lqi()          # the scenario's LQI options, if it has any
+        scenario.controller = scenario.lqi()  # the scenario's LQI options, if it has any
     weights = {k: v for k, v in (("omega_Q", omega_Q), ("omega_R", omega_R)) if v is not None}
     if weights:
         scenario.controller = scenario.controller.with_weights(**weights)
     if tuner == "ann":
         weights_file = tuner_weights
-        if weights_file is None and default_ann_weights is not None \
-                and Path(default_ann_weights).exists():
+        if (
+            weights_file is None
+            and default_ann_weights is not None
+            and Path(default_ann_weights).exists()
+        ):
             weights_file = str(default_ann_weights)
         use_paper_tuner(scenario, AnnTunerDriver(weights=weights_file or ""))
     elif tuner == "ratio":
@@ -249,5 +280,5 @@ def apply_run_options(scenario: Scenario, *, duration_s=None, trajectory=None,
         scenario.tuner = None
     if divergence_dir is not None:
         scenario.guard.divergence_dir = str(divergence_dir)
-    scenario.controller.resolve()                     # a name never registered: refused
+    scenario.controller.resolve()  # a name never registered: refused
     return scenario.validate()

@@ -26,8 +26,10 @@ def add_white_noise(builder, port, std, period_s: float, names: tuple):
         (``SetRandomContext``): Drake gives every RandomSource a fresh seed otherwise.
     """
     std = np.asarray(std, dtype=float)
-    source = builder.AddNamedSystem(names[0], RandomSource(
-        RandomDistribution.kGaussian, std.size, sampling_interval_sec=period_s))
+    source = builder.AddNamedSystem(
+        names[0],
+        RandomSource(RandomDistribution.kGaussian, std.size, sampling_interval_sec=period_s),
+    )
     scale = builder.AddNamedSystem(names[1], Gain(std))
     add = builder.AddNamedSystem(names[2], Adder(2, std.size))
     builder.Connect(source.get_output_port(), scale.get_input_port())
@@ -62,18 +64,29 @@ class PlatformPoseSensor(LeafSystem):
     def pose_from_state(self, state) -> np.ndarray:
         """True (noise-free) pose and rate x (12,) from one plant state vector (nq + nv,), in
         Python floats (a few microseconds: the guard and an ideal sensor read it at run time)."""
-        s = np.asarray(state, dtype=float)[self._iq:self._iv + 6].tolist()
+        s = np.asarray(state, dtype=float)[self._iq : self._iv + 6].tolist()
         iv = self._iv - self._iq
-        return np.array(_pose_and_rate(s[0:4], s[4:7], s[iv:iv + 3], s[iv + 3:iv + 6],
-                                       math.atan2, math.sqrt))
+        return np.array(
+            _pose_and_rate(
+                s[0:4], s[4:7], s[iv : iv + 3], s[iv + 3 : iv + 6], math.atan2, math.sqrt
+            )
+        )
 
     def poses_from_states(self, states) -> np.ndarray:
         """(N, 12) true poses and rates of plant states (N, nq + nv), vectorized: metrics use
         these, not the noisy measurement, and the Diagram need not log the sensor at all."""
         s = np.atleast_2d(np.asarray(states, dtype=float)).T
         iq, iv = self._iq, self._iv
-        return np.array(_pose_and_rate(s[iq:iq + 4], s[iq + 4:iq + 7], s[iv:iv + 3],
-                                       s[iv + 3:iv + 6], np.arctan2, np.sqrt)).T
+        return np.array(
+            _pose_and_rate(
+                s[iq : iq + 4],
+                s[iq + 4 : iq + 7],
+                s[iv : iv + 3],
+                s[iv + 3 : iv + 6],
+                np.arctan2,
+                np.sqrt,
+            )
+        ).T
 
     def _Calc(self, context, output: BasicVector):
         output.SetFromVector(self.pose_from_state(self._state.Eval(context)))

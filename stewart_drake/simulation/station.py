@@ -43,6 +43,7 @@ def _weak(method):
 
     def callback(*args):
         return ref()(*args)
+
     return callback
 
 
@@ -61,8 +62,11 @@ class ToolWrench(LeafSystem):
         self._body = platform_body.index()
         self._wrench = self.DeclareVectorInputPort("tool_wrench", 6)
         self.DeclareAbstractOutputPort(
-            "spatial_forces", lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            _weak(self._Calc), prerequisites_of_calc={self.all_input_ports_ticket()})
+            "spatial_forces",
+            lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
+            _weak(self._Calc),
+            prerequisites_of_calc={self.all_input_ports_ticket()},
+        )
 
     def _Calc(self, context, output):
         w = self._wrench.Eval(context)
@@ -98,12 +102,14 @@ def _connect_actuators(builder, applied, handles) -> None:
     """The applied torques to the plant's actuation input; with the servo's dry-friction
     actuators (12 in all), those take no command and their desired state is zero."""
     if handles.n_actuators > 6:
-        to_actuators = builder.AddNamedSystem("actuators", MatrixGain(
-            np.vstack([np.eye(6), np.zeros((handles.n_actuators - 6, 6))])))
+        to_actuators = builder.AddNamedSystem(
+            "actuators", MatrixGain(np.vstack([np.eye(6), np.zeros((handles.n_actuators - 6, 6))]))
+        )
         builder.Connect(applied, to_actuators.get_input_port())
         builder.Connect(to_actuators.get_output_port(), handles.actuation_port)
-        zero = builder.AddNamedSystem("friction_target", ConstantVectorSource(
-            np.zeros(handles.desired_state_port.size())))
+        zero = builder.AddNamedSystem(
+            "friction_target", ConstantVectorSource(np.zeros(handles.desired_state_port.size()))
+        )
         builder.Connect(zero.get_output_port(), handles.desired_state_port)
     else:
         builder.Connect(applied, handles.actuation_port)
@@ -149,13 +155,15 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         scenario = plan.scenario
-        plant, scene_graph, handles = add_stewart_plant(builder, plan.plant_geometry,
-                                                        plant_config=scenario.plant,
-                                                        servo=plan.servo,
-                                                        contact=scenario.contact)
+        plant, scene_graph, handles = add_stewart_plant(
+            builder,
+            plan.plant_geometry,
+            plant_config=scenario.plant,
+            servo=plan.servo,
+            contact=scenario.contact,
+        )
         plant.set_name("plant")
-        self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles,
-                                                                 plan)
+        self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
         applied = self._add_torque_pipe(builder, command.get_output_port())
@@ -190,19 +198,23 @@ class StewartStation(Diagram):
         if plan.delay_periods > 0:
             # Sampled at k h, half a plant step after the controller wrote it: the sample itself
             # is one period late, so d periods of delay take d - 1 more (measured in a test).
-            self.delay = builder.AddNamedSystem("computation_delay", DiscreteTimeDelay(
-                plan.control_period_s, plan.delay_periods - 1, 6))
+            self.delay = builder.AddNamedSystem(
+                "computation_delay",
+                DiscreteTimeDelay(plan.control_period_s, plan.delay_periods - 1, 6),
+            )
             builder.Connect(applied, self.delay.get_input_port())
             applied = self.delay.get_output_port()
         limit = plan.torque_limit_Nm
         if limit is not None:
-            saturation = builder.AddNamedSystem("torque_limit", Saturation(-limit * np.ones(6),
-                                                                           limit * np.ones(6)))
+            saturation = builder.AddNamedSystem(
+                "torque_limit", Saturation(-limit * np.ones(6), limit * np.ones(6))
+            )
             builder.Connect(applied, saturation.get_input_port())
             applied = saturation.get_output_port()
         if servo is not None and servo.current_time_constant_s > 0:
-            self.lag = builder.AddNamedSystem("current_loop", current_loop(
-                servo.current_time_constant_s, plan.plant_time_step_s))
+            self.lag = builder.AddNamedSystem(
+                "current_loop", current_loop(servo.current_time_constant_s, plan.plant_time_step_s)
+            )
             builder.Connect(applied, self.lag.get_input_port())
             applied = self.lag.get_output_port()
         return applied
@@ -223,13 +235,16 @@ class StewartStation(Diagram):
             builder.Connect(plant.get_state_output_port(), gain.get_input_port())
             outputs[name] = gain.get_output_port()
         self.encoder_noise = None
-        if hardware is not None:             # encoders: angle [+ noise] -> quantizer
+        if hardware is not None:  # encoders: angle [+ noise] -> quantizer
             q = hardware.encoders.quantum_rad
             if hardware.encoders.noise_counts > 0:
                 self.encoder_noise, outputs["motor_angle"] = add_white_noise(
-                    builder, outputs["motor_angle"],
-                    np.full(6, hardware.encoders.noise_counts * q), self.plan.control_period_s,
-                    ("encoder_noise", "encoder_noise_std", "noisy_angle"))
+                    builder,
+                    outputs["motor_angle"],
+                    np.full(6, hardware.encoders.noise_counts * q),
+                    self.plan.control_period_s,
+                    ("encoder_noise", "encoder_noise_std", "noisy_angle"),
+                )
             encoders = builder.AddNamedSystem("encoders", quantizer(q))
             builder.Connect(outputs["motor_angle"], encoders.get_input_port())
             outputs["motor_angle"] = encoders.get_output_port()
@@ -247,8 +262,8 @@ class StewartStation(Diagram):
             from pydrake.common import RandomGenerator
 
             self.encoder_noise.SetRandomContext(
-                self.encoder_noise.GetMyMutableContextFromRoot(root_context),
-                RandomGenerator(seed))
+                self.encoder_noise.GetMyMutableContextFromRoot(root_context), RandomGenerator(seed)
+            )
 
     def assemble(self, root_context, x=X_HOME, x_dot=None) -> np.ndarray:
         """Write the robot assembled at pose x (6,) [rad, m], moving at x_dot (6,) (default at
@@ -257,8 +272,9 @@ class StewartStation(Diagram):
         Raises:
             UnreachablePoseError: x cannot be reached (names the leg).
         """
-        return assemble(self.plant, self.plant.GetMyMutableContextFromRoot(root_context),
-                        self.handles, x, x_dot)
+        return assemble(
+            self.plant, self.plant.GetMyMutableContextFromRoot(root_context), self.handles, x, x_dot
+        )
 
 
 def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:

@@ -59,7 +59,7 @@ def _smoothstep(s, derivative: int = 0):
     the derivatives are zero outside (0, 1)."""
     inside = (s > 0.0) & (s < 1.0)
     if derivative == 0:
-        return s ** 3 * (10 - 15 * s + 6 * s * s)
+        return s**3 * (10 - 15 * s + 6 * s * s)
     if derivative == 1:
         return np.where(inside, 30 * s * s * (1 - s) ** 2, 0.0)
     return np.where(inside, 60 * s * (1 - s) * (1 - 2 * s), 0.0)
@@ -96,9 +96,9 @@ class WaypointTrajectory:
         d = t1 - t0
         tau = np.clip((tt - t0) / d, 0.0, 1.0)
         inside = (tt > t0) & (tt < t1)
-        s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
-        ds = np.where(inside, 30 * tau ** 2 * (1 - tau) ** 2 / d, 0.0)
-        dds = np.where(inside, 60 * tau * (1 - tau) * (1 - 2 * tau) / d ** 2, 0.0)
+        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
+        ds = np.where(inside, 30 * tau**2 * (1 - tau) ** 2 / d, 0.0)
+        dds = np.where(inside, 60 * tau * (1 - tau) * (1 - 2 * tau) / d**2, 0.0)
         delta = X[k + 1] - X[k]
         x, v, a = X[k] + delta * s, delta * ds, delta * dds
         for row in self.tremor:
@@ -110,7 +110,7 @@ class WaypointTrajectory:
             s_off = np.clip((off - tt) / RAMP_S, 0.0, 1.0)
             q_on, q_off = _smoothstep(s_on), _smoothstep(s_off)
             d_on, d_off = _smoothstep(s_on, 1) / RAMP_S, -_smoothstep(s_off, 1) / RAMP_S
-            dd_on, dd_off = _smoothstep(s_on, 2) / RAMP_S ** 2, _smoothstep(s_off, 2) / RAMP_S ** 2
+            dd_on, dd_off = _smoothstep(s_on, 2) / RAMP_S**2, _smoothstep(s_off, 2) / RAMP_S**2
             g = q_on * q_off
             dg = d_on * q_off + q_on * d_off
             ddg = dd_on * q_off + 2 * d_on * d_off + q_on * dd_off
@@ -163,13 +163,13 @@ def _dash_hold(rng, duration_s):
 def _surgical(rng, duration_s):
     times, poses, tremor, t, x = [0.0], [X_HOME.copy()], [], 0.0, X_HOME.copy()
     while t < duration_s:
-        approach = rng.uniform(1.5, 2.5)                  # slow, precise
+        approach = rng.uniform(1.5, 2.5)  # slow, precise
         x = x + rng.uniform(-1, 1, 6) * POSE_BOX * 0.3
         x = np.clip(x, X_HOME - POSE_BOX, X_HOME + POSE_BOX)
         times.append(t + approach)
         poses.append(x)
         t += approach
-        work = rng.uniform(1.0, 2.0)                     # tremor-scale motion while working
+        work = rng.uniform(1.0, 2.0)  # tremor-scale motion while working
         amp = np.zeros(6)
         axes = rng.choice(6, size=2, replace=False)
         amp[axes] = np.where(axes < 3, rng.uniform(2e-4, 8e-4, 2), rng.uniform(5e-5, 1.5e-4, 2))
@@ -177,7 +177,7 @@ def _surgical(rng, duration_s):
         times.append(t + work)
         poses.append(x)
         t += work
-        reposition = rng.uniform(0.3, 0.4)               # fast
+        reposition = rng.uniform(0.3, 0.4)  # fast
         x = _pose(rng)
         times.append(t + reposition)
         poses.append(x)
@@ -189,14 +189,19 @@ def _multisine(rng, duration_s, geometry, peak_torque):
     f = rng.uniform(0.2, 2.5, (3, 6))
     phase = rng.uniform(0, 2 * np.pi, (3, 6))
     weights = rng.uniform(0.2, 1.0, (3, 6))
-    cap = np.array([30.0, 30.0, 30.0, 3.0, 3.0, 3.0])   # the data collection's acceleration caps
+    cap = np.array([30.0, 30.0, 30.0, 3.0, 3.0, 3.0])  # the data collection's acceleration caps
     amp = weights / weights.sum(axis=0) * POSE_BOX
     amp = np.minimum(amp, cap / 3 / (2 * np.pi * f) ** 2)
-    for _ in range(20):                                 # shrink until the motors can follow
-        parts = [SineTrajectory(amplitude=tuple(amp[i]), frequency_hz=tuple(f[i]),
-                                phase=tuple(phase[i]),
-                                offset=tuple(X_HOME if i == 0 else np.zeros(6)))
-                 for i in range(3)]
+    for _ in range(20):  # shrink until the motors can follow
+        parts = [
+            SineTrajectory(
+                amplitude=tuple(amp[i]),
+                frequency_hz=tuple(f[i]),
+                phase=tuple(phase[i]),
+                offset=tuple(X_HOME if i == 0 else np.zeros(6)),
+            )
+            for i in range(3)
+        ]
         reference = MotionSum(parts=tuple(parts), centre=None, name="multisine")
         if _within_reach(reference, duration_s, geometry, peak_torque):
             break
@@ -208,7 +213,8 @@ def _within_reach(reference, duration_s, geometry, peak_torque) -> bool:
     """Whether the reference's inverse-dynamics torque stays within LOAD_MARGIN of the peak."""
     try:
         T = statics.inverse_dynamics_torques(
-            geometry, *reference.evaluate(np.arange(0.0, duration_s + 1e-9, 0.005)))
+            geometry, *reference.evaluate(np.arange(0.0, duration_s + 1e-9, 0.005))
+        )
     except StewartError:
         return False
     return bool(np.abs(T).max() <= LOAD_MARGIN * peak_torque)
@@ -224,7 +230,7 @@ def _disturbed_hold(rng, duration_s, geometry, peak_torque):
     # The largest magnitude whose static load stays within LOAD_MARGIN of the peak torque at
     # every pose of the task: the load is T_g + m T_unit, linear in the magnitude m >= 0.
     unit = np.zeros(6)
-    unit[:3 if kind == "twist" else 6][-3:] = direction
+    unit[: 3 if kind == "twist" else 6][-3:] = direction
     allowed = np.inf
     for xk in reference.evaluate(np.arange(0.0, duration_s, 0.05))[0]:
         T_g = statics.holding_torques(geometry, xk)
@@ -233,12 +239,22 @@ def _disturbed_hold(rng, duration_s, geometry, peak_torque):
         room = np.where(T_unit > 0, limit - T_g, limit + T_g) / np.maximum(np.abs(T_unit), 1e-12)
         allowed = min(allowed, float(room.min()))
     magnitude = float(rng.uniform(0.4, 0.9) * allowed)
-    return reference, ToolDisturbance(kind=kind, magnitude=magnitude, direction=list(direction),
-                                      start_s=start, frequency_hz=frequency)
+    return reference, ToolDisturbance(
+        kind=kind,
+        magnitude=magnitude,
+        direction=list(direction),
+        start_s=start,
+        frequency_hz=frequency,
+    )
 
 
-def make_task(family: str, seed: int = 0, duration_s: float = 5.0,
-              geometry: StewartGeometry | None = None, peak_torque_Nm: float = 0.702) -> Task:
+def make_task(
+    family: str,
+    seed: int = 0,
+    duration_s: float = 5.0,
+    geometry: StewartGeometry | None = None,
+    peak_torque_Nm: float = 0.702,
+) -> Task:
     """The task of ``family`` drawn from ``seed`` (see the module docstring).
 
     Args:
@@ -261,20 +277,27 @@ def make_task(family: str, seed: int = 0, duration_s: float = 5.0,
     if family == "paper":
         return Task(family, 0, paper_manoeuvre())
     t = np.arange(0.0, duration_s + 5e-4, 1e-3)
-    for attempt in range(100):                     # deterministic redraws of a refused draw
+    for attempt in range(100):  # deterministic redraws of a refused draw
         rng = np.random.default_rng([int(seed), attempt, FAMILIES.index(family)])
         if family == "disturbed_hold":
             reference, disturbance = _disturbed_hold(rng, duration_s, geometry, peak_torque_Nm)
         elif family == "multisine":
             reference, disturbance = _multisine(rng, duration_s, geometry, peak_torque_Nm)
         else:
-            reference, disturbance = {"dash_hold": _dash_hold,
-                                      "surgical": _surgical}[family](rng, duration_s)
+            reference, disturbance = {"dash_hold": _dash_hold, "surgical": _surgical}[family](
+                rng, duration_s
+            )
         x, xd, xdd = reference.evaluate(t)
         try:
-            report = limits.validate_trajectory(geometry, t, x, x_dot=xd, x_ddot=xdd,
-                                                raise_refused=False,
-                                                clearance=clearance_model(geometry))
+            report = limits.validate_trajectory(
+                geometry,
+                t,
+                x,
+                x_dot=xd,
+                x_ddot=xdd,
+                raise_refused=False,
+                clearance=clearance_model(geometry),
+            )
         except StewartError:
             continue
         if report.ok and _within_reach(reference, duration_s, geometry, peak_torque_Nm):

@@ -19,7 +19,6 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Dict, List
 
 import numpy as np
 
@@ -74,11 +73,14 @@ class TraceInfo:
 
     def summary(self) -> str:
         gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
-        mapping = ", ".join(f"{c} [{u}] -> {a}" for c, u, a in
-                            zip(self.columns[1:], self.units[1:], self.axes))
-        return (f"{Path(self.path).name}: {self.samples} samples at {self.sample_rate_hz:.4g} Hz "
-                f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
-                f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}")
+        mapping = ", ".join(
+            f"{c} [{u}] -> {a}" for c, u, a in zip(self.columns[1:], self.units[1:], self.axes)
+        )
+        return (
+            f"{Path(self.path).name}: {self.samples} samples at {self.sample_rate_hz:.4g} Hz "
+            f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
+            f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}"
+        )
 
 
 class TraceTrajectory(DrakeTrajectory):
@@ -110,8 +112,10 @@ def _parse_header_cell(cell: str) -> tuple[str, str]:
 
 
 #: How to write a trace file: the remedy of the messages about one that cannot be read.
-_TRACE_REMEDY = ("write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
-                 "t [s],SI [mm],AP [mm]")
+_TRACE_REMEDY = (
+    "write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
+    "t [s],SI [mm],AP [mm]"
+)
 
 
 def _trace_rows(path: Path) -> list:
@@ -135,14 +139,18 @@ def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int,
     table = {u.lower(): f for u, f in UNITS[kind].items()}
     if unit.lower() not in table:
         other = "rad" if kind == "m" else "m"
-        hint = (f"a {'length' if other == 'm' else 'angle'} on a "
-                f"{'rotation' if kind == 'rad' else 'translation'} axis"
-                if unit.lower() in {u.lower() for u in UNITS[other]} else
-                f"units: {', '.join(UNITS[kind])}")
-        raise InvalidConfigError(f"{path}: column {name!r} goes to the platform's "
-                                 f"{AXIS_NAMES[k]} and needs a unit of "
-                                 f"{'length' if kind == 'm' else 'angle'}, got "
-                                 f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'")
+        hint = (
+            f"a {'length' if other == 'm' else 'angle'} on a "
+            f"{'rotation' if kind == 'rad' else 'translation'} axis"
+            if unit.lower() in {u.lower() for u in UNITS[other]}
+            else f"units: {', '.join(UNITS[kind])}"
+        )
+        raise InvalidConfigError(
+            f"{path}: column {name!r} goes to the platform's "
+            f"{AXIS_NAMES[k]} and needs a unit of "
+            f"{'length' if kind == 'm' else 'angle'}, got "
+            f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'"
+        )
     return k, sign * table[unit.lower()]
 
 
@@ -153,26 +161,34 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
     header = [_parse_header_cell(c) for c in cells]
     names = [h[0] for h in header]
     if names[0].lower() not in ("t", "time"):
-        raise InvalidConfigError(f"{path}: the first column must be the time (t [s]), got "
-                                 f"{cells[0]!r}; {_TRACE_REMEDY}")
+        raise InvalidConfigError(
+            f"{path}: the first column must be the time (t [s]), got {cells[0]!r}; {_TRACE_REMEDY}"
+        )
     if not 2 <= len(header) <= 7:
-        raise InvalidConfigError(f"{path}: a trace has a time column and 1 to 6 axes, got "
-                                 f"{len(header) - 1} axes")
+        raise InvalidConfigError(
+            f"{path}: a trace has a time column and 1 to 6 axes, got {len(header) - 1} axes"
+        )
     units = [h[1] for h in header]
     if units[0].lower() not in TIME_UNITS:
-        raise InvalidConfigError(f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
-                                 f"), e.g. 't [s]', got {cells[0]!r}")
+        raise InvalidConfigError(
+            f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
+            f"), e.g. 't [s]', got {cells[0]!r}"
+        )
     axis_map = dict(axis_map or {})
     unknown = set(axis_map) - set(names[1:])
     if unknown:
-        raise InvalidConfigError(f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
-                                 f"the trace has not (its columns: {', '.join(names[1:])})")
+        raise InvalidConfigError(
+            f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
+            f"the trace has not (its columns: {', '.join(names[1:])})"
+        )
     targets, factors = [], []
     for name, unit in header[1:]:
         k, factor = _column_axis(path, name, unit, axis_map)
         if k in targets:
-            raise InvalidConfigError(f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
-                                     f"map one elsewhere with axis_map (--map NAME=AXIS)")
+            raise InvalidConfigError(
+                f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
+                f"map one elsewhere with axis_map (--map NAME=AXIS)"
+            )
         targets.append(k)
         factors.append(factor)
     return names, units, targets, factors
@@ -186,13 +202,15 @@ def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
         if not row or all(not c.strip() for c in row):
             continue
         if len(row) != width:
-            raise InvalidConfigError(f"{path}, line {line}: {len(row)} fields, the header has "
-                                     f"{width}")
+            raise InvalidConfigError(
+                f"{path}, line {line}: {len(row)} fields, the header has {width}"
+            )
         try:
             numbers = [float(c) if c.strip() else math.nan for c in row]
         except ValueError:
-            raise InvalidConfigError(f"{path}, line {line}: not numbers: "
-                                     f"{','.join(row)[:200]!r}") from None
+            raise InvalidConfigError(
+                f"{path}, line {line}: not numbers: {','.join(row)[:200]!r}"
+            ) from None
         if not math.isfinite(numbers[0]):
             raise InvalidConfigError(f"{path}, line {line}: the time is missing")
         if any(math.isinf(v) for v in numbers):
@@ -206,15 +224,18 @@ def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
     trace's own end (its memory checked first)."""
     from ..checks import check_memory
 
-    check_memory(f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
-                 (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
-                 "cut the trace into shorter files, or lower the resampling rate")
+    check_memory(
+        f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",
+        (t[-1] * resample_hz + 1) * CSV_BYTES_PER_ROW,
+        "cut the trace into shorter files, or lower the resampling rate",
+    )
     grid = np.arange(0.0, t[-1] - 0.5 / resample_hz, 1.0 / resample_hz)
-    return np.append(grid, t[-1])                      # the trace's own end
+    return np.append(grid, t[-1])  # the trace's own end
 
 
-def _gaps(path: Path, name: str, tk: np.ndarray, t_end: float, rate: float,
-          max_gap_s: float) -> list:
+def _gaps(
+    path: Path, name: str, tk: np.ndarray, t_end: float, rate: float, max_gap_s: float
+) -> list:
     """[(start s, length s), ...] the intervals longer than 2.5 samples (at ``rate``, Hz)
     without data in one column sampled at tk (s) of a trace from 0 to t_end (s); refused
     beyond max_gap_s."""
@@ -227,13 +248,15 @@ def _gaps(path: Path, name: str, tk: np.ndarray, t_end: float, rate: float,
                 raise InvalidConfigError(
                     f"{path}: column {name!r} has no data for {span:.3g} s from t = "
                     f"{start:.4g} s, more than max_gap_s = {max_gap_s:g} s (a spline would "
-                    f"invent that motion); fill the gap or raise max_gap_s (--max-gap)")
+                    f"invent that motion); fill the gap or raise max_gap_s (--max-gap)"
+                )
             gaps.append((float(start), float(span)))
     return gaps
 
 
-def _resampled(path: Path, t, data, names, targets, factors, grid, rate: float,
-               max_gap_s: float) -> tuple[np.ndarray, list]:
+def _resampled(
+    path: Path, t, data, names, targets, factors, grid, rate: float, max_gap_s: float
+) -> tuple[np.ndarray, list]:
     """(displacement (m, 6) on the grid in rad and m, gaps bridged [(start s, length s)]): each
     axis column joined by a cubic spline through its samples; axes without a column zero."""
     from scipy.interpolate import CubicSpline
@@ -251,17 +274,23 @@ def _resampled(path: Path, t, data, names, targets, factors, grid, rate: float,
     return displacement, gaps
 
 
-def _lowpassed(displacement: np.ndarray, lowpass_hz: float | None,
-               resample_hz: float) -> np.ndarray:
+def _lowpassed(
+    displacement: np.ndarray, lowpass_hz: float | None, resample_hz: float
+) -> np.ndarray:
     """(m, 6) the displacement low-passed without phase lag (a 2nd-order Butterworth filter run
     forwards and backwards), or as it is without ``lowpass_hz`` or with 15 samples or fewer."""
     from scipy.signal import butter, filtfilt
 
     if lowpass_hz is not None and len(displacement) > 15:
         b, a = butter(2, lowpass_hz / (0.5 * resample_hz))
-        displacement = filtfilt(b, a, displacement, axis=0, padtype="odd",
-                                padlen=min(len(displacement) - 1,
-                                           3 * int(resample_hz / lowpass_hz)))
+        displacement = filtfilt(
+            b,
+            a,
+            displacement,
+            axis=0,
+            padtype="odd",
+            padlen=min(len(displacement) - 1, 3 * int(resample_hz / lowpass_hz)),
+        )
     return displacement
 
 
@@ -273,14 +302,19 @@ def _centred(displacement: np.ndarray, centre_on: str, targets) -> np.ndarray:
     elif centre_on == "first":
         displacement -= displacement[0]
     elif centre_on != "none":
-        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got "
-                                 f"{centre_on!r}")
+        raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got {centre_on!r}")
     return displacement
 
 
-def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str = "mean",
-               lowpass_hz: float | None = None, max_gap_s: float = 1.0,
-               resample_hz: float = 100.0):
+def load_trace(
+    path,
+    axis_map: dict | None = None,
+    centre=None,
+    centre_on: str = "mean",
+    lowpass_hz: float | None = None,
+    max_gap_s: float = 1.0,
+    resample_hz: float = 100.0,
+):
     """A reference from a recorded trace of 1 to 6 axes.
 
     The first line names the columns and their units: a time column (``t`` or ``time``, in s,
@@ -338,23 +372,30 @@ def load_trace(path, axis_map: dict | None = None, centre=None, centre_on: str =
     if lowpass_hz is not None:
         lowpass_hz = as_number("lowpass_hz", lowpass_hz, 0.0, 0.5 * resample_hz, lo_open=True)
     grid = _trace_grid(path, t, resample_hz)
-    displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate,
-                                    max_gap_s)
-    displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on,
-                            targets)
+    displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate, max_gap_s)
+    displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets)
     centre = X_HOME if centre is None else np.asarray(check_centre("trace", centre))
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
     from pydrake.trajectories import PiecewisePolynomial
 
     spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)
-    info = TraceInfo(path=str(path), columns=tuple(names), units=tuple(units),
-                     axes=tuple(f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}"
-                                for k, f in zip(targets, factors)),
-                     samples=len(t), sample_rate_hz=rate, gaps=tuple(sorted(set(gaps))),
-                     lowpass_hz=lowpass_hz, duration_s=float(grid[-1]), centred_on=centre_on)
+    info = TraceInfo(
+        path=str(path),
+        columns=tuple(names),
+        units=tuple(units),
+        axes=tuple(f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}" for k, f in zip(targets, factors)),
+        samples=len(t),
+        sample_rate_hz=rate,
+        gaps=tuple(sorted(set(gaps))),
+        lowpass_hz=lowpass_hz,
+        duration_s=float(grid[-1]),
+        centred_on=centre_on,
+    )
     return TraceTrajectory(spline, info, centre, name=path.stem)
 
+
 # -- a scenario's choice of a trace ----------------------------------------------------------------
+
 
 @dataclass
 class TraceReference(ReferenceConfig):
@@ -372,8 +413,8 @@ class TraceReference(ReferenceConfig):
     """
 
     path: str = ""
-    axis_map: Dict[str, str] = field(default_factory=dict)
-    centre: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    axis_map: dict[str, str] = field(default_factory=dict)
+    centre: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
     centre_on: str = "mean"
     lowpass_hz: float = 0.0
     max_gap_s: float = 1.0
@@ -384,16 +425,24 @@ class TraceReference(ReferenceConfig):
         if not self.path or not Path(self.path).exists():
             raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")
         if self.centre_on not in CENTRE_MODES:
-            raise InvalidConfigError(f"reference.centre_on must be one of {CENTRE_MODES}, got "
-                                     f"{self.centre_on!r}")
+            raise InvalidConfigError(
+                f"reference.centre_on must be one of {CENTRE_MODES}, got {self.centre_on!r}"
+            )
         as_number("reference.lowpass_hz", self.lowpass_hz, 0.0)
         as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
         as_array("reference.centre", self.centre, shape=(6,))
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
-        trace = load_trace(self.path, self.axis_map, self.centre, self.centre_on,
-                           self.lowpass_hz or None, self.max_gap_s)
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
+        trace = load_trace(
+            self.path,
+            self.axis_map,
+            self.centre,
+            self.centre_on,
+            self.lowpass_hz or None,
+            self.max_gap_s,
+        )
         return scaled(trace, self.scale)
 
     @property
@@ -401,5 +450,12 @@ class TraceReference(ReferenceConfig):
         return Path(self.path).stem
 
 
-__all__ = ["load_trace", "TraceTrajectory", "TraceInfo", "CENTRE_MODES", "MAX_TRACE_BYTES",
-           "TIME_UNITS", "TraceReference"]
+__all__ = [
+    "load_trace",
+    "TraceTrajectory",
+    "TraceInfo",
+    "CENTRE_MODES",
+    "MAX_TRACE_BYTES",
+    "TIME_UNITS",
+    "TraceReference",
+]

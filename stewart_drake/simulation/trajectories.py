@@ -17,7 +17,6 @@ import csv
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import List
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial, Trajectory
@@ -45,8 +44,10 @@ def check_sine_bounds(trajectory) -> None:
         peaks = np.stack([np.abs(trajectory.offset) + A, A * w, A * w * w])
     if not np.isfinite(peaks).all():
         axis = int(np.argwhere(~np.isfinite(peaks))[0][1])
-        raise InvalidConfigError(f"{trajectory.name}: axis {axis} overflows float64 (amplitude "
-                                 f"{A[axis]:.3g}, frequency {f[axis]:.3g} Hz); use SI units")
+        raise InvalidConfigError(
+            f"{trajectory.name}: axis {axis} overflows float64 (amplitude "
+            f"{A[axis]:.3g}, frequency {f[axis]:.3g} Hz); use SI units"
+        )
 
 
 def _check_offset(trajectory) -> None:
@@ -54,8 +55,10 @@ def _check_offset(trajectory) -> None:
     a position beyond 1 km) naming the trajectory."""
     offset = as_poses(f"{trajectory.name}: offset", trajectory.offset)
     if offset.shape != (6,):
-        raise InvalidConfigError(f"{trajectory.name}: offset must be one pose (6,) [phi, theta, "
-                                 f"psi, X, Y, Z], got shape {offset.shape}")
+        raise InvalidConfigError(
+            f"{trajectory.name}: offset must be one pose (6,) [phi, theta, "
+            f"psi, X, Y, Z], got shape {offset.shape}"
+        )
     object.__setattr__(trajectory, "offset", tuple(float(v) for v in offset))
 
 
@@ -92,8 +95,9 @@ class SineTrajectory:
 def paper_manoeuvre() -> SineTrajectory:
     """Paper eqs. 37-38: phi = (pi/6) sin 2t rad, Z = 0.05 sin 2t + 0.30 m, others 0."""
     f = 2.0 / (2 * np.pi)
-    return SineTrajectory(amplitude=(np.pi / 6, 0, 0, 0, 0, 0.05), frequency_hz=(f, 0, 0, 0, 0, f),
-                          name="paper")
+    return SineTrajectory(
+        amplitude=(np.pi / 6, 0, 0, 0, 0, 0.05), frequency_hz=(f, 0, 0, 0, 0, f), name="paper"
+    )
 
 
 def hold_home() -> SineTrajectory:
@@ -170,16 +174,24 @@ class ChirpTrajectory:
 
     def __post_init__(self):
         object.__setattr__(self, "axis", _axis_index(self.axis))
-        for name, lo in (("amplitude", None), ("f0_hz", 0.0), ("f1_hz", 0.0),
-                         ("duration_s", 0.0)):
-            object.__setattr__(self, name, as_number(f"{self.name}: {name}", getattr(self, name),
-                                                     lo, lo_open=lo is not None))
+        for name, lo in (("amplitude", None), ("f0_hz", 0.0), ("f1_hz", 0.0), ("duration_s", 0.0)):
+            object.__setattr__(
+                self,
+                name,
+                as_number(f"{self.name}: {name}", getattr(self, name), lo, lo_open=lo is not None),
+            )
         if self.max_acceleration is not None:
-            object.__setattr__(self, "max_acceleration", as_number(
-                f"{self.name}: max_acceleration", self.max_acceleration, 0.0, lo_open=True))
+            object.__setattr__(
+                self,
+                "max_acceleration",
+                as_number(
+                    f"{self.name}: max_acceleration", self.max_acceleration, 0.0, lo_open=True
+                ),
+            )
         if not self.f0_hz < self.f1_hz:
-            raise InvalidConfigError(f"{self.name}: need f0_hz < f1_hz, got {self.f0_hz}, "
-                                     f"{self.f1_hz}")
+            raise InvalidConfigError(
+                f"{self.name}: need f0_hz < f1_hz, got {self.f0_hz}, {self.f1_hz}"
+            )
         _check_offset(self)
 
     def frequency(self, t) -> np.ndarray:
@@ -206,8 +218,9 @@ class ChirpTrajectory:
             over = limited < A
             # A = a_max / w^2 with w = w0 k^(t/T): A' = -2 A ln k / T, A'' = (2 ln k / T)^2 A
             # while the sweep runs, constant once it holds f1.
-            rate = np.where(t < self.duration_s,
-                            -2 * np.log(self.f1_hz / self.f0_hz) / self.duration_s, 0.0)
+            rate = np.where(
+                t < self.duration_s, -2 * np.log(self.f1_hz / self.f0_hz) / self.duration_s, 0.0
+            )
             A = np.where(over, limited, A)
             A_dot = np.where(over, rate * limited, 0.0)
             A_ddot = np.where(over, rate * rate * limited, 0.0)
@@ -251,22 +264,32 @@ def sweep(axis="Z") -> ChirpTrajectory:
     :data:`SWEEP_MAX_ACCELERATION`, then falling as 1/f^2 (0.08 mm, 0.8 mrad at 50 Hz)."""
     k = _axis_index(axis)
     i = 1 if k >= 3 else 0
-    return ChirpTrajectory(axis=k, amplitude=SWEEP_AMPLITUDE[i],
-                           max_acceleration=SWEEP_MAX_ACCELERATION[i],
-                           name=f"sweep_{AXIS_NAMES[k]}")
+    return ChirpTrajectory(
+        axis=k,
+        amplitude=SWEEP_AMPLITUDE[i],
+        max_acceleration=SWEEP_MAX_ACCELERATION[i],
+        name=f"sweep_{AXIS_NAMES[k]}",
+    )
 
 
 def helix() -> SineTrajectory:
     """Surgical-style path: a 5 mm circle in X-Y at 2 Hz while Z rises and falls 3 mm at
     0.25 Hz, with a 20 mrad wobble of the tool axis (theta) at 1 Hz; well inside the workspace."""
-    return SineTrajectory(amplitude=(0, 0.02, 0, 0.005, 0.005, 0.003),
-                          frequency_hz=(0, 1.0, 0, 2.0, 2.0, 0.25),
-                          phase=(0, 0, 0, np.pi / 2, 0, 0), name="helix")
+    return SineTrajectory(
+        amplitude=(0, 0.02, 0, 0.005, 0.005, 0.003),
+        frequency_hz=(0, 1.0, 0, 2.0, 2.0, 0.25),
+        phase=(0, 0, 0, np.pi / 2, 0, 0),
+        name="helix",
+    )
 
 
-TRAJECTORIES = {"paper": paper_manoeuvre, "home": hold_home, "helix": helix,
-                **{f"step_{a}": (lambda a=a: step(a)) for a in AXIS_NAMES},
-                **{f"sweep_{a}": (lambda a=a: sweep(a)) for a in AXIS_NAMES}}
+TRAJECTORIES = {
+    "paper": paper_manoeuvre,
+    "home": hold_home,
+    "helix": helix,
+    **{f"step_{a}": (lambda a=a: step(a)) for a in AXIS_NAMES},
+    **{f"sweep_{a}": (lambda a=a: sweep(a)) for a in AXIS_NAMES},
+}
 
 
 def make_trajectory(name: str):
@@ -280,7 +303,8 @@ def make_trajectory(name: str):
         return TRAJECTORIES[name]()
     except KeyError:
         raise InvalidConfigError(
-            f"unknown trajectory {name!r}; choose one of {sorted(TRAJECTORIES)}") from None
+            f"unknown trajectory {name!r}; choose one of {sorted(TRAJECTORIES)}"
+        ) from None
 
 
 class ScalarEvaluate:
@@ -299,8 +323,10 @@ class ScalarEvaluate:
         """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
         t = np.asarray(t, dtype=float)
         rows = [self.source.evaluate(float(tk)) for tk in t.reshape(-1)]
-        return tuple(np.array([np.reshape(r[k], 6) for r in rows], dtype=float).reshape(
-            t.shape + (6,)) for k in range(3))
+        return tuple(
+            np.array([np.reshape(r[k], 6) for r in rows], dtype=float).reshape(t.shape + (6,))
+            for k in range(3)
+        )
 
 
 class DrakeTrajectory:
@@ -318,15 +344,21 @@ class DrakeTrajectory:
     """
 
     def __init__(self, trajectory, name: str = "drake_trajectory"):
-        if (not isinstance(trajectory, Trajectory)
-                or (trajectory.rows(), trajectory.cols()) != (6, 1)):
-            shape = ((trajectory.rows(), trajectory.cols()) if isinstance(trajectory, Trajectory)
-                     else type(trajectory).__name__)
-            raise InvalidConfigError(f"a Drake reference must be a Trajectory of 6 rows and 1 "
-                                     f"column ([phi, theta, psi, X, Y, Z]), got {shape}")
+        if not isinstance(trajectory, Trajectory) or (trajectory.rows(), trajectory.cols()) != (
+            6,
+            1,
+        ):
+            shape = (
+                (trajectory.rows(), trajectory.cols())
+                if isinstance(trajectory, Trajectory)
+                else type(trajectory).__name__
+            )
+            raise InvalidConfigError(
+                f"a Drake reference must be a Trajectory of 6 rows and 1 "
+                f"column ([phi, theta, psi, X, Y, Z]), got {shape}"
+            )
         self.trajectory = trajectory
-        self._derivatives = (trajectory, trajectory.MakeDerivative(1),
-                             trajectory.MakeDerivative(2))
+        self._derivatives = (trajectory, trajectory.MakeDerivative(1), trajectory.MakeDerivative(2))
         self.start_time, self.end_time = trajectory.start_time(), trajectory.end_time()
         self.name = name
 
@@ -334,8 +366,9 @@ class DrakeTrajectory:
         """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
         t = np.asarray(t, dtype=float)
         flat = t.reshape(-1).tolist()
-        return tuple(np.asarray(d.vector_values(flat)).T.reshape(t.shape + (6,))
-                     for d in self._derivatives)
+        return tuple(
+            np.asarray(d.vector_values(flat)).T.reshape(t.shape + (6,)) for d in self._derivatives
+        )
 
 
 CSV_COLUMNS = ("t",) + AXIS_NAMES
@@ -360,8 +393,12 @@ def _read_csv_bytes(path: Path) -> bytes:
 
     if not path.exists():
         raise MissingFileError(f"no reference CSV at {path}: check the path")
-    return read_checked(path, "reference CSV", MAX_CSV_BYTES,
-                        "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)")
+    return read_checked(
+        path,
+        "reference CSV",
+        MAX_CSV_BYTES,
+        "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)",
+    )
 
 
 def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:
@@ -376,8 +413,9 @@ def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:
     try:
         return list(csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")))
     except UnicodeDecodeError as err:
-        raise CorruptFileError(path, kind, f"not UTF-8 text ({err.reason} at byte "
-                                           f"{err.start})", remedy) from None
+        raise CorruptFileError(
+            path, kind, f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
+        ) from None
     except csv.Error as err:
         raise CorruptFileError(path, kind, f"not CSV ({err})", remedy) from None
 
@@ -416,8 +454,9 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
     data = _csv_samples(path)
     _check_csv_times(path, data[:, 0])
     as_poses(f"{path}: the poses", data[:, 1:])
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(data[:, 0], data[:, 1:].T,
-                                                                     False)
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+        data[:, 0], data[:, 1:].T, False
+    )
     return DrakeTrajectory(spline, name=path.stem)
 
 
@@ -433,16 +472,21 @@ def _csv_samples(path: Path) -> np.ndarray:
     raw = _read_csv_bytes(path)
     remedy = "write it as UTF-8 text with the header t,phi,theta,psi,X,Y,Z (s, rad, m)"
     rows_in_file = raw.count(b"\n") + 1
-    check_memory(f"a reference of {rows_in_file} rows ({path})", rows_in_file * CSV_BYTES_PER_ROW,
-                 "sample the reference more coarsely (one row per control period is plenty)")
+    check_memory(
+        f"a reference of {rows_in_file} rows ({path})",
+        rows_in_file * CSV_BYTES_PER_ROW,
+        "sample the reference more coarsely (one row per control period is plenty)",
+    )
     rows = csv_rows(raw, path, "reference CSV", remedy)
     del raw
     header = [h.strip() for h in rows[0]] if rows else []
     if tuple(header) != CSV_COLUMNS:
-        raise InvalidConfigError(f"{path}: the first line must be the header "
-                                 f"{','.join(CSV_COLUMNS)}, got {','.join(header)[:200]!r}"
-                                 if header else f"{path}: the first line must be the header "
-                                 f"{','.join(CSV_COLUMNS)}, got nothing")
+        raise InvalidConfigError(
+            f"{path}: the first line must be the header "
+            f"{','.join(CSV_COLUMNS)}, got {','.join(header)[:200]!r}"
+            if header
+            else f"{path}: the first line must be the header {','.join(CSV_COLUMNS)}, got nothing"
+        )
     values = []
     for line, row in enumerate(rows[1:], start=2):
         if not row or all(not c.strip() for c in row):
@@ -452,9 +496,11 @@ def _csv_samples(path: Path) -> np.ndarray:
         except ValueError:
             numbers = []
         if len(numbers) != 7 or not np.all(np.isfinite(numbers)):
-            raise InvalidConfigError(f"{path}, line {line}: expected 7 finite numbers "
-                                     f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got "
-                                     f"{','.join(row)[:200]!r}")
+            raise InvalidConfigError(
+                f"{path}, line {line}: expected 7 finite numbers "
+                f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got "
+                f"{','.join(row)[:200]!r}"
+            )
         values.append(numbers)
     del rows
     return np.array(values).reshape(-1, 7)
@@ -472,13 +518,17 @@ def _check_csv_times(path: Path, t: np.ndarray) -> None:
     if t[0] != 0.0 or np.any(np.diff(t) <= 0):
         raise InvalidConfigError(f"{path}: times must start at 0 s and strictly increase")
     if t[-1] > CSV_MAX_T_S:
-        raise InvalidConfigError(f"{path}: the last time is {t[-1]:.6g} s; a reference ends by "
-                                 f"{CSV_MAX_T_S:g} s (times are in s)")
+        raise InvalidConfigError(
+            f"{path}: the last time is {t[-1]:.6g} s; a reference ends by "
+            f"{CSV_MAX_T_S:g} s (times are in s)"
+        )
     k = int(np.argmin(np.diff(t)))
     if t[k + 1] - t[k] < CSV_MIN_DT_S:
-        raise InvalidConfigError(f"{path}: samples must be at least {CSV_MIN_DT_S:g} s apart; "
-                                 f"those at t = {t[k]:.6g} s and {t[k + 1]:.6g} s are "
-                                 f"{t[k + 1] - t[k]:.3g} s apart (times are in s)")
+        raise InvalidConfigError(
+            f"{path}: samples must be at least {CSV_MIN_DT_S:g} s apart; "
+            f"those at t = {t[k]:.6g} s and {t[k + 1]:.6g} s are "
+            f"{t[k + 1] - t[k]:.3g} s apart (times are in s)"
+        )
 
 
 def as_trajectory(source) -> Reference:
@@ -503,14 +553,16 @@ def as_trajectory(source) -> Reference:
     if isinstance(source, Trajectory):
         return DrakeTrajectory(source)
     if not callable(getattr(source, "evaluate", None)):
-        raise InvalidConfigError(f"a reference must be a name, a .csv path, a Drake Trajectory or "
-                                 f"an object with evaluate(t); got {type(source).__name__}")
+        raise InvalidConfigError(
+            f"a reference must be a name, a .csv path, a Drake Trajectory or "
+            f"an object with evaluate(t); got {type(source).__name__}"
+        )
     probe = np.array([0.0, 1e-3])
     try:
         out = source.evaluate(probe)
         if len(out) == 3 and all(np.shape(part) == (2, 6) for part in out):
             return source
-    except Exception:       # noqa: BLE001 - an evaluate that takes one time only fails here
+    except Exception:  # noqa: BLE001 - an evaluate that takes one time only fails here
         pass
     wrapped = ScalarEvaluate(source)
     try:
@@ -518,14 +570,21 @@ def as_trajectory(source) -> Reference:
     except Exception as err:  # noqa: BLE001 - say what is wrong with the user's object
         raise InvalidConfigError(
             f"{type(source).__name__}.evaluate(t) must return (pose, rate, acceleration), each 6 "
-            f"numbers [rad, m, /s, /s^2] for one t (or (n, 6) for n times): {err}") from None
+            f"numbers [rad, m, /s, /s^2] for one t (or (n, 6) for n times): {err}"
+        ) from None
     return wrapped
 
 
-def validate(trajectory: Reference, geometry: StewartGeometry, duration_s: float, dt: float = 1e-3,
-             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-             min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
-             raise_refused: bool = True, **checks) -> limits.TrajectoryReport:
+def validate(
+    trajectory: Reference,
+    geometry: StewartGeometry,
+    duration_s: float,
+    dt: float = 1e-3,
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
+    raise_refused: bool = True,
+    **checks,
+) -> limits.TrajectoryReport:
     """Sample a trajectory on [0, duration_s] every ``dt`` and validate it.
 
     The samples go to :func:`~stewart_drake.model.limits.validate_trajectory`, the one validator
@@ -552,14 +611,23 @@ def validate(trajectory: Reference, geometry: StewartGeometry, duration_s: float
         raise InvalidConfigError(f"duration must be > 0 s, got {duration_s}")
     end = getattr(trajectory, "end_time", None)
     if end is not None and duration_s > end + 1e-9:
-        raise InvalidConfigError(f"the reference {getattr(trajectory, 'name', '')} ends at "
-                                 f"t = {end:g} s: run at most that long (duration_s) or extend it")
+        raise InvalidConfigError(
+            f"the reference {getattr(trajectory, 'name', '')} ends at "
+            f"t = {end:g} s: run at most that long (duration_s) or extend it"
+        )
     t = np.arange(0.0, duration_s + 0.5 * dt, dt)
     x, x_dot, x_ddot = trajectory.evaluate(t)
-    return limits.validate_trajectory(geometry, t, x, cond_threshold=cond_threshold,
-                                      min_sigma_min_inv=min_sigma_min_inv,
-                                      raise_refused=raise_refused, x_dot=x_dot, x_ddot=x_ddot,
-                                      **checks)
+    return limits.validate_trajectory(
+        geometry,
+        t,
+        x,
+        cond_threshold=cond_threshold,
+        min_sigma_min_inv=min_sigma_min_inv,
+        raise_refused=raise_refused,
+        x_dot=x_dot,
+        x_ddot=x_ddot,
+        **checks,
+    )
 
 
 #: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.
@@ -585,8 +653,9 @@ def _max_single_axis_amplitude(geometry: StewartGeometry, axis: int, ratio_max: 
     return lo
 
 
-def _slack(geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float,
-           min_sigma_min_inv: float) -> np.ndarray:
+def _slack(
+    geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float, min_sigma_min_inv: float
+) -> np.ndarray:
     """(n,) smallest margin of poses x (n, 6) over the checks of :func:`validate`, each
     normalized by its bound; < 0 where refused. Checks: closure at ``ratio_max``, motor travel,
     both ball-joint cones, then (only when every pose passes those: the SVD is the dear part)
@@ -594,26 +663,39 @@ def _slack(geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float
     theta, ratio = kinematics.ik_unchecked(geometry, x)
     margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     travel = np.deg2rad(geometry.motor_angle_max_deg - geometry.motor_angle_min_deg) / 2
-    slack = np.min(np.concatenate([
-        (ratio_max - np.abs(ratio)) / ratio_max, margins["motor_angle"] / travel,
-        margins["crank_joint"] / np.deg2rad(geometry.crank_joint_cone_deg),
-        margins["platform_joint"] / np.deg2rad(geometry.platform_joint_cone_deg)], axis=-1),
-        axis=-1)
+    slack = np.min(
+        np.concatenate(
+            [
+                (ratio_max - np.abs(ratio)) / ratio_max,
+                margins["motor_angle"] / travel,
+                margins["crank_joint"] / np.deg2rad(geometry.crank_joint_cone_deg),
+                margins["platform_joint"] / np.deg2rad(geometry.platform_joint_cone_deg),
+            ],
+            axis=-1,
+        ),
+        axis=-1,
+    )
     slack = np.nan_to_num(slack, nan=-np.inf)
     if np.all(slack >= 0):
         cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
-        singular = np.minimum((cond_threshold - cond) / cond_threshold,
-                              (inv - min_sigma_min_inv) / max(min_sigma_min_inv, 1e-12))
+        singular = np.minimum(
+            (cond_threshold - cond) / cond_threshold,
+            (inv - min_sigma_min_inv) / max(min_sigma_min_inv, 1e-12),
+        )
         slack = np.minimum(slack, np.nan_to_num(singular, nan=-np.inf))
     return slack
 
 
-def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None = None,
-                               duration_s: float = 10.0, ratio_max: float = 0.9,
-                               dt: float = 1e-3,
-                               cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-                               min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
-                               torque_limit_Nm: float | None = None) -> SineTrajectory:
+def data_collection_trajectory(
+    seed: int = 0,
+    geometry: StewartGeometry | None = None,
+    duration_s: float = 10.0,
+    ratio_max: float = 0.9,
+    dt: float = 1e-3,
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
+    torque_limit_Nm: float | None = None,
+) -> SineTrajectory:
     """Excitation for the tuner's training data (paper section III.D), deterministic in ``seed``.
 
     Every axis moves at once, one sine each, with a frequency drawn in [1, 5] Hz and a random
@@ -646,19 +728,28 @@ def data_collection_trajectory(seed: int = 0, geometry: StewartGeometry | None =
     phase = rng.uniform(0, 2 * np.pi, 6)
     single = np.array([_max_single_axis_amplitude(geometry, k, ratio_max) for k in range(6)])
     amp = np.minimum(single, np.asarray(DATA_ACCEL_CAP) / (2 * np.pi * f) ** 2)
-    t = np.arange(0.0, duration_s + 0.5 * dt, dt)            # the samples of validate()
+    t = np.arange(0.0, duration_s + 0.5 * dt, dt)  # the samples of validate()
 
     def path(scale, times=t):
-        return SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
-                              phase=tuple(phase)).evaluate(times)
+        return SineTrajectory(
+            amplitude=tuple(scale * amp), frequency_hz=tuple(f), phase=tuple(phase)
+        ).evaluate(times)
 
-    scale = _scale_within_checks(geometry, lambda sc, k=slice(None): path(sc, t[k])[0],
-                                 (ratio_max, cond_threshold, min_sigma_min_inv))
+    scale = _scale_within_checks(
+        geometry,
+        lambda sc, k=slice(None): path(sc, t[k])[0],
+        (ratio_max, cond_threshold, min_sigma_min_inv),
+    )
     if torque_limit_Nm is not None:
-        scale = _scale_within_torque(geometry, lambda sc: path(sc, t[::5]), scale,
-                                     DATA_TORQUE_MARGIN * torque_limit_Nm)
-    return SineTrajectory(amplitude=tuple(scale * amp), frequency_hz=tuple(f),
-                          phase=tuple(phase), name=f"data_seed{seed}")
+        scale = _scale_within_torque(
+            geometry, lambda sc: path(sc, t[::5]), scale, DATA_TORQUE_MARGIN * torque_limit_Nm
+        )
+    return SineTrajectory(
+        amplitude=tuple(scale * amp),
+        frequency_hz=tuple(f),
+        phase=tuple(phase),
+        name=f"data_seed{seed}",
+    )
 
 
 def _scale_within_checks(geometry: StewartGeometry, poses, checks: tuple) -> float:
@@ -667,18 +758,19 @@ def _scale_within_checks(geometry: StewartGeometry, poses, checks: tuple) -> flo
     bisection runs on the samples that refused a scale so far, and each round is confirmed on
     all of them."""
     scale, critical = 1.0, np.zeros(0, dtype=int)
-    for _ in range(20):                   # each round adds the samples that refused the scale
+    for _ in range(20):  # each round adds the samples that refused the scale
         slack = _slack(geometry, poses(scale), *checks)
         if np.all(slack >= 0):
             break
-        critical = np.union1d(critical, np.union1d(np.flatnonzero(slack < 0),
-                                                   np.argsort(slack)[:64]))
+        critical = np.union1d(
+            critical, np.union1d(np.flatnonzero(slack < 0), np.argsort(slack)[:64])
+        )
         lo, hi = 0.0, scale
         for _ in range(40):
             mid = 0.5 * (lo + hi)
             fits = np.all(_slack(geometry, poses(mid, critical), *checks) >= 0)
             lo, hi = (mid, hi) if fits else (lo, mid)
-        scale = lo * (1 - 1e-3)           # a hair inside: no pass or fail by round-off
+        scale = lo * (1 - 1e-3)  # a hair inside: no pass or fail by round-off
     return scale
 
 
@@ -701,6 +793,7 @@ def _scale_within_torque(geometry: StewartGeometry, motion, scale: float, bound:
 
 # -- a scenario's choices of these references ------------------------------------------------------
 
+
 @dataclass
 class NamedReference(ReferenceConfig):
     """A reference of :data:`TRAJECTORIES`: "paper" (eqs. 37-38), "home", "helix",
@@ -709,10 +802,11 @@ class NamedReference(ReferenceConfig):
     name: str = "paper"
 
     def validate(self) -> None:
-        make_trajectory(self.name)                        # unknown name: lists the known ones
+        make_trajectory(self.name)  # unknown name: lists the known ones
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
         return make_trajectory(self.name)
 
 
@@ -727,11 +821,13 @@ class CsvReference(ReferenceConfig):
         from ..errors import MissingFileError
 
         if not self.path or not Path(self.path).exists():
-            raise MissingFileError(f"no reference CSV at {self.path!r} (reference.path): check "
-                                   f"the path")
+            raise MissingFileError(
+                f"no reference CSV at {self.path!r} (reference.path): check the path"
+            )
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
         return load_csv_trajectory(self.path)
 
     @property
@@ -743,8 +839,7 @@ class CsvReference(ReferenceConfig):
         return csv_reference_bytes(self.path)
 
     def memory_note(self) -> tuple:
-        return (f" on the reference {self.path}",
-                ", and sample the reference CSV more coarsely")
+        return (f" on the reference {self.path}", ", and sample the reference CSV more coarsely")
 
 
 @dataclass
@@ -752,23 +847,28 @@ class SineReference(ReferenceConfig):
     """x_d(t) = offset + amplitude sin(2 pi f t + phase), axis by axis (6 values each: rad, m,
     Hz, rad); see :class:`SineTrajectory`."""
 
-    amplitude: List[float] = field(default_factory=lambda: [0.0] * 6)
-    frequency_hz: List[float] = field(default_factory=lambda: [0.0] * 6)
-    phase: List[float] = field(default_factory=lambda: [0.0] * 6)
-    offset: List[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+    amplitude: list[float] = field(default_factory=lambda: [0.0] * 6)
+    frequency_hz: list[float] = field(default_factory=lambda: [0.0] * 6)
+    phase: list[float] = field(default_factory=lambda: [0.0] * 6)
+    offset: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
     name: str = "sine"
 
     def validate(self) -> None:
-        self._sine()                                        # checks shapes and overflow
+        self._sine()  # checks shapes and overflow
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
         return self._sine()
 
     def _sine(self) -> SineTrajectory:
-        return SineTrajectory(amplitude=tuple(self.amplitude),
-                              frequency_hz=tuple(self.frequency_hz), phase=tuple(self.phase),
-                              offset=tuple(self.offset), name=self.name)
+        return SineTrajectory(
+            amplitude=tuple(self.amplitude),
+            frequency_hz=tuple(self.frequency_hz),
+            phase=tuple(self.phase),
+            offset=tuple(self.offset),
+            name=self.name,
+        )
 
 
 @dataclass
@@ -782,10 +882,12 @@ class DataCollectionReference(ReferenceConfig):
     def validate(self) -> None:
         check_int("reference.seed", self.seed, 0, MAX_SEED)
 
-    def make(self, geometry: StewartGeometry, duration_s: float,
-             torque_limit_Nm: float | None) -> Reference:
-        return data_collection_trajectory(self.seed, geometry, duration_s=duration_s,
-                                          torque_limit_Nm=torque_limit_Nm)
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
+        return data_collection_trajectory(
+            self.seed, geometry, duration_s=duration_s, torque_limit_Nm=torque_limit_Nm
+        )
 
     @property
     def label(self) -> str:

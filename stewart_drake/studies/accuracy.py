@@ -51,10 +51,12 @@ class OpenLoopCase:
 
 
 #: Zero-torque falls and rises under 1.2 x the holding torques, from home and tilted.
-SCENARIOS = (OpenLoopCase("fall_home", tuple(X_HOME), 0.0),
-             OpenLoopCase("fall_tilted", tuple(X_TILTED), 0.0),
-             OpenLoopCase("rise_home", tuple(X_HOME), 1.2),
-             OpenLoopCase("rise_tilted", tuple(X_TILTED), 1.2))
+SCENARIOS = (
+    OpenLoopCase("fall_home", tuple(X_HOME), 0.0),
+    OpenLoopCase("fall_tilted", tuple(X_TILTED), 0.0),
+    OpenLoopCase("rise_home", tuple(X_HOME), 1.2),
+    OpenLoopCase("rise_tilted", tuple(X_TILTED), 1.2),
+)
 
 
 @dataclass
@@ -121,8 +123,10 @@ class DrakeEngine:
 
     def energies(self) -> tuple[float, float]:
         """(kinetic, potential) energy in J."""
-        return (self.plant.CalcKineticEnergy(self.context),
-                self.plant.CalcPotentialEnergy(self.context))
+        return (
+            self.plant.CalcKineticEnergy(self.context),
+            self.plant.CalcPotentialEnergy(self.context),
+        )
 
     def motor_angles(self) -> np.ndarray:
         return np.array([joint.get_angle(self.context) for joint in self.handles.motors])
@@ -132,8 +136,9 @@ class MujocoEngine:
     """The MJCF of :func:`stewart_drake.model.mjcf.write_mjcf` under constant torques,
     ``mj_step``."""
 
-    def __init__(self, geometry: StewartGeometry, time_step: float, torques,
-                 integrator: str | None = None):
+    def __init__(
+        self, geometry: StewartGeometry, time_step: float, torques, integrator: str | None = None
+    ):
         from ..model import mjcf
 
         self._mjcf = mjcf
@@ -177,12 +182,17 @@ class MujocoEngine:
 ENGINES: dict[str, Callable[..., DrakeEngine | MujocoEngine]] = {
     "drake_sap": DrakeEngine,
     "mujoco_rk4": lambda g, h, T: MujocoEngine(g, h, T, "RK4"),
-    "mujoco_implicitfast": lambda g, h, T: MujocoEngine(g, h, T, "implicitfast")}
+    "mujoco_implicitfast": lambda g, h, T: MujocoEngine(g, h, T, "implicitfast"),
+}
 
 
-def simulate(engine: str, scenario: OpenLoopCase, time_step: float,
-             geometry: StewartGeometry | None = None,
-             sample_times=SAMPLE_TIMES_S) -> Run:
+def simulate(
+    engine: str,
+    scenario: OpenLoopCase,
+    time_step: float,
+    geometry: StewartGeometry | None = None,
+    sample_times=SAMPLE_TIMES_S,
+) -> Run:
     """Run ``scenario`` on ``engine`` (a key of :data:`ENGINES`) at ``time_step`` s.
 
     Returns:
@@ -212,10 +222,17 @@ def simulate(engine: str, scenario: OpenLoopCase, time_step: float,
             x[wanted[k]] = sim.pose()
     kinetic, potential = sim.energies()
     work = float(torques @ (sim.motor_angles() - theta0))
-    return Run(engine=getattr(sim, "name", engine), scenario=scenario.name,
-               time_step_s=time_step, t=sample_times, x=x,
-               energy_change=(kinetic + potential - work - E0) / kinetic,
-               max_closure_m=closure, wall_s=wall, sim_s=float(sample_times[-1]))
+    return Run(
+        engine=getattr(sim, "name", engine),
+        scenario=scenario.name,
+        time_step_s=time_step,
+        t=sample_times,
+        x=x,
+        energy_change=(kinetic + potential - work - E0) / kinetic,
+        max_closure_m=closure,
+        wall_s=wall,
+        sim_s=float(sample_times[-1]),
+    )
 
 
 def pose_errors(x, x_ref) -> tuple[np.ndarray, np.ndarray]:
@@ -276,7 +293,10 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
         pitch = max(pitch, max(abs(joint.get_angles(context)[1]) for joint in sd.handles.rod_balls))
     geometry = make_plan(config, with_reference=False).geometry
     no_spin = np.abs(ball_joints.rod_ball_rpy(geometry, result.x[:, :6])[..., 1]).max()
-    return {"rms_error": np.asarray(result.metrics["rms_error"]),
-            "max_closure_m": result.metrics["max_closure_m"],
-            "wall_per_sim_s": wall / duration_s, "max_pitch_rad": float(pitch),
-            "max_pitch_no_spin_rad": float(no_spin)}
+    return {
+        "rms_error": np.asarray(result.metrics["rms_error"]),
+        "max_closure_m": result.metrics["max_closure_m"],
+        "wall_per_sim_s": wall / duration_s,
+        "max_pitch_rad": float(pitch),
+        "max_pitch_no_spin_rad": float(no_spin),
+    }

@@ -58,14 +58,20 @@ def run_record(result: RunResult, scales, sample_period_s: float, window: int) -
     cost_u = np.sum((result.T / scales.torque) ** 2, axis=1)
     step = max(1, int(round(sample_period_s / np.median(np.diff(result.t)))))
     keep = slice(0, None, step)
-    return {"omega_Q": float(result.config_summary["omega_Q"]),
-            "omega_R": float(result.config_summary["omega_R"]),
-            "t": result.t[keep], "rho": rho[keep], "cost_e": cost_e[keep],
-            "cost_u": cost_u[keep], "metrics": result.metrics}
+    return {
+        "omega_Q": float(result.config_summary["omega_Q"]),
+        "omega_R": float(result.config_summary["omega_R"]),
+        "t": result.t[keep],
+        "rho": rho[keep],
+        "cost_e": cost_e[keep],
+        "cost_u": cost_u[keep],
+        "metrics": result.metrics,
+    }
 
 
-def job_config(base: Scenario | None, seed: int, duration_s: float, omega_Q: float,
-               omega_R: float) -> Scenario:
+def job_config(
+    base: Scenario | None, seed: int, duration_s: float, omega_Q: float, omega_R: float
+) -> Scenario:
     """The scenario of one collection run, the only place it is built: ``base`` (default: the
     robot as built, ``paper_hardware``) tracking the seeded excitation for ``duration_s`` with
     the base's LQI at fixed (omega_Q, omega_R) (:meth:`~.scenario.Scenario.lqi`)."""
@@ -97,14 +103,18 @@ class CollectionRun:
 def _collect_job(run: CollectionRun) -> dict:
     t0 = time.perf_counter()
     result = run_experiment(run.scenario)
-    scales = run.scenario.controller.scales.build()     # type: ignore[union-attr]  # an LQI
+    scales = run.scenario.controller.scales.build()  # type: ignore[union-attr]  # an LQI
     record = run_record(result, scales, run.sample_period_s, run.feature_window)
     record["wall_s"] = time.perf_counter() - t0
     return record
 
 
-def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: float = 5e-3,
-                    base: Scenario | None = None) -> tuple[dict, dict]:
+def collection_jobs(
+    seed: int = 0,
+    duration_s: float = 10.0,
+    sample_period_s: float = 5e-3,
+    base: Scenario | None = None,
+) -> tuple[dict, dict]:
     """The settings (what decides the data, hashed by the store) and the nine runs.
 
     Returns:
@@ -113,23 +123,38 @@ def collection_jobs(seed: int = 0, duration_s: float = 10.0, sample_period_s: fl
     """
     from ..simulation.scenario import dump_scenario
 
-    configs = {f"q{q:g}_r{r:g}": job_config(base, seed, duration_s, q, r)
-               for q in PAPER_WEIGHTS for r in PAPER_WEIGHTS}
+    configs = {
+        f"q{q:g}_r{r:g}": job_config(base, seed, duration_s, q, r)
+        for q in PAPER_WEIGHTS
+        for r in PAPER_WEIGHTS
+    }
     trajectory = make_plan(next(iter(configs.values()))).reference
     window = AnnTunerDriver().feature_window
-    settings = {"seed": seed, "duration_s": duration_s, "sample_period_s": sample_period_s,
-                "feature_window": window,
-                "trajectory": {"amplitude": trajectory.amplitude,
-                               "frequency_hz": trajectory.frequency_hz,
-                               "phase": trajectory.phase},
-                "scenario": dump_scenario(next(iter(configs.values())))}
+    settings = {
+        "seed": seed,
+        "duration_s": duration_s,
+        "sample_period_s": sample_period_s,
+        "feature_window": window,
+        "trajectory": {
+            "amplitude": trajectory.amplitude,
+            "frequency_hz": trajectory.frequency_hz,
+            "phase": trajectory.phase,
+        },
+        "scenario": dump_scenario(next(iter(configs.values()))),
+    }
     jobs = {k: CollectionRun(c, sample_period_s, window) for k, c in configs.items()}
     return settings, jobs
 
 
-def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: float = 10.0,
-            sample_period_s: float = 5e-3, runner=None, progress: bool = True,
-            base: Scenario | None = None) -> dict:
+def collect(
+    out_dir: str | Path = "results/collect",
+    seed: int = 0,
+    duration_s: float = 10.0,
+    sample_period_s: float = 5e-3,
+    runner=None,
+    progress: bool = True,
+    base: Scenario | None = None,
+) -> dict:
     """The paper's 9 closed-loop experiments, (omega_Q, omega_R) in {0.1, 1, 10}^2, on the plant.
 
     All runs track the same :func:`~.trajectories.data_collection_trajectory` (seeded), so the
@@ -156,12 +181,14 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     """
     out = Path(out_dir)
     runner = runner or ProcessRunner()
-    n_runs = len(PAPER_WEIGHTS) ** 2                 # before the reference is planned
-    check_run_memory(job_config(base, seed, duration_s, 1.0, 1.0),
-                     max(1, min(runner.n_workers, n_runs)),
-                     "shorten --duration, or run fewer at once with --jobs")
+    n_runs = len(PAPER_WEIGHTS) ** 2  # before the reference is planned
+    check_run_memory(
+        job_config(base, seed, duration_s, 1.0, 1.0),
+        max(1, min(runner.n_workers, n_runs)),
+        "shorten --duration, or run fewer at once with --jobs",
+    )
     settings, jobs = collection_jobs(seed, duration_s, sample_period_s, base)
-    for job in jobs.values():          # not in the settings: a divergence is kept under out_dir
+    for job in jobs.values():  # not in the settings: a divergence is kept under out_dir
         job.scenario.guard.divergence_dir = str(out / "diverged")
     store = ResultStore(out, "collect", settings, pattern="run_*.npz")
 
@@ -173,12 +200,30 @@ def collect(out_dir: str | Path = "results/collect", seed: int = 0, duration_s: 
     job_time = sum(store.manifest["jobs"][k]["wall_s"] for k in ran["ran"])
     wall = ran["wall_s"]
     return store.finish(
-        True, runs=[{k: e.get(k) for k in ("file", "omega_Q", "omega_R", "rms_error",
-                                           "sum_T2_dt", "max_closure_m", "lost")}
-                    for e in entries],
-        n_samples=int(sum(e["n_samples"] for e in entries)), workers=runner.n_workers,
-        ran=len(ran["ran"]), reused=len(ran["reused"]), wall_s=wall, sum_job_s=job_time,
-        speedup=job_time / wall if ran["ran"] and wall > 0 else float("nan"))
+        True,
+        runs=[
+            {
+                k: e.get(k)
+                for k in (
+                    "file",
+                    "omega_Q",
+                    "omega_R",
+                    "rms_error",
+                    "sum_T2_dt",
+                    "max_closure_m",
+                    "lost",
+                )
+            }
+            for e in entries
+        ],
+        n_samples=int(sum(e["n_samples"] for e in entries)),
+        workers=runner.n_workers,
+        ran=len(ran["ran"]),
+        reused=len(ran["reused"]),
+        wall_s=wall,
+        sum_job_s=job_time,
+        speedup=job_time / wall if ran["ran"] and wall > 0 else float("nan"),
+    )
 
 
 def _save_run(store: ResultStore, job_id: str, run: CollectionRun, record) -> None:
@@ -189,10 +234,19 @@ def _save_run(store: ResultStore, job_id: str, run: CollectionRun, record) -> No
             # The platform was lost at these weights: an outcome of the experiment (the
             # stiff ratios on the robot as built), kept as such, not a missing run.
             q, r = run.weights
-            store.put_json(job_id, f"run_{job_id}.json", {"lost": record.message},
-                           omega_Q=q, omega_R=r, lost=record.message.splitlines()[0],
-                           rms_error=None, sum_T2_dt=None, max_closure_m=None,
-                           n_samples=0, wall_s=0.0)
+            store.put_json(
+                job_id,
+                f"run_{job_id}.json",
+                {"lost": record.message},
+                omega_Q=q,
+                omega_R=r,
+                lost=record.message.splitlines()[0],
+                rms_error=None,
+                sum_T2_dt=None,
+                max_closure_m=None,
+                n_samples=0,
+                wall_s=0.0,
+            )
             return
         store.mark(record)
         return
@@ -200,11 +254,18 @@ def _save_run(store: ResultStore, job_id: str, run: CollectionRun, record) -> No
     arrays["metrics"] = np.array(json.dumps(record["metrics"]))
     arrays["settings_hash"] = np.array(store.hash)
     m = record["metrics"]
-    store.put(job_id, f"run_{job_id}.npz", lambda f: np.savez_compressed(f, **arrays),
-              omega_Q=record["omega_Q"], omega_R=record["omega_R"],
-              rms_error=m["rms_error"], sum_T2_dt=m["sum_T2_dt"],
-              max_closure_m=m["max_closure_m"], n_samples=len(record["t"]),
-              wall_s=record["wall_s"])
+    store.put(
+        job_id,
+        f"run_{job_id}.npz",
+        lambda f: np.savez_compressed(f, **arrays),
+        omega_Q=record["omega_Q"],
+        omega_R=record["omega_R"],
+        rms_error=m["rms_error"],
+        sum_T2_dt=m["sum_T2_dt"],
+        max_closure_m=m["max_closure_m"],
+        n_samples=len(record["t"]),
+        wall_s=record["wall_s"],
+    )
 
 
 def load_records(data_dir: str | Path) -> list[dict]:
@@ -227,23 +288,33 @@ def load_records(data_dir: str | Path) -> list[dict]:
     manifest = read_manifest(data_dir)
     if manifest is None:
         raise InvalidConfigError(
-            f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first")
+            f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first"
+        )
     if manifest.get("study") != "collect" or manifest.get("format") != FORMAT:
         raise ResultsMismatchError(
             f"{data_dir} was not written by this version of `stewart-drake collect`: collect "
-            f"again into an empty folder")
+            f"again into an empty folder"
+        )
     again = f"run the same `stewart-drake collect --out {data_dir}` again to finish it"
     if not manifest["complete"]:
         done = sum(v["status"] == "done" for v in manifest["jobs"].values())
         raise IncompleteResultsError(
             f"{data_dir} holds {done} of {len(PAPER_WEIGHTS) ** 2} runs (the collection did not "
-            f"finish): {again}")
+            f"finish): {again}"
+        )
     runs = manifest.get("runs")
-    if not (isinstance(runs, list) and all(isinstance(r, dict) and (
-            r.get("lost") or isinstance(r.get("file"), str)) for r in runs)):
-        raise CorruptFileError(data_dir / MANIFEST, "collect manifest",
-                               "it is complete but its 'runs' list is missing or a run names no "
-                               "file", "collect again into an empty folder")
+    if not (
+        isinstance(runs, list)
+        and all(
+            isinstance(r, dict) and (r.get("lost") or isinstance(r.get("file"), str)) for r in runs
+        )
+    ):
+        raise CorruptFileError(
+            data_dir / MANIFEST,
+            "collect manifest",
+            "it is complete but its 'runs' list is missing or a run names no file",
+            "collect again into an empty folder",
+        )
     records: list = []
     seen: dict = {}
     for run in runs:
@@ -251,17 +322,26 @@ def load_records(data_dir: str | Path) -> list[dict]:
             continue
         path = data_dir / run["file"]
         if not path.is_file():
-            raise IncompleteResultsError(f"{path} is gone (listed in {data_dir / MANIFEST}): "
-                                         f"{again}, which runs only the missing runs")
+            raise IncompleteResultsError(
+                f"{path} is gone (listed in {data_dir / MANIFEST}): "
+                f"{again}, which runs only the missing runs"
+            )
         record = _read_record(path, manifest["settings_hash"], f"delete it and {again}")
         weights = (record["omega_Q"], record["omega_R"])
         if weights != (run.get("omega_Q"), run.get("omega_R")) or weights in seen:
             raise CorruptFileError(
-                path, "collected run", f"it holds the run at omega_Q = {weights[0]:g}, omega_R = "
-                f"{weights[1]:g}, " + (f"which {seen[weights]} holds too" if weights in seen else
-                                       f"not the one its manifest entry names (omega_Q = "
-                                       f"{run.get('omega_Q')}, omega_R = {run.get('omega_R')})"),
-                f"delete it and {again}")
+                path,
+                "collected run",
+                f"it holds the run at omega_Q = {weights[0]:g}, omega_R = "
+                f"{weights[1]:g}, "
+                + (
+                    f"which {seen[weights]} holds too"
+                    if weights in seen
+                    else f"not the one its manifest entry names (omega_Q = "
+                    f"{run.get('omega_Q')}, omega_R = {run.get('omega_R')})"
+                ),
+                f"delete it and {again}",
+            )
         seen[weights] = path.name
         records.append(record)
     return records
@@ -273,12 +353,15 @@ def _read_record(path: Path, settings_hash: str, remedy: str) -> dict:
     if "settings_hash" not in data or data.text("settings_hash") != settings_hash:
         raise ResultsMismatchError(
             f"{path} is not of the settings of {path.parent / MANIFEST}: the folder mixes runs "
-            f"of two collections; collect again into an empty folder")
+            f"of two collections; collect again into an empty folder"
+        )
     record: dict[str, Any] = {name: data.number(name) for name in ("omega_Q", "omega_R")}
     record.update({name: data.array(name) for name in ("t", "rho", "cost_e", "cost_u")})
     n = record["t"].shape[0] if record["t"].ndim == 1 else -1
     for name, shape in (("t", (n,)), ("rho", (n, 12)), ("cost_e", (n,)), ("cost_u", (n,))):
         if n < 1 or record[name].shape != shape:
-            raise data.corrupt(f"the entry {name!r} has shape {record[name].shape}, expected "
-                               f"{shape} with N >= 1 samples")
+            raise data.corrupt(
+                f"the entry {name!r} has shape {record[name].shape}, expected "
+                f"{shape} with N >= 1 samples"
+            )
     return record

@@ -77,14 +77,28 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
         config.guard.divergence_dir = str(divergence_dir)
     result = run_experiment(config)
     m = result.metrics
-    row.update({k: m[k] for k in ("rms_error", "peak_error", "peak_torque", "sum_T2_dt",
-                                  "max_closure_m", "realtime_factor", "finite", "window_s",
-                                  "status")})
+    row.update(
+        {
+            k: m[k]
+            for k in (
+                "rms_error",
+                "peak_error",
+                "peak_torque",
+                "sum_T2_dt",
+                "max_closure_m",
+                "realtime_factor",
+                "finite",
+                "window_s",
+                "status",
+            )
+        }
+    )
     row["normalized_rms"] = metrics.normalized_rms(m["rms_error"], LqiScales().pose)
     plan = make_plan(config)
     row["sum_dT2_dt"] = metrics.feedback_effort(result, plan.geometry)
-    row["mean_omega"] = (None if result.omega is None
-                         else [float(v) for v in np.mean(result.omega, axis=0)])
+    row["mean_omega"] = (
+        None if result.omega is None else [float(v) for v in np.mean(result.omega, axis=0)]
+    )
     row.update(_response_figures(result, plan.reference))
     row["wall_s"] = time.perf_counter() - t0
     return row
@@ -97,29 +111,51 @@ def _response_figures(result, trajectory) -> dict:
         k = trajectory.axis
         err = result.x[:, k] - result.x_d[:, k]
         stride = max(1, len(result.t) // 400)
-        return {"settling_time_s": metrics.settling_time(result.t, err, trajectory.size,
-                                                         trajectory.t_step),
-                "overshoot": metrics.overshoot(err, trajectory.size),
-                "trace": {"t": result.t[::stride].tolist(),
-                          "y": (result.x[::stride, k] - trajectory.offset[k]).tolist()}}
+        return {
+            "settling_time_s": metrics.settling_time(
+                result.t, err, trajectory.size, trajectory.t_step
+            ),
+            "overshoot": metrics.overshoot(err, trajectory.size),
+            "trace": {
+                "t": result.t[::stride].tolist(),
+                "y": (result.x[::stride, k] - trajectory.offset[k]).tolist(),
+            },
+        }
     if isinstance(trajectory, ChirpTrajectory):
-        f, gain, phase = metrics.frequency_response(result.t, result.x[:, trajectory.axis],
-                                                    trajectory)
-        return {"bandwidth_hz": metrics.bandwidth_hz(f, gain),
-                "peak_gain_db": float(20 * np.log10(gain.max())) if len(gain) else None,
-                "response": {"f": f.tolist(), "gain": gain.tolist(), "phase": phase.tolist()}}
+        f, gain, phase = metrics.frequency_response(
+            result.t, result.x[:, trajectory.axis], trajectory
+        )
+        return {
+            "bandwidth_hz": metrics.bandwidth_hz(f, gain),
+            "peak_gain_db": float(20 * np.log10(gain.max())) if len(gain) else None,
+            "response": {"f": f.tolist(), "gain": gain.tolist(), "phase": phase.tolist()},
+        }
     return {}
 
 
 #: What a finished row holds (:func:`run_case`) and the report reads: name -> (JSON types,
 #: or "6" for six numbers), per scenario prefix ("" for every row).
-ROW_FIELDS = {"": {"rms_error": "6", "peak_error": "6", "peak_torque": "6",
-                   "sum_T2_dt": (int, float), "normalized_rms": (int, float),
-                   "sum_dT2_dt": (int, float), "max_closure_m": (int, float)},
-              "step_": {"settling_time_s": (int, float, type(None)), "overshoot": (int, float),
-                        "trace": dict},
-              "sweep_": {"bandwidth_hz": (int, float, type(None)),
-                         "peak_gain_db": (int, float, type(None)), "response": dict}}
+ROW_FIELDS = {
+    "": {
+        "rms_error": "6",
+        "peak_error": "6",
+        "peak_torque": "6",
+        "sum_T2_dt": (int, float),
+        "normalized_rms": (int, float),
+        "sum_dT2_dt": (int, float),
+        "max_closure_m": (int, float),
+    },
+    "step_": {
+        "settling_time_s": (int, float, type(None)),
+        "overshoot": (int, float),
+        "trace": dict,
+    },
+    "sweep_": {
+        "bandwidth_hz": (int, float, type(None)),
+        "peak_gain_db": (int, float, type(None)),
+        "response": dict,
+    },
+}
 
 
 def load_row(store: ResultStore, job_id: str, case: Case) -> dict:
@@ -136,8 +172,12 @@ def load_row(store: ResultStore, job_id: str, case: Case) -> dict:
     path = store.folder / store.manifest["jobs"][job_id]["file"]
 
     def bad(problem):
-        return CorruptFileError(path, "evaluation row", problem, "delete it and run the same "
-                                "command again to redo that case")
+        return CorruptFileError(
+            path,
+            "evaluation row",
+            problem,
+            "delete it and run the same command again to redo that case",
+        )
 
     if not isinstance(row, dict):
         raise bad(f"a JSON {type(row).__name__}, not an object")
@@ -145,8 +185,11 @@ def load_row(store: ResultStore, job_id: str, case: Case) -> dict:
         raise bad("the entry 'case' is missing")
     if row["case"] != json.loads(json.dumps(case.record())):
         other = row["case"]
-        name = (" | ".join(str(other.get(k)) for k in ("controller", "scenario", "condition"))
-                if isinstance(other, dict) else repr(other)[:80])
+        name = (
+            " | ".join(str(other.get(k)) for k in ("controller", "scenario", "condition"))
+            if isinstance(other, dict)
+            else repr(other)[:80]
+        )
         raise bad(f"it holds the row of another case ({name}), not of {case.key}")
     if "error" in row:
         if not isinstance(row["error"], str):
@@ -157,14 +200,17 @@ def load_row(store: ResultStore, job_id: str, case: Case) -> dict:
             continue
         for name, kind in fields.items():
             value = row.get(name)
-            ok = (isinstance(value, list) and len(value) == 6 and all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-                  if kind == "6" else isinstance(value, kind) and not isinstance(value, bool))
+            ok = (
+                isinstance(value, list)
+                and len(value) == 6
+                and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+                if kind == "6"
+                else isinstance(value, kind) and not isinstance(value, bool)
+            )
             if not ok:
                 what = "6 numbers" if kind == "6" else "an object" if kind is dict else "a number"
                 raise bad(f"the entry {name!r} is missing or not {what}")
     return row
-
 
 
 def evaluation_settings(quick: bool, base: str = DEFAULT_BASE) -> dict:
@@ -173,17 +219,27 @@ def evaluation_settings(quick: bool, base: str = DEFAULT_BASE) -> dict:
     durations, conditions, and the bytes of the ANN tuners' weights."""
     from ..control.tuner import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
 
-    return {"quick": bool(quick), "scenario_duration_s": SCENARIO_DURATION_S,
-            "base": dump_scenario(load_scenario(base)),
-            "conditions": sorted({**CONDITIONS, **ENCODER_CONDITIONS}),
-            "tuner_weights": {p.name: file_digest(p)
-                              for p in (DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH)}}
+    return {
+        "quick": bool(quick),
+        "scenario_duration_s": SCENARIO_DURATION_S,
+        "base": dump_scenario(load_scenario(base)),
+        "conditions": sorted({**CONDITIONS, **ENCODER_CONDITIONS}),
+        "tuner_weights": {
+            p.name: file_digest(p) for p in (DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH)
+        },
+    }
 
 
-def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evaluation",
-             runner=None, progress: bool = True, quick: bool = False,
-             controllers=CONTROLLERS, base: str = DEFAULT_BASE,
-             tuner_study: bool = False) -> dict:
+def evaluate(
+    docs_dir: str | Path = "docs",
+    out_dir: str | Path = "results/evaluation",
+    runner=None,
+    progress: bool = True,
+    quick: bool = False,
+    controllers=CONTROLLERS,
+    base: str = DEFAULT_BASE,
+    tuner_study: bool = False,
+) -> dict:
     """Run the tuner study and the grid, keeping each result on disk as it arrives, then write
     the report, which leads with the tuner study's verdict (:mod:`.tuner_study`).
 
@@ -214,51 +270,65 @@ def evaluate(docs_dir: str | Path = "docs", out_dir: str | Path = "results/evalu
             was).
         Interrupted: Ctrl-C, SIGTERM or SIGHUP; the finished rows are on disk.
     """
-    grid = cases(quick, controllers, base)            # unknown names and a bad base fail here
-    grid.sort(key=lambda c: -c.duration_s)            # longest first: better load balance
+    grid = cases(quick, controllers, base)  # unknown names and a bad base fail here
+    grid.sort(key=lambda c: -c.duration_s)  # longest first: better load balance
     runner = runner or ProcessRunner()
     out_dir, docs_dir = Path(out_dir), Path(docs_dir)
     tuner = None
     if tuner_study:
         from .tuner_study import run_tuner_study
 
-        tuner = run_tuner_study(out_dir / "tuner_study", runner, base=base, quick=quick,
-                                progress=progress)
+        tuner = run_tuner_study(
+            out_dir / "tuner_study", runner, base=base, quick=quick, progress=progress
+        )
     rows, info = _run_grid(grid, out_dir, runner, progress, quick, base)
     if rows and all("error" in r for r in rows):
         first = rows[0]["error"].splitlines()[0]
         raise IncompleteResultsError(
             f"all {len(rows)} cases failed (first: {first:.200}); the report in {docs_dir} was "
             f"not replaced; the failures are in {out_dir / 'rows.json'} (delete {out_dir} to "
-            f"run them again)")
+            f"run them again)"
+        )
     from .evaluation_report import ann_verdict, write_report
 
     paths = write_report(rows, info, tuner, docs_dir)
-    return {"rows": rows, "wall_s": info["wall_s"], "paths": [paths[0], out_dir / "rows.json"]
-            + paths[1:], "verdict": ann_verdict(rows), "info": info, "tuner": tuner}
+    return {
+        "rows": rows,
+        "wall_s": info["wall_s"],
+        "paths": [paths[0], out_dir / "rows.json"] + paths[1:],
+        "verdict": ann_verdict(rows),
+        "info": info,
+        "tuner": tuner,
+    }
 
 
-def _run_grid(grid: list, out_dir: Path, runner, progress: bool, quick: bool,
-              base: str) -> tuple:
+def _run_grid(grid: list, out_dir: Path, runner, progress: bool, quick: bool, base: str) -> tuple:
     """Run the cases not on disk yet, keep each row as it arrives, and write ``rows.json``.
     Returns (rows in grid order, info)."""
     jobs = {case_id(c): c for c in grid}
-    store = ResultStore(out_dir, "evaluate", evaluation_settings(quick, base),
-                        pattern="rows/*.json")
+    store = ResultStore(
+        out_dir, "evaluate", evaluation_settings(quick, base), pattern="rows/*.json"
+    )
 
     def save(job_id, row):
         if isinstance(row, JobFailure):
-            row = {"case": jobs[job_id].record(), "error": str(row),
-                   "traceback": row.traceback}
-        store.put_json(job_id, f"rows/{job_id}.json", row, wall_s=row.get("wall_s"),
-                       failed="error" in row)
+            row = {"case": jobs[job_id].record(), "error": str(row), "traceback": row.traceback}
+        store.put_json(
+            job_id, f"rows/{job_id}.json", row, wall_s=row.get("wall_s"), failed="error" in row
+        )
 
     fn = functools.partial(run_case, divergence_dir=str(out_dir / "diverged"))
     ran = run_jobs(store, runner, fn, jobs, save, progress, "evaluation runs", "cases")
     rows = [load_row(store, k, jobs[k]) for k in jobs]
-    info = {"n_cases": len(grid), "wall_s": ran["wall_s"], "workers": runner.n_workers,
-            "quick": quick, "ran": len(ran["ran"]), "reused": len(ran["reused"]),
-            "base": str(base)}
+    info = {
+        "n_cases": len(grid),
+        "wall_s": ran["wall_s"],
+        "workers": runner.n_workers,
+        "quick": quick,
+        "ran": len(ran["ran"]),
+        "reused": len(ran["reused"]),
+        "base": str(base),
+    }
     store.finish(True, info=info)
     payload = json.dumps({"info": info, "rows": rows}, indent=1, default=float)
     atomic_write(out_dir / "rows.json", lambda f: f.write(payload.encode()))

@@ -48,10 +48,11 @@ DEFAULT_BASE = DEFAULT_SCENARIO
 ENCODER_BITS = (12, 14, 16, 17, 20)
 RATIO_LQI = ("lqi_10_0.1", "lqi_10_1", "lqi_1_1", "lqi_1_10", "lqi_0.1_10")
 #: Tool disturbances (world frame, on the tool tip) while holding home: from t = 1 s on.
-DISTURBANCES = {"push 5 N": ToolDisturbance("push", 5.0, [1.0, 0.0, 0.0]),
-                "twist 0.2 N m": ToolDisturbance("twist", 0.2, [0.0, 0.0, 1.0]),
-                "contact 2 Hz": ToolDisturbance("contact", 3.0, [0.0, 0.0, -1.0],
-                                                frequency_hz=2.0)}
+DISTURBANCES = {
+    "push 5 N": ToolDisturbance("push", 5.0, [1.0, 0.0, 0.0]),
+    "twist 0.2 N m": ToolDisturbance("twist", 0.2, [0.0, 0.0, 1.0]),
+    "contact 2 Hz": ToolDisturbance("contact", 3.0, [0.0, 0.0, -1.0], frequency_hz=2.0),
+}
 #: Motor torque limit of the "saturation" condition, N m. It runs on the Z step, whose transient
 #: asks for 1.5 to 7.6 N m. On the paper manoeuvre, which needs at most 0.41 N m once on its
 #: way, any limit below that loses the platform (it rolls past phi = 0.52 rad and falls: physics,
@@ -74,7 +75,8 @@ def _encoder_bits(bits: int):
     def apply(scenario: Scenario) -> None:
         if scenario.hardware is None:
             raise InvalidConfigError("the encoder conditions need a scenario with hardware")
-        scenario.hardware.encoders.counts_per_rev = 2 ** bits
+        scenario.hardware.encoders.counts_per_rev = 2**bits
+
     return apply
 
 
@@ -89,6 +91,8 @@ CONDITIONS = {
     f"saturation {TORQUE_LIMIT_NM:g} N m": (_set(torque_limit_Nm=TORQUE_LIMIT_NM), "step_Z"),
     **{name: (_set(disturbance=d), "home") for name, d in DISTURBANCES.items()},
 }
+
+
 def encoder_condition(bits: int) -> str:
     """The name of the encoder condition of ``bits`` (2^bits counts per crank turn)."""
     return f"encoders {bits}-bit"
@@ -97,8 +101,13 @@ def encoder_condition(bits: int) -> str:
 #: The encoder conditions, run only by RATIO_LQI (the encoder table).
 ENCODER_CONDITIONS = {encoder_condition(b): (_encoder_bits(b), "paper") for b in ENCODER_BITS}
 #: Simulated seconds per reference.
-SCENARIO_DURATION_S = {"paper": 10.0, "helix": 4.0, "sweep_Z": 9.0, "sweep_phi": 9.0,
-                       **{f"step_{a}": 2.5 for a in AXIS_NAMES}}
+SCENARIO_DURATION_S = {
+    "paper": 10.0,
+    "helix": 4.0,
+    "sweep_Z": 9.0,
+    "sweep_phi": 9.0,
+    **{f"step_{a}": 2.5 for a in AXIS_NAMES},
+}
 #: Simulated seconds of the runs that only hold home (the tool disturbances).
 HOLD_DURATION_S = 3.0
 
@@ -148,8 +157,9 @@ def check_controllers(names) -> None:
     """
     for name in names:
         if name not in CONTROLLERS:
-            raise InvalidConfigError(f"unknown controller {name!r}; choose from "
-                                     f"{', '.join(CONTROLLERS)}")
+            raise InvalidConfigError(
+                f"unknown controller {name!r}; choose from {', '.join(CONTROLLERS)}"
+            )
 
 
 @dataclass(frozen=True)
@@ -171,19 +181,30 @@ class Case:
 
     def record(self) -> dict:
         """The case as its row stores it (plain JSON; the controller by name)."""
-        return {"controller": self.controller.name, "scenario": self.reference,
-                "condition": self.condition, "duration_s": self.duration_s, "base": self.base}
+        return {
+            "controller": self.controller.name,
+            "scenario": self.reference,
+            "condition": self.condition,
+            "duration_s": self.duration_s,
+            "base": self.base,
+        }
 
 
-def make_case(controller: str, reference: str, condition: str = "nominal",
-              duration_s: float = 10.0, base: str = DEFAULT_BASE) -> Case:
+def make_case(
+    controller: str,
+    reference: str,
+    condition: str = "nominal",
+    duration_s: float = 10.0,
+    base: str = DEFAULT_BASE,
+) -> Case:
     """The :class:`Case` of the grid's controller called ``controller`` on ``base``.
 
     Raises:
         InvalidConfigError: an unknown controller; MissingFileError: no such base scenario.
     """
-    return Case(grid_controller(controller, load_scenario(base)), reference, condition,
-                duration_s, base)
+    return Case(
+        grid_controller(controller, load_scenario(base)), reference, condition, duration_s, base
+    )
 
 
 def cases(quick: bool = False, controllers=CONTROLLERS, base: str = DEFAULT_BASE) -> list[Case]:
@@ -195,6 +216,7 @@ def cases(quick: bool = False, controllers=CONTROLLERS, base: str = DEFAULT_BASE
     (sweeps and disturbances 2 s) for tests and notebooks: the tables are then only a smoke
     test, not figures to quote.
     """
+
     def duration(reference):
         if quick:
             return 2.0 if reference.startswith("sweep") or reference == "home" else 1.0
@@ -207,8 +229,9 @@ def cases(quick: bool = False, controllers=CONTROLLERS, base: str = DEFAULT_BASE
         c = grid_controller(name, scenario)
         for reference in SCENARIO_DURATION_S:
             out.append(Case(c, reference, "nominal", duration(reference), base))
-        conditions = dict(CONDITIONS, **(ENCODER_CONDITIONS if hardware and name in RATIO_LQI
-                                         else {}))
+        conditions = dict(
+            CONDITIONS, **(ENCODER_CONDITIONS if hardware and name in RATIO_LQI else {})
+        )
         for condition, (_, where) in conditions.items():
             if where is not None:
                 out.append(Case(c, where, condition, duration(where), base))
@@ -221,8 +244,7 @@ def case_config(case: Case) -> Scenario:
     scenario = load_scenario(case.base)
     scenario.reference = NamedReference(case.reference)
     scenario.duration_s = case.duration_s
-    scenario.use_controller(dataclasses.replace(case.controller.controller),
-                            case.controller.tuner)
+    scenario.use_controller(dataclasses.replace(case.controller.controller), case.controller.tuner)
     change = {**CONDITIONS, **ENCODER_CONDITIONS}[case.condition][0]
     if change is not None:
         change(scenario)
@@ -231,7 +253,6 @@ def case_config(case: Case) -> Scenario:
 
 def case_id(case: Case) -> str:
     """The case's job id and file stem: ``controller__reference__condition``, filename-safe."""
-    return re.sub(r"[^A-Za-z0-9.+-]+", "_", f"{case.controller.name}__{case.reference}__"
-                  f"{case.condition}")
-
-
+    return re.sub(
+        r"[^A-Za-z0-9.+-]+", "_", f"{case.controller.name}__{case.reference}__{case.condition}"
+    )

@@ -35,9 +35,11 @@ from .evaluation_grid import (
 from .metrics import SETTLING_BAND
 
 #: How the controllers that are not a fixed LQI are drawn in the plots: label, marker, colour.
-_OTHERS = {"pd": ("crank-space PD", "s", "C3"),
-           "ann_best_cost": ("ANN tuner, best-cost labels", "*", "C1"),
-           "ann_paper": ("ANN tuner, paper labels", "D", "C6")}
+_OTHERS = {
+    "pd": ("crank-space PD", "s", "C3"),
+    "ann_best_cost": ("ANN tuner, best-cost labels", "*", "C1"),
+    "ann_paper": ("ANN tuner, paper labels", "D", "C6"),
+}
 
 
 def write_report(rows, info: dict, tuner: dict | None, docs_dir: Path) -> list[Path]:
@@ -56,8 +58,9 @@ def write_report(rows, info: dict, tuner: dict | None, docs_dir: Path) -> list[P
 
 def index_rows(rows) -> dict:
     """{(controller, reference, condition): row} of the grid's rows."""
-    return {(r["case"]["controller"], r["case"]["scenario"], r["case"]["condition"]): r
-            for r in rows}
+    return {
+        (r["case"]["controller"], r["case"]["scenario"], r["case"]["condition"]): r for r in rows
+    }
 
 
 def ann_verdict(rows, scenario: str = "paper", condition: str = "nominal") -> dict:
@@ -76,16 +79,23 @@ def ann_verdict(rows, scenario: str = "paper", condition: str = "nominal") -> di
         a = by.get((ann, scenario, condition))
         if a is None or "error" in a:
             continue
-        fixed = [by[(c, scenario, condition)] for c in FIXED_LQI
-                 if (c, scenario, condition) in by and "error" not in by[(c, scenario, condition)]]
+        fixed = [
+            by[(c, scenario, condition)]
+            for c in FIXED_LQI
+            if (c, scenario, condition) in by and "error" not in by[(c, scenario, condition)]
+        ]
         admissible = [r for r in fixed if r["sum_dT2_dt"] <= a["sum_dT2_dt"] * (1 + 1e-9)]
         best_overall = min(fixed, key=lambda r: r["normalized_rms"]) if fixed else None
         best = min(admissible, key=lambda r: r["normalized_rms"]) if admissible else None
-        dominated_by = [r["case"]["controller"] for r in fixed
-                        if r["normalized_rms"] < a["normalized_rms"]
-                        and r["sum_dT2_dt"] < a["sum_dT2_dt"]]
+        dominated_by = [
+            r["case"]["controller"]
+            for r in fixed
+            if r["normalized_rms"] < a["normalized_rms"] and r["sum_dT2_dt"] < a["sum_dT2_dt"]
+        ]
         out[ann] = {
-            "ann": a, "best_fixed": best, "best_fixed_overall": best_overall,
+            "ann": a,
+            "best_fixed": best,
+            "best_fixed_overall": best_overall,
             "dominated_by": dominated_by,
             "beats": bool(best is not None and a["normalized_rms"] < best["normalized_rms"]),
             "ratio": (a["normalized_rms"] / best["normalized_rms"]) if best else None,
@@ -111,6 +121,7 @@ def _ratio(controller: str) -> float | None:
 
 # -- results.md ------------------------------------------------------------------------------------
 
+
 def render_markdown(rows, info: dict, tuner: dict | None = None) -> str:
     """The text of docs/results.md from the grid's rows (see the evaluation's module docstring),
     led by the tuner study's section when ``tuner`` (its summary) is given."""
@@ -121,40 +132,63 @@ def render_markdown(rows, info: dict, tuner: dict | None = None) -> str:
         from .tuner_report import render_tuner_markdown
 
         L += [render_tuner_markdown(tuner), "## The controller grid", ""]
-    L += ["Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. "
-          "RMS and peak errors are over the second half of each run (the true pose from the "
-          "plant state, not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with "
-          "the LQI's error scales s = 1 mrad | 1 mm. RTF = real-time factor of that run in its "
-          "worker process.", ""]
-    for section in (_paper_table, _verdict_lines, _step_table, _helix_table, _bandwidth_table,
-                    _robustness_table, _encoder_table):
+    L += [
+        "Units: angles in mrad, positions in mm, torques in N m, Sum T^2 dt in N^2 m^2 s. "
+        "RMS and peak errors are over the second half of each run (the true pose from the "
+        "plant state, not the noisy measurement). `nRMS` = sqrt(mean_i (RMS_i / s_i)^2) with "
+        "the LQI's error scales s = 1 mrad | 1 mm. RTF = real-time factor of that run in its "
+        "worker process.",
+        "",
+    ]
+    for section in (
+        _paper_table,
+        _verdict_lines,
+        _step_table,
+        _helix_table,
+        _bandwidth_table,
+        _robustness_table,
+        _encoder_table,
+    ):
         L += section(by, ctrls)
     L += _disturbance_table(by, ctrls, info.get("base", DEFAULT_BASE))
     failed = [r for r in rows if "error" in r]
     L += ["## Runs that failed", ""]
-    L += ([f"- {r['case']['controller']} / {r['case']['scenario']} / {r['case']['condition']}: "
-           f"{r['error'].splitlines()[0]}" for r in failed] or ["None."])
-    L += ["", "## Pictures", "",
-          "![tracking vs effort](results_tradeoff.png)", "",
-          "![frequency responses](results_bandwidth.png)", "",
-          "![step responses](results_steps.png)", ""]
+    L += [
+        f"- {r['case']['controller']} / {r['case']['scenario']} / {r['case']['condition']}: "
+        f"{r['error'].splitlines()[0]}"
+        for r in failed
+    ] or ["None."]
+    L += [
+        "",
+        "## Pictures",
+        "",
+        "![tracking vs effort](results_tradeoff.png)",
+        "",
+        "![frequency responses](results_bandwidth.png)",
+        "",
+        "![step responses](results_steps.png)",
+        "",
+    ]
     return "\n".join(L)
 
 
 def _heading(rows, info: dict) -> list:
     """The title and what made the report: runs, times, workers, quick mode, the base."""
     quick = ", QUICK mode: smoke-test durations, not figures to quote" if info["quick"] else ""
-    reused = (f", {info['reused']} runs read back from an earlier call" if info.get("reused")
-              else "")
-    return ["# Evaluation results", "",
-            "Generated by `stewart-drake evaluate` "
-            f"({info['n_cases']} runs whose own times add up to "
-            f"{sum(float(r.get('wall_s') or 0.0) for r in rows):.0f} s; this call "
-            f"{info['wall_s']:.0f} s wall on {info['workers']} workers{reused}{quick})."
-            " Do not edit by hand: rerun the command.", "",
-            f"Every run starts from the scenario `{info.get('base', DEFAULT_BASE)}` "
-            "(`stewart-drake scenario` prints it; docs/hardware.md describes the robot as built).",
-            ""]
+    reused = f", {info['reused']} runs read back from an earlier call" if info.get("reused") else ""
+    return [
+        "# Evaluation results",
+        "",
+        "Generated by `stewart-drake evaluate` "
+        f"({info['n_cases']} runs whose own times add up to "
+        f"{sum(float(r.get('wall_s') or 0.0) for r in rows):.0f} s; this call "
+        f"{info['wall_s']:.0f} s wall on {info['workers']} workers{reused}{quick})."
+        " Do not edit by hand: rerun the command.",
+        "",
+        f"Every run starts from the scenario `{info.get('base', DEFAULT_BASE)}` "
+        "(`stewart-drake scenario` prints it; docs/hardware.md describes the robot as built).",
+        "",
+    ]
 
 
 def _failed_line(r) -> str:
@@ -175,17 +209,23 @@ def _nominal_rows(by: dict, ctrls: list, reference: str, L: list):
 
 
 def _paper_table(by: dict, ctrls: list) -> list:
-    L = ["## Paper manoeuvre (eqs. 37-38), nominal", "",
-         "| controller | phi | theta | psi | X | Y | Z | peak phi | peak Z | nRMS | Sum T^2 dt | "
-         "feedback Sum dT^2 dt | peak T | max closure [m] | RTF |",
-         "|---|" + "---|" * 14]
+    L = [
+        "## Paper manoeuvre (eqs. 37-38), nominal",
+        "",
+        "| controller | phi | theta | psi | X | Y | Z | peak phi | peak Z | nRMS | Sum T^2 dt | "
+        "feedback Sum dT^2 dt | peak T | max closure [m] | RTF |",
+        "|---|" + "---|" * 14,
+    ]
     for c, r in _nominal_rows(by, ctrls, "paper", L):
         rms, peak = r["rms_error"], r["peak_error"]
-        L.append(f"| {c} | " + " | ".join(_fmt(v, 1e3) for v in rms)
-                 + f" | {_fmt(peak[0], 1e3)} | {_fmt(peak[5], 1e3)} | {_fmt(r['normalized_rms'])}"
-                 f" | {_fmt(r['sum_T2_dt'])} | {_fmt(r['sum_dT2_dt'])}"
-                 f" | {_fmt(max(r['peak_torque']))} | {_fmt(r['max_closure_m'], digits=2)}"
-                 f" | {_fmt(r['realtime_factor'], digits=2)} |")
+        L.append(
+            f"| {c} | "
+            + " | ".join(_fmt(v, 1e3) for v in rms)
+            + f" | {_fmt(peak[0], 1e3)} | {_fmt(peak[5], 1e3)} | {_fmt(r['normalized_rms'])}"
+            f" | {_fmt(r['sum_T2_dt'])} | {_fmt(r['sum_dT2_dt'])}"
+            f" | {_fmt(max(r['peak_torque']))} | {_fmt(r['max_closure_m'], digits=2)}"
+            f" | {_fmt(r['realtime_factor'], digits=2)} |"
+        )
     return L + [""]
 
 
@@ -194,36 +234,50 @@ def _verdict_lines(by: dict, ctrls: list) -> list:
     for ann, v in ann_verdict(list(by.values())).items():
         a, b = v["ann"], v["best_fixed"]
         if b is None:
-            L.append(f"- **{ann}**: no fixed-gain LQI uses as little feedback effort (Sum dT^2 dt "
-                     f"{_fmt(a['sum_dT2_dt'])}); the closest in effort is compared in the table.")
+            L.append(
+                f"- **{ann}**: no fixed-gain LQI uses as little feedback effort (Sum dT^2 dt "
+                f"{_fmt(a['sum_dT2_dt'])}); the closest in effort is compared in the table."
+            )
             continue
         best = v["best_fixed_overall"]
         verdict = "beats" if v["beats"] else "does not beat"
-        L.append(f"- **{ann} {verdict}** the best fixed-gain LQI at no more effort, "
-                 f"{b['case']['controller']}: nRMS {_fmt(a['normalized_rms'])} vs "
-                 f"{_fmt(b['normalized_rms'])} (ratio {_fmt(v['ratio'])}), feedback Sum dT^2 dt "
-                 f"{_fmt(a['sum_dT2_dt'])} vs {_fmt(b['sum_dT2_dt'])}. Best fixed pair "
-                 f"regardless of effort: {best['case']['controller']} (nRMS "
-                 f"{_fmt(best['normalized_rms'])}). "
-                 + (f"Fixed pairs better on both tracking and effort: "
-                    f"{', '.join(v['dominated_by'])}." if v["dominated_by"] else
-                    "No fixed pair is better on both tracking and effort (the ANN run is on the "
-                    "fixed pairs' Pareto front)."))
-    return L + ["", "One run of the paper manoeuvre each: the verdict over held-out tasks is the "
-                "tuner study at the top. Effort here is the feedback effort, `feedback Sum dT^2 "
-                "dt`, what the controller adds to the gravity feed-forward: Sum T^2 dt is mostly "
-                "the torque that holds the platform up, the same for every controller. The 9 "
-                "fixed pairs are 5 distinct controllers: only omega_Q / omega_R matters (scaling "
-                "Q and R together leaves the gain unchanged), so rows with the same ratio "
-                "repeat.", ""]
+        L.append(
+            f"- **{ann} {verdict}** the best fixed-gain LQI at no more effort, "
+            f"{b['case']['controller']}: nRMS {_fmt(a['normalized_rms'])} vs "
+            f"{_fmt(b['normalized_rms'])} (ratio {_fmt(v['ratio'])}), feedback Sum dT^2 dt "
+            f"{_fmt(a['sum_dT2_dt'])} vs {_fmt(b['sum_dT2_dt'])}. Best fixed pair "
+            f"regardless of effort: {best['case']['controller']} (nRMS "
+            f"{_fmt(best['normalized_rms'])}). "
+            + (
+                f"Fixed pairs better on both tracking and effort: {', '.join(v['dominated_by'])}."
+                if v["dominated_by"]
+                else "No fixed pair is better on both tracking and effort (the ANN run is on the "
+                "fixed pairs' Pareto front)."
+            )
+        )
+    return L + [
+        "",
+        "One run of the paper manoeuvre each: the verdict over held-out tasks is the "
+        "tuner study at the top. Effort here is the feedback effort, `feedback Sum dT^2 "
+        "dt`, what the controller adds to the gravity feed-forward: Sum T^2 dt is mostly "
+        "the torque that holds the platform up, the same for every controller. The 9 "
+        "fixed pairs are 5 distinct controllers: only omega_Q / omega_R matters (scaling "
+        "Q and R together leaves the gain unchanged), so rows with the same ratio "
+        "repeat.",
+        "",
+    ]
 
 
 def _step_table(by: dict, ctrls: list) -> list:
-    L = ["## Steps (20 mrad on angles, 5 mm on positions, at t = 0.5 s)", "",
-         f"Settling time to a {100 * SETTLING_BAND:g} % band, s (`-`: not settled in the run), "
-         "and Sum T^2 dt of all six step runs.", "",
-         "| controller | " + " | ".join(AXIS_NAMES) + " | max overshoot | Sum T^2 dt |",
-         "|---|" + "---|" * 8]
+    L = [
+        "## Steps (20 mrad on angles, 5 mm on positions, at t = 0.5 s)",
+        "",
+        f"Settling time to a {100 * SETTLING_BAND:g} % band, s (`-`: not settled in the run), "
+        "and Sum T^2 dt of all six step runs.",
+        "",
+        "| controller | " + " | ".join(AXIS_NAMES) + " | max overshoot | Sum T^2 dt |",
+        "|---|" + "---|" * 8,
+    ]
     for c in ctrls:
         found = [by.get((c, f"step_{a}", "nominal")) for a in AXIS_NAMES]
         rs = [r for r in found if r is not None]
@@ -232,36 +286,49 @@ def _step_table(by: dict, ctrls: list) -> list:
         if any("error" in r for r in rs):
             L.append(_failed_line(next(r for r in rs if "error" in r)))
             continue
-        L.append(f"| {c} | " + " | ".join(_fmt(r["settling_time_s"]) for r in rs)
-                 + f" | {_fmt(100 * max(r['overshoot'] for r in rs))} %"
-                 f" | {_fmt(sum(r['sum_T2_dt'] for r in rs))} |")
+        L.append(
+            f"| {c} | "
+            + " | ".join(_fmt(r["settling_time_s"]) for r in rs)
+            + f" | {_fmt(100 * max(r['overshoot'] for r in rs))} %"
+            f" | {_fmt(sum(r['sum_T2_dt'] for r in rs))} |"
+        )
     return L + [""]
 
 
 def _helix_table(by: dict, ctrls: list) -> list:
-    L = ["## Helix (5 mm circle in X-Y at 2 Hz, Z 3 mm at 0.25 Hz, theta 20 mrad at 1 Hz)", "",
-         "| controller | theta RMS | X RMS | Y RMS | Z RMS | X peak | Y peak | nRMS | Sum T^2 dt "
-         "| peak T |", "|---|" + "---|" * 9]
+    L = [
+        "## Helix (5 mm circle in X-Y at 2 Hz, Z 3 mm at 0.25 Hz, theta 20 mrad at 1 Hz)",
+        "",
+        "| controller | theta RMS | X RMS | Y RMS | Z RMS | X peak | Y peak | nRMS | Sum T^2 dt "
+        "| peak T |",
+        "|---|" + "---|" * 9,
+    ]
     for c, r in _nominal_rows(by, ctrls, "helix", L):
         rms, peak = r["rms_error"], r["peak_error"]
-        L.append(f"| {c} | {_fmt(rms[1], 1e3)} | {_fmt(rms[3], 1e3)} | {_fmt(rms[4], 1e3)} | "
-                 f"{_fmt(rms[5], 1e3)} | {_fmt(peak[3], 1e3)} | {_fmt(peak[4], 1e3)} | "
-                 f"{_fmt(r['normalized_rms'])} | {_fmt(r['sum_T2_dt'])} | "
-                 f"{_fmt(max(r['peak_torque']))} |")
+        L.append(
+            f"| {c} | {_fmt(rms[1], 1e3)} | {_fmt(rms[3], 1e3)} | {_fmt(rms[4], 1e3)} | "
+            f"{_fmt(rms[5], 1e3)} | {_fmt(peak[3], 1e3)} | {_fmt(peak[4], 1e3)} | "
+            f"{_fmt(r['normalized_rms'])} | {_fmt(r['sum_T2_dt'])} | "
+            f"{_fmt(max(r['peak_torque']))} |"
+        )
     return L + [""]
 
 
 def _bandwidth_table(by: dict, ctrls: list) -> list:
     corner_hz = np.sqrt(SWEEP_MAX_ACCELERATION[1] / SWEEP_AMPLITUDE[1]) / (2 * np.pi)
-    L = [f"## Bandwidth (sine sweep 1 -> 50 Hz: {1e3 * SWEEP_AMPLITUDE[1]:g} mm on Z, "
-         f"{1e3 * SWEEP_AMPLITUDE[0]:g} mrad on phi)", "",
-         "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
-         "and the peak gain, dB. Above "
-         f"{corner_hz:.3g} Hz the amplitude falls as 1/f^2 (constant acceleration: "
-         f"{SWEEP_MAX_ACCELERATION[1]:.3g} m/s^2, {SWEEP_MAX_ACCELERATION[0]:.3g} rad/s^2), "
-         "what the motors can give.", "",
-         "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
-         "|---|---|---|---|---|"]
+    L = [
+        f"## Bandwidth (sine sweep 1 -> 50 Hz: {1e3 * SWEEP_AMPLITUDE[1]:g} mm on Z, "
+        f"{1e3 * SWEEP_AMPLITUDE[0]:g} mrad on phi)",
+        "",
+        "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
+        "and the peak gain, dB. Above "
+        f"{corner_hz:.3g} Hz the amplitude falls as 1/f^2 (constant acceleration: "
+        f"{SWEEP_MAX_ACCELERATION[1]:.3g} m/s^2, {SWEEP_MAX_ACCELERATION[0]:.3g} rad/s^2), "
+        "what the motors can give.",
+        "",
+        "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
+        "|---|---|---|---|---|",
+    ]
 
     def bw(r):
         return _fmt(r["bandwidth_hz"]) if r["bandwidth_hz"] is not None else "> 50"
@@ -273,54 +340,71 @@ def _bandwidth_table(by: dict, ctrls: list) -> list:
         if "error" in rz or "error" in rp:
             L.append(_failed_line(rz if "error" in rz else rp))
             continue
-        L.append(f"| {c} | {bw(rz)} | {_fmt(rz['peak_gain_db'], digits=2)} | {bw(rp)} | "
-                 f"{_fmt(rp['peak_gain_db'], digits=2)} |")
+        L.append(
+            f"| {c} | {bw(rz)} | {_fmt(rz['peak_gain_db'], digits=2)} | {bw(rp)} | "
+            f"{_fmt(rp['peak_gain_db'], digits=2)} |"
+        )
     return L + [""]
 
 
 def _robustness_table(by: dict, ctrls: list) -> list:
     paper_conds = [k for k, (_, scen) in CONDITIONS.items() if scen in (None, "paper")]
     sat = next(k for k, (_, scen) in CONDITIONS.items() if scen == "step_Z")
-    L = ["## Robustness", "",
-         "On the paper manoeuvre: nRMS (and Sum T^2 dt) per condition. Payload: platform mass "
-         "and inertia scaled, unknown to the controller. Noise: 1 sigma "
-         f"{NOISE_STD[0] * 1e3:g} mrad, {NOISE_STD[3] * 1e3:g} mm, {NOISE_STD[6]:g} rad/s, "
-         f"{NOISE_STD[9]:g} m/s on the measured pose and rate, white at 1 kHz. Saturation: "
-         f"|T_i| <= {TORQUE_LIMIT_NM:g} N m on the 5 mm Z step (its settling time and overshoot; "
-         "the unsaturated ones are in the step table). The paper manoeuvre needs 0.41 N m at "
-         "most: below that the platform rolls past its reference and falls whatever the "
-         "controller, above it the limit never acts.", "",
-         "| controller | " + " | ".join(paper_conds) + " | worst phi RMS [mrad] | worst Z RMS "
-         f"[mm] | {sat}: settling [s] | overshoot |",
-         "|---|" + "---|" * (len(paper_conds) + 4)]
+    L = [
+        "## Robustness",
+        "",
+        "On the paper manoeuvre: nRMS (and Sum T^2 dt) per condition. Payload: platform mass "
+        "and inertia scaled, unknown to the controller. Noise: 1 sigma "
+        f"{NOISE_STD[0] * 1e3:g} mrad, {NOISE_STD[3] * 1e3:g} mm, {NOISE_STD[6]:g} rad/s, "
+        f"{NOISE_STD[9]:g} m/s on the measured pose and rate, white at 1 kHz. Saturation: "
+        f"|T_i| <= {TORQUE_LIMIT_NM:g} N m on the 5 mm Z step (its settling time and overshoot; "
+        "the unsaturated ones are in the step table). The paper manoeuvre needs 0.41 N m at "
+        "most: below that the platform rolls past its reference and falls whatever the "
+        "controller, above it the limit never acts.",
+        "",
+        "| controller | " + " | ".join(paper_conds) + " | worst phi RMS [mrad] | worst Z RMS "
+        f"[mm] | {sat}: settling [s] | overshoot |",
+        "|---|" + "---|" * (len(paper_conds) + 4),
+    ]
     for c in ctrls:
         found = [by.get((c, "paper", k)) for k in paper_conds]
         rs = [r for r in found if r is not None]
         rsat = by.get((c, "step_Z", sat))
         if len(rs) < len(found) or rsat is None:
             continue
-        cells = ["failed" if "error" in r else
-                 f"{_fmt(r['normalized_rms'])} ({_fmt(r['sum_T2_dt'])})" for r in rs]
+        cells = [
+            "failed" if "error" in r else f"{_fmt(r['normalized_rms'])} ({_fmt(r['sum_T2_dt'])})"
+            for r in rs
+        ]
         ok = [r for r in rs if "error" not in r]
         worst_phi = max((r["rms_error"][0] for r in ok), default=None)
         worst_z = max((r["rms_error"][5] for r in ok), default=None)
-        sat_cells = (["failed", "-"] if "error" in rsat else
-                     [_fmt(rsat["settling_time_s"]), f"{_fmt(100 * rsat['overshoot'])} %"])
-        L.append(f"| {c} | " + " | ".join(cells) + f" | {_fmt(worst_phi, 1e3)} | "
-                 f"{_fmt(worst_z, 1e3)} | " + " | ".join(sat_cells) + " |")
+        sat_cells = (
+            ["failed", "-"]
+            if "error" in rsat
+            else [_fmt(rsat["settling_time_s"]), f"{_fmt(100 * rsat['overshoot'])} %"]
+        )
+        L.append(
+            f"| {c} | " + " | ".join(cells) + f" | {_fmt(worst_phi, 1e3)} | "
+            f"{_fmt(worst_z, 1e3)} | " + " | ".join(sat_cells) + " |"
+        )
     return L + [""]
 
 
 def _encoder_table(by: dict, ctrls: list) -> list:
     if not any(key[2] == encoder_condition(b) for key in by for b in ENCODER_BITS):
         return []
-    L = ["## Encoder resolution (paper manoeuvre)", "",
-         "RMS error per axis in urad and um, the feedback effort Sum (T - T_ff)^2 dt in "
-         "N^2 m^2 s (what the controller adds to the gravity feed-forward) and the peak "
-         "torque in N m, for each encoder resolution and the five distinct weight ratios "
-         "omega_Q / omega_R (100, 10, 1, 0.1, 0.01).", "",
-         "| encoder | controller | phi | theta | psi | X | Y | Z | feedback Sum dT^2 dt | "
-         "peak T |", "|---|---|" + "---|" * 8]
+    L = [
+        "## Encoder resolution (paper manoeuvre)",
+        "",
+        "RMS error per axis in urad and um, the feedback effort Sum (T - T_ff)^2 dt in "
+        "N^2 m^2 s (what the controller adds to the gravity feed-forward) and the peak "
+        "torque in N m, for each encoder resolution and the five distinct weight ratios "
+        "omega_Q / omega_R (100, 10, 1, 0.1, 0.01).",
+        "",
+        "| encoder | controller | phi | theta | psi | X | Y | Z | feedback Sum dT^2 dt | peak T |",
+        "|---|---|" + "---|" * 8,
+    ]
     for bits in ENCODER_BITS:
         condition = encoder_condition(bits)
         for c in RATIO_LQI:
@@ -330,8 +414,11 @@ def _encoder_table(by: dict, ctrls: list) -> list:
             if "error" in r:
                 L.append(f"| {condition} | {c} | failed: {r['error'].splitlines()[0][:90]} |")
                 continue
-            L.append(f"| {bits}-bit | {c} | " + " | ".join(_fmt(v, 1e6) for v in r["rms_error"])
-                     + f" | {_fmt(r['sum_dT2_dt'])} | {_fmt(max(r['peak_torque']))} |")
+            L.append(
+                f"| {bits}-bit | {c} | "
+                + " | ".join(_fmt(v, 1e6) for v in r["rms_error"])
+                + f" | {_fmt(r['sum_dT2_dt'])} | {_fmt(max(r['peak_torque']))} |"
+            )
     return L + [""]
 
 
@@ -341,21 +428,36 @@ def _disturbance_table(by: dict, ctrls: list, base: str) -> list:
     described = "; ".join(
         f"{name}: {d.kind} {d.magnitude:g} {'N m' if d.kind == 'twist' else 'N'} along "
         f"{d.direction}" + (f" at {d.frequency_hz:g} Hz" if d.kind == "contact" else "")
-        for name, d in DISTURBANCES.items())
-    L = ["## Tool disturbances (holding home; from t = 1 s)", "",
-         "Peak and RMS pose error over the second half of each run: angles in mrad, "
-         f"positions in mm. {described}.", "",
-         _disturbance_statics(base), "",
-         "| controller | " + " | ".join(f"{n}: peak angle | peak position | nRMS"
-                                     for n in DISTURBANCES) + " |",
-         "|---|" + "---|" * (3 * len(DISTURBANCES))]
+        for name, d in DISTURBANCES.items()
+    )
+    L = [
+        "## Tool disturbances (holding home; from t = 1 s)",
+        "",
+        "Peak and RMS pose error over the second half of each run: angles in mrad, "
+        f"positions in mm. {described}.",
+        "",
+        _disturbance_statics(base),
+        "",
+        "| controller | "
+        + " | ".join(f"{n}: peak angle | peak position | nRMS" for n in DISTURBANCES)
+        + " |",
+        "|---|" + "---|" * (3 * len(DISTURBANCES)),
+    ]
     for c in ctrls:
         cells = []
         for name in DISTURBANCES:
             r = by.get((c, "home", name))
-            cells += (["-"] * 3 if r is None else ["failed", "-", "-"] if "error" in r else
-                      [_fmt(max(r["peak_error"][:3]), 1e3), _fmt(max(r["peak_error"][3:]), 1e3),
-                       _fmt(r["normalized_rms"])])
+            cells += (
+                ["-"] * 3
+                if r is None
+                else ["failed", "-", "-"]
+                if "error" in r
+                else [
+                    _fmt(max(r["peak_error"][:3]), 1e3),
+                    _fmt(max(r["peak_error"][3:]), 1e3),
+                    _fmt(r["normalized_rms"]),
+                ]
+            )
         L.append(f"| {c} | " + " | ".join(cells) + " |")
     return L + [""]
 
@@ -369,18 +471,34 @@ def _disturbance_statics(base: str) -> str:
     limit, g = plan.torque_limit_Nm, plan.geometry
     parts = []
     for name, d in DISTURBANCES.items():
-        need = float(np.abs(statics.tool_load_torques(g, X_HOME, d.wrench(
-            [d.start_s + 0.5 / d.frequency_hz if d.kind == "contact" else d.start_s])[0])).max())
-        verdict = ("" if limit is None else
-                   " (beyond the motors' limit: no controller can hold it)" if need > limit
-                   else " (within the motors' limit)")
+        need = float(
+            np.abs(
+                statics.tool_load_torques(
+                    g,
+                    X_HOME,
+                    d.wrench(
+                        [d.start_s + 0.5 / d.frequency_hz if d.kind == "contact" else d.start_s]
+                    )[0],
+                )
+            ).max()
+        )
+        verdict = (
+            ""
+            if limit is None
+            else " (beyond the motors' limit: no controller can hold it)"
+            if need > limit
+            else " (within the motors' limit)"
+        )
         parts.append(f"{name} {need:.3f} N m{verdict}")
-    return ("Static crank torque needed to hold home under each disturbance's peak wrench "
-            f"(gravity included; motors' limit {'none' if limit is None else f'{limit:.3f} N m'})"
-            ": " + "; ".join(parts) + ".")
+    return (
+        "Static crank torque needed to hold home under each disturbance's peak wrench "
+        f"(gravity included; motors' limit {'none' if limit is None else f'{limit:.3f} N m'})"
+        ": " + "; ".join(parts) + "."
+    )
 
 
 # -- the pictures ----------------------------------------------------------------------------------
+
 
 def _ratio_colors(ratios) -> dict:
     """One colour per omega_Q / omega_R, soft (yellow) to stiff (purple): viridis, which the
@@ -419,9 +537,11 @@ def plot_results(rows, out_dir: str | Path) -> list[Path]:
     by = index_rows(rows)
     colors = _ratio_colors(_ratio(c) for c in FIXED_LQI)
     paths = []
-    for name, draw in (("results_tradeoff.png", _plot_tradeoff),
-                       ("results_bandwidth.png", _plot_bandwidth),
-                       ("results_steps.png", _plot_steps)):
+    for name, draw in (
+        ("results_tradeoff.png", _plot_tradeoff),
+        ("results_bandwidth.png", _plot_bandwidth),
+        ("results_steps.png", _plot_steps),
+    ):
         fig = draw(by, colors)
         path = Path(out_dir) / name
         atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
@@ -436,28 +556,57 @@ def _plot_tradeoff(by: dict, colors: dict):
 
     fig = Figure(figsize=(12, 5.2))
     axes = fig.subplots(1, 2)
-    for ax, condition, title in ((axes[0], "nominal", "nominal"),
-                                 (axes[1], "noise", "with sensor noise")):
+    for ax, condition, title in (
+        (axes[0], "nominal", "nominal"),
+        (axes[1], "noise", "with sensor noise"),
+    ):
         fixed = _by_ratio(by, "paper", condition)
         if fixed:
             x = [r["sum_dT2_dt"] for r in fixed.values()]
             y = [r["normalized_rms"] for r in fixed.values()]
             ax.plot(x, y, "-", color="0.75", lw=1, zorder=1)
-            ax.scatter(x, y, s=60, c=[colors[k] for k in fixed], edgecolors="k", lw=0.5,
-                       zorder=2, label=r"fixed LQI, labelled by $\omega_Q/\omega_R$")
+            ax.scatter(
+                x,
+                y,
+                s=60,
+                c=[colors[k] for k in fixed],
+                edgecolors="k",
+                lw=0.5,
+                zorder=2,
+                label=r"fixed LQI, labelled by $\omega_Q/\omega_R$",
+            )
             for ratio, xi, yi in zip(fixed, x, y):
-                ax.annotate(f"{ratio:g}", (xi, yi), xytext=(6, -3), textcoords="offset points",
-                            fontsize=8, color="0.25")
+                ax.annotate(
+                    f"{ratio:g}",
+                    (xi, yi),
+                    xytext=(6, -3),
+                    textcoords="offset points",
+                    fontsize=8,
+                    color="0.25",
+                )
         for label, marker, color, r in _others(by, "paper", condition):
             # hollow, drawn on top: a point under it stays visible
-            ax.plot(r["sum_dT2_dt"], r["normalized_rms"], marker, mfc="none", mec=color,
-                    mew=1.8, ms=15 if marker == "*" else 10, ls="none", zorder=3, label=label)
+            ax.plot(
+                r["sum_dT2_dt"],
+                r["normalized_rms"],
+                marker,
+                mfc="none",
+                mec=color,
+                mew=1.8,
+                ms=15 if marker == "*" else 10,
+                ls="none",
+                zorder=3,
+                label=label,
+            )
         ax.set_xscale("log")
         ax.set_yscale("log")
-        for axis in (ax.xaxis, ax.yaxis):             # 0.02, not 2 x 10^-2
+        for axis in (ax.xaxis, ax.yaxis):  # 0.02, not 2 x 10^-2
             axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
-            axis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
-                lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+            axis.set_minor_formatter(
+                matplotlib.ticker.FuncFormatter(
+                    lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""
+                )
+            )
         ax.set_xlabel(r"feedback effort $\sum (T - T_{ff})^2 \Delta t$ [N$^2$ m$^2$ s]")
         ax.set_title(f"paper manoeuvre, {title}", fontsize=10)
         ax.grid(alpha=0.3, which="both")
@@ -478,17 +627,33 @@ def _plot_bandwidth(by: dict, colors: dict):
     for ax, reference in zip(axes, ("sweep_Z", "sweep_phi")):
         for ratio, r in _by_ratio(by, reference, "nominal").items():
             if r["response"]["f"]:
-                ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
-                            color=colors[ratio], lw=1.2,
-                            label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}")
+                ax.semilogx(
+                    r["response"]["f"],
+                    20 * np.log10(r["response"]["gain"]),
+                    color=colors[ratio],
+                    lw=1.2,
+                    label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}",
+                )
         for label, _, color, r in _others(by, reference):
             if r["response"]["f"]:
-                ax.semilogx(r["response"]["f"], 20 * np.log10(r["response"]["gain"]),
-                            color=color, lw=1.2, ls="--", label=label)
+                ax.semilogx(
+                    r["response"]["f"],
+                    20 * np.log10(r["response"]["gain"]),
+                    color=color,
+                    lw=1.2,
+                    ls="--",
+                    label=label,
+                )
         ax.axhline(-3, color="k", ls=":", lw=1)
-        ax.annotate("-3 dB: the bandwidth is where a gain crosses it", (0.01, -3),
-                    xycoords=("axes fraction", "data"), xytext=(0, -10),
-                    textcoords="offset points", fontsize=8, ha="left")
+        ax.annotate(
+            "-3 dB: the bandwidth is where a gain crosses it",
+            (0.01, -3),
+            xycoords=("axes fraction", "data"),
+            xytext=(0, -10),
+            textcoords="offset points",
+            fontsize=8,
+            ha="left",
+        )
         ax.xaxis.set_major_locator(matplotlib.ticker.FixedLocator([1, 2, 5, 10, 20, 50]))
         ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
         ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
@@ -509,19 +674,35 @@ def _plot_steps(by: dict, colors: dict):
     fig = Figure(figsize=(9, 4.8))
     ax = fig.subplots()
     for ratio, r in _by_ratio(by, "step_Z", "nominal").items():
-        ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]), color=colors[ratio], lw=1,
-                label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}")
+        ax.plot(
+            r["trace"]["t"],
+            1e3 * np.asarray(r["trace"]["y"]),
+            color=colors[ratio],
+            lw=1,
+            label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}",
+        )
     for label, _, color, r in _others(by, "step_Z"):
-        ax.plot(r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]), color=color, lw=1.5,
-                label=label)
+        ax.plot(
+            r["trace"]["t"], 1e3 * np.asarray(r["trace"]["y"]), color=color, lw=1.5, label=label
+        )
     for c in ("lqi_1_1", "pd", "ann_best_cost"):
-        rs = next((v for k, v in by.items() if k[0] == c and k[1] == "step_Z"
-                   and k[2] != "nominal" and "error" not in v), None)
+        rs = next(
+            (
+                v
+                for k, v in by.items()
+                if k[0] == c and k[1] == "step_Z" and k[2] != "nominal" and "error" not in v
+            ),
+            None,
+        )
         if rs is not None:
-            ax.plot(rs["trace"]["t"], 1e3 * np.asarray(rs["trace"]["y"]), ls="--", lw=1,
-                    color=_OTHERS.get(c, (None, None, colors[1.0]))[2],
-                    label=f"{_OTHERS.get(c, ('LQI ratio 1',))[0]}, |T| <= "
-                          f"{TORQUE_LIMIT_NM:g} N m")
+            ax.plot(
+                rs["trace"]["t"],
+                1e3 * np.asarray(rs["trace"]["y"]),
+                ls="--",
+                lw=1,
+                color=_OTHERS.get(c, (None, None, colors[1.0]))[2],
+                label=f"{_OTHERS.get(c, ('LQI ratio 1',))[0]}, |T| <= {TORQUE_LIMIT_NM:g} N m",
+            )
     ax.set_xlim(0.4, 1.2)
     ax.set_xlabel("t [s]")
     ax.set_ylabel("Z - Z_home [mm]")

@@ -80,8 +80,12 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
     from tqdm import tqdm
 
     chunk = max(t_end / 200, 1e-3)
-    with tqdm(total=round(t_end, 6), desc=desc, unit="sim s", bar_format=(
-            "{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]")) as bar:
+    with tqdm(
+        total=round(t_end, 6),
+        desc=desc,
+        unit="sim s",
+        bar_format=("{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]"),
+    ) as bar:
         t = simulator.get_context().get_time()
         while t < t_end - 1e-12:
             t_next = min(t + chunk, t_end)
@@ -107,7 +111,8 @@ def run_memory_bytes(scenario: Scenario) -> float:
     d = float(scenario.duration_s)
     return scenario.reference.memory_bytes() + max(
         (d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
-        (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE)
+        (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE,
+    )
 
 
 def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
@@ -122,14 +127,20 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
     from ..checks import check_memory
 
     on_reference, coarser = scenario.reference.memory_note()
-    what = (f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
-            f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s{on_reference}")
-    check_memory(what, runs_at_once * run_memory_bytes(scenario), change or (
-        "shorten duration_s (--duration) or lengthen log_period_s" + coarser))
+    what = (
+        f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
+        f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s{on_reference}"
+    )
+    check_memory(
+        what,
+        runs_at_once * run_memory_bytes(scenario),
+        change or ("shorten duration_s (--duration) or lengthen log_period_s" + coarser),
+    )
 
 
-def build_simulator(scenario: Scenario | RunPlan | None = None, meshcat=None, *, reference=None,
-                    controller=None):
+def build_simulator(
+    scenario: Scenario | RunPlan | None = None, meshcat=None, *, reference=None, controller=None
+):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
     The run's memory is checked first (:func:`check_run_memory`), then the reference
@@ -147,7 +158,7 @@ def build_simulator(scenario: Scenario | RunPlan | None = None, meshcat=None, *,
             checked before anything is simulated. InvalidConfigError: a bad scenario field, or
             a run that needs more memory than the machine has (:func:`check_run_memory`).
     """
-    plan = make_plan(scenario, with_reference=False)           # validated once, here
+    plan = make_plan(scenario, with_reference=False)  # validated once, here
     check_run_memory(plan.scenario)
     plan = make_plan(plan, reference=reference, controller=controller)
     check_reference(plan)
@@ -165,8 +176,14 @@ def build_simulator(scenario: Scenario | RunPlan | None = None, meshcat=None, *,
     return sd, simulator
 
 
-def run_experiment(scenario: Scenario | RunPlan | None = None, progress: bool = False,
-                   meshcat=None, *, reference=None, controller=None) -> RunResult:
+def run_experiment(
+    scenario: Scenario | RunPlan | None = None,
+    progress: bool = False,
+    meshcat=None,
+    *,
+    reference=None,
+    controller=None,
+) -> RunResult:
     """Simulate one closed-loop run and collect its logs and metrics.
 
     Args:
@@ -187,8 +204,7 @@ def run_experiment(scenario: Scenario | RunPlan | None = None, progress: bool = 
     """
     sd, simulator = build_simulator(scenario, meshcat, reference=reference, controller=controller)
     wall0 = time.perf_counter()
-    guard.advance(sd, simulator,
-                  lambda: advance(simulator, sd.plan.duration_s, progress))
+    guard.advance(sd, simulator, lambda: advance(simulator, sd.plan.duration_s, progress))
     wall = time.perf_counter() - wall0
     return collect_result(sd, simulator.get_context(), wall)
 
@@ -196,18 +212,22 @@ def run_experiment(scenario: Scenario | RunPlan | None = None, progress: bool = 
 def config_summary(sd: StewartDiagram) -> dict:
     """The settings of a run that results and records carry (plain JSON values)."""
     plan, scenario = sd.plan, sd.scenario
-    summary = {"trajectory": getattr(sd.trajectory, "name", "custom"),
-               "duration_s": scenario.duration_s,
-               "plant_time_step_s": plan.plant_time_step_s,
-               "control_period_s": scenario.control_period_s,
-               "controller": type(scenario.controller).__name__,
-               "tuner": scenario.tuner is not None,
-               "feedforward": scenario.feedforward, "payload_scale": scenario.payload_scale,
-               "torque_limit_Nm": scenario.torque_limit_Nm,
-               "motor_limit_Nm": plan.torque_limit_Nm,
-               "sensor_noise": scenario.sensor_noise is not None,
-               "hardware": scenario.hardware is not None,
-               "scenario": sd.scenario_yaml(), **scenario.controller.summary()}
+    summary = {
+        "trajectory": getattr(sd.trajectory, "name", "custom"),
+        "duration_s": scenario.duration_s,
+        "plant_time_step_s": plan.plant_time_step_s,
+        "control_period_s": scenario.control_period_s,
+        "controller": type(scenario.controller).__name__,
+        "tuner": scenario.tuner is not None,
+        "feedforward": scenario.feedforward,
+        "payload_scale": scenario.payload_scale,
+        "torque_limit_Nm": scenario.torque_limit_Nm,
+        "motor_limit_Nm": plan.torque_limit_Nm,
+        "sensor_noise": scenario.sensor_noise is not None,
+        "hardware": scenario.hardware is not None,
+        "scenario": sd.scenario_yaml(),
+        **scenario.controller.summary(),
+    }
     return summary
 
 
@@ -219,24 +239,38 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
     closure = loop_closures_from_states(sd, state)
     names = tuple(getattr(sd.controller, "status_names", ())) if "status" in logs else ()
     status = logs["status"].data().T if "status" in logs else np.zeros((len(t), 0))
-    omega = (status[:, [names.index("omega_Q"), names.index("omega_R")]]
-             if {"omega_Q", "omega_R"} <= set(names) else None)
+    omega = (
+        status[:, [names.index("omega_Q"), names.index("omega_R")]]
+        if {"omega_Q", "omega_R"} <= set(names)
+        else None
+    )
     # A logged sample at t_n is the state the plant computed for physical time t_n, so the
     # tracking error compares the true pose (from the state, free of sensor noise) with the
     # analytic reference at t_n (the controller's x_d leads by half a plant step).
     x_d = np.concatenate(sd.trajectory.evaluate(t), axis=1)
-    result = RunResult(t=t, x=sd.sensor.poses_from_states(state), x_d=x_d,
-                       T=logs["T"].data().T, closure=closure, status=status, status_names=names,
-                       omega=omega,
-                       integral=logs["integral"].data().T if "integral" in logs else None,
-                       rho=logs["rho"].data().T if "rho" in logs else None,
-                       e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
-                       T_ff=feedforward_at(sd, t), config_summary=config_summary(sd))
+    result = RunResult(
+        t=t,
+        x=sd.sensor.poses_from_states(state),
+        x_d=x_d,
+        T=logs["T"].data().T,
+        closure=closure,
+        status=status,
+        status_names=names,
+        omega=omega,
+        integral=logs["integral"].data().T if "integral" in logs else None,
+        rho=logs["rho"].data().T if "rho" in logs else None,
+        e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
+        T_ff=feedforward_at(sd, t),
+        config_summary=config_summary(sd),
+    )
     result.metrics = compute_metrics(result, wall_s)
     if sd.scenario.contact:
         first = sd.guard.first_contact(root_context) if sd.guard is not None else None
-        result.metrics["first_contact"] = None if first is None else {
-            "t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
+        result.metrics["first_contact"] = (
+            None
+            if first is None
+            else {"t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
+        )
     return result
 
 
@@ -268,12 +302,20 @@ def save_result(result: RunResult, path: str | Path) -> Path:
     """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
     rho, T_ff when present), status_names, metrics (JSON) and config (JSON, with the scenario
     YAML)."""
-    arrays = dict(t=result.t, x=result.x, x_d=result.x_d, T=result.T, closure=result.closure,
-                  status=result.status, status_names=np.array(result.status_names, dtype=str),
-                  metrics=np.array(json.dumps(result.metrics)),
-                  config=np.array(json.dumps(result.config_summary)))
-    arrays.update({k: getattr(result, k) for k in _OPTIONAL_ARRAYS
-                   if getattr(result, k) is not None})
+    arrays = dict(
+        t=result.t,
+        x=result.x,
+        x_d=result.x_d,
+        T=result.T,
+        closure=result.closure,
+        status=result.status,
+        status_names=np.array(result.status_names, dtype=str),
+        metrics=np.array(json.dumps(result.metrics)),
+        config=np.array(json.dumps(result.config_summary)),
+    )
+    arrays.update(
+        {k: getattr(result, k) for k in _OPTIONAL_ARRAYS if getattr(result, k) is not None}
+    )
     return save_npz(Path(path), arrays)
 
 
@@ -286,10 +328,17 @@ def load_result(path: str | Path) -> RunResult:
         OSError: the file cannot be read.
     """
     data = CheckedNpz(path, "run result file", "run it again with `stewart-drake run`")
-    arrays = {k: data.array(k) for k in ("t", "x", "x_d", "T", "closure", "status")
-              + tuple(k for k in _OPTIONAL_ARRAYS if k in data)}
+    arrays = {
+        k: data.array(k)
+        for k in ("t", "x", "x_d", "T", "closure", "status")
+        + tuple(k for k in _OPTIONAL_ARRAYS if k in data)
+    }
     names = data.arrays.get("status_names")
     if names is None or names.dtype.kind != "U" or names.ndim != 1:
         raise data.corrupt("the entry 'status_names' must be a list of strings")
-    return RunResult(**arrays, status_names=tuple(str(v) for v in names),
-                     metrics=data.json("metrics"), config_summary=data.json("config"))
+    return RunResult(
+        **arrays,
+        status_names=tuple(str(v) for v in names),
+        metrics=data.json("metrics"),
+        config_summary=data.json("config"),
+    )

@@ -27,7 +27,7 @@ from ..errors import InvalidConfigError
 from ..fileio import atomic_write
 from ..simulation.motion import Reference
 
-if TYPE_CHECKING:   # for the annotation only: the functions import experiments when they run
+if TYPE_CHECKING:  # for the annotation only: the functions import experiments when they run
     from .experiments import RunResult
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
@@ -41,19 +41,28 @@ MAX_LAG_S = 0.1
 
 #: The phantom anchor: a built 6-DOF Stewart motion phantom replaying recorded tumour motion
 #: (Belcher et al., Med. Phys. 41, 121704, 2014): (axis, RMSE, range), mm and deg.
-PHANTOM_ANCHOR = (("X", 0.14, 20.0), ("Y", 0.22, 20.0), ("Z", 0.08, 10.0),
-                  ("phi", 0.16, 10.0), ("theta", 0.06, 10.0), ("psi", 0.08, 10.0))
+PHANTOM_ANCHOR = (
+    ("X", 0.14, 20.0),
+    ("Y", 0.22, 20.0),
+    ("Z", 0.08, 10.0),
+    ("phi", 0.16, 10.0),
+    ("theta", 0.06, 10.0),
+    ("psi", 0.08, 10.0),
+)
 
 
 def rms_translation_rotation(e: np.ndarray) -> tuple[float, float]:
     """(sqrt(mean |e_XYZ|^2) m, sqrt(mean |e_rpy|^2) rad) of pose errors (n, 6)."""
     e = np.asarray(e, dtype=float)
-    return (float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
-            float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))))
+    return (
+        float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))),
+    )
 
 
-def time_lag(t: np.ndarray, achieved: np.ndarray, reference: np.ndarray,
-             max_lag_s: float = MAX_LAG_S) -> float:
+def time_lag(
+    t: np.ndarray, achieved: np.ndarray, reference: np.ndarray, max_lag_s: float = MAX_LAG_S
+) -> float:
     """The delay of ``achieved`` behind ``reference`` (s, > 0: late), sub-sample.
 
     The cross-correlation of the two (means removed; ``scipy.signal.correlate``) peaks at the
@@ -78,11 +87,12 @@ def time_lag(t: np.ndarray, achieved: np.ndarray, reference: np.ndarray,
     L = max(1, int(round(max_lag_s / dt)))
     if not np.any(r) or len(t) < 3 * L:
         return math.nan
-    inner = a[L:len(t) - L]
-    c = sum(correlate(r[:, k], inner[:, k], mode="valid", method="fft")
-            for k in range(a.shape[1]))                  # c[j]: achieved late by L - j
+    inner = a[L : len(t) - L]
+    c = sum(
+        correlate(r[:, k], inner[:, k], mode="valid", method="fft") for k in range(a.shape[1])
+    )  # c[j]: achieved late by L - j
     energy = correlate((r * r).sum(axis=1), np.ones(len(inner)), mode="valid", method="fft")
-    c = c / np.sqrt(np.maximum(energy, 1e-300))         # the reference's part that was summed
+    c = c / np.sqrt(np.maximum(energy, 1e-300))  # the reference's part that was summed
     k = int(np.argmax(c))
     delta = 0.0
     if 0 < k < len(c) - 1:
@@ -107,14 +117,18 @@ def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.n
     y = np.asarray(signals, dtype=float).reshape(len(t), -1)
     coef = np.linalg.lstsq(design, y, rcond=None)[0]
     m = len(f)
-    phasor = coef[1:m + 1] - 1j * coef[m + 1:]
+    phasor = coef[1 : m + 1] - 1j * coef[m + 1 :]
     return phasor * np.exp(2j * np.pi * f[:, None] * t[0])
 
 
 def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):
     rows: list = []
-    freqs = [(name, k, k * f0) for name, f0 in frequencies.items() for k in range(1, k_max + 1)
-             if k * f0 < 0.25 / float(np.median(np.diff(t)))]
+    freqs = [
+        (name, k, k * f0)
+        for name, f0 in frequencies.items()
+        for k in range(1, k_max + 1)
+        if k * f0 < 0.25 / float(np.median(np.diff(t)))
+    ]
     if not freqs:
         return rows
     F = [f for _, _, f in freqs]
@@ -124,15 +138,23 @@ def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):
         for j, axis in enumerate(moving):
             if abs(r_row[j]) < HARMONIC_SHARE * p2p[axis]:
                 continue
-            rows.append({"source": name, "k": k, "f_hz": f, "axis": AXES[axis],
-                         "reference": float(abs(r_row[j])),
-                         "amplitude_error": float(abs(a_row[j]) / abs(r_row[j]) - 1),
-                         "phase_error_rad": float(np.angle(a_row[j] / r_row[j]))})
+            rows.append(
+                {
+                    "source": name,
+                    "k": k,
+                    "f_hz": f,
+                    "axis": AXES[axis],
+                    "reference": float(abs(r_row[j])),
+                    "amplitude_error": float(abs(a_row[j]) / abs(r_row[j]) - 1),
+                    "phase_error_rad": float(np.angle(a_row[j] / r_row[j])),
+                }
+            )
     return rows
 
 
-def fidelity(t, x, x_d, window=None, frequencies: dict | None = None, cycle_starts=None,
-             harmonics: int = 5) -> dict:
+def fidelity(
+    t, x, x_d, window=None, frequencies: dict | None = None, cycle_starts=None, harmonics: int = 5
+) -> dict:
     """Fidelity of a run over ``window``, from the true pose.
 
     Args:
@@ -170,32 +192,46 @@ def fidelity(t, x, x_d, window=None, frequencies: dict | None = None, cycle_star
     e = xw - rw
     p2p = np.ptp(rw, axis=0)
     moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
-    rms = np.sqrt(np.mean(e ** 2, axis=0))
+    rms = np.sqrt(np.mean(e**2, axis=0))
     peak = np.abs(e).max(axis=0)
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(p2p > np.asarray(MOVING_P2P), rms / p2p, np.nan)
         peak_frac = np.where(p2p > np.asarray(MOVING_P2P), peak / p2p, np.nan)
     tr, rot = rms_translation_rotation(e)
-    out = {"window_s": [float(tw[0]), float(tw[-1])], "moving": [AXES[k] for k in moving],
-           "rms": rms.tolist(), "peak": peak.tolist(), "p2p": p2p.tolist(),
-           "rms_fraction": frac.tolist(), "peak_fraction": peak_frac.tolist(),
-           "rms_translation_m": tr, "rms_rotation_rad": rot,
-           "peak_translation_m": float(np.linalg.norm(e[:, 3:], axis=1).max()),
-           "peak_rotation_rad": float(np.linalg.norm(e[:, :3], axis=1).max()),
-           "lag_s": {AXES[k]: time_lag(tw, xw[:, k], rw[:, k]) for k in moving}}
+    out = {
+        "window_s": [float(tw[0]), float(tw[-1])],
+        "moving": [AXES[k] for k in moving],
+        "rms": rms.tolist(),
+        "peak": peak.tolist(),
+        "p2p": p2p.tolist(),
+        "rms_fraction": frac.tolist(),
+        "peak_fraction": peak_frac.tolist(),
+        "rms_translation_m": tr,
+        "rms_rotation_rad": rot,
+        "peak_translation_m": float(np.linalg.norm(e[:, 3:], axis=1).max()),
+        "peak_rotation_rad": float(np.linalg.norm(e[:, :3], axis=1).max()),
+        "lag_s": {AXES[k]: time_lag(tw, xw[:, k], rw[:, k]) for k in moving},
+    }
     weights = np.array([1.0 / p2p[k] for k in moving])
-    out["lag_all_s"] = (time_lag(tw, xw[:, moving] * weights, rw[:, moving] * weights)
-                        if moving else math.nan)
-    out["harmonics"] = (_harmonics(tw, xw, rw, frequencies, moving, p2p, harmonics)
-                        if frequencies and moving else [])
-    cycles: dict[str, list] = {"starts": [], "rms_translation_m": [], "rms_rotation_rad": [],
-              "peak_translation_m": []}
+    out["lag_all_s"] = (
+        time_lag(tw, xw[:, moving] * weights, rw[:, moving] * weights) if moving else math.nan
+    )
+    out["harmonics"] = (
+        _harmonics(tw, xw, rw, frequencies, moving, p2p, harmonics)
+        if frequencies and moving
+        else []
+    )
+    cycles: dict[str, list] = {
+        "starts": [],
+        "rms_translation_m": [],
+        "rms_rotation_rad": [],
+        "peak_translation_m": [],
+    }
     if cycle_starts is not None:
         starts = np.asarray(cycle_starts, dtype=float)
         for a, b in zip(starts[:-1], starts[1:]):
             c = (t >= a - 1e-9) & (t < b - 1e-9)
-            if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or \
-                    np.count_nonzero(c) < 10:
+            if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or np.count_nonzero(c) < 10:
                 continue
             ec = x[c] - x_d[c]
             ct, cr = rms_translation_rotation(ec)
@@ -208,6 +244,7 @@ def fidelity(t, x, x_d, window=None, frequencies: dict | None = None, cycle_star
 
 
 # -- tolerance -----------------------------------------------------------------------------------
+
 
 def parse_tolerance(text: str) -> tuple[float, float]:
     """(m, rad) of a tolerance "0.1mm,0.1deg" (lengths m, cm, mm, um; angles rad, mrad, urad,
@@ -224,12 +261,14 @@ def parse_tolerance(text: str) -> tuple[float, float]:
         unit = m.group(2).lower() if m else ""
         kind = next((k for k in ("m", "rad") if unit in UNITS[k]), None)
         if m is None or kind is None or kind in found or not float(m.group(1)) > 0:
-            raise InvalidConfigError(f"a tolerance is one length and one angle, e.g. "
-                                     f"0.1mm,0.1deg; got {text!r}")
+            raise InvalidConfigError(
+                f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; got {text!r}"
+            )
         found[kind] = float(m.group(1)) * UNITS[kind][unit]
     if len(found) != 2:
-        raise InvalidConfigError(f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; "
-                                 f"got {text!r}")
+        raise InvalidConfigError(
+            f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; got {text!r}"
+        )
     return found["m"], found["rad"]
 
 
@@ -240,9 +279,11 @@ def verdict(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
     kt, kr = 3 + int(np.argmax(rms[3:])), int(np.argmax(rms[:3]))
     ok = rms[3:].max() <= tolerance[0] and rms[:3].max() <= tolerance[1]
     w0, w1 = fid["window_s"]
-    return ok, (f"{'PASS' if ok else 'FAIL'}: RMS error per axis {'within' if ok else 'beyond'} "
-                f"{_length(tolerance[0])} | {_angle(tolerance[1])} over t = {w0:.4g}-{w1:.4g} s "
-                f"(largest: {AXES[kt]} {_length(rms[kt])}, {AXES[kr]} {_angle(rms[kr])})")
+    return ok, (
+        f"{'PASS' if ok else 'FAIL'}: RMS error per axis {'within' if ok else 'beyond'} "
+        f"{_length(tolerance[0])} | {_angle(tolerance[1])} over t = {w0:.4g}-{w1:.4g} s "
+        f"(largest: {AXES[kt]} {_length(rms[kt])}, {AXES[kr]} {_angle(rms[kr])})"
+    )
 
 
 def _length(v: float) -> str:
@@ -254,6 +295,7 @@ def _angle(v: float) -> str:
 
 
 # -- a reproduction ----------------------------------------------------------------------------
+
 
 @dataclass
 class Reproduction:
@@ -306,7 +348,7 @@ def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Re
         candidate = reference if s == 1.0 else ScaledReference(reference, s)
         try:
             report = check_reference(plan, candidate, raise_refused=False)
-        except Exception:           # noqa: BLE001 - unreachable poses raise even when reporting
+        except Exception:  # noqa: BLE001 - unreachable poses raise even when reporting
             return False
         return report.ok
 
@@ -317,13 +359,15 @@ def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Re
         mid = 0.5 * (lo + hi)
         lo, hi = (mid, hi) if fits(mid) else (lo, mid)
     if lo < tol:
-        raise InvalidConfigError(f"{getattr(reference, 'name', 'the reference')} cannot be "
-                                 f"scaled to fit: even at {tol:g} of its size a check refuses "
-                                 f"it; move its centre")
+        raise InvalidConfigError(
+            f"{getattr(reference, 'name', 'the reference')} cannot be "
+            f"scaled to fit: even at {tol:g} of its size a check refuses "
+            f"it; move its centre"
+        )
     return ScaledReference(reference, lo), lo
 
 
-_fit = scale_to_fit          # reproduce's argument of that name is a flag
+_fit = scale_to_fit  # reproduce's argument of that name is a flag
 
 
 def run(scenario, reference: Reference, progress: bool = False, desc: str = "simulating"):
@@ -337,8 +381,9 @@ def run(scenario, reference: Reference, progress: bool = False, desc: str = "sim
 
     sd, simulator = build_simulator(scenario, reference=reference)
     wall0 = time.perf_counter()
-    guard.advance(sd, simulator, lambda: advance(simulator, scenario.duration_s, progress,
-                                                 desc=desc))
+    guard.advance(
+        sd, simulator, lambda: advance(simulator, scenario.duration_s, progress, desc=desc)
+    )
     wall = time.perf_counter() - wall0
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
@@ -346,7 +391,8 @@ def run(scenario, reference: Reference, progress: bool = False, desc: str = "sim
     if sd.learner is not None:
         log = sd.loggers["ilc_status"].FindLog(context).data().T
         final = sd.learner.GetOutputPort("ilc_status").Eval(
-            sd.learner.GetMyContextFromRoot(context))
+            sd.learner.GetMyContextFromRoot(context)
+        )
         learner = np.vstack([log, final])
     return result, learner, wall
 
@@ -381,15 +427,16 @@ def _reference_starts(reference: Reference, learn_cycles: int) -> np.ndarray:
     return starts
 
 
-def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: int,
-                  duration_s: float | None) -> bool:
+def _set_duration(
+    scenario, reference, starts, learn_cycles: int, eval_cycles: int, duration_s: float | None
+) -> bool:
     """True when a recorded trace runs whole (without learning); sets the scenario's
     ``duration_s``, s: the trace's length (at most), :func:`run_cycles` cycles or
     ``duration_s``."""
     name = getattr(reference, "name", "reference")
     end = getattr(reference, "end_time", None)
     total = run_cycles(reference, learn_cycles, eval_cycles)
-    whole = end is not None and not learn_cycles         # a recorded trace: all of it
+    whole = end is not None and not learn_cycles  # a recorded trace: all of it
     if whole and end is not None:
         scenario.duration_s = float(min(duration_s or end, end))
     elif starts.size > total:
@@ -397,8 +444,10 @@ def _set_duration(scenario, reference, starts, learn_cycles: int, eval_cycles: i
     else:
         scenario.duration_s = float(duration_s or end or scenario.duration_s)
         if learn_cycles and starts.size <= learn_cycles + 1:
-            raise InvalidConfigError(f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
-                                     f"learn from {learn_cycles} and measure one more")
+            raise InvalidConfigError(
+                f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
+                f"learn from {learn_cycles} and measure one more"
+            )
     return whole
 
 
@@ -415,11 +464,10 @@ def _set_learning(scenario, learn_cycles: int) -> None:
         scenario.learning = None
 
 
-def _measured_window(starts, duration: float, whole: bool,
-                     eval_cycles: int) -> tuple[float, float]:
+def _measured_window(starts, duration: float, whole: bool, eval_cycles: int) -> tuple[float, float]:
     """(start, end) of the window measured, s: after a whole trace's first cycle (or tenth), or
     the last ``eval_cycles`` cycles (the last nine tenths of a run without them)."""
-    if whole:                     # after the first cycle (or tenth) to the end
+    if whole:  # after the first cycle (or tenth) to the end
         return (starts[1] if starts.size > 2 else 0.1 * duration, duration)
     if starts.size > eval_cycles:
         return (starts[-eval_cycles - 1], starts[-1])
@@ -430,13 +478,22 @@ def _harmonic_frequencies(reference: Reference) -> dict:
     """{"breathing": Hz, "cardiac": Hz}: the fundamentals whose harmonics :func:`fidelity`
     analyses, those of a reference that repeats ({} for one that does not)."""
     repeats = getattr(reference, "repeat_period_s", None) is not None
-    return reference.frequencies_hz() if repeats and callable(
-        getattr(reference, "frequencies_hz", None)) else {}
+    return (
+        reference.frequencies_hz()
+        if repeats and callable(getattr(reference, "frequencies_hz", None))
+        else {}
+    )
 
 
-def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int = 2,
-              scale_to_fit: bool = False, duration_s: float | None = None,
-              progress: bool = False) -> Reproduction:
+def reproduce(
+    scenario,
+    reference=None,
+    learn_cycles: int = 0,
+    eval_cycles: int = 2,
+    scale_to_fit: bool = False,
+    duration_s: float | None = None,
+    progress: bool = False,
+) -> Reproduction:
     """Check a motion against the robot, run it, measure it.
 
     The run lasts :func:`run_cycles` cycles of the reference and is measured over the last
@@ -470,13 +527,12 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     from ..simulation.trajectories import as_trajectory
 
     _check_counts(learn_cycles, eval_cycles)
-    reference = (as_trajectory(reference) if reference is not None
-                 else make_plan(scenario).reference)
+    reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
     _set_learning(scenario, learn_cycles)
-    plan = make_plan(scenario, reference=reference)             # validated once, here
+    plan = make_plan(scenario, reference=reference)  # validated once, here
     scale = 1.0
     if scale_to_fit:
         reference, scale = _fit(plan, reference)
@@ -486,12 +542,22 @@ def reproduce(scenario, reference=None, learn_cycles: int = 0, eval_cycles: int 
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     freq = _harmonic_frequencies(reference)
     fid = fidelity(result.t, result.x, result.x_d, window, freq, starts)
-    return Reproduction(name=name, reference=reference, scale=scale, result=result,
-                        cycle_starts=starts, learn_cycles=learn_cycles, fidelity=fid,
-                        learner=learner, check=report.summary(), wall_s=wall)
+    return Reproduction(
+        name=name,
+        reference=reference,
+        scale=scale,
+        result=result,
+        cycle_starts=starts,
+        learn_cycles=learn_cycles,
+        fidelity=fid,
+        learner=learner,
+        check=report.summary(),
+        wall_s=wall,
+    )
 
 
 # -- the report ----------------------------------------------------------------------------------
+
 
 def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
@@ -500,63 +566,100 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     ok, line = verdict(fid, tolerance)
     units = ["urad"] * 3 + ["um"] * 3
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
-    lines.append(f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
-                 f"({rep.result.config_summary.get('controller', '')}"
-                 + (f", learning from {rep.learn_cycles} cycles, then held" if rep.learn_cycles
-                    else ", no learning") + f"); measured over t = {fid['window_s'][0]:.4g}-"
-                 f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
-                 f"{rep.wall_s:.0f} s.")
+    lines.append(
+        f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
+        f"({rep.result.config_summary.get('controller', '')}"
+        + (
+            f", learning from {rep.learn_cycles} cycles, then held"
+            if rep.learn_cycles
+            else ", no learning"
+        )
+        + f"); measured over t = {fid['window_s'][0]:.4g}-"
+        f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
+        f"{rep.wall_s:.0f} s."
+    )
     if rep.scale != 1.0:
-        lines.append(f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
-                     f"robot (--scale-to-fit).")
-    lines += ["", "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
-              "|---|---|---|---|---|---|"]
+        lines.append(
+            f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
+            f"robot (--scale-to-fit)."
+        )
+    lines += [
+        "",
+        "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
+        "|---|---|---|---|---|---|",
+    ]
     for k, axis in enumerate(AXES):
         scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
         lag = fid["lag_s"].get(axis)
         frac = fid["rms_fraction"][k]
-        lines.append(f"| {axis} | {fid['p2p'][k] * scale:.4g} {unit} | "
-                     f"{fid['rms'][k] * 1e6:.3g} {units[k]} | "
-                     f"{fid['peak'][k] * 1e6:.3g} {units[k]} | "
-                     f"{'-' if not np.isfinite(frac) else f'{100 * frac:.3g} %'} | "
-                     f"{'-' if lag is None else f'{1e3 * lag:.3g}'} |")
-    lines += ["", f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
-                  f"{fid['rms_rotation_rad'] * 1e6:.3g} urad (peaks "
-                  f"{fid['peak_translation_m'] * 1e6:.3g} um, "
-                  f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
-                  f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late)."]
+        lines.append(
+            f"| {axis} | {fid['p2p'][k] * scale:.4g} {unit} | "
+            f"{fid['rms'][k] * 1e6:.3g} {units[k]} | "
+            f"{fid['peak'][k] * 1e6:.3g} {units[k]} | "
+            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.3g} %'} | "
+            f"{'-' if lag is None else f'{1e3 * lag:.3g}'} |"
+        )
+    lines += [
+        "",
+        f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
+        f"{fid['rms_rotation_rad'] * 1e6:.3g} urad (peaks "
+        f"{fid['peak_translation_m'] * 1e6:.3g} um, "
+        f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
+        f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late).",
+    ]
     if fid["harmonics"]:
-        lines += ["", "| harmonic | f [Hz] | axis | reference amplitude | amplitude error | "
-                      "phase error [deg] |", "|---|---|---|---|---|---|"]
+        lines += [
+            "",
+            "| harmonic | f [Hz] | axis | reference amplitude | amplitude error | "
+            "phase error [deg] |",
+            "|---|---|---|---|---|---|",
+        ]
         for h in fid["harmonics"]:
             k = AXES.index(h["axis"])
             amp = h["reference"] * (1e3 if k >= 3 else 180 / math.pi)
-            lines.append(f"| {h['source']} {h['k']} | {h['f_hz']:.4g} | {h['axis']} | "
-                         f"{amp:.4g} {'mm' if k >= 3 else 'deg'} | "
-                         f"{100 * h['amplitude_error']:+.3g} % | "
-                         f"{math.degrees(h['phase_error_rad']):+.3g} |")
+            lines.append(
+                f"| {h['source']} {h['k']} | {h['f_hz']:.4g} | {h['axis']} | "
+                f"{amp:.4g} {'mm' if k >= 3 else 'deg'} | "
+                f"{100 * h['amplitude_error']:+.3g} % | "
+                f"{math.degrees(h['phase_error_rad']):+.3g} |"
+            )
     cyc = fid["cycles"]
     if cyc["starts"]:
-        lines += ["", "Error per cycle (RMS, translation um | rotation urad): "
-                  + ", ".join(f"{j}: {a * 1e6:.3g} | {b * 1e6:.3g}" for j, (a, b) in enumerate(
-                      zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"])))]
+        lines += [
+            "",
+            "Error per cycle (RMS, translation um | rotation urad): "
+            + ", ".join(
+                f"{j}: {a * 1e6:.3g} | {b * 1e6:.3g}"
+                for j, (a, b) in enumerate(zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"]))
+            ),
+        ]
     if rep.learner is not None:
         from ..control.ilc import ILC_STATUS_NAMES
 
         last = dict(zip(ILC_STATUS_NAMES, rep.learner[-1]))
-        lines += ["", f"Learner: learned from {int(last['learned_cycles'])} cycles, "
-                      f"{int(last['rollbacks'])} rollback(s)"
-                      + (", stopped by its bound" if last["stopped"] else "") + "."]
-    lines += ["", "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
-                  "Stewart motion phantom replaying recorded tumour motion):", "",
-              "| axis | phantom RMSE | phantom range | phantom RMSE / range | here RMS / p2p |",
-              "|---|---|---|---|---|"]
+        lines += [
+            "",
+            f"Learner: learned from {int(last['learned_cycles'])} cycles, "
+            f"{int(last['rollbacks'])} rollback(s)"
+            + (", stopped by its bound" if last["stopped"] else "")
+            + ".",
+        ]
+    lines += [
+        "",
+        "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
+        "Stewart motion phantom replaying recorded tumour motion):",
+        "",
+        "| axis | phantom RMSE | phantom range | phantom RMSE / range | here RMS / p2p |",
+        "|---|---|---|---|---|",
+    ]
     for axis, rmse, rng in PHANTOM_ANCHOR:
         k = AXES.index(axis)
         unit = "mm" if k >= 3 else "deg"
         frac = fid["rms_fraction"][k]
-        lines.append(f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
-                     f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |")
+        lines.append(
+            f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
+            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |"
+        )
     lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
     return "\n".join(lines)
 
@@ -582,12 +685,20 @@ def _plot_error(ax, r, window, tolerance: tuple[float, float]) -> None:
     t = r.t
     e = r.x[:, :6] - r.x_d[:, :6]
     w0, w1 = window
-    ax.plot(t, np.linalg.norm(e[:, 3:], axis=1) * 1e6, "C3", lw=0.6,
-            label="|translation error| [um]")
-    ax.plot(t, np.linalg.norm(e[:, :3], axis=1) * 1e6, "C2", lw=0.6, alpha=0.7,
-            label="|rotation error| [urad]")
-    ax.axhline(tolerance[0] * 1e6, color="C3", ls=":", lw=1,
-               label=f"tolerance {_length(tolerance[0])}")
+    ax.plot(
+        t, np.linalg.norm(e[:, 3:], axis=1) * 1e6, "C3", lw=0.6, label="|translation error| [um]"
+    )
+    ax.plot(
+        t,
+        np.linalg.norm(e[:, :3], axis=1) * 1e6,
+        "C2",
+        lw=0.6,
+        alpha=0.7,
+        label="|rotation error| [urad]",
+    )
+    ax.axhline(
+        tolerance[0] * 1e6, color="C3", ls=":", lw=1, label=f"tolerance {_length(tolerance[0])}"
+    )
     ax.set_yscale("log")
     ax.set_ylim(0.1, None)
     ax.axvspan(w0, w1, color="0.9", zorder=0)
@@ -607,13 +718,24 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
         ax.set_ylim(bottom=0)
         if learn_cycles:
             ax.axvline(learn_cycles - 0.5, color="k", ls=":", lw=1)
-            ax.text(learn_cycles - 0.45, 0.05 * ax.get_ylim()[1], "correction held",
-                    fontsize=7, va="bottom")
+            ax.text(
+                learn_cycles - 0.45,
+                0.05 * ax.get_ylim()[1],
+                "correction held",
+                fontsize=7,
+                va="bottom",
+            )
         ax.set_xticks(j)
         ax.legend(loc="upper right", fontsize=7, ncol=2)
     else:
-        ax.text(0.5, 0.5, "the reference has no cycles", ha="center", va="center",
-                transform=ax.transAxes)
+        ax.text(
+            0.5,
+            0.5,
+            "the reference has no cycles",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
     ax.set_xlabel("cycle")
     ax.set_ylabel("RMS error\nper cycle")
     ax.grid(alpha=0.3)
@@ -623,14 +745,30 @@ def _plot_harmonics(ax, harmonics: list) -> None:
     """Draw the harmonic table: each harmonic's frequency, axis, reference amplitude and its
     amplitude and phase errors."""
     ax.axis("off")
-    cells = [[f"{h['source']} {h['k']}", f"{h['f_hz']:.3g}", h["axis"],
-              f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
-              f"{100 * h['amplitude_error']:+.2g} %",
-              f"{math.degrees(h['phase_error_rad']):+.2g}"] for h in harmonics]
-    table = ax.table(cellText=cells, colLabels=["harmonic", "f [Hz]", "axis",
-                                                "amplitude [mm|deg]", "amplitude error",
-                                                "phase error [deg]"],
-                     loc="center", cellLoc="center")
+    cells = [
+        [
+            f"{h['source']} {h['k']}",
+            f"{h['f_hz']:.3g}",
+            h["axis"],
+            f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
+            f"{100 * h['amplitude_error']:+.2g} %",
+            f"{math.degrees(h['phase_error_rad']):+.2g}",
+        ]
+        for h in harmonics
+    ]
+    table = ax.table(
+        cellText=cells,
+        colLabels=[
+            "harmonic",
+            "f [Hz]",
+            "axis",
+            "amplitude [mm|deg]",
+            "amplitude error",
+            "phase error [deg]",
+        ],
+        loc="center",
+        cellLoc="center",
+    )
     table.auto_set_font_size(False)
     table.set_fontsize(7)
 
@@ -646,10 +784,14 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     fid, r = rep.fidelity, rep.result
     moving = [AXES.index(a) for a in fid["moving"]] or [5]
     n_rows = len(moving) + 2 + (1 if fid["harmonics"] else 0)
-    heights = [1.4] * len(moving) + [1.6, 1.4] + ([0.25 * len(fid["harmonics"]) + 0.6]
-                                                  if fid["harmonics"] else [])
-    fig, axes = plt.subplots(n_rows, 1, figsize=(10, sum(heights) + 1.2),
-                             gridspec_kw={"height_ratios": heights})
+    heights = (
+        [1.4] * len(moving)
+        + [1.6, 1.4]
+        + ([0.25 * len(fid["harmonics"]) + 0.6] if fid["harmonics"] else [])
+    )
+    fig, axes = plt.subplots(
+        n_rows, 1, figsize=(10, sum(heights) + 1.2), gridspec_kw={"height_ratios": heights}
+    )
     _plot_poses(axes, moving, r, fid["window_s"])
     _plot_error(axes[len(moving)], r, fid["window_s"], tolerance)
     _plot_cycles(axes[len(moving) + 1], fid["cycles"], rep.learn_cycles)
@@ -664,8 +806,9 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     return path
 
 
-def write_report(rep: Reproduction, out, tolerance: tuple[float, float],
-                 stem: str | None = None) -> tuple[Path, Path, Path]:
+def write_report(
+    rep: Reproduction, out, tolerance: tuple[float, float], stem: str | None = None
+) -> tuple[Path, Path, Path]:
     """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` (the figures) into ``out``.
 
     Returns:
@@ -677,9 +820,15 @@ def write_report(rep: Reproduction, out, tolerance: tuple[float, float],
     png = plot_report(rep, out / f"{stem}.png", tolerance)
     text = report_markdown(rep, tolerance) + f"\n![reference, achieved, errors]({png.name})\n"
     atomic_write(md, lambda f: f.write(text.encode()))
-    figures = {"name": rep.name, "scale": rep.scale, "learn_cycles": rep.learn_cycles,
-               "tolerance": list(tolerance), "passed": verdict(rep.fidelity, tolerance)[0],
-               "fidelity": rep.fidelity, "wall_s": rep.wall_s}
+    figures = {
+        "name": rep.name,
+        "scale": rep.scale,
+        "learn_cycles": rep.learn_cycles,
+        "tolerance": list(tolerance),
+        "passed": verdict(rep.fidelity, tolerance)[0],
+        "fidelity": rep.fidelity,
+        "wall_s": rep.wall_s,
+    }
     js = out / f"{stem}.json"
     atomic_write(js, lambda f: f.write(json.dumps(figures, indent=1, default=float).encode()))
     return md, png, js

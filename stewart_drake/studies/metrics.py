@@ -25,8 +25,10 @@ ERROR_SCALE, TORQUE_SCALE = 1e-3, 0.3
 
 # -- a run's figures -------------------------------------------------------------------------------
 
-def compute_metrics(result, wall_s: float | None = None,
-                    window_start_s: float | None = None) -> dict:
+
+def compute_metrics(
+    result, wall_s: float | None = None, window_start_s: float | None = None
+) -> dict:
     """Figures of a run.
 
     Returns:
@@ -43,8 +45,10 @@ def compute_metrics(result, wall_s: float | None = None,
     start = t[-1] / 2 if window_start_s is None else window_start_s
     m = t >= start - 1e-9
     if np.count_nonzero(m) < 2:
-        raise InvalidConfigError(f"a run of {t[-1]:g} s has {np.count_nonzero(m)} logged sample(s) "
-                                 f"after t = {start:g} s: too short for metrics; simulate longer")
+        raise InvalidConfigError(
+            f"a run of {t[-1]:g} s has {np.count_nonzero(m)} logged sample(s) "
+            f"after t = {start:g} s: too short for metrics; simulate longer"
+        )
     err = tracking_error(result)
     metrics = {
         "window_s": [float(start), float(t[-1])],
@@ -74,7 +78,7 @@ def effort(t, T) -> float:
     """Sum T^2 dt of torques T (N, 6) logged at times t (N,), N^2 m^2 s (rectangle rule, the
     first sample weighted 0)."""
     dt = np.diff(t, prepend=t[0])
-    return float(np.sum(T ** 2 * dt[:, None]))
+    return float(np.sum(T**2 * dt[:, None]))
 
 
 def normalized_rms(rms, pose_scales) -> float:
@@ -99,6 +103,7 @@ def feedback_effort(result, geometry) -> float:
 
 # -- step and frequency responses ------------------------------------------------------------------
 
+
 def settling_time(t, error, size: float, t_step: float, band: float = SETTLING_BAND):
     """Time after ``t_step`` from which |error| stays within band * |size|, s (None if never).
 
@@ -114,7 +119,7 @@ def settling_time(t, error, size: float, t_step: float, band: float = SETTLING_B
         return 0.0
     last = int(np.flatnonzero(outside)[-1])
     if last == len(t) - 1:
-        return None                                   # still outside at the end of the run
+        return None  # still outside at the end of the run
     return float(t[last + 1] - t_step)
 
 
@@ -145,7 +150,7 @@ def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
     ph = chirp.phase(t)
     seg = np.floor(ph / (2 * np.pi * cycles_per_segment)).astype(int)
     f, gain, phase = [], [], []
-    for k in np.unique(seg)[1:]:                      # the first segment holds the start transient
+    for k in np.unique(seg)[1:]:  # the first segment holds the start transient
         sel = seg == k
         if sel.sum() < 8:
             continue
@@ -174,6 +179,7 @@ def bandwidth_hz(f, gain):
 
 # -- the tuner study's cost ------------------------------------------------------------------------
 
+
 def sample_costs(result, geometry) -> tuple[np.ndarray, np.ndarray]:
     """(e2 (N,), u2 (N,)): per sample, the squared tracking error and the squared
     :func:`feedback_torque`, each normalized by its scale (:data:`ERROR_SCALE`,
@@ -181,11 +187,12 @@ def sample_costs(result, geometry) -> tuple[np.ndarray, np.ndarray]:
     J = mean(e2 + lambda u2)."""
     e = tracking_error(result) / ERROR_SCALE
     u = feedback_torque(result, geometry) / TORQUE_SCALE
-    return (e ** 2).sum(axis=1), (u ** 2).sum(axis=1)
+    return (e**2).sum(axis=1), (u**2).sum(axis=1)
 
 
-def window_means(t: np.ndarray, values: np.ndarray, duration_s: float,
-                 window_s: float) -> np.ndarray:
+def window_means(
+    t: np.ndarray, values: np.ndarray, duration_s: float, window_s: float
+) -> np.ndarray:
     """(n_windows,) mean of values (N,) over each ``window_s`` window of [0, duration_s)."""
     n = int(round(duration_s / window_s))
     index = np.minimum((t / window_s + 1e-9).astype(int), n - 1)

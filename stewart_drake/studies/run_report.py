@@ -20,29 +20,40 @@ def format_metrics(metrics: dict) -> str:
     """Human-readable summary (mrad / mm / N m) of :func:`~.metrics.compute_metrics`'s dict."""
     w0, w1 = metrics["window_s"]
     lines = [f"RMS tracking error over t in [{w0:g}, {w1:g}] s:"]
-    for axis, unit, v, p in zip(AXIS_NAMES, AXIS_UNITS, metrics["rms_error"],
-                                metrics["peak_error"]):
+    for axis, unit, v, p in zip(
+        AXIS_NAMES, AXIS_UNITS, metrics["rms_error"], metrics["peak_error"]
+    ):
         lines.append(f"  {axis:>5}: {1e3 * v:10.3g} {unit} RMS  (peak {1e3 * p:.3g} {unit})")
-    lines.append("peak |T| per motor [N m]: "
-                 + " ".join(f"{v:.3f}" for v in metrics["peak_torque"]))
+    lines.append(
+        "peak |T| per motor [N m]: " + " ".join(f"{v:.3f}" for v in metrics["peak_torque"])
+    )
     lines.append(f"sum T^2 dt: {metrics['sum_T2_dt']:.4g} N^2 m^2 s")
     lines.append(f"max loop-closure error: {metrics['max_closure_m']:.3g} m")
     status = dict(metrics.get("status", {}))
     if "gain_solves" in status:
-        lines.append(f"gain re-schedules: {int(status.pop('gain_solves'))} "
-                     f"({int(status.pop('gain_failures', 0))} failed, last good gain kept)")
+        lines.append(
+            f"gain re-schedules: {int(status.pop('gain_solves'))} "
+            f"({int(status.pop('gain_failures', 0))} failed, last good gain kept)"
+        )
     counts = {k: v for k, v in status.items() if k not in ("omega_Q", "omega_R", "integral_norm")}
     if counts:
-        lines.append("controller status: " + ", ".join(f"{k.replace('_', ' ')} {v:g}"
-                                                       for k, v in counts.items()))
+        lines.append(
+            "controller status: "
+            + ", ".join(f"{k.replace('_', ' ')} {v:g}" for k, v in counts.items())
+        )
     if "first_contact" in metrics:
         c = metrics["first_contact"]
-        lines.append("contact between parts: none" if c is None else
-                     f"first contact between parts: {c['parts'][0]} and {c['parts'][1]} at "
-                     f"t = {c['t']:.4g} s ({c['force_N']:.3g} N)")
+        lines.append(
+            "contact between parts: none"
+            if c is None
+            else f"first contact between parts: {c['parts'][0]} and {c['parts'][1]} at "
+            f"t = {c['t']:.4g} s ({c['force_N']:.3g} N)"
+        )
     if "realtime_factor" in metrics:
-        lines.append(f"real-time factor: {metrics['realtime_factor']:.2f} "
-                     f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)")
+        lines.append(
+            f"real-time factor: {metrics['realtime_factor']:.2f} "
+            f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)"
+        )
     return "\n".join(lines)
 
 
@@ -54,7 +65,7 @@ def _window_stats(t: np.ndarray, values: np.ndarray, window_s: float):
     n = index[-1] + 1
     counts = np.maximum(np.bincount(index, minlength=n), 1)[:, None]
     mean = np.stack([np.bincount(index, weights=v, minlength=n) for v in values.T], 1) / counts
-    square = np.stack([np.bincount(index, weights=v ** 2, minlength=n) for v in values.T], 1)
+    square = np.stack([np.bincount(index, weights=v**2, minlength=n) for v in values.T], 1)
     t_w = t[0] + (np.arange(n) + 0.5) * window_s
     return t_w, mean, np.sqrt(square / counts)
 
@@ -67,7 +78,7 @@ def _zoom_window(t: np.ndarray, ref: np.ndarray, err: np.ndarray) -> slice:
     dt = float(np.median(np.diff(t))) if len(t) > 1 else 1.0
     half = max(int(round(0.005 / dt)), 2)
     while half * dt < 1.0:
-        window = ref[max(k - half, 0):k + half + 1]
+        window = ref[max(k - half, 0) : k + half + 1]
         if np.ptp(window) > 4 * peak:
             break
         half = int(half * 1.5) + 1
@@ -115,9 +126,16 @@ def plot_fig7(result, path: str | Path) -> Path:
         sides.append(fig.add_subplot(grid[row, 1]))
     for ax in axes[:-1]:
         ax.tick_params(labelbottom=False)
-    draw = {"phi": _draw_reference, "Z": _draw_reference, "angle_error": _draw_errors,
-            "position_error": _draw_errors, "integral": _draw_integral, "omega": _draw_omega,
-            "torque": _draw_torque, "feedback": _draw_feedback}
+    draw = {
+        "phi": _draw_reference,
+        "Z": _draw_reference,
+        "angle_error": _draw_errors,
+        "position_error": _draw_errors,
+        "integral": _draw_integral,
+        "omega": _draw_omega,
+        "torque": _draw_torque,
+        "feedback": _draw_feedback,
+    }
     for ax, side, panel in zip(axes, sides, panels):
         draw[panel](fig, ax, side, panel, result)
         if panel != "feedback":
@@ -127,8 +145,7 @@ def plot_fig7(result, path: str | Path) -> Path:
     axes[-1].set_xlim(t[0], t[-1])
     summary = result.config_summary
     name = summary.get("trajectory", "")
-    robot = ("robot as built (encoders, servos, delay)" if summary.get("hardware")
-             else "ideal robot")
+    robot = "robot as built (encoders, servos, delay)" if summary.get("hardware") else "ideal robot"
     what = "Fig. 7: paper manoeuvre (eqs. 37-38)" if name == "paper" else f"{name} run"
     fig.suptitle(f"{what}, {robot}", fontsize=11)
     fig.tight_layout()
@@ -158,8 +175,9 @@ def _draw_reference(fig, ax, side, panel, result) -> None:
     base = result.x_d[w, k][len(result.x_d[w, k]) // 2]
     side.plot(t[w], scale * (result.x_d[w, k] - base), color="0.75", lw=3.5)
     side.plot(t[w], scale * (result.x[w, k] - base), color, lw=1.0)
-    side.set_title(f"zoom at the largest error (grey band),\naround ${sym}$ = {base:.4g} "
-                   f"{unit}", fontsize=8)
+    side.set_title(
+        f"zoom at the largest error (grey band),\naround ${sym}$ = {base:.4g} {unit}", fontsize=8
+    )
     side.set_ylabel(f"[{zoom_unit}]", fontsize=8)
     side.set_xlabel("t [s]", fontsize=8, labelpad=1)
     side.tick_params(labelsize=7)
@@ -172,8 +190,9 @@ def _draw_errors(fig, ax, side, panel, result) -> None:
     angles = panel == "angle_error"
     for k in range(3) if angles else range(3, 6):
         ax.plot(t, 1e6 * err[:, k], lw=0.8, label=AXIS_NAMES[k])
-    ax.set_ylabel(f"{'angle' if angles else 'position'} error\nx - x_d "
-                  f"[{'urad' if angles else 'um'}]")
+    ax.set_ylabel(
+        f"{'angle' if angles else 'position'} error\nx - x_d [{'urad' if angles else 'um'}]"
+    )
     _legend_beside(ax, side, title="axis")
 
 
@@ -202,17 +221,28 @@ def _draw_torque(fig, ax, side, panel, result) -> None:
     limit = result.config_summary.get("motor_limit_Nm")
     ax.set_ylabel(f"motor torque\n{1e3 * TORQUE_WINDOW_S:g} ms means [N m]")
     _legend_beside(ax, side, loc="upper left", ncol=2, title="motor")
-    side.text(0.0, 0.0, f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
-              + (f"\nmotors' limit {limit:.3g} N m" if limit else ""), fontsize=7,
-              transform=side.transAxes, va="bottom")
+    side.text(
+        0.0,
+        0.0,
+        f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
+        + (f"\nmotors' limit {limit:.3g} N m" if limit else ""),
+        fontsize=7,
+        transform=side.transAxes,
+        va="bottom",
+    )
 
 
 def _draw_feedback(fig, ax, side, panel, result) -> None:
     """The feedback torque T - T_ff per motor as a map of its window RMS."""
     t_w, _, rms = _window_stats(result.t, result.T - result.T_ff, TORQUE_WINDOW_S)
-    image = ax.imshow(rms.T, aspect="auto", origin="lower", cmap="viridis",
-                      extent=(t_w[0] - TORQUE_WINDOW_S / 2, t_w[-1] + TORQUE_WINDOW_S / 2,
-                              0.5, 6.5), interpolation="nearest")
+    image = ax.imshow(
+        rms.T,
+        aspect="auto",
+        origin="lower",
+        cmap="viridis",
+        extent=(t_w[0] - TORQUE_WINDOW_S / 2, t_w[-1] + TORQUE_WINDOW_S / 2, 0.5, 6.5),
+        interpolation="nearest",
+    )
     ax.set_yticks(range(1, 7))
     ax.set_ylabel("feedback T - T_ff\nper motor")
     side.set_axis_off()

@@ -45,8 +45,16 @@ LABEL_MODES = ("paper", "best_cost")
 RUN_KEYS = ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")
 OUTPUT_NAMES = ("omega_Q", "omega_R")
 
-__all__ = ["Dataset", "LABEL_MODES", "RUN_KEYS", "build_dataset", "r2_scores", "save_tuner",
-           "train", "window_cost"]
+__all__ = [
+    "Dataset",
+    "LABEL_MODES",
+    "RUN_KEYS",
+    "build_dataset",
+    "r2_scores",
+    "save_tuner",
+    "train",
+    "window_cost",
+]
 
 
 @dataclass
@@ -78,19 +86,23 @@ def _check_run(i: int, run: dict) -> dict:
     out = {k: np.asarray(run[k], dtype=float) for k in RUN_KEYS}
     for name in ("omega_Q", "omega_R"):
         w = out[name]
-        if w.shape != () or not (np.isfinite(w)
-                                 and 10 ** ANN_LOG10_MIN <= w <= 10 ** ANN_LOG10_MAX):
-            raise InvalidConfigError(f"run {i}: {name} must be a number in [0.1, 10] (the range "
-                                     f"the tuner can output), got {run[name]!r}")
+        if w.shape != () or not (np.isfinite(w) and 10**ANN_LOG10_MIN <= w <= 10**ANN_LOG10_MAX):
+            raise InvalidConfigError(
+                f"run {i}: {name} must be a number in [0.1, 10] (the range "
+                f"the tuner can output), got {run[name]!r}"
+            )
     n = out["t"].shape
     shapes = {"t": n, "rho": n + (N_FEATURES,), "cost_e": n, "cost_u": n}
     for name, shape in shapes.items():
         if len(n) != 1 or out[name].shape != shape:
-            raise InvalidConfigError(f"run {i}: {name} has shape {out[name].shape}, expected "
-                                     f"{shape} with N = len(t)")
+            raise InvalidConfigError(
+                f"run {i}: {name} has shape {out[name].shape}, expected {shape} with N = len(t)"
+            )
         if not np.all(np.isfinite(out[name])):
-            raise InvalidConfigError(f"run {i}: {name} has non-finite values; the run diverged, "
-                                     f"drop it or collect it again")
+            raise InvalidConfigError(
+                f"run {i}: {name} has non-finite values; the run diverged, "
+                f"drop it or collect it again"
+            )
     if np.any(out["cost_e"] < 0) or np.any(out["cost_u"] < 0):
         raise InvalidConfigError(f"run {i}: cost_e and cost_u are quadratic forms, must be >= 0")
     if n[0] < 1 or np.any(np.diff(out["t"]) <= 0):
@@ -124,8 +136,9 @@ def _window_bins(t: np.ndarray, window_s: float) -> np.ndarray:
     return np.floor((t - t[0]) / window_s + 1e-9).astype(int)
 
 
-def build_dataset(runs, mode: str = "paper", window_s: float = 0.2,
-                  common_weights=(1.0, 1.0)) -> Dataset:
+def build_dataset(
+    runs, mode: str = "paper", window_s: float = 0.2, common_weights=(1.0, 1.0)
+) -> Dataset:
     """Training set of (rho -> log10 [omega_Q, omega_R]) from closed-loop run records.
 
     Args:
@@ -148,8 +161,12 @@ def build_dataset(runs, mode: str = "paper", window_s: float = 0.2,
     omegas = np.array([[r["omega_Q"], r["omega_R"]] for r in checked])
     rho = np.concatenate([r["rho"] for r in checked])
     run_index = np.concatenate([np.full(len(r["t"]), i) for i, r in enumerate(checked)])
-    info = {"mode": mode, "n_runs": len(checked), "n_samples": int(len(rho)),
-            "run_omegas": omegas.tolist()}
+    info = {
+        "mode": mode,
+        "n_runs": len(checked),
+        "n_samples": int(len(rho)),
+        "run_omegas": omegas.tolist(),
+    }
 
     if mode == "paper":
         labels = omegas[run_index]
@@ -160,15 +177,19 @@ def build_dataset(runs, mode: str = "paper", window_s: float = 0.2,
                 raise InvalidConfigError(
                     f"best_cost labels compare runs sample by sample: run {i} has a different "
                     f"time base from run 0 ({len(r['t'])} vs {len(t0)} samples); collect all "
-                    f"runs on the same trajectory, duration and sampling period")
+                    f"runs on the same trajectory, duration and sampling period"
+                )
         w_Q, w_R = (float(w) for w in common_weights)
         J = np.array([window_cost(run, w_Q, w_R, window_s) for run in runs])  # (runs, windows)
-        best = np.argmin(J, axis=0)                                          # first on ties
-        per_sample = omegas[best[_window_bins(t0, window_s)]]                # (N0, 2)
+        best = np.argmin(J, axis=0)  # first on ties
+        per_sample = omegas[best[_window_bins(t0, window_s)]]  # (N0, 2)
         labels = np.tile(per_sample, (len(checked), 1))
-        info.update(window_s=float(window_s), common_weights=[w_Q, w_R],
-                    n_windows=int(J.shape[1]),
-                    windows_won=np.bincount(best, minlength=len(checked)).tolist())
+        info.update(
+            window_s=float(window_s),
+            common_weights=[w_Q, w_R],
+            n_windows=int(J.shape[1]),
+            windows_won=np.bincount(best, minlength=len(checked)).tolist(),
+        )
 
     pairs, counts = np.unique(labels, axis=0, return_counts=True)
     info["label_counts"] = {f"{q:g},{r:g}": int(c) for (q, r), c in zip(pairs, counts)}
@@ -201,14 +222,25 @@ def _split(n: int, val_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarr
     perm = np.random.default_rng(seed).permutation(n)
     n_val = int(round(val_fraction * n))
     if n_val < 1 or n - n_val < 2:
-        raise InvalidConfigError(f"{n} samples cannot be split {1 - val_fraction:.0%}/"
-                                 f"{val_fraction:.0%} with samples on both sides; collect more")
+        raise InvalidConfigError(
+            f"{n} samples cannot be split {1 - val_fraction:.0%}/"
+            f"{val_fraction:.0%} with samples on both sides; collect more"
+        )
     return np.sort(perm[n_val:]), np.sort(perm[:n_val])
 
 
-def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
-          batch_size: int = 512, hidden: int = 10, activation: str = "tanh",
-          val_fraction: float = 0.3, num_threads: int | None = 1, metadata: dict | None = None):
+def train(
+    dataset: Dataset,
+    seed: int = 0,
+    epochs: int = 100,
+    lr: float = 0.03,
+    batch_size: int = 512,
+    hidden: int = 10,
+    activation: str = "tanh",
+    val_fraction: float = 0.3,
+    num_threads: int | None = 1,
+    metadata: dict | None = None,
+):
     """Train the tuner network by back-propagation on a seeded random train/validation split.
 
     Mini-batch Adam with a cosine learning-rate decay on the MSE of the unclamped log10 outputs
@@ -238,17 +270,25 @@ def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
     # Long for its docstring (every setting, and what the report holds); the fit is _fit.
     import torch
 
-    if not (isinstance(epochs, int) and epochs >= 1 and isinstance(batch_size, int)
-            and batch_size >= 1 and np.isfinite(lr) and lr > 0):
-        raise InvalidConfigError(f"epochs and batch_size must be integers >= 1 and lr > 0, got "
-                                 f"{epochs}, {batch_size}, {lr}")
+    if not (
+        isinstance(epochs, int)
+        and epochs >= 1
+        and isinstance(batch_size, int)
+        and batch_size >= 1
+        and np.isfinite(lr)
+        and lr > 0
+    ):
+        raise InvalidConfigError(
+            f"epochs and batch_size must be integers >= 1 and lr > 0, got "
+            f"{epochs}, {batch_size}, {lr}"
+        )
     if not 0 < val_fraction < 1:
         raise InvalidConfigError(f"val_fraction must be in (0, 1), got {val_fraction}")
     start = time.perf_counter()
     train_idx, val_idx = _split(len(dataset), val_fraction, seed)
     x_mean = dataset.rho[train_idx].mean(axis=0)
     x_std = dataset.rho[train_idx].std(axis=0)
-    x_std = np.where(x_std > 1e-12, x_std, 1.0)     # a constant feature: centre, do not scale
+    x_std = np.where(x_std > 1e-12, x_std, 1.0)  # a constant feature: centre, do not scale
     z = (dataset.rho - x_mean) / x_std
 
     threads_before = torch.get_num_threads()
@@ -257,24 +297,39 @@ def train(dataset: Dataset, seed: int = 0, epochs: int = 100, lr: float = 0.03,
     try:
         torch.manual_seed(seed)
         mlp = build_mlp(hidden, activation)
-        initial = TunerModel.from_torch(mlp, x_mean, x_std)      # for the initial losses
-        history = _fit(mlp, torch.from_numpy(z[train_idx]),
-                       torch.from_numpy(dataset.y[train_idx]), epochs, lr, batch_size, seed)
+        initial = TunerModel.from_torch(mlp, x_mean, x_std)  # for the initial losses
+        history = _fit(
+            mlp,
+            torch.from_numpy(z[train_idx]),
+            torch.from_numpy(dataset.y[train_idx]),
+            epochs,
+            lr,
+            batch_size,
+            seed,
+        )
     finally:
         torch.set_num_threads(threads_before)
 
-    report = {"mode": dataset.mode, "seed": seed, "epochs": epochs, "lr": lr,
-              "batch_size": batch_size, "hidden": hidden,
-              "activation": activation, "val_fraction": val_fraction, "threads": threads,
-              "n_train": int(len(train_idx)), "n_val": int(len(val_idx))}
+    report = {
+        "mode": dataset.mode,
+        "seed": seed,
+        "epochs": epochs,
+        "lr": lr,
+        "batch_size": batch_size,
+        "hidden": hidden,
+        "activation": activation,
+        "val_fraction": val_fraction,
+        "threads": threads,
+        "n_train": int(len(train_idx)),
+        "n_val": int(len(val_idx)),
+    }
     meta = {**dataset.info, **(metadata or {}), **report}
     model = TunerModel.from_torch(mlp, x_mean, x_std, meta)
     for split, idx in (("train", train_idx), ("val", val_idx)):
         report.update(_split_losses(split, initial, model, dataset.rho[idx], dataset.y[idx]))
     report["loss_history"] = history
     report["seconds"] = time.perf_counter() - start
-    model.metadata.update({k: report[k] for k in ("train_loss", "val_loss", "train_r2",
-                                                   "val_r2")})
+    model.metadata.update({k: report[k] for k in ("train_loss", "val_loss", "train_r2", "val_r2")})
     return model, report
 
 
@@ -305,6 +360,8 @@ def _fit(mlp, z, y, epochs: int, lr: float, batch_size: int, seed: int) -> list:
 def _split_losses(split: str, initial: TunerModel, model: TunerModel, rho, y) -> dict:
     """The initial and final MSE (log10 units, clamped outputs) and R^2 of one split."""
     pred = model.predict_log10(rho)
-    return {f"{split}_loss_initial": float(np.mean((initial.predict_log10(rho) - y) ** 2)),
-            f"{split}_loss": float(np.mean((pred - y) ** 2)), f"{split}_r2": r2_scores(y, pred)}
-
+    return {
+        f"{split}_loss_initial": float(np.mean((initial.predict_log10(rho) - y) ** 2)),
+        f"{split}_loss": float(np.mean((pred - y) ** 2)),
+        f"{split}_r2": r2_scores(y, pred),
+    }

@@ -74,7 +74,7 @@ from . import metrics
 from .experiments import run_experiment
 
 LAMBDAS = (0.01, 0.1, 1.0)
-RATIOS = tuple(float(10.0 ** (k / 2)) for k in range(-6, 7))          # 1e-3 .. 1e3, 13 points
+RATIOS = tuple(float(10.0 ** (k / 2)) for k in range(-6, 7))  # 1e-3 .. 1e3, 13 points
 WINDOW_S = 0.2
 TUNER_PERIOD_S = 0.02
 TRAIN_FAMILIES = ("dash_hold", "disturbed_hold", "multisine")
@@ -107,6 +107,7 @@ def test_tasks(quick: bool = False) -> list[tuple[str, int]]:
 
 # -- the study's controllers and jobs, typed -------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class StudyArm:
     """A controller of the study: what a run stands for in the verdict and the report. Its
@@ -132,18 +133,28 @@ class StudyArm:
     @property
     def label(self) -> str:
         """The controller for display: "fixed 0.1", "ours 0.1", "ours 0.1 shift +1"."""
-        return (self.name + (f" {self.lam:g}" if self.lam is not None else "")
-                + (f" shift {self.shift:+g}" if self.shift is not None else ""))
+        return (
+            self.name
+            + (f" {self.lam:g}" if self.lam is not None else "")
+            + (f" shift {self.shift:+g}" if self.shift is not None else "")
+        )
 
     @property
     def slug(self) -> str:
         """The run's file stem within its task's folder (a store key: kept as it is)."""
-        stem = {"fixed gain": "fixed_gain", "speed schedule": "speed",
-                "paper tuner": "paper_tuner", "ours closed-loop": "ours_closed_loop"}.get(
-            self.kind, self.kind)
-        tag = (f"{self.ratio:.3g}" if self.kind == "fixed" else
-               "" if self.lam is None else f"{self.lam:g}"
-               + ("" if self.shift is None else f"_shift{self.shift:+g}"))
+        stem = {
+            "fixed gain": "fixed_gain",
+            "speed schedule": "speed",
+            "paper tuner": "paper_tuner",
+            "ours closed-loop": "ours_closed_loop",
+        }.get(self.kind, self.kind)
+        tag = (
+            f"{self.ratio:.3g}"
+            if self.kind == "fixed"
+            else ""
+            if self.lam is None
+            else f"{self.lam:g}" + ("" if self.shift is None else f"_shift{self.shift:+g}")
+        )
         return f"{stem}_{tag}" if tag else stem
 
 
@@ -179,13 +190,15 @@ def task_key(task: tuple) -> str:
 
 # -- one run ---------------------------------------------------------------------------------------
 
+
 def task_scenario(job: StudyJob):
     """(scenario, task) of a study job: the base scenario for the job's duration, with the
     job's controller and tuner and the task's disturbance."""
     base = load_scenario(job.base, [f"duration_s={job.duration_s}"])
     plan = make_plan(base, with_reference=False)
-    task = make_task(job.family, job.seed, job.duration_s, plan.geometry,
-                     plan.torque_limit_Nm or np.inf)
+    task = make_task(
+        job.family, job.seed, job.duration_s, plan.geometry, plan.torque_limit_Nm or np.inf
+    )
     base.use_controller(job.controller, job.tuner)
     base.disturbance = task.disturbance
     if job.divergence_dir:
@@ -213,19 +226,24 @@ def study_job(job: StudyJob) -> dict:
     keep = slice(0, len(t) - 1, step)
     omega = result.omega if result.omega is not None else np.ones((len(t), 2))
     status = result.metrics["status"]
-    return {"e2_w": metrics.window_means(t, e2, duration, WINDOW_S),
-            "u2_w": metrics.window_means(t, u2, duration, WINDOW_S),
-            "e2": float(e2.mean()), "u2": float(u2.mean()),
-            "inputs": ratio_tuner_inputs(rho[keep], result.x_d[keep]),
-            "input_window": np.minimum((t[keep] / WINDOW_S + 1e-9).astype(int),
-                                       int(round(duration / WINDOW_S)) - 1),
-            "ratio_mean": float(np.exp(np.mean(np.log(omega[:, 0] / omega[:, 1])))),
-            "peak_torque": float(np.abs(result.T).max()),
-            "saturated_steps": float(status.get("saturated_steps", 0.0)),
-            "wall_s": time.perf_counter() - t0}
+    return {
+        "e2_w": metrics.window_means(t, e2, duration, WINDOW_S),
+        "u2_w": metrics.window_means(t, u2, duration, WINDOW_S),
+        "e2": float(e2.mean()),
+        "u2": float(u2.mean()),
+        "inputs": ratio_tuner_inputs(rho[keep], result.x_d[keep]),
+        "input_window": np.minimum(
+            (t[keep] / WINDOW_S + 1e-9).astype(int), int(round(duration / WINDOW_S)) - 1
+        ),
+        "ratio_mean": float(np.exp(np.mean(np.log(omega[:, 0] / omega[:, 1])))),
+        "peak_torque": float(np.abs(result.T).max()),
+        "saturated_steps": float(status.get("saturated_steps", 0.0)),
+        "wall_s": time.perf_counter() - t0,
+    }
 
 
 # -- schedules -------------------------------------------------------------------------------------
+
 
 def speed_schedule(family: str, seed: int, duration_s: float, base: str) -> tuple:
     """(t, ratios) of the hand-made schedule (module docstring) every tuner period."""
@@ -234,19 +252,26 @@ def speed_schedule(family: str, seed: int, duration_s: float, base: str) -> tupl
     task = make_task(family, seed, duration_s, plan.geometry, plan.torque_limit_Nm or np.inf)
     t = np.arange(0.0, duration_s, TUNER_PERIOD_S)
     _, x_dot, _ = task.reference.evaluate(t)
-    speed = np.maximum(np.linalg.norm(x_dot[:, :3], axis=1) / 1.0,
-                       np.linalg.norm(x_dot[:, 3:], axis=1) / 0.1)
+    speed = np.maximum(
+        np.linalg.norm(x_dot[:, :3], axis=1) / 1.0, np.linalg.norm(x_dot[:, 3:], axis=1) / 0.1
+    )
     s = np.clip(speed / SPEED_SCALE, 0.0, 1.0)
     log_r = np.log10(R_HOLD) + s * (np.log10(R_MOVE) - np.log10(R_HOLD))
-    return t.tolist(), (10.0 ** log_r).tolist()
+    return t.tolist(), (10.0**log_r).tolist()
 
 
 def window_costs(records: dict, lam: float) -> np.ndarray:
     """(13, n_windows) J per window for each fixed ratio of RATIOS (records: ratio -> record);
     inf for a run that lost the platform."""
     n = next(len(rec["e2_w"]) for rec in records.values() if "lost" not in rec)
-    return np.array([np.full(n, np.inf) if "lost" in records[r]
-                     else records[r]["e2_w"] + lam * records[r]["u2_w"] for r in RATIOS])
+    return np.array(
+        [
+            np.full(n, np.inf)
+            if "lost" in records[r]
+            else records[r]["e2_w"] + lam * records[r]["u2_w"]
+            for r in RATIOS
+        ]
+    )
 
 
 def hindsight_schedule(records: dict, lam: float) -> tuple:
@@ -259,8 +284,10 @@ def hindsight_schedule(records: dict, lam: float) -> tuple:
 
 # -- our tuner -------------------------------------------------------------------------------------
 
-def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs: int = 300,
-                      seed: int = 0) -> RatioTunerModel:
+
+def train_ratio_tuner(
+    fixed_records: dict, lam: float, hidden: int = 16, epochs: int = 300, seed: int = 0
+) -> RatioTunerModel:
     """Train our tuner on the training tasks' fixed-ratio runs for one lambda.
 
     Every tuner instant of every fixed run is a sample: its inputs (density features of that
@@ -280,27 +307,27 @@ def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs:
 
     Xs, Cs = [], []
     for runs in fixed_records.values():
-        J = window_costs(runs, lam)                               # (13, n_w)
+        J = window_costs(runs, lam)  # (13, n_w)
         # A ratio that lost the platform costs ten times the worst one that did not.
-        J = np.where(np.isfinite(J), J, 10 * np.nanmax(np.where(np.isfinite(J), J, np.nan),
-                                                       axis=0))
+        J = np.where(np.isfinite(J), J, 10 * np.nanmax(np.where(np.isfinite(J), J, np.nan), axis=0))
         for r in RATIOS:
             rec = runs[r]
             if "lost" in rec:
                 continue
             Xs.append(np.asarray(rec["inputs"]))
-            Cs.append(J[:, np.asarray(rec["input_window"])].T)     # (K, 13)
+            Cs.append(J[:, np.asarray(rec["input_window"])].T)  # (K, 13)
     if not Xs:
         raise InvalidConfigError("no training runs for the ratio tuner")
     X, C = np.concatenate(Xs), np.concatenate(Cs)
     x_mean, x_std = X.mean(axis=0), X.std(axis=0)
     x_std = np.where(x_std > 1e-12, x_std, 1.0)
     Z = torch.tensor((X - x_mean) / x_std)
-    cost = torch.tensor(C / C.mean())                              # one scale for every lambda
+    cost = torch.tensor(C / C.mean())  # one scale for every lambda
     grid = torch.tensor(np.log10(RATIOS))
     torch.manual_seed(seed)
-    net = torch.nn.Sequential(torch.nn.Linear(N_RATIO_INPUTS, hidden), torch.nn.Tanh(),
-                              torch.nn.Linear(hidden, 1)).double()
+    net = torch.nn.Sequential(
+        torch.nn.Linear(N_RATIO_INPUTS, hidden), torch.nn.Tanh(), torch.nn.Linear(hidden, 1)
+    ).double()
     optimizer = torch.optim.Adam(net.parameters(), lr=0.01)
     for _ in range(epochs):
         optimizer.zero_grad()
@@ -315,17 +342,29 @@ def train_ratio_tuner(fixed_records: dict, lam: float, hidden: int = 16, epochs:
         optimizer.step()
     lin1, lin2 = net[0], net[2]
     with torch.no_grad():
-        return RatioTunerModel(lin1.weight.numpy().copy(), lin1.bias.numpy().copy(),
-                               lin2.weight.numpy().copy(), lin2.bias.numpy().copy(), x_mean,
-                               x_std, {"lambda": lam, "hidden": hidden, "epochs": epochs,
-                                       "seed": seed, "samples": int(len(X)),
-                                       "final_loss": float(loss)})
+        return RatioTunerModel(
+            lin1.weight.numpy().copy(),
+            lin1.bias.numpy().copy(),
+            lin2.weight.numpy().copy(),
+            lin2.bias.numpy().copy(),
+            x_mean,
+            x_std,
+            {
+                "lambda": lam,
+                "hidden": hidden,
+                "epochs": epochs,
+                "seed": seed,
+                "samples": int(len(X)),
+                "final_loss": float(loss),
+            },
+        )
 
 
 def shifted(model: RatioTunerModel, shift: float) -> RatioTunerModel:
     """``model`` with its output (log10 ratio) offset by ``shift``: the output bias b2 + shift."""
-    return dataclasses.replace(model, b2=model.b2 + shift,
-                               metadata={**model.metadata, "shift": float(shift)})
+    return dataclasses.replace(
+        model, b2=model.b2 + shift, metadata={**model.metadata, "shift": float(shift)}
+    )
 
 
 def normalized_J(record: dict, best_J: float, lam: float) -> float:
@@ -344,14 +383,18 @@ def closed_loop_choice(candidates: dict, fixed_records: dict, lam: float) -> tup
     Returns:
         (key, {key: mean normalized J}).
     """
-    best = {task: min(task_J(rec, lam) for rec in runs.values())
-            for task, runs in fixed_records.items()}
-    means = {key: float(np.mean([normalized_J(runs[task], best[task], lam) for task in best]))
-             for key, runs in candidates.items()}
+    best = {
+        task: min(task_J(rec, lam) for rec in runs.values()) for task, runs in fixed_records.items()
+    }
+    means = {
+        key: float(np.mean([normalized_J(runs[task], best[task], lam) for task in best]))
+        for key, runs in candidates.items()
+    }
     return min(means, key=means.__getitem__), means
 
 
 # -- the verdict -----------------------------------------------------------------------------------
+
 
 def task_J(record: dict, lam: float) -> float:
     """J of one run at lambda."""
@@ -360,10 +403,15 @@ def task_J(record: dict, lam: float) -> float:
 
 def verdict_arms(lam: float) -> tuple:
     """The arms of the verdict at ``lam``, in the report's order."""
-    return (StudyArm("hindsight", lam=lam), StudyArm("ours", lam=lam),
-            StudyArm("ours closed-loop", lam=lam), StudyArm("paper tuner"),
-            StudyArm("speed schedule"), StudyArm("fixed chosen", lam=lam),
-            StudyArm("fixed gain", ratio=1.0))
+    return (
+        StudyArm("hindsight", lam=lam),
+        StudyArm("ours", lam=lam),
+        StudyArm("ours closed-loop", lam=lam),
+        StudyArm("paper tuner"),
+        StudyArm("speed schedule"),
+        StudyArm("fixed chosen", lam=lam),
+        StudyArm("fixed gain", ratio=1.0),
+    )
 
 
 def verdict(records: dict, tasks: list, lam: float) -> dict:
@@ -381,14 +429,20 @@ def verdict(records: dict, tasks: list, lam: float) -> dict:
     best = {}
     for task in tasks:
         runs = records[task]
-        J_fixed = {r: task_J(runs[StudyArm("fixed", ratio=r)], lam) for r in RATIOS
-                   if StudyArm("fixed", ratio=r) in runs}
+        J_fixed = {
+            r: task_J(runs[StudyArm("fixed", ratio=r)], lam)
+            for r in RATIOS
+            if StudyArm("fixed", ratio=r) in runs
+        }
         r_best = min(J_fixed, key=J_fixed.__getitem__)
         best[task] = (r_best, J_fixed[r_best])
     out = {}
     for arm in verdict_arms(lam):
-        per_task = {task: task_J(records[task][arm], lam) / best[task][1] - 1.0
-                    for task in tasks if arm in records[task]}
+        per_task = {
+            task: task_J(records[task][arm], lam) / best[task][1] - 1.0
+            for task in tasks
+            if arm in records[task]
+        }
         if per_task:
             out[arm.label] = {"arm": dataclasses.asdict(arm), **_relative_figures(per_task)}
     return {"best_fixed": {task_key(t): v for t, v in best.items()}, "controllers": out}
@@ -397,6 +451,7 @@ def verdict(records: dict, tasks: list, lam: float) -> dict:
 def _relative_figures(per_task: dict) -> dict:
     """Mean and spread of the relative differences {task: rel}, overall and by family, and
     whether they meet the :data:`GOAL`: at least that much below, beyond the spread."""
+
     def mean_std(v):
         """(mean, sample std); inf for both when a run lost the platform."""
         if not np.all(np.isfinite(v)):
@@ -411,14 +466,19 @@ def _relative_figures(per_task: dict) -> dict:
     mean, spread = mean_std(rel)
     if len(rel) < 2:
         spread = float("inf")
-    return {"per_task": {task_key(t): v for t, v in per_task.items()}, "mean": mean,
-            "std": spread, "by_family": by_family,
-            "beats": bool(mean <= -GOAL and -mean > spread)}
+    return {
+        "per_task": {task_key(t): v for t, v in per_task.items()},
+        "mean": mean,
+        "std": spread,
+        "by_family": by_family,
+        "beats": bool(mean <= -GOAL and -mean > spread),
+    }
 
 
 def _json(value):
-    return json.loads(json.dumps(value, default=lambda o: o.tolist()
-                                 if isinstance(o, np.ndarray) else float(o)))
+    return json.loads(
+        json.dumps(value, default=lambda o: o.tolist() if isinstance(o, np.ndarray) else float(o))
+    )
 
 
 def summary_path(out_dir) -> Path:
@@ -426,6 +486,7 @@ def summary_path(out_dir) -> Path:
 
 
 # -- the study -------------------------------------------------------------------------------------
+
 
 def provenance(settings: dict, train: list) -> dict:
     """What a shipped tuner was trained on, for its metadata: the base scenario (name and the
@@ -436,18 +497,21 @@ def provenance(settings: dict, train: list) -> dict:
     from ..simulation.scenario import dump_scenario
 
     scenario = dump_scenario(load_scenario(settings["base"]))
-    return {"made_by": "the tuner study of `stewart-drake evaluate` (stewart_drake.studies."
-                       "tuner_study.run_tuner_study)",
-            "base_scenario": settings["base"],
-            "base_scenario_sha256": hashlib.sha256(scenario.encode()).hexdigest(),
-            "training_tasks": [f"{f}_s{s}" for f, s in train],
-            "task_duration_s": settings["duration_s"],
-            "runs": f"{len(settings['ratios'])} fixed ratios omega_Q / omega_R per training "
-                    f"task (1e-3 .. 1e3), then the output shift chosen in closed loop on the same "
-                    f"tasks among {list(SHIFTS)}",
-            "cost": "J = mean sum (e / 1 mrad|mm)^2 + lambda sum (u_fb / 0.3 N m)^2",
-            "quick": settings["quick"],
-            "stewart_drake": __version__, "drake": _version_of("drake")}
+    return {
+        "made_by": "the tuner study of `stewart-drake evaluate` (stewart_drake.studies."
+        "tuner_study.run_tuner_study)",
+        "base_scenario": settings["base"],
+        "base_scenario_sha256": hashlib.sha256(scenario.encode()).hexdigest(),
+        "training_tasks": [f"{f}_s{s}" for f, s in train],
+        "task_duration_s": settings["duration_s"],
+        "runs": f"{len(settings['ratios'])} fixed ratios omega_Q / omega_R per training "
+        f"task (1e-3 .. 1e3), then the output shift chosen in closed loop on the same "
+        f"tasks among {list(SHIFTS)}",
+        "cost": "J = mean sum (e / 1 mrad|mm)^2 + lambda sum (u_fb / 0.3 N m)^2",
+        "quick": settings["quick"],
+        "stewart_drake": __version__,
+        "drake": _version_of("drake"),
+    }
 
 
 def _version_of(package: str) -> str:
@@ -475,7 +539,7 @@ def load_run(path: Path, job_id: str) -> dict:
     if path.suffix == ".json":
         record = read_json(path, "tuner study run", remedy)
         if not isinstance(record, dict) or not isinstance(record.get("lost"), str):
-            raise CorruptFileError(path, "tuner study run", "it must be {\"lost\": why}", remedy)
+            raise CorruptFileError(path, "tuner study run", 'it must be {"lost": why}', remedy)
         return {"lost": record["lost"], "e2": np.inf, "u2": np.inf}
     data = CheckedNpz(path, "tuner study run", remedy)
     if "job_id" in data and data.text("job_id") != job_id:
@@ -487,8 +551,15 @@ def load_run(path: Path, job_id: str) -> dict:
     return {k: v for k, v in data.arrays.items() if k != "job_id"}
 
 
-def run_tuner_study(out_dir, runner, base: str = "paper_hardware", quick: bool = False,
-                    progress: bool = True, paper_weights: str = "", test: bool = True) -> dict:
+def run_tuner_study(
+    out_dir,
+    runner,
+    base: str = "paper_hardware",
+    quick: bool = False,
+    progress: bool = True,
+    paper_weights: str = "",
+    test: bool = True,
+) -> dict:
     """Run the whole study (module docstring) into ``out_dir``; resumable.
 
     Our tuner as chosen in closed loop, one per lambda, is written to
@@ -530,8 +601,16 @@ class TunerStudy:
     summary.
     """
 
-    def __init__(self, out_dir, runner, base: str, quick: bool, progress: bool,
-                 paper_weights: str, test: bool):
+    def __init__(
+        self,
+        out_dir,
+        runner,
+        base: str,
+        quick: bool,
+        progress: bool,
+        paper_weights: str,
+        test: bool,
+    ):
         from ..control.tuner import PAPER_LABEL_TUNER_PATH
         from ..execution.store import ResultStore, file_digest
 
@@ -541,11 +620,18 @@ class TunerStudy:
         self.train, self.test = train_tasks(quick), (test_tasks(quick) if test else [])
         self.paper_weights = str(paper_weights or PAPER_LABEL_TUNER_PATH)  # the paper's labels
         self.lqi = load_scenario(base).lqi()
-        self.settings = {"base": base, "quick": quick, "duration_s": self.duration,
-                         "lambdas": LAMBDAS, "ratios": RATIOS, "train": self.train,
-                         "test": self.test, "window_s": WINDOW_S,
-                         "speed_schedule": [R_HOLD, R_MOVE, SPEED_SCALE],
-                         "paper_weights": file_digest(self.paper_weights)}
+        self.settings = {
+            "base": base,
+            "quick": quick,
+            "duration_s": self.duration,
+            "lambdas": LAMBDAS,
+            "ratios": RATIOS,
+            "train": self.train,
+            "test": self.test,
+            "window_s": WINDOW_S,
+            "speed_schedule": [R_HOLD, R_MOVE, SPEED_SCALE],
+            "paper_weights": file_digest(self.paper_weights),
+        }
         self.store = ResultStore(self.out, "tuner_study", self.settings, pattern="runs/*/*.npz")
         self.jobs: dict = {}
         self.loaded: dict = {}
@@ -558,24 +644,42 @@ class TunerStudy:
         """The run of ``arm`` on ``task``: the base's LQI at the arm's ratio (1 for the tuned
         ones), without re-scheduling B(x) for the fixed gain."""
         ratio = arm.ratio if arm.ratio is not None else 1.0
-        controller = dataclasses.replace(self.lqi, omega_Q=ratio, omega_R=1.0,
-                                         schedule_pose=arm.kind != "fixed gain")
-        return StudyJob(arm, task[0], task[1], self.duration, self.base, controller, tuner,
-                        str(self.out / "diverged"))
+        controller = dataclasses.replace(
+            self.lqi, omega_Q=ratio, omega_R=1.0, schedule_pose=arm.kind != "fixed gain"
+        )
+        return StudyJob(
+            arm,
+            task[0],
+            task[1],
+            self.duration,
+            self.base,
+            controller,
+            tuner,
+            str(self.out / "diverged"),
+        )
 
     def schedule(self, arm: StudyArm, task: tuple, t_ratios: tuple) -> StudyJob:
         """The run of a weight schedule (t, ratios) of ``arm`` on ``task``."""
         t, ratios = t_ratios
-        return self.job(arm, task, WeightSchedule(t=list(t), omega_Q=list(ratios),
-                                                  omega_R=[1.0] * len(t)))
+        return self.job(
+            arm, task, WeightSchedule(t=list(t), omega_Q=list(ratios), omega_R=[1.0] * len(t))
+        )
 
     def run(self, jobs: list, desc: str) -> None:
         """Run the jobs not on disk yet, storing each as it arrives."""
         from ..execution.store import run_jobs
 
         by_id = {job.job_id: job for job in jobs}
-        run_jobs(self.store, self.runner, study_job, by_id, lambda i, o: self.save(by_id[i], o),
-                 progress=self.progress, desc=desc, what="runs")
+        run_jobs(
+            self.store,
+            self.runner,
+            study_job,
+            by_id,
+            lambda i, o: self.save(by_id[i], o),
+            progress=self.progress,
+            desc=desc,
+            what="runs",
+        )
         self.jobs.update(by_id)
 
     def save(self, job: StudyJob, outcome) -> None:
@@ -587,10 +691,14 @@ class TunerStudy:
             self.store.put_json(job.job_id, f"runs/{job.job_id}.json", record, lost=True)
             return
         arrays: dict[str, Any] = {k: np.asarray(v) for k, v in outcome.items()}
-        arrays["job_id"] = np.array(job.job_id)          # the run says which it is (load checks)
-        self.store.put(job.job_id, f"runs/{job.job_id}.npz", lambda f: np.savez(f, **arrays),
-                       label=job.arm.label,
-                       J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS})
+        arrays["job_id"] = np.array(job.job_id)  # the run says which it is (load checks)
+        self.store.put(
+            job.job_id,
+            f"runs/{job.job_id}.npz",
+            lambda f: np.savez(f, **arrays),
+            label=job.arm.label,
+            J={f"{lam:g}": task_J(outcome, lam) for lam in LAMBDAS},
+        )
 
     def load(self, job_id: str) -> dict:
         """A stored run's record, read from disk once (the stages and the summary reuse it)."""
@@ -605,21 +713,34 @@ class TunerStudy:
 
     def fixed(self, tasks: list) -> dict:
         """{task: {ratio: record}} of the fixed ratios on ``tasks``."""
-        return {task: {r: self.record(StudyArm("fixed", ratio=r), task) for r in RATIOS}
-                for task in tasks}
+        return {
+            task: {r: self.record(StudyArm("fixed", ratio=r), task) for r in RATIOS}
+            for task in tasks
+        }
 
     # -- the stages ----------------------------------------------------------------------------
     def run_fixed_and_baselines(self) -> None:
         """A: the fixed ratios everywhere; the baselines and the paper's tuner on the test
         tasks."""
-        jobs = [self.job(StudyArm("fixed", ratio=r), task) for task in self.train + self.test
-                for r in RATIOS]
+        jobs = [
+            self.job(StudyArm("fixed", ratio=r), task)
+            for task in self.train + self.test
+            for r in RATIOS
+        ]
         for task in self.test:
-            jobs += [self.job(StudyArm("fixed gain", ratio=1.0), task),
-                     self.schedule(StudyArm("speed schedule"), task,
-                                   speed_schedule(*task, self.duration, self.base)),
-                     self.job(StudyArm("paper tuner"), task, AnnTunerDriver(
-                         weights=self.paper_weights, period_s=TUNER_PERIOD_S))]
+            jobs += [
+                self.job(StudyArm("fixed gain", ratio=1.0), task),
+                self.schedule(
+                    StudyArm("speed schedule"),
+                    task,
+                    speed_schedule(*task, self.duration, self.base),
+                ),
+                self.job(
+                    StudyArm("paper tuner"),
+                    task,
+                    AnnTunerDriver(weights=self.paper_weights, period_s=TUNER_PERIOD_S),
+                ),
+            ]
         self.run(jobs, "tuner study: fixed ratios and baselines")
 
     def run_our_tuners(self) -> None:
@@ -636,15 +757,27 @@ class TunerStudy:
             for shift in self.shifts():
                 shift_path = self._shift_path(lam, shift)
                 save_ratio_tuner(shifted(model, shift), shift_path)
-                jobs += [self.job(StudyArm("ours", lam=lam, shift=shift), task,
-                                  RatioTunerDriver(weights=str(shift_path),
-                                                   period_s=TUNER_PERIOD_S))
-                         for task in self.train]
+                jobs += [
+                    self.job(
+                        StudyArm("ours", lam=lam, shift=shift),
+                        task,
+                        RatioTunerDriver(weights=str(shift_path), period_s=TUNER_PERIOD_S),
+                    )
+                    for task in self.train
+                ]
             for task in self.test:
-                jobs += [self.schedule(StudyArm("hindsight", lam=lam), task,
-                                       hindsight_schedule(fixed_test[task], lam)),
-                         self.job(StudyArm("ours", lam=lam), task, RatioTunerDriver(
-                             weights=str(path), period_s=TUNER_PERIOD_S))]
+                jobs += [
+                    self.schedule(
+                        StudyArm("hindsight", lam=lam),
+                        task,
+                        hindsight_schedule(fixed_test[task], lam),
+                    ),
+                    self.job(
+                        StudyArm("ours", lam=lam),
+                        task,
+                        RatioTunerDriver(weights=str(path), period_s=TUNER_PERIOD_S),
+                    ),
+                ]
         self.run(jobs, "tuner study: hindsight and our tuners")
 
     def run_closed_loop_choices(self) -> None:
@@ -655,20 +788,47 @@ class TunerStudy:
         for lam in LAMBDAS:
             r_chosen, r_means = closed_loop_choice(
                 {r: {task: fixed_train[task][r] for task in self.train} for r in RATIOS},
-                fixed_train, lam)
+                fixed_train,
+                lam,
+            )
             shift, shift_means = closed_loop_choice(
-                {sh: {task: self.record(StudyArm("ours", lam=lam, shift=sh), task)
-                      for task in self.train} for sh in self.shifts()}, fixed_train, lam)
-            self.chosen[f"{lam:g}"] = {"fixed_ratio": r_chosen, "fixed_means": r_means,
-                                       "shift": shift, "shift_means": shift_means}
+                {
+                    sh: {
+                        task: self.record(StudyArm("ours", lam=lam, shift=sh), task)
+                        for task in self.train
+                    }
+                    for sh in self.shifts()
+                },
+                fixed_train,
+                lam,
+            )
+            self.chosen[f"{lam:g}"] = {
+                "fixed_ratio": r_chosen,
+                "fixed_means": r_means,
+                "shift": shift,
+                "shift_means": shift_means,
+            }
             path = self._shift_path(lam, shift)
             model = load_ratio_tuner(path)
-            save_ratio_tuner(dataclasses.replace(model, metadata={
-                **model.metadata, "closed_loop_means": shift_means,
-                "data": provenance(self.settings, self.train)}),
-                self.out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz")
-            jobs += [self.job(StudyArm("ours closed-loop", lam=lam), task, RatioTunerDriver(
-                weights=str(path), period_s=TUNER_PERIOD_S)) for task in self.test]
+            save_ratio_tuner(
+                dataclasses.replace(
+                    model,
+                    metadata={
+                        **model.metadata,
+                        "closed_loop_means": shift_means,
+                        "data": provenance(self.settings, self.train),
+                    },
+                ),
+                self.out / "weights" / "chosen" / f"ratio_tuner_lambda{lam:g}.npz",
+            )
+            jobs += [
+                self.job(
+                    StudyArm("ours closed-loop", lam=lam),
+                    task,
+                    RatioTunerDriver(weights=str(path), period_s=TUNER_PERIOD_S),
+                )
+                for task in self.test
+            ]
         self.run(jobs, "tuner study: our tuners as chosen in closed loop")
 
     def shifts(self) -> tuple:
@@ -693,20 +853,39 @@ class TunerStudy:
             r = self.chosen[f"{lam:g}"]["fixed_ratio"]
             for task in self.test:
                 by_task[task][StudyArm("fixed chosen", lam=lam)] = fixed_test[task][r]
-        points = {task_key(task): {arm.label: {
-            "arm": dataclasses.asdict(arm), "e2": float(rec["e2"]), "u2": float(rec["u2"]),
-            "ratio_mean": float(rec.get("ratio_mean", np.nan))}
-            for arm, rec in runs.items() if "lost" not in rec} for task, runs in by_task.items()}
-        lost = sorted(f"{task_key(task)}: {arm.label}" for task, runs in by_task.items()
-                      for arm, rec in runs.items() if "lost" in rec)
-        summary = _json({
-            "settings": self.settings,
-            "verdicts": {f"{lam:g}": verdict(by_task, self.test, lam) for lam in LAMBDAS},
-            "tasks": {task_key(t): {"family": t[0], "seed": t[1]} for t in self.test},
-            "points": points, "lost": lost, "trained": self.trained, "chosen": self.chosen,
-            "wall_s": time.perf_counter() - self.wall0,
-            "run_s": sum(float(self.load(i).get("wall_s", 0.0)) for i in self.jobs),
-            "n_runs": len(self.jobs)})
+        points = {
+            task_key(task): {
+                arm.label: {
+                    "arm": dataclasses.asdict(arm),
+                    "e2": float(rec["e2"]),
+                    "u2": float(rec["u2"]),
+                    "ratio_mean": float(rec.get("ratio_mean", np.nan)),
+                }
+                for arm, rec in runs.items()
+                if "lost" not in rec
+            }
+            for task, runs in by_task.items()
+        }
+        lost = sorted(
+            f"{task_key(task)}: {arm.label}"
+            for task, runs in by_task.items()
+            for arm, rec in runs.items()
+            if "lost" in rec
+        )
+        summary = _json(
+            {
+                "settings": self.settings,
+                "verdicts": {f"{lam:g}": verdict(by_task, self.test, lam) for lam in LAMBDAS},
+                "tasks": {task_key(t): {"family": t[0], "seed": t[1]} for t in self.test},
+                "points": points,
+                "lost": lost,
+                "trained": self.trained,
+                "chosen": self.chosen,
+                "wall_s": time.perf_counter() - self.wall0,
+                "run_s": sum(float(self.load(i).get("wall_s", 0.0)) for i in self.jobs),
+                "n_runs": len(self.jobs),
+            }
+        )
         text = json.dumps(summary, indent=1).encode()
         atomic_write(summary_path(self.out), lambda f: f.write(text))
         self.store.finish(True, summary="tuner_study.json")

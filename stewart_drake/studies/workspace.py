@@ -34,21 +34,33 @@ from ..model.kinematics import AXIS_NAMES
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
 #: that no reachable pose lies on the boundary, so volumes and extents are not clipped).
-TRANSLATION_BOX = ((-0.25, 0.25), (-0.25, 0.25), (0.10, 0.50))   # X, Y, Z in m
-ORIENTATION_BOX = ((-1.0, 1.0), (-1.0, 1.0), (-1.3, 1.3))        # phi, theta, psi in rad
+TRANSLATION_BOX = ((-0.25, 0.25), (-0.25, 0.25), (0.10, 0.50))  # X, Y, Z in m
+ORIENTATION_BOX = ((-1.0, 1.0), (-1.0, 1.0), (-1.3, 1.3))  # phi, theta, psi in rad
 #: Keys of :func:`classify` results, each (...,) or (..., 6).
 #: Memory a sweep holds per pose of its grids, bytes: the pose (48), the classification (82)
 #: and its concatenation; measured 136 B per pose between resolution 21 and 61.
 BYTES_PER_POSE = 200.0
-FIELDS = ("reachable", "clear", "usable", "clearance", "cond", "sigma_min_inv", "torques",
-          "max_torque", "bottleneck")
+FIELDS = (
+    "reachable",
+    "clear",
+    "usable",
+    "clearance",
+    "cond",
+    "sigma_min_inv",
+    "torques",
+    "max_torque",
+    "bottleneck",
+)
 #: Clearances are measured up to this distance (beyond, the map shows this value), m.
 CLEARANCE_CAP_M = 0.02
 
 
-def classify(geometry: StewartGeometry, x,
-             cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-             min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
+def classify(
+    geometry: StewartGeometry,
+    x,
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+    min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+) -> dict:
     """Classify pose(s) x: reachable, clear of interference, conditioning and holding torques.
 
     Args:
@@ -84,11 +96,20 @@ def classify(geometry: StewartGeometry, x,
     clearance = np.full(x.shape[:-1], np.nan)
     if np.any(reachable):
         clearance[reachable] = clearance_model(geometry).sweep(
-            x[reachable], max_distance=CLEARANCE_CAP_M)[0]
+            x[reachable], max_distance=CLEARANCE_CAP_M
+        )[0]
     clear = reachable & (clearance >= min_clearance_m)
-    return {"reachable": reachable, "clear": clear, "usable": clear & (cond <= cond_threshold),
-            "clearance": clearance, "cond": cond, "sigma_min_inv": inv, "torques": torques,
-            "max_torque": max_torque, "bottleneck": bottleneck}
+    return {
+        "reachable": reachable,
+        "clear": clear,
+        "usable": clear & (cond <= cond_threshold),
+        "clearance": clearance,
+        "cond": cond,
+        "sigma_min_inv": inv,
+        "torques": torques,
+        "max_torque": max_torque,
+        "bottleneck": bottleneck,
+    }
 
 
 def _classify_chunk(task):
@@ -96,9 +117,16 @@ def _classify_chunk(task):
     return classify(geometry, x, cond_threshold, min_clearance_m)
 
 
-def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-          jobs: int = 1, chunk: int = 5000, progress=None, runner=None,
-          min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
+def sweep(
+    geometry: StewartGeometry,
+    x,
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+    jobs: int = 1,
+    chunk: int = 5000,
+    progress=None,
+    runner=None,
+    min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+) -> dict:
     """:func:`classify` a large batch in chunks, over a runner.
 
     Args:
@@ -120,12 +148,17 @@ def sweep(geometry: StewartGeometry, x, cond_threshold: float = limits.DEFAULT_C
     x = np.asarray(x, dtype=float)
     batch = x.shape[:-1]
     flat = x.reshape(-1, 6)
-    tasks = {str(k): (geometry, flat[i:i + chunk], cond_threshold, min_clearance_m)
-             for k, i in enumerate(range(0, len(flat), chunk))}
+    tasks = {
+        str(k): (geometry, flat[i : i + chunk], cond_threshold, min_clearance_m)
+        for k, i in enumerate(range(0, len(flat), chunk))
+    }
     if runner is None:
         jobs = jobs or os.cpu_count() or 1
-        runner = (SerialRunner() if jobs == 1 or len(tasks) == 1 else
-                  ProcessRunner(min(jobs, len(tasks)), recycle=None))
+        runner = (
+            SerialRunner()
+            if jobs == 1 or len(tasks) == 1
+            else ProcessRunner(min(jobs, len(tasks)), recycle=None)
+        )
     parts = {}
     for key, outcome in runner.map(_classify_chunk, tasks):
         if isinstance(outcome, JobFailure):
@@ -171,8 +204,12 @@ def tilt_grid(heights, tilts, n_azimuth: int = 24) -> np.ndarray:
     Tilt alpha (rad) about the axis (cos a, sin a, 0), a = 2 pi k / n_azimuth: the platform normal
     leans by alpha, with no twist; converted to roll-pitch-yaw (R = Rz Ry Rx).
     """
-    Z, al, az = np.meshgrid(np.asarray(heights, float), np.asarray(tilts, float),
-                            2 * np.pi * np.arange(n_azimuth) / n_azimuth, indexing="ij")
+    Z, al, az = np.meshgrid(
+        np.asarray(heights, float),
+        np.asarray(tilts, float),
+        2 * np.pi * np.arange(n_azimuth) / n_azimuth,
+        indexing="ij",
+    )
     u = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
     K = kinematics._skew(u)
     s, c = np.sin(al)[..., None, None], np.cos(al)[..., None, None]
@@ -216,8 +253,8 @@ def max_tilt_vs_height(tilts, mask) -> tuple[np.ndarray, np.ndarray]:
             from 0 along that axis).
     """
     tilts = np.asarray(tilts, dtype=float)
-    all_dirs = np.cumprod(np.all(mask, axis=2), axis=1).astype(bool)       # (h, n_tilt)
-    per_dir = np.cumprod(mask, axis=1).astype(bool)                         # (h, n_tilt, az)
+    all_dirs = np.cumprod(np.all(mask, axis=2), axis=1).astype(bool)  # (h, n_tilt)
+    per_dir = np.cumprod(mask, axis=1).astype(bool)  # (h, n_tilt, az)
     n_every = all_dirs.sum(axis=1)
     n_some = per_dir.sum(axis=1).max(axis=1)
     pick = lambda n: np.where(n > 0, tilts[np.maximum(n - 1, 0)], np.nan)  # noqa: E731
@@ -239,17 +276,24 @@ def summarize_dynamic_torques(geometry: StewartGeometry, t, x, T) -> dict:
     t = np.asarray(t, dtype=float).reshape(-1)
     x, T = np.asarray(x, dtype=float), np.asarray(T, dtype=float)
     if x.shape != (t.size, 6) or T.shape != (t.size, 6) or t.size == 0:
-        raise InvalidConfigError(f"need t (n,), x (n, 6), T (n, 6); got {t.shape}, {x.shape}, "
-                                 f"{T.shape}")
+        raise InvalidConfigError(
+            f"need t (n,), x (n, 6), T (n, 6); got {t.shape}, {x.shape}, {T.shape}"
+        )
     k = np.argmax(np.abs(T), axis=0)
     peak = np.abs(T)[k, np.arange(6)]
     static_peak = np.abs(statics.holding_torques(geometry, x)).max(axis=0)
-    return {"peak": peak, "peak_t": t[k], "rms": np.sqrt(np.mean(T * T, axis=0)),
-            "bottleneck": int(np.argmax(peak)), "static_peak": static_peak,
-            "dynamic_over_static": peak / static_peak}
+    return {
+        "peak": peak,
+        "peak_t": t[k],
+        "rms": np.sqrt(np.mean(T * T, axis=0)),
+        "bottleneck": int(np.argmax(peak)),
+        "static_peak": static_peak,
+        "dynamic_over_static": peak / static_peak,
+    }
 
 
 # --- outputs -------------------------------------------------------------------------------------
+
 
 def _write_csv(path: Path, header, rows) -> None:
     text = io.StringIO()
@@ -270,13 +314,13 @@ def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
     sl[index[0]] = index[1]
     sl = tuple(sl)
     tmax = np.where(result["clear"][sl], result["max_torque"][sl], np.nan).T
-    mesh = ax.pcolormesh(h_axis, v_axis, np.ma.masked_invalid(tmax), shading="auto",
-                         cmap="viridis")
+    mesh = ax.pcolormesh(h_axis, v_axis, np.ma.masked_invalid(tmax), shading="auto", cmap="viridis")
     for key, style in (("reachable", "-"), ("clear", ":"), ("usable", "--")):
         m = result[key][sl].T.astype(float)
         if 0 < m.sum() < m.size:
-            ax.contour(h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style,
-                       linewidths=1.2)
+            ax.contour(
+                h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style, linewidths=1.2
+            )
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_title(title, fontsize=9)
@@ -303,35 +347,67 @@ def _plot_workspace(out: Path, s: dict) -> None:
     iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     iy = int(np.argmin(np.abs(taxes[1])))
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
-    m = _torque_slice(axes[0], taxes[0], taxes[1], trans, (2, iz), ("X [m]", "Y [m]"),
-                      f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation")
+    m = _torque_slice(
+        axes[0],
+        taxes[0],
+        taxes[1],
+        trans,
+        (2, iz),
+        ("X [m]", "Y [m]"),
+        f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation",
+    )
     fig.colorbar(m, ax=axes[0], shrink=0.8)
-    m = _torque_slice(axes[1], taxes[0], taxes[2], trans, (1, iy), ("X [m]", "Z [m]"),
-                      f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m")
+    m = _torque_slice(
+        axes[1],
+        taxes[0],
+        taxes[2],
+        trans,
+        (1, iy),
+        ("X [m]", "Z [m]"),
+        f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m",
+    )
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     heights = s["heights"]
-    for key, style, label in (("tilt_every_rad", "o-", "every direction, joint limits"),
-                              ("clear_tilt_every_rad", "o:", "every direction, + clearance"),
-                              ("tilt_some_rad", "s-", "some direction, joint limits"),
-                              ("clear_tilt_some_rad", "s:", "some direction, + clearance")):
-        axes[2].plot(heights, np.rad2deg(s[key]), style, ms=3, label=label,
-                     color="C0" if "every" in key else "C1")
+    for key, style, label in (
+        ("tilt_every_rad", "o-", "every direction, joint limits"),
+        ("clear_tilt_every_rad", "o:", "every direction, + clearance"),
+        ("tilt_some_rad", "s-", "some direction, joint limits"),
+        ("clear_tilt_some_rad", "s:", "some direction, + clearance"),
+    ):
+        axes[2].plot(
+            heights,
+            np.rad2deg(s[key]),
+            style,
+            ms=3,
+            label=label,
+            color="C0" if "every" in key else "C1",
+        )
     axes[2].set_xlabel("Z [m]")
     axes[2].set_ylabel("max tilt [deg]")
     axes[2].set_title("reachable tilt at (0, 0, Z)", fontsize=9)
     axes[2].grid(alpha=0.3)
     axes[2].legend(fontsize=8)
-    fig.legend(handles=[Line2D([], [], color="k", ls="-", label="joint limits"),
-                        Line2D([], [], color="k", ls=":",
-                               label=f"parts {s['min_clearance_m'] * 1e3:g} mm apart"),
-                        Line2D([], [], color="k", ls="--",
-                               label=f"cond(J) <= {s['cond_threshold']:g}")],
-               loc="lower center", ncol=3, fontsize=9, frameon=False)
+    fig.legend(
+        handles=[
+            Line2D([], [], color="k", ls="-", label="joint limits"),
+            Line2D(
+                [], [], color="k", ls=":", label=f"parts {s['min_clearance_m'] * 1e3:g} mm apart"
+            ),
+            Line2D([], [], color="k", ls="--", label=f"cond(J) <= {s['cond_threshold']:g}"),
+        ],
+        loc="lower center",
+        ncol=3,
+        fontsize=9,
+        frameon=False,
+    )
     share = s["interfering_share"]
-    fig.suptitle(f"Workspace of states and holding torques (maps: clear poses only). Interference "
-                 f"removes {100 * share['translation']:.2g} % of the reachable translation box, "
-                 f"{100 * share['orientation']:.2g} % of the orientation box, "
-                 f"{100 * share['tilt']:.2g} % of the tilts", fontsize=10)
+    fig.suptitle(
+        f"Workspace of states and holding torques (maps: clear poses only). Interference "
+        f"removes {100 * share['translation']:.2g} % of the reachable translation box, "
+        f"{100 * share['orientation']:.2g} % of the orientation box, "
+        f"{100 * share['tilt']:.2g} % of the tilts",
+        fontsize=10,
+    )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
     _save_figure(fig, out / "workspace.png")
     plt.close(fig)
@@ -345,34 +421,56 @@ def _plot_bottleneck(out: Path, s: dict) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    taxes, trans, oaxes, orient = (s["translation_axes"], s["translation"],
-                                   s["orientation_axes"], s["orientation"])
+    taxes, trans, oaxes, orient = (
+        s["translation_axes"],
+        s["translation"],
+        s["orientation_axes"],
+        s["orientation"],
+    )
     iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
     b = np.where(trans["clear"], trans["bottleneck"], -1)[:, :, iz].astype(float).T
     b[b < 0] = np.nan
-    m = axes[0].pcolormesh(taxes[0], taxes[1], np.ma.masked_invalid(b), shading="auto",
-                           cmap=plt.get_cmap("tab10", 6), vmin=-0.5, vmax=5.5)
+    m = axes[0].pcolormesh(
+        taxes[0],
+        taxes[1],
+        np.ma.masked_invalid(b),
+        shading="auto",
+        cmap=plt.get_cmap("tab10", 6),
+        vmin=-0.5,
+        vmax=5.5,
+    )
     fig.colorbar(m, ax=axes[0], ticks=range(6), label="motor with max |T_i|")
     axes[0].set_title(f"bottleneck motor, Z = {taxes[2][iz]:.3f} m", fontsize=9)
     axes[0].set_xlabel("X [m]")
     axes[0].set_ylabel("Y [m]")
     axes[0].set_aspect("equal")
     ipsi = int(np.argmin(np.abs(oaxes[2])))
-    m = _torque_slice(axes[1], np.rad2deg(oaxes[0]), np.rad2deg(oaxes[1]), orient, (2, ipsi),
-                      ("roll phi [deg]", "pitch theta [deg]"),
-                      f"max |T_i| [N m] at home position, yaw = "
-                      f"{np.rad2deg(oaxes[2][ipsi]):.1f} deg")
+    m = _torque_slice(
+        axes[1],
+        np.rad2deg(oaxes[0]),
+        np.rad2deg(oaxes[1]),
+        orient,
+        (2, ipsi),
+        ("roll phi [deg]", "pitch theta [deg]"),
+        f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg",
+    )
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     fig.tight_layout()
     _save_figure(fig, out / "bottleneck_and_orientation.png")
     plt.close(fig)
 
 
-def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int = 1,
-                      cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-                      progress=None, n_azimuth: int = 24, runner=None,
-                      min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M) -> dict:
+def workspace_summary(
+    geometry: StewartGeometry,
+    resolution: int = 41,
+    jobs: int = 1,
+    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
+    progress=None,
+    n_azimuth: int = 24,
+    runner=None,
+    min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+) -> dict:
     """Run the three standard sweeps and reduce them to figures.
 
     Args:
@@ -395,19 +493,33 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
             has (:data:`BYTES_PER_POSE`), before any grid is allocated.
     """
     # Long: three sweeps reduced to their figures one after the other, each a few lines.
-    if isinstance(resolution, bool) or not isinstance(resolution, (int, np.integer)) \
-            or resolution < 3:                  # 2: the box's corners only, none reachable
-        raise InvalidConfigError(f"resolution must be an integer >= 3 (a grid through the home "
-                                 f"pose), got {resolution!r}")
+    if (
+        isinstance(resolution, bool)
+        or not isinstance(resolution, (int, np.integer))
+        or resolution < 3
+    ):  # 2: the box's corners only, none reachable
+        raise InvalidConfigError(
+            f"resolution must be an integer >= 3 (a grid through the home pose), got {resolution!r}"
+        )
     n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
-    check_memory(f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
-                 n_poses * BYTES_PER_POSE, "lower --resolution (default 41)")
+    check_memory(
+        f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
+        n_poses * BYTES_PER_POSE,
+        "lower --resolution (default 41)",
+    )
     taxes = grid_axes(TRANSLATION_BOX, resolution)
     oaxes = grid_axes(ORIENTATION_BOX, resolution)
     heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
     tilts = np.linspace(0.0, np.deg2rad(60.0), resolution)
-    run = lambda x: sweep(geometry, x, cond_threshold, jobs=jobs, progress=progress,  # noqa: E731
-                          runner=runner, min_clearance_m=min_clearance_m)
+    run = lambda x: sweep(
+        geometry,
+        x,
+        cond_threshold,
+        jobs=jobs,
+        progress=progress,  # noqa: E731
+        runner=runner,
+        min_clearance_m=min_clearance_m,
+    )
     trans = run(translation_grid(taxes))
     orient = run(orientation_grid(oaxes))
     tilt = run(tilt_grid(heights, tilts, n_azimuth))
@@ -416,8 +528,13 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
     b = trans["bottleneck"][trans["clear"]]
     share = np.bincount(b[b >= 0], minlength=6) / max(b.size, 1)
     return {
-        "translation_axes": taxes, "orientation_axes": oaxes, "heights": heights, "tilts": tilts,
-        "translation": trans, "orientation": orient, "tilt": tilt,
+        "translation_axes": taxes,
+        "orientation_axes": oaxes,
+        "heights": heights,
+        "tilts": tilts,
+        "translation": trans,
+        "orientation": orient,
+        "tilt": tilt,
         "volume_m3": reachable_volume(taxes, trans["reachable"]),
         "clear_volume_m3": reachable_volume(taxes, trans["clear"]),
         "usable_volume_m3": reachable_volume(taxes, trans["usable"]),
@@ -425,21 +542,31 @@ def workspace_summary(geometry: StewartGeometry, resolution: int = 41, jobs: int
         "extent_rpy_rad": extents(oaxes, orient["reachable"]),
         "clear_extent_xyz_m": extents(taxes, trans["clear"]),
         "clear_extent_rpy_rad": extents(oaxes, orient["clear"]),
-        "tilt_every_rad": every, "tilt_some_rad": some,
-        "clear_tilt_every_rad": every_clear, "clear_tilt_some_rad": some_clear,
-        "max_holding_torque_Nm": float(np.nanmax(np.where(trans["clear"], trans["max_torque"],
-                                                          np.nan))),
-        "bottleneck_share": share, "cond_threshold": float(cond_threshold),
+        "tilt_every_rad": every,
+        "tilt_some_rad": some,
+        "clear_tilt_every_rad": every_clear,
+        "clear_tilt_some_rad": some_clear,
+        "max_holding_torque_Nm": float(
+            np.nanmax(np.where(trans["clear"], trans["max_torque"], np.nan))
+        ),
+        "bottleneck_share": share,
+        "cond_threshold": float(cond_threshold),
         "min_clearance_m": float(min_clearance_m),
-        "interfering_share": {grid: float(np.sum(c["reachable"] & ~c["clear"])
-                                          / max(np.sum(c["reachable"]), 1))
-                              for grid, c in (("translation", trans), ("orientation", orient),
-                                              ("tilt", tilt))},
+        "interfering_share": {
+            grid: float(np.sum(c["reachable"] & ~c["clear"]) / max(np.sum(c["reachable"]), 1))
+            for grid, c in (("translation", trans), ("orientation", orient), ("tilt", tilt))
+        },
     }
 
 
-def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = True,
-                    geometry: StewartGeometry | None = None, runner=None) -> list:
+def write_workspace(
+    out,
+    resolution: int = 41,
+    jobs: int = 0,
+    progress: bool = True,
+    geometry: StewartGeometry | None = None,
+    runner=None,
+) -> list:
     """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
     Args:
@@ -460,49 +587,87 @@ def write_workspace(out, resolution: int = 41, jobs: int = 0, progress: bool = T
 
     if resolution < 3 or jobs < 0:
         raise InvalidConfigError(
-            f"--resolution must be >= 3 and --jobs >= 0 (got {resolution}, {jobs})")
+            f"--resolution must be >= 3 and --jobs >= 0 (got {resolution}, {jobs})"
+        )
     geometry = geometry or StewartGeometry()
     out = Path(out)
     n = resolution
-    total = 2 * n ** 3 + n * n * 24
+    total = 2 * n**3 + n * n * 24
     with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
         s = workspace_summary(geometry, n, jobs, progress=bar, runner=runner)
-    arrays = {"translation_X": s["translation_axes"][0], "translation_Y": s["translation_axes"][1],
-              "translation_Z": s["translation_axes"][2],
-              "orientation_phi": s["orientation_axes"][0],
-              "orientation_theta": s["orientation_axes"][1],
-              "orientation_psi": s["orientation_axes"][2], "heights": s["heights"],
-              "tilts": s["tilts"], **{key: s[key] for key in (
-                  "tilt_every_rad", "tilt_some_rad", "clear_tilt_every_rad",
-                  "clear_tilt_some_rad")}}
+    arrays = {
+        "translation_X": s["translation_axes"][0],
+        "translation_Y": s["translation_axes"][1],
+        "translation_Z": s["translation_axes"][2],
+        "orientation_phi": s["orientation_axes"][0],
+        "orientation_theta": s["orientation_axes"][1],
+        "orientation_psi": s["orientation_axes"][2],
+        "heights": s["heights"],
+        "tilts": s["tilts"],
+        **{
+            key: s[key]
+            for key in (
+                "tilt_every_rad",
+                "tilt_some_rad",
+                "clear_tilt_every_rad",
+                "clear_tilt_some_rad",
+            )
+        },
+    }
     for grid in ("translation", "orientation", "tilt"):
         for key in FIELDS:
             arrays[f"{grid}_{key}"] = s[grid][key]
     atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
-    rows = [("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
-            ("clear_volume", f"{s['clear_volume_m3']:.6g}", "m^3"),
-            ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
-            ("cond_threshold", f"{s['cond_threshold']:g}", "1"),
-            ("min_clearance", f"{s['min_clearance_m']:g}", "m")]
-    for prefix, ext, rpy in (("", s["extent_xyz_m"], s["extent_rpy_rad"]),
-                             ("clear_", s["clear_extent_xyz_m"], s["clear_extent_rpy_rad"])):
-        rows += [(f"{prefix}extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
-                 for d, a in enumerate("XYZ") for j, side in enumerate(("min", "max"))]
-        rows += [(f"{prefix}extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
-                 for d, a in enumerate(AXIS_NAMES[:3])
-                 for j, side in enumerate(("min", "max"))]
-    rows += [(f"interfering_share_{grid}", f"{share:.4g}", "1")
-             for grid, share in s["interfering_share"].items()]
+    rows = [
+        ("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
+        ("clear_volume", f"{s['clear_volume_m3']:.6g}", "m^3"),
+        ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
+        ("cond_threshold", f"{s['cond_threshold']:g}", "1"),
+        ("min_clearance", f"{s['min_clearance_m']:g}", "m"),
+    ]
+    for prefix, ext, rpy in (
+        ("", s["extent_xyz_m"], s["extent_rpy_rad"]),
+        ("clear_", s["clear_extent_xyz_m"], s["clear_extent_rpy_rad"]),
+    ):
+        rows += [
+            (f"{prefix}extent_{a}_{side}", f"{ext[d, j]:.6g}", "m")
+            for d, a in enumerate("XYZ")
+            for j, side in enumerate(("min", "max"))
+        ]
+        rows += [
+            (f"{prefix}extent_{a}_{side}", f"{rpy[d, j]:.6g}", "rad")
+            for d, a in enumerate(AXIS_NAMES[:3])
+            for j, side in enumerate(("min", "max"))
+        ]
+    rows += [
+        (f"interfering_share_{grid}", f"{share:.4g}", "1")
+        for grid, share in s["interfering_share"].items()
+    ]
     rows.append(("max_holding_torque", f"{s['max_holding_torque_Nm']:.6g}", "N m"))
-    rows += [(f"bottleneck_share_motor_{i}", f"{v:.4g}", "1")
-             for i, v in enumerate(s["bottleneck_share"])]
+    rows += [
+        (f"bottleneck_share_motor_{i}", f"{v:.4g}", "1")
+        for i, v in enumerate(s["bottleneck_share"])
+    ]
     _write_csv(out / "summary.csv", ("figure", "value", "unit"), rows)
-    _write_csv(out / "tilt_vs_height.csv", ("Z_m", "tilt_every_direction_deg",
-                                            "tilt_some_direction_deg",
-                                            "clear_tilt_every_direction_deg",
-                                            "clear_tilt_some_direction_deg"),
-               [(f"{z:.6g}", *(f"{np.rad2deg(v):.6g}" for v in values))
-                for z, *values in zip(s["heights"], s["tilt_every_rad"], s["tilt_some_rad"],
-                                      s["clear_tilt_every_rad"], s["clear_tilt_some_rad"])])
+    _write_csv(
+        out / "tilt_vs_height.csv",
+        (
+            "Z_m",
+            "tilt_every_direction_deg",
+            "tilt_some_direction_deg",
+            "clear_tilt_every_direction_deg",
+            "clear_tilt_some_direction_deg",
+        ),
+        [
+            (f"{z:.6g}", *(f"{np.rad2deg(v):.6g}" for v in values))
+            for z, *values in zip(
+                s["heights"],
+                s["tilt_every_rad"],
+                s["tilt_some_rad"],
+                s["clear_tilt_every_rad"],
+                s["clear_tilt_some_rad"],
+            )
+        ],
+    )
     _plots(out, s)
     return rows
