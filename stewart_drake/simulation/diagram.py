@@ -15,7 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
-from pydrake.systems.primitives import ConstantVectorSource, LogVectorOutput, RandomSource
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    RandomSource,
+    TrajectorySource,
+)
+from pydrake.trajectories import PiecewisePolynomial
 
 from ..control.contract import ControllerContext, check_controller
 from ..control.estimator import FkEstimator
@@ -364,9 +370,11 @@ def _add_disturbance(builder, station: StewartStation, plan: RunPlan, live: bool
     source would be re-evaluated at every plant step."""
     disturbance = plan.scenario.disturbance
     if disturbance is not None and not live:
-        wrench = builder.AddNamedSystem(
-            "tool_disturbance", disturbance.make_source(plan.duration_s, plan.plant_time_step_s)
-        )
+        # The wrench sampled every plant step over the run and joined linearly.
+        h = plan.plant_time_step_s
+        t = np.arange(0.0, plan.duration_s + 2 * h, h)
+        source = TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T))
+        wrench = builder.AddNamedSystem("tool_disturbance", source)
         builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
     else:
         builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")

@@ -316,15 +316,6 @@ class ToolDisturbance:
         out[:, columns] = level[:, None] * axis
         return out
 
-    def make_source(self, duration_s: float, step_s: float):
-        """A ``TrajectorySource`` of the wrench (6,) over [0, duration_s], sampled every plant
-        step ``step_s`` and joined linearly, for the station's ``tool_wrench`` input."""
-        from pydrake.systems.primitives import TrajectorySource
-        from pydrake.trajectories import PiecewisePolynomial
-
-        t = np.arange(0.0, duration_s + 2 * step_s, step_s)
-        return TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, self.wrench(t).T))
-
 
 @dataclass
 class SensorNoise:
