@@ -45,7 +45,7 @@ def test_the_ideal_robot_has_no_servo_no_limit_and_no_delay():
     plan = make_plan(Scenario())
     assert (plan.servo, plan.torque_limit_Nm, plan.delay_periods) == (None, None, 0)
     assert plan.geometry.motor_reflected_inertia == 0.0
-    assert plan.encoder_count_at_tip() == (1e-6, 1e-5)
+    assert plan.encoder_count_at_tip == (1e-6, 1e-5)
     np.testing.assert_allclose(plan.reference.evaluate(0.0)[0], X_HOME, atol=1e-12)
 
 
@@ -53,7 +53,7 @@ def test_one_encoder_count_at_the_crank_tip():
     plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
     counts = plan.scenario.hardware.encoders.counts_per_rev
     tip = 2 * np.pi / counts * plan.geometry.crank_length
-    assert plan.encoder_count_at_tip() == pytest.approx(
+    assert plan.encoder_count_at_tip == pytest.approx(
         (tip, tip / plan.geometry.platform_radius), rel=1e-15
     )
 

@@ -358,7 +358,7 @@ def _add_learning(
         period_s=plan.control_period_s,
         offset_s=context.offset_s,
         duration_s=plan.duration_s,
-        floor=plan.encoder_count_at_tip(),
+        floor=plan.encoder_count_at_tip,
     )
     return corrected, learner
 

@@ -70,7 +70,7 @@ def add_learning(
         offset_s: the controllers' sample offset, s. duration_s: the run's length, s.
         floor: (m, rad) the additive floor of the monitored bound: one encoder count at the
             crank tip as a translation and as a platform rotation
-            (:meth:`~.plan.RunPlan.encoder_count_at_tip`).
+            (``RunPlan.encoder_count_at_tip``).
     """
     starts, scale = learning_cycles(d, trajectory, duration_s)
     floor_m, floor_rad = floor

@@ -49,6 +49,9 @@ class RunPlan:
         sample_offset_s: when the controllers sample within their period, s: half a plant step
             after each plant update, when the plant already holds the next step's configuration
             (its reference leads by the same half step; the controller contract, "Sampling").
+        encoder_count_at_tip: (m, rad) one encoder count at the crank tip, as a translation
+            and as a rotation of the platform; (1e-6 m, 1e-5 rad) on the ideal robot, which
+            reads exact angles (the learner's additive floor).
         reference: the reference object (:class:`~.motion.Reference`: ``evaluate(t)``), or
             None for a plan made without one (a live reference, or only the robot's values).
         controller_factory: ``f(ControllerContext) -> System``, the run's controller.
@@ -66,6 +69,7 @@ class RunPlan:
     log_period_s: float
     duration_s: float
     sample_offset_s: float
+    encoder_count_at_tip: tuple[float, float]
     reference: object | None
     controller_factory: Callable
 
@@ -99,15 +103,6 @@ class RunPlan:
             pose_estimator=pose_estimator,
             feature_window=None if tuner is None else tuner.density_window(),
         )
-
-    def encoder_count_at_tip(self) -> tuple[float, float]:
-        """One encoder count at the crank tip, as a translation (m) and as a rotation of the
-        platform (rad); (1e-6 m, 1e-5 rad) on the ideal robot, which reads exact angles."""
-        hw = self.scenario.hardware
-        if hw is None:
-            return 1e-6, 1e-5
-        tip = hw.encoders.quantum_rad * self.geometry.crank_length
-        return tip, tip / self.geometry.platform_radius
 
 
 def make_plan(
@@ -177,6 +172,16 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     ]
     torque_limit = min(limits) if limits else None
     h_plant = scenario.plant.time_step
+    tip = (
+        (1e-6, 1e-5)
+        if scenario.hardware is None
+        else (
+            scenario.hardware.encoders.quantum_rad * geometry.crank_length,
+            scenario.hardware.encoders.quantum_rad
+            * geometry.crank_length
+            / geometry.platform_radius,
+        )
+    )
     return RunPlan(
         scenario=scenario,
         geometry=geometry,
@@ -197,6 +202,7 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
         log_period_s=scenario.log_period_s,
         duration_s=scenario.duration_s,
         sample_offset_s=0.5 * h_plant,
+        encoder_count_at_tip=tip,
         reference=None,
         controller_factory=scenario.controller.resolve(),
     )
