@@ -70,7 +70,7 @@ name resolves only to a factory that Python code the user runs gave to
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
@@ -182,7 +182,7 @@ class ControllerDriver:
         """(omega_Q, omega_R): the constant on an ``omega`` input when no tuner drives it."""
         return (1.0, 1.0)
 
-    def with_weights(self, **weights) -> "ControllerDriver":
+    def with_weights(self, **weights) -> Self:
         """A copy with constant weights ``omega_Q``, ``omega_R`` (the LQI's).
 
         Raises:

@@ -243,7 +243,7 @@ class DensityFeatures(LeafSystem):
 
     def _CalcRho(self, context, output) -> None:
         if self.buffered:
-            window = self._window_in.Eval(context)
+            window = np.asarray(self._window_in.Eval(context))
             buffer, (n, head) = window[:-2], window[-2:]
         else:
             buffer = context.get_discrete_state(self._buf).get_value()

@@ -325,7 +325,7 @@ class IterativeLearningController(LeafSystem):
         their mean as one record row."""
         acc = memory[self._mem["acc"]]
         acc[:6] += self._motor_angle.Eval(context)
-        acc[6:] += self._x_d.Eval(context)[:6]
+        acc[6:] += np.asarray(self._x_d.Eval(context))[:6]
         status[_COUNT] += 1
         if (k + 1) % self.R == 0 or k + 1 == length:
             row = k // self.R

@@ -25,6 +25,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -232,7 +233,7 @@ def save_tuner(model: TunerModel, path) -> Path:
         TypeError: metadata that JSON cannot encode.
     """
     path = Path(path)
-    arrays = dict(
+    arrays: dict[str, Any] = dict(
         W1=model.W1,
         b1=model.b1,
         W2=model.W2,
@@ -288,10 +289,12 @@ def load_tuner(path=None) -> TunerModel:
         raise data.corrupt(
             f"it clamps log10 omega to {clamp}, expected {(ANN_LOG10_MIN, ANN_LOG10_MAX)}"
         )
-    weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
+    W1, b1, W2, b2, x_mean, x_std = (
+        data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")
+    )
     activation, metadata = data.text("activation"), data.json("metadata_json")
     try:
-        return TunerModel(*weights, activation, metadata)
+        return TunerModel(W1, b1, W2, b2, x_mean, x_std, activation, metadata)
     except InvalidConfigError as err:
         raise data.corrupt(str(err)) from None
 
@@ -468,7 +471,7 @@ class RatioTunerModel:
 def save_ratio_tuner(model: RatioTunerModel, path) -> Path:
     """Write ``model`` to a ``.npz`` (atomically); returns the path."""
     path = Path(path)
-    arrays = dict(
+    arrays: dict[str, Any] = dict(
         W1=model.W1,
         b1=model.b1,
         W2=model.W2,
@@ -512,10 +515,12 @@ def load_ratio_tuner(path=None) -> RatioTunerModel:
             f"its format is not {RATIO_FORMAT!r} (the paper's network's weights "
             f"go in an AnnTunerDriver)"
         )
-    weights = [data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")]
+    W1, b1, W2, b2, x_mean, x_std = (
+        data.array(name) for name in ("W1", "b1", "W2", "b2", "x_mean", "x_std")
+    )
     metadata = data.json("metadata_json")
     try:
-        return RatioTunerModel(*weights, metadata)
+        return RatioTunerModel(W1, b1, W2, b2, x_mean, x_std, metadata)
     except InvalidConfigError as err:
         raise data.corrupt(str(err)) from None
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
+from pydrake.systems.framework import OutputPort, System
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -38,11 +39,11 @@ class TunerPorts:
     system with its port names, the reference's ``x_d`` (18) and the applied torques (6), and the
     control period and sample offset (s)."""
 
-    controller: object
+    controller: System
     inputs: frozenset
     outputs: frozenset
-    x_d: object
-    T_applied: object
+    x_d: OutputPort
+    T_applied: OutputPort
     period_s: float
     offset_s: float
     duration_s: float
@@ -53,8 +54,8 @@ class TunerSystems:
     """The systems a tuner added: ``features`` (or None), ``tuner`` (what drives ``omega``), and
     ``rho_period_s``, the period to log the features at (None: nothing to log)."""
 
-    tuner: object
-    features: object = None
+    tuner: System
+    features: System | None = None
     rho_period_s: float | None = None
 
 
@@ -106,6 +107,10 @@ class _NetworkTuner(TunerConfig):
     kind: ClassVar[str] = "tuner"
     #: The name of its system in the Diagram.
     system_name: ClassVar[str] = "tuner"
+    # The fields every subclass declares (as dataclass fields).
+    weights: str
+    period_s: float
+    feature_window: int
 
     def validate(self, controller, control_period_s: float) -> None:
         super().validate(controller, control_period_s)
@@ -291,7 +296,9 @@ class WeightSchedule(TunerConfig):
         tuner = builder.AddNamedSystem(
             "weight_schedule",
             TrajectorySource(
-                PiecewisePolynomial.ZeroOrderHold(t_s, np.hstack([values, values[:, -1:]]))
+                PiecewisePolynomial.ZeroOrderHold(  # type: ignore[call-overload]  # stub shapes
+                    t_s, np.hstack([values, values[:, -1:]])
+                )
             ),
         )
         builder.Connect(tuner.get_output_port(), ports.controller.GetInputPort("omega"))

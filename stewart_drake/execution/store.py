@@ -27,6 +27,7 @@ import os
 import socket
 import time
 from pathlib import Path
+from typing import Any
 
 from ..errors import (
     CorruptFileError,
@@ -168,7 +169,7 @@ def check_manifest(path: Path, manifest: dict) -> None:
             f"its settings_hash {manifest['settings_hash']!r} is not the hash of its "
             f"settings ({settings_hash(manifest['settings'])!r}): one was edited"
         )
-    owner = {}
+    owner: dict[Any, str] = {}
     for job_id, job in manifest["jobs"].items():
         if not isinstance(job, dict) or job.get("status") not in JOB_STATUSES:
             raise bad(f"job {job_id!r} has no status of {JOB_STATUSES}")
@@ -264,7 +265,7 @@ class ResultStore:
             for k, v in old.get("jobs", {}).items()
             if v.get("status") == "done" and (self.folder / v["file"]).exists()
         }
-        self.manifest = {
+        self.manifest: dict[str, Any] = {
             "study": study,
             "format": FORMAT,
             "settings": settings,

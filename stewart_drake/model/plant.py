@@ -597,15 +597,14 @@ def loop_closure_errors(
 ) -> np.ndarray:
     """(6,) distance in m between each rod's top end and its platform joint (0 when closed)."""
     # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
-    p_W_joint = plant.EvalBodyPoseInWorld(context, handles.platform).multiply(
-        handles.geometry.p_E.T
-    )  # type: ignore[arg-type]        # (3, 6) platform joints
+    X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
+    p_W_joint = X_WE.multiply(handles.geometry.p_E.T)  # type: ignore[arg-type]  # (3, 6) joints
     p_W_top = np.column_stack(
         [
-            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod)
+            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod)  # type: ignore[arg-type]
             for rod in handles.rods
         ]
-    )  # type: ignore[arg-type]  # rod tops
+    )
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
 
 

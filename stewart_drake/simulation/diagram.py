@@ -12,6 +12,7 @@ here only wire by port name.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
@@ -58,7 +59,7 @@ class StewartDiagram:
     station: StewartStation
     controller: System
     reference: ReferenceSources | System
-    trajectory: object | None
+    trajectory: Any  # a motion.Reference, or None with a live reference
     loggers: dict
     plan: RunPlan
     features: System | None = None
@@ -101,10 +102,11 @@ class StewartDiagram:
             self.diagram.GetInputPort("tool_wrench").FixValue(
                 self.diagram.GetMyMutableContextFromRoot(root_context), np.zeros(6)
             )
-        if self.noise is not None:
+        noise = self.scenario.sensor_noise
+        if self.noise is not None and noise is not None:  # the source exists for the noise
             self.noise.SetRandomContext(
                 self.noise.GetMyMutableContextFromRoot(root_context),
-                RandomGenerator(self.scenario.sensor_noise.seed),
+                RandomGenerator(noise.seed),
             )
         hw = self.scenario.hardware
         self.station.initialize(
@@ -167,7 +169,8 @@ def make_stewart_diagram(
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = builder.AddSystem(StewartStation(plan, meshcat))
+    station = StewartStation(plan, meshcat)
+    builder.AddSystem(station)
     ref = _add_reference(builder, plan, trajectory, reference_system)
     context = plan.controller_context(ref.x0, ref.x_dot0)
     system = _add_controller(builder, plan.controller_factory(context))
@@ -373,7 +376,8 @@ def _add_disturbance(builder, station: StewartStation, plan: RunPlan, live: bool
         # The wrench sampled every plant step over the run and joined linearly.
         h = plan.plant_time_step_s
         t = np.arange(0.0, plan.duration_s + 2 * h, h)
-        source = TrajectorySource(PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T))
+        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
+        source = TrajectorySource(samples)
         wrench = builder.AddNamedSystem("tool_disturbance", source)
         builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
     else:
@@ -388,7 +392,7 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
     if scenario.tuner is not None:
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}
-        if added.rho_period_s is not None:
+        if added.rho_period_s is not None and added.features is not None:
             loggers["rho"] = LogVectorOutput(
                 added.features.GetOutputPort("rho"), builder, added.rho_period_s
             )

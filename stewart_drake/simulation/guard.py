@@ -174,6 +174,8 @@ def check_path(
         allow_infeasible=guard.allow_infeasible,
     )
     if raise_refused and not report.feasible:
+        # Not feasible means a motor limit was exceeded: the first violation is recorded.
+        assert report.first_effort_violation is not None
         warnings.warn(
             FeasibilityWarning(
                 f"running a reference the motors cannot follow (guard.allow_infeasible): "
@@ -273,14 +275,14 @@ class DivergenceGuard(LeafSystem):
 
     def check(self, context) -> str | None:
         """Run every check on the guard's inputs; the first failure's description, or None."""
-        state = self._state.Eval(context)
+        state = np.asarray(self._state.Eval(context))
         if not math.isfinite(state.sum()):
             k = int(np.argmax(~np.isfinite(state)))
             return (
                 f"the plant state is not finite (entry {k} of {state.size} = {state[k]}); "
                 f"the loop lost its stability"
             )
-        T = self._T.Eval(context)
+        T = np.asarray(self._T.Eval(context))
         if not math.isfinite(T.sum()):
             return (
                 f"the motor torques are not finite, T = {np.array2string(T, precision=4)} "
@@ -297,7 +299,7 @@ class DivergenceGuard(LeafSystem):
                     f"GuardConfig.max_closure_error_m = {cfg.max_closure_error_m:g} m"
                 )
         pose = self._sensor.pose_from_state(state)[:6]
-        x_d = self._x_d.Eval(context)[:6]
+        x_d = np.asarray(self._x_d.Eval(context))[:6]
         if cfg.max_tracking_error is not None:
             e = np.abs(pose - x_d)
             for part, bound, unit in (

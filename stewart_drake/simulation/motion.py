@@ -44,7 +44,10 @@ class Reference(Protocol):
       harmonics the fidelity report analyses (``{}``: none known).
     """
 
-    name: str
+    @property
+    def name(self) -> str:
+        """The reference's label."""
+        ...
 
     def evaluate(self, t) -> tuple:
         """Pose, rate and acceleration at times ``t``.
@@ -97,8 +100,9 @@ class ReferenceConfig:
 
     @property
     def label(self) -> str:
-        """The reference's name for display and for a run's file names."""
-        return self.name
+        """The reference's name for display and for a run's file names (the ``name`` field of the
+        choices that have one; the others define ``label``)."""
+        return self.name  # type: ignore[attr-defined]  # every choice without a name overrides
 
     def memory_bytes(self) -> float:
         """Memory the reference itself holds, bytes, beyond a run's logs (0: negligible)."""
@@ -123,8 +127,9 @@ def reference_cycles(
     Raises:
         InvalidConfigError: fewer than two cycles found (a motion that does not repeat).
     """
-    if callable(getattr(reference, "cycles", None)):
-        starts, scale = reference.cycles(t_end)
+    cycles = getattr(reference, "cycles", None)
+    if callable(cycles):
+        starts, scale = cycles(t_end)
         return np.asarray(starts, dtype=float), np.asarray(scale, dtype=float)
     return peak_cycles(reference, t_end, dt)
 

@@ -38,6 +38,7 @@ import math
 import re
 from dataclasses import dataclass, field, fields, replace
 from fractions import Fraction
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -133,7 +134,7 @@ def check_centre(name: str, centre) -> tuple:
 class _Motion:
     """What every motion of the library shares: ``evaluate`` = centre + displacement."""
 
-    centre: tuple = tuple(X_HOME)
+    centre: tuple | None = tuple(X_HOME)
     name: str = ""
 
     def displacement(self, t):  # pragma: no cover - every motion defines it
@@ -152,14 +153,19 @@ class _Motion:
 
     @property
     def repeat_period_s(self) -> float | None:
-        """The time after which the motion repeats exactly, s (None: it never does)."""
-        return self.period_s
+        """The time after which the motion repeats exactly, s (None: it never does): every
+        periodic motion of the library has a ``period_s``."""
+        return getattr(self, "period_s", None)
 
     def cycles(self, t_end: float) -> tuple[np.ndarray, np.ndarray]:
         """(starts (K + 1,), scale (K,)): the cycles that begin in [0, t_end), their starts in
         s (the last entry ends the last cycle) and their amplitude over the mean's; a motion
         that repeats every :attr:`repeat_period_s` has cycles of that length from t = 0."""
         period = self.repeat_period_s
+        if period is None:
+            raise InvalidConfigError(
+                f"{self.name or 'the motion'} does not repeat: it has no cycles"
+            )
         k = max(1, int(math.ceil(t_end / period - 1e-9)))
         return np.arange(k + 1) * period, np.ones(k)
 
@@ -172,7 +178,7 @@ def _along(direction, shape, ds, dds) -> tuple[np.ndarray, np.ndarray, np.ndarra
         a = np.zeros((len(shape), 6))
         a[:, 3:] = part[:, None] * np.asarray(direction)
         out.append(a)
-    return tuple(out)
+    return out[0], out[1], out[2]
 
 
 @dataclass(frozen=True)
@@ -208,9 +214,9 @@ class Breathing(_Motion):
     period_s: float = 4.0
     shape_n: int = 3
     phase_rad: float = math.pi / 2
-    direction: tuple = "SI"
+    direction: tuple | str = "SI"
     tilt_rad: float = 0.0
-    tilt_axis: tuple = "rot_LR"
+    tilt_axis: tuple | str = "rot_LR"
     centre: tuple = tuple(X_HOME)
     name: str = "breathing"
 
@@ -292,7 +298,7 @@ class Heartbeat(_Motion):
     rate_bpm: float = 72.0
     harmonics: tuple = HEARTBEAT_HARMONICS
     harmonic_phases_rad: tuple = ()
-    direction: tuple = "LR"
+    direction: tuple | str = "LR"
     centre: tuple = tuple(X_HOME)
     name: str = "heartbeat"
 
@@ -424,7 +430,7 @@ class MotionSum(_Motion):
         return tuple(part.reshape(shape) for part in self.displacement(t.reshape(-1)))
 
     def frequencies_hz(self) -> dict:
-        out = {}
+        out: dict = {}
         for part in self.parts:
             f = getattr(part, "frequencies_hz", None)
             out.update(f() if callable(f) else {})
@@ -469,12 +475,16 @@ class IrregularBreathing(_Motion):
         max_cycles: cycles drawn (the motion holds the last cycle's end beyond them).
     """
 
+    if TYPE_CHECKING:  # drawn in __post_init__, not fields
+        _starts: np.ndarray
+        _amplitudes: np.ndarray
+
     amplitude_m: float = 0.015
     period_s: float = 4.0
     shape_n: int = 3
-    direction: tuple = "SI"
+    direction: tuple | str = "SI"
     tilt_rad: float = 0.0
-    tilt_axis: tuple = "rot_LR"
+    tilt_axis: tuple | str = "rot_LR"
     amplitude_cv: float = 0.15
     period_cv: float = 0.10
     seed: int = 0
@@ -581,9 +591,9 @@ class HysteresisBreathing(_Motion):
     period_s: float = 4.0
     shape_n: int = 3
     phase_rad: float = math.pi / 2
-    direction: tuple = "SI"
+    direction: tuple | str = "SI"
     secondary_amplitude_m: float = 0.005
-    secondary_direction: tuple = "AP"
+    secondary_direction: tuple | str = "AP"
     lag: float = 0.045
     centre: tuple = tuple(X_HOME)
     name: str = "hysteresis"

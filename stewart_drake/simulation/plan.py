@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from ..control.contract import ControllerContext, resolve_controller
 from ..control.estimator import PoseEstimator
@@ -70,7 +71,7 @@ class RunPlan:
     duration_s: float
     sample_offset_s: float
     encoder_count_at_tip: tuple[float, float]
-    reference: object | None
+    reference: Any  # a motion.Reference, or None
     controller_factory: Callable
 
     def controller_context(self, x0, x_dot0) -> ControllerContext:
@@ -138,7 +139,7 @@ def make_plan(
         if isinstance(scenario, RunPlan)
         else _robot_plan((scenario if scenario is not None else Scenario()).validate())
     )
-    changes = {}
+    changes: dict[str, Any] = {}
     if reference is not None:
         changes["reference"] = as_trajectory(reference)
     elif with_reference and plan.reference is None:

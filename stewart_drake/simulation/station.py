@@ -81,7 +81,9 @@ def quantizer(quantum: float, size: int = 6) -> SymbolicVectorSystem:
     """A memoryless mid-tread quantizer y = q round(u / q), as a C++ ``SymbolicVectorSystem``
     (no Python per evaluation): the error is within +-q/2."""
     u = [Variable(f"u{i}") for i in range(size)]
-    return SymbolicVectorSystem(input=u, output=[quantum * floor(ui / quantum + 0.5) for ui in u])
+    y = [quantum * floor(ui / quantum + 0.5) for ui in u]
+    # The stubs list only numpy-array overloads; Drake takes lists of Variable and Expression.
+    return SymbolicVectorSystem(input=u, output=y)  # type: ignore[call-overload]
 
 
 def current_loop(time_constant_s: float, period_s: float, size: int = 6) -> LinearSystem:

@@ -378,7 +378,7 @@ def load_trace(
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
     from pydrake.trajectories import PiecewisePolynomial
 
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)  # type: ignore[call-overload]  # Drake's stubs want (n, 1)-shaped arrays
     info = TraceInfo(
         path=str(path),
         columns=tuple(names),

@@ -14,9 +14,12 @@ loader reads: this module must not use ``from __future__ import annotations``.
 """
 
 import csv
+import functools
 import io
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.trajectories import PiecewisePolynomial, Trajectory
@@ -283,12 +286,12 @@ def helix() -> SineTrajectory:
     )
 
 
-TRAJECTORIES = {
+TRAJECTORIES: dict[str, Callable[[], Any]] = {
     "paper": paper_manoeuvre,
     "home": hold_home,
     "helix": helix,
-    **{f"step_{a}": (lambda a=a: step(a)) for a in AXIS_NAMES},
-    **{f"sweep_{a}": (lambda a=a: sweep(a)) for a in AXIS_NAMES},
+    **{f"step_{a}": functools.partial(step, a) for a in AXIS_NAMES},
+    **{f"sweep_{a}": functools.partial(sweep, a) for a in AXIS_NAMES},
 }
 
 
@@ -317,7 +320,7 @@ class ScalarEvaluate:
 
     def __init__(self, source, name: str | None = None):
         self.source = source
-        self.name = name or getattr(source, "name", "custom")
+        self.name: str = name or str(getattr(source, "name", "custom"))
 
     def evaluate(self, t):
         """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
@@ -454,7 +457,7 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
     data = _csv_samples(path)
     _check_csv_times(path, data[:, 0])
     as_poses(f"{path}: the poses", data[:, 1:])
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(
+    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(  # type: ignore[call-overload]  # Drake's stubs want (n, 1)-shaped arrays
         data[:, 0], data[:, 1:].T, False
     )
     return DrakeTrajectory(spline, name=path.stem)

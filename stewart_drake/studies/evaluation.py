@@ -135,7 +135,7 @@ def _response_figures(result, trajectory) -> dict:
 
 #: What a finished row holds (:func:`run_case`) and the report reads: name -> (JSON types,
 #: or "6" for six numbers), per scenario prefix ("" for every row).
-ROW_FIELDS = {
+ROW_FIELDS: dict[str, dict[str, Any]] = {
     "": {
         "rms_error": "6",
         "peak_error": "6",

@@ -22,6 +22,7 @@ from ..model.plant import loop_closure_errors
 from ..simulation import guard
 from ..simulation.diagram import StewartDiagram, make_stewart_diagram
 from ..simulation.plan import RunPlan, check_reference, make_plan
+from ..simulation.reference import ReferenceSources
 from ..simulation.scenario import Scenario
 from .metrics import compute_metrics
 
@@ -278,8 +279,11 @@ def feedforward_at(sd: StewartDiagram, t: np.ndarray) -> np.ndarray:
     """(N, 6) the feed-forward torques the reference asks for at times t (s), N m: the
     Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
     reference time plus the computation delay), linearly interpolated."""
-    t_act = sd.reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
-    table = sd.reference.T_ff_table
+    reference = sd.reference
+    # A run's reference is precomputed (ReferenceSources); a live one has no table.
+    assert isinstance(reference, ReferenceSources)
+    t_act = reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
+    table = reference.T_ff_table
     return np.stack([np.interp(t, t_act, table[:, i]) for i in range(table.shape[1])], axis=1)
 
 

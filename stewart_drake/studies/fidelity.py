@@ -478,11 +478,8 @@ def _harmonic_frequencies(reference: Reference) -> dict:
     """{"breathing": Hz, "cardiac": Hz}: the fundamentals whose harmonics :func:`fidelity`
     analyses, those of a reference that repeats ({} for one that does not)."""
     repeats = getattr(reference, "repeat_period_s", None) is not None
-    return (
-        reference.frequencies_hz()
-        if repeats and callable(getattr(reference, "frequencies_hz", None))
-        else {}
-    )
+    frequencies = getattr(reference, "frequencies_hz", None)
+    return frequencies() if repeats and callable(frequencies) else {}
 
 
 def reproduce(

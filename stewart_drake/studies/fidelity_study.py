@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -201,7 +202,8 @@ def _cell(fid: dict) -> str:
     return f"{fid['rms_translation_m'] * 1e6:.2f} / {fid['rms_rotation_rad'] * 1e6:.1f}"
 
 
-def _at(outcome: dict, k: int) -> dict | None:
+def _at(outcome: dict, k: int) -> Any:
+    """The k-th cycle's figures of a run's outcome (a dict), or None when it has fewer."""
     cyc = outcome["cycles"]
     return cyc[k] if k < len(cyc) else None
 

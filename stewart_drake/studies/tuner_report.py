@@ -5,6 +5,7 @@ each controller is known by its arm's fields (kind, ratio, lambda), never by par
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -15,8 +16,8 @@ def _pct(v: float) -> str:
     return "lost" if not np.isfinite(v) else f"{100 * v:+.0f} %"
 
 
-def _controller(v: dict, kind: str, lam: float | None = None) -> dict | None:
-    """The verdict's entry of the arm ``kind`` at ``lam`` (None: not run)."""
+def _controller(v: dict, kind: str, lam: float | None = None) -> Any:
+    """The verdict's entry of the arm ``kind`` at ``lam`` (a dict; None: not run)."""
     return v["controllers"].get(StudyArm(kind, lam=lam).label)
 
 
