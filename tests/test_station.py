@@ -14,7 +14,7 @@ from stewart_drake.control.contract import (
     check_controller,
     register_controller,
 )
-from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.errors import InvalidConfigError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.model import kinematics, statics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
@@ -30,7 +30,6 @@ from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import held_station, p_ETool
 from stewart_drake.simulation.trajectories import (
     DrakeTrajectory,
-    ScalarEvaluate,
     as_trajectory,
     paper_manoeuvre,
 )
@@ -214,41 +213,6 @@ def test_csv_and_drake_references_track_like_the_analytic_one(tmp_path):
         run_experiment(Scenario(duration_s=2.0, reference=CsvReference(str(csv))))
 
 
-def test_bad_csv_files_name_the_line(tmp_path):
-    f = tmp_path / "r.csv"
-    f.write_text("t,x\n0,1\n")
-    with pytest.raises(InvalidConfigError, match=r"header t,phi,theta,psi,X,Y,Z"):
-        as_trajectory(f)
-    f.write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n0.1,0,0,0,0,0,nan\n")
-    with pytest.raises(InvalidConfigError, match=r"line 3: expected 7 finite numbers"):
-        as_trajectory(f)
-    f.write_text("t,phi,theta,psi,X,Y,Z\n0,0,0,0,0,0,0.3\n0.1,0,0,0,0,0,0.3\n")
-    with pytest.raises(InvalidConfigError, match=r"at least 3 samples"):
-        as_trajectory(f)
-    with pytest.raises(MissingFileError):
-        as_trajectory(tmp_path / "none.csv")
-
-
-def test_an_evaluate_of_one_time_is_wrapped():
-    class OneAtATime:
-        name = "scalar"
-
-        def evaluate(self, t):
-            if np.ndim(t):
-                raise TypeError("one time at a time")
-            return tuple(np.asarray(v)[0] for v in paper_manoeuvre().evaluate(np.array([t])))
-
-    wrapped = as_trajectory(OneAtATime())
-    assert isinstance(wrapped, ScalarEvaluate) and wrapped.name == "scalar"
-    t = np.array([0.1, 0.2, 0.3])
-    for got, want in zip(wrapped.evaluate(t), paper_manoeuvre().evaluate(t)):
-        np.testing.assert_allclose(got, want, rtol=1e-15)
-    result = run_experiment(Scenario(duration_s=0.2), reference=OneAtATime())
-    assert result.config_summary["trajectory"] == "scalar" and result.metrics["finite"]
-    with pytest.raises(InvalidConfigError, match="an object with evaluate"):
-        as_trajectory(3.0)
-
-
 # -- the command ----------------------------------------------------------------------------------
 
 
@@ -347,33 +311,3 @@ def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
     assert scenario.controller.gain_transfer == "none"
     assert isinstance(scenario.tuner, AnnTunerDriver) and scenario.tuner.period_s == 0.04
     scenario.validate()  # raises if not
-
-
-def test_the_pose_sensor_reads_the_state_as_drakes_roll_pitch_yaw():
-    """The vectorized quaternion -> roll-pitch-yaw and angular velocity -> rpy rates agree with
-    Drake's RollPitchYaw on arbitrary states (near gimbal lock included)."""
-    from pydrake.common.eigen_geometry import Quaternion
-    from pydrake.math import RollPitchYaw
-
-    sd = make_stewart_diagram(Scenario(duration_s=0.1))
-    sensor, plant = sd.sensor, sd.plant
-    states = np.random.default_rng(0).normal(
-        size=(300, plant.num_positions() + plant.num_velocities())
-    )
-
-    def drake(s):
-        q = s[sensor._iq : sensor._iq + 4]
-        rpy = RollPitchYaw(Quaternion(q / np.linalg.norm(q)))
-        rates = rpy.CalcRpyDtFromAngularVelocityInParent(s[sensor._iv : sensor._iv + 3])
-        return np.concatenate(
-            [
-                rpy.vector(),
-                s[sensor._iq + 4 : sensor._iq + 7],
-                rates,
-                s[sensor._iv + 3 : sensor._iv + 6],
-            ]
-        )
-
-    expected = np.array([drake(s) for s in states])
-    np.testing.assert_allclose(sensor.poses_from_states(states), expected, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(sensor.pose_from_state(states[7]), expected[7], rtol=0, atol=1e-12)

@@ -1,0 +1,31 @@
+"""Where the learner's cycles come from: the reference's own, or learning.period_s from t = 0;
+a run that holds no whole cycle, or a reference that does not repeat, is refused before any
+simulation."""
+
+import numpy as np
+import pytest
+
+from stewart_drake.control.ilc import IlcDriver
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.simulation.learning import learning_cycles
+from stewart_drake.simulation.organ_motion import Breathing
+from stewart_drake.simulation.trajectories import hold_home
+
+
+def test_the_reference_s_cycles_begun_within_the_run():
+    starts, scale = learning_cycles(IlcDriver(), Breathing(period_s=4.0), 10.0)
+    np.testing.assert_array_equal(starts, [0.0, 4.0, 8.0, 12.0])
+    np.testing.assert_array_equal(scale, [1.0, 1.0, 1.0])
+
+
+def test_a_period_of_the_user_s_cuts_any_reference():
+    starts, scale = learning_cycles(IlcDriver(period_s=1.5), hold_home(), 5.0)
+    np.testing.assert_array_equal(starts, [0.0, 1.5, 3.0, 4.5])
+    np.testing.assert_array_equal(scale, [1.0, 1.0, 1.0])
+
+
+def test_what_cannot_be_learned_is_refused_saying_what_to_change():
+    with pytest.raises(InvalidConfigError, match="give learning.period_s"):
+        learning_cycles(IlcDriver(), hold_home(), 5.0)
+    with pytest.raises(InvalidConfigError, match=r"the run \(3 s\) holds no whole cycle"):
+        learning_cycles(IlcDriver(), Breathing(period_s=4.0), 3.0)

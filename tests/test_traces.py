@@ -1,0 +1,76 @@
+"""Recorded traces: units and headers read, gaps refused with their time, centring, mapping and
+the low-pass, a C2 reference out."""
+
+import numpy as np
+import pytest
+from conftest import write_trace
+
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.model.geometry import X_HOME
+from stewart_drake.simulation.traces import TraceTrajectory, load_trace
+
+
+def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path):
+    t = np.arange(0.0, 12.0, 1 / 30)
+    si = 7.5 * np.cos(np.pi * t / 4) ** 2  # mm
+    pitch = 0.5 * np.sin(np.pi * t / 4)  # deg
+    path = write_trace(
+        tmp_path / "patient.csv", t, {"SI [mm]": si, "rot_LR (deg)": pitch}, gap=(5.0, 5.5)
+    )
+    ref = load_trace(path, centre_on="none")
+    assert isinstance(ref, TraceTrajectory) and ref.end_time == pytest.approx(t[-1])
+    assert ref.info.axes == ("+X", "+theta") and ref.info.units[1:] == ("mm", "deg")
+    assert len(ref.info.gaps) == 1 and 0.5 <= ref.info.gaps[0][1] < 0.6  # both axes
+    assert ref.info.sample_rate_hz == pytest.approx(30.0, rel=1e-3)
+    x, v, a = ref.evaluate(t)
+    assert np.allclose(x[:, 3], X_HOME[3] + si * 1e-3, atol=2e-6)  # mm -> m, also in the gap
+    assert np.allclose(x[:, 1], np.radians(pitch), atol=2e-6)  # deg -> rad
+    assert np.allclose(x[:, [0, 2, 4]], 0.0) and np.allclose(x[:, 5], X_HOME[5])
+    # C2: rate and acceleration continuous across the knots
+    tk = np.arange(0.5, 11.5, 0.01)
+    for part in (v, a):
+        left, right = (
+            np.asarray(ref.evaluate(tk + s)[1 if part is v else 2]) for s in (-1e-9, 1e-9)
+        )
+        assert np.abs(left - right).max() < 1e-5
+    assert "gaps bridged" in ref.info.summary() and "SI [mm] -> +X" in ref.info.summary()
+
+
+def test_trace_centring_mapping_and_lowpass(tmp_path):
+    t = np.arange(0.0, 8.0, 0.01)
+    slow, fast = 5 * np.sin(2 * np.pi * 0.25 * t), 0.5 * np.sin(2 * np.pi * 20 * t)
+    path = write_trace(tmp_path / "trace.csv", t, {"depth [mm]": 2 + slow + fast})
+    centre = [0, 0, 0, 0.001, 0, 0.31]
+    ref = load_trace(path, axis_map={"depth": "-Z"}, centre=centre, lowpass_hz=2.0)
+    z = ref.evaluate(t)[0][:, 5]
+    inner = (t > 1) & (t < 7)
+    # mean removed, sign flipped, 20 Hz gone, the slow motion kept without lag
+    assert np.abs(z - (0.31 - (slow + 2 - (2 + slow + fast).mean()) * 1e-3))[inner].max() < 2e-5
+    first = load_trace(path, axis_map={"depth": "Z"}, centre_on="first")
+    assert first.evaluate(0.0)[0][5] == pytest.approx(X_HOME[5])
+
+
+@pytest.mark.parametrize(
+    "header,row,match",
+    [
+        ("time [s],SI", "0,1", "needs a unit of length"),
+        ("time [s],SI [deg]", "0,1", "a angle on a translation axis|an angle|angle on a"),
+        ("time [s],SI [mm],X [mm]", "0,1,2", "two columns go to the platform's X"),
+        ("depth [mm],t [s]", "0,1", "first column must be the time"),
+        ("t [furlong],Z [mm]", "0,1", "time column needs its unit"),
+        ("t [s],heart [mm]", "0,1", "unknown axis 'heart'"),
+    ],
+)
+def test_a_bad_trace_header_is_refused_naming_the_column(tmp_path, header, row, match):
+    path = tmp_path / "bad.csv"
+    path.write_text(header + "\n" + "\n".join([row] * 5) + "\n")
+    with pytest.raises(InvalidConfigError, match=match):
+        load_trace(path)
+
+
+def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
+    t = np.arange(0.0, 10.0, 0.1)
+    path = write_trace(tmp_path / "gap.csv", t, {"Z [mm]": np.sin(t)}, gap=(3.0, 5.0))
+    with pytest.raises(InvalidConfigError, match=r"no data for 2 s from t = 3 s"):
+        load_trace(path, max_gap_s=1.0)
+    assert load_trace(path, max_gap_s=3.0).info.gaps
