@@ -241,7 +241,8 @@ def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout()
             rf"a connection there within 0.5 s",
         ):
             make_runner(kind, **{option: "127.0.0.1:1"}, connect_timeout_s=0.5)
-        assert time.monotonic() - t0 < 2.0
+        # The wait is bounded by the timeout, not by the peer: generous for a loaded machine.
+        assert time.monotonic() - t0 < 10.0
 
 
 def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
@@ -410,7 +411,8 @@ def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
         r"the bound of 16 MB for this kind of file",
     ):
         tuner.load_tuner(tmp_path / "big.npz")
-    assert time.monotonic() - t0 < 2.0
+    # Refused from its size, never read: a generous bound that holds on a loaded machine.
+    assert time.monotonic() - t0 < 10.0
 
 
 # -- case 5: the reference is in the memory estimate ---------------------------------------------

@@ -85,6 +85,32 @@ def _int_at_least(lowest: int):
     return parse
 
 
+def _tcp_port(text: str) -> int:
+    """A TCP port, 1..65535 (Meshcat would otherwise pick another port without a word)."""
+    port = _int_at_least(1)(text)
+    if port > 65535:
+        raise argparse.ArgumentTypeError(f"a TCP port is at most 65535, got {text}")
+    return port
+
+
+def _realtime_rate(text: str) -> float:
+    """A target real-time rate: 0 (as fast as it goes) or at least the slowest pacing the
+    scenario accepts (``simulator.target_realtime_rate``: the Simulator sleeps in C++, where a
+    slower rate would ignore Ctrl-C)."""
+    from ..simulation.scenario import MIN_REALTIME_RATE
+
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (rate == 0.0 or MIN_REALTIME_RATE <= rate < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"must be 0 (as fast as it goes) or a finite rate of at least {MIN_REALTIME_RATE:g}, "
+            f"got {text}"
+        )
+    return rate
+
+
 def check_writable(folder: Path, option: str = "--out") -> None:
     """Make sure ``folder`` can be created (if missing) and written, without creating it.
 
@@ -1053,13 +1079,13 @@ def _add_teleop_command(sub) -> None:
     )
     tel.add_argument(
         "--realtime-rate",
-        type=float,
+        type=_realtime_rate,
         default=1.0,
         help="target real-time rate (0: as fast as it goes)",
     )
     tel.add_argument(
         "--port",
-        type=_int_at_least(1),
+        type=_tcp_port,
         default=None,
         help="Meshcat's port (default: the first free from 7000)",
     )
