@@ -118,3 +118,46 @@ def test_bad_run_options_are_refused_by_name(options, message):
 
     with pytest.raises(InvalidConfigError, match=message):
         apply_run_options(load_scenario("paper_ideal"), **options)
+
+
+def _merge_bomb(levels: int = 27) -> str:
+    """A few hundred bytes of YAML merge keys that expand to 10 x 2^levels keys."""
+    lines = ["m0: &m0 {" + ", ".join(f"k{i}: 1" for i in range(10)) + "}"]
+    lines += [f"m{i}: &m{i} {{<<: [*m{i - 1}, *m{i - 1}]}}" for i in range(1, levels + 1)]
+    return "\n".join(lines) + "\n"
+
+
+def test_a_merge_key_bomb_is_refused_before_it_expands(tmp_path):
+    import time
+
+    path = tmp_path / "bomb.yaml"
+    path.write_text(_merge_bomb())
+    assert path.stat().st_size < 1000
+    t0 = time.monotonic()
+    with pytest.raises(InvalidConfigError, match=r"bomb.yaml: its anchors and merge keys expand"):
+        load_scenario(path)
+    with pytest.raises(InvalidConfigError, match=r"--set controller: its anchors and merge keys"):
+        load_scenario(
+            "paper_ideal", ["controller=" + "{" + _merge_bomb().replace("\n", ", ") + "}"]
+        )
+    # Counted on the composed graph, once per node: far below a second; a loaded machine and
+    # the slowest CI still finish well inside this bound, where expanding never would.
+    assert time.monotonic() - t0 < 30.0
+
+
+def test_an_override_longer_than_a_scenario_file_is_refused():
+    with pytest.raises(InvalidConfigError, match="over the bound of a scenario file"):
+        load_scenario("paper_ideal", ["duration_s=" + "1" * 300_000])
+
+
+def test_the_expanded_size_counts_every_use_of_an_anchor(tmp_path):
+    import yaml
+
+    from stewart_drake.simulation.scenario_io import _expanded_nodes
+
+    # m0: 1 + 10 x (key, value) = 21; each mI: 1 + "<<" + a list of two uses of mI-1; the root:
+    # 1 + three keys + m0 + m1 + m2 = 1 + 3 + 21 + 45 + 93.
+    assert _expanded_nodes(yaml.compose(_merge_bomb(2))) == 163
+    path = tmp_path / "anchors.yaml"
+    path.write_text("guard: &g {check_period_s: 0.02}\n")
+    assert load_scenario(path).guard.check_period_s == 0.02

@@ -106,13 +106,22 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
 MAX_SCENARIO_BYTES = 256 * 1024
 
 
+#: Most YAML nodes a scenario may expand to, every use of an anchor (``*a``, ``<<: *a``)
+#: counted: a full scenario has about 200. Drake's loader expands aliases and merge keys, so a
+#: few hundred bytes of nested merges would otherwise expand to billions of nodes.
+MAX_SCENARIO_NODES = 100_000
+
+
 def _refuse_duplicate_keys(text: str) -> None:
-    """Refuse a mapping that names a key twice (YAML loaders keep the last silently).
+    """Refuse a mapping that names a key twice (YAML loaders keep the last silently), and a
+    document that expands to more than :data:`MAX_SCENARIO_NODES` nodes.
 
     The document is composed, not constructed (PyYAML's node graph: tags are not resolved,
-    nothing is built), and each node is visited once, so aliases cannot multiply the work.
+    nothing is built), and each node is visited once, so aliases cannot multiply the work; the
+    expanded size is counted on that graph (:func:`_expanded_nodes`) before Drake's loader,
+    which expands it, sees the text.
     Raises:
-        InvalidConfigError: names the key and its two lines.
+        InvalidConfigError: names the key and its two lines; or the expanded size.
     """
     import yaml
 
@@ -136,6 +145,35 @@ def _refuse_duplicate_keys(text: str) -> None:
                 stack += [key, value]
         elif isinstance(node, yaml.SequenceNode):
             stack += node.value
+    if root is not None and (size := _expanded_nodes(root)) > MAX_SCENARIO_NODES:
+        raise InvalidConfigError(
+            f"its anchors and merge keys expand to {size:.3g} YAML nodes, over the bound of "
+            f"{MAX_SCENARIO_NODES:,} (a scenario has a few hundred): write the values out"
+        )
+
+
+def _expanded_nodes(root) -> int:
+    """How many nodes the composed document ``root`` has once every alias is expanded: each
+    node's count is 1 + its children's, computed once per node (aliases share their node)."""
+    import yaml
+
+    def children(node):
+        if isinstance(node, yaml.MappingNode):
+            return [n for pair in node.value for n in pair]
+        return node.value if isinstance(node, yaml.SequenceNode) else []
+
+    size: dict[int, int] = {}
+    stack = [(root, False)]
+    while stack:
+        node, ready = stack.pop()
+        if id(node) in size:
+            continue
+        if ready:
+            size[id(node)] = 1 + sum(size[id(c)] for c in children(node))
+        else:
+            stack.append((node, True))
+            stack += [(c, False) for c in children(node) if id(c) not in size]
+    return size[id(root)]
 
 
 def _in_file(err: StewartError, where) -> StewartError:
@@ -153,6 +191,11 @@ def apply_override(scenario: Scenario, override: str) -> None:
         InvalidConfigError: no ``=``, a key that is not a field (names it), or a value the field's
             type does not accept.
     """
+    if len(override.encode(errors="replace")) > MAX_SCENARIO_BYTES:
+        raise InvalidConfigError(
+            f"--set {override[:40]}...: {len(override):,} characters, over the bound of a "
+            f"scenario file ({MAX_SCENARIO_BYTES:,} bytes); long data belongs in a file"
+        )
     key, sep, value = override.partition("=")
     key = key.strip()
     if not sep or not key:
@@ -173,6 +216,12 @@ def apply_override(scenario: Scenario, override: str) -> None:
             f"--set {key}: {leaf!r} is not a field of "
             f"{type(target).__name__} (fields: {', '.join(sorted(fields))})"
         )
+    try:
+        _refuse_duplicate_keys(f"{leaf}: {value}\n")
+    except StewartError as err:
+        raise InvalidConfigError(f"--set {key}: {err}") from None
+    except Exception as err:  # noqa: BLE001 - yaml raises several types
+        raise InvalidConfigError(f"--set {key}={value}: {_one_line(err)}") from None
     try:
         updated = yaml_load_typed(
             schema=type(target),
