@@ -161,3 +161,18 @@ def test_the_expanded_size_counts_every_use_of_an_anchor(tmp_path):
     path = tmp_path / "anchors.yaml"
     path.write_text("guard: &g {check_period_s: 0.02}\n")
     assert load_scenario(path).guard.check_period_s == 0.02
+
+
+def test_a_section_may_carry_its_own_class_s_tag(tmp_path):
+    path = tmp_path / "tagged.yaml"
+    path.write_text(
+        "learning: !IlcDriver {gain: 0.5}\n"
+        "hardware: !Hardware\n  computation_delay_periods: 2\n  motors: !Motors {gear_ratio: 5.0}\n"
+    )
+    scenario = load_scenario(path)
+    assert scenario.learning.gain == 0.5 and scenario.learning.q_cutoff_hz == 25.0
+    assert scenario.hardware.computation_delay_periods == 2
+    assert scenario.hardware.motors.gear_ratio == 5.0
+    path.write_text("learning: !PdDriver {}\n")
+    with pytest.raises(InvalidConfigError, match=r"a tag \(!Name\) that is not its section's own"):
+        load_scenario(path)

@@ -84,12 +84,19 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         ) from None
     try:
         _refuse_duplicate_keys(text)
+        text = _untag_sections(text)
         scenario = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     except StewartError as err:
         raise _in_file(err, path) from None
     except Exception as err:  # noqa: BLE001 - yaml and Drake's loader raise several types
         problem = _one_line(err)
-        if not problem.startswith("not YAML"):
+        if "['_tag']" in problem:
+            problem = (
+                "a tag (!Name) that is not its section's own class: a tag picks a choice "
+                "(controller, reference, tuner); a section (hardware, learning, ...) takes none, "
+                "or its class's name (learning: !IlcDriver {...})"
+            )
+        elif not problem.startswith("not YAML"):
             problem = f"it does not fit the Scenario schema: {problem}"
         raise CorruptFileError(path, "scenario file", problem, remedy) from None
     for override in overrides:
@@ -150,6 +157,48 @@ def _refuse_duplicate_keys(text: str) -> None:
             f"its anchors and merge keys expand to {size:.3g} YAML nodes, over the bound of "
             f"{MAX_SCENARIO_NODES:,} (a scenario has a few hundred): write the values out"
         )
+
+
+def _section_class(hint):
+    """The one dataclass a field holds (``X`` or ``X | None``), or None for a choice (a union of
+    several classes, written with a tag) or a plain value."""
+    import typing
+
+    kinds = [k for k in typing.get_args(hint) or (hint,) if k is not type(None)]
+    if len(kinds) == 1 and dataclasses.is_dataclass(kinds[0]):
+        return kinds[0]
+    return None
+
+
+def _untag_sections(text: str) -> str:
+    """``text`` with the tag of each section written as its own class's name removed
+    (``learning: !IlcDriver {...}``, ``hardware: !Hardware ...``): a section is not a choice,
+    and Drake's loader reads a tag there as an unknown field ``_tag``. Only such tags are
+    removed, at the positions the composed document gives; anything else is left to the
+    loader to refuse."""
+    import typing
+
+    import yaml
+
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    cuts: list[tuple[int, int]] = []
+    stack = [(root, Scenario)] if isinstance(root, yaml.MappingNode) else []
+    while stack:
+        node, cls = stack.pop()
+        hints = typing.get_type_hints(cls)
+        for key, value in node.value:
+            section = (
+                _section_class(hints.get(key.value)) if isinstance(key, yaml.ScalarNode) else None
+            )
+            if section is None or not isinstance(value, yaml.MappingNode):
+                continue
+            tag, at = f"!{section.__name__}", value.start_mark.index
+            if value.tag == tag and text[at : at + len(tag)] == tag:
+                cuts.append((at, at + len(tag)))
+            stack.append((value, section))
+    for start, end in sorted(cuts, reverse=True):
+        text = text[:start] + text[end:]
+    return text
 
 
 def _expanded_nodes(root) -> int:
