@@ -1,6 +1,7 @@
 """``stewart-drake teleop``: the robot as built, driven live from Meshcat sliders."""
 
 import importlib.util
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -139,3 +140,27 @@ def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path)
     # says by how much); docs/performance.md measures it over a minute.
     assert stats["realtime_rate"] > 0.9 and stats["sim_s"] == pytest.approx(4.0), stats
     assert shot.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP])
+def test_teleop_ended_by_a_signal_says_so_and_exits_with_its_code(
+    capsys, tmp_path, monkeypatch, signum
+):
+    from stewart_drake.execution.runners import Interrupted
+    from stewart_drake.simulation import guard
+
+    advance = guard.advance
+    calls = []
+
+    def interrupted_after_two_chunks(*args, **kwargs):
+        calls.append(1)
+        if len(calls) > 2:
+            raise Interrupted(signum) if signum != signal.SIGINT else KeyboardInterrupt()
+        return advance(*args, **kwargs)
+
+    monkeypatch.setattr(guard, "advance", interrupted_after_two_chunks)
+    assert main(["teleop", "--realtime-rate", "0", "--out", str(tmp_path)]) == 128 + signum
+    captured = capsys.readouterr()
+    assert "realtime_rate" in captured.out  # the statistics of what ran
+    line = captured.err.strip().splitlines()[-1]
+    assert line.startswith(f"stewart-drake teleop: interrupted by {signal.Signals(signum).name}")

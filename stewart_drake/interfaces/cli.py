@@ -626,7 +626,15 @@ def _cmd_teleop(args) -> int:
         f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
         f"J/L I/K U/O), the gauges show the tracking error and the margins; running {how}"
     )
-    run_teleop(run, args.duration)
+    stats = run_teleop(run, args.duration)
+    if "interrupted_by" in stats:  # the statistics are printed; say what ended it
+        signum = stats["interrupted_by"]
+        print(
+            f"stewart-drake teleop: interrupted by {signal.Signals(signum).name} after "
+            f"{stats['sim_s']:.1f} s simulated; nothing else to keep",
+            file=sys.stderr,
+        )
+        return 128 + signum
     return 0
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import signal
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING
@@ -250,7 +251,8 @@ def run_teleop(
 
     Returns:
         {"sim_s": simulated s, "wall_s": wall s, "realtime_rate": sim_s / wall_s,
-        "worst_rate": the lowest rate over any 10 s of the run (the whole run if shorter)}.
+        "worst_rate": the lowest rate over any 10 s of the run (the whole run if shorter)},
+        and "interrupted_by": the signal's number when Ctrl-C, SIGTERM or SIGHUP ended it.
     Raises:
         SimulationDivergedError: the guard stopped the run (the logs are saved).
     """
@@ -260,6 +262,7 @@ def run_teleop(
     simulator.ResetStatistics()  # pace from now: a pause before must not be caught up
     t_start, wall_start = simulator.get_context().get_time(), time.perf_counter()
     marks = [(wall_start, t_start)]
+    interrupted_by = None
     try:
         while duration_s is None or simulator.get_context().get_time() < t_start + duration_s:
             t_next = simulator.get_context().get_time() + chunk_s
@@ -267,8 +270,8 @@ def run_teleop(
                 t_next = min(t_next, t_start + duration_s)
             guard.advance(run.loop, simulator, functools.partial(simulator.AdvanceTo, t_next))
             marks.append((time.perf_counter(), simulator.get_context().get_time()))
-    except KeyboardInterrupt:
-        pass
+    except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM / SIGHUP through the CLI's handler
+        interrupted_by = int(getattr(err, "signum", signal.SIGINT))
     wall = np.array([m[0] for m in marks]) - wall_start
     sim = np.array([m[1] for m in marks]) - t_start
     rates = [
@@ -283,6 +286,8 @@ def run_teleop(
         "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0,
     }
     total["worst_rate"] = float(min(rates)) if rates else total["realtime_rate"]
+    if interrupted_by is not None:
+        total["interrupted_by"] = interrupted_by
     if report is not None:
         report(
             f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
