@@ -967,3 +967,18 @@ def test_the_tool_s_own_temporaries_of_a_dead_writer_are_still_removed(home):
     rc, _, err, _ = _user_runs(home, ["mjcf", "--out", "out/robot.xml"])
     assert rc == 0 and not left.exists(), err
     shutil.rmtree(out)
+
+
+def test_a_reader_that_goes_away_ends_the_command_quietly(monkeypatch, capsys):
+    """`stewart-drake scenario paper_hardware | head -1`: no 'Broken pipe' line, and the
+    conventional status of a command ended by SIGPIPE."""
+    import io
+    import signal as signals
+
+    class ClosedPipe(io.StringIO):
+        def write(self, text):
+            raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr("sys.stdout", ClosedPipe())
+    assert cli.main(["scenario", "paper_hardware"]) == 128 + signals.SIGPIPE
+    assert capsys.readouterr().err == ""

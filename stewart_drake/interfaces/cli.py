@@ -15,6 +15,7 @@ left there (the tool's own, whose writer is gone) are removed.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import tempfile
@@ -1164,11 +1165,24 @@ def _main(argv: list[str] | None) -> int:
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # the reader went away (`... | head`): stop without a word
+        _silence_stdout()
+        return 128 + signal.SIGPIPE
     except OSError as err:  # disk full, file vanished, permissions
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 1
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
         return _interrupted(err, args.command, getattr(args, "out", None))
+
+
+def _silence_stdout() -> None:
+    """Point standard output at the null device, so that the interpreter's last flush does not
+    fail again on the closed pipe (Python's documentation on SIGPIPE)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # not a file descriptor (a test's capture)
+        pass
 
 
 def _interrupted(err: KeyboardInterrupt, command: str, out) -> int:
