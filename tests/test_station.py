@@ -295,8 +295,8 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
     assert proc.stderr.strip().splitlines() == [
-        "stewart-drake train: `stewart-drake train` needs torch: pip install "
-        "'stewart-drake[train]' (torch==2.13.0, the CPU build)"
+        "stewart-drake train: `stewart-drake train` needs torch: install PyTorch's CPU build, "
+        "then pip install 'stewart-drake[train]' (README: Install)"
     ]
     assert (tmp_path / "run_paper_ann.npz").exists()
 

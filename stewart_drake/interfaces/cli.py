@@ -475,8 +475,8 @@ def _cmd_train(args) -> int:
         import torch  # noqa: F401 - only to say which extra is missing
     except ImportError:
         raise MissingExtraError(
-            "`stewart-drake train` needs torch: pip install "
-            "'stewart-drake[train]' (torch==2.13.0, the CPU build)"
+            "`stewart-drake train` needs torch: install PyTorch's CPU build, then pip install "
+            "'stewart-drake[train]' (README: Install)"
         ) from None
     from ..control.tuner import save_tuner
     from ..control.tuning import AnnTunerDriver
