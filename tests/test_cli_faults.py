@@ -982,3 +982,26 @@ def test_a_reader_that_goes_away_ends_the_command_quietly(monkeypatch, capsys):
     monkeypatch.setattr("sys.stdout", ClosedPipe())
     assert cli.main(["scenario", "paper_hardware"]) == 128 + signals.SIGPIPE
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    "options, expected",
+    [
+        (["--tolerance", "1.2.3mm,0.1deg"], "a tolerance is one length and one angle"),
+        (["--tolerance", "1e999mm,0.1deg"], "each a finite positive number with its unit"),
+        (["--param", "amplitude=1..5mm"], "'1..5mm' is not a finite number with a unit"),
+        (["--map", "SI=--Z"], "axis '--Z': one sign at most"),
+        (["--map", "SI=+-Z"], "axis '+-Z': one sign at most"),
+        (["--centre", "a,b"], "--centre takes six numbers phi,theta,psi,X,Y,Z"),
+        (["--centre", ","], "--centre takes six numbers phi,theta,psi,X,Y,Z"),
+        (["--lowpass-hz", "1e-300"], "reference.lowpass_hz must be a finite number in [0.01"),
+    ],
+)
+def test_reproduce_s_bad_values_give_one_line(capsys, tmp_path, options, expected):
+    trace = tmp_path / "trace.csv"
+    t = np.arange(0.0, 20.0, 0.05)
+    rows = "".join(f"{tk:.2f},{5 * np.sin(2 * np.pi * tk / 4):.4f}\n" for tk in t)
+    trace.write_text("t [s],SI [mm]\n" + rows)
+    motion = "breathing" if options[0] in ("--tolerance", "--param") else str(trace)
+    argv = ["reproduce", motion, *options, "--out", str(tmp_path / "out"), "--no-progress"]
+    assert expected in _one_line_error(capsys, argv)

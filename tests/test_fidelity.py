@@ -247,3 +247,17 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
     doc = (docs / "organ_motion.md").read_text()
     start, end = doc.index(TABLE_MARKERS[0]), doc.index(TABLE_MARKERS[1])
     assert tables(figures) == doc[start : end + len(TABLE_MARKERS[1])]
+
+
+def test_mismatched_or_non_finite_inputs_are_typed_errors():
+    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.simulation.organ_motion import common_period
+
+    t = np.arange(100) * 0.01
+    with pytest.raises(InvalidConfigError, match="time_lag needs two signals of the same shape"):
+        fd.time_lag(t, np.zeros((100, 6)), np.zeros((99, 6)))
+    with pytest.raises(InvalidConfigError, match="finite times and frequencies"):
+        fd.harmonic_phasors(t, np.zeros(100), [math.nan])
+    with pytest.raises(InvalidConfigError, match="periods must be finite positive numbers"):
+        common_period([4.0, math.nan])
+    assert common_period([4.0, 60 / 72]) == pytest.approx(20.0)  # 5 breaths, 24 heartbeats

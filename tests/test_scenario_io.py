@@ -176,3 +176,8 @@ def test_a_section_may_carry_its_own_class_s_tag(tmp_path):
     path.write_text("learning: !PdDriver {}\n")
     with pytest.raises(InvalidConfigError, match=r"a tag \(!Name\) that is not its section's own"):
         load_scenario(path)
+
+
+def test_a_scenario_that_is_not_a_path_or_a_name_is_refused():
+    with pytest.raises(MissingFileError, match="a scenario is a .yaml path or a shipped name"):
+        load_scenario(None)

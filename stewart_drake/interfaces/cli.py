@@ -333,11 +333,14 @@ def _cmd_reproduce(args) -> int:
                 "--param sets a library motion's parameters; a trace takes "
                 "--map, --lowpass-hz, --centre, --centre-on, --max-gap"
             )
-        centre = (
-            [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
-            if args.centre is None
-            else [float(v) for v in args.centre.split(",")]
-        )
+        centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
+        if args.centre is not None:
+            try:
+                centre = [float(v) for v in args.centre.split(",")]
+            except ValueError:
+                raise InvalidConfigError(
+                    f"--centre takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.centre!r}"
+                ) from None
         scenario.reference = TraceReference(
             path=source,
             axis_map=mapping,

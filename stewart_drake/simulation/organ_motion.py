@@ -72,7 +72,9 @@ def axis_index(name: str) -> tuple[int, float]:
     """
     text = str(name).strip()
     sign = -1.0 if text.startswith("-") else 1.0
-    key = text.lstrip("+-").strip()
+    key = text[1:].strip() if text[:1] in "+-" else text
+    if key[:1] in ("+", "-"):
+        raise InvalidConfigError(f"axis {name!r}: one sign at most (e.g. -Z)")
     key = PATIENT_AXES.get(key, _AXIS_SYNONYMS.get(key, key))
     if key not in AXIS_NAMES:
         raise InvalidConfigError(
@@ -359,8 +361,14 @@ class Heartbeat(_Motion):
 def common_period(periods, max_ratio_denominator: int = 24) -> float | None:
     """The shortest time after which every period repeats (their least common multiple), s, or
     None when two periods are not in a ratio of small integers (denominator up to
-    ``max_ratio_denominator``, within 1e-9 relative)."""
+    ``max_ratio_denominator``, within 1e-9 relative).
+
+    Raises:
+        InvalidConfigError: no period, or one that is not a finite positive number.
+    """
     periods = [float(p) for p in periods]
+    if not periods or not all(0 < p < math.inf for p in periods):
+        raise InvalidConfigError(f"periods must be finite positive numbers of s, got {periods}")
     total = periods[0]
     for p in periods[1:]:
         ratio = Fraction(total / p).limit_denominator(max_ratio_denominator)
@@ -724,10 +732,10 @@ def _parse_value(key: str, field_name: str, value):
         return value
     text = value.strip()
     if suffix in UNITS:
-        m = re.fullmatch(r"([-+]?[\d.]+(?:[eE][-+]?\d+)?)\s*([a-zA-Z/]*)", text)
-        if m is None:
+        m = re.fullmatch(r"([-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Z/]*)", text)
+        if m is None or not math.isfinite(float(m.group(1))):
             raise InvalidConfigError(
-                f"parameter {key}: {value!r} is not a number with a unit "
+                f"parameter {key}: {value!r} is not a finite number with a unit "
                 f"(e.g. 15mm); units: {', '.join(UNITS[suffix])}"
             )
         number, unit = float(m.group(1)), m.group(2).lower()

@@ -58,6 +58,11 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     from ..fileio import read_checked
 
     shipped = shipped_scenarios()
+    if not isinstance(source, (str, Path)):
+        raise MissingFileError(
+            f"a scenario is a .yaml path or a shipped name ({', '.join(sorted(shipped))}), "
+            f"got {source!r}"
+        )
     path = Path(source)
     if not path.exists():
         if str(source) in shipped:

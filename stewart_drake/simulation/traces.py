@@ -274,6 +274,11 @@ def _resampled(
     return displacement, gaps
 
 
+#: Lowest corner of a trace's low-pass, Hz: a breath is 0.1-0.5 Hz, so a lower corner removes the
+#: motion itself.
+MIN_LOWPASS_HZ = 0.01
+
+
 def _lowpassed(
     displacement: np.ndarray, lowpass_hz: float | None, resample_hz: float
 ) -> np.ndarray:
@@ -370,7 +375,8 @@ def load_trace(
     max_gap_s = as_number("max_gap_s", max_gap_s, 0.0, lo_open=True)
     resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
     if lowpass_hz is not None:
-        lowpass_hz = as_number("lowpass_hz", lowpass_hz, 0.0, 0.5 * resample_hz, lo_open=True)
+        # Below MIN_LOWPASS_HZ the filter removes every breath (and its design is singular).
+        lowpass_hz = as_number("lowpass_hz", lowpass_hz, MIN_LOWPASS_HZ, 0.5 * resample_hz)
     grid = _trace_grid(path, t, resample_hz)
     displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate, max_gap_s)
     displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets)
@@ -428,7 +434,8 @@ class TraceReference(ReferenceConfig):
             raise InvalidConfigError(
                 f"reference.centre_on must be one of {CENTRE_MODES}, got {self.centre_on!r}"
             )
-        as_number("reference.lowpass_hz", self.lowpass_hz, 0.0)
+        if as_number("reference.lowpass_hz", self.lowpass_hz, 0.0) != 0.0:
+            as_number("reference.lowpass_hz", self.lowpass_hz, MIN_LOWPASS_HZ)
         as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
         as_array("reference.centre", self.centre, shape=(6,))
 

@@ -77,11 +77,18 @@ def time_lag(
     Args:
         t: (n,) evenly spaced times, s. achieved, reference: (n,) or (n, c) signals (columns
             summed in the correlation: one lag for several axes).
+    Raises:
+        InvalidConfigError: signals of another length than ``t`` or of different shapes.
     """
     from scipy.signal import correlate
 
-    a = np.asarray(achieved, dtype=float).reshape(len(t), -1)
-    r = np.asarray(reference, dtype=float).reshape(len(t), -1)
+    a, r = np.asarray(achieved, dtype=float), np.asarray(reference, dtype=float)
+    if a.shape != r.shape or len(a) != len(t):
+        raise InvalidConfigError(
+            f"time_lag needs two signals of the same shape, one row per time: t has {len(t)}, "
+            f"achieved {a.shape}, reference {r.shape}"
+        )
+    a, r = a.reshape(len(t), -1), r.reshape(len(t), -1)
     a, r = a - a.mean(axis=0), r - r.mean(axis=0)
     dt = float(np.median(np.diff(t)))
     L = max(1, int(round(max_lag_s / dt)))
@@ -109,9 +116,16 @@ def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.n
 
     Over a window of whole periods of every frequency this is the DFT at those bins (numpy's
     FFT gives the same numbers); the joint fit keeps them apart in any other window too.
+
+    Raises:
+        InvalidConfigError: a frequency or a time that is not finite.
     """
     t = np.asarray(t, dtype=float)
     f = np.asarray(frequencies_hz, dtype=float).reshape(-1)
+    if not (np.isfinite(f).all() and np.isfinite(t).all()):
+        raise InvalidConfigError(
+            f"harmonic_phasors needs finite times and frequencies, got frequencies {f}"
+        )
     arg = 2 * np.pi * (t - t[0])[:, None] * f
     design = np.hstack([np.ones((len(t), 1)), np.cos(arg), np.sin(arg)])
     y = np.asarray(signals, dtype=float).reshape(len(t), -1)
@@ -257,14 +271,16 @@ def parse_tolerance(text: str) -> tuple[float, float]:
 
     found = {}
     for part in str(text).split(","):
-        m = re.fullmatch(r"\s*([\d.]+(?:[eE][-+]?\d+)?)\s*([a-zA-Z]+)\s*", part)
+        m = re.fullmatch(r"\s*((?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?)\s*([a-zA-Z]+)\s*", part)
         unit = m.group(2).lower() if m else ""
         kind = next((k for k in ("m", "rad") if unit in UNITS[k]), None)
-        if m is None or kind is None or kind in found or not float(m.group(1)) > 0:
+        value = float(m.group(1)) if m else math.nan
+        if kind is None or kind in found or not 0 < value < math.inf:
             raise InvalidConfigError(
-                f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; got {text!r}"
+                f"a tolerance is one length and one angle, each a finite positive number with "
+                f"its unit, e.g. 0.1mm,0.1deg; got {text!r}"
             )
-        found[kind] = float(m.group(1)) * UNITS[kind][unit]
+        found[kind] = value * UNITS[kind][unit]
     if len(found) != 2:
         raise InvalidConfigError(
             f"a tolerance is one length and one angle, e.g. 0.1mm,0.1deg; got {text!r}"
