@@ -1005,3 +1005,33 @@ def test_reproduce_s_bad_values_give_one_line(capsys, tmp_path, options, expecte
     motion = "breathing" if options[0] in ("--tolerance", "--param") else str(trace)
     argv = ["reproduce", motion, *options, "--out", str(tmp_path / "out"), "--no-progress"]
     assert expected in _one_line_error(capsys, argv)
+
+
+def _csv_reference(path, duration_s, move_at_s=None):
+    """A reference CSV: a 5 mm heave at 0.25 Hz, and from ``move_at_s`` on an X move at 3 m/s
+    that leaves the workspace within 0.1 s."""
+    t = np.arange(0.0, duration_s + 1e-9, 0.05)
+    x = np.zeros_like(t) if move_at_s is None else np.clip((t - move_at_s) * 3.0, 0.0, 0.3)
+    z = 0.30 + 0.005 * np.sin(2 * np.pi * t / 4)
+    rows = np.column_stack([t, np.zeros((len(t), 3)), x, np.zeros(len(t)), z])
+    np.savetxt(path, rows, delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments="", fmt="%.6g")
+    return path
+
+
+def test_check_takes_a_csv_s_own_length(capsys, tmp_path):
+    short = _csv_reference(tmp_path / "short.csv", 6.0)
+    assert cli.main(["check", str(short), "--out", str(tmp_path)]) == 0  # 6 s, not the 10 s
+    assert "refused" not in capsys.readouterr().err
+    late = _csv_reference(tmp_path / "late.csv", 13.0, move_at_s=11.0)
+    line = _one_line_error(capsys, ["check", str(late), "--out", str(tmp_path)])
+    assert "cannot reach the pose at t = 11." in line  # past the scenario's 10 s: checked
+
+
+@pytest.mark.parametrize("duration", ["100000", "1e9"])
+def test_check_refuses_a_check_beyond_the_machine_s_memory(capsys, tmp_path, monkeypatch, duration):
+    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 24e9)
+    line = _one_line_error(
+        capsys, ["check", "paper", "--duration", duration, "--out", str(tmp_path)]
+    )
+    assert f"checking {float(duration):g} s of the reference every 0.001 s: about" in line
+    assert "memory needed, more than the" in line and "shorten --duration" in line

@@ -273,14 +273,14 @@ def _cmd_run(args) -> int:
 
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
-    from ..simulation.scenario_io import load_scenario
-    from ..simulation.trajectories import TRAJECTORIES, CsvReference, NamedReference
+    from ..simulation.scenario_io import apply_run_options, load_scenario
+    from ..simulation.trajectories import TRAJECTORIES, NamedReference
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
-    if source.lower().endswith(".csv"):
+    if source.lower().endswith(".csv"):  # as long as the file, as `run` takes it
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario.reference = CsvReference(source)
+        scenario = apply_run_options(scenario, trajectory_file=source, duration_s=args.duration)
     elif source in TRAJECTORIES:
         scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = NamedReference(source)

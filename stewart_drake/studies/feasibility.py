@@ -23,9 +23,23 @@ def check(scenario, reference=None) -> TrajectoryReport:
     robot, every refusal reported instead of raised.
 
     Raises:
-        InvalidConfigError: a bad scenario, a reference that is not finite or too short.
+        InvalidConfigError: a bad scenario, a reference that is not finite or too short, or a
+            check that needs more memory than the machine has (estimated before anything is
+            sampled: :data:`~.experiments.REFERENCE_CHECK_BYTES_PER_SAMPLE` per control period).
     """
-    return check_reference(make_plan(scenario, reference=reference), raise_refused=False)
+    from ..checks import check_memory
+    from .experiments import REFERENCE_CHECK_BYTES_PER_SAMPLE
+
+    plan = make_plan(scenario, with_reference=False)
+    samples = plan.duration_s / plan.control_period_s + 1
+    what = f"checking {plan.duration_s:g} s of the reference every {plan.control_period_s:g} s"
+    on_reference, coarser = plan.scenario.reference.memory_note()
+    check_memory(
+        what + on_reference,
+        samples * REFERENCE_CHECK_BYTES_PER_SAMPLE + plan.scenario.reference.memory_bytes(),
+        "shorten --duration" + coarser,
+    )
+    return check_reference(make_plan(plan, reference=reference), raise_refused=False)
 
 
 def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
