@@ -1035,3 +1035,15 @@ def test_check_refuses_a_check_beyond_the_machine_s_memory(capsys, tmp_path, mon
     )
     assert f"checking {float(duration):g} s of the reference every 0.001 s: about" in line
     assert "memory needed, more than the" in line and "shorten --duration" in line
+
+
+@pytest.mark.parametrize(
+    "options, expected",
+    [
+        (["--cycles", "100000000"], "cycles of breathing asked for; it gives 900 whole cycles in"),
+        (["--duration", "1e9"], "set the number of cycles, not a duration"),
+    ],
+)
+def test_reproduce_refuses_what_it_cannot_honour(capsys, tmp_path, options, expected):
+    argv = ["reproduce", "breathing", *options, "--out", str(tmp_path), "--no-progress"]
+    assert expected in _one_line_error(capsys, argv)

@@ -428,14 +428,20 @@ def _check_counts(learn_cycles, eval_cycles) -> None:
         raise InvalidConfigError("eval_cycles must be at least 1")
 
 
+#: The longest run of a library motion reproduce makes, s: its cycles are counted over this
+#: time.
+MAX_REPRODUCE_S = 3600.0
+
+
 def _reference_starts(reference: Reference, learn_cycles: int) -> np.ndarray:
-    """(K + 1,) the starts of the reference's cycles over its length (or an hour), s; empty for
-    a reference without cycles, which only a run without learning accepts."""
+    """(K + 1,) the starts of the reference's cycles over its length (or
+    :data:`MAX_REPRODUCE_S`), s; empty for a reference without cycles, which only a run without
+    learning accepts."""
     from ..simulation.motion import reference_cycles
 
     end = getattr(reference, "end_time", None)
     try:
-        starts, _ = reference_cycles(reference, end if end is not None else 3600.0)
+        starts, _ = reference_cycles(reference, end if end is not None else MAX_REPRODUCE_S)
     except InvalidConfigError:
         if learn_cycles:
             raise
@@ -453,6 +459,16 @@ def _set_duration(
     end = getattr(reference, "end_time", None)
     total = run_cycles(reference, learn_cycles, eval_cycles)
     whole = end is not None and not learn_cycles  # a recorded trace: all of it
+    if not whole and starts.size > 0 and duration_s is not None:
+        raise InvalidConfigError(
+            f"{name} runs whole cycles ({total} asked for): set the number of cycles, not a "
+            f"duration (a duration is for a trace run whole or a reference without cycles)"
+        )
+    if not whole and end is None and 0 < starts.size <= total:
+        raise InvalidConfigError(
+            f"{total} cycles of {name} asked for; it gives {starts.size - 1} whole cycles in "
+            f"{MAX_REPRODUCE_S:g} s, the longest run reproduce makes: ask for fewer cycles"
+        )
     if whole and end is not None:
         scenario.duration_s = float(min(duration_s or end, end))
     elif starts.size > total:
