@@ -65,6 +65,8 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     x, x_d = _pose(run)
     assert x_d[4] == pytest.approx(0.03, abs=1e-4)  # the reference arrived
     assert x[4] == pytest.approx(0.03, abs=5e-4)  # and the platform with it
+    display_context = run.display.GetMyContextFromRoot(run.simulator.get_context())
+    assert run.display.figures(display_context)["limited"] == 0.0  # inside the workspace
     assert np.all(rate <= np.asarray(limits.rate) + 1e-12)  # rate-limited
     assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)  # ... and the limit binds
     assert np.all(acc <= np.asarray(limits.acceleration) + 1e-9)
@@ -81,6 +83,8 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
         peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9
     )
     assert 0.0 <= figures["error [mm]"] < 0.5
+    assert figures["limited"] == 1.0  # the sliders ask for more than the reference gives
+    assert meshcat.GetSliderValue("limited (reading)") == pytest.approx(1.0, abs=1e-3)
     assert meshcat.GetSliderValue("T margin [N m] (reading)") == pytest.approx(
         figures["T margin [N m]"], abs=peak / 10000
     )

@@ -119,7 +119,9 @@ class TeleopDisplay(LeafSystem):
     Each figure is a gauge of the Meshcat panel (a slider the display sets, named
     "<figure> (reading)"; names short enough for the panel): "error [mm]" (the tracking
     error, largest of |X - X_d|, |Y - Y_d|, |Z - Z_d|), "error [mrad]" (largest of the
-    angles), and one per entry of ``margins(x)``.
+    angles), "limited" (1 while the reference stops short of the sliders at the boundary of
+    the admissible workspace, from the optional input port ``limited`` (1,)), and one per entry
+    of ``margins(x)``.
 
     Args:
         meshcat: the Meshcat of the run. margins: ``margins(x (6,)) -> {name: value}``, the
@@ -141,6 +143,7 @@ class TeleopDisplay(LeafSystem):
         self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0), **(ranges or {})}
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._limited = self.DeclareVectorInputPort("limited", 1)
         self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0, publish=self._Publish)
 
     def figures(self, context) -> dict:
@@ -150,6 +153,11 @@ class TeleopDisplay(LeafSystem):
         return {
             "error [mm]": 1e3 * float(e[3:].max()),
             "error [mrad]": 1e3 * float(e[:3].max()),
+            **(
+                {"limited": float(self._limited.Eval(context)[0])}
+                if self._limited.HasValue(context)
+                else {}
+            ),
             **self.margins(x[:6]),
         }
 
@@ -259,11 +267,16 @@ def build_teleop(
     display = TeleopDisplay(
         meshcat,
         margins or robot_margins(geometry, peak, clearance),
-        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)},
+        ranges={
+            "T margin [N m]": (0.0, peak or 1.0),
+            "clearance [mm]": (0.0, 20.0),
+            "limited": (0.0, 1.0),
+        },
     )
     builder.AddNamedSystem("display", display)
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
+    builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
     diagram = builder.Build()
     diagram.set_name("teleop")
     simulator = Simulator(diagram)
