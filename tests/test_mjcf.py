@@ -199,3 +199,60 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
         assert data.ncon == sum(c.distance < 0 for c in pairs)
     assert max(differences) < 5e-4 and np.median(differences) < 1e-6
     assert data.ncon == 2  # the overlapping pose: two rods
+
+
+def _as_built():
+    from stewart_drake.simulation.plan import make_plan
+    from stewart_drake.simulation.scenario_io import load_scenario
+
+    plan = make_plan(load_scenario("paper_hardware"))
+    hw = plan.scenario.hardware
+    return plan, hw
+
+
+def test_the_twin_as_built_carries_the_plan_s_servo_and_limits():
+    """Armature, damping, friction loss and force range read back from the compiled model."""
+    plan, hw = _as_built()
+    servo = plan.servo
+    model = mjcf.load_model(plan.geometry, servo=servo, torque_limit_Nm=plan.torque_limit_Nm)
+    dofs = [int(model.joint(f"motor_{i}").dofadr[0]) for i in range(6)]
+    np.testing.assert_array_equal(model.dof_armature[dofs], servo.reflected_inertia)
+    np.testing.assert_array_equal(model.dof_damping[dofs], servo.viscous_damping)
+    np.testing.assert_array_equal(model.dof_frictionloss[dofs], servo.coulomb_friction_Nm)
+    np.testing.assert_array_equal(
+        model.actuator_forcerange, [[-plan.torque_limit_Nm, plan.torque_limit_Nm]] * 6
+    )
+    assert model.nsensor == 6
+    data = mujoco.MjData(model)
+    theta = mjcf.assemble(model, data, plan.geometry, X_TILTED)
+    q = hw.encoders.quantum_rad
+    read = mjcf.encoder_angles(model, data, q)
+    assert np.abs(read - theta).max() <= q / 2 + 1e-15
+    np.testing.assert_array_equal(np.round(read / q), np.round(read / q).round())
+    # Without a servo the text is the ideal robot's, byte for byte.
+    assert mjcf.write_mjcf(mjcf_geometry := plan.geometry.replace(motor_reflected_inertia=0.0)) == (
+        mjcf.write_mjcf(mjcf_geometry, servo=None, torque_limit_Nm=None)
+    )
+    with pytest.raises(InvalidConfigError, match="no encoders"):
+        mjcf.encoder_angles(mjcf.load_model(), mujoco.MjData(mjcf.load_model()), q)
+    with pytest.raises(InvalidConfigError, match="torque_limit_Nm"):
+        mjcf.write_mjcf(torque_limit_Nm=-1.0)
+
+
+@pytest.mark.parametrize("built", [False, True])
+def test_holding_torques_hold_in_both_twins(built):
+    """Gravity torques hold the tilted pose for 0.5 s, ideal or as built (friction only helps)."""
+    from stewart_drake.model.statics import holding_torques
+
+    plan, _ = _as_built()
+    g = plan.geometry if built else plan.geometry.replace(motor_reflected_inertia=0.0)
+    extra = dict(servo=plan.servo, torque_limit_Nm=plan.torque_limit_Nm) if built else {}
+    model = mjcf.load_model(g, **extra)
+    data = mujoco.MjData(model)
+    mjcf.assemble(model, data, g, X_TILTED)
+    data.ctrl[:] = holding_torques(g, X_TILTED)
+    for _ in range(500):
+        mujoco.mj_step(model, data)
+    drift = mjcf.platform_pose(model, data) - X_TILTED
+    assert np.abs(drift[3:]).max() < 1e-4
+    assert np.abs(drift[:3]).max() < 1e-3

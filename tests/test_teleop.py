@@ -66,6 +66,8 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     x, x_d = _pose(run)
     assert x_d[4] == pytest.approx(0.03, abs=1e-4)  # the reference arrived
     assert x[4] == pytest.approx(0.03, abs=5e-4)  # and the platform with it
+    display_context = run.display.GetMyContextFromRoot(run.simulator.get_context())
+    assert run.display.figures(display_context)["limited"] == 0.0  # inside the workspace
     assert np.all(rate <= np.asarray(limits.rate) + 1e-12)  # rate-limited
     assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)  # ... and the limit binds
     assert np.all(acc <= np.asarray(limits.acceleration) + 1e-9)
@@ -82,7 +84,9 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
         peak - np.abs(holding_torques(geometry, x[:6])).max(), rel=1e-9
     )
     assert 0.0 <= figures["error [mm]"] < 0.5
-    assert meshcat.GetSliderValue("T margin [N m]") == pytest.approx(
+    assert figures["limited"] == 1.0  # the sliders ask for more than the reference gives
+    assert meshcat.GetSliderValue("limited (reading)") == pytest.approx(1.0, abs=1e-3)
+    assert meshcat.GetSliderValue("T margin [N m] (reading)") == pytest.approx(
         figures["T margin [N m]"], abs=peak / 10000
     )
     meshcat.SetSliderValue("y", 0.0)
@@ -164,3 +168,39 @@ def test_teleop_ended_by_a_signal_says_so_and_exits_with_its_code(
     assert "realtime_rate" in captured.out  # the statistics of what ran
     line = captured.err.strip().splitlines()[-1]
     assert line.startswith(f"stewart-drake teleop: interrupted by {signal.Signals(signum).name}")
+
+
+def test_slider_limits_reach_the_farthest_admissible_pose_along_each_axis():
+    from stewart_drake.interfaces.teleop import SLIDER_RANGE, slider_limits
+
+    x0 = np.array(X_HOME)
+
+    # A box workspace: X in [x0 - 0.052, x0 + 0.152], the rest +-0.012 (rad or m); 5 mm steps.
+    def admissible(x):
+        d = np.atleast_2d(x) - x0
+        return (
+            (d[:, 3] >= -0.052) & (d[:, 3] <= 0.152) & (np.abs(np.delete(d, 3, 1)) <= 0.012).all(1)
+        )
+
+    lower, upper = slider_limits(admissible, x0, span=np.full(6, 0.2), points=40)
+    np.testing.assert_allclose(lower - x0, [-0.01, -0.01, -0.01, -0.05, -0.01, -0.01], atol=1e-12)
+    np.testing.assert_allclose(upper - x0, [0.01, 0.01, 0.01, 0.15, 0.01, 0.01], atol=1e-12)
+    # Nothing admissible: the sliders stay at x0.
+    lower, upper = slider_limits(lambda x: np.zeros(len(x), bool), x0)
+    np.testing.assert_array_equal(lower, x0)
+    np.testing.assert_array_equal(upper, x0)
+    assert SLIDER_RANGE[3] == 0.04
+
+
+def test_teleop_x_slider_spans_the_workspace_and_gauges_say_reading():
+    meshcat = Meshcat()
+    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
+    run_teleop(run, 0.2, report=None)
+    names = meshcat.GetSliderNames()
+    assert {"error [mm] (reading)", "error [mrad] (reading)"} <= set(names)
+    # Beyond the old +-4 cm box: the workspace reaches farther in X.
+    meshcat.SetSliderValue("x", X_HOME[3] + 0.06)
+    assert meshcat.GetSliderValue("x") == pytest.approx(X_HOME[3] + 0.06, abs=1e-3)
+    meshcat.SetSliderValue("error [mm] (reading)", 9.0)  # a drag is overwritten
+    run_teleop(run, 0.2, report=None)
+    assert meshcat.GetSliderValue("error [mm] (reading)") < 9.0

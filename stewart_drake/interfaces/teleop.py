@@ -11,8 +11,10 @@ its margins (by default the torque margin of the holding torques against the mot
 torque and the clearance between the robot's parts; ``margins`` is the hook for other figures).
 The reference stops where two parts would come closer than ``guard.min_clearance_m``.
 
-The Meshcat panel's gauges are sliders whose values the display writes (dragging them does
-nothing). The run ends after ``duration_s`` or at Ctrl-C, and reports the real-time rate it kept.
+The Meshcat panel's gauges are sliders named "<figure> (reading)" whose values the display
+writes back every refresh (dragging them does nothing). The pose sliders span the admissible
+workspace around the start pose along each axis (:func:`slider_limits`).
+The run ends after ``duration_s`` or at Ctrl-C, and reports the real-time rate it kept.
 """
 
 from __future__ import annotations
@@ -39,12 +41,42 @@ if TYPE_CHECKING:  # for the annotations only: build_teleop imports these when i
     from ..simulation.diagram import StewartDiagram
     from ..simulation.reference import TeleopReference
 
-#: Slider range around the start pose: [roll, pitch, yaw] rad, [x, y, z] m.
+#: Slider range around the start pose: [roll, pitch, yaw] rad, [x, y, z] m, when the workspace
+#: is not swept (``slider_limits`` searches up to twice as far in each direction).
 SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
+#: Poses tried per direction and axis by :func:`slider_limits`.
+SLIDER_SWEEP_POINTS = 40
+#: Suffix of the gauges' names: they show a reading, they are not inputs.
+READING = " (reading)"
 #: Slider steps: 5 mrad, 1 mm.
 SLIDER_STEP = np.array([0.005, 0.005, 0.005, 0.001, 0.001, 0.001])
 #: How often the display is refreshed, s.
 DISPLAY_PERIOD_S = 0.1
+
+
+def slider_limits(admissible, x0, span=None, points: int = SLIDER_SWEEP_POINTS):
+    """Lower and upper slider limits, (6,) each [rad, m]: along each axis of the pose from
+    ``x0`` (the others held), the farthest pose up to ``span`` (default 5 x
+    :data:`SLIDER_RANGE`) in each direction that ``admissible`` accepts with every pose before
+    it; ``x0`` itself where none is. One call of ``admissible`` on 12 x ``points`` poses.
+
+    Args:
+        admissible: ``admissible(x (N, 6)) -> (N,) bool`` (the teleop reference's).
+        x0: (6,) the start pose. span: (6,) how far to search. points: poses per direction.
+    """
+    x0 = np.asarray(x0, dtype=float)
+    span = 5 * SLIDER_RANGE if span is None else np.asarray(span, dtype=float)
+    fractions = np.arange(1, points + 1) / points
+    trials = []
+    for axis in range(6):
+        for sign in (-1.0, 1.0):
+            x = np.tile(x0, (points, 1))
+            x[:, axis] += sign * fractions * span[axis]
+            trials.append(x)
+    ok = np.asarray(admissible(np.concatenate(trials)), dtype=bool).reshape(12, points)
+    reach = np.array([fractions[: int(np.argmin(np.append(row, False)))][-1:].sum() for row in ok])
+    reach = reach.reshape(6, 2) * span[:, None]
+    return x0 - reach[:, 0], x0 + reach[:, 1]
 
 
 def torque_margins(geometry, peak_torque_Nm: float | None) -> Callable[[np.ndarray], dict]:
@@ -85,9 +117,12 @@ class TeleopDisplay(LeafSystem):
     event: nothing between).
 
     Input ports: ``x`` (12,) the platform's true pose and rate; ``x_d`` (18,) the reference.
-    Each figure is a gauge of the Meshcat panel (a slider the display sets; names short enough
-    for the panel): "error [mm]" (the tracking error, largest of |X - X_d|, |Y - Y_d|,
-    |Z - Z_d|), "error [mrad]" (largest of the angles), and one per entry of ``margins(x)``.
+    Each figure is a gauge of the Meshcat panel (a slider the display sets, named
+    "<figure> (reading)"; names short enough for the panel): "error [mm]" (the tracking
+    error, largest of |X - X_d|, |Y - Y_d|, |Z - Z_d|), "error [mrad]" (largest of the
+    angles), "limited" (1 while the reference stops short of the sliders at the boundary of
+    the admissible workspace, from the optional input port ``limited`` (1,)), and one per entry
+    of ``margins(x)``.
 
     Args:
         meshcat: the Meshcat of the run. margins: ``margins(x (6,)) -> {name: value}``, the
@@ -109,6 +144,7 @@ class TeleopDisplay(LeafSystem):
         self.ranges = {"error [mm]": (0.0, 10.0), "error [mrad]": (0.0, 20.0), **(ranges or {})}
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._limited = self.DeclareVectorInputPort("limited", 1)
         self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0, publish=self._Publish)
 
     def figures(self, context) -> dict:
@@ -118,13 +154,19 @@ class TeleopDisplay(LeafSystem):
         return {
             "error [mm]": 1e3 * float(e[3:].max()),
             "error [mrad]": 1e3 * float(e[:3].max()),
+            **(
+                {"limited": float(np.asarray(self._limited.Eval(context))[0])}
+                if self._limited.HasValue(context)
+                else {}
+            ),
             **self.margins(x[:6]),
         }
 
     def _Publish(self, context):
         names = set(self.meshcat.GetSliderNames())
-        for name, value in self.figures(context).items():
-            lo, hi = self.ranges.get(name, (0.0, 1.0))
+        for figure, value in self.figures(context).items():
+            lo, hi = self.ranges.get(figure, (0.0, 1.0))
+            name = figure + READING
             if name not in names:
                 self.meshcat.AddSlider(name, lo, hi, (hi - lo) / 10000, lo)
             self.meshcat.SetSliderValue(name, float(np.clip(value, lo, hi)))
@@ -213,11 +255,12 @@ def build_teleop(
     loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
+    lower, upper = slider_limits(reference.admissible, x0)
     sliders = MeshcatPoseSliders(
         meshcat,
         initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
-        lower_limit=x0 - SLIDER_RANGE,
-        upper_limit=x0 + SLIDER_RANGE,
+        lower_limit=lower,
+        upper_limit=upper,
         step=SLIDER_STEP,
     )
     builder.AddNamedSystem("sliders", sliders)
@@ -225,11 +268,16 @@ def build_teleop(
     display = TeleopDisplay(
         meshcat,
         margins or robot_margins(geometry, peak, clearance),
-        ranges={"T margin [N m]": (0.0, peak or 1.0), "clearance [mm]": (0.0, 20.0)},
+        ranges={
+            "T margin [N m]": (0.0, peak or 1.0),
+            "clearance [mm]": (0.0, 20.0),
+            "limited": (0.0, 1.0),
+        },
     )
     builder.AddNamedSystem("display", display)
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
+    builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
     diagram = builder.Build()
     diagram.set_name("teleop")
     simulator = Simulator(diagram)

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..errors import InvalidConfigError
 from .geometry import StewartGeometry
+from .servo import ServoModel
 
 #: Integrators accepted by :func:`write_mjcf` (MuJoCo names).
 INTEGRATORS = ("implicitfast", "RK4", "implicit", "Euler")
@@ -121,19 +122,30 @@ def write_mjcf(
     integrator: str = DEFAULT_INTEGRATOR,
     solref=DEFAULT_SOLREF,
     solimp=DEFAULT_SOLIMP,
+    servo: ServoModel | None = None,
+    torque_limit_Nm: float | None = None,
 ) -> str:
     """MJCF text of the robot, assembled at the home pose, loops closed by ``connect``.
+
+    The robot as built: ``geometry.motor_reflected_inertia`` is each motor hinge's ``armature``;
+    a ``servo`` adds its viscous friction as the hinge's ``damping`` and its Coulomb friction as
+    ``frictionloss``, and a ``jointpos`` sensor ``encoder_i`` per motor (quantize its reading
+    with :func:`encoder_angles`); ``torque_limit_Nm`` bounds each actuator's force
+    (``forcerange``). Without them (the ideal robot) the text is the same as before them.
 
     Args:
         geometry: the robot; default reference_geometry.md.
         time_step: MuJoCo's ``option/timestep`` in s (> 0); 1e-3 like the Drake plant.
         integrator: one of :data:`INTEGRATORS`.
         solref, solimp: the six connect constraints' MuJoCo parameters, (2,) and (5,).
+        servo: the motors' friction (:class:`~.servo.ServoModel`), or None (frictionless).
+        torque_limit_Nm: the actuators' saturation in N m (> 0), or None (unlimited).
     Returns:
         The MJCF as a string (bodies, joints, sites and actuators named as in the module
         docstring; leg i = 0..5 in reference_geometry.md order).
     Raises:
-        InvalidConfigError: a time step, integrator or solver parameter out of range.
+        InvalidConfigError: a time step, integrator, solver parameter or torque limit out of
+            range.
     Source: body frames and inertias of the Drake plant at home (same SDF, Table I).
     """
     # Long: one document written element after element, in the order the file reads.
@@ -143,7 +155,24 @@ def write_mjcf(
     from .plant import MODEL_NAME, make_plant
 
     solref, solimp = _check_options(time_step, integrator, solref, solimp)
+    if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
+        raise InvalidConfigError(
+            f"torque_limit_Nm must be a finite number of N m > 0, got {torque_limit_Nm}"
+        )
     g = geometry or StewartGeometry()
+    motor_extra = ""
+    if g.motor_reflected_inertia > 0:
+        motor_extra += f' armature="{_num(g.motor_reflected_inertia)}"'
+    if servo is not None:
+        if servo.viscous_damping > 0:
+            motor_extra += f' damping="{_num(servo.viscous_damping)}"'
+        if servo.coulomb_friction_Nm > 0:
+            motor_extra += f' frictionloss="{_num(servo.coulomb_friction_Nm)}"'
+    force = (
+        ""
+        if torque_limit_Nm is None
+        else f' forcelimited="true" forcerange="{_num([-torque_limit_Nm, torque_limit_Nm])}"'
+    )
     plant, context, handles, _, _ = make_plant(g)
 
     def pose(body) -> RigidTransform:
@@ -177,7 +206,8 @@ def write_mjcf(
             f'    <body name="crank_{i}" {frame(X_WC)}>',
             f"      {_inertial(crank)}",
             f'      <joint name="motor_{i}" type="hinge" '
-            f'axis="{_num(handles.motors[i].revolute_axis())}" ref="{_num(theta_home[i])}"/>',
+            f'axis="{_num(handles.motors[i].revolute_axis())}" ref="{_num(theta_home[i])}"'
+            f"{motor_extra}/>",
             *(f"      {geom}" for geom in shapes[f"crank_{i}"]),
             f'      <body name="rod_{i}" {frame(X_CR)}>',
             f"        {_inertial(rod)}",
@@ -204,8 +234,13 @@ def write_mjcf(
         for i in range(6)
     ]
     out += ["  </equality>", "  <actuator>"]
-    out += [f'    <motor name="motor_{i}" joint="motor_{i}" gear="1"/>' for i in range(6)]
-    out += ["  </actuator>", "</mujoco>", ""]
+    out += [f'    <motor name="motor_{i}" joint="motor_{i}" gear="1"{force}/>' for i in range(6)]
+    out += ["  </actuator>"]
+    if servo is not None:
+        out += ["  <sensor>"]
+        out += [f'    <jointpos name="encoder_{i}" joint="motor_{i}"/>' for i in range(6)]
+        out += ["  </sensor>"]
+    out += ["</mujoco>", ""]
     return "\n".join(out)
 
 
@@ -296,3 +331,23 @@ def platform_pose(model, data) -> np.ndarray:
 def motor_angles(model, data) -> np.ndarray:
     """(6,) motor angles theta_i in rad (hinge ``motor_i`` positions)."""
     return data.qpos[_qpos_addresses(model, "motor_")].copy()
+
+
+def encoder_angles(model, data, quantum_rad: float) -> np.ndarray:
+    """(6,) motor angles in rad as the encoders read them: sensors ``encoder_i`` of a model
+    written with a servo, rounded to whole counts of ``quantum_rad`` (rad per count, > 0).
+
+    Raises:
+        InvalidConfigError: no encoder sensors (the ideal robot), or a quantum out of range.
+    """
+    if not (np.isfinite(quantum_rad) and quantum_rad > 0):
+        raise InvalidConfigError(
+            f"quantum_rad must be a finite number of rad > 0, got {quantum_rad}"
+        )
+    try:
+        adr = [int(model.sensor(f"encoder_{i}").adr[0]) for i in range(6)]
+    except KeyError:
+        raise InvalidConfigError(
+            "the model has no encoders: write it with a servo (write_mjcf(servo=...))"
+        ) from None
+    return np.round(data.sensordata[adr] / quantum_rad) * quantum_rad

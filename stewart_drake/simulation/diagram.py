@@ -147,7 +147,8 @@ def make_stewart_diagram(
             :class:`~.reference.TeleopReference`): a system with output ports ``x_d`` (18) and
             ``T_ff`` (6) and attributes ``x_initial`` (6,) and ``T_ff_initial`` (6,). Its input
             ports are exported under their names, and the Diagram exports ``platform_state``
-            (12) and ``x_d`` (18) for a display; ``scenario.reference`` and ``duration_s`` are
+            (12), ``x_d`` (18) and, if it has one, its ``limited`` port for a display;
+            ``scenario.reference`` and ``duration_s`` are
             then not used (``trajectory`` is None).
     Returns:
         :class:`StewartDiagram`; loggers (``LogVectorOutput``) keyed "state" (plant state),
@@ -217,6 +218,8 @@ def make_stewart_diagram(
     if reference_system is not None:
         builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
         builder.ExportOutput(ref.x_d, "x_d")
+        if reference_system.HasOutputPort("limited"):
+            builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(

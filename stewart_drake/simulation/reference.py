@@ -197,13 +197,14 @@ class TeleopReference(LeafSystem):
     """
 
     #: Index slices of the parts of the state.
-    X, V, A, GOAL, T_FF, COUNTER = (
+    X, V, A, GOAL, T_FF, COUNTER, LIMITED = (
         slice(0, 6),
         slice(6, 12),
         slice(12, 18),
         slice(18, 24),
         slice(24, 30),
         slice(30, 31),
+        slice(31, 32),
     )
 
     def __init__(
@@ -231,7 +232,7 @@ class TeleopReference(LeafSystem):
         #: (6,) the start pose and its holding torques, N m.
         self.x_initial = x0.copy()
         self.T_ff_initial = holding_torques(geometry, x0)
-        state = np.zeros(31)
+        state = np.zeros(32)
         state[self.X], state[self.GOAL], state[self.T_FF] = x0, x0, self.T_ff_initial
         self._target = self.DeclareAbstractInputPort("target", AbstractValue.Make(RigidTransform()))
         self._state = self.DeclareDiscreteState(state)
@@ -240,6 +241,15 @@ class TeleopReference(LeafSystem):
         )
         self.DeclareVectorOutputPort(
             "T_ff", 6, self._CalcTff, prerequisites_of_calc={self.xd_ticket()}
+        )
+        self.DeclareVectorOutputPort(
+            "limited",
+            1,
+            lambda context, output: output.SetFromVector(
+                # The stubs take an int; Drake takes the DiscreteStateIndex it returned.
+                context.get_discrete_state(self._state).get_value()[self.LIMITED]  # type: ignore[call-overload]
+            ),
+            prerequisites_of_calc={self.xd_ticket()},
         )
         self.DeclarePeriodicDiscreteUpdateEvent(
             period_sec=self.h, offset_sec=0.0, update=self._Update
@@ -270,6 +280,7 @@ class TeleopReference(LeafSystem):
             target = np.concatenate([RollPitchYaw(X_WE.rotation()).vector(), X_WE.translation()])
             if np.all(np.isfinite(target)) and np.any(target != state[self.GOAL]):
                 state[self.GOAL] = self.goal_toward(state[self.GOAL], target)
+                state[self.LIMITED] = float(np.any(state[self.GOAL] != target))
             state[self.T_FF] = holding_torques(self.geometry, state[self.X])
         steps += 1.0
         h, w = self.h, self._omega
