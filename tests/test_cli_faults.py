@@ -1047,3 +1047,11 @@ def test_check_refuses_a_check_beyond_the_machine_s_memory(capsys, tmp_path, mon
 def test_reproduce_refuses_what_it_cannot_honour(capsys, tmp_path, options, expected):
     argv = ["reproduce", "breathing", *options, "--out", str(tmp_path), "--no-progress"]
     assert expected in _one_line_error(capsys, argv)
+
+
+@pytest.mark.parametrize("folder", ["/", "/etc", "/usr/share/doc/x", "/var/lib"])
+def test_evaluate_refuses_a_system_folder_for_its_report(capsys, tmp_path, folder):
+    argv = ["evaluate", "--quick", "--docs", folder, "--out", str(tmp_path / "out")]
+    line = _one_line_error(capsys, argv)
+    assert f"--docs {folder}:" in line and "folder of the operating system" in line, line
+    assert not (tmp_path / "out").exists()

@@ -178,6 +178,44 @@ def _positive_float(text: str) -> float:
     return value
 
 
+#: Folders of the operating system a report is never written into (nor anywhere below them),
+#: even by a user allowed to: a report there is a mistake, and it would mix with system files.
+SYSTEM_FOLDERS = (
+    "/bin",
+    "/boot",
+    "/dev",
+    "/etc",
+    "/lib",
+    "/lib32",
+    "/lib64",
+    "/proc",
+    "/sbin",
+    "/sys",
+    "/usr",
+    "/var/cache",
+    "/var/lib",
+    "/var/log",
+    "/var/spool",
+)
+
+
+def _refuse_system_folder(folder, option: str) -> None:
+    """Refuse ``folder`` when it is the file system's root or in :data:`SYSTEM_FOLDERS`.
+
+    Raises:
+        InvalidConfigError: names the option, the folder and what to give instead.
+    """
+    from ..errors import InvalidConfigError
+
+    resolved = Path(folder).expanduser().resolve()
+    system = [s for s in SYSTEM_FOLDERS if resolved.is_relative_to(s)]
+    if resolved == Path(resolved.anchor) or system:
+        raise InvalidConfigError(
+            f"{option} {folder}: {resolved} is a folder of the operating system; give a folder "
+            "of your own (e.g. docs in a clone of the repository, or results/evaluation)"
+        )
+
+
 def has_torch() -> bool:
     """Whether torch (the [train] extra) can be imported, without importing it."""
     import importlib.util
@@ -527,6 +565,7 @@ def _cmd_evaluate(args) -> int:
         controllers = QUICK_CONTROLLERS if args.quick else CONTROLLERS
     check_controllers(controllers)  # an unknown name, before the rest
     docs = args.out if args.docs is None else args.docs  # never the repository's docs/
+    _refuse_system_folder(docs, "--docs")
     check_output(docs, "--docs")
     tuner_study = not (args.no_tuner_study or args.quick)
     if tuner_study and not has_torch():

@@ -359,6 +359,10 @@ class Scenario:
     """Everything that defines one closed-loop run; SI units. Defaults: the paper's experiment
     (eqs. 37-38, 10 s) on the ideal robot, LQI with omega_Q = omega_R = 1.
 
+    ``Scenario()`` is the *ideal* robot (the shipped ``paper_ideal``), while the CLI's commands
+    default to the robot as built (``paper_hardware``: encoders, servos, friction, delay). For
+    the CLI's robot in Python: ``load_scenario("paper_hardware")``.
+
     Attributes:
         robot: the geometry and inertias (:class:`Robot`).
         plant: Drake's ``MultibodyPlantConfig``; ``time_step`` > 0 and a SAP approximation
