@@ -262,3 +262,14 @@ def test_bad_geometry_is_refused_by_name(fields, message):
 
 def load_scenario_text(text):
     return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
+
+
+def test_an_absurd_disturbance_or_q_filter_is_refused_before_simulating():
+    from stewart_drake.control.ilc import IlcDriver
+    from stewart_drake.simulation.scenario import ToolDisturbance
+
+    with pytest.raises(InvalidConfigError, match=r"disturbance.magnitude must be .* \[0, 10000\]"):
+        Scenario(disturbance=ToolDisturbance("push", 1e300, [1.0, 0.0, 0.0]))
+    with pytest.raises(InvalidConfigError, match=r"learning.q_cutoff_hz must be .* \[0.1,"):
+        Scenario(learning=IlcDriver(q_cutoff_hz=1e-300))
+    Scenario(disturbance=ToolDisturbance("push", 1e4, [1.0, 0.0, 0.0]))  # the bound itself

@@ -114,6 +114,11 @@ def rms_pose_error(e: np.ndarray) -> tuple[float, float]:
     )
 
 
+#: Lowest corner of the Q-filter, Hz: below the breathing fundamental (0.1-0.5 Hz) the filter
+#: removes the correction it is there to keep (and far below, its design is singular).
+MIN_Q_CUTOFF_HZ = 0.1
+
+
 def q_filter(cutoff_hz: float, sample_period_s: float):
     """(b, a) of the 2nd-order Butterworth low-pass at ``cutoff_hz`` on samples
     ``sample_period_s`` apart (run forwards and backwards by :func:`learn`: zero phase, the
@@ -213,8 +218,8 @@ class IterativeLearningController(LeafSystem):
             cycle); nothing is recorded or corrected outside them.
         cycle_scale: (K,) amplitude of each cycle over the mean (default ones).
         gain: learning gain gamma, in (0, 2).
-        q_cutoff_hz: corner of the zero-phase Q-filter, Hz (at or above the Nyquist of the
-            records: none).
+        q_cutoff_hz: corner of the zero-phase Q-filter, Hz, at least :data:`MIN_Q_CUTOFF_HZ`
+            (at or above the Nyquist of the records: none).
         lead_s: phase lead, s: the error learned at phase phi is the one measured lead_s
             later (the loop's delay and lag).
         error: "pose" or "motor_angle" (:data:`ERROR_MODES`).
@@ -284,9 +289,7 @@ class IterativeLearningController(LeafSystem):
         self.learn_cycles = _count("learn_cycles", learn_cycles)
         self.decay = as_number("gain_decay_cycles", gain_decay_cycles, 0.0)
         self.M = max(8, int(round(float(np.median(lengths)) / self.R)))
-        self.ba = q_filter(
-            as_number("q_cutoff_hz", q_cutoff_hz, 0.0, lo_open=True), sample_period_s
-        )
+        self.ba = q_filter(as_number("q_cutoff_hz", q_cutoff_hz, MIN_Q_CUTOFF_HZ), sample_period_s)
         self.rows_max = int(math.ceil(lengths.max() / self.R))
         self._mem, size = _memory_layout(self.rows_max, self.M)
 
@@ -481,7 +484,7 @@ class IlcDriver:
 
     Attributes:
         gain: learning gain gamma, in (0, 2).
-        q_cutoff_hz: corner of the zero-phase Q-filter, Hz.
+        q_cutoff_hz: corner of the zero-phase Q-filter, Hz, at least :data:`MIN_Q_CUTOFF_HZ`.
         lead_s: phase lead, s (the loop's delay and lag).
         error: "pose" (forward kinematics of the encoders) or "motor_angle" (the motor-angle
             error, mapped to the pose by J^-1).
@@ -513,7 +516,7 @@ class IlcDriver:
         as_number(f"{prefix}gain", self.gain, 0.0, 2.0, lo_open=True)
         if self.gain >= 2.0:
             raise InvalidConfigError(f"{prefix}gain must be below 2, got {self.gain}")
-        as_number(f"{prefix}q_cutoff_hz", self.q_cutoff_hz, 0.0, lo_open=True)
+        as_number(f"{prefix}q_cutoff_hz", self.q_cutoff_hz, MIN_Q_CUTOFF_HZ)
         as_number(f"{prefix}lead_s", self.lead_s, 0.0, 1.0)
         if self.error not in ERROR_MODES:
             raise InvalidConfigError(

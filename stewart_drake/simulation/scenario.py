@@ -257,6 +257,10 @@ class Hardware:
 # -- disturbance, sensor noise, guard --------------------------------------------------------------
 
 
+#: Largest tool disturbance, N (push, contact) or N m (twist).
+MAX_DISTURBANCE = 1e4
+
+
 @dataclass
 class ToolDisturbance:
     """A wrench on the tool tip (world frame) during the run, through the station's
@@ -265,7 +269,7 @@ class ToolDisturbance:
     Attributes:
         kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
             oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
-        magnitude: N (push, contact) or N m (twist).
+        magnitude: N (push, contact) or N m (twist), at most :data:`MAX_DISTURBANCE`.
         direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
         start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
         frequency_hz: of the contact force, Hz.
@@ -290,6 +294,9 @@ class ToolDisturbance:
             )
         for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
             as_number(f"disturbance.{name}", getattr(self, name), 0.0)
+        # A tabletop platform of a kilogram: 10 kN (or 10 kN m) is far past anything it holds,
+        # and a much larger number overflows the contact solver instead of failing the run.
+        as_number("disturbance.magnitude", self.magnitude, 0.0, MAX_DISTURBANCE)
         axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
         if (
             axis is None
