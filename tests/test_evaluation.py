@@ -237,3 +237,18 @@ def test_evaluate_cli_refuses_unknown_controllers(capsys, tmp_path):
     )
     err = capsys.readouterr().err
     assert code == 2 and "unknown controller 'magic'" in err and len(err.splitlines()) == 1
+
+
+def test_the_evaluation_says_which_failures_the_sizing_explains():
+    from stewart_drake.interfaces.cli import _why_failed
+    from stewart_drake.studies.evaluation_report import disturbance_holding_torques
+
+    needs, limit = disturbance_holding_torques("paper_hardware")
+    assert needs["push 5 N"] > limit > needs["twist 0.2 N m"]  # 0.907 > 0.702 > 0.443 N m
+    rows = [{"case": {"condition": "push 5 N"}, "error": "lost"}] * 2 + [
+        {"case": {"condition": "nominal"}, "error": "a bug"}
+    ]
+    why = _why_failed(rows, "paper_hardware")
+    assert why.startswith(": 2 under push 5 N, which needs more holding torque than the motors'")
+    assert why.endswith("; 1 for other reasons")
+    assert _why_failed([], "paper_hardware") == ""

@@ -74,3 +74,13 @@ def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
     with pytest.raises(InvalidConfigError, match=r"no data for 2 s from t = 3 s"):
         load_trace(path, max_gap_s=1.0)
     assert load_trace(path, max_gap_s=3.0).info.gaps
+
+
+def test_a_trace_shorter_than_two_resampling_steps_is_refused(tmp_path):
+    from stewart_drake.errors import InvalidConfigError as Refused
+    from stewart_drake.simulation.traces import load_trace as load
+
+    path = tmp_path / "tiny.csv"
+    path.write_text("t [s],SI [mm]\n0,0\n0.001,1\n0.002,0\n0.003,1\n")
+    with pytest.raises(Refused, match=r"lasts 0.003 s, shorter than two resampling steps"):
+        load(path)

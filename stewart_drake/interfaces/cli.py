@@ -216,6 +216,28 @@ def _refuse_system_folder(folder, option: str) -> None:
         )
 
 
+def _why_failed(failed: list, base: str) -> str:
+    """What the failed rows of an evaluation share, when it is known: the runs under a
+    disturbance whose holding torque is beyond the motors' limit are lost by the sizing, not by
+    the controllers ("" when there is nothing to say)."""
+    from ..studies.evaluation_report import disturbance_holding_torques
+
+    if not failed:
+        return ""
+    needs, limit = disturbance_holding_torques(base)
+    beyond = {n for n, need in needs.items() if limit is not None and need > limit}
+    lost = [r for r in failed if r["case"].get("condition") in beyond]
+    if not lost:
+        return ""
+    names = ", ".join(sorted({r["case"]["condition"] for r in lost}))
+    other = len(failed) - len(lost)
+    return (
+        f": {len(lost)} under {names}, which needs more holding torque than the motors' "
+        f"{limit:.3f} N m: lost by the sizing, as results.md says"
+        + (f"; {other} for other reasons" if other else "")
+    )
+
+
 def has_torch() -> bool:
     """Whether torch (the [train] extra) can be imported, without importing it."""
     import importlib.util
@@ -585,11 +607,11 @@ def _cmd_evaluate(args) -> int:
         base=args.scenario,
         tuner_study=tuner_study,
     )
-    failed = sum("error" in r for r in report["rows"])
+    failed = [r for r in report["rows"] if "error" in r]
     info = report["info"]
     print(
         f"{len(report['rows'])} runs ({info['ran']} run now in {report['wall_s']:.0f} s wall, "
-        f"{info['reused']} found on disk; {failed} failed)"
+        f"{info['reused']} found on disk; {len(failed)} failed{_why_failed(failed, args.scenario)})"
     )
     if report.get("tuner"):
         print("tuner study (held-out tasks, paired against the best fixed ratio per task):")

@@ -221,8 +221,19 @@ def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
 
 def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
     """(m,) the times the trace is resampled at, s: every 1 / resample_hz from 0, and the
-    trace's own end (its memory checked first)."""
+    trace's own end (its memory checked first).
+
+    Raises:
+        InvalidConfigError: a trace shorter than two resampling steps (the spline needs three
+            samples), or one that needs more memory than the machine has.
+    """
     from ..checks import check_memory
+
+    if t[-1] < 2.0 / resample_hz:
+        raise InvalidConfigError(
+            f"{path}: the trace lasts {t[-1]:.4g} s, shorter than two resampling steps "
+            f"({2.0 / resample_hz:g} s at {resample_hz:g} Hz): record a longer trace"
+        )
 
     check_memory(
         f"a trace of {t[-1]:.4g} s resampled at {resample_hz:g} Hz ({path})",

@@ -462,16 +462,16 @@ def _disturbance_table(by: dict, ctrls: list, base: str) -> list:
     return L + [""]
 
 
-def _disturbance_statics(base: str) -> str:
-    """One sentence per tool disturbance: the static crank torque holding home under its peak
-    wrench needs (:func:`~stewart_drake.model.statics.tool_load_torques`), against the motors'
-    limit of the base scenario: above it, no controller can hold the pose."""
-    scenario = load_scenario(base)
-    plan = make_plan(scenario, with_reference=False)
-    limit, g = plan.torque_limit_Nm, plan.geometry
-    parts = []
+def disturbance_holding_torques(base: str) -> tuple[dict, float | None]:
+    """({disturbance: N m}, limit): the largest static crank torque holding home under each
+    tool disturbance's peak wrench needs (:func:`~stewart_drake.model.statics.tool_load_torques`,
+    gravity included), and the motors' torque limit of the base scenario (N m, None: none);
+    above the limit no controller can hold the pose."""
+    plan = make_plan(load_scenario(base), with_reference=False)
+    g = plan.geometry
+    needs = {}
     for name, d in DISTURBANCES.items():
-        need = float(
+        needs[name] = float(
             np.abs(
                 statics.tool_load_torques(
                     g,
@@ -482,6 +482,15 @@ def _disturbance_statics(base: str) -> str:
                 )
             ).max()
         )
+    return needs, plan.torque_limit_Nm
+
+
+def _disturbance_statics(base: str) -> str:
+    """One sentence per tool disturbance: :func:`disturbance_holding_torques` against the
+    motors' limit of the base scenario: above it, no controller can hold the pose."""
+    needs, limit = disturbance_holding_torques(base)
+    parts = []
+    for name, need in needs.items():
         verdict = (
             ""
             if limit is None
