@@ -216,6 +216,37 @@ def _refuse_system_folder(folder, option: str) -> None:
         )
 
 
+#: The commands that run the LQI's compiled step (a first run on a machine compiles it).
+COMPILING_COMMANDS = ("run", "collect", "evaluate", "reproduce", "teleop")
+
+
+def _say_if_compiling(
+    command: str, module: str = "stewart_drake.control.lqi_kernels", after_s: float = 3.0
+) -> None:
+    """Import the compiled LQI step (``module``) now, and say so on stderr if that takes more
+    than ``after_s``: the first import on a machine compiles it for about a minute (numba's
+    disk cache makes later ones take about a second), before anything else would show."""
+    import importlib
+
+    if module in sys.modules:
+        return
+    timer = threading.Timer(
+        after_s,
+        lambda: print(
+            f"stewart-drake {command}: compiling the LQI's control step for this machine and "
+            f"Python (once, about a minute; later runs start in seconds)",
+            file=sys.stderr,
+            flush=True,
+        ),
+    )
+    timer.daemon = True
+    timer.start()
+    try:
+        importlib.import_module(module)
+    finally:
+        timer.cancel()
+
+
 def _why_failed(failed: list, base: str) -> str:
     """What the failed rows of an evaluation share, when it is known: the runs under a
     disturbance whose holding torque is beyond the motors' limit are lost by the sizing, not by
@@ -1225,6 +1256,8 @@ def _main(argv: list[str] | None) -> int:
             check_output(
                 args.out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ())
             )
+        if args.command in COMPILING_COMMANDS:
+            _say_if_compiling(args.command)
         return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
