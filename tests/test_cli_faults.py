@@ -1067,3 +1067,22 @@ def test_a_slow_first_import_says_it_is_compiling(tmp_path, monkeypatch, capsys)
     assert "stewart-drake run: compiling the LQI's control step" in capsys.readouterr().err
     cli._say_if_compiling("run", module="quick_kernels", after_s=30.0)
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("delay_s", [0.8, 1.5])
+def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, delay_s):
+    """A Ctrl-C in the first second or two lands while pydrake's modules initialize (they
+    turn it into an ImportError): one line and 130, never a traceback."""
+    proc = subprocess.Popen(
+        COMMAND + ["run", "--duration", "0.2", "--out", str(tmp_path), "--no-progress"],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(REPO)),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    time.sleep(delay_s)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "interrupted by SIGINT" in err.strip().splitlines()[-1], err

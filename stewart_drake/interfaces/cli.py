@@ -23,7 +23,6 @@ import threading
 from pathlib import Path
 
 from ..errors import StewartError
-from ..simulation.scenario_io import DEFAULT_SCENARIO
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
 RESUMABLE = ("collect", "evaluate")
@@ -267,6 +266,14 @@ def _why_failed(failed: list, base: str) -> str:
         f"{limit:.3f} N m: lost by the sizing, as results.md says"
         + (f"; {other} for other reasons" if other else "")
     )
+
+
+def _default_scenario() -> str:
+    """The scenario the commands use unless told (imported when the parser is built, so that
+    importing this module loads no Drake: a Ctrl-C in the first second is then handled)."""
+    from ..simulation.scenario_io import DEFAULT_SCENARIO
+
+    return DEFAULT_SCENARIO
 
 
 def has_torch() -> bool:
@@ -802,9 +809,9 @@ def _add_scenario_arguments(parser, what: str) -> None:
     """``--scenario`` and ``--set``, the same for every command that starts from a scenario."""
     parser.add_argument(
         "--scenario",
-        default=DEFAULT_SCENARIO,
+        default=_default_scenario(),
         metavar="FILE|NAME",
-        help=f"{what}: a .yaml file or a shipped name ({DEFAULT_SCENARIO}: the "
+        help=f"{what}: a .yaml file or a shipped name ({_default_scenario()}: the "
         f"robot as built; paper_ideal: the paper's ideal robot; "
         f"`stewart-drake scenario --list`)",
     )
@@ -1058,8 +1065,8 @@ def _add_scenario_command(sub) -> None:
     scn.add_argument(
         "source",
         nargs="?",
-        default=DEFAULT_SCENARIO,
-        help=f"scenario file or shipped name (default: {DEFAULT_SCENARIO})",
+        default=_default_scenario(),
+        help=f"scenario file or shipped name (default: {_default_scenario()})",
     )
     scn.add_argument(
         "--set",
@@ -1120,7 +1127,7 @@ def _add_evaluate_command(sub) -> None:
     )
     ev.add_argument(
         "--scenario",
-        default=DEFAULT_SCENARIO,
+        default=_default_scenario(),
         metavar="FILE|NAME",
         help="scenario every case starts from (a .yaml file or a shipped name)",
     )
@@ -1246,11 +1253,16 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(argv: list[str] | None) -> int:
-    parser = build_parser()
     try:
+        parser = build_parser()  # imports Drake (about a second)
         args = parser.parse_args(argv)
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
+    except ImportError as err:
+        # pydrake's modules turn a Ctrl-C during their initialization into an ImportError.
+        if "initialization failed" not in str(err):
+            raise
+        return _interrupted(KeyboardInterrupt(), "", None)
     try:
         if getattr(args, "out", None) is not None:
             check_output(
@@ -1270,6 +1282,10 @@ def _main(argv: list[str] | None) -> int:
         return 1
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
         return _interrupted(err, args.command, getattr(args, "out", None))
+    except ImportError as err:  # a Ctrl-C while a command's own imports initialize pydrake
+        if "initialization failed" not in str(err):
+            raise
+        return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
 
 
 def _silence_stdout() -> None:
