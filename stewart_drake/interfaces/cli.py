@@ -334,24 +334,39 @@ def run_scenario(args):
     )
 
 
-def run_stem(scenario) -> str:
-    """``run_<reference>[_ann|_ratio|_tuned][_pd]``: the name of a run's result files, from the
-    scenario's reference, tuner and controller (``label``, ``run_suffix``)."""
+def run_stem(scenario, source: str | None = None, overrides=()) -> str:
+    """``run_[<scenario>_]<reference>[_ann|_ratio|_tuned][_pd][_set<hash>]``: the name of a
+    run's result files, from the scenario's reference, tuner and controller (``label``,
+    ``run_suffix``), the scenario file or name ``source`` when it is not the default one, and a
+    short hash of the ``--set`` overrides when there are any: two different runs never write
+    the same files (the default run keeps ``run_paper``)."""
+    import hashlib
+
     tuner = "" if scenario.tuner is None else scenario.tuner.run_suffix
-    return f"run_{scenario.reference.label}{tuner}{scenario.controller.run_suffix}"
+    name = Path(str(source)).stem if source is not None else _default_scenario()
+    prefix = "" if name == _default_scenario() else f"{name}_"
+    digest = hashlib.sha256("\n".join(overrides).encode()).hexdigest()[:6]
+    changed = f"_set{digest}" if overrides else ""
+    return f"run_{prefix}{scenario.reference.label}{tuner}{scenario.controller.run_suffix}{changed}"
 
 
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..fileio import check_replaceable
-    from ..studies.experiments import format_metrics, plot_fig7, run_experiment, save_result
+    from ..studies.experiments import (
+        export_result,
+        format_metrics,
+        plot_fig7,
+        run_experiment,
+        save_result,
+    )
 
     scenario = run_scenario(args)
     out = Path(args.out)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
-    stem = run_stem(scenario)
-    for suffix in (".npz", ".png"):
+    stem = run_stem(scenario, args.scenario, args.set or ())
+    for suffix in (".npz", ".png", ".csv", ".mat"):
         check_replaceable(out / f"{stem}{suffix}")
     if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
         print(f"{scenario.tuner.kind} weights: {scenario.tuner.weights_path()}")
@@ -365,7 +380,8 @@ def _cmd_run(args) -> int:
     print(format_metrics(result.metrics), flush=True)  # before the files: a full disk keeps them
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
-    print(f"wrote {npz} and {png}")
+    csv, mat = export_result(result, out / stem)
+    print(f"wrote {npz} and {png}; the logs as a table: {csv} and {mat}")
     return 0
 
 

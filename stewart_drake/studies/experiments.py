@@ -323,6 +323,70 @@ def save_result(result: RunResult, path: str | Path) -> Path:
     return save_npz(Path(path), arrays)
 
 
+#: The pose's and its rate's names and units, in the order of RunResult.x.
+_POSE_COLUMNS = (
+    ("phi", "rad"),
+    ("theta", "rad"),
+    ("psi", "rad"),
+    ("X", "m"),
+    ("Y", "m"),
+    ("Z", "m"),
+)
+
+
+def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]:
+    """(names, units, (N, k) values) of a run's logs as one table: t; the true pose and rate;
+    the reference's pose, rate and acceleration (``_d``); the applied motor torques T1..T6 (the
+    legs of docs/reference_geometry.md); the largest loop-closure error; omega_Q and omega_R
+    when the controller reports them."""
+    names, units, columns = ["t"], ["s"], [result.t[:, None]]
+    for suffix, per in (("", ""), ("_dot", "/s")):
+        names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
+        units += [f"{u}{per}" for _, u in _POSE_COLUMNS]
+    columns.append(result.x)
+    for suffix, per in (("_d", ""), ("_dot_d", "/s"), ("_ddot_d", "/s^2")):
+        names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
+        units += [f"{u}{per}" for _, u in _POSE_COLUMNS]
+    columns.append(result.x_d)
+    names += [f"T{i}" for i in range(1, 7)] + ["closure"]
+    units += ["N m"] * 6 + ["m"]
+    columns += [result.T, result.closure[:, None]]
+    if result.omega is not None:
+        names += ["omega_Q", "omega_R"]
+        units += ["1", "1"]
+        columns.append(result.omega)
+    return names, units, np.hstack(columns)
+
+
+def export_result(result: RunResult, stem: str | Path) -> list[Path]:
+    """Write a run's logs as a table with named columns and units, for spreadsheets and MATLAB:
+    ``<stem>.csv`` (a header ``name [unit]`` per column, :func:`result_columns`) and
+    ``<stem>.mat`` (one variable per column, plus ``columns`` and ``units``, cell arrays of
+    the names and units), each written atomically.
+
+    Returns:
+        [the .csv path, the .mat path].
+    """
+    import io
+
+    from scipy.io import savemat
+
+    from ..fileio import atomic_write
+
+    names, units, table = result_columns(result)
+    stem = Path(stem)
+    text = io.StringIO()
+    text.write(",".join(f"{n} [{u}]" for n, u in zip(names, units, strict=True)) + "\n")
+    np.savetxt(text, table, delimiter=",", fmt="%.17g")
+    csv, mat = stem.with_suffix(".csv"), stem.with_suffix(".mat")
+    atomic_write(csv, lambda f: f.write(text.getvalue().encode()))
+    variables = {n: table[:, k] for k, n in enumerate(names)}
+    variables["columns"] = np.array(names, dtype=object)
+    variables["units"] = np.array(units, dtype=object)
+    atomic_write(mat, lambda f: savemat(f, variables))
+    return [csv, mat]
+
+
 def load_result(path: str | Path) -> RunResult:
     """Read a file written by :func:`save_result`.
 
