@@ -83,3 +83,44 @@ def _comparable(rows: dict) -> dict:
             row.pop("traceback", None)
         out[key] = row
     return out
+
+
+def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
+    """A peer that accepts the connection and says nothing: refused after the connect timeout
+    for the connection and as much again for the handshake, not after minutes."""
+    import socket
+    import threading
+    import time
+
+    pytest.importorskip("distributed", reason="the dask extra is not installed")
+    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.execution.runners import make_runner
+
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(8)
+    held = []
+    stop = threading.Event()
+
+    def accept_and_hold():
+        server.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                held.append(server.accept()[0])
+            except OSError:
+                continue
+
+    threading.Thread(target=accept_and_hold, daemon=True).start()
+    port = server.getsockname()[1]
+    try:
+        runner = make_runner("dask", scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=1.0)
+        t0 = time.monotonic()
+        with pytest.raises(InvalidConfigError, match="it accepts a connection, but no Dask"):
+            list(runner.map(str, {"a": 1}))
+        # Given up after about 3 s; the bound holds with margin on a loaded 2-core machine.
+        assert time.monotonic() - t0 < 30.0
+    finally:
+        stop.set()
+        for conn in held:
+            conn.close()
+        server.close()

@@ -664,19 +664,39 @@ class DaskRunner(_PoolRunner):
         if self._target is not None:
             probe_address("--scheduler", *self._target[1:], self.connect_timeout_s)
 
+    def _join(self, distributed):
+        """``distributed.Client(scheduler)`` in a helper thread, given ``connect_timeout_s`` for
+        the connection and as long again for the handshake: a peer that accepts and never
+        answers would otherwise hold the main thread for minutes (the client's timeout bounds
+        the connect, not the handshake), where it sees no signal either."""
+        self.probe()
+        box: dict = {}
+
+        def join():
+            try:
+                box["client"] = distributed.Client(self.scheduler, timeout=self.connect_timeout_s)
+            except BaseException as err:  # noqa: BLE001 - reported by the main thread
+                box["error"] = err
+
+        thread = threading.Thread(target=join, daemon=True, name="dask-join")
+        thread.start()
+        deadline = time.monotonic() + 2 * self.connect_timeout_s + 1.0
+        while thread.is_alive() and time.monotonic() < deadline:
+            thread.join(0.2)
+        if thread.is_alive() or "error" in box:
+            err = box.get("error")
+            why = "" if err is None else f" ({' '.join(str(err).split())[:200]})"
+            raise InvalidConfigError(
+                f"--scheduler {self.scheduler}: it accepts a connection, but no Dask scheduler "
+                f"answered within {2 * self.connect_timeout_s + 1.0:g} s{why}"
+            )
+        return box["client"]
+
     def _open(self):
         distributed = _import_extra("distributed", "dask")
         cluster = None
         if self.scheduler:
-            self.probe()
-            try:
-                client = distributed.Client(self.scheduler, timeout=self.connect_timeout_s)
-            except OSError as err:  # it answered, but not as a Dask scheduler
-                raise InvalidConfigError(
-                    f"--scheduler {self.scheduler}: no Dask scheduler "
-                    f"answered within {self.connect_timeout_s:g} s "
-                    f"({' '.join(str(err).split())[:200]})"
-                ) from None
+            client = self._join(distributed)
         else:
             cluster = distributed.LocalCluster(
                 n_workers=self.n_workers or os.cpu_count(),
