@@ -567,7 +567,7 @@ def test_an_installed_controller_runs_only_when_the_user_opts_in(home, tmp_path)
     assert not (site / "PLUGIN_IMPORTED").exists()  # installed, but not opted into
     rc, out, err, _ = _user_runs(home, argv + ["--plugin", "demo_pd"], env=env)
     assert rc == 0 and "controller status: inertia reschedules" in out, err
-    assert (site / "PLUGIN_IMPORTED").exists() and (home / "out" / "run_paper.npz").exists()
+    assert (site / "PLUGIN_IMPORTED").exists() and (home / "out" / "run_mine_paper.npz").exists()
     _refused(
         home,
         argv + ["--plugin", "nope"],
