@@ -140,7 +140,10 @@ def test_workspace_sweeps_the_scenario_s_robot(tmp_path, capsys):
         return rows["reachable_volume"]
 
     assert volume("long", "--set", "robot.rod_length=0.45") > 1.5 * volume("default")
-    capsys.readouterr()
+    # A grid this coarse says so: its extents are known to within a quarter of the box.
+    assert "--resolution 5 is coarse: each extent is known only to within a step of 1/4" in (
+        capsys.readouterr().err
+    )
     assert (
         cli.main(
             [

@@ -693,6 +693,10 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+#: The coarsest workspace grid whose extents are worth reporting (a step of 1/20 of the box).
+MIN_REPORTED_RESOLUTION = 21
+
+
 def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
     from ..simulation.plan import make_plan
@@ -701,6 +705,13 @@ def _cmd_workspace(args) -> int:
 
     scenario = load_scenario(args.scenario, args.set or ())
     geometry = make_plan(scenario, with_reference=False).geometry
+    if args.resolution < MIN_REPORTED_RESOLUTION:
+        print(
+            f"stewart-drake workspace: --resolution {args.resolution} is coarse: each extent "
+            f"is known only to within a step of 1/{args.resolution - 1} of the box; use "
+            f"{MIN_REPORTED_RESOLUTION} or more for figures to report",
+            file=sys.stderr,
+        )
     rows = write_workspace(
         args.out,
         args.resolution,
