@@ -235,7 +235,9 @@ def test_cli_runs_a_scenario_file_with_overrides(tmp_path, capsys):
         == 0
     )
     assert "gain re-schedules: 31" in capsys.readouterr().out
-    data = np.load(tmp_path / "out" / "run_paper.npz")
+    # The scenario's name and a hash of the overrides name the files (run_stem).
+    (npz,) = (tmp_path / "out").glob("run_mine_paper_set*.npz")
+    data = np.load(npz)
     assert "omega_Q: 10.0" in str(data["config"]) and data["t"][-1] == pytest.approx(0.3)
     assert main(["run", "--set", "controller.gain=1", "--no-progress"]) == 2
     err = capsys.readouterr().err.splitlines()
