@@ -712,8 +712,10 @@ def _stderr_reader(proc, seen: list, marker: str, found: threading.Event):
 @pytest.mark.parametrize(
     "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name
 )
-def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum):
-    """A run paced at real time (30 s), signalled while it simulates: 128 + signum, one line."""
+def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
+    """A run paced at real time (30 s), signalled while it simulates: 128 + signum, one line,
+    within 10 s (0.3-0.4 s on a quiet machine, 2.1 s seen on a loaded one; the run had 29 s
+    left, so the signal cut it short)."""
     before = _snapshot(home, home / "out")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(
@@ -744,7 +746,7 @@ def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum)
         time.sleep(0.5)
         proc.send_signal(signum)
         t0 = time.monotonic()
-        proc.wait(timeout=10)
+        proc.wait(timeout=60)
         waited = time.monotonic() - t0
     finally:
         if proc.poll() is None:
@@ -752,9 +754,10 @@ def test_a_signal_ends_a_run_within_two_seconds_with_its_exit_code(home, signum)
             proc.wait()
     reader.join(5)
     lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
-    # A signal ends the run promptly (about 0.3 s on a quiet machine); the bound holds with a
-    # margin on a 2-core machine loaded by another suite, and a hang would take the 10 s wait.
-    assert proc.returncode == 128 + signum and waited < 8.0, (proc.returncode, waited)
+    # A signal ends the run promptly (about 0.3 s on a quiet machine); 10 s holds with a margin
+    # on a 2-core machine loaded by another suite, and an ignored signal would let the real-time
+    # run go on for the 29 s it has left.
+    assert proc.returncode == 128 + signum and waited < 10.0, (proc.returncode, waited)
     assert lines[-1] == (
         f"stewart-drake run: interrupted by {signal.Signals(signum).name}; "
         f"partial outputs were not written"

@@ -272,7 +272,7 @@ def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
     finally:
         release.set()
         server.close()
-    assert time.monotonic() - t0 < 3.0
+    assert time.monotonic() - t0 < 30.0  # 1.0 s on a quiet machine; the hang is 60 s
 
 
 def _sleep(job):
@@ -295,7 +295,7 @@ def test_workers_ended_mid_result_leave_no_thread_that_holds_the_exit():
     time.sleep(0.5)
     assert manager.is_alive()  # reading the rest
     pool.close([future])
-    manager.join(5)
+    manager.join(30)  # at once on a quiet machine; the hang it proves gone is forever
     assert not manager.is_alive()
 
 
