@@ -1,6 +1,7 @@
 """Baselines behind the same ports, robustness conditions, metrics and the report."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -252,3 +253,52 @@ def test_the_evaluation_says_which_failures_the_sizing_explains():
     assert why.startswith(": 2 under push 5 N, which needs more holding torque than the motors'")
     assert why.endswith("; 1 for other reasons")
     assert _why_failed([], "paper_hardware") == ""
+
+
+def _paper_rows_and_tuner_of(md: str):
+    """The paper table's rows and the tuner study's paper-tuner entries, read back from a
+    report's text (the figures as printed)."""
+    lines = md.splitlines()
+    (i,) = [
+        k for k, ln in enumerate(lines) if ln.startswith("| controller | phi |") and "nRMS" in ln
+    ]
+    header = [h.strip() for h in lines[i].strip("|").split("|")]
+    rows = []
+    for line in lines[i + 2 :]:
+        if not line.startswith("|"):
+            break
+        cell = dict(zip(header, (c.strip() for c in line.strip("|").split("|"))))
+        rows.append(
+            {
+                "case": dict(controller=cell["controller"], scenario="paper", condition="nominal"),
+                "normalized_rms": float(cell["nRMS"]),
+                "sum_dT2_dt": float(cell["feedback Sum dT^2 dt"]),
+                "sum_T2_dt": float(cell["Sum T^2 dt"]),
+            }
+        )
+    verdicts = {}
+    for lam, mean, std in re.findall(
+        r"^### lambda = (\S+)\n(?:.*\n)*?\| paper tuner \| ([+-]\d+) % \+- (\d+) % \|", md, re.M
+    ):
+        entry = {"mean": int(mean) / 100, "std": int(std) / 100, "beats": False}
+        verdicts[lam] = {"controllers": {"paper tuner": entry}}
+    return rows, {"settings": {"quick": False}, "verdicts": verdicts}
+
+
+def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
+    """docs/results.md's ANN section, as the generator writes it for the report's own figures:
+    the tuner study's answer first, and no one-run "beats"."""
+    from stewart_drake.studies.evaluation_report import _verdict_lines, index_rows
+
+    md = (REPO / "docs" / "results.md").read_text()
+    rows, tuner = _paper_rows_and_tuner_of(md)
+    assert len(rows) == 12 and set(tuner["verdicts"]) == {"0.01", "0.1", "1"}
+    section = "\n".join(_verdict_lines(index_rows(rows), [], tuner))
+    assert section in md
+    first = section.split("\n\n")[1]
+    assert first.startswith("**No**, over the held-out tasks of the tuner study")
+    assert "lambda = 0.01: +1785 % +- 2185 %" in first
+    assert "beats" not in section
+    assert "- **ann_best_cost** tracks better on this one run than" in section  # its one run
+    alone = "\n".join(_verdict_lines(index_rows(rows), [], None))
+    assert alone.split("\n\n")[1].startswith("**Not decided here**")

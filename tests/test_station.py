@@ -153,6 +153,27 @@ def test_a_controller_written_in_the_test_runs_the_paper_manoeuvre():
     CONTROLLER_REGISTRY.pop("task_space_pd")
 
 
+def test_the_plug_in_your_controller_example_runs_as_pasted(capsys):
+    """docs/station.md's example, executed as a user pastes it: it runs the paper manoeuvre,
+    prints the errors, and registers its factory for scenarios."""
+    import re
+
+    text = (Path(__file__).resolve().parent.parent / "docs" / "station.md").read_text()
+    (block,) = [b for b in re.findall(r"```python\n(.*?)```", text, re.S) if "MyController" in b]
+    try:
+        pasted = {"__name__": "__main__"}
+        exec(compile(block, "docs/station.md", "exec"), pasted)
+        assert capsys.readouterr().out.strip()  # the errors, printed
+        rms = np.asarray(pasted["result"].metrics["rms_error"])
+        assert rms.shape == (6,) and rms[0] < 1e-3 and rms[5] < 1e-4  # tracks: < 1 mrad, 0.1 mm
+        soft = run_experiment(
+            Scenario(duration_s=1.0, controller=UserController("mine", {"bandwidth_hz": 10.0}))
+        )
+        assert soft.metrics["finite"]
+    finally:
+        CONTROLLER_REGISTRY.pop("mine", None)
+
+
 def test_a_controller_that_breaks_the_contract_is_refused_by_port():
     class NoTorque(LeafSystem):
         def __init__(self, context):
