@@ -293,18 +293,18 @@ def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, f
     [
         (
             ["run", "--duration", "1e5"],
-            "a run of 100000 s logged every 0.001 s: about 400 GB of "
+            "a run of 100000 s logged every 0.001 s: about 700 GB of "
             "memory needed, more than the 8 GB available",
         ),
         (["run", "--duration", "1e9"], "a run of 1e+09 s logged"),
         (
             ["run", "--duration", "1e300"],
-            "a run of 1e+300 s logged every 0.001 s: about 4e+306 bytes of memory needed",
+            "a run of 1e+300 s logged every 0.001 s: about 7e+306 bytes of memory needed",
         ),
-        (["run", "--duration", "1e5", "--html", "replay.html"], "about 400 GB of memory needed"),
+        (["run", "--duration", "1e5", "--html", "replay.html"], "about 700 GB of memory needed"),
         (
             ["collect", "--duration", "1e6", "--jobs", "3"],
-            "3 runs at once, each of 1e+06 s logged every 0.001 s: about 12 TB of memory",
+            "3 runs at once, each of 1e+06 s logged every 0.001 s: about 21 TB of memory",
         ),
         (
             ["workspace", "--resolution", "100000"],
@@ -1089,3 +1089,77 @@ def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, delay_s):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and "interrupted by SIGINT" in err.strip().splitlines()[-1], err
+
+
+# -- case 11: a long recorded trace -------------------------------------------------------------
+
+
+def _long_trace(path: Path, rows: int) -> Path:
+    """A breathing trace of ``rows`` samples at 100 Hz (SI in mm), written fast."""
+    t = np.arange(rows) * 0.01
+    with open(path, "w") as f:
+        f.write("t [s],SI [mm]\n")
+        np.savetxt(
+            f, np.column_stack([t, 5.0 * np.sin(2 * np.pi * 0.25 * t)]), fmt="%.3f", delimiter=","
+        )
+    return path
+
+
+def test_a_trace_too_long_for_the_memory_is_refused_before_it_is_checked(
+    capsys, tmp_path, monkeypatch
+):
+    """200,000 rows (2000 s): read in about a second, then the run's memory is estimated
+    (14 GB at 1 kHz) and refused in one line before the reference is checked or anything
+    built."""
+    from stewart_drake.model import limits
+
+    path = _long_trace(tmp_path / "long.csv", 200_000)
+    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 4e9)
+    monkeypatch.setattr(limits, "validate_trajectory", lambda *a, **k: pytest.fail("checked"))
+    line = _one_line_error(capsys, ["reproduce", str(path), "--out", str(tmp_path / "out")])
+    assert re.search(
+        rf"a run of 1999.99 s logged every 0.001 s of the trace {path}: about 14 GB of memory "
+        rf"needed, .*; shorten duration_s \(--duration\) .* \(reproduce --duration replays its",
+        line,
+    ), line
+    assert "more than the 4 GB available" in line and not (tmp_path / "out").exists()
+
+
+def test_a_long_trace_shows_its_check_and_ends_promptly_on_a_signal(tmp_path):
+    """A 300 s stretch of a 2000 s trace: the check's bar shows within seconds of the start
+    (the trace read and its cycles found in about 1.5 s, 60 s allowed for a loaded machine),
+    and SIGINT during the check (15 s of it) ends the command within 10 s (0.4 s when quiet:
+    the check runs in stretches of 20 s) with 130 and one line."""
+    path = _long_trace(tmp_path / "long.csv", 200_000)
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    proc = subprocess.Popen(
+        COMMAND + ["reproduce", str(path), "--duration", "300", "--out", str(tmp_path / "o")],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    seen, checking = [], threading.Event()
+    reader = threading.Thread(
+        target=_stderr_reader, args=(proc, seen, "samples", checking), daemon=True
+    )
+    reader.start()
+    try:
+        assert checking.wait(60), "".join(seen)
+        proc.send_signal(signal.SIGINT)
+        t0 = time.monotonic()
+        proc.wait(timeout=60)
+        waited = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    reader.join(5)
+    lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
+    assert proc.returncode == 130 and waited < 10.0, (proc.returncode, waited)
+    assert "checking:" in "".join(seen) and "Traceback" not in "".join(seen)
+    assert lines[-1] == (
+        "stewart-drake reproduce: interrupted by SIGINT; partial outputs were not written"
+    ), lines[-3:]

@@ -21,7 +21,7 @@ from stewart_drake.simulation.scenario import (
 )
 from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.traces import TraceTrajectory, load_trace
-from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory
+from stewart_drake.simulation.trajectories import CubicSplineTrajectory, make_trajectory
 from stewart_drake.studies.fidelity import scale_to_fit
 
 MOTIONS = [
@@ -175,7 +175,7 @@ def test_the_projects_own_csv_is_read_as_before(tmp_path):
     rows = ["t,phi,theta,psi,X,Y,Z"] + [f"{k * 0.1},0,0,0,0,0,{0.3 + 0.001 * k}" for k in range(5)]
     path.write_text("\n".join(rows) + "\n")
     ref = load_trace(path)
-    assert isinstance(ref, DrakeTrajectory) and not isinstance(ref, TraceTrajectory)
+    assert isinstance(ref, CubicSplineTrajectory) and not isinstance(ref, TraceTrajectory)
     assert ref.evaluate(0.2)[0][5] == pytest.approx(0.302)
 
 

@@ -29,7 +29,7 @@ from stewart_drake.simulation.scenario import (
 from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.station import held_station, p_ETool
 from stewart_drake.simulation.trajectories import (
-    DrakeTrajectory,
+    CubicSplineTrajectory,
     as_trajectory,
     paper_manoeuvre,
 )
@@ -219,7 +219,7 @@ def test_csv_and_drake_references_track_like_the_analytic_one(tmp_path):
         csv, np.column_stack([t, x]), delimiter=",", header="t,phi,theta,psi,X,Y,Z", comments=""
     )
     from_csv = as_trajectory(str(csv))
-    assert isinstance(from_csv, DrakeTrajectory) and from_csv.end_time == pytest.approx(1.0)
+    assert isinstance(from_csv, CubicSplineTrajectory) and from_csv.end_time == pytest.approx(1.0)
     probe = np.linspace(0.05, 0.95, 50)
     exact = paper_manoeuvre().evaluate(probe)
     for k, tol in enumerate((1e-6, 1e-4, 1e-2)):  # pose, rate, acceleration of a spline

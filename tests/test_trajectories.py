@@ -5,9 +5,11 @@ import numpy as np
 import pytest
 
 from stewart_drake.errors import InvalidConfigError, MissingFileError
+from stewart_drake.model import limits
 from stewart_drake.simulation.scenario import (
     Scenario,
 )
+from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.trajectories import (
     ScalarEvaluate,
     as_trajectory,
@@ -49,3 +51,95 @@ def test_an_evaluate_of_one_time_is_wrapped():
     assert result.config_summary["trajectory"] == "scalar" and result.metrics["finite"]
     with pytest.raises(InvalidConfigError, match="an object with evaluate"):
         as_trajectory(3.0)
+
+
+def test_the_spline_of_samples_is_drake_s_c2_spline_held_at_its_ends():
+    """CubicSplineTrajectory (scipy's not-a-knot spline, coefficient arrays) against Drake's
+    PiecewisePolynomial.CubicWithContinuousSecondDerivatives on uneven samples: pose, rate and
+    acceleration agree, and outside the samples both hold the end's values."""
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from stewart_drake.simulation.trajectories import CubicSplineTrajectory
+
+    rng = np.random.default_rng(3)
+    t = np.cumsum(rng.uniform(0.01, 0.2, 40)) - 0.01
+    poses = rng.normal(scale=[0.1, 0.1, 0.1, 0.01, 0.01, 0.01], size=(40, 6))
+    ours = CubicSplineTrajectory(t, poses, name="s")
+    drake = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t, poses.T, False)
+    q = np.concatenate([[t[0] - 1.0], np.linspace(t[0], t[-1], 997), [t[-1] + 1.0]])
+    for k, mine in enumerate(ours.evaluate(q)):
+        theirs = (
+            np.asarray(drake.MakeDerivative(k).vector_values(q.tolist())).T
+            if k
+            else (np.asarray(drake.vector_values(q.tolist())).T)
+        )
+        assert mine.shape == (q.size, 6)
+        assert np.abs(mine - theirs).max() <= 1e-9 * np.abs(theirs).max(), k
+    assert ours.evaluate(5.0)[0].shape == (6,) and (ours.start_time, ours.end_time) == (t[0], t[-1])
+
+
+def _report_fields(report):
+    from dataclasses import fields
+
+    return {f.name: getattr(report, f.name) for f in fields(report) if f.name != "series"}
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray | float):
+        return np.array_equal(a, b, equal_nan=True)
+    return str(a) == str(b)
+
+
+def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypatch):
+    """The check runs in stretches of VALIDATE_CHUNK_SAMPLES so that its memory does not grow
+    with the run: 997-sample stretches over the paper's 10 s, with motors too weak for it (every
+    refusal reported), give every figure, time, leg and motor of the check in one go, and the
+    same sample-by-sample series."""
+    from stewart_drake.simulation import trajectories
+    from stewart_drake.simulation.plan import check_reference
+
+    scenario = load_scenario("paper_hardware", ["hardware.motors.peak_torque_Nm=0.4"])
+    whole = check_reference(scenario, raise_refused=False)
+    assert not whole.ok and whole.first_effort_violation is not None
+    monkeypatch.setattr(trajectories, "VALIDATE_CHUNK_SAMPLES", 997)
+    parts = check_reference(scenario, raise_refused=False)
+    clearance = ("min_clearance", "min_clearance_t", "clearance_t", "clearance")
+    mine, theirs = (
+        {k: v for k, v in _report_fields(r).items() if k not in clearance} for r in (parts, whole)
+    )
+    assert _same(mine, theirs)
+    mine, theirs = (
+        {k: v for k, v in r.series.items() if k not in clearance} for r in (parts, whole)
+    )
+    assert _same(mine, theirs) and parts.series["t"].size == 10_001
+    # The clearance is measured wherever a part has moved its resolution since the last measure,
+    # counted afresh in each stretch: each check is within the resolution of the path's true
+    # smallest clearance, so the two within it of each other.
+    resolution = limits.DEFAULT_CLEARANCE_RESOLUTION_M
+    assert abs(parts.min_clearance - whole.min_clearance) <= resolution
+    lean = check_reference(scenario, raise_refused=False, keep_series=False)
+    assert lean.series == {} and lean.summary() == parts.summary()
+
+
+def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
+    from stewart_drake.errors import StewartError
+    from stewart_drake.simulation import trajectories
+    from stewart_drake.simulation.plan import check_reference
+    from stewart_drake.simulation.trajectories import CubicSplineTrajectory
+
+    t = np.linspace(0.0, 10.0, 101)
+    poses = np.tile([0.0, 0.0, 0.0, 0.0, 0.0, 0.30], (101, 1))
+    poses[:, 3] = np.where(t > 7.0, 0.1 * (t - 7.0), 0.0)  # a crank joint's cone at 8.958 s
+    reference = CubicSplineTrajectory(t, poses, name="away")
+    scenario = load_scenario("paper_hardware", ["guard.allow_infeasible=true"])
+    messages = []
+    for chunk in (10**9, 997):
+        monkeypatch.setattr(trajectories, "VALIDATE_CHUNK_SAMPLES", chunk)
+        with pytest.raises(StewartError) as info:
+            check_reference(scenario, reference)
+        messages.append(str(info.value))
+    # The earliest refusal, whichever check finds it: a crank joint's cone, before the pose
+    # goes out of reach at 9.056 s.
+    assert messages[0] == messages[1] and "t = 8.958 s" in messages[0], messages

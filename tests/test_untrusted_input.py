@@ -433,8 +433,8 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
 
     base = run_memory_bytes(Scenario(duration_s=0.1))
     scenario = Scenario(duration_s=0.1, reference=CsvReference(str(path)))
-    assert run_memory_bytes(scenario) == pytest.approx(base + 2_000_002 * 7e3)
-    monkeypatch.setattr(checks, "available_memory_bytes", lambda: 4e9)
+    assert run_memory_bytes(scenario) == pytest.approx(base + 2_000_002 * 1.5e3)
+    monkeypatch.setattr(checks, "available_memory_bytes", lambda: 2e9)
     monkeypatch.setattr(trajectories.csv, "reader", lambda *a, **k: pytest.fail("parsed"))
     t0 = time.monotonic()
     rc, _, err = _cli(
@@ -452,8 +452,8 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     )
     assert rc == 2 and len(err) == 1 and time.monotonic() - t0 < 10
     assert re.search(
-        rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 14 GB "
-        rf"of memory needed, more than the 4 GB available on this machine; .*sample "
+        rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 3 GB "
+        rf"of memory needed, more than the 2 GB available on this machine; .*sample "
         rf"the reference CSV more coarsely",
         err[0],
     ), err[0]

@@ -464,6 +464,11 @@ def _cmd_reproduce(args) -> int:
             max_gap_s=args.max_gap,
         )
         name = Path(source).stem
+        size = Path(source).stat().st_size if Path(source).is_file() else 0
+        if size > 1e6 and not args.no_progress:  # a few seconds to read and resample
+            from ..checks import format_bytes
+
+            print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
     else:
         if mapping or args.lowpass_hz or args.centre is not None:
             raise InvalidConfigError(

@@ -11,7 +11,7 @@ every entry point (the run, the collection, the tasks, ``stewart-drake check``) 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache, reduce
 from typing import Any
 
@@ -405,6 +405,67 @@ class TrajectoryReport:
         return "\n".join(lines)
 
 
+def merge_reports(reports) -> TrajectoryReport:
+    """One :class:`TrajectoryReport` of a path checked in consecutive stretches of time: the
+    report :func:`validate_trajectory` gives for the whole path (each extreme with its time, leg
+    or motor, each "first" the earliest), its ``series`` concatenated.
+
+    Args:
+        reports: the stretches' reports in time order, each from the same thresholds.
+    Returns:
+        :class:`TrajectoryReport`.
+    """
+    reports = list(reports)
+    head = reports[0]
+    if len(reports) == 1:
+        return head
+
+    def first(name):
+        return next((v for r in reports if (v := getattr(r, name)) is not None), None)
+
+    def extreme(value, fields, pick=min):
+        ranked = [r for r in reports if not np.isnan(getattr(r, value))]
+        if not ranked:
+            return {}
+        best = pick(ranked, key=lambda r: getattr(r, value))
+        return {name: getattr(best, name) for name in (value, *fields)}
+
+    min_margin, min_leg, min_t = {}, {}, {}
+    for name in LIMITS:
+        best = min(reports, key=lambda r: r.min_margin[name])
+        min_margin[name] = best.min_margin[name]
+        min_leg[name], min_t[name] = best.min_margin_leg[name], best.min_margin_t[name]
+    merged = replace(
+        head,
+        ok=all(r.ok for r in reports),
+        min_margin=min_margin,
+        min_margin_leg=min_leg,
+        min_margin_t=min_t,
+        first_violation=first("first_violation"),
+        first_singular_t=first("first_singular_t"),
+        first_weak_t=first("first_weak_t"),
+        first_interference=first("first_interference"),
+        first_effort_violation=first("first_effort_violation"),
+        **extreme("max_cond", ("max_cond_t",), max),
+        **extreme("min_sigma_min_inv", ("min_sigma_min_inv_t",)),
+        **extreme("min_clearance", ("min_clearance_t", "min_clearance_parts")),
+        **extreme("peak_torque", ("peak_torque_motor", "peak_torque_t"), max),
+        **extreme("peak_speed", ("peak_speed_motor", "peak_speed_t"), max),
+        series=_concatenated([r.series for r in reports]),
+    )
+    return merged
+
+
+def _concatenated(parts: list):
+    """Dicts (nested) of arrays joined along their first axis; other values from the first."""
+    if isinstance(parts[0], dict):
+        keys = [k for k in parts[0] if all(k in p for p in parts)]
+        return {k: _concatenated([p[k] for p in parts]) for k in keys}
+    if isinstance(parts[0], np.ndarray):
+        return np.concatenate(parts)
+    return parts[0]
+
+
 def validate_trajectory(
     geometry: RobotGeometry,
     t,
@@ -473,6 +534,23 @@ def validate_trajectory(
     closed = np.abs(ratio) <= 1.0
     if raise_unreachable and not np.all(closed):
         k = int(np.argmax(~np.all(closed, axis=1)))
+        if raise_refused and k > 0:  # an earlier refusal of another kind comes first
+            validate_trajectory(
+                geometry,
+                t[:k],
+                x[:k],
+                cond_threshold,
+                raise_unreachable,
+                min_sigma_min_inv,
+                raise_refused,
+                None if x_dot is None else np.asarray(x_dot)[:k],
+                None if x_ddot is None else np.asarray(x_ddot)[:k],
+                clearance,
+                min_clearance_m,
+                clearance_resolution_m,
+                motor_limits,
+                allow_infeasible,
+            )
         leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
         raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
     margins = limit_margins_unchecked(geometry, x, theta, ratio)

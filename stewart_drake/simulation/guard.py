@@ -127,6 +127,8 @@ def check_path(
     config: GuardConfig,
     motor_limits,
     raise_refused: bool = True,
+    progress=None,
+    keep_series: bool = True,
 ) -> limits.TrajectoryReport:
     """Refuse a reference the robot cannot follow, before anything is simulated.
 
@@ -143,6 +145,8 @@ def check_path(
         motor_limits: :class:`~stewart_drake.model.limits.MotorLimits`.
         raise_refused: False reports every refusal in the report instead of raising the first
             (``stewart-drake check``).
+        progress, keep_series: as :func:`~.trajectories.validate` (a bar told of the samples
+            checked; the report's sample-by-sample series kept or not).
     Returns:
         the :class:`~stewart_drake.model.limits.TrajectoryReport` (``summary()`` prints it).
     Raises:
@@ -168,6 +172,8 @@ def check_path(
         cond_threshold=guard.cond_threshold,
         min_sigma_min_inv=guard.min_sigma_min_inv,
         raise_refused=raise_refused,
+        progress=progress,
+        keep_series=keep_series,
         clearance=clearance_model(geometry),
         min_clearance_m=guard.min_clearance_m,
         motor_limits=motor_limits,

@@ -210,7 +210,11 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
 
 
 def check_reference(
-    plan: Scenario | RunPlan, trajectory=None, raise_refused: bool = True
+    plan: Scenario | RunPlan,
+    trajectory=None,
+    raise_refused: bool = True,
+    progress=None,
+    keep_series: bool = True,
 ) -> TrajectoryReport:
     """Refuse a reference the robot of ``plan`` cannot follow, before anything is simulated:
     :func:`~.guard.check_path` with the plan's robot as simulated (payload included), duration,
@@ -220,6 +224,7 @@ def check_reference(
         plan: a :class:`RunPlan` or a scenario (planned here).
         trajectory: the reference object (default: the plan's).
         raise_refused: False reports every refusal in the report instead of raising the first.
+        progress, keep_series: as :func:`~.trajectories.validate`.
     Returns:
         the :class:`~stewart_drake.model.limits.TrajectoryReport`.
     Raises:
@@ -237,4 +242,6 @@ def check_reference(
         plan.scenario.guard,
         plan.motor_limits,
         raise_refused=raise_refused,
+        progress=progress,
+        keep_series=keep_series,
     )

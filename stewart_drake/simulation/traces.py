@@ -3,8 +3,8 @@
 :func:`load_trace` reads a CSV of 1 to 6 axes whose header names each column and its unit
 (``t [s], SI [mm], AP [mm], pitch [deg]``), at any sample rate and with gaps, maps the trace's
 axes onto the platform's (platform or patient axis names, :data:`~.organ_motion.PATIENT_AXES`,
-or a map of the trace's own names), resamples it to a C2 spline (Drake's
-``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), optionally low-passes it without
+or a map of the trace's own names), resamples it to a C2 spline
+(:class:`~.trajectories.CubicSplineTrajectory`), optionally low-passes it without
 phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose (:data:`CENTRE_MODES`).
 The result is a :class:`TraceTrajectory` that says what was read and done (:class:`TraceInfo`).
 The project's own CSV (``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
@@ -31,7 +31,7 @@ from .trajectories import (
     AXIS_NAMES,
     CSV_BYTES_PER_ROW,
     CSV_COLUMNS,
-    DrakeTrajectory,
+    CubicSplineTrajectory,
     csv_rows,
     load_csv_trajectory,
 )
@@ -83,13 +83,14 @@ class TraceInfo:
         )
 
 
-class TraceTrajectory(DrakeTrajectory):
-    """A recorded trace as a reference: a :class:`~.trajectories.DrakeTrajectory` (C2 cubic
-    spline) with the trace's import record (``info``, :class:`TraceInfo`) and its ``centre``
-    pose, the fixed point of :class:`~.organ_motion.ScaledReference`."""
+class TraceTrajectory(CubicSplineTrajectory):
+    """A recorded trace as a reference: a :class:`~.trajectories.CubicSplineTrajectory` (C2 cubic
+    spline through the resampled poses) with the trace's import record (``info``,
+    :class:`TraceInfo`) and its ``centre`` pose, the fixed point of
+    :class:`~.organ_motion.ScaledReference`."""
 
-    def __init__(self, trajectory, info: TraceInfo, centre, name: str):
-        super().__init__(trajectory, name=name)
+    def __init__(self, t, poses, info: TraceInfo, centre, name: str):
+        super().__init__(t, poses, name=name)
         self.info = info
         self.centre = tuple(float(v) for v in centre)
 
@@ -342,7 +343,7 @@ def load_trace(
     of that axis. Each axis is joined by a cubic spline through its samples
     (``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
     without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
-    ``scipy.signal.filtfilt``), and the samples are joined by Drake's C2 spline. Axes the trace
+    ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace
     does not have stay at the centre.
 
     A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m) is read by
@@ -362,7 +363,7 @@ def load_trace(
         resample_hz: rate of the samples joined by the C2 spline, Hz.
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
-        :class:`~.trajectories.DrakeTrajectory` of a project CSV.
+        :class:`~.trajectories.CubicSplineTrajectory` of a project CSV.
     Raises:
         MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
             UTF-8 or not CSV.
@@ -393,9 +394,6 @@ def load_trace(
     displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets)
     centre = X_HOME if centre is None else np.asarray(check_centre("trace", centre))
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
-    from pydrake.trajectories import PiecewisePolynomial
-
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(grid, poses.T, False)  # type: ignore[call-overload]  # Drake's stubs want (n, 1)-shaped arrays
     info = TraceInfo(
         path=str(path),
         columns=tuple(names),
@@ -408,7 +406,7 @@ def load_trace(
         duration_s=float(grid[-1]),
         centred_on=centre_on,
     )
-    return TraceTrajectory(spline, info, centre, name=path.stem)
+    return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
 
 # -- a scenario's choice of a trace ----------------------------------------------------------------
@@ -466,6 +464,9 @@ class TraceReference(ReferenceConfig):
     @property
     def label(self) -> str:
         return Path(self.path).stem
+
+    def memory_note(self) -> tuple:
+        return (f" of the trace {self.path}", " (reproduce --duration replays its start)")
 
 
 __all__ = [

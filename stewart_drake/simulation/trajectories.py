@@ -17,12 +17,12 @@ import csv
 import functools
 import io
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydrake.trajectories import PiecewisePolynomial, Trajectory
+from pydrake.trajectories import Trajectory
 
 from ..checks import MAX_SEED, as_array, as_number, as_poses, check_int
 from ..errors import InvalidConfigError
@@ -374,15 +374,50 @@ class DrakeTrajectory:
         )
 
 
+class CubicSplineTrajectory:
+    """Samples of the pose joined by a cubic spline with continuous second derivatives (the
+    not-a-knot spline, ``scipy.interpolate.CubicSpline``): pose, rate and acceleration, held at
+    the end values' times outside the samples (the time is clamped, as Drake's
+    ``PiecewisePolynomial`` does).
+
+    It is the spline Drake's ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t,
+    samples, False)`` builds (the two agree to 1e-14), held as four coefficient arrays of shape
+    (n - 1, 6): about 0.6 kB per sample with its derivatives where Drake's polynomial objects
+    take 4 kB and, for a million samples, 35 s to build and differentiate.
+
+    Args:
+        t: (n,) sample times, s, strictly increasing; n >= 3.
+        poses: (n, 6) the pose at each time [rad, rad, rad, m, m, m].
+        name: label used in result files.
+    Attributes:
+        start_time, end_time: the first and last sample times, s; a run may not last longer.
+    """
+
+    def __init__(self, t, poses, name: str = "spline"):
+        from scipy.interpolate import CubicSpline
+
+        t, poses = np.asarray(t, dtype=float), np.asarray(poses, dtype=float)
+        spline = CubicSpline(t, poses, axis=0, bc_type="not-a-knot")
+        self._derivatives = (spline, spline.derivative(1), spline.derivative(2))
+        self.start_time, self.end_time = float(t[0]), float(t[-1])
+        self.name = name
+
+    def evaluate(self, t):
+        """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
+        t = np.clip(np.asarray(t, dtype=float), self.start_time, self.end_time)
+        return tuple(d(t) for d in self._derivatives)
+
+
 CSV_COLUMNS = ("t",) + AXIS_NAMES
 
 
 #: Largest reference CSV read, bytes (about six million rows of seven numbers).
 MAX_CSV_BYTES = 1e9
-#: Memory a run holds per row of a reference CSV, bytes: measured 5.9 kB (a 2e5-row file against
-#: a 1e3-row one in `stewart-drake run`: the spline's polynomials, about 4 kB, and the copy the
-#: Diagram's source holds), with slack.
-CSV_BYTES_PER_ROW = 7e3
+#: Memory a run holds per row of a reference CSV, bytes: measured 0.44 kB at the peak of
+#: `stewart-drake run` (a 2e5-row file against a 1e3-row one over the same 10 s: the spline's
+#: coefficients and its derivatives'), and 0.93 kB per 7-column row while the text is parsed,
+#: with slack.
+CSV_BYTES_PER_ROW = 1.5e3
 #: Closest sample times of a reference CSV, s (Drake's spline refuses 2.2e-16 and its
 #: accelerations reach 1e18 at 1e-9 s), and the latest time, s (cubic terms of 1e300 s segments
 #: overflow inside Drake, which aborts the process).
@@ -434,18 +469,18 @@ def csv_reference_bytes(path) -> float:
     return (_read_csv_bytes(Path(path)).count(b"\n") + 1) * CSV_BYTES_PER_ROW
 
 
-def load_csv_trajectory(path) -> DrakeTrajectory:
+def load_csv_trajectory(path) -> "CubicSplineTrajectory":
     """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), one row per
     sample, times strictly increasing from 0; at least 3 rows. The samples are joined by a cubic
-    spline with continuous second derivatives (Drake's
-    ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives``), which gives the rate and the
-    acceleration the controller and the feed-forward need. The file is read through the checked
-    path (a regular file of at most :data:`MAX_CSV_BYTES`), its memory
+    spline with continuous second derivatives (:class:`CubicSplineTrajectory`), which gives the
+    rate and the acceleration the controller and the feed-forward need. The file is read through
+    the checked path (a regular file of at most :data:`MAX_CSV_BYTES`), its memory
     (:func:`csv_reference_bytes`) checked against the machine's before it is parsed; UTF-8, with
     or without a byte-order mark.
 
     Returns:
-        :class:`DrakeTrajectory` named after the file's stem; its ``end_time`` bounds the run.
+        :class:`CubicSplineTrajectory` named after the file's stem; its ``end_time`` bounds the
+        run.
     Raises:
         MissingFileError: no such file. CorruptFileError: not a regular file, too large, not
             UTF-8 text, or not CSV (a NUL byte, a field beyond the csv module's limit).
@@ -457,10 +492,7 @@ def load_csv_trajectory(path) -> DrakeTrajectory:
     data = _csv_samples(path)
     _check_csv_times(path, data[:, 0])
     as_poses(f"{path}: the poses", data[:, 1:])
-    spline = PiecewisePolynomial.CubicWithContinuousSecondDerivatives(  # type: ignore[call-overload]  # Drake's stubs want (n, 1)-shaped arrays
-        data[:, 0], data[:, 1:].T, False
-    )
-    return DrakeTrajectory(spline, name=path.stem)
+    return CubicSplineTrajectory(data[:, 0], data[:, 1:], name=path.stem)
 
 
 def _csv_samples(path: Path) -> np.ndarray:
@@ -578,6 +610,10 @@ def as_trajectory(source) -> Reference:
     return wrapped
 
 
+#: Samples :func:`validate` checks at once (20 s at 1 kHz; about 9 kB each while checked).
+VALIDATE_CHUNK_SAMPLES = 20_000
+
+
 def validate(
     trajectory: Reference,
     geometry: StewartGeometry,
@@ -586,9 +622,13 @@ def validate(
     cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
     min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
     raise_refused: bool = True,
+    progress=None,
+    keep_series: bool = True,
     **checks,
 ) -> limits.TrajectoryReport:
-    """Sample a trajectory on [0, duration_s] every ``dt`` and validate it.
+    """Sample a trajectory on [0, duration_s] every ``dt`` and validate it, in stretches of
+    :data:`VALIDATE_CHUNK_SAMPLES` samples, so that the memory the check takes beyond its
+    ``series`` does not grow with the duration.
 
     The samples go to :func:`~stewart_drake.model.limits.validate_trajectory`, the one validator
     of a reference: finite pose, rate and acceleration; loop closure, motor travel, ball-joint
@@ -600,6 +640,10 @@ def validate(
         geometry: the robot. duration_s: s, > 0. dt: sampling period, s (the control period).
         cond_threshold, min_sigma_min_inv: singularity thresholds (see the validator).
         raise_refused: raise on the first refused sample (else only report it).
+        progress: None, or an object with ``update(n)`` (a tqdm bar) told of each stretch's
+            samples as it is checked.
+        keep_series: keep the report's sample-by-sample ``series`` (for plots; about 0.3 kB a
+            sample); False drops each stretch's.
         checks: keyword arguments of the validator (``clearance``, ``min_clearance_m``,
             ``motor_limits``, ``allow_infeasible``).
     Returns:
@@ -618,19 +662,26 @@ def validate(
             f"the reference {getattr(trajectory, 'name', '')} ends at "
             f"t = {end:g} s: run at most that long (duration_s) or extend it"
         )
-    t = np.arange(0.0, duration_s + 0.5 * dt, dt)
-    x, x_dot, x_ddot = trajectory.evaluate(t)
-    return limits.validate_trajectory(
-        geometry,
-        t,
-        x,
-        cond_threshold=cond_threshold,
-        min_sigma_min_inv=min_sigma_min_inv,
-        raise_refused=raise_refused,
-        x_dot=x_dot,
-        x_ddot=x_ddot,
-        **checks,
-    )
+    t_all = np.arange(0.0, duration_s + 0.5 * dt, dt)
+    reports = []
+    for start in range(0, t_all.size, VALIDATE_CHUNK_SAMPLES):
+        t = t_all[start : start + VALIDATE_CHUNK_SAMPLES]
+        x, x_dot, x_ddot = trajectory.evaluate(t)
+        report = limits.validate_trajectory(
+            geometry,
+            t,
+            x,
+            cond_threshold=cond_threshold,
+            min_sigma_min_inv=min_sigma_min_inv,
+            raise_refused=raise_refused,
+            x_dot=x_dot,
+            x_ddot=x_ddot,
+            **checks,
+        )
+        reports.append(report if keep_series else replace(report, series={}))
+        if progress is not None:
+            progress.update(t.size)
+    return limits.merge_reports(reports)
 
 
 #: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.

@@ -95,24 +95,27 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
-#: Memory a run holds, measured with ``stewart-drake run`` (paper_hardware, 1 s against 5 s and
-#: 10 s against 110 s): about 3.3 kB per logged sample at the end of the run (the Simulator's
-#: logs of 86 floats, which grow by doubling, the RunResult, the .npz and the plot), and
-#: 3 kB per control-period sample while the reference is checked (``plan.check_reference``,
-#: before the simulation). Upper bounds with some slack:
+#: Memory a run holds, bytes, measured with ``stewart-drake run`` (paper_hardware, the peak of
+#: 60 s against 10 s): 5.7 kB per second-of-1-kHz sample with the logs every control period,
+#: 2.7 kB with them every 10 periods; so about 2.4 kB per control-period sample (the Diagram's
+#: reference and feed-forward tables, sampled for the whole run before it starts) and 3.3 kB per
+#: logged sample (the Simulator's logs of 86 floats, which grow by doubling, the RunResult, its
+#: table exports and the plot). The reference is checked in stretches of fixed size and adds no
+#: more per sample. Upper bounds with some slack:
 LOG_BYTES_PER_SAMPLE = 4.0e3
-REFERENCE_CHECK_BYTES_PER_SAMPLE = 3.2e3
+CONTROL_BYTES_PER_SAMPLE = 3.0e3
 
 
 def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
-    the larger of the reference check and the logs (see :data:`LOG_BYTES_PER_SAMPLE`), plus what
-    the reference itself holds (a CSV reference's spline,
+    its control-period samples and its logged samples (see :data:`LOG_BYTES_PER_SAMPLE`), plus
+    what the reference itself holds (a CSV reference's spline,
     :meth:`~stewart_drake.simulation.motion.ReferenceConfig.memory_bytes`)."""
     d = float(scenario.duration_s)
-    return scenario.reference.memory_bytes() + max(
-        (d / scenario.control_period_s + 1) * REFERENCE_CHECK_BYTES_PER_SAMPLE,
-        (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE,
+    return (
+        scenario.reference.memory_bytes()
+        + (d / scenario.control_period_s + 1) * CONTROL_BYTES_PER_SAMPLE
+        + (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE
     )
 
 
@@ -139,8 +142,36 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
     )
 
 
+def check_reference_shown(plan: RunPlan, reference=None, progress: bool = False, **kwargs):
+    """:func:`~stewart_drake.simulation.plan.check_reference` of ``plan`` (and ``reference``),
+    behind a tqdm bar ("checking") when ``progress`` and the check takes more than one stretch
+    of :data:`~stewart_drake.simulation.trajectories.VALIDATE_CHUNK_SAMPLES` samples (a run
+    longer than 20 s at 1 kHz: a 20-minute trace checks for about two minutes).
+
+    Args:
+        plan: the run. reference: the reference (default: the plan's). progress: show the bar.
+        kwargs: ``raise_refused``, ``keep_series`` of ``check_reference``.
+    Returns:
+        the :class:`~stewart_drake.model.limits.TrajectoryReport`.
+    """
+    from tqdm import tqdm
+
+    from ..simulation.trajectories import VALIDATE_CHUNK_SAMPLES
+
+    samples = int(plan.duration_s / plan.control_period_s) + 1
+    shown = progress and samples > VALIDATE_CHUNK_SAMPLES
+    with tqdm(total=samples, desc="checking", unit=" samples", disable=not shown) as bar:
+        return check_reference(plan, reference, progress=bar if shown else None, **kwargs)
+
+
 def build_simulator(
-    scenario: Scenario | RunPlan | None = None, meshcat=None, *, reference=None, controller=None
+    scenario: Scenario | RunPlan | None = None,
+    meshcat=None,
+    *,
+    reference=None,
+    controller=None,
+    progress: bool = False,
+    report=None,
 ):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
@@ -153,6 +184,9 @@ def build_simulator(
     Args:
         scenario, meshcat, reference, controller: as
             :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`.
+        progress: show a bar while a long reference is checked (:func:`check_reference_shown`).
+        report: the check's report when the caller has already checked this plan's reference
+            (it is then not checked again).
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
@@ -162,7 +196,8 @@ def build_simulator(
     plan = make_plan(scenario, with_reference=False)  # validated once, here
     check_run_memory(plan.scenario)
     plan = make_plan(plan, reference=reference, controller=controller)
-    check_reference(plan)
+    if report is None:
+        check_reference_shown(plan, progress=progress, keep_series=False)
     sd = make_stewart_diagram(plan, meshcat=meshcat)
     simulator = Simulator(sd.diagram)
     ApplySimulatorConfig(plan.scenario.simulator, simulator)
@@ -203,7 +238,9 @@ def run_experiment(
         :func:`build_simulator`); SimulationDivergedError when the guard stops the run (the
         logs up to then are saved, the path is in the error).
     """
-    sd, simulator = build_simulator(scenario, meshcat, reference=reference, controller=controller)
+    sd, simulator = build_simulator(
+        scenario, meshcat, reference=reference, controller=controller, progress=progress
+    )
     wall0 = time.perf_counter()
     guard.advance(sd, simulator, lambda: advance(simulator, sd.plan.duration_s, progress))
     wall = time.perf_counter() - wall0

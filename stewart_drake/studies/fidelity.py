@@ -386,16 +386,19 @@ def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Re
 _fit = scale_to_fit  # reproduce's argument of that name is a flag
 
 
-def run(scenario, reference: Reference, progress: bool = False, desc: str = "simulating"):
-    """Simulate ``scenario`` on ``reference`` (checked first, guarded):
-    (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or None, wall s).
+def run(
+    scenario, reference: Reference, progress: bool = False, desc: str = "simulating", report=None
+):
+    """Simulate ``scenario`` on ``reference`` (checked first unless its check's ``report`` is
+    given, guarded): (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or
+    None, wall s).
 
     The learner's log ends with its state at the end of the run (the loggers' last sample is
     one period earlier: the update of a cycle's last sample would otherwise be missing)."""
     from ..simulation import guard
     from .experiments import advance, build_simulator, collect_result
 
-    sd, simulator = build_simulator(scenario, reference=reference)
+    sd, simulator = build_simulator(scenario, reference=reference, progress=progress, report=report)
     wall0 = time.perf_counter()
     guard.advance(
         sd, simulator, lambda: advance(simulator, scenario.duration_s, progress, desc=desc)
@@ -549,24 +552,27 @@ def reproduce(
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
         MotorLimitError: the validator's refusal (without ``scale_to_fit``).
-        InvalidConfigError: learning on a reference that does not repeat, a bad count.
+        InvalidConfigError: learning on a reference that does not repeat, a bad count, a run
+            that needs more memory than the machine has (checked before the reference is).
         SimulationDivergedError: the guard stopped the run.
     """
-    from ..simulation.plan import check_reference, make_plan
+    from ..simulation.plan import make_plan
     from ..simulation.trajectories import as_trajectory
+    from .experiments import check_reference_shown, check_run_memory
 
     _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
+    check_run_memory(scenario)  # before the reference is checked at every control period
     _set_learning(scenario, learn_cycles)
     plan = make_plan(scenario, reference=reference)  # validated once, here
     scale = 1.0
     if scale_to_fit:
         reference, scale = _fit(plan, reference)
-    report = check_reference(plan, reference)
-    result, learner, wall = run(plan, reference, progress, f"reproducing {name}")
+    report = check_reference_shown(plan, reference, progress, keep_series=False)
+    result, learner, wall = run(plan, reference, progress, f"reproducing {name}", report)
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     freq = _harmonic_frequencies(reference)
