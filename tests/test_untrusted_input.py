@@ -681,6 +681,7 @@ def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
     lock_folder(folder, "collect")  # this process again: it holds it
     store.finish(True)  # released at the end
     unlock_folder(folder)
+    assert not (folder / LOCK).exists()  # and no stale lock file left behind
     probe = subprocess.run(
         [
             sys.executable,

@@ -80,15 +80,25 @@ def lock_folder(folder, study: str) -> None:
     if key in _HELD:
         return
     folder.mkdir(parents=True, exist_ok=True)
-    check_replaceable(folder / LOCK)
-    f = open(folder / LOCK, "a+", encoding="utf-8")
-    try:
-        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        f.seek(0)
-        holder = " ".join(f.read(300).split())
+    path = folder / LOCK
+    for _ in range(10):  # the holder removes the file as it lets go: lock the file that is there
+        check_replaceable(path)
+        f = open(path, "a+", encoding="utf-8")
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            f.seek(0)
+            holder = " ".join(f.read(300).split())
+            f.close()
+            raise FolderInUseError(folder, holder) from None
+        try:
+            if os.path.samestat(os.fstat(f.fileno()), os.stat(path)):
+                break
+        except FileNotFoundError:
+            pass
         f.close()
-        raise FolderInUseError(folder, holder) from None
+    else:
+        raise FolderInUseError(folder, "another process that keeps taking and releasing it")
     f.seek(0)
     f.truncate()
     f.write(
@@ -100,9 +110,15 @@ def lock_folder(folder, study: str) -> None:
 
 
 def unlock_folder(folder) -> None:
-    """Release ``folder``'s study lock if this process holds it."""
+    """Release ``folder``'s study lock if this process holds it, removing the lock file (no
+    stale file is left to read as a lock; a process waiting on the removed file locks the new
+    one, :func:`lock_folder`)."""
     f = _HELD.pop(os.path.realpath(Path(folder)), None)
     if f is not None:
+        try:
+            os.unlink(Path(folder) / LOCK)
+        except OSError:
+            pass  # gone already, or a read-only folder: the lock is released all the same
         f.close()
 
 
