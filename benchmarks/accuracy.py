@@ -640,8 +640,17 @@ def plot(data, path: Path):
                 ]
                 h = np.array([r["step_s"] for r in sel]) * 1e3
                 y = np.array([value(r) for r in sel])
+                # Drake's lines wide and pale beneath, so that where MuJoCo implicitfast's
+                # coincide with them (SAP and implicitfast are both first order) both show.
+                wide = (
+                    {"lw": 4, "ms": 8, "alpha": 0.45, "zorder": 1} if engine == "drake_sap" else {}
+                )
                 ax.loglog(
-                    h, np.where(y > 0, y, np.nan), style, color=colors[engine], ms=5, lw=1, **hollow
+                    h,
+                    np.where(y > 0, y, np.nan),
+                    style,
+                    color=colors[engine],
+                    **({"ms": 5, "lw": 1, "zorder": 2} | wide | hollow),
                 )
         ax.set_xlabel("plant step [ms]")
         ax.set_ylabel(label)
@@ -663,11 +672,12 @@ def plot(data, path: Path):
                 color=colors[e],
                 marker="o",
                 mfc="none" if e == "mujoco_implicitfast" else colors[e],
+                **({"lw": 4, "ms": 8, "alpha": 0.45} if e == "drake_sap" else {}),
             )
             for e in data["engines"]
         ]
         + [Line2D([], [], color="k", ls=":")],
-        list(data["engines"]) + ["order 1"],
+        [f"{e} (wide, beneath)" if e == "drake_sap" else e for e in data["engines"]] + ["order 1"],
         fontsize=7,
     )
     axes[1, 0].legend(

@@ -21,7 +21,7 @@ def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, caps
     csv = np.loadtxt(tmp_path / "run_paper.csv", delimiter=",", skiprows=1)
     np.testing.assert_array_equal(csv, table)  # 17 significant digits: the doubles themselves
     np.testing.assert_array_equal(csv[:, 1:13], result.x)
-    np.testing.assert_array_equal(csv[:, names.index("T1") : names.index("T6") + 1], result.T)
+    np.testing.assert_array_equal(csv[:, names.index("T0") : names.index("T5") + 1], result.T)
     mat = loadmat(tmp_path / "run_paper.mat")
     np.testing.assert_array_equal(mat["t"].ravel(), result.t)
     np.testing.assert_array_equal(mat["Z_d"].ravel(), result.x_d[:, 5])

@@ -283,6 +283,8 @@ class TrajectoryReport:
             (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
         peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,
             rad/s.
+        effort_margin: the share of the motors' peak torque and no-load speed a reference may
+            use (``torque_limit`` is that share of the peak; NaN when not checked).
         first_effort_violation: :class:`~stewart_drake.errors.MotorLimitError` of the first time
             a motor is over its limit, or None.
         series: the checks sample by sample, for plots: ``t`` (n,) s; ``margins`` dict name ->
@@ -320,6 +322,7 @@ class TrajectoryReport:
     peak_speed_t: float = float("nan")
     speed_limit: float = float("nan")
     first_effort_violation: MotorLimitError | None = None
+    effort_margin: float = float("nan")
     series: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -385,7 +388,13 @@ class TrajectoryReport:
             ),
         ):
             if np.isfinite(peak):
-                bound = f"limit {limit:.3g} {unit}" if np.isfinite(limit) else "no limit"
+                bound = "no limit"
+                if np.isfinite(limit):
+                    motors = "peak" if name == "torque" else "no-load speed"
+                    bound = (
+                        f"limit {limit:.3g} {unit}, {100 * self.effort_margin:.3g} % of the "
+                        f"motors' {limit / self.effort_margin:.3g} {unit} {motors}"
+                    )
                 lines.append(
                     f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
                     f"t = {when:.4g} s; {bound})"
@@ -713,6 +722,7 @@ def _effort_fields(
         series[name][rows] = value
     out: dict = {}
     first: MotorLimitError | None = None
+    out["effort_margin"] = margin
     for name, value, bound in (
         ("torque", np.abs(T), limits_.peak_torque_Nm),
         ("speed", np.abs(speed), limits_.max_speed_rad_s),

@@ -373,9 +373,9 @@ _POSE_COLUMNS = (
 
 def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]:
     """(names, units, (N, k) values) of a run's logs as one table: t; the true pose and rate;
-    the reference's pose, rate and acceleration (``_d``); the applied motor torques T1..T6 (the
-    legs of docs/reference_geometry.md); the largest loop-closure error; omega_Q and omega_R
-    when the controller reports them."""
+    the reference's pose, rate and acceleration (``_d``); the applied motor torques T0..T5 (motor
+    i is leg i of docs/reference_geometry.md and the paper's T_{i+1}); the largest loop-closure
+    error; omega_Q and omega_R when the controller reports them."""
     names, units, columns = ["t"], ["s"], [result.t[:, None]]
     for suffix, per in (("", ""), ("_dot", "/s")):
         names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
@@ -385,7 +385,7 @@ def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]
         names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
         units += [f"{u}{per}" for _, u in _POSE_COLUMNS]
     columns.append(result.x_d)
-    names += [f"T{i}" for i in range(1, 7)] + ["closure"]
+    names += [f"T{i}" for i in range(6)] + ["closure"]
     units += ["N m"] * 6 + ["m"]
     columns += [result.T, result.closure[:, None]]
     if result.omega is not None:

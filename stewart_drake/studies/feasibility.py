@@ -48,7 +48,8 @@ def check(scenario, reference=None) -> TrajectoryReport:
 
 def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
     """One panel per check of ``report`` over time, each against its limit (red dashes; the
-    time outside it shaded red): reach, joint angles, singularity, clearance, torque, speed.
+    time outside it shaded red): reach, joint angles, cond(J), 1/sigma_max(J), clearance,
+    torque (with the motors' peak) and speed.
 
     Returns:
         the PNG written (atomically).
@@ -59,7 +60,7 @@ def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
     import matplotlib.pyplot as plt
 
     s = report.series
-    panels = ["reach", "joints", "singularity"]
+    panels = ["reach", "joints", "cond", "sigma"]
     panels += [
         p
         for p, key in (("clearance", "clearance"), ("torque", "torque"), ("speed", "speed"))
@@ -69,7 +70,8 @@ def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:
     draw = {
         "reach": _draw_reach,
         "joints": _draw_joints,
-        "singularity": _draw_singularity,
+        "cond": _draw_cond,
+        "sigma": _draw_sigma,
         "clearance": _draw_clearance,
         "torque": _draw_effort,
         "speed": _draw_effort,
@@ -134,15 +136,21 @@ def _draw_joints(ax, report: TrajectoryReport, panel: str) -> None:
     ax.legend(fontsize=7, loc="upper right", ncol=3)
 
 
-def _draw_singularity(ax, report: TrajectoryReport, panel: str) -> None:
+def _draw_cond(ax, report: TrajectoryReport, panel: str) -> None:
+    """cond(J) against its threshold (near a singularity it grows without bound)."""
     s, t = report.series, report.series["t"]
-    ax.plot(t, s["cond"], color="k", label="cond(J)")
+    ax.plot(t, s["cond"], color="k")
     _limit(ax, report.cond_threshold, False, t, s["cond"])
     ax.set_ylabel("cond(J)")
-    twin = ax.twinx()
-    twin.plot(t, s["sigma_min_inv"], color="tab:blue", lw=1)
-    twin.axhline(report.sigma_min_inv_threshold, color="tab:blue", ls=":", lw=1)
-    twin.set_ylabel("1/sigma_max(J)", color="tab:blue")
+
+
+def _draw_sigma(ax, report: TrajectoryReport, panel: str) -> None:
+    """1/sigma_max(J) against its threshold (the platform's smallest motion per crank radian
+    falls to zero at a dead point), on a panel and scale of its own."""
+    s, t = report.series, report.series["t"]
+    ax.plot(t, s["sigma_min_inv"], color="k")
+    _limit(ax, report.sigma_min_inv_threshold, True, t, s["sigma_min_inv"])
+    ax.set_ylabel("1/sigma_max(J)\n[(rad or m)/rad]")
 
 
 def _draw_clearance(ax, report: TrajectoryReport, panel: str) -> None:
@@ -158,16 +166,32 @@ def _draw_effort(ax, report: TrajectoryReport, panel: str) -> None:
     t, values = report.series["t"], np.abs(report.series[panel])
     unit = "N m" if panel == "torque" else "rad/s"
     for i in range(6):
-        ax.plot(t, values[:, i], lw=0.8, label=f"motor {i}")
+        ax.plot(t, values[:, i], lw=0.8, label=f"motor {i} (T{i + 1})")
     bound = report.torque_limit if panel == "torque" else report.speed_limit
     if np.isfinite(bound):
         _limit(ax, bound, False, t, np.nanmax(values, axis=1))
+        motors = bound / report.effort_margin
+        ax.axhline(motors, color="tab:red", lw=1)
+        what = "peak" if panel == "torque" else "no-load speed"
+        ax.annotate(
+            f"motors' {what} {motors:.3g} {unit}; a reference may use "
+            f"{100 * report.effort_margin:.3g} %: {bound:.3g} {unit} (dashes)",
+            (0.01, motors),
+            xycoords=("axes fraction", "data"),
+            xytext=(0, 2),
+            textcoords="offset points",
+            fontsize=7,
+            color="tab:red",
+            va="bottom",
+        )
     ax.set_ylabel(f"|{panel}| needed\n[{unit}]")
+    top = max(bound / report.effort_margin if np.isfinite(bound) else 0.0, np.nanmax(values))
     if panel == "torque":
         ax.legend(fontsize=7, loc="lower center", ncol=6, bbox_to_anchor=(0.5, 1.0), frameon=False)
+        ax.set_ylim(0.0, 1.2 * top)  # room for the motors' line and its words
     else:  # the no-load speed is far above a surgical motion's
         ax.set_yscale("log")
-        ax.set_ylim(1e-2, 2 * max(bound if np.isfinite(bound) else 1.0, np.nanmax(values)))
+        ax.set_ylim(1e-2, 12 * max(top, 1.0))
 
 
 #: Where :func:`clearance_table` goes in docs/reference_geometry.md (a test keeps it current).

@@ -217,15 +217,15 @@ def _draw_torque(fig, ax, side, panel, result) -> None:
     """The motor torques as window means, with the peak and the motors' limit beside."""
     t_w, mean, _ = _window_stats(result.t, result.T, TORQUE_WINDOW_S)
     for i in range(6):
-        ax.plot(t_w, mean[:, i], lw=1.2, label=f"$T_{i + 1}$")
+        ax.plot(t_w, mean[:, i], lw=1.2, label=f"{i} ($T_{i + 1}$)")
     limit = result.config_summary.get("motor_limit_Nm")
     ax.set_ylabel(f"motor torque\n{1e3 * TORQUE_WINDOW_S:g} ms means [N m]")
-    _legend_beside(ax, side, loc="upper left", ncol=2, title="motor")
+    _legend_beside(ax, side, loc="upper left", ncol=2, title="motor (paper's)")
     side.text(
         0.0,
         0.0,
         f"peak |T| {np.abs(result.T).max():.3g} N m in 1 ms samples"
-        + (f"\nmotors' limit {limit:.3g} N m" if limit else ""),
+        + (f"\nmotors' peak {limit:.3g} N m: commands clip there" if limit else ""),
         fontsize=7,
         transform=side.transAxes,
         va="bottom",
@@ -243,7 +243,7 @@ def _draw_feedback(fig, ax, side, panel, result) -> None:
         extent=(t_w[0] - TORQUE_WINDOW_S / 2, t_w[-1] + TORQUE_WINDOW_S / 2, 0.5, 6.5),
         interpolation="nearest",
     )
-    ax.set_yticks(range(1, 7))
+    ax.set_yticks(range(1, 7), [str(i) for i in range(6)])
     ax.set_ylabel("feedback T - T_ff\nper motor")
     side.set_axis_off()
     bar = fig.colorbar(image, cax=side.inset_axes([0.0, 0.05, 0.06, 0.9]))
