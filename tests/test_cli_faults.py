@@ -613,7 +613,6 @@ def test_a_fifo_where_run_writes_its_result_is_refused_before_the_run(home):
         home,
         ["run", "--duration", "5", "--no-progress", "--out", "out"],
         r"out/run_paper.npz is a FIFO \(named pipe\), not a regular file",
-        bound_s=20,
     )
     assert line
     assert stat.S_ISFIFO((home / "out" / "run_paper.npz").lstat().st_mode)
@@ -697,7 +696,7 @@ def test_a_cluster_address_is_checked_within_the_connect_timeout(home, argv, exp
         ]
         + argv,
         expected,
-        bound_s=15,
+        bound_s=60,  # 3-5 s when quiet; the handshake's hang was 200 s and more
     )
     assert not (home / "out").exists()
 
@@ -1116,7 +1115,9 @@ def test_a_trace_too_long_for_the_memory_is_refused_before_it_is_checked(
     path = _long_trace(tmp_path / "long.csv", 200_000)
     monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 4e9)
     monkeypatch.setattr(limits, "validate_trajectory", lambda *a, **k: pytest.fail("checked"))
-    line = _one_line_error(capsys, ["reproduce", str(path), "--out", str(tmp_path / "out")])
+    line = _one_line_error(
+        capsys, ["reproduce", str(path), "--no-progress", "--out", str(tmp_path / "out")]
+    )
     assert re.search(
         rf"a run of 1999.99 s logged every 0.001 s of the trace {path}: about 14 GB of memory "
         rf"needed, .*; shorten duration_s \(--duration\) .* \(reproduce --duration replays its",

@@ -7,6 +7,7 @@ from stewart_drake.errors import UnreachablePoseError
 from stewart_drake.interfaces.cli import main
 from stewart_drake.model import statics
 from stewart_drake.simulation.diagram import make_stewart_diagram
+from stewart_drake.simulation.guard import GuardConfig
 from stewart_drake.simulation.scenario import Scenario
 from stewart_drake.simulation.trajectories import SineTrajectory
 from stewart_drake.studies.experiments import load_result, run_experiment
@@ -47,8 +48,11 @@ def test_unreachable_reference_is_rejected_before_simulating():
     too_high = SineTrajectory(
         amplitude=(0, 0, 0, 0, 0, 0.2), frequency_hz=(0, 0, 0, 0, 0, 0.25), name="too_high"
     )
+    # Nearing the end of reach, a crank nears its dead point first: the singularity bounds off,
+    # the refusal is the pose out of reach (the earliest refusal is raised, whatever its kind).
+    lax = GuardConfig(cond_threshold=1e12, min_sigma_min_inv=0.0)
     with pytest.raises(UnreachablePoseError) as err:
-        run_experiment(Scenario(duration_s=5.0), reference=too_high)
+        run_experiment(Scenario(duration_s=5.0, guard=lax), reference=too_high)
     assert err.value.t is not None and 0 < err.value.t < 1.0
     assert "leg" in str(err.value) and "t = " in str(err.value)
 

@@ -762,23 +762,26 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
     os.mkfifo(specials["folder"] / "manifest.json")
     with pytest.raises(CorruptFileError, match=r"it is a FIFO"):
         read_manifest(specials["folder"])
-    assert time.monotonic() - t0 < 5.0
+    # Refused from what they are, never opened for reading (a FIFO would block for ever):
+    # milliseconds when quiet, a bound that holds on a loaded machine.
+    assert time.monotonic() - t0 < 30.0
 
 
 # -- the low cases ---------------------------------------------------------------------------------
 
 
-def test_a_scenario_file_beyond_the_size_bound_is_refused_unparsed(tmp_path):
+def test_a_scenario_file_beyond_the_size_bound_is_refused_unparsed(tmp_path, monkeypatch):
     path = tmp_path / "big.yaml"
     path.write_text("tuner: !WeightSchedule\n  t: [" + ", ".join(["0.0"] * 200_000) + "]\n")
-    t0 = time.monotonic()
+    import yaml
+
+    monkeypatch.setattr(yaml, "compose", lambda *a, **k: pytest.fail("parsed"))
     with pytest.raises(
         CorruptFileError,
         match=rf"it holds 1 MB, over the bound of "
         rf"{MAX_SCENARIO_BYTES / 1e3:.3g} kB",
     ):
         load_scenario(path)
-    assert time.monotonic() - t0 < 1.0
 
 
 def test_a_long_computation_delay_is_refused_where_the_lqi_would_crawl():
