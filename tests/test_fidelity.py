@@ -224,7 +224,10 @@ def test_reproduce_learns_on_request(tmp_path, capsys):
         (["reproduce", "cough"], "unknown motion 'cough'"),
         (["reproduce", "breathing", "--param", "depth=3mm"], "has no parameter 'depth'"),
         (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
-        (["reproduce", "breathing", "--map", "SI=X"], "--map, --lowpass-hz and --centre are for"),
+        (
+            ["reproduce", "breathing", "--map", "SI=X"],
+            "--map, --lowpass-hz, --centre and --columns are for",
+        ),
         (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
         (["reproduce", "missing.csv"], "no trace at"),
     ],
@@ -261,3 +264,31 @@ def test_mismatched_or_non_finite_inputs_are_typed_errors():
     with pytest.raises(InvalidConfigError, match="periods must be finite positive numbers"):
         common_period([4.0, math.nan])
     assert common_period([4.0, 60 / 72]) == pytest.approx(20.0)  # 5 breaths, 24 heartbeats
+
+
+def test_reproduce_takes_a_phantom_trace_as_it_comes(tmp_path, capsys):
+    """A 7-column phantom file (.txt, spaces, no header) and a ';'-separated decimal-comma
+    marker file are reproduced with no editing; the report says how each was read."""
+    t = np.arange(0.0, 12.0, 0.2)
+    phantom = tmp_path / "Lung trace.txt"
+    rows = np.column_stack(
+        [t, 0.3 * np.sin(t), 4.0 * np.sin(np.pi * t / 2), np.cos(t), 0.5 * np.sin(t), 0 * t, 0 * t]
+    )
+    phantom.write_text("\n".join(" ".join(f"{v:.5g}" for v in r) for r in rows))
+    marker = tmp_path / "marker.csv"
+    marker.write_text(
+        "t [s];SI [mm]\n" + "".join(f"{a:.2f};{3 * math.sin(a):.4f}\n".replace(".", ",") for a in t)
+    )
+    for path, layout in (
+        (phantom, "phantom format, no header, separated by spaces"),
+        (marker, "header, separated by semicolons, decimal commas"),
+    ):
+        out = tmp_path / path.stem
+        code = cli.main(
+            ["reproduce", str(path), "--duration", "6", "--no-progress", "--out", str(out)]
+        )
+        printed = capsys.readouterr()
+        assert code == 0, printed.err
+        md = (out / f"reproduce_{path.stem}.md").read_text()
+        assert f"Trace: {path.name} ({layout}): " in md, md[:600]
+        assert "**PASS" in md

@@ -84,3 +84,92 @@ def test_a_trace_shorter_than_two_resampling_steps_is_refused(tmp_path):
     path.write_text("t [s],SI [mm]\n0,0\n0.001,1\n0.002,0\n0.003,1\n")
     with pytest.raises(Refused, match=r"lasts 0.003 s, shorter than two resampling steps"):
         load(path)
+
+
+# -- the layouts users have ----------------------------------------------------------------------
+
+
+def _phantom_text(t, columns, sep=" ", decimal="."):
+    """A trace written as motion phantoms write theirs: no header, one sample per line, no
+    newline after the last."""
+    lines = [sep.join(f"{v:.6g}" for v in row) for row in np.column_stack([t, *columns])]
+    return "\n".join(lines).replace(".", decimal) if decimal != "." else "\n".join(lines)
+
+
+def test_the_phantom_format_is_read_as_downloaded(tmp_path):
+    """7 columns, spaces, no header (t LR SI AP [mm] rLR rSI rAP [deg], 5 Hz): each column on
+    its patient axis, in SI units, and the layout said."""
+    t = np.arange(0.0, 30.0, 0.2)
+    lr, si, ap = 0.5 * np.sin(t), 6.0 * np.sin(2 * np.pi * t / 4), 1.5 * np.cos(t)
+    r_lr, r_si, r_ap = 0.8 * np.sin(t / 2), 0.4 * np.cos(t / 3), 0.2 * np.sin(t / 5)
+    path = tmp_path / "Liver_Trace 1.txt"
+    path.write_text(_phantom_text(t, [lr, si, ap, r_lr, r_si, r_ap]))
+    ref = load_trace(path, centre_on="none")
+    assert ref.info.layout == "phantom format, no header, separated by spaces"
+    assert ref.info.columns == ("t", "LR", "SI", "AP", "rot_LR", "rot_SI", "rot_AP")
+    assert ref.info.axes == ("+Y", "+X", "+Z", "+theta", "+phi", "+psi")
+    x = ref.evaluate(t)[0]
+    for k, values, scale in (
+        (3, si, 1e-3),
+        (4, lr, 1e-3),
+        (5, ap, 1e-3),
+        (0, r_si, np.pi / 180),
+        (1, r_lr, np.pi / 180),
+        (2, r_ap, np.pi / 180),
+    ):
+        assert np.allclose(x[:, k] - X_HOME[k], values * scale, atol=1e-9), k
+    with pytest.raises(InvalidConfigError, match=r"the csv.*no header|no header line naming"):
+        load_trace(path, format="csv")
+
+
+def test_a_surrogate_file_goes_to_si_unless_mapped(tmp_path):
+    t = np.arange(0.0, 20.0, 0.2)
+    path = tmp_path / "resp.txt"
+    path.write_text(_phantom_text(t, [3.0 * np.sin(t)]))
+    ref = load_trace(path, centre_on="none")
+    assert ref.info.layout.startswith("surrogate format") and ref.info.axes == ("+X",)
+    assert np.allclose(ref.evaluate(t)[0][:, 3], 3e-3 * np.sin(t), atol=1e-9)
+    ref = load_trace(path, centre_on="none", axis_map={"surrogate": "-Z"})
+    assert ref.info.axes == ("-Z",)
+    assert np.allclose(ref.evaluate(t)[0][:, 5] - X_HOME[5], -3e-3 * np.sin(t), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "sep, decimal, layout",
+    [
+        (";", ",", "header, separated by semicolons, decimal commas"),
+        ("\t", ",", "header, separated by tabs, decimal commas"),
+        ("\t", ".", "header, separated by tabs"),
+        (" ", ",", "columns given, separated by spaces, decimal commas"),
+    ],
+    ids=["semicolon-comma", "tab-comma", "tab-point", "space-comma"],
+)
+def test_any_separator_and_decimal_mark_read_as_the_comma_file(tmp_path, sep, decimal, layout):
+    """The same samples as a comma-separated file with a header, written as spreadsheets in
+    many locales write them, give the same reference to the last bit."""
+    t = np.arange(0.0, 12.0, 0.04)
+    si, ap = 5.0 * np.sin(2 * np.pi * t / 4) ** 2, 1.2 * np.cos(2 * np.pi * t / 4)
+    plain = tmp_path / "plain.csv"
+    plain.write_text("t [s],SI [mm],AP [mm]\n" + _phantom_text(t, [si, ap], sep=",") + "\n")
+    body = _phantom_text(t, [si, ap], sep=sep, decimal=decimal)
+    other = tmp_path / "other.txt"
+    columns = ""
+    if layout.startswith("header"):
+        other.write_text(sep.join(["t [s]", "SI [mm]", "AP [mm]"]) + "\n" + body + "\n")
+    else:
+        other.write_text(body + "\n")
+        columns = "t [s], SI [mm], AP [mm]"
+        with pytest.raises(InvalidConfigError, match=r"no header line and 3 columns"):
+            load_trace(other)
+    a, b = load_trace(plain), load_trace(other, columns=columns)
+    assert b.info.layout == layout
+    probe = np.linspace(0.0, t[-1], 777)
+    assert np.array_equal(a.evaluate(probe)[0], b.evaluate(probe)[0])
+
+
+def test_a_header_where_the_phantom_format_has_none_is_refused(tmp_path):
+    path = write_trace(tmp_path / "h.csv", np.arange(0.0, 5.0, 0.1), {"SI [mm]": np.zeros(50)})
+    with pytest.raises(InvalidConfigError, match=r"the phantom format has no header line"):
+        load_trace(path, format="phantom")
+    with pytest.raises(InvalidConfigError, match=r"trace format 'xml': use one of auto, csv"):
+        load_trace(path, format="xml")

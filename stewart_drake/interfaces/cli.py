@@ -387,14 +387,20 @@ def _cmd_run(args) -> int:
 
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
-    from ..simulation.scenario_io import apply_run_options, load_scenario
+    from ..simulation.scenario_io import load_scenario
     from ..simulation.trajectories import TRAJECTORIES, NamedReference
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
-    if source.lower().endswith(".csv"):  # as long as the file, as `run` takes it
+    if _is_trace_file(source) and Path(source).suffix.lower() not in (".yaml", ".yml"):
+        from ..simulation.traces import TraceReference, load_trace
+
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario = apply_run_options(scenario, trajectory_file=source, duration_s=args.duration)
+        scenario.reference = TraceReference(path=source)
+        if args.duration is None:  # as long as the file, as `run` and `reproduce` take it
+            trace = load_trace(source)
+            scenario.duration_s = trace.end_time - getattr(trace, "start_time", 0.0)
+        scenario.validate()
     elif source in TRAJECTORIES:
         scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = NamedReference(source)
@@ -427,6 +433,13 @@ def _key_values(items, option: str) -> dict:
     return out
 
 
+def _is_trace_file(source: str) -> bool:
+    """Whether ``reproduce``'s motion names a file (a name with a suffix or a folder, or an
+    existing file) rather than a motion of the library (plain names)."""
+    path = Path(source)
+    return bool(path.suffix) or len(path.parts) > 1 or path.is_file()
+
+
 def _cmd_reproduce(args) -> int:
     """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
@@ -441,11 +454,11 @@ def _cmd_reproduce(args) -> int:
     scenario = load_scenario(args.scenario, args.set or ())
     source = args.motion
     params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
-    if source.lower().endswith(".csv"):
+    if _is_trace_file(source):
         if params:
             raise InvalidConfigError(
-                "--param sets a library motion's parameters; a trace takes "
-                "--map, --lowpass-hz, --centre, --centre-on, --max-gap"
+                "--param sets a library motion's parameters; a trace takes --format, "
+                "--columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap"
             )
         centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
         if args.centre is not None:
@@ -462,6 +475,8 @@ def _cmd_reproduce(args) -> int:
             centre_on=args.centre_on,
             lowpass_hz=args.lowpass_hz or 0.0,
             max_gap_s=args.max_gap,
+            format=args.format,
+            columns=args.columns or "",
         )
         name = Path(source).stem
         size = Path(source).stat().st_size if Path(source).is_file() else 0
@@ -470,10 +485,10 @@ def _cmd_reproduce(args) -> int:
 
             print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
     else:
-        if mapping or args.lowpass_hz or args.centre is not None:
+        if mapping or args.lowpass_hz or args.centre is not None or args.columns:
             raise InvalidConfigError(
-                "--map, --lowpass-hz and --centre are for a trace file "
-                "(.csv); a library motion takes --param"
+                "--map, --lowpass-hz, --centre and --columns are for a trace file; "
+                "a library motion takes --param"
             )
         scenario.reference = OrganMotionReference(motion=source, parameters=params)
         name = source
@@ -982,11 +997,11 @@ def _add_check_command(sub) -> None:
     )
     chk.add_argument(
         "reference",
-        help="a CSV file (t,phi,theta,psi,X,Y,Z), a named trajectory "
-        "(paper, helix, step_<axis>, ...) or a scenario (file or "
-        "shipped name)",
+        help="a reference file (t,phi,theta,psi,X,Y,Z, or a recorded trace as reproduce "
+        "reads it), a named trajectory (paper, helix, step_<axis>, ...) or a scenario "
+        "(a .yaml file or a shipped name)",
     )
-    _add_scenario_arguments(chk, "the robot to check on, for a CSV or named reference")
+    _add_scenario_arguments(chk, "the robot to check on, for a file or named reference")
     chk.add_argument(
         "--duration",
         type=_positive_float,
@@ -1008,8 +1023,24 @@ def _add_reproduce_command(sub) -> None:
     rp.add_argument(
         "motion",
         help="breathing, heartbeat, breathing_heartbeat, "
-        "irregular_breathing, hysteresis, or a trace file (.csv with "
-        "a header naming columns and units, or t,phi,theta,psi,X,Y,Z)",
+        "irregular_breathing, hysteresis, or a trace file: text with a header naming "
+        "columns and units (commas, semicolons, tabs or spaces; decimal points or commas), "
+        "a motion phantom's 7-column (t LR SI AP [mm] rLR rSI rAP [deg]) or 2-column "
+        "surrogate file, or t,phi,theta,psi,X,Y,Z",
+    )
+    rp.add_argument(
+        "--format",
+        choices=["auto", "csv", "phantom", "surrogate"],
+        default="auto",
+        help="a trace's layout: auto reads a header line, else 7 columns as the phantom "
+        "format and 2 as a surrogate",
+    )
+    rp.add_argument(
+        "--columns",
+        default=None,
+        metavar="'t [s],SI [mm],...'",
+        help="a trace's columns and units when it has no header line (or to replace it) "
+        "(default: the file's header, or the phantom format's by its width)",
     )
     rp.add_argument(
         "--param",

@@ -15,6 +15,7 @@ Drake's YAML loader reads :class:`TraceReference`'s field types: this module mus
 ``from __future__ import annotations``.
 """
 
+import csv
 import math
 import re
 from dataclasses import dataclass, field
@@ -23,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..checks import as_array, as_number, as_poses
-from ..errors import InvalidConfigError, MissingFileError
+from ..errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..model.geometry import X_HOME, StewartGeometry
 from .motion import Reference, ReferenceConfig
 from .organ_motion import UNITS, axis_index, check_centre, scaled
@@ -32,7 +33,6 @@ from .trajectories import (
     CSV_BYTES_PER_ROW,
     CSV_COLUMNS,
     CubicSplineTrajectory,
-    csv_rows,
     load_csv_trajectory,
 )
 
@@ -44,6 +44,19 @@ CENTRE_MODES = ("mean", "first", "none")
 MAX_TRACE_BYTES = 256e6
 #: Time units of a trace's time column: factor to s.
 TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
+#: The layouts :func:`load_trace` reads (``format``): "auto" (a header line, else the width
+#: decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming each
+#: column and its unit), "phantom", "surrogate".
+TRACE_FORMATS = ("auto", "csv", "phantom", "surrogate")
+#: The columns of the 6-D motion phantom format (Image-X Institute's IntERAct: text without a
+#: header, one sample per line, numbers separated by spaces, 5 Hz in its library): time, the
+#: target's translation in the patient's axes, and its rotation about them.
+PHANTOM_COLUMNS = "t [s], LR [mm], SI [mm], AP [mm], rot_LR [deg], rot_SI [deg], rot_AP [deg]"
+#: The columns of a phantom's external surrogate file (2 columns without a header: time and the
+#: marker's displacement): the displacement goes to the patient's SI unless mapped elsewhere.
+SURROGATE_COLUMNS = "t [s], surrogate [mm]"
+#: Where a surrogate's displacement goes by default (``axis_map`` overrides it).
+SURROGATE_AXIS = {"surrogate": "SI"}
 
 
 @dataclass(frozen=True)
@@ -58,6 +71,7 @@ class TraceInfo:
             some axis, bridged by the spline.
         lowpass_hz: the zero-phase low-pass applied, or None.
         duration_s: length of the reference, s.  centred_on: "mean", "first" or "none".
+        layout: how the file was read (its format, separator and decimal mark).
     """
 
     path: str
@@ -70,6 +84,7 @@ class TraceInfo:
     lowpass_hz: float | None
     duration_s: float
     centred_on: str
+    layout: str = "csv"
 
     def summary(self) -> str:
         gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
@@ -77,7 +92,8 @@ class TraceInfo:
             f"{c} [{u}] -> {a}" for c, u, a in zip(self.columns[1:], self.units[1:], self.axes)
         )
         return (
-            f"{Path(self.path).name}: {self.samples} samples at {self.sample_rate_hz:.4g} Hz "
+            f"{Path(self.path).name} ({self.layout}): {self.samples} samples at "
+            f"{self.sample_rate_hz:.4g} Hz "
             f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
             f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}"
         )
@@ -114,23 +130,122 @@ def _parse_header_cell(cell: str) -> tuple[str, str]:
 
 #: How to write a trace file: the remedy of the messages about one that cannot be read.
 _TRACE_REMEDY = (
-    "write it as UTF-8 CSV whose first line names each column and its unit, e.g. "
-    "t [s],SI [mm],AP [mm]"
+    "write a first line naming each column and its unit, e.g. t [s],SI [mm],AP [mm], or give "
+    "them with --columns (a scenario's reference.columns), or --format phantom for the "
+    "7-column phantom format"
 )
 
 
-def _trace_rows(path: Path) -> list:
-    """The rows of a trace file, header first (lists of cell strings; at least the header)."""
+def _number(cell: str) -> bool:
+    """A cell that reads as a float (or is empty: a missing sample)."""
+    try:
+        float(cell) if cell.strip() else None
+    except ValueError:
+        return False
+    return True
+
+
+def _separator(lines: list) -> tuple[str | None, bool]:
+    """(separator, decimal comma) of a trace's text from its first data lines: ";" or a tab
+    (each with a decimal comma when the numbers have one), ",", or None (runs of spaces, with a
+    decimal comma when the numbers have one)."""
+    sample = [ln for ln in lines[1:21] if ln.strip()] or [ln for ln in lines if ln.strip()][:1]
+    for sep in (";", "\t"):
+        if sample and all(sep in ln for ln in sample):
+            return sep, any("," in ln for ln in sample)
+    if sample and all("," in ln for ln in sample):
+        if all(all(_number(c) for c in ln.split(",")) for ln in sample):
+            return ",", False
+        spaced = [ln.replace(",", ".").split() for ln in sample]
+        if all(len(cells) > 1 and all(_number(c) for c in cells) for cells in spaced):
+            return None, True  # numbers with decimal commas separated by spaces
+        return ",", False
+    return None, False
+
+
+def _split_lines(path: Path, text: str) -> tuple[list, str]:
+    """(rows of cell strings, one per non-blank line with its line number first; the layout
+    in words) of a trace's text, whatever its separator and decimal mark."""
+    lines = text.splitlines()
+    sep, decimal_comma = _separator(lines)
+    rows = []
+    if sep in (",", ";"):
+        reader = csv.reader(lines, delimiter=sep)
+        try:
+            for number, cells in enumerate(reader, start=1):
+                if cells and any(c.strip() for c in cells):
+                    rows.append([number] + cells)
+        except csv.Error as err:
+            raise CorruptFileError(
+                path, "trace file", f"not delimited text ({err})", _TRACE_REMEDY
+            ) from None
+    else:
+        for number, line in enumerate(lines, start=1):
+            cells = line.split(sep) if sep else line.split()
+            if any(c.strip() for c in cells):
+                rows.append([number] + cells)
+    if decimal_comma:
+        rows = [[r[0]] + [str(c).replace(",", ".") for c in r[1:]] for r in rows]
+    named = {",": "commas", ";": "semicolons", "\t": "tabs", None: "spaces"}[sep]
+    return rows, f"separated by {named}" + (", decimal commas" if decimal_comma else "")
+
+
+def _trace_table(path: Path, format: str, columns: str) -> tuple[list, list, str]:
+    """(header cells, data rows (each its line number then its cells), layout in words) of a
+    trace file in any of :data:`TRACE_FORMATS`, or given its columns.
+
+    Raises:
+        MissingFileError, CorruptFileError: no such file, too large, not UTF-8 text.
+        InvalidConfigError: an unknown format, a file without a header whose width says no
+            format, a header where the format has none, an empty file.
+    """
     from ..fileio import read_checked
 
+    if format not in TRACE_FORMATS:
+        raise InvalidConfigError(f"trace format {format!r}: use one of {', '.join(TRACE_FORMATS)}")
     if not path.exists():
         raise MissingFileError(f"no trace at {path}: check the path")
-    raw = read_checked(path, "trace CSV", MAX_TRACE_BYTES, _TRACE_REMEDY)
-    rows = csv_rows(raw, path, "trace CSV", _TRACE_REMEDY)
+    raw = read_checked(path, "trace file", MAX_TRACE_BYTES, _TRACE_REMEDY)
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(
+            path, "trace file", f"not UTF-8 text ({err.reason} at byte {err.start})", _TRACE_REMEDY
+        ) from None
     del raw
+    if "\0" in text:
+        raise CorruptFileError(path, "trace file", "not text (a NUL byte)", _TRACE_REMEDY)
+    rows, layout = _split_lines(path, text)
+    del text
     if not rows:
         raise InvalidConfigError(f"{path}: empty; {_TRACE_REMEDY}")
-    return rows
+    headed = not all(_number(c) for c in rows[0][1:])
+    if format in ("phantom", "surrogate") and headed:
+        raise InvalidConfigError(
+            f"{path}: the {format} format has no header line, but line {rows[0][0]} is "
+            f"{','.join(rows[0][1:])[:80]!r}; leave --format out to read the header"
+        )
+    if format == "csv" and not headed and not columns:
+        raise InvalidConfigError(f"{path}: no header line naming the columns; {_TRACE_REMEDY}")
+    data = rows[1:] if headed else rows
+    if columns:
+        header, how = [c.strip() for c in str(columns).split(",")], "columns given"
+    elif headed:
+        header, how = rows[0][1:], "header"
+    else:
+        width = len(rows[0]) - 1
+        kind = format if format != "auto" else {7: "phantom", 2: "surrogate"}.get(width)
+        if kind is None:
+            raise InvalidConfigError(
+                f"{path}: no header line and {width} columns, neither the phantom format (7: "
+                f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {_TRACE_REMEDY}"
+            )
+        header = [
+            c.strip()
+            for c in (PHANTOM_COLUMNS if kind == "phantom" else SURROGATE_COLUMNS).split(",")
+        ]
+        how = f"{kind} format, no header"
+    return header, data, f"{how}, {layout}"
 
 
 def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int, float]:
@@ -196,15 +311,13 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
 
 
 def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
-    """(n, width) the numbers of the data rows in the file's units, NaN where a cell is empty
-    (blank rows skipped)."""
+    """(n, width) the numbers of the data rows (each its line number, then its cells) in the
+    file's units, NaN where a cell is empty."""
     values = []
-    for line, row in enumerate(rows, start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
+    for line, *row in rows:
         if len(row) != width:
             raise InvalidConfigError(
-                f"{path}, line {line}: {len(row)} fields, the header has {width}"
+                f"{path}, line {line}: {len(row)} fields, the columns are {width}"
             )
         try:
             numbers = [float(c) if c.strip() else math.nan for c in row]
@@ -331,12 +444,20 @@ def load_trace(
     lowpass_hz: float | None = None,
     max_gap_s: float = 1.0,
     resample_hz: float = 100.0,
+    format: str = "auto",
+    columns: str = "",
 ):
     """A reference from a recorded trace of 1 to 6 axes.
 
-    The first line names the columns and their units: a time column (``t`` or ``time``, in s,
-    ms or min) and 1 to 6 axes (``SI [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or
-    um, angles in rad, mrad, urad or deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
+    The file is text, one sample per line, its numbers separated by commas, semicolons, tabs or
+    spaces, with a decimal point or (with any separator but commas) a decimal comma. Its first
+    line names the columns and their units, or ``columns`` does (the same words, comma
+    separated), or it has none and is one of the phantom formats (``format``, by its width when
+    "auto"): the 7-column 6-D format :data:`PHANTOM_COLUMNS`, or a 2-column external surrogate
+    :data:`SURROGATE_COLUMNS` (its displacement on SI unless ``axis_map`` says otherwise). The
+    columns are a time column (``t`` or ``time``, in s, ms or min) and 1 to 6 axes (``SI
+    [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or um, angles in rad, mrad, urad or
+    deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
     roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
     :data:`~.organ_motion.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
     Times increase but need not be evenly spaced; an empty or ``nan`` cell is a missing sample
@@ -351,7 +472,7 @@ def load_trace(
     ``lowpass_hz`` do not apply to it).
 
     Args:
-        path: the CSV file (UTF-8, at most :data:`MAX_TRACE_BYTES`).
+        path: the text file (UTF-8, at most :data:`MAX_TRACE_BYTES`).
         axis_map: {column name: platform axis with an optional sign}, e.g. ``{"SI": "-Z"}``;
             it takes precedence over the names' own meaning.
         centre: (6,) the pose the trace is centred on, rad and m; default home.
@@ -361,6 +482,9 @@ def load_trace(
             ``resample_hz``.
         max_gap_s: longest interval an axis may go without data, s (longer: refused).
         resample_hz: rate of the samples joined by the C2 spline, Hz.
+        format: one of :data:`TRACE_FORMATS`.
+        columns: the columns' names and units when the file has no header (or to replace
+            its header), e.g. ``"t [s], SI [mm], AP [mm]"``.
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
         :class:`~.trajectories.CubicSplineTrajectory` of a project CSV.
@@ -373,11 +497,13 @@ def load_trace(
             longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
     """
     path = Path(path)
-    rows = _trace_rows(path)
-    if tuple(h.strip() for h in rows[0]) == CSV_COLUMNS:
+    header, rows, layout = _trace_table(path, format, columns)
+    if tuple(h.strip() for h in header) == CSV_COLUMNS and not columns:
         return load_csv_trajectory(path)
-    names, units, targets, factors = _trace_header(path, rows[0], axis_map)
-    data = _trace_values(path, rows[1:], len(names))
+    if "surrogate" in layout:
+        axis_map = {**SURROGATE_AXIS, **(axis_map or {})}
+    names, units, targets, factors = _trace_header(path, header, axis_map)
+    data = _trace_values(path, rows, len(names))
     del rows
     t = data[:, 0] * TIME_UNITS[units[0].lower()]
     if len(t) < 4 or np.any(np.diff(t) <= 0):
@@ -405,6 +531,7 @@ def load_trace(
         lowpass_hz=lowpass_hz,
         duration_s=float(grid[-1]),
         centred_on=centre_on,
+        layout=layout,
     )
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
@@ -425,6 +552,8 @@ class TraceReference(ReferenceConfig):
         lowpass_hz: corner of the zero-phase low-pass, Hz (0: none).
         max_gap_s: longest interval without data an axis may have, s.
         scale: the trace shrunk about its centre, in (0, 1].
+        format: the file's layout, one of :data:`TRACE_FORMATS` ("auto": its header, else its
+            width). columns: its columns' names and units when it has no header line.
     """
 
     path: str = ""
@@ -434,9 +563,15 @@ class TraceReference(ReferenceConfig):
     lowpass_hz: float = 0.0
     max_gap_s: float = 1.0
     scale: float = 1.0
+    format: str = "auto"
+    columns: str = ""
 
     def validate(self) -> None:
         as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
+        if self.format not in TRACE_FORMATS:
+            raise InvalidConfigError(
+                f"reference.format must be one of {', '.join(TRACE_FORMATS)}, got {self.format!r}"
+            )
         if not self.path or not Path(self.path).exists():
             raise MissingFileError(f"no trace at {self.path!r} (reference.path): check the path")
         if self.centre_on not in CENTRE_MODES:
@@ -458,6 +593,8 @@ class TraceReference(ReferenceConfig):
             self.centre_on,
             self.lowpass_hz or None,
             self.max_gap_s,
+            format=self.format,
+            columns=self.columns,
         )
         return scaled(trace, self.scale)
 
@@ -476,5 +613,8 @@ __all__ = [
     "CENTRE_MODES",
     "MAX_TRACE_BYTES",
     "TIME_UNITS",
+    "TRACE_FORMATS",
+    "PHANTOM_COLUMNS",
+    "SURROGATE_COLUMNS",
     "TraceReference",
 ]

@@ -618,6 +618,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
             f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
             f"robot (--scale-to-fit)."
         )
+    source = rep.reference
+    info = getattr(source, "info", None) or getattr(
+        getattr(source, "reference", None), "info", None
+    )
+    if info is not None:  # a recorded trace: what was read, and how
+        lines += ["", f"Trace: {info.summary()}."]
     lines += [
         "",
         "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
