@@ -1130,7 +1130,7 @@ def test_a_long_trace_shows_its_check_and_ends_promptly_on_a_signal(tmp_path):
     """A 300 s stretch of a 2000 s trace: the check's bar shows within seconds of the start
     (the trace read and its cycles found in about 1.5 s, 60 s allowed for a loaded machine),
     and SIGINT during the check (15 s of it) ends the command within 10 s (0.4 s when quiet:
-    the check runs in stretches of 20 s) with 130 and one line."""
+    the check runs in stretches of 5 s) with 130 and one line."""
     path = _long_trace(tmp_path / "long.csv", 200_000)
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(

@@ -610,8 +610,8 @@ def as_trajectory(source) -> Reference:
     return wrapped
 
 
-#: Samples :func:`validate` checks at once (20 s at 1 kHz; about 9 kB each while checked).
-VALIDATE_CHUNK_SAMPLES = 20_000
+#: Samples :func:`validate` checks at once (5 s at 1 kHz; about 9 kB each while checked).
+VALIDATE_CHUNK_SAMPLES = 5_000
 
 
 def validate(

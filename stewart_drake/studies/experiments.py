@@ -142,11 +142,15 @@ def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | No
     )
 
 
+#: Control-period samples above which a shown check has a bar (a minute at 1 kHz: the check
+#: takes about 3 s; a 20-minute trace checks for about a minute).
+CHECK_BAR_SAMPLES = 60_000
+
+
 def check_reference_shown(plan: RunPlan, reference=None, progress: bool = False, **kwargs):
     """:func:`~stewart_drake.simulation.plan.check_reference` of ``plan`` (and ``reference``),
-    behind a tqdm bar ("checking") when ``progress`` and the check takes more than one stretch
-    of :data:`~stewart_drake.simulation.trajectories.VALIDATE_CHUNK_SAMPLES` samples (a run
-    longer than 20 s at 1 kHz: a 20-minute trace checks for about two minutes).
+    behind a tqdm bar ("checking") when ``progress`` and the check has more than
+    :data:`CHECK_BAR_SAMPLES` samples.
 
     Args:
         plan: the run. reference: the reference (default: the plan's). progress: show the bar.
@@ -156,10 +160,8 @@ def check_reference_shown(plan: RunPlan, reference=None, progress: bool = False,
     """
     from tqdm import tqdm
 
-    from ..simulation.trajectories import VALIDATE_CHUNK_SAMPLES
-
     samples = int(plan.duration_s / plan.control_period_s) + 1
-    shown = progress and samples > VALIDATE_CHUNK_SAMPLES
+    shown = progress and samples > CHECK_BAR_SAMPLES
     with tqdm(total=samples, desc="checking", unit=" samples", disable=not shown) as bar:
         return check_reference(plan, reference, progress=bar if shown else None, **kwargs)
 
