@@ -61,7 +61,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     _advance(run, 0.5)
     x, x_d = _pose(run)
     np.testing.assert_allclose(x_d[:6], X_HOME, atol=1e-9)  # at rest where it started
-    meshcat.SetSliderValue("y", 0.03)
+    meshcat.SetSliderValue("y [m]", 0.03)
     rate, acc = _advance(run, 2.0)
     x, x_d = _pose(run)
     assert x_d[4] == pytest.approx(0.03, abs=1e-4)  # the reference arrived
@@ -71,7 +71,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     assert np.all(rate <= np.asarray(limits.rate) + 1e-12)  # rate-limited
     assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)  # ... and the limit binds
     assert np.all(acc <= np.asarray(limits.acceleration) + 1e-9)
-    meshcat.SetSliderValue("z", 0.325)  # beyond the workspace
+    meshcat.SetSliderValue("z [m]", 0.325)  # beyond the workspace
     _advance(run, 2.0)
     x, x_d = _pose(run)
     assert 0.30 < x_d[5] <= 0.31 and x_d[5] == pytest.approx(0.31, abs=0.03 / 64 + 1e-9)
@@ -89,8 +89,8 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     assert meshcat.GetSliderValue("T margin [N m] (reading)") == pytest.approx(
         figures["T margin [N m]"], abs=peak / 10000
     )
-    meshcat.SetSliderValue("y", 0.0)
-    meshcat.SetSliderValue("z", 0.30)
+    meshcat.SetSliderValue("y [m]", 0.0)
+    meshcat.SetSliderValue("z [m]", 0.30)
 
 
 def test_the_default_margins_are_the_holding_torques_against_the_peak():
@@ -131,14 +131,15 @@ def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path)
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=1.0)
     run_teleop(run, 0.5, report=None)
     with chromium_cdp.HeadlessChromium(meshcat.web_url()) as browser:
-        browser.wait_for("typeof viewer !== 'undefined' && 'z' in viewer.gui_controllers", 60)
+        browser.wait_for("typeof viewer !== 'undefined' && 'z [m]' in viewer.gui_controllers", 60)
         assert browser.evaluate(
-            "viewer.gui_controllers['z'].setValue(0.315); viewer.gui_controllers['z'].getValue()"
+            "viewer.gui_controllers['z [m]'].setValue(0.315); "
+            "viewer.gui_controllers['z [m]'].getValue()"
         ) == pytest.approx(0.315)
         stats = run_teleop(run, 4.0, report=None)
         x, x_d = _pose(run)
         shot = browser.screenshot(tmp_path / "teleop.png")
-    assert meshcat.GetSliderValue("z") == pytest.approx(0.315)
+    assert meshcat.GetSliderValue("z [m]") == pytest.approx(0.315)
     assert x_d[5] == pytest.approx(0.315, abs=1e-6) and x[5] == pytest.approx(0.315, abs=5e-4)
     # Real time as the machine allows: a busy shared machine can hold it below (the message
     # says by how much); docs/performance.md measures it over a minute.
@@ -198,9 +199,14 @@ def test_teleop_x_slider_spans_the_workspace_and_gauges_say_reading():
     run_teleop(run, 0.2, report=None)
     names = meshcat.GetSliderNames()
     assert {"error [mm] (reading)", "error [mrad] (reading)"} <= set(names)
+    # The pose sliders carry their units, and no slider is left without one.
+    pose = ["roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]"]
+    assert set(pose) <= set(names)
+    assert all(name.endswith(("]", " (reading)")) for name in names), names
+    np.testing.assert_allclose(run.sliders.values(), X_HOME, atol=1e-9)
     # Beyond the old +-4 cm box: the workspace reaches farther in X.
-    meshcat.SetSliderValue("x", X_HOME[3] + 0.06)
-    assert meshcat.GetSliderValue("x") == pytest.approx(X_HOME[3] + 0.06, abs=1e-3)
+    meshcat.SetSliderValue("x [m]", X_HOME[3] + 0.06)
+    assert meshcat.GetSliderValue("x [m]") == pytest.approx(X_HOME[3] + 0.06, abs=1e-3)
     meshcat.SetSliderValue("error [mm] (reading)", 9.0)  # a drag is overwritten
     run_teleop(run, 0.2, report=None)
     assert meshcat.GetSliderValue("error [mm] (reading)") < 9.0

@@ -1,9 +1,10 @@
 """Drive the robot live: the closed loop at real time in Meshcat, the reference set by sliders.
 
 :func:`run_teleop` builds the scenario's closed loop (:func:`~stewart_drake.simulation.diagram.
-make_stewart_diagram`) with a live reference instead of a precomputed one: Drake's
-``MeshcatPoseSliders`` (roll, pitch, yaw, x, y, z; keys Q/E, W/S, A/D, J/L, I/K, U/O) give a
-target pose, :class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
+make_stewart_diagram`) with a live reference instead of a precomputed one: the pose sliders
+(:class:`PoseSliders`: "roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]"; keys
+Q/E, W/S, A/D, J/L, I/K, U/O, as Drake's ``MeshcatPoseSliders``) give a target pose,
+:class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
 the robot can follow (rate-limited, and stopped at the boundary of the admissible workspace),
 and Drake's ``Simulator`` runs the whole at a target real-time rate while Meshcat shows the
 robot. :class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
@@ -36,7 +37,6 @@ from ..simulation.plan import make_plan
 if TYPE_CHECKING:  # for the annotations only: build_teleop imports these when it runs
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import Diagram
-    from pydrake.visualization import MeshcatPoseSliders
 
     from ..simulation.diagram import StewartDiagram
     from ..simulation.reference import TeleopReference
@@ -48,6 +48,17 @@ SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
 SLIDER_SWEEP_POINTS = 40
 #: Suffix of the gauges' names: they show a reading, they are not inputs.
 READING = " (reading)"
+#: The pose sliders' names, with their units: roll, pitch, yaw [rad], then x, y, z [m].
+POSE_SLIDERS = ("roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]")
+#: Their keys (decrease, increase), as Drake's ``MeshcatPoseSliders``.
+POSE_KEYS = (
+    ("KeyQ", "KeyE"),
+    ("KeyS", "KeyW"),
+    ("KeyA", "KeyD"),
+    ("KeyJ", "KeyL"),
+    ("KeyK", "KeyI"),
+    ("KeyU", "KeyO"),
+)
 #: Slider steps: 5 mrad, 1 mm.
 SLIDER_STEP = np.array([0.005, 0.005, 0.005, 0.001, 0.001, 0.001])
 #: How often the display is refreshed, s.
@@ -110,6 +121,42 @@ def robot_margins(geometry, peak_torque_Nm: float | None, clearance) -> Callable
         return out
 
     return margins
+
+
+class PoseSliders(LeafSystem):
+    """Six Meshcat sliders named with their units (:data:`POSE_SLIDERS`) whose values make the
+    output port ``pose`` (a ``RigidTransform``: roll-pitch-yaw [rad], then x, y, z [m]), read
+    when the port is evaluated. Drake's ``MeshcatPoseSliders`` does the same but names its
+    sliders "roll" .. "z" with no units and takes no names.
+
+    Args:
+        meshcat: the Meshcat of the run. initial: (6,) the start pose [rad, m].
+        lower, upper, step: (6,) the sliders' limits and steps [rad, m].
+    """
+
+    def __init__(self, meshcat, initial, lower, upper, step):
+        from pydrake.common.value import AbstractValue
+        from pydrake.math import RigidTransform
+
+        super().__init__()
+        self.meshcat = meshcat
+        for name, lo, hi, dx, x, (down, up) in zip(
+            POSE_SLIDERS, lower, upper, step, initial, POSE_KEYS, strict=True
+        ):
+            meshcat.AddSlider(name, float(lo), float(hi), float(dx), float(x), down, up)
+        self.DeclareAbstractOutputPort(
+            "pose", lambda: AbstractValue.Make(RigidTransform()), self._CalcPose
+        )
+
+    def values(self) -> np.ndarray:
+        """(6,) the sliders' values now [rad, m]."""
+        return np.array([self.meshcat.GetSliderValue(name) for name in POSE_SLIDERS])
+
+    def _CalcPose(self, context, output):
+        from pydrake.math import RigidTransform, RollPitchYaw
+
+        x = self.values()
+        output.set_value(RigidTransform(RollPitchYaw(x[:3]), x[3:]))
 
 
 class TeleopDisplay(LeafSystem):
@@ -181,7 +228,7 @@ class TeleopRun:
 
     diagram: Diagram
     loop: StewartDiagram
-    sliders: MeshcatPoseSliders
+    sliders: PoseSliders
     reference: TeleopReference
     display: TeleopDisplay
     simulator: Simulator
@@ -219,10 +266,8 @@ def build_teleop(
     Raises:
         InvalidConfigError: a bad scenario or setting; UnreachablePoseError: x_initial.
     """
-    from pydrake.math import RigidTransform, RollPitchYaw
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
-    from pydrake.visualization import MeshcatPoseSliders
 
     from ..model.clearance import clearance_model
     from ..simulation.diagram import make_stewart_diagram
@@ -256,13 +301,7 @@ def build_teleop(
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
     lower, upper = slider_limits(reference.admissible, x0)
-    sliders = MeshcatPoseSliders(
-        meshcat,
-        initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
-        lower_limit=lower,
-        upper_limit=upper,
-        step=SLIDER_STEP,
-    )
+    sliders = PoseSliders(meshcat, x0, lower, upper, SLIDER_STEP)
     builder.AddNamedSystem("sliders", sliders)
     builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
     display = TeleopDisplay(
