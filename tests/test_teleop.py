@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from meshcat_html import read_meshcat_commands
 from pydrake.geometry import Meshcat
 
 from stewart_drake.interfaces.cli import main
@@ -210,3 +211,24 @@ def test_teleop_x_slider_spans_the_workspace_and_gauges_say_reading():
     meshcat.SetSliderValue("error [mm] (reading)", 9.0)  # a drag is overwritten
     run_teleop(run, 0.2, report=None)
     assert meshcat.GetSliderValue("error [mm] (reading)") < 9.0
+
+
+def test_the_reference_is_drawn_as_a_translucent_ghost_at_x_d():
+    from stewart_drake.interfaces.visualize import GHOST_PATH, ghost_transform
+
+    meshcat = Meshcat()
+    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
+    meshcat.SetSliderValue("y [m]", 0.03)
+    run_teleop(run, 0.3, report=None)  # a multiple of the ghost's 1/30 s: published at the end
+    x_d = _pose(run)[1]
+    assert 0.005 < x_d[4] < 0.03  # on its way: the ghost is away from home
+    assert {"plate", "tool"} <= {
+        name for name in ("plate", "tool", "stud_0") if meshcat.HasPath(f"{GHOST_PATH}/{name}")
+    }
+    commands = read_meshcat_commands(meshcat.StaticHtml())
+    (placed,) = [c for c in commands if c["type"] == "set_transform" and c["path"] == GHOST_PATH]
+    np.testing.assert_allclose(
+        np.reshape(placed["matrix"], (4, 4)).T, ghost_transform(x_d).GetAsMatrix4(), atol=1e-9
+    )
+    (plate,) = [c for c in commands if c.get("path") == f"{GHOST_PATH}/plate" and "object" in c]
+    assert plate["object"]["materials"][0]["opacity"] < 0.5

@@ -7,7 +7,8 @@ Q/E, W/S, A/D, J/L, I/K, U/O, as Drake's ``MeshcatPoseSliders``) give a target p
 :class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
 the robot can follow (rate-limited, and stopped at the boundary of the admissible workspace),
 and Drake's ``Simulator`` runs the whole at a target real-time rate while Meshcat shows the
-robot. :class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
+robot and, as a translucent ghost of the platform, the reference (:class:`ReferenceGhost`).
+:class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
 its margins (by default the torque margin of the holding torques against the motors' peak
 torque and the clearance between the robot's parts; ``margins`` is the hook for other figures).
 The reference stops where two parts would come closer than ``guard.min_clearance_m``.
@@ -219,18 +220,44 @@ class TeleopDisplay(LeafSystem):
             self.meshcat.SetSliderValue(name, float(np.clip(value, lo, hi)))
 
 
+class ReferenceGhost(LeafSystem):
+    """Places the reference's ghost at the input ``x_d`` (18,) every ``period_s`` (a publish
+    event, visualization only); the constructor draws it with
+    :func:`~stewart_drake.interfaces.visualize.add_reference_ghost`.
+
+    Args:
+        meshcat: the Meshcat of the run. geometry: the robot drawn. period_s: s.
+    """
+
+    def __init__(self, meshcat, geometry, period_s: float = 1.0 / 30):
+        from .visualize import add_reference_ghost
+
+        super().__init__()
+        self.meshcat = meshcat
+        self.path = add_reference_ghost(meshcat, geometry)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0, publish=self._Publish)
+
+    def _Publish(self, context):
+        from .visualize import ghost_transform
+
+        self.meshcat.SetTransform(self.path, ghost_transform(self._x_d.Eval(context)))
+
+
 @dataclasses.dataclass
 class TeleopRun:
     """What :func:`build_teleop` built: ``diagram`` (sliders + closed loop + display),
     ``loop`` (the :class:`~stewart_drake.simulation.diagram.StewartDiagram` inside),
     ``sliders``, ``reference`` (the :class:`~stewart_drake.simulation.reference.TeleopReference`),
-    ``display`` and ``simulator`` (initialized, at the target real-time rate)."""
+    ``display``, ``ghost`` (the :class:`ReferenceGhost`) and ``simulator`` (initialized, at the
+    target real-time rate)."""
 
     diagram: Diagram
     loop: StewartDiagram
     sliders: PoseSliders
     reference: TeleopReference
     display: TeleopDisplay
+    ghost: ReferenceGhost
     simulator: Simulator
 
 
@@ -317,6 +344,8 @@ def build_teleop(
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
     builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
+    ghost = builder.AddNamedSystem("ghost", ReferenceGhost(meshcat, plan.plant_geometry))
+    builder.Connect(loop.diagram.GetOutputPort("x_d"), ghost.GetInputPort("x_d"))
     diagram = builder.Build()
     diagram.set_name("teleop")
     simulator = Simulator(diagram)
@@ -325,7 +354,7 @@ def build_teleop(
     loop.initialize(context)
     loop.station.assemble(context, x0)
     simulator.Initialize()
-    return TeleopRun(diagram, loop, sliders, reference, display, simulator)
+    return TeleopRun(diagram, loop, sliders, reference, display, ghost, simulator)
 
 
 def run_teleop(
