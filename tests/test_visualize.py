@@ -191,6 +191,24 @@ def test_replay_draws_the_reference_as_a_ghost_at_x_d(replay):
     assert len(plates) == 1 and plates[0]["transparent"] and plates[0]["opacity"] < 0.5
 
 
+def test_replay_starts_looking_down_at_the_robot_from_the_front(replay):
+    """The HTML's own camera commands (Meshcat's y-up camera frame: world (x, y, z) is
+    (x, z, -y)) put the camera at CAMERA_POSITION looking at CAMERA_TARGET, and that is above
+    the platform, from the front, looking down by more than 30 degrees."""
+    camera = [
+        c["value"]
+        for c in replay["commands"]
+        if c["type"] == "set_property" and c["path"] == "/Cameras/default/rotated/<object>"
+    ]
+    target = [c["value"] for c in replay["commands"] if c["type"] == "set_target"]
+    (x, z, minus_y), (tx, tz, minus_ty) = camera[-1], target[-1]
+    np.testing.assert_allclose([x, -minus_y, z], visualize.CAMERA_POSITION, atol=1e-12)
+    np.testing.assert_allclose([tx, -minus_ty, tz], visualize.CAMERA_TARGET, atol=1e-12)
+    view = np.subtract(visualize.CAMERA_TARGET, visualize.CAMERA_POSITION)
+    assert np.degrees(np.arcsin(-view[2] / np.linalg.norm(view))) > 30  # looking down
+    assert z > replay["result"].x[:, 5].max() + 0.1 and x > abs(-minus_y)  # above, from +X
+
+
 def test_record_states_refuses_states_of_another_shape():
     from pydrake.geometry import Meshcat
 

@@ -34,9 +34,11 @@ from ..model.limits import DEFAULT_MIN_CLEARANCE_M
 REPLAY_FPS = 30.0
 #: Meshcat path under which the replay's geometry lives ("/drake/stewart/...").
 REPLAY_PREFIX = "stewart"
-#: Default camera position and target in world, m: the robot from the front-left, slightly above.
-CAMERA_POSITION = (0.45, -0.45, 0.45)
-CAMERA_TARGET = (0.0, 0.0, 0.15)
+#: Camera position and target in world, m, of the live views and of the replay's first frame:
+#: from the front (+X, a little to -Y), 40 degrees above, 0.57 m from a point between base and
+#: platform, so the platform's top, all six legs and the base are in view.
+CAMERA_POSITION = (0.36, -0.24, 0.55)
+CAMERA_TARGET = (0.0, 0.0, 0.18)
 #: Meshcat path of the reference's ghost: a translucent copy of the platform drawn at x_d.
 GHOST_PATH = "/drake/reference_ghost"
 #: The ghost's colour (RGBA): light blue, mostly transparent, unlike any part of the robot.
