@@ -209,6 +209,17 @@ def test_replay_starts_looking_down_at_the_robot_from_the_front(replay):
     assert z > replay["result"].x[:, 5].max() + 0.1 and x > abs(-minus_y)  # above, from +X
 
 
+def test_the_replay_meshcat_serves_only_this_machine_off_the_live_ports(capsys):
+    meshcat = visualize.offline_meshcat()
+    assert meshcat.web_url() == f"http://localhost:{meshcat.port()}"
+    assert not 7000 <= meshcat.port() <= 7999  # an ephemeral port, not one teleop would take
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    assert "opens a web port on localhost while it records, unused" in " ".join(
+        capsys.readouterr().out.split()
+    )
+
+
 def test_record_states_refuses_states_of_another_shape():
     from pydrake.geometry import Meshcat
 

@@ -958,7 +958,8 @@ def _add_run_command(sub) -> None:
         "--html",
         default=None,
         metavar="FILE.html",
-        help="also write a standalone Meshcat replay of the run to this file (default: none)",
+        help="also write a standalone Meshcat replay of the run to this file (default: none); "
+        "Drake's Meshcat opens a web port on localhost while it records, unused",
     )
     run.add_argument(
         "--plugin",

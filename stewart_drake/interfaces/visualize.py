@@ -245,6 +245,16 @@ def _contact_markers(meshcat) -> list:
     return out
 
 
+def offline_meshcat():
+    """A ``Meshcat`` to record a replay into, its web server (Drake's Meshcat always runs one:
+    ``MeshcatParams`` has no option without it, in 1.51 as in 1.58) bound to this machine only
+    and to a free ephemeral port (not the 7000.. ports a live ``teleop`` takes); nothing
+    connects to it, and it closes with the Meshcat."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    return Meshcat(MeshcatParams(host="localhost", port=0))
+
+
 def write_static_html(meshcat, path: str | Path) -> Path:
     """Save ``meshcat.StaticHtml()`` (viewer JS + scene + animation inlined) atomically."""
     html = meshcat.StaticHtml()
@@ -274,15 +284,13 @@ def record_html(
         path: the .html to write (folders are created).
         progress: show a progress bar while simulating.
         fps: replay frames per s (the 10 s paper run at 30 fps is about 3 MB).
-        meshcat: a Meshcat to record into (default: a new one, local server on a free port).
+        meshcat: a Meshcat to record into (default: :func:`offline_meshcat`).
     Returns:
         (RunResult, Path of the html): the same result ``run_experiment(config)`` gives.
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
             (before simulating). SimulationDivergedError: the guard stopped the run.
     """
-    from pydrake.geometry import Meshcat
-
     from ..simulation import guard
     from ..studies.experiments import advance, build_simulator, collect_result
 
@@ -293,7 +301,7 @@ def record_html(
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
     log = sd.loggers["state"].FindLog(context)
-    meshcat = meshcat if meshcat is not None else Meshcat()
+    meshcat = meshcat if meshcat is not None else offline_meshcat()
     record_states(
         meshcat, sd.plan.plant_geometry, log.sample_times(), log.data().T, fps, x_d=result.x_d
     )
