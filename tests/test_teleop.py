@@ -1,11 +1,15 @@
 """``stewart-drake teleop``: the robot as built, driven live from Meshcat sliders."""
 
+import _thread
 import importlib.util
 import signal
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from meshcat_click import click, send_click
 from meshcat_html import read_meshcat_commands
 from pydrake.geometry import Meshcat
 
@@ -232,3 +236,39 @@ def test_the_reference_is_drawn_as_a_translucent_ghost_at_x_d():
     )
     (plate,) = [c for c in commands if c.get("path") == f"{GHOST_PATH}/plate" and "object" in c]
     assert plate["object"]["materials"][0]["opacity"] < 0.5
+
+
+def test_the_pause_button_stops_the_simulated_time_and_resume_goes_on():
+    from stewart_drake.interfaces.teleop import PAUSE_BUTTON
+
+    meshcat = Meshcat()
+    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
+    assert PAUSE_BUTTON in meshcat.GetButtonNames() and not run.paused()
+    run_teleop(run, 0.1, report=None)
+    t_paused = run.simulator.get_context().get_time()
+    assert click(meshcat, PAUSE_BUTTON) == 1 and run.paused()  # as a browser's click
+    seen, ws_url = [], meshcat.ws_url()  # (Meshcat is for the thread that made it only)
+
+    def resume_later():  # what a user does half a second later, from another browser
+        time.sleep(0.5)
+        seen.append(run.simulator.get_context().get_time())
+        try:
+            send_click(ws_url, PAUSE_BUTTON)
+            deadline = time.monotonic() + 30
+            while run.simulator.get_context().get_time() == t_paused:
+                assert time.monotonic() < deadline, "the resume click did not resume"
+                time.sleep(0.01)
+        except BaseException:  # never leave the run paused: Ctrl-C ends it, the test fails
+            _thread.interrupt_main()
+            raise
+
+    clicker = threading.Thread(target=resume_later, daemon=True)
+    clicker.start()
+    stats = run_teleop(run, 0.2, chunk_s=0.05, report=None)  # as fast as it goes, once resumed
+    clicker.join(30)
+    assert "interrupted_by" not in stats and seen == [
+        t_paused
+    ]  # the simulated time stood still while paused
+    assert meshcat.GetButtonClicks(PAUSE_BUTTON) == 2 and not run.paused()
+    assert run.simulator.get_context().get_time() == pytest.approx(t_paused + 0.2, abs=1e-9)
+    assert stats["sim_s"] == pytest.approx(0.2, abs=1e-9) and stats["paused_s"] >= 0.45

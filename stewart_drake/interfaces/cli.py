@@ -759,7 +759,8 @@ def _cmd_teleop(args) -> int:
     how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
     print(
         f"open {meshcat.web_url()} ; the sliders roll [rad] .. z [m] set the pose (keys Q/E W/S "
-        f"A/D J/L I/K U/O), the gauges show the tracking error and the margins; running {how}"
+        f"A/D J/L I/K U/O), the gauges show the tracking error and the margins, the button "
+        f"'pause / resume' (key P) stops the time; running {how}"
     )
     stats = run_teleop(run, args.duration)
     if "interrupted_by" in stats:  # the statistics are printed; say what ended it

@@ -16,6 +16,7 @@ The reference stops where two parts would come closer than ``guard.min_clearance
 The Meshcat panel's gauges are sliders named "<figure> (reading)" whose values the display
 writes back every refresh (dragging them does nothing). The pose sliders span the admissible
 workspace around the start pose along each axis (:func:`slider_limits`).
+The panel's button "pause / resume" (key P) stops the simulated time and starts it again.
 The run ends after ``duration_s`` or at Ctrl-C, and reports the real-time rate it kept.
 """
 
@@ -36,6 +37,7 @@ from ..model.statics import holding_torques
 from ..simulation.plan import make_plan
 
 if TYPE_CHECKING:  # for the annotations only: build_teleop imports these when it runs
+    from pydrake.geometry import Meshcat
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import Diagram
 
@@ -62,6 +64,8 @@ POSE_KEYS = (
 )
 #: Slider steps: 5 mrad, 1 mm.
 SLIDER_STEP = np.array([0.005, 0.005, 0.005, 0.001, 0.001, 0.001])
+#: The Meshcat button that pauses the simulated time and resumes it (key P).
+PAUSE_BUTTON = "pause / resume"
 #: How often the display is refreshed, s.
 DISPLAY_PERIOD_S = 0.1
 
@@ -249,8 +253,8 @@ class TeleopRun:
     """What :func:`build_teleop` built: ``diagram`` (sliders + closed loop + display),
     ``loop`` (the :class:`~stewart_drake.simulation.diagram.StewartDiagram` inside),
     ``sliders``, ``reference`` (the :class:`~stewart_drake.simulation.reference.TeleopReference`),
-    ``display``, ``ghost`` (the :class:`ReferenceGhost`) and ``simulator`` (initialized, at the
-    target real-time rate)."""
+    ``display``, ``ghost`` (the :class:`ReferenceGhost`), ``simulator`` (initialized, at the
+    target real-time rate) and ``meshcat`` (with the :data:`PAUSE_BUTTON`)."""
 
     diagram: Diagram
     loop: StewartDiagram
@@ -259,6 +263,11 @@ class TeleopRun:
     display: TeleopDisplay
     ghost: ReferenceGhost
     simulator: Simulator
+    meshcat: Meshcat
+
+    def paused(self) -> bool:
+        """Whether the :data:`PAUSE_BUTTON` has been clicked an odd number of times."""
+        return self.meshcat.GetButtonClicks(PAUSE_BUTTON) % 2 == 1
 
 
 def teleop_scenario(scenario):
@@ -344,7 +353,8 @@ def build_teleop(
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
     builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
-    ghost = builder.AddNamedSystem("ghost", ReferenceGhost(meshcat, plan.plant_geometry))
+    ghost = ReferenceGhost(meshcat, plan.plant_geometry)
+    builder.AddNamedSystem("ghost", ghost)
     builder.Connect(loop.diagram.GetOutputPort("x_d"), ghost.GetInputPort("x_d"))
     diagram = builder.Build()
     diagram.set_name("teleop")
@@ -354,7 +364,8 @@ def build_teleop(
     loop.initialize(context)
     loop.station.assemble(context, x0)
     simulator.Initialize()
-    return TeleopRun(diagram, loop, sliders, reference, display, ghost, simulator)
+    meshcat.AddButton(PAUSE_BUTTON, "KeyP")  # (re)starts its count: running
+    return TeleopRun(diagram, loop, sliders, reference, display, ghost, simulator, meshcat)
 
 
 def run_teleop(
@@ -365,10 +376,16 @@ def run_teleop(
 ) -> dict:
     """Advance ``run`` in real time until ``duration_s`` (None: until Ctrl-C), guarded.
 
+    Between chunks of ``chunk_s`` simulated s the :data:`PAUSE_BUTTON` is read: while paused
+    the simulated time stands still (the loop sleeps ``chunk_s`` between reads) and, resumed,
+    it goes on at real time from there (the pause is not caught up). ``duration_s`` counts
+    simulated time, so a paused run waits for the button or Ctrl-C.
+
     Returns:
-        {"sim_s": simulated s, "wall_s": wall s, "realtime_rate": sim_s / wall_s,
-        "worst_rate": the lowest rate over any 10 s of the run (the whole run if shorter)},
-        and "interrupted_by": the signal's number when Ctrl-C, SIGTERM or SIGHUP ended it.
+        {"sim_s": simulated s, "wall_s": wall s while running, "paused_s": wall s paused,
+        "realtime_rate": sim_s / wall_s, "worst_rate": the lowest rate over any 10 s of running
+        (the whole run if shorter)}, and "interrupted_by": the signal's number when Ctrl-C,
+        SIGTERM or SIGHUP ended it.
     Raises:
         SimulationDivergedError: the guard stopped the run (the logs are saved).
     """
@@ -378,14 +395,20 @@ def run_teleop(
     simulator.ResetStatistics()  # pace from now: a pause before must not be caught up
     t_start, wall_start = simulator.get_context().get_time(), time.perf_counter()
     marks = [(wall_start, t_start)]
-    interrupted_by = None
+    interrupted_by, paused_s = None, 0.0
     try:
         while duration_s is None or simulator.get_context().get_time() < t_start + duration_s:
+            if run.paused():
+                pause_start = time.perf_counter()
+                while run.paused():
+                    time.sleep(chunk_s)
+                paused_s += time.perf_counter() - pause_start
+                simulator.ResetStatistics()  # resume at real time from here
             t_next = simulator.get_context().get_time() + chunk_s
             if duration_s is not None:
                 t_next = min(t_next, t_start + duration_s)
             guard.advance(run.loop, simulator, functools.partial(simulator.AdvanceTo, t_next))
-            marks.append((time.perf_counter(), simulator.get_context().get_time()))
+            marks.append((time.perf_counter() - paused_s, simulator.get_context().get_time()))
     except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM / SIGHUP through the CLI's handler
         interrupted_by = int(getattr(err, "signum", signal.SIGINT))
     wall = np.array([m[0] for m in marks]) - wall_start
@@ -399,6 +422,7 @@ def run_teleop(
     total = {
         "sim_s": float(sim[-1]),
         "wall_s": float(wall[-1]),
+        "paused_s": float(paused_s),
         "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0,
     }
     total["worst_rate"] = float(min(rates)) if rates else total["realtime_rate"]
@@ -408,5 +432,6 @@ def run_teleop(
         report(
             f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
             f"in {total['wall_s']:.1f} s wall (lowest over 10 s: {total['worst_rate']:.3f})"
+            + (f"; paused {paused_s:.1f} s" if paused_s > 0 else "")
         )
     return total

@@ -106,7 +106,8 @@ def add_reference_ghost(meshcat, geometry, path: str = GHOST_PATH) -> str:
         if part.link == "platform":
             child = f"{path}/{part.name}"
             meshcat.SetObject(child, shapes[part.shape](*part.size), Rgba(*GHOST_RGBA))
-            meshcat.SetTransform(child, RigidTransform(RotationMatrix(part.R_LG), part.p_LG))
+            X_EG = RigidTransform(RotationMatrix(part.R_LG), part.p_LG.tolist())
+            meshcat.SetTransform(child, X_EG)
     meshcat.SetTransform(path, ghost_transform(X_HOME))
     return path
 
