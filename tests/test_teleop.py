@@ -1,11 +1,16 @@
 """``stewart-drake teleop``: the robot as built, driven live from Meshcat sliders."""
 
+import _thread
 import importlib.util
 import signal
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from meshcat_click import click, send_click
+from meshcat_html import read_meshcat_commands
 from pydrake.geometry import Meshcat
 
 from stewart_drake.interfaces.cli import main
@@ -61,7 +66,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     _advance(run, 0.5)
     x, x_d = _pose(run)
     np.testing.assert_allclose(x_d[:6], X_HOME, atol=1e-9)  # at rest where it started
-    meshcat.SetSliderValue("y", 0.03)
+    meshcat.SetSliderValue("y [m]", 0.03)
     rate, acc = _advance(run, 2.0)
     x, x_d = _pose(run)
     assert x_d[4] == pytest.approx(0.03, abs=1e-4)  # the reference arrived
@@ -71,7 +76,7 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     assert np.all(rate <= np.asarray(limits.rate) + 1e-12)  # rate-limited
     assert rate[4] == pytest.approx(limits.rate[4], rel=1e-6)  # ... and the limit binds
     assert np.all(acc <= np.asarray(limits.acceleration) + 1e-9)
-    meshcat.SetSliderValue("z", 0.325)  # beyond the workspace
+    meshcat.SetSliderValue("z [m]", 0.325)  # beyond the workspace
     _advance(run, 2.0)
     x, x_d = _pose(run)
     assert 0.30 < x_d[5] <= 0.31 and x_d[5] == pytest.approx(0.31, abs=0.03 / 64 + 1e-9)
@@ -89,8 +94,8 @@ def test_a_slider_moves_the_platform_rate_limited_and_within_the_workspace(meshc
     assert meshcat.GetSliderValue("T margin [N m] (reading)") == pytest.approx(
         figures["T margin [N m]"], abs=peak / 10000
     )
-    meshcat.SetSliderValue("y", 0.0)
-    meshcat.SetSliderValue("z", 0.30)
+    meshcat.SetSliderValue("y [m]", 0.0)
+    meshcat.SetSliderValue("z [m]", 0.30)
 
 
 def test_the_default_margins_are_the_holding_torques_against_the_peak():
@@ -131,14 +136,15 @@ def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path)
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=1.0)
     run_teleop(run, 0.5, report=None)
     with chromium_cdp.HeadlessChromium(meshcat.web_url()) as browser:
-        browser.wait_for("typeof viewer !== 'undefined' && 'z' in viewer.gui_controllers", 60)
+        browser.wait_for("typeof viewer !== 'undefined' && 'z [m]' in viewer.gui_controllers", 60)
         assert browser.evaluate(
-            "viewer.gui_controllers['z'].setValue(0.315); viewer.gui_controllers['z'].getValue()"
+            "viewer.gui_controllers['z [m]'].setValue(0.315); "
+            "viewer.gui_controllers['z [m]'].getValue()"
         ) == pytest.approx(0.315)
         stats = run_teleop(run, 4.0, report=None)
         x, x_d = _pose(run)
         shot = browser.screenshot(tmp_path / "teleop.png")
-    assert meshcat.GetSliderValue("z") == pytest.approx(0.315)
+    assert meshcat.GetSliderValue("z [m]") == pytest.approx(0.315)
     assert x_d[5] == pytest.approx(0.315, abs=1e-6) and x[5] == pytest.approx(0.315, abs=5e-4)
     # Real time as the machine allows: a busy shared machine can hold it below (the message
     # says by how much; 0.98-1.0 when quiet); docs/performance.md measures it over a minute.
@@ -199,9 +205,71 @@ def test_teleop_x_slider_spans_the_workspace_and_gauges_say_reading():
     run_teleop(run, 0.2, report=None)
     names = meshcat.GetSliderNames()
     assert {"error [mm] (reading)", "error [mrad] (reading)"} <= set(names)
+    # The pose sliders carry their units, and no slider is left without one.
+    pose = ["roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]"]
+    assert set(pose) <= set(names)
+    assert all(name.endswith(("]", " (reading)")) for name in names), names
+    np.testing.assert_allclose(run.sliders.values(), X_HOME, atol=1e-9)
     # Beyond the old +-4 cm box: the workspace reaches farther in X.
-    meshcat.SetSliderValue("x", X_HOME[3] + 0.06)
-    assert meshcat.GetSliderValue("x") == pytest.approx(X_HOME[3] + 0.06, abs=1e-3)
+    meshcat.SetSliderValue("x [m]", X_HOME[3] + 0.06)
+    assert meshcat.GetSliderValue("x [m]") == pytest.approx(X_HOME[3] + 0.06, abs=1e-3)
     meshcat.SetSliderValue("error [mm] (reading)", 9.0)  # a drag is overwritten
     run_teleop(run, 0.2, report=None)
     assert meshcat.GetSliderValue("error [mm] (reading)") < 9.0
+
+
+def test_the_reference_is_drawn_as_a_translucent_ghost_at_x_d():
+    from stewart_drake.interfaces.visualize import GHOST_PATH, ghost_transform
+
+    meshcat = Meshcat()
+    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
+    meshcat.SetSliderValue("y [m]", 0.03)
+    run_teleop(run, 0.3, report=None)  # a multiple of the ghost's 1/30 s: published at the end
+    x_d = _pose(run)[1]
+    assert 0.005 < x_d[4] < 0.03  # on its way: the ghost is away from home
+    assert {"plate", "tool"} <= {
+        name for name in ("plate", "tool", "stud_0") if meshcat.HasPath(f"{GHOST_PATH}/{name}")
+    }
+    commands = read_meshcat_commands(meshcat.StaticHtml())
+    (placed,) = [c for c in commands if c["type"] == "set_transform" and c["path"] == GHOST_PATH]
+    np.testing.assert_allclose(
+        np.reshape(placed["matrix"], (4, 4)).T, ghost_transform(x_d).GetAsMatrix4(), atol=1e-9
+    )
+    (plate,) = [c for c in commands if c.get("path") == f"{GHOST_PATH}/plate" and "object" in c]
+    assert plate["object"]["materials"][0]["opacity"] < 0.5
+
+
+def test_the_pause_button_stops_the_simulated_time_and_resume_goes_on():
+    from stewart_drake.interfaces.teleop import PAUSE_BUTTON
+
+    meshcat = Meshcat()
+    run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
+    assert PAUSE_BUTTON in meshcat.GetButtonNames() and not run.paused()
+    run_teleop(run, 0.1, report=None)
+    t_paused = run.simulator.get_context().get_time()
+    assert click(meshcat, PAUSE_BUTTON) == 1 and run.paused()  # as a browser's click
+    seen, ws_url = [], meshcat.ws_url()  # (Meshcat is for the thread that made it only)
+
+    def resume_later():  # what a user does half a second later, from another browser
+        time.sleep(0.5)
+        seen.append(run.simulator.get_context().get_time())
+        try:
+            send_click(ws_url, PAUSE_BUTTON)
+            deadline = time.monotonic() + 30
+            while run.simulator.get_context().get_time() == t_paused:
+                assert time.monotonic() < deadline, "the resume click did not resume"
+                time.sleep(0.01)
+        except BaseException:  # never leave the run paused: Ctrl-C ends it, the test fails
+            _thread.interrupt_main()
+            raise
+
+    clicker = threading.Thread(target=resume_later, daemon=True)
+    clicker.start()
+    stats = run_teleop(run, 0.2, chunk_s=0.05, report=None)  # as fast as it goes, once resumed
+    clicker.join(30)
+    assert "interrupted_by" not in stats and seen == [
+        t_paused
+    ]  # the simulated time stood still while paused
+    assert meshcat.GetButtonClicks(PAUSE_BUTTON) == 2 and not run.paused()
+    assert run.simulator.get_context().get_time() == pytest.approx(t_paused + 0.2, abs=1e-9)
+    assert stats["sim_s"] == pytest.approx(0.2, abs=1e-9) and stats["paused_s"] >= 0.45

@@ -92,9 +92,11 @@ def test_replay_shows_only_the_illustration_geometry(replay):
         for c in replay["commands"]
         if c["type"] == "set_object" and "rotary_stewart/" not in c["path"]
     ]
-    assert markers == [
-        f"/drake/{visualize.REPLAY_PREFIX}_contacts/{j}" for j in range(visualize.CONTACT_MARKERS)
-    ]
+    ghost = [f"{visualize.GHOST_PATH}/{p.name}" for p in robot_parts() if p.link == "platform"]
+    assert sorted(markers) == sorted(
+        [f"/drake/{visualize.REPLAY_PREFIX}_contacts/{j}" for j in range(visualize.CONTACT_MARKERS)]
+        + ghost  # the reference's ghost: the platform's parts
+    )
     assert all(
         c["path"].startswith(f"/drake/{visualize.REPLAY_PREFIX}/")
         for c in replay["commands"]
@@ -163,6 +165,59 @@ def test_replay_animation_follows_the_logged_run(replay):
         assert min(np.abs(q_rec - q_xyzw).max(), np.abs(q_rec + q_xyzw).max()) < 1e-9
     # The platform really moves in the replay (paper eqs. 37-38: Z rises from 0.30 m).
     assert position[-1]["value"][2] - position[0]["value"][2] > 1e-3
+
+
+def test_replay_draws_the_reference_as_a_ghost_at_x_d(replay):
+    (animation,) = [c for c in replay["commands"] if c["type"] == "set_animation"]
+    (ghost,) = [a["clip"] for a in animation["animations"] if a["path"] == visualize.GHOST_PATH]
+    tracks = {t["name"]: t["keys"] for t in ghost["tracks"]}
+    result = replay["result"]
+    _, idx = visualize.frame_indices(result.t, visualize.REPLAY_FPS)
+    assert [k["time"] for k in tracks[".position"]] == list(range(len(idx)))
+    for k in (0, len(idx) // 2, len(idx) - 1):
+        X = visualize.ghost_transform(result.x_d[idx[k]])
+        np.testing.assert_allclose(tracks[".position"][k]["value"], X.translation(), atol=1e-9)
+        q = X.rotation().ToQuaternion()
+        q_xyzw = np.array([q.x(), q.y(), q.z(), q.w()])
+        q_rec = np.array(tracks[".quaternion"][k]["value"])
+        assert min(np.abs(q_rec - q_xyzw).max(), np.abs(q_rec + q_xyzw).max()) < 1e-9
+    # The reference moves (paper eqs. 37-38), and the ghost with it.
+    assert tracks[".position"][-1]["value"][2] - tracks[".position"][0]["value"][2] > 1e-3
+    plates = [
+        c["object"]["materials"][0]
+        for c in replay["commands"]
+        if c["type"] == "set_object" and c["path"] == f"{visualize.GHOST_PATH}/plate"
+    ]
+    assert len(plates) == 1 and plates[0]["transparent"] and plates[0]["opacity"] < 0.5
+
+
+def test_replay_starts_looking_down_at_the_robot_from_the_front(replay):
+    """The HTML's own camera commands (Meshcat's y-up camera frame: world (x, y, z) is
+    (x, z, -y)) put the camera at CAMERA_POSITION looking at CAMERA_TARGET, and that is above
+    the platform, from the front, looking down by more than 30 degrees."""
+    camera = [
+        c["value"]
+        for c in replay["commands"]
+        if c["type"] == "set_property" and c["path"] == "/Cameras/default/rotated/<object>"
+    ]
+    target = [c["value"] for c in replay["commands"] if c["type"] == "set_target"]
+    (x, z, minus_y), (tx, tz, minus_ty) = camera[-1], target[-1]
+    np.testing.assert_allclose([x, -minus_y, z], visualize.CAMERA_POSITION, atol=1e-12)
+    np.testing.assert_allclose([tx, -minus_ty, tz], visualize.CAMERA_TARGET, atol=1e-12)
+    view = np.subtract(visualize.CAMERA_TARGET, visualize.CAMERA_POSITION)
+    assert np.degrees(np.arcsin(-view[2] / np.linalg.norm(view))) > 30  # looking down
+    assert z > replay["result"].x[:, 5].max() + 0.1 and x > abs(-minus_y)  # above, from +X
+
+
+def test_the_replay_meshcat_serves_only_this_machine_off_the_live_ports(capsys):
+    meshcat = visualize.offline_meshcat()
+    assert meshcat.web_url() == f"http://localhost:{meshcat.port()}"
+    assert not 7000 <= meshcat.port() <= 7999  # an ephemeral port, not one teleop would take
+    with pytest.raises(SystemExit):
+        main(["run", "--help"])
+    assert "opens a web port on localhost while it records, unused" in " ".join(
+        capsys.readouterr().out.split()
+    )
 
 
 def test_record_states_refuses_states_of_another_shape():

@@ -24,7 +24,7 @@ from stewart_drake.simulation.scenario_io import load_scenario
 REPO = Path(__file__).resolve().parent.parent
 
 #: The slider moves, (name, value) in the panel's units (rad, m), one every 1.2 s.
-MOVES = (("roll", 0.15), ("y", 0.02), ("z", 0.315), ("pitch", -0.12))
+MOVES = (("roll [rad]", 0.15), ("y [m]", 0.02), ("z [m]", 0.315), ("pitch [rad]", -0.12))
 
 
 def main() -> None:
@@ -36,7 +36,7 @@ def main() -> None:
     simulated = run_teleop(run, 1.0, report=None)["sim_s"]
     rates = []
     with chromium_cdp.HeadlessChromium(meshcat.web_url()) as browser:
-        browser.wait_for("typeof viewer !== 'undefined' && 'z' in viewer.gui_controllers", 60)
+        browser.wait_for("typeof viewer !== 'undefined' && 'z [m]' in viewer.gui_controllers", 60)
         for name, value in MOVES:
             browser.evaluate(f"viewer.gui_controllers['{name}'].setValue({value}); null")
             stats = run_teleop(run, 1.2, report=None)

@@ -773,8 +773,9 @@ def _cmd_teleop(args) -> int:
     run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
     how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
     print(
-        f"open {meshcat.web_url()} ; the sliders roll .. z set the pose (keys Q/E W/S A/D "
-        f"J/L I/K U/O), the gauges show the tracking error and the margins; running {how}"
+        f"open {meshcat.web_url()} ; the sliders roll [rad] .. z [m] set the pose (keys Q/E W/S "
+        f"A/D J/L I/K U/O), the gauges show the tracking error and the margins, the button "
+        f"'pause / resume' (key P) stops the time; running {how}"
     )
     stats = run_teleop(run, args.duration)
     if "interrupted_by" in stats:  # the statistics are printed; say what ended it
@@ -973,7 +974,8 @@ def _add_run_command(sub) -> None:
         "--html",
         default=None,
         metavar="FILE.html",
-        help="also write a standalone Meshcat replay of the run to this file (default: none)",
+        help="also write a standalone Meshcat replay of the run to this file (default: none); "
+        "Drake's Meshcat opens a web port on localhost while it records, unused",
     )
     run.add_argument(
         "--plugin",

@@ -1,12 +1,14 @@
 """Drive the robot live: the closed loop at real time in Meshcat, the reference set by sliders.
 
 :func:`run_teleop` builds the scenario's closed loop (:func:`~stewart_drake.simulation.diagram.
-make_stewart_diagram`) with a live reference instead of a precomputed one: Drake's
-``MeshcatPoseSliders`` (roll, pitch, yaw, x, y, z; keys Q/E, W/S, A/D, J/L, I/K, U/O) give a
-target pose, :class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
+make_stewart_diagram`) with a live reference instead of a precomputed one: the pose sliders
+(:class:`PoseSliders`: "roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]"; keys
+Q/E, W/S, A/D, J/L, I/K, U/O, as Drake's ``MeshcatPoseSliders``) give a target pose,
+:class:`~stewart_drake.simulation.reference.TeleopReference` filters it into a pose
 the robot can follow (rate-limited, and stopped at the boundary of the admissible workspace),
 and Drake's ``Simulator`` runs the whole at a target real-time rate while Meshcat shows the
-robot. :class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
+robot and, as a translucent ghost of the platform, the reference (:class:`ReferenceGhost`).
+:class:`TeleopDisplay` shows, as it changes, the tracking error of the real platform and
 its margins (by default the torque margin of the holding torques against the motors' peak
 torque and the clearance between the robot's parts; ``margins`` is the hook for other figures).
 The reference stops where two parts would come closer than ``guard.min_clearance_m``.
@@ -14,6 +16,7 @@ The reference stops where two parts would come closer than ``guard.min_clearance
 The Meshcat panel's gauges are sliders named "<figure> (reading)" whose values the display
 writes back every refresh (dragging them does nothing). The pose sliders span the admissible
 workspace around the start pose along each axis (:func:`slider_limits`).
+The panel's button "pause / resume" (key P) stops the simulated time and starts it again.
 The run ends after ``duration_s`` or at Ctrl-C, and reports the real-time rate it kept.
 """
 
@@ -34,9 +37,9 @@ from ..model.statics import holding_torques
 from ..simulation.plan import make_plan
 
 if TYPE_CHECKING:  # for the annotations only: build_teleop imports these when it runs
+    from pydrake.geometry import Meshcat
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import Diagram
-    from pydrake.visualization import MeshcatPoseSliders
 
     from ..simulation.diagram import StewartDiagram
     from ..simulation.reference import TeleopReference
@@ -48,8 +51,21 @@ SLIDER_RANGE = np.array([0.25, 0.25, 0.35, 0.04, 0.04, 0.03])
 SLIDER_SWEEP_POINTS = 40
 #: Suffix of the gauges' names: they show a reading, they are not inputs.
 READING = " (reading)"
+#: The pose sliders' names, with their units: roll, pitch, yaw [rad], then x, y, z [m].
+POSE_SLIDERS = ("roll [rad]", "pitch [rad]", "yaw [rad]", "x [m]", "y [m]", "z [m]")
+#: Their keys (decrease, increase), as Drake's ``MeshcatPoseSliders``.
+POSE_KEYS = (
+    ("KeyQ", "KeyE"),
+    ("KeyS", "KeyW"),
+    ("KeyA", "KeyD"),
+    ("KeyJ", "KeyL"),
+    ("KeyK", "KeyI"),
+    ("KeyU", "KeyO"),
+)
 #: Slider steps: 5 mrad, 1 mm.
 SLIDER_STEP = np.array([0.005, 0.005, 0.005, 0.001, 0.001, 0.001])
+#: The Meshcat button that pauses the simulated time and resumes it (key P).
+PAUSE_BUTTON = "pause / resume"
 #: How often the display is refreshed, s.
 DISPLAY_PERIOD_S = 0.1
 
@@ -112,6 +128,42 @@ def robot_margins(geometry, peak_torque_Nm: float | None, clearance) -> Callable
     return margins
 
 
+class PoseSliders(LeafSystem):
+    """Six Meshcat sliders named with their units (:data:`POSE_SLIDERS`) whose values make the
+    output port ``pose`` (a ``RigidTransform``: roll-pitch-yaw [rad], then x, y, z [m]), read
+    when the port is evaluated. Drake's ``MeshcatPoseSliders`` does the same but names its
+    sliders "roll" .. "z" with no units and takes no names.
+
+    Args:
+        meshcat: the Meshcat of the run. initial: (6,) the start pose [rad, m].
+        lower, upper, step: (6,) the sliders' limits and steps [rad, m].
+    """
+
+    def __init__(self, meshcat, initial, lower, upper, step):
+        from pydrake.common.value import AbstractValue
+        from pydrake.math import RigidTransform
+
+        super().__init__()
+        self.meshcat = meshcat
+        for name, lo, hi, dx, x, (down, up) in zip(
+            POSE_SLIDERS, lower, upper, step, initial, POSE_KEYS, strict=True
+        ):
+            meshcat.AddSlider(name, float(lo), float(hi), float(dx), float(x), down, up)
+        self.DeclareAbstractOutputPort(
+            "pose", lambda: AbstractValue.Make(RigidTransform()), self._CalcPose
+        )
+
+    def values(self) -> np.ndarray:
+        """(6,) the sliders' values now [rad, m]."""
+        return np.array([self.meshcat.GetSliderValue(name) for name in POSE_SLIDERS])
+
+    def _CalcPose(self, context, output):
+        from pydrake.math import RigidTransform, RollPitchYaw
+
+        x = self.values()
+        output.set_value(RigidTransform(RollPitchYaw(x[:3]), x[3:]))
+
+
 class TeleopDisplay(LeafSystem):
     """Shows the tracking error and the margins in Meshcat, every ``period_s`` (a publish
     event: nothing between).
@@ -172,19 +224,50 @@ class TeleopDisplay(LeafSystem):
             self.meshcat.SetSliderValue(name, float(np.clip(value, lo, hi)))
 
 
+class ReferenceGhost(LeafSystem):
+    """Places the reference's ghost at the input ``x_d`` (18,) every ``period_s`` (a publish
+    event, visualization only); the constructor draws it with
+    :func:`~stewart_drake.interfaces.visualize.add_reference_ghost`.
+
+    Args:
+        meshcat: the Meshcat of the run. geometry: the robot drawn. period_s: s.
+    """
+
+    def __init__(self, meshcat, geometry, period_s: float = 1.0 / 30):
+        from .visualize import add_reference_ghost
+
+        super().__init__()
+        self.meshcat = meshcat
+        self.path = add_reference_ghost(meshcat, geometry)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self.DeclarePeriodicPublishEvent(period_sec=period_s, offset_sec=0.0, publish=self._Publish)
+
+    def _Publish(self, context):
+        from .visualize import ghost_transform
+
+        self.meshcat.SetTransform(self.path, ghost_transform(self._x_d.Eval(context)))
+
+
 @dataclasses.dataclass
 class TeleopRun:
     """What :func:`build_teleop` built: ``diagram`` (sliders + closed loop + display),
     ``loop`` (the :class:`~stewart_drake.simulation.diagram.StewartDiagram` inside),
     ``sliders``, ``reference`` (the :class:`~stewart_drake.simulation.reference.TeleopReference`),
-    ``display`` and ``simulator`` (initialized, at the target real-time rate)."""
+    ``display``, ``ghost`` (the :class:`ReferenceGhost`), ``simulator`` (initialized, at the
+    target real-time rate) and ``meshcat`` (with the :data:`PAUSE_BUTTON`)."""
 
     diagram: Diagram
     loop: StewartDiagram
-    sliders: MeshcatPoseSliders
+    sliders: PoseSliders
     reference: TeleopReference
     display: TeleopDisplay
+    ghost: ReferenceGhost
     simulator: Simulator
+    meshcat: Meshcat
+
+    def paused(self) -> bool:
+        """Whether the :data:`PAUSE_BUTTON` has been clicked an odd number of times."""
+        return self.meshcat.GetButtonClicks(PAUSE_BUTTON) % 2 == 1
 
 
 def teleop_scenario(scenario):
@@ -219,10 +302,8 @@ def build_teleop(
     Raises:
         InvalidConfigError: a bad scenario or setting; UnreachablePoseError: x_initial.
     """
-    from pydrake.math import RigidTransform, RollPitchYaw
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder
-    from pydrake.visualization import MeshcatPoseSliders
 
     from ..model.clearance import clearance_model
     from ..simulation.diagram import make_stewart_diagram
@@ -256,13 +337,7 @@ def build_teleop(
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
     lower, upper = slider_limits(reference.admissible, x0)
-    sliders = MeshcatPoseSliders(
-        meshcat,
-        initial_pose=RigidTransform(RollPitchYaw(x0[:3]), x0[3:]),
-        lower_limit=lower,
-        upper_limit=upper,
-        step=SLIDER_STEP,
-    )
+    sliders = PoseSliders(meshcat, x0, lower, upper, SLIDER_STEP)
     builder.AddNamedSystem("sliders", sliders)
     builder.Connect(sliders.get_output_port(), loop.diagram.GetInputPort("target"))
     display = TeleopDisplay(
@@ -278,6 +353,9 @@ def build_teleop(
     builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
     builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
     builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
+    ghost = ReferenceGhost(meshcat, plan.plant_geometry)
+    builder.AddNamedSystem("ghost", ghost)
+    builder.Connect(loop.diagram.GetOutputPort("x_d"), ghost.GetInputPort("x_d"))
     diagram = builder.Build()
     diagram.set_name("teleop")
     simulator = Simulator(diagram)
@@ -286,7 +364,8 @@ def build_teleop(
     loop.initialize(context)
     loop.station.assemble(context, x0)
     simulator.Initialize()
-    return TeleopRun(diagram, loop, sliders, reference, display, simulator)
+    meshcat.AddButton(PAUSE_BUTTON, "KeyP")  # (re)starts its count: running
+    return TeleopRun(diagram, loop, sliders, reference, display, ghost, simulator, meshcat)
 
 
 def run_teleop(
@@ -297,10 +376,16 @@ def run_teleop(
 ) -> dict:
     """Advance ``run`` in real time until ``duration_s`` (None: until Ctrl-C), guarded.
 
+    Between chunks of ``chunk_s`` simulated s the :data:`PAUSE_BUTTON` is read: while paused
+    the simulated time stands still (the loop sleeps ``chunk_s`` between reads) and, resumed,
+    it goes on at real time from there (the pause is not caught up). ``duration_s`` counts
+    simulated time, so a paused run waits for the button or Ctrl-C.
+
     Returns:
-        {"sim_s": simulated s, "wall_s": wall s, "realtime_rate": sim_s / wall_s,
-        "worst_rate": the lowest rate over any 10 s of the run (the whole run if shorter)},
-        and "interrupted_by": the signal's number when Ctrl-C, SIGTERM or SIGHUP ended it.
+        {"sim_s": simulated s, "wall_s": wall s while running, "paused_s": wall s paused,
+        "realtime_rate": sim_s / wall_s, "worst_rate": the lowest rate over any 10 s of running
+        (the whole run if shorter)}, and "interrupted_by": the signal's number when Ctrl-C,
+        SIGTERM or SIGHUP ended it.
     Raises:
         SimulationDivergedError: the guard stopped the run (the logs are saved).
     """
@@ -310,14 +395,20 @@ def run_teleop(
     simulator.ResetStatistics()  # pace from now: a pause before must not be caught up
     t_start, wall_start = simulator.get_context().get_time(), time.perf_counter()
     marks = [(wall_start, t_start)]
-    interrupted_by = None
+    interrupted_by, paused_s = None, 0.0
     try:
         while duration_s is None or simulator.get_context().get_time() < t_start + duration_s:
+            if run.paused():
+                pause_start = time.perf_counter()
+                while run.paused():
+                    time.sleep(chunk_s)
+                paused_s += time.perf_counter() - pause_start
+                simulator.ResetStatistics()  # resume at real time from here
             t_next = simulator.get_context().get_time() + chunk_s
             if duration_s is not None:
                 t_next = min(t_next, t_start + duration_s)
             guard.advance(run.loop, simulator, functools.partial(simulator.AdvanceTo, t_next))
-            marks.append((time.perf_counter(), simulator.get_context().get_time()))
+            marks.append((time.perf_counter() - paused_s, simulator.get_context().get_time()))
     except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM / SIGHUP through the CLI's handler
         interrupted_by = int(getattr(err, "signum", signal.SIGINT))
     wall = np.array([m[0] for m in marks]) - wall_start
@@ -331,6 +422,7 @@ def run_teleop(
     total = {
         "sim_s": float(sim[-1]),
         "wall_s": float(wall[-1]),
+        "paused_s": float(paused_s),
         "realtime_rate": float(sim[-1] / wall[-1]) if wall[-1] > 0 else 0.0,
     }
     total["worst_rate"] = float(min(rates)) if rates else total["realtime_rate"]
@@ -340,5 +432,6 @@ def run_teleop(
         report(
             f"realtime_rate {total['realtime_rate']:.3f} over {total['sim_s']:.1f} s simulated "
             f"in {total['wall_s']:.1f} s wall (lowest over 10 s: {total['worst_rate']:.3f})"
+            + (f"; paused {paused_s:.1f} s" if paused_s > 0 else "")
         )
     return total

@@ -3,9 +3,10 @@
 Replay: :func:`record_html` simulates a :class:`~stewart_drake.simulation.scenario.Scenario`
 (no visualizer in the loop, so the run is as fast and as exact as ``run_experiment``), then
 plays the logged plant states through a visualization-only copy of the robot at ``fps`` frames
-per second into a Meshcat animation, and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript
-and the scene are inlined, so the file opens in any browser with no server (about 2.2 MB of
-viewer plus ~2 kB per frame).
+per second into a Meshcat animation, with the reference as a translucent ghost of the platform
+(:func:`add_reference_ghost`), and saves ``Meshcat.StaticHtml()``: the viewer's JavaScript and
+the scene are inlined, so the file opens in any browser with no server (about 2.2 MB of viewer
+plus ~2 kB per frame).
 
 Diagram pictures: :func:`diagram_dots` returns the Graphviz source of the full Diagram (fixed
 weights and ANN tuner) and of the controller systems, with Drake's process-dependent system ids
@@ -33,9 +34,15 @@ from ..model.limits import DEFAULT_MIN_CLEARANCE_M
 REPLAY_FPS = 30.0
 #: Meshcat path under which the replay's geometry lives ("/drake/stewart/...").
 REPLAY_PREFIX = "stewart"
-#: Default camera position and target in world, m: the robot from the front-left, slightly above.
-CAMERA_POSITION = (0.45, -0.45, 0.45)
-CAMERA_TARGET = (0.0, 0.0, 0.15)
+#: Camera position and target in world, m, of the live views and of the replay's first frame:
+#: from the front (+X, a little to -Y), 40 degrees above, 0.57 m from a point between base and
+#: platform, so the platform's top, all six legs and the base are in view.
+CAMERA_POSITION = (0.36, -0.24, 0.55)
+CAMERA_TARGET = (0.0, 0.0, 0.18)
+#: Meshcat path of the reference's ghost: a translucent copy of the platform drawn at x_d.
+GHOST_PATH = "/drake/reference_ghost"
+#: The ghost's colour (RGBA): light blue, mostly transparent, unlike any part of the robot.
+GHOST_RGBA = (0.3, 0.6, 1.0, 0.35)
 #: Where ``stewart-drake diagrams`` writes by default: ``diagrams/`` in the current folder (from
 #: the repository's root, the committed pictures).
 DIAGRAMS_DIR = Path("diagrams")
@@ -77,6 +84,42 @@ def frame_indices(t: np.ndarray, fps: float) -> tuple[np.ndarray, np.ndarray]:
     return frame_times, idx
 
 
+def add_reference_ghost(meshcat, geometry, path: str = GHOST_PATH) -> str:
+    """Draw the reference's ghost in ``meshcat``: every part of the platform (plate, studs,
+    tool; :func:`~stewart_drake.model.parts.robot_parts`) in :data:`GHOST_RGBA`, under ``path``
+    at the home pose; :func:`ghost_transform` places it.
+
+    Args:
+        meshcat: a pydrake ``Meshcat``. geometry: the
+            :class:`~stewart_drake.model.geometry.StewartGeometry` drawn.
+    Returns:
+        ``path``.
+    """
+    from pydrake.geometry import Box, Capsule, Cylinder, Rgba, Sphere
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    from ..model.kinematics import X_HOME
+    from ..model.parts import robot_parts
+
+    shapes = {"box": Box, "capsule": Capsule, "cylinder": Cylinder, "sphere": Sphere}
+    for part in robot_parts(geometry):
+        if part.link == "platform":
+            child = f"{path}/{part.name}"
+            meshcat.SetObject(child, shapes[part.shape](*part.size), Rgba(*GHOST_RGBA))
+            X_EG = RigidTransform(RotationMatrix(part.R_LG), part.p_LG.tolist())
+            meshcat.SetTransform(child, X_EG)
+    meshcat.SetTransform(path, ghost_transform(X_HOME))
+    return path
+
+
+def ghost_transform(x_d):
+    """X_WE, the ``RigidTransform`` of the platform frame at the reference pose ``x_d`` ((6,)
+    or longer: its first six [rad, m])."""
+    from ..model.plant import pose_to_transform
+
+    return pose_to_transform(np.asarray(x_d, dtype=float)[:6])
+
+
 def _mark_contacts(animation, frame: int, markers: list, shown: list, close: list) -> None:
     """Frame ``frame`` of the animation: marker j between the closest points of the j-th
     closest pair of ``close`` (red touching, orange near), hidden without one; ``shown`` keeps
@@ -102,9 +145,10 @@ def record_states(
     states,
     fps: float = REPLAY_FPS,
     clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
+    x_d=None,
 ) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
-    where two parts touch.
+    where two parts touch and, given ``x_d``, the reference's ghost.
 
     A fresh plant of ``geometry`` (same joint order as the simulated one) with a
     ``MeshcatVisualizer`` of role illustration (no proximity or inertia visuals) is set to the
@@ -112,7 +156,8 @@ def record_states(
     to ``meshcat``; the camera is aimed at the robot. At every frame the parts closer than
     ``clearance_m`` (:mod:`~stewart_drake.model.clearance`) get a marker between their closest
     points, red where they touch or overlap, orange where they are only close (at most
-    :data:`CONTACT_MARKERS` at a time, the closest pairs).
+    :data:`CONTACT_MARKERS` at a time, the closest pairs). With ``x_d`` the reference's ghost
+    (:func:`add_reference_ghost`) is at ``x_d`` of the same log sample in every frame.
 
     Args:
         meshcat: a pydrake ``Meshcat``.
@@ -121,10 +166,11 @@ def record_states(
         states: (N, nq + nv) or (N, nq) plant states of that geometry's plant.
         fps: frames per s of the animation.
         clearance_m: parts closer than this are marked, m.
+        x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
     Returns:
         the number of frames recorded.
     Raises:
-        InvalidConfigError: states do not fit the plant, or bad ``fps``.
+        InvalidConfigError: states or x_d do not fit the plant and t, or bad ``fps``.
     """
     # Long for its docstring; the per-frame markers are _mark_contacts.
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
@@ -142,6 +188,13 @@ def record_states(
             f"states must be (N, >= {nq}) with N = len(t) = {np.size(t)}, got {states.shape}: "
             f"pass the plant state log of the same geometry"
         )
+    if x_d is not None:
+        x_d = np.atleast_2d(np.asarray(x_d, dtype=float))
+        if x_d.shape[0] != np.size(t) or x_d.shape[1] < 6:
+            raise InvalidConfigError(
+                f"x_d must be (N, >= 6) with N = len(t) = {np.size(t)}, got {x_d.shape}: pass "
+                f"the reference logged with the states"
+            )
     frame_times, idx = frame_indices(t, fps)
     params = MeshcatVisualizerParams()
     params.role = Role.kIllustration
@@ -154,6 +207,7 @@ def record_states(
     meshcat.SetCameraPose(np.array(CAMERA_POSITION), np.array(CAMERA_TARGET))
     meshcat.SetProperty("/Axes", "visible", False)  # the world triad would hide the base
     markers = _contact_markers(meshcat)
+    ghost = add_reference_ghost(meshcat, geometry) if x_d is not None else None
     model = clearance_model(geometry)
     visualizer.StartRecording()
     animation = visualizer.get_mutable_recording()
@@ -167,6 +221,8 @@ def record_states(
         _mark_contacts(
             animation, k, markers, shown, model.contacts(None, clearance_m, q=states[i, :nq])
         )
+        if ghost is not None:
+            animation.SetTransform(k, ghost, ghost_transform(x_d[i]))
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)
@@ -188,6 +244,16 @@ def _contact_markers(meshcat) -> list:
         meshcat.SetProperty(path, "visible", False)
         out.append((path, colours))
     return out
+
+
+def offline_meshcat():
+    """A ``Meshcat`` to record a replay into, its web server (Drake's Meshcat always runs one:
+    ``MeshcatParams`` has no option without it, in 1.51 as in 1.58) bound to this machine only
+    and to a free ephemeral port (not the 7000.. ports a live ``teleop`` takes); nothing
+    connects to it, and it closes with the Meshcat."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    return Meshcat(MeshcatParams(host="localhost", port=0))
 
 
 def write_static_html(meshcat, path: str | Path) -> Path:
@@ -219,15 +285,13 @@ def record_html(
         path: the .html to write (folders are created).
         progress: show a progress bar while simulating.
         fps: replay frames per s (the 10 s paper run at 30 fps is about 3 MB).
-        meshcat: a Meshcat to record into (default: a new one, local server on a free port).
+        meshcat: a Meshcat to record into (default: :func:`offline_meshcat`).
     Returns:
         (RunResult, Path of the html): the same result ``run_experiment(config)`` gives.
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
             (before simulating). SimulationDivergedError: the guard stopped the run.
     """
-    from pydrake.geometry import Meshcat
-
     from ..simulation import guard
     from ..studies.experiments import advance, build_simulator, collect_result
 
@@ -238,8 +302,10 @@ def record_html(
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
     log = sd.loggers["state"].FindLog(context)
-    meshcat = meshcat if meshcat is not None else Meshcat()
-    record_states(meshcat, sd.plan.plant_geometry, log.sample_times(), log.data().T, fps)
+    meshcat = meshcat if meshcat is not None else offline_meshcat()
+    record_states(
+        meshcat, sd.plan.plant_geometry, log.sample_times(), log.data().T, fps, x_d=result.x_d
+    )
     return result, write_static_html(meshcat, path)
 
 

@@ -1,0 +1,60 @@
+"""Click a Meshcat button as a browser does: one websocket message to the live server.
+
+A minimal websocket client (RFC 6455 handshake, one masked binary frame) and msgpack of the one
+message Drake's Meshcat takes for a click, so the tests need no websocket or msgpack package.
+"""
+
+import base64
+import os
+import socket
+import time
+from urllib.parse import urlparse
+
+
+def _str(text: str) -> bytes:
+    data = text.encode()
+    assert len(data) < 256
+    return (bytes([0xA0 | len(data)]) if len(data) < 32 else bytes([0xD9, len(data)])) + data
+
+
+def send_click(ws_url: str, name: str, timeout_s: float = 10.0) -> None:
+    """Send one click of button ``name`` to the Meshcat server at ``ws_url`` (any thread:
+    no Meshcat call, which Drake allows only from the thread that made the Meshcat)."""
+    url = urlparse(ws_url)
+    message = b"\x82" + _str("type") + _str("button") + _str("name") + _str(name)
+    with socket.create_connection((url.hostname, url.port), timeout=timeout_s) as sock:
+        key = base64.b64encode(os.urandom(16)).decode()
+        sock.sendall(
+            f"GET / HTTP/1.1\r\nHost: {url.hostname}:{url.port}\r\nUpgrade: websocket\r\n"
+            f"Connection: Upgrade\r\nSec-WebSocket-Key: {key}\r\n"
+            f"Sec-WebSocket-Version: 13\r\n\r\n".encode()
+        )
+        reply = b""
+        while b"\r\n\r\n" not in reply:
+            chunk = sock.recv(4096)
+            assert chunk, "Meshcat closed the websocket during the handshake"
+            reply += chunk
+        assert reply.startswith(b"HTTP/1.1 101"), reply[:80]
+        mask = os.urandom(4)
+        assert len(message) < 126
+        frame = bytes([0x82, 0x80 | len(message)]) + mask
+        frame += bytes(b ^ mask[i % 4] for i, b in enumerate(message))
+        sock.sendall(frame)
+        time.sleep(0.2)  # let the server read the frame before the socket closes
+
+
+def click(meshcat, name: str, timeout_s: float = 10.0) -> int:
+    """Click button ``name`` of ``meshcat`` once (:func:`send_click`); returns its click count
+    once Meshcat has it.
+
+    Raises:
+        TimeoutError: Meshcat did not count the click within ``timeout_s``.
+    """
+    before = meshcat.GetButtonClicks(name)
+    send_click(meshcat.ws_url(), name, timeout_s)
+    deadline = time.monotonic() + timeout_s
+    while meshcat.GetButtonClicks(name) == before:
+        if time.monotonic() > deadline:
+            raise TimeoutError(f"Meshcat did not count the click of {name!r}")
+        time.sleep(0.01)
+    return meshcat.GetButtonClicks(name)
