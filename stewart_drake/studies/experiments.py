@@ -95,15 +95,16 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
-#: Memory a run holds, bytes, measured with ``stewart-drake run`` (paper_hardware, the peak of
-#: 60 s against 10 s): 5.7 kB per second-of-1-kHz sample with the logs every control period,
-#: 2.7 kB with them every 10 periods; so about 2.4 kB per control-period sample (the Diagram's
-#: reference and feed-forward tables, sampled for the whole run before it starts) and 3.3 kB per
-#: logged sample (the Simulator's logs of 86 floats, which grow by doubling, the RunResult, its
-#: table exports and the plot). The reference is checked in stretches of fixed size and adds no
-#: more per sample. Upper bounds with some slack:
+#: Memory a run holds, bytes, measured with ``stewart-drake run`` (paper_hardware, peaks against
+#: duration): about 3.3 kB per logged sample (the Simulator's logs of 86 floats, which grow by
+#: doubling, the RunResult, its table exports and the plot; 5.7 kB per 1 kHz sample with the
+#: logs every period against 2.7 kB with them every 10, before the reference tables shrank) and
+#: 0.4-0.5 kB per control-period sample (the reference and feed-forward held one vector per
+#: step: 0.70 kB per sample from 60 s to 180 s with the logs every 10 periods, 0.49 kB for
+#: building alone); the reference is sampled and checked in stretches of fixed size. Upper
+#: bounds with some slack:
 LOG_BYTES_PER_SAMPLE = 4.0e3
-CONTROL_BYTES_PER_SAMPLE = 3.0e3
+CONTROL_BYTES_PER_SAMPLE = 1.0e3
 
 
 def run_memory_bytes(scenario: Scenario) -> float:
