@@ -337,7 +337,8 @@ def render(data) -> str:
         "machine (2 cores, one used; the other was busy, so treat speeds as +-30 %).",
         "",
         "Engines: `drake_sap`, the package's plant (discrete SAP, ball constraints, gravity "
-        "9.81); `mujoco_rk4` and `mujoco_implicitfast`, the MJCF of `stewart-drake mjcf` "
+        "9.81); `mujoco_rk4` and `mujoco_implicitfast`, the MJCF of "
+        "`stewart-drake mjcf --scenario paper_ideal` "
         "(`stewart_drake/model/mjcf.py`; same bodies, frames and inertias, loops closed by "
         "`connect` equalities whose time constant MuJoCo sets to 2 x step) with MuJoCo's RK4 "
         "(the MJCF default) and its implicit-in-velocity Euler.",

@@ -16,6 +16,8 @@ from stewart_drake.interfaces.cli import main  # noqa: E402
 from stewart_drake.model import mjcf  # noqa: E402
 from stewart_drake.model.geometry import X_HOME  # noqa: E402
 from stewart_drake.model.plant import assemble, make_plant  # noqa: E402
+from stewart_drake.simulation.plan import make_plan  # noqa: E402
+from stewart_drake.simulation.scenario_io import load_scenario  # noqa: E402
 from stewart_drake.studies import accuracy
 from stewart_drake.studies.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
 
@@ -169,7 +171,21 @@ def test_cli_writes_an_mjcf_that_loads(tmp_path, monkeypatch, capsys):
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "rotary_stewart.xml"))
     assert model.neq == 6
     out = tmp_path / "sub" / "robot.xml"
-    assert main(["mjcf", "--out", str(out)]) == 0 and out.read_text() == mjcf.write_mjcf()
+    assert main(["mjcf", "--scenario", "paper_ideal", "--out", str(out)]) == 0
+    assert out.read_text() == mjcf.write_mjcf()  # the ideal robot: as before
+    # By default the robot as built, from the same scenario as every other command: the
+    # plan's armature, friction, torque limit and encoders, read back from what MuJoCo built.
+    plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
+    built = mujoco.MjModel.from_xml_path(str(tmp_path / "rotary_stewart.xml"))
+    motors = [built.joint(f"motor_{i}") for i in range(6)]
+    assert [float(j.armature[0]) for j in motors] == pytest.approx(
+        [plan.geometry.motor_reflected_inertia] * 6
+    )
+    assert [float(built.dof_frictionloss[j.dofadr[0]]) for j in motors] == pytest.approx(
+        [plan.servo.coulomb_friction_Nm] * 6
+    )
+    assert built.actuator_forcerange[:, 1] == pytest.approx([plan.torque_limit_Nm] * 6)
+    assert built.nsensor == 6
 
 
 def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, random_poses):

@@ -294,13 +294,31 @@ def _cmd_sdf(args) -> int:
 
 
 def _cmd_mjcf(args) -> int:
-    """``stewart-drake mjcf``: the reference robot as a MuJoCo MJCF (no MuJoCo needed to write)."""
+    """``stewart-drake mjcf``: a scenario's robot as a MuJoCo MJCF (no MuJoCo needed to write):
+    as built (rotor armature, servo friction, torque limit, encoder sensors) unless the scenario
+    is the ideal robot."""
     from ..fileio import atomic_write
     from ..model.mjcf import DEFAULT_INTEGRATOR, write_mjcf
+    from ..simulation.plan import make_plan
+    from ..simulation.scenario_io import load_scenario
 
-    text = write_mjcf().encode()
+    plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
+    text = write_mjcf(
+        plan.geometry,
+        time_step=plan.plant_time_step_s,
+        servo=plan.servo,
+        torque_limit_Nm=plan.torque_limit_Nm,
+    ).encode()
     atomic_write(Path(args.out), lambda f: f.write(text))
-    print(f"wrote {args.out} (MuJoCo MJCF; integrator {DEFAULT_INTEGRATOR}, time step 1 ms)")
+    built = (
+        "the robot as built: rotor armature, friction, torque limit, encoders"
+        if plan.servo is not None
+        else "the ideal robot"
+    )
+    print(
+        f"wrote {args.out} (MuJoCo MJCF of {args.scenario}, {built}; integrator "
+        f"{DEFAULT_INTEGRATOR}, time step {1e3 * plan.plant_time_step_s:g} ms)"
+    )
     return 0
 
 
@@ -1286,7 +1304,8 @@ def _add_sdf_command(sub) -> None:
 
 def _add_mjcf_command(sub) -> None:
     """The ``mjcf`` command's options."""
-    mj = sub.add_parser("mjcf", help="write the reference robot as a MuJoCo MJCF")
+    mj = sub.add_parser("mjcf", help="write a scenario's robot as a MuJoCo MJCF")
+    _add_scenario_arguments(mj, "the robot to write")
     mj.add_argument(
         "--out", default="rotary_stewart.xml", help="file to write (in the current folder)"
     )
