@@ -292,3 +292,33 @@ def test_reproduce_takes_a_phantom_trace_as_it_comes(tmp_path, capsys):
         md = (out / f"reproduce_{path.stem}.md").read_text()
         assert f"Trace: {path.name} ({layout}): " in md, md[:600]
         assert "**PASS" in md
+
+
+def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
+    """Against a brute-force gamma over every pair of samples, on a noisy, delayed trace; and
+    on a pure delay: a reference 50 ms late passes a 100 ms criterion everywhere it can be
+    shifted (not at the end of the record) and fails a 10 ms one where it moves."""
+    rng = np.random.default_rng(5)
+    t = np.arange(0.0, 4.0, 0.004)
+    p_d = np.column_stack([np.sin(t), 0.5 * np.cos(2 * t), 0 * t]) * 1e-3
+    p = np.roll(p_d, 5, axis=0) + rng.normal(scale=1e-4, size=p_d.shape)
+    for distance, time_s in ((0.3e-3, 0.05), (0.1e-3, 0.02)):
+        brute = [
+            min(
+                math.hypot(np.linalg.norm(p[i] - p_d[j]) / distance, (t[i] - t[j]) / time_s)
+                for j in range(len(t))
+                if abs(t[i] - t[j]) <= time_s + 1e-12
+            )
+            <= 1.0
+            for i in range(len(t))
+        ]
+        assert fd.gamma_pass_rate(t, p, p_d, distance, time_s) == pytest.approx(np.mean(brute))
+    t2 = np.arange(0.0, 8.0, 0.001)
+    p_d2 = np.column_stack([np.sin(np.pi * t2) * 2e-3, 0 * t2, 0 * t2])
+    p2 = np.column_stack([np.sin(np.pi * (t2 - 0.05)) * 2e-3, 0 * t2, 0 * t2])  # 50 ms late
+    assert fd.gamma_pass_rate(t2, p2, p_d2, 1e-9, 0.1) > 0.99
+    # 50 ms late at up to 6.3 mm/s is up to 0.31 mm off: a 10 ms, 0.1 mm criterion fails
+    # wherever the motion is faster than 0.1 mm / 50 ms
+    assert fd.gamma_pass_rate(t2, p2, p_d2, 0.1e-3, 0.01) < 0.5
+    with pytest.raises(InvalidConfigError, match="gamma criteria must be > 0"):
+        fd.gamma_pass_rate(t2, p2, p_d2, 0.0, 0.1)
