@@ -162,3 +162,19 @@ def test_a_learner_past_its_stability_is_rolled_back_by_its_bound():
     assert ends[1]["E_trans_m"] > 1.2 * ends[0]["E_trans_m"]  # the cycle that tripped it
     # the cycle after the rollback runs with the best correction (none): the first's error
     assert true[2][0] == pytest.approx(true[0][0], rel=0.1)
+
+
+def test_the_rollback_count_never_passes_its_limit():
+    """An unstable learner (gain 1.9, no decay) allowed no rollback: its first cycle over the
+    bound (the second) stops learning with the best correction (none) held, instead of counting
+    a rollback past the limit; the cycles after run as the first did."""
+    true, ends, _ = _learn(
+        5,
+        learning=dict(
+            gain=1.9, q_cutoff_hz=500.0, lead_s=0.0, gain_decay_cycles=0.0, max_rollbacks=0
+        ),
+    )
+    assert [e["rollbacks"] for e in ends] == [0.0] * 5
+    assert [e["stopped"] for e in ends] == [0.0, 1.0, 1.0, 1.0, 1.0]
+    assert ends[-1]["learned_cycles"] == 1.0
+    assert true[-1][0] == pytest.approx(true[0][0], rel=0.1)  # held: no correction

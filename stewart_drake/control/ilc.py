@@ -42,8 +42,9 @@ Monitored bound: the learner never lets the error of a cycle exceed ``bound_rati
 error of the cycle its correction was learned from, plus one encoder count at the crank tip
 (``floor_m``, ``floor_rad``): both measured RMS errors (translation and rotation) of every cycle
 run with a learned correction are compared with that bound; a cycle over it rolls the
-correction back to the one of the best cycle so far and halves the learning gain, and after
-``max_rollbacks`` rollbacks learning stops and the best correction is held.
+correction back to the one of the best cycle so far and halves the learning gain; a cycle over
+it after ``max_rollbacks`` rollbacks stops learning, the best correction held (the count never
+exceeds its limit).
 """
 
 import math
@@ -226,7 +227,7 @@ class IterativeLearningController(LeafSystem):
         sample_period_s: record period, a whole multiple of period_s.
         bound_ratio: the monitored bound's factor (>= 1). floor_m, floor_rad: its additive
             floor on the translational and rotational RMS errors.
-        max_rollbacks: rollbacks before learning stops.
+        max_rollbacks: rollbacks allowed; the next cycle over the bound stops learning.
         learn_cycles: learn from the first this many cycles only, then hold the correction
             (0: from every cycle).
         gain_decay_cycles: n of the decaying gain gamma n / (n + j) (0: constant).
@@ -388,12 +389,15 @@ class IterativeLearningController(LeafSystem):
             E[0] > self.bound_ratio * status.E_ref_trans_m + self.floor[0]
             or E[1] > self.bound_ratio * status.E_ref_rot_rad + self.floor[1]
         )
-        if over:  # roll back to the best cycle's correction
-            learned[:] = best
-            status.rollbacks += 1
-            status.gain *= 0.5
+        if over:  # back to the best cycle's correction; learning goes on at half the gain
+            learned[:] = best  # (held, when the rollbacks allowed are spent or learning stopped)
             status.E_ref_trans_m, status.E_ref_rot_rad = status.best_trans_m, status.best_rot_rad
-            if status.rollbacks > self.max_rollbacks:
+            if status.stopped:
+                return
+            if status.rollbacks < self.max_rollbacks:
+                status.rollbacks += 1
+                status.gain *= 0.5
+            else:
                 status.stopped = 1.0
             return
         if score < status.best_score:
@@ -492,7 +496,8 @@ class IlcDriver:
         bound_ratio: no cycle's measured RMS error may exceed this times that of the cycle its
             correction learned from, plus one encoder count at the crank tip; over it, the
             correction is rolled back to the best one and the gain halved.
-        max_rollbacks: rollbacks before learning stops and the best correction is held.
+        max_rollbacks: rollbacks allowed; the next cycle over the bound stops learning, the best
+            correction held.
         learn_cycles: learn from the first this many cycles, then hold (0: every cycle).
         gain_decay_cycles: n: the j-th update uses gain n / (n + j) (0: a constant gain); the
             correction then averages the cycles' noise out instead of following it.
