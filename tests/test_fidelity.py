@@ -322,3 +322,33 @@ def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
     assert fd.gamma_pass_rate(t2, p2, p_d2, 0.1e-3, 0.01) < 0.5
     with pytest.raises(InvalidConfigError, match="gamma criteria must be > 0"):
         fd.gamma_pass_rate(t2, p2, p_d2, 0.0, 0.1)
+
+
+def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_peaks(
+    tmp_path, monkeypatch
+):
+    import matplotlib.pyplot as plt
+
+    from stewart_drake.simulation.scenario_io import load_scenario
+
+    t = np.arange(1_000_003) * 1e-3
+    y = np.zeros_like(t)
+    y[777_777] = 5.0  # one spike in a long run
+    tt, yy = fd._thinned(t, y, peaks=True)
+    assert tt.size <= fd.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
+    assert fd._thinned(t, y)[0].size <= fd.PLOT_POINTS + 1
+
+    scenario = load_scenario("paper_hardware")
+    scenario.reference = om.OrganMotionReference("breathing", {"period": "1s"})
+    rep = fd.reproduce(scenario, eval_cycles=1)
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    fd.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
+    (fig,) = figures
+    by_label = {ax.get_ylabel(): ax for ax in fig.axes}
+    for label, tolerance in (
+        ("translation\nerror [um]", 100.0),
+        ("rotation\nerror [urad]", 1e6 * math.radians(0.1)),
+    ):
+        lines = by_label[label].get_lines()
+        assert any(np.allclose(ln.get_ydata(), tolerance) for ln in lines), label

@@ -763,6 +763,23 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     return "\n".join(lines)
 
 
+#: Points a report's curve draws at most: a long run's logs are thinned to this (every n-th
+#: sample of a pose, the largest of each n of an error, so that no peak is lost).
+PLOT_POINTS = 20_000
+
+
+def _thinned(t: np.ndarray, y: np.ndarray, peaks: bool = False) -> tuple:
+    """(t, y) with at most about :data:`PLOT_POINTS` points: every n-th sample, or with
+    ``peaks`` the largest of each n consecutive samples (y >= 0)."""
+    n = max(1, int(math.ceil(t.size / PLOT_POINTS)))
+    if n == 1:
+        return t, y
+    if not peaks:
+        return t[::n], y[::n]
+    m = (t.size // n) * n
+    return t[:m:n], y[:m].reshape(-1, n).max(axis=1)
+
+
 def _plot_poses(axes, moving: list, r, window) -> None:
     """Draw the reference and the achieved pose of each moving axis (mm or deg), one axis per
     row, the measured window shaded."""
@@ -770,41 +787,40 @@ def _plot_poses(axes, moving: list, r, window) -> None:
     w0, w1 = window
     for ax, k in zip(axes, moving):
         scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
-        ax.plot(t, r.x_d[:, k] * scale, "k--", lw=1, label="reference")
-        ax.plot(t, r.x[:, k] * scale, "C0", lw=0.9, label="achieved")
+        ax.plot(*_thinned(t, r.x_d[:, k] * scale), "k--", lw=1, label="reference")
+        ax.plot(*_thinned(t, r.x[:, k] * scale), "C0", lw=0.9, label="achieved")
         ax.set_ylabel(f"{AXES[k]} [{unit}]")
         ax.axvspan(w0, w1, color="0.9", zorder=0)
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax.grid(alpha=0.3)
 
 
-def _plot_error(ax, r, window, tolerance: tuple[float, float]) -> None:
-    """Draw the norms of the translation (um) and rotation (urad) errors over time against the
-    translation tolerance, the measured window shaded."""
+def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
+    """Draw the norm of the translation error (um) and of the rotation error (urad) over time,
+    each on its own axis against its own tolerance, the measured window shaded."""
     t = r.t
     e = r.x[:, :6] - r.x_d[:, :6]
     w0, w1 = window
-    ax.plot(
-        t, np.linalg.norm(e[:, 3:], axis=1) * 1e6, "C3", lw=0.6, label="|translation error| [um]"
-    )
-    ax.plot(
-        t,
-        np.linalg.norm(e[:, :3], axis=1) * 1e6,
-        "C2",
-        lw=0.6,
-        alpha=0.7,
-        label="|rotation error| [urad]",
-    )
-    ax.axhline(
-        tolerance[0] * 1e6, color="C3", ls=":", lw=1, label=f"tolerance {_length(tolerance[0])}"
-    )
-    ax.set_yscale("log")
-    ax.set_ylim(0.1, None)
-    ax.axvspan(w0, w1, color="0.9", zorder=0)
-    ax.set_ylabel("error")
-    ax.set_xlabel("t [s] (shaded: measured window)")
-    ax.legend(loc="upper right", fontsize=7, ncol=2)
-    ax.grid(alpha=0.3, which="both")
+    for ax, part, tol, color, what, unit, scale in (
+        (axes[0], slice(3, 6), tolerance[0], "C3", "translation", "um", 1e6),
+        (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
+    ):
+        norm = np.linalg.norm(e[:, part], axis=1) * scale
+        ax.plot(*_thinned(t, norm, peaks=True), color, lw=0.6, label=f"|{what} error|")
+        ax.axhline(
+            tol * scale,
+            color=color,
+            ls=":",
+            lw=1.2,
+            label=f"tolerance {_length(tol) if unit == 'um' else _angle(tol)}",
+        )
+        ax.set_yscale("log")
+        ax.set_ylim(0.1, 3 * max(tol * scale, float(norm.max())))
+        ax.axvspan(w0, w1, color="0.9", zorder=0)
+        ax.set_ylabel(f"{what}\nerror [{unit}]")
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3, which="both")
+    axes[1].set_xlabel("t [s] (shaded: measured window)")
 
 
 def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
@@ -824,7 +840,9 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
                 fontsize=7,
                 va="bottom",
             )
-        ax.set_xticks(j)
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=20, integer=True))  # labels never overlap
         ax.legend(loc="upper right", fontsize=7, ncol=2)
     else:
         ax.text(
@@ -882,18 +900,18 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
 
     fid, r = rep.fidelity, rep.result
     moving = [AXES.index(a) for a in fid["moving"]] or [5]
-    n_rows = len(moving) + 2 + (1 if fid["harmonics"] else 0)
+    n_rows = len(moving) + 3 + (1 if fid["harmonics"] else 0)
     heights = (
         [1.4] * len(moving)
-        + [1.6, 1.4]
+        + [1.3, 1.3, 1.4]
         + ([0.25 * len(fid["harmonics"]) + 0.6] if fid["harmonics"] else [])
     )
     fig, axes = plt.subplots(
         n_rows, 1, figsize=(10, sum(heights) + 1.2), gridspec_kw={"height_ratios": heights}
     )
     _plot_poses(axes, moving, r, fid["window_s"])
-    _plot_error(axes[len(moving)], r, fid["window_s"], tolerance)
-    _plot_cycles(axes[len(moving) + 1], fid["cycles"], rep.learn_cycles)
+    _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
+    _plot_cycles(axes[len(moving) + 2], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict(fid, tolerance)
