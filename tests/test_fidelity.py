@@ -352,3 +352,36 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
     ):
         lines = by_label[label].get_lines()
         assert any(np.allclose(ln.get_ydata(), tolerance) for ln in lines), label
+
+
+def test_a_long_run_s_figure_zooms_at_full_rate_on_its_largest_error(tmp_path, monkeypatch):
+    """120 s of logs with one 0.2 mm spike at t = 83.4 s: the figure adds a 10 s zoom centred on
+    it, drawn at full rate (every sample of those 10 s)."""
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    t = np.arange(0.0, 120.0, 1e-3)
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x_d[:, 3] += 5e-3 * np.sin(2 * np.pi * t / 4)
+    x = x_d.copy()
+    x[:, 3] += 2e-6 * np.sin(2 * np.pi * 37 * t)
+    spike = int(round(83.4 / 1e-3))
+    x[spike, 3] += 2e-4
+    fid = fd.fidelity(t, x, x_d, (4.0, 120.0))
+    rep = SimpleNamespace(
+        name="long",
+        fidelity=fid,
+        result=SimpleNamespace(t=t, x=x, x_d=x_d),
+        learn_cycles=0,
+    )
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    fd.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
+    (fig,) = figures
+    (zoom,) = [ax for ax in fig.axes if ax.get_ylabel() == "zoom: translation\nerror [um]"]
+    (line,) = [ln for ln in zoom.get_lines() if len(ln.get_xdata()) > 2]
+    ts = np.asarray(line.get_xdata())
+    assert ts[0] == pytest.approx(78.4, abs=2e-3) and ts[-1] == pytest.approx(88.4, abs=2e-3)
+    assert ts.size == pytest.approx(10_001, abs=2)  # full rate
+    assert max(line.get_ydata()) == pytest.approx(200.0, rel=0.02)  # the spike, in um

@@ -890,9 +890,45 @@ def _plot_harmonics(ax, harmonics: list) -> None:
     table.set_fontsize(7)
 
 
+#: A run longer than this, s, gets a zoom under its overview; the zoom's length, s.
+ZOOM_AFTER_S, ZOOM_S = 60.0, 10.0
+
+
+def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float]) -> None:
+    """Draw :data:`ZOOM_S` at full rate around the largest translation error of the measured
+    window: the axis that moves most there (reference and achieved), and the translation error
+    against its tolerance."""
+    t = r.t
+    e = np.linalg.norm(r.x[:, 3:6] - r.x_d[:, 3:6], axis=1)
+    w0, w1 = fid["window_s"]
+    inside = np.flatnonzero((t >= w0) & (t <= w1))
+    k = int(inside[np.argmax(e[inside])]) if inside.size else int(np.argmax(e))
+    a = float(np.clip(t[k] - ZOOM_S / 2, t[0], max(t[0], t[-1] - ZOOM_S)))
+    m = (t >= a) & (t <= a + ZOOM_S)
+    axis = max(moving, key=lambda j: float(np.ptp(r.x_d[m, j])) / (1e-3 if j >= 3 else 1e-2))
+    scale, unit = (1e3, "mm") if axis >= 3 else (180 / math.pi, "deg")
+    axes[0].plot(t[m], r.x_d[m, axis] * scale, "k--", lw=1, label="reference")
+    axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label="achieved")
+    axes[0].set_ylabel(f"zoom: {AXES[axis]}\n[{unit}]")
+    axes[0].set_title(
+        f"zoom, t = {a:.4g}-{a + ZOOM_S:.4g} s: around the largest translation error of the "
+        f"measured window ({e[k] * 1e6:.3g} um at t = {t[k]:.4g} s)",
+        fontsize=8,
+    )
+    axes[1].plot(t[m], e[m] * 1e6, "C3", lw=0.7, label="|translation error|")
+    axes[1].axhline(tolerance[0] * 1e6, color="C3", ls=":", lw=1.2, label="tolerance")
+    axes[1].set_yscale("log")
+    axes[1].set_ylabel("zoom: translation\nerror [um]")
+    axes[1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3, which="both")
+
+
 def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
-    """One PNG: reference and achieved pose per moving axis, the error over time, the error per
-    cycle and the harmonic table. Returns the path (written atomically)."""
+    """One PNG: reference and achieved pose per moving axis, the translation and rotation errors
+    over time, for a run longer than :data:`ZOOM_AFTER_S` a zoom at full rate around its largest
+    error, the error per cycle and the harmonic table. Returns the path (written atomically)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -900,10 +936,13 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
 
     fid, r = rep.fidelity, rep.result
     moving = [AXES.index(a) for a in fid["moving"]] or [5]
-    n_rows = len(moving) + 3 + (1 if fid["harmonics"] else 0)
+    zoom = int(r.t[-1] - r.t[0] > ZOOM_AFTER_S)
+    n_rows = len(moving) + 3 + 2 * zoom + (1 if fid["harmonics"] else 0)
     heights = (
         [1.4] * len(moving)
-        + [1.3, 1.3, 1.4]
+        + [1.3, 1.3]
+        + [1.3, 1.1] * zoom
+        + [1.4]
         + ([0.25 * len(fid["harmonics"]) + 0.6] if fid["harmonics"] else [])
     )
     fig, axes = plt.subplots(
@@ -911,7 +950,9 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     )
     _plot_poses(axes, moving, r, fid["window_s"])
     _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
-    _plot_cycles(axes[len(moving) + 2], fid["cycles"], rep.learn_cycles)
+    if zoom:
+        _plot_zoom(axes[len(moving) + 2 : len(moving) + 4], moving, r, fid, tolerance)
+    _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict(fid, tolerance)
