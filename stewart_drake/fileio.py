@@ -209,6 +209,21 @@ def read_checked(path, kind: str, max_bytes: float, remedy: str = "") -> bytes:
         return f.read()
 
 
+def decode_text(raw: bytes, path, kind: str, remedy: str = "", encoding: str = "utf-8") -> str:
+    """``raw`` as text (``encoding``: "utf-8", or "utf-8-sig" to drop a byte-order mark).
+
+    Raises:
+        CorruptFileError: not UTF-8 text, naming ``path`` as a ``kind``, the reason and the
+            byte, and saying ``remedy``.
+    """
+    try:
+        return raw.decode(encoding)
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(
+            path, kind, f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
+        ) from None
+
+
 def read_json(path, kind: str, remedy: str = "", max_bytes: float = MAX_JSON_BYTES):
     """The JSON document in ``path`` (:func:`read_checked`, at most ``max_bytes``).
 

@@ -55,7 +55,7 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
             out of range (named by file and field path).
     """
-    from ..fileio import read_checked
+    from ..fileio import decode_text, read_checked
 
     shipped = shipped_scenarios()
     if not isinstance(source, (str, Path)):
@@ -81,12 +81,7 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     )
     if not raw.strip():
         raise CorruptFileError(path, "scenario file", "it is empty", remedy)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as err:
-        raise CorruptFileError(
-            path, "scenario file", f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
-        ) from None
+    text = decode_text(raw, path, "scenario file", remedy)
     try:
         _refuse_duplicate_keys(text)
         text = _untag_sections(text)

@@ -199,19 +199,14 @@ def _trace_table(path: Path, format: str, columns: str) -> tuple[list, list, str
         InvalidConfigError: an unknown format, a file without a header whose width says no
             format, a header where the format has none, an empty file.
     """
-    from ..fileio import read_checked
+    from ..fileio import decode_text, read_checked
 
     if format not in TRACE_FORMATS:
         raise InvalidConfigError(f"trace format {format!r}: use one of {', '.join(TRACE_FORMATS)}")
     if not path.exists():
         raise MissingFileError(f"no trace at {path}: check the path")
     raw = read_checked(path, "trace file", MAX_TRACE_BYTES, _TRACE_REMEDY)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as err:
-        raise CorruptFileError(
-            path, "trace file", f"not UTF-8 text ({err.reason} at byte {err.start})", _TRACE_REMEDY
-        ) from None
+    text = decode_text(raw, path, "trace file", _TRACE_REMEDY, encoding="utf-8-sig")
     del raw
     if "\0" in text:
         raise CorruptFileError(path, "trace file", "not text (a NUL byte)", _TRACE_REMEDY)

@@ -447,13 +447,11 @@ def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:
             module's limit); names ``path`` as a ``kind`` and says ``remedy``.
     """
     from ..errors import CorruptFileError
+    from ..fileio import decode_text
 
+    text = decode_text(raw, path, kind, remedy, encoding="utf-8-sig")
     try:
-        return list(csv.reader(io.StringIO(raw.decode("utf-8-sig"), newline="")))
-    except UnicodeDecodeError as err:
-        raise CorruptFileError(
-            path, kind, f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
-        ) from None
+        return list(csv.reader(io.StringIO(text, newline="")))
     except csv.Error as err:
         raise CorruptFileError(path, kind, f"not CSV ({err})", remedy) from None
 
