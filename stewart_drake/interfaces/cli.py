@@ -410,13 +410,14 @@ def _cmd_check(args) -> int:
     from ..studies.feasibility import check, plot_margins
 
     source = args.reference
+    trace = None  # a reference file, read once: its length and the reference checked
     if _is_trace_file(source) and Path(source).suffix.lower() not in (".yaml", ".yml"):
         from ..simulation.traces import TraceReference, load_trace
 
         scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = TraceReference(path=source)
+        trace = load_trace(source)  # TraceReference's defaults
         if args.duration is None:  # as long as the file, as `run` and `reproduce` take it
-            trace = load_trace(source)
             scenario.duration_s = trace.end_time - getattr(trace, "start_time", 0.0)
         scenario.validate()
     elif source in TRAJECTORIES:
@@ -426,7 +427,7 @@ def _cmd_check(args) -> int:
         scenario = load_scenario(source, args.set or ())
     if args.duration is not None:
         scenario.duration_s = args.duration
-    report = check(scenario)
+    report = check(scenario, reference=trace)
     print(report.summary())
     name = Path(source).stem
     png = plot_margins(
