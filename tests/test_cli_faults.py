@@ -708,6 +708,29 @@ def _stderr_reader(proc, seen: list, marker: str, found: threading.Event):
             found.set()
 
 
+def _signal_once_shown(proc, marker: str, signum: int, show_s: float = 120.0, pause_s: float = 0.0):
+    """Send ``signum`` to ``proc`` once its stderr shows ``marker`` (within ``show_s``, then
+    ``pause_s`` more); (its exit code, seconds from the signal to its end, its stderr, that
+    stderr's non-blank lines). The process is killed if it outlives the checks."""
+    seen, shown = [], threading.Event()
+    reader = threading.Thread(target=_stderr_reader, args=(proc, seen, marker, shown), daemon=True)
+    reader.start()
+    try:
+        assert shown.wait(show_s), "".join(seen)
+        time.sleep(pause_s)
+        proc.send_signal(signum)
+        t0 = time.monotonic()
+        proc.wait(timeout=60)
+        waited = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    reader.join(5)
+    text = "".join(seen)
+    return proc.returncode, waited, text, [ln for ln in re.split(r"[\r\n]", text) if ln.strip()]
+
+
 @pytest.mark.parametrize(
     "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name
 )
@@ -735,33 +758,16 @@ def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
         text=True,
         preexec_fn=lambda: signal.signal(signum, signal.SIG_DFL),
     )
-    seen, simulating = [], threading.Event()
-    reader = threading.Thread(
-        target=_stderr_reader, args=(proc, seen, "sim s", simulating), daemon=True
-    )
-    reader.start()
-    try:
-        assert simulating.wait(120), "".join(seen)
-        time.sleep(0.5)
-        proc.send_signal(signum)
-        t0 = time.monotonic()
-        proc.wait(timeout=60)
-        waited = time.monotonic() - t0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    reader.join(5)
-    lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
+    code, waited, text, lines = _signal_once_shown(proc, "sim s", signum, pause_s=0.5)
     # A signal ends the run promptly (about 0.3 s on a quiet machine); 10 s holds with a margin
     # on a 2-core machine loaded by another suite, and an ignored signal would let the real-time
     # run go on for the 29 s it has left.
-    assert proc.returncode == 128 + signum and waited < 10.0, (proc.returncode, waited)
+    assert code == 128 + signum and waited < 10.0, (code, waited)
     assert lines[-1] == (
         f"stewart-drake run: interrupted by {signal.Signals(signum).name}; "
         f"partial outputs were not written"
     )
-    assert "Traceback" not in "".join(seen)
+    assert "Traceback" not in text
     assert _snapshot(home, home / "out") == before
     assert not (home / "out" / "run_paper.npz").exists()
 
@@ -1142,25 +1148,9 @@ def test_a_long_trace_shows_its_check_and_ends_promptly_on_a_signal(tmp_path):
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    seen, checking = [], threading.Event()
-    reader = threading.Thread(
-        target=_stderr_reader, args=(proc, seen, "samples", checking), daemon=True
-    )
-    reader.start()
-    try:
-        assert checking.wait(60), "".join(seen)
-        proc.send_signal(signal.SIGINT)
-        t0 = time.monotonic()
-        proc.wait(timeout=60)
-        waited = time.monotonic() - t0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    reader.join(5)
-    lines = [ln for ln in re.split(r"[\r\n]", "".join(seen)) if ln.strip()]
-    assert proc.returncode == 130 and waited < 10.0, (proc.returncode, waited)
-    assert "checking:" in "".join(seen) and "Traceback" not in "".join(seen)
+    code, waited, text, lines = _signal_once_shown(proc, "samples", signal.SIGINT, show_s=60)
+    assert code == 130 and waited < 10.0, (code, waited)
+    assert "checking:" in text and "Traceback" not in text
     assert lines[-1] == (
         "stewart-drake reproduce: interrupted by SIGINT; partial outputs were not written"
     ), lines[-3:]
