@@ -173,8 +173,14 @@ def test_a_section_may_carry_its_own_class_s_tag(tmp_path):
     assert scenario.learning.gain == 0.5 and scenario.learning.q_cutoff_hz == 25.0
     assert scenario.hardware.computation_delay_periods == 2
     assert scenario.hardware.motors.gear_ratio == 5.0
-    path.write_text("learning: !PdDriver {}\n")
+    path.write_text("hardware: !PdDriver {}\n")
     with pytest.raises(InvalidConfigError, match=r"a tag \(!Name\) that is not its section's own"):
+        load_scenario(path)
+    # learning is a choice of two learners: a tag among them, another refused naming them
+    path.write_text("learning: !FeedforwardTuning {stretch_s: 3.0}\n")
+    assert load_scenario(path).learning.stretch_s == 3.0
+    path.write_text("learning: !PdDriver {}\n")
+    with pytest.raises(InvalidConfigError, match="FeedforwardTuning"):
         load_scenario(path)
 
 

@@ -78,7 +78,7 @@ ILC_STATUS_NAMES = (
     "rows",
 )
 IlcStatus = namedview("IlcStatus", ILC_STATUS_NAMES)
-_CYCLE, _COUNT, _ROWS = (ILC_STATUS_NAMES.index(n) for n in ("cycle", "count", "rows"))
+_CYCLE = ILC_STATUS_NAMES.index("cycle")
 #: Where the learned error comes from (see the module docstring).
 ERROR_MODES = ("pose", "motor_angle")
 
@@ -236,6 +236,10 @@ class IterativeLearningController(LeafSystem):
             than four records, a record period that is not a whole multiple of period_s.
     """
 
+    #: The name of the status output port and what it holds.
+    status_port = "ilc_status"
+    status_names = ILC_STATUS_NAMES
+
     def __init__(
         self,
         geometry,
@@ -260,13 +264,7 @@ class IterativeLearningController(LeafSystem):
         self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
         self.offset = as_number("offset_s", offset_s, 0.0, self.h)
         starts, scale = _checked_cycles(cycle_starts, cycle_scale)
-        ratio = sample_period_s / self.h
-        if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
-            raise InvalidConfigError(
-                f"sample_period_s ({sample_period_s}) must be a whole "
-                f"multiple of the control period ({self.h})"
-            )
-        self.R = int(round(ratio))
+        self.R = steps_per_record(sample_period_s, self.h)
         self.step_starts = np.round(starts / self.h).astype(np.int64)
         self.steps = self.step_starts.tolist()  # Python ints for the per-step path
         lengths = np.diff(self.step_starts)
@@ -325,19 +323,17 @@ class IterativeLearningController(LeafSystem):
         self._Correct(memory, n + 1, j, discrete_state.get_mutable_value(self._c_index))
 
     def _Record(self, context, memory, status, k: int, length: int) -> None:
-        """Add this sample to the running sum; every R samples (and at the cycle's end) store
-        their mean as one record row."""
-        acc = memory[self._mem["acc"]]
-        acc[:6] += self._motor_angle.Eval(context)
-        acc[6:] += np.asarray(self._x_d.Eval(context))[:6]
-        status[_COUNT] += 1
-        if (k + 1) % self.R == 0 or k + 1 == length:
-            row = k // self.R
-            start = self._mem["buffer"].start + 12 * row
-            memory[start : start + 12] = acc / status[_COUNT]
-            acc[:] = 0.0
-            status[_COUNT] = 0
-            status[_ROWS] = row + 1
+        """Add this sample to the cycle's records (:func:`add_record`)."""
+        add_record(
+            self._motor_angle.Eval(context),
+            self._x_d.Eval(context),
+            memory[self._mem["acc"]],
+            memory[self._mem["buffer"]],
+            status,
+            k,
+            length,
+            self.R,
+        )
 
     def _Correct(self, memory, n: int, k: int, correction) -> None:
         """The correction at step n of cycle k: s_k L(phi) with its rate and acceleration; zero
@@ -424,6 +420,40 @@ class IterativeLearningController(LeafSystem):
         learned[:] = learn(learned, weight * e_phase, gain, self.ba)
         status.E_ref_trans_m, status.E_ref_rot_rad = E
         status.learned_cycles += 1
+
+
+def steps_per_record(sample_period_s: float, period_s: float) -> int:
+    """R, the control periods per record of a learner.
+
+    Raises:
+        InvalidConfigError: ``sample_period_s`` is not a whole multiple of ``period_s``.
+    """
+    ratio = sample_period_s / period_s
+    if not (ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+        raise InvalidConfigError(
+            f"sample_period_s ({sample_period_s}) must be a whole "
+            f"multiple of the control period ({period_s})"
+        )
+    return int(round(ratio))
+
+
+def add_record(
+    motor_angle, x_d, acc, rows, status, k: int, length: int, R: int, count=-2, n_rows=-1
+) -> None:
+    """Add sample k of a stretch of ``length`` samples to a learner's records: the encoder
+    angles (6) and the reference pose (the first 6 of ``x_d``) add to the running sum ``acc``
+    (12,); every R samples (and at the stretch's end) their mean is stored as one row of
+    ``rows`` (flat, 12 per row) and the sum restarts. ``status[count]`` counts the samples in
+    the sum, ``status[n_rows]`` the rows stored (in place, like the arrays)."""
+    acc[:6] += motor_angle
+    acc[6:] += np.asarray(x_d)[:6]
+    status[count] += 1
+    if (k + 1) % R == 0 or k + 1 == length:
+        row = k // R
+        rows[12 * row : 12 * row + 12] = acc / status[count]
+        acc[:] = 0.0
+        status[count] = 0
+        status[n_rows] = row + 1
 
 
 def _checked_cycles(cycle_starts, cycle_scale) -> tuple[np.ndarray, np.ndarray]:

@@ -516,6 +516,7 @@ def _cmd_reproduce(args) -> int:
     out = Path(args.out)
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
+    feedforward = _feedforward_choice(args, scenario)
     rep = reproduce(
         scenario,
         learn_cycles=args.learn_cycles,
@@ -523,7 +524,12 @@ def _cmd_reproduce(args) -> int:
         scale_to_fit=args.scale_to_fit,
         duration_s=args.duration,
         progress=not args.no_progress,
+        feedforward=feedforward,
     )
+    if args.save_learned and rep.learned is not None:
+        from ..control.feedforward_tuning import save_learned
+
+        print(f"wrote {save_learned(args.save_learned, rep.learned)} (the learned feed-forward)")
     if rep.scale != 1.0:
         print(
             f"{name} did not fit the robot: scaled by {rep.scale:.3f} about its centre "
@@ -541,6 +547,35 @@ def _cmd_reproduce(args) -> int:
     print(line)
     print(f"wrote {md}, {png} and {js}")
     return 0 if ok else 2
+
+
+def _feedforward_choice(args, scenario):
+    """The feed-forward learner ``reproduce``'s flags ask for (None: none), checked before the
+    run: ``--feedforward``, ``--learned FILE`` (read now: numbers only), ``--hold``,
+    ``--save-learned FILE``; the scenario's own ``learning`` when it is one."""
+    from ..control.feedforward_tuning import FeedforwardTuning, load_learned
+    from ..errors import InvalidConfigError
+
+    wanted = args.feedforward or args.learned or args.hold or args.save_learned
+    if not wanted:
+        return None
+    if args.learn_cycles:
+        raise InvalidConfigError(
+            "--learn-cycles learns per cycle; --feedforward, --learned, --hold and "
+            "--save-learned learn as a function of the reference: choose one"
+        )
+    if args.hold and not args.learned:
+        raise InvalidConfigError("--hold applies a model learned before: give --learned FILE")
+    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
+    ff = ff or FeedforwardTuning()
+    if args.learned:
+        load_learned(args.learned)  # refused now, not after the run
+        ff.learned_from = str(args.learned)
+    ff.learn = not args.hold
+    if args.save_learned:
+        check_output(args.save_learned, "--save-learned", is_file=True)
+    ff.validate(scenario.control_period_s)
+    return ff
 
 
 def _cmd_scenario(args) -> int:
@@ -1081,6 +1116,31 @@ def _add_reproduce_command(sub) -> None:
         default=0,
         metavar="N",
         help="learn a correction from the first N cycles, then hold it (0: no learning)",
+    )
+    rp.add_argument(
+        "--feedforward",
+        action="store_true",
+        help="learn a correction as a function of the reference over the run (any motion: a "
+        "trace, irregular breathing, a heartbeat not locked to the breath); settings: --set "
+        "learning.stretch_s=5 with a scenario's learning: !FeedforwardTuning {}",
+    )
+    rp.add_argument(
+        "--learned",
+        default=None,
+        metavar="FILE.npz",
+        help="start the feed-forward from a model an earlier run saved (--save-learned) "
+        "(default: none, from zero)",
+    )
+    rp.add_argument(
+        "--hold",
+        action="store_true",
+        help="apply the --learned model without learning further",
+    )
+    rp.add_argument(
+        "--save-learned",
+        default=None,
+        metavar="FILE.npz",
+        help="write the learned feed-forward at the end of the run (for --learned) (default: none)",
     )
     rp.add_argument(
         "--cycles",

@@ -208,7 +208,7 @@ def make_stewart_diagram(
     )
     loggers.update(_add_loggers(builder, station, system, outputs, scenario.log_period_s))
     if learner is not None:
-        for name in ("ilc_status", "x_d_correction"):
+        for name in (learner.status_port, "x_d_correction"):
             loggers[name] = LogVectorOutput(
                 learner.GetOutputPort(name), builder, scenario.log_period_s
             )

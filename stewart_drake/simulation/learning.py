@@ -1,7 +1,11 @@
-"""Learning from every cycle in the Diagram: where the learner's cycles, bound and ports come from.
+"""Learning in the Diagram: where the learner's cycles, bound and ports come from.
 
-:func:`add_learning` adds an :class:`~stewart_drake.control.ilc.IterativeLearningController`
-built from a scenario's :class:`~stewart_drake.control.ilc.IlcDriver` and wires it by port name:
+:func:`add_learning` adds the learner a scenario's ``learning`` chooses, an
+:class:`~stewart_drake.control.ilc.IterativeLearningController` (from every cycle, for an
+:class:`~stewart_drake.control.ilc.IlcDriver`) or a
+:class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuningLearner` (as a function of the
+reference, for a :class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuning`), and wires
+it by port name:
 it reads the reference source's ``x_d`` and the station's ``motor_angle`` (what the robot
 measures), and an ``Adder`` puts its ``x_d_correction`` on the reference, whose sum the Diagram
 gives the controller as its ``x_d`` (:mod:`~stewart_drake.control.contract`).
@@ -12,6 +16,11 @@ from __future__ import annotations
 import numpy as np
 from pydrake.systems.primitives import Adder
 
+from ..control.feedforward_tuning import (
+    FeedforwardTuning,
+    FeedforwardTuningLearner,
+    load_learned,
+)
 from ..control.ilc import IlcDriver, IterativeLearningController
 from ..errors import InvalidConfigError
 from .motion import Reference, reference_cycles
@@ -50,7 +59,7 @@ def learning_cycles(
 
 def add_learning(
     builder,
-    d: IlcDriver,
+    d: IlcDriver | FeedforwardTuning,
     trajectory,
     x_d,
     motor_angle,
@@ -72,29 +81,56 @@ def add_learning(
             crank tip as a translation and as a platform rotation
             (``RunPlan.encoder_count_at_tip``).
     """
-    starts, scale = learning_cycles(d, trajectory, duration_s)
     floor_m, floor_rad = floor
-    learner = builder.AddNamedSystem(
-        "learner",
-        IterativeLearningController(
+    system: FeedforwardTuningLearner | IterativeLearningController
+    if isinstance(d, FeedforwardTuning):
+        system = FeedforwardTuningLearner(
             geometry,
+            trajectory,
             period_s,
             offset_s,
-            starts,
-            scale,
+            duration_s,
+            stretch_s=d.stretch_s,
             gain=d.gain,
+            memory_stretches=d.memory_stretches,
+            ridge=d.ridge,
             q_cutoff_hz=d.q_cutoff_hz,
-            lead_s=d.lead_s,
-            error=d.error,
+            rate_scale_rad_s=d.rate_scale_rad_s,
             sample_period_s=d.sample_period_s,
             bound_ratio=d.bound_ratio,
             floor_m=floor_m,
             floor_rad=floor_rad,
             max_rollbacks=d.max_rollbacks,
-            learn_cycles=d.learn_cycles,
-            gain_decay_cycles=d.gain_decay_cycles,
-        ),
+            theta0=load_learned(d.learned_from) if d.learned_from else None,
+            learn=d.learn,
+        )
+        return _wire(builder, system, x_d, motor_angle)
+    starts, scale = learning_cycles(d, trajectory, duration_s)
+    system = IterativeLearningController(
+        geometry,
+        period_s,
+        offset_s,
+        starts,
+        scale,
+        gain=d.gain,
+        q_cutoff_hz=d.q_cutoff_hz,
+        lead_s=d.lead_s,
+        error=d.error,
+        sample_period_s=d.sample_period_s,
+        bound_ratio=d.bound_ratio,
+        floor_m=floor_m,
+        floor_rad=floor_rad,
+        max_rollbacks=d.max_rollbacks,
+        learn_cycles=d.learn_cycles,
+        gain_decay_cycles=d.gain_decay_cycles,
     )
+    return _wire(builder, system, x_d, motor_angle)
+
+
+def _wire(builder, system, x_d, motor_angle):
+    """Add the learner and the Adder that puts its correction on the reference; returns
+    (learner, the corrected x_d output port)."""
+    learner = builder.AddNamedSystem("learner", system)
     builder.Connect(x_d, learner.GetInputPort("x_d"))
     builder.Connect(motor_angle, learner.GetInputPort("motor_angle"))
     add = builder.AddNamedSystem("learned_x_d", Adder(2, 18))

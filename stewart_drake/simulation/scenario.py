@@ -43,6 +43,7 @@ from pydrake.visualization import VisualizationConfig
 from ..checks import MAX_SEED, as_number, check_multiple
 from ..checks import check_int as _check_int
 from ..control.contract import UserController
+from ..control.feedforward_tuning import FeedforwardTuning
 from ..control.ilc import IlcDriver
 from ..control.lqi import LqiDriver
 from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: controller.scales
@@ -136,6 +137,8 @@ ReferenceChoice = (
     | TraceReference
 )
 ControllerChoice = LqiDriver | PdDriver | UserController
+#: The learners a scenario may choose: from every cycle, or as a function of the reference.
+LearningChoice = IlcDriver | FeedforwardTuning
 
 
 def _choices(union) -> tuple:
@@ -157,7 +160,7 @@ def choice_classes() -> dict:
         "controller": _choices(ControllerChoice),
         "reference": _choices(ReferenceChoice),
         "tuner": _choices(TunerChoice),
-        "learning": (IlcDriver,),
+        "learning": _choices(LearningChoice),
     }
 
 
@@ -404,8 +407,9 @@ class Scenario:
             forces and the guard reports the first one with the parts' names. False (default,
             cheaper per step): parts would pass through each other, and the guard stops a run
             the moment two of them overlap.
-        learning: None, or learning from every cycle (:class:`IlcDriver`): a correction of
-            the reference the controller tracks, learned from the encoders.
+        learning: None, or a correction of the reference the controller tracks, learned from
+            the encoders: from every cycle (:class:`IlcDriver`, motion that repeats) or as a
+            function of the reference (:class:`FeedforwardTuning`, any motion).
     Raises:
         InvalidConfigError: (``validate``, run by every builder and at construction) a field
             out of range, a period that is not a whole multiple of the one it runs on, a wrong
@@ -432,7 +436,7 @@ class Scenario:
     hardware: Hardware | None = None
     disturbance: ToolDisturbance | None = None
     contact: bool = False
-    learning: IlcDriver | None = None
+    learning: LearningChoice | None = None
 
     def __post_init__(self):
         self.validate()
@@ -523,7 +527,7 @@ class Scenario:
         "sensor_noise": (type(None), SensorNoise),
         "hardware": (type(None), Hardware),
         "disturbance": (type(None), ToolDisturbance),
-        "learning": (type(None), IlcDriver),
+        "learning": (type(None),) + _choices(LearningChoice),
     }
 
     def _validate_types(self) -> None:

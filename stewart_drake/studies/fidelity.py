@@ -370,8 +370,11 @@ class Reproduction:
         cycle_starts: (K + 1,) the cycles of the run, s (empty for a reference without).
         learn_cycles: cycles learned from (0: no learning).
         fidelity: :func:`fidelity` over the evaluation window (the last ``eval_cycles``).
-        learner: (n, 16) the learner's ``ilc_status`` log, or None
-            (:data:`~stewart_drake.control.ilc.ILC_STATUS_NAMES`).
+        learner: (n, k) the learner's status log, or None; its columns are
+            ``learner_names`` (:data:`~stewart_drake.control.ilc.ILC_STATUS_NAMES` or
+            :data:`~stewart_drake.control.feedforward_tuning.FF_STATUS_NAMES`).
+        learned: (p, 6) the weights a feed-forward learner ended with (for
+            :func:`~stewart_drake.control.feedforward_tuning.save_learned`), or None.
         check: the validator's summary of the reference. wall_s: wall time of the run, s.
     """
 
@@ -383,6 +386,8 @@ class Reproduction:
     learn_cycles: int
     fidelity: dict
     learner: np.ndarray | None = None
+    learner_names: tuple = ()
+    learned: np.ndarray | None = None
     check: str = ""
     wall_s: float = 0.0
     notes: list = field(default_factory=list)
@@ -436,8 +441,8 @@ def run(
     scenario, reference: Reference, progress: bool = False, desc: str = "simulating", report=None
 ):
     """Simulate ``scenario`` on ``reference`` (checked first unless its check's ``report`` is
-    given, guarded): (:class:`~.experiments.RunResult`, the learner's status log (n, 16) or
-    None, wall s).
+    given, guarded): (:class:`~.experiments.RunResult`, the learner's status log (n, k) or
+    None, wall s, the learned weights (p, 6) of a feed-forward learner at the end or None).
 
     The learner's log ends with its state at the end of the run (the loggers' last sample is
     one period earlier: the update of a cycle's last sample would otherwise be missing)."""
@@ -452,14 +457,17 @@ def run(
     wall = time.perf_counter() - wall0
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
-    learner = None
+    learner = learned = None
     if sd.learner is not None:
-        log = sd.loggers["ilc_status"].FindLog(context).data().T
-        final = sd.learner.GetOutputPort("ilc_status").Eval(
+        log = sd.loggers[sd.learner.status_port].FindLog(context).data().T
+        final = sd.learner.GetOutputPort(sd.learner.status_port).Eval(
             sd.learner.GetMyContextFromRoot(context)
         )
         learner = np.vstack([log, final])
-    return result, learner, wall
+        if sd.learner.HasOutputPort("theta"):
+            theta = sd.learner.GetOutputPort("theta").Eval(sd.learner.GetMyContextFromRoot(context))
+            learned = np.asarray(theta).reshape(-1, 6)
+    return result, learner, wall, learned
 
 
 def run_cycles(reference: Reference, learn_cycles: int, eval_cycles: int) -> int:
@@ -545,6 +553,28 @@ def _set_learning(scenario, learn_cycles: int) -> None:
         scenario.learning = None
 
 
+def _status_names(learning) -> tuple:
+    """The columns of the status log of the learner ``learning`` chooses (() for none)."""
+    from ..control.feedforward_tuning import FF_STATUS_NAMES, FeedforwardTuning
+    from ..control.ilc import ILC_STATUS_NAMES
+
+    if learning is None:
+        return ()
+    return FF_STATUS_NAMES if isinstance(learning, FeedforwardTuning) else ILC_STATUS_NAMES
+
+
+def _feedforward_line(last: dict) -> str:
+    """The report's line on a feed-forward learner, from its last status."""
+    return (
+        f"Learner (feed-forward as a function of the reference): {int(last['updates'])} "
+        f"update(s) over {int(last['stretch'])} stretch(es), {int(last['rollbacks'])} "
+        f"rollback(s){', stopped by its bound' if last['stopped'] else ''}; last stretch "
+        f"{last['E_trans_m'] * 1e6:.3g} um / {last['E_rot_rad'] * 1e6:.3g} urad measured by the "
+        f"encoders, {last['D_trans_m'] * 1e6:.3g} um / {last['D_rot_rad'] * 1e6:.3g} urad "
+        f"estimated without the correction."
+    )
+
+
 def _measured_window(starts, duration: float, whole: bool, eval_cycles: int) -> tuple[float, float]:
     """(start, end) of the window measured, s: after a whole trace's first cycle (or tenth), or
     the last ``eval_cycles`` cycles (the last nine tenths of a run without them)."""
@@ -571,6 +601,7 @@ def reproduce(
     scale_to_fit: bool = False,
     duration_s: float | None = None,
     progress: bool = False,
+    feedforward=None,
 ) -> Reproduction:
     """Check a motion against the robot, run it, measure it.
 
@@ -584,7 +615,11 @@ def reproduce(
     about its centre until it passes (:func:`scale_to_fit`).
     With ``learn_cycles`` the scenario learns (its ``learning`` or the default
     :class:`~stewart_drake.simulation.scenario.IlcDriver`) from that many cycles, then holds
-    the correction through the evaluated cycles.
+    the correction through the evaluated cycles. With ``feedforward`` it learns a correction as
+    a function of the reference over the whole run instead
+    (:class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuning`: any motion, a trace
+    without cycles included; a trace runs whole, a motion with cycles ``learn_cycles`` +
+    ``eval_cycles`` of them).
 
     Args:
         scenario: the robot and its controller (changed in place: duration, learning,
@@ -593,6 +628,8 @@ def reproduce(
         learn_cycles: cycles to learn from (0: none). eval_cycles: cycles measured after.
         scale_to_fit: shrink a refused motion instead of refusing it.
         duration_s: length of a run on a reference without cycles, s.
+        feedforward: a :class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuning`
+            to learn with, or None.
     Returns:
         :class:`Reproduction`.
     Raises:
@@ -609,16 +646,19 @@ def reproduce(
     _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference
     name = getattr(reference, "name", "reference")
-    starts = _reference_starts(reference, learn_cycles)
+    starts = _reference_starts(reference, learn_cycles if feedforward is None else 0)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
     check_run_memory(scenario)  # before the reference is checked at every control period
-    _set_learning(scenario, learn_cycles)
+    if feedforward is None:
+        _set_learning(scenario, learn_cycles)
+    else:
+        scenario.learning = feedforward
     plan = make_plan(scenario, reference=reference)  # validated once, here
     scale = 1.0
     if scale_to_fit:
         reference, scale = _fit(plan, reference)
     report = check_reference_shown(plan, reference, progress, keep_series=False)
-    result, learner, wall = run(plan, reference, progress, f"reproducing {name}", report)
+    result, learner, wall, learned = run(plan, reference, progress, f"reproducing {name}", report)
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     freq = _harmonic_frequencies(reference)
@@ -632,6 +672,8 @@ def reproduce(
         learn_cycles=learn_cycles,
         fidelity=fid,
         learner=learner,
+        learner_names=_status_names(scenario.learning),
+        learned=learned,
         check=report.summary(),
         wall_s=wall,
     )
@@ -732,10 +774,10 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
                 for j, (a, b) in enumerate(zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"]))
             ),
         ]
-    if rep.learner is not None:
-        from ..control.ilc import ILC_STATUS_NAMES
-
-        last = dict(zip(ILC_STATUS_NAMES, rep.learner[-1]))
+    if rep.learner is not None and "updates" in rep.learner_names:
+        lines += ["", _feedforward_line(dict(zip(rep.learner_names, rep.learner[-1])))]
+    elif rep.learner is not None:
+        last = dict(zip(rep.learner_names, rep.learner[-1]))
         lines += [
             "",
             f"Learner: learned from {int(last['learned_cycles'])} cycles, "

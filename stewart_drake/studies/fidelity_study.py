@@ -134,7 +134,7 @@ def run_case(case: FidelityCase) -> dict:
     scenario.duration_s = float(starts[-1])
     scenario.learning = None if case.learning is None else IlcDriver(**dict(case.learning))
     scenario.guard.divergence_dir = str(Path("results") / "fidelity_study" / "diverged")
-    result, learner, wall = run(scenario, reference)
+    result, learner, wall, _ = run(scenario, reference)
     freq = reference.frequencies_hz() if reference.repeat_period_s is not None else {}
     cycles, status = [], []
     e = result.x[:, :6] - result.x_d[:, :6]
