@@ -345,3 +345,19 @@ class CheckedNpz:
                 f"the entry {name!r} must be a JSON {kind.__name__}, got {type(value).__name__}"
             )
         return value
+
+
+def write_between_markers(doc: Path, markers: tuple[str, str], block: str) -> Path:
+    """Replace the text of ``doc`` from ``markers[0]`` to ``markers[1]`` (both included) by
+    ``block`` (which starts and ends with them), or append ``block`` when they are absent; the
+    rest of the file is kept. For the generated tables of the docs."""
+    doc = Path(doc)
+    text = doc.read_text(encoding="utf-8") if doc.exists() else ""
+    if markers[0] in text and markers[1] in text:
+        a = text.index(markers[0])
+        b = text.index(markers[1]) + len(markers[1])
+        text = text[:a] + block + text[b:]
+    else:
+        text = text + ("\n" if text else "") + block + "\n"
+    atomic_write(doc, lambda f: f.write(text.encode("utf-8")))
+    return doc

@@ -1,11 +1,17 @@
-"""Run the fidelity study (stewart_drake.studies.fidelity_study) and write its tables into
-docs/organ_motion.md; the raw figures go to results/fidelity_study/results.json.
+"""Run the fidelity study (stewart_drake.studies.fidelity_study) and the trace study
+(stewart_drake.studies.trace_study) and write their tables into docs/organ_motion.md; the raw
+figures go to results/fidelity_study/results.json and results/trace_study/results.json.
 
     python tools/organ_motion_tables.py [--docs docs/organ_motion.md] [--jobs 2]
+    python tools/organ_motion_tables.py --only traces --traces PATH/TO/IntERAct
     python tools/organ_motion_tables.py --from-json results/fidelity_study/results.json
 
-About 25 minutes on two cores (the 20 s pattern of breathing plus heartbeat, learned over 11
-cycles, is the longest run).
+The fidelity study takes about 25 minutes on two cores (the 20 s pattern of breathing plus
+heartbeat, learned over 11 cycles, is the longest run); the trace study about 3 minutes per
+motion (two or three runs of 120 s). ``--traces`` names a folder holding the 6-D traces of the
+Image-X Institute's robotic motion phantom (github.com/Image-X-Institute/IntERAct,
+"Documentation/Robotic Motion QA traces"); without it the trace study runs the library's
+motions only.
 """
 
 import argparse
@@ -15,6 +21,7 @@ from pathlib import Path
 
 from stewart_drake.execution.runners import ProcessRunner
 from stewart_drake.fileio import atomic_write
+from stewart_drake.studies import trace_study
 from stewart_drake.studies.fidelity_study import run_study, write_tables
 
 
@@ -26,7 +33,22 @@ def main() -> None:
     parser.add_argument(
         "--from-json", default=None, help="write the tables from a results file instead of running"
     )
+    parser.add_argument(
+        "--only", choices=["cycles", "traces"], default=None, help="run one study (default: both)"
+    )
+    parser.add_argument("--traces", default=None, help="a folder holding IntERAct's traces")
     args = parser.parse_args()
+    if args.only != "cycles":
+        t0 = time.perf_counter()
+        cases = trace_study.trace_cases(args.traces)
+        traces = trace_study.run_study(cases, ProcessRunner(n_workers=args.jobs, recycle=1))
+        print(f"trace study: {time.perf_counter() - t0:.0f} s wall")
+        out = Path("results/trace_study/results.json")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write(out, lambda f: f.write(json.dumps(traces, default=float).encode()))
+        print(f"wrote {trace_study.write_tables(Path(args.docs), traces)}")
+    if args.only == "traces":
+        return
     if args.from_json:
         results = json.loads(Path(args.from_json).read_text())
     else:

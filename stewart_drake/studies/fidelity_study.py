@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-from ..fileio import atomic_write
+from ..fileio import atomic_write, write_between_markers
 from ..simulation.plan import make_plan
 
 #: Where the tables go in docs/organ_motion.md.
@@ -482,13 +482,4 @@ def write_tables(doc: Path, results: dict) -> Path:
     doc = Path(doc)
     figures = json.dumps(compact(results), indent=0, default=float, allow_nan=True)
     atomic_write(doc.with_suffix(".json"), lambda f: f.write(figures.encode()))
-    text = doc.read_text() if doc.exists() else ""
-    block = tables(results)
-    if TABLE_MARKERS[0] in text and TABLE_MARKERS[1] in text:
-        a = text.index(TABLE_MARKERS[0])
-        b = text.index(TABLE_MARKERS[1]) + len(TABLE_MARKERS[1])
-        text = text[:a] + block + text[b:]
-    else:
-        text = text + ("\n" if text else "") + block + "\n"
-    atomic_write(doc, lambda f: f.write(text.encode()))
-    return doc
+    return write_between_markers(doc, TABLE_MARKERS, tables(results))

@@ -1,0 +1,79 @@
+"""The trace study: its cases, one case run short, and tables whose verdicts follow the numbers."""
+
+import pytest
+
+from stewart_drake.studies import trace_study
+
+
+def _row(label, none, learned):
+    def fig(t_um, r_urad):
+        return {
+            "rms_translation_m": t_um * 1e-6,
+            "rms_rotation_rad": r_urad * 1e-6,
+            "peak_translation_m": 3 * t_um * 1e-6,
+            "peak_rotation_rad": 3 * r_urad * 1e-6,
+            "gamma": [1.0, 0.9],
+            "lag_all_s": 0.0,
+        }
+
+    return {
+        "case": label,
+        "none": fig(*none),
+        "learned": fig(*learned),
+        "learner": {"updates": 20, "rollbacks": 0, "stopped": 0},
+        "wall_s": 10.0,
+        "sim_s": 240.0,
+    }
+
+
+def test_the_verdicts_are_computed_from_the_numbers(tmp_path):
+    results = {
+        "a": _row("a", (40, 55), (4.0, 19.0)),
+        "b": _row("b", (10, 30), (6.0, 31.0)),  # misses both goals, worse in rotation
+        "c": "failed: the guard stopped the run",
+    }
+    text = trace_study.tables(results)
+    assert "| a | 40.00 / 55.0 | 4.00 / 19.0 | 10.00x |" in text
+    assert "- Translation <= 5 um with learning: 1 of 2 motions (missed: b)." in text
+    assert "- Rotation <= 20 urad with learning: 1 of 2 motions (missed: b)." in text
+    assert "missed on b." in text
+    assert "| c | failed: failed: the guard stopped the run" in text
+    results["b"] = _row("b", (10, 30), (4.5, 18.0))
+    text = trace_study.tables(results)
+    assert "2 of 2 motions." in text and "met on every motion." in text
+    # written between its markers, the rest of the page kept
+    doc = tmp_path / "page.md"
+    doc.write_text("# page\n\nkept\n")
+    trace_study.write_tables(doc, results)
+    trace_study.write_tables(doc, results)
+    page = doc.read_text()
+    assert page.startswith("# page\n\nkept\n") and page.count(trace_study.TABLE_MARKERS[0]) == 1
+    assert (tmp_path / "organ_motion_traces.json").exists()
+
+
+def test_the_cases_take_the_patients_traces_found_and_the_transfer(tmp_path):
+    assert [c.label for c in trace_study.trace_cases(None)][:2] == [
+        c.label for c in trace_study.LIBRARY_CASES
+    ]
+    assert trace_study.trace_cases(None)[-1].held_from.startswith("library:")
+    folder = tmp_path / "Documentation" / "Liver"
+    folder.mkdir(parents=True)
+    for name in ("Liver_Trace 1.txt", "Liver_Trace 2.txt", "unrelated.txt"):
+        (folder / name).write_text("0 0 0 0 0 0 0\n")
+    cases = trace_study.trace_cases(tmp_path)
+    labels = [c.label for c in cases]
+    assert "liver 1 (IntERAct)" in labels and labels[-1] == "liver 2, model learned on liver 1"
+    assert cases[-1].held_from.endswith("Liver_Trace 1.txt")
+    assert cases[-1].path.endswith("Liver_Trace 2.txt")
+
+
+def test_a_short_transfer_case_runs_both_ways_and_holds_its_model(monkeypatch):
+    monkeypatch.setattr(trace_study, "DURATION_S", 6.0)
+    monkeypatch.setattr(trace_study, "MEASURED_FROM_S", 1.0)
+    case = trace_study.trace_cases(None)[-1]
+    out = trace_study.run_case(case)
+    assert out["sim_s"] == pytest.approx(18.0)
+    assert out["learner"]["updates"] == 0  # held: nothing learned on this motion
+    for mode in ("none", "learned"):
+        assert 0 < out[mode]["rms_translation_m"] < 1e-4
+        assert 0 < out[mode]["gamma"][0] <= 1
