@@ -20,8 +20,27 @@ def test_the_reference_s_cycles_begun_within_the_run():
 
 def test_a_period_of_the_user_s_cuts_any_reference():
     starts, scale = learning_cycles(IlcDriver(period_s=1.5), hold_home(), 5.0)
-    np.testing.assert_array_equal(starts, [0.0, 1.5, 3.0, 4.5])
-    np.testing.assert_array_equal(scale, [1.0, 1.0, 1.0])
+    np.testing.assert_array_equal(starts, [0.0, 1.5, 3.0, 4.5, 6.0])  # the last 0.5 s too
+    np.testing.assert_array_equal(scale, [1.0, 1.0, 1.0, 1.0])
+
+
+def test_a_tail_after_the_last_cycle_found_is_corrected_too():
+    class Cut:
+        """Cycles found up to 8 s only, as a trace's peaks end before the trace does."""
+
+        name = "cut"
+
+        def cycles(self, t_end):
+            return np.array([0.0, 4.0, 8.0]), np.array([1.1, 0.9])
+
+        def evaluate(self, t):
+            return Breathing(period_s=4.0).evaluate(t)
+
+    starts, scale = learning_cycles(IlcDriver(), Cut(), 13.0)
+    np.testing.assert_array_equal(starts, [0.0, 4.0, 8.0, 12.0, 16.0])
+    np.testing.assert_array_equal(scale, [1.1, 0.9, 1.0, 1.0])
+    starts, _ = learning_cycles(IlcDriver(), Cut(), 8.0)
+    np.testing.assert_array_equal(starts, [0.0, 4.0, 8.0])
 
 
 def test_what_cannot_be_learned_is_refused_saying_what_to_change():

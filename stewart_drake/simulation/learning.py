@@ -31,7 +31,9 @@ def learning_cycles(
 ) -> tuple[np.ndarray, np.ndarray]:
     """(starts (K + 1,), scale (K,)) of the cycles the learner aligns on over a run of
     ``duration`` s: the reference's own (:func:`~.motion.reference_cycles`), or
-    ``driver.period_s`` from t = 0 when given.
+    ``driver.period_s`` from t = 0 when given. The cycles cover the run to its end: a tail
+    after the last cycle the reference gives (a trace whose last breath is cut) gets cycles of
+    the median length and the mean amplitude, so that it is corrected too.
 
     Raises:
         InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
@@ -54,7 +56,13 @@ def learning_cycles(
             f"learning: the run ({duration:g} s) holds no whole cycle of "
             f"the reference (the first ends at {starts[1]:g} s)"
         )
-    return starts[: k + 1], scale[:k]
+    starts, scale = starts[: k + 1], scale[:k]
+    if starts[-1] < duration - 1e-9:  # a tail after the last cycle found (a trace's end)
+        length = float(np.median(np.diff(starts)))
+        more = int(np.ceil((duration - starts[-1]) / length - 1e-9))
+        starts = np.append(starts, starts[-1] + length * np.arange(1, more + 1))
+        scale = np.append(scale, np.ones(more))
+    return starts, scale
 
 
 def add_learning(
