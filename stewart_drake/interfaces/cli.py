@@ -464,7 +464,7 @@ def _cmd_reproduce(args) -> int:
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..errors import InvalidConfigError
     from ..fileio import check_replaceable
-    from ..simulation.organ_motion import OrganMotionReference
+    from ..simulation.organ_motion import OrganMotionReference, split_parameters
     from ..simulation.scenario_io import load_scenario
     from ..simulation.traces import TraceReference
     from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
@@ -473,11 +473,15 @@ def _cmd_reproduce(args) -> int:
     scenario = load_scenario(args.scenario, args.set or ())
     source = args.motion
     params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
+    layers = list(args.add or ())
+    if len(set(layers)) != len(layers):
+        raise InvalidConfigError(f"--add takes each motion once, got {', '.join(layers)}")
     if _is_trace_file(source):
-        if params:
+        if params and not layers:
             raise InvalidConfigError(
-                "--param sets a library motion's parameters; a trace takes --format, "
-                "--columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap"
+                "--param sets a library motion's parameters (of one added with --add on a "
+                "trace); a trace takes --format, --columns, --map, --lowpass-hz, --centre, "
+                "--centre-on, --max-gap"
             )
         centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
         if args.centre is not None:
@@ -496,8 +500,9 @@ def _cmd_reproduce(args) -> int:
             max_gap_s=args.max_gap,
             format=args.format,
             columns=args.columns or "",
+            add=dict(zip(layers, split_parameters(layers, params))),
         )
-        name = Path(source).stem
+        name = "+".join([Path(source).stem, *layers])
         size = Path(source).stat().st_size if Path(source).is_file() else 0
         if size > 1e6 and not args.no_progress:  # a few seconds to read and resample
             from ..checks import format_bytes
@@ -509,8 +514,11 @@ def _cmd_reproduce(args) -> int:
                 "--map, --lowpass-hz, --centre and --columns are for a trace file; "
                 "a library motion takes --param"
             )
-        scenario.reference = OrganMotionReference(motion=source, parameters=params)
-        name = source
+        shares = split_parameters([source, *layers], params)
+        scenario.reference = OrganMotionReference(
+            motion=source, parameters=shares[0], add=dict(zip(layers, shares[1:]))
+        )
+        name = "+".join([source, *layers])
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
     scenario.validate()
     out = Path(args.out)
@@ -1079,8 +1087,10 @@ def _add_reproduce_command(sub) -> None:
     rp.add_argument(
         "motion",
         help="breathing, heartbeat, breathing_heartbeat, "
-        "irregular_breathing, hysteresis, or a trace file: text with a header naming "
-        "columns and units (commas, semicolons, tabs or spaces; decimal points or commas), "
+        "irregular_breathing, hysteresis, sawtooth, sharkfin, baseline_drift, "
+        "transient_excursion, persistent_excursion, breath_hold, or a trace file: text with "
+        "a header naming columns and units (commas, semicolons, tabs or spaces; decimal "
+        "points or commas), "
         "a motion phantom's 7-column (t LR SI AP [mm] rLR rSI rAP [deg]) or 2-column "
         "surrogate file, or t,phi,theta,psi,X,Y,Z",
     )
@@ -1105,7 +1115,16 @@ def _add_reproduce_command(sub) -> None:
         help="a library motion's parameter with its unit (repeatable): "
         "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
         "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
-        "motion's own)",
+        "motion's own); a key goes to the motion (or --add layer) that has it, "
+        "or to the one written in front: heartbeat.amplitude=2mm",
+    )
+    rp.add_argument(
+        "--add",
+        action="append",
+        metavar="MOTION",
+        help="lay a library motion on the motion or trace (repeatable): "
+        "baseline_drift, transient_excursion, persistent_excursion, heartbeat...; "
+        "its parameters by --param (drift=3mm) (default: none)",
     )
     _add_scenario_arguments(
         rp, "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles"

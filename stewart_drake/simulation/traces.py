@@ -27,7 +27,7 @@ from ..checks import as_array, as_number, as_poses
 from ..errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..model.geometry import X_HOME, StewartGeometry
 from .motion import Reference, ReferenceConfig
-from .organ_motion import UNITS, axis_index, check_centre, scaled
+from .organ_motion import UNITS, axis_index, check_centre, layered, make_layers, scaled
 from .trajectories import (
     AXIS_NAMES,
     CSV_BYTES_PER_ROW,
@@ -549,6 +549,9 @@ class TraceReference(ReferenceConfig):
         scale: the trace shrunk about its centre, in (0, 1].
         format: the file's layout, one of :data:`TRACE_FORMATS` ("auto": its header, else its
             width). columns: its columns' names and units when it has no header line.
+        add: motions of the library laid on the trace, name -> parameters
+            (``{baseline_drift: {drift: 3mm}}``: a drift on a recording,
+            :func:`~.organ_motion.layered`); the scale shrinks the sum.
     """
 
     path: str = ""
@@ -560,6 +563,7 @@ class TraceReference(ReferenceConfig):
     scale: float = 1.0
     format: str = "auto"
     columns: str = ""
+    add: dict[str, dict[str, str]] = field(default_factory=dict)
 
     def validate(self) -> None:
         as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
@@ -577,6 +581,7 @@ class TraceReference(ReferenceConfig):
             as_number("reference.lowpass_hz", self.lowpass_hz, MIN_LOWPASS_HZ)
         as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
         as_array("reference.centre", self.centre, shape=(6,))
+        make_layers(self.add)  # names an unknown motion or parameter
 
     def make(
         self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
@@ -591,11 +596,11 @@ class TraceReference(ReferenceConfig):
             format=self.format,
             columns=self.columns,
         )
-        return scaled(trace, self.scale)
+        return scaled(layered(trace, make_layers(self.add)), self.scale)
 
     @property
     def label(self) -> str:
-        return Path(self.path).stem
+        return "+".join([Path(self.path).stem, *self.add])
 
     def memory_note(self) -> tuple:
         return (f" of the trace {self.path}", " (reproduce --duration replays its start)")
