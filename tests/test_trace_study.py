@@ -13,6 +13,8 @@ def _row(label, none, learned):
             "peak_translation_m": 3 * t_um * 1e-6,
             "peak_rotation_rad": 3 * r_urad * 1e-6,
             "gamma": [1.0, 0.9],
+            "window_translation_m": [t_um * 1e-6] * 4,
+            "window_rotation_rad": [r_urad * 1e-6] * 4,
             "lag_all_s": 0.0,
         }
 
@@ -49,6 +51,7 @@ def test_the_verdicts_are_computed_from_the_numbers(tmp_path):
     page = doc.read_text()
     assert page.startswith("# page\n\nkept\n") and page.count(trace_study.TABLE_MARKERS[0]) == 1
     assert (tmp_path / "organ_motion_traces.json").exists()
+    assert (tmp_path / "organ_motion_traces.png").stat().st_size > 10_000
 
 
 def test_the_cases_take_the_patients_traces_found_and_the_transfer(tmp_path):
@@ -76,4 +79,5 @@ def test_a_short_transfer_case_runs_both_ways_and_holds_its_model(monkeypatch):
     assert out["learner"]["updates"] == 0  # held: nothing learned on this motion
     for mode in ("none", "learned"):
         assert 0 < out[mode]["rms_translation_m"] < 1e-4
+        assert len(out[mode]["window_translation_m"]) == 1  # one whole window of 5 s in 6 s
         assert 0 < out[mode]["gamma"][0] <= 1

@@ -39,6 +39,8 @@ PATIENT_TRACES = (
     ("lung 3, large SI (IntERAct)", "Trace-3-Large translational motion SI.txt"),
     ("prostate 3, erratic (IntERAct)", "Trace 3-Erratic behaviour.txt"),
 )
+#: The windows of the per-window RMS (the figure), s.
+WINDOW_S = 5.0
 #: The transfer: learned on the first, held (no learning) on the second.
 TRANSFER_TRACES = ("Liver_Trace 1.txt", "Liver_Trace 2.txt")
 
@@ -114,11 +116,20 @@ def _reference(case_motion: str, parameters: tuple, path: str):
 
 
 def _figures(result) -> dict:
-    """The fidelity of a run over [MEASURED_FROM_S, end] (plain values)."""
-    from .fidelity import fidelity
+    """The fidelity of a run over [MEASURED_FROM_S, end] and the RMS error of every
+    :data:`WINDOW_S` from the start (plain values)."""
+    from .fidelity import fidelity, rms_translation_rotation
 
     f = fidelity(result.t, result.x, result.x_d, (MEASURED_FROM_S, float(result.t[-1])))
+    e = result.x[:, :6] - result.x_d[:, :6]
+    edges = np.arange(0.0, float(result.t[-1]) + 1e-9, WINDOW_S)
+    windows = [
+        rms_translation_rotation(e[(result.t >= a) & (result.t < b)])
+        for a, b in zip(edges[:-1], edges[1:])
+    ]
     return {
+        "window_translation_m": [w[0] for w in windows],
+        "window_rotation_rad": [w[1] for w in windows],
         "rms_translation_m": f["rms_translation_m"],
         "rms_rotation_rad": f["rms_rotation_rad"],
         "peak_translation_m": f["peak_translation_m"],
@@ -244,6 +255,8 @@ def tables(results: dict) -> str:
         f"translation at 0.5 mm / 100 ms and at 5 um / 10 ms [%]. The transfer row holds, "
         f"without learning, a model learned on another motion.",
         "",
+        "![RMS error per 5 s window, without learning and learned](organ_motion_traces.png)",
+        "",
         "| motion | no learning | learned | ratio (translation) | peak, none / learned | "
         "gamma 0.5 mm/100 ms, 5 um/10 ms (learned) | learner |",
         "|---|---|---|---|---|---|---|",
@@ -276,12 +289,62 @@ def tables(results: dict) -> str:
     return "\n".join(lines)
 
 
+def plot(results: dict, path) -> Path:
+    """The figure of the study: for each motion, the RMS error of every :data:`WINDOW_S`
+    without learning and with it, translation and rotation on their own axes, each with the
+    goal (:data:`GOAL`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [v for v in results.values() if isinstance(v, dict)]
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for i, row in enumerate(rows):
+        c = colours[i % len(colours)]
+        for ax, key, scale in (
+            (axes[0], "window_translation_m", 1e6),
+            (axes[1], "window_rotation_rad", 1e6),
+        ):
+            for mode, style in (("none", ":"), ("learned", "-")):
+                y = np.asarray(row[mode][key]) * scale
+                t = (np.arange(len(y)) + 0.5) * WINDOW_S
+                label = f"{row['case']}" if mode == "learned" else None
+                ax.plot(t, y, style, color=c, lw=1.6 if mode == "learned" else 1.1, label=label)
+    for ax, goal, name in (
+        (axes[0], GOAL[0] * 1e6, "translation RMS [um]"),
+        (axes[1], GOAL[1] * 1e6, "rotation RMS [urad]"),
+    ):
+        ax.axhline(goal, color="k", lw=0.8, ls="--")
+        ax.text(1.0, goal, f" goal {goal:g}", va="bottom", ha="left", fontsize=8)
+        ax.set_yscale("log")
+        ax.set_ylabel(name)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
+    axes[1].set_xlabel(
+        f"t [s] (RMS over windows of {WINDOW_S:g} s; dotted: no learning, solid: learned; "
+        f"tables measured after {MEASURED_FROM_S:g} s)"
+    )
+    axes[0].legend(fontsize=7, loc="upper right", ncol=2)
+    axes[0].set_title(
+        "Motion that does not repeat: feed-forward learned as a function of the reference"
+    )
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def write_tables(doc: Path, results: dict) -> Path:
-    """Put :func:`tables` between :data:`TABLE_MARKERS` in ``doc`` (appended when absent) and
-    the figures in ``doc``'s folder as ``organ_motion_traces.json``."""
+    """Put :func:`tables` between :data:`TABLE_MARKERS` in ``doc`` (appended when absent), the
+    figures in ``doc``'s folder as ``organ_motion_traces.json`` and the plot (:func:`plot`) as
+    ``organ_motion_traces.png``."""
     import json
 
     doc = Path(doc)
     figures = json.dumps(results, indent=0, default=float, allow_nan=True)
     atomic_write(doc.with_name("organ_motion_traces.json"), lambda f: f.write(figures.encode()))
+    plot(results, doc.with_name("organ_motion_traces.png"))
     return write_between_markers(doc, TABLE_MARKERS, tables(results))
