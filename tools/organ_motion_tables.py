@@ -5,6 +5,7 @@ figures go to results/fidelity_study/results.json and results/trace_study/result
     python tools/organ_motion_tables.py [--docs docs/organ_motion.md] [--jobs 2]
     python tools/organ_motion_tables.py --only traces --traces PATH/TO/IntERAct
     python tools/organ_motion_tables.py --from-json results/fidelity_study/results.json
+    python tools/organ_motion_tables.py --only traces --from-json results/trace_study/results.json
 
 The fidelity study takes about 25 minutes on two cores (the 20 s pattern of breathing plus
 heartbeat, learned over 11 cycles, is the longest run); the trace study about 3 minutes per
@@ -38,7 +39,11 @@ def main() -> None:
     )
     parser.add_argument("--traces", default=None, help="a folder holding IntERAct's traces")
     args = parser.parse_args()
-    if args.only != "cycles":
+    if args.only == "traces" and args.from_json:
+        traces = json.loads(Path(args.from_json).read_text())
+        print(f"wrote {trace_study.write_tables(Path(args.docs), traces)}")
+        return
+    if args.only != "cycles" and not args.from_json:
         t0 = time.perf_counter()
         cases = trace_study.trace_cases(args.traces)
         traces = trace_study.run_study(cases, ProcessRunner(n_workers=args.jobs, recycle=1))
