@@ -303,12 +303,13 @@ def plot(results: dict, path) -> Path:
     without learning and with it, translation and rotation on their own axes, each with the
     goal (:data:`GOAL`)."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     rows = [v for v in results.values() if isinstance(v, dict)]
-    fig, axes = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)
+    fig, axes = plt.subplots(2, 1, figsize=(10, 8.5), sharex=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, row in enumerate(rows):
         c = colours[i % len(colours)]
@@ -328,6 +329,9 @@ def plot(results: dict, path) -> Path:
         ax.axhline(goal, color="k", lw=0.8, ls="--")
         ax.text(1.0, goal, f" goal {goal:g}", va="bottom", ha="left", fontsize=8)
         ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_yticks([2, 3, 5, 10, 20, 30, 50, 100])
         ax.set_ylabel(name)
         ax.grid(True, which="both", alpha=0.3)
         ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
@@ -335,11 +339,12 @@ def plot(results: dict, path) -> Path:
         f"t [s] (RMS over windows of {WINDOW_S:g} s; dotted: no learning, solid: learned; "
         f"tables measured after {MEASURED_FROM_S:g} s)"
     )
-    axes[0].legend(fontsize=7, loc="upper right", ncol=2)
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=3, frameon=False)
     axes[0].set_title(
         "Motion that does not repeat: feed-forward learned as a function of the reference"
     )
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     path = Path(path)
     fig.savefig(path, dpi=110)
     plt.close(fig)
