@@ -164,10 +164,12 @@ class LqiDriver(ControllerDriver):
             ``friction_compensation_Nm * tanh(theta_dot_d / friction_rate_rad_s)`` per motor,
             theta_dot_d = J x_dot_d the reference's crank rates
             (:func:`~.lqi_step.friction_feedforward`). Needs the encoders' estimator (the robot
-            as built). On breathing it lowers the translation error (9.2 to 6.3 um at 17-bit
-            encoders) but not the rotation floor (docs/organ_motion.md, "The rotation floor").
-            Ours: the paper's motors have no friction.
-        friction_rate_rad_s: crank rate, rad/s, of the smoothed sign above (> 0).
+            as built). On breathing it lowers the translation error (9.2 to 5.3 um at 17-bit
+            encoders) and, with 2^19 counts or more, the rotation (15-17 to 6-8 urad), but not
+            the 17-bit rotation floor, which is the encoders' (docs/organ_motion.md, "The
+            rotation floor"). Ours: the paper's motors have no friction.
+        friction_rate_rad_s: crank rate, rad/s, of the smoothed sign above (> 0); 3e-4 (33 um/s
+            at a crank tip) measured best of 1e-4 to 1e-2 on breathing at 2^17 to 2^23 counts.
     """
 
     omega_Q: float = 1.0
@@ -181,7 +183,7 @@ class LqiDriver(ControllerDriver):
     schedule_pose: bool = True
     gain_transfer: str = "integral"
     friction_compensation_Nm: float = 0.0
-    friction_rate_rad_s: float = 0.01
+    friction_rate_rad_s: float = 3e-4
 
     #: The controller has the ``omega`` input a tuner drives.
     takes_omega: ClassVar[bool] = True
