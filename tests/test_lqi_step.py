@@ -37,7 +37,14 @@ GEOMETRY = StewartGeometry()
 
 
 def _controller(
-    estimator: bool, delay: int, limit, window, transfer="integral", governor=True, friction=0.0
+    estimator: bool,
+    delay: int,
+    limit,
+    window,
+    transfer="integral",
+    governor=True,
+    friction=0.0,
+    friction_rate=3e-4,
 ):
     est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17) if estimator else None
     driver = LqiDriver(
@@ -46,6 +53,7 @@ def _controller(
         reference_governor=governor,
         riccati="track",
         friction_compensation_Nm=friction,
+        friction_rate_rad_s=friction_rate,
     )
     return LqiController(
         GEOMETRY,
@@ -286,17 +294,18 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
 
 
 def test_the_friction_feed_forward_adds_coulomb_friction_at_the_reference_s_crank_rates():
-    """T with the feed-forward minus T without it is 0.02 tanh(J x_dot_d / 0.01) per motor; the
+    """T with the feed-forward minus T without it is 0.02 tanh(J x_dot_d / 0.5) per motor; the
     pending torques (the feedback's share) are the same, in numpy and compiled."""
     plain = _controller(True, 1, None, None)
-    comp = _controller(True, 1, None, None, friction=0.02)
+    comp = _controller(True, 1, None, None, friction=0.02, friction_rate=0.5)
     u, state = _random_case(comp, np.random.default_rng(5))
     lay = comp.layout
     theta_dot = np.linalg.solve(state[lay.J_inv].reshape(6, 6), u[lay.x_d][6:12])
-    assert np.abs(theta_dot).max() > 0.01  # the smoothed sign is not saturated everywhere
+    expected = 0.02 * np.tanh(theta_dot / 0.5)
+    assert 1e-4 < np.abs(expected).min() and np.abs(expected).max() < 0.015  # not a bare sign
     for stages in (lqi_step, lqi_kernels):
         a, b = state.copy(), state.copy()
         stages.act(plain._constants, u, a, plain._bounds, 0)
         stages.act(comp._constants, u, b, comp._bounds, 0)
-        _agree(b[lay.T] - a[lay.T], 0.02 * np.tanh(theta_dot / 0.01))
+        _agree(b[lay.T] - a[lay.T], expected)
         _agree(b[lay.pending], a[lay.pending])
