@@ -36,10 +36,24 @@ RTOL = 1e-12
 GEOMETRY = StewartGeometry()
 
 
-def _controller(estimator: bool, delay: int, limit, window, transfer="integral", governor=True):
+def _controller(
+    estimator: bool,
+    delay: int,
+    limit,
+    window,
+    transfer="integral",
+    governor=True,
+    friction=0.0,
+    friction_rate=3e-4,
+):
     est = PoseEstimator(GEOMETRY, 1e-3, 2 * np.pi / 2**17) if estimator else None
     driver = LqiDriver(
-        schedule_period_s=2e-2, gain_transfer=transfer, reference_governor=governor, riccati="track"
+        schedule_period_s=2e-2,
+        gain_transfer=transfer,
+        reference_governor=governor,
+        riccati="track",
+        friction_compensation_Nm=friction,
+        friction_rate_rad_s=friction_rate,
     )
     return LqiController(
         GEOMETRY,
@@ -92,6 +106,10 @@ CASES = [
     for d in (0, 1, 2)
     for lim in (None, 0.05, 0.7)
     for w, t in ((None, "integral"), (5, "feedback"), (None, "none"))
+] + [  # the Coulomb friction feed-forward, which needs the estimator's Jacobian
+    dict(estimator=True, delay=d, limit=lim, window=None, transfer="integral", friction=0.02)
+    for d in (0, 1)
+    for lim in (None, 0.05, 0.7)
 ]
 
 
@@ -273,3 +291,21 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
     cache = out.stdout.strip().splitlines()[-1]
     assert cache.startswith(str(tmp_path / "tmp"))
     assert any(name.endswith(".nbi") for _, _, files in os.walk(cache) for name in files)
+
+
+def test_the_friction_feed_forward_adds_coulomb_friction_at_the_reference_s_crank_rates():
+    """T with the feed-forward minus T without it is 0.02 tanh(J x_dot_d / 0.5) per motor; the
+    pending torques (the feedback's share) are the same, in numpy and compiled."""
+    plain = _controller(True, 1, None, None)
+    comp = _controller(True, 1, None, None, friction=0.02, friction_rate=0.5)
+    u, state = _random_case(comp, np.random.default_rng(5))
+    lay = comp.layout
+    theta_dot = np.linalg.solve(state[lay.J_inv].reshape(6, 6), u[lay.x_d][6:12])
+    expected = 0.02 * np.tanh(theta_dot / 0.5)
+    assert 1e-4 < np.abs(expected).min() and np.abs(expected).max() < 0.015  # not a bare sign
+    for stages in (lqi_step, lqi_kernels):
+        a, b = state.copy(), state.copy()
+        stages.act(plain._constants, u, a, plain._bounds, 0)
+        stages.act(comp._constants, u, b, comp._bounds, 0)
+        _agree(b[lay.T] - a[lay.T], expected)
+        _agree(b[lay.pending], a[lay.pending])

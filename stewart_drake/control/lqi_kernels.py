@@ -39,6 +39,8 @@ from .lqi_step import (
     E_BAR,
     ESTIMATOR,
     FK_JUMP,
+    FRICTION,
+    FRICTION_RATE,
     GAIN_CHANGED,
     GOVERNED,
     GOVERNED_STEPS,
@@ -90,7 +92,7 @@ def sources_digest() -> str:
 
 
 #: :func:`sources_digest` of the sources this file was last compiled against.
-DEPENDENCIES_DIGEST = "61d8b766964469de"
+DEPENDENCIES_DIGEST = "27ba854b9b43f403"
 
 
 def _use_cache() -> bool:
@@ -587,6 +589,18 @@ def transfer_gain(mode, K_old, K, e, z):
 
 
 @_njit
+def friction_feedforward(friction, rate, J_inv, x_d_rate, T_ff):
+    """:func:`.lqi_step.friction_feedforward`: T_ff + friction tanh(J x_dot_d / rate)."""
+    theta_dot, ok = solve6(J_inv, x_d_rate.copy())
+    if not ok:
+        return T_ff
+    out = np.zeros(6)
+    for i in range(6):
+        out[i] = T_ff[i] + friction * math.tanh(theta_dot[i] / rate)
+    return out
+
+
+@_njit
 def feedback(K, e, T_ff, T):
     """:func:`.lqi_step.feedback`: T = T_ff - K e (paper eq. 34)."""
     Ke = matvec(K, e)
@@ -640,6 +654,11 @@ def act(c, u, state, bounds, mode):
             for i in range(6):
                 hold[i] = ref[i]
                 hold[18 + i] = T_ff[i]
+    if c[FRICTION] > 0.0:
+        J_inv = part(state, bounds, J_INV)
+        T_ff = friction_feedforward(
+            c[FRICTION], c[FRICTION_RATE], J_inv.reshape((6, 6)), ref[6:12], T_ff
+        )
     x = part(state, bounds, X_HAT) if c[ESTIMATOR] != 0.0 else part(u, bounds, POSE_IN)
     K = part(state, bounds, K_PART)
     K = K.reshape((6, K.size // 6))

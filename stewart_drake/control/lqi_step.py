@@ -10,7 +10,8 @@ vector ``u`` and its discrete state ``state``, and the constants the controller 
   says which stages need Python this period: a full Newton solve when the chord step is refused,
   a gain re-solve (every schedule period, or at once when omega changes: eqs. 31-33), the
   reference governor (a feed-forward the motors cannot hold);
-* ``act`` forms the error state (eqs. 23-25), carries the integral over a gain change, applies
+* ``act`` adds the motors' Coulomb friction to the feed-forward (when asked: off in the paper
+  scenarios), forms the error state (eqs. 23-25), carries the integral over a gain change, applies
   the law u = T_ff - K e (eq. 34), clips to the motors' limit, records the pending torques of
   the computation delay, integrates z (eq. 23, with anti-windup) and buffers the density
   features' samples (eqs. 35-36);
@@ -43,7 +44,8 @@ OMEGA_Q, OMEGA_R, GAIN_SOLVES, GAIN_FAILURES, INTEGRAL_NORM, SATURATED_STEPS, GO
 )
 
 #: The constants of the step, by name; ``governor_bound`` and ``torque_limit`` are inf when
-#: there is none, ``transfer`` a code of :data:`TRANSFER_CODES`, the flags 0.0 or 1.0.
+#: there is none, ``transfer`` a code of :data:`TRANSFER_CODES`, the flags 0.0 or 1.0;
+#: ``friction`` (N m, 0: none) and ``friction_rate`` (rad/s) the Coulomb feed-forward's.
 StepConstants = namedview(
     "StepConstants",
     (
@@ -59,6 +61,8 @@ StepConstants = namedview(
         "crank_length",
         "leg_c",
         "fk_jump",
+        "friction",
+        "friction_rate",
     ),
 )
 (
@@ -74,6 +78,8 @@ StepConstants = namedview(
     CRANK_LENGTH,
     LEG_C,
     FK_JUMP,
+    FRICTION,
+    FRICTION_RATE,
 ) = range(len(StepConstants.get_fields()))
 #: gain_transfer modes (see LqiController) as the codes the compiled stages compare.
 TRANSFER_CODES = {"none": 0.0, "integral": 1.0, "feedback": 2.0}
@@ -408,6 +414,27 @@ def transfer_gain(mode, K_old, K, e, z) -> bool:
     return True
 
 
+def friction_feedforward(friction, rate, J_inv, x_d_rate, T_ff) -> np.ndarray:
+    """T_ff + friction tanh(theta_dot_d / rate): the reference's feed-forward (6,) plus the
+    Coulomb friction its motor rates theta_dot_d = J x_dot_d meet, with a smoothed sign.
+
+    Args:
+        friction: N m at each crank, > 0. rate: rad/s, the crank rate at which the smoothed sign
+            reaches tanh(1) = 0.76 of it. J_inv: (6, 6) the estimator's inverse Jacobian (the
+            last re-schedule's). x_d_rate: (6,) the reference's rate [rad/s, m/s]. T_ff: (6,).
+    Returns:
+        a new (6,) array; T_ff itself when J_inv is singular (no compensation this period).
+    Ours: the paper's motors have no friction.
+    """
+    theta_dot, ok = solve6(J_inv, x_d_rate.copy())
+    if not ok:
+        return T_ff
+    out = np.zeros(6)
+    for i in range(6):
+        out[i] = T_ff[i] + friction * math.tanh(theta_dot[i] / rate)
+    return out
+
+
 def feedback(K, e, T_ff, T) -> None:
     """The LQI law T = T_ff - K e (paper eq. 34), K (6, n), e (n,), into T (6,)."""
     T[:] = T_ff - matvec(K, e)
@@ -435,7 +462,9 @@ def integrate(h, e, z) -> None:
 
 
 def act(c, u, state, bounds, mode) -> int:
-    """The law, from the error to the torque and the integral, in place in ``state``.
+    """The law, from the error to the torque and the integral, in place in ``state``; with
+    ``friction`` the feed-forward carries the Coulomb friction of the reference's motor rates
+    (:func:`friction_feedforward`), which the pending torques then leave out.
 
     Args:
         c: the constants. u, state, bounds: as :func:`observe`.
@@ -457,6 +486,9 @@ def act(c, u, state, bounds, mode) -> int:
             status[GOVERNED_STEPS] += 1.0
         else:  # the last reference within reach, at rest
             hold[:6], hold[6:18], hold[18:] = ref[:6], 0.0, T_ff
+    if c[FRICTION] > 0.0:
+        J_inv = part(state, bounds, J_INV).reshape(6, 6)
+        T_ff = friction_feedforward(c[FRICTION], c[FRICTION_RATE], J_inv, ref[6:12], T_ff)
     x = part(state, bounds, X_HAT) if c[ESTIMATOR] != 0.0 else part(u, bounds, POSE_IN)
     K = part(state, bounds, K_PART).reshape(6, -1)
     pending = part(state, bounds, PENDING)
