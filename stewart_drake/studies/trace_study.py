@@ -167,7 +167,7 @@ def run_case(case: TraceCase) -> dict:
 
     reference = _reference(case.motion, case.parameters, case.path)
     none, _, _, wall0 = _run(reference, None)
-    out = {"case": case.label, "none": none, "wall_s": wall0, "sim_s": 2 * DURATION_S}
+    wall, sim = wall0, 2 * DURATION_S
     if case.held_from:
         if case.held_from.startswith("library:"):
             _, motion, period = case.held_from.split(":")
@@ -180,13 +180,18 @@ def run_case(case: TraceCase) -> dict:
             ff, status, _, wall2 = _run(
                 reference, FeedforwardTuning(learned_from=str(path), learn=False)
             )
-        out["wall_s"] += wall1 + wall2
-        out["sim_s"] += DURATION_S
+        wall, sim = wall + wall1 + wall2, sim + DURATION_S
     else:
         ff, status, _, wall2 = _run(reference, FeedforwardTuning())
-        out["wall_s"] += wall2
-    out["learned"], out["learner"] = ff, status
-    return out
+        wall += wall2
+    return {
+        "case": case.label,
+        "none": none,
+        "learned": ff,
+        "learner": status,
+        "wall_s": wall,
+        "sim_s": sim,
+    }
 
 
 def run_study(cases, runner=None, progress: bool = True) -> dict:
