@@ -5,7 +5,7 @@ import pytest
 from stewart_drake.studies import trace_study
 
 
-def _row(label, none, learned):
+def _row(label, none, learned, robot=trace_study.ROBOTS[0][0]):
     def fig(t_um, r_urad):
         return {
             "rms_translation_m": t_um * 1e-6,
@@ -20,6 +20,7 @@ def _row(label, none, learned):
 
     return {
         "case": label,
+        "robot": robot,
         "none": fig(*none),
         "learned": fig(*learned),
         "learner": {"updates": 20, "rollbacks": 0, "stopped": 0},
@@ -29,19 +30,25 @@ def _row(label, none, learned):
 
 
 def test_the_verdicts_are_computed_from_the_numbers(tmp_path):
+    fine = trace_study.ROBOTS[1][0]
     results = {
-        "a": _row("a", (40, 55), (4.0, 19.0)),
-        "b": _row("b", (10, 30), (6.0, 31.0)),  # misses both goals, worse in rotation
-        "c": "failed: the guard stopped the run",
+        "a | x": _row("a", (40, 55), (4.0, 19.0)),
+        "b | x": _row("b", (10, 30), (6.0, 31.0)),  # misses both goals, worse in rotation
+        f"c | {trace_study.ROBOTS[0][0]}": "the guard stopped the run",
+        "a | y": _row("a", (9, 8), (3.0, 7.0), robot=fine),
     }
     text = trace_study.tables(results)
-    assert "| a | 40.00 / 55.0 | 4.00 / 19.0 | 10.00x |" in text
-    assert "- Translation <= 5 um with learning: 1 of 2 motions (missed: b)." in text
-    assert "- Rotation <= 20 urad with learning: 1 of 2 motions (missed: b)." in text
-    assert "missed on b." in text
-    assert "| c | failed: failed: the guard stopped the run" in text
-    results["b"] = _row("b", (10, 30), (4.5, 18.0))
-    text = trace_study.tables(results)
+    as_built, finer = text.split(f"#### {fine}")
+    assert "| a | 40.00 / 55.0 | 4.00 / 19.0 | 10.00x |" in as_built
+    assert "- Translation <= 5 um with learning: 1 of 2 motions (missed: b)." in as_built
+    assert "- Rotation <= 20 urad with learning: 1 of 2 motions (missed: b)." in as_built
+    assert "missed on b." in as_built
+    assert "| c | failed: the guard stopped the run" in as_built
+    assert "counts_per_rev=524288" in finer.splitlines()[0]  # the robot's overrides shown
+    assert "| a | 9.00 / 8.0 | 3.00 / 7.0 | 3.00x |" in finer
+    assert "1 of 1 motions." in finer and "met on every motion." in finer
+    results["b | x"] = _row("b", (10, 30), (4.5, 18.0))
+    text = trace_study.tables(results).split(f"#### {fine}")[0]
     assert "2 of 2 motions." in text and "met on every motion." in text
     # written between its markers, the rest of the page kept
     doc = tmp_path / "page.md"
@@ -55,15 +62,17 @@ def test_the_verdicts_are_computed_from_the_numbers(tmp_path):
 
 
 def test_the_cases_take_the_patients_traces_found_and_the_transfer(tmp_path):
-    assert [c.label for c in trace_study.trace_cases(None)][:2] == [
-        c.label for c in trace_study.LIBRARY_CASES
-    ]
-    assert trace_study.trace_cases(None)[-1].held_from.startswith("library:")
+    cases = trace_study.trace_cases(None)
+    assert [c.label for c in cases][:2] == [c.label for c in trace_study.LIBRARY_CASES]
+    assert cases[-1].held_from.startswith("library:")
+    assert len(cases) == 3 * len(trace_study.ROBOTS)  # every motion on every robot
+    assert len({c.job_id for c in cases}) == len(cases)
+    assert cases[-1].overrides == trace_study.ROBOTS[-1][1]
     folder = tmp_path / "Documentation" / "Liver"
     folder.mkdir(parents=True)
     for name in ("Liver_Trace 1.txt", "Liver_Trace 2.txt", "unrelated.txt"):
         (folder / name).write_text("0 0 0 0 0 0 0\n")
-    cases = trace_study.trace_cases(tmp_path)
+    cases = trace_study.trace_cases(tmp_path, robots=trace_study.ROBOTS[:1])
     labels = [c.label for c in cases]
     assert "liver 1 (IntERAct)" in labels and labels[-1] == "liver 2, model learned on liver 1"
     assert cases[-1].held_from.endswith("Liver_Trace 1.txt")
@@ -73,8 +82,9 @@ def test_the_cases_take_the_patients_traces_found_and_the_transfer(tmp_path):
 def test_a_short_transfer_case_runs_both_ways_and_holds_its_model(monkeypatch):
     monkeypatch.setattr(trace_study, "DURATION_S", 6.0)
     monkeypatch.setattr(trace_study, "MEASURED_FROM_S", 1.0)
-    case = trace_study.trace_cases(None)[-1]
+    case = trace_study.trace_cases(None)[-1]  # on the finer robot
     out = trace_study.run_case(case)
+    assert out["robot"] == trace_study.ROBOTS[-1][0]
     assert out["sim_s"] == pytest.approx(18.0)
     assert out["learner"]["updates"] == 0  # held: nothing learned on this motion
     for mode in ("none", "learned"):

@@ -39,6 +39,18 @@ PATIENT_TRACES = (
     ("lung 3, large SI (IntERAct)", "Trace-3-Large translational motion SI.txt"),
     ("prostate 3, erratic (IntERAct)", "Trace 3-Erratic behaviour.txt"),
 )
+#: The robots every motion runs on: (label, scenario overrides of ``paper_hardware``). The robot
+#: as built (17-bit encoders, the LQI without friction compensation) and one with 19-bit
+#: encoders and the LQI's Coulomb friction feed-forward (docs/organ_motion.md, "The rotation
+#: floor": at 17 bits the encoders' rounding alone puts 34 urad of rotation in the pose the
+#: controller acts on).
+ROBOTS = (
+    ("as built (2^17 counts)", ()),
+    (
+        "2^19 counts + friction feed-forward",
+        ("hardware.encoders.counts_per_rev=524288", "controller.friction_compensation_Nm=0.0184"),
+    ),
+)
 #: The windows of the per-window RMS (the figure), s.
 WINDOW_S = 5.0
 #: The transfer: learned on the first, held (no learning) on the second.
@@ -54,6 +66,8 @@ class TraceCase:
         parameters: ((name, value with unit), ...). path: a trace file ("" for a motion).
         held_from: a trace file to learn from first; the model is then held on this motion
             (the transfer row) instead of learned on it.
+        robot: the label of the robot it runs on. overrides: that robot's scenario overrides
+            (:data:`ROBOTS`).
     """
 
     label: str
@@ -61,6 +75,12 @@ class TraceCase:
     parameters: tuple = ()
     path: str = ""
     held_from: str = ""
+    robot: str = ROBOTS[0][0]
+    overrides: tuple = ()
+
+    @property
+    def job_id(self) -> str:
+        return f"{self.label} | {self.robot}"
 
 
 #: The library's motions that do not repeat per breath.
@@ -83,10 +103,22 @@ def find_traces(folder) -> dict:
     return {p.name: str(p) for p in sorted(Path(folder).rglob("*.txt")) if p.name in names}
 
 
-def trace_cases(folder=None) -> tuple:
-    """The study's cases: :data:`LIBRARY_CASES`, the patients' traces found under ``folder``
-    and the transfer (between two liver traces when found, else from the first library motion
-    to the second)."""
+def trace_cases(folder=None, robots=ROBOTS) -> tuple:
+    """The study's cases on each of ``robots``: :data:`LIBRARY_CASES`, the patients' traces
+    found under ``folder`` and the transfer (between two liver traces when found, else from the
+    first library motion to the second)."""
+    import dataclasses
+
+    motions = _motion_cases(folder)
+    return tuple(
+        dataclasses.replace(c, robot=label, overrides=tuple(overrides))
+        for label, overrides in robots
+        for c in motions
+    )
+
+
+def _motion_cases(folder) -> list:
+    """The motions of :func:`trace_cases`, on the robot as built."""
     found = find_traces(folder)
     cases = list(LIBRARY_CASES)
     cases += [TraceCase(label, path=found[name]) for label, name in PATIENT_TRACES if name in found]
@@ -103,7 +135,7 @@ def trace_cases(folder=None) -> tuple:
                 held_from=f"library:{src.motion}:{dict(src.parameters)['period']}",
             )
         )
-    return tuple(cases)
+    return cases
 
 
 def _reference(case_motion: str, parameters: tuple, path: str):
@@ -139,13 +171,15 @@ def _figures(result) -> dict:
     }
 
 
-def _run(reference, feedforward) -> tuple[dict, dict | None, np.ndarray | None, float]:
+def _run(
+    reference, feedforward, overrides=()
+) -> tuple[dict, dict | None, np.ndarray | None, float]:
     """(figures, the learner's last status or None, the learned weights or None, wall s) of one
-    run of :data:`DURATION_S` on ``paper_hardware``."""
+    run of :data:`DURATION_S` on ``paper_hardware`` with ``overrides``."""
     from ..simulation.scenario_io import load_scenario
     from .fidelity import run
 
-    scenario = load_scenario("paper_hardware")
+    scenario = load_scenario("paper_hardware", overrides)
     scenario.duration_s = DURATION_S
     scenario.learning = feedforward
     scenario.guard.divergence_dir = str(Path("results") / "trace_study" / "diverged")
@@ -166,7 +200,7 @@ def run_case(case: TraceCase) -> dict:
     from ..control.feedforward_tuning import FeedforwardTuning, save_learned
 
     reference = _reference(case.motion, case.parameters, case.path)
-    none, _, _, wall0 = _run(reference, None)
+    none, _, _, wall0 = _run(reference, None, case.overrides)
     wall, sim = wall0, 2 * DURATION_S
     if case.held_from:
         if case.held_from.startswith("library:"):
@@ -174,18 +208,19 @@ def run_case(case: TraceCase) -> dict:
             source = _reference(motion, (("period", period),), "")
         else:
             source = _reference("", (), case.held_from)
-        _, _, learned, wall1 = _run(source, FeedforwardTuning())
+        _, _, learned, wall1 = _run(source, FeedforwardTuning(), case.overrides)
         with tempfile.TemporaryDirectory() as tmp:
             path = save_learned(Path(tmp) / "model.npz", learned)
             ff, status, _, wall2 = _run(
-                reference, FeedforwardTuning(learned_from=str(path), learn=False)
+                reference, FeedforwardTuning(learned_from=str(path), learn=False), case.overrides
             )
         wall, sim = wall + wall1 + wall2, sim + DURATION_S
     else:
-        ff, status, _, wall2 = _run(reference, FeedforwardTuning())
+        ff, status, _, wall2 = _run(reference, FeedforwardTuning(), case.overrides)
         wall += wall2
     return {
         "case": case.label,
+        "robot": case.robot,
         "none": none,
         "learned": ff,
         "learner": status,
@@ -195,11 +230,11 @@ def run_case(case: TraceCase) -> dict:
 
 
 def run_study(cases, runner=None, progress: bool = True) -> dict:
-    """{label: :func:`run_case` outcome} of every case (a failed one: its error's text)."""
+    """{job id: :func:`run_case` outcome} of every case (a failed one: its error's text)."""
     from ..execution.runners import JobFailure, ProcessRunner
 
     runner = runner or ProcessRunner(n_workers=2, recycle=1)
-    jobs = {c.label: c for c in cases}
+    jobs = {c.job_id: c for c in cases}
     out = {}
     items = runner.map(run_case, jobs)
     if progress:
@@ -218,9 +253,9 @@ def _um_urad(f: dict) -> str:
     return f"{f['rms_translation_m'] * 1e6:.2f} / {f['rms_rotation_rad'] * 1e6:.1f}"
 
 
-def _verdicts(results: dict) -> list[str]:
-    """The computed verdicts on :data:`GOAL` and on "never worse than without learning"."""
-    rows = [v for v in results.values() if isinstance(v, dict)]
+def _verdicts(rows: list) -> list[str]:
+    """The computed verdicts on :data:`GOAL` and on "never worse than without learning" of one
+    robot's rows."""
     if not rows:
         return []
     worse = [
@@ -246,29 +281,26 @@ def _verdicts(results: dict) -> list[str]:
     return lines
 
 
-def tables(results: dict) -> str:
-    """The Markdown table and the computed verdicts (between :data:`TABLE_MARKERS`)."""
+def _robots(results: dict) -> dict:
+    """{robot label: [(job id, outcome), ...]} in the order of the results; a failed job (its
+    error's text) goes with the robot its id names."""
+    out: dict = {}
+    for job, v in results.items():
+        robot = v["robot"] if isinstance(v, dict) else job.rpartition(" | ")[2]
+        out.setdefault(robot, []).append((job, v))
+    return out
+
+
+def _table(items: list) -> list[str]:
+    """One robot's table: a row per motion."""
     lines = [
-        TABLE_MARKERS[0],
-        "",
-        "### Motion that does not repeat: feed-forward learned as a function of the reference",
-        "",
-        f"Each motion runs {DURATION_S:g} s on `paper_hardware`, without learning and with "
-        f"`learning: !FeedforwardTuning {{}}` (stretches of 5 s, learned from the encoders); "
-        f"RMS error from the true platform pose over t = {MEASURED_FROM_S:g}-{DURATION_S:g} s, "
-        f"translation [um] / rotation [urad]; peak translation [um]; gamma pass rate of the "
-        f"translation at 0.5 mm / 100 ms and at 5 um / 10 ms [%]. The transfer row holds, "
-        f"without learning, a model learned on another motion.",
-        "",
-        "![RMS error per 5 s window, without learning and learned](organ_motion_traces.png)",
-        "",
         "| motion | no learning | learned | ratio (translation) | peak, none / learned | "
         "gamma 0.5 mm/100 ms, 5 um/10 ms (learned) | learner |",
         "|---|---|---|---|---|---|---|",
     ]
-    for label, v in results.items():
+    for job, v in items:
         if not isinstance(v, dict):
-            lines.append(f"| {label} | failed: {v} | | | | | |")
+            lines.append(f"| {job.rpartition(' | ')[0]} | failed: {v} | | | | | |")
             continue
         none, ff, st = v["none"], v["learned"], v["learner"] or {}
         ratio = none["rms_translation_m"] / max(ff["rms_translation_m"], 1e-12)
@@ -277,25 +309,55 @@ def tables(results: dict) -> str:
             + (", stopped" if st.get("stopped") else "")
         )
         lines.append(
-            f"| {label} | {_um_urad(none)} | {_um_urad(ff)} | {ratio:.2f}x | "
+            f"| {v['case']} | {_um_urad(none)} | {_um_urad(ff)} | {ratio:.2f}x | "
             f"{none['peak_translation_m'] * 1e6:.1f} / {ff['peak_translation_m'] * 1e6:.1f} | "
             f"{100 * ff['gamma'][0]:.1f}, {100 * ff['gamma'][1]:.1f} | {learner} |"
         )
-    lines += _verdicts(results)
+    return lines
+
+
+def tables(results: dict) -> str:
+    """The Markdown tables, one per robot, and the computed verdicts (between
+    :data:`TABLE_MARKERS`)."""
+    lines = [
+        TABLE_MARKERS[0],
+        "",
+        "### Motion that does not repeat: feed-forward learned as a function of the reference",
+        "",
+        f"Each motion runs {DURATION_S:g} s on `paper_hardware` (and on the robots of "
+        f"`trace_study.ROBOTS`), without learning and with `learning: !FeedforwardTuning {{}}` "
+        f"(stretches of 5 s, learned from the encoders); RMS error from the true platform pose "
+        f"over t = {MEASURED_FROM_S:g}-{DURATION_S:g} s, translation [um] / rotation [urad]; "
+        f"peak translation [um]; gamma pass rate of the translation at 0.5 mm / 100 ms and at "
+        f"5 um / 10 ms [%]. The transfer row holds, without learning, a model learned on "
+        f"another motion.",
+        "",
+        "![RMS error per 5 s window, without learning and learned](organ_motion_traces.png)",
+    ]
+    overrides = dict(ROBOTS)
+    for robot, items in _robots(results).items():
+        given = overrides.get(robot, ())
+        lines += [
+            "",
+            f"#### {robot}" + (f" (`{'`, `'.join(given)}`)" if given else ""),
+            "",
+        ]
+        lines += _table(items)
+        lines += _verdicts([v for _, v in items if isinstance(v, dict)])
     lines += [
         "",
         "Beside the phantoms' commissioning figures (HexaMotion: maximum deviation 0.3 mm and "
         "0.22 deg, gamma above 98 % at 0.5 mm / 100 ms; Belcher et al. 2014: RMSE 0.08-0.22 mm "
         "and 0.06-0.16 deg) these errors are two orders of magnitude smaller. A simulated robot "
         "flatters: its model is rigid and known exactly (no backlash, compliance or calibration "
-        "error, no error in measuring the error); the figures say the control and the 17-bit "
-        "encoders would not limit a built robot, not that one would reach them.",
+        "error, no error in measuring the error); the figures say the control and the encoders "
+        "would not limit a built robot, not that one would reach them.",
     ]
     walls = [v["wall_s"] for v in results.values() if isinstance(v, dict)]
     sims = [v["sim_s"] for v in results.values() if isinstance(v, dict)]
     lines += [
         "",
-        f"{len(walls)} motions, {sum(sims):.0f} s simulated in {sum(walls):.0f} s of "
+        f"{len(walls)} cases, {sum(sims):.0f} s simulated in {sum(walls):.0f} s of "
         f"simulation wall time.",
         "",
         TABLE_MARKERS[1],
@@ -304,54 +366,60 @@ def tables(results: dict) -> str:
 
 
 def plot(results: dict, path) -> Path:
-    """The figure of the study: for each motion, the RMS error of every :data:`WINDOW_S`
-    without learning and with it, translation and rotation on their own axes, each with the
-    goal (:data:`GOAL`)."""
+    """The figure of the study: for each robot (a column) and motion, the RMS error of every
+    :data:`WINDOW_S` without learning and with it, translation and rotation on their own axes,
+    each with the goal (:data:`GOAL`)."""
     import matplotlib
     import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [v for v in results.values() if isinstance(v, dict)]
-    fig, axes = plt.subplots(2, 1, figsize=(10, 8.5), sharex=True)
+    robots = {
+        robot: [v for _, v in items if isinstance(v, dict)]
+        for robot, items in _robots(results).items()
+    }
+    n = max(1, len(robots))
+    fig, axes = plt.subplots(2, n, figsize=(7 * n, 8.5), sharex=True, sharey="row", squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for i, row in enumerate(rows):
-        c = colours[i % len(colours)]
-        for ax, key, scale in (
-            (axes[0], "window_translation_m", 1e6),
-            (axes[1], "window_rotation_rad", 1e6),
+    for j, (robot, rows) in enumerate(robots.items()):
+        for i, row in enumerate(rows):
+            c = colours[i % len(colours)]
+            for ax, key in (
+                (axes[0, j], "window_translation_m"),
+                (axes[1, j], "window_rotation_rad"),
+            ):
+                for mode, style in (("none", ":"), ("learned", "-")):
+                    y = np.asarray(row[mode][key]) * 1e6
+                    t = (np.arange(len(y)) + 0.5) * WINDOW_S
+                    label = row["case"] if mode == "learned" and j == 0 else None
+                    ax.plot(t, y, style, color=c, lw=1.6 if mode == "learned" else 1.1, label=label)
+        axes[0, j].set_title(robot, fontsize=10)
+        for ax, goal, name in (
+            (axes[0, j], GOAL[0] * 1e6, "translation RMS [um]"),
+            (axes[1, j], GOAL[1] * 1e6, "rotation RMS [urad]"),
         ):
-            for mode, style in (("none", ":"), ("learned", "-")):
-                y = np.asarray(row[mode][key]) * scale
-                t = (np.arange(len(y)) + 0.5) * WINDOW_S
-                label = f"{row['case']}" if mode == "learned" else None
-                ax.plot(t, y, style, color=c, lw=1.6 if mode == "learned" else 1.1, label=label)
-    for ax, goal, name in (
-        (axes[0], GOAL[0] * 1e6, "translation RMS [um]"),
-        (axes[1], GOAL[1] * 1e6, "rotation RMS [urad]"),
-    ):
-        ax.axhline(goal, color="k", lw=0.8, ls="--")
-        ax.text(1.0, goal, f" goal {goal:g}", va="bottom", ha="left", fontsize=8)
-        ax.set_yscale("log")
-        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_yticks([2, 3, 5, 10, 20, 30, 50, 100])
-        ax.set_ylabel(name)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
-    axes[1].set_xlabel(
-        f"t [s] (RMS over windows of {WINDOW_S:g} s; dotted: no learning, solid: learned; "
-        f"tables measured after {MEASURED_FROM_S:g} s)"
+            ax.axhline(goal, color="k", lw=0.8, ls="--")
+            ax.text(1.0, goal, f" goal {goal:g}", va="bottom", ha="left", fontsize=8)
+            ax.set_yscale("log")
+            ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+            ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            ax.set_yticks([0.2, 0.5, 1, 2, 5, 10, 20, 50, 100])
+            if j == 0:
+                ax.set_ylabel(name)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
+        axes[1, j].set_xlabel(f"t [s] (RMS over windows of {WINDOW_S:g} s)")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=4, frameon=False)
+    fig.suptitle(
+        "Motion that does not repeat: feed-forward learned as a function of the reference "
+        f"(dotted: no learning, solid: learned; tables measured after {MEASURED_FROM_S:g} s)",
+        fontsize=11,
     )
-    handles, labels = axes[0].get_legend_handles_labels()
-    fig.legend(handles, labels, fontsize=8, loc="lower center", ncol=3, frameon=False)
-    axes[0].set_title(
-        "Motion that does not repeat: feed-forward learned as a function of the reference"
-    )
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.tight_layout(rect=(0, 0.06, 1, 1))
     path = Path(path)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
 
