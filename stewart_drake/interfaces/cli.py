@@ -775,6 +775,52 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+def _cmd_analyze(args) -> int:
+    """``stewart-drake analyze``: the linear loop of the scenario's robot and LQI at a pose:
+    margins, Ms, Mt, bandwidth and the phase lag at 0.25 and 1.2 Hz per axis; Bode and
+    sensitivity plots and the table as Markdown in --out."""
+    import functools
+    import json
+
+    from ..errors import InvalidConfigError
+    from ..fileio import atomic_write
+    from ..simulation.scenario_io import load_scenario
+    from ..studies.loop_analysis import axis_figures, figures_table, loop_models, plot_loop
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    x0 = None
+    if args.pose is not None:
+        try:
+            x0 = [float(v) for v in args.pose.split(",")]
+        except ValueError:
+            x0 = []
+        if len(x0) != 6:
+            raise InvalidConfigError(
+                f"--pose takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.pose!r}"
+            )
+    out = check_output(args.out)
+    models = loop_models(scenario, x0, integrator=args.integrator)
+    figures = axis_figures(models)
+    name = Path(str(args.scenario)).stem
+    pose = ", ".join(f"{v:.4g}" for v in models.x0)
+    table = figures_table(figures)
+    print(f"{name} at pose [{pose}] (rad, m), control period {1e3 * models.h:g} ms:")
+    print("\n".join(table))
+    out.mkdir(parents=True, exist_ok=True)
+    title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
+    bode, sens = plot_loop(models, title)
+    paths = [out / "bode.png", out / "sensitivity.png", out / "loop.md", out / "loop.json"]
+    for fig, path in zip((bode, sens), paths):
+        atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
+    text = "\n".join([f"# {title}", "", *table, ""]).encode()
+    atomic_write(paths[2], lambda fh: fh.write(text))
+    record = {"scenario": name, "pose": models.x0.tolist(), "axes": [a.record() for a in figures]}
+    data = json.dumps(record, indent=1).encode()
+    atomic_write(paths[3], lambda fh: fh.write(data))
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 #: The coarsest workspace grid whose extents are worth reporting (a step of 1/20 of the box).
 MIN_REPORTED_RESOLUTION = 21
 
@@ -955,6 +1001,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_train_command(sub)
     _add_evaluate_command(sub)
     _add_workspace_command(sub)
+    _add_analyze_command(sub)
     _add_teleop_command(sub)
     _add_diagrams_command(sub)
     _add_sdf_command(sub)
@@ -1328,6 +1375,29 @@ def _add_evaluate_command(sub) -> None:
     )
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
+
+
+def _add_analyze_command(sub) -> None:
+    """The ``analyze`` command's options."""
+    an = sub.add_parser(
+        "analyze",
+        help="the loop as a control engineer sees it: margins, Ms, Mt, bandwidth, Bode plots",
+    )
+    _add_scenario_arguments(an, "the robot and LQI to analyse")
+    an.add_argument(
+        "--pose",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose linearized at, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    an.add_argument(
+        "--integrator",
+        choices=["sap", "zoh"],
+        default="sap",
+        help="the plant as Drake's SAP steps it (sap) or the continuous robot sampled (zoh)",
+    )
+    an.add_argument("--out", default="results/analyze", help="output folder")
+    an.set_defaults(func=_cmd_analyze)
 
 
 def _add_workspace_command(sub) -> None:
