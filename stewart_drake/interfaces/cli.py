@@ -785,7 +785,16 @@ def _cmd_analyze(args) -> int:
     from ..errors import InvalidConfigError
     from ..fileio import atomic_write
     from ..simulation.scenario_io import load_scenario
-    from ..studies.loop_analysis import axis_figures, figures_table, loop_models, plot_loop
+    from ..studies.loop_analysis import (
+        axis_figures,
+        figures_table,
+        loop_map,
+        loop_models,
+        plot_loop,
+        plot_map,
+        tilt_grid,
+        weight_sweep,
+    )
 
     scenario = load_scenario(args.scenario, args.set or ())
     x0 = None
@@ -804,7 +813,12 @@ def _cmd_analyze(args) -> int:
     name = Path(str(args.scenario)).stem
     pose = ", ".join(f"{v:.4g}" for v in models.x0)
     table = figures_table(figures)
-    print(f"{name} at pose [{pose}] (rad, m), control period {1e3 * models.h:g} ms:")
+    rho = models.spectral_radius
+    print(
+        f"{name} at pose [{pose}] (rad, m), control period {1e3 * models.h:g} ms: the closed "
+        f"loop is {'stable' if rho < 1 else 'UNSTABLE'} (spectral radius {rho:.4f})"
+        + ("" if rho < 1 else ": the margins below describe an unstable loop")
+    )
     print("\n".join(table))
     out.mkdir(parents=True, exist_ok=True)
     title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
@@ -814,8 +828,42 @@ def _cmd_analyze(args) -> int:
         atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
     text = "\n".join([f"# {title}", "", *table, ""]).encode()
     atomic_write(paths[2], lambda fh: fh.write(text))
-    record = {"scenario": name, "pose": models.x0.tolist(), "axes": [a.record() for a in figures]}
-    data = json.dumps(record, indent=1).encode()
+    record = {
+        "scenario": name,
+        "pose": models.x0.tolist(),
+        "spectral_radius": rho,
+        "axes": [a.record() for a in figures],
+    }
+    if args.weights:
+        record["weights"] = weight_sweep(scenario, x0=models.x0)
+        print(
+            "omega_Q / omega_R: closed loop, smallest phase margin (axis), largest Ms (axis), "
+            "Z bandwidth Hz"
+        )
+        for row in record["weights"]:
+            pm = min(row["axes"], key=lambda a: a["phase_margin_deg"])
+            ms = max(row["axes"], key=lambda a: a["Ms"])
+            bw = row["axes"][5]["bandwidth_hz"]
+            print(
+                f"  {row['ratio']:g}: {'stable' if row['stable'] else 'UNSTABLE'} (spectral "
+                f"radius {row['spectral_radius']:.4f}), {pm['phase_margin_deg']:.1f} deg "
+                f"({pm['axis']}), {ms['Ms']:.2f} ({ms['axis']}), "
+                + (f"{bw:.3g}" if bw is not None else row["axes"][5]["bandwidth_where"])
+            )
+    if args.map:
+        rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
+        record["map"] = rows
+        weak = min(rows, key=lambda r: r["phase_margin_deg"])
+        where = ", ".join(f"{v:.3g}" for v in weak["pose"])
+        print(
+            f"weakest of {len(rows)} admissible tilts: pose [{where}]: phase margin "
+            f"{weak['phase_margin_deg']:.1f} deg ({weak['phase_margin_axis']}), "
+            f"Ms {weak['Ms']:.2f}, gain margin {weak['gain_margin_db']:.1f} dB"
+        )
+        fig = plot_map(rows, f"{name}: the loop over roll and pitch at Z = {models.x0[5]:g} m")
+        paths.append(out / "map.png")
+        atomic_write(paths[-1], functools.partial(fig.savefig, dpi=100, format="png"))
+    data = json.dumps(record, indent=1, default=float).encode()
     atomic_write(paths[3], lambda fh: fh.write(data))
     print("wrote " + ", ".join(str(p) for p in paths))
     return 0
@@ -1395,6 +1443,17 @@ def _add_analyze_command(sub) -> None:
         choices=["sap", "zoh"],
         default="sap",
         help="the plant as Drake's SAP steps it (sap) or the continuous robot sampled (zoh)",
+    )
+    an.add_argument(
+        "--map",
+        action="store_true",
+        help="also the margins over roll and pitch (+-0.55 rad, 9 x 9) at the pose's height: "
+        "map.png and the weakest pose",
+    )
+    an.add_argument(
+        "--weights",
+        action="store_true",
+        help="also the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 at the pose",
     )
     an.add_argument("--out", default="results/analyze", help="output folder")
     an.set_defaults(func=_cmd_analyze)

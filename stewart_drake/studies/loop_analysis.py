@@ -59,6 +59,12 @@ class LoopModels:
     closed: DiscreteModel
     open: DiscreteModel
 
+    @property
+    def spectral_radius(self) -> float:
+        """Largest |eigenvalue| of the closed loop: below 1 iff it is stable (the margins of an
+        unstable loop describe nothing)."""
+        return float(np.abs(np.linalg.eigvals(self.closed.A)).max())
+
 
 def loop_models(
     scenario: Scenario | RunPlan, x0=None, integrator: str = "sap", driver: LqiDriver | None = None
@@ -424,3 +430,117 @@ def plot_loop(models: LoopModels, title: str):
     sens.suptitle(title, fontsize=11)
     sens.tight_layout()
     return bode, sens
+
+
+# -- across the workspace and the weights ---------------------------------------------------------
+
+
+def weakest_axis(figures: list[AxisFigures]) -> dict:
+    """The figures of a pose that bound it: the smallest phase margin and gain margin, the
+    largest Ms, the lowest bandwidth (over the six axes), each with its axis."""
+    pm = min(figures, key=lambda a: a.phase_margin_deg)
+    gm = min(figures, key=lambda a: a.gain_margin_db)
+    ms = max(figures, key=lambda a: a.Ms)
+    bw = min(figures, key=lambda a: a.bandwidth.hz if a.bandwidth.hz is not None else np.inf)
+    return {
+        "phase_margin_deg": pm.phase_margin_deg,
+        "phase_margin_axis": pm.axis,
+        "gain_margin_db": gm.gain_margin_db,
+        "gain_margin_axis": gm.axis,
+        "Ms": ms.Ms,
+        "Ms_axis": ms.axis,
+        "bandwidth_hz": bw.bandwidth.hz,
+        "bandwidth_axis": bw.axis,
+    }
+
+
+def tilt_grid(extent_rad: float = 0.55, n: int = 9, height_m: float = float(X_HOME[5])):
+    """(n * n, 6) poses rolled and pitched over [-extent, extent] rad at ``height_m``."""
+    a = np.linspace(-extent_rad, extent_rad, n)
+    phi, theta = np.meshgrid(a, a, indexing="ij")
+    poses = np.zeros((n * n, 6))
+    poses[:, 0], poses[:, 1], poses[:, 5] = phi.ravel(), theta.ravel(), height_m
+    return poses
+
+
+def loop_map(scenario: Scenario, poses, driver: LqiDriver | None = None) -> list[dict]:
+    """The bounding figures (:func:`weakest_axis`) at each admissible pose of ``poses``
+    (N, 6); a pose the robot cannot reach (:func:`~stewart_drake.model.limits.is_reachable`) is
+    left out. Each row: ``pose`` (list), the closed loop's ``spectral_radius`` and the
+    figures."""
+    from ..model.limits import is_reachable
+
+    plan = make_plan(scenario, with_reference=False)
+    poses = np.atleast_2d(np.asarray(poses, dtype=float))
+    ok = is_reachable(plan.geometry, poses).reachable
+    rows = []
+    for x0 in poses[ok]:
+        figures = axis_figures(
+            loop_models(plan, x0, driver=driver), _map_grid(plan.control_period_s)
+        )
+        rows.append({"pose": x0.tolist(), **weakest_axis(figures)})
+    return rows
+
+
+def _map_grid(h: float) -> np.ndarray:
+    """A coarser grid for maps (100 points per decade): margins to about 0.1 deg."""
+    f_max = 0.999 / (2 * h)
+    return np.geomspace(F_MIN_HZ, f_max, int(100 * np.log10(f_max / F_MIN_HZ)) + 1)
+
+
+def weight_sweep(scenario: Scenario, ratios=(0.01, 0.1, 1.0, 10.0, 100.0), x0=None) -> list[dict]:
+    """The loop figures at pose x0 (default home) for LQIs of weight ratio omega_Q / omega_R in
+    ``ratios`` (omega_R = 1; only the ratio sets the gain): the trade-off a user tunes. Each
+    row: ``ratio``, ``spectral_radius`` and ``stable`` of the closed loop, and the six axes'
+    :meth:`AxisFigures.record`."""
+    base = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
+    plan = make_plan(scenario, with_reference=False)
+    rows = []
+    for r in ratios:
+        driver = base.with_weights(omega_Q=float(r), omega_R=1.0)
+        models = loop_models(plan, x0, driver=driver)
+        rho = models.spectral_radius
+        rows.append(
+            {
+                "ratio": float(r),
+                "spectral_radius": rho,
+                "stable": rho < 1,
+                "axes": [a.record() for a in axis_figures(models)],
+            }
+        )
+    return rows
+
+
+def plot_map(rows: list[dict], title: str):
+    """A Figure of the smallest phase margin and the largest Ms over the six axes at each pose
+    of a :func:`tilt_grid` map (:func:`loop_map` rows), the weakest pose circled."""
+    from matplotlib.figure import Figure
+
+    poses = np.array([r["pose"] for r in rows])
+    fig = Figure(figsize=(12, 5))
+    axes = fig.subplots(1, 2)
+    weakest = min(range(len(rows)), key=lambda k: rows[k]["phase_margin_deg"])
+    for ax, key, label, cmap in (
+        (axes[0], "phase_margin_deg", "smallest phase margin over the axes [deg]", "viridis"),
+        (axes[1], "Ms", "largest Ms over the axes", "magma_r"),
+    ):
+        values = np.array([r[key] for r in rows], dtype=float)
+        sc = ax.scatter(
+            np.degrees(poses[:, 0]), np.degrees(poses[:, 1]), c=values, s=260, marker="s", cmap=cmap
+        )
+        fig.colorbar(sc, ax=ax, label=label)
+        ax.plot(
+            np.degrees(poses[weakest, 0]),
+            np.degrees(poses[weakest, 1]),
+            "o",
+            mfc="none",
+            mec="r",
+            ms=20,
+            mew=2,
+        )
+        ax.set_xlabel("roll phi [deg]")
+        ax.set_ylabel("pitch theta [deg]")
+        ax.set_aspect("equal")
+    fig.suptitle(f"{title} (red circle: the weakest pose, smallest phase margin)", fontsize=11)
+    fig.tight_layout()
+    return fig
