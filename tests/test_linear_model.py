@@ -1,6 +1,8 @@
 """The linear models of the robot and the LQI at a pose, their loop figures, and their agreement
 with the nonlinear Drake plant."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -26,6 +28,9 @@ from stewart_drake.studies.loop_analysis import (
 )
 
 H = 1e-3
+# This checkout's scenarios (a shipped name resolves to the installed package's).
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
+IDEAL, BUILT = SCENARIOS / "paper_ideal.yaml", SCENARIOS / "paper_hardware.yaml"
 
 
 def test_without_gravity_friction_or_delay_the_plant_is_the_lqi_s_design_model():
@@ -87,8 +92,8 @@ def test_margins_of_a_known_loop():
 
 
 def test_loop_figures_of_the_ideal_and_the_built_robot_at_home():
-    ideal = axis_figures(loop_models(load_scenario("paper_ideal")))
-    built = axis_figures(loop_models(load_scenario("paper_hardware")))
+    ideal = axis_figures(loop_models(load_scenario(IDEAL)))
+    built = axis_figures(loop_models(load_scenario(BUILT)))
     for a in ideal:  # the LQI's loops: phase margins above 50 deg, Ms below 1.3
         assert a.phase_margin_deg > 50 and a.Ms < 1.3 and a.gain_margin_db == np.inf
     z = ideal[5]
@@ -102,7 +107,7 @@ def test_loop_figures_of_the_ideal_and_the_built_robot_at_home():
 
 def test_the_loop_in_python_control_has_the_same_margins():
     control = pytest.importorskip("control")
-    models = loop_models(load_scenario("paper_hardware"))
+    models = loop_models(load_scenario(BUILT))
     loop = loop_at_a_time(models.open, 5).to_control()
     assert loop.dt == H and loop.nstates == models.open.A.shape[0]
     # On the frequency response of its StateSpace (its polynomial route is ill-conditioned on
@@ -120,11 +125,10 @@ def test_the_loop_in_python_control_has_the_same_margins():
 
 def test_lqi_model_needs_an_lqi():
     with pytest.raises(InvalidConfigError, match="needs an LQI"):
-        loop_models(load_scenario("paper_ideal", ["controller=!PdDriver {}"]))
+        loop_models(load_scenario(IDEAL, ["controller=!PdDriver {}"]))
     driver = LqiDriver(omega_Q=10.0)
     soft, stiff = (
-        axis_figures(loop_models(load_scenario("paper_ideal"), driver=d))[5]
-        for d in (LqiDriver(), driver)
+        axis_figures(loop_models(load_scenario(IDEAL), driver=d))[5] for d in (LqiDriver(), driver)
     )
     assert stiff.crossover_hz > soft.crossover_hz
 
@@ -132,7 +136,7 @@ def test_lqi_model_needs_an_lqi():
 def test_the_model_matches_the_drake_plant_at_home():
     # Sines of 0.05 mm on Z at 0.5 to 20 Hz around home on the ideal robot: the nonlinear SAP
     # plant and the linear model agree within 0.02 dB and 0.2 deg (measured: 0.001 dB, 0.01 deg).
-    scenario = load_scenario("paper_ideal")
+    scenario = load_scenario(IDEAL)
     f, G = measure_tracking(scenario, 5, frequencies_hz=(0.5, 2.0, 5.0, 10.0, 20.0))
     model = tracking_response(loop_models(scenario), f)[:, 5]
     np.testing.assert_allclose(20 * np.log10(np.abs(G / model)), 0.0, atol=0.02)
@@ -151,7 +155,7 @@ def test_the_model_matches_the_drake_plant_away_from_home(axis, pose):
         if pose == "tilted"
         else np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.0])
     )
-    scenario = load_scenario("paper_ideal")
+    scenario = load_scenario(IDEAL)
     f, G = measure_tracking(scenario, axis, x0=x0)
     model = tracking_response(loop_models(scenario, x0), f)[:, axis]
     np.testing.assert_allclose(20 * np.log10(np.abs(G / model)), 0.0, atol=0.05)
@@ -162,21 +166,21 @@ def test_analyze_prints_the_margins_and_writes_the_plots(tmp_path, capsys):
     from stewart_drake.interfaces.cli import main
 
     out = tmp_path / "an"
-    assert main(["analyze", "--scenario", "paper_ideal", "--out", str(out)]) == 0
+    assert main(["analyze", "--scenario", str(IDEAL), "--out", str(out)]) == 0
     text = capsys.readouterr().out
     z = next(line for line in text.splitlines() if line.startswith("| Z |")).split("|")
     assert float(z[2]) == pytest.approx(22.6, abs=0.1) and float(z[3]) == pytest.approx(61.2, 0.1)
     for name in ("bode.png", "sensitivity.png"):
         assert (out / name).stat().st_size > 20_000
     assert "| phi |" in (out / "loop.md").read_text()
-    assert main(["analyze", "--scenario", "paper_ideal", "--pose", "0,0,0", "--out", str(out)]) == 2
+    assert main(["analyze", "--scenario", str(IDEAL), "--pose", "0,0,0", "--out", str(out)]) == 2
     assert "--pose takes six numbers" in capsys.readouterr().err
 
 
 def test_the_weights_and_the_workspace_map_name_the_weak_loops():
     from stewart_drake.studies.loop_analysis import loop_map, tilt_grid, weight_sweep
 
-    built = load_scenario("paper_hardware")
+    built = load_scenario(BUILT)
     rows = {r["ratio"]: r for r in weight_sweep(built, ratios=(0.01, 1.0, 100.0))}
     # Stiffer weights raise the bandwidth and spend the roll loop's margin; at 100 the loop
     # the delay, the current loop and the rate filter add to is unstable.
