@@ -377,14 +377,15 @@ def plot_loop(models: LoopModels, title: str):
     f = frequency_grid(models.h)
     G = tracking_response(models, f)
     loops = [loop_at_a_time(models.open, i).frequency_response(f)[:, 0, 0] for i in range(6)]
-    colors = [f"C{i}" for i in range(6)]
+    # phi and theta, X and Y coincide at a symmetric pose: the second of each pair is dashed
+    styles = [{"color": f"C{i}", "ls": "--" if i % 2 else "-"} for i in range(6)]
     bode = Figure(figsize=(12, 8))
     ax = bode.subplots(2, 2, sharex=True)
     for i, (name, L) in enumerate(zip(AXES, loops)):
-        ax[0, 0].semilogx(f, 20 * np.log10(np.abs(L)), color=colors[i], label=name)
-        ax[1, 0].semilogx(f, np.degrees(np.unwrap(np.angle(L))) % 360 - 360, color=colors[i])
-        ax[0, 1].semilogx(f, 20 * np.log10(np.abs(G[:, i])), color=colors[i], label=name)
-        ax[1, 1].semilogx(f, np.degrees(np.unwrap(np.angle(G[:, i]))), color=colors[i])
+        ax[0, 0].semilogx(f, 20 * np.log10(np.abs(L)), **styles[i], label=name)
+        ax[1, 0].semilogx(f, np.degrees(np.unwrap(np.angle(L))) % 360 - 360, **styles[i])
+        ax[0, 1].semilogx(f, 20 * np.log10(np.abs(G[:, i])), **styles[i], label=name)
+        ax[1, 1].semilogx(f, np.degrees(np.unwrap(np.angle(G[:, i]))), **styles[i])
     ax[0, 0].axhline(0, color="k", lw=0.8)
     ax[1, 0].axhline(-180, color="k", lw=0.8)
     ax[0, 1].axhline(-3, color="k", ls=":", lw=1)
@@ -410,17 +411,17 @@ def plot_loop(models: LoopModels, title: str):
     sx = sens.subplots(1, 2, sharey=True)
     for i, (name, L) in enumerate(zip(AXES, loops)):
         S, T = 1 / (1 + L), L / (1 + L)
-        sx[0].semilogx(f, 20 * np.log10(np.abs(S)), color=colors[i], label=name)
-        sx[1].semilogx(f, 20 * np.log10(np.abs(T)), color=colors[i], label=name)
+        sx[0].semilogx(f, 20 * np.log10(np.abs(S)), **styles[i], label=name)
+        sx[1].semilogx(f, 20 * np.log10(np.abs(T)), **styles[i], label=name)
         for a, M in ((sx[0], np.abs(S)), (sx[1], np.abs(T))):
             k = int(np.argmax(M))
-            a.plot(f[k], 20 * np.log10(M[k]), "o", color=colors[i], ms=5)
+            a.plot(f[k], 20 * np.log10(M[k]), "o", color=styles[i]["color"], ms=5)
     for a, what in (
         (sx[0], "S_i = 1 / (1 + L_i), peak Ms"),
         (sx[1], "T_i = L_i / (1 + L_i), peak Mt"),
     ):
         a.axhline(6, color="k", ls=":", lw=1)
-        a.set_title(f"{what} (dots; 6 dB dotted: Ms = 2)", fontsize=10)
+        a.set_title(f"{what} (dots; dotted: a peak of 2, 6 dB)", fontsize=10)
         a.set_xlabel("frequency [Hz]")
         a.grid(alpha=0.3, which="both")
         a.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
