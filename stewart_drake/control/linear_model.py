@@ -363,7 +363,7 @@ def closed_loop(plant: DiscreteModel, controller: DiscreteModel, J) -> DiscreteM
         (N | N m) added at the plant input (T_in = T + J^-T f); outputs [x (6), v (6), f_c (6)]
         with f_c = J^T T the controller's task force. States: the plant's, then the
         controller's. Opening axis i of the loop is then f_i in, -f_c,i out
-        (:func:`~stewart_drake.studies.loop_analysis.loop_transfer`).
+        (:func:`open_loop`, :func:`loop_at_a_time` give the loop itself).
     """
     J = as_array("Jacobian J", J, shape=(6, 6))
     Ap, Bp, Cp = plant.A, plant.B, plant.C
