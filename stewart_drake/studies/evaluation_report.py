@@ -682,9 +682,34 @@ def _plot_tradeoff(by: dict, colors: dict):
     return fig
 
 
+def _model_tracking(row: dict, ratio: float, f) -> np.ndarray | None:
+    """(K, 6) complex x_i / x_d,i of the linear model (:mod:`~.loop_analysis`) of the LQI of
+    weight ratio ``ratio`` on the row's base scenario at home, at f (K,) Hz; None when the row
+    names no base, the model cannot be built (a base whose loop is not an LQI's) or its closed
+    loop is unstable."""
+    from ..control.lqi import LqiDriver
+    from ..errors import StewartError
+    from .loop_analysis import loop_models, tracking_response
+
+    base = row.get("case", {}).get("base")
+    if not base:
+        return None
+    try:
+        scenario = load_scenario(base)
+        driver = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
+        driver = driver.with_weights(omega_Q=float(ratio), omega_R=1.0)
+        models = loop_models(scenario, driver=driver)
+        # an unstable linear loop has no frequency response to draw (the sweep ran on friction)
+        return tracking_response(models, f) if models.spectral_radius < 1 else None
+    except (StewartError, OSError):
+        return None
+
+
 def _plot_bandwidth(by: dict, colors: dict):
     """The frequency responses of the Z and phi sweeps: gain (top) and phase (bottom), over
-    the frequencies actually measured."""
+    the frequencies actually measured, with the linear model's response of each fixed LQI
+    (dotted; :mod:`~.loop_analysis`, friction-free: where the sweep falls below it at small
+    amplitude, the cranks' dry friction is why, docs/analysis.md)."""
     import matplotlib.ticker
     from matplotlib.figure import Figure
 
@@ -693,10 +718,32 @@ def _plot_bandwidth(by: dict, colors: dict):
     f_lo, f_hi = _sweep_range(by)
     for col, reference in enumerate(("sweep_Z", "sweep_phi")):
         ax, ax_phase = axes[0, col], axes[1, col]
+        ratios = _by_ratio(by, reference, "nominal")
         curves = [
             (rf"LQI $\omega_Q/\omega_R$ = {ratio:g}", colors[ratio], "-", r)
-            for ratio, r in _by_ratio(by, reference, "nominal").items()
+            for ratio, r in ratios.items()
         ] + [(label, color, "--", r) for label, _, color, r in _others(by, reference)]
+        f_model = np.geomspace(f_lo, f_hi, 200)
+        k = 5 if reference == "sweep_Z" else 0
+        for n, (ratio, r) in enumerate(ratios.items()):
+            G = _model_tracking(r, ratio, f_model)
+            if G is None:
+                continue
+            ax.semilogx(
+                f_model,
+                20 * np.log10(np.abs(G[:, k])),
+                color=colors[ratio],
+                lw=0.9,
+                ls=":",
+                label="linear model (same colour), no Coulomb friction" if n == 0 else None,
+            )
+            ax_phase.semilogx(
+                f_model,
+                np.degrees(np.unwrap(np.angle(G[:, k]))),
+                color=colors[ratio],
+                lw=0.9,
+                ls=":",
+            )
         for label, color, ls, r in curves:
             f = r["response"]["f"]
             if not f:
