@@ -379,8 +379,10 @@ def _bandwidth_table(by: dict, ctrls: list) -> list:
         "frequency. Above "
         f"{corner_hz:.3g} Hz the amplitude falls as 1/f^2 (constant acceleration: "
         f"{SWEEP_MAX_ACCELERATION[1]:.3g} m/s^2, {SWEEP_MAX_ACCELERATION[0]:.3g} rad/s^2), "
-        "what the motors can give. The model's margins and bandwidths beside these: "
-        "[analysis.md](analysis.md).",
+        "what the motors can give. The figure draws each fixed LQI's linear model beside its "
+        "sweep (dotted, friction-free; margins and bandwidths: [analysis.md](analysis.md)): "
+        "where a sweep falls below its model at these small amplitudes, the motors' dry "
+        "friction is why.",
         "",
         "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
         "|---|---|---|---|---|",
