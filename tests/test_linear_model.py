@@ -178,7 +178,7 @@ def test_analyze_prints_the_margins_and_writes_the_plots(tmp_path, capsys):
 
 
 def test_the_weights_and_the_workspace_map_name_the_weak_loops():
-    from stewart_drake.studies.loop_analysis import loop_map, tilt_grid, weight_sweep
+    from stewart_drake.studies.loop_analysis import loop_map, tilt_grid, weakest_pose, weight_sweep
 
     built = load_scenario(BUILT)
     rows = {r["ratio"]: r for r in weight_sweep(built, ratios=(0.01, 1.0, 100.0))}
@@ -191,7 +191,8 @@ def test_the_weights_and_the_workspace_map_name_the_weak_loops():
     grid = tilt_grid(0.55, 3)
     mapped = loop_map(built, grid)
     assert 0 < len(mapped) <= 9
-    weakest = min(mapped, key=lambda r: r["phase_margin_deg"])
+    weakest = weakest_pose(mapped)
     home = next(r for r in mapped if r["pose"] == [0, 0, 0, 0, 0, 0.3])
     assert weakest["phase_margin_deg"] < home["phase_margin_deg"] - 1
+    assert weakest["Ms"] > home["Ms"] + 0.3 and weakest["spectral_radius"] < 1
     assert abs(weakest["pose"][1]) == pytest.approx(0.55)  # pitched to the edge

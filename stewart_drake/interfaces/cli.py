@@ -793,6 +793,7 @@ def _cmd_analyze(args) -> int:
         plot_loop,
         plot_map,
         tilt_grid,
+        weakest_pose,
         weight_sweep,
     )
 
@@ -853,12 +854,13 @@ def _cmd_analyze(args) -> int:
     if args.map:
         rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
         record["map"] = rows
-        weak = min(rows, key=lambda r: r["phase_margin_deg"])
+        weak = weakest_pose(rows)
         where = ", ".join(f"{v:.3g}" for v in weak["pose"])
         print(
-            f"weakest of {len(rows)} admissible tilts: pose [{where}]: phase margin "
-            f"{weak['phase_margin_deg']:.1f} deg ({weak['phase_margin_axis']}), "
-            f"Ms {weak['Ms']:.2f}, gain margin {weak['gain_margin_db']:.1f} dB"
+            f"weakest of {len(rows)} admissible tilts: pose [{where}]: Ms {weak['Ms']:.2f} "
+            f"({weak['Ms_axis']}), phase margin {weak['phase_margin_deg']:.1f} deg "
+            f"({weak['phase_margin_axis']}), gain margin {weak['gain_margin_db']:.1f} dB "
+            f"({weak['gain_margin_axis']}), spectral radius {weak['spectral_radius']:.4f}"
         )
         fig = plot_map(rows, f"{name}: the loop over roll and pitch at Z = {models.x0[5]:g} m")
         paths.append(out / "map.png")

@@ -28,7 +28,7 @@ from ..control.linear_model import (
 )
 from ..control.lqi import LqiDriver
 from ..errors import InvalidConfigError
-from ..model import kinematics
+from ..model import kinematics, statics
 from ..model.geometry import X_HOME
 from ..simulation.plan import RunPlan, make_plan
 from ..simulation.scenario import Scenario
@@ -190,42 +190,45 @@ def _crossings(f, y):
 
 
 def margins(f, L):
-    """Classical margins of a loop's frequency response L (K,) at f (K,) Hz (dense, from well
-    below the crossover to the Nyquist frequency).
+    """Margins of a loop's frequency response L (K,) at f (K,) Hz (dense, from well below the
+    crossover to the Nyquist frequency).
+
+    At each gain crossover (|L| = 1) the phase margin is the angle between L and -1,
+    180 - |arg L| with arg L in (-180, 180]; a loop may cross more than once (the robot as
+    built's roll loop near its resonance), and the smallest counts. The delay margin is the
+    smallest margin / angular frequency over the crossovers. At each phase crossover (arg L =
+    180) the loop gain may change by 1 / |L| before L reaches -1: rises where |L| < 1 (upper),
+    falls where |L| > 1 (lower, a conditionally stable loop).
 
     Returns:
         (crossover_hz, phase_margin_deg, delay_margin_s, gain_margin_db, lower_gain_margin_db):
-        the phase margin at the highest gain crossover (180 + arg L, arg unwrapped from the
-        grid's end); the upper gain margin -20 log|L| at the lowest phase crossover (arg L =
-        -180 mod 360) above it (inf if none), the lower one at the highest phase crossover
-        below it (-inf if none).
+        the crossover of the smallest phase margin (NaN if |L| never crosses 1); upper gain
+        margin in dB (> 0, inf if none), lower in dB (< 0, -inf if none). A margin says nothing
+        of a loop that is already unstable: check :attr:`LoopModels.spectral_radius`.
     """
     f, L = np.asarray(f), np.asarray(L)
     mag = np.abs(L)
     phase = np.degrees(np.unwrap(np.angle(L)))
-    # arg L near the crossover in (-360, 0]: shift the unwrapped phase by whole turns there
     gain_x = _crossings(f, np.log(mag))
-    if not gain_x:
-        return (np.nan, np.nan, np.nan, np.inf, -np.inf)
-    fc, k, w = gain_x[-1]
-    ph_c = phase[k] + w * (phase[k + 1] - phase[k])
-    turns = np.floor(ph_c / 360.0)
-    phase = phase - 360.0 * turns - (360.0 if ph_c - 360 * turns > 0 else 0.0)
-    ph_c = phase[k] + w * (phase[k + 1] - phase[k])
-    pm = 180.0 + ph_c
-    # phase crossovers: arg L = -180 - 360 m
-    rel = (phase + 180.0) / 360.0
     upper, lower = np.inf, -np.inf
+    rel = (phase + 180.0) / 360.0  # an integer where arg L = 180 mod 360
     for m in np.unique(np.round(rel)):
-        for fp, kp, wp in _crossings(f, rel - m):
-            g = np.exp(np.log(mag[kp]) + wp * (np.log(mag[kp + 1]) - np.log(mag[kp])))
-            db = -20 * np.log10(g)
-            if fp > fc and db > 0:
+        for _, kp, wp in _crossings(f, rel - m):
+            db = -20 * (np.log10(mag[kp]) + wp * (np.log10(mag[kp + 1]) - np.log10(mag[kp])))
+            if db > 0:
                 upper = min(upper, db)
-            elif fp < fc and db < 0:
+            else:
                 lower = max(lower, db)
-    delay = np.radians(pm) / (2 * np.pi * fc) if pm > 0 else 0.0
-    return (fc, pm, delay, upper, lower)
+    if not gain_x:
+        return (np.nan, np.nan, np.nan, upper, lower)
+    best, delay = (np.nan, np.inf), np.inf
+    for fc, k, w in gain_x:
+        ph = phase[k] + w * (phase[k + 1] - phase[k])
+        pm = 180.0 - abs((ph + 180.0) % 360.0 - 180.0)
+        if pm < best[1]:
+            best = (fc, pm)
+        delay = min(delay, np.radians(pm) / (2 * np.pi * fc))
+    return (best[0], best[1], delay, upper, lower)
 
 
 def axis_figures(models: LoopModels, f=None) -> list[AxisFigures]:
@@ -466,21 +469,46 @@ def tilt_grid(extent_rad: float = 0.55, n: int = 9, height_m: float = float(X_HO
 
 def loop_map(scenario: Scenario, poses, driver: LqiDriver | None = None) -> list[dict]:
     """The bounding figures (:func:`weakest_axis`) at each admissible pose of ``poses``
-    (N, 6); a pose the robot cannot reach (:func:`~stewart_drake.model.limits.is_reachable`) is
-    left out. Each row: ``pose`` (list), the closed loop's ``spectral_radius`` and the
-    figures."""
+    (N, 6). Admissible as a reference held at rest is: reachable
+    (:func:`~stewart_drake.model.limits.is_reachable`), within the scenario's guard on
+    singularity (cond(J) <= ``guard.cond_threshold``, 1 / sigma_max(J) >=
+    ``guard.min_sigma_min_inv``), and held by the motors within ``guard.effort_margin`` of their
+    limit; the parts' clearance is not checked. Each row: ``pose`` (list), the closed loop's
+    ``spectral_radius`` and the figures."""
     from ..model.limits import is_reachable
 
     plan = make_plan(scenario, with_reference=False)
+    guard = plan.scenario.guard
     poses = np.atleast_2d(np.asarray(poses, dtype=float))
     ok = is_reachable(plan.geometry, poses).reachable
+    sv = kinematics.singular_values(plan.geometry, poses[ok])
+    fine = (sv[:, 0] / sv[:, -1] <= guard.cond_threshold) & (
+        1.0 / sv[:, 0] >= guard.min_sigma_min_inv
+    )
+    ok[np.flatnonzero(ok)[~fine]] = False
+    if plan.torque_limit_Nm is not None and ok.any():
+        T = statics.holding_torques(plan.geometry, poses[ok])
+        held = np.abs(T).max(axis=1) <= guard.effort_margin * plan.torque_limit_Nm
+        ok[np.flatnonzero(ok)[~held]] = False
     rows = []
     for x0 in poses[ok]:
-        figures = axis_figures(
-            loop_models(plan, x0, driver=driver), _map_grid(plan.control_period_s)
+        models = loop_models(plan, x0, driver=driver)
+        figures = axis_figures(models, _map_grid(plan.control_period_s))
+        rows.append(
+            {
+                "pose": x0.tolist(),
+                "spectral_radius": models.spectral_radius,
+                **weakest_axis(figures),
+            }
         )
-        rows.append({"pose": x0.tolist(), **weakest_axis(figures)})
     return rows
+
+
+def weakest_pose(rows: list[dict]) -> dict:
+    """The row of :func:`loop_map` whose loop comes nearest to -1: an unstable closed loop
+    first, else the largest Ms (1 / Ms is the smallest distance of any axis's L to -1, a figure
+    that, unlike a phase margin, a loop crossing 0 dB several times cannot make ambiguous)."""
+    return max(rows, key=lambda r: (r["spectral_radius"] >= 1, r["Ms"]))
 
 
 def _map_grid(h: float) -> np.ndarray:
@@ -514,13 +542,14 @@ def weight_sweep(scenario: Scenario, ratios=(0.01, 0.1, 1.0, 10.0, 100.0), x0=No
 
 def plot_map(rows: list[dict], title: str):
     """A Figure of the smallest phase margin and the largest Ms over the six axes at each pose
-    of a :func:`tilt_grid` map (:func:`loop_map` rows), the weakest pose circled."""
+    of a :func:`tilt_grid` map (:func:`loop_map` rows), the weakest pose (:func:`weakest_pose`)
+    circled."""
     from matplotlib.figure import Figure
 
     poses = np.array([r["pose"] for r in rows])
     fig = Figure(figsize=(12, 5))
     axes = fig.subplots(1, 2)
-    weakest = min(range(len(rows)), key=lambda k: rows[k]["phase_margin_deg"])
+    weakest = rows.index(weakest_pose(rows))
     for ax, key, label, cmap in (
         (axes[0], "phase_margin_deg", "smallest phase margin over the axes [deg]", "viridis"),
         (axes[1], "Ms", "largest Ms over the axes", "magma_r"),
@@ -542,6 +571,6 @@ def plot_map(rows: list[dict], title: str):
         ax.set_xlabel("roll phi [deg]")
         ax.set_ylabel("pitch theta [deg]")
         ax.set_aspect("equal")
-    fig.suptitle(f"{title} (red circle: the weakest pose, smallest phase margin)", fontsize=11)
+    fig.suptitle(f"{title} (red circle: the weakest pose, largest Ms)", fontsize=11)
     fig.tight_layout()
     return fig
