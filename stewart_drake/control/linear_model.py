@@ -109,19 +109,6 @@ class DiscreteModel:
             out[k] = self.C @ np.linalg.solve(z * np.eye(n) - self.A, self.B) + self.D
         return out
 
-    def select(self, inputs=None, outputs=None) -> DiscreteModel:
-        """The same states with only the named inputs and outputs (all when None)."""
-        i = [self.inputs.index(s) for s in inputs] if inputs else list(range(len(self.inputs)))
-        o = [self.outputs.index(s) for s in outputs] if outputs else list(range(len(self.outputs)))
-        return dataclasses.replace(
-            self,
-            B=self.B[:, i],
-            D=self.D[np.ix_(o, i)],
-            C=self.C[o],
-            inputs=tuple(self.inputs[k] for k in i),
-            outputs=tuple(self.outputs[k] for k in o),
-        )
-
 
 def _names(prefix: str, n: int = 6) -> tuple:
     return tuple(f"{prefix}{k}" for k in range(n))

@@ -13,6 +13,7 @@ closed loop's, with the reference's rate x_d_dot = i omega x_d as the controller
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -328,8 +329,6 @@ def measure_tracking(
         (f (K,) Hz, G (K,) complex): the measured response, to set beside
         :func:`tracking_response`.
     """
-    import dataclasses as _dc
-
     from .experiments import run_experiment
 
     f = np.asarray(frequencies_hz, dtype=float)
@@ -338,7 +337,7 @@ def measure_tracking(
         amplitude = 1e-4 if axis < 3 else 5e-5
     duration = settle_s + periods / f.min()
     ref = MultiSine(tuple(x0), int(axis), tuple(f), float(amplitude))
-    run = _dc.replace(scenario, duration_s=float(np.ceil(duration / 0.01) * 0.01))
+    run = dataclasses.replace(scenario, duration_s=float(np.ceil(duration / 0.01) * 0.01))
     result = run_experiment(run, reference=ref)
     c_x = fit_sines(result.t, result.x[:, axis], f, settle_s)
     return f, c_x / amplitude
