@@ -302,3 +302,35 @@ def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
     assert "- **ann_best_cost** tracks better on this one run than" in section  # its one run
     alone = "\n".join(_verdict_lines(index_rows(rows), [], None))
     assert alone.split("\n\n")[1].startswith("**Not decided here**")
+
+
+def test_the_bandwidth_table_and_figure_say_below_and_above_the_sweep(tmp_path):
+    from stewart_drake.studies.evaluation_report import _bandwidth_table, index_rows, plot_results
+
+    f = np.geomspace(2.43, 49.4, 30)
+
+    def sweep_row(controller, reference, gain_db, lag_s=0.01):
+        return {
+            "case": {"controller": controller, "scenario": reference, "condition": "nominal"},
+            # what a row stored before the bandwidth said "below the sweep" held: f[0]
+            "bandwidth_hz": float(f[0]),
+            "peak_gain_db": float(np.max(gain_db)),
+            "response": {
+                "f": f.tolist(),
+                "gain": (10 ** (np.asarray(gain_db) / 20)).tolist(),
+                "phase": (-2 * np.pi * f * lag_s).tolist(),
+            },
+        }
+
+    rows = [
+        sweep_row("lqi_0.1_10", "sweep_Z", np.full(30, -3.8)),
+        sweep_row("lqi_0.1_10", "sweep_phi", np.full(30, 1.4)),
+    ]
+    by = index_rows(rows)
+    table = _bandwidth_table(by, ["lqi_0.1_10"])
+    line = next(row for row in table if row.startswith("| lqi_0.1_10"))
+    assert line.split("|")[2].strip() == "< 2.43 (below the sweep)"
+    assert line.split("|")[4].strip() == "> 49.4 (above the sweep)"
+    assert "measured from 2.43 to 49.4 Hz" in "\n".join(_bandwidth_table(by, []))
+    paths = plot_results(rows, tmp_path)
+    assert paths[1].name == "results_bandwidth.png" and paths[1].stat().st_size > 10_000

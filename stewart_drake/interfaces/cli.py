@@ -775,6 +775,102 @@ def _cmd_evaluate(args) -> int:
     return 0
 
 
+def _cmd_analyze(args) -> int:
+    """``stewart-drake analyze``: the linear loop of the scenario's robot and LQI at a pose:
+    margins, Ms, Mt, bandwidth and the phase lag at 0.25 and 1.2 Hz per axis; Bode and
+    sensitivity plots and the table as Markdown in --out."""
+    import functools
+    import json
+
+    from ..errors import InvalidConfigError
+    from ..fileio import atomic_write
+    from ..simulation.scenario_io import load_scenario
+    from ..studies.loop_analysis import (
+        axis_figures,
+        figures_table,
+        loop_map,
+        loop_models,
+        plot_loop,
+        plot_map,
+        tilt_grid,
+        weakest_pose,
+        weight_sweep,
+    )
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    x0 = None
+    if args.pose is not None:
+        try:
+            x0 = [float(v) for v in args.pose.split(",")]
+        except ValueError:
+            x0 = []
+        if len(x0) != 6:
+            raise InvalidConfigError(
+                f"--pose takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.pose!r}"
+            )
+    out = check_output(args.out)
+    models = loop_models(scenario, x0, integrator=args.integrator)
+    figures = axis_figures(models)
+    name = Path(str(args.scenario)).stem
+    pose = ", ".join(f"{v:.4g}" for v in models.x0)
+    table = figures_table(figures)
+    rho = models.spectral_radius
+    print(
+        f"{name} at pose [{pose}] (rad, m), control period {1e3 * models.h:g} ms: the closed "
+        f"loop is {'stable' if rho < 1 else 'UNSTABLE'} (spectral radius {rho:.4f})"
+        + ("" if rho < 1 else ": the margins below describe an unstable loop")
+    )
+    print("\n".join(table))
+    out.mkdir(parents=True, exist_ok=True)
+    title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
+    bode, sens = plot_loop(models, title)
+    paths = [out / "bode.png", out / "sensitivity.png", out / "loop.md", out / "loop.json"]
+    for fig, path in zip((bode, sens), paths):
+        atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
+    text = "\n".join([f"# {title}", "", *table, ""]).encode()
+    atomic_write(paths[2], lambda fh: fh.write(text))
+    record = {
+        "scenario": name,
+        "pose": models.x0.tolist(),
+        "spectral_radius": rho,
+        "axes": [a.record() for a in figures],
+    }
+    if args.weights:
+        record["weights"] = weight_sweep(scenario, x0=models.x0)
+        print(
+            "omega_Q / omega_R: closed loop, smallest phase margin (axis), largest Ms (axis), "
+            "Z bandwidth Hz"
+        )
+        for row in record["weights"]:
+            pm = min(row["axes"], key=lambda a: a["phase_margin_deg"])
+            ms = max(row["axes"], key=lambda a: a["Ms"])
+            bw = row["axes"][5]["bandwidth_hz"]
+            print(
+                f"  {row['ratio']:g}: {'stable' if row['stable'] else 'UNSTABLE'} (spectral "
+                f"radius {row['spectral_radius']:.4f}), {pm['phase_margin_deg']:.1f} deg "
+                f"({pm['axis']}), {ms['Ms']:.2f} ({ms['axis']}), "
+                + (f"{bw:.3g}" if bw is not None else row["axes"][5]["bandwidth_where"])
+            )
+    if args.map:
+        rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
+        record["map"] = rows
+        weak = weakest_pose(rows)
+        where = ", ".join(f"{v:.3g}" for v in weak["pose"])
+        print(
+            f"weakest of {len(rows)} admissible tilts: pose [{where}]: Ms {weak['Ms']:.2f} "
+            f"({weak['Ms_axis']}), phase margin {weak['phase_margin_deg']:.1f} deg "
+            f"({weak['phase_margin_axis']}), gain margin {weak['gain_margin_db']:.1f} dB "
+            f"({weak['gain_margin_axis']}), spectral radius {weak['spectral_radius']:.4f}"
+        )
+        fig = plot_map(rows, f"{name}: the loop over roll and pitch at Z = {models.x0[5]:g} m")
+        paths.append(out / "map.png")
+        atomic_write(paths[-1], functools.partial(fig.savefig, dpi=100, format="png"))
+    data = json.dumps(record, indent=1, default=float).encode()
+    atomic_write(paths[3], lambda fh: fh.write(data))
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
 #: The coarsest workspace grid whose extents are worth reporting (a step of 1/20 of the box).
 MIN_REPORTED_RESOLUTION = 21
 
@@ -955,6 +1051,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_train_command(sub)
     _add_evaluate_command(sub)
     _add_workspace_command(sub)
+    _add_analyze_command(sub)
     _add_teleop_command(sub)
     _add_diagrams_command(sub)
     _add_sdf_command(sub)
@@ -1328,6 +1425,40 @@ def _add_evaluate_command(sub) -> None:
     )
     ev.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ev.set_defaults(func=_cmd_evaluate, out_sub=("diverged", "rows"))
+
+
+def _add_analyze_command(sub) -> None:
+    """The ``analyze`` command's options."""
+    an = sub.add_parser(
+        "analyze",
+        help="the loop as a control engineer sees it: margins, Ms, Mt, bandwidth, Bode plots",
+    )
+    _add_scenario_arguments(an, "the robot and LQI to analyse")
+    an.add_argument(
+        "--pose",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose linearized at, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    an.add_argument(
+        "--integrator",
+        choices=["sap", "zoh"],
+        default="sap",
+        help="the plant as Drake's SAP steps it (sap) or the continuous robot sampled (zoh)",
+    )
+    an.add_argument(
+        "--map",
+        action="store_true",
+        help="also the margins over roll and pitch (+-0.55 rad, 9 x 9) at the pose's height: "
+        "map.png and the weakest pose",
+    )
+    an.add_argument(
+        "--weights",
+        action="store_true",
+        help="also the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 at the pose",
+    )
+    an.add_argument("--out", default="results/analyze", help="output folder")
+    an.set_defaults(func=_cmd_analyze)
 
 
 def _add_workspace_command(sub) -> None:

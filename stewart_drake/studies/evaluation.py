@@ -106,7 +106,9 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
 
 def _response_figures(result, trajectory) -> dict:
     """A step's settling time, overshoot and trace (400 samples at most), or a sweep's
-    frequency response, -3 dB bandwidth and peak gain; {} for other references."""
+    frequency response (gain and phase), -3 dB bandwidth (None with ``bandwidth_where`` "below
+    the sweep" or "above the sweep" when the sweep does not bracket it, :class:`~.metrics.
+    Bandwidth`) and peak gain; {} for other references."""
     if isinstance(trajectory, StepTrajectory):
         k = trajectory.axis
         err = result.x[:, k] - result.x_d[:, k]
@@ -125,8 +127,10 @@ def _response_figures(result, trajectory) -> dict:
         f, gain, phase = metrics.frequency_response(
             result.t, result.x[:, trajectory.axis], trajectory
         )
+        bandwidth = metrics.bandwidth_hz(f, gain)
         return {
-            "bandwidth_hz": metrics.bandwidth_hz(f, gain),
+            "bandwidth_hz": bandwidth.hz,
+            "bandwidth_where": bandwidth.where,
             "peak_gain_db": float(20 * np.log10(gain.max())) if len(gain) else None,
             "response": {"f": f.tolist(), "gain": gain.tolist(), "phase": phase.tolist()},
         }

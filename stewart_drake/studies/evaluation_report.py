@@ -19,6 +19,7 @@ from ..model.kinematics import AXIS_NAMES, X_HOME
 from ..simulation.plan import make_plan
 from ..simulation.scenario_io import load_scenario
 from ..simulation.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION
+from . import metrics
 from .evaluation_grid import (
     CONDITIONS,
     CONTROLLERS,
@@ -346,24 +347,49 @@ def _helix_table(by: dict, ctrls: list) -> list:
     return L + [""]
 
 
+def _sweep_bandwidth(r) -> metrics.Bandwidth:
+    """The -3 dB bandwidth of a sweep's row, from its stored response (so a row written before
+    the bandwidth said "below the sweep" is read right too)."""
+    return metrics.bandwidth_hz(r["response"]["f"], r["response"]["gain"])
+
+
+def _sweep_range(by: dict) -> tuple[float, float]:
+    """The frequencies the sweeps' responses actually span, Hz (the first segment, the start
+    transient, is dropped: :func:`~.metrics.frequency_response`); (1, 50) when none ran."""
+    fs = [
+        f
+        for (_, ref, _), r in by.items()
+        if ref.startswith("sweep_") and "error" not in r
+        for f in r["response"]["f"]
+    ]
+    return (min(fs), max(fs)) if fs else (1.0, 50.0)
+
+
 def _bandwidth_table(by: dict, ctrls: list) -> list:
     corner_hz = np.sqrt(SWEEP_MAX_ACCELERATION[1] / SWEEP_AMPLITUDE[1]) / (2 * np.pi)
+    f_lo, f_hi = _sweep_range(by)
     L = [
         f"## Bandwidth (sine sweep 1 -> 50 Hz: {1e3 * SWEEP_AMPLITUDE[1]:g} mm on Z, "
         f"{1e3 * SWEEP_AMPLITUDE[0]:g} mrad on phi)",
         "",
-        "-3 dB bandwidth of the pose's response to the reference, Hz (`> 50`: above the sweep), "
-        "and the peak gain, dB. Above "
+        "-3 dB bandwidth of the pose's response to the reference, Hz, and the peak gain, dB. "
+        f"The gain is measured from {f_lo:.3g} to {f_hi:.3g} Hz (the sweep's first two cycles "
+        "are its start transient): `> f (above the sweep)` when the gain never falls below "
+        "-3 dB there, `< f (below the sweep)` when it is already below -3 dB at the first "
+        "frequency. Above "
         f"{corner_hz:.3g} Hz the amplitude falls as 1/f^2 (constant acceleration: "
         f"{SWEEP_MAX_ACCELERATION[1]:.3g} m/s^2, {SWEEP_MAX_ACCELERATION[0]:.3g} rad/s^2), "
-        "what the motors can give.",
+        "what the motors can give. The figure draws each fixed LQI's linear model beside its "
+        "sweep (dotted, friction-free; margins and bandwidths: [analysis.md](analysis.md)): "
+        "where a sweep falls below its model at these small amplitudes, the motors' dry "
+        "friction is why.",
         "",
         "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
         "|---|---|---|---|---|",
     ]
 
     def bw(r):
-        return _fmt(r["bandwidth_hz"]) if r["bandwidth_hz"] is not None else "> 50"
+        return _sweep_bandwidth(r).text()
 
     for c in ctrls:
         rz, rp = by.get((c, "sweep_Z", "nominal")), by.get((c, "sweep_phi", "nominal"))
@@ -658,33 +684,77 @@ def _plot_tradeoff(by: dict, colors: dict):
     return fig
 
 
+def _model_tracking(row: dict, ratio: float, f) -> np.ndarray | None:
+    """(K, 6) complex x_i / x_d,i of the linear model (:mod:`~.loop_analysis`) of the LQI of
+    weight ratio ``ratio`` on the row's base scenario at home, at f (K,) Hz; None when the row
+    names no base, the model cannot be built (a base whose loop is not an LQI's) or its closed
+    loop is unstable."""
+    from ..control.lqi import LqiDriver
+    from ..errors import StewartError
+    from .loop_analysis import loop_models, tracking_response
+
+    base = row.get("case", {}).get("base")
+    if not base:
+        return None
+    try:
+        scenario = load_scenario(base)
+        driver = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
+        driver = driver.with_weights(omega_Q=float(ratio), omega_R=1.0)
+        models = loop_models(scenario, driver=driver)
+        # an unstable linear loop has no frequency response to draw (the sweep ran on friction)
+        return tracking_response(models, f) if models.spectral_radius < 1 else None
+    except (StewartError, OSError):
+        return None
+
+
 def _plot_bandwidth(by: dict, colors: dict):
-    """The frequency responses of the Z and phi sweeps."""
+    """The frequency responses of the Z and phi sweeps: gain (top) and phase (bottom), over
+    the frequencies actually measured, with the linear model's response of each fixed LQI
+    (dotted; :mod:`~.loop_analysis`, friction-free: where the sweep falls below it at small
+    amplitude, the cranks' dry friction is why, docs/analysis.md)."""
     import matplotlib.ticker
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(12, 4.8))
-    axes = fig.subplots(1, 2, sharey=True)
-    for ax, reference in zip(axes, ("sweep_Z", "sweep_phi")):
-        for ratio, r in _by_ratio(by, reference, "nominal").items():
-            if r["response"]["f"]:
-                ax.semilogx(
-                    r["response"]["f"],
-                    20 * np.log10(r["response"]["gain"]),
-                    color=colors[ratio],
-                    lw=1.2,
-                    label=rf"LQI $\omega_Q/\omega_R$ = {ratio:g}",
-                )
-        for label, _, color, r in _others(by, reference):
-            if r["response"]["f"]:
-                ax.semilogx(
-                    r["response"]["f"],
-                    20 * np.log10(r["response"]["gain"]),
-                    color=color,
-                    lw=1.2,
-                    ls="--",
-                    label=label,
-                )
+    fig = Figure(figsize=(12, 7.5))
+    axes = fig.subplots(2, 2, sharex=True, sharey="row", height_ratios=[3, 2])
+    f_lo, f_hi = _sweep_range(by)
+    for col, reference in enumerate(("sweep_Z", "sweep_phi")):
+        ax, ax_phase = axes[0, col], axes[1, col]
+        ratios = _by_ratio(by, reference, "nominal")
+        curves = [
+            (rf"LQI $\omega_Q/\omega_R$ = {ratio:g}", colors[ratio], "-", r)
+            for ratio, r in ratios.items()
+        ] + [(label, color, "--", r) for label, _, color, r in _others(by, reference)]
+        f_model = np.geomspace(f_lo, f_hi, 200)
+        k = 5 if reference == "sweep_Z" else 0
+        for n, (ratio, r) in enumerate(ratios.items()):
+            G = _model_tracking(r, ratio, f_model)
+            if G is None:
+                continue
+            ax.semilogx(
+                f_model,
+                20 * np.log10(np.abs(G[:, k])),
+                color=colors[ratio],
+                lw=0.9,
+                ls=":",
+                label="linear model (same colour), no Coulomb friction" if n == 0 else None,
+            )
+            ax_phase.semilogx(
+                f_model,
+                np.degrees(np.unwrap(np.angle(G[:, k]))),
+                color=colors[ratio],
+                lw=0.9,
+                ls=":",
+            )
+        for label, color, ls, r in curves:
+            f = r["response"]["f"]
+            if not f:
+                continue
+            ax.semilogx(
+                f, 20 * np.log10(r["response"]["gain"]), color=color, lw=1.2, ls=ls, label=label
+            )
+            if "phase" in r["response"]:
+                ax_phase.semilogx(f, np.degrees(r["response"]["phase"]), color=color, lw=1.2, ls=ls)
         ax.axhline(-3, color="k", ls=":", lw=1)
         ax.annotate(
             "-3 dB: the bandwidth is where a gain crosses it",
@@ -695,15 +765,20 @@ def _plot_bandwidth(by: dict, colors: dict):
             fontsize=8,
             ha="left",
         )
-        ax.xaxis.set_major_locator(matplotlib.ticker.FixedLocator([1, 2, 5, 10, 20, 50]))
-        ax.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        ax.set_xlabel("frequency [Hz]")
+        for a in (ax, ax_phase):
+            a.xaxis.set_major_locator(matplotlib.ticker.FixedLocator([1, 2, 5, 10, 20, 50]))
+            a.xaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+            a.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            a.grid(alpha=0.3, which="both")
+        ax_phase.set_xlabel("frequency [Hz]")
         axis = reference.replace("sweep_", "")
-        ax.set_title(f"reference to pose, {axis}: sine sweep 1 to 50 Hz", fontsize=10)
-        ax.grid(alpha=0.3, which="both")
-    axes[0].set_ylabel("gain [dB]")
-    axes[1].legend(fontsize=8, loc="lower left")
+        ax.set_title(
+            f"reference to pose, {axis}: sine sweep measured {f_lo:.2g} to {f_hi:.3g} Hz",
+            fontsize=10,
+        )
+    axes[0, 0].set_ylabel("gain [dB]")
+    axes[1, 0].set_ylabel("phase [deg]")
+    axes[0, 1].legend(fontsize=8, loc="lower left")
     fig.tight_layout()
     return fig
 

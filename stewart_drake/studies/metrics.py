@@ -11,6 +11,8 @@ units throughout.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import InvalidConfigError
@@ -135,13 +137,16 @@ def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
     Each segment spans ``cycles_per_segment`` cycles of the sweep; on it y - offset is fitted by
     least squares with A(t) (a sin(phase) + b cos(phase)) + c, A the sweep's envelope
     (:meth:`~stewart_drake.simulation.trajectories.ChirpTrajectory.envelope`), and the gain is
-    |a + i b|.
+    |a + i b| and the phase arg(a + i b) (y ~ gain A sin(phase of the sweep + phase)).
 
     Args:
         t: (N,) s. y: (N,) the swept axis of the pose. chirp: the
             :class:`~stewart_drake.simulation.trajectories.ChirpTrajectory`.
     Returns:
-        (f (K,) Hz, gain (K,), phase (K,) rad).
+        (f (K,) Hz, gain (K,), phase (K,) rad, unwrapped from segment to segment: negative when
+        y lags the sweep). The first segment is dropped (the start transient), so f starts one
+        segment into the sweep (2.4 Hz for the 1 -> 50 Hz sweep of 8 s): report ``f[0]``, not
+        the sweep's nominal start.
     """
     t = np.asarray(t)
     y = np.asarray(y) - chirp.offset[chirp.axis]
@@ -160,21 +165,65 @@ def frequency_response(t, y, chirp, cycles_per_segment: float = 2.0):
         f.append(float(np.mean(chirp.frequency(t[sel]))))
         gain.append(float(np.hypot(a, b)))
         phase.append(float(np.arctan2(b, a)))
-    return np.array(f), np.array(gain), np.array(phase)
+    return np.array(f), np.array(gain), np.unwrap(np.array(phase))
 
 
-def bandwidth_hz(f, gain):
-    """Lowest frequency where the gain falls below -3 dB (1/sqrt 2), log-interpolated; None if
-    the gain stays above it over the whole sweep."""
-    below = np.flatnonzero(gain < 1 / np.sqrt(2))
+#: What a -3 dB bandwidth is relative to the frequencies measured (:class:`Bandwidth`).
+BANDWIDTH_CROSSING = "crossing"
+BANDWIDTH_BELOW, BANDWIDTH_ABOVE = "below the sweep", "above the sweep"
+
+
+@dataclass(frozen=True)
+class Bandwidth:
+    """A -3 dB bandwidth as a sweep measures it.
+
+    Attributes:
+        hz: the frequency where the gain first falls below -3 dB, log-interpolated between the
+            last point above and the first below, Hz; None when the sweep holds no such pair.
+        where: :data:`BANDWIDTH_CROSSING` (``hz`` is the bandwidth), :data:`BANDWIDTH_BELOW`
+            (the gain is already below -3 dB at the first frequency: the bandwidth, if any, is
+            lower than the sweep), :data:`BANDWIDTH_ABOVE` (the gain never falls below -3 dB:
+            the bandwidth is higher than the sweep).
+        f_min, f_max: the sweep's first and last frequency, Hz (NaN for an empty sweep).
+    """
+
+    hz: float | None
+    where: str
+    f_min: float
+    f_max: float
+
+    def text(self, digits: int = 3) -> str:
+        """ "36.3", "< 2.43 (below the sweep)" or "> 49.4 (above the sweep)"."""
+        if self.where == BANDWIDTH_CROSSING:
+            return f"{self.hz:.{digits}g}"
+        if self.where == BANDWIDTH_BELOW:
+            return f"< {self.f_min:.{digits}g} ({BANDWIDTH_BELOW})"
+        return f"> {self.f_max:.{digits}g} ({BANDWIDTH_ABOVE})"
+
+
+def bandwidth_hz(f, gain) -> Bandwidth:
+    """The -3 dB bandwidth (gain 1/sqrt 2) of a frequency response: the lowest frequency where
+    the gain falls below it, log-interpolated between the last point above and the first below.
+
+    It never names a frequency the sweep did not bracket: a gain already below -3 dB at the
+    sweep's first frequency is "below the sweep", a gain that never falls below it is "above the
+    sweep" (:class:`Bandwidth`).
+
+    Args:
+        f: (K,) increasing frequencies, Hz. gain: (K,) |y / y_d| (linear, not dB).
+    """
+    f, gain = np.asarray(f, dtype=float), np.asarray(gain, dtype=float)
+    f_min, f_max = (float(f[0]), float(f[-1])) if len(f) else (np.nan, np.nan)
+    below = np.flatnonzero(~(gain >= 1 / np.sqrt(2)))  # a NaN gain counts as below
     if len(below) == 0:
-        return None
+        return Bandwidth(None, BANDWIDTH_ABOVE, f_min, f_max)
     k = int(below[0])
     if k == 0:
-        return float(f[0])
-    g0, g1 = np.log(gain[k - 1]), np.log(gain[k])
+        return Bandwidth(None, BANDWIDTH_BELOW, f_min, f_max)
+    g0, g1 = np.log(gain[k - 1]), np.log(max(gain[k], 1e-300))
     w = (np.log(1 / np.sqrt(2)) - g0) / (g1 - g0)
-    return float(np.exp(np.log(f[k - 1]) + w * (np.log(f[k]) - np.log(f[k - 1]))))
+    hz = float(np.exp(np.log(f[k - 1]) + w * (np.log(f[k]) - np.log(f[k - 1]))))
+    return Bandwidth(hz, BANDWIDTH_CROSSING, f_min, f_max)
 
 
 # -- the tuner study's cost ------------------------------------------------------------------------
