@@ -42,14 +42,21 @@ def test_the_verdicts_are_computed_from_the_numbers(tmp_path):
     assert "| a | 40.00 / 55.0 | 4.00 / 19.0 | 10.00x |" in as_built
     assert "- Translation <= 5 um with learning: 1 of 2 motions (missed: b)." in as_built
     assert "- Rotation <= 20 urad with learning: 1 of 2 motions (missed: b)." in as_built
-    assert "missed on b." in as_built
+    assert "- Lower than without learning (translation and rotation): not on b." in as_built
+    # 31 urad against 30: within 1.2 x 30 + one count (48 urad at 2^17 counts at the tip)
+    assert "one encoder count at the crank tip, 5.3 um / 48 urad): met on every" in as_built
     assert "| c | failed: the guard stopped the run" in as_built
     assert "counts_per_rev=524288" in finer.splitlines()[0]  # the robot's overrides shown
     assert "| a | 9.00 / 8.0 | 3.00 / 7.0 | 3.00x |" in finer
-    assert "1 of 1 motions." in finer and "met on every motion." in finer
+    assert "1 of 1 motions." in finer and "on every motion." in finer
     results["b | x"] = _row("b", (10, 30), (4.5, 18.0))
     text = trace_study.tables(results).split(f"#### {fine}")[0]
-    assert "2 of 2 motions." in text and "met on every motion." in text
+    assert (
+        "2 of 2 motions." in text
+        and "Lower than without learning (translation and rotation): on every motion." in text
+    )
+    results["b | x"] = _row("b", (10, 30), (4.5, 90.0))
+    assert "missed on b." in trace_study.tables(results).split(f"#### {fine}")[0]
     # written between its markers, the rest of the page kept
     doc = tmp_path / "page.md"
     doc.write_text("# page\n\nkept\n")
