@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -131,10 +130,11 @@ def time_lag(
     if not np.any(r) or len(t) < 3 * L:
         return math.nan
     inner = a[L : len(t) - L]
+    # Direct sums (2 L + 1 lags): no FFT buffers of twice the run's length, and faster.
     c = sum(
-        correlate(r[:, k], inner[:, k], mode="valid", method="fft") for k in range(a.shape[1])
+        correlate(r[:, k], inner[:, k], mode="valid", method="direct") for k in range(a.shape[1])
     )  # c[j]: achieved late by L - j
-    energy = correlate((r * r).sum(axis=1), np.ones(len(inner)), mode="valid", method="fft")
+    energy = correlate((r * r).sum(axis=1), np.ones(len(inner)), mode="valid", method="direct")
     c = c / np.sqrt(np.maximum(energy, 1e-300))  # the reference's part that was summed
     k = int(np.argmax(c))
     delta = 0.0
@@ -231,18 +231,21 @@ def fidelity(
     Raises:
         InvalidConfigError: fewer than 10 samples in the window, or shapes that differ.
     """
+    # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
+    # slice; the error alone is made, in float64.
     t = np.asarray(t, dtype=float)
-    x = np.asarray(x, dtype=float)[:, :6]
-    x_d = np.asarray(x_d, dtype=float)[:, :6]
+    x = np.asarray(x)[:, :6]
+    x_d = np.asarray(x_d)[:, :6]
     if x.shape != x_d.shape or x.shape[0] != t.size:
         raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
     t0, t1 = (t[0], t[-1]) if window is None else window
-    m = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
-    if np.count_nonzero(m) < 10:
+    i0 = int(np.searchsorted(t, t0 - 1e-9, side="left"))
+    i1 = int(np.searchsorted(t, t1 + 1e-9, side="right"))
+    if i1 - i0 < 10:
         raise InvalidConfigError(f"fewer than 10 samples in the window [{t0:g}, {t1:g}] s")
-    tw, xw, rw = t[m], x[m], x_d[m]
-    e = xw - rw
-    p2p = np.ptp(rw, axis=0)
+    tw, xw, rw = t[i0:i1], x[i0:i1], x_d[i0:i1]
+    e = np.subtract(xw, rw, dtype=float)
+    p2p = np.ptp(rw, axis=0).astype(float)
     moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
     rms = np.sqrt(np.mean(e**2, axis=0))
     peak = np.abs(e).max(axis=0)
@@ -293,7 +296,7 @@ def fidelity(
             c = (t >= a - 1e-9) & (t < b - 1e-9)
             if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or np.count_nonzero(c) < 10:
                 continue
-            ec = x[c] - x_d[c]
+            ec = np.subtract(x[c], x_d[c], dtype=float)
             ct, cr = rms_translation_rotation(ec)
             cycles["starts"].append(float(a))
             cycles["rms_translation_m"].append(ct)
@@ -441,24 +444,20 @@ def run(
 
     The learner's log ends with its state at the end of the run (the loggers' last sample is
     one period earlier: the update of a cycle's last sample would otherwise be missing)."""
-    from ..simulation import guard
-    from .experiments import advance, build_simulator, collect_result
+    from .experiments import build_simulator, finish_result, simulate
 
     sd, simulator = build_simulator(scenario, reference=reference, progress=progress, report=report)
-    wall0 = time.perf_counter()
-    guard.advance(
-        sd, simulator, lambda: advance(simulator, scenario.duration_s, progress, desc=desc)
-    )
-    wall = time.perf_counter() - wall0
-    context = simulator.get_context()
-    result = collect_result(sd, context, wall)
+    logs, wall = simulate(sd, simulator, progress, desc)
     learner = None
     if sd.learner is not None:
+        context = simulator.get_context()
         log = sd.loggers["ilc_status"].FindLog(context).data().T
         final = sd.learner.GetOutputPort("ilc_status").Eval(
             sd.learner.GetMyContextFromRoot(context)
         )
         learner = np.vstack([log, final])
+    del sd, simulator  # the reference tables go before the result's arrays are made
+    result = finish_result(logs, wall)
     return result, learner, wall
 
 
