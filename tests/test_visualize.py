@@ -302,7 +302,9 @@ def test_control_loop_picture_shows_the_ports_in_use_only():
     assert (
         dot.count(" -> ")
         == sum(
-            1 for (dst, _) in sd.diagram.connection_map() if type(dst).__name__ != "VectorLogSink"
+            1
+            for (dst, _) in sd.diagram.connection_map()
+            if type(dst).__name__ not in ("VectorLogSink", "SignalLog")
         )
         + 1
     )

@@ -47,6 +47,15 @@ class ReferenceSources:
     t_eval: np.ndarray
     T_ff_table: np.ndarray
 
+    def release(self) -> None:
+        """Drop the tables once the run is over and read (its feed-forward at the log times
+        taken): a Drake Diagram holding Python systems outlives its last Python reference
+        (pydrake's keep-alive links form a cycle the collector cannot see), so a long run's
+        tables would stay until the process ends. The sources cannot output after this."""
+        self.x_d.release()
+        self.T_ff.release()
+        self.t_sample = self.t_eval = self.T_ff_table = np.zeros(0)
+
 
 #: Samples :func:`sample_reference` computes at once (5 s at 1 kHz): the inverse kinematics and
 #: the feed-forward's intermediates take about 2.5 kB a sample; the tables kept, 0.2 kB.
@@ -173,6 +182,11 @@ class TableHold(LeafSystem):
         self.DeclareVectorOutputPort(
             "y", first.shape[1], self._Calc, prerequisites_of_calc={self.time_ticket()}
         )
+
+    def release(self) -> None:
+        """Drop the table, the stretch in use and the breaks (:meth:`ReferenceSources.release`)."""
+        self.table = self._block = self._rows = None
+        self.breaks = np.zeros(0)
 
     def row(self, k: int) -> np.ndarray:
         """Row k of the table."""

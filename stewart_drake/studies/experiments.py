@@ -119,8 +119,8 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
 #: before anything is logged, Python, Drake, the plant and the compiled controller (0.36 GB);
 #: per logged sample the float32 logs (0.16 kB: pose and rate, torques, the controller's
 #: status, integral and error), the result's reference and feed-forward (0.1 kB) and the
-#: report's intermediates (0.17 kB; the Simulator and its reference go before the result's
-#: arrays are made); per control period the feed-forward table and the sample times (0.07 kB:
+#: report's intermediates (0.17 kB; the reference's tables go before the result's arrays are
+#: made); per control period the feed-forward table and the sample times (0.07 kB:
 #: the reference itself is evaluated a stretch at a time, and checked so); per plant-state
 #: sample (every ``state_log_period_s``) its 86 float64 and time (0.7 kB). Upper bounds with
 #: some slack:
@@ -270,7 +270,7 @@ def run_experiment(
         scenario, meshcat, reference=reference, controller=controller, progress=progress
     )
     logs, wall = simulate(sd, simulator, progress)
-    del sd, simulator  # the reference tables go before the result's arrays are made
+    release_reference(sd)
     return finish_result(logs, wall)
 
 
@@ -306,7 +306,7 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
 class RunLogs:
     """What :func:`read_run` takes from a simulated Diagram: the :class:`RunResult` without its
     reference and metrics, the reference object, and the first contact (None without contact
-    or with none seen). The Diagram, its reference tables and Simulator can go after it."""
+    or with none seen). The reference's tables can go after it (:func:`release_reference`)."""
 
     result: RunResult
     trajectory: object
@@ -318,8 +318,8 @@ def read_run(sd: StewartDiagram, root_context) -> RunLogs:
     """The logs of a simulated Diagram as a :class:`RunLogs`: the signals are views of the logs
     (no copy), the feed-forward is read from the reference's table, the loop closure from the
     logged plant states; the reference's pose at the log times is left to
-    :func:`finish_result`, so that a caller can drop the Diagram (its reference tables, 0.2 kB
-    per control period) before that array is made."""
+    :func:`finish_result`, so that a caller can drop the reference's tables
+    (:func:`release_reference`, 0.1 kB per control period) before that array is made."""
     logs = {name: logger.FindLog(root_context) for name, logger in sd.loggers.items()}
     t = logs["x"].sample_times()
     state = logs["state"].data().T
@@ -366,6 +366,14 @@ def finish_result(logs: RunLogs, wall_s: float) -> RunResult:
             else {"t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
         )
     return result
+
+
+def release_reference(sd: StewartDiagram) -> None:
+    """Drop a run's reference tables once it is read (:func:`read_run`), before its result's
+    arrays are made (:meth:`~stewart_drake.simulation.reference.ReferenceSources.release`):
+    the Diagram cannot run again."""
+    if isinstance(sd.reference, ReferenceSources):
+        sd.reference.release()
 
 
 def simulate(
