@@ -94,10 +94,10 @@ def test_a_table_of_rows_made_a_stretch_at_a_time_is_the_zero_order_hold_of_the_
 def test_the_estimate_before_a_run_covers_what_a_run_holds(short_run):
     """The pre-run estimate grows per simulated second by more than a run holds per second
     (its result, which shares the logs' arrays, and the feed-forward table), with room for the
-    report's intermediates; and for a 25-minute trace at 1 kHz it is at least the 1 GB its
-    reproduction was measured to stay under."""
+    report's intermediates; and for a 25-minute trace at 1 kHz it is at least the 1.06 GB its
+    reproduction was measured to peak at."""
     scenario, sd, _, result = short_run
     slope = run_memory_bytes(Scenario(duration_s=2.0)) - run_memory_bytes(Scenario(duration_s=1.0))
     held = (result.nbytes() + sd.reference.T_ff_table.nbytes) / DURATION_S
     assert 1.5 * held < slope < 4 * held, (slope, held)
-    assert 1.0e9 <= run_memory_bytes(Scenario(duration_s=1500.0)) < 2e9
+    assert 1.1e9 <= run_memory_bytes(Scenario(duration_s=1500.0)) < 2e9

@@ -115,15 +115,16 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
 
 
 #: Memory a run holds, bytes, measured as the peak RSS of ``stewart-drake reproduce`` on
-#: recorded traces of 1 and 25 minutes at 1 kHz (the robot as built, logs every millisecond):
-#: before anything is logged, Python, Drake, the plant and the compiled controller (0.36 GB);
-#: per logged sample the float32 logs (0.16 kB: pose and rate, torques, the controller's
-#: status, integral and error), the result's reference and feed-forward (0.1 kB) and the
-#: report's intermediates (0.17 kB; the reference's tables go before the result's arrays are
-#: made); per control period the feed-forward table and the sample times (0.07 kB:
-#: the reference itself is evaluated a stretch at a time, and checked so); per plant-state
-#: sample (every ``state_log_period_s``) its 86 float64 and time (0.7 kB). Upper bounds with
-#: some slack:
+#: synthetic phantom traces of 1 and 25 minutes at 1 kHz (the robot as built, logs every
+#: millisecond): 0.40 GB before anything is logged (Python, Drake, the plant, the compiled
+#: controller, the reference's check) and 0.44 kB per logged sample all told (1.06 GB for 25
+#: minutes; 1.76 kB and 3.2 GB before the logs were sized for the run). Of a sample: the
+#: float32 logs (0.16 kB: pose and rate, torques, the controller's status, integral and error),
+#: the plant state every ``state_log_period_s`` (61 float64 every 10 ms: 0.05 kB a
+#: millisecond), the feed-forward table and sample times (0.07 kB a control period: the
+#: reference itself is evaluated a stretch at a time, and the tables are dropped once the run
+#: is read), the result's reference and feed-forward (0.1 kB) and the report's intermediates
+#: (0.08 kB). Upper bounds with some slack:
 RUN_BASE_BYTES = 0.4e9
 LOG_BYTES_PER_SAMPLE = 0.5e3
 CONTROL_BYTES_PER_SAMPLE = 0.15e3
