@@ -385,3 +385,47 @@ def test_a_long_run_s_figure_zooms_at_full_rate_on_its_largest_error(tmp_path, m
     assert ts[0] == pytest.approx(78.4, abs=2e-3) and ts[-1] == pytest.approx(88.4, abs=2e-3)
     assert ts.size == pytest.approx(10_001, abs=2)  # full rate
     assert max(line.get_ydata()) == pytest.approx(200.0, rel=0.02)  # the spike, in um
+
+
+def test_reproduce_writes_its_replay_with_the_reference_s_ghost_and_the_error(tmp_path, capsys):
+    """``reproduce --html``: the robot from the run's plant-state log (every 10 ms), the
+    reference's ghost at the trace's pose in every frame, and the error marker coloured against
+    the tolerance."""
+    from meshcat_html import read_meshcat_commands
+
+    from stewart_drake.interfaces import visualize
+
+    t = np.arange(0.0, 4.0, 0.04)
+    trace = tmp_path / "short trace.txt"
+    rows = np.column_stack([t, 0 * t, 3.0 * np.sin(np.pi * t / 2), 0 * t, 0 * t, 0 * t, 0 * t])
+    trace.write_text("\n".join(" ".join(f"{v:.5g}" for v in r) for r in rows))
+    html = tmp_path / "replay.html"
+    out, _ = _run(
+        capsys,
+        ["reproduce", str(trace), "--duration", "2", "--out", str(tmp_path), "--html", str(html)],
+    )
+    assert f"wrote {html}" in out
+    text = html.read_text()
+    assert "blue ghost: the reference" in text and "PASS: RMS error per axis" in text
+    (animation,) = [c for c in read_meshcat_commands(text) if c["type"] == "set_animation"]
+    clips = {a["path"]: a["clip"] for a in animation["animations"]}
+    ghost = {k["name"]: k["keys"] for k in clips[visualize.GHOST_PATH]["tracks"]}
+    n_frames = int(2.0 * visualize.REPLAY_FPS) + 1
+    assert [k["time"] for k in ghost[".position"]] == list(range(n_frames))
+    # The trace's SI (platform X, 3 mm amplitude) moves the ghost: 2 s is half a period.
+    x = np.array([k["value"][0] for k in ghost[".position"]])
+    assert 2e-3 < np.ptp(x) < 7e-3
+    marker = {k["name"]: k["keys"] for k in clips[visualize.ERROR_MARKER_PATH]["tracks"]}
+    np.testing.assert_allclose(
+        [k["value"][2] for k in marker[".position"]],
+        [k["value"][2] + visualize.ERROR_MARKER_HEIGHT_M for k in ghost[".position"]],
+        atol=1e-12,
+    )
+    # Its colour changes with the error (recorded where it changes), one of the three.
+    (track,) = clips[visualize.ERROR_MARKER_PATH + "/<object>"]["tracks"]
+    assert track["name"] == ".color" and track["keys"][0]["time"] == 0
+    for key in track["keys"]:
+        assert any(np.allclose(key["value"], rgba) for rgba in visualize.ERROR_COLOURS)
+    assert visualize.error_colour(40e-6, 1e-4) == visualize.ERROR_COLOURS[0]
+    assert visualize.error_colour(60e-6, 1e-4) == visualize.ERROR_COLOURS[1]
+    assert visualize.error_colour(math.nan, 1e-4) == visualize.ERROR_COLOURS[2]

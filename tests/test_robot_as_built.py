@@ -361,6 +361,7 @@ def _push_run(contact: bool):
             f"contact={str(contact).lower()}",
             "duration_s=0.6",
             "guard.max_tracking_error=[1.0, 0.2]",
+            "state_log_period_s=0.001",  # every state: the deepest contact
         ],
     )
     scenario.reference = SineReference(offset=list(NEAR_HUB))

@@ -452,7 +452,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     )
     assert rc == 2 and len(err) == 1 and time.monotonic() - t0 < 10
     assert re.search(
-        rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 3 GB "
+        rf"a run of 0.1 s logged every 0.001 s on the reference {path}: about 3.4 GB "
         rf"of memory needed, more than the 2 GB available on this machine; .*sample "
         rf"the reference CSV more coarsely",
         err[0],

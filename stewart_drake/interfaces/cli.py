@@ -525,6 +525,8 @@ def _cmd_reproduce(args) -> int:
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
     feedforward = _feedforward_choice(args, scenario)
+    if args.html is not None:
+        check_output(args.html, "--html", is_file=True)
     rep = reproduce(
         scenario,
         learn_cycles=args.learn_cycles,
@@ -554,6 +556,13 @@ def _cmd_reproduce(args) -> int:
     ok, line = verdict(fid, tolerance)
     print(line)
     print(f"wrote {md}, {png} and {js}")
+    if args.html:  # the run's plant-state log, replayed with the reference's ghost
+        from ..simulation.plan import make_plan
+        from .visualize import reproduction_html
+
+        geometry = make_plan(scenario, with_reference=False).plant_geometry
+        html = reproduction_html(rep, geometry, args.html, tolerance)
+        print(f"wrote {html} (Meshcat replay with the reference's ghost and the error)")
     return 0 if ok else 2
 
 
@@ -1315,6 +1324,13 @@ def _add_reproduce_command(sub) -> None:
         help="s to run a trace that has no cycles (default: its length)",
     )
     rp.add_argument("--out", default="results/reproduce", help="report folder")
+    rp.add_argument(
+        "--html",
+        default=None,
+        metavar="FILE.html",
+        help="also write a standalone Meshcat replay of the run to this file: the reference "
+        "as a ghost, a marker coloured by the tracking error (default: none)",
+    )
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
 

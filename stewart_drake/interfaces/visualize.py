@@ -146,9 +146,11 @@ def record_states(
     fps: float = REPLAY_FPS,
     clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
     x_d=None,
+    error=None,
 ) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
-    where two parts touch and, given ``x_d``, the reference's ghost.
+    where two parts touch and, given ``x_d``, the reference's ghost (and given ``error``, a
+    marker above it coloured by the tracking error).
 
     A fresh plant of ``geometry`` (same joint order as the simulated one) with a
     ``MeshcatVisualizer`` of role illustration (no proximity or inertia visuals) is set to the
@@ -157,7 +159,9 @@ def record_states(
     ``clearance_m`` (:mod:`~stewart_drake.model.clearance`) get a marker between their closest
     points, red where they touch or overlap, orange where they are only close (at most
     :data:`CONTACT_MARKERS` at a time, the closest pairs). With ``x_d`` the reference's ghost
-    (:func:`add_reference_ghost`) is at ``x_d`` of the same log sample in every frame.
+    (:func:`add_reference_ghost`) is at ``x_d`` of the same log sample in every frame; with
+    ``error`` too, a sphere :data:`ERROR_MARKER_HEIGHT_M` above the ghost shows that sample's
+    error against the tolerance (:func:`error_colour`).
 
     Args:
         meshcat: a pydrake ``Meshcat``.
@@ -167,10 +171,12 @@ def record_states(
         fps: frames per s of the animation.
         clearance_m: parts closer than this are marked, m.
         x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
+        error: ((N,) translation error at the same samples, m; tolerance, m), or None (no
+            marker; needs ``x_d``).
     Returns:
         the number of frames recorded.
     Raises:
-        InvalidConfigError: states or x_d do not fit the plant and t, or bad ``fps``.
+        InvalidConfigError: states, x_d or error do not fit the plant and t, or bad ``fps``.
     """
     # Long for its docstring; the per-frame markers are _mark_contacts.
     from pydrake.geometry import MeshcatVisualizer, MeshcatVisualizerParams, Role
@@ -195,6 +201,10 @@ def record_states(
                 f"x_d must be (N, >= 6) with N = len(t) = {np.size(t)}, got {x_d.shape}: pass "
                 f"the reference logged with the states"
             )
+    if error is not None and np.shape(error[0]) != (np.size(t),):
+        raise InvalidConfigError(
+            f"error must be (N,) with N = len(t) = {np.size(t)}, got {np.shape(error[0])}"
+        )
     frame_times, idx = frame_indices(t, fps)
     params = MeshcatVisualizerParams()
     params.role = Role.kIllustration
@@ -208,6 +218,8 @@ def record_states(
     meshcat.SetProperty("/Axes", "visible", False)  # the world triad would hide the base
     markers = _contact_markers(meshcat)
     ghost = add_reference_ghost(meshcat, geometry) if x_d is not None else None
+    marker = _error_marker(meshcat) if error is not None and ghost is not None else None
+    colour = None
     model = clearance_model(geometry)
     visualizer.StartRecording()
     animation = visualizer.get_mutable_recording()
@@ -222,10 +234,47 @@ def record_states(
             animation, k, markers, shown, model.contacts(None, clearance_m, q=states[i, :nq])
         )
         if ghost is not None:
-            animation.SetTransform(k, ghost, ghost_transform(x_d[i]))
+            X_WE = ghost_transform(x_d[i])
+            animation.SetTransform(k, ghost, X_WE)
+        if marker is not None:
+            from pydrake.math import RigidTransform
+
+            p = X_WE.translation() + np.array([0.0, 0.0, ERROR_MARKER_HEIGHT_M])
+            animation.SetTransform(k, marker, RigidTransform(p))
+            new = error_colour(float(error[0][i]), float(error[1]))
+            if new != colour:  # only changes are recorded
+                animation.SetProperty(k, marker + "/<object>", "color", list(new))
+                colour = new
     visualizer.StopRecording()
     visualizer.PublishRecording()
     return len(frame_times)
+
+
+#: Meshcat path of the tracking error's marker, and its height above the reference's ghost, m.
+ERROR_MARKER_PATH = "/drake/tracking_error"
+ERROR_MARKER_HEIGHT_M = 0.06
+#: The error marker's colours (RGBA): within half the tolerance, within it, beyond it.
+ERROR_COLOURS = (
+    (0.1, 0.75, 0.2, 0.9),
+    (1.0, 0.75, 0.0, 0.9),
+    (0.9, 0.1, 0.1, 0.9),
+)
+
+
+def error_colour(error_m: float, tolerance_m: float) -> tuple:
+    """The error marker's colour (:data:`ERROR_COLOURS`): green for an error at most half the
+    tolerance, amber up to the tolerance, red beyond it (and for an error that is not finite)."""
+    if error_m <= 0.5 * tolerance_m:
+        return ERROR_COLOURS[0]
+    return ERROR_COLOURS[1] if error_m <= tolerance_m else ERROR_COLOURS[2]
+
+
+def _error_marker(meshcat) -> str:
+    """The tracking error's marker (a 6 mm sphere), drawn green; returns its path."""
+    from pydrake.geometry import Rgba, Sphere
+
+    meshcat.SetObject(ERROR_MARKER_PATH, Sphere(0.006), Rgba(*ERROR_COLOURS[0]))
+    return ERROR_MARKER_PATH
 
 
 #: How many pairs of close parts a replay marks at once (the closest ones).
@@ -256,9 +305,20 @@ def offline_meshcat():
     return Meshcat(MeshcatParams(host="localhost", port=0))
 
 
-def write_static_html(meshcat, path: str | Path) -> Path:
-    """Save ``meshcat.StaticHtml()`` (viewer JS + scene + animation inlined) atomically."""
+def write_static_html(meshcat, path: str | Path, caption: str = "") -> Path:
+    """Save ``meshcat.StaticHtml()`` (viewer JS + scene + animation inlined) atomically, with
+    ``caption`` (plain text, escaped; lines kept) in a box over the top left of the view."""
+    import html as html_text
+
     html = meshcat.StaticHtml()
+    if caption:
+        box = (
+            '<div id="stewart-caption" style="position:fixed;top:8px;left:8px;z-index:10;'
+            "max-width:46em;padding:6px 9px;background:rgba(255,255,255,0.85);"
+            'font:12px sans-serif;white-space:pre-line;pointer-events:none">'
+            f"{html_text.escape(caption)}</div>"
+        )
+        html = html.replace("<body>", "<body>\n" + box, 1)
     path = Path(path)
     atomic_write(path, lambda f: f.write(html.encode("utf-8")))
     return path
@@ -301,12 +361,52 @@ def record_html(
     wall = time.perf_counter() - wall0
     context = simulator.get_context()
     result = collect_result(sd, context, wall)
-    log = sd.loggers["state"].FindLog(context)
     meshcat = meshcat if meshcat is not None else offline_meshcat()
-    record_states(
-        meshcat, sd.plan.plant_geometry, log.sample_times(), log.data().T, fps, x_d=result.x_d
-    )
+    x_d = np.concatenate(sd.trajectory.evaluate(result.t_state), axis=1)
+    record_states(meshcat, sd.plan.plant_geometry, result.t_state, result.state, fps, x_d=x_d)
     return result, write_static_html(meshcat, path)
+
+
+def reproduction_html(
+    rep, geometry, path: str | Path, tolerance: tuple, fps: float = REPLAY_FPS, meshcat=None
+) -> Path:
+    """Write the 3-D replay of a reproduction (``stewart-drake reproduce --html``) as a
+    standalone HTML file: the robot from the run's plant-state log (every
+    ``state_log_period_s``), the reference as a ghost, a marker above the ghost coloured by the
+    translation error of that instant against the tolerance (:func:`error_colour`), and a caption
+    with the motion, the verdict and the colours' meaning.
+
+    Args:
+        rep: the :class:`~stewart_drake.studies.fidelity.Reproduction`.
+        geometry: the robot that was simulated (the plan's ``plant_geometry``).
+        path: the .html to write. tolerance: (m, rad) the report's tolerance.
+        fps: frames per s. meshcat: a Meshcat to record into (default: :func:`offline_meshcat`).
+    Returns:
+        the path written.
+    Raises:
+        InvalidConfigError: a result without its plant-state log (a file saved before it had
+            one).
+    """
+    from ..studies.fidelity import verdict
+
+    r = rep.result
+    if r.state is None:
+        raise InvalidConfigError(
+            "this result has no plant-state log to replay: run the reproduction again"
+        )
+    x_d = np.concatenate(rep.reference.evaluate(r.t_state), axis=1)
+    # The translation error at each state sample, from the pose log at the same instant.
+    j = np.clip(np.searchsorted(r.t, r.t_state - 1e-9), 0, r.t.size - 1)
+    e = np.linalg.norm(np.subtract(r.x[j, 3:6], r.x_d[j, 3:6], dtype=float), axis=1)
+    meshcat = meshcat if meshcat is not None else offline_meshcat()
+    record_states(meshcat, geometry, r.t_state, r.state, fps, x_d=x_d, error=(e, tolerance[0]))
+    tol_um = tolerance[0] * 1e6
+    caption = (
+        f"{rep.name}: {verdict(rep.fidelity, tolerance)[1]}\n"
+        f"blue ghost: the reference; the sphere above it: the translation error at that "
+        f"instant, green <= {0.5 * tol_um:.3g} um, amber <= {tol_um:.3g} um, red beyond"
+    )
+    return write_static_html(meshcat, path, caption)
 
 
 # -- pictures of the Diagram --------------------------------------------------------------------
@@ -393,7 +493,7 @@ def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str
         )
 
     for (dst, i), (src, j) in diagram.connection_map().items():
-        if type(dst).__name__ == "VectorLogSink":
+        if type(dst).__name__ in ("VectorLogSink", "SignalLog"):
             continue
         out, inp = src.get_output_port(j), dst.get_input_port(i)
         edge(

@@ -33,6 +33,7 @@ from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_reference_sources
 from .scenario import Scenario, dump_scenario
 from .sensors import PlatformPoseSensor, add_white_noise
+from .signal_log import SignalLog
 from .station import StewartStation
 
 
@@ -151,10 +152,12 @@ def make_stewart_diagram(
             ``scenario.reference`` and ``duration_s`` are
             then not used (``trajectory`` is None).
     Returns:
-        :class:`StewartDiagram`; loggers (``LogVectorOutput``) keyed "state" (plant state),
-        "T" (applied torques, 6), and when the controller has them "status", "integral",
-        "e_bar" (the error the controller acted on: its estimate, on the hardware), and with the
-        tuner "rho" (12, every tuner period).
+        :class:`StewartDiagram`; loggers (each with Drake's ``FindLog(context)``) keyed "x"
+        (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
+        has them "status", "integral", "e_bar" (the error the controller acted on: its
+        estimate, on the hardware), every ``log_period_s`` in float32
+        (:class:`~.signal_log.SignalLog`); "state" (the plant state, float64) every
+        ``state_log_period_s``; with the tuner "rho" (12, every tuner period).
     Raises:
         InvalidConfigError: a scenario field out of range, a controller that breaks the contract
             (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
@@ -206,7 +209,7 @@ def make_stewart_diagram(
             duration_s=scenario.duration_s,
         ),
     )
-    loggers.update(_add_loggers(builder, station, system, outputs, scenario.log_period_s))
+    loggers.update(_add_loggers(builder, station, system, outputs, scenario))
     if learner is not None:
         for name in (learner.status_port, "x_d_correction"):
             loggers[name] = LogVectorOutput(
@@ -409,17 +412,39 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
 
 
 def _add_loggers(
-    builder, station: StewartStation, system: System, outputs: set, period_s: float
+    builder, station: StewartStation, system: System, outputs: set, scenario: Scenario
 ) -> dict:
-    """Loggers every ``period_s``: the applied torques "T", the plant's "state", and the
-    controller's "status", "integral", "e_bar" when it has them."""
-    loggers = {
-        "T": LogVectorOutput(station.GetOutputPort("motor_torque_applied"), builder, period_s),
-        "state": LogVectorOutput(station.GetOutputPort("plant_state"), builder, period_s),
+    """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
+    true platform pose and rate "x", the applied torques "T" and the controller's "status",
+    "integral", "e_bar" when it has them; every ``state_log_period_s`` the plant's "state" in
+    float64 (a replay's frames, the loop-closure error, a divergence record)."""
+    signals = {
+        "x": (station.GetOutputPort("platform_state"), np.float32),
+        "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
     }
     for name in ("status", "integral", "e_bar"):
         if name in outputs:
-            loggers[name] = LogVectorOutput(system.GetOutputPort(name), builder, period_s)
+            signals[name] = (system.GetOutputPort(name), np.float32)
+    loggers = {}
+    for log_name, period, group in (
+        ("log_signals", scenario.log_period_s, signals),
+        (
+            "log_state",
+            scenario.state_log_period_s,
+            {"state": (station.GetOutputPort("plant_state"), np.float64)},
+        ),
+    ):
+        log = builder.AddNamedSystem(
+            log_name,
+            SignalLog(
+                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
+                period,
+                scenario.duration_s,
+            ),
+        )
+        for name, (port, _) in group.items():
+            builder.Connect(port, log.GetInputPort(name))
+            loggers[name] = log.logger(name)
     return loggers
 
 

@@ -380,18 +380,20 @@ def save_divergence(sd, root, reason: str) -> Path:
 
     The ``.npz`` holds: t (N,), x (N, 12) true pose and rate, T (N, 6) applied torques
     (after the torque limit), the controller's other logs (status, integral) and rho when
-    tuned, state (N, n) logged plant states, x_d (N, 18) the reference at t (when it can be
-    evaluated), t_last (s) and state_last (n,) the plant state when the run stopped, T_last
-    (6,) the last command and T_applied_last (6,) what the motors applied, reason (str) and
+    tuned, t_state (M,) and state (M, n) the plant states logged every ``state_log_period_s``,
+    x_d (N, 18) the reference at t (when it can be evaluated), t_last (s) and state_last (n,)
+    the plant state when the run stopped, T_last (6,) the last command and T_applied_last (6,)
+    what the motors applied, reason (str) and
     scenario (the whole scenario as YAML, ``sd.scenario_yaml()``: robot, payload, torque limit,
     feed-forward, controller, noise...).
     Returns:
         the path written.
     """
     logs = {name: logger.FindLog(root) for name, logger in sd.loggers.items()}
-    t = logs["state"].sample_times().copy()
+    t = logs["x"].sample_times().copy()
     arrays = {
         "t": t,
+        "t_state": logs["state"].sample_times().copy(),
         "t_last": np.float64(root.get_time()),
         "state_last": sd.plant.GetMyContextFromRoot(root)
         .get_discrete_state_vector()
@@ -407,10 +409,6 @@ def save_divergence(sd, root, reason: str) -> Path:
     }
     for name, log in logs.items():
         arrays[name] = log.data().T.copy()
-    try:
-        arrays["x"] = sd.sensor.poses_from_states(arrays["state"])  # true pose, as metrics
-    except Exception:  # noqa: BLE001 - a NaN quaternion must not lose the file
-        arrays["x"] = np.full((len(t), 12), np.nan)
     try:
         arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
     except Exception:  # noqa: BLE001 - the reference itself may be the fault

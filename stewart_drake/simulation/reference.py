@@ -3,10 +3,13 @@
 The reference x_d(t) is known before the run, and so is the feed-forward torque that holds (or
 drives) the platform along it. Evaluating both in Python at every 1 ms control step cost about a
 third of the wall time of a run (IK, Jacobian and gravity gradient per step), so
-:func:`add_reference_sources` evaluates them once, vectorized over the whole run, and puts them in
-the Diagram as Drake ``TrajectorySource`` systems holding a piecewise-constant trajectory (a
-``BsplineTrajectory`` of order 1: a zero-order hold that keeps one vector per step, about 0.2 kB,
-where a ``PiecewisePolynomial.ZeroOrderHold`` keeps a polynomial object per entry, 3.3 kB a step).
+:func:`add_reference_sources` evaluates them vectorized, and puts them in the Diagram as
+:class:`TableHold` systems: zero-order holds that read the row for the current step. The
+feed-forward (IK, dynamics) is computed once for the whole run and kept as a numpy table (48 B a
+step); the reference itself, cheap to evaluate, a stretch of :data:`SAMPLE_CHUNK` rows at a time,
+so a long run holds no row of it per step (Drake's ``TrajectorySource`` of a
+``BsplineTrajectory`` of order 1 kept about 0.5 kB a step for the two, and a
+``PiecewisePolynomial.ZeroOrderHold`` a polynomial object per entry, 3.3 kB a step).
 The controller samples mid-interval (at k h + offset, 0 < offset < h), so each sample reads
 exactly the value stored for step k, never its neighbour's, whatever the rounding of t.
 """
@@ -17,8 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import BsplineBasis
-from pydrake.systems.framework import LeafSystem
-from pydrake.systems.primitives import TrajectorySource
+from pydrake.systems.framework import BasicVector, LeafSystem
 from pydrake.trajectories import BsplineTrajectory
 
 from ..errors import InvalidConfigError
@@ -32,18 +34,27 @@ class ReferenceSources:
     """The two sources :func:`add_reference_sources` added, and the tables behind them.
 
     Attributes:
-        x_d: TrajectorySource, output (18,) [pose, rate, acceleration] of the reference.
-        T_ff: TrajectorySource, output (6,) feed-forward motor torques, N m.
+        x_d: :class:`TableHold`, output (18,) [pose, rate, acceleration] of the reference,
+            its rows evaluated a stretch at a time (:data:`SAMPLE_CHUNK`).
+        T_ff: :class:`TableHold`, output (6,) feed-forward motor torques, N m.
         t_sample: (N,) controller sample instants, s.  t_eval: (N,) the times the reference was
-        evaluated at (t_sample + lead).  x_d_table: (N, 18).  T_ff_table: (N, 6).
+        evaluated at (t_sample + lead).  T_ff_table: (N, 6).
     """
 
-    x_d: TrajectorySource
-    T_ff: TrajectorySource
+    x_d: TableHold
+    T_ff: TableHold
     t_sample: np.ndarray
     t_eval: np.ndarray
-    x_d_table: np.ndarray
     T_ff_table: np.ndarray
+
+    def release(self) -> None:
+        """Drop the tables once the run is over and read (its feed-forward at the log times
+        taken): a Drake Diagram holding Python systems outlives its last Python reference
+        (pydrake's keep-alive links form a cycle the collector cannot see), so a long run's
+        tables would stay until the process ends. The sources cannot output after this."""
+        self.x_d.release()
+        self.T_ff.release()
+        self.t_sample = self.t_eval = self.T_ff_table = np.zeros(0)
 
 
 #: Samples :func:`sample_reference` computes at once (5 s at 1 kHz): the inverse kinematics and
@@ -60,6 +71,7 @@ def sample_reference(
     lead_s: float,
     feedforward: str = "gravity",
     feedforward_lead_s: float = 0.0,
+    keep_x_d: bool = True,
 ):
     """Reference and feed-forward at the sample instants t_k = k h + offset, k = 0..N.
 
@@ -67,9 +79,11 @@ def sample_reference(
         feedforward_lead_s: the feed-forward is that of the reference this much later than
             x_d (s): with a computation delay the torque computed now acts one delay later, so
             it should hold (or drive) the platform where the reference will be then.
+        keep_x_d: return the reference's table (False: None, for a caller that evaluates it
+            a stretch at a time, :func:`reference_rows`, 0.14 kB a sample less).
     Returns:
-        (t_sample (N,), t_eval (N,), x_d (N, 18), T_ff (N, 6)) with t_eval = t_sample + lead_s,
-        covering [0, duration_s] plus one period.
+        (t_sample (N,), t_eval (N,), x_d (N, 18) or None, T_ff (N, 6)) with t_eval = t_sample +
+        lead_s, covering [0, duration_s] plus one period.
     Raises:
         InvalidConfigError: non-positive period or duration; UnreachablePoseError (naming the time
         and leg) if the reference leaves the workspace.
@@ -79,7 +93,7 @@ def sample_reference(
     n = int(np.ceil(duration_s / period_s)) + 2
     t_sample = np.arange(n) * period_s + offset_s
     t_eval = t_sample + lead_s
-    x_d, T_ff = np.empty((n, 18)), np.empty((n, 6))
+    x_d, T_ff = (np.empty((n, 18)) if keep_x_d else None), np.empty((n, 6))
     for start in range(0, n, SAMPLE_CHUNK):  # the intermediates of a stretch at a time
         part = slice(start, start + SAMPLE_CHUNK)
         x, xd, xdd = trajectory.evaluate(t_eval[part])
@@ -92,8 +106,20 @@ def sample_reference(
             )
         else:
             T_ff[part] = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
-        x_d[part] = np.concatenate([x, xd, xdd], axis=1)
+        if x_d is not None:
+            x_d[part] = np.concatenate([x, xd, xdd], axis=1)
     return t_sample, t_eval, x_d, T_ff
+
+
+def reference_rows(trajectory, t_eval: np.ndarray):
+    """rows(a, b) -> (b - a, 18) [pose, rate, acceleration] of ``trajectory`` at t_eval[a:b]:
+    the rows of :func:`sample_reference`'s table, the same numbers (each stretch of
+    :data:`SAMPLE_CHUNK` evaluated by the same call)."""
+
+    def rows(a: int, b: int) -> np.ndarray:
+        return np.concatenate(trajectory.evaluate(t_eval[a:b]), axis=1)
+
+    return rows
 
 
 def zero_order_hold(breaks, table) -> BsplineTrajectory:
@@ -113,6 +139,70 @@ def zero_order_hold(breaks, table) -> BsplineTrajectory:
     return BsplineTrajectory(BsplineBasis(1, breaks), points)
 
 
+class TableHold(LeafSystem):
+    """A zero-order hold of a table's rows: row k on [breaks[k], breaks[k + 1]), the time
+    clamped to [breaks[0], breaks[-1]] (the last row only closes the last interval), as
+    :func:`zero_order_hold` gives (to the bit: the rows are read, not interpolated).
+
+    Output port: ``y`` (n,) the row in force at the Context's time. The table is held by
+    reference (not copied), or given as ``rows(a, b)`` and computed a stretch of ``stretch``
+    rows at a time (the stretch in use kept): a long run then holds no row per step at all.
+
+    Args:
+        breaks: (N,) strictly increasing times, s; N >= 2. table: (N, n) the values (row N - 1
+            is not output, as in :func:`zero_order_hold`), or None with ``rows``.
+        rows: ``rows(a, b)`` -> (b - a, n) rows a..b - 1 of the table (a pure function).
+        stretch: rows computed at once by ``rows``; their starts are multiples of it.
+    Raises:
+        InvalidConfigError: fewer than 2 breaks, breaks that do not increase, a table of
+            another length, neither or both of table and rows.
+    """
+
+    def __init__(self, breaks, table=None, rows=None, stretch: int = 5_000):
+        super().__init__()
+        self.breaks = np.asarray(breaks, dtype=float)
+        if (table is None) == (rows is None):
+            raise InvalidConfigError("a TableHold takes a table or rows(a, b), one of them")
+        self.table = None if table is None else np.asarray(table, dtype=float)
+        self._rows, self._stretch = rows, int(stretch)
+        first = self.table if rows is None else np.asarray(rows(0, min(2, self.breaks.size)))
+        if (
+            self.breaks.ndim != 1
+            or self.breaks.size < 2
+            or first.ndim != 2
+            or (self.table is not None and self.table.shape[0] != self.breaks.size)
+            or not np.all(np.diff(self.breaks) > 0)
+        ):
+            raise InvalidConfigError(
+                f"a TableHold needs N >= 2 increasing breaks and an (N, n) table, got "
+                f"{self.breaks.shape} and {first.shape}"
+            )
+        self._last = self.breaks.size - 2
+        self._start, self._block = -1, None  # the stretch in use, with rows
+        self.DeclareVectorOutputPort(
+            "y", first.shape[1], self._Calc, prerequisites_of_calc={self.time_ticket()}
+        )
+
+    def release(self) -> None:
+        """Drop the table, the stretch in use and the breaks (:meth:`ReferenceSources.release`)."""
+        self.table = self._block = self._rows = None
+        self.breaks = np.zeros(0)
+
+    def row(self, k: int) -> np.ndarray:
+        """Row k of the table."""
+        if self.table is not None:
+            return self.table[k]
+        a = (k // self._stretch) * self._stretch
+        if a != self._start:
+            self._block = self._rows(a, min(a + self._stretch, self.breaks.size))
+            self._start = a
+        return self._block[k - a]
+
+    def _Calc(self, context, output: BasicVector) -> None:
+        k = int(np.searchsorted(self.breaks, context.get_time(), side="right")) - 1
+        output.SetFromVector(self.row(min(max(k, 0), self._last)))
+
+
 def add_reference_sources(
     builder,
     trajectory,
@@ -124,7 +214,7 @@ def add_reference_sources(
     feedforward: str = "gravity",
     feedforward_lead_s: float = 0.0,
 ) -> ReferenceSources:
-    """Add the reference x_d and the feed-forward T_ff as zero-order-hold TrajectorySources.
+    """Add the reference x_d and the feed-forward T_ff as zero-order holds (:class:`TableHold`).
 
     A consumer that samples at t_k = k h + offset_s reads x_d(t_k + lead_s) and the feed-forward
     at that reference. Each value is stored on [k h, (k + 1) h), so ``offset_s`` must lie strictly
@@ -151,13 +241,15 @@ def add_reference_sources(
         lead_s,
         feedforward,
         feedforward_lead_s,
+        keep_x_d=False,
     )
     breaks = t_sample - offset_s  # k h: the sample lies inside its interval
-    ref = builder.AddNamedSystem("reference", TrajectorySource(zero_order_hold(breaks, x_d)))
-    ff = builder.AddNamedSystem("feedforward", TrajectorySource(zero_order_hold(breaks, T_ff)))
-    return ReferenceSources(
-        x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, x_d_table=x_d, T_ff_table=T_ff
+    ref = builder.AddNamedSystem(
+        "reference",
+        TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK),
     )
+    ff = builder.AddNamedSystem("feedforward", TableHold(breaks, T_ff))
+    return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, T_ff_table=T_ff)
 
 
 @dataclass(frozen=True)

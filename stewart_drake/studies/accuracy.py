@@ -278,6 +278,7 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
 
     config = Scenario(duration_s=duration_s)
     config.plant.time_step = time_step
+    config.state_log_period_s = config.log_period_s  # the largest pitch over every sample
     sd, simulator = build_simulator(config)
     wall0 = time.perf_counter()
     guard.advance(sd, simulator, lambda: simulator.AdvanceTo(duration_s))

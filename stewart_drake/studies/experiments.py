@@ -38,10 +38,16 @@ DEFAULT_TUNER_OUT = Path("results") / "tuner" / "ann_tuner.npz"
 class RunResult:
     """Logged arrays of one run (SI units) and its metrics.
 
+    Two time bases: ``t`` (every ``log_period_s``) for the run's signals, ``t_state`` (every
+    ``state_log_period_s``, 10 ms by default) for the plant's state and what is read from it.
+    The signals at ``t`` are float32 (7 significant digits: 30 nm at the platform's 0.3 m, a
+    thousandth of the smallest error a report resolves), so a long run holds about 0.2 kB per
+    logged sample (:data:`LOG_BYTES_PER_SAMPLE`); times and the plant state are float64.
+
     Attributes:
         t: (N,) s.  x: (N, 12) true pose and rate (from the plant state, free of sensor noise).
         x_d: (N, 18) reference pose, rate, acceleration.  T: (N, 6) applied motor torques, N m.
-        closure: (N,) max loop-closure error over the six rods, m.
+        closure: (M,) max loop-closure error over the six rods at ``t_state``, m.
         status: (N, k) the controller's ``status`` output, named by ``status_names`` (empty
             (N, 0) for a controller without one).
         omega: (N, 2) omega_Q, omega_R in use (from status), or None when the controller
@@ -55,6 +61,9 @@ class RunResult:
             :func:`~.metrics.compute_metrics`).
         config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
             the whole scenario as YAML.
+        t_state: (M,) s, the times of ``state`` and ``closure`` (None: ``t``, as in a file
+            saved before the state had its own period).
+        state: (M, nq + nv) the plant's state at ``t_state`` (a replay's frames), or None.
     """
 
     t: np.ndarray
@@ -71,6 +80,16 @@ class RunResult:
     T_ff: np.ndarray | None = None
     metrics: dict = field(default_factory=dict)
     config_summary: dict = field(default_factory=dict)
+    t_state: np.ndarray | None = None
+    state: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.t_state is None:
+            self.t_state = self.t
+
+    def nbytes(self) -> int:
+        """Bytes the result's arrays hold."""
+        return sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray))
 
 
 def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "simulating"):
@@ -95,28 +114,35 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
-#: Memory a run holds, bytes, measured with ``stewart-drake run`` (paper_hardware, peaks against
-#: duration): about 3.3 kB per logged sample (the Simulator's logs of 86 floats, which grow by
-#: doubling, the RunResult, its table exports and the plot; 5.7 kB per 1 kHz sample with the
-#: logs every period against 2.7 kB with them every 10, before the reference tables shrank) and
-#: 0.4-0.5 kB per control-period sample (the reference and feed-forward held one vector per
-#: step: 0.70 kB per sample from 60 s to 180 s with the logs every 10 periods, 0.49 kB for
-#: building alone); the reference is sampled and checked in stretches of fixed size. Upper
-#: bounds with some slack:
-LOG_BYTES_PER_SAMPLE = 4.0e3
-CONTROL_BYTES_PER_SAMPLE = 1.0e3
+#: Memory a run holds, bytes, measured as the peak RSS of ``stewart-drake reproduce`` on
+#: synthetic phantom traces of 1 and 25 minutes at 1 kHz (the robot as built, logs every
+#: millisecond): 0.40 GB before anything is logged (Python, Drake, the plant, the compiled
+#: controller, the reference's check) and 0.44 kB per logged sample all told (1.06 GB for 25
+#: minutes; 1.76 kB and 3.2 GB before the logs were sized for the run). Of a sample: the
+#: float32 logs (0.16 kB: pose and rate, torques, the controller's status, integral and error),
+#: the plant state every ``state_log_period_s`` (61 float64 every 10 ms: 0.05 kB a
+#: millisecond), the feed-forward table and sample times (0.07 kB a control period: the
+#: reference itself is evaluated a stretch at a time, and the tables are dropped once the run
+#: is read), the result's reference and feed-forward (0.1 kB) and the report's intermediates
+#: (0.08 kB). Upper bounds with some slack:
+RUN_BASE_BYTES = 0.4e9
+LOG_BYTES_PER_SAMPLE = 0.5e3
+CONTROL_BYTES_PER_SAMPLE = 0.15e3
+STATE_BYTES_PER_SAMPLE = 1.0e3
 
 
 def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
-    its control-period samples and its logged samples (see :data:`LOG_BYTES_PER_SAMPLE`), plus
-    what the reference itself holds (a CSV reference's spline,
-    :meth:`~stewart_drake.simulation.motion.ReferenceConfig.memory_bytes`)."""
+    :data:`RUN_BASE_BYTES`, its control-period samples, its logged samples and its plant-state
+    samples (see :data:`LOG_BYTES_PER_SAMPLE`), plus what the reference itself holds (a CSV
+    reference's spline, :meth:`~stewart_drake.simulation.motion.ReferenceConfig.memory_bytes`)."""
     d = float(scenario.duration_s)
     return (
-        scenario.reference.memory_bytes()
+        RUN_BASE_BYTES
+        + scenario.reference.memory_bytes()
         + (d / scenario.control_period_s + 1) * CONTROL_BYTES_PER_SAMPLE
         + (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE
+        + (d / scenario.state_log_period_s + 1) * STATE_BYTES_PER_SAMPLE
     )
 
 
@@ -244,10 +270,9 @@ def run_experiment(
     sd, simulator = build_simulator(
         scenario, meshcat, reference=reference, controller=controller, progress=progress
     )
-    wall0 = time.perf_counter()
-    guard.advance(sd, simulator, lambda: advance(simulator, sd.plan.duration_s, progress))
-    wall = time.perf_counter() - wall0
-    return collect_result(sd, simulator.get_context(), wall)
+    logs, wall = simulate(sd, simulator, progress)
+    release_reference(sd)
+    return finish_result(logs, wall)
 
 
 def config_summary(sd: StewartDiagram) -> dict:
@@ -273,40 +298,69 @@ def config_summary(sd: StewartDiagram) -> dict:
 
 
 def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult:
-    """Pull the loggers of a simulated Diagram into a :class:`RunResult` with metrics."""
+    """Pull the loggers of a simulated Diagram into a :class:`RunResult` with metrics (the
+    signals at the log period, the plant state at its own period, :class:`RunResult`)."""
+    return finish_result(read_run(sd, root_context), wall_s)
+
+
+@dataclass
+class RunLogs:
+    """What :func:`read_run` takes from a simulated Diagram: the :class:`RunResult` without its
+    reference and metrics, the reference object, and the first contact (None without contact
+    or with none seen). The reference's tables can go after it (:func:`release_reference`)."""
+
+    result: RunResult
+    trajectory: object
+    contact: bool
+    first_contact: tuple | None
+
+
+def read_run(sd: StewartDiagram, root_context) -> RunLogs:
+    """The logs of a simulated Diagram as a :class:`RunLogs`: the signals are views of the logs
+    (no copy), the feed-forward is read from the reference's table, the loop closure from the
+    logged plant states; the reference's pose at the log times is left to
+    :func:`finish_result`, so that a caller can drop the reference's tables
+    (:func:`release_reference`, 0.1 kB per control period) before that array is made."""
     logs = {name: logger.FindLog(root_context) for name, logger in sd.loggers.items()}
-    t = logs["state"].sample_times()
+    t = logs["x"].sample_times()
     state = logs["state"].data().T
-    closure = loop_closures_from_states(sd, state)
     names = tuple(getattr(sd.controller, "status_names", ())) if "status" in logs else ()
-    status = logs["status"].data().T if "status" in logs else np.zeros((len(t), 0))
+    status = logs["status"].data().T if "status" in logs else np.zeros((len(t), 0), np.float32)
     omega = (
         status[:, [names.index("omega_Q"), names.index("omega_R")]]
         if {"omega_Q", "omega_R"} <= set(names)
         else None
     )
-    # A logged sample at t_n is the state the plant computed for physical time t_n, so the
-    # tracking error compares the true pose (from the state, free of sensor noise) with the
-    # analytic reference at t_n (the controller's x_d leads by half a plant step).
-    x_d = np.concatenate(sd.trajectory.evaluate(t), axis=1)
     result = RunResult(
         t=t,
-        x=sd.sensor.poses_from_states(state),
-        x_d=x_d,
+        x=logs["x"].data().T,
+        x_d=np.zeros((0, 18), np.float32),  # finish_result
         T=logs["T"].data().T,
-        closure=closure,
+        closure=loop_closures_from_states(sd, state),
         status=status,
         status_names=names,
         omega=omega,
         integral=logs["integral"].data().T if "integral" in logs else None,
-        rho=logs["rho"].data().T if "rho" in logs else None,
+        rho=logs["rho"].data().T.copy() if "rho" in logs else None,
         e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
         T_ff=feedforward_at(sd, t),
         config_summary=config_summary(sd),
+        t_state=logs["state"].sample_times(),
+        state=state,
     )
+    contact = bool(sd.scenario.contact)
+    first = sd.guard.first_contact(root_context) if contact and sd.guard is not None else None
+    return RunLogs(result, sd.trajectory, contact, first)
+
+
+def finish_result(logs: RunLogs, wall_s: float) -> RunResult:
+    """The :class:`RunResult` of :func:`read_run`'s logs: the reference at the log times
+    (:func:`reference_at`) and the metrics (:func:`~.metrics.compute_metrics`)."""
+    result = logs.result
+    result.x_d = reference_at(logs.trajectory, result.t)
     result.metrics = compute_metrics(result, wall_s)
-    if sd.scenario.contact:
-        first = sd.guard.first_contact(root_context) if sd.guard is not None else None
+    if logs.contact:
+        first = logs.first_contact
         result.metrics["first_contact"] = (
             None
             if first is None
@@ -315,8 +369,45 @@ def collect_result(sd: StewartDiagram, root_context, wall_s: float) -> RunResult
     return result
 
 
+def release_reference(sd: StewartDiagram) -> None:
+    """Drop a run's reference tables once it is read (:func:`read_run`), before its result's
+    arrays are made (:meth:`~stewart_drake.simulation.reference.ReferenceSources.release`):
+    the Diagram cannot run again."""
+    if isinstance(sd.reference, ReferenceSources):
+        sd.reference.release()
+
+
+def simulate(
+    sd: StewartDiagram, simulator: Simulator, progress: bool = False, desc: str = "simulating"
+) -> tuple[RunLogs, float]:
+    """Advance a built run to its end through the guard (:func:`guard.advance`) and read it
+    (:func:`read_run`). Returns (logs, wall time of the simulation, s)."""
+    wall0 = time.perf_counter()
+    guard.advance(sd, simulator, lambda: advance(simulator, sd.plan.duration_s, progress, desc))
+    wall = time.perf_counter() - wall0
+    return read_run(sd, simulator.get_context()), wall
+
+
+#: Samples :func:`reference_at` and :func:`feedforward_at` compute at once (their float64
+#: intermediates, a stretch at a time).
+RESULT_CHUNK = 100_000
+
+
+def reference_at(trajectory, t: np.ndarray) -> np.ndarray:
+    """(N, 18) float32 the reference's pose, rate and acceleration at times t (s): the
+    analytic reference a logged sample at t_n is compared with (a logged sample is the state the
+    plant computed for physical time t_n; the controller's x_d leads by half a plant step),
+    evaluated a stretch at a time."""
+    out = np.empty((len(t), 18), dtype=np.float32)
+    for a in range(0, len(t), RESULT_CHUNK):
+        out[a : a + RESULT_CHUNK] = np.concatenate(
+            trajectory.evaluate(t[a : a + RESULT_CHUNK]), axis=1
+        )
+    return out
+
+
 def feedforward_at(sd: StewartDiagram, t: np.ndarray) -> np.ndarray:
-    """(N, 6) the feed-forward torques the reference asks for at times t (s), N m: the
+    """(N, 6) float32 the feed-forward torques the reference asks for at times t (s), N m: the
     Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
     reference time plus the computation delay), linearly interpolated."""
     reference = sd.reference
@@ -324,11 +415,14 @@ def feedforward_at(sd: StewartDiagram, t: np.ndarray) -> np.ndarray:
     assert isinstance(reference, ReferenceSources)
     t_act = reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
     table = reference.T_ff_table
-    return np.stack([np.interp(t, t_act, table[:, i]) for i in range(table.shape[1])], axis=1)
+    out = np.empty((len(t), table.shape[1]), dtype=np.float32)
+    for i in range(table.shape[1]):
+        out[:, i] = np.interp(t, t_act, table[:, i])
+    return out
 
 
 def loop_closures_from_states(sd: StewartDiagram, states: np.ndarray) -> np.ndarray:
-    """(N,) max loop-closure error in m at each logged plant state (N, nq + nv)."""
+    """(N,) max loop-closure error in m at each plant state (N, nq + nv)."""
     plant = sd.plant
     context = plant.CreateDefaultContext()
     nq = plant.num_positions()
@@ -339,13 +433,13 @@ def loop_closures_from_states(sd: StewartDiagram, states: np.ndarray) -> np.ndar
     return out
 
 
-_OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff")
+_OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff", "t_state", "state")
 
 
 def save_result(result: RunResult, path: str | Path) -> Path:
     """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
-    rho, T_ff when present), status_names, metrics (JSON) and config (JSON, with the scenario
-    YAML)."""
+    rho, T_ff, t_state and state when present), status_names, metrics (JSON) and config (JSON,
+    with the scenario YAML)."""
     arrays = dict(
         t=result.t,
         x=result.x,
@@ -378,7 +472,8 @@ def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]
     """(names, units, (N, k) values) of a run's logs as one table: t; the true pose and rate;
     the reference's pose, rate and acceleration (``_d``); the applied motor torques T0..T5 (motor
     i is leg i of docs/reference_geometry.md and the paper's T_{i+1}); the largest loop-closure
-    error; omega_Q and omega_R when the controller reports them."""
+    error (logged with the plant state, every ``state_log_period_s``, joined linearly); omega_Q
+    and omega_R when the controller reports them."""
     names, units, columns = ["t"], ["s"], [result.t[:, None]]
     for suffix, per in (("", ""), ("_dot", "/s")):
         names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
@@ -390,7 +485,8 @@ def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]
     columns.append(result.x_d)
     names += [f"T{i}" for i in range(6)] + ["closure"]
     units += ["N m"] * 6 + ["m"]
-    columns += [result.T, result.closure[:, None]]
+    closure = np.interp(result.t, result.t_state, result.closure)  # every state log period
+    columns += [result.T, closure[:, None]]
     if result.omega is not None:
         names += ["omega_Q", "omega_R"]
         units += ["1", "1"]

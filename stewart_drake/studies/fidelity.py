@@ -16,7 +16,6 @@ from __future__ import annotations
 import json
 import math
 import re
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -53,10 +52,10 @@ PHANTOM_ANCHOR = (
 
 def rms_translation_rotation(e: np.ndarray) -> tuple[float, float]:
     """(sqrt(mean |e_XYZ|^2) m, sqrt(mean |e_rpy|^2) rad) of pose errors (n, 6)."""
-    e = np.asarray(e, dtype=float)
+    e = np.asarray(e)  # float32 or float64 as given; the sums in float64
     return (
-        float(np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1)))),
-        float(np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1)))),
+        float(np.sqrt(np.mean(np.sum(np.square(e[:, 3:]), axis=1, dtype=float)))),
+        float(np.sqrt(np.mean(np.sum(np.square(e[:, :3]), axis=1, dtype=float)))),
     )
 
 
@@ -81,7 +80,9 @@ def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
     Raises:
         InvalidConfigError: non-positive criteria, shapes that differ, fewer than 2 samples.
     """
-    t, p, p_d = (np.asarray(v, dtype=float) for v in (t, p, p_d))
+    # p and p_d as given (float32 logs stay float32: the difference of two close floats is
+    # exact), t in float64.
+    t, p, p_d = np.asarray(t, dtype=float), np.asarray(p), np.asarray(p_d)
     if not (distance_m > 0 and time_s > 0):
         raise InvalidConfigError(f"gamma criteria must be > 0, got {distance_m} m, {time_s} s")
     if p.shape != p_d.shape or p.shape[0] != t.size or t.size < 2:
@@ -97,7 +98,11 @@ def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
 
 
 def time_lag(
-    t: np.ndarray, achieved: np.ndarray, reference: np.ndarray, max_lag_s: float = MAX_LAG_S
+    t: np.ndarray,
+    achieved: np.ndarray,
+    reference: np.ndarray,
+    max_lag_s: float = MAX_LAG_S,
+    weights=None,
 ) -> float:
     """The delay of ``achieved`` behind ``reference`` (s, > 0: late), sub-sample.
 
@@ -112,29 +117,38 @@ def time_lag(
 
     Args:
         t: (n,) evenly spaced times, s. achieved, reference: (n,) or (n, c) signals (columns
-            summed in the correlation: one lag for several axes).
+            summed in the correlation: one lag for several axes). weights: (c,) factors of the
+            columns (default 1).
     Raises:
         InvalidConfigError: signals of another length than ``t`` or of different shapes.
     """
     from scipy.signal import correlate
 
-    a, r = np.asarray(achieved, dtype=float), np.asarray(reference, dtype=float)
+    a, r = np.asarray(achieved), np.asarray(reference)
     if a.shape != r.shape or len(a) != len(t):
         raise InvalidConfigError(
             f"time_lag needs two signals of the same shape, one row per time: t has {len(t)}, "
             f"achieved {a.shape}, reference {r.shape}"
         )
     a, r = a.reshape(len(t), -1), r.reshape(len(t), -1)
-    a, r = a - a.mean(axis=0), r - r.mean(axis=0)
+    w = np.ones(a.shape[1]) if weights is None else np.asarray(weights, dtype=float)
     dt = float(np.median(np.diff(t)))
     L = max(1, int(round(max_lag_s / dt)))
-    if not np.any(r) or len(t) < 3 * L:
+    # A column at a time, in float64 (a long run's intermediates are (n,) vectors), by direct
+    # sums over the 2 L + 1 lags (no FFT buffers of twice the run's length, and faster).
+    c, r2, moves = np.zeros(2 * L + 1), np.zeros(len(t)), False
+    for k in range(a.shape[1]):
+        rk = np.asarray(r[:, k], dtype=float) * w[k]
+        rk -= rk.mean()
+        ak = np.asarray(a[:, k], dtype=float) * w[k]
+        ak -= ak.mean()
+        moves = moves or bool(np.any(rk))
+        if len(t) >= 3 * L:
+            c += correlate(rk, ak[L : len(t) - L], mode="valid", method="direct")
+            r2 += rk * rk  # c[j]: achieved late by L - j
+    if not moves or len(t) < 3 * L:
         return math.nan
-    inner = a[L : len(t) - L]
-    c = sum(
-        correlate(r[:, k], inner[:, k], mode="valid", method="fft") for k in range(a.shape[1])
-    )  # c[j]: achieved late by L - j
-    energy = correlate((r * r).sum(axis=1), np.ones(len(inner)), mode="valid", method="fft")
+    energy = correlate(r2, np.ones(len(t) - 2 * L), mode="valid", method="direct")
     c = c / np.sqrt(np.maximum(energy, 1e-300))  # the reference's part that was summed
     k = int(np.argmax(c))
     delta = 0.0
@@ -231,21 +245,25 @@ def fidelity(
     Raises:
         InvalidConfigError: fewer than 10 samples in the window, or shapes that differ.
     """
+    # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
+    # slice; the error alone is made, in float32 (errors of microns to 7 digits; the sums below
+    # in float64).
     t = np.asarray(t, dtype=float)
-    x = np.asarray(x, dtype=float)[:, :6]
-    x_d = np.asarray(x_d, dtype=float)[:, :6]
+    x = np.asarray(x)[:, :6]
+    x_d = np.asarray(x_d)[:, :6]
     if x.shape != x_d.shape or x.shape[0] != t.size:
         raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
     t0, t1 = (t[0], t[-1]) if window is None else window
-    m = (t >= t0 - 1e-9) & (t <= t1 + 1e-9)
-    if np.count_nonzero(m) < 10:
+    i0 = int(np.searchsorted(t, t0 - 1e-9, side="left"))
+    i1 = int(np.searchsorted(t, t1 + 1e-9, side="right"))
+    if i1 - i0 < 10:
         raise InvalidConfigError(f"fewer than 10 samples in the window [{t0:g}, {t1:g}] s")
-    tw, xw, rw = t[m], x[m], x_d[m]
-    e = xw - rw
-    p2p = np.ptp(rw, axis=0)
+    tw, xw, rw = t[i0:i1], x[i0:i1], x_d[i0:i1]
+    e = np.subtract(xw, rw, dtype=np.float32)
+    p2p = np.ptp(rw, axis=0).astype(float)
     moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
-    rms = np.sqrt(np.mean(e**2, axis=0))
-    peak = np.abs(e).max(axis=0)
+    rms = np.sqrt(np.mean(np.square(e), axis=0, dtype=float))
+    peak = np.abs(e).max(axis=0).astype(float)
     with np.errstate(divide="ignore", invalid="ignore"):
         frac = np.where(p2p > np.asarray(MOVING_P2P), rms / p2p, np.nan)
         peak_frac = np.where(p2p > np.asarray(MOVING_P2P), peak / p2p, np.nan)
@@ -274,7 +292,7 @@ def fidelity(
     }
     weights = np.array([1.0 / p2p[k] for k in moving])
     out["lag_all_s"] = (
-        time_lag(tw, xw[:, moving] * weights, rw[:, moving] * weights) if moving else math.nan
+        time_lag(tw, xw[:, moving], rw[:, moving], weights=weights) if moving else math.nan
     )
     out["harmonics"] = (
         _harmonics(tw, xw, rw, frequencies, moving, p2p, harmonics)
@@ -293,7 +311,7 @@ def fidelity(
             c = (t >= a - 1e-9) & (t < b - 1e-9)
             if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or np.count_nonzero(c) < 10:
                 continue
-            ec = x[c] - x_d[c]
+            ec = np.subtract(x[c], x_d[c], dtype=float)
             ct, cr = rms_translation_rotation(ec)
             cycles["starts"].append(float(a))
             cycles["rms_translation_m"].append(ct)
@@ -446,27 +464,22 @@ def run(
 
     The learner's log ends with its state at the end of the run (the loggers' last sample is
     one period earlier: the update of a cycle's last sample would otherwise be missing)."""
-    from ..simulation import guard
-    from .experiments import advance, build_simulator, collect_result
+    from .experiments import build_simulator, finish_result, release_reference, simulate
 
     sd, simulator = build_simulator(scenario, reference=reference, progress=progress, report=report)
-    wall0 = time.perf_counter()
-    guard.advance(
-        sd, simulator, lambda: advance(simulator, scenario.duration_s, progress, desc=desc)
-    )
-    wall = time.perf_counter() - wall0
-    context = simulator.get_context()
-    result = collect_result(sd, context, wall)
+    logs, wall = simulate(sd, simulator, progress, desc)
     learner = learned = None
     if sd.learner is not None:
+        context = simulator.get_context()
+        learner_context = sd.learner.GetMyContextFromRoot(context)
         log = sd.loggers[sd.learner.status_port].FindLog(context).data().T
-        final = sd.learner.GetOutputPort(sd.learner.status_port).Eval(
-            sd.learner.GetMyContextFromRoot(context)
-        )
+        final = sd.learner.GetOutputPort(sd.learner.status_port).Eval(learner_context)
         learner = np.vstack([log, final])
         if sd.learner.HasOutputPort("theta"):
-            theta = sd.learner.GetOutputPort("theta").Eval(sd.learner.GetMyContextFromRoot(context))
+            theta = sd.learner.GetOutputPort("theta").Eval(learner_context)
             learned = np.asarray(theta).reshape(-1, 6)
+    release_reference(sd)
+    result = finish_result(logs, wall)
     return result, learner, wall, learned
 
 

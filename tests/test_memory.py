@@ -1,0 +1,103 @@
+"""A run's memory grows with its length by a bounded amount per simulated second: the logs are
+sized for the run, the full-rate signals compact, the plant state logged at its own slower
+period and the reference evaluated a stretch at a time; and the estimate checked before a run
+covers what it holds. Sizes, not timings."""
+
+import numpy as np
+import pytest
+from pydrake.systems.primitives import TrajectorySource
+
+from stewart_drake.simulation.reference import TableHold, zero_order_hold
+from stewart_drake.simulation.scenario import Scenario
+from stewart_drake.simulation.signal_log import SignalLog
+from stewart_drake.studies import experiments
+from stewart_drake.studies.experiments import build_simulator, run_memory_bytes
+
+DURATION_S = 0.5
+
+
+@pytest.fixture(scope="module")
+def short_run():
+    """The default scenario (1 kHz control and logs) for 0.5 s: its Diagram, Simulator and
+    result."""
+    scenario = Scenario(duration_s=DURATION_S)
+    sd, simulator = build_simulator(scenario)
+    logs, wall = experiments.simulate(sd, simulator)
+    return scenario, sd, simulator, experiments.finish_result(logs, wall)
+
+
+def test_the_result_holds_a_bounded_number_of_bytes_per_simulated_second(short_run):
+    scenario, sd, _, result = short_run
+    samples = DURATION_S / scenario.log_period_s + 1
+    assert result.t.size == samples and result.t_state.size == DURATION_S / 0.01 + 1
+    # Full-rate signals in float32 with float64 times; the 86-float plant state every 10 ms.
+    assert result.x.dtype == result.x_d.dtype == result.T.dtype == np.float32
+    per_sample = result.nbytes() / samples
+    # 0.28 kB at the log period plus 0.07 kB of state: against 1.2 kB when the state (and the
+    # pose and reference in float64) was kept every millisecond.
+    assert 250 < per_sample < 400, per_sample
+    nq_nv = result.state.shape[1]
+    assert nq_nv > 60 and result.state.nbytes / samples < nq_nv * 8 / 9
+
+
+def test_the_logs_are_allocated_for_the_run_and_nothing_grows(short_run):
+    scenario, sd, _, result = short_run
+    logs = {
+        type(s).__name__ + s.get_name(): s
+        for s in sd.diagram.GetSystems()
+        if isinstance(s, SignalLog)
+    }
+    assert set(logs) == {"SignalLoglog_signals", "SignalLoglog_state"}
+    signals, state = logs["SignalLoglog_signals"], logs["SignalLoglog_state"]
+    # Allocated once, two rows beyond the samples logged: no doubling as Drake's logs do.
+    assert signals.t.size == signals.num_samples + 1 == result.t.size + 1
+    assert state.t.size == state.num_samples + 1
+    assert signals.nbytes() / signals.t.size < 160  # t 8 B, 12 + 6 + 7 + 6 + 6 float32
+    # The reference is not held as a table: only the feed-forward's (48 B a control period).
+    assert sd.reference.x_d.table is None and sd.reference.T_ff_table.shape[1] == 6
+
+
+def test_a_signal_log_grows_when_a_run_outlasts_it():
+    log = SignalLog({"y": (2, np.float32)}, 0.1, 0.15)  # room for 3 samples
+    context = log.CreateDefaultContext()
+    log.get_input_port().FixValue(context, [1.0, 2.0])
+    for k in range(7):
+        context.SetTime(0.1 * k)
+        log._Log(context)
+    view = log.logger("y").FindLog(context)
+    np.testing.assert_allclose(view.sample_times(), 0.1 * np.arange(7))
+    assert view.data().shape == (2, 7) and np.all(view.data() == [[1.0], [2.0]])
+
+
+def test_a_table_of_rows_made_a_stretch_at_a_time_is_the_zero_order_hold_of_the_table():
+    rng = np.random.default_rng(3)
+    breaks, table = np.arange(13) * 1e-3, rng.standard_normal((13, 4))
+    made = []
+
+    def rows(a, b):
+        made.append((a, b))
+        return table[a:b]
+
+    stretched, whole = TableHold(breaks, rows=rows, stretch=5), TableHold(breaks, table)
+    drake = TrajectorySource(zero_order_hold(breaks, table))
+    contexts = [s.CreateDefaultContext() for s in (stretched, whole, drake)]
+    for t in (-1.0, 0.0, 0.5e-3, 1e-3, 4.99e-3, 5e-3, 9.9e-3, 0.0115, 0.012, 1.0, 3e-3):
+        values = []
+        for system, context in zip((stretched, whole, drake), contexts):
+            context.SetTime(t)
+            values.append(system.get_output_port().Eval(context))
+        np.testing.assert_array_equal(values[0], values[2])
+        np.testing.assert_array_equal(values[1], values[2])
+    assert all(a % 5 == 0 and b - a <= 5 for a, b in made[1:])  # stretches of 5 rows
+
+
+def test_the_estimate_before_a_run_covers_what_a_run_holds(short_run):
+    """The pre-run estimate grows per simulated second by more than a run holds per second
+    (its result, which shares the logs' arrays, and the feed-forward table), with room for the
+    report's intermediates; and for a 25-minute trace at 1 kHz it is at least the 1.06 GB its
+    reproduction was measured to peak at."""
+    scenario, sd, _, result = short_run
+    slope = run_memory_bytes(Scenario(duration_s=2.0)) - run_memory_bytes(Scenario(duration_s=1.0))
+    held = (result.nbytes() + sd.reference.T_ff_table.nbytes) / DURATION_S
+    assert 1.5 * held < slope < 4 * held, (slope, held)
+    assert 1.1e9 <= run_memory_bytes(Scenario(duration_s=1500.0)) < 2e9
