@@ -165,7 +165,9 @@ class TableHold(LeafSystem):
             raise InvalidConfigError("a TableHold takes a table or rows(a, b), one of them")
         self.table = None if table is None else np.asarray(table, dtype=float)
         self._rows, self._stretch = rows, int(stretch)
-        first = self.table if rows is None else np.asarray(rows(0, min(2, self.breaks.size)))
+        first = np.asarray(
+            self.table if self.table is not None else rows(0, min(2, self.breaks.size))
+        )
         if (
             self.breaks.ndim != 1
             or self.breaks.size < 2
@@ -178,7 +180,8 @@ class TableHold(LeafSystem):
                 f"{self.breaks.shape} and {first.shape}"
             )
         self._last = self.breaks.size - 2
-        self._start, self._block = -1, None  # the stretch in use, with rows
+        self._start = -1  # the stretch in use, with its rows
+        self._block: np.ndarray | None = None
         self.DeclareVectorOutputPort(
             "y", first.shape[1], self._Calc, prerequisites_of_calc={self.time_ticket()}
         )
@@ -194,8 +197,11 @@ class TableHold(LeafSystem):
             return self.table[k]
         a = (k // self._stretch) * self._stretch
         if a != self._start:
-            self._block = self._rows(a, min(a + self._stretch, self.breaks.size))
+            if self._rows is None:
+                raise RuntimeError("this TableHold was released: its run is over")
+            self._block = np.asarray(self._rows(a, min(a + self._stretch, self.breaks.size)))
             self._start = a
+        assert self._block is not None
         return self._block[k - a]
 
     def _Calc(self, context, output: BasicVector) -> None:

@@ -485,7 +485,8 @@ def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]
     columns.append(result.x_d)
     names += [f"T{i}" for i in range(6)] + ["closure"]
     units += ["N m"] * 6 + ["m"]
-    closure = np.interp(result.t, result.t_state, result.closure)  # every state log period
+    t_state = result.t if result.t_state is None else result.t_state  # an older file: t
+    closure = np.interp(result.t, t_state, result.closure)  # every state log period
     columns += [result.T, closure[:, None]]
     if result.omega is not None:
         names += ["omega_Q", "omega_R"]

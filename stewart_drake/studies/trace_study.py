@@ -15,6 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -431,12 +432,17 @@ def plot(results: dict, path) -> Path:
             ax.grid(True, which="both", alpha=0.3)
             ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
         axes[1, j].set_xlabel(f"t [s] (RMS over windows of {WINDOW_S:g} s)")
-    handles = {}
+    handles: dict[str, Any] = {}
     for ax in axes[0]:
         for h, label in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(label, h)
     fig.legend(
-        handles.values(), handles.keys(), fontsize=8, loc="lower center", ncol=4, frameon=False
+        list(handles.values()),
+        list(handles.keys()),
+        fontsize=8,
+        loc="lower center",
+        ncol=4,
+        frameon=False,
     )
     fig.suptitle(
         "Motion that does not repeat: feed-forward learned as a function of the reference "
