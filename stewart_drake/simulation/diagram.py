@@ -210,11 +210,10 @@ def make_stewart_diagram(
         ),
     )
     loggers.update(_add_loggers(builder, station, system, outputs, scenario))
-    if learner is not None:
-        for name in (learner.status_port, "x_d_correction"):
-            loggers[name] = LogVectorOutput(
-                learner.GetOutputPort(name), builder, scenario.log_period_s
-            )
+    if learner is not None:  # its status (the correction itself is not logged: nothing reads it)
+        loggers[learner.status_port] = LogVectorOutput(
+            learner.GetOutputPort(learner.status_port), builder, scenario.log_period_s
+        )
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, plan)

@@ -129,12 +129,16 @@ RUN_BASE_BYTES = 0.4e9
 LOG_BYTES_PER_SAMPLE = 0.5e3
 CONTROL_BYTES_PER_SAMPLE = 0.15e3
 STATE_BYTES_PER_SAMPLE = 1.0e3
+#: A learner's status log (up to 16 float64 per logged sample in Drake's ``VectorLog``, which
+#: doubles its capacity as it grows: twice that at worst).
+LEARNER_BYTES_PER_SAMPLE = 0.26e3
 
 
 def run_memory_bytes(scenario: Scenario) -> float:
     """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
     :data:`RUN_BASE_BYTES`, its control-period samples, its logged samples and its plant-state
-    samples (see :data:`LOG_BYTES_PER_SAMPLE`), plus what the reference itself holds (a CSV
+    samples (see :data:`LOG_BYTES_PER_SAMPLE`), a learner's status log
+    (:data:`LEARNER_BYTES_PER_SAMPLE`), plus what the reference itself holds (a CSV
     reference's spline, :meth:`~stewart_drake.simulation.motion.ReferenceConfig.memory_bytes`)."""
     d = float(scenario.duration_s)
     return (
@@ -143,6 +147,9 @@ def run_memory_bytes(scenario: Scenario) -> float:
         + (d / scenario.control_period_s + 1) * CONTROL_BYTES_PER_SAMPLE
         + (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE
         + (d / scenario.state_log_period_s + 1) * STATE_BYTES_PER_SAMPLE
+        + (scenario.learning is not None)
+        * (d / scenario.log_period_s + 1)
+        * LEARNER_BYTES_PER_SAMPLE
     )
 
 

@@ -661,11 +661,11 @@ def reproduce(
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles if feedforward is None else 0)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
-    check_run_memory(scenario)  # before the reference is checked at every control period
     if feedforward is None:
         _set_learning(scenario, learn_cycles)
     else:
         scenario.learning = feedforward
+    check_run_memory(scenario)  # before the reference is checked at every control period
     plan = make_plan(scenario, reference=reference)  # validated once, here
     scale = 1.0
     if scale_to_fit:
