@@ -55,7 +55,14 @@ from pydrake.systems.framework import LeafSystem
 from ..checks import as_number, check_int, check_multiple
 from ..errors import CorruptFileError, InvalidConfigError
 from ..model import kinematics
-from .ilc import MIN_Q_CUTOFF_HZ, add_record, cycle_error, rms_pose_error, steps_per_record
+from .ilc import (
+    MIN_Q_CUTOFF_HZ,
+    add_record,
+    cycle_error,
+    rms_pose_error,
+    spend_rollback,
+    steps_per_record,
+)
 
 #: Lags of the motors' rate signs in the basis, s (positive: the past; negative: the future,
 #: which the feed-forward knows): the friction transient after a reversal lasts ~0.1 s.
@@ -346,12 +353,7 @@ class FeedforwardTuningLearner(LeafSystem):
             or E[1] > self.bound_ratio * D[1] + self.floor[1]
         ):
             theta[:] = best
-            if not status.stopped:
-                if status.rollbacks < self.max_rollbacks:
-                    status.rollbacks += 1
-                    status.gain *= 0.5
-                else:
-                    status.stopped = 1.0
+            spend_rollback(status, self.max_rollbacks)
             return
         score = E[0] / max(D[0], 1e-12) + E[1] / max(D[1], 1e-12)
         if corrected and score < status.best_score:

@@ -388,13 +388,7 @@ class IterativeLearningController(LeafSystem):
         if over:  # back to the best cycle's correction; learning goes on at half the gain
             learned[:] = best  # (held, when the rollbacks allowed are spent or learning stopped)
             status.E_ref_trans_m, status.E_ref_rot_rad = status.best_trans_m, status.best_rot_rad
-            if status.stopped:
-                return
-            if status.rollbacks < self.max_rollbacks:
-                status.rollbacks += 1
-                status.gain *= 0.5
-            else:
-                status.stopped = 1.0
+            spend_rollback(status, self.max_rollbacks)
             return
         if score < status.best_score:
             best[:] = learned
@@ -420,6 +414,20 @@ class IterativeLearningController(LeafSystem):
         learned[:] = learn(learned, weight * e_phase, gain, self.ba)
         status.E_ref_trans_m, status.E_ref_rot_rad = E
         status.learned_cycles += 1
+
+
+def spend_rollback(status, max_rollbacks: int) -> None:
+    """A learner's answer to a cycle over its monitored bound, on its status (in place; the
+    caller has already restored the best correction): a rollback, the gain halved, while fewer
+    than ``max_rollbacks`` were made; after that learning stops (the count never exceeds its
+    limit); nothing more once stopped."""
+    if status.stopped:
+        return
+    if status.rollbacks < max_rollbacks:
+        status.rollbacks += 1
+        status.gain *= 0.5
+    else:
+        status.stopped = 1.0
 
 
 def steps_per_record(sample_period_s: float, period_s: float) -> int:
