@@ -369,6 +369,27 @@ class Heartbeat(_Motion):
         return {"cardiac": self.frequency_hz}
 
 
+#: The fields of :class:`Breathing` that the motions built on its breath share.
+_BREATH_FIELDS = (
+    "amplitude_m",
+    "period_s",
+    "shape_n",
+    "direction",
+    "tilt_rad",
+    "tilt_axis",
+    "centre",
+)
+
+
+def _checked_breathing(motion) -> "Breathing":
+    """The :class:`Breathing` of a motion's breath fields (:data:`_BREATH_FIELDS`), which checks
+    them; the motion's fields are replaced by the checked values (unit vectors, floats)."""
+    breath = Breathing(**{f: getattr(motion, f) for f in _BREATH_FIELDS}, name=motion.name)
+    for f in _BREATH_FIELDS:
+        object.__setattr__(motion, f, getattr(breath, f))
+    return breath
+
+
 def common_period(periods, max_ratio_denominator: int = 24) -> float | None:
     """The shortest time after which every period repeats (their least common multiple), s, or
     None when two periods are not in a ratio of small integers (denominator up to
@@ -512,26 +533,7 @@ class IrregularBreathing(_Motion):
     name: str = "irregular_breathing"
 
     def __post_init__(self):
-        mean = Breathing(
-            amplitude_m=self.amplitude_m,
-            period_s=self.period_s,
-            shape_n=self.shape_n,
-            direction=self.direction,
-            tilt_rad=self.tilt_rad,
-            tilt_axis=self.tilt_axis,
-            centre=self.centre,
-            name=self.name,
-        )
-        for f in (
-            "amplitude_m",
-            "period_s",
-            "shape_n",
-            "direction",
-            "tilt_rad",
-            "tilt_axis",
-            "centre",
-        ):
-            object.__setattr__(self, f, getattr(mean, f))
+        _checked_breathing(self)  # the mean cycle's fields, checked as Breathing checks them
         for f in ("amplitude_cv", "period_cv"):
             object.__setattr__(self, f, as_number(f"{self.name}: {f}", getattr(self, f), 0.0, 0.35))
         for f, lo, hi in (("seed", 0, 2**32 - 1), ("max_cycles", 1, 10**6)):
@@ -1219,20 +1221,8 @@ class BreathHold(_Motion):
     name: str = "breath_hold"
 
     def __post_init__(self):
-        breathing = Breathing(
-            amplitude_m=self.amplitude_m,
-            period_s=self.period_s,
-            shape_n=self.shape_n,
-            direction=self.direction,
-            tilt_rad=self.tilt_rad,
-            tilt_axis=self.tilt_axis,
-            centre=self.centre,
-            name=self.name,
-        )
+        breathing = _checked_breathing(self)
         _set, n = object.__setattr__, self.name
-        for f in ("amplitude_m", "period_s", "shape_n", "direction", "tilt_rad", "tilt_axis"):
-            _set(self, f, getattr(breathing, f))
-        _set(self, "centre", breathing.centre)
         _set(self, "_breathing", breathing)
         k = as_number(f"{n}: hold_cycle", self.hold_cycle, 0, 10**6)
         if not k.is_integer():
