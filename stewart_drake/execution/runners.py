@@ -752,3 +752,19 @@ def make_runner(
         runner.probe()
         return runner
     return ProcessRunner(jobs, retries, recycle)
+
+
+def map_outcomes(runner, fn, jobs: dict, progress: bool = True, desc: str = "", unit: str = "job"):
+    """{job id: fn(job), or the failure's text} of every job of ``jobs`` ({id: job}) run by
+    ``runner`` (default two local processes, each job in a fresh one), with a tqdm bar when
+    ``progress``: a study that keeps going when one job fails and reports it in its table."""
+    runner = runner or ProcessRunner(n_workers=2, recycle=1)
+    items = runner.map(fn, jobs)
+    if progress:
+        from tqdm import tqdm
+
+        items = tqdm(items, total=len(jobs), desc=desc, unit=unit)
+    return {
+        job_id: str(outcome) if isinstance(outcome, JobFailure) else outcome
+        for job_id, outcome in items
+    }

@@ -164,19 +164,10 @@ def run_case(case: FidelityCase) -> dict:
 
 def run_study(cases=CASES, runner=None, progress: bool = True) -> dict:
     """{job id: :func:`run_case` outcome} of every case (a failed one: its error's text)."""
-    from ..execution.runners import JobFailure, ProcessRunner
+    from ..execution.runners import map_outcomes
 
-    runner = runner or ProcessRunner(n_workers=2, recycle=1)
     jobs = {c.job_id: c for c in cases}
-    out = {}
-    items = runner.map(run_case, jobs)
-    if progress:
-        from tqdm import tqdm
-
-        items = tqdm(items, total=len(jobs), desc="fidelity study", unit="run")
-    for job_id, outcome in items:
-        out[job_id] = str(outcome) if isinstance(outcome, JobFailure) else outcome
-    return out
+    return map_outcomes(runner, run_case, jobs, progress, "fidelity study", "run")
 
 
 # -- tables --------------------------------------------------------------------------------------

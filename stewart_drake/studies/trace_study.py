@@ -235,19 +235,10 @@ def run_case(case: TraceCase) -> dict:
 
 def run_study(cases, runner=None, progress: bool = True) -> dict:
     """{job id: :func:`run_case` outcome} of every case (a failed one: its error's text)."""
-    from ..execution.runners import JobFailure, ProcessRunner
+    from ..execution.runners import map_outcomes
 
-    runner = runner or ProcessRunner(n_workers=2, recycle=1)
     jobs = {c.job_id: c for c in cases}
-    out = {}
-    items = runner.map(run_case, jobs)
-    if progress:
-        from tqdm import tqdm
-
-        items = tqdm(items, total=len(jobs), desc="trace study", unit="motion")
-    for label, outcome in items:
-        out[label] = str(outcome) if isinstance(outcome, JobFailure) else outcome
-    return out
+    return map_outcomes(runner, run_case, jobs, progress, "trace study", "motion")
 
 
 # -- tables --------------------------------------------------------------------------------------
