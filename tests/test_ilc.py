@@ -129,7 +129,7 @@ def _learn(cycles, motion="breathing", params=None, **changes):
     true, ends = [], []
     for a, b in zip(starts[:-1], starts[1:]):
         true.append(rms_translation_rotation(e[(r.t >= a) & (r.t < b)]))
-        k = int(np.searchsorted(r.t, b)) + 1  # just after its end
+        k = int(np.searchsorted(r.t_state, b)) + 1  # just after its end (logged with the state)
         ends.append(dict(zip(ilc.ILC_STATUS_NAMES, status[k] if k < len(status) else final)))
     return np.array(true), ends, r
 

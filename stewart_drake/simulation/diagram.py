@@ -122,6 +122,7 @@ def make_stewart_diagram(
     reference=None,
     controller=None,
     reference_system=None,
+    controller_logs: bool = True,
 ) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
@@ -151,13 +152,16 @@ def make_stewart_diagram(
             (12), ``x_d`` (18) and, if it has one, its ``limited`` port for a display;
             ``scenario.reference`` and ``duration_s`` are
             then not used (``trajectory`` is None).
+        controller_logs: log the controller's "integral" and "e_bar" (False: not logged, 48 B
+            a logged sample saved, for a long run whose report does not read them).
     Returns:
         :class:`StewartDiagram`; loggers (each with Drake's ``FindLog(context)``) keyed "x"
         (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
         has them "status", "integral", "e_bar" (the error the controller acted on: its
         estimate, on the hardware), every ``log_period_s`` in float32
         (:class:`~.signal_log.SignalLog`); "state" (the plant state, float64) every
-        ``state_log_period_s``; with the tuner "rho" (12, every tuner period).
+        ``state_log_period_s``, with a learner's status under its ``status_port`` name; with
+        the tuner "rho" (12, every tuner period).
     Raises:
         InvalidConfigError: a scenario field out of range, a controller that breaks the contract
             (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
@@ -209,11 +213,8 @@ def make_stewart_diagram(
             duration_s=scenario.duration_s,
         ),
     )
-    loggers.update(_add_loggers(builder, station, system, outputs, scenario))
-    if learner is not None:  # its status (the correction itself is not logged: nothing reads it)
-        loggers[learner.status_port] = LogVectorOutput(
-            learner.GetOutputPort(learner.status_port), builder, scenario.log_period_s
-        )
+    logged = outputs if controller_logs else outputs - {"integral", "e_bar"}
+    loggers.update(_add_loggers(builder, station, system, logged, scenario, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, plan)
@@ -278,7 +279,7 @@ def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Ref
             ref.T_ff.get_output_port(),
             x0,
             x_dot0,
-            ref.T_ff_table[0],
+            ref.T_ff_table[0].copy(),  # a view would keep the whole table after its release
         )
     ref = builder.AddNamedSystem("reference", reference_system)
     for i in range(ref.num_input_ports()):
@@ -411,12 +412,19 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
 
 
 def _add_loggers(
-    builder, station: StewartStation, system: System, outputs: set, scenario: Scenario
+    builder,
+    station: StewartStation,
+    system: System,
+    outputs: set,
+    scenario: Scenario,
+    learner: System | None = None,
 ) -> dict:
     """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
     true platform pose and rate "x", the applied torques "T" and the controller's "status",
     "integral", "e_bar" when it has them; every ``state_log_period_s`` the plant's "state" in
-    float64 (a replay's frames, the loop-closure error, a divergence record)."""
+    float64 (a replay's frames, the loop-closure error, a divergence record) and a learner's
+    status under its ``status_port`` name (it changes once a cycle or stretch: logging it every
+    millisecond cost 0.26 kB a sample; the correction itself is not logged, nothing reads it)."""
     signals = {
         "x": (station.GetOutputPort("platform_state"), np.float32),
         "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
@@ -424,14 +432,13 @@ def _add_loggers(
     for name in ("status", "integral", "e_bar"):
         if name in outputs:
             signals[name] = (system.GetOutputPort(name), np.float32)
+    slow = {"state": (station.GetOutputPort("plant_state"), np.float64)}
+    if learner is not None:
+        slow[learner.status_port] = (learner.GetOutputPort(learner.status_port), np.float64)
     loggers = {}
     for log_name, period, group in (
         ("log_signals", scenario.log_period_s, signals),
-        (
-            "log_state",
-            scenario.state_log_period_s,
-            {"state": (station.GetOutputPort("plant_state"), np.float64)},
-        ),
+        ("log_state", scenario.state_log_period_s, slow),
     ):
         log = builder.AddNamedSystem(
             log_name,

@@ -129,9 +129,9 @@ RUN_BASE_BYTES = 0.4e9
 LOG_BYTES_PER_SAMPLE = 0.5e3
 CONTROL_BYTES_PER_SAMPLE = 0.15e3
 STATE_BYTES_PER_SAMPLE = 1.0e3
-#: A learner's status log (up to 16 float64 per logged sample in Drake's ``VectorLog``, which
-#: doubles its capacity as it grows: twice that at worst).
-LEARNER_BYTES_PER_SAMPLE = 0.26e3
+#: A learner's status log: up to 16 float64 per plant-state sample (it is logged with the
+#: plant state, every ``state_log_period_s``), with slack.
+LEARNER_BYTES_PER_SAMPLE = 0.2e3
 
 
 def run_memory_bytes(scenario: Scenario) -> float:
@@ -148,7 +148,7 @@ def run_memory_bytes(scenario: Scenario) -> float:
         + (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE
         + (d / scenario.state_log_period_s + 1) * STATE_BYTES_PER_SAMPLE
         + (scenario.learning is not None)
-        * (d / scenario.log_period_s + 1)
+        * (d / scenario.state_log_period_s + 1)
         * LEARNER_BYTES_PER_SAMPLE
     )
 
@@ -208,6 +208,7 @@ def build_simulator(
     controller=None,
     progress: bool = False,
     report=None,
+    controller_logs: bool = True,
 ):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
@@ -218,7 +219,7 @@ def build_simulator(
     applied.
 
     Args:
-        scenario, meshcat, reference, controller: as
+        scenario, meshcat, reference, controller, controller_logs: as
             :func:`~stewart_drake.simulation.diagram.make_stewart_diagram`.
         progress: show a bar while a long reference is checked (:func:`check_reference_shown`).
         report: the check's report when the caller has already checked this plan's reference
@@ -234,7 +235,7 @@ def build_simulator(
     plan = make_plan(plan, reference=reference, controller=controller)
     if report is None:
         check_reference_shown(plan, progress=progress, keep_series=False)
-    sd = make_stewart_diagram(plan, meshcat=meshcat)
+    sd = make_stewart_diagram(plan, meshcat=meshcat, controller_logs=controller_logs)
     simulator = Simulator(sd.diagram)
     ApplySimulatorConfig(plan.scenario.simulator, simulator)
     context = simulator.get_mutable_context()
@@ -397,7 +398,7 @@ def simulate(
 
 #: Samples :func:`reference_at` and :func:`feedforward_at` compute at once (their float64
 #: intermediates, a stretch at a time).
-RESULT_CHUNK = 100_000
+RESULT_CHUNK = 20_000
 
 
 def reference_at(trajectory, t: np.ndarray) -> np.ndarray:

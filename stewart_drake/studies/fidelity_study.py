@@ -151,7 +151,8 @@ def run_case(case: FidelityCase) -> dict:
         cycles[-1]["nonrepeat_translation_m"], cycles[-1]["nonrepeat_rotation_rad"] = nonrep
         previous = inside
         if learner is not None:
-            k = min(int(np.searchsorted(result.t, b)) + 1, len(learner) - 1)
+            # The learner's status is logged with the plant state (result.t_state).
+            k = min(int(np.searchsorted(result.t_state, b)) + 1, len(learner) - 1)
             status.append(dict(zip(ILC_STATUS_NAMES, (float(v) for v in learner[k]))))
     return {
         "case": case.job_id,
