@@ -412,19 +412,26 @@ def test_the_friction_feed_forward_is_read_from_the_scenario_and_off_in_the_pape
 
 def test_the_friction_feed_forward_lowers_the_breathing_error():
     """A 2 s breath of 5 mm on X (17-bit encoders, the motors' 0.0184 N m of Coulomb friction),
-    measured from the true pose over the second cycle: 12.8 um and 31.5 urad RMS without the
-    feed-forward, 9.5 um and 24.4 urad with it (docs/organ_motion.md, "The rotation floor")."""
+    measured from the true pose over the second cycle, with and without the feed-forward.
+
+    One such run is chaotic at the encoders' counts: the breath's amplitude changed by 1e-12
+    relative moves its RMS by up to 6 % and, over ten amplitudes from 1e-12 to 1e-6 apart, the
+    feed-forward's ratio from 0.52 to 0.81 in translation and 0.68 to 0.85 in rotation (the
+    count crossings of the hunting move). So the claim is tested on the mean of three
+    amplitudes: measured 12.1 -> 9.3 um and 33.3 -> 24.4 urad (docs/organ_motion.md, "The
+    rotation floor")."""
     from stewart_drake.simulation.organ_motion import OrganMotionReference
     from stewart_drake.studies.fidelity import reproduce
 
-    rms = []
+    rms = {}
     for friction in (0.0, 0.0184):
-        s = _hardware(**{"controller.friction_compensation_Nm": friction})
-        s.reference = OrganMotionReference(
-            motion="breathing", parameters={"period": "2s", "amplitude": "5mm"}
-        )
-        fid = reproduce(s, eval_cycles=1).fidelity
-        rms.append((fid["rms_translation_m"], fid["rms_rotation_rad"]))
-    (tr0, rot0), (tr1, rot1) = rms
-    assert tr0 == pytest.approx(12.8e-6, rel=0.05) and rot0 == pytest.approx(31.5e-6, rel=0.05)
-    assert tr1 < 0.8 * tr0 and rot1 < 0.85 * rot0
+        for eps in (0.0, 1e-11, 1e-9):
+            s = _hardware(**{"controller.friction_compensation_Nm": friction})
+            s.reference = OrganMotionReference(
+                motion="breathing", parameters={"period": "2s", "amplitude": f"{5 * (1 + eps)!r}mm"}
+            )
+            fid = reproduce(s, eval_cycles=1).fidelity
+            rms.setdefault(friction, []).append((fid["rms_translation_m"], fid["rms_rotation_rad"]))
+    (tr0, rot0), (tr1, rot1) = (np.mean(rms[f], axis=0) for f in (0.0, 0.0184))
+    assert 10e-6 < tr0 < 15e-6 and 26e-6 < rot0 < 38e-6, (tr0, rot0)
+    assert tr1 < 0.85 * tr0 and rot1 < 0.88 * rot0, (tr1 / tr0, rot1 / rot0)

@@ -702,14 +702,18 @@ def warm_up() -> None:
     """Compile (or load from the cache) every entry the controller calls, with the argument
     types it passes, so that no control period pays for it: a real-time run must not stall
     on its first step. Called once, when the module is first imported."""
-    from .lqi_step import LqiLayout
+    from .lqi_step import LqiLayout, StepConstants
 
-    lay = LqiLayout.build(24, 1, True, True, 50)
-    c, legs = _readonly(np.zeros(12)), _readonly(np.zeros((6, 9)))
+    # Zero constants (the estimator off) with the layout they imply, the constants sized from
+    # their fields: numba does not check bounds, so an array shorter than the stages index
+    # would be read past its end. The types, not the values, decide what is compiled.
+    lay = LqiLayout.build(24, 1, True, False, 50)
+    c = _readonly(np.zeros(len(StepConstants.get_fields())))
+    legs = _readonly(np.zeros((6, 9)))
     u, state, bounds = np.zeros(lay.u_size), np.zeros(lay.state_size), lay.bounds()
     step(c, legs, u, state, bounds)
     act(c, u, state, bounds, 0)
-    filter_rate(1e-3, 0.5, np.zeros(6), state[lay.x_hat])
+    filter_rate(1e-3, 0.5, np.zeros(6), np.zeros(12))
     body, x, K = (
         _readonly(np.ones(len(BODY))),
         np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]),
@@ -717,7 +721,7 @@ def warm_up() -> None:
     )
     try:  # compiled before it runs; zero legs make no pose
         warm_gain(legs, body, x, 1e-3, 1, np.eye(24), np.eye(6), K, np.inf, 1, 1e-16)
-    except (ZeroDivisionError, np.linalg.LinAlgError):
+    except (ZeroDivisionError, ValueError, np.linalg.LinAlgError):  # ValueError: not compiled
         pass
 
 

@@ -26,6 +26,8 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ..control.contract import ControllerContext, check_controller
 from ..control.estimator import FkEstimator
+from ..control.feedforward_tuning import FeedforwardTuningLearner
+from ..control.ilc import IterativeLearningController
 from ..control.tuning import TunerPorts
 from ..errors import InvalidConfigError
 from .guard import DivergenceGuard
@@ -417,7 +419,7 @@ def _add_loggers(
     system: System,
     outputs: set,
     scenario: Scenario,
-    learner: System | None = None,
+    learner: IterativeLearningController | FeedforwardTuningLearner | None = None,
 ) -> dict:
     """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
     true platform pose and rate "x", the applied torques "T" and the controller's "status",
