@@ -65,3 +65,21 @@ def test_push_window_writes_the_ring_buffer_like_the_reference():
     before = compiled.copy()
     assert not lqi_kernels.push_window(compiled, e, T)  # a NaN is not buffered
     np.testing.assert_array_equal(compiled, before)
+
+
+def test_the_warm_up_reads_no_array_past_its_end():
+    """numba does not check bounds: the warm-up, run as plain Python (NUMBA_DISABLE_JIT=1), must
+    index only what its arrays hold (the constants sized from their fields, the layout theirs)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    done = subprocess.run(
+        [sys.executable, "-c", "import stewart_drake.control.lqi_kernels"],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr[-2000:]
