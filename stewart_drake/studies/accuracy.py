@@ -288,6 +288,7 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
     states = sd.loggers["state"].FindLog(root).data().T
     context = sd.plant.CreateDefaultContext()
     nq = sd.plant.num_positions()
+    sd.handles.require_rod_bodies("the rods' ball-joint pitch")
     pitch = 0.0
     for state in states:
         sd.plant.SetPositions(context, state[:nq])
