@@ -318,13 +318,6 @@ class StewartPlantHandles:
     # (zeros), or None
     rod_model: str = "bodies"  # ROD_MODELS; with "distance", rods and rod_balls are empty
 
-    def require_rod_bodies(self, what: str) -> None:
-        """Raise InvalidConfigError naming ``what`` unless the rods are bodies."""
-        if self.rod_model != "bodies":
-            raise InvalidConfigError(
-                f"{what} needs the rods as bodies; this plant has rod_model {self.rod_model!r}"
-            )
-
 
 def add_stewart_plant(
     builder: DiagramBuilder,
