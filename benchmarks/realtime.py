@@ -24,8 +24,13 @@ Python callback of a running simulation, where each plant step leaves them with 
 ``--riccati`` times the gain re-solve: the Stein equation by Drake, scipy and the compiled
 squared Smith iteration, and one Newton step in numpy against the compiled one.
 
+``--rod-model distance`` also measures, interleaved with the rest, the station alone and the ANN
+Diagram on a plant whose rods are distance constraints (scenario field ``rod_model``), and prints
+both models' per-step times and ``ratio_ann_<model>_over_plant``: that Diagram against the
+station with rods as bodies (the default), holding.
+
 Usage: python benchmarks/realtime.py [--scenario paper_hardware] [--duration 5] [--repeats 5]
-       [--breakdown] [--riccati] [--profile 25] [--contact]
+       [--breakdown] [--riccati] [--profile 25] [--contact] [--rod-model distance]
 """
 
 import argparse
@@ -52,6 +57,7 @@ from stewart_drake.control.lqi import (
 from stewart_drake.control.tuner import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.model.kinematics import X_HOME
+from stewart_drake.model.plant import ROD_MODELS
 from stewart_drake.simulation.guard import DivergenceGuard
 from stewart_drake.simulation.plan import make_plan
 from stewart_drake.simulation.scenario import NamedReference
@@ -247,6 +253,24 @@ def riccati_costs(controller, n: int = 100) -> dict:
     return out
 
 
+def _print_rod_model(w: dict, rod_model: str, steps: float) -> None:
+    """Per-step times of both rod models and the ratio of the ANN Diagram on ``rod_model``'s
+    plant to the station with rods as bodies (pairs measured back to back)."""
+    for key, label in (("plant", "station alone, holding"), ("ann", "full Diagram, ANN tuner")):
+        bodies, other = np.median(w[key]), np.median(w[key + "_rod"])
+        print(
+            f"per_step_us_{key} bodies {bodies / steps * 1e6:.0f}  {rod_model} "
+            f"{other / steps * 1e6:.0f}  (bodies / {rod_model} {bodies / other:.2f}; {label})"
+        )
+    ratios = w["plant"] / w["ann_rod"]
+    print(
+        f"ratio_ann_{rod_model}_over_plant {np.median(ratios):.2f} (full Diagram with the ANN "
+        f"tuner on the {rod_model} plant / station alone with rods as bodies, holding; median of "
+        f"{len(ratios)} interleaved pairs; range {ratios.min():.2f} .. {ratios.max():.2f}; "
+        f"target >= 0.6)"
+    )
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="paper_hardware")
@@ -269,6 +293,13 @@ def main():
         help="also measure the station and the ANN Diagram with contact between "
         "the parts simulated (scenario field contact)",
     )
+    parser.add_argument(
+        "--rod-model",
+        choices=ROD_MODELS[1:],
+        default=None,
+        help="also measure the station and the ANN Diagram with the rods modelled so "
+        "(scenario field rod_model)",
+    )
     args = parser.parse_args()
     fixed = load_scenario(args.scenario, [f"duration_s={args.duration}"])
     ann = dataclasses.replace(fixed, tuner=AnnTunerDriver())
@@ -278,6 +309,9 @@ def main():
     load = os.getloadavg()[0]
     walls = collections.defaultdict(list)
     contact = dataclasses.replace(fixed, contact=True)
+    rods = dataclasses.replace(fixed, rod_model=args.rod_model or "bodies")
+    if args.rod_model:
+        full(dataclasses.replace(ann, rod_model=args.rod_model), 0.01)
     for _ in range(max(1, args.repeats)):
         walls["plant"].append(plant_alone(fixed, D))
         walls["ann"].append(full(ann, D)[0])
@@ -287,6 +321,9 @@ def main():
         if args.contact:
             walls["plant_contact"].append(plant_alone(contact, D))
             walls["ann_contact"].append(full(dataclasses.replace(ann, contact=True), D)[0])
+        if args.rod_model:
+            walls["plant_rod"].append(plant_alone(rods, D))
+            walls["ann_rod"].append(full(dataclasses.replace(ann, rod_model=args.rod_model), D)[0])
     w = {k: np.array(v) for k, v in walls.items()}
     rtf = {k: D / v for k, v in w.items()}
     print(
@@ -334,6 +371,8 @@ def main():
             f"ratio_ann_over_plant_contact "
             f"{np.median(w['plant_contact'] / w['ann_contact']):.2f} (contact on, both)"
         )
+    if args.rod_model:
+        _print_rod_model(w, args.rod_model, D / fixed.control_period_s)
     print(f"load_average_1min {os.getloadavg()[0]:.1f} at the end")
     if args.breakdown:
         steps = D / fixed.control_period_s

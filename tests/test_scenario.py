@@ -189,6 +189,7 @@ NAN = float("nan")
         ("sensor_noise", SensorNoise(std=[0.1] * 7), r"sensor_noise.std needs 12 finite values"),
         ("payload_scale", 0.0, r"payload_scale must be a finite number in \[0.1, 10\]"),
         ("controller", "lqi", r"controller must be an LqiDriver, PdDriver or UserController"),
+        ("rod_model", "springs", r"rod_model must be one of \('bodies', 'distance'\)"),
     ],
 )
 def test_bad_settings_are_refused_by_name(path, value, message):
@@ -273,3 +274,11 @@ def test_an_absurd_disturbance_or_q_filter_is_refused_before_simulating():
     with pytest.raises(InvalidConfigError, match=r"learning.q_cutoff_hz must be .* \[0.1,"):
         Scenario(learning=IlcDriver(q_cutoff_hz=1e-300))
     Scenario(disturbance=ToolDisturbance("push", 1e4, [1.0, 0.0, 0.0]))  # the bound itself
+
+
+def test_rods_as_distance_constraints_are_read_from_yaml_and_refuse_contact():
+    """The rods have no collision geometry as constraints: contact would miss them."""
+    scenario = load_scenario("paper_ideal", ["rod_model=distance"])
+    assert scenario.rod_model == "distance"
+    with pytest.raises(InvalidConfigError, match="contact needs the rods' collision geometry"):
+        load_scenario("paper_ideal", ["rod_model=distance", "contact=true"])

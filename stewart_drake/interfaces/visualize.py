@@ -167,7 +167,9 @@ def record_states(
         meshcat: a pydrake ``Meshcat``.
         geometry: the :class:`~.geometry.StewartGeometry` that was simulated.
         t: (N,) log times, s.
-        states: (N, nq + nv) or (N, nq) plant states of that geometry's plant.
+        states: (N, nq + nv) or (N, nq) plant states of that geometry's plant, rods as bodies
+            or as distance constraints (drawn with the rods' shapes from crank tip to platform
+            joint, :func:`~stewart_drake.model.plant.rod_bodies_positions`).
         fps: frames per s of the animation.
         clearance_m: parts closer than this are marked, m.
         x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
@@ -183,12 +185,14 @@ def record_states(
     from pydrake.systems.framework import DiagramBuilder
 
     from ..model.clearance import clearance_model
-    from ..model.plant import add_stewart_plant
+    from ..model.plant import DISTANCE_NQ, DISTANCE_NV, add_stewart_plant, rod_bodies_positions
 
     builder = DiagramBuilder()
     plant, scene_graph, _ = add_stewart_plant(builder, geometry)
     states = np.atleast_2d(np.asarray(states, dtype=float))
     nq = plant.num_positions()
+    if states.shape[1] in (DISTANCE_NQ, DISTANCE_NQ + DISTANCE_NV):  # rods as constraints
+        states = rod_bodies_positions(geometry, states)
     if states.shape[0] != np.size(t) or states.shape[1] < nq:
         raise InvalidConfigError(
             f"states must be (N, >= {nq}) with N = len(t) = {np.size(t)}, got {states.shape}: "

@@ -149,6 +149,14 @@ class ClearanceModel:
         query, found = self._query(q, max_distance)
         return sorted((self._contact(query, r) for r in found), key=lambda c: c.distance)
 
+    def positions(self, x) -> np.ndarray:
+        """The positions q of this model's plant (rods as bodies) assembled at poses x (..., 6):
+        how a plant whose rods are distance constraints (no rod bodies) is checked; NaN rows
+        where x is unreachable."""
+        from .plant import assembled_positions
+
+        return assembled_positions(self._plant, self._handles, x)
+
     def overlaps(self, q) -> list[Contact]:
         """The pairs of parts that overlap at the plant positions ``q`` (a station's plant has
         the same layout), deepest first; empty, and cheap (Drake's ``HasCollisions``), when none

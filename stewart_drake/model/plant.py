@@ -13,6 +13,7 @@ there. :func:`add_stewart_plant` sets the default joint positions to the home po
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -35,6 +36,37 @@ MODEL_NAME = "rotary_stewart"
 REFERENCE_SDF = Path(__file__).resolve().parents[2] / "sdf" / "rotary_stewart.sdf"
 _BASE_THICKNESS = 0.02
 
+#: How the six rods are modelled (docs/plant_speed.md measures both).
+#: "bodies": each rod a rigid body on a ball joint at its crank tip, its top closed on the
+#: platform by a ball constraint (30 velocities, 18 constraint equations): exact rigid-body
+#: dynamics of the rods, spin about their axes included.
+#: "distance": each rod a Drake distance constraint (a rigid massless link) between crank tip and
+#: platform joint (12 velocities, 6 equations), the rod's mass m lumped m/2 at each end, added to
+#: the crank's and the platform's inertia. Exact for the rods' weight (the potential energy of a
+#: rod is m g times its centre's height, the mean of its ends') and for the translation of its
+#: centre; but two end masses carry m s^2/4 about the rod's centre, normal to it, where the rod
+#: has I_c (paper Table I: 0.0016 kg m^2, against m s^2/4 = 0.0033 kg m^2): an excess inertia
+#: of m s^2/4 - I_c on the rod's rotation, and the rod's spin inertia is dropped. A rod's
+#: kinetic energy is exactly (m/8)|v_A + v_B|^2 + (I_c / 2 s^2)|v_A - v_B|^2 in its end
+#: velocities; its cross term v_A . v_B couples crank and platform and cannot be carried by
+#: either body, so no split of the mass at the ends is exact; the measured effect on torques
+#: and tracking is in docs/plant_speed.md.
+ROD_MODELS = ("bodies", "distance")
+#: Positions and velocities of the plant with rods as distance constraints: 6 cranks and the
+#: platform's quaternion and position (a test reads them back from Drake).
+DISTANCE_NQ, DISTANCE_NV = 13, 12
+
+
+def check_rod_model(rod_model) -> str:
+    """``rod_model`` if it is one of :data:`ROD_MODELS`.
+
+    Raises:
+        InvalidConfigError: any other value.
+    """
+    if rod_model not in ROD_MODELS:
+        raise InvalidConfigError(f"rod_model must be one of {ROD_MODELS}, got {rod_model!r}")
+    return rod_model
+
 
 def _vec(v) -> str:
     return " ".join(f"{float(c) + 0.0:.12g}" for c in v)  # + 0.0: no "-0" in the text
@@ -46,13 +78,38 @@ def _pose(p, R: np.ndarray) -> str:
 
 
 def _inertial(mass: float, moments, p_com) -> str:
-    ixx, iyy, izz = moments
+    """An SDF ``<inertial>``: ``moments`` (3,) principal moments or a (3, 3) tensor about the
+    centre of mass p_com (link frame), kg m^2."""
+    I = np.asarray(moments, dtype=float)
+    I = np.diag(I) if I.ndim == 1 else I
     return (
         f"      <inertial>\n        <pose>{_vec(p_com)} 0 0 0</pose>\n"
         f"        <mass>{mass:.12g}</mass>\n"
-        f"        <inertia><ixx>{ixx:.12g}</ixx><iyy>{iyy:.12g}</iyy><izz>{izz:.12g}</izz>"
-        f"<ixy>0</ixy><ixz>0</ixz><iyz>0</iyz></inertia>\n      </inertial>\n"
+        f"        <inertia><ixx>{I[0, 0]:.12g}</ixx><iyy>{I[1, 1]:.12g}</iyy>"
+        f"<izz>{I[2, 2]:.12g}</izz><ixy>{I[0, 1] + 0.0:.12g}</ixy><ixz>{I[0, 2] + 0.0:.12g}</ixz>"
+        f"<iyz>{I[1, 2] + 0.0:.12g}</iyz></inertia>\n      </inertial>\n"
     )
+
+
+def with_point_masses(mass: float, moments, p_com, m_point: float, points) -> tuple:
+    """A body's inertia with point masses ``m_point`` (kg) added at ``points`` (n, 3), link
+    frame (parallel-axis theorem).
+
+    Returns:
+        (mass kg, (3, 3) inertia about the new centre of mass kg m^2, (3,) new centre of mass m).
+    """
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    p_com = np.asarray(p_com, dtype=float)
+    total = mass + m_point * len(points)
+    c = (mass * p_com + m_point * points.sum(axis=0)) / total
+
+    def shifted(m, r):  # inertia of a point mass m at offset r
+        return m * (np.dot(r, r) * np.eye(3) - np.outer(r, r))
+
+    I = np.diag(np.asarray(moments, dtype=float)) + shifted(mass, p_com - c)
+    for p in points:
+        I = I + shifted(m_point, p - c)
+    return total, I, c
 
 
 def _geometry_xml(part) -> str:
@@ -93,6 +150,14 @@ def _part_xml(part, collision: bool) -> str:
             "      </collision>\n"
         )
     return out
+
+
+def _end_mass_inertial(mass: float, moments, p_com, m_end: float, points) -> str:
+    """:func:`_inertial` of a body carrying the rods' lumped end masses (none when m_end = 0,
+    the text then unchanged)."""
+    if m_end == 0:
+        return _inertial(mass, moments, p_com)
+    return _inertial(*with_point_masses(mass, moments, p_com, m_end, points))
 
 
 def _axis_angle(u, angle: float) -> np.ndarray:
@@ -138,16 +203,26 @@ def _rod_zero_rotations(geometry: StewartGeometry) -> list[np.ndarray]:
     return rotations
 
 
-def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -> str:
+def write_sdf(
+    geometry: StewartGeometry | None = None, collision: bool = True, rod_model: str = "bodies"
+) -> str:
     """SDFormat 1.9 text of the robot, with Drake's ``drake:ball_constraint`` loop closures.
 
     Args:
         geometry: the robot; default reference_geometry.md.
         collision: also write every part's ``<collision>`` (:func:`~.parts.robot_parts`, with
             SAP point-contact properties); False draws the parts only (a plant without contact).
+        rod_model: "bodies" (each rod a link on a ball joint, closed by a ball constraint) or
+            "distance": no rod links, joints or constraints (Drake 1.51's parser has no
+            distance constraint; :func:`add_stewart_plant` adds them), each rod's mass lumped
+            half at its crank tip and half at its platform joint (:data:`ROD_MODELS`); the
+            rods' shapes are then not written (their clearance is checked kinematically,
+            :mod:`~.clearance`).
     Returns:
         The SDF as a string; links ``base``, ``crank_i``, ``rod_i``, ``platform``; joints
         ``motor_i`` (revolute, actuated) and ``rod_ball_i`` (ball); i = 0..5.
+    Raises:
+        InvalidConfigError: ``rod_model`` not one of :data:`ROD_MODELS`.
     Source: reference_geometry.md for the layout; paper Table I for masses and inertias (crank
     inertia corrected to the nearest physically valid tensor, docs/paper_notes.md); the parts'
     shapes are ours (:mod:`~.parts`).
@@ -155,8 +230,11 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
     # Long: one document written element after element, in the order the file reads.
     from .parts import robot_parts
 
+    check_rod_model(rod_model)
     g = geometry or StewartGeometry()
     a, s = g.crank_length, g.rod_length
+    bodies = rod_model == "bodies"
+    m_end = 0.0 if bodies else g.rod_mass / 2  # each rod end's lumped mass, kg
     shapes: dict[str, list] = {}
     for part in robot_parts(g):
         shapes.setdefault(part.link, []).append(_part_xml(part, collision))
@@ -181,7 +259,7 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
         R_crank = np.column_stack([d, -u, [0.0, 0.0, 1.0]])  # x along crank, y = shaft (-u)
         out.append(
             f'    <link name="crank_{i}">\n      <pose>{_pose(P, R_crank)}</pose>\n'
-            + _inertial(g.crank_mass, g.crank_inertia, [a / 2, 0, 0])
+            + _end_mass_inertial(g.crank_mass, g.crank_inertia, [a / 2, 0, 0], m_end, [[a, 0, 0]])
             + "".join(shapes[f"crank_{i}"])
             + "    </link>"
         )
@@ -190,6 +268,8 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
             f"<child>crank_{i}</child>\n"
             f'      <axis><xyz expressed_in="__model__">{_vec(u)}</xyz></axis>\n    </joint>'
         )
+        if not bodies:
+            continue
         out.append(
             f'    <link name="rod_{i}">\n      <pose>{_pose(P + a * d, rod_R0[i])}</pose>\n'
             + _inertial(g.rod_mass, g.rod_inertia, [0, 0, s / 2])
@@ -203,11 +283,11 @@ def write_sdf(geometry: StewartGeometry | None = None, collision: bool = True) -
     out.append(
         f'    <link name="platform">\n      <pose>{_vec(X_HOME[3:])} '
         f"{_vec(X_HOME[:3])}</pose>\n"
-        + _inertial(g.platform_mass, g.platform_inertia, [0, 0, 0])
+        + _end_mass_inertial(g.platform_mass, g.platform_inertia, [0, 0, 0], m_end, g.p_E)
         + "".join(shapes["platform"])
         + "    </link>"
     )
-    for i in range(6):
+    for i in range(6 if bodies else 0):
         out.append(
             "    <drake:ball_constraint>\n"
             f"      <drake:ball_constraint_body_A>rod_{i}</drake:ball_constraint_body_A>\n"
@@ -236,6 +316,7 @@ class StewartPlantHandles:
     n_actuators: int = 6  # 6 motors, + 6 dry-friction actuators when the servo has friction
     desired_state_port: InputPort | None = None  # the friction actuators' desired state
     # (zeros), or None
+    rod_model: str = "bodies"  # ROD_MODELS; with "distance", rods and rod_balls are empty
 
 
 def add_stewart_plant(
@@ -247,6 +328,7 @@ def add_stewart_plant(
     plant_config: MultibodyPlantConfig | None = None,
     servo: ServoModel | None = None,
     contact: bool = False,
+    rod_model: str = "bodies",
 ):
     """Add the robot as a discrete SAP MultibodyPlant (+ SceneGraph) to ``builder``.
 
@@ -274,12 +356,17 @@ def add_stewart_plant(
             collision into contact forces (point contact, :data:`CONTACT_STIFFNESS_N_PER_M`);
             False leaves it out (an SDF file's collision geometry is then filtered): parts pass
             through each other unseen, at no cost per step.
+        rod_model: "bodies" or "distance" (:data:`ROD_MODELS`); "distance" adds one
+            ``AddDistanceConstraint`` (rigid, length ``geometry.rod_length``) per leg between
+            the crank tip and the platform joint, and then takes no ``sdf_file``. Its rods have
+            no collision geometry: contact between a rod and another part is not simulated.
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
         pose, assembled. With friction, ``handles.actuation_port`` takes 12 values (the six
         motor torques, then six zeros) and ``handles.desired_state_port`` must be fixed to zeros.
     Raises:
-        InvalidConfigError: time_step <= 0 or a non-SAP approximation (constraints ignored).
+        InvalidConfigError: time_step <= 0, a non-SAP approximation (constraints ignored), an
+            unknown ``rod_model`` or an ``sdf_file`` with rod_model "distance".
     """
     # Long for its docstring (every argument and Drake's behaviour it relies on); the steps are
     # functions below.
@@ -296,6 +383,11 @@ def add_stewart_plant(
             f"discrete_contact_approximation {discrete_contact_approximation!r} does not enforce "
             f"ball constraints; use 'sap', 'lagged' or 'similar'"
         )
+    check_rod_model(rod_model)
+    if rod_model != "bodies" and sdf_file is not None:
+        raise InvalidConfigError(
+            f"an sdf_file models the rods as bodies; rod_model {rod_model!r} takes none"
+        )
     geometry = geometry or StewartGeometry()
     if plant_config is None:
         plant_config = MultibodyPlantConfig(
@@ -305,10 +397,12 @@ def add_stewart_plant(
     # Drake's default is 9.81 m/s^2 whatever the geometry says; holding torques and feed-forward
     # use geometry.gravity, so the plant must too.
     plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -geometry.gravity])
-    model = _add_robot_model(plant, scene_graph, geometry, sdf_file, contact)
+    model = _add_robot_model(plant, scene_graph, geometry, sdf_file, contact, rod_model)
     _add_motors(plant, model, geometry, servo)
+    if rod_model == "distance":
+        _add_rod_constraints(plant, model, geometry)
     plant.Finalize()
-    handles = _handles(plant, model, geometry)
+    handles = _handles(plant, model, geometry, rod_model)
     theta_home = kinematics.ik(geometry, X_HOME)
     for joint, angle in zip(handles.motors, theta_home):
         joint.set_default_angle(float(angle))
@@ -316,12 +410,15 @@ def add_stewart_plant(
     return plant, scene_graph, handles
 
 
-def _add_robot_model(plant, scene_graph, geometry: StewartGeometry, sdf_file, contact: bool):
+def _add_robot_model(
+    plant, scene_graph, geometry: StewartGeometry, sdf_file, contact: bool, rod_model: str
+):
     """The robot's model instance, from :func:`write_sdf` of ``geometry`` or from ``sdf_file``
     (its collision geometry filtered out without ``contact``)."""
     parser = Parser(plant)
     if sdf_file is None:
-        (model,) = parser.AddModelsFromString(write_sdf(geometry, collision=contact), "sdf")
+        text = write_sdf(geometry, collision=contact, rod_model=rod_model)
+        (model,) = parser.AddModelsFromString(text, "sdf")
         return model
     (model,) = parser.AddModels(str(sdf_file))
     if not contact:
@@ -355,7 +452,19 @@ def _add_motors(plant, model, geometry: StewartGeometry, servo: ServoModel | Non
         last.set_default_rotor_inertia(geometry.motor_reflected_inertia / gear**2)
 
 
-def _handles(plant, model, geometry: StewartGeometry) -> StewartPlantHandles:
+def _add_rod_constraints(plant, model, geometry: StewartGeometry) -> None:
+    """One rigid distance constraint per leg, crank tip (crank frame [a, 0, 0]) to platform
+    joint (platform frame p_E_i), of length s."""
+    platform = plant.GetBodyByName("platform", model)
+    tip = np.array([geometry.crank_length, 0.0, 0.0])
+    for i in range(6):
+        crank = plant.GetBodyByName(f"crank_{i}", model)
+        plant.AddDistanceConstraint(
+            crank, tip, platform, np.asarray(geometry.p_E[i], dtype=float), geometry.rod_length
+        )
+
+
+def _handles(plant, model, geometry: StewartGeometry, rod_model: str) -> StewartPlantHandles:
     """The handles of the finalized plant's robot.
 
     Raises:
@@ -364,33 +473,40 @@ def _handles(plant, model, geometry: StewartGeometry) -> StewartPlantHandles:
     n_actuators = plant.num_actuators()
     if n_actuators not in (6, 12):
         raise InvalidConfigError(f"expected 6 motor actuators, the SDF gives {n_actuators}")
+    bodies = rod_model == "bodies"
     return StewartPlantHandles(
         geometry=geometry,
         model_instance=model,
         platform=plant.GetBodyByName("platform", model),
         cranks=tuple(plant.GetBodyByName(f"crank_{i}", model) for i in range(6)),
-        rods=tuple(plant.GetBodyByName(f"rod_{i}", model) for i in range(6)),
+        rods=tuple(plant.GetBodyByName(f"rod_{i}", model) for i in range(6) if bodies),
         motors=tuple(plant.GetJointByName(f"motor_{i}", model) for i in range(6)),
-        rod_balls=tuple(plant.GetJointByName(f"rod_ball_{i}", model) for i in range(6)),
+        rod_balls=tuple(plant.GetJointByName(f"rod_ball_{i}", model) for i in range(6) if bodies),
         rod_top_in_rod=np.array([0.0, 0.0, geometry.rod_length]),
         actuation_port=plant.get_actuation_input_port(model),
         n_actuators=n_actuators,
         desired_state_port=(plant.get_desired_state_input_port(model) if n_actuators > 6 else None),
+        rod_model=rod_model,
     )
 
 
 def make_plant(
-    geometry: StewartGeometry | None = None, time_step: float = 1e-3, contact: bool = False
+    geometry: StewartGeometry | None = None,
+    time_step: float = 1e-3,
+    contact: bool = False,
+    rod_model: str = "bodies",
 ):
-    """A standalone finalized plant assembled at home (``contact``: with collision geometry,
-    see :func:`add_stewart_plant`).
+    """A standalone finalized plant assembled at home (``contact``: with collision geometry;
+    ``rod_model``: :data:`ROD_MODELS`; see :func:`add_stewart_plant`).
 
     Returns:
         (plant, plant_context, handles, diagram, root_context): the plant's Context lives inside
         the Diagram's (the plant is registered with a SceneGraph), so both are returned.
     """
     builder = DiagramBuilder()
-    plant, _, handles = add_stewart_plant(builder, geometry, time_step, contact=contact)
+    plant, _, handles = add_stewart_plant(
+        builder, geometry, time_step, contact=contact, rod_model=rod_model
+    )
     diagram = builder.Build()
     context = diagram.CreateDefaultContext()
     return plant, plant.GetMyMutableContextFromRoot(context), handles, diagram, context
@@ -458,6 +574,8 @@ def assembled_positions(plant: MultibodyPlant, handles: StewartPlantHandles, x) 
     R0 = _rod_zero_rotations_cached(g)
     for i in range(6):
         q[..., handles.motors[i].position_start()] = theta[..., i]
+        if not handles.rod_balls:
+            continue
         u = g.u_B[i]
         c, s_ = np.cos(theta[..., i])[..., None], np.sin(theta[..., i])[..., None]
         # Rot(u, -theta) ell (Rodrigues), then into the zero-configuration rod frame.
@@ -470,6 +588,25 @@ def assembled_positions(plant: MultibodyPlant, handles: StewartPlantHandles, x) 
     start = handles.platform.floating_positions_start()
     q[..., start : start + 4] = _quaternion_rpy(x[..., :3])
     q[..., start + 4 : start + 7] = x[..., 3:]
+    return q
+
+
+def rod_bodies_positions(geometry: StewartGeometry, states) -> np.ndarray:
+    """Positions (N, nq) of the plant with rods as bodies, from the states (N, >= 13) of a plant
+    whose rods are distance constraints (its positions first): the same motor angles and
+    platform pose, each rod from crank tip to platform joint without spin. How a run of the
+    "distance" model is drawn and checked with the rods' shapes.
+    """
+    plant, context, handles, _, _ = make_plant(geometry, rod_model="distance")
+    bodies, _, body_handles, _, _ = make_plant(geometry)
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    poses = []
+    for row in states[:, : plant.num_positions()]:
+        plant.SetPositions(context, row)
+        poses.append(platform_pose(plant, context, handles)[0])
+    q = assembled_positions(bodies, body_handles, np.array(poses))
+    for joint, body_joint in zip(handles.motors, body_handles.motors):
+        q[:, body_joint.position_start()] = states[:, joint.position_start()]
     return q
 
 
@@ -595,10 +732,21 @@ def closed_chain_inverse_dynamics(
 def loop_closure_errors(
     plant: MultibodyPlant, context: Context, handles: StewartPlantHandles
 ) -> np.ndarray:
-    """(6,) distance in m between each rod's top end and its platform joint (0 when closed)."""
+    """(6,) distance in m between each rod's top end and its platform joint (0 when closed);
+    with rods as distance constraints, |crank tip to platform joint - rod length|."""
     # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
     X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
     p_W_joint = X_WE.multiply(handles.geometry.p_E.T)  # type: ignore[arg-type]  # (3, 6) joints
+    if not handles.rods:
+        tip = np.array([handles.geometry.crank_length, 0.0, 0.0])
+        p_W_tip = np.column_stack(
+            [
+                plant.EvalBodyPoseInWorld(context, crank).multiply(tip)  # type: ignore[arg-type]
+                for crank in handles.cranks
+            ]
+        )
+        length = np.sqrt(((p_W_joint - p_W_tip) ** 2).sum(axis=0))
+        return np.abs(length - handles.geometry.rod_length)
     p_W_top = np.column_stack(
         [
             plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod)  # type: ignore[arg-type]
@@ -606,6 +754,75 @@ def loop_closure_errors(
         ]
     )
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
+
+
+class LoopClosure:
+    """:func:`loop_closure_errors` of the plant's positions q, from q alone (no Context, no
+    forward kinematics of the tree), in plain Python floats: for a check at every step of a run,
+    where a Context's kinematics or numpy's per-call overhead on (6, 3) arrays costs several
+    times more (docs/plant_speed.md).
+
+    Crank tips from the motor angles (as :meth:`~.geometry.StewartGeometry.crank_tips`); with
+    rods as bodies, each rod's top at s R_WF R_FM(rpy) e_z from its tip, where R_WF =
+    Rot(u_i, theta_i) R0_i is the ball joint's frame (as :func:`assembled_positions` poses it)
+    and R_FM = Rz(yaw) Ry(pitch) Rx(roll) Drake's BallRpyJoint; the platform joints from its
+    (normalized) quaternion and position. A test holds it to :func:`loop_closure_errors` at
+    1e-12 m.
+
+    Args:
+        handles: the plant's :class:`StewartPlantHandles`.
+    """
+
+    def __init__(self, handles: StewartPlantHandles):
+        g = handles.geometry
+        self._motors = [joint.position_start() for joint in handles.motors]
+        self._balls = [joint.position_start() for joint in handles.rod_balls]
+        self._platform = handles.platform.floating_positions_start()
+        R0 = _rod_zero_rotations_cached(g)
+        self._legs = [
+            tuple(float(v) for v in (*g.P_B[i], *g.d_B[i], *g.u_B[i], *g.p_E[i], *np.ravel(R0[i])))
+            for i in range(6)
+        ]
+        self._a, self._s = float(g.crank_length), float(g.rod_length)
+
+    def __call__(self, q) -> np.ndarray:
+        """(6,) distance in m between each rod's top end and its platform joint, from q (nq,)."""
+        q = np.asarray(q, dtype=float).tolist()
+        i = self._platform
+        w, x, y, z = q[i : i + 4]
+        n = 1.0 / math.sqrt(w * w + x * x + y * y + z * z)
+        w, x, y, z = w * n, x * n, y * n, z * n
+        r00, r01, r02 = 1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)
+        r10, r11, r12 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
+        r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
+        X, Y, Z = q[i + 4 : i + 7]
+        a, s = self._a, self._s
+        out = []
+        for k, (px, py, pz, dx, dy, dz, ux, uy, uz, ex, ey, ez, *R0) in enumerate(self._legs):
+            th = q[self._motors[k]]
+            c, sn = math.cos(th), math.sin(th)
+            tx, ty, tz = px + a * c * dx, py + a * c * dy, pz + a * (c * dz + sn)  # crank tip
+            jx = r00 * ex + r01 * ey + r02 * ez + X - tx  # tip to platform joint
+            jy = r10 * ex + r11 * ey + r12 * ez + Y - ty
+            jz = r20 * ex + r21 * ey + r22 * ez + Z - tz
+            if not self._balls:
+                out.append(abs(math.sqrt(jx * jx + jy * jy + jz * jz) - s))
+                continue
+            j = self._balls[k]
+            cr, sr = math.cos(q[j]), math.sin(q[j])
+            cp, sp = math.cos(q[j + 1]), math.sin(q[j + 1])
+            cy, sy = math.cos(q[j + 2]), math.sin(q[j + 2])
+            fx, fy, fz = cy * sp * cr + sy * sr, sy * sp * cr - cy * sr, cp * cr  # R_FM e_z
+            vx = R0[0] * fx + R0[1] * fy + R0[2] * fz  # R0 R_FM e_z, then Rot(u, theta)
+            vy = R0[3] * fx + R0[4] * fy + R0[5] * fz
+            vz = R0[6] * fx + R0[7] * fy + R0[8] * fz
+            uv = (ux * vx + uy * vy + uz * vz) * (1 - c)
+            lx = vx * c + (uy * vz - uz * vy) * sn + ux * uv
+            ly = vy * c + (uz * vx - ux * vz) * sn + uy * uv
+            lz = vz * c + (ux * vy - uy * vx) * sn + uz * uv
+            gx, gy, gz = s * lx - jx, s * ly - jy, s * lz - jz
+            out.append(math.sqrt(gx * gx + gy * gy + gz * gz))
+        return np.array(out)
 
 
 def platform_pose(plant: MultibodyPlant, context: Context, handles: StewartPlantHandles):

@@ -42,7 +42,7 @@ from ..model.limits import (
     DEFAULT_MIN_CLEARANCE_M,
     DEFAULT_MIN_SIGMA_MIN_INV,
 )
-from ..model.plant import loop_closure_errors
+from ..model.plant import LoopClosure
 
 
 # Drake's YAML loader reads GuardConfig's field annotations: this module must not use
@@ -229,9 +229,8 @@ class DivergenceGuard(LeafSystem):
         )
         self._T = self.DeclareVectorInputPort("T", 6)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        # A context of the plant alone, for the rods' and the platform's positions (configured
-        # from the state each check; no state of the guard).
-        self._scratch = plant.CreateDefaultContext()
+        # The loop closure from the positions alone (no context of the plant, no kinematics).
+        self._closure = LoopClosure(station.handles)
         self.DeclarePeriodicPublishEvent(
             period_sec=self.config.check_period_s, offset_sec=0.0, publish=self._Check
         )
@@ -296,8 +295,7 @@ class DivergenceGuard(LeafSystem):
             )
         cfg, plant = self.config, self._plant
         if cfg.max_closure_error_m is not None:
-            plant.SetPositions(self._scratch, state[: plant.num_positions()])
-            closure = loop_closure_errors(plant, self._scratch, self._handles)
+            closure = self._closure(state[: plant.num_positions()])
             leg = int(np.argmax(closure))
             if not closure[leg] <= cfg.max_closure_error_m:
                 return (
@@ -322,7 +320,14 @@ class DivergenceGuard(LeafSystem):
         if self.contact or not self._may_overlap(context, state, pose, x_d):
             return None
         # Without contact nothing in the plant keeps two parts apart: overlapping is a failure.
-        overlaps = self._clearance.overlaps(state[: plant.num_positions()])
+        # Rods as distance constraints: the clearance model's plant (rods as bodies) posed at
+        # the measured pose; the loops are closed, so its IK gives the cranks' angles.
+        q = (
+            state[: plant.num_positions()]
+            if self._handles.rods
+            else self._clearance.positions(pose)
+        )
+        overlaps = self._clearance.overlaps(q)
         if overlaps:
             return (
                 f"{overlaps[0]}: parts pass through each other in a plant without contact; "

@@ -56,6 +56,7 @@ from ..errors import (
 )
 from ..mirrors import ValueMirror
 from ..model.geometry import StewartGeometry
+from ..model.plant import check_rod_model
 from ..model.servo import ServoModel
 from ..model.statics import FEEDFORWARD_MODES
 from .guard import GuardConfig
@@ -412,6 +413,11 @@ class Scenario:
             forces and the guard reports the first one with the parts' names. False (default,
             cheaper per step): parts would pass through each other, and the guard stops a run
             the moment two of them overlap.
+        rod_model: how the plant models the rods (:data:`~stewart_drake.model.plant.ROD_MODELS`):
+            "bodies" (default: rigid bodies on ball joints, exact) or "distance" (rigid distance
+            constraints with the rods' mass lumped at their ends; fewer degrees of freedom and
+            a faster step; its accuracy and speed are measured in docs/plant_speed.md). With
+            "distance" the rods have no collision geometry, so it takes no ``contact``.
         learning: None, or a correction of the reference the controller tracks, learned from
             the encoders: from every cycle (:class:`IlcDriver`, motion that repeats) or as a
             function of the reference (:class:`FeedforwardTuning`, any motion).
@@ -442,6 +448,7 @@ class Scenario:
     hardware: Hardware | None = None
     disturbance: ToolDisturbance | None = None
     contact: bool = False
+    rod_model: str = "bodies"
     learning: LearningChoice | None = None
 
     def __post_init__(self):
@@ -505,6 +512,12 @@ class Scenario:
         as_number("payload_scale", self.payload_scale, 0.1, 10.0)
         if not isinstance(self.contact, bool):
             raise InvalidConfigError(f"contact must be true or false, got {self.contact!r}")
+        check_rod_model(self.rod_model)
+        if self.contact and self.rod_model != "bodies":
+            raise InvalidConfigError(
+                f"contact needs the rods' collision geometry: set rod_model to 'bodies' "
+                f"(got {self.rod_model!r})"
+            )
         if self.torque_limit_Nm is not None:
             as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
         self.guard.validate()

@@ -163,6 +163,7 @@ class StewartStation(Diagram):
             plant_config=scenario.plant,
             servo=plan.servo,
             contact=scenario.contact,
+            rod_model=scenario.rod_model,
         )
         plant.set_name("plant")
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)

@@ -84,19 +84,24 @@ class Run:
 
 class DrakeEngine:
     """The Drake plant of :func:`.plant.add_stewart_plant` under constant torques, run by
-    Drake's Simulator (gravity: Drake's default 9.81 m/s^2)."""
+    Drake's Simulator (gravity: Drake's default 9.81 m/s^2); ``rod_model`` one of
+    :data:`~stewart_drake.model.plant.ROD_MODELS` (named "drake_sap" with rods as bodies,
+    "drake_sap_distance" with rods as distance constraints)."""
 
-    name = "drake_sap"
-
-    def __init__(self, geometry: StewartGeometry, time_step: float, torques):
+    def __init__(
+        self, geometry: StewartGeometry, time_step: float, torques, rod_model: str = "bodies"
+    ):
         from pydrake.systems.analysis import Simulator
         from pydrake.systems.framework import DiagramBuilder
         from pydrake.systems.primitives import ConstantVectorSource
 
         from ..model.plant import add_stewart_plant
 
+        self.name = "drake_sap" if rod_model == "bodies" else f"drake_sap_{rod_model}"
         builder = DiagramBuilder()
-        self.plant, _, self.handles = add_stewart_plant(builder, geometry, time_step)
+        self.plant, _, self.handles = add_stewart_plant(
+            builder, geometry, time_step, rod_model=rod_model
+        )
         source = builder.AddSystem(ConstantVectorSource(np.asarray(torques, dtype=float)))
         builder.Connect(source.get_output_port(), self.handles.actuation_port)
         self.simulator = Simulator(builder.Build())
@@ -181,6 +186,7 @@ class MujocoEngine:
 #: The engines by name: (geometry, time step, constant torques) -> an engine.
 ENGINES: dict[str, Callable[..., DrakeEngine | MujocoEngine]] = {
     "drake_sap": DrakeEngine,
+    "drake_sap_distance": lambda g, h, T: DrakeEngine(g, h, T, "distance"),
     "mujoco_rk4": lambda g, h, T: MujocoEngine(g, h, T, "RK4"),
     "mujoco_implicitfast": lambda g, h, T: MujocoEngine(g, h, T, "implicitfast"),
 }
@@ -259,15 +265,17 @@ def observed_order(steps, errors, floor: float = 1e-13) -> float:
     return float(np.polyfit(np.log(steps[keep]), np.log(errors[keep]), 1)[0])
 
 
-def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
-    """The paper manoeuvre in closed loop (LQI at 1 kHz) on a plant of step ``time_step`` s.
+def paper_run(time_step: float, duration_s: float = 2.0, rod_model: str = "bodies") -> dict:
+    """The paper manoeuvre in closed loop (LQI at 1 kHz) on a plant of step ``time_step`` s,
+    rods modelled as ``rod_model`` (:data:`~stewart_drake.model.plant.ROD_MODELS`).
 
     Returns:
         dict: ``rms_error`` (6,) over the second half [rad, m], ``max_closure_m``,
         ``wall_per_sim_s`` (wall s per simulated s), ``max_pitch_rad`` the largest |pitch| of
         the rods' BallRpyJoints read from the logged plant states, and
         ``max_pitch_no_spin_rad`` the same from :func:`.ball_joints.rod_ball_rpy` of the logged
-        poses (rods without spin); their difference is the spin the rods pick up.
+        poses (rods without spin); their difference is the spin the rods pick up (NaN when the
+        rods are no bodies: they have no ball joints).
     Raises:
         InvalidConfigError: 1 ms is not a whole multiple of ``time_step``.
     """
@@ -276,7 +284,7 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
     from ..simulation.scenario import Scenario
     from .experiments import build_simulator, collect_result
 
-    config = Scenario(duration_s=duration_s)
+    config = Scenario(duration_s=duration_s, rod_model=rod_model)
     config.plant.time_step = time_step
     config.state_log_period_s = config.log_period_s  # the largest pitch over every sample
     sd, simulator = build_simulator(config)
@@ -288,8 +296,8 @@ def paper_run(time_step: float, duration_s: float = 2.0) -> dict:
     states = sd.loggers["state"].FindLog(root).data().T
     context = sd.plant.CreateDefaultContext()
     nq = sd.plant.num_positions()
-    pitch = 0.0
-    for state in states:
+    pitch = 0.0 if sd.handles.rod_balls else float("nan")
+    for state in states if sd.handles.rod_balls else ():
         sd.plant.SetPositions(context, state[:nq])
         pitch = max(pitch, max(abs(joint.get_angles(context)[1]) for joint in sd.handles.rod_balls))
     geometry = make_plan(config, with_reference=False).geometry
