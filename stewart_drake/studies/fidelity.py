@@ -1018,7 +1018,7 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
         _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict(fid, tolerance)
     fig.suptitle(f"{rep.name}: {line}", fontsize=9, color="k" if ok else "tab:red")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / fig.get_figheight()))  # 0.3 in for the title
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
     plt.close(fig)
