@@ -28,6 +28,8 @@ from stewart_drake.simulation.design import (
     random_design,
     reference_design,
 )
+from stewart_drake.simulation.scenario import dump_scenario
+from stewart_drake.simulation.scenario_io import load_scenario
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "motor_catalogue.md"
 
@@ -105,6 +107,22 @@ def test_the_closing_rod_lengths_agree_with_the_geometrys_reach_check():
                 P_B=g.P_B, p_E=g.p_E, d_B=g.d_B, crank_length=g.crank_length, rod_length=s
             )
             assert bool(np.all(np.abs(leg_reach_ratio(legs, X_HOME)) <= 1)) == closes, (s, lo)
+
+
+def test_a_design_applied_to_a_scenario_round_trips_through_its_file(tmp_path):
+    design = _closing_designs(1, seed=3)[0]
+    design.motor = "XM430-W350-T"
+    scenario = design.apply_to(load_scenario("paper_hardware"))
+    dump_scenario(scenario, tmp_path / "design.yaml")
+    back = load_scenario(tmp_path / "design.yaml")
+    assert back.robot.build() == design.geometry()
+    assert back.hardware.motors.build() == catalogue_motor("XM430-W350-T").servo
+    assert back.hardware.encoders.counts_per_rev == 4096
+    # The reference design leaves the robot as built unchanged.
+    reference = load_scenario("paper_hardware")
+    assert dump_scenario(reference_design().apply_to(load_scenario("paper_hardware"))) == (
+        dump_scenario(reference)
+    )
 
 
 def test_a_design_that_cannot_close_at_home_is_refused_naming_the_rod_length():

@@ -32,6 +32,7 @@ from ..model.geometry import StewartGeometry, _leg_angles, reference_geometry
 from ..model.kinematics import X_HOME
 from ..model.motor_catalogue import REFERENCE_MOTOR, CatalogueMotor, catalogue_motor
 from ..model.servo import ServoModel
+from .scenario import Motors, Robot, Scenario
 
 #: {variable: (lower, upper, unit, meaning)}: the bounds of :class:`Design`'s numbers.
 DESIGN_BOUNDS: dict[str, tuple[float, float, str, str]] = {
@@ -176,6 +177,22 @@ class Design:
             return catalogue_motor(self.motor)
         except InvalidConfigError as err:
             raise InvalidConfigError(f"design.{err}") from None
+
+    def apply_to(self, scenario: Scenario) -> Scenario:
+        """``scenario`` with this design's robot and, when it has hardware, its motors and their
+        encoder resolution; changed in place, validated and returned (a scenario file of the
+        design is then ``dump_scenario`` of it, which every command takes).
+
+        Raises:
+            InvalidConfigError, InvalidGeometryError: as :meth:`geometry`, or the scenario's own
+                validation.
+        """
+        scenario.robot = Robot.from_value(self.geometry())
+        if scenario.hardware is not None:
+            entry = self.catalogue_entry()
+            scenario.hardware.motors = Motors.from_value(entry.servo)
+            scenario.hardware.encoders.counts_per_rev = entry.encoder_counts_per_rev
+        return scenario.validate()
 
     def summary(self) -> str:
         """The variables on one line, with units."""
