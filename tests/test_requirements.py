@@ -73,3 +73,9 @@ def test_the_defaults_are_the_paper_manoeuvre_and_the_guards_margin():
     assert r.motions == [NamedReference(name="paper")]
     assert r.workspace is None and r.payload_kg == 0.0
     assert r.margins.torque == pytest.approx(0.1)
+
+
+def test_a_requirements_file_is_not_a_shipped_scenario():
+    from stewart_drake.simulation.scenario_io import shipped_scenarios
+
+    assert SHIPPED.exists() and "design_requirements" not in shipped_scenarios()
