@@ -48,6 +48,8 @@ def test_a_dump_names_only_the_drake_settings_it_changes():
     assert back.simulator.target_realtime_rate == 1.0 and back.plant.penetration_allowance == 2e-3
     assert back.visualization.publish_period == scenario.visualization.publish_period
     for path in sorted(SCENARIOS.glob("*.yaml")):
+        if path.name.endswith("_requirements.yaml"):  # a design task, not a scenario
+            continue
         data = yaml_load(data=path.read_text())
         assert set(data["plant"]) == {"time_step", "discrete_contact_approximation"}, path
         assert "simulator" not in data and "visualization" not in data, path

@@ -33,9 +33,14 @@ DEFAULT_SCENARIO = "paper_hardware"
 
 #: Where the shipped scenarios are (``scenarios/`` of the repository, installed as package data).
 def shipped_scenarios() -> dict:
-    """{name: path} of the scenarios shipped with the package (``scenarios/*.yaml``)."""
+    """{name: path} of the scenarios shipped with the package (``scenarios/*.yaml``; not the
+    design requirements files beside them, ``*_requirements.yaml``)."""
     folder = importlib.resources.files("stewart_drake.scenarios")
-    return {Path(p.name).stem: Path(str(p)) for p in folder.iterdir() if p.name.endswith(".yaml")}
+    return {
+        Path(p.name).stem: Path(str(p))
+        for p in folder.iterdir()
+        if p.name.endswith(".yaml") and not p.name.endswith("_requirements.yaml")
+    }
 
 
 def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) -> Scenario:

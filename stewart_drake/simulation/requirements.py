@@ -1,0 +1,167 @@
+"""What a design must do, as a file: motions, a required workspace, a payload and margins.
+
+A :class:`DesignRequirements` is read from YAML by :func:`load_requirements` with Drake's
+``yaml_load_typed``, like a scenario (:mod:`~.scenario_io`): the motions are the scenario's
+reference choices (``!NamedReference {name: paper}``, the paper manoeuvre;
+``!OrganMotionReference {motion: breathing_heartbeat, parameters: {...}}``, the organ-motion
+library with its parameters; ``!TraceReference {path: ...}``, a recorded trace), so each is
+checked and built as a scenario's reference is. Loading never executes code, and a bad file or
+value is one typed line naming the file and the field. ``scenarios/design_requirements.yaml``
+is the issue's acceptance set. This module must not use ``from __future__ import annotations``
+(``yaml_load_typed`` reads its dataclasses' field types).
+"""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.yaml import yaml_load_typed
+
+from ..checks import as_number
+from ..errors import CorruptFileError, InvalidConfigError, MissingFileError, StewartError
+from ..model.kinematics import X_HOME
+from ..model.limits import DEFAULT_EFFORT_MARGIN
+from .scenario import ReferenceChoice
+from .scenario_io import _in_file, _one_line, _refuse_duplicate_keys
+from .trajectories import NamedReference
+
+#: Largest requirements file read, bytes (a few hundred bytes is typical).
+MAX_REQUIREMENTS_BYTES = 64 * 1024
+#: Largest side of the required box, m, and largest payload, kg: past a tabletop platform.
+MAX_BOX_SIDE_M, MAX_PAYLOAD_KG = 0.5, 20.0
+
+
+@dataclass
+class RequiredWorkspace:
+    """Poses every design must reach and hold: a box of positions, each with a tilt cone.
+
+    Attributes:
+        box_m: (3,) the box's full extents along X, Y, Z, m, centred on (0, 0, height_m).
+        tilt_deg: the platform may tilt by up to this angle about any horizontal axis at every
+            position of the box, deg (a cone of the platform's normal), in [0, 45].
+        height_m: the box's centre height in the base frame, m; None: the home height
+            (``X_HOME``, 0.30 m).
+    """
+
+    box_m: list[float] = field(default_factory=lambda: [0.03, 0.03, 0.02])
+    tilt_deg: float = 15.0
+    height_m: float | None = None
+
+    @property
+    def centre_m(self) -> np.ndarray:
+        """(3,) the box's centre, m."""
+        z = float(X_HOME[5]) if self.height_m is None else self.height_m
+        return np.array([0.0, 0.0, z])
+
+    def validate(self) -> None:
+        """Raises InvalidConfigError naming the field (``workspace.<name>``)."""
+        if not isinstance(self.box_m, list) or len(self.box_m) != 3:
+            raise InvalidConfigError(
+                f"workspace.box_m must be 3 extents [X, Y, Z] in m, got {self.box_m!r}"
+            )
+        for axis, side in zip("XYZ", self.box_m, strict=True):
+            as_number(f"workspace.box_m ({axis}, m)", side, 0.0, MAX_BOX_SIDE_M)
+        as_number("workspace.tilt_deg", self.tilt_deg, 0.0, 45.0)
+        if self.height_m is not None:
+            as_number("workspace.height_m", self.height_m, 0.05, 1.0)
+
+
+@dataclass
+class Margins:
+    """What a design keeps in reserve for the feedback, as fractions of the motor's figures.
+
+    Attributes:
+        torque: the share of the motors' peak torque the motions may not use, in [0, 0.9]
+            (default 0.1: the motions may need 90 %, as ``GuardConfig.effort_margin``).
+        speed: the share of the motors' no-load speed the motions may not use, in [0, 0.9].
+    """
+
+    torque: float = round(1.0 - DEFAULT_EFFORT_MARGIN, 12)
+    speed: float = round(1.0 - DEFAULT_EFFORT_MARGIN, 12)
+
+    def validate(self) -> None:
+        """Raises InvalidConfigError naming the field (``margins.<name>``)."""
+        as_number("margins.torque", self.torque, 0.0, 0.9)
+        as_number("margins.speed", self.speed, 0.0, 0.9)
+
+
+@dataclass
+class DesignRequirements:
+    """A design task.
+
+    Attributes:
+        motions: the motions the robot must make, each a scenario reference choice (module
+            docstring); at least one, or a workspace.
+        workspace: the poses it must reach and hold (:class:`RequiredWorkspace`), or None.
+        payload_kg: mass on the platform, kg, in [0, 20] (at the platform frame's origin).
+        margins: what the motions leave to the feedback (:class:`Margins`).
+    """
+
+    motions: list[ReferenceChoice] = field(default_factory=lambda: [NamedReference()])
+    workspace: RequiredWorkspace | None = None
+    payload_kg: float = 0.0
+    margins: Margins = field(default_factory=Margins)
+
+    def validate(self) -> "DesignRequirements":
+        """Check every field; returns self.
+
+        Raises:
+            InvalidConfigError, MissingFileError: names the field (``motions[i]``: the motion's
+                own message, e.g. an unknown library name or a missing trace file).
+        """
+        if not isinstance(self.motions, list):
+            raise InvalidConfigError(f"motions must be a list, got {self.motions!r}")
+        if not self.motions and self.workspace is None:
+            raise InvalidConfigError("give at least one motion or a workspace: nothing is asked")
+        for i, motion in enumerate(self.motions):
+            try:
+                motion.validate()
+            except StewartError as err:
+                raise _in_file(err, f"motions[{i}]") from None
+        if self.workspace is not None:
+            self.workspace.validate()
+        as_number("payload_kg", self.payload_kg, 0.0, MAX_PAYLOAD_KG)
+        self.margins.validate()
+        return self
+
+
+def load_requirements(path) -> DesignRequirements:
+    """Read a design's requirements from a YAML file (``scenarios/design_requirements.yaml``).
+
+    Args:
+        path: the ``.yaml`` file.
+    Returns:
+        the validated :class:`DesignRequirements`.
+    Raises:
+        MissingFileError: no such file (or a motion's trace file missing).
+        CorruptFileError (an InvalidConfigError): empty, too large, not UTF-8, not YAML, a key
+            twice, or YAML that does not fit the schema (the field named).
+        InvalidConfigError: a value out of range, named by file and field.
+    """
+    from ..fileio import decode_text, read_checked
+
+    kind = "design requirements file"
+    remedy = "fix it, or start from scenarios/design_requirements.yaml"
+    if not isinstance(path, (str, Path)) or not Path(path).is_file():
+        raise MissingFileError(f"no design requirements file {path!r}: check the path")
+    path = Path(path)
+    raw = read_checked(path, kind, MAX_REQUIREMENTS_BYTES, remedy)
+    if not raw.strip():
+        raise CorruptFileError(path, kind, "it is empty", remedy)
+    text = decode_text(raw, path, kind, remedy)
+    try:
+        _refuse_duplicate_keys(text)
+        requirements = yaml_load_typed(
+            schema=DesignRequirements, data=text, allow_schema_with_no_yaml=True
+        )
+    except StewartError as err:
+        raise _in_file(err, path) from None
+    except Exception as err:  # noqa: BLE001 - yaml and Drake's loader raise several types
+        problem = _one_line(err)
+        if not problem.startswith("not YAML"):
+            problem = f"it does not fit the DesignRequirements schema: {problem}"
+        raise CorruptFileError(path, kind, problem, remedy) from None
+    try:
+        return requirements.validate()
+    except StewartError as err:
+        raise _in_file(err, path) from None
