@@ -94,7 +94,7 @@ _EC45 = EC45_FLAT_50W_24V
 MOTOR_CATALOGUE: dict[str, CatalogueMotor] = {
     m.name: m
     for m in (
-        _dynamixel("XL430-W250-T", 1.5, 61.0, 258.5, 1.0, 57.2, 24.0),
+        _dynamixel("XL430-W250-T", 1.5, 61.0, 258.5, 1.0, 57.2, 50.0),
         _dynamixel("XH430-W350-T", 3.4, 30.0, 353.5, 1.0, 82.0, 250.0),
         _dynamixel("XM430-W350-T", 4.1, 46.0, 353.5, 1.0, 82.0, 290.0),
         _dynamixel("XM540-W270-T", 10.6, 30.0, 272.5, 5.0, 165.0, 495.0),
