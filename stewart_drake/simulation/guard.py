@@ -324,7 +324,7 @@ class DivergenceGuard(LeafSystem):
         # the measured pose; the loops are closed, so its IK gives the cranks' angles.
         q = (
             state[: plant.num_positions()]
-            if self._handles.rods
+            if self._handles.rod_indices
             else self._clearance.positions(pose)
         )
         overlaps = self._clearance.overlaps(q)
