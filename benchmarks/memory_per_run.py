@@ -2,6 +2,7 @@
 
     python benchmarks/memory_per_run.py                        # 20 runs of 0.5 s, paper_hardware
     python benchmarks/memory_per_run.py --runs 30 --duration 1 --scenario paper_ideal
+    python benchmarks/memory_per_run.py --runs 0 --study 80     # a study's wall time only
 
 Each run takes the path a study worker takes (``build_simulator``, ``simulate``,
 ``release_reference``, ``finish_result``); then every reference to the run is dropped, the
@@ -11,6 +12,11 @@ freed. Printed: a row per run (RSS, growth since the previous run, freed or not)
 per run over the second half of the runs (the first ones warm caches: numba, Drake's
 scalar-type conversions), and a hash of the first run's logs (it must not change when only
 the freeing of memory changes).
+
+With ``--study N``: N such runs as a study runs them, over two local worker processes
+(``ProcessRunner``), recycled every ``DEFAULT_RECYCLE`` jobs and as the runner decides for this
+Drake (``AUTO_RECYCLE``: never where it frees a run's Diagram), interleaved ``--repeat`` times:
+wall time, worker processes used and the largest worker RSS.
 """
 
 from __future__ import annotations
@@ -65,12 +71,44 @@ def one_run(scenario) -> tuple[object, weakref.ref, weakref.ref, float]:
     return result, diagram, station, time.perf_counter() - wall0
 
 
+def study_job(job: tuple) -> tuple[int, float]:
+    """(pid, RSS in MB) of a worker after one run of (scenario name, duration in s)."""
+    name, duration_s = job
+    one_run(load_scenario(name, [f"duration_s={duration_s}"]))
+    return os.getpid(), rss_mb()
+
+
+def study(n_jobs: int, name: str, duration_s: float, repeat: int) -> None:
+    """Print the wall time of ``n_jobs`` runs over 2 local workers, recycled and not."""
+    from stewart_drake.execution.runners import AUTO_RECYCLE, DEFAULT_RECYCLE, ProcessRunner
+
+    jobs = {str(k): (name, duration_s) for k in range(n_jobs)}
+    for r in range(repeat):
+        for recycle in (DEFAULT_RECYCLE, AUTO_RECYCLE):
+            runner = ProcessRunner(2, recycle=recycle)
+            wall0 = time.perf_counter()
+            got = dict(runner.map(study_job, jobs))
+            wall = time.perf_counter() - wall0
+            print(
+                f"study repeat {r + 1}: {n_jobs} runs on 2 workers, recycle {recycle} "
+                f"({runner.recycle}): wall {wall:.1f} s, {len({p for p, _ in got.values()})} "
+                f"worker processes, largest worker RSS {max(m for _, m in got.values()):.0f} MB",
+                flush=True,
+            )
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=20, help="runs in the process (20)")
     parser.add_argument("--duration", type=float, default=0.5, help="s per run (0.5)")
     parser.add_argument("--scenario", default="paper_hardware", help="scenario (paper_hardware)")
+    parser.add_argument("--study", type=int, default=0, help="runs of a 2-worker study (0)")
+    parser.add_argument("--repeat", type=int, default=2, help="interleaved study repeats (2)")
     args = parser.parse_args()
+    if args.study:
+        study(args.study, args.scenario, args.duration, args.repeat)
+    if args.runs == 0:
+        return 0
     scenario = load_scenario(args.scenario, [f"duration_s={args.duration}"])
 
     print(
