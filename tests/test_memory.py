@@ -132,17 +132,18 @@ def _drake_version() -> str:
     return version("drake")
 
 
-@pytest.fixture(scope="module")
-def dropped_run():
-    """Weak references to what a short run of the robot as built (paper_hardware: delay, current
-    loop, encoders, guard) built, taken the way a study worker runs it, after every strong
-    reference is dropped and the garbage collected; and the run's logs."""
+@pytest.fixture(scope="module", params=[[], ["contact=true"]], ids=["no_contact", "contact"])
+def dropped_run(request):
+    """{name: freed} of what a short run of the robot as built (paper_hardware: delay, current
+    loop, encoders, guard; with and without contact, whose guard differs) built, run the way a
+    study worker runs it, after every strong reference is dropped and the garbage collected."""
     import gc
     import weakref
 
     from stewart_drake.simulation.scenario_io import load_scenario
 
-    sd, simulator = build_simulator(load_scenario("paper_hardware", ["duration_s=0.05"]))
+    scenario = load_scenario("paper_hardware", ["duration_s=0.05", *request.param])
+    sd, simulator = build_simulator(scenario)
     logs, wall = experiments.simulate(sd, simulator)
     experiments.release_reference(sd)
     result = experiments.finish_result(logs, wall)
