@@ -124,3 +124,89 @@ def test_the_estimate_before_a_run_covers_what_a_run_holds(short_run):
     held = (result.nbytes() + sd.reference.T_ff_table.nbytes) / DURATION_S
     assert 1.5 * held < slope < 4 * held, (slope, held)
     assert 1.1e9 <= run_memory_bytes(Scenario(duration_s=1500.0)) < 2e9
+
+
+def _drake_version() -> str:
+    from importlib.metadata import version
+
+    return version("drake")
+
+
+@pytest.fixture(scope="module", params=[[], ["contact=true"]], ids=["no_contact", "contact"])
+def dropped_run(request):
+    """{name: freed} of what a short run of the robot as built (paper_hardware: delay, current
+    loop, encoders, guard; with and without contact, whose guard differs) built, run the way a
+    study worker runs it, after every strong reference is dropped and the garbage collected."""
+    import gc
+    import weakref
+
+    from stewart_drake.simulation.scenario_io import load_scenario
+
+    scenario = load_scenario("paper_hardware", ["duration_s=0.05", *request.param])
+    sd, simulator = build_simulator(scenario)
+    logs, wall = experiments.simulate(sd, simulator)
+    experiments.release_reference(sd)
+    result = experiments.finish_result(logs, wall)
+    refs = {
+        "diagram": weakref.ref(sd.diagram),
+        "station": weakref.ref(sd.station),
+        "plant": weakref.ref(sd.plant),
+        "guard": weakref.ref(sd.guard),
+        "root context": weakref.ref(simulator.get_context()),
+        "simulator": weakref.ref(simulator),
+    }
+    del sd, simulator, logs, result
+    gc.collect()
+    return {name: ref() is None for name, ref in refs.items()}
+
+
+def test_a_run_frees_what_it_built_where_drake_frees_python_systems(dropped_run):
+    from stewart_drake.execution.runners import drake_frees_diagrams
+
+    if not drake_frees_diagrams():
+        pytest.skip(
+            f"drake {_drake_version()} keeps every Diagram with a Python LeafSystem "
+            "(drake#23930; drake 1.58 frees them)"
+        )
+    assert dropped_run == dict.fromkeys(dropped_run, True)
+
+
+def test_the_runners_probe_says_whether_a_run_is_freed(dropped_run):
+    """The probe that lets local workers run without recycling (on every Drake)."""
+    from stewart_drake.execution.runners import drake_frees_diagrams
+
+    assert dropped_run["diagram"] == drake_frees_diagrams()
+
+
+def test_the_plant_handles_hold_indices_and_look_the_elements_up():
+    """A pydrake body, joint or port kept in a Python object keeps its plant, and the Diagram
+    around it, alive: the handles keep indices and the plant only."""
+    import dataclasses
+
+    from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RigidBody
+
+    from stewart_drake.model.plant import make_plant
+
+    plant, _, handles, _, _ = make_plant(rod_model="bodies")
+    kept = [
+        v
+        for f in dataclasses.fields(handles)
+        for v in np.ravel(np.asarray(getattr(handles, f.name), dtype=object))
+    ]
+    handles_of_plant = [
+        type(v).__name__
+        for v in kept
+        if type(v).__module__.startswith("pydrake")
+        and v is not plant
+        and not type(v).__name__.endswith("Index")
+    ]
+    assert handles_of_plant == []
+    assert handles.platform.name() == "platform"
+    assert isinstance(handles.platform, RigidBody)
+    assert [b.name() for b in handles.cranks] == [f"crank_{i}" for i in range(6)]
+    assert [b.name() for b in handles.rods] == [f"rod_{i}" for i in range(6)]
+    assert [type(j) for j in handles.motors] == [RevoluteJoint] * 6
+    assert [j.name() for j in handles.rod_balls] == [f"rod_ball_{i}" for i in range(6)]
+    assert all(type(j) is BallRpyJoint for j in handles.rod_balls)
+    assert handles.actuation_port.size() == handles.n_actuators
+    assert handles.desired_state_port is None

@@ -16,6 +16,7 @@ import pytest
 
 from stewart_drake.errors import JointLimitError, SimulationDivergedError
 from stewart_drake.execution.runners import (
+    DEFAULT_RECYCLE,
     Interrupted,
     JobFailure,
     ProcessRunner,
@@ -206,6 +207,20 @@ def test_workers_die_with_their_parent(tmp_path):
         assert alive == []
     finally:
         parent.kill()
+
+
+def test_local_workers_are_recycled_only_where_drake_cannot_free_a_run():
+    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.execution.runners import RayRunner, drake_frees_diagrams
+
+    expected = None if drake_frees_diagrams() else DEFAULT_RECYCLE
+    assert ProcessRunner(1).recycle == expected
+    assert make_runner("processes", 1).recycle == expected
+    assert ProcessRunner(1, recycle=0).recycle is None
+    assert ProcessRunner(1, recycle=3).recycle == 3
+    assert RayRunner(1, recycle="auto").recycle == DEFAULT_RECYCLE  # nodes: another Drake
+    with pytest.raises(InvalidConfigError, match="recycle must be"):
+        ProcessRunner(1, recycle="sometimes")
 
 
 def test_make_runner_refuses_options_of_another_backend():

@@ -25,7 +25,8 @@ thread stop submitting, cancel what is pending, end the workers, and raise :clas
 signal the process ignores (``nohup`` ignores SIGHUP) stays ignored.
 
 Backends: :class:`SerialRunner` (this process), :class:`ProcessRunner` (local processes, the
-default: spawned, recycled after ``recycle`` jobs to bound memory, ignoring Ctrl-C themselves
+default: spawned, recycled after ``recycle`` jobs to bound memory where Drake cannot free a
+run's Diagram, ignoring Ctrl-C themselves
 and killed with their parent), :class:`RayRunner` (extra ``[ray]``) and :class:`DaskRunner`
 (extra ``[dask]``). :func:`make_runner` builds one from the CLI's ``--runner`` options.
 """
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import functools
 import os
 import pickle
 import signal
@@ -48,10 +50,14 @@ from ..errors import InvalidConfigError
 
 #: Names of the backends, for ``--runner``.
 RUNNERS = ("processes", "serial", "ray", "dask")
-#: Jobs a worker process runs before it is replaced. A Diagram with a Python LeafSystem leaks
-#: about 21 MB per 10 s run on drake 1.51 (4 MB per 1 s run), so this bounds a worker's growth
-#: to ~420 MB; a replacement costs a fresh interpreter and pydrake import (~1.5 s).
+#: Jobs a worker process runs before it is replaced, on a Drake that cannot free a Diagram with
+#: a Python LeafSystem (drake 1.51 keeps every run's: about 2 MB per 0.5 s run of
+#: paper_hardware, 21 MB per 10 s run), so this bounds a worker's growth to ~420 MB; a
+#: replacement costs a fresh interpreter and pydrake import (~1.5 s).
 DEFAULT_RECYCLE = 20
+#: ``recycle`` that lets the runner choose (:func:`default_recycle`): never on a Drake that frees
+#: a run's Diagram, else every :data:`DEFAULT_RECYCLE` jobs.
+AUTO_RECYCLE = "auto"
 #: Attempts after the first for a job whose worker died.
 DEFAULT_RETRIES = 2
 #: Signals that cancel a running ``map``.
@@ -113,6 +119,53 @@ class JobFailure:
             error=kept,
             files=files,
         )
+
+
+@functools.cache
+def drake_frees_diagrams() -> bool:
+    """Whether this process's Drake frees a Diagram with a Python ``LeafSystem`` once nothing
+    refers to it: a one-time probe (a Diagram of one such system, built, dropped, collected).
+
+    drake 1.51 cannot (the system's callbacks, held in C++, refer back to it: drake#23930);
+    drake 1.58 can. Our closed loop is then freed too (a test holds it to that), so a worker's
+    memory no longer grows with the runs it has done (docs/performance.md).
+    """
+    import gc
+    import weakref
+
+    from pydrake.systems.framework import BasicVector, DiagramBuilder, LeafSystem
+
+    class _Probe(LeafSystem):
+        def __init__(self):
+            super().__init__()
+            self.DeclareVectorOutputPort("y", 1, self._calc)
+
+        def _calc(self, context, out: BasicVector):
+            out.SetAtIndex(0, 0.0)
+
+    builder = DiagramBuilder()
+    builder.AddSystem(_Probe())
+    diagram = weakref.ref(builder.Build())
+    del builder
+    gc.collect()
+    return diagram() is None
+
+
+def default_recycle() -> int | None:
+    """Jobs per local worker before it is replaced when not told: None (never) where Drake frees
+    a run's Diagram (:func:`drake_frees_diagrams`), else :data:`DEFAULT_RECYCLE`."""
+    return None if drake_frees_diagrams() else DEFAULT_RECYCLE
+
+
+def _recycle(recycle: int | str | None) -> int | None:
+    """``recycle`` with :data:`AUTO_RECYCLE` resolved (:func:`default_recycle`) and 0 as None."""
+    if recycle == AUTO_RECYCLE:
+        return default_recycle()
+    if isinstance(recycle, str) or (recycle is not None and recycle < 0):
+        raise InvalidConfigError(
+            f"recycle must be a number of jobs >= 0, None or {AUTO_RECYCLE!r}, got {recycle!r}"
+        )
+    return recycle or None
 
 
 class Interrupted(KeyboardInterrupt):
@@ -354,7 +407,10 @@ class ProcessRunner(_PoolRunner):
     Args:
         n_workers: processes (0: one per core).
         retries: attempts after the first for jobs whose worker died.
-        recycle: jobs per worker before it is replaced (bounds leaked memory; None: never).
+        recycle: jobs per worker before it is replaced (bounds leaked memory; None or 0:
+            never; :data:`AUTO_RECYCLE`: never where this Drake frees a run's Diagram, else
+            :data:`DEFAULT_RECYCLE`, :func:`default_recycle`). The workers run this
+            interpreter, hence its Drake.
         start_method: "spawn" (default: a fresh interpreter, safe with Drake's threads) or
             "forkserver".
     Workers ignore SIGINT (the parent ends them on Ctrl-C, SIGTERM, SIGHUP) and are killed when
@@ -365,12 +421,12 @@ class ProcessRunner(_PoolRunner):
         self,
         n_workers: int = 0,
         retries: int = DEFAULT_RETRIES,
-        recycle: int | None = DEFAULT_RECYCLE,
+        recycle: int | str | None = AUTO_RECYCLE,
         start_method: str = "spawn",
     ):
         self.n_workers = n_workers or os.cpu_count() or 1
         self.retries = retries
-        self.recycle = recycle
+        self.recycle = _recycle(recycle)
         self.start_method = start_method
 
     def _open(self):
@@ -495,7 +551,9 @@ class RayRunner(_PoolRunner):
         address: a running cluster ("auto", "ray://host:10001", "host:6379"), or None.
         retries: attempts after the first for jobs whose worker died (Ray's own task retries
             are off so that every backend counts alike).
-        recycle: tasks per Ray worker process before it is replaced (``max_calls``).
+        recycle: tasks per Ray worker process before it is replaced (``max_calls``; None or
+            0: never). :data:`AUTO_RECYCLE` is :data:`DEFAULT_RECYCLE` here: a cluster's
+            nodes may run another Drake than this process.
         connect_timeout_s: seconds for the address to accept a connection (:meth:`probe`).
     Workers must import stewart_drake (install it on every node). A cluster this runner
     started is shut down when ``map`` ends; one it joined is left running. Joining is bounded:
@@ -513,13 +571,13 @@ class RayRunner(_PoolRunner):
         n_workers: int = 0,
         address: str | None = None,
         retries: int = DEFAULT_RETRIES,
-        recycle: int | None = DEFAULT_RECYCLE,
+        recycle: int | str | None = DEFAULT_RECYCLE,
         connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S,
     ):
         self.n_workers = n_workers
         self.address = address
         self.retries = retries
-        self.recycle = recycle
+        self.recycle = DEFAULT_RECYCLE if recycle == AUTO_RECYCLE else _recycle(recycle)
         self.connect_timeout_s = _connect_timeout(connect_timeout_s)
         self._target = (
             None
@@ -715,7 +773,7 @@ def make_runner(
     address: str | None = None,
     scheduler: str | None = None,
     retries: int = DEFAULT_RETRIES,
-    recycle: int | None = DEFAULT_RECYCLE,
+    recycle: int | str | None = AUTO_RECYCLE,
     connect_timeout_s: float = DEFAULT_CONNECT_TIMEOUT_S,
 ):
     """The runner of the CLI's ``--runner KIND --jobs N [--address A] [--scheduler S]``; an
@@ -725,8 +783,9 @@ def make_runner(
     Args:
         kind: one of :data:`RUNNERS`. jobs: workers (0: one per core; a local cluster's size
             for ray and dask). address: Ray cluster (ray only). scheduler: Dask scheduler
-            (dask only). retries, recycle: see :class:`ProcessRunner` (recycle 0 or None:
-            never; Dask ignores it). connect_timeout_s: see :class:`RayRunner`.
+            (dask only). retries, recycle: see :class:`ProcessRunner` and :class:`RayRunner`
+            (recycle 0 or None: never; Dask ignores it). connect_timeout_s: see
+            :class:`RayRunner`.
     Raises:
         InvalidConfigError: an unknown kind, an option of another backend, a negative count,
             a malformed address, or an address where nothing answers in time.
@@ -742,7 +801,6 @@ def make_runner(
     if kind == "serial":
         return SerialRunner()
     _connect_timeout(connect_timeout_s)
-    recycle = recycle or None
     if kind in ("ray", "dask"):
         runner = (
             RayRunner(jobs, address, retries, recycle, connect_timeout_s)

@@ -617,7 +617,7 @@ def _cmd_scenario(args) -> int:
 def _runner(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..execution.runners import make_runner
+    from ..execution.runners import AUTO_RECYCLE, make_runner
 
     return make_runner(
         args.runner,
@@ -625,7 +625,7 @@ def _runner(args):
         address=args.address,
         scheduler=args.scheduler,
         retries=args.retries,
-        recycle=args.recycle,
+        recycle=AUTO_RECYCLE if args.recycle is None else args.recycle,
         connect_timeout_s=args.connect_timeout,
     )
 
@@ -1014,9 +1014,10 @@ def _add_runner_arguments(parser) -> None:
     parser.add_argument(
         "--recycle",
         type=_int_at_least(0),
-        default=DEFAULT_RECYCLE,
-        help="jobs a worker runs before it is replaced, to bound leaked memory "
-        "(0: never; processes and ray)",
+        default=None,
+        help="jobs a worker runs before it is replaced, to bound leaked memory (processes and "
+        "ray; 0: never; default: never for local processes where Drake frees a run's Diagram, "
+        f"as drake 1.58 does, else {DEFAULT_RECYCLE})",
     )
 
 

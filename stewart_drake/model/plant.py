@@ -23,7 +23,7 @@ from pydrake.geometry import CollisionFilterDeclaration, GeometrySet
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from pydrake.multibody.parsing import Parser
 from pydrake.multibody.plant import AddMultibodyPlant, MultibodyPlant, MultibodyPlantConfig
-from pydrake.multibody.tree import ModelInstanceIndex, PdControllerGains, RigidBody
+from pydrake.multibody.tree import BodyIndex, ModelInstanceIndex, PdControllerGains, RigidBody
 from pydrake.systems.framework import Context, DiagramBuilder, InputPort
 
 from ..errors import InvalidConfigError
@@ -302,21 +302,73 @@ def write_sdf(
 
 @dataclass(frozen=True)
 class StewartPlantHandles:
-    """What a caller needs to address the robot inside a plant (indices are Drake's)."""
+    """What a caller needs to address the robot inside a plant: the plant and Drake's indices.
+
+    The bodies, joints and ports are looked up in the plant each time they are asked for
+    (``platform``, ``cranks``, ``rods``, ``motors``, ``rod_balls``, ``actuation_port``,
+    ``desired_state_port``: fresh pydrake handles, a few microseconds each), never stored: a
+    pydrake ``RigidBody``, ``Joint`` or port of the plant kept in a Python object holds the plant
+    through pybind's keep-alive, which Python's garbage collector cannot see through, so the
+    Diagram around it could never be freed (drake 1.58 frees a Diagram with Python systems
+    otherwise; docs/performance.md). Keep the indices, or ask again, rather than the handles.
+
+    Attributes:
+        geometry: the robot.  plant: the finalized MultibodyPlant.  model_instance: the robot's.
+        platform_index, crank_indices (6), rod_indices (6; empty with distance-constraint
+        rods): ``BodyIndex``.  motor_indices (6), rod_ball_indices (6 or empty): ``JointIndex``
+        (revolute motors, ball rod tops).  rod_top_in_rod: (3,) p_AP of every ball
+        constraint, rod frame, m.  n_actuators: 6 motors, + 6 dry-friction actuators when the
+        servo has friction.  rod_model: one of ``ROD_MODELS``.
+    """
 
     geometry: StewartGeometry
+    plant: MultibodyPlant
     model_instance: ModelInstanceIndex
-    platform: RigidBody
-    cranks: tuple  # 6 RigidBody
-    rods: tuple  # 6 RigidBody
-    motors: tuple  # 6 RevoluteJoint
-    rod_balls: tuple  # 6 BallRpyJoint
-    rod_top_in_rod: np.ndarray  # (3,) p_AP of every ball constraint, rod frame
-    actuation_port: InputPort  # plant input port of the model's actuators (see n_actuators)
-    n_actuators: int = 6  # 6 motors, + 6 dry-friction actuators when the servo has friction
-    desired_state_port: InputPort | None = None  # the friction actuators' desired state
-    # (zeros), or None
-    rod_model: str = "bodies"  # ROD_MODELS; with "distance", rods and rod_balls are empty
+    platform_index: BodyIndex
+    crank_indices: tuple
+    rod_indices: tuple
+    motor_indices: tuple
+    rod_ball_indices: tuple
+    rod_top_in_rod: np.ndarray
+    n_actuators: int = 6
+    rod_model: str = "bodies"
+
+    @property
+    def platform(self) -> RigidBody:
+        """The platform body (its frame is E at the tool's centre)."""
+        return self.plant.get_body(self.platform_index)
+
+    @property
+    def cranks(self) -> tuple:
+        """The 6 crank bodies, leg order."""
+        return tuple(map(self.plant.get_body, self.crank_indices))
+
+    @property
+    def rods(self) -> tuple:
+        """The 6 rod bodies, leg order (empty with rods as distance constraints)."""
+        return tuple(map(self.plant.get_body, self.rod_indices))
+
+    @property
+    def motors(self) -> tuple:
+        """The 6 motor ``RevoluteJoint``, leg order."""
+        return tuple(map(self.plant.get_joint, self.motor_indices))
+
+    @property
+    def rod_balls(self) -> tuple:
+        """The 6 crank-to-rod ``BallRpyJoint``, leg order (empty with distance rods)."""
+        return tuple(map(self.plant.get_joint, self.rod_ball_indices))
+
+    @property
+    def actuation_port(self) -> InputPort:
+        """The plant's input port of the robot's actuators (``n_actuators`` values)."""
+        return self.plant.get_actuation_input_port(self.model_instance)
+
+    @property
+    def desired_state_port(self) -> InputPort | None:
+        """The friction actuators' desired state (fix it to zeros), or None without them."""
+        if self.n_actuators == 6:
+            return None
+        return self.plant.get_desired_state_input_port(self.model_instance)
 
 
 def add_stewart_plant(
@@ -476,16 +528,19 @@ def _handles(plant, model, geometry: StewartGeometry, rod_model: str) -> Stewart
     bodies = rod_model == "bodies"
     return StewartPlantHandles(
         geometry=geometry,
+        plant=plant,
         model_instance=model,
-        platform=plant.GetBodyByName("platform", model),
-        cranks=tuple(plant.GetBodyByName(f"crank_{i}", model) for i in range(6)),
-        rods=tuple(plant.GetBodyByName(f"rod_{i}", model) for i in range(6) if bodies),
-        motors=tuple(plant.GetJointByName(f"motor_{i}", model) for i in range(6)),
-        rod_balls=tuple(plant.GetJointByName(f"rod_ball_{i}", model) for i in range(6) if bodies),
+        platform_index=plant.GetBodyByName("platform", model).index(),
+        crank_indices=tuple(plant.GetBodyByName(f"crank_{i}", model).index() for i in range(6)),
+        rod_indices=tuple(
+            plant.GetBodyByName(f"rod_{i}", model).index() for i in range(6) if bodies
+        ),
+        motor_indices=tuple(plant.GetJointByName(f"motor_{i}", model).index() for i in range(6)),
+        rod_ball_indices=tuple(
+            plant.GetJointByName(f"rod_ball_{i}", model).index() for i in range(6) if bodies
+        ),
         rod_top_in_rod=np.array([0.0, 0.0, geometry.rod_length]),
-        actuation_port=plant.get_actuation_input_port(model),
         n_actuators=n_actuators,
-        desired_state_port=(plant.get_desired_state_input_port(model) if n_actuators > 6 else None),
         rod_model=rod_model,
     )
 
@@ -572,9 +627,10 @@ def assembled_positions(plant: MultibodyPlant, handles: StewartPlantHandles, x) 
     ell = (q_B - g.crank_tips(theta)) / g.rod_length  # (..., 6, 3) unit
     q = np.zeros(x.shape[:-1] + (plant.num_positions(),))
     R0 = _rod_zero_rotations_cached(g)
+    motors, rod_balls = handles.motors, handles.rod_balls
     for i in range(6):
-        q[..., handles.motors[i].position_start()] = theta[..., i]
-        if not handles.rod_balls:
+        q[..., motors[i].position_start()] = theta[..., i]
+        if not rod_balls:
             continue
         u = g.u_B[i]
         c, s_ = np.cos(theta[..., i])[..., None], np.sin(theta[..., i])[..., None]
@@ -583,7 +639,7 @@ def assembled_positions(plant: MultibodyPlant, handles: StewartPlantHandles, x) 
         v = v * c - np.cross(u, v) * s_ + u * (v @ u)[..., None] * (1 - c)
         z_F = v @ R0[i]
         rpy = _rpy_of_min_rotation_from_z(z_F)
-        start = handles.rod_balls[i].position_start()
+        start = rod_balls[i].position_start()
         q[..., start : start + 3] = rpy
     start = handles.platform.floating_positions_start()
     q[..., start : start + 4] = _quaternion_rpy(x[..., :3])
@@ -737,7 +793,8 @@ def loop_closure_errors(
     # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
     X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
     p_W_joint = X_WE.multiply(handles.geometry.p_E.T)  # type: ignore[arg-type]  # (3, 6) joints
-    if not handles.rods:
+    rods = handles.rods
+    if not rods:
         tip = np.array([handles.geometry.crank_length, 0.0, 0.0])
         p_W_tip = np.column_stack(
             [
@@ -750,7 +807,7 @@ def loop_closure_errors(
     p_W_top = np.column_stack(
         [
             plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod)  # type: ignore[arg-type]
-            for rod in handles.rods
+            for rod in rods
         ]
     )
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))

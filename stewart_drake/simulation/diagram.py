@@ -103,7 +103,7 @@ class StewartDiagram:
 
         if self.diagram.HasInputPort("tool_wrench"):
             self.diagram.GetInputPort("tool_wrench").FixValue(
-                self.diagram.GetMyMutableContextFromRoot(root_context), np.zeros(6)
+                _own_context(self.diagram, root_context), np.zeros(6)
             )
         noise = self.scenario.sensor_noise
         if self.noise is not None and noise is not None:  # the source exists for the noise
@@ -115,6 +115,18 @@ class StewartDiagram:
         self.station.initialize(
             root_context, self.T_ff_initial, seed=hw.encoders.seed if hw is not None else 0
         )
+
+
+def _own_context(system: System, root_context):
+    """``system``'s Context inside ``root_context``: ``root_context`` itself when ``system`` is
+    the root. pydrake's ``GetMyMutableContextFromRoot`` returns the root's own Context with a
+    keep-alive on itself, a reference cycle Python cannot see: the Context (0.6 MB of the
+    closed loop's) would never be freed (measured on drake 1.58, docs/performance.md)."""
+    try:
+        system.ValidateContext(root_context)
+    except RuntimeError:  # a subsystem's: the root belongs to a Diagram around it (teleop)
+        return system.GetMyMutableContextFromRoot(root_context)
+    return root_context
 
 
 def make_stewart_diagram(

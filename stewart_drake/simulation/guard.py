@@ -256,7 +256,10 @@ class DivergenceGuard(LeafSystem):
                 f"{inspector.GetName(gid).split('::')[-1]}"
                 for gid in ids
             )
-            self._part_index = {gid: k for k, gid in enumerate(ids)}
+            # Keyed by the ids' integer values: a pydrake GeometryId from the plant keeps the
+            # plant (and the Diagram around it) alive, a reference the garbage collector
+            # cannot see through.
+            self._part_index = {gid.get_value(): k for k, gid in enumerate(ids)}
         else:
             from ..model.clearance import clearance_model
             from ..model.kinematics import leg_constants
@@ -324,7 +327,7 @@ class DivergenceGuard(LeafSystem):
         # the measured pose; the loops are closed, so its IK gives the cranks' angles.
         q = (
             state[: plant.num_positions()]
-            if self._handles.rods
+            if self._handles.rod_indices
             else self._clearance.positions(pose)
         )
         overlaps = self._clearance.overlaps(q)
@@ -363,7 +366,7 @@ class DivergenceGuard(LeafSystem):
             key=lambda c: np.linalg.norm(c.contact_force()),
         )
         pair = info.point_pair()
-        a, b = sorted(self._part_index.get(g, -1) for g in (pair.id_A, pair.id_B))
+        a, b = sorted(self._part_index.get(g.get_value(), -1) for g in (pair.id_A, pair.id_B))
         discrete_state.set_value(
             0, [1.0, context.get_time(), float(np.linalg.norm(info.contact_force())), a, b]
         )
