@@ -166,7 +166,7 @@ def test_a_run_frees_what_it_built_where_drake_frees_python_systems(dropped_run)
     if not drake_frees_diagrams():
         pytest.skip(
             f"drake {_drake_version()} keeps every Diagram with a Python LeafSystem "
-            "(drake#22515, "leaf systems implemented in python are immortal"; drake 1.58 frees them)"
+            "(drake#22515; drake 1.58 frees them)"
         )
     assert dropped_run == dict.fromkeys(dropped_run, True)
 

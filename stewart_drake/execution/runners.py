@@ -126,7 +126,7 @@ def drake_frees_diagrams() -> bool:
     """Whether this process's Drake frees a Diagram with a Python ``LeafSystem`` once nothing
     refers to it: a one-time probe (a Diagram of one such system, built, dropped, collected).
 
-    drake 1.51 cannot (the system's callbacks, held in C++, refer back to it: drake#22515, "leaf systems implemented in python are immortal");
+    drake 1.51 cannot (the system's callbacks, held in C++, refer back to it: drake#22515);
     drake 1.58 can. Our closed loop is then freed too (a test holds it to that), so a worker's
     memory no longer grows with the runs it has done (docs/performance.md).
     """
