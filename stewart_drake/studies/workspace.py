@@ -108,10 +108,10 @@ def classify(
         )[0]
     clear = reachable & (clearance >= min_clearance_m)
     usable = clear & (cond <= cond_threshold)
-    peak = None if motor_limits is None else motor_limits.peak_torque_Nm
-    if peak is None:
+    if motor_limits is None or motor_limits.peak_torque_Nm is None:
         within_peak = admissible = usable & np.isfinite(max_torque)
     else:
+        peak = motor_limits.peak_torque_Nm
         with np.errstate(invalid="ignore"):
             within_peak = usable & (max_torque <= peak)
             admissible = usable & (max_torque <= motor_limits.margin * peak)
@@ -418,7 +418,7 @@ def _plot_workspace(out: Path, s: dict) -> None:
         # curve that coincides with its partner stays visible; the legend says when it does.
         plain = key.removeprefix("clear_")
         wide = key != plain
-        if wide and np.array_equal(s[key], s[plain]):
+        if wide and np.array_equal(s[key], s[plain], equal_nan=True):
             label += " (= joint limits)"
         axes[2].plot(
             heights,
