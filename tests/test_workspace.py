@@ -386,3 +386,74 @@ def test_plant_stays_still_with_holding_torques_and_not_with_one_percent_less(ge
         drift = np.abs(_hold(geometry, x, T, duration=0.3)[0] - x).max()
         drift_low = np.abs(_hold(geometry, x, 0.99 * T, duration=0.3)[0] - x).max()
         assert drift < 1e-6 and drift < 0.01 * drift_low
+
+
+# --- the motors as a limit of the workspace --------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def hardware_plan():
+    from pathlib import Path
+
+    from stewart_drake.simulation.plan import make_plan
+    from stewart_drake.simulation.scenario_io import load_scenario
+
+    scenario = load_scenario(Path(__file__).parents[1] / "scenarios" / "paper_hardware.yaml")
+    plan = make_plan(scenario, with_reference=False)
+    assert plan.motor_limits.peak_torque_Nm == pytest.approx(0.702, abs=1e-3)
+    return plan
+
+
+def test_no_pose_counted_usable_needs_more_than_the_motors(hardware_plan):
+    """Drake's statics (constraint forces solved on the plant) at the 8 poses counted within the
+    motors with the largest holding torques: each within the peak (and the share a reference
+    may use where counted admissible); and the torque limit removes poses the old count kept."""
+    geometry, motors = hardware_plan.geometry, hardware_plan.motor_limits
+    c = workspace.sweep(
+        geometry,
+        workspace.translation_grid(workspace.grid_axes(workspace.TRANSLATION_BOX, 9)),
+        motor_limits=motors,
+    )
+    assert np.sum(c["usable"] & ~c["within_peak"]) > 0
+    assert np.all(c["admissible"] <= c["within_peak"]) and np.all(c["within_peak"] <= c["usable"])
+    plant, context, handles, _, _ = make_plant(geometry)
+    for key, limit in (
+        ("within_peak", motors.peak_torque_Nm),
+        ("admissible", motors.margin * motors.peak_torque_Nm),
+    ):
+        x = workspace.translation_grid(workspace.grid_axes(workspace.TRANSLATION_BOX, 9))[c[key]]
+        worst = x[np.argsort(c["max_torque"][c[key]])[-8:]]
+        for pose in worst:
+            u = _drake_static_torques(plant, context, handles, pose)
+            assert np.abs(u).max() <= limit * (1 + 1e-9)
+
+
+def test_admissible_agrees_with_the_checks_torque_verdict_either_side_of_the_limit(
+    hardware_plan,
+):
+    """Poses along X at home height cross the reference's torque share; classify's verdict
+    equals the one the reference check gives a pose held still (motor_effort at rest against
+    margin * peak), on both sides of the limit."""
+    geometry, motors = hardware_plan.geometry, hardware_plan.motor_limits
+    x = np.tile(X_HOME, (41, 1))
+    x[:, 3] = np.linspace(-0.08, 0.16, 41)
+    c = workspace.classify(geometry, x, motor_limits=motors)
+    T, _ = statics.motor_effort(geometry, x, np.zeros_like(x), np.zeros_like(x), motors.servo)
+    within = np.abs(T).max(axis=1) <= motors.margin * motors.peak_torque_Nm
+    assert np.all(c["usable"])
+    assert within.any() and (~within).any()  # both sides of the limit
+    np.testing.assert_array_equal(c["admissible"], within)
+
+
+def test_the_torque_limit_shrinks_the_usable_volume_at_resolution_21(hardware_plan):
+    """Before: 0.0074125 m^3 usable ignoring the motors; after: 0.0052 m^3 within the peak
+    (30 % fewer) and 0.004275 m^3 within the reference's share (42 % fewer)."""
+    s = workspace.workspace_summary(
+        hardware_plan.geometry, 21, jobs=1, motor_limits=hardware_plan.motor_limits
+    )
+    assert s["usable_volume_m3"] == pytest.approx(0.0074125, rel=1e-6)
+    assert s["usable_within_peak_volume_m3"] == pytest.approx(0.0052, rel=1e-6)
+    assert s["admissible_volume_m3"] == pytest.approx(0.004275, rel=1e-6)
+    assert s["orientation_within_peak_share"] / s["orientation_usable_share"] == pytest.approx(
+        0.871, abs=0.001
+    )

@@ -891,7 +891,8 @@ def _cmd_workspace(args) -> int:
     from ..studies.workspace import write_workspace
 
     scenario = load_scenario(args.scenario, args.set or ())
-    geometry = make_plan(scenario, with_reference=False).geometry
+    plan = make_plan(scenario, with_reference=False)
+    geometry = plan.geometry
     if args.resolution < MIN_REPORTED_RESOLUTION:
         print(
             f"stewart-drake workspace: --resolution {args.resolution} is coarse: each extent "
@@ -906,8 +907,9 @@ def _cmd_workspace(args) -> int:
         progress=not args.no_progress,
         geometry=geometry,
         runner=_runner(args),
+        motor_limits=plan.motor_limits,
     )
-    for name, value, unit in rows[:9]:
+    for name, value, unit in rows[:11]:
         print(f"{name} {value} {unit}")
     print(
         f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "

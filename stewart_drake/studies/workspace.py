@@ -44,6 +44,8 @@ FIELDS = (
     "reachable",
     "clear",
     "usable",
+    "within_peak",
+    "admissible",
     "clearance",
     "cond",
     "sigma_min_inv",
@@ -60,6 +62,7 @@ def classify(
     x,
     cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
     min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+    motor_limits: limits.MotorLimits | None = None,
 ) -> dict:
     """Classify pose(s) x: reachable, clear of interference, conditioning and holding torques.
 
@@ -68,11 +71,16 @@ def classify(
         x: (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
         cond_threshold: cond(J) above this is "too close to a singularity".
         min_clearance_m: two parts closer than this, m, interfere.
+        motor_limits: the motors' peak torque and the share of it a reference may use; None or
+            an unlimited peak: every finite holding torque is within the motors.
     Returns:
         dict of arrays:
         ``reachable`` (...) bool, every leg inside every limit of ``limits.LIMITS``;
         ``clear`` (...) bool, reachable and no two parts closer than ``min_clearance_m``;
-        ``usable`` (...) bool, clear and cond(J) <= cond_threshold;
+        ``usable`` (...) bool, clear and cond(J) <= cond_threshold (the motors ignored);
+        ``within_peak`` (...) bool, usable and max_i |T_i| <= the motors' peak torque;
+        ``admissible`` (...) bool, usable and max_i |T_i| <= margin * peak (what a reference
+        may use, as ``check`` and ``teleop`` judge a pose);
         ``clearance`` (...) smallest distance between two parts, m (capped at
         :data:`CLEARANCE_CAP_M`), NaN where not reachable;
         ``cond`` (...) cond(J), NaN where a leg cannot close;
@@ -99,10 +107,20 @@ def classify(
             x[reachable], max_distance=CLEARANCE_CAP_M
         )[0]
     clear = reachable & (clearance >= min_clearance_m)
+    usable = clear & (cond <= cond_threshold)
+    if motor_limits is None or motor_limits.peak_torque_Nm is None:
+        within_peak = admissible = usable & np.isfinite(max_torque)
+    else:
+        peak = motor_limits.peak_torque_Nm
+        with np.errstate(invalid="ignore"):
+            within_peak = usable & (max_torque <= peak)
+            admissible = usable & (max_torque <= motor_limits.margin * peak)
     return {
         "reachable": reachable,
         "clear": clear,
-        "usable": clear & (cond <= cond_threshold),
+        "usable": usable,
+        "within_peak": within_peak,
+        "admissible": admissible,
         "clearance": clearance,
         "cond": cond,
         "sigma_min_inv": inv,
@@ -113,8 +131,8 @@ def classify(
 
 
 def _classify_chunk(task):
-    geometry, x, cond_threshold, min_clearance_m = task
-    return classify(geometry, x, cond_threshold, min_clearance_m)
+    geometry, x, cond_threshold, min_clearance_m, motor_limits = task
+    return classify(geometry, x, cond_threshold, min_clearance_m, motor_limits)
 
 
 def sweep(
@@ -126,6 +144,7 @@ def sweep(
     progress=None,
     runner=None,
     min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+    motor_limits: limits.MotorLimits | None = None,
 ) -> dict:
     """:func:`classify` a large batch in chunks, over a runner.
 
@@ -136,6 +155,7 @@ def sweep(
         chunk: poses per task.
         progress: optional object with ``update(n)`` (a tqdm bar), called per finished chunk.
         runner: any runner of :mod:`.runners` (``--runner``); overrides ``jobs``.
+        min_clearance_m, motor_limits: see :func:`classify`.
     Returns:
         dict like :func:`classify`'s, arrays shaped like x's batch.
     Raises:
@@ -148,8 +168,10 @@ def sweep(
     x = np.asarray(x, dtype=float)
     batch = x.shape[:-1]
     flat = x.reshape(-1, 6)
+    if motor_limits is not None:  # only the figures classify reads travel to the workers
+        motor_limits = limits.MotorLimits(motor_limits.peak_torque_Nm, None, motor_limits.margin)
     tasks = {
-        str(k): (geometry, flat[i : i + chunk], cond_threshold, min_clearance_m)
+        str(k): (geometry, flat[i : i + chunk], cond_threshold, min_clearance_m, motor_limits)
         for k, i in enumerate(range(0, len(flat), chunk))
     }
     if runner is None:
@@ -307,9 +329,11 @@ def _save_figure(fig, path: Path) -> None:
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
 
 
-def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
+def _torque_slice(ax, h_axis, v_axis, result, index, labels, title, motors=(None, None)):
     """Map of max |T_i| on one slice where the pose is clear, with the boundaries of the joint
-    limits (solid), of interference (dotted) and of cond(J) (dashed)."""
+    limits (solid), of interference (dotted) and of cond(J) (dashed), and the contours of the
+    motors' peak torque (red, solid) and of the share a reference may use (red, dashed);
+    ``motors`` is (peak torque in N m or None, margin)."""
     sl = [slice(None)] * 3
     sl[index[0]] = index[1]
     sl = tuple(sl)
@@ -321,6 +345,19 @@ def _torque_slice(ax, h_axis, v_axis, result, index, labels, title):
             ax.contour(
                 h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style, linewidths=1.2
             )
+    peak, margin = motors
+    if peak is not None:
+        for level, style in ((peak, "-"), (margin * peak, "--")):
+            if np.nanmin(tmax) < level < np.nanmax(tmax):
+                ax.contour(
+                    h_axis,
+                    v_axis,
+                    np.ma.masked_invalid(tmax),
+                    levels=[level],
+                    colors="r",
+                    linestyles=style,
+                    linewidths=1.8,
+                )
     ax.set_xlabel(labels[0])
     ax.set_ylabel(labels[1])
     ax.set_title(title, fontsize=9)
@@ -344,6 +381,7 @@ def _plot_workspace(out: Path, s: dict) -> None:
     from matplotlib.lines import Line2D
 
     taxes, trans = s["translation_axes"], s["translation"]
+    motors = (s["peak_torque_Nm"], s["effort_margin"])
     iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
     iy = int(np.argmin(np.abs(taxes[1])))
     fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
@@ -355,6 +393,7 @@ def _plot_workspace(out: Path, s: dict) -> None:
         (2, iz),
         ("X [m]", "Y [m]"),
         f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation",
+        motors,
     )
     fig.colorbar(m, ax=axes[0], shrink=0.8)
     m = _torque_slice(
@@ -365,20 +404,29 @@ def _plot_workspace(out: Path, s: dict) -> None:
         (1, iy),
         ("X [m]", "Z [m]"),
         f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m",
+        motors,
     )
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     heights = s["heights"]
     for key, style, label in (
-        ("tilt_every_rad", "o-", "every direction, joint limits"),
-        ("clear_tilt_every_rad", "o:", "every direction, + clearance"),
-        ("tilt_some_rad", "s-", "some direction, joint limits"),
-        ("clear_tilt_some_rad", "s:", "some direction, + clearance"),
+        ("clear_tilt_every_rad", "-", "every direction, + clearance"),
+        ("tilt_every_rad", "o:", "every direction, joint limits"),
+        ("clear_tilt_some_rad", "-", "some direction, + clearance"),
+        ("tilt_some_rad", "s:", "some direction, joint limits"),
     ):
+        # The clearance curves are drawn wide and pale under the joint limits' ones, so a
+        # curve that coincides with its partner stays visible; the legend says when it does.
+        plain = key.removeprefix("clear_")
+        wide = key != plain
+        if wide and np.array_equal(s[key], s[plain], equal_nan=True):
+            label += " (= joint limits)"
         axes[2].plot(
             heights,
             np.rad2deg(s[key]),
             style,
             ms=3,
+            lw=5 if wide else 1.2,
+            alpha=0.35 if wide else 1.0,
             label=label,
             color="C0" if "every" in key else "C1",
         )
@@ -394,9 +442,23 @@ def _plot_workspace(out: Path, s: dict) -> None:
                 [], [], color="k", ls=":", label=f"parts {s['min_clearance_m'] * 1e3:g} mm apart"
             ),
             Line2D([], [], color="k", ls="--", label=f"cond(J) <= {s['cond_threshold']:g}"),
+            *(
+                []
+                if motors[0] is None
+                else [
+                    Line2D([], [], color="r", ls="-", label=f"motors' peak {motors[0]:.3g} N m"),
+                    Line2D(
+                        [],
+                        [],
+                        color="r",
+                        ls="--",
+                        label=f"reference's share {motors[1] * motors[0]:.3g} N m",
+                    ),
+                ]
+            ),
         ],
         loc="lower center",
-        ncol=3,
+        ncol=5,
         fontsize=9,
         frameon=False,
     )
@@ -454,6 +516,7 @@ def _plot_bottleneck(out: Path, s: dict) -> None:
         (2, ipsi),
         ("roll phi [deg]", "pitch theta [deg]"),
         f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg",
+        (s["peak_torque_Nm"], s["effort_margin"]),
     )
     fig.colorbar(m, ax=axes[1], shrink=0.8)
     fig.tight_layout()
@@ -470,19 +533,25 @@ def workspace_summary(
     n_azimuth: int = 24,
     runner=None,
     min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
+    motor_limits: limits.MotorLimits | None = None,
 ) -> dict:
     """Run the three standard sweeps and reduce them to figures.
 
     Args:
         resolution: grid points per axis of each box (translation: resolution^3 poses).
         jobs, progress, runner: see :func:`sweep`.
-        cond_threshold, min_clearance_m: see :func:`classify`.
+        cond_threshold, min_clearance_m, motor_limits: see :func:`classify`.
     Returns:
         dict with the grids (``translation_axes``, ``orientation_axes``, ``heights``, ``tilts``),
         the classifications (``translation``, ``orientation``, ``tilt``: dicts of :func:`classify`)
         and the figures, by the joint limits alone and (``clear_*``) with interference as a
         limit too: ``volume_m3``, ``clear_volume_m3`` and ``usable_volume_m3`` (clear and
-        cond(J) within its threshold) at home orientation, ``extent_xyz_m`` (3, 2),
+        cond(J) within its threshold, the motors ignored) at home orientation,
+        ``usable_within_peak_volume_m3`` and ``admissible_volume_m3`` (usable and the holding
+        torques within the motors' peak, and within the share of it a reference may use),
+        ``orientation_usable_share`` / ``orientation_within_peak_share`` /
+        ``orientation_admissible_share`` (fractions of the orientation box),
+        ``extent_xyz_m`` (3, 2),
         ``extent_rpy_rad`` (3, 2) at the home position, ``tilt_every_rad`` / ``tilt_some_rad``
         (n_heights,), ``max_holding_torque_Nm`` over the clear translation box and
         ``bottleneck_share`` (6,) fraction of those poses where each motor carries the largest
@@ -519,6 +588,7 @@ def workspace_summary(
         progress=progress,  # noqa: E731
         runner=runner,
         min_clearance_m=min_clearance_m,
+        motor_limits=motor_limits,
     )
     trans = run(translation_grid(taxes))
     orient = run(orientation_grid(oaxes))
@@ -538,6 +608,14 @@ def workspace_summary(
         "volume_m3": reachable_volume(taxes, trans["reachable"]),
         "clear_volume_m3": reachable_volume(taxes, trans["clear"]),
         "usable_volume_m3": reachable_volume(taxes, trans["usable"]),
+        "usable_within_peak_volume_m3": reachable_volume(taxes, trans["within_peak"]),
+        "admissible_volume_m3": reachable_volume(taxes, trans["admissible"]),
+        **{
+            f"orientation_{key}_share": float(np.mean(orient[key]))
+            for key in ("usable", "within_peak", "admissible")
+        },
+        "peak_torque_Nm": None if motor_limits is None else motor_limits.peak_torque_Nm,
+        "effort_margin": None if motor_limits is None else motor_limits.margin,
         "extent_xyz_m": extents(taxes, trans["reachable"]),
         "extent_rpy_rad": extents(oaxes, orient["reachable"]),
         "clear_extent_xyz_m": extents(taxes, trans["clear"]),
@@ -566,6 +644,7 @@ def write_workspace(
     progress: bool = True,
     geometry: StewartGeometry | None = None,
     runner=None,
+    motor_limits: limits.MotorLimits | None = None,
 ) -> list:
     """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
@@ -573,6 +652,7 @@ def write_workspace(
         out: folder. resolution: grid points per axis (>= 3). jobs: processes (0: one per
             core). progress: show a tqdm bar. geometry: the robot (default: the reference one).
         runner: any runner of :mod:`.runners` (overrides ``jobs``).
+        motor_limits: the motors (see :func:`classify`); None ignores them.
     Writes (each atomically: a temporary file, then os.replace):
         workspace.npz (grids and classifications), summary.csv (figure, value, unit),
         tilt_vs_height.csv, workspace.png (torque maps + tilt vs height),
@@ -594,7 +674,9 @@ def write_workspace(
     n = resolution
     total = 2 * n**3 + n * n * 24
     with tqdm(total=total, unit="pose", disable=not progress, desc="workspace") as bar:
-        s = workspace_summary(geometry, n, jobs, progress=bar, runner=runner)
+        s = workspace_summary(
+            geometry, n, jobs, progress=bar, runner=runner, motor_limits=motor_limits
+        )
     arrays = {
         "translation_X": s["translation_axes"][0],
         "translation_Y": s["translation_axes"][1],
@@ -621,7 +703,23 @@ def write_workspace(
     rows = [
         ("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
         ("clear_volume", f"{s['clear_volume_m3']:.6g}", "m^3"),
-        ("usable_volume", f"{s['usable_volume_m3']:.6g}", "m^3"),
+        ("usable_volume_ignoring_torque", f"{s['usable_volume_m3']:.6g}", "m^3"),
+        ("usable_volume_within_peak_torque", f"{s['usable_within_peak_volume_m3']:.6g}", "m^3"),
+        ("usable_volume_within_reference_torque", f"{s['admissible_volume_m3']:.6g}", "m^3"),
+        ("orientation_usable_share_ignoring_torque", f"{s['orientation_usable_share']:.6g}", "1"),
+        (
+            "orientation_usable_share_within_peak_torque",
+            f"{s['orientation_within_peak_share']:.6g}",
+            "1",
+        ),
+        (
+            "orientation_usable_share_within_reference_torque",
+            f"{s['orientation_admissible_share']:.6g}",
+            "1",
+        ),
+        # inf: the motors unlimited (no torque limit given)
+        ("peak_torque", f"{s['peak_torque_Nm'] or np.inf:g}", "N m"),
+        ("effort_margin", f"{s['effort_margin'] or 1.0:g}", "1"),
         ("cond_threshold", f"{s['cond_threshold']:g}", "1"),
         ("min_clearance", f"{s['min_clearance_m']:g}", "m"),
     ]
