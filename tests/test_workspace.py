@@ -446,14 +446,56 @@ def test_admissible_agrees_with_the_checks_torque_verdict_either_side_of_the_lim
 
 
 def test_the_torque_limit_shrinks_the_usable_volume_at_resolution_21(hardware_plan):
-    """Before: 0.0074125 m^3 usable ignoring the motors; after: 0.0052 m^3 within the peak
-    (30 % fewer) and 0.004275 m^3 within the reference's share (42 % fewer)."""
+    """Before: 0.0073875 m^3 usable ignoring the motors; after: 0.005175 m^3 within the peak
+    (30 % fewer) and 0.00425 m^3 within the reference's share (42 % fewer)."""
     s = workspace.workspace_summary(
         hardware_plan.geometry, 21, jobs=1, motor_limits=hardware_plan.motor_limits
     )
-    assert s["usable_volume_m3"] == pytest.approx(0.0074125, rel=1e-6)
-    assert s["usable_within_peak_volume_m3"] == pytest.approx(0.0052, rel=1e-6)
-    assert s["admissible_volume_m3"] == pytest.approx(0.004275, rel=1e-6)
+    assert s["usable_volume_m3"] == pytest.approx(0.0073875, rel=1e-6)
+    assert s["usable_within_peak_volume_m3"] == pytest.approx(0.005175, rel=1e-6)
+    assert s["admissible_volume_m3"] == pytest.approx(0.00425, rel=1e-6)
     assert s["orientation_within_peak_share"] / s["orientation_usable_share"] == pytest.approx(
         0.871, abs=0.001
     )
+
+
+def test_one_admissible_set_for_the_map_teleop_and_check(hardware_plan, random_poses):
+    """The map's ``admissible`` flag, teleop's boundary (``admissible_poses``) and ``check``'s
+    verdict on a pose held still (the validator's limits and singularity measures, the holding
+    torque against the reference's share, the clearance) agree pose by pose."""
+    from stewart_drake.model.clearance import clearance_model
+    from stewart_drake.simulation.reference import admissible_poses
+
+    geometry, motors = hardware_plan.geometry, hardware_plan.motor_limits
+    rng = np.random.default_rng(5)
+    x = np.concatenate(
+        [
+            random_poses[:120],
+            X_HOME + rng.uniform(-1, 1, (120, 6)) * [0.5, 0.5, 0.5, 0.12, 0.12, 0.1],
+        ]
+    )
+    mapped = workspace.classify(geometry, x, motor_limits=motors)["admissible"]
+    teleop = admissible_poses(
+        geometry,
+        x,
+        peak_torque_Nm=motors.peak_torque_Nm,
+        torque_fraction=motors.margin,
+        clearance=clearance_model(geometry),
+    )
+    clearance = clearance_model(geometry)
+    checked = [
+        limits.validate_trajectory(
+            geometry,
+            np.array([0.0, 1.0]),
+            np.stack([pose, pose]),
+            raise_unreachable=False,
+            x_dot=np.zeros((2, 6)),
+            x_ddot=np.zeros((2, 6)),
+            clearance=clearance,
+            motor_limits=motors,
+        ).ok
+        for pose in x
+    ]
+    np.testing.assert_array_equal(mapped, teleop)
+    np.testing.assert_array_equal(mapped, np.array(checked))
+    assert 20 < mapped.sum() < len(x) - 20  # both verdicts are exercised

@@ -423,25 +423,27 @@ def admissible_poses(
     clearance=None,
     min_clearance_m: float = 0.003,
 ) -> np.ndarray:
-    """(N,) bool: poses x (N, 6) inside every joint limit (:func:`~.limits.is_reachable`), away
-    from singularities (cond(J) below ``cond_threshold``, 1/sigma_max(J) above
+    """(N,) bool: poses x (N, 6) in the admissible set (:func:`~.admissible.classify`, the rule
+    ``workspace`` maps and ``check`` applies): inside every joint limit, away from
+    singularities (cond(J) at most ``cond_threshold``, 1/sigma_max(J) at least
     ``min_sigma_min_inv``, the guard's thresholds), given the motors' peak torque held by at
     most ``torque_fraction`` of it (:func:`~.statics.holding_torques`), and given a
-    :class:`~stewart_drake.model.clearance.ClearanceModel` with no two parts closer than
-    ``min_clearance_m`` (m)."""
-    from ..model import limits
+    :class:`~stewart_drake.model.clearance.ClearanceModel` no two parts closer than
+    ``min_clearance_m`` (m; without one the clearance is not judged)."""
+    from ..model.admissible import classify
+    from ..model.limits import MotorLimits
 
     x = np.atleast_2d(np.asarray(x, dtype=float))
-    ok = np.asarray(limits.is_reachable(geometry, x).reachable, dtype=bool).reshape(-1)
-    if ok.any():
-        cond, inv = kinematics.singularity_measures_unchecked(geometry, x[ok])
-        good = (cond < cond_threshold) & (inv > min_sigma_min_inv)
-        if peak_torque_Nm is not None and good.any():
-            idx = np.flatnonzero(ok)[good]
-            T = holding_torques(geometry, x[idx])
-            good[good] = np.abs(T).max(axis=1) <= torque_fraction * peak_torque_Nm
-        if clearance is not None and good.any():
-            idx = np.flatnonzero(ok)[good]
-            good[good] = clearance.sweep(x[idx], max_distance=min_clearance_m)[0] >= min_clearance_m
-        ok[np.flatnonzero(ok)] = good
-    return ok
+    motors = None
+    if peak_torque_Nm is not None:
+        motors = MotorLimits(peak_torque_Nm=peak_torque_Nm, margin=torque_fraction)
+    flags = classify(
+        geometry,
+        x,
+        cond_threshold,
+        min_clearance_m if clearance is not None else None,
+        motors,
+        min_sigma_min_inv,
+        clearance,
+    )
+    return np.asarray(flags["admissible"], dtype=bool).reshape(-1)

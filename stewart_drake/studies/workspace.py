@@ -28,7 +28,7 @@ from ..errors import IncompleteResultsError, InvalidConfigError
 from ..execution.runners import JobFailure, ProcessRunner, SerialRunner
 from ..fileio import atomic_write
 from ..model import kinematics, limits, statics
-from ..model.clearance import clearance_model
+from ..model.admissible import classify
 from ..model.geometry import X_HOME, StewartGeometry
 from ..model.kinematics import AXIS_NAMES
 
@@ -53,81 +53,6 @@ FIELDS = (
     "max_torque",
     "bottleneck",
 )
-#: Clearances are measured up to this distance (beyond, the map shows this value), m.
-CLEARANCE_CAP_M = 0.02
-
-
-def classify(
-    geometry: StewartGeometry,
-    x,
-    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-    min_clearance_m: float = limits.DEFAULT_MIN_CLEARANCE_M,
-    motor_limits: limits.MotorLimits | None = None,
-) -> dict:
-    """Classify pose(s) x: reachable, clear of interference, conditioning and holding torques.
-
-    Args:
-        geometry: the robot (its limit fields set the ranges, its part sizes the clearance).
-        x: (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
-        cond_threshold: cond(J) above this is "too close to a singularity".
-        min_clearance_m: two parts closer than this, m, interfere.
-        motor_limits: the motors' peak torque and the share of it a reference may use; None or
-            an unlimited peak: every finite holding torque is within the motors.
-    Returns:
-        dict of arrays:
-        ``reachable`` (...) bool, every leg inside every limit of ``limits.LIMITS``;
-        ``clear`` (...) bool, reachable and no two parts closer than ``min_clearance_m``;
-        ``usable`` (...) bool, clear and cond(J) <= cond_threshold (the motors ignored);
-        ``within_peak`` (...) bool, usable and max_i |T_i| <= the motors' peak torque;
-        ``admissible`` (...) bool, usable and max_i |T_i| <= margin * peak (what a reference
-        may use, as ``check`` and ``teleop`` judge a pose);
-        ``clearance`` (...) smallest distance between two parts, m (capped at
-        :data:`CLEARANCE_CAP_M`), NaN where not reachable;
-        ``cond`` (...) cond(J), NaN where a leg cannot close;
-        ``sigma_min_inv`` (...) 1/sigma_max(J), (rad or m) per rad;
-        ``torques`` (..., 6) static holding torques in N m, NaN where not reachable;
-        ``max_torque`` (...) max_i |T_i| in N m, NaN where not reachable;
-        ``bottleneck`` (...) int, the motor with the largest |T_i|, -1 where not reachable.
-    """
-    x = np.asarray(x, dtype=float)
-    theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
-    reachable = limits._reachable_from_margins(margins)
-    cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
-    torques = np.full(x.shape[:-1] + (6,), np.nan)
-    ok = reachable & np.isfinite(cond)
-    if np.any(ok):
-        torques[ok] = statics.holding_torques(geometry, x[ok], theta[ok])
-    abs_t = np.abs(torques)
-    max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
-    bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
-    clearance = np.full(x.shape[:-1], np.nan)
-    if np.any(reachable):
-        clearance[reachable] = clearance_model(geometry).sweep(
-            x[reachable], max_distance=CLEARANCE_CAP_M
-        )[0]
-    clear = reachable & (clearance >= min_clearance_m)
-    usable = clear & (cond <= cond_threshold)
-    if motor_limits is None or motor_limits.peak_torque_Nm is None:
-        within_peak = admissible = usable & np.isfinite(max_torque)
-    else:
-        peak = motor_limits.peak_torque_Nm
-        with np.errstate(invalid="ignore"):
-            within_peak = usable & (max_torque <= peak)
-            admissible = usable & (max_torque <= motor_limits.margin * peak)
-    return {
-        "reachable": reachable,
-        "clear": clear,
-        "usable": usable,
-        "within_peak": within_peak,
-        "admissible": admissible,
-        "clearance": clearance,
-        "cond": cond,
-        "sigma_min_inv": inv,
-        "torques": torques,
-        "max_torque": max_torque,
-        "bottleneck": bottleneck,
-    }
 
 
 def _classify_chunk(task):
