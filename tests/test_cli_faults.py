@@ -1097,6 +1097,39 @@ def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, delay_s):
     assert "Traceback" not in err and "interrupted by SIGINT" in err.strip().splitlines()[-1], err
 
 
+def test_a_ctrl_c_inside_an_extension_s_initialization_is_found_down_the_chain():
+    """As CI once saw it: a KeyboardInterrupt in matplotlib's ft2font under pydrake's import,
+    wrapped twice ("initialization failed", then "Encountered an error while initializing the
+    extension."): an interrupt; an ImportError with no interrupt in its chain is not."""
+    from stewart_drake.interfaces.cli import _interrupted_import
+
+    def chain(*errors):
+        for outer, inner in zip(errors, errors[1:]):
+            outer.__cause__ = inner
+        return errors[0]
+
+    assert _interrupted_import(
+        chain(
+            ImportError("Encountered an error while initializing the extension."),
+            ImportError("initialization failed"),
+            KeyboardInterrupt(),
+        )
+    )
+    assert _interrupted_import(
+        chain(
+            ImportError("Encountered an error while initializing the extension."),
+            KeyboardInterrupt(),
+        )
+    )
+    assert not _interrupted_import(
+        chain(ImportError("No module named 'torch'"), OSError("libtorch.so: cannot open"))
+    )
+    looped = ImportError("a cycle")
+    looped.__context__ = ImportError("back")
+    looped.__context__.__context__ = looped
+    assert not _interrupted_import(looped)
+
+
 # -- case 11: a long recorded trace -------------------------------------------------------------
 
 

@@ -1573,8 +1573,7 @@ def _main(argv: list[str] | None) -> int:
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
     except ImportError as err:
-        # pydrake's modules turn a Ctrl-C during their initialization into an ImportError.
-        if "initialization failed" not in str(err):
+        if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), "", None)
     try:
@@ -1597,9 +1596,24 @@ def _main(argv: list[str] | None) -> int:
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
         return _interrupted(err, args.command, getattr(args, "out", None))
     except ImportError as err:  # a Ctrl-C while a command's own imports initialize pydrake
-        if "initialization failed" not in str(err):
+        if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
+
+
+def _interrupted_import(err: ImportError) -> bool:
+    """Whether ``err`` is a Ctrl-C that landed while an extension module initialized: pydrake's
+    and matplotlib's modules turn it into an ImportError ("initialization failed", or "Encountered
+    an error while initializing the extension" around it), the KeyboardInterrupt kept as a cause
+    or context somewhere down the chain, which is searched (at most 20 links)."""
+    link: BaseException | None = err
+    for _ in range(20):
+        if link is None:
+            return False
+        if isinstance(link, KeyboardInterrupt) or "initialization failed" in str(link):
+            return True
+        link = link.__cause__ or link.__context__
+    return False
 
 
 def _silence_stdout() -> None:
