@@ -179,3 +179,40 @@ def test_a_motion_the_motors_cannot_make_is_a_row_with_the_reason():
     assert row["completed"] is False
     assert row["reason"].startswith("MotorLimitError")
     assert "rms_translation_um" not in row and row["label"] == "breathing"
+
+
+def test_motions_run_in_parallel_processes_as_in_this_one():
+    """Through local processes the rows are those of the serial run (the same system), and a
+    refusal raised in a worker comes back as a row naming it."""
+    from stewart_drake.execution.runners import ProcessRunner
+    from stewart_drake.simulation.trajectories import SineReference
+
+    out_of_reach = SineReference(offset=[0, 0, 0, 0, 0, 0.7])  # 0.7 m up: no leg reaches
+    req = DesignRequirements(motions=[NamedReference("paper"), out_of_reach]).validate()
+    parallel = confirm(reference_design(), req, runner=ProcessRunner(2), duration_s=0.5)
+    (serial,) = confirm(
+        reference_design(), dataclasses.replace(req, motions=req.motions[:1]), duration_s=0.5
+    )
+    assert [r["label"] for r in parallel] == ["paper", "sine"]
+    assert parallel[0]["completed"]
+    for key in ("rms_translation_um", "rms_rotation_urad", "peak_torque_Nm", "peak_speed_rad_s"):
+        assert parallel[0][key] == serial[key]
+    assert parallel[1]["completed"] is False
+    assert parallel[1]["reason"].startswith("UnreachablePoseError")
+
+
+@pytest.mark.slow
+def test_the_reference_robot_makes_the_acceptance_motions_with_the_payload():
+    """The acceptance set on the reference robot with its 0.5 kg payload (30 s simulated): both
+    motions made, tracking within tens of um, the motors below their peak; holding 1.5 kg takes
+    0.374 N m a motor at home, above the maxon's 0.351 N m continuous torque, and so does the
+    RMS torque."""
+    rows = confirm(reference_design(), load_requirements(REQUIREMENTS))
+    paper, breathing = rows
+    assert paper["completed"] and breathing["completed"]
+    assert (paper["duration_s"], breathing["duration_s"]) == (10.0, 20.0)
+    assert 5.0 < paper["rms_translation_um"] < 40.0 and paper["rms_rotation_urad"] < 80.0
+    assert 10.0 < breathing["rms_translation_um"] < 100.0
+    for row in rows:
+        assert 0.5 < row["peak_torque_fraction"] < 1.0
+        assert 1.0 < row["rms_torque_fraction"] < 1.5
