@@ -216,3 +216,16 @@ def test_the_reference_robot_makes_the_acceptance_motions_with_the_payload():
     for row in rows:
         assert 0.5 < row["peak_torque_fraction"] < 1.0
         assert 1.0 < row["rms_torque_fraction"] < 1.5
+
+
+def test_a_guard_trip_is_a_row(tmp_path):
+    """A guard that allows 0.1 um and 0.1 urad of error stops the run at its first check: the
+    row names the trip."""
+    base = load_scenario("paper_hardware")
+    base.guard.max_tracking_error = [1e-7, 1e-7]
+    base.guard.divergence_dir = str(tmp_path)
+    req = DesignRequirements(motions=[NamedReference("paper")]).validate()
+    (row,) = confirm(reference_design(), req, base, duration_s=0.5)
+    assert row["completed"] is False
+    assert row["reason"].startswith("SimulationDivergedError")
+    assert "max_tracking_error" in row["reason"] and "rms_translation_um" not in row

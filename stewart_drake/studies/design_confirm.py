@@ -201,7 +201,8 @@ def confirm(
 
     Every scenario is built (and so checked) before anything runs; the runs go through
     ``runner`` (default :class:`~stewart_drake.execution.runners.SerialRunner`; a
-    ``ProcessRunner`` runs the motions in parallel processes).
+    ``ProcessRunner`` runs the motions in parallel processes). A run the guard stops leaves its
+    logs up to the trip in the base's ``guard.divergence_dir`` (named in the row's reason).
 
     Args:
         design, requirements, base, duration_s: as :func:`design_scenario` (``duration_s``:
