@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from ..checks import as_number
 from ..control.lqi import LqiDriver
 from ..control.tuning import WeightSchedule
 from ..errors import InvalidConfigError, StewartError
@@ -57,8 +58,6 @@ def torque_scale_Nm(motor_peak_Nm: float, base: Scenario) -> float:
             or a peak that is not a positive number.
     """
     _check_base(base)
-    from ..checks import as_number
-
     peak = as_number("motor peak torque [N m]", motor_peak_Nm, 0.0, lo_open=True)
     assert base.hardware is not None and isinstance(base.controller, LqiDriver)  # _check_base
     return base.controller.scales.torque * (peak / base.hardware.motors.peak_torque_Nm)
@@ -151,15 +150,14 @@ def motion_duration_s(scenario: Scenario, duration_s: float | None = None) -> fl
     Raises:
         InvalidConfigError: ``duration_s`` not a positive number.
     """
-    from ..checks import as_number
-
+    asked = None if duration_s is None else as_number("duration_s", duration_s, 0.0, lo_open=True)
     reference = make_plan(scenario).reference
     end = getattr(reference, "end_time", None)
     if end is not None:  # as `check` and `reproduce` run a trace: from its first sample
         end = float(end) - float(getattr(reference, "start_time", 0.0))
     period = getattr(reference, "repeat_period_s", None)
-    if duration_s is not None:
-        length = as_number("duration_s", duration_s, 0.0, lo_open=True)
+    if asked is not None:
+        length = asked
     elif end is not None:
         length = MAX_TRACE_S
     elif period is not None:
