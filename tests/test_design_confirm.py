@@ -4,6 +4,7 @@ the motor's peak, a run of the reference design is a run of the base scenario, a
 design's effort is measured against its own motor, and what the robot cannot do is a row."""
 
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -21,7 +22,9 @@ from stewart_drake.simulation.scenario_io import load_scenario
 from stewart_drake.simulation.trajectories import CsvReference, NamedReference
 from stewart_drake.studies.design_confirm import (
     MAX_PERIODIC_S,
+    TABLE_HEADER,
     confirm,
+    confirmation_table,
     design_scenario,
     torque_scale_Nm,
 )
@@ -167,6 +170,9 @@ def test_a_dynamixel_design_runs_and_is_measured_against_its_own_motor():
     assert row["rms_torque_fraction"] == pytest.approx(row["rms_torque_Nm"] / 0.3, rel=1e-12)
     assert 0.0 < row["peak_torque_Nm"] <= 1.5 + 1e-6  # never past the motor's peak
     assert row["torque_scale_Nm"] == pytest.approx(0.3 * 1.5 / 0.7021728, rel=1e-12)
+    line = confirmation_table([row]).splitlines()[2]
+    assert f"| {row['peak_torque_Nm']:.3g} ({100 * row['peak_torque_fraction']:.0f}%) |" in line
+    assert line.count("|") == TABLE_HEADER.count("|")
 
 
 def test_a_motion_the_motors_cannot_make_is_a_row_with_the_reason():
@@ -229,3 +235,9 @@ def test_a_guard_trip_is_a_row(tmp_path):
     assert row["completed"] is False
     assert row["reason"].startswith("SimulationDivergedError")
     assert "max_tracking_error" in row["reason"] and "rms_translation_um" not in row
+    table = confirmation_table([row]).splitlines()
+    assert table[0] == TABLE_HEADER and len(table) == 3
+    assert table[2].startswith("| paper | 0.5 | not made: SimulationDivergedError")
+    cells = [len(re.split(r"(?<!\\)\|", line)) for line in table]  # | escaped in a reason
+    assert cells[0] == cells[1] == cells[2] == 10
+    assert r"\|phi - phi_d\|" in table[2]

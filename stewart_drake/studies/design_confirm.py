@@ -308,6 +308,35 @@ def _figures(job: MotionRun, result) -> dict:
     }
 
 
+#: The columns of :func:`confirmation_table`.
+TABLE_HEADER = (
+    "| motion | s | translation RMS / max, um | rotation RMS / max, urad "
+    "| peak torque, N m (of peak) | RMS torque, N m (of continuous) "
+    "| peak crank speed, rad/s (of no-load) | within margins |"
+)
+
+
+def confirmation_table(rows: list[dict]) -> str:
+    """The rows of :func:`confirm` as a Markdown table, one line per motion (a motion not made
+    says why instead of its figures, its ``|`` escaped)."""
+    lines = [TABLE_HEADER, "|" + "---|" * TABLE_HEADER.count(" | ") + "---|"]
+    for r in rows:
+        head = f"| {r['label']} | {r['duration_s']:g} |"
+        if not r["completed"]:
+            reason = str(r["reason"]).replace("|", "\\|")  # |phi - phi_d| in a cell
+            lines.append(f"{head} not made: {reason} | | | | | |")
+            continue
+        lines.append(
+            f"{head} {r['rms_translation_um']:.1f} / {r['peak_translation_um']:.0f} "
+            f"| {r['rms_rotation_urad']:.1f} / {r['peak_rotation_urad']:.0f} "
+            f"| {r['peak_torque_Nm']:.3g} ({r['peak_torque_fraction']:.0%}) "
+            f"| {r['rms_torque_Nm']:.3g} ({r['rms_torque_fraction']:.0%}) "
+            f"| {r['peak_speed_rad_s']:.3g} ({r['peak_speed_fraction']:.1%}) "
+            f"| {'yes' if r['within_margins'] else 'no'} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
 def _failed_row(job: MotionRun, reason: str | None) -> dict[str, Any]:
     """A row with the job's description and no figures (``completed`` False)."""
     servo = job.scenario.hardware.motors if job.scenario.hardware is not None else None
@@ -353,8 +382,10 @@ __all__ = [
     "DEFAULT_BASE",
     "MAX_PERIODIC_S",
     "MAX_TRACE_S",
+    "TABLE_HEADER",
     "MotionRun",
     "confirm",
+    "confirmation_table",
     "design_scenario",
     "motion_duration_s",
     "run_motion",
