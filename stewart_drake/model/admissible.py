@@ -49,7 +49,9 @@ def classify(
     Returns:
         dict of arrays:
         ``reachable`` (...) bool, every leg inside every limit of ``limits.LIMITS``;
-        ``clear`` (...) bool, reachable and no two parts closer than ``min_clearance_m``;
+        ``clear`` (...) bool, reachable and no two parts closer than ``min_clearance_m``
+        (the pairs whose distance the design fixes, ``ClearanceModel.fixed``, included: when
+        they are closer, no pose is clear);
         ``usable`` (...) bool, clear, cond(J) <= cond_threshold and 1/sigma_max(J) >=
         min_sigma_min_inv (the motors ignored);
         ``within_peak`` (...) bool, usable and max_i |T_i| <= the motors' peak torque;
@@ -79,10 +81,12 @@ def classify(
     if min_clearance_m is None:
         clear = reachable
     else:
+        model = clearance_model(geometry) if clearance is None else clearance
         if np.any(reachable):
-            model = clearance_model(geometry) if clearance is None else clearance
             distance[reachable] = model.sweep(x[reachable], max_distance=CLEARANCE_CAP_M)[0]
-        clear = reachable & (distance >= min_clearance_m)
+        # The pairs fixed by the design (rod ends on the platform) hold at every pose or none.
+        fixed_ok = not model.fixed or model.fixed[0].distance >= min_clearance_m
+        clear = reachable & (distance >= min_clearance_m) & fixed_ok
     with np.errstate(invalid="ignore"):
         usable = clear & (cond <= cond_threshold) & (inv >= min_sigma_min_inv)
     if motor_limits is None or motor_limits.peak_torque_Nm is None:
