@@ -86,6 +86,28 @@ class Margins:
 
 
 @dataclass
+class Resolution:
+    """How finely the robot must be able to place the platform: the largest pose error the
+    encoders leave when every crank is read half a count off (the worst combination of signs),
+    over every pose of the task. A feedback on those encoders cannot hold the platform closer
+    than that (it dithers over a count or two), so this is the floor of its tracking error.
+
+    Attributes:
+        translation_m: largest position error, m, in (0, 0.01].
+        rotation_rad: largest orientation error (the roll-pitch-yaw error's norm), rad, in
+            (0, 0.1].
+    """
+
+    translation_m: float = 5.0e-5
+    rotation_rad: float = 5.0e-4
+
+    def validate(self) -> None:
+        """Raises InvalidConfigError naming the field (``resolution.<name>``)."""
+        as_number("resolution.translation_m", self.translation_m, 0.0, 0.01, lo_open=True)
+        as_number("resolution.rotation_rad", self.rotation_rad, 0.0, 0.1, lo_open=True)
+
+
+@dataclass
 class DesignRequirements:
     """A design task.
 
@@ -95,12 +117,15 @@ class DesignRequirements:
         workspace: the poses it must reach and hold (:class:`RequiredWorkspace`), or None.
         payload_kg: mass on the platform, kg, in [0, 20] (at the platform frame's origin).
         margins: what the motions leave to the feedback (:class:`Margins`).
+        resolution: how finely the encoders must resolve the platform's pose
+            (:class:`Resolution`), or None (not judged).
     """
 
     motions: list[ReferenceChoice] = field(default_factory=lambda: [NamedReference()])
     workspace: RequiredWorkspace | None = None
     payload_kg: float = 0.0
     margins: Margins = field(default_factory=Margins)
+    resolution: Resolution | None = None
 
     def validate(self) -> "DesignRequirements":
         """Check every field; returns self.
@@ -122,6 +147,8 @@ class DesignRequirements:
             self.workspace.validate()
         as_number("payload_kg", self.payload_kg, 0.0, MAX_PAYLOAD_KG)
         self.margins.validate()
+        if self.resolution is not None:
+            self.resolution.validate()
         return self
 
 
