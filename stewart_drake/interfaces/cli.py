@@ -918,6 +918,44 @@ def _cmd_workspace(args) -> int:
     return 0
 
 
+def _cmd_design(args) -> int:
+    """``stewart-drake design``: search the design for a requirements file, write the report and
+    the chosen designs' scenarios; exit 1 when no design within the bounds meets the task."""
+    from ..studies.design_study import run_design
+
+    outcome = run_design(
+        args.requirements,
+        args.out,
+        motor=args.motor,
+        objective=args.objective,
+        cheapest=not args.no_cheapest,
+        confirm=not args.no_confirm,
+        seed=args.seed,
+        runner=_runner(args),
+        popsize=args.popsize,
+        maxiter=args.generations,
+        base_scenario=args.scenario,
+        progress=not args.no_progress,
+    )
+    for search in outcome.searches:
+        name, margin = search.best.binding
+        verdict = (
+            f"best {search.objective} {search.best.objective(search.objective):.4g}"
+            if search.feasible
+            else f"no design meets the task (binding: {name} {margin:+.3g})"
+        )
+        print(f"{search.motor}: {verdict}; {search.evaluations} evaluations, {search.wall_s:.0f} s")
+    print(f"wrote {args.out}/design.md and " + ", ".join(p.name for p in outcome.files[:-1]))
+    if outcome.binding:
+        print(
+            f"stewart-drake design: no design within the bounds meets {args.requirements}: "
+            f"binding constraint {outcome.binding}",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
 def _cmd_teleop(args) -> int:
     """``stewart-drake teleop``: the robot as built at real time in Meshcat, driven by sliders."""
     from pydrake.geometry import Meshcat, MeshcatParams
@@ -1063,6 +1101,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_train_command(sub)
     _add_evaluate_command(sub)
     _add_workspace_command(sub)
+    _add_design_command(sub)
     _add_analyze_command(sub)
     _add_teleop_command(sub)
     _add_diagrams_command(sub)
@@ -1492,6 +1531,69 @@ def _add_workspace_command(sub) -> None:
     _add_runner_arguments(ws)
     ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     ws.set_defaults(func=_cmd_workspace)
+
+
+def _add_design_command(sub) -> None:
+    """The ``design`` command's options."""
+    from ..model.motor_catalogue import MOTOR_CATALOGUE, REFERENCE_MOTOR
+    from ..studies.design_search import DEFAULT_MAXITER, DEFAULT_POPSIZE, OBJECTIVES
+
+    dsg = sub.add_parser(
+        "design",
+        help="the robot's geometry and motor chosen for a task: a report and a scenario file",
+    )
+    dsg.add_argument(
+        "requirements",
+        metavar="REQUIREMENTS.yaml",
+        help="what the robot must do (start from scenarios/design_requirements.yaml)",
+    )
+    dsg.add_argument(
+        "--motor",
+        choices=list(MOTOR_CATALOGUE),
+        default=REFERENCE_MOTOR,
+        help="the motor of the main search (docs/motor_catalogue.md; default: the reference's)",
+    )
+    dsg.add_argument(
+        "--objective",
+        choices=list(OBJECTIVES),
+        default="peak_torque",
+        help="what the main search minimizes: "
+        + "; ".join(f"{k}: {v[1]}" for k, v in OBJECTIVES.items()),
+    )
+    dsg.add_argument(
+        "--no-cheapest",
+        action="store_true",
+        help="skip the search for the cheapest catalogue motor that meets the task",
+    )
+    dsg.add_argument(
+        "--no-confirm",
+        action="store_true",
+        help="skip the closed-loop runs of the chosen designs and the reference robot",
+    )
+    dsg.add_argument("--seed", type=_int_at_least(0), default=0, help="the optimizer's seed")
+    dsg.add_argument(
+        "--generations",
+        type=_int_at_least(1),
+        default=DEFAULT_MAXITER,
+        help=f"generations of each search (default {DEFAULT_MAXITER})",
+    )
+    dsg.add_argument(
+        "--popsize",
+        type=_int_at_least(2),
+        default=DEFAULT_POPSIZE,
+        help=f"candidates per generation per design variable (default {DEFAULT_POPSIZE})",
+    )
+    dsg.add_argument(
+        "--scenario",
+        default="paper_hardware",
+        metavar="FILE|NAME",
+        help="the scenario the designs' scenario files and closed-loop runs start from "
+        "(default: paper_hardware, the robot as built)",
+    )
+    dsg.add_argument("--out", default="results/design", help="output folder")
+    _add_runner_arguments(dsg)
+    dsg.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+    dsg.set_defaults(func=_cmd_design)
 
 
 def _add_teleop_command(sub) -> None:

@@ -1,0 +1,386 @@
+"""The design search: a candidate's evaluation against independent checks, and the optimizer's
+seed, resume and binding constraint."""
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stewart_drake.model import admissible, limits
+from stewart_drake.model.clearance import ClearanceModel
+from stewart_drake.model.kinematics import rotation_rpy
+from stewart_drake.model.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
+from stewart_drake.simulation.design import Design, reference_design
+from stewart_drake.simulation.requirements import (
+    DesignRequirements,
+    RequiredWorkspace,
+    load_requirements,
+)
+from stewart_drake.simulation.trajectories import NamedReference
+from stewart_drake.studies.design_search import (
+    MARGINS,
+    SEARCH_VARIABLES,
+    design_from_vector,
+    design_geometry,
+    evaluate,
+    search,
+    task_samples,
+    tilted_box_poses,
+    vector_of,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+REQUIREMENTS = ROOT / "scenarios" / "design_requirements.yaml"
+
+
+@pytest.fixture(scope="module")
+def task():
+    return task_samples(load_requirements(REQUIREMENTS))
+
+
+def _paper_only(payload_kg: float, workspace=None) -> DesignRequirements:
+    return DesignRequirements(
+        motions=[NamedReference(name="paper")], workspace=workspace, payload_kg=payload_kg
+    ).validate()
+
+
+def test_the_required_workspace_is_the_box_grid_with_each_point_tilted_by_the_cone():
+    poses = tilted_box_poses([0.03, 0.03, 0.02], 15.0, [0.0, 0.0, 0.3])
+    assert poses.shape == (27 * 9, 6)
+    z = rotation_rpy(poses[:, :3])[:, :, 2]  # the platform's normal in the base frame
+    tilt = np.degrees(np.arccos(np.clip(z[:, 2], -1, 1)))
+    assert np.sum(np.isclose(tilt, 0.0, atol=1e-9)) == 27
+    assert np.allclose(tilt[tilt > 1e-6], 15.0, atol=1e-9)
+    # The eight tilts of a point lean toward eight evenly spread azimuths.
+    azimuths = np.degrees(np.arctan2(z[1:9, 1], z[1:9, 0])) % 360
+    assert np.allclose(np.diff(np.sort(azimuths)), 45.0, atol=1e-9)
+    assert np.allclose(poses[:, 3:].min(axis=0), [-0.015, -0.015, 0.29])
+    assert np.allclose(poses[:, 3:].max(axis=0), [0.015, 0.015, 0.31])
+
+
+def test_a_design_maps_to_a_search_point_and_back(task):
+    reference = reference_design()
+    again = design_from_vector(vector_of(reference), reference.motor)
+    assert again.motor == reference.motor
+    for name in SEARCH_VARIABLES:
+        assert getattr(again, name) == pytest.approx(getattr(reference, name), rel=1e-12)
+    rng = np.random.default_rng(3)
+    built = 0
+    for u in rng.uniform(size=(40, 8)):
+        design = design_from_vector(u, REFERENCE_MOTOR)
+        lo, hi = design.rod_length_range()
+        if lo <= hi and 0.15 <= lo and hi <= 0.5:
+            assert lo - 1e-12 <= design.rod_length <= hi + 1e-12
+            design.geometry()  # every point whose other variables allow a rod builds
+            built += 1
+    assert built >= 10
+
+
+def test_a_feasible_design_passes_checks_path_validator_and_the_admissible_set(task):
+    """The evaluation's verdict against code it does not share: ``check``'s path validator
+    (1 kHz samples, clearance every mm of motion) on each motion, and the one admissible set
+    on the workspace's held poses."""
+    design = dataclasses.replace(reference_design(), motor="XM540-W270-T")
+    task = dataclasses.replace(task, resolution=(np.inf, np.inf))  # its 12-bit encoders fail
+    e = evaluate(design, task)
+    assert e.feasible, e.margins
+    geometry = design_geometry(design, task.payload_kg)
+    motor = catalogue_motor(design.motor).servo
+    motor_limits = limits.MotorLimits(
+        motor.peak_torque_Nm, motor.no_load_speed_rad_s, task.torque_share, motor
+    )
+    reference = NamedReference(name="paper").make(geometry, 10.0, None)
+    t = np.arange(0.0, 10.0, 1e-3)
+    x, xd, xdd = reference.evaluate(t)
+    report = limits.validate_trajectory(
+        geometry,
+        t,
+        x,
+        x_dot=xd,
+        x_ddot=xdd,
+        clearance=ClearanceModel(geometry),
+        motor_limits=motor_limits,
+    )
+    assert report.ok and report.feasible
+    assert report.peak_torque == pytest.approx(
+        e.figures["per_motion"]["paper"]["peak_torque_Nm"], rel=5e-3
+    )
+    assert report.peak_speed == pytest.approx(
+        e.figures["per_motion"]["paper"]["peak_speed_rad_s"], rel=5e-3
+    )
+    assert report.min_clearance >= e.figures["min_clearance_m"] - 3e-3
+    held = admissible.classify(geometry, task.workspace_x, motor_limits=motor_limits)
+    assert held["admissible"].all()
+    assert held["max_torque"].max() == pytest.approx(e.figures["holding_torque_Nm"], rel=1e-12)
+
+
+def test_a_design_over_its_motors_fails_the_torque_margin_as_check_refuses_it():
+    task = task_samples(_paper_only(payload_kg=3.0))
+    e = evaluate(reference_design(), task)
+    assert e.margins["torque"] < 0 and not e.feasible
+    assert e.binding[0] in ("torque", "continuous_torque")
+    geometry = design_geometry(reference_design(), 3.0)
+    motor = catalogue_motor(REFERENCE_MOTOR).servo
+    t = np.arange(0.0, 10.0, 1e-3)
+    x, xd, xdd = NamedReference(name="paper").make(geometry, 10.0, None).evaluate(t)
+    report = limits.validate_trajectory(
+        geometry,
+        t,
+        x,
+        x_dot=xd,
+        x_ddot=xdd,
+        motor_limits=limits.MotorLimits(
+            motor.peak_torque_Nm, motor.no_load_speed_rad_s, 0.9, motor
+        ),
+    )
+    assert not report.feasible
+    assert 1.0 - report.peak_torque / report.torque_limit == pytest.approx(
+        e.margins["torque"], abs=5e-3
+    )
+
+
+def test_the_payload_adds_its_weight_to_the_holding_torque(task):
+    """0.5 kg at the platform's centre of mass: the holding torque at home grows by the share
+    of 0.5 kg g the legs carry, by virtual work: sum_i T_i dtheta_i = m g dZ for a heave."""
+    from stewart_drake.model.kinematics import X_HOME, jacobian
+    from stewart_drake.model.statics import holding_torques
+
+    g0 = design_geometry(reference_design(), 0.0)
+    g1 = design_geometry(reference_design(), 0.5)
+    dT = holding_torques(g1, X_HOME) - holding_torques(g0, X_HOME)
+    J = jacobian(g1, X_HOME)  # dtheta/dx
+    # Virtual work of the added weight along a heave dZ: T . (J e_Z) = 0.5 g.
+    assert float(dT @ J[:, 5]) == pytest.approx(0.5 * g1.gravity, rel=1e-9)
+
+
+def test_every_margin_is_reported_and_the_binding_one_is_the_smallest(task):
+    lazy = evaluate(reference_design(), task)
+    e = evaluate(reference_design(), task, lazy=False)
+    assert not lazy.feasible and "clearance" not in lazy.margins  # it misses one already
+    assert lazy.binding[0] == "continuous_torque"  # 1.5 kg held take 0.37 N m > 0.351
+    assert set(e.margins) == set(MARGINS)
+    assert {k: e.margins[k] for k in lazy.margins} == lazy.margins
+    name, margin = e.binding
+    assert margin == min(e.margins.values()) and e.margins[name] == margin
+
+
+def _tiny_search(task, folder, seed=0, maxiter=2):
+    return search(
+        task,
+        REFERENCE_MOTOR,
+        "peak_torque",
+        folder,
+        seed=seed,
+        popsize=2,
+        maxiter=maxiter,
+        progress=False,
+    )
+
+
+def test_the_same_seed_gives_the_same_design_and_another_seed_another(task, tmp_path):
+    a = _tiny_search(task, tmp_path / "a")
+    b = _tiny_search(task, tmp_path / "b")
+    c = _tiny_search(task, tmp_path / "c", seed=1)
+    assert a.evaluations == b.evaluations == 16 * 3
+    assert dataclasses.asdict(a.best.design) == dataclasses.asdict(b.best.design)
+    assert a.generations == b.generations
+    assert c.generations != a.generations
+    # Run again in its folder: every generation read back, the same answer.
+    again = _tiny_search(task, tmp_path / "a")
+    assert again.reused == again.evaluations == a.evaluations
+    assert dataclasses.asdict(again.best.design) == dataclasses.asdict(a.best.design)
+
+
+def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task, tmp_path):
+    folder = tmp_path / "killed"
+    code = (
+        "from stewart_drake.simulation.requirements import load_requirements\n"
+        "from stewart_drake.studies.design_search import task_samples, search\n"
+        f"task = task_samples(load_requirements({str(REQUIREMENTS)!r}))\n"
+        f"search(task, {REFERENCE_MOTOR!r}, 'peak_torque', {str(folder)!r}, seed=0, popsize=2,"
+        " maxiter=6, progress=False)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT)
+    manifest = folder / "manifest.json"
+    deadline = time.monotonic() + 300
+    try:
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                if len(json.loads(manifest.read_text())["jobs"]) >= 2:
+                    break
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.2)
+        assert proc.poll() is None, "the search ended before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)
+    finally:
+        proc.kill()
+        proc.wait(timeout=60)
+    resumed = search(
+        task, REFERENCE_MOTOR, "peak_torque", folder, seed=0, popsize=2, maxiter=6, progress=False
+    )
+    whole = search(
+        task,
+        REFERENCE_MOTOR,
+        "peak_torque",
+        tmp_path / "whole",
+        seed=0,
+        popsize=2,
+        maxiter=6,
+        progress=False,
+    )
+    assert 32 <= resumed.reused < resumed.evaluations == whole.evaluations
+    assert dataclasses.asdict(resumed.best.design) == dataclasses.asdict(whole.best.design)
+    assert resumed.generations == whole.generations
+
+
+def test_a_task_no_design_can_meet_ends_with_its_binding_constraint(tmp_path):
+    impossible = _paper_only(
+        payload_kg=0.0,
+        workspace=RequiredWorkspace(box_m=[0.4, 0.4, 0.3], tilt_deg=45.0),
+    )
+    task = task_samples(impossible)
+    result = search(
+        task, REFERENCE_MOTOR, "peak_torque", tmp_path, seed=0, popsize=2, maxiter=2, progress=False
+    )
+    assert not result.feasible
+    name, margin = result.best.binding
+    assert name == "reach" and margin < 0
+
+
+def test_the_encoders_resolution_agrees_with_the_forward_kinematics_of_half_a_count(task):
+    """The first-order pose error of half a count at every crank against the exact one: the
+    forward kinematics of the perturbed motor angles, at the pose and sign pattern found worst."""
+    from stewart_drake.model.kinematics import fk, ik, jacobian
+    from stewart_drake.studies.design_search import _SIGNS, encoder_resolution
+
+    geometry = design_geometry(reference_design(), task.payload_kg)
+    x = np.concatenate([task.x, task.workspace_x])
+    counts = 4096
+    translation, rotation = encoder_resolution(geometry, x, counts)
+    dx = np.einsum("nij,sj->nsi", np.linalg.inv(jacobian(geometry, x)), _SIGNS) * np.pi / counts
+    n, s = np.unravel_index(np.argmax(np.linalg.norm(dx[..., 3:], axis=-1)), dx.shape[:2])
+    theta = ik(geometry, x[n]) + _SIGNS[s] * np.pi / counts
+    exact = fk(geometry, theta, x0=x[n])[0] - x[n]
+    assert np.linalg.norm(exact[3:]) == pytest.approx(translation, rel=0.02)
+    assert 1e-4 < translation < 1e-3 and 1e-3 < rotation < 1e-2  # 12 bits: 0.56 mm, 3.7 mrad
+    # Resolution scales as one over the counts.
+    assert encoder_resolution(geometry, x, 2**17)[0] == pytest.approx(translation / 32, rel=1e-9)
+
+
+def _requirements_file(tmp_path, text: str) -> Path:
+    path = tmp_path / "requirements.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_the_design_command_writes_a_scenario_every_command_takes(tmp_path, capsys):
+    """The reference geometry meets this task with the XM540 (no resolution asked): the first
+    generation holds it, so a one-generation search finds a design; its scenario file loads as
+    any scenario, with the design's robot and the payload on its platform."""
+    from stewart_drake.interfaces import cli
+    from stewart_drake.simulation.scenario_io import load_scenario
+
+    path = _requirements_file(
+        tmp_path,
+        "motions:\n  - !NamedReference {name: paper}\npayload_kg: 0.5\n",
+    )
+    out = tmp_path / "out"
+    code = cli.main(
+        [
+            "design",
+            str(path),
+            "--out",
+            str(out),
+            "--motor",
+            "XM540-W270-T",
+            "--generations",
+            "1",
+            "--popsize",
+            "2",
+            "--no-cheapest",
+            "--no-confirm",
+            "--runner",
+            "serial",
+            "--no-progress",
+        ]
+    )
+    assert code == 0
+    document = json.loads((out / "designs.json").read_text())
+    best = document["chosen"]["objective"]
+    assert best["design"]["motor"] == "XM540-W270-T"
+    assert all(m >= 0 for m in best["margins"].values())
+    scenario = load_scenario(str(out / "design_objective.yaml"))
+    from stewart_drake.simulation.design import Design
+
+    geometry = Design(**best["design"]).geometry()
+    assert scenario.robot.platform_mass == pytest.approx(geometry.platform_mass + 0.5)
+    assert scenario.robot.crank_length == pytest.approx(geometry.crank_length)
+    assert scenario.hardware.motors.peak_torque_Nm == pytest.approx(10.6)
+    report = (out / "design.md").read_text()
+    assert "XM540-W270-T" in report and "## Margins" in report
+    for png in ("front.png", "designs.png", "margins.png"):
+        assert (out / png).stat().st_size > 10_000
+
+
+def test_the_design_command_names_the_binding_constraint_of_a_task_nothing_meets(tmp_path, capsys):
+    from stewart_drake.interfaces import cli
+
+    path = _requirements_file(
+        tmp_path,
+        "motions: []\nworkspace: {box_m: [0.4, 0.4, 0.3], tilt_deg: 45.0}\n",
+    )
+    code = cli.main(
+        [
+            "design",
+            str(path),
+            "--out",
+            str(tmp_path / "out"),
+            "--generations",
+            "1",
+            "--popsize",
+            "2",
+            "--no-cheapest",
+            "--runner",
+            "serial",
+            "--no-progress",
+        ]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and "binding constraint reach" in err[0]
+    assert "Binding constraint: reach" in (tmp_path / "out" / "design.md").read_text()
+
+
+def test_rod_ends_that_the_design_puts_too_close_fail_clearance_as_check_refuses_them(task):
+    """Two rod ends 14.5 deg apart on a 52 mm ring overlap at every pose: the distance is fixed
+    by the design, so the evaluation, the admissible set and check's validator all refuse it."""
+    design = Design(
+        crank_length=0.082,
+        rod_length=0.4164,
+        base_radius=0.1189,
+        base_pair_spacing_deg=39.8,
+        platform_radius=0.05174,
+        platform_pair_spacing_deg=14.53,
+        crank_direction_deg=108.3,
+        home_height=0.4087,
+    )
+    e = evaluate(design, task, lazy=False)
+    gap = 2 * 0.05174 * np.sin(np.radians(14.53 / 2)) - 2 * design.geometry().rod_end_radius
+    assert e.figures["design_clearance_m"] == pytest.approx(gap, abs=1e-6) and gap < 0
+    assert e.margins["clearance"] < -1.0 and not e.feasible
+    geometry = design_geometry(design, task.payload_kg)
+    assert not admissible.classify(geometry, task.workspace_x)["clear"].any()
+    t = np.arange(0.0, 1.0, 1e-2)
+    report = limits.validate_trajectory(
+        geometry, t, task.x[:100], clearance=ClearanceModel(geometry)
+    )
+    assert report.first_interference is not None
+    assert report.first_interference[3] == pytest.approx(gap, abs=1e-6)
