@@ -28,6 +28,7 @@ def test_the_acceptance_set_loads_with_its_numbers():
     np.testing.assert_allclose(r.workspace.centre_m, [0.0, 0.0, 0.30])  # the home height
     assert r.payload_kg == 0.5
     assert (r.margins.torque, r.margins.speed) == (0.1, 0.1)
+    assert (r.resolution.translation_m, r.resolution.rotation_rad) == (5.0e-5, 5.0e-4)
 
 
 @pytest.mark.parametrize(
@@ -41,6 +42,11 @@ def test_the_acceptance_set_loads_with_its_numbers():
         ),
         ("workspace: {box_m: [0.03, 0.03]}\n", InvalidConfigError, r"workspace\.box_m must be 3"),
         ("margins: {torque: 0.1, sped: 0.1}\n", CorruptFileError, r"sped"),
+        (
+            "resolution: {translation_m: 0.0, rotation_rad: 5.0e-4}\n",
+            InvalidConfigError,
+            r"resolution\.translation_m must be",
+        ),
         ("payload_kg: [0.5\n", CorruptFileError, r"not YAML"),
         ("payload_kg: 0.5\npayload_kg: 0.6\n", InvalidConfigError, r"'payload_kg' appears twice"),
         (
