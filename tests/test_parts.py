@@ -81,3 +81,29 @@ def test_the_part_sizes_follow_the_geometry():
     assert table[("rod_3", "tube")].size[0] == 0.004
     assert table[("rod_3", "end_top")].size == (0.008,)
     assert table[("platform", "plate")].size[0] == 0.14
+
+
+def test_a_bracket_reaches_its_motor_from_the_arm_whether_the_shafts_sit_low_or_high():
+    """Below the plate the bracket hangs from the arm's underside to under the motor; with the
+    shafts high (a design's home height under 0.30 m) it stands on the arm's top face and
+    spans the motor's housing. Every size is positive (a negative one became a 1 m box in
+    Drake's SDF parser)."""
+    from stewart_drake.simulation.design import Design
+
+    for home_height, above in ((0.37, False), (0.25, True), (0.20, True)):
+        design = Design(home_height=home_height)
+        lo, hi = design.rod_length_range()
+        design.rod_length = 0.5 * (lo + hi)
+        g = design.geometry()
+        for part in parts.robot_parts(g):
+            assert min(part.size) > 0, (home_height, part.name, part.size)
+        for i in range(6):
+            bracket = _by_name(g)[("base", f"bracket_{i}")]
+            z_lo = bracket.p_LG[2] - bracket.size[2] / 2
+            z_hi = bracket.p_LG[2] + bracket.size[2] / 2
+            shaft_z = g.P_B[i, 2]
+            if above:  # on the arm's top face, up past the motor's housing
+                assert np.isclose(z_lo, 0.0) and z_hi >= shaft_z + parts.MOTOR_RADIUS
+            else:  # under the arm, down past the motor's housing
+                assert np.isclose(z_hi, -parts.BASE_THICKNESS)
+                assert z_lo <= shaft_z - parts.MOTOR_RADIUS

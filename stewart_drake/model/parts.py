@@ -176,15 +176,22 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
         o, P = outward[i], g.P_B[i]
         t = np.cross([0.0, 0.0, 1.0], o)
         R = np.column_stack([o, t / np.linalg.norm(t), [0.0, 0.0, 1.0]])
-        bottom = P[2] - MOTOR_RADIUS - 0.005  # 5 mm of bracket below the motor
+        # The bracket hangs from the arm's underside to 5 mm below the motor or, for a motor
+        # whose housing reaches above that underside (a design with the shafts high), stands
+        # on the arm's top face up to 5 mm above it.
+        bottom = P[2] - MOTOR_RADIUS - 0.005
+        if bottom < -BASE_THICKNESS:
+            z_lo, z_hi = bottom, -BASE_THICKNESS
+        else:
+            z_lo, z_hi = 0.0, max(P[2] + MOTOR_RADIUS + 0.005, 0.005)
         centre = P + o * (BRACKET_OFFSET + BRACKET_THICKNESS / 2)
         parts.append(
             Part(
                 "base",
                 f"bracket_{i}",
                 "box",
-                (BRACKET_THICKNESS, BRACKET_WIDTH, -BASE_THICKNESS - bottom),
-                np.array([centre[0], centre[1], 0.5 * (bottom - BASE_THICKNESS)]),
+                (BRACKET_THICKNESS, BRACKET_WIDTH, z_hi - z_lo),
+                np.array([centre[0], centre[1], 0.5 * (z_lo + z_hi)]),
                 R,
                 COLOURS["base"],
             )

@@ -92,7 +92,7 @@ MARGINS = {
 }
 #: Version of :func:`evaluate`'s rules, part of a search's settings: a store written under other
 #: rules is refused rather than replayed.
-EVALUATION_VERSION = 1
+EVALUATION_VERSION = 2
 #: Penalty added to the objective of a design that misses a margin (Deb's rule, module
 #: docstring): larger than any objective a feasible design reaches.
 INFEASIBLE = 1e6
