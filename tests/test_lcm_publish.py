@@ -1,0 +1,164 @@
+"""Status and commands published on LCM from a running Diagram (Drake's LcmPublisherSystem fed
+by our senders), received in process through ``DrakeLcm("memq://")``: no network, no multicast."""
+
+import numpy as np
+import pytest
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcm
+from pydrake.systems.analysis import Simulator
+from pydrake.systems.framework import DiagramBuilder
+from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
+
+from stewart_drake.errors import InvalidConfigError
+from stewart_drake.lcmtypes import lcmt_stewart_command, lcmt_stewart_status
+from stewart_drake.model.kinematics import X_HOME, ik
+from stewart_drake.model.statics import holding_torques
+from stewart_drake.simulation.lcm_publish import (
+    COMMAND_CHANNEL,
+    STATUS_CHANNEL,
+    add_command_publisher,
+    add_status_publisher,
+)
+from stewart_drake.simulation.station import make_stewart_station
+
+#: What each of the status sender's vector inputs is fed, all values distinct.
+FED = {
+    "motor_angle": 0.1 + 0.01 * np.arange(6),
+    "motor_rate": -2.0 + 0.5 * np.arange(6),
+    "motor_torque_applied": 0.3 - 0.1 * np.arange(6),
+    "x": np.r_[0.01, -0.02, 0.03, 0.004, -0.005, 0.31, 9.0 * np.ones(6)],  # rates not sent
+    "x_d": np.r_[0.0, 0.02, -0.01, 0.001, 0.002, 0.29, 7.0 * np.ones(12)],
+}
+
+
+class Inbox:
+    """The decoded messages of ``lcm_type`` received on ``channel``."""
+
+    def __init__(self, lcm, channel, lcm_type):
+        self.lcm, self.messages = lcm, []
+        lcm.Subscribe(channel, lambda data: self.messages.append(lcm_type.decode(data)))
+
+    def drain(self) -> list:
+        for _ in range(10):  # bounded: memq hands over everything queued in one call
+            if self.lcm.HandleSubscriptions(10) == 0:
+                break
+        return self.messages
+
+
+def sources(builder, values):
+    return {
+        name: builder.AddSystem(ConstantVectorSource(value)).get_output_port()
+        for name, value in values.items()
+    }
+
+
+def test_the_status_and_the_command_arrive_at_their_periods_with_the_values_fed():
+    lcm = DrakeLcm("memq://")
+    status, command = (
+        Inbox(lcm, STATUS_CHANNEL, lcmt_stewart_status),
+        Inbox(lcm, COMMAND_CHANNEL, lcmt_stewart_command),
+    )
+    builder = DiagramBuilder()
+    loop = [lcmt_stewart_status.MODE_STOPPED, 4, 1012.4, 350.0]
+    ports = sources(builder, FED | {"loop": np.array(loop, float)})
+    ports["reason"] = builder.AddSystem(
+        ConstantValueSource(AbstractValue.Make("deadline missed 4 times (limit 3)"))
+    ).get_output_port()
+    add_status_publisher(builder, lcm, ports, period_s=0.01)
+    T = np.array([0.5, -0.25, 0.125, 0.0, -0.7, 0.7])
+    add_command_publisher(builder, lcm, sources(builder, {"T": T})["T"], period_s=0.02)
+    Simulator(builder.Build()).AdvanceTo(0.05)
+
+    received = status.drain()
+    assert [m.utime for m in received] == [0, 10_000, 20_000, 30_000, 40_000, 50_000]
+    for m in received:
+        np.testing.assert_array_equal(m.theta, FED["motor_angle"])
+        np.testing.assert_array_equal(m.theta_dot, FED["motor_rate"])
+        np.testing.assert_array_equal(m.tau, FED["motor_torque_applied"])
+        np.testing.assert_array_equal(m.x, FED["x"][:6])
+        np.testing.assert_array_equal(m.x_d, FED["x_d"][:6])
+        assert (m.mode, m.deadline_misses, m.period_us, m.measurement_age_us) == (3, 4, 1012, 350)
+        assert m.reason == "deadline missed 4 times (limit 3)"
+    commands = command.drain()
+    assert [m.utime for m in commands] == [0, 20_000, 40_000]
+    assert all(list(m.tau) == T.tolist() for m in commands)
+
+
+def test_without_a_driver_the_status_says_running_with_nothing_measured():
+    lcm = DrakeLcm("memq://")
+    status = Inbox(lcm, "SIM_STATUS", lcmt_stewart_status)
+    builder = DiagramBuilder()
+    sender = add_status_publisher(builder, lcm, sources(builder, FED), 0.5, channel="SIM_STATUS")
+    assert not sender.GetInputPort("loop").HasValue(sender.CreateDefaultContext())
+    Simulator(builder.Build()).AdvanceTo(1.0)
+    received = status.drain()
+    assert [m.utime for m in received] == [0, 500_000, 1_000_000]
+    m = received[-1]
+    assert m.mode == lcmt_stewart_status.MODE_RUNNING and m.reason == ""
+    assert (m.deadline_misses, m.period_us, m.measurement_age_us) == (0, 0, 0)
+
+
+def test_the_status_of_the_station_is_what_its_ports_give():
+    # The sender on the station's own outputs (the ideal robot: x is its platform_state), the
+    # robot held at home by its holding torques: the messages carry what Drake's ports give.
+    lcm = DrakeLcm("memq://")
+    status = Inbox(lcm, STATUS_CHANNEL, lcmt_stewart_status)
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station())
+    ports = {
+        name: station.GetOutputPort(name)
+        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
+    }
+    ports["x"] = station.GetOutputPort("platform_state")
+    ports |= sources(builder, {"x_d": np.r_[X_HOME, np.zeros(12)]})
+    add_status_publisher(builder, lcm, ports, period_s=0.01)
+    T = holding_torques(station.plan.geometry, X_HOME)
+    inputs = sources(builder, {"motor_torque": T, "tool_wrench": np.zeros(6)})
+    for name, source in inputs.items():
+        builder.Connect(source, station.GetInputPort(name))
+    simulator = Simulator(builder.Build())
+    context = simulator.get_mutable_context()
+    station.assemble(context, X_HOME)
+    station.initialize(context, T)
+
+    def ports_now():
+        ctx = station.GetMyContextFromRoot(context)
+        return {name: port.Eval(ctx) for name, port in ports.items() if name != "x_d"}
+
+    simulator.Initialize()  # publishes the t = 0 status
+    first = ports_now()
+    simulator.AdvanceTo(0.02)
+    last = ports_now()
+    received = status.drain()
+    assert [m.utime for m in received] == [0, 10_000, 20_000]
+    for m, fed in ((received[0], first), (received[-1], last)):
+        np.testing.assert_array_equal(m.theta, fed["motor_angle"])
+        np.testing.assert_array_equal(m.theta_dot, fed["motor_rate"])
+        np.testing.assert_array_equal(m.tau, fed["motor_torque_applied"])
+        np.testing.assert_array_equal(m.x, fed["x"][:6])
+        np.testing.assert_array_equal(m.x_d, X_HOME)
+    # Held at home: the torques applied are the holding torques, the pose and the crank angles
+    # home's (the angles by the closed-form inverse kinematics).
+    np.testing.assert_allclose(received[-1].tau, T, rtol=1e-12)
+    np.testing.assert_allclose(received[-1].x, X_HOME, atol=1e-5)
+    np.testing.assert_allclose(received[-1].theta, ik(station.plan.geometry, X_HOME), atol=1e-5)
+
+
+@pytest.mark.parametrize(
+    "period_s, channel, extra, match",
+    [
+        (0.0, STATUS_CHANNEL, {}, "publish period"),
+        (float("nan"), STATUS_CHANNEL, {}, "publish period"),
+        ("0.01", STATUS_CHANNEL, {}, "publish period"),
+        (0.01, "", {}, "channel"),
+        (0.01, STATUS_CHANNEL, {"motor_angles": None}, "no input port motor_angles"),
+    ],
+)
+def test_a_bad_publisher_is_refused_before_anything_is_added(period_s, channel, extra, match):
+    builder = DiagramBuilder()
+    ports = sources(builder, FED)
+    if extra:
+        ports |= {name: ports["motor_angle"] for name in extra}
+    with pytest.raises(InvalidConfigError, match=match):
+        add_status_publisher(builder, DrakeLcm("memq://"), ports, period_s, channel=channel)
+    assert len(builder.GetSystems()) == len(FED)
