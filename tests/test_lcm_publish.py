@@ -1,6 +1,9 @@
 """Status and commands published on LCM from a running Diagram (Drake's LcmPublisherSystem fed
 by our senders), received in process through ``DrakeLcm("memq://")``: no network, no multicast."""
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from pydrake.common.value import AbstractValue
@@ -12,14 +15,12 @@ from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 from stewart_drake.errors import InvalidConfigError
 from stewart_drake.lcmtypes import lcmt_stewart_command, lcmt_stewart_status
 from stewart_drake.model.kinematics import X_HOME, ik
-from stewart_drake.model.statics import holding_torques
 from stewart_drake.simulation.lcm_publish import (
     COMMAND_CHANNEL,
     STATUS_CHANNEL,
     add_command_publisher,
     add_status_publisher,
 )
-from stewart_drake.simulation.station import make_stewart_station
 
 #: What each of the status sender's vector inputs is fed, all values distinct.
 FED = {
@@ -98,50 +99,29 @@ def test_without_a_driver_the_status_says_running_with_nothing_measured():
     assert (m.deadline_misses, m.period_us, m.measurement_age_us) == (0, 0, 0)
 
 
-def test_the_status_of_the_station_is_what_its_ports_give():
-    # The sender on the station's own outputs (the ideal robot: x is its platform_state), the
-    # robot held at home by its holding torques: the messages carry what Drake's ports give.
-    lcm = DrakeLcm("memq://")
-    status = Inbox(lcm, STATUS_CHANNEL, lcmt_stewart_status)
-    builder = DiagramBuilder()
-    station = builder.AddSystem(make_stewart_station())
-    ports = {
-        name: station.GetOutputPort(name)
-        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
-    }
-    ports["x"] = station.GetOutputPort("platform_state")
-    ports |= sources(builder, {"x_d": np.r_[X_HOME, np.zeros(12)]})
-    add_status_publisher(builder, lcm, ports, period_s=0.01)
-    T = holding_torques(station.plan.geometry, X_HOME)
-    inputs = sources(builder, {"motor_torque": T, "tool_wrench": np.zeros(6)})
-    for name, source in inputs.items():
-        builder.Connect(source, station.GetInputPort(name))
-    simulator = Simulator(builder.Build())
-    context = simulator.get_mutable_context()
-    station.assemble(context, X_HOME)
-    station.initialize(context, T)
-
-    def ports_now():
-        ctx = station.GetMyContextFromRoot(context)
-        return {name: port.Eval(ctx) for name, port in ports.items() if name != "x_d"}
-
-    simulator.Initialize()  # publishes the t = 0 status
-    first = ports_now()
-    simulator.AdvanceTo(0.02)
-    last = ports_now()
-    received = status.drain()
-    assert [m.utime for m in received] == [0, 10_000, 20_000]
-    for m, fed in ((received[0], first), (received[-1], last)):
-        np.testing.assert_array_equal(m.theta, fed["motor_angle"])
-        np.testing.assert_array_equal(m.theta_dot, fed["motor_rate"])
-        np.testing.assert_array_equal(m.tau, fed["motor_torque_applied"])
-        np.testing.assert_array_equal(m.x, fed["x"][:6])
-        np.testing.assert_array_equal(m.x_d, X_HOME)
+def test_the_status_of_the_station_is_what_its_ports_give(capsys):
+    """docs/lcm.md's example as a user pastes it: the sender on the station's own outputs (the
+    ideal robot, x its platform_state), the robot held at home by its holding torques; the
+    messages carry what Drake's ports give."""
+    text = (Path(__file__).resolve().parent.parent / "docs" / "lcm.md").read_text()
+    (block,) = re.findall(r"```python\n(.*?)```", text, re.S)
+    pasted = {"__name__": "__main__"}
+    exec(compile(block, "docs/lcm.md", "exec"), pasted)
+    assert capsys.readouterr().out.startswith("11 100000 (-0.0662")  # what the page shows
+    received, station, ports = pasted["received"], pasted["station"], pasted["ports"]
+    assert [m.utime for m in received] == [10_000 * k for k in range(11)]
+    last, now = received[-1], station.GetMyContextFromRoot(pasted["simulator"].get_context())
+    np.testing.assert_array_equal(last.theta, ports["motor_angle"].Eval(now))
+    np.testing.assert_array_equal(last.theta_dot, ports["motor_rate"].Eval(now))
+    np.testing.assert_array_equal(last.tau, ports["motor_torque_applied"].Eval(now))
+    np.testing.assert_array_equal(last.x, ports["x"].Eval(now)[:6])
     # Held at home: the torques applied are the holding torques, the pose and the crank angles
-    # home's (the angles by the closed-form inverse kinematics).
-    np.testing.assert_allclose(received[-1].tau, T, rtol=1e-12)
-    np.testing.assert_allclose(received[-1].x, X_HOME, atol=1e-5)
-    np.testing.assert_allclose(received[-1].theta, ik(station.plan.geometry, X_HOME), atol=1e-5)
+    # home's (the angles by the closed-form inverse kinematics), from the first message on.
+    for m in (received[0], last):
+        np.testing.assert_array_equal(m.x_d, X_HOME)
+        np.testing.assert_allclose(m.tau, pasted["T"], rtol=1e-12)
+        np.testing.assert_allclose(m.x, X_HOME, atol=1e-5)
+        np.testing.assert_allclose(m.theta, ik(station.plan.geometry, X_HOME), atol=1e-5)
 
 
 @pytest.mark.parametrize(
