@@ -18,6 +18,7 @@ from stewart_drake.model.kinematics import X_HOME, ik
 from stewart_drake.simulation.lcm_publish import (
     COMMAND_CHANNEL,
     STATUS_CHANNEL,
+    LoopStatus,
     add_command_publisher,
     add_status_publisher,
 )
@@ -60,8 +61,10 @@ def test_the_status_and_the_command_arrive_at_their_periods_with_the_values_fed(
         Inbox(lcm, COMMAND_CHANNEL, lcmt_stewart_command),
     )
     builder = DiagramBuilder()
-    loop = [lcmt_stewart_status.MODE_STOPPED, 4, 1012.4, 350.0]
-    ports = sources(builder, FED | {"loop": np.array(loop, float)})
+    loop = LoopStatus(np.zeros(4))
+    loop.mode, loop.deadline_misses = lcmt_stewart_status.MODE_STOPPED, 4
+    loop.period_us, loop.measurement_age_us = 1012.4, 350.0
+    ports = sources(builder, FED | {"loop": loop[:]})
     ports["reason"] = builder.AddSystem(
         ConstantValueSource(AbstractValue.Make("deadline missed 4 times (limit 3)"))
     ).get_output_port()

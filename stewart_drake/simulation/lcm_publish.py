@@ -13,6 +13,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from pydrake.common.containers import namedview
 from pydrake.common.value import AbstractValue
 from pydrake.lcm import DrakeLcmInterface
 from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
@@ -29,6 +30,11 @@ STATUS_CHANNEL = "STEWART_STATUS"
 COMMAND_CHANNEL = "STEWART_COMMAND"
 
 _INT32 = (-(2**31), 2**31 - 1)
+
+#: The numbers of a control loop in the status (the :class:`StatusSender`'s ``loop`` input, in
+#: this order): mode (``lcmt_stewart_status.MODE_*``), deadline misses since the start, achieved
+#: period of the last control period (us), age of the measurement when its torque was applied (us).
+LoopStatus = namedview("LoopStatus", ["mode", "deadline_misses", "period_us", "measurement_age_us"])
 
 
 def utime(t_s: float) -> int:
@@ -50,9 +56,9 @@ class StatusSender(LeafSystem):
         ``x`` (12,): pose [rad, m] and rate, as the controller contract's ``x`` (the estimate
             from the encoders on the robot as built); the pose is sent.
         ``x_d`` (18,): the reference's pose, rate and acceleration; the pose is sent.
-        ``loop`` (4,), optional: [mode, deadline misses, achieved period (us), measurement age
-            (us)] from a hardware driver, mode one of ``lcmt_stewart_status.MODE_*``;
-            unconnected, a simulated run: [MODE_RUNNING, 0, 0, 0].
+        ``loop`` (4,), optional: a hardware driver's :data:`LoopStatus` (mode, deadline misses,
+            achieved period in us, measurement age in us); unconnected, a simulated run:
+            MODE_RUNNING, nothing missed or measured.
         ``reason`` (abstract ``str``), optional: why the run stopped; unconnected, "".
     Output port:
         ``lcmt_stewart_status`` (abstract): the message, ``utime`` the context's time in
@@ -66,7 +72,7 @@ class StatusSender(LeafSystem):
         self._tau = self.DeclareVectorInputPort("motor_torque_applied", 6)
         self._x = self.DeclareVectorInputPort("x", 12)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        self._loop = self.DeclareVectorInputPort("loop", 4)
+        self._loop = self.DeclareVectorInputPort("loop", len(LoopStatus.get_fields()))
         self._reason = self.DeclareAbstractInputPort("reason", AbstractValue.Make(""))
         self.DeclareAbstractOutputPort(
             "lcmt_stewart_status",
@@ -83,11 +89,11 @@ class StatusSender(LeafSystem):
         message.x = self._x.Eval(context)[:6].tolist()
         message.x_d = self._x_d.Eval(context)[:6].tolist()
         if self._loop.HasValue(context):
-            mode, misses, period_us, age_us = self._loop.Eval(context)
-            message.mode = int(round(mode))
-            message.deadline_misses = _int32(misses)
-            message.period_us = _int32(period_us)
-            message.measurement_age_us = _int32(age_us)
+            loop = LoopStatus(self._loop.Eval(context))
+            message.mode = int(round(loop.mode))
+            message.deadline_misses = _int32(loop.deadline_misses)
+            message.period_us = _int32(loop.period_us)
+            message.measurement_age_us = _int32(loop.measurement_age_us)
         else:
             message.mode = lcmt_stewart_status.MODE_RUNNING
         if self._reason.HasValue(context):
