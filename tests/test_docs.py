@@ -45,7 +45,7 @@ PACKAGES = ("stewart_drake", "pydrake")
 _DOTTED = re.compile(r"\b(?:stewart_drake|pydrake)(?:\.[A-Za-z_]\w*)+")
 _PATH = re.compile(
     r"(?<![\w./-])((?:\.{1,2}/|/)?(?:[\w.-]+/)+[\w.-]+\.(?:py|md|yaml|ipynb|sdf|"
-    r"png|svg|dot|npz|json|toml|txt|csv))\b"
+    r"png|svg|dot|npz|json|toml|txt|csv|lcm))\b"
 )
 _LINK = re.compile(r"\]\(([^)\s]+)\)")
 _CODE_SPAN = re.compile(r"`([^`\n]+)`")
@@ -169,7 +169,9 @@ def short_names():
     return names
 
 
-_FILE_SUFFIX = re.compile(r"\.(py|md|yaml|ipynb|sdf|png|svg|dot|npz|json|toml|txt|csv|html|xml)$")
+_FILE_SUFFIX = re.compile(
+    r"\.(py|md|yaml|ipynb|sdf|png|svg|dot|npz|json|toml|txt|csv|html|xml|lcm)$"
+)
 #: A code span that is a dotted name (``limits.validate_trajectory``, ``controller.omega_Q``).
 _SHORT = re.compile(r"^([a-z_]\w*)((?:\.[A-Za-z_]\w*)+)$")
 

@@ -1,6 +1,6 @@
 """The package's imports flow one way: base -> model -> control -> simulation -> execution ->
-studies -> interfaces. Every import is counted (module level, inside functions, under
-TYPE_CHECKING)."""
+studies -> interfaces; the generated LCM message types (lcmtypes) are base: they import nothing of
+ours. Every import is counted (module level, inside functions, under TYPE_CHECKING)."""
 
 import ast
 import pathlib
@@ -11,6 +11,7 @@ PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake"
 #: Rank of each layer; a module may import its own layer or a lower one, never a higher one.
 LAYERS = {
     "base": 0,
+    "lcmtypes": 0,
     "model": 1,
     "control": 2,
     "simulation": 3,

@@ -1,0 +1,203 @@
+"""The robot's status and motor commands on LCM channels, published from a running Diagram.
+
+A sender (a ``LeafSystem``) packs vector ports into a message of
+:mod:`stewart_drake.lcmtypes`; Drake's own ``LcmPublisherSystem`` publishes it at a fixed period
+on a ``DrakeLcm`` (``DrakeLcm("memq://")`` in one process, the default UDP multicast URL between
+processes and tools such as lcm-spy; docs/lcm.md). The senders' input ports are named and sized
+as the station's outputs and the controller contract's ports, so they connect to the same
+outputs the controller reads (:func:`add_status_publisher`, :func:`add_command_publisher`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+from pydrake.common.containers import namedview
+from pydrake.common.value import AbstractValue
+from pydrake.lcm import DrakeLcmInterface
+from pydrake.systems.framework import DiagramBuilder, LeafSystem, OutputPort
+from pydrake.systems.lcm import LcmPublisherSystem
+
+from ..checks import as_number
+from ..errors import InvalidConfigError
+from ..lcmtypes import lcmt_stewart_command, lcmt_stewart_status
+from .station import _weak
+
+#: The channel of :class:`~stewart_drake.lcmtypes.lcmt_stewart_status`.
+STATUS_CHANNEL = "STEWART_STATUS"
+#: The channel of :class:`~stewart_drake.lcmtypes.lcmt_stewart_command`.
+COMMAND_CHANNEL = "STEWART_COMMAND"
+
+_INT32 = (-(2**31), 2**31 - 1)
+
+#: The numbers of a control loop in the status (the :class:`StatusSender`'s ``loop`` input, in
+#: this order): mode (``lcmt_stewart_status.MODE_*``), deadline misses since the start, achieved
+#: period of the last control period (us), age of the measurement when its torque was applied (us).
+LoopStatus = namedview("LoopStatus", ["mode", "deadline_misses", "period_us", "measurement_age_us"])
+
+
+def utime(t_s: float) -> int:
+    """The Diagram time ``t_s`` (s) as an LCM ``utime``: whole microseconds, rounded."""
+    return int(round(t_s * 1e6))
+
+
+def _int32(value: float) -> int:
+    """``value`` rounded into an int32 field (a count that overflows saturates)."""
+    return int(np.clip(round(value), *_INT32))
+
+
+class StatusSender(LeafSystem):
+    """Packs the robot's state and its loop's into an ``lcmt_stewart_status``.
+
+    Input ports:
+        ``motor_angle`` (6,) rad, ``motor_rate`` (6,) rad/s, ``motor_torque_applied`` (6,) N m:
+            the station's outputs of those names (``theta``, ``theta_dot``, ``tau``).
+        ``x`` (12,): pose [rad, m] and rate, as the controller contract's ``x`` (the estimate
+            from the encoders on the robot as built); the pose is sent.
+        ``x_d`` (18,): the reference's pose, rate and acceleration; the pose is sent.
+        ``loop`` (4,), optional: a hardware driver's :data:`LoopStatus` (mode, deadline misses,
+            achieved period in us, measurement age in us); unconnected, a simulated run:
+            MODE_RUNNING, nothing missed or measured.
+        ``reason`` (abstract ``str``), optional: why the run stopped; unconnected, "".
+    Output port:
+        ``lcmt_stewart_status`` (abstract): the message, ``utime`` the context's time in
+        microseconds; for ``LcmPublisherSystem.Make(channel, lcmt_stewart_status, lcm, ...)``.
+    """
+
+    def __init__(self):
+        super().__init__()
+        self._motor_angle = self.DeclareVectorInputPort("motor_angle", 6)
+        self._motor_rate = self.DeclareVectorInputPort("motor_rate", 6)
+        self._tau = self.DeclareVectorInputPort("motor_torque_applied", 6)
+        self._x = self.DeclareVectorInputPort("x", 12)
+        self._x_d = self.DeclareVectorInputPort("x_d", 18)
+        self._loop = self.DeclareVectorInputPort("loop", len(LoopStatus.get_fields()))
+        self._reason = self.DeclareAbstractInputPort("reason", AbstractValue.Make(""))
+        self.DeclareAbstractOutputPort(
+            "lcmt_stewart_status",
+            lambda: AbstractValue.Make(lcmt_stewart_status()),
+            _weak(self._Calc),
+        )
+
+    def _Calc(self, context, output):
+        message = lcmt_stewart_status()
+        message.utime = utime(context.get_time())
+        message.theta = self._motor_angle.Eval(context).tolist()
+        message.theta_dot = self._motor_rate.Eval(context).tolist()
+        message.tau = self._tau.Eval(context).tolist()
+        message.x = self._x.Eval(context)[:6].tolist()
+        message.x_d = self._x_d.Eval(context)[:6].tolist()
+        if self._loop.HasValue(context):
+            loop = LoopStatus(self._loop.Eval(context))
+            message.mode = int(round(loop.mode))
+            message.deadline_misses = _int32(loop.deadline_misses)
+            message.period_us = _int32(loop.period_us)
+            message.measurement_age_us = _int32(loop.measurement_age_us)
+        else:
+            message.mode = lcmt_stewart_status.MODE_RUNNING
+        if self._reason.HasValue(context):
+            message.reason = self._reason.Eval(context)
+        output.set_value(message)
+
+
+class CommandSender(LeafSystem):
+    """Packs the controller's torque command into an ``lcmt_stewart_command``.
+
+    Input port: ``T`` (6,): motor torque commands, N m (the controller contract's output, the
+    station's ``motor_torque`` input).
+    Output port: ``lcmt_stewart_command`` (abstract): the message, ``utime`` the context's time
+    in microseconds.
+    """
+
+    def __init__(self):
+        super().__init__()
+        self._T = self.DeclareVectorInputPort("T", 6)
+        self.DeclareAbstractOutputPort(
+            "lcmt_stewart_command",
+            lambda: AbstractValue.Make(lcmt_stewart_command()),
+            _weak(self._Calc),
+        )
+
+    def _Calc(self, context, output):
+        message = lcmt_stewart_command()
+        message.utime = utime(context.get_time())
+        message.tau = self._T.Eval(context).tolist()
+        output.set_value(message)
+
+
+def _add_publisher(
+    builder: DiagramBuilder,
+    sender: LeafSystem,
+    lcm_type: type,
+    ports: Mapping[str, OutputPort],
+    lcm: DrakeLcmInterface,
+    period_s: float,
+    channel: str,
+) -> None:
+    """``sender`` and Drake's publisher of ``lcm_type`` on ``channel`` every ``period_s`` (first
+    at t = 0), in ``builder``; ``ports`` connected to the sender's inputs of the same names."""
+    period_s = as_number("the LCM publish period (s)", period_s, 0.0, lo_open=True)
+    if not isinstance(channel, str) or not channel:
+        raise InvalidConfigError(f"an LCM channel is a non-empty string, got {channel!r:.80}")
+    names = [sender.get_input_port(i).get_name() for i in range(sender.num_input_ports())]
+    unknown = sorted(set(ports) - set(names))
+    if unknown:
+        raise InvalidConfigError(
+            f"{type(sender).__name__} has no input port {', '.join(unknown)} "
+            f"(its inputs: {', '.join(names)})"
+        )
+    builder.AddNamedSystem(f"{channel.lower()}_sender", sender)
+    publisher = builder.AddNamedSystem(
+        f"{channel.lower()}_publisher",
+        LcmPublisherSystem.Make(channel, lcm_type, lcm, publish_period=period_s),
+    )
+    builder.Connect(sender.get_output_port(), publisher.get_input_port())
+    for name, port in ports.items():
+        builder.Connect(port, sender.GetInputPort(name))
+
+
+def add_status_publisher(
+    builder: DiagramBuilder,
+    lcm: DrakeLcmInterface,
+    ports: Mapping[str, OutputPort],
+    period_s: float,
+    channel: str = STATUS_CHANNEL,
+) -> StatusSender:
+    """A :class:`StatusSender` and Drake's ``LcmPublisherSystem`` publishing its
+    ``lcmt_stewart_status`` on ``channel`` every ``period_s`` (s, first at t = 0).
+
+    Args:
+        builder: the Diagram's builder. lcm: where to publish (a ``DrakeLcm``).
+        ports: {the sender's input port name: the output port feeding it}; the required ones
+            (``motor_angle``, ``motor_rate``, ``motor_torque_applied``, ``x``, ``x_d``) not given
+            here must be connected by the caller before the Diagram is built.
+        period_s: publish period, s (> 0). channel: the LCM channel.
+    Returns:
+        the sender (its ``loop`` and ``reason`` inputs for a hardware driver to connect).
+    Raises:
+        InvalidConfigError: a period that is not a positive number, an empty channel, or a
+            port name the sender does not have; before anything is added to ``builder``.
+    """
+    sender = StatusSender()
+    _add_publisher(builder, sender, lcmt_stewart_status, ports, lcm, period_s, channel)
+    return sender
+
+
+def add_command_publisher(
+    builder: DiagramBuilder,
+    lcm: DrakeLcmInterface,
+    T: OutputPort,
+    period_s: float,
+    channel: str = COMMAND_CHANNEL,
+) -> CommandSender:
+    """A :class:`CommandSender` fed by ``T`` (the controller's torque command, (6,) N m) and
+    Drake's ``LcmPublisherSystem`` publishing its ``lcmt_stewart_command`` on ``channel`` every
+    ``period_s`` (s, first at t = 0).
+
+    Raises:
+        InvalidConfigError: as :func:`add_status_publisher`.
+    """
+    sender = CommandSender()
+    _add_publisher(builder, sender, lcmt_stewart_command, {"T": T}, lcm, period_s, channel)
+    return sender
