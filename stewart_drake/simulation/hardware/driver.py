@@ -118,11 +118,11 @@ class DynamixelBus:
             )
         limit_units = self.spec.current_limit_max
         if current_limit_A is not None:
-            limit_units = math.floor(current_limit_A / self.spec.current_unit_A)
+            limit_units = math.floor(current_limit_A / self.spec.amps_per_unit)
             if not 0 < limit_units <= self.spec.current_limit_max:
                 raise InvalidConfigError(
                     f"current_limit_A {current_limit_A} must be in (0, "
-                    f"{self.spec.current_limit_max * self.spec.current_unit_A:.3g}] A for {model}"
+                    f"{self.spec.current_limit_max * self.spec.amps_per_unit:.3g}] A for {model}"
                 )
         if not 0 < temperature_limit_C <= 80:
             raise InvalidConfigError(
@@ -380,35 +380,21 @@ class DynamixelBus:
     def _write(self, servo_id: int, item, value: int) -> None:
         self._require_open()
         address, size = item
-        raw = p.to_unsigned(value, size)
-        write = {
-            1: self._packets.write1ByteTxRx,
-            2: self._packets.write2ByteTxRx,
-            4: self._packets.write4ByteTxRx,
-        }[size]
-        result, error = write(self._port, servo_id, address, raw)
-        if result != self._sdk.COMM_SUCCESS or error & 0x7F:
-            detail = (
-                self._packets.getTxRxResult(result)
-                if result != self._sdk.COMM_SUCCESS
-                else self._packets.getRxPacketError(error)
-            )
-            self._fail(f"servo id {servo_id} write of {value} at address {address}: {detail}")
+        write = getattr(self._packets, f"write{size}ByteTxRx")  # size: 1, 2 or 4
+        result, error = write(self._port, servo_id, address, p.to_unsigned(value, size))
+        self._check(result, error, f"servo id {servo_id} write of {value} at address {address}")
 
     def _read(self, servo_id: int, item) -> int:
         self._require_open()
         address, size = item
-        read = {
-            1: self._packets.read1ByteTxRx,
-            2: self._packets.read2ByteTxRx,
-            4: self._packets.read4ByteTxRx,
-        }[size]
+        read = getattr(self._packets, f"read{size}ByteTxRx")  # size: 1, 2 or 4
         value, result, error = read(self._port, servo_id, address)
-        if result != self._sdk.COMM_SUCCESS or error & 0x7F:
-            detail = (
-                self._packets.getTxRxResult(result)
-                if result != self._sdk.COMM_SUCCESS
-                else self._packets.getRxPacketError(error)
-            )
-            self._fail(f"servo id {servo_id} read at address {address}: {detail}")
+        self._check(result, error, f"servo id {servo_id} read at address {address}")
         return int(value)
+
+    def _check(self, result: int, error: int, what: str) -> None:
+        """:meth:`_fail` unless the transfer succeeded and the status has no error number."""
+        if result != self._sdk.COMM_SUCCESS:
+            self._fail(f"{what}: {self._packets.getTxRxResult(result)}")
+        if error & 0x7F:
+            self._fail(f"{what}: {self._packets.getRxPacketError(error)}")

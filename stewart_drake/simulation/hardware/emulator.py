@@ -37,6 +37,7 @@ import threading
 import time
 import tty
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class FirstOrderServos(ServoBackend):
         kg m^2), friction and no-load speed, and the bus's K_t and stall current."""
         servo = catalogue_motor(name).servo
         spec = p.servo_spec(name, torque_control=False)
-        kw = dict(
+        kw: dict[str, Any] = dict(
             inertia=servo.rotor_inertia * servo.gear_ratio**2 + load_inertia,
             torque_constant=spec.torque_constant_Nm_per_A,
             viscous=servo.viscous_damping,

@@ -119,6 +119,17 @@ class ServoSpec:
     source: str
 
     @property
+    def amps_per_unit(self) -> float:
+        """One unit of Goal/Present Current, A.
+
+        Raises:
+            InvalidConfigError: a model without Current Control Mode.
+        """
+        if self.current_unit_A is None:
+            servo_spec(self.name)  # raises, saying why
+        return float(self.current_unit_A or 0.0)
+
+    @property
     def stall_torque_Nm(self) -> float:
         """The stall torque at 12 V, N m at the horn (the motor catalogue's peak torque)."""
         return catalogue_motor(self.name).servo.peak_torque_Nm
@@ -169,7 +180,7 @@ def servo_spec(name: str, *, torque_control: bool = True) -> ServoSpec:
 def torque_to_current_units(tau_Nm, spec: ServoSpec, direction=1):
     """Goal Current (units, rounded to integers) for output torque ``tau_Nm`` (N m at the crank,
     in the crank's sense; ``direction`` -1 for a servo mounted the other way)."""
-    unit = servo_spec(spec.name).current_unit_A
+    unit = spec.amps_per_unit
     return np.rint(np.asarray(tau_Nm) * direction / spec.torque_constant_Nm_per_A / unit).astype(
         np.int64
     )
@@ -177,7 +188,7 @@ def torque_to_current_units(tau_Nm, spec: ServoSpec, direction=1):
 
 def current_units_to_torque(units, spec: ServoSpec, direction=1):
     """Output torque, N m in the crank's sense, for a (Goal or Present) Current in units."""
-    unit = servo_spec(spec.name).current_unit_A
+    unit = spec.amps_per_unit
     return np.asarray(units) * unit * spec.torque_constant_Nm_per_A * direction
 
 
