@@ -46,6 +46,31 @@ def dynamixel_sdk():
     return sdk
 
 
+def _port_handler(sdk, port: str, reply_timeout_s: float | None):
+    """The SDK's PortHandler on ``port``, with two changes.
+
+    Its receive loop polls the port without waiting (``timeout=0``): one core at 100 % while a
+    reply is awaited, and in one process with the emulator's thread, a GIL held most of the
+    time. Here a read of an empty port first waits up to 0.5 ms for a byte (``select``), so
+    the loop sleeps instead. And ``reply_timeout_s`` (None: the SDK's own, 2 x 16 ms of USB
+    latency timer + 2 ms + the transfer) is the least time to wait for a status packet.
+    """
+    import select
+
+    class PortHandler(sdk.PortHandler):
+        def readPort(self, length):
+            if self.ser.in_waiting == 0:
+                select.select([self.ser.fileno()], [], [], 5e-4)
+            return super().readPort(length)
+
+        def setPacketTimeout(self, packet_length):
+            super().setPacketTimeout(packet_length)
+            if reply_timeout_s is not None:
+                self.packet_timeout = max(self.packet_timeout, 1e3 * reply_timeout_s)
+
+    return PortHandler(port)
+
+
 @dataclass(frozen=True)
 class BusState:
     """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
@@ -80,6 +105,8 @@ class DynamixelBus:
         position_limits_counts: (min, max) counts written to Min/Max Position Limit (the
             servo applies them in Position Control Mode only; docs/hardware_bus.md).
         watchdog_s: the servos' bus watchdog, s: a multiple of 20 ms in 0.02..2.54.
+        reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
+            for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
         timing_window: how many round trips :meth:`timing` keeps.
 
     Raises:
@@ -99,6 +126,7 @@ class DynamixelBus:
         temperature_limit_C: int = 70,
         position_limits_counts: tuple[int, int] = (0, 4095),
         watchdog_s: float = 0.1,
+        reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
     ):
         self.spec = p.servo_spec(model)
@@ -138,6 +166,9 @@ class DynamixelBus:
             raise InvalidConfigError(
                 f"watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
             )
+        if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
+            raise InvalidConfigError(f"reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
+        self.reply_timeout_s = reply_timeout_s
         self.port_name, self.baud_rate, self.ids = str(port), int(baud_rate), ids
         self.zero_counts, self.directions = zero, sign
         self.current_limit_units = int(limit_units)
@@ -166,7 +197,7 @@ class DynamixelBus:
             BusError: the port does not open; a servo of another model.
             MissingServoError: an id that does not answer.
         """
-        port = self._sdk.PortHandler(self.port_name)
+        port = _port_handler(self._sdk, self.port_name, self.reply_timeout_s)
         try:
             opened = port.openPort() and port.setBaudRate(self.baud_rate)
         except Exception as e:  # pyserial's SerialException, OSError, ...
