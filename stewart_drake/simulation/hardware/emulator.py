@@ -459,3 +459,28 @@ class BusEmulator:
         if packet.servo_id == p.BROADCAST_ID:
             return b""
         return self._status(self.servos[targets[0]], p.ERR_INSTRUCTION)
+
+
+def main(argv=None) -> None:
+    """``python -m stewart_drake.simulation.hardware.emulator --ids 1 2 3 4 5 6``: a bus in
+    its own process (no GIL shared with the driver). Prints the port path on the first line of
+    stdout, then serves until its stdin closes (the parent's end of a pipe, or Ctrl-D) or
+    SIGTERM/Ctrl-C."""
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--ids", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
+    parser.add_argument("--model", default="XM430-W350-T")
+    args = parser.parse_args(argv)
+    with BusEmulator(args.ids, args.model) as emulator:
+        print(emulator.port, flush=True)
+        try:
+            while sys.stdin.read(1):
+                pass
+        except KeyboardInterrupt:
+            pass
+
+
+if __name__ == "__main__":
+    main()
