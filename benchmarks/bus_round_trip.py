@@ -9,7 +9,7 @@ of Goal Current), back to back, at each ``--baud`` setting. Printed per setting:
 A pty moves bytes at memory speed whatever baud rate is set (the setting only changes the SDK's
 reply timeout): these figures are the driver's and the emulator's software cost in one process,
 not the wire's. On a real bus, add the transfer: at 1 Mbps a sync read of six servos moves
-14 + 6 x 21 = 140 bytes (1.4 ms at 10 bits a byte) plus each servo's return delay time
+20 + 6 x 21 = 146 bytes (1.5 ms at 10 bits a byte) plus each servo's return delay time
 (default 250 us), a sync write 14 + 6 x 3 = 32 bytes (0.3 ms); at 4 Mbps a quarter of the
 bytes' time.
 
