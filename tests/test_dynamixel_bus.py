@@ -143,13 +143,14 @@ def emulator():
 
 
 def _bus(emu, **kw):
-    # A generous reply timeout: the emulator's thread may wait for a core on a loaded machine
-    # (the SDK's own ~34 ms is what a robot runs with; the benchmark measures the round trips).
+    # A generous reply timeout: the emulator's thread may wait long for a core on a loaded
+    # machine (the SDK's own ~34 ms is what a robot runs with; benchmarks/bus_round_trip.py
+    # measures the round trips).
     kw = (
         dict(
             zero_counts=[2048, 1000, 3000, 2048, 2048, 2048],
             current_limit_A=1.5,
-            reply_timeout_s=0.2,
+            reply_timeout_s=1.0,
         )
         | kw
     )
@@ -254,7 +255,7 @@ def test_a_missing_id_is_named(emulator):
 
 
 def test_a_bus_that_stops_answering_mid_run_raises_and_tries_torque_off(emulator):
-    with _bus(emulator) as bus:
+    with _bus(emulator, reply_timeout_s=0.2) as bus:  # 7 transfers will time out
         bus.configure()
         bus.enable_torque()
         for _ in range(20):
@@ -270,3 +271,46 @@ def test_a_bus_that_stops_answering_mid_run_raises_and_tries_torque_off(emulator
     sent = [pk for t, pk in emulator.received if t > t_mute and pk.instruction == p.WRITE]
     assert sent and sent[0].servo_id == p.BROADCAST_ID
     assert sent[0].params == bytes([p.TORQUE_ENABLE[0], 0, 0])
+
+
+def test_the_robots_drake_plant_behind_the_bus_holds_lifts_and_lowers_the_platform():
+    from stewart_drake.model.kinematics import X_HOME
+    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.simulation.hardware.plant_backend import StationServos
+
+    backend = StationServos()
+    T_hold = holding_torques(backend.station.plan.geometry, X_HOME)
+    station = backend.station
+    station_context = station.GetMyContextFromRoot(backend.simulator.get_context())
+
+    def plant_time():  # read with the emulator's thread held: it steps the same context
+        return emu.with_backend(lambda b: b.simulator.get_context().get_time())
+
+    def height():  # Z of the platform, m
+        port = station.GetOutputPort("platform_state")
+        return emu.with_backend(lambda b: port.Eval(station_context)[5])
+
+    # A long watchdog: a loaded machine may pause this loop for more than the default 0.1 s.
+    emu = BusEmulator(IDS, backend=backend)
+    with emu, _bus(emu, zero_counts=None, watchdog_s=1.0) as bus:
+        bus.configure()
+        start = bus.read_state()
+        # The plant's crank angles at home, through the bus: within one count.
+        home = emu.with_backend(lambda b: b.positions_rad())
+        np.testing.assert_allclose(start.q, home, atol=2 * math.pi / 4096)
+        bus.enable_torque()
+        moves, z = [], [height()]
+        for scale in (1.0, 2.0, -0.5):  # hold; lift; push down (beyond the gears' friction)
+            # 0.3 s of the plant's time: on a loaded machine the plant slips behind the wall
+            # clock (emu.slipped_s), so a phase is timed by the plant, bounded by the wall.
+            q0, t0 = bus.read_state().q, plant_time()
+            wall_end = time.perf_counter() + 30
+            while plant_time() < t0 + 0.3 and time.perf_counter() < wall_end:
+                bus.read_state()
+                bus.write_torques(scale * T_hold)
+            moves.append(bus.read_state().q - q0)
+            z.append(height())
+        assert bus.watchdog_tripped() == []
+    assert np.all(np.abs(moves[0]) <= 3 * 2 * math.pi / 4096)  # held within 3 counts
+    assert np.all(moves[1] > 0.02) and z[2] > z[1] + 1e-3  # lifted
+    assert np.all(moves[2] < -0.02) and z[3] < z[2] - 1e-3  # lowered

@@ -230,6 +230,9 @@ class BusEmulator:
         backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
         zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
         tick_s: the model is advanced at least this often, s.  ambient_C: Present Temperature.
+        max_step_s: the longest step of the model in one advance, s: a model (or a starved
+            thread) slower than real time drops the rest (:attr:`slipped_s`) instead of
+            answering later and later.
 
     Raises:
         InvalidConfigError: bad ids or model, a backend of another size.
@@ -243,6 +246,7 @@ class BusEmulator:
         zero_counts=None,
         tick_s: float = 0.01,
         ambient_C: float = 30.0,
+        max_step_s: float = 0.02,
     ):
         ids = [int(i) for i in ids]
         if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
@@ -259,6 +263,10 @@ class BusEmulator:
         )
         self.servos = {i: _Servo(i, spec, ambient_C) for i in ids}
         self.tick_s = float(tick_s)
+        self.max_step_s = float(max_step_s)
+        #: Wall-clock time the model did not follow, s: the sum of the excess of every gap
+        #: between two advances over ``max_step_s`` (0 while the model keeps real time).
+        self.slipped_s = 0.0
         #: Every instruction packet received, (perf_counter time, Packet), newest last (bounded).
         self.received: list[tuple[float, p.Packet]] = []
         self.muted = False
@@ -320,6 +328,13 @@ class BusEmulator:
         with self._lock:
             return np.array([self.servos[i].current_A() for i in self.ids])
 
+    def with_backend(self, fn):
+        """``fn(backend)``, called with the thread held and the model advanced to now: reading
+        a model that the thread steps (a Drake context) must not race it."""
+        with self._lock:
+            self._advance()
+            return fn(self.backend)
+
     def state(self) -> tuple[np.ndarray, np.ndarray]:
         """The backend's (positions rad, velocities rad/s) now (ids order)."""
         with self._lock:
@@ -352,7 +367,6 @@ class BusEmulator:
                         reply = self._answer(packet, crc_ok)
                         if reply:
                             os.write(self._master, reply)
-                            self._advance()
 
     def _log(self, packet: p.Packet) -> None:
         self.received.append((time.perf_counter(), packet))
@@ -363,6 +377,9 @@ class BusEmulator:
         """Step the backend to now, the current of a servo whose watchdog runs out removed at
         the moment it runs out (not when the thread next looks), and refresh present values."""
         now = time.perf_counter()
+        if now - self._t > self.max_step_s:  # a model slower than real time slips, boundedly
+            self.slipped_s += now - self._t - self.max_step_s
+            self._t = now - self.max_step_s
         while True:
             expiries = [
                 (s.last_instruction + limit * p.WATCHDOG_UNIT_S, s)
