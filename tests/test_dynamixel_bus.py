@@ -2,6 +2,7 @@
 protocol's packets against the vendor's own packet builder."""
 
 import math
+import os
 import pickle
 import sys
 import time
@@ -246,6 +247,21 @@ def test_the_bus_watchdog_removes_torque_when_commands_stop(emulator):
         assert bus.watchdog_tripped() == []
 
 
+def test_a_hardware_error_removes_the_servos_torque_and_is_reported(emulator):
+    with _bus(emulator) as bus:
+        bus.configure()
+        bus.enable_torque()
+        bus.write_torques(np.full(6, 0.5))
+        assert bus.hardware_errors() == {}
+        emulator.set_hardware_error(4, p.HW_OVERHEATING | p.HW_OVERLOAD)
+        assert bus.hardware_errors() == {4: 0x24}
+        current = emulator.applied_current_A()
+        assert current[3] == 0 and np.all(np.delete(current, 3) > 0)
+        # Its status packets carry the Alert bit, which the driver's reads tolerate.
+        _, _, error = bus._packets.read1ByteTxRx(bus._port, 4, p.TORQUE_ENABLE[0])
+        assert error == p.ALERT
+
+
 def test_a_missing_id_is_named(emulator):
     bus = DynamixelBus(emulator.port, 1_000_000, [1, 2, 9], reply_timeout_s=0.2)
     with pytest.raises(MissingServoError, match="servo id 9 does not answer") as info:
@@ -314,3 +330,24 @@ def test_the_robots_drake_plant_behind_the_bus_holds_lifts_and_lowers_the_platfo
     assert np.all(np.abs(moves[0]) <= 3 * 2 * math.pi / 4096)  # held within 3 counts
     assert np.all(moves[1] > 0.02) and z[2] > z[1] + 1e-3  # lifted
     assert np.all(moves[2] < -0.02) and z[3] < z[2] - 1e-3  # lowered
+
+
+def test_the_emulator_never_blocks_on_a_port_nobody_reads_and_stops_on_close():
+    emu = BusEmulator([1]).start()
+    fd = os.open(emu.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        ping = p.build_packet(1, p.PING)
+        deadline = time.perf_counter() + 10
+        while emu.dropped_bytes == 0 and time.perf_counter() < deadline:
+            try:
+                os.write(fd, ping * 50)  # ~700 bytes of replies each; never read
+            except BlockingIOError:
+                pass
+            time.sleep(0.001)
+        assert emu.dropped_bytes > 0
+    finally:
+        os.close(fd)
+        thread, t0 = emu._thread, time.perf_counter()
+        emu.close()
+        print(f"emulator closed in {1e3 * (time.perf_counter() - t0):.1f} ms")
+    assert not thread.is_alive()

@@ -288,6 +288,19 @@ class DynamixelBus:
         self.torque_off_confirmed = bool(ok)
         return self.torque_off_confirmed
 
+    def hardware_errors(self) -> dict[int, int]:
+        """{id: Hardware Error Status} of the servos that report one (bits: 0 input voltage,
+        2 overheating, 3 encoder, 4 electrical shock, 5 overload; e-Manual "Hardware Error
+        Status(70)"); such a servo has removed its own torque and needs a REBOOT. The SDK's
+        GroupSyncRead drops the status packets' Alert bit, so :meth:`read_state` cannot see it:
+        ask between periods.
+
+        Raises:
+            BusError: a servo does not answer (torque off first).
+        """
+        status = {i: self._read(i, p.HARDWARE_ERROR_STATUS) for i in self.ids}
+        return {i: bits for i, bits in status.items() if bits}
+
     def watchdog_tripped(self) -> list[int]:
         """The ids whose bus watchdog has tripped (Bus Watchdog reads -1): they drive no
         current and refuse Goal Current until :meth:`configure` clears the trip. A sync write

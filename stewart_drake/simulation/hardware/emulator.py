@@ -276,6 +276,9 @@ class BusEmulator:
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave, termios.TCSANOW)
         tty.setraw(self._master, termios.TCSANOW)
+        # Never block the thread on a port nobody reads: a reply that does not fit is dropped.
+        os.set_blocking(self._master, False)
+        self.dropped_bytes = 0
         self.port = os.ttyname(self._slave)
         self._t = time.perf_counter()
         self._update_present()
@@ -311,6 +314,17 @@ class BusEmulator:
         self.close()
 
     # --- test hooks --------------------------------------------------------------------------
+
+    def set_hardware_error(self, servo_id: int, bits: int) -> None:
+        """Raise Hardware Error Status ``bits`` (:data:`~.protocol.HW_OVERHEATING`, ...) on a
+        servo as its firmware would (e-Manual, "Hardware Error Status(70)"): Torque Enable is
+        cleared, the output is zero, every status packet carries the Alert bit; only a REBOOT
+        clears it (not emulated: make a new emulator)."""
+        with self._lock:
+            self._advance()
+            servo = self.servos[servo_id]
+            servo.put(p.HARDWARE_ERROR_STATUS, servo.get(p.HARDWARE_ERROR_STATUS) | int(bits))
+            servo.put(p.TORQUE_ENABLE, 0)
 
     def mute(self, muted: bool = True) -> None:
         """Stop (or resume) answering and executing: a cut cable. Packets are still logged in
@@ -366,7 +380,10 @@ class BusEmulator:
                     if not self.muted:
                         reply = self._answer(packet, crc_ok)
                         if reply:
-                            os.write(self._master, reply)
+                            try:
+                                os.write(self._master, reply)
+                            except BlockingIOError:
+                                self.dropped_bytes += len(reply)  # nobody reads the port
 
     def _log(self, packet: p.Packet) -> None:
         self.received.append((time.perf_counter(), packet))
