@@ -17,13 +17,18 @@ Each setting twice: the emulator in a thread of the benchmark's process (as in t
 two threads share the GIL, whose 5 ms switch interval shows in the tails) and in its own process
 (``python -m stewart_drake.simulation.hardware.emulator``), nearer a real bus.
 
-Usage: python benchmarks/bus_round_trip.py [--periods 2000] [--baud 1000000 4000000]
+``--plant`` adds the emulator with the robot's Drake plant behind it (``StationServos``)
+holding the platform at home, and prints how much model time the plant slipped behind the wall
+clock (0: it kept real time).
+
+Usage: python benchmarks/bus_round_trip.py [--periods 2000] [--baud 1000000 4000000] [--plant]
 """
 
 import argparse
 import contextlib
 import subprocess
 import sys
+import time
 
 import numpy as np
 
@@ -65,14 +70,43 @@ def measure(baud: int, periods: int, separate_process: bool) -> dict:
     return {"read": read, "write": write, "period": read + write}
 
 
+def measure_plant(baud: int, periods: int) -> dict:
+    """The same against the robot's Drake plant behind the bus (StationServos), holding the
+    platform at home (holding torques + a damper); also the model time the plant slipped."""
+    from stewart_drake.model.kinematics import X_HOME
+    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.simulation.hardware.plant_backend import StationServos
+
+    backend = StationServos()
+    T_hold = holding_torques(backend.station.plan.geometry, X_HOME)
+    emulator = BusEmulator(IDS, backend=backend)
+    with emulator, DynamixelBus(emulator.port, baud, IDS, zero_counts=np.zeros(6)) as bus:
+        bus.configure()
+        bus.enable_torque()
+        t0 = time.perf_counter()
+        for _ in range(periods):
+            state = bus.read_state()
+            bus.write_torques(T_hold - 0.5 * state.v)
+        wall = time.perf_counter() - t0
+        read, write = np.array(bus.read_times), np.array(bus.write_times)
+    print(f"plant: {emulator.slipped_s:.3f} s of {wall:.2f} s slipped (model behind the wall)")
+    return {"read": read, "write": write, "period": read + write}
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--periods", type=int, default=2000)
     parser.add_argument("--baud", type=int, nargs="+", default=[1_000_000, 4_000_000])
+    parser.add_argument("--plant", action="store_true", help="also the Drake plant behind it")
     args = parser.parse_args()
-    for where, separate in (("thread", False), ("process", True)):
+    runs = [("thread", False), ("process", True)] + [("plant", None)] * args.plant
+    for where, separate in runs:
         for baud in args.baud:
-            times = measure(baud, args.periods, separate)
+            times = (
+                measure_plant(baud, args.periods)
+                if separate is None
+                else measure(baud, args.periods, separate)
+            )
             for name, t in times.items():
                 ms = 1e3 * t
                 print(

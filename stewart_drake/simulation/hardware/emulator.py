@@ -17,8 +17,10 @@ servo (its id or broadcast) for Bus Watchdog x 20 ms, the servo stops (here: zer
 Torque Enable left as it is, as the e-Manual says no more), Bus Watchdog reads -1 and the Goal
 values turn read-only (a write answers a Data Range Error) until Bus Watchdog is written 0.
 
-The motion: a :class:`ServoBackend` advanced to the wall clock before each packet is answered
-and every ``tick_s`` in between. :class:`FirstOrderServos` is one crank per servo, rigid,
+The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
+``tick_s``; the bus thread answers meanwhile from the last present values (a tick and a step
+old at most), as a servo answers at once from its control table. :class:`FirstOrderServos`
+is one crank per servo, rigid,
 ``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
 (12 V: the stall current falling linearly to zero at the no-load speed). Not modelled: the
 current loop's lag, the temperature (Present Temperature reads ``ambient_C``), the input
@@ -229,7 +231,7 @@ class BusEmulator:
         ids: servo ids (distinct, 0..252).  model: a :data:`~.protocol.SERVO_SPECS` key.
         backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
         zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
-        tick_s: the model is advanced at least this often, s.  ambient_C: Present Temperature.
+        tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
         max_step_s: the longest step of the model in one advance, s: a model (or a starved
             thread) slower than real time drops the rest (:attr:`slipped_s`) instead of
             answering later and later.
@@ -244,7 +246,7 @@ class BusEmulator:
         model: str = "XM430-W350-T",
         backend: ServoBackend | None = None,
         zero_counts=None,
-        tick_s: float = 0.01,
+        tick_s: float = 0.002,
         ambient_C: float = 30.0,
         max_step_s: float = 0.02,
     ):
@@ -270,9 +272,11 @@ class BusEmulator:
         #: Every instruction packet received, (perf_counter time, Packet), newest last (bounded).
         self.received: list[tuple[float, p.Packet]] = []
         self.muted = False
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()  # the control tables
+        self._model_lock = threading.Lock()  # the backend
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._model_thread: threading.Thread | None = None
         self._master, self._slave = os.openpty()
         tty.setraw(self._slave, termios.TCSANOW)
         tty.setraw(self._master, termios.TCSANOW)
@@ -286,20 +290,26 @@ class BusEmulator:
     # --- lifetime ----------------------------------------------------------------------------
 
     def start(self) -> BusEmulator:
-        """Start answering (a daemon thread)."""
+        """Start answering and moving (two daemon threads)."""
         if self._thread is None:
             self._thread = threading.Thread(
                 target=self._run, name="dynamixel-bus-emulator", daemon=True
             )
+            self._model_thread = threading.Thread(
+                target=self._run_model, name="dynamixel-bus-model", daemon=True
+            )
             self._thread.start()
+            self._model_thread.start()
         return self
 
     def close(self, timeout_s: float = 2.0) -> None:
-        """Stop the thread (waits at most ``timeout_s``) and close the pty. Idempotent."""
+        """Stop the threads (waits at most ``timeout_s`` each) and close the pty. Idempotent."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout_s)
-            self._thread = None
+            if self._model_thread is not None:
+                self._model_thread.join(timeout_s)
+            self._thread = self._model_thread = None
         for fd in (self._master, self._slave):
             try:
                 os.close(fd)
@@ -321,7 +331,6 @@ class BusEmulator:
         cleared, the output is zero, every status packet carries the Alert bit; only a REBOOT
         clears it (not emulated: make a new emulator)."""
         with self._lock:
-            self._advance()
             servo = self.servos[servo_id]
             servo.put(p.HARDWARE_ERROR_STATUS, servo.get(p.HARDWARE_ERROR_STATUS) | int(bits))
             servo.put(p.TORQUE_ENABLE, 0)
@@ -334,7 +343,6 @@ class BusEmulator:
     def read_item(self, servo_id: int, item) -> int:
         """A servo's control-table value (unsigned), as the bus would read it."""
         with self._lock:
-            self._advance()
             return self.servos[servo_id].get(item)
 
     def applied_current_A(self) -> np.ndarray:
@@ -343,17 +351,14 @@ class BusEmulator:
             return np.array([self.servos[i].current_A() for i in self.ids])
 
     def with_backend(self, fn):
-        """``fn(backend)``, called with the thread held and the model advanced to now: reading
-        a model that the thread steps (a Drake context) must not race it."""
-        with self._lock:
-            self._advance()
+        """``fn(backend)``, called between two steps of the model: reading a model that the
+        model thread steps (a Drake context) must not race it."""
+        with self._model_lock:
             return fn(self.backend)
 
     def state(self) -> tuple[np.ndarray, np.ndarray]:
-        """The backend's (positions rad, velocities rad/s) now (ids order)."""
-        with self._lock:
-            self._advance()
-            return self.backend.positions_rad(), self.backend.velocities_rad_s()
+        """The backend's (positions rad, velocities rad/s) (ids order)."""
+        return self.with_backend(lambda b: (b.positions_rad(), b.velocities_rad_s()))
 
     # --- the thread --------------------------------------------------------------------------
 
@@ -370,7 +375,6 @@ class BusEmulator:
                 time.sleep(self.tick_s)  # the driver closed its end: wait for it to reopen
                 continue
             with self._lock:
-                self._advance()
                 while True:
                     packet, used, crc_ok = p.parse_packet(buf)
                     del buf[:used]
@@ -390,28 +394,44 @@ class BusEmulator:
         if len(self.received) > 10000:
             del self.received[:5000]
 
-    def _advance(self) -> None:
-        """Step the backend to now, the current of a servo whose watchdog runs out removed at
-        the moment it runs out (not when the thread next looks), and refresh present values."""
-        now = time.perf_counter()
-        if now - self._t > self.max_step_s:  # a model slower than real time slips, boundedly
-            self.slipped_s += now - self._t - self.max_step_s
-            self._t = now - self.max_step_s
-        while True:
-            expiries = [
-                (s.last_instruction + limit * p.WATCHDOG_UNIT_S, s)
-                for s in self.servos.values()
-                if s.get(p.TORQUE_ENABLE) and 0 < (limit := s.get(p.BUS_WATCHDOG)) <= 127
-            ]
-            t_trip, servo = min(expiries, key=lambda e: e[0], default=(math.inf, None))
-            t_next = min(now, max(t_trip, self._t))
-            currents = np.array([self.servos[i].current_A() for i in self.ids])
+    def _run_model(self) -> None:
+        while not self._stop.is_set():
+            wait = self._step_model()
+            if wait > 0:
+                self._stop.wait(wait)
+
+    def _step_model(self) -> float:
+        """Step the backend towards now (at most ``max_step_s``; a servo's watchdog trip at
+        the moment it runs out, not when the thread next looks) and refresh the present
+        values. The table's lock is not held while the model steps: the bus answers meanwhile
+        from the last present values. Returns how long the model may wait, s."""
+        with self._model_lock:
+            with self._lock:
+                now = time.perf_counter()
+                if now - self._t > self.max_step_s:  # slower than real time: slip, boundedly
+                    self.slipped_s += now - self._t - self.max_step_s
+                    self._t = now - self.max_step_s
+                t_trip = min((t for t, _ in self._armed()), default=math.inf)
+                t_next = min(now, max(t_trip, self._t))
+                currents = np.array([self.servos[i].current_A() for i in self.ids])
             self.backend.advance(t_next - self._t, currents)
-            self._t = t_next
-            if servo is None or t_trip > now:
-                break
-            servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
-        self._update_present()
+            with self._lock:
+                self._t = t_next
+                for t, servo in self._armed():  # re-read: an instruction may have come
+                    if t <= t_next:
+                        servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
+                self._update_present()
+        if t_next < now:
+            return 0.0
+        return min(self.tick_s, max(0.0, t_trip - now))
+
+    def _armed(self) -> list:
+        """[(expiry time, servo)] of the servos whose bus watchdog is running."""
+        return [
+            (s.last_instruction + limit * p.WATCHDOG_UNIT_S, s)
+            for s in self.servos.values()
+            if s.get(p.TORQUE_ENABLE) and 0 < (limit := s.get(p.BUS_WATCHDOG)) <= 127
+        ]
 
     def _update_present(self) -> None:
         q, v = self.backend.positions_rad(), self.backend.velocities_rad_s()
