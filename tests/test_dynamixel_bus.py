@@ -17,6 +17,7 @@ from stewart_drake.errors import (  # noqa: E402
     InvalidConfigError,
     MissingExtraError,
     MissingServoError,
+    ServoConfigMismatchError,
 )
 from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
 from stewart_drake.simulation.hardware.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
@@ -160,6 +161,9 @@ def _bus(emu, **kw):
 
 def test_configure_writes_the_limits_and_reads_them_back(emulator):
     with _bus(emulator, temperature_limit_C=65, position_limits_counts=(500, 3500)) as bus:
+        # A Goal Current left by an earlier run: configure zeroes it before any torque.
+        bus._packets.write2ByteTxRx(bus._port, 2, p.GOAL_CURRENT[0], 300)
+        assert emulator.read_item(2, p.GOAL_CURRENT) == 300
         bus.configure()
         for i in IDS:
             assert emulator.read_item(i, p.OPERATING_MODE) == 0
@@ -169,10 +173,24 @@ def test_configure_writes_the_limits_and_reads_them_back(emulator):
             assert emulator.read_item(i, p.MAX_POSITION_LIMIT) == 3500
             assert emulator.read_item(i, p.BUS_WATCHDOG) == 5  # 0.1 s in 20 ms units
             assert emulator.read_item(i, p.TORQUE_ENABLE) == 0
+            assert emulator.read_item(i, p.GOAL_CURRENT) == 0
         state = bus.read_state()
         np.testing.assert_allclose(state.q, 0, atol=1e-12)  # the zero offsets applied
     # Closing removed the torque and let the port go.
     assert all(emulator.read_item(i, p.TORQUE_ENABLE) == 0 for i in IDS)
+
+
+def test_a_setting_that_does_not_read_back_is_refused_with_the_torque_off(emulator):
+    servo = emulator.servos[3]
+    write = servo.write
+    # Servo 3 acknowledges an Operating Mode write without storing it (another firmware).
+    servo.write = lambda address, data: 0 if address == 11 else write(address, data)
+    with _bus(emulator) as bus:
+        with pytest.raises(ServoConfigMismatchError, match="servo id 3: Operating Mode") as e:
+            bus.configure()
+        assert (e.value.wrote, e.value.read) == (0, 3)
+        assert bus.torque_off_confirmed
+    assert pickle.loads(pickle.dumps(e.value)).item == "Operating Mode"
 
 
 def test_the_servo_refuses_eeprom_writes_with_torque_on_and_goals_over_the_limit(emulator):

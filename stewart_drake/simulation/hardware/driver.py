@@ -234,7 +234,8 @@ class DynamixelBus:
     # --- configuration -----------------------------------------------------------------------
 
     def configure(self) -> None:
-        """Torque off, write :attr:`settings` to every servo, read them back.
+        """Torque off, write :attr:`settings` and a zero Goal Current to every servo, read the
+        settings back.
 
         Raises:
             ServoConfigMismatchError: a value reads back other than written.
@@ -248,6 +249,8 @@ class DynamixelBus:
                 self._write(i, p.BUS_WATCHDOG, 0)  # clears a trip left by a previous run
             for item, value in self.settings.values():
                 self._write(i, item, value)
+            # A Goal Current left by an earlier run would drive the servo at Torque Enable.
+            self._write(i, p.GOAL_CURRENT, 0)
         self.verify_configuration()
 
     def verify_configuration(self) -> None:
