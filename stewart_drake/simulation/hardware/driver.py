@@ -234,7 +234,7 @@ class DynamixelBus:
     # --- configuration -----------------------------------------------------------------------
 
     def configure(self) -> None:
-        """Torque off, write :attr:`settings` and a zero Goal Current to every servo, read the
+        """Torque off, write ``settings`` and a zero Goal Current to every servo, read the
         settings back.
 
         Raises:
@@ -276,7 +276,7 @@ class DynamixelBus:
     def torque_off(self) -> bool:
         """Torque Enable = 0 on every servo: one broadcast WRITE (reaches every servo that
         listens, answered by none), then each servo's, confirmed. Never raises; returns (and
-        keeps in :attr:`torque_off_confirmed`) whether every servo confirmed."""
+        keeps in ``torque_off_confirmed``) whether every servo confirmed."""
         if self._port is None:
             return self.torque_off_confirmed
         sdk, ok = self._sdk, True

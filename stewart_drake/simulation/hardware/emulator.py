@@ -2,7 +2,7 @@
 behind them stepping in real time.
 
 :class:`BusEmulator` opens a pty (``os.openpty``, raw mode), gives its slave path
-(:attr:`BusEmulator.port`) to the driver, which opens it through the vendor's ``PortHandler``
+(``BusEmulator.port``) to the driver, which opens it through the vendor's ``PortHandler``
 as it would ``/dev/ttyUSB0``, and answers in a thread: PING (one id or broadcast), READ, WRITE,
 SYNC_READ and SYNC_WRITE (the vendor's ``GroupSyncRead.txRxPacket`` sends SYNC_READ, not
 FAST_SYNC_READ; FAST_SYNC_READ, REG_WRITE/ACTION and BULK_* answer an Instruction Error), with
@@ -223,7 +223,7 @@ class _Servo:
 class BusEmulator:
     """Servos ``ids`` of model ``model`` on a pseudo-terminal, answering in a thread.
 
-    Use as a context manager, or :meth:`start` and :meth:`close`. :attr:`port` is the path the
+    Use as a context manager, or :meth:`start` and :meth:`close`. ``port`` is the path the
     driver opens. The backend's servo ``k`` is ``ids[k]``; positions are reported as
     ``zero_counts[k] + q_k * 4096 / 2 pi`` (the horn's count at angle 0).
 
@@ -233,7 +233,7 @@ class BusEmulator:
         zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
         tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
         max_step_s: the longest step of the model in one advance, s: a model (or a starved
-            thread) slower than real time drops the rest (:attr:`slipped_s`) instead of
+            thread) slower than real time drops the rest (``slipped_s``) instead of
             answering later and later.
 
     Raises:
@@ -337,7 +337,7 @@ class BusEmulator:
 
     def mute(self, muted: bool = True) -> None:
         """Stop (or resume) answering and executing: a cut cable. Packets are still logged in
-        :attr:`received`."""
+        ``received``."""
         self.muted = bool(muted)
 
     def read_item(self, servo_id: int, item) -> int:
