@@ -367,6 +367,51 @@ class MissingExtraError(StewartError, ImportError):
     """An optional dependency (an extra of the package) is not installed; says which to install."""
 
 
+class BusError(StewartError, RuntimeError):
+    """A servo bus that failed: the port does not open, a servo does not answer or answers with
+    an error, a reply is corrupt. The message names the port, the servo and the instruction.
+    Whoever raises it has already tried to remove the servos' torque."""
+
+
+class MissingServoError(BusError):
+    """A servo id that does not answer a PING on the bus.
+
+    Attributes:
+        servo_id: the id that did not answer.  port: the serial port (str).
+    """
+
+    def __init__(self, servo_id: int, port: str):
+        self.servo_id, self.port = int(servo_id), str(port)
+        super().__init__(
+            f"servo id {self.servo_id} does not answer on {self.port}: check its power, cable "
+            f"and id (ROBOTIS DYNAMIXEL Wizard scans a bus), and the baud rate"
+        )
+
+    def _init_args(self) -> tuple:
+        return self.servo_id, self.port
+
+
+class ServoConfigMismatchError(BusError):
+    """A servo setting read back after writing it that differs from what was written (a servo
+    that refuses a value, or another model than the one named).
+
+    Attributes:
+        servo_id: the servo.  item: the control-table item ("Current Limit", ...).
+        wrote: the value written (raw units).  read: the value read back (raw units).
+    """
+
+    def __init__(self, servo_id: int, item: str, wrote: int, read: int):
+        self.servo_id, self.item = int(servo_id), str(item)
+        self.wrote, self.read = int(wrote), int(read)
+        super().__init__(
+            f"servo id {self.servo_id}: {self.item} reads back {self.read} after writing "
+            f"{self.wrote}: check the servo's model and firmware (torque was left off)"
+        )
+
+    def _init_args(self) -> tuple:
+        return self.servo_id, self.item, self.wrote, self.read
+
+
 def _percent(p: float) -> str:
     """A percentage: whole from 1 % up, two significant digits below it (an excess of 0.028 %
     does not read as "0 %" beside two limits that round alike)."""

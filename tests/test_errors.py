@@ -42,6 +42,9 @@ EXAMPLES = {
     errors.MissingExtraError: errors.MissingExtraError(
         "train needs torch: pip install stewart-drake[train]"
     ),
+    errors.BusError: errors.BusError("bus /dev/ttyUSB0: sync read: no status packet"),
+    errors.MissingServoError: errors.MissingServoError(4, "/dev/ttyUSB0"),
+    errors.ServoConfigMismatchError: errors.ServoConfigMismatchError(2, "Current Limit", 700, 1193),
 }
 
 
