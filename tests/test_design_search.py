@@ -195,6 +195,7 @@ def test_the_same_seed_gives_the_same_design_and_another_seed_another(task, tmp_
     # Run again in its folder: every generation read back, the same answer.
     again = _tiny_search(task, tmp_path / "a")
     assert again.reused == again.evaluations == a.evaluations
+    assert again.compute_s == pytest.approx(a.compute_s, rel=1e-12) and a.compute_s > 0
     assert dataclasses.asdict(again.best.design) == dataclasses.asdict(a.best.design)
 
 

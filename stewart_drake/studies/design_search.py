@@ -569,6 +569,8 @@ class SearchResult:
             read back from an earlier, interrupted run.
         generations: per generation, [best penalized objective, feasible share].
         wall_s: this call's wall time, s.
+        compute_s: the wall time the generations took when they were evaluated, s (this call's
+            and, for those read back, the run's that evaluated them).
     """
 
     motor: str
@@ -579,6 +581,7 @@ class SearchResult:
     reused: int
     generations: list
     wall_s: float
+    compute_s: float = 0.0
 
     @property
     def feasible(self) -> bool:
@@ -595,6 +598,7 @@ class _Generations:
         self.motor, self.objective, self.progress = motor, objective, progress
         self.best: Evaluation | None = None
         self.evaluations = self.reused = 0
+        self.compute_s = 0.0
         self.generations: list = []
 
     def __call__(self, func, population):
@@ -604,6 +608,7 @@ class _Generations:
         if job_id in self.store.done():
             docs = self.store.load_json(job_id)
             self.reused += len(rows)
+            self.compute_s += float(self.store.manifest["jobs"][job_id].get("wall_s", 0.0))
         else:
             shares = np.array_split(np.arange(len(rows)), max(1, self.runner.n_workers))
             jobs = {
@@ -611,12 +616,17 @@ class _Generations:
                 for i, share in enumerate(shares)
                 if len(share)
             }
+            wall0 = time.perf_counter()
             outcomes = dict(self.runner.map(_evaluate_job, jobs))
             failed = [o for o in outcomes.values() if not isinstance(o, list)]
             if failed:  # evaluate() raises only on bad input, which search() checked
                 raise StewartError(f"design candidates failed: {failed[0]}")
             docs = [doc for k in jobs for doc in outcomes[k]]
-            self.store.put_json(job_id, f"{self.motor}_{self.objective}_gen_{key}.json", docs)
+            wall = time.perf_counter() - wall0
+            self.compute_s += wall
+            self.store.put_json(
+                job_id, f"{self.motor}_{self.objective}_gen_{key}.json", docs, wall_s=wall
+            )
         evals = [Evaluation.from_json(d) for d in docs]
         values = [e.penalized(self.objective) for e in evals]
         self.evaluations += len(evals)
@@ -737,6 +747,7 @@ def search(
         generations.reused,
         generations.generations,
         time.perf_counter() - wall0,
+        generations.compute_s,
     )
 
 

@@ -117,13 +117,27 @@ def run_design(
     if confirm and chosen:
         from .design_confirm import confirm as run_confirm
 
-        designs = {"reference": reference_design(), **{k: e.design for k, e in chosen.items()}}
+        designs = {role: e.design for role, e in _columns(outcome)}
+        designs["reference"] = reference_design()
         for role, design in designs.items():
             outcome.confirmation[role] = run_confirm(
                 design, requirements, base=base_scenario, runner=runner, progress=progress
             )
     outcome.files = _write(out, outcome, requirements, objective, base_scenario)
     return outcome
+
+
+def _columns(outcome: DesignOutcome) -> list:
+    """[(label, evaluation)]: the reference robot, then each chosen design once (a design chosen
+    for two roles is one column, "objective = cheapest")."""
+    columns: list = [("reference", outcome.reference)]
+    for role, e in outcome.chosen.items():
+        same = [i for i, (_, c) in enumerate(columns) if i and c.design == e.design]
+        if same:
+            columns[same[0]] = (f"{columns[same[0]][0]} = {role}", columns[same[0]][1])
+        else:
+            columns.append((role, e))
+    return columns
 
 
 def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base: str) -> list:
@@ -145,6 +159,7 @@ def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base
                 "evaluations": s.evaluations,
                 "reused": s.reused,
                 "wall_s": s.wall_s,
+                "compute_s": s.compute_s,
                 "best": s.best.to_json(),
                 "generations": s.generations,
             }
@@ -182,7 +197,6 @@ def _fmt(value, digits: int = 4) -> str:
 
 def render_markdown(outcome: DesignOutcome, objective: str) -> str:
     """The report as Markdown: verdict, designs side by side, margins, searches, confirmation."""
-    ref = outcome.reference
     lines = ["# Design for the task", ""]
     if outcome.binding:
         lines += [
@@ -190,7 +204,7 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
             f"{outcome.binding}.",
             "",
         ]
-    columns = [("reference", ref)] + list(outcome.chosen.items())
+    columns = _columns(outcome)
     lines += _verdicts(outcome, objective)
     lines += ["## The designs", "", "| | " + " | ".join(r for r, _ in columns) + " |"]
     lines.append("|---" * (len(columns) + 1) + "|")
@@ -225,7 +239,7 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
     lines += [
         "## Searches",
         "",
-        "| motor | objective | met | best | binding | evaluations (reused) | wall (s) |",
+        "| motor | objective | met | best | binding | evaluations (read back) | evaluating (s) |",
         "|---|---|---|---|---|---|---|",
     ]
     for s in outcome.searches:
@@ -233,7 +247,8 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
         lines.append(
             f"| {s.motor} | {s.objective} | {'yes' if s.feasible else 'no'} | "
             f"{_fmt(s.best.objective(s.objective))} | {name} ({margin:+.3g}) | "
-            f"{s.evaluations} ({s.reused}) | {s.wall_s:.0f} |"
+            f"{s.evaluations} ({s.reused}) | "
+            f"{f'{s.compute_s:.0f}' if s.compute_s > 0 else 'not recorded'} |"
         )
     lines += ["", "![front](front.png)", ""]
     if outcome.confirmation:
@@ -301,6 +316,7 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     """front.png (the main search's candidates and convergence), designs.png (the robots at
     home, top and side), margins.png (each margin of each design)."""
     import matplotlib
+    import matplotlib.ticker
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -308,8 +324,9 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     from .design_search import Evaluation as _Evaluation  # noqa: F401 - documented type
 
     files = []
-    columns = [("reference", outcome.reference)] + list(outcome.chosen.items())
-    colours = {"reference": "0.4", "objective": "tab:blue", "cheapest": "tab:orange"}
+    columns = _columns(outcome)
+    palette = ["0.4", "tab:blue", "tab:orange"]
+    colours = {role: palette[i % 3] for i, (role, _) in enumerate(columns)}
 
     # Margins.
     fig, ax = plt.subplots(figsize=(8, 4), constrained_layout=True)
@@ -392,7 +409,7 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     rows = []
     for s in outcome.searches:
         rows.append((s.motor, s.best))
-    for motor, e in rows:
+    for n, (motor, e) in enumerate(rows):
         if "peak_torque_Nm" in e.figures:
             ax.scatter(
                 e.figures["price_usd"],
@@ -405,7 +422,7 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
                 motor.split("-")[0],
                 (e.figures["price_usd"], e.figures["peak_torque_Nm"]),
                 fontsize=7,
-                xytext=(4, 4),
+                xytext=(5, 5 if n % 2 else -11),
                 textcoords="offset points",
             )
             ax.scatter(
@@ -439,6 +456,9 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
         ax.scatter([], [], marker="o", color="tab:blue", label="best design, meets the task")
         ax.scatter([], [], marker="x", color="tab:red", label="best design, misses")
         ax.set(xscale="log", yscale="log")
+        prices = sorted({e.figures["price_usd"] for _, e in rows} | {r.figures["price_usd"]})
+        ax.set_xticks(prices, [f"{p:.0f}" for p in prices], minor=False)
+        ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
         ax.legend(fontsize=7)
     ax.set(
         xlabel="six motors (USD)",
