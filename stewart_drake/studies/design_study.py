@@ -278,7 +278,8 @@ def _verdicts(outcome: DesignOutcome, objective: str) -> list:
             )
         else:
             lines.append(
-                f"- Best {objective}: {_fmt(best.objective(objective))} {unit} with "
+                f"- Best {objective}: {_fmt(best.objective(objective))}"
+                f"{'' if unit == '1' else ' ' + unit} with "
                 f"{best.design.motor} (reference robot: {_fmt(ref.objective(objective))})."
             )
     if "cheapest" in outcome.chosen:
@@ -409,6 +410,7 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     rows = []
     for s in outcome.searches:
         rows.append((s.motor, s.best))
+    named: set = set()
     for n, (motor, e) in enumerate(rows):
         if "peak_torque_Nm" in e.figures:
             ax.scatter(
@@ -418,13 +420,15 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
                 s=50,
                 color="tab:blue" if e.feasible else "tab:red",
             )
-            ax.annotate(
-                motor.split("-")[0],
-                (e.figures["price_usd"], e.figures["peak_torque_Nm"]),
-                fontsize=7,
-                xytext=(5, 5 if n % 2 else -11),
-                textcoords="offset points",
-            )
+            if motor not in named:  # a motor searched twice is named once
+                named.add(motor)
+                ax.annotate(
+                    motor.split("-")[0],
+                    (e.figures["price_usd"], e.figures["peak_torque_Nm"]),
+                    fontsize=7,
+                    xytext=(5, 5 if n % 2 else -11),
+                    textcoords="offset points",
+                )
             ax.scatter(
                 e.figures["price_usd"],
                 e.figures["motor_peak_Nm"] * e.figures["torque_share"],
@@ -459,6 +463,7 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
         prices = sorted({e.figures["price_usd"] for _, e in rows} | {r.figures["price_usd"]})
         ax.set_xticks(prices, [f"{p:.0f}" for p in prices], minor=False)
         ax.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+        ax.tick_params(axis="x", labelrotation=45)
         ax.legend(fontsize=7)
     ax.set(
         xlabel="six motors (USD)",
