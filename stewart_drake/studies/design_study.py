@@ -322,8 +322,6 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .design_search import Evaluation as _Evaluation  # noqa: F401 - documented type
-
     files = []
     columns = _columns(outcome)
     palette = ["0.4", "tab:blue", "tab:orange"]
