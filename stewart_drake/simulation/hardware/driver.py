@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import collections
 import math
+import threading
 import time
 from dataclasses import dataclass
 
@@ -184,6 +185,9 @@ class DynamixelBus:
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
         #: Whether the last :meth:`torque_off` was confirmed by every servo.
         self.torque_off_confirmed = True
+        #: Held around every transfer: a watchdog thread's :meth:`torque_off` waits for the
+        #: transfer in progress (bounded by the reply timeout) instead of interleaving with it.
+        self.lock = threading.RLock()
         self._sdk = dynamixel_sdk()
         self._port = None
         self._packets = self._sdk.PacketHandler(2.0)
@@ -277,6 +281,16 @@ class DynamixelBus:
         """Torque Enable = 0 on every servo: one broadcast WRITE (reaches every servo that
         listens, answered by none), then each servo's, confirmed. Never raises; returns (and
         keeps in ``torque_off_confirmed``) whether every servo confirmed."""
+        # From another thread, wait for a transfer in progress (a reply times out within a
+        # second); past that, send anyway: removing the torque comes first.
+        locked = self.lock.acquire(timeout=1.0)
+        try:
+            return self._torque_off()
+        finally:
+            if locked:
+                self.lock.release()
+
+    def _torque_off(self) -> bool:
         if self._port is None:
             return self.torque_off_confirmed
         sdk, ok = self._sdk, True
@@ -325,9 +339,10 @@ class DynamixelBus:
         sdk = self._sdk
         address, size = p.STATE_BLOCK
         group = self._group_read
-        t0 = time.perf_counter()
-        result = group.txRxPacket()
-        t1 = time.perf_counter()
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txRxPacket()
+            t1 = time.perf_counter()
         if result != sdk.COMM_SUCCESS:
             self._fail(f"sync read: {self._packets.getTxRxResult(result)}")
         n = len(self.ids)
@@ -365,9 +380,10 @@ class DynamixelBus:
         group.clearParam()
         for i, u in zip(self.ids, units):
             group.addParam(i, list(p.to_unsigned(int(u), 2).to_bytes(2, "little")))
-        t0 = time.perf_counter()
-        result = group.txPacket()
-        t1 = time.perf_counter()
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txPacket()
+            t1 = time.perf_counter()
         if result != self._sdk.COMM_SUCCESS:
             self._fail(f"sync write: {self._packets.getTxRxResult(result)}")
         self.write_times.append(t1 - t0)
@@ -428,14 +444,16 @@ class DynamixelBus:
         self._require_open()
         address, size = item
         write = getattr(self._packets, f"write{size}ByteTxRx")  # size: 1, 2 or 4
-        result, error = write(self._port, servo_id, address, p.to_unsigned(value, size))
+        with self.lock:
+            result, error = write(self._port, servo_id, address, p.to_unsigned(value, size))
         self._check(result, error, f"servo id {servo_id} write of {value} at address {address}")
 
     def _read(self, servo_id: int, item) -> int:
         self._require_open()
         address, size = item
         read = getattr(self._packets, f"read{size}ByteTxRx")  # size: 1, 2 or 4
-        value, result, error = read(self._port, servo_id, address)
+        with self.lock:
+            value, result, error = read(self._port, servo_id, address)
         self._check(result, error, f"servo id {servo_id} read at address {address}")
         return int(value)
 

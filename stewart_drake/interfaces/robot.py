@@ -1,0 +1,480 @@
+"""The controller Diagram on the robot's servos: a session with its safety paths.
+
+A scenario with a ``bus`` (the servos' port, ids and calibration) runs on the robot. The
+session (:func:`run_on_robot`) is the only code that enables the servos' torque, and every way
+out of it removes the torque:
+
+1. the reference is checked whole before the port is opened (as a simulated run's is);
+2. the servos are configured with the torque off and their settings read back
+   (:meth:`~stewart_drake.simulation.hardware.driver.DynamixelBus.configure`);
+3. the pose is measured (encoders -> forward kinematics) and the run's reference gets a homing
+   lead-in from that pose to the reference's start (:class:`HomingReference`); that whole path,
+   the measured pose first, passes every check of the admissible set
+   (:func:`~stewart_drake.simulation.plan.check_reference`: reach, joint ranges,
+   singularities, clearance, the motors' torque and speed) or nothing is powered;
+4. only then the torque is enabled, and the Diagram runs at real time behind our watchdog
+   (:class:`LoopWatchdog`) and the servos' own bus watchdog;
+5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
+   deadline, a guard trip, our watchdog), removes the torque, says in one line why it ended
+   and whether every servo confirmed the torque off, and keeps the logs (the ``.npz`` of a
+   simulated run; :func:`~stewart_drake.studies.experiments.save_result`).
+
+At the end of a run the torque is off: the platform comes down onto its stops. Home it low (the
+scenario's reference ends where the platform may rest) or hold it (``hold_s``) and support it.
+
+:func:`measure_pose` is the dry run: it reads the bus with the torque off and returns the pose
+and its verdict.
+"""
+
+from __future__ import annotations
+
+import _thread
+import dataclasses
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InvalidConfigError, StewartError
+
+#: Default duration of the homing lead-in, s.
+HOME_S = 3.0
+#: Default time our watchdog lets pass without a completed control period, s.
+LOOP_TIMEOUT_S = 0.1
+
+
+class StartPoseError(StewartError, ValueError):
+    """The measured pose is not one the robot may start from (nothing was powered)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class MeasuredPose:
+    """The robot's pose read from its encoders with the torque off.
+
+    Attributes:
+        q: (6,) crank angles, rad (zero counts and directions applied).
+        x: (6,) the pose [phi, theta, psi, X, Y, Z] (rad, m) by forward kinematics from home.
+        flags: the admissible set's verdicts at x (:func:`~stewart_drake.model.admissible.classify`,
+            with the guard's bounds and the motors' peak torque): "reachable", "clear",
+            "usable", "within_peak", "admissible" (bool) and "max_torque" (N m),
+            "clearance" (m), "cond", "sigma_min_inv" ((rad or m) per rad).
+        problem: why x is not admissible (one sentence), or None.
+    """
+
+    q: np.ndarray
+    x: np.ndarray
+    flags: dict
+    problem: str | None
+
+    def summary(self) -> str:
+        """Two lines: the angles and pose, and the verdict."""
+        deg = np.degrees
+        pose = (
+            f"roll {deg(self.x[0]):+.2f} pitch {deg(self.x[1]):+.2f} yaw {deg(self.x[2]):+.2f} "
+            f"deg, X {self.x[3] * 1e3:+.2f} Y {self.x[4] * 1e3:+.2f} Z {self.x[5] * 1e3:.2f} mm"
+        )
+        angles = ", ".join(f"{v:+.1f}" for v in deg(self.q))
+        verdict = "admissible" if self.problem is None else f"NOT admissible: {self.problem}"
+        return f"cranks [{angles}] deg -> {pose}\n{verdict}"
+
+
+def _first_problem(flags: dict) -> str | None:
+    """The first check of the admissible set that ``flags`` (classify's, at one pose) fails."""
+    if not flags["reachable"]:
+        return "outside a joint's range or the rods' reach"
+    if not flags["clear"]:
+        return f"two parts closer than the guard allows ({flags['clearance'] * 1e3:.1f} mm)"
+    if not flags["usable"]:
+        return (
+            f"too close to a singularity (cond(J) {flags['cond']:.0f}, 1/sigma_max(J) "
+            f"{flags['sigma_min_inv']:.3g}; the guard's bounds)"
+        )
+    if not flags["within_peak"]:
+        return f"holding it needs {flags['max_torque']:.3f} N m, over the motors' peak"
+    if not flags["admissible"]:
+        return f"holding it needs {flags['max_torque']:.3f} N m, over a reference's share"
+    return None
+
+
+def pose_verdict(plan, q) -> MeasuredPose:
+    """The :class:`MeasuredPose` of crank angles ``q`` (6,) rad on the robot of ``plan`` (a
+    :class:`~stewart_drake.simulation.plan.RunPlan`): forward kinematics from home, then the
+    admissible set's checks with the guard's bounds (those ``teleop`` and ``check`` apply).
+
+    Raises:
+        StartPoseError: no pose has these angles (the forward kinematics does not converge:
+            a crank off its calibration, or a servo's zero count wrong).
+    """
+    from ..errors import ForwardKinematicsError
+    from ..model.admissible import classify
+    from ..model.clearance import clearance_model
+    from ..model.kinematics import fk
+
+    q = np.asarray(q, dtype=float)
+    try:
+        x, _ = fk(plan.geometry, q)
+    except ForwardKinematicsError:
+        raise StartPoseError(
+            f"no pose of the robot has the measured crank angles "
+            f"[{', '.join(f'{v:+.1f}' for v in np.degrees(q))}] deg: check each servo's "
+            f"zero_counts and direction in the scenario's bus (docs/robot.md, calibration)"
+        ) from None
+    guard = plan.scenario.guard
+    flags = classify(
+        plan.geometry,
+        x[None],
+        guard.cond_threshold,
+        guard.min_clearance_m,
+        plan.motor_limits,
+        guard.min_sigma_min_inv,
+        clearance=clearance_model(plan.plant_geometry),
+    )
+    keys = ("reachable", "clear", "usable", "within_peak", "admissible")
+    one = {k: bool(flags[k][0]) for k in keys}
+    one.update(
+        {k: float(flags[k][0]) for k in ("max_torque", "clearance", "cond", "sigma_min_inv")}
+    )
+    return MeasuredPose(q=q, x=x, flags=one, problem=_first_problem(one))
+
+
+def _check_bus_scenario(scenario):
+    """The scenario's ``bus`` config, or InvalidConfigError saying how to give one."""
+    bus = getattr(scenario, "bus", None)
+    if bus is None:
+        raise InvalidConfigError(
+            "the scenario has no bus: add a 'bus:' section (port, baud_rate, ids, model, "
+            "zero_counts, directions; docs/robot.md) or give --port"
+        )
+    return bus
+
+
+def measure_pose(scenario, bus=None) -> MeasuredPose:
+    """Read the robot's pose with the torque off (the dry run): open the bus of
+    ``scenario.bus`` (or use ``bus``, an opened :class:`DynamixelBus`), read the crank angles
+    once, close it.
+
+    Args:
+        scenario: a Scenario with a ``bus`` (or a RunPlan of one).
+    Returns:
+        :class:`MeasuredPose`.
+    Raises:
+        InvalidConfigError: no bus in the scenario. BusError, MissingServoError: the port, a
+        servo. StartPoseError: the angles are no pose of the robot.
+    """
+    from ..simulation.plan import make_plan
+
+    plan = make_plan(scenario, with_reference=False)
+    if bus is not None:
+        return pose_verdict(plan, bus.read_state().q)
+    with _check_bus_scenario(plan.scenario).make_bus() as opened:
+        return pose_verdict(plan, opened.read_state().q)
+
+
+class HomingReference:
+    """A reference with a homing lead-in: from ``x_start`` at rest to ``reference``'s start.
+
+    For t in [0, home_s] each coordinate follows the quintic that leaves x_start with zero rate
+    and acceleration and arrives at x_d(0) with the reference's rate and acceleration at its
+    start (scipy's ``BPoly.from_derivatives``: pose, rate and acceleration continuous); after
+    it, ``reference`` shifted by ``home_s``, and held at its pose at ``t_end`` from there (a
+    run may hold the end; ``hold`` False ends the reference at ``t_end``).
+
+    Args:
+        reference: an object with ``evaluate(t)`` (``as_trajectory``'s).
+        x_start: (6,) pose the robot rests at, rad and m.
+        home_s: duration of the lead-in, s (> 0).
+        t_end: the reference's time at which it is held, s (None: never).
+    """
+
+    def __init__(self, reference, x_start, home_s: float = HOME_S, t_end: float | None = None):
+        from scipy.interpolate import BPoly
+
+        if not home_s > 0:
+            raise InvalidConfigError(f"the homing time must be > 0 s, got {home_s}")
+        self.reference, self.home_s, self.t_end = reference, float(home_s), t_end
+        self.name = f"{getattr(reference, 'name', 'reference')}_homed"
+        x0, v0, a0 = (np.asarray(part, dtype=float).reshape(6) for part in reference.evaluate(0.0))
+        x_start = np.asarray(x_start, dtype=float).reshape(6)
+        self._lead = [
+            BPoly.from_derivatives(
+                [0.0, self.home_s], [[x_start[i], 0.0, 0.0], [x0[i], v0[i], a0[i]]]
+            )
+            for i in range(6)
+        ]
+
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float)
+        shape = t.shape
+        flat = t.reshape(-1)
+        out = [np.empty((flat.size, 6)) for _ in range(3)]
+        lead = flat < self.home_s
+        if np.any(lead):
+            s = np.clip(flat[lead], 0.0, None)
+            for i, poly in enumerate(self._lead):
+                for k in range(3):
+                    out[k][lead, i] = poly(s, k)
+        rest = ~lead
+        if np.any(rest):
+            tr = flat[rest] - self.home_s
+            held = np.zeros_like(tr, dtype=bool)
+            if self.t_end is not None:
+                held = tr > self.t_end
+                tr = np.minimum(tr, self.t_end)
+            parts = [np.asarray(p, dtype=float).reshape(-1, 6) for p in self.reference.evaluate(tr)]
+            parts[1][held] = 0.0
+            parts[2][held] = 0.0
+            for k in range(3):
+                out[k][rest] = parts[k]
+        return tuple(o.reshape(shape + (6,)) for o in out)
+
+
+class LoopWatchdog:
+    """Our watchdog: removes the servos' torque when the control loop stops completing periods.
+
+    :meth:`kick` marks a completed period (the session kicks from the Simulator's monitor,
+    after every step); a thread checks every ``timeout_s / 4`` and, if no kick came for
+    ``timeout_s``, calls ``torque_off()`` itself (under the bus's lock, waiting for a transfer in
+    progress at most 1 s), records why in ``tripped`` and interrupts the main thread (a
+    KeyboardInterrupt where it next runs Python), which the session turns into its end. The
+    servos' own bus watchdog (``bus.watchdog_s``) is the backstop when this process dies; some
+    firmware does not stop on it (docs/hardware_bus.md), so this one does not rely on it.
+
+    Args:
+        torque_off: callable removing the torque (returns whether confirmed).
+        timeout_s: the longest time without a completed period, s.
+    """
+
+    def __init__(self, torque_off: Callable[[], bool], timeout_s: float = LOOP_TIMEOUT_S):
+        if not 0 < timeout_s <= 10:
+            raise InvalidConfigError(f"the loop timeout must be in (0, 10] s, got {timeout_s}")
+        self.torque_off, self.timeout_s = torque_off, float(timeout_s)
+        self.tripped: str | None = None
+        self._last = time.perf_counter()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="robot-watchdog", daemon=True)
+
+    def kick(self) -> None:
+        self._last = time.perf_counter()
+
+    def __enter__(self):
+        self.kick()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(2.0)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.timeout_s / 4):
+            late = time.perf_counter() - self._last
+            if late > self.timeout_s:
+                confirmed = self.torque_off()
+                self.tripped = (
+                    f"the control loop stopped: no period completed for {late * 1e3:.0f} ms "
+                    f"(limit {self.timeout_s * 1e3:.0f} ms); our watchdog removed the torque "
+                    + ("(confirmed)" if confirmed else "(NOT confirmed: cut the servos' power)")
+                )
+                _thread.interrupt_main()
+                return
+
+
+@dataclasses.dataclass
+class RobotRun:
+    """How a session on the robot ended.
+
+    Attributes:
+        reason: one line: why it ended.  ok: it ran to its end.
+        torque_off_confirmed: every servo confirmed the torque off at the end.
+        start: the :class:`MeasuredPose` it started from (None: ended before the measurement).
+        logs: the ``.npz`` written (None: none, e.g. the run had not started).
+        timing: the driver's timing summary (period, jitter, round trips, misses), if any.
+        exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
+    """
+
+    reason: str
+    ok: bool
+    torque_off_confirmed: bool
+    start: MeasuredPose | None = None
+    logs: Path | None = None
+    timing: dict | None = None
+    exit_code: int = 0
+
+
+def _signal_name(err: BaseException) -> tuple[str, int]:
+    signum = getattr(err, "signum", signal.SIGINT)
+    return signal.Signals(signum).name, 128 + int(signum)
+
+
+def run_on_robot(
+    scenario,
+    *,
+    reference=None,
+    home_s: float = HOME_S,
+    hold_s: float = 0.0,
+    loop_timeout_s: float = LOOP_TIMEOUT_S,
+    out: str | Path = "results",
+    stem: str = "robot",
+    meshcat=None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = None,
+    before_torque: Callable | None = None,
+) -> RobotRun:
+    """Run the scenario's closed loop on the robot (the safety sequence of the module's
+    docstring); never leaves the torque on.
+
+    Args:
+        scenario: a Scenario (or RunPlan) with a ``bus``.
+        reference: overrides the scenario's reference (as ``make_stewart_diagram``'s).
+        home_s: duration of the homing lead-in from the measured pose, s.
+        hold_s: how long the reference's last pose is held after its end, s (then the torque
+            goes off).
+        loop_timeout_s: our watchdog's limit on a control period, s.
+        out: folder of the logs (``<stem>.npz``; on a guard trip the guard's own file in its
+            ``divergence_dir``).
+        meshcat: optional Meshcat: the robot at its measured pose, live.
+        progress: a progress bar.  say: where the one-line messages go (default stderr).
+        before_torque: a test hook ``f(sd, simulator)`` called after every check, just before
+            the torque is enabled.
+    Returns:
+        :class:`RobotRun` (exit_code 0 only when the reference ran to its end).
+    Raises:
+        InvalidConfigError: no bus, a bad scenario or argument; the reference refused by its
+            checks (UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError) before anything is powered; StartPoseError: the measured pose.
+        BusError, MissingServoError, ServoConfigMismatchError: the bus before the torque is on.
+        (Once the torque is on nothing is raised: the end is reported in the RobotRun.)
+    """
+    from ..simulation.plan import make_plan
+    from ..simulation.trajectories import as_trajectory
+
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    plan = make_plan(scenario, with_reference=False)
+    _check_bus_scenario(plan.scenario)
+    if not 0 < home_s <= 60 or not 0 <= hold_s <= 3600:
+        raise InvalidConfigError(
+            f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
+        )
+    target = as_trajectory(reference) if reference is not None else make_plan(plan).reference
+    duration = plan.duration_s
+    start = measure_pose(plan)  # opens and closes the port; the torque stays off
+    if start.problem is not None:
+        raise StartPoseError(
+            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
+            f"was powered. Measured: {start.summary().splitlines()[0]}"
+        )
+    homed = HomingReference(target, start.x, home_s, t_end=duration)
+    run_plan = dataclasses.replace(plan.scenario, duration_s=home_s + duration + hold_s)
+    return _run(
+        run_plan,
+        homed,
+        start,
+        loop_timeout_s,
+        Path(out),
+        stem,
+        meshcat,
+        progress,
+        say,
+        before_torque,
+    )
+
+
+def _run(
+    scenario, homed, start, loop_timeout_s, out, stem, meshcat, progress, say, before_torque
+) -> RobotRun:
+    """Build, check, power and run (see :func:`run_on_robot`)."""
+    from ..simulation.guard import advance as guarded
+    from ..studies.experiments import (
+        advance,
+        build_simulator,
+        finish_result,
+        read_run,
+        save_result,
+    )
+
+    # The whole path, from the measured pose, is checked here (before the port is opened again).
+    sd, simulator = build_simulator(scenario, meshcat, reference=homed, progress=progress)
+    bus = sd.station.bus
+    bus.open()
+    ended = RobotRun("", False, True, start=start)
+    powered = False
+    try:
+        bus.configure()
+        again = pose_verdict(sd.plan, bus.read_state().q)
+        moved = np.abs(again.x - start.x)
+        if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
+            raise StartPoseError(
+                "the platform moved between the measurement and the start (by "
+                f"{np.degrees(moved[:3]).max():.2f} deg, {moved[3:].max() * 1e3:.2f} mm): "
+                "hold it still and run again"
+            )
+        if before_torque is not None:
+            before_torque(sd, simulator)
+        watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
+        simulator.set_monitor(lambda context: _kick(watchdog))
+        simulator.set_target_realtime_rate(1.0)
+        simulator.Initialize()
+        bus.enable_torque()
+        powered = True
+        say(
+            f"torque on: homing for {homed.home_s:g} s from the measured pose, then "
+            f"{getattr(homed.reference, 'name', 'the reference')}"
+        )
+        wall0 = time.perf_counter()
+        try:
+            with watchdog:
+                guarded(
+                    sd,
+                    simulator,
+                    lambda: advance(simulator, sd.plan.duration_s, progress, "on the robot"),
+                )
+            ended.reason, ended.ok = "the reference ran to its end", True
+        except KeyboardInterrupt as err:
+            if watchdog.tripped:
+                ended.reason, ended.exit_code = watchdog.tripped, 1
+            else:
+                name, ended.exit_code = _signal_name(err)
+                ended.reason = f"interrupted by {name}"
+        except StewartError as err:  # a bus error, a missed deadline, a guard trip
+            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+        except RuntimeError as err:  # inside Drake (the guard saved the logs and said where)
+            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+        wall = time.perf_counter() - wall0
+    finally:
+        ended.torque_off_confirmed = bus.torque_off()
+        try:
+            timing = getattr(sd.station.driver, "timing_summary", None)
+            ended.timing = timing() if timing is not None else None
+        finally:
+            bus.close()
+    if not powered:
+        return ended
+    try:
+        result = finish_result(read_run(sd, simulator.get_context()), wall)
+        ended.logs = save_result(result, out / f"{stem}.npz")
+    except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
+        ended.reason += f"; the logs could not be written: {err}"
+    return ended
+
+
+def _kick(watchdog: LoopWatchdog):
+    """The Simulator's monitor: a period completed. Returns Drake's "continue"."""
+    from pydrake.systems.analysis import EventStatus
+
+    watchdog.kick()
+    return EventStatus.Succeeded()
+
+
+def end_line(run: RobotRun) -> str:
+    """The one line a session ends with: why, the torque off, where the logs are."""
+    torque = (
+        "torque off (confirmed by every servo)"
+        if run.torque_off_confirmed
+        else "torque off NOT confirmed: cut the servos' power"
+    )
+    logs = f"; logs in {run.logs}" if run.logs is not None else ""
+    return f"{run.reason}; {torque}{logs}"

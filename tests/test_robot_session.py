@@ -1,0 +1,155 @@
+"""The session on the robot: homing lead-in, our watchdog, the measured pose and its verdict.
+
+The end-to-end safety paths (a run on the bus emulator ended by each cause) are in
+tests/test_robot_safety.py.
+"""
+
+import math
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dynamixel_sdk")
+
+from stewart_drake.errors import InvalidConfigError  # noqa: E402
+from stewart_drake.interfaces.robot import (  # noqa: E402
+    HomingReference,
+    LoopWatchdog,
+    StartPoseError,
+    measure_pose,
+    pose_verdict,
+)
+from stewart_drake.model.kinematics import X_HOME  # noqa: E402
+from stewart_drake.simulation.hardware.driver import DynamixelBus  # noqa: E402
+from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
+from stewart_drake.simulation.plan import make_plan  # noqa: E402
+from stewart_drake.simulation.trajectories import paper_manoeuvre  # noqa: E402
+
+IDS = [1, 2, 3, 4, 5, 6]
+
+
+def test_the_homing_lead_in_leaves_at_rest_and_joins_the_reference_smoothly():
+    reference = paper_manoeuvre()
+    x_rest = X_HOME + np.array([0.02, -0.01, 0.0, 0.003, -0.002, -0.01])
+    homed = HomingReference(reference, x_rest, home_s=2.0, t_end=3.0)
+    x, v, a = homed.evaluate(np.array([0.0]))
+    np.testing.assert_allclose(x[0], x_rest, atol=1e-15)
+    np.testing.assert_allclose(np.abs(v[0]) + np.abs(a[0]), 0.0, atol=1e-12)
+    # Joins the paper manoeuvre (which starts moving: phi_dot = 2 pi / 6 rad/s) in pose, rate
+    # and acceleration.
+    for part, ref in zip(homed.evaluate(np.array([2.0 - 1e-9, 2.0])), reference.evaluate(0.0)):
+        np.testing.assert_allclose(part, np.tile(np.reshape(ref, 6), (2, 1)), atol=1e-6)
+    # The rate and acceleration it reports are its pose's derivatives (central differences).
+    t = np.linspace(0.1, 4.5, 23)
+    h = 1e-5
+    xp, vp, _ = homed.evaluate(t + h)
+    xm, vm, _ = homed.evaluate(t - h)
+    _, v, a = homed.evaluate(t)
+    np.testing.assert_allclose((xp - xm) / (2 * h), v, atol=1e-6)
+    np.testing.assert_allclose((vp - vm) / (2 * h), a, atol=1e-4)
+    # Shifted by the lead-in, then held at the reference's pose at t_end, at rest.
+    np.testing.assert_allclose(homed.evaluate(4.0)[0], reference.evaluate(2.0)[0], atol=1e-15)
+    late = homed.evaluate(np.array([5.5, 9.0]))
+    np.testing.assert_allclose(late[0], np.tile(reference.evaluate(3.0)[0], (2, 1)), atol=1e-15)
+    assert not np.any(late[1]) and not np.any(late[2])
+    with pytest.raises(InvalidConfigError, match="homing time"):
+        HomingReference(reference, x_rest, home_s=0.0)
+
+
+def test_our_watchdog_removes_the_torque_and_interrupts_when_periods_stop():
+    calls = []
+    watchdog = LoopWatchdog(lambda: calls.append(time.perf_counter()) or True, timeout_s=0.2)
+    with pytest.raises(KeyboardInterrupt):
+        with watchdog:
+            t0 = time.perf_counter()
+            watchdog.kick()
+            while time.perf_counter() < t0 + 30:  # stalled: no kick (bounded wait)
+                time.sleep(0.005)
+    assert len(calls) == 1
+    assert calls[0] - t0 >= 0.2  # never before the limit
+    assert "no period completed" in watchdog.tripped and "(confirmed)" in watchdog.tripped
+
+
+def test_our_watchdog_stays_quiet_while_periods_complete():
+    calls = []
+    watchdog = LoopWatchdog(lambda: calls.append(1) or True, timeout_s=2.0)
+    with watchdog:
+        t_end = time.perf_counter() + 0.5
+        while time.perf_counter() < t_end:
+            watchdog.kick()
+            time.sleep(0.01)
+    assert calls == [] and watchdog.tripped is None
+    with pytest.raises(InvalidConfigError, match="loop timeout"):
+        LoopWatchdog(lambda: True, timeout_s=0.0)
+
+
+def test_the_bus_lock_makes_a_watchdogs_torque_off_wait_for_the_transfer_in_progress():
+    with BusEmulator(IDS) as emu:
+        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=1.0).open()
+        try:
+            bus.configure()
+            done = []
+            with bus.lock:  # a transfer in progress in the main thread
+                other = threading.Thread(target=lambda: done.append(bus.torque_off()))
+                other.start()
+                time.sleep(0.05)
+                assert done == []  # waits
+            other.join(10)
+            assert done == [True]
+        finally:
+            bus.close()
+
+
+@pytest.fixture(scope="module")
+def dynamixel_plan():
+    from stewart_drake.simulation.hardware.plant_backend import dynamixel_scenario
+
+    return make_plan(dynamixel_scenario(), with_reference=False)
+
+
+def test_the_measured_pose_is_the_plants_within_the_encoders_resolution(dynamixel_plan):
+    from stewart_drake.simulation.hardware.plant_backend import StationServos
+
+    x0 = X_HOME + np.array([0.03, -0.02, 0.01, 0.004, -0.003, 0.01])
+    backend = StationServos(dynamixel_plan.scenario, x0=x0)
+    with BusEmulator(IDS, backend=backend) as emu:
+        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=1.0).open()
+        try:
+            measured = measure_pose(dynamixel_plan, bus=bus)
+        finally:
+            bus.close()
+    # One count (2 pi / 4096 rad) on each crank moves the platform by at most |J^-1| counts.
+    from stewart_drake.model.kinematics import jacobian
+
+    count = 2 * math.pi / 4096
+    bound = np.abs(np.linalg.inv(jacobian(dynamixel_plan.geometry, x0))).sum(axis=1) * count
+    assert np.all(np.abs(measured.x - x0) <= bound), (measured.x - x0, bound)
+    assert measured.problem is None and measured.flags["admissible"]
+    assert "admissible" in measured.summary()
+
+
+def test_a_pose_outside_the_admissible_set_is_named(dynamixel_plan):
+    geometry = dynamixel_plan.geometry
+    # Reachable poses (the angles exist) that the admissible set refuses, each for its reason.
+    for x, why in (
+        (np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.198]), "singularity"),  # cranks near their dead point
+        (np.array([0.8, 0.0, 0.0, 0.0, 0.0, 0.3]), "joint's range"),  # rolled 46 deg
+    ):
+        verdict = pose_verdict(dynamixel_plan, _angles(geometry, x))
+        np.testing.assert_allclose(verdict.x, x, atol=1e-9)  # the FK finds the pose back
+        assert not verdict.flags["admissible"] and why in verdict.problem
+        assert "NOT admissible" in verdict.summary()
+    assert pose_verdict(dynamixel_plan, _angles(geometry, X_HOME)).problem is None
+    with pytest.raises(StartPoseError, match="zero_counts"):
+        pose_verdict(dynamixel_plan, np.full(6, 3.0))  # no pose has these angles
+
+
+def _angles(geometry, x):
+    """The crank angles of pose x by the closed-form IK, unchecked (x may be outside a range)."""
+    from stewart_drake.model.kinematics import ik_unchecked
+
+    theta, _ = ik_unchecked(geometry, x)
+    assert np.all(np.isfinite(theta))
+    return theta
