@@ -153,3 +153,28 @@ def _angles(geometry, x):
     theta, _ = ik_unchecked(geometry, x)
     assert np.all(np.isfinite(theta))
     return theta
+
+
+def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
+    from stewart_drake.interfaces.robot import zero_counts_at
+    from stewart_drake.simulation.hardware.emulator import FirstOrderServos
+
+    q_held = np.radians([-3.8, -3.8, 10.0, -20.0, 0.0, 45.0])  # the jig's angles
+    mounted = [2048, 1000, 3000, 2500, 100, 4000]
+    backend = FirstOrderServos.from_catalogue("XM430-W350-T", q_held)
+    with BusEmulator(IDS, backend=backend, zero_counts=mounted) as emu:
+        # Configured with a wrong guess of the zeros (the factory mid-turn, 2048).
+        directions = [1, 1, 1, 1, 1, 1]
+        bus = DynamixelBus(
+            emu.port,
+            1_000_000,
+            IDS,
+            zero_counts=[2048] * 6,
+            directions=directions,
+            reply_timeout_s=1.0,
+        ).open()
+        try:
+            found = [zero_counts_at(bus, a)[k] for k, a in enumerate(q_held)]
+        finally:
+            bus.close()
+    assert np.all(np.abs(np.array(found) - mounted) <= 1), (found, mounted)

@@ -996,6 +996,159 @@ def _cmd_teleop(args) -> int:
     return 0
 
 
+def _robot_reference(args, scenario):
+    """``robot``'s REFERENCE onto ``scenario``: a name of :data:`TRAJECTORIES` ("home" holds
+    the home pose), a recorded trace or a CSV file; None keeps the scenario's."""
+    from ..simulation.trajectories import TRAJECTORIES, NamedReference
+
+    source = args.reference
+    if source is None:
+        return
+    if source in TRAJECTORIES:
+        scenario.reference = NamedReference(source)
+    elif _is_trace_file(source):
+        from ..simulation.traces import TraceReference
+
+        scenario.reference = TraceReference(path=source)
+    else:
+        from ..errors import InvalidConfigError
+
+        raise InvalidConfigError(
+            f"robot takes a reference name ({', '.join(TRAJECTORIES)}), a trace or a CSV "
+            f"file, got {source!r}"
+        )
+
+
+def _start_emulator(scenario, x0):
+    """Start the bus emulator with the robot's Drake plant behind it in a process of its own
+    (``python -m stewart_drake.simulation.hardware.emulator --plant``) and point
+    ``scenario.bus`` at its pseudo-terminal; returns the process (close its stdin to stop it).
+    Waits at most 300 s for the port (the plant is built first)."""
+    import select
+    import subprocess
+
+    from ..errors import BusError
+
+    bus = scenario.bus
+    command = [
+        sys.executable,
+        "-m",
+        "stewart_drake.simulation.hardware.emulator",
+        "--plant",
+        "--model",
+        bus.model,
+        "--ids",
+        *(str(i) for i in bus.ids),
+        "--x0",
+        *(repr(float(v)) for v in x0),
+    ]
+    if bus.zero_counts:
+        command += ["--zero-counts", *(str(int(c)) for c in bus.zero_counts)]
+    emulator = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    ready, _, _ = select.select([emulator.stdout], [], [], 300.0)
+    port = emulator.stdout.readline().strip() if ready else ""
+    if not port:
+        _stop_emulator(emulator)
+        raise BusError("the bus emulator did not start within 300 s")
+    bus.port = port
+    return emulator
+
+
+def _stop_emulator(emulator) -> None:
+    """Close the emulator's stdin (it stops), wait 10 s at most, then kill it."""
+    import subprocess
+
+    try:
+        emulator.stdin.close()
+        emulator.wait(10)
+    except (OSError, subprocess.TimeoutExpired):
+        emulator.kill()
+        emulator.wait(10)
+
+
+def _cmd_robot(args) -> int:
+    """``stewart-drake robot``: the closed loop on the servos of the scenario's ``bus`` (or on
+    the bus emulator with ``--emulate``): a dry run, or homing then the reference, with torque
+    off and one line at every end."""
+    from ..fileio import check_replaceable
+    from ..simulation.scenario_io import load_scenario
+    from ..studies.run_report import format_metrics
+    from .robot import end_line, measure_pose, run_on_robot
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    _robot_reference(args, scenario)
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    if args.port is not None:
+        if scenario.bus is None:
+            from ..simulation.scenario import DynamixelBusConfig
+
+            scenario.bus = DynamixelBusConfig(port=args.port)
+        else:
+            scenario.bus.port = args.port
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    scenario.validate()
+    out = Path(args.out)
+    stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
+    if not args.dry_run:
+        check_replaceable(out / f"{stem}.npz")
+    emulator = None
+    if args.emulate is not None:
+        if scenario.bus is None:
+            from ..simulation.scenario import DynamixelBusConfig
+
+            scenario.bus = DynamixelBusConfig()
+        emulator = _start_emulator(scenario, args.emulate)
+        print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
+    try:
+        if args.dry_run:
+            measured = measure_pose(scenario)
+            print(measured.summary())
+            return 0 if measured.problem is None else 1
+        meshcat = None
+        if args.meshcat:
+            from pydrake.geometry import Meshcat
+
+            meshcat = Meshcat()
+            print(f"open {meshcat.web_url()} to watch the robot at its measured pose")
+        run = run_on_robot(
+            scenario,
+            home_s=args.home_s,
+            hold_s=args.hold,
+            loop_timeout_s=args.loop_timeout,
+            out=out,
+            stem=stem,
+            meshcat=meshcat,
+            progress=not args.no_progress,
+        )
+    finally:
+        if emulator is not None:
+            _stop_emulator(emulator)
+    if run.ok and run.logs is not None:
+        from ..studies.experiments import load_result
+
+        print(format_metrics(load_result(run.logs).metrics))
+    if run.timing:
+        print(format_timing(run.timing))
+    print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
+    return run.exit_code
+
+
+def format_timing(timing: dict) -> str:
+    """The driver's timing summary as lines: each quantity's median, 99th percentile and
+    worst in ms, and the deadline misses."""
+    lines = ["control loop timing (ms): median / 99th percentile / worst"]
+    for name, values in timing.items():
+        if isinstance(values, dict) and "median" in values:
+            lines.append(
+                f"  {name:<18} {values['median'] * 1e3:8.3f} {values['p99'] * 1e3:8.3f} "
+                f"{values['max'] * 1e3:8.3f}"
+            )
+        elif not isinstance(values, dict):
+            lines.append(f"  {name:<18} {values}")
+    return "\n".join(lines)
+
+
 def _cmd_diagrams(args) -> int:
     """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
     from .visualize import write_diagrams
@@ -1104,6 +1257,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_design_command(sub)
     _add_analyze_command(sub)
     _add_teleop_command(sub)
+    _add_robot_command(sub)
     _add_diagrams_command(sub)
     _add_sdf_command(sub)
     _add_mjcf_command(sub)
@@ -1617,6 +1771,79 @@ def _add_teleop_command(sub) -> None:
     )
     tel.add_argument("--out", default="results/teleop", help="folder of a divergence dump")
     tel.set_defaults(func=_cmd_teleop, out_sub=("diverged",))
+
+
+def _pose6(text: str) -> list[float]:
+    """Six comma-separated numbers phi,theta,psi,X,Y,Z (rad, m)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6:
+        raise argparse.ArgumentTypeError(
+            f"give six numbers phi,theta,psi,X,Y,Z in rad and m, got {text!r}"
+        )
+    return values
+
+
+def _add_robot_command(sub) -> None:
+    """The ``robot`` command's options."""
+    rob = sub.add_parser(
+        "robot",
+        help="run the controller on the servos (docs/robot.md): dry run, home, a reference",
+    )
+    rob.add_argument(
+        "reference",
+        nargs="?",
+        default=None,
+        help="a reference name (paper, home, helix, step_<axis>, sweep_<axis>), a trace or "
+        "a CSV file (default: the scenario's)",
+    )
+    _add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)")
+    rob.add_argument("--port", default=None, help="the servos' serial port (bus.port)")
+    rob.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="read the bus with the torque off, print the pose and its verdict, stop",
+    )
+    rob.add_argument(
+        "--home-s",
+        type=_positive_float,
+        default=3.0,
+        help="seconds of the homing lead-in from the measured pose to the reference's start",
+    )
+    rob.add_argument(
+        "--hold",
+        type=float,
+        default=0.0,
+        help="seconds the reference's last pose is held before the torque goes off",
+    )
+    rob.add_argument(
+        "--duration",
+        type=_positive_float,
+        default=None,
+        help="s of the reference (default: the scenario's)",
+    )
+    rob.add_argument(
+        "--loop-timeout",
+        type=_positive_float,
+        default=0.1,
+        help="our watchdog: the torque goes off when no control period completes for this long, s",
+    )
+    rob.add_argument(
+        "--emulate",
+        type=_pose6,
+        nargs="?",
+        const=[0.0, 0.0, 0.0, 0.0, 0.0, 0.28],
+        default=None,
+        metavar="POSE",
+        help="rehearse on the bus emulator (a pseudo-terminal, the robot's Drake plant at real "
+        "time behind it) resting at POSE phi,theta,psi,X,Y,Z (default 0,0,0,0,0,0.28)",
+    )
+    rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
+    rob.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rob.add_argument("--out", default="results", help="folder of the logs")
+    rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))
 
 
 def _add_diagrams_command(sub) -> None:

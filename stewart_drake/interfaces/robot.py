@@ -174,6 +174,26 @@ def measure_pose(scenario, bus=None) -> MeasuredPose:
         return pose_verdict(plan, opened.read_state().q)
 
 
+def zero_counts_at(bus, angle_rad: float = 0.0) -> np.ndarray:
+    """Calibration: the counts each servo reports while its crank is held at ``angle_rad``
+    (0: the crank horizontal, pointing away from the base's centre along its leg's direction,
+    docs/reference_geometry.md), i.e. the ``zero_counts`` to write in the scenario's bus.
+
+    Args:
+        bus: an opened :class:`~stewart_drake.simulation.hardware.driver.DynamixelBus` (the
+            torque off: the cranks are held by hand or by a jig); its ``directions`` must be
+            right (a crank's counts grow as its tip rises for +1).
+        angle_rad: the angle the cranks are held at, rad.
+    Returns:
+        (n,) int counts, rounded.
+    """
+    from ..simulation.hardware.protocol import rad_to_counts
+
+    q = bus.read_state().q  # with the bus's current zero counts and directions
+    raw = rad_to_counts(q, bus.zero_counts, bus.directions)
+    return np.rint(raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)).astype(int)
+
+
 class HomingReference:
     """A reference with a homing lead-in: from ``x_start`` at rest to ``reference``'s start.
 
@@ -293,6 +313,8 @@ class RobotRun:
         start: the :class:`MeasuredPose` it started from (None: ended before the measurement).
         logs: the ``.npz`` written (None: none, e.g. the run had not started).
         timing: the driver's timing summary (period, jitter, round trips, misses), if any.
+        metrics: the run's metrics (:func:`~stewart_drake.studies.metrics.compute_metrics`:
+            tracking from the measured pose, torques), when its logs were read.
         exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
     """
 
@@ -302,6 +324,7 @@ class RobotRun:
     start: MeasuredPose | None = None
     logs: Path | None = None
     timing: dict | None = None
+    metrics: dict | None = None
     exit_code: int = 0
 
 
@@ -455,6 +478,7 @@ def _run(
         return ended
     try:
         result = finish_result(read_run(sd, simulator.get_context()), wall)
+        ended.metrics = result.metrics
         ended.logs = save_result(result, out / f"{stem}.npz")
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
