@@ -15,6 +15,7 @@ left there (the tool's own, whose writer is gone) are removed.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import signal
 import sys
@@ -1090,7 +1091,7 @@ def _cmd_robot(args) -> int:
     scenario.validate()
     out = Path(args.out)
     stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
-    if not args.dry_run:
+    if not args.dry_run and args.calibrate is None:
         check_replaceable(out / f"{stem}.npz")
     emulator = None
     if args.emulate is not None:
@@ -1101,6 +1102,16 @@ def _cmd_robot(args) -> int:
         emulator = _start_emulator(scenario, args.emulate)
         print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
     try:
+        if args.calibrate is not None:
+            from .robot import zero_counts_at
+
+            with scenario.bus.make_bus() as bus:
+                zeros = zero_counts_at(bus, math.radians(args.calibrate))
+            print(
+                f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"
+                f"  zero_counts: [{', '.join(str(int(c)) for c in zeros)}]"
+            )
+            return 0
         if args.dry_run:
             measured = measure_pose(scenario)
             print(measured.summary())
@@ -1805,6 +1816,14 @@ def _add_robot_command(sub) -> None:
         "--dry-run",
         action="store_true",
         help="read the bus with the torque off, print the pose and its verdict, stop",
+    )
+    rob.add_argument(
+        "--calibrate",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="read the zero_counts with every crank held at DEG degrees (0: horizontal), "
+        "torque off; print them and stop",
     )
     rob.add_argument(
         "--home-s",
