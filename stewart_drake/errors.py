@@ -373,6 +373,11 @@ class BusError(StewartError, RuntimeError):
     Whoever raises it has already tried to remove the servos' torque."""
 
 
+class StartPoseError(StewartError, ValueError):
+    """The robot's measured pose is not one a run may start from (outside the admissible set,
+    no pose of the robot, or moved while the servos were configured); nothing was powered."""
+
+
 class MissingServoError(BusError):
     """A servo id that does not answer a PING on the bus.
 

@@ -13,11 +13,10 @@ import pytest
 
 pytest.importorskip("dynamixel_sdk")
 
-from stewart_drake.errors import InvalidConfigError  # noqa: E402
+from stewart_drake.errors import InvalidConfigError, StartPoseError  # noqa: E402
 from stewart_drake.interfaces.robot import (  # noqa: E402
     HomingReference,
     LoopWatchdog,
-    StartPoseError,
     measure_pose,
     pose_verdict,
 )

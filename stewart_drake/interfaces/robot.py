@@ -39,16 +39,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidConfigError, StewartError
+from ..errors import InvalidConfigError, StartPoseError, StewartError
 
 #: Default duration of the homing lead-in, s.
 HOME_S = 3.0
 #: Default time our watchdog lets pass without a completed control period, s.
 LOOP_TIMEOUT_S = 0.1
-
-
-class StartPoseError(StewartError, ValueError):
-    """The measured pose is not one the robot may start from (nothing was powered)."""
 
 
 @dataclasses.dataclass(frozen=True)

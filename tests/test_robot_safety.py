@@ -1,0 +1,193 @@
+"""Every way a session on the robot ends removes the torque, says why in one line and keeps the
+logs: runs of :func:`~stewart_drake.interfaces.robot.run_on_robot` against the bus emulator
+(a pseudo-terminal, the robot's Drake plant behind it at real time), each ended by one cause.
+
+The loop runs at 5 ms with generous timeouts: the emulator and the loop share this process and
+the machine may be loaded, and what is tested is where each path ends, not how fast.
+"""
+
+import os
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dynamixel_sdk")
+
+from stewart_drake.errors import StartPoseError  # noqa: E402
+from stewart_drake.interfaces.robot import end_line, run_on_robot  # noqa: E402
+from stewart_drake.model.kinematics import X_HOME  # noqa: E402
+from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
+from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
+from stewart_drake.simulation.hardware.plant_backend import StationServos  # noqa: E402
+from stewart_drake.simulation.scenario import DynamixelBusConfig, Scenario  # noqa: E402
+from stewart_drake.simulation.trajectories import NamedReference  # noqa: E402
+from stewart_drake.studies.experiments import load_result  # noqa: E402
+
+IDS = [1, 2, 3, 4, 5, 6]
+X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
+
+
+def _emulator(x0=X_REST):
+    return BusEmulator(IDS, backend=StationServos(x0=x0))
+
+
+def _scenario(emu, tmp_path, **bus):
+    scenario = Scenario()
+    scenario.hardware = None  # derived from the bus's servos
+    scenario.reference = NamedReference("home")
+    scenario.control_period_s = 0.005
+    scenario.duration_s = 1.0
+    scenario.guard.divergence_dir = str(tmp_path / "diverged")
+    settings = {"reply_timeout_s": 1.0, "watchdog_s": 1.0, "max_deadline_misses": 1_000_000}
+    scenario.bus = DynamixelBusConfig(port=emu.port, **(settings | bus))
+    return scenario
+
+
+def _on_call(n, action):
+    """A ``before_torque`` hook: ``action(emu)`` at the n-th bus read of the run."""
+
+    def hook(sd, simulator):
+        bus = sd.station.bus
+        read = bus.read_state
+        calls = [0]
+
+        def counted():
+            calls[0] += 1
+            if calls[0] == n:
+                action()
+            return read()
+
+        bus.read_state = counted
+
+    return hook
+
+
+def _torque_enabled(emu):
+    return [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+
+
+def _torque_off_times(emu, since):
+    """Times of the WRITEs of Torque Enable = 0 received after ``since`` (perf_counter)."""
+    return [
+        t
+        for t, packet in emu.received
+        if t > since
+        and packet.instruction == p.WRITE
+        and packet.params[:1] == bytes([p.TORQUE_ENABLE[0]])
+        and packet.params[2:3] == b"\x00"
+    ]
+
+
+def _run(scenario, tmp_path, **kw):
+    lines = []
+    kw = {"home_s": 1.0, "loop_timeout_s": 1.0, "out": tmp_path, "say": lines.append} | kw
+    run = run_on_robot(scenario, **kw)
+    return run, lines
+
+
+def test_a_run_homes_from_the_measured_pose_holds_and_ends_with_the_torque_off(tmp_path):
+    with _emulator() as emu:
+        run, lines = _run(_scenario(emu, tmp_path), tmp_path)
+        z_end = emu.with_backend(
+            lambda b: b.station.GetOutputPort("platform_state").Eval(
+                b.station.GetMyContextFromRoot(b.simulator.get_context())
+            )[5]
+        )
+        assert _torque_enabled(emu) == [0] * 6
+    assert run.ok and run.exit_code == 0 and run.torque_off_confirmed, end_line(run)
+    assert "torque on" in lines[0]
+    # Homed: the plant (the emulator's ground truth) ends at home's height, not at rest's.
+    assert abs(z_end - X_HOME[5]) < 1e-3, z_end
+    result = load_result(run.logs)  # the file a simulated run writes
+    assert result.t[-1] > 1.5 and np.all(np.isfinite(result.T))
+    assert run.start is not None and abs(run.start.x[5] - X_REST[5]) < 1e-3
+
+
+def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path):
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        scenario.duration_s = 30.0
+        run, _ = _run(
+            scenario,
+            tmp_path,
+            before_torque=_on_call(100, lambda: os.kill(os.getpid(), signal.SIGINT)),
+        )
+        assert _torque_enabled(emu) == [0] * 6
+    assert not run.ok and run.exit_code == 128 + signal.SIGINT
+    assert run.reason == "interrupted by SIGINT" and run.torque_off_confirmed
+    assert run.logs is not None and load_result(run.logs).t[-1] < 10.0
+    assert "torque off (confirmed by every servo)" in end_line(run)
+
+
+def test_our_watchdog_removes_the_torque_when_the_loop_stalls(tmp_path):
+    stalled = []
+
+    def stall():
+        stalled.append(time.perf_counter())
+        time.sleep(3.0)
+
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        scenario.duration_s = 30.0
+        run, _ = _run(scenario, tmp_path, loop_timeout_s=0.3, before_torque=_on_call(100, stall))
+        offs = _torque_off_times(emu, stalled[0])
+    assert "no period completed" in run.reason and run.exit_code == 1, run.reason
+    # Off while the loop was still stalled: after the limit, well before the stall's end.
+    assert offs and 0.3 <= offs[0] - stalled[0] < 2.5, offs[0] - stalled[0]
+    assert run.torque_off_confirmed and run.logs is not None
+
+
+def test_a_bus_that_stops_answering_mid_run_ends_it_with_the_torque_off(tmp_path):
+    def cut_for_a_moment():
+        emu.mute()
+        threading.Timer(0.3, emu.mute, args=(False,)).start()
+
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        scenario.duration_s = 30.0
+        run, _ = _run(scenario, tmp_path, before_torque=_on_call(100, cut_for_a_moment))
+        assert _torque_enabled(emu) == [0] * 6
+    assert run.reason.startswith("BusError") and run.exit_code == 1, run.reason
+    assert run.torque_off_confirmed and run.logs is not None
+
+
+def test_a_guard_trip_ends_the_run_with_the_torque_off_and_its_dump(tmp_path):
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        scenario.duration_s = 30.0
+        scenario.guard.max_tracking_error = [1e-9, 1e-9]  # trips at its first check
+        run, _ = _run(scenario, tmp_path)
+        assert _torque_enabled(emu) == [0] * 6
+    assert run.reason.startswith("SimulationDivergedError") and run.exit_code == 1, run.reason
+    assert run.torque_off_confirmed
+    assert list((tmp_path / "diverged").glob("diverged_*.npz"))
+
+
+def test_a_start_pose_outside_the_admissible_set_powers_nothing(tmp_path):
+    low = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.198])  # the cranks near their dead point
+    with _emulator(low) as emu:
+        t0 = time.perf_counter()
+        with pytest.raises(StartPoseError, match="singularity"):
+            _run(_scenario(emu, tmp_path), tmp_path)
+        enables = [
+            pk
+            for t, pk in emu.received
+            if t > t0
+            and pk.instruction == p.WRITE
+            and pk.params[:1] == bytes([p.TORQUE_ENABLE[0]])
+            and pk.params[2:3] == b"\x01"
+        ]
+        assert enables == [] and _torque_enabled(emu) == [0] * 6
+
+
+def test_too_many_late_periods_end_the_run_with_the_torque_off(tmp_path):
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path, max_deadline_misses=0)
+        scenario.duration_s = 30.0
+        run, _ = _run(scenario, tmp_path, before_torque=_on_call(100, lambda: time.sleep(0.05)))
+        assert _torque_enabled(emu) == [0] * 6
+    assert run.reason.startswith("DeadlineMissError") and run.exit_code == 1, run.reason
+    assert run.torque_off_confirmed
