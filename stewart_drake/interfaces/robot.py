@@ -406,23 +406,39 @@ def _run(
     scenario, homed, start, loop_timeout_s, out, stem, meshcat, progress, say, before_torque
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from ..simulation.diagram import make_stewart_diagram
     from ..simulation.guard import advance as guarded
+    from ..simulation.plan import make_plan
     from ..studies.experiments import (
         advance,
-        build_simulator,
+        check_reference_shown,
+        check_run_memory,
         finish_result,
         read_run,
         save_result,
     )
 
-    # The whole path, from the measured pose, is checked here (before the port is opened again).
-    sd, simulator = build_simulator(scenario, meshcat, reference=homed, progress=progress)
+    # As a simulated run's (studies.experiments.build_simulator), but the station is assembled
+    # from the servos' reading, once the bus is open. The whole path, from the measured pose,
+    # is checked here, before the port is opened again.
+    plan = make_plan(scenario, with_reference=False)
+    check_run_memory(plan.scenario)
+    plan = make_plan(plan, reference=homed)
+    check_reference_shown(plan, progress=progress, keep_series=False)
+    sd = make_stewart_diagram(plan, meshcat=meshcat)
+    simulator = Simulator(sd.diagram)
+    ApplySimulatorConfig(plan.scenario.simulator, simulator)
+    context = simulator.get_mutable_context()
+    sd.initialize(context)
     bus = sd.station.bus
     bus.open()
     ended = RobotRun("", False, True, start=start)
-    powered = False
+    powered, wall = False, 0.0
     try:
         bus.configure()
+        sd.station.assemble(context, start.x)  # the driver holds its first reading
         again = pose_verdict(sd.plan, bus.read_state().q)
         moved = np.abs(again.x - start.x)
         if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
@@ -436,7 +452,6 @@ def _run(
         watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
         simulator.set_monitor(lambda context: _kick(watchdog))
         simulator.set_target_realtime_rate(1.0)
-        simulator.Initialize()
         bus.enable_torque()
         powered = True
         say(
@@ -446,6 +461,7 @@ def _run(
         wall0 = time.perf_counter()
         try:
             with watchdog:
+                simulator.Initialize()  # paces real time from here
                 guarded(
                     sd,
                     simulator,
