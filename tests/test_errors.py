@@ -45,6 +45,7 @@ EXAMPLES = {
     errors.BusError: errors.BusError("bus /dev/ttyUSB0: sync read: no status packet"),
     errors.MissingServoError: errors.MissingServoError(4, "/dev/ttyUSB0"),
     errors.ServoConfigMismatchError: errors.ServoConfigMismatchError(2, "Current Limit", 700, 1193),
+    errors.DeadlineMissError: errors.DeadlineMissError(11, 10, 0.002, 0.0061, 3.214),
 }
 
 
