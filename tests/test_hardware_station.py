@@ -234,19 +234,24 @@ class StallingBus:
 
 def test_deadline_misses_are_counted_reported_once_a_burst_and_stop_the_run():
     h = 0.01
-    # Two stalls of 4 periods, far apart: two bursts of misses (at least), one line each.
+    # Three consecutive stalls of 2.5 periods, and one more far later: two bursts of misses, one
+    # line each; after each miss the schedule moves on instead of catching up.
     stream = io.StringIO()
-    bus = StallingBus(X_HOME, stalls={5, 30}, stall_s=4 * h)
+    bus = StallingBus(X_HOME, stalls={5, 6, 7, 30}, stall_s=2.5 * h)
     driver, simulator = _held_driver(bus, X_HOME, h, max_deadline_misses=100, stream=stream)
     simulator.AdvanceTo(0.5)
     lines = stream.getvalue().splitlines()
     assert all(line.startswith("deadline miss at t = ") for line in lines)
-    assert len(lines) == driver.bursts >= 2 and driver.misses > driver.bursts  # one line a burst
+    assert len(lines) == driver.bursts >= 2 and driver.misses >= 4 > driver.bursts
     summary = driver.timing_summary()
     assert (summary["misses"], summary["bursts"]) == (driver.misses, driver.bursts)
-    assert summary["late"]["worst"] > 2 * h
+    assert summary["late"]["worst"] > 1.5 * h and summary["skipped"] > 4 * 1.5 * h
+    # No catch-up: the Diagram's clock ends behind the wall clock by what was skipped.
+    records = np.array(driver._records)
+    wall = records[-1, 0] - records[0, 0]
+    assert wall == pytest.approx(0.5 - h + summary["skipped"], abs=2 * h)
     # Past the limit the torque is removed and the run stops with a typed error.
-    bus = StallingBus(X_HOME, stalls={5}, stall_s=4 * h)
+    bus = StallingBus(X_HOME, stalls={5, 6}, stall_s=2.5 * h)
     driver, simulator = _held_driver(bus, X_HOME, h, max_deadline_misses=1, stream=io.StringIO())
     with pytest.raises(DeadlineMissError, match="more than bus.max_deadline_misses = 1") as err:
         simulator.AdvanceTo(0.2)
@@ -377,3 +382,72 @@ def test_the_simulated_run_publishes_on_lcm_too():
     x = sd.station.GetOutputPort("platform_state").Eval(station_context)
     np.testing.assert_allclose(statuses[-1].x, x[:6], atol=1e-12)  # the ideal sensor's pose
     np.testing.assert_allclose(statuses[-1].x_d, sd.trajectory.evaluate(0.05)[0], atol=2e-3)
+
+
+# -- end to end on the bus emulator, at real time ----------------------------------------------
+
+
+@pytest.mark.slow
+def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
+    """The breathing trace through the real driver, over a pty, to the robot's Drake plant in
+    the emulator's own process, at real time. The control period is 10 ms and the LQI's
+    weights low (omega_Q = 0.01): on a loaded 2-core machine the loop's delay varies by
+    several ms, which this controller tolerates (0.3 mm RMS with 5 ms of extra measurement
+    delay on the PlantBus); the paper's weights at 5 ms lose the paper manoeuvre past 2 ms of
+    extra delay (docs/hardware_bus.md, "The station on the bus")."""
+    from pydrake.multibody.plant import MultibodyPlantConfig
+
+    from stewart_drake.control.lqi import LqiDriver
+    from stewart_drake.simulation.hardware.emulator_process import EmulatorProcess
+    from stewart_drake.simulation.organ_motion import OrganMotionReference
+
+    h, duration = 0.01, 2.0
+    fields = dict(
+        reference=OrganMotionReference(),
+        controller=LqiDriver(omega_Q=0.01),
+        duration_s=duration,
+        control_period_s=h,
+        log_period_s=h,
+    )
+    x0 = make_plan(Scenario(**fields)).reference.evaluate(0.0)[0]
+    # The emulator's plant steps at 2 ms (half the CPU of 1 ms) to leave the loop the machine.
+    robot = Scenario(
+        plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
+        control_period_s=0.002,
+        log_period_s=0.002,
+    )
+    with EmulatorProcess(x0=x0, scenario=robot) as emu:
+        bus_config = DynamixelBusConfig(
+            port=emu.port, reply_timeout_s=1.0, watchdog_s=1.0, max_deadline_misses=10**6
+        )
+        sd = make_stewart_diagram(Scenario(**fields, bus=bus_config))
+        bus = sd.station.bus
+        with bus:  # opened, configured and torque enabled here; the session does it in use
+            bus.configure()
+            simulator = Simulator(sd.diagram)
+            simulator.set_target_realtime_rate(1.0)
+            context = simulator.get_mutable_context()
+            sd.initialize(context)
+            np.testing.assert_allclose(
+                sd.station.assemble(context, x0), ik(StewartGeometry(), x0), atol=2 * np.pi / 4096
+            )
+            simulator.Initialize()
+            bus.enable_torque()
+            simulator.AdvanceTo(duration)
+        assert bus.torque_off_confirmed
+    driver = sd.station.driver
+    walls = np.array(driver._records)[:, 0]
+    t_true, x_true = emu.truth()
+    inside = (t_true >= walls[0]) & (t_true <= walls[-1])
+    # Each true pose against the reference at the Diagram time of its wall-clock time.
+    t_run = np.interp(t_true[inside], walls, h * np.arange(len(walls)))
+    x_d = np.array([sd.trajectory.evaluate(t)[0] for t in t_run])
+    e = x_true[inside, :6] - x_d
+    rms_rot, rms_pos = np.sqrt((e[:, :3] ** 2).mean()), np.sqrt((e[:, 3:] ** 2).mean())
+    # Measured on this machine, loaded by other work: 0.80 mrad and 0.25 mm RMS, the loop at
+    # 0.99 of real time. Bounds about 5x: a loop that lost the robot is off by tens of mm.
+    assert inside.sum() > 100
+    assert rms_rot < 5e-3 and rms_pos < 1.5e-3, (rms_rot, rms_pos, driver.timing_lines())
+    summary = driver.timing_summary()
+    assert summary["periods"] == round(duration / h) and summary["read"]["n"] == len(walls)
+    assert 0 < summary["read"]["median"] < h and 0 < summary["age"]["median"] < 3 * h

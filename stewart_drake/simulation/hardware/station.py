@@ -22,11 +22,16 @@ Pacing. Drake's ``Simulator`` at ``target_realtime_rate`` 1 sleeps before each s
 wall clock reaches the step's time counted from ``Initialize()`` (or ``ResetStatistics()``), and
 never sleeps while it is behind: after a stall it runs the missed periods back to back, and
 started late after a long pause between ``Initialize()`` and ``AdvanceTo()`` it would race
-through the first periods. The driver therefore keeps its own schedule: period k is due at the
-wall-clock time of its first period plus k h; it sleeps until then if it is early (so a run is
-paced whatever the simulator's rate), and a period that starts more than one period after it
-is due is a deadline miss. ``get_actual_realtime_rate()`` of the simulator is the average over
-the run; the driver's :meth:`DynamixelDriver.timing_summary` has the per-period figures.
+through the first periods. Periods run back to back are worse than late ones for a discrete
+controller: its model (and the rate it differentiates from the angles) assumes h between two
+readings, and a burst of readings 1 ms apart tells it the robot has stopped. The driver therefore
+keeps its own schedule: period k is due at the wall-clock time of its first period plus k h; it
+sleeps until then if it is early (so a run is paced whatever the simulator's rate), and a
+period that starts more than one period after it is due is a deadline miss, after which the
+schedule moves on (the next period is due one period after this one started: the Diagram's
+clock, and the reference with it, falls behind the wall clock by the time skipped, instead of
+catching up). ``get_actual_realtime_rate()`` of the simulator is the average over the run; the
+driver's :meth:`DynamixelDriver.timing_summary` has the per-period figures.
 """
 
 from __future__ import annotations
@@ -87,8 +92,9 @@ class DynamixelDriver(LeafSystem):
     enabled by the caller; :meth:`seed` holds a first reading before the run.
 
     A period that starts more than one period after it is due is a deadline miss: counted, one
-    line on ``stream`` at the first miss of a burst, and past ``max_deadline_misses`` the
-    servos' torque is removed and :class:`~stewart_drake.errors.DeadlineMissError` raised. Any
+    line on ``stream`` at the first miss of a burst (consecutive misses), the schedule moved on
+    to start from it (module docstring), and past ``max_deadline_misses`` the servos' torque is
+    removed and :class:`~stewart_drake.errors.DeadlineMissError` raised. Any
     other error in a period (the bus, non-finite torques, a pose forward kinematics cannot
     find) also removes the torque before it propagates.
 
@@ -205,6 +211,9 @@ class DynamixelDriver(LeafSystem):
         #: Deadline misses, and bursts of consecutive ones (one stderr line each), so far.
         self.misses, self.bursts, self._in_burst = 0, 0, False
         self._wall0: float | None = None
+        #: Wall-clock time the schedule was moved on by after misses, s: the Diagram's clock
+        #: (and the reference) is that much behind the wall clock.
+        self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
 
     def _Update(self, context, discrete_state):
@@ -239,6 +248,8 @@ class DynamixelDriver(LeafSystem):
         self._last_start = now
         self._records.append((now, period, self._read_s, w1 - w0, age, late))
         if late > self.period_s:
+            self._wall0 += late  # skip: the next period is due one period from now
+            self.skipped_s += late
             self._missed(t, late)
         else:
             self._in_burst = False
@@ -265,7 +276,7 @@ class DynamixelDriver(LeafSystem):
         """The loop's timing over the periods kept, s: {"period", "jitter" (period - nominal),
         "read", "write" (the bus's round trips), "age" (of the measurement when its torque
         was written), "late" (start - due): each {"n", "median", "p99", "worst"}; "misses",
-        "bursts", "periods", "nominal"}."""
+        "bursts", "skipped" (s the schedule moved on by), "periods", "nominal"}."""
         r = np.array(self._records, dtype=float).reshape(-1, 6)
         period = r[1:, 1]
         out: dict = {
@@ -276,14 +287,21 @@ class DynamixelDriver(LeafSystem):
             "age": _stats(r[np.isfinite(r[:, 4]), 4]),
             "late": _stats(r[:, 5]),
         }
-        out.update(misses=self.misses, bursts=self.bursts, periods=len(r), nominal=self.period_s)
+        out.update(
+            misses=self.misses,
+            bursts=self.bursts,
+            skipped=self.skipped_s,
+            periods=len(r),
+            nominal=self.period_s,
+        )
         return out
 
     def timing_lines(self) -> list[str]:
         """:meth:`timing_summary` as lines of text, ms."""
         s = self.timing_summary()
         lines = [
-            f"{s['periods']} periods of {1e3 * s['nominal']:g} ms, {s['misses']} deadline misses"
+            f"{s['periods']} periods of {1e3 * s['nominal']:g} ms, {s['misses']} deadline misses "
+            f"in {s['bursts']} bursts, {1e3 * s['skipped']:.1f} ms skipped"
         ]
         for name in ("period", "jitter", "read", "write", "age", "late"):
             v = s[name]
