@@ -417,6 +417,31 @@ class ServoConfigMismatchError(BusError):
         return self.servo_id, self.item, self.wrote, self.read
 
 
+class DeadlineMissError(BusError):
+    """A control loop on the servo bus that started too many periods late: more than its
+    scenario's ``bus.max_deadline_misses`` periods began over one period after their scheduled
+    wall-clock time. The servos' torque was removed first.
+
+    Attributes:
+        misses: the periods missed so far.  limit: ``bus.max_deadline_misses``.
+        period_s: the control period, s.  late_s: how late the last period started, s.
+        t: the Diagram time of that period, s.
+    """
+
+    def __init__(self, misses: int, limit: int, period_s: float, late_s: float, t: float):
+        self.misses, self.limit = int(misses), int(limit)
+        self.period_s, self.late_s, self.t = float(period_s), float(late_s), float(t)
+        super().__init__(
+            f"the control loop missed {self.misses} deadlines (more than "
+            f"bus.max_deadline_misses = {self.limit}); the last period, at t = {self.t:.3f} s, "
+            f"started {1e3 * self.late_s:.1f} ms late for a {1e3 * self.period_s:g} ms period; "
+            f"torque off. Lengthen control_period_s, unload the machine or raise the limit"
+        )
+
+    def _init_args(self) -> tuple:
+        return self.misses, self.limit, self.period_s, self.late_s, self.t
+
+
 def _percent(p: float) -> str:
     """A percentage: whole from 1 % up, two significant digits below it (an excess of 0.028 %
     does not read as "0 %" beside two limits that round alike)."""

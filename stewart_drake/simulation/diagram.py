@@ -31,12 +31,16 @@ from ..control.ilc import IterativeLearningController
 from ..control.tuning import TunerPorts
 from ..errors import InvalidConfigError
 from .guard import DivergenceGuard
+from .hardware.station import HardwareStation
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_reference_sources
 from .scenario import Scenario, dump_scenario
 from .sensors import PlatformPoseSensor, add_white_noise
 from .signal_log import SignalLog
-from .station import StewartStation
+from .station import StewartStation, make_stewart_station
+
+#: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
+Station = StewartStation | HardwareStation
 
 
 @dataclass
@@ -44,7 +48,8 @@ class StewartDiagram:
     """Handles to the built Diagram and its pieces (see :func:`make_stewart_diagram`).
 
     Attributes:
-        diagram: the Diagram. station: the :class:`~.station.StewartStation` in it.
+        diagram: the Diagram. station: the :class:`~.station.StewartStation` in it, or with
+            the scenario's ``bus`` the :class:`~.hardware.station.HardwareStation`.
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
             (or the live reference system). trajectory: the reference object (``evaluate(t)``;
             None with a live reference). loggers: name -> ``LogVectorOutput`` logger.
@@ -56,10 +61,12 @@ class StewartDiagram:
         T_ff_initial: (6,) the feed-forward at t = 0, N m (the torque pipes start there).
         learner: the :class:`~stewart_drake.control.ilc.IterativeLearningController` when the
             scenario learns (``learning``), or None.
+        lcm: the ``DrakeLcm`` the status and commands are published on (the scenario's
+            ``lcm``; subscribe to it to receive them in process), or None.
     """
 
     diagram: Diagram
-    station: StewartStation
+    station: Station
     controller: System
     reference: ReferenceSources | System
     trajectory: Any  # a motion.Reference, or None with a live reference
@@ -72,6 +79,7 @@ class StewartDiagram:
     guard: DivergenceGuard | None = None
     T_ff_initial: np.ndarray | None = None
     learner: System | None = None
+    lcm: Any = None  # the DrakeLcm of the scenario's ``lcm``, or None
 
     @property
     def scenario(self) -> Scenario:
@@ -191,7 +199,7 @@ def make_stewart_diagram(
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = StewartStation(plan, meshcat)
+    station = make_stewart_station(plan, meshcat)
     builder.AddSystem(station)
     ref = _add_reference(builder, plan, trajectory, reference_system)
     context = plan.controller_context(ref.x0, ref.x_dot0)
@@ -232,6 +240,7 @@ def make_stewart_diagram(
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, plan)
+    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario)
     if reference_system is not None:
         builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
         builder.ExportOutput(ref.x_d, "x_d")
@@ -254,7 +263,36 @@ def make_stewart_diagram(
         guard=guard,
         T_ff_initial=ref.T_ff_initial,
         learner=learner,
+        lcm=lcm,
     )
+
+
+def _add_lcm(builder, station: Station, system: System, x: OutputPort, x_d: OutputPort, scenario):
+    """With the scenario's ``lcm``, the status (the station's measurements, the pose ``x`` the
+    controller reads, the reference; on the servo bus the driver's loop numbers) and the
+    controller's torque commands published on their channels (:mod:`~.lcm_publish`). Returns
+    the ``DrakeLcm``, or None."""
+    config = scenario.lcm
+    if config is None:
+        return None
+    from pydrake.lcm import DrakeLcm
+
+    from .lcm_publish import add_command_publisher, add_status_publisher
+
+    lcm = DrakeLcm(config.url) if config.url else DrakeLcm()
+    ports = {
+        name: station.GetOutputPort(name)
+        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
+    }
+    if station.HasOutputPort("loop"):
+        ports["loop"] = station.GetOutputPort("loop")
+    add_status_publisher(
+        builder, lcm, ports | {"x": x, "x_d": x_d}, config.period_s, config.status_channel
+    )
+    add_command_publisher(
+        builder, lcm, system.GetOutputPort("T"), config.period_s, config.command_channel
+    )
+    return lcm
 
 
 @dataclass(frozen=True)
@@ -317,7 +355,7 @@ def _add_controller(builder, system: System) -> System:
 
 
 def _add_measurement(
-    builder, station: StewartStation, scenario: Scenario, context: ControllerContext, inputs: set
+    builder, station: Station, scenario: Scenario, context: ControllerContext, inputs: set
 ):
     """The pose and rate a controller with an ``x`` input reads: the station's ground truth, or
     on the robot as built the FK estimate from the encoders, plus the scenario's sensor noise.
@@ -348,7 +386,7 @@ def _add_measurement(
 
 def _add_learning(
     builder,
-    station: StewartStation,
+    station: Station,
     plan: RunPlan,
     trajectory,
     x_d: OutputPort,
@@ -386,7 +424,7 @@ def _add_learning(
     return corrected, learner
 
 
-def _add_disturbance(builder, station: StewartStation, plan: RunPlan, live: bool) -> None:
+def _add_disturbance(builder, station: Station, plan: RunPlan, live: bool) -> None:
     """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
     live reference, which has no end), the input is exported and fixed to zero in the Context
     (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
@@ -427,7 +465,7 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
 
 def _add_loggers(
     builder,
-    station: StewartStation,
+    station: Station,
     system: System,
     outputs: set,
     scenario: Scenario,
@@ -469,7 +507,7 @@ def _add_loggers(
 
 
 def _add_guard(
-    builder, station: StewartStation, system: System, x_d: OutputPort, plan: RunPlan
+    builder, station: Station, system: System, x_d: OutputPort, plan: RunPlan
 ) -> DivergenceGuard:
     """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
     reference and, with contact, the contact results."""

@@ -33,14 +33,16 @@ class RunPlan:
 
     Attributes:
         scenario: the validated scenario the plan was made from (read it, do not change it:
-            the values below are not recomputed).
+            the values below are not recomputed); on the servo bus with ``hardware: null``,
+            with the robot built with the bus's servos (:meth:`~.scenario.Scenario.as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
             the motors' reflected inertia (rotor inertia x gear ratio^2).
         plant_geometry: the robot that is simulated: ``geometry`` with ``payload_scale`` on the
             platform's mass and inertia.
         servo: the servo of ``hardware.motors`` (None on the ideal robot).
-        torque_limit_Nm: the saturation in force, N m: the lower of ``torque_limit_Nm`` and,
-            with hardware, the servo's peak torque (None: unlimited).
+        torque_limit_Nm: the saturation in force, N m: the lowest of ``torque_limit_Nm``, with
+            hardware the servo's peak torque, and on the servo bus ``K_t`` times its current
+            limit (None: unlimited).
         motor_limits: what a reference may ask of the motors: that limit, the servo's no-load
             speed at the crank, its friction and ``guard.effort_margin``.
         delay_periods: control periods between a measurement and its torque (0 on the ideal
@@ -154,7 +156,9 @@ def make_plan(
 
 
 def _robot_plan(scenario: Scenario) -> RunPlan:
-    """The plan of a validated ``scenario`` without its reference object."""
+    """The plan of a validated ``scenario`` without its reference object (on the servo bus,
+    of the robot built with its servos: :meth:`~.scenario.Scenario.as_built`)."""
+    scenario = scenario.as_built()
     geometry = scenario.robot.build()
     servo = None if scenario.hardware is None else scenario.hardware.motors.build()
     if servo is not None:
@@ -168,7 +172,11 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
         )
     limits = [
         v
-        for v in (scenario.torque_limit_Nm, None if servo is None else servo.peak_torque_Nm)
+        for v in (
+            scenario.torque_limit_Nm,
+            None if servo is None else servo.peak_torque_Nm,
+            None if scenario.bus is None else scenario.bus.torque_limit_Nm(),
+        )
         if v is not None
     ]
     torque_limit = min(limits) if limits else None

@@ -258,6 +258,207 @@ class Hardware:
         _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
 
 
+# -- the servo bus and LCM ---------------------------------------------------------------------
+
+#: Control periods a loop on the servo bus may run at, s: 100 Hz to 1 kHz.
+BUS_CONTROL_PERIODS_S = (1e-3, 1e-2)
+#: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).
+SERVO_COUNTS_PER_REV = 4096
+
+
+@dataclass
+class DynamixelBusConfig:
+    """The robot's servos on a DYNAMIXEL bus: the station drives them instead of a simulated
+    plant (:class:`~.station.HardwareStation`; docs/hardware_bus.md). The arguments of
+    :class:`~stewart_drake.simulation.hardware.driver.DynamixelBus`, same names, units and
+    defaults, and the loop's deadline policy.
+
+    Attributes:
+        port: the serial port ("/dev/ttyUSB0", or a bus emulator's pty).
+        baud_rate: bps, the servos' setting (one of the driver's ``BAUD_RATES``).
+        ids: the six servo ids, in the cranks' order (reference_geometry.md's legs).
+        model: the servos' model, a ``SERVO_SPECS`` key with Current Control Mode.
+        zero_counts: Present Position of each servo at its crank's zero angle, counts (6).
+        directions: +1, or -1 for a servo whose counts grow against its crank's angle (6).
+        current_limit_A: the servos' Current Limit, A (None: the model's maximum); the
+            torque limit of the run is at most ``K_t`` times it.
+        temperature_limit_C: deg C, in (0, 80].
+        position_limits_counts: (min, max) written to the servos (Position Control Mode only).
+        watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
+        reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
+        max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
+            period missed beyond this many (0: at the first miss).
+
+    The robot as built is then the one with these servos: ``hardware: null`` is derived from
+    the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
+    ``model``, the servos' 4096-count encoders, one period of computation delay), or the
+    scenario is refused (:meth:`validate`).
+    """
+
+    port: str = "/dev/ttyUSB0"
+    baud_rate: int = 1_000_000
+    ids: list[int] = field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
+    model: str = "XM430-W350-T"
+    zero_counts: list[int] = field(default_factory=lambda: [2048] * 6)
+    directions: list[int] = field(default_factory=lambda: [1] * 6)
+    current_limit_A: float | None = None
+    temperature_limit_C: int = 70
+    position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
+    watchdog_s: float = 0.1
+    reply_timeout_s: float | None = None
+    max_deadline_misses: int = 10
+
+    def _settings(self):
+        from .hardware.driver import check_bus_settings
+
+        return check_bus_settings(
+            self.baud_rate,
+            self.ids,
+            self.model,
+            self.zero_counts,
+            self.directions,
+            self.current_limit_A,
+            self.temperature_limit_C,
+            self.position_limits_counts,
+            self.watchdog_s,
+            self.reply_timeout_s,
+            prefix="bus.",
+        )
+
+    def validate(self, control_period_s: float, hardware: "Hardware | None") -> None:
+        """Check every field (``bus.<name>``), the control period (1 to 10 ms) and that
+        ``hardware``, if given, is the robot built with these servos.
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if not isinstance(self.port, str) or not self.port:
+            raise InvalidConfigError(f"bus.port must be a serial port path, got {self.port!r}")
+        if len(self.ids) != 6:
+            raise InvalidConfigError(f"bus.ids must name the six servos, got {self.ids!r}")
+        if len(self.position_limits_counts) != 2:
+            raise InvalidConfigError(
+                f"bus.position_limits_counts must be [min, max], got {self.position_limits_counts}"
+            )
+        self._settings()
+        _check_int("bus.max_deadline_misses", self.max_deadline_misses, 0, 10**9)
+        lo, hi = BUS_CONTROL_PERIODS_S
+        if not lo - 1e-12 <= control_period_s <= hi + 1e-12:
+            raise InvalidConfigError(
+                f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
+                f"{lo:g} to {hi:g} s"
+            )
+        expected = self.hardware(control_period_s)
+        if hardware is None:
+            return
+        for name, got, want in (
+            ("motors.name", hardware.motors.name, expected.motors.name),
+            (
+                "encoders.counts_per_rev",
+                hardware.encoders.counts_per_rev,
+                expected.encoders.counts_per_rev,
+            ),
+            (
+                "computation_delay_periods",
+                hardware.computation_delay_periods,
+                expected.computation_delay_periods,
+            ),
+        ):
+            if got != want:
+                raise InvalidConfigError(
+                    f"hardware.{name} is {got!r} but the servos of bus.model {self.model} make "
+                    f"it {want!r}: set it so, or hardware: null to derive the robot from the bus"
+                )
+
+    def hardware(self, control_period_s: float = 1e-3) -> "Hardware":
+        """The robot as built with these servos: their catalogue model (friction, gear,
+        reflected inertia, peak torque; docs/motor_catalogue.md), their 4096-count encoders
+        without added noise, one control period of delay between a measurement and its
+        torque (the driver writes the torque computed from a period's reading at the start of
+        the next period, :class:`~.hardware.station.DynamixelDriver`), and the encoders' rate
+        filter at its default corner or, for a long ``control_period_s``, at the Nyquist
+        frequency 0.5 / control_period_s.
+
+        Raises:
+            InvalidConfigError: a model the motor catalogue does not have.
+        """
+        from ..model.motor_catalogue import catalogue_motor
+
+        try:
+            servo = catalogue_motor(self.model).servo
+        except (StewartError, KeyError) as err:
+            raise InvalidConfigError(f"bus.model: {err}") from None
+        return Hardware(
+            encoders=Encoders(counts_per_rev=SERVO_COUNTS_PER_REV),
+            motors=Motors.from_value(servo),
+            estimator=Estimator(
+                rate_cutoff_hz=min(Estimator().rate_cutoff_hz, 0.5 / control_period_s)
+            ),
+            computation_delay_periods=1,
+        )
+
+    def torque_limit_Nm(self) -> float | None:
+        """``current_limit_A`` as a torque at the crank, N m (None without one)."""
+        from .hardware.protocol import servo_spec
+
+        if self.current_limit_A is None:
+            return None
+        return self.current_limit_A * servo_spec(self.model).torque_constant_Nm_per_A
+
+    def make_bus(self):
+        """The :class:`~stewart_drake.simulation.hardware.driver.DynamixelBus` of these
+        settings, not opened (``open``, ``configure``, ``enable_torque`` are the caller's).
+
+        Raises:
+            MissingExtraError: dynamixel-sdk is not installed.
+        """
+        from .hardware.driver import DynamixelBus
+
+        return DynamixelBus(
+            self.port,
+            self.baud_rate,
+            self.ids,
+            model=self.model,
+            zero_counts=self.zero_counts,
+            directions=self.directions,
+            current_limit_A=self.current_limit_A,
+            temperature_limit_C=self.temperature_limit_C,
+            position_limits_counts=tuple(self.position_limits_counts),
+            watchdog_s=self.watchdog_s,
+            reply_timeout_s=self.reply_timeout_s,
+        )
+
+
+@dataclass
+class LcmConfig:
+    """The run's status and commands on LCM channels (:mod:`~.lcm_publish`, docs/lcm.md), in
+    simulation and on the servo bus alike.
+
+    Attributes:
+        url: the ``DrakeLcm`` URL: "memq://" in one process (tests), "" for Drake's default
+            (UDP multicast, for lcm-spy and other processes).
+        status_channel: channel of ``lcmt_stewart_status``. command_channel: of
+            ``lcmt_stewart_command``.
+        period_s: publish period, s (a whole multiple of the plant step).
+    """
+
+    url: str = "memq://"
+    status_channel: str = "STEWART_STATUS"
+    command_channel: str = "STEWART_COMMAND"
+    period_s: float = 0.01
+
+    def validate(self, plant_time_step_s: float) -> None:
+        """Check every field (``lcm.<name>``). Raises InvalidConfigError naming it."""
+        for name in ("url", "status_channel", "command_channel"):
+            if not isinstance(getattr(self, name), str):
+                raise InvalidConfigError(f"lcm.{name} must be a string")
+        for name in ("status_channel", "command_channel"):
+            if not getattr(self, name):
+                raise InvalidConfigError(f"lcm.{name} must not be empty")
+        as_number("lcm.period_s", self.period_s, 0.0, lo_open=True)
+        check_multiple("lcm.period_s", self.period_s, "plant.time_step", plant_time_step_s)
+
+
 # -- disturbance, sensor noise, guard --------------------------------------------------------------
 
 
@@ -421,6 +622,11 @@ class Scenario:
         learning: None, or a correction of the reference the controller tracks, learned from
             the encoders: from every cycle (:class:`IlcDriver`, motion that repeats) or as a
             function of the reference (:class:`FeedforwardTuning`, any motion).
+        bus: None (a simulated robot), or the servos of the real robot on a DYNAMIXEL bus
+            (:class:`DynamixelBusConfig`): the station drives them (``HardwareStation``), and
+            ``hardware`` is the robot built with them (derived when null).
+        lcm: None, or the run's status and torque commands on LCM channels
+            (:class:`LcmConfig`).
     Raises:
         InvalidConfigError: (``validate``, run by every builder and at construction) a field
             out of range, a period that is not a whole multiple of the one it runs on, a wrong
@@ -450,6 +656,8 @@ class Scenario:
     contact: bool = False
     rod_model: str = "bodies"
     learning: LearningChoice | None = None
+    bus: DynamixelBusConfig | None = None
+    lcm: LcmConfig | None = None
 
     def __post_init__(self):
         self.validate()
@@ -531,7 +739,24 @@ class Scenario:
             self.disturbance.validate()
         if self.learning is not None:
             self.learning.validate(self.control_period_s)
+        if self.bus is not None:
+            self.bus.validate(self.control_period_s, self.hardware)
+            for name in ("disturbance", "contact"):
+                if getattr(self, name):
+                    raise InvalidConfigError(
+                        f"{name} is simulated; on the servo bus the real robot meets the real "
+                        f"world: set {name} to {'null' if name == 'disturbance' else 'false'}"
+                    )
+        if self.lcm is not None:
+            self.lcm.validate(self.plant.time_step)
         return self
+
+    def as_built(self) -> "Scenario":
+        """This scenario with, on the servo bus and ``hardware: null``, the robot built with
+        the bus's servos (:meth:`DynamixelBusConfig.hardware`); itself otherwise."""
+        if self.bus is None or self.hardware is not None:
+            return self
+        return dataclasses.replace(self, hardware=self.bus.hardware(self.control_period_s))
 
     #: The fields that hold a choice or a section, and the classes each may hold.
     _FIELD_TYPES = {
@@ -547,6 +772,8 @@ class Scenario:
         "hardware": (type(None), Hardware),
         "disturbance": (type(None), ToolDisturbance),
         "learning": (type(None),) + _choices(LearningChoice),
+        "bus": (type(None), DynamixelBusConfig),
+        "lcm": (type(None), LcmConfig),
     }
 
     def _validate_types(self) -> None:

@@ -117,6 +117,24 @@ def _connect_actuators(builder, applied, handles) -> None:
         builder.Connect(applied, handles.actuation_port)
 
 
+def add_plan_plant(builder, plan):
+    """The robot of ``plan`` (:class:`~.plan.RunPlan`) as simulated, a MultibodyPlant named
+    "plant" with its SceneGraph, in ``builder``: (plant, scene_graph, handles)
+    (:func:`~stewart_drake.model.plant.add_stewart_plant` with the plan's geometry, servo and
+    the scenario's plant settings, contact and rod model)."""
+    scenario = plan.scenario
+    plant, scene_graph, handles = add_stewart_plant(
+        builder,
+        plan.plant_geometry,
+        plant_config=scenario.plant,
+        servo=plan.servo,
+        contact=scenario.contact,
+        rod_model=scenario.rod_model,
+    )
+    plant.set_name("plant")
+    return plant, scene_graph, handles
+
+
 class StewartStation(Diagram):
     """The robot as built by :func:`make_stewart_station`; a Drake ``Diagram`` named "station".
 
@@ -157,15 +175,7 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         scenario = plan.scenario
-        plant, scene_graph, handles = add_stewart_plant(
-            builder,
-            plan.plant_geometry,
-            plant_config=scenario.plant,
-            servo=plan.servo,
-            contact=scenario.contact,
-            rod_model=scenario.rod_model,
-        )
-        plant.set_name("plant")
+        plant, scene_graph, handles = add_plan_plant(builder, plan)
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
@@ -280,8 +290,10 @@ class StewartStation(Diagram):
         )
 
 
-def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:
-    """The robot of ``scenario`` as a Diagram with exported ports (:class:`StewartStation`).
+def make_stewart_station(scenario=None, meshcat=None):
+    """The robot of ``scenario`` as a Diagram with exported ports: the simulated robot
+    (:class:`StewartStation`) or, with the scenario's ``bus``, the real one on its servo bus
+    (:class:`~.hardware.station.HardwareStation`, same ports; the bus is opened by the caller).
 
     Args:
         scenario: a :class:`~.plan.RunPlan`, or a :class:`~.scenario.Scenario`
@@ -289,15 +301,21 @@ def make_stewart_station(scenario=None, meshcat=None) -> StewartStation:
             payload, motors and torque limit are used.
         meshcat: optional pydrake Meshcat; adds Drake's visualization (``scenario.visualization``).
     Returns:
-        the :class:`StewartStation` (a Diagram): ports ``motor_torque``, ``tool_wrench`` in;
-        ``motor_angle``, ``motor_rate``, ``platform_state``, ``motor_torque_applied``,
-        ``plant_state`` out.
+        the :class:`StewartStation` or ``HardwareStation`` (a Diagram): ports ``motor_torque``,
+        ``tool_wrench`` in; ``motor_angle``, ``motor_rate``, ``platform_state``,
+        ``motor_torque_applied``, ``plant_state`` out.
     Raises:
         InvalidConfigError, InvalidGeometryError: the scenario does not validate.
+        MissingExtraError: a scenario with ``bus`` without dynamixel-sdk installed.
     """
     from .plan import make_plan
 
-    return StewartStation(make_plan(scenario, with_reference=False), meshcat)
+    plan = make_plan(scenario, with_reference=False)
+    if plan.scenario.bus is not None:
+        from .hardware.station import HardwareStation
+
+        return HardwareStation(plan, meshcat)
+    return StewartStation(plan, meshcat)
 
 
 def held_station(scenario=None, x=X_HOME, T=None, wrench=None):

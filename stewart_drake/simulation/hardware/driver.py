@@ -73,6 +73,92 @@ def _port_handler(sdk, port: str, reply_timeout_s: float | None):
 
 
 @dataclass(frozen=True)
+class BusSettings:
+    """The settings of a bus, checked (:func:`check_bus_settings`): ``spec`` the model's
+    :class:`~.protocol.ServoSpec`, ``ids`` (list), ``zero_counts`` and ``directions`` (n,)
+    arrays, ``current_limit_units`` and ``watchdog_units`` the raw values written,
+    ``position_limits_counts`` (min, max)."""
+
+    spec: p.ServoSpec
+    ids: list
+    zero_counts: np.ndarray
+    directions: np.ndarray
+    current_limit_units: int
+    watchdog_units: int
+    position_limits_counts: tuple[int, int]
+
+
+def check_bus_settings(
+    baud_rate,
+    ids,
+    model: str = "XM430-W350-T",
+    zero_counts=None,
+    directions=None,
+    current_limit_A: float | None = None,
+    temperature_limit_C: int = 70,
+    position_limits_counts=(0, 4095),
+    watchdog_s: float = 0.1,
+    reply_timeout_s: float | None = None,
+    prefix: str = "",
+) -> BusSettings:
+    """Check the arguments of :class:`DynamixelBus` (same names and meanings) without the
+    vendor's library or a port; ``prefix`` goes before every name in a message (a scenario's
+    ``"bus."``).
+
+    Raises:
+        InvalidConfigError: the first argument out of range, named.
+    """
+    try:
+        spec = p.servo_spec(model)
+    except InvalidConfigError as err:
+        raise InvalidConfigError(f"{prefix}model: {err}") from None
+    try:
+        ids = [int(i) for i in ids]
+    except (TypeError, ValueError):
+        ids = []
+    if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
+        raise InvalidConfigError(f"{prefix}ids {ids} must be distinct integers in 0..{p.MAX_ID}")
+    n = len(ids)
+    if baud_rate not in BAUD_RATES:
+        raise InvalidConfigError(
+            f"{prefix}baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
+        )
+    zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
+    sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
+    if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
+        raise InvalidConfigError(
+            f"{prefix}zero_counts and {prefix}directions must have one entry per id ({n}); "
+            f"directions +1 or -1"
+        )
+    limit_units = spec.current_limit_max
+    if current_limit_A is not None:
+        limit_units = math.floor(current_limit_A / spec.amps_per_unit)
+        if not 0 < limit_units <= spec.current_limit_max:
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be in (0, "
+                f"{spec.current_limit_max * spec.amps_per_unit:.3g}] A for {model}"
+            )
+    if not 0 < temperature_limit_C <= 80:
+        raise InvalidConfigError(
+            f"{prefix}temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
+        )
+    lo, hi = (int(c) for c in position_limits_counts)
+    if not 0 <= lo < hi <= 4095:
+        raise InvalidConfigError(
+            f"{prefix}position_limits_counts {position_limits_counts} must be "
+            f"0 <= min < max <= 4095"
+        )
+    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S)
+    if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
+        raise InvalidConfigError(
+            f"{prefix}watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
+        )
+    if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
+        raise InvalidConfigError(f"{prefix}reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
+    return BusSettings(spec, ids, zero, sign, int(limit_units), int(watchdog_units), (lo, hi))
+
+
+@dataclass(frozen=True)
 class BusState:
     """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
 
@@ -130,45 +216,22 @@ class DynamixelBus:
         reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
     ):
-        self.spec = p.servo_spec(model)
-        ids = [int(i) for i in ids]
-        if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
-            raise InvalidConfigError(f"ids {ids} must be distinct integers in 0..{p.MAX_ID}")
-        n = len(ids)
-        if baud_rate not in BAUD_RATES:
-            raise InvalidConfigError(
-                f"baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
-            )
-        zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
-        sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
-        if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
-            raise InvalidConfigError(
-                f"zero_counts and directions must have one entry per id ({n}); directions +1 or -1"
-            )
-        limit_units = self.spec.current_limit_max
-        if current_limit_A is not None:
-            limit_units = math.floor(current_limit_A / self.spec.amps_per_unit)
-            if not 0 < limit_units <= self.spec.current_limit_max:
-                raise InvalidConfigError(
-                    f"current_limit_A {current_limit_A} must be in (0, "
-                    f"{self.spec.current_limit_max * self.spec.amps_per_unit:.3g}] A for {model}"
-                )
-        if not 0 < temperature_limit_C <= 80:
-            raise InvalidConfigError(
-                f"temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
-            )
-        lo, hi = (int(c) for c in position_limits_counts)
-        if not 0 <= lo < hi <= 4095:
-            raise InvalidConfigError(
-                f"position_limits_counts {position_limits_counts} must be 0 <= min < max <= 4095"
-            )
-        watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S)
-        if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
-            raise InvalidConfigError(
-                f"watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
-            )
-        if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
-            raise InvalidConfigError(f"reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
+        settings = check_bus_settings(
+            baud_rate,
+            ids,
+            model,
+            zero_counts,
+            directions,
+            current_limit_A,
+            temperature_limit_C,
+            position_limits_counts,
+            watchdog_s,
+            reply_timeout_s,
+        )
+        self.spec = settings.spec
+        ids, zero, sign = settings.ids, settings.zero_counts, settings.directions
+        limit_units, watchdog_units = settings.current_limit_units, settings.watchdog_units
+        lo, hi = settings.position_limits_counts
         self.reply_timeout_s = reply_timeout_s
         self.port_name, self.baud_rate, self.ids = str(port), int(baud_rate), ids
         self.zero_counts, self.directions = zero, sign
