@@ -1135,29 +1135,12 @@ def _cmd_robot(args) -> int:
     finally:
         if emulator is not None:
             _stop_emulator(emulator)
-    if run.ok and run.logs is not None:
-        from ..studies.experiments import load_result
-
-        print(format_metrics(load_result(run.logs).metrics))
-    if run.timing:
-        print(format_timing(run.timing))
+    if run.metrics is not None:
+        print(format_metrics(run.metrics))
+    if run.timing_lines:
+        print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
-
-
-def format_timing(timing: dict) -> str:
-    """The driver's timing summary as lines: each quantity's median, 99th percentile and
-    worst in ms, and the deadline misses."""
-    lines = ["control loop timing (ms): median / 99th percentile / worst"]
-    for name, values in timing.items():
-        if isinstance(values, dict) and "median" in values:
-            lines.append(
-                f"  {name:<18} {values['median'] * 1e3:8.3f} {values['p99'] * 1e3:8.3f} "
-                f"{values['max'] * 1e3:8.3f}"
-            )
-        elif not isinstance(values, dict):
-            lines.append(f"  {name:<18} {values}")
-    return "\n".join(lines)
 
 
 def _cmd_diagrams(args) -> int:

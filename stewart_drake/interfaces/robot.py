@@ -308,7 +308,8 @@ class RobotRun:
         torque_off_confirmed: every servo confirmed the torque off at the end.
         start: the :class:`MeasuredPose` it started from (None: ended before the measurement).
         logs: the ``.npz`` written (None: none, e.g. the run had not started).
-        timing: the driver's timing summary (period, jitter, round trips, misses), if any.
+        timing: the driver's timing summary (period, jitter, round trips, measurement age,
+            deadline misses: ``DynamixelDriver.timing_summary``); ``timing_lines`` as text.
         metrics: the run's metrics (:func:`~stewart_drake.studies.metrics.compute_metrics`:
             tracking from the measured pose, torques), when its logs were read.
         exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
@@ -320,6 +321,7 @@ class RobotRun:
     start: MeasuredPose | None = None
     logs: Path | None = None
     timing: dict | None = None
+    timing_lines: list[str] = dataclasses.field(default_factory=list)
     metrics: dict | None = None
     exit_code: int = 0
 
@@ -450,7 +452,7 @@ def _run(
         if before_torque is not None:
             before_torque(sd, simulator)
         watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
-        simulator.set_monitor(lambda context: _kick(watchdog))
+        simulator.set_monitor(_kicker(watchdog))
         simulator.set_target_realtime_rate(1.0)
         bus.enable_torque()
         powered = True
@@ -482,8 +484,8 @@ def _run(
     finally:
         ended.torque_off_confirmed = bus.torque_off()
         try:
-            timing = getattr(sd.station.driver, "timing_summary", None)
-            ended.timing = timing() if timing is not None else None
+            ended.timing = sd.station.driver.timing_summary()
+            ended.timing_lines = sd.station.driver.timing_lines()
         finally:
             bus.close()
     if not powered:
@@ -497,12 +499,18 @@ def _run(
     return ended
 
 
-def _kick(watchdog: LoopWatchdog):
-    """The Simulator's monitor: a period completed. Returns Drake's "continue"."""
-    from pydrake.systems.analysis import EventStatus
+def _kicker(watchdog: LoopWatchdog):
+    """The Simulator's monitor: each step completed kicks ``watchdog``; returns Drake's
+    "continue" status."""
+    from pydrake.systems.framework import EventStatus
 
-    watchdog.kick()
-    return EventStatus.Succeeded()
+    succeeded = EventStatus.Succeeded()
+
+    def monitor(context):
+        watchdog.kick()
+        return succeeded
+
+    return monitor
 
 
 def end_line(run: RobotRun) -> str:

@@ -403,9 +403,11 @@ def save_divergence(sd, root, reason: str) -> Path:
         "t": t,
         "t_state": logs["state"].sample_times().copy(),
         "t_last": np.float64(root.get_time()),
-        "state_last": sd.plant.GetMyContextFromRoot(root)
-        .get_discrete_state_vector()
-        .CopyToVector(),
+        # The station's port, not the plant's context: on the servo bus the plant is a
+        # kinematic model outside the run's Diagram, its state assembled at the measured pose.
+        "state_last": sd.station.GetOutputPort("plant_state")
+        .Eval(sd.station.GetMyContextFromRoot(root))
+        .copy(),
         "T_last": sd.controller.GetOutputPort("T")
         .Eval(sd.controller.GetMyContextFromRoot(root))
         .copy(),
