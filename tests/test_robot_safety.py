@@ -208,3 +208,49 @@ def test_too_many_late_periods_end_the_run_with_the_torque_off(tmp_path):
         assert _torque_enabled(emu) == [0] * 6
     assert run.reason.startswith("DeadlineMissError") and run.exit_code == 1, run.reason
     assert run.torque_off_confirmed
+
+
+@pytest.mark.slow
+def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_logs(tmp_path):
+    """The command as a user runs it (``robot home --emulate``), ended by SIGTERM while it
+    holds: exit status 128 + 15, the one line, the logs."""
+    import subprocess
+    import sys
+
+    from stewart_drake.simulation.scenario import dump_scenario
+
+    scenario = Scenario(controller=LqiDriver(omega_Q=0.01), control_period_s=0.01)
+    scenario.log_period_s = 0.01
+    scenario.hardware = None
+    scenario.bus = DynamixelBusConfig(
+        reply_timeout_s=1.0, watchdog_s=1.0, max_deadline_misses=1_000_000
+    )
+    (tmp_path / "bus.yaml").write_text(dump_scenario(scenario))
+    command = [
+        sys.executable, "-m", "stewart_drake.interfaces.cli", "robot", "home",
+        "--scenario", str(tmp_path / "bus.yaml"), "--emulate", "0,0,0,0,0,0.3",
+        "--home-s", "0.5", "--hold", "120", "--loop-timeout", "2", "--no-progress",
+        "--out", str(tmp_path),
+    ]  # fmt: skip
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 300
+        lines = []
+        while time.monotonic() < deadline:
+            line = process.stderr.readline()
+            if not line:
+                break
+            lines.append(line)
+            if line.startswith("torque on"):
+                break
+        assert lines and lines[-1].startswith("torque on"), lines
+        time.sleep(1.0)
+        process.send_signal(signal.SIGTERM)
+        out, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 128 + signal.SIGTERM, (out, err)
+    last = [line for line in err.splitlines() if line.startswith("stewart-drake robot")]
+    assert len(last) == 1, err
+    assert "interrupted by SIGTERM; torque off (confirmed by every servo); logs in" in last[0]
+    assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5
