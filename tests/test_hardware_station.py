@@ -260,6 +260,19 @@ def test_deadline_misses_are_counted_reported_once_a_burst_and_stop_the_run():
     assert (back.misses, back.limit, back.period_s) == (2, 1, h)
 
 
+def test_a_period_without_a_previous_reading_reports_nothing_measured():
+    bus = StallingBus(X_HOME, stalls=(), stall_s=0.0)
+    builder = DiagramBuilder()
+    driver = builder.AddSystem(DynamixelDriver(bus, StewartGeometry(), H))
+    zero = builder.AddSystem(ConstantVectorSource(np.zeros(6)))
+    builder.Connect(zero.get_output_port(), driver.get_input_port())
+    simulator = Simulator(builder.Build())
+    simulator.AdvanceTo(0.5 * H)  # the period at t = 0, not seeded: no age, no period
+    loop = driver.GetOutputPort("loop").Eval(driver.GetMyContextFromRoot(simulator.get_context()))
+    assert list(loop) == [lcmt_stewart_status.MODE_RUNNING, 0, 0, 0]
+    assert driver.timing_summary()["age"] == {"n": 0} and bus.reads == 1
+
+
 def test_a_non_finite_torque_is_never_written_and_removes_the_torque():
     bus = PlantBus(X_HOME)
     builder = DiagramBuilder()
@@ -273,23 +286,6 @@ def test_a_non_finite_torque_is_never_written_and_removes_the_torque():
 
 
 # -- the closed loop through the driver ------------------------------------------------------------
-
-
-def _run(scenario, bus_factory, duration_s, meshcat=None):
-    """make_stewart_diagram on ``scenario`` with the station's bus replaced by
-    ``bus_factory(x0)``, started on the measured pose, run at real time for ``duration_s``."""
-    sd = make_stewart_diagram(scenario, meshcat=meshcat)
-    x0, _, _ = sd.trajectory.evaluate(0.0)
-    bus = bus_factory(x0)
-    sd.station.use_bus(bus)
-    simulator = Simulator(sd.diagram)
-    simulator.set_target_realtime_rate(1.0)
-    context = simulator.get_mutable_context()
-    sd.initialize(context)
-    sd.station.assemble(context, x0)
-    simulator.Initialize()
-    simulator.AdvanceTo(duration_s)
-    return sd, simulator, bus
 
 
 def test_the_paper_manoeuvre_through_the_driver_tracks_and_publishes_on_lcm():

@@ -255,7 +255,9 @@ class DynamixelDriver(LeafSystem):
             self._in_burst = False
         out = discrete_state.get_mutable_vector(self._state).get_mutable_value()
         out[: _LOOP.start] = measured
-        out[_LOOP] = [self.misses, 1e6 * period if period == period else 0.0, 1e6 * age]
+        # 0 for what was not measured (the first period has no previous one; a run that did not
+        # seed has no previous reading): the LCM status's convention.
+        out[_LOOP] = [self.misses, 1e6 * np.nan_to_num(period), 1e6 * np.nan_to_num(age)]
 
     def _missed(self, t: float, late: float) -> None:
         self.misses += 1
