@@ -165,7 +165,10 @@ def test_a_bus_that_stops_answering_mid_run_ends_it_with_the_torque_off(tmp_path
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)
         scenario.duration_s = 30.0
-        run, _ = _run(scenario, tmp_path, before_torque=_on_call(50, cut_for_a_moment))
+        # Our watchdog waits longer than the read's reply timeout (1 s): the bus error first.
+        run, _ = _run(
+            scenario, tmp_path, loop_timeout_s=5.0, before_torque=_on_call(50, cut_for_a_moment)
+        )
         assert _torque_enabled(emu) == [0] * 6
     assert run.reason.startswith("BusError") and run.exit_code == 1, run.reason
     assert run.torque_off_confirmed and run.logs is not None

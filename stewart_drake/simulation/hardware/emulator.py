@@ -519,30 +519,15 @@ def main(argv=None) -> None:
     """``python -m stewart_drake.simulation.hardware.emulator --ids 1 2 3 4 5 6``: a bus in
     its own process (no GIL shared with the driver). Prints the port path on the first line of
     stdout, then serves until its stdin closes (the parent's end of a pipe, or Ctrl-D) or
-    SIGTERM/Ctrl-C. ``--plant`` puts the robot's Drake plant behind it
-    (:class:`~.plant_backend.StationServos`, built with the servos ``--model``), assembled at
-    ``--x0`` (phi theta psi X Y Z, rad and m; default home); ``--zero-counts`` are the counts
-    each servo reports at its crank's zero angle."""
+    SIGTERM/Ctrl-C."""
     import argparse
-    import signal
     import sys
 
     parser = argparse.ArgumentParser(description=main.__doc__)
     parser.add_argument("--ids", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
     parser.add_argument("--model", default="XM430-W350-T")
-    parser.add_argument("--plant", action="store_true", help="the robot's Drake plant behind")
-    parser.add_argument("--x0", type=float, nargs=6, default=None, help="the plant's pose")
-    parser.add_argument("--zero-counts", type=int, nargs="+", default=None)
     args = parser.parse_args(argv)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)  # a Ctrl-C: close the pty
-    backend = None
-    if args.plant:
-        from ...model.kinematics import X_HOME
-        from .plant_backend import StationServos
-
-        x0 = X_HOME if args.x0 is None else args.x0
-        backend = StationServos(model=args.model, x0=x0)
-    with BusEmulator(args.ids, args.model, backend, zero_counts=args.zero_counts) as emulator:
+    with BusEmulator(args.ids, args.model) as emulator:
         print(emulator.port, flush=True)
         try:
             while sys.stdin.read(1):

@@ -27,7 +27,9 @@ from ...errors import BusError
 from ...model.kinematics import X_HOME
 
 
-def _serve(conn, ids, model, x0, scenario_yaml, tick_s, max_step_s) -> None:  # pragma: no cover
+def _serve(  # pragma: no cover
+    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts
+) -> None:
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends the
     port, serves until told to stop, then sends the record."""
     from ..scenario import _scenario_from_yaml
@@ -49,7 +51,9 @@ def _serve(conn, ids, model, x0, scenario_yaml, tick_s, max_step_s) -> None:  # 
             self.record.append((time.perf_counter(), *self._port.Eval(self._context)))
 
     backend = Recorded()
-    with BusEmulator(ids, model, backend=backend, tick_s=tick_s, max_step_s=max_step_s) as emu:
+    with BusEmulator(
+        ids, model, backend=backend, zero_counts=zero_counts, tick_s=tick_s, max_step_s=max_step_s
+    ) as emu:
         conn.send(emu.port)
         conn.recv()  # stop
         record = emu.with_backend(lambda b: np.array(b.record, dtype=float).reshape(-1, 13))
@@ -67,6 +71,8 @@ class EmulatorProcess:
             Scenario: its robot and plant settings are used.
         tick_s, max_step_s: the emulator's (:class:`~.emulator.BusEmulator`).
         start_timeout_s: how long to wait for the child's port.
+        zero_counts: (n,) the counts each servo reports at its crank's zero angle (default
+            2048, the bus's default).
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
             :meth:`close`).
@@ -83,6 +89,7 @@ class EmulatorProcess:
         tick_s: float = 0.001,
         max_step_s: float = 0.02,
         start_timeout_s: float = 120.0,
+        zero_counts=None,
     ):
         from ..scenario import Scenario, dump_scenario
 
@@ -93,6 +100,7 @@ class EmulatorProcess:
             dump_scenario(scenario if scenario is not None else Scenario()),
             tick_s,
             max_step_s,
+            None if zero_counts is None else [int(c) for c in zero_counts],
         )
         self.start_timeout_s = start_timeout_s
         self.port: str | None = None
