@@ -104,7 +104,10 @@ def test_a_table_of_rows_made_a_stretch_at_a_time_is_the_zero_order_hold_of_the_
     stretched, whole = TableHold(breaks, rows=rows, stretch=5), TableHold(breaks, table)
     drake = TrajectorySource(zero_order_hold(breaks, table))
     contexts = [s.CreateDefaultContext() for s in (stretched, whole, drake)]
-    for t in (-1.0, 0.0, 0.5e-3, 1e-3, 4.99e-3, 5e-3, 9.9e-3, 0.0115, 0.012, 1.0, 3e-3):
+    # Jumps back and forth, then every row in turn (the row last output and the next are tried
+    # before a search: each break, just before it and inside its interval).
+    walk = (np.array([-1e-12, 0.0, 0.5e-3])[None, :] + breaks[:, None]).ravel()
+    for t in (-1.0, 0.0, 0.5e-3, 1e-3, 4.99e-3, 5e-3, 9.9e-3, 0.0115, 0.012, 1.0, 3e-3, *walk):
         values = []
         for system, context in zip((stretched, whole, drake), contexts):
             context.SetTime(t)

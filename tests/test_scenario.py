@@ -40,6 +40,7 @@ def test_a_dump_names_only_the_drake_settings_it_changes():
     data = yaml_load(data=text)
     assert data["plant"] == {
         "time_step": 1e-3,
+        "use_sampled_output_ports": False,
         "discrete_contact_approximation": "sap",
         "penetration_allowance": 2e-3,
     }
@@ -51,7 +52,11 @@ def test_a_dump_names_only_the_drake_settings_it_changes():
         if path.name.endswith("_requirements.yaml"):  # a design task, not a scenario
             continue
         data = yaml_load(data=path.read_text())
-        assert set(data["plant"]) == {"time_step", "discrete_contact_approximation"}, path
+        assert set(data["plant"]) == {
+            "time_step",
+            "discrete_contact_approximation",
+            "use_sampled_output_ports",
+        }, path
         assert "simulator" not in data and "visualization" not in data, path
 
 

@@ -180,6 +180,7 @@ class TableHold(LeafSystem):
                 f"{self.breaks.shape} and {first.shape}"
             )
         self._last = self.breaks.size - 2
+        self._k = 0  # the row last output: the next call's first guess
         self._start = -1  # the stretch in use, with its rows
         self._block: np.ndarray | None = None
         self.DeclareVectorOutputPort(
@@ -204,9 +205,20 @@ class TableHold(LeafSystem):
         assert self._block is not None
         return self._block[k - a]
 
+    def index(self, t: float) -> int:
+        """The row in force at time t s: k with breaks[k] <= t < breaks[k + 1], clamped to the
+        table. The row last output and the next are tried first (a run reads the rows in turn),
+        then a binary search."""
+        b, k = self.breaks, self._k
+        for j in (k, k + 1):
+            if j < b.size - 1 and b[j] <= t < b[j + 1]:
+                self._k = j
+                return j
+        self._k = min(max(int(np.searchsorted(b, t, side="right")) - 1, 0), self._last)
+        return self._k
+
     def _Calc(self, context, output: BasicVector) -> None:
-        k = int(np.searchsorted(self.breaks, context.get_time(), side="right")) - 1
-        output.SetFromVector(self.row(min(max(k, 0), self._last)))
+        output.SetFromVector(self.row(self.index(context.get_time())))
 
 
 def add_reference_sources(
