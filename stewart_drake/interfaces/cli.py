@@ -1025,17 +1025,18 @@ def _start_emulator(scenario, x0):
     the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
     ``scenario.bus`` at its pseudo-terminal; returns the
     :class:`~stewart_drake.simulation.hardware.emulator_process.EmulatorProcess` (close it)."""
+    import copy
     import dataclasses
-
-    from pydrake.multibody.plant import MultibodyPlantConfig
 
     from ..simulation.hardware.emulator_process import EmulatorProcess
 
     bus = scenario.bus
+    plant = copy.copy(scenario.plant)
+    plant.time_step = 0.002
     robot = dataclasses.replace(
         scenario,
         bus=None,
-        plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
+        plant=plant,
         control_period_s=0.002,
         log_period_s=0.002,
     )
