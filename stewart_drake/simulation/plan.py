@@ -76,6 +76,25 @@ class RunPlan:
     reference: Any  # a motion.Reference, or None
     controller_factory: Callable
 
+    def add_plant(self, builder):
+        """The robot as simulated, a MultibodyPlant named "plant" with its SceneGraph, added to
+        ``builder``: :func:`~stewart_drake.model.plant.add_stewart_plant` with ``plant_geometry``,
+        ``servo`` and the scenario's plant settings, contact and rod model. Returns (plant,
+        scene_graph, handles)."""
+        from ..model.plant import add_stewart_plant
+
+        scenario = self.scenario
+        plant, scene_graph, handles = add_stewart_plant(
+            builder,
+            self.plant_geometry,
+            plant_config=scenario.plant,
+            servo=self.servo,
+            contact=scenario.contact,
+            rod_model=scenario.rod_model,
+        )
+        plant.set_name("plant")
+        return plant, scene_graph, handles
+
     def controller_context(self, x0, x_dot0) -> ControllerContext:
         """What the run tells its controller's factory, starting at pose x0 (6,) [rad, m] moving
         at x_dot0 (6,) [rad/s, m/s]: on the robot as built a new encoders' pose estimator, with

@@ -28,7 +28,7 @@ from pydrake.systems.primitives import (
 )
 
 from ..model.kinematics import X_HOME
-from ..model.plant import add_stewart_plant, assemble
+from ..model.plant import assemble
 from ..model.statics import p_ETool
 from .sensors import PlatformPoseSensor, add_white_noise
 
@@ -117,24 +117,6 @@ def _connect_actuators(builder, applied, handles) -> None:
         builder.Connect(applied, handles.actuation_port)
 
 
-def add_plan_plant(builder, plan):
-    """The robot of ``plan`` (:class:`~.plan.RunPlan`) as simulated, a MultibodyPlant named
-    "plant" with its SceneGraph, in ``builder``: (plant, scene_graph, handles)
-    (:func:`~stewart_drake.model.plant.add_stewart_plant` with the plan's geometry, servo and
-    the scenario's plant settings, contact and rod model)."""
-    scenario = plan.scenario
-    plant, scene_graph, handles = add_stewart_plant(
-        builder,
-        plan.plant_geometry,
-        plant_config=scenario.plant,
-        servo=plan.servo,
-        contact=scenario.contact,
-        rod_model=scenario.rod_model,
-    )
-    plant.set_name("plant")
-    return plant, scene_graph, handles
-
-
 class StewartStation(Diagram):
     """The robot as built by :func:`make_stewart_station`; a Drake ``Diagram`` named "station".
 
@@ -175,7 +157,7 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         scenario = plan.scenario
-        plant, scene_graph, handles = add_plan_plant(builder, plan)
+        plant, scene_graph, handles = plan.add_plant(builder)
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")

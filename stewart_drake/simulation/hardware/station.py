@@ -58,7 +58,6 @@ from ...model.kinematics import (
 from ...model.plant import assembled_positions
 from ..scenario import SERVO_COUNTS_PER_REV
 from ..sensors import PlatformPoseSensor
-from ..station import add_plan_plant
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
@@ -407,7 +406,7 @@ class HardwareStation(Diagram):
         super().__init__()
         scenario = plan.scenario
         model_builder = DiagramBuilder()
-        plant, scene_graph, handles = add_plan_plant(model_builder, plan)
+        plant, scene_graph, handles = plan.add_plant(model_builder)
         if meshcat is not None:
             from pydrake.visualization import ApplyVisualizationConfig
 
