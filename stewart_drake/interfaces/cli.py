@@ -998,8 +998,9 @@ def _cmd_teleop(args) -> int:
 
 
 def _robot_reference(args, scenario):
-    """``robot``'s REFERENCE onto ``scenario``: a name of :data:`TRAJECTORIES` ("home" holds
-    the home pose), a recorded trace or a CSV file; None keeps the scenario's."""
+    """``robot``'s REFERENCE onto ``scenario``: a name of
+    :data:`~stewart_drake.simulation.trajectories.TRAJECTORIES` ("home" holds the home pose),
+    a recorded trace or a CSV file; None keeps the scenario's."""
     from ..simulation.trajectories import TRAJECTORIES, NamedReference
 
     source = args.reference
@@ -1779,7 +1780,9 @@ def _add_robot_command(sub) -> None:
         "a CSV file (default: the scenario's)",
     )
     _add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)")
-    rob.add_argument("--port", default=None, help="the servos' serial port (bus.port)")
+    rob.add_argument(
+        "--port", default=None, help="the servos' serial port (default: the scenario's bus.port)"
+    )
     rob.add_argument(
         "--dry-run",
         action="store_true",
@@ -1791,7 +1794,7 @@ def _add_robot_command(sub) -> None:
         default=None,
         metavar="DEG",
         help="read the zero_counts with every crank held at DEG degrees (0: horizontal), "
-        "torque off; print them and stop",
+        "torque off; print them and stop (default: no calibration)",
     )
     rob.add_argument(
         "--home-s",

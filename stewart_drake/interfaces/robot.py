@@ -150,8 +150,9 @@ def _check_bus_scenario(scenario):
 
 def measure_pose(scenario, bus=None) -> MeasuredPose:
     """Read the robot's pose with the torque off (the dry run): open the bus of
-    ``scenario.bus`` (or use ``bus``, an opened :class:`DynamixelBus`), read the crank angles
-    once, close it.
+    ``scenario.bus`` (or use ``bus``, an opened
+    :class:`~stewart_drake.simulation.hardware.driver.DynamixelBus`), read the crank angles once,
+    close it.
 
     Args:
         scenario: a Scenario with a ``bus`` (or a RunPlan of one).
