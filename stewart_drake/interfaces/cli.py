@@ -1089,9 +1089,9 @@ def _cmd_robot(args) -> int:
         print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
     try:
         if args.calibrate is not None:
-            from .robot import zero_counts_at
+            from .robot import bus_config, zero_counts_at
 
-            with scenario.bus.make_bus() as bus:
+            with bus_config(scenario).make_bus() as bus:
                 zeros = zero_counts_at(bus, math.radians(args.calibrate))
             print(
                 f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"

@@ -130,14 +130,14 @@ def pose_verdict(plan, q) -> MeasuredPose:
         clearance=clearance_model(plan.plant_geometry),
     )
     keys = ("reachable", "clear", "usable", "within_peak", "admissible")
-    one = {k: bool(flags[k][0]) for k in keys}
+    one: dict = {k: bool(flags[k][0]) for k in keys}
     one.update(
         {k: float(flags[k][0]) for k in ("max_torque", "clearance", "cond", "sigma_min_inv")}
     )
     return MeasuredPose(q=q, x=x, flags=one, problem=_first_problem(one))
 
 
-def _check_bus_scenario(scenario):
+def bus_config(scenario):
     """The scenario's ``bus`` config, or InvalidConfigError saying how to give one."""
     bus = getattr(scenario, "bus", None)
     if bus is None:
@@ -167,7 +167,7 @@ def measure_pose(scenario, bus=None) -> MeasuredPose:
     plan = make_plan(scenario, with_reference=False)
     if bus is not None:
         return pose_verdict(plan, bus.read_state().q)
-    with _check_bus_scenario(plan.scenario).make_bus() as opened:
+    with bus_config(plan.scenario).make_bus() as opened:
         return pose_verdict(plan, opened.read_state().q)
 
 
@@ -376,7 +376,7 @@ def run_on_robot(
 
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     plan = make_plan(scenario, with_reference=False)
-    _check_bus_scenario(plan.scenario)
+    bus_config(plan.scenario)
     if not 0 < home_s <= 60 or not 0 <= hold_s <= 3600:
         raise InvalidConfigError(
             f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
@@ -413,6 +413,7 @@ def _run(
 
     from ..simulation.diagram import make_stewart_diagram
     from ..simulation.guard import advance as guarded
+    from ..simulation.hardware.station import HardwareStation
     from ..simulation.plan import make_plan
     from ..studies.experiments import (
         advance,
@@ -435,13 +436,16 @@ def _run(
     ApplySimulatorConfig(plan.scenario.simulator, simulator)
     context = simulator.get_mutable_context()
     sd.initialize(context)
-    bus = sd.station.bus
+    station = sd.station
+    if not isinstance(station, HardwareStation):  # a scenario with a bus builds one
+        raise InvalidConfigError("the run's station is not on the servo bus")
+    bus = station.bus
     bus.open()
     ended = RobotRun("", False, True, start=start)
     powered, wall = False, 0.0
     try:
         bus.configure()
-        sd.station.assemble(context, start.x)  # the driver holds its first reading
+        station.assemble(context, start.x)  # the driver holds its first reading
         again = pose_verdict(sd.plan, bus.read_state().q)
         moved = np.abs(again.x - start.x)
         if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
@@ -485,8 +489,8 @@ def _run(
     finally:
         ended.torque_off_confirmed = bus.torque_off()
         try:
-            ended.timing = sd.station.driver.timing_summary()
-            ended.timing_lines = sd.station.driver.timing_lines()
+            ended.timing = station.driver.timing_summary()
+            ended.timing_lines = station.driver.timing_lines()
         finally:
             bus.close()
     if not powered:
