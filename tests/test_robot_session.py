@@ -29,31 +29,35 @@ from stewart_drake.simulation.trajectories import paper_manoeuvre  # noqa: E402
 IDS = [1, 2, 3, 4, 5, 6]
 
 
-def test_the_homing_lead_in_leaves_at_rest_and_joins_the_reference_smoothly():
-    reference = paper_manoeuvre()
+def test_the_homing_lead_in_and_the_warped_reference_start_and_end_at_rest_on_its_path():
+    reference = paper_manoeuvre()  # starts moving: phi_dot = 2 pi / 6 rad/s
     x_rest = X_HOME + np.array([0.02, -0.01, 0.0, 0.003, -0.002, -0.01])
-    homed = HomingReference(reference, x_rest, home_s=2.0, t_end=3.0)
-    x, v, a = homed.evaluate(np.array([0.0]))
+    homed = HomingReference(reference, x_rest, home_s=2.0, t_end=3.0, ramp_s=1.0)
+    assert homed.duration_s == 6.0
+    x, v, a = homed.evaluate(np.array([0.0, 2.0, 6.0, 9.0]))
     np.testing.assert_allclose(x[0], x_rest, atol=1e-15)
-    np.testing.assert_allclose(np.abs(v[0]) + np.abs(a[0]), 0.0, atol=1e-12)
-    # Joins the paper manoeuvre (which starts moving: phi_dot = 2 pi / 6 rad/s) in pose, rate
-    # and acceleration.
-    for part, ref in zip(homed.evaluate(np.array([2.0 - 1e-9, 2.0])), reference.evaluate(0.0)):
-        np.testing.assert_allclose(part, np.tile(np.reshape(ref, 6), (2, 1)), atol=1e-6)
-    # The rate and acceleration it reports are its pose's derivatives (central differences).
-    t = np.linspace(0.1, 4.5, 23)
+    np.testing.assert_allclose(x[1], reference.evaluate(0.0)[0], atol=1e-12)  # homed
+    np.testing.assert_allclose(x[2:], np.tile(reference.evaluate(3.0)[0], (2, 1)), atol=1e-12)
+    np.testing.assert_allclose(np.abs(v) + np.abs(a), 0.0, atol=1e-12)  # at rest at each end
+    # The rate and acceleration it reports are its pose's derivatives (central differences),
+    # across the lead-in, both ramps and the joins.
+    t = np.linspace(0.05, 6.5, 131)
     h = 1e-5
     xp, vp, _ = homed.evaluate(t + h)
     xm, vm, _ = homed.evaluate(t - h)
     _, v, a = homed.evaluate(t)
     np.testing.assert_allclose((xp - xm) / (2 * h), v, atol=1e-6)
     np.testing.assert_allclose((vp - vm) / (2 * h), a, atol=1e-4)
-    # Shifted by the lead-in, then held at the reference's pose at t_end, at rest.
-    np.testing.assert_allclose(homed.evaluate(4.0)[0], reference.evaluate(2.0)[0], atol=1e-15)
-    late = homed.evaluate(np.array([5.5, 9.0]))
-    np.testing.assert_allclose(late[0], np.tile(reference.evaluate(3.0)[0], (2, 1)), atol=1e-15)
-    assert not np.any(late[1]) and not np.any(late[2])
-    with pytest.raises(InvalidConfigError, match="homing time"):
+    # Between the ramps: the reference itself, half a ramp late, at its own rate.
+    t_mid = np.array([3.6, 4.0, 4.4])
+    for part, ref in zip(homed.evaluate(t_mid), reference.evaluate(t_mid - 2.0 - 0.5)):
+        np.testing.assert_allclose(part, ref, atol=1e-12)
+    # Never faster than the reference (on its path, at most its rate).
+    speeds = np.abs(homed.evaluate(np.linspace(2.0, 6.0, 401))[1]).max(axis=0)
+    assert np.all(
+        speeds <= np.abs(reference.evaluate(np.linspace(0, 3, 301))[1]).max(axis=0) + 1e-12
+    )
+    with pytest.raises(InvalidConfigError, match="must be > 0"):
         HomingReference(reference, x_rest, home_s=0.0)
 
 
