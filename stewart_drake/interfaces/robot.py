@@ -207,7 +207,7 @@ class HomingReference:
       checked as ``check`` checks the reference; the rates are at most the reference's.
     - After it, x_d(t_end) held at rest.
 
-    The warp lasts ``t_end + ramp_s`` s (each ramp lags half of itself): :attr:`duration_s` is
+    The warp lasts ``t_end + ramp_s`` s (each ramp lags half of itself): ``duration_s`` is
     the whole run, lead-in included.
 
     Args:
