@@ -257,3 +257,26 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     assert len(last) == 1, err
     assert "interrupted by SIGTERM; torque off (confirmed by every servo); logs in" in last[0]
     assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5
+
+
+def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(tmp_path):
+    from pydrake.geometry import Meshcat
+
+    from stewart_drake.interfaces.robot import teleop_on_robot
+
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        lines = []
+        run = teleop_on_robot(
+            scenario, Meshcat(), duration_s=1.0, loop_timeout_s=2.0, say=lines.append
+        )
+        z_end = emu.with_backend(
+            lambda b: b.station.GetOutputPort("platform_state").Eval(
+                b.station.GetMyContextFromRoot(b.simulator.get_context())
+            )[5]
+        )
+        assert _torque_enabled(emu) == [0] * 6
+    assert run.ok and run.torque_off_confirmed and run.reason == "the session ran its duration"
+    assert "sliders" in lines[0]
+    # The sliders start at the measured pose: the robot holds where it rested.
+    assert abs(z_end - X_REST[5]) < 2e-3, z_end

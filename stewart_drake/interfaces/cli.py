@@ -1062,6 +1062,10 @@ def _cmd_robot(args) -> int:
     from ..studies.run_report import format_metrics
     from .robot import end_line, measure_pose, run_on_robot
 
+    if args.teleop and (args.reference is not None or args.dry_run):
+        from ..errors import InvalidConfigError
+
+        raise InvalidConfigError("--teleop takes no reference (the sliders are one) nor --dry-run")
     scenario = load_scenario(args.scenario, args.set or ())
     _robot_reference(args, scenario)
     if args.duration is not None:
@@ -1103,21 +1107,28 @@ def _cmd_robot(args) -> int:
             print(measured.summary())
             return 0 if measured.problem is None else 1
         meshcat = None
-        if args.meshcat:
+        if args.meshcat or args.teleop:
             from pydrake.geometry import Meshcat
 
             meshcat = Meshcat()
             print(f"open {meshcat.web_url()} to watch the robot at its measured pose")
-        run = run_on_robot(
-            scenario,
-            home_s=args.home_s,
-            hold_s=args.hold,
-            loop_timeout_s=args.loop_timeout,
-            out=out,
-            stem=stem,
-            meshcat=meshcat,
-            progress=not args.no_progress,
-        )
+        if args.teleop:
+            from .robot import teleop_on_robot
+
+            run = teleop_on_robot(
+                scenario, meshcat, duration_s=args.duration, loop_timeout_s=args.loop_timeout
+            )
+        else:
+            run = run_on_robot(
+                scenario,
+                home_s=args.home_s,
+                hold_s=args.hold,
+                loop_timeout_s=args.loop_timeout,
+                out=out,
+                stem=stem,
+                meshcat=meshcat,
+                progress=not args.no_progress,
+            )
     finally:
         if emulator is not None:
             emulator.close()
@@ -1831,6 +1842,12 @@ def _add_robot_command(sub) -> None:
         "time behind it) resting at POSE phi,theta,psi,X,Y,Z (default 0,0,0,0,0,0.28)",
     )
     rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
+    rob.add_argument(
+        "--teleop",
+        action="store_true",
+        help="drive the robot from Meshcat's sliders, from where it rests (until Ctrl-C, or "
+        "--duration s)",
+    )
     rob.add_argument("--no-progress", action="store_true", help="no progress bar")
     rob.add_argument("--out", default="results", help="folder of the logs")
     rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))

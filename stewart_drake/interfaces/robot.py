@@ -493,36 +493,21 @@ def _run(
             )
         if before_torque is not None:
             before_torque(sd, simulator)
-        watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
-        simulator.set_monitor(_kicker(watchdog))
-        simulator.set_target_realtime_rate(1.0)
-        bus.enable_torque()
         powered = True
-        say(
+
+        def body():
+            simulator.Initialize()  # paces real time from here
+            guarded(
+                sd,
+                simulator,
+                lambda: advance(simulator, sd.plan.duration_s, progress, "on the robot"),
+            )
+
+        announce = (
             f"torque on: homing for {homed.home_s:g} s from the measured pose, then "
             f"{getattr(homed.reference, 'name', 'the reference')}"
         )
-        wall0 = time.perf_counter()
-        try:
-            with watchdog:
-                simulator.Initialize()  # paces real time from here
-                guarded(
-                    sd,
-                    simulator,
-                    lambda: advance(simulator, sd.plan.duration_s, progress, "on the robot"),
-                )
-            ended.reason, ended.ok = "the reference ran to its end", True
-        except KeyboardInterrupt as err:
-            if watchdog.tripped:
-                ended.reason, ended.exit_code = watchdog.tripped, 1
-            else:
-                name, ended.exit_code = _signal_name(err)
-                ended.reason = f"interrupted by {name}"
-        except StewartError as err:  # a bus error, a missed deadline, a guard trip
-            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
-        except RuntimeError as err:  # inside Drake (the guard saved the logs and said where)
-            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
-        wall = time.perf_counter() - wall0
+        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended)
     finally:
         ended.torque_off_confirmed = bus.torque_off()
         try:
@@ -538,6 +523,88 @@ def _run(
         ended.logs = save_result(result, out / f"{stem}.npz")
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
+    return ended
+
+
+def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun) -> float:
+    """Enable the torque, say ``announce``, run ``body()`` (which advances ``simulator``)
+    behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. The
+    caller removes the torque (in a ``finally``)."""
+    watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
+    simulator.set_monitor(_kicker(watchdog))
+    simulator.set_target_realtime_rate(1.0)
+    bus.enable_torque()
+    say(announce)
+    wall0 = time.perf_counter()
+    try:
+        with watchdog:
+            body()
+        ended.reason, ended.ok = "the reference ran to its end", True
+    except KeyboardInterrupt as err:
+        if watchdog.tripped:
+            ended.reason, ended.exit_code = watchdog.tripped, 1
+        else:
+            name, ended.exit_code = _signal_name(err)
+            ended.reason = f"interrupted by {name}"
+    except StewartError as err:  # a bus error, a missed deadline, a guard trip
+        ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+    except RuntimeError as err:  # inside Drake (the guard saved the logs and said where)
+        ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+    return time.perf_counter() - wall0
+
+
+def teleop_on_robot(
+    scenario,
+    meshcat,
+    *,
+    duration_s: float | None = None,
+    loop_timeout_s: float = LOOP_TIMEOUT_S,
+    say: Callable[[str], None] | None = None,
+) -> RobotRun:
+    """``teleop`` on the robot: the live Meshcat (sliders, gauges, the reference's ghost, the
+    robot drawn at its measured pose) driving the servos of ``scenario.bus``.
+
+    The sliders start at the measured pose (it must be in the admissible set: nothing is
+    powered otherwise) and the reference follows them only through admissible poses at
+    bounded rate (:class:`~stewart_drake.simulation.reference.TeleopReference`), so no homing
+    is needed. The pause button is off: on the robot time does not stop (a paused loop would
+    trip the watchdogs and drop the platform). Ends after ``duration_s`` (None: at Ctrl-C or
+    SIGTERM) with the torque off and one line, as :func:`run_on_robot`; a live session keeps
+    no logs (as ``teleop`` in simulation).
+
+    Raises:
+        as :func:`run_on_robot` before the torque is on.
+    """
+    from ..execution.runners import Interrupted
+    from .teleop import build_teleop, run_teleop
+
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    bus_config(scenario)
+    start = measure_pose(scenario)
+    if start.problem is not None:
+        raise StartPoseError(
+            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
+            f"was powered. Measured: {start.summary().splitlines()[0]}"
+        )
+    bus = bus_config(scenario).make_bus().open()
+    ended = RobotRun("", False, True, start=start)
+    try:
+        bus.configure()
+        run = build_teleop(scenario, meshcat, x_initial=start.x, bus=bus)
+        run.paused = lambda: False  # type: ignore[method-assign]
+
+        def body():
+            stats = run_teleop(run, duration_s, report=None)
+            if "interrupted_by" in stats:
+                raise Interrupted(stats["interrupted_by"])
+
+        announce = f"torque on: open {meshcat.web_url()} ; the sliders move the robot"
+        _drive(bus, run.simulator, loop_timeout_s, say, announce, body, ended)
+        if ended.ok:
+            ended.reason = "the session ran its duration"
+    finally:
+        ended.torque_off_confirmed = bus.torque_off()
+        bus.close()
     return ended
 
 

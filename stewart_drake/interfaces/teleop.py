@@ -288,7 +288,13 @@ def teleop_scenario(scenario):
 
 
 def build_teleop(
-    scenario, meshcat, realtime_rate: float = 1.0, margins=None, limits=None, x_initial=X_HOME
+    scenario,
+    meshcat,
+    realtime_rate: float = 1.0,
+    margins=None,
+    limits=None,
+    x_initial=X_HOME,
+    bus=None,
 ) -> TeleopRun:
     """The live closed loop of ``scenario`` in ``meshcat`` (module docstring), ready to run.
 
@@ -299,6 +305,9 @@ def build_teleop(
             scenario's motors and the clearance between the parts).
         limits: the reference's :class:`~stewart_drake.simulation.reference.ReferenceFilterLimits`.
         x_initial: (6,) the start pose [rad, m] (home).
+        bus: on the robot (a scenario with ``bus``), the opened and configured
+            :class:`~stewart_drake.simulation.hardware.driver.DynamixelBus` the station drives
+            (it reads the servos once here); the caller enables the torque.
     Raises:
         InvalidConfigError: a bad scenario or setting; UnreachablePoseError: x_initial.
     """
@@ -362,6 +371,8 @@ def build_teleop(
     simulator.set_target_realtime_rate(realtime_rate)
     context = simulator.get_mutable_context()
     loop.initialize(context)
+    if bus is not None:
+        loop.station.use_bus(bus)  # type: ignore[union-attr]
     loop.station.assemble(context, x0)
     simulator.Initialize()
     meshcat.AddButton(PAUSE_BUTTON, "KeyP")  # (re)starts its count: running
