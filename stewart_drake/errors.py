@@ -378,6 +378,11 @@ class StartPoseError(StewartError, ValueError):
     no pose of the robot, or moved while the servos were configured); nothing was powered."""
 
 
+class LoopStalledError(BusError):
+    """Our watchdog found the control loop stalled (no period completed within its limit) and
+    removed the servos' torque; the run ends at the loop's next step."""
+
+
 class MissingServoError(BusError):
     """A servo id that does not answer a PING on the bus.
 

@@ -1089,6 +1089,9 @@ def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, delay_s):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # As a user's shell starts it: a suite started in the background of a script inherits
+        # SIGINT ignored, and so would the command, which then never sees the Ctrl-C.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     time.sleep(delay_s)
     proc.send_signal(signal.SIGINT)
@@ -1188,3 +1191,33 @@ def test_a_long_trace_shows_its_check_and_ends_promptly_on_a_signal(tmp_path):
     assert lines[-1] == (
         "stewart-drake reproduce: interrupted by SIGINT; partial outputs were not written"
     ), lines[-3:]
+
+
+def test_a_signal_inside_compiled_code_is_one_line_not_a_traceback(monkeypatch, capsys, tmp_path):
+    """A SIGTERM whose handler raises while numba's dispatcher runs comes back as a SystemError
+    around the interrupt ("returned a result with an exception set", seen on the robot
+    command): the command still ends with 128 + 15 and one line."""
+    from stewart_drake.execution.runners import Interrupted, interrupt_in
+
+    def compiled(args):
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as err:
+            raise SystemError(
+                "CPUDispatcher(warm_gain) returned a result with an exception set"
+            ) from err
+
+    monkeypatch.setattr(cli, "_cmd_sdf", compiled)
+    assert cli.main(["sdf", "--out", str(tmp_path / "robot.sdf")]) == 128 + signal.SIGTERM
+    err = capsys.readouterr().err
+    assert (
+        err.strip() == "stewart-drake sdf: interrupted by SIGTERM; partial outputs were not written"
+    )
+    assert interrupt_in(SystemError("another failure")) is None
+
+    def failing(args):
+        raise SystemError("another failure")
+
+    monkeypatch.setattr(cli, "_cmd_sdf", failing)
+    with pytest.raises(SystemError, match="another"):  # not an interrupt: raised as it is
+        cli.main(["sdf", "--out", str(tmp_path / "robot.sdf")])

@@ -46,6 +46,7 @@ EXAMPLES = {
     errors.MissingServoError: errors.MissingServoError(4, "/dev/ttyUSB0"),
     errors.ServoConfigMismatchError: errors.ServoConfigMismatchError(2, "Current Limit", 700, 1193),
     errors.StartPoseError: errors.StartPoseError("the robot rests at a pose outside the set"),
+    errors.LoopStalledError: errors.LoopStalledError("no period completed for 312 ms"),
     errors.DeadlineMissError: errors.DeadlineMissError(11, 10, 0.002, 0.0061, 3.214),
 }
 

@@ -123,7 +123,16 @@ def test_a_run_homes_from_the_measured_pose_holds_and_ends_with_the_torque_off(t
     assert run.start is not None and abs(run.start.x[5] - X_REST[5]) < 1e-3
 
 
-def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path):
+@pytest.fixture
+def ctrl_c():
+    """Python's own SIGINT handler, as in a user's terminal (a suite started in the background
+    of a script inherits SIGINT ignored)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path, ctrl_c):
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)
         scenario.duration_s = 30.0
@@ -151,7 +160,8 @@ def test_our_watchdog_removes_the_torque_when_the_loop_stalls(tmp_path):
         scenario.duration_s = 30.0
         run, _ = _run(scenario, tmp_path, loop_timeout_s=0.3, before_torque=_on_call(50, stall))
         offs = _torque_off_times(emu, stalled[0])
-    assert "no period completed" in run.reason and run.exit_code == 1, run.reason
+    assert run.reason.startswith("LoopStalledError") and run.exit_code == 1, run.reason
+    assert "no period completed" in run.reason
     # Off while the loop was still stalled: after the limit, well before the stall's end.
     assert offs and 0.3 <= offs[0] - stalled[0] < 2.5, offs[0] - stalled[0]
     assert run.torque_off_confirmed and run.logs is not None

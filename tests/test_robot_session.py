@@ -61,18 +61,23 @@ def test_the_homing_lead_in_and_the_warped_reference_start_and_end_at_rest_on_it
         HomingReference(reference, x_rest, home_s=0.0)
 
 
-def test_our_watchdog_removes_the_torque_and_interrupts_when_periods_stop():
+def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_raises():
+    from stewart_drake.errors import LoopStalledError
+    from stewart_drake.interfaces.robot import _kicker
+
     calls = []
     watchdog = LoopWatchdog(lambda: calls.append(time.perf_counter()) or True, timeout_s=0.2)
-    with pytest.raises(KeyboardInterrupt):
-        with watchdog:
-            t0 = time.perf_counter()
-            watchdog.kick()
-            while time.perf_counter() < t0 + 30:  # stalled: no kick (bounded wait)
-                time.sleep(0.005)
+    monitor = _kicker(watchdog)
+    with watchdog:
+        t0 = time.perf_counter()
+        monitor(None)  # a step completed
+        while watchdog.tripped is None and time.perf_counter() < t0 + 30:  # stalled (bounded)
+            time.sleep(0.005)
     assert len(calls) == 1
     assert calls[0] - t0 >= 0.2  # never before the limit
     assert "no period completed" in watchdog.tripped and "(confirmed)" in watchdog.tripped
+    with pytest.raises(LoopStalledError, match="no period completed"):
+        monitor(None)  # the loop's next step ends the run
 
 
 def test_our_watchdog_stays_quiet_while_periods_complete():

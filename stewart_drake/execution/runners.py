@@ -180,6 +180,22 @@ class Interrupted(KeyboardInterrupt):
         return type(self), (self.signum,)
 
 
+def interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt (Ctrl-C, or :class:`Interrupted` for SIGTERM and SIGHUP) that
+    ``err`` wraps, searched down its chain of causes and contexts (at most 20 links), or None.
+    A signal whose handler raises while compiled code runs comes back wrapped in another error:
+    numba's dispatcher returns a SystemError ("returned a result with an exception set") whose
+    cause is the interrupt."""
+    link: BaseException | None = err
+    for _ in range(20):
+        if link is None:
+            return None
+        if isinstance(link, KeyboardInterrupt):
+            return link
+        link = link.__cause__ or link.__context__
+    return None
+
+
 def raise_interrupted(signum, frame):
     """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP)."""
     raise Interrupted(signum)

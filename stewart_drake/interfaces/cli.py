@@ -1935,6 +1935,13 @@ def _main(argv: list[str] | None) -> int:
         if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
+    except SystemError as err:  # a signal inside compiled code (numba's dispatcher wraps it)
+        from ..execution.runners import interrupt_in
+
+        interrupt = interrupt_in(err)
+        if interrupt is None:
+            raise
+        return _interrupted(interrupt, args.command, getattr(args, "out", None))
 
 
 def _interrupted_import(err: ImportError) -> bool:

@@ -28,7 +28,6 @@ and its verdict.
 
 from __future__ import annotations
 
-import _thread
 import dataclasses
 import signal
 import sys
@@ -39,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidConfigError, StartPoseError, StewartError
+from ..errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError
 
 #: Default duration of the homing lead-in, s.
 HOME_S = 3.0
@@ -292,8 +291,10 @@ class LoopWatchdog:
     :meth:`kick` marks a completed period (the session kicks from the Simulator's monitor,
     after every step); a thread checks every ``timeout_s / 4`` and, if no kick came for
     ``timeout_s``, calls ``torque_off()`` itself (under the bus's lock, waiting for a transfer in
-    progress at most 1 s), records why in ``tripped`` and interrupts the main thread (a
-    KeyboardInterrupt where it next runs Python), which the session turns into its end. The
+    progress at most 1 s) and records why in ``tripped``; the monitor then raises
+    :class:`~stewart_drake.errors.LoopStalledError` at the loop's next step, which ends the run
+    (a flag, not a signal to the main thread: a process started in the background of a script
+    ignores SIGINT, and would run on). The
     servos' own bus watchdog (``bus.watchdog_s``) is the backstop when this process dies; some
     firmware does not stop on it (docs/hardware_bus.md), so this one does not rely on it.
 
@@ -333,7 +334,6 @@ class LoopWatchdog:
                     f"(limit {self.timeout_s * 1e3:.0f} ms); our watchdog removed the torque "
                     + ("(confirmed)" if confirmed else "(NOT confirmed: cut the servos' power)")
                 )
-                _thread.interrupt_main()
                 return
 
 
@@ -530,6 +530,8 @@ def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun)
     """Enable the torque, say ``announce``, run ``body()`` (which advances ``simulator``)
     behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. The
     caller removes the torque (in a ``finally``)."""
+    from ..execution.runners import interrupt_in
+
     watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
     simulator.set_monitor(_kicker(watchdog))
     simulator.set_target_realtime_rate(1.0)
@@ -541,15 +543,19 @@ def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun)
             body()
         ended.reason, ended.ok = "the reference ran to its end", True
     except KeyboardInterrupt as err:
-        if watchdog.tripped:
-            ended.reason, ended.exit_code = watchdog.tripped, 1
-        else:
-            name, ended.exit_code = _signal_name(err)
-            ended.reason = f"interrupted by {name}"
+        name, ended.exit_code = _signal_name(err)
+        ended.reason = f"interrupted by {name}"
+        if watchdog.tripped:  # it came while the loop was stalled
+            ended.reason += f" after {watchdog.tripped}"
     except StewartError as err:  # a bus error, a missed deadline, a guard trip
         ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
-    except RuntimeError as err:  # inside Drake (the guard saved the logs and said where)
-        ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+    except (RuntimeError, SystemError) as err:  # inside Drake (the guard saved the logs)
+        interrupt = interrupt_in(err)  # a signal inside compiled code comes back wrapped
+        if interrupt is not None:
+            name, ended.exit_code = _signal_name(interrupt)
+            ended.reason = f"interrupted by {name}"
+        else:
+            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
     return time.perf_counter() - wall0
 
 
@@ -616,6 +622,8 @@ def _kicker(watchdog: LoopWatchdog):
     succeeded = EventStatus.Succeeded()
 
     def monitor(context):
+        if watchdog.tripped is not None:
+            raise LoopStalledError(watchdog.tripped)
         watchdog.kick()
         return succeeded
 
