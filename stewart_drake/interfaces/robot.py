@@ -556,6 +556,11 @@ def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun)
             ended.reason = f"interrupted by {name}"
         else:
             ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+    if watchdog.tripped is not None and not ended.reason.startswith("LoopStalledError"):
+        # The stall came first: what ended the run after it (the guard, seeing the platform
+        # that drifted under the last torques, at the loop's first check) is its consequence.
+        ended.reason = f"LoopStalledError: {watchdog.tripped}; then {ended.reason}"
+        ended.ok, ended.exit_code = False, ended.exit_code or 1
     return time.perf_counter() - wall0
 
 
