@@ -190,6 +190,22 @@ def zero_counts_at(bus, angle_rad: float = 0.0) -> np.ndarray:
     return np.rint(raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)).astype(int)
 
 
+def admissible_start(scenario) -> MeasuredPose:
+    """:func:`measure_pose`, refusing a pose outside the admissible set.
+
+    Raises:
+        StartPoseError: the measured pose fails a check (named); nothing was powered.
+        as :func:`measure_pose`.
+    """
+    start = measure_pose(scenario)
+    if start.problem is not None:
+        raise StartPoseError(
+            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
+            f"was powered. Measured: {start.summary().splitlines()[0]}"
+        )
+    return start
+
+
 class HomingReference:
     """The run's reference on the robot: a homing lead-in from where the robot rests, then the
     reference started and ended at rest.
@@ -420,12 +436,7 @@ def run_on_robot(
         )
     target = as_trajectory(reference) if reference is not None else make_plan(plan).reference
     duration = plan.duration_s
-    start = measure_pose(plan)  # opens and closes the port; the torque stays off
-    if start.problem is not None:
-        raise StartPoseError(
-            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
-            f"was powered. Measured: {start.summary().splitlines()[0]}"
-        )
+    start = admissible_start(plan)  # opens and closes the port; the torque stays off
     homed = HomingReference(target, start.x, home_s, t_end=duration)
     run_plan = dataclasses.replace(plan.scenario, duration_s=homed.duration_s + hold_s)
     return _run(
@@ -591,12 +602,7 @@ def teleop_on_robot(
 
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     bus_config(scenario)
-    start = measure_pose(scenario)
-    if start.problem is not None:
-        raise StartPoseError(
-            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
-            f"was powered. Measured: {start.summary().splitlines()[0]}"
-        )
+    start = admissible_start(scenario)
     bus = bus_config(scenario).make_bus().open()
     ended = RobotRun("", False, True, start=start)
     try:
