@@ -244,6 +244,16 @@ def _will_compile() -> bool:
     return will_compile()
 
 
+def _say_stage(command: str):
+    """A function that says on stderr what ``command`` does next, a stage of some seconds that
+    shows nothing else (writing plots, building a Diagram)."""
+
+    def say(what: str) -> None:
+        print(f"stewart-drake {command}: {what}", file=sys.stderr, flush=True)
+
+    return say
+
+
 def _why_failed(failed: list, base: str) -> str:
     """What the failed rows of an evaluation share, when it is known: the runs under a
     disturbance whose holding torque is beyond the motors' limit are lost by the sizing, not by
@@ -384,17 +394,26 @@ def _cmd_run(args) -> int:
     stem = run_stem(scenario, args.scenario, args.set or ())
     for suffix in (".npz", ".png", ".csv", ".mat"):
         check_replaceable(out / f"{stem}{suffix}")
-    _say_if_compiling("run")
     if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
         print(f"{scenario.tuner.kind} weights: {scenario.tuner.weights_path()}")
+    say = None if args.no_progress else _say_stage("run")
+
+    def on_checked() -> None:  # the run is refused, if it is, before this
+        _say_if_compiling("run")
+        if say is not None:
+            say("building the Drake station and its controller, starting the simulator ...")
+
     if args.html:  # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
+        _say_if_compiling("run")
         result, html = record_html(scenario, args.html, progress=not args.no_progress)
         print(f"wrote {html} (Meshcat replay, opens in any browser)")
     else:
-        result = run_experiment(scenario, progress=not args.no_progress)
+        result = run_experiment(scenario, progress=not args.no_progress, on_checked=on_checked)
     print(format_metrics(result.metrics), flush=True)  # before the files: a full disk keeps them
+    if say is not None:
+        say(f"writing {stem}.npz, drawing Fig. 7 ({stem}.png), the logs as CSV and MAT ...")
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
     csv, mat = export_result(result, out / stem)
@@ -821,6 +840,8 @@ def _cmd_analyze(args) -> int:
                 f"--pose takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.pose!r}"
             )
     out = check_output(args.out)
+    say = _say_stage("analyze")
+    say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
     figures = axis_figures(models)
     name = Path(str(args.scenario)).stem
@@ -835,6 +856,7 @@ def _cmd_analyze(args) -> int:
     print("\n".join(table))
     out.mkdir(parents=True, exist_ok=True)
     title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
+    say("drawing the Bode and sensitivity plots of the 6 loops ...")
     bode, sens = plot_loop(models, title)
     paths = [out / "bode.png", out / "sensitivity.png", out / "loop.md", out / "loop.json"]
     for fig, path in zip((bode, sens), paths):
@@ -848,6 +870,7 @@ def _cmd_analyze(args) -> int:
         "axes": [a.record() for a in figures],
     }
     if args.weights:
+        say("the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 ...")
         record["weights"] = weight_sweep(scenario, x0=models.x0)
         print(
             "omega_Q / omega_R: closed loop, smallest phase margin (axis), largest Ms (axis), "
@@ -864,6 +887,7 @@ def _cmd_analyze(args) -> int:
                 + (f"{bw:.3g}" if bw is not None else row["axes"][5]["bandwidth_where"])
             )
     if args.map:
+        say("the margins over 9 x 9 roll and pitch tilts, then map.png ...")
         rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
         record["map"] = rows
         weak = weakest_pose(rows)
@@ -911,6 +935,7 @@ def _cmd_workspace(args) -> int:
         geometry=geometry,
         runner=_runner(args),
         motor_limits=plan.motor_limits,
+        say=None if args.no_progress else _say_stage("workspace"),
     )
     for name, value, unit in rows[:11]:
         print(f"{name} {value} {unit}")
@@ -1967,6 +1992,15 @@ def _main(argv: list[str] | None) -> int:
         if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
+    except SystemExit as err:  # code the command ran (a plug-in's controller) asked to exit
+        plugins = ", ".join(getattr(args, "plugin", None) or ())
+        print(
+            f"stewart-drake {args.command}: stopped by SystemExit({err.code!r}) raised in code "
+            f"it ran ({f'the plug-in {plugins}' if plugins else 'a controller or plug-in'}), "
+            f"before the command finished; partial outputs were not written: fix that code",
+            file=sys.stderr,
+        )
+        return 2
     except SystemError as err:  # a signal inside compiled code (numba's dispatcher wraps it)
         from ..execution.runners import interrupt_in
 
