@@ -545,7 +545,6 @@ def _cmd_reproduce(args) -> int:
     feedforward = _feedforward_choice(args, scenario)
     if args.html is not None:
         check_output(args.html, "--html", is_file=True)
-    _say_if_compiling("reproduce")
     rep = reproduce(
         scenario,
         learn_cycles=args.learn_cycles,
@@ -554,6 +553,7 @@ def _cmd_reproduce(args) -> int:
         duration_s=args.duration,
         progress=not args.no_progress,
         feedforward=feedforward,
+        on_checked=lambda: _say_if_compiling("reproduce"),
     )
     if args.save_learned and rep.learned is not None:
         from ..control.feedforward_tuning import save_learned
