@@ -77,8 +77,9 @@ def cache_folder(source: Path = KERNELS_FILE) -> str | None:
     def sub(root: str) -> str:
         return os.path.join(root, _CacheLocator.get_suitable_cache_subpath(str(source)))
 
-    if numba.config.CACHE_DIR:
-        return sub(numba.config.CACHE_DIR)
+    chosen = getattr(numba.config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR, or lqi_kernels' fallback
+    if chosen:
+        return sub(chosen)
     candidates = [str(source.parent / "__pycache__")]
     try:
         from numba.misc.appdirs import AppDirs
@@ -93,13 +94,12 @@ def cache_folder(source: Path = KERNELS_FILE) -> str | None:
 def _host_cpu() -> tuple[str, str]:
     """The CPU name and features numba compiles for (its codegen's ``magic_tuple``, less the
     triple)."""
-    import llvmlite.binding as ll
     import numba
-    from numba.core.codegen import get_host_cpu_features
+    from numba.core import codegen
 
-    name = numba.config.CPU_NAME or ll.get_host_cpu_name()
-    features = numba.config.CPU_FEATURES
-    return name, features if features is not None else get_host_cpu_features()
+    name = getattr(numba.config, "CPU_NAME", None) or codegen.ll.get_host_cpu_name()
+    features = getattr(numba.config, "CPU_FEATURES", None)
+    return name, features if features is not None else codegen.get_host_cpu_features()
 
 
 def _valid_index(path: str, stamps: tuple, cpu: tuple[str, str]) -> bool:

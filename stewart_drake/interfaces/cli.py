@@ -1957,7 +1957,7 @@ def _import_drake_whole() -> None:
         for signum, handler in held.items():
             signal.signal(signum, handler)
     if noted:
-        held[noted[0]](noted[0], None)
+        held[signal.Signals(noted[0])](noted[0], None)
 
 
 def _main(argv: list[str] | None) -> int:
