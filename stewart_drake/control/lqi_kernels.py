@@ -105,6 +105,7 @@ def _njit(function):
     return numba.njit(function)
 
 
+_fallback_cache_dir = fallback_cache_dir  # the name this module's callers and tests know
 _CACHE = use_cache()
 #: The closed-form IK of :func:`~stewart_drake.model.kinematics.ik_scalar`, and the sums of
 #: :mod:`.lqi_step` whose bits must match the reference's, compiled as written.
