@@ -6,7 +6,36 @@ simulation (trajectories, reference, guard, scenario, station, diagram) -> studi
 collection, training, evaluation, workspace, runners, store) -> interfaces (cli, visualize).
 """
 
-from .errors import (
+import os as _os
+import signal as _signal
+import sys as _sys
+
+
+def _interrupted_while_starting(signum, frame):
+    """SIGINT while the ``stewart-drake`` command imports this package and its own module,
+    before its ``main`` can handle Ctrl-C: one line and 130, as any interrupted command, not
+    a KeyboardInterrupt traceback (SystemExit prints nothing and is no error of an import)."""
+    line = "stewart-drake: interrupted by SIGINT; partial outputs were not written"
+    print(line, file=_sys.stderr)
+    raise SystemExit(128 + signum)
+
+
+def _started_as_the_command() -> bool:
+    """Whether this process is the ``stewart-drake`` console script (or the CLI module run with
+    ``python -m``): a library user's handler of SIGINT is never touched."""
+    script = _os.path.basename(_sys.argv[0]) if _sys.argv else ""
+    return script in ("stewart-drake", "stewart-drake.exe") or (
+        "stewart_drake.interfaces.cli" in getattr(_sys, "orig_argv", ())[:4]
+    )
+
+
+# Only over Python's own handler: a command started with SIGINT ignored (in a script's
+# background) keeps it ignored. The CLI's main() puts Python's handler back.
+if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
+
+# After the handler above: its window is these imports.
+from .errors import (  # noqa: E402
     ForwardKinematicsError,
     InvalidConfigError,
     InvalidGeometryError,
@@ -15,7 +44,7 @@ from .errors import (
     StewartError,
     UnreachablePoseError,
 )
-from .model.geometry import X_HOME, StewartGeometry, reference_geometry
+from .model.geometry import X_HOME, StewartGeometry, reference_geometry  # noqa: E402
 
 __all__ = [
     "ForwardKinematicsError",

@@ -1066,18 +1066,6 @@ def test_evaluate_refuses_a_system_folder_for_its_report(capsys, tmp_path, folde
     assert not (tmp_path / "out").exists()
 
 
-def test_a_slow_first_import_says_it_is_compiling(tmp_path, monkeypatch, capsys):
-    """The first run on a machine compiles the LQI's step for about a minute: a line says so
-    while it happens; a quick import says nothing."""
-    (tmp_path / "slow_kernels.py").write_text("import time\ntime.sleep(1.0)\n")
-    (tmp_path / "quick_kernels.py").write_text("")
-    monkeypatch.syspath_prepend(str(tmp_path))
-    cli._say_if_compiling("run", module="slow_kernels", after_s=0.2)
-    assert "stewart-drake run: compiling the LQI's control step" in capsys.readouterr().err
-    cli._say_if_compiling("run", module="quick_kernels", after_s=30.0)
-    assert capsys.readouterr().err == ""
-
-
 @pytest.mark.parametrize("delay_s", [0.8, 1.5])
 def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, delay_s):
     """A Ctrl-C in the first second or two lands while pydrake's modules initialize (they

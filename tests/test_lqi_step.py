@@ -256,7 +256,7 @@ def test_the_compiled_code_is_cached_against_the_sources_it_inlines():
     """numba's cache sees this file only: the digest of what it inlines from other files must
     be the one recorded, else the cache is bypassed (update DEPENDENCIES_DIGEST)."""
     assert lqi_kernels.sources_digest() == lqi_kernels.DEPENDENCIES_DIGEST, (
-        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in lqi_kernels.py"
+        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in kernel_cache.py"
     )
     assert lqi_kernels._CACHE
 

@@ -317,7 +317,7 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2, proc.stderr
-    # `run` says it is compiling when loading the compiled step takes over 3 s (a loaded machine)
+    # `run` says it is compiling when numba's cache holds no compiled step (a fresh clone)
     lines = [x for x in proc.stderr.strip().splitlines() if "compiling the LQI's" not in x]
     assert lines == [
         "stewart-drake train: `stewart-drake train` needs torch: install PyTorch's CPU build, "

@@ -275,7 +275,17 @@ class UserController(ControllerDriver):
 
     def resolve(self) -> Callable:
         registered = resolve_controller(self.factory)
-        return lambda context: registered(context, **self.parameters)
+
+        def make(context):
+            try:
+                return registered(context, **self.parameters)
+            except SystemExit as err:  # would end the caller without a word
+                raise InvalidConfigError(
+                    f"the controller factory {self.factory!r} raised SystemExit({err.code!r}) "
+                    f"instead of returning a controller: fix the plug-in"
+                ) from None
+
+        return make
 
     def make(self, context: ControllerContext):
         return self.resolve()(context)
@@ -305,7 +315,9 @@ def use_entry_point_controllers(names) -> list[str]:
             )
         try:
             factory = installed[name].load()
-        except Exception as err:  # noqa: BLE001 - the user's package may raise anything
+        # the user's package may raise anything, SystemExit too (it would end the command
+        # without a word)
+        except (Exception, SystemExit) as err:  # noqa: BLE001
             raise InvalidConfigError(
                 f"--plugin {name}: the entry point {installed[name].value} "
                 f"cannot be loaded ({type(err).__name__}: {err})"

@@ -10,27 +10,29 @@ functions it replaces (:func:`~.lqi.input_matrix_single`, :func:`~.lqi.error_mod
 :func:`~.lqi.lqi_gain`).
 
 Compilation is cached on disk (``cache=True``): the first import on a machine (and Python
-version) compiles for about half a minute (docs/performance.md), later processes load the machine
+version) compiles for about 40 s (docs/performance.md), later processes load the machine
 code in about a second. The cache goes where numba can write:
 ``NUMBA_CACHE_DIR`` if set, else ``__pycache__`` beside this file, else the user's cache folder;
 when none of them is writable (a read-only install and home), a folder in the system's temporary
-directory (:func:`_njit`).
+directory (:func:`_njit`). :func:`.kernel_cache.will_compile` tells, without importing this
+module, whether importing it will compile.
 """
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 import math
-import os
-import tempfile
-from pathlib import Path
 
 import numba
 import numpy as np
 
 from ..model.kinematics import ik_scalar
 from . import lqi_step
+from .kernel_cache import (  # noqa: F401 - DEPENDENCIES_DIGEST, sources_digest: named here too
+    DEPENDENCIES_DIGEST,
+    fallback_cache_dir,
+    sources_digest,
+    use_cache,
+)
 from .lqi_step import (
     ALPHA,
     ANTI_WINDUP,
@@ -80,41 +82,13 @@ from .lqi_step import (
 )
 
 
-def sources_digest() -> str:
-    """SHA-256 (16 hex digits) of what the compiled code takes from other files: the source of
-    :func:`~stewart_drake.model.kinematics.ik_scalar` and all of :mod:`.lqi_step` (its sums and
-    the index constants, which numba freezes into the machine code). numba's cache notices a
-    change of this file only, so the cache is used only while this digest is
-    :data:`DEPENDENCIES_DIGEST` (a test holds them equal: change one, update the other)."""
-    digest = hashlib.sha256(inspect.getsource(ik_scalar).encode())
-    digest.update(Path(lqi_step.__file__).read_bytes())
-    return digest.hexdigest()[:16]
-
-
-#: :func:`sources_digest` of the sources this file was last compiled against.
-DEPENDENCIES_DIGEST = "27ba854b9b43f403"
-
-
-def _use_cache() -> bool:
-    try:
-        return sources_digest() == DEPENDENCIES_DIGEST
-    except (OSError, TypeError):  # sources not shipped: compile every time
-        return False
-
-
-def _fallback_cache_dir() -> str:
-    """A per-user folder in the temporary directory for numba's cache."""
-    user = os.environ.get("USER") or str(os.getuid() if hasattr(os, "getuid") else "user")
-    return os.path.join(tempfile.gettempdir(), f"stewart-drake-numba-cache-{user}")
-
-
 def _njit(function):
     """``numba.njit(cache=True)(function)``, with the cache where numba can write.
 
     numba refuses to cache (RuntimeError at decoration) when neither ``NUMBA_CACHE_DIR``, the
     source's ``__pycache__`` nor the user's cache folder is writable: the cache then goes to
-    :func:`_fallback_cache_dir`, and if even that fails the function compiles in every process.
-    Without the cache (:func:`_use_cache`) too.
+    :func:`~.kernel_cache.fallback_cache_dir`, and if even that fails the function compiles in
+    every process. Without the cache (:func:`~.kernel_cache.use_cache`) too.
     """
     if not _CACHE:
         return numba.njit(function)
@@ -123,7 +97,7 @@ def _njit(function):
     except RuntimeError:
         pass
     if not numba.config.CACHE_DIR:
-        numba.config.CACHE_DIR = _fallback_cache_dir()
+        numba.config.CACHE_DIR = fallback_cache_dir()
         try:
             return numba.njit(cache=True)(function)
         except RuntimeError:
@@ -131,7 +105,8 @@ def _njit(function):
     return numba.njit(function)
 
 
-_CACHE = _use_cache()
+_fallback_cache_dir = fallback_cache_dir  # the name this module's callers and tests know
+_CACHE = use_cache()
 #: The closed-form IK of :func:`~stewart_drake.model.kinematics.ik_scalar`, and the sums of
 #: :mod:`.lqi_step` whose bits must match the reference's, compiled as written.
 ik_compiled = _njit(ik_scalar)

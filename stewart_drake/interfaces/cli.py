@@ -25,8 +25,9 @@ from pathlib import Path
 
 from ..errors import StewartError
 
-#: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs).
-RESUMABLE = ("collect", "evaluate")
+#: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
+#: with the folder under ``--out`` that keeps them.
+RESUMABLE = {"collect": "", "evaluate": "", "design": "search"}
 
 
 class _HelpFormatter(argparse.HelpFormatter):
@@ -216,35 +217,41 @@ def _refuse_system_folder(folder, option: str) -> None:
         )
 
 
-#: The commands that run the LQI's compiled step (a first run on a machine compiles it).
-COMPILING_COMMANDS = ("run", "collect", "evaluate", "reproduce", "teleop")
-
-
-def _say_if_compiling(
-    command: str, module: str = "stewart_drake.control.lqi_kernels", after_s: float = 3.0
-) -> None:
-    """Import the compiled LQI step (``module``) now, and say so on stderr if that takes more
-    than ``after_s``: the first import on a machine compiles it for about a minute (numba's
-    disk cache makes later ones take about a second), before anything else would show."""
+def _say_if_compiling(command: str, module: str = "stewart_drake.control.lqi_kernels") -> None:
+    """Import the compiled LQI step (``module``) now, saying so first on stderr when numba's
+    cache holds no valid entry for it (:func:`~stewart_drake.control.kernel_cache.will_compile`):
+    the first import on a machine compiles it for about 40 s, before anything else would show;
+    with the cache warm it loads in about a second, however busy the machine, and says nothing.
+    Called by a command once its arguments are checked, just before it needs the step."""
     import importlib
 
     if module in sys.modules:
         return
-    timer = threading.Timer(
-        after_s,
-        lambda: print(
+    if _will_compile():
+        print(
             f"stewart-drake {command}: compiling the LQI's control step for this machine and "
-            f"Python (once, about a minute; later runs start in seconds)",
+            f"Python (once, about 40 s; later runs start in seconds)",
             file=sys.stderr,
             flush=True,
-        ),
-    )
-    timer.daemon = True
-    timer.start()
-    try:
-        importlib.import_module(module)
-    finally:
-        timer.cancel()
+        )
+    importlib.import_module(module)
+
+
+def _will_compile() -> bool:
+    """Whether importing the LQI's compiled step compiles it (numba's cache, not a timer)."""
+    from ..control.kernel_cache import will_compile
+
+    return will_compile()
+
+
+def _say_stage(command: str):
+    """A function that says on stderr what ``command`` does next, a stage of some seconds that
+    shows nothing else (writing plots, building a Diagram)."""
+
+    def say(what: str) -> None:
+        print(f"stewart-drake {command}: {what}", file=sys.stderr, flush=True)
+
+    return say
 
 
 def _why_failed(failed: list, base: str) -> str:
@@ -389,14 +396,24 @@ def _cmd_run(args) -> int:
         check_replaceable(out / f"{stem}{suffix}")
     if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
         print(f"{scenario.tuner.kind} weights: {scenario.tuner.weights_path()}")
+    say = None if args.no_progress else _say_stage("run")
+
+    def on_checked() -> None:  # the run is refused, if it is, before this
+        _say_if_compiling("run")
+        if say is not None:
+            say("building the Drake station and its controller, starting the simulator ...")
+
     if args.html:  # the same run, replayed into a standalone HTML
         from .visualize import record_html
 
+        _say_if_compiling("run")
         result, html = record_html(scenario, args.html, progress=not args.no_progress)
         print(f"wrote {html} (Meshcat replay, opens in any browser)")
     else:
-        result = run_experiment(scenario, progress=not args.no_progress)
+        result = run_experiment(scenario, progress=not args.no_progress, on_checked=on_checked)
     print(format_metrics(result.metrics), flush=True)  # before the files: a full disk keeps them
+    if say is not None:
+        say(f"writing {stem}.npz, drawing Fig. 7 ({stem}.png), the logs as CSV and MAT ...")
     npz = save_result(result, out / f"{stem}.npz")
     png = plot_fig7(result, out / f"{stem}.png")
     csv, mat = export_result(result, out / stem)
@@ -536,6 +553,7 @@ def _cmd_reproduce(args) -> int:
         duration_s=args.duration,
         progress=not args.no_progress,
         feedforward=feedforward,
+        on_checked=lambda: _say_if_compiling("reproduce"),
     )
     if args.save_learned and rep.learned is not None:
         from ..control.feedforward_tuning import save_learned
@@ -637,11 +655,13 @@ def _cmd_collect(args) -> int:
     from ..studies.collection import collect
 
     base = load_scenario(args.scenario, args.set or ())
+    runner = _runner(args)
+    _say_if_compiling("collect")
     manifest = collect(
         args.out,
         seed=args.seed,
         duration_s=args.duration,
-        runner=_runner(args),
+        runner=runner,
         progress=not args.no_progress,
         base=base,
     )
@@ -743,6 +763,7 @@ def _cmd_evaluate(args) -> int:
             file=sys.stderr,
         )
         tuner_study = False
+    _say_if_compiling("evaluate")
     report = evaluate(
         docs,
         args.out,
@@ -819,6 +840,8 @@ def _cmd_analyze(args) -> int:
                 f"--pose takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.pose!r}"
             )
     out = check_output(args.out)
+    say = _say_stage("analyze")
+    say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
     figures = axis_figures(models)
     name = Path(str(args.scenario)).stem
@@ -833,6 +856,7 @@ def _cmd_analyze(args) -> int:
     print("\n".join(table))
     out.mkdir(parents=True, exist_ok=True)
     title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
+    say("drawing the Bode and sensitivity plots of the 6 loops ...")
     bode, sens = plot_loop(models, title)
     paths = [out / "bode.png", out / "sensitivity.png", out / "loop.md", out / "loop.json"]
     for fig, path in zip((bode, sens), paths):
@@ -846,6 +870,7 @@ def _cmd_analyze(args) -> int:
         "axes": [a.record() for a in figures],
     }
     if args.weights:
+        say("the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 ...")
         record["weights"] = weight_sweep(scenario, x0=models.x0)
         print(
             "omega_Q / omega_R: closed loop, smallest phase margin (axis), largest Ms (axis), "
@@ -862,6 +887,7 @@ def _cmd_analyze(args) -> int:
                 + (f"{bw:.3g}" if bw is not None else row["axes"][5]["bandwidth_where"])
             )
     if args.map:
+        say("the margins over 9 x 9 roll and pitch tilts, then map.png ...")
         rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
         record["map"] = rows
         weak = weakest_pose(rows)
@@ -909,6 +935,7 @@ def _cmd_workspace(args) -> int:
         geometry=geometry,
         runner=_runner(args),
         motor_limits=plan.motor_limits,
+        say=None if args.no_progress else _say_stage("workspace"),
     )
     for name, value, unit in rows[:11]:
         print(f"{name} {value} {unit}")
@@ -978,6 +1005,7 @@ def _cmd_teleop(args) -> int:
             f"Meshcat cannot listen on port {args.port}: {err} Choose "
             f"another --port, or leave it out for the first free one"
         ) from None
+    _say_if_compiling("teleop")
     run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
     how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
     print(
@@ -1894,7 +1922,15 @@ def _interruptible():
 
 
 def main(argv: list[str] | None = None) -> int:
-    restore = _interruptible()
+    from .. import _interrupted_while_starting
+
+    # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
+    if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        restore = _interruptible()
+    except KeyboardInterrupt as err:
+        return _interrupted(err, "", None)
     try:
         return _main(argv)
     finally:
@@ -1902,8 +1938,31 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signum, handler)
 
 
+def _import_drake_whole() -> None:
+    """Import pydrake with SIGINT, SIGTERM and SIGHUP held, then pass a held one to its handler
+    (a KeyboardInterrupt, handled as any): a signal that lands inside pydrake's own
+    initialization makes it print a C++ log with a stack dump before our one line. Held by
+    Python handlers that only note the signal (blocking it would not do: numpy's threads, already
+    started, would take it)."""
+    if "pydrake" in sys.modules or threading.current_thread() is not threading.main_thread():
+        return
+    noted: list[int] = []
+    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    held = {s: h for s, h in handlers.items() if callable(h)}  # not SIG_IGN, SIG_DFL, None
+    for signum in held:
+        signal.signal(signum, lambda signum, frame: noted.append(signum))
+    try:
+        import pydrake  # noqa: F401 - initializes Drake's shared libraries (a third of a second)
+    finally:
+        for signum, handler in held.items():
+            signal.signal(signum, handler)
+    if noted:
+        held[signal.Signals(noted[0])](noted[0], None)
+
+
 def _main(argv: list[str] | None) -> int:
     try:
+        _import_drake_whole()
         parser = build_parser()  # imports Drake (about a second)
         args = parser.parse_args(argv)
     except KeyboardInterrupt as err:
@@ -1917,8 +1976,6 @@ def _main(argv: list[str] | None) -> int:
             check_output(
                 args.out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ())
             )
-        if args.command in COMPILING_COMMANDS:
-            _say_if_compiling(args.command)
         return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
@@ -1935,6 +1992,15 @@ def _main(argv: list[str] | None) -> int:
         if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
+    except SystemExit as err:  # code the command ran (a plug-in's controller) asked to exit
+        plugins = ", ".join(getattr(args, "plugin", None) or ())
+        print(
+            f"stewart-drake {args.command}: stopped by SystemExit({err.code!r}) raised in code "
+            f"it ran ({f'the plug-in {plugins}' if plugins else 'a controller or plug-in'}), "
+            f"before the command finished; partial outputs were not written: fix that code",
+            file=sys.stderr,
+        )
+        return 2
     except SystemError as err:  # a signal inside compiled code (numba's dispatcher wraps it)
         from ..execution.runners import interrupt_in
 
@@ -1973,8 +2039,10 @@ def _interrupted(err: KeyboardInterrupt, command: str, out) -> int:
     """Say which signal ended ``command`` (one line) and return 128 + its number."""
     signum = getattr(err, "signum", signal.SIGINT)
     kept = (
-        f"finished results are kept in {out}: run the same command again to run only the rest"
-        if command in RESUMABLE
+        f"finished {'generations' if command == 'design' else 'results'} are kept in "
+        f"{Path(out, RESUMABLE[command]) if RESUMABLE[command] else out}: run the same command "
+        f"again to run only the rest"
+        if command in RESUMABLE and out is not None
         else "partial outputs were not written"
     )
     name = f"stewart-drake {command}".rstrip()

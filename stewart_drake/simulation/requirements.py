@@ -11,6 +11,7 @@ is the issue's acceptance set. This module must not use ``from __future__ import
 (``yaml_load_typed`` reads its dataclasses' field types).
 """
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -152,6 +153,28 @@ class DesignRequirements:
         return self
 
 
+def _unknown_fields(message: str, problem: str) -> str:
+    """Drake's "The fields [...] were unknown to the schema" (its whole ``message``; ``problem``
+    is the one-line text to keep otherwise), naming only the keys that are field names (a typo
+    to fix): a file that is not requirements at all (a password file, a log) has keys that are
+    its lines, which are not quoted."""
+    import ast
+    import re
+
+    if not message.startswith("The fields ["):
+        return problem
+    found = re.match(r"The fields (\[.*\]) were unknown to the schema", message, re.S)
+    try:
+        keys = [str(k) for k in ast.literal_eval(found.group(1))] if found else []
+    except (ValueError, SyntaxError):
+        keys = []
+    names = [k for k in keys if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]{0,39}", k)]
+    known = ", ".join(f.name for f in dataclasses.fields(DesignRequirements))
+    if keys and len(names) == len(keys):
+        return f"unknown field{'s' if len(keys) > 1 else ''} {', '.join(names)} (known: {known})"
+    return f"it has no field of a requirements file (known: {known})"
+
+
 def load_requirements(path) -> DesignRequirements:
     """Read a design's requirements from a YAML file (``scenarios/design_requirements.yaml``).
 
@@ -169,7 +192,7 @@ def load_requirements(path) -> DesignRequirements:
 
     kind = "design requirements file"
     remedy = "fix it, or start from scenarios/design_requirements.yaml"
-    if not isinstance(path, (str, Path)) or not Path(path).is_file():
+    if not isinstance(path, (str, Path)) or not Path(path).exists():
         raise MissingFileError(f"no design requirements file {path!r}: check the path")
     path = Path(path)
     raw = read_checked(path, kind, MAX_REQUIREMENTS_BYTES, remedy)
@@ -186,6 +209,7 @@ def load_requirements(path) -> DesignRequirements:
     except Exception as err:  # noqa: BLE001 - yaml and Drake's loader raise several types
         problem = _one_line(err)
         if not problem.startswith("not YAML"):
+            problem = _unknown_fields(str(err), problem)
             problem = f"it does not fit the DesignRequirements schema: {problem}"
         raise CorruptFileError(path, kind, problem, remedy) from None
     try:

@@ -271,9 +271,10 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
     (signed)."""
     header = [_parse_header_cell(c) for c in cells]
     names = [h[0] for h in header]
-    if names[0].lower() not in ("t", "time"):
+    if names[0].lower() not in ("t", "time"):  # unquoted: a file named by mistake may be private
         raise InvalidConfigError(
-            f"{path}: the first column must be the time (t [s]), got {cells[0]!r}; {_TRACE_REMEDY}"
+            f"{path}: the first column must be the time (t [s]), and the first line does not "
+            f"name one; {_TRACE_REMEDY}"
         )
     if not 2 <= len(header) <= 7:
         raise InvalidConfigError(

@@ -514,11 +514,11 @@ def _csv_samples(path: Path) -> np.ndarray:
     del raw
     header = [h.strip() for h in rows[0]] if rows else []
     if tuple(header) != CSV_COLUMNS:
+        # What the line holds is not quoted: a file named by mistake may be a private one.
+        got = f"it has {len(header)} column{'s' if len(header) != 1 else ''} of other names"
         raise InvalidConfigError(
-            f"{path}: the first line must be the header "
-            f"{','.join(CSV_COLUMNS)}, got {','.join(header)[:200]!r}"
-            if header
-            else f"{path}: the first line must be the header {','.join(CSV_COLUMNS)}, got nothing"
+            f"{path}: the first line must be the header {','.join(CSV_COLUMNS)}; "
+            + (got if header else "it is empty")
         )
     values = []
     for line, row in enumerate(rows[1:], start=2):

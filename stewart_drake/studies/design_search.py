@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InvalidConfigError, InvalidGeometryError, StewartError
+from ..errors import CorruptFileError, InvalidConfigError, InvalidGeometryError, StewartError
 from ..model import admissible, limits, statics
 from ..model.clearance import ClearanceModel
 from ..model.geometry import StewartGeometry
@@ -600,13 +600,47 @@ class _Generations:
         self.evaluations = self.reused = 0
         self.compute_s = 0.0
         self.generations: list = []
+        #: The typed error that ended a generation: scipy wraps a ValueError raised in its map
+        #: (a CorruptFileError is one) in a RuntimeError of its own, which :func:`search` undoes.
+        self.error: StewartError | None = None
 
     def __call__(self, func, population):
+        try:
+            return self._evaluate(population)
+        except StewartError as err:
+            self.error = err
+            raise
+
+    def _stored(self, job_id: str, size: int) -> list:
+        """The ``size`` evaluations of a generation on disk, checked: a list of evaluations'
+        JSON, one per candidate.
+
+        Raises:
+            CorruptFileError: the file is not JSON, or not evaluations (names it).
+        """
+        docs = self.store.load_json(job_id)
+        try:
+            evals = [Evaluation.from_json(d) for d in docs]
+            [e.penalized(self.objective) for e in evals]
+            if len(evals) != size:
+                raise ValueError(f"{len(evals)} evaluations for {size} candidates")
+        except (KeyError, TypeError, ValueError, AttributeError) as err:
+            what = err if type(err) is ValueError else f"{type(err).__name__} {err}"
+            path = self.store.folder / self.store.manifest["jobs"][job_id]["file"]
+            raise CorruptFileError(
+                path,
+                "design generation",
+                f"not the generation's evaluations ({what})",
+                "delete it and run the same command again to redo that generation",
+            ) from None
+        return docs
+
+    def _evaluate(self, population) -> list:
         rows = [np.asarray(u, dtype=float) for u in population]
         key = hashlib.sha256(b"".join(u.tobytes() for u in rows)).hexdigest()[:16]
         job_id = f"{self.motor}/{self.objective}/gen_{key}"
         if job_id in self.store.done():
-            docs = self.store.load_json(job_id)
+            docs = self._stored(job_id, len(rows))
             self.reused += len(rows)
             self.compute_s += float(self.store.manifest["jobs"][job_id].get("wall_s", 0.0))
         else:
@@ -703,6 +737,7 @@ def search(
     }
     store = ResultStore(out, "design", settings, "*_gen_*.json")
     wall0 = time.perf_counter()
+    generations: _Generations | None = None
     try:
         task_file = out / "task.npz"
         if not task_file.exists():
@@ -731,9 +766,17 @@ def search(
                 **_seeded(seed),
             )
         store.close()
+    except RuntimeError:
+        store.close()
+        if (
+            generations is not None and generations.error is not None
+        ):  # scipy's wrapper around our typed error
+            raise generations.error from None
+        raise
     except BaseException:
         store.close()
         raise
+    assert generations is not None
     best = generations.best
     assert best is not None
     if not best.feasible:  # every margin of the best miss, for the report (one evaluation)

@@ -89,11 +89,17 @@ def run_design(
         progress: progress bars.
     Raises:
         MissingFileError, CorruptFileError, InvalidConfigError: the requirements file (one
-            line naming the field) or an option; all before any search.
+            line naming the field), the base scenario (one without hardware or an LQI) or an
+            option; all before any search.
         ResultsMismatchError, FolderInUseError: ``out_dir/search`` holds another task's search.
     """
+    from .design_confirm import _base_scenario, _check_base
+
     requirements = load_requirements(requirements_path)
     task = task_samples(requirements)
+    # The base scenario is read and checked now, not after the search that it does not affect.
+    base = _base_scenario(base_scenario)
+    _check_base(base)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     reference = evaluate(reference_design(), task, lazy=False)
@@ -121,9 +127,9 @@ def run_design(
         designs["reference"] = reference_design()
         for role, design in designs.items():
             outcome.confirmation[role] = run_confirm(
-                design, requirements, base=base_scenario, runner=runner, progress=progress
+                design, requirements, base=base, runner=runner, progress=progress
             )
-    outcome.files = _write(out, outcome, requirements, objective, base_scenario)
+    outcome.files = _write(out, outcome, requirements, objective, base)
     return outcome
 
 
@@ -140,7 +146,7 @@ def _columns(outcome: DesignOutcome) -> list:
     return columns
 
 
-def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base: str) -> list:
+def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base) -> list:
     """The report, its plots, the evaluations as JSON and the chosen designs' scenarios."""
     files = []
     for role, evaluation in outcome.chosen.items():
@@ -178,7 +184,7 @@ def _write(out: Path, outcome: DesignOutcome, requirements, objective: str, base
     return files
 
 
-def _write_scenario(path: Path, design: Design, requirements, base: str) -> None:
+def _write_scenario(path: Path, design: Design, requirements, base) -> None:
     """The design as a scenario file: the base scenario with the design's robot (the task's
     payload on its platform) and motor (:func:`~.design_confirm.design_scenario`)."""
     from ..simulation.scenario import dump_scenario

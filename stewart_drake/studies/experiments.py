@@ -209,6 +209,7 @@ def build_simulator(
     progress: bool = False,
     report=None,
     controller_logs: bool = True,
+    on_checked=None,
 ):
     """(StewartDiagram, Simulator) with the loops assembled at x_d(0) moving at x_dot_d(0), guarded.
 
@@ -224,6 +225,7 @@ def build_simulator(
         progress: show a bar while a long reference is checked (:func:`check_reference_shown`).
         report: the check's report when the caller has already checked this plan's reference
             (it is then not checked again).
+        on_checked: called (no arguments) once the checks pass, before the Diagram is built.
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
@@ -235,6 +237,8 @@ def build_simulator(
     plan = make_plan(plan, reference=reference, controller=controller)
     if report is None:
         check_reference_shown(plan, progress=progress, keep_series=False)
+    if on_checked is not None:
+        on_checked()
     sd = make_stewart_diagram(plan, meshcat=meshcat, controller_logs=controller_logs)
     simulator = Simulator(sd.diagram)
     ApplySimulatorConfig(plan.scenario.simulator, simulator)
@@ -256,6 +260,7 @@ def run_experiment(
     *,
     reference=None,
     controller=None,
+    on_checked=None,
 ) -> RunResult:
     """Simulate one closed-loop run and collect its logs and metrics.
 
@@ -268,6 +273,8 @@ def run_experiment(
             ``evaluate(t)``, a Drake ``Trajectory``, a CSV path or a name).
         controller: optional controller factory or registered name (the controller contract,
             :mod:`~stewart_drake.control.contract`) overriding ``scenario.controller``.
+        on_checked: called (no arguments) once the run's checks pass, before the Diagram is
+            built: the command line says there what the next seconds do.
     Returns:
         :class:`RunResult`.
     Raises:
@@ -276,7 +283,12 @@ def run_experiment(
         logs up to then are saved, the path is in the error).
     """
     sd, simulator = build_simulator(
-        scenario, meshcat, reference=reference, controller=controller, progress=progress
+        scenario,
+        meshcat,
+        reference=reference,
+        controller=controller,
+        progress=progress,
+        on_checked=on_checked,
     )
     logs, wall = simulate(sd, simulator, progress)
     release_reference(sd)

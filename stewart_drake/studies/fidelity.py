@@ -621,6 +621,7 @@ def reproduce(
     duration_s: float | None = None,
     progress: bool = False,
     feedforward=None,
+    on_checked=None,
 ) -> Reproduction:
     """Check a motion against the robot, run it, measure it.
 
@@ -649,6 +650,7 @@ def reproduce(
         duration_s: length of a run on a reference without cycles, s.
         feedforward: a :class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuning`
             to learn with, or None.
+        on_checked: called (no arguments) once every check passed, before the run is built.
     Returns:
         :class:`Reproduction`.
     Raises:
@@ -677,6 +679,8 @@ def reproduce(
     if scale_to_fit:
         reference, scale = _fit(plan, reference)
     report = check_reference_shown(plan, reference, progress, keep_series=False)
+    if on_checked is not None:
+        on_checked()
     result, learner, wall, learned = run(plan, reference, progress, f"reproducing {name}", report)
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)

@@ -570,6 +570,7 @@ def write_workspace(
     geometry: StewartGeometry | None = None,
     runner=None,
     motor_limits: limits.MotorLimits | None = None,
+    say=None,
 ) -> list:
     """Sweep the robot over the three grids and write PNG, npz and CSV to ``out``.
 
@@ -578,6 +579,8 @@ def write_workspace(
             core). progress: show a tqdm bar. geometry: the robot (default: the reference one).
         runner: any runner of :mod:`.runners` (overrides ``jobs``).
         motor_limits: the motors (see :func:`classify`); None ignores them.
+        say: called with a line (str) before the writing and plotting after the sweep, which
+            take seconds with nothing else to show (None: nothing said).
     Writes (each atomically: a temporary file, then os.replace):
         workspace.npz (grids and classifications), summary.csv (figure, value, unit),
         tilt_vs_height.csv, workspace.png (torque maps + tilt vs height),
@@ -624,6 +627,11 @@ def write_workspace(
     for grid in ("translation", "orientation", "tilt"):
         for key in FIELDS:
             arrays[f"{grid}_{key}"] = s[grid][key]
+    if say is not None:
+        say(
+            "writing workspace.npz and the CSV files, drawing workspace.png and "
+            "bottleneck_and_orientation.png ..."
+        )
     atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
     rows = [
         ("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),

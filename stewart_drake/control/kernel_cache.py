@@ -1,0 +1,146 @@
+"""Whether importing :mod:`.lqi_kernels` will compile, decided from numba's disk cache without
+importing it (importing it is what compiles).
+
+numba keeps one index file per compiled function, ``<module>.<function>-<line>.py<XY>.nbi``, in
+the first cache folder it can write: ``NUMBA_CACHE_DIR`` (a sub-folder per source folder), else
+``__pycache__`` beside the source, else the user's cache folder, else (:mod:`.lqi_kernels` sets
+it) a folder in the temporary directory. An index is valid when numba's version wrote it, its
+stamp is the digest of the source file as it is now, and it holds an entry compiled for this
+machine's CPU. The same cache is bypassed when the sources the kernels freeze in have changed
+(:func:`sources_digest`).
+"""
+
+from __future__ import annotations
+
+import glob
+import hashlib
+import inspect
+import os
+import pickle
+import sys
+import tempfile
+from pathlib import Path
+
+#: The functions :func:`.lqi_kernels.warm_up` calls; the others are compiled into them.
+ENTRY_POINTS = ("step", "act", "filter_rate", "warm_gain")
+
+#: The kernels' module file, beside this one.
+KERNELS_FILE = Path(__file__).with_name("lqi_kernels.py")
+
+#: :func:`sources_digest` of the sources the kernels were last compiled against.
+DEPENDENCIES_DIGEST = "27ba854b9b43f403"
+
+
+def sources_digest() -> str:
+    """SHA-256 (16 hex digits) of what the compiled code takes from other files: the source of
+    :func:`~stewart_drake.model.kinematics.ik_scalar` and all of :mod:`.lqi_step` (its sums and
+    the index constants, which numba freezes into the machine code). numba's cache notices a
+    change of :mod:`.lqi_kernels` only, so the cache is used only while this digest is
+    :data:`DEPENDENCIES_DIGEST` (a test holds them equal: change one, update the other)."""
+    from ..model.kinematics import ik_scalar
+    from . import lqi_step
+
+    digest = hashlib.sha256(inspect.getsource(ik_scalar).encode())
+    digest.update(Path(lqi_step.__file__).read_bytes())
+    return digest.hexdigest()[:16]
+
+
+def use_cache() -> bool:
+    """Whether the kernels may use numba's disk cache (:data:`DEPENDENCIES_DIGEST` holds)."""
+    try:
+        return sources_digest() == DEPENDENCIES_DIGEST
+    except (OSError, TypeError):  # sources not shipped: compile every time
+        return False
+
+
+def fallback_cache_dir() -> str:
+    """A per-user folder in the temporary directory for numba's cache."""
+    user = os.environ.get("USER") or str(os.getuid() if hasattr(os, "getuid") else "user")
+    return os.path.join(tempfile.gettempdir(), f"stewart-drake-numba-cache-{user}")
+
+
+def _usable(folder: str) -> bool:
+    """Whether numba could use ``folder`` for its cache: it, or the nearest folder above it that
+    exists, is writable (numba creates the rest)."""
+    path = Path(folder)
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    return path.is_dir() and os.access(path, os.W_OK | os.X_OK)
+
+
+def cache_folder(source: Path = KERNELS_FILE) -> str | None:
+    """The folder numba caches ``source``'s functions in, by its own order of choice (None: none
+    is writable, and every process compiles)."""
+    import numba
+    from numba.core.caching import _CacheLocator
+
+    def sub(root: str) -> str:
+        return os.path.join(root, _CacheLocator.get_suitable_cache_subpath(str(source)))
+
+    chosen = getattr(numba.config, "CACHE_DIR", "")  # NUMBA_CACHE_DIR, or lqi_kernels' fallback
+    if chosen:
+        return sub(chosen)
+    candidates = [str(source.parent / "__pycache__")]
+    try:
+        from numba.misc.appdirs import AppDirs
+
+        candidates.append(sub(AppDirs(appname="numba", appauthor=False).user_cache_dir))
+    except ImportError:  # another numba layout: the fallback below still applies
+        pass
+    candidates.append(sub(fallback_cache_dir()))
+    return next((c for c in candidates if _usable(c)), None)
+
+
+def _host_cpu() -> tuple[str, str]:
+    """The CPU name and features numba compiles for (its codegen's ``magic_tuple``, less the
+    triple)."""
+    import numba
+    from numba.core import codegen
+
+    name = getattr(numba.config, "CPU_NAME", None) or codegen.ll.get_host_cpu_name()
+    features = getattr(numba.config, "CPU_FEATURES", None)
+    return name, features if features is not None else codegen.get_host_cpu_features()
+
+
+def _valid_index(path: str, stamps: tuple, cpu: tuple[str, str]) -> bool:
+    """Whether numba's index file ``path`` is this source's (its stamp one of ``stamps``), of
+    this numba, and holds an entry compiled for ``cpu``."""
+    import numba
+
+    try:
+        with open(path, "rb") as f:
+            if pickle.load(f) != numba.__version__:
+                return False
+            saved, overloads = pickle.loads(f.read())
+    except (OSError, EOFError, ValueError, TypeError, pickle.UnpicklingError, AttributeError):
+        return False  # a damaged or foreign index: numba compiles again too
+    if saved not in stamps:
+        return False
+    return any(tuple(key[1][1:]) == cpu for key in overloads)
+
+
+def will_compile(source: Path = KERNELS_FILE, entries=ENTRY_POINTS) -> bool:
+    """Whether importing the kernels of ``source`` compiles them: the cache is bypassed
+    (:func:`use_cache`), numba has no writable cache folder, or that folder has no valid index
+    (:func:`_valid_index`) for one of ``entries`` (function names).
+
+    Reads a few small files and imports numba; compiles nothing.
+    """
+    if not use_cache():
+        return True
+    folder = cache_folder(source)
+    if folder is None:
+        return True
+    try:
+        st = os.stat(source)
+        # numba's stamp: the file's digest (numba >= 0.61), or its mtime and size before
+        stamps = (hashlib.sha256(Path(source).read_bytes()).digest(), (st.st_mtime, st.st_size))
+    except OSError:
+        return True
+    cpu = _host_cpu()
+    abi = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    for name in entries:
+        pattern = os.path.join(glob.escape(folder), f"{Path(source).stem}.{name}-*.{abi}.nbi")
+        if not any(_valid_index(p, stamps, cpu) for p in glob.glob(pattern)):
+            return True
+    return False
