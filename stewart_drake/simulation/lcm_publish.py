@@ -265,7 +265,7 @@ def make_lcm(url: str):
     probe, probe_error = _drake_lcm(url)
     if probe is None:
         raise dead(f"LCM cannot open it ({probe_error:.200})")
-    received = []
+    received: list[bytes] = []
     probe.Subscribe(CHECK_CHANNEL, received.append)
     lcm.Publish(CHECK_CHANNEL, b"")
     for _ in range(CHECK_TIMEOUT_MS // 100):
