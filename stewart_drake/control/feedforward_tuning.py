@@ -87,6 +87,9 @@ _STRETCH = FF_STATUS_NAMES.index("stretch")
 #: Version of the learned-model file (:func:`save_learned`).
 LEARNED_FORMAT = 1
 _KIND = "learned feed-forward model (.npz)"
+#: Largest learned-model file, bytes, on disk and after decompression: the weights are
+#: p x 6 float64 (a few kB), so anything near this bound is not one.
+MAX_LEARNED_BYTES = 1e6
 
 
 def basis_size(lags=LAGS_S) -> int:
@@ -395,17 +398,25 @@ def save_learned(path, theta, geometry_name: str = "") -> Path:
 
 
 def load_learned(path) -> np.ndarray:
-    """The (p, 6) weights of a file :func:`save_learned` wrote; numbers only (no pickles).
+    """The (p, 6) weights of a file :func:`save_learned` wrote, read through
+    :class:`~stewart_drake.fileio.CheckedNpz` (a regular file of at most
+    :data:`MAX_LEARNED_BYTES`, each entry's header checked before it is loaded, no pickles).
 
+    Returns:
+        (p, 6) float64 weights theta, p = :func:`basis_size`.
     Raises:
-        CorruptFileError: not such a file, or one for another basis.
+        CorruptFileError: naming the file: not a readable ``.npz`` (a FIFO, too large, an
+            entry whose header claims more than it holds); ``format`` not one integer;
+            ``theta`` or ``lags_s`` not real numbers (text, complex); a model of another basis;
+            weights not all finite.
+        OSError: the file cannot be read (missing, permissions).
     """
+    from ..fileio import CheckedNpz
+
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            fmt, theta, lags = int(data["format"]), data["theta"], data["lags_s"]
-    except (OSError, ValueError, KeyError) as err:
-        raise CorruptFileError(path, _KIND, f"{err}", "write it with --save-learned") from None
+    data = CheckedNpz(path, _KIND, "write it with --save-learned", MAX_LEARNED_BYTES)
+    fmt = data.integer("format")
+    theta, lags = data.array("theta"), data.array("lags_s")
     same_basis = lags.shape == (len(LAGS_S),) and np.allclose(lags, LAGS_S)
     if fmt != LEARNED_FORMAT or not same_basis or theta.shape != (basis_size(), 6):
         raise CorruptFileError(
@@ -416,7 +427,7 @@ def load_learned(path) -> np.ndarray:
         )
     if not np.all(np.isfinite(theta)):
         raise CorruptFileError(path, _KIND, "the weights are not all finite")
-    return np.array(theta, dtype=float)
+    return theta
 
 
 # -- the scenario's choice ------------------------------------------------------------------

@@ -275,11 +275,9 @@ def _add_lcm(builder, station: Station, system: System, x: OutputPort, x_d: Outp
     config = scenario.lcm
     if config is None:
         return None
-    from pydrake.lcm import DrakeLcm
+    from .lcm_publish import add_command_publisher, add_status_publisher, make_lcm
 
-    from .lcm_publish import add_command_publisher, add_status_publisher
-
-    lcm = DrakeLcm(config.url) if config.url else DrakeLcm()
+    lcm = make_lcm(config.url)  # refuses a URL on which nothing published arrives
     ports = {
         name: station.GetOutputPort(name)
         for name in ("motor_angle", "motor_rate", "motor_torque_applied")

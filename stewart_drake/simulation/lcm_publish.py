@@ -10,6 +10,9 @@ outputs the controller reads (:func:`add_status_publisher`, :func:`add_command_p
 
 from __future__ import annotations
 
+import os
+import sys
+import tempfile
 from collections.abc import Mapping
 
 import numpy as np
@@ -22,6 +25,7 @@ from pydrake.systems.lcm import LcmPublisherSystem
 from ..checks import as_number
 from ..errors import InvalidConfigError
 from ..lcmtypes import lcmt_stewart_command, lcmt_stewart_status
+from .scenario import LCM_DEFAULT_URL, check_lcm_url
 from .station import _weak
 
 #: The channel of :class:`~stewart_drake.lcmtypes.lcmt_stewart_status`.
@@ -30,6 +34,11 @@ STATUS_CHANNEL = "STEWART_STATUS"
 COMMAND_CHANNEL = "STEWART_COMMAND"
 
 _INT32 = (-(2**31), 2**31 - 1)
+#: The channel of the one empty message :func:`make_lcm` sends to check that what is published
+#: on a URL arrives there.
+CHECK_CHANNEL = "STEWART_LCM_CHECK"
+#: How long :func:`make_lcm` waits for that message, ms (it arrives in well under 1 ms).
+CHECK_TIMEOUT_MS = 1000
 
 #: The numbers of a control loop in the status (the :class:`StatusSender`'s ``loop`` input, in
 #: this order): mode (``lcmt_stewart_status.MODE_*``), deadline misses since the start, achieved
@@ -201,3 +210,68 @@ def add_command_publisher(
     sender = CommandSender()
     _add_publisher(builder, sender, lcmt_stewart_command, {"T": T}, lcm, period_s, channel)
     return sender
+
+
+def _drake_lcm(url: str):
+    """``DrakeLcm(url)`` with what LCM's C library prints on stderr while it opens the URL
+    (bind: Address already in use ...) captured, not shown: returned as (lcm or None, error)."""
+    from pydrake.lcm import DrakeLcm
+
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as captured:
+        os.dup2(captured.fileno(), 2)
+        try:
+            lcm, error = DrakeLcm(url), ""
+        except RuntimeError as err:
+            lcm, error = None, str(err)
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        captured.seek(0)
+        said = captured.read(4096).decode("utf-8", "replace").split()
+    return lcm, " ".join(said) or error
+
+
+def make_lcm(url: str):
+    """The ``DrakeLcm`` of a scenario's ``lcm.url``, checked to deliver what is published on it.
+
+    ``url`` "" is Drake's default: ``LCM_DEFAULT_URL`` from the environment, else LCM's own
+    :data:`~.scenario.LCM_DEFAULT_URL`; it is checked as ``lcm.url`` is
+    (:func:`~.scenario.check_lcm_url`) before LCM opens it. Where LCM cannot open a URL it
+    says so on stderr and Drake goes on with an in-process queue: nothing would leave the
+    process. So, for a ``udpm://`` URL, a second instance on the same URL must receive one
+    empty message sent on :data:`CHECK_CHANNEL` within :data:`CHECK_TIMEOUT_MS`.
+
+    Raises:
+        InvalidConfigError: the URL is not one a run may use, or nothing published on it
+            arrives (LCM could not open it: a port taken, no multicast route), in one line.
+    """
+    resolved = url or os.environ.get("LCM_DEFAULT_URL") or LCM_DEFAULT_URL
+    what = "lcm.url" if url or "LCM_DEFAULT_URL" not in os.environ else "LCM_DEFAULT_URL"
+    check_lcm_url(resolved, what)
+
+    def dead(problem: str) -> InvalidConfigError:
+        return InvalidConfigError(
+            f"{what} {resolved!r}: {problem}; choose another port or address, or see "
+            f"'Watching with LCM's tools' in docs/lcm.md (multicast may need a route)"
+        )
+
+    lcm, error = _drake_lcm(url)
+    if lcm is None:
+        raise dead(f"LCM cannot open it ({error:.200})")
+    if resolved == "memq://":
+        return lcm  # in this process only, and it cannot fail
+    probe, probe_error = _drake_lcm(url)
+    if probe is None:
+        raise dead(f"LCM cannot open it ({probe_error:.200})")
+    received: list[bytes] = []
+    probe.Subscribe(CHECK_CHANNEL, received.append)
+    lcm.Publish(CHECK_CHANNEL, b"")
+    for _ in range(CHECK_TIMEOUT_MS // 100):
+        if probe.HandleSubscriptions(100) or received:
+            break
+    if not received:
+        said = f": {error:.200}" if error else ""
+        raise dead(f"nothing published on it arrives (LCM could not open it{said})")
+    return lcm

@@ -429,16 +429,84 @@ class DynamixelBusConfig:
         )
 
 
+#: LCM's default URL, which Drake uses for ``url: ""`` when ``LCM_DEFAULT_URL`` is not set.
+LCM_DEFAULT_URL = "udpm://239.255.76.67:7667?ttl=0"
+#: LCM's longest channel name, characters (``LCM_MAX_CHANNEL_NAME_LENGTH``): a longer one is
+#: dropped at every publish with a message on stderr.
+LCM_MAX_CHANNEL_CHARS = 63
+#: The options a ``udpm://`` URL may carry, with their ranges.
+_UDPM_OPTIONS = {"ttl": (0, 255), "recv_buf_size": (1, 2**31 - 1)}
+_LCM_URL_FORMS = (
+    '"memq://" (in one process), "udpm://ADDRESS:PORT[?ttl=N]" with a multicast IPv4 address '
+    "(224.0.0.0/4; LCM's own is udpm://239.255.76.67:7667?ttl=0), or \"\" for Drake's default"
+)
+
+
+def check_lcm_url(url: str, what: str = "lcm.url") -> None:
+    """Accept the LCM URLs a run may publish on, refuse every other (docs/lcm.md).
+
+    Accepted: ``memq://`` (in one process) and ``udpm://A.B.C.D:PORT`` with a multicast IPv4
+    address, a port in 1..65535 and the options ``ttl`` (0..255) and ``recv_buf_size``.
+    Refused: ``file://`` (LCM would create, truncate or append to that file, outside the run's
+    output: the run's ``.npz`` records what was published), ``tcpq://`` and ``mpudpm://`` (not
+    supported here), anything else LCM does not know.
+
+    Args:
+        url: the URL. what: how messages name it ("lcm.url", "LCM_DEFAULT_URL").
+    Raises:
+        InvalidConfigError: naming ``what``, the URL and the forms accepted.
+    """
+    import ipaddress
+
+    def refuse(problem: str) -> InvalidConfigError:
+        return InvalidConfigError(f"{what} {url!r}: {problem}; use {_LCM_URL_FORMS}")
+
+    scheme, sep, rest = url.partition("://")
+    if not sep:
+        raise refuse("not an LCM URL (provider://address)")
+    if scheme == "file":
+        raise refuse(
+            "LCM would create, truncate or read that file, outside the run's output; the "
+            "run's .npz (--out) records what was published, lcm-logger records a udpm:// bus"
+        )
+    if scheme == "memq":
+        if rest:
+            raise refuse("memq:// takes no address or options")
+        return
+    if scheme != "udpm":
+        raise refuse(f"the provider {scheme!r} is not supported")
+    address, _, query = rest.partition("?")
+    host, colon, port = address.rpartition(":")
+    try:
+        multicast = ipaddress.IPv4Address(host).is_multicast
+    except ValueError:
+        raise refuse(f"{host or address!r} is not an IPv4 address") from None
+    if not multicast:
+        raise refuse(f"{host} is not a multicast address (224.0.0.0/4)")
+    if not (colon and port.isdigit() and port.isascii() and 1 <= int(port) <= 65535):
+        raise refuse("the port must be a number in 1..65535")
+    seen = set()
+    for option in query.split("&") if query else ():
+        key, equals, value = option.partition("=")
+        if key not in _UDPM_OPTIONS or not equals or key in seen:
+            raise refuse(f"the option {option!r} is not one of {', '.join(_UDPM_OPTIONS)}, once")
+        seen.add(key)
+        lo, hi = _UDPM_OPTIONS[key]
+        if not (value.isdigit() and value.isascii() and lo <= int(value) <= hi):
+            raise refuse(f"{key} must be an integer in {lo}..{hi}")
+
+
 @dataclass
 class LcmConfig:
     """The run's status and commands on LCM channels (:mod:`~.lcm_publish`, docs/lcm.md), in
     simulation and on the servo bus alike.
 
     Attributes:
-        url: the ``DrakeLcm`` URL: "memq://" in one process (tests), "" for Drake's default
-            (UDP multicast, for lcm-spy and other processes).
+        url: the ``DrakeLcm`` URL: "memq://" in one process (tests), "udpm://ADDRESS:PORT?ttl=N"
+            on a multicast group, "" for Drake's default (``LCM_DEFAULT_URL`` or LCM's own UDP
+            multicast, for lcm-spy and other processes); nothing else (:func:`check_lcm_url`).
         status_channel: channel of ``lcmt_stewart_status``. command_channel: of
-            ``lcmt_stewart_command``.
+            ``lcmt_stewart_command`` (another channel: each has its own publisher).
         period_s: publish period, s (a whole multiple of the plant step).
     """
 
@@ -452,9 +520,23 @@ class LcmConfig:
         for name in ("url", "status_channel", "command_channel"):
             if not isinstance(getattr(self, name), str):
                 raise InvalidConfigError(f"lcm.{name} must be a string")
+        if self.url:
+            check_lcm_url(self.url)
         for name in ("status_channel", "command_channel"):
-            if not getattr(self, name):
+            channel = getattr(self, name)
+            if not channel:
                 raise InvalidConfigError(f"lcm.{name} must not be empty")
+            if len(channel) > LCM_MAX_CHANNEL_CHARS or not channel.isprintable():
+                raise InvalidConfigError(
+                    f"lcm.{name} {channel!r}: a channel is at most {LCM_MAX_CHANNEL_CHARS} "
+                    f"printable characters (LCM drops longer ones)"
+                )
+        if self.status_channel == self.command_channel:
+            raise InvalidConfigError(
+                f"lcm.status_channel and lcm.command_channel are both "
+                f"{self.status_channel!r}: give them different channels (each message type "
+                f"has its own)"
+            )
         as_number("lcm.period_s", self.period_s, 0.0, lo_open=True)
         check_multiple("lcm.period_s", self.period_s, "plant.time_step", plant_time_step_s)
 

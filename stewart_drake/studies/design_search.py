@@ -160,21 +160,32 @@ class TaskSamples:
 
     @classmethod
     def load(cls, path) -> TaskSamples:
-        """Read what :meth:`save` wrote (no pickled objects are read)."""
-        with np.load(path, allow_pickle=False) as f:
-            payload, torque_share, speed_share = (float(v) for v in f["scalars"])
-            return cls(
-                tuple(str(s) for s in f["labels"]),
-                f["x"],
-                f["x_dot"],
-                f["x_ddot"],
-                f["motion"],
-                f["workspace_x"],
-                payload,
-                torque_share,
-                speed_share,
-                tuple(float(v) for v in f["resolution"]),
-            )
+        """Read what :meth:`save` wrote, through :class:`~stewart_drake.fileio.CheckedNpz`
+        (numbers and text only, each entry's header checked before it is loaded).
+
+        Raises:
+            CorruptFileError: not such a file (names it and the entry at fault).
+            OSError: the file cannot be read.
+        """
+        from ..fileio import CheckedNpz
+
+        f = CheckedNpz(path, "design task samples (.npz)", "run the design search again")
+        scalars, resolution = f.array("scalars"), f.array("resolution")
+        if scalars.shape != (3,):
+            raise f.corrupt(f"the entry 'scalars' must hold 3 numbers, has {scalars.shape}")
+        payload, torque_share, speed_share = (float(v) for v in scalars)
+        return cls(
+            f.texts("labels"),
+            f.array("x"),
+            f.array("x_dot"),
+            f.array("x_ddot"),
+            f.integers("motion"),
+            f.array("workspace_x"),
+            payload,
+            torque_share,
+            speed_share,
+            tuple(float(v) for v in resolution.ravel()),
+        )
 
 
 def tilted_box_poses(box_m, tilt_deg: float, centre_m, points: int = BOX_POINTS) -> np.ndarray:
