@@ -72,7 +72,13 @@ ALLOWED = {
     # The machine's memory, from the kernel's own files (/proc/meminfo, the cgroup's limit).
     ("checks.py", "available_memory_bytes", "open"),
     # Our own source files, hashed for numba's cache key.
-    ("control/lqi_kernels.py", "sources_digest", "Path(...).read_bytes"),
+    ("control/kernel_cache.py", "sources_digest", "Path(...).read_bytes"),
+    ("control/kernel_cache.py", "will_compile", "Path(...).read_bytes"),
+    # numba's own cache index (in the package's __pycache__ or NUMBA_CACHE_DIR), read as numba
+    # reads it when it loads the cache, to say whether a command is about to compile.
+    ("control/kernel_cache.py", "_valid_index", "open"),
+    ("control/kernel_cache.py", "_valid_index", "pickle.load"),
+    ("control/kernel_cache.py", "_valid_index", "pickle.loads"),
     # The folder lock: a file this tool creates in its output folder (check_replaceable first),
     # of which it reads the holder's 300 characters.
     ("execution/store.py", "lock_folder", "open"),

@@ -230,13 +230,19 @@ def build_simulator(
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
             checked before anything is simulated. InvalidConfigError: a bad scenario field, or
-            a run that needs more memory than the machine has (:func:`check_run_memory`).
+            a run that needs more memory than the machine has (:func:`check_run_memory`), or
+            an ``lcm.url`` on which nothing published arrives
+            (:func:`~stewart_drake.simulation.lcm_publish.make_lcm`).
     """
     plan = make_plan(scenario, with_reference=False)  # validated once, here
     check_run_memory(plan.scenario)
     plan = make_plan(plan, reference=reference, controller=controller)
     if report is None:
         check_reference_shown(plan, progress=progress, keep_series=False)
+    if plan.scenario.lcm is not None:  # a dead URL is a refusal: before the Diagram is built
+        from ..simulation.lcm_publish import make_lcm
+
+        make_lcm(plan.scenario.lcm.url)
     if on_checked is not None:
         on_checked()
     sd = make_stewart_diagram(plan, meshcat=meshcat, controller_logs=controller_logs)
