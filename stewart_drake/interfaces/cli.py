@@ -217,7 +217,7 @@ def _refuse_system_folder(folder, option: str) -> None:
 
 
 #: The commands that run the LQI's compiled step (a first run on a machine compiles it).
-COMPILING_COMMANDS = ("run", "collect", "evaluate", "reproduce", "teleop")
+COMPILING_COMMANDS = ("run", "collect", "evaluate", "reproduce", "teleop", "robot")
 
 
 def _say_if_compiling(
