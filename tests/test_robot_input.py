@@ -9,6 +9,7 @@ command called through ``main``; only the emulator's own process test spawns one
 import os
 import re
 import signal
+import time
 import types
 
 import numpy as np
@@ -73,13 +74,6 @@ def ctrl_c():
     old = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, old)
-
-
-@pytest.fixture(scope="module", autouse=True)
-def compiled_step():
-    """The LQI's compiled step loaded (compiled on a first run) before any session: loading it
-    inside the first control period would stall the loop past our watchdog's limit."""
-    import stewart_drake.control.lqi_kernels  # noqa: F401
 
 
 def _kill_then(signum, original):
@@ -161,6 +155,49 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
     assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5  # the lead-in and the hold
     assert torque == [0] * 6
     assert opened and all(bus._port is None for bus in opened)  # every bus closed
+
+
+def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
+    from stewart_drake.execution.runners import Interrupted
+    from stewart_drake.interfaces.robot import SessionSignals
+
+    def kill(signum):
+        os.kill(os.getpid(), signum)
+        time.sleep(0.01)  # the handler runs in this thread at the next bytecode
+
+    before = signal.getsignal(signal.SIGTERM)
+    with SessionSignals() as signals:
+        with pytest.raises(Interrupted) as caught:
+            kill(signal.SIGTERM)
+        assert caught.value.signum == signal.SIGTERM
+        kill(signal.SIGTERM)  # a second, while the first one's end runs: held
+        assert signals.received == signal.SIGTERM
+        with pytest.raises(Interrupted):  # never powered with a signal pending
+            signals.arm()
+        signals.received = None
+        signals.arm()
+        with pytest.raises(Interrupted):  # armed: the torque is on, a signal ends it
+            kill(signal.SIGTERM)
+        signals.hold()  # the torque-off
+        kill(signal.SIGTERM)
+        run = signals.settle(RobotRun("the reference ran to its end", True, True))
+        signals.settle(run)  # once
+    assert signal.getsignal(signal.SIGTERM) is before  # restored
+    assert run.exit_code == 128 + signal.SIGTERM
+    assert run.reason == (
+        "the reference ran to its end; SIGTERM received after the torque went off: held to the end"
+    )
+    failed = RobotRun("BusError: bus /dev/ttyUSB0: sync read", False, True, exit_code=1)
+    with SessionSignals() as signals:
+        signals.hold()
+        kill(signal.SIGTERM)
+    assert signals.settle(failed).exit_code == 1  # the failure's status stands
+    ignored = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with SessionSignals():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN  # nohup stays nohup
+    finally:
+        signal.signal(signal.SIGHUP, ignored)
 
 
 def test_the_end_line_gives_one_verdict_on_the_torque_off_after_a_bus_error():

@@ -444,6 +444,20 @@ class SessionSignals:
             signal.signal(signum, handler)
         self._old.clear()
 
+    def arm(self) -> None:
+        """Just before the torque goes on: raise a signal recorded so far (one that came after
+        an interrupt something swallowed), and raise the next again: while the torque is on a
+        signal is never held.
+
+        Raises:
+            Interrupted: the recorded signal.
+        """
+        from ..execution.runners import Interrupted
+
+        if self.received is not None:
+            raise Interrupted(self.received)
+        self.holding = False
+
     def hold(self) -> None:
         """From now on, record signals instead of raising them."""
         self.holding = True
@@ -645,6 +659,7 @@ def _drive(
     watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
     simulator.set_monitor(_kicker(watchdog))
     simulator.set_target_realtime_rate(1.0)
+    signals.arm()
     bus.enable_torque()
     say(announce)
     wall0 = time.perf_counter()
