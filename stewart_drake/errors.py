@@ -370,7 +370,14 @@ class MissingExtraError(StewartError, ImportError):
 class BusError(StewartError, RuntimeError):
     """A servo bus that failed: the port does not open, a servo does not answer or answers with
     an error, a reply is corrupt. The message names the port, the servo and the instruction.
-    Whoever raises it has already tried to remove the servos' torque."""
+    Whoever raises it has already tried to remove the servos' torque.
+
+    Attributes:
+        failure: the failure alone, without the verdict on that torque-off (str; set by the
+            driver, whose message ends with the verdict), or None.
+    """
+
+    failure: str | None = None
 
 
 class StartPoseError(StewartError, ValueError):

@@ -71,7 +71,8 @@ def test_every_scenario_value_reaches_the_plant(name):
     expected = 0.0 if servo is None else servo.rotor_inertia * servo.gear_ratio**2
     np.testing.assert_allclose(reflected, expected, rtol=1e-9, atol=1e-15)
     if servo is not None:
-        assert expected == pytest.approx(2.50e-4, rel=2e-3)
+        if name == "paper_hardware":  # the maxon of the robot as built (paper_bus: a servo's)
+            assert expected == pytest.approx(2.50e-4, rel=2e-3)
         for i, joint in enumerate(handles.motors):
             assert joint.default_damping() == servo.viscous_damping
             friction = plant.GetJointActuatorByName(f"friction_{i}", handles.model_instance)

@@ -1087,8 +1087,7 @@ def _cmd_robot(args) -> int:
     off and one line at every end."""
     from ..fileio import check_replaceable
     from ..simulation.scenario_io import load_scenario
-    from ..studies.run_report import format_metrics
-    from .robot import end_line, measure_pose, run_on_robot
+    from .robot import SessionSignals
 
     if args.teleop and (args.reference is not None or args.dry_run):
         from ..errors import InvalidConfigError
@@ -1111,15 +1110,74 @@ def _cmd_robot(args) -> int:
     stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
     if not args.dry_run and args.calibrate is None:
         check_replaceable(out / f"{stem}.npz")
-    emulator = None
+    from ..simulation.hardware.driver import dynamixel_sdk
+
+    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
+    if args.calibrate is not None:
+        _check_calibration_angle(scenario, args.calibrate)
     if args.emulate is not None:
         if scenario.bus is None:
             from ..simulation.scenario import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig()
-        emulator = _start_emulator(scenario, args.emulate)
-        print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
+        _check_emulated_pose(scenario, args.emulate)
+    if not args.dry_run and args.calibrate is None:
+        # Loaded (or compiled) before anything is powered: a first load inside the first
+        # control period would trip our watchdog.
+        _say_if_compiling("robot")
+    with SessionSignals() as signals:  # held from the torque-off through the end line
+        return _robot_session(args, scenario, out, stem, signals)
+
+
+def _check_calibration_angle(scenario, angle_deg: float) -> None:
+    """Refuse ``--calibrate DEG`` outside the cranks' travel (the scenario's
+    ``robot.motor_angle_min_deg`` .. ``motor_angle_max_deg``), or not finite.
+
+    Raises:
+        InvalidConfigError: names the range.
+    """
+    from ..errors import InvalidConfigError
+
+    lo, hi = scenario.robot.motor_angle_min_deg, scenario.robot.motor_angle_max_deg
+    if not (math.isfinite(angle_deg) and lo <= angle_deg <= hi):
+        raise InvalidConfigError(
+            f"--calibrate {angle_deg:g}: the angle the cranks are held at must be a finite "
+            f"number of degrees in the cranks' travel [{lo:g}, {hi:g}]"
+        )
+
+
+def _check_emulated_pose(scenario, x0) -> None:
+    """Refuse ``--emulate POSE`` where the scenario's robot cannot be assembled (before a
+    process is spawned for it).
+
+    Raises:
+        InvalidConfigError: not six finite numbers, or a pose out of the rods' reach (named).
+    """
+    import numpy as np
+
+    from ..errors import InvalidConfigError, StewartError
+    from ..model.kinematics import ik
+    from ..simulation.plan import make_plan
+
     try:
+        ik(make_plan(scenario, with_reference=False).geometry, np.asarray(x0, dtype=float))
+    except StewartError as err:
+        raise InvalidConfigError(
+            f"--emulate {','.join(f'{v:g}' for v in x0)}: the robot cannot rest there ({err})"
+        ) from None
+
+
+def _robot_session(args, scenario, out, stem, signals) -> int:
+    """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
+    calibrate, dry run, or a session, ending in the end line; closes the emulator."""
+    from ..studies.run_report import format_metrics
+    from .robot import end_line, measure_pose, run_on_robot
+
+    emulator = None
+    try:
+        if args.emulate is not None:
+            emulator = _start_emulator(scenario, args.emulate)
+            print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
             from .robot import bus_config, zero_counts_at
 
@@ -1144,7 +1202,11 @@ def _cmd_robot(args) -> int:
             from .robot import teleop_on_robot
 
             run = teleop_on_robot(
-                scenario, meshcat, duration_s=args.duration, loop_timeout_s=args.loop_timeout
+                scenario,
+                meshcat,
+                duration_s=args.duration,
+                loop_timeout_s=args.loop_timeout,
+                signals=signals,
             )
         else:
             run = run_on_robot(
@@ -1156,6 +1218,7 @@ def _cmd_robot(args) -> int:
                 stem=stem,
                 meshcat=meshcat,
                 progress=not args.no_progress,
+                signals=signals,
             )
     finally:
         if emulator is not None:
@@ -1164,6 +1227,7 @@ def _cmd_robot(args) -> int:
         print(format_metrics(run.metrics))
     if run.timing_lines:
         print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
+    signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
 
@@ -1233,14 +1297,15 @@ def _add_runner_arguments(parser) -> None:
     )
 
 
-def _add_scenario_arguments(parser, what: str) -> None:
-    """``--scenario`` and ``--set``, the same for every command that starts from a scenario."""
+def _add_scenario_arguments(parser, what: str, default: str | None = None) -> None:
+    """``--scenario`` (default ``default``, or the commands' default scenario) and ``--set``,
+    the same for every command that starts from a scenario."""
     parser.add_argument(
         "--scenario",
-        default=_default_scenario(),
+        default=default or _default_scenario(),
         metavar="FILE|NAME",
-        help=f"{what}: a .yaml file or a shipped name ({_default_scenario()}: the "
-        f"robot as built; paper_ideal: the paper's ideal robot; "
+        help=f"{what}: a .yaml file or a shipped name (default {default or _default_scenario()}; "
+        f"{_default_scenario()}: the robot as built; paper_ideal: the paper's ideal robot; "
         f"`stewart-drake scenario --list`)",
     )
     parser.add_argument(
@@ -1793,14 +1858,14 @@ def _add_teleop_command(sub) -> None:
 
 
 def _pose6(text: str) -> list[float]:
-    """Six comma-separated numbers phi,theta,psi,X,Y,Z (rad, m)."""
+    """Six comma-separated finite numbers phi,theta,psi,X,Y,Z (rad, m)."""
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
-    if len(values) != 6:
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
         raise argparse.ArgumentTypeError(
-            f"give six numbers phi,theta,psi,X,Y,Z in rad and m, got {text!r}"
+            f"give six finite numbers phi,theta,psi,X,Y,Z in rad and m, got {text!r}"
         )
     return values
 
@@ -1818,7 +1883,9 @@ def _add_robot_command(sub) -> None:
         help="a reference name (paper, home, helix, step_<axis>, sweep_<axis>), a trace or "
         "a CSV file (default: the scenario's)",
     )
-    _add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)")
+    from ..simulation.scenario_io import ROBOT_SCENARIO
+
+    _add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)", ROBOT_SCENARIO)
     rob.add_argument(
         "--port", default=None, help="the servos' serial port (default: the scenario's bus.port)"
     )

@@ -29,6 +29,7 @@ and its verdict.
 from __future__ import annotations
 
 import dataclasses
+import math
 import signal
 import sys
 import threading
@@ -181,13 +182,28 @@ def zero_counts_at(bus, angle_rad: float = 0.0) -> np.ndarray:
             right (a crank's counts grow as its tip rises for +1).
         angle_rad: the angle the cranks are held at, rad.
     Returns:
-        (n,) int counts, rounded.
+        (n,) int counts, rounded, each within the Present Position register's (signed 32 bits).
+    Raises:
+        InvalidConfigError: ``angle_rad`` not finite or beyond half a turn.
+        BusError: a zero count outside the register's range (a servo's reading is wrong).
     """
+    from ..errors import BusError
     from ..simulation.hardware.protocol import rad_to_counts
 
+    if not (math.isfinite(angle_rad) and abs(angle_rad) <= math.pi):
+        raise InvalidConfigError(
+            f"the calibration angle must be finite and within half a turn, got {angle_rad} rad"
+        )
     q = bus.read_state().q  # with the bus's current zero counts and directions
     raw = rad_to_counts(q, bus.zero_counts, bus.directions)
-    return np.rint(raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)).astype(int)
+    zeros = raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)
+    bad = np.flatnonzero(np.abs(zeros) >= 2**31)
+    if bad.size:
+        raise BusError(
+            f"servo id {bus.ids[bad[0]]} reads {raw[bad[0]]} counts: its zero count would be "
+            f"outside the encoder's signed 32-bit range; check its id and its reading"
+        )
+    return zeros.astype(int)
 
 
 def admissible_start(scenario) -> MeasuredPose:
@@ -385,6 +401,91 @@ def _signal_name(err: BaseException) -> tuple[str, int]:
     return signal.Signals(signum).name, 128 + int(signum)
 
 
+class SessionSignals:
+    """SIGINT, SIGTERM and SIGHUP around a session on the robot (main thread only; a signal
+    the process was started ignoring stays ignored).
+
+    Until :meth:`hold` (the torque-off) the first of them raises
+    :class:`~stewart_drake.execution.runners.Interrupted` (a KeyboardInterrupt naming it, as
+    the CLI's handlers do): it ends the run. From then on, and after that first one, a signal is
+    recorded in ``received`` instead of raised, so that nothing cuts short the torque-off's
+    confirmation, closing the bus, the logs or the end line (an operator's Ctrl-C as the
+    platform settles would otherwise lose all of them); :meth:`settle` then names it in the
+    session's reason and exit status.
+
+        with SessionSignals() as signals:
+            run = run_on_robot(scenario, signals=signals)
+            signals.settle(run)
+            print(end_line(run))
+        sys.exit(run.exit_code)
+
+    Attributes:
+        received: the first signal number recorded while held, or None.
+    """
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self):
+        self.received: int | None = None
+        self.holding = False
+        self._settled = False
+        self._old: dict = {}
+
+    def __enter__(self) -> SessionSignals:
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NAMES:
+                signum = getattr(signal, name, None)
+                if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+                    self._old[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._old.items():
+            signal.signal(signum, handler)
+        self._old.clear()
+
+    def arm(self) -> None:
+        """Just before the torque goes on: raise a signal recorded so far (one that came after
+        an interrupt something swallowed), and raise the next again: while the torque is on a
+        signal is never held.
+
+        Raises:
+            Interrupted: the recorded signal.
+        """
+        from ..execution.runners import Interrupted
+
+        if self.received is not None:
+            raise Interrupted(self.received)
+        self.holding = False
+
+    def hold(self) -> None:
+        """From now on, record signals instead of raising them."""
+        self.holding = True
+
+    def _handle(self, signum, frame) -> None:
+        from ..execution.runners import Interrupted
+
+        if self.holding:
+            if self.received is None:
+                self.received = int(signum)
+            return
+        self.holding = True  # the one raised ends the run; the next must not cut its end
+        raise Interrupted(signum)
+
+    def settle(self, run: RobotRun) -> RobotRun:
+        """Name a recorded signal in ``run.reason`` (once) and make the exit status 128 + its
+        number where the session had otherwise succeeded; returns ``run``."""
+        if self.received is None or self._settled:
+            return run
+        self._settled = True
+        name = signal.Signals(self.received).name
+        kept = "held until the logs were saved" if run.logs is not None else "held to the end"
+        run.reason += f"; {name} received after the torque went off: {kept}"
+        if run.exit_code == 0:
+            run.exit_code = 128 + self.received
+        return run
+
+
 def run_on_robot(
     scenario,
     *,
@@ -398,6 +499,7 @@ def run_on_robot(
     progress: bool = False,
     say: Callable[[str], None] | None = None,
     before_torque: Callable | None = None,
+    signals: SessionSignals | None = None,
 ) -> RobotRun:
     """Run the scenario's closed loop on the robot (the safety sequence of the module's
     docstring); never leaves the torque on.
@@ -415,8 +517,12 @@ def run_on_robot(
         progress: a progress bar.  say: where the one-line messages go (default stderr).
         before_torque: a test hook ``f(sd, simulator)`` called after every check, just before
             the torque is enabled.
+        signals: the entered :class:`SessionSignals` of a caller that says the end line itself
+            (it holds signals through it, then calls ``settle``); None: the session's own,
+            settled before it returns.
     Returns:
-        :class:`RobotRun` (exit_code 0 only when the reference ran to its end).
+        :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
+        came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
     Raises:
         InvalidConfigError: no bus, a bad scenario or argument; the reference refused by its
             checks (UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
@@ -439,22 +545,25 @@ def run_on_robot(
     start = admissible_start(plan)  # opens and closes the port; the torque stays off
     homed = HomingReference(target, start.x, home_s, t_end=duration)
     run_plan = dataclasses.replace(plan.scenario, duration_s=homed.duration_s + hold_s)
-    return _run(
-        run_plan,
-        homed,
-        start,
-        loop_timeout_s,
-        Path(out),
-        stem,
-        meshcat,
-        progress,
-        say,
-        before_torque,
-    )
+    session = (run_plan, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
+    if signals is not None:
+        return _run(*session, before_torque, signals)
+    with SessionSignals() as own:
+        return own.settle(_run(*session, before_torque, own))
 
 
 def _run(
-    scenario, homed, start, loop_timeout_s, out, stem, meshcat, progress, say, before_torque
+    scenario,
+    homed,
+    start,
+    loop_timeout_s,
+    out,
+    stem,
+    meshcat,
+    progress,
+    say,
+    before_torque,
+    signals,
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
@@ -518,10 +627,11 @@ def _run(
             f"torque on: homing for {homed.home_s:g} s from the measured pose, then "
             f"{getattr(homed.reference, 'name', 'the reference')}"
         )
-        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended)
+        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended, signals)
     finally:
-        ended.torque_off_confirmed = bus.torque_off()
+        signals.hold()
         try:
+            ended.torque_off_confirmed = bus.torque_off()
             ended.timing = station.driver.timing_summary()
             ended.timing_lines = station.driver.timing_lines()
         finally:
@@ -537,21 +647,28 @@ def _run(
     return ended
 
 
-def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun) -> float:
+def _drive(
+    bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun, signals: SessionSignals
+) -> float:
     """Enable the torque, say ``announce``, run ``body()`` (which advances ``simulator``)
-    behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. The
-    caller removes the torque (in a ``finally``)."""
+    behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. From
+    the end of ``body()`` on, ``signals`` are held. The caller removes the torque (in a
+    ``finally``)."""
     from ..execution.runners import interrupt_in
 
     watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
     simulator.set_monitor(_kicker(watchdog))
     simulator.set_target_realtime_rate(1.0)
+    signals.arm()
     bus.enable_torque()
     say(announce)
     wall0 = time.perf_counter()
     try:
-        with watchdog:
-            body()
+        try:
+            with watchdog:
+                body()
+        finally:
+            signals.hold()
         ended.reason, ended.ok = "the reference ran to its end", True
     except KeyboardInterrupt as err:
         name, ended.exit_code = _signal_name(err)
@@ -559,7 +676,10 @@ def _drive(bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun)
         if watchdog.tripped:  # it came while the loop was stalled
             ended.reason += f" after {watchdog.tripped}"
     except StewartError as err:  # a bus error, a missed deadline, a guard trip
-        ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+        # Without the driver's verdict on the torque-off it attempted when the bus failed: the
+        # end line gives the verdict of the last torque-off, the one that counts.
+        what = getattr(err, "failure", None) or str(err)
+        ended.reason, ended.exit_code = f"{type(err).__name__}: {what}", 1
     except (RuntimeError, SystemError) as err:  # inside Drake (the guard saved the logs)
         interrupt = interrupt_in(err)  # a signal inside compiled code comes back wrapped
         if interrupt is not None:
@@ -582,6 +702,7 @@ def teleop_on_robot(
     duration_s: float | None = None,
     loop_timeout_s: float = LOOP_TIMEOUT_S,
     say: Callable[[str], None] | None = None,
+    signals: SessionSignals | None = None,
 ) -> RobotRun:
     """``teleop`` on the robot: the live Meshcat (sliders, gauges, the reference's ghost, the
     robot drawn at its measured pose) driving the servos of ``scenario.bus``.
@@ -594,15 +715,25 @@ def teleop_on_robot(
     SIGTERM) with the torque off and one line, as :func:`run_on_robot`; a live session keeps
     no logs (as ``teleop`` in simulation).
 
+    ``signals``: as :func:`run_on_robot`'s.
+
     Raises:
         as :func:`run_on_robot` before the torque is on.
     """
-    from ..execution.runners import Interrupted
-    from .teleop import build_teleop, run_teleop
-
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     bus_config(scenario)
     start = admissible_start(scenario)
+    if signals is not None:
+        return _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals)
+    with SessionSignals() as own:
+        return own.settle(_teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, own))
+
+
+def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) -> RobotRun:
+    """The powered part of :func:`teleop_on_robot`."""
+    from ..execution.runners import Interrupted
+    from .teleop import build_teleop, run_teleop
+
     bus = bus_config(scenario).make_bus().open()
     ended = RobotRun("", False, True, start=start)
     try:
@@ -616,12 +747,15 @@ def teleop_on_robot(
                 raise Interrupted(stats["interrupted_by"])
 
         announce = f"torque on: open {meshcat.web_url()} ; the sliders move the robot"
-        _drive(bus, run.simulator, loop_timeout_s, say, announce, body, ended)
+        _drive(bus, run.simulator, loop_timeout_s, say, announce, body, ended, signals)
         if ended.ok:
             ended.reason = "the session ran its duration"
     finally:
-        ended.torque_off_confirmed = bus.torque_off()
-        bus.close()
+        signals.hold()
+        try:
+            ended.torque_off_confirmed = bus.torque_off()
+        finally:
+            bus.close()
     return ended
 
 

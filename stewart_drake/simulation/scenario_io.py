@@ -29,6 +29,8 @@ from .scenario import Scenario, use_paper_tuner
 #: The scenario `run`, `collect`, `evaluate`, `workspace` and the diagram pictures use unless told:
 #: the robot as built.
 DEFAULT_SCENARIO = "paper_hardware"
+#: The scenario ``robot`` uses unless told: the paper's experiment on the servo bus.
+ROBOT_SCENARIO = "paper_bus"
 
 
 #: Where the shipped scenarios are (``scenarios/`` of the repository, installed as package data).

@@ -132,6 +132,10 @@ def check_bus_settings(
         )
     limit_units = spec.current_limit_max
     if current_limit_A is not None:
+        if not _finite(current_limit_A):
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be a finite number of A"
+            )
         limit_units = math.floor(current_limit_A / spec.amps_per_unit)
         if not 0 < limit_units <= spec.current_limit_max:
             raise InvalidConfigError(
@@ -148,7 +152,7 @@ def check_bus_settings(
             f"{prefix}position_limits_counts {position_limits_counts} must be "
             f"0 <= min < max <= 4095"
         )
-    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S)
+    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S) if _finite(watchdog_s) else 0
     if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
         raise InvalidConfigError(
             f"{prefix}watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
@@ -156,6 +160,14 @@ def check_bus_settings(
     if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
         raise InvalidConfigError(f"{prefix}reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
     return BusSettings(spec, ids, zero, sign, int(limit_units), int(watchdog_units), (lo, hi))
+
+
+def _finite(value) -> bool:
+    """Whether ``value`` is a finite real number (not NaN, not inf, not a string)."""
+    try:
+        return math.isfinite(value)
+    except TypeError:
+        return False
 
 
 @dataclass(frozen=True)
@@ -494,7 +506,7 @@ class DynamixelBus:
     def _fail(self, what: str):
         """Torque off (attempted), then raise a BusError naming the port and ``what``."""
         self.torque_off()
-        raise BusError(
+        err = BusError(
             f"bus {self.port_name}: {what}; torque off "
             + (
                 "confirmed by every servo"
@@ -502,6 +514,8 @@ class DynamixelBus:
                 else "NOT confirmed: cut the servos' power"
             )
         )
+        err.failure = f"bus {self.port_name}: {what}"
+        raise err
 
     def _write(self, servo_id: int, item, value: int) -> None:
         self._require_open()

@@ -30,8 +30,25 @@ from ...model.kinematics import X_HOME
 def _serve(  # pragma: no cover
     conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts
 ) -> None:
-    """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends the
-    port, serves until told to stop, then sends the record."""
+    """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
+    ("port", the port), serves until told to stop, then sends the record. If it cannot start it
+    sends ("error", one line) instead of a traceback on the terminal."""
+    try:
+        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts).start()
+    except Exception as err:  # noqa: BLE001 - reported to the parent in one line
+        conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
+        return
+    try:
+        conn.send(("port", emu.port))
+        conn.recv()  # stop
+        record = emu.with_backend(lambda b: np.array(b.record, dtype=float).reshape(-1, 13))
+        conn.send((record, emu.slipped_s))
+    finally:
+        emu.close()
+
+
+def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # pragma: no cover
+    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant."""
     from ..scenario import _scenario_from_yaml
     from .emulator import BusEmulator
     from .plant_backend import StationServos, dynamixel_scenario
@@ -50,14 +67,14 @@ def _serve(  # pragma: no cover
             super().advance(dt_s, current_A)
             self.record.append((time.perf_counter(), *self._port.Eval(self._context)))
 
-    backend = Recorded()
-    with BusEmulator(
-        ids, model, backend=backend, zero_counts=zero_counts, tick_s=tick_s, max_step_s=max_step_s
-    ) as emu:
-        conn.send(emu.port)
-        conn.recv()  # stop
-        record = emu.with_backend(lambda b: np.array(b.record, dtype=float).reshape(-1, 13))
-        conn.send((record, emu.slipped_s))
+    return BusEmulator(
+        ids,
+        model,
+        backend=Recorded(),
+        zero_counts=zero_counts,
+        tick_s=tick_s,
+        max_step_s=max_step_s,
+    )
 
 
 class EmulatorProcess:
@@ -113,17 +130,23 @@ class EmulatorProcess:
         self._conn, child = context.Pipe()
         self._process = context.Process(target=_serve, args=(child, *self._args), daemon=True)
         self._process.start()
-        deadline = time.monotonic() + self.start_timeout_s
-        while not self._conn.poll(0.2):
-            if not self._process.is_alive() or time.monotonic() > deadline:
-                code = self._process.exitcode
-                self.close(timeout_s=1.0)
-                raise BusError(
-                    "the bus emulator's process "
-                    + (f"exited ({code})" if code is not None else "did not start in time")
-                    + " (a script that starts it needs `if __name__ == '__main__':`)"
-                )
-        self.port = self._conn.recv()
+        try:
+            deadline = time.monotonic() + self.start_timeout_s
+            while not self._conn.poll(0.2):
+                if not self._process.is_alive() or time.monotonic() > deadline:
+                    code = self._process.exitcode
+                    raise BusError(
+                        "the bus emulator's process "
+                        + (f"exited ({code})" if code is not None else "did not start in time")
+                        + " (a script that starts it needs `if __name__ == '__main__':`)"
+                    )
+            kind, value = self._conn.recv()
+            if kind == "error":  # the child's own one line: no traceback, no hint
+                raise BusError(f"the bus emulator did not start: {value}")
+        except BaseException:  # a refusal, or Ctrl-C while it starts: no orphan
+            self.close(timeout_s=1.0)
+            raise
+        self.port = value
         return self
 
     def close(self, timeout_s: float = 30.0) -> None:

@@ -1,0 +1,336 @@
+"""The robot command against hostile input and late signals: a signal as the platform settles
+keeps the logs and the end line; non-finite settings, poses and angles are refused in one line
+before a port or a process is opened; ``robot --emulate --dry-run`` works as README shows it.
+
+Sessions run in this process against the bus emulator on a pseudo-terminal (``--port``), the
+command called through ``main``; only the emulator's own process test spawns one.
+"""
+
+import os
+import re
+import signal
+import time
+import types
+
+import numpy as np
+import pytest
+
+pytest.importorskip("dynamixel_sdk")
+
+from stewart_drake.errors import BusError, InvalidConfigError, MissingExtraError  # noqa: E402
+from stewart_drake.interfaces import cli  # noqa: E402
+from stewart_drake.interfaces.cli import build_parser, main  # noqa: E402
+from stewart_drake.interfaces.robot import RobotRun, _drive, end_line, zero_counts_at  # noqa: E402
+from stewart_drake.model.kinematics import X_HOME  # noqa: E402
+from stewart_drake.simulation.hardware import driver  # noqa: E402
+from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
+from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
+from stewart_drake.simulation.hardware.plant_backend import (  # noqa: E402
+    StationServos,
+    dynamixel_scenario,
+)
+from stewart_drake.simulation.scenario import DynamixelBusConfig, dump_scenario  # noqa: E402
+from stewart_drake.simulation.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
+from stewart_drake.studies.experiments import load_result  # noqa: E402
+
+IDS = [1, 2, 3, 4, 5, 6]
+X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
+
+
+def _emulator(x0=X_REST):
+    """The bus emulator in this process, the robot's plant behind it at a 2 ms step."""
+    from pydrake.multibody.plant import MultibodyPlantConfig
+
+    from stewart_drake.simulation.scenario import Scenario
+
+    robot = Scenario(
+        plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
+        control_period_s=0.002,
+        log_period_s=0.002,
+    )
+    return BusEmulator(IDS, backend=StationServos(dynamixel_scenario(scenario=robot), x0=x0))
+
+
+def _bus_yaml(tmp_path):
+    """The shipped bus scenario with timeouts generous for a loaded machine."""
+    scenario = load_scenario(ROBOT_SCENARIO)
+    scenario.bus = DynamixelBusConfig(
+        reply_timeout_s=1.0, watchdog_s=1.0, max_deadline_misses=1_000_000
+    )
+    path = tmp_path / "bus.yaml"
+    path.write_text(dump_scenario(scenario))
+    return path
+
+
+def _z_mm(summary: str) -> float:
+    """The platform's height in a dry run's summary, mm."""
+    return float(re.search(r"Z ([-+\d.]+) mm", summary).group(1))
+
+
+@pytest.fixture
+def ctrl_c():
+    """Python's own SIGINT handler, as in a user's terminal (a suite started in the background
+    of a script inherits SIGINT ignored)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def _kill_then(signum, original):
+    """``original`` with ``signum`` sent to this process first (the handler runs in it)."""
+
+    def wrapped(*args, **kw):
+        os.kill(os.getpid(), signum)
+        return original(*args, **kw)
+
+    return wrapped
+
+
+def _in_read_run(monkeypatch, signum):
+    from stewart_drake.studies import experiments
+
+    monkeypatch.setattr(experiments, "read_run", _kill_then(signum, experiments.read_run))
+
+
+def _in_yaml_dump(monkeypatch, signum):
+    from stewart_drake.simulation.diagram import StewartDiagram
+
+    monkeypatch.setattr(
+        StewartDiagram, "scenario_yaml", _kill_then(signum, StewartDiagram.scenario_yaml)
+    )
+
+
+def _in_final_torque_off(monkeypatch, signum):
+    """In the torque-off that follows the run (the ones before the torque is on are spared)."""
+    enable, off = driver.DynamixelBus.enable_torque, driver.DynamixelBus._torque_off
+
+    def enabled(self, *args, **kw):
+        self.powered_once = True
+        return enable(self, *args, **kw)
+
+    def torque_off(self):
+        if getattr(self, "powered_once", False):
+            os.kill(os.getpid(), signum)
+        return off(self)
+
+    monkeypatch.setattr(driver.DynamixelBus, "enable_torque", enabled)
+    monkeypatch.setattr(driver.DynamixelBus, "_torque_off", torque_off)
+
+
+@pytest.mark.parametrize(
+    "inject, signum",
+    [
+        (_in_read_run, signal.SIGINT),
+        (_in_yaml_dump, signal.SIGTERM),
+        (_in_final_torque_off, signal.SIGTERM),
+    ],
+    ids=["read_run-SIGINT", "yaml_dump-SIGTERM", "final_torque_off-SIGTERM"],
+)
+def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
+    tmp_path, monkeypatch, capsys, ctrl_c, inject, signum
+):
+    opened = []
+    open_bus = driver.DynamixelBus.open
+
+    def recorded_open(self):
+        opened.append(self)
+        return open_bus(self)
+
+    monkeypatch.setattr(driver.DynamixelBus, "open", recorded_open)
+    inject(monkeypatch, signum)
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
+        argv += ["--no-progress", "--out", str(tmp_path)]
+        code = main(argv)
+        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    out, err = capsys.readouterr()
+    name = signal.Signals(signum).name
+    ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
+    assert code == 128 + signum, ends
+    assert len(ends) == 1 and "partial outputs were not written" not in err, (out, err)
+    assert ends[0].startswith("stewart-drake robot: the reference ran to its end; "), ends[0]
+    assert f"{name} received after the torque went off: held until the logs were saved" in ends[0]
+    assert "torque off (confirmed by every servo); logs in" in ends[0]
+    assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5  # the lead-in and the hold
+    assert torque == [0] * 6
+    assert opened and all(bus._port is None for bus in opened)  # every bus closed
+
+
+def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
+    from stewart_drake.execution.runners import Interrupted
+    from stewart_drake.interfaces.robot import SessionSignals
+
+    def kill(signum):
+        os.kill(os.getpid(), signum)
+        time.sleep(0.01)  # the handler runs in this thread at the next bytecode
+
+    before = signal.getsignal(signal.SIGTERM)
+    with SessionSignals() as signals:
+        with pytest.raises(Interrupted) as caught:
+            kill(signal.SIGTERM)
+        assert caught.value.signum == signal.SIGTERM
+        kill(signal.SIGTERM)  # a second, while the first one's end runs: held
+        assert signals.received == signal.SIGTERM
+        with pytest.raises(Interrupted):  # never powered with a signal pending
+            signals.arm()
+        signals.received = None
+        signals.arm()
+        with pytest.raises(Interrupted):  # armed: the torque is on, a signal ends it
+            kill(signal.SIGTERM)
+        signals.hold()  # the torque-off
+        kill(signal.SIGTERM)
+        run = signals.settle(RobotRun("the reference ran to its end", True, True))
+        signals.settle(run)  # once
+    assert signal.getsignal(signal.SIGTERM) is before  # restored
+    assert run.exit_code == 128 + signal.SIGTERM
+    assert run.reason == (
+        "the reference ran to its end; SIGTERM received after the torque went off: held to the end"
+    )
+    failed = RobotRun("BusError: bus /dev/ttyUSB0: sync read", False, True, exit_code=1)
+    with SessionSignals() as signals:
+        signals.hold()
+        kill(signal.SIGTERM)
+    assert signals.settle(failed).exit_code == 1  # the failure's status stands
+    ignored = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with SessionSignals():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN  # nohup stays nohup
+    finally:
+        signal.signal(signal.SIGHUP, ignored)
+
+
+def test_the_end_line_gives_one_verdict_on_the_torque_off_after_a_bus_error():
+    """The driver's error says the torque-off it attempted as the bus failed was not confirmed;
+    the session's last one was: the end line says that one only."""
+    failing = types.SimpleNamespace(
+        port_name="/dev/ttyUSB0", torque_off=lambda: False, torque_off_confirmed=False
+    )
+    with pytest.raises(BusError) as caught:
+        driver.DynamixelBus._fail(failing, "sync read: no data from servo id 3")
+    assert "NOT confirmed" in str(caught.value)
+
+    def body():
+        raise caught.value
+
+    simulator = types.SimpleNamespace(
+        set_monitor=lambda m: None, set_target_realtime_rate=lambda r: None
+    )
+    bus = types.SimpleNamespace(torque_off=lambda: True, enable_torque=lambda: None)
+    ended = RobotRun("", False, True)
+    from stewart_drake.interfaces.robot import SessionSignals
+
+    _drive(bus, simulator, 1.0, lambda line: None, "on", body, ended, SessionSignals())
+    line = end_line(ended)
+    assert ended.exit_code == 1
+    assert line == (
+        "BusError: bus /dev/ttyUSB0: sync read: no data from servo id 3; "
+        "torque off (confirmed by every servo)"
+    )
+    ended.torque_off_confirmed = False
+    assert end_line(ended).count("confirmed") == 1 and "NOT confirmed" in end_line(ended)
+
+
+@pytest.mark.parametrize(
+    "setting",
+    [
+        "bus.current_limit_A=.nan",
+        "bus.current_limit_A=.inf",
+        "bus.watchdog_s=.nan",
+        "bus.watchdog_s=-.inf",
+    ],
+)
+def test_non_finite_bus_limits_are_refused_in_one_line(setting, capsys, monkeypatch):
+    monkeypatch.setattr(driver.DynamixelBus, "open", lambda self: pytest.fail("port opened"))
+    assert main(["robot", "--dry-run", "--set", setting]) == 2
+    err = capsys.readouterr().err.strip()
+    field = setting.split("=")[0]
+    assert len(err.splitlines()) == 1 and f"{field} " in err, err
+    assert "Traceback" not in err
+
+
+def test_an_emulated_pose_is_checked_before_a_process_is_spawned(capsys, monkeypatch):
+    from stewart_drake.simulation.hardware import emulator_process
+
+    spawn = emulator_process.EmulatorProcess.start
+    monkeypatch.setattr(
+        emulator_process.EmulatorProcess, "start", lambda self: pytest.fail("spawned")
+    )
+    with pytest.raises(SystemExit) as stopped:
+        main(["robot", "--emulate", "nan,0,0,0,0,0.28", "--dry-run"])
+    assert stopped.value.code == 2
+    assert "six finite numbers" in capsys.readouterr().err
+    assert main(["robot", "--emulate", "0,0,0,0,0,0.5", "--dry-run"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--emulate 0,0,0,0,0,0.5: the robot cannot" in err
+    assert "__main__" not in err
+    monkeypatch.setattr(emulator_process.EmulatorProcess, "start", spawn)
+
+
+def test_the_emulator_process_reports_its_failure_in_one_line(capfd):
+    from stewart_drake.simulation.hardware.emulator_process import EmulatorProcess
+
+    far = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5])  # out of the rods' reach
+    with pytest.raises(BusError, match=r"did not start: UnreachablePoseError: leg") as caught:
+        EmulatorProcess(x0=far, start_timeout_s=300.0).start()
+    assert "__main__" not in str(caught.value) and "\n" not in str(caught.value)
+    assert "Traceback" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("angle", ["nan", "1e300", "-inf", "91"])
+def test_a_calibration_angle_outside_the_cranks_travel_is_refused(angle, capsys, monkeypatch):
+    monkeypatch.setattr(driver.DynamixelBus, "open", lambda self: pytest.fail("port opened"))
+    assert main(["robot", f"--calibrate={angle}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "the cranks' travel [-90, 90]" in err, err
+
+
+def test_zero_counts_come_from_finite_angles_within_the_registers_range():
+    def bus(counts):
+        counts = np.asarray(counts, dtype=float)
+        return types.SimpleNamespace(
+            ids=IDS,
+            zero_counts=np.full(6, 2048),
+            directions=np.ones(6),
+            read_state=lambda: types.SimpleNamespace(q=p.counts_to_rad(counts, 2048, 1)),
+        )
+
+    # Held at +10 deg: 10 / 360 of 4096 counts = 113.8 -> 114 above each zero.
+    zeros = zero_counts_at(bus([2162, 2100, 2000, 2500, 1900, 2048]), np.radians(10.0))
+    np.testing.assert_array_equal(zeros, [2048, 1986, 1886, 2386, 1786, 1934])
+    for angle in (float("nan"), 1e300, 4.0):
+        with pytest.raises(InvalidConfigError, match="within half a turn"):
+            zero_counts_at(bus([2048] * 6), angle)
+    with pytest.raises(BusError, match="servo id 4 reads .*32-bit"):
+        zero_counts_at(bus([2048, 2048, 2048, 3e9, 2048, 2048]), 0.0)
+
+
+def test_the_robot_command_takes_the_shipped_bus_scenario_by_default(tmp_path, capsys):
+    assert build_parser().parse_args(["robot"]).scenario == ROBOT_SCENARIO
+    scenario = load_scenario(ROBOT_SCENARIO)
+    assert scenario.bus is not None and scenario.hardware is None
+    with _emulator() as emu:
+        assert main(["robot", "--dry-run", "--port", emu.port]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[-1] == "admissible", out
+    assert abs(_z_mm(out) - X_REST[5] * 1e3) < 0.2, out  # the pose the emulator rests at
+
+
+def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypatch):
+    def missing():
+        raise MissingExtraError(
+            "the servo driver needs ROBOTIS's dynamixel-sdk: pip install 'stewart-drake[robot]'"
+        )
+
+    monkeypatch.setattr(driver, "dynamixel_sdk", missing)
+    monkeypatch.setattr(cli, "_start_emulator", lambda *a: pytest.fail("emulator started"))
+    assert main(["robot", "--emulate", "--dry-run"]) == 2
+    err = capsys.readouterr().err
+    assert "stewart-drake[robot]" in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_robot_emulate_dry_run_as_readme_shows_it(capsys):
+    assert main(["robot", "--emulate", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert out.splitlines()[-1] == "admissible", out
+    assert abs(_z_mm(out) - 280.0) < 0.2, out  # --emulate's default pose
