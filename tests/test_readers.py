@@ -90,7 +90,7 @@ ALLOWED = {
     ("interfaces/cli.py", "_silence_stdout", "os.open"),
     # The servo bus (a serial port), not a file: DynamixelBus.open.
     ("interfaces/robot.py", "_run", "bus.open"),
-    ("interfaces/robot.py", "teleop_on_robot", "bus_config(...).make_bus(...).open"),
+    ("interfaces/robot.py", "_teleop", "bus_config(...).make_bus(...).open"),
     ("simulation/hardware/driver.py", "DynamixelBus.__enter__", "self.open"),
 }
 
