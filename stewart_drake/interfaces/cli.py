@@ -603,26 +603,32 @@ def _cmd_reproduce(args) -> int:
 def _feedforward_choice(args, scenario):
     """The feed-forward learner ``reproduce``'s flags ask for (None: none), checked before the
     run: ``--feedforward``, ``--learned FILE`` (read now: numbers only), ``--hold``,
-    ``--save-learned FILE``; the scenario's own ``learning`` when it is one."""
+    ``--save-learned FILE``; the scenario's own ``learning`` when it is one, applied as ``run``
+    applies it when it names a model (``learned_from``)."""
     from ..control.feedforward_tuning import FeedforwardTuning, load_learned
     from ..errors import InvalidConfigError
 
-    wanted = args.feedforward or args.learned or args.hold or args.save_learned
-    if not wanted:
+    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
+    flags = args.feedforward or args.learned or args.hold or args.save_learned
+    if not flags and not (ff is not None and ff.learned_from):
         return None
     if args.learn_cycles:
         raise InvalidConfigError(
             "--learn-cycles learns per cycle; --feedforward, --learned, --hold and "
-            "--save-learned learn as a function of the reference: choose one"
+            "--save-learned (or the scenario's learning.learned_from) learn as a function of "
+            "the reference: choose one"
         )
-    if args.hold and not args.learned:
+    if args.hold and not (args.learned or (ff is not None and ff.learned_from)):
         raise InvalidConfigError("--hold applies a model learned before: give --learned FILE")
-    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
     ff = ff or FeedforwardTuning()
     if args.learned:
-        load_learned(args.learned)  # refused now, not after the run
         ff.learned_from = str(args.learned)
-    ff.learn = not args.hold
+    if ff.learned_from:
+        load_learned(ff.learned_from)  # refused now, not after the run
+    if args.hold:
+        ff.learn = False
+    elif args.feedforward or args.learned:
+        ff.learn = True
     if args.save_learned:
         check_output(args.save_learned, "--save-learned", is_file=True)
     ff.validate(scenario.control_period_s)
