@@ -729,6 +729,12 @@ def reproduce(
 # -- the report ----------------------------------------------------------------------------------
 
 
+def _learning(rep) -> str:
+    """How ``rep``'s run learned, in words (a record without ``learning``: from its
+    ``learn_cycles``)."""
+    return getattr(rep, "learning", "") or learning_words(None, rep.learn_cycles)
+
+
 def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
     the learner, the phantom anchor."""
@@ -739,12 +745,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     lines.append(
         f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
         f"({rep.result.config_summary.get('controller', '')}, "
-        + (rep.learning or learning_words(None, rep.learn_cycles))
+        + _learning(rep)
         + f"); measured over t = {fid['window_s'][0]:.4g}-"
         f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
         f"{rep.wall_s:.0f} s."
     )
-    if rep.learned_from:
+    if getattr(rep, "learned_from", ""):
         lines += ["", f"Feed-forward model: {rep.learned_from}."]
     if rep.scale != 1.0:
         lines.append(
@@ -1022,7 +1028,7 @@ def report_title(rep: Reproduction, line: str) -> str:
     (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
     import textwrap
 
-    text = f"{rep.name}: {line} ({rep.learning or learning_words(None, rep.learn_cycles)})"
+    text = f"{rep.name}: {line} ({_learning(rep)})"
     return "\n".join(textwrap.wrap(text, TITLE_CHARS, break_on_hyphens=False))
 
 
@@ -1085,8 +1091,8 @@ def write_report(
         "name": rep.name,
         "scale": rep.scale,
         "learn_cycles": rep.learn_cycles,
-        "learning": rep.learning or learning_words(None, rep.learn_cycles),
-        "learned_from": rep.learned_from,
+        "learning": _learning(rep),
+        "learned_from": getattr(rep, "learned_from", ""),
         "tolerance": list(tolerance),
         "passed": verdict(rep.fidelity, tolerance)[0],
         "fidelity": rep.fidelity,
