@@ -415,9 +415,9 @@ def _cmd_check(args) -> int:
     trace = None  # a reference file, read once: its length and the reference checked
     if _is_trace_file(source) and Path(source).suffix.lower() not in (".yaml", ".yml"):
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario.reference = _trace_reference(args, source)
-        scenario.reference.validate()  # the options, before the file is read
-        trace = scenario.reference.load()  # read as reproduce reads it
+        scenario.reference = reading = _trace_reference(args, source)
+        reading.validate()  # the options, before the file is read
+        trace = reading.load()  # read as reproduce reads it
         if args.duration is None:  # as long as the file, as `run` and `reproduce` take it
             scenario.duration_s = trace.end_time - getattr(trace, "start_time", 0.0)
         scenario.validate()
