@@ -423,6 +423,7 @@ def _cmd_run(args) -> int:
 
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
+    from ..errors import InvalidConfigError
     from ..simulation.scenario_io import load_scenario
     from ..simulation.trajectories import TRAJECTORIES, NamedReference
     from ..studies.feasibility import check, plot_margins
@@ -430,14 +431,20 @@ def _cmd_check(args) -> int:
     source = args.reference
     trace = None  # a reference file, read once: its length and the reference checked
     if _is_trace_file(source) and Path(source).suffix.lower() not in (".yaml", ".yml"):
-        from ..simulation.traces import TraceReference, load_trace
-
         scenario = load_scenario(args.scenario, args.set or ())
-        scenario.reference = TraceReference(path=source)
-        trace = load_trace(source)  # TraceReference's defaults
+        scenario.reference = reading = _trace_reference(args, source)
+        reading.validate()  # the options, before the file is read
+        trace = reading.load()  # read as reproduce reads it
         if args.duration is None:  # as long as the file, as `run` and `reproduce` take it
             scenario.duration_s = trace.end_time - getattr(trace, "start_time", 0.0)
         scenario.validate()
+        info = getattr(trace, "info", None)
+        if info is not None:
+            print(f"Trace: {info.summary()}")
+    elif _trace_options_given(args):
+        raise InvalidConfigError(
+            f"{_TRACE_ONLY} are for a trace file; {source!r} is a named trajectory or a scenario"
+        )
     elif source in TRAJECTORIES:
         scenario = load_scenario(args.scenario, args.set or ())
         scenario.reference = NamedReference(source)
@@ -470,6 +477,51 @@ def _key_values(items, option: str) -> dict:
     return out
 
 
+#: The options of :func:`_add_trace_arguments` a motion that is not a trace file refuses.
+_TRACE_ONLY = "--format, --columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap"
+
+
+def _trace_options_given(args) -> bool:
+    """Whether any option of :func:`_add_trace_arguments` differs from its default."""
+    return bool(
+        args.format != "auto"
+        or args.columns
+        or args.map
+        or args.lowpass_hz
+        or args.centre is not None
+        or args.centre_on != "mean"
+        or args.max_gap != 1.0
+    )
+
+
+def _trace_reference(args, source: str, add: dict | None = None):
+    """The :class:`~stewart_drake.simulation.traces.TraceReference` of the trace file
+    ``source`` read as the options of :func:`_add_trace_arguments` say, with library motions
+    ``add`` laid on it."""
+    from ..errors import InvalidConfigError
+    from ..simulation.traces import TraceReference
+
+    centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
+    if args.centre is not None:
+        try:
+            centre = [float(v) for v in args.centre.split(",")]
+        except ValueError:
+            raise InvalidConfigError(
+                f"--centre takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.centre!r}"
+            ) from None
+    return TraceReference(
+        path=source,
+        axis_map=_key_values(args.map, "--map"),
+        centre=centre,
+        centre_on=args.centre_on,
+        lowpass_hz=args.lowpass_hz or 0.0,
+        max_gap_s=args.max_gap,
+        format=args.format,
+        columns=args.columns or "",
+        add=dict(add or {}),
+    )
+
+
 def _is_trace_file(source: str) -> bool:
     """Whether ``reproduce``'s motion names a file (a name with a suffix or a folder, or an
     existing file) rather than a motion of the library (plain names)."""
@@ -484,13 +536,12 @@ def _cmd_reproduce(args) -> int:
     from ..fileio import check_replaceable
     from ..simulation.organ_motion import OrganMotionReference, split_parameters
     from ..simulation.scenario_io import load_scenario
-    from ..simulation.traces import TraceReference
     from ..studies.fidelity import parse_tolerance, reproduce, verdict, write_report
 
     tolerance = parse_tolerance(args.tolerance)
     scenario = load_scenario(args.scenario, args.set or ())
     source = args.motion
-    params, mapping = _key_values(args.param, "--param"), _key_values(args.map, "--map")
+    params = _key_values(args.param, "--param")
     layers = list(args.add or ())
     if len(set(layers)) != len(layers):
         raise InvalidConfigError(f"--add takes each motion once, got {', '.join(layers)}")
@@ -498,27 +549,10 @@ def _cmd_reproduce(args) -> int:
         if params and not layers:
             raise InvalidConfigError(
                 "--param sets a library motion's parameters (of one added with --add on a "
-                "trace); a trace takes --format, --columns, --map, --lowpass-hz, --centre, "
-                "--centre-on, --max-gap"
+                f"trace); a trace takes {_TRACE_ONLY}"
             )
-        centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
-        if args.centre is not None:
-            try:
-                centre = [float(v) for v in args.centre.split(",")]
-            except ValueError:
-                raise InvalidConfigError(
-                    f"--centre takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.centre!r}"
-                ) from None
-        scenario.reference = TraceReference(
-            path=source,
-            axis_map=mapping,
-            centre=centre,
-            centre_on=args.centre_on,
-            lowpass_hz=args.lowpass_hz or 0.0,
-            max_gap_s=args.max_gap,
-            format=args.format,
-            columns=args.columns or "",
-            add=dict(zip(layers, split_parameters(layers, params))),
+        scenario.reference = _trace_reference(
+            args, source, dict(zip(layers, split_parameters(layers, params)))
         )
         name = "+".join([Path(source).stem, *layers])
         size = Path(source).stat().st_size if Path(source).is_file() else 0
@@ -527,10 +561,9 @@ def _cmd_reproduce(args) -> int:
 
             print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
     else:
-        if mapping or args.lowpass_hz or args.centre is not None or args.columns:
+        if _trace_options_given(args):
             raise InvalidConfigError(
-                "--map, --lowpass-hz, --centre and --columns are for a trace file; "
-                "a library motion takes --param"
+                f"{_TRACE_ONLY} are for a trace file; a library motion takes --param"
             )
         shares = split_parameters([source, *layers], params)
         scenario.reference = OrganMotionReference(
@@ -588,26 +621,32 @@ def _cmd_reproduce(args) -> int:
 def _feedforward_choice(args, scenario):
     """The feed-forward learner ``reproduce``'s flags ask for (None: none), checked before the
     run: ``--feedforward``, ``--learned FILE`` (read now: numbers only), ``--hold``,
-    ``--save-learned FILE``; the scenario's own ``learning`` when it is one."""
+    ``--save-learned FILE``; the scenario's own ``learning`` when it is one, applied as ``run``
+    applies it when it names a model (``learned_from``)."""
     from ..control.feedforward_tuning import FeedforwardTuning, load_learned
     from ..errors import InvalidConfigError
 
-    wanted = args.feedforward or args.learned or args.hold or args.save_learned
-    if not wanted:
+    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
+    flags = args.feedforward or args.learned or args.hold or args.save_learned
+    if not flags and not (ff is not None and ff.learned_from):
         return None
     if args.learn_cycles:
         raise InvalidConfigError(
             "--learn-cycles learns per cycle; --feedforward, --learned, --hold and "
-            "--save-learned learn as a function of the reference: choose one"
+            "--save-learned (or the scenario's learning.learned_from) learn as a function of "
+            "the reference: choose one"
         )
-    if args.hold and not args.learned:
+    if args.hold and not (args.learned or (ff is not None and ff.learned_from)):
         raise InvalidConfigError("--hold applies a model learned before: give --learned FILE")
-    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
     ff = ff or FeedforwardTuning()
     if args.learned:
-        load_learned(args.learned)  # refused now, not after the run
         ff.learned_from = str(args.learned)
-    ff.learn = not args.hold
+    if ff.learned_from:
+        load_learned(ff.learned_from)  # refused now, not after the run
+    if args.hold:
+        ff.learn = False
+    elif args.feedforward or args.learned:
+        ff.learn = True
     if args.save_learned:
         check_output(args.save_learned, "--save-learned", is_file=True)
     ff.validate(scenario.control_period_s)
@@ -1437,6 +1476,62 @@ def _add_run_command(sub) -> None:
     run.set_defaults(func=_cmd_run, out_sub=("diverged",))
 
 
+def _add_trace_arguments(parser) -> None:
+    """The options that say how a trace file is read, one definition for every command that
+    reads one (``check``, ``reproduce``): :func:`_trace_reference` turns them into a
+    :class:`~stewart_drake.simulation.traces.TraceReference`."""
+    # Written out, not imported from simulation.traces: building the parser reads no numpy
+    # (tests/test_trace_formats.py holds them equal to TRACE_FORMATS, CENTRE_MODES, SKIP_COLUMN).
+    parser.add_argument(
+        "--format",
+        choices=["auto", "csv", "phantom", "surrogate"],
+        default="auto",
+        help="a trace's layout: auto reads a header line, else 7 columns as the phantom "
+        "format and 2 as a surrogate",
+    )
+    parser.add_argument(
+        "--columns",
+        default=None,
+        metavar="'t [s],SI [mm],...'",
+        help="a trace's columns and units when it has no header line (or to replace it); "
+        "a column named - is not read (a frame counter: "
+        "'-,t [ms],X [mm],Y [mm],Z [mm]') (default: the file's header, or the "
+        "phantom format's by its width)",
+    )
+    parser.add_argument(
+        "--map",
+        action="append",
+        metavar="COLUMN=AXIS",
+        help="put a trace's column on a platform axis, with a sign (repeatable): "
+        "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default",
+    )
+    parser.add_argument(
+        "--lowpass-hz",
+        type=_positive_float,
+        default=None,
+        help="zero-phase low-pass of a trace, Hz (default: none)",
+    )
+    parser.add_argument(
+        "--centre",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose a trace is centred on, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    parser.add_argument(
+        "--centre-on",
+        choices=["mean", "first", "none"],
+        default="mean",
+        help="which pose of a trace goes to --centre (the report says what was removed)",
+    )
+    parser.add_argument(
+        "--max-gap",
+        type=_positive_float,
+        default=1.0,
+        metavar="S",
+        help="longest interval without data a trace may have, s",
+    )
+
+
 def _add_check_command(sub) -> None:
     """The ``check`` command's options."""
     chk = sub.add_parser(
@@ -1451,6 +1546,7 @@ def _add_check_command(sub) -> None:
         "reads it), a named trajectory (paper, helix, step_<axis>, ...) or a scenario "
         "(a .yaml file or a shipped name)",
     )
+    _add_trace_arguments(chk)
     _add_scenario_arguments(chk, "the robot to check on, for a file or named reference")
     chk.add_argument(
         "--duration",
@@ -1481,20 +1577,6 @@ def _add_reproduce_command(sub) -> None:
         "surrogate file, or t,phi,theta,psi,X,Y,Z",
     )
     rp.add_argument(
-        "--format",
-        choices=["auto", "csv", "phantom", "surrogate"],
-        default="auto",
-        help="a trace's layout: auto reads a header line, else 7 columns as the phantom "
-        "format and 2 as a surrogate",
-    )
-    rp.add_argument(
-        "--columns",
-        default=None,
-        metavar="'t [s],SI [mm],...'",
-        help="a trace's columns and units when it has no header line (or to replace it) "
-        "(default: the file's header, or the phantom format's by its width)",
-    )
-    rp.add_argument(
         "--param",
         action="append",
         metavar="KEY=VALUE",
@@ -1512,6 +1594,7 @@ def _add_reproduce_command(sub) -> None:
         "baseline_drift, transient_excursion, persistent_excursion, heartbeat...; "
         "its parameters by --param (drift=3mm) (default: none)",
     )
+    _add_trace_arguments(rp)
     _add_scenario_arguments(
         rp, "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles"
     )
@@ -1564,38 +1647,6 @@ def _add_reproduce_command(sub) -> None:
         action="store_true",
         help="shrink a motion the robot cannot follow about its centre until every "
         "check passes (instead of refusing it), saying by how much",
-    )
-    rp.add_argument(
-        "--map",
-        action="append",
-        metavar="COLUMN=AXIS",
-        help="put a trace's column on a platform axis, with a sign (repeatable): "
-        "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default",
-    )
-    rp.add_argument(
-        "--lowpass-hz",
-        type=_positive_float,
-        default=None,
-        help="zero-phase low-pass of a trace, Hz (default: none)",
-    )
-    rp.add_argument(
-        "--centre",
-        default=None,
-        metavar="PHI,THETA,PSI,X,Y,Z",
-        help="the pose a trace is centred on, rad and m (default: home, 0,0,0,0,0,0.3)",
-    )
-    rp.add_argument(
-        "--centre-on",
-        choices=["mean", "first", "none"],
-        default="mean",
-        help="which pose of a trace goes to --centre",
-    )
-    rp.add_argument(
-        "--max-gap",
-        type=_positive_float,
-        default=1.0,
-        metavar="S",
-        help="longest interval without data a trace may have, s",
     )
     rp.add_argument(
         "--duration",

@@ -282,6 +282,9 @@ class Breathing(_Motion):
         return t0 + np.arange(k + 1) * self.period_s, np.ones(k)
 
 
+#: Bound on the size of a heartbeat's largest relative harmonic amplitude, and its inverse
+#: (their ratios are what matter).
+MAX_RELATIVE_HARMONIC = 1e6
 #: Relative amplitudes of the heartbeat's harmonics by default (ours; see :class:`Heartbeat`).
 HEARTBEAT_HARMONICS = (1.0, 0.5, 0.25)
 
@@ -324,6 +327,14 @@ class Heartbeat(_Motion):
             raise InvalidConfigError(
                 f"{self.name}: harmonics needs 1 to 20 relative "
                 f"amplitudes, not all zero, got {self.harmonics!r}"
+            )
+        if not 1.0 / MAX_RELATIVE_HARMONIC <= np.max(np.abs(a)) <= MAX_RELATIVE_HARMONIC:
+            # Only their ratios matter (the sum is scaled to amplitude_m); beyond these the
+            # acceleration's sums overflow float64, or the scale dividing by their peak to peak.
+            raise InvalidConfigError(
+                f"{self.name}: harmonics are relative amplitudes, the largest between "
+                f"{1.0 / MAX_RELATIVE_HARMONIC:g} and {MAX_RELATIVE_HARMONIC:g} in size, got "
+                f"{self.harmonics!r}: divide them by the largest"
             )
         phases = (
             np.zeros(a.size)

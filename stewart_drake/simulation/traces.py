@@ -57,6 +57,11 @@ PHANTOM_COLUMNS = "t [s], LR [mm], SI [mm], AP [mm], rot_LR [deg], rot_SI [deg],
 SURROGATE_COLUMNS = "t [s], surrogate [mm]"
 #: Where a surrogate's displacement goes by default (``axis_map`` overrides it).
 SURROGATE_AXIS = {"surrogate": "SI"}
+#: The name that skips a column in ``columns`` (a tracker's frame counter): ``-,t [ms],X [mm]``.
+SKIP_COLUMN = "-"
+#: Largest median step between a trace's samples, s: slower than this a breath (about 4 s) is
+#: not sampled, and the time column's unit is likely wrong (ms declared as s).
+MAX_SAMPLE_STEP_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -72,6 +77,9 @@ class TraceInfo:
         lowpass_hz: the zero-phase low-pass applied, or None.
         duration_s: length of the reference, s.  centred_on: "mean", "first" or "none".
         layout: how the file was read (its format, separator and decimal mark).
+        removed: (6,) the pose taken off the trace to centre it (its mean or first sample on
+            the trace's axes, rad and m; zeros for "none").
+        dropped: what was left out as an export's artefact (a last line of zeros), or "".
     """
 
     path: str
@@ -85,6 +93,20 @@ class TraceInfo:
     duration_s: float
     centred_on: str
     layout: str = "csv"
+    removed: tuple = (0.0,) * 6
+    dropped: str = ""
+
+    def centring(self) -> str:
+        """What centring took off the trace, in words: ``its mean removed (Z -490.1 mm)``."""
+        if self.centred_on == "none":
+            return "not centred (its values are displacements from the centre)"
+        what = "its mean" if self.centred_on == "mean" else "its first sample"
+        values = []
+        for axis in self.axes:
+            k = AXIS_NAMES.index(axis[1:])
+            scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+            values.append(f"{AXIS_NAMES[k]} {self.removed[k] * scale:.4g} {unit}")
+        return f"{what} removed ({', '.join(values)})"
 
     def summary(self) -> str:
         gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
@@ -95,7 +117,8 @@ class TraceInfo:
             f"{Path(self.path).name} ({self.layout}): {self.samples} samples at "
             f"{self.sample_rate_hz:.4g} Hz "
             f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
-            f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}"
+            f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}; "
+            f"centred: {self.centring()}" + (f"; left out: {self.dropped}" if self.dropped else "")
         )
 
 
@@ -163,6 +186,11 @@ def _separator(lines: list) -> tuple[str | None, bool]:
     return None, False
 
 
+#: A cell of a line whose cells are separated by spaces: a word or number, with the unit in
+#: brackets that may follow it after spaces (``SI [mm]``, ``t (s)``).
+_SPACED_CELL = re.compile(r"[^\s\[(]+(?:\s*[\[(][^\])]*[\])])?|[\[(][^\])]*[\])]")
+
+
 def _split_lines(path: Path, text: str) -> tuple[list, str]:
     """(rows of cell strings, one per non-blank line with its line number first; the layout
     in words) of a trace's text, whatever its separator and decimal mark."""
@@ -181,7 +209,8 @@ def _split_lines(path: Path, text: str) -> tuple[list, str]:
             ) from None
     else:
         for number, line in enumerate(lines, start=1):
-            cells = line.split(sep) if sep else line.split()
+            # Without a separator a header's "t [s]  SI [mm]" keeps each unit with its name.
+            cells = line.split(sep) if sep else _SPACED_CELL.findall(line)
             if any(c.strip() for c in cells):
                 rows.append([number] + cells)
     if decimal_comma:
@@ -217,8 +246,8 @@ def _trace_table(path: Path, format: str, columns: str) -> tuple[list, list, str
     headed = not all(_number(c) for c in rows[0][1:])
     if format in ("phantom", "surrogate") and headed:
         raise InvalidConfigError(
-            f"{path}: the {format} format has no header line, but line {rows[0][0]} is "
-            f"{','.join(rows[0][1:])[:80]!r}; leave --format out to read the header"
+            f"{path}: the {format} format has no header line, but line {rows[0][0]} is not "
+            f"all numbers; leave --format out to read the header"
         )
     if format == "csv" and not headed and not columns:
         raise InvalidConfigError(f"{path}: no header line naming the columns; {_TRACE_REMEDY}")
@@ -274,7 +303,8 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
     if names[0].lower() not in ("t", "time"):  # unquoted: a file named by mistake may be private
         raise InvalidConfigError(
             f"{path}: the first column must be the time (t [s]), and the first line does not "
-            f"name one; {_TRACE_REMEDY}"
+            f"name one; {_TRACE_REMEDY} (a column before the time is skipped by naming it "
+            f"{SKIP_COLUMN}: --columns '{SKIP_COLUMN},t [ms],X [mm],...')"
         )
     if not 2 <= len(header) <= 7:
         raise InvalidConfigError(
@@ -306,27 +336,78 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
     return names, units, targets, factors
 
 
-def _trace_values(path: Path, rows: list, width: int) -> np.ndarray:
-    """(n, width) the numbers of the data rows (each its line number, then its cells) in the
-    file's units, NaN where a cell is empty."""
-    values = []
+def _trace_values(path: Path, rows: list, width: int, keep: list) -> tuple:
+    """((n, len(keep)) the numbers of the data rows' columns ``keep`` in the file's units, NaN
+    where a cell is empty; (n,) the rows' line numbers) of the data rows (each its line number,
+    then its ``width`` cells; the cells of the other columns are not read)."""
+    values, lines = [], []
     for line, *row in rows:
         if len(row) != width:
             raise InvalidConfigError(
                 f"{path}, line {line}: {len(row)} fields, the columns are {width}"
             )
+        cells = [row[j] for j in keep]
         try:
-            numbers = [float(c) if c.strip() else math.nan for c in row]
+            numbers = [float(c) if c.strip() else math.nan for c in cells]
         except ValueError:
             raise InvalidConfigError(
-                f"{path}, line {line}: not numbers: {','.join(row)[:200]!r}"
+                f"{path}, line {line}: not numbers: {','.join(cells)[:200]!r}"
+                + ("" if len(keep) == width else f" (read columns {[j + 1 for j in keep]})")
             ) from None
         if not math.isfinite(numbers[0]):
             raise InvalidConfigError(f"{path}, line {line}: the time is missing")
         if any(math.isinf(v) for v in numbers):
             raise InvalidConfigError(f"{path}, line {line}: an infinite value")
         values.append(numbers)
-    return np.array(values, dtype=float).reshape(-1, width)
+        lines.append(line)
+    return np.array(values, dtype=float).reshape(-1, len(keep)), np.array(lines, dtype=int)
+
+
+def _without_end_marker(path: Path, data: np.ndarray, lines: np.ndarray) -> tuple:
+    """(data, lines, what was left out in words or "") of a trace's rows: a last row of zeros
+    after a later time (a tracker's export ends so) is not a sample, and is left out."""
+    if len(data) > 2 and data[-2, 0] > 0 and not np.any(data[-1]):
+        return data[:-1], lines[:-1], f"line {lines[-1]} (all zeros after the last sample)"
+    return data, lines, ""
+
+
+def _times(path: Path, data: np.ndarray, lines: np.ndarray, unit: str) -> np.ndarray:
+    """(n,) a trace's times from 0, s, checked: increasing, over at least 4 rows, at a step a
+    breath can be sampled at.
+
+    Raises:
+        InvalidConfigError: a time not after the one before (its line named), fewer than 4
+            rows, a median step over :data:`MAX_SAMPLE_STEP_S` (the likely unit named).
+    """
+    raw = data[:, 0]
+    if len(raw) < 4:
+        raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
+    bad = np.flatnonzero(np.diff(raw) <= 0)
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InvalidConfigError(
+            f"{path}, line {lines[i]}: the time {raw[i]:.10g} is not after the line before's "
+            f"({raw[i - 1]:.10g}, line {lines[i - 1]}); times must strictly increase: remove "
+            f"or correct that line"
+        )
+    factor = TIME_UNITS[unit.lower()]
+    step_raw, span_raw = float(np.median(np.diff(raw))), float(raw[-1] - raw[0])
+    if step_raw * factor > MAX_SAMPLE_STEP_S:
+        likely = [u for u, f in TIME_UNITS.items() if 1e-4 <= step_raw * f <= MAX_SAMPLE_STEP_S]
+        guess = (
+            f"likely in {likely[0]}: as 't [{likely[0]}]' they are "
+            f"{1 / (step_raw * TIME_UNITS[likely[0]]):.4g} Hz over "
+            f"{span_raw * TIME_UNITS[likely[0]]:.4g} s"
+            if likely
+            else "check the time column's unit"
+        )
+        raise InvalidConfigError(
+            f"{path}: the times are {guess}; declared in {unit} they would be "
+            f"{step_raw * factor:.4g} s apart ({1 / (step_raw * factor):.3g} Hz) over "
+            f"{span_raw * factor:.4g} s, too slow to sample a breath (write the time's unit in "
+            f"the header or --columns)"
+        )
+    return (raw - raw[0]) * factor
 
 
 def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
@@ -420,16 +501,20 @@ def _lowpassed(
     return displacement
 
 
-def _centred(displacement: np.ndarray, centre_on: str, targets) -> np.ndarray:
-    """(m, 6) the displacement with its mean over the trace's axes (``"mean"``) or its first
-    sample (``"first"``) removed, in place, or as it is (``"none"``)."""
+def _centred(displacement: np.ndarray, centre_on: str, targets) -> tuple:
+    """((m, 6) the displacement with its mean over the trace's axes (``"mean"``) or its first
+    sample (``"first"``) removed, in place, or as it is (``"none"``); (6,) what was removed,
+    rad and m)."""
     if centre_on == "mean":
-        displacement -= displacement.mean(axis=0) * np.isin(np.arange(6), targets)
+        removed = displacement.mean(axis=0) * np.isin(np.arange(6), targets)
     elif centre_on == "first":
-        displacement -= displacement[0]
-    elif centre_on != "none":
+        removed = displacement[0].copy()
+    elif centre_on == "none":
+        removed = np.zeros(6)
+    else:
         raise InvalidConfigError(f"centre_on must be 'mean', 'first' or 'none', got {centre_on!r}")
-    return displacement
+    displacement -= removed
+    return displacement, removed
 
 
 def load_trace(
@@ -456,8 +541,10 @@ def load_trace(
     deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
     roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
     :data:`~.organ_motion.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
-    Times increase but need not be evenly spaced; an empty or ``nan`` cell is a missing sample
-    of that axis. Each axis is joined by a cubic spline through its samples
+    Times increase but need not be evenly spaced, at most :data:`MAX_SAMPLE_STEP_S` apart (median);
+    a last line of zeros after them (an optical tracker's export ends so) is left out and
+    ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that axis.
+    Each axis is joined by a cubic spline through its samples
     (``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
     without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
     ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace
@@ -480,7 +567,8 @@ def load_trace(
         resample_hz: rate of the samples joined by the C2 spline, Hz.
         format: one of :data:`TRACE_FORMATS`.
         columns: the columns' names and units when the file has no header (or to replace
-            its header), e.g. ``"t [s], SI [mm], AP [mm]"``.
+            its header), e.g. ``"t [s], SI [mm], AP [mm]"``; a column named ``-``
+            (:data:`SKIP_COLUMN`) is not read (a tracker's frame counter: ``"-, t [ms], X [mm]"``).
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
         :class:`~.trajectories.CubicSplineTrajectory` of a project CSV.
@@ -489,7 +577,8 @@ def load_trace(
             UTF-8 or not CSV.
         InvalidConfigError: no time column, a column without a unit or of an unknown one, an
             axis the platform does not have, two columns on one axis, a length on an angle or
-            the reverse, a row that is not numbers (its line named), times not increasing, a gap
+            the reverse, a row that is not numbers (its line named), times not increasing (the
+            line named) or too far apart for their unit (the likely unit named), a gap
             longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
     """
     path = Path(path)
@@ -498,13 +587,14 @@ def load_trace(
         return load_csv_trajectory(path)
     if "surrogate" in layout:
         axis_map = {**SURROGATE_AXIS, **(axis_map or {})}
-    names, units, targets, factors = _trace_header(path, header, axis_map)
-    data = _trace_values(path, rows, len(names))
+    keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN]
+    if not keep:
+        raise InvalidConfigError(f"{path}: every column is skipped ({SKIP_COLUMN!r})")
+    names, units, targets, factors = _trace_header(path, [header[j] for j in keep], axis_map)
+    data, lines = _trace_values(path, rows, len(header), keep)
     del rows
-    t = data[:, 0] * TIME_UNITS[units[0].lower()]
-    if len(t) < 4 or np.any(np.diff(t) <= 0):
-        raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
-    t = t - t[0]
+    data, lines, dropped = _without_end_marker(path, data, lines)
+    t = _times(path, data, lines, units[0])
     rate = 1.0 / float(np.median(np.diff(t)))
     max_gap_s = as_number("max_gap_s", max_gap_s, 0.0, lo_open=True)
     resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
@@ -513,7 +603,9 @@ def load_trace(
         lowpass_hz = as_number("lowpass_hz", lowpass_hz, MIN_LOWPASS_HZ, 0.5 * resample_hz)
     grid = _trace_grid(path, t, resample_hz)
     displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate, max_gap_s)
-    displacement = _centred(_lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets)
+    displacement, removed = _centred(
+        _lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets
+    )
     centre = X_HOME if centre is None else np.asarray(check_centre("trace", centre))
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
     info = TraceInfo(
@@ -528,6 +620,8 @@ def load_trace(
         duration_s=float(grid[-1]),
         centred_on=centre_on,
         layout=layout,
+        removed=tuple(float(v) for v in removed),
+        dropped=dropped,
     )
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
@@ -584,10 +678,10 @@ class TraceReference(ReferenceConfig):
         as_array("reference.centre", self.centre, shape=(6,))
         make_layers(self.add)  # names an unknown motion or parameter
 
-    def make(
-        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
-    ) -> Reference:
-        trace = load_trace(
+    def load(self) -> "TraceTrajectory | CubicSplineTrajectory":
+        """The trace as read (:func:`load_trace` with these settings), before ``add`` and
+        ``scale``."""
+        return load_trace(
             self.path,
             self.axis_map,
             self.centre,
@@ -597,7 +691,11 @@ class TraceReference(ReferenceConfig):
             format=self.format,
             columns=self.columns,
         )
-        return scaled(layered(trace, make_layers(self.add)), self.scale)
+
+    def make(
+        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
+    ) -> Reference:
+        return scaled(layered(self.load(), make_layers(self.add)), self.scale)
 
     @property
     def label(self) -> str:
@@ -615,6 +713,8 @@ __all__ = [
     "MAX_TRACE_BYTES",
     "TIME_UNITS",
     "TRACE_FORMATS",
+    "SKIP_COLUMN",
+    "MAX_SAMPLE_STEP_S",
     "PHANTOM_COLUMNS",
     "SURROGATE_COLUMNS",
     "TraceReference",

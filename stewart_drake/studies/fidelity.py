@@ -243,7 +243,8 @@ def fidelity(
         fraction, phase_error_rad, negative = late); ``cycles`` {"starts", "rms_translation_m",
         "rms_rotation_rad", "peak_translation_m"}.
     Raises:
-        InvalidConfigError: fewer than 10 samples in the window, or shapes that differ.
+        InvalidConfigError: fewer than 10 samples (in all, or in the window), or shapes that
+            differ.
     """
     # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
     # slice; the error alone is made, in float32 (errors of microns to 7 digits; the sums below
@@ -251,8 +252,10 @@ def fidelity(
     t = np.asarray(t, dtype=float)
     x = np.asarray(x)[:, :6]
     x_d = np.asarray(x_d)[:, :6]
-    if x.shape != x_d.shape or x.shape[0] != t.size:
+    if x.ndim != 2 or x.shape != x_d.shape or x.shape[0] != t.size or t.ndim != 1:
         raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
+    if t.size < 10:  # the window's own test below reads t[0]
+        raise InvalidConfigError(f"fewer than 10 samples ({t.size}): nothing to measure")
     t0, t1 = (t[0], t[-1]) if window is None else window
     i0 = int(np.searchsorted(t, t0 - 1e-9, side="left"))
     i1 = int(np.searchsorted(t, t1 + 1e-9, side="right"))
@@ -394,6 +397,8 @@ class Reproduction:
         learned: (p, 6) the weights a feed-forward learner ended with (for
             :func:`~stewart_drake.control.feedforward_tuning.save_learned`), or None.
         check: the validator's summary of the reference. wall_s: wall time of the run, s.
+        learning: how the run learned, in words (:func:`learning_words`).
+        learned_from: the model file a feed-forward learner started from or held, or "".
     """
 
     name: str
@@ -409,6 +414,27 @@ class Reproduction:
     check: str = ""
     wall_s: float = 0.0
     notes: list = field(default_factory=list)
+    learning: str = ""
+    learned_from: str = ""
+
+
+def learning_words(learning, learn_cycles: int = 0) -> str:
+    """How a run with the scenario's ``learning`` learns, in words for a report: "no learning",
+    "learning from N cycles, then held" (per cycle), "feed-forward learned over the run",
+    "feed-forward started from <file>, learning over the run" or "feed-forward <file> held,
+    not learning"."""
+    from ..control.feedforward_tuning import FeedforwardTuning
+
+    if isinstance(learning, FeedforwardTuning):
+        model = Path(learning.learned_from).name
+        if not learning.learned_from:
+            return "feed-forward learned over the run"
+        if learning.learn:
+            return f"feed-forward started from {model}, learning over the run"
+        return f"feed-forward {model} held, not learning"
+    if learn_cycles:
+        return f"learning from {learn_cycles} cycles, then held"
+    return "no learning"
 
 
 def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Reference, float]:
@@ -699,10 +725,18 @@ def reproduce(
         learned=learned,
         check=report.summary(),
         wall_s=wall,
+        learning=learning_words(scenario.learning, learn_cycles),
+        learned_from=str(getattr(scenario.learning, "learned_from", "") or ""),
     )
 
 
 # -- the report ----------------------------------------------------------------------------------
+
+
+def _learning(rep) -> str:
+    """How ``rep``'s run learned, in words (a record without ``learning``: from its
+    ``learn_cycles``)."""
+    return getattr(rep, "learning", "") or learning_words(None, rep.learn_cycles)
 
 
 def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
@@ -714,16 +748,14 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
     lines.append(
         f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
-        f"({rep.result.config_summary.get('controller', '')}"
-        + (
-            f", learning from {rep.learn_cycles} cycles, then held"
-            if rep.learn_cycles
-            else ", no learning"
-        )
+        f"({rep.result.config_summary.get('controller', '')}, "
+        + _learning(rep)
         + f"); measured over t = {fid['window_s'][0]:.4g}-"
         f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
         f"{rep.wall_s:.0f} s."
     )
+    if getattr(rep, "learned_from", ""):
+        lines += ["", f"Feed-forward model: {rep.learned_from}."]
     if rep.scale != 1.0:
         lines.append(
             f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
@@ -990,6 +1022,20 @@ def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float])
         ax.grid(alpha=0.3, which="both")
 
 
+#: The report figure's title: its font size, pt, and the characters a line holds (a 10 in wide
+#: figure holds about 150 at 9 pt; a long file name is wrapped, not cut at both ends).
+TITLE_POINTS, TITLE_CHARS = 9, 110
+
+
+def report_title(rep: Reproduction, line: str) -> str:
+    """The report figure's title: the motion, the verdict ``line`` and how the run learned
+    (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
+    import textwrap
+
+    text = f"{rep.name}: {line} ({_learning(rep)})"
+    return "\n".join(textwrap.wrap(text, TITLE_CHARS, break_on_hyphens=False))
+
+
 def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
     """One PNG: reference and achieved pose per moving axis, the translation and rotation errors
     over time, for a run longer than :data:`ZOOM_AFTER_S` a zoom at full rate around its largest
@@ -1021,8 +1067,10 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
     ok, line = verdict(fid, tolerance)
-    fig.suptitle(f"{rep.name}: {line}", fontsize=9, color="k" if ok else "tab:red")
-    fig.tight_layout(rect=(0, 0, 1, 1 - 0.3 / fig.get_figheight()))  # 0.3 in for the title
+    title = report_title(rep, line)
+    fig.suptitle(title, fontsize=TITLE_POINTS, color="k" if ok else "tab:red")
+    top_in = 0.1 + 0.18 * (title.count("\n") + 1)  # each line of the title, in
+    fig.tight_layout(rect=(0, 0, 1, 1 - top_in / fig.get_figheight()))
     path = Path(path)
     atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
     plt.close(fig)
@@ -1047,6 +1095,8 @@ def write_report(
         "name": rep.name,
         "scale": rep.scale,
         "learn_cycles": rep.learn_cycles,
+        "learning": _learning(rep),
+        "learned_from": getattr(rep, "learned_from", ""),
         "tolerance": list(tolerance),
         "passed": verdict(rep.fidelity, tolerance)[0],
         "fidelity": rep.fidelity,
