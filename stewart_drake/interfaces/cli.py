@@ -1343,9 +1343,9 @@ def _add_scenario_arguments(parser, what: str, default: str | None = None) -> No
         "--scenario",
         default=default or _default_scenario(),
         metavar="FILE|NAME",
-        help=f"{what}: a .yaml file or a shipped name (default {default or _default_scenario()}; "
-        f"{_default_scenario()}: the robot as built; paper_ideal: the paper's ideal robot; "
-        f"`stewart-drake scenario --list`)",
+        help=f"{what}: a .yaml file or a shipped name ({_default_scenario()}: the robot as "
+        f"built; paper_ideal: the paper's ideal robot; `stewart-drake scenario --list`) "
+        f"(default: {default or _default_scenario()})",
     )
     parser.add_argument(
         "--set",
