@@ -205,3 +205,27 @@ def wait_for(condition, timeout_s: float, what: str, poll_s: float = 0.05):
         if time.monotonic() > deadline:
             pytest.fail(f"{what} did not happen within {timeout_s:g} s")
         time.sleep(poll_s)
+
+
+def run_within(timeout_s: float, function, *args, what: str | None = None, **kwargs):
+    """``function(*args, **kwargs)`` in a thread: its value, or the exception it raised; the
+    test fails, saying what hung, if it has not ended after ``timeout_s`` (a guard against a
+    hang, generous, never a measure of speed; the thread is left behind, a daemon)."""
+    import threading
+
+    outcome = {}
+
+    def call():
+        try:
+            outcome["value"] = function(*args, **kwargs)
+        except BaseException as err:  # re-raised in the test's thread
+            outcome["error"] = err
+
+    worker = threading.Thread(target=call, daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    if worker.is_alive():
+        pytest.fail(f"{what or getattr(function, '__name__', function)} hung for {timeout_s:g} s")
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome.get("value")

@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import needs_extra, run_within
 
 from stewart_drake.execution.runners import DaskRunner, ProcessRunner, RayRunner
 from stewart_drake.studies.collection import collect, load_records
@@ -39,9 +40,8 @@ def local(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def ray_runner():
-    ray = pytest.importorskip(
-        "ray", reason="the ray extra is not installed: pip install -e '.[ray]'"
-    )
+    import ray
+
     ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield RayRunner()
     ray.shutdown()
@@ -49,16 +49,18 @@ def ray_runner():
 
 @pytest.fixture(scope="module")
 def dask_runner():
-    distributed = pytest.importorskip(
-        "distributed", reason="the dask extra is not installed: pip install -e '.[dask]'"
-    )
+    import distributed
+
     with distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
     ) as cluster:
         yield DaskRunner(scheduler=cluster.scheduler_address)
 
 
-@pytest.mark.parametrize("backend", ["ray", "dask"])
+# The extra is checked by the mark, before the local study or the cluster starts.
+@pytest.mark.parametrize(
+    "backend", [pytest.param(b, marks=needs_extra(b), id=b) for b in ("ray", "dask")]
+)
 def test_backend_gives_the_local_results(backend, request, local, tmp_path):
     runner = request.getfixturevalue(f"{backend}_runner")
     records, rows = _study(tmp_path, runner)
@@ -85,14 +87,13 @@ def _comparable(rows: dict) -> dict:
     return out
 
 
+@needs_extra("dask")
 def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
     """A peer that accepts the connection and says nothing: refused after the connect timeout
     for the connection and as much again for the handshake, not after minutes."""
     import socket
     import threading
-    import time
 
-    pytest.importorskip("distributed", reason="the dask extra is not installed")
     from stewart_drake.errors import InvalidConfigError
     from stewart_drake.execution.runners import make_runner
 
@@ -114,11 +115,9 @@ def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
     port = server.getsockname()[1]
     try:
         runner = make_runner("dask", scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=1.0)
-        t0 = time.monotonic()
         with pytest.raises(InvalidConfigError, match="it accepts a connection, but no Dask"):
-            list(runner.map(str, {"a": 1}))
-        # Given up after about 3 s; the bound holds with margin on a loaded 2-core machine.
-        assert time.monotonic() - t0 < 30.0
+            # Given up after about 3 s; a hang fails the test after 60 s.
+            run_within(60, lambda: list(runner.map(str, {"a": 1})))
     finally:
         stop.set()
         for conn in held:
