@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from conftest import wait_for
 
 from stewart_drake.errors import IncompleteResultsError, ResultsMismatchError
 from stewart_drake.execution.runners import Interrupted, SerialRunner
@@ -167,22 +168,23 @@ def _start(argv, tmp_path):
 
 
 def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
-    """Block until ``n`` jobs are done in ``out``'s manifest; the workers then."""
-    deadline = time.monotonic() + timeout
-    while True:
+    """Block until ``n`` jobs are done in ``out``'s manifest (``timeout`` s at most, then the
+    test fails); the workers then."""
+
+    def done():
         assert proc.poll() is None, proc.communicate()
         try:
             jobs = json.loads((out / "manifest.json").read_text())["jobs"]
         except (OSError, ValueError):
             jobs = {}
-        if sum(v["status"] == "done" for v in jobs.values()) >= n:
-            return [
-                p
-                for p in psutil.Process(proc.pid).children(recursive=True)
-                if "spawn_main" in " ".join(p.cmdline())
-            ]
-        assert time.monotonic() < deadline, "no result in time"
-        time.sleep(0.1)
+        return sum(v["status"] == "done" for v in jobs.values()) >= n
+
+    wait_for(done, timeout, f"{n} finished jobs in {out}", poll_s=0.1)
+    return [
+        p
+        for p in psutil.Process(proc.pid).children(recursive=True)
+        if "spawn_main" in " ".join(p.cmdline())
+    ]
 
 
 @pytest.mark.parametrize(
