@@ -95,13 +95,28 @@ LOOP_MODULES = {
 }
 
 
+#: Test modules whose every test is a system test: the robot's bus emulator, its plant stepped
+#: at real time in a thread, talked to over a pseudo-terminal.
+SYSTEM_MODULES = {
+    "test_dynamixel_bus",
+    "test_hardware_station",
+    "test_robot_safety",
+    "test_robot_session",
+}
+
+
 def pytest_collection_modifyitems(config, items):
-    """Give every test its tier: `system` and `slow` as marked, `loop` for the modules of
-    :data:`LOOP_MODULES`, `unit` for the rest."""
+    """Give every test its tier: `slow` and `system` as marked (`system` too for the modules of
+    :data:`SYSTEM_MODULES`), `loop` for the modules of :data:`LOOP_MODULES`, `unit` for the
+    rest."""
     for item in items:
-        if item.get_closest_marker("system") or item.get_closest_marker("slow"):
+        if item.get_closest_marker("slow"):
             continue
         module = Path(str(item.fspath)).stem
+        if module in SYSTEM_MODULES:
+            item.add_marker(pytest.mark.system)
+        if item.get_closest_marker("system"):
+            continue
         item.add_marker(pytest.mark.loop if module in LOOP_MODULES else pytest.mark.unit)
 
 

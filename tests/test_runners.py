@@ -176,6 +176,7 @@ def test_a_signal_ignored_by_the_process_stays_ignored():
         signal.signal(signal.SIGHUP, old)
 
 
+@pytest.mark.system
 def test_workers_die_with_their_parent(tmp_path):
     """kill -9 of the parent (no cleanup can run): PR_SET_PDEATHSIG ends its workers."""
     script = textwrap.dedent(f"""

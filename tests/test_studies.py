@@ -187,6 +187,7 @@ def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
     ]
 
 
+@pytest.mark.system
 @pytest.mark.parametrize(
     "argv",
     [

@@ -643,6 +643,7 @@ def test_an_edited_settings_hash_says_what_is_wrong(tmp_path):
 # -- case 8: one writer per study folder -----------------------------------------------------------
 
 
+@pytest.mark.system
 def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
     from stewart_drake.execution.store import LOCK, lock_folder, unlock_folder
 
