@@ -13,9 +13,9 @@ import time
 
 import numpy as np
 import pytest
-from conftest import wait_for
+from conftest import require_extra, wait_for
 
-pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
 
 from stewart_drake.control.lqi import LqiDriver  # noqa: E402
 from stewart_drake.errors import StartPoseError  # noqa: E402

@@ -10,8 +10,9 @@ import time
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
-pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
 
 from stewart_drake.errors import InvalidConfigError, StartPoseError  # noqa: E402
 from stewart_drake.interfaces.robot import (  # noqa: E402
