@@ -15,9 +15,14 @@ from stewart_drake.studies.evaluation import evaluate
 TIMING = ("wall_s", "realtime_factor")
 
 
-def _study(base, runner):
-    """collect (0.2 s runs) and evaluate --quick --controllers pd into ``base``."""
+def _records(base, runner):
+    """collect (0.2 s runs) into ``base``: its records."""
     collect(base / "collect", duration_s=0.2, runner=runner, progress=False)
+    return load_records(base / "collect")
+
+
+def _rows(base, runner):
+    """evaluate --quick --controllers pd into ``base``: its rows by case."""
     report = evaluate(
         base / "docs",
         base / "evaluation",
@@ -26,16 +31,20 @@ def _study(base, runner):
         quick=True,
         controllers=("pd",),
     )
-    rows = {
+    return {
         json.dumps(r["case"], sort_keys=True): {k: v for k, v in r.items() if k not in TIMING}
         for r in report["rows"]
     }
-    return load_records(base / "collect"), rows
 
 
 @pytest.fixture(scope="module")
 def local(tmp_path_factory):
-    return _study(tmp_path_factory.mktemp("local"), ProcessRunner(2))
+    return _records(tmp_path_factory.mktemp("local"), ProcessRunner(2))
+
+
+@pytest.fixture(scope="module")
+def local_rows(tmp_path_factory):
+    return _rows(tmp_path_factory.mktemp("local_rows"), ProcessRunner(2))
 
 
 @pytest.fixture(scope="module")
@@ -62,14 +71,25 @@ def dask_runner():
     "backend", [pytest.param(b, marks=needs_extra(b), id=b) for b in ("ray", "dask")]
 )
 def test_backend_gives_the_local_results(backend, request, local, tmp_path):
+    """The collection's nine runs, sample for sample (the evaluation's rows, with the runs
+    lost everywhere, are the slow tier's: test_backend_gives_the_local_rows)."""
     runner = request.getfixturevalue(f"{backend}_runner")
-    records, rows = _study(tmp_path, runner)
+    records = _records(tmp_path, runner)
     assert runner.n_workers == 2
-    local_records, local_rows = local
-    assert len(records) == 9 and len(rows) == 10 + 7  # pd: scenarios and conditions
-    for mine, theirs in zip(records, local_records):
+    assert len(records) == 9
+    for mine, theirs in zip(records, local):
         for key in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u"):
             np.testing.assert_array_equal(mine[key], theirs[key], err_msg=key)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "backend", [pytest.param(b, marks=needs_extra(b), id=b) for b in ("ray", "dask")]
+)
+def test_backend_gives_the_local_rows(backend, request, local_rows, tmp_path):
+    runner = request.getfixturevalue(f"{backend}_runner")
+    rows = _rows(tmp_path, runner)
+    assert len(rows) == 10 + 7  # pd: scenarios and conditions
     assert _comparable(rows) == _comparable(local_rows)
     # the 5 N push needs more torque than the servos have (docs/hardware.md): lost everywhere
     assert {r["case"]["condition"] for r in rows.values() if "error" in r} == {"push 5 N"}
