@@ -1,4 +1,8 @@
+import importlib.metadata
 import importlib.util
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -6,10 +10,133 @@ import pytest
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
 
+#: The module each extra of pyproject.toml brings that its tests need, and the lowest version
+#: they accept (None: any).
+EXTRAS = {
+    "train": ("torch", None),
+    "mujoco": ("mujoco", "4.0"),
+    "ray": ("ray", None),
+    "dask": ("distributed", None),
+    "analysis": ("control", None),
+    "robot": ("dynamixel_sdk", None),
+}
+
+
+def _version_tuple(text: str) -> tuple:
+    return tuple(int(p) for p in text.split(".")[:3] if p.isdigit())
+
+
+def extra_missing(extra: str) -> str | None:
+    """Why the tests of ``extra`` cannot run here (the install command that brings it), or None
+    when its module is installed (at the version the tests need). Found without importing the
+    module: a skip costs nothing."""
+    module, minimum = EXTRAS[extra]
+    install = f'pip install -e ".[{extra}]"'
+    if importlib.util.find_spec(module) is None:
+        return f"needs the {extra} extra: {install}"
+    if minimum is not None:
+        try:
+            version = importlib.metadata.version(module)
+        except importlib.metadata.PackageNotFoundError:
+            version = "0"
+        if _version_tuple(version) < _version_tuple(minimum):
+            return f"needs the {extra} extra ({module} >= {minimum}, found {version}): {install}"
+    return None
+
+
+def needs_extra(extra: str):
+    """A mark: skip the test, before any fixture starts what it would need, when ``extra`` is
+    not installed, naming the command that installs it."""
+    reason = extra_missing(extra)
+    return pytest.mark.skipif(reason is not None, reason=reason or "")
+
+
+def require_extra(extra: str) -> None:
+    """At a test module's top: skip the whole module when ``extra`` is not installed."""
+    reason = extra_missing(extra)
+    if reason is not None:
+        pytest.skip(reason, allow_module_level=True)
+
+
 #: torch is the [train] extra, a CPU wheel only for Python 3.11 here: tests that train skip
 #: without it (CI runs the suite on the newest Python without it).
-HAS_TORCH = importlib.util.find_spec("torch") is not None
-needs_torch = pytest.mark.skipif(not HAS_TORCH, reason="needs torch (the [train] extra)")
+HAS_TORCH = extra_missing("train") is None
+needs_torch = needs_extra("train")
+
+
+# -- the tiers (pyproject.toml, [tool.pytest.ini_options]; docs/development.md) -----------------
+
+#: Test modules whose tests run the closed loop in process (a Simulator, an experiment, a
+#: study): the `loop` tier. Every other test not marked `system` or `slow` is a `unit` test.
+LOOP_MODULES = {
+    "test_accuracy",
+    "test_closed_loop",
+    "test_design_confirm",
+    "test_distributed",
+    "test_evaluation",
+    "test_experiments",
+    "test_feedforward_tuning",
+    "test_fidelity",
+    "test_fig7",
+    "test_guard",
+    "test_hardware",
+    "test_hardware_station",
+    "test_ilc",
+    "test_lcm_config",
+    "test_learning",
+    "test_lqi",
+    "test_organ_motion_phantom",
+    "test_pd",
+    "test_report_labels",
+    "test_robot_as_built",
+    "test_station",
+    "test_studies",
+    "test_tuner_pipeline",
+    "test_tuner_study",
+    "test_visualize",
+}
+
+
+#: Test modules whose every test is a system test: the robot's bus emulator, its plant stepped
+#: at real time in a thread, talked to over a pseudo-terminal.
+SYSTEM_MODULES = {
+    "test_dynamixel_bus",
+    "test_hardware_station",
+    "test_robot_input",
+    "test_robot_safety",
+    "test_robot_session",
+}
+
+
+def pytest_collection_modifyitems(config, items):
+    """Give every test its tier: `slow` and `system` as marked (`system` too for the modules of
+    :data:`SYSTEM_MODULES`), `loop` for the modules of :data:`LOOP_MODULES`, `unit` for the
+    rest."""
+    for item in items:
+        if item.get_closest_marker("slow"):
+            continue
+        module = Path(str(item.fspath)).stem
+        if module in SYSTEM_MODULES:
+            item.add_marker(pytest.mark.system)
+        if item.get_closest_marker("system"):
+            continue
+        item.add_marker(pytest.mark.loop if module in LOOP_MODULES else pytest.mark.unit)
+
+
+def pytest_configure(config):
+    """Compile the LQI's step once, in the controlling process, before any worker starts
+    (``-n 2``): two workers compiling at once each pay the minute, and every command a test
+    starts would say on stderr that it is compiling. A worker (``workerinput``) finds the cache
+    warm."""
+    if hasattr(config, "workerinput") or config.option.help or config.option.collectonly:
+        return
+    if "stewart_drake.control.lqi_kernels" in sys.modules:
+        return
+    t0 = time.monotonic()
+    import stewart_drake.control.lqi_kernels  # noqa: F401  (compiles, or loads the cache)
+
+    if time.monotonic() - t0 > 5.0:
+        print(f"compiled the LQI's step into numba's cache in {time.monotonic() - t0:.0f} s")
 
 
 @pytest.fixture(scope="session")
@@ -82,3 +209,41 @@ def write_trace(path, t, columns: dict, gap=None, time_header: str = "t [s]"):
     ]
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def wait_for(condition, timeout_s: float, what: str, poll_s: float = 0.05):
+    """Wait until ``condition()`` is true, polling every ``poll_s``; fail the test, naming
+    ``what`` did not happen, after ``timeout_s``: a guard against a hang, generous, never a
+    measure of speed. Returns the condition's last value."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        value = condition()
+        if value:
+            return value
+        if time.monotonic() > deadline:
+            pytest.fail(f"{what} did not happen within {timeout_s:g} s")
+        time.sleep(poll_s)
+
+
+def run_within(timeout_s: float, function, *args, what: str | None = None, **kwargs):
+    """``function(*args, **kwargs)`` in a thread: its value, or the exception it raised; the
+    test fails, saying what hung, if it has not ended after ``timeout_s`` (a guard against a
+    hang, generous, never a measure of speed; the thread is left behind, a daemon)."""
+    import threading
+
+    outcome = {}
+
+    def call():
+        try:
+            outcome["value"] = function(*args, **kwargs)
+        except BaseException as err:  # re-raised in the test's thread
+            outcome["error"] = err
+
+    worker = threading.Thread(target=call, daemon=True)
+    worker.start()
+    worker.join(timeout_s)
+    if worker.is_alive():
+        pytest.fail(f"{what or getattr(function, '__name__', function)} hung for {timeout_s:g} s")
+    if "error" in outcome:
+        raise outcome["error"]
+    return outcome.get("value")

@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from conftest import extra_missing
 
 from stewart_drake.errors import InvalidConfigError, InvalidGeometryError
 from stewart_drake.model.clearance import ClearanceModel
@@ -77,7 +78,10 @@ def test_designs_within_the_bounds_build_a_drake_plant_closed_at_home(design):
 
 
 def test_designs_within_the_bounds_build_a_mujoco_model_closed_at_home():
-    mujoco = pytest.importorskip("mujoco", minversion="4.0")
+    if extra_missing("mujoco"):
+        pytest.skip(extra_missing("mujoco"))
+    import mujoco
+
     from stewart_drake.model import mjcf
 
     for design in _closing_designs(2, seed=11):

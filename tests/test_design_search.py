@@ -199,6 +199,7 @@ def test_the_same_seed_gives_the_same_design_and_another_seed_another(task, tmp_
     assert dataclasses.asdict(again.best.design) == dataclasses.asdict(a.best.design)
 
 
+@pytest.mark.system
 def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task, tmp_path):
     folder = tmp_path / "killed"
     code = (

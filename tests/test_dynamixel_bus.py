@@ -9,8 +9,10 @@ import time
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
-sdk = pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
+import dynamixel_sdk as sdk  # noqa: E402
 
 from stewart_drake.errors import (  # noqa: E402
     BusError,

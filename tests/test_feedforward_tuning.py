@@ -1,9 +1,6 @@
 """Feed-forward tuning with basis functions: learned as a function of the reference, so it needs
 no repetition and carries over to motion it has not seen."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
 
@@ -178,21 +175,26 @@ def test_a_model_learned_on_one_motion_corrects_another_it_has_not_seen(tmp_path
     assert held.fidelity["rms_rotation_rad"] < plain.fidelity["rms_rotation_rad"]
 
 
-def test_the_cli_refuses_hold_without_a_model_and_a_corrupt_model_before_the_run(tmp_path):
-    def cli(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "stewart_drake.interfaces.cli", "reproduce", *args],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            cwd=tmp_path,
-        )
+def test_the_cli_refuses_hold_without_a_model_and_a_corrupt_model_before_the_run(
+    tmp_path, monkeypatch, capsys
+):
+    from stewart_drake.interfaces.cli import main
 
-    p = cli("breathing", "--hold", "--no-progress")
-    assert p.returncode != 0 and "--learned" in p.stderr and "Traceback" not in p.stderr
+    monkeypatch.chdir(tmp_path)
+
+    def cli(*args):
+        """(exit code, stderr) of the command run in this process."""
+        try:
+            rc = main(["reproduce", *args])
+        except SystemExit as exit_:  # argparse's own errors
+            rc = exit_.code
+        return rc, capsys.readouterr().err
+
+    rc, err = cli("breathing", "--hold", "--no-progress")
+    assert rc != 0 and "--learned" in err and "Traceback" not in err
     (tmp_path / "bad.npz").write_text("not numbers")
-    p = cli("breathing", "--learned", "bad.npz", "--no-progress")
-    assert p.returncode != 0 and "not a valid learned" in p.stderr and "Traceback" not in p.stderr
-    p = cli("breathing", "--feedforward", "--learn-cycles", "2", "--no-progress")
-    assert p.returncode != 0 and "choose one" in p.stderr
+    rc, err = cli("breathing", "--learned", "bad.npz", "--no-progress")
+    assert rc != 0 and "not a valid learned" in err and "Traceback" not in err
+    rc, err = cli("breathing", "--feedforward", "--learn-cycles", "2", "--no-progress")
+    assert rc != 0 and "choose one" in err
     assert not list(tmp_path.glob("results*"))  # nothing written

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import extra_missing
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -345,7 +346,8 @@ def test_a_damaged_manifest_stops_a_resumed_study_and_train(tmp_path, capsys):
 
 
 def test_train_on_a_data_set_too_small_to_split_says_so(tmp_path, capsys):
-    pytest.importorskip("torch")
+    if extra_missing("train"):
+        pytest.skip(extra_missing("train"))
     from stewart_drake.interfaces import cli
 
     _collect_folder(tmp_path / "c", sizes=(1, 1))

@@ -239,6 +239,7 @@ def _numpy_loaded(pid: int) -> bool:
         return False
 
 
+@pytest.mark.system
 @pytest.mark.skipif(not Path("/proc/self/maps").exists(), reason="needs Linux's /proc")
 @pytest.mark.parametrize("delay_s", [0.0, 0.05, 0.15, 0.3])
 def test_ctrl_c_while_the_command_imports_is_one_line(tmp_path, delay_s):

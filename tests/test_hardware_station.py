@@ -9,8 +9,9 @@ import time
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
-pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
 
 from pydrake.multibody.plant import MultibodyPlantConfig  # noqa: E402
 from pydrake.systems.analysis import Simulator  # noqa: E402

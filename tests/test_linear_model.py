@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import extra_missing
 
 from stewart_drake.control.linear_model import (
     closed_loop,
@@ -106,7 +107,10 @@ def test_loop_figures_of_the_ideal_and_the_built_robot_at_home():
 
 
 def test_the_loop_in_python_control_has_the_same_margins():
-    control = pytest.importorskip("control")
+    if extra_missing("analysis"):
+        pytest.skip(extra_missing("analysis"))
+    import control
+
     models = loop_models(load_scenario(BUILT))
     loop = loop_at_a_time(models.open, 5).to_control()
     assert loop.dt == H and loop.nstates == models.open.A.shape[0]

@@ -3,6 +3,7 @@
 the cache: test_lqi_step.py.)"""
 
 import numpy as np
+import pytest
 
 from stewart_drake.control import lqi_kernels, lqi_step
 from stewart_drake.model import kinematics
@@ -67,6 +68,7 @@ def test_push_window_writes_the_ring_buffer_like_the_reference():
     np.testing.assert_array_equal(compiled, before)
 
 
+@pytest.mark.system
 def test_the_warm_up_reads_no_array_past_its_end():
     """numba does not check bounds: the warm-up, run as plain Python (NUMBA_DISABLE_JIT=1), must
     index only what its arrays hold (the constants sized from their fields, the layout theirs)."""

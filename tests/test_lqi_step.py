@@ -261,6 +261,7 @@ def test_the_compiled_code_is_cached_against_the_sources_it_inlines():
     assert lqi_kernels._CACHE
 
 
+@pytest.mark.system
 def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
     """With no writable __pycache__ and no writable user cache (a read-only install and home),
     compiled functions cache in the temporary directory instead of failing to import."""

@@ -3,13 +3,11 @@ with the virtual-work torques and falls as the Drake plant does."""
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
 # 4.0: RK4 became fourth order for ball and free joints; the bounds below are measured with it.
-mujoco = pytest.importorskip(
-    "mujoco",
-    minversion="4.0",
-    reason='MuJoCo >= 4.0 is an optional extra: pip install -e ".[mujoco]"',
-)
+require_extra("mujoco")
+import mujoco  # noqa: E402
 
 from stewart_drake.errors import InvalidConfigError  # noqa: E402
 from stewart_drake.interfaces.cli import main  # noqa: E402

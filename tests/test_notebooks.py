@@ -3,7 +3,6 @@ STEWART_DRAKE_QUICK=1), importing this checkout's stewart_drake and showing plot
 
 import os
 import sys
-import time
 from pathlib import Path
 
 import nbformat
@@ -53,6 +52,7 @@ def test_the_training_notebook_asks_for_torch_before_any_work(monkeypatch):
     assert "README" in message
 
 
+@pytest.mark.system
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_notebook_runs_and_shows_plots(path, monkeypatch):
     from nbclient import NotebookClient
@@ -74,16 +74,13 @@ def test_notebook_runs_and_shows_plots(path, monkeypatch):
             "import stewart_drake; print('STEWART_DRAKE_FILE', stewart_drake.__file__)"
         )
     )
-    t0 = time.perf_counter()
+    # Each cell within 300 s (2-17 s a notebook on a quiet machine with STEWART_DRAKE_QUICK=1;
+    # unshortened, notebook 03 alone collects for two minutes): a hang fails by timing out.
     NotebookClient(
         nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(REPO)}}
     ).execute()
-    wall = time.perf_counter() - t0
     outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.outputs]
     images = [o for o in outputs if "image/png" in o.get("data", {})]
     assert len(images) >= 1, f"{path.name} showed no plot"
     (where,) = [o["text"] for o in outputs if "STEWART_DRAKE_FILE" in o.get("text", "")]
     assert Path(where.split()[-1]).resolve().is_relative_to(REPO), where
-    # 2-17 s each on a quiet machine with STEWART_DRAKE_QUICK=1; unshortened, notebook 03 alone
-    # collects for two minutes. The bound holds on a loaded 2-core machine.
-    assert wall < 240, f"{path.name} took {wall:.0f} s with STEWART_DRAKE_QUICK=1"

@@ -13,8 +13,9 @@ import time
 
 import numpy as np
 import pytest
+from conftest import require_extra, wait_for
 
-pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
 
 from stewart_drake.control.lqi import LqiDriver  # noqa: E402
 from stewart_drake.errors import StartPoseError  # noqa: E402
@@ -149,11 +150,14 @@ def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path, ctr
 
 
 def test_our_watchdog_removes_the_torque_when_the_loop_stalls(tmp_path):
+    """The loop stalls until our watchdog's torque off reaches the bus (30 s at most, then the
+    test fails): the torque goes off while the loop is stalled. That it never goes before the
+    limit is tested on the watchdog's own clock (tests/test_robot_session.py)."""
     stalled = []
 
     def stall():
         stalled.append(time.perf_counter())
-        time.sleep(3.0)
+        wait_for(lambda: _torque_off_times(emu, stalled[0]), 30, "our watchdog's torque off")
 
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)
@@ -162,8 +166,7 @@ def test_our_watchdog_removes_the_torque_when_the_loop_stalls(tmp_path):
         offs = _torque_off_times(emu, stalled[0])
     assert run.reason.startswith("LoopStalledError") and run.exit_code == 1, run.reason
     assert "no period completed" in run.reason
-    # Off while the loop was still stalled: after the limit, well before the stall's end.
-    assert offs and 0.3 <= offs[0] - stalled[0] < 2.5, offs[0] - stalled[0]
+    assert len(offs) >= 1  # sent while the loop was stalled (the stall ended on it)
     assert run.torque_off_confirmed and run.logs is not None
 
 

@@ -10,8 +10,9 @@ import time
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
-pytest.importorskip("dynamixel_sdk")
+require_extra("robot")
 
 from stewart_drake.errors import InvalidConfigError, StartPoseError  # noqa: E402
 from stewart_drake.interfaces.robot import (  # noqa: E402
@@ -61,21 +62,32 @@ def test_the_homing_lead_in_and_the_warped_reference_start_and_end_at_rest_on_it
         HomingReference(reference, x_rest, home_s=0.0)
 
 
-def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_raises():
+def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_raises(monkeypatch):
+    """On the watchdog's own clock, set by the test: quiet up to the limit, the torque off
+    once past it."""
+    import types
+
+    from conftest import wait_for
+
     from stewart_drake.errors import LoopStalledError
+    from stewart_drake.interfaces import robot
     from stewart_drake.interfaces.robot import _kicker
 
+    now = [100.0]
+    monkeypatch.setattr(robot, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
     calls = []
-    watchdog = LoopWatchdog(lambda: calls.append(time.perf_counter()) or True, timeout_s=0.2)
+    watchdog = LoopWatchdog(lambda: calls.append(now[0]) or True, timeout_s=0.2)
     monitor = _kicker(watchdog)
     with watchdog:
-        t0 = time.perf_counter()
-        monitor(None)  # a step completed
-        while watchdog.tripped is None and time.perf_counter() < t0 + 30:  # stalled (bounded)
-            time.sleep(0.005)
-    assert len(calls) == 1
-    assert calls[0] - t0 >= 0.2  # never before the limit
-    assert "no period completed" in watchdog.tripped and "(confirmed)" in watchdog.tripped
+        monitor(None)  # a step completed at 100 s
+        now[0] = 100.19
+        time.sleep(0.3)  # six of its checks (every 0.05 s) at 0.19 s without a period
+        assert calls == [] and watchdog.tripped is None  # never before the limit
+        now[0] = 100.21
+        wait_for(lambda: watchdog.tripped, 30, "the watchdog tripping")
+    assert calls == [100.21]  # once
+    assert "no period completed for 210 ms" in watchdog.tripped
+    assert "(confirmed)" in watchdog.tripped
     with pytest.raises(LoopStalledError, match="no period completed"):
         monitor(None)  # the loop's next step ends the run
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
+from conftest import wait_for
 
 from stewart_drake.errors import JointLimitError, SimulationDivergedError
 from stewart_drake.execution.runners import (
@@ -175,6 +176,7 @@ def test_a_signal_ignored_by_the_process_stays_ignored():
         signal.signal(signal.SIGHUP, old)
 
 
+@pytest.mark.system
 def test_workers_die_with_their_parent(tmp_path):
     """kill -9 of the parent (no cleanup can run): PR_SET_PDEATHSIG ends its workers."""
     script = textwrap.dedent(f"""
@@ -186,21 +188,18 @@ def test_workers_die_with_their_parent(tmp_path):
             pass
     """)
     parent = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
+
+    def started():
+        return [
+            p
+            for p in psutil.Process(parent.pid).children()
+            if "multiprocessing" in " ".join(p.cmdline())
+            and "resource_tracker" not in " ".join(p.cmdline())
+        ]
+
     try:
-        deadline = time.monotonic() + 60
-        while (
-            len(
-                workers := [
-                    p
-                    for p in psutil.Process(parent.pid).children()
-                    if "multiprocessing" in " ".join(p.cmdline())
-                    and "resource_tracker" not in " ".join(p.cmdline())
-                ]
-            )
-            < 2
-        ):
-            assert time.monotonic() < deadline, "no workers started"
-            time.sleep(0.2)
+        wait_for(lambda: len(started()) >= 2, 60, "two workers starting", poll_s=0.2)
+        workers = started()
         parent.kill()
         parent.wait()
         gone, alive = psutil.wait_procs(workers, timeout=30)  # at once on a quiet machine

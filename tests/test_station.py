@@ -299,6 +299,7 @@ def test_sdf_and_diagrams_write_to_the_current_folder(tmp_path, monkeypatch):
     assert (tmp_path / "diagrams" / "control_loop.dot").exists()
 
 
+@pytest.mark.system
 def test_run_with_the_tuner_needs_no_torch(tmp_path):
     """torch is the [train] extra: with it unimportable, `run --tuner ann` works and `train` says
     in one line which extra to install."""

@@ -3,8 +3,10 @@ where the weights are a known function of the features."""
 
 import numpy as np
 import pytest
+from conftest import require_extra
 
-torch = pytest.importorskip("torch", reason="needs torch (the [train] extra)")
+require_extra("train")
+import torch  # noqa: E402
 
 from stewart_drake.control.tuner import load_tuner
 from stewart_drake.errors import InvalidConfigError

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
@@ -27,11 +28,19 @@ def test_data_trajectory_is_deterministic_reachable_and_in_band():
     assert np.all(acc <= np.array([30, 30, 30, 3, 3, 3]) * (1 + 1e-9))
 
 
-def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50():
+@pytest.mark.parametrize(
+    "seeds",
+    [
+        # seed 0 is collect's default; the other 46 (0.3 s each) are the slow tier's
+        pytest.param(range(5), id="0-4"),
+        pytest.param(range(5, 51), id="5-50", marks=pytest.mark.slow),
+    ],
+)
+def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50(seeds):
     """The check a run makes first (GuardConfig's thresholds, sampled at the 1 ms control
     period): seed 0 used to leave the crank-joint cone by 0.028 deg at t = 0.644 s."""
     geometry, refused = StewartGeometry(), []
-    for seed in range(51):
+    for seed in seeds:
         report = validate(
             data_collection_trajectory(seed), geometry, 10.0, dt=1e-3, raise_refused=False
         )
@@ -40,6 +49,8 @@ def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50():
                 (seed, str(report.first_violation), report.first_singular_t, report.first_weak_t)
             )
     assert refused == []
+    if 0 not in seeds:
+        return
     # Scaled down to the binding limit, not far inside it: seed 0's crank joint ends
     # 0.018 deg inside its cone (one common factor on the amplitudes, 0.999 of the limit's).
     report = validate(data_collection_trajectory(0), geometry, 10.0, raise_refused=False)
