@@ -1,5 +1,6 @@
 import importlib.metadata
 import importlib.util
+import signal
 import sys
 import time
 from pathlib import Path
@@ -160,6 +161,15 @@ def random_reachable_poses(geometry, n, seed=0, margin=0.95):
 @pytest.fixture(scope="session")
 def random_poses(geometry):
     return random_reachable_poses(geometry, 200)
+
+
+@pytest.fixture
+def ctrl_c():
+    """Python's own SIGINT handler, as in a user's terminal (a suite started in the background
+    of a script inherits SIGINT ignored)."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
 
 
 def install_plugin(site, package: str, entry_points: dict, source: str):

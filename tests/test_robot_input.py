@@ -67,15 +67,6 @@ def _z_mm(summary: str) -> float:
     return float(re.search(r"Z ([-+\d.]+) mm", summary).group(1))
 
 
-@pytest.fixture
-def ctrl_c():
-    """Python's own SIGINT handler, as in a user's terminal (a suite started in the background
-    of a script inherits SIGINT ignored)."""
-    old = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, old)
-
-
 def _kill_then(signum, original):
     """``original`` with ``signum`` sent to this process first (the handler runs in it)."""
 

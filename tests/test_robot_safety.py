@@ -124,15 +124,6 @@ def test_a_run_homes_from_the_measured_pose_holds_and_ends_with_the_torque_off(t
     assert run.start is not None and abs(run.start.x[5] - X_REST[5]) < 1e-3
 
 
-@pytest.fixture
-def ctrl_c():
-    """Python's own SIGINT handler, as in a user's terminal (a suite started in the background
-    of a script inherits SIGINT ignored)."""
-    old = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, old)
-
-
 def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path, ctrl_c):
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)
