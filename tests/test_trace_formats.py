@@ -159,6 +159,8 @@ def test_fidelity_of_empty_logs_is_refused_in_words():
 
     with pytest.raises(InvalidConfigError, match=r"fewer than 10 samples \(0\)"):
         fidelity(np.zeros(0), np.zeros((0, 6)), np.zeros((0, 6)))
+    with pytest.raises(InvalidConfigError, match=r"must match"):  # empty lists, no axes
+        fidelity([], [], [])
 
 
 def test_huge_relative_harmonics_are_refused_without_numpy_warnings(tmp_path, capsys):

@@ -249,9 +249,9 @@ def fidelity(
     # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
     # slice; the error alone is made, in float32 (errors of microns to 7 digits; the sums below
     # in float64).
-    t = np.asarray(t, dtype=float)
-    x = np.asarray(x)[:, :6]
-    x_d = np.asarray(x_d)[:, :6]
+    t, x, x_d = np.asarray(t, dtype=float), np.asarray(x), np.asarray(x_d)
+    if x.ndim == 2 and x_d.ndim == 2:  # poses first: x and x_d may carry rates after them
+        x, x_d = x[:, :6], x_d[:, :6]
     if x.ndim != 2 or x.shape != x_d.shape or x.shape[0] != t.size or t.ndim != 1:
         raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
     if t.size < 10:  # the window's own test below reads t[0]
