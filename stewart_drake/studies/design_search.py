@@ -145,17 +145,23 @@ class TaskSamples:
         return h.hexdigest()[:16]
 
     def save(self, path) -> None:
-        """Write the samples to ``path`` (.npz, arrays only: read back with :meth:`load`)."""
-        np.savez(
+        """Write the samples to ``path`` (.npz, arrays only, atomically: a search killed while
+        it writes leaves no half file for the next one to resume from; read back with
+        :meth:`load`)."""
+        from ..fileio import save_npz
+
+        save_npz(
             path,
-            labels=np.array(self.labels, dtype=str),
-            x=self.x,
-            x_dot=self.x_dot,
-            x_ddot=self.x_ddot,
-            motion=self.motion,
-            workspace_x=self.workspace_x,
-            scalars=np.array([self.payload_kg, self.torque_share, self.speed_share]),
-            resolution=np.array(self.resolution, dtype=float),
+            {
+                "labels": np.array(self.labels, dtype=str),
+                "x": self.x,
+                "x_dot": self.x_dot,
+                "x_ddot": self.x_ddot,
+                "motion": self.motion,
+                "workspace_x": self.workspace_x,
+                "scalars": np.array([self.payload_kg, self.torque_share, self.speed_share]),
+                "resolution": np.array(self.resolution, dtype=float),
+            },
         )
 
     @classmethod
@@ -632,7 +638,8 @@ class _Generations:
         docs = self.store.load_json(job_id)
         try:
             evals = [Evaluation.from_json(d) for d in docs]
-            [e.penalized(self.objective) for e in evals]
+            for e in evals:  # each must give its objective, as a fresh evaluation does
+                e.penalized(self.objective)
             if len(evals) != size:
                 raise ValueError(f"{len(evals)} evaluations for {size} candidates")
         except (KeyError, TypeError, ValueError, AttributeError) as err:
@@ -779,9 +786,8 @@ def search(
         store.close()
     except RuntimeError:
         store.close()
-        if (
-            generations is not None and generations.error is not None
-        ):  # scipy's wrapper around our typed error
+        # scipy wraps a typed error raised in its map in a RuntimeError of its own
+        if generations is not None and generations.error is not None:
             raise generations.error from None
         raise
     except BaseException:
