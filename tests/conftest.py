@@ -1,5 +1,6 @@
 import importlib.metadata
 import importlib.util
+import os
 import signal
 import sys
 import time
@@ -7,6 +8,26 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+#: Where the suite keeps compiled bytecode when the environment asks Python not to write it
+#: beside the sources (PYTHONDONTWRITEBYTECODE, as on our CI machines): pytest's own cache
+#: folder, which the suite writes anyway. Without it every worker re-rewrites the assertions of
+#: 95 test modules (about 6 s each) and every command a test starts compiles the package again
+#: (0.3 s a process).
+PYCACHE_PREFIX = Path(__file__).resolve().parent.parent / ".pytest_cache" / "pycache"
+
+
+def _cache_bytecode_out_of_the_tree() -> None:
+    if not sys.dont_write_bytecode or sys.pycache_prefix is not None:
+        return
+    sys.pycache_prefix = str(PYCACHE_PREFIX)
+    sys.dont_write_bytecode = False
+    # The workers (-n 2), the commands and the notebooks' kernels started from here inherit it.
+    os.environ["PYTHONPYCACHEPREFIX"] = str(PYCACHE_PREFIX)
+    os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
+
+
+_cache_bytecode_out_of_the_tree()
 
 from stewart_drake.model import kinematics
 from stewart_drake.model.geometry import X_HOME, StewartGeometry
