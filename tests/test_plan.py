@@ -71,13 +71,13 @@ def test_the_station_applies_the_plan_s_torque_limit():
 
 
 def test_a_data_collection_reference_is_made_for_the_plan_s_robot_and_limit():
-    scenario = load_scenario("paper_hardware", ["duration_s=4"])
+    scenario = load_scenario("paper_hardware", ["duration_s=1.5"])
     scenario.reference = DataCollectionReference(seed=3)
     plan = make_plan(scenario)
     direct = data_collection_trajectory(
-        3, plan.geometry, duration_s=4.0, torque_limit_Nm=plan.torque_limit_Nm
+        3, plan.geometry, duration_s=1.5, torque_limit_Nm=plan.torque_limit_Nm
     )
-    t = np.linspace(0.0, 4.0, 9)
+    t = np.linspace(0.0, 1.5, 9)
     for a, b in zip(plan.reference.evaluate(t), direct.evaluate(t)):
         np.testing.assert_array_equal(a, b)
 

@@ -7,6 +7,7 @@ the machine may be loaded, and what is tested is where each path ends, not how f
 """
 
 import os
+import re
 import signal
 import threading
 import time
@@ -236,26 +237,33 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     command = [
         sys.executable, "-m", "stewart_drake.interfaces.cli", "robot", "home",
         "--scenario", str(tmp_path / "bus.yaml"), "--emulate", "0,0,0,0,0,0.3",
-        "--home-s", "0.5", "--hold", "120", "--loop-timeout", "2", "--no-progress",
-        "--out", str(tmp_path),
+        "--home-s", "0.5", "--hold", "120", "--loop-timeout", "2", "--out", str(tmp_path),
     ]  # fmt: skip
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # stderr read in a thread: the one-line messages, and the progress bar's "n.nn/total sim s"
+    # (tqdm rewrites its line with carriage returns), the run's own clock.
+    seen = []
+    reader = threading.Thread(target=lambda: seen.extend(iter(lambda: process.stderr.read(1), "")))
+    reader.start()
+
+    def simulated_s():
+        text = "".join(seen)
+        if "torque on" not in text:
+            return 0.0
+        times = re.findall(r"(\d+\.\d+)/\d+\.\d+ sim s", text.split("torque on", 1)[1])
+        return float(times[-1]) if times else 0.0
+
     try:
-        deadline = time.monotonic() + 300
-        lines = []
-        while time.monotonic() < deadline:
-            line = process.stderr.readline()
-            if not line:
-                break
-            lines.append(line)
-            if line.startswith("torque on"):
-                break
-        assert lines and lines[-1].startswith("torque on"), lines
-        time.sleep(1.0)
+        # Signalled once the run is 0.6 s in by its own clock, however loaded the machine.
+        wait_for(lambda: simulated_s() >= 0.6 or process.poll() is not None, 300, "0.6 s on")
+        assert process.poll() is None, "".join(seen)
         process.send_signal(signal.SIGTERM)
-        out, err = process.communicate(timeout=120)
+        process.wait(timeout=120)
+        reader.join(timeout=60)
+        out = process.stdout.read()
     finally:
         process.kill()
+    err = "".join(seen)
     assert process.returncode == 128 + signal.SIGTERM, (out, err)
     last = [line for line in err.splitlines() if line.startswith("stewart-drake robot")]
     assert len(last) == 1, err
