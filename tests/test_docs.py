@@ -451,6 +451,7 @@ def docstrings(module):
     read from the source so that lines are the file's."""
     source = inspect.getsource(module)
     tree = ast.parse(source)
+    owner = _owners(tree)
     for node in ast.walk(tree):
         if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             body = node.body
@@ -460,7 +461,7 @@ def docstrings(module):
                 and isinstance(getattr(body[0], "value", None), ast.Constant)
                 and isinstance(body[0].value.value, str)
             ):
-                yield body[0].lineno, body[0].value.value, _owner(tree, node)
+                yield body[0].lineno, body[0].value.value, owner.get(node)
         if isinstance(node, ast.Call):  # docstrings given to a factory
             for arg in node.args:
                 if (
@@ -471,13 +472,16 @@ def docstrings(module):
                     yield arg.lineno, arg.value, None
 
 
-def _owner(tree, node):
+def _owners(tree) -> dict:
+    """{node: name of its class} for each class and each statement directly in a class's
+    body (its methods), in one walk of the tree."""
+    owner = {}
     for parent in ast.walk(tree):
-        if isinstance(parent, ast.ClassDef) and node in parent.body:
-            return parent.name
-        if isinstance(parent, ast.ClassDef) and node is parent:
-            return parent.name
-    return None
+        if isinstance(parent, ast.ClassDef):
+            owner.setdefault(parent, parent.name)
+            for child in parent.body:
+                owner.setdefault(child, parent.name)
+    return owner
 
 
 def broken_cross_references() -> list[str]:
