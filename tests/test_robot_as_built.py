@@ -219,7 +219,8 @@ def test_required_torques_are_what_a_well_tracked_run_applies(name, tolerance):
     2 % once the encoders' quantization chatter is averaged over 20 ms)."""
     from scipy.ndimage import uniform_filter1d
 
-    scenario = load_scenario(name, ["duration_s=3"])
+    # From 1 s to 2 s, past the start: 0.002 % and 1.3 % measured (0.005 % and 1.6 % to 3 s).
+    scenario = load_scenario(name, ["duration_s=2"])
     result = run_experiment(scenario)
     keep = result.t >= 1.0
     x_d = result.x_d[keep]
