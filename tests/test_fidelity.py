@@ -285,7 +285,7 @@ def test_reproduce_takes_a_phantom_trace_as_it_comes(tmp_path, capsys):
     ):
         out = tmp_path / path.stem
         code = cli.main(
-            ["reproduce", str(path), "--duration", "6", "--no-progress", "--out", str(out)]
+            ["reproduce", str(path), "--duration", "1", "--no-progress", "--out", str(out)]
         )
         printed = capsys.readouterr()
         assert code == 0, printed.err

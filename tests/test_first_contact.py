@@ -148,6 +148,16 @@ def _one_line(capsys, argv, code=2) -> str:
     return err[0]
 
 
+@pytest.fixture(scope="module")
+def designed(tmp_path_factory):
+    """(requirements, out): one finished design search, searched once for the module; a test
+    damages its own copy of ``out``."""
+    root = tmp_path_factory.mktemp("designed")
+    requirements, out = _requirements(root), root / "out"
+    assert cli.main(["design", str(requirements), "--out", str(out), *DESIGN]) == 0
+    return requirements, out
+
+
 @pytest.mark.parametrize(
     "damage, problem",
     [
@@ -156,12 +166,14 @@ def _one_line(capsys, argv, code=2) -> str:
         (b"[]", "0 evaluations for"),
     ],
 )
-def test_design_resumed_over_a_damaged_generation_names_the_file(tmp_path, capsys, damage, problem):
+def test_design_resumed_over_a_damaged_generation_names_the_file(
+    tmp_path, capsys, designed, damage, problem
+):
     """Not scipy's RuntimeError around it: the typed line naming the file and what to do."""
+    requirements, finished = designed
     out = tmp_path / "out"
-    argv = ["design", str(_requirements(tmp_path)), "--out", str(out), *DESIGN]
-    assert cli.main(argv) == 0
-    capsys.readouterr()
+    shutil.copytree(finished, out)
+    argv = ["design", str(requirements), "--out", str(out), *DESIGN]
     generations = sorted((out / "search").glob("*_gen_*.json"))
     assert len(generations) == 2  # x0's generation and one more
     generations[0].write_bytes(damage)
