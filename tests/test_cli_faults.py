@@ -754,27 +754,29 @@ def _signal_once_shown(proc, marker: str, signum: int, show_s: float = 120.0, pa
     return proc.returncode, text, [ln for ln in re.split(r"[\r\n]", text) if ln.strip()]
 
 
+#: The run a signal ends: paced at real time for 30 s, so only the signal ends it early.
+REAL_TIME_RUN = ["run", "--set", "simulator.target_realtime_rate=1.0", "--duration", "30"]
+
+
 @pytest.mark.system
 @pytest.mark.parametrize(
-    "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name
+    "signum",
+    [
+        pytest.param(signal.SIGINT, marks=pytest.mark.slow),
+        signal.SIGTERM,
+        pytest.param(signal.SIGHUP, marks=pytest.mark.slow),
+    ],
+    ids=lambda s: signal.Signals(s).name,
 )
 def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
     """A run paced at real time (30 s), signalled while it simulates: 128 + signum and one line
     (0.3-0.4 s after the signal on a quiet machine; the run had 29 s left, so the signal cut it
-    short)."""
+    short). The installed command, one signal in the default tier; Ctrl-C and SIGHUP through
+    ``cli.main`` are test_a_signal_ends_a_run_in_process_with_its_exit_code's."""
     before = _snapshot(home, home / "out")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(
-        COMMAND
-        + [
-            "run",
-            "--set",
-            "simulator.target_realtime_rate=1.0",
-            "--duration",
-            "30",
-            "--out",
-            "out",
-        ],
+        COMMAND + REAL_TIME_RUN + ["--out", "out"],
         cwd=home,
         env=env,
         stdout=subprocess.PIPE,
@@ -793,6 +795,42 @@ def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
     assert "Traceback" not in text
     assert _snapshot(home, home / "out") == before
     assert not (home / "out" / "run_paper.npz").exists()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_signal_ends_a_run_in_process_with_its_exit_code(
+    tmp_path, monkeypatch, capsys, ctrl_c, signum
+):
+    """The real-time run of the test above through ``cli.main`` in this process, the signal
+    sent to it once it simulates: 128 + signum and the same one line, no result file."""
+    from stewart_drake.studies import experiments
+
+    # As in a user's terminal: SIGHUP ends a process (a suite started under nohup ignores it).
+    old_hup = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    advance = experiments.advance
+    sent = []
+
+    def advance_then_signal(simulator, t_end, progress, desc="simulating"):
+        # The signal lands while the simulator advances (the run has 30 s of real time ahead).
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signum))
+        timer.start()
+        sent.append(timer)
+        return advance(simulator, t_end, progress, desc)
+
+    monkeypatch.setattr(experiments, "advance", advance_then_signal)
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = cli.main(REAL_TIME_RUN + ["--out", "out"])
+    finally:
+        for timer in sent:
+            timer.join(60)
+        signal.signal(signal.SIGHUP, old_hup)
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(sent) == 1 and code == 128 + signum, (code, lines)
+    assert lines[-1] == (
+        f"stewart-drake run: interrupted by {signum.name}; partial outputs were not written"
+    )
+    assert not (tmp_path / "out" / "run_paper.npz").exists()
 
 
 # cases 4, 10 and the low ones: files the tool reads --------------------------------------------
