@@ -991,7 +991,9 @@ def test_drake_config_fields_and_a_csv_with_a_byte_order_mark_are_accepted(home)
 def test_a_second_study_in_the_same_folder_is_refused_naming_the_first(home):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     first = subprocess.Popen(
-        COMMAND + ["collect", "--duration", "2", "--jobs", "1", "--out", "out", "--no-progress"],
+        # In its own process, no worker to start: the study's lock is the main process's.
+        COMMAND
+        + ["collect", "--duration", "2", "--runner", "serial", "--out", "out", "--no-progress"],
         cwd=home,
         env=env,
         stdout=subprocess.PIPE,
@@ -1201,23 +1203,23 @@ def _long_trace(path: Path, rows: int) -> Path:
 def test_a_trace_too_long_for_the_memory_is_refused_before_it_is_checked(
     capsys, tmp_path, monkeypatch
 ):
-    """200,000 rows (2000 s): read in about a second, then the run's memory is estimated
-    (1.9 GB at 1 kHz) and refused in one line before the reference is checked or anything
-    built."""
+    """20,000 rows (200 s): read, then the run's memory is estimated (0.4 GB before anything
+    is logged and 0.75 kB a millisecond at 1 kHz: 550 MB) and refused in one line, on a
+    machine with 500 MB free, before the reference is checked or anything built."""
     from stewart_drake.model import limits
 
-    path = _long_trace(tmp_path / "long.csv", 200_000)
-    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 1e9)
+    path = _long_trace(tmp_path / "long.csv", 20_000)
+    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 0.5e9)
     monkeypatch.setattr(limits, "validate_trajectory", lambda *a, **k: pytest.fail("checked"))
     line = _one_line_error(
         capsys, ["reproduce", str(path), "--no-progress", "--out", str(tmp_path / "out")]
     )
     assert re.search(
-        rf"a run of 1999.99 s logged every 0.001 s of the trace {path}: about 1.9 GB of memory "
+        rf"a run of 199.99 s logged every 0.001 s of the trace {path}: about 550 MB of memory "
         rf"needed, .*; shorten duration_s \(--duration\) .* \(reproduce --duration replays its",
         line,
     ), line
-    assert "more than the 1 GB available" in line and not (tmp_path / "out").exists()
+    assert "more than the 500 MB available" in line and not (tmp_path / "out").exists()
 
 
 @pytest.mark.system
