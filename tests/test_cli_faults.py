@@ -754,27 +754,29 @@ def _signal_once_shown(proc, marker: str, signum: int, show_s: float = 120.0, pa
     return proc.returncode, text, [ln for ln in re.split(r"[\r\n]", text) if ln.strip()]
 
 
+#: The run a signal ends: paced at real time for 30 s, so only the signal ends it early.
+REAL_TIME_RUN = ["run", "--set", "simulator.target_realtime_rate=1.0", "--duration", "30"]
+
+
 @pytest.mark.system
 @pytest.mark.parametrize(
-    "signum", [signal.SIGINT, signal.SIGTERM, signal.SIGHUP], ids=lambda s: signal.Signals(s).name
+    "signum",
+    [
+        pytest.param(signal.SIGINT, marks=pytest.mark.slow),
+        signal.SIGTERM,
+        pytest.param(signal.SIGHUP, marks=pytest.mark.slow),
+    ],
+    ids=lambda s: signal.Signals(s).name,
 )
 def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
     """A run paced at real time (30 s), signalled while it simulates: 128 + signum and one line
     (0.3-0.4 s after the signal on a quiet machine; the run had 29 s left, so the signal cut it
-    short)."""
+    short). The installed command, one signal in the default tier; Ctrl-C and SIGHUP through
+    ``cli.main`` are test_a_signal_ends_a_run_in_process_with_its_exit_code's."""
     before = _snapshot(home, home / "out")
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(
-        COMMAND
-        + [
-            "run",
-            "--set",
-            "simulator.target_realtime_rate=1.0",
-            "--duration",
-            "30",
-            "--out",
-            "out",
-        ],
+        COMMAND + REAL_TIME_RUN + ["--out", "out"],
         cwd=home,
         env=env,
         stdout=subprocess.PIPE,
@@ -793,6 +795,43 @@ def test_a_signal_ends_a_run_promptly_with_its_exit_code(home, signum):
     assert "Traceback" not in text
     assert _snapshot(home, home / "out") == before
     assert not (home / "out" / "run_paper.npz").exists()
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGHUP], ids=lambda s: s.name)
+def test_a_signal_ends_a_run_in_process_with_its_exit_code(
+    tmp_path, monkeypatch, capsys, ctrl_c, signum
+):
+    """The real-time run of the test above through ``cli.main`` in this process, the signal
+    sent to it once it simulates: 128 + signum and the same one line, no result file."""
+    from stewart_drake.studies import experiments
+
+    # As in a user's terminal: SIGHUP ends a process (a suite started under nohup ignores it).
+    old_hup = signal.signal(signal.SIGHUP, signal.SIG_DFL)
+    advance = experiments.advance
+    sent = []
+
+    def advance_then_signal(simulator, t_end, progress, desc="simulating"):
+        # The signal lands while the simulator advances (the run has 30 s of real time ahead).
+        timer = threading.Timer(0.3, os.kill, (os.getpid(), signum))
+        timer.start()
+        sent.append(timer)
+        return advance(simulator, t_end, progress, desc)
+
+    monkeypatch.setattr(experiments, "advance", advance_then_signal)
+    monkeypatch.chdir(tmp_path)
+    try:
+        code = cli.main(REAL_TIME_RUN + ["--out", "out"])
+    finally:
+        for timer in sent:  # a run that ended otherwise is not signalled after its handler is gone
+            timer.cancel()
+            timer.join(60)
+        signal.signal(signal.SIGHUP, old_hup)
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(sent) == 1 and code == 128 + signum, (code, lines)
+    assert lines[-1] == (
+        f"stewart-drake run: interrupted by {signum.name}; partial outputs were not written"
+    )
+    assert not (tmp_path / "out" / "run_paper.npz").exists()
 
 
 # cases 4, 10 and the low ones: files the tool reads --------------------------------------------
@@ -953,7 +992,9 @@ def test_drake_config_fields_and_a_csv_with_a_byte_order_mark_are_accepted(home)
 def test_a_second_study_in_the_same_folder_is_refused_naming_the_first(home):
     env = dict(os.environ, PYTHONPATH=str(REPO))
     first = subprocess.Popen(
-        COMMAND + ["collect", "--duration", "2", "--jobs", "1", "--out", "out", "--no-progress"],
+        # In its own process, no worker to start: the study's lock is the main process's.
+        COMMAND
+        + ["collect", "--duration", "2", "--runner", "serial", "--out", "out", "--no-progress"],
         cwd=home,
         env=env,
         stdout=subprocess.PIPE,
@@ -1163,32 +1204,32 @@ def _long_trace(path: Path, rows: int) -> Path:
 def test_a_trace_too_long_for_the_memory_is_refused_before_it_is_checked(
     capsys, tmp_path, monkeypatch
 ):
-    """200,000 rows (2000 s): read in about a second, then the run's memory is estimated
-    (1.9 GB at 1 kHz) and refused in one line before the reference is checked or anything
-    built."""
+    """20,000 rows (200 s): read, then the run's memory is estimated (0.4 GB before anything
+    is logged and 0.75 kB a millisecond at 1 kHz: 550 MB) and refused in one line, on a
+    machine with 500 MB free, before the reference is checked or anything built."""
     from stewart_drake.model import limits
 
-    path = _long_trace(tmp_path / "long.csv", 200_000)
-    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 1e9)
+    path = _long_trace(tmp_path / "long.csv", 20_000)
+    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 0.5e9)
     monkeypatch.setattr(limits, "validate_trajectory", lambda *a, **k: pytest.fail("checked"))
     line = _one_line_error(
         capsys, ["reproduce", str(path), "--no-progress", "--out", str(tmp_path / "out")]
     )
     assert re.search(
-        rf"a run of 1999.99 s logged every 0.001 s of the trace {path}: about 1.9 GB of memory "
+        rf"a run of 199.99 s logged every 0.001 s of the trace {path}: about 550 MB of memory "
         rf"needed, .*; shorten duration_s \(--duration\) .* \(reproduce --duration replays its",
         line,
     ), line
-    assert "more than the 1 GB available" in line and not (tmp_path / "out").exists()
+    assert "more than the 500 MB available" in line and not (tmp_path / "out").exists()
 
 
 @pytest.mark.system
 def test_a_long_trace_shows_its_check_and_ends_promptly_on_a_signal(tmp_path):
-    """A 300 s stretch of a 2000 s trace: the check's bar shows (the trace read and its cycles
-    found in about 1.5 s, 60 s allowed for a loaded machine), and SIGINT during the check (15 s
-    of it) ends the command (0.4 s after it when quiet: the check runs in stretches of 5 s) with
-    130 and one line."""
-    path = _long_trace(tmp_path / "long.csv", 200_000)
+    """A 300 s stretch of a 600 s trace: the check's bar shows (the trace read and its cycles
+    found in well under a second, 60 s allowed for a loaded machine), and SIGINT during the
+    check (15 s of it) ends the command (0.4 s after it when quiet: the check runs in stretches
+    of 5 s) with 130 and one line."""
+    path = _long_trace(tmp_path / "long.csv", 60_000)
     env = dict(os.environ, PYTHONPATH=str(REPO))
     proc = subprocess.Popen(
         COMMAND + ["reproduce", str(path), "--duration", "300", "--out", str(tmp_path / "o")],

@@ -1,5 +1,7 @@
-"""Ray and Dask backends give exactly the local backend's results, on local clusters
-of 2 CPUs started once per module; skipped only when their extra is not installed."""
+"""Ray and Dask backends give exactly the local backend's results, on local clusters of 2 CPUs
+(the default tier's: two short runs on a cluster the runner starts and ends itself; the slow
+tier's: the evaluation on clusters started once per module); skipped only when their extra is
+not installed."""
 
 import json
 
@@ -7,18 +9,28 @@ import numpy as np
 import pytest
 from conftest import needs_extra, run_within
 
-from stewart_drake.execution.runners import DaskRunner, ProcessRunner, RayRunner
-from stewart_drake.studies.collection import collect, load_records
+from stewart_drake.execution.runners import (
+    DaskRunner,
+    JobFailure,
+    ProcessRunner,
+    RayRunner,
+    SerialRunner,
+)
+from stewart_drake.studies.collection import _collect_job, collection_jobs
 from stewart_drake.studies.evaluation import evaluate
 
 #: Row fields that measure the machine, not the run.
 TIMING = ("wall_s", "realtime_factor")
 
 
-def _records(base, runner):
-    """collect (0.2 s runs) into ``base``: its records."""
-    collect(base / "collect", duration_s=0.2, runner=runner, progress=False)
-    return load_records(base / "collect")
+#: Two of the collection's nine runs (0.2 s each), its weights' extremes.
+JOBS = ("q0.1_r0.1", "q10_r10")
+
+
+def _records(runner):
+    """The collection's :data:`JOBS` mapped over ``runner``: {job: its record}."""
+    _, jobs = collection_jobs(duration_s=0.2)
+    return dict(runner.map(_collect_job, {k: jobs[k] for k in JOBS}))
 
 
 def _rows(base, runner):
@@ -38,8 +50,8 @@ def _rows(base, runner):
 
 
 @pytest.fixture(scope="module")
-def local(tmp_path_factory):
-    return _records(tmp_path_factory.mktemp("local"), ProcessRunner(2))
+def local():
+    return _records(SerialRunner())
 
 
 @pytest.fixture(scope="module")
@@ -70,16 +82,19 @@ def dask_runner():
 @pytest.mark.parametrize(
     "backend", [pytest.param(b, marks=needs_extra(b), id=b) for b in ("ray", "dask")]
 )
-def test_backend_gives_the_local_results(backend, request, local, tmp_path):
-    """The collection's nine runs, sample for sample (the evaluation's rows, with the runs
-    lost everywhere, are the slow tier's: test_backend_gives_the_local_rows)."""
-    runner = request.getfixturevalue(f"{backend}_runner")
-    records = _records(tmp_path, runner)
+def test_backend_gives_the_local_results(backend, local):
+    """Two runs of the collection on a 2-CPU cluster the runner starts and shuts down itself,
+    sample for sample as in this process (the evaluation's rows, with the runs lost
+    everywhere, are the slow tier's: test_backend_gives_the_local_rows)."""
+    runner = {"ray": RayRunner, "dask": DaskRunner}[backend](2)
+    records = _records(runner)
     assert runner.n_workers == 2
-    assert len(records) == 9
-    for mine, theirs in zip(records, local):
+    assert sorted(records) == sorted(local) == sorted(JOBS)
+    for job, theirs in local.items():
+        assert not isinstance(records[job], JobFailure), records[job]
+        assert not isinstance(theirs, JobFailure), theirs
         for key in ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u"):
-            np.testing.assert_array_equal(mine[key], theirs[key], err_msg=key)
+            np.testing.assert_array_equal(records[job][key], theirs[key], err_msg=key)
 
 
 @pytest.mark.slow

@@ -191,10 +191,16 @@ def _wait_for_results(proc, out: Path, n: int, timeout: float = 180):
 @pytest.mark.parametrize(
     "argv",
     [
-        ["collect", "--duration", "2"],
-        ["evaluate", "--quick", "--no-tuner-study", "--controllers", "lqi_1_1", "--docs", "docs"],
+        # Runs of 0.5 s: after the first result, seven are still to run when SIGTERM comes.
+        pytest.param(["collect", "--duration", "0.5"], id="collect"),
+        # The same mechanism (the runner under a study's store) through the other study.
+        pytest.param(
+            ["evaluate", "--quick", "--no-tuner-study", "--controllers", "lqi_1_1"]
+            + ["--docs", "docs"],
+            id="evaluate",
+            marks=pytest.mark.slow,
+        ),
     ],
-    ids=["collect", "evaluate"],
 )
 def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(tmp_path, argv):
     out = tmp_path / "out"
@@ -217,26 +223,30 @@ def test_sigterm_to_the_main_process_leaves_no_process_and_keeps_what_finished(t
     assert done and all((out / f).exists() for f in done)
 
 
+#: Each study a worker is killed in: its command, its jobs, and (with ``out``) how many results
+#: it reads back once complete.
+STUDIES = {
+    # Nine runs of 0.5 s: after two results, seven are still to run when the worker is killed.
+    "collect": (["collect", "--duration", "0.5"], 9, lambda out: len(load_records(out))),
+    "evaluate": (
+        ["evaluate", "--quick", "--no-tuner-study", "--controllers", "pd", "--docs", "docs"],
+        10 + 7,  # pd: the nominal scenarios and the conditions (no encoders)
+        lambda out: len(json.loads((out / "rows.json").read_text())["rows"]),
+    ),
+}
+
+
 @pytest.mark.system
-def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(tmp_path, capsys):
+@pytest.mark.parametrize("study", ["collect", pytest.param("evaluate", marks=pytest.mark.slow)])
+def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(
+    tmp_path, monkeypatch, capsys, study
+):
+    """The same mechanism in both studies (the runner under a study's store): the default
+    tier's is the collection's, the shorter."""
+    command, n, read_back = STUDIES[study]
     out = tmp_path / "out"
-    argv = [
-        "evaluate",
-        "--quick",
-        "--no-tuner-study",
-        "--controllers",
-        "pd",
-        "--out",
-        str(out),
-        "--docs",
-        str(tmp_path / "docs"),
-        "--jobs",
-        "2",
-        "--retries",
-        "0",
-        "--no-progress",
-    ]
-    proc = _start(argv, tmp_path)
+    argv = command + ["--out", str(out), "--retries", "0", "--no-progress"]
+    proc = _start(argv + ["--jobs", "2"], tmp_path)
     workers = _wait_for_results(proc, out, 2)
     workers[0].kill()
     _, err = proc.communicate(timeout=300)
@@ -248,16 +258,17 @@ def test_kill_9_of_a_worker_loses_only_its_cases_and_the_rerun_runs_only_those(t
         for v in jobs.values()
         if v["status"] == "done"
     }
-    n = 10 + 7  # pd: the nominal scenarios and the conditions (no encoders)
     assert 1 <= len(lost) <= 2 and len(done) + len(lost) == n  # in flight on the broken pool
     assert all("a worker process died" in jobs[k]["error"] for k in lost)
 
-    from stewart_drake.interfaces.cli import main
-
-    assert main(argv) == 0  # the rerun, in this process
+    # The rerun, in this process and serially (the runner is no setting of the results), in
+    # the killed command's folder (--docs docs is relative).
+    monkeypatch.chdir(tmp_path)
+    assert main(argv + ["--runner", "serial"]) == 0
     stdout = capsys.readouterr().out
-    assert f"{n} runs ({len(lost)} run now" in stdout and f"{len(done)} found on disk" in stdout
+    assert f"{n} runs" in stdout, stdout
+    assert f"({len(lost)} run now" in stdout and f"{len(done)} found on disk" in stdout, stdout
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["complete"] and all(v["status"] == "done" for v in manifest["jobs"].values())
     assert {f: (out / f).stat().st_mtime_ns for f in done} == done  # not run again
-    assert len(json.loads((out / "rows.json").read_text())["rows"]) == n
+    assert read_back(out) == n
