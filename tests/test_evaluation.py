@@ -203,8 +203,24 @@ def test_verdict_compares_at_no_more_feedback_effort():
     ],
 )
 def test_evaluate_writes_the_report_under_out_and_never_over_the_docs(
-    tmp_path, capsys, controllers
+    tmp_path, capsys, controllers, monkeypatch
 ):
+    import dataclasses
+
+    from stewart_drake.studies import evaluation
+
+    # The report needs every case, not --quick's 1 s of each: the 1 s runs (paper, helix,
+    # steps, payload, noise, saturation) are cut to 0.6 s, still past the Z step's settling and
+    # the saturated transient; the sweeps and the held disturbances keep their 2 s.
+    full_grid = evaluation.cases
+    monkeypatch.setattr(
+        evaluation,
+        "cases",
+        lambda *a, **k: [
+            dataclasses.replace(c, duration_s=0.6) if c.duration_s == 1.0 else c
+            for c in full_grid(*a, **k)
+        ],
+    )
     committed = (REPO / "docs" / "results.md").read_bytes()
     out = tmp_path / "out"
     assert (

@@ -87,14 +87,16 @@ def test_the_cases_take_the_patients_traces_found_and_the_transfer(tmp_path):
 
 
 def test_a_short_transfer_case_runs_both_ways_and_holds_its_model(monkeypatch):
-    monkeypatch.setattr(trace_study, "DURATION_S", 6.0)
+    # 3 s runs with 2.5 s windows: the structure of the 120 s runs in a fortieth of the time
+    monkeypatch.setattr(trace_study, "DURATION_S", 3.0)
     monkeypatch.setattr(trace_study, "MEASURED_FROM_S", 1.0)
+    monkeypatch.setattr(trace_study, "WINDOW_S", 2.5)
     case = trace_study.trace_cases(None)[-1]  # on the finer robot
     out = trace_study.run_case(case)
     assert out["robot"] == trace_study.ROBOTS[-1][0]
-    assert out["sim_s"] == pytest.approx(18.0)
+    assert out["sim_s"] == pytest.approx(9.0)
     assert out["learner"]["updates"] == 0  # held: nothing learned on this motion
     for mode in ("none", "learned"):
         assert 0 < out[mode]["rms_translation_m"] < 1e-4
-        assert len(out[mode]["window_translation_m"]) == 1  # one whole window of 5 s in 6 s
+        assert len(out[mode]["window_translation_m"]) == 1  # one whole window of 2.5 s in 3 s
         assert 0 < out[mode]["gamma"][0] <= 1

@@ -123,7 +123,7 @@ def test_collect_keeps_runs_that_lose_the_platform_as_such(tmp_path, capsys):
                 "--out",
                 str(tmp_path),
                 "--duration",
-                "0.5",
+                "0.25",
                 "--runner",
                 "serial",
                 "--no-progress",

@@ -153,7 +153,8 @@ def test_weight_schedules_are_checked_by_field():
 
 @needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
-    monkeypatch.setattr(ts, "RATIOS", (0.1, 1.0, 10.0))
+    # two ratios, a decade either side of 1, are enough for a best and a worse fixed ratio
+    monkeypatch.setattr(ts, "RATIOS", (0.1, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
     monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))  # quick keeps (-1, 1)
     monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
@@ -170,12 +171,12 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
         "fixed chosen 0.1",
         "fixed gain 1",
     }
-    assert v["best_fixed"]["dash_hold_s100"][0] in (0.1, 1.0, 10.0)
-    # fixed: 2 tasks x 3; test baselines 3; hindsight + ours 2; shifts 2 on the training task;
+    assert v["best_fixed"]["dash_hold_s100"][0] in (0.1, 10.0)
+    # fixed: 2 tasks x 2; test baselines 3; hindsight + ours 2; shifts 2 on the training task;
     # ours closed-loop 1. "fixed chosen" reuses the fixed runs.
-    assert summary["n_runs"] == 2 * 3 + 3 + 2 + 2 + 1 and summary["lost"] == []
+    assert summary["n_runs"] == 2 * 2 + 3 + 2 + 2 + 1 and summary["lost"] == []
     chosen = summary["chosen"]["0.1"]
-    assert chosen["shift"] in (-1.0, 1.0) and chosen["fixed_ratio"] in (0.1, 1.0, 10.0)
+    assert chosen["shift"] in (-1.0, 1.0) and chosen["fixed_ratio"] in (0.1, 10.0)
     # the chosen fixed ratio is the training task's best one (one training task), and its
     # verdict on the test task is that ratio's own run
     assert chosen["fixed_means"][str(chosen["fixed_ratio"])] == pytest.approx(1.0)
