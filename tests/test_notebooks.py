@@ -52,8 +52,18 @@ def test_the_training_notebook_asks_for_torch_before_any_work(monkeypatch):
     assert "README" in message
 
 
+#: Notebooks whose run is the slow tier's: they run the studies of test_tuner_pipeline,
+#: test_training and test_evaluation (collect, train, the evaluation grid) end to end, 20-30 s
+#: each even shortened; every name they import or call is checked by test_docs in every tier.
+SLOW_NOTEBOOKS = {"03_training_tuner", "04_evaluation"}
+
+
 @pytest.mark.system
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+@pytest.mark.parametrize(
+    "path",
+    [pytest.param(p, marks=pytest.mark.slow) if p.stem in SLOW_NOTEBOOKS else p for p in NOTEBOOKS],
+    ids=lambda p: p.stem,
+)
 def test_notebook_runs_and_shows_plots(path, monkeypatch):
     from nbclient import NotebookClient
 
