@@ -194,11 +194,11 @@ def test_verdict_compares_at_no_more_feedback_effort():
     assert v["ann_paper"]["best_fixed"] is None and not v["ann_paper"]["beats"]
 
 
-#: The cases of the default tier's report: one of each figure's kind (the trade-off's paper
-#: run, the bandwidth's sweep, the steps' Z step) and the push the motors cannot hold. The
-#: slow tier's report runs every case.
-REPORT_CASES = {("paper", "nominal"), ("sweep_Z", "nominal"), ("step_Z", "nominal")}
-REPORT_CASES |= {("home", "push 5 N")}
+#: The cases of the default tier's report: one for each panel of its figures (the trade-off's
+#: paper run nominal and with noise, the bandwidth's two sweeps, the steps' Z step) and the
+#: push the motors cannot hold. The slow tier's report runs every case.
+REPORT_CASES = {("paper", "nominal"), ("paper", "noise"), ("step_Z", "nominal")}
+REPORT_CASES |= {("sweep_Z", "nominal"), ("sweep_phi", "nominal"), ("home", "push 5 N")}
 
 
 @pytest.mark.parametrize(
