@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_drake.fileio import atomic_write
-from stewart_drake.model import ball_joints, limits
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.trajectories import paper_manoeuvre
-from stewart_drake.studies import accuracy as acc
+from stewart_drake.analysis import accuracy as acc
+from stewart_drake.base.fileio import atomic_write
+from stewart_drake.plant import ball_joints
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot import limits
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
 AXES_UNITS = (
     ("phi", "mrad"),
@@ -339,7 +340,7 @@ def render(data) -> str:
         "Engines: `drake_sap`, the package's plant (discrete SAP, ball constraints, gravity "
         "9.81); `mujoco_rk4` and `mujoco_implicitfast`, the MJCF of "
         "`stewart-drake mjcf --scenario paper_ideal` "
-        "(`stewart_drake/model/mjcf.py`; same bodies, frames and inertias, loops closed by "
+        "(`stewart_drake/plant/mjcf.py`; same bodies, frames and inertias, loops closed by "
         "`connect` equalities whose time constant MuJoCo sets to 2 x step) with MuJoCo's RK4 "
         "(the MJCF default) and its implicit-in-velocity Euler.",
         "",
@@ -572,7 +573,7 @@ def render(data) -> str:
         "(what `plant.assemble` writes; no spin) pitch = asin(e . x_F), e the rod direction, so "
         "gimbal lock needs the rod along +-x_F. Those two singular directions are fixed in the "
         "crank; the rod end's cone (`crank_joint_cone_deg`) bounds how far a rod leaves the "
-        "crank's plane, asin|e . u_i|. `stewart_drake/model/ball_joints.py` computes the rpy "
+        "crank's plane, asin|e . u_i|. `stewart_drake/plant/ball_joints.py` computes the rpy "
         "(checked against `BallRpyJoint.get_angles`).",
         "",
         f"- **The SDF's frames** (x_F along the part of the bolt axis u_i normal to the home "

@@ -15,7 +15,7 @@ bytes' time.
 
 Each setting twice: the emulator in a thread of the benchmark's process (as in the tests; the
 two threads share the GIL, whose 5 ms switch interval shows in the tails) and in its own process
-(``python -m stewart_drake.simulation.hardware.emulator``), nearer a real bus.
+(``python -m stewart_drake.live.emulator``), nearer a real bus.
 
 ``--plant`` adds the emulator with the robot's Drake plant behind it (``StationServos``)
 holding the platform at home, and prints how much model time the plant slipped behind the wall
@@ -32,8 +32,8 @@ import time
 
 import numpy as np
 
-from stewart_drake.simulation.hardware.driver import DynamixelBus
-from stewart_drake.simulation.hardware.emulator import BusEmulator
+from stewart_drake.live.emulator import BusEmulator
+from stewart_drake.station.bus.driver import DynamixelBus
 
 IDS = [1, 2, 3, 4, 5, 6]
 
@@ -45,7 +45,7 @@ def emulated_bus(separate_process: bool):
         with BusEmulator(IDS) as emulator:
             yield emulator.port
         return
-    command = [sys.executable, "-m", "stewart_drake.simulation.hardware.emulator", "--ids"]
+    command = [sys.executable, "-m", "stewart_drake.live.emulator", "--ids"]
     with subprocess.Popen(
         command + [str(i) for i in IDS], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
     ) as child:
@@ -73,9 +73,9 @@ def measure(baud: int, periods: int, separate_process: bool) -> dict:
 def measure_plant(baud: int, periods: int) -> dict:
     """The same against the robot's Drake plant behind the bus (StationServos), holding the
     platform at home (holding torques + a damper); also the model time the plant slipped."""
-    from stewart_drake.model.kinematics import X_HOME
-    from stewart_drake.model.statics import holding_torques
-    from stewart_drake.simulation.hardware.plant_backend import StationServos
+    from stewart_drake.live.plant_backend import StationServos
+    from stewart_drake.robot.kinematics import X_HOME
+    from stewart_drake.robot.statics import holding_torques
 
     backend = StationServos()
     T_hold = holding_torques(backend.station.plan.geometry, X_HOME)

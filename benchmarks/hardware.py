@@ -23,17 +23,17 @@ from pathlib import Path
 
 import numpy as np
 
+from stewart_drake.base.fileio import atomic_write
 from stewart_drake.control.estimator import PoseEstimator
-from stewart_drake.fileio import atomic_write
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.kinematics import AXIS_NAMES, X_HOME
-from stewart_drake.model.servo import ServoModel
-from stewart_drake.simulation import diagram
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.station import held_station
-from stewart_drake.simulation.trajectories import paper_manoeuvre
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.kinematics import AXIS_NAMES, X_HOME
+from stewart_drake.robot.servo import ServoModel
+from stewart_drake.run import diagram
+from stewart_drake.run.diagram import held_station
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
 
 CLEAN = [
     "hardware.encoders.counts_per_rev=16777216",

@@ -28,13 +28,13 @@ from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control.lqi import LqiDriver
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.guard import GuardConfig
-from stewart_drake.simulation.hardware.emulator_process import EmulatorProcess
-from stewart_drake.simulation.organ_motion import OrganMotionReference
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import DynamixelBusConfig, Scenario
-from stewart_drake.simulation.trajectories import NamedReference
+from stewart_drake.live.emulator_process import EmulatorProcess
+from stewart_drake.references.organ_motion import OrganMotionReference
+from stewart_drake.references.trajectories import NamedReference
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import DynamixelBusConfig, Scenario
+from stewart_drake.station.guard import GuardConfig
 
 REFERENCES = {"paper": NamedReference, "breathing": OrganMotionReference}
 

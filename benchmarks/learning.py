@@ -13,10 +13,10 @@ import argparse
 import time
 
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import OrganMotionReference
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.fidelity import run
+from stewart_drake.organ_motion.fidelity import run
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import OrganMotionReference
+from stewart_drake.run.scenario_io import load_scenario
 
 
 def wall(parameters: dict, learning: bool, duration: float) -> float:

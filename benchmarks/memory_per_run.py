@@ -35,8 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
-from stewart_drake.simulation.scenario_io import load_scenario  # noqa: E402
-from stewart_drake.studies.experiments import (  # noqa: E402
+from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
+from stewart_drake.run.simulate import (  # noqa: E402
     build_simulator,
     finish_result,
     release_reference,

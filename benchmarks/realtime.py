@@ -63,15 +63,15 @@ from stewart_drake.control.lqi import (
 )
 from stewart_drake.control.tuner import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
-from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.model.plant import ROD_MODELS
-from stewart_drake.simulation.guard import DivergenceGuard
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import NamedReference
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.station import held_station
-from stewart_drake.simulation.trajectories import paper_manoeuvre
-from stewart_drake.studies.experiments import build_simulator, run_experiment
+from stewart_drake.plant.plant import ROD_MODELS
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot.kinematics import X_HOME
+from stewart_drake.run.diagram import held_station
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import NamedReference
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import build_simulator, run_experiment
+from stewart_drake.station.guard import DivergenceGuard
 
 #: The clock the runs are timed with: wall time (``time.perf_counter``), or with ``--clock
 #: cpu`` the thread's CPU time (``time.thread_time``), which leaves out the time the process
@@ -142,7 +142,7 @@ def moving_station(scenario, duration_s: float = 2.0):
     from pydrake.systems.primitives import TrajectorySource
     from pydrake.trajectories import PiecewisePolynomial
 
-    from stewart_drake.simulation.station import make_stewart_station
+    from stewart_drake.run.diagram import make_stewart_station
 
     fixed = dataclasses.replace(scenario, tuner=None, duration_s=min(duration_s, 2.0))
     result = run_experiment(fixed)

@@ -31,8 +31,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from stewart_drake.studies.evaluation import evaluate  # noqa
-from stewart_drake.studies.evaluation_grid import CONTROLLERS, SCENARIO_DURATION_S  # noqa
+from stewart_drake.evaluation.evaluation import evaluate  # noqa
+from stewart_drake.evaluation.evaluation_grid import CONTROLLERS, SCENARIO_DURATION_S  # noqa
 from stewart_drake.execution.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
 
 
@@ -44,8 +44,8 @@ def _rss_after_run(duration_s: float) -> tuple[int, float]:
     """(pid, RSS in MB) of this worker after one closed-loop run of ``duration_s``."""
     import psutil
 
-    from stewart_drake.simulation.scenario_io import load_scenario
-    from stewart_drake.studies.experiments import run_experiment
+    from stewart_drake.run.scenario_io import load_scenario
+    from stewart_drake.run.simulate import run_experiment
 
     run_experiment(load_scenario("paper_hardware", [f"duration_s={duration_s}"]))
     return os.getpid(), psutil.Process().memory_info().rss / 2**20

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this checkout
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.studies import workspace
+from stewart_drake.analysis import workspace
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
 
 def main(n: int = 100_000) -> None:

@@ -1,9 +1,9 @@
 """stewart-drake: a 6-DOF rotary Stewart platform on a Drake closed-chain MultibodyPlant.
 
-Layers, imports flowing one way (a test walks them): base (errors, checks, fileio) -> model
-(geometry, kinematics, statics, limits, plant) -> control (LQI, PD, features, tuner) ->
-simulation (trajectories, reference, guard, scenario, station, diagram) -> studies (experiments,
-collection, training, evaluation, workspace, runners, store) -> interfaces (cli, visualize).
+A small core by Drake role, imports flowing one way (a test walks them): base -> robot -> plant
+-> control -> references -> station -> run -> execution; then the features, each a package with
+its own command: viz, paper, analysis, organ_motion, tuner, evaluation, design, live; the
+``stewart-drake`` command (cli) on top. docs/development.md has the tree.
 """
 
 import os as _os
@@ -25,7 +25,7 @@ def _started_as_the_command() -> bool:
     ``python -m``): a library user's handler of SIGINT is never touched."""
     script = _os.path.basename(_sys.argv[0]) if _sys.argv else ""
     return script in ("stewart-drake", "stewart-drake.exe") or (
-        "stewart_drake.interfaces.cli" in getattr(_sys, "orig_argv", ())[:4]
+        "stewart_drake.cli.main" in getattr(_sys, "orig_argv", ())[:4]
     )
 
 
@@ -35,7 +35,7 @@ if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.de
     _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 # After the handler above: its window is these imports.
-from .errors import (  # noqa: E402
+from .base.errors import (  # noqa: E402
     ForwardKinematicsError,
     InvalidConfigError,
     InvalidGeometryError,
@@ -44,7 +44,7 @@ from .errors import (  # noqa: E402
     StewartError,
     UnreachablePoseError,
 )
-from .model.geometry import X_HOME, StewartGeometry, reference_geometry  # noqa: E402
+from .robot.geometry import X_HOME, StewartGeometry, reference_geometry  # noqa: E402
 
 __all__ = [
     "ForwardKinematicsError",

@@ -29,8 +29,8 @@ def _cache_bytecode_out_of_the_tree() -> None:
 
 _cache_bytecode_out_of_the_tree()
 
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
 #: The module each extra of pyproject.toml brings that its tests need, and the lowest version
 #: they accept (None: any).

@@ -6,8 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.studies import accuracy
+from stewart_drake.analysis import accuracy
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_observed_order_is_the_log_log_slope():

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from stewart_drake.model import ball_joints, limits
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import assemble, make_plant
-from stewart_drake.simulation.trajectories import paper_manoeuvre
+from stewart_drake.plant import ball_joints
+from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot import limits
+from stewart_drake.robot.geometry import X_HOME
 
 #: Box around the reachable workspace (README: roll +-37, pitch -40..37, yaw +-52 deg at home;
 #: X -0.088..0.188, Y +-0.163, Z 0.20..0.41 m at home orientation), a little wider on every axis.

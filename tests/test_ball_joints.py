@@ -3,9 +3,9 @@ after assemble, and the bounds the module derives from them."""
 
 import numpy as np
 
-from stewart_drake.model import ball_joints
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import assemble, make_plant
+from stewart_drake.plant import ball_joints
+from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_rod_ball_rpy_is_what_the_plant_s_ball_joints_hold(geometry, random_poses):

@@ -4,7 +4,7 @@ names the argument and says what to change."""
 import numpy as np
 import pytest
 
-from stewart_drake.checks import (
+from stewart_drake.base.checks import (
     MAX_POSITION_M,
     as_array,
     as_number,
@@ -14,7 +14,7 @@ from stewart_drake.checks import (
     check_multiple,
     format_bytes,
 )
-from stewart_drake.errors import InvalidConfigError, StewartError
+from stewart_drake.base.errors import InvalidConfigError, StewartError
 
 
 def test_as_number_accepts_the_closed_or_half_open_range_and_returns_a_float():

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize_scalar
 
-from stewart_drake.errors import UnreachablePoseError
-from stewart_drake.model import kinematics, parts
-from stewart_drake.model.clearance import clearance_model, family
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.base.errors import UnreachablePoseError
+from stewart_drake.plant.clearance import clearance_model, family
+from stewart_drake.robot import kinematics, parts
+from stewart_drake.robot.geometry import X_HOME
 
 
 @pytest.fixture(scope="module")

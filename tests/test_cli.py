@@ -8,9 +8,9 @@ import sys
 import numpy as np
 import pytest
 
-from stewart_drake.interfaces import cli
-from stewart_drake.simulation.trajectories import TRAJECTORIES, paper_manoeuvre
-from stewart_drake.studies.experiments import load_result
+from stewart_drake.cli import main as cli
+from stewart_drake.references.trajectories import TRAJECTORIES, paper_manoeuvre
+from stewart_drake.run.simulate import load_result
 
 
 def test_version_names_this_package_drake_and_python(capsys):

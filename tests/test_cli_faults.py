@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 from conftest import install_plugin, wait_for
 
-from stewart_drake.fileio import atomic_write, save_npz
-from stewart_drake.interfaces import cli
+from stewart_drake.base.fileio import atomic_write, save_npz
+from stewart_drake.cli import main as cli
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -120,7 +120,7 @@ def test_a_diverged_run_gives_one_line_naming_the_saved_file(
 @pytest.mark.system
 def test_no_traceback_from_the_installed_command_line(tmp_path):
     proc = subprocess.run(
-        [sys.executable, "-m", "stewart_drake.interfaces.cli", "run", "--duration", "-3"],
+        [sys.executable, "-m", "stewart_drake.cli.main", "run", "--duration", "-3"],
         cwd=REPO,
         capture_output=True,
         text=True,
@@ -175,7 +175,7 @@ def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkey
 
 
 def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
-    from stewart_drake.model import plant
+    from stewart_drake.plant import plant
 
     out = tmp_path / "robot.sdf"
     assert cli.main(["sdf", "--out", str(out)]) == 0
@@ -230,7 +230,9 @@ def test_a_folder_where_a_file_is_due_is_refused(capsys, tmp_path, argv):
 def test_every_output_of_a_command_is_checked_before_the_work(
     capsys, tmp_path, monkeypatch, argv, option, sub
 ):
-    from stewart_drake.studies import collection, evaluation, experiments
+    from stewart_drake.evaluation import evaluation
+    from stewart_drake.run import simulate as experiments
+    from stewart_drake.tuner import collection
 
     for module, name in (
         (experiments, "build_simulator"),
@@ -256,10 +258,10 @@ def test_every_output_of_a_command_is_checked_before_the_work(
 def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(
     tmp_path, monkeypatch, feedforward_fault
 ):
-    from stewart_drake.errors import SimulationDivergedError
-    from stewart_drake.simulation.guard import GuardConfig
-    from stewart_drake.simulation.scenario import Scenario
-    from stewart_drake.studies.experiments import run_experiment
+    from stewart_drake.base.errors import SimulationDivergedError
+    from stewart_drake.run.scenario import Scenario
+    from stewart_drake.run.simulate import run_experiment
+    from stewart_drake.station.guard import GuardConfig
 
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     blocker = tmp_path / "diverged"
@@ -277,7 +279,7 @@ def test_a_divergence_folder_that_cannot_be_written_keeps_the_divergence(
 
 def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, feedforward_fault):
     from stewart_drake.execution.runners import SerialRunner
-    from stewart_drake.studies.collection import collect
+    from stewart_drake.tuner.collection import collect
 
     monkeypatch.chdir(tmp_path)
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
@@ -317,7 +319,7 @@ def test_collect_keeps_divergences_under_its_out_folder(tmp_path, monkeypatch, f
 def test_a_request_beyond_the_machine_s_memory_is_refused_in_one_line(
     capsys, tmp_path, monkeypatch, argv, expected
 ):
-    from stewart_drake import checks
+    from stewart_drake.base import checks
 
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: 8e9)
     monkeypatch.chdir(tmp_path)
@@ -327,10 +329,10 @@ def test_a_request_beyond_the_machine_s_memory_is_refused_in_one_line(
 
 
 def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch):
-    from stewart_drake import checks
-    from stewart_drake.errors import InvalidConfigError
-    from stewart_drake.simulation.scenario import Scenario
-    from stewart_drake.studies.experiments import check_run_memory, run_memory_bytes
+    from stewart_drake.base import checks
+    from stewart_drake.base.errors import InvalidConfigError
+    from stewart_drake.run.scenario import Scenario
+    from stewart_drake.run.simulate import check_run_memory, run_memory_bytes
 
     available = checks.available_memory_bytes()
     assert available is None or available > 1e8
@@ -355,7 +357,7 @@ def test_a_temporary_left_by_sigterm_is_removed_at_the_next_start(tmp_path, caps
             "-c",
             (
                 "import time; from pathlib import Path; "
-                "from stewart_drake.fileio import atomic_write\n"
+                "from stewart_drake.base.fileio import atomic_write\n"
                 "def slow(f):\n    f.write(b'half a file'); f.flush(); "
                 "print('writing', flush=True); "
                 "time.sleep(60)\n"
@@ -421,9 +423,7 @@ def test_a_pd_run_reports_its_own_status_not_gain_re_schedules(tmp_path, capsys)
 
 _SCRIPT = Path(sys.executable).parent / "stewart-drake"
 #: The installed console script when there is one (as a user types it), else the module.
-COMMAND = (
-    [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "stewart_drake.interfaces.cli"]
-)
+COMMAND = [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "stewart_drake.cli.main"]
 #: A module the user keeps in the folder: importing it leaves a mark, which the tests look for.
 MARKING_MODULE = (
     "from pathlib import Path\n"
@@ -573,7 +573,7 @@ def _plugin(tmp_path) -> Path:
         "from pathlib import Path\n"
         "Path(__file__).with_name('PLUGIN_IMPORTED').write_text('yes')\n"
         "def make(context, bandwidth_hz=20.0):\n"
-        "    from stewart_drake.simulation.scenario import PdDriver\n"
+        "    from stewart_drake.run.scenario import PdDriver\n"
         "    return PdDriver(bandwidth_hz=bandwidth_hz).make(context)\n",
     )
 
@@ -803,7 +803,7 @@ def test_a_signal_ends_a_run_in_process_with_its_exit_code(
 ):
     """The real-time run of the test above through ``cli.main`` in this process, the signal
     sent to it once it simulates: 128 + signum and the same one line, no result file."""
-    from stewart_drake.studies import experiments
+    from stewart_drake.run import simulate as experiments
 
     # As in a user's terminal: SIGHUP ends a process (a suite started under nohup ignores it).
     old_hup = signal.signal(signal.SIGHUP, signal.SIG_DFL)
@@ -1097,7 +1097,7 @@ def test_check_takes_a_csv_s_own_length(capsys, tmp_path):
 
 @pytest.mark.parametrize("duration", ["100000", "1e9"])
 def test_check_refuses_a_check_beyond_the_machine_s_memory(capsys, tmp_path, monkeypatch, duration):
-    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 24e9)
+    monkeypatch.setattr("stewart_drake.base.checks.available_memory_bytes", lambda: 24e9)
     line = _one_line_error(
         capsys, ["check", "paper", "--duration", duration, "--out", str(tmp_path)]
     )
@@ -1158,7 +1158,7 @@ def test_a_ctrl_c_inside_an_extension_s_initialization_is_found_down_the_chain()
     """As CI once saw it: a KeyboardInterrupt in matplotlib's ft2font under pydrake's import,
     wrapped twice ("initialization failed", then "Encountered an error while initializing the
     extension."): an interrupt; an ImportError with no interrupt in its chain is not."""
-    from stewart_drake.interfaces.cli import _interrupted_import
+    from stewart_drake.cli.main import _interrupted_import
 
     def chain(*errors):
         for outer, inner in zip(errors, errors[1:]):
@@ -1207,10 +1207,10 @@ def test_a_trace_too_long_for_the_memory_is_refused_before_it_is_checked(
     """20,000 rows (200 s): read, then the run's memory is estimated (0.4 GB before anything
     is logged and 0.75 kB a millisecond at 1 kHz: 550 MB) and refused in one line, on a
     machine with 500 MB free, before the reference is checked or anything built."""
-    from stewart_drake.model import limits
+    from stewart_drake.robot import limits
 
     path = _long_trace(tmp_path / "long.csv", 20_000)
-    monkeypatch.setattr("stewart_drake.checks.available_memory_bytes", lambda: 0.5e9)
+    monkeypatch.setattr("stewart_drake.base.checks.available_memory_bytes", lambda: 0.5e9)
     monkeypatch.setattr(limits, "validate_trajectory", lambda *a, **k: pytest.fail("checked"))
     line = _one_line_error(
         capsys, ["reproduce", str(path), "--no-progress", "--out", str(tmp_path / "out")]

@@ -3,14 +3,14 @@
 import numpy as np
 import pytest
 
-from stewart_drake.errors import UnreachablePoseError
-from stewart_drake.interfaces.cli import main
-from stewart_drake.model import statics
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.guard import GuardConfig
-from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.simulation.trajectories import SineTrajectory
-from stewart_drake.studies.experiments import load_result, run_experiment
+from stewart_drake.base.errors import UnreachablePoseError
+from stewart_drake.cli.main import main
+from stewart_drake.references.trajectories import SineTrajectory
+from stewart_drake.robot import statics
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.run.simulate import load_result, run_experiment
+from stewart_drake.station.guard import GuardConfig
 
 
 @pytest.fixture(scope="module")

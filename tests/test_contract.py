@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import LeafSystem
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control import contract
 from stewart_drake.control.contract import (
     LQI_STATUS_NAMES,
@@ -17,8 +18,7 @@ from stewart_drake.control.contract import (
 )
 from stewart_drake.control.lqi import LqiDiagram
 from stewart_drake.control.pd import CrankPdController
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.robot.geometry import X_HOME
 
 
 def _system(inputs=(("x_d", 18),), outputs=(("T", 6),), status_names=None, name=""):

@@ -12,25 +12,25 @@ import numpy as np
 import pytest
 from conftest import extra_missing
 
-from stewart_drake.errors import InvalidConfigError, InvalidGeometryError
-from stewart_drake.model.clearance import ClearanceModel
-from stewart_drake.model.geometry import reference_geometry
-from stewart_drake.model.kinematics import X_HOME, ik, leg_reach_ratio
-from stewart_drake.model.motor_catalogue import (
-    MOTOR_CATALOGUE,
-    REFERENCE_MOTOR,
-    catalogue_motor,
-)
-from stewart_drake.model.plant import loop_closure_errors, make_plant, platform_pose
-from stewart_drake.model.servo import ServoModel
-from stewart_drake.simulation.design import (
+from stewart_drake.base.errors import InvalidConfigError, InvalidGeometryError
+from stewart_drake.design.variables import (
     DESIGN_BOUNDS,
     Design,
     random_design,
     reference_design,
 )
-from stewart_drake.simulation.scenario import dump_scenario
-from stewart_drake.simulation.scenario_io import load_scenario
+from stewart_drake.plant.clearance import ClearanceModel
+from stewart_drake.plant.plant import loop_closure_errors, make_plant, platform_pose
+from stewart_drake.robot.geometry import reference_geometry
+from stewart_drake.robot.kinematics import X_HOME, ik, leg_reach_ratio
+from stewart_drake.robot.motor_catalogue import (
+    MOTOR_CATALOGUE,
+    REFERENCE_MOTOR,
+    catalogue_motor,
+)
+from stewart_drake.robot.servo import ServoModel
+from stewart_drake.run.scenario import dump_scenario
+from stewart_drake.run.scenario_io import load_scenario
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "motor_catalogue.md"
 
@@ -82,7 +82,7 @@ def test_designs_within_the_bounds_build_a_mujoco_model_closed_at_home():
         pytest.skip(extra_missing("mujoco"))
     import mujoco
 
-    from stewart_drake.model import mjcf
+    from stewart_drake.plant import mjcf
 
     for design in _closing_designs(2, seed=11):
         geometry = design.geometry()

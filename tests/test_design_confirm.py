@@ -9,18 +9,10 @@ import re
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError, InvalidGeometryError
 from stewart_drake.control.pd import PdDriver
 from stewart_drake.control.tuning import AnnTunerDriver, WeightSchedule
-from stewart_drake.errors import InvalidConfigError, InvalidGeometryError
-from stewart_drake.model.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
-from stewart_drake.simulation.design import Design, reference_design
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.organ_motion import OrganMotionReference
-from stewart_drake.simulation.requirements import DesignRequirements, load_requirements
-from stewart_drake.simulation.scenario import use_paper_tuner
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.trajectories import CsvReference, NamedReference
-from stewart_drake.studies.design_confirm import (
+from stewart_drake.design.design_confirm import (
     MAX_PERIODIC_S,
     TABLE_HEADER,
     confirm,
@@ -28,8 +20,16 @@ from stewart_drake.studies.design_confirm import (
     design_scenario,
     torque_scale_Nm,
 )
-from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.studies.fidelity import fidelity
+from stewart_drake.design.requirements import DesignRequirements, load_requirements
+from stewart_drake.design.variables import Design, reference_design
+from stewart_drake.organ_motion.fidelity import fidelity
+from stewart_drake.references.organ_motion import OrganMotionReference
+from stewart_drake.references.trajectories import CsvReference, NamedReference
+from stewart_drake.robot.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.scenario import use_paper_tuner
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
 
 REQUIREMENTS = "scenarios/design_requirements.yaml"
 
@@ -192,7 +192,7 @@ def test_motions_run_in_a_worker_process_as_in_this_one():
     a refusal raised in a worker comes back as a row naming it. One worker runs both motions:
     a second would prove nothing more and costs its own start (Python, Drake, the package)."""
     from stewart_drake.execution.runners import ProcessRunner
-    from stewart_drake.simulation.trajectories import SineReference
+    from stewart_drake.references.trajectories import SineReference
 
     out_of_reach = SineReference(offset=[0, 0, 0, 0, 0, 0.7])  # 0.7 m up: no leg reaches
     req = DesignRequirements(motions=[NamedReference("paper"), out_of_reach]).validate()

@@ -13,18 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_drake.model import admissible, limits
-from stewart_drake.model.clearance import ClearanceModel
-from stewart_drake.model.kinematics import rotation_rpy
-from stewart_drake.model.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
-from stewart_drake.simulation.design import Design, reference_design
-from stewart_drake.simulation.requirements import (
-    DesignRequirements,
-    RequiredWorkspace,
-    load_requirements,
-)
-from stewart_drake.simulation.trajectories import NamedReference
-from stewart_drake.studies.design_search import (
+from stewart_drake.design.design_search import (
     MARGINS,
     SEARCH_VARIABLES,
     design_from_vector,
@@ -35,6 +24,18 @@ from stewart_drake.studies.design_search import (
     tilted_box_poses,
     vector_of,
 )
+from stewart_drake.design.requirements import (
+    DesignRequirements,
+    RequiredWorkspace,
+    load_requirements,
+)
+from stewart_drake.design.variables import Design, reference_design
+from stewart_drake.plant import admissible
+from stewart_drake.plant.clearance import ClearanceModel
+from stewart_drake.references.trajectories import NamedReference
+from stewart_drake.robot import limits
+from stewart_drake.robot.kinematics import rotation_rpy
+from stewart_drake.robot.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
 
 ROOT = Path(__file__).resolve().parents[1]
 REQUIREMENTS = ROOT / "scenarios" / "design_requirements.yaml"
@@ -149,8 +150,8 @@ def test_a_design_over_its_motors_fails_the_torque_margin_as_check_refuses_it():
 def test_the_payload_adds_its_weight_to_the_holding_torque(task):
     """0.5 kg at the platform's centre of mass: the holding torque at home grows by the share
     of 0.5 kg g the legs carry, by virtual work: sum_i T_i dtheta_i = m g dZ for a heave."""
-    from stewart_drake.model.kinematics import X_HOME, jacobian
-    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.robot.kinematics import X_HOME, jacobian
+    from stewart_drake.robot.statics import holding_torques
 
     g0 = design_geometry(reference_design(), 0.0)
     g1 = design_geometry(reference_design(), 0.5)
@@ -203,8 +204,8 @@ def test_the_same_seed_gives_the_same_design_and_another_seed_another(task, tmp_
 def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task, tmp_path):
     folder = tmp_path / "killed"
     code = (
-        "from stewart_drake.simulation.requirements import load_requirements\n"
-        "from stewart_drake.studies.design_search import task_samples, search\n"
+        "from stewart_drake.design.requirements import load_requirements\n"
+        "from stewart_drake.design.design_search import task_samples, search\n"
         f"task = task_samples(load_requirements({str(REQUIREMENTS)!r}))\n"
         f"search(task, {REFERENCE_MOTOR!r}, 'peak_torque', {str(folder)!r}, seed=0, popsize=2,"
         " maxiter=6, progress=False)\n"
@@ -260,8 +261,8 @@ def test_a_task_no_design_can_meet_ends_with_its_binding_constraint(tmp_path):
 def test_the_encoders_resolution_agrees_with_the_forward_kinematics_of_half_a_count(task):
     """The first-order pose error of half a count at every crank against the exact one: the
     forward kinematics of the perturbed motor angles, at the pose and sign pattern found worst."""
-    from stewart_drake.model.kinematics import fk, ik, jacobian
-    from stewart_drake.studies.design_search import _SIGNS, encoder_resolution
+    from stewart_drake.design.design_search import _SIGNS, encoder_resolution
+    from stewart_drake.robot.kinematics import fk, ik, jacobian
 
     geometry = design_geometry(reference_design(), task.payload_kg)
     x = np.concatenate([task.x, task.workspace_x])
@@ -287,8 +288,8 @@ def test_the_design_command_writes_a_scenario_every_command_takes(tmp_path, caps
     """The reference geometry meets this task with the XM540 (no resolution asked): the first
     generation holds it, so a one-generation search finds a design; its scenario file loads as
     any scenario, with the design's robot and the payload on its platform."""
-    from stewart_drake.interfaces import cli
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.cli import main as cli
+    from stewart_drake.run.scenario_io import load_scenario
 
     path = _requirements_file(
         tmp_path,
@@ -320,7 +321,7 @@ def test_the_design_command_writes_a_scenario_every_command_takes(tmp_path, caps
     assert best["design"]["motor"] == "XM540-W270-T"
     assert all(m >= 0 for m in best["margins"].values())
     scenario = load_scenario(str(out / "design_objective.yaml"))
-    from stewart_drake.simulation.design import Design
+    from stewart_drake.design.variables import Design
 
     geometry = Design(**best["design"]).geometry()
     assert scenario.robot.platform_mass == pytest.approx(geometry.platform_mass + 0.5)
@@ -333,7 +334,7 @@ def test_the_design_command_writes_a_scenario_every_command_takes(tmp_path, caps
 
 
 def test_the_design_command_names_the_binding_constraint_of_a_task_nothing_meets(tmp_path, capsys):
-    from stewart_drake.interfaces import cli
+    from stewart_drake.cli import main as cli
 
     path = _requirements_file(
         tmp_path,

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from conftest import needs_extra, run_within
 
+from stewart_drake.evaluation.evaluation import evaluate
 from stewart_drake.execution.runners import (
     DaskRunner,
     JobFailure,
@@ -16,8 +17,7 @@ from stewart_drake.execution.runners import (
     RayRunner,
     SerialRunner,
 )
-from stewart_drake.studies.collection import _collect_job, collection_jobs
-from stewart_drake.studies.evaluation import evaluate
+from stewart_drake.tuner.collection import _collect_job, collection_jobs
 
 #: Row fields that measure the machine, not the run.
 TIMING = ("wall_s", "realtime_factor")
@@ -129,7 +129,7 @@ def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
     import socket
     import threading
 
-    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.base.errors import InvalidConfigError
     from stewart_drake.execution.runners import make_runner
 
     server = socket.socket()

@@ -22,7 +22,7 @@ import nbformat
 import pytest
 
 import stewart_drake
-from stewart_drake.interfaces.cli import build_parser
+from stewart_drake.cli.main import build_parser
 
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = REPO / "stewart_drake"
@@ -159,8 +159,8 @@ def short_names():
     """{first part: how to resolve the rest}: our modules by their last name (``limits``,
     ``kinematics``) and the objects the docs name by a variable (``scenario.``, ``context.``)."""
     from stewart_drake.control.contract import ControllerContext
-    from stewart_drake.simulation.scenario import Scenario
-    from stewart_drake.studies.experiments import RunResult
+    from stewart_drake.run.scenario import Scenario
+    from stewart_drake.run.simulate import RunResult
 
     names = {m.__name__.rsplit(".", 1)[-1]: m for m in our_modules()}
     names.update(
@@ -180,7 +180,7 @@ def resolve_short(span: str, names: dict) -> str | None:
     """None when a dotted code span names something that exists: a field path of a Scenario
     (``controller.omega_Q``, ``hardware.encoders``), or an attribute of one of our modules
     (``kinematics.ik``) or of a documented variable (``context.period_s``); else the reason."""
-    from stewart_drake.simulation.scenario import Scenario
+    from stewart_drake.run.scenario import Scenario
 
     first, rest = span.split(".", 1)
     parts = rest.split(".")
@@ -520,18 +520,18 @@ def test_the_checks_catch_a_renamed_module(tmp_path, monkeypatch):
     page.mkdir()
     (page / "bad.md").write_text(
         "See `stewart_drake.visualize.record_html` and [the notes](missing.md).\n"
-        "```python\nfrom stewart_drake.studies.experiments import run_experiments\n```\n"
+        "```python\nfrom stewart_drake.run.simulate import run_experiments\n```\n"
         "Run `stewart-drake run --fast` or `stewart-drake simulate`.\n"
     )
-    (tmp_path / "README.md").write_text("ok: `stewart_drake.interfaces.visualize.record_html`\n")
+    (tmp_path / "README.md").write_text("ok: `stewart_drake.viz.visualize.record_html`\n")
     (tmp_path / "notebooks").mkdir()
     monkeypatch.setattr(__import__(__name__), "REPO", tmp_path)
     broken = broken_names_in_documents()
     assert broken == [
         "docs/bad.md:1: no file missing.md",
         "docs/bad.md:1: stewart_drake.visualize.record_html: stewart_drake has no 'visualize'",
-        "docs/bad.md:3: from stewart_drake.studies.experiments import run_experiments: "
-        "stewart_drake.studies.experiments has no 'run_experiments'",
+        "docs/bad.md:3: from stewart_drake.run.simulate import run_experiments: "
+        "stewart_drake.run.simulate has no 'run_experiments'",
         "docs/bad.md:5: `stewart-drake run` has no option --fast",
         "docs/bad.md:5: no command `stewart-drake simulate`",
     ]
@@ -543,12 +543,12 @@ def test_the_checks_catch_a_renamed_module(tmp_path, monkeypatch):
         (".runners", True),
         ("~stewart_drake.control.contract", True),
         ("LqiTuning", False),
-        ("stewart_drake.studies.evaluation.evaluate", True),
+        ("stewart_drake.evaluation.evaluation.evaluate", True),
         ("gone", False),
     ],
 )
 def test_cross_references_resolve_as_sphinx_does(target, ok):
-    from stewart_drake.studies import evaluation
+    from stewart_drake.evaluation import evaluation
 
     if ok:
         resolve_xref(target.lstrip("~"), evaluation, None)

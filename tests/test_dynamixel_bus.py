@@ -14,16 +14,16 @@ from conftest import require_extra
 require_extra("robot")
 import dynamixel_sdk as sdk  # noqa: E402
 
-from stewart_drake.errors import (  # noqa: E402
+from stewart_drake.base.errors import (  # noqa: E402
     BusError,
     InvalidConfigError,
     MissingExtraError,
     MissingServoError,
     ServoConfigMismatchError,
 )
-from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
-from stewart_drake.simulation.hardware.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
-from stewart_drake.simulation.hardware.emulator import BusEmulator, FirstOrderServos  # noqa: E402
+from stewart_drake.live.emulator import BusEmulator, FirstOrderServos  # noqa: E402
+from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 XM430 = p.SERVO_SPECS["XM430-W350-T"]
@@ -310,9 +310,9 @@ def test_a_bus_that_stops_answering_mid_run_raises_and_tries_torque_off(emulator
 
 
 def test_the_robots_drake_plant_behind_the_bus_holds_lifts_and_lowers_the_platform():
-    from stewart_drake.model.kinematics import X_HOME
-    from stewart_drake.model.statics import holding_torques
-    from stewart_drake.simulation.hardware.plant_backend import StationServos
+    from stewart_drake.live.plant_backend import StationServos
+    from stewart_drake.robot.kinematics import X_HOME
+    from stewart_drake.robot.statics import holding_torques
 
     backend = StationServos()
     T_hold = holding_torques(backend.station.plan.geometry, X_HOME)

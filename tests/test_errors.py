@@ -5,7 +5,7 @@ import pickle
 
 import pytest
 
-from stewart_drake import errors
+from stewart_drake.base import errors
 
 POSE = [0.1, -0.2, 0.3, 0.01, -0.02, 0.31]
 #: One instance per class of errors.py; a new class without an example fails the test below.

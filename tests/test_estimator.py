@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.estimator import FkEstimator, PoseEstimator
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME
 
 QUANTUM = 2 * np.pi / 2**40  # "exact sensing" (docs/hardware_figures.md)
 H = 1e-3

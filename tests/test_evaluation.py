@@ -7,21 +7,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces.cli import main
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import (
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli.main import main
+from stewart_drake.evaluation.evaluation_grid import RATIO_LQI, cases, grid_controller
+from stewart_drake.evaluation.evaluation_report import ann_verdict
+from stewart_drake.references.trajectories import StepTrajectory, make_trajectory
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.metrics import frequency_response, settling_time
+from stewart_drake.run.scenario import (
     LqiDriver,
     NamedReference,
     PdDriver,
     Scenario,
     SensorNoise,
 )
-from stewart_drake.simulation.trajectories import StepTrajectory, make_trajectory
-from stewart_drake.studies.evaluation_grid import RATIO_LQI, cases, grid_controller
-from stewart_drake.studies.evaluation_report import ann_verdict
-from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.studies.metrics import frequency_response, settling_time
+from stewart_drake.run.simulate import run_experiment
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -41,9 +41,9 @@ def test_unknown_payload_sags_the_pd_but_not_the_lqi():
     """+20 % platform mass the feed-forward does not know: the PD (no integral) holds home with a
     steady sag close to the statics' prediction; the LQI's integral removes it."""
     from stewart_drake.control.pd import CrankPdController
-    from stewart_drake.model import kinematics
-    from stewart_drake.model.geometry import X_HOME, StewartGeometry
-    from stewart_drake.model.statics import crank_inertia_matrix
+    from stewart_drake.robot import kinematics
+    from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+    from stewart_drake.robot.statics import crank_inertia_matrix
 
     g = StewartGeometry()
     cfg = dict(reference=NamedReference("home"), duration_s=1.5, payload_scale=1.2)
@@ -95,7 +95,7 @@ def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
     it, rate and acceleration the derivatives of the pose (finite differences away from the
     corner's kink and the end of the sweep), and the same low-pass read back through the
     envelope as through a constant amplitude."""
-    from stewart_drake.simulation.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION, sweep
+    from stewart_drake.references.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION, sweep
 
     chirp = sweep("Z")
     corner = np.sqrt(SWEEP_MAX_ACCELERATION[1] / SWEEP_AMPLITUDE[1]) / (2 * np.pi)
@@ -122,8 +122,8 @@ def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
 
 
 def test_scenarios_are_reachable_and_named():
-    from stewart_drake.model.geometry import StewartGeometry
-    from stewart_drake.simulation.trajectories import validate
+    from stewart_drake.references.trajectories import validate
+    from stewart_drake.robot.geometry import StewartGeometry
 
     g = StewartGeometry()
     for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):
@@ -214,7 +214,7 @@ def test_evaluate_writes_the_report_under_out_and_never_over_the_docs(
 ):
     import dataclasses
 
-    from stewart_drake.studies import evaluation
+    from stewart_drake.evaluation import evaluation
 
     # The report needs its cases whole, not --quick's 1 s of each: the 1 s runs (paper, helix,
     # steps, payload, noise, saturation) are cut to 0.6 s, still past the Z step's settling and
@@ -277,8 +277,8 @@ def test_evaluate_cli_refuses_unknown_controllers(capsys, tmp_path):
 
 
 def test_the_evaluation_says_which_failures_the_sizing_explains():
-    from stewart_drake.interfaces.cli import _why_failed
-    from stewart_drake.studies.evaluation_report import disturbance_holding_torques
+    from stewart_drake.cli.main import _why_failed
+    from stewart_drake.evaluation.evaluation_report import disturbance_holding_torques
 
     needs, limit = disturbance_holding_torques("paper_hardware")
     assert needs["push 5 N"] > limit > needs["twist 0.2 N m"]  # 0.907 > 0.702 > 0.443 N m
@@ -324,7 +324,7 @@ def _paper_rows_and_tuner_of(md: str):
 def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
     """docs/results.md's ANN section, as the generator writes it for the report's own figures:
     the tuner study's answer first, and no one-run "beats"."""
-    from stewart_drake.studies.evaluation_report import _verdict_lines, index_rows
+    from stewart_drake.evaluation.evaluation_report import _verdict_lines, index_rows
 
     md = (REPO / "docs" / "results.md").read_text()
     rows, tuner = _paper_rows_and_tuner_of(md)
@@ -341,7 +341,11 @@ def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
 
 
 def test_the_bandwidth_table_and_figure_say_below_and_above_the_sweep(tmp_path):
-    from stewart_drake.studies.evaluation_report import _bandwidth_table, index_rows, plot_results
+    from stewart_drake.evaluation.evaluation_report import (
+        _bandwidth_table,
+        index_rows,
+        plot_results,
+    )
 
     f = np.geomspace(2.43, 49.4, 30)
 

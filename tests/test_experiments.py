@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
-from stewart_drake.interfaces.cli import main
-from stewart_drake.studies.experiments import load_result, result_columns
+from stewart_drake.cli.main import main
+from stewart_drake.run.simulate import load_result, result_columns
 
 
 def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, capsys):
@@ -30,7 +30,7 @@ def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, caps
 
 
 def test_a_controller_without_weights_has_no_omega_columns():
-    from stewart_drake.studies.experiments import RunResult
+    from stewart_drake.run.simulate import RunResult
 
     n = 3
     result = RunResult(
@@ -49,8 +49,8 @@ def test_a_controller_without_weights_has_no_omega_columns():
 
 
 def test_runs_of_other_scenarios_or_overrides_get_files_of_their_own():
-    from stewart_drake.interfaces.cli import run_stem
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.cli.main import run_stem
+    from stewart_drake.run.scenario_io import load_scenario
 
     hardware, ideal = load_scenario("paper_hardware"), load_scenario("paper_ideal")
     assert run_stem(hardware, "paper_hardware") == "run_paper"  # the README's run

@@ -6,7 +6,7 @@ import pytest
 def _committed_clearance_table() -> str:
     from pathlib import Path
 
-    from stewart_drake.studies.feasibility import CLEARANCE_TABLE_MARKERS
+    from stewart_drake.analysis.feasibility import CLEARANCE_TABLE_MARKERS
 
     doc = (Path(__file__).resolve().parents[1] / "docs" / "reference_geometry.md").read_text()
     start, end = (doc.index(m) for m in CLEARANCE_TABLE_MARKERS)
@@ -17,11 +17,11 @@ def _committed_clearance_table() -> str:
 def test_committed_clearance_table_is_current():
     """The whole sweep of the paper manoeuvre (its 10 s at 1 mm of motion); the default tiers
     check each row at its own time (test_each_committed_clearance_row_holds_at_its_time)."""
-    from stewart_drake.studies.feasibility import clearance_table
+    from stewart_drake.analysis.feasibility import clearance_table
 
     assert _committed_clearance_table() == clearance_table(), (
         "docs/reference_geometry.md's clearance table is stale: paste "
-        "stewart_drake.studies.feasibility.clearance_table() between its markers"
+        "stewart_drake.analysis.feasibility.clearance_table() between its markers"
     )
 
 
@@ -33,9 +33,9 @@ def test_each_committed_clearance_row_holds_at_its_time():
     test_committed_clearance_table_is_current)."""
     import numpy as np
 
-    from stewart_drake.model.clearance import clearance_model, family, sample_indices
-    from stewart_drake.model.geometry import StewartGeometry
-    from stewart_drake.simulation.trajectories import paper_manoeuvre
+    from stewart_drake.plant.clearance import clearance_model, family, sample_indices
+    from stewart_drake.references.trajectories import paper_manoeuvre
+    from stewart_drake.robot.geometry import StewartGeometry
 
     rows = [
         [cell.strip() for cell in line.strip("|").split("|")]
@@ -74,8 +74,8 @@ def test_the_check_says_what_its_limits_are_and_draws_each_measure_on_its_own_ax
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from stewart_drake.simulation.scenario_io import load_scenario
-    from stewart_drake.studies.feasibility import check, plot_margins
+    from stewart_drake.analysis.feasibility import check, plot_margins
+    from stewart_drake.run.scenario_io import load_scenario
 
     report = check(load_scenario("paper_hardware"))
     assert abs(report.torque_limit / 0.9 - 0.702) < 5e-4 and report.effort_margin == 0.9

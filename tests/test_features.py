@@ -10,12 +10,12 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import Adder, ConstantVectorSource, Sine
 
+from stewart_drake.base.errors import InvalidConfigError, SimulationDivergedError
 from stewart_drake.control.features import (
     DensityFeatures,
     density_features,
     density_features_series,
 )
-from stewart_drake.errors import InvalidConfigError, SimulationDivergedError
 
 EPS = 1e-9
 
@@ -170,8 +170,8 @@ def test_features_from_the_controllers_window_equal_those_it_samples_itself():
     period): rho from that window equals rho of a DensityFeatures sampling the same signals,
     with a window (5) shorter than the run, so the ring wraps."""
     from stewart_drake.control.lqi import LqiDiagram
-    from stewart_drake.model.geometry import X_HOME, StewartGeometry
-    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+    from stewart_drake.robot.statics import holding_torques
 
     geometry, offset = StewartGeometry(), 5e-4
     builder = DiagramBuilder()

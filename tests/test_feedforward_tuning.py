@@ -4,18 +4,18 @@ no repetition and carries over to motion it has not seen."""
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import CorruptFileError, InvalidConfigError
 from stewart_drake.control import feedforward_tuning as ff
 from stewart_drake.control.feedforward_tuning import (
     FF_STATUS_NAMES,
     FeedforwardTuning,
     FeedforwardTuningLearner,
 )
-from stewart_drake.errors import CorruptFileError, InvalidConfigError
-from stewart_drake.model.geometry import X_HOME, reference_geometry
-from stewart_drake.simulation import organ_motion
-from stewart_drake.simulation.scenario import dump_scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.fidelity import reproduce
+from stewart_drake.organ_motion.fidelity import reproduce
+from stewart_drake.references import organ_motion
+from stewart_drake.robot.geometry import X_HOME, reference_geometry
+from stewart_drake.run.scenario import dump_scenario
+from stewart_drake.run.scenario_io import load_scenario
 
 
 def _breath_and_heart(period_s=4.2, rate_bpm=72.0, phase=0.0):
@@ -178,7 +178,7 @@ def test_a_model_learned_on_one_motion_corrects_another_it_has_not_seen(tmp_path
 def test_the_cli_refuses_hold_without_a_model_and_a_corrupt_model_before_the_run(
     tmp_path, monkeypatch, capsys
 ):
-    from stewart_drake.interfaces.cli import main
+    from stewart_drake.cli.main import main
 
     monkeypatch.chdir(tmp_path)
 

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces import cli
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation import organ_motion as om
-from stewart_drake.studies import fidelity as fd
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli import main as cli
+from stewart_drake.organ_motion import fidelity as fd
+from stewart_drake.references import organ_motion as om
+from stewart_drake.robot.geometry import X_HOME
 
 
 @pytest.mark.parametrize("delay_s", [0.00037, -0.0021, 0.0125])
@@ -242,7 +242,7 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
     beside them (python tools/organ_motion_tables.py writes both; never edit them by hand)."""
     from pathlib import Path
 
-    from stewart_drake.studies.fidelity_study import CASES, TABLE_MARKERS, tables
+    from stewart_drake.organ_motion.fidelity_study import CASES, TABLE_MARKERS, tables
 
     docs = Path(__file__).resolve().parent.parent / "docs"
     figures = json.loads((docs / "organ_motion.json").read_text())
@@ -253,8 +253,8 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
 
 
 def test_mismatched_or_non_finite_inputs_are_typed_errors():
-    from stewart_drake.errors import InvalidConfigError
-    from stewart_drake.simulation.organ_motion import common_period
+    from stewart_drake.base.errors import InvalidConfigError
+    from stewart_drake.references.organ_motion import common_period
 
     t = np.arange(100) * 0.01
     with pytest.raises(InvalidConfigError, match="time_lag needs two signals of the same shape"):
@@ -329,7 +329,7 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
 ):
     import matplotlib.pyplot as plt
 
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.run.scenario_io import load_scenario
 
     t = np.arange(1_000_003) * 1e-3
     y = np.zeros_like(t)
@@ -393,7 +393,7 @@ def test_reproduce_writes_its_replay_with_the_reference_s_ghost_and_the_error(tm
     the tolerance."""
     from meshcat_html import read_meshcat_commands
 
-    from stewart_drake.interfaces import visualize
+    from stewart_drake.viz import visualize
 
     t = np.arange(0.0, 4.0, 0.04)
     trace = tmp_path / "short trace.txt"

@@ -4,13 +4,13 @@ enough for both curves to part, and the feed-forward it subtracts is the one the
 import numpy as np
 import pytest
 
-from stewart_drake.model import statics
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import NamedReference, Scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.experiments import plot_fig7, run_experiment
-from stewart_drake.studies.run_report import _window_stats, _zoom_window
+from stewart_drake.paper.run_report import _window_stats, _zoom_window, plot_fig7
+from stewart_drake.robot import statics
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import NamedReference, Scenario
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
 
 
 def test_the_zoom_holds_the_largest_error_where_the_reference_moves_past_it():

@@ -22,18 +22,18 @@ from conftest import extra_missing
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from stewart_drake.control import tuner
-from stewart_drake.errors import (
+from stewart_drake.base.errors import (
     CorruptFileError,
     IncompleteResultsError,
     ResultsMismatchError,
     StewartError,
 )
+from stewart_drake.base.fileio import CheckedNpz
+from stewart_drake.control import tuner
 from stewart_drake.execution.store import MANIFEST, ResultStore, read_manifest
-from stewart_drake.fileio import CheckedNpz
-from stewart_drake.simulation.scenario import Scenario, dump_scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.collection import load_records
+from stewart_drake.run.scenario import Scenario, dump_scenario
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.tuner.collection import load_records
 
 EXAMPLES = Counter()
 VALID = Counter()  # examples that loaded, per loader (the strategies reach both ends)
@@ -218,7 +218,7 @@ def test_each_fault_of_a_weight_file_is_named(tmp_path, change, problem):
 
 
 def test_a_corrupt_weight_file_is_one_line_from_the_cli(tmp_path, capsys):
-    from stewart_drake.interfaces import cli
+    from stewart_drake.cli import main as cli
 
     weights = tmp_path / "w.npz"
     weights.write_bytes(ANN[: len(ANN) // 2])
@@ -336,7 +336,7 @@ def test_a_damaged_collect_folder_names_the_file_and_the_fault(tmp_path, which, 
 
 
 def test_a_damaged_manifest_stops_a_resumed_study_and_train(tmp_path, capsys):
-    from stewart_drake.interfaces import cli
+    from stewart_drake.cli import main as cli
 
     (tmp_path / MANIFEST).write_bytes(COLLECTED[MANIFEST][:40])
     with pytest.raises(CorruptFileError, match="is not a valid stewart-drake manifest"):
@@ -351,7 +351,7 @@ def test_a_damaged_manifest_stops_a_resumed_study_and_train(tmp_path, capsys):
 def test_train_on_a_data_set_too_small_to_split_says_so(tmp_path, capsys):
     if extra_missing("train"):
         pytest.skip(extra_missing("train"))
-    from stewart_drake.interfaces import cli
+    from stewart_drake.cli import main as cli
 
     _collect_folder(tmp_path / "c", sizes=(1, 1))
     code = cli.main(["train", "--data", str(tmp_path / "c"), "--out", str(tmp_path / "w.npz")])
@@ -419,7 +419,7 @@ def test_scenario_faults_are_named(tmp_path):
 
 
 def test_a_damaged_run_result_is_named(tmp_path):
-    from stewart_drake.studies.experiments import load_result
+    from stewart_drake.run.simulate import load_result
 
     path = tmp_path / "run.npz"
     path.write_bytes(_npz({"t": np.zeros(3)}))

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from stewart_drake.errors import CorruptFileError
-from stewart_drake.fileio import (
+from stewart_drake.base.errors import CorruptFileError
+from stewart_drake.base.fileio import (
     CheckedNpz,
     _writer,
     atomic_write,

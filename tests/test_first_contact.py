@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 from conftest import install_plugin
 
+from stewart_drake.cli import main as cli
 from stewart_drake.control import contract
-from stewart_drake.interfaces import cli
 
 REPO = Path(__file__).resolve().parent.parent
 KERNELS = "stewart_drake.control.lqi_kernels"
@@ -258,9 +258,7 @@ def test_ctrl_c_while_the_command_imports_is_one_line(tmp_path, delay_s):
     """From the moment the package imports numpy (its first import, after its handler) to the
     command's end: one line, 130, no traceback, and no C++ log of pydrake's."""
     command = (
-        [str(_SCRIPT)]
-        if _SCRIPT.exists()
-        else [sys.executable, "-m", "stewart_drake.interfaces.cli"]
+        [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "stewart_drake.cli.main"]
     )
     proc = subprocess.Popen(
         [*command, "run", "--set", "duration_s=abc", "--out", str(tmp_path)],
@@ -312,7 +310,7 @@ def test_a_plugin_that_raises_system_exit_is_one_line_and_exit_2(
 
 def test_system_exit_anywhere_in_a_command_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys):
     """A controller's own callback may exit the same way, inside the simulation."""
-    from stewart_drake.studies import experiments
+    from stewart_drake.run import simulate as experiments
 
     def exits(*args, **kwargs):
         raise SystemExit(0)

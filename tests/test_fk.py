@@ -7,10 +7,10 @@ from pydrake.math import RollPitchYaw
 from pydrake.multibody.inverse_kinematics import InverseKinematics
 from pydrake.solvers import IpoptSolver, SolverOptions
 
-from stewart_drake.errors import ForwardKinematicsError
-from stewart_drake.model import kinematics, limits
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import make_plant
+from stewart_drake.base.errors import ForwardKinematicsError
+from stewart_drake.plant.plant import make_plant
+from stewart_drake.robot import kinematics, limits
+from stewart_drake.robot.geometry import X_HOME
 
 
 @pytest.fixture(scope="module")

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidGeometryError
-from stewart_drake.model.geometry import (
+from stewart_drake.base.errors import InvalidGeometryError
+from stewart_drake.robot.geometry import (
     TABLE_I_CRANK_INERTIA,
     StewartGeometry,
     nearest_valid_principal_moments,
@@ -58,7 +58,7 @@ def test_the_geometry_has_every_attribute_the_model_functions_read():
     import functools
     import typing
 
-    from stewart_drake.model.kinematics import RobotGeometry
+    from stewart_drake.robot.kinematics import RobotGeometry
 
     assert isinstance(StewartGeometry(), RobotGeometry)
     fields = typing.get_type_hints(StewartGeometry)

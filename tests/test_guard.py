@@ -3,23 +3,23 @@
 import numpy as np
 import pytest
 
-from stewart_drake.control.contract import LQI_STATUS_NAMES
-from stewart_drake.errors import (
+from stewart_drake.base.errors import (
     JointLimitError,
     SimulationDivergedError,
     SingularPoseError,
     StewartError,
     UnreachablePoseError,
 )
-from stewart_drake.model import kinematics, limits
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.model.plant import assemble
-from stewart_drake.simulation import guard
-from stewart_drake.simulation.guard import GuardConfig
-from stewart_drake.simulation.plan import check_reference, make_plan
-from stewart_drake.simulation.scenario import Robot, Scenario
-from stewart_drake.simulation.trajectories import SineTrajectory, paper_manoeuvre
-from stewart_drake.studies.experiments import build_simulator, run_experiment
+from stewart_drake.control.contract import LQI_STATUS_NAMES
+from stewart_drake.plant.plant import assemble
+from stewart_drake.references.trajectories import SineTrajectory, paper_manoeuvre
+from stewart_drake.robot import kinematics, limits
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.run.plan import check_reference, make_plan
+from stewart_drake.run.scenario import Robot, Scenario
+from stewart_drake.run.simulate import build_simulator, run_experiment
+from stewart_drake.station import guard
+from stewart_drake.station.guard import GuardConfig
 
 HEAVE_TO_DEAD_POINT = SineTrajectory(
     amplitude=(0, 0, 0, 0, 0, 0.117), frequency_hz=(0, 0, 0, 0, 0, 0.25), name="heave"

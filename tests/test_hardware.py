@@ -6,22 +6,19 @@ import pytest
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
+from stewart_drake.base.errors import FeasibilityWarning, SimulationDivergedError
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.control.lqi import LqiController, project_onto_torque_bound
-from stewart_drake.errors import FeasibilityWarning, SimulationDivergedError
-from stewart_drake.model import kinematics, limits, statics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.model.servo import ServoModel
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import LqiDriver, Motors, Scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.station import (
-    current_loop,
-    held_station,
-    make_stewart_station,
-)
-from stewart_drake.simulation.trajectories import paper_manoeuvre
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot import kinematics, limits, statics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.robot.servo import ServoModel
+from stewart_drake.run.diagram import held_station, make_stewart_station
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import LqiDriver, Motors, Scenario
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.station import current_loop
 
 
 def _nrms(result):
@@ -350,7 +347,7 @@ def test_without_anti_windup_the_limited_platform_falls():
 
 def test_the_lqi_knows_the_motors_and_the_delay():
     scenario = _hardware(**{"duration_s": 0.1})
-    from stewart_drake.simulation.diagram import make_stewart_diagram
+    from stewart_drake.run.diagram import make_stewart_diagram
 
     sd = make_stewart_diagram(scenario)
     lqi = sd.controller.lqi
@@ -399,9 +396,9 @@ def test_drake_ignores_an_sdf_joint_friction_so_ours_is_an_actuator(tmp_path):
 
 
 def test_the_friction_feed_forward_is_read_from_the_scenario_and_off_in_the_paper_ones():
+    from stewart_drake.base.errors import InvalidConfigError
     from stewart_drake.control import lqi_step
-    from stewart_drake.errors import InvalidConfigError
-    from stewart_drake.simulation.diagram import make_stewart_diagram
+    from stewart_drake.run.diagram import make_stewart_diagram
 
     on = _hardware(**{"duration_s": 0.1, "controller.friction_compensation_Nm": 0.0184})
     c = lqi_step.StepConstants(make_stewart_diagram(on).controller.lqi._constants)
@@ -436,8 +433,8 @@ def test_the_friction_feed_forward_lowers_the_breathing_error(epsilons):
     amplitudes (the slow tier): measured 12.1 -> 9.3 um and 33.3 -> 24.4 urad
     (docs/organ_motion.md, "The rotation floor"); the default tiers run one amplitude, whose
     ratios (0.52-0.81, 0.68-0.85 over ten) and RMS (within 6 %) hold the same bounds."""
-    from stewart_drake.simulation.organ_motion import OrganMotionReference
-    from stewart_drake.studies.fidelity import reproduce
+    from stewart_drake.organ_motion.fidelity import reproduce
+    from stewart_drake.references.organ_motion import OrganMotionReference
 
     rms = {}
     for friction in (0.0, 0.0184):

@@ -18,37 +18,39 @@ from pydrake.systems.analysis import Simulator  # noqa: E402
 from pydrake.systems.framework import DiagramBuilder  # noqa: E402
 from pydrake.systems.primitives import ConstantVectorSource  # noqa: E402
 
-from stewart_drake.errors import (  # noqa: E402
+from stewart_drake.base.errors import (  # noqa: E402
     BusError,
     DeadlineMissError,
     InvalidConfigError,
     SimulationDivergedError,
 )
 from stewart_drake.lcmtypes import lcmt_stewart_command, lcmt_stewart_status  # noqa: E402
-from stewart_drake.model.geometry import StewartGeometry  # noqa: E402
-from stewart_drake.model.kinematics import X_HOME, ik  # noqa: E402
-from stewart_drake.simulation.diagram import make_stewart_diagram  # noqa: E402
-from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
-from stewart_drake.simulation.hardware.driver import BusState  # noqa: E402
-from stewart_drake.simulation.hardware.plant_backend import (  # noqa: E402
+from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     dynamixel_scenario,
 )
-from stewart_drake.simulation.hardware.station import (  # noqa: E402
-    DynamixelDriver,
-    HardwareStation,
+from stewart_drake.robot.geometry import StewartGeometry  # noqa: E402
+from stewart_drake.robot.kinematics import X_HOME, ik  # noqa: E402
+from stewart_drake.run.diagram import (
+    make_stewart_diagram,  # noqa: E402
+    make_stewart_station,  # noqa: E402
 )
-from stewart_drake.simulation.plan import make_plan  # noqa: E402
-from stewart_drake.simulation.scenario import (  # noqa: E402
+from stewart_drake.run.plan import make_plan  # noqa: E402
+from stewart_drake.run.scenario import (  # noqa: E402
     DynamixelBusConfig,
     Hardware,
-    LcmConfig,
     Scenario,
     ToolDisturbance,
     _scenario_from_yaml,
     dump_scenario,
 )
-from stewart_drake.simulation.station import make_stewart_station  # noqa: E402
+from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.driver import BusState  # noqa: E402
+from stewart_drake.station.bus.station import (  # noqa: E402
+    DynamixelDriver,
+    HardwareStation,
+)
+from stewart_drake.station.lcm_publish import LcmConfig
 
 H = 0.005  # the control period of the runs here: the Dynamixel robot's LQI is stable at 5 ms
 XM430 = p.SERVO_SPECS["XM430-W350-T"]
@@ -174,7 +176,7 @@ def test_the_hardware_station_exports_the_simulated_stations_ports():
 
 def _held_driver(bus, x0, period_s=H, **kw):
     """A driver alone, its torque input fixed to the holding torques, ready to simulate."""
-    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.robot.statics import holding_torques
 
     builder = DiagramBuilder()
     driver = builder.AddSystem(DynamixelDriver(bus, StewartGeometry(), period_s, **kw))
@@ -395,8 +397,8 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
     from pydrake.multibody.plant import MultibodyPlantConfig
 
     from stewart_drake.control.lqi import LqiDriver
-    from stewart_drake.simulation.hardware.emulator_process import EmulatorProcess
-    from stewart_drake.simulation.organ_motion import OrganMotionReference
+    from stewart_drake.live.emulator_process import EmulatorProcess
+    from stewart_drake.references.organ_motion import OrganMotionReference
 
     h, duration = 0.01, 2.0
     fields = dict(

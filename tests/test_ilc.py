@@ -4,17 +4,17 @@ system in the closed loop of the robot as built, its bound, payload error and en
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control import ilc
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation import guard
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import OrganMotionReference
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.experiments import advance, build_simulator, collect_result
-from stewart_drake.studies.fidelity import rms_translation_rotation
+from stewart_drake.organ_motion.fidelity import rms_translation_rotation
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import OrganMotionReference
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import advance, build_simulator, collect_result
+from stewart_drake.station import guard
 
 
 def test_the_q_filter_has_zero_phase_and_wraps_around_the_cycle():

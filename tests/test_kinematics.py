@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from pydrake.math import RollPitchYaw
 
-from stewart_drake.errors import UnreachablePoseError
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.base.errors import UnreachablePoseError
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_rotation_matches_drake_rollpitchyaw(random_poses):

@@ -1,6 +1,11 @@
-"""The package's imports flow one way: base -> model -> control -> simulation -> execution ->
-studies -> interfaces; the generated LCM message types (lcmtypes) are base: they import nothing of
-ours. Every import is counted (module level, inside functions, under TYPE_CHECKING)."""
+"""The package's imports flow one way: a small core by Drake role, then the features, then the
+command. Core: base (errors, checks, the checked reader; the generated LCM types) -> robot
+(geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
+control -> references -> station -> run -> execution. Features above it: viz (replays and
+pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design and
+live; cli on top. A package imports its own package or a lower rank, never a higher one nor
+another package of its own rank. Every import is counted (module level, inside functions, under
+TYPE_CHECKING)."""
 
 import ast
 import pathlib
@@ -8,16 +13,26 @@ import pathlib
 import pytest
 
 PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake"
-#: Rank of each layer; a module may import its own layer or a lower one, never a higher one.
+#: Rank of each package; a module may import its own package or one of a lower rank.
 LAYERS = {
     "base": 0,
     "lcmtypes": 0,
-    "model": 1,
-    "control": 2,
-    "simulation": 3,
-    "execution": 4,
-    "studies": 5,
-    "interfaces": 6,
+    "robot": 1,
+    "plant": 2,
+    "control": 3,
+    "references": 4,
+    "station": 5,
+    "run": 6,
+    "execution": 7,
+    "viz": 8,
+    "paper": 9,
+    "analysis": 9,
+    "organ_motion": 9,
+    "tuner": 9,
+    "evaluation": 10,
+    "design": 10,
+    "live": 10,
+    "cli": 11,
 }
 
 
@@ -58,12 +73,13 @@ def import_graph() -> dict:
 def test_no_import_goes_up_a_layer():
     upward = []
     for module, targets in import_graph().items():
-        if module == "stewart_drake":  # the package facade re-exports base and model
-            assert all(LAYERS[_layer(t)] <= LAYERS["model"] for t in targets), targets
+        if module == "stewart_drake":  # the package facade re-exports base and robot
+            assert all(LAYERS[_layer(t)] <= LAYERS["robot"] for t in targets), targets
             continue
         for target in targets:
-            if LAYERS[_layer(target)] > LAYERS[_layer(module)]:
-                upward.append(f"{module} ({_layer(module)}) imports {target} ({_layer(target)})")
+            here, there = _layer(module), _layer(target)
+            if LAYERS[there] > LAYERS[here] or (there != here and LAYERS[there] == LAYERS[here]):
+                upward.append(f"{module} ({here}) imports {target} ({there})")
     assert not upward, "imports against the layers:\n" + "\n".join(sorted(upward))
 
 
@@ -89,10 +105,10 @@ def test_no_import_circle():
 def test_the_walker_sees_local_and_relative_imports():
     """The test would pass vacuously if the walker missed imports: check known edges."""
     graph = import_graph()
-    assert "stewart_drake.model.kinematics" in graph["stewart_drake.model.geometry"]
-    assert "stewart_drake.errors" in graph["stewart_drake.model.kinematics"]
-    assert "stewart_drake.studies.experiments" in graph["stewart_drake.interfaces.cli"]  # local
-    assert _layer("stewart_drake.checks") == "base"
+    assert "stewart_drake.robot.kinematics" in graph["stewart_drake.robot.geometry"]
+    assert "stewart_drake.base.errors" in graph["stewart_drake.robot.kinematics"]
+    assert "stewart_drake.run.simulate" in graph["stewart_drake.cli.main"]  # local
+    assert _layer("stewart_drake.base.checks") == "base"
     assert _layer("stewart_drake.control.lqi") == "control"
     with pytest.raises(KeyError):
         LAYERS[_layer("stewart_drake.nowhere.x")]

@@ -7,11 +7,10 @@ import socket
 
 import pytest
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces.cli import main
-from stewart_drake.simulation import lcm_publish
-from stewart_drake.simulation.lcm_publish import make_lcm
-from stewart_drake.simulation.scenario import LcmConfig, check_lcm_url
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli.main import main
+from stewart_drake.station import lcm_publish
+from stewart_drake.station.lcm_publish import LcmConfig, check_lcm_url, make_lcm
 
 #: What a file outside the output holds before each attempt, and must hold after.
 CONTENT = b"export PATH=$HOME/bin:$PATH\n"

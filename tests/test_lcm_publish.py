@@ -12,10 +12,10 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantValueSource, ConstantVectorSource
 
-from stewart_drake.errors import InvalidConfigError
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.lcmtypes import lcmt_stewart_command, lcmt_stewart_status
-from stewart_drake.model.kinematics import X_HOME, ik
-from stewart_drake.simulation.lcm_publish import (
+from stewart_drake.robot.kinematics import X_HOME, ik
+from stewart_drake.station.lcm_publish import (
     COMMAND_CHANNEL,
     STATUS_CHANNEL,
     LoopStatus,

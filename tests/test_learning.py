@@ -5,11 +5,11 @@ simulation."""
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.simulation.learning import learning_cycles
-from stewart_drake.simulation.organ_motion import Breathing
-from stewart_drake.simulation.trajectories import hold_home
+from stewart_drake.references.organ_motion import Breathing
+from stewart_drake.references.trajectories import hold_home
+from stewart_drake.run.learning import learning_cycles
 
 
 def test_the_reference_s_cycles_begun_within_the_run():

@@ -5,10 +5,10 @@ margins as distances to the geometry's limits; the violations and refusals that 
 import numpy as np
 import pytest
 
-from stewart_drake.errors import JointLimitError, UnreachablePoseError
-from stewart_drake.model import kinematics, limits
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import assemble, make_plant
+from stewart_drake.base.errors import JointLimitError, UnreachablePoseError
+from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.robot import kinematics, limits
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_joint_angles_are_the_angles_of_the_assembled_drake_plant(geometry, random_poses):

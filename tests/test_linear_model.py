@@ -7,6 +7,15 @@ import numpy as np
 import pytest
 from conftest import extra_missing
 
+from stewart_drake.analysis.loop_analysis import (
+    axis_figures,
+    frequency_grid,
+    loop_models,
+    margins,
+    measure_tracking,
+    tracking_response,
+)
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.linear_model import (
     closed_loop,
     loop_at_a_time,
@@ -15,18 +24,9 @@ from stewart_drake.control.linear_model import (
     plant_model,
 )
 from stewart_drake.control.lqi import LqiDriver, error_model, input_matrix
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME, reference_geometry
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.loop_analysis import (
-    axis_figures,
-    frequency_grid,
-    loop_models,
-    margins,
-    measure_tracking,
-    tracking_response,
-)
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME, reference_geometry
+from stewart_drake.run.scenario_io import load_scenario
 
 H = 1e-3
 # This checkout's scenarios (a shipped name resolves to the installed package's).
@@ -167,7 +167,7 @@ def test_the_model_matches_the_drake_plant_away_from_home(axis, pose):
 
 
 def test_analyze_prints_the_margins_and_writes_the_plots(tmp_path, capsys):
-    from stewart_drake.interfaces.cli import main
+    from stewart_drake.cli.main import main
 
     out = tmp_path / "an"
     assert main(["analyze", "--scenario", str(IDEAL), "--out", str(out)]) == 0
@@ -182,7 +182,7 @@ def test_analyze_prints_the_margins_and_writes_the_plots(tmp_path, capsys):
 
 
 def test_the_weights_and_the_workspace_map_name_the_weak_loops():
-    from stewart_drake.studies.loop_analysis import loop_map, tilt_grid, weakest_pose, weight_sweep
+    from stewart_drake.analysis.loop_analysis import loop_map, tilt_grid, weakest_pose, weight_sweep
 
     built = load_scenario(BUILT)
     rows = {r["ratio"]: r for r in weight_sweep(built, ratios=(0.01, 1.0, 100.0))}

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_discrete_are
 
+from stewart_drake.base.errors import InvalidConfigError, RiccatiSolveError
 from stewart_drake.control.lqi import (
     LqiController,
     LqiDiagram,
@@ -15,9 +16,8 @@ from stewart_drake.control.lqi import (
     input_matrix,
     lqi_gain,
 )
-from stewart_drake.errors import InvalidConfigError, RiccatiSolveError
-from stewart_drake.model import statics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
+from stewart_drake.robot import statics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
 H = 1e-3
 
@@ -38,7 +38,7 @@ def test_closed_form_zoh_equals_matrix_exponential(geometry):
 
 
 def test_input_matrix_is_inverse_inertia_times_tau(geometry, random_poses):
-    from stewart_drake.model import kinematics
+    from stewart_drake.robot import kinematics
 
     for x in random_poses[:5]:
         B_c = input_matrix(geometry, x)
@@ -171,7 +171,7 @@ def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
     (eq. 29), refused with the typed error, which names the pose and pickles."""
     import pickle
 
-    from stewart_drake.errors import NotStabilizableError
+    from stewart_drake.base.errors import NotStabilizableError
 
     with pytest.raises(NotStabilizableError, match=r"not detectable .* LqiScales") as info:
         LqiController(StewartGeometry(), LqiDriver(scales=LqiScalesConfig(integral=[1e100] * 6)))

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from stewart_drake.control import lqi_kernels, lqi_step
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_the_compiled_ik_equals_the_batched_ik_and_nan_where_unreachable(geometry, random_poses):

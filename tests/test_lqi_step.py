@@ -27,10 +27,10 @@ from stewart_drake.control.lqi import (
     lqi_gain_warm,
 )
 from stewart_drake.control.tuning import AnnTunerDriver
-from stewart_drake.model import kinematics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
 
 RTOL = 1e-12
 GEOMETRY = StewartGeometry()
@@ -222,7 +222,7 @@ def test_the_compiled_stein_solve_equals_drakes():
 
 
 def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
-    from stewart_drake.errors import RiccatiSolveError
+    from stewart_drake.base.errors import RiccatiSolveError
 
     c = _controller(False, 0, None, None)
     A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3)

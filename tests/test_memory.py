@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from pydrake.systems.primitives import TrajectorySource
 
-from stewart_drake.simulation.reference import TableHold, zero_order_hold
-from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.simulation.signal_log import SignalLog
-from stewart_drake.studies import experiments
-from stewart_drake.studies.experiments import build_simulator, run_memory_bytes
+from stewart_drake.run import simulate as experiments
+from stewart_drake.run.reference import TableHold, zero_order_hold
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.run.signal_log import SignalLog
+from stewart_drake.run.simulate import build_simulator, run_memory_bytes
 
 DURATION_S = 0.5
 
@@ -143,7 +143,7 @@ def dropped_run(request):
     import gc
     import weakref
 
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.run.scenario_io import load_scenario
 
     scenario = load_scenario("paper_hardware", ["duration_s=0.05", *request.param])
     sd, simulator = build_simulator(scenario)
@@ -188,7 +188,7 @@ def test_the_plant_handles_hold_indices_and_look_the_elements_up():
 
     from pydrake.multibody.tree import BallRpyJoint, RevoluteJoint, RigidBody
 
-    from stewart_drake.model.plant import make_plant
+    from stewart_drake.plant.plant import make_plant
 
     plant, _, handles, _, _ = make_plant(rod_model="bodies")
     kept = [

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stewart_drake.simulation.trajectories import ChirpTrajectory
-from stewart_drake.studies.metrics import (
+from stewart_drake.references.trajectories import ChirpTrajectory
+from stewart_drake.run.metrics import (
     BANDWIDTH_ABOVE,
     BANDWIDTH_BELOW,
     BANDWIDTH_CROSSING,

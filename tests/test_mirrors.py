@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 import pytest
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.base.mirrors import ValueMirror
 from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.mirrors import ValueMirror
 
 
 @dataclass(frozen=True)

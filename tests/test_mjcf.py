@@ -9,15 +9,15 @@ from conftest import require_extra
 require_extra("mujoco")
 import mujoco  # noqa: E402
 
-from stewart_drake.errors import InvalidConfigError  # noqa: E402
-from stewart_drake.interfaces.cli import main  # noqa: E402
-from stewart_drake.model import mjcf  # noqa: E402
-from stewart_drake.model.geometry import X_HOME  # noqa: E402
-from stewart_drake.model.plant import assemble, make_plant  # noqa: E402
-from stewart_drake.simulation.plan import make_plan  # noqa: E402
-from stewart_drake.simulation.scenario_io import load_scenario  # noqa: E402
-from stewart_drake.studies import accuracy
-from stewart_drake.studies.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
+from stewart_drake.analysis import accuracy
+from stewart_drake.analysis.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
+from stewart_drake.base.errors import InvalidConfigError  # noqa: E402
+from stewart_drake.cli.main import main  # noqa: E402
+from stewart_drake.plant import mjcf  # noqa: E402
+from stewart_drake.plant.plant import assemble, make_plant  # noqa: E402
+from stewart_drake.robot.geometry import X_HOME  # noqa: E402
+from stewart_drake.run.plan import make_plan  # noqa: E402
+from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 
 BODIES = ["base"] + [f"{kind}_{i}" for i in range(6) for kind in ("crank", "rod")] + ["platform"]
 
@@ -193,8 +193,8 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
     reports contacts exactly where Drake finds overlaps."""
     import mujoco
 
-    from stewart_drake.model.clearance import ClearanceModel
-    from stewart_drake.model.parts import robot_parts
+    from stewart_drake.plant.clearance import ClearanceModel
+    from stewart_drake.robot.parts import robot_parts
 
     colliding = [p for p in robot_parts(geometry) if p.collides]
     assert all(model.geom(f"{p.link}/{p.name}").contype[0] == 1 for p in colliding)
@@ -216,8 +216,8 @@ def test_every_part_collides_in_mujoco_where_it_does_in_drake(model, geometry, r
 
 
 def _as_built():
-    from stewart_drake.simulation.plan import make_plan
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.run.plan import make_plan
+    from stewart_drake.run.scenario_io import load_scenario
 
     plan = make_plan(load_scenario("paper_hardware"))
     hw = plan.scenario.hardware
@@ -256,7 +256,7 @@ def test_the_twin_as_built_carries_the_plan_s_servo_and_limits():
 @pytest.mark.parametrize("built", [False, True])
 def test_holding_torques_hold_in_both_twins(built):
     """Gravity torques hold the tilted pose for 0.5 s, ideal or as built (friction only helps)."""
-    from stewart_drake.model.statics import holding_torques
+    from stewart_drake.robot.statics import holding_torques
 
     plan, _ = _as_built()
     g = plan.geometry if built else plan.geometry.replace(motor_reflected_inertia=0.0)

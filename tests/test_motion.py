@@ -5,10 +5,10 @@ repeats."""
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.simulation.motion import peak_cycles, reference_cycles
-from stewart_drake.simulation.organ_motion import Breathing
-from stewart_drake.simulation.trajectories import SineTrajectory, hold_home
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.references.motion import peak_cycles, reference_cycles
+from stewart_drake.references.organ_motion import Breathing
+from stewart_drake.references.trajectories import SineTrajectory, hold_home
 
 
 def test_a_library_motion_gives_its_own_cycles():

@@ -67,7 +67,7 @@ SLOW_NOTEBOOKS = {"03_training_tuner", "04_evaluation"}
 def test_notebook_runs_and_shows_plots(path, monkeypatch):
     from nbclient import NotebookClient
 
-    if not HAS_TORCH and "stewart_drake.studies.training" in path.read_text():
+    if not HAS_TORCH and "stewart_drake.tuner.training" in path.read_text():
         pytest.skip(f"{path.name} trains the tuner: needs torch (the [train] extra)")
 
     monkeypatch.setenv("STEWART_DRAKE_QUICK", "1")

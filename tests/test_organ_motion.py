@@ -7,22 +7,22 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
+from stewart_drake.base.errors import InvalidConfigError, MotorLimitError
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.errors import InvalidConfigError, MotorLimitError
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation import organ_motion as om
-from stewart_drake.simulation.motion import reference_cycles
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import (
+from stewart_drake.organ_motion.fidelity import scale_to_fit
+from stewart_drake.references import organ_motion as om
+from stewart_drake.references.motion import reference_cycles
+from stewart_drake.references.traces import TraceTrajectory, load_trace
+from stewart_drake.references.trajectories import CubicSplineTrajectory, make_trajectory
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import (
     OrganMotionReference,
     Scenario,
     TraceReference,
     dump_scenario,
 )
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.traces import TraceTrajectory, load_trace
-from stewart_drake.simulation.trajectories import CubicSplineTrajectory, make_trajectory
-from stewart_drake.studies.fidelity import scale_to_fit
+from stewart_drake.run.scenario_io import load_scenario
 
 MOTIONS = [
     om.Breathing(),
@@ -194,7 +194,7 @@ def test_cycles_of_a_trace_are_found_where_its_motion_peaks(tmp_path):
 
 
 def test_scale_to_fit_shrinks_a_motion_the_motors_cannot_follow_until_it_passes():
-    from stewart_drake.simulation.plan import check_reference
+    from stewart_drake.run.plan import check_reference
 
     scenario = load_scenario("paper_hardware")
     scenario.duration_s = 1.0

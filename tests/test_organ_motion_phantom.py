@@ -8,14 +8,14 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces import cli
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation import organ_motion as om
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import Scenario, TraceReference, dump_scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.traces import load_trace
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli import main as cli
+from stewart_drake.references import organ_motion as om
+from stewart_drake.references.traces import load_trace
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import Scenario, TraceReference, dump_scenario
+from stewart_drake.run.scenario_io import load_scenario
 
 
 def _corners(m) -> np.ndarray:
@@ -315,7 +315,7 @@ def test_reproduce_add_lays_motions_on_a_trace_or_a_library_motion(tmp_path, mon
         seen.append(scenario.reference)
         raise InvalidConfigError("captured")
 
-    monkeypatch.setattr("stewart_drake.studies.fidelity.reproduce", fake_reproduce)
+    monkeypatch.setattr("stewart_drake.organ_motion.fidelity.reproduce", fake_reproduce)
     t = np.arange(0.0, 12.0, 0.05)
     path = write_trace(tmp_path / "p.csv", t, {"SI [mm]": 5 * np.sin(np.pi * t / 2)})
     out = str(tmp_path / "out")

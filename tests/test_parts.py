@@ -3,9 +3,9 @@ built around (sizes, gaps and placements its docstring states)."""
 
 import numpy as np
 
-from stewart_drake.model import parts
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.model.statics import p_ETool
+from stewart_drake.robot import parts
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.robot.statics import p_ETool
 
 
 def _by_name(geometry):
@@ -88,7 +88,7 @@ def test_a_bracket_reaches_its_motor_from_the_arm_whether_the_shafts_sit_low_or_
     shafts high (a design's home height under 0.30 m) it stands on the arm's top face and
     spans the motor's housing. Every size is positive (a negative one became a 1 m box in
     Drake's SDF parser)."""
-    from stewart_drake.simulation.design import Design
+    from stewart_drake.design.variables import Design
 
     for home_height, above in ((0.37, False), (0.25, True), (0.20, True)):
         design = Design(home_height=home_height)

@@ -4,10 +4,10 @@ docstring says, and one update applies T_ff + K_p (theta_d - theta) + K_d (w_d -
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.pd import CrankPdController, PdDriver
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.geometry import X_HOME
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME
 
 
 @pytest.mark.parametrize("bandwidth_hz, damping", [(20.0, 1.0), (15.0, 0.5), (30.0, 0.7)])

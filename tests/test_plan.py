@@ -4,13 +4,13 @@ and what the station builds from it read back from Drake."""
 import numpy as np
 import pytest
 
-from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.simulation.plan import RunPlan, check_reference, make_plan
-from stewart_drake.simulation.scenario import DataCollectionReference, Scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.station import held_station
-from stewart_drake.simulation.trajectories import data_collection_trajectory
-from stewart_drake.studies import experiments
+from stewart_drake.references.trajectories import data_collection_trajectory
+from stewart_drake.robot.kinematics import X_HOME
+from stewart_drake.run import simulate as experiments
+from stewart_drake.run.diagram import held_station
+from stewart_drake.run.plan import RunPlan, check_reference, make_plan
+from stewart_drake.run.scenario import DataCollectionReference, Scenario
+from stewart_drake.run.scenario_io import load_scenario
 
 
 @pytest.mark.parametrize("torque_limit", [None, 0.5, 5.0])

@@ -9,9 +9,8 @@ from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import statics
-from stewart_drake.model.plant import (
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.plant.plant import (
     REFERENCE_SDF,
     add_stewart_plant,
     assemble,
@@ -20,6 +19,7 @@ from stewart_drake.model.plant import (
     platform_pose,
     write_sdf,
 )
+from stewart_drake.robot import statics
 
 
 def test_committed_sdf_equals_generated():
@@ -101,7 +101,7 @@ def test_distance_rods_leave_the_cranks_and_platform_with_six_constraints_and_th
 ):
     """12 velocities and 6 distance constraints; the rods' mass is carried at their ends: the
     robot's total mass and the moving parts' centre of mass at home equal the bodies plant's."""
-    from stewart_drake.model.plant import DISTANCE_NQ, DISTANCE_NV
+    from stewart_drake.plant.plant import DISTANCE_NQ, DISTANCE_NV
 
     bodies, b_context, b_handles, _, _ = make_plant(geometry)
     plant, context, handles, _, _ = make_plant(geometry, rod_model="distance")
@@ -134,7 +134,7 @@ def test_distance_rods_do_not_hold_with_platform_only_torques(geometry):
 def test_a_distance_plant_run_is_drawn_with_rods_from_crank_tip_to_platform_joint(
     geometry, random_poses
 ):
-    from stewart_drake.model.plant import assembled_positions, rod_bodies_positions
+    from stewart_drake.plant.plant import assembled_positions, rod_bodies_positions
 
     plant, context, handles, _, _ = make_plant(geometry, rod_model="distance")
     bodies, b_context, b_handles, _, _ = make_plant(geometry)
@@ -161,7 +161,7 @@ def test_unknown_rod_models_and_files_with_distance_rods_are_refused():
 def test_the_closure_from_positions_alone_is_drakes(geometry, random_poses, rod_model):
     """LoopClosure (no Context) against Drake's kinematics, on configurations knocked off their
     closure by 1 cm and 0.01 rad in every coordinate (0.1 mm to a few cm of error)."""
-    from stewart_drake.model.plant import LoopClosure
+    from stewart_drake.plant.plant import LoopClosure
 
     plant, context, handles, _, _ = make_plant(geometry, rod_model=rod_model)
     closure = LoopClosure(handles)

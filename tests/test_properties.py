@@ -17,6 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
+from stewart_drake.base.errors import StewartError, UnreachablePoseError
 from stewart_drake.control.features import density_features
 from stewart_drake.control.lqi import (
     LqiController,
@@ -27,13 +28,12 @@ from stewart_drake.control.lqi import (
     lqi_gain,
 )
 from stewart_drake.control.tuner import TunerModel, load_tuner
-from stewart_drake.errors import StewartError, UnreachablePoseError
-from stewart_drake.model import kinematics, limits, statics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.guard import GuardConfig
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.scenario import LqiDriver, NamedReference, Scenario
-from stewart_drake.simulation.trajectories import SineTrajectory
+from stewart_drake.references.trajectories import SineTrajectory
+from stewart_drake.robot import kinematics, limits, statics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario import LqiDriver, NamedReference, Scenario
+from stewart_drake.station.guard import GuardConfig
 
 GEOMETRY = StewartGeometry()
 EXAMPLES = Counter()

@@ -1,4 +1,4 @@
-"""Every file a user names is read through stewart_drake/fileio.py, and what that reader refuses.
+"""Every file a user names is read through base/fileio.py, and what that reader refuses.
 
 The scan below lists every call in the package that opens or loads a file and fails on one
 outside fileio.py that is not in :data:`ALLOWED`, so the next loader cannot go around the
@@ -16,6 +16,8 @@ import numpy as np
 import pytest
 
 import stewart_drake
+from stewart_drake.base.errors import CorruptFileError
+from stewart_drake.base.fileio import CheckedNpz
 from stewart_drake.control.feedforward_tuning import (
     LAGS_S,
     LEARNED_FORMAT,
@@ -23,8 +25,6 @@ from stewart_drake.control.feedforward_tuning import (
     load_learned,
     save_learned,
 )
-from stewart_drake.errors import CorruptFileError
-from stewart_drake.fileio import CheckedNpz
 
 PACKAGE = Path(stewart_drake.__file__).parent
 
@@ -70,7 +70,7 @@ STRING_PARSERS = {"json.loads"}
 #: enclosing function, the called name). Each says why.
 ALLOWED = {
     # The machine's memory, from the kernel's own files (/proc/meminfo, the cgroup's limit).
-    ("checks.py", "available_memory_bytes", "open"),
+    ("base/checks.py", "available_memory_bytes", "open"),
     # Our own source files, hashed for numba's cache key.
     ("control/kernel_cache.py", "sources_digest", "Path(...).read_bytes"),
     ("control/kernel_cache.py", "will_compile", "Path(...).read_bytes"),
@@ -87,11 +87,11 @@ ALLOWED = {
     # A round trip of an exception through pickle, in memory: will it cross to the parent?
     ("execution/runners.py", "JobFailure.from_exception", "pickle.loads"),
     # /dev/null, to silence a stream.
-    ("interfaces/cli.py", "_silence_stdout", "os.open"),
+    ("cli/main.py", "_silence_stdout", "os.open"),
     # The servo bus (a serial port), not a file: DynamixelBus.open.
-    ("interfaces/robot.py", "_run", "bus.open"),
-    ("interfaces/robot.py", "_teleop", "bus_config(...).make_bus(...).open"),
-    ("simulation/hardware/driver.py", "DynamixelBus.__enter__", "self.open"),
+    ("live/session.py", "_run", "bus.open"),
+    ("live/session.py", "_teleop", "bus_config(...).make_bus(...).open"),
+    ("station/bus/driver.py", "DynamixelBus.__enter__", "self.open"),
 }
 
 
@@ -143,7 +143,7 @@ def file_reads() -> list[tuple[str, str, str, int]]:
     found = []
     for path in sorted(PACKAGE.rglob("*.py")):
         rel = path.relative_to(PACKAGE).as_posix()
-        if rel == "fileio.py":
+        if rel == "base/fileio.py":
             continue
         finder = _Finder()
         finder.visit(ast.parse(path.read_text(encoding="utf-8"), filename=str(path)))
@@ -189,7 +189,7 @@ def test_every_file_the_package_reads_goes_through_fileio():
         if not _allowed(rel, scope, name)
     ]
     assert not outside, (
-        "read these through stewart_drake.fileio (read_checked, read_json, CheckedNpz), or "
+        "read these through stewart_drake.base.fileio (read_checked, read_json, CheckedNpz), or "
         "add them to ALLOWED saying why they do not read a file a user names:\n"
         + "\n".join(outside)
     )
@@ -295,7 +295,7 @@ def test_load_learned_refuses_what_is_not_a_model_naming_the_file(tmp_path, entr
 
 
 def test_a_fifo_as_learned_returns_at_once_with_one_line(tmp_path, capsys):
-    from stewart_drake.interfaces.cli import main
+    from stewart_drake.cli.main import main
 
     fifo = tmp_path / "model.npz"
     os.mkfifo(fifo)
@@ -320,7 +320,7 @@ def test_a_fifo_as_learned_returns_at_once_with_one_line(tmp_path, capsys):
 
 
 def test_design_task_samples_are_read_through_the_checked_reader(tmp_path):
-    from stewart_drake.studies.design_search import TaskSamples
+    from stewart_drake.design.design_search import TaskSamples
 
     rng = np.random.default_rng(0)
     task = TaskSamples(

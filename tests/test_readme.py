@@ -34,9 +34,9 @@ def _printout() -> list[str]:
 def test_the_printout_is_what_the_paper_run_prints():
     """The 10 s paper run on the robot as built (about 10 s of CPU) prints README's figures
     to the digits shown: the same on Drake 1.51 and 1.58."""
-    from stewart_drake.simulation.scenario_io import load_scenario
-    from stewart_drake.studies.experiments import run_experiment
-    from stewart_drake.studies.run_report import format_metrics
+    from stewart_drake.run.metrics import format_metrics
+    from stewart_drake.run.scenario_io import load_scenario
+    from stewart_drake.run.simulate import run_experiment
 
     result = run_experiment(load_scenario("paper_hardware"))
     printed = [

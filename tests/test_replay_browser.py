@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from stewart_drake.interfaces.visualize import record_html, write_static_html
-from stewart_drake.simulation.scenario import Scenario
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.viz.visualize import record_html, write_static_html
 
 _TOOL = Path(__file__).resolve().parent.parent / "tools" / "screenshot_replay.py"
 _spec = importlib.util.spec_from_file_location("screenshot_replay", _TOOL)

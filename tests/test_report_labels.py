@@ -10,12 +10,11 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
+from stewart_drake.base.errors import InvalidConfigError, StewartError
+from stewart_drake.cli.main import _feedforward_choice, build_parser, main
 from stewart_drake.control import feedforward_tuning as ff
 from stewart_drake.control.feedforward_tuning import FeedforwardTuning
-from stewart_drake.errors import InvalidConfigError, StewartError
-from stewart_drake.interfaces.cli import _feedforward_choice, build_parser, main
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.studies.fidelity import (
+from stewart_drake.organ_motion.fidelity import (
     TITLE_POINTS,
     Reproduction,
     fidelity,
@@ -24,6 +23,7 @@ from stewart_drake.studies.fidelity import (
     report_title,
     write_report,
 )
+from stewart_drake.run.scenario_io import load_scenario
 
 TOL = (1e-4, np.radians(0.1))
 

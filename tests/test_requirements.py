@@ -6,10 +6,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stewart_drake.errors import CorruptFileError, InvalidConfigError, MissingFileError
-from stewart_drake.simulation.organ_motion import OrganMotionReference
-from stewart_drake.simulation.requirements import DesignRequirements, load_requirements
-from stewart_drake.simulation.trajectories import NamedReference
+from stewart_drake.base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from stewart_drake.design.requirements import DesignRequirements, load_requirements
+from stewart_drake.references.organ_motion import OrganMotionReference
+from stewart_drake.references.trajectories import NamedReference
 
 SHIPPED = Path(__file__).resolve().parent.parent / "scenarios" / "design_requirements.yaml"
 
@@ -82,6 +82,6 @@ def test_the_defaults_are_the_paper_manoeuvre_and_the_guards_margin():
 
 
 def test_a_requirements_file_is_not_a_shipped_scenario():
-    from stewart_drake.simulation.scenario_io import shipped_scenarios
+    from stewart_drake.run.scenario_io import shipped_scenarios
 
     assert SHIPPED.exists() and "design_requirements" not in shipped_scenarios()

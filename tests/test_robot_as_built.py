@@ -11,28 +11,28 @@ from pydrake.geometry import Role
 from pydrake.multibody.plant import DiscreteContactApproximation
 from pydrake.trajectories import PiecewisePolynomial
 
-from stewart_drake.errors import (
+from stewart_drake.base.errors import (
     FeasibilityWarning,
     InterferenceError,
     MotorLimitError,
     SimulationDivergedError,
 )
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.clearance import ClearanceModel, clearance_model, family, sample_indices
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.model.kinematics import X_HOME
-from stewart_drake.model.plant import (
+from stewart_drake.plant.clearance import ClearanceModel, clearance_model, family, sample_indices
+from stewart_drake.plant.plant import (
     assemble,
     assembled_positions,
     closed_chain_inverse_dynamics,
     make_plant,
 )
-from stewart_drake.simulation.plan import check_reference, make_plan
-from stewart_drake.simulation.scenario import SineReference, ToolDisturbance
-from stewart_drake.simulation.scenario_io import load_scenario, shipped_scenarios
-from stewart_drake.simulation.station import held_station, make_stewart_station
-from stewart_drake.simulation.trajectories import DrakeTrajectory, make_trajectory, paper_manoeuvre
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.references.trajectories import DrakeTrajectory, make_trajectory, paper_manoeuvre
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.robot.kinematics import X_HOME
+from stewart_drake.run.diagram import held_station, make_stewart_station
+from stewart_drake.run.plan import check_reference, make_plan
+from stewart_drake.run.scenario import SineReference, ToolDisturbance
+from stewart_drake.run.scenario_io import load_scenario, shipped_scenarios
+from stewart_drake.run.simulate import run_experiment
 
 # -- every scenario value reaches the plant ------------------------------------------------------
 
@@ -257,7 +257,7 @@ def _reposition(dx, move_s=0.3):
 def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
     """5 cm along X in 0.3 s: motor 2 is over its limit as the move starts (0.905 N m), motor 0
     needs 1.06 N m as it brakes; the servo gives 0.70, a reference may use 90 % of it."""
-    from stewart_drake.simulation.trajectories import validate
+    from stewart_drake.references.trajectories import validate
 
     scenario = load_scenario("paper_hardware", ["duration_s=0.7"])
     fast = _reposition([0, 0, 0, 0.05, 0, 0])
@@ -322,7 +322,7 @@ def test_rod_to_rod_clearance_equals_the_segment_distance_of_the_kinematics(rand
     configurations up to 0.3 mm long; the clearance margin (3 mm) covers that."""
     from scipy.optimize import minimize
 
-    from stewart_drake.model.parts import TUBE_GAP
+    from stewart_drake.robot.parts import TUBE_GAP
 
     g = StewartGeometry()
     model = ClearanceModel(g)
@@ -417,8 +417,8 @@ def _push_run(contact: bool):
 
 def _run_with_states(scenario):
     """(RunResult, logged plant states (N, nq + nv)) of a guarded run."""
-    from stewart_drake.simulation import guard as run_guard
-    from stewart_drake.studies.experiments import advance, build_simulator, collect_result
+    from stewart_drake.run.simulate import advance, build_simulator, collect_result
+    from stewart_drake.station import guard as run_guard
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a failed gain re-schedule

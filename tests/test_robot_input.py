@@ -17,21 +17,21 @@ import pytest
 
 pytest.importorskip("dynamixel_sdk")
 
-from stewart_drake.errors import BusError, InvalidConfigError, MissingExtraError  # noqa: E402
-from stewart_drake.interfaces import cli  # noqa: E402
-from stewart_drake.interfaces.cli import build_parser, main  # noqa: E402
-from stewart_drake.interfaces.robot import RobotRun, _drive, end_line, zero_counts_at  # noqa: E402
-from stewart_drake.model.kinematics import X_HOME  # noqa: E402
-from stewart_drake.simulation.hardware import driver  # noqa: E402
-from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
-from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
-from stewart_drake.simulation.hardware.plant_backend import (  # noqa: E402
+from stewart_drake.base.errors import BusError, InvalidConfigError, MissingExtraError  # noqa: E402
+from stewart_drake.cli import main as cli  # noqa: E402
+from stewart_drake.cli.main import build_parser, main  # noqa: E402
+from stewart_drake.live.emulator import BusEmulator  # noqa: E402
+from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     dynamixel_scenario,
 )
-from stewart_drake.simulation.scenario import DynamixelBusConfig, dump_scenario  # noqa: E402
-from stewart_drake.simulation.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
-from stewart_drake.studies.experiments import load_result  # noqa: E402
+from stewart_drake.live.session import RobotRun, _drive, end_line, zero_counts_at  # noqa: E402
+from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
+from stewart_drake.run.scenario import DynamixelBusConfig, dump_scenario  # noqa: E402
+from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
+from stewart_drake.run.simulate import load_result  # noqa: E402
+from stewart_drake.station.bus import driver  # noqa: E402
+from stewart_drake.station.bus import protocol as p  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
@@ -41,7 +41,7 @@ def _emulator(x0=X_REST):
     """The bus emulator in this process, the robot's plant behind it at a 2 ms step."""
     from pydrake.multibody.plant import MultibodyPlantConfig
 
-    from stewart_drake.simulation.scenario import Scenario
+    from stewart_drake.run.scenario import Scenario
 
     robot = Scenario(
         plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
@@ -78,13 +78,13 @@ def _kill_then(signum, original):
 
 
 def _in_read_run(monkeypatch, signum):
-    from stewart_drake.studies import experiments
+    from stewart_drake.run import simulate as experiments
 
     monkeypatch.setattr(experiments, "read_run", _kill_then(signum, experiments.read_run))
 
 
 def _in_yaml_dump(monkeypatch, signum):
-    from stewart_drake.simulation.diagram import StewartDiagram
+    from stewart_drake.run.diagram import StewartDiagram
 
     monkeypatch.setattr(
         StewartDiagram, "scenario_yaml", _kill_then(signum, StewartDiagram.scenario_yaml)
@@ -150,7 +150,7 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
 
 def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
     from stewart_drake.execution.runners import Interrupted
-    from stewart_drake.interfaces.robot import SessionSignals
+    from stewart_drake.live.session import SessionSignals
 
     def kill(signum):
         os.kill(os.getpid(), signum)
@@ -209,7 +209,7 @@ def test_the_end_line_gives_one_verdict_on_the_torque_off_after_a_bus_error():
     )
     bus = types.SimpleNamespace(torque_off=lambda: True, enable_torque=lambda: None)
     ended = RobotRun("", False, True)
-    from stewart_drake.interfaces.robot import SessionSignals
+    from stewart_drake.live.session import SessionSignals
 
     _drive(bus, simulator, 1.0, lambda line: None, "on", body, ended, SessionSignals())
     line = end_line(ended)
@@ -241,7 +241,7 @@ def test_non_finite_bus_limits_are_refused_in_one_line(setting, capsys, monkeypa
 
 
 def test_an_emulated_pose_is_checked_before_a_process_is_spawned(capsys, monkeypatch):
-    from stewart_drake.simulation.hardware import emulator_process
+    from stewart_drake.live import emulator_process
 
     spawn = emulator_process.EmulatorProcess.start
     monkeypatch.setattr(
@@ -259,7 +259,7 @@ def test_an_emulated_pose_is_checked_before_a_process_is_spawned(capsys, monkeyp
 
 
 def test_the_emulator_process_reports_its_failure_in_one_line(capfd):
-    from stewart_drake.simulation.hardware.emulator_process import EmulatorProcess
+    from stewart_drake.live.emulator_process import EmulatorProcess
 
     far = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5])  # out of the rods' reach
     with pytest.raises(BusError, match=r"did not start: UnreachablePoseError: leg") as caught:

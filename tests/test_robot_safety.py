@@ -1,5 +1,5 @@
 """Every way a session on the robot ends removes the torque, says why in one line and keeps the
-logs: runs of :func:`~stewart_drake.interfaces.robot.run_on_robot` against the bus emulator
+logs: runs of :func:`~stewart_drake.live.session.run_on_robot` against the bus emulator
 (a pseudo-terminal, the robot's Drake plant behind it at real time), each ended by one cause.
 
 The loop runs at 5 ms with generous timeouts: the emulator and the loop share this process and
@@ -18,19 +18,19 @@ from conftest import require_extra, wait_for
 
 require_extra("robot")
 
+from stewart_drake.base.errors import StartPoseError  # noqa: E402
 from stewart_drake.control.lqi import LqiDriver  # noqa: E402
-from stewart_drake.errors import StartPoseError  # noqa: E402
-from stewart_drake.interfaces.robot import end_line, run_on_robot  # noqa: E402
-from stewart_drake.model.kinematics import X_HOME  # noqa: E402
-from stewart_drake.simulation.hardware import protocol as p  # noqa: E402
-from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
-from stewart_drake.simulation.hardware.plant_backend import (  # noqa: E402
+from stewart_drake.live.emulator import BusEmulator  # noqa: E402
+from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     dynamixel_scenario,
 )
-from stewart_drake.simulation.scenario import DynamixelBusConfig, Scenario  # noqa: E402
-from stewart_drake.simulation.trajectories import NamedReference  # noqa: E402
-from stewart_drake.studies.experiments import load_result  # noqa: E402
+from stewart_drake.live.session import end_line, run_on_robot  # noqa: E402
+from stewart_drake.references.trajectories import NamedReference  # noqa: E402
+from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
+from stewart_drake.run.scenario import DynamixelBusConfig, Scenario  # noqa: E402
+from stewart_drake.run.simulate import load_result  # noqa: E402
+from stewart_drake.station.bus import protocol as p  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
@@ -225,7 +225,7 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     import subprocess
     import sys
 
-    from stewart_drake.simulation.scenario import dump_scenario
+    from stewart_drake.run.scenario import dump_scenario
 
     scenario = Scenario(controller=LqiDriver(omega_Q=0.01), control_period_s=0.01)
     scenario.log_period_s = 0.01
@@ -235,7 +235,7 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     )
     (tmp_path / "bus.yaml").write_text(dump_scenario(scenario))
     command = [
-        sys.executable, "-m", "stewart_drake.interfaces.cli", "robot", "home",
+        sys.executable, "-m", "stewart_drake.cli.main", "robot", "home",
         "--scenario", str(tmp_path / "bus.yaml"), "--emulate", "0,0,0,0,0,0.3",
         "--home-s", "0.5", "--hold", "120", "--loop-timeout", "2", "--out", str(tmp_path),
     ]  # fmt: skip
@@ -274,7 +274,7 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
 def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(tmp_path):
     from pydrake.geometry import Meshcat
 
-    from stewart_drake.interfaces.robot import teleop_on_robot
+    from stewart_drake.live.session import teleop_on_robot
 
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)

@@ -14,18 +14,18 @@ from conftest import require_extra
 
 require_extra("robot")
 
-from stewart_drake.errors import InvalidConfigError, StartPoseError  # noqa: E402
-from stewart_drake.interfaces.robot import (  # noqa: E402
+from stewart_drake.base.errors import InvalidConfigError, StartPoseError  # noqa: E402
+from stewart_drake.live.emulator import BusEmulator  # noqa: E402
+from stewart_drake.live.session import (  # noqa: E402
     HomingReference,
     LoopWatchdog,
     measure_pose,
     pose_verdict,
 )
-from stewart_drake.model.kinematics import X_HOME  # noqa: E402
-from stewart_drake.simulation.hardware.driver import DynamixelBus  # noqa: E402
-from stewart_drake.simulation.hardware.emulator import BusEmulator  # noqa: E402
-from stewart_drake.simulation.plan import make_plan  # noqa: E402
-from stewart_drake.simulation.trajectories import paper_manoeuvre  # noqa: E402
+from stewart_drake.references.trajectories import paper_manoeuvre  # noqa: E402
+from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
+from stewart_drake.run.plan import make_plan  # noqa: E402
+from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 
@@ -69,9 +69,9 @@ def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_rai
 
     from conftest import wait_for
 
-    from stewart_drake.errors import LoopStalledError
-    from stewart_drake.interfaces import robot
-    from stewart_drake.interfaces.robot import _kicker
+    from stewart_drake.base.errors import LoopStalledError
+    from stewart_drake.live import session as robot
+    from stewart_drake.live.session import _kicker
 
     now = [100.0]
     monkeypatch.setattr(robot, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
@@ -124,13 +124,13 @@ def test_the_bus_lock_makes_a_watchdogs_torque_off_wait_for_the_transfer_in_prog
 
 @pytest.fixture(scope="module")
 def dynamixel_plan():
-    from stewart_drake.simulation.hardware.plant_backend import dynamixel_scenario
+    from stewart_drake.live.plant_backend import dynamixel_scenario
 
     return make_plan(dynamixel_scenario(), with_reference=False)
 
 
 def test_the_measured_pose_is_the_plants_within_the_encoders_resolution(dynamixel_plan):
-    from stewart_drake.simulation.hardware.plant_backend import StationServos
+    from stewart_drake.live.plant_backend import StationServos
 
     x0 = X_HOME + np.array([0.03, -0.02, 0.01, 0.004, -0.003, 0.01])
     backend = StationServos(dynamixel_plan.scenario, x0=x0)
@@ -141,7 +141,7 @@ def test_the_measured_pose_is_the_plants_within_the_encoders_resolution(dynamixe
         finally:
             bus.close()
     # One count (2 pi / 4096 rad) on each crank moves the platform by at most |J^-1| counts.
-    from stewart_drake.model.kinematics import jacobian
+    from stewart_drake.robot.kinematics import jacobian
 
     count = 2 * math.pi / 4096
     bound = np.abs(np.linalg.inv(jacobian(dynamixel_plan.geometry, x0))).sum(axis=1) * count
@@ -168,7 +168,7 @@ def test_a_pose_outside_the_admissible_set_is_named(dynamixel_plan):
 
 def _angles(geometry, x):
     """The crank angles of pose x by the closed-form IK, unchecked (x may be outside a range)."""
-    from stewart_drake.model.kinematics import ik_unchecked
+    from stewart_drake.robot.kinematics import ik_unchecked
 
     theta, _ = ik_unchecked(geometry, x)
     assert np.all(np.isfinite(theta))
@@ -176,8 +176,8 @@ def _angles(geometry, x):
 
 
 def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
-    from stewart_drake.interfaces.robot import zero_counts_at
-    from stewart_drake.simulation.hardware.emulator import FirstOrderServos
+    from stewart_drake.live.emulator import FirstOrderServos
+    from stewart_drake.live.session import zero_counts_at
 
     q_held = np.radians([-3.8, -3.8, 10.0, -20.0, 0.0, 45.0])  # the jig's angles
     mounted = [2048, 1000, 3000, 2500, 100, 4000]

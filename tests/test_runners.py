@@ -15,7 +15,7 @@ import psutil
 import pytest
 from conftest import wait_for
 
-from stewart_drake.errors import JointLimitError, SimulationDivergedError
+from stewart_drake.base.errors import JointLimitError, SimulationDivergedError
 from stewart_drake.execution.runners import (
     DEFAULT_RECYCLE,
     Interrupted,
@@ -209,7 +209,7 @@ def test_workers_die_with_their_parent(tmp_path):
 
 
 def test_local_workers_are_recycled_only_where_drake_cannot_free_a_run():
-    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.base.errors import InvalidConfigError
     from stewart_drake.execution.runners import RayRunner, drake_frees_diagrams
 
     expected = None if drake_frees_diagrams() else DEFAULT_RECYCLE
@@ -223,7 +223,7 @@ def test_local_workers_are_recycled_only_where_drake_cannot_free_a_run():
 
 
 def test_make_runner_refuses_options_of_another_backend():
-    from stewart_drake.errors import InvalidConfigError
+    from stewart_drake.base.errors import InvalidConfigError
 
     assert isinstance(make_runner("serial"), SerialRunner)
     assert make_runner("processes", 3).n_workers == 3

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
-from stewart_drake.errors import InvalidConfigError, MissingFileError
-from stewart_drake.simulation.scenario import (
+from stewart_drake.base.errors import InvalidConfigError, MissingFileError
+from stewart_drake.run.scenario import (
     CsvReference,
     PdDriver,
     Robot,
     Scenario,
     dump_scenario,
 )
-from stewart_drake.simulation.scenario_io import apply_override, load_scenario, shipped_scenarios
+from stewart_drake.run.scenario_io import apply_override, load_scenario, shipped_scenarios
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -78,7 +78,7 @@ def test_a_yaml_file_that_does_not_fit_the_schema_names_the_field(tmp_path):
 
 def test_the_run_options_apply_in_place_and_validate(tmp_path):
     from stewart_drake.control.tuning import AnnTunerDriver, RatioTunerDriver
-    from stewart_drake.simulation.scenario_io import apply_run_options
+    from stewart_drake.run.scenario_io import apply_run_options
 
     csv = tmp_path / "ref.csv"
     t = np.linspace(0.0, 2.5, 26)
@@ -118,7 +118,7 @@ def test_the_run_options_apply_in_place_and_validate(tmp_path):
     ],
 )
 def test_bad_run_options_are_refused_by_name(options, message):
-    from stewart_drake.simulation.scenario_io import apply_run_options
+    from stewart_drake.run.scenario_io import apply_run_options
 
     with pytest.raises(InvalidConfigError, match=message):
         apply_run_options(load_scenario("paper_ideal"), **options)
@@ -158,7 +158,7 @@ def test_an_override_longer_than_a_scenario_file_is_refused():
 def test_the_expanded_size_counts_every_use_of_an_anchor(tmp_path):
     import yaml
 
-    from stewart_drake.simulation.scenario_io import _expanded_nodes
+    from stewart_drake.run.scenario_io import _expanded_nodes
 
     # m0: 1 + 10 x (key, value) = 21; each mI: 1 + "<<" + a list of two uses of mI-1; the root:
     # 1 + three keys + m0 + m1 + m2 = 1 + 3 + 21 + 45 + 93.

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import (
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.scenario import (
     Scenario,
 )
 

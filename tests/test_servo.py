@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.model.plant import add_stewart_plant
-from stewart_drake.model.servo import ServoModel
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.plant.plant import add_stewart_plant
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.robot.servo import ServoModel
 
 
 def test_the_defaults_are_the_docstring_s_derived_numbers():

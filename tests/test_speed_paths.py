@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from pydrake.systems.framework import DiagramBuilder
 
+from stewart_drake.base.errors import RiccatiSolveError
 from stewart_drake.control.lqi import (
     LqiController,
     LqiScales,
@@ -13,12 +14,11 @@ from stewart_drake.control.lqi import (
     lqi_gain,
     lqi_gain_warm,
 )
-from stewart_drake.errors import RiccatiSolveError
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.statics import feedforward_torques
-from stewart_drake.simulation.reference import add_reference_sources
-from stewart_drake.simulation.trajectories import paper_manoeuvre
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.robot.statics import feedforward_torques
+from stewart_drake.run.reference import add_reference_sources
 
 H = 1e-3
 

@@ -5,11 +5,11 @@ energy, the crank rates of motor_effort, the gravity feed-forward."""
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import assemble, make_plant
-from stewart_drake.model.servo import ServoModel
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.robot.servo import ServoModel
 
 
 def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
@@ -44,7 +44,7 @@ def test_platform_only_model_is_tens_of_percent_off_at_home(geometry):
 
 
 def test_gravity_feedforward_is_the_holding_torque(geometry, random_poses):
-    from stewart_drake.model.statics import feedforward_torques
+    from stewart_drake.robot.statics import feedforward_torques
 
     np.testing.assert_allclose(
         feedforward_torques(geometry, random_poses[:20]),

@@ -8,32 +8,32 @@ import pytest
 from pydrake.systems.framework import LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli.main import main
 from stewart_drake.control.contract import (
     CONTROLLER_REGISTRY,
     ControllerContext,
     check_controller,
     register_controller,
 )
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces.cli import main
-from stewart_drake.model import kinematics, statics
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import (
+from stewart_drake.references.trajectories import (
+    CubicSplineTrajectory,
+    as_trajectory,
+    paper_manoeuvre,
+)
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.run.diagram import held_station, make_stewart_diagram
+from stewart_drake.run.scenario import (
     CsvReference,
     PdDriver,
     Robot,
     Scenario,
     UserController,
 )
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.station import held_station, p_ETool
-from stewart_drake.simulation.trajectories import (
-    CubicSplineTrajectory,
-    as_trajectory,
-    paper_manoeuvre,
-)
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.station import p_ETool
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -311,12 +311,12 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
 
     code = (
         "import sys; sys.modules['torch'] = None\n"
-        "from stewart_drake.interfaces.cli import main\n"
-        "import stewart_drake.studies.evaluation, stewart_drake.studies.collection\n"
+        "from stewart_drake.cli.main import main\n"
+        "import stewart_drake.evaluation.evaluation, stewart_drake.tuner.collection\n"
         f"assert main(['run', '--tuner', 'ann', '--duration', '0.1', '--no-progress', "
         f"'--out', {str(tmp_path)!r}]) == 0\n"
         # the data are checked first: pretend the folder holds a collection
-        "stewart_drake.studies.collection.load_records = lambda path: [{}, {}]\n"
+        "stewart_drake.tuner.collection.load_records = lambda path: [{}, {}]\n"
         f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n"
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
@@ -332,7 +332,7 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
 
 def test_the_paper_tuner_runs_with_the_paper_s_gain_switching():
     from stewart_drake.control.tuning import AnnTunerDriver
-    from stewart_drake.simulation.scenario import use_paper_tuner
+    from stewart_drake.run.scenario import use_paper_tuner
 
     scenario = load_scenario("paper_hardware")
     assert scenario.controller.gain_transfer == "integral"  # ours, the default

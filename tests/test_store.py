@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from stewart_drake.errors import ResultsMismatchError
+from stewart_drake.base.errors import ResultsMismatchError
 
 
 def test_a_folder_of_another_command_or_an_older_layout_is_refused_by_name(tmp_path):

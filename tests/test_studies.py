@@ -15,14 +15,14 @@ import psutil
 import pytest
 from conftest import wait_for
 
-from stewart_drake.errors import IncompleteResultsError, ResultsMismatchError
+from stewart_drake.base.errors import IncompleteResultsError, ResultsMismatchError
+from stewart_drake.cli.main import main
+from stewart_drake.evaluation import evaluation
 from stewart_drake.execution.runners import Interrupted, SerialRunner
-from stewart_drake.interfaces.cli import main
-from stewart_drake.studies import evaluation
-from stewart_drake.studies.collection import collect, load_records
+from stewart_drake.tuner.collection import collect, load_records
 
 REPO = Path(__file__).resolve().parent.parent
-CLI = [sys.executable, "-m", "stewart_drake.interfaces.cli"]
+CLI = [sys.executable, "-m", "stewart_drake.cli.main"]
 
 
 class StopAfter(SerialRunner):

@@ -4,11 +4,11 @@ rates and accelerations the derivatives of the pose, bad requests refused by nam
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model import limits, statics
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.simulation.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
-from stewart_drake.studies import tuner_study as ts
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.robot import limits, statics
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.tuner import tuner_study as ts
+from stewart_drake.tuner.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 
 
 @pytest.mark.parametrize("family", FAMILIES)

@@ -14,13 +14,13 @@ from meshcat_click import click, send_click
 from meshcat_html import read_meshcat_commands
 from pydrake.geometry import Meshcat
 
-from stewart_drake.interfaces.cli import main
-from stewart_drake.interfaces.teleop import build_teleop, run_teleop, torque_margins
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.statics import holding_torques
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.simulation.reference import ReferenceFilterLimits, admissible_poses
-from stewart_drake.simulation.scenario_io import load_scenario
+from stewart_drake.cli.main import main
+from stewart_drake.live.teleop import build_teleop, run_teleop, torque_margins
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.robot.statics import holding_torques
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.reference import ReferenceFilterLimits, admissible_poses
+from stewart_drake.run.scenario_io import load_scenario
 
 _TOOL = Path(__file__).resolve().parent.parent / "tools" / "chromium_cdp.py"
 _spec = importlib.util.spec_from_file_location("chromium_cdp", _TOOL)
@@ -159,7 +159,7 @@ def test_teleop_ended_by_a_signal_says_so_and_exits_with_its_code(
     capsys, tmp_path, monkeypatch, signum
 ):
     from stewart_drake.execution.runners import Interrupted
-    from stewart_drake.simulation import guard
+    from stewart_drake.station import guard
 
     advance = guard.advance
     calls = []
@@ -179,7 +179,7 @@ def test_teleop_ended_by_a_signal_says_so_and_exits_with_its_code(
 
 
 def test_slider_limits_reach_the_farthest_admissible_pose_along_each_axis():
-    from stewart_drake.interfaces.teleop import SLIDER_RANGE, slider_limits
+    from stewart_drake.live.teleop import SLIDER_RANGE, slider_limits
 
     x0 = np.array(X_HOME)
 
@@ -220,7 +220,7 @@ def test_teleop_x_slider_spans_the_workspace_and_gauges_say_reading():
 
 
 def test_the_reference_is_drawn_as_a_translucent_ghost_at_x_d():
-    from stewart_drake.interfaces.visualize import GHOST_PATH, ghost_transform
+    from stewart_drake.viz.visualize import GHOST_PATH, ghost_transform
 
     meshcat = Meshcat()
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)
@@ -241,7 +241,7 @@ def test_the_reference_is_drawn_as_a_translucent_ghost_at_x_d():
 
 
 def test_the_pause_button_stops_the_simulated_time_and_resume_goes_on():
-    from stewart_drake.interfaces.teleop import PAUSE_BUTTON
+    from stewart_drake.live.teleop import PAUSE_BUTTON
 
     meshcat = Meshcat()
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=0.0)

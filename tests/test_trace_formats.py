@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
-import stewart_drake.checks
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.interfaces.cli import build_parser, main
-from stewart_drake.simulation.traces import (
+import stewart_drake.base.checks
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli.main import build_parser, main
+from stewart_drake.references.traces import (
     CENTRE_MODES,
     MAX_SAMPLE_STEP_S,
     SKIP_COLUMN,
@@ -94,7 +94,7 @@ def test_ms_declared_as_s_is_refused_with_the_likely_unit_before_any_memory_chec
     def no_memory_check(*args, **kwargs):
         raise AssertionError("the memory check ran before the unit was checked")
 
-    monkeypatch.setattr(stewart_drake.checks, "check_memory", no_memory_check)
+    monkeypatch.setattr(stewart_drake.base.checks, "check_memory", no_memory_check)
     with pytest.raises(InvalidConfigError) as err:
         load_trace(path, columns="-,t [s],X [mm],Y [mm],Z [mm]")
     text = str(err.value)
@@ -155,7 +155,7 @@ def test_check_reads_the_marker_export_with_the_options(tmp_path, capsys):
 
 
 def test_fidelity_of_empty_logs_is_refused_in_words():
-    from stewart_drake.studies.fidelity import fidelity
+    from stewart_drake.organ_motion.fidelity import fidelity
 
     with pytest.raises(InvalidConfigError, match=r"fewer than 10 samples \(0\)"):
         fidelity(np.zeros(0), np.zeros((0, 6)), np.zeros((0, 6)))
@@ -164,7 +164,7 @@ def test_fidelity_of_empty_logs_is_refused_in_words():
 
 
 def test_huge_relative_harmonics_are_refused_without_numpy_warnings(tmp_path, capsys):
-    from stewart_drake.simulation.organ_motion import Heartbeat
+    from stewart_drake.references.organ_motion import Heartbeat
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # an overflow warning would raise here

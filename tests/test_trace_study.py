@@ -2,7 +2,7 @@
 
 import pytest
 
-from stewart_drake.studies import trace_study
+from stewart_drake.organ_motion import trace_study
 
 
 def _row(label, none, learned, robot=trace_study.ROBOTS[0][0]):

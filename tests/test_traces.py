@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from conftest import write_trace
 
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.simulation.traces import TraceTrajectory, load_trace
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.references.traces import TraceTrajectory, load_trace
+from stewart_drake.robot.geometry import X_HOME
 
 
 def test_a_30_hz_trace_in_mm_and_deg_with_a_gap_becomes_a_c2_reference(tmp_path):
@@ -77,8 +77,8 @@ def test_a_gap_longer_than_allowed_is_refused_with_its_time(tmp_path):
 
 
 def test_a_trace_shorter_than_two_resampling_steps_is_refused(tmp_path):
-    from stewart_drake.errors import InvalidConfigError as Refused
-    from stewart_drake.simulation.traces import load_trace as load
+    from stewart_drake.base.errors import InvalidConfigError as Refused
+    from stewart_drake.references.traces import load_trace as load
 
     path = tmp_path / "tiny.csv"
     path.write_text("t [s],SI [mm]\n0,0\n0.001,1\n0.002,0\n0.003,1\n")

@@ -8,9 +8,9 @@ from conftest import require_extra
 require_extra("train")
 import torch  # noqa: E402
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.tuner import load_tuner
-from stewart_drake.errors import InvalidConfigError
-from stewart_drake.studies.training import (
+from stewart_drake.tuner.training import (
     Dataset,
     build_dataset,
     r2_scores,

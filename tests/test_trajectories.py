@@ -4,18 +4,18 @@ one time at a time is wrapped."""
 import numpy as np
 import pytest
 
-from stewart_drake.errors import InvalidConfigError, MissingFileError
-from stewart_drake.model import limits
-from stewart_drake.simulation.scenario import (
-    Scenario,
-)
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.trajectories import (
+from stewart_drake.base.errors import InvalidConfigError, MissingFileError
+from stewart_drake.references.trajectories import (
     ScalarEvaluate,
     as_trajectory,
     paper_manoeuvre,
 )
-from stewart_drake.studies.experiments import run_experiment
+from stewart_drake.robot import limits
+from stewart_drake.run.scenario import (
+    Scenario,
+)
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
 
 
 def test_bad_csv_files_name_the_line(tmp_path):
@@ -59,7 +59,7 @@ def test_the_spline_of_samples_is_drake_s_c2_spline_held_at_its_ends():
     acceleration agree, and outside the samples both hold the end's values."""
     from pydrake.trajectories import PiecewisePolynomial
 
-    from stewart_drake.simulation.trajectories import CubicSplineTrajectory
+    from stewart_drake.references.trajectories import CubicSplineTrajectory
 
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(0.01, 0.2, 40)) - 0.01
@@ -97,8 +97,8 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
     with the run: 997-sample stretches over the paper's first 4 s (five stretches, the last
     short), with motors too weak for it (every refusal reported), give every figure, time, leg
     and motor of the check in one go, and the same sample-by-sample series."""
-    from stewart_drake.simulation import trajectories
-    from stewart_drake.simulation.plan import check_reference
+    from stewart_drake.references import trajectories
+    from stewart_drake.run.plan import check_reference
 
     scenario = load_scenario(
         "paper_hardware", ["hardware.motors.peak_torque_Nm=0.4", "duration_s=4"]
@@ -127,10 +127,10 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
 
 
 def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
-    from stewart_drake.errors import StewartError
-    from stewart_drake.simulation import trajectories
-    from stewart_drake.simulation.plan import check_reference
-    from stewart_drake.simulation.trajectories import CubicSplineTrajectory
+    from stewart_drake.base.errors import StewartError
+    from stewart_drake.references import trajectories
+    from stewart_drake.references.trajectories import CubicSplineTrajectory
+    from stewart_drake.run.plan import check_reference
 
     t = np.linspace(0.0, 10.0, 101)
     poses = np.tile([0.0, 0.0, 0.0, 0.0, 0.0, 0.30], (101, 1))

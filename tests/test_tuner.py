@@ -9,9 +9,9 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control import tuner as tuner_module
 from stewart_drake.control.tuner import AnnTuner, TunerModel, load_tuner, save_tuner
-from stewart_drake.errors import InvalidConfigError
 
 
 def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:

@@ -8,13 +8,13 @@ import pytest
 from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.execution.runners import SerialRunner
-from stewart_drake.model.geometry import StewartGeometry
-from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.simulation.scenario_io import load_scenario
-from stewart_drake.simulation.trajectories import data_collection_trajectory, validate
-from stewart_drake.studies.collection import collect, load_records
-from stewart_drake.studies.experiments import run_experiment
-from stewart_drake.studies.training import build_dataset
+from stewart_drake.references.trajectories import data_collection_trajectory, validate
+from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.simulate import run_experiment
+from stewart_drake.tuner.collection import collect, load_records
+from stewart_drake.tuner.training import build_dataset
 
 
 def test_data_trajectory_is_deterministic_reachable_and_in_band():
@@ -105,7 +105,7 @@ def test_collect_writes_nine_runs_that_build_both_datasets(tmp_path):
 
 
 def test_train_without_data_says_what_to_run(tmp_path, capsys):
-    from stewart_drake.interfaces.cli import main
+    from stewart_drake.cli.main import main
 
     assert main(["train", "--data", str(tmp_path / "none")]) == 2
     assert "stewart-drake collect" in capsys.readouterr().err
@@ -114,7 +114,7 @@ def test_train_without_data_says_what_to_run(tmp_path, capsys):
 def test_collect_keeps_runs_that_lose_the_platform_as_such(tmp_path, capsys):
     """Motors too weak to hold the platform (0.15 N m < the 0.285 N m gravity needs at home):
     every run is lost; the collection still finishes and says so, and train refuses by name."""
-    from stewart_drake.interfaces.cli import main
+    from stewart_drake.cli.main import main
 
     assert (
         main(

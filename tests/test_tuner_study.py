@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from conftest import needs_torch
 
+from stewart_drake.base.errors import InvalidConfigError, MissingFileError
 from stewart_drake.control.tuner import (
     N_RATIO_INPUTS,
     RatioTunerModel,
@@ -15,12 +16,11 @@ from stewart_drake.control.tuner import (
     save_ratio_tuner,
 )
 from stewart_drake.control.tuning import RatioTunerDriver, WeightSchedule
-from stewart_drake.errors import InvalidConfigError, MissingFileError
 from stewart_drake.execution.runners import SerialRunner
-from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.studies import tuner_study as ts
-from stewart_drake.studies.metrics import window_means
-from stewart_drake.studies.tuner_report import plot_tuner_tradeoff, render_tuner_markdown
+from stewart_drake.run.metrics import window_means
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.tuner import tuner_study as ts
+from stewart_drake.tuner.tuner_report import plot_tuner_tradeoff, render_tuner_markdown
 
 # -- tasks -----------------------------------------------------------------------------------------
 
@@ -228,10 +228,10 @@ def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
 def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     """`run --tuner ratio` builds the RatioTuner from the shipped lambda = 0.1 file, and the
     weights it uses move away from the initial [1, 1]."""
+    from stewart_drake.cli.main import build_parser, main, run_scenario
     from stewart_drake.control.tuner import DEFAULT_RATIO_TUNER_PATH, RatioTuner
-    from stewart_drake.interfaces.cli import build_parser, main, run_scenario
-    from stewart_drake.simulation.diagram import make_stewart_diagram
-    from stewart_drake.studies.experiments import load_result
+    from stewart_drake.run.diagram import make_stewart_diagram
+    from stewart_drake.run.simulate import load_result
 
     args = build_parser().parse_args(["run", "--tuner", "ratio", "--duration", "0.3"])
     sd = make_stewart_diagram(run_scenario(args))

@@ -4,12 +4,12 @@ what drives the LQI's omega into the Diagram, read back from the built Diagram."
 import numpy as np
 import pytest
 
+from stewart_drake.base.errors import InvalidConfigError, MissingFileError
 from stewart_drake.control.lqi import LqiDriver
 from stewart_drake.control.pd import PdDriver
 from stewart_drake.control.tuning import AnnTunerDriver, RatioTunerDriver, WeightSchedule
-from stewart_drake.errors import InvalidConfigError, MissingFileError
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import Scenario
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.scenario import Scenario
 
 
 @pytest.mark.parametrize("tuner", [AnnTunerDriver(), RatioTunerDriver(), WeightSchedule()])
@@ -55,7 +55,7 @@ def test_a_weight_schedule_drives_omega_held_from_each_time():
     ],
 )
 def test_a_network_tuner_adds_its_features_and_logs_them_at_its_period(tuner, name):
-    from stewart_drake.studies.experiments import run_experiment
+    from stewart_drake.run.simulate import run_experiment
 
     scenario = Scenario(duration_s=0.2, tuner=tuner)
     sd = make_stewart_diagram(scenario)

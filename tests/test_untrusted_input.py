@@ -23,18 +23,18 @@ import numpy as np
 import pytest
 from conftest import install_plugin, run_within
 
-from stewart_drake.control import contract, tuner
-from stewart_drake.errors import CorruptFileError, FolderInUseError, InvalidConfigError
-from stewart_drake.fileio import (
+from stewart_drake.base.errors import CorruptFileError, FolderInUseError, InvalidConfigError
+from stewart_drake.base.fileio import (
     atomic_write,
     check_replaceable,
     read_checked,
     remove_stale_temporaries,
 )
-from stewart_drake.interfaces import cli
-from stewart_drake.simulation.scenario import Scenario, UserController
-from stewart_drake.simulation.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
-from stewart_drake.simulation.trajectories import load_csv_trajectory
+from stewart_drake.cli import main as cli
+from stewart_drake.control import contract, tuner
+from stewart_drake.references.trajectories import load_csv_trajectory
+from stewart_drake.run.scenario import Scenario, UserController
+from stewart_drake.run.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 HEADER = "t,phi,theta,psi,X,Y,Z\n"
@@ -66,7 +66,7 @@ def test_a_scenario_resolves_only_registered_names_and_imports_nothing(tmp_path,
         r"scenario never imports code",
     ):
         contract.resolve_controller(scenario.controller.factory)
-    from stewart_drake.simulation.diagram import make_stewart_diagram
+    from stewart_drake.run.diagram import make_stewart_diagram
 
     with pytest.raises(InvalidConfigError, match=r"registered: none"):
         make_stewart_diagram(scenario)
@@ -222,7 +222,7 @@ def test_drake_config_values_are_checked_naming_the_field(override, message):
 def test_the_real_time_rates_that_are_kept_still_run(monkeypatch):
     for rate in (0.0, 0.01, 1.0, 1e6):
         load_scenario("paper_ideal", [f"simulator.target_realtime_rate={rate}"])
-    from stewart_drake.studies.experiments import build_simulator, run_experiment
+    from stewart_drake.run.simulate import build_simulator, run_experiment
 
     slow = load_scenario("paper_ideal", ["simulator.target_realtime_rate=0.5", "duration_s=0.1"])
     _, simulator = build_simulator(slow)
@@ -302,7 +302,7 @@ def test_sigterm_and_sighup_interrupt_any_command_in_process(capsys, monkeypatch
     import signal
 
     from stewart_drake.execution.runners import Interrupted
-    from stewart_drake.studies import experiments
+    from stewart_drake.run import simulate as experiments
 
     def mine(signum, frame):
         pass
@@ -417,15 +417,15 @@ def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
 def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed(
     tmp_path, capsys, monkeypatch
 ):
-    from stewart_drake import checks
-    from stewart_drake.simulation import trajectories
-    from stewart_drake.studies.experiments import run_memory_bytes
+    from stewart_drake.base import checks
+    from stewart_drake.references import trajectories
+    from stewart_drake.run.simulate import run_memory_bytes
 
     path = tmp_path / "long.csv"
     with open(path, "w") as f:
         f.write(HEADER)
         f.write("0,0,0,0,0,0,0.3\n" * 2_000_000)  # 32 MB, 2e6 rows
-    from stewart_drake.simulation.scenario import CsvReference
+    from stewart_drake.run.scenario import CsvReference
 
     base = run_memory_bytes(Scenario(duration_s=0.1))
     scenario = Scenario(duration_s=0.1, reference=CsvReference(str(path)))
@@ -493,8 +493,8 @@ def _store(tmp_path, study="evaluate"):
 
 
 def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
-    from stewart_drake.studies.evaluation import load_row
-    from stewart_drake.studies.evaluation_grid import case_id, make_case
+    from stewart_drake.evaluation.evaluation import load_row
+    from stewart_drake.evaluation.evaluation_grid import case_id, make_case
 
     store = _store(tmp_path)
     case = make_case("pd", "step_Z", duration_s=2.5)
@@ -520,9 +520,9 @@ def test_a_damaged_evaluation_row_is_a_corrupt_file(tmp_path):
 def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
     """Case 9: the entry of A names B's row; with B's entry kept (two jobs, one file) the
     manifest is refused; with B's entry gone, the row says it is B's."""
+    from stewart_drake.evaluation.evaluation import load_row
+    from stewart_drake.evaluation.evaluation_grid import case_id, make_case
     from stewart_drake.execution.store import MANIFEST, read_manifest
-    from stewart_drake.studies.evaluation import load_row
-    from stewart_drake.studies.evaluation_grid import case_id, make_case
 
     store = _store(tmp_path)
     a, b = make_case("pd", "helix", duration_s=4.0), make_case("lqi_1_1", "helix", duration_s=4.0)
@@ -565,7 +565,7 @@ def test_a_manifest_entry_pointing_at_another_case_s_row_is_refused(tmp_path):
 def test_a_collection_whose_manifest_swaps_two_runs_is_refused(tmp_path):
     from stewart_drake.execution.runners import SerialRunner
     from stewart_drake.execution.store import MANIFEST
-    from stewart_drake.studies.collection import collect, load_records
+    from stewart_drake.tuner.collection import collect, load_records
 
     out = tmp_path / "collect"
     collect(out, duration_s=0.05, runner=SerialRunner(), progress=False)
@@ -583,7 +583,7 @@ def test_a_collection_whose_manifest_swaps_two_runs_is_refused(tmp_path):
 
 
 def test_a_truncated_tuner_study_run_is_a_corrupt_file(tmp_path):
-    from stewart_drake.studies.tuner_study import load_run
+    from stewart_drake.tuner.tuner_study import load_run
 
     arrays = {
         "e2": np.float64(1.0),
@@ -735,7 +735,7 @@ def test_read_checked_bounds_every_file_it_reads(tmp_path):
 
 def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specials):
     from stewart_drake.execution.store import read_manifest
-    from stewart_drake.studies.experiments import load_result
+    from stewart_drake.run.simulate import load_result
 
     loaders = [
         ("reference CSV", load_csv_trajectory),
@@ -839,8 +839,8 @@ def test_anchors_and_merge_keys_are_not_duplicates(tmp_path):
 
 
 def test_the_smallest_workspace_sweep_has_finite_extents():
-    from stewart_drake.model.geometry import StewartGeometry
-    from stewart_drake.studies.workspace import workspace_summary
+    from stewart_drake.analysis.workspace import workspace_summary
+    from stewart_drake.robot.geometry import StewartGeometry
 
     s = workspace_summary(StewartGeometry(), 3, jobs=1)
     assert np.isfinite(s["extent_xyz_m"]).all() and np.isfinite(s["extent_rpy_rad"]).all()
@@ -849,7 +849,7 @@ def test_the_smallest_workspace_sweep_has_finite_extents():
 
 
 def test_a_full_disk_during_run_names_the_file_and_keeps_the_figures(capsys, tmp_path, monkeypatch):
-    from stewart_drake import fileio
+    from stewart_drake.base import fileio
 
     def full(f, **arrays):
         f.write(b"PK\x03\x04")

@@ -6,18 +6,19 @@ import numpy as np
 import pytest
 from pydrake.systems.analysis import Simulator
 
-from stewart_drake.control import lqi as lqi
-from stewart_drake.control.lqi import LqiController, LqiDiagram, error_model, lqi_gain
-from stewart_drake.errors import (
+from stewart_drake.base.errors import (
     InvalidConfigError,
     RiccatiSolveError,
     SingularPoseError,
 )
-from stewart_drake.model.geometry import X_HOME, StewartGeometry
-from stewart_drake.model.statics import holding_torques
-from stewart_drake.simulation.guard import GuardConfig
-from stewart_drake.simulation.scenario import LqiDriver, Scenario
-from stewart_drake.studies.experiments import format_metrics, run_experiment
+from stewart_drake.control import lqi as lqi
+from stewart_drake.control.lqi import LqiController, LqiDiagram, error_model, lqi_gain
+from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.robot.statics import holding_torques
+from stewart_drake.run.metrics import format_metrics
+from stewart_drake.run.scenario import LqiDriver, Scenario
+from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.guard import GuardConfig
 
 # -- the controller: omega input and Riccati failures ---------------------------------------------
 
@@ -113,7 +114,7 @@ def test_no_stabilizing_solution_is_a_riccati_error():
 
 
 def test_a_singular_input_matrix_is_a_typed_error(monkeypatch):
-    from stewart_drake.model import statics
+    from stewart_drake.robot import statics
 
     monkeypatch.setattr(statics, "task_inertia", lambda g, x, theta=None: np.zeros((6, 6)))
     with pytest.raises(SingularPoseError, match="B_c = inf is not finite"):

@@ -8,17 +8,17 @@ import pytest
 from meshcat_html import read_meshcat_commands
 from pydrake.math import RollPitchYaw
 
-from stewart_drake.interfaces import visualize
-from stewart_drake.interfaces.cli import main
-from stewart_drake.simulation.diagram import make_stewart_diagram
-from stewart_drake.simulation.scenario import Scenario
-from stewart_drake.simulation.trajectories import paper_manoeuvre
+from stewart_drake.cli.main import main
+from stewart_drake.references.trajectories import paper_manoeuvre
+from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.viz import visualize
 
 #: The committed pictures (``stewart-drake diagrams`` from the repository's root rewrites them).
 DIAGRAMS = Path(__file__).resolve().parent.parent / "diagrams"
-from stewart_drake.errors import InvalidConfigError, RenderToolMissingError
-from stewart_drake.simulation.plan import make_plan
-from stewart_drake.studies.experiments import load_result
+from stewart_drake.base.errors import InvalidConfigError, RenderToolMissingError
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.simulate import load_result
 
 DURATION = 0.3
 
@@ -79,7 +79,7 @@ def test_replay_html_is_standalone_and_small(replay):
 
 
 def test_replay_shows_only_the_illustration_geometry(replay):
-    from stewart_drake.model.parts import robot_parts
+    from stewart_drake.robot.parts import robot_parts
 
     objects = sorted(
         c["path"].split("rotary_stewart/", 1)[1]
@@ -113,9 +113,9 @@ def test_replay_marks_the_parts_that_touch(tmp_path):
     while the parts are closer than the margin, red once they touch), between the parts."""
     from pydrake.geometry import Meshcat
 
-    from stewart_drake.model.geometry import StewartGeometry
-    from stewart_drake.model.kinematics import X_HOME
-    from stewart_drake.model.plant import assembled_positions, make_plant
+    from stewart_drake.plant.plant import assembled_positions, make_plant
+    from stewart_drake.robot.geometry import StewartGeometry
+    from stewart_drake.robot.kinematics import X_HOME
 
     overlap = np.array([0.2102, 0.2411, -0.2047, -0.0222, 0.0979, 0.2157])
     t = np.linspace(0.0, 1.0, 31)
@@ -239,9 +239,9 @@ def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
 ):
     """The HTML replay advances through the guard, and the saved file
     explains the divergence: the whole scenario (it loads back equal) and the torque applied."""
-    from stewart_drake.errors import SimulationDivergedError
-    from stewart_drake.simulation.guard import GuardConfig
-    from stewart_drake.simulation.scenario import PdDriver, _scenario_from_yaml, dump_scenario
+    from stewart_drake.base.errors import SimulationDivergedError
+    from stewart_drake.run.scenario import PdDriver, _scenario_from_yaml, dump_scenario
+    from stewart_drake.station.guard import GuardConfig
 
     feedforward_fault(lambda T_ff: np.full(6, np.inf))
     scenario = Scenario(

@@ -8,13 +8,13 @@ from conftest import random_reachable_poses
 from pydrake.multibody.tree import JacobianWrtVariable
 from test_plant import _hold
 
-from stewart_drake import errors
-from stewart_drake.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
-from stewart_drake.model import kinematics, limits, statics
-from stewart_drake.model.geometry import X_HOME
-from stewart_drake.model.plant import assemble, make_plant
-from stewart_drake.simulation import trajectories
-from stewart_drake.studies import workspace
+from stewart_drake.analysis import workspace
+from stewart_drake.base import errors
+from stewart_drake.base.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
+from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.references import trajectories
+from stewart_drake.robot import kinematics, limits, statics
+from stewart_drake.robot.geometry import X_HOME
 
 
 def _paper(n=4001, duration=10.0, scale=1.0):
@@ -396,8 +396,8 @@ def test_plant_stays_still_with_holding_torques_and_not_with_one_percent_less(ge
 def hardware_plan():
     from pathlib import Path
 
-    from stewart_drake.simulation.plan import make_plan
-    from stewart_drake.simulation.scenario_io import load_scenario
+    from stewart_drake.run.plan import make_plan
+    from stewart_drake.run.scenario_io import load_scenario
 
     scenario = load_scenario(Path(__file__).parents[1] / "scenarios" / "paper_hardware.yaml")
     plan = make_plan(scenario, with_reference=False)
@@ -464,8 +464,8 @@ def test_one_admissible_set_for_the_map_teleop_and_check(hardware_plan, random_p
     """The map's ``admissible`` flag, teleop's boundary (``admissible_poses``) and ``check``'s
     verdict on a pose held still (the validator's limits and singularity measures, the holding
     torque against the reference's share, the clearance) agree pose by pose."""
-    from stewart_drake.model.clearance import clearance_model
-    from stewart_drake.simulation.reference import admissible_poses
+    from stewart_drake.plant.clearance import clearance_model
+    from stewart_drake.run.reference import admissible_poses
 
     geometry, motors = hardware_plan.geometry, hardware_plan.motor_limits
     rng = np.random.default_rng(5)

@@ -24,7 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from stewart_drake.interfaces.visualize import find_chromium
+from stewart_drake.viz.visualize import find_chromium
 
 FLAGS = (
     "--headless",

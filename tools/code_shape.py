@@ -16,7 +16,7 @@ from pathlib import Path
 def choice_names() -> set:
     """The class names of the scenario's tagged choices (controllers, references, tuners, the
     learner), read from the scenario's unions: isinstance tests on them dispatch on a variant."""
-    from stewart_drake.simulation.scenario import choice_classes
+    from stewart_drake.run.scenario import choice_classes
 
     return {kind.__name__ for kinds in choice_classes().values() for kind in kinds}
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from stewart_drake.interfaces.visualize import find_chromium
+from stewart_drake.viz.visualize import find_chromium
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -41,7 +41,7 @@ def screenshot(
         RenderToolMissingError: no Chromium on PATH.
         RuntimeError: Chromium wrote no PNG (its stderr tail is in the message).
     """
-    from stewart_drake.errors import RenderToolMissingError
+    from stewart_drake.base.errors import RenderToolMissingError
 
     exe = chromium or find_chromium()
     if exe is None:
@@ -111,8 +111,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         html = args.html
         if html is None:
-            from stewart_drake.interfaces.visualize import record_html
-            from stewart_drake.simulation.scenario import Scenario
+            from stewart_drake.run.scenario import Scenario
+            from stewart_drake.viz.visualize import record_html
 
             t0 = time.perf_counter()
             _, html = record_html(Scenario(duration_s=args.duration), Path(tmp) / "replay.html")

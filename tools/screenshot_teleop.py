@@ -18,8 +18,8 @@ from pathlib import Path
 import chromium_cdp  # tools/, beside this script (on sys.path when run)
 from pydrake.geometry import Meshcat
 
-from stewart_drake.interfaces.teleop import build_teleop, run_teleop
-from stewart_drake.simulation.scenario_io import load_scenario
+from stewart_drake.live.teleop import build_teleop, run_teleop
+from stewart_drake.run.scenario_io import load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -1,2 +1,5 @@
-"""Controllers and their helpers as Drake LeafSystems: the LQI of paper section III, a crank PD
-baseline, the density features and the ANN tuner (numpy inference). Imports only the model."""
+"""Controllers as Drake LeafSystems and what they need: the controller contract
+(:mod:`.contract`), the LQI of paper section III with its compiled control step, the crank PD
+baseline, the pose estimator, the density features, the tuners of the LQI's weights and the
+learners of a feed-forward correction, and the linear model of the loop. Imports base, robot and
+plant."""

@@ -3,7 +3,7 @@
 A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the ports, as
 :class:`~stewart_drake.control.lqi.LqiDiagram` does) made by a **factory**
 ``factory(context) -> System`` that receives a :class:`ControllerContext`.
-:func:`~stewart_drake.simulation.diagram.make_stewart_diagram` connects its ports **by name**;
+:func:`~stewart_drake.run.diagram.make_stewart_diagram` connects its ports **by name**;
 only ``x_d`` and ``T`` are required, every other port is connected when the controller declares
 it.
 
@@ -48,7 +48,7 @@ Output ports
 When the scenario learns from every cycle (``learning``), the ``x_d`` a controller reads is the
 reference plus the correction of the
 :class:`~stewart_drake.control.ilc.IterativeLearningController` (wired by
-:mod:`~stewart_drake.simulation.learning`); nothing else changes for the controller.
+:mod:`~stewart_drake.run.learning`); nothing else changes for the controller.
 
 Sampling: a controller samples with a periodic discrete update of period
 ``context.period_s`` and offset ``context.offset_s`` = half a plant step. A discrete plant updated
@@ -75,9 +75,9 @@ from typing import Any, ClassVar, Self
 import numpy as np
 from pydrake.systems.framework import Diagram, LeafSystem
 
-from ..checks import as_number
-from ..errors import InvalidConfigError
-from ..model.geometry import StewartGeometry
+from ..base.checks import as_number
+from ..base.errors import InvalidConfigError
+from ..robot.geometry import StewartGeometry
 
 #: Ports the Diagram knows how to connect, with their sizes (``status`` has any size).
 INPUT_PORTS = {
@@ -110,7 +110,7 @@ class ControllerContext:
 
     Attributes:
         geometry: the robot the controller believes in
-            (:class:`~stewart_drake.model.geometry.StewartGeometry`; a payload it does not know
+            (:class:`~stewart_drake.robot.geometry.StewartGeometry`; a payload it does not know
             is not in it).
         period_s: control period h, s.
         offset_s: sample offset within the period, s (half a plant step; see the module

@@ -3,7 +3,7 @@ can know (controller side of the station's ``motor_angle`` port).
 
 Forward kinematics by Newton's method on the closed-form IK (the Jacobian is analytic), warm
 started from the previous estimate advanced by the previous rate, with the branch guard of
-:func:`~stewart_drake.model.kinematics.fk_unchecked` (a step may not change the sign of det J:
+:func:`~stewart_drake.robot.kinematics.fk_unchecked` (a step may not change the sign of det J:
 it would land in another assembly mode with the same motor angles). The rate is the backward
 difference of the estimates, low-passed at ``rate_cutoff_hz``.
 
@@ -26,8 +26,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_array, as_number
-from ..model.kinematics import (
+from ..base.checks import as_array, as_number
+from ..robot.kinematics import (
     X_HOME,
     ik_jacobian,
     ik_single,

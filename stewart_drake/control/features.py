@@ -24,8 +24,8 @@ import math
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_array, as_number
-from ..errors import InvalidConfigError, SimulationDivergedError
+from ..base.checks import as_array, as_number
+from ..base.errors import InvalidConfigError, SimulationDivergedError
 
 N_CHANNELS = 6  # six pose errors, six motor torques
 N_FEATURES = 2 * N_CHANNELS  # rho = [rho_e (6,), rho_T (6,)]

@@ -52,9 +52,9 @@ import numpy as np
 from pydrake.common.containers import namedview
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_number, check_int, check_multiple
-from ..errors import CorruptFileError, InvalidConfigError
-from ..model import kinematics
+from ..base.checks import as_number, check_int, check_multiple
+from ..base.errors import CorruptFileError, InvalidConfigError
+from ..robot import kinematics
 from .ilc import (
     MIN_Q_CUTOFF_HZ,
     add_record,
@@ -379,7 +379,7 @@ class FeedforwardTuningLearner(LeafSystem):
 def save_learned(path, theta, geometry_name: str = "") -> Path:
     """Write learned weights (p, 6) to an .npz (numbers only) that :func:`load_learned` reads,
     with the basis it belongs to (the lags, its size and the file format)."""
-    from ..fileio import atomic_write
+    from ..base.fileio import atomic_write
 
     theta = np.asarray(theta, dtype=float).reshape(basis_size(), 6)
     path = Path(path)
@@ -399,7 +399,7 @@ def save_learned(path, theta, geometry_name: str = "") -> Path:
 
 def load_learned(path) -> np.ndarray:
     """The (p, 6) weights of a file :func:`save_learned` wrote, read through
-    :class:`~stewart_drake.fileio.CheckedNpz` (a regular file of at most
+    :class:`~stewart_drake.base.fileio.CheckedNpz` (a regular file of at most
     :data:`MAX_LEARNED_BYTES`, each entry's header checked before it is loaded, no pickles).
 
     Returns:
@@ -411,7 +411,7 @@ def load_learned(path) -> np.ndarray:
             weights not all finite.
         OSError: the file cannot be read (missing, permissions).
     """
-    from ..fileio import CheckedNpz
+    from ..base.fileio import CheckedNpz
 
     path = Path(path)
     data = CheckedNpz(path, _KIND, "write it with --save-learned", MAX_LEARNED_BYTES)

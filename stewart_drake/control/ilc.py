@@ -54,9 +54,9 @@ import numpy as np
 from pydrake.common.containers import namedview
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_array, as_number, check_int, check_multiple
-from ..errors import InvalidConfigError
-from ..model import kinematics
+from ..base.checks import as_array, as_number, check_int, check_multiple
+from ..base.errors import InvalidConfigError
+from ..robot import kinematics
 
 #: What the ``ilc_status`` output holds, in order.
 ILC_STATUS_NAMES = (

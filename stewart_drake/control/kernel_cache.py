@@ -28,16 +28,16 @@ ENTRY_POINTS = ("step", "act", "filter_rate", "warm_gain")
 KERNELS_FILE = Path(__file__).with_name("lqi_kernels.py")
 
 #: :func:`sources_digest` of the sources the kernels were last compiled against.
-DEPENDENCIES_DIGEST = "27ba854b9b43f403"
+DEPENDENCIES_DIGEST = "ae81a77b407f3387"
 
 
 def sources_digest() -> str:
     """SHA-256 (16 hex digits) of what the compiled code takes from other files: the source of
-    :func:`~stewart_drake.model.kinematics.ik_scalar` and all of :mod:`.lqi_step` (its sums and
+    :func:`~stewart_drake.robot.kinematics.ik_scalar` and all of :mod:`.lqi_step` (its sums and
     the index constants, which numba freezes into the machine code). numba's cache notices a
     change of :mod:`.lqi_kernels` only, so the cache is used only while this digest is
     :data:`DEPENDENCIES_DIGEST` (a test holds them equal: change one, update the other)."""
-    from ..model.kinematics import ik_scalar
+    from ..robot.kinematics import ik_scalar
     from . import lqi_step
 
     digest = hashlib.sha256(inspect.getsource(ik_scalar).encode())

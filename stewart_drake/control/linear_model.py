@@ -4,9 +4,9 @@ Drake's ``Linearize`` cannot take this plant: a discrete SAP plant with ball con
 only ``double`` (drake#20727) and the station's Python systems do not convert to AutoDiff. The
 models here are built instead from the closed chain's own quantities at a pose x0 at rest: the
 task-space inertia M_x (platform, cranks, rods and the motors' reflected rotors,
-:func:`~stewart_drake.model.statics.task_inertia`), the Jacobian J = d theta / d x and the gravity
+:func:`~stewart_drake.robot.statics.task_inertia`), the Jacobian J = d theta / d x and the gravity
 stiffness H = d T_hold / d x (the holding torques' derivative, by central differences of
-:func:`~stewart_drake.model.statics.holding_torques`). In task coordinates, with T the motor
+:func:`~stewart_drake.robot.statics.holding_torques`). In task coordinates, with T the motor
 torques' deviation from the holding torques of x0 and b the motors' viscous friction,
 
     M_x x_ddot = J^T (T - H x - b J x_dot)
@@ -18,7 +18,7 @@ is installed):
 
 * :func:`plant_model`: torque command -> pose and rate, with the computation delay (d periods,
   a shift register) and the drive's current loop (the station's own discretization,
-  :func:`~stewart_drake.simulation.station.current_loop`'s formulas) in front of the mechanics;
+  :func:`~stewart_drake.station.station.current_loop`'s formulas) in front of the mechanics;
 * :func:`lqi_model`: the LQI's own linear form at that pose (eq. 34 with the gain it solves there,
   the integral state z, its copy of the pending torques, the gravity feed-forward T_hold(x_d)
   linearized, H x_d, and on the robot as built the encoders' rate filter);
@@ -39,10 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..checks import as_array, as_number
-from ..errors import InvalidConfigError, MissingExtraError
-from ..model import kinematics, statics
-from ..model.geometry import StewartGeometry
+from ..base.checks import as_array, as_number
+from ..base.errors import InvalidConfigError, MissingExtraError
+from ..robot import kinematics, statics
+from ..robot.geometry import StewartGeometry
 from .lqi import LqiDriver, error_model, input_matrix, lqi_gain
 
 #: How the plant's mechanics are discretized (:func:`plant_model`).
@@ -120,7 +120,7 @@ AXES = kinematics.AXIS_NAMES
 
 def gravity_stiffness(geometry: StewartGeometry, x0) -> np.ndarray:
     """H = d T_hold / d x at pose x0, (6, 6) N m per (rad | m): how the holding torques change
-    with the pose (central differences of :func:`~stewart_drake.model.statics.holding_torques`,
+    with the pose (central differences of :func:`~stewart_drake.robot.statics.holding_torques`,
     step :data:`GRAVITY_STEP`)."""
     x0 = as_array("pose x0", x0, shape=(6,))
     e = GRAVITY_STEP * np.eye(6)

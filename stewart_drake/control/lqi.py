@@ -34,8 +34,8 @@ from pydrake.math import DiscreteAlgebraicRiccatiEquation
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import Demultiplexer, Multiplexer
 
-from ..checks import as_array, as_number, check_multiple
-from ..errors import (
+from ..base.checks import as_array, as_number, check_multiple
+from ..base.errors import (
     InvalidConfigError,
     NotStabilizableError,
     RiccatiSolveError,
@@ -43,9 +43,9 @@ from ..errors import (
     SingularPoseError,
     UnreachablePoseError,
 )
-from ..mirrors import ValueMirror
-from ..model import kinematics, statics
-from ..model.geometry import X_HOME, StewartGeometry
+from ..base.mirrors import ValueMirror
+from ..robot import kinematics, statics
+from ..robot.geometry import X_HOME, StewartGeometry
 from . import lqi_step
 from .contract import LQI_STATUS_NAMES, ControllerContext, ControllerDriver
 from .lqi_step import LqiStatus
@@ -374,7 +374,7 @@ def body_constants(geometry: StewartGeometry) -> np.ndarray:
     """The robot as the compiled B(x) reads it (:data:`~.lqi_kernels.BODY`): crank and rod
     length, s^2 - a^2, the platform's principal inertia (3) and mass, the crank shaft's inertia
     (crank about its shaft + the motor's reflected inertia, as
-    :func:`~stewart_drake.model.statics.task_inertia`), the rod's mass and transverse inertia.
+    :func:`~stewart_drake.robot.statics.task_inertia`), the rod's mass and transverse inertia.
     SI units."""
     g = geometry
     a = g.crank_length
@@ -607,7 +607,7 @@ class LqiController(LeafSystem):
         ``x`` (12,): pose estimate and rate [phi, theta, psi, X, Y, Z, their rates], rad, m, /s;
             with an estimator instead ``motor_angle`` (6,), the encoders, rad.
         ``x_d`` (18,): reference pose, rate and acceleration (same units, /s^2 for the last 6).
-        ``T_ff`` (6,): feed-forward motor torques, N m (:mod:`~stewart_drake.simulation.reference`).
+        ``T_ff`` (6,): feed-forward motor torques, N m (:mod:`~stewart_drake.run.reference`).
         ``omega`` (2,): [omega_Q, omega_R] > 0 (the ANN tuner drives it; else a constant).
         ``motor_torque_applied`` (6,): with ``feature_window``, the torques the motors apply, N m.
     Output port ``state``: the whole state (``layout``), whose first parts :class:`LqiDiagram`

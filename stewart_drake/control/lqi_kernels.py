@@ -25,7 +25,7 @@ import math
 import numba
 import numpy as np
 
-from ..model.kinematics import ik_scalar
+from ..robot.kinematics import ik_scalar
 from . import lqi_step
 from .kernel_cache import (  # noqa: F401 - DEPENDENCIES_DIGEST, sources_digest: named here too
     DEPENDENCIES_DIGEST,
@@ -107,7 +107,7 @@ def _njit(function):
 
 _fallback_cache_dir = fallback_cache_dir  # the name this module's callers and tests know
 _CACHE = use_cache()
-#: The closed-form IK of :func:`~stewart_drake.model.kinematics.ik_scalar`, and the sums of
+#: The closed-form IK of :func:`~stewart_drake.robot.kinematics.ik_scalar`, and the sums of
 #: :mod:`.lqi_step` whose bits must match the reference's, compiled as written.
 ik_compiled = _njit(ik_scalar)
 matvec = _njit(lqi_step.matvec)
@@ -201,7 +201,7 @@ def input_matrix(legs, body, x):
         legs: (6, 9) [p_E, P_B, d_B] per leg. body: the constants of :data:`BODY`.
         x: (6,) pose [rad, m].
     Source: paper eqs. 6 and 18 (corrected), the task inertia of
-    :func:`~stewart_drake.model.statics.task_inertia` (docs/paper_notes.md).
+    :func:`~stewart_drake.robot.statics.task_inertia` (docs/paper_notes.md).
     """
     # Long: one compiled kernel, lqi.input_matrix_single (IK, Jacobian, task inertia) as loops,
     # stage for stage in the same order, so that the two read side by side.

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.common.containers import namedview
 
-from ..model.kinematics import ik_scalar
+from ..robot.kinematics import ik_scalar
 from .contract import LQI_STATUS_NAMES
 
 #: The status group, by name (``status.gain_solves += 1``).
@@ -291,7 +291,7 @@ def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv) 
 
     Args:
         legs: (6, 9) leg constants, crank_length, leg_c = s^2 - a^2
-            (:func:`~stewart_drake.model.kinematics.leg_constants`). h: period, s. alpha: rate
+            (:func:`~stewart_drake.robot.kinematics.leg_constants`). h: period, s. alpha: rate
             filter weight. fk_jump: largest correction accepted (rad or m).
         theta: (6,) measured motor angles, rad. x_hat: (12,) [x, v], updated.
         J_inv: (6, 6) inverse Jacobian.

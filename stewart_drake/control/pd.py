@@ -4,7 +4,7 @@
 loop per motor around the crank angle, on top of the same virtual-work gravity feed-forward as
 the LQI. It follows the controller contract (:mod:`~stewart_drake.control.contract`) with the
 ports ``x``, ``x_d``, ``T_ff``; ``T``, ``status``, ``e_bar``
-so :func:`~stewart_drake.simulation.diagram.make_stewart_diagram` swaps one for the other.
+so :func:`~stewart_drake.run.diagram.make_stewart_diagram` swaps one for the other.
 """
 
 from dataclasses import dataclass
@@ -12,11 +12,11 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..checks import as_number
-from ..errors import InvalidConfigError, UnreachablePoseError
-from ..model import kinematics, statics
-from ..model.geometry import X_HOME, StewartGeometry
-from ..model.statics import crank_inertia_matrix
+from ..base.checks import as_number
+from ..base.errors import InvalidConfigError, UnreachablePoseError
+from ..robot import kinematics, statics
+from ..robot.geometry import X_HOME, StewartGeometry
+from ..robot.statics import crank_inertia_matrix
 from .contract import ControllerContext, ControllerDriver, PoseTorqueController
 
 

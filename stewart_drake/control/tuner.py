@@ -6,7 +6,7 @@ omega_Q, omega_R in [0.1, 10] (the range of the 9 training runs, {0.1, 1, 10}^2)
 normalized, z = (rho - x_mean) / x_std, with the statistics of the training split, stored with
 the weights.
 
-Training uses torch (:mod:`stewart_drake.studies.training`); inference does not: :class:`TunerModel`
+Training uses torch (:mod:`stewart_drake.tuner.training`); inference does not: :class:`TunerModel`
 holds numpy arrays and :class:`AnnTuner` evaluates them, so ``run --tuner ann`` never imports
 torch. torch is imported lazily, only by :func:`build_mlp`, :meth:`TunerModel.from_torch` and
 :meth:`TunerModel.to_torch`.
@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from pydrake.systems.framework import LeafSystem
 
-from ..checks import as_array
-from ..errors import InvalidConfigError, MissingFileError
-from ..fileio import CheckedNpz, atomic_write
+from ..base.checks import as_array
+from ..base.errors import InvalidConfigError, MissingFileError
+from ..base.fileio import CheckedNpz, atomic_write
 from .features import N_FEATURES
 
 FORMAT_VERSION = 1

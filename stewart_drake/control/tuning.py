@@ -19,8 +19,8 @@ from pydrake.systems.framework import OutputPort, System
 from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..checks import as_array, as_number, check_int, check_multiple
-from ..errors import InvalidConfigError, MissingFileError
+from ..base.checks import as_array, as_number, check_int, check_multiple
+from ..base.errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES, DensityFeatures
 from .lqi import LQI_OMEGA_MAX, LQI_OMEGA_MIN
 from .tuner import (
@@ -187,7 +187,7 @@ class AnnTunerDriver(_NetworkTuner):
 
     It moves the weights every period, as fast as the gains can follow: run it with the paper's
     gain switching, ``controller.gain_transfer: none``, as
-    :func:`~stewart_drake.simulation.scenario.use_paper_tuner` does (``run --tuner ann``,
+    :func:`~stewart_drake.run.scenario.use_paper_tuner` does (``run --tuner ann``,
     ``evaluate``, the tuner study). Our ``integral`` transfer re-maps the
     integral states at every switch, and switched that fast the re-maps pile up and the loop
     chatters at the torque limit (docs/paper_notes.md).

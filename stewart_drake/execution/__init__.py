@@ -1,2 +1,2 @@
-"""Job execution and persistence: the runners that execute independent jobs (runners) and the
-folders that keep their results as they arrive (store)."""
+"""How a study's independent jobs run (this process, local processes, Ray, Dask:
+:mod:`.runners`) and how their results are kept as they arrive and resumed (:mod:`.store`)."""

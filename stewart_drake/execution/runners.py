@@ -9,7 +9,7 @@ jobs complete**, not in order, so the caller stores each result the moment it ar
 ``outcome`` is ``fn(job)``, or a :class:`JobFailure` when the job produced none:
 
 - ``kind="error"``: ``fn`` raised. The record carries the exception itself (every
-  :class:`~stewart_drake.errors.StewartError` pickles), its type name, message and traceback,
+  :class:`~stewart_drake.base.errors.StewartError` pickles), its type name, message and traceback,
   and the bytes of the file it names (``err.path``: a divergence dump travels back from any
   machine; the worker's copy is removed). Not retried: a refusal is deterministic.
 - ``kind="lost"``: the worker died under the job (killed, out of memory, a node gone) on each
@@ -46,7 +46,7 @@ from collections import Counter, deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..errors import InvalidConfigError
+from ..base.errors import InvalidConfigError
 
 #: Names of the backends, for ``--runner``.
 RUNNERS = ("processes", "serial", "ray", "dask")
@@ -501,7 +501,7 @@ def _connect_timeout(value) -> float:
     Raises:
         InvalidConfigError: not a number in that range.
     """
-    from ..checks import as_number
+    from ..base.checks import as_number
 
     return as_number("--connect-timeout", value, 0.0, MAX_CONNECT_TIMEOUT_S, lo_open=True)
 

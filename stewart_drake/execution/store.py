@@ -3,12 +3,12 @@
 A :class:`ResultStore` claims a folder for one study (``collect``, ``evaluate``) and one set of
 settings, identified by :func:`settings_hash`, and locks it (:data:`LOCK`, ``fcntl.flock``): a
 second study writing there at the same time is refused naming the first
-(:class:`~stewart_drake.errors.FolderInUseError`); the kernel releases the lock when its holder
+(:class:`~stewart_drake.base.errors.FolderInUseError`); the kernel releases the lock when its holder
 ends, however it ends. Each finished job is written atomically the
 moment it arrives (``put``) and the manifest is rewritten with it, so an interruption, a killed
 worker or a failed report loses nothing that finished. Running the same command again runs only
 the jobs whose file is missing (:func:`run_jobs`); a folder of other settings, or of another
-study, is refused by name (:class:`~stewart_drake.errors.ResultsMismatchError`).
+study, is refused by name (:class:`~stewart_drake.base.errors.ResultsMismatchError`).
 
 ``manifest.json``::
 
@@ -29,14 +29,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ..errors import (
+from ..base.errors import (
     CorruptFileError,
     FolderInUseError,
     IncompleteResultsError,
     ResultsMismatchError,
     SimulationDivergedError,
 )
-from ..fileio import atomic_write, check_replaceable, read_json
+from ..base.fileio import atomic_write, check_replaceable, read_json
 from .runners import JobFailure
 
 MANIFEST = "manifest.json"
@@ -56,8 +56,8 @@ def settings_hash(settings: dict) -> str:
 
 def file_digest(path) -> str:
     """16 hex digits of the SHA-256 of a file's bytes (settings that are files: tuner weights,
-    read through :func:`~stewart_drake.fileio.read_checked`, at most 64 MB)."""
-    from ..fileio import read_checked
+    read through :func:`~stewart_drake.base.fileio.read_checked`, at most 64 MB)."""
+    from ..base.fileio import read_checked
 
     return hashlib.sha256(read_checked(path, "settings file", 64e6)).hexdigest()[:16]
 

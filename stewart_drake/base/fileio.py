@@ -1,0 +1,419 @@
+"""Result files written atomically, and read back as valid files or one typed error.
+
+Writing: a reader never sees a half-written file, even after Ctrl-C (:func:`atomic_write`), and
+only regular files are ever replaced: a device node, a FIFO or a socket where an output is due
+is refused by name (:func:`check_replaceable`), never renamed over.
+Reading: every file the tool reads goes through :func:`read_checked` (a regular file, its size
+bounded before a byte is read: a FIFO cannot block the reader, a sparse 100 GB file cannot
+exhaust the memory). :class:`CheckedNpz` and :func:`read_json` then turn whatever a damaged file
+raises inside numpy, zipfile, zlib or json (BadZipFile, EOFError, KeyError, JSONDecodeError,
+ValueError ...) into a :class:`~stewart_drake.base.errors.CorruptFileError` naming the file and what
+is wrong; the entries of an ``.npz`` are bounded after decompression, and each ``.npy`` header
+(shape, dtype) checked against that size, before an array is made. The
+bytes are read first, so an ``OSError`` is always a real failure to read (permissions, a
+vanished file), never a symptom of the content.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import os
+import re
+import socket
+import stat
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+from numpy.lib import format as npy_format
+
+from .checks import check_memory, format_bytes
+from .errors import CorruptFileError, InvalidConfigError
+
+#: The temporaries of :func:`atomic_write`: ``.<name>.<host>-<pid>.<random>.tmp``, hidden, named
+#: by the writer so that :func:`remove_stale_temporaries` can tell a dead writer's from a live one
+#: (``<random>``: the 8 characters of ``tempfile.mkstemp``).
+_TEMPORARY = re.compile(r"^\.(?P<name>.+)\.(?P<host>\w*)-(?P<pid>\d+)\.[a-z0-9_]{8}\.tmp$")
+#: Largest JSON document read (a manifest, an evaluation row, rows.json), bytes.
+MAX_JSON_BYTES = 256e6
+#: The kinds of array an ``.npz`` of this tool may hold (numpy's ``dtype.kind``): booleans,
+#: integers, floats and unicode text. Complex numbers would lose their imaginary part where a
+#: float is read, objects need pickle.
+ALLOWED_DTYPE_KINDS = "biufU"
+
+
+def describe_mode(mode: int) -> str:
+    """What a file of ``st_mode`` ``mode`` is, for messages: "a folder", "a FIFO (named pipe)"."""
+    for test, name in (
+        (stat.S_ISDIR, "a folder"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISSOCK, "a socket"),
+        (stat.S_ISREG, "a regular file"),
+    ):
+        if test(mode):
+            return name
+    return "not a regular file"
+
+
+def check_replaceable(path, what: str | None = None) -> None:
+    """Refuse to write over ``path`` unless it is absent or a regular file (symlinks followed).
+
+    Args:
+        path: the output.  what: how the message names it (default the path), e.g.
+            "--out /tmp/x".
+    Raises:
+        InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder; the tool
+            replaces only regular files, so the message says to choose another output.
+    """
+    try:
+        mode = os.stat(path).st_mode
+    except (FileNotFoundError, NotADirectoryError):
+        return
+    if not stat.S_ISREG(mode):
+        raise InvalidConfigError(
+            f"{what or path} is {describe_mode(mode)}, not a regular file: "
+            f"stewart-drake replaces only regular files; choose another "
+            f"output"
+        )
+
+
+def _writer() -> str:
+    return f"{re.sub(r'[^A-Za-z0-9_]', '_', socket.gethostname())}-{os.getpid()}"
+
+
+def atomic_write(path: Path, write) -> None:
+    """Call write(binary file) on a temporary file next to ``path``, then os.replace it.
+
+    The temporary is ``.<name>.<host>-<pid>.<random>.tmp``; an exception (Ctrl-C included)
+    removes it, a kill that Python cannot see (SIGKILL) leaves it for
+    :func:`remove_stale_temporaries`.
+
+    Raises:
+        InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder
+            (:func:`check_replaceable`), before anything is written.
+        OSError: the write failed (a full disk, permissions); its ``filename`` is ``path``.
+    """
+    path = Path(path)
+    check_replaceable(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.{_writer()}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; keep the usual mode
+        os.replace(tmp, path)
+    except OSError as err:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        if err.errno is not None and err.filename in (None, tmp):  # a full disk names none
+            raise type(err)(err.errno, err.strerror or str(err), str(path)) from None
+        raise
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True  # another user's process, or not a pid
+    return True
+
+
+def remove_stale_temporaries(folder, depth: int = 1) -> list[Path]:
+    """Delete the temporaries :func:`atomic_write` left in ``folder`` (and its sub-folders down
+    to ``depth``) when its process was killed mid-write: regular files named by the writer's
+    pattern ``.<name>.<host>-<pid>.<random>.tmp`` whose writer, a process of this host, no
+    longer runs. Nothing else is touched: a live writer's file (another command writing there
+    now), another host's (a shared disk), and every file of another name (a user's
+    ``.notes.tmp``, however old).
+
+    Returns:
+        the paths removed (none when the folder does not exist).
+    """
+    folder, host = Path(folder), _writer().rsplit("-", 1)[0]
+    patterns = [".*.tmp"] + ["/".join(["*"] * k + [".*.tmp"]) for k in range(1, depth + 1)]
+    removed = []
+    for pattern in patterns:
+        for path in folder.glob(pattern):
+            match = _TEMPORARY.match(path.name)
+            if not match or match["host"] != host or _alive(int(match["pid"])):
+                continue
+            try:
+                if stat.S_ISREG(path.lstat().st_mode):
+                    path.unlink()
+                    removed.append(path)
+            except FileNotFoundError:  # its writer renamed or removed it
+                continue
+    return removed
+
+
+def save_npz(path: Path, arrays: dict) -> Path:
+    """``np.savez_compressed`` of ``arrays`` into ``path``, atomically; returns the path."""
+    atomic_write(path, lambda f: np.savez_compressed(f, **arrays))
+    return Path(path)
+
+
+def _describe(err: BaseException) -> str:
+    text = str(err).strip().splitlines()
+    return f"{type(err).__name__}: {text[0]:.160}" if text else type(err).__name__
+
+
+def read_checked(path, kind: str, max_bytes: float, remedy: str = "") -> bytes:
+    """The bytes of ``path``, read only once it is known to be a regular file of a bounded size.
+
+    The path is checked before it is opened (a device is never opened, a socket cannot be),
+    opened without blocking (a FIFO put there meanwhile would wait for a writer forever) and
+    checked again on the open descriptor, so it cannot be swapped between the check and the
+    read.
+
+    Args:
+        path: the file.  kind: what it should be, for messages ("scenario file").
+        max_bytes: the largest such file, bytes; a larger one is refused unread.
+        remedy: what the user can do about a bad one.
+    Raises:
+        CorruptFileError: a folder, a device node, a FIFO or a socket, or larger than
+            ``max_bytes`` (a sparse file included).
+        InvalidConfigError: more bytes than the machine has memory available.
+        OSError: the file cannot be opened or read (missing, permissions).
+    """
+
+    def refuse(mode):
+        return CorruptFileError(
+            path, kind, f"it is {describe_mode(mode)}, not a regular file", remedy
+        )
+
+    mode = os.stat(path).st_mode  # a device is not even opened, a socket cannot be
+    if not stat.S_ISREG(mode):
+        raise refuse(mode)
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    info = os.fstat(fd)  # what was opened, if it changed since the stat
+    if not stat.S_ISREG(info.st_mode):
+        os.close(fd)
+        raise refuse(info.st_mode)
+    with os.fdopen(fd, "rb") as f:
+        if info.st_size > max_bytes:
+            raise CorruptFileError(
+                path,
+                kind,
+                f"it holds {format_bytes(info.st_size)}, over "
+                f"the bound of {format_bytes(max_bytes)} for this "
+                f"kind of file",
+                remedy,
+            )
+        check_memory(f"reading {path}", info.st_size, "free some memory")
+        return f.read()
+
+
+def decode_text(raw: bytes, path, kind: str, remedy: str = "", encoding: str = "utf-8") -> str:
+    """``raw`` as text (``encoding``: "utf-8", or "utf-8-sig" to drop a byte-order mark).
+
+    Raises:
+        CorruptFileError: not UTF-8 text, naming ``path`` as a ``kind``, the reason and the
+            byte, and saying ``remedy``.
+    """
+    try:
+        return raw.decode(encoding)
+    except UnicodeDecodeError as err:
+        raise CorruptFileError(
+            path, kind, f"not UTF-8 text ({err.reason} at byte {err.start})", remedy
+        ) from None
+
+
+def read_json(path, kind: str, remedy: str = "", max_bytes: float = MAX_JSON_BYTES):
+    """The JSON document in ``path`` (:func:`read_checked`, at most ``max_bytes``).
+
+    Raises:
+        CorruptFileError: not a regular file, too large, not UTF-8 or not JSON (truncated,
+            random bytes, empty).
+        OSError: the file cannot be read.
+    """
+    raw = read_checked(path, kind, max_bytes, remedy)
+    try:
+        return json.loads(raw.decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as err:
+        problem = "it is empty" if not raw.strip() else f"not JSON ({_describe(err)})"
+        raise CorruptFileError(path, kind, problem, remedy) from None
+
+
+class CheckedNpz:
+    """Every array of an ``.npz`` archive (``allow_pickle=False``), with typed accessors.
+
+    Args:
+        path: the file.  kind: what it should be, for messages ("ANN tuner weights file").
+        remedy: what the user can do about a bad one (appended to every message).
+        max_bytes: the most its entries may hold together after decompression (and the file
+            on disk), bytes: a few kB of zeros deflate to megabytes, so each entry's size is
+            read from the archive's directory and bounded before it is decompressed.
+    Raises:
+        CorruptFileError: the bytes are not an ``.npz`` archive whose every entry numpy can
+            read without pickle (empty, truncated, random bytes, a bad CRC, a single ``.npy``
+            array, entries larger than ``max_bytes``); an entry of objects, complex numbers or
+            records (:data:`ALLOWED_DTYPE_KINDS`), or whose header claims more bytes than it
+            holds (refused before numpy allocates them); not a regular file.
+        InvalidConfigError: entries larger than the memory available.
+        OSError: the file cannot be read.
+    """
+
+    def __init__(self, path, kind: str, remedy: str = "", max_bytes: float = 4e9):
+        self.path, self.kind, self.remedy = Path(path), kind, remedy
+        raw = read_checked(self.path, kind, max_bytes, remedy)
+        if not raw:
+            raise self.corrupt("it is empty")
+        if raw[:6] == b"\x93NUMPY":
+            raise self.corrupt("it holds one .npy array, not an .npz archive")
+        if raw[:4] not in (b"PK\x03\x04", b"PK\x05\x06"):  # an entry, or an empty archive
+            # numpy would try anything else as a pickle: refuse it here, unread.
+            raise self.corrupt("not a readable .npz archive (not a zip archive)")
+        try:
+            self._check_entries(raw, max_bytes)
+            with np.load(io.BytesIO(raw), allow_pickle=False) as data:
+                self.arrays = {name: data[name] for name in data.files}
+        except InvalidConfigError:  # CorruptFileError, or too large
+            raise
+        except Exception as err:  # noqa: BLE001 - bytes in memory: any failure
+            raise self.corrupt(f"not a readable .npz archive ({_describe(err)})") from None
+
+    def _check_entries(self, raw: bytes, max_bytes: float) -> None:
+        """Refuse, before any array is made, entries that are not ``.npy`` arrays of numbers
+        or text, whose decompressed sizes (the archive's directory says them; zipfile never
+        inflates an entry past its stated size) exceed ``max_bytes`` or the memory, or whose
+        header claims more bytes (shape times item size) than the entry holds: numpy
+        allocates what the header says before it reads a byte of data."""
+        with zipfile.ZipFile(io.BytesIO(raw)) as archive:
+            infos = archive.infolist()
+            sizes = {info.filename: info.file_size for info in infos}
+            total = sum(sizes.values())
+            if total > max_bytes:
+                name = max(sizes, key=sizes.__getitem__)
+                raise self.corrupt(
+                    f"its entries hold {format_bytes(total)} after decompression "
+                    f"({name!r}: {format_bytes(sizes[name])}), over the bound of "
+                    f"{format_bytes(max_bytes)} for this kind of file"
+                )
+            for info in infos:
+                self._check_header(archive, info)
+        check_memory(f"reading {self.path}", total, "free some memory")
+
+    def _check_header(self, archive: zipfile.ZipFile, info: zipfile.ZipInfo) -> None:
+        """Read the ``.npy`` header of one entry (a few hundred bytes) and check it."""
+        name = info.filename.removesuffix(".npy")
+        if not info.filename.endswith(".npy"):
+            raise self.corrupt(f"the entry {info.filename!r} is not an .npy array")
+        with archive.open(info) as f:
+            version = npy_format.read_magic(f)
+            if version == (1, 0):
+                shape, _, dtype = npy_format.read_array_header_1_0(f)
+            else:  # 2.0 and 3.0 differ from 1.0 only in the header's length field
+                shape, _, dtype = npy_format.read_array_header_2_0(f)
+            header_bytes = f.tell()
+        if dtype.hasobject or dtype.kind not in ALLOWED_DTYPE_KINDS:
+            raise self.corrupt(
+                f"the entry {name!r} holds {dtype} values: this file holds numbers and text "
+                f"only (no objects, no complex numbers)"
+            )
+        claimed = math.prod(int(n) for n in shape) * dtype.itemsize
+        if claimed > info.file_size - header_bytes:
+            raise self.corrupt(
+                f"the entry {name!r} claims shape {tuple(shape)} of {dtype} "
+                f"({format_bytes(claimed)}) but holds {format_bytes(info.file_size)}"
+            )
+
+    def corrupt(self, problem: str) -> CorruptFileError:
+        """The error to raise for this file."""
+        return CorruptFileError(self.path, self.kind, problem, self.remedy)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.arrays
+
+    def _entry(self, name: str) -> np.ndarray:
+        if name not in self.arrays:
+            raise self.corrupt(f"the entry {name!r} is missing")
+        return self.arrays[name]
+
+    def array(self, name: str) -> np.ndarray:
+        """Entry ``name`` as a float64 array (numbers only; shape and finiteness are the
+        caller's to check)."""
+        a = self._entry(name)
+        if a.dtype.kind not in "biuf":
+            raise self.corrupt(f"the entry {name!r} holds {a.dtype} values, not numbers")
+        return a.astype(np.float64)
+
+    def integers(self, name: str) -> np.ndarray:
+        """Entry ``name`` as an int64 array (integers only: a float entry is refused)."""
+        a = self._entry(name)
+        if a.dtype.kind not in "biu":
+            raise self.corrupt(f"the entry {name!r} holds {a.dtype} values, not integers")
+        return a.astype(np.int64)
+
+    def texts(self, name: str) -> tuple[str, ...]:
+        """Entry ``name`` as a tuple of strings (a 1-d unicode array)."""
+        a = self._entry(name)
+        if a.dtype.kind != "U" or a.ndim != 1:
+            raise self.corrupt(
+                f"the entry {name!r} must be a list of strings, has {a.dtype} shape {a.shape}"
+            )
+        return tuple(str(v) for v in a)
+
+    def number(self, name: str) -> float:
+        """Entry ``name`` as one float (a 0-d or 1-element numeric array)."""
+        a = self.array(name)
+        if a.size != 1:
+            raise self.corrupt(f"the entry {name!r} must be one number, has shape {a.shape}")
+        return float(a.reshape(()))
+
+    def integer(self, name: str) -> int:
+        """Entry ``name`` as one integer."""
+        v = self.number(name)
+        if not (np.isfinite(v) and v == int(v)):
+            raise self.corrupt(f"the entry {name!r} must be an integer, got {v!r}")
+        return int(v)
+
+    def text(self, name: str) -> str:
+        """Entry ``name`` as one string (a 0-d unicode array)."""
+        a = self._entry(name)
+        if a.dtype.kind != "U" or a.size != 1:
+            raise self.corrupt(
+                f"the entry {name!r} must be one string, has {a.dtype} shape {a.shape}"
+            )
+        return str(a.reshape(()))
+
+    def json(self, name: str, kind: type = dict):
+        """Entry ``name`` (a string) parsed as JSON, which must be a ``kind``."""
+        text = self.text(name)
+        try:
+            value = json.loads(text)
+        except (ValueError, RecursionError) as err:
+            raise self.corrupt(f"the entry {name!r} is not JSON ({_describe(err)})") from None
+        if not isinstance(value, kind):
+            raise self.corrupt(
+                f"the entry {name!r} must be a JSON {kind.__name__}, got {type(value).__name__}"
+            )
+        return value
+
+
+def write_between_markers(doc: Path, markers: tuple[str, str], block: str) -> Path:
+    """Replace the text of ``doc`` from ``markers[0]`` to ``markers[1]`` (both included) by
+    ``block`` (which starts and ends with them), or append ``block`` when they are absent; the
+    rest of the file is kept. For the generated tables of the docs."""
+    doc = Path(doc)
+    text = doc.read_text(encoding="utf-8") if doc.exists() else ""
+    if markers[0] in text and markers[1] in text:
+        a = text.index(markers[0])
+        b = text.index(markers[1]) + len(markers[1])
+        text = text[:a] + block + text[b:]
+    else:
+        text = text + ("\n" if text else "") + block + "\n"
+    atomic_write(doc, lambda f: f.write(text.encode("utf-8")))
+    return doc

@@ -1,0 +1,540 @@
+"""A DYNAMIXEL bus on a pseudo-terminal: X-series servos answering Protocol 2.0, a motion model
+behind them stepping in real time.
+
+:class:`BusEmulator` opens a pty (``os.openpty``, raw mode), gives its slave path
+(``BusEmulator.port``) to the driver, which opens it through the vendor's ``PortHandler``
+as it would ``/dev/ttyUSB0``, and answers in a thread: PING (one id or broadcast), READ, WRITE,
+SYNC_READ and SYNC_WRITE (the vendor's ``GroupSyncRead.txRxPacket`` sends SYNC_READ, not
+FAST_SYNC_READ; FAST_SYNC_READ, REG_WRITE/ACTION and BULK_* answer an Instruction Error), with
+the status packets, errors and CRC of the protocol (:mod:`.protocol`). Each servo keeps its
+control table as bytes, with the e-Manual's access rules that matter here: EEPROM items
+(addresses < 64) writable only with the torque off (else Access Error), read-only items refused
+(Access Error), a Goal Current beyond the Current Limit refused (Data Limit Error).
+
+The bus watchdog (e-Manual, "Bus Watchdog(98)": "the communication is defined as all the
+Instruction Packet"; monitored while Torque Enable is 1): when no instruction packet reaches a
+servo (its id or broadcast) for Bus Watchdog x 20 ms, the servo stops (here: zero current,
+Torque Enable left as it is, as the e-Manual says no more), Bus Watchdog reads -1 and the Goal
+values turn read-only (a write answers a Data Range Error) until Bus Watchdog is written 0.
+
+The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
+``tick_s``; the bus thread answers meanwhile from the last present values (a tick and a step
+old at most), as a servo answers at once from its control table. :class:`FirstOrderServos`
+is one crank per servo, rigid,
+``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
+(12 V: the stall current falling linearly to zero at the no-load speed). Not modelled: the
+current loop's lag, the temperature (Present Temperature reads ``ambient_C``), the input
+voltage, the encoder's noise, the return delay time and the baud rate (a pty moves bytes at
+memory speed whatever the setting), REBOOT, indirect addresses.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+import os
+import select
+import termios
+import threading
+import time
+import tty
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError
+from ..robot.motor_catalogue import catalogue_motor
+from ..station.bus import protocol as p
+
+#: Control table size: addresses 0..146 (Present Temperature is the last one used).
+TABLE_SIZE = 147
+_READ_ONLY = {range(0, 7), range(70, 71), range(120, TABLE_SIZE)}
+_GOALS = (100, 120)  # Goal PWM .. Goal Position: read-only after a watchdog trip
+
+
+class ServoBackend(abc.ABC):
+    """The motion behind a bus: ``n`` servos, state at their horns in the servos' own sense
+    (positive = counts increasing)."""
+
+    @abc.abstractmethod
+    def advance(self, dt_s: float, current_A: np.ndarray) -> None:
+        """Move the model ``dt_s`` seconds (>= 0) with currents ``current_A`` (n,), A (what
+        the servos drive: zero for a servo whose torque is off)."""
+
+    @abc.abstractmethod
+    def positions_rad(self) -> np.ndarray:
+        """(n,) horn angles, rad."""
+
+    @abc.abstractmethod
+    def velocities_rad_s(self) -> np.ndarray:
+        """(n,) horn rates, rad/s."""
+
+
+@dataclass
+class FirstOrderServos(ServoBackend):
+    """``n`` independent horns: ``J dv/dt = K_t i - b v - c sign(v)``, the current bounded by
+    what 12 V drives at speed v: ``|i| <= i_stall (1 - |v| / w_0)`` in the sense of motion.
+
+    Attributes:
+        inertia: J, kg m^2 at the horn (the rotor's reflected inertia plus a crank's).
+        torque_constant: K_t, N m/A at the horn.  viscous: b, N m s/rad.  coulomb: c, N m.
+        stall_current_A: i_stall; inf: no voltage limit.  no_load_speed: w_0, rad/s.
+        q0: (n,) initial horn angles, rad.  substep_s: the integrator's largest step, s.
+    """
+
+    inertia: float
+    torque_constant: float
+    viscous: float = 0.0
+    coulomb: float = 0.0
+    stall_current_A: float = math.inf
+    no_load_speed: float = math.inf
+    q0: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    substep_s: float = 1e-3
+
+    def __post_init__(self):
+        if not (self.inertia > 0 and self.torque_constant > 0):
+            raise InvalidConfigError("inertia and torque_constant must be > 0")
+        self._q = np.array(self.q0, dtype=float)
+        self._v = np.zeros_like(self._q)
+
+    @classmethod
+    def from_catalogue(cls, name: str, q0, load_inertia: float = 0.0, **overrides):
+        """The catalogue motor ``name``'s reflected rotor inertia (plus ``load_inertia``,
+        kg m^2), friction and no-load speed, and the bus's K_t and stall current."""
+        servo = catalogue_motor(name).servo
+        spec = p.servo_spec(name, torque_control=False)
+        kw: dict[str, Any] = dict(
+            inertia=servo.rotor_inertia * servo.gear_ratio**2 + load_inertia,
+            torque_constant=spec.torque_constant_Nm_per_A,
+            viscous=servo.viscous_damping,
+            coulomb=servo.coulomb_friction_Nm,
+            stall_current_A=spec.stall_current_A,
+            no_load_speed=servo.no_load_speed_rad_s,
+            q0=np.asarray(q0, dtype=float),
+        )
+        kw.update(overrides)
+        return cls(**kw)
+
+    def advance(self, dt_s, current_A):
+        # Plain floats: numpy's per-call overhead on 6 numbers (np.clip alone ~40 us) would
+        # make the model slower than real time on a loaded machine.
+        n = max(1, math.ceil(dt_s / self.substep_s))
+        h = dt_s / n
+        K, J, b, c = self.torque_constant, self.inertia, self.viscous, self.coulomb
+        i_stall, w0 = self.stall_current_A, self.no_load_speed
+        q, v = self._q.tolist(), self._v.tolist()
+        for k, i in enumerate(np.asarray(current_A, dtype=float).tolist()):
+            qk, vk = q[k], v[k]
+            for _ in range(n):
+                # The drive's voltage limit: no current beyond i_stall (1 - |v|/w_0) pushing on.
+                if i * vk > 0:
+                    headroom = i_stall * min(max(1 - abs(vk) / w0, 0.0), 1.0)
+                    i_eff = max(-headroom, min(headroom, i))
+                else:
+                    i_eff = i
+                tau = K * i_eff - b * vk
+                if vk != 0.0:
+                    tau -= math.copysign(c, vk)
+                else:  # dry friction holds a horn at rest unless the drive exceeds it
+                    tau = math.copysign(max(abs(tau) - c, 0.0), tau)
+                v_new = vk + h * tau / J
+                # A horn that crosses zero speed within a step stops there; from rest, the
+                # dry friction's rule above decides whether it starts again.
+                if vk * v_new < 0:
+                    v_new = 0.0
+                qk += h * 0.5 * (vk + v_new)
+                vk = v_new
+            q[k], v[k] = qk, vk
+        self._q, self._v = np.array(q), np.array(v)
+
+    def positions_rad(self):
+        return self._q.copy()
+
+    def velocities_rad_s(self):
+        return self._v.copy()
+
+
+class _Servo:
+    """One servo's control table and watchdog clock."""
+
+    def __init__(self, servo_id: int, spec: p.ServoSpec, ambient_C: float):
+        self.id, self.spec = servo_id, spec
+        self.table = bytearray(TABLE_SIZE)
+        self.put(p.MODEL_NUMBER, spec.model_number)
+        self.put(p.FIRMWARE_VERSION, 48)
+        self.put(p.ID, servo_id)
+        self.put(p.OPERATING_MODE, 3)  # factory: Position Control Mode
+        self.put(p.TEMPERATURE_LIMIT, 80)
+        self.put(p.CURRENT_LIMIT, spec.current_limit_max)
+        self.put(p.MAX_POSITION_LIMIT, 4095)
+        self.put(p.PRESENT_TEMPERATURE, int(ambient_C))
+        self.last_instruction = time.perf_counter()
+
+    def get(self, item) -> int:
+        address, size = item
+        return int.from_bytes(self.table[address : address + size], "little")
+
+    def put(self, item, value: int) -> None:
+        address, size = item
+        self.table[address : address + size] = p.to_unsigned(value, size).to_bytes(size, "little")
+
+    @property
+    def watchdog_tripped(self) -> bool:
+        return self.get(p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED
+
+    def current_A(self) -> float:
+        """What the servo drives: the Goal Current in Current Control Mode with the torque on,
+        no watchdog trip and no hardware error; zero otherwise."""
+        if (
+            self.get(p.TORQUE_ENABLE) != 1
+            or self.watchdog_tripped
+            or self.get(p.HARDWARE_ERROR_STATUS)
+            or self.get(p.OPERATING_MODE) != p.CURRENT_CONTROL_MODE
+            or self.spec.current_unit_A is None
+        ):
+            return 0.0
+        return p.to_signed(self.get(p.GOAL_CURRENT), 2) * self.spec.current_unit_A
+
+    def write(self, address: int, data: bytes) -> int:
+        """Write ``data`` at ``address``: the status error (0 if written)."""
+        end = address + len(data)
+        if end > TABLE_SIZE or not data:
+            return p.ERR_DATA_RANGE
+        if any(address < r.stop and end > r.start for r in _READ_ONLY):
+            return p.ERR_ACCESS
+        if address < p.EEPROM_END and self.get(p.TORQUE_ENABLE):
+            return p.ERR_ACCESS
+        if self.watchdog_tripped and address < _GOALS[1] and end > _GOALS[0]:
+            return p.ERR_DATA_RANGE
+        staged = bytearray(self.table)
+        staged[address:end] = data
+        if address <= p.GOAL_CURRENT[0] < end:
+            goal = p.to_signed(int.from_bytes(staged[102:104], "little"), 2)
+            if abs(goal) > self.get(p.CURRENT_LIMIT):
+                return p.ERR_DATA_LIMIT
+        if address <= p.CURRENT_LIMIT[0] < end:
+            if int.from_bytes(staged[38:40], "little") > self.spec.current_limit_max:
+                return p.ERR_DATA_LIMIT
+        self.table[:] = staged
+        return 0
+
+
+class BusEmulator:
+    """Servos ``ids`` of model ``model`` on a pseudo-terminal, answering in a thread.
+
+    Use as a context manager, or :meth:`start` and :meth:`close`. ``port`` is the path the
+    driver opens. The backend's servo ``k`` is ``ids[k]``; positions are reported as
+    ``zero_counts[k] + q_k * 4096 / 2 pi`` (the horn's count at angle 0).
+
+    Args:
+        ids: servo ids (distinct, 0..252).  model: a :data:`~.protocol.SERVO_SPECS` key.
+        backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
+        zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
+        tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
+        max_step_s: the longest step of the model in one advance, s: a model (or a starved
+            thread) slower than real time drops the rest (``slipped_s``) instead of
+            answering later and later.
+
+    Raises:
+        InvalidConfigError: bad ids or model, a backend of another size.
+    """
+
+    def __init__(
+        self,
+        ids,
+        model: str = "XM430-W350-T",
+        backend: ServoBackend | None = None,
+        zero_counts=None,
+        tick_s: float = 0.002,
+        ambient_C: float = 30.0,
+        max_step_s: float = 0.02,
+    ):
+        ids = [int(i) for i in ids]
+        if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
+            raise InvalidConfigError(f"ids {ids} must be distinct integers in 0..{p.MAX_ID}")
+        spec = p.servo_spec(model, torque_control=False)
+        self.ids = ids
+        self.backend = backend or FirstOrderServos.from_catalogue(model, np.zeros(len(ids)))
+        if len(self.backend.positions_rad()) != len(ids):
+            raise InvalidConfigError(
+                f"the backend moves {len(self.backend.positions_rad())} servos, not {len(ids)}"
+            )
+        self.zero_counts = (
+            np.full(len(ids), 2048) if zero_counts is None else np.asarray(zero_counts)
+        )
+        self.servos = {i: _Servo(i, spec, ambient_C) for i in ids}
+        self.tick_s = float(tick_s)
+        self.max_step_s = float(max_step_s)
+        #: Wall-clock time the model did not follow, s: the sum of the excess of every gap
+        #: between two advances over ``max_step_s`` (0 while the model keeps real time).
+        self.slipped_s = 0.0
+        #: Every instruction packet received, (perf_counter time, Packet), newest last (bounded).
+        self.received: list[tuple[float, p.Packet]] = []
+        self.muted = False
+        self._lock = threading.Lock()  # the control tables
+        self._model_lock = threading.Lock()  # the backend
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._model_thread: threading.Thread | None = None
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave, termios.TCSANOW)
+        tty.setraw(self._master, termios.TCSANOW)
+        # Never block the thread on a port nobody reads: a reply that does not fit is dropped.
+        os.set_blocking(self._master, False)
+        self.dropped_bytes = 0
+        self.port = os.ttyname(self._slave)
+        self._t = time.perf_counter()
+        self._update_present()
+
+    # --- lifetime ----------------------------------------------------------------------------
+
+    def start(self) -> BusEmulator:
+        """Start answering and moving (two daemon threads)."""
+        if self._thread is None:
+            self._thread = threading.Thread(
+                target=self._run, name="dynamixel-bus-emulator", daemon=True
+            )
+            self._model_thread = threading.Thread(
+                target=self._run_model, name="dynamixel-bus-model", daemon=True
+            )
+            self._thread.start()
+            self._model_thread.start()
+        return self
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        """Stop the threads (waits at most ``timeout_s`` each) and close the pty. Idempotent."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout_s)
+            if self._model_thread is not None:
+                self._model_thread.join(timeout_s)
+            self._thread = self._model_thread = None
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._master = self._slave = -1
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # --- test hooks --------------------------------------------------------------------------
+
+    def set_hardware_error(self, servo_id: int, bits: int) -> None:
+        """Raise Hardware Error Status ``bits`` (:data:`~.protocol.HW_OVERHEATING`, ...) on a
+        servo as its firmware would (e-Manual, "Hardware Error Status(70)"): Torque Enable is
+        cleared, the output is zero, every status packet carries the Alert bit; only a REBOOT
+        clears it (not emulated: make a new emulator)."""
+        with self._lock:
+            servo = self.servos[servo_id]
+            servo.put(p.HARDWARE_ERROR_STATUS, servo.get(p.HARDWARE_ERROR_STATUS) | int(bits))
+            servo.put(p.TORQUE_ENABLE, 0)
+
+    def mute(self, muted: bool = True) -> None:
+        """Stop (or resume) answering and executing: a cut cable. Packets are still logged in
+        ``received``."""
+        self.muted = bool(muted)
+
+    def read_item(self, servo_id: int, item) -> int:
+        """A servo's control-table value (unsigned), as the bus would read it."""
+        with self._lock:
+            return self.servos[servo_id].get(item)
+
+    def applied_current_A(self) -> np.ndarray:
+        """(n,) the currents the servos drive now, A (ids order)."""
+        with self._lock:
+            return np.array([self.servos[i].current_A() for i in self.ids])
+
+    def with_backend(self, fn):
+        """``fn(backend)``, called between two steps of the model: reading a model that the
+        model thread steps (a Drake context) must not race it."""
+        with self._model_lock:
+            return fn(self.backend)
+
+    def state(self) -> tuple[np.ndarray, np.ndarray]:
+        """The backend's (positions rad, velocities rad/s) (ids order)."""
+        return self.with_backend(lambda b: (b.positions_rad(), b.velocities_rad_s()))
+
+    # --- the thread --------------------------------------------------------------------------
+
+    def _run(self) -> None:
+        buf = bytearray()
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([self._master], [], [], self.tick_s)
+                if ready:
+                    buf += os.read(self._master, 4096)
+            except OSError:
+                if self._stop.is_set():
+                    return
+                time.sleep(self.tick_s)  # the driver closed its end: wait for it to reopen
+                continue
+            with self._lock:
+                while True:
+                    packet, used, crc_ok = p.parse_packet(buf)
+                    del buf[:used]
+                    if packet is None:
+                        break
+                    self._log(packet)
+                    if not self.muted:
+                        reply = self._answer(packet, crc_ok)
+                        if reply:
+                            try:
+                                os.write(self._master, reply)
+                            except BlockingIOError:
+                                self.dropped_bytes += len(reply)  # nobody reads the port
+
+    def _log(self, packet: p.Packet) -> None:
+        self.received.append((time.perf_counter(), packet))
+        if len(self.received) > 10000:
+            del self.received[:5000]
+
+    def _run_model(self) -> None:
+        while not self._stop.is_set():
+            wait = self._step_model()
+            if wait > 0:
+                self._stop.wait(wait)
+
+    def _step_model(self) -> float:
+        """Step the backend towards now (at most ``max_step_s``; a servo's watchdog trip at
+        the moment it runs out, not when the thread next looks) and refresh the present
+        values. The table's lock is not held while the model steps: the bus answers meanwhile
+        from the last present values. Returns how long the model may wait, s."""
+        with self._model_lock:
+            with self._lock:
+                now = time.perf_counter()
+                if now - self._t > self.max_step_s:  # slower than real time: slip, boundedly
+                    self.slipped_s += now - self._t - self.max_step_s
+                    self._t = now - self.max_step_s
+                t_trip = min((t for t, _ in self._armed()), default=math.inf)
+                t_next = min(now, max(t_trip, self._t))
+                currents = np.array([self.servos[i].current_A() for i in self.ids])
+            self.backend.advance(t_next - self._t, currents)
+            with self._lock:
+                self._t = t_next
+                for t, servo in self._armed():  # re-read: an instruction may have come
+                    if t <= t_next:
+                        servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
+                self._update_present()
+        if t_next < now:
+            return 0.0
+        return min(self.tick_s, max(0.0, t_trip - now))
+
+    def _armed(self) -> list:
+        """[(expiry time, servo)] of the servos whose bus watchdog is running."""
+        return [
+            (s.last_instruction + limit * p.WATCHDOG_UNIT_S, s)
+            for s in self.servos.values()
+            if s.get(p.TORQUE_ENABLE) and 0 < (limit := s.get(p.BUS_WATCHDOG)) <= 127
+        ]
+
+    def _update_present(self) -> None:
+        q, v = self.backend.positions_rad(), self.backend.velocities_rad_s()
+        counts = p.rad_to_counts(q, self.zero_counts)
+        vel = np.rint(v / p.VELOCITY_UNIT_RAD_S).astype(np.int64)
+        for k, i in enumerate(self.ids):
+            s = self.servos[i]
+            s.put(p.PRESENT_POSITION, int(counts[k]))
+            s.put(p.PRESENT_VELOCITY, int(vel[k]))
+            unit = s.spec.current_unit_A
+            s.put(p.PRESENT_CURRENT, round(s.current_A() / unit) if unit else 0)
+
+    # --- the protocol ------------------------------------------------------------------------
+
+    def _status(self, s: _Servo, error: int, params: bytes = b"") -> bytes:
+        alert = p.ALERT if s.get(p.HARDWARE_ERROR_STATUS) else 0
+        return p.build_status(s.id, error | alert, params)
+
+    def _answer(self, packet: p.Packet, crc_ok: bool) -> bytes:
+        """The status packets (concatenated) that ``packet`` calls for."""
+        now = time.perf_counter()
+        targets = list(self.servos) if packet.servo_id == p.BROADCAST_ID else [packet.servo_id]
+        targets = [i for i in targets if i in self.servos]
+        for i in targets:
+            self.servos[i].last_instruction = now
+        if not targets:
+            return b""
+        if not crc_ok:
+            if packet.servo_id == p.BROADCAST_ID:
+                return b""
+            return self._status(self.servos[packet.servo_id], p.ERR_CRC)
+        ins, par = packet.instruction, packet.params
+        if ins == p.PING:
+            return b"".join(
+                self._status(
+                    self.servos[i],
+                    0,
+                    p.to_unsigned(self.servos[i].get(p.MODEL_NUMBER), 2).to_bytes(2, "little")
+                    + bytes([self.servos[i].get(p.FIRMWARE_VERSION)]),
+                )
+                for i in targets
+            )
+        if packet.servo_id == p.BROADCAST_ID and ins in (p.READ, p.WRITE):
+            if ins == p.WRITE and len(par) > 2:
+                for i in targets:
+                    self.servos[i].write(int.from_bytes(par[:2], "little"), par[2:])
+            return b""  # no status to a broadcast READ/WRITE (e-Manual, Status Return Level)
+        if ins == p.READ:
+            s = self.servos[targets[0]]
+            if len(par) != 4:
+                return self._status(s, p.ERR_DATA_LENGTH)
+            address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:], "little")
+            if address + size > TABLE_SIZE:
+                return self._status(s, p.ERR_DATA_RANGE)
+            return self._status(s, 0, bytes(s.table[address : address + size]))
+        if ins == p.WRITE:
+            s = self.servos[targets[0]]
+            if len(par) < 3:
+                return self._status(s, p.ERR_DATA_LENGTH)
+            return self._status(s, s.write(int.from_bytes(par[:2], "little"), par[2:]))
+        if ins == p.SYNC_WRITE:
+            address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
+            rows = par[4:]
+            for k in range(0, len(rows) - size, size + 1):
+                if rows[k] in self.servos:
+                    self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
+            return b""
+        if ins == p.SYNC_READ:
+            address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
+            out = b""
+            for i in par[4:]:
+                if i in self.servos:
+                    s = self.servos[i]
+                    if address + size > TABLE_SIZE:
+                        out += self._status(s, p.ERR_DATA_RANGE)
+                    else:
+                        out += self._status(s, 0, bytes(s.table[address : address + size]))
+            return out
+        if packet.servo_id == p.BROADCAST_ID:
+            return b""
+        return self._status(self.servos[targets[0]], p.ERR_INSTRUCTION)
+
+
+def main(argv=None) -> None:
+    """``python -m stewart_drake.live.emulator --ids 1 2 3 4 5 6``: a bus in
+    its own process (no GIL shared with the driver). Prints the port path on the first line of
+    stdout, then serves until its stdin closes (the parent's end of a pipe, or Ctrl-D) or
+    SIGTERM/Ctrl-C."""
+    import argparse
+    import sys
+
+    parser = argparse.ArgumentParser(description=main.__doc__)
+    parser.add_argument("--ids", type=int, nargs="+", default=[1, 2, 3, 4, 5, 6])
+    parser.add_argument("--model", default="XM430-W350-T")
+    args = parser.parse_args(argv)
+    with BusEmulator(args.ids, args.model) as emulator:
+        print(emulator.port, flush=True)
+        try:
+            while sys.stdin.read(1):
+                pass
+        except KeyboardInterrupt:
+            pass
+
+
+if __name__ == "__main__":
+    main()

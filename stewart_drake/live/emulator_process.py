@@ -1,0 +1,178 @@
+"""The robot's Drake plant behind the bus emulator, in a process of its own.
+
+In one process with the control loop, the emulator's plant (:class:`~.plant_backend.
+StationServos`) and the Diagram share Python's GIL: a step of the Drake plant holds it, and on
+a loaded machine the plant slips behind the wall clock in chunks of up to the emulator's
+``max_step_s`` (one current held over 20 ms, a state 20 ms stale), which no controller tuned
+for a period of a few ms survives. A servo computes on its own chip; here the emulator does in
+its own process (``multiprocessing``, spawned), and records the platform's *true* pose at
+every step of its plant, for a run's tracking beside the pose the driver measures.
+
+    with EmulatorProcess(x0=x_d0) as emu:       # emu.port: the pty to open the bus on
+        ...                                      # run the loop
+    t, x = emu.truth()                           # perf_counter times (s), poses (n, 12)
+
+``time.perf_counter`` is the system's monotonic clock on Linux, the same in both processes.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+from typing import Any
+
+import numpy as np
+
+from ..base.errors import BusError
+from ..robot.kinematics import X_HOME
+
+
+def _serve(  # pragma: no cover
+    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts
+) -> None:
+    """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
+    ("port", the port), serves until told to stop, then sends the record. If it cannot start it
+    sends ("error", one line) instead of a traceback on the terminal."""
+    try:
+        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts).start()
+    except Exception as err:  # noqa: BLE001 - reported to the parent in one line
+        conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
+        return
+    try:
+        conn.send(("port", emu.port))
+        conn.recv()  # stop
+        record = emu.with_backend(lambda b: np.array(b.record, dtype=float).reshape(-1, 13))
+        conn.send((record, emu.slipped_s))
+    finally:
+        emu.close()
+
+
+def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # pragma: no cover
+    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant."""
+    from ..run.scenario import _scenario_from_yaml
+    from .emulator import BusEmulator
+    from .plant_backend import StationServos, dynamixel_scenario
+
+    scenario = dynamixel_scenario(model, _scenario_from_yaml(scenario_yaml))
+
+    class Recorded(StationServos):
+        def __init__(self):
+            super().__init__(scenario, model, x0)
+            station = self.station
+            self._port = station.GetOutputPort("platform_state")
+            self._context = station.GetMyContextFromRoot(self.simulator.get_context())
+            self.record: list = []
+
+        def advance(self, dt_s, current_A):
+            super().advance(dt_s, current_A)
+            self.record.append((time.perf_counter(), *self._port.Eval(self._context)))
+
+    return BusEmulator(
+        ids,
+        model,
+        backend=Recorded(),
+        zero_counts=zero_counts,
+        tick_s=tick_s,
+        max_step_s=max_step_s,
+    )
+
+
+class EmulatorProcess:
+    """A :class:`~.emulator.BusEmulator` with the robot's Drake plant
+    (:class:`~.plant_backend.StationServos` of ``dynamixel_scenario(model, scenario)``) in a
+    spawned process.
+
+    Args:
+        x0: (6,) the pose the robot starts at [rad, m].
+        ids, model: the bus's servos. scenario: the robot (default the paper's), as a
+            Scenario: its robot and plant settings are used.
+        tick_s, max_step_s: the emulator's (:class:`~.emulator.BusEmulator`).
+        start_timeout_s: how long to wait for the child's port.
+        zero_counts: (n,) the counts each servo reports at its crank's zero angle (default
+            2048, the bus's default).
+    Attributes:
+        port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
+            :meth:`close`).
+    Raises:
+        BusError: the child did not start in time.
+    """
+
+    def __init__(
+        self,
+        x0=X_HOME,
+        ids=(1, 2, 3, 4, 5, 6),
+        model: str = "XM430-W350-T",
+        scenario=None,
+        tick_s: float = 0.001,
+        max_step_s: float = 0.02,
+        start_timeout_s: float = 120.0,
+        zero_counts=None,
+    ):
+        from ..run.scenario import Scenario, dump_scenario
+
+        self._args = (
+            list(ids),
+            model,
+            np.asarray(x0, dtype=float),
+            dump_scenario(scenario if scenario is not None else Scenario()),
+            tick_s,
+            max_step_s,
+            None if zero_counts is None else [int(c) for c in zero_counts],
+        )
+        self.start_timeout_s = start_timeout_s
+        self.port: str | None = None
+        self.slipped_s = float("nan")
+        self._record = np.zeros((0, 13))
+        self._process: Any = None
+
+    def start(self) -> EmulatorProcess:
+        context = multiprocessing.get_context("spawn")
+        self._conn, child = context.Pipe()
+        self._process = context.Process(target=_serve, args=(child, *self._args), daemon=True)
+        self._process.start()
+        try:
+            deadline = time.monotonic() + self.start_timeout_s
+            while not self._conn.poll(0.2):
+                if not self._process.is_alive() or time.monotonic() > deadline:
+                    code = self._process.exitcode
+                    raise BusError(
+                        "the bus emulator's process "
+                        + (f"exited ({code})" if code is not None else "did not start in time")
+                        + " (a script that starts it needs `if __name__ == '__main__':`)"
+                    )
+            kind, value = self._conn.recv()
+            if kind == "error":  # the child's own one line: no traceback, no hint
+                raise BusError(f"the bus emulator did not start: {value}")
+        except BaseException:  # a refusal, or Ctrl-C while it starts: no orphan
+            self.close(timeout_s=1.0)
+            raise
+        self.port = value
+        return self
+
+    def close(self, timeout_s: float = 30.0) -> None:
+        """Stop the child and collect its record. Idempotent."""
+        if self._process is None:
+            return
+        try:
+            if self._process.is_alive():
+                self._conn.send("stop")
+                if self._conn.poll(timeout_s):
+                    self._record, self.slipped_s = self._conn.recv()
+        except (BrokenPipeError, EOFError, OSError):
+            pass
+        self._process.join(timeout_s)
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join(timeout_s)
+        self._process = None
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def truth(self) -> tuple[np.ndarray, np.ndarray]:
+        """(t (n,) perf_counter s, x (n, 12) the platform's true pose and rate) at every step
+        of the plant while a servo drove current (after :meth:`close`)."""
+        return self._record[:, 0], self._record[:, 1:]

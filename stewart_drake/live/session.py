@@ -1,0 +1,786 @@
+"""The controller Diagram on the robot's servos: a session with its safety paths.
+
+A scenario with a ``bus`` (the servos' port, ids and calibration) runs on the robot. The
+session (:func:`run_on_robot`) is the only code that enables the servos' torque, and every way
+out of it removes the torque:
+
+1. the reference is checked whole before the port is opened (as a simulated run's is);
+2. the servos are configured with the torque off and their settings read back
+   (:meth:`~stewart_drake.station.bus.driver.DynamixelBus.configure`);
+3. the pose is measured (encoders -> forward kinematics) and the run's reference gets a homing
+   lead-in from that pose to the reference's start (:class:`HomingReference`); that whole path,
+   the measured pose first, passes every check of the admissible set
+   (:func:`~stewart_drake.run.plan.check_reference`: reach, joint ranges,
+   singularities, clearance, the motors' torque and speed) or nothing is powered;
+4. only then the torque is enabled, and the Diagram runs at real time behind our watchdog
+   (:class:`LoopWatchdog`) and the servos' own bus watchdog;
+5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
+   deadline, a guard trip, our watchdog), removes the torque, says in one line why it ended
+   and whether every servo confirmed the torque off, and keeps the logs (the ``.npz`` of a
+   simulated run; :func:`~stewart_drake.run.simulate.save_result`).
+
+At the end of a run the torque is off: the platform comes down onto its stops. Home it low (the
+scenario's reference ends where the platform may rest) or hold it (``hold_s``) and support it.
+
+:func:`measure_pose` is the dry run: it reads the bus with the torque off and returns the pose
+and its verdict.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import signal
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError
+
+#: Default duration of the homing lead-in, s.
+HOME_S = 3.0
+#: Default time our watchdog lets pass without a completed control period, s.
+LOOP_TIMEOUT_S = 0.1
+
+
+@dataclasses.dataclass(frozen=True)
+class MeasuredPose:
+    """The robot's pose read from its encoders with the torque off.
+
+    Attributes:
+        q: (6,) crank angles, rad (zero counts and directions applied).
+        x: (6,) the pose [phi, theta, psi, X, Y, Z] (rad, m) by forward kinematics from home.
+        flags: the admissible set's verdicts at x (:func:`~stewart_drake.plant.admissible.classify`,
+            with the guard's bounds and the motors' peak torque): "reachable", "clear",
+            "usable", "within_peak", "admissible" (bool) and "max_torque" (N m),
+            "clearance" (m), "cond", "sigma_min_inv" ((rad or m) per rad).
+        problem: why x is not admissible (one sentence), or None.
+    """
+
+    q: np.ndarray
+    x: np.ndarray
+    flags: dict
+    problem: str | None
+
+    def summary(self) -> str:
+        """Two lines: the angles and pose, and the verdict."""
+        deg = np.degrees
+        pose = (
+            f"roll {deg(self.x[0]):+.2f} pitch {deg(self.x[1]):+.2f} yaw {deg(self.x[2]):+.2f} "
+            f"deg, X {self.x[3] * 1e3:+.2f} Y {self.x[4] * 1e3:+.2f} Z {self.x[5] * 1e3:.2f} mm"
+        )
+        angles = ", ".join(f"{v:+.1f}" for v in deg(self.q))
+        verdict = "admissible" if self.problem is None else f"NOT admissible: {self.problem}"
+        return f"cranks [{angles}] deg -> {pose}\n{verdict}"
+
+
+def _first_problem(flags: dict) -> str | None:
+    """The first check of the admissible set that ``flags`` (classify's, at one pose) fails."""
+    if not flags["reachable"]:
+        return "outside a joint's range or the rods' reach"
+    if not flags["clear"]:
+        return f"two parts closer than the guard allows ({flags['clearance'] * 1e3:.1f} mm)"
+    if not flags["usable"]:
+        return (
+            f"too close to a singularity (cond(J) {flags['cond']:.0f}, 1/sigma_max(J) "
+            f"{flags['sigma_min_inv']:.3g}; the guard's bounds)"
+        )
+    if not flags["within_peak"]:
+        return f"holding it needs {flags['max_torque']:.3f} N m, over the motors' peak"
+    if not flags["admissible"]:
+        return f"holding it needs {flags['max_torque']:.3f} N m, over a reference's share"
+    return None
+
+
+def pose_verdict(plan, q) -> MeasuredPose:
+    """The :class:`MeasuredPose` of crank angles ``q`` (6,) rad on the robot of ``plan`` (a
+    :class:`~stewart_drake.run.plan.RunPlan`): forward kinematics from home, then the
+    admissible set's checks with the guard's bounds (those ``teleop`` and ``check`` apply).
+
+    Raises:
+        StartPoseError: no pose has these angles (the forward kinematics does not converge:
+            a crank off its calibration, or a servo's zero count wrong).
+    """
+    from ..base.errors import ForwardKinematicsError
+    from ..plant.admissible import classify
+    from ..plant.clearance import clearance_model
+    from ..robot.kinematics import fk
+
+    q = np.asarray(q, dtype=float)
+    try:
+        x, _ = fk(plan.geometry, q)
+    except ForwardKinematicsError:
+        raise StartPoseError(
+            f"no pose of the robot has the measured crank angles "
+            f"[{', '.join(f'{v:+.1f}' for v in np.degrees(q))}] deg: check each servo's "
+            f"zero_counts and direction in the scenario's bus (docs/robot.md, calibration)"
+        ) from None
+    guard = plan.scenario.guard
+    flags = classify(
+        plan.geometry,
+        x[None],
+        guard.cond_threshold,
+        guard.min_clearance_m,
+        plan.motor_limits,
+        guard.min_sigma_min_inv,
+        clearance=clearance_model(plan.plant_geometry),
+    )
+    keys = ("reachable", "clear", "usable", "within_peak", "admissible")
+    one: dict = {k: bool(flags[k][0]) for k in keys}
+    one.update(
+        {k: float(flags[k][0]) for k in ("max_torque", "clearance", "cond", "sigma_min_inv")}
+    )
+    return MeasuredPose(q=q, x=x, flags=one, problem=_first_problem(one))
+
+
+def bus_config(scenario):
+    """The scenario's ``bus`` config, or InvalidConfigError saying how to give one."""
+    bus = getattr(scenario, "bus", None)
+    if bus is None:
+        raise InvalidConfigError(
+            "the scenario has no bus: add a 'bus:' section (port, baud_rate, ids, model, "
+            "zero_counts, directions; docs/robot.md) or give --port"
+        )
+    return bus
+
+
+def measure_pose(scenario, bus=None) -> MeasuredPose:
+    """Read the robot's pose with the torque off (the dry run): open the bus of
+    ``scenario.bus`` (or use ``bus``, an opened
+    :class:`~stewart_drake.station.bus.driver.DynamixelBus`), read the crank angles once,
+    close it.
+
+    Args:
+        scenario: a Scenario with a ``bus`` (or a RunPlan of one).
+    Returns:
+        :class:`MeasuredPose`.
+    Raises:
+        InvalidConfigError: no bus in the scenario. BusError, MissingServoError: the port, a
+        servo. StartPoseError: the angles are no pose of the robot.
+    """
+    from ..run.plan import make_plan
+
+    plan = make_plan(scenario, with_reference=False)
+    if bus is not None:
+        return pose_verdict(plan, bus.read_state().q)
+    with bus_config(plan.scenario).make_bus() as opened:
+        return pose_verdict(plan, opened.read_state().q)
+
+
+def zero_counts_at(bus, angle_rad: float = 0.0) -> np.ndarray:
+    """Calibration: the counts each servo reports while its crank is held at ``angle_rad``
+    (0: the crank horizontal, pointing away from the base's centre along its leg's direction,
+    docs/reference_geometry.md), i.e. the ``zero_counts`` to write in the scenario's bus.
+
+    Args:
+        bus: an opened :class:`~stewart_drake.station.bus.driver.DynamixelBus` (the
+            torque off: the cranks are held by hand or by a jig); its ``directions`` must be
+            right (a crank's counts grow as its tip rises for +1).
+        angle_rad: the angle the cranks are held at, rad.
+    Returns:
+        (n,) int counts, rounded, each within the Present Position register's (signed 32 bits).
+    Raises:
+        InvalidConfigError: ``angle_rad`` not finite or beyond half a turn.
+        BusError: a zero count outside the register's range (a servo's reading is wrong).
+    """
+    from ..base.errors import BusError
+    from ..station.bus.protocol import rad_to_counts
+
+    if not (math.isfinite(angle_rad) and abs(angle_rad) <= math.pi):
+        raise InvalidConfigError(
+            f"the calibration angle must be finite and within half a turn, got {angle_rad} rad"
+        )
+    q = bus.read_state().q  # with the bus's current zero counts and directions
+    raw = rad_to_counts(q, bus.zero_counts, bus.directions)
+    zeros = raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)
+    bad = np.flatnonzero(np.abs(zeros) >= 2**31)
+    if bad.size:
+        raise BusError(
+            f"servo id {bus.ids[bad[0]]} reads {raw[bad[0]]} counts: its zero count would be "
+            f"outside the encoder's signed 32-bit range; check its id and its reading"
+        )
+    return zeros.astype(int)
+
+
+def admissible_start(scenario) -> MeasuredPose:
+    """:func:`measure_pose`, refusing a pose outside the admissible set.
+
+    Raises:
+        StartPoseError: the measured pose fails a check (named); nothing was powered.
+        as :func:`measure_pose`.
+    """
+    start = measure_pose(scenario)
+    if start.problem is not None:
+        raise StartPoseError(
+            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
+            f"was powered. Measured: {start.summary().splitlines()[0]}"
+        )
+    return start
+
+
+class HomingReference:
+    """The run's reference on the robot: a homing lead-in from where the robot rests, then the
+    reference started and ended at rest.
+
+    - For t in [0, home_s]: each coordinate follows the quintic from ``x_start`` to the
+      reference's start x_d(0), at rest at both ends (scipy's ``BPoly.from_derivatives``).
+    - Then the reference along its own path, on a warped clock tau(t): tau' (the speed along
+      the path) rises from 0 to 1 over ``ramp_s`` by the quintic smoothstep S(u) =
+      10 u^3 - 15 u^4 + 6 u^5, is 1 (the reference's own rate) in between, and falls back to 0
+      over the last ``ramp_s`` before tau reaches ``t_end``; pose x_d(tau), rate x_d'(tau) tau',
+      acceleration x_d''(tau) tau'^2 + x_d'(tau) tau'': continuous everywhere, so a reference
+      that starts or ends moving (the paper's manoeuvre starts at phi_dot = 2 pi / 6 rad/s)
+      asks no step of rate of the motors. The path is the reference's, every pose of it
+      checked as ``check`` checks the reference; the rates are at most the reference's.
+    - After it, x_d(t_end) held at rest.
+
+    The warp lasts ``t_end + ramp_s`` s (each ramp lags half of itself): ``duration_s`` is
+    the whole run, lead-in included.
+
+    Args:
+        reference: an object with ``evaluate(t)`` (``as_trajectory``'s).
+        x_start: (6,) pose the robot rests at, rad and m.
+        home_s: duration of the lead-in, s (> 0).
+        t_end: the reference's time at which it ends, s (> 0).
+        ramp_s: duration of each ramp of the warp, s (at most ``t_end``; shortened to it).
+    Raises:
+        InvalidConfigError: home_s, t_end or ramp_s not > 0.
+    """
+
+    def __init__(
+        self, reference, x_start, home_s: float = HOME_S, t_end: float = 10.0, ramp_s: float = 1.0
+    ):
+        from scipy.interpolate import BPoly
+
+        if not (home_s > 0 and t_end > 0 and ramp_s > 0):
+            raise InvalidConfigError(
+                f"the homing time, the reference's end and the ramp must be > 0 s, got "
+                f"{home_s}, {t_end}, {ramp_s}"
+            )
+        self.reference, self.home_s, self.t_end = reference, float(home_s), float(t_end)
+        self.ramp_s = min(float(ramp_s), self.t_end)
+        #: The run's length, s: the lead-in, then the reference on its warped clock.
+        self.duration_s = self.home_s + self.t_end + self.ramp_s
+        self.name = f"{getattr(reference, 'name', 'reference')}_homed"
+        x0 = np.asarray(reference.evaluate(0.0)[0], dtype=float).reshape(6)
+        x_start = np.asarray(x_start, dtype=float).reshape(6)
+        self._lead = [
+            BPoly.from_derivatives([0.0, self.home_s], [[x_start[i], 0, 0], [x0[i], 0, 0]])
+            for i in range(6)
+        ]
+
+    def _warp(self, s):
+        """(tau, tau', tau'') at s s after the lead-in (s >= 0)."""
+        R, T = self.ramp_s, self.t_end + self.ramp_s
+
+        def up(s):  # the rising ramp, s in [0, R]: tau = R * integral of S
+            u = s / R
+            return (
+                R * u**4 * (2.5 - 3 * u + u * u),
+                u**3 * (10 - 15 * u + 6 * u * u),
+                (30 * u * u * (1 - u) ** 2 / R),
+            )
+
+        tau, d1, d2 = s - R / 2, np.ones_like(s), np.zeros_like(s)
+        rising, falling = s < R, s > T - R
+        if np.any(rising):
+            tau[rising], d1[rising], d2[rising] = up(s[rising])
+        if np.any(falling):
+            tau_f, d1_f, d2_f = up(np.clip(T - s[falling], 0.0, R))
+            tau[falling], d1[falling], d2[falling] = self.t_end - tau_f, d1_f, -d2_f
+        return tau, d1, d2
+
+    def evaluate(self, t):
+        t = np.asarray(t, dtype=float)
+        shape = t.shape
+        flat = t.reshape(-1)
+        out = [np.zeros((flat.size, 6)) for _ in range(3)]
+        lead = flat < self.home_s
+        if np.any(lead):
+            s = np.clip(flat[lead], 0.0, None)
+            for i, poly in enumerate(self._lead):
+                for k in range(3):
+                    out[k][lead, i] = poly(s, k)
+        rest = ~lead
+        if np.any(rest):
+            tau, d1, d2 = self._warp(flat[rest] - self.home_s)
+            x, v, a = (
+                np.asarray(p, dtype=float).reshape(-1, 6) for p in self.reference.evaluate(tau)
+            )
+            out[0][rest] = x
+            out[1][rest] = v * d1[:, None]
+            out[2][rest] = a * (d1 * d1)[:, None] + v * d2[:, None]
+        return tuple(o.reshape(shape + (6,)) for o in out)
+
+
+class LoopWatchdog:
+    """Our watchdog: removes the servos' torque when the control loop stops completing periods.
+
+    :meth:`kick` marks a completed period (the session kicks from the Simulator's monitor,
+    after every step); a thread checks every ``timeout_s / 4`` and, if no kick came for
+    ``timeout_s``, calls ``torque_off()`` itself (under the bus's lock, waiting for a transfer in
+    progress at most 1 s) and records why in ``tripped``; the monitor then raises
+    :class:`~stewart_drake.base.errors.LoopStalledError` at the loop's next step, which ends the run
+    (a flag, not a signal to the main thread: a process started in the background of a script
+    ignores SIGINT, and would run on). The
+    servos' own bus watchdog (``bus.watchdog_s``) is the backstop when this process dies; some
+    firmware does not stop on it (docs/hardware_bus.md), so this one does not rely on it.
+
+    Args:
+        torque_off: callable removing the torque (returns whether confirmed).
+        timeout_s: the longest time without a completed period, s.
+    """
+
+    def __init__(self, torque_off: Callable[[], bool], timeout_s: float = LOOP_TIMEOUT_S):
+        if not 0 < timeout_s <= 10:
+            raise InvalidConfigError(f"the loop timeout must be in (0, 10] s, got {timeout_s}")
+        self.torque_off, self.timeout_s = torque_off, float(timeout_s)
+        self.tripped: str | None = None
+        self._last = time.perf_counter()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="robot-watchdog", daemon=True)
+
+    def kick(self) -> None:
+        self._last = time.perf_counter()
+
+    def __enter__(self):
+        self.kick()
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self._stop.set()
+        self._thread.join(2.0)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.timeout_s / 4):
+            late = time.perf_counter() - self._last
+            if late > self.timeout_s:
+                confirmed = self.torque_off()
+                self.tripped = (
+                    f"the control loop stopped: no period completed for {late * 1e3:.0f} ms "
+                    f"(limit {self.timeout_s * 1e3:.0f} ms); our watchdog removed the torque "
+                    + ("(confirmed)" if confirmed else "(NOT confirmed: cut the servos' power)")
+                )
+                return
+
+
+@dataclasses.dataclass
+class RobotRun:
+    """How a session on the robot ended.
+
+    Attributes:
+        reason: one line: why it ended.  ok: it ran to its end.
+        torque_off_confirmed: every servo confirmed the torque off at the end.
+        start: the :class:`MeasuredPose` it started from (None: ended before the measurement).
+        logs: the ``.npz`` written (None: none, e.g. the run had not started).
+        timing: the driver's timing summary (period, jitter, round trips, measurement age,
+            deadline misses: ``DynamixelDriver.timing_summary``); ``timing_lines`` as text.
+        metrics: the run's metrics (:func:`~stewart_drake.run.metrics.compute_metrics`:
+            tracking from the measured pose, torques), when its logs were read.
+        exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
+    """
+
+    reason: str
+    ok: bool
+    torque_off_confirmed: bool
+    start: MeasuredPose | None = None
+    logs: Path | None = None
+    timing: dict | None = None
+    timing_lines: list[str] = dataclasses.field(default_factory=list)
+    metrics: dict | None = None
+    exit_code: int = 0
+
+
+def _signal_name(err: BaseException) -> tuple[str, int]:
+    signum = getattr(err, "signum", signal.SIGINT)
+    return signal.Signals(signum).name, 128 + int(signum)
+
+
+class SessionSignals:
+    """SIGINT, SIGTERM and SIGHUP around a session on the robot (main thread only; a signal
+    the process was started ignoring stays ignored).
+
+    Until :meth:`hold` (the torque-off) the first of them raises
+    :class:`~stewart_drake.execution.runners.Interrupted` (a KeyboardInterrupt naming it, as
+    the CLI's handlers do): it ends the run. From then on, and after that first one, a signal is
+    recorded in ``received`` instead of raised, so that nothing cuts short the torque-off's
+    confirmation, closing the bus, the logs or the end line (an operator's Ctrl-C as the
+    platform settles would otherwise lose all of them); :meth:`settle` then names it in the
+    session's reason and exit status.
+
+        with SessionSignals() as signals:
+            run = run_on_robot(scenario, signals=signals)
+            signals.settle(run)
+            print(end_line(run))
+        sys.exit(run.exit_code)
+
+    Attributes:
+        received: the first signal number recorded while held, or None.
+    """
+
+    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
+
+    def __init__(self):
+        self.received: int | None = None
+        self.holding = False
+        self._settled = False
+        self._old: dict = {}
+
+    def __enter__(self) -> SessionSignals:
+        if threading.current_thread() is threading.main_thread():
+            for name in self.NAMES:
+                signum = getattr(signal, name, None)
+                if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
+                    self._old[signum] = signal.signal(signum, self._handle)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        for signum, handler in self._old.items():
+            signal.signal(signum, handler)
+        self._old.clear()
+
+    def arm(self) -> None:
+        """Just before the torque goes on: raise a signal recorded so far (one that came after
+        an interrupt something swallowed), and raise the next again: while the torque is on a
+        signal is never held.
+
+        Raises:
+            Interrupted: the recorded signal.
+        """
+        from ..execution.runners import Interrupted
+
+        if self.received is not None:
+            raise Interrupted(self.received)
+        self.holding = False
+
+    def hold(self) -> None:
+        """From now on, record signals instead of raising them."""
+        self.holding = True
+
+    def _handle(self, signum, frame) -> None:
+        from ..execution.runners import Interrupted
+
+        if self.holding:
+            if self.received is None:
+                self.received = int(signum)
+            return
+        self.holding = True  # the one raised ends the run; the next must not cut its end
+        raise Interrupted(signum)
+
+    def settle(self, run: RobotRun) -> RobotRun:
+        """Name a recorded signal in ``run.reason`` (once) and make the exit status 128 + its
+        number where the session had otherwise succeeded; returns ``run``."""
+        if self.received is None or self._settled:
+            return run
+        self._settled = True
+        name = signal.Signals(self.received).name
+        kept = "held until the logs were saved" if run.logs is not None else "held to the end"
+        run.reason += f"; {name} received after the torque went off: {kept}"
+        if run.exit_code == 0:
+            run.exit_code = 128 + self.received
+        return run
+
+
+def run_on_robot(
+    scenario,
+    *,
+    reference=None,
+    home_s: float = HOME_S,
+    hold_s: float = 0.0,
+    loop_timeout_s: float = LOOP_TIMEOUT_S,
+    out: str | Path = "results",
+    stem: str = "robot",
+    meshcat=None,
+    progress: bool = False,
+    say: Callable[[str], None] | None = None,
+    before_torque: Callable | None = None,
+    signals: SessionSignals | None = None,
+) -> RobotRun:
+    """Run the scenario's closed loop on the robot (the safety sequence of the module's
+    docstring); never leaves the torque on.
+
+    Args:
+        scenario: a Scenario (or RunPlan) with a ``bus``.
+        reference: overrides the scenario's reference (as ``make_stewart_diagram``'s).
+        home_s: duration of the homing lead-in from the measured pose, s.
+        hold_s: how long the reference's last pose is held after its end, s (then the torque
+            goes off).
+        loop_timeout_s: our watchdog's limit on a control period, s.
+        out: folder of the logs (``<stem>.npz``; on a guard trip the guard's own file in its
+            ``divergence_dir``).
+        meshcat: optional Meshcat: the robot at its measured pose, live.
+        progress: a progress bar.  say: where the one-line messages go (default stderr).
+        before_torque: a test hook ``f(sd, simulator)`` called after every check, just before
+            the torque is enabled.
+        signals: the entered :class:`SessionSignals` of a caller that says the end line itself
+            (it holds signals through it, then calls ``settle``); None: the session's own,
+            settled before it returns.
+    Returns:
+        :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
+        came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
+    Raises:
+        InvalidConfigError: no bus, a bad scenario or argument; the reference refused by its
+            checks (UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError) before anything is powered; StartPoseError: the measured pose.
+        BusError, MissingServoError, ServoConfigMismatchError: the bus before the torque is on.
+        (Once the torque is on nothing is raised: the end is reported in the RobotRun.)
+    """
+    from ..references.trajectories import as_trajectory
+    from ..run.plan import make_plan
+
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    plan = make_plan(scenario, with_reference=False)
+    bus_config(plan.scenario)
+    if not 0 < home_s <= 60 or not 0 <= hold_s <= 3600:
+        raise InvalidConfigError(
+            f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
+        )
+    target = as_trajectory(reference) if reference is not None else make_plan(plan).reference
+    duration = plan.duration_s
+    start = admissible_start(plan)  # opens and closes the port; the torque stays off
+    homed = HomingReference(target, start.x, home_s, t_end=duration)
+    run_plan = dataclasses.replace(plan.scenario, duration_s=homed.duration_s + hold_s)
+    session = (run_plan, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
+    if signals is not None:
+        return _run(*session, before_torque, signals)
+    with SessionSignals() as own:
+        return own.settle(_run(*session, before_torque, own))
+
+
+def _run(
+    scenario,
+    homed,
+    start,
+    loop_timeout_s,
+    out,
+    stem,
+    meshcat,
+    progress,
+    say,
+    before_torque,
+    signals,
+) -> RobotRun:
+    """Build, check, power and run (see :func:`run_on_robot`)."""
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from ..run.diagram import make_stewart_diagram
+    from ..run.plan import make_plan
+    from ..run.simulate import (
+        advance,
+        check_reference_shown,
+        check_run_memory,
+        finish_result,
+        read_run,
+        save_result,
+    )
+    from ..station.bus.station import HardwareStation
+    from ..station.guard import advance as guarded
+
+    # As a simulated run's (studies.experiments.build_simulator), but the station is assembled
+    # from the servos' reading, once the bus is open. The whole path, from the measured pose,
+    # is checked here, before the port is opened again.
+    plan = make_plan(scenario, with_reference=False)
+    check_run_memory(plan.scenario)
+    plan = make_plan(plan, reference=homed)
+    check_reference_shown(plan, progress=progress, keep_series=False)
+    sd = make_stewart_diagram(plan, meshcat=meshcat)
+    simulator = Simulator(sd.diagram)
+    ApplySimulatorConfig(plan.scenario.simulator, simulator)
+    context = simulator.get_mutable_context()
+    sd.initialize(context)
+    station = sd.station
+    if not isinstance(station, HardwareStation):  # a scenario with a bus builds one
+        raise InvalidConfigError("the run's station is not on the servo bus")
+    bus = station.bus
+    bus.open()
+    ended = RobotRun("", False, True, start=start)
+    powered, wall = False, 0.0
+    try:
+        bus.configure()
+        station.assemble(context, start.x)  # the driver holds its first reading
+        again = pose_verdict(sd.plan, bus.read_state().q)
+        moved = np.abs(again.x - start.x)
+        if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
+            raise StartPoseError(
+                "the platform moved between the measurement and the start (by "
+                f"{np.degrees(moved[:3]).max():.2f} deg, {moved[3:].max() * 1e3:.2f} mm): "
+                "hold it still and run again"
+            )
+        if before_torque is not None:
+            before_torque(sd, simulator)
+        powered = True
+
+        def body():
+            simulator.Initialize()  # paces real time from here
+            guarded(
+                sd,
+                simulator,
+                lambda: advance(simulator, sd.plan.duration_s, progress, "on the robot"),
+            )
+
+        announce = (
+            f"torque on: homing for {homed.home_s:g} s from the measured pose, then "
+            f"{getattr(homed.reference, 'name', 'the reference')}"
+        )
+        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended, signals)
+    finally:
+        signals.hold()
+        try:
+            ended.torque_off_confirmed = bus.torque_off()
+            ended.timing = station.driver.timing_summary()
+            ended.timing_lines = station.driver.timing_lines()
+        finally:
+            bus.close()
+    if not powered:
+        return ended
+    try:
+        result = finish_result(read_run(sd, simulator.get_context()), wall)
+        ended.metrics = result.metrics
+        ended.logs = save_result(result, out / f"{stem}.npz")
+    except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
+        ended.reason += f"; the logs could not be written: {err}"
+    return ended
+
+
+def _drive(
+    bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun, signals: SessionSignals
+) -> float:
+    """Enable the torque, say ``announce``, run ``body()`` (which advances ``simulator``)
+    behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. From
+    the end of ``body()`` on, ``signals`` are held. The caller removes the torque (in a
+    ``finally``)."""
+    from ..execution.runners import interrupt_in
+
+    watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
+    simulator.set_monitor(_kicker(watchdog))
+    simulator.set_target_realtime_rate(1.0)
+    signals.arm()
+    bus.enable_torque()
+    say(announce)
+    wall0 = time.perf_counter()
+    try:
+        try:
+            with watchdog:
+                body()
+        finally:
+            signals.hold()
+        ended.reason, ended.ok = "the reference ran to its end", True
+    except KeyboardInterrupt as err:
+        name, ended.exit_code = _signal_name(err)
+        ended.reason = f"interrupted by {name}"
+        if watchdog.tripped:  # it came while the loop was stalled
+            ended.reason += f" after {watchdog.tripped}"
+    except StewartError as err:  # a bus error, a missed deadline, a guard trip
+        # Without the driver's verdict on the torque-off it attempted when the bus failed: the
+        # end line gives the verdict of the last torque-off, the one that counts.
+        what = getattr(err, "failure", None) or str(err)
+        ended.reason, ended.exit_code = f"{type(err).__name__}: {what}", 1
+    except (RuntimeError, SystemError) as err:  # inside Drake (the guard saved the logs)
+        interrupt = interrupt_in(err)  # a signal inside compiled code comes back wrapped
+        if interrupt is not None:
+            name, ended.exit_code = _signal_name(interrupt)
+            ended.reason = f"interrupted by {name}"
+        else:
+            ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
+    if watchdog.tripped is not None and not ended.reason.startswith("LoopStalledError"):
+        # The stall came first: what ended the run after it (the guard, seeing the platform
+        # that drifted under the last torques, at the loop's first check) is its consequence.
+        ended.reason = f"LoopStalledError: {watchdog.tripped}; then {ended.reason}"
+        ended.ok, ended.exit_code = False, ended.exit_code or 1
+    return time.perf_counter() - wall0
+
+
+def teleop_on_robot(
+    scenario,
+    meshcat,
+    *,
+    duration_s: float | None = None,
+    loop_timeout_s: float = LOOP_TIMEOUT_S,
+    say: Callable[[str], None] | None = None,
+    signals: SessionSignals | None = None,
+) -> RobotRun:
+    """``teleop`` on the robot: the live Meshcat (sliders, gauges, the reference's ghost, the
+    robot drawn at its measured pose) driving the servos of ``scenario.bus``.
+
+    The sliders start at the measured pose (it must be in the admissible set: nothing is
+    powered otherwise) and the reference follows them only through admissible poses at
+    bounded rate (:class:`~stewart_drake.run.reference.TeleopReference`), so no homing
+    is needed. The pause button is off: on the robot time does not stop (a paused loop would
+    trip the watchdogs and drop the platform). Ends after ``duration_s`` (None: at Ctrl-C or
+    SIGTERM) with the torque off and one line, as :func:`run_on_robot`; a live session keeps
+    no logs (as ``teleop`` in simulation).
+
+    ``signals``: as :func:`run_on_robot`'s.
+
+    Raises:
+        as :func:`run_on_robot` before the torque is on.
+    """
+    say = say or (lambda line: print(line, file=sys.stderr, flush=True))
+    bus_config(scenario)
+    start = admissible_start(scenario)
+    if signals is not None:
+        return _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals)
+    with SessionSignals() as own:
+        return own.settle(_teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, own))
+
+
+def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) -> RobotRun:
+    """The powered part of :func:`teleop_on_robot`."""
+    from ..execution.runners import Interrupted
+    from .teleop import build_teleop, run_teleop
+
+    bus = bus_config(scenario).make_bus().open()
+    ended = RobotRun("", False, True, start=start)
+    try:
+        bus.configure()
+        run = build_teleop(scenario, meshcat, x_initial=start.x, bus=bus)
+        run.paused = lambda: False  # type: ignore[method-assign]
+
+        def body():
+            stats = run_teleop(run, duration_s, report=None)
+            if "interrupted_by" in stats:
+                raise Interrupted(stats["interrupted_by"])
+
+        announce = f"torque on: open {meshcat.web_url()} ; the sliders move the robot"
+        _drive(bus, run.simulator, loop_timeout_s, say, announce, body, ended, signals)
+        if ended.ok:
+            ended.reason = "the session ran its duration"
+    finally:
+        signals.hold()
+        try:
+            ended.torque_off_confirmed = bus.torque_off()
+        finally:
+            bus.close()
+    return ended
+
+
+def _kicker(watchdog: LoopWatchdog):
+    """The Simulator's monitor: each step completed kicks ``watchdog``; returns Drake's
+    "continue" status."""
+    from pydrake.systems.framework import EventStatus
+
+    succeeded = EventStatus.Succeeded()
+
+    def monitor(context):
+        if watchdog.tripped is not None:
+            raise LoopStalledError(watchdog.tripped)
+        watchdog.kick()
+        return succeeded
+
+    return monitor
+
+
+def end_line(run: RobotRun) -> str:
+    """The one line a session ends with: why, the torque off, where the logs are."""
+    torque = (
+        "torque off (confirmed by every servo)"
+        if run.torque_off_confirmed
+        else "torque off NOT confirmed: cut the servos' power"
+    )
+    logs = f"; logs in {run.logs}" if run.logs is not None else ""
+    return f"{run.reason}; {torque}{logs}"

@@ -1,0 +1,269 @@
+"""Geometry and inertial parameters of the rotary Stewart platform.
+
+The default :class:`StewartGeometry` is exactly ``docs/reference_geometry.md``: the layout
+the paper leaves open, with the paper's Table I masses and inertias. Frames: world = base frame B
+(origin at the centre of the base plate's top face, z up); platform frame E (origin at the centre
+of the circle of platform joints). Leg index i = 2k + (s+1)/2, k = 0, 1, 2, s = -1, +1.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..base.checks import as_array, as_number
+from ..base.errors import InvalidGeometryError
+from .kinematics import X_HOME, leg_reach_ratio
+from .limits import LIMITS, limit_margins
+
+#: Table I of the paper, principal moments about the COM in kg m^2, as printed.
+TABLE_I_CRANK_INERTIA = (1e-6, 5.8e-5, 6e-5)
+
+
+def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[float, float, float]:
+    """Nearest principal moments (Euclidean norm) that satisfy the triangle inequality.
+
+    Args:
+        moments: (3,) principal moments of inertia about the COM, kg m^2.
+        margin: slack in kg m^2 kept above equality so that rounding cannot fail Drake's check.
+    Returns:
+        (3,) moments, unchanged if already valid. For Table I's crank (1e-6, 5.8e-5, 6e-5), whose
+        Ixx + Iyy < Izz, the deficit is spread equally: (1.334e-6, 5.8334e-5, 5.9666e-5).
+    Source: paper Table I fails ``RotationalInertia.CouldBePhysicallyValid``; docs/paper_notes.md.
+    """
+    m = as_array("principal moments", moments, shape=(3,), error=InvalidGeometryError).copy()
+    if np.any(m < 0):
+        raise InvalidGeometryError(f"principal moments must be 3 finite values >= 0, got {moments}")
+    for _ in range(3):  # each projection fixes the largest violation; at most three are needed
+        deficits = np.array([m[1] + m[2] - m[0], m[0] + m[2] - m[1], m[0] + m[1] - m[2]])
+        j = int(np.argmin(deficits))
+        if deficits[j] >= margin:
+            break
+        # Project onto the half-space sum_k sign_k m_k >= margin, normal n with n[j] = -1.
+        n = np.ones(3)
+        n[j] = -1.0
+        m += n * (margin - deficits[j]) / 3.0
+    return float(m[0]), float(m[1]), float(m[2])
+
+
+def _ring(radius: float, angles_deg, z: float = 0.0) -> np.ndarray:
+    a = np.deg2rad(np.asarray(angles_deg, dtype=float))
+    return np.stack([radius * np.cos(a), radius * np.sin(a), np.full_like(a, z)], axis=1)
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    """Read-only array: the geometry caches its anchors, so callers must not mutate them."""
+    a.setflags(write=False)
+    return a
+
+
+def _leg_angles(spread_deg: float) -> tuple[float, ...]:
+    """Angles 120 k + spread * s in leg order i = 2k + (s+1)/2, degrees."""
+    return tuple(120.0 * k + spread_deg * s for k in range(3) for s in (-1, 1))
+
+
+@dataclass(frozen=True)
+class StewartGeometry:
+    """Layout, link lengths and inertias of a 6-RSS rotary Stewart platform; SI units.
+
+    Defaults equal ``reference_geometry.md``. Angles of the layout are in degrees, as there.
+
+    Attributes:
+        base_radius: radius of the circle of crank pivots P_i, m.
+        pivot_z: height of the motor shafts in the base frame, m (negative: under the plate).
+        pivot_angles_deg: (6,) b_i, azimuth of P_i.
+        platform_radius: radius of the circle of platform joints p_i, m.
+        platform_angles_deg: (6,) c_i, azimuth of p_i in E.
+        crank_angles_deg: (6,) beta_i, azimuth of the crank direction d_i at theta_i = 0.
+        crank_length: a, pivot to crank-tip joint, m.
+        rod_length: s, joint centre to joint centre, m.
+        *_mass: kg. *_inertia: principal moments about the COM, kg m^2, body axes of
+            reference_geometry.md (rod: z along the rod; crank: x along the crank).
+        gravity: magnitude of g, m/s^2, acting along -z.
+        motor_angle_min_deg, motor_angle_max_deg: motor travel, degrees, theta_i wrapped to
+            [-180, 180); default +-90 (a 180 deg servo centred on the horizontal crank; the
+            paper manoeuvre uses -75 .. +58).
+        crank_joint_cone_deg: largest misalignment of the rod end at the crank tip, degrees:
+            its bolt is parallel to the motor shaft u_i, so this bounds asin |e_rod . u_i|, the
+            rod's tilt out of the crank's plane of rotation. Default 35 (a high-misalignment rod
+            end; 19.4 at home, 21.1 at most along the paper manoeuvre).
+        platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
+            socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
+            along the paper manoeuvre). All limits are checked by ``limits.limit_margins``.
+        base_plate_radius: radius of the base's central plate (the hub), m; arms reach out from
+            it to the motor brackets (:mod:`~.parts`). Not a kinematic parameter: it sets what
+            the rods must clear.
+        rod_radius: radius of the rods' tubes, m. rod_end_radius: radius of the spheres that
+            stand for the rod ends (ball and housing) at the joint centres, m.
+        platform_plate_radius: radius of the platform's plate, m (above the joint centres).
+        motor_reflected_inertia: rotor inertia of each motor seen at its crank shaft (rotor
+            inertia x gear ratio^2), kg m^2; 0 for ideal torque sources. A scenario with
+            hardware sets it from its servo (``model.servo.ServoModel.reflected_inertia``), so
+            the controller's task inertia includes the motors the plant carries.
+    Raises:
+        InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
+            inertia that fails the triangle inequality (use
+            :func:`nearest_valid_principal_moments`), legs that cannot close at the home pose,
+            or a home pose outside a joint limit; each message names the field to change.
+    """
+
+    base_radius: float = 0.20
+    pivot_z: float = -0.07
+    pivot_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(10.0))
+    platform_radius: float = 0.11
+    platform_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(55.0))
+    crank_angles_deg: tuple[float, ...] = field(default_factory=lambda: _leg_angles(90.0))
+    crank_length: float = 0.11
+    rod_length: float = 0.404
+    rod_mass: float = 0.08
+    rod_inertia: tuple[float, float, float] = (0.0016, 0.0016, 0.000001)
+    crank_mass: float = 0.04
+    crank_inertia: tuple[float, float, float] = field(
+        default_factory=lambda: nearest_valid_principal_moments(TABLE_I_CRANK_INERTIA)
+    )
+    platform_mass: float = 1.0
+    platform_inertia: tuple[float, float, float] = (0.003, 0.003, 0.006)
+    base_mass: float = 7.0
+    base_inertia: tuple[float, float, float] = (0.027, 0.027, 0.054)
+    base_plate_radius: float = 0.125
+    rod_radius: float = 0.005
+    rod_end_radius: float = 0.007
+    platform_plate_radius: float = 0.125
+    gravity: float = 9.81
+    motor_angle_min_deg: float = -90.0
+    motor_angle_max_deg: float = 90.0
+    crank_joint_cone_deg: float = 35.0
+    platform_joint_cone_deg: float = 40.0
+    motor_reflected_inertia: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(
+            self,
+            "motor_reflected_inertia",
+            as_number(
+                "motor_reflected_inertia",
+                self.motor_reflected_inertia,
+                0.0,
+                error=InvalidGeometryError,
+            ),
+        )
+        for name in (
+            "base_radius",
+            "platform_radius",
+            "crank_length",
+            "rod_length",
+            "rod_mass",
+            "crank_mass",
+            "platform_mass",
+            "base_mass",
+            "base_plate_radius",
+            "rod_radius",
+            "rod_end_radius",
+            "platform_plate_radius",
+        ):
+            object.__setattr__(
+                self,
+                name,
+                as_number(name, getattr(self, name), 0.0, lo_open=True, error=InvalidGeometryError),
+            )
+        for name, lo in (("gravity", 0.0), ("pivot_z", None)):
+            object.__setattr__(
+                self, name, as_number(name, getattr(self, name), lo, error=InvalidGeometryError)
+            )
+        for name in (
+            "motor_angle_min_deg",
+            "motor_angle_max_deg",
+            "crank_joint_cone_deg",
+            "platform_joint_cone_deg",
+        ):
+            object.__setattr__(
+                self, name, as_number(name, getattr(self, name), error=InvalidGeometryError)
+            )
+        if self.rod_length <= self.crank_length:
+            raise InvalidGeometryError(
+                f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)"
+            )
+        for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
+            angles = as_array(name, getattr(self, name), shape=(6,), error=InvalidGeometryError)
+            object.__setattr__(self, name, tuple(float(v) for v in angles))
+        for name in ("rod_inertia", "crank_inertia", "platform_inertia", "base_inertia"):
+            moments = as_array(name, getattr(self, name), shape=(3,), error=InvalidGeometryError)
+            if np.any(moments <= 0):
+                raise InvalidGeometryError(
+                    f"{name} needs 3 positive moments, got {moments.tolist()}"
+                )
+            a, b, c = moments
+            if a + b < c * (1 - 1e-12) or a + c < b * (1 - 1e-12) or b + c < a * (1 - 1e-12):
+                fix = nearest_valid_principal_moments(moments)
+                raise InvalidGeometryError(
+                    f"{name} = {moments.tolist()} kg m^2 fails the triangle inequality "
+                    f"(no rigid body has it); the nearest valid one is {list(fix)}"
+                )
+            object.__setattr__(self, name, tuple(float(v) for v in moments))
+        lo, hi = self.motor_angle_min_deg, self.motor_angle_max_deg
+        if not (np.isfinite(lo) and np.isfinite(hi) and -180.0 <= lo < hi <= 180.0):
+            raise InvalidGeometryError(
+                f"motor angle range [{lo}, {hi}] deg must satisfy -180 <= min < max <= 180"
+            )
+        for name in ("crank_joint_cone_deg", "platform_joint_cone_deg"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and 0.0 < value <= 90.0):
+                raise InvalidGeometryError(f"{name} must be in (0, 90] degrees, got {value}")
+        # Assembly at home must be possible, or nothing downstream can work.
+        ratio = leg_reach_ratio(self, X_HOME)
+        if np.any(~np.isfinite(ratio)) or np.any(np.abs(ratio) > 1):
+            leg = int(np.argmax(np.where(np.isfinite(ratio), np.abs(ratio), np.inf)))
+            raise InvalidGeometryError(
+                f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
+                f"|L|/sqrt(M^2+N^2) = {abs(ratio[leg]):.4g} > 1; change the rod or crank length "
+                f"or the anchor radii"
+            )
+        margins = limit_margins(self, X_HOME)
+        for name in LIMITS[1:]:
+            if np.any(margins[name] < 0):
+                leg = int(np.argmin(margins[name]))
+                raise InvalidGeometryError(
+                    f"the home pose violates the {name} limit of leg {leg} by "
+                    f"{np.rad2deg(-margins[name][leg]):.3g} deg; widen that limit"
+                )
+
+    def replace(self, **changes) -> StewartGeometry:
+        """A copy with some fields changed (validated again)."""
+        return dataclasses.replace(self, **changes)
+
+    @functools.cached_property
+    def P_B(self) -> np.ndarray:
+        """(6, 3) crank pivots (motor shaft points) P_i in the base frame, m."""
+        return _frozen(_ring(self.base_radius, self.pivot_angles_deg, self.pivot_z))
+
+    @functools.cached_property
+    def p_E(self) -> np.ndarray:
+        """(6, 3) platform joint centres p_i in the platform frame E, m."""
+        return _frozen(_ring(self.platform_radius, self.platform_angles_deg))
+
+    @functools.cached_property
+    def d_B(self) -> np.ndarray:
+        """(6, 3) unit crank directions d_i at theta_i = 0, base frame."""
+        return _frozen(_ring(1.0, self.crank_angles_deg))
+
+    @functools.cached_property
+    def u_B(self) -> np.ndarray:
+        """(6, 3) unit motor shaft axes u_i = d_i x z_hat; positive theta_i raises the crank tip."""
+        return _frozen(np.cross(self.d_B, np.array([0.0, 0.0, 1.0])))
+
+    def crank_tips(self, theta) -> np.ndarray:
+        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base
+        frame."""
+        theta = np.asarray(theta, dtype=float)[..., None]
+        return self.P_B + self.crank_length * (
+            np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0])
+        )
+
+
+#: The reference robot of reference_geometry.md.
+def reference_geometry() -> StewartGeometry:
+    """The default robot, exactly ``docs/reference_geometry.md``."""
+    return StewartGeometry()

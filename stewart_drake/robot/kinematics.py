@@ -1,0 +1,722 @@
+"""Closed-form kinematics of the rotary Stewart platform (pure numpy, no Drake plant).
+
+Pose x = [phi, theta, psi, X, Y, Z] (rad, rad, rad, m, m, m): orientation of E in B as Drake's
+RollPitchYaw, R_BE = Rz(psi) Ry(theta) Rx(phi), and the position p_BE of E's origin. Every function
+takes a single pose (6,) or a batch (..., 6) and broadcasts; motor angles theta are (..., 6) in rad.
+
+Per leg i (reference_geometry.md):
+    q_i = R_BE p_i + p_BE          platform joint centre, base frame
+    tip_i = P_i + a (cos theta_i d_i + sin theta_i z)
+    ell_i = q_i - tip_i             rod vector, |ell_i| = s
+
+The functions take the robot as ``geometry``, a
+:class:`~stewart_drake.robot.geometry.StewartGeometry`, read through the attributes
+:class:`RobotGeometry` names (this module sits below the geometry, which checks itself with it).
+Statics (holding torques, task inertia) are in :mod:`.statics`, joint limits and the
+reference validator in :mod:`.limits`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from ..base.checks import as_array, as_number, as_poses
+from ..base.errors import (
+    ForwardKinematicsError,
+    InvalidConfigError,
+    SingularPoseError,
+    UnreachablePoseError,
+)
+
+#: Home pose [phi, theta, psi, X, Y, Z] in rad and m (docs/reference_geometry.md).
+X_HOME = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.30])
+#: The names of the pose's six coordinates, in order: roll, pitch, yaw (rad), position (m).
+AXIS_NAMES = ("phi", "theta", "psi", "X", "Y", "Z")
+#: Display units of a pose error per axis: mrad for angles, mm for positions.
+AXIS_UNITS = ("mrad", "mrad", "mrad", "mm", "mm", "mm")
+
+#: Default threshold on cond(J) (SI units, J in rad per rad and rad per m). The reference robot
+#: has cond(J) = 43.7 at home and at most 77.7 along the paper manoeuvre (eqs. 37-38); the random
+#: reachable poses of the tests are drawn below 200. Used by :mod:`~.limits` (re-exported there).
+DEFAULT_COND_THRESHOLD = 200.0
+X_HOME.setflags(write=False)
+
+
+@runtime_checkable
+class RobotGeometry(Protocol):
+    """The robot as the functions of the model layer read it: these attributes of
+    :class:`~stewart_drake.robot.geometry.StewartGeometry` (names, units and meanings there).
+
+    A structural type: the geometry checks itself with these functions (a robot that cannot
+    close its legs at home is refused when it is built), so this module sits below it and cannot
+    import it.
+    """
+
+    # Read-only properties: StewartGeometry is a frozen dataclass (and computes P_B), which a
+    # protocol's plain, settable attributes would not accept.
+    @property
+    def crank_length(self) -> float: ...
+    @property
+    def rod_length(self) -> float: ...
+    @property
+    def P_B(self) -> np.ndarray: ...
+    @property
+    def p_E(self) -> np.ndarray: ...
+    @property
+    def d_B(self) -> np.ndarray: ...
+    @property
+    def u_B(self) -> np.ndarray: ...
+    @property
+    def motor_angle_min_deg(self) -> float: ...
+    @property
+    def motor_angle_max_deg(self) -> float: ...
+    @property
+    def crank_joint_cone_deg(self) -> float: ...
+    @property
+    def platform_joint_cone_deg(self) -> float: ...
+    @property
+    def platform_mass(self) -> float: ...
+    @property
+    def platform_inertia(self) -> tuple: ...
+    @property
+    def crank_mass(self) -> float: ...
+    @property
+    def crank_inertia(self) -> tuple: ...
+    @property
+    def rod_mass(self) -> float: ...
+    @property
+    def rod_inertia(self) -> tuple: ...
+    @property
+    def motor_reflected_inertia(self) -> float: ...
+    @property
+    def gravity(self) -> float: ...
+
+    def crank_tips(self, theta) -> np.ndarray:
+        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6), base frame."""
+
+    def __hash__(self) -> int:
+        """Hashable: caches (functools.lru_cache) key on the geometry."""
+
+
+_Z = np.array([0.0, 0.0, 1.0])
+_NEXT, _PREV = [1, 2, 0], [2, 0, 1]  # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
+
+
+def rotation_rpy(rpy) -> np.ndarray:
+    """R_BE = Rz(psi) Ry(theta) Rx(phi) for rpy (..., 3) in rad; returns (..., 3, 3).
+
+    Same convention as ``pydrake.math.RollPitchYaw(rpy).ToRotationMatrix()`` (a test checks), but
+    vectorized. Paper eq. 3 prints Rx Ry Rz with two wrong entries; see docs/paper_notes.md.
+    """
+    rpy = np.asarray(rpy, dtype=float)
+    c, s = np.cos(rpy), np.sin(rpy)
+    cr, cp, cy = c[..., 0], c[..., 1], c[..., 2]
+    sr, sp, sy = s[..., 0], s[..., 1], s[..., 2]
+    R = np.empty(rpy.shape[:-1] + (3, 3))
+    R[..., 0, 0] = cy * cp
+    R[..., 0, 1] = cy * sp * sr - sy * cr
+    R[..., 0, 2] = cy * sp * cr + sy * sr
+    R[..., 1, 0] = sy * cp
+    R[..., 1, 1] = sy * sp * sr + cy * cr
+    R[..., 1, 2] = sy * sp * cr - cy * sr
+    R[..., 2, 0] = -sp
+    R[..., 2, 1] = cp * sr
+    R[..., 2, 2] = cp * cr
+    return R
+
+
+def angular_velocity_map(rpy) -> np.ndarray:
+    """E(rpy) with w_BE_B = E @ rpy_dot for R = Rz Ry Rx; returns (..., 3, 3).
+
+    Singular at pitch = +-pi/2 (gimbal lock), far outside this robot's workspace.
+    """
+    rpy = np.asarray(rpy, dtype=float)
+    cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
+    cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
+    E = np.zeros(rpy.shape[:-1] + (3, 3))
+    E[..., 0, 0] = cy * cp
+    E[..., 1, 0] = sy * cp
+    E[..., 2, 0] = -sp
+    E[..., 0, 1] = -sy
+    E[..., 1, 1] = cy
+    E[..., 2, 2] = 1.0
+    return E
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def platform_joints(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
+    """Platform joint centres of pose x (..., 6).
+
+    Returns:
+        q_B: (..., 6, 3) joint centres q_i in the base frame, m.
+        r_B: (..., 6, 3) R_BE p_i, the lever arms from E's origin, base frame, m.
+    """
+    x = np.asarray(x, dtype=float)
+    R = rotation_rpy(x[..., :3])
+    r_B = np.einsum("...jk,ik->...ij", R, geometry.p_E)
+    return r_B + x[..., None, 3:6], r_B
+
+
+def _lmn(geometry: RobotGeometry, x):
+    q_B, r_B = platform_joints(geometry, x)
+    l = q_B - geometry.P_B  # pivot to platform joint, (..., 6, 3)
+    a, s = geometry.crank_length, geometry.rod_length
+    L = np.sum(l * l, axis=-1) - (s * s - a * a)
+    M = 2.0 * a * l[..., 2]
+    N = 2.0 * a * np.sum(l * geometry.d_B, axis=-1)
+    return L, M, N, q_B, r_B
+
+
+def leg_reach_ratio(geometry: RobotGeometry, x) -> np.ndarray:
+    """(..., 6) ratio L / sqrt(M^2 + N^2) per leg; |ratio| > 1 means the leg cannot close.
+
+    Args:
+        x: (6,) or (..., 6) finite poses [phi, theta, psi, X, Y, Z] in rad and m.
+    Returns:
+        (..., 6), never NaN: +-inf only for a platform joint exactly on its motor's shaft
+        axis (M = N = 0) at the wrong distance (no crank angle closes the leg); 0 there at the
+        right distance (every crank angle does).
+    Raises:
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
+    Source: reference_geometry.md, "Closed-form inverse kinematics"; paper eq. 6's C/sqrt(A^2+B^2).
+    """
+    L, M, N, _, _ = _lmn(geometry, as_poses("pose x", x))
+    h = np.hypot(M, N)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = L / h
+    if not np.isfinite(ratio).all():  # only where h == 0 (finite poses, |p| <= 1 km)
+        ratio = np.where(h == 0, np.where(L == 0, 0.0, np.copysign(np.inf, L)), ratio)
+    return ratio
+
+
+def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
+    """Vectorized IK without raising, for workspace sweeps.
+
+    Returns:
+        theta: (..., 6) motor angles in rad, NaN where a leg cannot close.
+        ratio: (..., 6) L / sqrt(M^2 + N^2) per leg.
+    """
+    L, M, N, _, _ = _lmn(geometry, x)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = L / np.hypot(M, N)
+        theta = np.where(
+            np.abs(ratio) <= 1.0, np.arcsin(np.clip(ratio, -1.0, 1.0)) - np.arctan2(N, M), np.nan
+        )
+    return theta, ratio
+
+
+def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:
+    """Closed-form inverse kinematics: motor angles of the pose(s) x.
+
+    Args:
+        geometry: the robot.
+        x: (6,) or (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m.
+        t: optional times (s) matching the batch, only used to name the failure.
+    Returns:
+        (..., 6) motor angles theta_i in rad, leg order of reference_geometry.md:
+        theta_i = asin(L / sqrt(M^2 + N^2)) - atan2(N, M).
+    Raises:
+        UnreachablePoseError: naming the first pose (and time) and the first leg with
+            |L| / sqrt(M^2 + N^2) > 1.
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
+    Source: paper eq. 6, rewritten for the reference geometry (docs/paper_notes.md).
+    """
+    x = as_poses("pose x", x)
+    theta, ratio = ik_unchecked(geometry, x)
+    bad = ~(np.abs(ratio) <= 1.0)  # also catches NaN
+    if np.any(bad):
+        flat_bad = bad.reshape(-1, 6)
+        k = int(np.argmax(flat_bad.any(axis=1)))
+        leg = int(np.argmax(flat_bad[k]))
+        t_k = None if t is None else float(np.asarray(t, dtype=float).reshape(-1)[k])
+        raise UnreachablePoseError(
+            leg, ratio.reshape(-1, 6)[k, leg], t=t_k, pose=x.reshape(-1, 6)[k]
+        )
+    return theta
+
+
+def _leg_terms(geometry: RobotGeometry, x, theta=None):
+    """Per-leg vectors used by the Jacobian, statics and inertia, all (..., 6, 3)."""
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta = ik(geometry, x)
+    q_B, r_B = platform_joints(geometry, x)
+    tip = geometry.crank_tips(theta)
+    ell = q_B - tip
+    c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+    e_N = -s * geometry.d_B + c * _Z  # crank-tip velocity direction per unit theta_dot
+    E = angular_velocity_map(x[..., :3])
+    # dq_i/dx = [-[r_i]x E, I]: (..., 6, 3, 6)
+    Gq = np.zeros(r_B.shape + (6,))
+    Gq[..., :3] = -np.einsum("...ijk,...kl->...ijl", _skew(r_B), E)
+    Gq[..., 3:] = np.eye(3)
+    return theta, q_B, r_B, tip, ell, e_N, E, Gq
+
+
+def _checked(geometry: RobotGeometry, x, theta):
+    """(x, theta) validated for the public Jacobian-based functions; theta from :func:`ik`."""
+    x = as_poses("pose x", x)
+    if theta is None:
+        return x, ik(geometry, x)
+    theta = as_array("motor angles theta", theta, last=6)
+    if theta.shape != x.shape:
+        raise InvalidConfigError(f"theta {theta.shape} must match the poses x {x.shape}")
+    return x, theta
+
+
+def _finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``value`` if finite, else SingularPoseError naming the first pose of x where it is not."""
+    if np.isfinite(value).all():
+        return value
+    bad = ~np.isfinite(value.reshape(x.reshape(-1, 6).shape[0], -1)).all(axis=1)
+    raise SingularPoseError(name, np.inf, np.inf, pose=x.reshape(-1, 6)[int(np.argmax(bad))])
+
+
+def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Analytic Jacobian J = d theta / d x of the inverse kinematics.
+
+    Args:
+        x: (..., 6) pose; theta: optional (..., 6) motor angles of x (saves one IK).
+    Returns:
+        (..., 6, 6), finite, row i = (ell_i . dq_i/dx) / (a ell_i . e_N,i), rad per (rad or m);
+        theta_dot = J @ x_dot with x_dot = [phi_dot, theta_dot, psi_dot, X_dot, Y_dot, Z_dot].
+    Raises:
+        UnreachablePoseError: if x is unreachable.
+        SingularPoseError: at a pose where a rod is exactly orthogonal to its crank-tip
+            velocity (J unbounded; :func:`singular_values` reports it as inf instead).
+        InvalidConfigError: x or theta not (..., 6) or not finite.
+    """
+    x, theta = _checked(geometry, x, theta)
+    return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
+
+
+def _jacobian(geometry: RobotGeometry, x, theta=None, terms=None) -> np.ndarray:
+    """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
+    unreachable; for Newton steps and singular values, which handle those themselves. ``terms``:
+    :func:`_leg_terms` of x when already computed."""
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms or _leg_terms(geometry, x, theta)
+    num = np.einsum("...ik,...ikl->...il", ell, Gq)
+    den = geometry.crank_length * np.sum(ell * e_N, axis=-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return num / den[..., None]
+
+
+def tau(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Wrench map tau: generalized force on the platform per unit motor torque, (..., 6, 6).
+
+    By virtual work, T . d theta = w . d x, so w = J^T T and tau = J^T, with w conjugate to
+    x = [phi, theta, psi, X, Y, Z] (N m per rad of roll/pitch/yaw, N along X, Y, Z).
+    This is paper eq. 18 with its tau_2 corrected (1 / (a e_l . e_N) instead of e_l . e_N / a)
+    and expressed in roll-pitch-yaw coordinates: tau = blockdiag(E^T, I) @ wrench_map(x).
+
+    Raises:
+        as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
+    """
+    return np.swapaxes(jacobian(geometry, x, theta), -1, -2)
+
+
+def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Corrected paper eq. 18: [M_B; F_B] = W T, (..., 6, 6).
+
+    M_B is the moment about E's origin and F_B the force on the platform, both in the base frame,
+    for motor torques T (N m). Column i = [r_i x e_l,i ; e_l,i] / (a e_l,i . e_N,i), e_l the rod
+    direction: a massless rod carries force F_i = T_i / (a e_l . e_N) along itself.
+    Raises:
+        as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
+    Source: paper eqs. 11-18; the paper's eq. 15 multiplies by e_l . e_N where it must divide.
+    """
+    x, theta = _checked(geometry, x, theta)
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
+        W = np.swapaxes(tau1 * scale[..., None], -1, -2)
+    return _finite_or_singular("W", W, x)
+
+
+def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Paper eq. 18 exactly as printed: tau_1 diag(e_l . e_N / |a|), (..., 6, 6).
+
+    Kept to document the discrepancy (docs/paper_notes.md); use :func:`wrench_map` or :func:`tau`.
+    """
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)
+    scale = np.sum(e_l * e_N, axis=-1) / geometry.crank_length
+    return np.swapaxes(tau1 * scale[..., None], -1, -2)
+
+
+@dataclass(frozen=True)
+class FkStatus:
+    """How a forward-kinematics solve ended (for a batch: all converged, worst case).
+
+    Attributes:
+        converged: True if max_i |ik(x)_i - theta_i| <= tol.
+        iterations: Newton steps taken (the largest over a batch).
+        residual: max_i |ik(x)_i - theta_i| at the returned pose, rad (largest over a batch).
+    """
+
+    converged: bool
+    iterations: int
+    residual: float
+
+
+def _wrap(angle):
+    """Angles wrapped to [-pi, pi), rad."""
+    return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def _fk_residual(geometry: RobotGeometry, x, theta_target):
+    """(theta of x, wrapped residual (n, 6), 2-norm (n,), max-abs (n,)); inf where unreachable."""
+    theta, _ = ik_unchecked(geometry, x)
+    r = _wrap(theta - theta_target)
+    bad = ~np.all(np.isfinite(r), axis=-1)
+    norm2 = np.where(bad, np.inf, np.linalg.norm(np.where(np.isfinite(r), r, 0.0), axis=-1))
+    norm_max = np.where(bad, np.inf, np.abs(np.where(np.isfinite(r), r, 0.0)).max(axis=-1))
+    return theta, r, norm2, norm_max
+
+
+def _assembly_mode(geometry: RobotGeometry, x, theta) -> np.ndarray:
+    """(n,) sign of det J(x): +-1, 0 where J is singular or not finite."""
+    J = _jacobian(geometry, x, theta)
+    finite = np.all(np.isfinite(J), axis=(-2, -1))
+    return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
+
+
+def fk_unchecked(
+    geometry: RobotGeometry,
+    theta,
+    x0=None,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+    max_halvings: int = 30,
+):
+    """Vectorized forward kinematics without raising: Newton on the closed-form IK.
+
+    x_{k+1} = x_k - alpha J(x_k)^{-1} wrap(ik(x_k) - theta), alpha = 1, 1/2, 1/4, ... until the
+    iterate is reachable, ||ik(x) - theta||_2 decreases (backtracking) and sign det J(x) is that
+    of x0: no step crosses a singularity into another assembly mode (without this, 4 of 8099
+    poses spread over the whole workspace converged, from home, to a different pose with the same
+    motor angles). The IK branch is the one of :func:`ik`, so ``fk(ik(x)) = x`` for every
+    reachable x of the initial pose's assembly mode that the iteration can reach.
+
+    Args:
+        geometry: the robot.
+        theta: (6,) or (..., 6) motor angles in rad (compared modulo 2 pi).
+        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose X_HOME.
+        tol: convergence threshold on max_i |ik(x)_i - theta_i|, rad.
+        max_iter: Newton steps at most per pose.
+        max_halvings: step halvings at most per Newton step.
+    Returns:
+        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m (the last iterate if failed).
+        converged: (...) bool.
+        iterations: (...) int, Newton steps taken.
+        residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
+    Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
+    """
+    # Long: Newton, its backtracking and the assembly-mode guard share the batch's masks; apart,
+    # the masks would pass between functions on every iteration.
+    theta = np.asarray(theta, dtype=float)
+    batch = theta.shape[:-1]
+    target = theta.reshape(-1, 6)
+    n = target.shape[0]
+    x = np.array(
+        np.broadcast_to(X_HOME if x0 is None else np.asarray(x0, dtype=float), batch + (6,)),
+        dtype=float,
+    ).reshape(-1, 6)
+    th_k, r, err2, errmax = _fk_residual(geometry, x, target)
+    iterations = np.zeros(n, dtype=int)
+    failed = ~np.isfinite(err2)  # the initial pose is unreachable
+    mode = _assembly_mode(geometry, x, th_k)  # sign det J: steps may not cross a singularity
+    for _ in range(max_iter):
+        idx = np.flatnonzero(~failed & (errmax > tol))
+        if idx.size == 0:
+            break
+        J = _jacobian(geometry, x[idx], th_k[idx])
+        finite = np.all(np.isfinite(J), axis=(-2, -1))
+        J = np.where(finite[:, None, None], J, np.eye(6))
+        try:
+            dx = np.linalg.solve(J, r[idx][..., None])[..., 0]
+        except np.linalg.LinAlgError:  # a singular J somewhere in the batch
+            dx = np.einsum("nij,nj->ni", np.linalg.pinv(J), r[idx])
+        ok_dir = finite & np.all(np.isfinite(dx), axis=-1)
+        iterations[idx] += 1
+        alpha = np.ones(idx.size)
+        pending = ok_dir.copy()
+        accepted = np.zeros(idx.size, dtype=bool)
+        for _ in range(max_halvings + 1):
+            p = np.flatnonzero(pending)
+            if p.size == 0:
+                break
+            cand = x[idx[p]] - alpha[p, None] * dx[p]
+            th_c, r_c, e2_c, emax_c = _fk_residual(geometry, cand, target[idx[p]])
+            good = (
+                np.isfinite(e2_c)
+                & ((e2_c < err2[idx[p]]) | (emax_c <= tol))
+                & (_assembly_mode(geometry, cand, th_c) == mode[idx[p]])
+            )
+            g = p[good]
+            x[idx[g]], th_k[idx[g]], r[idx[g]] = cand[good], th_c[good], r_c[good]
+            err2[idx[g]], errmax[idx[g]] = e2_c[good], emax_c[good]
+            accepted[g] = True
+            pending[g] = False
+            alpha[p[~good]] *= 0.5
+        failed[idx[~accepted]] = True  # no descent step: stalled or singular
+    converged = errmax <= tol
+    return (
+        x.reshape(batch + (6,)),
+        converged.reshape(batch),
+        iterations.reshape(batch),
+        errmax.reshape(batch),
+    )
+
+
+def fk(
+    geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12, max_iter: int = 50
+) -> tuple[np.ndarray, FkStatus]:
+    """Forward kinematics: the platform pose whose closed-form IK gives the motor angles theta.
+
+    Args:
+        geometry: the robot.
+        theta: (6,) or (..., 6) motor angles in rad.
+        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose. The solution is the
+            assembly mode Newton reaches from x0 (from home: the robot's working mode).
+        tol: max_i |ik(x)_i - theta_i| at convergence, rad.
+        max_iter: Newton steps at most.
+    Returns:
+        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m.
+        status: :class:`FkStatus` (for a batch: all converged, largest iterations and residual).
+    Raises:
+        ForwardKinematicsError: some pose did not converge (the first one is named, with its
+            residual); also when x0 is unreachable or every step leads out of the workspace.
+        InvalidConfigError: theta or x0 not (..., 6) or not finite, tol <= 0, max_iter < 1.
+    Source: Newton on :func:`ik` with the analytic :func:`jacobian`, backtracking on
+        ||ik(x) - theta|| (see :func:`fk_unchecked`).
+    """
+    theta = as_array("motor angles theta", theta, last=6)
+    x0 = None if x0 is None else as_poses("initial pose x0", x0)
+    tol = as_number("tol", tol, 0.0, lo_open=True)
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise InvalidConfigError(f"max_iter must be an integer >= 1, got {max_iter!r}")
+    x, converged, iterations, residual = fk_unchecked(geometry, theta, x0, tol, max_iter)
+    if not np.all(converged):
+        k = int(np.argmax(~converged.reshape(-1)))
+        th = np.asarray(theta, dtype=float).reshape(-1, 6)[k]
+        if not np.isfinite(residual.reshape(-1)[k]):
+            raise ForwardKinematicsError(
+                f"forward kinematics cannot start (batch index {k}): the initial pose x0 is "
+                f"unreachable; give a reachable x0 (default: the home pose)"
+            )
+        raise ForwardKinematicsError(
+            f"forward kinematics did not converge for motor angles "
+            f"[{', '.join(f'{v:.6g}' for v in th)}] rad (batch index {k}): residual "
+            f"{residual.reshape(-1)[k]:.3g} rad after {iterations.reshape(-1)[k]} Newton steps "
+            f"(tol {tol:g}). Give an initial pose x0 closer to the solution, raise max_iter or "
+            f"tol, or check that the angles come from a reachable pose."
+        )
+    status = FkStatus(
+        bool(np.all(converged)), int(iterations.max(initial=0)), float(residual.max(initial=0.0))
+    )
+    return x, status
+
+
+def leg_constants(geometry: RobotGeometry) -> tuple:
+    """The geometry as plain floats for :func:`ik_scalar`: ((p_E, P_B, d_B) per leg as 9-tuples,
+    crank length a, s^2 - a^2). Compute it once per geometry."""
+    legs = tuple(
+        tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
+        for i in range(6)
+    )
+    a = float(geometry.crank_length)
+    return legs, a, float(geometry.rod_length) ** 2 - a * a
+
+
+def ik_scalar(constants: tuple, x) -> list:
+    """Motor angles of ONE pose in plain Python floats: :func:`ik` without numpy.
+
+    At 1 kHz between two plant steps, numpy's per-call overhead dominates a (6,)-sized problem
+    and its code falls out of the CPU caches: this loop costs a quarter of :func:`ik_single` in
+    a running simulation (benchmarks/realtime.py). The same numbers to 1e-15 (a test).
+
+    Args:
+        constants: :func:`leg_constants` of the geometry. x: 6 floats [rad, m] (not validated).
+    Returns:
+        list of 6 motor angles, rad; NaN for a leg that cannot close.
+    """
+    legs, a, c = constants
+    cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
+    sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
+    r00, r01, r02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
+    r10, r11, r12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
+    r20, r21, r22 = -sp, cp * sr, cp * cr
+    X, Y, Z = x[3], x[4], x[5]
+    theta = []
+    for ex, ey, ez, bx, by, bz, dx, dy, dz in legs:
+        lx = r00 * ex + r01 * ey + r02 * ez + X - bx  # pivot to platform joint
+        ly = r10 * ex + r11 * ey + r12 * ez + Y - by
+        lz = r20 * ex + r21 * ey + r22 * ez + Z - bz
+        M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
+        # sqrt, not math.hypot: CPython's hypot has its own rounding, numba's calls libm's, and
+        # the controller compiles this function (the same bits interpreted and compiled).
+        norm = math.sqrt(M * M + N * N)
+        L = lx * lx + ly * ly + lz * lz - c
+        theta.append(math.asin(L / norm) - math.atan2(N, M) if abs(L) <= norm else math.nan)
+    return theta
+
+
+def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
+    """Motor angles of ONE pose, with what :func:`jacobian_single` reuses.
+
+    The same numbers as :func:`ik` (a test holds them equal to 1e-12), computed with a few
+    3 x 3 and (6, 3) array operations instead of the batched, validated routines: about 10 times
+    faster on a single pose, for the FK estimator and the gain re-scheduling, which run every
+    control period.
+
+    Args:
+        x: (6,) finite pose [phi, theta, psi, X, Y, Z] in rad and m (not validated).
+    Returns:
+        theta (6,) rad, NaN for a leg that cannot close; and the intermediates (x, R_BE, r_B, l,
+        theta) for :func:`jacobian_single` and :func:`leg_vectors_single`.
+    """
+    # Scalars by math (a numpy call per element costs more than the arithmetic): this runs
+    # every control period, where each microsecond counts (benchmarks/realtime.py).
+    roll, pitch, yaw = float(x[0]), float(x[1]), float(x[2])
+    cr, cp, cy = math.cos(roll), math.cos(pitch), math.cos(yaw)
+    sr, sp, sy = math.sin(roll), math.sin(pitch), math.sin(yaw)
+    R = np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+    a = geometry.crank_length
+    r_B = geometry.p_E @ R.T
+    l = r_B + (x[3:6] - geometry.P_B)  # pivot to platform joint
+    L = (l * l).sum(axis=1) - (geometry.rod_length**2 - a * a)
+    M = 2.0 * a * l[:, 2]
+    N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
+    norm = np.hypot(M, N)
+    if (abs(L) < norm).all():  # every leg closes (no NaN, no warning)
+        theta = np.arcsin(L / norm) - np.arctan2(N, M)
+    else:  # NaN for the legs that cannot close
+        with np.errstate(invalid="ignore", divide="ignore"):
+            theta = np.arcsin(L / norm) - np.arctan2(N, M)
+    return theta, (x, R, r_B, l, theta)
+
+
+def leg_vectors_single(geometry: RobotGeometry, cache: tuple):
+    """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
+    of the pose :func:`ik_single` was given (its cache); as in :func:`_leg_terms`."""
+    x, _, _, l, theta = cache
+    a, d_B = geometry.crank_length, geometry.d_B
+    with np.errstate(invalid="ignore"):
+        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    cp, sp = np.cos(x[1]), np.sin(x[1])
+    cy, sy = np.cos(x[2]), np.sin(x[2])
+    E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+    return l - a * (c * d_B + s * _Z), c * _Z - s * d_B, E
+
+
+def jacobian_single(geometry: RobotGeometry, cache: tuple) -> np.ndarray:
+    """Jacobian J = d theta / d x (6, 6) of the pose :func:`ik_single` was given (its cache).
+
+    Rows (ell_i . dq_i/dx) / (a ell_i . e_N,i), with ell_i . d(q_i)/d(rpy) = (r_i x ell_i)^T E;
+    inf or NaN at a singular or unreachable pose (not checked). Equal to :func:`jacobian`.
+    """
+    r_B = cache[2]
+    ell, e_N, E = leg_vectors_single(geometry, cache)
+    # r x ell row by row (np.cross costs 15 us on (6, 3) arrays; this, 5)
+    r_x_ell = r_B[:, _NEXT] * ell[:, _PREV] - r_B[:, _PREV] * ell[:, _NEXT]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (
+            np.hstack([r_x_ell @ E, ell])
+            / (geometry.crank_length * (ell * e_N).sum(axis=1))[:, None]
+        )
+
+
+def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
+    """(theta (6,), J (6, 6)) of ONE pose: :func:`ik_single` then :func:`jacobian_single`."""
+    theta, cache = ik_single(geometry, x)
+    return theta, jacobian_single(geometry, cache)
+
+
+def _singular_values_of(J: np.ndarray) -> np.ndarray:
+    """(..., 6) descending singular values; NaN rows where J has NaN, inf where J has inf."""
+    flat = J.reshape(-1, 6, 6)
+    out = np.full(flat.shape[:1] + (6,), np.nan)
+    nan = np.any(np.isnan(flat), axis=(-2, -1))
+    inf = ~nan & np.any(np.isinf(flat), axis=(-2, -1))
+    ok = ~nan & ~inf
+    if np.any(ok):
+        out[ok] = np.linalg.svd(flat[ok], compute_uv=False)
+    out[inf, 0] = np.inf  # a rod orthogonal to its crank-tip velocity
+    out[inf, 1:] = np.nan
+    return out.reshape(J.shape[:-2] + (6,))
+
+
+def singular_values(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Singular values of the Jacobian J = d theta / d x, (..., 6) descending.
+
+    Args:
+        x: (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        (..., 6) in SI units (rows rad, columns rad or m mixed); NaN where x is unreachable;
+        [inf, NaN, ...] where a rod is orthogonal to its crank-tip velocity (J unbounded).
+    """
+    x = as_poses("pose x", x)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    return _singular_values_of(_jacobian(geometry, x, theta))
+
+
+def singularity_measures(geometry: RobotGeometry, x, theta=None):
+    """How close pose(s) x are to a singularity: cond(J) and sigma_min(J^{-1}) = 1/sigma_max(J).
+
+    cond(J) = sigma_max / sigma_min grows without bound at both kinds of singularity of this
+    parallel robot: where a rod becomes orthogonal to its crank-tip velocity (sigma_max(J) -> inf,
+    the edge of the workspace, where the platform cannot be pushed in some direction: the
+    smallest singular value of J^{-1} -> 0) and where the rods' wrenches become dependent
+    (sigma_min(J) -> 0, the platform gains an uncontrolled motion). When every leg reaches its
+    dead point at once (pure heave at the top or bottom of the workspace) the rows of J grow
+    together and cond(J) stays finite (22 at the bottom edge): watch sigma_min_inv as well.
+
+    Args:
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x, rad.
+    Returns:
+        cond: (...) condition number of J (SI units, so it weights 1 rad as 1 m), dimensionless;
+            inf exactly at a singularity.
+        sigma_min_inv: (...) 1/sigma_max(J), the smallest singular value of J^{-1}, in
+            (rad or m) per rad; 0 exactly at a rod-crank singularity.
+    Raises:
+        UnreachablePoseError: a leg cannot close at a pose (names the first pose and leg).
+        InvalidConfigError: x or theta not (..., 6), not finite, or a position beyond 1 km.
+    (:func:`singularity_measures_unchecked` gives NaN for unreachable poses instead, for sweeps.)
+    """
+    x = as_poses("pose x", x)
+    theta = (
+        ik(geometry, x) if theta is None else as_array("motor angles theta", theta, shape=x.shape)
+    )
+    return singularity_measures_unchecked(geometry, x, theta)
+
+
+def singularity_measures_unchecked(geometry: RobotGeometry, x, theta=None):
+    """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
+    validator of a path); x must still be finite poses (..., 6)."""
+    sv = singular_values(geometry, x, theta)  # validates x
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
+        inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])
+    return cond, inv

@@ -1,0 +1,787 @@
+"""Joint limits, nearness to singularity, and the one validator of a reference path.
+
+Per leg: loop closure (|L|/sqrt(M^2+N^2) <= 1), motor travel, and the two ball-joint cones
+(fields of :class:`~stewart_drake.robot.geometry.StewartGeometry`); per pose: cond(J) and
+1/sigma_max(J) (:func:`~.kinematics.singularity_measures`); along a path, optionally, the
+clearance between the robot's parts (:mod:`~.clearance`) and the torque and speed the motion needs
+from each motor (:func:`~.statics.motor_effort`) against what its servo gives
+(:class:`MotorLimits`). :func:`validate_trajectory` is the only check of a sampled reference:
+every entry point (the run, the collection, the tasks, ``stewart-drake check``) calls it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from functools import lru_cache, reduce
+from typing import Any
+
+import numpy as np
+
+from ..base.checks import as_array, as_number, as_poses
+from ..base.errors import (
+    InterferenceError,
+    InvalidConfigError,
+    JointLimitError,
+    MotorLimitError,
+    SingularPoseError,
+    StewartError,
+    UnreachablePoseError,
+)
+from .kinematics import (
+    DEFAULT_COND_THRESHOLD,
+    X_HOME,
+    RobotGeometry,
+    _wrap,
+    ik,
+    ik_unchecked,
+    platform_joints,
+    rotation_rpy,
+    singularity_measures_unchecked,
+)
+
+#: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
+#: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
+#: with the crank-tip velocity's normal plane): there the motors cannot *move* the platform along
+#: the matching direction, the edge of the workspace. cond(J) misses it when all six legs reach
+#: the dead point together (pure heave: cond 26 at Z = 0.20 m, 30 at Z = 0.41 m), so this second
+#: measure is checked too. cond(J) -> inf with sigma_max bounded is the other singularity, where
+#: sigma_min(J) -> 0 and the motors cannot *hold* the platform against some wrench (T = J^{-T} w).
+#: Reference robot: 0.044 at home, 0.021 at least along the paper manoeuvre (2x margin), 0.041
+#: along the data-collection excitation; 0.011 at Z = 0.20 m and 0.019 at Z = 0.41 m in heave.
+DEFAULT_MIN_SIGMA_MIN_INV = 0.01
+
+#: Default smallest clearance between two parts a reference may leave, m
+#: (``GuardConfig.min_clearance_m``; :mod:`~.clearance`).
+DEFAULT_MIN_CLEARANCE_M = 0.003
+#: Default spacing of the clearance measures along a path: no part moves more than this between
+#: two, m.
+DEFAULT_CLEARANCE_RESOLUTION_M = 0.001
+
+#: Names of the per-leg limits, in the order reports list them. Margins are >= 0 inside a limit:
+#: ``closure`` 1 - |L|/sqrt(M^2+N^2) (dimensionless); the others in rad.
+LIMITS = ("closure", "motor_angle", "crank_joint", "platform_joint")
+
+
+@lru_cache(maxsize=32)
+def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
+    """(6, 3) unit rod directions (crank tip -> platform joint) at home, platform frame E."""
+    theta = ik(geometry, X_HOME)
+    q_B, _ = platform_joints(geometry, X_HOME)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    return e_l @ rotation_rpy(X_HOME[:3])  # R^T e_l, row-wise
+
+
+def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
+    """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
+
+    Returns a dict:
+        ``motor_angle``: theta_i wrapped to [-pi, pi).
+        ``crank_joint``: misalignment of the rod end at the crank tip, asin |e_l . u_i|. The rod
+            end's bolt is parallel to the motor shaft u_i, so the rod turns freely in the crank's
+            plane of rotation and this angle is its tilt out of that plane (19.4 deg at home).
+        ``platform_joint``: angle between the rod and the axis of its ball socket on the
+            platform; each socket is mounted along its rod's home direction (0 at home).
+    NaN where a leg cannot close.
+    """
+    x = np.asarray(x, dtype=float)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    q_B, _ = platform_joints(geometry, x)
+    ell = q_B - geometry.crank_tips(theta)
+    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
+    R = rotation_rpy(x[..., :3])
+    e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
+    cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
+    return {
+        "motor_angle": _wrap(theta),
+        "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
+        "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
+    }
+
+
+def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
+    """Distance of reachable pose(s) x to every per-leg limit; >= 0 inside, < 0 violated.
+
+    Args:
+        x: (6,) or (..., 6) poses [rad, m].
+        theta, ratio: optional outputs of :func:`ik_unchecked` for x (saves one IK).
+    Returns:
+        dict name -> (..., 6) for the names of :data:`LIMITS`:
+        ``closure`` = 1 - |L|/sqrt(M^2+N^2) (dimensionless, >= 0 here: every leg closes);
+        ``motor_angle`` = distance of theta_i to [motor_angle_min_deg, motor_angle_max_deg], rad;
+        ``crank_joint`` = crank_joint_cone_deg - misalignment, rad;
+        ``platform_joint`` = platform_joint_cone_deg - socket angle, rad
+        (angles of :func:`joint_angles`; limits are fields of :class:`StewartGeometry`).
+    Raises:
+        UnreachablePoseError: a leg cannot close at a pose (names the first pose and leg; the
+            other limits are not defined there). :func:`is_reachable` reports such poses
+            instead, and :func:`limit_margins_unchecked` gives NaN for them.
+        InvalidConfigError: x, theta or ratio not (..., 6), not finite, or a position beyond 1 km.
+    """
+    x = as_poses("pose x", x)
+    if theta is None or ratio is None:
+        theta, ratio = ik_unchecked(geometry, x)
+    else:
+        theta = as_array("motor angles theta", theta, shape=x.shape)
+        ratio = as_array("reach ratio", ratio, shape=x.shape)
+    closed = np.abs(ratio) <= 1.0
+    if not np.all(closed):
+        k = int(np.argmax(~np.all(closed.reshape(-1, 6), axis=1)))
+        row = ratio.reshape(-1, 6)[k]
+        leg = int(np.argmax(np.where(np.isfinite(row), np.abs(row), np.inf)))
+        raise UnreachablePoseError(leg, row[leg], pose=x.reshape(-1, 6)[k])
+    return limit_margins_unchecked(geometry, x, theta, ratio)
+
+
+def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
+    """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
+    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
+    x = np.asarray(x, dtype=float)
+    if theta is None or ratio is None:
+        theta, ratio = ik_unchecked(geometry, x)
+    angles = joint_angles(geometry, x, theta)
+    lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
+    m = angles["motor_angle"]
+    return {
+        "closure": 1.0 - np.abs(ratio),
+        "motor_angle": np.minimum(m - lo, hi - m),
+        "crank_joint": np.deg2rad(geometry.crank_joint_cone_deg) - angles["crank_joint"],
+        "platform_joint": np.deg2rad(geometry.platform_joint_cone_deg) - angles["platform_joint"],
+    }
+
+
+def _reachable_from_margins(margins: dict) -> np.ndarray:
+    # NaN counts as violated.
+    return reduce(np.logical_and, (np.all(margins[name] >= 0.0, axis=-1) for name in LIMITS))
+
+
+@dataclass(frozen=True)
+class LimitViolation:
+    """One leg outside one limit.
+
+    Attributes:
+        leg: 0..5, reference_geometry.md order.
+        limit: a name of :data:`LIMITS`.
+        margin: < 0, in the limit's unit (rad; dimensionless for ``closure``).
+        t: time along a trajectory in s, or None.
+    """
+
+    leg: int
+    limit: str
+    margin: float
+    t: float | None = None
+
+    def __str__(self) -> str:
+        where = "" if self.t is None else f" at t = {self.t:.4g} s"
+        amount = (
+            f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)"
+            if self.limit == "closure"
+            else f"{np.rad2deg(-self.margin):.3g} deg"
+        )
+        return f"leg {self.leg} exceeds its {self.limit} limit by {amount}{where}"
+
+
+@dataclass(frozen=True)
+class Reachability:
+    """Result of :func:`is_reachable`; truthy iff every pose is reachable.
+
+    Attributes:
+        reachable: (...) bool, every leg inside every limit of :data:`LIMITS`.
+        margins: dict name -> (..., 6), see :func:`limit_margins`.
+        theta: (..., 6) motor angles in rad (NaN where a leg cannot close).
+    """
+
+    reachable: np.ndarray
+    margins: dict
+    theta: np.ndarray
+
+    def __bool__(self) -> bool:
+        return bool(np.all(self.reachable))
+
+    def violations(self, index: int = 0) -> list:
+        """Violated limits of pose ``index`` of the flattened batch, worst first.
+
+        Returns:
+            list of :class:`LimitViolation`; only ``closure`` for a leg that cannot close.
+        """
+        out = []
+        for name in LIMITS:
+            m = np.asarray(self.margins[name], dtype=float).reshape(-1, 6)[index]
+            for leg in range(6):
+                if name != "closure" and not np.isfinite(m[leg]):
+                    continue  # the leg does not close: reported above
+                if not m[leg] >= 0.0:
+                    out.append(LimitViolation(leg, name, float(m[leg])))
+        return sorted(out, key=lambda v: v.margin)
+
+
+def is_reachable(geometry: RobotGeometry, x) -> Reachability:
+    """Check pose(s) x against loop closure, motor range and ball-joint cones, before a move.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        x: (6,) or (..., 6) poses [phi, theta, psi, X, Y, Z] in rad and m.
+    Returns:
+        :class:`Reachability`: ``bool(result)``, per-pose ``reachable``, per-leg ``margins`` and
+        ``violations()`` naming the leg, the limit and by how much.
+    Raises:
+        InvalidConfigError: x not (..., 6), not finite, or a position beyond 1 km.
+    """
+    x = as_poses("pose x", x)
+    theta, ratio = ik_unchecked(geometry, x)
+    margins = limit_margins_unchecked(geometry, x, theta, ratio)
+    return Reachability(_reachable_from_margins(margins), margins, theta)
+
+
+#: Default share of the servos' peak torque and no-load speed a reference may use; the rest is
+#: left to the feedback (``GuardConfig.effort_margin``).
+DEFAULT_EFFORT_MARGIN = 0.9
+
+
+@dataclass(frozen=True)
+class MotorLimits:
+    """What the motors give at the crank shafts, and how much of it a reference may use.
+
+    Attributes:
+        peak_torque_Nm: the drive's peak torque, N m, or None (unlimited: not checked).
+        max_speed_rad_s: the no-load speed through the gearbox, rad/s, or None.
+        margin: the share of each a reference may use, in (0, 1].
+        servo: the :class:`~.servo.ServoModel` whose friction the motors also overcome, or None.
+    """
+
+    peak_torque_Nm: float | None = None
+    max_speed_rad_s: float | None = None
+    margin: float = DEFAULT_EFFORT_MARGIN
+    servo: object = None
+
+
+@dataclass(frozen=True)
+class TrajectoryReport:
+    """Result of :func:`validate_trajectory`.
+
+    Attributes:
+        ok: every sample inside every limit and below the condition-number threshold.
+        min_margin: limit name -> smallest margin over samples and legs (rad; 1 for closure).
+        min_margin_leg, min_margin_t: limit name -> leg and time (s) of that smallest margin.
+        first_violation: the earliest :class:`LimitViolation` (worst leg at that time) or None.
+        max_cond, max_cond_t: largest cond(J) along the path and its time (s).
+        first_singular_t: first time (s) with cond(J) > cond_threshold, or None.
+        min_sigma_min_inv: smallest 1/sigma_max(J) along the path ((rad or m) per rad).
+        cond_threshold: the threshold used.
+        min_sigma_min_inv_t: time (s) of ``min_sigma_min_inv``.
+        first_weak_t: first time (s) with 1/sigma_max(J) < sigma_min_inv_threshold, or None.
+        sigma_min_inv_threshold: the threshold used ((rad or m) per rad).
+        min_clearance: smallest distance between two parts along the path, m (NaN when not
+            checked), at ``min_clearance_t`` between ``min_clearance_parts`` ("a and b").
+        clearance_threshold: the smallest clearance allowed, m.
+        first_interference: (t, part_a, part_b, clearance) of the first measured pose below it,
+            or None.
+        design_clearance, design_clearance_parts: the closest of the pairs whose distance is the
+            same at every pose (the clearance model's ``fixed`` pairs), m, and its parts.
+        peak_torque, peak_torque_motor, peak_torque_t: the largest |torque| the motion needs
+            (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
+        peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,
+            rad/s.
+        effort_margin: the share of the motors' peak torque and no-load speed a reference may
+            use (``torque_limit`` is that share of the peak; NaN when not checked).
+        first_effort_violation: :class:`~.errors.MotorLimitError` of the first time
+            a motor is over its limit, or None.
+        series: the checks sample by sample, for plots: ``t`` (n,) s; ``margins`` dict name ->
+            (n, 6) as :func:`limit_margins`; ``cond``, ``sigma_min_inv`` (n,); with clearance,
+            ``clearance_t`` (m,) s and ``clearance`` (m,) m at the measured poses; with motor
+            limits, ``torque`` and ``speed`` (n, 6) in N m and rad/s (NaN where unreachable).
+    """
+
+    ok: bool
+    min_margin: dict
+    min_margin_leg: dict
+    min_margin_t: dict
+    first_violation: LimitViolation | None
+    max_cond: float
+    max_cond_t: float
+    first_singular_t: float | None
+    min_sigma_min_inv: float
+    cond_threshold: float
+    min_sigma_min_inv_t: float = float("nan")
+    first_weak_t: float | None = None
+    sigma_min_inv_threshold: float = 0.0
+    min_clearance: float = float("nan")
+    min_clearance_t: float = float("nan")
+    min_clearance_parts: str = ""
+    clearance_threshold: float = float("nan")
+    first_interference: tuple | None = None
+    design_clearance: float = float("nan")
+    design_clearance_parts: str = ""
+    peak_torque: float = float("nan")
+    peak_torque_motor: int = -1
+    peak_torque_t: float = float("nan")
+    torque_limit: float = float("nan")
+    peak_speed: float = float("nan")
+    peak_speed_motor: int = -1
+    peak_speed_t: float = float("nan")
+    speed_limit: float = float("nan")
+    first_effort_violation: MotorLimitError | None = None
+    effort_margin: float = float("nan")
+    series: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def feasible(self) -> bool:
+        """No motor over its torque or speed limit (True when they were not checked)."""
+        return self.first_effort_violation is None
+
+    def summary(self) -> str:
+        """Human-readable lines: verdict, each limit's smallest margin, singularity."""
+        lines = [("OK" if self.ok else "REFUSED") + ": trajectory validated"]
+        for name in LIMITS:
+            m = self.min_margin[name]
+            unit = f"{m:.4g}" if name == "closure" else f"{np.rad2deg(m):.4g} deg"
+            lines.append(
+                f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
+                f"t = {self.min_margin_t[name]:.4g} s)"
+            )
+        lines.append(
+            f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
+            f"(threshold {self.cond_threshold:g})"
+        )
+        lines.append(
+            f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
+            f"t = {self.min_sigma_min_inv_t:.4g} s "
+            f"(threshold {self.sigma_min_inv_threshold:g})"
+        )
+        if self.first_singular_t is not None:
+            lines.append(
+                f"  closer to singularity than the threshold first at "
+                f"t = {self.first_singular_t:.4g} s"
+            )
+        if self.first_weak_t is not None:
+            lines.append(
+                f"  1/sigma_max(J) below its threshold first at t = {self.first_weak_t:.4g} s"
+            )
+        if np.isfinite(self.min_clearance):
+            lines.append(
+                f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
+                f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
+                f"threshold {self.clearance_threshold * 1e3:.3g} mm)"
+            )
+        if np.isfinite(self.design_clearance):
+            lines.append(
+                f"                  {self.design_clearance * 1e3:.3g} mm at every pose "
+                f"({self.design_clearance_parts}: fixed by the design)"
+            )
+        for name, unit, peak, motor, when, limit in (
+            (
+                "torque",
+                "N m",
+                self.peak_torque,
+                self.peak_torque_motor,
+                self.peak_torque_t,
+                self.torque_limit,
+            ),
+            (
+                "speed",
+                "rad/s",
+                self.peak_speed,
+                self.peak_speed_motor,
+                self.peak_speed_t,
+                self.speed_limit,
+            ),
+        ):
+            if np.isfinite(peak):
+                bound = "no limit"
+                if np.isfinite(limit):
+                    motors = "peak" if name == "torque" else "no-load speed"
+                    bound = (
+                        f"limit {limit:.3g} {unit}, {100 * self.effort_margin:.3g} % of the "
+                        f"motors' {limit / self.effort_margin:.3g} {unit} {motors}"
+                    )
+                lines.append(
+                    f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
+                    f"t = {when:.4g} s; {bound})"
+                )
+        if self.first_violation is not None:
+            lines.append(f"  first violation: {self.first_violation}")
+        if self.first_interference is not None:
+            t, a, b, d = self.first_interference
+            lines.append(f"  first interference: {a} and {b} at {d * 1e3:.3g} mm, t = {t:.4g} s")
+        if self.first_effort_violation is not None:
+            e = self.first_effort_violation
+            lines.append(
+                f"  first motor over its limit: motor {e.motor} needs "
+                f"{e.required:.3g} {'N m' if e.quantity == 'torque' else 'rad/s'} of "
+                f"{e.quantity} (limit {e.limit:.3g}) at t = {e.t:.4g} s"
+            )
+        return "\n".join(lines)
+
+
+def merge_reports(reports) -> TrajectoryReport:
+    """One :class:`TrajectoryReport` of a path checked in consecutive stretches of time: the
+    report :func:`validate_trajectory` gives for the whole path (each extreme with its time, leg
+    or motor, each "first" the earliest), its ``series`` concatenated.
+
+    Args:
+        reports: the stretches' reports in time order, each from the same thresholds.
+    Returns:
+        :class:`TrajectoryReport`.
+    """
+    reports = list(reports)
+    head = reports[0]
+    if len(reports) == 1:
+        return head
+
+    def first(name):
+        return next((v for r in reports if (v := getattr(r, name)) is not None), None)
+
+    def extreme(value, fields, pick=min):
+        ranked = [r for r in reports if not np.isnan(getattr(r, value))]
+        if not ranked:
+            return {}
+        best = pick(ranked, key=lambda r: getattr(r, value))
+        return {name: getattr(best, name) for name in (value, *fields)}
+
+    min_margin, min_leg, min_t = {}, {}, {}
+    for name in LIMITS:
+        best = min(reports, key=lambda r: r.min_margin[name])
+        min_margin[name] = best.min_margin[name]
+        min_leg[name], min_t[name] = best.min_margin_leg[name], best.min_margin_t[name]
+    merged = replace(
+        head,
+        ok=all(r.ok for r in reports),
+        min_margin=min_margin,
+        min_margin_leg=min_leg,
+        min_margin_t=min_t,
+        first_violation=first("first_violation"),
+        first_singular_t=first("first_singular_t"),
+        first_weak_t=first("first_weak_t"),
+        first_interference=first("first_interference"),
+        first_effort_violation=first("first_effort_violation"),
+        **extreme("max_cond", ("max_cond_t",), max),
+        **extreme("min_sigma_min_inv", ("min_sigma_min_inv_t",)),
+        **extreme("min_clearance", ("min_clearance_t", "min_clearance_parts")),
+        **extreme("peak_torque", ("peak_torque_motor", "peak_torque_t"), max),
+        **extreme("peak_speed", ("peak_speed_motor", "peak_speed_t"), max),
+        series=_concatenated([r.series for r in reports]),
+    )
+    return merged
+
+
+def _concatenated(parts: list):
+    """Dicts (nested) of arrays joined along their first axis; other values from the first."""
+    if isinstance(parts[0], dict):
+        keys = [k for k in parts[0] if all(k in p for p in parts)]
+        return {k: _concatenated([p[k] for p in parts]) for k in keys}
+    if isinstance(parts[0], np.ndarray):
+        return np.concatenate(parts)
+    return parts[0]
+
+
+def validate_trajectory(
+    geometry: RobotGeometry,
+    t,
+    x,
+    cond_threshold: float = DEFAULT_COND_THRESHOLD,
+    raise_unreachable: bool = True,
+    min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
+    raise_refused: bool = False,
+    x_dot=None,
+    x_ddot=None,
+    clearance=None,
+    min_clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
+    clearance_resolution_m: float = DEFAULT_CLEARANCE_RESOLUTION_M,
+    motor_limits: MotorLimits | None = None,
+    allow_infeasible: bool = False,
+) -> TrajectoryReport:
+    """Validate a sampled path before running it: limits, margins and nearness to singularity.
+
+    Args:
+        geometry: the robot; its limit fields set the ranges.
+        t: (n,) sample times in s, increasing.
+        x: (n, 6) poses [phi, theta, psi, X, Y, Z] in rad and m. Only the samples are checked:
+            sample finer than the shortest feature of the path.
+        cond_threshold: cond(J) above this counts as too close to a singularity (> 1).
+        raise_unreachable: raise on a leg that cannot close (else report it as ``closure``).
+        min_sigma_min_inv: 1/sigma_max(J) below this ((rad or m) per rad, >= 0) counts as too
+            close to a dead point (see :data:`DEFAULT_MIN_SIGMA_MIN_INV`).
+        raise_refused: raise on the first refused sample (what a run needs) instead of only
+            reporting it.
+        x_dot, x_ddot: optional (n, 6) rates and accelerations of the path; checked finite.
+        clearance: a :class:`~.clearance.ClearanceModel` of the robot: check that no two parts
+            come closer than ``min_clearance_m`` (m). The clearance is measured wherever a part
+            has moved ``clearance_resolution_m`` (m) since the last measure
+            (:func:`~.clearance.sample_indices`), so between measures it is at least the smaller
+            measured value minus that resolution.
+        motor_limits: check the torque and crank speed the motion needs
+            (:func:`~.statics.motor_effort`, needs x_dot and x_ddot; with the geometry's
+            reflected inertia and the servo's friction) against :class:`MotorLimits`.
+        allow_infeasible: with ``raise_refused``, a motor over its limit is reported
+            (``first_effort_violation``) but not raised: the run goes on and saturates.
+    Returns:
+        :class:`TrajectoryReport` (``summary()`` prints it).
+    Raises:
+        UnreachablePoseError: with ``raise_unreachable``, naming the first time, its worst leg
+            and ratio.
+        JointLimitError: with ``raise_refused``, the first time a leg leaves a joint limit.
+        SingularPoseError: with ``raise_refused``, the first time cond(J) > cond_threshold or
+            1/sigma_max(J) < min_sigma_min_inv, naming the measure (whichever comes first).
+        InterferenceError: with ``raise_refused`` and ``clearance``, the first time two parts
+            come closer than ``min_clearance_m``, naming them.
+        MotorLimitError: with ``raise_refused`` and ``motor_limits`` (unless
+            ``allow_infeasible``), the first time a motor needs more torque or speed than it may
+            use, naming the motor and by how much.
+        InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
+            pose, rate or acceleration is named with its time), t not increasing, or a
+            threshold out of range.
+    Source: the one validator of a reference:
+        :func:`~stewart_drake.references.trajectories.validate` samples a trajectory object and
+        calls it; every run does, before anything is simulated.
+    """
+    # Long for its docstring: the one validator of a reference documents every check and error.
+    t, x = _checked_samples(t, x, x_dot, x_ddot)
+    cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
+    min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
+    theta, ratio = ik_unchecked(geometry, x)
+    closed = np.abs(ratio) <= 1.0
+    if raise_unreachable and not np.all(closed):
+        k = int(np.argmax(~np.all(closed, axis=1)))
+        if raise_refused and k > 0:  # an earlier refusal of another kind comes first
+            validate_trajectory(
+                geometry,
+                t[:k],
+                x[:k],
+                cond_threshold,
+                raise_unreachable,
+                min_sigma_min_inv,
+                raise_refused,
+                None if x_dot is None else np.asarray(x_dot)[:k],
+                None if x_ddot is None else np.asarray(x_ddot)[:k],
+                clearance,
+                min_clearance_m,
+                clearance_resolution_m,
+                motor_limits,
+                allow_infeasible,
+            )
+        leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
+        raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
+    margins = limit_margins_unchecked(geometry, x, theta, ratio)
+    cond, inv = singularity_measures_unchecked(geometry, x, theta)
+    cond_f = np.where(np.isnan(cond), np.inf, cond)
+    inv_f = np.where(np.isnan(inv), 0.0, inv)
+    reachable = np.all(closed, axis=1)
+    series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
+    extra = {"series": series}
+    if clearance is not None:
+        extra.update(
+            _clearance_fields(
+                clearance,
+                t,
+                x,
+                reachable,
+                as_number("min_clearance_m", min_clearance_m, 0.0),
+                clearance_resolution_m,
+                series,
+            )
+        )
+    if motor_limits is not None:
+        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits, series))
+    report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
+    if raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
+    return report
+
+
+def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
+    """(t (n,), x (n, 6)) checked: finite (the first non-finite pose, rate or acceleration named
+    with its time), matching shapes, n > 0, t strictly increasing.
+
+    Raises:
+        InvalidConfigError: names what is wrong.
+    """
+    t = as_array("sample times t", t).reshape(-1)
+    for name, arr in (("pose", x), ("rate", x_dot), ("acceleration", x_ddot)):
+        arr = None if arr is None else np.asarray(arr, dtype=float)
+        if arr is not None and arr.shape == (t.size, 6) and not np.isfinite(arr).all():
+            k = int(np.argmax(~np.isfinite(arr).all(axis=1)))
+            raise InvalidConfigError(f"the reference's {name} is not finite at t = {t[k]:.4g} s")
+    x = as_poses("poses x", x)
+    if x.shape != (t.size, 6) or t.size == 0:
+        raise InvalidConfigError(
+            f"validate_trajectory needs t (n,) and x (n, 6) with n > 0; got "
+            f"t {t.shape} and x {x.shape}"
+        )
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("validate_trajectory needs strictly increasing sample times t")
+    return t, x
+
+
+def _report(
+    t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float, extra: dict
+) -> TrajectoryReport:
+    """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
+    already mapped to the worst value), with the clearance and effort fields in ``extra``."""
+    min_margin, min_leg, min_t = {}, {}, {}
+    first = None
+    for name in LIMITS:
+        m = np.where(np.isnan(margins[name]), -np.inf, margins[name])
+        k, leg = np.unravel_index(int(np.argmin(m)), m.shape)
+        min_margin[name], min_leg[name], min_t[name] = float(m[k, leg]), int(leg), float(t[k])
+        bad = np.any(m < 0, axis=1)
+        if np.any(bad):
+            kb = int(np.argmax(bad))
+            if first is None or t[kb] < first.t:
+                lb = int(np.argmin(m[kb]))
+                first = LimitViolation(lb, name, float(m[kb, lb]), float(t[kb]))
+    over = cond_f > cond_threshold
+    weak = inv_f < min_sigma_min_inv
+    kc, ki = int(np.argmax(cond_f)), int(np.argmin(inv_f))
+    return TrajectoryReport(
+        ok=(
+            first is None
+            and not np.any(over)
+            and not np.any(weak)
+            and extra.get("first_interference") is None
+            and extra.get("first_effort_violation") is None
+        ),
+        min_margin=min_margin,
+        min_margin_leg=min_leg,
+        min_margin_t=min_t,
+        first_violation=first,
+        max_cond=float(cond_f[kc]),
+        max_cond_t=float(t[kc]),
+        first_singular_t=float(t[int(np.argmax(over))]) if np.any(over) else None,
+        min_sigma_min_inv=float(inv_f[ki]),
+        cond_threshold=float(cond_threshold),
+        min_sigma_min_inv_t=float(t[ki]),
+        first_weak_t=float(t[int(np.argmax(weak))]) if np.any(weak) else None,
+        sigma_min_inv_threshold=float(min_sigma_min_inv),
+        **extra,
+    )
+
+
+def _clearance_fields(
+    model, t, x, reachable, threshold: float, resolution_m: float, series: dict
+) -> dict:
+    """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`);
+    adds the measured series to ``series``."""
+    rows = np.flatnonzero(reachable)
+    if rows.size == 0:
+        return {"clearance_threshold": threshold}
+    rows = rows[model.sample_indices(x[rows], resolution_m)]
+    # Pairs farther than this need no names: they cannot be the path's critical pair.
+    distance, closest = model.sweep(x[rows], max_distance=max(threshold, 0.0) + 0.02)
+    series.update(clearance_t=t[rows], clearance=distance)
+    k = int(np.nanargmin(distance))
+    low = np.flatnonzero(distance < threshold)
+    first = None
+    if low.size:
+        c = closest[low[0]]
+        first = (float(t[rows[low[0]]]), c.part_a, c.part_b, float(c.distance))
+    design = model.fixed[0] if model.fixed else None  # the same at every pose
+    if design is not None and design.distance < threshold:
+        first = (float(t[rows[0]]), design.part_a, design.part_b, float(design.distance))
+    parts = (
+        f"{closest[k].part_a} and {closest[k].part_b}"
+        if closest[k] is not None
+        else "every pair farther"
+    )
+    return {
+        "min_clearance": float(distance[k]),
+        "min_clearance_t": float(t[rows[k]]),
+        "min_clearance_parts": parts,
+        "clearance_threshold": threshold,
+        "first_interference": first,
+        "design_clearance": float("nan") if design is None else design.distance,
+        "design_clearance_parts": "" if design is None else f"{design.part_a} and {design.part_b}",
+    }
+
+
+def _effort_fields(
+    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict
+) -> dict:
+    """The torque and speed entries of a :class:`TrajectoryReport` (see
+    :func:`validate_trajectory`); adds the torque and speed series to ``series``."""
+    from .statics import motor_effort
+
+    if x_dot is None or x_ddot is None:
+        raise InvalidConfigError(
+            "checking the motors' torque and speed needs the reference's "
+            "rate and acceleration (x_dot, x_ddot)"
+        )
+    margin = as_number("effort margin", limits_.margin, 0.0, 1.0, lo_open=True)
+    rows = np.flatnonzero(reachable)
+    if rows.size == 0:
+        return {}
+    T, speed = motor_effort(
+        geometry,
+        x[rows],
+        np.asarray(x_dot, float)[rows],
+        np.asarray(x_ddot, float)[rows],
+        limits_.servo,
+    )
+    for name, value in (("torque", T), ("speed", speed)):
+        series[name] = np.full(x.shape, np.nan)
+        series[name][rows] = value
+    out: dict = {}
+    first: MotorLimitError | None = None
+    out["effort_margin"] = margin
+    for name, value, bound in (
+        ("torque", np.abs(T), limits_.peak_torque_Nm),
+        ("speed", np.abs(speed), limits_.max_speed_rad_s),
+    ):
+        k, motor = np.unravel_index(int(np.argmax(value)), value.shape)
+        limit = float("nan") if bound is None else margin * float(bound)
+        out.update(
+            {
+                f"peak_{name}": float(value[k, motor]),
+                f"peak_{name}_motor": int(motor),
+                f"peak_{name}_t": float(t[rows[k]]),
+                f"{name}_limit": limit,
+            }
+        )
+        if bound is not None and np.any(value > limit):
+            kb = int(np.argmax(np.any(value > limit, axis=1)))
+            mb = int(np.argmax(value[kb]))
+            if first is None or t[rows[kb]] < first.t:
+                first = MotorLimitError(
+                    mb, name, float(value[kb, mb]), limit, float(t[rows[kb]]), x[rows[kb]]
+                )
+    out["first_effort_violation"] = first
+    return out
+
+
+def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv, allow_infeasible: bool = False):
+    """Raise the typed error of the earliest refused sample of a validated path (a motor over
+    its limit only without ``allow_infeasible``); nothing when only that remains."""
+    candidates: list[tuple[Any, int, StewartError]] = []  # (t, rank, error)
+    if report.first_interference is not None:
+        ti, a, b, d = report.first_interference
+        k = int(np.searchsorted(t, ti))
+        candidates.append((ti, 3, InterferenceError(a, b, d, report.clearance_threshold, ti, x[k])))
+    if report.first_effort_violation is not None and not allow_infeasible:
+        candidates.append((report.first_effort_violation.t, 4, report.first_effort_violation))
+    v = report.first_violation
+    if v is not None:
+        k = int(np.searchsorted(t, v.t))
+        error = (
+            UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k])
+            if v.limit == "closure"
+            else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k])
+        )
+        candidates.append((v.t, 0, error))
+    if report.first_singular_t is not None:
+        k = int(np.searchsorted(t, report.first_singular_t))
+        candidates.append(
+            (t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold, t[k], x[k]))
+        )
+    if report.first_weak_t is not None:
+        k = int(np.searchsorted(t, report.first_weak_t))
+        candidates.append(
+            (
+                t[k],
+                2,
+                SingularPoseError(
+                    "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k]
+                ),
+            )
+        )
+    if candidates:
+        raise min(candidates, key=lambda c: c[:2])[2]

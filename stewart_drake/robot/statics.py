@@ -1,0 +1,284 @@
+"""Statics and dynamics of the closed chain: gravity by virtual work, holding torques, task
+inertia, velocity-product forces and the motor torques a motion needs.
+
+Drake's tree quantities (``CalcMassMatrix``, gravity generalized forces) ignore the six loop
+constraints, so the closed chain's torques come from virtual work through the Jacobian
+J = d theta / d x (:func:`~.kinematics.jacobian`): T . d theta = w . d x, w = J^T T. The task-space
+equations of motion are those of the Lagrangian L = 1/2 x_dot^T M_x(x) x_dot - V(x) in the pose
+coordinates x = [rpy, p]: M_x x_ddot + c(x, x_dot) + dV/dx = J^T T
+(:func:`inverse_dynamics_torques`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError, SingularPoseError
+from .kinematics import (
+    DEFAULT_COND_THRESHOLD,
+    X_HOME,
+    RobotGeometry,
+    _checked,
+    _finite_or_singular,
+    _jacobian,
+    _leg_terms,
+    _skew,
+    ik,
+    jacobian,
+    leg_vectors_single,
+    rotation_rpy,
+    wrench_map,
+)
+
+#: Feed-forward modes of :func:`feedforward_torques`.
+FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
+
+
+def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarray:
+    """dV/dx of the potential energy of platform, cranks and rods, (..., 6) in N m/rad and N.
+
+    V = g [m_p Z + sum_i (m_c z_crank,i + m_r z_rod,i)], COMs at the geometric centres: the
+    crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
+    Pass theta and J (the Jacobian at x) when already computed, to save work.
+    """
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
+    J = _jacobian(geometry, x, theta) if J is None else J
+    g = geometry.gravity
+    a = geometry.crank_length
+    dtheta_coeff = g * a * np.cos(theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
+    grad = np.einsum("...i,...ij->...j", dtheta_coeff, J)
+    grad = grad + 0.5 * geometry.rod_mass * g * np.sum(Gq[..., 2, :], axis=-2)
+    grad[..., 5] += geometry.platform_mass * g
+    return grad
+
+
+def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Static motor torques that hold pose x against gravity, (..., 6) in N m.
+
+    Solves J^T T = dV/dx (virtual work through the Jacobian; Drake's tree gravity term ignores the
+    loop constraints). Includes the weight of the cranks and rods, not only the platform's.
+    Args:
+        x: (6,) or (..., 6) poses [rad, m]; theta: optional (..., 6) motor angles of x.
+    Returns:
+        (..., 6) finite torques, N m.
+    Raises:
+        UnreachablePoseError: if x is unreachable.
+        SingularPoseError: J^T is singular (no torques hold the pose) or J is unbounded.
+        InvalidConfigError: x or theta not (..., 6) or not finite.
+    """
+    x, theta = _checked(geometry, x, theta)
+    J = jacobian(geometry, x, theta)
+    grad = gravity_gradient(geometry, x, theta, J)
+    try:
+        T = np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        cond = np.linalg.cond(J.reshape(-1, 6, 6))
+        k = int(np.argmax(np.where(np.isfinite(cond), cond, np.inf)))
+        raise SingularPoseError(
+            "cond", np.inf, DEFAULT_COND_THRESHOLD, pose=x.reshape(-1, 6)[k]
+        ) from None
+    return _finite_or_singular("T", T, x)
+
+
+#: The tool tip in the platform frame E, m: the end of the tool drawn on the platform (8 cm up),
+#: where the station's ``tool_wrench`` acts.
+p_ETool = np.array([0.0, 0.0, 0.08])
+
+
+def tool_load_torques(geometry: RobotGeometry, x, wrench_W, p_EP=p_ETool) -> np.ndarray:
+    """Static motor torques that hold pose x against gravity AND a wrench on the tool, (6,) N m.
+
+    Equilibrium of the platform: the motors' wrench (:func:`~.kinematics.wrench_map`) balances
+    gravity (:func:`holding_torques`) and the external wrench [torque (3) N m, force (3) N] in
+    the world frame, applied at p_EP on the platform (default the tool tip). What a disturbance
+    costs the motors before any control: if it exceeds their peak torque, no controller can
+    hold the pose.
+
+    Args:
+        x: (6,) pose [rad, m]; wrench_W: (6,) [torque, force]; p_EP: (3,) m in the platform frame.
+    Raises:
+        as :func:`holding_torques` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
+    """
+    x = np.asarray(x, dtype=float)
+    w = np.asarray(wrench_W, dtype=float)
+    r_W = rotation_rpy(x[:3]) @ np.asarray(p_EP, dtype=float)
+    moment = w[:3] + np.cross(r_W, w[3:])  # about the platform origin
+    T_ext = np.linalg.solve(wrench_map(geometry, x), -np.concatenate([moment, w[3:]]))
+    return holding_torques(geometry, x) + T_ext
+
+
+def task_inertia(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
+    """Task-space mass matrix M_x(x) of the whole closed chain, (..., 6, 6), SI units.
+
+    Kinetic energy T = 1/2 x_dot^T M_x x_dot of the platform (in rpy coordinates), the cranks
+    (about their shafts) and the rods (COM translation + rotation about axes normal to the rod;
+    the rods' free spin carries no energy coupling). Exact for the reduced model; Coriolis terms
+    are not included.
+    """
+    terms = _leg_terms(geometry, x, theta)
+    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms
+    J = _jacobian(geometry, x, theta, terms)
+    R = rotation_rpy(np.asarray(x, dtype=float)[..., :3])
+    return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
+
+
+def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) -> np.ndarray:
+    """:func:`task_inertia` (6, 6) of ONE pose, from :func:`~.kinematics.ik_single`'s cache and
+    its Jacobian J (:func:`~.kinematics.jacobian_single`): the per-step path of the gain
+    re-scheduling (equal to the batched function; a test holds them to 1e-12)."""
+    R, r_B = cache[1], cache[2]
+    ell, e_N, E = leg_vectors_single(geometry, cache)
+    Gq = np.zeros((6, 3, 6))
+    Gq[:, :, :3] = -_skew(r_B) @ E
+    Gq[:, :, 3:] = np.eye(3)
+    return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
+
+
+def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
+    """The task inertia from the leg terms (batched or single; see :func:`task_inertia`)."""
+    a, s = geometry.crank_length, geometry.rod_length
+    I_B = R @ np.diag(geometry.platform_inertia) @ np.swapaxes(R, -1, -2)
+    M = np.zeros(J.shape[:-2] + (6, 6))
+    M[..., :3, :3] = np.swapaxes(E, -1, -2) @ I_B @ E
+    M[..., 3:, 3:] = geometry.platform_mass * np.eye(3)
+    # Cranks: principal axis y is the shaft (x along the crank, z up at theta = 0).
+    I_shaft = (
+        geometry.crank_inertia[1]
+        + geometry.crank_mass * (0.5 * a) ** 2
+        + geometry.motor_reflected_inertia
+    )  # the motor's rotor behind its gearhead
+    M = M + I_shaft * (np.swapaxes(J, -1, -2) @ J)
+    # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint; sums over the legs
+    # as one (18, 6) product (matmul, several times faster than einsum on one pose).
+    V_tip = a * e_N[..., :, None] * J[..., :, None, :]
+    V_com = (0.5 * (V_tip + Gq)).reshape(J.shape[:-2] + (18, 6))
+    W = (_skew(ell) @ (Gq - V_tip)).reshape(J.shape[:-2] + (18, 6)) / (s * s)  # rod w, normal
+    M = M + geometry.rod_mass * (np.swapaxes(V_com, -1, -2) @ V_com)
+    M = M + geometry.rod_inertia[0] * (np.swapaxes(W, -1, -2) @ W)
+    return M
+
+
+def coriolis_forces(geometry: RobotGeometry, x, x_dot, step: float = 1e-7, M=None) -> np.ndarray:
+    """Velocity-product forces c(x, x_dot) of the task-space dynamics, (..., 6) in N m and N.
+
+    c_i = sum_jk (dM_ij/dx_k - 1/2 dM_jk/dx_i) x_dot_j x_dot_k: the Coriolis and centrifugal
+    terms of the Lagrangian 1/2 x_dot^T M_x(x) x_dot (M_x from :func:`task_inertia`), with the six
+    derivatives dM_x/dx_k by forward differences (six more evaluations of M_x, vectorized over
+    the batch; relative error about ``step``).
+
+    Args:
+        x: (..., 6) reachable poses [rad, m]; x_dot: (..., 6) rates [rad/s, m/s].
+        step: finite-difference step in rad or m.
+        M: M_x(x) when already computed.
+    Raises:
+        UnreachablePoseError: a pose (or a pose ``step`` away) cannot be reached.
+    """
+    x = np.asarray(x, dtype=float)
+    x_dot = np.asarray(x_dot, dtype=float)
+    M = task_inertia(geometry, x) if M is None else M
+    c = np.zeros(np.broadcast_shapes(x.shape, x_dot.shape))
+    for k in range(6):
+        e = np.zeros(6)
+        e[k] = step
+        dM = (task_inertia(geometry, x + e) - M) / step  # dM/dx_k
+        dM_x_dot = np.einsum("...ij,...j->...i", dM, x_dot)
+        c += dM_x_dot * x_dot[..., k : k + 1]  # (dM/dx_k x_dot) x_dot_k
+        c[..., k] -= 0.5 * np.einsum("...i,...i->...", x_dot, dM_x_dot)  # 1/2 x_dot^T dM_k x_dot
+    return c
+
+
+def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot, theta=None) -> np.ndarray:
+    """Motor torques that move the closed chain along (x, x_dot, x_ddot), (..., 6) in N m.
+
+    T = J^-T (M_x x_ddot + c(x, x_dot) + dV/dx): the task-space equations of motion (module
+    docstring) with the motors' reflected inertia in M_x (``geometry.motor_reflected_inertia``);
+    no friction (:func:`motor_effort` adds a servo's). The rods' free spin about their own axes
+    (Table I: 1e-6 kg m^2) is left out. A test holds this to Drake's inverse dynamics of the tree
+    projected on the closed chain's motions (:func:`~.plant.closed_chain_inverse_dynamics`).
+
+    Args:
+        x, x_dot, x_ddot: (..., 6) pose [rad, m], rate [rad/s, m/s], acceleration [rad/s^2, m/s^2].
+        theta: (..., 6) motor angles of x when already known.
+    Raises:
+        UnreachablePoseError: x leaves the workspace. SingularPoseError: J^T is singular.
+    """
+    x, theta = _checked(geometry, x, theta)
+    J = jacobian(geometry, x, theta)
+    M = task_inertia(geometry, x, theta)
+    w = (
+        gravity_gradient(geometry, x, theta, J)
+        + np.einsum("...ij,...j->...i", M, np.asarray(x_ddot, dtype=float))
+        + coriolis_forces(geometry, x, x_dot, M=M)
+    )
+    T = np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
+    return _finite_or_singular("T", T, x)
+
+
+def motor_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None):
+    """What the motors must give for a motion: torques and speeds at the crank shafts.
+
+    Args:
+        x, x_dot, x_ddot: (..., 6) pose, rate and acceleration of the platform (SI).
+        servo: a :class:`~.servo.ServoModel` whose viscous and Coulomb friction the motors must
+            also overcome, or None (ideal torque sources). Its reflected inertia is the
+            geometry's ``motor_reflected_inertia`` (``Scenario.geometry()`` sets it).
+    Returns:
+        (T, theta_dot): (..., 6) torques in N m (:func:`inverse_dynamics_torques` plus friction
+        b theta_dot + F_c sign(theta_dot)) and (..., 6) crank rates theta_dot = J x_dot in rad/s.
+    Raises:
+        as :func:`inverse_dynamics_torques`.
+    """
+    x, theta = _checked(geometry, x, None)
+    theta_dot = np.einsum(
+        "...ij,...j->...i", jacobian(geometry, x, theta), np.asarray(x_dot, dtype=float)
+    )
+    T = inverse_dynamics_torques(geometry, x, x_dot, x_ddot, theta)
+    if servo is not None:
+        T = T + servo.viscous_damping * theta_dot + servo.coulomb_friction_Nm * np.sign(theta_dot)
+    return T, theta_dot
+
+
+def crank_inertia_matrix(geometry: RobotGeometry, x=X_HOME) -> np.ndarray:
+    """Joint-space inertia M_theta = J^-T M_x J^-1 of the closed chain at pose x, (6, 6) kg m^2."""
+    theta = ik(geometry, x)
+    J_inv = np.linalg.inv(jacobian(geometry, x, theta))
+    return J_inv.T @ task_inertia(geometry, x, theta) @ J_inv
+
+
+def feedforward_torques(
+    geometry: RobotGeometry, x_d, xdd_d=None, mode: str = "gravity", theta=None, xd_d=None
+) -> np.ndarray:
+    """Motor torques that hold (or accelerate) the platform along the reference, (..., 6) N m.
+
+    Args:
+        geometry: the robot the controller believes in (a payload it does not know is not here).
+        x_d: (..., 6) reference pose [rad, m].
+        xdd_d: (..., 6) reference acceleration [rad/s^2, m/s^2]; used by "inverse_dynamics".
+        mode: "gravity": J^-T dV/dx, the static virtual-work torques of platform, cranks and rods
+            (paper eq. 19's disturbance d, cancelled); "inverse_dynamics": also J^-T M_x(x_d)
+            xdd_d and, when ``xd_d`` is given, the velocity-product forces
+            (:func:`inverse_dynamics_torques`); "none": zeros.
+        theta: (..., 6) motor angles of x_d when already known (IK is then skipped).
+        xd_d: (..., 6) reference rate [rad/s, m/s] for the inverse dynamics' Coriolis terms.
+    Raises:
+        InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
+    Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
+    """
+    if mode not in FEEDFORWARD_MODES:
+        raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got {mode!r}")
+    x_d = np.asarray(x_d, dtype=float)
+    if mode == "none":
+        return np.zeros(x_d.shape)
+    theta = ik(geometry, x_d) if theta is None else theta
+    J = jacobian(geometry, x_d, theta)
+    w = gravity_gradient(geometry, x_d, theta, J)
+    if mode == "inverse_dynamics":
+        if xdd_d is None:
+            raise InvalidConfigError(
+                "feedforward 'inverse_dynamics' needs the reference acceleration xdd_d"
+            )
+        if xd_d is not None:
+            return inverse_dynamics_torques(geometry, x_d, xd_d, xdd_d, theta)
+        M = task_inertia(geometry, x_d, theta)
+        w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
+    return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]

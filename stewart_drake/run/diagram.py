@@ -1,0 +1,589 @@
+"""The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers.
+
+:func:`make_stewart_diagram` builds it in stages, one function each: the reference and its
+feed-forward, the controller (built by its scenario choice), the measurement it reads, the tool
+disturbance, what drives the controller's weights (a tuner choice, or a constant), the loggers and
+the guard. It builds from a :class:`~.plan.RunPlan` (a scenario is planned first): every
+derived value is read from the plan; each scenario choice builds itself (the controller's
+``make``, the tuner's ``add_to``, the reference's ``make``, beside what they build); the stages
+here only wire by port name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
+from pydrake.systems.primitives import (
+    ConstantVectorSource,
+    LogVectorOutput,
+    RandomSource,
+    TrajectorySource,
+)
+from pydrake.trajectories import PiecewisePolynomial
+
+from ..base.errors import InvalidConfigError
+from ..control.contract import ControllerContext, check_controller
+from ..control.estimator import FkEstimator
+from ..control.feedforward_tuning import FeedforwardTuningLearner
+from ..control.ilc import IterativeLearningController
+from ..control.tuning import TunerPorts
+from ..robot.kinematics import X_HOME
+from ..station.bus.station import HardwareStation
+from ..station.guard import DivergenceGuard
+from ..station.sensors import PlatformPoseSensor, add_white_noise
+from ..station.station import StewartStation
+from .plan import RunPlan, make_plan
+from .reference import ReferenceSources, add_reference_sources
+from .scenario import Scenario, dump_scenario
+from .signal_log import SignalLog
+
+#: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
+Station = StewartStation | HardwareStation
+
+
+@dataclass
+class StewartDiagram:
+    """Handles to the built Diagram and its pieces (see :func:`make_stewart_diagram`).
+
+    Attributes:
+        diagram: the Diagram. station: the :class:`~.station.StewartStation` in it, or with
+            the scenario's ``bus`` the :class:`~.bus.station.HardwareStation`.
+        controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
+            (or the live reference system). trajectory: the reference object (``evaluate(t)``;
+            None with a live reference). loggers: name -> ``LogVectorOutput`` logger.
+        plan: the :class:`~.plan.RunPlan` built (``scenario`` is its scenario). features,
+            tuner: the tuner's systems, or None.
+        noise: the sensor noise's ``RandomSource``, or None. estimator: the
+            :class:`~stewart_drake.control.estimator.FkEstimator` on the encoders, or None.
+        guard: the :class:`~.guard.DivergenceGuard` system checking the run.
+        T_ff_initial: (6,) the feed-forward at t = 0, N m (the torque pipes start there).
+        learner: the :class:`~stewart_drake.control.ilc.IterativeLearningController` when the
+            scenario learns (``learning``), or None.
+        lcm: the ``DrakeLcm`` the status and commands are published on (the scenario's
+            ``lcm``; subscribe to it to receive them in process), or None.
+    """
+
+    diagram: Diagram
+    station: Station
+    controller: System
+    reference: ReferenceSources | System
+    trajectory: Any  # a motion.Reference, or None with a live reference
+    loggers: dict
+    plan: RunPlan
+    features: System | None = None
+    tuner: System | None = None
+    noise: RandomSource | None = None
+    estimator: FkEstimator | None = None
+    guard: DivergenceGuard | None = None
+    T_ff_initial: np.ndarray | None = None
+    learner: System | None = None
+    lcm: Any = None  # the DrakeLcm of the scenario's ``lcm``, or None
+
+    @property
+    def scenario(self) -> Scenario:
+        """The validated scenario the Diagram was built from (``plan.scenario``)."""
+        return self.plan.scenario
+
+    def scenario_yaml(self) -> str:
+        """The scenario as YAML (:func:`~.scenario.dump_scenario`), e.g. for a saved run."""
+        return dump_scenario(self.plan.scenario)
+
+    @property
+    def plant(self):
+        return self.station.plant
+
+    @property
+    def handles(self):
+        return self.station.handles
+
+    @property
+    def sensor(self) -> PlatformPoseSensor:
+        return self.station.sensor
+
+    def initialize(self, root_context) -> None:
+        """Set what a Context needs before a run: the tool wrench fixed to zero when the scenario
+        has no disturbance; the sensor and encoder noise seeded from the scenario (Drake gives
+        every RandomSource a fresh seed otherwise, and two runs would differ); the station's
+        torque pipes (delay, current loop) holding the first feed-forward torque."""
+        from pydrake.common import RandomGenerator
+
+        if self.diagram.HasInputPort("tool_wrench"):
+            self.diagram.GetInputPort("tool_wrench").FixValue(
+                _own_context(self.diagram, root_context), np.zeros(6)
+            )
+        noise = self.scenario.sensor_noise
+        if self.noise is not None and noise is not None:  # the source exists for the noise
+            self.noise.SetRandomContext(
+                self.noise.GetMyMutableContextFromRoot(root_context),
+                RandomGenerator(noise.seed),
+            )
+        hw = self.scenario.hardware
+        self.station.initialize(
+            root_context, self.T_ff_initial, seed=hw.encoders.seed if hw is not None else 0
+        )
+
+
+def _own_context(system: System, root_context):
+    """``system``'s Context inside ``root_context``: ``root_context`` itself when ``system`` is
+    the root. pydrake's ``GetMyMutableContextFromRoot`` returns the root's own Context with a
+    keep-alive on itself, a reference cycle Python cannot see: the Context (0.6 MB of the
+    closed loop's) would never be freed (measured on drake 1.58, docs/performance.md)."""
+    try:
+        system.ValidateContext(root_context)
+    except RuntimeError:  # a subsystem's: the root belongs to a Diagram around it (teleop)
+        return system.GetMyMutableContextFromRoot(root_context)
+    return root_context
+
+
+def make_stewart_diagram(
+    scenario: Scenario | RunPlan | None = None,
+    meshcat=None,
+    *,
+    reference=None,
+    controller=None,
+    reference_system=None,
+    controller_logs: bool = True,
+) -> StewartDiagram:
+    """Build the closed-loop Diagram of the rotary Stewart platform.
+
+    Wiring: the station (:func:`~make_stewart_station`); the reference and its
+    feed-forward (precomputed ``TrajectorySource``s, :mod:`~.reference`); the controller, whose
+    ports are connected by name as the controller contract says
+    (:mod:`~stewart_drake.control.contract`): ``x_d``, ``T_ff``, ``x`` (the station's
+    ``platform_state`` [+ sensor noise], or the FK estimate on the encoders), ``motor_angle``,
+    ``motor_rate``, ``motor_torque_applied``, ``omega`` (constant weights, or what the scenario's
+    tuner adds); its ``T`` drives the station's ``motor_torque``; ``tool_wrench`` is the
+    disturbance or fixed to zero; a :class:`~.guard.DivergenceGuard` checks the run every
+    ``scenario.guard.check_period_s``.
+
+    Args:
+        scenario: the run: a :class:`~.plan.RunPlan`, or a scenario planned here
+            (:func:`~.plan.make_plan`; default: the paper's experiment on the ideal robot).
+        meshcat: optional pydrake Meshcat (Drake's visualization of the station).
+        reference: optional reference object overriding ``scenario.reference``: anything
+            :func:`~.trajectories.as_trajectory` accepts (an object with ``evaluate(t)``, a Drake
+            ``Trajectory``, a CSV path or a name).
+        controller: optional factory ``f(ControllerContext) -> LeafSystem`` or registered name,
+            overriding ``scenario.controller``.
+        reference_system: a live reference instead of the precomputed one (e.g.
+            :class:`~.reference.TeleopReference`): a system with output ports ``x_d`` (18) and
+            ``T_ff`` (6) and attributes ``x_initial`` (6,) and ``T_ff_initial`` (6,). Its input
+            ports are exported under their names, and the Diagram exports ``platform_state``
+            (12), ``x_d`` (18) and, if it has one, its ``limited`` port for a display;
+            ``scenario.reference`` and ``duration_s`` are
+            then not used (``trajectory`` is None).
+        controller_logs: log the controller's "integral" and "e_bar" (False: not logged, 48 B
+            a logged sample saved, for a long run whose report does not read them).
+    Returns:
+        :class:`StewartDiagram`; loggers (each with Drake's ``FindLog(context)``) keyed "x"
+        (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
+        has them "status", "integral", "e_bar" (the error the controller acted on: its
+        estimate, on the hardware), every ``log_period_s`` in float32
+        (:class:`~.signal_log.SignalLog`); "state" (the plant state, float64) every
+        ``state_log_period_s``, with a learner's status under its ``status_port`` name; with
+        the tuner "rho" (12, every tuner period).
+    Raises:
+        InvalidConfigError: a scenario field out of range, a controller that breaks the contract
+            (names the port), a tuner without a controller that has ``omega`` and ``e_bar``.
+        UnreachablePoseError: the reference leaves the workspace (first time and leg).
+    """
+    # Long for its docstring (every port and choice documented); the stages are functions below.
+    plan = make_plan(
+        scenario,
+        reference=reference,
+        controller=controller,
+        with_reference=reference_system is None,
+    )
+    scenario = plan.scenario
+    trajectory = None if reference_system is not None else plan.reference
+    builder = DiagramBuilder()
+    station = make_stewart_station(plan, meshcat)
+    builder.AddSystem(station)
+    ref = _add_reference(builder, plan, trajectory, reference_system)
+    context = plan.controller_context(ref.x0, ref.x_dot0)
+    system = _add_controller(builder, plan.controller_factory(context))
+    inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
+    outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
+    measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
+    applied = station.GetOutputPort("motor_torque_applied")
+    x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
+    sources = {
+        "x_d": x_d,
+        "T_ff": ref.T_ff,
+        "x": measured,
+        "motor_angle": station.GetOutputPort("motor_angle"),
+        "motor_rate": station.GetOutputPort("motor_rate"),
+        "motor_torque_applied": applied,
+    }
+    for name in inputs - {"omega"}:
+        builder.Connect(sources[name], system.GetInputPort(name))
+    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
+    _add_disturbance(builder, station, plan, live=reference_system is not None)
+    features, tuner, loggers = _add_weights(
+        builder,
+        scenario,
+        TunerPorts(
+            controller=system,
+            inputs=frozenset(inputs),
+            outputs=frozenset(outputs),
+            x_d=ref.x_d,
+            T_applied=applied,
+            period_s=context.period_s,
+            offset_s=context.offset_s,
+            duration_s=scenario.duration_s,
+        ),
+    )
+    logged = outputs if controller_logs else outputs - {"integral", "e_bar"}
+    loggers.update(_add_loggers(builder, station, system, logged, scenario, learner))
+    for name, logger in loggers.items():
+        logger.set_name(f"log_{name}")
+    guard = _add_guard(builder, station, system, ref.x_d, plan)
+    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario)
+    if reference_system is not None:
+        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+        builder.ExportOutput(ref.x_d, "x_d")
+        if reference_system.HasOutputPort("limited"):
+            builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
+    diagram = builder.Build()
+    diagram.set_name("rotary_stewart")
+    return StewartDiagram(
+        diagram=diagram,
+        station=station,
+        controller=system,
+        reference=ref.system,
+        trajectory=trajectory,
+        loggers=loggers,
+        plan=plan,
+        features=features,
+        tuner=tuner,
+        noise=noise,
+        estimator=estimator,
+        guard=guard,
+        T_ff_initial=ref.T_ff_initial,
+        learner=learner,
+        lcm=lcm,
+    )
+
+
+def _add_lcm(builder, station: Station, system: System, x: OutputPort, x_d: OutputPort, scenario):
+    """With the scenario's ``lcm``, the status (the station's measurements, the pose ``x`` the
+    controller reads, the reference; on the servo bus the driver's loop numbers) and the
+    controller's torque commands published on their channels (:mod:`~.lcm_publish`). Returns
+    the ``DrakeLcm``, or None."""
+    config = scenario.lcm
+    if config is None:
+        return None
+    from ..station.lcm_publish import add_command_publisher, add_status_publisher, make_lcm
+
+    lcm = make_lcm(config.url)  # refuses a URL on which nothing published arrives
+    ports = {
+        name: station.GetOutputPort(name)
+        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
+    }
+    if station.HasOutputPort("loop"):
+        ports["loop"] = station.GetOutputPort("loop")
+    add_status_publisher(
+        builder, lcm, ports | {"x": x, "x_d": x_d}, config.period_s, config.status_channel
+    )
+    add_command_publisher(
+        builder, lcm, system.GetOutputPort("T"), config.period_s, config.command_channel
+    )
+    return lcm
+
+
+@dataclass(frozen=True)
+class _Reference:
+    """The reference's system and ports, and where the run starts: x0, x_dot0 (6,) and the
+    feed-forward T_ff_initial (6,) N m."""
+
+    system: ReferenceSources | System
+    x_d: OutputPort
+    T_ff: OutputPort
+    x0: np.ndarray
+    x_dot0: np.ndarray
+    T_ff_initial: np.ndarray
+
+
+def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Reference:
+    """The precomputed reference and feed-forward of ``trajectory`` (:mod:`~.reference`), or
+    the live ``reference_system`` with its inputs exported."""
+    h_plant, h = plan.plant_time_step_s, plan.control_period_s
+    if reference_system is None:
+        ref = add_reference_sources(
+            builder,
+            trajectory,
+            plan.geometry,
+            plan.duration_s,
+            period_s=h,
+            offset_s=plan.sample_offset_s,
+            lead_s=0.5 * h_plant,
+            feedforward=plan.scenario.feedforward,
+            feedforward_lead_s=plan.delay_periods * h,
+        )
+        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+        return _Reference(
+            ref,
+            ref.x_d.get_output_port(),
+            ref.T_ff.get_output_port(),
+            x0,
+            x_dot0,
+            ref.T_ff_table[0].copy(),  # a view would keep the whole table after its release
+        )
+    ref = builder.AddNamedSystem("reference", reference_system)
+    for i in range(ref.num_input_ports()):
+        builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
+    return _Reference(
+        ref,
+        ref.GetOutputPort("x_d"),
+        ref.GetOutputPort("T_ff"),
+        np.asarray(ref.x_initial, dtype=float),
+        np.zeros(6),
+        np.asarray(ref.T_ff_initial, dtype=float),
+    )
+
+
+def _add_controller(builder, system: System) -> System:
+    """The controller, checked against the contract (named "controller" if it has no name)."""
+    check_controller(system)
+    if not system.get_name():
+        system.set_name("controller")
+    return builder.AddSystem(system)
+
+
+def _add_measurement(
+    builder, station: Station, scenario: Scenario, context: ControllerContext, inputs: set
+):
+    """The pose and rate a controller with an ``x`` input reads: the station's ground truth, or
+    on the robot as built the FK estimate from the encoders, plus the scenario's sensor noise.
+    Returns (port, estimator or None, noise source or None)."""
+    measured = station.GetOutputPort("platform_state")
+    estimator = noise = None
+    if "x" not in inputs:
+        return measured, estimator, noise
+    if context.pose_estimator is not None:  # the pose from the encoders
+        estimator = builder.AddNamedSystem(
+            "estimator",
+            FkEstimator(
+                context.pose_estimator, context.offset_s, context.x_initial, context.x_dot_initial
+            ),
+        )
+        builder.Connect(station.GetOutputPort("motor_angle"), estimator.get_input_port())
+        measured = estimator.get_output_port()
+    if scenario.sensor_noise is not None:
+        noise, measured = add_white_noise(
+            builder,
+            measured,
+            scenario.sensor_noise.std_vector(),
+            context.period_s,
+            ("sensor_noise", "noise_std", "noisy_x"),
+        )
+    return measured, estimator, noise
+
+
+def _add_learning(
+    builder,
+    station: Station,
+    plan: RunPlan,
+    trajectory,
+    x_d: OutputPort,
+    context: ControllerContext,
+):
+    """With the scenario's ``learning``, the iterative learning controller between the reference
+    and the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
+    correction, the guard and the tuner keep the reference itself. Returns (the x_d port the
+    controller reads, the learner or None).
+
+    Raises:
+        InvalidConfigError: learning on a live reference (it has no cycles to learn from).
+    """
+    if plan.scenario.learning is None:
+        return x_d, None
+    if trajectory is None:
+        raise InvalidConfigError(
+            "learning needs a reference known in advance, with cycles; a "
+            "live reference has none: set learning: null"
+        )
+    from .learning import add_learning
+
+    learner, corrected = add_learning(
+        builder,
+        plan.scenario.learning,
+        trajectory,
+        x_d,
+        station.GetOutputPort("motor_angle"),
+        geometry=plan.geometry,
+        period_s=plan.control_period_s,
+        offset_s=context.offset_s,
+        duration_s=plan.duration_s,
+        floor=plan.encoder_count_at_tip,
+    )
+    return corrected, learner
+
+
+def _add_disturbance(builder, station: Station, plan: RunPlan, live: bool) -> None:
+    """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
+    live reference, which has no end), the input is exported and fixed to zero in the Context
+    (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
+    source would be re-evaluated at every plant step."""
+    disturbance = plan.scenario.disturbance
+    if disturbance is not None and not live:
+        # The wrench sampled every plant step over the run and joined linearly.
+        h = plan.plant_time_step_s
+        t = np.arange(0.0, plan.duration_s + 2 * h, h)
+        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
+        source = TrajectorySource(samples)
+        wrench = builder.AddNamedSystem("tool_disturbance", source)
+        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    else:
+        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
+
+
+def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
+    """What drives the controller's ``omega`` input: the scenario's tuner
+    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`), or the controller choice's
+    constant weights. Returns (features or None, tuner or None, loggers: "rho" when the tuner
+    has features)."""
+    if scenario.tuner is not None:
+        added = scenario.tuner.add_to(builder, ports)
+        loggers = {}
+        if added.rho_period_s is not None and added.features is not None:
+            loggers["rho"] = LogVectorOutput(
+                added.features.GetOutputPort("rho"), builder, added.rho_period_s
+            )
+        return added.features, added.tuner, loggers
+    if "omega" in ports.inputs:
+        omega = builder.AddNamedSystem(
+            "omega", ConstantVectorSource(np.array(scenario.controller.omega()))
+        )
+        builder.Connect(omega.get_output_port(), ports.controller.GetInputPort("omega"))
+    return None, None, {}
+
+
+def _add_loggers(
+    builder,
+    station: Station,
+    system: System,
+    outputs: set,
+    scenario: Scenario,
+    learner: IterativeLearningController | FeedforwardTuningLearner | None = None,
+) -> dict:
+    """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
+    true platform pose and rate "x", the applied torques "T" and the controller's "status",
+    "integral", "e_bar" when it has them; every ``state_log_period_s`` the plant's "state" in
+    float64 (a replay's frames, the loop-closure error, a divergence record) and a learner's
+    status under its ``status_port`` name (it changes once a cycle or stretch: logging it every
+    millisecond cost 0.26 kB a sample; the correction itself is not logged, nothing reads it)."""
+    signals = {
+        "x": (station.GetOutputPort("platform_state"), np.float32),
+        "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
+    }
+    for name in ("status", "integral", "e_bar"):
+        if name in outputs:
+            signals[name] = (system.GetOutputPort(name), np.float32)
+    slow = {"state": (station.GetOutputPort("plant_state"), np.float64)}
+    if learner is not None:
+        slow[learner.status_port] = (learner.GetOutputPort(learner.status_port), np.float64)
+    loggers = {}
+    for log_name, period, group in (
+        ("log_signals", scenario.log_period_s, signals),
+        ("log_state", scenario.state_log_period_s, slow),
+    ):
+        log = builder.AddNamedSystem(
+            log_name,
+            SignalLog(
+                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
+                period,
+                scenario.duration_s,
+            ),
+        )
+        for name, (port, _) in group.items():
+            builder.Connect(port, log.GetInputPort(name))
+            loggers[name] = log.logger(name)
+    return loggers
+
+
+def _add_guard(
+    builder, station: Station, system: System, x_d: OutputPort, plan: RunPlan
+) -> DivergenceGuard:
+    """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
+    reference and, with contact, the contact results."""
+    contact = plan.scenario.contact
+    guard = builder.AddNamedSystem(
+        "guard", DivergenceGuard(station, plan.scenario.guard, plan.plant_geometry, contact)
+    )
+    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
+    builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
+    builder.Connect(x_d, guard.GetInputPort("x_d"))
+    if contact:
+        builder.Connect(
+            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
+        )
+    return guard
+
+
+def make_stewart_station(scenario=None, meshcat=None):
+    """The robot of ``scenario`` as a Diagram with exported ports: the simulated robot
+    (:class:`StewartStation`) or, with the scenario's ``bus``, the real one on its servo bus
+    (:class:`~.bus.station.HardwareStation`, same ports; the bus is opened by the caller).
+
+    Args:
+        scenario: a :class:`~.plan.RunPlan`, or a :class:`~.scenario.Scenario`
+            planned here without its reference (default: the paper's); its robot, plant,
+            payload, motors and torque limit are used.
+        meshcat: optional pydrake Meshcat; adds Drake's visualization (``scenario.visualization``).
+    Returns:
+        the :class:`StewartStation` or ``HardwareStation`` (a Diagram): ports ``motor_torque``,
+        ``tool_wrench`` in; ``motor_angle``, ``motor_rate``, ``platform_state``,
+        ``motor_torque_applied``, ``plant_state`` out.
+    Raises:
+        InvalidConfigError, InvalidGeometryError: the scenario does not validate.
+        MissingExtraError: a scenario with ``bus`` without dynamixel-sdk installed.
+    """
+    from .plan import make_plan
+
+    plan = make_plan(scenario, with_reference=False)
+    if plan.scenario.bus is not None:
+        from ..station.bus.station import HardwareStation
+
+        return HardwareStation(plan, meshcat)
+    return StewartStation(plan, meshcat)
+
+
+def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
+    """The station alone under constant inputs, ready to simulate: the robot assembled at pose x,
+    ``motor_torque`` fixed to T (default the holding torques of x) and ``tool_wrench`` to wrench
+    (default none); the torque pipes start at T.
+
+    For experiments on the plant itself (drift under friction, statics against Drake's
+    dynamics, the plant-alone speed benchmark).
+
+    Args:
+        scenario: the robot, a scenario or a plan (default the paper's). x: (6,) pose [rad, m].
+            T: (6,) N m.
+            wrench: (6,) [torque N m, force N] at the tool tip, world frame.
+    Returns:
+        (station, simulator, station_context): simulator.AdvanceTo(t) runs it; read the ports
+        with station_context.
+    Raises:
+        UnreachablePoseError: x cannot be assembled; InvalidConfigError: a bad scenario.
+    """
+    from pydrake.systems.analysis import Simulator
+
+    from ..robot.statics import holding_torques
+
+    builder = DiagramBuilder()
+    station = builder.AddSystem(make_stewart_station(scenario))
+    builder.ExportInput(station.GetInputPort("motor_torque"), "motor_torque")
+    builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
+    diagram = builder.Build()
+    simulator = Simulator(diagram)
+    context = simulator.get_mutable_context()
+    station.assemble(context, x)
+    T = holding_torques(station.plan.geometry, x) if T is None else np.asarray(T, float)
+    station.initialize(context, T)
+    diagram.get_input_port(0).FixValue(context, T)
+    diagram.get_input_port(1).FixValue(context, np.zeros(6) if wrench is None else wrench)
+    return station, simulator, station.GetMyContextFromRoot(context)

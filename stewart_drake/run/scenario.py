@@ -1,0 +1,971 @@
+"""Scenarios: what a run is, as typed dataclasses with their YAML form and their validation.
+
+A :class:`Scenario` is the schema of a run: the robot (:class:`Robot`), Drake's plant, simulator
+and visualization settings, the reference, the controller, the tuner, the periods, the robot as
+built (:class:`Hardware`: encoders, motors, delay), the sensor noise, the tool disturbance, the
+guard and the learner. It is read with ``pydrake.common.yaml.yaml_load_typed`` and written with
+``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's ``Scenario`` for
+``MakeHardwareStation``; files, shipped names and ``--set`` overrides are
+:mod:`~.scenario_io`'s, and the values a run derives from a scenario (its geometry, servo, limits,
+reference object, controller) are computed once, by :func:`~.plan.make_plan`.
+
+Choices are tagged unions: in YAML, ``controller: !PdDriver {bandwidth_hz: 20}`` or
+``reference: !CsvReference {path: run.csv}``. Each choice is one class, beside what it builds,
+that checks its own fields and builds what it stands for: the controllers (``LqiDriver`` in
+:mod:`~stewart_drake.control.lqi`, ``PdDriver``, ``UserController``), the tuners
+(:mod:`~stewart_drake.control.tuning`), the references (beside the references), the learner
+(``IlcDriver``, :mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``,
+:mod:`~.guard`). A new choice is one such class added to its union (:data:`ControllerChoice`,
+:data:`ReferenceChoice`, :data:`~stewart_drake.control.tuning.TunerChoice`).
+
+Drake's YAML loader builds each class with its defaults and then sets fields, so the classes are
+plain mutable dataclasses with concrete field types (this module must not use
+``from __future__ import annotations``), and validation is a separate step:
+:meth:`Scenario.validate` names the field to fix. The robot's geometry, the servo and the LQI's
+scales are frozen value types of the lower layers; :class:`Robot`, :class:`Motors` and
+:class:`~stewart_drake.control.lqi.LqiScalesConfig` are their YAML forms (same names, units and
+defaults; lists where they have tuples), with ``build()`` to get the value type back
+(:class:`~stewart_drake.base.mirrors.ValueMirror`).
+"""
+
+import dataclasses
+import functools
+import typing
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
+from pydrake.multibody.plant import MultibodyPlantConfig
+from pydrake.systems.analysis import SimulatorConfig
+from pydrake.visualization import VisualizationConfig
+
+from ..base.checks import MAX_SEED, as_number, check_multiple
+from ..base.checks import check_int as _check_int
+from ..base.errors import (
+    InvalidConfigError,
+    InvalidGeometryError,
+    StewartError,
+)
+from ..base.mirrors import ValueMirror
+from ..control.contract import UserController
+from ..control.feedforward_tuning import FeedforwardTuning
+from ..control.ilc import IlcDriver
+from ..control.lqi import LqiDriver
+from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: controller.scales
+from ..control.pd import PdDriver
+from ..control.tuning import AnnTunerDriver, TunerChoice
+from ..plant.plant import check_rod_model
+from ..references.motion import ReferenceConfig as ReferenceConfig  # re-exported: the choices' base
+from ..references.organ_motion import OrganMotionReference
+from ..references.traces import TraceReference
+from ..references.trajectories import (
+    CsvReference,
+    DataCollectionReference,
+    NamedReference,
+    SineReference,
+)
+from ..robot.geometry import StewartGeometry
+from ..robot.servo import ServoModel
+from ..robot.statics import FEEDFORWARD_MODES
+from ..station.bus.protocol import SERVO_COUNTS_PER_REV
+from ..station.guard import GuardConfig
+from ..station.lcm_publish import LcmConfig
+
+_GEOMETRY, _SERVO = StewartGeometry(), ServoModel()
+
+
+@dataclass
+class Robot(ValueMirror):
+    """The robot: every field of :class:`~stewart_drake.robot.geometry.StewartGeometry`, same
+    names, units and defaults (docs/reference_geometry.md, Table I; meanings there), lists for
+    its tuples, but the motors' reflected inertia, which the scenario's ``hardware.motors`` sets;
+    ``build()`` gives the geometry (validated there)."""
+
+    value_class = StewartGeometry
+
+    base_radius: float = _GEOMETRY.base_radius
+    pivot_z: float = _GEOMETRY.pivot_z
+    pivot_angles_deg: list[float] = field(default_factory=lambda: list(_GEOMETRY.pivot_angles_deg))
+    platform_radius: float = _GEOMETRY.platform_radius
+    platform_angles_deg: list[float] = field(
+        default_factory=lambda: list(_GEOMETRY.platform_angles_deg)
+    )
+    crank_angles_deg: list[float] = field(default_factory=lambda: list(_GEOMETRY.crank_angles_deg))
+    crank_length: float = _GEOMETRY.crank_length
+    rod_length: float = _GEOMETRY.rod_length
+    rod_mass: float = _GEOMETRY.rod_mass
+    rod_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.rod_inertia))
+    crank_mass: float = _GEOMETRY.crank_mass
+    crank_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.crank_inertia))
+    platform_mass: float = _GEOMETRY.platform_mass
+    platform_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.platform_inertia))
+    base_mass: float = _GEOMETRY.base_mass
+    base_inertia: list[float] = field(default_factory=lambda: list(_GEOMETRY.base_inertia))
+    base_plate_radius: float = _GEOMETRY.base_plate_radius
+    rod_radius: float = _GEOMETRY.rod_radius
+    rod_end_radius: float = _GEOMETRY.rod_end_radius
+    platform_plate_radius: float = _GEOMETRY.platform_plate_radius
+    gravity: float = _GEOMETRY.gravity
+    motor_angle_min_deg: float = _GEOMETRY.motor_angle_min_deg
+    motor_angle_max_deg: float = _GEOMETRY.motor_angle_max_deg
+    crank_joint_cone_deg: float = _GEOMETRY.crank_joint_cone_deg
+    platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
+
+
+@dataclass
+class Motors(ValueMirror):
+    """The servo at each crank: every field of :class:`~stewart_drake.robot.servo.ServoModel`, same
+    names, units and defaults (at the output shaft: gear ratio, rotor inertia kg m^2, peak torque
+    N m, current-loop time constant s, viscous N m s/rad and Coulomb N m friction, friction
+    regularization N m s/rad, no-load speed rad/s); defaults: maxon EC 45 flat 50 W + a 4.3:1
+    planetary gearhead (docs/hardware.md). ``build()`` gives the servo."""
+
+    value_class = ServoModel
+
+    name: str = _SERVO.name
+    gear_ratio: float = _SERVO.gear_ratio
+    rotor_inertia: float = _SERVO.rotor_inertia
+    peak_torque_Nm: float = _SERVO.peak_torque_Nm
+    current_time_constant_s: float = _SERVO.current_time_constant_s
+    viscous_damping: float = _SERVO.viscous_damping
+    coulomb_friction_Nm: float = _SERVO.coulomb_friction_Nm
+    friction_damping: float = _SERVO.friction_damping
+    no_load_speed_rad_s: float = _SERVO.no_load_speed_rad_s
+
+
+# -- references ------------------------------------------------------------------------------------
+
+ReferenceChoice = (
+    NamedReference
+    | CsvReference
+    | SineReference
+    | DataCollectionReference
+    | OrganMotionReference
+    | TraceReference
+)
+ControllerChoice = LqiDriver | PdDriver | UserController
+#: The learners a scenario may choose: from every cycle, or as a function of the reference.
+LearningChoice = IlcDriver | FeedforwardTuning
+
+
+def _choices(union) -> tuple:
+    """The classes of a tagged union (``A | B`` -> (A, B))."""
+    return typing.get_args(union)
+
+
+def named_controllers() -> dict:
+    """{short name: class} of the controller choices a command can pick by name with their
+    defaults (``run --controller``, the evaluation grid), read from :data:`ControllerChoice`."""
+    return {kind.short_name: kind for kind in _choices(ControllerChoice) if kind.short_name}
+
+
+def choice_classes() -> dict:
+    """{field: its choice classes} of every tagged union of the scenario (``controller``,
+    ``reference``, ``tuner``) and the learner's ``learning``: what dispatching on a choice's
+    type would test (``tools/code_shape.py`` counts such tests)."""
+    return {
+        "controller": _choices(ControllerChoice),
+        "reference": _choices(ReferenceChoice),
+        "tuner": _choices(TunerChoice),
+        "learning": _choices(LearningChoice),
+    }
+
+
+# -- hardware ------------------------------------------------------------------------------------
+
+
+@dataclass
+class Encoders:
+    """Absolute encoders on the six crank shafts, read at the control period.
+
+    Attributes:
+        counts_per_rev: counts per crank revolution (default 2^17, a 17-bit absolute encoder on
+            the output shaft, RLS AksIM-2 class); the quantum is 2 pi / counts_per_rev rad.
+        noise_counts: standard deviation of white Gaussian noise added before quantization,
+            counts (0: quantization only).
+        seed: seed of that noise (Drake RandomSource), 0 .. 2^32 - 1.
+    """
+
+    counts_per_rev: int = 2**17
+    noise_counts: float = 0.0
+    seed: int = 0
+
+    @property
+    def quantum_rad(self) -> float:
+        """One count, rad."""
+        return 2 * np.pi / self.counts_per_rev
+
+
+@dataclass
+class Estimator:
+    """Pose and rate from the encoders (:class:`~stewart_drake.control.estimator.FkEstimator`).
+
+    Attributes:
+        rate_cutoff_hz: corner of the first-order low-pass on the differentiated FK pose, Hz.
+        fk_tolerance_counts: Newton stops when every motor angle of the estimate is within this
+            many counts of the measurement.
+    """
+
+    rate_cutoff_hz: float = 100.0
+    fk_tolerance_counts: float = 0.01
+
+
+@dataclass
+class Hardware:
+    """The robot as built: encoders, servos, the controller computer's delay.
+
+    Attributes:
+        encoders: the only position measurement (:class:`Encoders`).
+        motors: the servo at each crank (:class:`Motors`).
+        estimator: FK pose and rate estimation from the encoders (:class:`Estimator`).
+        computation_delay_periods: control periods between the measurement and the torque it
+            produces (0: none).
+    """
+
+    encoders: Encoders = field(default_factory=Encoders)
+    motors: Motors = field(default_factory=Motors)
+    estimator: Estimator = field(default_factory=Estimator)
+    computation_delay_periods: int = 1
+
+    def validate(self, control_period_s: float) -> None:
+        """Check every field (``hardware.<path>``) for a controller of period
+        ``control_period_s``.
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
+            if not isinstance(getattr(self, name), kind):
+                raise InvalidConfigError(
+                    f"hardware.{name} must be a {kind.__name__}, got "
+                    f"{type(getattr(self, name)).__name__}"
+                )
+        _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
+        as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
+        _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
+        try:
+            self.motors.build()
+        except (StewartError, TypeError) as err:
+            raise InvalidConfigError(f"hardware.motors: {err}") from None
+        as_number(
+            "hardware.estimator.rate_cutoff_hz",
+            self.estimator.rate_cutoff_hz,
+            0.0,
+            0.5 / control_period_s,
+            lo_open=True,
+        )
+        as_number(
+            "hardware.estimator.fk_tolerance_counts",
+            self.estimator.fk_tolerance_counts,
+            0.0,
+            1.0,
+            lo_open=True,
+        )
+        _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
+
+
+# -- the servo bus and LCM ---------------------------------------------------------------------
+
+#: Control periods a loop on the servo bus may run at, s: 100 Hz to 1 kHz.
+BUS_CONTROL_PERIODS_S = (1e-3, 1e-2)
+
+
+@dataclass
+class DynamixelBusConfig:
+    """The robot's servos on a DYNAMIXEL bus: the station drives them instead of a simulated
+    plant (:class:`~.station.HardwareStation`; docs/hardware_bus.md). The arguments of
+    :class:`~stewart_drake.station.bus.driver.DynamixelBus`, same names, units and
+    defaults, and the loop's deadline policy.
+
+    Attributes:
+        port: the serial port ("/dev/ttyUSB0", or a bus emulator's pty).
+        baud_rate: bps, the servos' setting (one of the driver's ``BAUD_RATES``).
+        ids: the six servo ids, in the cranks' order (reference_geometry.md's legs).
+        model: the servos' model, a ``SERVO_SPECS`` key with Current Control Mode.
+        zero_counts: Present Position of each servo at its crank's zero angle, counts (6).
+        directions: +1, or -1 for a servo whose counts grow against its crank's angle (6).
+        current_limit_A: the servos' Current Limit, A (None: the model's maximum); the
+            torque limit of the run is at most ``K_t`` times it.
+        temperature_limit_C: deg C, in (0, 80].
+        position_limits_counts: (min, max) written to the servos (Position Control Mode only).
+        watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
+        reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
+        max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
+            period missed beyond this many (0: at the first miss).
+
+    The robot as built is then the one with these servos: ``hardware: null`` is derived from
+    the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
+    ``model``, the servos' 4096-count encoders, one period of computation delay), or the
+    scenario is refused (:meth:`validate`).
+    """
+
+    port: str = "/dev/ttyUSB0"
+    baud_rate: int = 1_000_000
+    ids: list[int] = field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
+    model: str = "XM430-W350-T"
+    zero_counts: list[int] = field(default_factory=lambda: [2048] * 6)
+    directions: list[int] = field(default_factory=lambda: [1] * 6)
+    current_limit_A: float | None = None
+    temperature_limit_C: int = 70
+    position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
+    watchdog_s: float = 0.1
+    reply_timeout_s: float | None = None
+    max_deadline_misses: int = 10
+
+    def _settings(self):
+        from ..station.bus.driver import check_bus_settings
+
+        return check_bus_settings(
+            self.baud_rate,
+            self.ids,
+            self.model,
+            self.zero_counts,
+            self.directions,
+            self.current_limit_A,
+            self.temperature_limit_C,
+            self.position_limits_counts,
+            self.watchdog_s,
+            self.reply_timeout_s,
+            prefix="bus.",
+        )
+
+    def validate(self, control_period_s: float, hardware: "Hardware | None") -> None:
+        """Check every field (``bus.<name>``), the control period (1 to 10 ms) and that
+        ``hardware``, if given, is the robot built with these servos.
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if not isinstance(self.port, str) or not self.port:
+            raise InvalidConfigError(f"bus.port must be a serial port path, got {self.port!r}")
+        if len(self.ids) != 6:
+            raise InvalidConfigError(f"bus.ids must name the six servos, got {self.ids!r}")
+        if len(self.position_limits_counts) != 2:
+            raise InvalidConfigError(
+                f"bus.position_limits_counts must be [min, max], got {self.position_limits_counts}"
+            )
+        self._settings()
+        _check_int("bus.max_deadline_misses", self.max_deadline_misses, 0, 10**9)
+        lo, hi = BUS_CONTROL_PERIODS_S
+        if not lo - 1e-12 <= control_period_s <= hi + 1e-12:
+            raise InvalidConfigError(
+                f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
+                f"{lo:g} to {hi:g} s"
+            )
+        expected = self.hardware(control_period_s)
+        if hardware is None:
+            return
+        for name, got, want in (
+            ("motors.name", hardware.motors.name, expected.motors.name),
+            (
+                "encoders.counts_per_rev",
+                hardware.encoders.counts_per_rev,
+                expected.encoders.counts_per_rev,
+            ),
+            (
+                "computation_delay_periods",
+                hardware.computation_delay_periods,
+                expected.computation_delay_periods,
+            ),
+        ):
+            if got != want:
+                raise InvalidConfigError(
+                    f"hardware.{name} is {got!r} but the servos of bus.model {self.model} make "
+                    f"it {want!r}: set it so, or hardware: null to derive the robot from the bus"
+                )
+
+    def hardware(self, control_period_s: float = 1e-3) -> "Hardware":
+        """The robot as built with these servos: their catalogue model (friction, gear,
+        reflected inertia, peak torque; docs/motor_catalogue.md), their 4096-count encoders
+        without added noise, one control period of delay between a measurement and its
+        torque (the driver writes the torque computed from a period's reading at the start of
+        the next period, :class:`~.bus.station.DynamixelDriver`), and the encoders' rate
+        filter at its default corner or, for a long ``control_period_s``, at the Nyquist
+        frequency 0.5 / control_period_s.
+
+        Raises:
+            InvalidConfigError: a model the motor catalogue does not have.
+        """
+        from ..robot.motor_catalogue import catalogue_motor
+
+        try:
+            servo = catalogue_motor(self.model).servo
+        except (StewartError, KeyError) as err:
+            raise InvalidConfigError(f"bus.model: {err}") from None
+        return Hardware(
+            encoders=Encoders(counts_per_rev=SERVO_COUNTS_PER_REV),
+            motors=Motors.from_value(servo),
+            estimator=Estimator(
+                rate_cutoff_hz=min(Estimator().rate_cutoff_hz, 0.5 / control_period_s)
+            ),
+            computation_delay_periods=1,
+        )
+
+    def torque_limit_Nm(self) -> float | None:
+        """``current_limit_A`` as a torque at the crank, N m (None without one)."""
+        from ..station.bus.protocol import servo_spec
+
+        if self.current_limit_A is None:
+            return None
+        return self.current_limit_A * servo_spec(self.model).torque_constant_Nm_per_A
+
+    def make_bus(self):
+        """The :class:`~stewart_drake.station.bus.driver.DynamixelBus` of these
+        settings, not opened (``open``, ``configure``, ``enable_torque`` are the caller's).
+
+        Raises:
+            MissingExtraError: dynamixel-sdk is not installed.
+        """
+        from ..station.bus.driver import DynamixelBus
+
+        return DynamixelBus(
+            self.port,
+            self.baud_rate,
+            self.ids,
+            model=self.model,
+            zero_counts=self.zero_counts,
+            directions=self.directions,
+            current_limit_A=self.current_limit_A,
+            temperature_limit_C=self.temperature_limit_C,
+            position_limits_counts=tuple(self.position_limits_counts),
+            watchdog_s=self.watchdog_s,
+            reply_timeout_s=self.reply_timeout_s,
+        )
+
+
+# -- disturbance, sensor noise, guard --------------------------------------------------------------
+
+
+#: Largest tool disturbance, N (push, contact) or N m (twist).
+MAX_DISTURBANCE = 1e4
+
+
+@dataclass
+class ToolDisturbance:
+    """A wrench on the tool tip (world frame) during the run, through the station's
+    ``tool_wrench`` input.
+
+    Attributes:
+        kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
+            oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
+        magnitude: N (push, contact) or N m (twist), at most :data:`MAX_DISTURBANCE`.
+        direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
+        start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
+        frequency_hz: of the contact force, Hz.
+    """
+
+    kind: str = "push"
+    magnitude: float = 5.0
+    direction: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
+    start_s: float = 1.0
+    duration_s: float = 0.0
+    frequency_hz: float = 2.0
+
+    def validate(self) -> None:
+        """Check every field (``disturbance.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if self.kind not in ("push", "twist", "contact"):
+            raise InvalidConfigError(
+                f"disturbance.kind must be 'push', 'twist' or 'contact', got {self.kind!r}"
+            )
+        for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
+            as_number(f"disturbance.{name}", getattr(self, name), 0.0)
+        # A tabletop platform of a kilogram: 10 kN (or 10 kN m) is far past anything it holds,
+        # and a much larger number overflows the contact solver instead of failing the run.
+        as_number("disturbance.magnitude", self.magnitude, 0.0, MAX_DISTURBANCE)
+        axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
+        if (
+            axis is None
+            or axis.shape != (3,)
+            or not np.isfinite(axis).all()
+            or np.linalg.norm(axis) == 0
+        ):
+            raise InvalidConfigError(
+                f"disturbance.direction must be 3 finite numbers, not all "
+                f"zero, got {self.direction!r}"
+            )
+
+    def wrench(self, t) -> np.ndarray:
+        """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        on = (t >= self.start_s) & ((self.duration_s <= 0) | (t < self.start_s + self.duration_s))
+        axis = np.asarray(self.direction, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        level = np.where(on, self.magnitude, 0.0)
+        if self.kind == "contact":
+            level = level * 0.5 * (1 - np.cos(2 * np.pi * self.frequency_hz * (t - self.start_s)))
+        out = np.zeros((t.size, 6))
+        columns = slice(0, 3) if self.kind == "twist" else slice(3, 6)
+        out[:, columns] = level[:, None] * axis
+        return out
+
+
+@dataclass
+class SensorNoise:
+    """White Gaussian noise on the measured pose and rate, drawn every control period.
+
+    Attributes:
+        std: 12 standard deviations [rad x3, m x3, rad/s x3, m/s x3] (or one for all).
+        seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
+    """
+
+    std: list[float] = field(default_factory=lambda: [0.0] * 12)
+    seed: int = 0
+
+    def std_vector(self) -> np.ndarray:
+        """(12,) the standard deviations, one broadcast to all."""
+        return np.broadcast_to(np.asarray(self.std, dtype=float), (12,)).copy()
+
+    def validate(self) -> None:
+        """Check the fields (``sensor_noise.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        try:
+            std = self.std_vector()
+        except (TypeError, ValueError):
+            std = np.array([np.nan])
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+            raise InvalidConfigError(
+                f"sensor_noise.std needs 12 finite values >= 0 (rad, m, rad/s, m/s), got {self.std}"
+            )
+        _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
+
+
+def _default_plant() -> MultibodyPlantConfig:
+    # Unsampled output ports: the plant's update is then a discrete update of its state alone,
+    # not an unrestricted one that also copies the step's sample (contact results, forces) into
+    # an abstract state: the station steps about 1.25 times faster and a closed loop is the
+    # same to the bit (the state output is live either way; docs/plant_speed.md).
+    return MultibodyPlantConfig(
+        time_step=1e-3, discrete_contact_approximation="sap", use_sampled_output_ports=False
+    )
+
+
+@dataclass
+class Scenario:
+    """Everything that defines one closed-loop run; SI units. Defaults: the paper's experiment
+    (eqs. 37-38, 10 s) on the ideal robot, LQI with omega_Q = omega_R = 1.
+
+    ``Scenario()`` is the *ideal* robot (the shipped ``paper_ideal``), while the CLI's commands
+    default to the robot as built (``paper_hardware``: encoders, servos, friction, delay). For
+    the CLI's robot in Python: ``load_scenario("paper_hardware")``.
+
+    Attributes:
+        robot: the geometry and inertias (:class:`Robot`).
+        plant: Drake's ``MultibodyPlantConfig``; ``time_step`` > 0 and a SAP approximation
+            ("sap", "lagged", "similar"): ball constraints need a discrete SAP plant. The
+            default has ``use_sampled_output_ports`` false (Drake's default is true): its
+            dynamic outputs (``contact_results``, which the guard reads with ``contact``) are
+            computed from the current state when read, and each step costs less.
+        simulator: Drake's ``SimulatorConfig`` (``target_realtime_rate`` etc.).
+        visualization: Drake's ``VisualizationConfig``, applied when a Meshcat is given.
+        reference: the path x_d(t) (a tagged choice: :class:`NamedReference`,
+            :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`,
+            :class:`OrganMotionReference`, :class:`TraceReference`).
+        feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
+        controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
+        tuner: None (fixed weights), or a tuner choice of :mod:`~stewart_drake.control.tuning`:
+            ``AnnTunerDriver`` (the paper's network), ``RatioTunerDriver`` (ours) or
+            ``WeightSchedule`` (weights known in advance); the tuners need a controller with the
+            ``omega`` input and the ``e_bar`` output (the LQI), a schedule only the ``omega``
+            input.
+        duration_s: simulated time, s.
+        control_period_s: controller period h, s (a whole multiple of the plant step).
+        log_period_s: logging period, s (a whole multiple of the plant step): the pose,
+            torques and the controller's outputs a run's figures are computed from.
+        state_log_period_s: period of the plant's full state log, s (a whole multiple of the
+            plant step): what a 3-D replay (30 frames per s) and the loop-closure error are read
+            from; 10 ms keeps a long run's memory small (0.07 kB per s of the 86 floats,
+            against 0.69 kB at 1 kHz).
+        sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
+        payload_scale: the simulated platform's mass and inertia are this multiple of the
+            robot's; the controller still believes in ``robot`` (an unknown payload).
+        torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
+            and the motors' peak torque applies).
+        guard: checks before and during the run (:class:`GuardConfig`).
+        hardware: None for the ideal robot (the controller reads the exact pose, ideal torque
+            sources, no friction, no delay), or :class:`Hardware` (encoders, FK estimation,
+            servos with friction, delay).
+        disturbance: None, or a wrench on the tool tip (:class:`ToolDisturbance`).
+        contact: simulate contact between the robot's parts (SAP point contact on their
+            collision geometry, :mod:`~stewart_drake.robot.parts`): a collision becomes contact
+            forces and the guard reports the first one with the parts' names. False (default,
+            cheaper per step): parts would pass through each other, and the guard stops a run
+            the moment two of them overlap.
+        rod_model: how the plant models the rods (:data:`~stewart_drake.plant.plant.ROD_MODELS`):
+            "bodies" (default: rigid bodies on ball joints, exact) or "distance" (rigid distance
+            constraints with the rods' mass lumped at their ends; fewer degrees of freedom and
+            a faster step; its accuracy and speed are measured in docs/plant_speed.md). With
+            "distance" the rods have no collision geometry, so it takes no ``contact``.
+        learning: None, or a correction of the reference the controller tracks, learned from
+            the encoders: from every cycle (:class:`IlcDriver`, motion that repeats) or as a
+            function of the reference (:class:`FeedforwardTuning`, any motion).
+        bus: None (a simulated robot), or the servos of the real robot on a DYNAMIXEL bus
+            (:class:`DynamixelBusConfig`): the station drives them (``HardwareStation``), and
+            ``hardware`` is the robot built with them (derived when null).
+        lcm: None, or the run's status and torque commands on LCM channels
+            (:class:`LcmConfig`).
+    Raises:
+        InvalidConfigError: (``validate``, run by every builder and at construction) a field
+            out of range, a period that is not a whole multiple of the one it runs on, a wrong
+            type; the message names the field path (e.g. ``controller.omega_Q``).
+        InvalidGeometryError: the robot cannot be built (names the field).
+        MissingFileError: a tuner weights file or a CSV reference that does not exist.
+    """
+
+    robot: Robot = field(default_factory=Robot)
+    plant: MultibodyPlantConfig = field(default_factory=_default_plant)
+    simulator: SimulatorConfig = field(default_factory=SimulatorConfig)
+    visualization: VisualizationConfig = field(default_factory=VisualizationConfig)
+    reference: ReferenceChoice = field(default_factory=NamedReference)
+    feedforward: str = "gravity"
+    controller: ControllerChoice = field(default_factory=LqiDriver)
+    tuner: TunerChoice | None = None
+    duration_s: float = 10.0
+    control_period_s: float = 1e-3
+    log_period_s: float = 1e-3
+    state_log_period_s: float = 1e-2
+    sensor_noise: SensorNoise | None = None
+    payload_scale: float = 1.0
+    torque_limit_Nm: float | None = None
+    guard: GuardConfig = field(default_factory=GuardConfig)
+    hardware: Hardware | None = None
+    disturbance: ToolDisturbance | None = None
+    contact: bool = False
+    rod_model: str = "bodies"
+    learning: LearningChoice | None = None
+    bus: DynamixelBusConfig | None = None
+    lcm: LcmConfig | None = None
+
+    def __post_init__(self):
+        self.validate()
+
+    def use_controller(
+        self, controller: ControllerChoice, tuner: TunerChoice | None = None
+    ) -> "Scenario":
+        """Run this scenario with ``controller`` and ``tuner`` (None: fixed weights; the
+        paper's ANN tuner comes with its gain switching, :func:`use_paper_tuner`): the one way
+        the studies put a controller on a base scenario. Changes the scenario in place and
+        returns it (not validated)."""
+        self.controller, self.tuner = controller, None
+        if isinstance(tuner, AnnTunerDriver):
+            return use_paper_tuner(self, tuner)
+        self.tuner = tuner
+        return self
+
+    def lqi(self, **changes) -> LqiDriver:
+        """This scenario's LQI with ``changes`` (e.g. ``omega_Q=10``): its own options when its
+        controller is an LqiDriver, the defaults otherwise. The scenario is not changed."""
+        base = self.controller if isinstance(self.controller, LqiDriver) else LqiDriver()
+        return dataclasses.replace(base, **changes)
+
+    # -- validation --------------------------------------------------------------------------
+    def validate(self) -> "Scenario":
+        """Check every field before anything is built; returns self.
+
+        Raises:
+            InvalidConfigError, InvalidGeometryError, MissingFileError: see the class docstring.
+        """
+        self._validate_types()
+        try:
+            self.robot.build()
+        except InvalidGeometryError as err:
+            raise InvalidGeometryError(f"robot: {err}") from None
+        except TypeError as err:
+            raise InvalidConfigError(f"robot: {err}") from None
+        self._validate_periods()
+        if self.hardware is not None:
+            self.hardware.validate(self.control_period_s)
+            if self.sensor_noise is not None:
+                raise InvalidConfigError(
+                    "sensor_noise is the ideal pose sensor's; on the robot "
+                    "as built the encoders are noisy: set "
+                    "hardware.encoders.noise_counts instead"
+                )
+        self.controller.validate(
+            self.control_period_s,
+            0 if self.hardware is None else self.hardware.computation_delay_periods,
+        )
+        self.reference.validate()
+        if self.feedforward not in FEEDFORWARD_MODES:
+            raise InvalidConfigError(
+                f"feedforward must be one of {FEEDFORWARD_MODES}, got {self.feedforward!r}"
+            )
+        if self.tuner is not None:
+            self.tuner.validate(self.controller, self.control_period_s)
+        if self.sensor_noise is not None:
+            self.sensor_noise.validate()
+        as_number("payload_scale", self.payload_scale, 0.1, 10.0)
+        if not isinstance(self.contact, bool):
+            raise InvalidConfigError(f"contact must be true or false, got {self.contact!r}")
+        check_rod_model(self.rod_model)
+        if self.contact and self.rod_model != "bodies":
+            raise InvalidConfigError(
+                f"contact needs the rods' collision geometry: set rod_model to 'bodies' "
+                f"(got {self.rod_model!r})"
+            )
+        if self.torque_limit_Nm is not None:
+            as_number("torque_limit_Nm", self.torque_limit_Nm, lo=0.0, lo_open=True)
+        self.guard.validate()
+        check_multiple(
+            "guard.check_period_s",
+            self.guard.check_period_s,
+            "plant.time_step",
+            self.plant.time_step,
+        )
+        if self.disturbance is not None:
+            self.disturbance.validate()
+        if self.learning is not None:
+            self.learning.validate(self.control_period_s)
+        if self.bus is not None:
+            self.bus.validate(self.control_period_s, self.hardware)
+            for name in ("disturbance", "contact"):
+                if getattr(self, name):
+                    raise InvalidConfigError(
+                        f"{name} is simulated; on the servo bus the real robot meets the real "
+                        f"world: set {name} to {'null' if name == 'disturbance' else 'false'}"
+                    )
+        if self.lcm is not None:
+            self.lcm.validate(self.plant.time_step)
+        return self
+
+    def as_built(self) -> "Scenario":
+        """This scenario with, on the servo bus and ``hardware: null``, the robot built with
+        the bus's servos (:meth:`DynamixelBusConfig.hardware`); itself otherwise."""
+        if self.bus is None or self.hardware is not None:
+            return self
+        return dataclasses.replace(self, hardware=self.bus.hardware(self.control_period_s))
+
+    #: The fields that hold a choice or a section, and the classes each may hold.
+    _FIELD_TYPES = {
+        "robot": (Robot,),
+        "plant": (MultibodyPlantConfig,),
+        "simulator": (SimulatorConfig,),
+        "visualization": (VisualizationConfig,),
+        "guard": (GuardConfig,),
+        "controller": _choices(ControllerChoice),
+        "reference": _choices(ReferenceChoice),
+        "tuner": (type(None),) + _choices(TunerChoice),
+        "sensor_noise": (type(None), SensorNoise),
+        "hardware": (type(None), Hardware),
+        "disturbance": (type(None), ToolDisturbance),
+        "learning": (type(None),) + _choices(LearningChoice),
+        "bus": (type(None), DynamixelBusConfig),
+        "lcm": (type(None), LcmConfig),
+    }
+
+    def _validate_types(self) -> None:
+        """Each section and choice is of a class its field takes (a dict, say, is not)."""
+        for name, kinds in self._FIELD_TYPES.items():
+            value = getattr(self, name)
+            if isinstance(value, kinds):
+                continue
+            names = [k.__name__ for k in kinds if k is not type(None)]
+            listed = ", ".join(names[:-1]) + (" or " if len(names) > 1 else "") + names[-1]
+            article = "an" if listed[0] in "AEIOU" or listed.startswith("Lqi") else "a"
+            raise InvalidConfigError(
+                f"{name} must be {'None or ' if type(None) in kinds else ''}{article} {listed}, "
+                f"got {type(value).__name__}"
+                + (
+                    " (a dict: load it with load_scenario, or build the dataclass with "
+                    f"{names[0]}(**d))"
+                    if isinstance(value, dict)
+                    else ""
+                )
+            )
+
+    def _validate_periods(self) -> None:
+        """The run's durations and periods, and Drake's plant and simulator settings."""
+        for name in ("duration_s", "control_period_s", "log_period_s", "state_log_period_s"):
+            as_number(name, getattr(self, name), lo=0.0, lo_open=True)
+        h = as_number("plant.time_step", self.plant.time_step, lo=0.0, lo_open=True)
+        if self.plant.discrete_contact_approximation not in ("sap", "lagged", "similar"):
+            raise InvalidConfigError(
+                f"plant.discrete_contact_approximation "
+                f"{self.plant.discrete_contact_approximation!r} does not enforce the ball "
+                f"constraints that close the loops; use 'sap', 'lagged' or 'similar'"
+            )
+        _validate_plant_config(self.plant)
+        _validate_simulator_config(self.simulator)
+        check_multiple("control_period_s", self.control_period_s, "plant.time_step", h)
+        check_multiple("log_period_s", self.log_period_s, "plant.time_step", h)
+        check_multiple("state_log_period_s", self.state_log_period_s, "plant.time_step", h)
+        if self.duration_s < 2 * self.log_period_s:
+            raise InvalidConfigError(
+                f"duration_s ({self.duration_s:g} s) must cover at least two log periods "
+                f"({2 * self.log_period_s:g} s): a shorter run has no second sample to measure"
+            )
+
+    # -- pickling through YAML (Drake's config structs do not pickle) -------------------------
+    def __reduce__(self):
+        return (_scenario_from_yaml, (dump_scenario(self),))
+
+
+def use_paper_tuner(scenario: Scenario, tuner: AnnTunerDriver) -> Scenario:
+    """Give ``scenario`` the paper's ANN ``tuner`` and, for an LQI, the paper's gain switching
+    (``gain_transfer = "none"``; see :class:`AnnTunerDriver`). Returns the scenario (changed in
+    place)."""
+    scenario.tuner = tuner
+    if isinstance(scenario.controller, LqiDriver):
+        scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
+    return scenario
+
+
+#: Slowest real-time pacing accepted (besides 0, as fast as possible): the Simulator sleeps
+#: between steps in C++, where no signal is handled, so a plant step must not wait more than a
+#: fraction of a second (1 ms at 0.01: 0.1 s).
+MIN_REALTIME_RATE = 0.01
+
+
+def _validate_plant_config(plant: MultibodyPlantConfig) -> None:
+    """The fields of Drake's ``MultibodyPlantConfig`` besides the step and the approximation:
+    numbers here (Drake aborts the process on some), names by Drake's own parser."""
+    as_number("plant.penetration_allowance", plant.penetration_allowance, 0.0, lo_open=True)
+    as_number("plant.stiction_tolerance", plant.stiction_tolerance, 0.0, lo_open=True)
+    as_number("plant.sap_near_rigid_threshold", plant.sap_near_rigid_threshold, 0.0)
+    for name in ("use_sampled_output_ports", "adjacent_bodies_collision_filters"):
+        if not isinstance(getattr(plant, name, False), bool):
+            raise InvalidConfigError(
+                f"plant.{name} must be true or false, got {getattr(plant, name)!r}"
+            )
+    names = []
+    for name in ("contact_model", "contact_surface_representation"):
+        value = getattr(plant, name)
+        if not isinstance(value, str):
+            raise InvalidConfigError(f"plant.{name} must be a name, got {value!r}")
+        names.append(value)
+    problem = _drake_plant_names_problem(*names)
+    if problem:
+        raise InvalidConfigError(
+            f"plant: {problem} (see Drake's MultibodyPlantConfig for the names)"
+        )
+
+
+@functools.lru_cache(maxsize=32)
+def _drake_plant_names_problem(contact_model: str, contact_surface_representation: str) -> str:
+    """Drake's own refusal of these names ("Unknown contact_model: 'bogus'"), "" if none: the
+    names a Drake version knows are its own to say."""
+    from pydrake.multibody.plant import AddMultibodyPlant
+    from pydrake.systems.framework import DiagramBuilder
+
+    config = MultibodyPlantConfig(
+        time_step=1e-3,
+        discrete_contact_approximation="sap",
+        contact_model=contact_model,
+        contact_surface_representation=contact_surface_representation,
+    )
+    try:
+        AddMultibodyPlant(config, DiagramBuilder())
+    except RuntimeError as err:
+        return " ".join(str(err).split())
+    return ""
+
+
+def _validate_simulator_config(config: SimulatorConfig) -> None:
+    """The fields of Drake's ``SimulatorConfig``: the scheme among Drake's, a start at 0 s, and a
+    real-time rate of 0 or at least :data:`MIN_REALTIME_RATE` (a slower one hangs the run)."""
+    from pydrake.systems.analysis import GetIntegrationSchemes
+
+    schemes = GetIntegrationSchemes()
+    if config.integration_scheme not in schemes:
+        raise InvalidConfigError(
+            f"simulator.integration_scheme must be one of "
+            f"{', '.join(schemes)}, got {config.integration_scheme!r}"
+        )
+    as_number("simulator.max_step_size", config.max_step_size, 0.0, lo_open=True)
+    as_number("simulator.accuracy", config.accuracy, 0.0, 1.0, lo_open=True)
+    if as_number("simulator.start_time", config.start_time) != 0.0:
+        raise InvalidConfigError(
+            f"simulator.start_time must be 0 (the reference and duration_s "
+            f"count from t = 0), got {config.start_time!r}"
+        )
+    rate = as_number("simulator.target_realtime_rate", config.target_realtime_rate, 0.0)
+    if 0.0 < rate < MIN_REALTIME_RATE:
+        raise InvalidConfigError(
+            f"simulator.target_realtime_rate must be 0 (as fast as "
+            f"possible) or at least {MIN_REALTIME_RATE:g} (100 times slower "
+            f"than real time), got {config.target_realtime_rate!r}"
+        )
+    for name in ("use_error_control", "publish_every_time_step"):
+        if not isinstance(getattr(config, name, False), bool):
+            raise InvalidConfigError(
+                f"simulator.{name} must be true or false, got {getattr(config, name)!r}"
+            )
+
+
+def _scenario_from_yaml(text: str) -> Scenario:
+    return yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
+
+
+#: Drake's config structs in a Scenario, and the fields of each that a dump always writes (the
+#: ones the robot needs whatever Drake's defaults are).
+_DRAKE_SECTIONS = {
+    "plant": (
+        MultibodyPlantConfig,
+        ("time_step", "discrete_contact_approximation", "use_sampled_output_ports"),
+    ),
+    "simulator": (SimulatorConfig, ()),
+    "visualization": (VisualizationConfig, ()),
+}
+
+
+def _top_level_blocks(text: str) -> dict:
+    """{key: its lines} of a YAML mapping as ``yaml_dump_typed`` writes it (a key at column 0,
+    its nested lines indented below it), in order."""
+    blocks: dict = {}
+    key = None
+    for line in text.splitlines(keepends=True):
+        if line[:1] not in (" ", "") and ":" in line:
+            key = line.split(":", 1)[0]
+            blocks[key] = ""
+        blocks[key] += line
+    return blocks
+
+
+def _drake_section(name: str, value) -> str:
+    """The ``name:`` block of a Drake config struct: the fields that differ from this Drake's
+    defaults, plus the ones the robot needs (:data:`_DRAKE_SECTIONS`); "" when none."""
+    kind, always = _DRAKE_SECTIONS[name]
+    changed = yaml_load(data=yaml_dump_typed(value, defaults=kind())) or {}
+    keep = set(changed) | set(always)
+    lines = [
+        block for key, block in _top_level_blocks(yaml_dump_typed(value)).items() if key in keep
+    ]
+    return (
+        f"{name}:\n"
+        + "".join(
+            "  " + line if line.strip() else line
+            for block in lines
+            for line in block.splitlines(True)
+        )
+        if lines
+        else ""
+    )
+
+
+def dump_scenario(scenario: Scenario, path=None) -> str:
+    """The scenario as YAML text (``yaml_dump_typed``); also written to ``path`` if given.
+
+    Every field of ours is written; of Drake's config structs (``plant``, ``simulator``,
+    ``visualization``) only the fields that differ from the running Drake's defaults, and the
+    plant's ``time_step``, ``discrete_contact_approximation`` and ``use_sampled_output_ports``
+    (ours differs from Drake's default: a dump must say which it is). Drake adds, renames and
+    removes fields of these structs between releases (``SimulatorConfig.publish_every_time_step``
+    is gone in 1.58), so a full dump would load only on the Drake that wrote it; this one loads on
+    every supported Drake unless the user changed a field that one of them lacks.
+    """
+    blocks = _top_level_blocks(yaml_dump_typed(scenario))
+    for name in _DRAKE_SECTIONS:
+        blocks[name] = _drake_section(name, getattr(scenario, name))
+    text = "".join(blocks.values())
+    if path is not None:
+        from ..base.fileio import atomic_write
+
+        atomic_write(Path(path), lambda f: f.write(text.encode()))
+    return text

@@ -1,0 +1,3 @@
+"""The robot behind ports: the simulated station (:mod:`.station`) and the servo-bus
+station (:mod:`.bus`), siblings with one port contract; the sensors, the guard of a run and the
+LCM publishers. Imports the core below it, never the run."""

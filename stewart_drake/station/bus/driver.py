@@ -1,0 +1,542 @@
+"""The servos of the robot through the vendor's library: ``dynamixel_sdk`` (extra ``robot``).
+
+:class:`DynamixelBus` opens the port, pings every id, configures the servos with the torque off
+(Current Control Mode, current, temperature and position limits, the bus watchdog), reads the
+configuration back, then each control period reads the state with one GroupSyncRead (Present
+Current, Velocity and Position: addresses 126..135) and writes the torques with one
+GroupSyncWrite of Goal Current. :meth:`DynamixelBus.torque_off` is safe to call at any time and
+is called on close, on ``__exit__`` and before a :class:`~stewart_drake.base.errors.BusError` is
+raised. Addresses, units and conversions: :mod:`.protocol`, docs/hardware_bus.md.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...base.errors import (
+    BusError,
+    InvalidConfigError,
+    MissingExtraError,
+    MissingServoError,
+    ServoConfigMismatchError,
+)
+from . import protocol as p
+
+#: Baud rates the X series takes (e-Manual, "Baud Rate(8)"), bps.
+BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+
+
+def dynamixel_sdk():
+    """The vendor's module, imported on first use.
+
+    Raises:
+        MissingExtraError: not installed (says which extra to install).
+    """
+    try:
+        import dynamixel_sdk as sdk
+    except ImportError:
+        raise MissingExtraError(
+            "the servo driver needs ROBOTIS's dynamixel-sdk: pip install 'stewart-drake[robot]'"
+        ) from None
+    return sdk
+
+
+def _port_handler(sdk, port: str, reply_timeout_s: float | None):
+    """The SDK's PortHandler on ``port``, with two changes.
+
+    Its receive loop polls the port without waiting (``timeout=0``): one core at 100 % while a
+    reply is awaited, and in one process with the emulator's thread, a GIL held most of the
+    time. Here a read of an empty port first waits up to 0.5 ms for a byte (``select``), so
+    the loop sleeps instead. And ``reply_timeout_s`` (None: the SDK's own, 2 x 16 ms of USB
+    latency timer + 2 ms + the transfer) is the least time to wait for a status packet.
+    """
+    import select
+
+    class PortHandler(sdk.PortHandler):
+        def readPort(self, length):
+            if self.ser.in_waiting == 0:
+                select.select([self.ser.fileno()], [], [], 5e-4)
+            return super().readPort(length)
+
+        def setPacketTimeout(self, packet_length):
+            super().setPacketTimeout(packet_length)
+            if reply_timeout_s is not None:
+                self.packet_timeout = max(self.packet_timeout, 1e3 * reply_timeout_s)
+
+    return PortHandler(port)
+
+
+@dataclass(frozen=True)
+class BusSettings:
+    """The settings of a bus, checked (:func:`check_bus_settings`): ``spec`` the model's
+    :class:`~.protocol.ServoSpec`, ``ids`` (list), ``zero_counts`` and ``directions`` (n,)
+    arrays, ``current_limit_units`` and ``watchdog_units`` the raw values written,
+    ``position_limits_counts`` (min, max)."""
+
+    spec: p.ServoSpec
+    ids: list
+    zero_counts: np.ndarray
+    directions: np.ndarray
+    current_limit_units: int
+    watchdog_units: int
+    position_limits_counts: tuple[int, int]
+
+
+def check_bus_settings(
+    baud_rate,
+    ids,
+    model: str = "XM430-W350-T",
+    zero_counts=None,
+    directions=None,
+    current_limit_A: float | None = None,
+    temperature_limit_C: int = 70,
+    position_limits_counts=(0, 4095),
+    watchdog_s: float = 0.1,
+    reply_timeout_s: float | None = None,
+    prefix: str = "",
+) -> BusSettings:
+    """Check the arguments of :class:`DynamixelBus` (same names and meanings) without the
+    vendor's library or a port; ``prefix`` goes before every name in a message (a scenario's
+    ``"bus."``).
+
+    Raises:
+        InvalidConfigError: the first argument out of range, named.
+    """
+    try:
+        spec = p.servo_spec(model)
+    except InvalidConfigError as err:
+        raise InvalidConfigError(f"{prefix}model: {err}") from None
+    try:
+        ids = [int(i) for i in ids]
+    except (TypeError, ValueError):
+        ids = []
+    if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
+        raise InvalidConfigError(f"{prefix}ids {ids} must be distinct integers in 0..{p.MAX_ID}")
+    n = len(ids)
+    if baud_rate not in BAUD_RATES:
+        raise InvalidConfigError(
+            f"{prefix}baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
+        )
+    zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
+    sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
+    if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
+        raise InvalidConfigError(
+            f"{prefix}zero_counts and {prefix}directions must have one entry per id ({n}); "
+            f"directions +1 or -1"
+        )
+    limit_units = spec.current_limit_max
+    if current_limit_A is not None:
+        if not _finite(current_limit_A):
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be a finite number of A"
+            )
+        limit_units = math.floor(current_limit_A / spec.amps_per_unit)
+        if not 0 < limit_units <= spec.current_limit_max:
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be in (0, "
+                f"{spec.current_limit_max * spec.amps_per_unit:.3g}] A for {model}"
+            )
+    if not 0 < temperature_limit_C <= 80:
+        raise InvalidConfigError(
+            f"{prefix}temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
+        )
+    lo, hi = (int(c) for c in position_limits_counts)
+    if not 0 <= lo < hi <= 4095:
+        raise InvalidConfigError(
+            f"{prefix}position_limits_counts {position_limits_counts} must be "
+            f"0 <= min < max <= 4095"
+        )
+    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S) if _finite(watchdog_s) else 0
+    if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
+        raise InvalidConfigError(
+            f"{prefix}watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
+        )
+    if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
+        raise InvalidConfigError(f"{prefix}reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
+    return BusSettings(spec, ids, zero, sign, int(limit_units), int(watchdog_units), (lo, hi))
+
+
+def _finite(value) -> bool:
+    """Whether ``value`` is a finite real number (not NaN, not inf, not a string)."""
+    try:
+        return math.isfinite(value)
+    except TypeError:
+        return False
+
+
+@dataclass(frozen=True)
+class BusState:
+    """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
+
+    Attributes:
+        q: crank angles, rad (zero offsets and directions applied).
+        v: crank rates, rad/s.  tau: the torques the servos drive (Present Current x K_t), N m.
+        t: perf_counter time, s, halfway through the read.  round_trip_s: the read's duration.
+    """
+
+    q: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    t: float
+    round_trip_s: float
+
+
+class DynamixelBus:
+    """Servos ``ids`` of one model on one port, torque-controlled.
+
+    Args:
+        port: serial port path ("/dev/ttyUSB0", or a :class:`~.emulator.BusEmulator`'s port).
+        baud_rate: bps, one of :data:`BAUD_RATES` (the servos' setting; not changed here).
+        ids: (n,) servo ids, in the order of the cranks.
+        model: a :data:`~.protocol.SERVO_SPECS` key with Current Control Mode.
+        zero_counts: (n,) Present Position at each crank's zero angle, counts; default 2048.
+        directions: (n,) +1, or -1 for a servo whose counts grow against the crank's angle.
+        current_limit_A: the servos' Current Limit, A (<= the model's maximum); default the
+            model's maximum. Torques are clipped to it before they are sent.
+        temperature_limit_C: the servos' Temperature Limit, deg C (<= 80, the e-Manual's
+            operating maximum).
+        position_limits_counts: (min, max) counts written to Min/Max Position Limit (the
+            servo applies them in Position Control Mode only; docs/hardware_bus.md).
+        watchdog_s: the servos' bus watchdog, s: a multiple of 20 ms in 0.02..2.54.
+        reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
+            for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
+        timing_window: how many round trips :meth:`timing` keeps.
+
+    Raises:
+        InvalidConfigError: any argument out of range, before the port is opened.
+        MissingExtraError: dynamixel-sdk is not installed.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud_rate: int,
+        ids,
+        model: str = "XM430-W350-T",
+        zero_counts=None,
+        directions=None,
+        current_limit_A: float | None = None,
+        temperature_limit_C: int = 70,
+        position_limits_counts: tuple[int, int] = (0, 4095),
+        watchdog_s: float = 0.1,
+        reply_timeout_s: float | None = None,
+        timing_window: int = 100_000,
+    ):
+        settings = check_bus_settings(
+            baud_rate,
+            ids,
+            model,
+            zero_counts,
+            directions,
+            current_limit_A,
+            temperature_limit_C,
+            position_limits_counts,
+            watchdog_s,
+            reply_timeout_s,
+        )
+        self.spec = settings.spec
+        ids, zero, sign = settings.ids, settings.zero_counts, settings.directions
+        limit_units, watchdog_units = settings.current_limit_units, settings.watchdog_units
+        lo, hi = settings.position_limits_counts
+        self.reply_timeout_s = reply_timeout_s
+        self.port_name, self.baud_rate, self.ids = str(port), int(baud_rate), ids
+        self.zero_counts, self.directions = zero, sign
+        self.current_limit_units = int(limit_units)
+        self.settings = {  # written in this order with the torque off, then read back
+            "Operating Mode": (p.OPERATING_MODE, p.CURRENT_CONTROL_MODE),
+            "Current Limit": (p.CURRENT_LIMIT, self.current_limit_units),
+            "Temperature Limit": (p.TEMPERATURE_LIMIT, int(temperature_limit_C)),
+            "Min Position Limit": (p.MIN_POSITION_LIMIT, lo),
+            "Max Position Limit": (p.MAX_POSITION_LIMIT, hi),
+            "Bus Watchdog": (p.BUS_WATCHDOG, watchdog_units),
+        }
+        self.read_times: collections.deque = collections.deque(maxlen=timing_window)
+        self.write_times: collections.deque = collections.deque(maxlen=timing_window)
+        #: Whether the last :meth:`torque_off` was confirmed by every servo.
+        self.torque_off_confirmed = True
+        #: Held around every transfer: a watchdog thread's :meth:`torque_off` waits for the
+        #: transfer in progress (bounded by the reply timeout) instead of interleaving with it.
+        self.lock = threading.RLock()
+        self._sdk = dynamixel_sdk()
+        self._port = None
+        self._packets = self._sdk.PacketHandler(2.0)
+
+    # --- lifetime ----------------------------------------------------------------------------
+
+    def open(self) -> DynamixelBus:
+        """Open the port and ping every id (checks the model number).
+
+        Raises:
+            BusError: the port does not open; a servo of another model.
+            MissingServoError: an id that does not answer.
+        """
+        port = _port_handler(self._sdk, self.port_name, self.reply_timeout_s)
+        try:
+            opened = port.openPort() and port.setBaudRate(self.baud_rate)
+        except Exception as e:  # pyserial's SerialException, OSError, ...
+            raise BusError(f"cannot open {self.port_name}: {e}") from None
+        if not opened:
+            raise BusError(f"cannot open {self.port_name} at {self.baud_rate} bps")
+        self._port = port
+        for i in self.ids:
+            model, result, error = self._packets.ping(port, i)
+            if result != self._sdk.COMM_SUCCESS:
+                self.close()
+                raise MissingServoError(i, self.port_name)
+            if model != self.spec.model_number:
+                self.close()
+                raise BusError(
+                    f"servo id {i} on {self.port_name} is model number {model}, not "
+                    f"{self.spec.name} ({self.spec.model_number}): name the servos' model"
+                )
+        return self
+
+    def close(self) -> None:
+        """Remove the torque (attempted) and close the port. Idempotent."""
+        if self._port is not None:
+            self.torque_off()
+            self._port.closePort()
+            self._port = None
+
+    def __enter__(self):
+        return self.open()
+
+    def __exit__(self, *exc):
+        self.close()
+
+    # --- configuration -----------------------------------------------------------------------
+
+    def configure(self) -> None:
+        """Torque off, write ``settings`` and a zero Goal Current to every servo, read the
+        settings back.
+
+        Raises:
+            ServoConfigMismatchError: a value reads back other than written.
+            BusError: a servo does not answer or refuses a write.
+        """
+        self.torque_off()
+        if not self.torque_off_confirmed:
+            self._fail("torque off before configuring")
+        for i in self.ids:
+            if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED:
+                self._write(i, p.BUS_WATCHDOG, 0)  # clears a trip left by a previous run
+            for item, value in self.settings.values():
+                self._write(i, item, value)
+            # A Goal Current left by an earlier run would drive the servo at Torque Enable.
+            self._write(i, p.GOAL_CURRENT, 0)
+        self.verify_configuration()
+
+    def verify_configuration(self) -> None:
+        """Read every setting back. Raises ServoConfigMismatchError (after a torque off)."""
+        for i in self.ids:
+            for name, (item, value) in self.settings.items():
+                read = self._read(i, item)
+                if read != value:
+                    self.torque_off()
+                    raise ServoConfigMismatchError(i, name, value, read)
+
+    def enable_torque(self) -> None:
+        """Torque Enable = 1 on every servo (read back). The caller checks the pose first.
+
+        Raises:
+            BusError: a servo refuses (after a torque off).
+        """
+        for i in self.ids:
+            self._write(i, p.TORQUE_ENABLE, 1)
+            if self._read(i, p.TORQUE_ENABLE) != 1:
+                self._fail(f"servo id {i} did not enable its torque")
+
+    def torque_off(self) -> bool:
+        """Torque Enable = 0 on every servo: one broadcast WRITE (reaches every servo that
+        listens, answered by none), then each servo's, confirmed. Never raises; returns (and
+        keeps in ``torque_off_confirmed``) whether every servo confirmed."""
+        # From another thread, wait for a transfer in progress (a reply times out within a
+        # second); past that, send anyway: removing the torque comes first.
+        locked = self.lock.acquire(timeout=1.0)
+        try:
+            return self._torque_off()
+        finally:
+            if locked:
+                self.lock.release()
+
+    def _torque_off(self) -> bool:
+        if self._port is None:
+            return self.torque_off_confirmed
+        sdk, ok = self._sdk, True
+        self._port.is_using = False  # a failed transfer may leave the SDK's flag set
+        try:
+            self._packets.write1ByteTxOnly(self._port, p.BROADCAST_ID, p.TORQUE_ENABLE[0], 0)
+            for i in self.ids:
+                result, error = self._packets.write1ByteTxRx(self._port, i, p.TORQUE_ENABLE[0], 0)
+                ok &= result == sdk.COMM_SUCCESS and not error & 0x7F
+        except Exception:  # the port itself failed: nothing more can be sent
+            ok = False
+        self.torque_off_confirmed = bool(ok)
+        return self.torque_off_confirmed
+
+    def hardware_errors(self) -> dict[int, int]:
+        """{id: Hardware Error Status} of the servos that report one (bits: 0 input voltage,
+        2 overheating, 3 encoder, 4 electrical shock, 5 overload; e-Manual "Hardware Error
+        Status(70)"); such a servo has removed its own torque and needs a REBOOT. The SDK's
+        GroupSyncRead drops the status packets' Alert bit, so :meth:`read_state` cannot see it:
+        ask between periods.
+
+        Raises:
+            BusError: a servo does not answer (torque off first).
+        """
+        status = {i: self._read(i, p.HARDWARE_ERROR_STATUS) for i in self.ids}
+        return {i: bits for i, bits in status.items() if bits}
+
+    def watchdog_tripped(self) -> list[int]:
+        """The ids whose bus watchdog has tripped (Bus Watchdog reads -1): they drive no
+        current and refuse Goal Current until :meth:`configure` clears the trip. A sync write
+        has no status packet, so this is the way to learn it.
+
+        Raises:
+            BusError: a servo does not answer (torque off first).
+        """
+        return [i for i in self.ids if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED]
+
+    # --- the control period ------------------------------------------------------------------
+
+    def read_state(self) -> BusState:
+        """One GroupSyncRead of Present Current, Velocity and Position (126..135).
+
+        Raises:
+            BusError: a servo does not answer or reports a hardware error (torque off first).
+        """
+        sdk = self._sdk
+        address, size = p.STATE_BLOCK
+        group = self._group_read
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txRxPacket()
+            t1 = time.perf_counter()
+        if result != sdk.COMM_SUCCESS:
+            self._fail(f"sync read: {self._packets.getTxRxResult(result)}")
+        n = len(self.ids)
+        cur, vel, pos = np.empty(n), np.empty(n), np.empty(n)
+        for k, i in enumerate(self.ids):
+            if not group.isAvailable(i, address, size):
+                self._fail(f"sync read: no data from servo id {i}")
+            cur[k] = p.to_signed(group.getData(i, p.PRESENT_CURRENT[0], 2), 2)
+            vel[k] = p.to_signed(group.getData(i, p.PRESENT_VELOCITY[0], 4), 4)
+            pos[k] = p.to_signed(group.getData(i, p.PRESENT_POSITION[0], 4), 4)
+        self.read_times.append(t1 - t0)
+        return BusState(
+            q=p.counts_to_rad(pos, self.zero_counts, self.directions),
+            v=p.velocity_units_to_rad_s(vel, self.directions),
+            tau=p.current_units_to_torque(cur, self.spec, self.directions),
+            t=0.5 * (t0 + t1),
+            round_trip_s=t1 - t0,
+        )
+
+    def write_torques(self, tau) -> np.ndarray:
+        """One GroupSyncWrite of Goal Current for crank torques ``tau`` (n,), N m.
+
+        Returns:
+            (n,) the torques sent, N m: clipped to the Current Limit and rounded to its units.
+        Raises:
+            InvalidConfigError: ``tau`` of another shape or not finite (nothing sent).
+            BusError: the port fails (torque off first).
+        """
+        tau = np.asarray(tau, dtype=float)
+        if tau.shape != (len(self.ids),) or not np.all(np.isfinite(tau)):
+            raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
+        units = p.torque_to_current_units(tau, self.spec, self.directions)
+        units = np.clip(units, -self.current_limit_units, self.current_limit_units)
+        group = self._group_write
+        group.clearParam()
+        for i, u in zip(self.ids, units):
+            group.addParam(i, list(p.to_unsigned(int(u), 2).to_bytes(2, "little")))
+        with self.lock:
+            t0 = time.perf_counter()
+            result = group.txPacket()
+            t1 = time.perf_counter()
+        if result != self._sdk.COMM_SUCCESS:
+            self._fail(f"sync write: {self._packets.getTxRxResult(result)}")
+        self.write_times.append(t1 - t0)
+        return p.current_units_to_torque(units, self.spec, self.directions)
+
+    def timing(self) -> dict:
+        """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""
+        out = {}
+        for name, times in (("read", self.read_times), ("write", self.write_times)):
+            t = np.asarray(times)
+            out[name] = (
+                {
+                    "n": len(t),
+                    "median": float(np.median(t)),
+                    "p99": float(np.percentile(t, 99)),
+                    "max": float(t.max()),
+                }
+                if len(t)
+                else {"n": 0}
+            )
+        return out
+
+    # --- internals ---------------------------------------------------------------------------
+
+    @property
+    def _group_read(self):
+        if getattr(self, "_gr", None) is None:
+            self._require_open()
+            self._gr = self._sdk.GroupSyncRead(self._port, self._packets, *p.STATE_BLOCK)
+            for i in self.ids:
+                self._gr.addParam(i)
+        return self._gr
+
+    @property
+    def _group_write(self):
+        if getattr(self, "_gw", None) is None:
+            self._require_open()
+            self._gw = self._sdk.GroupSyncWrite(self._port, self._packets, *p.GOAL_CURRENT)
+        return self._gw
+
+    def _require_open(self) -> None:
+        if self._port is None:
+            raise BusError(f"the bus on {self.port_name} is not open: call open() first")
+
+    def _fail(self, what: str):
+        """Torque off (attempted), then raise a BusError naming the port and ``what``."""
+        self.torque_off()
+        err = BusError(
+            f"bus {self.port_name}: {what}; torque off "
+            + (
+                "confirmed by every servo"
+                if self.torque_off_confirmed
+                else "NOT confirmed: cut the servos' power"
+            )
+        )
+        err.failure = f"bus {self.port_name}: {what}"
+        raise err
+
+    def _write(self, servo_id: int, item, value: int) -> None:
+        self._require_open()
+        address, size = item
+        write = getattr(self._packets, f"write{size}ByteTxRx")  # size: 1, 2 or 4
+        with self.lock:
+            result, error = write(self._port, servo_id, address, p.to_unsigned(value, size))
+        self._check(result, error, f"servo id {servo_id} write of {value} at address {address}")
+
+    def _read(self, servo_id: int, item) -> int:
+        self._require_open()
+        address, size = item
+        read = getattr(self._packets, f"read{size}ByteTxRx")  # size: 1, 2 or 4
+        with self.lock:
+            value, result, error = read(self._port, servo_id, address)
+        self._check(result, error, f"servo id {servo_id} read at address {address}")
+        return int(value)
+
+    def _check(self, result: int, error: int, what: str) -> None:
+        """:meth:`_fail` unless the transfer succeeded and the status has no error number."""
+        if result != self._sdk.COMM_SUCCESS:
+            self._fail(f"{what}: {self._packets.getTxRxResult(result)}")
+        if error & 0x7F:
+            self._fail(f"{what}: {self._packets.getRxPacketError(error)}")

@@ -1,0 +1,328 @@
+"""What the servo driver and the bus emulator need of DYNAMIXEL Protocol 2.0 and the X series.
+
+Packets (ROBOTIS e-Manual, "DYNAMIXEL Protocol 2.0",
+<https://emanual.robotis.com/docs/en/dxl/protocol2/>): header ``FF FF FD 00``, id, length
+(little endian; instruction or status byte + parameters + 2 CRC bytes, after stuffing), the
+instruction (or 0x55 and an error byte for a status packet), the parameters, and a CRC-16
+(polynomial 0x8005, initial 0, no reflection) over everything before it. Byte stuffing: in the
+instruction, error and parameters, every ``FF FF FD`` becomes ``FF FF FD FD``.
+
+Control table of the X series servos this module knows (the e-Manual page of each model,
+section "Control Table": XM430-W350 <https://emanual.robotis.com/docs/en/dxl/x/xm430-w350/>,
+XM540-W270 <https://emanual.robotis.com/docs/en/dxl/x/xm540-w270/>, XL430-W250
+<https://emanual.robotis.com/docs/en/dxl/x/xl430-w250/>): the addresses below are common to
+the three. Goal Current (102) and Present Current (126) count 2.69 mA on the XM430 and XM540;
+**the XL430-W250 has no current sensing and no Current Control Mode** (its address 126 is
+Present Load, in 0.1 % of the maximum torque), so it cannot be driven by torque: a bus of
+XL430s is refused for torque control. Positions count 4096 per turn of the horn (12-bit
+absolute encoder on the output); velocities 0.229 rpm per unit. In Current Control Mode the
+position is multi-turn (a signed 32-bit count) and the Min/Max Position Limits are not enforced
+by the servo (they apply in Position Control Mode only): a crank's range is for our guard to
+keep; the limits are still written, so that a mode change cannot leave them at the factory's.
+
+Torque <-> current: the servo's torque constant at the horn, ``K_t = stall torque / stall
+current`` at 12 V from the e-Manual's specification table (XM540-W270: 10.6 N m at 4.4 A,
+2.409 N m/A as the e-Manual prints it; XM430-W350: 4.1 N m at 2.3 A, 1.783 N m/A). The
+relation is the e-Manual's linear one at stall; its performance graphs show the torque per
+ampere falling somewhat at low currents (friction of the 350 : 1 gear train), which a torque
+controller meets as friction. Figures and sources: docs/motor_catalogue.md, docs/hardware_bus.md.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...base.errors import InvalidConfigError
+from ...control.lqi import LqiScalesConfig as LqiScalesConfig
+from ...references.motion import ReferenceConfig as ReferenceConfig
+from ...robot.motor_catalogue import catalogue_motor
+
+# Instructions and the status packet (e-Manual, Protocol 2.0, "Instruction").
+PING = 0x01
+READ = 0x02
+WRITE = 0x03
+REBOOT = 0x08
+STATUS = 0x55
+SYNC_READ = 0x82
+SYNC_WRITE = 0x83
+FAST_SYNC_READ = 0x8A
+BROADCAST_ID = 0xFE
+MAX_ID = 252
+
+# The status packet's error byte (e-Manual, Protocol 2.0, "Status Packet"): bit 7 is the
+# Alert (a Hardware Error Status is set), bits 0..6 the error number.
+ERR_RESULT_FAIL = 0x01
+ERR_INSTRUCTION = 0x02
+ERR_CRC = 0x03
+ERR_DATA_RANGE = 0x04
+ERR_DATA_LENGTH = 0x05
+ERR_DATA_LIMIT = 0x06
+ERR_ACCESS = 0x07
+ALERT = 0x80
+
+# Control table, X series (e-Manual, each model's "Control Table"): (address, size in bytes).
+MODEL_NUMBER = (0, 2)
+FIRMWARE_VERSION = (6, 1)
+ID = (7, 1)
+OPERATING_MODE = (11, 1)  # 0: Current Control Mode (not on the XL430)
+TEMPERATURE_LIMIT = (31, 1)  # deg C, 0..100
+CURRENT_LIMIT = (38, 2)  # current units, 0..model's maximum
+MAX_POSITION_LIMIT = (48, 4)  # counts, 0..4095
+MIN_POSITION_LIMIT = (52, 4)  # counts, 0..4095
+TORQUE_ENABLE = (64, 1)
+HARDWARE_ERROR_STATUS = (70, 1)
+BUS_WATCHDOG = (98, 1)  # 20 ms units, 1..127; 0 off; -1 (0xFF) tripped
+GOAL_CURRENT = (102, 2)  # signed, current units
+PRESENT_CURRENT = (126, 2)  # signed, current units
+PRESENT_VELOCITY = (128, 4)  # signed, 0.229 rpm
+PRESENT_POSITION = (132, 4)  # signed, counts
+PRESENT_TEMPERATURE = (146, 1)  # deg C
+#: Bytes 0..63 are EEPROM: writable only with the torque off (e-Manual, "Control Table").
+EEPROM_END = 64
+#: One read of the state: Present Current, Velocity and Position are contiguous (126..135).
+STATE_BLOCK = (PRESENT_CURRENT[0], 10)
+
+CURRENT_CONTROL_MODE = 0
+WATCHDOG_UNIT_S = 0.020
+WATCHDOG_TRIPPED = 0xFF
+COUNTS_PER_REV = 4096
+VELOCITY_UNIT_RAD_S = 0.229 * 2 * math.pi / 60
+#: Hardware Error Status bits (e-Manual, "Hardware Error Status(70)").
+HW_INPUT_VOLTAGE, HW_OVERHEATING, HW_ENCODER, HW_ELECTRICAL_SHOCK, HW_OVERLOAD = (
+    0x01,
+    0x04,
+    0x08,
+    0x10,
+    0x20,
+)
+
+
+@dataclass(frozen=True)
+class ServoSpec:
+    """One X-series model as the bus sees it.
+
+    Attributes:
+        name: the catalogue key (:data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`).
+        model_number: what PING returns (Model Number, address 0).
+        current_unit_A: one unit of Goal/Present Current, A; None: no Current Control Mode.
+        current_limit_max: the Current Limit's largest value (its factory default), units.
+        stall_current_A: the e-Manual's stall current at 12 V, A.
+        source: the e-Manual page.
+    """
+
+    name: str
+    model_number: int
+    current_unit_A: float | None
+    current_limit_max: int
+    stall_current_A: float
+    source: str
+
+    @property
+    def amps_per_unit(self) -> float:
+        """One unit of Goal/Present Current, A.
+
+        Raises:
+            InvalidConfigError: a model without Current Control Mode.
+        """
+        if self.current_unit_A is None:
+            servo_spec(self.name)  # raises, saying why
+        return float(self.current_unit_A or 0.0)
+
+    @property
+    def stall_torque_Nm(self) -> float:
+        """The stall torque at 12 V, N m at the horn (the motor catalogue's peak torque)."""
+        return catalogue_motor(self.name).servo.peak_torque_Nm
+
+    @property
+    def torque_constant_Nm_per_A(self) -> float:
+        """K_t = stall torque / stall current, N m/A at the horn."""
+        return self.stall_torque_Nm / self.stall_current_A
+
+
+_EMANUAL = "https://emanual.robotis.com/docs/en/dxl/x/"
+#: The models the bus knows; stall figures at 12 V (e-Manual "Specifications").
+SERVO_SPECS: dict[str, ServoSpec] = {
+    s.name: s
+    for s in (
+        ServoSpec("XM430-W350-T", 1020, 2.69e-3, 1193, 2.3, _EMANUAL + "xm430-w350/"),
+        ServoSpec("XM540-W270-T", 1120, 2.69e-3, 2047, 4.4, _EMANUAL + "xm540-w270/"),
+        ServoSpec("XL430-W250-T", 1060, None, 0, 1.4, _EMANUAL + "xl430-w250/"),
+    )
+}
+
+
+def servo_spec(name: str, *, torque_control: bool = True) -> ServoSpec:
+    """The bus description of model ``name``.
+
+    Raises:
+        InvalidConfigError: an unknown model (lists the known ones), or, with
+            ``torque_control``, a model without Current Control Mode (the XL430-W250).
+    """
+    if name not in SERVO_SPECS:
+        raise InvalidConfigError(
+            f"servo model {name!r} is not one the bus knows; choose one of "
+            f"{', '.join(SERVO_SPECS)} (docs/hardware_bus.md)"
+        )
+    spec = SERVO_SPECS[name]
+    if torque_control and spec.current_unit_A is None:
+        raise InvalidConfigError(
+            f"{name} has no Current Control Mode (no current sensing: {spec.source}), so the "
+            f"controllers' motor torques cannot be sent to it; use an XM430-W350-T or "
+            f"XM540-W270-T"
+        )
+    return spec
+
+
+# --- conversions (one servo or arrays alike; ``direction`` is +1 or -1) ----------------------
+
+
+def torque_to_current_units(tau_Nm, spec: ServoSpec, direction=1):
+    """Goal Current (units, rounded to integers) for output torque ``tau_Nm`` (N m at the crank,
+    in the crank's sense; ``direction`` -1 for a servo mounted the other way)."""
+    unit = spec.amps_per_unit
+    return np.rint(np.asarray(tau_Nm) * direction / spec.torque_constant_Nm_per_A / unit).astype(
+        np.int64
+    )
+
+
+def current_units_to_torque(units, spec: ServoSpec, direction=1):
+    """Output torque, N m in the crank's sense, for a (Goal or Present) Current in units."""
+    unit = spec.amps_per_unit
+    return np.asarray(units) * unit * spec.torque_constant_Nm_per_A * direction
+
+
+def counts_to_rad(counts, zero_counts=0, direction=1):
+    """Crank angle, rad, for a Present Position (counts) and the count at the crank's zero."""
+    return (
+        (np.asarray(counts) - np.asarray(zero_counts)) * (2 * math.pi / COUNTS_PER_REV) * direction
+    )
+
+
+def rad_to_counts(q_rad, zero_counts=0, direction=1):
+    """The Present Position (counts, rounded) at crank angle ``q_rad``; inverse of
+    :func:`counts_to_rad`."""
+    return np.rint(
+        np.asarray(q_rad) * direction * COUNTS_PER_REV / (2 * math.pi) + np.asarray(zero_counts)
+    ).astype(np.int64)
+
+
+def velocity_units_to_rad_s(units, direction=1):
+    """Crank rate, rad/s, for a Present Velocity in 0.229 rpm units."""
+    return np.asarray(units) * VELOCITY_UNIT_RAD_S * direction
+
+
+# --- packets ---------------------------------------------------------------------------------
+
+
+def _crc_table() -> list[int]:
+    table = []
+    for i in range(256):
+        crc = i << 8
+        for _ in range(8):
+            crc = ((crc << 1) ^ 0x8005) if crc & 0x8000 else (crc << 1)
+        table.append(crc & 0xFFFF)
+    return table
+
+
+_CRC_TABLE = _crc_table()
+
+
+def crc16(data: bytes | bytearray) -> int:
+    """The Protocol 2.0 CRC-16 (polynomial 0x8005, initial value 0, MSB first) of ``data``."""
+    crc = 0
+    for b in data:
+        crc = ((crc << 8) ^ _CRC_TABLE[((crc >> 8) ^ b) & 0xFF]) & 0xFFFF
+    return crc
+
+
+def stuff(body: bytes) -> bytes:
+    """``body`` (instruction/error and parameters) with ``FD`` added after each ``FF FF FD``.
+    The two bytes before the body are the length's, never ``FF FF``: the search starts in it."""
+    out = bytearray()
+    for b in body:
+        out.append(b)
+        if b == 0xFD and out[-3:-1] == b"\xff\xff":
+            out.append(0xFD)
+    return bytes(out)
+
+
+def unstuff(body: bytes) -> bytes:
+    """The inverse of :func:`stuff`."""
+    out = bytearray()
+    i = 0
+    while i < len(body):
+        out.append(body[i])
+        if body[i] == 0xFD and out[-3:-1] == b"\xff\xff" and i + 1 < len(body):
+            if body[i + 1] == 0xFD:
+                i += 1  # drop the stuffed FD
+        i += 1
+    return bytes(out)
+
+
+def build_packet(servo_id: int, instruction: int, params: bytes = b"") -> bytes:
+    """A whole packet: header, id, length, ``instruction`` and ``params`` (stuffed), CRC.
+
+    For a status packet pass ``instruction=STATUS`` and the error byte as ``params[0]``.
+    """
+    body = stuff(bytes([instruction]) + bytes(params))
+    head = bytes([0xFF, 0xFF, 0xFD, 0x00, servo_id]) + (len(body) + 2).to_bytes(2, "little")
+    packet = head + body
+    return packet + crc16(packet).to_bytes(2, "little")
+
+
+def build_status(servo_id: int, error: int, params: bytes = b"") -> bytes:
+    """A status packet from ``servo_id`` with error byte ``error``."""
+    return build_packet(servo_id, STATUS, bytes([error]) + bytes(params))
+
+
+@dataclass(frozen=True)
+class Packet:
+    """A parsed packet: ``instruction`` (STATUS for a status packet) and unstuffed ``params``
+    (a status packet's error byte first)."""
+
+    servo_id: int
+    instruction: int
+    params: bytes
+
+
+def parse_packet(buf: bytes | bytearray) -> tuple[Packet | None, int, bool]:
+    """The first whole packet in ``buf``: (packet or None, bytes consumed, crc_ok).
+
+    Bytes before a header are skipped (consumed). An incomplete packet gives (None, n_skipped,
+    True): keep the rest and wait for more bytes. A packet with a wrong CRC is consumed and
+    returned with ``crc_ok`` False (a servo answers it with a CRC error).
+    """
+    start = bytes(buf).find(b"\xff\xff\xfd\x00")
+    if start < 0:
+        keep = min(len(buf), 3)  # a header may be arriving
+        return None, len(buf) - keep, True
+    if len(buf) < start + 7:
+        return None, start, True
+    length = int.from_bytes(buf[start + 5 : start + 7], "little")
+    end = start + 7 + length
+    if length < 3 or length > 1024:
+        return None, start + 4, True  # not a packet: look further
+    if len(buf) < end:
+        return None, start, True
+    frame = bytes(buf[start:end])
+    crc_ok = crc16(frame[:-2]) == int.from_bytes(frame[-2:], "little")
+    body = unstuff(frame[7:-2])
+    return Packet(frame[4], body[0], body[1:]), end, crc_ok
+
+
+def to_signed(value: int, size: int) -> int:
+    """A little-endian unsigned ``size``-byte value as the signed integer it encodes."""
+    bits = 8 * size
+    return value - (1 << bits) if value >= 1 << (bits - 1) else value
+
+
+def to_unsigned(value: int, size: int) -> int:
+    """The ``size``-byte two's complement of ``value``."""
+    return int(value) & ((1 << (8 * size)) - 1)
+
+
+#: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).
+SERVO_COUNTS_PER_REV = 4096

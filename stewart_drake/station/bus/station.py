@@ -1,0 +1,470 @@
+"""The station on the servo bus: the same ports as the simulated station, from the real servos.
+
+:class:`HardwareStation` is what :func:`~stewart_drake.run.diagram.make_stewart_station`
+builds for a scenario with ``bus``: a Diagram named "station" whose one system that touches the
+robot is the :class:`DynamixelDriver` (a ``LeafSystem``: one sync read and one sync write of
+the bus each control period, its timing measured). Every controller of the contract, the
+tuners, the learners, the guard, the loggers and the LCM publishers connect to it exactly as to
+:class:`~stewart_drake.station.station.StewartStation` (docs/station.md, docs/hardware_bus.md).
+
+Sampling, and why it matches the simulation. The simulated plant updates at k h (offset 0) and
+the controllers sample half a plant step later (``plan.sample_offset_s``), so a controller reads
+the plant's state after its update at k h and its torque acts from the next update on. The
+driver updates at the same instants as the plant, k h: it first writes the torque the
+controllers computed half a step after the previous update, then reads the servos, and holds
+that measurement for the controllers' sample at k h + h_plant / 2. On the robot the torque
+written at (k + 1) h was computed from the servos as read at k h: one control period between a
+measurement and its torque, which is what the scenario says (``hardware.computation_delay_periods
+= 1``, :meth:`~stewart_drake.run.scenario.DynamixelBusConfig.hardware`), so the LQI's
+feed-forward lead and the controllers' models see the delay they get.
+
+Pacing. Drake's ``Simulator`` at ``target_realtime_rate`` 1 sleeps before each step until the
+wall clock reaches the step's time counted from ``Initialize()`` (or ``ResetStatistics()``), and
+never sleeps while it is behind: after a stall it runs the missed periods back to back, and
+started late after a long pause between ``Initialize()`` and ``AdvanceTo()`` it would race
+through the first periods. Periods run back to back are worse than late ones for a discrete
+controller: its model (and the rate it differentiates from the angles) assumes h between two
+readings, and a burst of readings 1 ms apart tells it the robot has stopped. The driver therefore
+keeps its own schedule: period k is due at the wall-clock time of its first period plus k h; it
+sleeps until then if it is early (so a run is paced whatever the simulator's rate), and a
+period that starts more than one period after it is due is a deadline miss, after which the
+schedule moves on (the next period is due one period after this one started: the Diagram's
+clock, and the reference with it, falls behind the wall clock by the time skipped, instead of
+catching up). ``get_actual_realtime_rate()`` of the simulator is the average over the run; the
+driver's :meth:`DynamixelDriver.timing_summary` has the per-period figures.
+"""
+
+from __future__ import annotations
+
+import collections
+import sys
+import time
+
+import numpy as np
+from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.primitives import PassThrough
+
+from ...base.errors import DeadlineMissError, SimulationDivergedError
+from ...control.estimator import PoseEstimator
+from ...lcmtypes import lcmt_stewart_status
+from ...plant.plant import assembled_positions
+from ...robot.kinematics import (
+    X_HOME,
+    angular_velocity_map,
+    fk,
+    ik_single,
+    jacobian,
+    jacobian_single,
+)
+from ..sensors import PlatformPoseSensor
+from .protocol import SERVO_COUNTS_PER_REV
+
+#: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
+#: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
+#: numbers (deadline misses, achieved period us, measurement age us).
+_Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
+
+
+def _stats(values) -> dict:
+    """{"n", "median", "p99", "worst"} of ``values`` (s); {"n": 0} when empty. "worst" is the
+    largest magnitude, with its sign."""
+    v = np.asarray(values, dtype=float)
+    if not v.size:
+        return {"n": 0}
+    return {
+        "n": int(v.size),
+        "median": float(np.median(v)),
+        "p99": float(np.percentile(v, 99)),
+        "worst": float(v[np.argmax(np.abs(v))]),
+    }
+
+
+class DynamixelDriver(LeafSystem):
+    """The servos of a :class:`~.driver.DynamixelBus` as a Drake system, one period at a time.
+
+    Every ``period_s`` (offset 0, a periodic discrete update: the instants the simulated plant
+    updates at) the driver waits for the period's wall-clock time (module docstring), writes the
+    ``motor_torque`` input with one GroupSyncWrite, reads the servos with one GroupSyncRead and
+    holds what it read: the crank angles, rates and torques, and the platform pose from them
+    (forward kinematics warm started from the previous pose; rates through the inverse of the
+    IK Jacobian, x_dot = J^-1 theta_dot). The bus must be opened, configured and its torque
+    enabled by the caller; :meth:`seed` holds a first reading before the run.
+
+    A period that starts more than one period after it is due is a deadline miss: counted, one
+    line on ``stream`` at the first miss of a burst (consecutive misses), the schedule moved on
+    to start from it (module docstring), and past ``max_deadline_misses`` the servos' torque is
+    removed and :class:`~stewart_drake.base.errors.DeadlineMissError` raised. Any
+    other error in a period (the bus, non-finite torques, a pose forward kinematics cannot
+    find) also removes the torque before it propagates.
+
+    Input port: ``motor_torque`` (6,): crank torques to apply, N m (clipped by the bus to the
+        servos' Current Limit).
+    Output ports (the held measurement): ``motor_angle`` (6,) rad; ``motor_rate`` (6,) rad/s
+        (the servos' Present Velocity, 0.024 rad/s a unit); ``motor_torque_applied`` (6,) N m
+        (Present Current x K_t); ``platform_state`` (12,) [pose rad, m; rates rad/s, m/s] from
+        the angles and rates (no ground truth on a robot); ``loop`` (4,) for the LCM status
+        (:data:`~stewart_drake.station.lcm_publish.LoopStatus`: mode, deadline misses,
+        achieved period us, measurement age us).
+
+    Args:
+        bus: the :class:`~.driver.DynamixelBus` (six servos, the cranks' order).
+        geometry: the robot (:class:`~stewart_drake.robot.geometry.StewartGeometry`), for the
+            forward kinematics.
+        period_s: the control period, s. max_deadline_misses: misses allowed.
+        x_initial: (6,) where forward kinematics starts before the first reading.
+        stream: where miss lines go (default stderr). timing_window: periods kept for
+            :meth:`timing_summary`.
+    """
+
+    def __init__(
+        self,
+        bus,
+        geometry,
+        period_s: float,
+        max_deadline_misses: int = 10,
+        x_initial=X_HOME,
+        stream=None,
+        timing_window: int = 1_000_000,
+    ):
+        super().__init__()
+        self.bus, self.geometry = bus, geometry
+        self.period_s, self.max_deadline_misses = float(period_s), int(max_deadline_misses)
+        self.stream = stream
+        self._x_initial = np.asarray(x_initial, dtype=float)
+        self._fk = PoseEstimator(
+            geometry, period_s, 2 * np.pi / SERVO_COUNTS_PER_REV, self._x_initial, max_iterations=20
+        )
+        self._tau = self.DeclareVectorInputPort("motor_torque", 6)
+        initial = np.zeros(_LOOP.stop)
+        initial[_X][:6] = self._x_initial
+        self._state = self.DeclareDiscreteState(initial)
+        for name, part in (
+            ("motor_angle", _Q),
+            ("motor_rate", _V),
+            ("motor_torque_applied", _TAU),
+            ("platform_state", _X),
+        ):
+            self.DeclareVectorOutputPort(
+                name,
+                part.stop - part.start,
+                self._output(part),
+                prerequisites_of_calc={self.discrete_state_ticket(self._state)},
+            )
+        self.DeclareVectorOutputPort(
+            "loop",
+            4,
+            self._CalcLoop,
+            prerequisites_of_calc={self.discrete_state_ticket(self._state)},
+        )
+        self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._Update)
+        self.reset_timing(timing_window)
+
+    # --- outputs -----------------------------------------------------------------------------
+
+    def _output(self, part: slice):
+        def calc(context, output):
+            output.SetFromVector(context.get_discrete_state(self._state).value()[part])
+
+        return calc
+
+    def _CalcLoop(self, context, output):
+        misses, period_us, age_us = context.get_discrete_state(self._state).value()[_LOOP]
+        output.SetFromVector([lcmt_stewart_status.MODE_RUNNING, misses, period_us, age_us])
+
+    # --- the measurement ---------------------------------------------------------------------
+
+    def _measure(self, x_prev) -> np.ndarray:
+        """One read of the bus and the pose from it: the state vector (without the loop).
+        The pose: Newton on the IK from the previous pose (the encoders' estimator, within a
+        hundredth of a count), or if that fails the full :func:`~..kinematics.fk`, which raises
+        when the angles are no pose of the robot."""
+        state = self.bus.read_state()
+        self._last_read_t, self._read_s = state.t, state.round_trip_s
+        x, _, converged = self._fk.estimate(state.q, x_prev)
+        if not converged:
+            x, _ = fk(self.geometry, state.q, x0=x_prev, tol=self._fk.tol)
+        _, cache = ik_single(self.geometry, x)
+        x_dot = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
+        return np.concatenate([state.q, state.v, state.tau, x, x_dot])
+
+    def seed(self, context) -> np.ndarray:
+        """Read the bus once and hold the reading in ``context`` (this system's): what the
+        controllers see before the first period. Moves nothing. Returns the (6,) crank angles.
+
+        Raises:
+            BusError: the bus is not open or does not answer (torque off first);
+            ForwardKinematicsError: the angles are no pose of the robot.
+        """
+        held = context.get_mutable_discrete_state(self._state).get_mutable_value()
+        held[: _LOOP.start] = self._measure(self._x_initial)
+        return held[_Q].copy()
+
+    # --- the period --------------------------------------------------------------------------
+
+    def reset_timing(self, timing_window: int | None = None) -> None:
+        """Forget the timing records and the schedule (the next period starts a new one)."""
+        window = timing_window or self._records.maxlen
+        #: Per period: (wall-clock start, achieved period, read s, write s, measurement age,
+        #: lateness), s; the first period's achieved period and age are NaN.
+        self._records: collections.deque = collections.deque(maxlen=window)
+        #: Deadline misses, and bursts of consecutive ones (one stderr line each), so far.
+        self.misses, self.bursts, self._in_burst = 0, 0, False
+        self._wall0: float | None = None
+        #: Wall-clock time the schedule was moved on by after misses, s: the Diagram's clock
+        #: (and the reference) is that much behind the wall clock.
+        self.skipped_s = 0.0
+        self._last_start = self._last_read_t = float("nan")
+
+    def _Update(self, context, discrete_state):
+        try:
+            self._period(context, discrete_state)
+        except BaseException:
+            self.bus.torque_off()  # never raises; the error says what happened
+            raise
+
+    def _period(self, context, discrete_state):
+        t = context.get_time()
+        now = time.perf_counter()
+        if self._wall0 is None:
+            self._wall0 = now - t
+        due = self._wall0 + t
+        if now < due:
+            time.sleep(due - now)
+            now = time.perf_counter()
+        late = now - due
+        tau = self._tau.Eval(context)
+        if not np.all(np.isfinite(tau)):
+            raise SimulationDivergedError(
+                f"the controller commanded non-finite torques {tau} N m; torque off", t
+            )
+        w0 = time.perf_counter()
+        self.bus.write_torques(tau)
+        w1 = time.perf_counter()
+        age = 0.5 * (w0 + w1) - self._last_read_t
+        held = context.get_discrete_state(self._state).value()
+        measured = self._measure(held[_X][:6])
+        period = now - self._last_start
+        self._last_start = now
+        self._records.append((now, period, self._read_s, w1 - w0, age, late))
+        if late > self.period_s:
+            self._wall0 += late  # skip: the next period is due one period from now
+            self.skipped_s += late
+            self._missed(t, late)
+        else:
+            self._in_burst = False
+        out = discrete_state.get_mutable_vector(self._state).get_mutable_value()
+        out[: _LOOP.start] = measured
+        # 0 for what was not measured (the first period has no previous one; a run that did not
+        # seed has no previous reading): the LCM status's convention.
+        out[_LOOP] = [self.misses, 1e6 * np.nan_to_num(period), 1e6 * np.nan_to_num(age)]
+
+    def _missed(self, t: float, late: float) -> None:
+        self.misses += 1
+        if self.misses > self.max_deadline_misses:
+            raise DeadlineMissError(self.misses, self.max_deadline_misses, self.period_s, late, t)
+        if not self._in_burst:
+            self.bursts += 1
+            print(
+                f"deadline miss at t = {t:.3f} s: the period started {1e3 * late:.1f} ms late "
+                f"for {1e3 * self.period_s:g} ms ({self.misses} of "
+                f"{self.max_deadline_misses} allowed)",
+                file=self.stream or sys.stderr,
+                flush=True,
+            )
+        self._in_burst = True
+
+    def timing_summary(self) -> dict:
+        """The loop's timing over the periods kept, s: {"period", "jitter" (period - nominal),
+        "read", "write" (the bus's round trips), "age" (of the measurement when its torque
+        was written), "late" (start - due): each {"n", "median", "p99", "worst"}; "misses",
+        "bursts", "skipped" (s the schedule moved on by), "periods", "nominal"}."""
+        r = np.array(self._records, dtype=float).reshape(-1, 6)
+        period = r[1:, 1]
+        out: dict = {
+            "period": _stats(period),
+            "jitter": _stats(period - self.period_s),
+            "read": _stats(r[:, 2]),
+            "write": _stats(r[:, 3]),
+            "age": _stats(r[np.isfinite(r[:, 4]), 4]),
+            "late": _stats(r[:, 5]),
+        }
+        out.update(
+            misses=self.misses,
+            bursts=self.bursts,
+            skipped=self.skipped_s,
+            periods=len(r),
+            nominal=self.period_s,
+        )
+        return out
+
+    def timing_lines(self) -> list[str]:
+        """:meth:`timing_summary` as lines of text, ms."""
+        s = self.timing_summary()
+        lines = [
+            f"{s['periods']} periods of {1e3 * s['nominal']:g} ms, {s['misses']} deadline misses "
+            f"in {s['bursts']} bursts, {1e3 * s['skipped']:.1f} ms skipped"
+        ]
+        for name in ("period", "jitter", "read", "write", "age", "late"):
+            v = s[name]
+            if v["n"]:
+                lines.append(
+                    f"{name:>7}: median {1e3 * v['median']:7.3f}  p99 {1e3 * v['p99']:7.3f}  "
+                    f"worst {1e3 * v['worst']:7.3f} ms"
+                )
+        return lines
+
+
+class MeasuredPlantState(LeafSystem):
+    """A plant state for the measured pose, for the loggers, replays and the guard, which read
+    ``plant_state``: the positions of the robot assembled at the pose of ``platform_state``
+    (:func:`~stewart_drake.plant.plant.assembled_positions`: cranks from the IK, rods aimed,
+    platform at the pose; its loop closure is exact, so the guard's closure check passes and
+    its tracking and clearance checks read the measured pose), the platform's velocity from the
+    measured rates (w_WP = E(rpy) rpy_dot, v_WP = p_dot) and the cranks' from the IK Jacobian;
+    the rods' spin and swing rates are left at zero (nothing measures them; nothing downstream
+    reads them).
+
+    Input port: ``platform_state`` (12,). Output port: ``plant_state`` (nq + nv,).
+    """
+
+    def __init__(self, plant, handles):
+        super().__init__()
+        self._plant, self._handles = plant, handles
+        self._nq = plant.num_positions()
+        self._iv = self._nq + handles.platform.floating_velocities_start_in_v()
+        self._iv_motors = [self._nq + j.velocity_start() for j in handles.motors]
+        self._x = self.DeclareVectorInputPort("platform_state", 12)
+        self.DeclareVectorOutputPort(
+            "plant_state", plant.num_positions() + plant.num_velocities(), self._Calc
+        )
+
+    def _Calc(self, context, output):
+        x = np.asarray(self._x.Eval(context))
+        state = np.zeros(output.size())
+        state[: self._nq] = assembled_positions(self._plant, self._handles, x[:6])
+        state[self._iv : self._iv + 3] = angular_velocity_map(x[:3]) @ x[6:9]
+        state[self._iv + 3 : self._iv + 6] = x[9:12]
+        state[self._iv_motors] = jacobian(self._handles.geometry, x[:6]) @ x[6:]
+        output.SetFromVector(state)
+
+
+class _ShowMeasured(LeafSystem):
+    """Draws the robot at the measured plant state in a Diagram of its own (the model's plant,
+    SceneGraph and Drake's Meshcat visualizer, never simulated): every ``period_s`` a publish
+    event sets the model plant's positions and force-publishes the visualizer."""
+
+    def __init__(self, model, plant, period_s: float):
+        super().__init__()
+        self._model, self._plant = model, plant
+        self._model_context = model.CreateDefaultContext()
+        self._plant_context = plant.GetMyMutableContextFromRoot(self._model_context)
+        n = plant.num_positions() + plant.num_velocities()
+        self._state = self.DeclareVectorInputPort("plant_state", n)
+        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._Show)
+        self.DeclareForcedPublishEvent(self._Show)
+
+    def _Show(self, context):
+        self._model_context.SetTime(context.get_time())
+        self._plant.SetPositionsAndVelocities(self._plant_context, self._state.Eval(context))
+        self._model.ForcedPublish(self._model_context)
+
+
+class HardwareStation(Diagram):
+    """The robot on its servo bus, with the ports of
+    :class:`~stewart_drake.station.station.StewartStation`; a Diagram named "station".
+
+    Input ports:
+        ``motor_torque`` (6,): crank torques, N m, written to the servos each period.
+        ``tool_wrench`` (6,): accepted and ignored (a wrench on the real robot is applied by
+            the world, not by the Diagram; the scenario refuses a ``disturbance`` with a bus).
+    Output ports:
+        ``motor_angle`` (6,) rad, ``motor_rate`` (6,) rad/s: what the servos read.
+        ``motor_torque_applied`` (6,) N m: the torques the servos report driving
+            (Present Current x K_t), not the command.
+        ``platform_state`` (12,): *no ground truth on a robot*: the forward kinematics of the
+            measured crank angles, and rates x_dot = J^-1 theta_dot from the measured crank
+            rates; what the "x" log and the guard's tracking check then read.
+        ``plant_state`` (nq + nv,): the MultibodyPlant assembled at that pose and rate
+            (:class:`MeasuredPlantState`), for the loggers, replays and the guard.
+        ``loop`` (4,): the driver's loop status for the LCM status (mode, deadline misses,
+            period us, measurement age us).
+    Attributes:
+        bus: the :class:`~.driver.DynamixelBus` (the caller opens, configures, enables torque
+            and closes it). driver: the :class:`DynamixelDriver`. plan: the run's plan.
+        plant, scene_graph, handles, sensor: the robot's MultibodyPlant and its SceneGraph in
+            a Diagram of their own (``model``), never simulated: kinematics, visualization and
+            the guard's geometry; ``sensor`` the pose from a plant state.
+    Args:
+        plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``.
+        meshcat: optional pydrake Meshcat: the robot drawn at its measured pose every
+            ``scenario.visualization.publish_period``.
+    Raises:
+        MissingExtraError: dynamixel-sdk is not installed.
+    """
+
+    def __init__(self, plan, meshcat=None):
+        super().__init__()
+        scenario = plan.scenario
+        model_builder = DiagramBuilder()
+        plant, scene_graph, handles = plan.add_plant(model_builder)
+        if meshcat is not None:
+            from pydrake.visualization import ApplyVisualizationConfig
+
+            ApplyVisualizationConfig(scenario.visualization, model_builder, meshcat=meshcat)
+        self.model = model_builder.Build()
+        self.plant, self.scene_graph, self.handles, self.plan = plant, scene_graph, handles, plan
+        self.sensor = PlatformPoseSensor(plant, handles)
+        self.bus = scenario.bus.make_bus()
+        builder = DiagramBuilder()
+        self.driver = builder.AddNamedSystem(
+            "driver",
+            DynamixelDriver(
+                self.bus, plan.geometry, plan.control_period_s, scenario.bus.max_deadline_misses
+            ),
+        )
+        command = builder.AddNamedSystem("motor_torque", PassThrough(6))
+        builder.ExportInput(command.get_input_port(), "motor_torque")
+        builder.Connect(command.get_output_port(), self.driver.GetInputPort("motor_torque"))
+        ignored = builder.AddNamedSystem("tool_wrench", PassThrough(6))
+        builder.ExportInput(ignored.get_input_port(), "tool_wrench")
+        for name in ("motor_angle", "motor_rate", "motor_torque_applied", "platform_state", "loop"):
+            builder.ExportOutput(self.driver.GetOutputPort(name), name)
+        state = builder.AddNamedSystem("measured_plant_state", MeasuredPlantState(plant, handles))
+        builder.Connect(self.driver.GetOutputPort("platform_state"), state.get_input_port())
+        builder.ExportOutput(state.get_output_port(), "plant_state")
+        self.show = None
+        if meshcat is not None:
+            self.show = builder.AddNamedSystem(
+                "show_measured",
+                _ShowMeasured(self.model, plant, scenario.visualization.publish_period),
+            )
+            builder.Connect(state.get_output_port(), self.show.get_input_port())
+        builder.BuildInto(self)
+        self.set_name("station")
+
+    def use_bus(self, bus) -> None:
+        """Drive ``bus`` instead of the scenario's: anything with the
+        :class:`~.driver.DynamixelBus` methods the driver calls (``read_state``,
+        ``write_torques``, ``torque_off``), e.g. a rehearsal's or a test's."""
+        self.bus = self.driver.bus = bus
+
+    def initialize(self, root_context, T0=None, seed: int = 0) -> None:
+        """Forget the driver's timing records (the next period starts its schedule). The
+        servos hold no pipe to fill: ``T0`` and ``seed`` are the simulated station's and are
+        not used."""
+        self.driver.reset_timing()
+
+    def assemble(self, root_context, x=X_HOME, x_dot=None) -> np.ndarray:
+        """Read the servos once (the bus must be open) and hold the reading as the
+        measurement the controllers start from; returns the (6,) measured crank angles. The
+        robot is where it is: ``x`` and ``x_dot`` (the simulated station's arguments) are not
+        imposed, ``x`` only starts the forward kinematics; the caller checks that the measured
+        pose is where the run starts.
+
+        Raises:
+            BusError: the bus is not open or does not answer.
+            ForwardKinematicsError: the angles are no pose of the robot.
+        """
+        driver = self.driver
+        driver._x_initial = np.asarray(x, dtype=float)
+        return driver.seed(driver.GetMyMutableContextFromRoot(root_context))
