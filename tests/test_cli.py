@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.cli import main as cli
+from stewart_drake.cli.registry import build_parser
 from stewart_drake.references.trajectories import TRAJECTORIES, paper_manoeuvre
 from stewart_drake.run.simulate import load_result
 
@@ -26,7 +27,7 @@ def test_version_names_this_package_drake_and_python(capsys):
 
 def _options():
     """(command, action) of every option of every subcommand."""
-    parser = cli.build_parser()
+    parser = build_parser()
     (sub,) = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
     for name, command in sub.choices.items():
         for action in command._actions:
@@ -43,7 +44,7 @@ def test_every_option_shows_its_default_in_help():
         if "default" not in text:
             missing.append(f"{name} {action.option_strings[0]}")
     assert not missing, f"options whose help does not say their default: {missing}"
-    help_text = cli.build_parser()._subparsers._group_actions[0].choices["run"].format_help()
+    help_text = build_parser()._subparsers._group_actions[0].choices["run"].format_help()
     assert "(default: results)" in help_text and "(default: paper_hardware)" in help_text
 
 

@@ -22,6 +22,7 @@ import pytest
 from conftest import install_plugin, wait_for
 
 from stewart_drake.base.fileio import atomic_write, save_npz
+from stewart_drake.cli import core
 from stewart_drake.cli import main as cli
 
 REPO = Path(__file__).resolve().parent.parent
@@ -1262,7 +1263,7 @@ def test_a_signal_inside_compiled_code_is_one_line_not_a_traceback(monkeypatch, 
                 "CPUDispatcher(warm_gain) returned a result with an exception set"
             ) from err
 
-    monkeypatch.setattr(cli, "_cmd_sdf", compiled)
+    monkeypatch.setattr(core, "_cmd_sdf", compiled)
     assert cli.main(["sdf", "--out", str(tmp_path / "robot.sdf")]) == 128 + signal.SIGTERM
     err = capsys.readouterr().err
     assert (
@@ -1273,6 +1274,6 @@ def test_a_signal_inside_compiled_code_is_one_line_not_a_traceback(monkeypatch, 
     def failing(args):
         raise SystemError("another failure")
 
-    monkeypatch.setattr(cli, "_cmd_sdf", failing)
+    monkeypatch.setattr(core, "_cmd_sdf", failing)
     with pytest.raises(SystemError, match="another"):  # not an interrupt: raised as it is
         cli.main(["sdf", "--out", str(tmp_path / "robot.sdf")])

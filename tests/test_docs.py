@@ -22,7 +22,7 @@ import nbformat
 import pytest
 
 import stewart_drake
-from stewart_drake.cli.main import build_parser
+from stewart_drake.cli.registry import build_parser
 
 REPO = Path(__file__).resolve().parent.parent
 PACKAGE = REPO / "stewart_drake"

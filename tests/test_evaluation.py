@@ -277,7 +277,7 @@ def test_evaluate_cli_refuses_unknown_controllers(capsys, tmp_path):
 
 
 def test_the_evaluation_says_which_failures_the_sizing_explains():
-    from stewart_drake.cli.main import _why_failed
+    from stewart_drake.evaluation.command import _why_failed
     from stewart_drake.evaluation.evaluation_report import disturbance_holding_torques
 
     needs, limit = disturbance_holding_torques("paper_hardware")

@@ -49,7 +49,7 @@ def test_a_controller_without_weights_has_no_omega_columns():
 
 
 def test_runs_of_other_scenarios_or_overrides_get_files_of_their_own():
-    from stewart_drake.cli.main import run_stem
+    from stewart_drake.paper.command import run_stem
     from stewart_drake.run.scenario_io import load_scenario
 
     hardware, ideal = load_scenario("paper_hardware"), load_scenario("paper_ideal")

@@ -15,6 +15,7 @@ import pytest
 from conftest import install_plugin
 
 from stewart_drake.cli import main as cli
+from stewart_drake.cli import options
 from stewart_drake.control import contract
 
 REPO = Path(__file__).resolve().parent.parent
@@ -63,12 +64,12 @@ def test_the_compile_note_comes_from_the_cache_not_from_a_slow_import(
     (tmp_path / "sd_slow_kernels.py").write_text("import time\ntime.sleep(0.5)\n")
     (tmp_path / "sd_quick_kernels.py").write_text("")
     monkeypatch.syspath_prepend(str(tmp_path))
-    monkeypatch.setattr(cli, "_will_compile", lambda: False)
-    cli._say_if_compiling("run", module="sd_slow_kernels")
+    monkeypatch.setattr(options, "_will_compile", lambda: False)
+    options.say_if_compiling("run", module="sd_slow_kernels")
     assert "sd_slow_kernels" in sys.modules
     assert capsys.readouterr().err == ""
-    monkeypatch.setattr(cli, "_will_compile", lambda: True)
-    cli._say_if_compiling("run", module="sd_quick_kernels")
+    monkeypatch.setattr(options, "_will_compile", lambda: True)
+    options.say_if_compiling("run", module="sd_quick_kernels")
     err = capsys.readouterr().err
     assert err.startswith(f"stewart-drake run: {COMPILING}") and "about 40 s" in err, err
     for name in ("sd_slow_kernels", "sd_quick_kernels"):
@@ -88,7 +89,7 @@ def test_the_compile_note_comes_from_the_cache_not_from_a_slow_import(
 def test_a_refusal_with_a_cold_cache_is_one_line_without_the_compile_note(
     tmp_path, monkeypatch, capsys, argv, expected
 ):
-    monkeypatch.setattr(cli, "_will_compile", lambda: True)
+    monkeypatch.setattr(options, "_will_compile", lambda: True)
     monkeypatch.delitem(sys.modules, KERNELS, raising=False)
     assert cli.main([*argv, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -100,7 +101,7 @@ def test_a_valid_run_with_a_cold_cache_says_it_compiles_then_what_it_builds_and_
 ):
     """The note once, after the checks and before the Diagram is built; the silent stages
     around the bar say what they do."""
-    monkeypatch.setattr(cli, "_will_compile", lambda: True)
+    monkeypatch.setattr(options, "_will_compile", lambda: True)
     monkeypatch.delitem(sys.modules, KERNELS, raising=False)  # restored after the test
     assert cli.main(["run", "--duration", "0.05", "--out", str(tmp_path)]) == 0
     captured = capsys.readouterr()

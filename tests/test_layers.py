@@ -3,9 +3,11 @@ command. Core: base (errors, checks, the checked reader; the generated LCM types
 (geometry, kinematics, statics, limits) -> plant (the MultibodyPlant, clearance, MuJoCo) ->
 control -> references -> station -> run -> execution. Features above it: viz (replays and
 pictures) below paper, analysis, organ_motion and tuner, which are below evaluation, design and
-live; cli on top. A package imports its own package or a lower rank, never a higher one nor
-another package of its own rank. Every import is counted (module level, inside functions, under
-TYPE_CHECKING)."""
+live; cli on top. The command's shared options (cli.options: argument types, output checks, the
+scenario, trace and runner options), which every feature's command module imports, rank on their
+own between execution and the features. A package imports its own package or a lower rank, never
+a higher one nor another package of its own rank. Every import is counted (module level, inside
+functions, under TYPE_CHECKING)."""
 
 import ast
 import pathlib
@@ -33,7 +35,11 @@ LAYERS = {
     "design": 10,
     "live": 10,
     "cli": 11,
+    "cli.options": 7.5,
 }
+#: Modules ranked apart from their package (a key of LAYERS), each imported by packages of a
+#: lower rank than its own package's: the options every feature's command module shares.
+MODULE_LAYERS = {"stewart_drake.cli.options": "cli.options"}
 
 
 def _module_name(path: pathlib.Path) -> str:
@@ -42,6 +48,8 @@ def _module_name(path: pathlib.Path) -> str:
 
 
 def _layer(module: str) -> str:
+    if module in MODULE_LAYERS:
+        return MODULE_LAYERS[module]
     parts = module.split(".")
     return parts[1] if len(parts) > 2 or (len(parts) == 2 and parts[1] in LAYERS) else "base"
 
@@ -107,8 +115,11 @@ def test_the_walker_sees_local_and_relative_imports():
     graph = import_graph()
     assert "stewart_drake.robot.kinematics" in graph["stewart_drake.robot.geometry"]
     assert "stewart_drake.base.errors" in graph["stewart_drake.robot.kinematics"]
-    assert "stewart_drake.run.simulate" in graph["stewart_drake.cli.main"]  # local
+    assert "stewart_drake.run.simulate" in graph["stewart_drake.paper.command"]  # local
+    assert "stewart_drake.cli.options" in graph["stewart_drake.paper.command"]  # relative
     assert _layer("stewart_drake.base.checks") == "base"
+    assert _layer("stewart_drake.cli.options") == "cli.options"
+    assert _layer("stewart_drake.cli.main") == "cli"
     assert _layer("stewart_drake.control.lqi") == "control"
     with pytest.raises(KeyError):
         LAYERS[_layer("stewart_drake.nowhere.x")]

@@ -18,8 +18,9 @@ import pytest
 pytest.importorskip("dynamixel_sdk")
 
 from stewart_drake.base.errors import BusError, InvalidConfigError, MissingExtraError  # noqa: E402
-from stewart_drake.cli import main as cli  # noqa: E402
-from stewart_drake.cli.main import build_parser, main  # noqa: E402
+from stewart_drake.cli.main import main  # noqa: E402
+from stewart_drake.cli.registry import build_parser  # noqa: E402
+from stewart_drake.live import command as live_command  # noqa: E402
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
@@ -314,7 +315,7 @@ def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypat
         )
 
     monkeypatch.setattr(driver, "dynamixel_sdk", missing)
-    monkeypatch.setattr(cli, "_start_emulator", lambda *a: pytest.fail("emulator started"))
+    monkeypatch.setattr(live_command, "_start_emulator", lambda *a: pytest.fail("emulator started"))
     assert main(["robot", "--emulate", "--dry-run"]) == 2
     err = capsys.readouterr().err
     assert "stewart-drake[robot]" in err and len(err.strip().splitlines()) == 1, err

@@ -11,7 +11,8 @@ from conftest import write_trace
 
 import stewart_drake.base.checks
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.cli.main import build_parser, main
+from stewart_drake.cli.main import main
+from stewart_drake.cli.registry import build_parser
 from stewart_drake.references.traces import (
     CENTRE_MODES,
     MAX_SAMPLE_STEP_S,

@@ -228,8 +228,10 @@ def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
 def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     """`run --tuner ratio` builds the RatioTuner from the shipped lambda = 0.1 file, and the
     weights it uses move away from the initial [1, 1]."""
-    from stewart_drake.cli.main import build_parser, main, run_scenario
+    from stewart_drake.cli.main import main
+    from stewart_drake.cli.registry import build_parser
     from stewart_drake.control.tuner import DEFAULT_RATIO_TUNER_PATH, RatioTuner
+    from stewart_drake.paper.command import run_scenario
     from stewart_drake.run.diagram import make_stewart_diagram
     from stewart_drake.run.simulate import load_result
 

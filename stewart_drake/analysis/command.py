@@ -1,0 +1,309 @@
+"""The analyses at the command line: ``stewart-drake check`` (every limit of a reference
+without simulating), ``workspace`` (the robot's reachable poses and torques) and ``analyze`` (the
+linear loop's margins)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..cli.options import (
+    TRACE_ONLY,
+    add_runner_arguments,
+    add_scenario_arguments,
+    add_trace_arguments,
+    check_output,
+    int_at_least,
+    is_trace_file,
+    positive_float,
+    runner_from_args,
+    say_stage,
+    trace_options_given,
+    trace_reference,
+)
+
+
+def register(sub) -> None:
+    """Add the ``check``, ``workspace`` and ``analyze`` commands to ``sub``, the
+    ``stewart-drake`` subparsers."""
+    _add_check_command(sub)
+    _add_workspace_command(sub)
+    _add_analyze_command(sub)
+
+
+def _add_check_command(sub) -> None:
+    """The ``check`` command's options."""
+    chk = sub.add_parser(
+        "check",
+        help="check a reference against every limit without "
+        "simulating: reach, joints, singularity, clearance, "
+        "torque, speed (exit 2 if refused)",
+    )
+    chk.add_argument(
+        "reference",
+        help="a reference file (t,phi,theta,psi,X,Y,Z, or a recorded trace as reproduce "
+        "reads it), a named trajectory (paper, helix, step_<axis>, ...) or a scenario "
+        "(a .yaml file or a shipped name)",
+    )
+    add_trace_arguments(chk)
+    add_scenario_arguments(chk, "the robot to check on, for a file or named reference")
+    chk.add_argument(
+        "--duration",
+        type=positive_float,
+        default=None,
+        help="checked s (default: the scenario's duration_s)",
+    )
+    chk.add_argument("--out", default="results", help="folder of the margins plot")
+    chk.set_defaults(func=_cmd_check)
+
+
+def _cmd_check(args) -> int:
+    """``stewart-drake check``: every check of a reference, over time, without simulating."""
+    from ..analysis.feasibility import check, plot_margins
+    from ..base.errors import InvalidConfigError
+    from ..references.trajectories import TRAJECTORIES, NamedReference
+    from ..run.scenario_io import load_scenario
+
+    source = args.reference
+    trace = None  # a reference file, read once: its length and the reference checked
+    if is_trace_file(source) and Path(source).suffix.lower() not in (".yaml", ".yml"):
+        scenario = load_scenario(args.scenario, args.set or ())
+        scenario.reference = reading = trace_reference(args, source)
+        reading.validate()  # the options, before the file is read
+        trace = reading.load()  # read as reproduce reads it
+        if args.duration is None:  # as long as the file, as `run` and `reproduce` take it
+            scenario.duration_s = trace.end_time - getattr(trace, "start_time", 0.0)
+        scenario.validate()
+        info = getattr(trace, "info", None)
+        if info is not None:
+            print(f"Trace: {info.summary()}")
+    elif trace_options_given(args):
+        raise InvalidConfigError(
+            f"{TRACE_ONLY} are for a trace file; {source!r} is a named trajectory or a scenario"
+        )
+    elif source in TRAJECTORIES:
+        scenario = load_scenario(args.scenario, args.set or ())
+        scenario.reference = NamedReference(source)
+    else:  # a scenario file or a shipped scenario's name
+        scenario = load_scenario(source, args.set or ())
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    report = check(scenario, reference=trace)
+    print(report.summary())
+    name = Path(source).stem
+    png = plot_margins(
+        report,
+        Path(args.out) / f"check_{name}.png",
+        f"{name} on {Path(str(args.scenario)).stem}, {scenario.duration_s:g} s",
+    )
+    print(f"wrote {png}")
+    return 0 if report.ok else 2
+
+
+def _add_workspace_command(sub) -> None:
+    """The ``workspace`` command's options."""
+    ws = sub.add_parser(
+        "workspace",
+        help="reachable poses, singularities and holding torques of the scenario's robot",
+    )
+    add_scenario_arguments(ws, "the robot to sweep (its robot: fields)")
+    ws.add_argument("--out", default="results/workspace", help="output folder")
+    ws.add_argument("--resolution", type=int_at_least(3), default=41, help="grid points per axis")
+    add_runner_arguments(ws)
+    ws.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    ws.set_defaults(func=_cmd_workspace)
+
+
+#: The coarsest workspace grid whose extents are worth reporting (a step of 1/20 of the box).
+MIN_REPORTED_RESOLUTION = 21
+
+
+def _cmd_workspace(args) -> int:
+    """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
+    from ..analysis.workspace import write_workspace
+    from ..run.plan import make_plan
+    from ..run.scenario_io import load_scenario
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    plan = make_plan(scenario, with_reference=False)
+    geometry = plan.geometry
+    if args.resolution < MIN_REPORTED_RESOLUTION:
+        print(
+            f"stewart-drake workspace: --resolution {args.resolution} is coarse: each extent "
+            f"is known only to within a step of 1/{args.resolution - 1} of the box; use "
+            f"{MIN_REPORTED_RESOLUTION} or more for figures to report",
+            file=sys.stderr,
+        )
+    rows = write_workspace(
+        args.out,
+        args.resolution,
+        args.jobs,
+        progress=not args.no_progress,
+        geometry=geometry,
+        runner=runner_from_args(args),
+        motor_limits=plan.motor_limits,
+        say=None if args.no_progress else say_stage("workspace"),
+    )
+    for name, value, unit in rows[:11]:
+        print(f"{name} {value} {unit}")
+    print(
+        f"wrote {args.out}/workspace.png, bottleneck_and_orientation.png, workspace.npz, "
+        f"summary.csv, tilt_vs_height.csv"
+    )
+    return 0
+
+
+def _add_analyze_command(sub) -> None:
+    """The ``analyze`` command's options."""
+    an = sub.add_parser(
+        "analyze",
+        help="the loop as a control engineer sees it: margins, Ms, Mt, bandwidth, Bode plots",
+    )
+    add_scenario_arguments(an, "the robot and LQI to analyse")
+    an.add_argument(
+        "--pose",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose linearized at, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    an.add_argument(
+        "--integrator",
+        choices=["sap", "zoh"],
+        default="sap",
+        help="the plant as Drake's SAP steps it (sap) or the continuous robot sampled (zoh)",
+    )
+    an.add_argument(
+        "--map",
+        action="store_true",
+        help="also the margins over roll and pitch (+-0.55 rad, 9 x 9) at the pose's height: "
+        "map.png and the weakest pose",
+    )
+    an.add_argument(
+        "--weights",
+        action="store_true",
+        help="also the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 at the pose",
+    )
+    an.add_argument("--out", default="results/analyze", help="output folder")
+    an.set_defaults(func=_cmd_analyze)
+
+
+def _cmd_analyze(args) -> int:
+    """``stewart-drake analyze``: the linear loop of the scenario's robot and LQI at a pose:
+    margins, Ms, Mt, bandwidth and the phase lag at 0.25 and 1.2 Hz per axis; Bode and
+    sensitivity plots and the table as Markdown in --out."""
+    import functools
+    import json
+
+    from ..analysis.loop_analysis import axis_figures, figures_table, loop_models, plot_loop
+    from ..base.fileio import atomic_write
+    from ..run.scenario_io import load_scenario
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    x0 = _pose_option(args.pose)
+    out = check_output(args.out)
+    say = say_stage("analyze")
+    say("linearizing the loop and computing the margins of the 6 axes ...")
+    models = loop_models(scenario, x0, integrator=args.integrator)
+    figures = axis_figures(models)
+    name = Path(str(args.scenario)).stem
+    pose = ", ".join(f"{v:.4g}" for v in models.x0)
+    table = figures_table(figures)
+    rho = models.spectral_radius
+    print(
+        f"{name} at pose [{pose}] (rad, m), control period {1e3 * models.h:g} ms: the closed "
+        f"loop is {'stable' if rho < 1 else 'UNSTABLE'} (spectral radius {rho:.4f})"
+        + ("" if rho < 1 else ": the margins below describe an unstable loop")
+    )
+    print("\n".join(table))
+    out.mkdir(parents=True, exist_ok=True)
+    title = f"{name} at [{pose}]: linear loop (stewart-drake analyze)"
+    say("drawing the Bode and sensitivity plots of the 6 loops ...")
+    bode, sens = plot_loop(models, title)
+    paths = [out / "bode.png", out / "sensitivity.png", out / "loop.md", out / "loop.json"]
+    for fig, path in zip((bode, sens), paths):
+        atomic_write(path, functools.partial(fig.savefig, dpi=100, format="png"))
+    text = "\n".join([f"# {title}", "", *table, ""]).encode()
+    atomic_write(paths[2], lambda fh: fh.write(text))
+    record = {
+        "scenario": name,
+        "pose": models.x0.tolist(),
+        "spectral_radius": rho,
+        "axes": [a.record() for a in figures],
+    }
+    if args.weights:
+        record["weights"] = _weight_sweep(scenario, models, say)
+    if args.map:
+        record["map"] = _tilt_map(scenario, models, name, out / "map.png", say)
+        paths.append(out / "map.png")
+    data = json.dumps(record, indent=1, default=float).encode()
+    atomic_write(paths[3], lambda fh: fh.write(data))
+    print("wrote " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _pose_option(text: str | None):
+    """``analyze``'s ``--pose``: six numbers phi,theta,psi,X,Y,Z (rad, m); None: home.
+
+    Raises:
+        InvalidConfigError: not six numbers.
+    """
+    from ..base.errors import InvalidConfigError
+
+    if text is None:
+        return None
+    try:
+        x0 = [float(v) for v in text.split(",")]
+    except ValueError:
+        x0 = []
+    if len(x0) != 6:
+        raise InvalidConfigError(
+            f"--pose takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {text!r}"
+        )
+    return x0
+
+
+def _weight_sweep(scenario, models, say) -> list:
+    """``analyze --weights``: the loop's margins at the pose for each ratio omega_Q / omega_R,
+    printed one line a ratio; returns the rows of the record."""
+    from ..analysis.loop_analysis import weight_sweep
+
+    say("the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 ...")
+    rows = weight_sweep(scenario, x0=models.x0)
+    print(
+        "omega_Q / omega_R: closed loop, smallest phase margin (axis), largest Ms (axis), "
+        "Z bandwidth Hz"
+    )
+    for row in rows:
+        pm = min(row["axes"], key=lambda a: a["phase_margin_deg"])
+        ms = max(row["axes"], key=lambda a: a["Ms"])
+        bw = row["axes"][5]["bandwidth_hz"]
+        print(
+            f"  {row['ratio']:g}: {'stable' if row['stable'] else 'UNSTABLE'} (spectral "
+            f"radius {row['spectral_radius']:.4f}), {pm['phase_margin_deg']:.1f} deg "
+            f"({pm['axis']}), {ms['Ms']:.2f} ({ms['axis']}), "
+            + (f"{bw:.3g}" if bw is not None else row["axes"][5]["bandwidth_where"])
+        )
+    return rows
+
+
+def _tilt_map(scenario, models, name: str, png: Path, say) -> list:
+    """``analyze --map``: the loop's margins over roll and pitch at the pose's height, the
+    weakest pose printed and the map drawn into ``png``; returns the rows of the record."""
+    import functools
+
+    from ..analysis.loop_analysis import loop_map, plot_map, tilt_grid, weakest_pose
+    from ..base.fileio import atomic_write
+
+    say("the margins over 9 x 9 roll and pitch tilts, then map.png ...")
+    rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))
+    weak = weakest_pose(rows)
+    where = ", ".join(f"{v:.3g}" for v in weak["pose"])
+    print(
+        f"weakest of {len(rows)} admissible tilts: pose [{where}]: Ms {weak['Ms']:.2f} "
+        f"({weak['Ms_axis']}), phase margin {weak['phase_margin_deg']:.1f} deg "
+        f"({weak['phase_margin_axis']}), gain margin {weak['gain_margin_db']:.1f} dB "
+        f"({weak['gain_margin_axis']}), spectral radius {weak['spectral_radius']:.4f}"
+    )
+    fig = plot_map(rows, f"{name}: the loop over roll and pitch at Z = {models.x0[5]:g} m")
+    atomic_write(png, functools.partial(fig.savefig, dpi=100, format="png"))
+    return rows

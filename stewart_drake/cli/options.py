@@ -1,0 +1,404 @@
+"""What several commands share: argument types, the checks of an output before any work, the
+``--scenario``/``--set``, runner and trace options with what they build, and the notes a command
+prints on stderr before a silent stage (the compiled LQI step, a stage of some seconds).
+
+Every feature's command module (``<feature>/command.py``) imports it, so it is ranked apart from
+the rest of ``cli``: between execution and the features (``tests/test_layers.py``). It imports
+nothing of the features, and nothing heavy when imported: building the parser reads no Drake
+beyond the names the options list, and a command's own imports run when it runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import tempfile
+from pathlib import Path
+
+
+def int_at_least(lowest: int):
+    """An argparse type: an integer of at least ``lowest``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+        if value < lowest:
+            raise argparse.ArgumentTypeError(f"must be >= {lowest}, got {text}")
+        return value
+
+    parse.__name__ = f"integer >= {lowest}"
+    return parse
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a number greater than 0 (the unit is the option's)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return value
+
+
+def check_writable(folder: Path, option: str = "--out") -> None:
+    """Make sure ``folder`` can be created (if missing) and written, without creating it.
+
+    Walks up to the nearest existing ancestor and writes a temporary file there.
+    Raises:
+        InvalidConfigError: a file stands in the path, or the nearest folder is not writable.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..base.fileio import describe_mode
+
+    existing = folder.absolute()
+    while not existing.exists() and existing.parent != existing:
+        existing = existing.parent
+    try:
+        if not existing.is_dir():
+            kind = describe_mode(existing.stat().st_mode)
+            raise NotADirectoryError(
+                20, f"{existing} is {'a file' if kind == 'a regular file' else kind}"
+            )
+        with tempfile.TemporaryFile(dir=existing):
+            pass
+    except OSError as err:
+        raise InvalidConfigError(
+            f"cannot write to {folder}: {err.strerror or err}; choose another output with {option}"
+        ) from None
+
+
+def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> Path:
+    """Refuse an output before any work: empty, a folder where a file is due, a device node, a
+    FIFO or a socket (only regular files are replaced), or a place that cannot be written
+    (:func:`check_writable`); ``sub`` names sub-folders the command writes into (``diverged``,
+    ``rows``), checked too. Then remove the temporaries an earlier run killed mid-write left
+    there (:func:`~stewart_drake.base.fileio.remove_stale_temporaries`). Returns the path.
+
+    Raises:
+        InvalidConfigError: names the option and what to change.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..base.fileio import check_replaceable, remove_stale_temporaries
+
+    if path is None or not str(path).strip():
+        raise InvalidConfigError(
+            f"{option} is empty: give a {'file' if is_file else 'folder'} to write"
+        )
+    path = Path(path)
+    if is_file and path.is_dir():
+        raise InvalidConfigError(f"{option} {path} is a folder: give a file name to write")
+    if is_file:
+        check_replaceable(path, f"{option} {path}")
+    check_writable(path.parent if is_file else path, option)
+    for name in sub:
+        check_writable(path / name, option)
+    remove_stale_temporaries(path.parent if is_file else path, depth=0 if is_file else 1)
+    return path
+
+
+#: Folders of the operating system a report is never written into (nor anywhere below them),
+#: even by a user allowed to: a report there is a mistake, and it would mix with system files.
+SYSTEM_FOLDERS = (
+    "/bin",
+    "/boot",
+    "/dev",
+    "/etc",
+    "/lib",
+    "/lib32",
+    "/lib64",
+    "/proc",
+    "/sbin",
+    "/sys",
+    "/usr",
+    "/var/cache",
+    "/var/lib",
+    "/var/log",
+    "/var/spool",
+)
+
+
+def refuse_system_folder(folder, option: str) -> None:
+    """Refuse ``folder`` when it is the file system's root or in :data:`SYSTEM_FOLDERS`.
+
+    Raises:
+        InvalidConfigError: names the option, the folder and what to give instead.
+    """
+    from ..base.errors import InvalidConfigError
+
+    resolved = Path(folder).expanduser().resolve()
+    system = [s for s in SYSTEM_FOLDERS if resolved.is_relative_to(s)]
+    if resolved == Path(resolved.anchor) or system:
+        raise InvalidConfigError(
+            f"{option} {folder}: {resolved} is a folder of the operating system; give a folder "
+            "of your own (e.g. docs in a clone of the repository, or results/evaluation)"
+        )
+
+
+def say_if_compiling(command: str, module: str = "stewart_drake.control.lqi_kernels") -> None:
+    """Import the compiled LQI step (``module``) now, saying so first on stderr when numba's
+    cache holds no valid entry for it (:func:`~stewart_drake.control.kernel_cache.will_compile`):
+    the first import on a machine compiles it for about 40 s, before anything else would show;
+    with the cache warm it loads in about a second, however busy the machine, and says nothing.
+    Called by a command once its arguments are checked, just before it needs the step."""
+    import importlib
+
+    if module in sys.modules:
+        return
+    if _will_compile():
+        print(
+            f"stewart-drake {command}: compiling the LQI's control step for this machine and "
+            f"Python (once, about 40 s; later runs start in seconds)",
+            file=sys.stderr,
+            flush=True,
+        )
+    importlib.import_module(module)
+
+
+def _will_compile() -> bool:
+    """Whether importing the LQI's compiled step compiles it (numba's cache, not a timer)."""
+    from ..control.kernel_cache import will_compile
+
+    return will_compile()
+
+
+def say_stage(command: str):
+    """A function that says on stderr what ``command`` does next, a stage of some seconds that
+    shows nothing else (writing plots, building a Diagram)."""
+
+    def say(what: str) -> None:
+        print(f"stewart-drake {command}: {what}", file=sys.stderr, flush=True)
+
+    return say
+
+
+def default_scenario() -> str:
+    """The scenario the commands use unless told (imported when the parser is built, so that
+    importing this module loads no Drake: a Ctrl-C in the first second is then handled)."""
+    from ..run.scenario_io import DEFAULT_SCENARIO
+
+    return DEFAULT_SCENARIO
+
+
+def add_scenario_arguments(parser, what: str, default: str | None = None) -> None:
+    """``--scenario`` (default ``default``, or the commands' default scenario) and ``--set``,
+    the same for every command that starts from a scenario."""
+    parser.add_argument(
+        "--scenario",
+        default=default or default_scenario(),
+        metavar="FILE|NAME",
+        help=f"{what}: a .yaml file or a shipped name ({default_scenario()}: the robot as "
+        f"built; paper_ideal: the paper's ideal robot; `stewart-drake scenario --list`) "
+        f"(default: {default or default_scenario()})",
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override a scenario field with a YAML value (repeatable): "
+        "--set controller.omega_Q=10 --set 'controller=!PdDriver {}' "
+        "(default: none)",
+    )
+
+
+def add_runner_arguments(parser) -> None:
+    """The options of a study's runner (:mod:`~stewart_drake.execution.runners`)."""
+    from ..execution.runners import (
+        DEFAULT_CONNECT_TIMEOUT_S,
+        DEFAULT_RECYCLE,
+        DEFAULT_RETRIES,
+        RUNNERS,
+    )
+
+    parser.add_argument(
+        "--runner",
+        choices=RUNNERS,
+        default="processes",
+        help="where jobs run: local processes, this process, Ray or Dask",
+    )
+    parser.add_argument(
+        "--jobs",
+        type=int_at_least(0),
+        default=0,
+        help="workers: processes, or the CPUs of a local Ray or Dask cluster "
+        "(default: 0, one per core)",
+    )
+    parser.add_argument(
+        "--address",
+        default=None,
+        help="Ray cluster to join (--runner ray; default: start a local one)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        default=None,
+        help="Dask scheduler to join, tcp://host:8786 (--runner dask; default: "
+        "start a local cluster)",
+    )
+    parser.add_argument(
+        "--connect-timeout",
+        type=positive_float,
+        default=DEFAULT_CONNECT_TIMEOUT_S,
+        metavar="S",
+        help="seconds for --address or --scheduler to accept a connection",
+    )
+    parser.add_argument(
+        "--retries",
+        type=int_at_least(0),
+        default=DEFAULT_RETRIES,
+        help="attempts after the first for a job whose worker died",
+    )
+    parser.add_argument(
+        "--recycle",
+        type=int_at_least(0),
+        default=None,
+        help="jobs a worker runs before it is replaced, to bound leaked memory (processes and "
+        "ray; 0: never; default: never for local processes where Drake frees a run's Diagram, "
+        f"as drake 1.58 does, else {DEFAULT_RECYCLE})",
+    )
+
+
+def runner_from_args(args):
+    """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
+    ``--recycle``."""
+    from ..execution.runners import AUTO_RECYCLE, make_runner
+
+    return make_runner(
+        args.runner,
+        args.jobs,
+        address=args.address,
+        scheduler=args.scheduler,
+        retries=args.retries,
+        recycle=AUTO_RECYCLE if args.recycle is None else args.recycle,
+        connect_timeout_s=args.connect_timeout,
+    )
+
+
+def add_trace_arguments(parser) -> None:
+    """The options that say how a trace file is read, one definition for every command that
+    reads one (``check``, ``reproduce``): :func:`trace_reference` turns them into a
+    :class:`~stewart_drake.references.traces.TraceReference`."""
+    # Written out, not imported from references.traces: building the parser reads no numpy
+    # (tests/test_trace_formats.py holds them equal to TRACE_FORMATS, CENTRE_MODES, SKIP_COLUMN).
+    parser.add_argument(
+        "--format",
+        choices=["auto", "csv", "phantom", "surrogate"],
+        default="auto",
+        help="a trace's layout: auto reads a header line, else 7 columns as the phantom "
+        "format and 2 as a surrogate",
+    )
+    parser.add_argument(
+        "--columns",
+        default=None,
+        metavar="'t [s],SI [mm],...'",
+        help="a trace's columns and units when it has no header line (or to replace it); "
+        "a column named - is not read (a frame counter: "
+        "'-,t [ms],X [mm],Y [mm],Z [mm]') (default: the file's header, or the "
+        "phantom format's by its width)",
+    )
+    parser.add_argument(
+        "--map",
+        action="append",
+        metavar="COLUMN=AXIS",
+        help="put a trace's column on a platform axis, with a sign (repeatable): "
+        "SI=-Z; patient axes SI, LR, AP go to X, Y, Z by default",
+    )
+    parser.add_argument(
+        "--lowpass-hz",
+        type=positive_float,
+        default=None,
+        help="zero-phase low-pass of a trace, Hz (default: none)",
+    )
+    parser.add_argument(
+        "--centre",
+        default=None,
+        metavar="PHI,THETA,PSI,X,Y,Z",
+        help="the pose a trace is centred on, rad and m (default: home, 0,0,0,0,0,0.3)",
+    )
+    parser.add_argument(
+        "--centre-on",
+        choices=["mean", "first", "none"],
+        default="mean",
+        help="which pose of a trace goes to --centre (the report says what was removed)",
+    )
+    parser.add_argument(
+        "--max-gap",
+        type=positive_float,
+        default=1.0,
+        metavar="S",
+        help="longest interval without data a trace may have, s",
+    )
+
+
+#: The options of :func:`add_trace_arguments` a motion that is not a trace file refuses.
+TRACE_ONLY = "--format, --columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap"
+
+
+def trace_options_given(args) -> bool:
+    """Whether any option of :func:`add_trace_arguments` differs from its default."""
+    return bool(
+        args.format != "auto"
+        or args.columns
+        or args.map
+        or args.lowpass_hz
+        or args.centre is not None
+        or args.centre_on != "mean"
+        or args.max_gap != 1.0
+    )
+
+
+def trace_reference(args, source: str, add: dict | None = None):
+    """The :class:`~stewart_drake.references.traces.TraceReference` of the trace file
+    ``source`` read as the options of :func:`add_trace_arguments` say, with library motions
+    ``add`` laid on it (the file itself is read later, by the reference).
+
+    Raises:
+        InvalidConfigError: ``--centre`` not six numbers, or a ``--map`` not KEY=VALUE.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..references.traces import TraceReference
+
+    centre = [0.0, 0.0, 0.0, 0.0, 0.0, 0.30]
+    if args.centre is not None:
+        try:
+            centre = [float(v) for v in args.centre.split(",")]
+        except ValueError:
+            raise InvalidConfigError(
+                f"--centre takes six numbers phi,theta,psi,X,Y,Z (rad, m), got {args.centre!r}"
+            ) from None
+    return TraceReference(
+        path=source,
+        axis_map=key_values(args.map, "--map"),
+        centre=centre,
+        centre_on=args.centre_on,
+        lowpass_hz=args.lowpass_hz or 0.0,
+        max_gap_s=args.max_gap,
+        format=args.format,
+        columns=args.columns or "",
+        add=dict(add or {}),
+    )
+
+
+def key_values(items, option: str) -> dict:
+    """{key: value} of repeated ``KEY=VALUE`` options (values kept as text).
+
+    Raises:
+        InvalidConfigError: an item without ``=``, or with an empty key or value.
+    """
+    from ..base.errors import InvalidConfigError
+
+    out = {}
+    for item in items or ():
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise InvalidConfigError(f"{option} takes KEY=VALUE, got {item!r}")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def is_trace_file(source: str) -> bool:
+    """Whether ``reproduce``'s motion names a file (a name with a suffix or a folder, or an
+    existing file) rather than a motion of the library (plain names)."""
+    path = Path(source)
+    return bool(path.suffix) or len(path.parts) > 1 or path.is_file()

@@ -1,0 +1,413 @@
+"""The robot live at the command line: ``stewart-drake teleop`` (the robot as built at real
+time, driven from Meshcat's sliders) and ``robot`` (the controller on the servos, or on the bus
+emulator)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import sys
+from pathlib import Path
+
+from ..cli.options import (
+    add_scenario_arguments,
+    int_at_least,
+    is_trace_file,
+    positive_float,
+    say_if_compiling,
+)
+
+
+def register(sub) -> None:
+    """Add the ``teleop`` and ``robot`` commands to ``sub``, the ``stewart-drake`` subparsers."""
+    _add_teleop_command(sub)
+    _add_robot_command(sub)
+
+
+def _add_teleop_command(sub) -> None:
+    """The ``teleop`` command's options."""
+    tel = sub.add_parser("teleop", help="drive the robot live at real time from Meshcat sliders")
+    add_scenario_arguments(tel, "the robot driven")
+    tel.add_argument(
+        "--duration", type=positive_float, default=None, help="simulated s (default: until Ctrl-C)"
+    )
+    tel.add_argument(
+        "--realtime-rate",
+        type=_realtime_rate,
+        default=1.0,
+        help="target real-time rate (0: as fast as it goes)",
+    )
+    tel.add_argument(
+        "--port",
+        type=_tcp_port,
+        default=None,
+        help="Meshcat's port (default: the first free from 7000)",
+    )
+    tel.add_argument("--out", default="results/teleop", help="folder of a divergence dump")
+    tel.set_defaults(func=_cmd_teleop, out_sub=("diverged",))
+
+
+def _tcp_port(text: str) -> int:
+    """A TCP port, 1..65535 (Meshcat would otherwise pick another port without a word)."""
+    port = int_at_least(1)(text)
+    if port > 65535:
+        raise argparse.ArgumentTypeError(f"a TCP port is at most 65535, got {text}")
+    return port
+
+
+def _realtime_rate(text: str) -> float:
+    """A target real-time rate: 0 (as fast as it goes) or at least the slowest pacing the
+    scenario accepts (``simulator.target_realtime_rate``: the Simulator sleeps in C++, where a
+    slower rate would ignore Ctrl-C)."""
+    from ..run.scenario import MIN_REALTIME_RATE
+
+    try:
+        rate = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not (rate == 0.0 or MIN_REALTIME_RATE <= rate < float("inf")):
+        raise argparse.ArgumentTypeError(
+            f"must be 0 (as fast as it goes) or a finite rate of at least {MIN_REALTIME_RATE:g}, "
+            f"got {text}"
+        )
+    return rate
+
+
+def _cmd_teleop(args) -> int:
+    """``stewart-drake teleop``: the robot as built at real time in Meshcat, driven by sliders."""
+    from pydrake.geometry import Meshcat, MeshcatParams
+
+    from ..live.teleop import build_teleop, run_teleop
+    from ..run.scenario_io import load_scenario
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    params = MeshcatParams()
+    if args.port is not None:
+        params.port = args.port
+    try:
+        meshcat = Meshcat(params)
+    except RuntimeError as err:  # the port is taken
+        from ..base.errors import InvalidConfigError
+
+        raise InvalidConfigError(
+            f"Meshcat cannot listen on port {args.port}: {err} Choose "
+            f"another --port, or leave it out for the first free one"
+        ) from None
+    say_if_compiling("teleop")
+    run = build_teleop(scenario, meshcat, realtime_rate=args.realtime_rate)
+    how = f"for {args.duration:g} s" if args.duration else "until Ctrl-C"
+    print(
+        f"open {meshcat.web_url()} ; the sliders roll [rad] .. z [m] set the pose (keys Q/E W/S "
+        f"A/D J/L I/K U/O), the gauges show the tracking error and the margins, the button "
+        f"'pause / resume' (key P) stops the time; running {how}"
+    )
+    stats = run_teleop(run, args.duration)
+    if "interrupted_by" in stats:  # the statistics are printed; say what ended it
+        signum = stats["interrupted_by"]
+        print(
+            f"stewart-drake teleop: interrupted by {signal.Signals(signum).name} after "
+            f"{stats['sim_s']:.1f} s simulated; nothing else to keep",
+            file=sys.stderr,
+        )
+        return 128 + signum
+    return 0
+
+
+def _add_robot_command(sub) -> None:
+    """The ``robot`` command's options."""
+    rob = sub.add_parser(
+        "robot",
+        help="run the controller on the servos (docs/robot.md): dry run, home, a reference",
+    )
+    rob.add_argument(
+        "reference",
+        nargs="?",
+        default=None,
+        help="a reference name (paper, home, helix, step_<axis>, sweep_<axis>), a trace or "
+        "a CSV file (default: the scenario's)",
+    )
+    from ..run.scenario_io import ROBOT_SCENARIO
+
+    add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)", ROBOT_SCENARIO)
+    rob.add_argument(
+        "--port", default=None, help="the servos' serial port (default: the scenario's bus.port)"
+    )
+    rob.add_argument(
+        "--dry-run",
+        action="store_true",
+        help="read the bus with the torque off, print the pose and its verdict, stop",
+    )
+    rob.add_argument(
+        "--calibrate",
+        type=float,
+        default=None,
+        metavar="DEG",
+        help="read the zero_counts with every crank held at DEG degrees (0: horizontal), "
+        "torque off; print them and stop (default: no calibration)",
+    )
+    rob.add_argument(
+        "--home-s",
+        type=positive_float,
+        default=3.0,
+        help="seconds of the homing lead-in from the measured pose to the reference's start",
+    )
+    rob.add_argument(
+        "--hold",
+        type=float,
+        default=0.0,
+        help="seconds the reference's last pose is held before the torque goes off",
+    )
+    rob.add_argument(
+        "--duration",
+        type=positive_float,
+        default=None,
+        help="s of the reference (default: the scenario's)",
+    )
+    rob.add_argument(
+        "--loop-timeout",
+        type=positive_float,
+        default=0.1,
+        help="our watchdog: the torque goes off when no control period completes for this long, s",
+    )
+    rob.add_argument(
+        "--emulate",
+        type=_pose6,
+        nargs="?",
+        const=[0.0, 0.0, 0.0, 0.0, 0.0, 0.28],
+        default=None,
+        metavar="POSE",
+        help="rehearse on the bus emulator (a pseudo-terminal, the robot's Drake plant at real "
+        "time behind it) resting at POSE phi,theta,psi,X,Y,Z (default 0,0,0,0,0,0.28)",
+    )
+    rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
+    rob.add_argument(
+        "--teleop",
+        action="store_true",
+        help="drive the robot from Meshcat's sliders, from where it rests (until Ctrl-C, or "
+        "--duration s)",
+    )
+    rob.add_argument("--no-progress", action="store_true", help="no progress bar")
+    rob.add_argument("--out", default="results", help="folder of the logs")
+    rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))
+
+
+def _pose6(text: str) -> list[float]:
+    """Six comma-separated finite numbers phi,theta,psi,X,Y,Z (rad, m)."""
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 6 or not all(math.isfinite(v) for v in values):
+        raise argparse.ArgumentTypeError(
+            f"give six finite numbers phi,theta,psi,X,Y,Z in rad and m, got {text!r}"
+        )
+    return values
+
+
+def _cmd_robot(args) -> int:
+    """``stewart-drake robot``: the closed loop on the servos of the scenario's ``bus`` (or on
+    the bus emulator with ``--emulate``): a dry run, or homing then the reference, with torque
+    off and one line at every end."""
+    from ..base.fileio import check_replaceable
+    from ..live.session import SessionSignals
+    from ..run.scenario_io import load_scenario
+
+    if args.teleop and (args.reference is not None or args.dry_run):
+        from ..base.errors import InvalidConfigError
+
+        raise InvalidConfigError("--teleop takes no reference (the sliders are one) nor --dry-run")
+    scenario = load_scenario(args.scenario, args.set or ())
+    _robot_reference(args, scenario)
+    if args.duration is not None:
+        scenario.duration_s = args.duration
+    if args.port is not None:
+        if scenario.bus is None:
+            from ..run.scenario import DynamixelBusConfig
+
+            scenario.bus = DynamixelBusConfig(port=args.port)
+        else:
+            scenario.bus.port = args.port
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    scenario.validate()
+    out = Path(args.out)
+    stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
+    if not args.dry_run and args.calibrate is None:
+        check_replaceable(out / f"{stem}.npz")
+    from ..station.bus.driver import dynamixel_sdk
+
+    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
+    if args.calibrate is not None:
+        _check_calibration_angle(scenario, args.calibrate)
+    if args.emulate is not None:
+        if scenario.bus is None:
+            from ..run.scenario import DynamixelBusConfig
+
+            scenario.bus = DynamixelBusConfig()
+        _check_emulated_pose(scenario, args.emulate)
+    if not args.dry_run and args.calibrate is None:
+        # Loaded (or compiled) before anything is powered: a first load inside the first
+        # control period would trip our watchdog.
+        say_if_compiling("robot")
+    with SessionSignals() as signals:  # held from the torque-off through the end line
+        return _robot_session(args, scenario, out, stem, signals)
+
+
+def _robot_reference(args, scenario):
+    """``robot``'s REFERENCE onto ``scenario``: a name of
+    :data:`~stewart_drake.references.trajectories.TRAJECTORIES` ("home" holds the home pose),
+    a recorded trace or a CSV file; None keeps the scenario's."""
+    from ..references.trajectories import TRAJECTORIES, NamedReference
+
+    source = args.reference
+    if source is None:
+        return
+    if source in TRAJECTORIES:
+        scenario.reference = NamedReference(source)
+    elif is_trace_file(source):
+        from ..references.traces import TraceReference
+
+        scenario.reference = TraceReference(path=source)
+    else:
+        from ..base.errors import InvalidConfigError
+
+        raise InvalidConfigError(
+            f"robot takes a reference name ({', '.join(TRAJECTORIES)}), a trace or a CSV "
+            f"file, got {source!r}"
+        )
+
+
+def _check_calibration_angle(scenario, angle_deg: float) -> None:
+    """Refuse ``--calibrate DEG`` outside the cranks' travel (the scenario's
+    ``robot.motor_angle_min_deg`` .. ``motor_angle_max_deg``), or not finite.
+
+    Raises:
+        InvalidConfigError: names the range.
+    """
+    from ..base.errors import InvalidConfigError
+
+    lo, hi = scenario.robot.motor_angle_min_deg, scenario.robot.motor_angle_max_deg
+    if not (math.isfinite(angle_deg) and lo <= angle_deg <= hi):
+        raise InvalidConfigError(
+            f"--calibrate {angle_deg:g}: the angle the cranks are held at must be a finite "
+            f"number of degrees in the cranks' travel [{lo:g}, {hi:g}]"
+        )
+
+
+def _check_emulated_pose(scenario, x0) -> None:
+    """Refuse ``--emulate POSE`` where the scenario's robot cannot be assembled (before a
+    process is spawned for it).
+
+    Raises:
+        InvalidConfigError: not six finite numbers, or a pose out of the rods' reach (named).
+    """
+    import numpy as np
+
+    from ..base.errors import InvalidConfigError, StewartError
+    from ..robot.kinematics import ik
+    from ..run.plan import make_plan
+
+    try:
+        ik(make_plan(scenario, with_reference=False).geometry, np.asarray(x0, dtype=float))
+    except StewartError as err:
+        raise InvalidConfigError(
+            f"--emulate {','.join(f'{v:g}' for v in x0)}: the robot cannot rest there ({err})"
+        ) from None
+
+
+def _start_emulator(scenario, x0):
+    """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
+    the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
+    ``scenario.bus`` at its pseudo-terminal; returns the
+    :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it)."""
+    import copy
+    import dataclasses
+
+    from ..live.emulator_process import EmulatorProcess
+
+    bus = scenario.bus
+    plant = copy.copy(scenario.plant)
+    plant.time_step = 0.002
+    robot = dataclasses.replace(
+        scenario,
+        bus=None,
+        plant=plant,
+        control_period_s=0.002,
+        log_period_s=0.002,
+    )
+    emulator = EmulatorProcess(
+        x0=x0,
+        ids=bus.ids,
+        model=bus.model,
+        scenario=robot,
+        zero_counts=bus.zero_counts,
+        start_timeout_s=300.0,
+    ).start()
+    bus.port = emulator.port
+    return emulator
+
+
+def _robot_session(args, scenario, out, stem, signals) -> int:
+    """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
+    calibrate, dry run, or a session, ending in the end line; closes the emulator."""
+    from ..live.session import end_line, measure_pose, run_on_robot
+    from ..run.metrics import format_metrics
+
+    emulator = None
+    try:
+        if args.emulate is not None:
+            emulator = _start_emulator(scenario, args.emulate)
+            print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
+        if args.calibrate is not None:
+            from ..live.session import bus_config, zero_counts_at
+
+            with bus_config(scenario).make_bus() as bus:
+                zeros = zero_counts_at(bus, math.radians(args.calibrate))
+            print(
+                f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"
+                f"  zero_counts: [{', '.join(str(int(c)) for c in zeros)}]"
+            )
+            return 0
+        if args.dry_run:
+            measured = measure_pose(scenario)
+            print(measured.summary())
+            return 0 if measured.problem is None else 1
+        meshcat = None
+        if args.meshcat or args.teleop:
+            from pydrake.geometry import Meshcat
+
+            meshcat = Meshcat()
+            print(f"open {meshcat.web_url()} to watch the robot at its measured pose")
+        if args.teleop:
+            from ..live.session import teleop_on_robot
+
+            run = teleop_on_robot(
+                scenario,
+                meshcat,
+                duration_s=args.duration,
+                loop_timeout_s=args.loop_timeout,
+                signals=signals,
+            )
+        else:
+            run = run_on_robot(
+                scenario,
+                home_s=args.home_s,
+                hold_s=args.hold,
+                loop_timeout_s=args.loop_timeout,
+                out=out,
+                stem=stem,
+                meshcat=meshcat,
+                progress=not args.no_progress,
+                signals=signals,
+            )
+    finally:
+        if emulator is not None:
+            emulator.close()
+    if run.metrics is not None:
+        print(format_metrics(run.metrics))
+    if run.timing_lines:
+        print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
+    signals.settle(run)
+    print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
+    return run.exit_code

@@ -1,0 +1,290 @@
+"""``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on the
+robot, checked, run (learning on request) and measured, with a report and a verdict."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..cli.options import (
+    TRACE_ONLY,
+    add_scenario_arguments,
+    add_trace_arguments,
+    check_output,
+    int_at_least,
+    is_trace_file,
+    key_values,
+    positive_float,
+    say_if_compiling,
+    trace_options_given,
+    trace_reference,
+)
+
+
+def register(sub) -> None:
+    """Add the ``reproduce`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    _add_reproduce_command(sub)
+
+
+def _add_reproduce_command(sub) -> None:
+    """The ``reproduce`` command's options."""
+    rp = sub.add_parser(
+        "reproduce",
+        help="reproduce organ motion (a library motion or a "
+        "recorded trace) on the robot and report its fidelity "
+        "(exit 2 if beyond --tolerance)",
+    )
+    _add_motion_arguments(rp)
+    add_trace_arguments(rp)
+    add_scenario_arguments(
+        rp, "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles"
+    )
+    _add_learning_arguments(rp)
+    _add_measurement_arguments(rp)
+    rp.add_argument("--out", default="results/reproduce", help="report folder")
+    rp.add_argument(
+        "--html",
+        default=None,
+        metavar="FILE.html",
+        help="also write a standalone Meshcat replay of the run to this file: the reference "
+        "as a ghost, a marker coloured by the tracking error (default: none)",
+    )
+    rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
+
+
+def _add_motion_arguments(rp) -> None:
+    """``reproduce``'s motion: a library motion or a trace file, its parameters, the motions
+    laid on it."""
+    rp.add_argument(
+        "motion",
+        help="breathing, heartbeat, breathing_heartbeat, "
+        "irregular_breathing, hysteresis, sawtooth, sharkfin, baseline_drift, "
+        "transient_excursion, persistent_excursion, breath_hold, or a trace file: text with "
+        "a header naming columns and units (commas, semicolons, tabs or spaces; decimal "
+        "points or commas), "
+        "a motion phantom's 7-column (t LR SI AP [mm] rLR rSI rAP [deg]) or 2-column "
+        "surrogate file, or t,phi,theta,psi,X,Y,Z",
+    )
+    rp.add_argument(
+        "--param",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a library motion's parameter with its unit (repeatable): "
+        "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
+        "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
+        "motion's own); a key goes to the motion (or --add layer) that has it, "
+        "or to the one written in front: heartbeat.amplitude=2mm",
+    )
+    rp.add_argument(
+        "--add",
+        action="append",
+        metavar="MOTION",
+        help="lay a library motion on the motion or trace (repeatable): "
+        "baseline_drift, transient_excursion, persistent_excursion, heartbeat...; "
+        "its parameters by --param (drift=3mm) (default: none)",
+    )
+
+
+def _add_learning_arguments(rp) -> None:
+    """``reproduce``'s learning: per cycle (``--learn-cycles``) or as a function of the
+    reference (``--feedforward``, a model saved and read back)."""
+    rp.add_argument(
+        "--learn-cycles",
+        type=int_at_least(0),
+        default=0,
+        metavar="N",
+        help="learn a correction from the first N cycles, then hold it (0: no learning)",
+    )
+    rp.add_argument(
+        "--feedforward",
+        action="store_true",
+        help="learn a correction as a function of the reference over the run (any motion: a "
+        "trace, irregular breathing, a heartbeat not locked to the breath); settings: --set "
+        "learning.stretch_s=5 with a scenario's learning: !FeedforwardTuning {}",
+    )
+    rp.add_argument(
+        "--learned",
+        default=None,
+        metavar="FILE.npz",
+        help="start the feed-forward from a model an earlier run saved (--save-learned) "
+        "(default: none, from zero)",
+    )
+    rp.add_argument(
+        "--hold",
+        action="store_true",
+        help="apply the --learned model without learning further",
+    )
+    rp.add_argument(
+        "--save-learned",
+        default=None,
+        metavar="FILE.npz",
+        help="write the learned feed-forward at the end of the run (for --learned) (default: none)",
+    )
+
+
+def _add_measurement_arguments(rp) -> None:
+    """What ``reproduce`` measures and allows: the cycles, the tolerance, the scaling of a
+    motion too large, a trace's length."""
+    rp.add_argument(
+        "--cycles",
+        type=int_at_least(1),
+        default=2,
+        metavar="N",
+        help="cycles measured after the learned ones (or after one cycle to settle)",
+    )
+    rp.add_argument(
+        "--tolerance",
+        default="0.1mm,0.1deg",
+        help="RMS error allowed per axis, a length and an angle",
+    )
+    rp.add_argument(
+        "--scale-to-fit",
+        action="store_true",
+        help="shrink a motion the robot cannot follow about its centre until every "
+        "check passes (instead of refusing it), saying by how much",
+    )
+    rp.add_argument(
+        "--duration",
+        type=positive_float,
+        default=None,
+        help="s to run a trace that has no cycles (default: its length)",
+    )
+
+
+def _cmd_reproduce(args) -> int:
+    """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
+    the robot, checked, run (learning on request) and measured: a report with a verdict."""
+    from ..base.fileio import check_replaceable
+    from ..organ_motion.fidelity import parse_tolerance, reproduce, verdict, write_report
+
+    tolerance = parse_tolerance(args.tolerance)
+    scenario, name = _reproduce_scenario(args)
+    out = Path(args.out)
+    for suffix in (".md", ".png", ".json"):
+        check_replaceable(out / f"reproduce_{name}{suffix}")
+    feedforward = _feedforward_choice(args, scenario)
+    if args.html is not None:
+        check_output(args.html, "--html", is_file=True)
+    rep = reproduce(
+        scenario,
+        learn_cycles=args.learn_cycles,
+        eval_cycles=args.cycles,
+        scale_to_fit=args.scale_to_fit,
+        duration_s=args.duration,
+        progress=not args.no_progress,
+        feedforward=feedforward,
+        on_checked=lambda: say_if_compiling("reproduce"),
+    )
+    if args.save_learned and rep.learned is not None:
+        from ..control.feedforward_tuning import save_learned
+
+        print(f"wrote {save_learned(args.save_learned, rep.learned)} (the learned feed-forward)")
+    if rep.scale != 1.0:
+        print(
+            f"{name} did not fit the robot: scaled by {rep.scale:.3f} about its centre "
+            f"(every check passes at that size)"
+        )
+    fid = rep.fidelity
+    print(
+        f"RMS error over t = {fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
+        f"{fid['rms_translation_m'] * 1e6:.3g} um, rotation {fid['rms_rotation_rad'] * 1e6:.3g} "
+        f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms",
+        flush=True,
+    )
+    md, png, js = write_report(rep, out, tolerance)
+    ok, line = verdict(fid, tolerance)
+    print(line)
+    print(f"wrote {md}, {png} and {js}")
+    if args.html:  # the run's plant-state log, replayed with the reference's ghost
+        from ..organ_motion.fidelity_replay import reproduction_html
+        from ..run.plan import make_plan
+
+        geometry = make_plan(scenario, with_reference=False).plant_geometry
+        html = reproduction_html(rep, geometry, args.html, tolerance)
+        print(f"wrote {html} (Meshcat replay with the reference's ghost and the error)")
+    return 0 if ok else 2
+
+
+def _reproduce_scenario(args):
+    """``reproduce``'s scenario with its reference (the trace file or the library motion, with
+    the motions ``--add`` lays on it), validated, and the reproduction's name (its files'
+    ``reproduce_<name>``): (Scenario, str).
+
+    Raises:
+        InvalidConfigError: a motion added twice, or options of a trace for a library motion
+            (and the other way round).
+    """
+    from ..base.errors import InvalidConfigError
+    from ..references.organ_motion import OrganMotionReference, split_parameters
+    from ..run.scenario_io import load_scenario
+
+    scenario = load_scenario(args.scenario, args.set or ())
+    source = args.motion
+    params = key_values(args.param, "--param")
+    layers = list(args.add or ())
+    if len(set(layers)) != len(layers):
+        raise InvalidConfigError(f"--add takes each motion once, got {', '.join(layers)}")
+    if is_trace_file(source):
+        if params and not layers:
+            raise InvalidConfigError(
+                "--param sets a library motion's parameters (of one added with --add on a "
+                f"trace); a trace takes {TRACE_ONLY}"
+            )
+        scenario.reference = trace_reference(
+            args, source, dict(zip(layers, split_parameters(layers, params)))
+        )
+        name = "+".join([Path(source).stem, *layers])
+        size = Path(source).stat().st_size if Path(source).is_file() else 0
+        if size > 1e6 and not args.no_progress:  # a few seconds to read and resample
+            from ..base.checks import format_bytes
+
+            print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
+    else:
+        if trace_options_given(args):
+            raise InvalidConfigError(
+                f"{TRACE_ONLY} are for a trace file; a library motion takes --param"
+            )
+        shares = split_parameters([source, *layers], params)
+        scenario.reference = OrganMotionReference(
+            motion=source, parameters=shares[0], add=dict(zip(layers, shares[1:]))
+        )
+        name = "+".join([source, *layers])
+    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
+    scenario.validate()
+    return scenario, name
+
+
+def _feedforward_choice(args, scenario):
+    """The feed-forward learner ``reproduce``'s flags ask for (None: none), checked before the
+    run: ``--feedforward``, ``--learned FILE`` (read now: numbers only), ``--hold``,
+    ``--save-learned FILE``; the scenario's own ``learning`` when it is one, applied as ``run``
+    applies it when it names a model (``learned_from``)."""
+    from ..base.errors import InvalidConfigError
+    from ..control.feedforward_tuning import FeedforwardTuning, load_learned
+
+    ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
+    flags = args.feedforward or args.learned or args.hold or args.save_learned
+    if not flags and not (ff is not None and ff.learned_from):
+        return None
+    if args.learn_cycles:
+        raise InvalidConfigError(
+            "--learn-cycles learns per cycle; --feedforward, --learned, --hold and "
+            "--save-learned (or the scenario's learning.learned_from) learn as a function of "
+            "the reference: choose one"
+        )
+    if args.hold and not (args.learned or (ff is not None and ff.learned_from)):
+        raise InvalidConfigError("--hold applies a model learned before: give --learned FILE")
+    ff = ff or FeedforwardTuning()
+    if args.learned:
+        ff.learned_from = str(args.learned)
+    if ff.learned_from:
+        load_learned(ff.learned_from)  # refused now, not after the run
+    if args.hold:
+        ff.learn = False
+    elif args.feedforward or args.learned:
+        ff.learn = True
+    if args.save_learned:
+        check_output(args.save_learned, "--save-learned", is_file=True)
+    ff.validate(scenario.control_period_s)
+    return ff
