@@ -1,0 +1,104 @@
+"""Docs a newcomer can walk: the layout table of docs/development.md is what
+tools/layout_table.py writes from the tree (so it cannot go stale)."""
+
+import importlib.util
+import pkgutil
+from pathlib import Path
+
+import pytest
+
+import stewart_drake
+
+REPO = Path(__file__).resolve().parent.parent
+DOCS = REPO / "docs"
+
+
+def _tool(name: str):
+    """A script of tools/ as a module."""
+    spec = importlib.util.spec_from_file_location(name, REPO / "tools" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+layout_table = _tool("layout_table")
+
+# -- the layout table ---------------------------------------------------------------------------
+
+
+def test_the_layout_table_is_what_the_tool_writes():
+    """The committed table is the tree's: regenerate it with ``python tools/layout_table.py``
+    after adding, moving or renaming a module or changing its docstring's first sentence."""
+    text = (DOCS / "development.md").read_text(encoding="utf-8")
+    assert all(marker in text for marker in layout_table.MARKERS)
+    assert layout_table.block() in text, (
+        "docs/development.md's layout table is stale: run python tools/layout_table.py"
+    )
+    assert layout_table.main(["--check"]) == 0
+
+
+def test_the_layout_table_names_every_module_python_finds():
+    """The tool's walk of the files agrees with Python's walk of the package (pkgutil)."""
+    rows = layout_table.package_rows(REPO, layout_table.layer_ranks(REPO / "tests/test_layers.py"))
+    # An installed package may map data folders into it (stewart_drake.scenarios): modules only.
+    walk = [
+        info
+        for info in pkgutil.walk_packages(stewart_drake.__path__, "stewart_drake.")
+        if (REPO / "stewart_drake")
+        in Path(importlib.util.find_spec(info.name).origin or "/").parents
+    ]
+    assert {row.name for row in rows} == {"stewart_drake"} | {info.name for info in walk}
+    packages = {"stewart_drake"} | {info.name for info in walk if info.ispkg}
+    assert {row.name for row in rows if row.is_package} == packages
+
+
+def test_the_layout_section_names_every_package():
+    """The prose above the table names each top-level package, so a new package gets its
+    sentence there too."""
+    text = (DOCS / "development.md").read_text(encoding="utf-8")
+    section = text[text.index("## Layout") : text.index(layout_table.MARKERS[0])]
+    tops = sorted(p.parent.name for p in (REPO / "stewart_drake").glob("*/__init__.py"))
+    missing = [top for top in tops if f"`{top}`" not in section]
+    assert not missing, "docs/development.md's Layout section does not name " + ", ".join(missing)
+
+
+@pytest.mark.parametrize(
+    "docstring, shown",
+    [
+        ("One line.\n\nMore.", "One line."),
+        ("Split over\n    two lines. Then more.", "Split over two lines."),
+        ("IK eq. 6 and Fig. 7 of the paper. More.", "IK eq. 6 and Fig. 7 of the paper."),
+        (
+            "Text (:func:`~.metrics.format_metrics`, :mod:`.runners`, :class:`Scenario`).",
+            "Text (`format_metrics`, `runners`, `Scenario`).",
+        ),
+        ("A ``|L|`` ratio. More.", "A `\\|L\\|` ratio."),
+    ],
+)
+def test_a_summary_is_the_first_sentence_as_sphinx_shows_it(docstring, shown):
+    assert layout_table.summary(docstring) == shown
+
+
+def _tree(root: Path, files: dict) -> Path:
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root
+
+
+def test_the_layout_table_refuses_a_module_without_a_docstring_or_a_rank(tmp_path):
+    repo = _tree(
+        tmp_path,
+        {
+            "stewart_drake/__init__.py": '"""The package."""\n',
+            "stewart_drake/base/__init__.py": '"""Base."""\n',
+            "stewart_drake/base/quiet.py": "X = 1\n",
+            "stewart_drake/extra/__init__.py": '"""A package without a rank."""\n',
+            "tests/test_layers.py": 'LAYERS = {"base": 0}\n',
+        },
+    )
+    ranks = layout_table.layer_ranks(repo / "tests" / "test_layers.py")
+    with pytest.raises(layout_table.LayoutError, match="no rank in tests/test_layers.py for extra"):
+        layout_table.package_rows(repo, ranks)
+    with pytest.raises(layout_table.LayoutError, match="quiet.py: no docstring"):
+        layout_table.package_rows(repo, {"base": 0, "extra": 1})
