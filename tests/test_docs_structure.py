@@ -1,11 +1,14 @@
 """Docs a newcomer can walk: the layout table of docs/development.md is what
-tools/layout_table.py writes from the tree (so it cannot go stale)."""
+tools/layout_table.py writes from the tree (so it cannot go stale), and the API reference builds
+without a warning (tools/api_docs.py, where the ``docs`` extra is installed)."""
 
 import importlib.util
 import pkgutil
+import sys
 from pathlib import Path
 
 import pytest
+from conftest import needs_extra
 
 import stewart_drake
 
@@ -102,3 +105,69 @@ def test_the_layout_table_refuses_a_module_without_a_docstring_or_a_rank(tmp_pat
         layout_table.package_rows(repo, ranks)
     with pytest.raises(layout_table.LayoutError, match="quiet.py: no docstring"):
         layout_table.package_rows(repo, {"base": 0, "extra": 1})
+
+
+# -- the API reference ----------------------------------------------------------------------------
+
+
+@pytest.fixture
+def api_docs():
+    return _tool("api_docs")
+
+
+@needs_extra("docs")
+def test_the_api_reference_builds_a_page_per_module(api_docs, tmp_path):
+    """The whole package, as CI's lint step builds it: no module fails to import, nothing warns
+    (torch-only code imports without torch), and the front page links every module."""
+    out = tmp_path / "api"
+    problems = api_docs.build(REPO / "stewart_drake", out)
+    assert problems == []
+    names = api_docs.module_names(REPO / "stewart_drake")
+    assert "stewart_drake.run.plan" in names
+    missing = [n for n in names if not (out / f"{n.replace('.', '/')}.html").is_file()]
+    assert not missing
+    front = (out / "stewart_drake.html").read_text(encoding="utf-8")
+    assert all(f'href="{n.replace(".", "/")}.html"' in front for n in names if n != "stewart_drake")
+    # A relative Sphinx reference is a link to the module Sphinx finds (run_report names
+    # :func:`~.metrics.format_metrics`, a module of another package).
+    page = (out / "stewart_drake/paper/run_report.html").read_text(encoding="utf-8")
+    assert 'href="../run/metrics.html#format_metrics"' in page
+
+
+@pytest.fixture
+def probe(tmp_path, monkeypatch):
+    """A package of three modules: one clean, one that cannot be imported, one that warns."""
+    package = (
+        _tree(
+            tmp_path,
+            {
+                "apidocs_probe/__init__.py": '"""A probe."""\n',
+                "apidocs_probe/clean.py": '"""Clean."""\n\n\ndef f():\n    """Returns 1."""\n',
+                "apidocs_probe/broken.py": "import apidocs_probe_no_such_module\n",
+                "apidocs_probe/noisy.py": 'import warnings\n\nwarnings.warn("noisy at import")\n',
+            },
+        )
+        / "apidocs_probe"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield package
+    for name in [n for n in sys.modules if n.startswith("apidocs_probe")]:
+        del sys.modules[name]
+
+
+@needs_extra("docs")
+def test_the_api_reference_fails_on_an_import_error_and_on_a_warning(api_docs, probe, capsys):
+    out = probe.parent / "out"
+    assert api_docs.main(["--package", str(probe), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "apidocs_probe.broken: cannot be imported: ModuleNotFoundError" in err
+    assert "warning: UserWarning: noisy at import" in err
+    assert "2 problems" in err
+    assert (out / "apidocs_probe" / "clean.html").is_file()  # the rest is built, for a look
+    # A second build replaces its own folder; a folder it did not write is refused.
+    assert api_docs.main(["--package", str(probe), "--out", str(out)]) == 1
+    (probe.parent / "mine").mkdir()
+    (probe.parent / "mine" / "notes.txt").write_text("keep")
+    assert api_docs.main(["--package", str(probe), "--out", str(probe.parent / "mine")]) == 1
+    assert "did not write" in capsys.readouterr().err
+    assert (probe.parent / "mine" / "notes.txt").read_text() == "keep"
