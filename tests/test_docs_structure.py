@@ -1,9 +1,11 @@
-"""Docs a newcomer can walk: the layout table of docs/development.md is what
-tools/layout_table.py writes from the tree (so it cannot go stale), and the API reference builds
-without a warning (tools/api_docs.py, where the ``docs`` extra is installed)."""
+"""Docs a newcomer can walk: docs/index.md reaches every page and README.md points to it, the
+layout table of docs/development.md is what tools/layout_table.py writes from the tree (so it
+cannot go stale), and the API reference builds without a warning (tools/api_docs.py, where the
+``docs`` extra is installed)."""
 
 import importlib.util
 import pkgutil
+import re
 import sys
 from pathlib import Path
 
@@ -171,3 +173,48 @@ def test_the_api_reference_fails_on_an_import_error_and_on_a_warning(api_docs, p
     assert api_docs.main(["--package", str(probe), "--out", str(probe.parent / "mine")]) == 1
     assert "did not write" in capsys.readouterr().err
     assert (probe.parent / "mine" / "notes.txt").read_text() == "keep"
+
+
+# -- the index -----------------------------------------------------------------------------------
+
+#: A Markdown link's target, without its #anchor.
+_LINK = re.compile(r"\]\(([^)\s#]+)(?:#[^)\s]*)?\)")
+
+
+def linked_pages(page: Path) -> set[Path]:
+    """The Markdown pages of the repository that ``page`` links to."""
+    targets = (
+        (page.parent / t).resolve()
+        for t in _LINK.findall(page.read_text(encoding="utf-8"))
+        if not t.startswith(("http://", "https://", "mailto:"))
+    )
+    return {t for t in targets if t.suffix == ".md" and t.is_file()}
+
+
+def test_the_index_reaches_every_page():
+    """Every page of docs/ (its subfolders too) is reached from docs/index.md by following
+    links."""
+    seen, todo = set(), [(DOCS / "index.md").resolve()]
+    while todo:
+        page = todo.pop()
+        if page not in seen:
+            seen.add(page)
+            todo += [p for p in linked_pages(page) if DOCS.resolve() in p.parents]
+    missing = sorted(
+        str(p.relative_to(REPO)) for p in DOCS.rglob("*.md") if p.resolve() not in seen
+    )
+    assert not missing, "pages docs/index.md does not reach: " + ", ".join(missing)
+
+
+def test_the_index_links_every_top_level_page_itself():
+    """A newcomer finds each page of docs/ on the index, not two clicks away."""
+    linked = linked_pages(DOCS / "index.md")
+    missing = [p.name for p in sorted(DOCS.glob("*.md")) if p.name != "index.md"]
+    missing = [name for name in missing if (DOCS / name).resolve() not in linked]
+    assert not missing, "docs/index.md does not link " + ", ".join(missing)
+
+
+def test_the_readme_points_to_the_index():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    section = readme[readme.index("## Where to go next") :].split("\n## ")[0]
+    assert "](docs/index.md)" in section
