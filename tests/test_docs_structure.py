@@ -173,6 +173,8 @@ def test_the_api_reference_fails_on_an_import_error_and_on_a_warning(api_docs, p
     assert api_docs.main(["--package", str(probe), "--out", str(probe.parent / "mine")]) == 1
     assert "did not write" in capsys.readouterr().err
     assert (probe.parent / "mine" / "notes.txt").read_text() == "keep"
+    assert api_docs.main(["--package", str(probe), "--out", str(probe.parent / "mine/notes.txt")])
+    assert "is not a folder" in capsys.readouterr().err
 
 
 # -- the index -----------------------------------------------------------------------------------

@@ -177,9 +177,12 @@ def build(package: Path, out: Path) -> list[str]:
         The problems found, one line each: modules that cannot be imported, warnings raised while
         building, a layout table that cannot be made; empty when the build is clean.
     Raises:
-        FileExistsError: ``out`` exists and is not a folder this tool wrote (no :data:`STAMP`).
+        FileExistsError: ``out`` is a file or a link, or a folder this tool did not write (no
+            :data:`STAMP` in it) that is not empty.
     """
     out = Path(out)
+    if out.is_symlink() or (out.exists() and not out.is_dir()):
+        raise FileExistsError(f"{out} is not a folder: give another --out")
     if out.exists() and not (out / STAMP).is_file() and any(out.iterdir()):
         raise FileExistsError(f"{out} holds files this tool did not write: give another --out")
     if str(package.parent) not in sys.path:
