@@ -41,6 +41,7 @@ EXTRAS = {
     "dask": ("distributed", None),
     "analysis": ("control", None),
     "robot": ("dynamixel_sdk", None),
+    "docs": ("pdoc", "16.0"),
 }
 
 

@@ -137,6 +137,6 @@ def test_a_missing_extra_is_named_with_its_install_command(monkeypatch):
     assert extra_missing("ray") == 'needs the ray extra: pip install -e ".[ray]"'
     mark = needs_extra("ray")
     assert mark.args == (True,) and mark.kwargs["reason"] == extra_missing("ray")
-    assert set(EXTRAS) <= {"train", "mujoco", "ray", "dask", "analysis", "robot"}
+    assert set(EXTRAS) <= {"train", "mujoco", "ray", "dask", "analysis", "robot", "docs"}
     project = (TESTS.parent / "pyproject.toml").read_text()
     assert all(f"\n{extra} = [" in project for extra in EXTRAS)  # each an extra of ours
