@@ -164,7 +164,7 @@ def test_fidelity_of_empty_logs_is_refused_in_words():
 
 
 def test_huge_relative_harmonics_are_refused_without_numpy_warnings(tmp_path, capsys):
-    from stewart_drake.references.organ_motion import Heartbeat
+    from stewart_drake.references.organ.heartbeat import Heartbeat
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # an overflow warning would raise here

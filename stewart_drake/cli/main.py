@@ -531,7 +531,7 @@ def _cmd_reproduce(args) -> int:
     from ..base.errors import InvalidConfigError
     from ..base.fileio import check_replaceable
     from ..organ_motion.fidelity import parse_tolerance, reproduce, verdict, write_report
-    from ..references.organ_motion import OrganMotionReference, split_parameters
+    from ..references.organ.library import OrganMotionReference, split_parameters
     from ..run.scenario_io import load_scenario
 
     tolerance = parse_tolerance(args.tolerance)

@@ -334,7 +334,7 @@ def parse_tolerance(text: str) -> tuple[float, float]:
     Raises:
         InvalidConfigError: not one length and one angle, each a positive number with its unit.
     """
-    from ..references.organ_motion import UNITS
+    from ..references.organ.library import UNITS
 
     found = {}
     for part in str(text).split(","):
@@ -439,7 +439,7 @@ def learning_words(learning, learn_cycles: int = 0) -> str:
 
 def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Reference, float]:
     """The largest scale in (0, 1] at which ``reference``, shrunk about its centre
-    (:class:`~stewart_drake.references.organ_motion.ScaledReference`), passes every check of
+    (:class:`~stewart_drake.references.organ.combinators.ScaledReference`), passes every check of
     :func:`~stewart_drake.run.plan.check_reference` on the
     scenario's robot (reach, joint limits, singularity, clearance, motor torque and speed), by
     bisection to within ``tol``.
@@ -450,7 +450,7 @@ def scale_to_fit(scenario, reference: Reference, tol: float = 0.005) -> tuple[Re
         InvalidConfigError: not even a scale of ``tol`` passes (the centre itself is refused:
             move it).
     """
-    from ..references.organ_motion import ScaledReference
+    from ..references.organ.combinators import ScaledReference
     from ..run.plan import check_reference, make_plan
 
     plan = make_plan(scenario, with_reference=False)

@@ -145,7 +145,7 @@ def _motion_cases(folder) -> list:
 def _reference(case_motion: str, parameters: tuple, path: str):
     """The reference of a case: a trace file's (IntERAct's format read as it is) or a library
     motion's."""
-    from ..references.organ_motion import make_motion
+    from ..references.organ.library import make_motion
     from ..references.traces import load_trace
 
     return load_trace(path) if path else make_motion(case_motion, dict(parameters))

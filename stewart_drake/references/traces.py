@@ -2,7 +2,7 @@
 
 :func:`load_trace` reads a CSV of 1 to 6 axes whose header names each column and its unit
 (``t [s], SI [mm], AP [mm], pitch [deg]``), at any sample rate and with gaps, maps the trace's
-axes onto the platform's (platform or patient axis names, :data:`~.organ_motion.PATIENT_AXES`,
+axes onto the platform's (platform or patient axis names, :data:`~.core.PATIENT_AXES`,
 or a map of the trace's own names), resamples it to a C2 spline
 (:class:`~.trajectories.CubicSplineTrajectory`), optionally low-passes it without
 phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose (:data:`CENTRE_MODES`).
@@ -27,7 +27,9 @@ from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..robot.geometry import X_HOME, StewartGeometry
 from .motion import Reference, ReferenceConfig
-from .organ_motion import UNITS, axis_index, check_centre, layered, make_layers, scaled
+from .organ.combinators import layered, scaled
+from .organ.core import axis_index, check_centre
+from .organ.library import UNITS, make_layers
 from .trajectories import (
     AXIS_NAMES,
     CSV_BYTES_PER_ROW,
@@ -126,7 +128,7 @@ class TraceTrajectory(CubicSplineTrajectory):
     """A recorded trace as a reference: a :class:`~.trajectories.CubicSplineTrajectory` (C2 cubic
     spline through the resampled poses) with the trace's import record (``info``,
     :class:`TraceInfo`) and its ``centre`` pose, the fixed point of
-    :class:`~.organ_motion.ScaledReference`."""
+    :class:`~.combinators.ScaledReference`."""
 
     def __init__(self, t, poses, info: TraceInfo, centre, name: str):
         super().__init__(t, poses, name=name)
@@ -540,7 +542,7 @@ def load_trace(
     [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or um, angles in rad, mrad, urad or
     deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
     roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
-    :data:`~.organ_motion.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
+    :data:`~.core.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
     Times increase but need not be evenly spaced, at most :data:`MAX_SAMPLE_STEP_S` apart (median);
     a last line of zeros after them (an optical tracker's export ends so) is left out and
     ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that axis.
@@ -646,7 +648,7 @@ class TraceReference(ReferenceConfig):
             width). columns: its columns' names and units when it has no header line.
         add: motions of the library laid on the trace, name -> parameters
             (``{baseline_drift: {drift: 3mm}}``: a drift on a recording,
-            :func:`~.organ_motion.layered`); the scale shrinks the sum.
+            :func:`~.combinators.layered`); the scale shrinks the sum.
     """
 
     path: str = ""

@@ -57,7 +57,7 @@ from ..control.pd import PdDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..plant.plant import check_rod_model
 from ..references.motion import ReferenceConfig as ReferenceConfig  # re-exported: the choices' base
-from ..references.organ_motion import OrganMotionReference
+from ..references.organ.library import OrganMotionReference
 from ..references.traces import TraceReference
 from ..references.trajectories import (
     CsvReference,

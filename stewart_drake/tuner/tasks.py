@@ -33,7 +33,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError, StewartError
 from ..plant.clearance import clearance_model
 from ..references.motion import Reference
-from ..references.organ_motion import MotionSum
+from ..references.organ.combinators import MotionSum
 from ..references.trajectories import SineTrajectory, paper_manoeuvre
 from ..robot import limits, statics
 from ..robot.geometry import StewartGeometry
