@@ -20,8 +20,9 @@ from stewart_drake.references.organ.combinators import ScaledReference, common_p
 from stewart_drake.references.organ.core import axis_index
 from stewart_drake.references.organ.heartbeat import Heartbeat
 from stewart_drake.references.organ.library import make_motion
+from stewart_drake.references.samples import CubicSplineTrajectory
 from stewart_drake.references.traces import TraceTrajectory, load_trace
-from stewart_drake.references.trajectories import CubicSplineTrajectory, make_trajectory
+from stewart_drake.references.trajectories import make_trajectory
 from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import (

@@ -12,13 +12,8 @@ from conftest import write_trace
 import stewart_drake.base.checks
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import build_parser, main
-from stewart_drake.references.traces import (
-    CENTRE_MODES,
-    MAX_SAMPLE_STEP_S,
-    SKIP_COLUMN,
-    TRACE_FORMATS,
-    load_trace,
-)
+from stewart_drake.references.trace_files import MAX_SAMPLE_STEP_S, SKIP_COLUMN, TRACE_FORMATS
+from stewart_drake.references.traces import CENTRE_MODES, load_trace
 
 #: The columns a user gives a marker export: its frame counter skipped, time in ms.
 MARKER_COLUMNS = "-,t [ms],X [mm],Y [mm],Z [mm]"

@@ -63,8 +63,8 @@ class Reference(Protocol):
 
 class ReferenceConfig:
     """Base of a scenario's reference choices: :class:`~.trajectories.NamedReference`,
-    :class:`~.trajectories.CsvReference`, :class:`~.trajectories.SineReference`,
-    :class:`~.trajectories.DataCollectionReference` (beside the trajectories they build),
+    :class:`~.samples.CsvReference`, :class:`~.trajectories.SineReference`,
+    :class:`~.data_collection.DataCollectionReference` (beside the trajectories they build),
     :class:`~.library.OrganMotionReference` and :class:`~.traces.TraceReference`;
     :data:`~.scenario.ReferenceChoice` is their union.
 
@@ -90,7 +90,7 @@ class ReferenceConfig:
         Args:
             geometry: the robot. duration_s: the run's length, s. torque_limit_Nm: the motors'
                 torque limit in force, N m, or None (unlimited). Only
-                :class:`~.trajectories.DataCollectionReference` uses them (its excitation
+                :class:`~.data_collection.DataCollectionReference` uses them (its excitation
                 lasts the run and fits the robot and its motors); the others ignore them.
         Raises:
             InvalidConfigError, MissingFileError, CorruptFileError: as :meth:`validate`, and

@@ -15,7 +15,7 @@ import numpy as np
 from ...base.checks import as_array, as_poses
 from ...base.errors import InvalidConfigError
 from ...robot.geometry import X_HOME
-from ..trajectories import AXIS_NAMES
+from ...robot.kinematics import AXIS_NAMES
 
 #: The patient frame in the platform frame: the patient lies supine along the platform's X axis,
 #: head towards +X (superior), left towards +Y, anterior up (+Z). Rotations about the patient's
