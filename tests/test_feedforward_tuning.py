@@ -11,7 +11,7 @@ from stewart_drake.control.feedforward_tuning import (
     FeedforwardTuning,
     FeedforwardTuningLearner,
 )
-from stewart_drake.organ_motion.fidelity import reproduce
+from stewart_drake.organ_motion.reproduction import reproduce
 from stewart_drake.references import organ_motion
 from stewart_drake.robot.geometry import X_HOME, reference_geometry
 from stewart_drake.run.scenario import dump_scenario

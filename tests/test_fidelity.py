@@ -12,6 +12,8 @@ from conftest import write_trace
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli import main as cli
 from stewart_drake.organ_motion import fidelity as fd
+from stewart_drake.organ_motion import fidelity_report as fr
+from stewart_drake.organ_motion import reproduction
 from stewart_drake.references.organ.library import OrganMotionReference, make_motion
 from stewart_drake.robot.geometry import X_HOME
 
@@ -334,16 +336,16 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
     t = np.arange(1_000_003) * 1e-3
     y = np.zeros_like(t)
     y[777_777] = 5.0  # one spike in a long run
-    tt, yy = fd._thinned(t, y, peaks=True)
-    assert tt.size <= fd.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
-    assert fd._thinned(t, y)[0].size <= fd.PLOT_POINTS + 1
+    tt, yy = fr._thinned(t, y, peaks=True)
+    assert tt.size <= fr.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
+    assert fr._thinned(t, y)[0].size <= fr.PLOT_POINTS + 1
 
     scenario = load_scenario("paper_hardware")
     scenario.reference = OrganMotionReference("breathing", {"period": "1s"})
-    rep = fd.reproduce(scenario, eval_cycles=1)
+    rep = reproduction.reproduce(scenario, eval_cycles=1)
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
-    fd.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
+    fr.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
     (fig,) = figures
     by_label = {ax.get_ylabel(): ax for ax in fig.axes}
     for label, tolerance in (
@@ -377,7 +379,7 @@ def test_a_long_run_s_figure_zooms_at_full_rate_on_its_largest_error(tmp_path, m
     )
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
-    fd.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
+    fr.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
     (fig,) = figures
     (zoom,) = [ax for ax in fig.axes if ax.get_ylabel() == "zoom: translation\nerror [um]"]
     (line,) = [ln for ln in zoom.get_lines() if len(ln.get_xdata()) > 2]

@@ -9,7 +9,7 @@ from conftest import write_trace
 
 from stewart_drake.base.errors import InvalidConfigError, MotorLimitError
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.organ_motion.fidelity import scale_to_fit
+from stewart_drake.organ_motion.reproduction import scale_to_fit
 from stewart_drake.references.motion import reference_cycles
 from stewart_drake.references.organ.breathing import (
     Breathing,

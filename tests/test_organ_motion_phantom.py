@@ -328,7 +328,7 @@ def test_reproduce_add_lays_motions_on_a_trace_or_a_library_motion(tmp_path, mon
         seen.append(scenario.reference)
         raise InvalidConfigError("captured")
 
-    monkeypatch.setattr("stewart_drake.organ_motion.fidelity.reproduce", fake_reproduce)
+    monkeypatch.setattr("stewart_drake.organ_motion.reproduction.reproduce", fake_reproduce)
     t = np.arange(0.0, 12.0, 0.05)
     path = write_trace(tmp_path / "p.csv", t, {"SI [mm]": 5 * np.sin(np.pi * t / 2)})
     out = str(tmp_path / "out")

@@ -530,7 +530,9 @@ def _cmd_reproduce(args) -> int:
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..base.errors import InvalidConfigError
     from ..base.fileio import check_replaceable
-    from ..organ_motion.fidelity import parse_tolerance, reproduce, verdict, write_report
+    from ..organ_motion.fidelity import parse_tolerance, verdict
+    from ..organ_motion.fidelity_report import write_report
+    from ..organ_motion.reproduction import reproduce
     from ..references.organ.library import OrganMotionReference, split_parameters
     from ..run.scenario_io import load_scenario
 

@@ -181,7 +181,7 @@ def _run(
     """(figures, the learner's last status or None, the learned weights or None, wall s) of one
     run of :data:`DURATION_S` on ``paper_hardware`` with ``overrides``."""
     from ..run.scenario_io import load_scenario
-    from .fidelity import run
+    from .reproduction import run
 
     scenario = load_scenario("paper_hardware", overrides)
     scenario.duration_s = DURATION_S

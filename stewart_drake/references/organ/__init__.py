@@ -50,7 +50,7 @@ them; :class:`~.library.OrganMotionReference` is a scenario's choice of one.
 
 References add up (:class:`~.combinators.MotionSum`) and shrink about their centre
 (:class:`~.combinators.ScaledReference`:
-:func:`~stewart_drake.organ_motion.fidelity.scale_to_fit` finds the scale the one reference
+:func:`~stewart_drake.organ_motion.reproduction.scale_to_fit` finds the scale the one reference
 validator accepts). Recorded traces of organ motion are read by :mod:`~.traces`.
 
 Modules: :mod:`.core` (axes, directions, the base class), :mod:`.breathing`, :mod:`.heartbeat`,

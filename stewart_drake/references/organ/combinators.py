@@ -1,7 +1,7 @@
 """References combined: the sum of references (:class:`MotionSum`), motions of the library laid
 on any reference (:func:`layered`, :class:`LayeredReference`) and a reference shrunk about its
 centre (:func:`scaled`, :class:`ScaledReference`:
-:func:`~stewart_drake.organ_motion.fidelity.scale_to_fit` finds the scale the one reference
+:func:`~stewart_drake.organ_motion.reproduction.scale_to_fit` finds the scale the one reference
 validator accepts).
 """
 
