@@ -206,6 +206,56 @@ def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):
     return rows
 
 
+def _window_views(t, x, x_d, window) -> tuple:
+    """(t, x, x_d, (tw, xw, rw)): the run's times and its poses and the reference's (the first
+    6 columns), checked, and their views over ``window`` (see :func:`fidelity`).
+
+    Raises:
+        InvalidConfigError: shapes that differ, fewer than 10 samples in all or in the window.
+    """
+    # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
+    # slice; fidelity makes the error alone, in float32 (errors of microns to 7 digits; its sums
+    # in float64).
+    t, x, x_d = np.asarray(t, dtype=float), np.asarray(x), np.asarray(x_d)
+    if x.ndim == 2 and x_d.ndim == 2:  # poses first: x and x_d may carry rates after them
+        x, x_d = x[:, :6], x_d[:, :6]
+    if x.ndim != 2 or x.shape != x_d.shape or x.shape[0] != t.size or t.ndim != 1:
+        raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
+    if t.size < 10:  # the window's own test below reads t[0]
+        raise InvalidConfigError(f"fewer than 10 samples ({t.size}): nothing to measure")
+    t0, t1 = (t[0], t[-1]) if window is None else window
+    i0 = int(np.searchsorted(t, t0 - 1e-9, side="left"))
+    i1 = int(np.searchsorted(t, t1 + 1e-9, side="right"))
+    if i1 - i0 < 10:
+        raise InvalidConfigError(f"fewer than 10 samples in the window [{t0:g}, {t1:g}] s")
+    tw, xw, rw = t[i0:i1], x[i0:i1], x_d[i0:i1]
+    return t, x, x_d, (tw, xw, rw)
+
+
+def _cycle_errors(t, x, x_d, cycle_starts) -> dict:
+    """{"starts", "rms_translation_m", "rms_rotation_rad", "peak_translation_m"}: the error of
+    each cycle between ``cycle_starts`` that lies inside the data (see :func:`fidelity`)."""
+    cycles: dict[str, list] = {
+        "starts": [],
+        "rms_translation_m": [],
+        "rms_rotation_rad": [],
+        "peak_translation_m": [],
+    }
+    if cycle_starts is not None:
+        starts = np.asarray(cycle_starts, dtype=float)
+        for a, b in zip(starts[:-1], starts[1:]):
+            c = (t >= a - 1e-9) & (t < b - 1e-9)
+            if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or np.count_nonzero(c) < 10:
+                continue
+            ec = np.subtract(x[c], x_d[c], dtype=float)
+            ct, cr = rms_translation_rotation(ec)
+            cycles["starts"].append(float(a))
+            cycles["rms_translation_m"].append(ct)
+            cycles["rms_rotation_rad"].append(cr)
+            cycles["peak_translation_m"].append(float(np.linalg.norm(ec[:, 3:], axis=1).max()))
+    return cycles
+
+
 def fidelity(
     t, x, x_d, window=None, frequencies: dict | None = None, cycle_starts=None, harmonics: int = 5
 ) -> dict:
@@ -236,22 +286,7 @@ def fidelity(
         InvalidConfigError: fewer than 10 samples (in all, or in the window), or shapes that
             differ.
     """
-    # Views, not float64 copies: a long run's logs are float32 (RunResult) and the window a
-    # slice; the error alone is made, in float32 (errors of microns to 7 digits; the sums below
-    # in float64).
-    t, x, x_d = np.asarray(t, dtype=float), np.asarray(x), np.asarray(x_d)
-    if x.ndim == 2 and x_d.ndim == 2:  # poses first: x and x_d may carry rates after them
-        x, x_d = x[:, :6], x_d[:, :6]
-    if x.ndim != 2 or x.shape != x_d.shape or x.shape[0] != t.size or t.ndim != 1:
-        raise InvalidConfigError(f"t {t.shape}, x {x.shape} and x_d {x_d.shape} must match")
-    if t.size < 10:  # the window's own test below reads t[0]
-        raise InvalidConfigError(f"fewer than 10 samples ({t.size}): nothing to measure")
-    t0, t1 = (t[0], t[-1]) if window is None else window
-    i0 = int(np.searchsorted(t, t0 - 1e-9, side="left"))
-    i1 = int(np.searchsorted(t, t1 + 1e-9, side="right"))
-    if i1 - i0 < 10:
-        raise InvalidConfigError(f"fewer than 10 samples in the window [{t0:g}, {t1:g}] s")
-    tw, xw, rw = t[i0:i1], x[i0:i1], x_d[i0:i1]
+    t, x, x_d, (tw, xw, rw) = _window_views(t, x, x_d, window)
     e = np.subtract(xw, rw, dtype=np.float32)
     p2p = np.ptp(rw, axis=0).astype(float)
     moving = [k for k in range(6) if p2p[k] > MOVING_P2P[k]]
@@ -292,25 +327,7 @@ def fidelity(
         if frequencies and moving
         else []
     )
-    cycles: dict[str, list] = {
-        "starts": [],
-        "rms_translation_m": [],
-        "rms_rotation_rad": [],
-        "peak_translation_m": [],
-    }
-    if cycle_starts is not None:
-        starts = np.asarray(cycle_starts, dtype=float)
-        for a, b in zip(starts[:-1], starts[1:]):
-            c = (t >= a - 1e-9) & (t < b - 1e-9)
-            if a < t[0] - 1e-9 or b > t[-1] + 2 * np.median(np.diff(t)) or np.count_nonzero(c) < 10:
-                continue
-            ec = np.subtract(x[c], x_d[c], dtype=float)
-            ct, cr = rms_translation_rotation(ec)
-            cycles["starts"].append(float(a))
-            cycles["rms_translation_m"].append(ct)
-            cycles["rms_rotation_rad"].append(cr)
-            cycles["peak_translation_m"].append(float(np.linalg.norm(ec[:, 3:], axis=1).max()))
-    out["cycles"] = cycles
+    out["cycles"] = _cycle_errors(t, x, x_d, cycle_starts)
     return out
 
 

@@ -39,8 +39,22 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     the learner, the phantom anchor."""
     fid = rep.fidelity
     ok, line = verdict(fid, tolerance)
-    units = ["urad"] * 3 + ["um"] * 3
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
+    lines += _run_lines(rep, fid)
+    lines += _axis_lines(fid)
+    lines += _gamma_lines(fid)
+    lines += _harmonic_lines(fid)
+    lines += _cycle_lines(fid)
+    lines += _learner_lines(rep)
+    lines += _anchor_lines(fid)
+    lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
+    return "\n".join(lines)
+
+
+def _run_lines(rep: Reproduction, fid: dict) -> list:
+    """The report's lines on the run: its length, controller, learning and window; the model it
+    started from, its scale, the trace it read."""
+    lines: list = []
     lines.append(
         f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
         f"({rep.result.config_summary.get('controller', '')}, "
@@ -62,6 +76,13 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     )
     if info is not None:  # a recorded trace: what was read, and how
         lines += ["", f"Trace: {info.summary()}."]
+    return lines
+
+
+def _axis_lines(fid: dict) -> list:
+    """The report's table of the error per axis and its line on the 3-D error and the lag."""
+    lines: list = []
+    units = ["urad"] * 3 + ["um"] * 3
     lines += [
         "",
         "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
@@ -86,6 +107,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
         f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
         f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late).",
     ]
+    return lines
+
+
+def _gamma_lines(fid: dict) -> list:
+    """The report's line on the gamma pass rates (none without)."""
+    lines: list = []
     if fid.get("gamma"):
         lines += [
             "",
@@ -98,6 +125,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
             )
             + ".",
         ]
+    return lines
+
+
+def _harmonic_lines(fid: dict) -> list:
+    """The report's table of the harmonics (none without)."""
+    lines: list = []
     if fid["harmonics"]:
         lines += [
             "",
@@ -114,6 +147,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
                 f"{100 * h['amplitude_error']:+.3g} % | "
                 f"{math.degrees(h['phase_error_rad']):+.3g} |"
             )
+    return lines
+
+
+def _cycle_lines(fid: dict) -> list:
+    """The report's line on the error per cycle (none without cycles)."""
+    lines: list = []
     cyc = fid["cycles"]
     if cyc["starts"]:
         lines += [
@@ -124,6 +163,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
                 for j, (a, b) in enumerate(zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"]))
             ),
         ]
+    return lines
+
+
+def _learner_lines(rep: Reproduction) -> list:
+    """The report's line on the learner (none without)."""
+    lines: list = []
     if rep.learner is not None and "updates" in rep.learner_names:
         lines += ["", _feedforward_line(dict(zip(rep.learner_names, rep.learner[-1])))]
     elif rep.learner is not None:
@@ -135,6 +180,12 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
             + (", stopped by its bound" if last["stopped"] else "")
             + ".",
         ]
+    return lines
+
+
+def _anchor_lines(fid: dict) -> list:
+    """The report's table of the phantom anchor against this run."""
+    lines: list = []
     lines += [
         "",
         "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
@@ -151,8 +202,7 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
             f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
             f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |"
         )
-    lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
-    return "\n".join(lines)
+    return lines
 
 
 #: Points a report's curve draws at most: a long run's logs are thinned to this (every n-th

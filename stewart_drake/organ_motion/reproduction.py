@@ -232,12 +232,15 @@ def _set_duration(
     return whole
 
 
-def _set_learning(scenario, learn_cycles: int) -> None:
-    """Make the scenario learn from ``learn_cycles`` cycles (its ``learning`` or the default
-    :class:`~stewart_drake.run.scenario.IlcDriver`), or not at all (0)."""
+def _set_learning(scenario, learn_cycles: int, feedforward=None) -> None:
+    """Make the scenario learn with ``feedforward`` when given, else from ``learn_cycles``
+    cycles (its ``learning`` or the default :class:`~stewart_drake.run.scenario.IlcDriver`), or
+    not at all (0)."""
     from ..control.ilc import IlcDriver
 
-    if learn_cycles:
+    if feedforward is not None:
+        scenario.learning = feedforward
+    elif learn_cycles:
         driver = scenario.learning or IlcDriver()
         driver.learn_cycles = learn_cycles
         scenario.learning = driver
@@ -271,6 +274,25 @@ def _harmonic_frequencies(reference: Reference) -> dict:
     repeats = getattr(reference, "repeat_period_s", None) is not None
     frequencies = getattr(reference, "frequencies_hz", None)
     return frequencies() if repeats and callable(frequencies) else {}
+
+
+def _measure(result, reference, starts, duration: float, whole: bool, eval_cycles: int) -> dict:
+    """:func:`~.fidelity.fidelity` of a run over its measured window
+    (:func:`_measured_window`), with the reference's harmonics (:func:`_harmonic_frequencies`)
+    and its cycles ``starts`` (s)."""
+    window = _measured_window(starts, duration, whole, eval_cycles)
+    freq = _harmonic_frequencies(reference)
+    return fidelity(result.t, result.x, result.x_d, window, freq, starts)
+
+
+def _learning_record(learning, learn_cycles: int) -> dict:
+    """What a :class:`Reproduction` records of the scenario's ``learning``: the columns of its
+    status log, how it learned in words, the model file it started from."""
+    return {
+        "learner_names": _status_names(learning),
+        "learning": learning_words(learning, learn_cycles),
+        "learned_from": str(getattr(learning, "learned_from", "") or ""),
+    }
 
 
 def reproduce(
@@ -330,23 +352,15 @@ def reproduce(
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles if feedforward is None else 0)
     whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
-    if feedforward is None:
-        _set_learning(scenario, learn_cycles)
-    else:
-        scenario.learning = feedforward
+    _set_learning(scenario, learn_cycles, feedforward)
     check_run_memory(scenario)  # before the reference is checked at every control period
     plan = make_plan(scenario, reference=reference)  # validated once, here
-    scale = 1.0
-    if scale_to_fit:
-        reference, scale = _fit(plan, reference)
+    reference, scale = _fit(plan, reference) if scale_to_fit else (reference, 1.0)
     report = check_reference_shown(plan, reference, progress, keep_series=False)
     if on_checked is not None:
         on_checked()
     result, learner, wall, learned = run(plan, reference, progress, f"reproducing {name}", report)
     starts = starts[starts <= scenario.duration_s + 1e-9]
-    window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
-    freq = _harmonic_frequencies(reference)
-    fid = fidelity(result.t, result.x, result.x_d, window, freq, starts)
     return Reproduction(
         name=name,
         reference=reference,
@@ -354,14 +368,12 @@ def reproduce(
         result=result,
         cycle_starts=starts,
         learn_cycles=learn_cycles,
-        fidelity=fid,
+        fidelity=_measure(result, reference, starts, scenario.duration_s, whole, eval_cycles),
         learner=learner,
-        learner_names=_status_names(scenario.learning),
         learned=learned,
         check=report.summary(),
         wall_s=wall,
-        learning=learning_words(scenario.learning, learn_cycles),
-        learned_from=str(getattr(scenario.learning, "learned_from", "") or ""),
+        **_learning_record(scenario.learning, learn_cycles),
     )
 
 
