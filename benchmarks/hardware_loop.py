@@ -29,7 +29,7 @@ from pydrake.systems.analysis import Simulator
 
 from stewart_drake.control.lqi import LqiDriver
 from stewart_drake.live.emulator_process import EmulatorProcess
-from stewart_drake.references.organ_motion import OrganMotionReference
+from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.references.trajectories import NamedReference
 from stewart_drake.run.diagram import make_stewart_diagram
 from stewart_drake.run.plan import make_plan

@@ -13,7 +13,7 @@ import argparse
 import time
 
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.organ_motion.fidelity import run
+from stewart_drake.organ_motion.reproduction import run
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import OrganMotionReference
 from stewart_drake.run.scenario_io import load_scenario

@@ -23,8 +23,9 @@ from stewart_drake.design.design_confirm import (
 from stewart_drake.design.requirements import DesignRequirements, load_requirements
 from stewart_drake.design.variables import Design, reference_design
 from stewart_drake.organ_motion.fidelity import fidelity
-from stewart_drake.references.organ_motion import OrganMotionReference
-from stewart_drake.references.trajectories import CsvReference, NamedReference
+from stewart_drake.references.organ.library import OrganMotionReference
+from stewart_drake.references.samples import CsvReference
+from stewart_drake.references.trajectories import NamedReference
 from stewart_drake.robot.motor_catalogue import REFERENCE_MOTOR, catalogue_motor
 from stewart_drake.run.diagram import make_stewart_diagram
 from stewart_drake.run.scenario import use_paper_tuner

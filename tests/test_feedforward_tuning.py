@@ -11,8 +11,10 @@ from stewart_drake.control.feedforward_tuning import (
     FeedforwardTuning,
     FeedforwardTuningLearner,
 )
-from stewart_drake.organ_motion.fidelity import reproduce
-from stewart_drake.references import organ_motion
+from stewart_drake.organ_motion.reproduction import reproduce
+from stewart_drake.references.organ.breathing import Breathing
+from stewart_drake.references.organ.combinators import MotionSum
+from stewart_drake.references.organ.heartbeat import Heartbeat
 from stewart_drake.robot.geometry import X_HOME, reference_geometry
 from stewart_drake.run.scenario import dump_scenario
 from stewart_drake.run.scenario_io import load_scenario
@@ -21,12 +23,10 @@ from stewart_drake.run.scenario_io import load_scenario
 def _breath_and_heart(period_s=4.2, rate_bpm=72.0, phase=0.0):
     """Breathing on SI and a heartbeat on LR whose periods have no common multiple within a
     run (4.2 s and 72 bpm: 5.04 beats per breath)."""
-    return organ_motion.MotionSum(
+    return MotionSum(
         parts=(
-            organ_motion.Breathing(amplitude_m=0.015, period_s=period_s),
-            organ_motion.Heartbeat(
-                amplitude_m=0.002, rate_bpm=rate_bpm, harmonic_phases_rad=(phase, 0.0, 0.0)
-            ),
+            Breathing(amplitude_m=0.015, period_s=period_s),
+            Heartbeat(amplitude_m=0.002, rate_bpm=rate_bpm, harmonic_phases_rad=(phase, 0.0, 0.0)),
         ),
         name="breath_heart",
     )
@@ -36,7 +36,7 @@ def test_the_basis_is_the_reference_and_the_motors_lagged_rate_signs():
     g = reference_geometry()
     h, n = 1e-3, 400
     t = np.arange(n) * h
-    motion = organ_motion.Breathing(period_s=0.8, amplitude_m=0.01)
+    motion = Breathing(period_s=0.8, amplitude_m=0.01)
     pose, rate, acc = motion.evaluate(t)
     phi = ff.reference_basis(g, pose, rate, acc, h, 0.002)
     assert phi.shape == (n, ff.basis_size()) == (n, 19 + 6 * len(ff.LAGS_S))
@@ -59,7 +59,7 @@ def test_the_basis_is_the_reference_and_the_motors_lagged_rate_signs():
 
 def test_the_learner_refuses_bad_settings():
     g = reference_geometry()
-    motion = organ_motion.Breathing()
+    motion = Breathing()
     with pytest.raises(InvalidConfigError, match="stretch_s"):
         FeedforwardTuningLearner(g, motion, 1e-3, 5e-4, 10.0, stretch_s=0.01)
     with pytest.raises(InvalidConfigError, match="gain must be below 2"):

@@ -12,14 +12,16 @@ from conftest import write_trace
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli import main as cli
 from stewart_drake.organ_motion import fidelity as fd
-from stewart_drake.references import organ_motion as om
+from stewart_drake.organ_motion import fidelity_report as fr
+from stewart_drake.organ_motion import reproduction
+from stewart_drake.references.organ.library import OrganMotionReference, make_motion
 from stewart_drake.robot.geometry import X_HOME
 
 
 @pytest.mark.parametrize("delay_s", [0.00037, -0.0021, 0.0125])
 def test_the_lag_is_found_between_samples(delay_s):
     t = np.arange(0.0, 8.0, 1e-3)
-    motion = om.make_motion("breathing_heartbeat", {"period": "4s"})
+    motion = make_motion("breathing_heartbeat", {"period": "4s"})
     ref = motion.evaluate(t)[0]
     late = motion.evaluate(t - delay_s)[0]
     assert fd.time_lag(t, late[:, 3], ref[:, 3]) == pytest.approx(delay_s, abs=2e-5)
@@ -47,7 +49,7 @@ def test_harmonic_phasors_are_the_fft_bins_over_whole_periods():
 
 
 def test_fidelity_of_a_late_and_small_copy():
-    motion = om.make_motion("breathing_heartbeat", {"period": "5s"})
+    motion = make_motion("breathing_heartbeat", {"period": "5s"})
     t = np.arange(0.0, 10.0, 1e-3)
     x_d = motion.evaluate(t)[0]
     delay, gain = 0.004, 0.97
@@ -254,7 +256,7 @@ def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
 
 def test_mismatched_or_non_finite_inputs_are_typed_errors():
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.references.organ_motion import common_period
+    from stewart_drake.references.organ.combinators import common_period
 
     t = np.arange(100) * 0.01
     with pytest.raises(InvalidConfigError, match="time_lag needs two signals of the same shape"):
@@ -334,16 +336,16 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
     t = np.arange(1_000_003) * 1e-3
     y = np.zeros_like(t)
     y[777_777] = 5.0  # one spike in a long run
-    tt, yy = fd._thinned(t, y, peaks=True)
-    assert tt.size <= fd.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
-    assert fd._thinned(t, y)[0].size <= fd.PLOT_POINTS + 1
+    tt, yy = fr._thinned(t, y, peaks=True)
+    assert tt.size <= fr.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
+    assert fr._thinned(t, y)[0].size <= fr.PLOT_POINTS + 1
 
     scenario = load_scenario("paper_hardware")
-    scenario.reference = om.OrganMotionReference("breathing", {"period": "1s"})
-    rep = fd.reproduce(scenario, eval_cycles=1)
+    scenario.reference = OrganMotionReference("breathing", {"period": "1s"})
+    rep = reproduction.reproduce(scenario, eval_cycles=1)
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
-    fd.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
+    fr.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
     (fig,) = figures
     by_label = {ax.get_ylabel(): ax for ax in fig.axes}
     for label, tolerance in (
@@ -377,7 +379,7 @@ def test_a_long_run_s_figure_zooms_at_full_rate_on_its_largest_error(tmp_path, m
     )
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
-    fd.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
+    fr.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
     (fig,) = figures
     (zoom,) = [ax for ax in fig.axes if ax.get_ylabel() == "zoom: translation\nerror [um]"]
     (line,) = [ln for ln in zoom.get_lines() if len(ln.get_xdata()) > 2]

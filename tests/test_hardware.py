@@ -433,8 +433,8 @@ def test_the_friction_feed_forward_lowers_the_breathing_error(epsilons):
     amplitudes (the slow tier): measured 12.1 -> 9.3 um and 33.3 -> 24.4 urad
     (docs/organ_motion.md, "The rotation floor"); the default tiers run one amplitude, whose
     ratios (0.52-0.81, 0.68-0.85 over ten) and RMS (within 6 %) hold the same bounds."""
-    from stewart_drake.organ_motion.fidelity import reproduce
-    from stewart_drake.references.organ_motion import OrganMotionReference
+    from stewart_drake.organ_motion.reproduction import reproduce
+    from stewart_drake.references.organ.library import OrganMotionReference
 
     rms = {}
     for friction in (0.0, 0.0184):

@@ -398,7 +398,7 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
 
     from stewart_drake.control.lqi import LqiDriver
     from stewart_drake.live.emulator_process import EmulatorProcess
-    from stewart_drake.references.organ_motion import OrganMotionReference
+    from stewart_drake.references.organ.library import OrganMotionReference
 
     h, duration = 0.01, 2.0
     fields = dict(

@@ -7,7 +7,7 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.control.ilc import IlcDriver
-from stewart_drake.references.organ_motion import Breathing
+from stewart_drake.references.organ.breathing import Breathing
 from stewart_drake.references.trajectories import hold_home
 from stewart_drake.run.learning import learning_cycles
 

@@ -7,7 +7,7 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.references.motion import peak_cycles, reference_cycles
-from stewart_drake.references.organ_motion import Breathing
+from stewart_drake.references.organ.breathing import Breathing
 from stewart_drake.references.trajectories import SineTrajectory, hold_home
 
 

@@ -10,7 +10,20 @@ from conftest import write_trace
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli import main as cli
-from stewart_drake.references import organ_motion as om
+from stewart_drake.references.organ.breathing import BreathHold, Breathing
+from stewart_drake.references.organ.combinators import LayeredReference, MotionSum, layered
+from stewart_drake.references.organ.excursions import (
+    BaselineDrift,
+    PersistentExcursion,
+    TransientExcursion,
+)
+from stewart_drake.references.organ.library import (
+    LIBRARY,
+    OrganMotionReference,
+    make_motion,
+    split_parameters,
+)
+from stewart_drake.references.organ.waveforms import Sawtooth, Sharkfin
 from stewart_drake.references.traces import load_trace
 from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.run.plan import make_plan
@@ -20,17 +33,17 @@ from stewart_drake.run.scenario_io import load_scenario
 
 def _corners(m) -> np.ndarray:
     """Where ``m`` joins two pieces (the ends of its blends and steps), s, over [0, 40]."""
-    if isinstance(m, (om.Sawtooth, om.Sharkfin)):
+    if isinstance(m, (Sawtooth, Sharkfin)):
         h, T = 0.5 * m.rounding_s, m.period_s
         t_in = m.inhale_fraction * T
         points = [k * T + c for k in range(11) for c in (-h, h, t_in - h, t_in + h)]
-    elif isinstance(m, om.BaselineDrift):
+    elif isinstance(m, BaselineDrift):
         t0, r, D = m.drift_start_s, m.drift_rounding_s, m.drift_duration_s
         points = [t0, t0 + r] if m.drift_period_s else [t0, t0 + r, t0 + D - r, t0 + D]
-    elif isinstance(m, om.TransientExcursion):
+    elif isinstance(m, TransientExcursion):
         t0, r, D = m.excursion_start_s, m.excursion_rise_s, m.excursion_duration_s
         points = [t0, t0 + r, t0 + D - r, t0 + D]
-    elif isinstance(m, om.PersistentExcursion):
+    elif isinstance(m, PersistentExcursion):
         points = [m.shift_start_s, m.shift_start_s + m.shift_rise_s]
     else:  # a breath-hold
         ta, r = m.hold_starts_s, m.hold_ramp_s
@@ -47,16 +60,16 @@ def _largest_jumps(m, points, delta=1e-7) -> tuple[float, float, float]:
 
 
 PHANTOM = [
-    om.Sawtooth(),
-    om.Sawtooth(inhale_fraction=0.6, rounding_s=0.05, direction="-AP"),
-    om.Sharkfin(),
-    om.Sharkfin(inhale_fraction=0.2, inhale_tau_s=0.1, exhale_tau_s=2.0, rounding_s=0.1),
-    om.BaselineDrift(drift_start_s=3.0, drift_duration_s=20.0),
-    om.BaselineDrift(drift_period_s=12.0, drift_start_s=1.0, drift_direction="LR"),
-    om.TransientExcursion(),
-    om.PersistentExcursion(shift_m=-0.004, shift_direction="AP"),
-    om.BreathHold(hold_s=5.0),
-    om.BreathHold(hold_phase=0.3, hold_cycle=2, hold_s=3.0, hold_ramp_s=0.8, shape_n=1),
+    Sawtooth(),
+    Sawtooth(inhale_fraction=0.6, rounding_s=0.05, direction="-AP"),
+    Sharkfin(),
+    Sharkfin(inhale_fraction=0.2, inhale_tau_s=0.1, exhale_tau_s=2.0, rounding_s=0.1),
+    BaselineDrift(drift_start_s=3.0, drift_duration_s=20.0),
+    BaselineDrift(drift_period_s=12.0, drift_start_s=1.0, drift_direction="LR"),
+    TransientExcursion(),
+    PersistentExcursion(shift_m=-0.004, shift_direction="AP"),
+    BreathHold(hold_s=5.0),
+    BreathHold(hold_phase=0.3, hold_cycle=2, hold_s=3.0, hold_ramp_s=0.8, shape_n=1),
 ]
 
 
@@ -91,7 +104,7 @@ def test_nothing_jumps_where_the_pieces_meet(motion):
 
 def test_the_jump_check_sees_a_raw_corner():
     """The same check on the ramps without their rounding: the rate jumps at the corner."""
-    saw = om.Sawtooth(rounding_s=0.2)
+    saw = Sawtooth(rounding_s=0.2)
     t_in = saw.inhale_fraction * saw.period_s
     inhale, exhale = saw._branches()
     raw = np.array([t_in - 1e-7, t_in + 1e-7])
@@ -101,7 +114,7 @@ def test_the_jump_check_sees_a_raw_corner():
     assert dv < 1e-6 and da < 1e-5  # |a| 2e-7 s: no step
 
 
-@pytest.mark.parametrize("cls", [om.Sawtooth, om.Sharkfin])
+@pytest.mark.parametrize("cls", [Sawtooth, Sharkfin])
 def test_waveform_amplitude_period_and_inhale_read_back(cls):
     m = cls(amplitude_m=0.012, period_s=5.0, inhale_fraction=0.4, direction="Z")
     t = np.linspace(0.0, 10.0, 200001)
@@ -119,7 +132,7 @@ def test_waveform_amplitude_period_and_inhale_read_back(cls):
 
 
 def test_sawtooth_ramps_are_straight_between_the_rounded_corners():
-    m = om.Sawtooth(amplitude_m=0.015, period_s=4.0, inhale_fraction=0.3, rounding_s=0.2)
+    m = Sawtooth(amplitude_m=0.015, period_s=4.0, inhale_fraction=0.3, rounding_s=0.2)
     low, span = m._range
     inhale = np.linspace(0.15, 1.05, 50)  # clear of the corners at 0 and 1.2 s
     exhale = np.linspace(1.35, 3.85, 50)
@@ -134,7 +147,7 @@ def test_sawtooth_ramps_are_straight_between_the_rounded_corners():
 
 
 def test_sharkfin_inhale_and_exhale_are_exponentials_of_their_time_constants():
-    m = om.Sharkfin(inhale_tau_s=0.3, exhale_tau_s=0.7, rounding_s=0.2)
+    m = Sharkfin(inhale_tau_s=0.3, exhale_tau_s=0.7, rounding_s=0.2)
     inhale = np.linspace(0.15, 1.05, 40)
     exhale = np.linspace(1.35, 3.85, 40)
     for t, tau in ((inhale, 0.3), (exhale, 0.7)):
@@ -147,12 +160,12 @@ def test_sharkfin_inhale_and_exhale_are_exponentials_of_their_time_constants():
 
 
 def test_baseline_drift_reaches_its_total_at_its_rate():
-    m = om.BaselineDrift(drift_m=0.004, drift_duration_s=30.0, drift_start_s=5.0)
+    m = BaselineDrift(drift_m=0.004, drift_duration_s=30.0, drift_start_s=5.0)
     x, v, _ = m.evaluate(np.array([0.0, 5.0, 20.0, 35.0, 100.0]))
     assert np.allclose(x[:, 3] - X_HOME[3], [0, 0, 0.004 * (15 - 1) / 28, 0.004, 0.004])
     assert v[2, 3] == pytest.approx(0.004 / 28.0, rel=1e-12)  # drift_m / (duration - rounding)
     assert np.allclose(v[[0, 3, 4]], 0.0)
-    sine = om.BaselineDrift(drift_m=0.002, drift_period_s=20.0, drift_rounding_s=2.0)
+    sine = BaselineDrift(drift_m=0.002, drift_period_s=20.0, drift_rounding_s=2.0)
     t = np.linspace(2.0, 42.0, 40001)
     x = sine.evaluate(t)[0][:, 3] - X_HOME[3]
     assert np.ptp(x) == pytest.approx(0.002, rel=1e-6) and x.min() > -1e-12
@@ -162,7 +175,7 @@ def test_baseline_drift_reaches_its_total_at_its_rate():
 
 
 def test_transient_excursion_goes_and_comes_back_persistent_one_stays():
-    m = om.TransientExcursion(
+    m = TransientExcursion(
         excursion_m=0.005, excursion_start_s=2.0, excursion_duration_s=10.0, excursion_rise_s=2.0
     )
     t = np.array([0.0, 2.0, 3.0, 4.0, 8.0, 10.0, 12.0, 30.0])
@@ -171,14 +184,14 @@ def test_transient_excursion_goes_and_comes_back_persistent_one_stays():
     assert np.abs(m.evaluate(np.linspace(0, 20, 20001))[1]).max() == pytest.approx(
         1.875 * 0.005 / 2.0, rel=1e-6
     )
-    p = om.PersistentExcursion(shift_m=-0.003, shift_start_s=1.0, shift_rise_s=4.0)
+    p = PersistentExcursion(shift_m=-0.003, shift_start_s=1.0, shift_rise_s=4.0)
     d = p.evaluate(np.array([0.5, 3.0, 5.0, 1e4]))[0][:, 3] - X_HOME[3]
     assert np.allclose(d, [0.0, -0.0015, -0.003, -0.003], atol=1e-15)
 
 
 def test_breath_hold_stops_at_its_phase_for_its_time_then_resumes():
-    m = om.BreathHold(hold_cycle=1, hold_phase=0.5, hold_s=6.0, hold_ramp_s=0.5)
-    b = om.Breathing()
+    m = BreathHold(hold_cycle=1, hold_phase=0.5, hold_s=6.0, hold_ramp_s=0.5)
+    b = Breathing()
     ta = m.hold_starts_s
     assert ta == pytest.approx(5.75)
     before = np.linspace(0.0, ta, 200)
@@ -199,26 +212,26 @@ def test_breath_hold_stops_at_its_phase_for_its_time_then_resumes():
 @pytest.mark.parametrize(
     "make, match",
     [
-        (lambda: om.Sawtooth(rounding_s=1.5), r"rounding_s must be at most .*\(1.2 s\)"),
-        (lambda: om.Sawtooth(rounding_s=0.0), r"rounding_s must be a finite number in \(0"),
-        (lambda: om.Sharkfin(inhale_fraction=1.2), r"inhale_fraction must be .* \[0.05, 0.95\]"),
-        (lambda: om.Sharkfin(exhale_tau_s=-1.0), "exhale_tau_s must be a finite number"),
-        (lambda: om.Sharkfin(direction="pitch"), "must be a translation axis"),
-        (lambda: om.BaselineDrift(drift_rounding_s=40.0), "at most half the drift's duration"),
+        (lambda: Sawtooth(rounding_s=1.5), r"rounding_s must be at most .*\(1.2 s\)"),
+        (lambda: Sawtooth(rounding_s=0.0), r"rounding_s must be a finite number in \(0"),
+        (lambda: Sharkfin(inhale_fraction=1.2), r"inhale_fraction must be .* \[0.05, 0.95\]"),
+        (lambda: Sharkfin(exhale_tau_s=-1.0), "exhale_tau_s must be a finite number"),
+        (lambda: Sharkfin(direction="pitch"), "must be a translation axis"),
+        (lambda: BaselineDrift(drift_rounding_s=40.0), "at most half the drift's duration"),
         (
-            lambda: om.BaselineDrift(drift_period_s=10.0, drift_rounding_s=6.0),
+            lambda: BaselineDrift(drift_period_s=10.0, drift_rounding_s=6.0),
             "at most half the drift's period",
         ),
-        (lambda: om.TransientExcursion(excursion_rise_s=6.0), "at most half excursion_duration"),
-        (lambda: om.TransientExcursion(excursion_m=2.0), r"excursion_m must be .* \[-1, 1\]"),
-        (lambda: om.PersistentExcursion(shift_direction=(0, 0, 0)), "not be the zero vector"),
-        (lambda: om.PersistentExcursion(shift_rise_s=0.0), "shift_rise_s must be"),
-        (lambda: om.BreathHold(hold_phase=1.0), r"hold_phase must be in \[0, 1\)"),
-        (lambda: om.BreathHold(hold_cycle=1.5), "hold_cycle must be an integer"),
-        (lambda: om.BreathHold(hold_cycle=0, hold_phase=0.0), "before t = 0"),
-        (lambda: om.BreathHold(hold_ramp_s=5.0), r"hold_ramp_s must be .* \(0, 4\]"),
-        (lambda: om.make_motion("sharkfin", {"rounding": "1furlong"}), "unknown unit 'furlong'"),
-        (lambda: om.make_motion("breath_hold", {"breath": "2s"}), "has no parameter 'breath'"),
+        (lambda: TransientExcursion(excursion_rise_s=6.0), "at most half excursion_duration"),
+        (lambda: TransientExcursion(excursion_m=2.0), r"excursion_m must be .* \[-1, 1\]"),
+        (lambda: PersistentExcursion(shift_direction=(0, 0, 0)), "not be the zero vector"),
+        (lambda: PersistentExcursion(shift_rise_s=0.0), "shift_rise_s must be"),
+        (lambda: BreathHold(hold_phase=1.0), r"hold_phase must be in \[0, 1\)"),
+        (lambda: BreathHold(hold_cycle=1.5), "hold_cycle must be an integer"),
+        (lambda: BreathHold(hold_cycle=0, hold_phase=0.0), "before t = 0"),
+        (lambda: BreathHold(hold_ramp_s=5.0), r"hold_ramp_s must be .* \(0, 4\]"),
+        (lambda: make_motion("sharkfin", {"rounding": "1furlong"}), "unknown unit 'furlong'"),
+        (lambda: make_motion("breath_hold", {"breath": "2s"}), "has no parameter 'breath'"),
     ],
 )
 def test_bad_parameters_are_refused_with_a_typed_error(make, match):
@@ -227,13 +240,13 @@ def test_bad_parameters_are_refused_with_a_typed_error(make, match):
 
 
 def test_make_motion_builds_the_phantoms_motions_with_units():
-    m = om.make_motion("breath_hold", {"hold": "15s", "hold_ramp": "300ms", "hold_phase": "0"})
+    m = make_motion("breath_hold", {"hold": "15s", "hold_ramp": "300ms", "hold_phase": "0"})
     assert (m.hold_s, m.hold_ramp_s, m.hold_phase) == (15.0, pytest.approx(0.3), 0.0)
-    m = om.make_motion("sharkfin", {"exhale_tau": "1s", "rounding": "250ms", "period": "5s"})
+    m = make_motion("sharkfin", {"exhale_tau": "1s", "rounding": "250ms", "period": "5s"})
     assert (m.exhale_tau_s, m.rounding_s, m.period_s) == (1.0, 0.25, 5.0)
-    m = om.make_motion("baseline_drift", {"drift": "-2mm", "drift_period": "1min"})
+    m = make_motion("baseline_drift", {"drift": "-2mm", "drift_period": "1min"})
     assert (m.drift_m, m.drift_period_s) == (pytest.approx(-0.002), 60.0)
-    assert set(om.LIBRARY) >= {
+    assert set(LIBRARY) >= {
         "sawtooth",
         "sharkfin",
         "baseline_drift",
@@ -252,9 +265,9 @@ def test_a_drift_on_a_trace_is_the_trace_plus_the_drift(tmp_path):
         tmp_path / "patient.csv", t, {"SI [mm]": 6 * np.cos(np.pi * t / 4) ** 4, "AP [mm]": t * 0}
     )
     trace = load_trace(path)
-    drift = om.BaselineDrift(drift_m=0.003, drift_duration_s=20.0, drift_direction="SI")
-    both = om.layered(trace, [drift])
-    assert isinstance(both, om.LayeredReference) and both.name == "patient+baseline_drift"
+    drift = BaselineDrift(drift_m=0.003, drift_duration_s=20.0, drift_direction="SI")
+    both = layered(trace, [drift])
+    assert isinstance(both, LayeredReference) and both.name == "patient+baseline_drift"
     assert both.end_time == trace.end_time and both.centre == trace.centre
     for got, a, b in zip(both.evaluate(t), trace.evaluate(t), drift.displacement(t)):
         assert np.allclose(got, a + b, atol=1e-15)
@@ -270,41 +283,41 @@ def test_a_drift_on_a_trace_is_the_trace_plus_the_drift(tmp_path):
     ref = make_plan(back).reference
     assert np.allclose(
         ref.evaluate(t)[0],
-        trace.evaluate(t)[0] + om.BaselineDrift(drift_m=0.003).displacement(t)[0],
+        trace.evaluate(t)[0] + BaselineDrift(drift_m=0.003).displacement(t)[0],
     )
     with pytest.raises(InvalidConfigError, match="unknown motion 'cough'"):
         TraceReference(path=str(path), add={"cough": {}}).validate()
 
 
 def test_an_excursion_on_breathing_is_a_sum_about_the_breathing_s_centre():
-    ref = om.OrganMotionReference(
+    ref = OrganMotionReference(
         "breathing",
         {"amplitude": "10mm"},
         add={"transient_excursion": {"excursion": "4mm", "excursion_direction": "AP"}},
     )
     ref.validate()
     motion = ref.make(None, 10.0, None)
-    assert isinstance(motion, om.MotionSum) and ref.label == "breathing+transient_excursion"
+    assert isinstance(motion, MotionSum) and ref.label == "breathing+transient_excursion"
     t = np.linspace(0.0, 20.0, 2001)
-    b = om.Breathing(amplitude_m=0.01).evaluate(t)
-    e = om.TransientExcursion(excursion_m=0.004, excursion_direction="AP").displacement(t)
+    b = Breathing(amplitude_m=0.01).evaluate(t)
+    e = TransientExcursion(excursion_m=0.004, excursion_direction="AP").displacement(t)
     for got, x, d in zip(motion.evaluate(t), b, e):
         assert np.allclose(got, x + d, atol=1e-15)
     assert np.allclose(motion.cycles(12.0)[0], [0, 4, 8, 12])  # the breathing's
 
 
 def test_split_parameters_sends_each_key_to_the_motion_that_has_it():
-    shares = om.split_parameters(
+    shares = split_parameters(
         ["breathing", "baseline_drift", "heartbeat"],
         {"drift": "3mm", "period": "5s", "heartbeat.amplitude": "2mm", "rate": "60bpm"},
     )
     assert shares == [{"period": "5s"}, {"drift": "3mm"}, {"amplitude": "2mm", "rate": "60bpm"}]
     with pytest.raises(InvalidConfigError, match="both have it; .* breathing.amplitude="):
-        om.split_parameters(["breathing", "heartbeat"], {"amplitude": "1mm"})
+        split_parameters(["breathing", "heartbeat"], {"amplitude": "1mm"})
     with pytest.raises(InvalidConfigError, match="none of breathing, heartbeat has it"):
-        om.split_parameters(["breathing", "heartbeat"], {"drift": "1mm"})
+        split_parameters(["breathing", "heartbeat"], {"drift": "1mm"})
     with pytest.raises(InvalidConfigError, match="'sharkfin' is not among the motions"):
-        om.split_parameters(["breathing"], {"sharkfin.amplitude": "1mm"})
+        split_parameters(["breathing"], {"sharkfin.amplitude": "1mm"})
 
 
 def test_reproduce_add_lays_motions_on_a_trace_or_a_library_motion(tmp_path, monkeypatch, capsys):
@@ -315,7 +328,7 @@ def test_reproduce_add_lays_motions_on_a_trace_or_a_library_motion(tmp_path, mon
         seen.append(scenario.reference)
         raise InvalidConfigError("captured")
 
-    monkeypatch.setattr("stewart_drake.organ_motion.fidelity.reproduce", fake_reproduce)
+    monkeypatch.setattr("stewart_drake.organ_motion.reproduction.reproduce", fake_reproduce)
     t = np.arange(0.0, 12.0, 0.05)
     path = write_trace(tmp_path / "p.csv", t, {"SI [mm]": 5 * np.sin(np.pi * t / 2)})
     out = str(tmp_path / "out")
@@ -345,7 +358,7 @@ def test_reproduce_add_lays_motions_on_a_trace_or_a_library_motion(tmp_path, mon
 
 
 def test_breath_hold_default_cycle_lengths():
-    m = om.BreathHold()
+    m = BreathHold()
     starts, _ = m.cycles(40.0)
     assert np.allclose(np.diff(starts)[:3], [4.0, 4.0 + 20.0 + 0.5, 4.0])
     assert math.isclose(m.evaluate(14.0)[0][3] - X_HOME[3], -0.0075, abs_tol=1e-15)

@@ -4,7 +4,7 @@ and what the station builds from it read back from Drake."""
 import numpy as np
 import pytest
 
-from stewart_drake.references.trajectories import data_collection_trajectory
+from stewart_drake.references.data_collection import data_collection_trajectory
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run import simulate as experiments
 from stewart_drake.run.diagram import held_station

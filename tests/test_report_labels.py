@@ -16,15 +16,14 @@ from stewart_drake.cli.registry import build_parser
 from stewart_drake.control import feedforward_tuning as ff
 from stewart_drake.control.feedforward_tuning import FeedforwardTuning
 from stewart_drake.organ_motion.command import _feedforward_choice
-from stewart_drake.organ_motion.fidelity import (
+from stewart_drake.organ_motion.fidelity import fidelity
+from stewart_drake.organ_motion.fidelity_report import (
     TITLE_POINTS,
-    Reproduction,
-    fidelity,
-    learning_words,
     report_markdown,
     report_title,
     write_report,
 )
+from stewart_drake.organ_motion.reproduction import Reproduction, learning_words
 from stewart_drake.run.scenario_io import load_scenario
 
 TOL = (1e-4, np.radians(0.1))

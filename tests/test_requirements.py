@@ -8,7 +8,7 @@ import pytest
 
 from stewart_drake.base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from stewart_drake.design.requirements import DesignRequirements, load_requirements
-from stewart_drake.references.organ_motion import OrganMotionReference
+from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.references.trajectories import NamedReference
 
 SHIPPED = Path(__file__).resolve().parent.parent / "scenarios" / "design_requirements.yaml"

@@ -16,11 +16,8 @@ from stewart_drake.control.contract import (
     check_controller,
     register_controller,
 )
-from stewart_drake.references.trajectories import (
-    CubicSplineTrajectory,
-    as_trajectory,
-    paper_manoeuvre,
-)
+from stewart_drake.references.samples import CubicSplineTrajectory
+from stewart_drake.references.trajectories import as_trajectory, paper_manoeuvre
 from stewart_drake.robot import kinematics, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 from stewart_drake.run.diagram import held_station, make_stewart_diagram

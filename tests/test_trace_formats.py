@@ -13,13 +13,8 @@ import stewart_drake.base.checks
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
 from stewart_drake.cli.registry import build_parser
-from stewart_drake.references.traces import (
-    CENTRE_MODES,
-    MAX_SAMPLE_STEP_S,
-    SKIP_COLUMN,
-    TRACE_FORMATS,
-    load_trace,
-)
+from stewart_drake.references.trace_files import MAX_SAMPLE_STEP_S, SKIP_COLUMN, TRACE_FORMATS
+from stewart_drake.references.traces import CENTRE_MODES, load_trace
 
 #: The columns a user gives a marker export: its frame counter skipped, time in ms.
 MARKER_COLUMNS = "-,t [ms],X [mm],Y [mm],Z [mm]"
@@ -165,7 +160,7 @@ def test_fidelity_of_empty_logs_is_refused_in_words():
 
 
 def test_huge_relative_harmonics_are_refused_without_numpy_warnings(tmp_path, capsys):
-    from stewart_drake.references.organ_motion import Heartbeat
+    from stewart_drake.references.organ.heartbeat import Heartbeat
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # an overflow warning would raise here

@@ -59,7 +59,7 @@ def test_the_spline_of_samples_is_drake_s_c2_spline_held_at_its_ends():
     acceleration agree, and outside the samples both hold the end's values."""
     from pydrake.trajectories import PiecewisePolynomial
 
-    from stewart_drake.references.trajectories import CubicSplineTrajectory
+    from stewart_drake.references.samples import CubicSplineTrajectory
 
     rng = np.random.default_rng(3)
     t = np.cumsum(rng.uniform(0.01, 0.2, 40)) - 0.01
@@ -129,7 +129,7 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
 def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
     from stewart_drake.base.errors import StewartError
     from stewart_drake.references import trajectories
-    from stewart_drake.references.trajectories import CubicSplineTrajectory
+    from stewart_drake.references.samples import CubicSplineTrajectory
     from stewart_drake.run.plan import check_reference
 
     t = np.linspace(0.0, 10.0, 101)

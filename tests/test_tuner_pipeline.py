@@ -8,7 +8,8 @@ import pytest
 from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.execution.runners import SerialRunner
-from stewart_drake.references.trajectories import data_collection_trajectory, validate
+from stewart_drake.references.data_collection import data_collection_trajectory
+from stewart_drake.references.trajectories import validate
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.run.scenario_io import load_scenario

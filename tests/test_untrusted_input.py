@@ -32,7 +32,7 @@ from stewart_drake.base.fileio import (
 )
 from stewart_drake.cli import main as cli
 from stewart_drake.control import contract, tuner
-from stewart_drake.references.trajectories import load_csv_trajectory
+from stewart_drake.references.samples import load_csv_trajectory
 from stewart_drake.run.scenario import Scenario, UserController
 from stewart_drake.run.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
 
@@ -418,7 +418,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     tmp_path, capsys, monkeypatch
 ):
     from stewart_drake.base import checks
-    from stewart_drake.references import trajectories
+    from stewart_drake.references import samples
     from stewart_drake.run.simulate import run_memory_bytes
 
     path = tmp_path / "long.csv"
@@ -431,7 +431,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
     scenario = Scenario(duration_s=0.1, reference=CsvReference(str(path)))
     assert run_memory_bytes(scenario) == pytest.approx(base + 2_000_002 * 1.5e3)
     monkeypatch.setattr(checks, "available_memory_bytes", lambda: 2e9)
-    monkeypatch.setattr(trajectories.csv, "reader", lambda *a, **k: pytest.fail("parsed"))
+    monkeypatch.setattr(samples.csv, "reader", lambda *a, **k: pytest.fail("parsed"))
     rc, _, err = _cli(
         capsys,
         [

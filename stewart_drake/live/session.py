@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError
+from ..references.smoothstep import smooth_ramp
 
 #: Default duration of the homing lead-in, s.
 HOME_S = 3.0
@@ -278,12 +279,8 @@ class HomingReference:
         R, T = self.ramp_s, self.t_end + self.ramp_s
 
         def up(s):  # the rising ramp, s in [0, R]: tau = R * integral of S
-            u = s / R
-            return (
-                R * u**4 * (2.5 - 3 * u + u * u),
-                u**3 * (10 - 15 * u + 6 * u * u),
-                (30 * u * u * (1 - u) ** 2 / R),
-            )
+            tau, S, dS = smooth_ramp(s / R, scale=R)
+            return tau, S, dS / R
 
         tau, d1, d2 = s - R / 2, np.ones_like(s), np.zeros_like(s)
         rising, falling = s < R, s > T - R

@@ -156,7 +156,9 @@ def _cmd_reproduce(args) -> int:
     """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..base.fileio import check_replaceable
-    from ..organ_motion.fidelity import parse_tolerance, reproduce, verdict, write_report
+    from ..organ_motion.fidelity import parse_tolerance, verdict
+    from ..organ_motion.fidelity_report import write_report
+    from ..organ_motion.reproduction import reproduce
 
     tolerance = parse_tolerance(args.tolerance)
     scenario, name = _reproduce_scenario(args)
@@ -216,7 +218,7 @@ def _reproduce_scenario(args):
             (and the other way round).
     """
     from ..base.errors import InvalidConfigError
-    from ..references.organ_motion import OrganMotionReference, split_parameters
+    from ..references.organ.library import OrganMotionReference, split_parameters
     from ..run.scenario_io import load_scenario
 
     scenario = load_scenario(args.scenario, args.set or ())

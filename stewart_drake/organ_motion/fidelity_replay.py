@@ -21,7 +21,7 @@ def reproduction_html(
     colours' meaning.
 
     Args:
-        rep: the :class:`~stewart_drake.organ_motion.fidelity.Reproduction`.
+        rep: the :class:`~stewart_drake.organ_motion.reproduction.Reproduction`.
         geometry: the robot that was simulated (the plan's ``plant_geometry``).
         path: the .html to write. tolerance: (m, rad) the report's tolerance.
         fps: frames per s. meshcat: a Meshcat to record into (default: :func:`offline_meshcat`).

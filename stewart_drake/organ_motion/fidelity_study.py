@@ -123,9 +123,10 @@ def run_case(case: FidelityCase) -> dict:
         "learner": [the learner's status at each cycle's end] or None, "wall_s", "sim_s"}.
     """
     from ..control.ilc import ILC_STATUS_NAMES, IlcDriver
-    from ..references.organ_motion import OrganMotionReference
+    from ..references.organ.library import OrganMotionReference
     from ..run.scenario_io import load_scenario
-    from .fidelity import fidelity, rms_translation_rotation, run
+    from .fidelity import fidelity, rms_translation_rotation
+    from .reproduction import run
 
     scenario = load_scenario("paper_hardware", case.overrides)
     scenario.reference = OrganMotionReference(case.motion, dict(case.parameters))

@@ -145,7 +145,7 @@ def _motion_cases(folder) -> list:
 def _reference(case_motion: str, parameters: tuple, path: str):
     """The reference of a case: a trace file's (IntERAct's format read as it is) or a library
     motion's."""
-    from ..references.organ_motion import make_motion
+    from ..references.organ.library import make_motion
     from ..references.traces import load_trace
 
     return load_trace(path) if path else make_motion(case_motion, dict(parameters))
@@ -181,7 +181,7 @@ def _run(
     """(figures, the learner's last status or None, the learned weights or None, wall s) of one
     run of :data:`DURATION_S` on ``paper_hardware`` with ``overrides``."""
     from ..run.scenario_io import load_scenario
-    from .fidelity import run
+    from .reproduction import run
 
     scenario = load_scenario("paper_hardware", overrides)
     scenario.duration_s = DURATION_S

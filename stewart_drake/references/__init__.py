@@ -1,3 +1,6 @@
-"""What a run tracks: the Reference protocol (:mod:`.motion`), trajectories and CSV
-references (:mod:`.trajectories`), the organ-motion library (:mod:`.organ_motion`) and recorded
-traces (:mod:`.traces`). Imports base and robot."""
+"""What a run tracks: the Reference protocol (:mod:`.motion`), trajectories (:mod:`.trajectories`:
+sines, steps, sweeps, adapters and the check of a reference before a run), references from
+samples and the reference CSV (:mod:`.samples`), the tuner's data-collection excitation
+(:mod:`.data_collection`), the organ-motion library (:mod:`.organ`), recorded traces
+(:mod:`.traces`, their files read by :mod:`.trace_files`) and the one quintic smoothstep
+(:mod:`.smoothstep`). Imports base and robot."""

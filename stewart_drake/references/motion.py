@@ -3,9 +3,9 @@ scenario chooses one.
 
 A reference is any object with ``evaluate(t)`` and a ``name`` (:class:`Reference`): the
 trajectories of :mod:`~.trajectories` and the tuner study's tasks (:mod:`~.tasks`), the motions
-of the organ-motion library (:mod:`~.organ_motion`), recorded traces (:mod:`~.traces`), and
-their sums and scalings (:class:`~.organ_motion.MotionSum`,
-:class:`~.organ_motion.ScaledReference`). Some references say more, and what asks for it uses it
+of the organ-motion library (:mod:`~.organ`), recorded traces (:mod:`~.traces`), and
+their sums and scalings (:class:`~.combinators.MotionSum`,
+:class:`~.combinators.ScaledReference`). Some references say more, and what asks for it uses it
 when it is there (the optional members of :class:`Reference`): ``end_time``, ``centre``,
 ``cycles(t_end)``, ``repeat_period_s``, ``frequencies_hz()``. :func:`reference_cycles` is how
 the learner and the fidelity report ask any reference for its cycles.
@@ -35,7 +35,7 @@ class Reference(Protocol):
 
     - ``end_time``: its last time, s (a run may not last longer; a CSV or a trace has one);
     - ``centre``: (6,) the pose it moves about, rad and m (the fixed point of
-      :class:`~.organ_motion.ScaledReference`; else its pose at t = 0 is);
+      :class:`~.combinators.ScaledReference`; else its pose at t = 0 is);
     - ``cycles(t_end)`` -> (starts (K + 1,), scale (K,)): the cycles that begin in [0, t_end),
       their starts in s (the last entry ends the last cycle) and each cycle's amplitude over the
       mean's (:func:`reference_cycles` finds them where a reference has none);
@@ -63,9 +63,9 @@ class Reference(Protocol):
 
 class ReferenceConfig:
     """Base of a scenario's reference choices: :class:`~.trajectories.NamedReference`,
-    :class:`~.trajectories.CsvReference`, :class:`~.trajectories.SineReference`,
-    :class:`~.trajectories.DataCollectionReference` (beside the trajectories they build),
-    :class:`~.organ_motion.OrganMotionReference` and :class:`~.traces.TraceReference`;
+    :class:`~.samples.CsvReference`, :class:`~.trajectories.SineReference`,
+    :class:`~.data_collection.DataCollectionReference` (beside the trajectories they build),
+    :class:`~.library.OrganMotionReference` and :class:`~.traces.TraceReference`;
     :data:`~.scenario.ReferenceChoice` is their union.
 
     Each is a plain mutable dataclass with concrete field types (Drake's ``yaml_load_typed``
@@ -90,7 +90,7 @@ class ReferenceConfig:
         Args:
             geometry: the robot. duration_s: the run's length, s. torque_limit_Nm: the motors'
                 torque limit in force, N m, or None (unlimited). Only
-                :class:`~.trajectories.DataCollectionReference` uses them (its excitation
+                :class:`~.data_collection.DataCollectionReference` uses them (its excitation
                 lasts the run and fits the robot and its motors); the others ignore them.
         Raises:
             InvalidConfigError, MissingFileError, CorruptFileError: as :meth:`validate`, and

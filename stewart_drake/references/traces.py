@@ -2,66 +2,39 @@
 
 :func:`load_trace` reads a CSV of 1 to 6 axes whose header names each column and its unit
 (``t [s], SI [mm], AP [mm], pitch [deg]``), at any sample rate and with gaps, maps the trace's
-axes onto the platform's (platform or patient axis names, :data:`~.organ_motion.PATIENT_AXES`,
+axes onto the platform's (platform or patient axis names, :data:`~.core.PATIENT_AXES`,
 or a map of the trace's own names), resamples it to a C2 spline
-(:class:`~.trajectories.CubicSplineTrajectory`), optionally low-passes it without
+(:class:`~.samples.CubicSplineTrajectory`), optionally low-passes it without
 phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose (:data:`CENTRE_MODES`).
 The result is a :class:`TraceTrajectory` that says what was read and done (:class:`TraceInfo`).
 The project's own CSV (``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
-(:func:`~.trajectories.load_csv_trajectory`). :class:`TraceReference` is a scenario's choice of
+(:func:`~.samples.load_csv_trajectory`). :class:`TraceReference` is a scenario's choice of
 a trace.
 
 Drake's YAML loader reads :class:`TraceReference`'s field types: this module must not use
 ``from __future__ import annotations``.
 """
 
-import csv
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..base.checks import as_array, as_number, as_poses
-from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from ..base.errors import InvalidConfigError, MissingFileError
 from ..robot.geometry import X_HOME, StewartGeometry
+from ..robot.kinematics import AXIS_NAMES
 from .motion import Reference, ReferenceConfig
-from .organ_motion import UNITS, axis_index, check_centre, layered, make_layers, scaled
-from .trajectories import (
-    AXIS_NAMES,
-    CSV_BYTES_PER_ROW,
-    CSV_COLUMNS,
-    CubicSplineTrajectory,
-    load_csv_trajectory,
-)
+from .organ.combinators import layered, scaled
+from .organ.core import check_centre
+from .organ.library import make_layers
+from .samples import CSV_BYTES_PER_ROW, CSV_COLUMNS, CubicSplineTrajectory, load_csv_trajectory
+from .trace_files import TRACE_FORMATS, TraceTable, read_trace_table, trace_samples
 
 #: Which pose of a trace goes to its centre (``centre_on`` of :func:`load_trace`): its mean, its
 #: first sample, or none (the trace's values are displacements from the centre).
 CENTRE_MODES = ("mean", "first", "none")
-
-#: Largest trace file read, bytes (several hours at 100 Hz).
-MAX_TRACE_BYTES = 256e6
-#: Time units of a trace's time column: factor to s.
-TIME_UNITS = {"s": 1.0, "ms": 1e-3, "min": 60.0}
-#: The layouts :func:`load_trace` reads (``format``): "auto" (a header line, else the width
-#: decides: 7 columns are "phantom", 2 are "surrogate"), "csv" (a header line naming each
-#: column and its unit), "phantom", "surrogate".
-TRACE_FORMATS = ("auto", "csv", "phantom", "surrogate")
-#: The columns of the 6-D motion phantom format (Image-X Institute's IntERAct: text without a
-#: header, one sample per line, numbers separated by spaces, 5 Hz in its library): time, the
-#: target's translation in the patient's axes, and its rotation about them.
-PHANTOM_COLUMNS = "t [s], LR [mm], SI [mm], AP [mm], rot_LR [deg], rot_SI [deg], rot_AP [deg]"
-#: The columns of a phantom's external surrogate file (2 columns without a header: time and the
-#: marker's displacement): the displacement goes to the patient's SI unless mapped elsewhere.
-SURROGATE_COLUMNS = "t [s], surrogate [mm]"
-#: Where a surrogate's displacement goes by default (``axis_map`` overrides it).
-SURROGATE_AXIS = {"surrogate": "SI"}
-#: The name that skips a column in ``columns`` (a tracker's frame counter): ``-,t [ms],X [mm]``.
-SKIP_COLUMN = "-"
-#: Largest median step between a trace's samples, s: slower than this a breath (about 4 s) is
-#: not sampled, and the time column's unit is likely wrong (ms declared as s).
-MAX_SAMPLE_STEP_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -123,10 +96,10 @@ class TraceInfo:
 
 
 class TraceTrajectory(CubicSplineTrajectory):
-    """A recorded trace as a reference: a :class:`~.trajectories.CubicSplineTrajectory` (C2 cubic
+    """A recorded trace as a reference: a :class:`~.samples.CubicSplineTrajectory` (C2 cubic
     spline through the resampled poses) with the trace's import record (``info``,
     :class:`TraceInfo`) and its ``centre`` pose, the fixed point of
-    :class:`~.organ_motion.ScaledReference`."""
+    :class:`~.combinators.ScaledReference`."""
 
     def __init__(self, t, poses, info: TraceInfo, centre, name: str):
         super().__init__(t, poses, name=name)
@@ -135,279 +108,6 @@ class TraceTrajectory(CubicSplineTrajectory):
 
     def frequencies_hz(self) -> dict:
         return {}
-
-
-def _parse_header_cell(cell: str) -> tuple[str, str]:
-    """(name, unit) of a header cell: ``SI [mm]``, ``SI (mm)``, ``SI_mm``, ``t``."""
-    text = cell.strip()
-    m = re.fullmatch(r"(.+?)\s*[\[(]\s*([^\])]*)\s*[\])]", text)
-    if m:
-        return m.group(1).strip(), m.group(2).strip()
-    if "_" in text:
-        name, unit = text.rsplit("_", 1)
-        known = {u for table in (UNITS["m"], UNITS["rad"], TIME_UNITS) for u in table}
-        if unit in known:
-            return name, unit
-    return text, ""
-
-
-#: How to write a trace file: the remedy of the messages about one that cannot be read.
-_TRACE_REMEDY = (
-    "write a first line naming each column and its unit, e.g. t [s],SI [mm],AP [mm], or give "
-    "them with --columns (a scenario's reference.columns), or --format phantom for the "
-    "7-column phantom format"
-)
-
-
-def _number(cell: str) -> bool:
-    """A cell that reads as a float (or is empty: a missing sample)."""
-    try:
-        float(cell) if cell.strip() else None
-    except ValueError:
-        return False
-    return True
-
-
-def _separator(lines: list) -> tuple[str | None, bool]:
-    """(separator, decimal comma) of a trace's text from its first data lines: ";" or a tab
-    (each with a decimal comma when the numbers have one), ",", or None (runs of spaces, with a
-    decimal comma when the numbers have one)."""
-    sample = [ln for ln in lines[1:21] if ln.strip()] or [ln for ln in lines if ln.strip()][:1]
-    for sep in (";", "\t"):
-        if sample and all(sep in ln for ln in sample):
-            return sep, any("," in ln for ln in sample)
-    if sample and all("," in ln for ln in sample):
-        if all(all(_number(c) for c in ln.split(",")) for ln in sample):
-            return ",", False
-        spaced = [ln.replace(",", ".").split() for ln in sample]
-        if all(len(cells) > 1 and all(_number(c) for c in cells) for cells in spaced):
-            return None, True  # numbers with decimal commas separated by spaces
-        return ",", False
-    return None, False
-
-
-#: A cell of a line whose cells are separated by spaces: a word or number, with the unit in
-#: brackets that may follow it after spaces (``SI [mm]``, ``t (s)``).
-_SPACED_CELL = re.compile(r"[^\s\[(]+(?:\s*[\[(][^\])]*[\])])?|[\[(][^\])]*[\])]")
-
-
-def _split_lines(path: Path, text: str) -> tuple[list, str]:
-    """(rows of cell strings, one per non-blank line with its line number first; the layout
-    in words) of a trace's text, whatever its separator and decimal mark."""
-    lines = text.splitlines()
-    sep, decimal_comma = _separator(lines)
-    rows = []
-    if sep in (",", ";"):
-        reader = csv.reader(lines, delimiter=sep)
-        try:
-            for number, cells in enumerate(reader, start=1):
-                if cells and any(c.strip() for c in cells):
-                    rows.append([number] + cells)
-        except csv.Error as err:
-            raise CorruptFileError(
-                path, "trace file", f"not delimited text ({err})", _TRACE_REMEDY
-            ) from None
-    else:
-        for number, line in enumerate(lines, start=1):
-            # Without a separator a header's "t [s]  SI [mm]" keeps each unit with its name.
-            cells = line.split(sep) if sep else _SPACED_CELL.findall(line)
-            if any(c.strip() for c in cells):
-                rows.append([number] + cells)
-    if decimal_comma:
-        rows = [[r[0]] + [str(c).replace(",", ".") for c in r[1:]] for r in rows]
-    named = {",": "commas", ";": "semicolons", "\t": "tabs", None: "spaces"}[sep]
-    return rows, f"separated by {named}" + (", decimal commas" if decimal_comma else "")
-
-
-def _trace_table(path: Path, format: str, columns: str) -> tuple[list, list, str]:
-    """(header cells, data rows (each its line number then its cells), layout in words) of a
-    trace file in any of :data:`TRACE_FORMATS`, or given its columns.
-
-    Raises:
-        MissingFileError, CorruptFileError: no such file, too large, not UTF-8 text.
-        InvalidConfigError: an unknown format, a file without a header whose width says no
-            format, a header where the format has none, an empty file.
-    """
-    from ..base.fileio import decode_text, read_checked
-
-    if format not in TRACE_FORMATS:
-        raise InvalidConfigError(f"trace format {format!r}: use one of {', '.join(TRACE_FORMATS)}")
-    if not path.exists():
-        raise MissingFileError(f"no trace at {path}: check the path")
-    raw = read_checked(path, "trace file", MAX_TRACE_BYTES, _TRACE_REMEDY)
-    text = decode_text(raw, path, "trace file", _TRACE_REMEDY, encoding="utf-8-sig")
-    del raw
-    if "\0" in text:
-        raise CorruptFileError(path, "trace file", "not text (a NUL byte)", _TRACE_REMEDY)
-    rows, layout = _split_lines(path, text)
-    del text
-    if not rows:
-        raise InvalidConfigError(f"{path}: empty; {_TRACE_REMEDY}")
-    headed = not all(_number(c) for c in rows[0][1:])
-    if format in ("phantom", "surrogate") and headed:
-        raise InvalidConfigError(
-            f"{path}: the {format} format has no header line, but line {rows[0][0]} is not "
-            f"all numbers; leave --format out to read the header"
-        )
-    if format == "csv" and not headed and not columns:
-        raise InvalidConfigError(f"{path}: no header line naming the columns; {_TRACE_REMEDY}")
-    data = rows[1:] if headed else rows
-    if columns:
-        header, how = [c.strip() for c in str(columns).split(",")], "columns given"
-    elif headed:
-        header, how = rows[0][1:], "header"
-    else:
-        width = len(rows[0]) - 1
-        kind = format if format != "auto" else {7: "phantom", 2: "surrogate"}.get(width)
-        if kind is None:
-            raise InvalidConfigError(
-                f"{path}: no header line and {width} columns, neither the phantom format (7: "
-                f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {_TRACE_REMEDY}"
-            )
-        header = [
-            c.strip()
-            for c in (PHANTOM_COLUMNS if kind == "phantom" else SURROGATE_COLUMNS).split(",")
-        ]
-        how = f"{kind} format, no header"
-    return header, data, f"{how}, {layout}"
-
-
-def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int, float]:
-    """(platform axis 0..5, factor to rad or m with the axis's sign) of one axis column."""
-    k, sign = axis_index(axis_map.get(name, name))
-    kind = "m" if k >= 3 else "rad"
-    table = {u.lower(): f for u, f in UNITS[kind].items()}
-    if unit.lower() not in table:
-        other = "rad" if kind == "m" else "m"
-        hint = (
-            f"a {'length' if other == 'm' else 'angle'} on a "
-            f"{'rotation' if kind == 'rad' else 'translation'} axis"
-            if unit.lower() in {u.lower() for u in UNITS[other]}
-            else f"units: {', '.join(UNITS[kind])}"
-        )
-        raise InvalidConfigError(
-            f"{path}: column {name!r} goes to the platform's "
-            f"{AXIS_NAMES[k]} and needs a unit of "
-            f"{'length' if kind == 'm' else 'angle'}, got "
-            f"{unit or 'none'!r} ({hint}); e.g. '{name} [mm]'"
-        )
-    return k, sign * table[unit.lower()]
-
-
-def _trace_header(path: Path, cells: list, axis_map: dict | None):
-    """(names, units, targets, factors) of a trace's header row: the column names and units
-    (time first), and for each axis column its platform axis 0..5 and its factor to rad or m
-    (signed)."""
-    header = [_parse_header_cell(c) for c in cells]
-    names = [h[0] for h in header]
-    if names[0].lower() not in ("t", "time"):  # unquoted: a file named by mistake may be private
-        raise InvalidConfigError(
-            f"{path}: the first column must be the time (t [s]), and the first line does not "
-            f"name one; {_TRACE_REMEDY} (a column before the time is skipped by naming it "
-            f"{SKIP_COLUMN}: --columns '{SKIP_COLUMN},t [ms],X [mm],...')"
-        )
-    if not 2 <= len(header) <= 7:
-        raise InvalidConfigError(
-            f"{path}: a trace has a time column and 1 to 6 axes, got {len(header) - 1} axes"
-        )
-    units = [h[1] for h in header]
-    if units[0].lower() not in TIME_UNITS:
-        raise InvalidConfigError(
-            f"{path}: the time column needs its unit ({', '.join(TIME_UNITS)}"
-            f"), e.g. 't [s]', got {cells[0]!r}"
-        )
-    axis_map = dict(axis_map or {})
-    unknown = set(axis_map) - set(names[1:])
-    if unknown:
-        raise InvalidConfigError(
-            f"{path}: axis_map names {', '.join(sorted(unknown))}, which "
-            f"the trace has not (its columns: {', '.join(names[1:])})"
-        )
-    targets, factors = [], []
-    for name, unit in header[1:]:
-        k, factor = _column_axis(path, name, unit, axis_map)
-        if k in targets:
-            raise InvalidConfigError(
-                f"{path}: two columns go to the platform's {AXIS_NAMES[k]}; "
-                f"map one elsewhere with axis_map (--map NAME=AXIS)"
-            )
-        targets.append(k)
-        factors.append(factor)
-    return names, units, targets, factors
-
-
-def _trace_values(path: Path, rows: list, width: int, keep: list) -> tuple:
-    """((n, len(keep)) the numbers of the data rows' columns ``keep`` in the file's units, NaN
-    where a cell is empty; (n,) the rows' line numbers) of the data rows (each its line number,
-    then its ``width`` cells; the cells of the other columns are not read)."""
-    values, lines = [], []
-    for line, *row in rows:
-        if len(row) != width:
-            raise InvalidConfigError(
-                f"{path}, line {line}: {len(row)} fields, the columns are {width}"
-            )
-        cells = [row[j] for j in keep]
-        try:
-            numbers = [float(c) if c.strip() else math.nan for c in cells]
-        except ValueError:
-            raise InvalidConfigError(
-                f"{path}, line {line}: not numbers: {','.join(cells)[:200]!r}"
-                + ("" if len(keep) == width else f" (read columns {[j + 1 for j in keep]})")
-            ) from None
-        if not math.isfinite(numbers[0]):
-            raise InvalidConfigError(f"{path}, line {line}: the time is missing")
-        if any(math.isinf(v) for v in numbers):
-            raise InvalidConfigError(f"{path}, line {line}: an infinite value")
-        values.append(numbers)
-        lines.append(line)
-    return np.array(values, dtype=float).reshape(-1, len(keep)), np.array(lines, dtype=int)
-
-
-def _without_end_marker(path: Path, data: np.ndarray, lines: np.ndarray) -> tuple:
-    """(data, lines, what was left out in words or "") of a trace's rows: a last row of zeros
-    after a later time (a tracker's export ends so) is not a sample, and is left out."""
-    if len(data) > 2 and data[-2, 0] > 0 and not np.any(data[-1]):
-        return data[:-1], lines[:-1], f"line {lines[-1]} (all zeros after the last sample)"
-    return data, lines, ""
-
-
-def _times(path: Path, data: np.ndarray, lines: np.ndarray, unit: str) -> np.ndarray:
-    """(n,) a trace's times from 0, s, checked: increasing, over at least 4 rows, at a step a
-    breath can be sampled at.
-
-    Raises:
-        InvalidConfigError: a time not after the one before (its line named), fewer than 4
-            rows, a median step over :data:`MAX_SAMPLE_STEP_S` (the likely unit named).
-    """
-    raw = data[:, 0]
-    if len(raw) < 4:
-        raise InvalidConfigError(f"{path}: times must strictly increase, over at least 4 rows")
-    bad = np.flatnonzero(np.diff(raw) <= 0)
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise InvalidConfigError(
-            f"{path}, line {lines[i]}: the time {raw[i]:.10g} is not after the line before's "
-            f"({raw[i - 1]:.10g}, line {lines[i - 1]}); times must strictly increase: remove "
-            f"or correct that line"
-        )
-    factor = TIME_UNITS[unit.lower()]
-    step_raw, span_raw = float(np.median(np.diff(raw))), float(raw[-1] - raw[0])
-    if step_raw * factor > MAX_SAMPLE_STEP_S:
-        likely = [u for u, f in TIME_UNITS.items() if 1e-4 <= step_raw * f <= MAX_SAMPLE_STEP_S]
-        guess = (
-            f"likely in {likely[0]}: as 't [{likely[0]}]' they are "
-            f"{1 / (step_raw * TIME_UNITS[likely[0]]):.4g} Hz over "
-            f"{span_raw * TIME_UNITS[likely[0]]:.4g} s"
-            if likely
-            else "check the time column's unit"
-        )
-        raise InvalidConfigError(
-            f"{path}: the times are {guess}; declared in {unit} they would be "
-            f"{step_raw * factor:.4g} s apart ({1 / (step_raw * factor):.3g} Hz) over "
-            f"{span_raw * factor:.4g} s, too slow to sample a breath (write the time's unit in "
-            f"the header or --columns)"
-        )
-    return (raw - raw[0]) * factor
 
 
 def _trace_grid(path: Path, t: np.ndarray, resample_hz: float) -> np.ndarray:
@@ -534,28 +234,28 @@ def load_trace(
     spaces, with a decimal point or (with any separator but commas) a decimal comma. Its first
     line names the columns and their units, or ``columns`` does (the same words, comma
     separated), or it has none and is one of the phantom formats (``format``, by its width when
-    "auto"): the 7-column 6-D format :data:`PHANTOM_COLUMNS`, or a 2-column external surrogate
-    :data:`SURROGATE_COLUMNS` (its displacement on SI unless ``axis_map`` says otherwise). The
-    columns are a time column (``t`` or ``time``, in s, ms or min) and 1 to 6 axes (``SI
-    [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or um, angles in rad, mrad, urad or
-    deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
+    "auto"): the 7-column 6-D format :data:`~.trace_files.PHANTOM_COLUMNS`, or a 2-column
+    external surrogate :data:`~.trace_files.SURROGATE_COLUMNS` (its displacement on SI unless
+    ``axis_map`` says otherwise). The columns are a time column (``t`` or ``time``, in s, ms or
+    min) and 1 to 6 axes (``SI [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or um,
+    angles in rad, mrad, urad or deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
     roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
-    :data:`~.organ_motion.PATIENT_AXES`), or any name given a platform axis by ``axis_map``.
-    Times increase but need not be evenly spaced, at most :data:`MAX_SAMPLE_STEP_S` apart (median);
-    a last line of zeros after them (an optical tracker's export ends so) is left out and
-    ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that axis.
-    Each axis is joined by a cubic spline through its samples
+    :data:`~.core.PATIENT_AXES`), or any name given a platform axis by ``axis_map``. Times
+    increase but need not be evenly spaced, at most :data:`~.trace_files.MAX_SAMPLE_STEP_S`
+    apart (median); a last line of zeros after them (an optical tracker's export ends so) is
+    left out and ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that
+    axis. Each axis is joined by a cubic spline through its samples
     (``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
     without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
-    ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace
-    does not have stay at the centre.
+    ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace does
+    not have stay at the centre.
 
     A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m) is read by
-    :func:`~.trajectories.load_csv_trajectory` as always (``centre``, ``axis_map``,
+    :func:`~.samples.load_csv_trajectory` as always (``centre``, ``axis_map``,
     ``lowpass_hz`` do not apply to it).
 
     Args:
-        path: the text file (UTF-8, at most :data:`MAX_TRACE_BYTES`).
+        path: the text file (UTF-8, at most :data:`~.trace_files.MAX_TRACE_BYTES`).
         axis_map: {column name: platform axis with an optional sign}, e.g. ``{"SI": "-Z"}``;
             it takes precedence over the names' own meaning.
         centre: (6,) the pose the trace is centred on, rad and m; default home.
@@ -568,10 +268,11 @@ def load_trace(
         format: one of :data:`TRACE_FORMATS`.
         columns: the columns' names and units when the file has no header (or to replace
             its header), e.g. ``"t [s], SI [mm], AP [mm]"``; a column named ``-``
-            (:data:`SKIP_COLUMN`) is not read (a tracker's frame counter: ``"-, t [ms], X [mm]"``).
+            (:data:`~.trace_files.SKIP_COLUMN`) is not read (a tracker's frame counter:
+            ``"-, t [ms], X [mm]"``).
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
-        :class:`~.trajectories.CubicSplineTrajectory` of a project CSV.
+        :class:`~.samples.CubicSplineTrajectory` of a project CSV.
     Raises:
         MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
             UTF-8 or not CSV.
@@ -582,19 +283,20 @@ def load_trace(
             longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
     """
     path = Path(path)
-    header, rows, layout = _trace_table(path, format, columns)
+    header, rows, layout = read_trace_table(path, format, columns)
     if tuple(h.strip() for h in header) == CSV_COLUMNS and not columns:
         return load_csv_trajectory(path)
-    if "surrogate" in layout:
-        axis_map = {**SURROGATE_AXIS, **(axis_map or {})}
-    keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN]
-    if not keep:
-        raise InvalidConfigError(f"{path}: every column is skipped ({SKIP_COLUMN!r})")
-    names, units, targets, factors = _trace_header(path, [header[j] for j in keep], axis_map)
-    data, lines = _trace_values(path, rows, len(header), keep)
+    table = trace_samples(path, header, rows, layout, axis_map)
     del rows
-    data, lines, dropped = _without_end_marker(path, data, lines)
-    t = _times(path, data, lines, units[0])
+    return _trace_trajectory(path, table, centre, centre_on, lowpass_hz, max_gap_s, resample_hz)
+
+
+def _trace_trajectory(
+    path: Path, table: TraceTable, centre, centre_on, lowpass_hz, max_gap_s, resample_hz
+) -> "TraceTrajectory":
+    """The :class:`TraceTrajectory` of a trace's samples (see :func:`load_trace`): resampled at
+    ``resample_hz``, low-passed, centred, with its :class:`TraceInfo`."""
+    t, targets = table.t, table.targets
     rate = 1.0 / float(np.median(np.diff(t)))
     max_gap_s = as_number("max_gap_s", max_gap_s, 0.0, lo_open=True)
     resample_hz = as_number("resample_hz", resample_hz, 1.0, 1e4)
@@ -602,7 +304,9 @@ def load_trace(
         # Below MIN_LOWPASS_HZ the filter removes every breath (and its design is singular).
         lowpass_hz = as_number("lowpass_hz", lowpass_hz, MIN_LOWPASS_HZ, 0.5 * resample_hz)
     grid = _trace_grid(path, t, resample_hz)
-    displacement, gaps = _resampled(path, t, data, names, targets, factors, grid, rate, max_gap_s)
+    displacement, gaps = _resampled(
+        path, t, table.data, table.names, targets, table.factors, grid, rate, max_gap_s
+    )
     displacement, removed = _centred(
         _lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets
     )
@@ -610,18 +314,20 @@ def load_trace(
     poses = as_poses(f"{path}: the trace's poses", centre + displacement)
     info = TraceInfo(
         path=str(path),
-        columns=tuple(names),
-        units=tuple(units),
-        axes=tuple(f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}" for k, f in zip(targets, factors)),
+        columns=tuple(table.names),
+        units=tuple(table.units),
+        axes=tuple(
+            f"{'+' if f > 0 else '-'}{AXIS_NAMES[k]}" for k, f in zip(targets, table.factors)
+        ),
         samples=len(t),
         sample_rate_hz=rate,
         gaps=tuple(sorted(set(gaps))),
         lowpass_hz=lowpass_hz,
         duration_s=float(grid[-1]),
         centred_on=centre_on,
-        layout=layout,
+        layout=table.layout,
         removed=tuple(float(v) for v in removed),
-        dropped=dropped,
+        dropped=table.dropped,
     )
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
@@ -646,7 +352,7 @@ class TraceReference(ReferenceConfig):
             width). columns: its columns' names and units when it has no header line.
         add: motions of the library laid on the trace, name -> parameters
             (``{baseline_drift: {drift: 3mm}}``: a drift on a recording,
-            :func:`~.organ_motion.layered`); the scale shrinks the sum.
+            :func:`~.combinators.layered`); the scale shrinks the sum.
     """
 
     path: str = ""
@@ -710,12 +416,6 @@ __all__ = [
     "TraceTrajectory",
     "TraceInfo",
     "CENTRE_MODES",
-    "MAX_TRACE_BYTES",
-    "TIME_UNITS",
-    "TRACE_FORMATS",
-    "SKIP_COLUMN",
-    "MAX_SAMPLE_STEP_S",
-    "PHANTOM_COLUMNS",
-    "SURROGATE_COLUMNS",
+    "MIN_LOWPASS_HZ",
     "TraceReference",
 ]

@@ -8,14 +8,14 @@ or a registered name. :func:`validate` checks one before a run;
 :mod:`~stewart_drake.run.reference` puts one into a Diagram. What a reference is:
 :class:`~.motion.Reference`.
 
-A scenario chooses these references by :class:`NamedReference`, :class:`CsvReference`,
-:class:`SineReference` and :class:`DataCollectionReference`, whose field types Drake's YAML
-loader reads: this module must not use ``from __future__ import annotations``.
+The reference CSV and the spline through samples are in :mod:`~.samples`, the tuner's
+data-collection excitation in :mod:`~.data_collection`. A scenario chooses these references by
+:class:`NamedReference`, :class:`~.samples.CsvReference`, :class:`SineReference` and
+:class:`~.data_collection.DataCollectionReference`, whose field types Drake's YAML loader reads:
+this module must not use ``from __future__ import annotations``.
 """
 
-import csv
 import functools
-import io
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -24,12 +24,13 @@ from typing import Any
 import numpy as np
 from pydrake.trajectories import Trajectory
 
-from ..base.checks import MAX_SEED, as_array, as_number, as_poses, check_int
+from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError
-from ..robot import kinematics, limits
+from ..robot import limits
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.kinematics import AXIS_NAMES
 from .motion import Reference, ReferenceConfig
+from .samples import load_csv_trajectory
 
 
 def check_sine_bounds(trajectory) -> None:
@@ -374,196 +375,6 @@ class DrakeTrajectory:
         )
 
 
-class CubicSplineTrajectory:
-    """Samples of the pose joined by a cubic spline with continuous second derivatives (the
-    not-a-knot spline, ``scipy.interpolate.CubicSpline``): pose, rate and acceleration, held at
-    the end values' times outside the samples (the time is clamped, as Drake's
-    ``PiecewisePolynomial`` does).
-
-    It is the spline Drake's ``PiecewisePolynomial.CubicWithContinuousSecondDerivatives(t,
-    samples, False)`` builds (the two agree to 1e-14), held as four coefficient arrays of shape
-    (n - 1, 6): about 0.6 kB per sample with its derivatives where Drake's polynomial objects
-    take 4 kB and, for a million samples, 35 s to build and differentiate.
-
-    Args:
-        t: (n,) sample times, s, strictly increasing; n >= 3.
-        poses: (n, 6) the pose at each time [rad, rad, rad, m, m, m].
-        name: label used in result files.
-    Attributes:
-        start_time, end_time: the first and last sample times, s; a run may not last longer.
-    """
-
-    def __init__(self, t, poses, name: str = "spline"):
-        from scipy.interpolate import CubicSpline
-
-        t, poses = np.asarray(t, dtype=float), np.asarray(poses, dtype=float)
-        spline = CubicSpline(t, poses, axis=0, bc_type="not-a-knot")
-        self._derivatives = (spline, spline.derivative(1), spline.derivative(2))
-        self.start_time, self.end_time = float(t[0]), float(t[-1])
-        self.name = name
-
-    def evaluate(self, t):
-        """Pose, rate, acceleration at times t: three ``t.shape + (6,)`` arrays."""
-        t = np.clip(np.asarray(t, dtype=float), self.start_time, self.end_time)
-        return tuple(d(t) for d in self._derivatives)
-
-
-CSV_COLUMNS = ("t",) + AXIS_NAMES
-
-
-#: Largest reference CSV read, bytes (about six million rows of seven numbers).
-MAX_CSV_BYTES = 1e9
-#: Memory a run holds per row of a reference CSV, bytes: measured 0.44 kB at the peak of
-#: `stewart-drake run` (a 2e5-row file against a 1e3-row one over the same 10 s: the spline's
-#: coefficients and its derivatives'), and 0.93 kB per 7-column row while the text is parsed,
-#: with slack.
-CSV_BYTES_PER_ROW = 1.5e3
-#: Closest sample times of a reference CSV, s (Drake's spline refuses 2.2e-16 and its
-#: accelerations reach 1e18 at 1e-9 s), and the latest time, s (cubic terms of 1e300 s segments
-#: overflow inside Drake, which aborts the process).
-CSV_MIN_DT_S = 1e-6
-CSV_MAX_T_S = 1e7
-
-
-def _read_csv_bytes(path: Path) -> bytes:
-    from ..base.errors import MissingFileError
-    from ..base.fileio import read_checked
-
-    if not path.exists():
-        raise MissingFileError(f"no reference CSV at {path}: check the path")
-    return read_checked(
-        path,
-        "reference CSV",
-        MAX_CSV_BYTES,
-        "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)",
-    )
-
-
-def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:
-    """The rows of CSV bytes (UTF-8, with or without a byte-order mark).
-
-    Raises:
-        CorruptFileError: not UTF-8 text, or not CSV (a NUL byte, a field beyond the csv
-            module's limit); names ``path`` as a ``kind`` and says ``remedy``.
-    """
-    from ..base.errors import CorruptFileError
-    from ..base.fileio import decode_text
-
-    text = decode_text(raw, path, kind, remedy, encoding="utf-8-sig")
-    try:
-        return list(csv.reader(io.StringIO(text, newline="")))
-    except csv.Error as err:
-        raise CorruptFileError(path, kind, f"not CSV ({err})", remedy) from None
-
-
-def csv_reference_bytes(path) -> float:
-    """Memory a run holds for the reference CSV ``path``, bytes (its lines times
-    :data:`CSV_BYTES_PER_ROW`), counted before anything is parsed.
-
-    Raises:
-        MissingFileError: no such file. CorruptFileError: not a regular file, or larger than
-            :data:`MAX_CSV_BYTES`.
-    """
-    return (_read_csv_bytes(Path(path)).count(b"\n") + 1) * CSV_BYTES_PER_ROW
-
-
-def load_csv_trajectory(path) -> "CubicSplineTrajectory":
-    """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), one row per
-    sample, times strictly increasing from 0; at least 3 rows. The samples are joined by a cubic
-    spline with continuous second derivatives (:class:`CubicSplineTrajectory`), which gives the
-    rate and the acceleration the controller and the feed-forward need. The file is read through
-    the checked path (a regular file of at most :data:`MAX_CSV_BYTES`), its memory
-    (:func:`csv_reference_bytes`) checked against the machine's before it is parsed; UTF-8, with
-    or without a byte-order mark.
-
-    Returns:
-        :class:`CubicSplineTrajectory` named after the file's stem; its ``end_time`` bounds the
-        run.
-    Raises:
-        MissingFileError: no such file. CorruptFileError: not a regular file, too large, not
-            UTF-8 text, or not CSV (a NUL byte, a field beyond the csv module's limit).
-        InvalidConfigError: another header, a row that is not 7 numbers (its line named), a
-            non-finite value, times not increasing from 0 by at least :data:`CSV_MIN_DT_S` or
-            beyond :data:`CSV_MAX_T_S`, fewer than 3 rows, or more rows than the memory holds.
-    """
-    path = Path(path)
-    data = _csv_samples(path)
-    _check_csv_times(path, data[:, 0])
-    as_poses(f"{path}: the poses", data[:, 1:])
-    return CubicSplineTrajectory(data[:, 0], data[:, 1:], name=path.stem)
-
-
-def _csv_samples(path: Path) -> np.ndarray:
-    """(n, 7) the rows [t, pose] of a reference CSV, read through the checked path, its memory
-    checked before it is parsed (see :func:`load_csv_trajectory`).
-
-    Raises:
-        MissingFileError, CorruptFileError, InvalidConfigError: as load_csv_trajectory.
-    """
-    from ..base.checks import check_memory
-
-    raw = _read_csv_bytes(path)
-    remedy = "write it as UTF-8 text with the header t,phi,theta,psi,X,Y,Z (s, rad, m)"
-    rows_in_file = raw.count(b"\n") + 1
-    check_memory(
-        f"a reference of {rows_in_file} rows ({path})",
-        rows_in_file * CSV_BYTES_PER_ROW,
-        "sample the reference more coarsely (one row per control period is plenty)",
-    )
-    rows = csv_rows(raw, path, "reference CSV", remedy)
-    del raw
-    header = [h.strip() for h in rows[0]] if rows else []
-    if tuple(header) != CSV_COLUMNS:
-        # What the line holds is not quoted: a file named by mistake may be a private one.
-        got = f"it has {len(header)} column{'s' if len(header) != 1 else ''} of other names"
-        raise InvalidConfigError(
-            f"{path}: the first line must be the header {','.join(CSV_COLUMNS)}; "
-            + (got if header else "it is empty")
-        )
-    values = []
-    for line, row in enumerate(rows[1:], start=2):
-        if not row or all(not c.strip() for c in row):
-            continue
-        try:
-            numbers = [float(c) for c in row]
-        except ValueError:
-            numbers = []
-        if len(numbers) != 7 or not np.all(np.isfinite(numbers)):
-            raise InvalidConfigError(
-                f"{path}, line {line}: expected 7 finite numbers "
-                f"(t [s], phi, theta, psi [rad], X, Y, Z [m]), got "
-                f"{','.join(row)[:200]!r}"
-            )
-        values.append(numbers)
-    del rows
-    return np.array(values).reshape(-1, 7)
-
-
-def _check_csv_times(path: Path, t: np.ndarray) -> None:
-    """At least 3 samples, from 0 s, strictly increasing by at least :data:`CSV_MIN_DT_S`, up
-    to :data:`CSV_MAX_T_S`.
-
-    Raises:
-        InvalidConfigError: names the file and what to change.
-    """
-    if len(t) < 3:
-        raise InvalidConfigError(f"{path}: a reference needs at least 3 samples, got {len(t)}")
-    if t[0] != 0.0 or np.any(np.diff(t) <= 0):
-        raise InvalidConfigError(f"{path}: times must start at 0 s and strictly increase")
-    if t[-1] > CSV_MAX_T_S:
-        raise InvalidConfigError(
-            f"{path}: the last time is {t[-1]:.6g} s; a reference ends by "
-            f"{CSV_MAX_T_S:g} s (times are in s)"
-        )
-    k = int(np.argmin(np.diff(t)))
-    if t[k + 1] - t[k] < CSV_MIN_DT_S:
-        raise InvalidConfigError(
-            f"{path}: samples must be at least {CSV_MIN_DT_S:g} s apart; "
-            f"those at t = {t[k]:.6g} s and {t[k + 1]:.6g} s are "
-            f"{t[k + 1] - t[k]:.3g} s apart (times are in s)"
-        )
-
-
 def as_trajectory(source) -> Reference:
     """A reference object with a vectorized ``evaluate`` from whatever the user gives.
 
@@ -682,167 +493,6 @@ def validate(
     return limits.merge_reports(reports)
 
 
-#: Acceleration caps of the data-collection trajectories: rad/s^2 for angles, m/s^2 for positions.
-DATA_ACCEL_CAP = (30.0, 30.0, 30.0, 3.0, 3.0, 3.0)
-#: Fraction of the motors' limit the collection path's inverse-dynamics torques may use.
-DATA_TORQUE_MARGIN = 0.7
-#: Amplitudes the paper names for its data (angles +-pi/6 rad, translations 0.3 m).
-PAPER_DATA_AMPLITUDE = (np.pi / 6, np.pi / 6, np.pi / 6, 0.3, 0.3, 0.3)
-
-
-def _max_single_axis_amplitude(geometry: StewartGeometry, axis: int, ratio_max: float) -> float:
-    """Largest a with home +- a e_axis reachable at ratio <= ratio_max (bisection)."""
-    lo, hi = 0.0, PAPER_DATA_AMPLITUDE[axis]
-    for _ in range(40):
-        mid = 0.5 * (lo + hi)
-        x = np.tile(X_HOME, (2, 1))
-        x[0, axis] += mid
-        x[1, axis] -= mid
-        if np.all(np.abs(kinematics.leg_reach_ratio(geometry, x)) <= ratio_max):
-            lo = mid
-        else:
-            hi = mid
-    return lo
-
-
-def _slack(
-    geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float, min_sigma_min_inv: float
-) -> np.ndarray:
-    """(n,) smallest margin of poses x (n, 6) over the checks of :func:`validate`, each
-    normalized by its bound; < 0 where refused. Checks: closure at ``ratio_max``, motor travel,
-    both ball-joint cones, then (only when every pose passes those: the SVD is the dear part)
-    cond(J) and 1/sigma_max(J)."""
-    theta, ratio = kinematics.ik_unchecked(geometry, x)
-    margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
-    travel = np.deg2rad(geometry.motor_angle_max_deg - geometry.motor_angle_min_deg) / 2
-    slack = np.min(
-        np.concatenate(
-            [
-                (ratio_max - np.abs(ratio)) / ratio_max,
-                margins["motor_angle"] / travel,
-                margins["crank_joint"] / np.deg2rad(geometry.crank_joint_cone_deg),
-                margins["platform_joint"] / np.deg2rad(geometry.platform_joint_cone_deg),
-            ],
-            axis=-1,
-        ),
-        axis=-1,
-    )
-    slack = np.nan_to_num(slack, nan=-np.inf)
-    if np.all(slack >= 0):
-        cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
-        singular = np.minimum(
-            (cond_threshold - cond) / cond_threshold,
-            (inv - min_sigma_min_inv) / max(min_sigma_min_inv, 1e-12),
-        )
-        slack = np.minimum(slack, np.nan_to_num(singular, nan=-np.inf))
-    return slack
-
-
-def data_collection_trajectory(
-    seed: int = 0,
-    geometry: StewartGeometry | None = None,
-    duration_s: float = 10.0,
-    ratio_max: float = 0.9,
-    dt: float = 1e-3,
-    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
-    torque_limit_Nm: float | None = None,
-) -> SineTrajectory:
-    """Excitation for the tuner's training data (paper section III.D), deterministic in ``seed``.
-
-    Every axis moves at once, one sine each, with a frequency drawn in [1, 5] Hz and a random
-    phase. The paper's amplitudes (+-pi/6 rad, 0.3 m) are far outside this robot's workspace, so
-    each axis's amplitude is (a) capped by what that axis alone admits at |L|/sqrt(M^2+N^2) <=
-    ``ratio_max``, (b) capped by DATA_ACCEL_CAP / (2 pi f)^2 so the torques stay physical, then
-    (c) all amplitudes are scaled by the largest factor (bisection) with which the path passes
-    every check of the pre-run validation (:func:`validate` sampled every ``dt`` over
-    ``duration_s``: loop closure at ``ratio_max``, motor travel, both ball-joint cones, cond(J)
-    and 1/sigma_max(J) with the given thresholds, GuardConfig's by default). The bisection runs
-    on the critical samples only and is confirmed on all of them (docs/paper_notes.md).
-
-    Args:
-        seed: random seed of frequencies and phases. geometry: the robot (default reference).
-        duration_s: s the path must pass over. ratio_max: closure bound, < 1. dt: sampling, s
-            (the control period the pre-run check uses).
-        cond_threshold, min_sigma_min_inv: singularity thresholds (GuardConfig's defaults).
-        torque_limit_Nm: the motors' limit, N m, or None. With one, (d) the amplitudes shrink
-            further until the inverse-dynamics torques of the path (gravity, inertia and
-            velocity products, rotors included) stay within :data:`DATA_TORQUE_MARGIN` of it
-            (the pre-run check then adds the friction against its own margin): the motors keep
-            headroom for feedback (ours: the paper's robot has no limit; on the robot as built,
-            without this every run of the collection loses the platform in 0.2 s).
-    Returns:
-        SineTrajectory named ``data_seed<seed>`` that ``validate(..., dt=dt)`` accepts.
-    """
-    geometry = geometry or StewartGeometry()
-    rng = np.random.default_rng(seed)
-    f = rng.uniform(1.0, 5.0, 6)
-    phase = rng.uniform(0, 2 * np.pi, 6)
-    single = np.array([_max_single_axis_amplitude(geometry, k, ratio_max) for k in range(6)])
-    amp = np.minimum(single, np.asarray(DATA_ACCEL_CAP) / (2 * np.pi * f) ** 2)
-    t = np.arange(0.0, duration_s + 0.5 * dt, dt)  # the samples of validate()
-
-    def path(scale, times=t):
-        return SineTrajectory(
-            amplitude=tuple(scale * amp), frequency_hz=tuple(f), phase=tuple(phase)
-        ).evaluate(times)
-
-    scale = _scale_within_checks(
-        geometry,
-        lambda sc, k=slice(None): path(sc, t[k])[0],
-        (ratio_max, cond_threshold, min_sigma_min_inv),
-    )
-    if torque_limit_Nm is not None:
-        scale = _scale_within_torque(
-            geometry, lambda sc: path(sc, t[::5]), scale, DATA_TORQUE_MARGIN * torque_limit_Nm
-        )
-    return SineTrajectory(
-        amplitude=tuple(scale * amp),
-        frequency_hz=tuple(f),
-        phase=tuple(phase),
-        name=f"data_seed{seed}",
-    )
-
-
-def _scale_within_checks(geometry: StewartGeometry, poses, checks: tuple) -> float:
-    """The largest factor s <= 1 (bisection, a hair inside) with which ``poses(s, k)`` (the
-    path's poses at the samples k, all by default) passes the checks of :func:`_slack`. The
-    bisection runs on the samples that refused a scale so far, and each round is confirmed on
-    all of them."""
-    scale, critical = 1.0, np.zeros(0, dtype=int)
-    for _ in range(20):  # each round adds the samples that refused the scale
-        slack = _slack(geometry, poses(scale), *checks)
-        if np.all(slack >= 0):
-            break
-        critical = np.union1d(
-            critical, np.union1d(np.flatnonzero(slack < 0), np.argsort(slack)[:64])
-        )
-        lo, hi = 0.0, scale
-        for _ in range(40):
-            mid = 0.5 * (lo + hi)
-            fits = np.all(_slack(geometry, poses(mid, critical), *checks) >= 0)
-            lo, hi = (mid, hi) if fits else (lo, mid)
-        scale = lo * (1 - 1e-3)  # a hair inside: no pass or fail by round-off
-    return scale
-
-
-def _scale_within_torque(geometry: StewartGeometry, motion, scale: float, bound: float) -> float:
-    """``scale``, or the largest factor below it (bisection) with which the inverse-dynamics
-    torques of ``motion(s)`` (pose, rate, acceleration) stay within ``bound``, N m."""
-    from ..robot.statics import inverse_dynamics_torques
-
-    def peak(sc):
-        return np.abs(inverse_dynamics_torques(geometry, *motion(sc))).max()
-
-    if peak(scale) > bound:
-        lo, hi = 0.0, scale
-        for _ in range(30):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if peak(mid) <= bound else (lo, mid)
-        scale = lo
-    return scale
-
-
 # -- a scenario's choices of these references ------------------------------------------------------
 
 
@@ -860,38 +510,6 @@ class NamedReference(ReferenceConfig):
         self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
     ) -> Reference:
         return make_trajectory(self.name)
-
-
-@dataclass
-class CsvReference(ReferenceConfig):
-    """A reference from a CSV file ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), joined by a C2 cubic
-    spline (:func:`load_csv_trajectory`). A relative path is relative to the working folder."""
-
-    path: str = ""
-
-    def validate(self) -> None:
-        from ..base.errors import MissingFileError
-
-        if not self.path or not Path(self.path).exists():
-            raise MissingFileError(
-                f"no reference CSV at {self.path!r} (reference.path): check the path"
-            )
-
-    def make(
-        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
-    ) -> Reference:
-        return load_csv_trajectory(self.path)
-
-    @property
-    def label(self) -> str:
-        return Path(self.path).stem
-
-    def memory_bytes(self) -> float:
-        """The spline of the file's samples (:func:`csv_reference_bytes`)."""
-        return csv_reference_bytes(self.path)
-
-    def memory_note(self) -> tuple:
-        return (f" on the reference {self.path}", ", and sample the reference CSV more coarsely")
 
 
 @dataclass
@@ -921,26 +539,3 @@ class SineReference(ReferenceConfig):
             offset=tuple(self.offset),
             name=self.name,
         )
-
-
-@dataclass
-class DataCollectionReference(ReferenceConfig):
-    """The seeded excitation of the tuner's data collection (every axis at 1-5 Hz inside the
-    workspace; :func:`data_collection_trajectory`), as long as the run, within the robot's
-    workspace and its motors' torque limit."""
-
-    seed: int = 0
-
-    def validate(self) -> None:
-        check_int("reference.seed", self.seed, 0, MAX_SEED)
-
-    def make(
-        self, geometry: StewartGeometry, duration_s: float, torque_limit_Nm: float | None
-    ) -> Reference:
-        return data_collection_trajectory(
-            self.seed, geometry, duration_s=duration_s, torque_limit_Nm=torque_limit_Nm
-        )
-
-    @property
-    def label(self) -> str:
-        return f"data_seed{self.seed}"

@@ -56,15 +56,12 @@ from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: con
 from ..control.pd import PdDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..plant.plant import check_rod_model
+from ..references.data_collection import DataCollectionReference
 from ..references.motion import ReferenceConfig as ReferenceConfig  # re-exported: the choices' base
-from ..references.organ_motion import OrganMotionReference
+from ..references.organ.library import OrganMotionReference
+from ..references.samples import CsvReference
 from ..references.traces import TraceReference
-from ..references.trajectories import (
-    CsvReference,
-    DataCollectionReference,
-    NamedReference,
-    SineReference,
-)
+from ..references.trajectories import NamedReference, SineReference
 from ..robot.geometry import StewartGeometry
 from ..robot.servo import ServoModel
 from ..robot.statics import FEEDFORWARD_MODES

@@ -346,7 +346,8 @@ def apply_run_options(
             out of range. MissingFileError: no such weights or CSV file.
     """
     from ..control.pd import PdDriver
-    from ..references.trajectories import CsvReference, NamedReference, load_csv_trajectory
+    from ..references.samples import CsvReference, load_csv_trajectory
+    from ..references.trajectories import NamedReference
 
     if tuner_weights is not None and tuner not in ("ann", "ratio"):
         raise InvalidConfigError(

@@ -28,7 +28,7 @@ from ..control.features import density_features_series
 from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
-from ..references.trajectories import DataCollectionReference
+from ..references.data_collection import DataCollectionReference
 from ..run.plan import make_plan
 from ..run.scenario import Scenario
 from ..run.simulate import RunResult, check_run_memory, run_experiment
@@ -157,7 +157,7 @@ def collect(
 ) -> dict:
     """The paper's 9 closed-loop experiments, (omega_Q, omega_R) in {0.1, 1, 10}^2, on the plant.
 
-    All runs track the same :func:`~.trajectories.data_collection_trajectory` (seeded), so the
+    All runs track the same :func:`~.data_collection.data_collection_trajectory` (seeded), so the
     best-cost labels can compare them window by window. 10 s at 5 ms gives 9 x 2000 = 18000
     samples (the paper used 14400). Each run is written to ``out_dir`` the moment it finishes
     (:class:`~.store.ResultStore`); run again with the same settings, only the missing runs run.

@@ -33,7 +33,8 @@ import numpy as np
 from ..base.errors import InvalidConfigError, StewartError
 from ..plant.clearance import clearance_model
 from ..references.motion import Reference
-from ..references.organ_motion import MotionSum
+from ..references.organ.combinators import MotionSum
+from ..references.smoothstep import smoothstep
 from ..references.trajectories import SineTrajectory, paper_manoeuvre
 from ..robot import limits, statics
 from ..robot.geometry import StewartGeometry
@@ -52,17 +53,6 @@ SHRINK = 0.85
 
 #: Fade-in and fade-out time of the tremor-scale motions, s.
 RAMP_S = 0.05
-
-
-def _smoothstep(s, derivative: int = 0):
-    """The min-jerk polynomial 10 s^3 - 15 s^4 + 6 s^5 on [0, 1] or its 1st / 2nd derivative;
-    the derivatives are zero outside (0, 1)."""
-    inside = (s > 0.0) & (s < 1.0)
-    if derivative == 0:
-        return s**3 * (10 - 15 * s + 6 * s * s)
-    if derivative == 1:
-        return np.where(inside, 30 * s * s * (1 - s) ** 2, 0.0)
-    return np.where(inside, 60 * s * (1 - s) * (1 - 2 * s), 0.0)
 
 
 @dataclass(frozen=True)
@@ -106,11 +96,10 @@ class WaypointTrajectory:
             w = 2 * np.pi * f
             # Faded in and out over RAMP_S by the min-jerk polynomial: the pose, rate and
             # acceleration stay continuous (a linear fade would put steps in the acceleration).
-            s_on = np.clip((tt - on) / RAMP_S, 0.0, 1.0)
-            s_off = np.clip((off - tt) / RAMP_S, 0.0, 1.0)
-            q_on, q_off = _smoothstep(s_on), _smoothstep(s_off)
-            d_on, d_off = _smoothstep(s_on, 1) / RAMP_S, -_smoothstep(s_off, 1) / RAMP_S
-            dd_on, dd_off = _smoothstep(s_on, 2) / RAMP_S**2, _smoothstep(s_off, 2) / RAMP_S**2
+            q_on, d_on, dd_on = smoothstep((tt - on) / RAMP_S)
+            q_off, d_off, dd_off = smoothstep((off - tt) / RAMP_S)
+            d_on, d_off = d_on / RAMP_S, -d_off / RAMP_S
+            dd_on, dd_off = dd_on / RAMP_S**2, dd_off / RAMP_S**2
             g = q_on * q_off
             dg = d_on * q_off + q_on * d_off
             ddg = dd_on * q_off + 2 * d_on * d_off + q_on * dd_off

@@ -1,0 +1,465 @@
+"""The report of a reproduction (``stewart-drake reproduce``): a Markdown page with a verdict
+against a tolerance (:func:`report_markdown`), one PNG of the poses, the errors, the cycles and
+the harmonics (:func:`plot_report`), and the figures as JSON (:func:`write_report`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..base.fileio import atomic_write
+from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
+from .reproduction import Reproduction, learning_words
+
+
+def _feedforward_line(last: dict) -> str:
+    """The report's line on a feed-forward learner, from its last status."""
+    return (
+        f"Learner (feed-forward as a function of the reference): {int(last['updates'])} "
+        f"update(s) over {int(last['stretch'])} stretch(es), {int(last['rollbacks'])} "
+        f"rollback(s){', stopped by its bound' if last['stopped'] else ''}; last stretch "
+        f"{last['E_trans_m'] * 1e6:.3g} um / {last['E_rot_rad'] * 1e6:.3g} urad measured by the "
+        f"encoders, {last['D_trans_m'] * 1e6:.3g} um / {last['D_rot_rad'] * 1e6:.3g} urad "
+        f"estimated without the correction."
+    )
+
+
+def _learning(rep) -> str:
+    """How ``rep``'s run learned, in words (a record without ``learning``: from its
+    ``learn_cycles``)."""
+    return getattr(rep, "learning", "") or learning_words(None, rep.learn_cycles)
+
+
+def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
+    """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
+    the learner, the phantom anchor."""
+    fid = rep.fidelity
+    ok, line = verdict(fid, tolerance)
+    lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
+    lines += _run_lines(rep, fid)
+    lines += _axis_lines(fid)
+    lines += _gamma_lines(fid)
+    lines += _harmonic_lines(fid)
+    lines += _cycle_lines(fid)
+    lines += _learner_lines(rep)
+    lines += _anchor_lines(fid)
+    lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
+    return "\n".join(lines)
+
+
+def _run_lines(rep: Reproduction, fid: dict) -> list:
+    """The report's lines on the run: its length, controller, learning and window; the model it
+    started from, its scale, the trace it read."""
+    lines: list = []
+    lines.append(
+        f"Run: {rep.result.t[-1]:.4g} s on the robot as built "
+        f"({rep.result.config_summary.get('controller', '')}, "
+        + _learning(rep)
+        + f"); measured over t = {fid['window_s'][0]:.4g}-"
+        f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
+        f"{rep.wall_s:.0f} s."
+    )
+    if getattr(rep, "learned_from", ""):
+        lines += ["", f"Feed-forward model: {rep.learned_from}."]
+    if rep.scale != 1.0:
+        lines.append(
+            f"The motion was scaled by {rep.scale:.3f} about its centre to fit the "
+            f"robot (--scale-to-fit)."
+        )
+    source = rep.reference
+    info = getattr(source, "info", None) or getattr(
+        getattr(source, "reference", None), "info", None
+    )
+    if info is not None:  # a recorded trace: what was read, and how
+        lines += ["", f"Trace: {info.summary()}."]
+    return lines
+
+
+def _axis_lines(fid: dict) -> list:
+    """The report's table of the error per axis and its line on the 3-D error and the lag."""
+    lines: list = []
+    units = ["urad"] * 3 + ["um"] * 3
+    lines += [
+        "",
+        "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
+        "|---|---|---|---|---|---|",
+    ]
+    for k, axis in enumerate(AXES):
+        scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+        lag = fid["lag_s"].get(axis)
+        frac = fid["rms_fraction"][k]
+        lines.append(
+            f"| {axis} | {fid['p2p'][k] * scale:.4g} {unit} | "
+            f"{fid['rms'][k] * 1e6:.3g} {units[k]} | "
+            f"{fid['peak'][k] * 1e6:.3g} {units[k]} | "
+            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.3g} %'} | "
+            f"{'-' if lag is None else f'{1e3 * lag:.3g}'} |"
+        )
+    lines += [
+        "",
+        f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
+        f"{fid['rms_rotation_rad'] * 1e6:.3g} urad (peaks "
+        f"{fid['peak_translation_m'] * 1e6:.3g} um, "
+        f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
+        f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late).",
+    ]
+    return lines
+
+
+def _gamma_lines(fid: dict) -> list:
+    """The report's line on the gamma pass rates (none without)."""
+    lines: list = []
+    if fid.get("gamma"):
+        lines += [
+            "",
+            "Gamma pass rate of the translation (distance to agreement in space and time, as "
+            "motion phantoms are commissioned): "
+            + ", ".join(
+                f"{100 * g['pass_rate']:.4g} % at {g['distance_m'] * 1e3:g} mm / "
+                f"{g['time_s'] * 1e3:g} ms"
+                for g in fid["gamma"]
+            )
+            + ".",
+        ]
+    return lines
+
+
+def _harmonic_lines(fid: dict) -> list:
+    """The report's table of the harmonics (none without)."""
+    lines: list = []
+    if fid["harmonics"]:
+        lines += [
+            "",
+            "| harmonic | f [Hz] | axis | reference amplitude | amplitude error | "
+            "phase error [deg] |",
+            "|---|---|---|---|---|---|",
+        ]
+        for h in fid["harmonics"]:
+            k = AXES.index(h["axis"])
+            amp = h["reference"] * (1e3 if k >= 3 else 180 / math.pi)
+            lines.append(
+                f"| {h['source']} {h['k']} | {h['f_hz']:.4g} | {h['axis']} | "
+                f"{amp:.4g} {'mm' if k >= 3 else 'deg'} | "
+                f"{100 * h['amplitude_error']:+.3g} % | "
+                f"{math.degrees(h['phase_error_rad']):+.3g} |"
+            )
+    return lines
+
+
+def _cycle_lines(fid: dict) -> list:
+    """The report's line on the error per cycle (none without cycles)."""
+    lines: list = []
+    cyc = fid["cycles"]
+    if cyc["starts"]:
+        lines += [
+            "",
+            "Error per cycle (RMS, translation um | rotation urad): "
+            + ", ".join(
+                f"{j}: {a * 1e6:.3g} | {b * 1e6:.3g}"
+                for j, (a, b) in enumerate(zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"]))
+            ),
+        ]
+    return lines
+
+
+def _learner_lines(rep: Reproduction) -> list:
+    """The report's line on the learner (none without)."""
+    lines: list = []
+    if rep.learner is not None and "updates" in rep.learner_names:
+        lines += ["", _feedforward_line(dict(zip(rep.learner_names, rep.learner[-1])))]
+    elif rep.learner is not None:
+        last = dict(zip(rep.learner_names, rep.learner[-1]))
+        lines += [
+            "",
+            f"Learner: learned from {int(last['learned_cycles'])} cycles, "
+            f"{int(last['rollbacks'])} rollback(s)"
+            + (", stopped by its bound" if last["stopped"] else "")
+            + ".",
+        ]
+    return lines
+
+
+def _anchor_lines(fid: dict) -> list:
+    """The report's table of the phantom anchor against this run."""
+    lines: list = []
+    lines += [
+        "",
+        "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
+        "Stewart motion phantom replaying recorded tumour motion):",
+        "",
+        "| axis | phantom RMSE | phantom range | phantom RMSE / range | here RMS / p2p |",
+        "|---|---|---|---|---|",
+    ]
+    for axis, rmse, rng in PHANTOM_ANCHOR:
+        k = AXES.index(axis)
+        unit = "mm" if k >= 3 else "deg"
+        frac = fid["rms_fraction"][k]
+        lines.append(
+            f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
+            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |"
+        )
+    return lines
+
+
+#: Points a report's curve draws at most: a long run's logs are thinned to this (every n-th
+#: sample of a pose, the largest of each n of an error, so that no peak is lost).
+PLOT_POINTS = 20_000
+
+
+def _thinned(t: np.ndarray, y: np.ndarray, peaks: bool = False) -> tuple:
+    """(t, y) with at most about :data:`PLOT_POINTS` points: every n-th sample, or with
+    ``peaks`` the largest of each n consecutive samples (y >= 0)."""
+    n = max(1, int(math.ceil(t.size / PLOT_POINTS)))
+    if n == 1:
+        return t, y
+    if not peaks:
+        return t[::n], y[::n]
+    m = (t.size // n) * n
+    return t[:m:n], y[:m].reshape(-1, n).max(axis=1)
+
+
+def _plot_poses(axes, moving: list, r, window) -> None:
+    """Draw the reference and the achieved pose of each moving axis (mm or deg), one axis per
+    row, the measured window shaded."""
+    t = r.t
+    w0, w1 = window
+    for ax, k in zip(axes, moving):
+        scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+        ax.plot(*_thinned(t, r.x_d[:, k] * scale), "k--", lw=1, label="reference")
+        ax.plot(*_thinned(t, r.x[:, k] * scale), "C0", lw=0.9, label="achieved")
+        ax.set_ylabel(f"{AXES[k]} [{unit}]")
+        ax.axvspan(w0, w1, color="0.9", zorder=0)
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3)
+
+
+def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
+    """Draw the norm of the translation error (um) and of the rotation error (urad) over time,
+    each on its own axis against its own tolerance, the measured window shaded."""
+    t = r.t
+    e = r.x[:, :6] - r.x_d[:, :6]
+    w0, w1 = window
+    for ax, part, tol, color, what, unit, scale in (
+        (axes[0], slice(3, 6), tolerance[0], "C3", "translation", "um", 1e6),
+        (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
+    ):
+        norm = np.linalg.norm(e[:, part], axis=1) * scale
+        ax.plot(*_thinned(t, norm, peaks=True), color, lw=0.6, label=f"|{what} error|")
+        ax.axhline(
+            tol * scale,
+            color=color,
+            ls=":",
+            lw=1.2,
+            label=f"tolerance {format_length(tol) if unit == 'um' else format_angle(tol)}",
+        )
+        ax.set_yscale("log")
+        ax.set_ylim(0.1, 3 * max(tol * scale, float(norm.max())))
+        ax.axvspan(w0, w1, color="0.9", zorder=0)
+        ax.set_ylabel(f"{what}\nerror [{unit}]")
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3, which="both")
+    axes[1].set_xlabel("t [s] (shaded: measured window)")
+
+
+def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
+    """Draw the RMS error of each cycle (um and urad), the cycles learned from marked, or say
+    that the reference has none."""
+    if cyc["starts"]:
+        j = np.arange(len(cyc["starts"]))
+        ax.plot(j, np.array(cyc["rms_translation_m"]) * 1e6, "o-C3", label="translation [um]")
+        ax.plot(j, np.array(cyc["rms_rotation_rad"]) * 1e6, "s-C2", label="rotation [urad]")
+        ax.set_ylim(bottom=0)
+        if learn_cycles:
+            ax.axvline(learn_cycles - 0.5, color="k", ls=":", lw=1)
+            ax.text(
+                learn_cycles - 0.45,
+                0.05 * ax.get_ylim()[1],
+                "correction held",
+                fontsize=7,
+                va="bottom",
+            )
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=20, integer=True))  # labels never overlap
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+    else:
+        ax.text(
+            0.5,
+            0.5,
+            "the reference has no cycles",
+            ha="center",
+            va="center",
+            transform=ax.transAxes,
+        )
+    ax.set_xlabel("cycle")
+    ax.set_ylabel("RMS error\nper cycle")
+    ax.grid(alpha=0.3)
+
+
+def _plot_harmonics(ax, harmonics: list) -> None:
+    """Draw the harmonic table: each harmonic's frequency, axis, reference amplitude and its
+    amplitude and phase errors."""
+    ax.axis("off")
+    cells = [
+        [
+            f"{h['source']} {h['k']}",
+            f"{h['f_hz']:.3g}",
+            h["axis"],
+            f"{h['reference'] * (1e3 if AXES.index(h['axis']) >= 3 else 57.2958):.3g}",
+            f"{100 * h['amplitude_error']:+.2g} %",
+            f"{math.degrees(h['phase_error_rad']):+.2g}",
+        ]
+        for h in harmonics
+    ]
+    table = ax.table(
+        cellText=cells,
+        colLabels=[
+            "harmonic",
+            "f [Hz]",
+            "axis",
+            "amplitude [mm|deg]",
+            "amplitude error",
+            "phase error [deg]",
+        ],
+        loc="center",
+        cellLoc="center",
+    )
+    table.auto_set_font_size(False)
+    table.set_fontsize(7)
+
+
+#: A run longer than this, s, gets a zoom under its overview; the zoom's length, s.
+ZOOM_AFTER_S, ZOOM_S = 60.0, 10.0
+
+
+def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float]) -> None:
+    """Draw :data:`ZOOM_S` at full rate around the largest translation error of the measured
+    window: the axis that moves most there (reference and achieved), and the translation error
+    against its tolerance."""
+    t = r.t
+    e = np.linalg.norm(r.x[:, 3:6] - r.x_d[:, 3:6], axis=1)
+    w0, w1 = fid["window_s"]
+    inside = np.flatnonzero((t >= w0) & (t <= w1))
+    k = int(inside[np.argmax(e[inside])]) if inside.size else int(np.argmax(e))
+    a = float(np.clip(t[k] - ZOOM_S / 2, t[0], max(t[0], t[-1] - ZOOM_S)))
+    m = (t >= a) & (t <= a + ZOOM_S)
+    axis = max(moving, key=lambda j: float(np.ptp(r.x_d[m, j])) / (1e-3 if j >= 3 else 1e-2))
+    scale, unit = (1e3, "mm") if axis >= 3 else (180 / math.pi, "deg")
+    axes[0].plot(t[m], r.x_d[m, axis] * scale, "k--", lw=1, label="reference")
+    axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label="achieved")
+    axes[0].set_ylabel(f"zoom: {AXES[axis]}\n[{unit}]")
+    axes[0].set_title(
+        f"zoom, t = {a:.4g}-{a + ZOOM_S:.4g} s: around the largest translation error of the "
+        f"measured window ({e[k] * 1e6:.3g} um at t = {t[k]:.4g} s)",
+        fontsize=8,
+    )
+    axes[1].plot(t[m], e[m] * 1e6, "C3", lw=0.7, label="|translation error|")
+    axes[1].axhline(tolerance[0] * 1e6, color="C3", ls=":", lw=1.2, label="tolerance")
+    axes[1].set_yscale("log")
+    axes[1].set_ylabel("zoom: translation\nerror [um]")
+    axes[1].set_xlabel("t [s]")
+    for ax in axes:
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax.grid(alpha=0.3, which="both")
+
+
+#: The report figure's title: its font size, pt, and the characters a line holds (a 10 in wide
+#: figure holds about 150 at 9 pt; a long file name is wrapped, not cut at both ends).
+TITLE_POINTS, TITLE_CHARS = 9, 110
+
+
+def report_title(rep: Reproduction, line: str) -> str:
+    """The report figure's title: the motion, the verdict ``line`` and how the run learned
+    (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
+    import textwrap
+
+    text = f"{rep.name}: {line} ({_learning(rep)})"
+    return "\n".join(textwrap.wrap(text, TITLE_CHARS, break_on_hyphens=False))
+
+
+def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
+    """One PNG: reference and achieved pose per moving axis, the translation and rotation errors
+    over time, for a run longer than :data:`ZOOM_AFTER_S` a zoom at full rate around its largest
+    error, the error per cycle and the harmonic table. Returns the path (written atomically)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fid, r = rep.fidelity, rep.result
+    moving = [AXES.index(a) for a in fid["moving"]] or [5]
+    zoom = int(r.t[-1] - r.t[0] > ZOOM_AFTER_S)
+    n_rows = len(moving) + 3 + 2 * zoom + (1 if fid["harmonics"] else 0)
+    heights = (
+        [1.4] * len(moving)
+        + [1.3, 1.3]
+        + [1.3, 1.1] * zoom
+        + [1.4]
+        + ([0.25 * len(fid["harmonics"]) + 0.6] if fid["harmonics"] else [])
+    )
+    fig, axes = plt.subplots(
+        n_rows, 1, figsize=(10, sum(heights) + 1.2), gridspec_kw={"height_ratios": heights}
+    )
+    _plot_poses(axes, moving, r, fid["window_s"])
+    _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
+    if zoom:
+        _plot_zoom(axes[len(moving) + 2 : len(moving) + 4], moving, r, fid, tolerance)
+    _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
+    if fid["harmonics"]:
+        _plot_harmonics(axes[-1], fid["harmonics"])
+    ok, line = verdict(fid, tolerance)
+    title = report_title(rep, line)
+    fig.suptitle(title, fontsize=TITLE_POINTS, color="k" if ok else "tab:red")
+    top_in = 0.1 + 0.18 * (title.count("\n") + 1)  # each line of the title, in
+    fig.tight_layout(rect=(0, 0, 1, 1 - top_in / fig.get_figheight()))
+    path = Path(path)
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
+    plt.close(fig)
+    return path
+
+
+def write_report(
+    rep: Reproduction, out, tolerance: tuple[float, float], stem: str | None = None
+) -> tuple[Path, Path, Path]:
+    """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` (the figures) into ``out``.
+
+    Returns:
+        the three paths.
+    """
+    out = Path(out)
+    stem = stem or f"reproduce_{rep.name}"
+    md = out / f"{stem}.md"
+    png = plot_report(rep, out / f"{stem}.png", tolerance)
+    text = report_markdown(rep, tolerance) + f"\n![reference, achieved, errors]({png.name})\n"
+    atomic_write(md, lambda f: f.write(text.encode()))
+    figures = {
+        "name": rep.name,
+        "scale": rep.scale,
+        "learn_cycles": rep.learn_cycles,
+        "learning": _learning(rep),
+        "learned_from": getattr(rep, "learned_from", ""),
+        "tolerance": list(tolerance),
+        "passed": verdict(rep.fidelity, tolerance)[0],
+        "fidelity": rep.fidelity,
+        "wall_s": rep.wall_s,
+    }
+    js = out / f"{stem}.json"
+    atomic_write(js, lambda f: f.write(json.dumps(figures, indent=1, default=float).encode()))
+    return md, png, js
+
+
+__all__ = [
+    "report_markdown",
+    "PLOT_POINTS",
+    "ZOOM_AFTER_S",
+    "ZOOM_S",
+    "TITLE_POINTS",
+    "TITLE_CHARS",
+    "report_title",
+    "plot_report",
+    "write_report",
+]
