@@ -5,8 +5,8 @@ S(x) = 10 x^3 - 15 x^4 + 6 x^5 rises from 0 at x = 0 to 1 at x = 1 with S' and S
 both ends (the minimum-jerk polynomial of a rest-to-rest move): a step, a fade or a blend made
 of it is C2. :func:`smoothstep` gives S, S' and S''; :func:`smooth_ramp` its integral, a ramp
 whose slope rises smoothly from 0 to 1. Users: the organ-motion library's rounded corners,
-drifts, excursions and breath-hold (:mod:`~.organ`), the tuner study's tremor fades
-(:mod:`~stewart_drake.tuner.tasks`) and the robot session's homing ramp
+drifts, excursions and breath-hold (:mod:`~.organ`), the tuner study's min-jerk segments and
+tremor fades (:mod:`~stewart_drake.tuner.tasks`) and the robot session's homing ramp
 (:class:`~stewart_drake.live.session.HomingReference`).
 """
 

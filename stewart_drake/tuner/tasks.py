@@ -84,11 +84,8 @@ class WaypointTrajectory:
         k = np.clip(np.searchsorted(T, t, side="right") - 1, 0, len(T) - 2)
         t0, t1 = T[k][..., None], T[k + 1][..., None]
         d = t1 - t0
-        tau = np.clip((tt - t0) / d, 0.0, 1.0)
-        inside = (tt > t0) & (tt < t1)
-        s = tau**3 * (10 - 15 * tau + 6 * tau**2)
-        ds = np.where(inside, 30 * tau**2 * (1 - tau) ** 2 / d, 0.0)
-        dds = np.where(inside, 60 * tau * (1 - tau) * (1 - 2 * tau) / d**2, 0.0)
+        s, ds, dds = smoothstep((tt - t0) / d)
+        ds, dds = ds / d, dds / d**2
         delta = X[k + 1] - X[k]
         x, v, a = X[k] + delta * s, delta * ds, delta * dds
         for row in self.tremor:
