@@ -234,8 +234,8 @@ def held_out_answer(tuner: dict | None) -> str:
     """The first line of the ANN section: the verdict over held-out tasks, which is the tuner
     study's on the paper's tuner (``tuner``: its summary), or that these runs decide nothing
     (no study, or a QUICK one)."""
-    from ..tuner.tuner_report import _pct
-    from ..tuner.tuner_study import GOAL
+    from ..tuner.study_runs import GOAL
+    from ..tuner.tuner_report import pct
 
     entries = []
     if tuner is not None and not tuner["settings"].get("quick"):
@@ -253,7 +253,7 @@ def held_out_answer(tuner: dict | None) -> str:
     met = [c["beats"] for _, c in entries]
     answer = "Yes" if all(met) else "No" if not any(met) else "Not at every lambda"
     figures = "; ".join(
-        f"lambda = {lam}: {_pct(c['mean'])} +- {100 * c['std']:.0f} %" for lam, c in entries
+        f"lambda = {lam}: {pct(c['mean'])} +- {100 * c['std']:.0f} %" for lam, c in entries
     )
     return (
         f"**{answer}**, over the held-out tasks of the tuner study (above): the paper's tuner "
