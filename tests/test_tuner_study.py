@@ -155,8 +155,10 @@ def test_weight_schedules_are_checked_by_field():
 
 @needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
-    # two ratios, a decade either side of 1, are enough for a best and a worse fixed ratio
-    monkeypatch.setattr(ts, "RATIOS", (0.1, 10.0))
+    # two ratios, a decade either side of 1, are enough for a best and a worse fixed ratio;
+    # each module of the study that reads the ratios holds its own name for them
+    for module in (ts, sr, study_verdict, ratio_training):
+        monkeypatch.setattr(module, "RATIOS", (0.1, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
     monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))  # quick keeps (-1, 1)
     monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
