@@ -14,21 +14,18 @@ import numpy as np
 import pytest
 
 from stewart_drake.design.design_search import (
-    MARGINS,
     SEARCH_VARIABLES,
     design_from_vector,
-    design_geometry,
-    evaluate,
     search,
-    task_samples,
-    tilted_box_poses,
     vector_of,
 )
+from stewart_drake.design.margins import MARGINS, design_geometry, evaluate
 from stewart_drake.design.requirements import (
     DesignRequirements,
     RequiredWorkspace,
     load_requirements,
 )
+from stewart_drake.design.task_samples import task_samples, tilted_box_poses
 from stewart_drake.design.variables import Design, reference_design
 from stewart_drake.plant import admissible
 from stewart_drake.plant.clearance import ClearanceModel
@@ -205,7 +202,8 @@ def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task,
     folder = tmp_path / "killed"
     code = (
         "from stewart_drake.design.requirements import load_requirements\n"
-        "from stewart_drake.design.design_search import task_samples, search\n"
+        "from stewart_drake.design.design_search import search\n"
+        "from stewart_drake.design.task_samples import task_samples\n"
         f"task = task_samples(load_requirements({str(REQUIREMENTS)!r}))\n"
         f"search(task, {REFERENCE_MOTOR!r}, 'peak_torque', {str(folder)!r}, seed=0, popsize=2,"
         " maxiter=6, progress=False)\n"
@@ -261,7 +259,7 @@ def test_a_task_no_design_can_meet_ends_with_its_binding_constraint(tmp_path):
 def test_the_encoders_resolution_agrees_with_the_forward_kinematics_of_half_a_count(task):
     """The first-order pose error of half a count at every crank against the exact one: the
     forward kinematics of the perturbed motor angles, at the pose and sign pattern found worst."""
-    from stewart_drake.design.design_search import _SIGNS, encoder_resolution
+    from stewart_drake.design.margins import _SIGNS, encoder_resolution
     from stewart_drake.robot.kinematics import fk, ik, jacobian
 
     geometry = design_geometry(reference_design(), task.payload_kg)

@@ -324,7 +324,8 @@ def _paper_rows_and_tuner_of(md: str):
 def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
     """docs/results.md's ANN section, as the generator writes it for the report's own figures:
     the tuner study's answer first, and no one-run "beats"."""
-    from stewart_drake.evaluation.evaluation_report import _verdict_lines, index_rows
+    from stewart_drake.evaluation.evaluation_grid import index_rows
+    from stewart_drake.evaluation.evaluation_report import _verdict_lines
 
     md = (REPO / "docs" / "results.md").read_text()
     rows, tuner = _paper_rows_and_tuner_of(md)
@@ -341,11 +342,9 @@ def test_the_ann_section_leads_with_the_held_out_verdict_not_one_run():
 
 
 def test_the_bandwidth_table_and_figure_say_below_and_above_the_sweep(tmp_path):
-    from stewart_drake.evaluation.evaluation_report import (
-        _bandwidth_table,
-        index_rows,
-        plot_results,
-    )
+    from stewart_drake.evaluation.evaluation_grid import index_rows
+    from stewart_drake.evaluation.evaluation_plots import plot_results
+    from stewart_drake.evaluation.evaluation_report import _bandwidth_table
 
     f = np.geomspace(2.43, 49.4, 30)
 

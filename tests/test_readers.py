@@ -320,7 +320,7 @@ def test_a_fifo_as_learned_returns_at_once_with_one_line(tmp_path, capsys):
 
 
 def test_design_task_samples_are_read_through_the_checked_reader(tmp_path):
-    from stewart_drake.design.design_search import TaskSamples
+    from stewart_drake.design.task_samples import TaskSamples
 
     rng = np.random.default_rng(0)
     task = TaskSamples(

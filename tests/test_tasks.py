@@ -7,7 +7,7 @@ import pytest
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.robot import limits, statics
 from stewart_drake.robot.geometry import StewartGeometry
-from stewart_drake.tuner import tuner_study as ts
+from stewart_drake.tuner import study_runs as sr
 from stewart_drake.tuner.tasks import FAMILIES, LOAD_MARGIN, WaypointTrajectory, make_task
 
 
@@ -67,8 +67,8 @@ def test_bad_task_requests_are_refused_by_name():
 
 
 def test_speed_schedule_is_soft_at_rest_and_stiff_in_motion():
-    t, ratios = ts.speed_schedule("dash_hold", 0, 3.0, "paper_hardware")
+    t, ratios = sr.speed_schedule("dash_hold", 0, 3.0, "paper_hardware")
     _, v, _ = make_task("dash_hold", 0, 3.0).reference.evaluate(np.asarray(t))
     still = np.linalg.norm(v, axis=1) == 0
-    assert np.allclose(np.asarray(ratios)[still], ts.R_HOLD)
-    assert max(ratios) == pytest.approx(ts.R_MOVE)
+    assert np.allclose(np.asarray(ratios)[still], sr.R_HOLD)
+    assert max(ratios) == pytest.approx(sr.R_MOVE)

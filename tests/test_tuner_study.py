@@ -19,6 +19,8 @@ from stewart_drake.control.tuning import RatioTunerDriver, WeightSchedule
 from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.run.metrics import window_means
 from stewart_drake.run.scenario import Scenario
+from stewart_drake.tuner import ratio_training, study_verdict
+from stewart_drake.tuner import study_runs as sr
 from stewart_drake.tuner import tuner_study as ts
 from stewart_drake.tuner.tuner_report import plot_tuner_tradeoff, render_tuner_markdown
 
@@ -31,7 +33,7 @@ from stewart_drake.tuner.tuner_report import plot_tuner_tradeoff, render_tuner_m
 def test_window_means_average_each_window():
     t = np.arange(0.0, 1.0, 1e-3)
     values = np.floor(t / 0.2 + 1e-9)  # 0, 1, 2, 3, 4 per window (t = 0.6 is in the 4th)
-    np.testing.assert_allclose(window_means(t, values, 1.0, ts.WINDOW_S), [0, 1, 2, 3, 4])
+    np.testing.assert_allclose(window_means(t, values, 1.0, sr.WINDOW_S), [0, 1, 2, 3, 4])
 
 
 def _records(costs_e, costs_u):
@@ -43,7 +45,7 @@ def _records(costs_e, costs_u):
             "e2": float(np.mean(e)),
             "u2": float(np.mean(u)),
         }
-        for r, e, u in zip(ts.RATIOS, costs_e, costs_u)
+        for r, e, u in zip(sr.RATIOS, costs_e, costs_u)
     }
 
 
@@ -53,21 +55,21 @@ def test_hindsight_picks_the_best_ratio_of_each_window_and_skips_lost_runs():
     records = _records(e, u)
     best = e + 0.1 * u
     lost = int(np.argmin(best[:, 0]))
-    records[ts.RATIOS[lost]] = {"lost": "fell"}
+    records[sr.RATIOS[lost]] = {"lost": "fell"}
     best[lost] = np.inf
-    t, ratios = ts.hindsight_schedule(records, 0.1)
-    np.testing.assert_allclose(t, np.arange(5) * ts.WINDOW_S)
-    assert ratios == [ts.RATIOS[k] for k in best.argmin(axis=0)]
+    t, ratios = sr.hindsight_schedule(records, 0.1)
+    np.testing.assert_allclose(t, np.arange(5) * sr.WINDOW_S)
+    assert ratios == [sr.RATIOS[k] for k in best.argmin(axis=0)]
 
 
 def test_verdict_is_the_paired_difference_to_the_best_fixed_ratio_of_each_task():
     tasks = [("dash_hold", 100 + k) for k in range(5)]
     records = {}
-    Arm = ts.StudyArm
+    Arm = sr.StudyArm
     for k, task in enumerate(tasks):
         fixed = {
             Arm("fixed", ratio=r): {"e2": 1.0 + abs(np.log10(r) - 0.5 * k % 2), "u2": 0.0}
-            for r in ts.RATIOS
+            for r in sr.RATIOS
         }
         best = min(v["e2"] for v in fixed.values())
         records[task] = {
@@ -76,7 +78,7 @@ def test_verdict_is_the_paired_difference_to_the_best_fixed_ratio_of_each_task()
             Arm("hindsight", lam=0.1): {"e2": (0.9 + 0.02 * k) * best, "u2": 0.0},
             Arm("paper tuner"): {"e2": np.inf, "u2": np.inf},
         }
-    v = ts.verdict(records, tasks, 0.1)
+    v = study_verdict.verdict(records, tasks, 0.1)
     ours, head = v["controllers"]["ours 0.1"], v["controllers"]["hindsight 0.1"]
     assert ours["arm"] == {"kind": "ours", "ratio": None, "lam": 0.1, "shift": None}
     assert ours["mean"] == pytest.approx(-0.3) and ours["std"] == pytest.approx(0.0, abs=1e-12)
@@ -93,24 +95,24 @@ def test_ratio_tuner_learns_the_cost_minimizing_ratio_from_the_reference_speed()
     """Synthetic windows whose best ratio is 10 when the reference moves and 0.01 when it holds:
     trained on the interpolated cost, the network picks each side's ratio."""
     rng = np.random.default_rng(1)
-    n_w, log_r = 40, np.log10(ts.RATIOS)
+    n_w, log_r = 40, np.log10(sr.RATIOS)
     moving = rng.uniform(size=n_w) < 0.5
     runs = {}
     for task in range(2):
         target = np.where(moving, 1.0, -2.0)
         e2_w = np.array([(lr - target) ** 2 + 0.1 for lr in log_r])  # (13, n_w)
         records = {}
-        for r in ts.RATIOS:
+        for r in sr.RATIOS:
             x_d = np.zeros((n_w, 18))
             x_d[:, 6] = np.where(moving, 1.0, 0.0)  # |rpy_dot| = 1 rad/s
             records[r] = {
-                "e2_w": e2_w[ts.RATIOS.index(r)],
+                "e2_w": e2_w[sr.RATIOS.index(r)],
                 "u2_w": np.zeros(n_w),
                 "inputs": ratio_tuner_inputs(rng.uniform(0, 2, (n_w, 12)), x_d),
                 "input_window": np.arange(n_w),
             }
         runs[task] = records
-    model = ts.train_ratio_tuner(runs, 0.1, epochs=400)
+    model = ratio_training.train_ratio_tuner(runs, 0.1, epochs=400)
     x_move, x_hold = np.zeros(18), np.zeros(18)
     x_move[6] = 1.0
     rho = np.ones(12)
@@ -153,8 +155,10 @@ def test_weight_schedules_are_checked_by_field():
 
 @needs_torch
 def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
-    # two ratios, a decade either side of 1, are enough for a best and a worse fixed ratio
-    monkeypatch.setattr(ts, "RATIOS", (0.1, 10.0))
+    # two ratios, a decade either side of 1, are enough for a best and a worse fixed ratio;
+    # each module of the study that reads the ratios holds its own name for them
+    for module in (ts, sr, study_verdict, ratio_training):
+        monkeypatch.setattr(module, "RATIOS", (0.1, 10.0))
     monkeypatch.setattr(ts, "LAMBDAS", (0.1,))
     monkeypatch.setattr(ts, "SHIFTS", (-1.0, 0.0, 1.0))  # quick keeps (-1, 1)
     monkeypatch.setattr(ts, "train_tasks", lambda quick=False: [("dash_hold", 0)])
@@ -218,10 +222,10 @@ def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
     for lam in RATIO_TUNER_LAMBDAS:
         model = load_ratio_tuner(ratio_tuner_path(lam))
         data = model.metadata["data"]
-        assert model.metadata["lambda"] == lam and model.metadata["shift"] in ts.SHIFTS
+        assert model.metadata["lambda"] == lam and model.metadata["shift"] in sr.SHIFTS
         assert data["base_scenario"] == "paper_hardware" and data["quick"] is False
-        assert data["training_tasks"] == [f"{f}_s{s}" for f, s in ts.train_tasks()]
-        assert data["task_duration_s"] == ts.TASK_DURATION_S
+        assert data["training_tasks"] == [f"{f}_s{s}" for f, s in sr.train_tasks()]
+        assert data["task_duration_s"] == sr.TASK_DURATION_S
         assert model.metadata["samples"] > 1000
 
 

@@ -521,11 +521,10 @@ def weight_sweep(scenario: Scenario, ratios=(0.01, 0.1, 1.0, 10.0, 100.0), x0=No
     ``ratios`` (omega_R = 1; only the ratio sets the gain): the trade-off a user tunes. Each
     row: ``ratio``, ``spectral_radius`` and ``stable`` of the closed loop, and the six axes'
     :meth:`AxisFigures.record`."""
-    base = scenario.controller if isinstance(scenario.controller, LqiDriver) else LqiDriver()
     plan = make_plan(scenario, with_reference=False)
     rows = []
     for r in ratios:
-        driver = base.with_weights(omega_Q=float(r), omega_R=1.0)
+        driver = scenario.lqi(omega_Q=float(r), omega_R=1.0)  # the scenario's LQI, or the default
         models = loop_models(plan, x0, driver=driver)
         rho = models.spectral_radius
         rows.append(

@@ -31,6 +31,7 @@ from ..plant.admissible import classify
 from ..robot import kinematics, limits, statics
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.kinematics import AXIS_NAMES
+from .workspace_plots import plot_workspace
 
 #: Default boxes; each reaches past the reference robot's workspace on every side (a test checks
 #: that no reachable pose lies on the boundary, so volumes and extents are not clipped).
@@ -250,205 +251,6 @@ def _write_csv(path: Path, header, rows) -> None:
     atomic_write(path, lambda f: f.write(text.getvalue().encode()))
 
 
-def _save_figure(fig, path: Path) -> None:
-    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=100))
-
-
-def _torque_slice(ax, h_axis, v_axis, result, index, labels, title, motors=(None, None)):
-    """Map of max |T_i| on one slice where the pose is clear, with the boundaries of the joint
-    limits (solid), of interference (dotted) and of cond(J) (dashed), and the contours of the
-    motors' peak torque (red, solid) and of the share a reference may use (red, dashed);
-    ``motors`` is (peak torque in N m or None, margin)."""
-    sl = [slice(None)] * 3
-    sl[index[0]] = index[1]
-    sl = tuple(sl)
-    tmax = np.where(result["clear"][sl], result["max_torque"][sl], np.nan).T
-    mesh = ax.pcolormesh(h_axis, v_axis, np.ma.masked_invalid(tmax), shading="auto", cmap="viridis")
-    for key, style in (("reachable", "-"), ("clear", ":"), ("usable", "--")):
-        m = result[key][sl].T.astype(float)
-        if 0 < m.sum() < m.size:
-            ax.contour(
-                h_axis, v_axis, m, levels=[0.5], colors="k", linestyles=style, linewidths=1.2
-            )
-    peak, margin = motors
-    if peak is not None:
-        for level, style in ((peak, "-"), (margin * peak, "--")):
-            if np.nanmin(tmax) < level < np.nanmax(tmax):
-                ax.contour(
-                    h_axis,
-                    v_axis,
-                    np.ma.masked_invalid(tmax),
-                    levels=[level],
-                    colors="r",
-                    linestyles=style,
-                    linewidths=1.8,
-                )
-    ax.set_xlabel(labels[0])
-    ax.set_ylabel(labels[1])
-    ax.set_title(title, fontsize=9)
-    ax.set_aspect("equal")
-    return mesh
-
-
-def _plots(out: Path, s: dict):
-    """workspace.png and bottleneck_and_orientation.png of a :func:`workspace_summary`."""
-    _plot_workspace(out, s)
-    _plot_bottleneck(out, s)
-
-
-def _plot_workspace(out: Path, s: dict) -> None:
-    """workspace.png: the holding torques over two slices of the translation box, and the
-    reachable tilt against the height."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from matplotlib.lines import Line2D
-
-    taxes, trans = s["translation_axes"], s["translation"]
-    motors = (s["peak_torque_Nm"], s["effort_margin"])
-    iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
-    iy = int(np.argmin(np.abs(taxes[1])))
-    fig, axes = plt.subplots(1, 3, figsize=(14, 4.6))
-    m = _torque_slice(
-        axes[0],
-        taxes[0],
-        taxes[1],
-        trans,
-        (2, iz),
-        ("X [m]", "Y [m]"),
-        f"max |T_i| [N m], Z = {taxes[2][iz]:.3f} m, home orientation",
-        motors,
-    )
-    fig.colorbar(m, ax=axes[0], shrink=0.8)
-    m = _torque_slice(
-        axes[1],
-        taxes[0],
-        taxes[2],
-        trans,
-        (1, iy),
-        ("X [m]", "Z [m]"),
-        f"max |T_i| [N m], Y = {taxes[1][iy]:.3f} m",
-        motors,
-    )
-    fig.colorbar(m, ax=axes[1], shrink=0.8)
-    heights = s["heights"]
-    for key, style, label in (
-        ("clear_tilt_every_rad", "-", "every direction, + clearance"),
-        ("tilt_every_rad", "o:", "every direction, joint limits"),
-        ("clear_tilt_some_rad", "-", "some direction, + clearance"),
-        ("tilt_some_rad", "s:", "some direction, joint limits"),
-    ):
-        # The clearance curves are drawn wide and pale under the joint limits' ones, so a
-        # curve that coincides with its partner stays visible; the legend says when it does.
-        plain = key.removeprefix("clear_")
-        wide = key != plain
-        if wide and np.array_equal(s[key], s[plain], equal_nan=True):
-            label += " (= joint limits)"
-        axes[2].plot(
-            heights,
-            np.rad2deg(s[key]),
-            style,
-            ms=3,
-            lw=5 if wide else 1.2,
-            alpha=0.35 if wide else 1.0,
-            label=label,
-            color="C0" if "every" in key else "C1",
-        )
-    axes[2].set_xlabel("Z [m]")
-    axes[2].set_ylabel("max tilt [deg]")
-    axes[2].set_title("reachable tilt at (0, 0, Z)", fontsize=9)
-    axes[2].grid(alpha=0.3)
-    axes[2].legend(fontsize=8)
-    fig.legend(
-        handles=[
-            Line2D([], [], color="k", ls="-", label="joint limits"),
-            Line2D(
-                [], [], color="k", ls=":", label=f"parts {s['min_clearance_m'] * 1e3:g} mm apart"
-            ),
-            Line2D([], [], color="k", ls="--", label=f"cond(J) <= {s['cond_threshold']:g}"),
-            *(
-                []
-                if motors[0] is None
-                else [
-                    Line2D([], [], color="r", ls="-", label=f"motors' peak {motors[0]:.3g} N m"),
-                    Line2D(
-                        [],
-                        [],
-                        color="r",
-                        ls="--",
-                        label=f"reference's share {motors[1] * motors[0]:.3g} N m",
-                    ),
-                ]
-            ),
-        ],
-        loc="lower center",
-        ncol=5,
-        fontsize=9,
-        frameon=False,
-    )
-    share = s["interfering_share"]
-    fig.suptitle(
-        f"Workspace of states and holding torques (maps: clear poses only). Interference "
-        f"removes {100 * share['translation']:.2g} % of the reachable translation box, "
-        f"{100 * share['orientation']:.2g} % of the orientation box, "
-        f"{100 * share['tilt']:.2g} % of the tilts",
-        fontsize=10,
-    )
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
-    _save_figure(fig, out / "workspace.png")
-    plt.close(fig)
-
-
-def _plot_bottleneck(out: Path, s: dict) -> None:
-    """bottleneck_and_orientation.png: which motor holds the most torque over the translation
-    box at home height, and the holding torques over the orientation box."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    taxes, trans, oaxes, orient = (
-        s["translation_axes"],
-        s["translation"],
-        s["orientation_axes"],
-        s["orientation"],
-    )
-    iz = int(np.argmin(np.abs(taxes[2] - X_HOME[5])))
-    fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
-    b = np.where(trans["clear"], trans["bottleneck"], -1)[:, :, iz].astype(float).T
-    b[b < 0] = np.nan
-    m = axes[0].pcolormesh(
-        taxes[0],
-        taxes[1],
-        np.ma.masked_invalid(b),
-        shading="auto",
-        cmap=plt.get_cmap("tab10", 6),
-        vmin=-0.5,
-        vmax=5.5,
-    )
-    fig.colorbar(m, ax=axes[0], ticks=range(6), label="motor with max |T_i|")
-    axes[0].set_title(f"bottleneck motor, Z = {taxes[2][iz]:.3f} m", fontsize=9)
-    axes[0].set_xlabel("X [m]")
-    axes[0].set_ylabel("Y [m]")
-    axes[0].set_aspect("equal")
-    ipsi = int(np.argmin(np.abs(oaxes[2])))
-    m = _torque_slice(
-        axes[1],
-        np.rad2deg(oaxes[0]),
-        np.rad2deg(oaxes[1]),
-        orient,
-        (2, ipsi),
-        ("roll phi [deg]", "pitch theta [deg]"),
-        f"max |T_i| [N m] at home position, yaw = {np.rad2deg(oaxes[2][ipsi]):.1f} deg",
-        (s["peak_torque_Nm"], s["effort_margin"]),
-    )
-    fig.colorbar(m, ax=axes[1], shrink=0.8)
-    fig.tight_layout()
-    _save_figure(fig, out / "bottleneck_and_orientation.png")
-    plt.close(fig)
-
-
 def workspace_summary(
     geometry: StewartGeometry,
     resolution: int = 41,
@@ -486,21 +288,7 @@ def workspace_summary(
         InvalidConfigError: resolution < 3, or grids that need more memory than the machine
             has (:data:`BYTES_PER_POSE`), before any grid is allocated.
     """
-    # Long: three sweeps reduced to their figures one after the other, each a few lines.
-    if (
-        isinstance(resolution, bool)
-        or not isinstance(resolution, (int, np.integer))
-        or resolution < 3
-    ):  # 2: the box's corners only, none reachable
-        raise InvalidConfigError(
-            f"resolution must be an integer >= 3 (a grid through the home pose), got {resolution!r}"
-        )
-    n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
-    check_memory(
-        f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
-        n_poses * BYTES_PER_POSE,
-        "lower --resolution (default 41)",
-    )
+    _check_resolution(resolution, n_azimuth)
     taxes = grid_axes(TRANSLATION_BOX, resolution)
     oaxes = grid_axes(ORIENTATION_BOX, resolution)
     heights = np.linspace(TRANSLATION_BOX[2][0], TRANSLATION_BOX[2][1], resolution)
@@ -518,10 +306,6 @@ def workspace_summary(
     trans = run(translation_grid(taxes))
     orient = run(orientation_grid(oaxes))
     tilt = run(tilt_grid(heights, tilts, n_azimuth))
-    every, some = max_tilt_vs_height(tilts, tilt["reachable"])
-    every_clear, some_clear = max_tilt_vs_height(tilts, tilt["clear"])
-    b = trans["bottleneck"][trans["clear"]]
-    share = np.bincount(b[b >= 0], minlength=6) / max(b.size, 1)
     return {
         "translation_axes": taxes,
         "orientation_axes": oaxes,
@@ -530,6 +314,46 @@ def workspace_summary(
         "translation": trans,
         "orientation": orient,
         "tilt": tilt,
+        **_figures(
+            (taxes, oaxes, tilts),
+            (trans, orient, tilt),
+            cond_threshold,
+            min_clearance_m,
+            motor_limits,
+        ),
+    }
+
+
+def _check_resolution(resolution, n_azimuth: int) -> None:
+    """Refuse a resolution :func:`workspace_summary` cannot use, or grids that need more memory
+    than the machine has (InvalidConfigError), before any grid is allocated."""
+    if (
+        isinstance(resolution, bool)
+        or not isinstance(resolution, (int, np.integer))
+        or resolution < 3
+    ):  # 2: the box's corners only, none reachable
+        raise InvalidConfigError(
+            f"resolution must be an integer >= 3 (a grid through the home pose), got {resolution!r}"
+        )
+    n_poses = 2 * float(resolution) ** 3 + n_azimuth * float(resolution) ** 2
+    check_memory(
+        f"a workspace sweep at resolution {resolution} ({n_poses:.3g} poses)",
+        n_poses * BYTES_PER_POSE,
+        "lower --resolution (default 41)",
+    )
+
+
+def _figures(axes: tuple, grids: tuple, cond_threshold, min_clearance_m, motor_limits) -> dict:
+    """The figures of :func:`workspace_summary` (from ``volume_m3`` on) of the classifications
+    ``grids`` = (translation, orientation, tilt) on ``axes`` = (translation axes, orientation
+    axes, tilts)."""
+    taxes, oaxes, tilts = axes
+    trans, orient, tilt = grids
+    every, some = max_tilt_vs_height(tilts, tilt["reachable"])
+    every_clear, some_clear = max_tilt_vs_height(tilts, tilt["clear"])
+    b = trans["bottleneck"][trans["clear"]]
+    share = np.bincount(b[b >= 0], minlength=6) / max(b.size, 1)
+    return {
         "volume_m3": reachable_volume(taxes, trans["reachable"]),
         "clear_volume_m3": reachable_volume(taxes, trans["clear"]),
         "usable_volume_m3": reachable_volume(taxes, trans["usable"]),
@@ -590,7 +414,6 @@ def write_workspace(
     Raises:
         InvalidConfigError: resolution < 3 or jobs < 0.
     """
-    # Long for its docstring (each file written and what it holds).
     from tqdm import tqdm
 
     if resolution < 3 or jobs < 0:
@@ -605,6 +428,23 @@ def write_workspace(
         s = workspace_summary(
             geometry, n, jobs, progress=bar, runner=runner, motor_limits=motor_limits
         )
+    arrays = _arrays(s)
+    if say is not None:
+        say(
+            "writing workspace.npz and the CSV files, drawing workspace.png and "
+            "bottleneck_and_orientation.png ..."
+        )
+    atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
+    rows = _summary_rows(s)
+    _write_csv(out / "summary.csv", ("figure", "value", "unit"), rows)
+    _write_tilt_csv(out / "tilt_vs_height.csv", s)
+    plot_workspace(out, s)
+    return rows
+
+
+def _arrays(s: dict) -> dict:
+    """workspace.npz's arrays of a :func:`workspace_summary`: the grids' axes, the tilts, and
+    every field of each grid's classification (``<grid>_<field>``)."""
     arrays = {
         "translation_X": s["translation_axes"][0],
         "translation_Y": s["translation_axes"][1],
@@ -627,12 +467,11 @@ def write_workspace(
     for grid in ("translation", "orientation", "tilt"):
         for key in FIELDS:
             arrays[f"{grid}_{key}"] = s[grid][key]
-    if say is not None:
-        say(
-            "writing workspace.npz and the CSV files, drawing workspace.png and "
-            "bottleneck_and_orientation.png ..."
-        )
-    atomic_write(out / "workspace.npz", lambda f: np.savez_compressed(f, **arrays))
+    return arrays
+
+
+def _summary_rows(s: dict) -> list:
+    """summary.csv's rows (figure, value, unit) of a :func:`workspace_summary`, as text."""
     rows = [
         ("reachable_volume", f"{s['volume_m3']:.6g}", "m^3"),
         ("clear_volume", f"{s['clear_volume_m3']:.6g}", "m^3"),
@@ -679,9 +518,14 @@ def write_workspace(
         (f"bottleneck_share_motor_{i}", f"{v:.4g}", "1")
         for i, v in enumerate(s["bottleneck_share"])
     ]
-    _write_csv(out / "summary.csv", ("figure", "value", "unit"), rows)
+    return rows
+
+
+def _write_tilt_csv(path: Path, s: dict) -> None:
+    """tilt_vs_height.csv: the largest tilt, deg, in every and in some direction, by the joint
+    limits and with clearance, at each height of a :func:`workspace_summary`."""
     _write_csv(
-        out / "tilt_vs_height.csv",
+        path,
         (
             "Z_m",
             "tilt_every_direction_deg",
@@ -700,5 +544,3 @@ def write_workspace(
             )
         ],
     )
-    _plots(out, s)
-    return rows

@@ -15,7 +15,8 @@ def register(sub) -> None:
 
 def _add_design_command(sub) -> None:
     """The ``design`` command's options."""
-    from ..design.design_search import DEFAULT_MAXITER, DEFAULT_POPSIZE, OBJECTIVES
+    from ..design.design_search import DEFAULT_MAXITER, DEFAULT_POPSIZE
+    from ..design.margins import OBJECTIVES
     from ..robot.motor_catalogue import MOTOR_CATALOGUE, REFERENCE_MOTOR
 
     dsg = sub.add_parser(

@@ -30,7 +30,6 @@ import numpy as np
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, StewartError
 from ..control.lqi import LqiDriver
-from ..control.tuning import WeightSchedule
 from ..robot.kinematics import jacobian
 from ..run.plan import make_plan
 from ..run.scenario import ReferenceChoice, Scenario
@@ -57,10 +56,10 @@ def torque_scale_Nm(motor_peak_Nm: float, base: Scenario) -> float:
         InvalidConfigError: a base without hardware (no motor to scale from) or without an LQI,
             or a peak that is not a positive number.
     """
-    _check_base(base)
+    check_base(base)
     peak = as_number("motor peak torque [N m]", motor_peak_Nm, 0.0, lo_open=True)
-    assert base.hardware is not None and isinstance(base.controller, LqiDriver)  # _check_base
-    return base.controller.scales.torque * (peak / base.hardware.motors.peak_torque_Nm)
+    assert base.hardware is not None  # check_base
+    return base.lqi().scales.torque * (peak / base.hardware.motors.peak_torque_Nm)
 
 
 def design_scenario(
@@ -94,8 +93,9 @@ def design_scenario(
       tuners (ANN, ratio) were trained on closed-loop runs of the base robot, whose error and
       torque densities they map to weights; on another plant (other inertia, another motor's
       torque scale) nothing says their weights are good, so the design runs at the base's fixed
-      omega_Q, omega_R, as the base would without a tuner. A :class:`WeightSchedule` (weights
-      given in advance, learned from nothing) is kept.
+      omega_Q, omega_R, as the base would without a tuner. A tuner without a network
+      (:class:`~stewart_drake.control.tuning.WeightSchedule`: weights given in advance, learned
+      from nothing) is kept.
 
     Args:
         design: the design (:class:`~stewart_drake.design.variables.Design`).
@@ -112,6 +112,30 @@ def design_scenario(
         InvalidGeometryError: the design cannot be built (names the variable to change).
         MissingFileError: no such base scenario, or a motion's file missing.
     """
+    _check_arguments(design, requirements, motion)
+    scenario = load_base(base)
+    scale = torque_scale_Nm(design.servo().peak_torque_Nm, scenario)  # checks the base
+    assert scenario.hardware is not None
+    robot, motors = copy.deepcopy(scenario.robot), copy.deepcopy(scenario.hardware.motors)
+    design.apply_to(scenario)
+    assert scenario.hardware is not None  # apply_to keeps the hardware
+    # A tuner with a network (weights trained on the base robot) is dropped off it.
+    if scenario.tuner is not None and scenario.tuner.weights_path() is not None:
+        if scenario.robot != robot or scenario.hardware.motors != motors:
+            scenario.tuner = None
+    scenario.robot.platform_mass += float(requirements.payload_kg)
+    # check_base made the controller an LQI: lqi() is the controller itself, changed.
+    scales = dataclasses.replace(scenario.lqi().scales, torque=scale)
+    scenario.controller = scenario.lqi(scales=scales)
+    scenario.reference = copy.deepcopy(motion)
+    scenario.validate()  # the reference before it is made for its length
+    scenario.duration_s = motion_duration_s(scenario, duration_s)
+    return scenario.validate()
+
+
+def _check_arguments(design, requirements, motion) -> None:
+    """Refuse arguments of :func:`design_scenario` of the wrong kind (InvalidConfigError), and
+    requirements that do not validate."""
     if not isinstance(design, Design):
         raise InvalidConfigError(f"design must be a Design, got {type(design).__name__}")
     if not isinstance(requirements, DesignRequirements):
@@ -125,22 +149,6 @@ def design_scenario(
             f"motion must be a scenario reference choice (one of requirements.motions), got "
             f"{type(motion).__name__}"
         )
-    scenario = _base_scenario(base)
-    scale = torque_scale_Nm(design.servo().peak_torque_Nm, scenario)  # checks the base
-    assert scenario.hardware is not None and isinstance(scenario.controller, LqiDriver)
-    robot, motors = copy.deepcopy(scenario.robot), copy.deepcopy(scenario.hardware.motors)
-    design.apply_to(scenario)
-    assert scenario.hardware is not None  # apply_to keeps the hardware
-    if scenario.tuner is not None and not isinstance(scenario.tuner, WeightSchedule):
-        if scenario.robot != robot or scenario.hardware.motors != motors:
-            scenario.tuner = None
-    scenario.robot.platform_mass += float(requirements.payload_kg)
-    scales = dataclasses.replace(scenario.controller.scales, torque=scale)
-    scenario.controller = dataclasses.replace(scenario.controller, scales=scales)
-    scenario.reference = copy.deepcopy(motion)
-    scenario.validate()  # the reference before it is made for its length
-    scenario.duration_s = motion_duration_s(scenario, duration_s)
-    return scenario.validate()
 
 
 def motion_duration_s(scenario: Scenario, duration_s: float | None = None) -> float:
@@ -356,16 +364,26 @@ def _failed_row(job: MotionRun, reason: str | None) -> dict[str, Any]:
     }
 
 
-def _base_scenario(base: str | Path | Scenario) -> Scenario:
-    """A fresh copy of the base scenario: loaded from a name or file, or copied."""
+def load_base(base: str | Path | Scenario) -> Scenario:
+    """A fresh copy of the base scenario a design is built on: loaded from a shipped name or a
+    scenario file (as the CLI loads it), or copied.
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as
+            :func:`~stewart_drake.run.scenario_io.load_scenario`.
+    """
     if isinstance(base, Scenario):
         return copy.deepcopy(base)  # through its YAML (Scenario.__reduce__)
     return load_scenario(base)
 
 
-def _check_base(base: Scenario) -> None:
+def check_base(base: Scenario) -> None:
     """Refuse a base on which a design's motor means nothing, or whose weights are not an
-    LQI's."""
+    LQI's.
+
+    Raises:
+        InvalidConfigError: a base without hardware, or whose controller is not an LqiDriver.
+    """
     if base.hardware is None:
         raise InvalidConfigError(
             "a design is confirmed on the robot as built: the base scenario needs hardware "
@@ -384,6 +402,8 @@ __all__ = [
     "MAX_TRACE_S",
     "TABLE_HEADER",
     "MotionRun",
+    "load_base",
+    "check_base",
     "confirm",
     "confirmation_table",
     "design_scenario",

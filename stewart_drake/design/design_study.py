@@ -24,17 +24,13 @@ from ..robot.motor_catalogue import REFERENCE_MOTOR
 from .design_search import (
     DEFAULT_MAXITER,
     DEFAULT_POPSIZE,
-    MARGINS,
-    OBJECTIVES,
-    Evaluation,
     SearchResult,
     cheapest_motor,
-    design_geometry,
-    evaluate,
     search,
-    task_samples,
 )
+from .margins import MARGINS, OBJECTIVES, Evaluation, design_geometry, evaluate
 from .requirements import load_requirements
+from .task_samples import task_samples
 from .variables import DESIGN_BOUNDS, Design, reference_design
 
 
@@ -43,7 +39,7 @@ class DesignOutcome:
     """What :func:`run_design` found and wrote.
 
     Attributes:
-        reference: the reference robot's :class:`~.design_search.Evaluation`.
+        reference: the reference robot's :class:`~.margins.Evaluation`.
         searches: every search run (the user's motor first, then the cheapest-motor ladder).
         chosen: {role: Evaluation} of the feasible designs written ("objective", "cheapest").
         binding: when no search found a design that meets the task, the binding constraint
@@ -81,7 +77,7 @@ def run_design(
         out_dir: the study's folder: ``search/`` (the optimizer's store: a rerun continues),
             ``design.md``, ``front.png``, ``designs.png``, ``margins.png``, ``designs.json`` and
             ``design_<role>.yaml`` per chosen design.
-        motor, objective: the main search's (:data:`~.design_search.OBJECTIVES`).
+        motor, objective: the main search's (:data:`~.margins.OBJECTIVES`).
         cheapest: also search the catalogue's motors from the cheapest up.
         confirm: run the chosen designs and the reference robot in closed loop.
         seed, runner, popsize, maxiter: the optimizer's (:func:`~.design_search.search`).
@@ -93,13 +89,13 @@ def run_design(
             option; all before any search.
         ResultsMismatchError, FolderInUseError: ``out_dir/search`` holds another task's search.
     """
-    from .design_confirm import _base_scenario, _check_base
+    from .design_confirm import check_base, load_base
 
     requirements = load_requirements(requirements_path)
     task = task_samples(requirements)
     # The base scenario is read and checked now, not after the search that it does not affect.
-    base = _base_scenario(base_scenario)
-    _check_base(base)
+    base = load_base(base_scenario)
+    check_base(base)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     reference = evaluate(reference_design(), task, lazy=False)
@@ -323,17 +319,22 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     """front.png (the main search's candidates and convergence), designs.png (the robots at
     home, top and side), margins.png (each margin of each design)."""
     import matplotlib
-    import matplotlib.ticker
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    files = []
     columns = _columns(outcome)
     palette = ["0.4", "tab:blue", "tab:orange"]
     colours = {role: palette[i % 3] for i, (role, _) in enumerate(columns)}
+    return [
+        _plot_margins(out, columns, colours),
+        _plot_designs(out, columns, colours),
+        _plot_front(out, outcome),
+    ]
 
-    # Margins.
+
+def _plot_margins(out: Path, columns: list, colours: dict) -> Path:
+    """margins.png: each margin of each design of ``columns`` (:func:`_columns`), as bars."""
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(8, 4), constrained_layout=True)
     names = list(MARGINS)
     width = 0.8 / len(columns)
@@ -353,9 +354,13 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     ax.legend(fontsize=8)
     fig.savefig(out / "margins.png", dpi=120)
     plt.close(fig)
-    files.append(out / "margins.png")
+    return out / "margins.png"
 
-    # The robots at home.
+
+def _plot_designs(out: Path, columns: list, colours: dict) -> Path:
+    """designs.png: the robots of ``columns`` at home, seen from the top and the side."""
+    import matplotlib.pyplot as plt
+
     fig, (top, side) = plt.subplots(1, 2, figsize=(10, 4.6), constrained_layout=True)
     for role, e in columns:
         g = design_geometry(e.design)
@@ -386,11 +391,25 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     top.legend(fontsize=8, loc="upper right")
     fig.savefig(out / "designs.png", dpi=120)
     plt.close(fig)
-    files.append(out / "designs.png")
+    return out / "designs.png"
 
-    # The main search: candidates and convergence.
-    main = outcome.searches[0]
+
+def _plot_front(out: Path, outcome: DesignOutcome) -> Path:
+    """front.png: the main search's convergence (left), and each search's best design's price
+    against the torque it needs (right)."""
+    import matplotlib.pyplot as plt
+
     fig, (conv, ax) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    _plot_convergence(conv, outcome.searches[0])
+    _plot_cost_against_torque(ax, outcome)
+    fig.savefig(out / "front.png", dpi=120)
+    plt.close(fig)
+    return out / "front.png"
+
+
+def _plot_convergence(conv, main: SearchResult) -> None:
+    """The best penalized objective of each generation of the search ``main``, the best so
+    far, and the share of candidates that meet the task (right axis)."""
     gens = np.array(main.generations)
     feasible_best = np.where(gens[:, 0] < 1e5, gens[:, 0], np.nan)
     conv.plot(
@@ -411,6 +430,14 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
     ax2.plot(np.arange(len(gens)), 100 * gens[:, 1], color="tab:green", lw=0.8)
     ax2.set_ylabel("candidates meeting the task (%)", color="tab:green")
     conv.legend(fontsize=8, loc="upper right")
+
+
+def _plot_cost_against_torque(ax, outcome: DesignOutcome) -> None:
+    """Each search's best design: the six motors' price against the peak torque the task needs
+    (a cross: it misses the task), with the torque its motor may give, and the reference
+    robot."""
+    import matplotlib.ticker
+
     rows = []
     for s in outcome.searches:
         rows.append((s.motor, s.best))
@@ -474,7 +501,3 @@ def _plots(out: Path, outcome: DesignOutcome) -> list:
         ylabel="peak motor torque the task needs (N m)",
         title="cost against torque: each motor's best design",
     )
-    fig.savefig(out / "front.png", dpi=120)
-    plt.close(fig)
-    files.append(out / "front.png")
-    return files

@@ -73,7 +73,7 @@ def _cmd_evaluate(args) -> int:
     --docs names another folder)."""
     from ..evaluation.evaluation import evaluate
     from ..evaluation.evaluation_grid import CONTROLLERS, QUICK_CONTROLLERS, check_controllers
-    from ..tuner.tuner_study import GOAL, StudyArm
+    from ..tuner.study_runs import GOAL, StudyArm
 
     if args.controllers:
         controllers = tuple(args.controllers.split(","))

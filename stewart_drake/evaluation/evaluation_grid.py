@@ -256,3 +256,10 @@ def case_id(case: Case) -> str:
     return re.sub(
         r"[^A-Za-z0-9.+-]+", "_", f"{case.controller.name}__{case.reference}__{case.condition}"
     )
+
+
+def index_rows(rows) -> dict:
+    """{(controller, reference, condition): row} of the grid's rows."""
+    return {
+        (r["case"]["controller"], r["case"]["scenario"], r["case"]["condition"]): r for r in rows
+    }

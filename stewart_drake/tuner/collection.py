@@ -34,6 +34,16 @@ from ..run.scenario import Scenario
 from ..run.simulate import RunResult, check_run_memory, run_experiment
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)
+#: What the finished manifest's ``runs`` list keeps of each run's entry.
+MANIFEST_RUN_KEYS = (
+    "file",
+    "omega_Q",
+    "omega_R",
+    "rms_error",
+    "sum_T2_dt",
+    "max_closure_m",
+    "lost",
+)
 
 
 def run_record(result: RunResult, scales, sample_period_s: float, window: int) -> dict:
@@ -201,21 +211,7 @@ def collect(
     wall = ran["wall_s"]
     return store.finish(
         True,
-        runs=[
-            {
-                k: e.get(k)
-                for k in (
-                    "file",
-                    "omega_Q",
-                    "omega_R",
-                    "rms_error",
-                    "sum_T2_dt",
-                    "max_closure_m",
-                    "lost",
-                )
-            }
-            for e in entries
-        ],
+        runs=[{k: e.get(k) for k in MANIFEST_RUN_KEYS} for e in entries],
         n_samples=int(sum(e["n_samples"] for e in entries)),
         workers=runner.n_workers,
         ran=len(ran["ran"]),
@@ -285,36 +281,9 @@ def load_records(data_dir: str | Path) -> list[dict]:
             or lacks an entry or has one of the wrong type or shape (names the file and entry).
     """
     data_dir = Path(data_dir)
-    manifest = read_manifest(data_dir)
-    if manifest is None:
-        raise InvalidConfigError(
-            f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first"
-        )
-    if manifest.get("study") != "collect" or manifest.get("format") != FORMAT:
-        raise ResultsMismatchError(
-            f"{data_dir} was not written by this version of `stewart-drake collect`: collect "
-            f"again into an empty folder"
-        )
     again = f"run the same `stewart-drake collect --out {data_dir}` again to finish it"
-    if not manifest["complete"]:
-        done = sum(v["status"] == "done" for v in manifest["jobs"].values())
-        raise IncompleteResultsError(
-            f"{data_dir} holds {done} of {len(PAPER_WEIGHTS) ** 2} runs (the collection did not "
-            f"finish): {again}"
-        )
-    runs = manifest.get("runs")
-    if not (
-        isinstance(runs, list)
-        and all(
-            isinstance(r, dict) and (r.get("lost") or isinstance(r.get("file"), str)) for r in runs
-        )
-    ):
-        raise CorruptFileError(
-            data_dir / MANIFEST,
-            "collect manifest",
-            "it is complete but its 'runs' list is missing or a run names no file",
-            "collect again into an empty folder",
-        )
+    manifest = _finished_manifest(data_dir, again)
+    runs = manifest["runs"]
     records: list = []
     seen: dict = {}
     for run in runs:
@@ -345,6 +314,41 @@ def load_records(data_dir: str | Path) -> list[dict]:
         seen[weights] = path.name
         records.append(record)
     return records
+
+
+def _finished_manifest(data_dir: Path, again: str) -> dict:
+    """The manifest of a finished collection in ``data_dir``, its ``runs`` list checked (the
+    errors of :func:`load_records`; ``again`` says how to finish an unfinished one)."""
+    manifest = read_manifest(data_dir)
+    if manifest is None:
+        raise InvalidConfigError(
+            f"no collected runs in {data_dir}: run `stewart-drake collect --out {data_dir}` first"
+        )
+    if manifest.get("study") != "collect" or manifest.get("format") != FORMAT:
+        raise ResultsMismatchError(
+            f"{data_dir} was not written by this version of `stewart-drake collect`: collect "
+            f"again into an empty folder"
+        )
+    if not manifest["complete"]:
+        done = sum(v["status"] == "done" for v in manifest["jobs"].values())
+        raise IncompleteResultsError(
+            f"{data_dir} holds {done} of {len(PAPER_WEIGHTS) ** 2} runs (the collection did not "
+            f"finish): {again}"
+        )
+    runs = manifest.get("runs")
+    if not (
+        isinstance(runs, list)
+        and all(
+            isinstance(r, dict) and (r.get("lost") or isinstance(r.get("file"), str)) for r in runs
+        )
+    ):
+        raise CorruptFileError(
+            data_dir / MANIFEST,
+            "collect manifest",
+            "it is complete but its 'runs' list is missing or a run names no file",
+            "collect again into an empty folder",
+        )
+    return manifest
 
 
 def _read_record(path: Path, settings_hash: str, remedy: str) -> dict:

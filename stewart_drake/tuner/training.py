@@ -267,48 +267,25 @@ def train(
         InvalidConfigError: bad settings or too few samples to split.
     Source: paper section III.D (one hidden layer of 10, back-propagation, 70/30 split).
     """
-    # Long for its docstring (every setting, and what the report holds); the fit is _fit.
-    import torch
-
-    if not (
-        isinstance(epochs, int)
-        and epochs >= 1
-        and isinstance(batch_size, int)
-        and batch_size >= 1
-        and np.isfinite(lr)
-        and lr > 0
-    ):
-        raise InvalidConfigError(
-            f"epochs and batch_size must be integers >= 1 and lr > 0, got "
-            f"{epochs}, {batch_size}, {lr}"
-        )
-    if not 0 < val_fraction < 1:
-        raise InvalidConfigError(f"val_fraction must be in (0, 1), got {val_fraction}")
+    _check_settings(epochs, lr, batch_size, val_fraction)
     start = time.perf_counter()
     train_idx, val_idx = _split(len(dataset), val_fraction, seed)
     x_mean = dataset.rho[train_idx].mean(axis=0)
     x_std = dataset.rho[train_idx].std(axis=0)
     x_std = np.where(x_std > 1e-12, x_std, 1.0)  # a constant feature: centre, do not scale
     z = (dataset.rho - x_mean) / x_std
-
-    threads_before = torch.get_num_threads()
-    threads = num_threads or threads_before
-    torch.set_num_threads(threads)
-    try:
-        torch.manual_seed(seed)
-        mlp = build_mlp(hidden, activation)
-        initial = TunerModel.from_torch(mlp, x_mean, x_std)  # for the initial losses
-        history = _fit(
-            mlp,
-            torch.from_numpy(z[train_idx]),
-            torch.from_numpy(dataset.y[train_idx]),
-            epochs,
-            lr,
-            batch_size,
-            seed,
-        )
-    finally:
-        torch.set_num_threads(threads_before)
+    mlp, initial, history, threads = _fit_network(
+        z[train_idx],
+        dataset.y[train_idx],
+        (x_mean, x_std),
+        seed,
+        epochs,
+        lr,
+        batch_size,
+        hidden,
+        activation,
+        num_threads,
+    )
 
     report = {
         "mode": dataset.mode,
@@ -331,6 +308,51 @@ def train(
     report["seconds"] = time.perf_counter() - start
     model.metadata.update({k: report[k] for k in ("train_loss", "val_loss", "train_r2", "val_r2")})
     return model, report
+
+
+def _check_settings(epochs, lr, batch_size, val_fraction) -> None:
+    """Refuse settings :func:`train` cannot use (InvalidConfigError, naming them)."""
+    if not (
+        isinstance(epochs, int)
+        and epochs >= 1
+        and isinstance(batch_size, int)
+        and batch_size >= 1
+        and np.isfinite(lr)
+        and lr > 0
+    ):
+        raise InvalidConfigError(
+            f"epochs and batch_size must be integers >= 1 and lr > 0, got "
+            f"{epochs}, {batch_size}, {lr}"
+        )
+    if not 0 < val_fraction < 1:
+        raise InvalidConfigError(f"val_fraction must be in (0, 1), got {val_fraction}")
+
+
+def _fit_network(
+    z, y, scaling: tuple, seed, epochs, lr, batch_size, hidden, activation, num_threads
+) -> tuple:
+    """The network of :func:`train` built from ``seed`` and fitted (:func:`_fit`) on the
+    normalized features z (n, 12) and targets y (n, 2) of the training split, with torch's
+    intra-op threads set to ``num_threads`` meanwhile (restored afterwards).
+
+    Returns:
+        (mlp, initial, history, threads): the fitted torch network, the
+        :class:`~.tuner.TunerModel` of its initial weights (normalized by ``scaling`` = (x_mean,
+        x_std)), the mean training MSE of each epoch, the threads used.
+    """
+    import torch
+
+    threads_before = torch.get_num_threads()
+    threads = num_threads or threads_before
+    torch.set_num_threads(threads)
+    try:
+        torch.manual_seed(seed)
+        mlp = build_mlp(hidden, activation)
+        initial = TunerModel.from_torch(mlp, *scaling)  # for the initial losses
+        history = _fit(mlp, torch.from_numpy(z), torch.from_numpy(y), epochs, lr, batch_size, seed)
+    finally:
+        torch.set_num_threads(threads_before)
+    return mlp, initial, history, threads
 
 
 def _fit(mlp, z, y, epochs: int, lr: float, batch_size: int, seed: int) -> list:

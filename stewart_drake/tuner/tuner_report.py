@@ -9,10 +9,11 @@ from typing import Any
 
 import numpy as np
 
-from .tuner_study import GOAL, R_HOLD, R_MOVE, RATIOS, SHIFTS, UNSEEN_FAMILY, StudyArm
+from .study_runs import GOAL, R_HOLD, R_MOVE, RATIOS, SHIFTS, UNSEEN_FAMILY, StudyArm
 
 
-def _pct(v: float) -> str:
+def pct(v: float) -> str:
+    """A relative difference v (0.1: 10 % more) as "+10 %", "lost" when it is not finite."""
     return "lost" if not np.isfinite(v) else f"{100 * v:+.0f} %"
 
 
@@ -99,23 +100,23 @@ def _verdict_line(v: dict, lam: float) -> str:
         return "meets" if c["beats"] else "does not meet"
 
     return (
-        f"- lambda = {lam:g}: our tuner {_pct(ours['mean'])} +- {100 * ours['std']:.0f} % "
+        f"- lambda = {lam:g}: our tuner {pct(ours['mean'])} +- {100 * ours['std']:.0f} % "
         f"against the best fixed ratio: **{meets(ours)}** the goal"
         + (
-            f"; its closed-loop choice {_pct(ours_cl['mean'])} +- "
+            f"; its closed-loop choice {pct(ours_cl['mean'])} +- "
             f"{100 * ours_cl['std']:.0f} % (**{meets(ours_cl)}**)"
             if ours_cl
             else ""
         )
         + (
-            f"; the hindsight schedule (the headroom) {_pct(head['mean'])} +- "
+            f"; the hindsight schedule (the headroom) {pct(head['mean'])} +- "
             f"{100 * head['std']:.0f} %"
             if head
             else ""
         )
         + (
             f"; the single fixed ratio chosen on the training tasks "
-            f"{_pct(chosen['mean'])} +- {100 * chosen['std']:.0f} %"
+            f"{pct(chosen['mean'])} +- {100 * chosen['std']:.0f} %"
             if chosen
             else ""
         )
@@ -148,7 +149,7 @@ def _lambda_table(summary: dict, lam: float) -> list:
             cells.append(
                 "-"
                 if m is None
-                else f"{_pct(m[0])}" + (f" +- {100 * m[1]:.0f} %" if m[2] > 1 else "")
+                else f"{pct(m[0])}" + (f" +- {100 * m[1]:.0f} %" if m[2] > 1 else "")
             )
         name = arm.name
         if arm.kind == "fixed chosen" and chosen:
@@ -156,7 +157,7 @@ def _lambda_table(summary: dict, lam: float) -> list:
         elif arm.kind == "ours closed-loop" and chosen:
             name += f" (shift {chosen['shift']:+g})"
         L.append(
-            f"| {name} | {_pct(c['mean'])} +- {100 * c['std']:.0f} % | "
+            f"| {name} | {pct(c['mean'])} +- {100 * c['std']:.0f} % | "
             + " | ".join(cells)
             + f" | {'yes' if c['beats'] else 'no'} |"
         )
@@ -201,7 +202,7 @@ def _why_lines(summary: dict) -> list:
         L.append(
             f"- lambda = {lam:g}: the best fixed ratio is {top:.3g} on {ratios.count(top)} "
             f"of {len(ratios)} held-out tasks; the hindsight schedule is "
-            f"{_pct(head['mean'])} +- {100 * head['std']:.0f} % against it, "
+            f"{pct(head['mean'])} +- {100 * head['std']:.0f} % against it, "
             + (
                 "**within the seed-to-seed spread: there is no headroom for a tuner to gain**"
                 if inside
