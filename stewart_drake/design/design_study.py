@@ -307,7 +307,8 @@ def _confirmation_table(confirmation: dict) -> list:
         "",
         "Each requirement motion run on the design as built (the base scenario's hardware: its "
         "motor, its encoders, the payload the controller knows), the LQI's torque scale the same "
-        "share of the motor's peak as the reference robot's (studies/design_confirm.py).",
+        "share of the motor's peak as the reference robot's "
+        "(stewart_drake/design/design_confirm.py).",
         "",
     ]
     for role, rows in confirmation.items():

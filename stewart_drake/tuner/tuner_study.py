@@ -105,7 +105,7 @@ def provenance(settings: dict, train: list) -> dict:
 
     scenario = dump_scenario(load_scenario(settings["base"]))
     return {
-        "made_by": "the tuner study of `stewart-drake evaluate` (stewart_drake.paper."
+        "made_by": "the tuner study of `stewart-drake evaluate` (stewart_drake.tuner."
         "tuner_study.run_tuner_study)",
         "base_scenario": settings["base"],
         "base_scenario_sha256": hashlib.sha256(scenario.encode()).hexdigest(),
