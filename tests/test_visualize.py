@@ -113,7 +113,8 @@ def test_replay_marks_the_parts_that_touch(tmp_path):
     while the parts are closer than the margin, red once they touch), between the parts."""
     from pydrake.geometry import Meshcat
 
-    from stewart_drake.plant.plant import assembled_positions, make_plant
+    from stewart_drake.plant.closed_chain import assembled_positions
+    from stewart_drake.plant.plant import make_plant
     from stewart_drake.robot.geometry import StewartGeometry
     from stewart_drake.robot.kinematics import X_HOME
 

@@ -1,6 +1,6 @@
 """The same robot in MuJoCo: an MJCF written from a :class:`StewartGeometry`, assembly, closure.
 
-Model (names as in :func:`.plant.write_sdf`): bodies ``base`` (fixed to the world),
+Model (names as in :func:`.sdf.write_sdf`): bodies ``base`` (fixed to the world),
 ``crank_i`` on hinge joints ``motor_i`` (axis u_i), ``rod_i`` on ball joints ``rod_ball_i`` at
 the crank tips, ``platform`` on a free joint; six ``<equality><connect>`` pull site ``rod_top_i``
 (rod top end) onto site ``platform_joint_i`` (platform joint p_i); six ``<motor>`` actuators
@@ -152,7 +152,8 @@ def write_mjcf(
     from pydrake.math import RigidTransform
 
     from ..robot.parts import robot_parts
-    from .plant import MODEL_NAME, make_plant
+    from .plant import make_plant
+    from .sdf import MODEL_NAME
 
     solref, solimp = _check_options(time_step, integrator, solref, solimp)
     if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
@@ -272,7 +273,7 @@ def _qpos_addresses(model, prefix: str) -> list:
 def assemble(model, data, geometry: StewartGeometry | None, x) -> np.ndarray:
     """Write the assembled configuration of platform pose x into ``data`` (at rest, ctrl 0).
 
-    As :func:`.plant.assemble`: cranks from the closed-form IK, each rod along
+    As :func:`.closed_chain.assemble`: cranks from the closed-form IK, each rod along
     crank tip -> platform joint by the smallest rotation from its home direction (no spin, so
     the ball quaternion equals Drake's rpy), platform at x. Ends with ``mj_forward``.
     Args:

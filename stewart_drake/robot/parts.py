@@ -1,8 +1,9 @@
 """The robot's solid parts: what is drawn and what collides, sized as a buildable robot.
 
 One table (:func:`robot_parts`) feeds the SDF's ``<visual>`` and ``<collision>`` elements
-(:func:`~.plant.write_sdf`) and, through the Drake plant, the MJCF's geoms (:mod:`~.mjcf`), so what
-is seen, what Drake's ``SceneGraph`` measures and what MuJoCo collides are one set of shapes.
+(:func:`~.sdf.write_sdf`) and, through the Drake plant, the MJCF's geoms (:mod:`~.mjcf`), so
+what is seen, what Drake's ``SceneGraph`` measures and what MuJoCo collides are one set of
+shapes.
 
 The kinematic layout (pivots, crank and rod lengths, joint centres) is
 ``docs/reference_geometry.md``'s and is not changed here; the parts around it are ours

@@ -169,7 +169,7 @@ def record_states(
         t: (N,) log times, s.
         states: (N, nq + nv) or (N, nq) plant states of that geometry's plant, rods as bodies
             or as distance constraints (drawn with the rods' shapes from crank tip to platform
-            joint, :func:`~stewart_drake.plant.plant.rod_bodies_positions`).
+            joint, :func:`~stewart_drake.plant.closed_chain.rod_bodies_positions`).
         fps: frames per s of the animation.
         clearance_m: parts closer than this are marked, m.
         x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
@@ -185,7 +185,8 @@ def record_states(
     from pydrake.systems.framework import DiagramBuilder
 
     from ..plant.clearance import clearance_model
-    from ..plant.plant import DISTANCE_NQ, DISTANCE_NV, add_stewart_plant, rod_bodies_positions
+    from ..plant.closed_chain import rod_bodies_positions
+    from ..plant.plant import DISTANCE_NQ, DISTANCE_NV, add_stewart_plant
 
     builder = DiagramBuilder()
     plant, scene_graph, _ = add_stewart_plant(builder, geometry)
