@@ -671,7 +671,8 @@ def _cmd_scenario(args) -> int:
 def _runner(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..execution.runners import AUTO_RECYCLE, make_runner
+    from ..execution.clusters import make_runner
+    from ..execution.runners import AUTO_RECYCLE
 
     return make_runner(
         args.runner,
@@ -1278,12 +1279,8 @@ def _cmd_diagrams(args) -> int:
 
 def _add_runner_arguments(parser) -> None:
     """The options of a study's runner (jobs/runners.py)."""
-    from ..execution.runners import (
-        DEFAULT_CONNECT_TIMEOUT_S,
-        DEFAULT_RECYCLE,
-        DEFAULT_RETRIES,
-        RUNNERS,
-    )
+    from ..execution.clusters import DEFAULT_CONNECT_TIMEOUT_S
+    from ..execution.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
 
     parser.add_argument(
         "--runner",
