@@ -392,9 +392,9 @@ def make_runner(
     Args:
         kind: one of :data:`RUNNERS`. jobs: workers (0: one per core; a local cluster's size
             for ray and dask). address: Ray cluster (ray only). scheduler: Dask scheduler
-            (dask only). retries, recycle: see :class:`~.runners.ProcessRunner` and :class:`RayRunner`
-            (recycle 0 or None: never; Dask ignores it). connect_timeout_s: see
-            :class:`RayRunner`.
+            (dask only). retries, recycle: see :class:`~.runners.ProcessRunner` and
+            :class:`RayRunner` (recycle 0 or None: never; Dask ignores it). connect_timeout_s:
+            see :class:`RayRunner`.
     Raises:
         InvalidConfigError: an unknown kind, an option of another backend, a negative count,
             a malformed address, or an address where nothing answers in time.
