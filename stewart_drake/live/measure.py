@@ -1,17 +1,20 @@
-"""TODO docstring."""
+"""The robot read with the torque off: its pose and verdict, the calibration, the start.
+
+:func:`measure_pose` is the dry run: it opens the scenario's bus, reads the crank angles once
+and returns the pose by forward kinematics with the admissible set's verdict on it
+(:class:`MeasuredPose`). :func:`admissible_start` refuses a pose outside that set, before a
+session (:mod:`~.session`) powers anything; :func:`zero_counts_at` gives the calibration's zero
+counts of cranks held at a known angle.
+"""
 
 from __future__ import annotations
 
-import dataclasses  # moved-import
-import math  # moved-import
-import signal  # moved-import
-import sys  # moved-import
-import threading  # moved-import
-import time  # moved-import
-from collections.abc import Callable  # moved-import
-from pathlib import Path  # moved-import
-import numpy as np  # moved-import
-from stewart_drake.base.errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError  # moved-import
+import dataclasses
+import math
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError, StartPoseError
 
 
 @dataclasses.dataclass(frozen=True)

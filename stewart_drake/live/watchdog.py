@@ -1,18 +1,18 @@
-"""TODO docstring."""
+"""Our watchdog on the robot: the torque removed when the control loop stops completing periods.
+
+:class:`LoopWatchdog` runs a thread that removes the servos' torque when no period completed for
+its timeout; :func:`watchdog_monitor` is the Simulator's monitor that kicks it after every step
+and ends the run at the step after a trip. A session (:mod:`~.session`) runs its loop behind
+both.
+"""
 
 from __future__ import annotations
 
-import dataclasses  # moved-import
-import math  # moved-import
-import signal  # moved-import
-import sys  # moved-import
-import threading  # moved-import
-import time  # moved-import
-from collections.abc import Callable  # moved-import
-from pathlib import Path  # moved-import
-import numpy as np  # moved-import
-from stewart_drake.base.errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError  # moved-import
+import threading
+import time
+from collections.abc import Callable
 
+from ..base.errors import InvalidConfigError, LoopStalledError
 
 #: Default time our watchdog lets pass without a completed control period, s.
 LOOP_TIMEOUT_S = 0.1
@@ -70,7 +70,7 @@ class LoopWatchdog:
                 return
 
 
-def _kicker(watchdog: LoopWatchdog):
+def watchdog_monitor(watchdog: LoopWatchdog):
     """The Simulator's monitor: each step completed kicks ``watchdog``; returns Drake's
     "continue" status."""
     from pydrake.systems.framework import EventStatus

@@ -153,17 +153,9 @@ def write_mjcf(
     from .sdf import MODEL_NAME
 
     solref, solimp = _check_options(time_step, integrator, solref, solimp)
-    if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
-        raise InvalidConfigError(
-            f"torque_limit_Nm must be a finite number of N m > 0, got {torque_limit_Nm}"
-        )
+    force = _force_attributes(torque_limit_Nm)
     g = geometry or StewartGeometry()
     motor_extra = _motor_attributes(g, servo)
-    force = (
-        ""
-        if torque_limit_Nm is None
-        else f' forcelimited="true" forcerange="{_num([-torque_limit_Nm, torque_limit_Nm])}"'
-    )
     plant, context, handles, _, _ = make_plant(g)
     shapes: dict[str, list[str]] = {}
     for part in robot_parts(g):
@@ -199,6 +191,23 @@ def write_mjcf(
     out += _loops_and_actuators_xml(solref, solimp, force, servo is not None)
     out += ["</mujoco>", ""]
     return "\n".join(out)
+
+
+def _force_attributes(torque_limit_Nm: float | None) -> str:
+    """The actuators' ``forcerange`` attributes of a torque limit in N m (none for None).
+
+    Raises:
+        InvalidConfigError: a limit that is not a finite number > 0.
+    """
+    if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
+        raise InvalidConfigError(
+            f"torque_limit_Nm must be a finite number of N m > 0, got {torque_limit_Nm}"
+        )
+    return (
+        ""
+        if torque_limit_Nm is None
+        else f' forcelimited="true" forcerange="{_num([-torque_limit_Nm, torque_limit_Nm])}"'
+    )
 
 
 def _motor_attributes(g: StewartGeometry, servo: ServoModel | None) -> str:
