@@ -568,9 +568,9 @@ def render(data) -> str:
     L += [
         "## The rods' ball-joint coordinates and gimbal lock",
         "",
-        "Drake parses each rod's ball joint into a `BallRpyJoint` (R_FM = Rz Ry Rx), singular "
-        "at pitch = +-90 deg: for a rod turned from its home frame F by the smallest rotation "
-        "(what `plant.assemble` writes; no spin) pitch = asin(e . x_F), e the rod direction, so "
+        "Drake parses each rod's ball joint into a `BallRpyJoint` (R_FM = Rz Ry Rx), singular at "
+        "pitch = +-90 deg: for a rod turned from its home frame F by the smallest rotation (what "
+        "`closed_chain.assemble` writes; no spin) pitch = asin(e . x_F), e the rod direction, so "
         "gimbal lock needs the rod along +-x_F. Those two singular directions are fixed in the "
         "crank; the rod end's cone (`crank_joint_cone_deg`) bounds how far a rod leaves the "
         "crank's plane, asin|e . u_i|. `stewart_drake/plant/ball_joints.py` computes the rpy "

@@ -63,7 +63,7 @@ from stewart_drake.control.lqi import (
 )
 from stewart_drake.control.tuner import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
-from stewart_drake.plant.plant import ROD_MODELS
+from stewart_drake.plant.sdf import ROD_MODELS
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run.diagram import held_station

@@ -33,7 +33,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from stewart_drake.evaluation.evaluation import evaluate  # noqa
 from stewart_drake.evaluation.evaluation_grid import CONTROLLERS, SCENARIO_DURATION_S  # noqa
-from stewart_drake.execution.runners import DEFAULT_RECYCLE, ProcessRunner, RayRunner  # noqa
+from stewart_drake.execution.clusters import RayRunner  # noqa
+from stewart_drake.execution.runners import DEFAULT_RECYCLE, ProcessRunner  # noqa
 
 
 def _noop(job):

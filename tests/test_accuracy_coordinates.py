@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from stewart_drake.plant import ball_joints
-from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.plant.closed_chain import assemble
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import limits
 from stewart_drake.robot.geometry import X_HOME

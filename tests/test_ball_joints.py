@@ -4,7 +4,8 @@ after assemble, and the bounds the module derives from them."""
 import numpy as np
 
 from stewart_drake.plant import ball_joints
-from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.plant.closed_chain import assemble
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot.geometry import X_HOME
 
 

@@ -176,17 +176,17 @@ def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkey
 
 
 def test_sdf_command_writes_atomically(tmp_path, monkeypatch, capsys):
-    from stewart_drake.plant import plant
+    from stewart_drake.plant import sdf
 
     out = tmp_path / "robot.sdf"
     assert cli.main(["sdf", "--out", str(out)]) == 0
     good = out.read_text()
-    assert good == plant.write_sdf()
+    assert good == sdf.write_sdf()
 
     def broken():
         raise OSError(5, "Input/output error")
 
-    monkeypatch.setattr(plant, "write_sdf", broken)
+    monkeypatch.setattr(sdf, "write_sdf", broken)
     assert "Input/output error" in _one_line_error(capsys, ["sdf", "--out", str(out)], code=1)
     assert out.read_text() == good
 

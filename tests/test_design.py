@@ -20,7 +20,8 @@ from stewart_drake.design.variables import (
     reference_design,
 )
 from stewart_drake.plant.clearance import ClearanceModel
-from stewart_drake.plant.plant import loop_closure_errors, make_plant, platform_pose
+from stewart_drake.plant.closed_chain import loop_closure_errors
+from stewart_drake.plant.plant import make_plant, platform_pose
 from stewart_drake.robot.geometry import reference_geometry
 from stewart_drake.robot.kinematics import X_HOME, ik, leg_reach_ratio
 from stewart_drake.robot.motor_catalogue import (

@@ -10,13 +10,8 @@ import pytest
 from conftest import needs_extra, run_within
 
 from stewart_drake.evaluation.evaluation import evaluate
-from stewart_drake.execution.runners import (
-    DaskRunner,
-    JobFailure,
-    ProcessRunner,
-    RayRunner,
-    SerialRunner,
-)
+from stewart_drake.execution.clusters import DaskRunner, RayRunner
+from stewart_drake.execution.runners import JobFailure, ProcessRunner, SerialRunner
 from stewart_drake.tuner.collection import _collect_job, collection_jobs
 
 #: Row fields that measure the machine, not the run.
@@ -130,7 +125,7 @@ def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
     import threading
 
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.execution.runners import make_runner
+    from stewart_drake.execution.clusters import make_runner
 
     server = socket.socket()
     server.bind(("127.0.0.1", 0))

@@ -11,7 +11,7 @@ from stewart_drake.base.errors import (
     UnreachablePoseError,
 )
 from stewart_drake.control.contract import LQI_STATUS_NAMES
-from stewart_drake.plant.plant import assemble
+from stewart_drake.plant.closed_chain import assemble
 from stewart_drake.references.trajectories import SineTrajectory, paper_manoeuvre
 from stewart_drake.robot import kinematics, limits
 from stewart_drake.robot.geometry import StewartGeometry

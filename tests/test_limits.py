@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import JointLimitError, UnreachablePoseError
-from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.plant.closed_chain import assemble
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot import kinematics, limits
 from stewart_drake.robot.geometry import X_HOME
 

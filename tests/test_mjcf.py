@@ -14,7 +14,8 @@ from stewart_drake.analysis.accuracy import X_TILTED, OpenLoopCase  # noqa: E402
 from stewart_drake.base.errors import InvalidConfigError  # noqa: E402
 from stewart_drake.cli.main import main  # noqa: E402
 from stewart_drake.plant import mjcf  # noqa: E402
-from stewart_drake.plant.plant import assemble, make_plant  # noqa: E402
+from stewart_drake.plant.closed_chain import assemble  # noqa: E402
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot.geometry import X_HOME  # noqa: E402
 from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402

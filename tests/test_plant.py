@@ -10,15 +10,9 @@ from pydrake.systems.framework import DiagramBuilder
 from pydrake.systems.primitives import ConstantVectorSource
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.plant.plant import (
-    REFERENCE_SDF,
-    add_stewart_plant,
-    assemble,
-    loop_closure_errors,
-    make_plant,
-    platform_pose,
-    write_sdf,
-)
+from stewart_drake.plant.closed_chain import assemble, loop_closure_errors
+from stewart_drake.plant.plant import add_stewart_plant, make_plant, platform_pose
+from stewart_drake.plant.sdf import REFERENCE_SDF, write_sdf
 from stewart_drake.robot import statics
 
 
@@ -134,7 +128,7 @@ def test_distance_rods_do_not_hold_with_platform_only_torques(geometry):
 def test_a_distance_plant_run_is_drawn_with_rods_from_crank_tip_to_platform_joint(
     geometry, random_poses
 ):
-    from stewart_drake.plant.plant import assembled_positions, rod_bodies_positions
+    from stewart_drake.plant.closed_chain import assembled_positions, rod_bodies_positions
 
     plant, context, handles, _, _ = make_plant(geometry, rod_model="distance")
     bodies, b_context, b_handles, _, _ = make_plant(geometry)
@@ -161,7 +155,7 @@ def test_unknown_rod_models_and_files_with_distance_rods_are_refused():
 def test_the_closure_from_positions_alone_is_drakes(geometry, random_poses, rod_model):
     """LoopClosure (no Context) against Drake's kinematics, on configurations knocked off their
     closure by 1 cm and 0.01 rad in every coordinate (0.1 mm to a few cm of error)."""
-    from stewart_drake.plant.plant import LoopClosure
+    from stewart_drake.plant.closed_chain import LoopClosure
 
     plant, context, handles, _, _ = make_plant(geometry, rod_model=rod_model)
     closure = LoopClosure(handles)

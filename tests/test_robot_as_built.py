@@ -18,12 +18,12 @@ from stewart_drake.base.errors import (
     SimulationDivergedError,
 )
 from stewart_drake.plant.clearance import ClearanceModel, clearance_model, family, sample_indices
-from stewart_drake.plant.plant import (
+from stewart_drake.plant.closed_chain import (
     assemble,
     assembled_positions,
     closed_chain_inverse_dynamics,
-    make_plant,
 )
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.references.trajectories import DrakeTrajectory, make_trajectory, paper_manoeuvre
 from stewart_drake.robot import kinematics, statics
 from stewart_drake.robot.geometry import StewartGeometry

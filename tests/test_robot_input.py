@@ -22,11 +22,12 @@ from stewart_drake.cli.main import main  # noqa: E402
 from stewart_drake.cli.registry import build_parser  # noqa: E402
 from stewart_drake.live import command as live_command  # noqa: E402
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
+from stewart_drake.live.measure import zero_counts_at  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     dynamixel_scenario,
 )
-from stewart_drake.live.session import RobotRun, _drive, end_line, zero_counts_at  # noqa: E402
+from stewart_drake.live.session import RobotRun, _drive, end_line  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.scenario import DynamixelBusConfig, dump_scenario  # noqa: E402
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402

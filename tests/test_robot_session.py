@@ -16,12 +16,9 @@ require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError, StartPoseError  # noqa: E402
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
-from stewart_drake.live.session import (  # noqa: E402
-    HomingReference,
-    LoopWatchdog,
-    measure_pose,
-    pose_verdict,
-)
+from stewart_drake.live.measure import measure_pose, pose_verdict  # noqa: E402
+from stewart_drake.live.session import HomingReference  # noqa: E402
+from stewart_drake.live.watchdog import LoopWatchdog  # noqa: E402
 from stewart_drake.references.trajectories import paper_manoeuvre  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.plan import make_plan  # noqa: E402
@@ -70,14 +67,14 @@ def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_rai
     from conftest import wait_for
 
     from stewart_drake.base.errors import LoopStalledError
-    from stewart_drake.live import session as robot
-    from stewart_drake.live.session import _kicker
+    from stewart_drake.live import watchdog as robot
+    from stewart_drake.live.watchdog import watchdog_monitor
 
     now = [100.0]
     monkeypatch.setattr(robot, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
     calls = []
     watchdog = LoopWatchdog(lambda: calls.append(now[0]) or True, timeout_s=0.2)
-    monitor = _kicker(watchdog)
+    monitor = watchdog_monitor(watchdog)
     with watchdog:
         monitor(None)  # a step completed at 100 s
         now[0] = 100.19
@@ -177,7 +174,7 @@ def _angles(geometry, x):
 
 def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
     from stewart_drake.live.emulator import FirstOrderServos
-    from stewart_drake.live.session import zero_counts_at
+    from stewart_drake.live.measure import zero_counts_at
 
     q_held = np.radians([-3.8, -3.8, 10.0, -20.0, 0.0, 45.0])  # the jig's angles
     mounted = [2048, 1000, 3000, 2500, 100, 4000]

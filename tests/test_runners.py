@@ -16,13 +16,13 @@ import pytest
 from conftest import wait_for
 
 from stewart_drake.base.errors import JointLimitError, SimulationDivergedError
+from stewart_drake.execution.clusters import make_runner
 from stewart_drake.execution.runners import (
     DEFAULT_RECYCLE,
     Interrupted,
     JobFailure,
     ProcessRunner,
     SerialRunner,
-    make_runner,
 )
 
 REPO = Path(__file__).resolve().parent.parent
@@ -210,7 +210,8 @@ def test_workers_die_with_their_parent(tmp_path):
 
 def test_local_workers_are_recycled_only_where_drake_cannot_free_a_run():
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.execution.runners import RayRunner, drake_frees_diagrams
+    from stewart_drake.execution.clusters import RayRunner
+    from stewart_drake.execution.runners import drake_frees_diagrams
 
     expected = None if drake_frees_diagrams() else DEFAULT_RECYCLE
     assert ProcessRunner(1).recycle == expected

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.plant.closed_chain import assemble
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot import kinematics, statics
 from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.robot.servo import ServoModel

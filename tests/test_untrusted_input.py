@@ -231,7 +231,7 @@ def test_the_real_time_rates_that_are_kept_still_run(monkeypatch):
 
 
 def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout():
-    from stewart_drake.execution.runners import make_runner
+    from stewart_drake.execution.clusters import make_runner
 
     for kind, option in (("ray", "address"), ("dask", "scheduler")):
         with pytest.raises(
@@ -246,7 +246,7 @@ def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout()
 def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
     """An address that answers but is no Ray cluster: Ray's handshake retries in C++ for
     minutes; the join waits at most RAY_JOIN_TIMEOUT_S, in a thread the main thread can leave."""
-    from stewart_drake.execution import runners
+    from stewart_drake.execution import clusters
 
     server = socket.socket()
     server.bind(("127.0.0.1", 0))
@@ -257,8 +257,8 @@ def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
         def init(self, **kwargs):
             release.wait(60)
 
-    monkeypatch.setattr(runners, "RAY_JOIN_TIMEOUT_S", 1.0)
-    runner = runners.RayRunner(address=f"127.0.0.1:{server.getsockname()[1]}")
+    monkeypatch.setattr(clusters, "RAY_JOIN_TIMEOUT_S", 1.0)
+    runner = clusters.RayRunner(address=f"127.0.0.1:{server.getsockname()[1]}")
     try:
         with pytest.raises(
             InvalidConfigError,

@@ -12,7 +12,7 @@ from stewart_drake.cli.main import main
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.run.diagram import make_stewart_diagram
 from stewart_drake.run.scenario import Scenario
-from stewart_drake.viz import visualize
+from stewart_drake.viz import diagrams, visualize
 
 #: The committed pictures (``stewart-drake diagrams`` from the repository's root rewrites them).
 DIAGRAMS = Path(__file__).resolve().parent.parent / "diagrams"
@@ -113,7 +113,8 @@ def test_replay_marks_the_parts_that_touch(tmp_path):
     while the parts are closer than the margin, red once they touch), between the parts."""
     from pydrake.geometry import Meshcat
 
-    from stewart_drake.plant.plant import assembled_positions, make_plant
+    from stewart_drake.plant.closed_chain import assembled_positions
+    from stewart_drake.plant.plant import make_plant
     from stewart_drake.robot.geometry import StewartGeometry
     from stewart_drake.robot.kinematics import X_HOME
 
@@ -264,7 +265,7 @@ def test_a_diverging_replay_stops_at_the_guard_and_saves_the_whole_scenario(
 
 
 def test_committed_diagram_pictures_are_current():
-    dots = visualize.diagram_dots()
+    dots = diagrams.diagram_dots()
     assert {"control_loop", "diagram_fixed", "diagram_ann", "station", "lqi_controller"} <= set(
         dots
     )
@@ -274,7 +275,7 @@ def test_committed_diagram_pictures_are_current():
         hint = "run `stewart-drake diagrams` (with Graphviz installed) and commit diagrams/"
         assert dot_path.exists() and dot_path.read_text() == dot, f"{dot_path} is stale: {hint}"
         assert svg_path.exists(), f"{svg_path} is missing: {hint}"
-        assert visualize.svg_dot_hash(svg_path.read_text()) == visualize.dot_hash(dot), (
+        assert diagrams.svg_dot_hash(svg_path.read_text()) == diagrams.dot_hash(dot), (
             f"{svg_path} was rendered from another .dot: {hint}"
         )
 
@@ -283,7 +284,7 @@ def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
     first, second = (make_stewart_diagram(Scenario()).diagram for _ in range(2))
     raw = [d.GetGraphvizString(max_depth=1) for d in (first, second)]
     assert raw[0] != raw[1]  # Drake's system ids differ ...
-    dots = [visualize.normalize_dot(r) for r in raw]
+    dots = [diagrams.normalize_dot(r) for r in raw]
     assert dots[0] == dots[1]  # ... the normalized text does not
     # every connection, and the exported input (tool_wrench, fixed in the Context) to the station
     assert dots[0].count(" -> ") == len(first.connection_map()) + first.num_input_ports()
@@ -293,7 +294,7 @@ def test_diagram_dot_is_the_same_in_every_build_and_shows_every_connection():
 
 def test_control_loop_picture_shows_the_ports_in_use_only():
     sd = make_stewart_diagram(Scenario())
-    dot = visualize.control_loop_dot(sd.diagram)
+    dot = diagrams.control_loop_dot(sd.diagram)
     assert '"controller":"out_T" -> "station":"in_motor_torque" [label="T (6)"' in dot
     assert '"station":"out_platform_state" -> "controller":"in_x"' in dot
     assert '"inputs":"out_tool_wrench" -> "station":"in_tool_wrench"' in dot  # exported
@@ -313,7 +314,7 @@ def test_control_loop_picture_shows_the_ports_in_use_only():
 def test_pictures_draw_the_default_scenario_and_label_the_ideal_one():
     """`run` defaults to the robot as built: the pictures without a suffix show its encoders
     feeding the LQI; the ideal robot's pictures say so in their caption."""
-    dots = visualize.diagram_dots()
+    dots = diagrams.diagram_dots()
     loop, ideal = dots["control_loop"], dots["control_loop_ideal"]
     assert '"station":"out_motor_angle" -> "controller":"in_motor_angle"' in loop
     assert "platform_state" not in loop and "paper_hardware" in loop
@@ -330,7 +331,7 @@ def test_the_station_picture_leaves_out_the_ports_nobody_connects():
     surface_displacements): the station picture draws only the ports in use, so it is the same
     on every supported Drake."""
     sd = make_stewart_diagram(Scenario())
-    dot = visualize.wiring_dot(sd.station)
+    dot = diagrams.wiring_dot(sd.station)
     plant = sd.station.plant
     connected = {
         src.get_output_port(j).get_name()
@@ -344,9 +345,9 @@ def test_the_station_picture_leaves_out_the_ports_nobody_connects():
 
 
 def test_svg_rendering_needs_graphviz_and_says_so(monkeypatch):
-    monkeypatch.setattr(visualize.shutil, "which", lambda name: None)
+    monkeypatch.setattr(diagrams.shutil, "which", lambda name: None)
     with pytest.raises(RenderToolMissingError, match="install graphviz"):
-        visualize.render_svg("digraph { a -> b }")
+        diagrams.render_svg("digraph { a -> b }")
 
 
 def test_diagrams_cli_writes_the_dot_sources(tmp_path):

@@ -11,7 +11,8 @@ from test_plant import _hold
 from stewart_drake.analysis import workspace
 from stewart_drake.base import errors
 from stewart_drake.base.errors import InvalidConfigError, InvalidGeometryError, UnreachablePoseError
-from stewart_drake.plant.plant import assemble, make_plant
+from stewart_drake.plant.closed_chain import assemble
+from stewart_drake.plant.plant import make_plant
 from stewart_drake.references import trajectories
 from stewart_drake.robot import kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME

@@ -6,7 +6,7 @@
 Needs Chromium (Debian: `apt install chromium`); WebGL runs on the SwiftShader software
 rasterizer, so no GPU or display is used. Prints one line per figure, e.g.
 ``robot_pixels green 0.0031 orange 0.0009 blue 0.0008 (shot.png, 1280x800)``: the fractions of
-the image in the platform's green, the cranks' orange and the ball joints' blue (plant.write_sdf
+the image in the platform's green, the cranks' orange and the ball joints' blue (sdf.write_sdf
 colors), which is how the slow test decides that the robot, not a blank page, is on screen.
 """
 
@@ -80,7 +80,7 @@ def screenshot(
 
 
 def robot_pixel_fractions(png: str | Path) -> dict:
-    """Fractions of the image's pixels in the robot's colors (plant.write_sdf diffuse colors).
+    """Fractions of the image's pixels in the robot's colors (sdf.write_sdf diffuse colors).
 
     Returns:
         {"green": platform disc, "orange": crank arms, "blue": ball joints}, each in [0, 1].

@@ -85,7 +85,7 @@ class Run:
 class DrakeEngine:
     """The Drake plant of :func:`.plant.add_stewart_plant` under constant torques, run by
     Drake's Simulator (gravity: Drake's default 9.81 m/s^2); ``rod_model`` one of
-    :data:`~stewart_drake.plant.plant.ROD_MODELS` (named "drake_sap" with rods as bodies,
+    :data:`~stewart_drake.plant.sdf.ROD_MODELS` (named "drake_sap" with rods as bodies,
     "drake_sap_distance" with rods as distance constraints)."""
 
     def __init__(
@@ -108,7 +108,7 @@ class DrakeEngine:
         self.context = self.plant.GetMyMutableContextFromRoot(self.simulator.get_mutable_context())
 
     def assemble(self, x) -> None:
-        from ..plant.plant import assemble
+        from ..plant.closed_chain import assemble
 
         assemble(self.plant, self.context, self.handles, x)
         self.simulator.Initialize()
@@ -122,7 +122,7 @@ class DrakeEngine:
         return platform_pose(self.plant, self.context, self.handles)[0]
 
     def closure(self) -> float:
-        from ..plant.plant import loop_closure_errors
+        from ..plant.closed_chain import loop_closure_errors
 
         return float(loop_closure_errors(self.plant, self.context, self.handles).max())
 
@@ -267,7 +267,7 @@ def observed_order(steps, errors, floor: float = 1e-13) -> float:
 
 def paper_run(time_step: float, duration_s: float = 2.0, rod_model: str = "bodies") -> dict:
     """The paper manoeuvre in closed loop (LQI at 1 kHz) on a plant of step ``time_step`` s,
-    rods modelled as ``rod_model`` (:data:`~stewart_drake.plant.plant.ROD_MODELS`).
+    rods modelled as ``rod_model`` (:data:`~stewart_drake.plant.sdf.ROD_MODELS`).
 
     Returns:
         dict: ``rms_error`` (6,) over the second half [rad, m], ``max_closure_m``,

@@ -70,7 +70,7 @@ def _add_sdf_command(sub) -> None:
 
 def _cmd_sdf(args) -> int:
     from ..base.fileio import atomic_write
-    from ..plant.plant import write_sdf
+    from ..plant.sdf import write_sdf
 
     text = write_sdf().encode()
     atomic_write(Path(args.out), lambda f: f.write(text))

@@ -205,12 +205,8 @@ def add_scenario_arguments(parser, what: str, default: str | None = None) -> Non
 
 def add_runner_arguments(parser) -> None:
     """The options of a study's runner (:mod:`~stewart_drake.execution.runners`)."""
-    from ..execution.runners import (
-        DEFAULT_CONNECT_TIMEOUT_S,
-        DEFAULT_RECYCLE,
-        DEFAULT_RETRIES,
-        RUNNERS,
-    )
+    from ..execution.clusters import DEFAULT_CONNECT_TIMEOUT_S
+    from ..execution.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
 
     parser.add_argument(
         "--runner",
@@ -262,7 +258,8 @@ def add_runner_arguments(parser) -> None:
 def runner_from_args(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..execution.runners import AUTO_RECYCLE, make_runner
+    from ..execution.clusters import make_runner
+    from ..execution.runners import AUTO_RECYCLE
 
     return make_runner(
         args.runner,

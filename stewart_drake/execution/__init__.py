@@ -1,2 +1,3 @@
-"""How a study's independent jobs run (this process, local processes, Ray, Dask:
-:mod:`.runners`) and how their results are kept as they arrive and resumed (:mod:`.store`)."""
+"""How a study's independent jobs run (this process, local processes: :mod:`.runners`; Ray,
+Dask: :mod:`.clusters`) and how their results are kept as they arrive and resumed
+(:mod:`.store`)."""

@@ -351,7 +351,8 @@ def _start_emulator(scenario, x0):
 def _robot_session(args, scenario, out, stem, signals) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
-    from ..live.session import end_line, measure_pose, run_on_robot
+    from ..live.measure import measure_pose
+    from ..live.session import end_line, run_on_robot
     from ..run.metrics import format_metrics
 
     emulator = None
@@ -360,7 +361,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
             emulator = _start_emulator(scenario, args.emulate)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
-            from ..live.session import bus_config, zero_counts_at
+            from ..live.measure import bus_config, zero_counts_at
 
             with bus_config(scenario).make_bus() as bus:
                 zeros = zero_counts_at(bus, math.radians(args.calibrate))

@@ -13,7 +13,7 @@ out of it removes the torque:
    (:func:`~stewart_drake.run.plan.check_reference`: reach, joint ranges,
    singularities, clearance, the motors' torque and speed) or nothing is powered;
 4. only then the torque is enabled, and the Diagram runs at real time behind our watchdog
-   (:class:`LoopWatchdog`) and the servos' own bus watchdog;
+   (:class:`~.watchdog.LoopWatchdog`) and the servos' own bus watchdog;
 5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
    deadline, a guard trip, our watchdog), removes the torque, says in one line why it ended
    and whether every servo confirmed the torque off, and keeps the logs (the ``.npz`` of a
@@ -22,14 +22,13 @@ out of it removes the torque:
 At the end of a run the torque is off: the platform comes down onto its stops. Home it low (the
 scenario's reference ends where the platform may rest) or hold it (``hold_s``) and support it.
 
-:func:`measure_pose` is the dry run: it reads the bus with the torque off and returns the pose
-and its verdict.
+:func:`~.measure.measure_pose` is the dry run: it reads the bus with the torque off and returns
+the pose and its verdict.
 """
 
 from __future__ import annotations
 
 import dataclasses
-import math
 import signal
 import sys
 import threading
@@ -39,188 +38,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError, LoopStalledError, StartPoseError, StewartError
+from ..base.errors import InvalidConfigError, StartPoseError, StewartError
 from ..references.smoothstep import smooth_ramp
+from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
+from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, watchdog_monitor
 
 #: Default duration of the homing lead-in, s.
 HOME_S = 3.0
-#: Default time our watchdog lets pass without a completed control period, s.
-LOOP_TIMEOUT_S = 0.1
-
-
-@dataclasses.dataclass(frozen=True)
-class MeasuredPose:
-    """The robot's pose read from its encoders with the torque off.
-
-    Attributes:
-        q: (6,) crank angles, rad (zero counts and directions applied).
-        x: (6,) the pose [phi, theta, psi, X, Y, Z] (rad, m) by forward kinematics from home.
-        flags: the admissible set's verdicts at x (:func:`~stewart_drake.plant.admissible.classify`,
-            with the guard's bounds and the motors' peak torque): "reachable", "clear",
-            "usable", "within_peak", "admissible" (bool) and "max_torque" (N m),
-            "clearance" (m), "cond", "sigma_min_inv" ((rad or m) per rad).
-        problem: why x is not admissible (one sentence), or None.
-    """
-
-    q: np.ndarray
-    x: np.ndarray
-    flags: dict
-    problem: str | None
-
-    def summary(self) -> str:
-        """Two lines: the angles and pose, and the verdict."""
-        deg = np.degrees
-        pose = (
-            f"roll {deg(self.x[0]):+.2f} pitch {deg(self.x[1]):+.2f} yaw {deg(self.x[2]):+.2f} "
-            f"deg, X {self.x[3] * 1e3:+.2f} Y {self.x[4] * 1e3:+.2f} Z {self.x[5] * 1e3:.2f} mm"
-        )
-        angles = ", ".join(f"{v:+.1f}" for v in deg(self.q))
-        verdict = "admissible" if self.problem is None else f"NOT admissible: {self.problem}"
-        return f"cranks [{angles}] deg -> {pose}\n{verdict}"
-
-
-def _first_problem(flags: dict) -> str | None:
-    """The first check of the admissible set that ``flags`` (classify's, at one pose) fails."""
-    if not flags["reachable"]:
-        return "outside a joint's range or the rods' reach"
-    if not flags["clear"]:
-        return f"two parts closer than the guard allows ({flags['clearance'] * 1e3:.1f} mm)"
-    if not flags["usable"]:
-        return (
-            f"too close to a singularity (cond(J) {flags['cond']:.0f}, 1/sigma_max(J) "
-            f"{flags['sigma_min_inv']:.3g}; the guard's bounds)"
-        )
-    if not flags["within_peak"]:
-        return f"holding it needs {flags['max_torque']:.3f} N m, over the motors' peak"
-    if not flags["admissible"]:
-        return f"holding it needs {flags['max_torque']:.3f} N m, over a reference's share"
-    return None
-
-
-def pose_verdict(plan, q) -> MeasuredPose:
-    """The :class:`MeasuredPose` of crank angles ``q`` (6,) rad on the robot of ``plan`` (a
-    :class:`~stewart_drake.run.plan.RunPlan`): forward kinematics from home, then the
-    admissible set's checks with the guard's bounds (those ``teleop`` and ``check`` apply).
-
-    Raises:
-        StartPoseError: no pose has these angles (the forward kinematics does not converge:
-            a crank off its calibration, or a servo's zero count wrong).
-    """
-    from ..base.errors import ForwardKinematicsError
-    from ..plant.admissible import classify
-    from ..plant.clearance import clearance_model
-    from ..robot.kinematics import fk
-
-    q = np.asarray(q, dtype=float)
-    try:
-        x, _ = fk(plan.geometry, q)
-    except ForwardKinematicsError:
-        raise StartPoseError(
-            f"no pose of the robot has the measured crank angles "
-            f"[{', '.join(f'{v:+.1f}' for v in np.degrees(q))}] deg: check each servo's "
-            f"zero_counts and direction in the scenario's bus (docs/robot.md, calibration)"
-        ) from None
-    guard = plan.scenario.guard
-    flags = classify(
-        plan.geometry,
-        x[None],
-        guard.cond_threshold,
-        guard.min_clearance_m,
-        plan.motor_limits,
-        guard.min_sigma_min_inv,
-        clearance=clearance_model(plan.plant_geometry),
-    )
-    keys = ("reachable", "clear", "usable", "within_peak", "admissible")
-    one: dict = {k: bool(flags[k][0]) for k in keys}
-    one.update(
-        {k: float(flags[k][0]) for k in ("max_torque", "clearance", "cond", "sigma_min_inv")}
-    )
-    return MeasuredPose(q=q, x=x, flags=one, problem=_first_problem(one))
-
-
-def bus_config(scenario):
-    """The scenario's ``bus`` config, or InvalidConfigError saying how to give one."""
-    bus = getattr(scenario, "bus", None)
-    if bus is None:
-        raise InvalidConfigError(
-            "the scenario has no bus: add a 'bus:' section (port, baud_rate, ids, model, "
-            "zero_counts, directions; docs/robot.md) or give --port"
-        )
-    return bus
-
-
-def measure_pose(scenario, bus=None) -> MeasuredPose:
-    """Read the robot's pose with the torque off (the dry run): open the bus of
-    ``scenario.bus`` (or use ``bus``, an opened
-    :class:`~stewart_drake.station.bus.driver.DynamixelBus`), read the crank angles once,
-    close it.
-
-    Args:
-        scenario: a Scenario with a ``bus`` (or a RunPlan of one).
-    Returns:
-        :class:`MeasuredPose`.
-    Raises:
-        InvalidConfigError: no bus in the scenario. BusError, MissingServoError: the port, a
-        servo. StartPoseError: the angles are no pose of the robot.
-    """
-    from ..run.plan import make_plan
-
-    plan = make_plan(scenario, with_reference=False)
-    if bus is not None:
-        return pose_verdict(plan, bus.read_state().q)
-    with bus_config(plan.scenario).make_bus() as opened:
-        return pose_verdict(plan, opened.read_state().q)
-
-
-def zero_counts_at(bus, angle_rad: float = 0.0) -> np.ndarray:
-    """Calibration: the counts each servo reports while its crank is held at ``angle_rad``
-    (0: the crank horizontal, pointing away from the base's centre along its leg's direction,
-    docs/reference_geometry.md), i.e. the ``zero_counts`` to write in the scenario's bus.
-
-    Args:
-        bus: an opened :class:`~stewart_drake.station.bus.driver.DynamixelBus` (the
-            torque off: the cranks are held by hand or by a jig); its ``directions`` must be
-            right (a crank's counts grow as its tip rises for +1).
-        angle_rad: the angle the cranks are held at, rad.
-    Returns:
-        (n,) int counts, rounded, each within the Present Position register's (signed 32 bits).
-    Raises:
-        InvalidConfigError: ``angle_rad`` not finite or beyond half a turn.
-        BusError: a zero count outside the register's range (a servo's reading is wrong).
-    """
-    from ..base.errors import BusError
-    from ..station.bus.protocol import rad_to_counts
-
-    if not (math.isfinite(angle_rad) and abs(angle_rad) <= math.pi):
-        raise InvalidConfigError(
-            f"the calibration angle must be finite and within half a turn, got {angle_rad} rad"
-        )
-    q = bus.read_state().q  # with the bus's current zero counts and directions
-    raw = rad_to_counts(q, bus.zero_counts, bus.directions)
-    zeros = raw - rad_to_counts(np.full(len(q), angle_rad), 0, bus.directions)
-    bad = np.flatnonzero(np.abs(zeros) >= 2**31)
-    if bad.size:
-        raise BusError(
-            f"servo id {bus.ids[bad[0]]} reads {raw[bad[0]]} counts: its zero count would be "
-            f"outside the encoder's signed 32-bit range; check its id and its reading"
-        )
-    return zeros.astype(int)
-
-
-def admissible_start(scenario) -> MeasuredPose:
-    """:func:`measure_pose`, refusing a pose outside the admissible set.
-
-    Raises:
-        StartPoseError: the measured pose fails a check (named); nothing was powered.
-        as :func:`measure_pose`.
-    """
-    start = measure_pose(scenario)
-    if start.problem is not None:
-        raise StartPoseError(
-            f"the robot rests at a pose outside the admissible set ({start.problem}); nothing "
-            f"was powered. Measured: {start.summary().splitlines()[0]}"
-        )
-    return start
 
 
 class HomingReference:
@@ -312,58 +136,6 @@ class HomingReference:
             out[1][rest] = v * d1[:, None]
             out[2][rest] = a * (d1 * d1)[:, None] + v * d2[:, None]
         return tuple(o.reshape(shape + (6,)) for o in out)
-
-
-class LoopWatchdog:
-    """Our watchdog: removes the servos' torque when the control loop stops completing periods.
-
-    :meth:`kick` marks a completed period (the session kicks from the Simulator's monitor,
-    after every step); a thread checks every ``timeout_s / 4`` and, if no kick came for
-    ``timeout_s``, calls ``torque_off()`` itself (under the bus's lock, waiting for a transfer in
-    progress at most 1 s) and records why in ``tripped``; the monitor then raises
-    :class:`~stewart_drake.base.errors.LoopStalledError` at the loop's next step, which ends the run
-    (a flag, not a signal to the main thread: a process started in the background of a script
-    ignores SIGINT, and would run on). The
-    servos' own bus watchdog (``bus.watchdog_s``) is the backstop when this process dies; some
-    firmware does not stop on it (docs/hardware_bus.md), so this one does not rely on it.
-
-    Args:
-        torque_off: callable removing the torque (returns whether confirmed).
-        timeout_s: the longest time without a completed period, s.
-    """
-
-    def __init__(self, torque_off: Callable[[], bool], timeout_s: float = LOOP_TIMEOUT_S):
-        if not 0 < timeout_s <= 10:
-            raise InvalidConfigError(f"the loop timeout must be in (0, 10] s, got {timeout_s}")
-        self.torque_off, self.timeout_s = torque_off, float(timeout_s)
-        self.tripped: str | None = None
-        self._last = time.perf_counter()
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="robot-watchdog", daemon=True)
-
-    def kick(self) -> None:
-        self._last = time.perf_counter()
-
-    def __enter__(self):
-        self.kick()
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc):
-        self._stop.set()
-        self._thread.join(2.0)
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.timeout_s / 4):
-            late = time.perf_counter() - self._last
-            if late > self.timeout_s:
-                confirmed = self.torque_off()
-                self.tripped = (
-                    f"the control loop stopped: no period completed for {late * 1e3:.0f} ms "
-                    f"(limit {self.timeout_s * 1e3:.0f} ms); our watchdog removed the torque "
-                    + ("(confirmed)" if confirmed else "(NOT confirmed: cut the servos' power)")
-                )
-                return
 
 
 @dataclasses.dataclass
@@ -563,36 +335,10 @@ def _run(
     signals,
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
-    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
-
-    from ..run.diagram import make_stewart_diagram
-    from ..run.plan import make_plan
-    from ..run.simulate import (
-        advance,
-        check_reference_shown,
-        check_run_memory,
-        finish_result,
-        read_run,
-        save_result,
-    )
-    from ..station.bus.station import HardwareStation
+    from ..run.simulate import advance
     from ..station.guard import advance as guarded
 
-    # As a simulated run's (studies.experiments.build_simulator), but the station is assembled
-    # from the servos' reading, once the bus is open. The whole path, from the measured pose,
-    # is checked here, before the port is opened again.
-    plan = make_plan(scenario, with_reference=False)
-    check_run_memory(plan.scenario)
-    plan = make_plan(plan, reference=homed)
-    check_reference_shown(plan, progress=progress, keep_series=False)
-    sd = make_stewart_diagram(plan, meshcat=meshcat)
-    simulator = Simulator(sd.diagram)
-    ApplySimulatorConfig(plan.scenario.simulator, simulator)
-    context = simulator.get_mutable_context()
-    sd.initialize(context)
-    station = sd.station
-    if not isinstance(station, HardwareStation):  # a scenario with a bus builds one
-        raise InvalidConfigError("the run's station is not on the servo bus")
+    sd, simulator, context, station = _build(scenario, homed, meshcat, progress)
     bus = station.bus
     bus.open()
     ended = RobotRun("", False, True, start=start)
@@ -600,14 +346,7 @@ def _run(
     try:
         bus.configure()
         station.assemble(context, start.x)  # the driver holds its first reading
-        again = pose_verdict(sd.plan, bus.read_state().q)
-        moved = np.abs(again.x - start.x)
-        if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
-            raise StartPoseError(
-                "the platform moved between the measurement and the start (by "
-                f"{np.degrees(moved[:3]).max():.2f} deg, {moved[3:].max() * 1e3:.2f} mm): "
-                "hold it still and run again"
-            )
+        _check_still(sd, bus, start)
         if before_torque is not None:
             before_torque(sd, simulator)
         powered = True
@@ -635,13 +374,71 @@ def _run(
             bus.close()
     if not powered:
         return ended
+    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz")
+    return ended
+
+
+def _build(scenario, homed, meshcat, progress):
+    """The checked closed loop of ``scenario`` on the servo bus, its reference ``homed``:
+    (StewartDiagram, Simulator, its Context, the HardwareStation), initialized; the bus not
+    opened yet.
+
+    Raises:
+        InvalidConfigError: the station is not on the servo bus; as the reference's checks.
+    """
+    from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
+
+    from ..run.diagram import make_stewart_diagram
+    from ..run.plan import make_plan
+    from ..run.simulate import check_reference_shown, check_run_memory
+    from ..station.bus.station import HardwareStation
+
+    # As a simulated run's (run.simulate.build_simulator), but the station is assembled
+    # from the servos' reading, once the bus is open. The whole path, from the measured pose,
+    # is checked here, before the port is opened again.
+    plan = make_plan(scenario, with_reference=False)
+    check_run_memory(plan.scenario)
+    plan = make_plan(plan, reference=homed)
+    check_reference_shown(plan, progress=progress, keep_series=False)
+    sd = make_stewart_diagram(plan, meshcat=meshcat)
+    simulator = Simulator(sd.diagram)
+    ApplySimulatorConfig(plan.scenario.simulator, simulator)
+    context = simulator.get_mutable_context()
+    sd.initialize(context)
+    station = sd.station
+    if not isinstance(station, HardwareStation):  # a scenario with a bus builds one
+        raise InvalidConfigError("the run's station is not on the servo bus")
+    return sd, simulator, context, station
+
+
+def _check_still(sd, bus, start: MeasuredPose) -> None:
+    """Refuse to start when the platform moved since ``start`` was measured (by more than
+    0.01 rad or 2 mm in any coordinate).
+
+    Raises:
+        StartPoseError: it moved (by how much).
+    """
+    again = pose_verdict(sd.plan, bus.read_state().q)
+    moved = np.abs(again.x - start.x)
+    if np.max(moved[:3]) > 0.01 or np.max(moved[3:]) > 0.002:
+        raise StartPoseError(
+            "the platform moved between the measurement and the start (by "
+            f"{np.degrees(moved[:3]).max():.2f} deg, {moved[3:].max() * 1e3:.2f} mm): "
+            "hold it still and run again"
+        )
+
+
+def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path) -> None:
+    """The run's metrics and its logs saved at ``path`` into ``ended``; a failure to write
+    them is told in ``ended.reason``, never raised."""
+    from ..run.simulate import finish_result, read_run, save_result
+
     try:
         result = finish_result(read_run(sd, simulator.get_context()), wall)
         ended.metrics = result.metrics
-        ended.logs = save_result(result, out / f"{stem}.npz")
+        ended.logs = save_result(result, path)
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
-    return ended
 
 
 def _drive(
@@ -654,7 +451,7 @@ def _drive(
     from ..execution.runners import interrupt_in
 
     watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
-    simulator.set_monitor(_kicker(watchdog))
+    simulator.set_monitor(watchdog_monitor(watchdog))
     simulator.set_target_realtime_rate(1.0)
     signals.arm()
     bus.enable_torque()
@@ -754,22 +551,6 @@ def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) 
         finally:
             bus.close()
     return ended
-
-
-def _kicker(watchdog: LoopWatchdog):
-    """The Simulator's monitor: each step completed kicks ``watchdog``; returns Drake's
-    "continue" status."""
-    from pydrake.systems.framework import EventStatus
-
-    succeeded = EventStatus.Succeeded()
-
-    def monitor(context):
-        if watchdog.tripped is not None:
-            raise LoopStalledError(watchdog.tripped)
-        watchdog.kick()
-        return succeeded
-
-    return monitor
 
 
 def end_line(run: RobotRun) -> str:

@@ -316,7 +316,6 @@ def build_teleop(
 
     from ..plant.clearance import clearance_model
     from ..run.diagram import make_stewart_diagram
-    from ..run.reference import TeleopReference, admissible_poses
     from ..viz.visualize import CAMERA_POSITION, CAMERA_TARGET
 
     scenario = teleop_scenario(scenario)
@@ -325,23 +324,8 @@ def build_teleop(
     plan = make_plan(scenario, with_reference=False)
     geometry, peak = plan.geometry, plan.torque_limit_Nm
     x0 = np.asarray(x_initial, dtype=float)
-    guard = scenario.guard
     clearance = clearance_model(plan.plant_geometry)
-    reference = TeleopReference(
-        geometry,
-        x0,
-        scenario.control_period_s,
-        limits,
-        admissible=lambda x: admissible_poses(
-            geometry,
-            x,
-            guard.cond_threshold,
-            guard.min_sigma_min_inv,
-            peak,
-            clearance=clearance,
-            min_clearance_m=guard.min_clearance_m,
-        ),
-    )
+    reference = _teleop_reference(scenario, plan, x0, limits, clearance)
     loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
@@ -358,13 +342,8 @@ def build_teleop(
             "limited": (0.0, 1.0),
         },
     )
-    builder.AddNamedSystem("display", display)
-    builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
-    builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
-    builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
     ghost = ReferenceGhost(meshcat, plan.plant_geometry)
-    builder.AddNamedSystem("ghost", ghost)
-    builder.Connect(loop.diagram.GetOutputPort("x_d"), ghost.GetInputPort("x_d"))
+    _add_views(builder, loop, display, ghost)
     diagram = builder.Build()
     diagram.set_name("teleop")
     simulator = Simulator(diagram)
@@ -377,6 +356,43 @@ def build_teleop(
     simulator.Initialize()
     meshcat.AddButton(PAUSE_BUTTON, "KeyP")  # (re)starts its count: running
     return TeleopRun(diagram, loop, sliders, reference, display, ghost, simulator, meshcat)
+
+
+def _teleop_reference(scenario, plan, x0, limits, clearance) -> TeleopReference:
+    """The live reference from ``x0`` on the robot of ``plan`` (``scenario``'s), stopped at the
+    boundary of the admissible poses as the scenario's guard judges them (its thresholds, the
+    motors' peak torque and ``clearance``, a
+    :class:`~stewart_drake.plant.clearance.ClearanceModel`)."""
+    from ..run.reference import TeleopReference, admissible_poses
+
+    geometry, peak = plan.geometry, plan.torque_limit_Nm
+    guard = scenario.guard
+    return TeleopReference(
+        geometry,
+        x0,
+        scenario.control_period_s,
+        limits,
+        admissible=lambda x: admissible_poses(
+            geometry,
+            x,
+            guard.cond_threshold,
+            guard.min_sigma_min_inv,
+            peak,
+            clearance=clearance,
+            min_clearance_m=guard.min_clearance_m,
+        ),
+    )
+
+
+def _add_views(builder, loop: StewartDiagram, display: TeleopDisplay, ghost: ReferenceGhost):
+    """Add the display and the reference's ghost to ``builder``, fed by the closed loop's
+    outputs."""
+    builder.AddNamedSystem("display", display)
+    builder.Connect(loop.diagram.GetOutputPort("platform_state"), display.GetInputPort("x"))
+    builder.Connect(loop.diagram.GetOutputPort("x_d"), display.GetInputPort("x_d"))
+    builder.Connect(loop.diagram.GetOutputPort("limited"), display.GetInputPort("limited"))
+    builder.AddNamedSystem("ghost", ghost)
+    builder.Connect(loop.diagram.GetOutputPort("x_d"), ghost.GetInputPort("x_d"))
 
 
 def run_teleop(

@@ -70,23 +70,10 @@ def classify(
     margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     reachable = limits._reachable_from_margins(margins)
     cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
-    torques = np.full(x.shape[:-1] + (6,), np.nan)
-    ok = reachable & np.isfinite(cond)
-    if np.any(ok):
-        torques[ok] = statics.holding_torques(geometry, x[ok], theta[ok])
-    abs_t = np.abs(torques)
-    max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
-    bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
-    distance = np.full(x.shape[:-1], np.nan)
-    if min_clearance_m is None:
-        clear = reachable
-    else:
-        model = clearance_model(geometry) if clearance is None else clearance
-        if np.any(reachable):
-            distance[reachable] = model.sweep(x[reachable], max_distance=CLEARANCE_CAP_M)[0]
-        # The pairs fixed by the design (rod ends on the platform) hold at every pose or none.
-        fixed_ok = not model.fixed or model.fixed[0].distance >= min_clearance_m
-        clear = reachable & (distance >= min_clearance_m) & fixed_ok
+    torques, max_torque, bottleneck = _holding_torques(
+        geometry, x, theta, reachable & np.isfinite(cond)
+    )
+    distance, clear = _clearances(geometry, x, reachable, min_clearance_m, clearance)
     with np.errstate(invalid="ignore"):
         usable = clear & (cond <= cond_threshold) & (inv >= min_sigma_min_inv)
     if motor_limits is None or motor_limits.peak_torque_Nm is None:
@@ -109,3 +96,29 @@ def classify(
         "max_torque": max_torque,
         "bottleneck": bottleneck,
     }
+
+
+def _holding_torques(geometry: StewartGeometry, x, theta, ok):
+    """(torques (..., 6) N m, max_i |T_i| (...) N m, its motor (...) int) at the poses ``ok``
+    marks; NaN, NaN and -1 elsewhere."""
+    torques = np.full(x.shape[:-1] + (6,), np.nan)
+    if np.any(ok):
+        torques[ok] = statics.holding_torques(geometry, x[ok], theta[ok])
+    abs_t = np.abs(torques)
+    max_torque = np.where(ok, np.max(np.where(ok[..., None], abs_t, 0.0), axis=-1), np.nan)
+    bottleneck = np.where(ok, np.argmax(np.where(ok[..., None], abs_t, 0.0), axis=-1), -1)
+    return torques, max_torque, bottleneck
+
+
+def _clearances(geometry: StewartGeometry, x, reachable, min_clearance_m, clearance):
+    """(smallest distance between two parts (...) m, capped, NaN where not reachable; clear
+    (...) bool) as :func:`classify` gives them."""
+    distance = np.full(x.shape[:-1], np.nan)
+    if min_clearance_m is None:
+        return distance, reachable
+    model = clearance_model(geometry) if clearance is None else clearance
+    if np.any(reachable):
+        distance[reachable] = model.sweep(x[reachable], max_distance=CLEARANCE_CAP_M)[0]
+    # The pairs fixed by the design (rod ends on the platform) hold at every pose or none.
+    fixed_ok = not model.fixed or model.fixed[0].distance >= min_clearance_m
+    return distance, reachable & (distance >= min_clearance_m) & fixed_ok

@@ -3,9 +3,9 @@
 Drake parses each SDF ball joint ``rod_ball_i`` into a ``BallRpyJoint``: the rod frame M relative
 to a frame F fixed on the crank, R_FM = Rz(yaw) Ry(pitch) Rx(roll). Its rpy rates are singular
 at pitch = +-pi/2 (gimbal lock), where R_FM maps M's x axis onto F's -+z axis. The SDF writer
-chooses F so that rpy = 0 at home: z_F is the home rod direction, and ``plant.assemble`` turns
-the rod from there by the smallest rotation onto its new direction (no spin about the rod). For
-such a rotation R_FM[2, 0] = -e_F,x, so
+chooses F so that rpy = 0 at home: z_F is the home rod direction, and ``closed_chain.assemble``
+turns the rod from there by the smallest rotation onto its new direction (no spin about the
+rod). For such a rotation R_FM[2, 0] = -e_F,x, so
 
     pitch = asin(e_F . x_F),      e_F = the rod's unit direction in F,
 
@@ -68,7 +68,8 @@ def _rod_in_F(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np.nd
 
 
 def rod_ball_rpy(geometry: StewartGeometry, x, theta=None, R_WF_home=None) -> np.ndarray:
-    """Roll, pitch, yaw of every rod ball joint at pose(s) x, as ``plant.assemble`` writes them.
+    """Roll, pitch, yaw of every rod ball joint at pose(s) x, as ``closed_chain.assemble``
+    writes them.
 
     Args:
         geometry: the robot.

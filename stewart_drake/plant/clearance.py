@@ -1,13 +1,14 @@
 """Clearance between the robot's parts at any platform pose, from Drake's ``SceneGraph``.
 
 :class:`ClearanceModel` builds the robot's plant with its collision geometry
-(:func:`~.parts.robot_parts`), assembles it at a pose (:func:`~.plant.assemble`: cranks from the
-IK, rods from crank tip to platform joint) and asks the ``SceneGraph`` for the signed distance of
-every pair of parts that may collide (``QueryObject.ComputeSignedDistancePairwiseClosestPoints``):
-positive = apart, negative = interpenetrating. Pairs that touch by design are filtered by Drake
-itself: a body and the bodies it is jointed to (base-crank, crank-rod), and the shapes of one body.
-A rod end's sphere and its socket on the platform are not both collision geometry (the socket's
-stud is drawn only), so a rod's tube crossing the platform's plate is measured like any other pair.
+(:func:`~.parts.robot_parts`), assembles it at a pose (:func:`~.closed_chain.assemble`: cranks from
+the IK, rods from crank tip to platform joint) and asks the ``SceneGraph`` for the signed distance
+of every pair of parts that may collide
+(``QueryObject.ComputeSignedDistancePairwiseClosestPoints``): positive = apart, negative =
+interpenetrating. Pairs that touch by design are filtered by Drake itself: a body and the bodies it
+is jointed to (base-crank, crank-rod), and the shapes of one body. A rod end's sphere and its socket
+on the platform are not both collision geometry (the socket's stud is drawn only), so a rod's tube
+crossing the platform's plate is measured like any other pair.
 The rod ends' spheres at the platform are centred on the platform joints: their distances to the
 platform's parts and to each other are the same at every pose (``ClearanceModel.fixed``,
 5 mm on the reference robot). They are measured once, at home, and filtered from the per-pose
@@ -136,11 +137,12 @@ class ClearanceModel:
         Args:
             x: (6,) reachable pose [rad, m].
             max_distance: m; farther pairs are left out.
-            q: the plant positions of x when already computed (:func:`~.plant.assembled_positions`).
+            q: the plant positions of x when already computed
+                (:func:`~.closed_chain.assembled_positions`).
         Raises:
             UnreachablePoseError: x cannot be assembled. InvalidConfigError: x not (6,) finite.
         """
-        from .plant import assembled_positions
+        from .closed_chain import assembled_positions
 
         if q is None:
             x = as_poses("pose x", x).reshape(6)
@@ -153,7 +155,7 @@ class ClearanceModel:
         """The positions q of this model's plant (rods as bodies) assembled at poses x (..., 6):
         how a plant whose rods are distance constraints (no rod bodies) is checked; NaN rows
         where x is unreachable."""
-        from .plant import assembled_positions
+        from .closed_chain import assembled_positions
 
         return assembled_positions(self._plant, self._handles, x)
 
@@ -205,7 +207,7 @@ class ClearanceModel:
             (distance (n,) m, closest (list of n :class:`Contact` or None)) and, with
             ``by_family``, a dict (family_a, family_b) -> (distance m, pose index, Contact).
         """
-        from .plant import assembled_positions
+        from .closed_chain import assembled_positions
 
         x = as_poses("poses x", x).reshape(-1, 6)
         q = assembled_positions(self._plant, self._handles, x)

@@ -1,6 +1,6 @@
 """The same robot in MuJoCo: an MJCF written from a :class:`StewartGeometry`, assembly, closure.
 
-Model (names as in :func:`.plant.write_sdf`): bodies ``base`` (fixed to the world),
+Model (names as in :func:`.sdf.write_sdf`): bodies ``base`` (fixed to the world),
 ``crank_i`` on hinge joints ``motor_i`` (axis u_i), ``rod_i`` on ball joints ``rod_ball_i`` at
 the crank tips, ``platform`` on a free joint; six ``<equality><connect>`` pull site ``rod_top_i``
 (rod top end) onto site ``platform_joint_i`` (platform joint p_i); six ``<motor>`` actuators
@@ -148,39 +148,15 @@ def write_mjcf(
             range.
     Source: body frames and inertias of the Drake plant at home (same SDF, Table I).
     """
-    # Long: one document written element after element, in the order the file reads.
-    from pydrake.math import RigidTransform
-
     from ..robot.parts import robot_parts
-    from .plant import MODEL_NAME, make_plant
+    from .plant import make_plant
+    from .sdf import MODEL_NAME
 
     solref, solimp = _check_options(time_step, integrator, solref, solimp)
-    if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
-        raise InvalidConfigError(
-            f"torque_limit_Nm must be a finite number of N m > 0, got {torque_limit_Nm}"
-        )
+    force = _force_attributes(torque_limit_Nm)
     g = geometry or StewartGeometry()
-    motor_extra = ""
-    if g.motor_reflected_inertia > 0:
-        motor_extra += f' armature="{_num(g.motor_reflected_inertia)}"'
-    if servo is not None:
-        if servo.viscous_damping > 0:
-            motor_extra += f' damping="{_num(servo.viscous_damping)}"'
-        if servo.coulomb_friction_Nm > 0:
-            motor_extra += f' frictionloss="{_num(servo.coulomb_friction_Nm)}"'
-    force = (
-        ""
-        if torque_limit_Nm is None
-        else f' forcelimited="true" forcerange="{_num([-torque_limit_Nm, torque_limit_Nm])}"'
-    )
+    motor_extra = _motor_attributes(g, servo)
     plant, context, handles, _, _ = make_plant(g)
-
-    def pose(body) -> RigidTransform:
-        return plant.EvalBodyPoseInWorld(context, body)
-
-    def frame(X) -> str:  # pos and quat attributes of a pose
-        return f'pos="{_num(X.translation())}" quat="{_num(_quat(X.rotation()))}"'
-
     shapes: dict[str, list[str]] = {}
     for part in robot_parts(g):
         shapes.setdefault(part.link, []).append(_geom(part))
@@ -199,26 +175,10 @@ def write_mjcf(
     ]
     theta_home = [joint.get_angle(context) for joint in handles.motors]
     for i in range(6):
-        crank, rod = handles.cranks[i], handles.rods[i]
-        X_WC = pose(crank)
-        X_CR = X_WC.InvertAndCompose(pose(rod))
-        out += [
-            f'    <body name="crank_{i}" {frame(X_WC)}>',
-            f"      {_inertial(crank)}",
-            f'      <joint name="motor_{i}" type="hinge" '
-            f'axis="{_num(handles.motors[i].revolute_axis())}" ref="{_num(theta_home[i])}"'
-            f"{motor_extra}/>",
-            *(f"      {geom}" for geom in shapes[f"crank_{i}"]),
-            f'      <body name="rod_{i}" {frame(X_CR)}>',
-            f"        {_inertial(rod)}",
-            f'        <joint name="rod_ball_{i}" type="ball"/>',
-            *(f"        {geom}" for geom in shapes[f"rod_{i}"]),
-            f'        <site name="rod_top_{i}" pos="{_num(handles.rod_top_in_rod)}" size="0.011"/>',
-            "      </body>",
-            "    </body>",
-        ]
+        out += _leg_xml(plant, context, handles, i, theta_home[i], motor_extra, shapes)
+    X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
     out += [
-        f'    <body name="platform" {frame(pose(handles.platform))}>',
+        f'    <body name="platform" {_frame(X_WE)}>',
         '      <freejoint name="platform"/>',
         f"      {_inertial(handles.platform)}",
         *(f"      {geom}" for geom in shapes["platform"]),
@@ -227,7 +187,76 @@ def write_mjcf(
         f'      <site name="platform_joint_{i}" pos="{_num(g.p_E[i])}" size="0.011"/>'
         for i in range(6)
     ]
-    out += ["    </body>", "  </worldbody>", "  <equality>"]
+    out += ["    </body>", "  </worldbody>"]
+    out += _loops_and_actuators_xml(solref, solimp, force, servo is not None)
+    out += ["</mujoco>", ""]
+    return "\n".join(out)
+
+
+def _force_attributes(torque_limit_Nm: float | None) -> str:
+    """The actuators' ``forcerange`` attributes of a torque limit in N m (none for None).
+
+    Raises:
+        InvalidConfigError: a limit that is not a finite number > 0.
+    """
+    if torque_limit_Nm is not None and not (np.isfinite(torque_limit_Nm) and torque_limit_Nm > 0):
+        raise InvalidConfigError(
+            f"torque_limit_Nm must be a finite number of N m > 0, got {torque_limit_Nm}"
+        )
+    return (
+        ""
+        if torque_limit_Nm is None
+        else f' forcelimited="true" forcerange="{_num([-torque_limit_Nm, torque_limit_Nm])}"'
+    )
+
+
+def _motor_attributes(g: StewartGeometry, servo: ServoModel | None) -> str:
+    """The motor hinges' extra attributes: ``armature`` (the reflected rotor inertia) and, with
+    a servo, ``damping`` and ``frictionloss``; each only where it is > 0."""
+    motor_extra = ""
+    if g.motor_reflected_inertia > 0:
+        motor_extra += f' armature="{_num(g.motor_reflected_inertia)}"'
+    if servo is not None:
+        if servo.viscous_damping > 0:
+            motor_extra += f' damping="{_num(servo.viscous_damping)}"'
+        if servo.coulomb_friction_Nm > 0:
+            motor_extra += f' frictionloss="{_num(servo.coulomb_friction_Nm)}"'
+    return motor_extra
+
+
+def _frame(X) -> str:
+    """The ``pos`` and ``quat`` attributes of a pose (a Drake ``RigidTransform``)."""
+    return f'pos="{_num(X.translation())}" quat="{_num(_quat(X.rotation()))}"'
+
+
+def _leg_xml(plant, context, handles, i: int, theta_home: float, motor_extra: str, shapes):
+    """Leg i's bodies: ``crank_i`` (at its pose in the Drake plant at home, on the hinge
+    ``motor_i`` whose ``ref`` is the home angle ``theta_home``, rad) and inside it ``rod_i`` on
+    its ball joint, with the site ``rod_top_i``. ``shapes``: {link: its geoms}."""
+    crank, rod = handles.cranks[i], handles.rods[i]
+    X_WC = plant.EvalBodyPoseInWorld(context, crank)
+    X_CR = X_WC.InvertAndCompose(plant.EvalBodyPoseInWorld(context, rod))
+    return [
+        f'    <body name="crank_{i}" {_frame(X_WC)}>',
+        f"      {_inertial(crank)}",
+        f'      <joint name="motor_{i}" type="hinge" '
+        f'axis="{_num(handles.motors[i].revolute_axis())}" ref="{_num(theta_home)}"'
+        f"{motor_extra}/>",
+        *(f"      {geom}" for geom in shapes[f"crank_{i}"]),
+        f'      <body name="rod_{i}" {_frame(X_CR)}>',
+        f"        {_inertial(rod)}",
+        f'        <joint name="rod_ball_{i}" type="ball"/>',
+        *(f"        {geom}" for geom in shapes[f"rod_{i}"]),
+        f'        <site name="rod_top_{i}" pos="{_num(handles.rod_top_in_rod)}" size="0.011"/>',
+        "      </body>",
+        "    </body>",
+    ]
+
+
+def _loops_and_actuators_xml(solref, solimp, force: str, encoders: bool) -> list[str]:
+    """The ``<equality>`` of the six loop connects, the ``<actuator>`` of the six motors (with
+    the ``force`` range attributes) and, with ``encoders``, the ``<sensor>`` of their angles."""
+    out = ["  <equality>"]
     out += [
         f'    <connect name="loop_{i}" site1="rod_top_{i}" site2="platform_joint_{i}" '
         f'solref="{_num(solref)}" solimp="{_num(solimp)}"/>'
@@ -236,12 +265,11 @@ def write_mjcf(
     out += ["  </equality>", "  <actuator>"]
     out += [f'    <motor name="motor_{i}" joint="motor_{i}" gear="1"{force}/>' for i in range(6)]
     out += ["  </actuator>"]
-    if servo is not None:
+    if encoders:
         out += ["  <sensor>"]
         out += [f'    <jointpos name="encoder_{i}" joint="motor_{i}"/>' for i in range(6)]
         out += ["  </sensor>"]
-    out += ["</mujoco>", ""]
-    return "\n".join(out)
+    return out
 
 
 def import_mujoco():
@@ -272,7 +300,7 @@ def _qpos_addresses(model, prefix: str) -> list:
 def assemble(model, data, geometry: StewartGeometry | None, x) -> np.ndarray:
     """Write the assembled configuration of platform pose x into ``data`` (at rest, ctrl 0).
 
-    As :func:`.plant.assemble`: cranks from the closed-form IK, each rod along
+    As :func:`.closed_chain.assemble`: cranks from the closed-form IK, each rod along
     crank tip -> platform joint by the smallest rotation from its home direction (no spin, so
     the ball quaternion equals Drake's rpy), platform at x. Ends with ``mj_forward``.
     Args:

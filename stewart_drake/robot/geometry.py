@@ -140,6 +140,14 @@ class StewartGeometry:
     motor_reflected_inertia: float = 0.0
 
     def __post_init__(self):
+        self._check_numbers()
+        self._check_tuples()
+        self._check_ranges()
+        self._check_home()
+
+    def _check_numbers(self) -> None:
+        """Each scalar field a finite number (lengths and masses > 0, gravity >= 0), stored as
+        a float."""
         object.__setattr__(
             self,
             "motor_reflected_inertia",
@@ -186,6 +194,10 @@ class StewartGeometry:
             raise InvalidGeometryError(
                 f"rod_length ({self.rod_length} m) must exceed crank_length ({self.crank_length} m)"
             )
+
+    def _check_tuples(self) -> None:
+        """The layout's six angles and each body's three principal moments (positive, a rigid
+        body's), stored as tuples of floats."""
         for name in ("pivot_angles_deg", "platform_angles_deg", "crank_angles_deg"):
             angles = as_array(name, getattr(self, name), shape=(6,), error=InvalidGeometryError)
             object.__setattr__(self, name, tuple(float(v) for v in angles))
@@ -203,6 +215,9 @@ class StewartGeometry:
                     f"(no rigid body has it); the nearest valid one is {list(fix)}"
                 )
             object.__setattr__(self, name, tuple(float(v) for v in moments))
+
+    def _check_ranges(self) -> None:
+        """The motor travel and the ball joints' cones."""
         lo, hi = self.motor_angle_min_deg, self.motor_angle_max_deg
         if not (np.isfinite(lo) and np.isfinite(hi) and -180.0 <= lo < hi <= 180.0):
             raise InvalidGeometryError(
@@ -212,6 +227,9 @@ class StewartGeometry:
             value = getattr(self, name)
             if not (np.isfinite(value) and 0.0 < value <= 90.0):
                 raise InvalidGeometryError(f"{name} must be in (0, 90] degrees, got {value}")
+
+    def _check_home(self) -> None:
+        """Every leg closes at the home pose, inside every joint limit."""
         # Assembly at home must be possible, or nothing downstream can work.
         ratio = leg_reach_ratio(self, X_HOME)
         if np.any(~np.isfinite(ratio)) or np.any(np.abs(ratio) > 1):

@@ -1,8 +1,9 @@
 """The robot's solid parts: what is drawn and what collides, sized as a buildable robot.
 
 One table (:func:`robot_parts`) feeds the SDF's ``<visual>`` and ``<collision>`` elements
-(:func:`~.plant.write_sdf`) and, through the Drake plant, the MJCF's geoms (:mod:`~.mjcf`), so what
-is seen, what Drake's ``SceneGraph`` measures and what MuJoCo collides are one set of shapes.
+(:func:`~.sdf.write_sdf`) and, through the Drake plant, the MJCF's geoms (:mod:`~.mjcf`), so
+what is seen, what Drake's ``SceneGraph`` measures and what MuJoCo collides are one set of
+shapes.
 
 The kinematic layout (pivots, crank and rod lengths, joint centres) is
 ``docs/reference_geometry.md``'s and is not changed here; the parts around it are ours
@@ -130,23 +131,28 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
         list of :class:`Part`, links in SDF order (base, then crank_i and rod_i per leg, then
         the platform).
     """
-    # Long: the table of the robot's parts, one entry each, in the order of the SDF's links.
     g = geometry or StewartGeometry()
-    parts = []
-    eye = np.eye(3)
-    # Base: hub, one arm per leg pair, a bracket and a motor per leg.
-    parts.append(
+    outward = motor_outward(g)
+    parts = _base_parts(g, outward)
+    for i in range(6):
+        parts += _leg_parts(g, outward, i)
+    return parts + _platform_parts(g)
+
+
+def _base_parts(g: StewartGeometry, outward: np.ndarray) -> list[Part]:
+    """The base's parts: hub, one arm per leg pair, a bracket and a motor per leg (``outward``:
+    :func:`motor_outward`)."""
+    parts = [
         Part(
             "base",
             "plate",
             "cylinder",
             (g.base_plate_radius, BASE_THICKNESS),
             np.array([0.0, 0.0, -BASE_THICKNESS / 2]),
-            eye,
+            np.eye(3),
             COLOURS["base"],
         )
-    )
-    outward = motor_outward(g)
+    ]
     bracket_reach = BRACKET_OFFSET + BRACKET_THICKNESS
     for k in range(3):
         pair = slice(2 * k, 2 * k + 2)
@@ -173,84 +179,93 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
             )
         )
     for i in range(6):
-        o, P = outward[i], g.P_B[i]
-        t = np.cross([0.0, 0.0, 1.0], o)
-        R = np.column_stack([o, t / np.linalg.norm(t), [0.0, 0.0, 1.0]])
-        # The bracket hangs from the arm's underside to 5 mm below the motor or, for a motor
-        # whose housing reaches above that underside (a design with the shafts high), stands
-        # on the arm's top face up to 5 mm above it.
-        bottom = P[2] - MOTOR_RADIUS - 0.005
-        if bottom < -BASE_THICKNESS:
-            z_lo, z_hi = bottom, -BASE_THICKNESS
-        else:
-            z_lo, z_hi = 0.0, max(P[2] + MOTOR_RADIUS + 0.005, 0.005)
-        centre = P + o * (BRACKET_OFFSET + BRACKET_THICKNESS / 2)
-        parts.append(
-            Part(
-                "base",
-                f"bracket_{i}",
-                "box",
-                (BRACKET_THICKNESS, BRACKET_WIDTH, z_hi - z_lo),
-                np.array([centre[0], centre[1], 0.5 * (z_lo + z_hi)]),
-                R,
-                COLOURS["base"],
-            )
-        )
-        parts.append(
-            Part(
-                "base",
-                f"motor_{i}",
-                "cylinder",
-                (MOTOR_RADIUS, MOTOR_LENGTH),
-                P + o * (bracket_reach + MOTOR_LENGTH / 2),
-                _frame_with_z(o),
-                COLOURS["motor"],
-            )
-        )
+        parts += _motor_parts(g, outward[i], i)
+    return parts
+
+
+def _motor_parts(g: StewartGeometry, o: np.ndarray, i: int) -> list[Part]:
+    """Leg i's motor bracket and motor housing on the base, the motor along ``o`` (its shaft
+    direction from the joint plane, :func:`motor_outward`)."""
+    P = g.P_B[i]
+    t = np.cross([0.0, 0.0, 1.0], o)
+    R = np.column_stack([o, t / np.linalg.norm(t), [0.0, 0.0, 1.0]])
+    # The bracket hangs from the arm's underside to 5 mm below the motor or, for a motor
+    # whose housing reaches above that underside (a design with the shafts high), stands
+    # on the arm's top face up to 5 mm above it.
+    bottom = P[2] - MOTOR_RADIUS - 0.005
+    if bottom < -BASE_THICKNESS:
+        z_lo, z_hi = bottom, -BASE_THICKNESS
+    else:
+        z_lo, z_hi = 0.0, max(P[2] + MOTOR_RADIUS + 0.005, 0.005)
+    centre = P + o * (BRACKET_OFFSET + BRACKET_THICKNESS / 2)
+    bracket_reach = BRACKET_OFFSET + BRACKET_THICKNESS
+    return [
+        Part(
+            "base",
+            f"bracket_{i}",
+            "box",
+            (BRACKET_THICKNESS, BRACKET_WIDTH, z_hi - z_lo),
+            np.array([centre[0], centre[1], 0.5 * (z_lo + z_hi)]),
+            R,
+            COLOURS["base"],
+        ),
+        Part(
+            "base",
+            f"motor_{i}",
+            "cylinder",
+            (MOTOR_RADIUS, MOTOR_LENGTH),
+            P + o * (bracket_reach + MOTOR_LENGTH / 2),
+            _frame_with_z(o),
+            COLOURS["motor"],
+        ),
+    ]
+
+
+def _leg_parts(g: StewartGeometry, outward: np.ndarray, i: int) -> list[Part]:
+    """Leg i's crank arm and its rod: tube and the two rod ends."""
     a, s = g.crank_length, g.rod_length
-    for i in range(6):
-        # Crank frame: y = -u_i; the motor side o_i = +-u_i is -+y.
-        side = -1.0 if np.dot(outward[i], g.u_B[i]) > 0 else 1.0
-        parts.append(
-            Part(
-                f"crank_{i}",
-                "arm",
-                "capsule",
-                (CRANK_RADIUS, a),
-                np.array([a / 2, side * CRANK_OFFSET, 0.0]),
-                _frame_with_z([1, 0, 0]),
-                COLOURS["crank"],
-            )
-        )
-        r_end, r_rod = g.rod_end_radius, g.rod_radius
-        start = r_end + TUBE_GAP
-        parts.append(
-            Part(
-                f"rod_{i}",
-                "tube",
-                "capsule",
-                (r_rod, s - 2 * start - 2 * r_rod),
-                np.array([0.0, 0.0, s / 2]),
-                eye,
-                COLOURS["rod"],
-            )
-        )
-        parts.append(
-            Part(f"rod_{i}", "end_bottom", "sphere", (r_end,), np.zeros(3), eye, COLOURS["rod_end"])
-        )
-        parts.append(
-            Part(
-                f"rod_{i}",
-                "end_top",
-                "sphere",
-                (r_end,),
-                np.array([0.0, 0.0, s]),
-                eye,
-                COLOURS["rod_end"],
-            )
-        )
+    eye = np.eye(3)
+    # Crank frame: y = -u_i; the motor side o_i = +-u_i is -+y.
+    side = -1.0 if np.dot(outward[i], g.u_B[i]) > 0 else 1.0
+    r_end, r_rod = g.rod_end_radius, g.rod_radius
+    start = r_end + TUBE_GAP
+    return [
+        Part(
+            f"crank_{i}",
+            "arm",
+            "capsule",
+            (CRANK_RADIUS, a),
+            np.array([a / 2, side * CRANK_OFFSET, 0.0]),
+            _frame_with_z([1, 0, 0]),
+            COLOURS["crank"],
+        ),
+        Part(
+            f"rod_{i}",
+            "tube",
+            "capsule",
+            (r_rod, s - 2 * start - 2 * r_rod),
+            np.array([0.0, 0.0, s / 2]),
+            eye,
+            COLOURS["rod"],
+        ),
+        Part(f"rod_{i}", "end_bottom", "sphere", (r_end,), np.zeros(3), eye, COLOURS["rod_end"]),
+        Part(
+            f"rod_{i}",
+            "end_top",
+            "sphere",
+            (r_end,),
+            np.array([0.0, 0.0, s]),
+            eye,
+            COLOURS["rod_end"],
+        ),
+    ]
+
+
+def _platform_parts(g: StewartGeometry) -> list[Part]:
+    """The platform's plate, the sockets' studs (drawn only) and the tool."""
+    eye = np.eye(3)
     plate_bottom = g.rod_end_radius + PLATFORM_GAP
-    parts.append(
+    parts = [
         Part(
             "platform",
             "plate",
@@ -260,7 +275,7 @@ def robot_parts(geometry: StewartGeometry | None = None) -> list[Part]:
             eye,
             COLOURS["platform"],
         )
-    )
+    ]
     for i in range(6):
         parts.append(
             Part(

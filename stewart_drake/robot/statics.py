@@ -194,7 +194,7 @@ def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot, theta=No
     docstring) with the motors' reflected inertia in M_x (``geometry.motor_reflected_inertia``);
     no friction (:func:`motor_effort` adds a servo's). The rods' free spin about their own axes
     (Table I: 1e-6 kg m^2) is left out. A test holds this to Drake's inverse dynamics of the tree
-    projected on the closed chain's motions (:func:`~.plant.closed_chain_inverse_dynamics`).
+    projected on the closed chain's motions (:func:`~.closed_chain.closed_chain_inverse_dynamics`).
 
     Args:
         x, x_dot, x_ddot: (..., 6) pose [rad, m], rate [rad/s, m/s], acceleration [rad/s^2, m/s^2].

@@ -55,7 +55,7 @@ from ..control.lqi import LqiDriver
 from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: controller.scales
 from ..control.pd import PdDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
-from ..plant.plant import check_rod_model
+from ..plant.sdf import check_rod_model
 from ..references.data_collection import DataCollectionReference
 from ..references.motion import ReferenceConfig as ReferenceConfig  # re-exported: the choices' base
 from ..references.organ.library import OrganMotionReference
@@ -595,7 +595,7 @@ class Scenario:
             forces and the guard reports the first one with the parts' names. False (default,
             cheaper per step): parts would pass through each other, and the guard stops a run
             the moment two of them overlap.
-        rod_model: how the plant models the rods (:data:`~stewart_drake.plant.plant.ROD_MODELS`):
+        rod_model: how the plant models the rods (:data:`~stewart_drake.plant.sdf.ROD_MODELS`):
             "bodies" (default: rigid bodies on ball joints, exact) or "distance" (rigid distance
             constraints with the rods' mass lumped at their ends; fewer degrees of freedom and
             a faster step; its accuracy and speed are measured in docs/plant_speed.md). With

@@ -18,7 +18,7 @@ import numpy as np
 from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
 from ..base.fileio import CheckedNpz, save_npz
-from ..plant.plant import loop_closure_errors
+from ..plant.closed_chain import loop_closure_errors
 from ..station import guard
 from .diagram import StewartDiagram, make_stewart_diagram
 from .metrics import compute_metrics

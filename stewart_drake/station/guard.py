@@ -33,7 +33,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_number
 from ..base.errors import FeasibilityWarning, InvalidConfigError, SimulationDivergedError
 from ..base.fileio import save_npz
-from ..plant.plant import LoopClosure
+from ..plant.closed_chain import LoopClosure
 from ..robot import limits
 from ..robot.kinematics import AXIS_NAMES, ik_scalar
 from ..robot.limits import (

@@ -28,7 +28,7 @@ from pydrake.systems.primitives import (
     SymbolicVectorSystem,
 )
 
-from ..plant.plant import assemble
+from ..plant.closed_chain import assemble
 from ..robot.kinematics import X_HOME
 from ..robot.statics import p_ETool
 from .sensors import PlatformPoseSensor, add_white_noise

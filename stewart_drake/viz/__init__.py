@@ -1,2 +1,2 @@
-"""Pictures of runs and of the Diagram: Meshcat replays as standalone HTML, Graphviz pictures of
-the Diagram. A feature the others draw with."""
+"""Pictures of runs and of the Diagram: Meshcat replays as standalone HTML (:mod:`.visualize`),
+Graphviz pictures of the Diagram (:mod:`.diagrams`). A feature the others draw with."""

@@ -47,7 +47,7 @@ from pydrake.systems.primitives import PassThrough
 from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
-from ...plant.plant import assembled_positions
+from ...plant.closed_chain import assembled_positions
 from ...robot.kinematics import (
     X_HOME,
     angular_velocity_map,
@@ -317,7 +317,7 @@ class DynamixelDriver(LeafSystem):
 class MeasuredPlantState(LeafSystem):
     """A plant state for the measured pose, for the loggers, replays and the guard, which read
     ``plant_state``: the positions of the robot assembled at the pose of ``platform_state``
-    (:func:`~stewart_drake.plant.plant.assembled_positions`: cranks from the IK, rods aimed,
+    (:func:`~stewart_drake.plant.closed_chain.assembled_positions`: cranks from the IK, rods aimed,
     platform at the pose; its loop closure is exact, so the guard's closure check passes and
     its tracking and clearance checks read the measured pose), the platform's velocity from the
     measured rates (w_WP = E(rpy) rpy_dot, v_WP = p_dot) and the cranks' from the IK Jacobian;
