@@ -43,7 +43,8 @@ from ..base.checks import as_array, as_number
 from ..base.errors import InvalidConfigError, MissingExtraError
 from ..robot import kinematics, statics
 from ..robot.geometry import StewartGeometry
-from .lqi import LqiDriver, error_model, input_matrix, lqi_gain
+from .lqi.driver import LqiDriver
+from .lqi.gain import error_model, input_matrix, lqi_gain
 
 #: How the plant's mechanics are discretized (:func:`plant_model`).
 INTEGRATORS = ("sap", "zoh")
@@ -248,7 +249,8 @@ def lqi_design(
             ``driver.delay_compensation``.
     Returns:
         (A (n, n), B (n, 6), K (6, n)): e+ = A e + B u, u = -K e, e = [e_x, e_x_dot, z, the
-        pending torques (6 d)], n = 18 + 6 d (:func:`~.lqi.error_model`, :func:`~.lqi.lqi_gain`).
+        pending torques (6 d)], n = 18 + 6 d (:func:`~.lqi.gain.error_model`,
+        :func:`~.lqi.gain.lqi_gain`).
     """
     driver = (driver or LqiDriver()).validate(h, delay_periods)
     d = int(delay_periods) if driver.delay_compensation else 0

@@ -22,7 +22,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES, DensityFeatures
-from .lqi import LQI_OMEGA_MAX, LQI_OMEGA_MIN
+from .lqi.gain import LQI_OMEGA_MAX, LQI_OMEGA_MIN
 from .tuner import (
     DEFAULT_RATIO_TUNER_PATH,
     DEFAULT_TUNER_PATH,

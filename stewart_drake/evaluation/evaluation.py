@@ -31,7 +31,7 @@ import numpy as np
 
 from ..base.errors import IncompleteResultsError
 from ..base.fileio import atomic_write
-from ..control.lqi import LqiScales
+from ..control.lqi.driver import LqiScales
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import ResultStore, file_digest, run_jobs
 from ..references.trajectories import ChirpTrajectory, StepTrajectory

@@ -691,7 +691,7 @@ def _model_tracking(row: dict, ratio: float, f) -> np.ndarray | None:
     loop is unstable."""
     from ..analysis.loop_analysis import loop_models, tracking_response
     from ..base.errors import StewartError
-    from ..control.lqi import LqiDriver
+    from ..control.lqi.driver import LqiDriver
 
     base = row.get("case", {}).get("base")
     if not base:

@@ -56,7 +56,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..control.features import density_features_series
-from ..control.lqi import LqiDriver
+from ..control.lqi.driver import LqiDriver
 from ..control.tuner import (
     N_RATIO_INPUTS,
     RATIO_LOG10_MAX,
