@@ -61,7 +61,7 @@ from stewart_drake.control.lqi.gain import (
     lqi_gain,
     lqi_gain_warm,
 )
-from stewart_drake.control.tuner import AnnTuner
+from stewart_drake.control.tuner.ann import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.plant.plant import ROD_MODELS
 from stewart_drake.references.trajectories import paper_manoeuvre

@@ -742,7 +742,7 @@ def _cmd_train(args) -> int:
             "`stewart-drake train` needs torch: install PyTorch's CPU build, then pip install "
             "'stewart-drake[train]' (README: Install)"
         ) from None
-    from ..control.tuner import save_tuner
+    from ..control.tuner.network import save_tuner
     from ..control.tuning import AnnTunerDriver
     from ..run.scenario import Scenario
     from ..tuner.training import build_dataset, train

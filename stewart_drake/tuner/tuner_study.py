@@ -28,7 +28,7 @@ paper's nine pairs are five of these ratios, only the ratio matters); the LQI wi
 the start pose (no re-scheduling on B(x)) at ratio 1; a hand-made schedule on the reference
 speed (:func:`speed_schedule`); the paper's tuner (12-10-2 on density features, trained on the
 nine collection runs: ``stewart-drake collect && stewart-drake train``); ours
-(:class:`~stewart_drake.control.tuner.RatioTuner`, one per lambda, :func:`train_ratio_tuner`);
+(:class:`~stewart_drake.control.tuner.ratio.RatioTuner`, one per lambda, :func:`train_ratio_tuner`);
 and the **headroom**: per 0.2 s window the ratio that was best in hindsight over that window
 (from the 13 fixed runs), run in closed loop as a schedule (:func:`hindsight_schedule`).
 
@@ -57,14 +57,13 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..control.features import density_features_series
 from ..control.lqi.driver import LqiDriver
-from ..control.tuner import (
+from ..control.tuner.network import load_tuner, save_tuner
+from ..control.tuner.ratio import (
     N_RATIO_INPUTS,
     RATIO_LOG10_MAX,
     RATIO_LOG10_MIN,
     RatioTunerModel,
-    load_ratio_tuner,
     ratio_tuner_inputs,
-    save_ratio_tuner,
 )
 from ..control.tuning import AnnTunerDriver, RatioTunerDriver, TunerChoice, WeightSchedule
 from ..run import metrics
@@ -299,7 +298,7 @@ def train_ratio_tuner(
     Args:
         fixed_records: {(family, seed): {ratio: record}} of :func:`study_job` records.
     Returns:
-        the trained :class:`~stewart_drake.control.tuner.RatioTunerModel`.
+        the trained :class:`~stewart_drake.control.tuner.ratio.RatioTunerModel`.
     Raises:
         InvalidConfigError: no training records.
     """
@@ -611,7 +610,7 @@ class TunerStudy:
         paper_weights: str,
         test: bool,
     ):
-        from ..control.tuner import PAPER_LABEL_TUNER_PATH
+        from ..control.tuner.ann import PAPER_LABEL_TUNER_PATH
         from ..execution.store import ResultStore, file_digest
 
         self.out, self.runner, self.base, self.quick = Path(out_dir), runner, base, quick
@@ -752,11 +751,11 @@ class TunerStudy:
         for lam in LAMBDAS:
             path = self.out / "weights" / f"ratio_tuner_lambda{lam:g}.npz"
             model = train_ratio_tuner(fixed_train, lam)
-            save_ratio_tuner(model, path)
+            save_tuner(model, path)
             self.trained[f"{lam:g}"] = model.metadata
             for shift in self.shifts():
                 shift_path = self._shift_path(lam, shift)
-                save_ratio_tuner(shifted(model, shift), shift_path)
+                save_tuner(shifted(model, shift), shift_path)
                 jobs += [
                     self.job(
                         StudyArm("ours", lam=lam, shift=shift),
@@ -809,8 +808,8 @@ class TunerStudy:
                 "shift_means": shift_means,
             }
             path = self._shift_path(lam, shift)
-            model = load_ratio_tuner(path)
-            save_ratio_tuner(
+            model = load_tuner(RatioTunerModel, path)
+            save_tuner(
                 dataclasses.replace(
                     model,
                     metadata={
