@@ -24,7 +24,15 @@ from pydrake.systems.framework import LeafSystem
 from ...base.checks import as_array
 from ...base.errors import InvalidConfigError
 from ..features import N_FEATURES
-from .network import ACTIVATIONS, DATA_FOLDER, Z_CLIP, TunerNetwork, check_network, load_tuner
+from .network import (
+    ACTIVATIONS,
+    DATA_FOLDER,
+    Z_CLIP,
+    TunerNetwork,
+    check_network,
+    check_schedule,
+    load_tuner,
+)
 
 #: The paper's ANN outputs log10 omega_Q and log10 omega_R clipped to this range (the paper's
 #: nine training pairs span it), so its weights stay within [ANN_OMEGA_MIN, ANN_OMEGA_MAX].
@@ -57,12 +65,6 @@ class TunerModel(TunerNetwork):
     Source: paper section III.D (one hidden layer of 10); log10 outputs and the clamp are ours.
     """
 
-    W1: np.ndarray
-    b1: np.ndarray
-    W2: np.ndarray
-    b2: np.ndarray
-    x_mean: np.ndarray
-    x_std: np.ndarray
     activation: str = "tanh"
     metadata: dict = field(default_factory=dict)
 
@@ -223,13 +225,7 @@ class AnnTuner(LeafSystem):
         omega_initial=(1.0, 1.0),
     ):
         super().__init__()
-        if not (np.isfinite(period_s) and period_s > 0):
-            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
-        if not (np.isfinite(offset_s) and offset_s >= 0):
-            raise InvalidConfigError(f"offset_s must be >= 0 s, got {offset_s}")
-        omega0 = np.asarray(omega_initial, dtype=float)
-        if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
-            raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
+        omega0 = check_schedule(period_s, offset_s, omega_initial)
         self.model = load_tuner(TunerModel) if model is None else model
         self.period_s = float(period_s)
         self._rho = self.DeclareVectorInputPort("rho", N_FEATURES)

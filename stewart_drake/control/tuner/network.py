@@ -25,6 +25,7 @@ and refuses the other, naming what it found.
 from __future__ import annotations
 
 import json
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, TypeVar
 
@@ -80,10 +81,41 @@ def check_network(
         raise InvalidConfigError(f"{kind} x_std must be > 0{x_std}")
 
 
+def check_schedule(period_s: float, offset_s: float, omega_initial) -> np.ndarray:
+    """A tuner system's update period (> 0 s) and first update (>= 0 s) checked, and the
+    weights [omega_Q, omega_R] it holds before that update, (2,), returned.
+
+    Raises:
+        InvalidConfigError: period_s <= 0, offset_s < 0, a non-finite one, or omega_initial not
+            2 finite numbers.
+    """
+    if not (np.isfinite(period_s) and period_s > 0):
+        raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
+    if not (np.isfinite(offset_s) and offset_s >= 0):
+        raise InvalidConfigError(f"offset_s must be >= 0 s, got {offset_s}")
+    omega0 = np.asarray(omega_initial, dtype=float)
+    if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
+        raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
+    return omega0
+
+
+@dataclass(frozen=True)
 class TunerNetwork:
-    """What a tuner's network class (a frozen dataclass with the fields of
-    :data:`WEIGHT_NAMES`, ``activation`` and ``metadata``, which it checks) tells its file's
-    writer and reader."""
+    """A tuner's one-hidden-layer network: its weights (the fields of :data:`WEIGHT_NAMES`),
+    and what its class tells its file's writer and reader. A subclass adds ``activation`` and
+    ``metadata`` and checks them all (:func:`check_network`).
+
+    Attributes:
+        W1 (hidden, n_in), b1 (hidden,), W2 (n_out, hidden), b2 (n_out,): the layers.
+        x_mean, x_std: (n_in,) the inputs' normalization (training statistics).
+    """
+
+    W1: np.ndarray
+    b1: np.ndarray
+    W2: np.ndarray
+    b2: np.ndarray
+    x_mean: np.ndarray
+    x_std: np.ndarray
 
     #: How messages name it ("ANN tuner": "no ANN tuner weights at ...").
     label: ClassVar[str]
@@ -94,8 +126,6 @@ class TunerNetwork:
     #: How to get the shipped weights when they are missing, and another file.
     missing_default: ClassVar[str]
     missing_given: ClassVar[str]
-    activation: str
-    metadata: dict
 
     @classmethod
     def default_path(cls) -> Path:
@@ -111,9 +141,9 @@ class TunerNetwork:
 Network = TypeVar("Network", bound=TunerNetwork)
 
 
-def save_tuner(model: TunerNetwork, path) -> Path:
-    """Write a tuner's network (either kind) to a ``.npz`` (the module docstring's format);
-    returns the path.
+def save_tuner(model, path) -> Path:
+    """Write a tuner's network (either kind: a :class:`TunerNetwork` with its ``activation`` and
+    ``metadata``) to a ``.npz`` (the module docstring's format); returns the path.
 
     Written atomically (a temporary file, then a rename): an interrupted save leaves the old file.
 

@@ -18,7 +18,7 @@ from pydrake.systems.framework import LeafSystem
 from ...base.checks import as_array
 from ...base.errors import InvalidConfigError
 from ..features import N_FEATURES
-from .network import DATA_FOLDER, Z_CLIP, TunerNetwork, check_network
+from .network import DATA_FOLDER, Z_CLIP, TunerNetwork, check_network, check_schedule
 
 #: Inputs of :class:`RatioTunerModel`, in order: the 12 density features, then the reference's
 #: speed and acceleration, rotation and translation apart, each over its scale.
@@ -90,12 +90,6 @@ class RatioTunerModel(TunerNetwork):
             activation.
     """
 
-    W1: np.ndarray
-    b1: np.ndarray
-    W2: np.ndarray
-    b2: np.ndarray
-    x_mean: np.ndarray
-    x_std: np.ndarray
     metadata: dict = field(default_factory=dict)
     activation: str = "tanh"
 
@@ -167,13 +161,7 @@ class RatioTuner(LeafSystem):
         smoothing_s: float = 0.0,
     ):
         super().__init__()
-        if not (np.isfinite(period_s) and period_s > 0):
-            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
-        if not (np.isfinite(offset_s) and offset_s >= 0):
-            raise InvalidConfigError(f"offset_s must be >= 0 s, got {offset_s}")
-        omega0 = np.asarray(omega_initial, dtype=float)
-        if omega0.shape != (2,) or not np.all(np.isfinite(omega0)):
-            raise InvalidConfigError(f"omega_initial must be 2 finite numbers, got {omega_initial}")
+        omega0 = check_schedule(period_s, offset_s, omega_initial)
         if not (np.isfinite(smoothing_s) and smoothing_s >= 0):
             raise InvalidConfigError(f"smoothing_s must be >= 0 s, got {smoothing_s}")
         self.model = model
