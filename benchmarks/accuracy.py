@@ -281,7 +281,7 @@ def coordinate_study(geometry, n_samples, paper_duration_s):
 
 def default_step(paper):
     """The largest step meeting TRACKING_TOLERANCE and CLOSURE_LIMIT_M (see their comments)."""
-    from stewart_drake.control.lqi import LqiScales
+    from stewart_drake.control.lqi.driver import LqiScales
 
     finest = min(paper, key=lambda r: r["step_s"])
     best, scale = np.asarray(finest["rms_error"]), np.asarray(LqiScales().pose)

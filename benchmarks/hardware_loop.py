@@ -27,7 +27,7 @@ import numpy as np
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import Simulator
 
-from stewart_drake.control.lqi import LqiDriver
+from stewart_drake.control.lqi.driver import LqiDriver
 from stewart_drake.live.emulator_process import EmulatorProcess
 from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.references.trajectories import NamedReference

@@ -52,16 +52,16 @@ import time
 
 import numpy as np
 
-from stewart_drake.control import lqi
 from stewart_drake.control.features import DensityFeatures
-from stewart_drake.control.lqi import (
-    LqiController,
+from stewart_drake.control.lqi.controller import LqiController
+from stewart_drake.control.lqi.gain import (
+    STEIN_TOL,
     error_model,
     input_matrix,
     lqi_gain,
     lqi_gain_warm,
 )
-from stewart_drake.control.tuner import AnnTuner
+from stewart_drake.control.tuner.ann import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.plant.sdf import ROD_MODELS
 from stewart_drake.references.trajectories import paper_manoeuvre
@@ -209,8 +209,8 @@ def riccati_costs(controller, n: int = 100) -> dict:
     import scipy.linalg
     from pydrake.math import RealDiscreteLyapunovEquation
 
-    from stewart_drake.control.lqi import balance
-    from stewart_drake.control.lqi_kernels import stein
+    from stewart_drake.control.lqi.gain import balance
+    from stewart_drake.control.lqi.reschedule import stein
 
     g, h, d = controller.geometry, controller.h, controller.delay
     Q, R = controller.scales.Q_unit(d), controller.scales.R_unit()
@@ -235,12 +235,12 @@ def riccati_costs(controller, n: int = 100) -> dict:
         Kb = K_prev * d_x[None, :] / d_u[:, None]
         A_c, W = np.ascontiguousarray(Ab - Bb @ Kb), Qb + Kb.T @ Rb @ Kb
         W = 0.5 * (W + W.T)
-        stein(A_c, W, lqi.STEIN_TOL, 64)  # compiled before it is timed
+        stein(A_c, W, STEIN_TOL, 64)  # compiled before it is timed
         # Each solve is called in this iteration; the defaults bind A_c and W all the same.
         for label, solve in (
             ("drake", lambda A_c=A_c, W=W: RealDiscreteLyapunovEquation(A_c, W)),
             ("scipy", lambda A_c=A_c, W=W: scipy.linalg.solve_discrete_lyapunov(A_c.T, W)),
-            ("compiled", lambda A_c=A_c, W=W: stein(A_c, W, lqi.STEIN_TOL, 64)[0]),
+            ("compiled", lambda A_c=A_c, W=W: stein(A_c, W, STEIN_TOL, 64)[0]),
         ):
             t0 = time.perf_counter()
             P = solve()

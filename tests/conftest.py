@@ -153,10 +153,10 @@ def pytest_configure(config):
     warm."""
     if hasattr(config, "workerinput") or config.option.help or config.option.collectonly:
         return
-    if "stewart_drake.control.lqi_kernels" in sys.modules:
+    if "stewart_drake.control.lqi.kernels" in sys.modules:
         return
     t0 = time.monotonic()
-    import stewart_drake.control.lqi_kernels  # noqa: F401  (compiles, or loads the cache)
+    import stewart_drake.control.lqi.kernels  # noqa: F401  (compiles, or loads the cache)
 
     if time.monotonic() - t0 > 5.0:
         print(f"compiled the LQI's step into numba's cache in {time.monotonic() - t0:.0f} s")
@@ -215,7 +215,7 @@ def feedforward_fault(monkeypatch):
     """``feedforward_fault(fn)``: from then on every LQI acts on ``fn(T_ff)`` instead of the
     feed-forward on its port (fault injection at the one place the LQI reads its ports,
     ``LqiController.inputs``). ``fn`` may also raise."""
-    from stewart_drake.control.lqi import LqiController
+    from stewart_drake.control.lqi.controller import LqiController
 
     def install(fn):
         original = LqiController.inputs

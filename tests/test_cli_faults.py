@@ -158,20 +158,21 @@ def test_an_interrupted_write_leaves_the_old_file_and_no_partial_one(tmp_path, i
 
 
 def test_an_interrupted_save_of_the_tuner_keeps_the_old_weights(tmp_path, monkeypatch):
-    from stewart_drake.control import tuner
+    from stewart_drake.control.tuner import network
+    from stewart_drake.control.tuner.ann import TunerModel
 
-    model = tuner.load_tuner()
+    model = network.load_tuner(TunerModel)
     path = tmp_path / "ann_tuner.npz"
-    tuner.save_tuner(model, path)
+    network.save_tuner(model, path)
     before = path.read_bytes()
 
     def savez_then_ctrl_c(f, **arrays):
         f.write(b"partial")
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(tuner.np, "savez", savez_then_ctrl_c)
+    monkeypatch.setattr(network.np, "savez", savez_then_ctrl_c)
     with pytest.raises(KeyboardInterrupt):
-        tuner.save_tuner(model, path)
+        network.save_tuner(model, path)
     assert path.read_bytes() == before and len(list(tmp_path.iterdir())) == 1
 
 

@@ -16,7 +16,8 @@ from stewart_drake.control.contract import (
     register_controller,
     resolve_controller,
 )
-from stewart_drake.control.lqi import LqiDiagram
+from stewart_drake.control.lqi.controller import LqiDiagram
+from stewart_drake.control.lqi.driver import LqiDriver
 from stewart_drake.control.pd import CrankPdController
 from stewart_drake.robot.geometry import X_HOME
 
@@ -37,7 +38,7 @@ def _system(inputs=(("x_d", 18),), outputs=(("T", 6),), status_names=None, name=
 def test_the_smallest_controller_passes_and_the_package_s_controllers_do(geometry):
     check_controller(_system())
     check_controller(CrankPdController(geometry))
-    lqi = LqiDiagram(geometry)
+    lqi = LqiDiagram(geometry, LqiDriver())
     check_controller(lqi)
     assert tuple(lqi.status_names) == LQI_STATUS_NAMES
 

@@ -169,13 +169,16 @@ def test_features_from_the_controllers_window_equal_those_it_samples_itself():
     """The LQI buffers [e_bar, T] at its instants for the features (no callback of theirs per
     period): rho from that window equals rho of a DensityFeatures sampling the same signals,
     with a window (5) shorter than the run, so the ring wraps."""
-    from stewart_drake.control.lqi import LqiDiagram
+    from stewart_drake.control.lqi.controller import LqiDiagram
+    from stewart_drake.control.lqi.driver import LqiDriver
     from stewart_drake.robot.geometry import X_HOME, StewartGeometry
     from stewart_drake.robot.statics import holding_torques
 
     geometry, offset = StewartGeometry(), 5e-4
     builder = DiagramBuilder()
-    lqi = builder.AddSystem(LqiDiagram(geometry, period_s=1e-3, offset_s=offset, feature_window=5))
+    lqi = builder.AddSystem(
+        LqiDiagram(geometry, LqiDriver(), period_s=1e-3, offset_s=offset, feature_window=5)
+    )
     pose = builder.AddSystem(
         Sine(np.r_[1e-3 * np.ones(6), np.zeros(6)], 30.0 * np.ones(12), np.linspace(0, 1, 12))
     )

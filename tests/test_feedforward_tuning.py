@@ -61,11 +61,13 @@ def test_the_learner_refuses_bad_settings():
     g = reference_geometry()
     motion = Breathing()
     with pytest.raises(InvalidConfigError, match="stretch_s"):
-        FeedforwardTuningLearner(g, motion, 1e-3, 5e-4, 10.0, stretch_s=0.01)
+        FeedforwardTuningLearner(g, FeedforwardTuning(stretch_s=0.01), motion, 1e-3, 5e-4, 10.0)
     with pytest.raises(InvalidConfigError, match="gain must be below 2"):
-        FeedforwardTuningLearner(g, motion, 1e-3, 5e-4, 10.0, gain=2.0)
+        FeedforwardTuningLearner(g, FeedforwardTuning(gain=2.0), motion, 1e-3, 5e-4, 10.0)
     with pytest.raises(InvalidConfigError, match="theta0"):
-        FeedforwardTuningLearner(g, motion, 1e-3, 5e-4, 10.0, theta0=np.zeros((3, 6)))
+        FeedforwardTuningLearner(
+            g, FeedforwardTuning(), motion, 1e-3, 5e-4, 10.0, theta0=np.zeros((3, 6))
+        )
     with pytest.raises(InvalidConfigError, match="learning.learn: false needs"):
         FeedforwardTuning(learn=False).validate(1e-3)
     with pytest.raises(InvalidConfigError, match="sample_period_s"):

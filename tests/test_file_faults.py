@@ -29,7 +29,9 @@ from stewart_drake.base.errors import (
     StewartError,
 )
 from stewart_drake.base.fileio import CheckedNpz
-from stewart_drake.control import tuner
+from stewart_drake.control.tuner.ann import DEFAULT_TUNER_PATH, TunerModel
+from stewart_drake.control.tuner.network import load_tuner, save_tuner
+from stewart_drake.control.tuner.ratio import RatioTunerModel
 from stewart_drake.execution.store import MANIFEST, ResultStore, read_manifest
 from stewart_drake.run.scenario import Scenario, dump_scenario
 from stewart_drake.run.scenario_io import load_scenario
@@ -146,13 +148,13 @@ def _load(loader, path: Path, data: bytes, name: str):
 
 # -- tuner weights --------------------------------------------------------------------------------
 
-ANN = tuner.DEFAULT_TUNER_PATH.read_bytes()
+ANN = DEFAULT_TUNER_PATH.read_bytes()
 
 
 @_settings(250, "load_tuner")
 @given(data=mutations(ANN))
 def test_ann_tuner_file(tmp_path, data):
-    model = _load(tuner.load_tuner, tmp_path / "w.npz", data, "load_tuner")
+    model = _load(functools.partial(load_tuner, TunerModel), tmp_path / "w.npz", data, "load_tuner")
     if model is not None:
         omega = model.predict(np.ones(12))
         assert np.all((0.1 <= omega) & (omega <= 10))
@@ -160,7 +162,7 @@ def test_ann_tuner_file(tmp_path, data):
 
 def _ratio_bytes() -> bytes:
     rng = np.random.default_rng(0)
-    model = tuner.RatioTunerModel(
+    model = RatioTunerModel(
         rng.normal(size=(4, 16)),
         rng.normal(size=4),
         rng.normal(size=(1, 4)),
@@ -170,7 +172,7 @@ def _ratio_bytes() -> bytes:
         {"note": "test"},
     )
     with tempfile.TemporaryDirectory() as folder:
-        return tuner.save_ratio_tuner(model, Path(folder) / "r.npz").read_bytes()
+        return save_tuner(model, Path(folder) / "r.npz").read_bytes()
 
 
 RATIO = _ratio_bytes()
@@ -179,7 +181,9 @@ RATIO = _ratio_bytes()
 @_settings(120, "load_ratio_tuner")
 @given(data=mutations(RATIO))
 def test_ratio_tuner_file(tmp_path, data):
-    model = _load(tuner.load_ratio_tuner, tmp_path / "r.npz", data, "load_ratio_tuner")
+    model = _load(
+        functools.partial(load_tuner, RatioTunerModel), tmp_path / "r.npz", data, "load_ratio_tuner"
+    )
     if model is not None:
         assert np.all(np.isfinite(model.predict(np.ones(16))))
 
@@ -204,7 +208,7 @@ def test_each_fault_of_a_weight_file_is_named(tmp_path, change, problem):
     path = tmp_path / "w.npz"
     path.write_bytes(_npz(change(_entries(ANN))))
     with pytest.raises(CorruptFileError, match=problem) as info:
-        tuner.load_tuner(path)
+        load_tuner(TunerModel, path)
     assert str(info.value).startswith(f"{path} is not a valid ANN tuner weights file: ")
     assert str(info.value).endswith("retrain with `stewart-drake train` or use the shipped weights")
     for data, problem in (
@@ -214,7 +218,7 @@ def test_each_fault_of_a_weight_file_is_named(tmp_path, change, problem):
     ):
         path.write_bytes(data)
         with pytest.raises(CorruptFileError, match=problem):
-            tuner.load_tuner(path)
+            load_tuner(TunerModel, path)
 
 
 def test_a_corrupt_weight_file_is_one_line_from_the_cli(tmp_path, capsys):

@@ -19,7 +19,7 @@ from stewart_drake.cli import options
 from stewart_drake.control import contract
 
 REPO = Path(__file__).resolve().parent.parent
-KERNELS = "stewart_drake.control.lqi_kernels"
+KERNELS = "stewart_drake.control.lqi.kernels"
 COMPILING = "compiling the LQI's control step"
 _SCRIPT = Path(sys.executable).with_name("stewart-drake")
 
@@ -28,8 +28,8 @@ _SCRIPT = Path(sys.executable).with_name("stewart-drake")
 
 
 def test_will_compile_reads_numbas_cache_index_and_its_stamp(tmp_path, monkeypatch):
-    """After the kernels are imported their cache is valid; a copy of the module with a copy
-    of that cache is too; the same copy changed by one line (a stale stamp), or a cache folder
+    """After the kernels are imported their cache is valid; a copy of a kernels' module with a
+    copy of that cache is too; the same copy changed by one line (a stale stamp), or a cache folder
     with nothing in it, is not."""
     import importlib
 
@@ -39,13 +39,14 @@ def test_will_compile_reads_numbas_cache_index_and_its_stamp(tmp_path, monkeypat
 
     importlib.import_module(KERNELS)  # compiles or loads: the cache holds it from here
     assert kernel_cache.will_compile() is False
-    source = tmp_path / "src" / "lqi_kernels.py"
+    kernels_file = kernel_cache.KERNEL_FILES[0]
+    source = tmp_path / "src" / kernels_file.name
     source.parent.mkdir()
-    shutil.copy2(kernel_cache.KERNELS_FILE, source)
+    shutil.copy2(kernels_file, source)
     cached = Path(kernel_cache.cache_folder())
     copy_to = Path(kernel_cache.cache_folder(source))
     copy_to.mkdir(parents=True, exist_ok=True)
-    indexes = list(cached.glob("lqi_kernels.*.nb[ic]"))
+    indexes = list(cached.glob(f"{kernels_file.stem}.*.nb[ic]"))
     assert indexes, cached
     for path in indexes:
         shutil.copy2(path, copy_to / path.name)

@@ -8,7 +8,8 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 
 from stewart_drake.base.errors import FeasibilityWarning, SimulationDivergedError
 from stewart_drake.control.estimator import PoseEstimator
-from stewart_drake.control.lqi import LqiController, project_onto_torque_bound
+from stewart_drake.control.lqi.controller import LqiController
+from stewart_drake.control.lqi.gain import project_onto_torque_bound
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
@@ -236,7 +237,7 @@ def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geome
     holding torques are within 0.9 of the limit, it moves at most the reference's own step plus
     a fraction, and its rate is the finite difference of its poses (the rate the LQI tracks
     agrees with the pose it tracks)."""
-    lqi = LqiController(geometry, torque_limit_Nm=0.35)
+    lqi = LqiController(geometry, LqiDriver(), torque_limit_Nm=0.35)
     t = np.arange(0.0, 2.8, 1e-3)
     X, V, A = paper_manoeuvre().evaluate(t)
     T_ff = statics.holding_torques(geometry, X)
@@ -397,15 +398,15 @@ def test_drake_ignores_an_sdf_joint_friction_so_ours_is_an_actuator(tmp_path):
 
 def test_the_friction_feed_forward_is_read_from_the_scenario_and_off_in_the_paper_ones():
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.control import lqi_step
+    from stewart_drake.control.lqi import layout
     from stewart_drake.run.diagram import make_stewart_diagram
 
     on = _hardware(**{"duration_s": 0.1, "controller.friction_compensation_Nm": 0.0184})
-    c = lqi_step.StepConstants(make_stewart_diagram(on).controller.lqi._constants)
+    c = layout.StepConstants(make_stewart_diagram(on).controller.lqi._constants)
     assert (c.friction, c.friction_rate) == (0.0184, 3e-4)
     for name in ("paper_hardware", "paper_ideal"):
         assert load_scenario(name).controller.friction_compensation_Nm == 0.0
-    paper = lqi_step.StepConstants(make_stewart_diagram(_hardware()).controller.lqi._constants)
+    paper = layout.StepConstants(make_stewart_diagram(_hardware()).controller.lqi._constants)
     assert paper.friction == 0.0
     with pytest.raises(InvalidConfigError, match="friction_compensation_Nm"):
         _hardware(**{"controller.friction_compensation_Nm": -0.01})

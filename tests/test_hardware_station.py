@@ -396,7 +396,7 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
     extra delay (docs/hardware_bus.md, "The station on the bus")."""
     from pydrake.multibody.plant import MultibodyPlantConfig
 
-    from stewart_drake.control.lqi import LqiDriver
+    from stewart_drake.control.lqi.driver import LqiDriver
     from stewart_drake.live.emulator_process import EmulatorProcess
     from stewart_drake.references.organ.library import OrganMotionReference
 

@@ -90,13 +90,15 @@ def test_the_measured_error_is_the_pose_error(geometry):
 
 def test_the_system_refuses_bad_settings(geometry):
     with pytest.raises(InvalidConfigError, match="whole multiple"):
-        ilc.IterativeLearningController(geometry, 1e-3, 5e-4, [0, 1, 2], sample_period_s=0.0025)
+        ilc.IterativeLearningController(
+            geometry, IlcDriver(sample_period_s=0.0025), 1e-3, 5e-4, [0, 1, 2]
+        )
     with pytest.raises(InvalidConfigError, match="increasing"):
-        ilc.IterativeLearningController(geometry, 1e-3, 5e-4, [0, 2, 1])
+        ilc.IterativeLearningController(geometry, IlcDriver(), 1e-3, 5e-4, [0, 2, 1])
     with pytest.raises(InvalidConfigError, match="shorter than four records"):
-        ilc.IterativeLearningController(geometry, 1e-3, 5e-4, [0, 0.01, 1])
+        ilc.IterativeLearningController(geometry, IlcDriver(), 1e-3, 5e-4, [0, 0.01, 1])
     with pytest.raises(InvalidConfigError, match="gain must be below 2"):
-        ilc.IterativeLearningController(geometry, 1e-3, 5e-4, [0, 1, 2], gain=2.0)
+        ilc.IterativeLearningController(geometry, IlcDriver(gain=2.0), 1e-3, 5e-4, [0, 1, 2])
 
 
 def _learn(cycles, motion="breathing", params=None, **changes):

@@ -87,11 +87,14 @@ def test_batch_and_single_agree(geometry, random_poses):
 
 
 def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_poses):
-    """The controller's per-step kernels (single-pose numpy, plain-Python floats) give the
-    numbers of the batched, validated functions; an unreachable leg is NaN in all of them."""
-    from stewart_drake.control.lqi import input_matrix, input_matrix_single
+    """The controller's per-step kernels (single-pose numpy, plain-Python floats, the compiled
+    B(x)) give the numbers of the batched, validated functions; an unreachable leg is NaN in
+    all of them."""
+    from stewart_drake.control.lqi.gain import body_constants, input_matrix
+    from stewart_drake.control.lqi.reschedule import input_matrix as input_matrix_per_step
 
     constants = kinematics.leg_constants(geometry)
+    legs, body = np.array(constants[0]), body_constants(geometry)
     for x in random_poses[:50]:
         theta = kinematics.ik(geometry, x)
         th_single, cache = kinematics.ik_single(geometry, x)
@@ -112,7 +115,7 @@ def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_pose
         )
         B = input_matrix(geometry, x)
         np.testing.assert_allclose(
-            input_matrix_single(geometry, x)[0], B, rtol=1e-10, atol=1e-12 * np.abs(B).max()
+            input_matrix_per_step(legs, body, x)[0], B, rtol=1e-10, atol=1e-12 * np.abs(B).max()
         )
     far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])  # every rod too short
     assert np.isnan(kinematics.ik_single(geometry, far)[0]).all()

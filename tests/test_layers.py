@@ -123,3 +123,16 @@ def test_the_walker_sees_local_and_relative_imports():
     assert _layer("stewart_drake.control.lqi") == "control"
     with pytest.raises(KeyError):
         LAYERS[_layer("stewart_drake.nowhere.x")]
+
+
+def test_pyproject_installs_every_package():
+    """A package missing from pyproject's explicit list works from a checkout and is absent from
+    a wheel: the list holds every folder of the package with an __init__.py."""
+    import tomllib
+
+    root = PACKAGE.parent
+    listed = set(
+        tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    )
+    tree = {".".join(p.parent.relative_to(root).parts) for p in PACKAGE.rglob("__init__.py")}
+    assert tree <= listed, f"add to [tool.setuptools] packages: {sorted(tree - listed)}"

@@ -23,7 +23,8 @@ from stewart_drake.control.linear_model import (
     lqi_model,
     plant_model,
 )
-from stewart_drake.control.lqi import LqiDriver, error_model, input_matrix
+from stewart_drake.control.lqi.driver import LqiDriver
+from stewart_drake.control.lqi.gain import error_model, input_matrix
 from stewart_drake.robot import kinematics
 from stewart_drake.robot.geometry import X_HOME, reference_geometry
 from stewart_drake.run.scenario_io import load_scenario

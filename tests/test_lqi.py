@@ -5,17 +5,9 @@ import pytest
 from scipy.linalg import expm, solve_discrete_are
 
 from stewart_drake.base.errors import InvalidConfigError, RiccatiSolveError
-from stewart_drake.control.lqi import (
-    LqiController,
-    LqiDiagram,
-    LqiDriver,
-    LqiScales,
-    LqiScalesConfig,
-    error_model,
-    hautus_checks,
-    input_matrix,
-    lqi_gain,
-)
+from stewart_drake.control.lqi.controller import LqiController, LqiDiagram
+from stewart_drake.control.lqi.driver import LqiDriver, LqiScales, LqiScalesConfig
+from stewart_drake.control.lqi.gain import error_model, hautus_checks, input_matrix, lqi_gain
 from stewart_drake.robot import statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
@@ -62,7 +54,7 @@ def test_hautus_checks_pass_and_detect_a_missing_input(geometry):
 
 
 def test_gain_matches_scipy_riccati(geometry):
-    c = LqiController(geometry)
+    c = LqiController(geometry, LqiDriver())
     A, B = error_model(input_matrix(geometry, X_HOME), H)
     Q, R = 3.0 * c.scales.Q_unit(), 0.5 * c.scales.R_unit()
     P = solve_discrete_are(A, B, Q, R)
@@ -72,14 +64,14 @@ def test_gain_matches_scipy_riccati(geometry):
 
 def test_only_the_weight_ratio_matters(geometry):
     """LQR gains are invariant to scaling Q and R together: the 9 paper pairs give 5 gains."""
-    c = LqiController(geometry)
+    c = LqiController(geometry, LqiDriver())
     np.testing.assert_allclose(c.gain(X_HOME, 0.1, 0.1), c.gain(X_HOME, 10, 10), rtol=1e-6)
     assert not np.allclose(c.gain(X_HOME, 1, 0.1), c.gain(X_HOME, 0.1, 1), rtol=1e-3)
 
 
 @pytest.mark.parametrize("omega_Q,omega_R", [(q, r) for q in (0.1, 1, 10) for r in (0.1, 1, 10)])
 def test_every_paper_weight_pair_stabilizes_the_model(geometry, omega_Q, omega_R):
-    c = LqiController(geometry)
+    c = LqiController(geometry, LqiDriver())
     A, B = error_model(input_matrix(geometry, X_HOME), H)
     K = c.gain(X_HOME, omega_Q, omega_R)
     rho = np.abs(np.linalg.eigvals(A - B @ K)).max()
@@ -87,7 +79,7 @@ def test_every_paper_weight_pair_stabilizes_the_model(geometry, omega_Q, omega_R
 
 
 def test_stiffer_weights_give_larger_position_gains(geometry):
-    c = LqiController(geometry)
+    c = LqiController(geometry, LqiDriver())
     soft, stiff = c.gain(X_HOME, 0.1, 10), c.gain(X_HOME, 10, 0.1)
     assert np.linalg.norm(stiff[:, :6]) > 5 * np.linalg.norm(soft[:, :6])
 
@@ -104,7 +96,7 @@ def test_bad_settings_are_refused(geometry):
     with pytest.raises(InvalidConfigError, match="driver.riccati must be one of"):
         LqiController(geometry, LqiDriver(riccati="magic"))
     with pytest.raises(InvalidConfigError, match="omega_Q"):
-        LqiController(geometry).gain(X_HOME, 0.0, 1.0)
+        LqiController(geometry, LqiDriver()).gain(X_HOME, 0.0, 1.0)
     with pytest.raises(InvalidConfigError):
         LqiScales(torque=-1)
 

@@ -1,9 +1,9 @@
-"""One reference, two speeds: the LQI's compiled step against its numpy reference.
+"""One source, two speeds: the LQI's compiled step against its uncompiled reference.
 
-The controller runs the stages of ``lqi_kernels`` (numba); ``lqi_step`` is the readable numpy
-reference. They must agree to 1e-12 relative on every case the controller meets (they are in
-fact written to give the same bits: the sums that feed back are one shared loop), and so must
-closed-loop runs with either.
+The controller runs the stages of :mod:`~stewart_drake.control.lqi.step` compiled (numba); their
+``py_func`` (:data:`~stewart_drake.control.lqi.step.reference`) is the same code run by Python.
+They must agree to 1e-12 relative on every case the controller meets (they give the same bits:
+the sums that feed back are loops in one order), and so must closed-loop runs with either.
 """
 
 import os
@@ -14,15 +14,16 @@ import textwrap
 import numpy as np
 import pytest
 
-from stewart_drake.control import lqi_kernels, lqi_step
+from stewart_drake.control import kernel_cache
 from stewart_drake.control.estimator import PoseEstimator
-from stewart_drake.control.lqi import (
-    LqiController,
-    LqiDriver,
+from stewart_drake.control.lqi import layout, reschedule, step
+from stewart_drake.control.lqi.controller import LqiController
+from stewart_drake.control.lqi.driver import LqiDriver
+from stewart_drake.control.lqi.gain import (
     balance,
     body_constants,
     error_model,
-    input_matrix_single,
+    input_matrix,
     lqi_gain,
     lqi_gain_warm,
 )
@@ -114,7 +115,7 @@ CASES = [
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: "-".join(f"{k}={v}" for k, v in c.items()))
-def test_the_compiled_step_equals_the_numpy_reference(case):
+def test_the_compiled_step_equals_its_uncompiled_reference(case):
     """observe, act (every mode) and step on random poses, weights, saturation, delays."""
     c = _controller(**case)
     rng = np.random.default_rng(abs(hash(tuple(case.values()))) % 2**32)
@@ -123,11 +124,11 @@ def test_the_compiled_step_equals_the_numpy_reference(case):
         u, state = _random_case(c, rng)
         args = (c._constants, c._legs, u, None, c._bounds)
         results = []
-        for stages in (lqi_step, lqi_kernels):
+        for stages in (step.reference, step):
             s = state.copy()
             need, flags = stages.step(args[0], args[1], u, s, args[4])
             acts = []
-            for mode in (lqi_step.GAIN_CHANGED, lqi_step.GOVERNED, 0):
+            for mode in (layout.GAIN_CHANGED, layout.GOVERNED, 0):
                 a = s.copy()
                 acts.append((stages.act(c._constants, u, a, c._bounds, mode), a))
             results.append((need, flags, s, acts))
@@ -138,7 +139,7 @@ def test_the_compiled_step_equals_the_numpy_reference(case):
             assert fa == fb
             _agree(sb, sa)
         saturated += sum(
-            int(a[c.layout.status][lqi_step.SATURATED_STEPS] > 0) for _, a in a0 + [(f0, s0)]
+            int(a[c.layout.status][layout.SATURATED_STEPS] > 0) for _, a in a0 + [(f0, s0)]
         )
     if case["limit"] == 0.05:
         assert saturated > 0  # the clipping path was taken
@@ -148,9 +149,9 @@ def test_a_non_finite_sample_is_flagged_by_both():
     c = _controller(False, 0, None, 5)
     u, state = _random_case(c, np.random.default_rng(3))
     u[c.layout.T_applied][2] = np.nan
-    for stages in (lqi_step, lqi_kernels):
+    for stages in (step.reference, step):
         s = state.copy()
-        assert stages.act(c._constants, u, s, c._bounds, 0) == lqi_step.NONFINITE_SAMPLE
+        assert stages.act(c._constants, u, s, c._bounds, 0) == layout.NONFINITE_SAMPLE
 
 
 def test_the_estimate_equals_the_reference_and_the_full_newton():
@@ -162,7 +163,7 @@ def test_the_estimate_equals_the_reference_and_the_full_newton():
         x_hat = np.concatenate([x + rng.normal(0, 2e-5, 6), np.zeros(6)])
         J_inv = np.linalg.inv(kinematics.jacobian(GEOMETRY, x))
         out = []
-        for stages in (lqi_step, lqi_kernels):
+        for stages in (step.reference, step):
             h = x_hat.copy()
             assert stages.estimate(
                 est.legs,
@@ -188,16 +189,16 @@ def test_the_compiled_gain_pipeline_equals_numpy():
     rng = np.random.default_rng(5)
     for _ in range(20):
         x = X_HOME + rng.uniform(-1, 1, 6) * [0.1, 0.1, 0.1, 0.01, 0.01, 0.01]
-        B_ref, J_ref = input_matrix_single(GEOMETRY, x)
-        B_c, J, ok = lqi_kernels.input_matrix(legs, body, x)
+        B_ref, J_ref = input_matrix(GEOMETRY, x), kinematics.jacobian(GEOMETRY, x)
+        B_c, J, ok = reschedule.input_matrix(legs, body, x)
         assert ok
         np.testing.assert_allclose(B_c, B_ref, rtol=1e-12, atol=1e-12 * np.abs(B_ref).max())
         np.testing.assert_allclose(J, J_ref, rtol=1e-12, atol=1e-12 * np.abs(J_ref).max())
         A, B = error_model(B_ref, 1e-3, 1)
-        A_c, B_c2 = lqi_kernels.zoh_model(B_ref, 1e-3, 1)
+        A_c, B_c2 = reschedule.zoh_model(B_ref, 1e-3, 1)
         assert np.array_equal(A, A_c) and np.array_equal(B, B_c2)
         Q, R = 2.0 * c._Q1, c._R1
-        K, J_inv, n = lqi_kernels.warm_gain(
+        K, J_inv, n = reschedule.warm_gain(
             legs, body, x, 1e-3, 1, Q, R, c.K_initial, 1e-10, 8, 1e-16
         )
         assert n > 0
@@ -210,22 +211,22 @@ def test_the_compiled_stein_solve_equals_drakes():
     from pydrake.math import RealDiscreteLyapunovEquation
 
     c = _controller(False, 1, None, None)
-    A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3, 1)
+    A, B = error_model(input_matrix(GEOMETRY, X_HOME), 1e-3, 1)
     Ab, Bb, Qb, Rb, d_x, d_u = balance(A, B, c._Q1, c._R1)
     K = c.K_initial * d_x[None, :] / d_u[:, None]
     A_c, W = np.ascontiguousarray(Ab - Bb @ K), Qb + K.T @ Rb @ K
-    P, steps = lqi_kernels.stein(A_c, W, 1e-16, 64)
+    P, steps = reschedule.stein(A_c, W, 1e-16, 64)
     P_ref = RealDiscreteLyapunovEquation(A_c, 0.5 * (W + W.T))
     assert 0 < steps < 30
     assert np.abs(P - P_ref).max() / np.abs(P_ref).max() < 1e-10
-    assert lqi_kernels.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1  # unstable: no
+    assert reschedule.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1  # unstable: no
 
 
 def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
     from stewart_drake.base.errors import RiccatiSolveError
 
     c = _controller(False, 0, None, None)
-    A, B = error_model(input_matrix_single(GEOMETRY, X_HOME)[0], 1e-3)
+    A, B = error_model(input_matrix(GEOMETRY, X_HOME), 1e-3)
     with pytest.raises(RiccatiSolveError, match="does not stabilize"):
         lqi_gain_warm(A, B, c._Q1, c._R1, np.zeros((6, 18)))
 
@@ -255,10 +256,10 @@ def test_closed_loop_runs_give_the_same_metrics_with_either_step():
 def test_the_compiled_code_is_cached_against_the_sources_it_inlines():
     """numba's cache sees this file only: the digest of what it inlines from other files must
     be the one recorded, else the cache is bypassed (update DEPENDENCIES_DIGEST)."""
-    assert lqi_kernels.sources_digest() == lqi_kernels.DEPENDENCIES_DIGEST, (
-        f"set DEPENDENCIES_DIGEST = {lqi_kernels.sources_digest()!r} in kernel_cache.py"
+    assert kernel_cache.sources_digest() == kernel_cache.DEPENDENCIES_DIGEST, (
+        f"set DEPENDENCIES_DIGEST = {kernel_cache.sources_digest()!r} in kernel_cache.py"
     )
-    assert lqi_kernels._CACHE
+    assert step._CACHE and reschedule._CACHE
 
 
 @pytest.mark.system
@@ -274,11 +275,11 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
     script = textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(module_dir)!r})
-        from stewart_drake.control.lqi_kernels import _fallback_cache_dir, _njit
+        from stewart_drake.control.kernel_cache import fallback_cache_dir, njit_cached
         import tiny
-        f = _njit(tiny.double)
+        f = njit_cached(tiny.double)
         assert f(21) == 42
-        print(_fallback_cache_dir())
+        print(fallback_cache_dir())
     """)
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env.update(
@@ -296,7 +297,7 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
 
 def test_the_friction_feed_forward_adds_coulomb_friction_at_the_reference_s_crank_rates():
     """T with the feed-forward minus T without it is 0.02 tanh(J x_dot_d / 0.5) per motor; the
-    pending torques (the feedback's share) are the same, in numpy and compiled."""
+    pending torques (the feedback's share) are the same, interpreted and compiled."""
     plain = _controller(True, 1, None, None)
     comp = _controller(True, 1, None, None, friction=0.02, friction_rate=0.5)
     u, state = _random_case(comp, np.random.default_rng(5))
@@ -304,7 +305,7 @@ def test_the_friction_feed_forward_adds_coulomb_friction_at_the_reference_s_cran
     theta_dot = np.linalg.solve(state[lay.J_inv].reshape(6, 6), u[lay.x_d][6:12])
     expected = 0.02 * np.tanh(theta_dot / 0.5)
     assert 1e-4 < np.abs(expected).min() and np.abs(expected).max() < 0.015  # not a bare sign
-    for stages in (lqi_step, lqi_kernels):
+    for stages in (step.reference, step):
         a, b = state.copy(), state.copy()
         stages.act(plain._constants, u, a, plain._bounds, 0)
         stages.act(comp._constants, u, b, comp._bounds, 0)

@@ -9,7 +9,7 @@ from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.base.mirrors import ValueMirror
-from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
+from stewart_drake.control.lqi.driver import LqiScales, LqiScalesConfig
 
 
 @dataclass(frozen=True)

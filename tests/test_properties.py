@@ -19,15 +19,11 @@ from hypothesis.extra import numpy as hnp
 
 from stewart_drake.base.errors import StewartError, UnreachablePoseError
 from stewart_drake.control.features import density_features
-from stewart_drake.control.lqi import (
-    LqiController,
-    LqiScales,
-    error_model,
-    hautus_checks,
-    input_matrix,
-    lqi_gain,
-)
-from stewart_drake.control.tuner import TunerModel, load_tuner
+from stewart_drake.control.lqi.controller import LqiController
+from stewart_drake.control.lqi.driver import LqiScales
+from stewart_drake.control.lqi.gain import error_model, hautus_checks, input_matrix, lqi_gain
+from stewart_drake.control.tuner.ann import TunerModel
+from stewart_drake.control.tuner.network import load_tuner
 from stewart_drake.references.trajectories import SineTrajectory
 from stewart_drake.robot import kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
@@ -239,7 +235,7 @@ def test_validate_trajectory(n, base, step, direction, poison, cond_threshold, s
 
 @pytest.fixture(scope="module")
 def controller():
-    return LqiController(GEOMETRY)
+    return LqiController(GEOMETRY, LqiDriver())
 
 
 valid_omega = st.floats(1e-3, 1e3)
@@ -444,7 +440,7 @@ def test_density_features(e, eps):
 
 @pytest.fixture(scope="module")
 def shipped_tuner():
-    return load_tuner()
+    return load_tuner(TunerModel)
 
 
 @_settings(150, reaches=("TunerModel.predict",))

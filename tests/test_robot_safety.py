@@ -19,7 +19,7 @@ from conftest import require_extra, wait_for
 require_extra("robot")
 
 from stewart_drake.base.errors import StartPoseError  # noqa: E402
-from stewart_drake.control.lqi import LqiDriver  # noqa: E402
+from stewart_drake.control.lqi.driver import LqiDriver  # noqa: E402
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,

@@ -86,7 +86,7 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     import dataclasses
     import typing
 
-    from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
+    from stewart_drake.control.lqi.driver import LqiScales, LqiScalesConfig
     from stewart_drake.robot.servo import ServoModel
     from stewart_drake.run import scenario as sc
 

@@ -6,14 +6,9 @@ import pytest
 from pydrake.systems.framework import DiagramBuilder
 
 from stewart_drake.base.errors import RiccatiSolveError
-from stewart_drake.control.lqi import (
-    LqiController,
-    LqiScales,
-    error_model,
-    input_matrix,
-    lqi_gain,
-    lqi_gain_warm,
-)
+from stewart_drake.control.lqi.controller import LqiController
+from stewart_drake.control.lqi.driver import LqiDriver, LqiScales
+from stewart_drake.control.lqi.gain import error_model, input_matrix, lqi_gain, lqi_gain_warm
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import kinematics, statics
 from stewart_drake.robot.geometry import X_HOME
@@ -67,7 +62,7 @@ def test_warm_gain_refuses_a_start_that_does_not_stabilize(geometry):
 
 
 def test_controller_falls_back_to_the_cold_solve(geometry):
-    c = LqiController(geometry)
+    c = LqiController(geometry, LqiDriver())
     K = c.gain(X_HOME, 1.0, 1.0, K_start=np.zeros((6, 18)))  # warm start refused
     assert c.solve_stats["cold"] == 1 and c.solve_stats["warm"] == 0
     np.testing.assert_allclose(K, c.K_initial, rtol=1e-9, atol=1e-12)

@@ -9,7 +9,8 @@ require_extra("train")
 import torch  # noqa: E402
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.control.tuner import load_tuner
+from stewart_drake.control.tuner.ann import TunerModel
+from stewart_drake.control.tuner.network import load_tuner
 from stewart_drake.tuner.training import (
     Dataset,
     build_dataset,
@@ -156,7 +157,7 @@ def test_training_learns_synthetic_weights(tmp_path):
     # Same seed, same tuner; the saved file predicts the same and carries the report.
     model2, _ = train(ds, seed=0, epochs=60)
     np.testing.assert_array_equal(model.W1, model2.W1)
-    loaded = load_tuner(save_tuner(model, tmp_path / "t.npz"))
+    loaded = load_tuner(TunerModel, save_tuner(model, tmp_path / "t.npz"))
     np.testing.assert_array_equal(loaded.predict(ds.rho[:50]), model.predict(ds.rho[:50]))
     assert loaded.metadata["val_r2"] == report["val_r2"] and loaded.metadata["mode"] == "paper"
 

@@ -10,8 +10,9 @@ from hypothesis.extra.numpy import arrays
 from pydrake.systems.analysis import Simulator
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.control import tuner as tuner_module
-from stewart_drake.control.tuner import AnnTuner, TunerModel, load_tuner, save_tuner
+from stewart_drake.control.tuner import ann as tuner_module
+from stewart_drake.control.tuner.ann import AnnTuner, TunerModel
+from stewart_drake.control.tuner.network import load_tuner, save_tuner
 
 
 def random_model(seed=0, activation="tanh", scale=1.0) -> TunerModel:
@@ -59,7 +60,7 @@ def test_save_load_round_trip(tmp_path):
     model = random_model(3)
     path = save_tuner(model, tmp_path / "sub" / "tuner.npz")
     assert path.name == "tuner.npz" and path.is_file()
-    loaded = load_tuner(path)
+    loaded = load_tuner(TunerModel, path)
     rho = np.random.default_rng(4).uniform(0, 50, (200, 12))
     np.testing.assert_array_equal(loaded.predict(rho), model.predict(rho))
     assert loaded.metadata == model.metadata and loaded.activation == model.activation
@@ -83,17 +84,17 @@ def test_save_load_round_trip(tmp_path):
 def test_missing_default_weights_name_the_command(tmp_path, monkeypatch):
     monkeypatch.setattr(tuner_module, "DEFAULT_TUNER_PATH", tmp_path / "ann_tuner.npz")
     with pytest.raises(FileNotFoundError, match="stewart-drake collect && stewart-drake train"):
-        load_tuner()
+        load_tuner(TunerModel)
     with pytest.raises(FileNotFoundError, match="stewart-drake collect && stewart-drake train"):
         AnnTuner()
     with pytest.raises(FileNotFoundError, match="no ANN tuner weights"):
-        load_tuner(tmp_path / "elsewhere.npz")
+        load_tuner(TunerModel, tmp_path / "elsewhere.npz")
 
 
 def test_shipped_weights_load():
     if not tuner_module.DEFAULT_TUNER_PATH.is_file():
         pytest.skip("no shipped weights yet: `stewart-drake collect && stewart-drake train`")
-    model = load_tuner()
+    model = load_tuner(TunerModel)
     omega = model.predict(np.ones(12))
     assert omega.shape == (2,) and np.all((0.1 <= omega) & (omega <= 10))
 

@@ -5,7 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from stewart_drake.control.tuner import DEFAULT_TUNER_PATH, load_tuner
+from stewart_drake.control.tuner.ann import DEFAULT_TUNER_PATH, TunerModel
+from stewart_drake.control.tuner.network import load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.references.data_collection import data_collection_trajectory
@@ -59,7 +60,7 @@ def test_default_excitation_passes_the_pre_run_check_for_seeds_0_to_50(seeds):
 
 
 def test_shipped_tuner_loads_and_says_how_it_was_made():
-    model = load_tuner()
+    model = load_tuner(TunerModel)
     assert DEFAULT_TUNER_PATH.exists()
     omega = model.predict(np.ones((4, 12)))
     assert np.all((omega >= 0.1) & (omega <= 10))

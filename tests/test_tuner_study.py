@@ -8,13 +8,8 @@ import pytest
 from conftest import needs_torch
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.control.tuner import (
-    N_RATIO_INPUTS,
-    RatioTunerModel,
-    load_ratio_tuner,
-    ratio_tuner_inputs,
-    save_ratio_tuner,
-)
+from stewart_drake.control.tuner.network import load_tuner, save_tuner
+from stewart_drake.control.tuner.ratio import N_RATIO_INPUTS, RatioTunerModel, ratio_tuner_inputs
 from stewart_drake.control.tuning import RatioTunerDriver, WeightSchedule
 from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.run.metrics import window_means
@@ -131,14 +126,14 @@ def test_ratio_tuner_file_round_trips_and_refuses_other_files(tmp_path):
         np.ones(N_RATIO_INPUTS),
         {"lambda": 0.1},
     )
-    path = save_ratio_tuner(model, tmp_path / "r.npz")
-    again = load_ratio_tuner(path)
+    path = save_tuner(model, tmp_path / "r.npz")
+    again = load_tuner(RatioTunerModel, path)
     inputs = rng.normal(size=(7, N_RATIO_INPUTS))
     np.testing.assert_array_equal(again.predict(inputs), model.predict(inputs))
     assert np.all(again.predict(inputs)[:, 1] == 1.0) and again.metadata == {"lambda": 0.1}
     np.savez(tmp_path / "other.npz", W1=np.zeros(3))
     with pytest.raises(InvalidConfigError, match="is not a valid ratio tuner weights file"):
-        load_ratio_tuner(tmp_path / "other.npz")
+        load_tuner(RatioTunerModel, tmp_path / "other.npz")
     with pytest.raises(MissingFileError, match="no ratio tuner weights"):
         Scenario(tuner=RatioTunerDriver(weights=str(tmp_path / "none.npz"))).validate()
 
@@ -191,7 +186,9 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
     )
     assert v["controllers"]["fixed chosen 0.1"]["per_task"]["dash_hold_s100"] >= 0.0
     assert (tmp_path / "weights" / "ratio_tuner_lambda0.1.npz").is_file()
-    shipped = load_ratio_tuner(tmp_path / "weights" / "chosen" / "ratio_tuner_lambda0.1.npz")
+    shipped = load_tuner(
+        RatioTunerModel, tmp_path / "weights" / "chosen" / "ratio_tuner_lambda0.1.npz"
+    )
     assert shipped.metadata["shift"] == chosen["shift"]  # the closed-loop choice
     data = shipped.metadata["data"]
     assert data["training_tasks"] == ["dash_hold_s0"] and data["base_scenario"] == "paper_hardware"
@@ -212,7 +209,7 @@ def test_a_small_study_runs_resumes_and_reports(tmp_path, monkeypatch):
 
 
 def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
-    from stewart_drake.control.tuner import (
+    from stewart_drake.control.tuner.ratio import (
         DEFAULT_RATIO_TUNER_PATH,
         RATIO_TUNER_LAMBDAS,
         ratio_tuner_path,
@@ -220,7 +217,7 @@ def test_the_shipped_ratio_tuners_name_the_data_they_came_from():
 
     assert DEFAULT_RATIO_TUNER_PATH == ratio_tuner_path(0.1)
     for lam in RATIO_TUNER_LAMBDAS:
-        model = load_ratio_tuner(ratio_tuner_path(lam))
+        model = load_tuner(RatioTunerModel, ratio_tuner_path(lam))
         data = model.metadata["data"]
         assert model.metadata["lambda"] == lam and model.metadata["shift"] in sr.SHIFTS
         assert data["base_scenario"] == "paper_hardware" and data["quick"] is False
@@ -234,7 +231,7 @@ def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     weights it uses move away from the initial [1, 1]."""
     from stewart_drake.cli.main import main
     from stewart_drake.cli.registry import build_parser
-    from stewart_drake.control.tuner import DEFAULT_RATIO_TUNER_PATH, RatioTuner
+    from stewart_drake.control.tuner.ratio import DEFAULT_RATIO_TUNER_PATH, RatioTuner
     from stewart_drake.paper.command import run_scenario
     from stewart_drake.run.diagram import make_stewart_diagram
     from stewart_drake.run.simulate import load_result
@@ -242,7 +239,7 @@ def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     args = build_parser().parse_args(["run", "--tuner", "ratio", "--duration", "0.3"])
     sd = make_stewart_diagram(run_scenario(args))
     assert isinstance(sd.tuner, RatioTuner)
-    assert sd.tuner.model.metadata == load_ratio_tuner(DEFAULT_RATIO_TUNER_PATH).metadata
+    assert sd.tuner.model.metadata == load_tuner(RatioTunerModel, DEFAULT_RATIO_TUNER_PATH).metadata
     assert (
         main(
             [

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.control.lqi import LqiDriver
+from stewart_drake.control.lqi.driver import LqiDriver
 from stewart_drake.control.pd import PdDriver
 from stewart_drake.control.tuning import AnnTunerDriver, RatioTunerDriver, WeightSchedule
 from stewart_drake.run.diagram import make_stewart_diagram

@@ -4,6 +4,7 @@ One test (or a parametrized family) per case of the issue, in the library; the s
 user meets them at the command line are in tests/test_cli_faults.py.
 """
 
+import functools
 import io
 import json
 import os
@@ -31,7 +32,10 @@ from stewart_drake.base.fileio import (
     remove_stale_temporaries,
 )
 from stewart_drake.cli import main as cli
-from stewart_drake.control import contract, tuner
+from stewart_drake.control import contract
+from stewart_drake.control.tuner.ann import TunerModel
+from stewart_drake.control.tuner.network import load_tuner
+from stewart_drake.control.tuner.ratio import RatioTunerModel
 from stewart_drake.references.samples import load_csv_trajectory
 from stewart_drake.run.scenario import Scenario, UserController
 from stewart_drake.run.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
@@ -408,7 +412,7 @@ def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
         match=r"ANN tuner weights file: it holds 100 GB, over "
         r"the bound of 16 MB for this kind of file",
     ):
-        run_within(60, tuner.load_tuner, tmp_path / "big.npz")
+        run_within(60, load_tuner, TunerModel, tmp_path / "big.npz")
 
 
 # -- case 5: the reference is in the memory estimate ---------------------------------------------
@@ -716,7 +720,7 @@ def test_a_weights_file_that_inflates_to_gigabytes_is_refused_before_decompressi
             r"\('W1.npy': 100 MB\), over the bound of 16 "
             r"MB for this kind of file",
         ):
-            tuner.load_tuner(path)
+            load_tuner(TunerModel, path)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -740,8 +744,8 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
     loaders = [
         ("reference CSV", load_csv_trajectory),
         ("scenario file", load_scenario),
-        ("ANN tuner weights file", tuner.load_tuner),
-        ("ratio tuner weights file", tuner.load_ratio_tuner),
+        ("ANN tuner weights file", functools.partial(load_tuner, TunerModel)),
+        ("ratio tuner weights file", functools.partial(load_tuner, RatioTunerModel)),
         ("run result file", load_result),
     ]
     # Refused from what they are, never opened for reading (a FIFO would block for ever):

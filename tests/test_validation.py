@@ -11,8 +11,9 @@ from stewart_drake.base.errors import (
     RiccatiSolveError,
     SingularPoseError,
 )
-from stewart_drake.control import lqi as lqi
-from stewart_drake.control.lqi import LqiController, LqiDiagram, error_model, lqi_gain
+from stewart_drake.control.lqi import gain
+from stewart_drake.control.lqi.controller import LqiController, LqiDiagram
+from stewart_drake.control.lqi.gain import error_model, lqi_gain
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 from stewart_drake.robot.statics import holding_torques
 from stewart_drake.run.metrics import format_metrics
@@ -118,7 +119,7 @@ def test_a_singular_input_matrix_is_a_typed_error(monkeypatch):
 
     monkeypatch.setattr(statics, "task_inertia", lambda g, x, theta=None: np.zeros((6, 6)))
     with pytest.raises(SingularPoseError, match="B_c = inf is not finite"):
-        lqi.input_matrix(StewartGeometry(), X_HOME)
+        gain.input_matrix(StewartGeometry(), X_HOME)
 
 
 def test_error_messages_say_what_to_change():

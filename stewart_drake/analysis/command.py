@@ -59,10 +59,10 @@ def _add_check_command(sub) -> None:
 
 def _cmd_check(args) -> int:
     """``stewart-drake check``: every check of a reference, over time, without simulating."""
-    from ..analysis.feasibility import check, plot_margins
     from ..base.errors import InvalidConfigError
     from ..references.trajectories import TRAJECTORIES, NamedReference
     from ..run.scenario_io import load_scenario
+    from .feasibility import check, plot_margins
 
     source = args.reference
     trace = None  # a reference file, read once: its length and the reference checked
@@ -120,9 +120,9 @@ MIN_REPORTED_RESOLUTION = 21
 
 def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
-    from ..analysis.workspace import write_workspace
     from ..run.plan import make_plan
     from ..run.scenario_io import load_scenario
+    from .workspace import write_workspace
 
     scenario = load_scenario(args.scenario, args.set or ())
     plan = make_plan(scenario, with_reference=False)
@@ -194,9 +194,9 @@ def _cmd_analyze(args) -> int:
     import functools
     import json
 
-    from ..analysis.loop_analysis import axis_figures, figures_table, loop_models, plot_loop
     from ..base.fileio import atomic_write
     from ..run.scenario_io import load_scenario
+    from .loop_analysis import axis_figures, figures_table, loop_models, plot_loop
 
     scenario = load_scenario(args.scenario, args.set or ())
     x0 = _pose_option(args.pose)
@@ -265,7 +265,7 @@ def _pose_option(text: str | None):
 def _weight_sweep(scenario, models, say) -> list:
     """``analyze --weights``: the loop's margins at the pose for each ratio omega_Q / omega_R,
     printed one line a ratio; returns the rows of the record."""
-    from ..analysis.loop_analysis import weight_sweep
+    from .loop_analysis import weight_sweep
 
     say("the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 ...")
     rows = weight_sweep(scenario, x0=models.x0)
@@ -291,8 +291,8 @@ def _tilt_map(scenario, models, name: str, png: Path, say) -> list:
     weakest pose printed and the map drawn into ``png``; returns the rows of the record."""
     import functools
 
-    from ..analysis.loop_analysis import loop_map, plot_map, tilt_grid, weakest_pose
     from ..base.fileio import atomic_write
+    from .loop_analysis import loop_map, plot_map, tilt_grid, weakest_pose
 
     say("the margins over 9 x 9 roll and pitch tilts, then map.png ...")
     rows = loop_map(scenario, tilt_grid(height_m=float(models.x0[5])))

@@ -28,7 +28,7 @@ from ..control.linear_model import (
     open_loop,
     plant_model,
 )
-from ..control.lqi import LqiDriver
+from ..control.lqi.driver import LqiDriver
 from ..robot import kinematics, statics
 from ..robot.geometry import X_HOME
 from ..run import metrics

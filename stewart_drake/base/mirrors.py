@@ -5,7 +5,7 @@ The robot's geometry, the servo and the LQI's scales are frozen dataclasses with
 with concrete field types, so each has a YAML form written out in the scenario's vocabulary,
 with the same field names, units and defaults, lists where the value type has tuples
 (``Robot``, ``Motors`` in ``simulation/scenario.py``, ``LqiScalesConfig`` in
-``control/lqi.py``); a test keeps each form field for field equal to its value type.
+``control/lqi/driver.py``); a test keeps each form field for field equal to its value type.
 """
 
 import dataclasses

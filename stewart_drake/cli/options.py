@@ -137,7 +137,7 @@ def refuse_system_folder(folder, option: str) -> None:
         )
 
 
-def say_if_compiling(command: str, module: str = "stewart_drake.control.lqi_kernels") -> None:
+def say_if_compiling(command: str, module: str = "stewart_drake.control.lqi.kernels") -> None:
     """Import the compiled LQI step (``module``) now, saying so first on stderr when numba's
     cache holds no valid entry for it (:func:`~stewart_drake.control.kernel_cache.will_compile`):
     the first import on a machine compiles it for about 40 s, before anything else would show;

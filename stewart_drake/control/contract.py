@@ -1,7 +1,7 @@
 """The controller contract: what any controller of the Diagram declares, and what it is given.
 
 A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the ports, as
-:class:`~stewart_drake.control.lqi.LqiDiagram` does) made by a **factory**
+:class:`~stewart_drake.control.lqi.controller.LqiDiagram` does) made by a **factory**
 ``factory(context) -> System`` that receives a :class:`ControllerContext`.
 :func:`~stewart_drake.run.diagram.make_stewart_diagram` connects its ports **by name**;
 only ``x_d`` and ``T`` are required, every other port is connected when the controller declares
@@ -57,7 +57,7 @@ a state one step old (one hidden step of delay). Sampled half a step later it re
 the plant just produced, and its torque acts from the next plant step on; the reference it reads
 was evaluated at the sample time plus half a plant step, the time of that state.
 
-The LQI (:class:`~stewart_drake.control.lqi.LqiController`) and the crank PD
+The LQI (:class:`~stewart_drake.control.lqi.controller.LqiController`) and the crank PD
 (:class:`~stewart_drake.control.pd.CrankPdController`) follow this contract; a user's controller
 is a factory in Python (``make_stewart_diagram(scenario, controller=factory)``) or a name in a
 scenario's ``UserController``. Loading a scenario never imports or calls anything it names: a
@@ -138,16 +138,16 @@ class ControllerContext:
     x_dot_initial: np.ndarray | None = None
     torque_limit_Nm: float | None = None
     delay_periods: int = 0
-    # A PoseEstimator or None; Any, as estimator.py imports this module (through lqi_step).
+    # A PoseEstimator or None; Any, as estimator.py imports this module (through the LQI).
     pose_estimator: Any = None
     feature_window: int | None = None
 
 
 class ControllerDriver:
-    """Base of a scenario's controller choices (:class:`~.lqi.LqiDriver`, :class:`~.pd.PdDriver`,
-    :class:`UserController`): each is a dataclass that checks its own options
-    (``validate``) and builds its controller (``make``), the one place it does. A new controller
-    is one such class in the scenario's ``controller`` union.
+    """Base of a scenario's controller choices (:class:`~.lqi.driver.LqiDriver`,
+    :class:`~.pd.PdDriver`, :class:`UserController`): each is a dataclass that checks its own
+    options (``validate``) and builds its controller (``make``), the one place it does. A new
+    controller is one such class in the scenario's ``controller`` union.
     """
 
     #: Whether the controller has the ``omega`` input a tuner drives (None: known once built).

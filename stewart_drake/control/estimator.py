@@ -34,7 +34,6 @@ from ..robot.kinematics import (
     jacobian_single,
     leg_constants,
 )
-from .lqi_step import estimate, filter_rate
 
 #: Largest Newton chord-step correction the estimate accepts per period (rad or m); a larger
 #: one (a jump, a stale Jacobian) is solved by full Newton (:meth:`PoseEstimator.track`).
@@ -131,7 +130,8 @@ class PoseEstimator:
         from the full Newton of :meth:`estimate` by 1e-7 (median) to 1e-6, where the
         quantization itself moves the estimate by up to 8e-5 (a test holds these). A correction
         above :data:`CHORD_STEP_MAX` (a jump, a stale Jacobian) falls back to :meth:`estimate`.
-        The LQI runs the same stage compiled (:func:`~.lqi_step.estimate`).
+        This is the LQI's own stage (:func:`~.lqi.step.estimate`), run uncompiled
+        (:data:`~.lqi.step.reference`: no compilation for an estimate outside the controller).
 
         Args:
             theta (6,) measured motor angles, rad; x_prev, v_prev (6,) the last estimate;
@@ -139,9 +139,11 @@ class PoseEstimator:
         Returns:
             (x (6,), v (6,)) [rad, m; rad/s, m/s].
         """
+        from .lqi.step import reference  # imports numba, compiles nothing
+
         theta = np.asarray(theta, dtype=float)
         x_hat = np.concatenate([np.asarray(x_prev, dtype=float), np.asarray(v_prev, dtype=float)])
-        if not estimate(
+        if not reference.estimate(
             self.legs,
             self.crank_length,
             self.leg_c,
@@ -152,7 +154,7 @@ class PoseEstimator:
             x_hat,
             np.asarray(J_inv, dtype=float).reshape(6, 6),
         ):
-            filter_rate(
+            reference.filter_rate(
                 self.h, self.alpha, self.estimate(theta, x_hat[:6] + self.h * x_hat[6:])[0], x_hat
             )
         return x_hat[:6], x_hat[6:]

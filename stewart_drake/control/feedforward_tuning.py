@@ -154,21 +154,22 @@ class FeedforwardTuningLearner(LeafSystem):
 
     Args:
         geometry: the robot the learner believes in.
+        driver: the learner's settings (:class:`FeedforwardTuning`: stretch, gain, memory,
+            ridge, Q-filter, the smooth signs' width, record period, bound, rollbacks, the model
+            to start from, whether to learn), checked here by its own
+            :meth:`FeedforwardTuning.validate` (its messages name each field);
+            ``driver.learn`` False holds the model (the bound is still monitored).
         reference: the reference (an object with ``evaluate(t)`` -> pose, rate, acceleration,
             each (n, 6); an ``end_time`` if it has one).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         duration_s: the run's length, s.
-        stretch_s: the length of a learning stretch, s (at least four records).
-        gain: gamma, in (0, 2). memory_stretches: the information's memory, stretches (>= 1).
-        ridge: lambda's fraction of the information's mean diagonal (>= 0).
-        q_cutoff_hz: the Q-filter's corner, Hz (>= :data:`~.ilc.MIN_Q_CUTOFF_HZ`).
-        rate_scale_rad_s: omega_0 of the motors' smooth signs, rad/s.
-        sample_period_s: the record period, a whole multiple of period_s.
-        bound_ratio, floor_m, floor_rad, max_rollbacks: the monitored bound.
-        theta0: (p, 6) initial weights in SI units (a model learned before), or None (zeros).
-        learn: False holds ``theta0`` (the bound is still monitored).
+        floor: (m, rad) the monitored bound's additive floor on the translational and
+            rotational RMS errors (the run's: one encoder count at the crank tip).
+        theta0: (p, 6) initial weights in SI units (a model learned before); None reads
+            ``driver.learned_from`` (:func:`load_learned`), or starts from zeros without one.
     Raises:
-        InvalidConfigError: a value out of range, a stretch shorter than four records.
+        InvalidConfigError: a setting out of range, a stretch shorter than four records.
+        CorruptFileError: ``driver.learned_from`` is not a model of this basis.
     """
 
     #: The name of the status output port and what it holds.
@@ -178,51 +179,42 @@ class FeedforwardTuningLearner(LeafSystem):
     def __init__(
         self,
         geometry,
+        driver: "FeedforwardTuning",
         reference,
         period_s: float,
         offset_s: float,
         duration_s: float,
-        stretch_s: float = 5.0,
-        gain: float = 1.0,
-        memory_stretches: float = 10.0,
-        ridge: float = 1e-3,
-        q_cutoff_hz: float = 25.0,
-        rate_scale_rad_s: float = 0.002,
-        sample_period_s: float = 0.004,
-        bound_ratio: float = 1.2,
-        floor_m: float = 5e-6,
-        floor_rad: float = 5e-5,
-        max_rollbacks: int = 2,
+        floor: tuple[float, float] = (5e-6, 5e-5),
         theta0=None,
-        learn: bool = True,
     ):
         super().__init__()
         self.geometry, self.reference = geometry, reference
         self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
         self.offset = as_number("offset_s", offset_s, 0.0, self.h)
         duration = as_number("duration_s", duration_s, 0.0, lo_open=True)
-        self.R = steps_per_record(sample_period_s, self.h)
-        stretch = as_number("stretch_s", stretch_s, 0.0, 3600.0, lo_open=True)
-        L = int(round(stretch / self.h))
+        driver.validate(self.h, prefix="", has_model=theta0 is not None)
+        self.driver = driver
+        self.R = steps_per_record(driver.sample_period_s, self.h)
+        L = int(round(float(driver.stretch_s) / self.h))
         if L < 4 * self.R:
             raise InvalidConfigError(
-                f"stretch_s ({stretch:g} s) is shorter than four records of {sample_period_s:g} s"
+                f"stretch_s ({float(driver.stretch_s):g} s) is shorter than four records of "
+                f"{driver.sample_period_s:g} s"
             )
         n_steps = int(math.floor(duration / self.h + 1e-9)) + 1
         self.steps = list(range(0, n_steps, L)) + [n_steps]
         self.L = L
-        self.gain0 = as_number("gain", gain, 0.0, 2.0, lo_open=True)
-        if self.gain0 >= 2.0:
-            raise InvalidConfigError(f"gain must be below 2, got {gain}")
-        self.beta = 1.0 - 1.0 / as_number("memory_stretches", memory_stretches, 1.0)
-        self.ridge = as_number("ridge", ridge, 0.0, 1e3)
-        self.q_cutoff = as_number("q_cutoff_hz", q_cutoff_hz, MIN_Q_CUTOFF_HZ)
-        self.rate_scale = as_number("rate_scale_rad_s", rate_scale_rad_s, 0.0, 10.0, lo_open=True)
-        self.bound_ratio = as_number("bound_ratio", bound_ratio, 1.0, 100.0)
-        self.floor = (as_number("floor_m", floor_m, 0.0), as_number("floor_rad", floor_rad, 0.0))
-        self.max_rollbacks = check_int("max_rollbacks", max_rollbacks, 0, 1000)
-        self.learn = bool(learn)
+        self.gain0 = float(driver.gain)
+        self.beta = 1.0 - 1.0 / float(driver.memory_stretches)
+        self.ridge, self.q_cutoff = float(driver.ridge), float(driver.q_cutoff_hz)
+        self.rate_scale = float(driver.rate_scale_rad_s)
+        self.bound_ratio = float(driver.bound_ratio)
+        self.floor = (as_number("floor_m", floor[0], 0.0), as_number("floor_rad", floor[1], 0.0))
+        self.max_rollbacks = int(driver.max_rollbacks)
+        self.learn = bool(driver.learn)
         self.p = basis_size()
+        if theta0 is None and driver.learned_from:
+            theta0 = load_learned(driver.learned_from)
         theta0 = np.zeros((self.p, 6)) if theta0 is None else np.asarray(theta0, dtype=float)
         if theta0.shape != (self.p, 6) or not np.all(np.isfinite(theta0)):
             raise InvalidConfigError(
@@ -470,8 +462,17 @@ class FeedforwardTuning:
     learned_from: str = ""
     learn: bool = True
 
-    def validate(self, control_period_s: float, prefix: str = "learning.") -> None:
-        """Check every field; raises InvalidConfigError naming it."""
+    def validate(
+        self, control_period_s: float, prefix: str = "learning.", *, has_model: bool = False
+    ) -> None:
+        """Check every field for a control period of ``control_period_s`` (s): the one check,
+        the scenario's (``prefix`` "learning.") and the learner's (no prefix, ``has_model``
+        when it is given a model in memory, which ``learn: false`` may hold instead of
+        ``learned_from``'s).
+
+        Raises:
+            InvalidConfigError: naming the field (``prefix`` + its name) and its range.
+        """
         as_number(f"{prefix}stretch_s", self.stretch_s, 0.0, 3600.0, lo_open=True)
         as_number(f"{prefix}gain", self.gain, 0.0, 2.0, lo_open=True)
         if self.gain >= 2.0:
@@ -488,5 +489,5 @@ class FeedforwardTuning:
         check_int(f"{prefix}max_rollbacks", self.max_rollbacks, 0, 1000)
         if not isinstance(self.learned_from, str):
             raise InvalidConfigError(f"{prefix}learned_from must be a path, got a value")
-        if not self.learn and not self.learned_from:
+        if not self.learn and not (self.learned_from or has_model):
             raise InvalidConfigError(f"{prefix}learn: false needs {prefix}learned_from")

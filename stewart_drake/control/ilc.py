@@ -214,25 +214,18 @@ class IterativeLearningController(LeafSystem):
 
     Args:
         geometry: the robot the learner believes in (for the kinematics of the error).
+        driver: the learner's settings (:class:`IlcDriver`: gain, Q-filter, lead, error, record
+            period, bound, rollbacks, learned cycles, gain decay), checked here by its own
+            :meth:`IlcDriver.validate` (its messages name each field); ``driver.period_s`` is
+            the run's business (:func:`~stewart_drake.run.learning.learning_cycles`).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         cycle_starts: (K + 1,) start of each cycle, s, increasing (the last ends the last
             cycle); nothing is recorded or corrected outside them.
         cycle_scale: (K,) amplitude of each cycle over the mean (default ones).
-        gain: learning gain gamma, in (0, 2).
-        q_cutoff_hz: corner of the zero-phase Q-filter, Hz, at least :data:`MIN_Q_CUTOFF_HZ`
-            (at or above the Nyquist of the records: none).
-        lead_s: phase lead, s: the error learned at phase phi is the one measured lead_s
-            later (the loop's delay and lag).
-        error: "pose" or "motor_angle" (:data:`ERROR_MODES`).
-        sample_period_s: record period, a whole multiple of period_s.
-        bound_ratio: the monitored bound's factor (>= 1). floor_m, floor_rad: its additive
-            floor on the translational and rotational RMS errors.
-        max_rollbacks: rollbacks allowed; the next cycle over the bound stops learning.
-        learn_cycles: learn from the first this many cycles only, then hold the correction
-            (0: from every cycle).
-        gain_decay_cycles: n of the decaying gain gamma n / (n + j) (0: constant).
+        floor: (m, rad) the monitored bound's additive floor on the translational and
+            rotational RMS errors (the run's: one encoder count at the crank tip).
     Raises:
-        InvalidConfigError: a value out of range, cycles that are not increasing or shorter
+        InvalidConfigError: a setting out of range, cycles that are not increasing or shorter
             than four records, a record period that is not a whole multiple of period_s.
     """
 
@@ -243,52 +236,39 @@ class IterativeLearningController(LeafSystem):
     def __init__(
         self,
         geometry,
+        driver: "IlcDriver",
         period_s: float,
         offset_s: float,
         cycle_starts,
         cycle_scale=None,
-        gain: float = 0.8,
-        q_cutoff_hz: float = 25.0,
-        lead_s: float = 0.008,
-        error: str = "pose",
-        sample_period_s: float = 0.004,
-        bound_ratio: float = 1.2,
-        floor_m: float = 5e-6,
-        floor_rad: float = 5e-5,
-        max_rollbacks: int = 2,
-        learn_cycles: int = 0,
-        gain_decay_cycles: float = 4.0,
+        floor: tuple[float, float] = (5e-6, 5e-5),
     ):
         super().__init__()
         self.geometry = geometry
         self.h = as_number("period_s", period_s, 0.0, 1.0, lo_open=True)
         self.offset = as_number("offset_s", offset_s, 0.0, self.h)
+        driver.validate(self.h, prefix="")
+        self.driver = driver
         starts, scale = _checked_cycles(cycle_starts, cycle_scale)
-        self.R = steps_per_record(sample_period_s, self.h)
+        self.R = steps_per_record(driver.sample_period_s, self.h)
         self.step_starts = np.round(starts / self.h).astype(np.int64)
         self.steps = self.step_starts.tolist()  # Python ints for the per-step path
         lengths = np.diff(self.step_starts)
         if lengths.min() < 4 * self.R:
             raise InvalidConfigError(
                 f"a cycle of {lengths.min() * self.h:g} s is shorter than "
-                f"four records of {sample_period_s:g} s"
+                f"four records of {driver.sample_period_s:g} s"
             )
         self.scale = scale
         self.scale_list = scale.tolist()
-        self.gain0 = as_number("gain", gain, 0.0, 2.0, lo_open=True)
-        if self.gain0 >= 2.0:
-            raise InvalidConfigError(f"gain must be below 2, got {gain}")
-        self.lead = as_number("lead_s", lead_s, 0.0, 1.0)
-        if error not in ERROR_MODES:
-            raise InvalidConfigError(f"error must be one of {ERROR_MODES}, got {error!r}")
-        self.error = error
-        self.bound_ratio = as_number("bound_ratio", bound_ratio, 1.0, 100.0)
-        self.floor = (as_number("floor_m", floor_m, 0.0), as_number("floor_rad", floor_rad, 0.0))
-        self.max_rollbacks = _count("max_rollbacks", max_rollbacks)
-        self.learn_cycles = _count("learn_cycles", learn_cycles)
-        self.decay = as_number("gain_decay_cycles", gain_decay_cycles, 0.0)
+        self.gain0, self.lead = float(driver.gain), float(driver.lead_s)
+        self.error = driver.error
+        self.bound_ratio = float(driver.bound_ratio)
+        self.floor = (as_number("floor_m", floor[0], 0.0), as_number("floor_rad", floor[1], 0.0))
+        self.max_rollbacks, self.learn_cycles = int(driver.max_rollbacks), int(driver.learn_cycles)
+        self.decay = float(driver.gain_decay_cycles)
         self.M = max(8, int(round(float(np.median(lengths)) / self.R)))
-        self.ba = q_filter(as_number("q_cutoff_hz", q_cutoff_hz, MIN_Q_CUTOFF_HZ), sample_period_s)
+        self.ba = q_filter(float(driver.q_cutoff_hz), driver.sample_period_s)
         self.rows_max = int(math.ceil(lengths.max() / self.R))
         self._mem, size = _memory_layout(self.rows_max, self.M)
 
@@ -480,13 +460,6 @@ def _checked_cycles(cycle_starts, cycle_scale) -> tuple[np.ndarray, np.ndarray]:
     return starts, scale
 
 
-def _count(name: str, value) -> int:
-    """``value`` as an int, refused unless a whole number >= 0 (not a bool)."""
-    if isinstance(value, bool) or not float(value).is_integer() or value < 0:
-        raise InvalidConfigError(f"{name} must be an integer >= 0, got {value!r}")
-    return int(value)
-
-
 def _memory_layout(rows: int, M: int) -> tuple[dict, int]:
     """({part: slice}, size) of the learner's memory state: the records of a cycle (rows x 12),
     their running sum (12), the learned and the best correction and the last cycle's filtered
@@ -555,7 +528,12 @@ class IlcDriver:
     period_s: float = 0.0
 
     def validate(self, control_period_s: float, prefix: str = "learning.") -> None:
-        """Check every field; raises InvalidConfigError naming it."""
+        """Check every field for a control period of ``control_period_s`` (s): the one check,
+        the scenario's (``prefix`` "learning.") and the learner's (no prefix).
+
+        Raises:
+            InvalidConfigError: naming the field (``prefix`` + its name) and its range.
+        """
         as_number(f"{prefix}gain", self.gain, 0.0, 2.0, lo_open=True)
         if self.gain >= 2.0:
             raise InvalidConfigError(f"{prefix}gain must be below 2, got {self.gain}")

@@ -43,7 +43,8 @@ from ..base.checks import as_array, as_number
 from ..base.errors import InvalidConfigError, MissingExtraError
 from ..robot import kinematics, statics
 from ..robot.geometry import StewartGeometry
-from .lqi import LqiDriver, error_model, input_matrix, lqi_gain
+from .lqi.driver import LqiDriver
+from .lqi.gain import error_model, input_matrix, lqi_gain
 
 #: How the plant's mechanics are discretized (:func:`plant_model`).
 INTEGRATORS = ("sap", "zoh")
@@ -169,7 +170,31 @@ def plant_model(
     if integrator not in INTEGRATORS:
         raise InvalidConfigError(f"integrator must be one of {INTEGRATORS}, got {integrator!r}")
     error_model(np.eye(6), h, delay_periods)  # checks delay_periods
-    d = int(delay_periods)
+    A_m, B_m = _mechanics(geometry, x0, h, b, integrator)
+    A, B, n_lag = _drive_path(A_m, B_m, h, tau, int(delay_periods))
+    n, d = len(A), int(delay_periods)
+    C = np.hstack([np.eye(12), np.zeros((12, n - 12))])
+    states = (
+        tuple(f"x_{a}" for a in AXES)
+        + tuple(f"v_{a}" for a in AXES)
+        + (_names("T_lag") if n_lag else ())
+        + tuple(f"T_pipe{j}_{k}" for j in range(d) for k in range(6))
+    )
+    return DiscreteModel(
+        A,
+        B,
+        C,
+        np.zeros((12, 6)),
+        h,
+        _names("T"),
+        tuple(AXES) + tuple(f"{a}_dot" for a in AXES),
+        states,
+    )
+
+
+def _mechanics(geometry, x0, h: float, b: float, integrator: str):
+    """(A_m (12, 12), B_m (12, 6)): the robot's mechanics at x0 from a torque (deviation, N m)
+    to pose and rate, at period h, discretized as :func:`plant_model`'s ``integrator`` says."""
     theta = kinematics.ik(geometry, x0)
     J = kinematics.jacobian(geometry, x0, theta)
     M = statics.task_inertia(geometry, x0, theta)
@@ -191,6 +216,15 @@ def plant_model(
         F[6:12, 12:] = B_c
         E = expm(F * h)
         A_m, B_m = E[:12, :12], E[:12, 12:]
+    return A_m, B_m
+
+
+def _drive_path(A_m, B_m, h: float, tau: float, d: int):
+    """(A (n, n), B (n, 6), n_lag): the mechanics (:func:`_mechanics`) behind the drive's
+    current loop (lag ``tau`` s, 0: none; its 6 states, n_lag) and the d periods of the
+    computation delay (a shift register of 6 d states), states ordered as
+    :func:`plant_model` says."""
+    I = np.eye(6)
     # the torque that reaches the mechanics: T_m = C_in s + D_in T, s the pipe's states
     n_lag = 6 if tau > 0 else 0
     n = 12 + n_lag + 6 * d
@@ -218,23 +252,7 @@ def plant_model(
         C_in, D_in = C_del, D_del
     A[:12] += B_m @ C_in
     B[:12] += B_m @ D_in
-    C = np.hstack([np.eye(12), np.zeros((12, n - 12))])
-    states = (
-        tuple(f"x_{a}" for a in AXES)
-        + tuple(f"v_{a}" for a in AXES)
-        + (_names("T_lag") if n_lag else ())
-        + tuple(f"T_pipe{j}_{k}" for j in range(d) for k in range(6))
-    )
-    return DiscreteModel(
-        A,
-        B,
-        C,
-        np.zeros((12, 6)),
-        h,
-        _names("T"),
-        tuple(AXES) + tuple(f"{a}_dot" for a in AXES),
-        states,
-    )
+    return A, B, n_lag
 
 
 def lqi_design(
@@ -248,7 +266,8 @@ def lqi_design(
             ``driver.delay_compensation``.
     Returns:
         (A (n, n), B (n, 6), K (6, n)): e+ = A e + B u, u = -K e, e = [e_x, e_x_dot, z, the
-        pending torques (6 d)], n = 18 + 6 d (:func:`~.lqi.error_model`, :func:`~.lqi.lqi_gain`).
+        pending torques (6 d)], n = 18 + 6 d (:func:`~.lqi.gain.error_model`,
+        :func:`~.lqi.gain.lqi_gain`).
     """
     driver = (driver or LqiDriver()).validate(h, delay_periods)
     d = int(delay_periods) if driver.delay_compensation else 0

@@ -2,9 +2,9 @@
 
 Each choice checks its own fields (``validate``) and wires its systems into the Diagram
 (``add_to``), the one place it does: :class:`AnnTunerDriver` (the paper's network,
-:class:`~.tuner.AnnTuner`, on the density features of :class:`~.features.DensityFeatures`),
-:class:`RatioTunerDriver` (ours, :class:`~.tuner.RatioTuner`) and :class:`WeightSchedule` (weights
-known in advance). A new tuner is one class here, added to :data:`TunerChoice`.
+:class:`~.tuner.ann.AnnTuner`, on the density features of :class:`~.features.DensityFeatures`),
+:class:`RatioTunerDriver` (ours, :class:`~.tuner.ratio.RatioTuner`) and :class:`WeightSchedule`
+(weights known in advance). A new tuner is one class here, added to :data:`TunerChoice`.
 
 Drake's YAML loader (``yaml_load_typed``) reads the fields' annotations, so this module must not
 use ``from __future__ import annotations``.
@@ -22,15 +22,10 @@ from pydrake.trajectories import PiecewisePolynomial
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError, MissingFileError
 from .features import N_FEATURES, DensityFeatures
-from .lqi import LQI_OMEGA_MAX, LQI_OMEGA_MIN
-from .tuner import (
-    DEFAULT_RATIO_TUNER_PATH,
-    DEFAULT_TUNER_PATH,
-    AnnTuner,
-    RatioTuner,
-    load_ratio_tuner,
-    load_tuner,
-)
+from .lqi.gain import LQI_OMEGA_MAX, LQI_OMEGA_MIN
+from .tuner.ann import DEFAULT_TUNER_PATH, AnnTuner, TunerModel
+from .tuner.network import load_tuner
+from .tuner.ratio import DEFAULT_RATIO_TUNER_PATH, RatioTuner, RatioTunerModel
 
 
 @dataclass(frozen=True)
@@ -183,7 +178,7 @@ class _NetworkTuner(TunerConfig):
 @dataclass
 class AnnTunerDriver(_NetworkTuner):
     """The ANN tuner of omega_Q, omega_R (paper section III.D) on density features
-    (:class:`~stewart_drake.control.tuner.AnnTuner`).
+    (:class:`~stewart_drake.control.tuner.ann.AnnTuner`).
 
     It moves the weights every period, as fast as the gains can follow: run it with the paper's
     gain switching, ``controller.gain_transfer: none``, as
@@ -210,20 +205,20 @@ class AnnTunerDriver(_NetworkTuner):
         return Path(self.weights) if self.weights else DEFAULT_TUNER_PATH
 
     def make_tuner(self):
-        return AnnTuner(load_tuner(self.weights or None), period_s=self.period_s)
+        return AnnTuner(load_tuner(TunerModel, self.weights or None), period_s=self.period_s)
 
 
 @dataclass
 class RatioTunerDriver(_NetworkTuner):
-    """Our tuner (:class:`~stewart_drake.control.tuner.RatioTuner`): the density features and the
-    reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
+    """Our tuner (:class:`~stewart_drake.control.tuner.ratio.RatioTuner`): the density features
+    and the reference's speed and acceleration -> the ratio omega_Q / omega_R (the tuner study).
 
     Attributes:
-        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.save_ratio_tuner`); empty
+        weights: its ``.npz`` (:func:`~stewart_drake.control.tuner.network.save_tuner`); empty
             for the shipped weights trained for the cost at lambda = 0.1
-            (:data:`~stewart_drake.control.tuner.DEFAULT_RATIO_TUNER_PATH`; the ones for
+            (:data:`~stewart_drake.control.tuner.ratio.DEFAULT_RATIO_TUNER_PATH`; the ones for
             lambda = 0.01 and 1 ship beside them:
-            :func:`~stewart_drake.control.tuner.ratio_tuner_path`).
+            :func:`~stewart_drake.control.tuner.ratio.ratio_tuner_path`).
         period_s: tuner period, s (a whole multiple of the control period).
         feature_window: samples m + 1 of the density features.
         smoothing_s: time constant of the low-pass on its log10 ratio, s (0: none).
@@ -243,7 +238,7 @@ class RatioTunerDriver(_NetworkTuner):
 
     def make_tuner(self):
         return RatioTuner(
-            load_ratio_tuner(self.weights or None),
+            load_tuner(RatioTunerModel, self.weights or None),
             period_s=self.period_s,
             smoothing_s=self.smoothing_s,
         )

@@ -15,9 +15,9 @@ def register(sub) -> None:
 
 def _add_design_command(sub) -> None:
     """The ``design`` command's options."""
-    from ..design.design_search import DEFAULT_MAXITER, DEFAULT_POPSIZE
-    from ..design.margins import OBJECTIVES
     from ..robot.motor_catalogue import MOTOR_CATALOGUE, REFERENCE_MOTOR
+    from .design_search import DEFAULT_MAXITER, DEFAULT_POPSIZE
+    from .margins import OBJECTIVES
 
     dsg = sub.add_parser(
         "design",
@@ -80,7 +80,7 @@ def _add_design_command(sub) -> None:
 def _cmd_design(args) -> int:
     """``stewart-drake design``: search the design for a requirements file, write the report and
     the chosen designs' scenarios; exit 1 when no design within the bounds meets the task."""
-    from ..design.design_study import run_design
+    from .design_study import run_design
 
     outcome = run_design(
         args.requirements,

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, StewartError
-from ..control.lqi import LqiDriver
+from ..control.lqi.driver import LqiDriver
 from ..robot.kinematics import jacobian
 from ..run.plan import make_plan
 from ..run.scenario import ReferenceChoice, Scenario

@@ -71,9 +71,9 @@ def _add_evaluate_command(sub) -> None:
 def _cmd_evaluate(args) -> int:
     """``stewart-drake evaluate``: the grid in parallel, results.md and plots (in --out unless
     --docs names another folder)."""
-    from ..evaluation.evaluation import evaluate
-    from ..evaluation.evaluation_grid import CONTROLLERS, QUICK_CONTROLLERS, check_controllers
     from ..tuner.study_runs import GOAL, StudyArm
+    from .evaluation import evaluate
+    from .evaluation_grid import CONTROLLERS, QUICK_CONTROLLERS, check_controllers
 
     if args.controllers:
         controllers = tuple(args.controllers.split(","))
@@ -138,7 +138,7 @@ def _why_failed(failed: list, base: str) -> str:
     """What the failed rows of an evaluation share, when it is known: the runs under a
     disturbance whose holding torque is beyond the motors' limit are lost by the sizing, not by
     the controllers ("" when there is nothing to say)."""
-    from ..evaluation.evaluation_report import disturbance_holding_torques
+    from .evaluation_report import disturbance_holding_torques
 
     if not failed:
         return ""

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..base.errors import IncompleteResultsError
 from ..base.fileio import atomic_write
-from ..control.lqi import LqiScales
+from ..control.lqi.driver import LqiScales
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import ResultStore, file_digest, run_jobs
 from ..references.trajectories import ChirpTrajectory, StepTrajectory
@@ -221,7 +221,7 @@ def evaluation_settings(quick: bool, base: str = DEFAULT_BASE) -> dict:
     """What decides every row (hashed by the store; the controller subset is not part of it:
     rows of a subset are reused by a run of the whole grid): the base scenario (as YAML),
     durations, conditions, and the bytes of the ANN tuners' weights."""
-    from ..control.tuner import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
+    from ..control.tuner.ann import DEFAULT_TUNER_PATH, PAPER_LABEL_TUNER_PATH
 
     return {
         "quick": bool(quick),

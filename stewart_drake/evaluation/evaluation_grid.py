@@ -143,7 +143,7 @@ def grid_controller(name: str, base: Scenario) -> GridController:
         return GridController(name, base.lqi(omega_Q=q, omega_R=r), ratio=q / r)
     if name in DEFAULT_DRIVERS:
         return GridController(name, DEFAULT_DRIVERS[name]())
-    from ..control.tuner import DEFAULT_TUNER_PATH
+    from ..control.tuner.ann import DEFAULT_TUNER_PATH
 
     path = DEFAULT_TUNER_PATH.with_name(ANN_WEIGHTS[name])
     return GridController(name, base.controller, AnnTunerDriver(weights=str(path)))

@@ -78,8 +78,8 @@ def _cmd_teleop(args) -> int:
     """``stewart-drake teleop``: the robot as built at real time in Meshcat, driven by sliders."""
     from pydrake.geometry import Meshcat, MeshcatParams
 
-    from ..live.teleop import build_teleop, run_teleop
     from ..run.scenario_io import load_scenario
+    from .teleop import build_teleop, run_teleop
 
     scenario = load_scenario(args.scenario, args.set or ())
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
@@ -211,8 +211,8 @@ def _cmd_robot(args) -> int:
     the bus emulator with ``--emulate``): a dry run, or homing then the reference, with torque
     off and one line at every end."""
     from ..base.fileio import check_replaceable
-    from ..live.session import SessionSignals
     from ..run.scenario_io import load_scenario
+    from .session import SessionSignals
 
     if args.teleop and (args.reference is not None or args.dry_run):
         from ..base.errors import InvalidConfigError
@@ -324,7 +324,7 @@ def _start_emulator(scenario, x0):
     import copy
     import dataclasses
 
-    from ..live.emulator_process import EmulatorProcess
+    from .emulator_process import EmulatorProcess
 
     bus = scenario.bus
     plant = copy.copy(scenario.plant)
@@ -351,9 +351,9 @@ def _start_emulator(scenario, x0):
 def _robot_session(args, scenario, out, stem, signals) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
-    from ..live.measure import measure_pose
-    from ..live.session import end_line, run_on_robot
     from ..run.metrics import format_metrics
+    from .measure import measure_pose
+    from .session import end_line, run_on_robot
 
     emulator = None
     try:
@@ -361,7 +361,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
             emulator = _start_emulator(scenario, args.emulate)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
-            from ..live.measure import bus_config, zero_counts_at
+            from .measure import bus_config, zero_counts_at
 
             with bus_config(scenario).make_bus() as bus:
                 zeros = zero_counts_at(bus, math.radians(args.calibrate))
@@ -381,7 +381,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
             meshcat = Meshcat()
             print(f"open {meshcat.web_url()} to watch the robot at its measured pose")
         if args.teleop:
-            from ..live.session import teleop_on_robot
+            from .session import teleop_on_robot
 
             run = teleop_on_robot(
                 scenario,

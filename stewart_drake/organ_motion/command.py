@@ -156,9 +156,9 @@ def _cmd_reproduce(args) -> int:
     """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..base.fileio import check_replaceable
-    from ..organ_motion.fidelity import parse_tolerance, verdict
-    from ..organ_motion.fidelity_report import write_report
-    from ..organ_motion.reproduction import reproduce
+    from .fidelity import parse_tolerance, verdict
+    from .fidelity_report import write_report
+    from .reproduction import reproduce
 
     tolerance = parse_tolerance(args.tolerance)
     scenario, name = _reproduce_scenario(args)
@@ -199,8 +199,8 @@ def _cmd_reproduce(args) -> int:
     print(line)
     print(f"wrote {md}, {png} and {js}")
     if args.html:  # the run's plant-state log, replayed with the reference's ghost
-        from ..organ_motion.fidelity_replay import reproduction_html
         from ..run.plan import make_plan
+        from .fidelity_replay import reproduction_html
 
         geometry = make_plan(scenario, with_reference=False).plant_geometry
         html = reproduction_html(rep, geometry, args.html, tolerance)

@@ -169,9 +169,9 @@ def run_stem(scenario, source: str | None = None, overrides=()) -> str:
 def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..base.fileio import check_replaceable
-    from ..paper.run_report import plot_fig7
     from ..run.metrics import format_metrics
     from ..run.simulate import export_result, run_experiment, save_result
+    from .run_report import plot_fig7
 
     scenario = run_scenario(args)
     out = Path(args.out)

@@ -17,11 +17,7 @@ import numpy as np
 from pydrake.systems.primitives import Adder
 
 from ..base.errors import InvalidConfigError
-from ..control.feedforward_tuning import (
-    FeedforwardTuning,
-    FeedforwardTuningLearner,
-    load_learned,
-)
+from ..control.feedforward_tuning import FeedforwardTuning, FeedforwardTuningLearner
 from ..control.ilc import IlcDriver, IterativeLearningController
 from ..references.motion import Reference, reference_cycles
 
@@ -81,7 +77,8 @@ def add_learning(
     """Add the learner and the Adder; returns (learner, the corrected x_d output port).
 
     Args:
-        builder: the DiagramBuilder. d: the learner's settings. trajectory: the reference.
+        builder: the DiagramBuilder. d: the learner's settings, which the learner takes whole
+            (and checks). trajectory: the reference.
         x_d: the reference source's output port (18). motor_angle: the station's (6).
         geometry: the robot the controller believes in. period_s: the control period, s.
         offset_s: the controllers' sample offset, s. duration_s: the run's length, s.
@@ -89,49 +86,16 @@ def add_learning(
             crank tip as a translation and as a platform rotation
             (``RunPlan.encoder_count_at_tip``).
     """
-    floor_m, floor_rad = floor
     system: FeedforwardTuningLearner | IterativeLearningController
     if isinstance(d, FeedforwardTuning):
         system = FeedforwardTuningLearner(
-            geometry,
-            trajectory,
-            period_s,
-            offset_s,
-            duration_s,
-            stretch_s=d.stretch_s,
-            gain=d.gain,
-            memory_stretches=d.memory_stretches,
-            ridge=d.ridge,
-            q_cutoff_hz=d.q_cutoff_hz,
-            rate_scale_rad_s=d.rate_scale_rad_s,
-            sample_period_s=d.sample_period_s,
-            bound_ratio=d.bound_ratio,
-            floor_m=floor_m,
-            floor_rad=floor_rad,
-            max_rollbacks=d.max_rollbacks,
-            theta0=load_learned(d.learned_from) if d.learned_from else None,
-            learn=d.learn,
+            geometry, d, trajectory, period_s, offset_s, duration_s, floor=floor
         )
-        return _wire(builder, system, x_d, motor_angle)
-    starts, scale = learning_cycles(d, trajectory, duration_s)
-    system = IterativeLearningController(
-        geometry,
-        period_s,
-        offset_s,
-        starts,
-        scale,
-        gain=d.gain,
-        q_cutoff_hz=d.q_cutoff_hz,
-        lead_s=d.lead_s,
-        error=d.error,
-        sample_period_s=d.sample_period_s,
-        bound_ratio=d.bound_ratio,
-        floor_m=floor_m,
-        floor_rad=floor_rad,
-        max_rollbacks=d.max_rollbacks,
-        learn_cycles=d.learn_cycles,
-        gain_decay_cycles=d.gain_decay_cycles,
-    )
+    else:
+        starts, scale = learning_cycles(d, trajectory, duration_s)
+        system = IterativeLearningController(
+            geometry, d, period_s, offset_s, starts, scale, floor=floor
+        )
     return _wire(builder, system, x_d, motor_angle)
 
 

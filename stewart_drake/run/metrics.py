@@ -22,7 +22,7 @@ from ..robot.statics import holding_torques
 #: Settling band of the step responses, as a fraction of the step.
 SETTLING_BAND = 0.02
 #: The study cost's scales: 1 mrad | 1 mm of pose error, 0.3 N m of feedback torque (the LQI's
-#: default scales, :class:`~stewart_drake.control.lqi.LqiScales`).
+#: default scales, :class:`~stewart_drake.control.lqi.driver.LqiScales`).
 ERROR_SCALE, TORQUE_SCALE = 1e-3, 0.3
 
 

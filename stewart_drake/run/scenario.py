@@ -23,8 +23,8 @@ plain mutable dataclasses with concrete field types (this module must not use
 ``from __future__ import annotations``), and validation is a separate step:
 :meth:`Scenario.validate` names the field to fix. The robot's geometry, the servo and the LQI's
 scales are frozen value types of the lower layers; :class:`Robot`, :class:`Motors` and
-:class:`~stewart_drake.control.lqi.LqiScalesConfig` are their YAML forms (same names, units and
-defaults; lists where they have tuples), with ``build()`` to get the value type back
+:class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are their YAML forms (same names,
+units and defaults; lists where they have tuples), with ``build()`` to get the value type back
 (:class:`~stewart_drake.base.mirrors.ValueMirror`).
 """
 
@@ -51,8 +51,10 @@ from ..base.mirrors import ValueMirror
 from ..control.contract import UserController
 from ..control.feedforward_tuning import FeedforwardTuning
 from ..control.ilc import IlcDriver
-from ..control.lqi import LqiDriver
-from ..control.lqi import LqiScalesConfig as LqiScalesConfig  # re-exported: controller.scales
+from ..control.lqi.driver import LqiDriver
+from ..control.lqi.driver import (
+    LqiScalesConfig as LqiScalesConfig,  # re-exported: controller.scales
+)
 from ..control.pd import PdDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..plant.sdf import check_rod_model

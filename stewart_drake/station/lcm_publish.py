@@ -26,7 +26,7 @@ from pydrake.systems.lcm import LcmPublisherSystem
 
 from ..base.checks import as_number, check_multiple
 from ..base.errors import InvalidConfigError
-from ..control.lqi import LqiScalesConfig as LqiScalesConfig
+from ..control.lqi.driver import LqiScalesConfig as LqiScalesConfig
 from ..lcmtypes import lcmt_stewart_command, lcmt_stewart_status
 from ..references.motion import ReferenceConfig as ReferenceConfig
 from .station import _weak

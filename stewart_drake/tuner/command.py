@@ -42,7 +42,7 @@ def _add_collect_command(sub) -> None:
 def _cmd_collect(args) -> int:
     """``stewart-drake collect``: the 9 closed-loop runs of the tuner's data set."""
     from ..run.scenario_io import load_scenario
-    from ..tuner.collection import collect
+    from .collection import collect
 
     base = load_scenario(args.scenario, args.set or ())
     runner = runner_from_args(args)
@@ -97,7 +97,7 @@ def _cmd_train(args) -> int:
     """``stewart-drake train``: fit the tuner in both label modes, save one. The data are
     checked first, then that torch is there."""
     from ..base.errors import InvalidConfigError, MissingExtraError
-    from ..tuner import collection
+    from . import collection
 
     records = collection.load_records(args.data)
     if len(records) < 2:
@@ -112,10 +112,10 @@ def _cmd_train(args) -> int:
             "`stewart-drake train` needs torch: install PyTorch's CPU build, then pip install "
             "'stewart-drake[train]' (README: Install)"
         ) from None
-    from ..control.tuner import save_tuner
+    from ..control.tuner.network import save_tuner
     from ..control.tuning import AnnTunerDriver
     from ..run.scenario import Scenario
-    from ..tuner.training import build_dataset, train
+    from .training import build_dataset, train
 
     reports = {}
     for mode in ("paper", "best_cost"):

@@ -1,6 +1,6 @@
 """Our tuner's training (the tuner study): a network trained on the declared cost itself.
 
-:func:`train_ratio_tuner` fits a :class:`~stewart_drake.control.tuner.RatioTunerModel` on the
+:func:`train_ratio_tuner` fits a :class:`~stewart_drake.control.tuner.ratio.RatioTunerModel` on the
 training tasks' fixed-ratio runs for one lambda; :func:`shifted` offsets its output, the one
 weight the study then chooses in closed loop (:func:`~.study_verdict.closed_loop_choice`).
 """
@@ -12,7 +12,7 @@ import dataclasses
 import numpy as np
 
 from ..base.errors import InvalidConfigError
-from ..control.tuner import (
+from ..control.tuner.ratio import (
     N_RATIO_INPUTS,
     RATIO_LOG10_MAX,
     RATIO_LOG10_MIN,
@@ -35,7 +35,7 @@ def train_ratio_tuner(
     Args:
         fixed_records: {(family, seed): {ratio: record}} of :func:`~.study_runs.study_job` records.
     Returns:
-        the trained :class:`~stewart_drake.control.tuner.RatioTunerModel`.
+        the trained :class:`~stewart_drake.control.tuner.ratio.RatioTunerModel`.
     Raises:
         InvalidConfigError: no training records.
     """

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..control.features import density_features_series
-from ..control.lqi import LqiDriver
-from ..control.tuner import ratio_tuner_inputs
+from ..control.lqi.driver import LqiDriver
+from ..control.tuner.ratio import ratio_tuner_inputs
 from ..control.tuning import TunerChoice
 from ..run import metrics
 from ..run.plan import make_plan

@@ -39,7 +39,8 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..control.features import N_FEATURES
-from ..control.tuner import ANN_LOG10_MAX, ANN_LOG10_MIN, TunerModel, build_mlp, save_tuner
+from ..control.tuner.ann import ANN_LOG10_MAX, ANN_LOG10_MIN, TunerModel, build_mlp
+from ..control.tuner.network import save_tuner
 
 LABEL_MODES = ("paper", "best_cost")
 RUN_KEYS = ("omega_Q", "omega_R", "t", "rho", "cost_e", "cost_u")
@@ -253,14 +254,15 @@ def train(
         epochs: passes over the training split.
         lr: initial Adam learning rate (cosine decay to 0 over the run).
         batch_size: samples per Adam step.
-        hidden, activation: network shape (paper: 10, and tanh here; see :func:`~.tuner.build_mlp`).
+        hidden, activation: network shape (paper: 10, and tanh here; see
+            :func:`~.tuner.ann.build_mlp`).
         val_fraction: share held out for validation (paper: 0.3).
         num_threads: torch intra-op threads during training (restored afterwards); None keeps
             torch's setting. One by default: a 12-10-2 network gains nothing from more, and on
             a shared 2-core machine 2 threads ran 4x slower than 1 (measured).
         metadata: extra JSON-serializable facts stored with the weights (e.g. feature settings).
     Returns:
-        (model, report): the :class:`~.tuner.TunerModel` and a dict with n_train, n_val,
+        (model, report): the :class:`~.tuner.ann.TunerModel` and a dict with n_train, n_val,
         initial and final train/val MSE (log10 units), R^2 per output and overall for train and
         val, loss_history (mean training MSE of each epoch), seconds, and the settings.
     Raises:

@@ -29,7 +29,7 @@ training, and on the paper manoeuvre.
 matters); the LQI with the gain of the start pose (no re-scheduling on B(x)) at ratio 1; a
 hand-made schedule on the reference speed (:func:`~.study_runs.speed_schedule`); the paper's
 tuner (12-10-2 on density features, trained on the nine collection runs: ``stewart-drake collect
-&& stewart-drake train``); ours (:class:`~stewart_drake.control.tuner.RatioTuner`, one per
+&& stewart-drake train``); ours (:class:`~stewart_drake.control.tuner.ratio.RatioTuner`, one per
 lambda, :func:`~.ratio_training.train_ratio_tuner`); and the **headroom**: per 0.2 s window the
 ratio that was best in hindsight over that window (from the 13 fixed runs), run in closed loop
 as a schedule (:func:`~.study_runs.hindsight_schedule`).
@@ -56,7 +56,8 @@ from typing import Any
 
 import numpy as np
 
-from ..control.tuner import load_ratio_tuner, save_ratio_tuner
+from ..control.tuner.network import load_tuner, save_tuner
+from ..control.tuner.ratio import RatioTunerModel
 from ..control.tuning import AnnTunerDriver, RatioTunerDriver, TunerChoice, WeightSchedule
 from ..run.scenario_io import load_scenario
 from .ratio_training import shifted, train_ratio_tuner
@@ -218,7 +219,7 @@ class TunerStudy:
         paper_weights: str,
         test: bool,
     ):
-        from ..control.tuner import PAPER_LABEL_TUNER_PATH
+        from ..control.tuner.ann import PAPER_LABEL_TUNER_PATH
         from ..execution.store import ResultStore, file_digest
 
         self.out, self.runner, self.base, self.quick = Path(out_dir), runner, base, quick
@@ -359,11 +360,11 @@ class TunerStudy:
         for lam in LAMBDAS:
             path = self.out / "weights" / f"ratio_tuner_lambda{lam:g}.npz"
             model = train_ratio_tuner(fixed_train, lam)
-            save_ratio_tuner(model, path)
+            save_tuner(model, path)
             self.trained[f"{lam:g}"] = model.metadata
             for shift in self.shifts():
                 shift_path = self._shift_path(lam, shift)
-                save_ratio_tuner(shifted(model, shift), shift_path)
+                save_tuner(shifted(model, shift), shift_path)
                 jobs += [
                     self.job(
                         StudyArm("ours", lam=lam, shift=shift),
@@ -416,8 +417,8 @@ class TunerStudy:
                 "shift_means": shift_means,
             }
             path = self._shift_path(lam, shift)
-            model = load_ratio_tuner(path)
-            save_ratio_tuner(
+            model = load_tuner(RatioTunerModel, path)
+            save_tuner(
                 dataclasses.replace(
                     model,
                     metadata={

@@ -19,7 +19,7 @@ def _add_diagrams_command(sub) -> None:
 
 def _cmd_diagrams(args) -> int:
     """``stewart-drake diagrams``: rewrite diagrams/*.dot and render diagrams/*.svg."""
-    from ..viz.diagrams import write_diagrams
+    from .diagrams import write_diagrams
 
     for path in write_diagrams(args.out, render=not args.dot_only):
         print(f"wrote {path}")

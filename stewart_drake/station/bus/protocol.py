@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from ...control.lqi import LqiScalesConfig as LqiScalesConfig
+from ...control.lqi.driver import LqiScalesConfig as LqiScalesConfig
 from ...references.motion import ReferenceConfig as ReferenceConfig
 from ...robot.motor_catalogue import catalogue_motor
 
