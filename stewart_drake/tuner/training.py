@@ -339,7 +339,7 @@ def _fit_network(
 
     Returns:
         (mlp, initial, history, threads): the fitted torch network, the
-        :class:`~.tuner.TunerModel` of its initial weights (normalized by ``scaling`` = (x_mean,
+        :class:`~.ann.TunerModel` of its initial weights (normalized by ``scaling`` = (x_mean,
         x_std)), the mean training MSE of each epoch, the threads used.
     """
     import torch
