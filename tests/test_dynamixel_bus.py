@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import require_extra
+from conftest import require_extra, wait_for
 
 require_extra("robot")
 import dynamixel_sdk as sdk  # noqa: E402
@@ -230,6 +230,40 @@ def test_a_constant_current_accelerates_the_horn_at_kt_i_over_j():
     slope = np.polyfit(t[moving], v[moving], 1)[0]
     np.testing.assert_allclose(slope, expected * np.array([1, -1, 1, -1, 1, 1]), rtol=0.1)
     assert np.allclose(s.tau, tau * np.array([1, -1, 1, -1, 1, 1]), rtol=0.01)
+
+
+def test_a_commanded_clock_moves_the_model_one_period_per_torque_command_whatever_the_wall_time():
+    """With ``command_step_s`` the model advances exactly one period at each torque command and
+    not otherwise: the same state as the model stepped by hand with the currents the servos
+    drive, however long the driver takes between commands. The bus watchdog still counts wall
+    time."""
+    J, dt = 0.0125, 0.01
+    backend = FirstOrderServos(J, XM430.torque_constant_Nm_per_A, q0=np.zeros(6))
+    by_hand = FirstOrderServos(J, XM430.torque_constant_Nm_per_A, q0=np.zeros(6))
+    signs = np.array([1, -1, 1, -1, 1, 1])
+    tau = XM430.torque_constant_Nm_per_A * 0.2 * signs
+    emu = BusEmulator(IDS, backend=backend, command_step_s=dt)
+    with emu, _bus(emu, zero_counts=None, watchdog_s=0.1) as bus:
+        bus.configure()
+        bus.enable_torque()
+        for k in range(8):
+            bus.write_torques(tau)
+            if k == 3:
+                time.sleep(0.05)  # a late period: the model does not move meanwhile
+        state = bus.read_state()  # answered after the last command's step
+        for _ in range(8):  # the currents the servos drove for every command
+            by_hand.advance(dt, emu.applied_current_A())
+        q_commanded = emu.state()[0]
+        time.sleep(0.05)  # no command: no motion
+        np.testing.assert_array_equal(emu.state()[0], q_commanded)
+        np.testing.assert_array_equal(q_commanded, by_hand.positions_rad())
+        np.testing.assert_array_equal(emu.state()[1], by_hand.velocities_rad_s())
+        assert np.all(np.sign(state.v) == signs) and np.all(state.v != 0)
+        # Watched without bus traffic: every instruction packet restarts a servo's watchdog.
+        wait_for(lambda: np.all(emu.applied_current_A() == 0), 30, "the bus watchdog's trip")
+        assert bus.watchdog_tripped() == IDS
+    with pytest.raises(InvalidConfigError, match="command_step_s"):
+        BusEmulator(IDS, command_step_s=0.0)
 
 
 def test_torque_off_is_idempotent_and_stops_the_current(emulator):

@@ -33,12 +33,16 @@ from stewart_drake.run.simulate import load_result  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
+CONTROL_PERIOD_S = 0.01
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
 
 
 def _emulator(x0=X_REST):
     """The bus emulator in this process, the robot's plant behind it stepping at 2 ms (half
-    the CPU of 1 ms: the loop and the plant share this process's GIL)."""
+    the CPU of 1 ms: the loop and the plant share this process's GIL), on the commanded clock:
+    one control period of :func:`_scenario` per torque command. These tests check where each
+    path ends, not how fast: on a loaded machine the loop runs late, and a plant on the wall
+    clock would move on without it (a guard trip that is the machine's, not the robot's)."""
     from pydrake.multibody.plant import MultibodyPlantConfig
 
     robot = Scenario(
@@ -46,7 +50,8 @@ def _emulator(x0=X_REST):
         control_period_s=0.002,
         log_period_s=0.002,
     )
-    return BusEmulator(IDS, backend=StationServos(dynamixel_scenario(scenario=robot), x0=x0))
+    backend = StationServos(dynamixel_scenario(scenario=robot), x0=x0)
+    return BusEmulator(IDS, backend=backend, command_step_s=CONTROL_PERIOD_S)
 
 
 def _scenario(emu, tmp_path, **bus):
@@ -56,8 +61,8 @@ def _scenario(emu, tmp_path, **bus):
     scenario = Scenario(controller=LqiDriver(omega_Q=0.01))
     scenario.hardware = None  # derived from the bus's servos
     scenario.reference = NamedReference("home")
-    scenario.control_period_s = 0.01
-    scenario.log_period_s = 0.01
+    scenario.control_period_s = CONTROL_PERIOD_S
+    scenario.log_period_s = CONTROL_PERIOD_S
     scenario.duration_s = 1.0
     scenario.guard.divergence_dir = str(tmp_path / "diverged")
     settings = {"reply_timeout_s": 1.0, "watchdog_s": 1.0, "max_deadline_misses": 1_000_000}

@@ -18,14 +18,15 @@ Torque Enable left as it is, as the e-Manual says no more), Bus Watchdog reads -
 values turn read-only (a write answers a Data Range Error) until Bus Watchdog is written 0.
 
 The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
-``tick_s``; the bus thread answers meanwhile from the last present values (a tick and a step
-old at most), as a servo answers at once from its control table. :class:`FirstOrderServos`
-is one crank per servo, rigid,
-``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
-(12 V: the stall current falling linearly to zero at the no-load speed). Not modelled: the
-current loop's lag, the temperature (Present Temperature reads ``ambient_C``), the input
-voltage, the encoder's noise, the return delay time and the baud rate (a pty moves bytes at
-memory speed whatever the setting), REBOOT, indirect addresses.
+``tick_s`` (or, with ``command_step_s``, one period per torque command: a clock a loaded
+machine cannot outrun); the bus thread answers meanwhile from the last present values (a tick
+and a step old at most), as a servo answers at once from its control table.
+:class:`FirstOrderServos` is one crank per servo, rigid, ``J dv/dt = K_t i - b v - c sign(v)``
+with the current the servo can drive at that speed (12 V: the stall current falling linearly to
+zero at the no-load speed). Not modelled: the current loop's lag, the temperature (Present
+Temperature reads ``ambient_C``), the input voltage, the encoder's noise, the return delay time
+and the baud rate (a pty moves bytes at memory speed whatever the setting), REBOOT, indirect
+addresses.
 """
 
 from __future__ import annotations
@@ -235,6 +236,13 @@ class BusEmulator:
         max_step_s: the longest step of the model in one advance, s: a model (or a starved
             thread) slower than real time drops the rest (``slipped_s``) instead of
             answering later and later.
+        command_step_s: None (default): the model follows the wall clock. A period, s: the
+            model advances exactly this much at each SYNC_WRITE of Goal Current (the driver's
+            torque command) and not otherwise, so its physics follow the commands, not the
+            machine's speed: a loop that runs late on a loaded machine meets the plant where
+            its own clock says it is. The bus watchdog still counts wall time. For tests and
+            rehearsals of a loop whose period is ``command_step_s``; a real bus has no such
+            mode.
 
     Raises:
         InvalidConfigError: bad ids or model, a backend of another size.
@@ -249,8 +257,13 @@ class BusEmulator:
         tick_s: float = 0.002,
         ambient_C: float = 30.0,
         max_step_s: float = 0.02,
+        command_step_s: float | None = None,
     ):
         ids = [int(i) for i in ids]
+        if command_step_s is not None and not (0 < command_step_s < math.inf):
+            raise InvalidConfigError(
+                f"command_step_s = {command_step_s!r} must be a positive period in s, or None"
+            )
         if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
             raise InvalidConfigError(f"ids {ids} must be distinct integers in 0..{p.MAX_ID}")
         spec = p.servo_spec(model, torque_control=False)
@@ -266,6 +279,7 @@ class BusEmulator:
         self.servos = {i: _Servo(i, spec, ambient_C) for i in ids}
         self.tick_s = float(tick_s)
         self.max_step_s = float(max_step_s)
+        self.command_step_s = None if command_step_s is None else float(command_step_s)
         #: Wall-clock time the model did not follow, s: the sum of the excess of every gap
         #: between two advances over ``max_step_s`` (0 while the model keeps real time).
         self.slipped_s = 0.0
@@ -404,7 +418,11 @@ class BusEmulator:
         """Step the backend towards now (at most ``max_step_s``; a servo's watchdog trip at
         the moment it runs out, not when the thread next looks) and refresh the present
         values. The table's lock is not held while the model steps: the bus answers meanwhile
-        from the last present values. Returns how long the model may wait, s."""
+        from the last present values. With ``command_step_s`` the commands move the model
+        (:meth:`_step_commanded`) and this only trips the watchdogs. Returns how long the
+        model may wait, s."""
+        if self.command_step_s is not None:
+            return self._trip_watchdogs()
         with self._model_lock:
             with self._lock:
                 now = time.perf_counter()
@@ -424,6 +442,27 @@ class BusEmulator:
         if t_next < now:
             return 0.0
         return min(self.tick_s, max(0.0, t_trip - now))
+
+    def _trip_watchdogs(self) -> float:
+        """The commanded clock's model thread: trip every bus watchdog whose time is up (wall
+        time, as a servo counts it). Returns how long it may wait, s."""
+        with self._lock:
+            now = time.perf_counter()
+            armed = self._armed()
+            for t, servo in armed:
+                if t <= now:
+                    servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
+            t_trip = min((t for t, _ in armed if t > now), default=math.inf)
+        return min(self.tick_s, max(0.0, t_trip - now))
+
+    def _step_commanded(self) -> None:
+        """The commanded clock: the model advances ``command_step_s`` under the currents just
+        commanded, and the present values follow (called by the bus thread, the table's lock
+        held: the next read waits for the step)."""
+        currents = np.array([self.servos[i].current_A() for i in self.ids])
+        with self._model_lock:
+            self.backend.advance(self.command_step_s, currents)
+            self._update_present()
 
     def _armed(self) -> list:
         """[(expiry time, servo)] of the servos whose bus watchdog is running."""
@@ -498,6 +537,8 @@ class BusEmulator:
             for k in range(0, len(rows) - size, size + 1):
                 if rows[k] in self.servos:
                     self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
+            if self.command_step_s is not None and address == p.GOAL_CURRENT[0]:
+                self._step_commanded()
             return b""
         if ins == p.SYNC_READ:
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
