@@ -38,9 +38,7 @@ from stewart_drake.run.diagram import (
 from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario import (  # noqa: E402
     DynamixelBusConfig,
-    Hardware,
     Scenario,
-    ToolDisturbance,
     _scenario_from_yaml,
     dump_scenario,
 )
@@ -50,7 +48,9 @@ from stewart_drake.station.bus.station import (  # noqa: E402
     DynamixelDriver,
     HardwareStation,
 )
+from stewart_drake.station.hardware import Hardware
 from stewart_drake.station.lcm_publish import LcmConfig
+from stewart_drake.station.station import ToolDisturbance
 
 H = 0.005  # the control period of the runs here: the Dynamixel robot's LQI is stable at 5 ms
 XM430 = p.SERVO_SPECS["XM430-W350-T"]

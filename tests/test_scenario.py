@@ -14,15 +14,10 @@ from stewart_drake.base.errors import (
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.run.plan import make_plan
-from stewart_drake.run.scenario import (
-    NamedReference,
-    Robot,
-    Scenario,
-    SensorNoise,
-    dump_scenario,
-)
+from stewart_drake.run.scenario import NamedReference, Robot, Scenario, dump_scenario
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.station.guard import GuardConfig
+from stewart_drake.station.station import SensorNoise
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -274,7 +269,7 @@ def load_scenario_text(text):
 
 def test_an_absurd_disturbance_or_q_filter_is_refused_before_simulating():
     from stewart_drake.control.ilc import IlcDriver
-    from stewart_drake.run.scenario import ToolDisturbance
+    from stewart_drake.station.station import ToolDisturbance
 
     with pytest.raises(InvalidConfigError, match=r"disturbance.magnitude must be .* \[0, 10000\]"):
         Scenario(disturbance=ToolDisturbance("push", 1e300, [1.0, 0.0, 0.0]))

@@ -36,7 +36,8 @@ def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     """``scenario`` (default the paper's, :class:`~..scenario.Scenario`) built with six
     catalogue Dynamixels ``model`` and no computation delay, current-loop lag or encoder noise
     in the station (the bus and the servos bring their own)."""
-    from ..run.scenario import Hardware, Motors, Scenario
+    from ..run.scenario import Scenario
+    from ..station.hardware import Hardware, Motors
 
     servo = dataclasses.replace(catalogue_motor(model).servo, current_time_constant_s=0.0)
     base = scenario if scenario is not None else Scenario()

@@ -33,8 +33,7 @@ from ..control.tuning import TunerPorts
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
 from ..station.guard import DivergenceGuard
-from ..station.sensors import PlatformPoseSensor, add_white_noise
-from ..station.station import StewartStation
+from ..station.station import PlatformPoseSensor, StewartStation, add_white_noise
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_reference_sources
 from .scenario import Scenario, dump_scenario

@@ -34,13 +34,12 @@ import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
-from ..base.checks import MAX_SEED, as_number, check_multiple
+from ..base.checks import as_number, check_multiple
 from ..base.checks import check_int as _check_int
 from ..base.errors import (
     InvalidConfigError,
@@ -70,7 +69,9 @@ from ..robot.servo import ServoModel
 from ..robot.statics import FEEDFORWARD_MODES
 from ..station.bus.protocol import SERVO_COUNTS_PER_REV
 from ..station.guard import GuardConfig
+from ..station.hardware import Encoders, Estimator, Hardware, Motors
 from ..station.lcm_publish import LcmConfig
+from ..station.station import SensorNoise, ToolDisturbance
 
 _GEOMETRY, _SERVO = StewartGeometry(), ServoModel()
 
@@ -113,27 +114,6 @@ class Robot(ValueMirror):
     platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
 
 
-@dataclass
-class Motors(ValueMirror):
-    """The servo at each crank: every field of :class:`~stewart_drake.robot.servo.ServoModel`, same
-    names, units and defaults (at the output shaft: gear ratio, rotor inertia kg m^2, peak torque
-    N m, current-loop time constant s, viscous N m s/rad and Coulomb N m friction, friction
-    regularization N m s/rad, no-load speed rad/s); defaults: maxon EC 45 flat 50 W + a 4.3:1
-    planetary gearhead (docs/hardware.md). ``build()`` gives the servo."""
-
-    value_class = ServoModel
-
-    name: str = _SERVO.name
-    gear_ratio: float = _SERVO.gear_ratio
-    rotor_inertia: float = _SERVO.rotor_inertia
-    peak_torque_Nm: float = _SERVO.peak_torque_Nm
-    current_time_constant_s: float = _SERVO.current_time_constant_s
-    viscous_damping: float = _SERVO.viscous_damping
-    coulomb_friction_Nm: float = _SERVO.coulomb_friction_Nm
-    friction_damping: float = _SERVO.friction_damping
-    no_load_speed_rad_s: float = _SERVO.no_load_speed_rad_s
-
-
 # -- references ------------------------------------------------------------------------------------
 
 ReferenceChoice = (
@@ -173,96 +153,6 @@ def choice_classes() -> dict:
 
 
 # -- hardware ------------------------------------------------------------------------------------
-
-
-@dataclass
-class Encoders:
-    """Absolute encoders on the six crank shafts, read at the control period.
-
-    Attributes:
-        counts_per_rev: counts per crank revolution (default 2^17, a 17-bit absolute encoder on
-            the output shaft, RLS AksIM-2 class); the quantum is 2 pi / counts_per_rev rad.
-        noise_counts: standard deviation of white Gaussian noise added before quantization,
-            counts (0: quantization only).
-        seed: seed of that noise (Drake RandomSource), 0 .. 2^32 - 1.
-    """
-
-    counts_per_rev: int = 2**17
-    noise_counts: float = 0.0
-    seed: int = 0
-
-    @property
-    def quantum_rad(self) -> float:
-        """One count, rad."""
-        return 2 * np.pi / self.counts_per_rev
-
-
-@dataclass
-class Estimator:
-    """Pose and rate from the encoders (:class:`~stewart_drake.control.estimator.FkEstimator`).
-
-    Attributes:
-        rate_cutoff_hz: corner of the first-order low-pass on the differentiated FK pose, Hz.
-        fk_tolerance_counts: Newton stops when every motor angle of the estimate is within this
-            many counts of the measurement.
-    """
-
-    rate_cutoff_hz: float = 100.0
-    fk_tolerance_counts: float = 0.01
-
-
-@dataclass
-class Hardware:
-    """The robot as built: encoders, servos, the controller computer's delay.
-
-    Attributes:
-        encoders: the only position measurement (:class:`Encoders`).
-        motors: the servo at each crank (:class:`Motors`).
-        estimator: FK pose and rate estimation from the encoders (:class:`Estimator`).
-        computation_delay_periods: control periods between the measurement and the torque it
-            produces (0: none).
-    """
-
-    encoders: Encoders = field(default_factory=Encoders)
-    motors: Motors = field(default_factory=Motors)
-    estimator: Estimator = field(default_factory=Estimator)
-    computation_delay_periods: int = 1
-
-    def validate(self, control_period_s: float) -> None:
-        """Check every field (``hardware.<path>``) for a controller of period
-        ``control_period_s``.
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
-            if not isinstance(getattr(self, name), kind):
-                raise InvalidConfigError(
-                    f"hardware.{name} must be a {kind.__name__}, got "
-                    f"{type(getattr(self, name)).__name__}"
-                )
-        _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
-        as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
-        _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
-        try:
-            self.motors.build()
-        except (StewartError, TypeError) as err:
-            raise InvalidConfigError(f"hardware.motors: {err}") from None
-        as_number(
-            "hardware.estimator.rate_cutoff_hz",
-            self.estimator.rate_cutoff_hz,
-            0.0,
-            0.5 / control_period_s,
-            lo_open=True,
-        )
-        as_number(
-            "hardware.estimator.fk_tolerance_counts",
-            self.estimator.fk_tolerance_counts,
-            0.0,
-            1.0,
-            lo_open=True,
-        )
-        _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
 
 
 # -- the servo bus and LCM ---------------------------------------------------------------------
@@ -435,106 +325,6 @@ class DynamixelBusConfig:
 
 
 # -- disturbance, sensor noise, guard --------------------------------------------------------------
-
-
-#: Largest tool disturbance, N (push, contact) or N m (twist).
-MAX_DISTURBANCE = 1e4
-
-
-@dataclass
-class ToolDisturbance:
-    """A wrench on the tool tip (world frame) during the run, through the station's
-    ``tool_wrench`` input.
-
-    Attributes:
-        kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
-            oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
-        magnitude: N (push, contact) or N m (twist), at most :data:`MAX_DISTURBANCE`.
-        direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
-        start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
-        frequency_hz: of the contact force, Hz.
-    """
-
-    kind: str = "push"
-    magnitude: float = 5.0
-    direction: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
-    start_s: float = 1.0
-    duration_s: float = 0.0
-    frequency_hz: float = 2.0
-
-    def validate(self) -> None:
-        """Check every field (``disturbance.<name>``).
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        if self.kind not in ("push", "twist", "contact"):
-            raise InvalidConfigError(
-                f"disturbance.kind must be 'push', 'twist' or 'contact', got {self.kind!r}"
-            )
-        for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
-            as_number(f"disturbance.{name}", getattr(self, name), 0.0)
-        # A tabletop platform of a kilogram: 10 kN (or 10 kN m) is far past anything it holds,
-        # and a much larger number overflows the contact solver instead of failing the run.
-        as_number("disturbance.magnitude", self.magnitude, 0.0, MAX_DISTURBANCE)
-        axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
-        if (
-            axis is None
-            or axis.shape != (3,)
-            or not np.isfinite(axis).all()
-            or np.linalg.norm(axis) == 0
-        ):
-            raise InvalidConfigError(
-                f"disturbance.direction must be 3 finite numbers, not all "
-                f"zero, got {self.direction!r}"
-            )
-
-    def wrench(self, t) -> np.ndarray:
-        """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        on = (t >= self.start_s) & ((self.duration_s <= 0) | (t < self.start_s + self.duration_s))
-        axis = np.asarray(self.direction, dtype=float)
-        axis = axis / np.linalg.norm(axis)
-        level = np.where(on, self.magnitude, 0.0)
-        if self.kind == "contact":
-            level = level * 0.5 * (1 - np.cos(2 * np.pi * self.frequency_hz * (t - self.start_s)))
-        out = np.zeros((t.size, 6))
-        columns = slice(0, 3) if self.kind == "twist" else slice(3, 6)
-        out[:, columns] = level[:, None] * axis
-        return out
-
-
-@dataclass
-class SensorNoise:
-    """White Gaussian noise on the measured pose and rate, drawn every control period.
-
-    Attributes:
-        std: 12 standard deviations [rad x3, m x3, rad/s x3, m/s x3] (or one for all).
-        seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
-    """
-
-    std: list[float] = field(default_factory=lambda: [0.0] * 12)
-    seed: int = 0
-
-    def std_vector(self) -> np.ndarray:
-        """(12,) the standard deviations, one broadcast to all."""
-        return np.broadcast_to(np.asarray(self.std, dtype=float), (12,)).copy()
-
-    def validate(self) -> None:
-        """Check the fields (``sensor_noise.<name>``).
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        try:
-            std = self.std_vector()
-        except (TypeError, ValueError):
-            std = np.array([np.nan])
-        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-            raise InvalidConfigError(
-                f"sensor_noise.std needs 12 finite values >= 0 (rad, m, rad/s, m/s), got {self.std}"
-            )
-        _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
 
 
 def _default_plant() -> MultibodyPlantConfig:

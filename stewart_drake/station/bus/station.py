@@ -56,7 +56,7 @@ from ...robot.kinematics import (
     jacobian,
     jacobian_single,
 )
-from ..sensors import PlatformPoseSensor
+from ..station import PlatformPoseSensor
 from .protocol import SERVO_COUNTS_PER_REV
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
