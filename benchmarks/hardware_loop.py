@@ -33,7 +33,8 @@ from stewart_drake.references.organ_motion import OrganMotionReference
 from stewart_drake.references.trajectories import NamedReference
 from stewart_drake.run.diagram import make_stewart_diagram
 from stewart_drake.run.plan import make_plan
-from stewart_drake.run.scenario import DynamixelBusConfig, Scenario
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.station.bus.servos import DynamixelBusConfig
 from stewart_drake.station.guard import GuardConfig
 
 REFERENCES = {"paper": NamedReference, "breathing": OrganMotionReference}

@@ -84,10 +84,11 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     from stewart_drake.control.lqi import LqiScales, LqiScalesConfig
     from stewart_drake.robot.servo import ServoModel
     from stewart_drake.run import scenario as sc
+    from stewart_drake.station.hardware import Motors
 
     kinds = {
         "Robot": sc.Robot,
-        "Motors": sc.Motors,
+        "Motors": Motors,
         "LqiScalesConfig": LqiScalesConfig,
         "StewartGeometry": StewartGeometry,
         "ServoModel": ServoModel,

@@ -1134,7 +1134,7 @@ def _cmd_robot(args) -> int:
         scenario.duration_s = args.duration
     if args.port is not None:
         if scenario.bus is None:
-            from ..run.scenario import DynamixelBusConfig
+            from ..station.bus.servos import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig(port=args.port)
         else:
@@ -1152,7 +1152,7 @@ def _cmd_robot(args) -> int:
         _check_calibration_angle(scenario, args.calibrate)
     if args.emulate is not None:
         if scenario.bus is None:
-            from ..run.scenario import DynamixelBusConfig
+            from ..station.bus.servos import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig()
         _check_emulated_pose(scenario, args.emulate)

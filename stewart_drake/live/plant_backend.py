@@ -28,7 +28,7 @@ import numpy as np
 
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
-from ..station.bus import protocol as p
+from ..station.bus.servos import servo_spec
 from .emulator import ServoBackend
 
 
@@ -65,7 +65,7 @@ class StationServos(ServoBackend):
     def __init__(self, scenario=None, model: str = "XM430-W350-T", x0=X_HOME):
         from ..run.diagram import held_station
 
-        self.spec = p.servo_spec(model)
+        self.spec = servo_spec(model)
         scenario = dynamixel_scenario(model) if scenario is None else scenario
         self.station, self.simulator, _ = held_station(scenario, x0, T=np.zeros(6))
         self._root = self.simulator.get_mutable_context()

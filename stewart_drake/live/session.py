@@ -163,11 +163,12 @@ def measure_pose(scenario, bus=None) -> MeasuredPose:
         servo. StartPoseError: the angles are no pose of the robot.
     """
     from ..run.plan import make_plan
+    from ..station.bus.driver import DynamixelBus
 
     plan = make_plan(scenario, with_reference=False)
     if bus is not None:
         return pose_verdict(plan, bus.read_state().q)
-    with bus_config(plan.scenario).make_bus() as opened:
+    with DynamixelBus.from_config(bus_config(plan.scenario)) as opened:
         return pose_verdict(plan, opened.read_state().q)
 
 
@@ -732,9 +733,10 @@ def teleop_on_robot(
 def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) -> RobotRun:
     """The powered part of :func:`teleop_on_robot`."""
     from ..execution.runners import Interrupted
+    from ..station.bus.driver import DynamixelBus
     from .teleop import build_teleop, run_teleop
 
-    bus = bus_config(scenario).make_bus().open()
+    bus = DynamixelBus.from_config(bus_config(scenario)).open()
     ended = RobotRun("", False, True, start=start)
     try:
         bus.configure()

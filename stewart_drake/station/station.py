@@ -365,7 +365,7 @@ class StewartStation(Diagram):
             the contacts between the robot's parts.
     Attributes:
         plant, scene_graph, handles (:class:`~stewart_drake.plant.plant.StewartPlantHandles`),
-        sensor (the ground-truth :class:`~.sensors.PlatformPoseSensor`), plan (the
+        sensor (the ground-truth :class:`PlatformPoseSensor`), plan (the
         :class:`~.plan.RunPlan` it was built from).
     Args:
         plan: the :class:`~.plan.RunPlan` (:func:`~.diagram.make_stewart_station` makes one from a

@@ -15,7 +15,7 @@ controllers computed half a step after the previous update, then reads the servo
 that measurement for the controllers' sample at k h + h_plant / 2. On the robot the torque
 written at (k + 1) h was computed from the servos as read at k h: one control period between a
 measurement and its torque, which is what the scenario says (``hardware.computation_delay_periods
-= 1``, :meth:`~stewart_drake.run.scenario.DynamixelBusConfig.hardware`), so the LQI's
+= 1``, :meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`), so the LQI's
 feed-forward lead and the controllers' models see the delay they get.
 
 Pacing. Drake's ``Simulator`` at ``target_realtime_rate`` 1 sleeps before each step until the
@@ -57,7 +57,8 @@ from ...robot.kinematics import (
     jacobian_single,
 )
 from ..station import PlatformPoseSensor
-from .protocol import SERVO_COUNTS_PER_REV
+from .driver import DynamixelBus
+from .protocol import COUNTS_PER_REV
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
@@ -132,7 +133,7 @@ class DynamixelDriver(LeafSystem):
         self.stream = stream
         self._x_initial = np.asarray(x_initial, dtype=float)
         self._fk = PoseEstimator(
-            geometry, period_s, 2 * np.pi / SERVO_COUNTS_PER_REV, self._x_initial, max_iterations=20
+            geometry, period_s, 2 * np.pi / COUNTS_PER_REV, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
         initial = np.zeros(_LOOP.stop)
@@ -414,7 +415,7 @@ class HardwareStation(Diagram):
         self.model = model_builder.Build()
         self.plant, self.scene_graph, self.handles, self.plan = plant, scene_graph, handles, plan
         self.sensor = PlatformPoseSensor(plant, handles)
-        self.bus = scenario.bus.make_bus()
+        self.bus = DynamixelBus.from_config(scenario.bus)
         builder = DiagramBuilder()
         self.driver = builder.AddNamedSystem(
             "driver",
