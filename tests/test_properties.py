@@ -193,7 +193,7 @@ def test_fk(theta, tol, max_iter):
         x, status = out
         assert status.converged and status.residual <= tol
         np.testing.assert_allclose(
-            kinematics._wrap(kinematics.ik(GEOMETRY, x) - theta), 0.0, atol=max(10 * tol, 1e-9)
+            kinematics.wrap_angle(kinematics.ik(GEOMETRY, x) - theta), 0.0, atol=max(10 * tol, 1e-9)
         )
 
 

@@ -502,7 +502,7 @@ def _memory_layout(rows: int, M: int) -> tuple[dict, int]:
 def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
     """Motor-angle errors (r, 6) as pose errors J(x_d)^-1 e_theta (J = d theta / d x); rows
     where J is singular or x_d unreachable are zero."""
-    J = kinematics._jacobian(geometry, x_d)
+    J = kinematics.jacobian_unchecked(geometry, x_d)
     ok = np.all(np.isfinite(J), axis=(1, 2)) & (
         np.abs(np.linalg.det(np.where(np.isfinite(J), J, 0.0))) > 1e-12
     )

@@ -401,7 +401,7 @@ def evaluate(design: Design, task: TaskSamples, lazy: bool = True) -> Evaluation
         return out
     x_all = np.concatenate([task.x, task.workspace_x])
     limit_margins = limits.limit_margins_unchecked(geometry, x_all)
-    reachable = limits._reachable_from_margins(limit_margins)
+    reachable = limits.reachable_from_margins(limit_margins)
     if not np.all(reachable):  # most candidates of a search end here, in milliseconds
         out.margins["reach"] = -float(np.mean(~reachable))
         return out

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -147,7 +147,8 @@ def angular_velocity_map(rpy) -> np.ndarray:
     return E
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) cross-product matrices [v]x of vectors v (..., 3): [v]x w = v x w."""
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -246,12 +247,44 @@ def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:
     return theta
 
 
-def _leg_terms(geometry: RobotGeometry, x, theta=None):
-    """Per-leg vectors used by the Jacobian, statics and inertia, all (..., 6, 3)."""
+class LegTerms(NamedTuple):
+    """The per-leg vectors of poses x (..., 6) that the Jacobian, the statics and the limits
+    read (:func:`leg_terms`), computed once for all of them; base frame, SI units.
+
+    Attributes:
+        theta: (..., 6) motor angles, rad (NaN where a leg cannot close).
+        q_B: (..., 6, 3) platform joint centres q_i. r_B: (..., 6, 3) their lever arms R_BE p_i.
+        tip: (..., 6, 3) crank tips. ell: (..., 6, 3) rod vectors q_i - tip_i.
+        e_N: (..., 6, 3) crank-tip velocity directions per unit theta_dot.
+        E: (..., 3, 3) the angular velocity map of the rpy (:func:`angular_velocity_map`).
+        Gq: (..., 6, 3, 6) dq_i/dx = [-[r_i]x E, I].
+        R: (..., 3, 3) R_BE (:func:`rotation_rpy`).
+    """
+
+    theta: np.ndarray
+    q_B: np.ndarray
+    r_B: np.ndarray
+    tip: np.ndarray
+    ell: np.ndarray
+    e_N: np.ndarray
+    E: np.ndarray
+    Gq: np.ndarray
+    R: np.ndarray
+
+    def rows(self, index) -> LegTerms:
+        """The terms of the poses ``index`` (an index array into the batch's first axis)."""
+        return LegTerms(*(a[index] for a in self))
+
+
+def leg_terms(geometry: RobotGeometry, x, theta=None) -> LegTerms:
+    """The :class:`LegTerms` of poses x (..., 6), theta their motor angles (default :func:`ik`,
+    which raises for an unreachable pose; given, NaN angles give NaN terms). Not validated."""
     x = np.asarray(x, dtype=float)
     if theta is None:
         theta = ik(geometry, x)
-    q_B, r_B = platform_joints(geometry, x)
+    R = rotation_rpy(x[..., :3])
+    r_B = np.einsum("...jk,ik->...ij", R, geometry.p_E)
+    q_B = r_B + x[..., None, 3:6]
     tip = geometry.crank_tips(theta)
     ell = q_B - tip
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
@@ -259,13 +292,19 @@ def _leg_terms(geometry: RobotGeometry, x, theta=None):
     E = angular_velocity_map(x[..., :3])
     # dq_i/dx = [-[r_i]x E, I]: (..., 6, 3, 6)
     Gq = np.zeros(r_B.shape + (6,))
-    Gq[..., :3] = -np.einsum("...ijk,...kl->...ijl", _skew(r_B), E)
+    Gq[..., :3] = -np.einsum("...ijk,...kl->...ijl", skew(r_B), E)
     Gq[..., 3:] = np.eye(3)
-    return theta, q_B, r_B, tip, ell, e_N, E, Gq
+    return LegTerms(theta, q_B, r_B, tip, ell, e_N, E, Gq, R)
 
 
-def _checked(geometry: RobotGeometry, x, theta):
-    """(x, theta) validated for the public Jacobian-based functions; theta from :func:`ik`."""
+def checked_poses(geometry: RobotGeometry, x, theta=None):
+    """(x, theta) validated for the public Jacobian-based functions (here and in
+    :mod:`.statics`); theta from :func:`ik` when not given.
+
+    Raises:
+        InvalidConfigError: x or theta not (..., 6) or not finite, or of different shapes.
+        UnreachablePoseError: theta not given and a pose unreachable.
+    """
     x = as_poses("pose x", x)
     if theta is None:
         return x, ik(geometry, x)
@@ -275,7 +314,7 @@ def _checked(geometry: RobotGeometry, x, theta):
     return x, theta
 
 
-def _finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
+def finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``value`` if finite, else SingularPoseError naming the first pose of x where it is not."""
     if np.isfinite(value).all():
         return value
@@ -297,17 +336,21 @@ def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
             velocity (J unbounded; :func:`singular_values` reports it as inf instead).
         InvalidConfigError: x or theta not (..., 6) or not finite.
     """
-    x, theta = _checked(geometry, x, theta)
-    return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
+    x, theta = checked_poses(geometry, x, theta)
+    return finite_or_singular("J", jacobian_unchecked(geometry, x, theta), x)
 
 
-def _jacobian(geometry: RobotGeometry, x, theta=None, terms=None) -> np.ndarray:
+def jacobian_unchecked(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
-    unreachable; for Newton steps and singular values, which handle those themselves. ``terms``:
-    :func:`_leg_terms` of x when already computed."""
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms or _leg_terms(geometry, x, theta)
-    num = np.einsum("...ik,...ikl->...il", ell, Gq)
-    den = geometry.crank_length * np.sum(ell * e_N, axis=-1)
+    unreachable; for Newton steps and singular values, which handle those themselves."""
+    return jacobian_of(geometry, leg_terms(geometry, x, theta))
+
+
+def jacobian_of(geometry: RobotGeometry, terms: LegTerms) -> np.ndarray:
+    """:func:`jacobian_unchecked` from the :class:`LegTerms` of the poses (computed once for
+    the Jacobian, the statics and the limits)."""
+    num = np.einsum("...ik,...ikl->...il", terms.ell, terms.Gq)
+    den = geometry.crank_length * np.sum(terms.ell * terms.e_N, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         return num / den[..., None]
 
@@ -336,14 +379,14 @@ def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
         as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
     Source: paper eqs. 11-18; the paper's eq. 15 multiplies by e_l . e_N where it must divide.
     """
-    x, theta = _checked(geometry, x, theta)
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
+    x, theta = checked_poses(geometry, x, theta)
+    terms = leg_terms(geometry, x, theta)
+    e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
     with np.errstate(divide="ignore", invalid="ignore"):
-        scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
+        scale = 1.0 / (geometry.crank_length * np.sum(e_l * terms.e_N, axis=-1))
         W = np.swapaxes(tau1 * scale[..., None], -1, -2)
-    return _finite_or_singular("W", W, x)
+    return finite_or_singular("W", W, x)
 
 
 def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
@@ -351,10 +394,10 @@ def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
 
     Kept to document the discrepancy (docs/paper_notes.md); use :func:`wrench_map` or :func:`tau`.
     """
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)
-    scale = np.sum(e_l * e_N, axis=-1) / geometry.crank_length
+    terms = leg_terms(geometry, x, theta)
+    e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)
+    scale = np.sum(e_l * terms.e_N, axis=-1) / geometry.crank_length
     return np.swapaxes(tau1 * scale[..., None], -1, -2)
 
 
@@ -373,7 +416,7 @@ class FkStatus:
     residual: float
 
 
-def _wrap(angle):
+def wrap_angle(angle):
     """Angles wrapped to [-pi, pi), rad."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
 
@@ -381,7 +424,7 @@ def _wrap(angle):
 def _fk_residual(geometry: RobotGeometry, x, theta_target):
     """(theta of x, wrapped residual (n, 6), 2-norm (n,), max-abs (n,)); inf where unreachable."""
     theta, _ = ik_unchecked(geometry, x)
-    r = _wrap(theta - theta_target)
+    r = wrap_angle(theta - theta_target)
     bad = ~np.all(np.isfinite(r), axis=-1)
     norm2 = np.where(bad, np.inf, np.linalg.norm(np.where(np.isfinite(r), r, 0.0), axis=-1))
     norm_max = np.where(bad, np.inf, np.abs(np.where(np.isfinite(r), r, 0.0)).max(axis=-1))
@@ -390,7 +433,7 @@ def _fk_residual(geometry: RobotGeometry, x, theta_target):
 
 def _assembly_mode(geometry: RobotGeometry, x, theta) -> np.ndarray:
     """(n,) sign of det J(x): +-1, 0 where J is singular or not finite."""
-    J = _jacobian(geometry, x, theta)
+    J = jacobian_unchecked(geometry, x, theta)
     finite = np.all(np.isfinite(J), axis=(-2, -1))
     return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
 
@@ -444,7 +487,7 @@ def fk_unchecked(
         idx = np.flatnonzero(~failed & (errmax > tol))
         if idx.size == 0:
             break
-        J = _jacobian(geometry, x[idx], th_k[idx])
+        J = jacobian_unchecked(geometry, x[idx], th_k[idx])
         finite = np.all(np.isfinite(J), axis=(-2, -1))
         J = np.where(finite[:, None, None], J, np.eye(6))
         try:
@@ -619,7 +662,7 @@ def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
 
 def leg_vectors_single(geometry: RobotGeometry, cache: tuple):
     """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
-    of the pose :func:`ik_single` was given (its cache); as in :func:`_leg_terms`."""
+    of the pose :func:`ik_single` was given (its cache); as in :func:`leg_terms`."""
     x, _, _, l, theta = cache
     a, d_B = geometry.crank_length, geometry.d_B
     with np.errstate(invalid="ignore"):
@@ -653,7 +696,7 @@ def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     return theta, jacobian_single(geometry, cache)
 
 
-def _singular_values_of(J: np.ndarray) -> np.ndarray:
+def singular_values_of(J: np.ndarray) -> np.ndarray:
     """(..., 6) descending singular values; NaN rows where J has NaN, inf where J has inf."""
     flat = J.reshape(-1, 6, 6)
     out = np.full(flat.shape[:1] + (6,), np.nan)
@@ -679,7 +722,7 @@ def singular_values(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     x = as_poses("pose x", x)
     if theta is None:
         theta, _ = ik_unchecked(geometry, x)
-    return _singular_values_of(_jacobian(geometry, x, theta))
+    return singular_values_of(jacobian_unchecked(geometry, x, theta))
 
 
 def singularity_measures(geometry: RobotGeometry, x, theta=None):
@@ -715,7 +758,12 @@ def singularity_measures(geometry: RobotGeometry, x, theta=None):
 def singularity_measures_unchecked(geometry: RobotGeometry, x, theta=None):
     """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
     validator of a path); x must still be finite poses (..., 6)."""
-    sv = singular_values(geometry, x, theta)  # validates x
+    return singularity_measures_of(singular_values(geometry, x, theta))  # validates x
+
+
+def singularity_measures_of(sv: np.ndarray):
+    """(cond, sigma_min_inv) of :func:`singularity_measures` from the singular values sv
+    (..., 6) of the Jacobian (:func:`singular_values_of`)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
         inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])

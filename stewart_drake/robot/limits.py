@@ -30,13 +30,18 @@ from ..base.errors import (
 from .kinematics import (
     DEFAULT_COND_THRESHOLD,
     X_HOME,
+    LegTerms,
     RobotGeometry,
-    _wrap,
+    finite_or_singular,
     ik,
     ik_unchecked,
+    jacobian_of,
+    leg_terms,
     platform_joints,
     rotation_rpy,
-    singularity_measures_unchecked,
+    singular_values_of,
+    singularity_measures_of,
+    wrap_angle,
 )
 
 #: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
@@ -72,7 +77,7 @@ def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     return e_l @ rotation_rpy(X_HOME[:3])  # R^T e_l, row-wise
 
 
-def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
+def joint_angles(geometry: RobotGeometry, x, theta=None, terms: LegTerms | None = None) -> dict:
     """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
 
     Returns a dict:
@@ -82,19 +87,22 @@ def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
             plane of rotation and this angle is its tilt out of that plane (19.4 deg at home).
         ``platform_joint``: angle between the rod and the axis of its ball socket on the
             platform; each socket is mounted along its rod's home direction (0 at home).
-    NaN where a leg cannot close.
+    NaN where a leg cannot close. ``terms``: the poses' :class:`~.kinematics.LegTerms` when
+    already computed (theta is then theirs).
     """
     x = np.asarray(x, dtype=float)
-    if theta is None:
-        theta, _ = ik_unchecked(geometry, x)
-    q_B, _ = platform_joints(geometry, x)
-    ell = q_B - geometry.crank_tips(theta)
+    if terms is not None:
+        theta, ell, R = terms.theta, terms.ell, terms.R
+    else:
+        if theta is None:
+            theta, _ = ik_unchecked(geometry, x)
+        q_B, _ = platform_joints(geometry, x)
+        ell, R = q_B - geometry.crank_tips(theta), rotation_rpy(x[..., :3])
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    R = rotation_rpy(x[..., :3])
     e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
     cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
     return {
-        "motor_angle": _wrap(theta),
+        "motor_angle": wrap_angle(theta),
         "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
         "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
     }
@@ -134,13 +142,16 @@ def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     return limit_margins_unchecked(geometry, x, theta, ratio)
 
 
-def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
+def limit_margins_unchecked(
+    geometry: RobotGeometry, x, theta=None, ratio=None, terms: LegTerms | None = None
+) -> dict:
     """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
-    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
+    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator, which
+    gives the poses' :class:`~.kinematics.LegTerms` as ``terms``)."""
     x = np.asarray(x, dtype=float)
     if theta is None or ratio is None:
         theta, ratio = ik_unchecked(geometry, x)
-    angles = joint_angles(geometry, x, theta)
+    angles = joint_angles(geometry, x, theta, terms)
     lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
     m = angles["motor_angle"]
     return {
@@ -151,8 +162,9 @@ def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) 
     }
 
 
-def _reachable_from_margins(margins: dict) -> np.ndarray:
-    # NaN counts as violated.
+def reachable_from_margins(margins: dict) -> np.ndarray:
+    """(...) bool: every leg inside every limit of :data:`LIMITS` by ``margins``
+    (:func:`limit_margins_unchecked`); NaN counts as violated."""
     return reduce(np.logical_and, (np.all(margins[name] >= 0.0, axis=-1) for name in LIMITS))
 
 
@@ -231,7 +243,7 @@ def is_reachable(geometry: RobotGeometry, x) -> Reachability:
     x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
     margins = limit_margins_unchecked(geometry, x, theta, ratio)
-    return Reachability(_reachable_from_margins(margins), margins, theta)
+    return Reachability(reachable_from_margins(margins), margins, theta)
 
 
 #: Default share of the servos' peak torque and no-load speed a reference may use; the rest is
@@ -537,56 +549,82 @@ def validate_trajectory(
     """
     # Long for its docstring: the one validator of a reference documents every check and error.
     t, x = _checked_samples(t, x, x_dot, x_ddot)
-    cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
-    min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
+    checks = _PathChecks(
+        as_number("cond_threshold", cond_threshold, 1.0, lo_open=True),
+        as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0),
+        raise_unreachable,
+        raise_refused,
+        clearance,
+        min_clearance_m,
+        clearance_resolution_m,
+        motor_limits,
+        allow_infeasible,
+    )
+    return _validated(geometry, t, x, x_dot, x_ddot, checks)
+
+
+@dataclass(frozen=True)
+class _PathChecks:
+    """The checks :func:`validate_trajectory` was asked for (its arguments, the thresholds
+    checked), handed whole to its steps."""
+
+    cond_threshold: float
+    min_sigma_min_inv: float
+    raise_unreachable: bool
+    raise_refused: bool
+    clearance: Any
+    min_clearance_m: float
+    clearance_resolution_m: float
+    motor_limits: MotorLimits | None
+    allow_infeasible: bool
+
+
+def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> TrajectoryReport:
+    """:func:`validate_trajectory` of checked samples. The kinematics of the samples (inverse
+    kinematics, leg terms, Jacobian) are computed once, for the limits, the singularity
+    measures and the motors' effort alike."""
     theta, ratio = ik_unchecked(geometry, x)
     closed = np.abs(ratio) <= 1.0
-    if raise_unreachable and not np.all(closed):
-        k = int(np.argmax(~np.all(closed, axis=1)))
-        if raise_refused and k > 0:  # an earlier refusal of another kind comes first
-            validate_trajectory(
-                geometry,
-                t[:k],
-                x[:k],
-                cond_threshold,
-                raise_unreachable,
-                min_sigma_min_inv,
-                raise_refused,
-                None if x_dot is None else np.asarray(x_dot)[:k],
-                None if x_ddot is None else np.asarray(x_ddot)[:k],
-                clearance,
-                min_clearance_m,
-                clearance_resolution_m,
-                motor_limits,
-                allow_infeasible,
-            )
-        leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
-        raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
-    margins = limit_margins_unchecked(geometry, x, theta, ratio)
-    cond, inv = singularity_measures_unchecked(geometry, x, theta)
+    if checks.raise_unreachable and not np.all(closed):
+        _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks)
+    terms = leg_terms(geometry, x, theta)
+    J = jacobian_of(geometry, terms)
+    cond, inv = singularity_measures_of(singular_values_of(J))
+    margins = limit_margins_unchecked(geometry, x, theta, ratio, terms)
     cond_f = np.where(np.isnan(cond), np.inf, cond)
     inv_f = np.where(np.isnan(inv), 0.0, inv)
     reachable = np.all(closed, axis=1)
     series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
     extra = {"series": series}
-    if clearance is not None:
+    if checks.clearance is not None:
+        threshold = as_number("min_clearance_m", checks.min_clearance_m, 0.0)
         extra.update(
             _clearance_fields(
-                clearance,
-                t,
-                x,
-                reachable,
-                as_number("min_clearance_m", min_clearance_m, 0.0),
-                clearance_resolution_m,
-                series,
+                checks.clearance, t, x, reachable, threshold, checks.clearance_resolution_m, series
             )
         )
-    if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits, series))
-    report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
-    if raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
+    if checks.motor_limits is not None:
+        extra.update(
+            _effort_fields(
+                geometry, t, x, x_dot, x_ddot, reachable, checks.motor_limits, series, terms, J
+            )
+        )
+    report = _report(t, margins, cond_f, inv_f, checks, extra)
+    if checks.raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f, checks.allow_infeasible)
     return report
+
+
+def _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks: _PathChecks):
+    """Raise the UnreachablePoseError of the first sample where a leg cannot close; with
+    ``raise_refused``, an earlier refusal of another kind first (the samples before it are
+    validated)."""
+    k = int(np.argmax(~np.all(np.abs(ratio) <= 1.0, axis=1)))
+    if checks.raise_refused and k > 0:  # an earlier refusal of another kind comes first
+        head = [None if v is None else np.asarray(v)[:k] for v in (x_dot, x_ddot)]
+        _validated(geometry, t[:k], x[:k], head[0], head[1], checks)
+    leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
+    raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
 
 
 def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
@@ -613,11 +651,11 @@ def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
     return t, x
 
 
-def _report(
-    t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float, extra: dict
-) -> TrajectoryReport:
+def _report(t, margins: dict, cond_f, inv_f, checks: _PathChecks, extra: dict) -> TrajectoryReport:
     """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
-    already mapped to the worst value), with the clearance and effort fields in ``extra``."""
+    already mapped to the worst value) against the thresholds of ``checks``, with the clearance
+    and effort fields in ``extra``."""
+    cond_threshold, min_sigma_min_inv = checks.cond_threshold, checks.min_sigma_min_inv
     min_margin, min_leg, min_t = {}, {}, {}
     first = None
     for name in LIMITS:
@@ -695,11 +733,12 @@ def _clearance_fields(
 
 
 def _effort_fields(
-    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict
+    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict, terms, J
 ) -> dict:
     """The torque and speed entries of a :class:`TrajectoryReport` (see
-    :func:`validate_trajectory`); adds the torque and speed series to ``series``."""
-    from .statics import motor_effort
+    :func:`validate_trajectory`), from the validator's leg terms and Jacobian J of the samples;
+    adds the torque and speed series to ``series``."""
+    from .statics import motor_effort_of
 
     if x_dot is None or x_ddot is None:
         raise InvalidConfigError(
@@ -710,12 +749,15 @@ def _effort_fields(
     rows = np.flatnonzero(reachable)
     if rows.size == 0:
         return {}
-    T, speed = motor_effort(
+    x_rows = x[rows]
+    T, speed = motor_effort_of(
         geometry,
-        x[rows],
+        x_rows,
         np.asarray(x_dot, float)[rows],
         np.asarray(x_ddot, float)[rows],
         limits_.servo,
+        terms.rows(rows),
+        finite_or_singular("J", J[rows], x_rows),
     )
     for name, value in (("torque", T), ("speed", speed)):
         series[name] = np.full(x.shape, np.nan)
