@@ -7,7 +7,7 @@ import pytest
 from stewart_drake.references.trajectories import data_collection_trajectory
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run import simulate as experiments
-from stewart_drake.run.diagram import held_station
+from stewart_drake.run.diagram import controller_context, held_station
 from stewart_drake.run.plan import RunPlan, check_reference, make_plan
 from stewart_drake.run.scenario import DataCollectionReference, Scenario
 from stewart_drake.run.scenario_io import load_scenario
@@ -111,14 +111,15 @@ def test_a_run_validates_its_scenario_once(monkeypatch):
 
 def test_each_controller_context_has_its_own_pose_estimator():
     plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
-    a, b = (plan.controller_context(X_HOME, np.zeros(6)) for _ in range(2))
+    a, b = (controller_context(plan, X_HOME, np.zeros(6)) for _ in range(2))
     assert a.pose_estimator is not None and a.pose_estimator is not b.pose_estimator
     assert (a.torque_limit_Nm, a.delay_periods, a.offset_s) == (
         plan.torque_limit_Nm,
         1,
         plan.sample_offset_s,
     )
-    assert make_plan(Scenario()).controller_context(X_HOME, np.zeros(6)).pose_estimator is None
+    ideal = controller_context(make_plan(Scenario()), X_HOME, np.zeros(6))
+    assert ideal.pose_estimator is None
 
 
 def test_the_reference_check_uses_the_simulated_robot():

@@ -418,7 +418,8 @@ def _push_run(contact: bool):
 
 def _run_with_states(scenario):
     """(RunResult, logged plant states (N, nq + nv)) of a guarded run."""
-    from stewart_drake.run.simulate import advance, build_simulator, collect_result
+    from stewart_drake.run.result import collect_result
+    from stewart_drake.run.simulate import advance, build_simulator
     from stewart_drake.station import guard as run_guard
 
     with warnings.catch_warnings():

@@ -27,9 +27,9 @@ from stewart_drake.live.plant_backend import (  # noqa: E402
 )
 from stewart_drake.live.session import RobotRun, _drive, end_line, zero_counts_at  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
+from stewart_drake.run.result import load_result  # noqa: E402
 from stewart_drake.run.scenario import dump_scenario
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
-from stewart_drake.run.simulate import load_result  # noqa: E402
 from stewart_drake.station.bus import driver  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
@@ -79,9 +79,9 @@ def _kill_then(signum, original):
 
 
 def _in_read_run(monkeypatch, signum):
-    from stewart_drake.run import simulate as experiments
+    from stewart_drake.run import result
 
-    monkeypatch.setattr(experiments, "read_run", _kill_then(signum, experiments.read_run))
+    monkeypatch.setattr(result, "read_run", _kill_then(signum, result.read_run))
 
 
 def _in_yaml_dump(monkeypatch, signum):

@@ -381,7 +381,8 @@ def _cmd_run(args) -> int:
     from ..base.fileio import check_replaceable
     from ..paper.run_report import plot_fig7
     from ..run.metrics import format_metrics
-    from ..run.simulate import export_result, run_experiment, save_result
+    from ..run.result import export_result, save_result
+    from ..run.simulate import run_experiment
 
     scenario = run_scenario(args)
     out = Path(args.out)

@@ -17,7 +17,7 @@ out of it removes the torque:
 5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
    deadline, a guard trip, our watchdog), removes the torque, says in one line why it ended
    and whether every servo confirmed the torque off, and keeps the logs (the ``.npz`` of a
-   simulated run; :func:`~stewart_drake.run.simulate.save_result`).
+   simulated run; :func:`~stewart_drake.run.result.save_result`).
 
 At the end of a run the torque is off: the platform comes down onto its stops. Home it low (the
 scenario's reference ends where the platform may rest) or hold it (``hold_s``) and support it.
@@ -570,15 +570,9 @@ def _run(
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
     from ..run.diagram import make_stewart_diagram
-    from ..run.plan import make_plan
-    from ..run.simulate import (
-        advance,
-        check_reference_shown,
-        check_run_memory,
-        finish_result,
-        read_run,
-        save_result,
-    )
+    from ..run.plan import check_reference_shown, check_run_memory, make_plan
+    from ..run.result import finish_result, read_run, save_result
+    from ..run.simulate import advance
     from ..station.bus.station import HardwareStation
     from ..station.guard import advance as guarded
 

@@ -27,7 +27,7 @@ from ..base.fileio import atomic_write
 from ..references.motion import Reference
 
 if TYPE_CHECKING:  # for the annotation only: the functions import experiments when they run
-    from ..run.simulate import RunResult
+    from ..run.result import RunResult
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 #: An axis moves when its reference's peak to peak exceeds this: 10 um or 50 urad.
@@ -387,7 +387,7 @@ class Reproduction:
     Attributes:
         name: the motion's name. reference: the reference run (scaled when it had to be).
         scale: the scale applied to fit the robot (1: as given).
-        result: the :class:`~.simulate.RunResult` (true pose, reference, torques).
+        result: the :class:`~.result.RunResult` (true pose, reference, torques).
         cycle_starts: (K + 1,) the cycles of the run, s (empty for a reference without).
         learn_cycles: cycles learned from (0: no learning).
         fidelity: :func:`fidelity` over the evaluation window (the last ``eval_cycles``).
@@ -485,14 +485,15 @@ def run(
     scenario, reference: Reference, progress: bool = False, desc: str = "simulating", report=None
 ):
     """Simulate ``scenario`` on ``reference`` (checked first unless its check's ``report`` is
-    given, guarded): (:class:`~.simulate.RunResult`, the learner's status log (n + 1, k) or
+    given, guarded): (:class:`~.result.RunResult`, the learner's status log (n + 1, k) or
     None, wall s, the learned weights (p, 6) of a feed-forward learner at the end or None).
 
     The learner's log has a row at each of the result's ``t_state`` (every
     ``state_log_period_s``) and ends with its state at the end of the run (the loggers' last
     sample is one period earlier: the update of a cycle's last sample would otherwise be
     missing)."""
-    from ..run.simulate import build_simulator, finish_result, release_reference, simulate
+    from ..run.result import finish_result, release_reference
+    from ..run.simulate import build_simulator, simulate
 
     # A reproduction reads the pose, the torques and the status, not the controller's integral
     # or error estimate: a 25-minute trace is 72 MB lighter without them.
@@ -687,8 +688,7 @@ def reproduce(
         SimulationDivergedError: the guard stopped the run.
     """
     from ..references.trajectories import as_trajectory
-    from ..run.plan import make_plan
-    from ..run.simulate import check_reference_shown, check_run_memory
+    from ..run.plan import check_reference_shown, check_run_memory, make_plan
 
     _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference

@@ -26,18 +26,16 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ..base.errors import InvalidConfigError
 from ..control.contract import ControllerContext, check_controller
-from ..control.estimator import FkEstimator
-from ..control.feedforward_tuning import FeedforwardTuningLearner
-from ..control.ilc import IterativeLearningController
+from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
 from ..station.guard import DivergenceGuard
 from ..station.station import PlatformPoseSensor, StewartStation, add_white_noise
 from .plan import RunPlan, make_plan
-from .reference import ReferenceSources, add_reference_sources
+from .reference import ReferenceSources, add_run_reference
+from .result import add_run_logs
 from .scenario import Scenario, dump_scenario
-from .signal_log import SignalLog
 
 #: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
 Station = StewartStation | HardwareStation
@@ -63,6 +61,8 @@ class StewartDiagram:
             scenario learns (``learning``), or None.
         lcm: the ``DrakeLcm`` the status and commands are published on (the scenario's
             ``lcm``; subscribe to it to receive them in process), or None.
+        x_initial, x_dot_initial: (6,) where the run starts, the reference's pose and rate at
+            t = 0 [rad, m; rad/s, m/s] (a live reference's start pose, at rest).
     """
 
     diagram: Diagram
@@ -80,6 +80,8 @@ class StewartDiagram:
     T_ff_initial: np.ndarray | None = None
     learner: System | None = None
     lcm: Any = None  # the DrakeLcm of the scenario's ``lcm``, or None
+    x_initial: np.ndarray | None = None
+    x_dot_initial: np.ndarray | None = None
 
     @property
     def scenario(self) -> Scenario:
@@ -181,7 +183,7 @@ def make_stewart_diagram(
         (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
         has them "status", "integral", "e_bar" (the error the controller acted on: its
         estimate, on the hardware), every ``log_period_s`` in float32
-        (:class:`~.signal_log.SignalLog`); "state" (the plant state, float64) every
+        (:class:`~.result.SignalLog`); "state" (the plant state, float64) every
         ``state_log_period_s``, with a learner's status under its ``status_port`` name; with
         the tuner "rho" (12, every tuner period).
     Raises:
@@ -196,30 +198,45 @@ def make_stewart_diagram(
         controller=controller,
         with_reference=reference_system is None,
     )
+    return build_diagram(
+        plan, meshcat, reference_system=reference_system, controller_logs=controller_logs
+    )
+
+
+def build_diagram(
+    plan: RunPlan,
+    meshcat=None,
+    *,
+    reference_system=None,
+    controller_logs: bool = True,
+    lcm=None,
+) -> StewartDiagram:
+    """The closed-loop Diagram of a plan: :func:`make_stewart_diagram` without planning (a run
+    built from a checked plan, :func:`~.simulate.build_simulator`).
+
+    Args:
+        plan: the :class:`~.plan.RunPlan` (with its reference object, unless
+            ``reference_system`` is given). meshcat, reference_system, controller_logs: as
+            :func:`make_stewart_diagram`.
+        lcm: the ``DrakeLcm`` of the scenario's ``lcm`` when the caller has made it (and so
+            checked its URL: :func:`~stewart_drake.station.lcm_publish.make_lcm`); made here
+            otherwise.
+    Returns:
+        :class:`StewartDiagram`.
+    """
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = make_stewart_station(plan, meshcat)
-    builder.AddSystem(station)
-    ref = _add_reference(builder, plan, trajectory, reference_system)
-    context = plan.controller_context(ref.x0, ref.x_dot0)
+    station = builder.AddSystem(_station(plan, meshcat))
+    ref = add_run_reference(builder, plan, trajectory, reference_system)
+    context = controller_context(plan, ref.x0, ref.x_dot0)
     system = _add_controller(builder, plan.controller_factory(context))
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
     x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
-    sources = {
-        "x_d": x_d,
-        "T_ff": ref.T_ff,
-        "x": measured,
-        "motor_angle": station.GetOutputPort("motor_angle"),
-        "motor_rate": station.GetOutputPort("motor_rate"),
-        "motor_torque_applied": applied,
-    }
-    for name in inputs - {"omega"}:
-        builder.Connect(sources[name], system.GetInputPort(name))
-    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
+    _connect_controller(builder, system, station, inputs, x_d, ref.T_ff, measured)
     _add_disturbance(builder, station, plan, live=reference_system is not None)
     features, tuner, loggers = _add_weights(
         builder,
@@ -236,16 +253,13 @@ def make_stewart_diagram(
         ),
     )
     logged = outputs if controller_logs else outputs - {"integral", "e_bar"}
-    loggers.update(_add_loggers(builder, station, system, logged, scenario, learner))
+    loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
     guard = _add_guard(builder, station, system, ref.x_d, plan)
-    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario)
+    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario, lcm)
     if reference_system is not None:
-        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
-        builder.ExportOutput(ref.x_d, "x_d")
-        if reference_system.HasOutputPort("limited"):
-            builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
+        _export_live(builder, station, ref, reference_system)
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(
@@ -264,84 +278,84 @@ def make_stewart_diagram(
         T_ff_initial=ref.T_ff_initial,
         learner=learner,
         lcm=lcm,
+        x_initial=ref.x0,
+        x_dot_initial=ref.x_dot0,
     )
 
 
-def _add_lcm(builder, station: Station, system: System, x: OutputPort, x_d: OutputPort, scenario):
+def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:
+    """What the run of ``plan`` tells its controller's factory, starting at pose x0 (6,)
+    [rad, m] moving at x_dot0 (6,) [rad/s, m/s]: on the robot as built a new encoders' pose
+    estimator, with a network tuner its features' window. A new context (and estimator) each
+    call."""
+    hw, h = plan.scenario.hardware, plan.control_period_s
+    pose_estimator = (
+        None
+        if hw is None
+        else PoseEstimator(
+            plan.geometry,
+            h,
+            hw.encoders.quantum_rad,
+            x0,
+            rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
+            tolerance_counts=hw.estimator.fk_tolerance_counts,
+        )
+    )
+    tuner = plan.scenario.tuner
+    return ControllerContext(
+        geometry=plan.geometry,
+        period_s=h,
+        offset_s=plan.sample_offset_s,
+        plant_time_step_s=plan.plant_time_step_s,
+        x_initial=x0,
+        x_dot_initial=x_dot0,
+        torque_limit_Nm=plan.torque_limit_Nm,
+        delay_periods=plan.delay_periods,
+        pose_estimator=pose_estimator,
+        feature_window=None if tuner is None else tuner.density_window(),
+    )
+
+
+def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measured) -> None:
+    """The controller's inputs, connected by name as the controller contract says (``omega`` is
+    the weights' stage), and its ``T`` to the station's ``motor_torque``."""
+    sources = {
+        "x_d": x_d,
+        "T_ff": T_ff,
+        "x": measured,
+        "motor_angle": station.GetOutputPort("motor_angle"),
+        "motor_rate": station.GetOutputPort("motor_rate"),
+        "motor_torque_applied": station.GetOutputPort("motor_torque_applied"),
+    }
+    for name in inputs - {"omega"}:
+        builder.Connect(sources[name], system.GetInputPort(name))
+    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
+
+
+def _export_live(builder, station, ref, reference_system) -> None:
+    """With a live reference: the station's ``platform_state``, the reference ``x_d`` and, if it
+    has one, its ``limited`` port exported for a display."""
+    builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+    builder.ExportOutput(ref.x_d, "x_d")
+    if reference_system.HasOutputPort("limited"):
+        builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
+
+
+def _add_lcm(builder, station, system: System, x: OutputPort, x_d: OutputPort, scenario, lcm):
     """With the scenario's ``lcm``, the status (the station's measurements, the pose ``x`` the
     controller reads, the reference; on the servo bus the driver's loop numbers) and the
-    controller's torque commands published on their channels (:mod:`~.lcm_publish`). Returns
-    the ``DrakeLcm``, or None."""
+    controller's torque commands published on their channels
+    (:func:`~stewart_drake.station.lcm_publish.add_run_publishers`), on ``lcm`` or a
+    ``DrakeLcm`` made here (:func:`~stewart_drake.station.lcm_publish.make_lcm`, which refuses a
+    URL on which nothing published arrives). Returns the ``DrakeLcm``, or None."""
     config = scenario.lcm
     if config is None:
         return None
-    from ..station.lcm_publish import add_command_publisher, add_status_publisher, make_lcm
+    from ..station.lcm_publish import add_run_publishers, make_lcm
 
-    lcm = make_lcm(config.url)  # refuses a URL on which nothing published arrives
-    ports = {
-        name: station.GetOutputPort(name)
-        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
-    }
-    if station.HasOutputPort("loop"):
-        ports["loop"] = station.GetOutputPort("loop")
-    add_status_publisher(
-        builder, lcm, ports | {"x": x, "x_d": x_d}, config.period_s, config.status_channel
-    )
-    add_command_publisher(
-        builder, lcm, system.GetOutputPort("T"), config.period_s, config.command_channel
-    )
+    lcm = make_lcm(config.url) if lcm is None else lcm
+    add_run_publishers(builder, lcm, config, station, system.GetOutputPort("T"), x, x_d)
     return lcm
-
-
-@dataclass(frozen=True)
-class _Reference:
-    """The reference's system and ports, and where the run starts: x0, x_dot0 (6,) and the
-    feed-forward T_ff_initial (6,) N m."""
-
-    system: ReferenceSources | System
-    x_d: OutputPort
-    T_ff: OutputPort
-    x0: np.ndarray
-    x_dot0: np.ndarray
-    T_ff_initial: np.ndarray
-
-
-def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Reference:
-    """The precomputed reference and feed-forward of ``trajectory`` (:mod:`~.reference`), or
-    the live ``reference_system`` with its inputs exported."""
-    h_plant, h = plan.plant_time_step_s, plan.control_period_s
-    if reference_system is None:
-        ref = add_reference_sources(
-            builder,
-            trajectory,
-            plan.geometry,
-            plan.duration_s,
-            period_s=h,
-            offset_s=plan.sample_offset_s,
-            lead_s=0.5 * h_plant,
-            feedforward=plan.scenario.feedforward,
-            feedforward_lead_s=plan.delay_periods * h,
-        )
-        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
-        return _Reference(
-            ref,
-            ref.x_d.get_output_port(),
-            ref.T_ff.get_output_port(),
-            x0,
-            x_dot0,
-            ref.T_ff_table[0].copy(),  # a view would keep the whole table after its release
-        )
-    ref = builder.AddNamedSystem("reference", reference_system)
-    for i in range(ref.num_input_ports()):
-        builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
-    return _Reference(
-        ref,
-        ref.GetOutputPort("x_d"),
-        ref.GetOutputPort("T_ff"),
-        np.asarray(ref.x_initial, dtype=float),
-        np.zeros(6),
-        np.asarray(ref.T_ff_initial, dtype=float),
-    )
 
 
 def _add_controller(builder, system: System) -> System:
@@ -461,58 +475,13 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
     return None, None, {}
 
 
-def _add_loggers(
-    builder,
-    station: Station,
-    system: System,
-    outputs: set,
-    scenario: Scenario,
-    learner: IterativeLearningController | FeedforwardTuningLearner | None = None,
-) -> dict:
-    """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
-    true platform pose and rate "x", the applied torques "T" and the controller's "status",
-    "integral", "e_bar" when it has them; every ``state_log_period_s`` the plant's "state" in
-    float64 (a replay's frames, the loop-closure error, a divergence record) and a learner's
-    status under its ``status_port`` name (it changes once a cycle or stretch: logging it every
-    millisecond cost 0.26 kB a sample; the correction itself is not logged, nothing reads it)."""
-    signals = {
-        "x": (station.GetOutputPort("platform_state"), np.float32),
-        "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
-    }
-    for name in ("status", "integral", "e_bar"):
-        if name in outputs:
-            signals[name] = (system.GetOutputPort(name), np.float32)
-    slow = {"state": (station.GetOutputPort("plant_state"), np.float64)}
-    if learner is not None:
-        slow[learner.status_port] = (learner.GetOutputPort(learner.status_port), np.float64)
-    loggers = {}
-    for log_name, period, group in (
-        ("log_signals", scenario.log_period_s, signals),
-        ("log_state", scenario.state_log_period_s, slow),
-    ):
-        log = builder.AddNamedSystem(
-            log_name,
-            SignalLog(
-                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
-                period,
-                scenario.duration_s,
-            ),
-        )
-        for name, (port, _) in group.items():
-            builder.Connect(port, log.GetInputPort(name))
-            loggers[name] = log.logger(name)
-    return loggers
-
-
 def _add_guard(
     builder, station: Station, system: System, x_d: OutputPort, plan: RunPlan
 ) -> DivergenceGuard:
     """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
     reference and, with contact, the contact results."""
     contact = plan.scenario.contact
-    guard = builder.AddNamedSystem(
-        "guard", DivergenceGuard(station, plan.scenario.guard, plan.plant_geometry, contact)
-    )
+    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan))
     builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
     builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
     builder.Connect(x_d, guard.GetInputPort("x_d"))
@@ -541,12 +510,13 @@ def make_stewart_station(scenario=None, meshcat=None):
         InvalidConfigError, InvalidGeometryError: the scenario does not validate.
         MissingExtraError: a scenario with ``bus`` without dynamixel-sdk installed.
     """
-    from .plan import make_plan
+    return _station(make_plan(scenario, with_reference=False), meshcat)
 
-    plan = make_plan(scenario, with_reference=False)
+
+def _station(plan: RunPlan, meshcat=None) -> Station:
+    """The station of a plan: :class:`StewartStation`, or with the scenario's ``bus`` the
+    :class:`~.bus.station.HardwareStation`."""
     if plan.scenario.bus is not None:
-        from ..station.bus.station import HardwareStation
-
         return HardwareStation(plan, meshcat)
     return StewartStation(plan, meshcat)
 

@@ -41,7 +41,7 @@ from pydrake.systems.primitives import (
 from ..base.checks import MAX_SEED, as_number
 from ..base.checks import check_int as _check_int
 from ..base.errors import InvalidConfigError
-from ..plant.plant import StewartPlantHandles, assemble
+from ..plant.plant import StewartPlantHandles, add_stewart_plant, assemble
 from ..robot.kinematics import X_HOME
 from ..robot.statics import p_ETool
 
@@ -152,7 +152,7 @@ class ToolDisturbance:
 # -- the station ---------------------------------------------------------------------------
 
 
-def _weak(method):
+def weak_callback(method):
     """``method`` (a bound method of a system) as a callback that does not keep its system
     alive. pydrake stores a system's callbacks in C++, where Python's garbage collector cannot
     see the cycle system -> callback -> system; drake 1.58 breaks it for events and vector
@@ -183,7 +183,7 @@ class ToolWrench(LeafSystem):
         self.DeclareAbstractOutputPort(
             "spatial_forces",
             lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            _weak(self._Calc),
+            weak_callback(self._Calc),
             prerequisites_of_calc={self.all_input_ports_ticket()},
         )
 
@@ -318,6 +318,25 @@ def _pose_and_rate(q, p, w_WE, v_WE, atan2, sqrt) -> list:
     return [roll, pitch, yaw, *p, roll_dot, -sy * wx + cy * wy, wz + sp * roll_dot, *v_WE]
 
 
+def add_station_plant(builder, plan):
+    """The robot as simulated, a MultibodyPlant named "plant" with its SceneGraph, added to
+    ``builder``: :func:`~stewart_drake.plant.plant.add_stewart_plant` with the plan's
+    ``plant_geometry`` and ``servo`` and its scenario's plant settings, contact and rod model
+    (``plan`` a :class:`~stewart_drake.run.plan.RunPlan`). Returns (plant, scene_graph,
+    handles)."""
+    scenario = plan.scenario
+    plant, scene_graph, handles = add_stewart_plant(
+        builder,
+        plan.plant_geometry,
+        plant_config=scenario.plant,
+        servo=plan.servo,
+        contact=scenario.contact,
+        rod_model=scenario.rod_model,
+    )
+    plant.set_name("plant")
+    return plant, scene_graph, handles
+
+
 def _connect_actuators(builder, applied, handles) -> None:
     """The applied torques to the plant's actuation input; with the servo's dry-friction
     actuators (12 in all), those take no command and their desired state is zero."""
@@ -376,7 +395,7 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         scenario = plan.scenario
-        plant, scene_graph, handles = plan.add_plant(builder)
+        plant, scene_graph, handles = add_station_plant(builder, plan)
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")

@@ -56,7 +56,7 @@ from ...robot.kinematics import (
     jacobian,
     jacobian_single,
 )
-from ..station import PlatformPoseSensor
+from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
 
@@ -407,7 +407,7 @@ class HardwareStation(Diagram):
         super().__init__()
         scenario = plan.scenario
         model_builder = DiagramBuilder()
-        plant, scene_graph, handles = plan.add_plant(model_builder)
+        plant, scene_graph, handles = add_station_plant(model_builder, plan)
         if meshcat is not None:
             from pydrake.visualization import ApplyVisualizationConfig
 
