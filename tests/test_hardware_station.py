@@ -156,7 +156,7 @@ def _port_names(system) -> tuple[set, set]:
 def test_the_hardware_station_exports_the_simulated_stations_ports():
     station = make_stewart_station(bus_scenario())
     assert isinstance(station, HardwareStation) and station.get_name() == "station"
-    simulated = make_stewart_station(make_plan(bus_scenario()).scenario.as_built())
+    simulated = make_stewart_station(make_plan(bus_scenario()).scenario)  # the robot as built
     inputs, outputs = _port_names(station)
     sim_inputs, sim_outputs = _port_names(simulated)
     assert inputs == sim_inputs == {"motor_torque", "tool_wrench"}

@@ -276,12 +276,10 @@ class LegTerms(NamedTuple):
         return LegTerms(*(a[index] for a in self))
 
 
-def leg_terms(geometry: RobotGeometry, x, theta=None) -> LegTerms:
-    """The :class:`LegTerms` of poses x (..., 6), theta their motor angles (default :func:`ik`,
-    which raises for an unreachable pose; given, NaN angles give NaN terms). Not validated."""
+def leg_terms(geometry: RobotGeometry, x, theta) -> LegTerms:
+    """The :class:`LegTerms` of poses x (..., 6) with their motor angles theta (..., 6) (NaN
+    angles give NaN terms). Not validated."""
     x = np.asarray(x, dtype=float)
-    if theta is None:
-        theta = ik(geometry, x)
     R = rotation_rpy(x[..., :3])
     r_B = np.einsum("...jk,ik->...ij", R, geometry.p_E)
     q_B = r_B + x[..., None, 3:6]
@@ -342,7 +340,9 @@ def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
 
 def jacobian_unchecked(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
-    unreachable; for Newton steps and singular values, which handle those themselves."""
+    unreachable; for Newton steps and singular values, which handle those themselves. theta:
+    the motor angles of x (default :func:`ik`, which raises for an unreachable pose)."""
+    theta = ik(geometry, x) if theta is None else theta
     return jacobian_of(geometry, leg_terms(geometry, x, theta))
 
 
@@ -394,7 +394,7 @@ def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
 
     Kept to document the discrepancy (docs/paper_notes.md); use :func:`wrench_map` or :func:`tau`.
     """
-    terms = leg_terms(geometry, x, theta)
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
     e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
     tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)
     scale = np.sum(e_l * terms.e_N, axis=-1) / geometry.crank_length

@@ -30,7 +30,6 @@ from ..base.errors import (
 from .kinematics import (
     DEFAULT_COND_THRESHOLD,
     X_HOME,
-    LegTerms,
     RobotGeometry,
     finite_or_singular,
     ik,
@@ -77,7 +76,7 @@ def _home_rod_in_platform(geometry: RobotGeometry) -> np.ndarray:
     return e_l @ rotation_rpy(X_HOME[:3])  # R^T e_l, row-wise
 
 
-def joint_angles(geometry: RobotGeometry, x, theta=None, terms: LegTerms | None = None) -> dict:
+def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
     """The angles the limits of :func:`limit_margins` bound, per leg, (..., 6) each in rad.
 
     Returns a dict:
@@ -87,17 +86,19 @@ def joint_angles(geometry: RobotGeometry, x, theta=None, terms: LegTerms | None 
             plane of rotation and this angle is its tilt out of that plane (19.4 deg at home).
         ``platform_joint``: angle between the rod and the axis of its ball socket on the
             platform; each socket is mounted along its rod's home direction (0 at home).
-    NaN where a leg cannot close. ``terms``: the poses' :class:`~.kinematics.LegTerms` when
-    already computed (theta is then theirs).
+    NaN where a leg cannot close.
     """
     x = np.asarray(x, dtype=float)
-    if terms is not None:
-        theta, ell, R = terms.theta, terms.ell, terms.R
-    else:
-        if theta is None:
-            theta, _ = ik_unchecked(geometry, x)
-        q_B, _ = platform_joints(geometry, x)
-        ell, R = q_B - geometry.crank_tips(theta), rotation_rpy(x[..., :3])
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
+    q_B, _ = platform_joints(geometry, x)
+    ell = q_B - geometry.crank_tips(theta)
+    return joint_angles_of(geometry, theta, ell, rotation_rpy(x[..., :3]))
+
+
+def joint_angles_of(geometry: RobotGeometry, theta, ell, R) -> dict:
+    """:func:`joint_angles` from the motor angles theta (..., 6), the rod vectors ell
+    (..., 6, 3) and R_BE (..., 3, 3) of the poses (their :class:`~.kinematics.LegTerms`)."""
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
     e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
     cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
@@ -142,16 +143,18 @@ def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     return limit_margins_unchecked(geometry, x, theta, ratio)
 
 
-def limit_margins_unchecked(
-    geometry: RobotGeometry, x, theta=None, ratio=None, terms: LegTerms | None = None
-) -> dict:
+def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
-    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator, which
-    gives the poses' :class:`~.kinematics.LegTerms` as ``terms``)."""
+    other margins NaN there (workspace sweeps, :func:`is_reachable`)."""
     x = np.asarray(x, dtype=float)
     if theta is None or ratio is None:
         theta, ratio = ik_unchecked(geometry, x)
-    angles = joint_angles(geometry, x, theta, terms)
+    return margins_of(geometry, ratio, joint_angles(geometry, x, theta))
+
+
+def margins_of(geometry: RobotGeometry, ratio, angles: dict) -> dict:
+    """:func:`limit_margins_unchecked` from the reach ratios (..., 6) and the
+    :func:`joint_angles` of the poses."""
     lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
     m = angles["motor_angle"]
     return {
@@ -584,13 +587,13 @@ def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> Trajectory
     kinematics, leg terms, Jacobian) are computed once, for the limits, the singularity
     measures and the motors' effort alike."""
     theta, ratio = ik_unchecked(geometry, x)
+    terms = leg_terms(geometry, x, theta)  # NaN where a leg cannot close
+    J = jacobian_of(geometry, terms)
+    cond, inv = singularity_measures_of(singular_values_of(J))
     closed = np.abs(ratio) <= 1.0
     if checks.raise_unreachable and not np.all(closed):
         _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks)
-    terms = leg_terms(geometry, x, theta)
-    J = jacobian_of(geometry, terms)
-    cond, inv = singularity_measures_of(singular_values_of(J))
-    margins = limit_margins_unchecked(geometry, x, theta, ratio, terms)
+    margins = margins_of(geometry, ratio, joint_angles_of(geometry, theta, terms.ell, terms.R))
     cond_f = np.where(np.isnan(cond), np.inf, cond)
     inv_f = np.where(np.isnan(inv), 0.0, inv)
     reachable = np.all(closed, axis=1)

@@ -42,7 +42,7 @@ def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarr
     crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
     Pass theta and J (the Jacobian at x) when already computed, to save work.
     """
-    terms = leg_terms(geometry, x, theta)
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
     return gravity_gradient_of(geometry, terms, jacobian_of(geometry, terms) if J is None else J)
 
 
@@ -123,7 +123,7 @@ def task_inertia(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     the rods' free spin carries no energy coupling). Exact for the reduced model; Coriolis terms
     are not included.
     """
-    terms = leg_terms(geometry, x, theta)
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
     return task_inertia_of(geometry, terms, jacobian_of(geometry, terms))
 
 

@@ -20,9 +20,7 @@ from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
     RandomSource,
-    TrajectorySource,
 )
-from pydrake.trajectories import PiecewisePolynomial
 
 from ..base.errors import InvalidConfigError
 from ..control.contract import ControllerContext, check_controller
@@ -30,8 +28,13 @@ from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
-from ..station.guard import DivergenceGuard
-from ..station.station import PlatformPoseSensor, StewartStation, add_white_noise
+from ..station.guard import DivergenceGuard, add_divergence_guard
+from ..station.station import (
+    PlatformPoseSensor,
+    StewartStation,
+    add_tool_disturbance,
+    add_white_noise,
+)
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
 from .result import add_run_logs
@@ -228,7 +231,7 @@ def build_diagram(
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
     station = builder.AddSystem(_station(plan, meshcat))
-    ref = add_run_reference(builder, plan, trajectory, reference_system)
+    ref = add_run_reference(builder, plan, trajectory, station, reference_system)
     context = controller_context(plan, ref.x0, ref.x_dot0)
     system = _add_controller(builder, plan.controller_factory(context))
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
@@ -237,7 +240,7 @@ def build_diagram(
     applied = station.GetOutputPort("motor_torque_applied")
     x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
     _connect_controller(builder, system, station, inputs, x_d, ref.T_ff, measured)
-    _add_disturbance(builder, station, plan, live=reference_system is not None)
+    add_tool_disturbance(builder, station, plan, live=reference_system is not None)
     features, tuner, loggers = _add_weights(
         builder,
         scenario,
@@ -256,10 +259,12 @@ def build_diagram(
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    guard = _add_guard(builder, station, system, ref.x_d, plan)
-    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario, lcm)
-    if reference_system is not None:
-        _export_live(builder, station, ref, reference_system)
+    guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
+    if scenario.lcm is not None:
+        from ..station.lcm_publish import add_run_publishers
+
+        T, config = system.GetOutputPort("T"), scenario.lcm
+        lcm = add_run_publishers(builder, config, station, T, measured, ref.x_d, lcm)
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(
@@ -330,32 +335,6 @@ def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measur
     for name in inputs - {"omega"}:
         builder.Connect(sources[name], system.GetInputPort(name))
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-
-
-def _export_live(builder, station, ref, reference_system) -> None:
-    """With a live reference: the station's ``platform_state``, the reference ``x_d`` and, if it
-    has one, its ``limited`` port exported for a display."""
-    builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
-    builder.ExportOutput(ref.x_d, "x_d")
-    if reference_system.HasOutputPort("limited"):
-        builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
-
-
-def _add_lcm(builder, station, system: System, x: OutputPort, x_d: OutputPort, scenario, lcm):
-    """With the scenario's ``lcm``, the status (the station's measurements, the pose ``x`` the
-    controller reads, the reference; on the servo bus the driver's loop numbers) and the
-    controller's torque commands published on their channels
-    (:func:`~stewart_drake.station.lcm_publish.add_run_publishers`), on ``lcm`` or a
-    ``DrakeLcm`` made here (:func:`~stewart_drake.station.lcm_publish.make_lcm`, which refuses a
-    URL on which nothing published arrives). Returns the ``DrakeLcm``, or None."""
-    config = scenario.lcm
-    if config is None:
-        return None
-    from ..station.lcm_publish import add_run_publishers, make_lcm
-
-    lcm = make_lcm(config.url) if lcm is None else lcm
-    add_run_publishers(builder, lcm, config, station, system.GetOutputPort("T"), x, x_d)
-    return lcm
 
 
 def _add_controller(builder, system: System) -> System:
@@ -436,24 +415,6 @@ def _add_learning(
     return corrected, learner
 
 
-def _add_disturbance(builder, station: Station, plan: RunPlan, live: bool) -> None:
-    """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
-    live reference, which has no end), the input is exported and fixed to zero in the Context
-    (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
-    source would be re-evaluated at every plant step."""
-    disturbance = plan.scenario.disturbance
-    if disturbance is not None and not live:
-        # The wrench sampled every plant step over the run and joined linearly.
-        h = plan.plant_time_step_s
-        t = np.arange(0.0, plan.duration_s + 2 * h, h)
-        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
-        source = TrajectorySource(samples)
-        wrench = builder.AddNamedSystem("tool_disturbance", source)
-        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
-    else:
-        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
-
-
 def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
     """What drives the controller's ``omega`` input: the scenario's tuner
     (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`), or the controller choice's
@@ -473,23 +434,6 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
         )
         builder.Connect(omega.get_output_port(), ports.controller.GetInputPort("omega"))
     return None, None, {}
-
-
-def _add_guard(
-    builder, station: Station, system: System, x_d: OutputPort, plan: RunPlan
-) -> DivergenceGuard:
-    """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
-    reference and, with contact, the contact results."""
-    contact = plan.scenario.contact
-    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan))
-    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
-    builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
-    builder.Connect(x_d, guard.GetInputPort("x_d"))
-    if contact:
-        builder.Connect(
-            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
-        )
-    return guard
 
 
 def make_stewart_station(scenario=None, meshcat=None):

@@ -41,7 +41,7 @@ class RunPlan:
     Attributes:
         scenario: the validated scenario the plan was made from (read it, do not change it:
             the values below are not recomputed); on the servo bus with ``hardware: null``,
-            with the robot built with the bus's servos (:meth:`~.scenario.Scenario.as_built`).
+            with the robot built with the bus's servos (:func:`as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
             the motors' reflected inertia (rotor inertia x gear ratio^2).
         plant_geometry: the robot that is simulated: ``geometry`` with ``payload_scale`` on the
@@ -170,10 +170,19 @@ def checked_plan(
     return dataclasses.replace(plan, report=report)
 
 
+def as_built(scenario: Scenario) -> Scenario:
+    """``scenario`` with, on the servo bus and ``hardware: null``, the robot built with the bus's
+    servos (:meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`); itself
+    otherwise (not validated)."""
+    if scenario.bus is None or scenario.hardware is not None:
+        return scenario
+    return dataclasses.replace(scenario, hardware=scenario.bus.hardware(scenario.control_period_s))
+
+
 def _robot_plan(scenario: Scenario) -> RunPlan:
     """The plan of a validated ``scenario`` without its reference object (on the servo bus,
-    of the robot built with its servos: :meth:`~.scenario.Scenario.as_built`)."""
-    scenario = scenario.as_built()
+    of the robot built with its servos: :func:`as_built`)."""
+    scenario = as_built(scenario)
     geometry = scenario.robot.build()
     servo = None if scenario.hardware is None else scenario.hardware.motors.build()
     if servo is not None:

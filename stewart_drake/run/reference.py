@@ -284,12 +284,13 @@ class RunReference:
     T_ff_initial: np.ndarray
 
 
-def add_run_reference(builder, plan, trajectory, reference_system=None) -> RunReference:
+def add_run_reference(builder, plan, trajectory, station, reference_system=None) -> RunReference:
     """The reference of the run of ``plan`` (a :class:`~.plan.RunPlan`): the precomputed
     reference and feed-forward of ``trajectory`` (:func:`add_reference_sources` at the plan's
     control period and sample offset, led by half a plant step, with the scenario's
     feed-forward led by the computation delay), or the live ``reference_system`` with its
-    inputs exported."""
+    inputs exported, and for a display its ``x_d``, its ``limited`` port if it has one and the
+    ``station``'s ``platform_state``."""
     h_plant, h = plan.plant_time_step_s, plan.control_period_s
     if reference_system is None:
         ref = add_reference_sources(
@@ -315,6 +316,10 @@ def add_run_reference(builder, plan, trajectory, reference_system=None) -> RunRe
     ref = builder.AddNamedSystem("reference", reference_system)
     for i in range(ref.num_input_ports()):
         builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
+    builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+    builder.ExportOutput(ref.GetOutputPort("x_d"), "x_d")
+    if ref.HasOutputPort("limited"):
+        builder.ExportOutput(ref.GetOutputPort("limited"), "limited")
     return RunReference(
         ref,
         ref.GetOutputPort("x_d"),

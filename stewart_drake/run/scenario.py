@@ -352,13 +352,6 @@ class Scenario:
             self.lcm.validate(self.plant.time_step)
         return self
 
-    def as_built(self) -> "Scenario":
-        """This scenario with, on the servo bus and ``hardware: null``, the robot built with
-        the bus's servos (:meth:`DynamixelBusConfig.hardware`); itself otherwise."""
-        if self.bus is None or self.hardware is not None:
-            return self
-        return dataclasses.replace(self, hardware=self.bus.hardware(self.control_period_s))
-
     #: The fields that hold a choice or a section, and the classes each may hold.
     _FIELD_TYPES = {
         "robot": (Robot,),

@@ -307,6 +307,23 @@ class DivergenceGuard(LeafSystem):
         return (float(t), self.part_names[int(a)], self.part_names[int(b)], float(force))
 
 
+def add_divergence_guard(builder, station, T, x_d, plan) -> DivergenceGuard:
+    """The :class:`DivergenceGuard` of the run of ``plan`` (a
+    :class:`~stewart_drake.run.plan.RunPlan`), in its Diagram (``builder``), on the station's
+    plant state, the controller's torque command ``T`` (an output port, (6,) N m), the reference
+    ``x_d`` (an output port, (18,)) and, with contact, the station's contact results."""
+    contact = plan.scenario.contact
+    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan))
+    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
+    builder.Connect(T, guard.GetInputPort("T"))
+    builder.Connect(x_d, guard.GetInputPort("x_d"))
+    if contact:
+        builder.Connect(
+            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
+        )
+    return guard
+
+
 def save_divergence(sd, root, reason: str) -> Path:
     """Write the logs of ``sd`` up to now and the last plant state to its guard's
     ``divergence_dir``.

@@ -176,13 +176,13 @@ def _check_publisher(sender: LeafSystem, ports: Mapping, period_s: float, channe
 
 def add_run_publishers(
     builder: DiagramBuilder,
-    lcm: DrakeLcmInterface,
     config: "LcmConfig",
     station,
     T: OutputPort,
     x: OutputPort,
     x_d: OutputPort,
-) -> None:
+    lcm: DrakeLcmInterface | None = None,
+) -> DrakeLcmInterface:
     """A run's status and torque commands on the channels of the scenario's ``lcm``
     (:class:`LcmConfig`, validated with the scenario) every ``config.period_s``: the status of
     the station's measurements, the pose ``x`` the controller reads and the reference ``x_d``
@@ -190,9 +190,15 @@ def add_run_publishers(
     controller's ``T``.
 
     Args:
-        builder: the Diagram's builder. lcm: the ``DrakeLcm`` of ``config.url``
-            (:func:`make_lcm`). station: the station (its ports).
+        builder: the Diagram's builder. station: the station (its ports). lcm: the ``DrakeLcm``
+            of ``config.url`` when the caller has made it (:func:`make_lcm`); made here
+            otherwise.
+    Returns:
+        the ``DrakeLcm`` the run publishes on.
+    Raises:
+        InvalidConfigError: (:func:`make_lcm`) nothing published on ``config.url`` arrives.
     """
+    lcm = make_lcm(config.url) if lcm is None else lcm  # refuses a URL that delivers nothing
     ports = {
         name: station.GetOutputPort(name)
         for name in ("motor_angle", "motor_rate", "motor_torque_applied")
@@ -203,6 +209,7 @@ def add_run_publishers(
     period, status, command = config.period_s, config.status_channel, config.command_channel
     _add_publisher(builder, StatusSender(), lcmt_stewart_status, ports, lcm, period, status)
     _add_publisher(builder, CommandSender(), lcmt_stewart_command, {"T": T}, lcm, period, command)
+    return lcm
 
 
 def add_status_publisher(

@@ -36,7 +36,9 @@ from pydrake.systems.primitives import (
     RandomSource,
     Saturation,
     SymbolicVectorSystem,
+    TrajectorySource,
 )
+from pydrake.trajectories import PiecewisePolynomial
 
 from ..base.checks import MAX_SEED, as_number
 from ..base.checks import check_int as _check_int
@@ -150,6 +152,26 @@ class ToolDisturbance:
 
 
 # -- the station ---------------------------------------------------------------------------
+
+
+def add_tool_disturbance(builder, station, plan, live: bool) -> None:
+    """The scenario's tool disturbance (:class:`ToolDisturbance`) on the station's
+    ``tool_wrench``, in the run's Diagram (``builder``; ``plan`` its
+    :class:`~stewart_drake.run.plan.RunPlan`); without one (or with a ``live`` reference, which
+    has no end), the input is exported and fixed to zero in the Context
+    (:meth:`~stewart_drake.run.diagram.StewartDiagram.initialize`): a fixed input is computed
+    once, where a constant source would be re-evaluated at every plant step."""
+    disturbance = plan.scenario.disturbance
+    if disturbance is not None and not live:
+        # The wrench sampled every plant step over the run and joined linearly.
+        h = plan.plant_time_step_s
+        t = np.arange(0.0, plan.duration_s + 2 * h, h)
+        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
+        source = TrajectorySource(samples)
+        wrench = builder.AddNamedSystem("tool_disturbance", source)
+        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    else:
+        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
 
 
 def weak_callback(method):
