@@ -29,7 +29,7 @@ from stewart_drake.control.lqi import (
 )
 from stewart_drake.control.tuner import TunerModel, load_tuner
 from stewart_drake.references.trajectories import SineTrajectory
-from stewart_drake.robot import kinematics, limits, statics
+from stewart_drake.robot import forward_kinematics, kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import LqiDriver, NamedReference, Scenario
@@ -188,7 +188,7 @@ def test_jacobian_tau_wrench_and_holding_torques(x, with_theta):
 )
 def test_fk(theta, tol, max_iter):
     EXAMPLES["fk"] += 1
-    out = _call(kinematics.fk, GEOMETRY, theta, tol=tol, max_iter=max_iter)
+    out = _call(forward_kinematics.fk, GEOMETRY, theta, tol=tol, max_iter=max_iter)
     if out is not None:
         x, status = out
         assert status.converged and status.residual <= tol

@@ -56,7 +56,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError
-from ..robot import kinematics
+from ..robot import forward_kinematics, kinematics
 
 #: What the ``ilc_status`` output holds, in order.
 ILC_STATUS_NAMES = (
@@ -98,7 +98,7 @@ def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
         e = kinematics.ik_unchecked(geometry, x_d)[0]
         e = np.angle(np.exp(1j * (theta - e)))
     else:
-        x, converged, _, _ = kinematics.fk_unchecked(
+        x, converged, _, _ = forward_kinematics.fk_unchecked(
             geometry, theta, x0=x_d, tol=1e-13, max_iter=20
         )
         e = np.where(converged[:, None], x - x_d, 0.0)

@@ -108,7 +108,7 @@ def pose_verdict(plan, q) -> MeasuredPose:
     from ..base.errors import ForwardKinematicsError
     from ..plant.admissible import classify
     from ..plant.clearance import clearance_model
-    from ..robot.kinematics import fk
+    from ..robot.forward_kinematics import fk
 
     q = np.asarray(q, dtype=float)
     try:

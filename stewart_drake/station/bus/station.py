@@ -48,14 +48,8 @@ from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
 from ...plant.plant import assembled_positions
-from ...robot.kinematics import (
-    X_HOME,
-    angular_velocity_map,
-    fk,
-    ik_single,
-    jacobian,
-    jacobian_single,
-)
+from ...robot.forward_kinematics import fk
+from ...robot.kinematics import X_HOME, angular_velocity_map, ik_single, jacobian, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
@@ -177,8 +171,8 @@ class DynamixelDriver(LeafSystem):
     def _measure(self, x_prev) -> np.ndarray:
         """One read of the bus and the pose from it: the state vector (without the loop).
         The pose: Newton on the IK from the previous pose (the encoders' estimator, within a
-        hundredth of a count), or if that fails the full :func:`~..kinematics.fk`, which raises
-        when the angles are no pose of the robot."""
+        hundredth of a count), or if that fails the full :func:`~.forward_kinematics.fk`, which
+        raises when the angles are no pose of the robot."""
         state = self.bus.read_state()
         self._last_read_t, self._read_s = state.t, state.round_trip_s
         x, _, converged = self._fk.estimate(state.q, x_prev)
