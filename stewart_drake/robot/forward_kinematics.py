@@ -60,8 +60,8 @@ def fk_unchecked(
     iterate is reachable, ||ik(x) - theta||_2 decreases (backtracking) and sign det J(x) is that
     of x0: no step crosses a singularity into another assembly mode (without this, 4 of 8099
     poses spread over the whole workspace converged, from home, to a different pose with the same
-    motor angles). The IK branch is the one of :func:`ik`, so ``fk(ik(x)) = x`` for every
-    reachable x of the initial pose's assembly mode that the iteration can reach.
+    motor angles). The IK branch is the one of :func:`~.kinematics.ik`, so ``fk(ik(x)) = x`` for
+    every reachable x of the initial pose's assembly mode that the iteration can reach.
 
     Args:
         geometry: the robot.
@@ -75,7 +75,7 @@ def fk_unchecked(
         converged: (...) bool.
         iterations: (...) int, Newton steps taken.
         residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
-    Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
+    Source: Newton's method with the analytic :func:`~.kinematics.jacobian` (J = d theta / d x).
     """
     # Newton's iterates, residuals and masks are the batch's arrays; the line search updates
     # them in place where it accepts a step.
@@ -172,8 +172,9 @@ def fk(
         ForwardKinematicsError: some pose did not converge (the first one is named, with its
             residual); also when x0 is unreachable or every step leads out of the workspace.
         InvalidConfigError: theta or x0 not (..., 6) or not finite, tol <= 0, max_iter < 1.
-    Source: Newton on :func:`ik` with the analytic :func:`jacobian`, backtracking on
-        ||ik(x) - theta|| (see :func:`fk_unchecked`).
+    Source: Newton on :func:`~.kinematics.ik` with the analytic
+        :func:`~.kinematics.jacobian`, backtracking on ||ik(x) - theta|| (see
+        :func:`fk_unchecked`).
     """
     theta = as_array("motor angles theta", theta, last=6)
     x0 = None if x0 is None else as_poses("initial pose x0", x0)

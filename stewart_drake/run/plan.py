@@ -29,8 +29,9 @@ from typing import Any
 from ..base.errors import FeasibilityWarning
 from ..control.contract import resolve_controller
 from ..robot.geometry import StewartGeometry
-from ..robot.limits import MotorLimits, TrajectoryReport
+from ..robot.limits import MotorLimits
 from ..robot.servo import ServoModel
+from ..robot.trajectory_report import TrajectoryReport
 from .scenario import Scenario
 
 
@@ -66,8 +67,8 @@ class RunPlan:
             None for a plan made without one (a live reference, or only the robot's values).
         controller_factory: ``f(ControllerContext) -> System``, the run's controller.
         report: the reference check's report when the plan was checked (:func:`checked_plan`;
-            :class:`~stewart_drake.robot.limits.TrajectoryReport`, without its series), or
-            None.
+            :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`, without its
+            series), or None.
     """
 
     scenario: Scenario
@@ -264,7 +265,8 @@ def check_reference(
         progress, keep_series: as :func:`~.trajectories.validate` (a bar told of the samples
             checked; the report's sample-by-sample series kept or not).
     Returns:
-        the :class:`~stewart_drake.robot.limits.TrajectoryReport` (``summary()`` prints it).
+        the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport` (``summary()``
+        prints it).
     Raises:
         InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named,
             or a run longer than a bounded reference.
@@ -385,7 +387,7 @@ def check_reference_shown(plan: RunPlan, reference=None, progress: bool = False,
         plan: the run. reference: the reference (default: the plan's). progress: show the bar.
         kwargs: ``raise_refused``, ``keep_series`` of ``check_reference``.
     Returns:
-        the :class:`~stewart_drake.robot.limits.TrajectoryReport`.
+        the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`.
     """
     from tqdm import tqdm
 
