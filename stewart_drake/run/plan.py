@@ -154,7 +154,8 @@ def checked_plan(
         scenario, reference, controller: as :func:`make_plan`.
         progress: show a bar while a long reference is checked.
         report: the check's report when the caller has already checked this reference (it is
-            then not checked again); a plan that carries one is not checked again either.
+            then not checked again). A plan already checked (its ``report`` set) with nothing
+            overridden is returned as it is.
     Returns:
         the :class:`RunPlan`, its ``report`` set (without the report's series).
     Raises:
@@ -162,6 +163,9 @@ def checked_plan(
             has. UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
             MotorLimitError: the reference's first refusal (:func:`check_reference`).
     """
+    if isinstance(scenario, RunPlan) and scenario.report is not None:
+        if reference is None and controller is None and report is None:
+            return scenario  # checked once, when it was made
     plan = make_plan(scenario, with_reference=False)  # validated once, here
     check_run_memory(plan.scenario)
     plan = make_plan(plan, reference=reference, controller=controller)
