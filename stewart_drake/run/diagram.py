@@ -1,12 +1,15 @@
 """The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers.
 
-:func:`make_stewart_diagram` builds it in stages, one function each: the reference and its
-feed-forward, the controller (built by its scenario choice), the measurement it reads, the tool
-disturbance, what drives the controller's weights (a tuner choice, or a constant), the loggers and
-the guard. It builds from a :class:`~.plan.RunPlan` (a scenario is planned first): every
-derived value is read from the plan; each scenario choice builds itself (the controller's
-``make``, the tuner's ``add_to``, the reference's ``make``, beside what they build); the stages
-here only wire by port name.
+:func:`build_diagram` builds it from a :class:`~.plan.RunPlan` in stages, one function each:
+the station, the reference and its feed-forward (:func:`~.reference.add_run_reference`), the
+controller (built by its scenario choice), the measurement it reads, the learner, the tool
+disturbance (:func:`~stewart_drake.station.station.add_tool_disturbance`), what drives the
+controller's weights (a tuner choice, or a constant), the logs (:func:`~.result.add_run_logs`),
+the guard (:func:`~stewart_drake.station.guard.add_divergence_guard`) and LCM. Every derived
+value is read from the plan; each scenario choice builds itself (the controller's ``make``, the
+tuner's ``add_to``, the reference's ``make``, beside what they build); a stage that adds a
+thing lives beside it, and the stages here only wire by port name. :func:`make_stewart_diagram`
+plans a scenario first.
 """
 
 from __future__ import annotations
