@@ -236,7 +236,11 @@ def build_diagram(
     station = builder.AddSystem(_station(plan, meshcat))
     ref = add_run_reference(builder, plan, trajectory, station, reference_system)
     context = controller_context(plan, ref.x0, ref.x_dot0)
-    system = _add_controller(builder, plan.controller_factory(context))
+    system = plan.controller_factory(context)
+    check_controller(system)  # the contract: its ports, by name and size
+    if not system.get_name():
+        system.set_name("controller")
+    system = builder.AddSystem(system)
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
@@ -245,18 +249,7 @@ def build_diagram(
     _connect_controller(builder, system, station, inputs, x_d, ref.T_ff, measured)
     add_tool_disturbance(builder, station, plan, live=reference_system is not None)
     features, tuner, loggers = _add_weights(
-        builder,
-        scenario,
-        TunerPorts(
-            controller=system,
-            inputs=frozenset(inputs),
-            outputs=frozenset(outputs),
-            x_d=ref.x_d,
-            T_applied=applied,
-            period_s=context.period_s,
-            offset_s=context.offset_s,
-            duration_s=scenario.duration_s,
-        ),
+        builder, scenario, context, system, inputs, outputs, ref.x_d, applied
     )
     logged = outputs if controller_logs else outputs - {"integral", "e_bar"}
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
@@ -340,14 +333,6 @@ def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measur
     builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
 
 
-def _add_controller(builder, system: System) -> System:
-    """The controller, checked against the contract (named "controller" if it has no name)."""
-    check_controller(system)
-    if not system.get_name():
-        system.set_name("controller")
-    return builder.AddSystem(system)
-
-
 def _add_measurement(
     builder, station: Station, scenario: Scenario, context: ControllerContext, inputs: set
 ):
@@ -418,11 +403,23 @@ def _add_learning(
     return corrected, learner
 
 
-def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
+def _add_weights(builder, scenario: Scenario, context, system, inputs, outputs, x_d, applied):
     """What drives the controller's ``omega`` input: the scenario's tuner
-    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`), or the controller choice's
-    constant weights. Returns (features or None, tuner or None, loggers: "rho" when the tuner
-    has features)."""
+    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`, wired to the controller
+    ``system`` with its input and output port names, the reference ``x_d`` and the ``applied``
+    torques, at the period and offset of the controller's ``context``), or the controller
+    choice's constant weights. Returns (features or None, tuner or None, loggers: "rho" when
+    the tuner has features)."""
+    ports = TunerPorts(
+        controller=system,
+        inputs=frozenset(inputs),
+        outputs=frozenset(outputs),
+        x_d=x_d,
+        T_applied=applied,
+        period_s=context.period_s,
+        offset_s=context.offset_s,
+        duration_s=scenario.duration_s,
+    )
     if scenario.tuner is not None:
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}

@@ -261,11 +261,10 @@ def add_reference_sources(
         keep_x_d=False,
     )
     breaks = t_sample - offset_s  # k h: the sample lies inside its interval
-    ref = builder.AddNamedSystem(
-        "reference",
-        TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK),
-    )
-    ff = builder.AddNamedSystem("feedforward", TableHold(breaks, T_ff))
+    ff_hold = TableHold(breaks, T_ff)
+    x_d_hold = TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK)
+    ref = builder.AddNamedSystem("reference", x_d_hold)
+    ff = builder.AddNamedSystem("feedforward", ff_hold)
     return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, T_ff_table=T_ff)
 
 
