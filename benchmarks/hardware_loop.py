@@ -32,8 +32,9 @@ from stewart_drake.live.emulator_process import EmulatorProcess
 from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.references.trajectories import NamedReference
 from stewart_drake.run.diagram import make_stewart_diagram
-from stewart_drake.run.plan import make_plan
-from stewart_drake.run.scenario import DynamixelBusConfig, Scenario
+from stewart_drake.run.plan import as_built, make_plan
+from stewart_drake.run.scenario import Scenario
+from stewart_drake.station.bus.servos import DynamixelBusConfig
 from stewart_drake.station.guard import GuardConfig
 
 REFERENCES = {"paper": NamedReference, "breathing": OrganMotionReference}
@@ -56,9 +57,7 @@ def logged_error(sd, root) -> np.ndarray:
 
 def simulated(fields: dict) -> np.ndarray:
     """The pure simulation's errors: the same run on the simulated robot as built."""
-    scenario = dataclasses.replace(
-        Scenario(**fields, bus=DynamixelBusConfig()).as_built(), bus=None
-    )
+    scenario = dataclasses.replace(as_built(Scenario(**fields, bus=DynamixelBusConfig())), bus=None)
     sd = make_stewart_diagram(scenario)
     simulator = Simulator(sd.diagram)
     context = simulator.get_mutable_context()

@@ -35,13 +35,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 import numpy as np  # noqa: E402
 
+from stewart_drake.run.result import finish_result, release_reference
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
-from stewart_drake.run.simulate import (  # noqa: E402
-    build_simulator,
-    finish_result,
-    release_reference,
-    simulate,
-)
+from stewart_drake.run.simulate import build_simulator, simulate  # noqa: E402
 
 
 def rss_mb() -> float:

@@ -12,7 +12,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this checkout
 from stewart_drake.analysis import workspace
-from stewart_drake.robot import kinematics
+from stewart_drake.robot import forward_kinematics, kinematics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
 
@@ -34,7 +34,7 @@ def main(n: int = 100_000) -> None:
     ok = x[c["usable"]][:10_000]
     theta = kinematics.ik(geometry, ok)
     t0 = time.perf_counter()
-    x_fk, converged, iterations, _ = kinematics.fk_unchecked(geometry, theta)
+    x_fk, converged, iterations, _ = forward_kinematics.fk_unchecked(geometry, theta)
     dt = time.perf_counter() - t0
     print(f"fk_per_s {len(ok) / dt:.0f} ({len(ok)} poses / {dt:.3f} s, batched Newton from home)")
     print(

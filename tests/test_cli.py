@@ -11,7 +11,7 @@ import pytest
 from stewart_drake.cli import main as cli
 from stewart_drake.cli.registry import build_parser
 from stewart_drake.references.trajectories import TRAJECTORIES, paper_manoeuvre
-from stewart_drake.run.simulate import load_result
+from stewart_drake.run.result import load_result
 
 
 def test_version_names_this_package_drake_and_python(capsys):

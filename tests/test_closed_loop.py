@@ -8,8 +8,9 @@ from stewart_drake.cli.main import main
 from stewart_drake.references.trajectories import SineTrajectory
 from stewart_drake.robot import statics
 from stewart_drake.run.diagram import make_stewart_diagram
+from stewart_drake.run.result import load_result
 from stewart_drake.run.scenario import Scenario
-from stewart_drake.run.simulate import load_result, run_experiment
+from stewart_drake.run.simulate import run_experiment
 from stewart_drake.station.guard import GuardConfig
 
 

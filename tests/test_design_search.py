@@ -260,7 +260,8 @@ def test_the_encoders_resolution_agrees_with_the_forward_kinematics_of_half_a_co
     """The first-order pose error of half a count at every crank against the exact one: the
     forward kinematics of the perturbed motor angles, at the pose and sign pattern found worst."""
     from stewart_drake.design.margins import _SIGNS, encoder_resolution
-    from stewart_drake.robot.kinematics import fk, ik, jacobian
+    from stewart_drake.robot.forward_kinematics import fk
+    from stewart_drake.robot.kinematics import ik, jacobian
 
     geometry = design_geometry(reference_design(), task.payload_kg)
     x = np.concatenate([task.x, task.workspace_x])

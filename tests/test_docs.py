@@ -159,8 +159,8 @@ def short_names():
     """{first part: how to resolve the rest}: our modules by their last name (``limits``,
     ``kinematics``) and the objects the docs name by a variable (``scenario.``, ``context.``)."""
     from stewart_drake.control.contract import ControllerContext
+    from stewart_drake.run.result import RunResult
     from stewart_drake.run.scenario import Scenario
-    from stewart_drake.run.simulate import RunResult
 
     names = {m.__name__.rsplit(".", 1)[-1]: m for m in our_modules()}
     names.update(

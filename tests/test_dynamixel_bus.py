@@ -23,10 +23,11 @@ from stewart_drake.base.errors import (  # noqa: E402
 )
 from stewart_drake.live.emulator import BusEmulator, FirstOrderServos  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus import servos  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
-XM430 = p.SERVO_SPECS["XM430-W350-T"]
+XM430 = servos.SERVO_SPECS["XM430-W350-T"]
 
 
 class _CapturePort:
@@ -95,11 +96,13 @@ def test_a_corrupted_packet_is_flagged_and_a_partial_one_waits():
 
 def test_conversions_invert_and_use_the_datasheet_torque_constant():
     assert XM430.torque_constant_Nm_per_A == pytest.approx(4.1 / 2.3)
-    assert p.SERVO_SPECS["XM540-W270-T"].torque_constant_Nm_per_A == pytest.approx(2.409, abs=1e-3)
+    assert servos.SERVO_SPECS["XM540-W270-T"].torque_constant_Nm_per_A == pytest.approx(
+        2.409, abs=1e-3
+    )
     tau = np.array([-1.0, -0.01, 0.0, 0.5, 3.0])
-    units = p.torque_to_current_units(tau, XM430, direction=-1)
+    units = servos.torque_to_current_units(tau, XM430, direction=-1)
     step = XM430.torque_constant_Nm_per_A * 2.69e-3  # one current unit, N m
-    back = p.current_units_to_torque(units, XM430, direction=-1)
+    back = servos.current_units_to_torque(units, XM430, direction=-1)
     assert np.all(np.abs(back - tau) <= step / 2 + 1e-12)
     assert units[3] == -round(0.5 / (4.1 / 2.3) / 2.69e-3)
     q = np.array([-3.0, 0.0, 1.234])
@@ -110,7 +113,7 @@ def test_conversions_invert_and_use_the_datasheet_torque_constant():
 
 def test_a_servo_without_current_control_is_refused_for_torque():
     with pytest.raises(InvalidConfigError, match="XL430-W250-T has no Current Control Mode"):
-        p.servo_spec("XL430-W250-T")
+        servos.servo_spec("XL430-W250-T")
     with pytest.raises(InvalidConfigError, match="XM430-W350-T"):
         DynamixelBus("/dev/null", 1_000_000, IDS, model="XL430-W250-T")
 

@@ -31,7 +31,7 @@ def test_fk_recovers_the_pose_from_exact_encoder_angles(geometry, estimator, ran
         x_hat, steps, converged = estimator.estimate(theta, start)
         assert converged and steps <= 8
         np.testing.assert_allclose(x_hat, x, rtol=0, atol=1e-11)
-        residual = kinematics._wrap(kinematics.ik(geometry, x_hat) - theta)
+        residual = kinematics.wrap_angle(kinematics.ik(geometry, x_hat) - theta)
         assert np.abs(residual).max() <= 0.01 * QUANTUM
         # angles a whole turn away are the same encoder reading
         x_turn, _, converged = estimator.estimate(theta + 2 * np.pi, start)

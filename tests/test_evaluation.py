@@ -14,14 +14,9 @@ from stewart_drake.evaluation.evaluation_report import ann_verdict
 from stewart_drake.references.trajectories import StepTrajectory, make_trajectory
 from stewart_drake.run.diagram import make_stewart_diagram
 from stewart_drake.run.metrics import frequency_response, settling_time
-from stewart_drake.run.scenario import (
-    LqiDriver,
-    NamedReference,
-    PdDriver,
-    Scenario,
-    SensorNoise,
-)
+from stewart_drake.run.scenario import LqiDriver, NamedReference, PdDriver, Scenario
 from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.station import SensorNoise
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -6,7 +6,7 @@ import pytest
 from scipy.io import loadmat
 
 from stewart_drake.cli.main import main
-from stewart_drake.run.simulate import load_result, result_columns
+from stewart_drake.run.result import load_result, result_columns
 
 
 def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, capsys):
@@ -30,7 +30,7 @@ def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, caps
 
 
 def test_a_controller_without_weights_has_no_omega_columns():
-    from stewart_drake.run.simulate import RunResult
+    from stewart_drake.run.result import RunResult
 
     n = 3
     result = RunResult(

@@ -423,7 +423,7 @@ def test_scenario_faults_are_named(tmp_path):
 
 
 def test_a_damaged_run_result_is_named(tmp_path):
-    from stewart_drake.run.simulate import load_result
+    from stewart_drake.run.result import load_result
 
     path = tmp_path / "run.npz"
     path.write_bytes(_npz({"t": np.zeros(3)}))

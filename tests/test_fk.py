@@ -9,7 +9,7 @@ from pydrake.solvers import IpoptSolver, SolverOptions
 
 from stewart_drake.base.errors import ForwardKinematicsError
 from stewart_drake.plant.plant import make_plant
-from stewart_drake.robot import kinematics, limits
+from stewart_drake.robot import forward_kinematics, kinematics, limits
 from stewart_drake.robot.geometry import X_HOME
 
 
@@ -20,7 +20,7 @@ def poses_1000(geometry):
 
 def test_fk_inverts_ik_at_1000_random_poses_from_home(geometry, poses_1000):
     theta = kinematics.ik(geometry, poses_1000)
-    x, converged, iterations, residual = kinematics.fk_unchecked(geometry, theta)
+    x, converged, iterations, residual = forward_kinematics.fk_unchecked(geometry, theta)
     assert converged.all()
     assert np.abs(x - poses_1000).max() < 1e-9
     assert residual.max() <= 1e-12
@@ -29,7 +29,7 @@ def test_fk_inverts_ik_at_1000_random_poses_from_home(geometry, poses_1000):
 
 def test_fk_batch_keeps_shape_and_reports_worst_case(geometry, poses_1000):
     x_in = poses_1000[:60].reshape(3, 20, 6)
-    x, status = kinematics.fk(geometry, kinematics.ik(geometry, x_in))
+    x, status = forward_kinematics.fk(geometry, kinematics.ik(geometry, x_in))
     assert x.shape == (3, 20, 6)
     np.testing.assert_allclose(x, x_in, atol=1e-9)
     assert status.converged and 1 <= status.iterations <= 8 and status.residual <= 1e-12
@@ -37,7 +37,7 @@ def test_fk_batch_keeps_shape_and_reports_worst_case(geometry, poses_1000):
 
 def test_fk_single_pose_at_home_and_modulo_two_pi(geometry):
     theta = kinematics.ik(geometry, X_HOME)
-    x, status = kinematics.fk(geometry, theta + 2 * np.pi)
+    x, status = forward_kinematics.fk(geometry, theta + 2 * np.pi)
     np.testing.assert_allclose(x, X_HOME, atol=1e-14)
     assert status.iterations == 0 and status.converged
 
@@ -45,21 +45,21 @@ def test_fk_single_pose_at_home_and_modulo_two_pi(geometry):
 def test_fk_raises_for_angles_no_pose_has(geometry):
     theta = np.array([1.4, -1.4, 1.4, -1.4, 1.4, -1.4])
     with pytest.raises(ForwardKinematicsError, match="did not converge"):
-        kinematics.fk(geometry, theta)
-    x, converged, _, residual = kinematics.fk_unchecked(geometry, theta)
+        forward_kinematics.fk(geometry, theta)
+    x, converged, _, residual = forward_kinematics.fk_unchecked(geometry, theta)
     assert not converged and residual > 1e-3
 
 
 def test_fk_raises_from_an_unreachable_initial_pose(geometry):
     theta = kinematics.ik(geometry, X_HOME)
     with pytest.raises(ForwardKinematicsError, match="x0 is unreachable"):
-        kinematics.fk(geometry, theta, x0=[0, 0, 0, 0, 0, 0.9])
+        forward_kinematics.fk(geometry, theta, x0=[0, 0, 0, 0, 0, 0.9])
 
 
 def test_fk_steps_back_into_the_workspace(geometry):
     """From a far initial guess full Newton steps leave the workspace; halving keeps it inside."""
     x_goal = np.array([0.3, -0.2, 0.4, 0.03, -0.04, 0.33])
-    x, status = kinematics.fk(
+    x, status = forward_kinematics.fk(
         geometry, kinematics.ik(geometry, x_goal), x0=[-0.3, 0.2, -0.4, -0.05, 0.05, 0.26]
     )
     np.testing.assert_allclose(x, x_goal, atol=1e-9)
@@ -87,7 +87,7 @@ def test_fk_agrees_with_drake_inverse_kinematics(geometry):
     for x_true in random_reachable_poses(geometry, 12, seed=7):
         theta = kinematics.ik(geometry, x_true)
         x_drake = _drake_fk(plant, context, handles, q_home, theta)
-        x_ours, _ = kinematics.fk(geometry, theta)
+        x_ours, _ = forward_kinematics.fk(geometry, theta)
         assert np.abs(x_ours - x_drake).max() < 1e-6  # measured: < 1e-11
         assert np.abs(x_ours - x_true).max() < 1e-9
 
@@ -98,6 +98,6 @@ def test_fk_over_the_whole_workspace_is_right_or_reports_failure(geometry):
     x = X_HOME + rng.uniform(-1, 1, (40_000, 6)) * [0.5, 0.5, 0.8, 0.15, 0.15, 0.12]
     x = x[limits.is_reachable(geometry, x).reachable]
     assert len(x) > 2500
-    x_fk, converged, _, _ = kinematics.fk_unchecked(geometry, kinematics.ik(geometry, x))
+    x_fk, converged, _, _ = forward_kinematics.fk_unchecked(geometry, kinematics.ik(geometry, x))
     assert converged.mean() > 0.99
     assert np.abs(x_fk - x)[converged].max() < 1e-9

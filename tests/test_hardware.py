@@ -16,9 +16,10 @@ from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 from stewart_drake.robot.servo import ServoModel
 from stewart_drake.run.diagram import held_station, make_stewart_station
 from stewart_drake.run.plan import make_plan
-from stewart_drake.run.scenario import LqiDriver, Motors, Scenario
+from stewart_drake.run.scenario import LqiDriver, Scenario
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.hardware import Motors
 from stewart_drake.station.station import current_loop
 
 

@@ -36,24 +36,19 @@ from stewart_drake.run.diagram import (
     make_stewart_station,  # noqa: E402
 )
 from stewart_drake.run.plan import make_plan  # noqa: E402
-from stewart_drake.run.scenario import (  # noqa: E402
-    DynamixelBusConfig,
-    Hardware,
-    Scenario,
-    ToolDisturbance,
-    _scenario_from_yaml,
-    dump_scenario,
-)
-from stewart_drake.station.bus import protocol as p  # noqa: E402
-from stewart_drake.station.bus.driver import BusState  # noqa: E402
+from stewart_drake.run.scenario import Scenario, _scenario_from_yaml, dump_scenario
+from stewart_drake.station.bus.driver import BusState, DynamixelBus  # noqa: E402
+from stewart_drake.station.bus.servos import SERVO_SPECS, DynamixelBusConfig  # noqa: E402
 from stewart_drake.station.bus.station import (  # noqa: E402
     DynamixelDriver,
     HardwareStation,
 )
+from stewart_drake.station.hardware import Hardware
 from stewart_drake.station.lcm_publish import LcmConfig
+from stewart_drake.station.station import ToolDisturbance
 
 H = 0.005  # the control period of the runs here: the Dynamixel robot's LQI is stable at 5 ms
-XM430 = p.SERVO_SPECS["XM430-W350-T"]
+XM430 = SERVO_SPECS["XM430-W350-T"]
 
 
 def bus_scenario(**changes) -> Scenario:
@@ -117,7 +112,7 @@ def test_a_bus_scenario_derives_the_robot_built_with_its_servos_and_round_trips(
     assert plan.torque_limit_Nm == pytest.approx(1.5 * 4.1 / 2.3)
     back = _scenario_from_yaml(dump_scenario(scenario))
     assert back.bus == scenario.bus and back.hardware is None
-    bus = scenario.bus.make_bus()  # not opened
+    bus = DynamixelBus.from_config(scenario.bus)  # not opened
     assert (bus.port_name, bus.current_limit_units) == ("/dev/ttyUSB0", math.floor(1.5 / 2.69e-3))
     assert list(bus.zero_counts) == [2000] * 6
 
@@ -161,7 +156,7 @@ def _port_names(system) -> tuple[set, set]:
 def test_the_hardware_station_exports_the_simulated_stations_ports():
     station = make_stewart_station(bus_scenario())
     assert isinstance(station, HardwareStation) and station.get_name() == "station"
-    simulated = make_stewart_station(make_plan(bus_scenario()).scenario.as_built())
+    simulated = make_stewart_station(make_plan(bus_scenario()).scenario)  # the robot as built
     inputs, outputs = _port_names(station)
     sim_inputs, sim_outputs = _port_names(simulated)
     assert inputs == sim_inputs == {"motor_torque", "tool_wrench"}

@@ -11,9 +11,10 @@ from stewart_drake.organ_motion.fidelity import rms_translation_rotation
 from stewart_drake.robot import kinematics
 from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.run.plan import make_plan
+from stewart_drake.run.result import collect_result
 from stewart_drake.run.scenario import OrganMotionReference
 from stewart_drake.run.scenario_io import load_scenario
-from stewart_drake.run.simulate import advance, build_simulator, collect_result
+from stewart_drake.run.simulate import advance, build_simulator
 from stewart_drake.station import guard
 
 

@@ -8,10 +8,11 @@ import pytest
 from pydrake.systems.primitives import TrajectorySource
 
 from stewart_drake.run import simulate as experiments
+from stewart_drake.run.plan import run_memory_bytes
 from stewart_drake.run.reference import TableHold, zero_order_hold
+from stewart_drake.run.result import SignalLog, finish_result, release_reference
 from stewart_drake.run.scenario import Scenario
-from stewart_drake.run.signal_log import SignalLog
-from stewart_drake.run.simulate import build_simulator, run_memory_bytes
+from stewart_drake.run.simulate import build_simulator
 
 DURATION_S = 0.5
 
@@ -23,7 +24,7 @@ def short_run():
     scenario = Scenario(duration_s=DURATION_S)
     sd, simulator = build_simulator(scenario)
     logs, wall = experiments.simulate(sd, simulator)
-    return scenario, sd, simulator, experiments.finish_result(logs, wall)
+    return scenario, sd, simulator, finish_result(logs, wall)
 
 
 def test_the_result_holds_a_bounded_number_of_bytes_per_simulated_second(short_run):
@@ -73,10 +74,10 @@ def test_releasing_the_reference_frees_its_tables():
         "breaks": weakref.ref(ref.T_ff.breaks),
     }
     assert all(w() is not None for w in tables.values())
-    experiments.release_reference(sd)
+    release_reference(sd)
     gc.collect()
     assert [name for name, w in tables.items() if w() is not None] == []
-    result = experiments.finish_result(logs, wall)  # the result does not need them
+    result = finish_result(logs, wall)  # the result does not need them
     assert result.x_d.shape == (result.t.size, 18) and np.all(np.isfinite(result.x_d))
 
 
@@ -148,8 +149,8 @@ def dropped_run(request):
     scenario = load_scenario("paper_hardware", ["duration_s=0.05", *request.param])
     sd, simulator = build_simulator(scenario)
     logs, wall = experiments.simulate(sd, simulator)
-    experiments.release_reference(sd)
-    result = experiments.finish_result(logs, wall)
+    release_reference(sd)
+    result = finish_result(logs, wall)
     refs = {
         "diagram": weakref.ref(sd.diagram),
         "station": weakref.ref(sd.station),

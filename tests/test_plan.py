@@ -7,8 +7,8 @@ import pytest
 from stewart_drake.references.data_collection import data_collection_trajectory
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run import simulate as experiments
-from stewart_drake.run.diagram import held_station
-from stewart_drake.run.plan import RunPlan, check_reference, make_plan
+from stewart_drake.run.diagram import controller_context, held_station
+from stewart_drake.run.plan import RunPlan, check_reference, checked_plan, make_plan
 from stewart_drake.run.scenario import DataCollectionReference, Scenario
 from stewart_drake.run.scenario_io import load_scenario
 
@@ -111,14 +111,15 @@ def test_a_run_validates_its_scenario_once(monkeypatch):
 
 def test_each_controller_context_has_its_own_pose_estimator():
     plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
-    a, b = (plan.controller_context(X_HOME, np.zeros(6)) for _ in range(2))
+    a, b = (controller_context(plan, X_HOME, np.zeros(6)) for _ in range(2))
     assert a.pose_estimator is not None and a.pose_estimator is not b.pose_estimator
     assert (a.torque_limit_Nm, a.delay_periods, a.offset_s) == (
         plan.torque_limit_Nm,
         1,
         plan.sample_offset_s,
     )
-    assert make_plan(Scenario()).controller_context(X_HOME, np.zeros(6)).pose_estimator is None
+    ideal = controller_context(make_plan(Scenario()), X_HOME, np.zeros(6))
+    assert ideal.pose_estimator is None
 
 
 def test_the_reference_check_uses_the_simulated_robot():
@@ -127,3 +128,28 @@ def test_the_reference_check_uses_the_simulated_robot():
     a = check_reference(scenario, raise_refused=False)
     b = check_reference(make_plan(scenario), raise_refused=False)
     assert a.ok and b.ok and a.max_cond == b.max_cond
+
+
+def test_a_checked_plan_keeps_its_report_and_is_not_checked_again(monkeypatch):
+    from stewart_drake.run import plan as plans
+
+    plan = checked_plan(Scenario(duration_s=0.05))
+    assert plan.report is not None and plan.report.ok and plan.report.series == {}
+    for name in ("check_run_memory", "check_reference_shown"):
+        monkeypatch.setattr(plans, name, lambda *a, **k: pytest.fail("checked again"))
+    assert checked_plan(plan) is plan
+    sd, simulator = experiments.build_simulator(plan)
+    assert sd.plan is plan
+    # Another reference is checked again: its plan carries no report of the old one.
+    assert make_plan(plan, reference="home").report is None
+
+
+def test_the_run_starts_where_the_reference_starts():
+    sd, simulator = experiments.build_simulator(Scenario(duration_s=0.05))
+    x0, x_dot0, _ = sd.trajectory.evaluate(0.0)
+    np.testing.assert_array_equal(sd.x_initial, x0)
+    np.testing.assert_array_equal(sd.x_dot_initial, x_dot0)
+    state = sd.station.GetOutputPort("platform_state").Eval(
+        sd.station.GetMyContextFromRoot(simulator.get_context())
+    )
+    np.testing.assert_allclose(state, np.concatenate([x0, x_dot0]), atol=1e-9)

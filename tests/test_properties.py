@@ -25,7 +25,7 @@ from stewart_drake.control.lqi.gain import error_model, hautus_checks, input_mat
 from stewart_drake.control.tuner.ann import TunerModel
 from stewart_drake.control.tuner.network import load_tuner
 from stewart_drake.references.trajectories import SineTrajectory
-from stewart_drake.robot import kinematics, limits, statics
+from stewart_drake.robot import forward_kinematics, kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import LqiDriver, NamedReference, Scenario
@@ -184,12 +184,12 @@ def test_jacobian_tau_wrench_and_holding_torques(x, with_theta):
 )
 def test_fk(theta, tol, max_iter):
     EXAMPLES["fk"] += 1
-    out = _call(kinematics.fk, GEOMETRY, theta, tol=tol, max_iter=max_iter)
+    out = _call(forward_kinematics.fk, GEOMETRY, theta, tol=tol, max_iter=max_iter)
     if out is not None:
         x, status = out
         assert status.converged and status.residual <= tol
         np.testing.assert_allclose(
-            kinematics._wrap(kinematics.ik(GEOMETRY, x) - theta), 0.0, atol=max(10 * tol, 1e-9)
+            kinematics.wrap_angle(kinematics.ik(GEOMETRY, x) - theta), 0.0, atol=max(10 * tol, 1e-9)
         )
 
 

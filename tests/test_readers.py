@@ -90,7 +90,7 @@ ALLOWED = {
     ("cli/main.py", "_silence_stdout", "os.open"),
     # The servo bus (a serial port), not a file: DynamixelBus.open.
     ("live/session.py", "_run", "bus.open"),
-    ("live/session.py", "_teleop", "bus_config(...).make_bus(...).open"),
+    ("live/session.py", "_teleop", "DynamixelBus.from_config(...).open"),
     ("station/bus/driver.py", "DynamixelBus.__enter__", "self.open"),
 }
 

@@ -30,9 +30,10 @@ from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run.diagram import held_station, make_stewart_station
 from stewart_drake.run.plan import check_reference, make_plan
-from stewart_drake.run.scenario import SineReference, ToolDisturbance
+from stewart_drake.run.scenario import SineReference
 from stewart_drake.run.scenario_io import load_scenario, shipped_scenarios
 from stewart_drake.run.simulate import run_experiment
+from stewart_drake.station.station import ToolDisturbance
 
 # -- every scenario value reaches the plant ------------------------------------------------------
 
@@ -417,7 +418,8 @@ def _push_run(contact: bool):
 
 def _run_with_states(scenario):
     """(RunResult, logged plant states (N, nq + nv)) of a guarded run."""
-    from stewart_drake.run.simulate import advance, build_simulator, collect_result
+    from stewart_drake.run.result import collect_result
+    from stewart_drake.run.simulate import advance, build_simulator
     from stewart_drake.station import guard as run_guard
 
     with warnings.catch_warnings():

@@ -29,11 +29,12 @@ from stewart_drake.live.plant_backend import (  # noqa: E402
 )
 from stewart_drake.live.session import RobotRun, _drive, end_line  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
-from stewart_drake.run.scenario import DynamixelBusConfig, dump_scenario  # noqa: E402
+from stewart_drake.run.result import load_result  # noqa: E402
+from stewart_drake.run.scenario import dump_scenario
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
-from stewart_drake.run.simulate import load_result  # noqa: E402
 from stewart_drake.station.bus import driver  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
@@ -80,9 +81,9 @@ def _kill_then(signum, original):
 
 
 def _in_read_run(monkeypatch, signum):
-    from stewart_drake.run import simulate as experiments
+    from stewart_drake.run import result
 
-    monkeypatch.setattr(experiments, "read_run", _kill_then(signum, experiments.read_run))
+    monkeypatch.setattr(result, "read_run", _kill_then(signum, result.read_run))
 
 
 def _in_yaml_dump(monkeypatch, signum):

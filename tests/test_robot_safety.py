@@ -28,9 +28,10 @@ from stewart_drake.live.plant_backend import (  # noqa: E402
 from stewart_drake.live.session import end_line, run_on_robot  # noqa: E402
 from stewart_drake.references.trajectories import NamedReference  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
-from stewart_drake.run.scenario import DynamixelBusConfig, Scenario  # noqa: E402
-from stewart_drake.run.simulate import load_result  # noqa: E402
+from stewart_drake.run.result import load_result  # noqa: E402
+from stewart_drake.run.scenario import Scenario
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 CONTROL_PERIOD_S = 0.01

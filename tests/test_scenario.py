@@ -14,15 +14,10 @@ from stewart_drake.base.errors import (
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.run.plan import make_plan
-from stewart_drake.run.scenario import (
-    NamedReference,
-    Robot,
-    Scenario,
-    SensorNoise,
-    dump_scenario,
-)
+from stewart_drake.run.scenario import NamedReference, Robot, Scenario, dump_scenario
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.station.guard import GuardConfig
+from stewart_drake.station.station import SensorNoise
 
 SCENARIOS = Path(__file__).resolve().parent.parent / "scenarios"
 
@@ -89,10 +84,11 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     from stewart_drake.control.lqi.driver import LqiScales, LqiScalesConfig
     from stewart_drake.robot.servo import ServoModel
     from stewart_drake.run import scenario as sc
+    from stewart_drake.station.hardware import Motors
 
     kinds = {
         "Robot": sc.Robot,
-        "Motors": sc.Motors,
+        "Motors": Motors,
         "LqiScalesConfig": LqiScalesConfig,
         "StewartGeometry": StewartGeometry,
         "ServoModel": ServoModel,
@@ -274,7 +270,7 @@ def load_scenario_text(text):
 
 def test_an_absurd_disturbance_or_q_filter_is_refused_before_simulating():
     from stewart_drake.control.ilc import IlcDriver
-    from stewart_drake.run.scenario import ToolDisturbance
+    from stewart_drake.station.station import ToolDisturbance
 
     with pytest.raises(InvalidConfigError, match=r"disturbance.magnitude must be .* \[0, 10000\]"):
         Scenario(disturbance=ToolDisturbance("push", 1e300, [1.0, 0.0, 0.0]))

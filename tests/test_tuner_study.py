@@ -234,7 +234,7 @@ def test_run_with_our_tuner_uses_the_shipped_weights(tmp_path, capsys):
     from stewart_drake.control.tuner.ratio import DEFAULT_RATIO_TUNER_PATH, RatioTuner
     from stewart_drake.paper.command import run_scenario
     from stewart_drake.run.diagram import make_stewart_diagram
-    from stewart_drake.run.simulate import load_result
+    from stewart_drake.run.result import load_result
 
     args = build_parser().parse_args(["run", "--tuner", "ratio", "--duration", "0.3"])
     sd = make_stewart_diagram(run_scenario(args))

@@ -423,7 +423,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
 ):
     from stewart_drake.base import checks
     from stewart_drake.references import samples
-    from stewart_drake.run.simulate import run_memory_bytes
+    from stewart_drake.run.plan import run_memory_bytes
 
     path = tmp_path / "long.csv"
     with open(path, "w") as f:
@@ -739,7 +739,7 @@ def test_read_checked_bounds_every_file_it_reads(tmp_path):
 
 def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specials):
     from stewart_drake.execution.store import read_manifest
-    from stewart_drake.run.simulate import load_result
+    from stewart_drake.run.result import load_result
 
     loaders = [
         ("reference CSV", load_csv_trajectory),

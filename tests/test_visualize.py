@@ -18,7 +18,7 @@ from stewart_drake.viz import diagrams, visualize
 DIAGRAMS = Path(__file__).resolve().parent.parent / "diagrams"
 from stewart_drake.base.errors import InvalidConfigError, RenderToolMissingError
 from stewart_drake.run.plan import make_plan
-from stewart_drake.run.simulate import load_result
+from stewart_drake.run.result import load_result
 
 DURATION = 0.3
 

@@ -280,8 +280,9 @@ def paper_run(time_step: float, duration_s: float = 2.0, rod_model: str = "bodie
         InvalidConfigError: 1 ms is not a whole multiple of ``time_step``.
     """
     from ..plant import ball_joints
+    from ..run.result import collect_result
     from ..run.scenario import Scenario
-    from ..run.simulate import build_simulator, collect_result
+    from ..run.simulate import build_simulator
     from ..station import guard
 
     config = Scenario(duration_s=duration_s, rod_model=rod_model)

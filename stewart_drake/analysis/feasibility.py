@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write
-from ..robot.limits import TrajectoryReport
+from ..robot.trajectory_report import TrajectoryReport
 from ..run.plan import check_reference, make_plan
 
 #: Peak memory of :func:`check` per control-period sample, bytes: 0.86 kB measured (the peak of

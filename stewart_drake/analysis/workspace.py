@@ -159,7 +159,7 @@ def tilt_grid(heights, tilts, n_azimuth: int = 24) -> np.ndarray:
         indexing="ij",
     )
     u = np.stack([np.cos(az), np.sin(az), np.zeros_like(az)], axis=-1)
-    K = kinematics._skew(u)
+    K = kinematics.skew(u)
     s, c = np.sin(al)[..., None, None], np.cos(al)[..., None, None]
     R = np.eye(3) + s * K + (1 - c) * (K @ K)
     x = np.zeros(Z.shape + (6,))

@@ -3,8 +3,8 @@ can know (controller side of the station's ``motor_angle`` port).
 
 Forward kinematics by Newton's method on the closed-form IK (the Jacobian is analytic), warm
 started from the previous estimate advanced by the previous rate, with the branch guard of
-:func:`~stewart_drake.robot.kinematics.fk_unchecked` (a step may not change the sign of det J:
-it would land in another assembly mode with the same motor angles). The rate is the backward
+:func:`~stewart_drake.robot.forward_kinematics.fk_unchecked` (a step may not change the sign of
+det J: it would land in another assembly mode with the same motor angles). The rate is the backward
 difference of the estimates, low-passed at ``rate_cutoff_hz``.
 
 Why this and not Drake's ``DiscreteDerivative`` + a low-pass filter (measured in

@@ -116,7 +116,7 @@ def reference_basis(
     acceleration = np.asarray(acceleration, dtype=float)
     n = len(pose)
     jerk = np.gradient(acceleration, h, axis=0) if n > 1 else np.zeros_like(acceleration)
-    J = kinematics._jacobian(geometry, pose)
+    J = kinematics.jacobian_unchecked(geometry, pose)
     omega = np.nan_to_num(np.einsum("nij,nj->ni", J, rate), nan=0.0, posinf=0.0, neginf=0.0)
     sign = np.tanh(omega / rate_scale)
     parts = [np.ones((n, 1)), rate, acceleration, jerk]

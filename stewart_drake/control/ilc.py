@@ -56,7 +56,7 @@ from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError
-from ..robot import kinematics
+from ..robot import forward_kinematics, kinematics
 
 #: What the ``ilc_status`` output holds, in order.
 ILC_STATUS_NAMES = (
@@ -98,7 +98,7 @@ def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
         e = kinematics.ik_unchecked(geometry, x_d)[0]
         e = np.angle(np.exp(1j * (theta - e)))
     else:
-        x, converged, _, _ = kinematics.fk_unchecked(
+        x, converged, _, _ = forward_kinematics.fk_unchecked(
             geometry, theta, x0=x_d, tol=1e-13, max_iter=20
         )
         e = np.where(converged[:, None], x - x_d, 0.0)
@@ -475,7 +475,7 @@ def _memory_layout(rows: int, M: int) -> tuple[dict, int]:
 def _to_pose(geometry, x_d: np.ndarray, e_theta: np.ndarray) -> np.ndarray:
     """Motor-angle errors (r, 6) as pose errors J(x_d)^-1 e_theta (J = d theta / d x); rows
     where J is singular or x_d unreachable are zero."""
-    J = kinematics._jacobian(geometry, x_d)
+    J = kinematics.jacobian_unchecked(geometry, x_d)
     ok = np.all(np.isfinite(J), axis=(1, 2)) & (
         np.abs(np.linalg.det(np.where(np.isfinite(J), J, 0.0))) > 1e-12
     )

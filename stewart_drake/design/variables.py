@@ -32,7 +32,8 @@ from ..robot.geometry import StewartGeometry, _leg_angles, reference_geometry
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import REFERENCE_MOTOR, CatalogueMotor, catalogue_motor
 from ..robot.servo import ServoModel
-from ..run.scenario import Motors, Robot, Scenario
+from ..run.scenario import Robot, Scenario
+from ..station.hardware import Motors
 
 #: {variable: (lower, upper, unit, meaning)}: the bounds of :class:`Design`'s numbers.
 DESIGN_BOUNDS: dict[str, tuple[float, float, str, str]] = {

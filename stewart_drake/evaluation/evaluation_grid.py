@@ -16,14 +16,9 @@ from ..base.errors import InvalidConfigError
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..references.trajectories import NamedReference
 from ..robot.kinematics import AXIS_NAMES
-from ..run.scenario import (
-    ControllerChoice,
-    Scenario,
-    SensorNoise,
-    ToolDisturbance,
-    named_controllers,
-)
+from ..run.scenario import ControllerChoice, Scenario, named_controllers
 from ..run.scenario_io import DEFAULT_SCENARIO, load_scenario
+from ..station.station import SensorNoise, ToolDisturbance
 from ..tuner.collection import PAPER_WEIGHTS
 
 #: The fixed LQIs of the grid by name: (omega_Q, omega_R), the paper's nine pairs.

@@ -224,7 +224,7 @@ def _cmd_robot(args) -> int:
         scenario.duration_s = args.duration
     if args.port is not None:
         if scenario.bus is None:
-            from ..run.scenario import DynamixelBusConfig
+            from ..station.bus.servos import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig(port=args.port)
         else:
@@ -242,7 +242,7 @@ def _cmd_robot(args) -> int:
         _check_calibration_angle(scenario, args.calibrate)
     if args.emulate is not None:
         if scenario.bus is None:
-            from ..run.scenario import DynamixelBusConfig
+            from ..station.bus.servos import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig()
         _check_emulated_pose(scenario, args.emulate)
@@ -361,9 +361,10 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
             emulator = _start_emulator(scenario, args.emulate)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
+            from ..station.bus.driver import DynamixelBus
             from .measure import bus_config, zero_counts_at
 
-            with bus_config(scenario).make_bus() as bus:
+            with DynamixelBus.from_config(bus_config(scenario)) as bus:
                 zeros = zero_counts_at(bus, math.radians(args.calibrate))
             print(
                 f"with every crank held at {args.calibrate:g} deg, put in the scenario's bus:\n"

@@ -47,6 +47,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..robot.motor_catalogue import catalogue_motor
 from ..station.bus import protocol as p
+from ..station.bus.servos import ServoSpec, servo_spec
 
 #: Control table size: addresses 0..146 (Present Temperature is the last one used).
 TABLE_SIZE = 147
@@ -104,7 +105,7 @@ class FirstOrderServos(ServoBackend):
         """The catalogue motor ``name``'s reflected rotor inertia (plus ``load_inertia``,
         kg m^2), friction and no-load speed, and the bus's K_t and stall current."""
         servo = catalogue_motor(name).servo
-        spec = p.servo_spec(name, torque_control=False)
+        spec = servo_spec(name, torque_control=False)
         kw: dict[str, Any] = dict(
             inertia=servo.rotor_inertia * servo.gear_ratio**2 + load_inertia,
             torque_constant=spec.torque_constant_Nm_per_A,
@@ -159,7 +160,7 @@ class FirstOrderServos(ServoBackend):
 class _Servo:
     """One servo's control table and watchdog clock."""
 
-    def __init__(self, servo_id: int, spec: p.ServoSpec, ambient_C: float):
+    def __init__(self, servo_id: int, spec: ServoSpec, ambient_C: float):
         self.id, self.spec = servo_id, spec
         self.table = bytearray(TABLE_SIZE)
         self.put(p.MODEL_NUMBER, spec.model_number)
@@ -229,7 +230,8 @@ class BusEmulator:
     ``zero_counts[k] + q_k * 4096 / 2 pi`` (the horn's count at angle 0).
 
     Args:
-        ids: servo ids (distinct, 0..252).  model: a :data:`~.protocol.SERVO_SPECS` key.
+        ids: servo ids (distinct, 0..252).  model: a
+            :data:`~stewart_drake.station.bus.servos.SERVO_SPECS` key.
         backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
         zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
         tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
@@ -266,7 +268,7 @@ class BusEmulator:
             )
         if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
             raise InvalidConfigError(f"ids {ids} must be distinct integers in 0..{p.MAX_ID}")
-        spec = p.servo_spec(model, torque_control=False)
+        spec = servo_spec(model, torque_control=False)
         self.ids = ids
         self.backend = backend or FirstOrderServos.from_catalogue(model, np.zeros(len(ids)))
         if len(self.backend.positions_rad()) != len(ids):

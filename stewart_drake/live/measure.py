@@ -78,7 +78,7 @@ def pose_verdict(plan, q) -> MeasuredPose:
     from ..base.errors import ForwardKinematicsError
     from ..plant.admissible import classify
     from ..plant.clearance import clearance_model
-    from ..robot.kinematics import fk
+    from ..robot.forward_kinematics import fk
 
     q = np.asarray(q, dtype=float)
     try:
@@ -137,7 +137,9 @@ def measure_pose(scenario, bus=None) -> MeasuredPose:
     plan = make_plan(scenario, with_reference=False)
     if bus is not None:
         return pose_verdict(plan, bus.read_state().q)
-    with bus_config(plan.scenario).make_bus() as opened:
+    from ..station.bus.driver import DynamixelBus
+
+    with DynamixelBus.from_config(bus_config(plan.scenario)) as opened:
         return pose_verdict(plan, opened.read_state().q)
 
 

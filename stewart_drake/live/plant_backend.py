@@ -28,7 +28,7 @@ import numpy as np
 
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
-from ..station.bus import protocol as p
+from ..station.bus.servos import servo_spec
 from .emulator import ServoBackend
 
 
@@ -36,7 +36,8 @@ def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     """``scenario`` (default the paper's, :class:`~..scenario.Scenario`) built with six
     catalogue Dynamixels ``model`` and no computation delay, current-loop lag or encoder noise
     in the station (the bus and the servos bring their own)."""
-    from ..run.scenario import Hardware, Motors, Scenario
+    from ..run.scenario import Scenario
+    from ..station.hardware import Hardware, Motors
 
     servo = dataclasses.replace(catalogue_motor(model).servo, current_time_constant_s=0.0)
     base = scenario if scenario is not None else Scenario()
@@ -64,7 +65,7 @@ class StationServos(ServoBackend):
     def __init__(self, scenario=None, model: str = "XM430-W350-T", x0=X_HOME):
         from ..run.diagram import held_station
 
-        self.spec = p.servo_spec(model)
+        self.spec = servo_spec(model)
         scenario = dynamixel_scenario(model) if scenario is None else scenario
         self.station, self.simulator, _ = held_station(scenario, x0, T=np.zeros(6))
         self._root = self.simulator.get_mutable_context()

@@ -17,7 +17,7 @@ out of it removes the torque:
 5. the end, whatever ends it (the reference's end, Ctrl-C, SIGTERM, a bus error, a missed
    deadline, a guard trip, our watchdog), removes the torque, says in one line why it ended
    and whether every servo confirmed the torque off, and keeps the logs (the ``.npz`` of a
-   simulated run; :func:`~stewart_drake.run.simulate.save_result`).
+   simulated run; :func:`~stewart_drake.run.result.save_result`).
 
 At the end of a run the torque is off: the platform comes down onto its stops. Home it low (the
 scenario's reference ends where the platform may rest) or hold it (``hold_s``) and support it.
@@ -389,8 +389,7 @@ def _build(scenario, homed, meshcat, progress):
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
     from ..run.diagram import make_stewart_diagram
-    from ..run.plan import make_plan
-    from ..run.simulate import check_reference_shown, check_run_memory
+    from ..run.plan import check_reference_shown, check_run_memory, make_plan
     from ..station.bus.station import HardwareStation
 
     # As a simulated run's (run.simulate.build_simulator), but the station is assembled
@@ -431,7 +430,7 @@ def _check_still(sd, bus, start: MeasuredPose) -> None:
 def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path) -> None:
     """The run's metrics and its logs saved at ``path`` into ``ended``; a failure to write
     them is told in ``ended.reason``, never raised."""
-    from ..run.simulate import finish_result, read_run, save_result
+    from ..run.result import finish_result, read_run, save_result
 
     try:
         result = finish_result(read_run(sd, simulator.get_context()), wall)
@@ -526,9 +525,10 @@ def teleop_on_robot(
 def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) -> RobotRun:
     """The powered part of :func:`teleop_on_robot`."""
     from ..execution.runners import Interrupted
+    from ..station.bus.driver import DynamixelBus
     from .teleop import build_teleop, run_teleop
 
-    bus = bus_config(scenario).make_bus().open()
+    bus = DynamixelBus.from_config(bus_config(scenario)).open()
     ended = RobotRun("", False, True, start=start)
     try:
         bus.configure()

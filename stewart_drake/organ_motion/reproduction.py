@@ -22,7 +22,7 @@ from ..references.motion import Reference
 from .fidelity import fidelity
 
 if TYPE_CHECKING:  # for the annotation only: the functions import experiments when they run
-    from ..run.simulate import RunResult
+    from ..run.result import RunResult
 
 # -- a reproduction ----------------------------------------------------------------------------
 
@@ -139,7 +139,8 @@ def run(
     ``state_log_period_s``) and ends with its state at the end of the run (the loggers' last
     sample is one period earlier: the update of a cycle's last sample would otherwise be
     missing)."""
-    from ..run.simulate import build_simulator, finish_result, release_reference, simulate
+    from ..run.result import finish_result, release_reference
+    from ..run.simulate import build_simulator, simulate
 
     # A reproduction reads the pose, the torques and the status, not the controller's integral
     # or error estimate: a 25-minute trace is 72 MB lighter without them.
@@ -344,8 +345,7 @@ def reproduce(
         SimulationDivergedError: the guard stopped the run.
     """
     from ..references.trajectories import as_trajectory
-    from ..run.plan import make_plan
-    from ..run.simulate import check_reference_shown, check_run_memory
+    from ..run.plan import check_reference_shown, check_run_memory, make_plan
 
     _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference

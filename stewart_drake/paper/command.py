@@ -170,7 +170,8 @@ def _cmd_run(args) -> int:
     """``stewart-drake run``: simulate, print the figures, write .npz and .png into args.out."""
     from ..base.fileio import check_replaceable
     from ..run.metrics import format_metrics
-    from ..run.simulate import export_result, run_experiment, save_result
+    from ..run.result import export_result, save_result
+    from ..run.simulate import run_experiment
     from .run_report import plot_fig7
 
     scenario = run_scenario(args)

@@ -1,5 +1,5 @@
 """A run shown: its figures as text (:func:`~.metrics.format_metrics`) and the paper's Fig. 7
-(:func:`plot_fig7`), from a :class:`~stewart_drake.run.simulate.RunResult`; nothing here
+(:func:`plot_fig7`), from a :class:`~stewart_drake.run.result.RunResult`; nothing here
 simulates or computes a figure (:mod:`.metrics` does)."""
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ def classify(
     x = np.asarray(x, dtype=float)
     theta, ratio = kinematics.ik_unchecked(geometry, x)
     margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
-    reachable = limits._reachable_from_margins(margins)
+    reachable = limits.reachable_from_margins(margins)
     cond, inv = kinematics.singularity_measures_unchecked(geometry, x, theta)
     torques, max_torque, bottleneck = _holding_torques(
         geometry, x, theta, reachable & np.isfinite(cond)

@@ -29,6 +29,7 @@ from ..base.errors import InvalidConfigError
 from ..robot import limits
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.kinematics import AXIS_NAMES
+from ..robot.trajectory_report import TrajectoryReport, merge_reports
 from .motion import Reference, ReferenceConfig
 from .samples import load_csv_trajectory
 
@@ -434,7 +435,7 @@ def validate(
     progress=None,
     keep_series: bool = True,
     **checks,
-) -> limits.TrajectoryReport:
+) -> TrajectoryReport:
     """Sample a trajectory on [0, duration_s] every ``dt`` and validate it, in stretches of
     :data:`VALIDATE_CHUNK_SAMPLES` samples, so that the memory the check takes beyond its
     ``series`` does not grow with the duration.
@@ -456,7 +457,7 @@ def validate(
         checks: keyword arguments of the validator (``clearance``, ``min_clearance_m``,
             ``motor_limits``, ``allow_infeasible``).
     Returns:
-        :class:`~stewart_drake.robot.limits.TrajectoryReport`.
+        :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`.
     Raises:
         InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError,
             InterferenceError, MotorLimitError: see
@@ -490,7 +491,7 @@ def validate(
         reports.append(report if keep_series else replace(report, series={}))
         if progress is not None:
             progress.update(t.size)
-    return limits.merge_reports(reports)
+    return merge_reports(reports)
 
 
 # -- a scenario's choices of these references ------------------------------------------------------

@@ -12,21 +12,17 @@ Per leg i (reference_geometry.md):
 The functions take the robot as ``geometry``, a
 :class:`~stewart_drake.robot.geometry.StewartGeometry`, read through the attributes
 :class:`RobotGeometry` names (this module sits below the geometry, which checks itself with it).
-Statics (holding torques, task inertia) are in :mod:`.statics`, joint limits and the
-reference validator in :mod:`.limits`.
+Forward kinematics is in :mod:`.forward_kinematics`, statics in :mod:`.statics`, the limits and
+the reference validator in :mod:`.limits`; all read the per-leg vectors of :func:`leg_terms`.
 """
 
-from __future__ import annotations
-
 import math
-from dataclasses import dataclass
-from typing import Protocol, runtime_checkable
+from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-from ..base.checks import as_array, as_number, as_poses
+from ..base.checks import as_array, as_poses
 from ..base.errors import (
-    ForwardKinematicsError,
     InvalidConfigError,
     SingularPoseError,
     UnreachablePoseError,
@@ -147,7 +143,8 @@ def angular_velocity_map(rpy) -> np.ndarray:
     return E
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
+def skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) cross-product matrices [v]x of vectors v (..., 3): [v]x w = v x w."""
     S = np.zeros(v.shape[:-1] + (3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
@@ -246,12 +243,42 @@ def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:
     return theta
 
 
-def _leg_terms(geometry: RobotGeometry, x, theta=None):
-    """Per-leg vectors used by the Jacobian, statics and inertia, all (..., 6, 3)."""
+class LegTerms(NamedTuple):
+    """The per-leg vectors of poses x (..., 6) that the Jacobian, the statics and the limits
+    read (:func:`leg_terms`), computed once for all of them; base frame, SI units.
+
+    Attributes:
+        theta: (..., 6) motor angles, rad (NaN where a leg cannot close).
+        q_B: (..., 6, 3) platform joint centres q_i. r_B: (..., 6, 3) their lever arms R_BE p_i.
+        tip: (..., 6, 3) crank tips. ell: (..., 6, 3) rod vectors q_i - tip_i.
+        e_N: (..., 6, 3) crank-tip velocity directions per unit theta_dot.
+        E: (..., 3, 3) the angular velocity map of the rpy (:func:`angular_velocity_map`).
+        Gq: (..., 6, 3, 6) dq_i/dx = [-[r_i]x E, I].
+        R: (..., 3, 3) R_BE (:func:`rotation_rpy`).
+    """
+
+    theta: np.ndarray
+    q_B: np.ndarray
+    r_B: np.ndarray
+    tip: np.ndarray
+    ell: np.ndarray
+    e_N: np.ndarray
+    E: np.ndarray
+    Gq: np.ndarray
+    R: np.ndarray
+
+    def rows(self, index) -> "LegTerms":
+        """The terms of the poses ``index`` (an index array into the batch's first axis)."""
+        return LegTerms(*(a[index] for a in self))
+
+
+def leg_terms(geometry: RobotGeometry, x, theta) -> LegTerms:
+    """The :class:`LegTerms` of poses x (..., 6) with their motor angles theta (..., 6) (NaN
+    angles give NaN terms). Not validated."""
     x = np.asarray(x, dtype=float)
-    if theta is None:
-        theta = ik(geometry, x)
-    q_B, r_B = platform_joints(geometry, x)
+    R = rotation_rpy(x[..., :3])
+    r_B = np.einsum("...jk,ik->...ij", R, geometry.p_E)
+    q_B = r_B + x[..., None, 3:6]
     tip = geometry.crank_tips(theta)
     ell = q_B - tip
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
@@ -259,13 +286,19 @@ def _leg_terms(geometry: RobotGeometry, x, theta=None):
     E = angular_velocity_map(x[..., :3])
     # dq_i/dx = [-[r_i]x E, I]: (..., 6, 3, 6)
     Gq = np.zeros(r_B.shape + (6,))
-    Gq[..., :3] = -np.einsum("...ijk,...kl->...ijl", _skew(r_B), E)
+    Gq[..., :3] = -np.einsum("...ijk,...kl->...ijl", skew(r_B), E)
     Gq[..., 3:] = np.eye(3)
-    return theta, q_B, r_B, tip, ell, e_N, E, Gq
+    return LegTerms(theta, q_B, r_B, tip, ell, e_N, E, Gq, R)
 
 
-def _checked(geometry: RobotGeometry, x, theta):
-    """(x, theta) validated for the public Jacobian-based functions; theta from :func:`ik`."""
+def checked_poses(geometry: RobotGeometry, x, theta=None):
+    """(x, theta) validated for the public Jacobian-based functions (here and in
+    :mod:`.statics`); theta from :func:`ik` when not given.
+
+    Raises:
+        InvalidConfigError: x or theta not (..., 6) or not finite, or of different shapes.
+        UnreachablePoseError: theta not given and a pose unreachable.
+    """
     x = as_poses("pose x", x)
     if theta is None:
         return x, ik(geometry, x)
@@ -275,7 +308,7 @@ def _checked(geometry: RobotGeometry, x, theta):
     return x, theta
 
 
-def _finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
+def finite_or_singular(name: str, value: np.ndarray, x: np.ndarray) -> np.ndarray:
     """``value`` if finite, else SingularPoseError naming the first pose of x where it is not."""
     if np.isfinite(value).all():
         return value
@@ -297,17 +330,23 @@ def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
             velocity (J unbounded; :func:`singular_values` reports it as inf instead).
         InvalidConfigError: x or theta not (..., 6) or not finite.
     """
-    x, theta = _checked(geometry, x, theta)
-    return _finite_or_singular("J", _jacobian(geometry, x, theta), x)
+    x, theta = checked_poses(geometry, x, theta)
+    return finite_or_singular("J", jacobian_unchecked(geometry, x, theta), x)
 
 
-def _jacobian(geometry: RobotGeometry, x, theta=None, terms=None) -> np.ndarray:
+def jacobian_unchecked(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """:func:`jacobian` without checks: entries inf (or NaN) at a singular pose, NaN where x is
-    unreachable; for Newton steps and singular values, which handle those themselves. ``terms``:
-    :func:`_leg_terms` of x when already computed."""
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms or _leg_terms(geometry, x, theta)
-    num = np.einsum("...ik,...ikl->...il", ell, Gq)
-    den = geometry.crank_length * np.sum(ell * e_N, axis=-1)
+    unreachable; for Newton steps and singular values, which handle those themselves. theta:
+    the motor angles of x (default :func:`ik`, which raises for an unreachable pose)."""
+    theta = ik(geometry, x) if theta is None else theta
+    return jacobian_of(geometry, leg_terms(geometry, x, theta))
+
+
+def jacobian_of(geometry: RobotGeometry, terms: LegTerms) -> np.ndarray:
+    """:func:`jacobian_unchecked` from the :class:`LegTerms` of the poses (computed once for
+    the Jacobian, the statics and the limits)."""
+    num = np.einsum("...ik,...ikl->...il", terms.ell, terms.Gq)
+    den = geometry.crank_length * np.sum(terms.ell * terms.e_N, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         return num / den[..., None]
 
@@ -336,14 +375,14 @@ def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
         as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
     Source: paper eqs. 11-18; the paper's eq. 15 multiplies by e_l . e_N where it must divide.
     """
-    x, theta = _checked(geometry, x, theta)
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
+    x, theta = checked_poses(geometry, x, theta)
+    terms = leg_terms(geometry, x, theta)
+    e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
     with np.errstate(divide="ignore", invalid="ignore"):
-        scale = 1.0 / (geometry.crank_length * np.sum(e_l * e_N, axis=-1))
+        scale = 1.0 / (geometry.crank_length * np.sum(e_l * terms.e_N, axis=-1))
         W = np.swapaxes(tau1 * scale[..., None], -1, -2)
-    return _finite_or_singular("W", W, x)
+    return finite_or_singular("W", W, x)
 
 
 def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
@@ -351,185 +390,16 @@ def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
 
     Kept to document the discrepancy (docs/paper_notes.md); use :func:`wrench_map` or :func:`tau`.
     """
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    tau1 = np.concatenate([np.cross(r_B, e_l), e_l], axis=-1)
-    scale = np.sum(e_l * e_N, axis=-1) / geometry.crank_length
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
+    e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
+    tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)
+    scale = np.sum(e_l * terms.e_N, axis=-1) / geometry.crank_length
     return np.swapaxes(tau1 * scale[..., None], -1, -2)
 
 
-@dataclass(frozen=True)
-class FkStatus:
-    """How a forward-kinematics solve ended (for a batch: all converged, worst case).
-
-    Attributes:
-        converged: True if max_i |ik(x)_i - theta_i| <= tol.
-        iterations: Newton steps taken (the largest over a batch).
-        residual: max_i |ik(x)_i - theta_i| at the returned pose, rad (largest over a batch).
-    """
-
-    converged: bool
-    iterations: int
-    residual: float
-
-
-def _wrap(angle):
+def wrap_angle(angle):
     """Angles wrapped to [-pi, pi), rad."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _fk_residual(geometry: RobotGeometry, x, theta_target):
-    """(theta of x, wrapped residual (n, 6), 2-norm (n,), max-abs (n,)); inf where unreachable."""
-    theta, _ = ik_unchecked(geometry, x)
-    r = _wrap(theta - theta_target)
-    bad = ~np.all(np.isfinite(r), axis=-1)
-    norm2 = np.where(bad, np.inf, np.linalg.norm(np.where(np.isfinite(r), r, 0.0), axis=-1))
-    norm_max = np.where(bad, np.inf, np.abs(np.where(np.isfinite(r), r, 0.0)).max(axis=-1))
-    return theta, r, norm2, norm_max
-
-
-def _assembly_mode(geometry: RobotGeometry, x, theta) -> np.ndarray:
-    """(n,) sign of det J(x): +-1, 0 where J is singular or not finite."""
-    J = _jacobian(geometry, x, theta)
-    finite = np.all(np.isfinite(J), axis=(-2, -1))
-    return np.where(finite, np.sign(np.linalg.det(np.where(finite[..., None, None], J, 0.0))), 0.0)
-
-
-def fk_unchecked(
-    geometry: RobotGeometry,
-    theta,
-    x0=None,
-    tol: float = 1e-12,
-    max_iter: int = 50,
-    max_halvings: int = 30,
-):
-    """Vectorized forward kinematics without raising: Newton on the closed-form IK.
-
-    x_{k+1} = x_k - alpha J(x_k)^{-1} wrap(ik(x_k) - theta), alpha = 1, 1/2, 1/4, ... until the
-    iterate is reachable, ||ik(x) - theta||_2 decreases (backtracking) and sign det J(x) is that
-    of x0: no step crosses a singularity into another assembly mode (without this, 4 of 8099
-    poses spread over the whole workspace converged, from home, to a different pose with the same
-    motor angles). The IK branch is the one of :func:`ik`, so ``fk(ik(x)) = x`` for every
-    reachable x of the initial pose's assembly mode that the iteration can reach.
-
-    Args:
-        geometry: the robot.
-        theta: (6,) or (..., 6) motor angles in rad (compared modulo 2 pi).
-        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose X_HOME.
-        tol: convergence threshold on max_i |ik(x)_i - theta_i|, rad.
-        max_iter: Newton steps at most per pose.
-        max_halvings: step halvings at most per Newton step.
-    Returns:
-        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m (the last iterate if failed).
-        converged: (...) bool.
-        iterations: (...) int, Newton steps taken.
-        residual: (...) max_i |ik(x)_i - theta_i| in rad, inf if x0 is unreachable.
-    Source: Newton's method with the analytic :func:`jacobian` (J = d theta / d x).
-    """
-    # Long: Newton, its backtracking and the assembly-mode guard share the batch's masks; apart,
-    # the masks would pass between functions on every iteration.
-    theta = np.asarray(theta, dtype=float)
-    batch = theta.shape[:-1]
-    target = theta.reshape(-1, 6)
-    n = target.shape[0]
-    x = np.array(
-        np.broadcast_to(X_HOME if x0 is None else np.asarray(x0, dtype=float), batch + (6,)),
-        dtype=float,
-    ).reshape(-1, 6)
-    th_k, r, err2, errmax = _fk_residual(geometry, x, target)
-    iterations = np.zeros(n, dtype=int)
-    failed = ~np.isfinite(err2)  # the initial pose is unreachable
-    mode = _assembly_mode(geometry, x, th_k)  # sign det J: steps may not cross a singularity
-    for _ in range(max_iter):
-        idx = np.flatnonzero(~failed & (errmax > tol))
-        if idx.size == 0:
-            break
-        J = _jacobian(geometry, x[idx], th_k[idx])
-        finite = np.all(np.isfinite(J), axis=(-2, -1))
-        J = np.where(finite[:, None, None], J, np.eye(6))
-        try:
-            dx = np.linalg.solve(J, r[idx][..., None])[..., 0]
-        except np.linalg.LinAlgError:  # a singular J somewhere in the batch
-            dx = np.einsum("nij,nj->ni", np.linalg.pinv(J), r[idx])
-        ok_dir = finite & np.all(np.isfinite(dx), axis=-1)
-        iterations[idx] += 1
-        alpha = np.ones(idx.size)
-        pending = ok_dir.copy()
-        accepted = np.zeros(idx.size, dtype=bool)
-        for _ in range(max_halvings + 1):
-            p = np.flatnonzero(pending)
-            if p.size == 0:
-                break
-            cand = x[idx[p]] - alpha[p, None] * dx[p]
-            th_c, r_c, e2_c, emax_c = _fk_residual(geometry, cand, target[idx[p]])
-            good = (
-                np.isfinite(e2_c)
-                & ((e2_c < err2[idx[p]]) | (emax_c <= tol))
-                & (_assembly_mode(geometry, cand, th_c) == mode[idx[p]])
-            )
-            g = p[good]
-            x[idx[g]], th_k[idx[g]], r[idx[g]] = cand[good], th_c[good], r_c[good]
-            err2[idx[g]], errmax[idx[g]] = e2_c[good], emax_c[good]
-            accepted[g] = True
-            pending[g] = False
-            alpha[p[~good]] *= 0.5
-        failed[idx[~accepted]] = True  # no descent step: stalled or singular
-    converged = errmax <= tol
-    return (
-        x.reshape(batch + (6,)),
-        converged.reshape(batch),
-        iterations.reshape(batch),
-        errmax.reshape(batch),
-    )
-
-
-def fk(
-    geometry: RobotGeometry, theta, x0=None, tol: float = 1e-12, max_iter: int = 50
-) -> tuple[np.ndarray, FkStatus]:
-    """Forward kinematics: the platform pose whose closed-form IK gives the motor angles theta.
-
-    Args:
-        geometry: the robot.
-        theta: (6,) or (..., 6) motor angles in rad.
-        x0: (6,) or (..., 6) initial pose [rad, m]; default the home pose. The solution is the
-            assembly mode Newton reaches from x0 (from home: the robot's working mode).
-        tol: max_i |ik(x)_i - theta_i| at convergence, rad.
-        max_iter: Newton steps at most.
-    Returns:
-        x: (..., 6) pose [phi, theta, psi, X, Y, Z] in rad and m.
-        status: :class:`FkStatus` (for a batch: all converged, largest iterations and residual).
-    Raises:
-        ForwardKinematicsError: some pose did not converge (the first one is named, with its
-            residual); also when x0 is unreachable or every step leads out of the workspace.
-        InvalidConfigError: theta or x0 not (..., 6) or not finite, tol <= 0, max_iter < 1.
-    Source: Newton on :func:`ik` with the analytic :func:`jacobian`, backtracking on
-        ||ik(x) - theta|| (see :func:`fk_unchecked`).
-    """
-    theta = as_array("motor angles theta", theta, last=6)
-    x0 = None if x0 is None else as_poses("initial pose x0", x0)
-    tol = as_number("tol", tol, 0.0, lo_open=True)
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise InvalidConfigError(f"max_iter must be an integer >= 1, got {max_iter!r}")
-    x, converged, iterations, residual = fk_unchecked(geometry, theta, x0, tol, max_iter)
-    if not np.all(converged):
-        k = int(np.argmax(~converged.reshape(-1)))
-        th = np.asarray(theta, dtype=float).reshape(-1, 6)[k]
-        if not np.isfinite(residual.reshape(-1)[k]):
-            raise ForwardKinematicsError(
-                f"forward kinematics cannot start (batch index {k}): the initial pose x0 is "
-                f"unreachable; give a reachable x0 (default: the home pose)"
-            )
-        raise ForwardKinematicsError(
-            f"forward kinematics did not converge for motor angles "
-            f"[{', '.join(f'{v:.6g}' for v in th)}] rad (batch index {k}): residual "
-            f"{residual.reshape(-1)[k]:.3g} rad after {iterations.reshape(-1)[k]} Newton steps "
-            f"(tol {tol:g}). Give an initial pose x0 closer to the solution, raise max_iter or "
-            f"tol, or check that the angles come from a reachable pose."
-        )
-    status = FkStatus(
-        bool(np.all(converged)), int(iterations.max(initial=0)), float(residual.max(initial=0.0))
-    )
-    return x, status
 
 
 def leg_constants(geometry: RobotGeometry) -> tuple:
@@ -619,7 +489,7 @@ def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
 
 def leg_vectors_single(geometry: RobotGeometry, cache: tuple):
     """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
-    of the pose :func:`ik_single` was given (its cache); as in :func:`_leg_terms`."""
+    of the pose :func:`ik_single` was given (its cache); as in :func:`leg_terms`."""
     x, _, _, l, theta = cache
     a, d_B = geometry.crank_length, geometry.d_B
     with np.errstate(invalid="ignore"):
@@ -653,7 +523,7 @@ def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     return theta, jacobian_single(geometry, cache)
 
 
-def _singular_values_of(J: np.ndarray) -> np.ndarray:
+def singular_values_of(J: np.ndarray) -> np.ndarray:
     """(..., 6) descending singular values; NaN rows where J has NaN, inf where J has inf."""
     flat = J.reshape(-1, 6, 6)
     out = np.full(flat.shape[:1] + (6,), np.nan)
@@ -679,7 +549,7 @@ def singular_values(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     x = as_poses("pose x", x)
     if theta is None:
         theta, _ = ik_unchecked(geometry, x)
-    return _singular_values_of(_jacobian(geometry, x, theta))
+    return singular_values_of(jacobian_unchecked(geometry, x, theta))
 
 
 def singularity_measures(geometry: RobotGeometry, x, theta=None):
@@ -715,7 +585,12 @@ def singularity_measures(geometry: RobotGeometry, x, theta=None):
 def singularity_measures_unchecked(geometry: RobotGeometry, x, theta=None):
     """:func:`singularity_measures` with NaN where x is unreachable (workspace sweeps, the
     validator of a path); x must still be finite poses (..., 6)."""
-    sv = singular_values(geometry, x, theta)  # validates x
+    return singularity_measures_of(singular_values(geometry, x, theta))  # validates x
+
+
+def singularity_measures_of(sv: np.ndarray):
+    """(cond, sigma_min_inv) of :func:`singularity_measures` from the singular values sv
+    (..., 6) of the Jacobian (:func:`singular_values_of`)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         cond = np.where(np.isinf(sv[..., 0]), np.inf, sv[..., 0] / sv[..., -1])
         inv = np.where(np.isinf(sv[..., 0]), 0.0, 1.0 / sv[..., 0])

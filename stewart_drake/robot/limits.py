@@ -11,7 +11,7 @@ every entry point (the run, the collection, the tasks, ``stewart-drake check``) 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from functools import lru_cache, reduce
 from typing import Any
 
@@ -31,13 +31,18 @@ from .kinematics import (
     DEFAULT_COND_THRESHOLD,
     X_HOME,
     RobotGeometry,
-    _wrap,
+    finite_or_singular,
     ik,
     ik_unchecked,
+    jacobian_of,
+    leg_terms,
     platform_joints,
     rotation_rpy,
-    singularity_measures_unchecked,
+    singular_values_of,
+    singularity_measures_of,
+    wrap_angle,
 )
+from .trajectory_report import LimitViolation, TrajectoryReport
 
 #: Default lower bound on 1/sigma_max(J) = sigma_min(J^{-1}), (rad or m) of pose per rad of motor.
 #: J = d theta / d x; its largest singular value blows up at a crank's dead point (rod aligned
@@ -89,12 +94,17 @@ def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
         theta, _ = ik_unchecked(geometry, x)
     q_B, _ = platform_joints(geometry, x)
     ell = q_B - geometry.crank_tips(theta)
+    return joint_angles_of(geometry, theta, ell, rotation_rpy(x[..., :3]))
+
+
+def joint_angles_of(geometry: RobotGeometry, theta, ell, R) -> dict:
+    """:func:`joint_angles` from the motor angles theta (..., 6), the rod vectors ell
+    (..., 6, 3) and R_BE (..., 3, 3) of the poses (their :class:`~.kinematics.LegTerms`)."""
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
-    R = rotation_rpy(x[..., :3])
     e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
     cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
     return {
-        "motor_angle": _wrap(theta),
+        "motor_angle": wrap_angle(theta),
         "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
         "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
     }
@@ -136,11 +146,16 @@ def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
 
 def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
     """:func:`limit_margins` of any finite poses: ``closure`` < 0 where a leg cannot close, the
-    other margins NaN there (workspace sweeps, :func:`is_reachable`, the path validator)."""
+    other margins NaN there (workspace sweeps, :func:`is_reachable`)."""
     x = np.asarray(x, dtype=float)
     if theta is None or ratio is None:
         theta, ratio = ik_unchecked(geometry, x)
-    angles = joint_angles(geometry, x, theta)
+    return margins_of(geometry, ratio, joint_angles(geometry, x, theta))
+
+
+def margins_of(geometry: RobotGeometry, ratio, angles: dict) -> dict:
+    """:func:`limit_margins_unchecked` from the reach ratios (..., 6) and the
+    :func:`joint_angles` of the poses."""
     lo, hi = np.deg2rad(geometry.motor_angle_min_deg), np.deg2rad(geometry.motor_angle_max_deg)
     m = angles["motor_angle"]
     return {
@@ -151,35 +166,10 @@ def limit_margins_unchecked(geometry: RobotGeometry, x, theta=None, ratio=None) 
     }
 
 
-def _reachable_from_margins(margins: dict) -> np.ndarray:
-    # NaN counts as violated.
+def reachable_from_margins(margins: dict) -> np.ndarray:
+    """(...) bool: every leg inside every limit of :data:`LIMITS` by ``margins``
+    (:func:`limit_margins_unchecked`); NaN counts as violated."""
     return reduce(np.logical_and, (np.all(margins[name] >= 0.0, axis=-1) for name in LIMITS))
-
-
-@dataclass(frozen=True)
-class LimitViolation:
-    """One leg outside one limit.
-
-    Attributes:
-        leg: 0..5, reference_geometry.md order.
-        limit: a name of :data:`LIMITS`.
-        margin: < 0, in the limit's unit (rad; dimensionless for ``closure``).
-        t: time along a trajectory in s, or None.
-    """
-
-    leg: int
-    limit: str
-    margin: float
-    t: float | None = None
-
-    def __str__(self) -> str:
-        where = "" if self.t is None else f" at t = {self.t:.4g} s"
-        amount = (
-            f"{-self.margin:.4g} (ratio {1 - self.margin:.4g} > 1)"
-            if self.limit == "closure"
-            else f"{np.rad2deg(-self.margin):.3g} deg"
-        )
-        return f"leg {self.leg} exceeds its {self.limit} limit by {amount}{where}"
 
 
 @dataclass(frozen=True)
@@ -231,7 +221,7 @@ def is_reachable(geometry: RobotGeometry, x) -> Reachability:
     x = as_poses("pose x", x)
     theta, ratio = ik_unchecked(geometry, x)
     margins = limit_margins_unchecked(geometry, x, theta, ratio)
-    return Reachability(_reachable_from_margins(margins), margins, theta)
+    return Reachability(reachable_from_margins(margins), margins, theta)
 
 
 #: Default share of the servos' peak torque and no-load speed a reference may use; the rest is
@@ -254,225 +244,6 @@ class MotorLimits:
     max_speed_rad_s: float | None = None
     margin: float = DEFAULT_EFFORT_MARGIN
     servo: object = None
-
-
-@dataclass(frozen=True)
-class TrajectoryReport:
-    """Result of :func:`validate_trajectory`.
-
-    Attributes:
-        ok: every sample inside every limit and below the condition-number threshold.
-        min_margin: limit name -> smallest margin over samples and legs (rad; 1 for closure).
-        min_margin_leg, min_margin_t: limit name -> leg and time (s) of that smallest margin.
-        first_violation: the earliest :class:`LimitViolation` (worst leg at that time) or None.
-        max_cond, max_cond_t: largest cond(J) along the path and its time (s).
-        first_singular_t: first time (s) with cond(J) > cond_threshold, or None.
-        min_sigma_min_inv: smallest 1/sigma_max(J) along the path ((rad or m) per rad).
-        cond_threshold: the threshold used.
-        min_sigma_min_inv_t: time (s) of ``min_sigma_min_inv``.
-        first_weak_t: first time (s) with 1/sigma_max(J) < sigma_min_inv_threshold, or None.
-        sigma_min_inv_threshold: the threshold used ((rad or m) per rad).
-        min_clearance: smallest distance between two parts along the path, m (NaN when not
-            checked), at ``min_clearance_t`` between ``min_clearance_parts`` ("a and b").
-        clearance_threshold: the smallest clearance allowed, m.
-        first_interference: (t, part_a, part_b, clearance) of the first measured pose below it,
-            or None.
-        design_clearance, design_clearance_parts: the closest of the pairs whose distance is the
-            same at every pose (the clearance model's ``fixed`` pairs), m, and its parts.
-        peak_torque, peak_torque_motor, peak_torque_t: the largest |torque| the motion needs
-            (N m), which motor, when (NaN / -1 when not checked).  torque_limit: what it may use.
-        peak_speed, peak_speed_motor, peak_speed_t, speed_limit: the same for the crank speed,
-            rad/s.
-        effort_margin: the share of the motors' peak torque and no-load speed a reference may
-            use (``torque_limit`` is that share of the peak; NaN when not checked).
-        first_effort_violation: :class:`~.errors.MotorLimitError` of the first time
-            a motor is over its limit, or None.
-        series: the checks sample by sample, for plots: ``t`` (n,) s; ``margins`` dict name ->
-            (n, 6) as :func:`limit_margins`; ``cond``, ``sigma_min_inv`` (n,); with clearance,
-            ``clearance_t`` (m,) s and ``clearance`` (m,) m at the measured poses; with motor
-            limits, ``torque`` and ``speed`` (n, 6) in N m and rad/s (NaN where unreachable).
-    """
-
-    ok: bool
-    min_margin: dict
-    min_margin_leg: dict
-    min_margin_t: dict
-    first_violation: LimitViolation | None
-    max_cond: float
-    max_cond_t: float
-    first_singular_t: float | None
-    min_sigma_min_inv: float
-    cond_threshold: float
-    min_sigma_min_inv_t: float = float("nan")
-    first_weak_t: float | None = None
-    sigma_min_inv_threshold: float = 0.0
-    min_clearance: float = float("nan")
-    min_clearance_t: float = float("nan")
-    min_clearance_parts: str = ""
-    clearance_threshold: float = float("nan")
-    first_interference: tuple | None = None
-    design_clearance: float = float("nan")
-    design_clearance_parts: str = ""
-    peak_torque: float = float("nan")
-    peak_torque_motor: int = -1
-    peak_torque_t: float = float("nan")
-    torque_limit: float = float("nan")
-    peak_speed: float = float("nan")
-    peak_speed_motor: int = -1
-    peak_speed_t: float = float("nan")
-    speed_limit: float = float("nan")
-    first_effort_violation: MotorLimitError | None = None
-    effort_margin: float = float("nan")
-    series: dict = field(default_factory=dict, repr=False, compare=False)
-
-    @property
-    def feasible(self) -> bool:
-        """No motor over its torque or speed limit (True when they were not checked)."""
-        return self.first_effort_violation is None
-
-    def summary(self) -> str:
-        """Human-readable lines: verdict, each limit's smallest margin, singularity."""
-        lines = [("OK" if self.ok else "REFUSED") + ": trajectory validated"]
-        for name in LIMITS:
-            m = self.min_margin[name]
-            unit = f"{m:.4g}" if name == "closure" else f"{np.rad2deg(m):.4g} deg"
-            lines.append(
-                f"  {name:15s} min margin {unit} (leg {self.min_margin_leg[name]}, "
-                f"t = {self.min_margin_t[name]:.4g} s)"
-            )
-        lines.append(
-            f"  cond(J) max {self.max_cond:.4g} at t = {self.max_cond_t:.4g} s "
-            f"(threshold {self.cond_threshold:g})"
-        )
-        lines.append(
-            f"  1/sigma_max(J) min {self.min_sigma_min_inv:.4g} at "
-            f"t = {self.min_sigma_min_inv_t:.4g} s "
-            f"(threshold {self.sigma_min_inv_threshold:g})"
-        )
-        if self.first_singular_t is not None:
-            lines.append(
-                f"  closer to singularity than the threshold first at "
-                f"t = {self.first_singular_t:.4g} s"
-            )
-        if self.first_weak_t is not None:
-            lines.append(
-                f"  1/sigma_max(J) below its threshold first at t = {self.first_weak_t:.4g} s"
-            )
-        if np.isfinite(self.min_clearance):
-            lines.append(
-                f"  clearance       min {self.min_clearance * 1e3:.3g} mm "
-                f"({self.min_clearance_parts}, t = {self.min_clearance_t:.4g} s; "
-                f"threshold {self.clearance_threshold * 1e3:.3g} mm)"
-            )
-        if np.isfinite(self.design_clearance):
-            lines.append(
-                f"                  {self.design_clearance * 1e3:.3g} mm at every pose "
-                f"({self.design_clearance_parts}: fixed by the design)"
-            )
-        for name, unit, peak, motor, when, limit in (
-            (
-                "torque",
-                "N m",
-                self.peak_torque,
-                self.peak_torque_motor,
-                self.peak_torque_t,
-                self.torque_limit,
-            ),
-            (
-                "speed",
-                "rad/s",
-                self.peak_speed,
-                self.peak_speed_motor,
-                self.peak_speed_t,
-                self.speed_limit,
-            ),
-        ):
-            if np.isfinite(peak):
-                bound = "no limit"
-                if np.isfinite(limit):
-                    motors = "peak" if name == "torque" else "no-load speed"
-                    bound = (
-                        f"limit {limit:.3g} {unit}, {100 * self.effort_margin:.3g} % of the "
-                        f"motors' {limit / self.effort_margin:.3g} {unit} {motors}"
-                    )
-                lines.append(
-                    f"  {name:15s} peak {peak:.3g} {unit} (motor {motor}, "
-                    f"t = {when:.4g} s; {bound})"
-                )
-        if self.first_violation is not None:
-            lines.append(f"  first violation: {self.first_violation}")
-        if self.first_interference is not None:
-            t, a, b, d = self.first_interference
-            lines.append(f"  first interference: {a} and {b} at {d * 1e3:.3g} mm, t = {t:.4g} s")
-        if self.first_effort_violation is not None:
-            e = self.first_effort_violation
-            lines.append(
-                f"  first motor over its limit: motor {e.motor} needs "
-                f"{e.required:.3g} {'N m' if e.quantity == 'torque' else 'rad/s'} of "
-                f"{e.quantity} (limit {e.limit:.3g}) at t = {e.t:.4g} s"
-            )
-        return "\n".join(lines)
-
-
-def merge_reports(reports) -> TrajectoryReport:
-    """One :class:`TrajectoryReport` of a path checked in consecutive stretches of time: the
-    report :func:`validate_trajectory` gives for the whole path (each extreme with its time, leg
-    or motor, each "first" the earliest), its ``series`` concatenated.
-
-    Args:
-        reports: the stretches' reports in time order, each from the same thresholds.
-    Returns:
-        :class:`TrajectoryReport`.
-    """
-    reports = list(reports)
-    head = reports[0]
-    if len(reports) == 1:
-        return head
-
-    def first(name):
-        return next((v for r in reports if (v := getattr(r, name)) is not None), None)
-
-    def extreme(value, fields, pick=min):
-        ranked = [r for r in reports if not np.isnan(getattr(r, value))]
-        if not ranked:
-            return {}
-        best = pick(ranked, key=lambda r: getattr(r, value))
-        return {name: getattr(best, name) for name in (value, *fields)}
-
-    min_margin, min_leg, min_t = {}, {}, {}
-    for name in LIMITS:
-        best = min(reports, key=lambda r: r.min_margin[name])
-        min_margin[name] = best.min_margin[name]
-        min_leg[name], min_t[name] = best.min_margin_leg[name], best.min_margin_t[name]
-    merged = replace(
-        head,
-        ok=all(r.ok for r in reports),
-        min_margin=min_margin,
-        min_margin_leg=min_leg,
-        min_margin_t=min_t,
-        first_violation=first("first_violation"),
-        first_singular_t=first("first_singular_t"),
-        first_weak_t=first("first_weak_t"),
-        first_interference=first("first_interference"),
-        first_effort_violation=first("first_effort_violation"),
-        **extreme("max_cond", ("max_cond_t",), max),
-        **extreme("min_sigma_min_inv", ("min_sigma_min_inv_t",)),
-        **extreme("min_clearance", ("min_clearance_t", "min_clearance_parts")),
-        **extreme("peak_torque", ("peak_torque_motor", "peak_torque_t"), max),
-        **extreme("peak_speed", ("peak_speed_motor", "peak_speed_t"), max),
-        series=_concatenated([r.series for r in reports]),
-    )
-    return merged
-
-
-def _concatenated(parts: list):
-    """Dicts (nested) of arrays joined along their first axis; other values from the first."""
-    if isinstance(parts[0], dict):
-        keys = [k for k in parts[0] if all(k in p for p in parts)]
-        return {k: _concatenated([p[k] for p in parts]) for k in keys}
-    if isinstance(parts[0], np.ndarray):
-        return np.concatenate(parts)
-    return parts[0]
 
 
 def validate_trajectory(
@@ -537,56 +308,82 @@ def validate_trajectory(
     """
     # Long for its docstring: the one validator of a reference documents every check and error.
     t, x = _checked_samples(t, x, x_dot, x_ddot)
-    cond_threshold = as_number("cond_threshold", cond_threshold, 1.0, lo_open=True)
-    min_sigma_min_inv = as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0)
+    checks = _PathChecks(
+        as_number("cond_threshold", cond_threshold, 1.0, lo_open=True),
+        as_number("min_sigma_min_inv", min_sigma_min_inv, 0.0),
+        raise_unreachable,
+        raise_refused,
+        clearance,
+        min_clearance_m,
+        clearance_resolution_m,
+        motor_limits,
+        allow_infeasible,
+    )
+    return _validated(geometry, t, x, x_dot, x_ddot, checks)
+
+
+@dataclass(frozen=True)
+class _PathChecks:
+    """The checks :func:`validate_trajectory` was asked for (its arguments, the thresholds
+    checked), handed whole to its steps."""
+
+    cond_threshold: float
+    min_sigma_min_inv: float
+    raise_unreachable: bool
+    raise_refused: bool
+    clearance: Any
+    min_clearance_m: float
+    clearance_resolution_m: float
+    motor_limits: MotorLimits | None
+    allow_infeasible: bool
+
+
+def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> TrajectoryReport:
+    """:func:`validate_trajectory` of checked samples. The kinematics of the samples (inverse
+    kinematics, leg terms, Jacobian) are computed once, for the limits, the singularity
+    measures and the motors' effort alike."""
     theta, ratio = ik_unchecked(geometry, x)
+    terms = leg_terms(geometry, x, theta)  # NaN where a leg cannot close
+    J = jacobian_of(geometry, terms)
+    cond, inv = singularity_measures_of(singular_values_of(J))
     closed = np.abs(ratio) <= 1.0
-    if raise_unreachable and not np.all(closed):
-        k = int(np.argmax(~np.all(closed, axis=1)))
-        if raise_refused and k > 0:  # an earlier refusal of another kind comes first
-            validate_trajectory(
-                geometry,
-                t[:k],
-                x[:k],
-                cond_threshold,
-                raise_unreachable,
-                min_sigma_min_inv,
-                raise_refused,
-                None if x_dot is None else np.asarray(x_dot)[:k],
-                None if x_ddot is None else np.asarray(x_ddot)[:k],
-                clearance,
-                min_clearance_m,
-                clearance_resolution_m,
-                motor_limits,
-                allow_infeasible,
-            )
-        leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
-        raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
-    margins = limit_margins_unchecked(geometry, x, theta, ratio)
-    cond, inv = singularity_measures_unchecked(geometry, x, theta)
+    if checks.raise_unreachable and not np.all(closed):
+        _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks)
+    margins = margins_of(geometry, ratio, joint_angles_of(geometry, theta, terms.ell, terms.R))
     cond_f = np.where(np.isnan(cond), np.inf, cond)
     inv_f = np.where(np.isnan(inv), 0.0, inv)
     reachable = np.all(closed, axis=1)
     series = {"t": t, "margins": margins, "cond": cond, "sigma_min_inv": inv}
     extra = {"series": series}
-    if clearance is not None:
+    if checks.clearance is not None:
+        threshold = as_number("min_clearance_m", checks.min_clearance_m, 0.0)
         extra.update(
             _clearance_fields(
-                clearance,
-                t,
-                x,
-                reachable,
-                as_number("min_clearance_m", min_clearance_m, 0.0),
-                clearance_resolution_m,
-                series,
+                checks.clearance, t, x, reachable, threshold, checks.clearance_resolution_m, series
             )
         )
-    if motor_limits is not None:
-        extra.update(_effort_fields(geometry, t, x, x_dot, x_ddot, reachable, motor_limits, series))
-    report = _report(t, margins, cond_f, inv_f, cond_threshold, min_sigma_min_inv, extra)
-    if raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f, allow_infeasible)
+    if checks.motor_limits is not None:
+        extra.update(
+            _effort_fields(
+                geometry, t, x, x_dot, x_ddot, reachable, checks.motor_limits, series, terms, J
+            )
+        )
+    report = _report(t, margins, cond_f, inv_f, checks, extra)
+    if checks.raise_refused and not report.ok:
+        _raise_first_refusal(report, t, x, cond_f, inv_f, checks.allow_infeasible)
     return report
+
+
+def _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks: _PathChecks):
+    """Raise the UnreachablePoseError of the first sample where a leg cannot close; with
+    ``raise_refused``, an earlier refusal of another kind first (the samples before it are
+    validated)."""
+    k = int(np.argmax(~np.all(np.abs(ratio) <= 1.0, axis=1)))
+    if checks.raise_refused and k > 0:  # an earlier refusal of another kind comes first
+        head = [None if v is None else np.asarray(v)[:k] for v in (x_dot, x_ddot)]
+        _validated(geometry, t[:k], x[:k], head[0], head[1], checks)
+    leg = int(np.argmax(np.where(np.isfinite(ratio[k]), np.abs(ratio[k]), np.inf)))
+    raise UnreachablePoseError(leg, ratio[k, leg], t=t[k], pose=x[k])
 
 
 def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
@@ -613,11 +410,11 @@ def _checked_samples(t, x, x_dot, x_ddot) -> tuple:
     return t, x
 
 
-def _report(
-    t, margins: dict, cond_f, inv_f, cond_threshold: float, min_sigma_min_inv: float, extra: dict
-) -> TrajectoryReport:
+def _report(t, margins: dict, cond_f, inv_f, checks: _PathChecks, extra: dict) -> TrajectoryReport:
     """The :class:`TrajectoryReport` of the margins and singularity measures along t (NaN
-    already mapped to the worst value), with the clearance and effort fields in ``extra``."""
+    already mapped to the worst value) against the thresholds of ``checks``, with the clearance
+    and effort fields in ``extra``."""
+    cond_threshold, min_sigma_min_inv = checks.cond_threshold, checks.min_sigma_min_inv
     min_margin, min_leg, min_t = {}, {}, {}
     first = None
     for name in LIMITS:
@@ -695,11 +492,12 @@ def _clearance_fields(
 
 
 def _effort_fields(
-    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict
+    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict, terms, J
 ) -> dict:
     """The torque and speed entries of a :class:`TrajectoryReport` (see
-    :func:`validate_trajectory`); adds the torque and speed series to ``series``."""
-    from .statics import motor_effort
+    :func:`validate_trajectory`), from the validator's leg terms and Jacobian J of the samples;
+    adds the torque and speed series to ``series``."""
+    from .statics import motor_effort_of
 
     if x_dot is None or x_ddot is None:
         raise InvalidConfigError(
@@ -710,12 +508,15 @@ def _effort_fields(
     rows = np.flatnonzero(reachable)
     if rows.size == 0:
         return {}
-    T, speed = motor_effort(
+    x_rows = x[rows]
+    T, speed = motor_effort_of(
         geometry,
-        x[rows],
+        x_rows,
         np.asarray(x_dot, float)[rows],
         np.asarray(x_ddot, float)[rows],
         limits_.servo,
+        terms.rows(rows),
+        finite_or_singular("J", J[rows], x_rows),
     )
     for name, value in (("torque", T), ("speed", speed)):
         series[name] = np.full(x.shape, np.nan)

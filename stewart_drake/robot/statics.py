@@ -17,16 +17,17 @@ from ..base.errors import InvalidConfigError, SingularPoseError
 from .kinematics import (
     DEFAULT_COND_THRESHOLD,
     X_HOME,
+    LegTerms,
     RobotGeometry,
-    _checked,
-    _finite_or_singular,
-    _jacobian,
-    _leg_terms,
-    _skew,
+    checked_poses,
+    finite_or_singular,
     ik,
     jacobian,
+    jacobian_of,
+    leg_terms,
     leg_vectors_single,
     rotation_rpy,
+    skew,
     wrench_map,
 )
 
@@ -41,13 +42,19 @@ def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarr
     crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
     Pass theta and J (the Jacobian at x) when already computed, to save work.
     """
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = _leg_terms(geometry, x, theta)
-    J = _jacobian(geometry, x, theta) if J is None else J
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
+    return gravity_gradient_of(geometry, terms, jacobian_of(geometry, terms) if J is None else J)
+
+
+def gravity_gradient_of(geometry: RobotGeometry, terms: LegTerms, J: np.ndarray) -> np.ndarray:
+    """:func:`gravity_gradient` from the poses' :class:`~.kinematics.LegTerms` and Jacobian."""
     g = geometry.gravity
     a = geometry.crank_length
-    dtheta_coeff = g * a * np.cos(theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
+    dtheta_coeff = (
+        g * a * np.cos(terms.theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
+    )
     grad = np.einsum("...i,...ij->...j", dtheta_coeff, J)
-    grad = grad + 0.5 * geometry.rod_mass * g * np.sum(Gq[..., 2, :], axis=-2)
+    grad = grad + 0.5 * geometry.rod_mass * g * np.sum(terms.Gq[..., 2, :], axis=-2)
     grad[..., 5] += geometry.platform_mass * g
     return grad
 
@@ -66,9 +73,10 @@ def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
         SingularPoseError: J^T is singular (no torques hold the pose) or J is unbounded.
         InvalidConfigError: x or theta not (..., 6) or not finite.
     """
-    x, theta = _checked(geometry, x, theta)
-    J = jacobian(geometry, x, theta)
-    grad = gravity_gradient(geometry, x, theta, J)
+    x, theta = checked_poses(geometry, x, theta)
+    terms = leg_terms(geometry, x, theta)
+    J = finite_or_singular("J", jacobian_of(geometry, terms), x)
+    grad = gravity_gradient_of(geometry, terms, J)
     try:
         T = np.linalg.solve(np.swapaxes(J, -1, -2), grad[..., None])[..., 0]
     except np.linalg.LinAlgError:
@@ -77,7 +85,7 @@ def holding_torques(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
         raise SingularPoseError(
             "cond", np.inf, DEFAULT_COND_THRESHOLD, pose=x.reshape(-1, 6)[k]
         ) from None
-    return _finite_or_singular("T", T, x)
+    return finite_or_singular("T", T, x)
 
 
 #: The tool tip in the platform frame E, m: the end of the tool drawn on the platform (8 cm up),
@@ -115,11 +123,13 @@ def task_inertia(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     the rods' free spin carries no energy coupling). Exact for the reduced model; Coriolis terms
     are not included.
     """
-    terms = _leg_terms(geometry, x, theta)
-    theta, q_B, r_B, tip, ell, e_N, E, Gq = terms
-    J = _jacobian(geometry, x, theta, terms)
-    R = rotation_rpy(np.asarray(x, dtype=float)[..., :3])
-    return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
+    terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
+    return task_inertia_of(geometry, terms, jacobian_of(geometry, terms))
+
+
+def task_inertia_of(geometry: RobotGeometry, terms: LegTerms, J: np.ndarray) -> np.ndarray:
+    """:func:`task_inertia` from the poses' :class:`~.kinematics.LegTerms` and Jacobian."""
+    return _inertia_from_terms(geometry, terms.R, J, terms.ell, terms.e_N, terms.E, terms.Gq)
 
 
 def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) -> np.ndarray:
@@ -129,7 +139,7 @@ def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) ->
     R, r_B = cache[1], cache[2]
     ell, e_N, E = leg_vectors_single(geometry, cache)
     Gq = np.zeros((6, 3, 6))
-    Gq[:, :, :3] = -_skew(r_B) @ E
+    Gq[:, :, :3] = -skew(r_B) @ E
     Gq[:, :, 3:] = np.eye(3)
     return _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq)
 
@@ -152,7 +162,7 @@ def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     # as one (18, 6) product (matmul, several times faster than einsum on one pose).
     V_tip = a * e_N[..., :, None] * J[..., :, None, :]
     V_com = (0.5 * (V_tip + Gq)).reshape(J.shape[:-2] + (18, 6))
-    W = (_skew(ell) @ (Gq - V_tip)).reshape(J.shape[:-2] + (18, 6)) / (s * s)  # rod w, normal
+    W = (skew(ell) @ (Gq - V_tip)).reshape(J.shape[:-2] + (18, 6)) / (s * s)  # rod w, normal
     M = M + geometry.rod_mass * (np.swapaxes(V_com, -1, -2) @ V_com)
     M = M + geometry.rod_inertia[0] * (np.swapaxes(W, -1, -2) @ W)
     return M
@@ -202,16 +212,31 @@ def inverse_dynamics_torques(geometry: RobotGeometry, x, x_dot, x_ddot, theta=No
     Raises:
         UnreachablePoseError: x leaves the workspace. SingularPoseError: J^T is singular.
     """
-    x, theta = _checked(geometry, x, theta)
-    J = jacobian(geometry, x, theta)
-    M = task_inertia(geometry, x, theta)
+    x, theta = checked_poses(geometry, x, theta)
+    terms = leg_terms(geometry, x, theta)
+    J = finite_or_singular("J", jacobian_of(geometry, terms), x)
+    return inverse_dynamics_of(geometry, x, x_dot, x_ddot, terms, J)
+
+
+def inverse_dynamics_of(
+    geometry: RobotGeometry, x, x_dot, x_ddot, terms: LegTerms, J: np.ndarray
+) -> np.ndarray:
+    """:func:`inverse_dynamics_torques` of checked poses x from their
+    :class:`~.kinematics.LegTerms` and finite Jacobian J (computed once for the checks of a
+    path, :func:`~.limits.validate_trajectory`).
+
+    Raises:
+        UnreachablePoseError: a pose a finite-difference step from x cannot be reached.
+        SingularPoseError: J^T is singular.
+    """
+    M = task_inertia_of(geometry, terms, J)
     w = (
-        gravity_gradient(geometry, x, theta, J)
+        gravity_gradient_of(geometry, terms, J)
         + np.einsum("...ij,...j->...i", M, np.asarray(x_ddot, dtype=float))
         + coriolis_forces(geometry, x, x_dot, M=M)
     )
     T = np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
-    return _finite_or_singular("T", T, x)
+    return finite_or_singular("T", T, x)
 
 
 def motor_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None):
@@ -228,11 +253,21 @@ def motor_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None):
     Raises:
         as :func:`inverse_dynamics_torques`.
     """
-    x, theta = _checked(geometry, x, None)
-    theta_dot = np.einsum(
-        "...ij,...j->...i", jacobian(geometry, x, theta), np.asarray(x_dot, dtype=float)
-    )
-    T = inverse_dynamics_torques(geometry, x, x_dot, x_ddot, theta)
+    x, theta = checked_poses(geometry, x, None)
+    terms = leg_terms(geometry, x, theta)
+    J = finite_or_singular("J", jacobian_of(geometry, terms), x)
+    return motor_effort_of(geometry, x, x_dot, x_ddot, servo, terms, J)
+
+
+def motor_effort_of(geometry: RobotGeometry, x, x_dot, x_ddot, servo, terms: LegTerms, J):
+    """:func:`motor_effort` of checked poses x from their :class:`~.kinematics.LegTerms` and
+    finite Jacobian J (the validator of a path computes them once for all its checks).
+
+    Raises:
+        as :func:`inverse_dynamics_of`.
+    """
+    theta_dot = np.einsum("...ij,...j->...i", J, np.asarray(x_dot, dtype=float))
+    T = inverse_dynamics_of(geometry, x, x_dot, x_ddot, terms, J)
     if servo is not None:
         T = T + servo.viscous_damping * theta_dot + servo.coulomb_friction_Nm * np.sign(theta_dot)
     return T, theta_dot
@@ -264,21 +299,43 @@ def feedforward_torques(
         InvalidConfigError: unknown mode. UnreachablePoseError: x_d leaves the workspace.
     Source: virtual work through the Jacobian (tree gravity terms ignore the loop constraints).
     """
-    if mode not in FEEDFORWARD_MODES:
-        raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got {mode!r}")
+    _check_feedforward_mode(mode)
     x_d = np.asarray(x_d, dtype=float)
     if mode == "none":
         return np.zeros(x_d.shape)
-    theta = ik(geometry, x_d) if theta is None else theta
-    J = jacobian(geometry, x_d, theta)
-    w = gravity_gradient(geometry, x_d, theta, J)
+    x_d, theta = checked_poses(geometry, x_d, theta)
+    return feedforward_unchecked(geometry, x_d, theta, xdd_d, mode, xd_d)
+
+
+def feedforward_unchecked(
+    geometry: RobotGeometry, x_d, theta, xdd_d=None, mode: str = "gravity", xd_d=None
+) -> np.ndarray:
+    """:func:`feedforward_torques` of poses x_d (..., 6) already checked, with their motor
+    angles theta (..., 6) (the reference's table, :func:`~stewart_drake.run.reference.
+    sample_reference`, after its inverse kinematics): the arguments are not checked again.
+
+    Raises:
+        InvalidConfigError: an unknown mode, or "inverse_dynamics" without xdd_d.
+        SingularPoseError: J is unbounded at a pose, or J^T singular.
+    """
+    _check_feedforward_mode(mode)
+    if mode == "none":
+        return np.zeros(np.shape(x_d))
+    terms = leg_terms(geometry, x_d, theta)
+    J = finite_or_singular("J", jacobian_of(geometry, terms), x_d)
+    w = gravity_gradient_of(geometry, terms, J)
     if mode == "inverse_dynamics":
         if xdd_d is None:
             raise InvalidConfigError(
                 "feedforward 'inverse_dynamics' needs the reference acceleration xdd_d"
             )
         if xd_d is not None:
-            return inverse_dynamics_torques(geometry, x_d, xd_d, xdd_d, theta)
-        M = task_inertia(geometry, x_d, theta)
+            return inverse_dynamics_of(geometry, x_d, xd_d, xdd_d, terms, J)
+        M = task_inertia_of(geometry, terms, J)
         w = w + np.einsum("...ij,...j->...i", M, np.asarray(xdd_d, dtype=float))
     return np.linalg.solve(np.swapaxes(J, -1, -2), w[..., None])[..., 0]
+
+
+def _check_feedforward_mode(mode: str) -> None:
+    if mode not in FEEDFORWARD_MODES:
+        raise InvalidConfigError(f"feedforward must be one of {FEEDFORWARD_MODES}, got {mode!r}")

@@ -1,12 +1,15 @@
 """The one closed-loop Diagram: station + reference + controller (+ features + tuner) + loggers.
 
-:func:`make_stewart_diagram` builds it in stages, one function each: the reference and its
-feed-forward, the controller (built by its scenario choice), the measurement it reads, the tool
-disturbance, what drives the controller's weights (a tuner choice, or a constant), the loggers and
-the guard. It builds from a :class:`~.plan.RunPlan` (a scenario is planned first): every
-derived value is read from the plan; each scenario choice builds itself (the controller's
-``make``, the tuner's ``add_to``, the reference's ``make``, beside what they build); the stages
-here only wire by port name.
+:func:`build_diagram` builds it from a :class:`~.plan.RunPlan` in stages, one function each:
+the station, the reference and its feed-forward (:func:`~.reference.add_run_reference`), the
+controller (built by its scenario choice), the measurement it reads, the learner, the tool
+disturbance (:func:`~stewart_drake.station.station.add_tool_disturbance`), what drives the
+controller's weights (a tuner choice, or a constant), the logs (:func:`~.result.add_run_logs`),
+the guard (:func:`~stewart_drake.station.guard.add_divergence_guard`) and LCM. Every derived
+value is read from the plan; each scenario choice builds itself (the controller's ``make``, the
+tuner's ``add_to``, the reference's ``make``, beside what they build); a stage that adds a
+thing lives beside it, and the stages here only wire by port name. :func:`make_stewart_diagram`
+plans a scenario first.
 """
 
 from __future__ import annotations
@@ -20,25 +23,25 @@ from pydrake.systems.primitives import (
     ConstantVectorSource,
     LogVectorOutput,
     RandomSource,
-    TrajectorySource,
 )
-from pydrake.trajectories import PiecewisePolynomial
 
 from ..base.errors import InvalidConfigError
 from ..control.contract import ControllerContext, check_controller
-from ..control.estimator import FkEstimator
-from ..control.feedforward_tuning import FeedforwardTuningLearner
-from ..control.ilc import IterativeLearningController
+from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
-from ..station.guard import DivergenceGuard
-from ..station.sensors import PlatformPoseSensor, add_white_noise
-from ..station.station import StewartStation
+from ..station.guard import DivergenceGuard, add_divergence_guard
+from ..station.station import (
+    PlatformPoseSensor,
+    StewartStation,
+    add_tool_disturbance,
+    add_white_noise,
+)
 from .plan import RunPlan, make_plan
-from .reference import ReferenceSources, add_reference_sources
+from .reference import ReferenceSources, add_run_reference
+from .result import add_run_logs
 from .scenario import Scenario, dump_scenario
-from .signal_log import SignalLog
 
 #: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
 Station = StewartStation | HardwareStation
@@ -64,6 +67,8 @@ class StewartDiagram:
             scenario learns (``learning``), or None.
         lcm: the ``DrakeLcm`` the status and commands are published on (the scenario's
             ``lcm``; subscribe to it to receive them in process), or None.
+        x_initial, x_dot_initial: (6,) where the run starts, the reference's pose and rate at
+            t = 0 [rad, m; rad/s, m/s] (a live reference's start pose, at rest).
     """
 
     diagram: Diagram
@@ -81,6 +86,8 @@ class StewartDiagram:
     T_ff_initial: np.ndarray | None = None
     learner: System | None = None
     lcm: Any = None  # the DrakeLcm of the scenario's ``lcm``, or None
+    x_initial: np.ndarray | None = None
+    x_dot_initial: np.ndarray | None = None
 
     @property
     def scenario(self) -> Scenario:
@@ -182,7 +189,7 @@ def make_stewart_diagram(
         (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
         has them "status", "integral", "e_bar" (the error the controller acted on: its
         estimate, on the hardware), every ``log_period_s`` in float32
-        (:class:`~.signal_log.SignalLog`); "state" (the plant state, float64) every
+        (:class:`~.result.SignalLog`); "state" (the plant state, float64) every
         ``state_log_period_s``, with a learner's status under its ``status_port`` name; with
         the tuner "rho" (12, every tuner period).
     Raises:
@@ -197,56 +204,63 @@ def make_stewart_diagram(
         controller=controller,
         with_reference=reference_system is None,
     )
+    return build_diagram(
+        plan, meshcat, reference_system=reference_system, controller_logs=controller_logs
+    )
+
+
+def build_diagram(
+    plan: RunPlan,
+    meshcat=None,
+    *,
+    reference_system=None,
+    controller_logs: bool = True,
+    lcm=None,
+) -> StewartDiagram:
+    """The closed-loop Diagram of a plan: :func:`make_stewart_diagram` without planning (a run
+    built from a checked plan, :func:`~.simulate.build_simulator`).
+
+    Args:
+        plan: the :class:`~.plan.RunPlan` (with its reference object, unless
+            ``reference_system`` is given). meshcat, reference_system, controller_logs: as
+            :func:`make_stewart_diagram`.
+        lcm: the ``DrakeLcm`` of the scenario's ``lcm`` when the caller has made it (and so
+            checked its URL: :func:`~stewart_drake.station.lcm_publish.make_lcm`); made here
+            otherwise.
+    Returns:
+        :class:`StewartDiagram`.
+    """
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = make_stewart_station(plan, meshcat)
-    builder.AddSystem(station)
-    ref = _add_reference(builder, plan, trajectory, reference_system)
-    context = plan.controller_context(ref.x0, ref.x_dot0)
-    system = _add_controller(builder, plan.controller_factory(context))
+    station = builder.AddSystem(_station(plan, meshcat))
+    ref = add_run_reference(builder, plan, trajectory, station, reference_system)
+    context = controller_context(plan, ref.x0, ref.x_dot0)
+    system = plan.controller_factory(context)
+    check_controller(system)  # the contract: its ports, by name and size
+    if not system.get_name():
+        system.set_name("controller")
+    system = builder.AddSystem(system)
     inputs = {system.get_input_port(i).get_name() for i in range(system.num_input_ports())}
     outputs = {system.get_output_port(i).get_name() for i in range(system.num_output_ports())}
     measured, estimator, noise = _add_measurement(builder, station, scenario, context, inputs)
     applied = station.GetOutputPort("motor_torque_applied")
     x_d, learner = _add_learning(builder, station, plan, trajectory, ref.x_d, context)
-    sources = {
-        "x_d": x_d,
-        "T_ff": ref.T_ff,
-        "x": measured,
-        "motor_angle": station.GetOutputPort("motor_angle"),
-        "motor_rate": station.GetOutputPort("motor_rate"),
-        "motor_torque_applied": applied,
-    }
-    for name in inputs - {"omega"}:
-        builder.Connect(sources[name], system.GetInputPort(name))
-    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
-    _add_disturbance(builder, station, plan, live=reference_system is not None)
+    _connect_controller(builder, system, station, inputs, x_d, ref.T_ff, measured)
+    add_tool_disturbance(builder, station, plan, live=reference_system is not None)
     features, tuner, loggers = _add_weights(
-        builder,
-        scenario,
-        TunerPorts(
-            controller=system,
-            inputs=frozenset(inputs),
-            outputs=frozenset(outputs),
-            x_d=ref.x_d,
-            T_applied=applied,
-            period_s=context.period_s,
-            offset_s=context.offset_s,
-            duration_s=scenario.duration_s,
-        ),
+        builder, scenario, context, system, inputs, outputs, ref.x_d, applied
     )
     logged = outputs if controller_logs else outputs - {"integral", "e_bar"}
-    loggers.update(_add_loggers(builder, station, system, logged, scenario, learner))
+    loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    guard = _add_guard(builder, station, system, ref.x_d, plan)
-    lcm = _add_lcm(builder, station, system, measured, ref.x_d, scenario)
-    if reference_system is not None:
-        builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
-        builder.ExportOutput(ref.x_d, "x_d")
-        if reference_system.HasOutputPort("limited"):
-            builder.ExportOutput(reference_system.GetOutputPort("limited"), "limited")
+    guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
+    if scenario.lcm is not None:
+        from ..station.lcm_publish import add_run_publishers
+
+        T, config = system.GetOutputPort("T"), scenario.lcm
+        lcm = add_run_publishers(builder, config, station, T, measured, ref.x_d, lcm)
     diagram = builder.Build()
     diagram.set_name("rotary_stewart")
     return StewartDiagram(
@@ -265,92 +279,58 @@ def make_stewart_diagram(
         T_ff_initial=ref.T_ff_initial,
         learner=learner,
         lcm=lcm,
+        x_initial=ref.x0,
+        x_dot_initial=ref.x_dot0,
     )
 
 
-def _add_lcm(builder, station: Station, system: System, x: OutputPort, x_d: OutputPort, scenario):
-    """With the scenario's ``lcm``, the status (the station's measurements, the pose ``x`` the
-    controller reads, the reference; on the servo bus the driver's loop numbers) and the
-    controller's torque commands published on their channels (:mod:`~.lcm_publish`). Returns
-    the ``DrakeLcm``, or None."""
-    config = scenario.lcm
-    if config is None:
-        return None
-    from ..station.lcm_publish import add_command_publisher, add_status_publisher, make_lcm
-
-    lcm = make_lcm(config.url)  # refuses a URL on which nothing published arrives
-    ports = {
-        name: station.GetOutputPort(name)
-        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
-    }
-    if station.HasOutputPort("loop"):
-        ports["loop"] = station.GetOutputPort("loop")
-    add_status_publisher(
-        builder, lcm, ports | {"x": x, "x_d": x_d}, config.period_s, config.status_channel
-    )
-    add_command_publisher(
-        builder, lcm, system.GetOutputPort("T"), config.period_s, config.command_channel
-    )
-    return lcm
-
-
-@dataclass(frozen=True)
-class _Reference:
-    """The reference's system and ports, and where the run starts: x0, x_dot0 (6,) and the
-    feed-forward T_ff_initial (6,) N m."""
-
-    system: ReferenceSources | System
-    x_d: OutputPort
-    T_ff: OutputPort
-    x0: np.ndarray
-    x_dot0: np.ndarray
-    T_ff_initial: np.ndarray
-
-
-def _add_reference(builder, plan: RunPlan, trajectory, reference_system) -> _Reference:
-    """The precomputed reference and feed-forward of ``trajectory`` (:mod:`~.reference`), or
-    the live ``reference_system`` with its inputs exported."""
-    h_plant, h = plan.plant_time_step_s, plan.control_period_s
-    if reference_system is None:
-        ref = add_reference_sources(
-            builder,
-            trajectory,
+def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:
+    """What the run of ``plan`` tells its controller's factory, starting at pose x0 (6,)
+    [rad, m] moving at x_dot0 (6,) [rad/s, m/s]: on the robot as built a new encoders' pose
+    estimator, with a network tuner its features' window. A new context (and estimator) each
+    call."""
+    hw, h = plan.scenario.hardware, plan.control_period_s
+    pose_estimator = (
+        None
+        if hw is None
+        else PoseEstimator(
             plan.geometry,
-            plan.duration_s,
-            period_s=h,
-            offset_s=plan.sample_offset_s,
-            lead_s=0.5 * h_plant,
-            feedforward=plan.scenario.feedforward,
-            feedforward_lead_s=plan.delay_periods * h,
-        )
-        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
-        return _Reference(
-            ref,
-            ref.x_d.get_output_port(),
-            ref.T_ff.get_output_port(),
+            h,
+            hw.encoders.quantum_rad,
             x0,
-            x_dot0,
-            ref.T_ff_table[0].copy(),  # a view would keep the whole table after its release
+            rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
+            tolerance_counts=hw.estimator.fk_tolerance_counts,
         )
-    ref = builder.AddNamedSystem("reference", reference_system)
-    for i in range(ref.num_input_ports()):
-        builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
-    return _Reference(
-        ref,
-        ref.GetOutputPort("x_d"),
-        ref.GetOutputPort("T_ff"),
-        np.asarray(ref.x_initial, dtype=float),
-        np.zeros(6),
-        np.asarray(ref.T_ff_initial, dtype=float),
+    )
+    tuner = plan.scenario.tuner
+    return ControllerContext(
+        geometry=plan.geometry,
+        period_s=h,
+        offset_s=plan.sample_offset_s,
+        plant_time_step_s=plan.plant_time_step_s,
+        x_initial=x0,
+        x_dot_initial=x_dot0,
+        torque_limit_Nm=plan.torque_limit_Nm,
+        delay_periods=plan.delay_periods,
+        pose_estimator=pose_estimator,
+        feature_window=None if tuner is None else tuner.density_window(),
     )
 
 
-def _add_controller(builder, system: System) -> System:
-    """The controller, checked against the contract (named "controller" if it has no name)."""
-    check_controller(system)
-    if not system.get_name():
-        system.set_name("controller")
-    return builder.AddSystem(system)
+def _connect_controller(builder, system, station, inputs: set, x_d, T_ff, measured) -> None:
+    """The controller's inputs, connected by name as the controller contract says (``omega`` is
+    the weights' stage), and its ``T`` to the station's ``motor_torque``."""
+    sources = {
+        "x_d": x_d,
+        "T_ff": T_ff,
+        "x": measured,
+        "motor_angle": station.GetOutputPort("motor_angle"),
+        "motor_rate": station.GetOutputPort("motor_rate"),
+        "motor_torque_applied": station.GetOutputPort("motor_torque_applied"),
+    }
+    for name in inputs - {"omega"}:
+        builder.Connect(sources[name], system.GetInputPort(name))
+    builder.Connect(system.GetOutputPort("T"), station.GetInputPort("motor_torque"))
 
 
 def _add_measurement(
@@ -423,29 +403,23 @@ def _add_learning(
     return corrected, learner
 
 
-def _add_disturbance(builder, station: Station, plan: RunPlan, live: bool) -> None:
-    """The scenario's tool disturbance on the station's ``tool_wrench``; without one (or with a
-    live reference, which has no end), the input is exported and fixed to zero in the Context
-    (:meth:`StewartDiagram.initialize`): a fixed input is computed once, where a constant
-    source would be re-evaluated at every plant step."""
-    disturbance = plan.scenario.disturbance
-    if disturbance is not None and not live:
-        # The wrench sampled every plant step over the run and joined linearly.
-        h = plan.plant_time_step_s
-        t = np.arange(0.0, plan.duration_s + 2 * h, h)
-        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
-        source = TrajectorySource(samples)
-        wrench = builder.AddNamedSystem("tool_disturbance", source)
-        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
-    else:
-        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
-
-
-def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
+def _add_weights(builder, scenario: Scenario, context, system, inputs, outputs, x_d, applied):
     """What drives the controller's ``omega`` input: the scenario's tuner
-    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`), or the controller choice's
-    constant weights. Returns (features or None, tuner or None, loggers: "rho" when the tuner
-    has features)."""
+    (:meth:`~stewart_drake.control.tuning.TunerConfig.add_to`, wired to the controller
+    ``system`` with its input and output port names, the reference ``x_d`` and the ``applied``
+    torques, at the period and offset of the controller's ``context``), or the controller
+    choice's constant weights. Returns (features or None, tuner or None, loggers: "rho" when
+    the tuner has features)."""
+    ports = TunerPorts(
+        controller=system,
+        inputs=frozenset(inputs),
+        outputs=frozenset(outputs),
+        x_d=x_d,
+        T_applied=applied,
+        period_s=context.period_s,
+        offset_s=context.offset_s,
+        duration_s=scenario.duration_s,
+    )
     if scenario.tuner is not None:
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}
@@ -460,68 +434,6 @@ def _add_weights(builder, scenario: Scenario, ports: TunerPorts):
         )
         builder.Connect(omega.get_output_port(), ports.controller.GetInputPort("omega"))
     return None, None, {}
-
-
-def _add_loggers(
-    builder,
-    station: Station,
-    system: System,
-    outputs: set,
-    scenario: Scenario,
-    learner: IterativeLearningController | FeedforwardTuningLearner | None = None,
-) -> dict:
-    """The run's logs (:class:`~.signal_log.SignalLog`): every ``log_period_s`` in float32 the
-    true platform pose and rate "x", the applied torques "T" and the controller's "status",
-    "integral", "e_bar" when it has them; every ``state_log_period_s`` the plant's "state" in
-    float64 (a replay's frames, the loop-closure error, a divergence record) and a learner's
-    status under its ``status_port`` name (it changes once a cycle or stretch: logging it every
-    millisecond cost 0.26 kB a sample; the correction itself is not logged, nothing reads it)."""
-    signals = {
-        "x": (station.GetOutputPort("platform_state"), np.float32),
-        "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
-    }
-    for name in ("status", "integral", "e_bar"):
-        if name in outputs:
-            signals[name] = (system.GetOutputPort(name), np.float32)
-    slow = {"state": (station.GetOutputPort("plant_state"), np.float64)}
-    if learner is not None:
-        slow[learner.status_port] = (learner.GetOutputPort(learner.status_port), np.float64)
-    loggers = {}
-    for log_name, period, group in (
-        ("log_signals", scenario.log_period_s, signals),
-        ("log_state", scenario.state_log_period_s, slow),
-    ):
-        log = builder.AddNamedSystem(
-            log_name,
-            SignalLog(
-                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
-                period,
-                scenario.duration_s,
-            ),
-        )
-        for name, (port, _) in group.items():
-            builder.Connect(port, log.GetInputPort(name))
-            loggers[name] = log.logger(name)
-    return loggers
-
-
-def _add_guard(
-    builder, station: Station, system: System, x_d: OutputPort, plan: RunPlan
-) -> DivergenceGuard:
-    """The :class:`~.guard.DivergenceGuard` on the plant state, the torque command, the
-    reference and, with contact, the contact results."""
-    contact = plan.scenario.contact
-    guard = builder.AddNamedSystem(
-        "guard", DivergenceGuard(station, plan.scenario.guard, plan.plant_geometry, contact)
-    )
-    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
-    builder.Connect(system.GetOutputPort("T"), guard.GetInputPort("T"))
-    builder.Connect(x_d, guard.GetInputPort("x_d"))
-    if contact:
-        builder.Connect(
-            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
-        )
-    return guard
 
 
 def make_stewart_station(scenario=None, meshcat=None):
@@ -542,12 +454,13 @@ def make_stewart_station(scenario=None, meshcat=None):
         InvalidConfigError, InvalidGeometryError: the scenario does not validate.
         MissingExtraError: a scenario with ``bus`` without dynamixel-sdk installed.
     """
-    from .plan import make_plan
+    return _station(make_plan(scenario, with_reference=False), meshcat)
 
-    plan = make_plan(scenario, with_reference=False)
+
+def _station(plan: RunPlan, meshcat=None) -> Station:
+    """The station of a plan: :class:`StewartStation`, or with the scenario's ``bus`` the
+    :class:`~.bus.station.HardwareStation`."""
     if plan.scenario.bus is not None:
-        from ..station.bus.station import HardwareStation
-
         return HardwareStation(plan, meshcat)
     return StewartStation(plan, meshcat)
 

@@ -5,7 +5,7 @@ Every study reads its numbers here: ``run_experiment`` (:func:`compute_metrics`)
 grid (:func:`normalized_rms`, :func:`feedback_effort`, :func:`settling_time`,
 :func:`frequency_response`, :func:`bandwidth_hz`), the tuner study (:func:`sample_costs`,
 :func:`window_means`). A result is any object with the arrays of
-:class:`~stewart_drake.run.simulate.RunResult` (``t``, ``x``, ``x_d``, ``T``, ...); SI
+:class:`~stewart_drake.run.result.RunResult` (``t``, ``x``, ``x_d``, ``T``, ...); SI
 units throughout.
 """
 

@@ -8,6 +8,12 @@ simulated, the servo, the torque and motor limits, the computation delay, the sa
 reference object and the controller's factory. Everything below the plan (the station, the
 guard, the learner) receives these values and never reads the scenario again.
 
+Before a run is built, its plan is checked (:func:`checked_plan`): the memory the run needs
+(:func:`check_run_memory`) and the reference (:func:`check_reference`: every sample of x_d(t) at
+the control period against the reach, the joint limits, both singularity measures, the clearance
+between the robot's parts and the motors' torque and speed, naming the first refusal), whose
+report the plan keeps (``report``): a checked plan is not checked again.
+
     plan = make_plan(load_scenario("paper_hardware"))
     sd = make_stewart_diagram(plan)          # or build_simulator(plan), run_experiment(plan)
 """
@@ -15,15 +21,17 @@ guard, the learner) receives these values and never reads the scenario again.
 from __future__ import annotations
 
 import dataclasses
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..control.contract import ControllerContext, resolve_controller
-from ..control.estimator import PoseEstimator
+from ..base.errors import FeasibilityWarning
+from ..control.contract import resolve_controller
 from ..robot.geometry import StewartGeometry
-from ..robot.limits import MotorLimits, TrajectoryReport
+from ..robot.limits import MotorLimits
 from ..robot.servo import ServoModel
+from ..robot.trajectory_report import TrajectoryReport
 from .scenario import Scenario
 
 
@@ -34,7 +42,7 @@ class RunPlan:
     Attributes:
         scenario: the validated scenario the plan was made from (read it, do not change it:
             the values below are not recomputed); on the servo bus with ``hardware: null``,
-            with the robot built with the bus's servos (:meth:`~.scenario.Scenario.as_built`).
+            with the robot built with the bus's servos (:func:`as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
             the motors' reflected inertia (rotor inertia x gear ratio^2).
         plant_geometry: the robot that is simulated: ``geometry`` with ``payload_scale`` on the
@@ -58,6 +66,9 @@ class RunPlan:
         reference: the reference object (:class:`~.motion.Reference`: ``evaluate(t)``), or
             None for a plan made without one (a live reference, or only the robot's values).
         controller_factory: ``f(ControllerContext) -> System``, the run's controller.
+        report: the reference check's report when the plan was checked (:func:`checked_plan`;
+            :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`, without its
+            series), or None.
     """
 
     scenario: Scenario
@@ -75,56 +86,7 @@ class RunPlan:
     encoder_count_at_tip: tuple[float, float]
     reference: Any  # a motion.Reference, or None
     controller_factory: Callable
-
-    def add_plant(self, builder):
-        """The robot as simulated, a MultibodyPlant named "plant" with its SceneGraph, added to
-        ``builder``: :func:`~stewart_drake.plant.plant.add_stewart_plant` with ``plant_geometry``,
-        ``servo`` and the scenario's plant settings, contact and rod model. Returns (plant,
-        scene_graph, handles)."""
-        from ..plant.plant import add_stewart_plant
-
-        scenario = self.scenario
-        plant, scene_graph, handles = add_stewart_plant(
-            builder,
-            self.plant_geometry,
-            plant_config=scenario.plant,
-            servo=self.servo,
-            contact=scenario.contact,
-            rod_model=scenario.rod_model,
-        )
-        plant.set_name("plant")
-        return plant, scene_graph, handles
-
-    def controller_context(self, x0, x_dot0) -> ControllerContext:
-        """What the run tells its controller's factory, starting at pose x0 (6,) [rad, m] moving
-        at x_dot0 (6,) [rad/s, m/s]: on the robot as built a new encoders' pose estimator, with
-        a network tuner its features' window. A new context (and estimator) each call."""
-        hw, h = self.scenario.hardware, self.control_period_s
-        pose_estimator = (
-            None
-            if hw is None
-            else PoseEstimator(
-                self.geometry,
-                h,
-                hw.encoders.quantum_rad,
-                x0,
-                rate_cutoff_hz=hw.estimator.rate_cutoff_hz,
-                tolerance_counts=hw.estimator.fk_tolerance_counts,
-            )
-        )
-        tuner = self.scenario.tuner
-        return ControllerContext(
-            geometry=self.geometry,
-            period_s=h,
-            offset_s=self.sample_offset_s,
-            plant_time_step_s=self.plant_time_step_s,
-            x_initial=x0,
-            x_dot_initial=x_dot0,
-            torque_limit_Nm=self.torque_limit_Nm,
-            delay_periods=self.delay_periods,
-            pose_estimator=pose_estimator,
-            feature_window=None if tuner is None else tuner.density_window(),
-        )
+    report: TrajectoryReport | None = None
 
 
 def make_plan(
@@ -163,6 +125,7 @@ def make_plan(
     changes: dict[str, Any] = {}
     if reference is not None:
         changes["reference"] = as_trajectory(reference)
+        changes["report"] = None  # the check of another reference
     elif with_reference and plan.reference is None:
         changes["reference"] = as_trajectory(
             plan.scenario.reference.make(plan.geometry, plan.duration_s, plan.torque_limit_Nm)
@@ -174,10 +137,57 @@ def make_plan(
     return dataclasses.replace(plan, **changes) if changes else plan
 
 
+def checked_plan(
+    scenario: Scenario | RunPlan | None = None,
+    *,
+    reference=None,
+    controller=None,
+    progress: bool = False,
+    report: TrajectoryReport | None = None,
+) -> RunPlan:
+    """The plan of a run about to be built, checked before anything is: the scenario validated
+    (:func:`make_plan`), the memory the run needs (:func:`check_run_memory`, before the reference
+    is made: a trace too long for the machine is refused before it is read) and the reference
+    (:func:`check_reference_shown`), whose report the plan keeps.
+
+    Args:
+        scenario, reference, controller: as :func:`make_plan`.
+        progress: show a bar while a long reference is checked.
+        report: the check's report when the caller has already checked this reference (it is
+            then not checked again). A plan already checked (its ``report`` set) with nothing
+            overridden is returned as it is.
+    Returns:
+        the :class:`RunPlan`, its ``report`` set (without the report's series).
+    Raises:
+        InvalidConfigError: a bad scenario field, a run that needs more memory than the machine
+            has. UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError: the reference's first refusal (:func:`check_reference`).
+    """
+    if isinstance(scenario, RunPlan) and scenario.report is not None:
+        if reference is None and controller is None and report is None:
+            return scenario  # checked once, when it was made
+    plan = make_plan(scenario, with_reference=False)  # validated once, here
+    check_run_memory(plan.scenario)
+    plan = make_plan(plan, reference=reference, controller=controller)
+    report = report if report is not None else plan.report
+    if report is None:
+        report = check_reference_shown(plan, progress=progress, keep_series=False)
+    return dataclasses.replace(plan, report=report)
+
+
+def as_built(scenario: Scenario) -> Scenario:
+    """``scenario`` with, on the servo bus and ``hardware: null``, the robot built with the bus's
+    servos (:meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`); itself
+    otherwise (not validated)."""
+    if scenario.bus is None or scenario.hardware is not None:
+        return scenario
+    return dataclasses.replace(scenario, hardware=scenario.bus.hardware(scenario.control_period_s))
+
+
 def _robot_plan(scenario: Scenario) -> RunPlan:
     """The plan of a validated ``scenario`` without its reference object (on the servo bus,
-    of the robot built with its servos: :meth:`~.scenario.Scenario.as_built`)."""
-    scenario = scenario.as_built()
+    of the robot built with its servos: :func:`as_built`)."""
+    scenario = as_built(scenario)
     geometry = scenario.robot.build()
     servo = None if scenario.hardware is None else scenario.hardware.motors.build()
     if servo is not None:
@@ -243,32 +253,149 @@ def check_reference(
     progress=None,
     keep_series: bool = True,
 ) -> TrajectoryReport:
-    """Refuse a reference the robot of ``plan`` cannot follow, before anything is simulated:
-    :func:`~.guard.check_path` with the plan's robot as simulated (payload included), duration,
-    control period, guard bounds and motor limits.
+    """Refuse a reference the robot of ``plan`` cannot follow, before anything is simulated.
+
+    Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
+    motor travel, ball-joint cones, both singularity measures, the clearance between the robot's
+    parts and the torque and speed each motor must give (the scenario's ``guard`` thresholds,
+    the plan's ``motor_limits``), with :func:`~.trajectories.validate`. A run checks the robot
+    that is simulated, its payload included (``plant_geometry``).
 
     Args:
         plan: a :class:`RunPlan` or a scenario (planned here).
         trajectory: the reference object (default: the plan's).
-        raise_refused: False reports every refusal in the report instead of raising the first.
-        progress, keep_series: as :func:`~.trajectories.validate`.
+        raise_refused: False reports every refusal in the report instead of raising the first
+            (``stewart-drake check``).
+        progress, keep_series: as :func:`~.trajectories.validate` (a bar told of the samples
+            checked; the report's sample-by-sample series kept or not).
     Returns:
-        the :class:`~stewart_drake.robot.limits.TrajectoryReport`.
+        the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport` (``summary()``
+        prints it).
     Raises:
-        as :func:`~.guard.check_path`.
+        InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named,
+            or a run longer than a bounded reference.
+        UnreachablePoseError: first time, leg and ratio |L|/sqrt(M^2+N^2) > 1.
+        JointLimitError: first time, leg and limit (motor_angle, crank_joint, platform_joint).
+        SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
+            min_sigma_min_inv.
+        InterferenceError: first time two parts come closer than ``guard.min_clearance_m``.
+        MotorLimitError: first time a motor needs more torque or speed than it may use, unless
+            ``guard.allow_infeasible`` (then a :class:`~.errors.FeasibilityWarning`).
     """
-    from ..station.guard import check_path
+    from ..plant.clearance import clearance_model
+    from ..references.trajectories import validate
 
     plan = make_plan(plan, with_reference=trajectory is None)
     trajectory = plan.reference if trajectory is None else trajectory
-    return check_path(
+    guard, geometry = plan.scenario.guard, plan.plant_geometry
+    report = validate(
         trajectory,
-        plan.plant_geometry,
+        geometry,
         plan.duration_s,
-        plan.control_period_s,
-        plan.scenario.guard,
-        plan.motor_limits,
+        dt=plan.control_period_s,
+        cond_threshold=guard.cond_threshold,
+        min_sigma_min_inv=guard.min_sigma_min_inv,
         raise_refused=raise_refused,
         progress=progress,
         keep_series=keep_series,
+        clearance=clearance_model(geometry),
+        min_clearance_m=guard.min_clearance_m,
+        motor_limits=plan.motor_limits,
+        allow_infeasible=guard.allow_infeasible,
     )
+    if raise_refused and not report.feasible:
+        # Not feasible means a motor limit was exceeded: the first violation is recorded.
+        assert report.first_effort_violation is not None
+        warnings.warn(
+            FeasibilityWarning(
+                f"running a reference the motors cannot follow (guard.allow_infeasible): "
+                f"{report.first_effort_violation.need}; expect saturation"
+            ),
+            stacklevel=2,
+        )
+    return report
+
+
+#: Memory a run holds, bytes, measured as the peak RSS of ``stewart-drake reproduce`` on
+#: synthetic phantom traces of 1 and 25 minutes at 1 kHz (the robot as built, logs every
+#: millisecond): 0.40 GB before anything is logged (Python, Drake, the plant, the compiled
+#: controller, the reference's check) and 0.44 kB per logged sample all told (1.06 GB for 25
+#: minutes; 1.76 kB and 3.2 GB before the logs were sized for the run). Of a sample: the
+#: float32 logs (0.16 kB: pose and rate, torques, the controller's status, integral and error),
+#: the plant state every ``state_log_period_s`` (61 float64 every 10 ms: 0.05 kB a
+#: millisecond), the feed-forward table and sample times (0.07 kB a control period: the
+#: reference itself is evaluated a stretch at a time, and the tables are dropped once the run
+#: is read), the result's reference and feed-forward (0.1 kB) and the report's intermediates
+#: (0.08 kB). Upper bounds with some slack:
+RUN_BASE_BYTES = 0.4e9
+LOG_BYTES_PER_SAMPLE = 0.5e3
+CONTROL_BYTES_PER_SAMPLE = 0.15e3
+STATE_BYTES_PER_SAMPLE = 1.0e3
+#: A learner's status log: up to 16 float64 per plant-state sample (it is logged with the
+#: plant state, every ``state_log_period_s``), with slack.
+LEARNER_BYTES_PER_SAMPLE = 0.2e3
+
+
+def run_memory_bytes(scenario: Scenario) -> float:
+    """Estimated peak memory of one run of ``scenario``, bytes (inf-safe for huge durations):
+    :data:`RUN_BASE_BYTES`, its control-period samples, its logged samples and its plant-state
+    samples (see :data:`LOG_BYTES_PER_SAMPLE`), a learner's status log
+    (:data:`LEARNER_BYTES_PER_SAMPLE`), plus what the reference itself holds (a CSV
+    reference's spline, :meth:`~stewart_drake.references.motion.ReferenceConfig.memory_bytes`)."""
+    d = float(scenario.duration_s)
+    return (
+        RUN_BASE_BYTES
+        + scenario.reference.memory_bytes()
+        + (d / scenario.control_period_s + 1) * CONTROL_BYTES_PER_SAMPLE
+        + (d / scenario.log_period_s + 1) * LOG_BYTES_PER_SAMPLE
+        + (d / scenario.state_log_period_s + 1) * STATE_BYTES_PER_SAMPLE
+        + (scenario.learning is not None)
+        * (d / scenario.state_log_period_s + 1)
+        * LEARNER_BYTES_PER_SAMPLE
+    )
+
+
+def check_run_memory(scenario: Scenario, runs_at_once: int = 1, change: str | None = None):
+    """Refuse, before anything is allocated, runs that need more memory than the machine has.
+
+    Args:
+        scenario: the run.  runs_at_once: how many such runs are in memory together (workers).
+        change: what the message tells to change (default: duration_s or log_period_s).
+    Raises:
+        InvalidConfigError: one line with the estimate and the memory available.
+    """
+    from ..base.checks import check_memory
+
+    on_reference, coarser = scenario.reference.memory_note()
+    what = (
+        f"{'a run of' if runs_at_once == 1 else f'{runs_at_once} runs at once, each of'} "
+        f"{scenario.duration_s:g} s logged every {scenario.log_period_s:g} s{on_reference}"
+    )
+    need = runs_at_once * run_memory_bytes(scenario)
+    check_memory(
+        what, need, change or ("shorten duration_s (--duration) or lengthen log_period_s" + coarser)
+    )
+
+
+#: Control-period samples above which a shown check has a bar (a minute at 1 kHz: the check
+#: takes about 3 s; a 20-minute trace checks for about a minute).
+CHECK_BAR_SAMPLES = 60_000
+
+
+def check_reference_shown(plan: RunPlan, reference=None, progress: bool = False, **kwargs):
+    """:func:`check_reference` of ``plan`` (and ``reference``),
+    behind a tqdm bar ("checking") when ``progress`` and the check has more than
+    :data:`CHECK_BAR_SAMPLES` samples.
+
+    Args:
+        plan: the run. reference: the reference (default: the plan's). progress: show the bar.
+        kwargs: ``raise_refused``, ``keep_series`` of ``check_reference``.
+    Returns:
+        the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`.
+    """
+    from tqdm import tqdm
+
+    samples = int(plan.duration_s / plan.control_period_s) + 1
+    shown = progress and samples > CHECK_BAR_SAMPLES
+    with tqdm(total=samples, desc="checking", unit=" samples", disable=not shown) as bar:
+        return check_reference(plan, reference, progress=bar if shown else None, **kwargs)

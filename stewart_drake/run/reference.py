@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import BsplineBasis
-from pydrake.systems.framework import BasicVector, LeafSystem
+from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort, System
 from pydrake.trajectories import BsplineTrajectory
 
 from ..base.errors import InvalidConfigError
 from ..robot import kinematics
 from ..robot.geometry import StewartGeometry
-from ..robot.statics import feedforward_torques, holding_torques
+from ..robot.statics import feedforward_unchecked, holding_torques
 
 
 @dataclass
@@ -98,14 +98,13 @@ def sample_reference(
         part = slice(start, start + SAMPLE_CHUNK)
         x, xd, xdd = trajectory.evaluate(t_eval[part])
         theta = kinematics.ik(geometry, x, t=t_eval[part])  # names the first unreachable time
+        x_ff, xdd_ff, theta_ff = x, xdd, theta
         if feedforward_lead_s:
             t_ff = t_eval[part] + feedforward_lead_s
             x_ff, _, xdd_ff = trajectory.evaluate(t_ff)
-            T_ff[part] = feedforward_torques(
-                geometry, x_ff, xdd_ff, feedforward, theta=kinematics.ik(geometry, x_ff, t=t_ff)
-            )
-        else:
-            T_ff[part] = feedforward_torques(geometry, x, xdd, feedforward, theta=theta)
+            theta_ff = kinematics.ik(geometry, x_ff, t=t_ff)
+        # The poses are checked by the inverse kinematics (ik): not again.
+        T_ff[part] = feedforward_unchecked(geometry, x_ff, theta_ff, xdd_ff, feedforward)
         if x_d is not None:
             x_d[part] = np.concatenate([x, xd, xdd], axis=1)
     return t_sample, t_eval, x_d, T_ff
@@ -244,7 +243,7 @@ def add_reference_sources(
         geometry: the robot the controller believes in. duration_s: run length, s.
         period_s: controller period h, s. offset_s: sample offset in [0, h), s.
         lead_s: evaluate the reference this far ahead of the sample, s (see diagram.py).
-        feedforward: see :func:`feedforward_torques`.
+        feedforward: see :func:`~stewart_drake.robot.statics.feedforward_torques`.
     Returns:
         :class:`ReferenceSources` (systems named "reference" and "feedforward").
     """
@@ -262,12 +261,72 @@ def add_reference_sources(
         keep_x_d=False,
     )
     breaks = t_sample - offset_s  # k h: the sample lies inside its interval
-    ref = builder.AddNamedSystem(
-        "reference",
-        TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK),
-    )
-    ff = builder.AddNamedSystem("feedforward", TableHold(breaks, T_ff))
+    ff_hold = TableHold(breaks, T_ff)
+    x_d_hold = TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK)
+    ref = builder.AddNamedSystem("reference", x_d_hold)
+    ff = builder.AddNamedSystem("feedforward", ff_hold)
     return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, T_ff_table=T_ff)
+
+
+@dataclass(frozen=True)
+class RunReference:
+    """A run's reference in its Diagram (:func:`add_run_reference`): its system (the
+    :class:`ReferenceSources`, or a live reference system), its ``x_d`` (18) and ``T_ff`` (6)
+    output ports, and where the run starts: x0, x_dot0 (6,) [rad, m; rad/s, m/s] and the
+    feed-forward T_ff_initial (6,) N m."""
+
+    system: ReferenceSources | System
+    x_d: OutputPort
+    T_ff: OutputPort
+    x0: np.ndarray
+    x_dot0: np.ndarray
+    T_ff_initial: np.ndarray
+
+
+def add_run_reference(builder, plan, trajectory, station, reference_system=None) -> RunReference:
+    """The reference of the run of ``plan`` (a :class:`~.plan.RunPlan`): the precomputed
+    reference and feed-forward of ``trajectory`` (:func:`add_reference_sources` at the plan's
+    control period and sample offset, led by half a plant step, with the scenario's
+    feed-forward led by the computation delay), or the live ``reference_system`` with its
+    inputs exported, and for a display its ``x_d``, its ``limited`` port if it has one and the
+    ``station``'s ``platform_state``."""
+    h_plant, h = plan.plant_time_step_s, plan.control_period_s
+    if reference_system is None:
+        ref = add_reference_sources(
+            builder,
+            trajectory,
+            plan.geometry,
+            plan.duration_s,
+            period_s=h,
+            offset_s=plan.sample_offset_s,
+            lead_s=0.5 * h_plant,
+            feedforward=plan.scenario.feedforward,
+            feedforward_lead_s=plan.delay_periods * h,
+        )
+        x0, x_dot0, _ = (np.asarray(v, dtype=float) for v in trajectory.evaluate(0.0))
+        return RunReference(
+            ref,
+            ref.x_d.get_output_port(),
+            ref.T_ff.get_output_port(),
+            x0,
+            x_dot0,
+            ref.T_ff_table[0].copy(),  # a view would keep the whole table after its release
+        )
+    ref = builder.AddNamedSystem("reference", reference_system)
+    for i in range(ref.num_input_ports()):
+        builder.ExportInput(ref.get_input_port(i), ref.get_input_port(i).get_name())
+    builder.ExportOutput(station.GetOutputPort("platform_state"), "platform_state")
+    builder.ExportOutput(ref.GetOutputPort("x_d"), "x_d")
+    if ref.HasOutputPort("limited"):
+        builder.ExportOutput(ref.GetOutputPort("limited"), "limited")
+    return RunReference(
+        ref,
+        ref.GetOutputPort("x_d"),
+        ref.GetOutputPort("T_ff"),
+        np.asarray(ref.x_initial, dtype=float),
+        np.zeros(6),
+        np.asarray(ref.T_ff_initial, dtype=float),
+    )
 
 
 @dataclass(frozen=True)

@@ -2,10 +2,14 @@
 
 A :class:`Scenario` is the schema of a run: the robot (:class:`Robot`), Drake's plant, simulator
 and visualization settings, the reference, the controller, the tuner, the periods, the robot as
-built (:class:`Hardware`: encoders, motors, delay), the sensor noise, the tool disturbance, the
-guard and the learner. It is read with ``pydrake.common.yaml.yaml_load_typed`` and written with
-``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's ``Scenario`` for
-``MakeHardwareStation``; files, shipped names and ``--set`` overrides are
+built, the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM.
+A section that configures a thing lives beside it: the robot as built
+(:class:`~stewart_drake.station.hardware.Hardware`) in :mod:`~stewart_drake.station.hardware`,
+the sensor noise and the tool disturbance with the station (:mod:`~stewart_drake.station.station`),
+the servo bus (:class:`~stewart_drake.station.bus.servos.DynamixelBusConfig`) with the bus, the
+guard's and LCM's with theirs. It is read with ``pydrake.common.yaml.yaml_load_typed`` and
+written with ``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's
+``Scenario`` for ``MakeHardwareStation``; files, shipped names and ``--set`` overrides are
 :mod:`~.scenario_io`'s, and the values a run derives from a scenario (its geometry, servo, limits,
 reference object, controller) are computed once, by :func:`~.plan.make_plan`.
 
@@ -22,7 +26,8 @@ Drake's YAML loader builds each class with its defaults and then sets fields, so
 plain mutable dataclasses with concrete field types (this module must not use
 ``from __future__ import annotations``), and validation is a separate step:
 :meth:`Scenario.validate` names the field to fix. The robot's geometry, the servo and the LQI's
-scales are frozen value types of the lower layers; :class:`Robot`, :class:`Motors` and
+scales are frozen value types of the lower layers; :class:`Robot`,
+:class:`~stewart_drake.station.hardware.Motors` and
 :class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are their YAML forms (same names,
 units and defaults; lists where they have tuples), with ``build()`` to get the value type back
 (:class:`~stewart_drake.base.mirrors.ValueMirror`).
@@ -34,18 +39,15 @@ import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
 from pydrake.common.yaml import yaml_dump_typed, yaml_load, yaml_load_typed
 from pydrake.multibody.plant import MultibodyPlantConfig
 from pydrake.systems.analysis import SimulatorConfig
 from pydrake.visualization import VisualizationConfig
 
-from ..base.checks import MAX_SEED, as_number, check_multiple
-from ..base.checks import check_int as _check_int
+from ..base.checks import as_number, check_multiple
 from ..base.errors import (
     InvalidConfigError,
     InvalidGeometryError,
-    StewartError,
 )
 from ..base.mirrors import ValueMirror
 from ..control.contract import UserController
@@ -65,13 +67,14 @@ from ..references.samples import CsvReference
 from ..references.traces import TraceReference
 from ..references.trajectories import NamedReference, SineReference
 from ..robot.geometry import StewartGeometry
-from ..robot.servo import ServoModel
 from ..robot.statics import FEEDFORWARD_MODES
-from ..station.bus.protocol import SERVO_COUNTS_PER_REV
+from ..station.bus.servos import DynamixelBusConfig
 from ..station.guard import GuardConfig
+from ..station.hardware import Hardware
 from ..station.lcm_publish import LcmConfig
+from ..station.station import SensorNoise, ToolDisturbance
 
-_GEOMETRY, _SERVO = StewartGeometry(), ServoModel()
+_GEOMETRY = StewartGeometry()
 
 
 @dataclass
@@ -112,27 +115,6 @@ class Robot(ValueMirror):
     platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
 
 
-@dataclass
-class Motors(ValueMirror):
-    """The servo at each crank: every field of :class:`~stewart_drake.robot.servo.ServoModel`, same
-    names, units and defaults (at the output shaft: gear ratio, rotor inertia kg m^2, peak torque
-    N m, current-loop time constant s, viscous N m s/rad and Coulomb N m friction, friction
-    regularization N m s/rad, no-load speed rad/s); defaults: maxon EC 45 flat 50 W + a 4.3:1
-    planetary gearhead (docs/hardware.md). ``build()`` gives the servo."""
-
-    value_class = ServoModel
-
-    name: str = _SERVO.name
-    gear_ratio: float = _SERVO.gear_ratio
-    rotor_inertia: float = _SERVO.rotor_inertia
-    peak_torque_Nm: float = _SERVO.peak_torque_Nm
-    current_time_constant_s: float = _SERVO.current_time_constant_s
-    viscous_damping: float = _SERVO.viscous_damping
-    coulomb_friction_Nm: float = _SERVO.coulomb_friction_Nm
-    friction_damping: float = _SERVO.friction_damping
-    no_load_speed_rad_s: float = _SERVO.no_load_speed_rad_s
-
-
 # -- references ------------------------------------------------------------------------------------
 
 ReferenceChoice = (
@@ -169,371 +151,6 @@ def choice_classes() -> dict:
         "tuner": _choices(TunerChoice),
         "learning": _choices(LearningChoice),
     }
-
-
-# -- hardware ------------------------------------------------------------------------------------
-
-
-@dataclass
-class Encoders:
-    """Absolute encoders on the six crank shafts, read at the control period.
-
-    Attributes:
-        counts_per_rev: counts per crank revolution (default 2^17, a 17-bit absolute encoder on
-            the output shaft, RLS AksIM-2 class); the quantum is 2 pi / counts_per_rev rad.
-        noise_counts: standard deviation of white Gaussian noise added before quantization,
-            counts (0: quantization only).
-        seed: seed of that noise (Drake RandomSource), 0 .. 2^32 - 1.
-    """
-
-    counts_per_rev: int = 2**17
-    noise_counts: float = 0.0
-    seed: int = 0
-
-    @property
-    def quantum_rad(self) -> float:
-        """One count, rad."""
-        return 2 * np.pi / self.counts_per_rev
-
-
-@dataclass
-class Estimator:
-    """Pose and rate from the encoders (:class:`~stewart_drake.control.estimator.FkEstimator`).
-
-    Attributes:
-        rate_cutoff_hz: corner of the first-order low-pass on the differentiated FK pose, Hz.
-        fk_tolerance_counts: Newton stops when every motor angle of the estimate is within this
-            many counts of the measurement.
-    """
-
-    rate_cutoff_hz: float = 100.0
-    fk_tolerance_counts: float = 0.01
-
-
-@dataclass
-class Hardware:
-    """The robot as built: encoders, servos, the controller computer's delay.
-
-    Attributes:
-        encoders: the only position measurement (:class:`Encoders`).
-        motors: the servo at each crank (:class:`Motors`).
-        estimator: FK pose and rate estimation from the encoders (:class:`Estimator`).
-        computation_delay_periods: control periods between the measurement and the torque it
-            produces (0: none).
-    """
-
-    encoders: Encoders = field(default_factory=Encoders)
-    motors: Motors = field(default_factory=Motors)
-    estimator: Estimator = field(default_factory=Estimator)
-    computation_delay_periods: int = 1
-
-    def validate(self, control_period_s: float) -> None:
-        """Check every field (``hardware.<path>``) for a controller of period
-        ``control_period_s``.
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        for name, kind in (("encoders", Encoders), ("motors", Motors), ("estimator", Estimator)):
-            if not isinstance(getattr(self, name), kind):
-                raise InvalidConfigError(
-                    f"hardware.{name} must be a {kind.__name__}, got "
-                    f"{type(getattr(self, name)).__name__}"
-                )
-        _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
-        as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
-        _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
-        try:
-            self.motors.build()
-        except (StewartError, TypeError) as err:
-            raise InvalidConfigError(f"hardware.motors: {err}") from None
-        as_number(
-            "hardware.estimator.rate_cutoff_hz",
-            self.estimator.rate_cutoff_hz,
-            0.0,
-            0.5 / control_period_s,
-            lo_open=True,
-        )
-        as_number(
-            "hardware.estimator.fk_tolerance_counts",
-            self.estimator.fk_tolerance_counts,
-            0.0,
-            1.0,
-            lo_open=True,
-        )
-        _check_int("hardware.computation_delay_periods", self.computation_delay_periods, 0, 100)
-
-
-# -- the servo bus and LCM ---------------------------------------------------------------------
-
-#: Control periods a loop on the servo bus may run at, s: 100 Hz to 1 kHz.
-BUS_CONTROL_PERIODS_S = (1e-3, 1e-2)
-
-
-@dataclass
-class DynamixelBusConfig:
-    """The robot's servos on a DYNAMIXEL bus: the station drives them instead of a simulated
-    plant (:class:`~.station.HardwareStation`; docs/hardware_bus.md). The arguments of
-    :class:`~stewart_drake.station.bus.driver.DynamixelBus`, same names, units and
-    defaults, and the loop's deadline policy.
-
-    Attributes:
-        port: the serial port ("/dev/ttyUSB0", or a bus emulator's pty).
-        baud_rate: bps, the servos' setting (one of the driver's ``BAUD_RATES``).
-        ids: the six servo ids, in the cranks' order (reference_geometry.md's legs).
-        model: the servos' model, a ``SERVO_SPECS`` key with Current Control Mode.
-        zero_counts: Present Position of each servo at its crank's zero angle, counts (6).
-        directions: +1, or -1 for a servo whose counts grow against its crank's angle (6).
-        current_limit_A: the servos' Current Limit, A (None: the model's maximum); the
-            torque limit of the run is at most ``K_t`` times it.
-        temperature_limit_C: deg C, in (0, 80].
-        position_limits_counts: (min, max) written to the servos (Position Control Mode only).
-        watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
-        reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
-        max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
-            period missed beyond this many (0: at the first miss).
-
-    The robot as built is then the one with these servos: ``hardware: null`` is derived from
-    the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
-    ``model``, the servos' 4096-count encoders, one period of computation delay), or the
-    scenario is refused (:meth:`validate`).
-    """
-
-    port: str = "/dev/ttyUSB0"
-    baud_rate: int = 1_000_000
-    ids: list[int] = field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
-    model: str = "XM430-W350-T"
-    zero_counts: list[int] = field(default_factory=lambda: [2048] * 6)
-    directions: list[int] = field(default_factory=lambda: [1] * 6)
-    current_limit_A: float | None = None
-    temperature_limit_C: int = 70
-    position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
-    watchdog_s: float = 0.1
-    reply_timeout_s: float | None = None
-    max_deadline_misses: int = 10
-
-    def _settings(self):
-        from ..station.bus.driver import check_bus_settings
-
-        return check_bus_settings(
-            self.baud_rate,
-            self.ids,
-            self.model,
-            self.zero_counts,
-            self.directions,
-            self.current_limit_A,
-            self.temperature_limit_C,
-            self.position_limits_counts,
-            self.watchdog_s,
-            self.reply_timeout_s,
-            prefix="bus.",
-        )
-
-    def validate(self, control_period_s: float, hardware: "Hardware | None") -> None:
-        """Check every field (``bus.<name>``), the control period (1 to 10 ms) and that
-        ``hardware``, if given, is the robot built with these servos.
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        if not isinstance(self.port, str) or not self.port:
-            raise InvalidConfigError(f"bus.port must be a serial port path, got {self.port!r}")
-        if len(self.ids) != 6:
-            raise InvalidConfigError(f"bus.ids must name the six servos, got {self.ids!r}")
-        if len(self.position_limits_counts) != 2:
-            raise InvalidConfigError(
-                f"bus.position_limits_counts must be [min, max], got {self.position_limits_counts}"
-            )
-        self._settings()
-        _check_int("bus.max_deadline_misses", self.max_deadline_misses, 0, 10**9)
-        lo, hi = BUS_CONTROL_PERIODS_S
-        if not lo - 1e-12 <= control_period_s <= hi + 1e-12:
-            raise InvalidConfigError(
-                f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
-                f"{lo:g} to {hi:g} s"
-            )
-        expected = self.hardware(control_period_s)
-        if hardware is None:
-            return
-        for name, got, want in (
-            ("motors.name", hardware.motors.name, expected.motors.name),
-            (
-                "encoders.counts_per_rev",
-                hardware.encoders.counts_per_rev,
-                expected.encoders.counts_per_rev,
-            ),
-            (
-                "computation_delay_periods",
-                hardware.computation_delay_periods,
-                expected.computation_delay_periods,
-            ),
-        ):
-            if got != want:
-                raise InvalidConfigError(
-                    f"hardware.{name} is {got!r} but the servos of bus.model {self.model} make "
-                    f"it {want!r}: set it so, or hardware: null to derive the robot from the bus"
-                )
-
-    def hardware(self, control_period_s: float = 1e-3) -> "Hardware":
-        """The robot as built with these servos: their catalogue model (friction, gear,
-        reflected inertia, peak torque; docs/motor_catalogue.md), their 4096-count encoders
-        without added noise, one control period of delay between a measurement and its
-        torque (the driver writes the torque computed from a period's reading at the start of
-        the next period, :class:`~.bus.station.DynamixelDriver`), and the encoders' rate
-        filter at its default corner or, for a long ``control_period_s``, at the Nyquist
-        frequency 0.5 / control_period_s.
-
-        Raises:
-            InvalidConfigError: a model the motor catalogue does not have.
-        """
-        from ..robot.motor_catalogue import catalogue_motor
-
-        try:
-            servo = catalogue_motor(self.model).servo
-        except (StewartError, KeyError) as err:
-            raise InvalidConfigError(f"bus.model: {err}") from None
-        return Hardware(
-            encoders=Encoders(counts_per_rev=SERVO_COUNTS_PER_REV),
-            motors=Motors.from_value(servo),
-            estimator=Estimator(
-                rate_cutoff_hz=min(Estimator().rate_cutoff_hz, 0.5 / control_period_s)
-            ),
-            computation_delay_periods=1,
-        )
-
-    def torque_limit_Nm(self) -> float | None:
-        """``current_limit_A`` as a torque at the crank, N m (None without one)."""
-        from ..station.bus.protocol import servo_spec
-
-        if self.current_limit_A is None:
-            return None
-        return self.current_limit_A * servo_spec(self.model).torque_constant_Nm_per_A
-
-    def make_bus(self):
-        """The :class:`~stewart_drake.station.bus.driver.DynamixelBus` of these
-        settings, not opened (``open``, ``configure``, ``enable_torque`` are the caller's).
-
-        Raises:
-            MissingExtraError: dynamixel-sdk is not installed.
-        """
-        from ..station.bus.driver import DynamixelBus
-
-        return DynamixelBus(
-            self.port,
-            self.baud_rate,
-            self.ids,
-            model=self.model,
-            zero_counts=self.zero_counts,
-            directions=self.directions,
-            current_limit_A=self.current_limit_A,
-            temperature_limit_C=self.temperature_limit_C,
-            position_limits_counts=tuple(self.position_limits_counts),
-            watchdog_s=self.watchdog_s,
-            reply_timeout_s=self.reply_timeout_s,
-        )
-
-
-# -- disturbance, sensor noise, guard --------------------------------------------------------------
-
-
-#: Largest tool disturbance, N (push, contact) or N m (twist).
-MAX_DISTURBANCE = 1e4
-
-
-@dataclass
-class ToolDisturbance:
-    """A wrench on the tool tip (world frame) during the run, through the station's
-    ``tool_wrench`` input.
-
-    Attributes:
-        kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
-            oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
-        magnitude: N (push, contact) or N m (twist), at most :data:`MAX_DISTURBANCE`.
-        direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
-        start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
-        frequency_hz: of the contact force, Hz.
-    """
-
-    kind: str = "push"
-    magnitude: float = 5.0
-    direction: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
-    start_s: float = 1.0
-    duration_s: float = 0.0
-    frequency_hz: float = 2.0
-
-    def validate(self) -> None:
-        """Check every field (``disturbance.<name>``).
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        if self.kind not in ("push", "twist", "contact"):
-            raise InvalidConfigError(
-                f"disturbance.kind must be 'push', 'twist' or 'contact', got {self.kind!r}"
-            )
-        for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
-            as_number(f"disturbance.{name}", getattr(self, name), 0.0)
-        # A tabletop platform of a kilogram: 10 kN (or 10 kN m) is far past anything it holds,
-        # and a much larger number overflows the contact solver instead of failing the run.
-        as_number("disturbance.magnitude", self.magnitude, 0.0, MAX_DISTURBANCE)
-        axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
-        if (
-            axis is None
-            or axis.shape != (3,)
-            or not np.isfinite(axis).all()
-            or np.linalg.norm(axis) == 0
-        ):
-            raise InvalidConfigError(
-                f"disturbance.direction must be 3 finite numbers, not all "
-                f"zero, got {self.direction!r}"
-            )
-
-    def wrench(self, t) -> np.ndarray:
-        """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        on = (t >= self.start_s) & ((self.duration_s <= 0) | (t < self.start_s + self.duration_s))
-        axis = np.asarray(self.direction, dtype=float)
-        axis = axis / np.linalg.norm(axis)
-        level = np.where(on, self.magnitude, 0.0)
-        if self.kind == "contact":
-            level = level * 0.5 * (1 - np.cos(2 * np.pi * self.frequency_hz * (t - self.start_s)))
-        out = np.zeros((t.size, 6))
-        columns = slice(0, 3) if self.kind == "twist" else slice(3, 6)
-        out[:, columns] = level[:, None] * axis
-        return out
-
-
-@dataclass
-class SensorNoise:
-    """White Gaussian noise on the measured pose and rate, drawn every control period.
-
-    Attributes:
-        std: 12 standard deviations [rad x3, m x3, rad/s x3, m/s x3] (or one for all).
-        seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
-    """
-
-    std: list[float] = field(default_factory=lambda: [0.0] * 12)
-    seed: int = 0
-
-    def std_vector(self) -> np.ndarray:
-        """(12,) the standard deviations, one broadcast to all."""
-        return np.broadcast_to(np.asarray(self.std, dtype=float), (12,)).copy()
-
-    def validate(self) -> None:
-        """Check the fields (``sensor_noise.<name>``).
-
-        Raises:
-            InvalidConfigError: names the field.
-        """
-        try:
-            std = self.std_vector()
-        except (TypeError, ValueError):
-            std = np.array([np.nan])
-        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
-            raise InvalidConfigError(
-                f"sensor_noise.std needs 12 finite values >= 0 (rad, m, rad/s, m/s), got {self.std}"
-            )
-        _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
 
 
 def _default_plant() -> MultibodyPlantConfig:
@@ -733,13 +350,6 @@ class Scenario:
         if self.lcm is not None:
             self.lcm.validate(self.plant.time_step)
         return self
-
-    def as_built(self) -> "Scenario":
-        """This scenario with, on the servo bus and ``hardware: null``, the robot built with
-        the bus's servos (:meth:`DynamixelBusConfig.hardware`); itself otherwise."""
-        if self.bus is None or self.hardware is not None:
-            return self
-        return dataclasses.replace(self, hardware=self.bus.hardware(self.control_period_s))
 
     #: The fields that hold a choice or a section, and the classes each may hold.
     _FIELD_TYPES = {

@@ -1,9 +1,8 @@
-"""Guards of a closed-loop run: the reference is checked before, the state during, nothing lost.
+"""The guard of a closed-loop run: the state is checked as it runs, nothing is lost.
 
-Before a run, :func:`check_path` samples x_d(t) at the control period and refuses a path
-that leaves the workspace (:class:`~.errors.UnreachablePoseError`), a joint range
-(:class:`~.errors.JointLimitError`) or comes too close to a singularity
-(:class:`~.errors.SingularPoseError`), naming the first time and the leg / measure.
+Before a run, the plan's check refuses a reference the robot cannot follow
+(:func:`~stewart_drake.run.plan.check_reference`, with :class:`GuardConfig`'s thresholds),
+naming the first time and the leg, measure, parts or motor.
 
 During a run, :class:`DivergenceGuard`, a system of the Diagram, checks every
 ``check_period_s`` (a periodic publish event: one Python call per check, none in between) that
@@ -21,7 +20,6 @@ metrics silently.
 import math
 import os
 import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -31,10 +29,9 @@ from pydrake.multibody.plant import ContactResults
 from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_number
-from ..base.errors import FeasibilityWarning, InvalidConfigError, SimulationDivergedError
+from ..base.errors import InvalidConfigError, SimulationDivergedError
 from ..base.fileio import save_npz
 from ..plant.closed_chain import LoopClosure
-from ..robot import limits
 from ..robot.kinematics import AXIS_NAMES, ik_scalar
 from ..robot.limits import (
     DEFAULT_CLEARANCE_RESOLUTION_M,
@@ -119,79 +116,6 @@ class GuardConfig:
             )
 
 
-def check_path(
-    trajectory,
-    geometry,
-    duration_s: float,
-    period_s: float,
-    config: GuardConfig,
-    motor_limits,
-    raise_refused: bool = True,
-    progress=None,
-    keep_series: bool = True,
-) -> limits.TrajectoryReport:
-    """Refuse a reference the robot cannot follow, before anything is simulated.
-
-    Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
-    motor travel, ball-joint cones, both singularity measures, the clearance between the robot's
-    parts and the torque and speed each motor must give (``config``'s thresholds, the motors'
-    ``motor_limits``), with :func:`~.trajectories.validate`. A run checks the robot that is
-    simulated, its payload included (:func:`~.plan.check_reference` passes the plan's values).
-
-    Args:
-        trajectory: the reference object (``evaluate(t)``). geometry: the robot
-            (:class:`~stewart_drake.robot.geometry.StewartGeometry`). duration_s: how long, s.
-        period_s: the sampling period (the control period), s. config: the guard's bounds.
-        motor_limits: :class:`~stewart_drake.robot.limits.MotorLimits`.
-        raise_refused: False reports every refusal in the report instead of raising the first
-            (``stewart-drake check``).
-        progress, keep_series: as :func:`~.trajectories.validate` (a bar told of the samples
-            checked; the report's sample-by-sample series kept or not).
-    Returns:
-        the :class:`~stewart_drake.robot.limits.TrajectoryReport` (``summary()`` prints it).
-    Raises:
-        InvalidConfigError: a non-finite sample (pose, rate or acceleration), first time named,
-            or a run longer than a bounded reference.
-        UnreachablePoseError: first time, leg and ratio |L|/sqrt(M^2+N^2) > 1.
-        JointLimitError: first time, leg and limit (motor_angle, crank_joint, platform_joint).
-        SingularPoseError: first time with cond(J) > cond_threshold or 1/sigma_max(J) <
-            min_sigma_min_inv.
-        InterferenceError: first time two parts come closer than ``config.min_clearance_m``.
-        MotorLimitError: first time a motor needs more torque or speed than it may use, unless
-            ``config.allow_infeasible`` (then a :class:`~.errors.FeasibilityWarning`).
-    """
-    from ..plant.clearance import clearance_model
-    from ..references.trajectories import validate
-
-    guard = config
-    report = validate(
-        trajectory,
-        geometry,
-        duration_s,
-        dt=period_s,
-        cond_threshold=guard.cond_threshold,
-        min_sigma_min_inv=guard.min_sigma_min_inv,
-        raise_refused=raise_refused,
-        progress=progress,
-        keep_series=keep_series,
-        clearance=clearance_model(geometry),
-        min_clearance_m=guard.min_clearance_m,
-        motor_limits=motor_limits,
-        allow_infeasible=guard.allow_infeasible,
-    )
-    if raise_refused and not report.feasible:
-        # Not feasible means a motor limit was exceeded: the first violation is recorded.
-        assert report.first_effort_violation is not None
-        warnings.warn(
-            FeasibilityWarning(
-                f"running a reference the motors cannot follow (guard.allow_infeasible): "
-                f"{report.first_effort_violation.need}; expect saturation"
-            ),
-            stacklevel=3,
-        )
-    return report
-
-
 #: Without contact, the guard asks SceneGraph whether parts overlap at every this many checks,
 #: and at every check where a part may have strayed far enough (:meth:`DivergenceGuard.check`).
 INTERFERENCE_EVERY = 10
@@ -213,14 +137,15 @@ class DivergenceGuard(LeafSystem):
 
     Args:
         station: the :class:`~.station.StewartStation` (its plant, handles and pose sensor).
-        config: the bounds.
-        geometry: the robot that is simulated
-            (:class:`~stewart_drake.robot.geometry.StewartGeometry`), for the clearance check.
-        contact: whether the plant simulates contact between the robot's parts.
+        plan: the run's :class:`~stewart_drake.run.plan.RunPlan`: its scenario's ``guard`` (the
+            bounds) and ``contact`` (whether the plant simulates contact between the robot's
+            parts), and the robot that is simulated (``plant_geometry``), for the clearance
+            check.
     """
 
-    def __init__(self, station, config: GuardConfig, geometry, contact: bool):
+    def __init__(self, station, plan):
         super().__init__()
+        config, geometry = plan.scenario.guard, plan.plant_geometry
         self.config = config
         self._plant, self._handles, self._sensor = station.plant, station.handles, station.sensor
         plant = station.plant
@@ -234,7 +159,7 @@ class DivergenceGuard(LeafSystem):
         self.DeclarePeriodicPublishEvent(
             period_sec=self.config.check_period_s, offset_sec=0.0, publish=self._Check
         )
-        self.contact = contact
+        self.contact = plan.scenario.contact
         if self.contact:
             # The first contact the checks see, kept in the guard's state: [seen (0 or 1), t s,
             # normal force N, index of part a, index of part b] (indices into part_names).
@@ -380,6 +305,23 @@ class DivergenceGuard(LeafSystem):
         if not seen:
             return None
         return (float(t), self.part_names[int(a)], self.part_names[int(b)], float(force))
+
+
+def add_divergence_guard(builder, station, T, x_d, plan) -> DivergenceGuard:
+    """The :class:`DivergenceGuard` of the run of ``plan`` (a
+    :class:`~stewart_drake.run.plan.RunPlan`), in its Diagram (``builder``), on the station's
+    plant state, the controller's torque command ``T`` (an output port, (6,) N m), the reference
+    ``x_d`` (an output port, (18,)) and, with contact, the station's contact results."""
+    contact = plan.scenario.contact
+    guard = builder.AddNamedSystem("guard", DivergenceGuard(station, plan))
+    builder.Connect(station.GetOutputPort("plant_state"), guard.GetInputPort("plant_state"))
+    builder.Connect(T, guard.GetInputPort("T"))
+    builder.Connect(x_d, guard.GetInputPort("x_d"))
+    if contact:
+        builder.Connect(
+            station.GetOutputPort("contact_results"), guard.GetInputPort("contact_results")
+        )
+    return guard
 
 
 def save_divergence(sd, root, reason: str) -> Path:

@@ -26,10 +26,8 @@ from pydrake.systems.lcm import LcmPublisherSystem
 
 from ..base.checks import as_number, check_multiple
 from ..base.errors import InvalidConfigError
-from ..control.lqi.driver import LqiScalesConfig as LqiScalesConfig
 from ..lcmtypes import lcmt_stewart_command, lcmt_stewart_status
-from ..references.motion import ReferenceConfig as ReferenceConfig
-from .station import _weak
+from .station import weak_callback
 
 #: The channel of :class:`~stewart_drake.lcmtypes.lcmt_stewart_status`.
 STATUS_CHANNEL = "STEWART_STATUS"
@@ -89,7 +87,7 @@ class StatusSender(LeafSystem):
         self.DeclareAbstractOutputPort(
             "lcmt_stewart_status",
             lambda: AbstractValue.Make(lcmt_stewart_status()),
-            _weak(self._Calc),
+            weak_callback(self._Calc),
         )
 
     def _Calc(self, context, output):
@@ -128,7 +126,7 @@ class CommandSender(LeafSystem):
         self.DeclareAbstractOutputPort(
             "lcmt_stewart_command",
             lambda: AbstractValue.Make(lcmt_stewart_command()),
-            _weak(self._Calc),
+            weak_callback(self._Calc),
         )
 
     def _Calc(self, context, output):
@@ -148,7 +146,21 @@ def _add_publisher(
     channel: str,
 ) -> None:
     """``sender`` and Drake's publisher of ``lcm_type`` on ``channel`` every ``period_s`` (first
-    at t = 0), in ``builder``; ``ports`` connected to the sender's inputs of the same names."""
+    at t = 0), in ``builder``; ``ports`` connected to the sender's inputs of the same names (the
+    arguments checked: :func:`_check_publisher`)."""
+    builder.AddNamedSystem(f"{channel.lower()}_sender", sender)
+    publisher = builder.AddNamedSystem(
+        f"{channel.lower()}_publisher",
+        LcmPublisherSystem.Make(channel, lcm_type, lcm, publish_period=period_s),
+    )
+    builder.Connect(sender.get_output_port(), publisher.get_input_port())
+    for name, port in ports.items():
+        builder.Connect(port, sender.GetInputPort(name))
+
+
+def _check_publisher(sender: LeafSystem, ports: Mapping, period_s: float, channel: str) -> float:
+    """The publish period of a publisher's arguments, checked: a positive period, a non-empty
+    channel, ``ports`` that the sender has. Raises InvalidConfigError naming what is wrong."""
     period_s = as_number("the LCM publish period (s)", period_s, 0.0, lo_open=True)
     if not isinstance(channel, str) or not channel:
         raise InvalidConfigError(f"an LCM channel is a non-empty string, got {channel!r:.80}")
@@ -159,14 +171,45 @@ def _add_publisher(
             f"{type(sender).__name__} has no input port {', '.join(unknown)} "
             f"(its inputs: {', '.join(names)})"
         )
-    builder.AddNamedSystem(f"{channel.lower()}_sender", sender)
-    publisher = builder.AddNamedSystem(
-        f"{channel.lower()}_publisher",
-        LcmPublisherSystem.Make(channel, lcm_type, lcm, publish_period=period_s),
-    )
-    builder.Connect(sender.get_output_port(), publisher.get_input_port())
-    for name, port in ports.items():
-        builder.Connect(port, sender.GetInputPort(name))
+    return period_s
+
+
+def add_run_publishers(
+    builder: DiagramBuilder,
+    config: "LcmConfig",
+    station,
+    T: OutputPort,
+    x: OutputPort,
+    x_d: OutputPort,
+    lcm: DrakeLcmInterface | None = None,
+) -> DrakeLcmInterface:
+    """A run's status and torque commands on the channels of the scenario's ``lcm``
+    (:class:`LcmConfig`, validated with the scenario) every ``config.period_s``: the status of
+    the station's measurements, the pose ``x`` the controller reads and the reference ``x_d``
+    (on the servo bus also the driver's loop numbers, its ``loop`` output), the commands of the
+    controller's ``T``.
+
+    Args:
+        builder: the Diagram's builder. station: the station (its ports). lcm: the ``DrakeLcm``
+            of ``config.url`` when the caller has made it (:func:`make_lcm`); made here
+            otherwise.
+    Returns:
+        the ``DrakeLcm`` the run publishes on.
+    Raises:
+        InvalidConfigError: (:func:`make_lcm`) nothing published on ``config.url`` arrives.
+    """
+    lcm = make_lcm(config.url) if lcm is None else lcm  # refuses a URL that delivers nothing
+    ports = {
+        name: station.GetOutputPort(name)
+        for name in ("motor_angle", "motor_rate", "motor_torque_applied")
+    }
+    if station.HasOutputPort("loop"):
+        ports["loop"] = station.GetOutputPort("loop")
+    ports |= {"x": x, "x_d": x_d}
+    period, status, command = config.period_s, config.status_channel, config.command_channel
+    _add_publisher(builder, StatusSender(), lcmt_stewart_status, ports, lcm, period, status)
+    _add_publisher(builder, CommandSender(), lcmt_stewart_command, {"T": T}, lcm, period, command)
+    return lcm
 
 
 def add_status_publisher(
@@ -192,6 +235,7 @@ def add_status_publisher(
             port name the sender does not have; before anything is added to ``builder``.
     """
     sender = StatusSender()
+    period_s = _check_publisher(sender, ports, period_s, channel)
     _add_publisher(builder, sender, lcmt_stewart_status, ports, lcm, period_s, channel)
     return sender
 
@@ -211,6 +255,7 @@ def add_command_publisher(
         InvalidConfigError: as :func:`add_status_publisher`.
     """
     sender = CommandSender()
+    period_s = _check_publisher(sender, {"T": T}, period_s, channel)
     _add_publisher(builder, sender, lcmt_stewart_command, {"T": T}, lcm, period_s, channel)
     return sender
 

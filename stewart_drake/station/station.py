@@ -6,35 +6,176 @@ everything that belongs to the robot, and exports the ports a controller and a s
 Nothing of the controller, the reference or the loggers is in it:
 :func:`~stewart_drake.run.diagram.make_stewart_diagram` composes station + reference +
 controller (+ features + tuner) + loggers.
+
+Beside it, what measures it and the scenario's sections it reads besides the robot as built
+(:mod:`~.hardware`): the platform pose from the plant state (:class:`PlatformPoseSensor`),
+white noise on a measured signal (:func:`add_white_noise`: the encoders' in the station, the
+ideal pose sensor's in the Diagram, :class:`SensorNoise`) and the wrench on the tool
+(:class:`ToolDisturbance`, through :class:`ToolWrench`).
 """
 
-from __future__ import annotations
-
+import math
 import weakref
+from dataclasses import dataclass, field
 
 import numpy as np
+from pydrake.common import RandomDistribution
 from pydrake.common.value import AbstractValue
 from pydrake.multibody.math import SpatialForce
 from pydrake.multibody.plant import ExternallyAppliedSpatialForce
 from pydrake.symbolic import Variable, floor
-from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
+from pydrake.systems.framework import BasicVector, Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import (
+    Adder,
     ConstantVectorSource,
     DiscreteTimeDelay,
+    Gain,
     LinearSystem,
     MatrixGain,
     PassThrough,
+    RandomSource,
     Saturation,
     SymbolicVectorSystem,
+    TrajectorySource,
 )
+from pydrake.trajectories import PiecewisePolynomial
 
+from ..base.checks import MAX_SEED, as_number
+from ..base.checks import check_int as _check_int
+from ..base.errors import InvalidConfigError
 from ..plant.closed_chain import assemble
+from ..plant.plant import StewartPlantHandles, add_stewart_plant
 from ..robot.kinematics import X_HOME
 from ..robot.statics import p_ETool
-from .sensors import PlatformPoseSensor, add_white_noise
+
+# Drake's YAML loader reads the sections' field annotations (a Scenario's ``sensor_noise`` and
+# ``disturbance``): this module must not use ``from __future__ import annotations``.
 
 
-def _weak(method):
+@dataclass
+class SensorNoise:
+    """White Gaussian noise on the measured pose and rate, drawn every control period.
+
+    Attributes:
+        std: 12 standard deviations [rad x3, m x3, rad/s x3, m/s x3] (or one for all).
+        seed: seed of Drake's RandomSource, 0 .. 2^32 - 1.
+    """
+
+    std: list[float] = field(default_factory=lambda: [0.0] * 12)
+    seed: int = 0
+
+    def std_vector(self) -> np.ndarray:
+        """(12,) the standard deviations, one broadcast to all."""
+        return np.broadcast_to(np.asarray(self.std, dtype=float), (12,)).copy()
+
+    def validate(self) -> None:
+        """Check the fields (``sensor_noise.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        try:
+            std = self.std_vector()
+        except (TypeError, ValueError):
+            std = np.array([np.nan])
+        if not (np.all(np.isfinite(std)) and np.all(std >= 0)):
+            raise InvalidConfigError(
+                f"sensor_noise.std needs 12 finite values >= 0 (rad, m, rad/s, m/s), got {self.std}"
+            )
+        _check_int("sensor_noise.seed", self.seed, 0, MAX_SEED)
+
+
+#: Largest tool disturbance, N (push, contact) or N m (twist).
+MAX_DISTURBANCE = 1e4
+
+
+@dataclass
+class ToolDisturbance:
+    """A wrench on the tool tip (world frame) during the run, through the station's
+    ``tool_wrench`` input.
+
+    Attributes:
+        kind: "push" (a force step), "twist" (a torque step) or "contact" (a force
+            oscillating between 0 and ``magnitude`` at ``frequency_hz``, (1 - cos) shaped).
+        magnitude: N (push, contact) or N m (twist), at most :data:`MAX_DISTURBANCE`.
+        direction: 3 numbers, the force's or the torque's axis in the world frame (normalized).
+        start_s: when it begins, s. duration_s: how long it lasts, s (0: to the end).
+        frequency_hz: of the contact force, Hz.
+    """
+
+    kind: str = "push"
+    magnitude: float = 5.0
+    direction: list[float] = field(default_factory=lambda: [1.0, 0.0, 0.0])
+    start_s: float = 1.0
+    duration_s: float = 0.0
+    frequency_hz: float = 2.0
+
+    def validate(self) -> None:
+        """Check every field (``disturbance.<name>``).
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if self.kind not in ("push", "twist", "contact"):
+            raise InvalidConfigError(
+                f"disturbance.kind must be 'push', 'twist' or 'contact', got {self.kind!r}"
+            )
+        for name in ("magnitude", "start_s", "duration_s", "frequency_hz"):
+            as_number(f"disturbance.{name}", getattr(self, name), 0.0)
+        # A tabletop platform of a kilogram: 10 kN (or 10 kN m) is far past anything it holds,
+        # and a much larger number overflows the contact solver instead of failing the run.
+        as_number("disturbance.magnitude", self.magnitude, 0.0, MAX_DISTURBANCE)
+        axis = np.asarray(self.direction, dtype=float) if np.ndim(self.direction) == 1 else None
+        if (
+            axis is None
+            or axis.shape != (3,)
+            or not np.isfinite(axis).all()
+            or np.linalg.norm(axis) == 0
+        ):
+            raise InvalidConfigError(
+                f"disturbance.direction must be 3 finite numbers, not all "
+                f"zero, got {self.direction!r}"
+            )
+
+    def wrench(self, t) -> np.ndarray:
+        """(n, 6) [torque, force] at times t (s), world frame, on the tool tip."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        on = (t >= self.start_s) & ((self.duration_s <= 0) | (t < self.start_s + self.duration_s))
+        axis = np.asarray(self.direction, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        level = np.where(on, self.magnitude, 0.0)
+        if self.kind == "contact":
+            level = level * 0.5 * (1 - np.cos(2 * np.pi * self.frequency_hz * (t - self.start_s)))
+        out = np.zeros((t.size, 6))
+        columns = slice(0, 3) if self.kind == "twist" else slice(3, 6)
+        out[:, columns] = level[:, None] * axis
+        return out
+
+
+# -- the station ---------------------------------------------------------------------------
+
+
+def add_tool_disturbance(builder, station, plan, live: bool) -> None:
+    """The scenario's tool disturbance (:class:`ToolDisturbance`) on the station's
+    ``tool_wrench``, in the run's Diagram (``builder``; ``plan`` its
+    :class:`~stewart_drake.run.plan.RunPlan`); without one (or with a ``live`` reference, which
+    has no end), the input is exported and fixed to zero in the Context
+    (:meth:`~stewart_drake.run.diagram.StewartDiagram.initialize`): a fixed input is computed
+    once, where a constant source would be re-evaluated at every plant step."""
+    disturbance = plan.scenario.disturbance
+    if disturbance is not None and not live:
+        # The wrench sampled every plant step over the run and joined linearly.
+        h = plan.plant_time_step_s
+        t = np.arange(0.0, plan.duration_s + 2 * h, h)
+        samples = PiecewisePolynomial.FirstOrderHold(t, disturbance.wrench(t).T)  # type: ignore[call-overload]  # stub shapes
+        source = TrajectorySource(samples)
+        wrench = builder.AddNamedSystem("tool_disturbance", source)
+        builder.Connect(wrench.get_output_port(), station.GetInputPort("tool_wrench"))
+    else:
+        builder.ExportInput(station.GetInputPort("tool_wrench"), "tool_wrench")
+
+
+def weak_callback(method):
     """``method`` (a bound method of a system) as a callback that does not keep its system
     alive. pydrake stores a system's callbacks in C++, where Python's garbage collector cannot
     see the cycle system -> callback -> system; drake 1.58 breaks it for events and vector
@@ -65,7 +206,7 @@ class ToolWrench(LeafSystem):
         self.DeclareAbstractOutputPort(
             "spatial_forces",
             lambda: AbstractValue.Make([ExternallyAppliedSpatialForce()]),
-            _weak(self._Calc),
+            weak_callback(self._Calc),
             prerequisites_of_calc={self.all_input_ports_ticket()},
         )
 
@@ -99,6 +240,124 @@ def current_loop(time_constant_s: float, period_s: float, size: int = 6) -> Line
     c = time_constant_s / period_s * (1 - a)
     I = np.eye(size)
     return LinearSystem(A=a * I, B=(1 - a) * I, C=c * I, D=(1 - c) * I, time_period=period_s)
+
+
+def add_white_noise(builder, port, std, period_s: float, names: tuple):
+    """Add white Gaussian noise of standard deviations ``std`` to the output ``port``, drawn
+    every ``period_s``: RandomSource -> Gain(std) -> Adder(port, noise), C++ systems only.
+
+    Args:
+        builder: the DiagramBuilder. port: the output port measured (size n).
+        std: (n,) standard deviations, the port's units. period_s: s.
+        names: the names of the (source, gain, adder) systems.
+    Returns:
+        (source, noisy output port). The source's Context must be seeded
+        (``SetRandomContext``): Drake gives every RandomSource a fresh seed otherwise.
+    """
+    std = np.asarray(std, dtype=float)
+    source = builder.AddNamedSystem(
+        names[0],
+        RandomSource(RandomDistribution.kGaussian, std.size, sampling_interval_sec=period_s),
+    )
+    scale = builder.AddNamedSystem(names[1], Gain(std))
+    add = builder.AddNamedSystem(names[2], Adder(2, std.size))
+    builder.Connect(source.get_output_port(), scale.get_input_port())
+    builder.Connect(port, add.get_input_port(0))
+    builder.Connect(scale.get_output_port(), add.get_input_port(1))
+    return source, add.get_output_port()
+
+
+class PlatformPoseSensor(LeafSystem):
+    """Platform pose and rate from the plant's state vector.
+
+    Input port:  ``plant_state`` (nq + nv,) the MultibodyPlant state.
+    Output port: ``x`` (12,) [phi, theta, psi, X, Y, Z] (rad, m) and their time derivatives
+    (rad/s, m/s); roll-pitch-yaw as Drake's RollPitchYaw, rates from the angular velocity.
+
+    Args:
+        plant: the finalized MultibodyPlant; handles: from ``add_stewart_plant``.
+
+    Measurement noise is not added here: the Diagram adds a seeded Drake ``RandomSource``
+    (``Scenario.sensor_noise``), so a run repeats however often ``x`` is evaluated.
+    """
+
+    def __init__(self, plant, handles: StewartPlantHandles):
+        super().__init__()
+        body = handles.platform
+        nq = plant.num_positions()
+        self._iq = body.floating_positions_start()
+        self._iv = nq + body.floating_velocities_start_in_v()
+        self._state = self.DeclareVectorInputPort("plant_state", nq + plant.num_velocities())
+        self.DeclareVectorOutputPort("x", 12, self._Calc)
+
+    def pose_from_state(self, state) -> np.ndarray:
+        """True (noise-free) pose and rate x (12,) from one plant state vector (nq + nv,), in
+        Python floats (a few microseconds: the guard and an ideal sensor read it at run time)."""
+        s = np.asarray(state, dtype=float)[self._iq : self._iv + 6].tolist()
+        iv = self._iv - self._iq
+        return np.array(
+            _pose_and_rate(
+                s[0:4], s[4:7], s[iv : iv + 3], s[iv + 3 : iv + 6], math.atan2, math.sqrt
+            )
+        )
+
+    def poses_from_states(self, states) -> np.ndarray:
+        """(N, 12) true poses and rates of plant states (N, nq + nv), vectorized: metrics use
+        these, not the noisy measurement, and the Diagram need not log the sensor at all."""
+        s = np.atleast_2d(np.asarray(states, dtype=float)).T
+        iq, iv = self._iq, self._iv
+        return np.array(
+            _pose_and_rate(
+                s[iq : iq + 4],
+                s[iq + 4 : iq + 7],
+                s[iv : iv + 3],
+                s[iv + 3 : iv + 6],
+                np.arctan2,
+                np.sqrt,
+            )
+        ).T
+
+    def _Calc(self, context, output: BasicVector):
+        output.SetFromVector(self.pose_from_state(self._state.Eval(context)))
+
+
+def _pose_and_rate(q, p, w_WE, v_WE, atan2, sqrt) -> list:
+    """[roll, pitch, yaw, X, Y, Z, their rates] of the platform from its unit quaternion q
+    (w, x, y, z; normalized here), position p, angular velocity w_WE and velocity v_WE (world),
+    as Drake's ``RollPitchYaw`` gives them (R = Rz(yaw) Ry(pitch) Rx(roll); the same to 1e-15,
+    a test). One code for floats (``math``) and arrays (``numpy``): pass atan2 and sqrt.
+    The rates solve w_WE = E(rpy) rpy_dot (:func:`~stewart_drake.robot.kinematics.
+    angular_velocity_map`) in closed form (singular at pitch = +-pi/2, gimbal lock)."""
+    qw, qx, qy, qz = q
+    norm = sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+    qw, qx, qy, qz = qw / norm, qx / norm, qy / norm, qz / norm
+    R20, R21, R22 = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), 1 - 2 * (qx * qx + qy * qy)
+    R00, R10 = 1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy + qw * qz)
+    roll, pitch, yaw = atan2(R21, R22), atan2(-R20, sqrt(R21 * R21 + R22 * R22)), atan2(R10, R00)
+    cy, sy = R00 / sqrt(R00 * R00 + R10 * R10), R10 / sqrt(R00 * R00 + R10 * R10)
+    cp, sp = sqrt(R21 * R21 + R22 * R22), -R20
+    wx, wy, wz = w_WE
+    roll_dot = (cy * wx + sy * wy) / cp
+    return [roll, pitch, yaw, *p, roll_dot, -sy * wx + cy * wy, wz + sp * roll_dot, *v_WE]
+
+
+def add_station_plant(builder, plan):
+    """The robot as simulated, a MultibodyPlant named "plant" with its SceneGraph, added to
+    ``builder``: :func:`~stewart_drake.plant.plant.add_stewart_plant` with the plan's
+    ``plant_geometry`` and ``servo`` and its scenario's plant settings, contact and rod model
+    (``plan`` a :class:`~stewart_drake.run.plan.RunPlan`). Returns (plant, scene_graph,
+    handles)."""
+    scenario = plan.scenario
+    plant, scene_graph, handles = add_stewart_plant(
+        builder,
+        plan.plant_geometry,
+        plant_config=scenario.plant,
+        servo=plan.servo,
+        contact=scenario.contact,
+        rod_model=scenario.rod_model,
+    )
+    plant.set_name("plant")
+    return plant, scene_graph, handles
 
 
 def _connect_actuators(builder, applied, handles) -> None:
@@ -148,7 +407,7 @@ class StewartStation(Diagram):
             the contacts between the robot's parts.
     Attributes:
         plant, scene_graph, handles (:class:`~stewart_drake.plant.plant.StewartPlantHandles`),
-        sensor (the ground-truth :class:`~.sensors.PlatformPoseSensor`), plan (the
+        sensor (the ground-truth :class:`PlatformPoseSensor`), plan (the
         :class:`~.plan.RunPlan` it was built from).
     Args:
         plan: the :class:`~.plan.RunPlan` (:func:`~.diagram.make_stewart_station` makes one from a
@@ -159,7 +418,7 @@ class StewartStation(Diagram):
         super().__init__()
         builder = DiagramBuilder()
         scenario = plan.scenario
-        plant, scene_graph, handles = plan.add_plant(builder)
+        plant, scene_graph, handles = add_station_plant(builder, plan)
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")

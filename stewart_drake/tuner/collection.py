@@ -29,9 +29,10 @@ from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..references.data_collection import DataCollectionReference
-from ..run.plan import make_plan
+from ..run.plan import check_run_memory, make_plan
+from ..run.result import RunResult
 from ..run.scenario import Scenario
-from ..run.simulate import RunResult, check_run_memory, run_experiment
+from ..run.simulate import run_experiment
 
 PAPER_WEIGHTS = (0.1, 1.0, 10.0)
 #: What the finished manifest's ``runs`` list keeps of each run's entry.

@@ -39,7 +39,7 @@ from ..references.trajectories import SineTrajectory, paper_manoeuvre
 from ..robot import limits, statics
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import X_HOME
-from ..run.scenario import ToolDisturbance
+from ..station.station import ToolDisturbance
 
 FAMILIES = ("dash_hold", "disturbed_hold", "surgical", "multisine", "paper")
 #: Half-widths of the box around home the tasks' poses stay in: rad (roll, pitch, yaw), m (X, Y, Z).

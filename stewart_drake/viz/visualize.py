@@ -373,7 +373,8 @@ def record_html(
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
             (before simulating). SimulationDivergedError: the guard stopped the run.
     """
-    from ..run.simulate import advance, build_simulator, collect_result
+    from ..run.result import collect_result
+    from ..run.simulate import advance, build_simulator
     from ..station import guard
 
     sd, simulator = build_simulator(config, reference=reference, controller=controller)

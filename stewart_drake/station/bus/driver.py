@@ -6,13 +6,13 @@ configuration back, then each control period reads the state with one GroupSyncR
 Current, Velocity and Position: addresses 126..135) and writes the torques with one
 GroupSyncWrite of Goal Current. :meth:`DynamixelBus.torque_off` is safe to call at any time and
 is called on close, on ``__exit__`` and before a :class:`~stewart_drake.base.errors.BusError` is
-raised. Addresses, units and conversions: :mod:`.protocol`, docs/hardware_bus.md.
+raised. Addresses, units and conversions: :mod:`.protocol`; the models and the settings'
+check: :mod:`.servos`; docs/hardware_bus.md.
 """
 
 from __future__ import annotations
 
 import collections
-import math
 import threading
 import time
 from dataclasses import dataclass
@@ -27,9 +27,12 @@ from ...base.errors import (
     ServoConfigMismatchError,
 )
 from . import protocol as p
-
-#: Baud rates the X series takes (e-Manual, "Baud Rate(8)"), bps.
-BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+from .servos import (
+    DynamixelBusConfig,
+    check_bus_settings,
+    current_units_to_torque,
+    torque_to_current_units,
+)
 
 
 def dynamixel_sdk():
@@ -73,104 +76,6 @@ def _port_handler(sdk, port: str, reply_timeout_s: float | None):
 
 
 @dataclass(frozen=True)
-class BusSettings:
-    """The settings of a bus, checked (:func:`check_bus_settings`): ``spec`` the model's
-    :class:`~.protocol.ServoSpec`, ``ids`` (list), ``zero_counts`` and ``directions`` (n,)
-    arrays, ``current_limit_units`` and ``watchdog_units`` the raw values written,
-    ``position_limits_counts`` (min, max)."""
-
-    spec: p.ServoSpec
-    ids: list
-    zero_counts: np.ndarray
-    directions: np.ndarray
-    current_limit_units: int
-    watchdog_units: int
-    position_limits_counts: tuple[int, int]
-
-
-def check_bus_settings(
-    baud_rate,
-    ids,
-    model: str = "XM430-W350-T",
-    zero_counts=None,
-    directions=None,
-    current_limit_A: float | None = None,
-    temperature_limit_C: int = 70,
-    position_limits_counts=(0, 4095),
-    watchdog_s: float = 0.1,
-    reply_timeout_s: float | None = None,
-    prefix: str = "",
-) -> BusSettings:
-    """Check the arguments of :class:`DynamixelBus` (same names and meanings) without the
-    vendor's library or a port; ``prefix`` goes before every name in a message (a scenario's
-    ``"bus."``).
-
-    Raises:
-        InvalidConfigError: the first argument out of range, named.
-    """
-    try:
-        spec = p.servo_spec(model)
-    except InvalidConfigError as err:
-        raise InvalidConfigError(f"{prefix}model: {err}") from None
-    try:
-        ids = [int(i) for i in ids]
-    except (TypeError, ValueError):
-        ids = []
-    if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
-        raise InvalidConfigError(f"{prefix}ids {ids} must be distinct integers in 0..{p.MAX_ID}")
-    n = len(ids)
-    if baud_rate not in BAUD_RATES:
-        raise InvalidConfigError(
-            f"{prefix}baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
-        )
-    zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
-    sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
-    if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
-        raise InvalidConfigError(
-            f"{prefix}zero_counts and {prefix}directions must have one entry per id ({n}); "
-            f"directions +1 or -1"
-        )
-    limit_units = spec.current_limit_max
-    if current_limit_A is not None:
-        if not _finite(current_limit_A):
-            raise InvalidConfigError(
-                f"{prefix}current_limit_A {current_limit_A} must be a finite number of A"
-            )
-        limit_units = math.floor(current_limit_A / spec.amps_per_unit)
-        if not 0 < limit_units <= spec.current_limit_max:
-            raise InvalidConfigError(
-                f"{prefix}current_limit_A {current_limit_A} must be in (0, "
-                f"{spec.current_limit_max * spec.amps_per_unit:.3g}] A for {model}"
-            )
-    if not 0 < temperature_limit_C <= 80:
-        raise InvalidConfigError(
-            f"{prefix}temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
-        )
-    lo, hi = (int(c) for c in position_limits_counts)
-    if not 0 <= lo < hi <= 4095:
-        raise InvalidConfigError(
-            f"{prefix}position_limits_counts {position_limits_counts} must be "
-            f"0 <= min < max <= 4095"
-        )
-    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S) if _finite(watchdog_s) else 0
-    if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
-        raise InvalidConfigError(
-            f"{prefix}watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
-        )
-    if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
-        raise InvalidConfigError(f"{prefix}reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
-    return BusSettings(spec, ids, zero, sign, int(limit_units), int(watchdog_units), (lo, hi))
-
-
-def _finite(value) -> bool:
-    """Whether ``value`` is a finite real number (not NaN, not inf, not a string)."""
-    try:
-        return math.isfinite(value)
-    except TypeError:
-        return False
-
-
-@dataclass(frozen=True)
 class BusState:
     """One read of the bus; arrays (n,) in the order of the bus's ids, at the cranks.
 
@@ -192,9 +97,9 @@ class DynamixelBus:
 
     Args:
         port: serial port path ("/dev/ttyUSB0", or a :class:`~.emulator.BusEmulator`'s port).
-        baud_rate: bps, one of :data:`BAUD_RATES` (the servos' setting; not changed here).
+        baud_rate: bps, one of :data:`~.servos.BAUD_RATES` (the servos' setting; not changed here).
         ids: (n,) servo ids, in the order of the cranks.
-        model: a :data:`~.protocol.SERVO_SPECS` key with Current Control Mode.
+        model: a :data:`~.servos.SERVO_SPECS` key with Current Control Mode.
         zero_counts: (n,) Present Position at each crank's zero angle, counts; default 2048.
         directions: (n,) +1, or -1 for a servo whose counts grow against the crank's angle.
         current_limit_A: the servos' Current Limit, A (<= the model's maximum); default the
@@ -266,6 +171,30 @@ class DynamixelBus:
         self._sdk = dynamixel_sdk()
         self._port = None
         self._packets = self._sdk.PacketHandler(2.0)
+
+    @classmethod
+    def from_config(cls, config: DynamixelBusConfig) -> DynamixelBus:
+        """The bus of a scenario's ``bus`` section (:class:`~.servos.DynamixelBusConfig`, same
+        names and units), not opened (``open``, ``configure``, ``enable_torque`` are the
+        caller's).
+
+        Raises:
+            InvalidConfigError: a setting out of range. MissingExtraError: dynamixel-sdk is not
+                installed.
+        """
+        return cls(
+            config.port,
+            config.baud_rate,
+            config.ids,
+            model=config.model,
+            zero_counts=config.zero_counts,
+            directions=config.directions,
+            current_limit_A=config.current_limit_A,
+            temperature_limit_C=config.temperature_limit_C,
+            position_limits_counts=tuple(config.position_limits_counts),
+            watchdog_s=config.watchdog_s,
+            reply_timeout_s=config.reply_timeout_s,
+        )
 
     # --- lifetime ----------------------------------------------------------------------------
 
@@ -432,7 +361,7 @@ class DynamixelBus:
         return BusState(
             q=p.counts_to_rad(pos, self.zero_counts, self.directions),
             v=p.velocity_units_to_rad_s(vel, self.directions),
-            tau=p.current_units_to_torque(cur, self.spec, self.directions),
+            tau=current_units_to_torque(cur, self.spec, self.directions),
             t=0.5 * (t0 + t1),
             round_trip_s=t1 - t0,
         )
@@ -449,7 +378,7 @@ class DynamixelBus:
         tau = np.asarray(tau, dtype=float)
         if tau.shape != (len(self.ids),) or not np.all(np.isfinite(tau)):
             raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
-        units = p.torque_to_current_units(tau, self.spec, self.directions)
+        units = torque_to_current_units(tau, self.spec, self.directions)
         units = np.clip(units, -self.current_limit_units, self.current_limit_units)
         group = self._group_write
         group.clearParam()
@@ -462,7 +391,7 @@ class DynamixelBus:
         if result != self._sdk.COMM_SUCCESS:
             self._fail(f"sync write: {self._packets.getTxRxResult(result)}")
         self.write_times.append(t1 - t0)
-        return p.current_units_to_torque(units, self.spec, self.directions)
+        return current_units_to_torque(units, self.spec, self.directions)
 
     def timing(self) -> dict:
         """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""

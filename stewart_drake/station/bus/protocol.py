@@ -20,12 +20,8 @@ position is multi-turn (a signed 32-bit count) and the Min/Max Position Limits a
 by the servo (they apply in Position Control Mode only): a crank's range is for our guard to
 keep; the limits are still written, so that a mode change cannot leave them at the factory's.
 
-Torque <-> current: the servo's torque constant at the horn, ``K_t = stall torque / stall
-current`` at 12 V from the e-Manual's specification table (XM540-W270: 10.6 N m at 4.4 A,
-2.409 N m/A as the e-Manual prints it; XM430-W350: 4.1 N m at 2.3 A, 1.783 N m/A). The
-relation is the e-Manual's linear one at stall; its performance graphs show the torque per
-ampere falling somewhat at low currents (friction of the 350 : 1 gear train), which a torque
-controller meets as friction. Figures and sources: docs/motor_catalogue.md, docs/hardware_bus.md.
+The models' specs and torque <-> current (the servo's torque constant at the horn):
+:mod:`.servos`.
 """
 
 from __future__ import annotations
@@ -34,11 +30,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-
-from ...base.errors import InvalidConfigError
-from ...control.lqi.driver import LqiScalesConfig as LqiScalesConfig
-from ...references.motion import ReferenceConfig as ReferenceConfig
-from ...robot.motor_catalogue import catalogue_motor
 
 # Instructions and the status packet (e-Manual, Protocol 2.0, "Instruction").
 PING = 0x01
@@ -88,6 +79,7 @@ STATE_BLOCK = (PRESENT_CURRENT[0], 10)
 CURRENT_CONTROL_MODE = 0
 WATCHDOG_UNIT_S = 0.020
 WATCHDOG_TRIPPED = 0xFF
+#: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).
 COUNTS_PER_REV = 4096
 VELOCITY_UNIT_RAD_S = 0.229 * 2 * math.pi / 60
 #: Hardware Error Status bits (e-Manual, "Hardware Error Status(70)").
@@ -100,98 +92,7 @@ HW_INPUT_VOLTAGE, HW_OVERHEATING, HW_ENCODER, HW_ELECTRICAL_SHOCK, HW_OVERLOAD =
 )
 
 
-@dataclass(frozen=True)
-class ServoSpec:
-    """One X-series model as the bus sees it.
-
-    Attributes:
-        name: the catalogue key (:data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`).
-        model_number: what PING returns (Model Number, address 0).
-        current_unit_A: one unit of Goal/Present Current, A; None: no Current Control Mode.
-        current_limit_max: the Current Limit's largest value (its factory default), units.
-        stall_current_A: the e-Manual's stall current at 12 V, A.
-        source: the e-Manual page.
-    """
-
-    name: str
-    model_number: int
-    current_unit_A: float | None
-    current_limit_max: int
-    stall_current_A: float
-    source: str
-
-    @property
-    def amps_per_unit(self) -> float:
-        """One unit of Goal/Present Current, A.
-
-        Raises:
-            InvalidConfigError: a model without Current Control Mode.
-        """
-        if self.current_unit_A is None:
-            servo_spec(self.name)  # raises, saying why
-        return float(self.current_unit_A or 0.0)
-
-    @property
-    def stall_torque_Nm(self) -> float:
-        """The stall torque at 12 V, N m at the horn (the motor catalogue's peak torque)."""
-        return catalogue_motor(self.name).servo.peak_torque_Nm
-
-    @property
-    def torque_constant_Nm_per_A(self) -> float:
-        """K_t = stall torque / stall current, N m/A at the horn."""
-        return self.stall_torque_Nm / self.stall_current_A
-
-
-_EMANUAL = "https://emanual.robotis.com/docs/en/dxl/x/"
-#: The models the bus knows; stall figures at 12 V (e-Manual "Specifications").
-SERVO_SPECS: dict[str, ServoSpec] = {
-    s.name: s
-    for s in (
-        ServoSpec("XM430-W350-T", 1020, 2.69e-3, 1193, 2.3, _EMANUAL + "xm430-w350/"),
-        ServoSpec("XM540-W270-T", 1120, 2.69e-3, 2047, 4.4, _EMANUAL + "xm540-w270/"),
-        ServoSpec("XL430-W250-T", 1060, None, 0, 1.4, _EMANUAL + "xl430-w250/"),
-    )
-}
-
-
-def servo_spec(name: str, *, torque_control: bool = True) -> ServoSpec:
-    """The bus description of model ``name``.
-
-    Raises:
-        InvalidConfigError: an unknown model (lists the known ones), or, with
-            ``torque_control``, a model without Current Control Mode (the XL430-W250).
-    """
-    if name not in SERVO_SPECS:
-        raise InvalidConfigError(
-            f"servo model {name!r} is not one the bus knows; choose one of "
-            f"{', '.join(SERVO_SPECS)} (docs/hardware_bus.md)"
-        )
-    spec = SERVO_SPECS[name]
-    if torque_control and spec.current_unit_A is None:
-        raise InvalidConfigError(
-            f"{name} has no Current Control Mode (no current sensing: {spec.source}), so the "
-            f"controllers' motor torques cannot be sent to it; use an XM430-W350-T or "
-            f"XM540-W270-T"
-        )
-    return spec
-
-
 # --- conversions (one servo or arrays alike; ``direction`` is +1 or -1) ----------------------
-
-
-def torque_to_current_units(tau_Nm, spec: ServoSpec, direction=1):
-    """Goal Current (units, rounded to integers) for output torque ``tau_Nm`` (N m at the crank,
-    in the crank's sense; ``direction`` -1 for a servo mounted the other way)."""
-    unit = spec.amps_per_unit
-    return np.rint(np.asarray(tau_Nm) * direction / spec.torque_constant_Nm_per_A / unit).astype(
-        np.int64
-    )
-
-
-def current_units_to_torque(units, spec: ServoSpec, direction=1):
-    """Output torque, N m in the crank's sense, for a (Goal or Present) Current in units."""
-    unit = spec.amps_per_unit
-    return np.asarray(units) * unit * spec.torque_constant_Nm_per_A * direction
 
 
 def counts_to_rad(counts, zero_counts=0, direction=1):
@@ -322,7 +223,3 @@ def to_signed(value: int, size: int) -> int:
 def to_unsigned(value: int, size: int) -> int:
     """The ``size``-byte two's complement of ``value``."""
     return int(value) & ((1 << (8 * size)) - 1)
-
-
-#: Counts per turn of the X-series servos' absolute encoder (on the horn, the crank's axis).
-SERVO_COUNTS_PER_REV = 4096

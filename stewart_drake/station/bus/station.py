@@ -15,7 +15,7 @@ controllers computed half a step after the previous update, then reads the servo
 that measurement for the controllers' sample at k h + h_plant / 2. On the robot the torque
 written at (k + 1) h was computed from the servos as read at k h: one control period between a
 measurement and its torque, which is what the scenario says (``hardware.computation_delay_periods
-= 1``, :meth:`~stewart_drake.run.scenario.DynamixelBusConfig.hardware`), so the LQI's
+= 1``, :meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`), so the LQI's
 feed-forward lead and the controllers' models see the delay they get.
 
 Pacing. Drake's ``Simulator`` at ``target_realtime_rate`` 1 sleeps before each step until the
@@ -48,16 +48,11 @@ from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
 from ...plant.closed_chain import assembled_positions
-from ...robot.kinematics import (
-    X_HOME,
-    angular_velocity_map,
-    fk,
-    ik_single,
-    jacobian,
-    jacobian_single,
-)
-from ..sensors import PlatformPoseSensor
-from .protocol import SERVO_COUNTS_PER_REV
+from ...robot.forward_kinematics import fk
+from ...robot.kinematics import X_HOME, angular_velocity_map, ik_single, jacobian, jacobian_single
+from ..station import PlatformPoseSensor, add_station_plant
+from .driver import DynamixelBus
+from .protocol import COUNTS_PER_REV
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
@@ -132,7 +127,7 @@ class DynamixelDriver(LeafSystem):
         self.stream = stream
         self._x_initial = np.asarray(x_initial, dtype=float)
         self._fk = PoseEstimator(
-            geometry, period_s, 2 * np.pi / SERVO_COUNTS_PER_REV, self._x_initial, max_iterations=20
+            geometry, period_s, 2 * np.pi / COUNTS_PER_REV, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
         initial = np.zeros(_LOOP.stop)
@@ -176,8 +171,8 @@ class DynamixelDriver(LeafSystem):
     def _measure(self, x_prev) -> np.ndarray:
         """One read of the bus and the pose from it: the state vector (without the loop).
         The pose: Newton on the IK from the previous pose (the encoders' estimator, within a
-        hundredth of a count), or if that fails the full :func:`~..kinematics.fk`, which raises
-        when the angles are no pose of the robot."""
+        hundredth of a count), or if that fails the full :func:`~.forward_kinematics.fk`, which
+        raises when the angles are no pose of the robot."""
         state = self.bus.read_state()
         self._last_read_t, self._read_s = state.t, state.round_trip_s
         x, _, converged = self._fk.estimate(state.q, x_prev)
@@ -406,7 +401,7 @@ class HardwareStation(Diagram):
         super().__init__()
         scenario = plan.scenario
         model_builder = DiagramBuilder()
-        plant, scene_graph, handles = plan.add_plant(model_builder)
+        plant, scene_graph, handles = add_station_plant(model_builder, plan)
         if meshcat is not None:
             from pydrake.visualization import ApplyVisualizationConfig
 
@@ -414,7 +409,7 @@ class HardwareStation(Diagram):
         self.model = model_builder.Build()
         self.plant, self.scene_graph, self.handles, self.plan = plant, scene_graph, handles, plan
         self.sensor = PlatformPoseSensor(plant, handles)
-        self.bus = scenario.bus.make_bus()
+        self.bus = DynamixelBus.from_config(scenario.bus)
         builder = DiagramBuilder()
         self.driver = builder.AddNamedSystem(
             "driver",

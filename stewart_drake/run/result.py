@@ -1,0 +1,485 @@
+"""A run's record: what the Diagram logs, and the result read back from it, saved and loaded.
+
+The logs (:func:`add_run_logs`) are arrays sized for the run: one time base per logger, a chosen
+precision per signal. Drake's ``VectorLogSink`` keeps doubles and doubles its capacity when
+full, so a log can hold twice (and while it grows, three times) what it logged; a 25-minute run
+at 1 kHz logging the plant's 86-entry state took gigabytes. :class:`SignalLog` logs several
+vector inputs at one period into arrays allocated once for the run's length (grown only if the
+run outlasts it), each in its own dtype: the run's full-rate signals in float32 (7 significant
+digits: 30 nm at the platform's 0.3 m height, a thousandth of the smallest error a report
+resolves), the plant state a replay needs in float64 at its own, slower period.
+
+After the run, :func:`read_run` and :func:`finish_result` make its :class:`RunResult` (arrays and
+metrics, :func:`~.metrics.compute_metrics`); :func:`save_result` writes ``<name>.npz`` (arrays,
+the metrics as JSON and the scenario as YAML), :func:`load_result` reads it back and
+:func:`export_result` writes a table for spreadsheets and MATLAB. The functions that read a run
+take its :class:`~.diagram.StewartDiagram` (``sd``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydrake.systems.framework import LeafSystem
+
+from ..base.fileio import CheckedNpz, save_npz
+from ..plant.closed_chain import loop_closure_errors
+from .metrics import compute_metrics
+from .reference import ReferenceSources
+
+
+class LogView:
+    """One signal of a :class:`SignalLog` as Drake's ``VectorLog`` shows it:
+    ``sample_times()`` (n,) s and ``data()`` (size, n), views of the logged arrays (no copy)."""
+
+    def __init__(self, log: SignalLog, name: str):
+        self._log, self._name = log, name
+
+    def sample_times(self) -> np.ndarray:
+        return self._log.t[: self._log.num_samples]
+
+    def data(self) -> np.ndarray:
+        return self._log.values[self._name][: self._log.num_samples].T
+
+    def num_samples(self) -> int:
+        return self._log.num_samples
+
+
+class SignalLogger:
+    """The handle of one signal of a :class:`SignalLog`, as ``LogVectorOutput`` returns one:
+    ``FindLog(context)`` gives its :class:`LogView` (the log lives in the system: one run per
+    Diagram, as every builder here makes)."""
+
+    def __init__(self, log: SignalLog, name: str):
+        self.log, self.name = log, name
+
+    def FindLog(self, context=None) -> LogView:  # noqa: N802 - Drake's name
+        return LogView(self.log, self.name)
+
+    def set_name(self, name: str) -> None:  # noqa: ARG002 - the system carries its own name
+        """Kept for the loggers' common interface: the signals share their system's name."""
+
+
+class SignalLog(LeafSystem):
+    """Log vector inputs every ``period_s`` (first at t = 0, as ``LogVectorOutput``) into
+    preallocated arrays.
+
+    Input ports: one per signal, named as given, of its size.
+
+    Args:
+        signals: {name: (size, dtype)} e.g. {"x": (12, np.float32)}.
+        period_s: the logging period, s (> 0).
+        duration_s: the run's length, s: the arrays hold floor(duration_s / period_s) + 2
+            samples (a longer run grows them by half).
+    Attributes:
+        t: (capacity,) float64 sample times, s. values: {name: (capacity, size)} arrays.
+        num_samples: samples logged (the first ``num_samples`` rows are the log).
+    """
+
+    def __init__(self, signals: dict, period_s: float, duration_s: float):
+        super().__init__()
+        self.period_s = float(period_s)
+        capacity = int(np.floor(duration_s / period_s + 1e-6)) + 2
+        self.t = np.empty(capacity)
+        self.values = {
+            name: np.empty((capacity, size), dtype=dtype) for name, (size, dtype) in signals.items()
+        }
+        self._ports = [
+            (name, self.DeclareVectorInputPort(name, size)) for name, (size, _) in signals.items()
+        ]
+        self.num_samples = 0
+        self.DeclareInitializationPublishEvent(self._Reset)
+        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._Log)
+
+    def logger(self, name: str) -> SignalLogger:
+        """The handle of signal ``name`` (its ``FindLog``)."""
+        return SignalLogger(self, name)
+
+    def nbytes(self) -> int:
+        """Bytes the arrays hold (allocated, not only logged)."""
+        return self.t.nbytes + sum(v.nbytes for v in self.values.values())
+
+    def _Reset(self, context) -> None:
+        self.num_samples = 0
+
+    def _Log(self, context) -> None:
+        k = self.num_samples
+        if k == self.t.size:  # the run outlasts the arrays: grow by half
+            grow = max(2, self.t.size // 2)
+            self.t = np.concatenate([self.t, np.empty(grow)])
+            for name, v in self.values.items():
+                self.values[name] = np.concatenate([v, np.empty((grow, v.shape[1]), v.dtype)])
+        self.t[k] = context.get_time()
+        for name, port in self._ports:
+            self.values[name][k] = port.Eval(context)
+        self.num_samples = k + 1
+
+
+def add_run_logs(builder, station, controller, outputs: set, plan, learner=None) -> dict:
+    """The run's logs (:class:`SignalLog`): every ``log_period_s`` in float32 the true platform
+    pose and rate "x", the applied torques "T" and the controller's "status", "integral", "e_bar"
+    when it has them (named in ``outputs``); every ``state_log_period_s`` the plant's "state" in
+    float64 (a replay's frames, the loop-closure error, a divergence record) and a learner's
+    status under its ``status_port`` name (it changes once a cycle or stretch: logging it every
+    millisecond cost 0.26 kB a sample; the correction itself is not logged, nothing reads it).
+
+    Args:
+        builder: the DiagramBuilder. station: the station (its ports). controller: the
+            controller system. outputs: the controller's output ports to log. plan: the run's
+            :class:`~.plan.RunPlan` (its scenario's periods and duration). learner: the
+            learner system, or None.
+    Returns:
+        {name: logger}, each with Drake's ``FindLog(context)``.
+    """
+    scenario = plan.scenario
+    signals = {
+        "x": (station.GetOutputPort("platform_state"), np.float32),
+        "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
+    }
+    for name in ("status", "integral", "e_bar"):
+        if name in outputs:
+            signals[name] = (controller.GetOutputPort(name), np.float32)
+    slow = {"state": (station.GetOutputPort("plant_state"), np.float64)}
+    if learner is not None:
+        slow[learner.status_port] = (learner.GetOutputPort(learner.status_port), np.float64)
+    loggers = {}
+    for log_name, period, group in (
+        ("log_signals", scenario.log_period_s, signals),
+        ("log_state", scenario.state_log_period_s, slow),
+    ):
+        log = builder.AddNamedSystem(
+            log_name,
+            SignalLog(
+                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
+                period,
+                scenario.duration_s,
+            ),
+        )
+        for name, (port, _) in group.items():
+            builder.Connect(port, log.GetInputPort(name))
+            loggers[name] = log.logger(name)
+    return loggers
+
+
+@dataclass
+class RunResult:
+    """Logged arrays of one run (SI units) and its metrics.
+
+    Two time bases: ``t`` (every ``log_period_s``) for the run's signals, ``t_state`` (every
+    ``state_log_period_s``, 10 ms by default) for the plant's state and what is read from it.
+    The signals at ``t`` are float32 (7 significant digits: 30 nm at the platform's 0.3 m, a
+    thousandth of the smallest error a report resolves), so a long run holds about 0.2 kB per
+    logged sample (:data:`~.plan.LOG_BYTES_PER_SAMPLE`); times and the plant state are float64.
+
+    Attributes:
+        t: (N,) s.  x: (N, 12) true pose and rate (from the plant state, free of sensor noise).
+        x_d: (N, 18) reference pose, rate, acceleration.  T: (N, 6) applied motor torques, N m.
+        closure: (M,) max loop-closure error over the six rods at ``t_state``, m.
+        status: (N, k) the controller's ``status`` output, named by ``status_names`` (empty
+            (N, 0) for a controller without one).
+        omega: (N, 2) omega_Q, omega_R in use (from status), or None when the controller
+            reports none.  integral: (N, 6) the controller's integral states, or None.
+        rho: (M, 12) density features at the tuner's instants (every tuner period) or None.
+        e_bar: (N, 6) the pose error the controller acted on (its estimate of x minus x_d: on
+            the hardware, from the encoders), or None.
+        T_ff: (N, 6) the feed-forward torques of the reference at each logged time, N m (T -
+            T_ff is the feedback's share), or None.
+        metrics: dict of the figures printed by the CLI (see
+            :func:`~.metrics.compute_metrics`).
+        config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
+            the whole scenario as YAML.
+        t_state: (M,) s, the times of ``state`` and ``closure`` (None: ``t``, as in a file
+            saved before the state had its own period).
+        state: (M, nq + nv) the plant's state at ``t_state`` (a replay's frames), or None.
+    """
+
+    t: np.ndarray
+    x: np.ndarray
+    x_d: np.ndarray
+    T: np.ndarray
+    closure: np.ndarray
+    status: np.ndarray
+    status_names: tuple = ()
+    omega: np.ndarray | None = None
+    integral: np.ndarray | None = None
+    rho: np.ndarray | None = None
+    e_bar: np.ndarray | None = None
+    T_ff: np.ndarray | None = None
+    metrics: dict = field(default_factory=dict)
+    config_summary: dict = field(default_factory=dict)
+    t_state: np.ndarray | None = None
+    state: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.t_state is None:
+            self.t_state = self.t
+
+    def nbytes(self) -> int:
+        """Bytes the result's arrays hold."""
+        return sum(v.nbytes for v in vars(self).values() if isinstance(v, np.ndarray))
+
+
+def config_summary(sd) -> dict:
+    """The settings of a run that results and records carry (plain JSON values)."""
+    plan, scenario = sd.plan, sd.scenario
+    summary = {
+        "trajectory": getattr(sd.trajectory, "name", "custom"),
+        "duration_s": scenario.duration_s,
+        "plant_time_step_s": plan.plant_time_step_s,
+        "control_period_s": scenario.control_period_s,
+        "controller": type(scenario.controller).__name__,
+        "tuner": scenario.tuner is not None,
+        "feedforward": scenario.feedforward,
+        "payload_scale": scenario.payload_scale,
+        "torque_limit_Nm": scenario.torque_limit_Nm,
+        "motor_limit_Nm": plan.torque_limit_Nm,
+        "sensor_noise": scenario.sensor_noise is not None,
+        "hardware": scenario.hardware is not None,
+        "scenario": sd.scenario_yaml(),
+        **scenario.controller.summary(),
+    }
+    return summary
+
+
+def collect_result(sd, root_context, wall_s: float) -> RunResult:
+    """Pull the loggers of a simulated Diagram into a :class:`RunResult` with metrics (the
+    signals at the log period, the plant state at its own period, :class:`RunResult`)."""
+    return finish_result(read_run(sd, root_context), wall_s)
+
+
+@dataclass
+class RunLogs:
+    """What :func:`read_run` takes from a simulated Diagram: the :class:`RunResult` without its
+    reference and metrics, the reference object, and the first contact (None without contact
+    or with none seen). The reference's tables can go after it (:func:`release_reference`)."""
+
+    result: RunResult
+    trajectory: object
+    contact: bool
+    first_contact: tuple | None
+
+
+def read_run(sd, root_context) -> RunLogs:
+    """The logs of a simulated Diagram as a :class:`RunLogs`: the signals are views of the logs
+    (no copy), the feed-forward is read from the reference's table, the loop closure from the
+    logged plant states; the reference's pose at the log times is left to
+    :func:`finish_result`, so that a caller can drop the reference's tables
+    (:func:`release_reference`, 0.1 kB per control period) before that array is made."""
+    logs = {name: logger.FindLog(root_context) for name, logger in sd.loggers.items()}
+    t = logs["x"].sample_times()
+    state = logs["state"].data().T
+    names = tuple(getattr(sd.controller, "status_names", ())) if "status" in logs else ()
+    status = logs["status"].data().T if "status" in logs else np.zeros((len(t), 0), np.float32)
+    omega = (
+        status[:, [names.index("omega_Q"), names.index("omega_R")]]
+        if {"omega_Q", "omega_R"} <= set(names)
+        else None
+    )
+    result = RunResult(
+        t=t,
+        x=logs["x"].data().T,
+        x_d=np.zeros((0, 18), np.float32),  # finish_result
+        T=logs["T"].data().T,
+        closure=loop_closures_from_states(sd, state),
+        status=status,
+        status_names=names,
+        omega=omega,
+        integral=logs["integral"].data().T if "integral" in logs else None,
+        rho=logs["rho"].data().T.copy() if "rho" in logs else None,
+        e_bar=logs["e_bar"].data().T if "e_bar" in logs else None,
+        T_ff=feedforward_at(sd, t),
+        config_summary=config_summary(sd),
+        t_state=logs["state"].sample_times(),
+        state=state,
+    )
+    contact = bool(sd.scenario.contact)
+    first = sd.guard.first_contact(root_context) if contact and sd.guard is not None else None
+    return RunLogs(result, sd.trajectory, contact, first)
+
+
+def finish_result(logs: RunLogs, wall_s: float) -> RunResult:
+    """The :class:`RunResult` of :func:`read_run`'s logs: the reference at the log times
+    (:func:`reference_at`) and the metrics (:func:`~.metrics.compute_metrics`)."""
+    result = logs.result
+    result.x_d = reference_at(logs.trajectory, result.t)
+    result.metrics = compute_metrics(result, wall_s)
+    if logs.contact:
+        first = logs.first_contact
+        result.metrics["first_contact"] = (
+            None
+            if first is None
+            else {"t": first[0], "parts": list(first[1:3]), "force_N": first[3]}
+        )
+    return result
+
+
+def release_reference(sd) -> None:
+    """Drop a run's reference tables once it is read (:func:`read_run`), before its
+    result's arrays are made (:meth:`~stewart_drake.run.reference.ReferenceSources.release`):
+    the Diagram cannot run again."""
+    if isinstance(sd.reference, ReferenceSources):
+        sd.reference.release()
+
+
+#: Samples :func:`reference_at` and :func:`feedforward_at` compute at once (their float64
+#: intermediates, a stretch at a time).
+RESULT_CHUNK = 20_000
+
+
+def reference_at(trajectory, t: np.ndarray) -> np.ndarray:
+    """(N, 18) float32 the reference's pose, rate and acceleration at times t (s): the
+    analytic reference a logged sample at t_n is compared with (a logged sample is the state the
+    plant computed for physical time t_n; the controller's x_d leads by half a plant step),
+    evaluated a stretch at a time."""
+    out = np.empty((len(t), 18), dtype=np.float32)
+    for a in range(0, len(t), RESULT_CHUNK):
+        out[a : a + RESULT_CHUNK] = np.concatenate(
+            trajectory.evaluate(t[a : a + RESULT_CHUNK]), axis=1
+        )
+    return out
+
+
+def feedforward_at(sd, t: np.ndarray) -> np.ndarray:
+    """(N, 6) float32 the feed-forward torques the reference asks for at times t (s), N m: the
+    Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
+    reference time plus the computation delay), linearly interpolated."""
+    reference = sd.reference
+    # A run's reference is precomputed (ReferenceSources); a live one has no table.
+    assert isinstance(reference, ReferenceSources)
+    t_act = reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
+    table = reference.T_ff_table
+    out = np.empty((len(t), table.shape[1]), dtype=np.float32)
+    for i in range(table.shape[1]):
+        out[:, i] = np.interp(t, t_act, table[:, i])
+    return out
+
+
+def loop_closures_from_states(sd, states: np.ndarray) -> np.ndarray:
+    """(N,) max loop-closure error in m at each plant state (N, nq + nv)."""
+    plant = sd.plant
+    context = plant.CreateDefaultContext()
+    nq = plant.num_positions()
+    out = np.empty(len(states))
+    for k, s in enumerate(states):
+        plant.SetPositions(context, s[:nq])
+        out[k] = loop_closure_errors(plant, context, sd.handles).max()
+    return out
+
+
+_OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff", "t_state", "state")
+
+
+def save_result(result: RunResult, path: str | Path) -> Path:
+    """Write the run to ``path``: an .npz of t, x, x_d, T, closure, status (+ omega, integral,
+    rho, T_ff, t_state and state when present), status_names, metrics (JSON) and config (JSON,
+    with the scenario YAML)."""
+    arrays = dict(
+        t=result.t,
+        x=result.x,
+        x_d=result.x_d,
+        T=result.T,
+        closure=result.closure,
+        status=result.status,
+        status_names=np.array(result.status_names, dtype=str),
+        metrics=np.array(json.dumps(result.metrics)),
+        config=np.array(json.dumps(result.config_summary)),
+    )
+    arrays.update(
+        {k: getattr(result, k) for k in _OPTIONAL_ARRAYS if getattr(result, k) is not None}
+    )
+    return save_npz(Path(path), arrays)
+
+
+#: The pose's and its rate's names and units, in the order of RunResult.x.
+_POSE_COLUMNS = (
+    ("phi", "rad"),
+    ("theta", "rad"),
+    ("psi", "rad"),
+    ("X", "m"),
+    ("Y", "m"),
+    ("Z", "m"),
+)
+
+
+def result_columns(result: RunResult) -> tuple[list[str], list[str], np.ndarray]:
+    """(names, units, (N, k) values) of a run's logs as one table: t; the true pose and rate;
+    the reference's pose, rate and acceleration (``_d``); the applied motor torques T0..T5 (motor
+    i is leg i of docs/reference_geometry.md and the paper's T_{i+1}); the largest loop-closure
+    error (logged with the plant state, every ``state_log_period_s``, joined linearly); omega_Q
+    and omega_R when the controller reports them."""
+    names, units, columns = ["t"], ["s"], [result.t[:, None]]
+    for suffix, per in (("", ""), ("_dot", "/s")):
+        names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
+        units += [f"{u}{per}" for _, u in _POSE_COLUMNS]
+    columns.append(result.x)
+    for suffix, per in (("_d", ""), ("_dot_d", "/s"), ("_ddot_d", "/s^2")):
+        names += [f"{n}{suffix}" for n, _ in _POSE_COLUMNS]
+        units += [f"{u}{per}" for _, u in _POSE_COLUMNS]
+    columns.append(result.x_d)
+    names += [f"T{i}" for i in range(6)] + ["closure"]
+    units += ["N m"] * 6 + ["m"]
+    t_state = result.t if result.t_state is None else result.t_state  # an older file: t
+    closure = np.interp(result.t, t_state, result.closure)  # every state log period
+    columns += [result.T, closure[:, None]]
+    if result.omega is not None:
+        names += ["omega_Q", "omega_R"]
+        units += ["1", "1"]
+        columns.append(result.omega)
+    return names, units, np.hstack(columns)
+
+
+def export_result(result: RunResult, stem: str | Path) -> list[Path]:
+    """Write a run's logs as a table with named columns and units, for spreadsheets and MATLAB:
+    ``<stem>.csv`` (a header ``name [unit]`` per column, :func:`result_columns`) and
+    ``<stem>.mat`` (one variable per column, plus ``columns`` and ``units``, cell arrays of
+    the names and units), each written atomically.
+
+    Returns:
+        [the .csv path, the .mat path].
+    """
+    import io
+
+    from scipy.io import savemat
+
+    from ..base.fileio import atomic_write
+
+    names, units, table = result_columns(result)
+    stem = Path(stem)
+    text = io.StringIO()
+    text.write(",".join(f"{n} [{u}]" for n, u in zip(names, units, strict=True)) + "\n")
+    np.savetxt(text, table, delimiter=",", fmt="%.17g")
+    csv, mat = stem.with_suffix(".csv"), stem.with_suffix(".mat")
+    atomic_write(csv, lambda f: f.write(text.getvalue().encode()))
+    variables = {n: table[:, k] for k, n in enumerate(names)}
+    variables["columns"] = np.array(names, dtype=object)
+    variables["units"] = np.array(units, dtype=object)
+    atomic_write(mat, lambda f: savemat(f, variables))
+    return [csv, mat]
+
+
+def load_result(path: str | Path) -> RunResult:
+    """Read a file written by :func:`save_result`.
+
+    Raises:
+        CorruptFileError: not such a file (damaged archive, an entry missing or of the wrong
+            type, metrics or config that are not JSON); names the file and the fault.
+        OSError: the file cannot be read.
+    """
+    data = CheckedNpz(path, "run result file", "run it again with `stewart-drake run`")
+    arrays = {
+        k: data.array(k)
+        for k in ("t", "x", "x_d", "T", "closure", "status")
+        + tuple(k for k in _OPTIONAL_ARRAYS if k in data)
+    }
+    names = data.arrays.get("status_names")
+    if names is None or names.dtype.kind != "U" or names.ndim != 1:
+        raise data.corrupt("the entry 'status_names' must be a list of strings")
+    return RunResult(
+        **arrays,
+        status_names=tuple(str(v) for v in names),
+        metrics=data.json("metrics"),
+        config_summary=data.json("config"),
+    )

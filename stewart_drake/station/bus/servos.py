@@ -1,0 +1,361 @@
+"""The servos on the bus: each model's spec, torque <-> current, and the bus's settings.
+
+A model (:class:`ServoSpec`, :data:`SERVO_SPECS`) is what the bus sees of an X-series servo: its
+Model Number, its current unit (or none: the XL430-W250 has no Current Control Mode) and its
+stall figures. Torque <-> current: the servo's torque constant at the horn, ``K_t = stall torque
+/ stall current`` at 12 V from the e-Manual's specification table (XM540-W270: 10.6 N m at 4.4 A,
+2.409 N m/A as the e-Manual prints it; XM430-W350: 4.1 N m at 2.3 A, 1.783 N m/A). The relation
+is the e-Manual's linear one at stall; its performance graphs show the torque per ampere falling
+somewhat at low currents (friction of the 350 : 1 gear train), which a torque controller meets as
+friction. Figures and sources: docs/motor_catalogue.md, docs/hardware_bus.md.
+
+A scenario's ``bus`` (:class:`DynamixelBusConfig`) gives the arguments of
+:class:`~.driver.DynamixelBus` (:meth:`~.driver.DynamixelBus.from_config` makes the bus, not
+opened) and the loop's deadline policy; :func:`check_bus_settings` checks them without the
+vendor's library or a port. Drake's YAML loader reads :class:`DynamixelBusConfig`'s field
+annotations: this module must not use ``from __future__ import annotations``.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ...base.checks import check_int
+from ...base.errors import InvalidConfigError, StewartError
+from ...robot.motor_catalogue import catalogue_motor
+from ..hardware import Encoders, Estimator, Hardware, Motors
+from . import protocol as p
+
+
+@dataclass(frozen=True)
+class ServoSpec:
+    """One X-series model as the bus sees it.
+
+    Attributes:
+        name: the catalogue key (:data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`).
+        model_number: what PING returns (Model Number, address 0).
+        current_unit_A: one unit of Goal/Present Current, A; None: no Current Control Mode.
+        current_limit_max: the Current Limit's largest value (its factory default), units.
+        stall_current_A: the e-Manual's stall current at 12 V, A.
+        source: the e-Manual page.
+    """
+
+    name: str
+    model_number: int
+    current_unit_A: float | None
+    current_limit_max: int
+    stall_current_A: float
+    source: str
+
+    @property
+    def amps_per_unit(self) -> float:
+        """One unit of Goal/Present Current, A.
+
+        Raises:
+            InvalidConfigError: a model without Current Control Mode.
+        """
+        if self.current_unit_A is None:
+            servo_spec(self.name)  # raises, saying why
+        return float(self.current_unit_A or 0.0)
+
+    @property
+    def stall_torque_Nm(self) -> float:
+        """The stall torque at 12 V, N m at the horn (the motor catalogue's peak torque)."""
+        return catalogue_motor(self.name).servo.peak_torque_Nm
+
+    @property
+    def torque_constant_Nm_per_A(self) -> float:
+        """K_t = stall torque / stall current, N m/A at the horn."""
+        return self.stall_torque_Nm / self.stall_current_A
+
+
+_EMANUAL = "https://emanual.robotis.com/docs/en/dxl/x/"
+
+
+#: The models the bus knows; stall figures at 12 V (e-Manual "Specifications").
+SERVO_SPECS: dict[str, ServoSpec] = {
+    s.name: s
+    for s in (
+        ServoSpec("XM430-W350-T", 1020, 2.69e-3, 1193, 2.3, _EMANUAL + "xm430-w350/"),
+        ServoSpec("XM540-W270-T", 1120, 2.69e-3, 2047, 4.4, _EMANUAL + "xm540-w270/"),
+        ServoSpec("XL430-W250-T", 1060, None, 0, 1.4, _EMANUAL + "xl430-w250/"),
+    )
+}
+
+
+def servo_spec(name: str, *, torque_control: bool = True) -> ServoSpec:
+    """The bus description of model ``name``.
+
+    Raises:
+        InvalidConfigError: an unknown model (lists the known ones), or, with
+            ``torque_control``, a model without Current Control Mode (the XL430-W250).
+    """
+    if name not in SERVO_SPECS:
+        raise InvalidConfigError(
+            f"servo model {name!r} is not one the bus knows; choose one of "
+            f"{', '.join(SERVO_SPECS)} (docs/hardware_bus.md)"
+        )
+    spec = SERVO_SPECS[name]
+    if torque_control and spec.current_unit_A is None:
+        raise InvalidConfigError(
+            f"{name} has no Current Control Mode (no current sensing: {spec.source}), so the "
+            f"controllers' motor torques cannot be sent to it; use an XM430-W350-T or "
+            f"XM540-W270-T"
+        )
+    return spec
+
+
+def torque_to_current_units(tau_Nm, spec: ServoSpec, direction=1):
+    """Goal Current (units, rounded to integers) for output torque ``tau_Nm`` (N m at the crank,
+    in the crank's sense; ``direction`` -1 for a servo mounted the other way)."""
+    unit = spec.amps_per_unit
+    return np.rint(np.asarray(tau_Nm) * direction / spec.torque_constant_Nm_per_A / unit).astype(
+        np.int64
+    )
+
+
+def current_units_to_torque(units, spec: ServoSpec, direction=1):
+    """Output torque, N m in the crank's sense, for a (Goal or Present) Current in units."""
+    unit = spec.amps_per_unit
+    return np.asarray(units) * unit * spec.torque_constant_Nm_per_A * direction
+
+
+#: Baud rates the X series takes (e-Manual, "Baud Rate(8)"), bps.
+BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+
+
+@dataclass(frozen=True)
+class BusSettings:
+    """The settings of a bus, checked (:func:`check_bus_settings`): ``spec`` the model's
+    :class:`ServoSpec`, ``ids`` (list), ``zero_counts`` and ``directions`` (n,)
+    arrays, ``current_limit_units`` and ``watchdog_units`` the raw values written,
+    ``position_limits_counts`` (min, max)."""
+
+    spec: ServoSpec
+    ids: list
+    zero_counts: np.ndarray
+    directions: np.ndarray
+    current_limit_units: int
+    watchdog_units: int
+    position_limits_counts: tuple[int, int]
+
+
+def check_bus_settings(
+    baud_rate,
+    ids,
+    model: str = "XM430-W350-T",
+    zero_counts=None,
+    directions=None,
+    current_limit_A: float | None = None,
+    temperature_limit_C: int = 70,
+    position_limits_counts=(0, 4095),
+    watchdog_s: float = 0.1,
+    reply_timeout_s: float | None = None,
+    prefix: str = "",
+) -> BusSettings:
+    """Check the arguments of :class:`~.driver.DynamixelBus` (same names and meanings) without the
+    vendor's library or a port; ``prefix`` goes before every name in a message (a scenario's
+    ``"bus."``).
+
+    Raises:
+        InvalidConfigError: the first argument out of range, named.
+    """
+    try:
+        spec = servo_spec(model)
+    except InvalidConfigError as err:
+        raise InvalidConfigError(f"{prefix}model: {err}") from None
+    try:
+        ids = [int(i) for i in ids]
+    except (TypeError, ValueError):
+        ids = []
+    if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
+        raise InvalidConfigError(f"{prefix}ids {ids} must be distinct integers in 0..{p.MAX_ID}")
+    n = len(ids)
+    if baud_rate not in BAUD_RATES:
+        raise InvalidConfigError(
+            f"{prefix}baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
+        )
+    zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
+    sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
+    if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
+        raise InvalidConfigError(
+            f"{prefix}zero_counts and {prefix}directions must have one entry per id ({n}); "
+            f"directions +1 or -1"
+        )
+    limit_units = spec.current_limit_max
+    if current_limit_A is not None:
+        if not _finite(current_limit_A):
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be a finite number of A"
+            )
+        limit_units = math.floor(current_limit_A / spec.amps_per_unit)
+        if not 0 < limit_units <= spec.current_limit_max:
+            raise InvalidConfigError(
+                f"{prefix}current_limit_A {current_limit_A} must be in (0, "
+                f"{spec.current_limit_max * spec.amps_per_unit:.3g}] A for {model}"
+            )
+    if not 0 < temperature_limit_C <= 80:
+        raise InvalidConfigError(
+            f"{prefix}temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
+        )
+    lo, hi = (int(c) for c in position_limits_counts)
+    if not 0 <= lo < hi <= 4095:
+        raise InvalidConfigError(
+            f"{prefix}position_limits_counts {position_limits_counts} must be "
+            f"0 <= min < max <= 4095"
+        )
+    watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S) if _finite(watchdog_s) else 0
+    if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
+        raise InvalidConfigError(
+            f"{prefix}watchdog_s {watchdog_s} must be a multiple of 0.02 s in 0.02..2.54"
+        )
+    if reply_timeout_s is not None and not 0 < reply_timeout_s <= 5:
+        raise InvalidConfigError(f"{prefix}reply_timeout_s {reply_timeout_s} must be in (0, 5] s")
+    return BusSettings(spec, ids, zero, sign, int(limit_units), int(watchdog_units), (lo, hi))
+
+
+def _finite(value) -> bool:
+    """Whether ``value`` is a finite real number (not NaN, not inf, not a string)."""
+    try:
+        return math.isfinite(value)
+    except TypeError:
+        return False
+
+
+#: Control periods a loop on the servo bus may run at, s: 100 Hz to 1 kHz.
+BUS_CONTROL_PERIODS_S = (1e-3, 1e-2)
+
+
+@dataclass
+class DynamixelBusConfig:
+    """The robot's servos on a DYNAMIXEL bus: the station drives them instead of a simulated
+    plant (:class:`~.station.HardwareStation`; docs/hardware_bus.md). The arguments of
+    :class:`~stewart_drake.station.bus.driver.DynamixelBus`, same names, units and
+    defaults, and the loop's deadline policy.
+
+    Attributes:
+        port: the serial port ("/dev/ttyUSB0", or a bus emulator's pty).
+        baud_rate: bps, the servos' setting (one of the driver's ``BAUD_RATES``).
+        ids: the six servo ids, in the cranks' order (reference_geometry.md's legs).
+        model: the servos' model, a ``SERVO_SPECS`` key with Current Control Mode.
+        zero_counts: Present Position of each servo at its crank's zero angle, counts (6).
+        directions: +1, or -1 for a servo whose counts grow against its crank's angle (6).
+        current_limit_A: the servos' Current Limit, A (None: the model's maximum); the
+            torque limit of the run is at most ``K_t`` times it.
+        temperature_limit_C: deg C, in (0, 80].
+        position_limits_counts: (min, max) written to the servos (Position Control Mode only).
+        watchdog_s: the servos' bus watchdog, s (a multiple of 20 ms in 0.02..2.54).
+        reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
+        max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
+            period missed beyond this many (0: at the first miss).
+
+    The robot as built is then the one with these servos: ``hardware: null`` is derived from
+    the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
+    ``model``, the servos' 4096-count encoders, one period of computation delay), or the
+    scenario is refused (:meth:`validate`).
+    """
+
+    port: str = "/dev/ttyUSB0"
+    baud_rate: int = 1_000_000
+    ids: list[int] = field(default_factory=lambda: [1, 2, 3, 4, 5, 6])
+    model: str = "XM430-W350-T"
+    zero_counts: list[int] = field(default_factory=lambda: [2048] * 6)
+    directions: list[int] = field(default_factory=lambda: [1] * 6)
+    current_limit_A: float | None = None
+    temperature_limit_C: int = 70
+    position_limits_counts: list[int] = field(default_factory=lambda: [0, 4095])
+    watchdog_s: float = 0.1
+    reply_timeout_s: float | None = None
+    max_deadline_misses: int = 10
+
+    def _settings(self):
+        return check_bus_settings(
+            self.baud_rate,
+            self.ids,
+            self.model,
+            self.zero_counts,
+            self.directions,
+            self.current_limit_A,
+            self.temperature_limit_C,
+            self.position_limits_counts,
+            self.watchdog_s,
+            self.reply_timeout_s,
+            prefix="bus.",
+        )
+
+    def validate(self, control_period_s: float, hardware: "Hardware | None") -> None:
+        """Check every field (``bus.<name>``), the control period (1 to 10 ms) and that
+        ``hardware``, if given, is the robot built with these servos.
+
+        Raises:
+            InvalidConfigError: names the field.
+        """
+        if not isinstance(self.port, str) or not self.port:
+            raise InvalidConfigError(f"bus.port must be a serial port path, got {self.port!r}")
+        if len(self.ids) != 6:
+            raise InvalidConfigError(f"bus.ids must name the six servos, got {self.ids!r}")
+        if len(self.position_limits_counts) != 2:
+            raise InvalidConfigError(
+                f"bus.position_limits_counts must be [min, max], got {self.position_limits_counts}"
+            )
+        self._settings()
+        check_int("bus.max_deadline_misses", self.max_deadline_misses, 0, 10**9)
+        lo, hi = BUS_CONTROL_PERIODS_S
+        if not lo - 1e-12 <= control_period_s <= hi + 1e-12:
+            raise InvalidConfigError(
+                f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
+                f"{lo:g} to {hi:g} s"
+            )
+        expected = self.hardware(control_period_s)
+        if hardware is None:
+            return
+        for name, got, want in (
+            ("motors.name", hardware.motors.name, expected.motors.name),
+            (
+                "encoders.counts_per_rev",
+                hardware.encoders.counts_per_rev,
+                expected.encoders.counts_per_rev,
+            ),
+            (
+                "computation_delay_periods",
+                hardware.computation_delay_periods,
+                expected.computation_delay_periods,
+            ),
+        ):
+            if got != want:
+                raise InvalidConfigError(
+                    f"hardware.{name} is {got!r} but the servos of bus.model {self.model} make "
+                    f"it {want!r}: set it so, or hardware: null to derive the robot from the bus"
+                )
+
+    def hardware(self, control_period_s: float = 1e-3) -> "Hardware":
+        """The robot as built with these servos: their catalogue model (friction, gear,
+        reflected inertia, peak torque; docs/motor_catalogue.md), their 4096-count encoders
+        without added noise, one control period of delay between a measurement and its
+        torque (the driver writes the torque computed from a period's reading at the start of
+        the next period, :class:`~.bus.station.DynamixelDriver`), and the encoders' rate
+        filter at its default corner or, for a long ``control_period_s``, at the Nyquist
+        frequency 0.5 / control_period_s.
+
+        Raises:
+            InvalidConfigError: a model the motor catalogue does not have.
+        """
+        try:
+            servo = catalogue_motor(self.model).servo
+        except (StewartError, KeyError) as err:
+            raise InvalidConfigError(f"bus.model: {err}") from None
+        return Hardware(
+            encoders=Encoders(counts_per_rev=p.COUNTS_PER_REV),
+            motors=Motors.from_value(servo),
+            estimator=Estimator(
+                rate_cutoff_hz=min(Estimator().rate_cutoff_hz, 0.5 / control_period_s)
+            ),
+            computation_delay_periods=1,
+        )
+
+    def torque_limit_Nm(self) -> float | None:
+        """``current_limit_A`` as a torque at the crank, N m (None without one)."""
+        if self.current_limit_A is None:
+            return None
+        return self.current_limit_A * servo_spec(self.model).torque_constant_Nm_per_A
