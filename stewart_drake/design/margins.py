@@ -224,7 +224,7 @@ def _reach_and_conditioning_margins(out: Evaluation, geometry: StewartGeometry, 
     a pose is not reached or J is singular at one (the later stages need every pose)."""
     fig = out.figures
     limit_margins = limits.limit_margins_unchecked(geometry, x_all)
-    reachable = limits._reachable_from_margins(limit_margins)
+    reachable = limits.reachable_from_margins(limit_margins)
     if not np.all(reachable):  # most candidates of a search end here, in milliseconds
         out.margins["reach"] = -float(np.mean(~reachable))
         return None
