@@ -47,8 +47,9 @@ Output ports
 
 When the scenario learns from every cycle (``learning``), the ``x_d`` a controller reads is the
 reference plus the correction of the
-:class:`~stewart_drake.control.ilc.IterativeLearningController` (wired by
-:mod:`~stewart_drake.run.learning`); nothing else changes for the controller.
+:class:`~stewart_drake.control.ilc.IterativeLearningController` (built by the learning
+choice from a :class:`LearnerContext`, wired by :func:`~stewart_drake.run.diagram.build_diagram`);
+nothing else changes for the controller.
 
 Sampling: a controller samples with a periodic discrete update of period
 ``context.period_s`` and offset ``context.offset_s`` = half a plant step. A discrete plant updated
@@ -141,6 +142,33 @@ class ControllerContext:
     # A PoseEstimator or None; Any, as estimator.py imports this module (through the LQI).
     pose_estimator: Any = None
     feature_window: int | None = None
+
+
+@dataclass(frozen=True)
+class LearnerContext:
+    """What the Diagram tells the learner of a scenario's ``learning``: each learning choice
+    builds its system from it (``driver.make_learner(context)``), as a controller factory does
+    from a :class:`ControllerContext`.
+
+    Attributes:
+        geometry: the robot the controller believes in.
+        reference: the reference object (``evaluate(t)``) the run tracks.
+        period_s: control period, s. offset_s: sample offset within the period, s.
+        duration_s: the run's length, s.
+        floor: (m, rad) one encoder count at the crank tip as a translation and as a platform
+            rotation (the learner's additive floor of its monitored bound).
+        cycles: ``cycles(period_s) -> (starts (K + 1,) s, scale (K,))``, the cycles of the
+            reference over the run (``period_s`` > 0: of that period from t = 0), for a
+            learner that learns from every cycle.
+    """
+
+    geometry: StewartGeometry
+    reference: Any
+    period_s: float
+    offset_s: float
+    duration_s: float
+    floor: tuple[float, float]
+    cycles: Callable
 
 
 class ControllerDriver:

@@ -55,6 +55,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_number, check_int, check_multiple
 from ..base.errors import CorruptFileError, InvalidConfigError
 from ..robot import kinematics
+from .contract import LearnerContext
 from .ilc import (
     MIN_Q_CUTOFF_HZ,
     add_record,
@@ -461,6 +462,19 @@ class FeedforwardTuning:
     max_rollbacks: int = 2
     learned_from: str = ""
     learn: bool = True
+
+    def make_learner(self, context: LearnerContext) -> FeedforwardTuningLearner:
+        """The learner of this choice in a run (:class:`~.contract.LearnerContext`): the
+        correction as a function of the reference."""
+        return FeedforwardTuningLearner(
+            context.geometry,
+            self,
+            context.reference,
+            context.period_s,
+            context.offset_s,
+            context.duration_s,
+            floor=context.floor,
+        )
 
     def validate(
         self, control_period_s: float, prefix: str = "learning.", *, has_model: bool = False

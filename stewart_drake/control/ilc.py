@@ -57,6 +57,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_array, as_number, check_int, check_multiple
 from ..base.errors import InvalidConfigError
 from ..robot import forward_kinematics, kinematics
+from .contract import LearnerContext
 
 #: What the ``ilc_status`` output holds, in order.
 ILC_STATUS_NAMES = (
@@ -217,7 +218,7 @@ class IterativeLearningController(LeafSystem):
         driver: the learner's settings (:class:`IlcDriver`: gain, Q-filter, lead, error, record
             period, bound, rollbacks, learned cycles, gain decay), checked here by its own
             :meth:`IlcDriver.validate` (its messages name each field); ``driver.period_s`` is
-            the run's business (:func:`~stewart_drake.run.learning.learning_cycles`).
+            the run's business (:func:`~stewart_drake.references.motion.learning_cycles`).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         cycle_starts: (K + 1,) start of each cycle, s, increasing (the last ends the last
             cycle); nothing is recorded or corrected outside them.
@@ -526,6 +527,20 @@ class IlcDriver:
     learn_cycles: int = 0
     gain_decay_cycles: float = 4.0
     period_s: float = 0.0
+
+    def make_learner(self, context: LearnerContext) -> IterativeLearningController:
+        """The learner of this choice in a run (:class:`~.contract.LearnerContext`): aligned on
+        the reference's cycles, or on ``period_s``'s when given."""
+        starts, scale = context.cycles(self.period_s)
+        return IterativeLearningController(
+            context.geometry,
+            self,
+            context.period_s,
+            context.offset_s,
+            starts,
+            scale,
+            floor=context.floor,
+        )
 
     def validate(self, control_period_s: float, prefix: str = "learning.") -> None:
         """Check every field for a control period of ``control_period_s`` (s): the one check,

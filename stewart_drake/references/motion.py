@@ -8,7 +8,8 @@ their sums and scalings (:class:`~.combinators.MotionSum`,
 :class:`~.combinators.ScaledReference`). Some references say more, and what asks for it uses it
 when it is there (the optional members of :class:`Reference`): ``end_time``, ``centre``,
 ``cycles(t_end)``, ``repeat_period_s``, ``frequencies_hz()``. :func:`reference_cycles` is how
-the learner and the fidelity report ask any reference for its cycles.
+the learner and the fidelity report ask any reference for its cycles, :func:`learning_cycles`
+the cycles a learner aligns on over a whole run.
 
 A scenario chooses its reference by a :class:`ReferenceConfig` (in YAML,
 ``reference: !NamedReference {name: paper}``): one class per kind of reference, defined beside
@@ -172,3 +173,42 @@ def peak_cycles(
 
 
 __all__ = ["Reference", "ReferenceConfig", "reference_cycles", "peak_cycles"]
+
+
+def learning_cycles(
+    period_s: float, trajectory: Reference, duration: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(starts (K + 1,), scale (K,)) of the cycles a learner aligns on over a run of
+    ``duration`` s: the reference's own (:func:`reference_cycles`), or ``period_s``'s (the
+    learning choice's ``period_s``, s) from t = 0 when it is > 0. The cycles cover the run to
+    its end: a tail after the last cycle the reference gives (a trace whose last breath is
+    cut) gets cycles of the median length and the mean amplitude, so that it is corrected too.
+
+    Raises:
+        InvalidConfigError: a reference without cycles and no ``learning.period_s``, or not one
+            whole cycle in the run.
+    """
+    if period_s > 0:
+        k = max(1, int(np.floor(duration / period_s + 1e-9)))
+        starts, scale = np.arange(k + 1) * period_s, np.ones(k)
+    else:
+        try:
+            starts, scale = reference_cycles(trajectory, duration)
+        except InvalidConfigError as err:
+            raise InvalidConfigError(
+                f"learning needs a reference that repeats: {err}; give "
+                f"learning.period_s for one of your own"
+            ) from None
+    k = int(np.count_nonzero(starts[:-1] < duration - 1e-9))  # cycles begun within the run
+    if k < 1 or starts[1] > duration + 1e-9:
+        raise InvalidConfigError(
+            f"learning: the run ({duration:g} s) holds no whole cycle of "
+            f"the reference (the first ends at {starts[1]:g} s)"
+        )
+    starts, scale = starts[: k + 1], scale[:k]
+    if starts[-1] < duration - 1e-9:  # a tail after the last cycle found (a trace's end)
+        length = float(np.median(np.diff(starts)))
+        more = int(np.ceil((duration - starts[-1]) / length - 1e-9))
+        starts = np.append(starts, starts[-1] + length * np.arange(1, more + 1))
+        scale = np.append(scale, np.ones(more))
+    return starts, scale

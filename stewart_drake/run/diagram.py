@@ -20,15 +20,17 @@ from typing import Any
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, System
 from pydrake.systems.primitives import (
+    Adder,
     ConstantVectorSource,
     LogVectorOutput,
     RandomSource,
 )
 
 from ..base.errors import InvalidConfigError
-from ..control.contract import ControllerContext, check_controller
+from ..control.contract import ControllerContext, LearnerContext, check_controller
 from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
+from ..references.motion import learning_cycles
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
 from ..station.guard import DivergenceGuard, add_divergence_guard
@@ -371,13 +373,18 @@ def _add_learning(
     x_d: OutputPort,
     context: ControllerContext,
 ):
-    """With the scenario's ``learning``, the iterative learning controller between the reference
-    and the controller (:func:`~.learning.add_learning`): the controller tracks x_d plus the learned
-    correction, the guard and the tuner keep the reference itself. Returns (the x_d port the
-    controller reads, the learner or None).
+    """With the scenario's ``learning``, its learner between the reference and the controller:
+    the learning choice builds it from a :class:`~.contract.LearnerContext` (the reference's
+    cycles asked for through :func:`~.motion.learning_cycles`), and it is wired by port name: it
+    reads the reference source's ``x_d`` and the station's ``motor_angle`` (what the robot
+    measures), and an ``Adder`` puts its ``x_d_correction`` on the reference. The controller
+    tracks that sum; the guard and the tuner keep the reference itself. Returns (the x_d port
+    the controller reads, the learner or None).
 
     Raises:
-        InvalidConfigError: learning on a live reference (it has no cycles to learn from).
+        InvalidConfigError: learning on a live reference (it has no cycles to learn from); a
+            reference without cycles and no ``learning.period_s``, or not one whole cycle in
+            the run.
     """
     if plan.scenario.learning is None:
         return x_d, None
@@ -386,21 +393,24 @@ def _add_learning(
             "learning needs a reference known in advance, with cycles; a "
             "live reference has none: set learning: null"
         )
-    from .learning import add_learning
-
-    learner, corrected = add_learning(
-        builder,
-        plan.scenario.learning,
-        trajectory,
-        x_d,
-        station.GetOutputPort("motor_angle"),
+    learner_context = LearnerContext(
         geometry=plan.geometry,
+        reference=trajectory,
         period_s=plan.control_period_s,
         offset_s=context.offset_s,
         duration_s=plan.duration_s,
         floor=plan.encoder_count_at_tip,
+        cycles=lambda period_s: learning_cycles(period_s, trajectory, plan.duration_s),
     )
-    return corrected, learner
+    learner = builder.AddNamedSystem(
+        "learner", plan.scenario.learning.make_learner(learner_context)
+    )
+    builder.Connect(x_d, learner.GetInputPort("x_d"))
+    builder.Connect(station.GetOutputPort("motor_angle"), learner.GetInputPort("motor_angle"))
+    add = builder.AddNamedSystem("learned_x_d", Adder(2, 18))
+    builder.Connect(x_d, add.get_input_port(0))
+    builder.Connect(learner.GetOutputPort("x_d_correction"), add.get_input_port(1))
+    return add.get_output_port(), learner
 
 
 def _add_weights(builder, scenario: Scenario, context, system, inputs, outputs, x_d, applied):
