@@ -30,7 +30,7 @@ from ..base.errors import InvalidConfigError
 from ..control.contract import ControllerContext, LearnerContext, check_controller
 from ..control.estimator import FkEstimator, PoseEstimator
 from ..control.tuning import TunerPorts
-from ..references.motion import learning_cycles
+from ..references.motion import Reference, learning_cycles
 from ..robot.kinematics import X_HOME
 from ..station.bus.station import HardwareStation
 from ..station.guard import DivergenceGuard, add_divergence_guard
@@ -77,7 +77,7 @@ class StewartDiagram:
     station: Station
     controller: System
     reference: ReferenceSources | System
-    trajectory: Any  # a motion.Reference, or None with a live reference
+    trajectory: Reference | None  # None with a live reference
     loggers: dict
     plan: RunPlan
     features: System | None = None
@@ -468,11 +468,10 @@ def make_stewart_station(scenario=None, meshcat=None):
 
 
 def _station(plan: RunPlan, meshcat=None) -> Station:
-    """The station of a plan: :class:`StewartStation`, or with the scenario's ``bus`` the
-    :class:`~.bus.station.HardwareStation`."""
-    if plan.scenario.bus is not None:
-        return HardwareStation(plan, meshcat)
-    return StewartStation(plan, meshcat)
+    """The station of a plan: the backend its ``station_factory`` names
+    (:class:`StewartStation`, or with the scenario's ``bus`` the
+    :class:`~.bus.station.HardwareStation`)."""
+    return plan.station_factory(plan, meshcat)
 
 
 def held_station(scenario=None, x=X_HOME, T=None, wrench=None):

@@ -28,10 +28,13 @@ from typing import Any
 
 from ..base.errors import FeasibilityWarning
 from ..control.contract import resolve_controller
+from ..references.motion import Reference
 from ..robot.geometry import StewartGeometry
 from ..robot.limits import MotorLimits
 from ..robot.servo import ServoModel
 from ..robot.trajectory_report import TrajectoryReport
+from ..station.bus.station import HardwareStation
+from ..station.station import StewartStation
 from .scenario import Scenario
 
 
@@ -66,6 +69,10 @@ class RunPlan:
         reference: the reference object (:class:`~.motion.Reference`: ``evaluate(t)``), or
             None for a plan made without one (a live reference, or only the robot's values).
         controller_factory: ``f(ControllerContext) -> System``, the run's controller.
+        station_factory: ``f(plan, meshcat) -> Diagram``, the robot behind the station's ports:
+            :class:`~stewart_drake.station.station.StewartStation` (simulated), or with the
+            scenario's ``bus`` the :class:`~stewart_drake.station.bus.station.HardwareStation`
+            (its servos): sibling backends of one port contract, chosen once, here.
         report: the reference check's report when the plan was checked (:func:`checked_plan`;
             :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`, without its
             series), or None.
@@ -84,8 +91,9 @@ class RunPlan:
     duration_s: float
     sample_offset_s: float
     encoder_count_at_tip: tuple[float, float]
-    reference: Any  # a motion.Reference, or None
+    reference: Reference | None
     controller_factory: Callable
+    station_factory: Callable
     report: TrajectoryReport | None = None
 
 
@@ -243,6 +251,7 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
         encoder_count_at_tip=tip,
         reference=None,
         controller_factory=scenario.controller.resolve(),
+        station_factory=StewartStation if scenario.bus is None else HardwareStation,
     )
 
 

@@ -24,6 +24,7 @@ from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort, Syste
 from pydrake.trajectories import BsplineTrajectory
 
 from ..base.errors import InvalidConfigError
+from ..references.motion import Reference
 from ..robot import kinematics
 from ..robot.geometry import StewartGeometry
 from ..robot.statics import feedforward_unchecked, holding_torques
@@ -63,7 +64,7 @@ SAMPLE_CHUNK = 5_000
 
 
 def sample_reference(
-    trajectory,
+    trajectory: Reference,
     geometry: StewartGeometry,
     duration_s: float,
     period_s: float,
@@ -110,7 +111,7 @@ def sample_reference(
     return t_sample, t_eval, x_d, T_ff
 
 
-def reference_rows(trajectory, t_eval: np.ndarray):
+def reference_rows(trajectory: Reference, t_eval: np.ndarray):
     """rows(a, b) -> (b - a, 18) [pose, rate, acceleration] of ``trajectory`` at t_eval[a:b]:
     the rows of :func:`sample_reference`'s table, the same numbers (each stretch of
     :data:`SAMPLE_CHUNK` evaluated by the same call)."""
@@ -283,7 +284,9 @@ class RunReference:
     T_ff_initial: np.ndarray
 
 
-def add_run_reference(builder, plan, trajectory, station, reference_system=None) -> RunReference:
+def add_run_reference(
+    builder, plan, trajectory: Reference | None, station, reference_system=None
+) -> RunReference:
     """The reference of the run of ``plan`` (a :class:`~.plan.RunPlan`): the precomputed
     reference and feed-forward of ``trajectory`` (:func:`add_reference_sources` at the plan's
     control period and sample offset, led by half a plant step, with the scenario's
