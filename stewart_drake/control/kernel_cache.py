@@ -23,6 +23,7 @@ import sys
 import tempfile
 import types
 from pathlib import Path
+from typing import Any
 
 #: The kernels' module files (in :mod:`.lqi`), with the functions :func:`.lqi.kernels.warm_up`
 #: calls in each; the others are compiled into them.
@@ -77,12 +78,13 @@ def njit_cached(function, cache: bool = True):
         return numba.njit(cache=True)(function)
     except RuntimeError:
         pass
-    if not numba.config.CACHE_DIR:
-        numba.config.CACHE_DIR = fallback_cache_dir()
+    config: Any = numba.config  # its settings are module attributes numba sets at import
+    if not config.CACHE_DIR:
+        config.CACHE_DIR = fallback_cache_dir()
         try:
             return numba.njit(cache=True)(function)
         except RuntimeError:
-            numba.config.CACHE_DIR = ""
+            config.CACHE_DIR = ""
     return numba.njit(function)
 
 

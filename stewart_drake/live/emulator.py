@@ -461,9 +461,10 @@ class BusEmulator:
         """The commanded clock: the model advances ``command_step_s`` under the currents just
         commanded, and the present values follow (called by the bus thread, the table's lock
         held: the next read waits for the step)."""
+        step_s = float(self.command_step_s or 0.0)  # set: only the commanded clock calls this
         currents = np.array([self.servos[i].current_A() for i in self.ids])
         with self._model_lock:
-            self.backend.advance(self.command_step_s, currents)
+            self.backend.advance(step_s, currents)
             self._update_present()
 
     def _armed(self) -> list:

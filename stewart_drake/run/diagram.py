@@ -235,7 +235,8 @@ def build_diagram(
     scenario = plan.scenario
     trajectory = None if reference_system is not None else plan.reference
     builder = DiagramBuilder()
-    station = builder.AddSystem(_station(plan, meshcat))
+    station = _station(plan, meshcat)
+    builder.AddSystem(station)
     ref = add_run_reference(builder, plan, trajectory, station, reference_system)
     context = controller_context(plan, ref.x0, ref.x_dot0)
     system = plan.controller_factory(context)

@@ -28,7 +28,6 @@ from typing import Any
 
 from ..base.errors import FeasibilityWarning
 from ..control.contract import resolve_controller
-from ..references.motion import Reference
 from ..robot.geometry import StewartGeometry
 from ..robot.limits import MotorLimits
 from ..robot.servo import ServoModel
@@ -91,7 +90,7 @@ class RunPlan:
     duration_s: float
     sample_offset_s: float
     encoder_count_at_tip: tuple[float, float]
-    reference: Reference | None
+    reference: Any  # a motion.Reference, or None
     controller_factory: Callable
     station_factory: Callable
     report: TrajectoryReport | None = None

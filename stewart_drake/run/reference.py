@@ -284,9 +284,7 @@ class RunReference:
     T_ff_initial: np.ndarray
 
 
-def add_run_reference(
-    builder, plan, trajectory: Reference | None, station, reference_system=None
-) -> RunReference:
+def add_run_reference(builder, plan, trajectory, station, reference_system=None) -> RunReference:
     """The reference of the run of ``plan`` (a :class:`~.plan.RunPlan`): the precomputed
     reference and feed-forward of ``trajectory`` (:func:`add_reference_sources` at the plan's
     control period and sample offset, led by half a plant step, with the scenario's

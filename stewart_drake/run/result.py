@@ -27,7 +27,6 @@ from pydrake.systems.framework import LeafSystem
 
 from ..base.fileio import CheckedNpz, save_npz
 from ..plant.closed_chain import loop_closure_errors
-from ..references.motion import Reference
 from .metrics import compute_metrics
 from .reference import ReferenceSources
 
@@ -330,7 +329,7 @@ def release_reference(sd) -> None:
 RESULT_CHUNK = 20_000
 
 
-def reference_at(trajectory: Reference, t: np.ndarray) -> np.ndarray:
+def reference_at(trajectory, t: np.ndarray) -> np.ndarray:
     """(N, 18) float32 the reference's pose, rate and acceleration at times t (s): the
     analytic reference a logged sample at t_n is compared with (a logged sample is the state the
     plant computed for physical time t_n; the controller's x_d leads by half a plant step),

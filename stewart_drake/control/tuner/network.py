@@ -198,7 +198,8 @@ def load_tuner(kind: type[Network], path=None) -> Network:
         )
     weights = {name: data.array(name) for name in WEIGHT_NAMES}
     activation, metadata = data.text("activation"), data.json("metadata_json")
+    make: Any = kind  # the subclasses add activation and metadata (TunerNetwork's docstring)
     try:
-        return kind(**weights, activation=activation, metadata=metadata)
+        return make(**weights, activation=activation, metadata=metadata)
     except InvalidConfigError as err:
         raise data.corrupt(str(err)) from None

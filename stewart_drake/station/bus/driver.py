@@ -191,7 +191,10 @@ class DynamixelBus:
             directions=config.directions,
             current_limit_A=config.current_limit_A,
             temperature_limit_C=config.temperature_limit_C,
-            position_limits_counts=tuple(config.position_limits_counts),
+            position_limits_counts=(
+                int(config.position_limits_counts[0]),
+                int(config.position_limits_counts[1]),
+            ),
             watchdog_s=config.watchdog_s,
             reply_timeout_s=config.reply_timeout_s,
         )
