@@ -14,10 +14,14 @@ import sys as _sys
 def _interrupted_while_starting(signum, frame):
     """SIGINT while the ``stewart-drake`` command imports this package and its own module,
     before its ``main`` can handle Ctrl-C: one line and 130, as any interrupted command, not
-    a KeyboardInterrupt traceback (SystemExit prints nothing and is no error of an import)."""
+    a KeyboardInterrupt traceback. The process ends here (``os._exit``): an exception raised
+    while an extension module initializes (numpy's imports the ``datetime`` module from C) is
+    turned into that module's ImportError, with its traceback, and nothing has been written
+    yet that an orderly exit would finish."""
     line = "stewart-drake: interrupted by SIGINT; partial outputs were not written"
     print(line, file=_sys.stderr)
-    raise SystemExit(128 + signum)
+    _sys.stderr.flush()
+    _os._exit(128 + signum)
 
 
 def _started_as_the_command() -> bool:
