@@ -16,6 +16,7 @@ a device node, FIFO or socket is never replaced; the hidden temporaries a killed
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -62,13 +63,17 @@ def main(argv: list[str] | None = None) -> int:
             signal.signal(signum, handler)
 
 
-def _import_drake_whole() -> None:
-    """Import pydrake with SIGINT, SIGTERM and SIGHUP held, then pass a held one to its handler
-    (a KeyboardInterrupt, handled as any): a signal that lands inside pydrake's own
-    initialization makes it print a C++ log with a stack dump before our one line. Held by
-    Python handlers that only note the signal (blocking it would not do: numpy's threads, already
-    started, would take it)."""
-    if "pydrake" in sys.modules or threading.current_thread() is not threading.main_thread():
+@contextlib.contextmanager
+def _signals_held():
+    """Hold SIGINT, SIGTERM and SIGHUP while the block runs, then pass a held one to its handler
+    (a KeyboardInterrupt, handled as any). For the imports that initialize Drake's extension
+    modules: a signal that lands inside pydrake's own initialization makes it print a C++ log
+    with a stack dump before our one line, and one inside a nanobind module's import (Drake's
+    ``systems.framework`` creating an enum) aborts the process (SIGABRT). Held by Python
+    handlers that only note the signal (blocking it would not do: numpy's threads, already
+    started, would take it). Outside the main thread it holds nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
         return
     noted: list[int] = []
     handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
@@ -76,7 +81,7 @@ def _import_drake_whole() -> None:
     for signum in held:
         signal.signal(signum, lambda signum, frame: noted.append(signum))
     try:
-        import pydrake  # noqa: F401 - initializes Drake's shared libraries (a third of a second)
+        yield
     finally:
         for signum, handler in held.items():
             signal.signal(signum, handler)
@@ -84,12 +89,21 @@ def _import_drake_whole() -> None:
         held[signal.Signals(noted[0])](noted[0], None)
 
 
-def _main(argv: list[str] | None) -> int:
-    try:
-        _import_drake_whole()
+def _build_parser():
+    """The command line's parser (:func:`~.registry.build_parser`), built with the signals held
+    (:func:`_signals_held`): building it imports pydrake and the commands' modules, Drake's
+    extension modules among them (about a second)."""
+    with _signals_held():
+        import pydrake.systems.framework  # noqa: F401 - the nanobind module every command uses
+
         from .registry import build_parser
 
-        parser = build_parser()  # imports Drake (about a second)
+        return build_parser()
+
+
+def _main(argv: list[str] | None) -> int:
+    try:
+        parser = _build_parser()
         args = parser.parse_args(argv)
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
