@@ -101,3 +101,25 @@ def test_fk_over_the_whole_workspace_is_right_or_reports_failure(geometry):
     x_fk, converged, _, _ = forward_kinematics.fk_unchecked(geometry, kinematics.ik(geometry, x))
     assert converged.mean() > 0.99
     assert np.abs(x_fk - x)[converged].max() < 1e-9
+
+
+def test_encoder_pose_noise_agrees_with_rounding_the_angles(geometry):
+    """The first-order figure of the encoders' resolution in the pose against rounding the
+    angles of 2,000 poses to whole counts (17 bits) and solving the forward kinematics: within
+    5 % (measured: 0.7 % in translation, 1.3 % in rotation)."""
+    q = 2 * np.pi / 2**17
+    rng = np.random.default_rng(0)
+    x = X_HOME + np.concatenate([rng.normal(0, 2e-3, (2000, 3)), rng.normal(0, 1e-3, (2000, 3))], 1)
+    theta = kinematics.ik(geometry, x)
+    x_fk, _ = forward_kinematics.fk(geometry, np.round(theta / q) * q, x)
+    e = x_fk - x
+    measured = (
+        np.sqrt(np.mean(np.sum(e[:, 3:] ** 2, axis=1))),
+        np.sqrt(np.mean(np.sum(e[:, :3] ** 2, axis=1))),
+    )
+    figure = forward_kinematics.encoder_pose_noise(geometry, x, q)
+    assert figure == pytest.approx(measured, rel=0.05)
+    assert 5e-6 < figure[0] < 7e-6 and 30e-6 < figure[1] < 37e-6  # 5.9 um, 33.8 urad
+    # halving the count halves both
+    half = forward_kinematics.encoder_pose_noise(geometry, x, q / 2)
+    assert half == pytest.approx((figure[0] / 2, figure[1] / 2), rel=1e-12)
