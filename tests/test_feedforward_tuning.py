@@ -125,29 +125,65 @@ def _true_rms(rep, t0: float, t1: float) -> tuple[float, float]:
 
 def test_learning_removes_most_of_a_heartbeat_not_locked_to_the_breath():
     """Breathing at 4.2 s and a 72 bpm heartbeat: nothing repeats per breath, so the per-cycle
-    learner cannot learn it; as a function of the reference, three stretches of 4 s learn most
-    of it (measured: 38 um uncorrected, under 8 um in the third stretch)."""
+    learner cannot learn it; as a function of the reference, four stretches of 4 s learn most
+    of it (measured: 36 um uncorrected, 11 um in the fourth stretch, 7.7 um in the fifth). The
+    first update is skipped by design: fitted on the first half of one stretch, it does not do
+    better than none on the second half (the learner's out-of-sample check)."""
     scenario = load_scenario("paper_hardware")
     rep = reproduce(
         scenario,
         _breath_and_heart(),
-        eval_cycles=3,
+        eval_cycles=4,
         feedforward=FeedforwardTuning(stretch_s=4.0),
     )
-    assert scenario.duration_s == pytest.approx(16.8)
+    assert scenario.duration_s == pytest.approx(21.0)
     assert rep.learner_names == FF_STATUS_NAMES and rep.learned.shape == (ff.basis_size(), 6)
     stretches = _stretch_errors(rep)
     E0 = stretches[1]  # the first stretch ran uncorrected: measured = estimated
     assert E0[0] == pytest.approx(E0[2]) and E0[0] > 25e-6
-    E3 = stretches[4]
+    E3 = stretches[5]
     assert E3[0] < 0.3 * E0[0] and E3[0] < 0.3 * E3[2]
     assert E3[1] < E0[1]  # rotation too
     # the true pose agrees with what the encoders measured
-    before, after = _true_rms(rep, 0.5, 4.0), _true_rms(rep, 12.0, 16.0)
+    before, after = _true_rms(rep, 0.5, 4.0), _true_rms(rep, 16.0, 20.0)
     assert before[0] > 25e-6 and after[0] < 0.3 * before[0]
     assert after[1] < before[1]
     last = dict(zip(FF_STATUS_NAMES, rep.learner[-1]))
-    assert last["rollbacks"] == 0 and last["updates"] >= 3
+    assert last["rollbacks"] == 0 and last["updates"] >= 3 and last["skipped"] >= 1
+
+
+def test_a_model_worse_than_none_is_dropped_within_a_check_and_the_run_goes_on_uncorrected(
+    tmp_path,
+):
+    """A held model that lags the reference by 5 ms (up to 0.12 mm on breathing at 15 mm / 4 s):
+    the learner drops it at a check within the first second (checks every 0.5 s), falls back to
+    no correction (not to the model, the best it has seen), and from then on the run is the run
+    without learning, within the spread chance gives."""
+    theta = np.zeros((ff.basis_size(), 6))
+    theta[1:7] = -0.005 * np.eye(6)  # c = -phi theta = +5 ms x the rate: a lag made worse
+    model = ff.save_learned(tmp_path / "bad.npz", theta)
+    breathing = Breathing(amplitude_m=0.015, period_s=4.0)
+    held = reproduce(
+        load_scenario("paper_hardware"),
+        breathing,
+        eval_cycles=1,
+        feedforward=FeedforwardTuning(learned_from=str(model), learn=False),
+    )
+    none = reproduce(load_scenario("paper_hardware"), breathing, eval_cycles=1)
+    last = dict(zip(FF_STATUS_NAMES, held.learner[-1]))
+    assert last["rollbacks"] == 1 and last["updates"] == 0
+    assert not np.any(held.learned)  # the weights were cleared, not rolled back to the model
+    dropped = held.learner[:, FF_STATUS_NAMES.index("rollbacks")] > 0
+    t_dropped = held.result.t_state[np.argmax(dropped)]
+    assert 0.4 < t_dropped <= 1.01
+    before_held, before_none = _true_rms(held, 0.0, t_dropped), _true_rms(none, 0.0, t_dropped)
+    assert before_held[0] > 1.5 * before_none[0]  # the model was in force, and worse
+    after_held, after_none = _true_rms(held, 2.0, 8.0), _true_rms(none, 2.0, 8.0)
+    # uncorrected from the drop (the weights are zero and it does not learn): the run without
+    # learning, up to the realization of the encoders' rounding (measured: 10 % over these 6 s,
+    # either way; see the trace study's two runs without learning)
+    assert after_held[0] == pytest.approx(after_none[0], rel=0.2)
+    assert after_held[1] == pytest.approx(after_none[1], rel=0.2)
 
 
 @pytest.mark.slow

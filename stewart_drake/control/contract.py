@@ -160,6 +160,7 @@ class LearnerContext:
         cycles: ``cycles(period_s) -> (starts (K + 1,) s, scale (K,))``, the cycles of the
             reference over the run (``period_s`` > 0: of that period from t = 0), for a
             learner that learns from every cycle.
+        encoder_quantum_rad: one encoder count, rad (0: the angles are read exactly).
     """
 
     geometry: StewartGeometry
@@ -169,6 +170,7 @@ class LearnerContext:
     duration_s: float
     floor: tuple[float, float]
     cycles: Callable
+    encoder_quantum_rad: float = 0.0
 
 
 class ControllerDriver:

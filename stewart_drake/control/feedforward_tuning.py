@@ -37,11 +37,34 @@ out over the stretches; lambda_k = ``ridge`` trace(A_k) / p keeps a basis functi
 does not excite at zero). The basis functions are scaled by their RMS over the first stretch, so
 the ridge weighs them alike.
 
-Monitored bound: the error the stretch would have had without the correction is estimated as
-d = e + Phi theta_k; a stretch run with a correction whose measured RMS error (translation or
-rotation) exceeds ``bound_ratio`` times that estimate plus one encoder count at the crank tip
-rolls theta back to the best one so far (lowest error over estimate) and halves the gain; after
-``max_rollbacks`` rollbacks the next one stops learning (the count never exceeds its limit).
+Never worse than no correction, by construction (docs/organ_motion.md, "Never worse"):
+
+- **Kept only while better than none.** The error the stretch would have had without the
+  correction is estimated as d = e + c (c: the correction applied). Every ``check_period_s``
+  within a stretch and at its end, a correction whose measured RMS error (translation or
+  rotation) exceeds ``bound_ratio`` times that estimate is dropped: the learner falls back to no
+  correction at all (theta, the information and the trusted ranges cleared), not to the best
+  weights so far, which were fitted on motion that has just been shown not to predict this
+  stretch. After ``max_rollbacks`` fallbacks the next one stops learning, without a correction.
+- **Learned only where it generalises.** A step is taken only when, over the stretch just run,
+  it predicts a lower RMS error than the correction in force by more than the noise the
+  encoders leave in a fitted correction (the resolution of the measured pose,
+  :func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`, times sqrt(p / N) for N
+  records in memory), a lower one than no correction at all, and when the step fitted on the
+  stretch's first half does better than none on its second half.
+- **Non-stationary moments do not poison the model.** Records the fit leaves unexplained (a
+  residual beyond ``outlier_mad`` robust standard deviations, 1.4826 x the median absolute
+  deviation and at least the encoders' resolution, on any pose axis: a step, an excursion, the
+  end of a breath-hold) are left out, with ``outlier_guard_s`` either side, and the fit is made
+  again.
+- **No extrapolation.** The correction is trusted only where the reference's rate,
+  acceleration and jerk stay within the range the fitted records covered: it is multiplied by
+  w(t) = clip(2 - r(t), 0, 1), with r(t) the largest ratio of a (scaled) basis function to the
+  largest magnitude fitted, and clipped per axis to the largest uncorrected error fitted; a step
+  faster than anything learned from runs uncorrected.
+
+The last stretch's measured and estimated errors and the counts of fallbacks and skipped updates
+are in the ``learning_status`` output.
 """
 
 import math
@@ -53,8 +76,9 @@ from pydrake.common.containers import namedview
 from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_number, check_int, check_multiple
-from ..base.errors import CorruptFileError, InvalidConfigError
+from ..base.errors import CorruptFileError, InvalidConfigError, StewartError
 from ..robot import kinematics
+from ..robot.forward_kinematics import encoder_pose_noise
 from .contract import LearnerContext
 from .ilc import (
     MIN_Q_CUTOFF_HZ,
@@ -64,6 +88,10 @@ from .ilc import (
     spend_rollback,
     steps_per_record,
 )
+
+#: The basis functions that can extrapolate (the reference's rate, acceleration and jerk: the
+#: columns after the constant); the constant and the smooth signs are bounded by one.
+_DYNAMIC = slice(1, 19)
 
 #: Lags of the motors' rate signs in the basis, s (positive: the past; negative: the future,
 #: which the feed-forward knows): the friction transient after a reversal lasts ~0.1 s.
@@ -79,7 +107,9 @@ FF_STATUS_NAMES = (
     "E_rot_rad",
     "D_trans_m",
     "D_rot_rad",
-    "best_score",
+    "skipped",
+    "outliers",
+    "dropped",
     "count",
     "rows",
 )
@@ -88,6 +118,9 @@ _STRETCH = FF_STATUS_NAMES.index("stretch")
 #: Version of the learned-model file (:func:`save_learned`).
 LEARNED_FORMAT = 1
 _KIND = "learned feed-forward model (.npz)"
+#: The model learned on the shipped library (``python tools/feedforward_library_model.py``):
+#: a run may start from it instead of from zero (``learned_from``).
+LIBRARY_MODEL = Path(__file__).resolve().parents[1] / "data" / "feedforward_library.npz"
 #: Largest learned-model file, bytes, on disk and after decompression: the weights are
 #: p x 6 float64 (a few kB), so anything near this bound is not one.
 MAX_LEARNED_BYTES = 1e6
@@ -143,12 +176,15 @@ class FeedforwardTuningLearner(LeafSystem):
     Output ports:
         ``x_d_correction`` (18,): the correction of the pose, its rate and acceleration, to add
             to ``x_d``; computed one control period ahead (a state output: no feedthrough).
-        ``learning_status`` (12,): :data:`FF_STATUS_NAMES`: the stretch, updates made, the gain,
-            rollbacks, stopped (0/1), the last stretch's measured RMS errors (m, rad) and the
-            estimate of those without the correction, the best score, record counters.
+        ``learning_status`` (14,): :data:`FF_STATUS_NAMES`: the stretch, updates made, the gain,
+            fallbacks to no correction ("rollbacks"), stopped (0/1), the last stretch's measured
+            RMS errors (m, rad) and the estimate of those without the correction, updates
+            skipped, records left out as outliers, whether the stretch's correction was dropped
+            before its end, record counters.
         ``theta`` (p x 6,): the learned weights, in SI units of the basis (row-major (p, 6)).
-    Discrete state: the correction (18), the status, theta, the best theta and the information
-    matrix A (p x p, scaled basis), and the current stretch's records (rows of mean encoder
+    Discrete state: the correction (18), the status, theta, the information matrix A (p x p,
+    scaled basis), the trusted range of each scaled basis function (p), and the current
+    stretch's records (rows of mean encoder
     angles and reference poses, 12 each). The basis and the correction over a stretch are a
     function of the reference, the stretch and theta only; they are computed once per stretch
     (vectorized) and kept as a cache of that function, not as state.
@@ -164,10 +200,13 @@ class FeedforwardTuningLearner(LeafSystem):
             each (n, 6); an ``end_time`` if it has one).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         duration_s: the run's length, s.
-        floor: (m, rad) the monitored bound's additive floor on the translational and
-            rotational RMS errors (the run's: one encoder count at the crank tip).
+        floor: (m, rad) one encoder count at the crank tip as a translation and a rotation
+            (kept for the status; the fallback compares with the estimate itself).
         theta0: (p, 6) initial weights in SI units (a model learned before); None reads
             ``driver.learned_from`` (:func:`load_learned`), or starts from zeros without one.
+            A model given starts trusted over every range of the basis.
+        quantum_rad: one encoder count, rad (0: exact angles): the noise below which an update
+            is skipped (module docstring).
     Raises:
         InvalidConfigError: a setting out of range, a stretch shorter than four records.
         CorruptFileError: ``driver.learned_from`` is not a model of this basis.
@@ -187,6 +226,7 @@ class FeedforwardTuningLearner(LeafSystem):
         duration_s: float,
         floor: tuple[float, float] = (5e-6, 5e-5),
         theta0=None,
+        quantum_rad: float = 0.0,
     ):
         super().__init__()
         self.geometry, self.reference = geometry, reference
@@ -206,16 +246,22 @@ class FeedforwardTuningLearner(LeafSystem):
         self.steps = list(range(0, n_steps, L)) + [n_steps]
         self.L = L
         self.gain0 = float(driver.gain)
-        self.beta = 1.0 - 1.0 / float(driver.memory_stretches)
+        self.memory = float(driver.memory_stretches)
+        self.beta = 1.0 - 1.0 / self.memory
         self.ridge, self.q_cutoff = float(driver.ridge), float(driver.q_cutoff_hz)
         self.rate_scale = float(driver.rate_scale_rad_s)
         self.bound_ratio = float(driver.bound_ratio)
         self.floor = (as_number("floor_m", floor[0], 0.0), as_number("floor_rad", floor[1], 0.0))
         self.max_rollbacks = int(driver.max_rollbacks)
+        self.quantum = as_number("quantum_rad", quantum_rad, 0.0)
+        self.outlier_mad = float(driver.outlier_mad)
+        self.outlier_guard = int(math.ceil(float(driver.outlier_guard_s) / driver.sample_period_s))
+        self.check_rows = max(1, int(round(float(driver.check_period_s) / driver.sample_period_s)))
         self.learn = bool(driver.learn)
         self.p = basis_size()
         if theta0 is None and driver.learned_from:
             theta0 = load_learned(driver.learned_from)
+        trusted = np.full(self.p + 6, np.inf if theta0 is not None else 0.0)
         theta0 = np.zeros((self.p, 6)) if theta0 is None else np.asarray(theta0, dtype=float)
         if theta0.shape != (self.p, 6) or not np.all(np.isfinite(theta0)):
             raise InvalidConfigError(
@@ -236,10 +282,9 @@ class FeedforwardTuningLearner(LeafSystem):
         self._c_index = self.DeclareDiscreteState(18)
         status = np.zeros(len(FF_STATUS_NAMES))
         status[FF_STATUS_NAMES.index("gain")] = self.gain0
-        status[FF_STATUS_NAMES.index("best_score")] = np.inf
         self._s_index = self.DeclareDiscreteState(status)
         self._t_index = self.DeclareDiscreteState(theta0.reshape(-1))
-        self._b_index = self.DeclareDiscreteState(theta0.reshape(-1))
+        self._w_index = self.DeclareDiscreteState(trusted)
         self._a_index = self.DeclareDiscreteState(self.p * self.p)
         self._r_index = self.DeclareDiscreteState(self.rows_max * 12 + 12)
         self.DeclareStateOutputPort("x_d_correction", self._c_index)
@@ -273,20 +318,35 @@ class FeedforwardTuningLearner(LeafSystem):
         self._basis_cache[k] = phi
         return phi
 
-    def _table(self, k: int, theta: np.ndarray) -> np.ndarray:
-        """(S_{k+1} - S_k, 18) the correction c = -Q[phi] theta over stretch k, with its rate
-        and acceleration (central differences of the filtered correction)."""
+    def _trust(self, phi: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+        """(n,) w = clip(2 - r, 0, 1): r the largest ratio of a scaled dynamic basis function
+        to the largest magnitude fitted (``trusted``, p) at each sample of ``phi`` (n, p)."""
+        ratio = np.abs(phi[:, _DYNAMIC] / self.scale[_DYNAMIC])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = np.where(ratio > 0.0, ratio / trusted[_DYNAMIC], 0.0)
+        return np.clip(2.0 - np.max(ratio, axis=1), 0.0, 1.0)
+
+    def _table(self, k: int, theta: np.ndarray, trusted: np.ndarray) -> np.ndarray:
+        """(S_{k+1} - S_k, 18) the correction c = -w Q[phi] theta over stretch k (w: the trust,
+        :meth:`_trust`), with its rate and acceleration (central differences)."""
         cached = self._table_cache
-        if cached is not None and cached[0] == k and np.array_equal(cached[1], theta):
+        if (
+            cached is not None
+            and cached[0] == k
+            and np.array_equal(cached[1], theta)
+            and np.array_equal(cached[3], trusted)
+        ):
             return cached[2]
-        c = -self._basis(k) @ theta
+        phi = self._basis(k)
+        c_max = trusted[self.p :]
+        c = np.clip(-(self._trust(phi, trusted[: self.p])[:, None] * (phi @ theta)), -c_max, c_max)
         if len(c) > 2:
             rate = np.gradient(c, self.h, axis=0)
             acc = np.gradient(rate, self.h, axis=0)
         else:
             rate = acc = np.zeros_like(c)
         table = np.concatenate([c, rate, acc], axis=1)
-        self._table_cache = (k, theta.copy(), table)
+        self._table_cache = (k, theta.copy(), table, trusted.copy())
         return table
 
     # -- per step ------------------------------------------------------------------------------
@@ -304,9 +364,12 @@ class FeedforwardTuningLearner(LeafSystem):
             self._EndStretch(discrete_state, records, FeedforwardStatus(status), k)
             k += 1
             status[_STRETCH] = k
+        elif (n + 1 - S[k]) % (self.R * self.check_rows) == 0 and np.any(theta != 0.0):
+            self._Check(discrete_state, records, FeedforwardStatus(status), k)
         correction = discrete_state.get_mutable_value(self._c_index)
         if k < len(S) - 1 and S[k] <= n + 1 < S[k + 1]:
-            correction[:] = self._table(k, theta.reshape(self.p, 6))[n + 1 - S[k]]
+            trusted = discrete_state.get_value(self._w_index)
+            correction[:] = self._table(k, theta.reshape(self.p, 6), trusted)[n + 1 - S[k]]
         else:
             correction[:] = 0.0
 
@@ -324,46 +387,164 @@ class FeedforwardTuningLearner(LeafSystem):
         )
 
     # -- per stretch ---------------------------------------------------------------------------
-    def _EndStretch(self, discrete_state, records, status, k: int) -> None:
-        """Measure the stretch, check the bound (rollback), learn (module docstring)."""
+    def _measured(self, discrete_state, records, status, k: int) -> tuple:
+        """The stretch's records so far: (reference poses (r, 6), e (r, 6) the error the
+        encoders measured, d (r, 6) the estimate without the correction, the basis (n, p) at
+        its samples, each sample's record (n,), the basis averaged per record (r, p))."""
         rows = int(status.rows)
         buffer = records[: rows * 12].reshape(rows, 12)
-        theta_v = discrete_state.get_mutable_value(self._t_index)
-        best_v = discrete_state.get_mutable_value(self._b_index)
-        theta, best = theta_v.reshape(self.p, 6), best_v.reshape(self.p, 6)
+        theta = discrete_state.get_value(self._t_index).reshape(self.p, 6)
+        trusted = discrete_state.get_value(self._w_index)
         e = cycle_error(self.geometry, buffer[:, :6], buffer[:, 6:], "pose")
-        phi = self._basis(k)
-        length = len(phi)
-        counts = np.minimum(self.R, length - self.R * np.arange(rows))
-        idx = np.repeat(np.arange(rows), counts)
+        phi = self._basis(k)[: min(len(self._basis(k)), rows * self.R)]
+        idx = np.minimum(np.arange(len(phi)) // self.R, rows - 1)
+        counts = np.bincount(idx, minlength=rows)
         phi_r = np.zeros((rows, self.p))
         np.add.at(phi_r, idx, phi)
         phi_r /= counts[:, None]
-        d = e + phi_r @ theta  # the stretch's error had it run uncorrected (loop ~ 1)
+        applied = self._per_record(phi, idx, rows, theta, trusted)
+        return buffer[:, 6:], e, e + applied, phi, idx, phi_r
+
+    def _worse(self, status, e: np.ndarray, d: np.ndarray) -> bool:
+        """Whether the correction did worse than none over the records (the measured RMS ``e``
+        above ``bound_ratio`` times the estimate ``d`` in translation or rotation); the status
+        gets both."""
         E, D = rms_pose_error(e), rms_pose_error(d)
         status.E_trans_m, status.E_rot_rad = E
         status.D_trans_m, status.D_rot_rad = D
-        corrected = bool(np.any(theta != 0.0))
-        if corrected and (
-            E[0] > self.bound_ratio * D[0] + self.floor[0]
-            or E[1] > self.bound_ratio * D[1] + self.floor[1]
-        ):
-            theta[:] = best
-            spend_rollback(status, self.max_rollbacks)
+        return E[0] > self.bound_ratio * D[0] or E[1] > self.bound_ratio * D[1]
+
+    def _fall_back(self, discrete_state, status) -> None:
+        """No correction from the next step: theta, the information and the trusted ranges
+        cleared, a fallback spent (:func:`~.ilc.spend_rollback`)."""
+        discrete_state.get_mutable_value(self._t_index)[:] = 0.0
+        discrete_state.get_mutable_value(self._a_index)[:] = 0.0
+        discrete_state.get_mutable_value(self._w_index)[:] = 0.0
+        spend_rollback(status, self.max_rollbacks)
+        status.dropped = 1.0
+
+    def _Check(self, discrete_state, records, status, k: int) -> None:
+        """Within a stretch, every ``check_period_s``: fall back to no correction as soon as the
+        stretch so far did worse than none."""
+        _, e, d, *_ = self._measured(discrete_state, records, status, k)
+        if self._worse(status, e, d):
+            self._fall_back(discrete_state, status)
+
+    def _EndStretch(self, discrete_state, records, status, k: int) -> None:
+        """Measure the stretch, fall back to no correction when it did worse than none, learn
+        from the stretch's stationary records when the step is worth it (module docstring)."""
+        poses, e, d, phi, idx, phi_r = self._measured(discrete_state, records, status, k)
+        theta = discrete_state.get_mutable_value(self._t_index).reshape(self.p, 6)
+        if status.dropped:  # part of the stretch ran with the correction dropped: not learned
+            status.dropped = 0.0
             return
-        score = E[0] / max(D[0], 1e-12) + E[1] / max(D[1], 1e-12)
-        if corrected and score < status.best_score:
-            best[:] = theta
-            status.best_score = score
+        if np.any(theta != 0.0) and self._worse(status, e, d):
+            self._fall_back(discrete_state, status)
+            status.dropped = 0.0
+            return
+        if not np.any(theta != 0.0):
+            self._worse(status, e, d)  # the status's figures (equal: nothing applied)
         if status.stopped or not self.learn:
             return
+        rows = len(e)
+        trusted = discrete_state.get_mutable_value(self._w_index)
         A = discrete_state.get_mutable_value(self._a_index).reshape(self.p, self.p)
-        phi_s = phi_r / self.scale
-        A[:] = self.beta * A + phi_s.T @ phi_s
-        lam = self.ridge * np.trace(A) / self.p
-        step = np.linalg.solve(A + lam * np.eye(self.p), phi_s.T @ e)
-        theta += status.gain * step / self.scale[:, None]
+        resolution = self._resolution(poses)
+        keep = np.ones(rows, dtype=bool)
+        for _ in range(2):  # fit, leave out what the fit does not explain, fit again
+            phi_s = phi_r[keep] / self.scale
+            A_new = self.beta * A + phi_s.T @ phi_s
+            lam = self.ridge * np.trace(A_new) / self.p
+            step = np.linalg.solve(A_new + lam * np.eye(self.p), phi_s.T @ e[keep])
+            if keep.all():
+                keep = self._stationary(e - (phi_r / self.scale) @ step, resolution)
+                status.outliers += rows - int(np.sum(keep))
+                if np.sum(keep) < self.p:
+                    return
+                if keep.all():
+                    break
+        theta_new = theta + status.gain * step / self.scale[:, None]
+        trusted_new = self._ranges(trusted, phi, idx, d, keep)
+        noise = self._fit_noise(resolution, phi_s.shape[0] * min(k + 1, self.memory))
+        # In sample, over the stretch's stationary records: worth more than the noise, and
+        # better than none.
+        c_r = self._per_record(phi, idx, rows, theta_new, trusted_new)
+        now, new, none = (rms_pose_error(v[keep]) for v in (e, d - c_r, d))
+        worth = any(now[i] - new[i] > noise[i] for i in (0, 1))
+        better = new[0] <= none[0] and new[1] <= none[1]
+        if worth and better:  # out of sample: fitted on the first half, tried on the second
+            first = keep & (np.arange(rows) < rows // 2)
+            second = keep & ~first
+            if np.sum(first) >= self.p and np.sum(second) > 0:
+                phi_1 = phi_r[first] / self.scale
+                A_1 = self.beta * A + phi_1.T @ phi_1
+                lam_1 = self.ridge * np.trace(A_1) / self.p
+                step_1 = np.linalg.solve(A_1 + lam_1 * np.eye(self.p), phi_1.T @ e[first])
+                theta_1 = theta + status.gain * step_1 / self.scale[:, None]
+                trusted_1 = self._ranges(trusted, phi, idx, d, first)
+                c_1 = self._per_record(phi, idx, rows, theta_1, trusted_1)
+                held, held_none = rms_pose_error((d - c_1)[second]), rms_pose_error(d[second])
+                better = held[0] <= held_none[0] and held[1] <= held_none[1]
+        if not (worth and better):
+            status.skipped += 1
+            A[:] = A_new  # what was seen is remembered; the weights and their ranges stay
+            return
+        A[:] = A_new
+        trusted[:] = trusted_new
+        theta[:] = theta_new
         status.updates += 1
+
+    def _ranges(self, trusted, phi, idx, d, keep) -> np.ndarray:
+        """``trusted`` (p + 6,) widened by the records ``keep`` (r,) bool: the largest magnitude
+        of each scaled basis function at their samples, and of each axis of their error
+        without the correction ``d`` (r, 6) (the largest correction allowed)."""
+        out = trusted.copy()
+        inside = np.isin(idx, np.flatnonzero(keep))
+        out[: self.p] = np.maximum(trusted[: self.p], np.max(np.abs(phi[inside] / self.scale), 0))
+        out[self.p :] = np.maximum(trusted[self.p :], np.max(np.abs(d[keep]), axis=0))
+        return out
+
+    def _per_record(self, phi, idx, rows: int, theta, trusted) -> np.ndarray:
+        """(r, 6) the correction of ``theta`` with the ranges ``trusted``, averaged over each
+        record (as applied: weighted by the trust, clipped to the largest error fitted)."""
+        c = self._trust(phi, trusted[: self.p])[:, None] * (phi @ theta)
+        c = np.clip(c, -trusted[self.p :], trusted[self.p :])
+        c_r = np.zeros((rows, 6))
+        np.add.at(c_r, idx, c)
+        return c_r / np.bincount(idx, minlength=rows)[:, None]
+
+    def _stationary(self, residual: np.ndarray, resolution: tuple[float, float]) -> np.ndarray:
+        """(r,) bool: the records whose ``residual`` (r, 6), the error the fit leaves, is within
+        ``outlier_mad`` robust standard deviations of its median on every axis (1.4826 x the
+        median absolute deviation, at least the encoders' ``resolution`` (m, rad) per axis), and
+        not within ``outlier_guard_s`` of one that is not."""
+        centre = np.median(residual, axis=0)
+        sigma = 1.4826 * np.median(np.abs(residual - centre), axis=0)
+        least = np.repeat([resolution[1], resolution[0]], 3) / math.sqrt(3.0)
+        sigma = np.maximum(sigma, np.maximum(least, 1e-12))
+        out = np.any(np.abs(residual - centre) > self.outlier_mad * sigma, axis=1)
+        if np.any(out) and self.outlier_guard > 0:
+            g = self.outlier_guard
+            out = np.convolve(out.astype(float), np.ones(2 * g + 1), mode="same") > 0
+        return ~out
+
+    def _resolution(self, poses: np.ndarray) -> tuple[float, float]:
+        """(m, rad) the measured pose's resolution at the stretch's reference ``poses``
+        (:func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`; zeros for exact
+        angles or a pose where it is not defined)."""
+        if self.quantum <= 0.0 or len(poses) == 0:
+            return (0.0, 0.0)
+        try:
+            every = poses[:: max(1, len(poses) // 50)]
+            return encoder_pose_noise(self.geometry, every, self.quantum)
+        except StewartError:  # a singular or unreachable pose
+            return (0.0, 0.0)
+
+    def _fit_noise(self, resolution: tuple[float, float], n: float) -> tuple[float, float]:
+        """(m, rad) the RMS the encoders' rounding leaves in a fitted correction: the measured
+        pose's ``resolution`` times sqrt(p / n), for the ``n`` records the information holds."""
+        factor = math.sqrt(self.p / max(n, 1.0))
+        return (resolution[0] * factor, resolution[1] * factor)
 
 
 # -- the learned model as a file ------------------------------------------------------------
@@ -443,9 +624,14 @@ class FeedforwardTuning:
         q_cutoff_hz: the Q-filter's corner, Hz.
         rate_scale_rad_s: width of the motors' smooth rate sign, rad/s.
         sample_period_s: the record period, s (a whole multiple of control_period_s).
-        bound_ratio: no stretch run with a correction may exceed this times the estimate of its
-            error without it, plus one encoder count at the crank tip.
-        max_rollbacks: rollbacks allowed; the next stretch over the bound stops learning.
+        bound_ratio: a stretch run with a correction whose error exceeds this times the estimate of
+            its error without it falls back to no correction (1: never worse than none).
+        max_rollbacks: fallbacks to no correction allowed; the next one stops learning.
+        outlier_mad: a record whose uncorrected error is further than this many robust
+            standard deviations from the stretch's median is left out of the fit.
+        outlier_guard_s: the records this close to an outlier are left out too, s.
+        check_period_s: within a stretch, how often the correction is checked against none
+            (a correction doing worse is dropped at once, not at the stretch's end), s.
         learned_from: an .npz a previous run saved (:func:`save_learned`) to start from ("":
             from zero); read as numbers only.
         learn: False holds the model of ``learned_from`` without learning.
@@ -458,8 +644,11 @@ class FeedforwardTuning:
     q_cutoff_hz: float = 25.0
     rate_scale_rad_s: float = 0.002
     sample_period_s: float = 0.004
-    bound_ratio: float = 1.2
+    bound_ratio: float = 1.01
     max_rollbacks: int = 2
+    outlier_mad: float = 10.0
+    outlier_guard_s: float = 0.1
+    check_period_s: float = 0.5
     learned_from: str = ""
     learn: bool = True
 
@@ -474,6 +663,7 @@ class FeedforwardTuning:
             context.offset_s,
             context.duration_s,
             floor=context.floor,
+            quantum_rad=context.encoder_quantum_rad,
         )
 
     def validate(
@@ -501,6 +691,9 @@ class FeedforwardTuning:
         )
         as_number(f"{prefix}bound_ratio", self.bound_ratio, 1.0, 100.0)
         check_int(f"{prefix}max_rollbacks", self.max_rollbacks, 0, 1000)
+        as_number(f"{prefix}outlier_mad", self.outlier_mad, 1.0, 1e6)
+        as_number(f"{prefix}outlier_guard_s", self.outlier_guard_s, 0.0, 60.0)
+        as_number(f"{prefix}check_period_s", self.check_period_s, 0.0, 3600.0, lo_open=True)
         if not isinstance(self.learned_from, str):
             raise InvalidConfigError(f"{prefix}learned_from must be a path, got a value")
         if not self.learn and not (self.learned_from or has_model):

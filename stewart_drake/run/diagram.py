@@ -402,6 +402,9 @@ def _add_learning(
         duration_s=plan.duration_s,
         floor=plan.encoder_count_at_tip,
         cycles=lambda period_s: learning_cycles(period_s, trajectory, plan.duration_s),
+        encoder_quantum_rad=0.0
+        if plan.scenario.hardware is None
+        else plan.scenario.hardware.encoders.quantum_rad,
     )
     learner = builder.AddNamedSystem(
         "learner", plan.scenario.learning.make_learner(learner_context)
