@@ -194,6 +194,18 @@ def _cmd_reproduce(args) -> int:
         f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms",
         flush=True,
     )
+    start = rep.startup
+    if start and start["window_s"][1] > 0:
+        print(
+            f"start-up, t = 0-{start['window_s'][1]:.4g} s (not in the figures): RMS "
+            f"{start['rms_translation_m'] * 1e6:.3g} um / {start['rms_rotation_rad'] * 1e6:.3g} "
+            f"urad, peak {start['peak_translation_m'] * 1e6:.3g} um"
+        )
+    if rep.resolution[0] > 0:
+        print(
+            f"encoders' resolution at these poses: {rep.resolution[0] * 1e6:.3g} um / "
+            f"{rep.resolution[1] * 1e6:.3g} urad RMS in the measured pose"
+        )
     md, png, js = write_report(rep, out, tolerance)
     ok, line = verdict(fid, tolerance)
     print(line)

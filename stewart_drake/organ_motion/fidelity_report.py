@@ -63,6 +63,7 @@ def _run_lines(rep: Reproduction, fid: dict) -> list:
         f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
         f"{rep.wall_s:.0f} s."
     )
+    lines += _startup_lines(rep, fid)
     if getattr(rep, "learned_from", ""):
         lines += ["", f"Feed-forward model: {rep.learned_from}."]
     if rep.scale != 1.0:
@@ -76,6 +77,33 @@ def _run_lines(rep: Reproduction, fid: dict) -> list:
     )
     if info is not None:  # a recorded trace: what was read, and how
         lines += ["", f"Trace: {info.summary()}."]
+    return lines
+
+
+def _startup_lines(rep: Reproduction, fid: dict) -> list:
+    """The report's lines on what the measured window leaves out (the start-up, its RMS and
+    peak) and on the encoders' resolution in the pose beside the measured figures."""
+    lines: list = []
+    start = getattr(rep, "startup", None) or {}
+    if start and start["window_s"][1] > 0:
+        lines += [
+            "",
+            f"Start-up, not in the figures above or below (t = 0-{start['window_s'][1]:.4g} s): "
+            f"RMS {start['rms_translation_m'] * 1e6:.3g} um / "
+            f"{start['rms_rotation_rad'] * 1e6:.3g} urad, peak "
+            f"{start['peak_translation_m'] * 1e6:.3g} um / "
+            f"{start['peak_rotation_rad'] * 1e6:.3g} urad.",
+        ]
+    resolution = getattr(rep, "resolution", (0.0, 0.0))
+    if resolution[0] > 0 and resolution[1] > 0:
+        lines += [
+            "",
+            f"Encoders' resolution at these poses: {resolution[0] * 1e6:.3g} um / "
+            f"{resolution[1] * 1e6:.3g} urad RMS in the pose the controller measures (their "
+            f"rounding alone; measured here: {fid['rms_translation_m'] * 1e6:.3g} um / "
+            f"{fid['rms_rotation_rad'] * 1e6:.3g} urad of the true pose, which the loop "
+            f"filters).",
+        ]
     return lines
 
 
@@ -445,6 +473,8 @@ def write_report(
         "tolerance": list(tolerance),
         "passed": verdict(rep.fidelity, tolerance)[0],
         "fidelity": rep.fidelity,
+        "startup": getattr(rep, "startup", {}),
+        "encoder_resolution_m_rad": list(getattr(rep, "resolution", (0.0, 0.0))),
         "wall_s": rep.wall_s,
     }
     js = out / f"{stem}.json"

@@ -46,6 +46,13 @@ class Reproduction:
         check: the validator's summary of the reference. wall_s: wall time of the run, s.
         learning: how the run learned, in words (:func:`learning_words`).
         learned_from: the model file a feed-forward learner started from or held, or "".
+        startup: the run before the measured window, t = 0 to its start: {"window_s": (0,
+            start), "rms_translation_m", "rms_rotation_rad", "peak_translation_m",
+            "peak_rotation_rad"} from the true platform pose (zeros when the window starts at 0).
+        resolution: (m, rad) the RMS error the encoders' rounding puts in the measured pose at
+            the reference's poses in the window
+            (:func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`); (0, 0) for
+            exact angles.
     """
 
     name: str
@@ -63,6 +70,8 @@ class Reproduction:
     notes: list = field(default_factory=list)
     learning: str = ""
     learned_from: str = ""
+    startup: dict = field(default_factory=dict)
+    resolution: tuple = (0.0, 0.0)
 
 
 def learning_words(learning, learn_cycles: int = 0) -> str:
@@ -286,6 +295,41 @@ def _measure(result, reference, starts, duration: float, whole: bool, eval_cycle
     return fidelity(result.t, result.x, result.x_d, window, freq, starts)
 
 
+def _startup(result, window: tuple[float, float]) -> dict:
+    """The figures of the run before its measured ``window`` (s): RMS and peak error of the
+    true platform pose over [0, window start) (:attr:`Reproduction.startup`)."""
+    from .fidelity import rms_translation_rotation
+
+    before = result.t < window[0]
+    e = np.asarray(result.x[before, :6], dtype=float) - result.x_d[before, :6]
+    rms = rms_translation_rotation(e) if len(e) else (0.0, 0.0)
+    return {
+        "window_s": (0.0, float(window[0])),
+        "rms_translation_m": rms[0],
+        "rms_rotation_rad": rms[1],
+        "peak_translation_m": float(np.max(np.linalg.norm(e[:, 3:], axis=1), initial=0.0)),
+        "peak_rotation_rad": float(np.max(np.linalg.norm(e[:, :3], axis=1), initial=0.0)),
+    }
+
+
+def _resolution(plan, result, window: tuple[float, float]) -> tuple[float, float]:
+    """(m, rad) the encoders' resolution in the pose at the reference's poses in ``window``
+    (:attr:`Reproduction.resolution`; (0, 0) for a robot that reads its angles exactly)."""
+    from ..base.errors import StewartError
+    from ..robot.forward_kinematics import encoder_pose_noise
+
+    hardware = plan.scenario.hardware
+    inside = (result.t >= window[0]) & (result.t <= window[1])
+    poses = np.asarray(result.x_d[inside, :6], dtype=float)
+    if hardware is None or len(poses) == 0:
+        return (0.0, 0.0)
+    try:
+        every = poses[:: max(1, len(poses) // 200)]
+        return encoder_pose_noise(plan.geometry, every, hardware.encoders.quantum_rad)
+    except StewartError:  # a singular pose in the window: the figure is not defined
+        return (float("nan"), float("nan"))
+
+
 def _learning_record(learning, learn_cycles: int) -> dict:
     """What a :class:`Reproduction` records of the scenario's ``learning``: the columns of its
     status log, how it learned in words, the model file it started from."""
@@ -361,6 +405,7 @@ def reproduce(
         on_checked()
     result, learner, wall, learned = run(plan, reference, progress, f"reproducing {name}", report)
     starts = starts[starts <= scenario.duration_s + 1e-9]
+    window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     return Reproduction(
         name=name,
         reference=reference,
@@ -373,6 +418,8 @@ def reproduce(
         learned=learned,
         check=report.summary(),
         wall_s=wall,
+        startup=_startup(result, window),
+        resolution=_resolution(plan, result, window),
         **_learning_record(scenario.learning, learn_cycles),
     )
 
