@@ -9,7 +9,8 @@ figures go to results/fidelity_study/results.json and results/trace_study/result
 
 The fidelity study takes about 25 minutes on two cores (the 20 s pattern of breathing plus
 heartbeat, learned over 11 cycles, is the longest run); the trace study about 3 minutes per
-motion (two or three runs of 120 s). ``--traces`` names a folder holding the 6-D traces of the
+motion (four runs of 120 s: twice without learning, learning from zero and from the library's
+model, or the transfer's). ``--traces`` names a folder holding the 6-D traces of the
 Image-X Institute's robotic motion phantom (github.com/Image-X-Institute/IntERAct,
 "Documentation/Robotic Motion QA traces"); without it the trace study runs the library's
 motions only.
@@ -38,6 +39,11 @@ def main() -> None:
         "--only", choices=["cycles", "traces"], default=None, help="run one study (default: both)"
     )
     parser.add_argument("--traces", default=None, help="a folder holding IntERAct's traces")
+    parser.add_argument(
+        "--as-built-only",
+        action="store_true",
+        help="the trace study on the robot as built only (not on every robot of ROBOTS)",
+    )
     args = parser.parse_args()
     if args.only == "traces" and args.from_json:
         traces = json.loads(Path(args.from_json).read_text())
@@ -45,7 +51,8 @@ def main() -> None:
         return
     if args.only != "cycles" and not args.from_json:
         t0 = time.perf_counter()
-        cases = trace_study.trace_cases(args.traces)
+        robots = trace_study.ROBOTS[:1] if args.as_built_only else trace_study.ROBOTS
+        cases = trace_study.trace_cases(args.traces, robots=robots)
         traces = trace_study.run_study(cases, ProcessRunner(n_workers=args.jobs, recycle=1))
         print(f"trace study: {time.perf_counter() - t0:.0f} s wall")
         out = Path("results/trace_study/results.json")
