@@ -236,3 +236,20 @@ def test_the_cli_refuses_hold_without_a_model_and_a_corrupt_model_before_the_run
     rc, err = cli("breathing", "--feedforward", "--learn-cycles", "2", "--no-progress")
     assert rc != 0 and "choose one" in err
     assert not list(tmp_path.glob("results*"))  # nothing written
+
+
+def test_the_library_model_ships_and_the_cli_names_it(tmp_path):
+    """The model learned on the library is in the package, of this basis and finite (a model
+    of another basis or format would be refused on reading); ``--learned library`` starts from
+    it."""
+    import argparse
+
+    from stewart_drake.organ_motion.command import _feedforward_choice
+
+    theta = ff.load_learned(ff.LIBRARY_MODEL)
+    assert theta.shape == (ff.basis_size(), 6) and np.any(theta != 0.0)
+    args = argparse.Namespace(
+        feedforward=False, learned="library", hold=True, save_learned=None, learn_cycles=0
+    )
+    choice = _feedforward_choice(args, load_scenario("paper_hardware"))
+    assert choice.learned_from == str(ff.LIBRARY_MODEL) and not choice.learn

@@ -107,8 +107,9 @@ def _add_learning_arguments(rp) -> None:
         "--learned",
         default=None,
         metavar="FILE.npz",
-        help="start the feed-forward from a model an earlier run saved (--save-learned) "
-        "(default: none, from zero)",
+        help="start the feed-forward from a model an earlier run saved (--save-learned), or "
+        "from the model learned on the motion library that ships with the package "
+        "('library') (default: none, from zero)",
     )
     rp.add_argument(
         "--hold",
@@ -275,7 +276,7 @@ def _feedforward_choice(args, scenario):
     ``--save-learned FILE``; the scenario's own ``learning`` when it is one, applied as ``run``
     applies it when it names a model (``learned_from``)."""
     from ..base.errors import InvalidConfigError
-    from ..control.feedforward_tuning import FeedforwardTuning, load_learned
+    from ..control.feedforward_tuning import LIBRARY_MODEL, FeedforwardTuning, load_learned
 
     ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
     flags = args.feedforward or args.learned or args.hold or args.save_learned
@@ -291,7 +292,7 @@ def _feedforward_choice(args, scenario):
         raise InvalidConfigError("--hold applies a model learned before: give --learned FILE")
     ff = ff or FeedforwardTuning()
     if args.learned:
-        ff.learned_from = str(args.learned)
+        ff.learned_from = str(LIBRARY_MODEL if args.learned == "library" else args.learned)
     if ff.learned_from:
         load_learned(ff.learned_from)  # refused now, not after the run
     if args.hold:
