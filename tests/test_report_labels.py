@@ -77,6 +77,38 @@ def test_the_report_names_the_held_model_in_its_first_line_md_json_and_figure(tm
     assert ", no learning);" in plain and "Feed-forward model" not in plain
 
 
+def test_the_report_gives_the_start_up_and_the_encoders_resolution_beside_the_figures(tmp_path):
+    """The measured window leaves out the start-up: the report and its .json give it (RMS and
+    peak), and the encoders' resolution at the reference's poses (a robot at home, 17 bits:
+    5.9 um / 33.8 urad), beside the measured figures; a robot that reads its angles exactly
+    has no such line."""
+    import dataclasses
+
+    from stewart_drake.organ_motion.reproduction import _startup
+    from stewart_drake.robot.geometry import X_HOME, reference_geometry
+
+    rep = _rep("breathing")
+    rep.result.x_d[:, :6] += np.asarray(X_HOME) - np.array([0, 0, 0, 0, 0, 0.3])
+    rep.result.x[:, :6] += np.asarray(X_HOME) - np.array([0, 0, 0, 0, 0, 0.3])
+    rep.result.x[:40, 3] += 1e-4  # the first 0.4 s, before the window: 0.1 mm off on X
+    rep = dataclasses.replace(
+        rep,
+        startup=_startup(rep.result, rep.fidelity["window_s"]),
+        geometry=reference_geometry(),
+        encoder_quantum_rad=2 * np.pi / 2**17,
+    )
+    assert rep.startup["rms_translation_m"] == pytest.approx(np.hypot(1e-4, 2e-5), rel=1e-9)
+    text = report_markdown(rep, TOL)
+    assert "Start-up, not in the figures above or below (t = 0-0.4 s): RMS 102 um" in text
+    line = next(x for x in text.splitlines() if x.startswith("Encoders' resolution"))
+    assert "at these poses: 5.9" in line and " um / 33." in line
+    figures = json.loads(write_report(rep, tmp_path, TOL)[2].read_text())
+    assert figures["startup"]["peak_translation_m"] == pytest.approx(np.hypot(1e-4, 2e-5))
+    assert figures["encoder_resolution_m_rad"][0] == pytest.approx(5.9e-6, rel=0.02)
+    exact = report_markdown(dataclasses.replace(rep, encoder_quantum_rad=0.0), TOL)
+    assert "Encoders' resolution" not in exact
+
+
 def test_a_long_name_in_the_figure_title_wraps_within_the_figure():
     import matplotlib
 

@@ -202,10 +202,11 @@ def _cmd_reproduce(args) -> int:
             f"{start['rms_translation_m'] * 1e6:.3g} um / {start['rms_rotation_rad'] * 1e6:.3g} "
             f"urad, peak {start['peak_translation_m'] * 1e6:.3g} um"
         )
-    if rep.resolution[0] > 0:
+    resolution = rep.resolution()
+    if resolution[0] > 0:
         print(
-            f"encoders' resolution at these poses: {rep.resolution[0] * 1e6:.3g} um / "
-            f"{rep.resolution[1] * 1e6:.3g} urad RMS in the measured pose"
+            f"encoders' resolution at these poses: {resolution[0] * 1e6:.3g} um / "
+            f"{resolution[1] * 1e6:.3g} urad RMS in the measured pose"
         )
     md, png, js = write_report(rep, out, tolerance)
     ok, line = verdict(fid, tolerance)

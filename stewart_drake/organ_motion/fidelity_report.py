@@ -94,7 +94,7 @@ def _startup_lines(rep: Reproduction, fid: dict) -> list:
             f"{start['peak_translation_m'] * 1e6:.3g} um / "
             f"{start['peak_rotation_rad'] * 1e6:.3g} urad.",
         ]
-    resolution = getattr(rep, "resolution", (0.0, 0.0))
+    resolution = rep.resolution() if hasattr(rep, "resolution") else (0.0, 0.0)
     if resolution[0] > 0 and resolution[1] > 0:
         lines += [
             "",
@@ -474,7 +474,7 @@ def write_report(
         "passed": verdict(rep.fidelity, tolerance)[0],
         "fidelity": rep.fidelity,
         "startup": getattr(rep, "startup", {}),
-        "encoder_resolution_m_rad": list(getattr(rep, "resolution", (0.0, 0.0))),
+        "encoder_resolution_m_rad": list(rep.resolution()),
         "wall_s": rep.wall_s,
     }
     js = out / f"{stem}.json"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -49,10 +49,8 @@ class Reproduction:
         startup: the run before the measured window, t = 0 to its start: {"window_s": (0,
             start), "rms_translation_m", "rms_rotation_rad", "peak_translation_m",
             "peak_rotation_rad"} from the true platform pose (zeros when the window starts at 0).
-        resolution: (m, rad) the RMS error the encoders' rounding puts in the measured pose at
-            the reference's poses in the window
-            (:func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`); (0, 0) for
-            exact angles.
+        geometry: the robot the run was made on. encoder_quantum_rad: one count of its
+            encoders, rad (0: the angles are read exactly); for :meth:`resolution`.
     """
 
     name: str
@@ -71,7 +69,27 @@ class Reproduction:
     learning: str = ""
     learned_from: str = ""
     startup: dict = field(default_factory=dict)
-    resolution: tuple = (0.0, 0.0)
+    geometry: Any = None
+    encoder_quantum_rad: float = 0.0
+
+    def resolution(self) -> tuple[float, float]:
+        """(m, rad) the RMS error the encoders' rounding puts in the measured pose at the
+        reference's poses in the measured window
+        (:func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`); (0, 0) for a
+        robot that reads its angles exactly, NaN where a pose of the window is singular."""
+        from ..base.errors import StewartError
+        from ..robot.forward_kinematics import encoder_pose_noise
+
+        w0, w1 = self.fidelity["window_s"]
+        r = self.result
+        poses = np.asarray(r.x_d[(r.t >= w0) & (r.t <= w1), :6], dtype=float)
+        if self.encoder_quantum_rad <= 0.0 or self.geometry is None or len(poses) == 0:
+            return (0.0, 0.0)
+        try:
+            every = poses[:: max(1, len(poses) // 200)]
+            return encoder_pose_noise(self.geometry, every, self.encoder_quantum_rad)
+        except StewartError:
+            return (float("nan"), float("nan"))
 
 
 def learning_words(learning, learn_cycles: int = 0) -> str:
@@ -312,24 +330,6 @@ def _startup(result, window: tuple[float, float]) -> dict:
     }
 
 
-def _resolution(plan, result, window: tuple[float, float]) -> tuple[float, float]:
-    """(m, rad) the encoders' resolution in the pose at the reference's poses in ``window``
-    (:attr:`Reproduction.resolution`; (0, 0) for a robot that reads its angles exactly)."""
-    from ..base.errors import StewartError
-    from ..robot.forward_kinematics import encoder_pose_noise
-
-    hardware = plan.scenario.hardware
-    inside = (result.t >= window[0]) & (result.t <= window[1])
-    poses = np.asarray(result.x_d[inside, :6], dtype=float)
-    if hardware is None or len(poses) == 0:
-        return (0.0, 0.0)
-    try:
-        every = poses[:: max(1, len(poses) // 200)]
-        return encoder_pose_noise(plan.geometry, every, hardware.encoders.quantum_rad)
-    except StewartError:  # a singular pose in the window: the figure is not defined
-        return (float("nan"), float("nan"))
-
-
 def _learning_record(learning, learn_cycles: int) -> dict:
     """What a :class:`Reproduction` records of the scenario's ``learning``: the columns of its
     status log, how it learned in words, the model file it started from."""
@@ -419,7 +419,10 @@ def reproduce(
         check=report.summary(),
         wall_s=wall,
         startup=_startup(result, window),
-        resolution=_resolution(plan, result, window),
+        geometry=plan.geometry,
+        encoder_quantum_rad=0.0
+        if scenario.hardware is None
+        else scenario.hardware.encoders.quantum_rad,
         **_learning_record(scenario.learning, learn_cycles),
     )
 
