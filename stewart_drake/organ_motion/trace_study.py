@@ -20,9 +20,10 @@ worse on a figure when it is worse than both runs without it.
 
 from __future__ import annotations
 
+import math
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -463,7 +464,8 @@ def tables(results: dict) -> str:
         f"be lower, the loop filtering it). The transfer row holds, without learning, a model "
         f"learned on another motion.",
         "",
-        "![RMS error per 5 s window, without learning and learned](organ_motion_traces.png)",
+        "![Translation RMS error per 5 s window of every motion, without learning and learning]"
+        "(organ_motion_traces.png)",
     ]
     overrides = dict(ROBOTS)
     for robot, items in _robots(results).items():
@@ -497,9 +499,10 @@ def tables(results: dict) -> str:
 
 
 def plot(results: dict, path) -> Path:
-    """The figure of the study: for each robot (a column) and motion, the RMS error of every
-    :data:`WINDOW_S` without learning and with it, translation and rotation on their own axes,
-    each with the goal (:data:`GOAL`)."""
+    """The figure of the study, one small panel per motion: the translation's RMS error over
+    every :data:`WINDOW_S` without learning (both runs, grey), learning from zero (solid) and
+    from the library's model (dashed), on each robot (a colour), with the goal (:data:`GOAL`)
+    and the start of the measured window."""
     import matplotlib
     import matplotlib.ticker
 
@@ -510,57 +513,74 @@ def plot(results: dict, path) -> Path:
         robot: [v for _, v in items if isinstance(v, dict)]
         for robot, items in _robots(results).items()
     }
-    n = max(1, len(robots))
-    fig, axes = plt.subplots(2, n, figsize=(7 * n, 8.5), sharex=True, sharey="row", squeeze=False)
-    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     cases = list(dict.fromkeys(r["case"] for rows in robots.values() for r in rows))
-    colour = {case: colours[i % len(colours)] for i, case in enumerate(cases)}  # one per motion
-    for j, (robot, rows) in enumerate(robots.items()):
+    n = max(1, len(cases))
+    columns = min(5, n)
+    rows_n = int(math.ceil(n / columns))
+    fig, axes = plt.subplots(
+        rows_n,
+        columns,
+        figsize=(3.6 * columns, 2.5 * rows_n + 1.2),
+        sharex=True,
+        sharey=True,
+        squeeze=False,
+    )
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    panel = {case: axes.flat[i] for i, case in enumerate(cases)}
+    for j, rows in enumerate(robots.values()):
+        colour = colours[j % len(colours)]
         for row in rows:
-            c = colour[row["case"]]
-            for ax, key in (
-                (axes[0, j], "window_translation_m"),
-                (axes[1, j], "window_rotation_rad"),
+            ax = panel[row["case"]]
+            for mode, style, width in (
+                ("none", "-", 0.9),
+                ("none_again", "-", 0.9),
+                ("learned", "-", 1.7),
+                ("learned_from_library", "--", 1.3),
             ):
-                for mode, style in (("none", ":"), ("learned", "-")):
-                    y = np.asarray(row[mode][key]) * 1e6
-                    t = (np.arange(len(y)) + 0.5) * WINDOW_S
-                    label = row["case"] if mode == "learned" else None
-                    ax.plot(t, y, style, color=c, lw=1.6 if mode == "learned" else 1.1, label=label)
-        axes[0, j].set_title(robot, fontsize=10)
-        for ax, goal, name in (
-            (axes[0, j], GOAL[0] * 1e6, "translation RMS [um]"),
-            (axes[1, j], GOAL[1] * 1e6, "rotation RMS [urad]"),
-        ):
-            ax.axhline(goal, color="k", lw=0.8, ls="--")
-            ax.text(1.0, goal, f" goal {goal:g}", va="bottom", ha="left", fontsize=8)
-            ax.set_yscale("log")
-            ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
-            ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-            ax.set_yticks([0.2, 0.5, 1, 2, 5, 10, 20, 50, 100])
-            if j == 0:
-                ax.set_ylabel(name)
-            ax.grid(True, which="both", alpha=0.3)
-            ax.axvline(MEASURED_FROM_S, color="0.5", lw=0.8)
-        axes[1, j].set_xlabel(f"t [s] (RMS over windows of {WINDOW_S:g} s)")
-    handles: dict[str, Any] = {}
-    for ax in axes[0]:
-        for h, label in zip(*ax.get_legend_handles_labels()):
-            handles.setdefault(label, h)
+                if not row.get(mode):
+                    continue
+                y = np.asarray(row[mode]["window_translation_m"]) * 1e6
+                t = (np.arange(len(y)) + 0.5) * WINDOW_S
+                tone = "0.65" if mode.startswith("none") else colour
+                ax.plot(t, y, style, color=tone, lw=width)
+    for case, ax in panel.items():
+        ax.set_title("\n".join(textwrap.wrap(case, 34)), fontsize=8)
+        ax.axhline(GOAL[0] * 1e6, color="tab:red", lw=0.8, ls="-.")
+        ax.axvline(MEASURED_FROM_S, color="k", lw=0.6, ls=":")
+        ax.set_yscale("log")
+        ax.yaxis.set_major_formatter(matplotlib.ticker.ScalarFormatter())
+        ax.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        ax.set_yticks([1, 2, 5, 10, 20, 50])
+        ax.grid(True, which="both", alpha=0.3)
+        ax.tick_params(labelsize=7)
+    for ax in axes.flat[len(panel) :]:
+        ax.set_visible(False)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("translation RMS [um]", fontsize=8)
+    for i, ax in enumerate(axes.flat[: len(panel)]):
+        if i + columns >= len(panel):  # nothing drawn below it: its own time axis
+            ax.xaxis.set_tick_params(labelbottom=True)
+            ax.set_xlabel("t [s]", fontsize=8)
+    legend = [
+        plt.Line2D([], [], color="0.65", ls="-", lw=0.9, label="no learning (two runs)"),
+        plt.Line2D([], [], color="k", ls="-", lw=1.7, label="learning from zero"),
+        plt.Line2D([], [], color="k", ls="--", lw=1.3, label="learning from the library's model"),
+        plt.Line2D([], [], color="tab:red", ls="-.", lw=0.8, label=f"goal {GOAL[0] * 1e6:g} um"),
+        plt.Line2D([], [], color="k", ls=":", lw=0.6, label="start of the measured window"),
+    ]
+    legend += [
+        plt.Line2D([], [], color=colours[j % len(colours)], label=robot)
+        for j, robot in enumerate(robots)
+    ]
     fig.legend(
-        list(handles.values()),
-        list(handles.keys()),
-        fontsize=8,
-        loc="lower center",
-        ncol=4,
-        frameon=False,
+        handles=legend, fontsize=8, loc="lower center", ncol=min(len(legend), 6), frameon=False
     )
     fig.suptitle(
-        "Motion that does not repeat: feed-forward learned as a function of the reference "
-        f"(dotted: no learning, solid: learned; tables measured after {MEASURED_FROM_S:g} s)",
+        f"Translation RMS error per {WINDOW_S:g} s window, {DURATION_S:g} s runs (the tables "
+        f"measure from t = {MEASURED_FROM_S:g} s)",
         fontsize=11,
     )
-    fig.tight_layout(rect=(0, 0.06, 1, 1))
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
     path = Path(path)
     fig.savefig(path, dpi=100)
     plt.close(fig)
