@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.base.errors import CorruptFileError, InvalidConfigError
-from stewart_drake.control import feedforward_tuning as ff
+from stewart_drake.control import feedforward_basis as ff
 from stewart_drake.control.feedforward_tuning import (
     FF_STATUS_NAMES,
     FeedforwardTuning,

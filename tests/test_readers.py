@@ -18,7 +18,7 @@ import pytest
 import stewart_drake
 from stewart_drake.base.errors import CorruptFileError
 from stewart_drake.base.fileio import CheckedNpz
-from stewart_drake.control.feedforward_tuning import (
+from stewart_drake.control.feedforward_basis import (
     LAGS_S,
     LEARNED_FORMAT,
     basis_size,

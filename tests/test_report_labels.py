@@ -13,7 +13,7 @@ from conftest import write_trace
 from stewart_drake.base.errors import InvalidConfigError, StewartError
 from stewart_drake.cli.main import main
 from stewart_drake.cli.registry import build_parser
-from stewart_drake.control import feedforward_tuning as ff
+from stewart_drake.control import feedforward_basis as ff
 from stewart_drake.control.feedforward_tuning import FeedforwardTuning
 from stewart_drake.organ_motion.command import _feedforward_choice
 from stewart_drake.organ_motion.fidelity import fidelity

@@ -1,6 +1,6 @@
 """Learn the feed-forward model a run may start from instead of zero, on the library's motions that
 do not repeat per breath, and write it to stewart_drake/data/feedforward_library.npz (numbers
-only, :func:`stewart_drake.control.feedforward_tuning.save_learned`).
+only, :func:`stewart_drake.control.feedforward_basis.save_learned`).
 
     python tools/feedforward_library_model.py [--duration 120]
 
@@ -12,11 +12,8 @@ CPU-minutes.
 
 import argparse
 
-from stewart_drake.control.feedforward_tuning import (
-    LIBRARY_MODEL,
-    FeedforwardTuning,
-    save_learned,
-)
+from stewart_drake.control.feedforward_basis import LIBRARY_MODEL, save_learned
+from stewart_drake.control.feedforward_tuning import FeedforwardTuning
 from stewart_drake.organ_motion.reproduction import run
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.run.scenario_io import load_scenario

@@ -180,7 +180,7 @@ def _cmd_reproduce(args) -> int:
         on_checked=lambda: say_if_compiling("reproduce"),
     )
     if args.save_learned and rep.learned is not None:
-        from ..control.feedforward_tuning import save_learned
+        from ..control.feedforward_basis import save_learned
 
         print(f"wrote {save_learned(args.save_learned, rep.learned)} (the learned feed-forward)")
     if rep.scale != 1.0:
@@ -277,7 +277,8 @@ def _feedforward_choice(args, scenario):
     ``--save-learned FILE``; the scenario's own ``learning`` when it is one, applied as ``run``
     applies it when it names a model (``learned_from``)."""
     from ..base.errors import InvalidConfigError
-    from ..control.feedforward_tuning import LIBRARY_MODEL, FeedforwardTuning, load_learned
+    from ..control.feedforward_basis import LIBRARY_MODEL, load_learned
+    from ..control.feedforward_tuning import FeedforwardTuning
 
     ff = scenario.learning if isinstance(scenario.learning, FeedforwardTuning) else None
     flags = args.feedforward or args.learned or args.hold or args.save_learned

@@ -42,7 +42,7 @@ class Reproduction:
             ``learner_names`` (:data:`~stewart_drake.control.ilc.ILC_STATUS_NAMES` or
             :data:`~stewart_drake.control.feedforward_tuning.FF_STATUS_NAMES`).
         learned: (p, 6) the weights a feed-forward learner ended with (for
-            :func:`~stewart_drake.control.feedforward_tuning.save_learned`), or None.
+            :func:`~stewart_drake.control.feedforward_basis.save_learned`), or None.
         check: the validator's summary of the reference. wall_s: wall time of the run, s.
         learning: how the run learned, in words (:func:`learning_words`).
         learned_from: the model file a feed-forward learner started from or held, or "".

@@ -28,7 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write, write_between_markers
-from ..control.feedforward_tuning import LIBRARY_MODEL, FeedforwardTuning
+from ..control.feedforward_basis import LIBRARY_MODEL
+from ..control.feedforward_tuning import FeedforwardTuning
 
 #: Where the tables go in docs/organ_motion.md.
 TABLE_MARKERS = (
@@ -250,11 +251,11 @@ def _run(
 def run_case(case: TraceCase) -> dict:
     """Run one case twice without learning (:data:`SECOND_REALIZATION`) and with the
     feed-forward learner: learned on the run from zero and, again, from the library's model
-    (:data:`~stewart_drake.control.feedforward_tuning.LIBRARY_MODEL`), or first learned on
+    (:data:`~stewart_drake.control.feedforward_basis.LIBRARY_MODEL`), or first learned on
     ``held_from`` and held; plain values."""
     import tempfile
 
-    from ..control.feedforward_tuning import save_learned
+    from ..control.feedforward_basis import save_learned
 
     reference = _reference(case.motion, case.parameters, case.path)
     none, _, _, wall0 = _run(reference, None, case.overrides)
