@@ -40,9 +40,11 @@ the ridge weighs them alike.
 Never worse than no correction, by construction (docs/organ_motion.md, "Never worse"):
 
 - **Kept only while better than none.** The error the stretch would have had without the
-  correction is estimated as d = e + c (c: the correction applied). Every ``check_period_s``
-  within a stretch and at its end, a correction whose measured RMS error (translation or
-  rotation) exceeds ``bound_ratio`` times that estimate is dropped: the learner falls back to no
+  correction is estimated as d = e + c (c: the correction applied). At a stretch's end, a
+  correction whose measured RMS error (translation or rotation) exceeds ``bound_ratio`` times
+  that estimate is dropped; within it, every ``check_period_s``, one that exceeds
+  ``MID_STRETCH_RATIO`` times it (a gross failure: over half a second the encoders' rounding
+  does not average out, so a slight excess there is noise). The learner falls back to no
   correction at all (theta, the information and the trusted ranges cleared), not to the best
   weights so far, which were fitted on motion that has just been shown not to predict this
   stretch. After ``max_rollbacks`` fallbacks the next one stops learning, without a correction.
@@ -93,6 +95,8 @@ from .ilc import (
     steps_per_record,
 )
 
+#: Within a stretch, a correction is dropped at once over this ratio (module docstring).
+MID_STRETCH_RATIO = 1.5
 #: The basis functions that can extrapolate (the reference's rate, acceleration and jerk: the
 #: columns after the constant); the constant and the smooth signs are bounded by one.
 _DYNAMIC = slice(1, 19)
@@ -357,14 +361,15 @@ class FeedforwardTuningLearner(LeafSystem):
         applied = self._per_record(phi, idx, rows, theta, trusted)
         return buffer[:, 6:], e, e + applied, phi, idx, phi_r
 
-    def _worse(self, status, e: np.ndarray, d: np.ndarray) -> bool:
+    def _worse(self, status, e: np.ndarray, d: np.ndarray, ratio: float | None = None) -> bool:
         """Whether the correction did worse than none over the records (the measured RMS ``e``
         above ``bound_ratio`` times the estimate ``d`` in translation or rotation); the status
         gets both."""
         E, D = rms_pose_error(e), rms_pose_error(d)
         status.E_trans_m, status.E_rot_rad = E
         status.D_trans_m, status.D_rot_rad = D
-        return E[0] > self.bound_ratio * D[0] or E[1] > self.bound_ratio * D[1]
+        r = self.bound_ratio if ratio is None else ratio
+        return E[0] > r * D[0] or E[1] > r * D[1]
 
     def _fall_back(self, discrete_state, status) -> None:
         """No correction from the next step: theta, the information and the trusted ranges
@@ -379,7 +384,7 @@ class FeedforwardTuningLearner(LeafSystem):
         """Within a stretch, every ``check_period_s``: fall back to no correction as soon as the
         stretch so far did worse than none."""
         _, e, d, *_ = self._measured(discrete_state, records, status, k)
-        if self._worse(status, e, d):
+        if self._worse(status, e, d, MID_STRETCH_RATIO):
             self._fall_back(discrete_state, status)
 
     def _EndStretch(self, discrete_state, records, status, k: int) -> None:
@@ -526,7 +531,7 @@ class FeedforwardTuning:
             standard deviations from the stretch's median is left out of the fit.
         outlier_guard_s: the records this close to an outlier are left out too, s.
         check_period_s: within a stretch, how often the correction is checked against none
-            (a correction doing worse is dropped at once, not at the stretch's end), s.
+            (one over ``MID_STRETCH_RATIO`` times none is dropped at once), s.
         learned_from: an .npz a previous run saved (:func:`~.feedforward_basis.save_learned`)
             to start from ("": from zero); read as numbers only.
         learn: False holds the model of ``learned_from`` without learning.
