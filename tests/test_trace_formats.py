@@ -13,8 +13,9 @@ import stewart_drake.base.checks
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli.main import main
 from stewart_drake.cli.registry import build_parser
+from stewart_drake.references.trace_cleaning import SEAM_BLEND_S
 from stewart_drake.references.trace_files import MAX_SAMPLE_STEP_S, SKIP_COLUMN, TRACE_FORMATS
-from stewart_drake.references.traces import CENTRE_MODES, load_trace
+from stewart_drake.references.traces import CENTRE_MODES, SMOOTHING_MODES, load_trace
 
 #: The columns a user gives a marker export: its frame counter skipped, time in ms.
 MARKER_COLUMNS = "-,t [ms],X [mm],Y [mm],Z [mm]"
@@ -104,7 +105,7 @@ def test_a_space_separated_header_keeps_each_unit_with_its_name(tmp_path):
     si = 5.0 * np.sin(2 * np.pi * 0.25 * t)
     path = tmp_path / "spaced.txt"
     path.write_text("t [s]  SI [mm]\n" + "".join(f"{a:.2f}  {b:.4f}\n" for a, b in zip(t, si)))
-    ref = load_trace(path, centre_on="none")
+    ref = load_trace(path, centre_on="none", smoothing="none")
     assert ref.info.columns == ("t", "SI") and ref.info.units == ("s", "mm")
     assert ref.evaluate(t)[0][:, 3] * 1e3 == pytest.approx(si, abs=1e-4)
     path.write_text("t  SI [mm]\n" + "".join(f"{a:.2f}  {b:.4f}\n" for a, b in zip(t, si)))
@@ -125,8 +126,10 @@ def _trace_options(command: str) -> dict:
 def test_check_and_reproduce_read_a_trace_with_the_same_options():
     check, reproduce = _trace_options("check"), _trace_options("reproduce")
     reading = ["--format", "--columns", "--map", "--lowpass-hz", "--centre", "--centre-on"]
-    for flag in reading + ["--max-gap"]:
+    for flag in reading + ["--max-gap", "--smoothing", "--seam-blend"]:
         assert flag in check and check[flag] == reproduce[flag], flag
+    assert list(check["--smoothing"][1]) == list(SMOOTHING_MODES)
+    assert check["--seam-blend"][0] == SEAM_BLEND_S
     assert list(check["--format"][1]) == list(TRACE_FORMATS)
     assert list(check["--centre-on"][1]) == list(CENTRE_MODES)
     assert f"'{SKIP_COLUMN},t [ms]" in check["--columns"][2]

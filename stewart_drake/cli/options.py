@@ -277,7 +277,8 @@ def add_trace_arguments(parser) -> None:
     reads one (``check``, ``reproduce``): :func:`trace_reference` turns them into a
     :class:`~stewart_drake.references.traces.TraceReference`."""
     # Written out, not imported from references.traces: building the parser reads no numpy
-    # (tests/test_trace_formats.py holds them equal to TRACE_FORMATS, CENTRE_MODES, SKIP_COLUMN).
+    # (tests/test_trace_formats.py holds them equal to TRACE_FORMATS, CENTRE_MODES, SKIP_COLUMN,
+    # SMOOTHING_MODES and SEAM_BLEND_S).
     parser.add_argument(
         "--format",
         choices=["auto", "csv", "phantom", "surrogate"],
@@ -320,6 +321,21 @@ def add_trace_arguments(parser) -> None:
         help="which pose of a trace goes to --centre (the report says what was removed)",
     )
     parser.add_argument(
+        "--smoothing",
+        choices=["auto", "none"],
+        default="auto",
+        help="join a trace's samples by a smoothing spline that drops their measurement noise "
+        "(auto; the report says how far it departs from them) or through every sample (none)",
+    )
+    parser.add_argument(
+        "--seam-blend",
+        type=float,
+        default=2.0,
+        metavar="SECONDS",
+        help="blend each seam of a looped recording (where it starts again with a step) over "
+        "this time (default 2 s; 0: leave the seams as recorded)",
+    )
+    parser.add_argument(
         "--max-gap",
         type=positive_float,
         default=1.0,
@@ -329,7 +345,10 @@ def add_trace_arguments(parser) -> None:
 
 
 #: The options of :func:`add_trace_arguments` a motion that is not a trace file refuses.
-TRACE_ONLY = "--format, --columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap"
+TRACE_ONLY = (
+    "--format, --columns, --map, --lowpass-hz, --centre, --centre-on, --max-gap, --smoothing, "
+    "--seam-blend"
+)
 
 
 def trace_options_given(args) -> bool:
@@ -342,6 +361,8 @@ def trace_options_given(args) -> bool:
         or args.centre is not None
         or args.centre_on != "mean"
         or args.max_gap != 1.0
+        or args.smoothing != "auto"
+        or args.seam_blend != 2.0
     )
 
 
@@ -374,6 +395,8 @@ def trace_reference(args, source: str, add: dict | None = None):
         format=args.format,
         columns=args.columns or "",
         add=dict(add or {}),
+        smoothing=args.smoothing,
+        seam_blend_s=args.seam_blend,
     )
 
 

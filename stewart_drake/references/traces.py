@@ -30,8 +30,12 @@ from .organ.combinators import layered, scaled
 from .organ.core import check_centre
 from .organ.library import make_layers
 from .samples import CSV_BYTES_PER_ROW, CSV_COLUMNS, CubicSplineTrajectory, load_csv_trajectory
+from .trace_cleaning import SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
 from .trace_files import TRACE_FORMATS, TraceTable, read_trace_table, trace_samples
 
+#: How a trace's samples are joined (``smoothing`` of :func:`load_trace`): a smoothing spline
+#: that drops their measurement noise, or a cubic spline through every sample.
+SMOOTHING_MODES = ("auto", "none")
 #: Which pose of a trace goes to its centre (``centre_on`` of :func:`load_trace`): its mean, its
 #: first sample, or none (the trace's values are displacements from the centre).
 CENTRE_MODES = ("mean", "first", "none")
@@ -53,6 +57,13 @@ class TraceInfo:
         removed: (6,) the pose taken off the trace to centre it (its mean or first sample on
             the trace's axes, rad and m; zeros for "none").
         dropped: what was left out as an export's artefact (a last line of zeros), or "".
+        smoothing: "auto" (a smoothing spline per axis,
+            :func:`~.trace_cleaning.smoothed_spline`) or "none".
+        departures: ((axis, RMS departure of the reference from its samples, rad or m), ...).
+        loop_period_s: the loop of a looped recording, s (0: not a loop;
+            :func:`~.trace_cleaning.loop_seams`).  seams: its seams blended.
+        seam_blend_s: the time each was blended over, s (0: left as recorded).
+        seam_jumps: ((axis, largest jump taken out, rad or m), ...).
     """
 
     path: str
@@ -68,18 +79,20 @@ class TraceInfo:
     layout: str = "csv"
     removed: tuple = (0.0,) * 6
     dropped: str = ""
+    smoothing: str = "none"
+    departures: tuple = ()
+    loop_period_s: float = 0.0
+    seams: int = 0
+    seam_blend_s: float = 0.0
+    seam_jumps: tuple = ()
 
     def centring(self) -> str:
         """What centring took off the trace, in words: ``its mean removed (Z -490.1 mm)``."""
         if self.centred_on == "none":
             return "not centred (its values are displacements from the centre)"
         what = "its mean" if self.centred_on == "mean" else "its first sample"
-        values = []
-        for axis in self.axes:
-            k = AXIS_NAMES.index(axis[1:])
-            scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
-            values.append(f"{AXIS_NAMES[k]} {self.removed[k] * scale:.4g} {unit}")
-        return f"{what} removed ({', '.join(values)})"
+        values = [(axis[1:], self.removed[AXIS_NAMES.index(axis[1:])]) for axis in self.axes]
+        return f"{what} removed ({_in_words(values, '.4g')})"
 
     def summary(self) -> str:
         gaps = ", ".join(f"{g[1]:.3g} s at t = {g[0]:.4g} s" for g in self.gaps) or "none"
@@ -91,8 +104,48 @@ class TraceInfo:
             f"{self.sample_rate_hz:.4g} Hz "
             f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
             f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}; "
+            f"{self.smoothing_words()}; {self.seam_words()}; "
             f"centred: {self.centring()}" + (f"; left out: {self.dropped}" if self.dropped else "")
         )
+
+    def smoothing_words(self) -> str:
+        """How the samples were joined, in words: ``joined without their noise (quintic
+        smoothing spline, discrepancy principle): the reference departs from the samples by X
+        0.012 mm, theta 0.004 deg RMS`` or ``joined through every sample (no smoothing)``."""
+        if self.smoothing != "auto" or not self.departures:
+            return "joined through every sample (no smoothing)"
+        return (
+            "joined without their noise (quintic smoothing spline, discrepancy principle): the "
+            f"reference departs from the samples by {_in_words(self.departures, '.2g')} RMS"
+        )
+
+    def seam_words(self) -> str:
+        """A looped recording's seams, in words: ``a loop of 62 s: 20 seams blended over 2 s
+        (largest jump X 9.5 mm)``, ``not a loop``, or ``a loop of 62 s: its 20 seams left as
+        recorded``."""
+        if self.loop_period_s <= 0.0:
+            return "not a loop"
+        loop = f"a loop of {self.loop_period_s:.4g} s"
+        if self.seams == 0:
+            return f"{loop} without a seam"
+        if self.seam_blend_s <= 0.0:
+            return f"{loop}: its {self.seams} seams left as recorded"
+        jumps = _in_words(self.seam_jumps, ".2g")
+        return (
+            f"{loop}: {self.seams} seam{'s' if self.seams > 1 else ''} blended over "
+            f"{self.seam_blend_s:g} s "
+            f"(largest jump {jumps})"
+        )
+
+
+def _in_words(values, fmt: str) -> str:
+    """``X 9.5 mm, theta 0.2 deg`` of ((axis name, value in m or rad), ...)."""
+    parts = []
+    for axis, value in values:
+        k = AXIS_NAMES.index(axis)
+        scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
+        parts.append(f"{axis} {value * scale:{fmt}} {unit}")
+    return ", ".join(parts)
 
 
 class TraceTrajectory(CubicSplineTrajectory):
@@ -156,24 +209,44 @@ def _gaps(
     return gaps
 
 
+#: Fewest samples an axis needs to be smoothed (fewer: joined through its samples).
+MIN_SMOOTHED_SAMPLES = 10
+
+
 def _resampled(
-    path: Path, t, data, names, targets, factors, grid, rate: float, max_gap_s: float
-) -> tuple[np.ndarray, list]:
-    """(displacement (m, 6) on the grid in rad and m, gaps bridged [(start s, length s)]): each
-    axis column joined by a cubic spline through its samples; axes without a column zero."""
+    path: Path,
+    t,
+    data,
+    names,
+    targets,
+    factors,
+    grid,
+    rate: float,
+    max_gap_s: float,
+    smoothing: str = "auto",
+) -> tuple[np.ndarray, list, dict]:
+    """(displacement (m, 6) on the grid in rad and m, gaps bridged [(start s, length s)],
+    {axis name: departure from its samples (rad or m)}): each axis column joined by a smoothing
+    spline (:func:`~.trace_cleaning.smoothed_spline`; ``smoothing`` "none": a cubic spline
+    through its samples); axes without a column zero."""
     from scipy.interpolate import CubicSpline
 
     displacement = np.zeros((grid.size, 6))
     gaps = []
+    departures = {}
     for j, (k, factor) in enumerate(zip(targets, factors), start=1):
         ok = np.isfinite(data[:, j])
         if np.count_nonzero(ok) < 4:
             raise InvalidConfigError(f"{path}: column {names[j]!r} has fewer than 4 samples")
         tk = t[ok]
         gaps += _gaps(path, names[j], tk, t[-1], rate, max_gap_s)
-        spline = CubicSpline(tk, data[ok, j] * factor)
+        yk = data[ok, j] * factor
+        if smoothing == "auto" and len(tk) >= MIN_SMOOTHED_SAMPLES:
+            spline, departures[AXIS_NAMES[k]] = smoothed_spline(tk, yk)
+        else:
+            spline = CubicSpline(tk, yk)
         displacement[:, k] = spline(np.clip(grid, tk[0], tk[-1]))
-    return displacement, gaps
+    return displacement, gaps, departures
 
 
 #: Lowest corner of a trace's low-pass, Hz: a breath is 0.1-0.5 Hz, so a lower corner removes the
@@ -227,6 +300,8 @@ def load_trace(
     resample_hz: float = 100.0,
     format: str = "auto",
     columns: str = "",
+    smoothing: str = "auto",
+    seam_blend_s: float = SEAM_BLEND_S,
 ):
     """A reference from a recorded trace of 1 to 6 axes.
 
@@ -244,8 +319,11 @@ def load_trace(
     increase but need not be evenly spaced, at most :data:`~.trace_files.MAX_SAMPLE_STEP_S`
     apart (median); a last line of zeros after them (an optical tracker's export ends so) is
     left out and ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that
-    axis. Each axis is joined by a cubic spline through its samples
-    (``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
+    axis. A looped recording's seams are blended over ``seam_blend_s``
+    (:func:`~.trace_cleaning.loop_seams`). Each axis is joined by a smoothing spline that drops
+    the recording's measurement noise (:func:`~.trace_cleaning.smoothed_spline`; ``smoothing``
+    "none": a cubic spline through every sample,
+    ``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
     without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
     ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace does
     not have stay at the centre.
@@ -270,6 +348,10 @@ def load_trace(
             its header), e.g. ``"t [s], SI [mm], AP [mm]"``; a column named ``-``
             (:data:`~.trace_files.SKIP_COLUMN`) is not read (a tracker's frame counter:
             ``"-, t [ms], X [mm]"``).
+        smoothing: "auto" or "none" (:data:`SMOOTHING_MODES`); ``info.departures`` gives how
+            far the reference departs from the samples.
+        seam_blend_s: the time over which each seam of a looped recording is blended, s (0:
+            left as recorded), shorter than the loop; ``info.seam_words()`` says what was done.
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
         :class:`~.samples.CubicSplineTrajectory` of a project CSV.
@@ -288,11 +370,29 @@ def load_trace(
         return load_csv_trajectory(path)
     table = trace_samples(path, header, rows, layout, axis_map)
     del rows
-    return _trace_trajectory(path, table, centre, centre_on, lowpass_hz, max_gap_s, resample_hz)
+    return _trace_trajectory(
+        path,
+        table,
+        centre,
+        centre_on,
+        lowpass_hz,
+        max_gap_s,
+        resample_hz,
+        smoothing,
+        seam_blend_s,
+    )
 
 
 def _trace_trajectory(
-    path: Path, table: TraceTable, centre, centre_on, lowpass_hz, max_gap_s, resample_hz
+    path: Path,
+    table: TraceTable,
+    centre,
+    centre_on,
+    lowpass_hz,
+    max_gap_s,
+    resample_hz,
+    smoothing: str = "auto",
+    seam_blend_s: float = SEAM_BLEND_S,
 ) -> "TraceTrajectory":
     """The :class:`TraceTrajectory` of a trace's samples (see :func:`load_trace`): resampled at
     ``resample_hz``, low-passed, centred, with its :class:`TraceInfo`."""
@@ -304,8 +404,11 @@ def _trace_trajectory(
         # Below MIN_LOWPASS_HZ the filter removes every breath (and its design is singular).
         lowpass_hz = as_number("lowpass_hz", lowpass_hz, MIN_LOWPASS_HZ, 0.5 * resample_hz)
     grid = _trace_grid(path, t, resample_hz)
-    displacement, gaps = _resampled(
-        path, t, table.data, table.names, targets, table.factors, grid, rate, max_gap_s
+    if smoothing not in SMOOTHING_MODES:
+        raise InvalidConfigError(f"smoothing must be 'auto' or 'none', got {smoothing!r}")
+    data, loop_s, seams, jumps = _without_seams(table, rate, seam_blend_s)
+    displacement, gaps, departures = _resampled(
+        path, t, data, table.names, targets, table.factors, grid, rate, max_gap_s, smoothing
     )
     displacement, removed = _centred(
         _lowpassed(displacement, lowpass_hz, resample_hz), centre_on, targets
@@ -328,8 +431,37 @@ def _trace_trajectory(
         layout=table.layout,
         removed=tuple(float(v) for v in removed),
         dropped=table.dropped,
+        smoothing=smoothing,
+        departures=tuple((axis, float(v)) for axis, v in departures.items()),
+        loop_period_s=loop_s,
+        seams=seams,
+        seam_blend_s=seam_blend_s if seams else 0.0,
+        seam_jumps=jumps,
     )
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
+
+
+def _without_seams(table: TraceTable, rate: float, blend_s: float):
+    """(the table's data with a loop's seams blended, the loop in s (0: not a loop), its seams,
+    ((axis, largest jump taken out, rad or m), ...))."""
+    blend_s = as_number("seam_blend_s", blend_s, 0.0)
+    loop = loop_seams(table.data[:, 1:])
+    if loop is None:
+        return table.data, 0.0, 0, ()
+    loop_s = loop.period / rate
+    if blend_s == 0.0 or not loop.seams:
+        return table.data, loop_s, len(loop.seams), ()
+    if blend_s >= loop_s:
+        raise InvalidConfigError(
+            f"seam_blend_s must be shorter than the trace's loop ({loop_s:.4g} s), got {blend_s:g}"
+        )
+    blended, largest = blend_seams(table.t, table.data[:, 1:], loop, blend_s)
+    jumps = tuple(
+        (AXIS_NAMES[k], abs(float(j * f)))
+        for k, f, j in zip(table.targets, table.factors, largest)
+        if j > 0.0
+    )
+    return np.column_stack([table.data[:, 0], blended]), loop_s, len(loop.seams), jumps
 
 
 # -- a scenario's choice of a trace ----------------------------------------------------------------
@@ -353,6 +485,10 @@ class TraceReference(ReferenceConfig):
         add: motions of the library laid on the trace, name -> parameters
             (``{baseline_drift: {drift: 3mm}}``: a drift on a recording,
             :func:`~.combinators.layered`); the scale shrinks the sum.
+        smoothing: "auto" (each axis joined by a smoothing spline that drops the recording's
+            measurement noise, :func:`~.trace_cleaning.smoothed_spline`) or "none" (through
+            every sample).
+        seam_blend_s: a looped recording's seams blended over this time, s (0: left).
     """
 
     path: str = ""
@@ -365,9 +501,16 @@ class TraceReference(ReferenceConfig):
     format: str = "auto"
     columns: str = ""
     add: dict[str, dict[str, str]] = field(default_factory=dict)
+    smoothing: str = "auto"
+    seam_blend_s: float = SEAM_BLEND_S
 
     def validate(self) -> None:
         as_number("reference.scale", self.scale, 0.0, 1.0, lo_open=True)
+        if self.smoothing not in SMOOTHING_MODES:
+            raise InvalidConfigError(
+                f"reference.smoothing must be one of {', '.join(SMOOTHING_MODES)}, got "
+                f"{self.smoothing!r}"
+            )
         if self.format not in TRACE_FORMATS:
             raise InvalidConfigError(
                 f"reference.format must be one of {', '.join(TRACE_FORMATS)}, got {self.format!r}"
@@ -381,6 +524,7 @@ class TraceReference(ReferenceConfig):
         if as_number("reference.lowpass_hz", self.lowpass_hz, 0.0) != 0.0:
             as_number("reference.lowpass_hz", self.lowpass_hz, MIN_LOWPASS_HZ)
         as_number("reference.max_gap_s", self.max_gap_s, 0.0, lo_open=True)
+        as_number("reference.seam_blend_s", self.seam_blend_s, 0.0)
         as_array("reference.centre", self.centre, shape=(6,))
         make_layers(self.add)  # names an unknown motion or parameter
 
@@ -396,6 +540,8 @@ class TraceReference(ReferenceConfig):
             self.max_gap_s,
             format=self.format,
             columns=self.columns,
+            smoothing=self.smoothing,
+            seam_blend_s=self.seam_blend_s,
         )
 
     def make(
