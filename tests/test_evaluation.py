@@ -117,8 +117,8 @@ def test_the_sweep_s_acceleration_cap_has_its_derivatives_and_keeps_the_gain():
 
 
 def test_scenarios_are_reachable_and_named():
-    from stewart_drake.references.trajectories import validate
     from stewart_drake.robot.geometry import StewartGeometry
+    from stewart_drake.run.plan import validate_reference as validate
 
     g = StewartGeometry()
     for name in ("helix", "step_phi", "step_Z", "sweep_Z", "sweep_phi"):

@@ -258,7 +258,7 @@ def _reposition(dx, move_s=0.3):
 def test_a_reposition_the_motors_cannot_follow_is_refused_naming_the_motor():
     """5 cm along X in 0.3 s: motor 2 is over its limit as the move starts (0.905 N m), motor 0
     needs 1.06 N m as it brakes; the servo gives 0.70, a reference may use 90 % of it."""
-    from stewart_drake.references.trajectories import validate
+    from stewart_drake.run.plan import validate_reference as validate
 
     scenario = load_scenario("paper_hardware", ["duration_s=0.7"])
     fast = _reposition([0, 0, 0, 0.05, 0, 0])

@@ -97,7 +97,7 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
     with the run: 997-sample stretches over the paper's first 4 s (five stretches, the last
     short), with motors too weak for it (every refusal reported), give every figure, time, leg
     and motor of the check in one go, and the same sample-by-sample series."""
-    from stewart_drake.references import trajectories
+    from stewart_drake.run import plan as trajectories
     from stewart_drake.run.plan import check_reference
 
     scenario = load_scenario(
@@ -128,8 +128,8 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
 
 def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
     from stewart_drake.base.errors import StewartError
-    from stewart_drake.references import trajectories
     from stewart_drake.references.samples import CubicSplineTrajectory
+    from stewart_drake.run import plan as trajectories
     from stewart_drake.run.plan import check_reference
 
     t = np.linspace(0.0, 10.0, 101)

@@ -10,8 +10,8 @@ from stewart_drake.control.tuner.network import load_tuner
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.execution.runners import SerialRunner
 from stewart_drake.references.data_collection import data_collection_trajectory
-from stewart_drake.references.trajectories import validate
 from stewart_drake.robot.geometry import StewartGeometry
+from stewart_drake.run.plan import validate_reference as validate
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.run.simulate import run_experiment

@@ -44,9 +44,9 @@ def _slack(
     geometry: StewartGeometry, x, ratio_max: float, cond_threshold: float, min_sigma_min_inv: float
 ) -> np.ndarray:
     """(n,) smallest margin of poses x (n, 6) over the checks of
-    :func:`~.trajectories.validate`, each normalized by its bound; < 0 where refused. Checks:
-    closure at ``ratio_max``, motor travel, both ball-joint cones, then (only when every pose
-    passes those: the SVD is the dear part) cond(J) and 1/sigma_max(J)."""
+    :func:`~stewart_drake.run.plan.validate_reference`, each normalized by its bound; < 0 where
+    refused. Checks: closure at ``ratio_max``, motor travel, both ball-joint cones, then (only
+    when every pose passes those: the SVD is the dear part) cond(J) and 1/sigma_max(J)."""
     theta, ratio = kinematics.ik_unchecked(geometry, x)
     margins = limits.limit_margins_unchecked(geometry, x, theta, ratio)
     travel = np.deg2rad(geometry.motor_angle_max_deg - geometry.motor_angle_min_deg) / 2
@@ -90,10 +90,10 @@ def data_collection_trajectory(
     each axis's amplitude is (a) capped by what that axis alone admits at |L|/sqrt(M^2+N^2) <=
     ``ratio_max``, (b) capped by DATA_ACCEL_CAP / (2 pi f)^2 so the torques stay physical, then
     (c) all amplitudes are scaled by the largest factor (bisection) with which the path passes
-    every check of the pre-run validation (:func:`~.trajectories.validate` sampled every ``dt``
-    over ``duration_s``: loop closure at ``ratio_max``, motor travel, both ball-joint cones,
-    cond(J) and 1/sigma_max(J) with the given thresholds, GuardConfig's by default). The
-    bisection runs on the critical samples only and is confirmed on all of them
+    every check of the pre-run validation (:func:`~stewart_drake.run.plan.validate_reference`
+    sampled every ``dt`` over ``duration_s``: loop closure at ``ratio_max``, motor travel, both
+    ball-joint cones, cond(J) and 1/sigma_max(J) with the given thresholds, GuardConfig's by
+    default). The bisection runs on the critical samples only and is confirmed on all of them
     (docs/paper_notes.md).
 
     Args:
@@ -108,7 +108,7 @@ def data_collection_trajectory(
             headroom for feedback (ours: the paper's robot has no limit; on the robot as built,
             without this every run of the collection loses the platform in 0.2 s).
     Returns:
-        SineTrajectory named ``data_seed<seed>`` that ``validate(..., dt=dt)`` accepts.
+        SineTrajectory named ``data_seed<seed>`` that ``validate_reference(..., dt=dt)`` accepts.
     """
     geometry = geometry or StewartGeometry()
     rng = np.random.default_rng(seed)
@@ -116,7 +116,7 @@ def data_collection_trajectory(
     phase = rng.uniform(0, 2 * np.pi, 6)
     single = np.array([_max_single_axis_amplitude(geometry, k, ratio_max) for k in range(6)])
     amp = np.minimum(single, np.asarray(DATA_ACCEL_CAP) / (2 * np.pi * f) ** 2)
-    t = np.arange(0.0, duration_s + 0.5 * dt, dt)  # the samples of validate()
+    t = np.arange(0.0, duration_s + 0.5 * dt, dt)  # the samples of validate_reference()
 
     def path(scale, times=t):
         return SineTrajectory(

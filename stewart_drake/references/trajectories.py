@@ -17,7 +17,7 @@ this module must not use ``from __future__ import annotations``.
 
 import functools
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,10 +26,8 @@ from pydrake.trajectories import Trajectory
 
 from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError
-from ..robot import limits
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.kinematics import AXIS_NAMES
-from ..robot.trajectory_report import TrajectoryReport, merge_reports
 from .motion import Reference, ReferenceConfig
 from .samples import load_csv_trajectory
 
@@ -418,80 +416,6 @@ def as_trajectory(source) -> Reference:
             f"numbers [rad, m, /s, /s^2] for one t (or (n, 6) for n times): {err}"
         ) from None
     return wrapped
-
-
-#: Samples :func:`validate` checks at once (5 s at 1 kHz; about 9 kB each while checked).
-VALIDATE_CHUNK_SAMPLES = 5_000
-
-
-def validate(
-    trajectory: Reference,
-    geometry: StewartGeometry,
-    duration_s: float,
-    dt: float = 1e-3,
-    cond_threshold: float = limits.DEFAULT_COND_THRESHOLD,
-    min_sigma_min_inv: float = limits.DEFAULT_MIN_SIGMA_MIN_INV,
-    raise_refused: bool = True,
-    progress=None,
-    keep_series: bool = True,
-    **checks,
-) -> TrajectoryReport:
-    """Sample a trajectory on [0, duration_s] every ``dt`` and validate it, in stretches of
-    :data:`VALIDATE_CHUNK_SAMPLES` samples, so that the memory the check takes beyond its
-    ``series`` does not grow with the duration.
-
-    The samples go to :func:`~stewart_drake.robot.limits.validate_trajectory`, the one validator
-    of a reference: finite pose, rate and acceleration; loop closure, motor travel, ball-joint
-    cones; cond(J) and 1/sigma_max(J); with ``checks``, the clearance between parts and the
-    motors' torque and speed; each failure naming its first time and leg, parts, motor or measure.
-
-    Args:
-        trajectory: an object with ``evaluate(t)`` -> (pose, rate, acceleration), each (n, 6).
-        geometry: the robot. duration_s: s, > 0. dt: sampling period, s (the control period).
-        cond_threshold, min_sigma_min_inv: singularity thresholds (see the validator).
-        raise_refused: raise on the first refused sample (else only report it).
-        progress: None, or an object with ``update(n)`` (a tqdm bar) told of each stretch's
-            samples as it is checked.
-        keep_series: keep the report's sample-by-sample ``series`` (for plots; about 0.3 kB a
-            sample); False drops each stretch's.
-        checks: keyword arguments of the validator (``clearance``, ``min_clearance_m``,
-            ``motor_limits``, ``allow_infeasible``).
-    Returns:
-        :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`.
-    Raises:
-        InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError,
-            InterferenceError, MotorLimitError: see
-            :func:`~stewart_drake.robot.limits.validate_trajectory`; InvalidConfigError also for
-            a duration beyond a reference's ``end_time`` (a CSV or Drake trajectory).
-    """
-    if not (np.isfinite(duration_s) and duration_s > 0):
-        raise InvalidConfigError(f"duration must be > 0 s, got {duration_s}")
-    end = getattr(trajectory, "end_time", None)
-    if end is not None and duration_s > end + 1e-9:
-        raise InvalidConfigError(
-            f"the reference {getattr(trajectory, 'name', '')} ends at "
-            f"t = {end:g} s: run at most that long (duration_s) or extend it"
-        )
-    t_all = np.arange(0.0, duration_s + 0.5 * dt, dt)
-    reports = []
-    for start in range(0, t_all.size, VALIDATE_CHUNK_SAMPLES):
-        t = t_all[start : start + VALIDATE_CHUNK_SAMPLES]
-        x, x_dot, x_ddot = trajectory.evaluate(t)
-        report = limits.validate_trajectory(
-            geometry,
-            t,
-            x,
-            cond_threshold=cond_threshold,
-            min_sigma_min_inv=min_sigma_min_inv,
-            raise_refused=raise_refused,
-            x_dot=x_dot,
-            x_ddot=x_ddot,
-            **checks,
-        )
-        reports.append(report if keep_series else replace(report, series={}))
-        if progress is not None:
-            progress.update(t.size)
-    return merge_reports(reports)
 
 
 # -- a scenario's choices of these references ------------------------------------------------------

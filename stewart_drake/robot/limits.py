@@ -303,7 +303,7 @@ def validate_trajectory(
             pose, rate or acceleration is named with its time), t not increasing, or a
             threshold out of range.
     Source: the one validator of a reference:
-        :func:`~stewart_drake.references.trajectories.validate` samples a trajectory object and
+        :func:`~stewart_drake.run.plan.validate_reference` samples a trajectory object and
         calls it; every run does, before anything is simulated.
     """
     # Long for its docstring: the one validator of a reference documents every check and error.

@@ -26,12 +26,20 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from ..base.errors import FeasibilityWarning
+import numpy as np
+
+from ..base.errors import FeasibilityWarning, InvalidConfigError
 from ..control.contract import resolve_controller
+from ..references.motion import Reference
 from ..robot.geometry import StewartGeometry
-from ..robot.limits import MotorLimits
+from ..robot.limits import (
+    DEFAULT_COND_THRESHOLD,
+    DEFAULT_MIN_SIGMA_MIN_INV,
+    MotorLimits,
+    validate_trajectory,
+)
 from ..robot.servo import ServoModel
-from ..robot.trajectory_report import TrajectoryReport
+from ..robot.trajectory_report import TrajectoryReport, merge_reports
 from ..station.bus.station import HardwareStation
 from ..station.station import StewartStation
 from .scenario import Scenario
@@ -254,6 +262,80 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     )
 
 
+#: Samples :func:`validate_reference` checks at once (5 s at 1 kHz; about 9 kB each while checked).
+VALIDATE_CHUNK_SAMPLES = 5_000
+
+
+def validate_reference(
+    trajectory: Reference,
+    geometry: StewartGeometry,
+    duration_s: float,
+    dt: float = 1e-3,
+    cond_threshold: float = DEFAULT_COND_THRESHOLD,
+    min_sigma_min_inv: float = DEFAULT_MIN_SIGMA_MIN_INV,
+    raise_refused: bool = True,
+    progress=None,
+    keep_series: bool = True,
+    **checks,
+) -> TrajectoryReport:
+    """Sample a trajectory on [0, duration_s] every ``dt`` and validate it, in stretches of
+    :data:`VALIDATE_CHUNK_SAMPLES` samples, so that the memory the check takes beyond its
+    ``series`` does not grow with the duration.
+
+    The samples go to :func:`~stewart_drake.robot.limits.validate_trajectory`, the one validator
+    of a reference: finite pose, rate and acceleration; loop closure, motor travel, ball-joint
+    cones; cond(J) and 1/sigma_max(J); with ``checks``, the clearance between parts and the
+    motors' torque and speed; each failure naming its first time and leg, parts, motor or measure.
+
+    Args:
+        trajectory: an object with ``evaluate(t)`` -> (pose, rate, acceleration), each (n, 6).
+        geometry: the robot. duration_s: s, > 0. dt: sampling period, s (the control period).
+        cond_threshold, min_sigma_min_inv: singularity thresholds (see the validator).
+        raise_refused: raise on the first refused sample (else only report it).
+        progress: None, or an object with ``update(n)`` (a tqdm bar) told of each stretch's
+            samples as it is checked.
+        keep_series: keep the report's sample-by-sample ``series`` (for plots; about 0.3 kB a
+            sample); False drops each stretch's.
+        checks: keyword arguments of the validator (``clearance``, ``min_clearance_m``,
+            ``motor_limits``, ``allow_infeasible``).
+    Returns:
+        :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`.
+    Raises:
+        InvalidConfigError, UnreachablePoseError, JointLimitError, SingularPoseError,
+            InterferenceError, MotorLimitError: see
+            :func:`~stewart_drake.robot.limits.validate_trajectory`; InvalidConfigError also for
+            a duration beyond a reference's ``end_time`` (a CSV or Drake trajectory).
+    """
+    if not (np.isfinite(duration_s) and duration_s > 0):
+        raise InvalidConfigError(f"duration must be > 0 s, got {duration_s}")
+    end = getattr(trajectory, "end_time", None)
+    if end is not None and duration_s > end + 1e-9:
+        raise InvalidConfigError(
+            f"the reference {getattr(trajectory, 'name', '')} ends at "
+            f"t = {end:g} s: run at most that long (duration_s) or extend it"
+        )
+    t_all = np.arange(0.0, duration_s + 0.5 * dt, dt)
+    reports = []
+    for start in range(0, t_all.size, VALIDATE_CHUNK_SAMPLES):
+        t = t_all[start : start + VALIDATE_CHUNK_SAMPLES]
+        x, x_dot, x_ddot = trajectory.evaluate(t)
+        report = validate_trajectory(
+            geometry,
+            t,
+            x,
+            cond_threshold=cond_threshold,
+            min_sigma_min_inv=min_sigma_min_inv,
+            raise_refused=raise_refused,
+            x_dot=x_dot,
+            x_ddot=x_ddot,
+            **checks,
+        )
+        reports.append(report if keep_series else dataclasses.replace(report, series={}))
+        if progress is not None:
+            progress.update(t.size)
+    return merge_reports(reports)
+
+
 def check_reference(
     plan: Scenario | RunPlan,
     trajectory=None,
@@ -266,7 +348,7 @@ def check_reference(
     Samples x_d(t) on [0, duration_s] at the control period and checks finiteness, loop closure,
     motor travel, ball-joint cones, both singularity measures, the clearance between the robot's
     parts and the torque and speed each motor must give (the scenario's ``guard`` thresholds,
-    the plan's ``motor_limits``), with :func:`~.trajectories.validate`. A run checks the robot
+    the plan's ``motor_limits``), with :func:`validate_reference`. A run checks the robot
     that is simulated, its payload included (``plant_geometry``).
 
     Args:
@@ -274,7 +356,7 @@ def check_reference(
         trajectory: the reference object (default: the plan's).
         raise_refused: False reports every refusal in the report instead of raising the first
             (``stewart-drake check``).
-        progress, keep_series: as :func:`~.trajectories.validate` (a bar told of the samples
+        progress, keep_series: as :func:`validate_reference` (a bar told of the samples
             checked; the report's sample-by-sample series kept or not).
     Returns:
         the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport` (``summary()``
@@ -291,12 +373,11 @@ def check_reference(
             ``guard.allow_infeasible`` (then a :class:`~.errors.FeasibilityWarning`).
     """
     from ..plant.clearance import clearance_model
-    from ..references.trajectories import validate
 
     plan = make_plan(plan, with_reference=trajectory is None)
     trajectory = plan.reference if trajectory is None else trajectory
     guard, geometry = plan.scenario.guard, plan.plant_geometry
-    report = validate(
+    report = validate_reference(
         trajectory,
         geometry,
         plan.duration_s,

@@ -223,7 +223,7 @@ class TableHold(LeafSystem):
 
 def add_reference_sources(
     builder,
-    trajectory,
+    trajectory: Reference,
     geometry: StewartGeometry,
     duration_s: float,
     period_s: float,
@@ -284,7 +284,9 @@ class RunReference:
     T_ff_initial: np.ndarray
 
 
-def add_run_reference(builder, plan, trajectory, station, reference_system=None) -> RunReference:
+def add_run_reference(
+    builder, plan, trajectory: Reference | None, station, reference_system=None
+) -> RunReference:
     """The reference of the run of ``plan`` (a :class:`~.plan.RunPlan`): the precomputed
     reference and feed-forward of ``trajectory`` (:func:`add_reference_sources` at the plan's
     control period and sample offset, led by half a plant step, with the scenario's
@@ -293,6 +295,7 @@ def add_run_reference(builder, plan, trajectory, station, reference_system=None)
     ``station``'s ``platform_state``."""
     h_plant, h = plan.plant_time_step_s, plan.control_period_s
     if reference_system is None:
+        assert trajectory is not None, "a run without a live reference needs its trajectory"
         ref = add_reference_sources(
             builder,
             trajectory,

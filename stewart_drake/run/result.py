@@ -26,7 +26,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..base.fileio import CheckedNpz, save_npz
-from ..plant.closed_chain import loop_closure_errors
+from ..references.motion import Reference
 from .metrics import compute_metrics
 from .reference import ReferenceSources
 
@@ -257,7 +257,7 @@ class RunLogs:
     or with none seen). The reference's tables can go after it (:func:`release_reference`)."""
 
     result: RunResult
-    trajectory: object
+    trajectory: Reference
     contact: bool
     first_contact: tuple | None
 
@@ -329,7 +329,7 @@ def release_reference(sd) -> None:
 RESULT_CHUNK = 20_000
 
 
-def reference_at(trajectory, t: np.ndarray) -> np.ndarray:
+def reference_at(trajectory: Reference, t: np.ndarray) -> np.ndarray:
     """(N, 18) float32 the reference's pose, rate and acceleration at times t (s): the
     analytic reference a logged sample at t_n is compared with (a logged sample is the state the
     plant computed for physical time t_n; the controller's x_d leads by half a plant step),
@@ -358,15 +358,12 @@ def feedforward_at(sd, t: np.ndarray) -> np.ndarray:
 
 
 def loop_closures_from_states(sd, states: np.ndarray) -> np.ndarray:
-    """(N,) max loop-closure error in m at each plant state (N, nq + nv)."""
-    plant = sd.plant
-    context = plant.CreateDefaultContext()
-    nq = plant.num_positions()
-    out = np.empty(len(states))
-    for k, s in enumerate(states):
-        plant.SetPositions(context, s[:nq])
-        out[k] = loop_closure_errors(plant, context, sd.handles).max()
-    return out
+    """(N,) max loop-closure error in m at each plant state (N, nq + nv), by the station's
+    :class:`~stewart_drake.plant.closed_chain.LoopClosure` (held to the plant's kinematics at
+    1e-12 m by a test)."""
+    closure = sd.station.loop_closure
+    nq = sd.plant.num_positions()
+    return np.array([closure(s[:nq]).max() for s in states])
 
 
 _OPTIONAL_ARRAYS = ("omega", "integral", "rho", "T_ff", "t_state", "state")

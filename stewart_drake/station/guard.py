@@ -31,7 +31,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, SimulationDivergedError
 from ..base.fileio import save_npz
-from ..plant.closed_chain import LoopClosure
+from ..references.motion import Reference
 from ..robot.kinematics import AXIS_NAMES, ik_scalar
 from ..robot.limits import (
     DEFAULT_CLEARANCE_RESOLUTION_M,
@@ -155,7 +155,7 @@ class DivergenceGuard(LeafSystem):
         self._T = self.DeclareVectorInputPort("T", 6)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         # The loop closure from the positions alone (no context of the plant, no kinematics).
-        self._closure = LoopClosure(station.handles)
+        self._closure = station.loop_closure
         self.DeclarePeriodicPublishEvent(
             period_sec=self.config.check_period_s, offset_sec=0.0, publish=self._Check
         )
@@ -361,11 +361,13 @@ def save_divergence(sd, root, reason: str) -> Path:
     }
     for name, log in logs.items():
         arrays[name] = log.data().T.copy()
-    try:
-        arrays["x_d"] = np.concatenate(sd.trajectory.evaluate(t), axis=1)
-    except Exception:  # noqa: BLE001 - the reference itself may be the fault
-        pass
-    name = getattr(sd.trajectory, "name", "custom")
+    trajectory: Reference | None = sd.trajectory  # None: a live reference
+    if trajectory is not None:
+        try:
+            arrays["x_d"] = np.concatenate(trajectory.evaluate(t), axis=1)
+        except Exception:  # noqa: BLE001 - the reference itself may be the fault
+            pass
+    name = getattr(trajectory, "name", "custom")
     stamp = time.strftime("%Y%m%d-%H%M%S")
     path = Path(sd.guard.config.divergence_dir) / (
         f"diverged_{name}_t{root.get_time():.4f}s_{stamp}_{os.getpid()}"

@@ -43,7 +43,7 @@ from pydrake.trajectories import PiecewisePolynomial
 from ..base.checks import MAX_SEED, as_number
 from ..base.checks import check_int as _check_int
 from ..base.errors import InvalidConfigError
-from ..plant.closed_chain import assemble
+from ..plant.closed_chain import LoopClosure, assemble
 from ..plant.plant import StewartPlantHandles, add_stewart_plant
 from ..robot.kinematics import X_HOME
 from ..robot.statics import p_ETool
@@ -407,7 +407,9 @@ class StewartStation(Diagram):
             the contacts between the robot's parts.
     Attributes:
         plant, scene_graph, handles (:class:`~stewart_drake.plant.plant.StewartPlantHandles`),
-        sensor (the ground-truth :class:`PlatformPoseSensor`), plan (the
+        loop_closure (:class:`~stewart_drake.plant.closed_chain.LoopClosure`: each rod's gap to
+        its platform joint from the plant's positions, made once for the guard and the run's
+        result), sensor (the ground-truth :class:`PlatformPoseSensor`), plan (the
         :class:`~.plan.RunPlan` it was built from).
     Args:
         plan: the :class:`~.plan.RunPlan` (:func:`~.diagram.make_stewart_station` makes one from a
@@ -420,6 +422,7 @@ class StewartStation(Diagram):
         scenario = plan.scenario
         plant, scene_graph, handles = add_station_plant(builder, plan)
         self.plant, self.scene_graph, self.handles, self.plan = (plant, scene_graph, handles, plan)
+        self.loop_closure = LoopClosure(handles)
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))
         builder.ExportInput(command.get_input_port(), "motor_torque")
         applied = self._add_torque_pipe(builder, command.get_output_port())
