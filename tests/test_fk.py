@@ -123,3 +123,7 @@ def test_encoder_pose_noise_agrees_with_rounding_the_angles(geometry):
     # halving the count halves both
     half = forward_kinematics.encoder_pose_noise(geometry, x, q / 2)
     assert half == pytest.approx((figure[0] / 2, figure[1] / 2), rel=1e-12)
+    # a cap on the poses evaluates every k-th one: the same figure as those poses give
+    capped = forward_kinematics.encoder_pose_noise(geometry, x, q, max_poses=300)
+    assert capped == forward_kinematics.encoder_pose_noise(geometry, x[::6], q)
+    assert capped == pytest.approx(figure, rel=0.05)

@@ -492,8 +492,7 @@ class FeedforwardTuningLearner(LeafSystem):
         if self.quantum <= 0.0 or len(poses) == 0:
             return (0.0, 0.0)
         try:
-            every = poses[:: max(1, len(poses) // 50)]
-            return encoder_pose_noise(self.geometry, every, self.quantum)
+            return encoder_pose_noise(self.geometry, poses, self.quantum, max_poses=50)
         except StewartError:  # a singular or unreachable pose
             return (0.0, 0.0)
 

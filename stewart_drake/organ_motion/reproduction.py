@@ -86,8 +86,7 @@ class Reproduction:
         if self.encoder_quantum_rad <= 0.0 or self.geometry is None or len(poses) == 0:
             return (0.0, 0.0)
         try:
-            every = poses[:: max(1, len(poses) // 200)]
-            return encoder_pose_noise(self.geometry, every, self.encoder_quantum_rad)
+            return encoder_pose_noise(self.geometry, poses, self.encoder_quantum_rad, max_poses=200)
         except StewartError:
             return (float("nan"), float("nan"))
 

@@ -12,10 +12,9 @@ their own). The verdicts are computed here, from the numbers in the tables.
 
 "Never worse" is judged against the spread that chance gives: every motion runs twice without
 learning, the second time with the encoders' rounding realized differently (a thousandth of a
-count of noise, :data:`SECOND_REALIZATION`). The runs are deterministic, but the rounding of
-the angles makes the loop's noise a chaotic function of its history, so two runs that differ
-by less than a count in one reading end with RMS figures a few per cent apart. Learning is
-worse on a figure when it is worse than both runs without it.
+count of noise, :data:`SECOND_REALIZATION`). The runs are deterministic, but the rounding makes
+the loop's noise a chaotic function of its history: runs that differ by less than a count in one
+reading end a few per cent apart. Learning is worse on a figure when worse than both.
 """
 
 from __future__ import annotations
@@ -204,7 +203,7 @@ def _figures(result, quantum_rad: float = 0.0, geometry=None) -> dict:
     resolution = (0.0, 0.0)
     if quantum_rad > 0 and geometry is not None:
         poses = np.asarray(result.x_d[~start, :6], dtype=float)
-        resolution = encoder_pose_noise(geometry, poses[:: max(1, len(poses) // 200)], quantum_rad)
+        resolution = encoder_pose_noise(geometry, poses, quantum_rad, max_poses=200)
     return {
         "window_translation_m": [w[0] for w in windows],
         "window_rotation_rad": [w[1] for w in windows],

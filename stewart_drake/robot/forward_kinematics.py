@@ -206,7 +206,9 @@ def fk(
     return x, status
 
 
-def encoder_pose_noise(geometry: RobotGeometry, x, quantum_rad: float) -> tuple[float, float]:
+def encoder_pose_noise(
+    geometry: RobotGeometry, x, quantum_rad: float, max_poses: int | None = None
+) -> tuple[float, float]:
     """The RMS error that rounding the motor angles to whole encoder counts puts in the pose
     forward kinematics recovers, at the poses ``x``: the encoders' floor on a measured pose.
 
@@ -219,6 +221,8 @@ def encoder_pose_noise(geometry: RobotGeometry, x, quantum_rad: float) -> tuple[
     Args:
         geometry: the robot. x: (6,) or (n, 6) poses [phi, theta, psi, X, Y, Z] (rad, m).
         quantum_rad: one encoder count, rad (2 pi / counts per revolution).
+        max_poses: evaluate every k-th pose, k = n // max_poses, so that at most about twice
+            that many Jacobians are inverted (a run's reference at 1 kHz; None: every pose).
     Returns:
         (m, rad): the translation's and the rotation's RMS error.
     Raises:
@@ -229,6 +233,8 @@ def encoder_pose_noise(geometry: RobotGeometry, x, quantum_rad: float) -> tuple[
 
     q = as_number("quantum_rad", quantum_rad, 0.0, lo_open=True)
     x = np.atleast_2d(as_poses("x", x))
+    if max_poses is not None:
+        x = x[:: max(1, len(x) // max(1, int(max_poses)))]
     J_inv = np.linalg.inv(jacobian(geometry, x))  # (n, 6, 6): x_dot = J^-1 theta_dot
     cov_diag = (q * q / 12.0) * np.sum(J_inv**2, axis=-1)  # (n, 6): diag of J^-1 J^-T
     rotation = float(np.sqrt(np.mean(np.sum(cov_diag[:, :3], axis=1))))
