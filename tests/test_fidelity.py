@@ -228,7 +228,7 @@ def test_reproduce_learns_on_request(tmp_path, capsys):
         (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
         (
             ["reproduce", "breathing", "--map", "SI=X"],
-            "--map, --lowpass-hz, --centre, --centre-on, --max-gap are for a trace file",
+            "--centre-on, --max-gap, --smoothing, --seam-blend are for a trace file",
         ),
         (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
         (["reproduce", "missing.csv"], "no trace at"),

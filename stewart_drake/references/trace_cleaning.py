@@ -105,6 +105,9 @@ def smoothed_spline(tk: np.ndarray, yk: np.ndarray):
 
 #: Fewest samples a loop repeats (shorter repeats are a still patient, not a loop).
 MIN_LOOP_SAMPLES = 10
+#: Shortest loop, s: a recording repeated to make a trace holds several breaths (IntERAct's:
+#: 60 s to 10 min); a shorter exact repeat is a synthetic periodic motion, not a loop.
+MIN_LOOP_S = 10.0
 #: Share of the samples after the first loop that must repeat it exactly.
 MIN_LOOP_SHARE = 0.9
 #: A join of a loop is a seam when its step beyond the motion's own (:func:`_jump`) is this

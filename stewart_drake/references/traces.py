@@ -30,7 +30,7 @@ from .organ.combinators import layered, scaled
 from .organ.core import check_centre
 from .organ.library import make_layers
 from .samples import CSV_BYTES_PER_ROW, CSV_COLUMNS, CubicSplineTrajectory, load_csv_trajectory
-from .trace_cleaning import SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
+from .trace_cleaning import MIN_LOOP_S, SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
 from .trace_files import TRACE_FORMATS, TraceTable, read_trace_table, trace_samples
 
 #: How a trace's samples are joined (``smoothing`` of :func:`load_trace`): a smoothing spline
@@ -351,7 +351,7 @@ def load_trace(
         smoothing: "auto" or "none" (:data:`SMOOTHING_MODES`); ``info.departures`` gives how
             far the reference departs from the samples.
         seam_blend_s: the time over which each seam of a looped recording is blended, s (0:
-            left as recorded), shorter than the loop; ``info.seam_words()`` says what was done.
+            left as recorded; at most half the loop); ``info.seam_words()`` says what was done.
     Returns:
         :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
         :class:`~.samples.CubicSplineTrajectory` of a project CSV.
@@ -406,7 +406,7 @@ def _trace_trajectory(
     grid = _trace_grid(path, t, resample_hz)
     if smoothing not in SMOOTHING_MODES:
         raise InvalidConfigError(f"smoothing must be 'auto' or 'none', got {smoothing!r}")
-    data, loop_s, seams, jumps = _without_seams(table, rate, seam_blend_s)
+    data, loop_s, seams, jumps, seam_blend_s = _without_seams(table, rate, seam_blend_s)
     displacement, gaps, departures = _resampled(
         path, t, data, table.names, targets, table.factors, grid, rate, max_gap_s, smoothing
     )
@@ -442,26 +442,24 @@ def _trace_trajectory(
 
 
 def _without_seams(table: TraceTable, rate: float, blend_s: float):
-    """(the table's data with a loop's seams blended, the loop in s (0: not a loop), its seams,
-    ((axis, largest jump taken out, rad or m), ...))."""
+    """(the table's data with a loop's seams blended, the loop in s (0: not a loop or shorter
+    than :data:`~.trace_cleaning.MIN_LOOP_S`), its seams, ((axis, largest jump taken out, rad
+    or m), ...), the blend's length in s: ``blend_s``, at most half the loop)."""
     blend_s = as_number("seam_blend_s", blend_s, 0.0)
     loop = loop_seams(table.data[:, 1:])
-    if loop is None:
-        return table.data, 0.0, 0, ()
+    if loop is None or loop.period / rate < MIN_LOOP_S:
+        return table.data, 0.0, 0, (), 0.0
     loop_s = loop.period / rate
     if blend_s == 0.0 or not loop.seams:
-        return table.data, loop_s, len(loop.seams), ()
-    if blend_s >= loop_s:
-        raise InvalidConfigError(
-            f"seam_blend_s must be shorter than the trace's loop ({loop_s:.4g} s), got {blend_s:g}"
-        )
+        return table.data, loop_s, len(loop.seams), (), 0.0
+    blend_s = min(blend_s, 0.5 * loop_s)  # blends that do not meet
     blended, largest = blend_seams(table.t, table.data[:, 1:], loop, blend_s)
     jumps = tuple(
         (AXIS_NAMES[k], abs(float(j * f)))
         for k, f, j in zip(table.targets, table.factors, largest)
         if j > 0.0
     )
-    return np.column_stack([table.data[:, 0], blended]), loop_s, len(loop.seams), jumps
+    return np.column_stack([table.data[:, 0], blended]), loop_s, len(loop.seams), jumps, blend_s
 
 
 # -- a scenario's choice of a trace ----------------------------------------------------------------

@@ -1,11 +1,11 @@
-"""Reference trajectories x_d(t) of the platform pose and their validation before a run.
+"""Reference trajectories x_d(t) of the platform pose.
 
 A trajectory is any object with ``evaluate(t)`` mapping times t (s) to pose, rate and
 acceleration, each ``t.shape + (6,)`` in [rad, rad, rad, m, m, m] (and /s, /s^2).
 :func:`as_trajectory` accepts more and adapts it: an ``evaluate`` that takes one time only, a Drake
 ``Trajectory`` (e.g. a ``PiecewisePolynomial``), a CSV file of ``t, phi, theta, psi, X, Y, Z``
-or a registered name. :func:`validate` checks one before a run;
-:mod:`~stewart_drake.run.reference` puts one into a Diagram. What a reference is:
+or a registered name. :func:`~stewart_drake.run.plan.validate_reference` checks one before a
+run; :mod:`~stewart_drake.run.reference` puts one into a Diagram. What a reference is:
 :class:`~.motion.Reference`.
 
 The reference CSV and the spline through samples are in :mod:`~.samples`, the tuner's

@@ -47,7 +47,7 @@ from pydrake.systems.primitives import PassThrough
 from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
-from ...plant.closed_chain import assembled_positions
+from ...plant.closed_chain import LoopClosure, assembled_positions
 from ...robot.forward_kinematics import fk
 from ...robot.kinematics import X_HOME, angular_velocity_map, ik_single, jacobian, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
@@ -388,7 +388,9 @@ class HardwareStation(Diagram):
             and closes it). driver: the :class:`DynamixelDriver`. plan: the run's plan.
         plant, scene_graph, handles, sensor: the robot's MultibodyPlant and its SceneGraph in
             a Diagram of their own (``model``), never simulated: kinematics, visualization and
-            the guard's geometry; ``sensor`` the pose from a plant state.
+            the guard's geometry; ``sensor`` the pose from a plant state. loop_closure: the
+            :class:`~stewart_drake.plant.closed_chain.LoopClosure` the guard and the run's
+            result read, as the simulated station's.
     Args:
         plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``.
         meshcat: optional pydrake Meshcat: the robot drawn at its measured pose every
@@ -408,6 +410,7 @@ class HardwareStation(Diagram):
             ApplyVisualizationConfig(scenario.visualization, model_builder, meshcat=meshcat)
         self.model = model_builder.Build()
         self.plant, self.scene_graph, self.handles, self.plan = plant, scene_graph, handles, plan
+        self.loop_closure = LoopClosure(handles)
         self.sensor = PlatformPoseSensor(plant, handles)
         self.bus = DynamixelBus.from_config(scenario.bus)
         builder = DiagramBuilder()
