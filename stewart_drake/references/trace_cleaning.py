@@ -110,7 +110,7 @@ MIN_LOOP_SAMPLES = 10
 MIN_LOOP_S = 10.0
 #: Share of the samples after the first loop that must repeat it exactly.
 MIN_LOOP_SHARE = 0.9
-#: A join of a loop is a seam when its step beyond the motion's own (:func:`_jump`) is this
+#: A join of a loop is a seam when its step beyond the motion's own (:func:`_seam_steps`) is this
 #: many robust standard deviations of that quantity over the whole recording, on some axis (a
 #: recording that repeats without a step, as a synthetic periodic motion does, has none).
 SEAM_JUMP = 10.0
@@ -170,16 +170,14 @@ def loop_seams(data: np.ndarray) -> LoopSeams | None:
     joins = [s for s in range(start - 1, n - 1) if source[s + 1] >= 0 and not runs_on[s]]
     spacing = np.diff(joins) if len(joins) > 1 else [start - source[start]]
     steps = np.diff(data, axis=0)
-    jumps = steps[1:-1] - 0.5 * (steps[:-2] + steps[2:])  # _jump at every sample
+    jumps = steps[1:-1] - 0.5 * (steps[:-2] + steps[2:])  # row s - 1: _seam_steps' jump at s
     scale = 1.4826 * np.nanmedian(np.abs(jumps - np.nanmedian(jumps, axis=0)), axis=0)
-    seams = tuple(s for s in joins if np.any(np.abs(_jump(data, s)) > SEAM_JUMP * scale))
+    seams = tuple(
+        s
+        for s in joins
+        if 1 <= s <= len(jumps) and np.any(np.abs(np.nan_to_num(jumps[s - 1])) > SEAM_JUMP * scale)
+    )
     return LoopSeams(int(np.median(spacing)), seams)
-
-
-def _jump(data: np.ndarray, s: int) -> np.ndarray:
-    """(m,) the step between samples s and s + 1 beyond the motion's own (the mean of the steps
-    either side); zero where a neighbour is missing or off the ends."""
-    return _seam_steps(data, s)[0]
 
 
 def _seam_steps(data: np.ndarray, s: int) -> tuple[np.ndarray, np.ndarray]:
