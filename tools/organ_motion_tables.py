@@ -21,10 +21,15 @@ import json
 import time
 from pathlib import Path
 
-from stewart_drake.base.fileio import atomic_write
+from stewart_drake.base.fileio import atomic_write, read_checked
 from stewart_drake.execution.runners import ProcessRunner
 from stewart_drake.organ_motion import trace_study
 from stewart_drake.organ_motion.fidelity_study import run_study, write_tables
+
+
+def _read_results(path) -> dict:
+    """A study's results.json, read through the package's checked reader."""
+    return json.loads(read_checked(path, "study results", 200e6, "give a results.json"))
 
 
 def main() -> None:
@@ -46,7 +51,7 @@ def main() -> None:
     )
     args = parser.parse_args()
     if args.only == "traces" and args.from_json:
-        traces = json.loads(Path(args.from_json).read_text())
+        traces = _read_results(args.from_json)
         print(f"wrote {trace_study.write_tables(Path(args.docs), traces)}")
         return
     if args.only != "cycles" and not args.from_json:
@@ -62,7 +67,7 @@ def main() -> None:
     if args.only == "traces":
         return
     if args.from_json:
-        results = json.loads(Path(args.from_json).read_text())
+        results = _read_results(args.from_json)
     else:
         t0 = time.perf_counter()
         results = run_study(runner=ProcessRunner(n_workers=args.jobs, recycle=1))

@@ -54,7 +54,9 @@ def main() -> int:
             argv = ["reproduce", str(path), "--smoothing", smoothing, "--out", str(report)]
             if cli(argv + ["--no-progress"]) != 0:
                 return 1
-            (data,) = [json.loads(p.read_text()) for p in report.glob("*.json")]
+            (data,) = [
+                json.loads(read_checked(p, "reproduce report", 50e6)) for p in report.glob("*.json")
+            ]
             f = data["fidelity"]
             figures[label, smoothing] = f["rms_translation_m"]
             joined = "through every sample" if smoothing == "none" else "without noise"
