@@ -5,11 +5,10 @@ covers what it holds. Sizes, not timings."""
 
 import numpy as np
 import pytest
-from pydrake.systems.primitives import TrajectorySource
 
 from stewart_drake.run import simulate as experiments
 from stewart_drake.run.plan import run_memory_bytes
-from stewart_drake.run.reference import TableHold, zero_order_hold
+from stewart_drake.run.reference import StretchFeeder, zero_order_hold
 from stewart_drake.run.result import SignalLog, finish_result, release_reference
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.run.simulate import build_simulator
@@ -55,7 +54,8 @@ def test_the_logs_are_allocated_for_the_run_and_nothing_grows(short_run):
     assert state.t.size == state.num_samples + 1
     assert signals.nbytes() / signals.t.size < 160  # t 8 B, 12 + 6 + 7 + 6 + 6 float32
     # The reference is not held as a table: only the feed-forward's (48 B a control period).
-    assert sd.reference.x_d.table is None and sd.reference.T_ff_table.shape[1] == 6
+    assert set(sd.reference.feeder.sources) == {"x_d", "T_ff"}
+    assert sd.reference.T_ff_table.shape == (DURATION_S / 1e-3 + 2, 6)
 
 
 def test_releasing_the_reference_frees_its_tables():
@@ -71,7 +71,7 @@ def test_releasing_the_reference_frees_its_tables():
         "T_ff_table": weakref.ref(ref.T_ff_table),
         "t_sample": weakref.ref(ref.t_sample),
         "t_eval": weakref.ref(ref.t_eval),
-        "breaks": weakref.ref(ref.T_ff.breaks),
+        "breaks": weakref.ref(ref.feeder.breaks),
     }
     assert all(w() is not None for w in tables.values())
     release_reference(sd)
@@ -81,41 +81,57 @@ def test_releasing_the_reference_frees_its_tables():
     assert result.x_d.shape == (result.t.size, 18) and np.all(np.isfinite(result.x_d))
 
 
-def test_a_signal_log_grows_when_a_run_outlasts_it():
-    log = SignalLog({"y": (2, np.float32)}, 0.1, 0.15)  # room for 3 samples
-    context = log.CreateDefaultContext()
-    log.get_input_port().FixValue(context, [1.0, 2.0])
-    for k in range(7):
-        context.SetTime(0.1 * k)
-        log._Log(context)
-    view = log.logger("y").FindLog(context)
-    np.testing.assert_allclose(view.sample_times(), 0.1 * np.arange(7))
-    assert view.data().shape == (2, 7) and np.all(view.data() == [[1.0], [2.0]])
+def test_a_signal_log_drained_every_second_grows_when_a_run_outlasts_it():
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource([1.0, 2.0]))
+    signals = {"y": (source.get_output_port(), np.float32)}
+    log = SignalLog.add(builder, "log", signals, 0.1, 0.15)  # room for 3 samples
+    assert log.t.size == 3
+    simulator = Simulator(builder.Build())
+    log.bind(simulator.get_context())
+    simulator.AdvanceTo(2.55)
+    # Drained at 1 s and 2 s (before the sinks' samples of that instant: the log is added
+    # first): t = 0 .. 1.9 moved, the arrays grown.
+    assert log.num_samples == 20
+    view = log.logger("y").FindLog(simulator.get_context())
+    np.testing.assert_allclose(view.sample_times(), 0.1 * np.arange(26), atol=1e-12)
+    assert view.data().shape == (2, 26) and np.all(view.data() == [[1.0], [2.0]])
+    # What the sink held is gone from it: memory bounded by the drain period.
+    context = log.sinks["y"].GetMyContextFromRoot(simulator.get_context())
+    assert log.sinks["y"].GetLog(context).num_samples() == 0
 
 
-def test_a_table_of_rows_made_a_stretch_at_a_time_is_the_zero_order_hold_of_the_table():
+def test_sources_fed_a_stretch_at_a_time_are_the_zero_order_hold_of_the_table():
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+
     rng = np.random.default_rng(3)
-    breaks, table = np.arange(13) * 1e-3, rng.standard_normal((13, 4))
+    breaks, table = np.arange(23) * 1e-3, rng.standard_normal((23, 4))
     made = []
 
     def rows(a, b):
         made.append((a, b))
         return table[a:b]
 
-    stretched, whole = TableHold(breaks, rows=rows, stretch=5), TableHold(breaks, table)
-    drake = TrajectorySource(zero_order_hold(breaks, table))
-    contexts = [s.CreateDefaultContext() for s in (stretched, whole, drake)]
-    # Jumps back and forth, then every row in turn (the row last output and the next are tried
-    # before a search: each break, just before it and inside its interval).
-    walk = (np.array([-1e-12, 0.0, 0.5e-3])[None, :] + breaks[:, None]).ravel()
-    for t in (-1.0, 0.0, 0.5e-3, 1e-3, 4.99e-3, 5e-3, 9.9e-3, 0.0115, 0.012, 1.0, 3e-3, *walk):
-        values = []
-        for system, context in zip((stretched, whole, drake), contexts):
-            context.SetTime(t)
-            values.append(system.get_output_port().Eval(context))
-        np.testing.assert_array_equal(values[0], values[2])
-        np.testing.assert_array_equal(values[1], values[2])
-    assert all(a % 5 == 0 and b - a <= 5 for a, b in made[1:])  # stretches of 5 rows
+    builder = DiagramBuilder()
+    feeder = builder.AddSystem(StretchFeeder(breaks, {"y": rows}, stretch=5))
+    source = builder.AddSystem(feeder.sources["y"])
+    whole = zero_order_hold(breaks, table)
+    simulator = Simulator(builder.Build())
+    simulator.Initialize()
+    context = source.GetMyContextFromRoot(simulator.get_context())
+    # Every row in turn (at each break, inside its interval and just before the next), then
+    # past the end (the last interval's row, as the whole table's hold clamps).
+    walk = (np.array([0.0, 0.5e-3, 1e-3 - 1e-9])[None, :] + breaks[:-1, None]).ravel()
+    for t in (*walk, 0.022, 0.03):
+        simulator.AdvanceTo(t)
+        np.testing.assert_array_equal(source.get_output_port().Eval(context), whole.value(t)[:, 0])
+    # Stretches of 5 rows plus the pads, fed as the run reached them.
+    assert [a for a, _ in made] == [0, 0, 0, 2, 7, 12] and max(b - a for a, b in made) <= 21
 
 
 def test_the_estimate_before_a_run_covers_what_a_run_holds(short_run):

@@ -22,7 +22,6 @@ from pydrake.systems.framework import Diagram, DiagramBuilder, OutputPort, Syste
 from pydrake.systems.primitives import (
     Adder,
     ConstantVectorSource,
-    LogVectorOutput,
     RandomSource,
 )
 
@@ -42,7 +41,7 @@ from ..station.station import (
 )
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
-from .result import add_run_logs
+from .result import SignalLog, add_run_logs
 from .scenario import Scenario, dump_scenario
 
 #: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
@@ -58,7 +57,8 @@ class StewartDiagram:
             the scenario's ``bus`` the :class:`~.bus.station.HardwareStation`.
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
             (or the live reference system). trajectory: the reference object (``evaluate(t)``;
-            None with a live reference). loggers: name -> ``LogVectorOutput`` logger.
+            None with a live reference). loggers: name -> :class:`~.result.SignalLogger`
+            (``FindLog(root_context)``).
         plan: the :class:`~.plan.RunPlan` built (``scenario`` is its scenario). features,
             tuner: the tuner's systems, or None.
         noise: the sensor noise's ``RandomSource``, or None. estimator: the
@@ -129,6 +129,8 @@ class StewartDiagram:
                 self.noise.GetMyMutableContextFromRoot(root_context),
                 RandomGenerator(noise.seed),
             )
+        for logger in self.loggers.values():  # the logs drain from this run's Context
+            logger.log.bind(root_context)
         hw = self.scenario.hardware
         self.station.initialize(
             root_context, self.T_ff_initial, seed=hw.encoders.seed if hw is not None else 0
@@ -438,9 +440,9 @@ def _add_weights(builder, scenario: Scenario, context, system, inputs, outputs, 
         added = scenario.tuner.add_to(builder, ports)
         loggers = {}
         if added.rho_period_s is not None and added.features is not None:
-            loggers["rho"] = LogVectorOutput(
-                added.features.GetOutputPort("rho"), builder, added.rho_period_s
-            )
+            rho = {"rho": (added.features.GetOutputPort("rho"), np.float64)}
+            log = SignalLog.add(builder, "log_rho", rho, added.rho_period_s, ports.duration_s)
+            loggers["rho"] = log.logger("rho")
         return added.features, added.tuner, loggers
     if "omega" in ports.inputs:
         omega = builder.AddNamedSystem(

@@ -3,13 +3,13 @@
 The reference x_d(t) is known before the run, and so is the feed-forward torque that holds (or
 drives) the platform along it. Evaluating both in Python at every 1 ms control step cost about a
 third of the wall time of a run (IK, Jacobian and gravity gradient per step), so
-:func:`add_reference_sources` evaluates them vectorized, and puts them in the Diagram as
-:class:`TableHold` systems: zero-order holds that read the row for the current step. The
+:func:`add_reference_sources` evaluates them vectorized, and puts them in the Diagram as Drake
+``TrajectorySource``s of zero-order holds, read in C++ with no Python call per step. The
 feed-forward (IK, dynamics) is computed once for the whole run and kept as a numpy table (48 B a
-step); the reference itself, cheap to evaluate, a stretch of :data:`SAMPLE_CHUNK` rows at a time,
-so a long run holds no row of it per step (Drake's ``TrajectorySource`` of a
-``BsplineTrajectory`` of order 1 kept about 0.5 kB a step for the two, and a
-``PiecewisePolynomial.ZeroOrderHold`` a polynomial object per entry, 3.3 kB a step).
+step); the reference itself, cheap to evaluate, a stretch of :data:`SAMPLE_CHUNK` rows at a time.
+A source holds only the stretch in force (:class:`StretchFeeder` swaps it every stretch): a
+``BsplineTrajectory`` of order 1 keeps about 0.5 kB a step for the two, so a whole 25-minute
+trace in one would hold 0.75 GB (a ``PiecewisePolynomial.ZeroOrderHold``, 3.3 kB a step).
 The controller samples mid-interval (at k h + offset, 0 < offset < h), so each sample reads
 exactly the value stored for step k, never its neighbour's, whatever the rounding of t.
 """
@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from pydrake.math import BsplineBasis
-from pydrake.systems.framework import BasicVector, LeafSystem, OutputPort, System
+from pydrake.systems.framework import LeafSystem, OutputPort, System
+from pydrake.systems.primitives import TrajectorySource
 from pydrake.trajectories import BsplineTrajectory
 
 from ..base.errors import InvalidConfigError
@@ -35,15 +36,17 @@ class ReferenceSources:
     """The two sources :func:`add_reference_sources` added, and the tables behind them.
 
     Attributes:
-        x_d: :class:`TableHold`, output (18,) [pose, rate, acceleration] of the reference,
+        x_d: a ``TrajectorySource``, output (18,) [pose, rate, acceleration] of the reference,
             its rows evaluated a stretch at a time (:data:`SAMPLE_CHUNK`).
-        T_ff: :class:`TableHold`, output (6,) feed-forward motor torques, N m.
+        T_ff: a ``TrajectorySource``, output (6,) feed-forward motor torques, N m.
+        feeder: the :class:`StretchFeeder` giving both their stretches.
         t_sample: (N,) controller sample instants, s.  t_eval: (N,) the times the reference was
         evaluated at (t_sample + lead).  T_ff_table: (N, 6).
     """
 
-    x_d: TableHold
-    T_ff: TableHold
+    x_d: TrajectorySource
+    T_ff: TrajectorySource
+    feeder: StretchFeeder
     t_sample: np.ndarray
     t_eval: np.ndarray
     T_ff_table: np.ndarray
@@ -53,8 +56,7 @@ class ReferenceSources:
         taken): a Drake Diagram holding Python systems outlives its last Python reference
         (pydrake's keep-alive links form a cycle the collector cannot see), so a long run's
         tables would stay until the process ends. The sources cannot output after this."""
-        self.x_d.release()
-        self.T_ff.release()
+        self.feeder.release()
         self.t_sample = self.t_eval = self.T_ff_table = np.zeros(0)
 
 
@@ -139,86 +141,77 @@ def zero_order_hold(breaks, table) -> BsplineTrajectory:
     return BsplineTrajectory(BsplineBasis(1, breaks), points)
 
 
-class TableHold(LeafSystem):
-    """A zero-order hold of a table's rows: row k on [breaks[k], breaks[k + 1]), the time
-    clamped to [breaks[0], breaks[-1]] (the last row only closes the last interval), as
-    :func:`zero_order_hold` gives (to the bit: the rows are read, not interpolated).
+#: Rows each stretch of :class:`StretchFeeder` holds beyond its own on either side, so that a
+#: read just before or after the stretch changes (the event's time rounded) finds its row.
+STRETCH_PAD = 8
 
-    Output port: ``y`` (n,) the row in force at the Context's time. The table is held by
-    reference (not copied), or given as ``rows(a, b)`` and computed a stretch of ``stretch``
-    rows at a time (the stretch in use kept): a long run then holds no row per step at all.
+
+class StretchFeeder(LeafSystem):
+    """Drake ``TrajectorySource``s of tables' zero-order holds, fed a stretch at a time.
+
+    Each table is the zero-order hold of its rows on ``breaks`` (:func:`zero_order_hold`: row
+    k on [breaks[k], breaks[k + 1]), read, not interpolated), output by a C++
+    ``TrajectorySource`` (no Python call when it is read). A source holds only the stretch of
+    ``stretch`` rows in force, plus :data:`STRETCH_PAD` rows either side: this system (no
+    ports) gives each source the next stretch by ``UpdateTrajectory`` at the time it begins
+    (a periodic event every ``stretch`` rows; the first at initialization), so a long run
+    holds no row per step. Equal breaks are assumed (``breaks[k] = k h``). The sources'
+    values depend on the run's time only: one run per Diagram, as every builder here makes.
 
     Args:
-        breaks: (N,) strictly increasing times, s; N >= 2. table: (N, n) the values (row N - 1
-            is not output, as in :func:`zero_order_hold`), or None with ``rows``.
-        rows: ``rows(a, b)`` -> (b - a, n) rows a..b - 1 of the table (a pure function).
-        stretch: rows computed at once by ``rows``; their starts are multiples of it.
+        breaks: (N,) times k h, s; N >= 2, h > 0.
+        tables: {name: rows} with ``rows(a, b)`` -> (b - a, n) rows a..b - 1 of the table (a
+            pure function, e.g. a numpy table's slice).
+        stretch: rows a source holds (plus the pads).
+    Attributes:
+        sources: {name: ``TrajectorySource``} to add to the Diagram (output (n,)).
     Raises:
-        InvalidConfigError: fewer than 2 breaks, breaks that do not increase, a table of
-            another length, neither or both of table and rows.
+        InvalidConfigError: fewer than 2 breaks, breaks not spaced by one step h > 0.
     """
 
-    def __init__(self, breaks, table=None, rows=None, stretch: int = 5_000):
+    def __init__(self, breaks, tables: dict, stretch: int = 5_000):
         super().__init__()
         self.breaks = np.asarray(breaks, dtype=float)
-        if (table is None) == (rows is None):
-            raise InvalidConfigError("a TableHold takes a table or rows(a, b), one of them")
-        self.table = None if table is None else np.asarray(table, dtype=float)
-        self._rows, self._stretch = rows, int(stretch)
-        first = np.asarray(
-            self.table if self.table is not None else rows(0, min(2, self.breaks.size))
-        )
-        if (
-            self.breaks.ndim != 1
-            or self.breaks.size < 2
-            or first.ndim != 2
-            or (self.table is not None and self.table.shape[0] != self.breaks.size)
-            or not np.all(np.diff(self.breaks) > 0)
-        ):
+        step = np.diff(self.breaks)
+        if self.breaks.ndim != 1 or self.breaks.size < 2 or not np.all(step > 0):
             raise InvalidConfigError(
-                f"a TableHold needs N >= 2 increasing breaks and an (N, n) table, got "
-                f"{self.breaks.shape} and {first.shape}"
+                f"a StretchFeeder needs N >= 2 increasing breaks, got shape {self.breaks.shape}"
             )
-        self._last = self.breaks.size - 2
-        self._k = 0  # the row last output: the next call's first guess
-        self._start = -1  # the stretch in use, with its rows
-        self._block: np.ndarray | None = None
-        self.DeclareVectorOutputPort(
-            "y", first.shape[1], self._Calc, prerequisites_of_calc={self.time_ticket()}
-        )
+        h = float(step[0])
+        if not np.allclose(step, h, rtol=1e-6, atol=0.0):
+            raise InvalidConfigError("a StretchFeeder needs breaks spaced by one step")
+        self._h, self._stretch, self._tables = h, int(stretch), dict(tables)
+        self._k = 0
+        self.sources = {name: TrajectorySource(self._hold(name, 0)) for name in self._tables}
+        self.DeclareInitializationPublishEvent(self._Feed)
+        self.DeclarePeriodicPublishEvent(self._stretch * h, self._stretch * h, self._Feed)
+
+    def _hold(self, name: str, k: int):
+        """The zero-order hold of stretch k of table ``name``, with its pads."""
+        a = max(k * self._stretch - STRETCH_PAD, 0)
+        b = min((k + 1) * self._stretch + STRETCH_PAD, self.breaks.size)
+        return zero_order_hold(self.breaks[a:b], self._tables[name](a, b))
+
+    def _Feed(self, context) -> None:
+        k = int(round(context.get_time() / (self._stretch * self._h)))
+        if k == self._k and context.get_time() > 0.0:
+            return
+        if not self._tables:
+            raise RuntimeError("this StretchFeeder was released: its run is over")
+        if k * self._stretch >= self.breaks.size - 1:  # past the table: the last stretch holds
+            return
+        self._k = k
+        for name, source in self.sources.items():
+            source.UpdateTrajectory(self._hold(name, k))
 
     def release(self) -> None:
-        """Drop the table, the stretch in use and the breaks (:meth:`ReferenceSources.release`)."""
-        self.table = self._block = self._rows = None
+        """Drop the tables and the stretches held (:meth:`ReferenceSources.release`): each
+        source then holds zeros over the first two breaks."""
+        for source in self.sources.values():
+            n = source.get_output_port().size()
+            source.UpdateTrajectory(zero_order_hold(self.breaks[:2], np.zeros((2, n))))
+        self._tables = {}
         self.breaks = np.zeros(0)
-
-    def row(self, k: int) -> np.ndarray:
-        """Row k of the table."""
-        if self.table is not None:
-            return self.table[k]
-        a = (k // self._stretch) * self._stretch
-        if a != self._start:
-            if self._rows is None:
-                raise RuntimeError("this TableHold was released: its run is over")
-            self._block = np.asarray(self._rows(a, min(a + self._stretch, self.breaks.size)))
-            self._start = a
-        assert self._block is not None
-        return self._block[k - a]
-
-    def index(self, t: float) -> int:
-        """The row in force at time t s: k with breaks[k] <= t < breaks[k + 1], clamped to the
-        table. The row last output and the next are tried first (a run reads the rows in turn),
-        then a binary search."""
-        b, k = self.breaks, self._k
-        for j in (k, k + 1):
-            if j < b.size - 1 and b[j] <= t < b[j + 1]:
-                self._k = j
-                return j
-        self._k = min(max(int(np.searchsorted(b, t, side="right")) - 1, 0), self._last)
-        return self._k
-
-    def _Calc(self, context, output: BasicVector) -> None:
-        output.SetFromVector(self.row(self.index(context.get_time())))
 
 
 def add_reference_sources(
@@ -232,7 +225,8 @@ def add_reference_sources(
     feedforward: str = "gravity",
     feedforward_lead_s: float = 0.0,
 ) -> ReferenceSources:
-    """Add the reference x_d and the feed-forward T_ff as zero-order holds (:class:`TableHold`).
+    """Add the reference x_d and the feed-forward T_ff as zero-order holds: Drake
+    ``TrajectorySource``s fed a stretch at a time (:class:`StretchFeeder`).
 
     A consumer that samples at t_k = k h + offset_s reads x_d(t_k + lead_s) and the feed-forward
     at that reference. Each value is stored on [k h, (k + 1) h), so ``offset_s`` must lie strictly
@@ -262,11 +256,17 @@ def add_reference_sources(
         keep_x_d=False,
     )
     breaks = t_sample - offset_s  # k h: the sample lies inside its interval
-    ff_hold = TableHold(breaks, T_ff)
-    x_d_hold = TableHold(breaks, rows=reference_rows(trajectory, t_eval), stretch=SAMPLE_CHUNK)
-    ref = builder.AddNamedSystem("reference", x_d_hold)
-    ff = builder.AddNamedSystem("feedforward", ff_hold)
-    return ReferenceSources(x_d=ref, T_ff=ff, t_sample=t_sample, t_eval=t_eval, T_ff_table=T_ff)
+    feeder = StretchFeeder(
+        breaks,
+        {"x_d": reference_rows(trajectory, t_eval), "T_ff": lambda a, b: T_ff[a:b]},
+        stretch=SAMPLE_CHUNK,
+    )
+    builder.AddNamedSystem("reference_feeder", feeder)
+    ref = builder.AddNamedSystem("reference", feeder.sources["x_d"])
+    ff = builder.AddNamedSystem("feedforward", feeder.sources["T_ff"])
+    return ReferenceSources(
+        x_d=ref, T_ff=ff, feeder=feeder, t_sample=t_sample, t_eval=t_eval, T_ff_table=T_ff
+    )
 
 
 @dataclass(frozen=True)

@@ -24,11 +24,16 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
+from pydrake.systems.primitives import VectorLogSink
 
 from ..base.fileio import CheckedNpz, save_npz
 from ..references.motion import Reference
 from .metrics import compute_metrics
 from .reference import ReferenceSources
+
+#: How often a :class:`SignalLog` moves what Drake's C++ sinks logged into its arrays, s: a
+#: sink keeps float64 rows in memory that doubles when full, so it holds at most this much run.
+DRAIN_PERIOD_S = 1.0
 
 
 class LogView:
@@ -50,13 +55,16 @@ class LogView:
 
 class SignalLogger:
     """The handle of one signal of a :class:`SignalLog`, as ``LogVectorOutput`` returns one:
-    ``FindLog(context)`` gives its :class:`LogView` (the log lives in the system: one run per
+    ``FindLog(root_context)`` moves what the sinks still hold in that Context into the arrays
+    and gives the signal's :class:`LogView` (the arrays live in the system: one run per
     Diagram, as every builder here makes)."""
 
     def __init__(self, log: SignalLog, name: str):
         self.log, self.name = log, name
 
     def FindLog(self, context=None) -> LogView:  # noqa: N802 - Drake's name
+        if context is not None:
+            self.log.drain(context)
         return LogView(self.log, self.name)
 
     def set_name(self, name: str) -> None:  # noqa: ARG002 - the system carries its own name
@@ -64,35 +72,67 @@ class SignalLogger:
 
 
 class SignalLog(LeafSystem):
-    """Log vector inputs every ``period_s`` (first at t = 0, as ``LogVectorOutput``) into
-    preallocated arrays.
+    """Signals logged every ``period_s`` (first at t = 0, as ``LogVectorOutput``) by Drake's C++
+    ``VectorLogSink``, one per signal (no Python call per sample), and moved every
+    ``drain_period_s`` into arrays allocated once for the run, each in its own dtype, after an
+    optional conversion (e.g. plant states to platform poses, vectorized).
 
-    Input ports: one per signal, named as given, of its size.
+    :meth:`add` adds it with its sinks. The sinks' logs live in the run's Context: :meth:`bind`
+    (:meth:`~.diagram.StewartDiagram.initialize` does it) tells the periodic drain where they
+    are, and a handle's ``FindLog(root_context)`` drains what is left. A run never bound still
+    logs every sample, its sinks holding them until it is read.
 
     Args:
-        signals: {name: (size, dtype)} e.g. {"x": (12, np.float32)}.
+        signals: {name: (port, dtype)} or {name: (port, dtype, size, convert)}: the
+            ``OutputPort`` logged and the array's dtype; ``convert(rows)`` maps the sink's
+            float64 rows (n, port size) to the signal's (n, size).
         period_s: the logging period, s (> 0).
         duration_s: the run's length, s: the arrays hold floor(duration_s / period_s) + 2
             samples (a longer run grows them by half).
+        drain_period_s: how often the sinks are drained, s.
     Attributes:
         t: (capacity,) float64 sample times, s. values: {name: (capacity, size)} arrays.
-        num_samples: samples logged (the first ``num_samples`` rows are the log).
+        num_samples: samples moved so far (the first ``num_samples`` rows are the log).
+        sinks: {name: ``VectorLogSink``} (:meth:`add` adds and connects them).
     """
 
-    def __init__(self, signals: dict, period_s: float, duration_s: float):
+    def __init__(
+        self,
+        signals: dict,
+        period_s: float,
+        duration_s: float,
+        drain_period_s: float = DRAIN_PERIOD_S,
+    ):
         super().__init__()
         self.period_s = float(period_s)
         capacity = int(np.floor(duration_s / period_s + 1e-6)) + 2
         self.t = np.empty(capacity)
+        specs = {name: (*spec, spec[0].size(), None)[:4] for name, spec in signals.items()}
         self.values = {
-            name: np.empty((capacity, size), dtype=dtype) for name, (size, dtype) in signals.items()
+            name: np.empty((capacity, size), dtype=dtype)
+            for name, (_, dtype, size, _) in specs.items()
         }
-        self._ports = [
-            (name, self.DeclareVectorInputPort(name, size)) for name, (size, _) in signals.items()
-        ]
+        self._convert = {name: spec[3] for name, spec in specs.items()}
+        self._ports = {name: spec[0] for name, spec in specs.items()}
+        self.sinks: dict = {}
+        self._contexts: list = []
         self.num_samples = 0
         self.DeclareInitializationPublishEvent(self._Reset)
-        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._Log)
+        self.DeclarePeriodicPublishEvent(drain_period_s, drain_period_s, self._Drain)
+
+    @classmethod
+    def add(cls, builder, name: str, signals: dict, period_s: float, duration_s: float):
+        """Add a :class:`SignalLog` named ``name`` of ``signals`` (as the constructor takes
+        them) to ``builder``, with a ``VectorLogSink`` per signal named ``<name>_<signal>``."""
+        log = builder.AddNamedSystem(name, cls(signals, period_s, duration_s))
+        for signal, port in log._ports.items():
+            sink = builder.AddNamedSystem(
+                f"{name}_{signal}", VectorLogSink(port.size(), publish_period=period_s)
+            )
+            builder.Connect(port, sink.get_input_port())
+            log.sinks[signal] = sink
+        log._ports = {}  # the ports' systems are the Diagram's: not held here
+        return log
 
     def logger(self, name: str) -> SignalLogger:
         """The handle of signal ``name`` (its ``FindLog``)."""
@@ -102,20 +142,51 @@ class SignalLog(LeafSystem):
         """Bytes the arrays hold (allocated, not only logged)."""
         return self.t.nbytes + sum(v.nbytes for v in self.values.values())
 
+    def bind(self, root_context) -> None:
+        """Drain the sinks' logs in ``root_context`` (the run's) from now on."""
+        self._contexts = [
+            (name, sink.GetMyMutableContextFromRoot(root_context))
+            for name, sink in self.sinks.items()
+        ]
+
+    def unbind(self) -> None:
+        """Forget the run's Context (a read run's: its Context can then be freed)."""
+        self._contexts = []
+
+    def drain(self, root_context=None) -> None:
+        """Move what the sinks hold (in ``root_context``, binding it; else in the bound
+        Context) into the arrays, converted, and clear the sinks."""
+        if root_context is not None:
+            self.bind(root_context)
+        logs = [(name, self.sinks[name].GetMutableLog(c)) for name, c in self._contexts]
+        n = logs[0][1].num_samples() if logs else 0
+        if n == 0:
+            return
+        k = self.num_samples
+        self._reserve(k + n)
+        self.t[k : k + n] = logs[0][1].sample_times()
+        for name, log in logs:
+            rows = log.data().T
+            convert = self._convert[name]
+            self.values[name][k : k + n] = rows if convert is None else convert(rows)
+            log.Clear()
+        self.num_samples = k + n
+
+    def _reserve(self, n: int) -> None:
+        """Grow the arrays by half (at least to n rows) when the run outlasts them."""
+        if n <= self.t.size:
+            return
+        grow = max(n - self.t.size, self.t.size // 2, 2)
+        self.t = np.concatenate([self.t, np.empty(grow)])
+        for name, v in self.values.items():
+            self.values[name] = np.concatenate([v, np.empty((grow, v.shape[1]), v.dtype)])
+
     def _Reset(self, context) -> None:
         self.num_samples = 0
 
-    def _Log(self, context) -> None:
-        k = self.num_samples
-        if k == self.t.size:  # the run outlasts the arrays: grow by half
-            grow = max(2, self.t.size // 2)
-            self.t = np.concatenate([self.t, np.empty(grow)])
-            for name, v in self.values.items():
-                self.values[name] = np.concatenate([v, np.empty((grow, v.shape[1]), v.dtype)])
-        self.t[k] = context.get_time()
-        for name, port in self._ports:
-            self.values[name][k] = port.Eval(context)
-        self.num_samples = k + 1
+    def _Drain(self, context) -> None:
+        if self._contexts:
+            self.drain()
 
 
 def add_run_logs(builder, station, controller, outputs: set, plan, learner=None) -> dict:
@@ -135,8 +206,9 @@ def add_run_logs(builder, station, controller, outputs: set, plan, learner=None)
         {name: logger}, each with Drake's ``FindLog(context)``.
     """
     scenario = plan.scenario
+    pose_port, to_pose = station.logged_pose()
     signals = {
-        "x": (station.GetOutputPort("platform_state"), np.float32),
+        "x": (pose_port, np.float32) if to_pose is None else (pose_port, np.float32, 12, to_pose),
         "T": (station.GetOutputPort("motor_torque_applied"), np.float32),
     }
     for name in ("status", "integral", "e_bar"):
@@ -150,17 +222,8 @@ def add_run_logs(builder, station, controller, outputs: set, plan, learner=None)
         ("log_signals", scenario.log_period_s, signals),
         ("log_state", scenario.state_log_period_s, slow),
     ):
-        log = builder.AddNamedSystem(
-            log_name,
-            SignalLog(
-                {name: (port.size(), dtype) for name, (port, dtype) in group.items()},
-                period,
-                scenario.duration_s,
-            ),
-        )
-        for name, (port, _) in group.items():
-            builder.Connect(port, log.GetInputPort(name))
-            loggers[name] = log.logger(name)
+        log = SignalLog.add(builder, log_name, group, period, scenario.duration_s)
+        loggers.update({name: log.logger(name) for name in group})
     return loggers
 
 
@@ -297,6 +360,8 @@ def read_run(sd, root_context) -> RunLogs:
     )
     contact = bool(sd.scenario.contact)
     first = sd.guard.first_contact(root_context) if contact and sd.guard is not None else None
+    for logger in sd.loggers.values():  # read: the run's Context is not held for a drain
+        logger.log.unbind()
     return RunLogs(result, sd.trajectory, contact, first)
 
 

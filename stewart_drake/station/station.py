@@ -509,6 +509,12 @@ class StewartStation(Diagram):
             outputs["motor_angle"] = encoders.get_output_port()
         return outputs
 
+    def logged_pose(self):
+        """What a run logs to give the true platform pose and rate: (``plant_state`` port,
+        ``sensor.poses_from_states``), the plant's state converted a drained second at a time
+        (:class:`~stewart_drake.run.result.SignalLog`), so no Python runs per logged sample."""
+        return self.GetOutputPort("plant_state"), self.sensor.poses_from_states
+
     def initialize(self, root_context, T0, seed: int = 0) -> None:
         """Start the pipes at rest: the pending commands (delay) and the current loop hold T0
         (6,) N m, and the encoder noise, if any, is seeded with ``seed``."""

@@ -446,6 +446,11 @@ class HardwareStation(Diagram):
         ``write_torques``, ``torque_off``), e.g. a rehearsal's or a test's."""
         self.bus = self.driver.bus = bus
 
+    def logged_pose(self):
+        """What a run logs as the platform's pose and rate: (``platform_state`` port, None),
+        the measured pose itself (its ``plant_state`` is assembled from it)."""
+        return self.GetOutputPort("platform_state"), None
+
     def initialize(self, root_context, T0=None, seed: int = 0) -> None:
         """Forget the driver's timing records (the next period starts its schedule). The
         servos hold no pipe to fill: ``T0`` and ``seed`` are the simulated station's and are
