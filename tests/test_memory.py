@@ -94,15 +94,15 @@ def test_a_signal_log_drained_every_second_grows_when_a_run_outlasts_it():
     simulator = Simulator(builder.Build())
     log.bind(simulator.get_context())
     simulator.AdvanceTo(2.55)
-    # Drained at 1 s and 2 s (before the sinks' samples of that instant: the log is added
+    # Drained at 1 s and 2 s (before the sink's samples of that instant: the log is added
     # first): t = 0 .. 1.9 moved, the arrays grown.
     assert log.num_samples == 20
     view = log.logger("y").FindLog(simulator.get_context())
     np.testing.assert_allclose(view.sample_times(), 0.1 * np.arange(26), atol=1e-12)
     assert view.data().shape == (2, 26) and np.all(view.data() == [[1.0], [2.0]])
     # What the sink held is gone from it: memory bounded by the drain period.
-    context = log.sinks["y"].GetMyContextFromRoot(simulator.get_context())
-    assert log.sinks["y"].GetLog(context).num_samples() == 0
+    context = log.sink.GetMyContextFromRoot(simulator.get_context())
+    assert log.sink.GetLog(context).num_samples() == 0
 
 
 def test_sources_fed_a_stretch_at_a_time_are_the_zero_order_hold_of_the_table():

@@ -24,14 +24,14 @@ from pathlib import Path
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
-from pydrake.systems.primitives import VectorLogSink
+from pydrake.systems.primitives import Multiplexer, VectorLogSink
 
 from ..base.fileio import CheckedNpz, save_npz
 from ..references.motion import Reference
 from .metrics import compute_metrics
 from .reference import ReferenceSources
 
-#: How often a :class:`SignalLog` moves what Drake's C++ sinks logged into its arrays, s: a
+#: How often a :class:`SignalLog` moves what Drake's C++ sink logged into its arrays, s: a
 #: sink keeps float64 rows in memory that doubles when full, so it holds at most this much run.
 DRAIN_PERIOD_S = 1.0
 
@@ -55,7 +55,7 @@ class LogView:
 
 class SignalLogger:
     """The handle of one signal of a :class:`SignalLog`, as ``LogVectorOutput`` returns one:
-    ``FindLog(root_context)`` moves what the sinks still hold in that Context into the arrays
+    ``FindLog(root_context)`` moves what the sink still holds in that Context into the arrays
     and gives the signal's :class:`LogView` (the arrays live in the system: one run per
     Diagram, as every builder here makes)."""
 
@@ -73,14 +73,14 @@ class SignalLogger:
 
 class SignalLog(LeafSystem):
     """Signals logged every ``period_s`` (first at t = 0, as ``LogVectorOutput``) by Drake's C++
-    ``VectorLogSink``, one per signal (no Python call per sample), and moved every
+    ``VectorLogSink`` (no Python call per sample), and moved every
     ``drain_period_s`` into arrays allocated once for the run, each in its own dtype, after an
     optional conversion (e.g. plant states to platform poses, vectorized).
 
-    :meth:`add` adds it with its sinks. The sinks' logs live in the run's Context: :meth:`bind`
-    (:meth:`~.diagram.StewartDiagram.initialize` does it) tells the periodic drain where they
-    are, and a handle's ``FindLog(root_context)`` drains what is left. A run never bound still
-    logs every sample, its sinks holding them until it is read.
+    :meth:`add` adds it with its sink. The sink's log lives in the run's Context: :meth:`bind`
+    (:meth:`~.diagram.StewartDiagram.initialize` does it) tells the periodic drain where it
+    is, and a handle's ``FindLog(root_context)`` drains what is left. A run never bound still
+    logs every sample, its sink holding them until it is read.
 
     Args:
         signals: {name: (port, dtype)} or {name: (port, dtype, size, convert)}: the
@@ -89,11 +89,11 @@ class SignalLog(LeafSystem):
         period_s: the logging period, s (> 0).
         duration_s: the run's length, s: the arrays hold floor(duration_s / period_s) + 2
             samples (a longer run grows them by half).
-        drain_period_s: how often the sinks are drained, s.
+        drain_period_s: how often the sink is drained, s.
     Attributes:
         t: (capacity,) float64 sample times, s. values: {name: (capacity, size)} arrays.
         num_samples: samples moved so far (the first ``num_samples`` rows are the log).
-        sinks: {name: ``VectorLogSink``} (:meth:`add` adds and connects them).
+        sink: the ``VectorLogSink`` (:meth:`add` adds and connects it).
     """
 
     def __init__(
@@ -114,8 +114,9 @@ class SignalLog(LeafSystem):
         }
         self._convert = {name: spec[3] for name, spec in specs.items()}
         self._ports = {name: spec[0] for name, spec in specs.items()}
-        self.sinks: dict = {}
-        self._contexts: list = []
+        self.sink: VectorLogSink | None = None
+        self._columns: dict = {}
+        self._context = None
         self.num_samples = 0
         self.DeclareInitializationPublishEvent(self._Reset)
         self.DeclarePeriodicPublishEvent(drain_period_s, drain_period_s, self._Drain)
@@ -123,14 +124,26 @@ class SignalLog(LeafSystem):
     @classmethod
     def add(cls, builder, name: str, signals: dict, period_s: float, duration_s: float):
         """Add a :class:`SignalLog` named ``name`` of ``signals`` (as the constructor takes
-        them) to ``builder``, with a ``VectorLogSink`` per signal named ``<name>_<signal>``."""
+        them) to ``builder``, with its ``VectorLogSink`` (``<name>_sink``) and, for more than
+        one signal, the ``Multiplexer`` that gathers them (``<name>_mux``): one sink's event
+        a sample, not one per signal."""
         log = builder.AddNamedSystem(name, cls(signals, period_s, duration_s))
-        for signal, port in log._ports.items():
-            sink = builder.AddNamedSystem(
-                f"{name}_{signal}", VectorLogSink(port.size(), publish_period=period_s)
-            )
-            builder.Connect(port, sink.get_input_port())
-            log.sinks[signal] = sink
+        ports = list(log._ports.values())
+        sizes = [port.size() for port in ports]
+        log.sink = builder.AddNamedSystem(
+            f"{name}_sink", VectorLogSink(sum(sizes), publish_period=period_s)
+        )
+        if len(ports) == 1:
+            builder.Connect(ports[0], log.sink.get_input_port())
+        else:
+            mux = builder.AddNamedSystem(f"{name}_mux", Multiplexer(sizes))
+            for i, port in enumerate(ports):
+                builder.Connect(port, mux.get_input_port(i))
+            builder.Connect(mux.get_output_port(), log.sink.get_input_port())
+        ends = np.cumsum([0, *sizes])
+        log._columns = {
+            signal: slice(a, b) for signal, a, b in zip(log._ports, ends[:-1], ends[1:])
+        }
         log._ports = {}  # the ports' systems are the Diagram's: not held here
         return log
 
@@ -143,33 +156,33 @@ class SignalLog(LeafSystem):
         return self.t.nbytes + sum(v.nbytes for v in self.values.values())
 
     def bind(self, root_context) -> None:
-        """Drain the sinks' logs in ``root_context`` (the run's) from now on."""
-        self._contexts = [
-            (name, sink.GetMyMutableContextFromRoot(root_context))
-            for name, sink in self.sinks.items()
-        ]
+        """Drain the sink's log in ``root_context`` (the run's) from now on."""
+        self._context = self.sink.GetMyMutableContextFromRoot(root_context)
 
     def unbind(self) -> None:
         """Forget the run's Context (a read run's: its Context can then be freed)."""
-        self._contexts = []
+        self._context = None
 
     def drain(self, root_context=None) -> None:
-        """Move what the sinks hold (in ``root_context``, binding it; else in the bound
-        Context) into the arrays, converted, and clear the sinks."""
+        """Move what the sink holds (in ``root_context``, binding it; else in the bound
+        Context) into the arrays, converted, and clear the sink."""
         if root_context is not None:
             self.bind(root_context)
-        logs = [(name, self.sinks[name].GetMutableLog(c)) for name, c in self._contexts]
-        n = logs[0][1].num_samples() if logs else 0
+        if self._context is None:
+            return
+        log = self.sink.GetMutableLog(self._context)
+        n = log.num_samples()
         if n == 0:
             return
         k = self.num_samples
         self._reserve(k + n)
-        self.t[k : k + n] = logs[0][1].sample_times()
-        for name, log in logs:
-            rows = log.data().T
+        self.t[k : k + n] = log.sample_times()
+        rows = log.data().T
+        for name, columns in self._columns.items():
             convert = self._convert[name]
-            self.values[name][k : k + n] = rows if convert is None else convert(rows)
-            log.Clear()
+            values = rows[:, columns]
+            self.values[name][k : k + n] = values if convert is None else convert(values)
+        log.Clear()
         self.num_samples = k + n
 
     def _reserve(self, n: int) -> None:
@@ -185,8 +198,7 @@ class SignalLog(LeafSystem):
         self.num_samples = 0
 
     def _Drain(self, context) -> None:
-        if self._contexts:
-            self.drain()
+        self.drain()
 
 
 def add_run_logs(builder, station, controller, outputs: set, plan, learner=None) -> dict:

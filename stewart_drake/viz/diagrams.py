@@ -115,6 +115,18 @@ def wiring_dot(diagram, title: str = "", highlight: tuple = ("station",)) -> str
     return "\n".join(lines + sorted(edges) + ["}", ""])
 
 
+def is_log(system, connections: dict) -> bool:
+    """Whether ``system`` only logs: a ``VectorLogSink``, or a ``Multiplexer`` gathering a
+    log's signals into one (``connections``: a Diagram's ``connection_map()``)."""
+    kind = type(system).__name__
+    if kind == "VectorLogSink":
+        return True
+    return kind == "Multiplexer" and any(
+        src is system and type(dst).__name__ == "VectorLogSink"
+        for (dst, _), (src, _) in connections.items()
+    )
+
+
 def _wiring(diagram) -> tuple[dict, list]:
     """The wiring :func:`wiring_dot` draws: ({subsystem name: (its type's name, input ports in
     use, output ports in use)}, [DOT edge lines]), loggers left out, the Diagram's exported
@@ -135,8 +147,9 @@ def _wiring(diagram) -> tuple[dict, list]:
             f'[label="{label}", fontsize=9];'
         )
 
-    for (dst, i), (src, j) in diagram.connection_map().items():
-        if type(dst).__name__ in ("VectorLogSink", "SignalLog"):
+    connections = diagram.connection_map()
+    for (dst, i), (src, j) in connections.items():
+        if is_log(dst, connections):
             continue
         out, inp = src.get_output_port(j), dst.get_input_port(i)
         edge(
