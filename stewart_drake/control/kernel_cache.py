@@ -1,7 +1,7 @@
 """numba's disk cache for the LQI's compiled code: how the kernels are compiled
-(:func:`njit_cached`), their uncompiled form (:func:`interpreted`), and whether importing
-:mod:`.lqi.kernels` will compile, decided from the cache without importing it (importing it is
-what compiles).
+(:func:`njit_cached`) and their uncompiled form (:func:`interpreted`), both of
+:mod:`stewart_drake.base.compiled`, and whether importing :mod:`.lqi.kernels` will compile,
+decided from the cache without importing it (importing it is what compiles).
 
 numba keeps one index file per compiled function, ``<module>.<function>-<line>.py<XY>.nbi``, in
 the first cache folder it can write: ``NUMBA_CACHE_DIR`` (a sub-folder per source folder), else
@@ -20,10 +20,13 @@ import inspect
 import os
 import pickle
 import sys
-import tempfile
-import types
 from pathlib import Path
-from typing import Any
+
+# How the kernels are compiled, and their uncompiled form: the package's one convention, in base
+# (the robot's validator compiles its kernels the same way), named here for the LQI's modules.
+from ..base.compiled import fallback_cache_dir as fallback_cache_dir
+from ..base.compiled import interpreted as interpreted
+from ..base.compiled import njit_cached as njit_cached
 
 #: The kernels' module files (in :mod:`.lqi`), with the functions :func:`.lqi.kernels.warm_up`
 #: calls in each; the others are compiled into them.
@@ -54,61 +57,6 @@ def use_cache() -> bool:
         return sources_digest() == DEPENDENCIES_DIGEST
     except (OSError, TypeError):  # sources not shipped: compile every time
         return False
-
-
-def fallback_cache_dir() -> str:
-    """A per-user folder in the temporary directory for numba's cache."""
-    user = os.environ.get("USER") or str(os.getuid() if hasattr(os, "getuid") else "user")
-    return os.path.join(tempfile.gettempdir(), f"stewart-drake-numba-cache-{user}")
-
-
-def njit_cached(function, cache: bool = True):
-    """``numba.njit(cache=True)(function)``, with the cache where numba can write; without the
-    cache when ``cache`` is false (:func:`use_cache`, which a kernels' module asks once).
-
-    numba refuses to cache (RuntimeError at decoration) when neither ``NUMBA_CACHE_DIR``, the
-    source's ``__pycache__`` nor the user's cache folder is writable: the cache then goes to
-    :func:`fallback_cache_dir`, and if even that fails the function compiles in every process.
-    """
-    import numba
-
-    if not cache:
-        return numba.njit(function)
-    try:
-        return numba.njit(cache=True)(function)
-    except RuntimeError:
-        pass
-    config: Any = numba.config  # its settings are module attributes numba sets at import
-    if not config.CACHE_DIR:
-        config.CACHE_DIR = fallback_cache_dir()
-        try:
-            return numba.njit(cache=True)(function)
-        except RuntimeError:
-            config.CACHE_DIR = ""
-    return numba.njit(function)
-
-
-def interpreted(namespace: dict) -> types.SimpleNamespace:
-    """The compiled functions of a module's ``namespace`` (its ``globals()``) as the Python they
-    were compiled from: each one's numba ``py_func``, run with the module's other compiled
-    functions as theirs too, so that nothing it calls is compiled. The compiled and the
-    interpreted form are the same code by construction (``f.__code__ is
-    compiled.py_func.__code__``); a test holds their results equal. A function taken from
-    another module (an ``ik_scalar`` compiled here) is its own ``py_func`` as it is.
-
-    Returns:
-        a namespace with one attribute per compiled function, of the same name.
-    """
-    plain = dict(namespace)
-    compiled = {k: v for k, v in namespace.items() if callable(getattr(v, "py_func", None))}
-    for name, dispatcher in compiled.items():
-        f = dispatcher.py_func
-        plain[name] = (
-            types.FunctionType(f.__code__, plain, f.__name__, f.__defaults__, f.__closure__)
-            if f.__globals__ is namespace
-            else f
-        )
-    return types.SimpleNamespace(**{name: plain[name] for name in compiled})
 
 
 def _usable(folder: str) -> bool:

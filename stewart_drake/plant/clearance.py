@@ -229,9 +229,9 @@ class ClearanceModel:
                         families[key] = (c.distance, int(k), c)
         return (distance, closest, families) if by_family else (distance, closest)
 
-    def sample_indices(self, x, resolution_m: float) -> np.ndarray:
+    def sample_indices(self, x, resolution_m: float, theta=None) -> np.ndarray:
         """:func:`sample_indices` of this model's geometry."""
-        return sample_indices(self.geometry, x, resolution_m)
+        return sample_indices(self.geometry, x, resolution_m, theta)
 
 
 @lru_cache(maxsize=8)
@@ -240,9 +240,11 @@ def clearance_model(geometry: StewartGeometry) -> ClearanceModel:
     return ClearanceModel(geometry)
 
 
-def sample_indices(geometry: StewartGeometry, x, resolution_m: float) -> np.ndarray:
+def sample_indices(geometry: StewartGeometry, x, resolution_m: float, theta=None) -> np.ndarray:
     """Indices of the poses of a path x (n, 6) at which clearance must be measured so that no
-    point of any part moves more than ``resolution_m`` between two measured poses.
+    point of any part moves more than ``resolution_m`` between two measured poses; theta: their
+    motor angles (n, 6) when already known (:func:`~.kinematics.ik_unchecked`'s, NaN where a leg
+    cannot close).
 
     A point of the platform moves at most |dp| + |E d rpy| r_max between samples (r_max the
     farthest point of the platform's parts from E); a point of a rod or crank at most the larger
@@ -254,7 +256,8 @@ def sample_indices(geometry: StewartGeometry, x, resolution_m: float) -> np.ndar
     """
     resolution_m = as_number("clearance resolution", resolution_m, 0.0, lo_open=True)
     x = np.asarray(x, dtype=float)
-    theta, _ = ik_unchecked(geometry, x)
+    if theta is None:
+        theta, _ = ik_unchecked(geometry, x)
     r_platform = np.hypot(max(geometry.platform_plate_radius, geometry.platform_radius), 0.08)
     turn = np.einsum("kij,kj->ki", angular_velocity_map(x[:-1, :3]), np.diff(x[:, :3], axis=0))
     step = (

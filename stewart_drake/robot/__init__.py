@@ -1,3 +1,4 @@
-"""The robot on paper, pure numpy: geometry and inertia (:mod:`.geometry`), closed-form
-kinematics (IK eq. 6, FK, Jacobian, wrench map), statics and feed-forward, joint limits and the
-one reference validator, the solid parts, the servo and the motor catalogue. Imports only base."""
+"""The robot on paper, numpy: geometry and inertia (:mod:`.geometry`), closed-form kinematics
+(IK eq. 6, FK, Jacobian, wrench map), statics and feed-forward, joint limits and the one
+reference validator (its per-pose arithmetic also compiled by numba, :mod:`.path_kernels`), the
+solid parts, the servo and the motor catalogue. Imports only base."""

@@ -18,20 +18,11 @@ from typing import Any
 import numpy as np
 
 from ..base.checks import as_array, as_number, as_poses
-from ..base.errors import (
-    InterferenceError,
-    InvalidConfigError,
-    JointLimitError,
-    MotorLimitError,
-    SingularPoseError,
-    StewartError,
-    UnreachablePoseError,
-)
+from ..base.errors import InvalidConfigError, UnreachablePoseError
 from .kinematics import (
     DEFAULT_COND_THRESHOLD,
     X_HOME,
     RobotGeometry,
-    finite_or_singular,
     ik,
     ik_unchecked,
     jacobian_of,
@@ -41,6 +32,13 @@ from .kinematics import (
     singular_values_of,
     singularity_measures_of,
     wrap_angle,
+)
+from .path_checks import (
+    SampleKinematics,
+    clearance_fields,
+    compiled_kinematics,
+    effort_fields,
+    raise_first_refusal,
 )
 from .trajectory_report import LimitViolation, TrajectoryReport
 
@@ -100,14 +98,36 @@ def joint_angles(geometry: RobotGeometry, x, theta=None) -> dict:
 def joint_angles_of(geometry: RobotGeometry, theta, ell, R) -> dict:
     """:func:`joint_angles` from the motor angles theta (..., 6), the rod vectors ell
     (..., 6, 3) and R_BE (..., 3, 3) of the poses (their :class:`~.kinematics.LegTerms`)."""
+    return _angles_of(theta, *_joint_cosines(geometry, ell, R))
+
+
+def _joint_cosines(geometry: RobotGeometry, ell, R) -> tuple:
+    """(e_l . u_i, R^T e_l . (the socket's axis)) (..., 6) each, of the rods ell (..., 6, 3) at
+    R_BE (..., 3, 3): the sine of each rod's tilt out of its crank's plane and the cosine of its
+    angle in its platform socket (:func:`~.path_kernels.pose_terms` computes the same)."""
     e_l = ell / np.linalg.norm(ell, axis=-1, keepdims=True)
     e_l_E = np.einsum("...ji,...kj->...ki", R, e_l)  # rows R^T e_l
     cos_p = np.sum(e_l_E * _home_rod_in_platform(geometry), axis=-1)
+    return np.sum(e_l * geometry.u_B, axis=-1), cos_p
+
+
+def _angles_of(theta, crank, cos_p) -> dict:
+    """:func:`joint_angles` from the motor angles theta and the rods' cosines of
+    :func:`_joint_cosines`, (..., 6) each."""
     return {
         "motor_angle": wrap_angle(theta),
-        "crank_joint": np.arcsin(np.clip(np.abs(np.sum(e_l * geometry.u_B, axis=-1)), 0.0, 1.0)),
+        "crank_joint": np.arcsin(np.clip(np.abs(crank), 0.0, 1.0)),
         "platform_joint": np.arccos(np.clip(cos_p, -1.0, 1.0)),
     }
+
+
+@lru_cache(maxsize=32)
+def _joint_axes(geometry: RobotGeometry) -> np.ndarray:
+    """(6, 6) per leg its motor shaft u_i and its socket's axis in the platform frame, for
+    :func:`~.path_kernels.pose_terms`; read-only."""
+    axes = np.ascontiguousarray(np.hstack([geometry.u_B, _home_rod_in_platform(geometry)]))
+    axes.setflags(write=False)
+    return axes
 
 
 def limit_margins(geometry: RobotGeometry, x, theta=None, ratio=None) -> dict:
@@ -261,6 +281,7 @@ def validate_trajectory(
     clearance_resolution_m: float = DEFAULT_CLEARANCE_RESOLUTION_M,
     motor_limits: MotorLimits | None = None,
     allow_infeasible: bool = False,
+    compiled: bool = True,
 ) -> TrajectoryReport:
     """Validate a sampled path before running it: limits, margins and nearness to singularity.
 
@@ -286,6 +307,9 @@ def validate_trajectory(
             reflected inertia and the servo's friction) against :class:`MotorLimits`.
         allow_infeasible: with ``raise_refused``, a motor over its limit is reported
             (``first_effort_violation``) but not raised: the run goes on and saturates.
+        compiled: the samples' kinematics and torques by compiled code (False: numpy); the
+            same report to the last bit but the torques', within 5e-10 of their peak
+            (:func:`~.path_checks.compiled_kinematics`, :func:`~.statics.motor_effort_compiled`).
     Returns:
         :class:`TrajectoryReport` (``summary()`` prints it).
     Raises:
@@ -318,6 +342,7 @@ def validate_trajectory(
         clearance_resolution_m,
         motor_limits,
         allow_infeasible,
+        compiled,
     )
     return _validated(geometry, t, x, x_dot, x_ddot, checks)
 
@@ -336,20 +361,20 @@ class _PathChecks:
     clearance_resolution_m: float
     motor_limits: MotorLimits | None
     allow_infeasible: bool
+    compiled: bool
 
 
 def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> TrajectoryReport:
     """:func:`validate_trajectory` of checked samples. The kinematics of the samples (inverse
     kinematics, leg terms, Jacobian) are computed once, for the limits, the singularity
     measures and the motors' effort alike."""
-    theta, ratio = ik_unchecked(geometry, x)
-    terms = leg_terms(geometry, x, theta)  # NaN where a leg cannot close
-    J = jacobian_of(geometry, terms)
-    cond, inv = singularity_measures_of(singular_values_of(J))
+    kin = _sample_kinematics(geometry, x, checks.compiled)
+    ratio = kin.ratio
+    cond, inv = singularity_measures_of(singular_values_of(kin.J))
     closed = np.abs(ratio) <= 1.0
     if checks.raise_unreachable and not np.all(closed):
         _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks)
-    margins = margins_of(geometry, ratio, joint_angles_of(geometry, theta, terms.ell, terms.R))
+    margins = margins_of(geometry, ratio, _angles_of(kin.theta, kin.crank, kin.cos_p))
     cond_f = np.where(np.isnan(cond), np.inf, cond)
     inv_f = np.where(np.isnan(inv), 0.0, inv)
     reachable = np.all(closed, axis=1)
@@ -358,20 +383,48 @@ def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> Trajectory
     if checks.clearance is not None:
         threshold = as_number("min_clearance_m", checks.min_clearance_m, 0.0)
         extra.update(
-            _clearance_fields(
-                checks.clearance, t, x, reachable, threshold, checks.clearance_resolution_m, series
+            clearance_fields(
+                checks.clearance,
+                t,
+                x,
+                reachable,
+                threshold,
+                checks.clearance_resolution_m,
+                series,
+                kin.theta,
             )
         )
     if checks.motor_limits is not None:
         extra.update(
-            _effort_fields(
-                geometry, t, x, x_dot, x_ddot, reachable, checks.motor_limits, series, terms, J
+            effort_fields(
+                geometry,
+                t,
+                x,
+                x_dot,
+                x_ddot,
+                reachable,
+                checks.motor_limits,
+                series,
+                kin,
             )
         )
     report = _report(t, margins, cond_f, inv_f, checks, extra)
     if checks.raise_refused and not report.ok:
-        _raise_first_refusal(report, t, x, cond_f, inv_f, checks.allow_infeasible)
+        raise_first_refusal(report, t, x, cond_f, inv_f, checks.allow_infeasible)
     return report
+
+
+def _sample_kinematics(geometry, x, compiled: bool) -> SampleKinematics:
+    """The kinematics of the samples x (n, 6) that the checks read: compiled
+    (:func:`~.path_checks.compiled_kinematics`) or numpy (:func:`~.kinematics.ik_unchecked`,
+    :func:`~.kinematics.leg_terms`, :func:`~.kinematics.jacobian_of`, :func:`_joint_cosines`);
+    the same numbers."""
+    if compiled:
+        return compiled_kinematics(geometry, x, _joint_axes(geometry))
+    theta, ratio = ik_unchecked(geometry, x)
+    terms = leg_terms(geometry, x, theta)  # NaN where a leg cannot close
+    crank, cos_p = _joint_cosines(geometry, terms.ell, terms.R)
+    return SampleKinematics(theta, ratio, jacobian_of(geometry, terms), crank, cos_p, terms)
 
 
 def _raise_unreachable(geometry, t, x, x_dot, x_ddot, ratio, checks: _PathChecks):
@@ -452,137 +505,3 @@ def _report(t, margins: dict, cond_f, inv_f, checks: _PathChecks, extra: dict) -
         sigma_min_inv_threshold=float(min_sigma_min_inv),
         **extra,
     )
-
-
-def _clearance_fields(
-    model, t, x, reachable, threshold: float, resolution_m: float, series: dict
-) -> dict:
-    """The clearance entries of a :class:`TrajectoryReport` (see :func:`validate_trajectory`);
-    adds the measured series to ``series``."""
-    rows = np.flatnonzero(reachable)
-    if rows.size == 0:
-        return {"clearance_threshold": threshold}
-    rows = rows[model.sample_indices(x[rows], resolution_m)]
-    # Pairs farther than this need no names: they cannot be the path's critical pair.
-    distance, closest = model.sweep(x[rows], max_distance=max(threshold, 0.0) + 0.02)
-    series.update(clearance_t=t[rows], clearance=distance)
-    k = int(np.nanargmin(distance))
-    low = np.flatnonzero(distance < threshold)
-    first = None
-    if low.size:
-        c = closest[low[0]]
-        first = (float(t[rows[low[0]]]), c.part_a, c.part_b, float(c.distance))
-    design = model.fixed[0] if model.fixed else None  # the same at every pose
-    if design is not None and design.distance < threshold:
-        first = (float(t[rows[0]]), design.part_a, design.part_b, float(design.distance))
-    parts = (
-        f"{closest[k].part_a} and {closest[k].part_b}"
-        if closest[k] is not None
-        else "every pair farther"
-    )
-    return {
-        "min_clearance": float(distance[k]),
-        "min_clearance_t": float(t[rows[k]]),
-        "min_clearance_parts": parts,
-        "clearance_threshold": threshold,
-        "first_interference": first,
-        "design_clearance": float("nan") if design is None else design.distance,
-        "design_clearance_parts": "" if design is None else f"{design.part_a} and {design.part_b}",
-    }
-
-
-def _effort_fields(
-    geometry, t, x, x_dot, x_ddot, reachable, limits_: MotorLimits, series: dict, terms, J
-) -> dict:
-    """The torque and speed entries of a :class:`TrajectoryReport` (see
-    :func:`validate_trajectory`), from the validator's leg terms and Jacobian J of the samples;
-    adds the torque and speed series to ``series``."""
-    from .statics import motor_effort_of
-
-    if x_dot is None or x_ddot is None:
-        raise InvalidConfigError(
-            "checking the motors' torque and speed needs the reference's "
-            "rate and acceleration (x_dot, x_ddot)"
-        )
-    margin = as_number("effort margin", limits_.margin, 0.0, 1.0, lo_open=True)
-    rows = np.flatnonzero(reachable)
-    if rows.size == 0:
-        return {}
-    x_rows = x[rows]
-    T, speed = motor_effort_of(
-        geometry,
-        x_rows,
-        np.asarray(x_dot, float)[rows],
-        np.asarray(x_ddot, float)[rows],
-        limits_.servo,
-        terms.rows(rows),
-        finite_or_singular("J", J[rows], x_rows),
-    )
-    for name, value in (("torque", T), ("speed", speed)):
-        series[name] = np.full(x.shape, np.nan)
-        series[name][rows] = value
-    out: dict = {}
-    first: MotorLimitError | None = None
-    out["effort_margin"] = margin
-    for name, value, bound in (
-        ("torque", np.abs(T), limits_.peak_torque_Nm),
-        ("speed", np.abs(speed), limits_.max_speed_rad_s),
-    ):
-        k, motor = np.unravel_index(int(np.argmax(value)), value.shape)
-        limit = float("nan") if bound is None else margin * float(bound)
-        out.update(
-            {
-                f"peak_{name}": float(value[k, motor]),
-                f"peak_{name}_motor": int(motor),
-                f"peak_{name}_t": float(t[rows[k]]),
-                f"{name}_limit": limit,
-            }
-        )
-        if bound is not None and np.any(value > limit):
-            kb = int(np.argmax(np.any(value > limit, axis=1)))
-            mb = int(np.argmax(value[kb]))
-            if first is None or t[rows[kb]] < first.t:
-                first = MotorLimitError(
-                    mb, name, float(value[kb, mb]), limit, float(t[rows[kb]]), x[rows[kb]]
-                )
-    out["first_effort_violation"] = first
-    return out
-
-
-def _raise_first_refusal(report: TrajectoryReport, t, x, cond, inv, allow_infeasible: bool = False):
-    """Raise the typed error of the earliest refused sample of a validated path (a motor over
-    its limit only without ``allow_infeasible``); nothing when only that remains."""
-    candidates: list[tuple[Any, int, StewartError]] = []  # (t, rank, error)
-    if report.first_interference is not None:
-        ti, a, b, d = report.first_interference
-        k = int(np.searchsorted(t, ti))
-        candidates.append((ti, 3, InterferenceError(a, b, d, report.clearance_threshold, ti, x[k])))
-    if report.first_effort_violation is not None and not allow_infeasible:
-        candidates.append((report.first_effort_violation.t, 4, report.first_effort_violation))
-    v = report.first_violation
-    if v is not None:
-        k = int(np.searchsorted(t, v.t))
-        error = (
-            UnreachablePoseError(v.leg, 1.0 - v.margin, v.t, x[k])
-            if v.limit == "closure"
-            else JointLimitError(v.leg, v.limit, v.margin, v.t, x[k])
-        )
-        candidates.append((v.t, 0, error))
-    if report.first_singular_t is not None:
-        k = int(np.searchsorted(t, report.first_singular_t))
-        candidates.append(
-            (t[k], 1, SingularPoseError("cond", cond[k], report.cond_threshold, t[k], x[k]))
-        )
-    if report.first_weak_t is not None:
-        k = int(np.searchsorted(t, report.first_weak_t))
-        candidates.append(
-            (
-                t[k],
-                2,
-                SingularPoseError(
-                    "sigma_min_inv", inv[k], report.sigma_min_inv_threshold, t[k], x[k]
-                ),
-            )
-        )
-    if candidates:
-        raise min(candidates, key=lambda c: c[:2])[2]

@@ -1,0 +1,397 @@
+"""The reference validator's per-pose arithmetic, compiled with numba: the closed-form IK's
+reach ratios (:func:`closure`), the leg terms, the Jacobian and the ball joints' angles
+(:func:`pose_terms`), and the motor torques a motion needs (:func:`effort`).
+
+:func:`~.limits.validate_trajectory` checks every sample of a reference (every millisecond of
+a run). Its numpy form runs each formula as a batched operation on (6, 3)-sized blocks, where
+numpy's per-call cost exceeds the arithmetic, and the motors' torques evaluate the task inertia
+M_x seven times per pose (at the pose and a forward-difference step along each coordinate, for
+the velocity-product forces): 80 % of the check's time. Here the same formulas run as loops,
+pose by pose, with the same forward differences (the same step); numpy keeps what it does in
+one call per stretch (the arcsines, the singular values), so that those are its own.
+
+The sums of :func:`closure` and :func:`pose_terms` are taken in the orders numpy's ``einsum``
+and ``sum`` take them in :func:`~.kinematics.ik_unchecked`, :func:`~.kinematics.leg_terms`,
+:func:`~.kinematics.jacobian_of` and :func:`~.limits.joint_angles_of` (``einsum`` sums three
+terms with two SIMD lanes for some subscripts, one after the other for others), so that the
+ratios, J and the joints' cosines are numpy's to the last bit (numpy 2's orders; a test holds
+the validator's report to the numpy one's on real references). The task inertia of
+:func:`effort` is summed in another order than numpy's matrix products (BLAS, whose rounding
+depends on the CPU's kernel); the forward differences divide that rounding by their step
+(1e-7), so the torques differ from numpy's by up to 5e-10 of the peak torque (2e-10 on the
+paper manoeuvre), while each is 2e-8 of the peak from the same forward differences in exact
+arithmetic (docs/performance.md).
+
+Compiled on first use (about 7 s, once per machine) or loaded from numba's disk cache
+(:func:`~stewart_drake.base.compiled.njit_cached`), with numpy's error model: a division by zero
+gives inf or NaN, as numpy's. :data:`reference` holds the same functions uncompiled (their
+``py_func``), for a test of the compiled code against its own source.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..base.compiled import interpreted, njit_cached
+
+
+def _njit(function):
+    """:func:`~stewart_drake.base.compiled.njit_cached` with numpy's error model (a division
+    by zero gives inf or NaN, a square root of a negative NaN: the numpy form's values)."""
+    return njit_cached(function, error_model="numpy")
+
+
+#: Entries of the ``body`` array of :func:`effort`, in order (:func:`~.statics.kernel_constants`
+#: builds it from the geometry): lengths in m, inertias in kg m^2, masses in kg, gravity in m/s^2,
+#: the forward-difference step in rad or m.
+BODY = (
+    "crank_length",
+    "rod_length",
+    "leg_c",
+    "platform_Ixx",
+    "platform_Iyy",
+    "platform_Izz",
+    "platform_mass",
+    "shaft_inertia",
+    "rod_mass",
+    "rod_inertia",
+    "gravity",
+    "crank_mass",
+    "step",
+)
+
+#: :func:`effort`'s status of a pose: its torques computed; a pose one forward-difference step
+#: away cannot be reached; J^T exactly singular (a zero pivot); the torques not finite.
+OK, STEP_UNREACHABLE, SINGULAR, NOT_FINITE = 0, 1, 2, 3
+
+
+@_njit
+def _rotation(x, R, E):
+    """R_BE (3, 3) and the rpy rate map E (3, 3) of pose x, in place: the products of
+    :func:`~.kinematics.rotation_rpy` and :func:`~.kinematics.angular_velocity_map`."""
+    cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
+    sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
+    R[0, 0] = cy * cp
+    R[0, 1] = cy * sp * sr - sy * cr
+    R[0, 2] = cy * sp * cr + sy * sr
+    R[1, 0] = sy * cp
+    R[1, 1] = sy * sp * sr + cy * cr
+    R[1, 2] = sy * sp * cr - cy * sr
+    R[2, 0] = -sp
+    R[2, 1] = cp * sr
+    R[2, 2] = cp * cr
+    E[0, 0], E[0, 1], E[0, 2] = cy * cp, -sy, 0.0
+    E[1, 0], E[1, 1], E[1, 2] = sy * cp, cy, 0.0
+    E[2, 0], E[2, 1], E[2, 2] = -sp, 0.0, 1.0
+
+
+@_njit
+def _lever_arms(x, legs, R, r, q):
+    """r_i = R_BE p_i (6, 3) and the platform joints q_i = r_i + p (6, 3), in place; each sum
+    in the order of numpy's ``einsum("...jk,ik->...ij")`` (its two SIMD lanes: terms 0 and 2,
+    then term 1)."""
+    for i in range(6):
+        for j in range(3):
+            r[i, j] = (R[j, 0] * legs[i, 0] + R[j, 2] * legs[i, 2]) + R[j, 1] * legs[i, 1]
+            q[i, j] = r[i, j] + x[3 + j]
+
+
+@_njit
+def _lmn(legs, a, leg_c, q, i):
+    """(L, M, N) of leg i with platform joints q (6, 3): theta_i solves
+    M cos theta + N sin theta = L (:func:`~.kinematics.ik_unchecked`'s sums, in its order)."""
+    lx, ly, lz = q[i, 0] - legs[i, 3], q[i, 1] - legs[i, 4], q[i, 2] - legs[i, 5]
+    L = (lx * lx + ly * ly + lz * lz) - leg_c
+    return L, 2.0 * a * lz, 2.0 * a * (lx * legs[i, 6] + ly * legs[i, 7] + lz * legs[i, 8])
+
+
+@_njit
+def _closure(legs, a, leg_c, q, c, s):
+    """cos theta_i and sin theta_i (6,) of the closed-form IK of platform joints q (6, 3), in
+    place, without the angles: with rho = L / sqrt(M^2 + N^2) and phi = atan2(N, M),
+    theta = asin(rho) - phi (:func:`~.kinematics.ik_unchecked`'s rho, to the last bit), so
+    cos theta = sqrt(1 - rho^2) cos phi + rho sin phi and sin theta = rho cos phi -
+    sqrt(1 - rho^2) sin phi. Returns False when a leg cannot close (not |rho| <= 1)."""
+    for i in range(6):
+        L, M, N = _lmn(legs, a, leg_c, q, i)
+        h = math.hypot(M, N)
+        rho = L / h
+        if not abs(rho) <= 1.0:
+            return False
+        root = math.sqrt((1.0 - rho) * (1.0 + rho))
+        c[i] = root * (M / h) + rho * (N / h)
+        s[i] = rho * (M / h) - root * (N / h)
+    return True
+
+
+@_njit
+def closure(x, legs, body, ratio, M, N):
+    """The reach ratios of the closed-form IK of poses x (n, 6) [rad, m], in place: ratio
+    (n, 6) = L / sqrt(M^2 + N^2), and M, N (n, 6), of which theta = asin(ratio) - atan2(N, M)
+    where |ratio| <= 1 (:func:`~.kinematics.ik_unchecked`'s arithmetic; numpy takes the
+    arcsines). legs (6, 9), body: as :func:`effort`'s."""
+    R, E, r, q = np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 3)), np.empty((6, 3))
+    for n in range(x.shape[0]):
+        _rotation(x[n], R, E)
+        _lever_arms(x[n], legs, R, r, q)
+        for i in range(6):
+            L, M[n, i], N[n, i] = _lmn(legs, body[0], body[2], q, i)
+            ratio[n, i] = L / math.hypot(M[n, i], N[n, i])
+
+
+@_njit
+def _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J):
+    """The leg terms of :func:`~.kinematics.leg_terms` for a pose whose E, r and q are set
+    and the cosines c and sines s (6,) of its motor angles: the rods ell (6, 3), the crank-tip
+    directions e_N (6, 3), G (6, 3, 3) = -[r_i]x E (the rotation columns of dq_i/dx) and
+    J (6, 6) = d theta / d x, in place, each sum in the order of numpy's ``einsum`` in
+    :func:`~.kinematics.leg_terms` and :func:`~.kinematics.jacobian_of`."""
+    for i in range(6):
+        ell[i, 0] = q[i, 0] - (legs[i, 3] + a * (c[i] * legs[i, 6] + s[i] * 0.0))
+        ell[i, 1] = q[i, 1] - (legs[i, 4] + a * (c[i] * legs[i, 7] + s[i] * 0.0))
+        ell[i, 2] = q[i, 2] - (legs[i, 5] + a * (c[i] * legs[i, 8] + s[i] * 1.0))
+        e_N[i, 0] = -s[i] * legs[i, 6] + c[i] * 0.0
+        e_N[i, 1] = -s[i] * legs[i, 7] + c[i] * 0.0
+        e_N[i, 2] = -s[i] * legs[i, 8] + c[i] * 1.0
+        r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
+        for col in range(3):
+            e0, e1, e2 = E[0, col], E[1, col], E[2, col]
+            G[i, 0, col] = -(((0.0 + 0.0 * e0) + -r2 * e1) + r1 * e2)
+            G[i, 1, col] = -(((0.0 + r2 * e0) + 0.0 * e1) + -r0 * e2)
+            G[i, 2, col] = -(((0.0 + -r1 * e0) + r0 * e1) + 0.0 * e2)
+        l0, l1, l2 = ell[i, 0], ell[i, 1], ell[i, 2]
+        den = a * ((l0 * e_N[i, 0] + l1 * e_N[i, 1]) + l2 * e_N[i, 2])
+        for col in range(3):
+            J[i, col] = (((0.0 + l0 * G[i, 0, col]) + l1 * G[i, 1, col]) + l2 * G[i, 2, col]) / den
+            J[i, 3 + col] = ell[i, col] / den
+
+
+@_njit
+def pose_terms(x, theta, legs, body, joints, J, crank, cos_p):
+    """The Jacobian and the ball joints' cosines of poses x (n, 6) [rad, m] with motor angles
+    theta (n, 6) (NaN for a leg that cannot close: its terms NaN), in place: J (n, 6, 6), as
+    :func:`~.kinematics.jacobian_of`; crank (n, 6) = e_l . u_i, the sine of the rod's tilt out
+    of its crank's plane; cos_p (n, 6) = R^T e_l . (the socket's axis), the cosine of the rod's
+    angle in its platform socket (:func:`~.limits.joint_angles_of`, whose arcsines numpy takes).
+
+    Args:
+        legs (6, 9), body: as :func:`effort`'s. joints: (6, 6) per leg the motor shaft u_i and
+            the socket's axis in the platform frame (unit vectors).
+    """
+    a = body[0]
+    R, E = np.empty((3, 3)), np.empty((3, 3))
+    r, q, ell, e_N = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
+    c, s, G = np.empty(6), np.empty(6), np.empty((6, 3, 3))
+    for n in range(x.shape[0]):
+        _rotation(x[n], R, E)
+        _lever_arms(x[n], legs, R, r, q)
+        for i in range(6):
+            c[i], s[i] = math.cos(theta[n, i]), math.sin(theta[n, i])
+        _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J[n])
+        for i in range(6):
+            norm = math.sqrt(ell[i, 0] * ell[i, 0] + ell[i, 1] * ell[i, 1] + ell[i, 2] * ell[i, 2])
+            e0, e1, e2 = ell[i, 0] / norm, ell[i, 1] / norm, ell[i, 2] / norm
+            crank[n, i] = e0 * joints[i, 0] + e1 * joints[i, 1] + e2 * joints[i, 2]
+            acc = 0.0
+            for k in range(3):
+                acc += (((0.0 + R[0, k] * e0) + R[1, k] * e1) + R[2, k] * e2) * joints[i, 3 + k]
+            cos_p[n, i] = acc
+
+
+@_njit
+def _inertia(body, R, E, ell, e_N, G, J, M, K, B, P):
+    """The task inertia M_x (6, 6) of :func:`~.statics.task_inertia` from a pose's leg terms, in
+    place (K (3, 3), B and P (6, 6): scratch): the platform (rpy and translation), the cranks
+    about their shafts with the motors' reflected inertia, and the rods.
+
+    Per rod i, with its velocity maps V_tip = a e_N J_i (crank tip) and Gq_i = [G_i, I]
+    (platform joint), both (3, 6): m_r V_com^T V_com with V_com = (V_tip + Gq_i) / 2, plus
+    I_r W^T W with W = [ell_i]x (Gq_i - V_tip) / s^2 the rod's rotation normal to its axis.
+    Expanded: with g_i = Gq_i^T e_N (6,), Gq_i^T V_tip = a g_i J_i^T and V_tip^T V_tip =
+    a^2 |e_N|^2 J_i J_i^T; and [ell]x^T [ell]x = |ell|^2 I - ell ell^T, whose second term drops
+    because ell^T (Gq_i - V_tip) = 0 (the rod keeps its length: that is J_i's definition), so
+    I_r W^T W = I_r |ell|^2 / s^4 (Gq_i - V_tip)^T (Gq_i - V_tip). The same quantity as the
+    numpy form's, rounded otherwise."""
+    a, s = body[0], body[1]
+    shaft, quarter_rod, i_rod = body[7], 0.25 * body[8], body[9]
+    # Platform: E^T (R diag(I) R^T) E = K^T diag(I) K with K = R^T E.
+    for j in range(3):
+        for k in range(3):
+            K[j, k] = R[0, j] * E[0, k] + R[1, j] * E[1, k] + R[2, j] * E[2, k]
+    for j in range(6):
+        for k in range(6):
+            M[j, k] = 0.0
+    for j in range(3):
+        for k in range(j, 3):
+            M[j, k] = body[3] * K[0, j] * K[0, k] + body[4] * K[1, j] * K[1, k]
+            M[j, k] += body[5] * K[2, j] * K[2, k]
+        M[3 + j, 3 + j] = body[6]
+    # Rods and cranks: sum_i alpha_i Gq_i^T Gq_i + gamma_i (J_i g_i^T + g_i J_i^T)
+    # + delta_i J_i J_i^T. B's rows: gamma_i g_i; P: the J_i J_i^T and J_i g_i^T sums.
+    for j in range(6):
+        for k in range(6):
+            P[j, k] = 0.0
+    for i in range(6):
+        n0, n1, n2 = e_N[i, 0], e_N[i, 1], e_N[i, 2]
+        beta = i_rod * (ell[i, 0] * ell[i, 0] + ell[i, 1] * ell[i, 1] + ell[i, 2] * ell[i, 2])
+        beta /= s * s * s * s
+        alpha = quarter_rod + beta
+        gamma = a * (quarter_rod - beta)
+        delta = a * a * (n0 * n0 + n1 * n1 + n2 * n2) * alpha + shaft
+        for col in range(3):
+            B[i, col] = gamma * (G[i, 0, col] * n0 + G[i, 1, col] * n1 + G[i, 2, col] * n2)
+        B[i, 3], B[i, 4], B[i, 5] = gamma * n0, gamma * n1, gamma * n2
+        for j in range(3):  # alpha Gq^T Gq = alpha [[G^T G, G^T], [G, I]]
+            for k in range(j, 3):
+                M[j, k] += alpha * (
+                    G[i, 0, j] * G[i, 0, k] + G[i, 1, j] * G[i, 1, k] + G[i, 2, j] * G[i, 2, k]
+                )
+            for k in range(3):
+                M[j, 3 + k] += alpha * G[i, k, j]
+            M[3 + j, 3 + j] += alpha
+        for j in range(6):
+            Jj = J[i, j]
+            for k in range(j, 6):
+                P[j, k] += delta * Jj * J[i, k]
+    for j in range(6):
+        for k in range(j, 6):
+            acc = P[j, k]
+            for i in range(6):
+                acc += J[i, j] * B[i, k] + B[i, j] * J[i, k]
+            M[j, k] += acc
+    for j in range(6):
+        for k in range(j):
+            M[j, k] = M[k, j]
+
+
+@_njit
+def _solve_transposed(J, w, A, out):
+    """out = J^-T w (6,) by LU with partial pivoting (LAPACK's dgesv), A (6, 6) scratch.
+    Returns False when a pivot is exactly zero, where dgesv reports a singular matrix."""
+    for k in range(6):
+        out[k] = w[k]
+        for j in range(6):
+            A[k, j] = J[j, k]
+    for k in range(6):
+        p = k
+        for i in range(k + 1, 6):
+            if abs(A[i, k]) > abs(A[p, k]):
+                p = i
+        if A[p, k] == 0.0:
+            return False
+        if p != k:
+            for j in range(6):
+                A[k, j], A[p, j] = A[p, j], A[k, j]
+            out[k], out[p] = out[p], out[k]
+        for i in range(k + 1, 6):
+            f = A[i, k] / A[k, k]
+            for j in range(k + 1, 6):
+                A[i, j] -= f * A[k, j]
+            out[i] -= f * out[k]
+    for k in range(5, -1, -1):
+        acc = out[k]
+        for j in range(k + 1, 6):
+            acc -= A[k, j] * out[j]
+        out[k] = acc / A[k, k]
+    return True
+
+
+@_njit
+def _gravity(body, c, G, J, w):
+    """dV/dx (6,) of :func:`~.statics.gravity_gradient_of` from the cosines c (6,) of the motor
+    angles, G and J of a pose, in place."""
+    a, g = body[0], body[10]
+    for col in range(6):
+        acc = 0.0
+        z_rows = 0.0
+        for i in range(6):
+            acc += g * a * c[i] * (0.5 * body[11] + 0.5 * body[8]) * J[i, col]
+            z_rows += G[i, 2, col] if col < 3 else (1.0 if col == 5 else 0.0)
+        w[col] = acc + 0.5 * body[8] * g * z_rows
+    w[5] += body[6] * g
+
+
+@_njit
+def _pose_effort(x, x_dot, x_ddot, theta, legs, body, T, work, vectors, blocks):
+    """The torques T (6,) of one pose (see :func:`effort`), in place, with scratch arrays
+    ``work`` (8, 6), ``vectors`` (12, 6, 3) and ``blocks`` (12, 6, 6); returns its status."""
+    a, leg_c, step = body[0], body[2], body[12]
+    c, s, c_k, s_k = work[0], work[1], work[2], work[3]
+    x_k, w, dM_x_dot = work[4], work[5], work[6]
+    r, q, ell, e_N = vectors[0], vectors[1], vectors[2], vectors[3]
+    r_k, q_k = vectors[4], vectors[5]
+    R, E, R_k, E_k = blocks[0, :3, :3], blocks[1, :3, :3], blocks[2, :3, :3], blocks[3, :3, :3]
+    K, J, M, J_k, M_k = blocks[4, :3, :3], blocks[5], blocks[6], blocks[7], blocks[8]
+    B, P, A = blocks[9], blocks[10], blocks[11]
+    G, G_k = vectors[6:9].reshape((6, 3, 3)), vectors[9:12].reshape((6, 3, 3))
+    _rotation(x, R, E)
+    _lever_arms(x, legs, R, r, q)
+    for i in range(6):
+        c[i], s[i] = math.cos(theta[i]), math.sin(theta[i])
+    _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J)
+    _inertia(body, R, E, ell, e_N, G, J, M, K, B, P)
+    _gravity(body, c, G, J, w)
+    for j in range(6):
+        for k in range(6):
+            w[j] += M[j, k] * x_ddot[k]
+    # Velocity-product forces by forward differences (:func:`~.statics.coriolis_forces`).
+    for k in range(6):
+        for j in range(6):
+            x_k[j] = x[j]
+        x_k[k] += step
+        _rotation(x_k, R_k, E_k)
+        _lever_arms(x_k, legs, R_k, r_k, q_k)
+        if not _closure(legs, a, leg_c, q_k, c_k, s_k):
+            return STEP_UNREACHABLE
+        _leg_terms(legs, a, c_k, s_k, E_k, r_k, q_k, ell, e_N, G_k, J_k)
+        _inertia(body, R_k, E_k, ell, e_N, G_k, J_k, M_k, K, B, P)
+        quad = 0.0
+        for i in range(6):
+            acc = 0.0
+            for j in range(6):
+                acc += (M_k[i, j] - M[i, j]) / step * x_dot[j]
+            dM_x_dot[i] = acc
+            quad += x_dot[i] * acc
+        for i in range(6):
+            w[i] += dM_x_dot[i] * x_dot[k]
+        w[k] -= 0.5 * quad
+    if not _solve_transposed(J, w, A, T):
+        return SINGULAR
+    for i in range(6):
+        if not math.isfinite(T[i]):
+            return NOT_FINITE
+    return OK
+
+
+@_njit
+def effort(x, x_dot, x_ddot, theta, legs, body, T, status):
+    """The motor torques that move the closed chain along (x, x_dot, x_ddot), pose by pose:
+    T = J^-T (M_x x_ddot + c(x, x_dot) + dV/dx), as :func:`~.statics.inverse_dynamics_of`
+    (no friction), c by forward differences of M_x with step ``body[BODY.index("step")]``.
+
+    Args:
+        x, x_dot, x_ddot: (n, 6) poses [rad, m], rates and accelerations (SI), reachable poses.
+        theta: (n, 6) their motor angles, rad (:func:`~.kinematics.ik_unchecked`'s).
+        legs: (6, 9) [p_E, P_B, d_B] per leg, m (:func:`~.kinematics.leg_constants`' order).
+        body: the constants of :data:`BODY`.
+        T: (n, 6) torques, N m, filled in place. status: (n,) int64, filled with each pose's
+            status (:data:`OK`, :data:`STEP_UNREACHABLE`, :data:`SINGULAR`, :data:`NOT_FINITE`);
+            T is not set for a pose whose status is not OK.
+    Returns:
+        the number of poses whose status is not OK.
+    """
+    work, vectors, blocks = np.empty((8, 6)), np.empty((12, 6, 3)), np.empty((12, 6, 6))
+    bad = 0
+    for n in range(x.shape[0]):
+        status[n] = _pose_effort(
+            x[n], x_dot[n], x_ddot[n], theta[n], legs, body, T[n], work, vectors, blocks
+        )
+        bad += status[n] != OK
+    return bad
+
+
+#: Every function above as the Python numba compiles (its ``py_func``), calling the others'
+#: ``py_func``: the uncompiled kernels, equal to the compiled ones by construction.
+reference = interpreted(globals())
