@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pydrake.systems.framework import LeafSystem
@@ -114,9 +115,9 @@ class SignalLog(LeafSystem):
         }
         self._convert = {name: spec[3] for name, spec in specs.items()}
         self._ports = {name: spec[0] for name, spec in specs.items()}
-        self.sink: VectorLogSink | None = None
+        self.sink: Any = None  # a VectorLogSink, added by add()
         self._columns: dict = {}
-        self._context = None
+        self._context: Any = None
         self.num_samples = 0
         self.DeclareInitializationPublishEvent(self._Reset)
         self.DeclarePeriodicPublishEvent(drain_period_s, drain_period_s, self._Drain)
