@@ -78,6 +78,33 @@ def test_the_spline_of_samples_is_drake_s_c2_spline_held_at_its_ends():
     assert ours.evaluate(5.0)[0].shape == (6,) and (ours.start_time, ours.end_time) == (t[0], t[-1])
 
 
+def test_the_spline_s_derivatives_made_per_stretch_are_scipy_s_whole_ones_to_the_bit():
+    """The rate and acceleration are made for the intervals asked only (no whole-spline copies):
+    every value equals scipy's ``derivative(1)`` and ``derivative(2)`` of the whole spline, at
+    the breakpoints themselves, between them, in stretches and one time at a time."""
+    from scipy.interpolate import CubicSpline
+
+    from stewart_drake.references.samples import CubicSplineTrajectory
+
+    rng = np.random.default_rng(5)
+    t = np.cumsum(rng.uniform(0.05, 0.3, 500))
+    poses = rng.standard_normal((500, 6))
+    whole = CubicSpline(t, poses, axis=0, bc_type="not-a-knot")
+    ours = CubicSplineTrajectory(t, poses)
+    for q in (
+        np.linspace(t[0] - 1.0, t[-1] + 1.0, 20_001),
+        t,
+        t[200:203],
+        np.asarray(t[7]),
+        rng.uniform(t[0], t[-1], 999),
+    ):
+        clamped = np.clip(q, t[0], t[-1])
+        for k, value in enumerate(ours.evaluate(q)):
+            np.testing.assert_array_equal(
+                value, whole.derivative(k)(clamped) if k else whole(clamped)
+            )
+
+
 def _report_fields(report):
     from dataclasses import fields
 
