@@ -8,7 +8,7 @@ import pytest
 
 from stewart_drake.run import simulate as experiments
 from stewart_drake.run.plan import run_memory_bytes
-from stewart_drake.run.reference import StretchFeeder, zero_order_hold
+from stewart_drake.run.reference import StepTimes, StretchFeeder, zero_order_hold
 from stewart_drake.run.result import SignalLog, finish_result, release_reference
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.run.simulate import build_simulator
@@ -69,8 +69,6 @@ def test_releasing_the_reference_frees_its_tables():
     ref = sd.reference
     tables = {
         "T_ff_table": weakref.ref(ref.T_ff_table),
-        "t_sample": weakref.ref(ref.t_sample),
-        "t_eval": weakref.ref(ref.t_eval),
         "breaks": weakref.ref(ref.feeder.breaks),
     }
     assert all(w() is not None for w in tables.values())
@@ -118,7 +116,7 @@ def test_sources_fed_a_stretch_at_a_time_are_the_zero_order_hold_of_the_table():
         return table[a:b]
 
     builder = DiagramBuilder()
-    feeder = builder.AddSystem(StretchFeeder(breaks, {"y": rows}, stretch=5))
+    feeder = builder.AddSystem(StretchFeeder(StepTimes(23, 1e-3), {"y": rows}, stretch=5))
     source = builder.AddSystem(feeder.sources["y"])
     whole = zero_order_hold(breaks, table)
     simulator = Simulator(builder.Build())
@@ -230,3 +228,15 @@ def test_the_plant_handles_hold_indices_and_look_the_elements_up():
     assert all(type(j) is BallRpyJoint for j in handles.rod_balls)
     assert handles.actuation_port.size() == handles.n_actuators
     assert handles.desired_state_port is None
+
+
+def test_step_times_made_a_stretch_at_a_time_are_the_sampled_times_to_the_bit():
+    # The reference's times are not held: made again from (n, h, offset, shift) they must be
+    # the numbers the sampling used, or a row would be read at another time.
+    n, h, offset, lead = 1_500_003, 1e-3, 5e-4, 2.5e-4
+    t_sample = np.arange(n) * h + offset
+    for shift, whole in ((0.0, t_sample), (lead, t_sample + lead), (-offset, t_sample - offset)):
+        times = StepTimes(n, h, offset, shift)
+        np.testing.assert_array_equal(times.values(), whole)
+        for a, b in ((0, 7), (1_499_990, n), (777_777, 783_000), (n - 1, n + 5)):
+            np.testing.assert_array_equal(times[a:b], whole[a:b])

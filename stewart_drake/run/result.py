@@ -427,7 +427,7 @@ def feedforward_at(sd, t: np.ndarray) -> np.ndarray:
     reference = sd.reference
     # A run's reference is precomputed (ReferenceSources); a live one has no table.
     assert isinstance(reference, ReferenceSources)
-    t_act = reference.t_eval + sd.plan.delay_periods * sd.plan.control_period_s
+    t_act = reference.t_eval.values() + sd.plan.delay_periods * sd.plan.control_period_s
     table = reference.T_ff_table
     out = np.empty((len(t), table.shape[1]), dtype=np.float32)
     for i in range(table.shape[1]):
