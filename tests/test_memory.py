@@ -103,6 +103,24 @@ def test_a_signal_log_drained_every_second_grows_when_a_run_outlasts_it():
     assert log.sink.GetLog(context).num_samples() == 0
 
 
+def test_a_signal_log_initialized_again_keeps_nothing_of_the_run_before():
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import ConstantVectorSource
+
+    builder = DiagramBuilder()
+    source = builder.AddSystem(ConstantVectorSource([1.0]))
+    log = SignalLog.add(builder, "log", {"y": (source.get_output_port(), np.float32)}, 0.1, 1.0)
+    simulator = Simulator(builder.Build())
+    log.bind(simulator.get_context())
+    simulator.AdvanceTo(0.55)  # six samples in the sink, none drained yet
+    simulator.get_mutable_context().SetTime(0.0)
+    simulator.Initialize()
+    simulator.AdvanceTo(0.35)
+    view = log.logger("y").FindLog(simulator.get_context())
+    np.testing.assert_allclose(view.sample_times(), 0.1 * np.arange(4), atol=1e-12)
+
+
 def test_sources_fed_a_stretch_at_a_time_are_the_zero_order_hold_of_the_table():
     from pydrake.systems.analysis import Simulator
     from pydrake.systems.framework import DiagramBuilder

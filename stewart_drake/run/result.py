@@ -196,7 +196,11 @@ class SignalLog(LeafSystem):
             self.values[name] = np.concatenate([v, np.empty((grow, v.shape[1]), v.dtype)])
 
     def _Reset(self, context) -> None:
+        # A run initialized again starts its log again: what the sink holds goes too (this
+        # event runs before the sink's first sample: the log is added to the Diagram first).
         self.num_samples = 0
+        if self._context is not None:
+            self.sink.GetMutableLog(self._context).Clear()
 
     def _Drain(self, context) -> None:
         self.drain()
