@@ -267,13 +267,12 @@ def _inertia(body, R, E, ell, e_N, G, J, M, K, B, P):
 
 
 @_njit
-def _solve_transposed(J, w, A, out):
-    """out = J^-T w (6,) by LU with partial pivoting (LAPACK's dgesv), A (6, 6) scratch.
-    Returns False when a pivot is exactly zero, where dgesv reports a singular matrix."""
-    for k in range(6):
-        out[k] = w[k]
-        for j in range(6):
-            A[k, j] = J[j, k]
+def lu_solve6(A, x):
+    """Solve A y = x for A (6, 6) and x (6,) in place, by LU with partial pivoting (LAPACK's
+    dgesv): A is overwritten by its factors and x by y. Returns False (x partly overwritten)
+    when a pivot is exactly zero, where dgesv reports a singular matrix. The one 6 x 6 solve
+    of the compiled code (the LQI's step calls it too), written as loops in one order: the
+    compiled and the interpreted form give the same bits."""
     for k in range(6):
         p = k
         for i in range(k + 1, 6):
@@ -284,17 +283,17 @@ def _solve_transposed(J, w, A, out):
         if p != k:
             for j in range(6):
                 A[k, j], A[p, j] = A[p, j], A[k, j]
-            out[k], out[p] = out[p], out[k]
+            x[k], x[p] = x[p], x[k]
         for i in range(k + 1, 6):
             f = A[i, k] / A[k, k]
             for j in range(k + 1, 6):
                 A[i, j] -= f * A[k, j]
-            out[i] -= f * out[k]
+            x[i] -= f * x[k]
     for k in range(5, -1, -1):
-        acc = out[k]
+        acc = x[k]
         for j in range(k + 1, 6):
-            acc -= A[k, j] * out[j]
-        out[k] = acc / A[k, k]
+            acc -= A[k, j] * x[j]
+        x[k] = acc / A[k, k]
     return True
 
 
@@ -357,7 +356,11 @@ def _pose_effort(x, x_dot, x_ddot, theta, legs, body, T, work, vectors, blocks):
         for i in range(6):
             w[i] += dM_x_dot[i] * x_dot[k]
         w[k] -= 0.5 * quad
-    if not _solve_transposed(J, w, A, T):
+    for i in range(6):  # T = J^-T w
+        T[i] = w[i]
+        for j in range(6):
+            A[i, j] = J[j, i]
+    if not lu_solve6(A, T):
         return SINGULAR
     for i in range(6):
         if not math.isfinite(T[i]):

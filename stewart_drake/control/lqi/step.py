@@ -35,6 +35,7 @@ import math
 import numpy as np
 
 from ...robot.kinematics import ik_scalar
+from ...robot.path_kernels import lu_solve6
 from ..kernel_cache import interpreted, njit_cached, use_cache
 from .layout import (
     ALPHA,
@@ -125,30 +126,11 @@ def matvec(A, v):
 @_njit
 def solve6(A, b):
     """(x, True) with A x = b for A (6, 6), b (6,), by LU with partial pivoting (LAPACK's
-    dgesv); (b, False) when a pivot is exactly zero, where dgesv reports a singular matrix."""
-    M = A.copy()
+    dgesv, :func:`~stewart_drake.robot.path_kernels.lu_solve6` on copies); (b, False) when a
+    pivot is exactly zero, where dgesv reports a singular matrix."""
     x = b.copy()
-    for k in range(6):
-        p = k
-        for i in range(k + 1, 6):
-            if abs(M[i, k]) > abs(M[p, k]):
-                p = i
-        if M[p, k] == 0.0:
-            return b, False
-        if p != k:
-            for j in range(6):
-                M[k, j], M[p, j] = M[p, j], M[k, j]
-            x[k], x[p] = x[p], x[k]
-        for i in range(k + 1, 6):
-            f = M[i, k] / M[k, k]
-            for j in range(k + 1, 6):
-                M[i, j] -= f * M[k, j]
-            x[i] -= f * x[k]
-    for k in range(5, -1, -1):
-        acc = x[k]
-        for j in range(k + 1, 6):
-            acc -= M[k, j] * x[j]
-        x[k] = acc / M[k, k]
+    if not lu_solve6(A.copy(), x):
+        return b, False
     return x, True
 
 
