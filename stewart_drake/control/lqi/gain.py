@@ -133,23 +133,11 @@ def body_constants(geometry: StewartGeometry) -> np.ndarray:
     length, s^2 - a^2, the platform's principal inertia (3) and mass, the crank shaft's inertia
     (crank about its shaft + the motor's reflected inertia, as
     :func:`~stewart_drake.robot.statics.task_inertia`), the rod's mass and transverse inertia.
-    SI units."""
-    g = geometry
-    a = g.crank_length
-    shaft = g.crank_inertia[1] + g.crank_mass * (0.5 * a) ** 2 + g.motor_reflected_inertia
-    return np.array(
-        [
-            a,
-            g.rod_length,
-            g.rod_length**2 - a * a,
-            *g.platform_inertia,
-            g.platform_mass,
-            shaft,
-            g.rod_mass,
-            g.rod_inertia[0],
-        ],
-        dtype=float,
-    )
+    SI units. The first entries of the validator's constants
+    (:func:`~stewart_drake.robot.statics.kernel_constants`), a writable copy."""
+    from .reschedule import BODY
+
+    return statics.kernel_constants(geometry)[1][: len(BODY)].copy()
 
 
 def hautus_checks(A: np.ndarray, B: np.ndarray, C: np.ndarray, tol: float = 1e-9) -> dict:

@@ -19,6 +19,7 @@ import math
 
 import numpy as np
 
+from ...robot.path_kernels import BODY as PATH_BODY
 from ..kernel_cache import njit_cached, use_cache
 
 _CACHE = use_cache()
@@ -31,19 +32,9 @@ def _njit(function):
 
 
 #: Entries of the ``body`` array of :func:`input_matrix`, in order (see
-#: :func:`~.gain.body_constants`).
-BODY = (
-    "crank_length",
-    "rod_length",
-    "leg_c",
-    "platform_Ixx",
-    "platform_Iyy",
-    "platform_Izz",
-    "platform_mass",
-    "shaft_inertia",
-    "rod_mass",
-    "rod_inertia",
-)
+#: :func:`~.gain.body_constants`): the first ten of the reference validator's kernels, the
+#: same constants (:data:`~stewart_drake.robot.path_kernels.BODY`).
+BODY = PATH_BODY[:10]
 
 
 @_njit
