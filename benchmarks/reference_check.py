@@ -3,9 +3,8 @@
     python benchmarks/reference_check.py                 # breathing 60 s, paper 10 s
     python benchmarks/reference_check.py --repeats 5 --breathing 64
 
-``run.plan.validate_reference`` with the checks ``check_reference`` gives it on paper_hardware
-(every millisecond: the limits, both singularity measures, the clearance between parts and the
-motors' torque and speed), over ``breathing_heartbeat`` (``stewart-drake reproduce``'s library
+``run.plan.check_reference`` on paper_hardware (every millisecond: the limits, both
+singularity measures, the clearance between parts and the motors' torque and speed), over ``breathing_heartbeat`` (``stewart-drake reproduce``'s library
 motion) and the paper manoeuvre. Printed per reference and form: the CPU time of this thread
 (``time.thread_time``; the best of ``--repeats``, after a first call that compiles or loads the
 kernels), and where the compiled check's time goes (cProfile's largest own times).
@@ -23,9 +22,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this checkout
 
-from stewart_drake.plant.clearance import clearance_model  # noqa: E402
 from stewart_drake.references.organ.library import OrganMotionReference  # noqa: E402
-from stewart_drake.run.plan import make_plan, validate_reference  # noqa: E402
+from stewart_drake.run import plan as run_plan  # noqa: E402
+from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 
 
@@ -39,22 +38,14 @@ def reference_plan(name: str, duration_s: float):
 
 
 def check(plan, compiled: bool):
-    """``validate_reference`` as ``check_reference`` calls it (its series dropped)."""
-    guard, geometry = plan.scenario.guard, plan.plant_geometry
-    return validate_reference(
-        plan.reference,
-        geometry,
-        plan.duration_s,
-        dt=plan.control_period_s,
-        cond_threshold=guard.cond_threshold,
-        min_sigma_min_inv=guard.min_sigma_min_inv,
-        keep_series=False,
-        clearance=clearance_model(geometry),
-        min_clearance_m=guard.min_clearance_m,
-        motor_limits=plan.motor_limits,
-        allow_infeasible=guard.allow_infeasible,
-        compiled=compiled,
-    )
+    """``check_reference`` of ``plan`` (its series dropped), its validator compiled or in its
+    numpy form (``validate_trajectory(compiled=...)``, swapped in for this call)."""
+    checked = run_plan.validate_trajectory
+    run_plan.validate_trajectory = functools.partial(checked, compiled=compiled)
+    try:
+        return run_plan.check_reference(plan, keep_series=False)
+    finally:
+        run_plan.validate_trajectory = checked
 
 
 def main() -> None:
