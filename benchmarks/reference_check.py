@@ -4,10 +4,11 @@
     python benchmarks/reference_check.py --repeats 5 --breathing 64
 
 ``run.plan.check_reference`` on paper_hardware (every millisecond: the limits, both
-singularity measures, the clearance between parts and the motors' torque and speed), over ``breathing_heartbeat`` (``stewart-drake reproduce``'s library
-motion) and the paper manoeuvre. Printed per reference and form: the CPU time of this thread
-(``time.thread_time``; the best of ``--repeats``, after a first call that compiles or loads the
-kernels), and where the compiled check's time goes (cProfile's largest own times).
+singularity measures, the clearance between parts and the motors' torque and speed), over
+``breathing_heartbeat`` (``stewart-drake reproduce``'s library motion) and the paper manoeuvre.
+Printed per reference and form: the CPU time of this thread (``time.thread_time``; the best of
+``--repeats``, after a first call that compiles or loads the kernels), and where the compiled
+check's time goes (cProfile's largest own times).
 """
 
 from __future__ import annotations
