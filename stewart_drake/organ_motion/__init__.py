@@ -2,3 +2,9 @@
 built, with or without learning (:mod:`.reproduction`, ``stewart-drake reproduce``), its fidelity
 (RMS, peak, lag, gamma pass rate, harmonics: :mod:`.fidelity`) with a verdict, and its report
 (:mod:`.fidelity_report`, :mod:`.fidelity_replay`); the library's and the traces' studies."""
+
+#: The scenario organ motion is reproduced on unless told (``reproduce``, the trace study): the
+#: robot as built with its LQI set for organ motion, the reference's inverse dynamics and 0.7 x
+#: the motors' Coulomb friction fed forward (``scenarios/phantom_hardware.yaml``;
+#: docs/organ_motion.md, "The friction feed-forward as built").
+SCENARIO = "phantom_hardware"

@@ -19,6 +19,7 @@ from ..cli.options import (
     trace_options_given,
     trace_reference,
 )
+from . import SCENARIO
 
 
 def register(sub) -> None:
@@ -37,7 +38,9 @@ def _add_reproduce_command(sub) -> None:
     _add_motion_arguments(rp)
     add_trace_arguments(rp)
     add_scenario_arguments(
-        rp, "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles"
+        rp,
+        "the robot and its controller; e.g. --set learning.gain=0.5 with --learn-cycles",
+        default=SCENARIO,
     )
     _add_learning_arguments(rp)
     _add_measurement_arguments(rp)

@@ -29,6 +29,7 @@ import numpy as np
 from ..base.fileio import atomic_write, write_between_markers
 from ..control.feedforward_basis import LIBRARY_MODEL
 from ..control.feedforward_tuning import FeedforwardTuning
+from . import SCENARIO
 
 #: Where the tables go in docs/organ_motion.md.
 TABLE_MARKERS = (
@@ -66,17 +67,14 @@ PATIENT_TRACES = (
     ("SABR lung, mean complexity (IntERAct)", "3.Mean_Complexity.txt"),
     ("SABR lung, high complexity (IntERAct)", "4.High_Complexity.txt"),
 )
-#: The robots every motion runs on: (label, scenario overrides of ``paper_hardware``). The robot
-#: as built (17-bit encoders, the LQI without friction compensation) and one with 19-bit
-#: encoders and the LQI's Coulomb friction feed-forward (docs/organ_motion.md, "The rotation
-#: floor": at 17 bits the encoders' rounding alone puts 34 urad of rotation in the pose the
-#: controller acts on).
+#: The robots every motion runs on: (label, scenario overrides of :data:`~.SCENARIO`, the
+#: scenario ``reproduce`` runs). The robot as built (17-bit encoders, the LQI with its
+#: inverse-dynamics and friction feed-forwards) and one with 19-bit encoders (docs/organ_motion.md,
+#: "The rotation floor": at 17 bits the encoders' rounding alone puts 34 urad of rotation in the
+#: pose the controller acts on).
 ROBOTS = (
     ("as built (2^17 counts)", ()),
-    (
-        "2^19 counts + friction feed-forward",
-        ("hardware.encoders.counts_per_rev=524288", "controller.friction_compensation_Nm=0.0184"),
-    ),
+    ("2^19 counts", ("hardware.encoders.counts_per_rev=524288",)),
 )
 #: The windows of the per-window RMS (the figure), s.
 WINDOW_S = 5.0
@@ -227,12 +225,12 @@ def _run(
     reference, feedforward, overrides=()
 ) -> tuple[dict, dict | None, np.ndarray | None, float]:
     """(figures, the learner's last status or None, the learned weights or None, wall s) of one
-    run of :data:`DURATION_S` on ``paper_hardware`` with ``overrides``."""
+    run of :data:`DURATION_S` on :data:`~.SCENARIO` with ``overrides``."""
     from ..run.plan import make_plan
     from ..run.scenario_io import load_scenario
     from .reproduction import run
 
-    scenario = load_scenario("paper_hardware", overrides)
+    scenario = load_scenario(SCENARIO, overrides)
     scenario.duration_s = DURATION_S
     scenario.learning = feedforward
     scenario.guard.divergence_dir = str(Path("results") / "trace_study" / "diverged")
@@ -448,7 +446,9 @@ def tables(results: dict) -> str:
         "",
         "### Motion that does not repeat: feed-forward learned as a function of the reference",
         "",
-        f"Each motion runs {DURATION_S:g} s on `paper_hardware` (and on the robots of "
+        f"Each motion runs {DURATION_S:g} s on `{SCENARIO}` (the robot as built, its LQI "
+        f"feeding forward the reference's inverse dynamics and 0.7 x the motors' Coulomb "
+        f"friction; `reproduce`'s default) (and on the robots of "
         f"`trace_study.ROBOTS` given), twice without learning (the second with the encoders' "
         f"rounding realized differently: the spread chance gives) and once with "
         f"`learning: !FeedforwardTuning {{}}` (stretches of 5 s, learned from the encoders, "
