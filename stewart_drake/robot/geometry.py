@@ -38,14 +38,14 @@ MAX_SHAFT_TILT_RAD = 0.1
 #: encoder again.
 MAX_ENCODER_OFFSET_RAD = 0.1
 #: The per-leg fields of :class:`StewartGeometry`: name -> (shape, largest |value| or None
-#: for a length, which must be > 0).
+#: for a length, which must be > 0, what to do beyond that bound).
 PER_LEG_FIELDS = {
-    "pivot_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M),
-    "platform_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M),
-    "crank_lengths_m": ((6,), None),
-    "rod_lengths_m": ((6,), None),
-    "shaft_tilts_rad": ((6,), MAX_SHAFT_TILT_RAD),
-    "encoder_offsets_rad": ((6,), MAX_ENCODER_OFFSET_RAD),
+    "pivot_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M, "move the pivots by base_radius, pivot_z"),
+    "platform_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M, "move the joints by platform_radius"),
+    "crank_lengths_m": ((6,), None, ""),
+    "rod_lengths_m": ((6,), None, ""),
+    "shaft_tilts_rad": ((6,), MAX_SHAFT_TILT_RAD, "a shaft tilted that far is another design"),
+    "encoder_offsets_rad": ((6,), MAX_ENCODER_OFFSET_RAD, "zero the encoder again"),
 }
 
 
@@ -268,7 +268,7 @@ class StewartGeometry:
     def _check_per_leg(self) -> None:
         """Each per-leg field None or its shape of finite numbers within its bound (lengths
         > 0, each rod longer than its crank), stored as (nested) tuples of floats."""
-        for name, (shape, bound) in PER_LEG_FIELDS.items():
+        for name, (shape, bound, remedy) in PER_LEG_FIELDS.items():
             value = getattr(self, name)
             if value is None:
                 continue
@@ -279,15 +279,11 @@ class StewartGeometry:
             if bound is not None and np.any(np.abs(a) > bound):
                 index = tuple(int(k) for k in np.argwhere(np.abs(a) > bound)[0])
                 raise InvalidGeometryError(
-                    f"{name}{list(index)} = {a[index]:.6g} is beyond +-{bound:g}: a deviation "
-                    f"of one leg, not a change of the design (change the layout's fields)"
+                    f"{name}{list(index)} = {a[index]:.6g} is beyond +-{bound:g}, the bound of "
+                    f"one leg's deviation from the drawing: {remedy}"
                 )
-            stored = (
-                tuple(tuple(float(v) for v in row) for row in a)
-                if a.ndim == 2
-                else (tuple(float(v) for v in a))
-            )
-            object.__setattr__(self, name, stored)
+            rows = a.tolist()  # Python floats
+            object.__setattr__(self, name, tuple(map(tuple, rows)) if a.ndim == 2 else tuple(rows))
         short = self.rod_lengths <= self.crank_lengths
         if np.any(short):
             leg = int(np.argmax(short))
