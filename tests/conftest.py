@@ -110,6 +110,7 @@ LOOP_MODULES = {
     "test_lqi",
     "test_organ_motion_phantom",
     "test_pd",
+    "test_per_leg_geometry",
     "test_report_labels",
     "test_robot_as_built",
     "test_station",

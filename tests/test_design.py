@@ -109,7 +109,12 @@ def test_the_closing_rod_lengths_agree_with_the_geometrys_reach_check():
             (hi * (1 + 1e-6), False),
         ):
             legs = SimpleNamespace(
-                P_B=g.P_B, p_E=g.p_E, d_B=g.d_B, crank_length=g.crank_length, rod_length=s
+                P_B=g.P_B,
+                p_E=g.p_E,
+                d_B=g.d_B,
+                w_B=g.w_B,
+                crank_lengths=g.crank_lengths,
+                rod_lengths=np.full(6, s),
             )
             assert bool(np.all(np.abs(leg_reach_ratio(legs, X_HOME)) <= 1)) == closes, (s, lo)
 

@@ -6,7 +6,7 @@ import pytest
 from pydrake.math import RollPitchYaw
 
 from stewart_drake.base.errors import UnreachablePoseError
-from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot import kinematics, single_pose, statics
 from stewart_drake.robot.geometry import X_HOME
 
 
@@ -93,18 +93,21 @@ def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_pose
     from stewart_drake.control.lqi.gain import body_constants, input_matrix
     from stewart_drake.control.lqi.reschedule import input_matrix as input_matrix_per_step
 
-    constants = kinematics.leg_constants(geometry)
-    legs, body = np.array(constants[0]), body_constants(geometry)
+    constants = single_pose.leg_constants(geometry)
+    legs, body = statics.kernel_constants(geometry)[0], body_constants(geometry)
     for x in random_poses[:50]:
         theta = kinematics.ik(geometry, x)
-        th_single, cache = kinematics.ik_single(geometry, x)
+        th_single, cache = single_pose.ik_single(geometry, x)
         np.testing.assert_allclose(th_single, theta, rtol=0, atol=1e-12)
         np.testing.assert_allclose(
-            kinematics.ik_scalar(constants, x.tolist()), theta, rtol=0, atol=1e-12
+            single_pose.ik_scalar(constants, x.tolist()), theta, rtol=0, atol=1e-12
         )
         J = kinematics.jacobian(geometry, x)
         np.testing.assert_allclose(
-            kinematics.jacobian_single(geometry, cache), J, rtol=1e-12, atol=1e-12 * np.abs(J).max()
+            single_pose.jacobian_single(geometry, cache),
+            J,
+            rtol=1e-12,
+            atol=1e-12 * np.abs(J).max(),
         )
         M = statics.task_inertia(geometry, x)
         np.testing.assert_allclose(
@@ -118,5 +121,5 @@ def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_pose
             input_matrix_per_step(legs, body, x)[0], B, rtol=1e-10, atol=1e-12 * np.abs(B).max()
         )
     far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])  # every rod too short
-    assert np.isnan(kinematics.ik_single(geometry, far)[0]).all()
-    assert np.isnan(kinematics.ik_scalar(constants, far.tolist())).all()
+    assert np.isnan(single_pose.ik_single(geometry, far)[0]).all()
+    assert np.isnan(single_pose.ik_scalar(constants, far.tolist())).all()

@@ -8,7 +8,7 @@ import pytest
 
 from stewart_drake.control.lqi import reschedule, step
 from stewart_drake.control.lqi.step import reference
-from stewart_drake.robot import kinematics
+from stewart_drake.robot import kinematics, single_pose
 from stewart_drake.robot.geometry import X_HOME
 
 
@@ -23,13 +23,12 @@ def test_the_reference_is_each_kernel_s_own_py_func():
 
 
 def test_the_compiled_ik_equals_the_batched_ik_and_nan_where_unreachable(geometry, random_poses):
-    constants = kinematics.leg_constants(geometry)
-    legs, crank_length, leg_c = constants
-    compiled = (np.array(legs), crank_length, leg_c)  # as the LQI's estimate passes them
+    constants = single_pose.leg_constants(geometry)
+    compiled = np.array(constants)  # as the LQI's estimate passes them
     for x in random_poses[:50]:
         theta = np.asarray(step.ik_compiled(compiled, x))
         np.testing.assert_allclose(theta, kinematics.ik(geometry, x), rtol=0, atol=1e-12)
-        np.testing.assert_array_equal(theta, kinematics.ik_scalar(constants, x.tolist()))
+        np.testing.assert_array_equal(theta, single_pose.ik_scalar(constants, x.tolist()))
     far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])
     assert np.isnan(np.asarray(step.ik_compiled(compiled, far))).all()
 

@@ -167,8 +167,6 @@ def test_the_estimate_equals_the_reference_and_the_full_newton():
             h = x_hat.copy()
             assert stages.estimate(
                 est.legs,
-                est.crank_length,
-                est.leg_c,
                 est.h,
                 est.alpha,
                 est.chord_step_max,

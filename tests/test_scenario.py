@@ -101,11 +101,29 @@ def test_the_yaml_forms_mirror_their_value_types_field_for_field(form, value, le
     default_form, default_value = form(), value()
     for name in names:
         tuple_field = theirs[name] is tuple or typing.get_origin(theirs[name]) is tuple
-        assert mine[name] == (list[float] if tuple_field else theirs[name]), name
+        assert mine[name] == _form_type(theirs[name]), name
         expected = getattr(default_value, name)
         assert getattr(default_form, name) == (list(expected) if tuple_field else expected), name
     built = default_form.build()
     assert isinstance(built, value) and form.from_value(built) == default_form
+
+
+def _form_type(hint):
+    """The YAML form's type of a value type's field type: a list where it has a tuple (of
+    floats, or of tuples: a list of lists), an optional one optional."""
+    import functools
+    import operator
+    import types
+    import typing
+
+    origin = typing.get_origin(hint)
+    if hint is tuple or origin is tuple:
+        items = [arg for arg in typing.get_args(hint) if arg is not Ellipsis]
+        nested = bool(items) and (items[0] is tuple or typing.get_origin(items[0]) is tuple)
+        return list[_form_type(items[0])] if nested else list[float]
+    if origin in (types.UnionType, typing.Union):
+        return functools.reduce(operator.or_, [_form_type(arg) for arg in typing.get_args(hint)])
+    return hint
 
 
 NAN = float("nan")

@@ -351,7 +351,7 @@ def _drake_static_torques(plant, context, handles, x):
                 context,
                 JacobianWrtVariable.kV,
                 handles.rods[i].body_frame(),
-                handles.rod_top_in_rod,
+                handles.rod_top_in_rod[i],
                 W,
                 W,
             )

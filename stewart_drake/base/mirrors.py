@@ -12,6 +12,16 @@ import dataclasses
 from typing import ClassVar
 
 
+def _tuples(value):
+    """Lists (nested too) as tuples, the value type's form; anything else as it is."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
+
+
+def _lists(value):
+    """Tuples (nested too) as lists, the YAML form's; anything else as it is."""
+    return [_lists(v) for v in value] if isinstance(value, tuple) else value
+
+
 class ValueMirror:
     """Base of a YAML form (a dataclass): :meth:`build` gives the value type back."""
 
@@ -19,22 +29,13 @@ class ValueMirror:
     value_class: ClassVar[type] = object
 
     def build(self):
-        """The value type with these fields (lists become tuples); validated by its constructor."""
+        """The value type with these fields (lists, nested too, become tuples); validated by its
+        constructor."""
         return self.value_class(
-            **{
-                f.name: tuple(v) if isinstance(v, list) else v
-                for f in dataclasses.fields(self)
-                for v in [getattr(self, f.name)]
-            }
+            **{f.name: _tuples(getattr(self, f.name)) for f in dataclasses.fields(self)}
         )
 
     @classmethod
     def from_value(cls, value):
         """The form of a value-type instance (e.g. ``Robot.from_value(StewartGeometry())``)."""
-        return cls(
-            **{
-                f.name: list(v) if isinstance(v, tuple) else v
-                for f in dataclasses.fields(cls)
-                for v in [getattr(value, f.name)]
-            }
-        )
+        return cls(**{f.name: _lists(getattr(value, f.name)) for f in dataclasses.fields(cls)})

@@ -27,13 +27,8 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_array, as_number
-from ..robot.kinematics import (
-    X_HOME,
-    ik_jacobian,
-    ik_single,
-    jacobian_single,
-    leg_constants,
-)
+from ..robot.kinematics import X_HOME
+from ..robot.single_pose import ik_jacobian, ik_single, jacobian_single, leg_constants
 
 #: Largest Newton chord-step correction the estimate accepts per period (rad or m); a larger
 #: one (a jump, a stale Jacobian) is solved by full Newton (:meth:`PoseEstimator.track`).
@@ -44,8 +39,11 @@ class PoseEstimator:
     """The estimation step, shared by :class:`FkEstimator` and controllers that estimate in their
     own update (the LQI does, to save a Python callback per control period).
 
+    The encoders read theta_i + o_i (o_i their zero errors, ``geometry.encoder_offsets``):
+    every reading is taken back to the motor angle by the offsets the controller believes.
+
     Args:
-        geometry: the robot the controller believes in.
+        geometry: the robot the controller believes in (its encoders' zero errors included).
         period_s: control period h, s.
         quantum_rad: one encoder count, rad; Newton stops when every motor angle of the estimate
             is within ``tolerance_counts`` of a count of the measurement.
@@ -74,10 +72,12 @@ class PoseEstimator:
         #: Weight of the new difference in the rate's low-pass: 1 - exp(-2 pi f_c h).
         self.alpha = 1.0 - math.exp(-2 * math.pi * cutoff * self.h)
         self.max_iterations = int(max_iterations)
-        legs, self.crank_length, self.leg_c = leg_constants(geometry)
-        #: (6, 9) leg constants of :func:`~.kinematics.ik_scalar`, as the compiled step reads them.
-        self.legs = np.array(legs)
+        #: (6, LEG_SIZE) leg constants of :func:`~stewart_drake.robot.single_pose.ik_scalar`, as
+        #: the compiled step reads them (the encoders' zero errors in the last column).
+        self.legs = np.array(leg_constants(geometry))
         self.legs.setflags(write=False)
+        #: (6,) the encoders' zero errors the controller believes, rad.
+        self.offsets = np.array(geometry.encoder_offsets)
         #: Largest chord-step correction accepted (rad or m), else a full Newton solve.
         self.chord_step_max = CHORD_STEP_MAX
         _, J0 = ik_jacobian(geometry, as_array("x_reference", x_reference, shape=(6,)))
@@ -85,7 +85,8 @@ class PoseEstimator:
         self.mode = float(np.sign(np.linalg.det(J0)))
 
     def estimate(self, theta, x_start) -> tuple[np.ndarray, int, bool]:
-        """FK of the motor angles theta (6,) by Newton from x_start (6,).
+        """FK of the encoders' reading theta (6,) (the motor angles plus their zero errors) by
+        Newton from x_start (6,).
 
         Returns:
             (x (6,), Newton steps, converged). A step that would change the sign of det J or
@@ -96,6 +97,7 @@ class PoseEstimator:
             the Jacobian at the start and the IK alone at the end (the convergence check).
         """
         x = np.array(x_start, dtype=float)
+        theta = np.asarray(theta, dtype=float) - self.offsets  # exact for zero offsets
         th, cache = ik_single(self.geometry, x)
         for step in range(self.max_iterations + 1):
             r = (th - theta + np.pi) % (2 * np.pi) - np.pi
@@ -134,7 +136,7 @@ class PoseEstimator:
         (:data:`~.lqi.step.reference`: no compilation for an estimate outside the controller).
 
         Args:
-            theta (6,) measured motor angles, rad; x_prev, v_prev (6,) the last estimate;
+            theta (6,) the encoders' reading, rad; x_prev, v_prev (6,) the last estimate;
             J_inv (6, 6) or (36,) row-major, the inverse Jacobian.
         Returns:
             (x (6,), v (6,)) [rad, m; rad/s, m/s].
@@ -145,8 +147,6 @@ class PoseEstimator:
         x_hat = np.concatenate([np.asarray(x_prev, dtype=float), np.asarray(v_prev, dtype=float)])
         if not reference.estimate(
             self.legs,
-            self.crank_length,
-            self.leg_c,
             self.h,
             self.alpha,
             self.chord_step_max,

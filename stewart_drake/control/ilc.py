@@ -89,12 +89,15 @@ def cycle_error(geometry, theta, x_d, mode: str = "pose") -> np.ndarray:
 
     Args:
         geometry: the robot the learner believes in.
-        theta: (r, 6) encoder angles, rad. x_d: (r, 6) the reference poses at the same times.
+        theta: (r, 6) encoder angles, rad (the motor angles plus the encoders' zero errors,
+            which ``geometry.encoder_offsets`` takes back). x_d: (r, 6) the reference poses at
+            the same times.
         mode: "pose": forward kinematics of ``theta`` (Newton from ``x_d``) minus ``x_d``
             [rad, m]; "motor_angle": ``theta`` minus the motor angles of ``x_d``, rad.
     Returns:
         (r, 6) errors; rows whose kinematics fail are zero (nothing learned there).
     """
+    theta = np.asarray(theta, dtype=float) - geometry.encoder_offsets
     if mode == "motor_angle":
         e = kinematics.ik_unchecked(geometry, x_d)[0]
         e = np.angle(np.exp(1j * (theta - e)))

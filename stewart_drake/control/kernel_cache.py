@@ -34,18 +34,18 @@ ENTRY_POINTS = {"step.py": ("step", "act", "filter_rate"), "reschedule.py": ("wa
 KERNEL_FILES = tuple(Path(__file__).with_name("lqi") / name for name in ENTRY_POINTS)
 
 #: :func:`sources_digest` of the sources the kernels were last compiled against.
-DEPENDENCIES_DIGEST = "8325966a16df62a8"
+DEPENDENCIES_DIGEST = "2b7f9846e92a8ddb"
 
 
 def sources_digest() -> str:
     """SHA-256 (16 hex digits) of what the compiled code takes from other files: the source of
-    :func:`~stewart_drake.robot.kinematics.ik_scalar`, all of :mod:`.lqi.layout` (the index
+    :func:`~stewart_drake.robot.single_pose.ik_scalar`, all of :mod:`.lqi.layout` (the index
     constants, which numba freezes into the machine code) and the source of
     :func:`~stewart_drake.robot.path_kernels.lu_solve6`. numba's cache notices a change of a
     kernels' file itself (:data:`KERNEL_FILES`) only, so the cache is used only while this digest
     is :data:`DEPENDENCIES_DIGEST` (a test holds them equal: change one, update the other)."""
-    from ..robot.kinematics import ik_scalar
     from ..robot.path_kernels import lu_solve6
+    from ..robot.single_pose import ik_scalar
     from .lqi import layout
 
     digest = hashlib.sha256(inspect.getsource(ik_scalar).encode())

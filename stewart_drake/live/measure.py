@@ -82,7 +82,7 @@ def pose_verdict(plan, q) -> MeasuredPose:
 
     q = np.asarray(q, dtype=float)
     try:
-        x, _ = fk(plan.geometry, q)
+        x, _ = fk(plan.geometry, q - plan.geometry.encoder_offsets)  # the encoders' zero errors
     except ForwardKinematicsError:
         raise StartPoseError(
             f"no pose of the robot has the measured crank angles "

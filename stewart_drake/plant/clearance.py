@@ -264,7 +264,7 @@ def sample_indices(geometry: StewartGeometry, x, resolution_m: float, theta=None
         np.linalg.norm(np.diff(x[:, 3:], axis=0), axis=1)
         + np.linalg.norm(turn, axis=1) * r_platform
     )
-    crank = geometry.crank_length * np.max(np.abs(np.diff(theta, axis=0)), axis=1)
+    crank = np.max(geometry.crank_lengths) * np.max(np.abs(np.diff(theta, axis=0)), axis=1)
     step = np.maximum(np.nan_to_num(step, nan=np.inf), np.nan_to_num(crank, nan=np.inf))
     keep, moved = [0], 0.0
     for k, d in enumerate(step, start=1):

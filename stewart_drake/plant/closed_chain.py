@@ -60,7 +60,7 @@ def assemble(
     for i, joint in enumerate(handles.rod_balls):
         joint.set_angles(context, np.zeros(3))
         X_WF = plant.EvalBodyPoseInWorld(context, handles.rods[i])  # rod frame at rpy = 0
-        z_F = X_WF.rotation().inverse().multiply((q_B[i] - tips[i]) / g.rod_length)
+        z_F = X_WF.rotation().inverse().multiply((q_B[i] - tips[i]) / g.rod_lengths[i])
         R_FM = _min_rotation(np.array([0.0, 0.0, 1.0]), np.asarray(z_F))
         joint.set_angles(context, RollPitchYaw(RotationMatrix(R_FM)).vector())
     plant.SetVelocities(
@@ -87,7 +87,7 @@ def assembled_positions(plant: MultibodyPlant, handles: StewartPlantHandles, x) 
     x = np.asarray(x, dtype=float)
     theta, _ = kinematics.ik_unchecked(g, x)
     q_B, _ = kinematics.platform_joints(g, x)
-    ell = (q_B - g.crank_tips(theta)) / g.rod_length  # (..., 6, 3) unit
+    ell = (q_B - g.crank_tips(theta)) / g.rod_lengths[:, None]  # (..., 6, 3) unit
     q = np.zeros(x.shape[:-1] + (plant.num_positions(),))
     R0 = _rod_zero_rotations_cached(g)
     motors, rod_balls = handles.motors, handles.rod_balls
@@ -179,15 +179,16 @@ def _set_velocities(plant, context, handles, x, x_dot, theta):
     plant.SetFreeBodySpatialVelocity(
         context, handles.platform, SpatialVelocity(E @ x_dot[:3], x_dot[3:])
     )
-    # Rod angular velocity w = ell x (v_q - v_tip) / s^2, as an rpy rate of the ball joint.
+    # Rod angular velocity w = ell x (v_q - v_tip) / s_i^2, as an rpy rate of the ball joint.
     q_B, r_B = kinematics.platform_joints(g, x)
     tips = g.crank_tips(theta)
     c, s_ = np.cos(theta), np.sin(theta)
     for i, joint in enumerate(handles.rod_balls):
         ell = q_B[i] - tips[i]
         v_q = x_dot[3:] + np.cross(E @ x_dot[:3], r_B[i])
-        v_tip = g.crank_length * theta_dot[i] * (-s_[i] * g.d_B[i] + c[i] * np.array([0, 0, 1.0]))
-        w_rod_W = np.cross(ell, v_q - v_tip) / g.rod_length**2
+        a, s = float(g.crank_lengths[i]), float(g.rod_lengths[i])
+        v_tip = a * theta_dot[i] * (-s_[i] * g.d_B[i] + c[i] * g.w_B[i])
+        w_rod_W = np.cross(ell, v_q - v_tip) / s**2
         w_crank_W = theta_dot[i] * g.u_B[i]
         X_WC = plant.EvalBodyPoseInWorld(context, handles.cranks[i])
         X_CF = joint.frame_on_parent().GetFixedPoseInBodyFrame()
@@ -252,25 +253,25 @@ def loop_closure_errors(
     plant: MultibodyPlant, context: Context, handles: StewartPlantHandles
 ) -> np.ndarray:
     """(6,) distance in m between each rod's top end and its platform joint (0 when closed);
-    with rods as distance constraints, |crank tip to platform joint - rod length|."""
+    with rods as distance constraints, |crank tip to platform joint - rod length s_i|."""
     # The ignores: pydrake's stubs type multiply's (3, n) array argument as a RigidTransform.
     X_WE = plant.EvalBodyPoseInWorld(context, handles.platform)
     p_W_joint = X_WE.multiply(handles.geometry.p_E.T)  # type: ignore[arg-type]  # (3, 6) joints
     rods = handles.rods
     if not rods:
-        tip = np.array([handles.geometry.crank_length, 0.0, 0.0])
+        a = handles.geometry.crank_lengths
         p_W_tip = np.column_stack(
             [
-                plant.EvalBodyPoseInWorld(context, crank).multiply(tip)  # type: ignore[arg-type]
-                for crank in handles.cranks
+                plant.EvalBodyPoseInWorld(context, crank).multiply(np.array([a[i], 0.0, 0.0]))  # type: ignore[arg-type]
+                for i, crank in enumerate(handles.cranks)
             ]
         )
         length = np.sqrt(((p_W_joint - p_W_tip) ** 2).sum(axis=0))
-        return np.abs(length - handles.geometry.rod_length)
+        return np.abs(length - handles.geometry.rod_lengths)
     p_W_top = np.column_stack(
         [
-            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod)  # type: ignore[arg-type]
-            for rod in rods
+            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod[i])  # type: ignore[arg-type]
+            for i, rod in enumerate(rods)
         ]
     )
     return np.sqrt(((p_W_top - p_W_joint) ** 2).sum(axis=0))
@@ -283,7 +284,7 @@ class LoopClosure:
     times more (docs/plant_speed.md).
 
     Crank tips from the motor angles (as :meth:`~.geometry.StewartGeometry.crank_tips`); with
-    rods as bodies, each rod's top at s R_WF R_FM(rpy) e_z from its tip, where R_WF =
+    rods as bodies, each rod's top at s_i R_WF R_FM(rpy) e_z from its tip, where R_WF =
     Rot(u_i, theta_i) R0_i is the ball joint's frame (as :func:`assembled_positions` poses it)
     and R_FM = Rz(yaw) Ry(pitch) Rx(roll) Drake's BallRpyJoint; the platform joints from its
     (normalized) quaternion and position. A test holds it to :func:`loop_closure_errors` at
@@ -300,10 +301,21 @@ class LoopClosure:
         self._platform = handles.platform.floating_positions_start()
         R0 = _rod_zero_rotations_cached(g)
         self._legs = [
-            tuple(float(v) for v in (*g.P_B[i], *g.d_B[i], *g.u_B[i], *g.p_E[i], *np.ravel(R0[i])))
+            tuple(
+                float(v)
+                for v in (
+                    g.crank_lengths[i],
+                    g.rod_lengths[i],
+                    *g.P_B[i],
+                    *g.d_B[i],
+                    *g.w_B[i],
+                    *g.u_B[i],
+                    *g.p_E[i],
+                    *np.ravel(R0[i]),
+                )
+            )
             for i in range(6)
         ]
-        self._a, self._s = float(g.crank_length), float(g.rod_length)
 
     def __call__(self, q) -> np.ndarray:
         """(6,) distance in m between each rod's top end and its platform joint, from q (nq,)."""
@@ -316,12 +328,16 @@ class LoopClosure:
         r10, r11, r12 = 2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)
         r20, r21, r22 = 2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)
         X, Y, Z = q[i + 4 : i + 7]
-        a, s = self._a, self._s
         out = []
-        for k, (px, py, pz, dx, dy, dz, ux, uy, uz, ex, ey, ez, *R0) in enumerate(self._legs):
+        for k, leg in enumerate(self._legs):
+            a, s, px, py, pz, dx, dy, dz, wx, wy, wz, ux, uy, uz, ex, ey, ez, *R0 = leg
             th = q[self._motors[k]]
             c, sn = math.cos(th), math.sin(th)
-            tx, ty, tz = px + a * c * dx, py + a * c * dy, pz + a * (c * dz + sn)  # crank tip
+            # The crank tip as P + a c d + a sn w: untilted (w = z, d_z = 0) each added term is
+            # an exact zero, the sums of the upright crank to the bit.
+            tx = px + a * c * dx + a * sn * wx
+            ty = py + a * c * dy + a * sn * wy
+            tz = pz + a * c * dz + a * sn * wz
             jx = r00 * ex + r01 * ey + r02 * ez + X - tx  # tip to platform joint
             jy = r10 * ex + r11 * ey + r12 * ez + Y - ty
             jz = r20 * ex + r21 * ey + r22 * ez + Z - tz

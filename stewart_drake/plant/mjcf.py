@@ -247,7 +247,7 @@ def _leg_xml(plant, context, handles, i: int, theta_home: float, motor_extra: st
         f"        {_inertial(rod)}",
         f'        <joint name="rod_ball_{i}" type="ball"/>',
         *(f"        {geom}" for geom in shapes[f"rod_{i}"]),
-        f'        <site name="rod_top_{i}" pos="{_num(handles.rod_top_in_rod)}" size="0.011"/>',
+        f'        <site name="rod_top_{i}" pos="{_num(handles.rod_top_in_rod[i])}" size="0.011"/>',
         "      </body>",
         "    </body>",
     ]

@@ -51,9 +51,9 @@ class StewartPlantHandles:
         geometry: the robot.  plant: the finalized MultibodyPlant.  model_instance: the robot's.
         platform_index, crank_indices (6), rod_indices (6; empty with distance-constraint
         rods): ``BodyIndex``.  motor_indices (6), rod_ball_indices (6 or empty): ``JointIndex``
-        (revolute motors, ball rod tops).  rod_top_in_rod: (3,) p_AP of every ball
-        constraint, rod frame, m.  n_actuators: 6 motors, + 6 dry-friction actuators when the
-        servo has friction.  rod_model: one of ``ROD_MODELS``.
+        (revolute motors, ball rod tops).  rod_top_in_rod: (6, 3) p_AP of each leg's ball
+        constraint, its rod's frame, m ([0, 0, s_i]).  n_actuators: 6 motors, + 6 dry-friction
+        actuators when the servo has friction.  rod_model: one of ``ROD_MODELS``.
     """
 
     geometry: StewartGeometry
@@ -144,7 +144,7 @@ def add_stewart_plant(
             False leaves it out (an SDF file's collision geometry is then filtered): parts pass
             through each other unseen, at no cost per step.
         rod_model: "bodies" or "distance" (:data:`~.sdf.ROD_MODELS`); "distance" adds one
-            ``AddDistanceConstraint`` (rigid, length ``geometry.rod_length``) per leg between
+            ``AddDistanceConstraint`` (rigid, length ``geometry.rod_lengths[i]``) per leg between
             the crank tip and the platform joint, and then takes no ``sdf_file``. Its rods have
             no collision geometry: contact between a rod and another part is not simulated.
     Returns:
@@ -261,14 +261,18 @@ def _add_motors(plant, model, geometry: StewartGeometry, servo: ServoModel | Non
 
 
 def _add_rod_constraints(plant, model, geometry: StewartGeometry) -> None:
-    """One rigid distance constraint per leg, crank tip (crank frame [a, 0, 0]) to platform
-    joint (platform frame p_E_i), of length s."""
+    """One rigid distance constraint per leg, crank tip (crank frame [a_i, 0, 0]) to platform
+    joint (platform frame p_E_i), of length s_i."""
     platform = plant.GetBodyByName("platform", model)
-    tip = np.array([geometry.crank_length, 0.0, 0.0])
     for i in range(6):
         crank = plant.GetBodyByName(f"crank_{i}", model)
+        tip = np.array([float(geometry.crank_lengths[i]), 0.0, 0.0])
         plant.AddDistanceConstraint(
-            crank, tip, platform, np.asarray(geometry.p_E[i], dtype=float), geometry.rod_length
+            crank,
+            tip,
+            platform,
+            np.asarray(geometry.p_E[i], dtype=float),
+            float(geometry.rod_lengths[i]),
         )
 
 
@@ -295,7 +299,7 @@ def _handles(plant, model, geometry: StewartGeometry, rod_model: str) -> Stewart
         rod_ball_indices=tuple(
             plant.GetJointByName(f"rod_ball_{i}", model).index() for i in range(6) if bodies
         ),
-        rod_top_in_rod=np.array([0.0, 0.0, geometry.rod_length]),
+        rod_top_in_rod=np.column_stack([np.zeros((6, 2)), geometry.rod_lengths]),
         n_actuators=n_actuators,
         rod_model=rod_model,
     )

@@ -2,7 +2,9 @@
 
 Model: base welded to the world; six cranks on actuated revolute joints ``motor_i`` (axis u_i);
 six rods on ball joints ``rod_ball_i`` at the crank tips; a floating platform; six
-``drake:ball_constraint`` elements closing the loops (rod top end = platform joint p_i). With
+``drake:ball_constraint`` elements closing the loops (rod top end = platform joint p_i). Each
+leg is written with its own pivot, shaft axis, crank and rod length and platform joint (the
+geometry's per-leg arrays; docs/robot.md, "Per-leg geometry"). With
 rods as distance constraints (:data:`ROD_MODELS`) the rods' links, joints and constraints are
 left out and :func:`~.plant.add_stewart_plant` adds the constraints.
 
@@ -173,7 +175,7 @@ def rod_zero_rotations(geometry: StewartGeometry) -> list[np.ndarray]:
     rotations = []
     for i in range(6):
         u = geometry.u_B[i]
-        z_rod = (q_B[i] - tips[i]) / geometry.rod_length
+        z_rod = (q_B[i] - tips[i]) / geometry.rod_lengths[i]
         x_rod = u - np.dot(u, z_rod) * z_rod  # bolt axis, normal part
         x_rod /= np.linalg.norm(x_rod)
         R_home = np.column_stack([x_rod, np.cross(z_rod, x_rod), z_rod])
@@ -248,10 +250,11 @@ def _leg_xml(g: StewartGeometry, i: int, shapes: dict, m_end: float, R0_rod) -> 
     """Leg i's SDF elements: crank link, motor joint and, with ``R0_rod`` (the rod's frame at
     the zero configuration, :func:`rod_zero_rotations`; None with rods as distance
     constraints), rod link and ball joint. ``shapes``: {link: its parts' XML}; ``m_end``: each
-    rod end's lumped mass, kg."""
-    a, s = g.crank_length, g.rod_length
-    d, u, P = g.d_B[i], g.u_B[i], g.P_B[i]
-    R_crank = np.column_stack([d, -u, [0.0, 0.0, 1.0]])  # x along crank, y = shaft (-u)
+    rod end's lumped mass, kg. The crank's frame: at the pivot P_i, x along the crank d_i, y
+    the shaft -u_i, z the crank plane's second axis w_i (z untilted)."""
+    a, s = float(g.crank_lengths[i]), float(g.rod_lengths[i])
+    d, u, w, P = g.d_B[i], g.u_B[i], g.w_B[i], g.P_B[i]
+    R_crank = np.column_stack([d, -u, w])  # x along crank, y = shaft (-u)
     out = [
         f'    <link name="crank_{i}">\n      <pose>{_pose(P, R_crank)}</pose>\n'
         + _end_mass_inertial(g.crank_mass, g.crank_inertia, [a / 2, 0, 0], m_end, [[a, 0, 0]])
@@ -279,7 +282,8 @@ def _ball_constraint_xml(g: StewartGeometry, i: int) -> str:
         "    <drake:ball_constraint>\n"
         f"      <drake:ball_constraint_body_A>rod_{i}</drake:ball_constraint_body_A>\n"
         "      <drake:ball_constraint_body_B>platform</drake:ball_constraint_body_B>\n"
-        f"      <drake:ball_constraint_p_AP>0 0 {g.rod_length:.12g}</drake:ball_constraint_p_AP>\n"
+        f"      <drake:ball_constraint_p_AP>0 0 {float(g.rod_lengths[i]):.12g}"
+        "</drake:ball_constraint_p_AP>\n"
         f"      <drake:ball_constraint_p_BQ>{_vec(g.p_E[i])}</drake:ball_constraint_p_BQ>\n"
         "    </drake:ball_constraint>"
     )

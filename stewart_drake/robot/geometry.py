@@ -4,6 +4,13 @@ The default :class:`StewartGeometry` is exactly ``docs/reference_geometry.md``: 
 the paper leaves open, with the paper's Table I masses and inertias. Frames: world = base frame B
 (origin at the centre of the base plate's top face, z up); platform frame E (origin at the centre
 of the circle of platform joints). Leg index i = 2k + (s+1)/2, k = 0, 1, 2, s = -1, +1.
+
+Each leg may deviate from the drawing (the robot as built, or as a calibration found it): its
+pivot and platform joint moved, its crank and rod lengths, its motor shaft tilted, its encoder's
+zero (the optional per-leg fields, None for the drawing's value; docs/robot.md, "Per-leg
+geometry"). Every consumer reads the per-leg arrays (:attr:`StewartGeometry.P_B`, ``p_E``,
+``w_B``, ``u_B``, ``crank_lengths``, ``rod_lengths``, ``encoder_offsets``), which for the
+symmetric robot hold the drawing's values exactly.
 """
 
 from __future__ import annotations
@@ -21,6 +28,25 @@ from .limits import LIMITS, limit_margins
 
 #: Table I of the paper, principal moments about the COM in kg m^2, as printed.
 TABLE_I_CRANK_INERTIA = (1e-6, 5.8e-5, 6e-5)
+
+#: Largest |component| of a per-leg joint offset (``pivot_offsets_m``, ``platform_offsets_m``),
+#: m: a build or calibration error, not a design change (move the anchors' radii or angles).
+MAX_JOINT_OFFSET_M = 0.005
+#: Largest |tilt| of a motor shaft about its crank direction (``shaft_tilts_rad``), rad.
+MAX_SHAFT_TILT_RAD = 0.1
+#: Largest |zero error| of an encoder (``encoder_offsets_rad``), rad: beyond it, zero the
+#: encoder again.
+MAX_ENCODER_OFFSET_RAD = 0.1
+#: The per-leg fields of :class:`StewartGeometry`: name -> (shape, largest |value| or None
+#: for a length, which must be > 0, what to do beyond that bound).
+PER_LEG_FIELDS = {
+    "pivot_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M, "move the pivots by base_radius, pivot_z"),
+    "platform_offsets_m": ((6, 3), MAX_JOINT_OFFSET_M, "move the joints by platform_radius"),
+    "crank_lengths_m": ((6,), None, ""),
+    "rod_lengths_m": ((6,), None, ""),
+    "shaft_tilts_rad": ((6,), MAX_SHAFT_TILT_RAD, "a shaft tilted that far is another design"),
+    "encoder_offsets_rad": ((6,), MAX_ENCODER_OFFSET_RAD, "zero the encoder again"),
+}
 
 
 def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[float, float, float]:
@@ -103,11 +129,27 @@ class StewartGeometry:
             inertia x gear ratio^2), kg m^2; 0 for ideal torque sources. A scenario with
             hardware sets it from its servo (``model.servo.ServoModel.reflected_inertia``), so
             the controller's task inertia includes the motors the plant carries.
+
+    Per leg (None: every leg as drawn, the symmetric robot; docs/robot.md, "Per-leg geometry"):
+        pivot_offsets_m: (6, 3) added to the drawn crank pivots P_i, base frame B, m;
+            each component at most :data:`MAX_JOINT_OFFSET_M`.
+        platform_offsets_m: (6, 3) added to the drawn platform joint centres p_i, platform
+            frame E, m; each component at most :data:`MAX_JOINT_OFFSET_M`.
+        crank_lengths_m: (6,) each leg's crank length a_i, m, in place of ``crank_length``
+            (then the nominal value) for that leg; the crank's centre of mass is at a_i / 2.
+        rod_lengths_m: (6,) each leg's rod length s_i, m, in place of ``rod_length``; the rod's
+            mass and inertia stay the drawn part's.
+        shaft_tilts_rad: (6,) rotation t_i of leg i's crank plane about its crank direction
+            d_i (right-handed), rad, |t_i| <= :data:`MAX_SHAFT_TILT_RAD`: the plane's second
+            axis w_i = cos t z + sin t (d_i x z), the shaft u_i = d_i x w_i.
+        encoder_offsets_rad: (6,) each encoder's zero error, rad, |value| <=
+            :data:`MAX_ENCODER_OFFSET_RAD`: encoder i reads theta_i + offset_i.
     Raises:
         InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
             inertia that fails the triangle inequality (use
-            :func:`nearest_valid_principal_moments`), legs that cannot close at the home pose,
-            or a home pose outside a joint limit; each message names the field to change.
+            :func:`nearest_valid_principal_moments`), a per-leg value of the wrong shape or
+            beyond its bound, legs that cannot close at the home pose, or a home pose outside a
+            joint limit; each message names the field to change.
     """
 
     base_radius: float = 0.20
@@ -138,10 +180,17 @@ class StewartGeometry:
     crank_joint_cone_deg: float = 35.0
     platform_joint_cone_deg: float = 40.0
     motor_reflected_inertia: float = 0.0
+    pivot_offsets_m: tuple[tuple[float, float, float], ...] | None = None
+    platform_offsets_m: tuple[tuple[float, float, float], ...] | None = None
+    crank_lengths_m: tuple[float, ...] | None = None
+    rod_lengths_m: tuple[float, ...] | None = None
+    shaft_tilts_rad: tuple[float, ...] | None = None
+    encoder_offsets_rad: tuple[float, ...] | None = None
 
     def __post_init__(self):
         self._check_numbers()
         self._check_tuples()
+        self._check_per_leg()
         self._check_ranges()
         self._check_home()
 
@@ -216,6 +265,33 @@ class StewartGeometry:
                 )
             object.__setattr__(self, name, tuple(float(v) for v in moments))
 
+    def _check_per_leg(self) -> None:
+        """Each per-leg field None or its shape of finite numbers within its bound (lengths
+        > 0, each rod longer than its crank), stored as (nested) tuples of floats."""
+        for name, (shape, bound, remedy) in PER_LEG_FIELDS.items():
+            value = getattr(self, name)
+            if value is None:
+                continue
+            a = as_array(name, value, shape=shape, error=InvalidGeometryError)
+            if bound is None and np.any(a <= 0):
+                leg = int(np.argmin(a))
+                raise InvalidGeometryError(f"{name}[{leg}] = {a[leg]} m: every length must be > 0")
+            if bound is not None and np.any(np.abs(a) > bound):
+                index = tuple(int(k) for k in np.argwhere(np.abs(a) > bound)[0])
+                raise InvalidGeometryError(
+                    f"{name}{list(index)} = {a[index]:.6g} is beyond +-{bound:g}, the bound of "
+                    f"one leg's deviation from the drawing: {remedy}"
+                )
+            rows = a.tolist()  # Python floats
+            object.__setattr__(self, name, tuple(map(tuple, rows)) if a.ndim == 2 else tuple(rows))
+        short = self.rod_lengths <= self.crank_lengths
+        if np.any(short):
+            leg = int(np.argmax(short))
+            raise InvalidGeometryError(
+                f"leg {leg}'s rod ({self.rod_lengths[leg]} m) must exceed its crank "
+                f"({self.crank_lengths[leg]} m): change rod_lengths_m or crank_lengths_m"
+            )
+
     def _check_ranges(self) -> None:
         """The motor travel and the ball joints' cones."""
         lo, hi = self.motor_angle_min_deg, self.motor_angle_max_deg
@@ -237,7 +313,7 @@ class StewartGeometry:
             raise InvalidGeometryError(
                 f"leg {leg} cannot close at the home pose {X_HOME.tolist()}: "
                 f"|L|/sqrt(M^2+N^2) = {abs(ratio[leg]):.4g} > 1; change the rod or crank length "
-                f"or the anchor radii"
+                f"(rod_lengths_m, crank_lengths_m for one leg) or the anchor radii"
             )
         margins = limit_margins(self, X_HOME)
         for name in LIMITS[1:]:
@@ -252,15 +328,63 @@ class StewartGeometry:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
 
+    @property
+    def symmetric(self) -> bool:
+        """Whether every per-leg field is None: the robot as drawn."""
+        return all(getattr(self, name) is None for name in PER_LEG_FIELDS)
+
     @functools.cached_property
     def P_B(self) -> np.ndarray:
-        """(6, 3) crank pivots (motor shaft points) P_i in the base frame, m."""
-        return _frozen(_ring(self.base_radius, self.pivot_angles_deg, self.pivot_z))
+        """(6, 3) crank pivots (motor shaft points) P_i in the base frame, m: the drawn ring
+        plus ``pivot_offsets_m``."""
+        P = _ring(self.base_radius, self.pivot_angles_deg, self.pivot_z)
+        if self.pivot_offsets_m is not None:
+            P = P + np.asarray(self.pivot_offsets_m)
+        return _frozen(P)
 
     @functools.cached_property
     def p_E(self) -> np.ndarray:
-        """(6, 3) platform joint centres p_i in the platform frame E, m."""
-        return _frozen(_ring(self.platform_radius, self.platform_angles_deg))
+        """(6, 3) platform joint centres p_i in the platform frame E, m: the drawn ring plus
+        ``platform_offsets_m``."""
+        p = _ring(self.platform_radius, self.platform_angles_deg)
+        if self.platform_offsets_m is not None:
+            p = p + np.asarray(self.platform_offsets_m)
+        return _frozen(p)
+
+    @functools.cached_property
+    def crank_lengths(self) -> np.ndarray:
+        """(6,) crank lengths a_i, m (``crank_lengths_m``, else ``crank_length`` for every
+        leg)."""
+        lengths = self.crank_lengths_m
+        return _frozen(np.full(6, self.crank_length) if lengths is None else np.array(lengths))
+
+    @functools.cached_property
+    def rod_lengths(self) -> np.ndarray:
+        """(6,) rod lengths s_i, m (``rod_lengths_m``, else ``rod_length`` for every leg)."""
+        lengths = self.rod_lengths_m
+        return _frozen(np.full(6, self.rod_length) if lengths is None else np.array(lengths))
+
+    @functools.cached_property
+    def shaft_inertias(self) -> np.ndarray:
+        """(6,) each crank's inertia about its shaft with its motor's, kg m^2:
+        ``crank_inertia[1]`` + ``crank_mass`` (a_i / 2)^2 + ``motor_reflected_inertia``."""
+        return _frozen(
+            np.array(
+                [
+                    self.crank_inertia[1]
+                    + self.crank_mass * (0.5 * float(a)) ** 2
+                    + self.motor_reflected_inertia
+                    for a in self.crank_lengths
+                ]
+            )
+        )
+
+    @functools.cached_property
+    def encoder_offsets(self) -> np.ndarray:
+        """(6,) encoder zero errors, rad (``encoder_offsets_rad``, else zeros): encoder i reads
+        theta_i + offset_i."""
+        offsets = self.encoder_offsets_rad
+        return _frozen(np.zeros(6) if offsets is None else np.array(offsets))
 
     @functools.cached_property
     def d_B(self) -> np.ndarray:
@@ -268,16 +392,29 @@ class StewartGeometry:
         return _frozen(_ring(1.0, self.crank_angles_deg))
 
     @functools.cached_property
+    def w_B(self) -> np.ndarray:
+        """(6, 3) unit second axes w_i of the crank planes, base frame: z_hat, turned by
+        ``shaft_tilts_rad`` about d_i, w_i = cos t_i z_hat + sin t_i (d_i x z_hat); the crank
+        tip is P_i + a_i (cos theta_i d_i + sin theta_i w_i)."""
+        z = np.zeros((6, 3))
+        z[:, 2] = 1.0
+        if self.shaft_tilts_rad is None:
+            return _frozen(z)
+        t = np.asarray(self.shaft_tilts_rad)[:, None]
+        return _frozen(np.cos(t) * z + np.sin(t) * np.cross(self.d_B, z))
+
+    @functools.cached_property
     def u_B(self) -> np.ndarray:
-        """(6, 3) unit motor shaft axes u_i = d_i x z_hat; positive theta_i raises the crank tip."""
-        return _frozen(np.cross(self.d_B, np.array([0.0, 0.0, 1.0])))
+        """(6, 3) unit motor shaft axes u_i = d_i x w_i (d_i x z_hat untilted); positive
+        theta_i turns the crank from d_i towards w_i (raises the crank tip)."""
+        return _frozen(np.cross(self.d_B, self.w_B))
 
     def crank_tips(self, theta) -> np.ndarray:
-        """(..., 6, 3) crank-tip joint centres for motor angles theta (..., 6) in rad, base
-        frame."""
+        """(..., 6, 3) crank-tip joint centres P_i + a_i (cos theta_i d_i + sin theta_i w_i)
+        for motor angles theta (..., 6) in rad, base frame."""
         theta = np.asarray(theta, dtype=float)[..., None]
-        return self.P_B + self.crank_length * (
-            np.cos(theta) * self.d_B + np.sin(theta) * np.array([0.0, 0.0, 1.0])
+        return self.P_B + self.crank_lengths[:, None] * (
+            np.cos(theta) * self.d_B + np.sin(theta) * self.w_B
         )
 
 

@@ -4,19 +4,19 @@ Pose x = [phi, theta, psi, X, Y, Z] (rad, rad, rad, m, m, m): orientation of E i
 RollPitchYaw, R_BE = Rz(psi) Ry(theta) Rx(phi), and the position p_BE of E's origin. Every function
 takes a single pose (6,) or a batch (..., 6) and broadcasts; motor angles theta are (..., 6) in rad.
 
-Per leg i (reference_geometry.md):
+Per leg i (reference_geometry.md; docs/robot.md, "Per-leg geometry"):
     q_i = R_BE p_i + p_BE          platform joint centre, base frame
-    tip_i = P_i + a (cos theta_i d_i + sin theta_i z)
-    ell_i = q_i - tip_i             rod vector, |ell_i| = s
+    tip_i = P_i + a_i (cos theta_i d_i + sin theta_i w_i)   (w_i = z untilted)
+    ell_i = q_i - tip_i             rod vector, |ell_i| = s_i
 
 The functions take the robot as ``geometry``, a
 :class:`~stewart_drake.robot.geometry.StewartGeometry`, read through the attributes
 :class:`RobotGeometry` names (this module sits below the geometry, which checks itself with it).
 Forward kinematics is in :mod:`.forward_kinematics`, statics in :mod:`.statics`, the limits and
 the reference validator in :mod:`.limits`; all read the per-leg vectors of :func:`leg_terms`.
+The one-pose forms of the control period (plain floats, small arrays) are in :mod:`.single_pose`.
 """
 
-import math
 from typing import NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
@@ -59,11 +59,21 @@ class RobotGeometry(Protocol):
     @property
     def rod_length(self) -> float: ...
     @property
+    def crank_lengths(self) -> np.ndarray: ...
+    @property
+    def rod_lengths(self) -> np.ndarray: ...
+    @property
+    def shaft_inertias(self) -> np.ndarray: ...
+    @property
+    def encoder_offsets(self) -> np.ndarray: ...
+    @property
     def P_B(self) -> np.ndarray: ...
     @property
     def p_E(self) -> np.ndarray: ...
     @property
     def d_B(self) -> np.ndarray: ...
+    @property
+    def w_B(self) -> np.ndarray: ...
     @property
     def u_B(self) -> np.ndarray: ...
     @property
@@ -98,7 +108,6 @@ class RobotGeometry(Protocol):
         """Hashable: caches (functools.lru_cache) key on the geometry."""
 
 
-_Z = np.array([0.0, 0.0, 1.0])
 _NEXT, _PREV = [1, 2, 0], [2, 0, 1]  # (a x b)_k = a_{k+1} b_{k+2} - a_{k+2} b_{k+1}
 
 
@@ -168,9 +177,10 @@ def platform_joints(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]
 def _lmn(geometry: RobotGeometry, x):
     q_B, r_B = platform_joints(geometry, x)
     l = q_B - geometry.P_B  # pivot to platform joint, (..., 6, 3)
-    a, s = geometry.crank_length, geometry.rod_length
+    a, s = geometry.crank_lengths, geometry.rod_lengths
     L = np.sum(l * l, axis=-1) - (s * s - a * a)
-    M = 2.0 * a * l[..., 2]
+    # l . w_i is l_z exactly when w_i = z (the products with its zeros are exact zeros).
+    M = 2.0 * a * np.sum(l * geometry.w_B, axis=-1)
     N = 2.0 * a * np.sum(l * geometry.d_B, axis=-1)
     return L, M, N, q_B, r_B
 
@@ -282,7 +292,7 @@ def leg_terms(geometry: RobotGeometry, x, theta) -> LegTerms:
     tip = geometry.crank_tips(theta)
     ell = q_B - tip
     c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
-    e_N = -s * geometry.d_B + c * _Z  # crank-tip velocity direction per unit theta_dot
+    e_N = -s * geometry.d_B + c * geometry.w_B  # crank-tip velocity direction per theta_dot
     E = angular_velocity_map(x[..., :3])
     # dq_i/dx = [-[r_i]x E, I]: (..., 6, 3, 6)
     Gq = np.zeros(r_B.shape + (6,))
@@ -322,7 +332,7 @@ def jacobian(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     Args:
         x: (..., 6) pose; theta: optional (..., 6) motor angles of x (saves one IK).
     Returns:
-        (..., 6, 6), finite, row i = (ell_i . dq_i/dx) / (a ell_i . e_N,i), rad per (rad or m);
+        (..., 6, 6), finite, row i = (ell_i . dq_i/dx) / (a_i ell_i . e_N,i), rad per (rad or m);
         theta_dot = J @ x_dot with x_dot = [phi_dot, theta_dot, psi_dot, X_dot, Y_dot, Z_dot].
     Raises:
         UnreachablePoseError: if x is unreachable.
@@ -346,7 +356,7 @@ def jacobian_of(geometry: RobotGeometry, terms: LegTerms) -> np.ndarray:
     """:func:`jacobian_unchecked` from the :class:`LegTerms` of the poses (computed once for
     the Jacobian, the statics and the limits)."""
     num = np.einsum("...ik,...ikl->...il", terms.ell, terms.Gq)
-    den = geometry.crank_length * np.sum(terms.ell * terms.e_N, axis=-1)
+    den = geometry.crank_lengths * np.sum(terms.ell * terms.e_N, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         return num / den[..., None]
 
@@ -369,8 +379,8 @@ def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     """Corrected paper eq. 18: [M_B; F_B] = W T, (..., 6, 6).
 
     M_B is the moment about E's origin and F_B the force on the platform, both in the base frame,
-    for motor torques T (N m). Column i = [r_i x e_l,i ; e_l,i] / (a e_l,i . e_N,i), e_l the rod
-    direction: a massless rod carries force F_i = T_i / (a e_l . e_N) along itself.
+    for motor torques T (N m). Column i = [r_i x e_l,i ; e_l,i] / (a_i e_l,i . e_N,i), e_l the
+    rod direction: a massless rod carries force F_i = T_i / (a_i e_l . e_N) along itself.
     Raises:
         as :func:`jacobian` (UnreachablePoseError, SingularPoseError, InvalidConfigError).
     Source: paper eqs. 11-18; the paper's eq. 15 multiplies by e_l . e_N where it must divide.
@@ -380,7 +390,7 @@ def wrench_map(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
     tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)  # (..., 6 legs, 6)
     with np.errstate(divide="ignore", invalid="ignore"):
-        scale = 1.0 / (geometry.crank_length * np.sum(e_l * terms.e_N, axis=-1))
+        scale = 1.0 / (geometry.crank_lengths * np.sum(e_l * terms.e_N, axis=-1))
         W = np.swapaxes(tau1 * scale[..., None], -1, -2)
     return finite_or_singular("W", W, x)
 
@@ -393,134 +403,13 @@ def wrench_map_paper_eq18(geometry: RobotGeometry, x, theta=None) -> np.ndarray:
     terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
     e_l = terms.ell / np.linalg.norm(terms.ell, axis=-1, keepdims=True)
     tau1 = np.concatenate([np.cross(terms.r_B, e_l), e_l], axis=-1)
-    scale = np.sum(e_l * terms.e_N, axis=-1) / geometry.crank_length
+    scale = np.sum(e_l * terms.e_N, axis=-1) / geometry.crank_lengths
     return np.swapaxes(tau1 * scale[..., None], -1, -2)
 
 
 def wrap_angle(angle):
     """Angles wrapped to [-pi, pi), rad."""
     return (np.asarray(angle) + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def leg_constants(geometry: RobotGeometry) -> tuple:
-    """The geometry as plain floats for :func:`ik_scalar`: ((p_E, P_B, d_B) per leg as 9-tuples,
-    crank length a, s^2 - a^2). Compute it once per geometry."""
-    legs = tuple(
-        tuple(float(v) for v in (*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]))
-        for i in range(6)
-    )
-    a = float(geometry.crank_length)
-    return legs, a, float(geometry.rod_length) ** 2 - a * a
-
-
-def ik_scalar(constants: tuple, x) -> list:
-    """Motor angles of ONE pose in plain Python floats: :func:`ik` without numpy.
-
-    At 1 kHz between two plant steps, numpy's per-call overhead dominates a (6,)-sized problem
-    and its code falls out of the CPU caches: this loop costs a quarter of :func:`ik_single` in
-    a running simulation (benchmarks/realtime.py). The same numbers to 1e-15 (a test).
-
-    Args:
-        constants: :func:`leg_constants` of the geometry. x: 6 floats [rad, m] (not validated).
-    Returns:
-        list of 6 motor angles, rad; NaN for a leg that cannot close.
-    """
-    legs, a, c = constants
-    cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
-    sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
-    r00, r01, r02 = cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr
-    r10, r11, r12 = sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr
-    r20, r21, r22 = -sp, cp * sr, cp * cr
-    X, Y, Z = x[3], x[4], x[5]
-    theta = []
-    for ex, ey, ez, bx, by, bz, dx, dy, dz in legs:
-        lx = r00 * ex + r01 * ey + r02 * ez + X - bx  # pivot to platform joint
-        ly = r10 * ex + r11 * ey + r12 * ez + Y - by
-        lz = r20 * ex + r21 * ey + r22 * ez + Z - bz
-        M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
-        # sqrt, not math.hypot: CPython's hypot has its own rounding, numba's calls libm's, and
-        # the controller compiles this function (the same bits interpreted and compiled).
-        norm = math.sqrt(M * M + N * N)
-        L = lx * lx + ly * ly + lz * lz - c
-        theta.append(math.asin(L / norm) - math.atan2(N, M) if abs(L) <= norm else math.nan)
-    return theta
-
-
-def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
-    """Motor angles of ONE pose, with what :func:`jacobian_single` reuses.
-
-    The same numbers as :func:`ik` (a test holds them equal to 1e-12), computed with a few
-    3 x 3 and (6, 3) array operations instead of the batched, validated routines: about 10 times
-    faster on a single pose, for the FK estimator and the gain re-scheduling, which run every
-    control period.
-
-    Args:
-        x: (6,) finite pose [phi, theta, psi, X, Y, Z] in rad and m (not validated).
-    Returns:
-        theta (6,) rad, NaN for a leg that cannot close; and the intermediates (x, R_BE, r_B, l,
-        theta) for :func:`jacobian_single` and :func:`leg_vectors_single`.
-    """
-    # Scalars by math (a numpy call per element costs more than the arithmetic): this runs
-    # every control period, where each microsecond counts (benchmarks/realtime.py).
-    roll, pitch, yaw = float(x[0]), float(x[1]), float(x[2])
-    cr, cp, cy = math.cos(roll), math.cos(pitch), math.cos(yaw)
-    sr, sp, sy = math.sin(roll), math.sin(pitch), math.sin(yaw)
-    R = np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-    a = geometry.crank_length
-    r_B = geometry.p_E @ R.T
-    l = r_B + (x[3:6] - geometry.P_B)  # pivot to platform joint
-    L = (l * l).sum(axis=1) - (geometry.rod_length**2 - a * a)
-    M = 2.0 * a * l[:, 2]
-    N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
-    norm = np.hypot(M, N)
-    if (abs(L) < norm).all():  # every leg closes (no NaN, no warning)
-        theta = np.arcsin(L / norm) - np.arctan2(N, M)
-    else:  # NaN for the legs that cannot close
-        with np.errstate(invalid="ignore", divide="ignore"):
-            theta = np.arcsin(L / norm) - np.arctan2(N, M)
-    return theta, (x, R, r_B, l, theta)
-
-
-def leg_vectors_single(geometry: RobotGeometry, cache: tuple):
-    """(ell (6, 3) rod vectors, e_N (6, 3) crank-tip directions, E (3, 3) the angular velocity map)
-    of the pose :func:`ik_single` was given (its cache); as in :func:`leg_terms`."""
-    x, _, _, l, theta = cache
-    a, d_B = geometry.crank_length, geometry.d_B
-    with np.errstate(invalid="ignore"):
-        c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
-    cp, sp = np.cos(x[1]), np.sin(x[1])
-    cy, sy = np.cos(x[2]), np.sin(x[2])
-    E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
-    return l - a * (c * d_B + s * _Z), c * _Z - s * d_B, E
-
-
-def jacobian_single(geometry: RobotGeometry, cache: tuple) -> np.ndarray:
-    """Jacobian J = d theta / d x (6, 6) of the pose :func:`ik_single` was given (its cache).
-
-    Rows (ell_i . dq_i/dx) / (a ell_i . e_N,i), with ell_i . d(q_i)/d(rpy) = (r_i x ell_i)^T E;
-    inf or NaN at a singular or unreachable pose (not checked). Equal to :func:`jacobian`.
-    """
-    r_B = cache[2]
-    ell, e_N, E = leg_vectors_single(geometry, cache)
-    # r x ell row by row (np.cross costs 15 us on (6, 3) arrays; this, 5)
-    r_x_ell = r_B[:, _NEXT] * ell[:, _PREV] - r_B[:, _PREV] * ell[:, _NEXT]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return (
-            np.hstack([r_x_ell @ E, ell])
-            / (geometry.crank_length * (ell * e_N).sum(axis=1))[:, None]
-        )
-
-
-def ik_jacobian(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
-    """(theta (6,), J (6, 6)) of ONE pose: :func:`ik_single` then :func:`jacobian_single`."""
-    theta, cache = ik_single(geometry, x)
-    return theta, jacobian_single(geometry, cache)
 
 
 def singular_values_of(J: np.ndarray) -> np.ndarray:

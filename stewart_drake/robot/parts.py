@@ -188,7 +188,9 @@ def _motor_parts(g: StewartGeometry, o: np.ndarray, i: int) -> list[Part]:
     direction from the joint plane, :func:`motor_outward`)."""
     P = g.P_B[i]
     t = np.cross([0.0, 0.0, 1.0], o)
-    R = np.column_stack([o, t / np.linalg.norm(t), [0.0, 0.0, 1.0]])
+    t = t / np.linalg.norm(t)
+    # A tilted shaft (o_z != 0) turns the bracket with it, about t: its frame stays orthonormal.
+    R = np.column_stack([o, t, [0.0, 0.0, 1.0] if o[2] == 0.0 else np.cross(o, t)])
     # The bracket hangs from the arm's underside to 5 mm below the motor or, for a motor
     # whose housing reaches above that underside (a design with the shafts high), stands
     # on the arm's top face up to 5 mm above it.
@@ -223,7 +225,7 @@ def _motor_parts(g: StewartGeometry, o: np.ndarray, i: int) -> list[Part]:
 
 def _leg_parts(g: StewartGeometry, outward: np.ndarray, i: int) -> list[Part]:
     """Leg i's crank arm and its rod: tube and the two rod ends."""
-    a, s = g.crank_length, g.rod_length
+    a, s = float(g.crank_lengths[i]), float(g.rod_lengths[i])
     eye = np.eye(3)
     # Crank frame: y = -u_i; the motor side o_i = +-u_i is -+y.
     side = -1.0 if np.dot(outward[i], g.u_B[i]) > 0 else 1.0

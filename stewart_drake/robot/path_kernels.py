@@ -44,17 +44,15 @@ def _njit(function):
 
 
 #: Entries of the ``body`` array of :func:`effort`, in order (:func:`~.statics.kernel_constants`
-#: builds it from the geometry): lengths in m, inertias in kg m^2, masses in kg, gravity in m/s^2,
-#: the forward-difference step in rad or m.
+#: builds it from the geometry): inertias in kg m^2, masses in kg, gravity in m/s^2, the
+#: forward-difference step in rad or m. Each leg's lengths and its crank's inertia about the
+#: shaft are in the ``legs`` rows (:data:`~.single_pose.LEG_COLUMNS`: p_E 0-2, P_B 3-5, d_B 6-8,
+#: w_B 9-11, a 12, s^2 - a^2 13, s 14, shaft inertia 15).
 BODY = (
-    "crank_length",
-    "rod_length",
-    "leg_c",
     "platform_Ixx",
     "platform_Iyy",
     "platform_Izz",
     "platform_mass",
-    "shaft_inertia",
     "rod_mass",
     "rod_inertia",
     "gravity",
@@ -99,23 +97,25 @@ def _lever_arms(x, legs, R, r, q):
 
 
 @_njit
-def _lmn(legs, a, leg_c, q, i):
+def _lmn(legs, q, i):
     """(L, M, N) of leg i with platform joints q (6, 3): theta_i solves
-    M cos theta + N sin theta = L (:func:`~.kinematics.ik_unchecked`'s sums, in its order)."""
+    M sin theta + N cos theta = L (:func:`~.kinematics.ik_unchecked`'s sums, in its order)."""
     lx, ly, lz = q[i, 0] - legs[i, 3], q[i, 1] - legs[i, 4], q[i, 2] - legs[i, 5]
-    L = (lx * lx + ly * ly + lz * lz) - leg_c
-    return L, 2.0 * a * lz, 2.0 * a * (lx * legs[i, 6] + ly * legs[i, 7] + lz * legs[i, 8])
+    a = legs[i, 12]
+    L = (lx * lx + ly * ly + lz * lz) - legs[i, 13]
+    M = 2.0 * a * (lx * legs[i, 9] + ly * legs[i, 10] + lz * legs[i, 11])
+    return L, M, 2.0 * a * (lx * legs[i, 6] + ly * legs[i, 7] + lz * legs[i, 8])
 
 
 @_njit
-def _closure(legs, a, leg_c, q, c, s):
+def _closure(legs, q, c, s):
     """cos theta_i and sin theta_i (6,) of the closed-form IK of platform joints q (6, 3), in
     place, without the angles: with rho = L / sqrt(M^2 + N^2) and phi = atan2(N, M),
     theta = asin(rho) - phi (:func:`~.kinematics.ik_unchecked`'s rho, to the last bit), so
     cos theta = sqrt(1 - rho^2) cos phi + rho sin phi and sin theta = rho cos phi -
     sqrt(1 - rho^2) sin phi. Returns False when a leg cannot close (not |rho| <= 1)."""
     for i in range(6):
-        L, M, N = _lmn(legs, a, leg_c, q, i)
+        L, M, N = _lmn(legs, q, i)
         h = math.hypot(M, N)
         rho = L / h
         if not abs(rho) <= 1.0:
@@ -131,30 +131,30 @@ def closure(x, legs, body, ratio, M, N):
     """The reach ratios of the closed-form IK of poses x (n, 6) [rad, m], in place: ratio
     (n, 6) = L / sqrt(M^2 + N^2), and M, N (n, 6), of which theta = asin(ratio) - atan2(N, M)
     where |ratio| <= 1 (:func:`~.kinematics.ik_unchecked`'s arithmetic; numpy takes the
-    arcsines). legs (6, 9), body: as :func:`effort`'s."""
+    arcsines). legs (6, LEG_SIZE), body: as :func:`effort`'s."""
     R, E, r, q = np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 3)), np.empty((6, 3))
     for n in range(x.shape[0]):
         _rotation(x[n], R, E)
         _lever_arms(x[n], legs, R, r, q)
         for i in range(6):
-            L, M[n, i], N[n, i] = _lmn(legs, body[0], body[2], q, i)
+            L, M[n, i], N[n, i] = _lmn(legs, q, i)
             ratio[n, i] = L / math.hypot(M[n, i], N[n, i])
 
 
 @_njit
-def _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J):
+def _leg_terms(legs, c, s, E, r, q, ell, e_N, G, J):
     """The leg terms of :func:`~.kinematics.leg_terms` for a pose whose E, r and q are set
     and the cosines c and sines s (6,) of its motor angles: the rods ell (6, 3), the crank-tip
     directions e_N (6, 3), G (6, 3, 3) = -[r_i]x E (the rotation columns of dq_i/dx) and
     J (6, 6) = d theta / d x, in place, each sum in the order of numpy's ``einsum`` in
     :func:`~.kinematics.leg_terms` and :func:`~.kinematics.jacobian_of`."""
     for i in range(6):
-        ell[i, 0] = q[i, 0] - (legs[i, 3] + a * (c[i] * legs[i, 6] + s[i] * 0.0))
-        ell[i, 1] = q[i, 1] - (legs[i, 4] + a * (c[i] * legs[i, 7] + s[i] * 0.0))
-        ell[i, 2] = q[i, 2] - (legs[i, 5] + a * (c[i] * legs[i, 8] + s[i] * 1.0))
-        e_N[i, 0] = -s[i] * legs[i, 6] + c[i] * 0.0
-        e_N[i, 1] = -s[i] * legs[i, 7] + c[i] * 0.0
-        e_N[i, 2] = -s[i] * legs[i, 8] + c[i] * 1.0
+        a = legs[i, 12]
+        for k in range(3):
+            ell[i, k] = q[i, k] - (
+                legs[i, 3 + k] + a * (c[i] * legs[i, 6 + k] + s[i] * legs[i, 9 + k])
+            )
+            e_N[i, k] = -s[i] * legs[i, 6 + k] + c[i] * legs[i, 9 + k]
         r0, r1, r2 = r[i, 0], r[i, 1], r[i, 2]
         for col in range(3):
             e0, e1, e2 = E[0, col], E[1, col], E[2, col]
@@ -177,10 +177,9 @@ def pose_terms(x, theta, legs, body, joints, J, crank, cos_p):
     angle in its platform socket (:func:`~.limits.joint_angles_of`, whose arcsines numpy takes).
 
     Args:
-        legs (6, 9), body: as :func:`effort`'s. joints: (6, 6) per leg the motor shaft u_i and
-            the socket's axis in the platform frame (unit vectors).
+        legs (6, LEG_SIZE), body: as :func:`effort`'s. joints: (6, 6) per leg the motor shaft
+            u_i and the socket's axis in the platform frame (unit vectors).
     """
-    a = body[0]
     R, E = np.empty((3, 3)), np.empty((3, 3))
     r, q, ell, e_N = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
     c, s, G = np.empty(6), np.empty(6), np.empty((6, 3, 3))
@@ -189,7 +188,7 @@ def pose_terms(x, theta, legs, body, joints, J, crank, cos_p):
         _lever_arms(x[n], legs, R, r, q)
         for i in range(6):
             c[i], s[i] = math.cos(theta[n, i]), math.sin(theta[n, i])
-        _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J[n])
+        _leg_terms(legs, c, s, E, r, q, ell, e_N, G, J[n])
         for i in range(6):
             norm = math.sqrt(ell[i, 0] * ell[i, 0] + ell[i, 1] * ell[i, 1] + ell[i, 2] * ell[i, 2])
             e0, e1, e2 = ell[i, 0] / norm, ell[i, 1] / norm, ell[i, 2] / norm
@@ -201,21 +200,20 @@ def pose_terms(x, theta, legs, body, joints, J, crank, cos_p):
 
 
 @_njit
-def _inertia(body, R, E, ell, e_N, G, J, M, K, B, P):
+def _inertia(body, legs, R, E, ell, e_N, G, J, M, K, B, P):
     """The task inertia M_x (6, 6) of :func:`~.statics.task_inertia` from a pose's leg terms, in
     place (K (3, 3), B and P (6, 6): scratch): the platform (rpy and translation), the cranks
     about their shafts with the motors' reflected inertia, and the rods.
 
-    Per rod i, with its velocity maps V_tip = a e_N J_i (crank tip) and Gq_i = [G_i, I]
+    Per rod i, with its velocity maps V_tip = a_i e_N J_i (crank tip) and Gq_i = [G_i, I]
     (platform joint), both (3, 6): m_r V_com^T V_com with V_com = (V_tip + Gq_i) / 2, plus
-    I_r W^T W with W = [ell_i]x (Gq_i - V_tip) / s^2 the rod's rotation normal to its axis.
-    Expanded: with g_i = Gq_i^T e_N (6,), Gq_i^T V_tip = a g_i J_i^T and V_tip^T V_tip =
-    a^2 |e_N|^2 J_i J_i^T; and [ell]x^T [ell]x = |ell|^2 I - ell ell^T, whose second term drops
-    because ell^T (Gq_i - V_tip) = 0 (the rod keeps its length: that is J_i's definition), so
-    I_r W^T W = I_r |ell|^2 / s^4 (Gq_i - V_tip)^T (Gq_i - V_tip). The same quantity as the
-    numpy form's, rounded otherwise."""
-    a, s = body[0], body[1]
-    shaft, quarter_rod, i_rod = body[7], 0.25 * body[8], body[9]
+    I_r W^T W with W = [ell_i]x (Gq_i - V_tip) / s_i^2 the rod's rotation normal to its axis.
+    Expanded: with g_i = Gq_i^T e_N (6,), Gq_i^T V_tip = a_i g_i J_i^T and V_tip^T V_tip =
+    a_i^2 |e_N|^2 J_i J_i^T; and [ell]x^T [ell]x = |ell|^2 I - ell ell^T, whose second term
+    drops because ell^T (Gq_i - V_tip) = 0 (the rod keeps its length: that is J_i's definition),
+    so I_r W^T W = I_r |ell|^2 / s_i^4 (Gq_i - V_tip)^T (Gq_i - V_tip). The same quantity as
+    the numpy form's, rounded otherwise."""
+    quarter_rod, i_rod = 0.25 * body[4], body[5]
     # Platform: E^T (R diag(I) R^T) E = K^T diag(I) K with K = R^T E.
     for j in range(3):
         for k in range(3):
@@ -225,15 +223,16 @@ def _inertia(body, R, E, ell, e_N, G, J, M, K, B, P):
             M[j, k] = 0.0
     for j in range(3):
         for k in range(j, 3):
-            M[j, k] = body[3] * K[0, j] * K[0, k] + body[4] * K[1, j] * K[1, k]
-            M[j, k] += body[5] * K[2, j] * K[2, k]
-        M[3 + j, 3 + j] = body[6]
+            M[j, k] = body[0] * K[0, j] * K[0, k] + body[1] * K[1, j] * K[1, k]
+            M[j, k] += body[2] * K[2, j] * K[2, k]
+        M[3 + j, 3 + j] = body[3]
     # Rods and cranks: sum_i alpha_i Gq_i^T Gq_i + gamma_i (J_i g_i^T + g_i J_i^T)
     # + delta_i J_i J_i^T. B's rows: gamma_i g_i; P: the J_i J_i^T and J_i g_i^T sums.
     for j in range(6):
         for k in range(6):
             P[j, k] = 0.0
     for i in range(6):
+        a, s, shaft = legs[i, 12], legs[i, 14], legs[i, 15]
         n0, n1, n2 = e_N[i, 0], e_N[i, 1], e_N[i, 2]
         beta = i_rod * (ell[i, 0] * ell[i, 0] + ell[i, 1] * ell[i, 1] + ell[i, 2] * ell[i, 2])
         beta /= s * s * s * s
@@ -298,25 +297,25 @@ def lu_solve6(A, x):
 
 
 @_njit
-def _gravity(body, c, G, J, w):
-    """dV/dx (6,) of :func:`~.statics.gravity_gradient_of` from the cosines c (6,) of the motor
-    angles, G and J of a pose, in place."""
-    a, g = body[0], body[10]
+def _gravity(body, legs, e_N, G, J, w):
+    """dV/dx (6,) of :func:`~.statics.gravity_gradient_of` from the crank-tip directions e_N
+    (6, 3) (whose z is the cosine of the motor angle untilted), G and J of a pose, in place."""
+    g = body[6]
     for col in range(6):
         acc = 0.0
         z_rows = 0.0
         for i in range(6):
-            acc += g * a * c[i] * (0.5 * body[11] + 0.5 * body[8]) * J[i, col]
+            acc += g * legs[i, 12] * e_N[i, 2] * (0.5 * body[7] + 0.5 * body[4]) * J[i, col]
             z_rows += G[i, 2, col] if col < 3 else (1.0 if col == 5 else 0.0)
-        w[col] = acc + 0.5 * body[8] * g * z_rows
-    w[5] += body[6] * g
+        w[col] = acc + 0.5 * body[4] * g * z_rows
+    w[5] += body[3] * g
 
 
 @_njit
 def _pose_effort(x, x_dot, x_ddot, theta, legs, body, T, work, vectors, blocks):
     """The torques T (6,) of one pose (see :func:`effort`), in place, with scratch arrays
     ``work`` (8, 6), ``vectors`` (12, 6, 3) and ``blocks`` (12, 6, 6); returns its status."""
-    a, leg_c, step = body[0], body[2], body[12]
+    step = body[8]
     c, s, c_k, s_k = work[0], work[1], work[2], work[3]
     x_k, w, dM_x_dot = work[4], work[5], work[6]
     r, q, ell, e_N = vectors[0], vectors[1], vectors[2], vectors[3]
@@ -329,9 +328,9 @@ def _pose_effort(x, x_dot, x_ddot, theta, legs, body, T, work, vectors, blocks):
     _lever_arms(x, legs, R, r, q)
     for i in range(6):
         c[i], s[i] = math.cos(theta[i]), math.sin(theta[i])
-    _leg_terms(legs, a, c, s, E, r, q, ell, e_N, G, J)
-    _inertia(body, R, E, ell, e_N, G, J, M, K, B, P)
-    _gravity(body, c, G, J, w)
+    _leg_terms(legs, c, s, E, r, q, ell, e_N, G, J)
+    _inertia(body, legs, R, E, ell, e_N, G, J, M, K, B, P)
+    _gravity(body, legs, e_N, G, J, w)
     for j in range(6):
         for k in range(6):
             w[j] += M[j, k] * x_ddot[k]
@@ -342,10 +341,10 @@ def _pose_effort(x, x_dot, x_ddot, theta, legs, body, T, work, vectors, blocks):
         x_k[k] += step
         _rotation(x_k, R_k, E_k)
         _lever_arms(x_k, legs, R_k, r_k, q_k)
-        if not _closure(legs, a, leg_c, q_k, c_k, s_k):
+        if not _closure(legs, q_k, c_k, s_k):
             return STEP_UNREACHABLE
-        _leg_terms(legs, a, c_k, s_k, E_k, r_k, q_k, ell, e_N, G_k, J_k)
-        _inertia(body, R_k, E_k, ell, e_N, G_k, J_k, M_k, K, B, P)
+        _leg_terms(legs, c_k, s_k, E_k, r_k, q_k, ell, e_N, G_k, J_k)
+        _inertia(body, legs, R_k, E_k, ell, e_N, G_k, J_k, M_k, K, B, P)
         quad = 0.0
         for i in range(6):
             acc = 0.0
@@ -377,7 +376,8 @@ def effort(x, x_dot, x_ddot, theta, legs, body, T, status):
     Args:
         x, x_dot, x_ddot: (n, 6) poses [rad, m], rates and accelerations (SI), reachable poses.
         theta: (n, 6) their motor angles, rad (:func:`~.kinematics.ik_unchecked`'s).
-        legs: (6, 9) [p_E, P_B, d_B] per leg, m (:func:`~.kinematics.leg_constants`' order).
+        legs: (6, LEG_SIZE) per leg the columns of :data:`~.single_pose.LEG_COLUMNS`
+            (:func:`~.statics.kernel_constants`).
         body: the constants of :data:`BODY`.
         T: (n, 6) torques, N m, filled in place. status: (n,) int64, filled with each pose's
             status (:data:`OK`, :data:`STEP_UNREACHABLE`, :data:`SINGULAR`, :data:`NOT_FINITE`);

@@ -27,11 +27,11 @@ from .kinematics import (
     jacobian,
     jacobian_of,
     leg_terms,
-    leg_vectors_single,
     rotation_rpy,
     skew,
     wrench_map,
 )
+from .single_pose import LEG_SIZE, leg_rows, leg_vectors_single
 
 #: Feed-forward modes of :func:`feedforward_torques`.
 FEEDFORWARD_MODES = ("gravity", "inverse_dynamics", "none")
@@ -41,7 +41,7 @@ def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarr
     """dV/dx of the potential energy of platform, cranks and rods, (..., 6) in N m/rad and N.
 
     V = g [m_p Z + sum_i (m_c z_crank,i + m_r z_rod,i)], COMs at the geometric centres: the
-    crank's at P_i + (a/2)(cos th d + sin th z), the rod's at the midpoint of tip_i and q_i.
+    crank's at P_i + (a_i/2)(cos th d_i + sin th w_i), the rod's at the midpoint of tip_i and q_i.
     Pass theta and J (the Jacobian at x) when already computed, to save work.
     """
     terms = leg_terms(geometry, x, ik(geometry, x) if theta is None else theta)
@@ -51,10 +51,9 @@ def gravity_gradient(geometry: RobotGeometry, x, theta=None, J=None) -> np.ndarr
 def gravity_gradient_of(geometry: RobotGeometry, terms: LegTerms, J: np.ndarray) -> np.ndarray:
     """:func:`gravity_gradient` from the poses' :class:`~.kinematics.LegTerms` and Jacobian."""
     g = geometry.gravity
-    a = geometry.crank_length
-    dtheta_coeff = (
-        g * a * np.cos(terms.theta) * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
-    )
+    a = geometry.crank_lengths
+    # d(tip_z)/d theta_i = a_i e_N,z: cos theta_i exactly when w_i = z (d_i . z = 0).
+    dtheta_coeff = g * a * terms.e_N[..., 2] * (0.5 * geometry.crank_mass + 0.5 * geometry.rod_mass)
     grad = np.einsum("...i,...ij->...j", dtheta_coeff, J)
     grad = grad + 0.5 * geometry.rod_mass * g * np.sum(terms.Gq[..., 2, :], axis=-2)
     grad[..., 5] += geometry.platform_mass * g
@@ -135,8 +134,8 @@ def task_inertia_of(geometry: RobotGeometry, terms: LegTerms, J: np.ndarray) -> 
 
 
 def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) -> np.ndarray:
-    """:func:`task_inertia` (6, 6) of ONE pose, from :func:`~.kinematics.ik_single`'s cache and
-    its Jacobian J (:func:`~.kinematics.jacobian_single`): the per-step path of the gain
+    """:func:`task_inertia` (6, 6) of ONE pose, from :func:`~.single_pose.ik_single`'s cache and
+    its Jacobian J (:func:`~.single_pose.jacobian_single`): the per-step path of the gain
     re-scheduling (equal to the batched function; a test holds them to 1e-12)."""
     R, r_B = cache[1], cache[2]
     ell, e_N, E = leg_vectors_single(geometry, cache)
@@ -148,23 +147,23 @@ def task_inertia_single(geometry: RobotGeometry, cache: tuple, J: np.ndarray) ->
 
 def _inertia_from_terms(geometry, R, J, ell, e_N, E, Gq) -> np.ndarray:
     """The task inertia from the leg terms (batched or single; see :func:`task_inertia`)."""
-    a, s = geometry.crank_length, geometry.rod_length
+    a, s = geometry.crank_lengths, geometry.rod_lengths
     I_B = R @ np.diag(geometry.platform_inertia) @ np.swapaxes(R, -1, -2)
     M = np.zeros(J.shape[:-2] + (6, 6))
     M[..., :3, :3] = np.swapaxes(E, -1, -2) @ I_B @ E
     M[..., 3:, 3:] = geometry.platform_mass * np.eye(3)
-    # Cranks: principal axis y is the shaft (x along the crank, z up at theta = 0).
-    I_shaft = (
-        geometry.crank_inertia[1]
-        + geometry.crank_mass * (0.5 * a) ** 2
-        + geometry.motor_reflected_inertia
-    )  # the motor's rotor behind its gearhead
-    M = M + I_shaft * (np.swapaxes(J, -1, -2) @ J)
+    # Cranks: principal axis y is the shaft (x along the crank, z = w_i at theta = 0), with the
+    # motor's rotor behind its gearhead.
+    I_shaft = geometry.shaft_inertias
+    if np.all(I_shaft == I_shaft[0]):  # one inertia: scaling J^T J rounds as it always has
+        M = M + I_shaft[0] * (np.swapaxes(J, -1, -2) @ J)
+    else:
+        M = M + np.swapaxes(J, -1, -2) @ (I_shaft[:, None] * J)
     # Rods: velocity maps (..., 6, 3, 6) of the tip and the platform joint; sums over the legs
     # as one (18, 6) product (matmul, several times faster than einsum on one pose).
-    V_tip = a * e_N[..., :, None] * J[..., :, None, :]
+    V_tip = a[:, None, None] * e_N[..., :, None] * J[..., :, None, :]
     V_com = (0.5 * (V_tip + Gq)).reshape(J.shape[:-2] + (18, 6))
-    W = (skew(ell) @ (Gq - V_tip)).reshape(J.shape[:-2] + (18, 6)) / (s * s)  # rod w, normal
+    W = ((skew(ell) @ (Gq - V_tip)) / (s * s)[:, None, None]).reshape(J.shape[:-2] + (18, 6))
     M = M + geometry.rod_mass * (np.swapaxes(V_com, -1, -2) @ V_com)
     M = M + geometry.rod_inertia[0] * (np.swapaxes(W, -1, -2) @ W)
     return M
@@ -320,26 +319,19 @@ def motor_effort_compiled(geometry: RobotGeometry, x, x_dot, x_ddot, servo, thet
 
 @lru_cache(maxsize=32)
 def kernel_constants(geometry: RobotGeometry) -> tuple[np.ndarray, np.ndarray]:
-    """(legs (6, 9) [p_E, P_B, d_B] per leg in m, body (:data:`~.path_kernels.BODY`)) of
-    ``geometry`` for the compiled kernels of :mod:`.path_kernels`, read-only; each constant
-    computed as the numpy form computes it."""
+    """(legs (6, :data:`~.single_pose.LEG_SIZE`) per leg the columns of
+    :data:`~.single_pose.LEG_COLUMNS`, body (:data:`~.path_kernels.BODY`)) of ``geometry``
+    for the compiled kernels of :mod:`.path_kernels` and the LQI's re-schedule, read-only;
+    each constant computed as the numpy form computes it (s_i^2 - a_i^2 as s s - a a)."""
     from .path_kernels import BODY
 
-    a, s = geometry.crank_length, geometry.rod_length
-    legs = np.array(
-        [[*geometry.p_E[i], *geometry.P_B[i], *geometry.d_B[i]] for i in range(6)], dtype=float
-    )
+    a, s = geometry.crank_lengths, geometry.rod_lengths
+    legs = np.array(leg_rows(geometry, s * s - a * a), dtype=float).reshape(6, LEG_SIZE)
     values = {
-        "crank_length": a,
-        "rod_length": s,
-        "leg_c": s * s - a * a,
         "platform_Ixx": geometry.platform_inertia[0],
         "platform_Iyy": geometry.platform_inertia[1],
         "platform_Izz": geometry.platform_inertia[2],
         "platform_mass": geometry.platform_mass,
-        "shaft_inertia": geometry.crank_inertia[1]
-        + geometry.crank_mass * (0.5 * a) ** 2
-        + geometry.motor_reflected_inertia,
         "rod_mass": geometry.rod_mass,
         "rod_inertia": geometry.rod_inertia[0],
         "gravity": geometry.gravity,

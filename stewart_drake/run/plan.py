@@ -225,14 +225,13 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     ]
     torque_limit = min(limits) if limits else None
     h_plant = scenario.plant.time_step
+    crank = float(np.max(geometry.crank_lengths))  # the longest crank
     tip = (
         (1e-6, 1e-5)
         if scenario.hardware is None
         else (
-            scenario.hardware.encoders.quantum_rad * geometry.crank_length,
-            scenario.hardware.encoders.quantum_rad
-            * geometry.crank_length
-            / geometry.platform_radius,
+            scenario.hardware.encoders.quantum_rad * crank,
+            scenario.hardware.encoders.quantum_rad * crank / geometry.platform_radius,
         )
     )
     return RunPlan(

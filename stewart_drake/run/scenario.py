@@ -82,7 +82,9 @@ class Robot(ValueMirror):
     """The robot: every field of :class:`~stewart_drake.robot.geometry.StewartGeometry`, same
     names, units and defaults (docs/reference_geometry.md, Table I; meanings there), lists for
     its tuples, but the motors' reflected inertia, which the scenario's ``hardware.motors`` sets;
-    ``build()`` gives the geometry (validated there)."""
+    ``build()`` gives the geometry (validated there). The per-leg fields (``pivot_offsets_m``
+    ... ``encoder_offsets_rad``, docs/robot.md) are null for the robot as drawn, and a dump
+    leaves a null field out."""
 
     value_class = StewartGeometry
 
@@ -113,6 +115,12 @@ class Robot(ValueMirror):
     motor_angle_max_deg: float = _GEOMETRY.motor_angle_max_deg
     crank_joint_cone_deg: float = _GEOMETRY.crank_joint_cone_deg
     platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
+    pivot_offsets_m: list[list[float]] | None = None
+    platform_offsets_m: list[list[float]] | None = None
+    crank_lengths_m: list[float] | None = None
+    rod_lengths_m: list[float] | None = None
+    shaft_tilts_rad: list[float] | None = None
+    encoder_offsets_rad: list[float] | None = None
 
 
 # -- references ------------------------------------------------------------------------------------

@@ -32,7 +32,7 @@ from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, SimulationDivergedError
 from ..base.fileio import save_npz
 from ..references.motion import Reference
-from ..robot.kinematics import AXIS_NAMES, ik_scalar
+from ..robot.kinematics import AXIS_NAMES
 from ..robot.limits import (
     DEFAULT_CLEARANCE_RESOLUTION_M,
     DEFAULT_COND_THRESHOLD,
@@ -40,6 +40,7 @@ from ..robot.limits import (
     DEFAULT_MIN_CLEARANCE_M,
     DEFAULT_MIN_SIGMA_MIN_INV,
 )
+from ..robot.single_pose import ik_scalar
 
 
 # Drake's YAML loader reads GuardConfig's field annotations: this module must not use
@@ -187,10 +188,11 @@ class DivergenceGuard(LeafSystem):
             self._part_index = {gid.get_value(): k for k, gid in enumerate(ids)}
         else:
             from ..plant.clearance import clearance_model
-            from ..robot.kinematics import leg_constants
+            from ..robot.single_pose import leg_constants
 
             self._clearance = clearance_model(geometry)
             self._legs = leg_constants(geometry)
+            self._crank_m = float(np.max(geometry.crank_lengths))  # the longest crank
             self._motor_q = [joint.position_start() for joint in station.handles.motors]
             # The reference keeps guard.min_clearance_m between the parts (the run's check,
             # sampled within DEFAULT_CLEARANCE_RESOLUTION_M); two parts that each stray less
@@ -276,7 +278,7 @@ class DivergenceGuard(LeafSystem):
         theta_d = ik_scalar(self._legs, x_d.tolist())
         crank = max(abs(state[k] - t) for k, t in zip(self._motor_q, theta_d))
         platform = np.abs(pose[3:] - x_d[3:]).max() + 0.4 * np.abs(pose[:3] - x_d[:3]).max()
-        stray = max((self._legs[1] + 0.01) * crank, float(platform))
+        stray = max((self._crank_m + 0.01) * crank, float(platform))
         return not stray < self._stray_m  # NaN included
 
     def _NoteContact(self, context, discrete_state):

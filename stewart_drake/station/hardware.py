@@ -46,7 +46,10 @@ class Motors(ValueMirror):
 
 @dataclass
 class Encoders:
-    """Absolute encoders on the six crank shafts, read at the control period.
+    """Absolute encoders on the six crank shafts, read at the control period. Encoder i reads
+    theta_i + o_i, o_i its zero error (the robot's ``encoder_offsets_rad``, a property of the
+    robot as built: :class:`~stewart_drake.robot.geometry.StewartGeometry`), then its noise,
+    then whole counts (:class:`~.station.StewartStation`).
 
     Attributes:
         counts_per_rev: counts per crank revolution (default 2^17, a 17-bit absolute encoder on

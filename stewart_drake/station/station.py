@@ -386,7 +386,8 @@ class StewartStation(Diagram):
     drive's current limit (``Saturation`` at the servo's peak torque) and its current loop
     (:func:`current_loop`); the plant carries the motors' reflected inertia, viscous and Coulomb
     friction (:func:`~stewart_drake.plant.plant.add_stewart_plant`); ``motor_angle`` is what the
-    absolute encoders read: the crank angles plus optional white noise, quantized
+    absolute encoders read: the crank angles plus each encoder's zero error (the plant
+    geometry's ``encoder_offsets_rad``) plus optional white noise, quantized
     (:func:`quantizer`). Without it, the ideal robot: torques applied as commanded (up to
     ``torque_limit_Nm``), exact angles.
 
@@ -481,7 +482,7 @@ class StewartStation(Diagram):
     def _add_motor_sensors(self, builder) -> dict:
         """{"motor_angle", "motor_rate": port}: the crank angles and rates selected from the
         plant state (C++ systems: no Python per step); on the robot as built the angles pass
-        the encoders (white noise, if any, then the quantizer)."""
+        the encoders (their zero errors, white noise, if any, then the quantizer)."""
         plant, hardware = self.plant, self.plan.scenario.hardware
         n_q, n = plant.num_positions(), plant.num_positions() + plant.num_velocities()
         select_q, select_v = np.zeros((6, n)), np.zeros((6, n))
@@ -494,8 +495,15 @@ class StewartStation(Diagram):
             builder.Connect(plant.get_state_output_port(), gain.get_input_port())
             outputs[name] = gain.get_output_port()
         self.encoder_noise = None
-        if hardware is not None:  # encoders: angle [+ noise] -> quantizer
+        if hardware is not None:  # encoders: angle [+ zero error] [+ noise] -> quantizer
             q = hardware.encoders.quantum_rad
+            offsets = self.plan.plant_geometry.encoder_offsets
+            if np.any(offsets != 0.0):
+                zero = builder.AddNamedSystem("encoder_zero_error", ConstantVectorSource(offsets))
+                read = builder.AddNamedSystem("encoder_reading", Adder(2, 6))
+                builder.Connect(outputs["motor_angle"], read.get_input_port(0))
+                builder.Connect(zero.get_output_port(), read.get_input_port(1))
+                outputs["motor_angle"] = read.get_output_port()
             if hardware.encoders.noise_counts > 0:
                 self.encoder_noise, outputs["motor_angle"] = add_white_noise(
                     builder,

@@ -24,6 +24,7 @@ from ...base.errors import (
 )
 from ...robot import kinematics, statics
 from ...robot.geometry import X_HOME, StewartGeometry
+from ...robot.single_pose import LEG_SIZE, ik_jacobian
 from ..contract import LQI_STATUS_NAMES
 from . import layout
 from .gain import (
@@ -237,9 +238,11 @@ class LqiController(LeafSystem):
         self._stages = _kernels().step if self.compiled else _uncompiled_step()
         self._constants = self._step_constants()
         self._bounds = self.layout.bounds()
-        self._legs = np.zeros((6, 9)) if self.estimator is None else self.estimator.legs.copy()
+        self._legs = (
+            np.zeros((6, LEG_SIZE)) if self.estimator is None else self.estimator.legs.copy()
+        )
         self._legs.setflags(write=False)
-        self._gain_legs = np.array(kinematics.leg_constants(self.geometry)[0])
+        self._gain_legs = statics.kernel_constants(self.geometry)[0].copy()
         self._body = body_constants(self.geometry)
         for constant in (self._gain_legs, self._body):
             constant.setflags(write=False)
@@ -259,9 +262,7 @@ class LqiController(LeafSystem):
             state[lay.hold] = np.concatenate([x0, np.zeros(12), T0])
         if self.estimator is not None:
             state[lay.x_hat] = np.concatenate([x0, v0])
-            state[lay.J_inv] = np.linalg.inv(kinematics.ik_jacobian(self.geometry, x0)[1]).reshape(
-                -1
-            )
+            state[lay.J_inv] = np.linalg.inv(ik_jacobian(self.geometry, x0)[1]).reshape(-1)
         return state
 
     def _step_constants(self) -> np.ndarray:
@@ -277,7 +278,6 @@ class LqiController(LeafSystem):
         if self.estimator is not None:
             c.estimator = 1.0
             c.alpha = self.estimator.alpha
-            c.crank_length, c.leg_c = self.estimator.crank_length, self.estimator.leg_c
             c.fk_jump = self.estimator.chord_step_max
             c.friction = self.friction
             c.friction_rate = self.driver.friction_rate_rad_s

@@ -129,12 +129,11 @@ def input_matrix(geometry: StewartGeometry, x, theta=None) -> np.ndarray:
 
 
 def body_constants(geometry: StewartGeometry) -> np.ndarray:
-    """The robot as the compiled B(x) reads it (:data:`~.reschedule.BODY`): crank and rod
-    length, s^2 - a^2, the platform's principal inertia (3) and mass, the crank shaft's inertia
-    (crank about its shaft + the motor's reflected inertia, as
-    :func:`~stewart_drake.robot.statics.task_inertia`), the rod's mass and transverse inertia.
-    SI units. The first entries of the validator's constants
-    (:func:`~stewart_drake.robot.statics.kernel_constants`), a writable copy."""
+    """The robot's bodies as the compiled B(x) reads them (:data:`~.reschedule.BODY`): the
+    platform's principal inertia (3) and mass, the rod's mass and transverse inertia, SI units
+    (each leg's lengths and crank shaft inertia are in its row of
+    :func:`~stewart_drake.robot.statics.kernel_constants`' legs). The first entries of the
+    validator's constants, a writable copy."""
     from .reschedule import BODY
 
     return statics.kernel_constants(geometry)[1][: len(BODY)].copy()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...robot.single_pose import LEG_SIZE
 from . import reschedule, step
 from .layout import LqiLayout, StepConstants
 
@@ -35,7 +36,7 @@ def warm_up() -> None:
     # would be read past its end. The types, not the values, decide what is compiled.
     lay = LqiLayout.build(24, 1, True, False, 50)
     c = _readonly(np.zeros(len(StepConstants.get_fields())))
-    legs = _readonly(np.zeros((6, 9)))
+    legs = _readonly(np.zeros((6, LEG_SIZE)))
     u, state, bounds = np.zeros(lay.u_size), np.zeros(lay.state_size), lay.bounds()
     step.step(c, legs, u, state, bounds)
     step.act(c, u, state, bounds, 0)

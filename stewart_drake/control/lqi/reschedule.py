@@ -32,9 +32,10 @@ def _njit(function):
 
 
 #: Entries of the ``body`` array of :func:`input_matrix`, in order (see
-#: :func:`~.gain.body_constants`): the first ten of the reference validator's kernels, the
-#: same constants (:data:`~stewart_drake.robot.path_kernels.BODY`).
-BODY = PATH_BODY[:10]
+#: :func:`~.gain.body_constants`): the first six of the reference validator's kernels, the
+#: same constants (:data:`~stewart_drake.robot.path_kernels.BODY`); each leg's lengths and
+#: shaft inertia are in its ``legs`` row, as the validator's.
+BODY = PATH_BODY[:6]
 
 
 @_njit
@@ -99,13 +100,13 @@ def leg_jacobian(legs, body, x):
     rod (6, 3) and the crank tip's direction of motion (6, 3).
 
     Args:
-        legs: (6, 9) [p_E, P_B, d_B] per leg. body: the constants of :data:`BODY`.
-        x: (6,) pose [rad, m].
+        legs: (6, LEG_SIZE) per leg the columns of
+            :data:`~stewart_drake.robot.single_pose.LEG_COLUMNS`. body: the constants of
+            :data:`BODY`. x: (6,) pose [rad, m].
     Source: paper eqs. 6 and 18 (corrected), stage for stage as
-    :func:`~stewart_drake.robot.kinematics.ik_single` and
-    :func:`~stewart_drake.robot.kinematics.jacobian_single`.
+    :func:`~stewart_drake.robot.single_pose.ik_single` and
+    :func:`~stewart_drake.robot.single_pose.jacobian_single`.
     """
-    a, leg_c = body[0], body[2]
     cr, cp, cy = math.cos(x[0]), math.cos(x[1]), math.cos(x[2])
     sr, sp, sy = math.sin(x[0]), math.sin(x[1]), math.sin(x[2])
     R = np.array(
@@ -127,12 +128,18 @@ def leg_jacobian(legs, body, x):
             r_B[i, 2] + x[5] - legs[i, 5],
         )
         dx, dy, dz = legs[i, 6], legs[i, 7], legs[i, 8]
-        L = lx * lx + ly * ly + lz * lz - leg_c
-        M, N = 2.0 * a * lz, 2.0 * a * (lx * dx + ly * dy + lz * dz)
+        wx, wy, wz = legs[i, 9], legs[i, 10], legs[i, 11]
+        a = legs[i, 12]
+        L = lx * lx + ly * ly + lz * lz - legs[i, 13]
+        M, N = 2.0 * a * (lx * wx + ly * wy + lz * wz), 2.0 * a * (lx * dx + ly * dy + lz * dz)
         theta = math.asin(L / math.sqrt(M * M + N * N)) - math.atan2(N, M)
         c, sn = math.cos(theta), math.sin(theta)
-        ell[i, 0], ell[i, 1], ell[i, 2] = lx - a * c * dx, ly - a * c * dy, lz - a * (c * dz + sn)
-        e_N[i, 0], e_N[i, 1], e_N[i, 2] = -sn * dx, -sn * dy, c - sn * dz
+        # The tip a (c d + sn w) as a c d + a sn w: untilted (w = z, d_z = 0) each added term
+        # is an exact zero and these are the sums of the upright crank, to the bit.
+        ell[i, 0] = lx - a * c * dx - a * sn * wx
+        ell[i, 1] = ly - a * c * dy - a * sn * wy
+        ell[i, 2] = lz - a * c * dz - a * sn * wz
+        e_N[i, 0], e_N[i, 1], e_N[i, 2] = -sn * dx + c * wx, -sn * dy + c * wy, -sn * dz + c * wz
         rxl = (
             r_B[i, 1] * ell[i, 2] - r_B[i, 2] * ell[i, 1],
             r_B[i, 2] * ell[i, 0] - r_B[i, 0] * ell[i, 2],
@@ -146,15 +153,14 @@ def leg_jacobian(legs, body, x):
 
 
 @_njit
-def task_inertia(body, R, E, J, r_B, ell, e_N):
+def task_inertia(body, legs, R, E, J, r_B, ell, e_N):
     """M_x (6, 6), the task-space inertia of platform (rotation in rpy coordinates,
     translation), cranks and rods, from :func:`leg_jacobian`'s terms: as
     :func:`~stewart_drake.robot.statics.task_inertia`, by loops."""
-    a, s = body[0], body[1]
     RI = np.empty((3, 3))  # R diag(I_p): I_B = R diag(I_p) R^T
     for i in range(3):
         for j in range(3):
-            RI[i, j] = R[i, j] * body[3 + j]
+            RI[i, j] = R[i, j] * body[j]
     I_B = np.zeros((3, 3))
     for i in range(3):
         for j in range(3):
@@ -163,10 +169,21 @@ def task_inertia(body, R, E, J, r_B, ell, e_N):
     Mx = np.zeros((6, 6))
     Mx[:3, :3] = _at_b(E, _at_b(I_B, E))  # I_B is symmetric: E^T I_B E
     for k in range(3):
-        Mx[3 + k, 3 + k] = body[6]
-    Mx += body[7] * _at_b(J, J)
+        Mx[3 + k, 3 + k] = body[3]
+    uniform = True
+    for i in range(6):
+        uniform = uniform and legs[i, 15] == legs[0, 15]
+    if uniform:  # one shaft inertia: scaling J^T J rounds as the numpy form does
+        Mx += legs[0, 15] * _at_b(J, J)
+    else:
+        JS = np.empty((6, 6))
+        for i in range(6):
+            for j in range(6):
+                JS[i, j] = legs[i, 15] * J[i, j]
+        Mx += _at_b(J, JS)
     V_com, W = np.empty((18, 6)), np.empty((18, 6))
     for i in range(6):
+        a, s = legs[i, 12], legs[i, 14]
         # Gq: velocity of platform joint i per unit x rate, (3, 6) = [-skew(r_B) E, I]
         Gq = np.zeros((3, 6))
         rx, ry, rz = r_B[i, 0], r_B[i, 1], r_B[i, 2]
@@ -187,8 +204,8 @@ def task_inertia(body, R, E, J, r_B, ell, e_N):
             W[3 * i, j] = (-ez * D[1, j] + ey * D[2, j]) / (s * s)
             W[3 * i + 1, j] = (ez * D[0, j] - ex * D[2, j]) / (s * s)
             W[3 * i + 2, j] = (-ey * D[0, j] + ex * D[1, j]) / (s * s)
-    Mx += body[8] * _at_b(V_com, V_com)
-    Mx += body[9] * _at_b(W, W)
+    Mx += body[4] * _at_b(V_com, V_com)
+    Mx += body[5] * _at_b(W, W)
     return Mx
 
 
@@ -199,13 +216,13 @@ def input_matrix(legs, body, x):
     The same numbers as :func:`~.gain.input_matrix` to 1e-12 (a test).
 
     Args:
-        legs: (6, 9) [p_E, P_B, d_B] per leg. body: the constants of :data:`BODY`.
-        x: (6,) pose [rad, m].
+        legs: (6, LEG_SIZE) per leg, as :func:`leg_jacobian`'s. body: the constants of
+            :data:`BODY`. x: (6,) pose [rad, m].
     Source: paper eqs. 6 and 18 (corrected), the task inertia of
     :func:`~stewart_drake.robot.statics.task_inertia` (docs/paper_notes.md).
     """
     R, E, J, r_B, ell, e_N = leg_jacobian(legs, body, x)
-    Mx = task_inertia(body, R, E, J, r_B, ell, e_N)
+    Mx = task_inertia(body, legs, R, E, J, r_B, ell, e_N)
     B_c, ok = lu_solve(Mx, np.ascontiguousarray(J.T))
     return B_c, J, ok and _finite(B_c) and _finite(J)
 

@@ -34,14 +34,13 @@ import math
 
 import numpy as np
 
-from ...robot.kinematics import ik_scalar
 from ...robot.path_kernels import lu_solve6
+from ...robot.single_pose import ik_scalar
 from ..kernel_cache import interpreted, njit_cached, use_cache
 from .layout import (
     ALPHA,
     ANTI_WINDUP,
     COUNTER,
-    CRANK_LENGTH,
     E_BAR,
     ESTIMATOR,
     FK_JUMP,
@@ -56,7 +55,6 @@ from .layout import (
     J_INV,
     K_OLD,
     K_PART,
-    LEG_C,
     NEED_GOVERNOR,
     NEED_NEWTON,
     NEED_SCHEDULE,
@@ -94,7 +92,7 @@ def _njit(function):
     return njit_cached(function, _CACHE)
 
 
-#: The closed-form IK of :func:`~stewart_drake.robot.kinematics.ik_scalar`, compiled as written.
+#: The closed-form IK of :func:`~stewart_drake.robot.single_pose.ik_scalar`, compiled as written.
 ik_compiled = _njit(ik_scalar)
 
 
@@ -138,18 +136,20 @@ def solve6(A, b):
 
 
 @_njit
-def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv):
+def estimate(legs, h, alpha, fk_jump, theta, x_hat, J_inv):
     """Pose and rate from the encoders by one Newton chord step, in place in ``x_hat``.
 
     From x_0 = x + h v (the last estimate advanced by its rate) the step is
-    x = x_0 - J_inv wrap(ik(x_0) - theta), J_inv the inverse Jacobian of the last re-schedule;
-    the rate is the backward difference low-passed, v+ = v + alpha ((x - x_prev) / h - v).
+    x = x_0 - J_inv wrap(ik(x_0) - (theta - o)), J_inv the inverse Jacobian of the last
+    re-schedule, o the encoders' zero errors the controller believes; the rate is the backward
+    difference low-passed, v+ = v + alpha ((x - x_prev) / h - v).
 
     Args:
-        legs: (6, 9) leg constants, crank_length, leg_c = s^2 - a^2
-            (:func:`~stewart_drake.robot.kinematics.leg_constants`). h: period, s. alpha: rate
-            filter weight. fk_jump: largest correction accepted (rad or m).
-        theta: (6,) measured motor angles, rad. x_hat: (12,) [x, v], updated.
+        legs: (6, LEG_SIZE) leg constants
+            (:func:`~stewart_drake.robot.single_pose.leg_constants`; the encoder's zero error
+            in their last column). h: period, s. alpha: rate filter weight. fk_jump: largest
+            correction accepted (rad or m).
+        theta: (6,) motor angles as the encoders read them, rad. x_hat: (12,) [x, v], updated.
         J_inv: (6, 6) inverse Jacobian.
     Returns:
         False (``x_hat`` untouched) when a correction exceeds ``fk_jump`` or is not finite:
@@ -159,10 +159,10 @@ def estimate(legs, crank_length, leg_c, h, alpha, fk_jump, theta, x_hat, J_inv):
     x0 = np.empty(6)
     for i in range(6):
         x0[i] = x_hat[i] + h * x_hat[6 + i]
-    theta0 = ik_compiled((legs, crank_length, leg_c), x0)
+    theta0 = ik_compiled(legs, x0)
     r = np.empty(6)
     for j in range(6):
-        r[j] = (theta0[j] - theta[j] + math.pi) % (2 * math.pi) - math.pi
+        r[j] = (theta0[j] - (theta[j] - legs[j, 16]) + math.pi) % (2 * math.pi) - math.pi
     dx = matvec(J_inv, r)
     total, largest = 0.0, 0.0
     for i in range(6):
@@ -226,7 +226,7 @@ def observe(c, legs, u, state, bounds):
     """Estimate (with an estimator) and say which stages need Python this period.
 
     Args:
-        c: the constants (``StepConstants``). legs: (6, 9) leg constants.
+        c: the constants (``StepConstants``). legs: (6, LEG_SIZE) leg constants.
         u: the input vector, state: the state (updated), bounds: their layout
             (:meth:`~.layout.LqiLayout.bounds`).
     Returns:
@@ -235,8 +235,6 @@ def observe(c, legs, u, state, bounds):
     flags = 0
     if c[ESTIMATOR] != 0.0 and not estimate(
         legs,
-        c[CRANK_LENGTH],
-        c[LEG_C],
         c[H],
         c[ALPHA],
         c[FK_JUMP],

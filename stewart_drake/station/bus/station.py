@@ -49,7 +49,8 @@ from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
 from ...plant.closed_chain import LoopClosure, assembled_positions
 from ...robot.forward_kinematics import fk
-from ...robot.kinematics import X_HOME, angular_velocity_map, ik_single, jacobian, jacobian_single
+from ...robot.kinematics import X_HOME, angular_velocity_map, jacobian
+from ...robot.single_pose import ik_single, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
@@ -177,7 +178,8 @@ class DynamixelDriver(LeafSystem):
         self._last_read_t, self._read_s = state.t, state.round_trip_s
         x, _, converged = self._fk.estimate(state.q, x_prev)
         if not converged:
-            x, _ = fk(self.geometry, state.q, x0=x_prev, tol=self._fk.tol)
+            theta = state.q - self.geometry.encoder_offsets  # the encoders' zero errors
+            x, _ = fk(self.geometry, theta, x0=x_prev, tol=self._fk.tol)
         _, cache = ik_single(self.geometry, x)
         x_dot = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
         return np.concatenate([state.q, state.v, state.tau, x, x_dot])
