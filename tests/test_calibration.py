@@ -246,6 +246,16 @@ def test_calibrate_writes_a_robot_section_from_a_measurements_file(tmp_path, mea
     ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
     assert np.allclose(legs.deviation(ident.nominal), ident.deviation, rtol=1e-6, atol=1e-12)
     assert np.array(section["pivot_offsets_m"]).shape == (6, 3)
+    # Its nominal fields are a scenario's robot (the per-leg ones wait for the geometry's).
+    from stewart_drake.run.scenario_io import load_scenario
+
+    nominal_only = {k: v for k, v in section.items() if k not in _PER_LEG_ONLY}
+    (tmp_path / "nominal.yaml").write_text(yaml.safe_dump({"robot": nominal_only}))
+    scenario = load_scenario(str(tmp_path / "nominal.yaml"))
+    assert scenario.robot.crank_angles_deg == pytest.approx(section["crank_angles_deg"])
+
+
+_PER_LEG_ONLY = {k for k, _, _ in model.PARAMETER_KINDS} - {"crank_angles_deg"}
 
 
 def test_plan_writes_a_path_through_admissible_poses(tmp_path, capsys):

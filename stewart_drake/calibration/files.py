@@ -214,10 +214,14 @@ def write_measurements(path, poses, q) -> Path:
 
 
 def _yaml_value(value) -> str:
-    """A number or a list of numbers as YAML flow text (floats as repr: exact)."""
+    """A number or a list of numbers as YAML flow text (floats as repr: exact; an exponent's
+    mantissa with its point)."""
     if isinstance(value, (list, tuple, np.ndarray)):
         return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
-    return repr(float(value))
+    text = repr(float(value))
+    mantissa, e, exponent = text.partition("e")
+    # YAML 1.1 readers (PyYAML) take 1e-06 for a string: a float's mantissa needs its point.
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
 
 
 def robot_yaml(robot, legs: LegParameters, comments: tuple = ()) -> str:
