@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import yaml
 
-from stewart_drake.calibration import files, identify, model, poses, rehearsal, tolerances
+from stewart_drake.calibration import files, identify, poses, rehearsal, tolerances
+from stewart_drake.calibration import legs as model
 from stewart_drake.calibration.tracker import MeasurementNoise, measure, quantize
 from stewart_drake.cli import main as cli
 from stewart_drake.robot import kinematics
@@ -316,3 +317,15 @@ def test_rehearse_prints_before_and_after_and_its_measurements_calibrate(tmp_pat
     assert again.keys() == first.keys()
     for key, value in first.items():  # the same robot, to the fit's last digits
         assert np.allclose(again[key], value, rtol=1e-6, atol=1e-12), key
+
+
+def test_the_docs_table_is_the_study_s():
+    """docs/calibration.md's table is what its rows (docs/calibration.json) give: regenerate
+    both with python tools/calibration_tables.py."""
+    import json
+    from pathlib import Path
+
+    docs = Path(__file__).resolve().parent.parent / "docs"
+    rows = json.loads((docs / "calibration.json").read_text())
+    assert rehearsal.table(rows) in (docs / "calibration.md").read_text()
+    assert len(rows) == 160

@@ -2,12 +2,12 @@
 readings there, with its identifiability analysis, uncertainties and outliers.
 
 The residual of reading j at pose k is the model's prediction minus the reading, r = theta(x_k;
-p) + o - q (:func:`~.model.readings`, wrapped to [-pi, pi)), whitened by the noise it carries:
+p) + o - q (:func:`~.legs.readings`, wrapped to [-pi, pi)), whitened by the noise it carries:
 the tracker's noise mapped through the derivative of the readings with respect to the pose, and
 the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2 I, sigma_pos^2 I) G_k^T +
 (quantum^2 / 12) I (6 x 6 per pose: one pose error moves all six readings), r_w = L_k^-1 r with
 Sigma_k = L_k L_k^T, evaluated once at the nominal robot. ``scipy.optimize.least_squares``
-minimizes sum |r_w|^2 (or a robust loss of it) over the deviation vector of :mod:`~.model`.
+minimizes sum |r_w|^2 (or a robust loss of it) over the deviation vector of :mod:`~.legs`.
 
 Identifiability. The deviations are scaled by their tolerances' standard deviations (each
 unit is one standard deviation of the robot as drawn, :class:`~.tolerances.Tolerances`), and
@@ -35,7 +35,7 @@ from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import wrap_angle
-from .model import (
+from .legs import (
     N_PARAMETERS,
     LegParameters,
     derivatives,
@@ -98,8 +98,8 @@ class Identification:
     """What :func:`identify` found.
 
     Attributes:
-        nominal, identified: :class:`~.model.LegParameters` before and after.
-        deviation: (66,) identified minus nominal, units of :mod:`~.model`'s vector.
+        nominal, identified: :class:`~.legs.LegParameters` before and after.
+        deviation: (66,) identified minus nominal, units of :mod:`~.legs`'s vector.
         std: (66,) each entry's standard deviation from the residuals (0 for a parameter that
             stays nominal by the rule), same units.
         covariance: (66, 66) of the identified deviations, same units.

@@ -28,7 +28,7 @@ from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import X_HOME
 from ..robot.limits import LIMITS, limit_margins_unchecked
 from .identify import whitening
-from .model import N_PARAMETERS, LegParameters, derivatives
+from .legs import N_PARAMETERS, LegParameters, derivatives
 from .tolerances import Tolerances
 from .tracker import MeasurementNoise
 

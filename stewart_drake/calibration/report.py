@@ -13,7 +13,7 @@ from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from .files import MeasurementsFile, write_path, write_robot
 from .identify import Identification
-from .model import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
+from .legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
 from .tracker import MeasurementNoise
 
 #: How each kind of parameter is shown: (label, unit, factor from SI) per entry of a leg.
@@ -125,7 +125,7 @@ def rehearsal_text(r, noise: MeasurementNoise) -> str:
     err = ident.deviation - r.truth.deviation(ident.nominal)
     free = ident.std > 0
     z = np.abs(err[free] / ident.std[free])
-    from .model import parameter_names
+    from .legs import parameter_names
 
     worst = np.array(parameter_names())[free][int(np.argmax(z))]
     return "\n".join(
@@ -174,7 +174,7 @@ def plan_poses(
 
     from ..references.traces import load_trace
     from ..run.plan import check_reference, make_plan
-    from .model import derivatives
+    from .legs import derivatives
     from .poses import candidate_poses, choose_poses, information_rows, pose_path
     from .tolerances import Tolerances
 

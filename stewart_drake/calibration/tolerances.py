@@ -1,5 +1,5 @@
 """Tolerances of the robot as built: per quantity a half-width and a distribution, and the
-robot they draw (a :class:`~.model.LegParameters`), with a seed.
+robot they draw (a :class:`~.legs.LegParameters`), with a seed.
 
 A quantity's half-width h bounds its deviation from the drawing: "uniform" draws it uniformly in
 [-h, h] (standard deviation h / sqrt(3)), "normal" from a normal law of standard deviation h / 3
@@ -10,7 +10,7 @@ rod lengths, +-5 mrad on the encoder zeros, and +-1 mrad of shaft tilt and of cr
 bracket machined to 0.1 mm over 100 mm).
 
 The tolerances live with the calibration, not in :mod:`stewart_drake.robot`: they draw values of
-the calibration's per-leg model (:mod:`~.model`), which the robot's geometry does not carry yet.
+the calibration's per-leg model (:mod:`~.legs`), which the robot's geometry does not carry yet.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 from ..base.checks import as_number, check_int
 from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
-from .model import PARAMETER_KINDS, LegParameters, parameter_kinds
+from .legs import PARAMETER_KINDS, LegParameters, parameter_kinds
 
 #: The distributions a :class:`Tolerance` may name.
 DISTRIBUTIONS = ("uniform", "normal")
@@ -70,7 +70,7 @@ def _tol(h: float):
 
 @dataclass(frozen=True)
 class Tolerances:
-    """The tolerance of each per-leg quantity of :class:`~.model.LegParameters`; field names
+    """The tolerance of each per-leg quantity of :class:`~.legs.LegParameters`; field names
     are its fields' (module docstring for the defaults).
 
     Attributes:
@@ -101,7 +101,7 @@ class Tolerances:
         )
 
     def half_widths(self) -> np.ndarray:
-        """(66,) the half-width of each entry of the deviation vector (:mod:`~.model`)."""
+        """(66,) the half-width of each entry of the deviation vector (:mod:`~.legs`)."""
         return np.array([getattr(self, kind).half_width for kind in parameter_kinds()])
 
     def stds(self) -> np.ndarray:
@@ -114,7 +114,7 @@ class Tolerances:
         Args:
             geometry: the nominal robot.  seed: 0 .. 2^32 - 1.
         Returns:
-            :class:`~.model.LegParameters`; the same seed draws the same robot.
+            :class:`~.legs.LegParameters`; the same seed draws the same robot.
         Raises:
             InvalidConfigError: a seed out of range. InvalidGeometryError: a drawn rod not
                 longer than its crank (half-widths of the order of the lengths).

@@ -20,7 +20,7 @@ from ..base.checks import as_number, as_poses, check_int
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import rotation_rpy
 from ..station.hardware import Encoders
-from .model import LegParameters, readings
+from .legs import LegParameters, readings
 
 #: Counts per revolution of the robot's encoders (the ``hardware.encoders`` default).
 COUNTS_PER_REV = Encoders().counts_per_rev
