@@ -305,7 +305,7 @@ def test_calibrate_refuses_what_it_cannot_do_before_any_work(tmp_path, capsys):
 
 def test_rehearse_prints_before_and_after_and_its_measurements_calibrate(tmp_path, capsys):
     meas, out = tmp_path / "m.csv", tmp_path / "r.yaml"
-    argv = ["calibrate", "--rehearse", "--candidates", "300", "--seed", "2"]
+    argv = ["calibrate", "--rehearse", "--candidates", "300", "--seed", "2", "--no-progress"]
     assert cli.main(argv + ["--save-measurements", str(meas), "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     assert "readings of 50 other poses predicted, RMS: before" in printed

@@ -263,9 +263,15 @@ def _rehearse(args, context) -> int:
         f"{args.poses} {args.select} poses, tracker {noise.words()}",
         flush=True,
     )
-    space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
-    idx = pick(geometry, space, args.poses, args.select, noise, tolerances, args.seed)
-    r = rehearse(geometry, space, idx, noise, args.seed, tolerances, args.select)
+    from tqdm import tqdm
+
+    with tqdm(total=3, desc="rehearsing", disable=args.no_progress, leave=False) as bar:
+        space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
+        bar.update(1)
+        idx = pick(geometry, space, args.poses, args.select, noise, tolerances, args.seed)
+        bar.update(1)
+        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, args.select)
+        bar.update(1)
     print(rehearsal_text(r, noise))
     if args.save_measurements is not None:
         from .files import write_measurements

@@ -97,16 +97,18 @@ def candidate_poses(
     count = check_int("count", count, 1, 10**6)
     rng = np.random.default_rng(check_int("seed", seed, 0, 2**32 - 1))
     box = PoseBox() if box is None else box
-    found, drawn = [], 0
-    while sum(len(f) for f in found) < count:
+    found: list[np.ndarray] = []
+    kept, drawn = 0, 0
+    while kept < count:
         if drawn > 100 * count + 10_000:
             raise InvalidConfigError(
-                f"the pose box {box} holds too few admissible poses ({sum(map(len, found))} of "
-                f"{drawn} drawn): make it smaller or centre it on the workspace"
+                f"the pose box {box} holds too few admissible poses ({kept} of {drawn} drawn): "
+                f"make it smaller or centre it on the workspace"
             )
         x = box.draw(rng, max(2 * count, 200))
         drawn += len(x)
         found.append(x[admissible_with_margin(geometry, x, motor_limits)])
+        kept += len(found[-1])
     return np.concatenate(found)[:count]
 
 
