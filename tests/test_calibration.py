@@ -298,6 +298,9 @@ def test_calibrate_refuses_what_it_cannot_do_before_any_work(tmp_path, capsys):
     assert "--out is required" in capsys.readouterr().err
     assert cli.main(["calibrate", str(tmp_path / "m.csv"), "--out", str(tmp_path)]) == 2
     assert "is a folder" in capsys.readouterr().err
+    (tmp_path / "p_windows.csv").mkdir()  # --plan's second file cannot be written
+    assert cli.main(["calibrate", "--plan", "12", "--out", str(tmp_path / "p.csv")]) == 2
+    assert "p_windows.csv is a folder" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         cli.main(["calibrate", "--rehearse", "--noise", "5,20urad"])
     assert "expected a length and an angle" in capsys.readouterr().err

@@ -171,6 +171,11 @@ def _cmd_calibrate(args) -> int:
         from ..cli.options import check_output
 
         check_output(args.save_measurements, "--save-measurements", is_file=True)
+    if args.plan is not None:  # its second file, checked before any work as --out is
+        from ..cli.options import check_output
+        from .files import windows_path
+
+        check_output(windows_path(args.out), "--out's windows file", is_file=True)
     context = _context(args)
     if args.plan is not None:
         return _plan(args, context)
