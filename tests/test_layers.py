@@ -31,6 +31,7 @@ LAYERS = {
     "analysis": 9,
     "organ_motion": 9,
     "tuner": 9,
+    "calibration": 9,
     "evaluation": 10,
     "design": 10,
     "live": 10,

@@ -16,6 +16,7 @@ import argparse
 import sys
 
 from ..analysis import command as analysis_command
+from ..calibration import command as calibration_command
 from ..design import command as design_command
 from ..evaluation import command as evaluation_command
 from ..live import command as live_command
@@ -34,6 +35,7 @@ COMMANDS = (
     evaluation_command,  # evaluate
     design_command,  # design
     live_command,  # teleop, robot
+    calibration_command,  # calibrate
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf
 )

@@ -68,6 +68,11 @@ class CubicSplineTrajectory:
 
 
 CSV_COLUMNS = ("t",) + AXIS_NAMES
+#: The same header with the columns' units written out (what ``stewart-drake calibrate --plan``
+#: writes): the same file, the same units.
+CSV_COLUMNS_WITH_UNITS = ("t [s]",) + tuple(
+    f"{name} [{'rad' if k < 3 else 'm'}]" for k, name in enumerate(AXIS_NAMES)
+)
 
 
 #: Largest reference CSV read, bytes (about six million rows of seven numbers).
@@ -127,7 +132,8 @@ def csv_reference_bytes(path) -> float:
 
 
 def load_csv_trajectory(path) -> "CubicSplineTrajectory":
-    """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), one row per
+    """A reference from a CSV file: header ``t,phi,theta,psi,X,Y,Z`` (s, rad, m; or the same
+    with the units written, :data:`CSV_COLUMNS_WITH_UNITS`), one row per
     sample, times strictly increasing from 0; at least 3 rows. The samples are joined by a cubic
     spline with continuous second derivatives (:class:`CubicSplineTrajectory`), which gives the
     rate and the acceleration the controller and the feed-forward need. The file is read through
@@ -172,7 +178,7 @@ def _csv_samples(path: Path) -> np.ndarray:
     rows = csv_rows(raw, path, "reference CSV", remedy)
     del raw
     header = [h.strip() for h in rows[0]] if rows else []
-    if tuple(header) != CSV_COLUMNS:
+    if tuple(header) not in (CSV_COLUMNS, CSV_COLUMNS_WITH_UNITS):
         # What the line holds is not quoted: a file named by mistake may be a private one.
         got = f"it has {len(header)} column{'s' if len(header) != 1 else ''} of other names"
         raise InvalidConfigError(
@@ -258,6 +264,7 @@ class CsvReference(ReferenceConfig):
 __all__ = [
     "CubicSplineTrajectory",
     "CSV_COLUMNS",
+    "CSV_COLUMNS_WITH_UNITS",
     "MAX_CSV_BYTES",
     "CSV_BYTES_PER_ROW",
     "CSV_MIN_DT_S",

@@ -7,9 +7,9 @@ or a map of the trace's own names), resamples it to a C2 spline
 (:class:`~.samples.CubicSplineTrajectory`), optionally low-passes it without
 phase lag (``scipy.signal.filtfilt``) and centres it at a chosen pose (:data:`CENTRE_MODES`).
 The result is a :class:`TraceTrajectory` that says what was read and done (:class:`TraceInfo`).
-The project's own CSV (``t,phi,theta,psi,X,Y,Z`` in s, rad, m) is read as it always was
-(:func:`~.samples.load_csv_trajectory`). :class:`TraceReference` is a scenario's choice of
-a trace.
+The project's own CSV (``t,phi,theta,psi,X,Y,Z`` in s, rad, m, its units written or not) is
+read as it always was (:func:`~.samples.load_csv_trajectory`). :class:`TraceReference` is a
+scenario's choice of a trace.
 
 Drake's YAML loader reads :class:`TraceReference`'s field types: this module must not use
 ``from __future__ import annotations``.
@@ -29,7 +29,13 @@ from .motion import Reference, ReferenceConfig
 from .organ.combinators import layered, scaled
 from .organ.core import check_centre
 from .organ.library import make_layers
-from .samples import CSV_BYTES_PER_ROW, CSV_COLUMNS, CubicSplineTrajectory, load_csv_trajectory
+from .samples import (
+    CSV_BYTES_PER_ROW,
+    CSV_COLUMNS,
+    CSV_COLUMNS_WITH_UNITS,
+    CubicSplineTrajectory,
+    load_csv_trajectory,
+)
 from .trace_cleaning import MIN_LOOP_S, SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
 from .trace_files import TRACE_FORMATS, TraceTable, read_trace_table, trace_samples
 
@@ -328,7 +334,8 @@ def load_trace(
     ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace does
     not have stay at the centre.
 
-    A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m) is read by
+    A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), or the same
+    with its units written (``t [s],phi [rad],...,Z [m]``), is read by
     :func:`~.samples.load_csv_trajectory` as always (``centre``, ``axis_map``,
     ``lowpass_hz`` do not apply to it).
 
@@ -366,7 +373,7 @@ def load_trace(
     """
     path = Path(path)
     header, rows, layout = read_trace_table(path, format, columns)
-    if tuple(h.strip() for h in header) == CSV_COLUMNS and not columns:
+    if tuple(h.strip() for h in header) in (CSV_COLUMNS, CSV_COLUMNS_WITH_UNITS) and not columns:
         return load_csv_trajectory(path)
     table = trace_samples(path, header, rows, layout, axis_map)
     del rows

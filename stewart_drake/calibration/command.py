@@ -1,0 +1,291 @@
+"""``stewart-drake calibrate``: the robot's per-leg parameters identified from a tracker's
+measurements (``calibrate MEASUREMENTS.csv --out ROBOT.yaml``), the poses to measure chosen
+(``--plan N --out POSES.csv``), or the whole rehearsed on an emulated robot (``--rehearse``)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from ..cli.options import add_scenario_arguments, int_at_least, positive_float
+
+
+def register(sub) -> None:
+    """Add the ``calibrate`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    cal = sub.add_parser(
+        "calibrate",
+        help="identify the robot's per-leg geometry and encoder zeros from a tracker's "
+        "measurements (docs/calibration.md); --plan chooses the poses, --rehearse tries it all "
+        "on an emulated robot",
+    )
+    cal.add_argument(
+        "measurements",
+        nargs="?",
+        default=None,
+        metavar="MEASUREMENTS.csv",
+        help="encoder readings and the tracker's poses, a header naming columns and units: "
+        "q0 [rad] .. q5 [rad], phi [rad], theta [rad], psi [rad], X [m], Y [m], Z [m]",
+    )
+    mode = cal.add_mutually_exclusive_group()
+    mode.add_argument(
+        "--plan",
+        type=int_at_least(12),
+        default=None,
+        metavar="N",
+        help="choose N poses to measure (greedy D-optimal over the admissible set) and write "
+        "the path through them to --out, a reference the robot command drives (default: identify)",
+    )
+    mode.add_argument(
+        "--rehearse",
+        action="store_true",
+        help="draw a robot as built, measure it with an emulated tracker, identify it and "
+        "print the readings' prediction before and after on 50 other poses",
+    )
+    cal.add_argument(
+        "--out",
+        default=None,
+        help="the robot section to write (ROBOT.yaml), or with --plan the path (POSES.csv) "
+        "(default: none, which only --rehearse accepts)",
+    )
+    add_scenario_arguments(cal, "the nominal robot and its encoders")
+    cal.add_argument(
+        "--noise",
+        type=_noise,
+        default="5um,20urad",
+        metavar="LENGTH,ANGLE",
+        help="the tracker's noise, one standard deviation per axis, with units",
+    )
+    cal.add_argument(
+        "--min-singular",
+        type=positive_float,
+        default=1.0,
+        help="a combination of parameters whose scaled singular value is below this stays "
+        "nominal (1: the data know it less well than its tolerance)",
+    )
+    cal.add_argument(
+        "--outlier-threshold",
+        type=positive_float,
+        default=4.0,
+        help="flag a reading whose studentized residual is beyond this",
+    )
+    cal.add_argument("--robust", action="store_true", help="soft-L1 loss instead of squares")
+    cal.add_argument(
+        "--drop-outliers",
+        action="store_true",
+        help="identify again without the poses that hold a flagged reading",
+    )
+    _add_rehearsal_arguments(cal)
+    cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    cal.set_defaults(func=_cmd_calibrate, out_is_file=True)
+
+
+def _add_rehearsal_arguments(cal) -> None:
+    """``--plan``'s and ``--rehearse``'s options."""
+    cal.add_argument(
+        "--poses",
+        type=int_at_least(12),
+        default=60,
+        help="with --rehearse: poses measured",
+    )
+    cal.add_argument(
+        "--select",
+        choices=["random", "chosen"],
+        default="random",
+        help="with --rehearse: the poses drawn at random or chosen (greedy D-optimal)",
+    )
+    cal.add_argument(
+        "--seed",
+        type=int_at_least(0),
+        default=0,
+        help="with --rehearse: the robot drawn and the noise; with --plan: the candidates",
+    )
+    cal.add_argument(
+        "--save-measurements",
+        default=None,
+        metavar="FILE.csv",
+        help="with --rehearse: also write the emulated measurements, a file calibrate reads "
+        "(default: none)",
+    )
+    cal.add_argument(
+        "--candidates",
+        type=int_at_least(50),
+        default=2000,
+        help="with --plan and --rehearse: admissible poses drawn to choose from",
+    )
+    cal.add_argument(
+        "--dwell",
+        type=positive_float,
+        default=3.0,
+        help="with --plan: s the robot rests at each pose (its first second to settle)",
+    )
+
+
+def _noise(text: str) -> tuple[float, float]:
+    """``LENGTH,ANGLE`` with units (5um,20urad) as (m, rad)."""
+    from .files import ANGLE_UNITS, LENGTH_UNITS
+
+    parts = [p.strip() for p in text.split(",")]
+    out = []
+    for part, table in zip(parts, (LENGTH_UNITS, ANGLE_UNITS)):
+        unit = part.lstrip("0123456789.+-eE")
+        number = part[: len(part) - len(unit)]
+        try:
+            value = float(number) * table[unit.strip()]
+        except (ValueError, KeyError):
+            value = math.nan
+        if not (math.isfinite(value) and value >= 0):
+            break
+        out.append(value)
+    if len(parts) != 2 or len(out) != 2:
+        raise argparse.ArgumentTypeError(
+            f"expected a length and an angle with units, e.g. 5um,20urad (lengths in "
+            f"{', '.join(LENGTH_UNITS)}; angles in {', '.join(ANGLE_UNITS)}), got {text!r}"
+        )
+    return out[0], out[1]
+
+
+def _cmd_calibrate(args) -> int:
+    """``stewart-drake calibrate``: one of its three modes, each checked before any work."""
+    from ..base.errors import InvalidConfigError
+
+    given = args.measurements is not None
+    if args.plan is not None or args.rehearse:
+        if given:
+            raise InvalidConfigError(
+                f"{'--plan' if args.plan is not None else '--rehearse'} takes no measurements "
+                f"file (got {args.measurements}): calibrate MEASUREMENTS.csv --out ROBOT.yaml "
+                f"identifies, --plan N --out POSES.csv plans, --rehearse rehearses"
+            )
+    elif not given:
+        raise InvalidConfigError(
+            "give the measurements file (calibrate MEASUREMENTS.csv --out ROBOT.yaml), or "
+            "--plan N --out POSES.csv, or --rehearse"
+        )
+    if args.out is None and not args.rehearse:
+        what = "POSES.csv (the path to drive)" if args.plan is not None else "ROBOT.yaml"
+        raise InvalidConfigError(f"--out is required: the file to write, {what}")
+    if args.save_measurements is not None:
+        if not args.rehearse:
+            raise InvalidConfigError("--save-measurements is for --rehearse")
+        from ..cli.options import check_output
+
+        check_output(args.save_measurements, "--save-measurements", is_file=True)
+    if args.plan is not None:  # its second file, checked before any work as --out is
+        from ..cli.options import check_output
+        from .files import windows_path
+
+        check_output(windows_path(args.out), "--out's windows file", is_file=True)
+    context = _context(args)
+    if args.plan is not None:
+        return _plan(args, context)
+    if args.rehearse:
+        return _rehearse(args, context)
+    return _identify(args, context)
+
+
+def _context(args):
+    """(the scenario's plan without a reference, the nominal geometry, the measurement
+    noise) of the command's scenario."""
+    from ..run.plan import make_plan
+    from ..run.scenario_io import load_scenario
+    from .tracker import COUNTS_PER_REV, MeasurementNoise
+
+    plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
+    hardware = plan.scenario.hardware
+    counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
+    return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
+
+
+def _identify(args, context) -> int:
+    """``calibrate MEASUREMENTS.csv --out ROBOT.yaml``."""
+    from .files import read_measurements
+    from .report import check_reachable, identification_text, write_identified
+
+    plan, geometry, noise = context
+    data = read_measurements(args.measurements, noise.counts_per_rev)
+    check_reachable(geometry, data)
+    print(
+        f"read {len(data.poses)} measured poses from {args.measurements}"
+        + (
+            f" (converted: {', '.join(f'{n} [{u}]' for n, u in data.converted)})"
+            if data.converted
+            else ""
+        )
+        + (f"; columns not read: {', '.join(data.ignored)}" if data.ignored else "")
+    )
+    ident = _identification(args, geometry, data.poses, data.readings, noise)
+    print(identification_text(ident, noise, data.lines))
+    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements)
+    print(f"wrote {path} (a scenario's robot: section)")
+    return 0
+
+
+def _identification(args, geometry, poses, q, noise):
+    """:func:`~.identify.identify` with the command's options."""
+    from .identify import identify
+
+    return identify(
+        geometry,
+        poses,
+        q,
+        noise,
+        min_singular=args.min_singular,
+        outlier_threshold=args.outlier_threshold,
+        robust=args.robust,
+        drop_outliers=args.drop_outliers,
+    )
+
+
+def _plan(args, context) -> int:
+    """``calibrate --plan N --out POSES.csv``."""
+    from .report import plan_poses
+
+    plan, geometry, noise = context
+    return plan_poses(
+        plan,
+        args.plan,
+        args.out,
+        noise,
+        args.seed,
+        args.dwell,
+        n_candidates=args.candidates,
+        progress=not args.no_progress,
+    )
+
+
+def _rehearse(args, context) -> int:
+    """``calibrate --rehearse``."""
+    from .rehearsal import pick, rehearse, workspace
+    from .report import rehearsal_text, write_identified
+    from .tolerances import Tolerances
+
+    plan, geometry, noise = context
+    tolerances = Tolerances()
+    print(
+        f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
+        f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
+        f"{args.poses} {args.select} poses, tracker {noise.words()}",
+        flush=True,
+    )
+    from tqdm import tqdm
+
+    with tqdm(total=3, desc="rehearsing", disable=args.no_progress, leave=False) as bar:
+        space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
+        bar.update(1)
+        idx = pick(geometry, space, args.poses, args.select, noise, tolerances, args.seed)
+        bar.update(1)
+        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, args.select)
+        bar.update(1)
+    print(rehearsal_text(r, noise))
+    if args.save_measurements is not None:
+        from .files import write_measurements
+        from .tracker import measure
+
+        data = measure(geometry, r.truth, space.candidates[idx], noise, args.seed)
+        path = write_measurements(args.save_measurements, data.poses, data.readings)
+        print(f"wrote {path} (the emulated measurements: calibrate reads them)")
+    if args.out is not None:
+        path = write_identified(args.out, plan.scenario.robot, r.identification, "a rehearsal")
+        print(f"wrote {Path(path)} (a scenario's robot: section)")
+    return 0

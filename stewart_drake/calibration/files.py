@@ -1,0 +1,280 @@
+"""The calibration's files: the measurements CSV it reads, the robot section and the poses it
+writes.
+
+**Measurements** (:func:`read_measurements`): UTF-8 text, comma separated, a first line that
+names every column with its unit in brackets, one measured pose per line; lines that start
+with ``#`` are comments. Required columns: the six encoder readings ``q0 [rad]`` ..
+``q5 [rad]`` and the pose of the platform frame in the base frame ``phi [rad]``, ``theta
+[rad]``, ``psi [rad]`` (roll, pitch, yaw of R_BE = Rz(psi) Ry(theta) Rx(phi)), ``X [m]``,
+``Y [m]``, ``Z [m]``, in any order. Units converted: angles in rad, mrad, urad or deg, lengths
+in m, cm, mm or um, readings also in ``counts`` (of the encoders' counts per revolution). Other
+columns (a time, a pose number) are read past and named. The file is read through
+:func:`~stewart_drake.base.fileio.read_checked` (a regular file of at most
+:data:`MAX_MEASUREMENTS_BYTES`) and parsed as numbers only.
+
+**Robot** (:func:`robot_yaml`): a scenario's ``robot:`` section, every field of
+:class:`~stewart_drake.run.scenario.Robot` with the identified crank azimuths in
+``crank_angles_deg``, and the per-leg fields of :class:`~.legs.LegParameters`.
+
+**Poses** (:func:`write_path`): the path through the chosen poses as a reference CSV the robot
+command drives (``t [s],phi [rad],...,Z [m]``), and beside it ``<stem>_windows.csv``, each
+pose with the window of time to measure it in.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from ..base.fileio import atomic_write, decode_text, read_checked
+from .identify import MIN_POSES
+from .legs import PARAMETER_KINDS, LegParameters
+from .poses import PosePath
+
+#: Largest measurements file read, bytes (a million poses).
+MAX_MEASUREMENTS_BYTES = 200e6
+#: The columns a measurements file must have, with their SI units.
+READING_COLUMNS = tuple(f"q{i}" for i in range(6))
+POSE_COLUMNS = ("phi", "theta", "psi", "X", "Y", "Z")
+#: Units a column may carry: factor to SI (readings also take "counts").
+LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6}
+ANGLE_UNITS = {"rad": 1.0, "mrad": 1e-3, "urad": 1e-6, "deg": math.pi / 180}
+#: What a bad measurements file is told to become.
+MEASUREMENTS_REMEDY = (
+    "write a first line naming every column with its unit, q0 [rad],...,q5 [rad],phi [rad],"
+    "theta [rad],psi [rad],X [m],Y [m],Z [m] (docs/calibration.md)"
+)
+_HEADER_CELL = re.compile(r"\s*([^\[\]]+?)\s*\[\s*([^\[\]]*?)\s*\]\s*")
+
+
+@dataclass(frozen=True)
+class MeasurementsFile:
+    """A measurements file as read.
+
+    Attributes:
+        poses: (N, 6) the tracker's poses, rad and m.  readings: (N, 6) the encoders', rad.
+        lines: (N,) the line of the file each row came from.
+        ignored: the header cells of the columns not read.
+        converted: ((column, unit), ...) the columns converted from another unit.
+    """
+
+    poses: np.ndarray
+    readings: np.ndarray
+    lines: tuple
+    ignored: tuple
+    converted: tuple
+
+
+def _column_factor(path, name: str, unit: str, counts_per_rev: int) -> float:
+    """The factor to SI of column ``name`` in ``unit``.
+
+    Raises:
+        InvalidConfigError: a unit that is not this column's kind.
+    """
+    angle = name in READING_COLUMNS or name in POSE_COLUMNS[:3]
+    table = dict(ANGLE_UNITS) if angle else dict(LENGTH_UNITS)
+    if name in READING_COLUMNS:
+        table["counts"] = 2.0 * math.pi / counts_per_rev
+    if unit not in table:
+        raise InvalidConfigError(
+            f"{path}: column {name!r} has the unit [{unit}], which is not "
+            f"{'an angle' if angle else 'a length'}: write it in one of "
+            f"{', '.join(f'[{u}]' for u in table)}"
+        )
+    return table[unit]
+
+
+def _header(path, cells: list, counts_per_rev: int) -> tuple[dict, list, list]:
+    """({name: (index, factor)} of the required columns, the other cells, the converted
+    (name, unit)).
+
+    Raises:
+        InvalidConfigError: a required column missing, twice, or without a unit or a known one.
+    """
+    found, ignored, converted = {}, [], []
+    required = READING_COLUMNS + POSE_COLUMNS
+    for index, cell in enumerate(cells):
+        m = _HEADER_CELL.fullmatch(cell)
+        name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
+        if name not in required:
+            ignored.append(cell.strip())
+            continue
+        if not unit:
+            raise InvalidConfigError(
+                f"{path}: column {name!r} has no unit: write it as '{name} [rad]' or "
+                f"'{name} [{'m' if name in POSE_COLUMNS[3:] else 'deg'}]' (units in brackets)"
+            )
+        if name in found:
+            raise InvalidConfigError(f"{path}: the column {name!r} appears twice in the header")
+        factor = _column_factor(path, name, unit, counts_per_rev)
+        if factor != 1.0:
+            converted.append((name, unit))
+        found[name] = (index, factor)
+    missing = [n for n in required if n not in found]
+    if missing:
+        raise InvalidConfigError(
+            f"{path}: the header lacks the column{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing)}; {MEASUREMENTS_REMEDY}"
+        )
+    return found, ignored, converted
+
+
+def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
+    """The measured poses and readings of a measurements file (module docstring).
+
+    Args:
+        path: the CSV.  counts_per_rev: the encoders' counts per revolution (for readings in
+            ``counts``).
+    Returns:
+        :class:`MeasurementsFile`, in SI units.
+    Raises:
+        MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
+            UTF-8 or not CSV.  InvalidConfigError: a header without a required column, a unit
+            unknown or of the wrong kind, a cell that is not a finite number (its line and column
+            named), fewer than :data:`~.identify.MIN_POSES` poses.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(f"no measurements file at {path}: check the path")
+    raw = read_checked(path, "measurements file", MAX_MEASUREMENTS_BYTES, MEASUREMENTS_REMEDY)
+    text = decode_text(raw, path, "measurements file", MEASUREMENTS_REMEDY, "utf-8-sig")
+    del raw
+    numbered = [
+        (n, line)
+        for n, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if not numbered:
+        raise InvalidConfigError(f"{path}: the file is empty; {MEASUREMENTS_REMEDY}")
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(line for _, line in numbered))))
+    except csv.Error as err:
+        raise CorruptFileError(
+            path, "measurements file", f"not CSV ({err})", MEASUREMENTS_REMEDY
+        ) from None
+    columns, ignored, converted = _header(path, rows[0], counts_per_rev)
+    values = np.empty((len(rows) - 1, 12))
+    width = len(rows[0])
+    order = READING_COLUMNS + POSE_COLUMNS
+    for r, ((line, _), row) in enumerate(zip(numbered[1:], rows[1:])):
+        if len(row) != width:
+            raise InvalidConfigError(
+                f"{path}, line {line}: {len(row)} cells where the header names {width}"
+            )
+        for j, name in enumerate(order):
+            index, factor = columns[name]
+            try:
+                v = float(row[index])
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                raise InvalidConfigError(
+                    f"{path}, line {line}, column {name}: {row[index].strip()[:40]!r} is not a "
+                    f"finite number; remove the line or measure that pose again"
+                )
+            values[r, j] = v * factor
+    if len(values) < MIN_POSES:
+        raise InvalidConfigError(
+            f"{path}: {len(values)} measured poses are too few: each leg's 11 parameters need "
+            f"at least {MIN_POSES} (60 or more for a useful accuracy, docs/calibration.md)"
+        )
+    return MeasurementsFile(
+        poses=values[:, 6:],
+        readings=values[:, :6],
+        lines=tuple(n for n, _ in numbered[1:]),
+        ignored=tuple(ignored),
+        converted=tuple(converted),
+    )
+
+
+def measurements_csv(poses, q) -> str:
+    """The text of a measurements file of poses (N, 6) and readings (N, 6), SI units, every
+    digit a float64 holds."""
+    header = [f"{n} [rad]" for n in READING_COLUMNS] + [
+        f"{n} [{'rad' if k < 3 else 'm'}]" for k, n in enumerate(POSE_COLUMNS)
+    ]
+    lines = [",".join(header)]
+    for qk, xk in zip(np.asarray(q), np.asarray(poses)):
+        lines.append(",".join(repr(float(v)) for v in (*qk, *xk)))
+    return "\n".join(lines) + "\n"
+
+
+def write_measurements(path, poses, q) -> Path:
+    """Write :func:`measurements_csv` to ``path`` atomically (a regular file only)."""
+    text = measurements_csv(poses, q)
+    atomic_write(Path(path), lambda f: f.write(text.encode()))
+    return Path(path)
+
+
+def _yaml_value(value) -> str:
+    """A number or a list of numbers as YAML flow text (floats as repr: exact; an exponent's
+    mantissa with its point)."""
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
+    text = repr(float(value))
+    mantissa, e, exponent = text.partition("e")
+    # YAML 1.1 readers (PyYAML) take 1e-06 for a string: a float's mantissa needs its point.
+    return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+
+
+def robot_yaml(robot, legs: LegParameters, comments: tuple = ()) -> str:
+    """A scenario's ``robot:`` section: the fields of ``robot`` (a
+    :class:`~stewart_drake.run.scenario.Robot`, the nominal robot) with ``crank_angles_deg``
+    from ``legs``, then the per-leg fields of ``legs``; ``comments`` go first, as ``#`` lines.
+    """
+    lines = [f"# {c}" for c in comments] + ["robot:"]
+    per_leg = {name for name, _, _ in PARAMETER_KINDS}
+    for f in fields(robot):
+        if f.name in per_leg:
+            continue
+        lines.append(f"  {f.name}: {_yaml_value(getattr(robot, f.name))}")
+    for name, width, _ in PARAMETER_KINDS:
+        value = np.asarray(getattr(legs, name))
+        if width == 3:
+            lines.append(f"  {name}:")
+            lines += [f"    - {_yaml_value(row)}" for row in value]
+        else:
+            lines.append(f"  {name}: {_yaml_value(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def write_robot(path, robot, legs: LegParameters, comments: tuple = ()) -> Path:
+    """Write :func:`robot_yaml` to ``path`` atomically (a regular file only)."""
+    text = robot_yaml(robot, legs, comments)
+    atomic_write(Path(path), lambda f: f.write(text.encode()))
+    return Path(path)
+
+
+#: The header of a path's CSV: the reference CSV's columns with their SI units.
+PATH_HEADER = "t [s],phi [rad],theta [rad],psi [rad],X [m],Y [m],Z [m]"
+
+
+def windows_path(path) -> Path:
+    """The file beside a path's CSV that lists its poses and their windows."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_windows{path.suffix or '.csv'}")
+
+
+def write_path(path, plan: PosePath) -> tuple[Path, Path]:
+    """Write the path ``plan`` as a reference CSV at ``path`` (:data:`PATH_HEADER`) and its
+    poses with their windows at :func:`windows_path`; returns both paths."""
+    rows = [PATH_HEADER] + [
+        ",".join(repr(float(v)) for v in (t, *x)) for t, x in zip(plan.t, plan.x)
+    ]
+    text = "\n".join(rows) + "\n"
+    header = "pose,t_start [s],t_end [s]," + PATH_HEADER.split(",", 1)[1]
+    win = [header] + [
+        ",".join([str(k)] + [repr(float(v)) for v in (*w, *x)])
+        for k, (w, x) in enumerate(zip(plan.windows, plan.poses))
+    ]
+    other = windows_path(path)
+    atomic_write(Path(path), lambda f: f.write(text.encode()))
+    atomic_write(other, lambda f: f.write(("\n".join(win) + "\n").encode()))
+    return Path(path), other

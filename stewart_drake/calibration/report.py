@@ -1,0 +1,213 @@
+"""What ``stewart-drake calibrate`` prints and writes: the identified parameters with their
+uncertainties, the combinations kept nominal, the outliers, the residuals before and after; the
+robot section; the planned path, checked as the robot command will check it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError
+from ..robot.geometry import StewartGeometry
+from .files import MeasurementsFile, write_path, write_robot
+from .identify import Identification
+from .legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
+from .tracker import MeasurementNoise
+
+#: How each kind of parameter is shown: (label, unit, factor from SI) per entry of a leg.
+_SHOWN = {
+    "pivot_offsets_m": [(f"pivot {a}", "um", 1e6) for a in "xyz"],
+    "platform_offsets_m": [(f"platform joint {a}", "um", 1e6) for a in "xyz"],
+    "crank_lengths_m": [("crank length", "um", 1e6)],
+    "rod_lengths_m": [("rod length", "um", 1e6)],
+    "shaft_tilts_rad": [("shaft tilt", "urad", 1e6)],
+    "crank_angles_deg": [("crank azimuth", "urad", 1e6)],
+    "encoder_offsets_rad": [("encoder offset", "urad", 1e6)],
+}
+
+
+def check_reachable(geometry: StewartGeometry, data: MeasurementsFile) -> None:
+    """Refuse measurements whose poses the nominal robot cannot reach (wrong units or frames),
+    before any work.
+
+    Raises:
+        InvalidConfigError: names the first such line.
+    """
+    theta, _ = leg_ik_unchecked(leg_frames(geometry, LegParameters.nominal(geometry)), data.poses)
+    bad = ~np.all(np.isfinite(theta), axis=1)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise InvalidConfigError(
+            f"line {data.lines[k]}: the nominal robot cannot reach the pose "
+            f"{np.round(data.poses[k], 6).tolist()} (rad, m): check the columns' units and "
+            f"that the pose is the platform frame's in the base frame"
+        )
+
+
+def deviations_table(ident: Identification) -> str:
+    """The identified deviations, value +- standard deviation, one row per quantity, one column
+    per leg."""
+    lines = ["quantity".ljust(24) + "".join(f"leg {i}".rjust(18) for i in range(6))]
+    start = 0
+    for kind, width, _ in PARAMETER_KINDS:
+        for j, (label, unit, factor) in enumerate(_SHOWN[kind]):
+            cells = []
+            for leg in range(6):
+                k = start + leg * width + j
+                v, s = ident.deviation[k] * factor, ident.std[k] * factor
+                cell = f"{v:+.1f} +- {s:.1f}" if ident.scale[k] > 0 else f"{v:+.1f} (fixed)"
+                cells.append(cell.rjust(18))
+            lines.append(f"{label} [{unit}]".ljust(24) + "".join(cells))
+        start += 6 * width
+    return "\n".join(lines)
+
+
+def identification_text(ident: Identification, noise: MeasurementNoise, lines=None) -> str:
+    """The identification as text: its figures, the deviations, the combinations kept nominal
+    and the outliers (``lines``: the file's line of each pose, to name them)."""
+    used = int(ident.used.sum())
+    kept = len(ident.fixed)
+    out = [
+        f"identified from {used} poses ({noise.words()}): {66 - kept} of 66 parameter "
+        f"combinations, {kept} kept nominal; chi2/dof {ident.chi2_reduced:.3g} (dof "
+        f"{ident.dof}; about 1 when the noise is as stated)",
+        f"readings' residuals (model - read), RMS: {ident.rms_before_rad * 1e3:.3g} mrad with "
+        f"the nominal robot, {ident.rms_after_rad * 1e6:.3g} urad identified",
+        "identified deviations from the nominal robot (value +- standard deviation; crank "
+        "azimuth is crank_angles_deg's, in urad):",
+        deviations_table(ident),
+    ]
+    if ident.fixed:
+        out.append(
+            "kept nominal (rule: a combination of the parameters, each in units of its "
+            "tolerance's standard deviation, whose singular value S < --min-singular: the "
+            "data know it to 1/S, less well than its tolerance):"
+        )
+        out += [f"  {c.words()}" for c in ident.fixed]
+    else:
+        out.append("kept nominal: none (every combination's singular value >= --min-singular)")
+    if ident.outliers:
+        out.append(f"outliers ({len(ident.outliers)} readings beyond the threshold):")
+        for o in ident.outliers:
+            where = f"line {lines[o.pose]}" if lines is not None else f"pose {o.pose}"
+            out.append(
+                f"  {where}, q{o.leg}: residual {o.residual_rad * 1e6:+.1f} urad, studentized "
+                f"{o.studentized:+.1f}"
+            )
+        if not ident.used.all():
+            out.append(f"  identified again without the {int((~ident.used).sum())} poses")
+    else:
+        out.append("outliers: none")
+    return "\n".join(out)
+
+
+def write_identified(out, robot, ident: Identification, source) -> Path:
+    """The identified robot as a scenario's ``robot:`` section at ``out``
+    (:func:`~.files.write_robot`), its comments saying where it came from."""
+    comments = (
+        f"The robot identified by stewart-drake calibrate from {source}: "
+        f"{int(ident.used.sum())} poses,",
+        f"readings' residuals {ident.rms_before_rad * 1e3:.3g} mrad RMS with the nominal robot, "
+        f"{ident.rms_after_rad * 1e6:.3g} urad identified; {len(ident.fixed)} combinations kept "
+        f"nominal.",
+        "Per-leg fields: docs/calibration.md (encoder_offsets_rad: what each encoder reads at "
+        "theta_i = 0).",
+    )
+    return write_robot(out, robot, ident.identified, comments)
+
+
+def rehearsal_text(r, noise: MeasurementNoise) -> str:
+    """A rehearsal (:class:`~.rehearsal.Rehearsal`) as text: the identification, then the
+    prediction on the held-out poses before and after, and the parameters' errors."""
+    ident = r.identification
+    err = ident.deviation - r.truth.deviation(ident.nominal)
+    free = ident.std > 0
+    z = np.abs(err[free] / ident.std[free])
+    from .legs import parameter_names
+
+    worst = np.array(parameter_names())[free][int(np.argmax(z))]
+    return "\n".join(
+        [
+            identification_text(ident, noise),
+            f"identified minus drawn, in standard deviations: RMS {np.sqrt(np.mean(z**2)):.2f}, "
+            f"largest {z.max():.2f} ({worst})",
+            f"readings of 50 other poses predicted, RMS: before {r.before_rad * 1e3:.3g} mrad, "
+            f"after {r.after_rad * 1e6:.3g} urad (the covariance's bound "
+            f"{r.bound_rad * 1e6:.3g} urad; quantization alone "
+            f"{noise.quantization_rms_rad * 1e6:.3g} urad); from the tracker's poses "
+            f"{r.after_tracked_rad * 1e6:.3g} urad",
+        ]
+    )
+
+
+def expected_rms(rows: np.ndarray, held_rows: np.ndarray, noise: MeasurementNoise) -> float:
+    """The RMS of the readings' prediction at held-out poses that poses of information rows
+    ``rows`` (N, 6, 66) promise (the posterior covariance with the tolerances as prior, mapped
+    by the held-out poses' unwhitened scaled rows ``held_rows`` (H, 6, 66)), rad."""
+    A = np.eye(rows.shape[-1]) + np.einsum("nik,nil->kl", rows, rows)
+    C = np.linalg.inv(A)
+    var = np.einsum("nik,kl,nil->ni", held_rows, C, held_rows)
+    return float(np.sqrt(np.mean(var) + noise.quantization_rms_rad**2))
+
+
+def plan_poses(
+    plan,
+    count: int,
+    out,
+    noise: MeasurementNoise,
+    seed: int,
+    dwell_s: float,
+    n_candidates: int = 2000,
+    progress: bool = False,
+) -> int:
+    """``calibrate --plan``: choose ``count`` poses among ``n_candidates`` admissible ones of
+    the scenario's robot (``plan``, a :class:`~stewart_drake.run.plan.RunPlan`), write the path
+    through them at ``out`` with its windows, and check the path as the robot command will.
+
+    Raises:
+        InvalidConfigError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError: the path refused by the reference's check (it should not be).
+    """
+    from tqdm import tqdm
+
+    from ..references.traces import load_trace
+    from ..run.plan import check_reference, make_plan
+    from .legs import derivatives
+    from .poses import candidate_poses, choose_poses, information_rows, pose_path
+    from .tolerances import Tolerances
+
+    geometry, limits = plan.geometry, plan.motor_limits
+    tolerances = Tolerances()
+    with tqdm(total=count + 2, desc="planning", disable=not progress, leave=False) as bar:
+        candidates = candidate_poses(geometry, n_candidates, seed, motor_limits=limits)
+        held = candidate_poses(geometry, 50, seed + 1, motor_limits=limits)
+        bar.update(1)
+        rows = information_rows(geometry, candidates, noise, tolerances)
+        chosen = choose_poses(rows, count, on_step=lambda: bar.update(1))
+        path = pose_path(geometry, candidates[chosen], dwell_s=dwell_s, motor_limits=limits)
+        bar.update(1)
+    nominal = LegParameters.nominal(geometry)
+    held_rows = derivatives(geometry, nominal, held).parameters * tolerances.stds()
+    random = np.random.default_rng(seed).choice(len(candidates), count, replace=False)
+    written, windows = write_path(out, path)
+    reference = load_trace(written)  # as the robot command reads it
+    duration = float(reference.end_time)
+    checked = make_plan(replace(plan.scenario, duration_s=duration), with_reference=False)
+    report = check_reference(checked, reference, raise_refused=True, keep_series=False)
+    print(
+        f"chose {count} poses of {len(candidates)} admissible candidates (greedy D-optimal, "
+        f"tracker {noise.words()}); expected RMS of the readings' prediction on 50 other "
+        f"poses: {expected_rms(rows[chosen], held_rows, noise) * 1e6:.3g} urad "
+        f"(random poses: {expected_rms(rows[random], held_rows, noise) * 1e6:.3g} urad)"
+    )
+    print(
+        f"the path: {duration:.0f} s, at rest {dwell_s:g} s at each pose; checked as the robot "
+        f"command checks it: {'passes' if report.ok else 'REFUSED'}"
+    )
+    print(
+        f"wrote {written} (drive it: stewart-drake robot {written}) and {windows} (each pose "
+        f"and the window to measure it in, s of the path; docs/calibration.md)"
+    )
+    return 0 if report.ok else 2
