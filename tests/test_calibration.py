@@ -247,16 +247,26 @@ def test_calibrate_writes_a_robot_section_from_a_measurements_file(tmp_path, mea
     ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
     assert np.allclose(legs.deviation(ident.nominal), ident.deviation, rtol=1e-6, atol=1e-12)
     assert np.array(section["pivot_offsets_m"]).shape == (6, 3)
-    # Its nominal fields are a scenario's robot (the per-leg ones wait for the geometry's).
+    # The section is a scenario's robot whose kinematics predicts the identified readings.
+    from stewart_drake.run.plan import make_plan
     from stewart_drake.run.scenario_io import load_scenario
 
-    nominal_only = {k: v for k, v in section.items() if k not in _PER_LEG_ONLY}
-    (tmp_path / "nominal.yaml").write_text(yaml.safe_dump({"robot": nominal_only}))
-    scenario = load_scenario(str(tmp_path / "nominal.yaml"))
-    assert scenario.robot.crank_angles_deg == pytest.approx(section["crank_angles_deg"])
+    (tmp_path / "calibrated.yaml").write_text(yaml.safe_dump({"robot": section}))
+    calibrated = make_plan(load_scenario(str(tmp_path / "calibrated.yaml"))).geometry
+    x = data.poses[:20]
+    predicted = kinematics.ik(calibrated, x) + calibrated.encoder_offsets
+    np.testing.assert_allclose(predicted, model.readings(GEOMETRY, legs, x), rtol=0, atol=1e-9)
 
 
-_PER_LEG_ONLY = {k for k, _, _ in model.PARAMETER_KINDS} - {"crank_angles_deg"}
+def test_the_per_leg_geometry_s_kinematics_is_the_calibration_model_s(space):
+    # Two implementations of a drawn robot's legs: the calibration's closed form and the
+    # geometry's (robot.kinematics, which the plant, the controller and the checks use).
+    legs = tolerances.Tolerances().draw(GEOMETRY, 7)
+    drawn = legs.geometry(GEOMETRY)
+    x = space.held_out
+    read = kinematics.ik(drawn, x) + drawn.encoder_offsets
+    np.testing.assert_allclose(read, model.readings(GEOMETRY, legs, x), rtol=0, atol=1e-12)
+    assert np.max(np.abs(read - kinematics.ik(GEOMETRY, x))) > 1e-3  # the draw moves them
 
 
 def test_plan_writes_a_path_through_admissible_poses(tmp_path, capsys):

@@ -126,6 +126,24 @@ class LegParameters:
             encoder_offsets_rad=np.zeros(6),
         )
 
+    def geometry(self, nominal: StewartGeometry) -> StewartGeometry:
+        """``nominal`` with these legs as its per-leg fields (and crank azimuths): the robot
+        the rest of the package simulates, whose inverse kinematics plus encoder offsets gives
+        :func:`readings`.
+
+        Raises:
+            InvalidGeometryError: a deviation beyond the geometry's bounds (it names the field).
+        """
+        return nominal.replace(
+            pivot_offsets_m=tuple(map(tuple, self.pivot_offsets_m.tolist())),
+            platform_offsets_m=tuple(map(tuple, self.platform_offsets_m.tolist())),
+            crank_lengths_m=tuple(self.crank_lengths_m.tolist()),
+            rod_lengths_m=tuple(self.rod_lengths_m.tolist()),
+            shaft_tilts_rad=tuple(self.shaft_tilts_rad.tolist()),
+            crank_angles_deg=tuple(self.crank_angles_deg.tolist()),
+            encoder_offsets_rad=tuple(self.encoder_offsets_rad.tolist()),
+        )
+
     def deviation(self, nominal: LegParameters) -> np.ndarray:
         """(66,) this robot's deviation vector from ``nominal`` (module docstring; the crank
         azimuths' in rad)."""
