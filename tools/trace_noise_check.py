@@ -6,7 +6,7 @@ docs/organ_motion.md, "Read without their noise and seams".
 
 Takes the trace's first ``--seconds`` (120 s), writes it as it is and with ``--noise-mm``
 (0.1 mm) of white noise added to its three translation columns (seeded), and reproduces each
-both ways with ``stewart-drake reproduce`` on the robot as built (``paper_hardware``), without
+both ways with ``stewart-drake reproduce`` on its default scenario (``phantom_hardware``), without
 learning. Prints the four runs' RMS translation and rotation errors and peaks over the window
 the report measures, read from the reports' JSON, and whether the noisy trace joined without
 its noise stays within 20 % of the clean trace's error. Four 120 s runs: about 4 CPU-minutes.
