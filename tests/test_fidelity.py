@@ -201,6 +201,8 @@ def test_reproduce_learns_on_request(tmp_path, capsys):
         [
             "reproduce",
             "breathing",
+            "--scenario",  # the LQI without feed-forwards, whose cycles learning cuts to 0.3
+            "paper_hardware",
             "--param",
             "period=0.6s",
             "--param",
