@@ -26,6 +26,7 @@ import dataclasses
 
 import numpy as np
 
+from ..plant.backlash import crank_angles, crank_rates
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
 from ..station.bus.servos import servo_spec
@@ -71,7 +72,6 @@ class StationServos(ServoBackend):
         self._root = self.simulator.get_mutable_context()
         self._plant_context = self.station.plant.GetMyMutableContextFromRoot(self._root)
         self._torque_port = self.simulator.get_system().get_input_port(0)
-        self._joints = self.station.handles.motors
 
     def advance(self, dt_s, current_A):
         tau = self.spec.torque_constant_Nm_per_A * np.asarray(current_A, dtype=float)
@@ -83,7 +83,10 @@ class StationServos(ServoBackend):
         self.simulator.AdvanceTo(self._root.get_time() + dt_s)
 
     def positions_rad(self):
-        return np.array([j.get_angle(self._plant_context) for j in self._joints])
+        # The servo's encoder is on its output shaft: the crank's angle, after any gear play.
+        station = self.station
+        return crank_angles(station.plant, self._plant_context, station.handles)
 
     def velocities_rad_s(self):
-        return np.array([j.get_angular_rate(self._plant_context) for j in self._joints])
+        station = self.station
+        return crank_rates(station.plant, self._plant_context, station.handles)

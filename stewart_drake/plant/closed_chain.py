@@ -42,7 +42,8 @@ def assemble(
     """Write a consistent configuration of every joint for platform pose x into ``context``.
 
     Cranks from the closed-form IK, rods pointing from crank tip to platform joint (no spin),
-    platform at x. With ``x_dot`` (6,) [rad/s, m/s], velocities are set consistently too
+    platform at x; with gear play (:mod:`~.backlash`) each rotor at its crank's angle, the play
+    at 0. With ``x_dot`` (6,) [rad/s, m/s], velocities are set consistently too
     (theta_dot = J x_dot); otherwise all velocities are zero.
     Returns:
         (6,) motor angles in rad.
@@ -54,6 +55,8 @@ def assemble(
     theta = kinematics.ik(g, x)
     for joint, angle in zip(handles.motors, theta):
         joint.set_angle(context, float(angle))
+    for joint in handles.plays:
+        joint.set_angle(context, 0.0)
     plant.SetFloatingBaseBodyPoseInWorldFrame(context, handles.platform, pose_to_transform(x))
     q_B, _ = kinematics.platform_joints(g, x)
     tips = g.crank_tips(theta)
@@ -282,7 +285,8 @@ class LoopClosure:
     where a Context's kinematics or numpy's per-call overhead on (6, 3) arrays costs several
     times more (docs/plant_speed.md).
 
-    Crank tips from the motor angles (as :meth:`~.geometry.StewartGeometry.crank_tips`); with
+    Crank tips from the crank angles (the motor joints', plus the gear play's where the plant
+    has one; as :meth:`~.geometry.StewartGeometry.crank_tips`); with
     rods as bodies, each rod's top at s R_WF R_FM(rpy) e_z from its tip, where R_WF =
     Rot(u_i, theta_i) R0_i is the ball joint's frame (as :func:`assembled_positions` poses it)
     and R_FM = Rz(yaw) Ry(pitch) Rx(roll) Drake's BallRpyJoint; the platform joints from its
@@ -296,6 +300,7 @@ class LoopClosure:
     def __init__(self, handles: StewartPlantHandles):
         g = handles.geometry
         self._motors = [joint.position_start() for joint in handles.motors]
+        self._plays = [joint.position_start() for joint in handles.plays]
         self._balls = [joint.position_start() for joint in handles.rod_balls]
         self._platform = handles.platform.floating_positions_start()
         R0 = _rod_zero_rotations_cached(g)
@@ -320,6 +325,8 @@ class LoopClosure:
         out = []
         for k, (px, py, pz, dx, dy, dz, ux, uy, uz, ex, ey, ez, *R0) in enumerate(self._legs):
             th = q[self._motors[k]]
+            if self._plays:  # the crank turns on its rotor through the gear's play
+                th += q[self._plays[k]]
             c, sn = math.cos(th), math.sin(th)
             tx, ty, tz = px + a * c * dx, py + a * c * dy, pz + a * (c * dz + sn)  # crank tip
             jx = r00 * ex + r01 * ey + r02 * ez + X - tx  # tip to platform joint

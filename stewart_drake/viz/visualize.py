@@ -134,6 +134,7 @@ def record_states(
     clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
     x_d=None,
     error=None,
+    servo=None,
 ) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
     where two parts touch and, given ``x_d``, the reference's ghost (and given ``error``, a
@@ -162,6 +163,8 @@ def record_states(
         x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
         error: ((N,) translation error at the same samples, m; tolerance, m), or None (no
             marker; needs ``x_d``).
+        servo: the simulated plant's :class:`~stewart_drake.robot.servo.ServoModel` when its
+            gearheads have play (each leg then has a rotor and a play joint more), else None.
     Returns:
         the number of frames recorded.
     Raises:
@@ -173,7 +176,7 @@ def record_states(
     from ..plant.plant import add_stewart_plant
 
     builder = DiagramBuilder()
-    plant, scene_graph, _ = add_stewart_plant(builder, geometry)
+    plant, scene_graph, _ = add_stewart_plant(builder, geometry, servo=servo)
     nq = plant.num_positions()
     states, x_d = _checked_log(geometry, nq, t, states, x_d, error)
     frame_times, idx = frame_indices(t, fps)
@@ -385,5 +388,13 @@ def record_html(
     result = collect_result(sd, context, wall)
     meshcat = meshcat if meshcat is not None else offline_meshcat()
     x_d = np.concatenate(sd.trajectory.evaluate(result.t_state), axis=1)
-    record_states(meshcat, sd.plan.plant_geometry, result.t_state, result.state, fps, x_d=x_d)
+    record_states(
+        meshcat,
+        sd.plan.plant_geometry,
+        result.t_state,
+        result.state,
+        fps,
+        x_d=x_d,
+        servo=sd.plan.servo,
+    )
     return result, write_static_html(meshcat, path)
