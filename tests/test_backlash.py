@@ -205,3 +205,55 @@ def test_a_bad_backlash_is_refused_naming_the_field(value):
         _scenario(value)
     with pytest.raises(InvalidConfigError, match=r"servo\.backlash_rad"):
         ServoModel(backlash_rad=value)
+
+
+def test_the_loop_closure_and_the_replay_read_the_crank_through_the_play():
+    """With the plays knocked off 0 (the rotors turned back by as much), LoopClosure from q
+    alone equals Drake's kinematics; the state converted for the plant without play
+    (states_without_play) puts every crank, rod and the platform where the play plant has
+    them."""
+    from stewart_drake.plant.closed_chain import (
+        LoopClosure,
+        loop_closure_errors,
+        states_without_play,
+    )
+    from stewart_drake.plant.plant import make_plant
+
+    plant, handles, _, context = _play_plant(B)
+    rng = np.random.default_rng(0)
+    for motor, play in zip(handles.motors, handles.plays):
+        offset = rng.uniform(-B / 2, B / 2)
+        play.set_angle(context, offset)
+        motor.set_angle(context, motor.get_angle(context) - offset + 1e-4)  # a loop opened
+        play.set_angular_rate(context, rng.uniform(-1, 1))
+    q = plant.GetPositions(context)
+    np.testing.assert_allclose(
+        LoopClosure(handles)(q), loop_closure_errors(plant, context, handles), atol=1e-12
+    )
+    state = plant.get_state_output_port().Eval(context)
+    bare, bare_context, bare_handles, _, _ = make_plant(handles.geometry)
+    bare.SetPositionsAndVelocities(bare_context, states_without_play(plant, handles, state)[0])
+    for name in ["platform", *(f"crank_{i}" for i in range(6)), *(f"rod_{i}" for i in range(6))]:
+        X = plant.EvalBodyPoseInWorld(context, plant.GetBodyByName(name))
+        X0 = bare.EvalBodyPoseInWorld(bare_context, bare.GetBodyByName(name))
+        assert X.IsNearlyEqualTo(X0, 1e-12), name
+        V = plant.EvalBodySpatialVelocityInWorld(context, plant.GetBodyByName(name))
+        V0 = bare.EvalBodySpatialVelocityInWorld(bare_context, bare.GetBodyByName(name))
+        np.testing.assert_allclose(V.get_coeffs(), V0.get_coeffs(), atol=1e-12, err_msg=name)
+
+
+def test_the_emulated_servos_read_their_output_shafts():
+    """The bus emulator's servos (StationServos) report the cranks' angles and rates, the
+    rotors' plus the plays'."""
+    from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario
+
+    servos = StationServos(dynamixel_scenario(scenario=_scenario(B)))
+    station, context = servos.station, servos._plant_context
+    handles = station.handles
+    rotors = np.array([joint.get_angle(context) for joint in handles.motors])
+    plays = np.array([joint.get_angle(context) for joint in handles.plays])
+    assert plays.size == 6 and np.all(plays != 0)
+    np.testing.assert_array_equal(servos.positions_rad(), rotors + plays)
+    np.testing.assert_array_equal(
+        servos.velocities_rad_s(), crank_rates(station.plant, context, handles)
+    )

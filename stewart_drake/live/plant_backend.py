@@ -36,13 +36,18 @@ from .emulator import ServoBackend
 def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     """``scenario`` (default the paper's, :class:`~..scenario.Scenario`) built with six
     catalogue Dynamixels ``model`` and no computation delay, current-loop lag or encoder noise
-    in the station (the bus and the servos bring their own)."""
+    in the station (the bus and the servos bring their own); the gears' play is
+    ``scenario``'s (``hardware.motors.backlash_rad``, 0 by default)."""
     from ..run.scenario import Scenario
     from ..station.hardware import Hardware, Motors
 
-    servo = dataclasses.replace(catalogue_motor(model).servo, current_time_constant_s=0.0)
     base = scenario if scenario is not None else Scenario()
     hardware = base.hardware if base.hardware is not None else Hardware()
+    servo = dataclasses.replace(
+        catalogue_motor(model).servo,
+        current_time_constant_s=0.0,
+        backlash_rad=hardware.motors.backlash_rad,
+    )
     hardware = dataclasses.replace(
         hardware,
         motors=Motors.from_value(servo),

@@ -350,3 +350,38 @@ class LoopClosure:
             gx, gy, gz = s * lx - jx, s * ly - jy, s * lz - jz
             out.append(math.sqrt(gx * gx + gy * gy + gz * gz))
         return np.array(out)
+
+
+def states_without_play(plant, handles, states) -> np.ndarray:
+    """The plant states of a robot with gear play as the plant without it (the SDF's, same rod
+    model: :func:`~.plant.make_plant`) holds them: each motor joint at its crank's angle and
+    rate, every other joint as it is. For what draws or checks a run on that plant (replays,
+    the clearance model).
+
+    Args:
+        plant, handles: the plant with gear play and its handles.
+        states: (N, nq + nv) its states.
+    Returns:
+        (N, nq0 + nv0) states of the plant without play; ``states`` itself without gear play.
+    """
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    if not handles.plays:
+        return states
+    bare, _, bare_handles, _, _ = make_plant(handles.geometry, rod_model=handles.rod_model)
+    nq, nq0 = plant.num_positions(), bare.num_positions()
+    out = np.zeros((states.shape[0], nq0 + bare.num_velocities()))
+    plays = {f"motor_{i}": play for i, play in enumerate(handles.plays)}
+    for index in bare.GetJointIndices(bare_handles.model_instance):
+        joint0 = bare.get_joint(index)
+        joint = plant.GetJointByName(joint0.name(), handles.model_instance)
+        play = plays.get(joint0.name())
+        for k in range(joint0.num_positions()):
+            out[:, joint0.position_start() + k] = states[:, joint.position_start() + k]
+            if play is not None:
+                out[:, joint0.position_start() + k] += states[:, play.position_start()]
+        for k in range(joint0.num_velocities()):
+            column = states[:, nq + joint.velocity_start() + k]
+            if play is not None:
+                column = column + states[:, nq + play.velocity_start()]
+            out[:, nq0 + joint0.velocity_start() + k] = column
+    return out

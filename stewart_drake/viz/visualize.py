@@ -134,7 +134,6 @@ def record_states(
     clearance_m: float = DEFAULT_MIN_CLEARANCE_M,
     x_d=None,
     error=None,
-    servo=None,
 ) -> int:
     """Record logged plant states as a Meshcat animation (illustration geometry), with markers
     where two parts touch and, given ``x_d``, the reference's ghost (and given ``error``, a
@@ -163,8 +162,6 @@ def record_states(
         x_d: (N, >= 6) the reference logged with ``states`` [rad, m], or None (no ghost).
         error: ((N,) translation error at the same samples, m; tolerance, m), or None (no
             marker; needs ``x_d``).
-        servo: the simulated plant's :class:`~stewart_drake.robot.servo.ServoModel` when its
-            gearheads have play (each leg then has a rotor and a play joint more), else None.
     Returns:
         the number of frames recorded.
     Raises:
@@ -176,7 +173,7 @@ def record_states(
     from ..plant.plant import add_stewart_plant
 
     builder = DiagramBuilder()
-    plant, scene_graph, _ = add_stewart_plant(builder, geometry, servo=servo)
+    plant, scene_graph, _ = add_stewart_plant(builder, geometry)
     nq = plant.num_positions()
     states, x_d = _checked_log(geometry, nq, t, states, x_d, error)
     frame_times, idx = frame_indices(t, fps)
@@ -376,6 +373,7 @@ def record_html(
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
             (before simulating). SimulationDivergedError: the guard stopped the run.
     """
+    from ..plant.closed_chain import states_without_play
     from ..run.result import collect_result
     from ..run.simulate import advance, build_simulator
     from ..station import guard
@@ -388,13 +386,7 @@ def record_html(
     result = collect_result(sd, context, wall)
     meshcat = meshcat if meshcat is not None else offline_meshcat()
     x_d = np.concatenate(sd.trajectory.evaluate(result.t_state), axis=1)
-    record_states(
-        meshcat,
-        sd.plan.plant_geometry,
-        result.t_state,
-        result.state,
-        fps,
-        x_d=x_d,
-        servo=sd.plan.servo,
-    )
+    # The replay's plant is the SDF's: a plant with gear play is drawn by its cranks' angles.
+    states = states_without_play(sd.plant, sd.handles, result.state)
+    record_states(meshcat, sd.plan.plant_geometry, result.t_state, states, fps, x_d=x_d)
     return result, write_static_html(meshcat, path)
