@@ -257,3 +257,26 @@ def test_the_emulated_servos_read_their_output_shafts():
     np.testing.assert_array_equal(
         servos.velocities_rad_s(), crank_rates(station.plant, context, handles)
     )
+
+
+def test_with_contact_the_same_parts_may_collide_as_without_play():
+    """The base and the cranks are no longer neighbours in the tree (a rotor between them), so
+    Drake no longer filters their collisions by itself: the play's plant filters them, and its
+    SceneGraph has the same candidate pairs as the plant without play."""
+
+    def candidates(servo):
+        builder = DiagramBuilder()
+        geometry = StewartGeometry(motor_reflected_inertia=ServoModel().reflected_inertia)
+        plant, scene_graph, _ = add_stewart_plant(builder, geometry, servo=servo, contact=True)
+        diagram = builder.Build()
+        context = scene_graph.GetMyContextFromRoot(diagram.CreateDefaultContext())
+        inspector = scene_graph.get_query_output_port().Eval(context).inspector()
+
+        def name(gid):
+            body = plant.GetBodyFromFrameId(inspector.GetFrameId(gid)).name()
+            return f"{body}/{inspector.GetName(gid)}"
+
+        return {tuple(sorted((name(a), name(b)))) for a, b in inspector.GetCollisionCandidates()}
+
+    with_play = candidates(ServoModel(backlash_rad=B))
+    assert with_play and with_play == candidates(ServoModel())
