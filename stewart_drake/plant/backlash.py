@@ -109,7 +109,7 @@ def crank_coordinates(handles) -> tuple[list[tuple], list[tuple]]:
         crank's angle (rad) in q and its rate (rad/s) in v: the motor joint's, and with gear
         play the play joint's after it.
     """
-    joints = [(motor,) for motor in handles.motors]
+    joints: list[tuple] = [(motor,) for motor in handles.motors]
     if handles.plays:
         joints = [(motor, play) for motor, play in zip(handles.motors, handles.plays)]
     positions = [tuple(j.position_start() for j in leg) for leg in joints]
@@ -117,7 +117,7 @@ def crank_coordinates(handles) -> tuple[list[tuple], list[tuple]]:
     return positions, velocities
 
 
-def crank_state_selectors(plant, handles) -> tuple[np.ndarray, np.ndarray]:
+def crank_state_selectors(plant, handles) -> tuple:
     """(S_q, S_v), each (6, nq + nv): S_q @ state is the six cranks' absolute angles (rad),
     S_v @ state their rates (rad/s), from the plant's state vector [q, v]; ones and zeros, so
     that without gear play each row picks one entry, exactly."""
