@@ -26,6 +26,7 @@ import dataclasses
 
 import numpy as np
 
+from ..plant.backlash import crank_angles, crank_rates
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
 from ..station.bus.servos import servo_spec
@@ -35,13 +36,18 @@ from .emulator import ServoBackend
 def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     """``scenario`` (default the paper's, :class:`~..scenario.Scenario`) built with six
     catalogue Dynamixels ``model`` and no computation delay, current-loop lag or encoder noise
-    in the station (the bus and the servos bring their own)."""
+    in the station (the bus and the servos bring their own); the gears' play is
+    ``scenario``'s (``hardware.motors.backlash_rad``, 0 by default)."""
     from ..run.scenario import Scenario
     from ..station.hardware import Hardware, Motors
 
-    servo = dataclasses.replace(catalogue_motor(model).servo, current_time_constant_s=0.0)
     base = scenario if scenario is not None else Scenario()
     hardware = base.hardware if base.hardware is not None else Hardware()
+    servo = dataclasses.replace(
+        catalogue_motor(model).servo,
+        current_time_constant_s=0.0,
+        backlash_rad=hardware.motors.backlash_rad,
+    )
     hardware = dataclasses.replace(
         hardware,
         motors=Motors.from_value(servo),
@@ -71,7 +77,6 @@ class StationServos(ServoBackend):
         self._root = self.simulator.get_mutable_context()
         self._plant_context = self.station.plant.GetMyMutableContextFromRoot(self._root)
         self._torque_port = self.simulator.get_system().get_input_port(0)
-        self._joints = self.station.handles.motors
 
     def advance(self, dt_s, current_A):
         tau = self.spec.torque_constant_Nm_per_A * np.asarray(current_A, dtype=float)
@@ -83,7 +88,10 @@ class StationServos(ServoBackend):
         self.simulator.AdvanceTo(self._root.get_time() + dt_s)
 
     def positions_rad(self):
-        return np.array([j.get_angle(self._plant_context) for j in self._joints])
+        # The servo's encoder is on its output shaft: the crank's angle, after any gear play.
+        station = self.station
+        return crank_angles(station.plant, self._plant_context, station.handles)
 
     def velocities_rad_s(self):
-        return np.array([j.get_angular_rate(self._plant_context) for j in self._joints])
+        station = self.station
+        return crank_rates(station.plant, self._plant_context, station.handles)

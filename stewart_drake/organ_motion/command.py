@@ -219,8 +219,8 @@ def _cmd_reproduce(args) -> int:
         from ..run.plan import make_plan
         from .fidelity_replay import reproduction_html
 
-        geometry = make_plan(scenario, with_reference=False).plant_geometry
-        html = reproduction_html(rep, geometry, args.html, tolerance)
+        plan = make_plan(scenario, with_reference=False)
+        html = reproduction_html(rep, plan.plant_geometry, args.html, tolerance, plan=plan)
         print(f"wrote {html} (Meshcat replay with the reference's ghost and the error)")
     return 0 if ok else 2
 

@@ -11,7 +11,13 @@ from ..viz.visualize import REPLAY_FPS, offline_meshcat, record_states, write_st
 
 
 def reproduction_html(
-    rep, geometry, path: str | Path, tolerance: tuple, fps: float = REPLAY_FPS, meshcat=None
+    rep,
+    geometry,
+    path: str | Path,
+    tolerance: tuple,
+    fps: float = REPLAY_FPS,
+    meshcat=None,
+    plan=None,
 ) -> Path:
     """Write the 3-D replay of a reproduction (``stewart-drake reproduce --html``) as a
     standalone HTML file: the robot from the run's plant-state log (every
@@ -25,6 +31,8 @@ def reproduction_html(
         geometry: the robot that was simulated (the plan's ``plant_geometry``).
         path: the .html to write. tolerance: (m, rad) the report's tolerance.
         fps: frames per s. meshcat: a Meshcat to record into (default: :func:`offline_meshcat`).
+        plan: the run's :class:`~stewart_drake.run.plan.RunPlan`, needed when its servos have
+            gear play (its plant's states are drawn by the cranks' angles), else None.
     Returns:
         the path written.
     Raises:
@@ -43,7 +51,16 @@ def reproduction_html(
     j = np.clip(np.searchsorted(r.t, r.t_state - 1e-9), 0, r.t.size - 1)
     e = np.linalg.norm(np.subtract(r.x[j, 3:6], r.x_d[j, 3:6], dtype=float), axis=1)
     meshcat = meshcat if meshcat is not None else offline_meshcat()
-    record_states(meshcat, geometry, r.t_state, r.state, fps, x_d=x_d, error=(e, tolerance[0]))
+    states = r.state
+    if plan is not None and plan.servo is not None and plan.servo.backlash_rad > 0:
+        from pydrake.systems.framework import DiagramBuilder
+
+        from ..plant.closed_chain import states_without_play
+        from ..station.station import add_station_plant
+
+        plant, _, handles = add_station_plant(DiagramBuilder(), plan)
+        states = states_without_play(plant, handles, states)
+    record_states(meshcat, geometry, r.t_state, states, fps, x_d=x_d, error=(e, tolerance[0]))
     tol_um = tolerance[0] * 1e6
     caption = (
         f"{rep.name}: {verdict(rep.fidelity, tolerance)[1]}\n"

@@ -42,7 +42,8 @@ def assemble(
     """Write a consistent configuration of every joint for platform pose x into ``context``.
 
     Cranks from the closed-form IK, rods pointing from crank tip to platform joint (no spin),
-    platform at x. With ``x_dot`` (6,) [rad/s, m/s], velocities are set consistently too
+    platform at x; with gear play (:mod:`~.backlash`) each rotor at its crank's angle, the play
+    at 0. With ``x_dot`` (6,) [rad/s, m/s], velocities are set consistently too
     (theta_dot = J x_dot); otherwise all velocities are zero.
     Returns:
         (6,) motor angles in rad.
@@ -54,6 +55,8 @@ def assemble(
     theta = kinematics.ik(g, x)
     for joint, angle in zip(handles.motors, theta):
         joint.set_angle(context, float(angle))
+    for joint in handles.plays:
+        joint.set_angle(context, 0.0)
     plant.SetFloatingBaseBodyPoseInWorldFrame(context, handles.platform, pose_to_transform(x))
     q_B, _ = kinematics.platform_joints(g, x)
     tips = g.crank_tips(theta)
@@ -283,8 +286,9 @@ class LoopClosure:
     where a Context's kinematics or numpy's per-call overhead on (6, 3) arrays costs several
     times more (docs/plant_speed.md).
 
-    Crank tips from the motor angles (as :meth:`~.geometry.StewartGeometry.crank_tips`); with
-    rods as bodies, each rod's top at s_i R_WF R_FM(rpy) e_z from its tip, where R_WF =
+    Crank tips from the crank angles (the motor joints', plus the gear play's where the plant
+    has one; as :meth:`~.geometry.StewartGeometry.crank_tips`); with rods as bodies, each rod's
+    top at s_i R_WF R_FM(rpy) e_z from its tip, where R_WF =
     Rot(u_i, theta_i) R0_i is the ball joint's frame (as :func:`assembled_positions` poses it)
     and R_FM = Rz(yaw) Ry(pitch) Rx(roll) Drake's BallRpyJoint; the platform joints from its
     (normalized) quaternion and position. A test holds it to :func:`loop_closure_errors` at
@@ -297,6 +301,7 @@ class LoopClosure:
     def __init__(self, handles: StewartPlantHandles):
         g = handles.geometry
         self._motors = [joint.position_start() for joint in handles.motors]
+        self._plays = [joint.position_start() for joint in handles.plays]
         self._balls = [joint.position_start() for joint in handles.rod_balls]
         self._platform = handles.platform.floating_positions_start()
         R0 = _rod_zero_rotations_cached(g)
@@ -332,6 +337,8 @@ class LoopClosure:
         for k, leg in enumerate(self._legs):
             a, s, px, py, pz, dx, dy, dz, wx, wy, wz, ux, uy, uz, ex, ey, ez, *R0 = leg
             th = q[self._motors[k]]
+            if self._plays:  # the crank turns on its rotor through the gear's play
+                th += q[self._plays[k]]
             c, sn = math.cos(th), math.sin(th)
             # The crank tip as P + a c d + a sn w: untilted (w = z, d_z = 0) each added term is
             # an exact zero, the sums of the upright crank to the bit.
@@ -359,3 +366,38 @@ class LoopClosure:
             gx, gy, gz = s * lx - jx, s * ly - jy, s * lz - jz
             out.append(math.sqrt(gx * gx + gy * gy + gz * gz))
         return np.array(out)
+
+
+def states_without_play(plant, handles, states) -> np.ndarray:
+    """The plant states of a robot with gear play as the plant without it (the SDF's, same rod
+    model: :func:`~.plant.make_plant`) holds them: each motor joint at its crank's angle and
+    rate, every other joint as it is. For what draws or checks a run on that plant (replays,
+    the clearance model).
+
+    Args:
+        plant, handles: the plant with gear play and its handles.
+        states: (N, nq + nv) its states.
+    Returns:
+        (N, nq0 + nv0) states of the plant without play; ``states`` itself without gear play.
+    """
+    states = np.atleast_2d(np.asarray(states, dtype=float))
+    if not handles.plays:
+        return states
+    bare, _, bare_handles, _, _ = make_plant(handles.geometry, rod_model=handles.rod_model)
+    nq, nq0 = plant.num_positions(), bare.num_positions()
+    out = np.zeros((states.shape[0], nq0 + bare.num_velocities()))
+    plays = {f"motor_{i}": play for i, play in enumerate(handles.plays)}
+    for index in bare.GetJointIndices(bare_handles.model_instance):
+        joint0 = bare.get_joint(index)
+        joint = plant.GetJointByName(joint0.name(), handles.model_instance)
+        play = plays.get(joint0.name())
+        for k in range(joint0.num_positions()):
+            out[:, joint0.position_start() + k] = states[:, joint.position_start() + k]
+            if play is not None:
+                out[:, joint0.position_start() + k] += states[:, play.position_start()]
+        for k in range(joint0.num_velocities()):
+            column = states[:, nq + joint.velocity_start() + k]
+            if play is not None:
+                column = column + states[:, nq + play.velocity_start()]
+            out[:, nq0 + joint0.velocity_start() + k] = column
+    return out

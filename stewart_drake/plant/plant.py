@@ -28,6 +28,7 @@ from ..base.errors import InvalidConfigError
 from ..robot import kinematics
 from ..robot.geometry import X_HOME, StewartGeometry
 from ..robot.servo import ServoModel
+from .backlash import add_gear_play, play_joint_indices
 from .sdf import check_rod_model, write_sdf
 
 #: Positions and velocities of the plant with rods as distance constraints: 6 cranks and the
@@ -53,7 +54,9 @@ class StewartPlantHandles:
         rods): ``BodyIndex``.  motor_indices (6), rod_ball_indices (6 or empty): ``JointIndex``
         (revolute motors, ball rod tops).  rod_top_in_rod: (6, 3) p_AP of each leg's ball
         constraint, its rod's frame, m ([0, 0, s_i]).  n_actuators: 6 motors, + 6 dry-friction
-        actuators when the servo has friction.  rod_model: one of ``ROD_MODELS``.
+        actuators when the servo has friction.  rod_model: one of ``ROD_MODELS``.  play_indices
+        (6 or empty): ``JointIndex`` of the gear-play joints (crank on rotor; :mod:`~.backlash`),
+        empty without backlash; with them a crank's angle is its motor joint's plus its play's.
     """
 
     geometry: StewartGeometry
@@ -67,6 +70,7 @@ class StewartPlantHandles:
     rod_top_in_rod: np.ndarray
     n_actuators: int = 6
     rod_model: str = "bodies"
+    play_indices: tuple = ()
 
     @property
     def platform(self) -> RigidBody:
@@ -87,6 +91,11 @@ class StewartPlantHandles:
     def motors(self) -> tuple:
         """The 6 motor ``RevoluteJoint``, leg order."""
         return tuple(map(self.plant.get_joint, self.motor_indices))
+
+    @property
+    def plays(self) -> tuple:
+        """The 6 gear-play ``RevoluteJoint`` (crank on its rotor), leg order; empty without."""
+        return tuple(map(self.plant.get_joint, self.play_indices))
 
     @property
     def rod_balls(self) -> tuple:
@@ -139,6 +148,8 @@ def add_stewart_plant(
             limit of ``servo.coulomb_friction_Nm``: a dry friction SAP solves implicitly (drake
             1.51 has no joint dry friction: it loads an SDF joint's ``<dynamics><friction>``
             without a word, even with strict parsing, and ignores it; a test holds this).
+            Its ``backlash_rad`` > 0 puts a rotor and a play between each motor joint and its
+            crank (:func:`~.backlash.add_gear_play`).
         contact: register the parts' collision geometry (:mod:`~.parts`), so that SAP turns a
             collision into contact forces (point contact, :data:`~.sdf.CONTACT_STIFFNESS_N_PER_M`);
             False leaves it out (an SDF file's collision geometry is then filtered): parts pass
@@ -164,6 +175,8 @@ def add_stewart_plant(
     # use geometry.gravity, so the plant must too.
     plant.mutable_gravity_field().set_gravity_vector([0.0, 0.0, -geometry.gravity])
     model = _add_robot_model(plant, scene_graph, geometry, sdf_file, contact, rod_model)
+    if servo is not None and servo.backlash_rad > 0:
+        add_gear_play(plant, scene_graph, model, geometry, servo.backlash_rad)
     _add_motors(plant, model, geometry, servo)
     if rod_model == "distance":
         _add_rod_constraints(plant, model, geometry)
@@ -302,6 +315,7 @@ def _handles(plant, model, geometry: StewartGeometry, rod_model: str) -> Stewart
         rod_top_in_rod=np.column_stack([np.zeros((6, 2)), geometry.rod_lengths]),
         n_actuators=n_actuators,
         rod_model=rod_model,
+        play_indices=play_joint_indices(plant, model),
     )
 
 

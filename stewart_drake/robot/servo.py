@@ -39,6 +39,9 @@ EC45_FLAT_50W_24V = {
     "no_load_speed": 6250 * 2 * 3.141592653589793 / 60,
 }
 GEAR_RATIO, GEAR_EFFICIENCY, CURRENT_LIMIT_FACTOR = 4.3, 0.90, 2.0
+#: Largest gear play a scenario may give, rad (5.7 deg: ten times a Dynamixel's, six times a
+#: standard planetary gearhead's; docs/hardware.md).
+MAX_BACKLASH_RAD = 0.1
 _m = EC45_FLAT_50W_24V
 _friction_motor = _m["torque_constant"] * _m["no_load_current"]  # 8.57 mN m at no load
 
@@ -61,9 +64,13 @@ class ServoModel:
         no_load_speed_rad_s: the motor's no-load speed through the gearbox, rad/s at the crank
             (6250 rpm / 4.3 = 152 rad/s): the fastest a reference may turn a crank (less a
             margin, :class:`~stewart_drake.robot.limits.MotorLimits`).
+        backlash_rad: the gearhead's play at the output shaft, rad, in [0,
+            :data:`MAX_BACKLASH_RAD`]: the angle the crank turns, the rotor held, between the two
+            flanks (a datasheet's "backlash"); 0: a rigid gear, the plant built without it
+            (:mod:`~stewart_drake.plant.backlash`).
     Raises:
         InvalidConfigError: a value that is not finite, negative (or zero for gear_ratio, peak
-            torque, friction_damping), naming the field.
+            torque, friction_damping; above the bound for backlash_rad), naming the field.
     Source: module docstring and docs/hardware.md.
     """
 
@@ -82,6 +89,7 @@ class ServoModel:
     coulomb_friction_Nm: float = 0.5 * _friction_motor * GEAR_RATIO
     friction_damping: float = 1e4
     no_load_speed_rad_s: float = _m["no_load_speed"] / GEAR_RATIO
+    backlash_rad: float = 0.0
 
     def __post_init__(self):
         for name, positive in (
@@ -97,6 +105,11 @@ class ServoModel:
             object.__setattr__(
                 self, name, as_number(f"servo.{name}", getattr(self, name), 0.0, lo_open=positive)
             )
+        object.__setattr__(
+            self,
+            "backlash_rad",
+            as_number("servo.backlash_rad", self.backlash_rad, 0.0, MAX_BACKLASH_RAD),
+        )
         if not isinstance(self.name, str):
             raise InvalidConfigError(f"servo.name must be a string, got {self.name!r}")
 

@@ -31,6 +31,7 @@ from pydrake.systems.framework import LeafSystem
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, SimulationDivergedError
 from ..base.fileio import save_npz
+from ..plant.backlash import crank_coordinates
 from ..references.motion import Reference
 from ..robot.kinematics import AXIS_NAMES
 from ..robot.limits import (
@@ -193,7 +194,8 @@ class DivergenceGuard(LeafSystem):
             self._clearance = clearance_model(geometry)
             self._legs = leg_constants(geometry)
             self._crank_m = float(np.max(geometry.crank_lengths))  # the longest crank
-            self._motor_q = [joint.position_start() for joint in station.handles.motors]
+            # Each crank's angle in q: its motor joint's, plus its gear play's if it has one.
+            self._motor_q = crank_coordinates(station.handles)[0]
             # The reference keeps guard.min_clearance_m between the parts (the run's check,
             # sampled within DEFAULT_CLEARANCE_RESOLUTION_M); two parts that each stray less
             # than half of what is left from where the reference puts them cannot overlap.
@@ -250,11 +252,12 @@ class DivergenceGuard(LeafSystem):
         if self.contact or not self._may_overlap(context, state, pose, x_d):
             return None
         # Without contact nothing in the plant keeps two parts apart: overlapping is a failure.
-        # Rods as distance constraints: the clearance model's plant (rods as bodies) posed at
-        # the measured pose; the loops are closed, so its IK gives the cranks' angles.
+        # Rods as distance constraints or gear play (another layout of q): the clearance
+        # model's plant (rods as bodies) posed at the measured pose; the loops are closed, so
+        # its IK gives the cranks' angles.
         q = (
             state[: plant.num_positions()]
-            if self._handles.rod_indices
+            if self._handles.rod_indices and not self._handles.play_indices
             else self._clearance.positions(pose)
         )
         overlaps = self._clearance.overlaps(q)
@@ -276,7 +279,7 @@ class DivergenceGuard(LeafSystem):
         if checks % INTERFERENCE_EVERY == 0:
             return True
         theta_d = ik_scalar(self._legs, x_d.tolist())
-        crank = max(abs(state[k] - t) for k, t in zip(self._motor_q, theta_d))
+        crank = max(abs(sum(state[k] for k in ks) - t) for ks, t in zip(self._motor_q, theta_d))
         platform = np.abs(pose[3:] - x_d[3:]).max() + 0.4 * np.abs(pose[:3] - x_d[:3]).max()
         stray = max((self._crank_m + 0.01) * crank, float(platform))
         return not stray < self._stray_m  # NaN included

@@ -18,7 +18,7 @@ from ..base.checks import MAX_SEED, as_number
 from ..base.checks import check_int as _check_int
 from ..base.errors import InvalidConfigError, StewartError
 from ..base.mirrors import ValueMirror
-from ..robot.servo import ServoModel
+from ..robot.servo import MAX_BACKLASH_RAD, ServoModel
 
 _SERVO = ServoModel()
 
@@ -28,8 +28,9 @@ class Motors(ValueMirror):
     """The servo at each crank: every field of :class:`~stewart_drake.robot.servo.ServoModel`, same
     names, units and defaults (at the output shaft: gear ratio, rotor inertia kg m^2, peak torque
     N m, current-loop time constant s, viscous N m s/rad and Coulomb N m friction, friction
-    regularization N m s/rad, no-load speed rad/s); defaults: maxon EC 45 flat 50 W + a 4.3:1
-    planetary gearhead (docs/hardware.md). ``build()`` gives the servo."""
+    regularization N m s/rad, no-load speed rad/s, the gear's play ``backlash_rad`` rad, 0 by
+    default); defaults: maxon EC 45 flat 50 W + a 4.3:1 planetary gearhead (docs/hardware.md).
+    ``build()`` gives the servo."""
 
     value_class = ServoModel
 
@@ -42,6 +43,7 @@ class Motors(ValueMirror):
     coulomb_friction_Nm: float = _SERVO.coulomb_friction_Nm
     friction_damping: float = _SERVO.friction_damping
     no_load_speed_rad_s: float = _SERVO.no_load_speed_rad_s
+    backlash_rad: float = _SERVO.backlash_rad
 
 
 @dataclass
@@ -116,6 +118,12 @@ class Hardware:
         _check_int("hardware.encoders.counts_per_rev", self.encoders.counts_per_rev, 16, 2**40)
         as_number("hardware.encoders.noise_counts", self.encoders.noise_counts, 0.0, 1e6)
         _check_int("hardware.encoders.seed", self.encoders.seed, 0, MAX_SEED)
+        as_number("hardware.motors.backlash_rad", self.motors.backlash_rad, 0.0, MAX_BACKLASH_RAD)
+        if self.motors.backlash_rad > 0 and not self.motors.rotor_inertia > 0:
+            raise InvalidConfigError(
+                "hardware.motors.backlash_rad > 0 needs hardware.motors.rotor_inertia > 0: the "
+                "rotor turns inside the play on its own inertia"
+            )
         try:
             self.motors.build()
         except (StewartError, TypeError) as err:

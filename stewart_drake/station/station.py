@@ -43,10 +43,11 @@ from pydrake.trajectories import PiecewisePolynomial
 from ..base.checks import MAX_SEED, as_number
 from ..base.checks import check_int as _check_int
 from ..base.errors import InvalidConfigError
+from ..plant.backlash import crank_state_selectors, take_up_play
 from ..plant.closed_chain import LoopClosure, assemble
 from ..plant.plant import StewartPlantHandles, add_stewart_plant
 from ..robot.kinematics import X_HOME
-from ..robot.statics import p_ETool
+from ..robot.statics import holding_torques, p_ETool
 
 # Drake's YAML loader reads the sections' field annotations (a Scenario's ``sensor_noise`` and
 # ``disturbance``): this module must not use ``from __future__ import annotations``.
@@ -385,9 +386,10 @@ class StewartStation(Diagram):
     command passes the computation delay (``DiscreteTimeDelay``, whole control periods), the
     drive's current limit (``Saturation`` at the servo's peak torque) and its current loop
     (:func:`current_loop`); the plant carries the motors' reflected inertia, viscous and Coulomb
-    friction (:func:`~stewart_drake.plant.plant.add_stewart_plant`); ``motor_angle`` is what the
-    absolute encoders read: the crank angles plus each encoder's zero error (the plant
-    geometry's ``encoder_offsets_rad``) plus optional white noise, quantized
+    friction and the gearheads' play, if any (:func:`~stewart_drake.plant.plant.add_stewart_plant`,
+    :mod:`~stewart_drake.plant.backlash`); ``motor_angle`` is what the absolute encoders on the
+    output shafts read: the crank angles plus each encoder's zero error (the plant geometry's
+    ``encoder_offsets_rad``) plus optional white noise, quantized
     (:func:`quantizer`). Without it, the ideal robot: torques applied as commanded (up to
     ``torque_limit_Nm``), exact angles.
 
@@ -397,8 +399,9 @@ class StewartStation(Diagram):
             to zeros (:func:`~stewart_drake.run.diagram.make_stewart_diagram` does) when
             there is no disturbance.
     Output ports:
-        ``motor_angle`` (6,): the motor shaft angles the robot measures, rad.
-        ``motor_rate`` (6,): their rates, rad/s.
+        ``motor_angle`` (6,): the crank (output shaft) angles the robot measures, rad; with
+            gear play the crank's, not the rotor's.
+        ``motor_rate`` (6,): the cranks' rates, rad/s.
         ``platform_state`` (12,): ground truth [phi, theta, psi, X, Y, Z] (rad, m) and rates
             (rad/s, m/s): for metrics and for an ideal pose sensor.
         ``motor_torque_applied`` (6,): the torques the motors apply, N m (after the torque
@@ -484,11 +487,7 @@ class StewartStation(Diagram):
         plant state (C++ systems: no Python per step); on the robot as built the angles pass
         the encoders (their zero errors, white noise, if any, then the quantizer)."""
         plant, hardware = self.plant, self.plan.scenario.hardware
-        n_q, n = plant.num_positions(), plant.num_positions() + plant.num_velocities()
-        select_q, select_v = np.zeros((6, n)), np.zeros((6, n))
-        for i, joint in enumerate(self.handles.motors):
-            select_q[i, joint.position_start()] = 1.0
-            select_v[i, n_q + joint.velocity_start()] = 1.0
+        select_q, select_v = crank_state_selectors(plant, self.handles)
         outputs = {}
         for name, matrix in (("motor_angle", select_q), ("motor_rate", select_v)):
             gain = builder.AddNamedSystem(name, MatrixGain(matrix))
@@ -541,10 +540,16 @@ class StewartStation(Diagram):
     def assemble(self, root_context, x=X_HOME, x_dot=None) -> np.ndarray:
         """Write the robot assembled at pose x (6,) [rad, m], moving at x_dot (6,) (default at
         rest), into the station's plant inside ``root_context``; returns the (6,) motor angles.
+        With gear play, each crank rests on the flank that carries its holding torque at x
+        (:func:`~stewart_drake.plant.backlash.take_up_play`), as on a robot that has held the
+        pose: the run does not start with the cranks falling through the play.
 
         Raises:
             UnreachablePoseError: x cannot be reached (names the leg).
         """
-        return assemble(
-            self.plant, self.plant.GetMyMutableContextFromRoot(root_context), self.handles, x, x_dot
-        )
+        context = self.plant.GetMyMutableContextFromRoot(root_context)
+        theta = assemble(self.plant, context, self.handles, x, x_dot)
+        if self.handles.plays:
+            T = holding_torques(self.plan.plant_geometry, np.asarray(x, dtype=float))
+            take_up_play(self.plant, context, self.handles, T)
+        return theta

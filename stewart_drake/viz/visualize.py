@@ -373,6 +373,7 @@ def record_html(
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference is refused
             (before simulating). SimulationDivergedError: the guard stopped the run.
     """
+    from ..plant.closed_chain import states_without_play
     from ..run.result import collect_result
     from ..run.simulate import advance, build_simulator
     from ..station import guard
@@ -385,5 +386,7 @@ def record_html(
     result = collect_result(sd, context, wall)
     meshcat = meshcat if meshcat is not None else offline_meshcat()
     x_d = np.concatenate(sd.trajectory.evaluate(result.t_state), axis=1)
-    record_states(meshcat, sd.plan.plant_geometry, result.t_state, result.state, fps, x_d=x_d)
+    # The replay's plant is the SDF's: a plant with gear play is drawn by its cranks' angles.
+    states = states_without_play(sd.plant, sd.handles, result.state)
+    record_states(meshcat, sd.plan.plant_geometry, result.t_state, states, fps, x_d=x_d)
     return result, write_static_html(meshcat, path)
