@@ -346,8 +346,8 @@ def _identify_once(
     rows = np.flatnonzero(used)
     flagged = np.flatnonzero(np.abs(studentized) > outlier_threshold)
     outliers = tuple(
-        Outlier(int(rows[j // 6]), int(j % 6), float(raw.ravel()[j]), float(studentized[j]))
-        for j in flagged
+        Outlier(int(rows[j // 6]), j % 6, float(raw.ravel()[j]), float(studentized[j]))
+        for j in map(int, flagged)
     )
     before = _residuals(geometry, nominal, x, y)
     return Identification(

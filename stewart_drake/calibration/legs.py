@@ -297,7 +297,6 @@ def derivatives(geometry: StewartGeometry, legs: LegParameters, x) -> LegDerivat
     g = ell / den[..., None]  # d theta / d q
     n = len(x)
     dpar = np.zeros((n, 6, N_PARAMETERS))
-    legs_ix = np.arange(6)
     dd_dbeta = np.cross(_Z, f.d)  # (6, 3)
     sin_t, cos_t = np.sin(f.tilt)[:, None], np.cos(f.tilt)[:, None]
     dw_dbeta = sin_t * np.cross(dd_dbeta, _Z)
@@ -314,7 +313,7 @@ def derivatives(geometry: StewartGeometry, legs: LegParameters, x) -> LegDerivat
     start = 0
     for name, width, _ in PARAMETER_KINDS:
         value = columns[name]
-        for leg in legs_ix:
+        for leg in range(6):
             if width == 3:
                 dpar[:, leg, start + 3 * leg : start + 3 * leg + 3] = value[:, leg]
             else:

@@ -247,10 +247,10 @@ def table(rows: list[dict]) -> str:
         over = "" if figure is None else f"{int(np.sum(after > figure))} over {figure:g}"
         lines.append(
             f"| {key[0] * 1e6:g} um / {key[1] * 1e6:g} urad | {key[2]} | {key[3]} | {len(group)} "
-            f"| {after.mean():.1f} ({after.max():.1f}) | {over} "
+            f"| {np.mean(after):.1f} ({np.max(after):.1f}) | {over} "
             f"| {np.mean([r['bound_rad'] for r in group]) * 1e6:.1f} "
             f"| {np.mean([r['after_tracked_rad'] for r in group]) * 1e6:.1f} "
-            f"| {before.mean():.2f} ({before.min():.2f}-{before.max():.2f}) "
+            f"| {np.mean(before):.2f} ({np.min(before):.2f}-{np.max(before):.2f}) "
             f"| {np.mean([r['fixed'] for r in group]):.1f} |"
         )
     lines += ["", TABLE_MARKERS[1]]

@@ -273,7 +273,7 @@ def loop_closure_errors(
         return np.abs(length - handles.geometry.rod_lengths)
     p_W_top = np.column_stack(
         [
-            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod[i])  # type: ignore[arg-type]
+            plant.EvalBodyPoseInWorld(context, rod).multiply(handles.rod_top_in_rod[i])
             for i, rod in enumerate(rods)
         ]
     )
