@@ -510,7 +510,7 @@ def held_station(scenario=None, x=X_HOME, T=None, wrench=None):
     simulator = Simulator(diagram)
     context = simulator.get_mutable_context()
     station.assemble(context, x)
-    T = holding_torques(station.plan.geometry, x) if T is None else np.asarray(T, float)
+    T = holding_torques(station.plan.plant_geometry, x) if T is None else np.asarray(T, float)
     station.initialize(context, T)
     diagram.get_input_port(0).FixValue(context, T)
     diagram.get_input_port(1).FixValue(context, np.zeros(6) if wrench is None else wrench)

@@ -55,8 +55,10 @@ class RunPlan:
             with the robot built with the bus's servos (:func:`as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
             the motors' reflected inertia (rotor inertia x gear ratio^2).
-        plant_geometry: the robot that is simulated: ``geometry`` with ``payload_scale`` on the
-            platform's mass and inertia.
+        plant_geometry: the robot that is simulated: ``robot_as_built`` (None: ``robot``) with
+            the same reflected inertia as ``geometry`` and ``payload_scale`` on the platform's
+            mass and inertia; its ``encoder_offsets`` are the simulated encoders' zero errors,
+            which the estimator takes back with ``geometry``'s.
         servo: the servo of ``hardware.motors`` (None on the ideal robot).
         torque_limit_Nm: the saturation in force, N m: the lowest of ``torque_limit_Nm``, with
             hardware the servo's peak torque, and on the servo bus ``K_t`` times its current
@@ -208,11 +210,15 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     if servo is not None:
         geometry = geometry.replace(motor_reflected_inertia=servo.reflected_inertia)
     plant_geometry = geometry
+    if scenario.robot_as_built is not None:
+        plant_geometry = scenario.robot_as_built.build().replace(
+            motor_reflected_inertia=geometry.motor_reflected_inertia
+        )
     if scenario.payload_scale != 1.0:
         k = scenario.payload_scale
-        plant_geometry = geometry.replace(
-            platform_mass=geometry.platform_mass * k,
-            platform_inertia=tuple(k * v for v in geometry.platform_inertia),
+        plant_geometry = plant_geometry.replace(
+            platform_mass=plant_geometry.platform_mass * k,
+            platform_inertia=tuple(k * v for v in plant_geometry.platform_inertia),
         )
     limits = [
         v

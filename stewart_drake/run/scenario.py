@@ -2,7 +2,8 @@
 
 A :class:`Scenario` is the schema of a run: the robot (:class:`Robot`), Drake's plant, simulator
 and visualization settings, the reference, the controller, the tuner, the periods, the robot as
-built, the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM.
+built (its geometry when it differs from the one the controller believes in; its hardware),
+the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM.
 A section that configures a thing lives beside it: the robot as built
 (:class:`~stewart_drake.station.hardware.Hardware`) in :mod:`~stewart_drake.station.hardware`,
 the sensor noise and the tool disturbance with the station (:mod:`~stewart_drake.station.station`),
@@ -208,6 +209,13 @@ class Scenario:
             from; 10 ms keeps a long run's memory small (0.07 kB per s of the 86 floats,
             against 0.69 kB at 1 kHz).
         sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
+        robot_as_built: None (the robot simulated is ``robot``), or the robot as built
+            (:class:`Robot`) when it differs from the one the controller believes in
+            (``robot``): the plant, its loop closure, the encoders' zero errors
+            (``encoder_offsets_rad``), the true pose and the guard's checks are this robot's;
+            the controller, its estimator and the feed-forward still use ``robot`` (an
+            uncalibrated robot, or one calibrated to an identified model: docs/calibration.md).
+            Simulated only: the servo bus's robot is the real one.
         payload_scale: the simulated platform's mass and inertia are this multiple of the
             robot's; the controller still believes in ``robot`` (an unknown payload).
         torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
@@ -256,6 +264,7 @@ class Scenario:
     log_period_s: float = 1e-3
     state_log_period_s: float = 1e-2
     sensor_noise: SensorNoise | None = None
+    robot_as_built: Robot | None = None
     payload_scale: float = 1.0
     torque_limit_Nm: float | None = None
     guard: GuardConfig = field(default_factory=GuardConfig)
@@ -297,12 +306,16 @@ class Scenario:
             InvalidConfigError, InvalidGeometryError, MissingFileError: see the class docstring.
         """
         self._validate_types()
-        try:
-            self.robot.build()
-        except InvalidGeometryError as err:
-            raise InvalidGeometryError(f"robot: {err}") from None
-        except TypeError as err:
-            raise InvalidConfigError(f"robot: {err}") from None
+        for name in ("robot", "robot_as_built"):
+            robot = getattr(self, name)
+            if robot is None:
+                continue
+            try:
+                robot.build()
+            except InvalidGeometryError as err:
+                raise InvalidGeometryError(f"{name}: {err}") from None
+            except TypeError as err:
+                raise InvalidConfigError(f"{name}: {err}") from None
         self._validate_periods()
         if self.hardware is not None:
             self.hardware.validate(self.control_period_s)
@@ -349,11 +362,11 @@ class Scenario:
             self.learning.validate(self.control_period_s)
         if self.bus is not None:
             self.bus.validate(self.control_period_s, self.hardware)
-            for name in ("disturbance", "contact"):
+            for name in ("disturbance", "contact", "robot_as_built"):
                 if getattr(self, name):
                     raise InvalidConfigError(
                         f"{name} is simulated; on the servo bus the real robot meets the real "
-                        f"world: set {name} to {'null' if name == 'disturbance' else 'false'}"
+                        f"world: set {name} to {'false' if name == 'contact' else 'null'}"
                     )
         if self.lcm is not None:
             self.lcm.validate(self.plant.time_step)
@@ -370,6 +383,7 @@ class Scenario:
         "reference": _choices(ReferenceChoice),
         "tuner": (type(None),) + _choices(TunerChoice),
         "sensor_noise": (type(None), SensorNoise),
+        "robot_as_built": (type(None), Robot),
         "hardware": (type(None), Hardware),
         "disturbance": (type(None), ToolDisturbance),
         "learning": (type(None),) + _choices(LearningChoice),
