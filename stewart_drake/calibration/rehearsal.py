@@ -207,8 +207,8 @@ def study(
     return rows
 
 
-#: Issue 49's figures: the RMS, urad, that 60 random poses must reach for each tracker noise
-#: (m, rad).
+#: The accuracy goal of docs/calibration.md: the RMS, urad, that 60 random poses must reach for
+#: each tracker noise (m, rad).
 ACCEPTANCE_URAD = {(5e-6, 20e-6): 35.0, (20e-6, 50e-6): 110.0}
 #: Where docs/calibration.md holds the study's table.
 TABLE_MARKERS = (
@@ -221,7 +221,7 @@ TABLE_MARKERS = (
 def table(rows: list[dict]) -> str:
     """The study's rows as a markdown table between :data:`TABLE_MARKERS`: per noise level,
     pose count and selection, the RMS of the held-out readings' prediction in urad (mean and
-    worst over the seeds, with how many seeds exceed issue 49's figure for the noise level),
+    worst over the seeds, with how many seeds exceed :data:`ACCEPTANCE_URAD` for the noise level),
     the covariance's bound, the prediction from the tracker's poses, before (mean and range,
     mrad), and the combinations kept nominal."""
     keys = sorted(

@@ -4,13 +4,15 @@ robot they draw (a :class:`~.legs.LegParameters`), with a seed.
 A quantity's half-width h bounds its deviation from the drawing: "uniform" draws it uniformly in
 [-h, h] (standard deviation h / sqrt(3)), "normal" from a normal law of standard deviation h / 3
 (h is the process's 3-sigma band, as machining tolerances are read). Positions are drawn per
-component (each of x, y, z within +-h). The defaults are issue 49's acceptance robot: +-0.5 mm on
-every joint position (pivots and platform joints), +-0.2 mm on the crank lengths, +-0.3 mm on the
-rod lengths, +-5 mrad on the encoder zeros, and +-1 mrad of shaft tilt and of crank azimuth (a
-bracket machined to 0.1 mm over 100 mm).
+component (each of x, y, z within +-h). The defaults are a robot built to workshop tolerances
+(docs/calibration.md, "Tolerances"): +-0.5 mm on every joint position (pivots and platform
+joints), +-0.2 mm on the crank lengths, +-0.3 mm on the rod lengths, +-5 mrad on the encoder
+zeros, and +-1 mrad of shaft tilt and of crank azimuth (a bracket machined to 0.1 mm over
+100 mm).
 
 The tolerances live with the calibration, not in :mod:`stewart_drake.robot`: they draw values of
-the calibration's per-leg model (:mod:`~.legs`), which the robot's geometry does not carry yet.
+the calibration's per-leg model (:mod:`~.legs`), whose ``LegParameters.geometry`` gives the
+robot's geometry (a scenario's ``robot_as_built``).
 """
 
 from __future__ import annotations

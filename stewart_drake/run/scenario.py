@@ -209,13 +209,10 @@ class Scenario:
             from; 10 ms keeps a long run's memory small (0.07 kB per s of the 86 floats,
             against 0.69 kB at 1 kHz).
         sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
-        robot_as_built: None (the robot simulated is ``robot``), or the robot as built
-            (:class:`Robot`) when it differs from the one the controller believes in
-            (``robot``): the plant, its loop closure, the encoders' zero errors
-            (``encoder_offsets_rad``), the true pose and the guard's checks are this robot's;
-            the controller, its estimator and the feed-forward still use ``robot`` (an
-            uncalibrated robot, or one calibrated to an identified model: docs/calibration.md).
-            Simulated only: the servo bus's robot is the real one.
+        robot_as_built: None (``robot`` is simulated), or the robot simulated (:class:`Robot`)
+            when it differs from ``robot``, which the controller, its estimator and the
+            feed-forward still believe in: the plant, the encoders' zero errors, the true pose
+            and the guard's checks are this one's (docs/calibration.md). Not on the servo bus.
         payload_scale: the simulated platform's mass and inertia are this multiple of the
             robot's; the controller still believes in ``robot`` (an unknown payload).
         torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
