@@ -168,6 +168,28 @@ def geometry():
     return StewartGeometry()
 
 
+def drawn_robot(seed: int = 49, encoders: bool = True) -> StewartGeometry:
+    """A robot as built: +-0.5 mm on every joint position, +-0.2 mm on the crank lengths,
+    +-0.3 mm on the rod lengths, +-5 mrad of shaft tilt and (``encoders``) of encoder zero."""
+    nominal = StewartGeometry()
+    rng = np.random.default_rng(seed)
+    return nominal.replace(
+        pivot_offsets_m=rng.uniform(-5e-4, 5e-4, (6, 3)),
+        platform_offsets_m=rng.uniform(-5e-4, 5e-4, (6, 3)),
+        crank_lengths_m=nominal.crank_length + rng.uniform(-2e-4, 2e-4, 6),
+        rod_lengths_m=nominal.rod_length + rng.uniform(-3e-4, 3e-4, 6),
+        shaft_tilts_rad=rng.uniform(-5e-3, 5e-3, 6),
+        encoder_offsets_rad=rng.uniform(-5e-3, 5e-3, 6) if encoders else None,
+    )
+
+
+@pytest.fixture(scope="session", params=["symmetric", "drawn"])
+def either_robot(request):
+    """The drawing's robot, then a robot as built (:func:`drawn_robot`): for the checks that
+    must hold on both."""
+    return StewartGeometry() if request.param == "symmetric" else drawn_robot()
+
+
 def random_reachable_poses(geometry, n, seed=0, margin=0.95):
     """n poses around home whose legs all have |ratio| < margin (deterministic)."""
     rng = np.random.default_rng(seed)

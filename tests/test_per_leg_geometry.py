@@ -7,7 +7,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import needs_extra, random_reachable_poses
+from conftest import drawn_robot, needs_extra, random_reachable_poses
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -15,7 +15,6 @@ from stewart_drake.base.errors import InvalidGeometryError
 from stewart_drake.plant.closed_chain import (
     LoopClosure,
     assemble,
-    closed_chain_inverse_dynamics,
     loop_closure_errors,
 )
 from stewart_drake.plant.plant import make_plant, platform_pose
@@ -27,20 +26,6 @@ from stewart_drake.robot.limits import _joint_axes, limit_margins
 from stewart_drake.robot.path_checks import compiled_kinematics
 
 NOMINAL = StewartGeometry()
-
-
-def drawn_robot(seed: int = 49, encoders: bool = True) -> StewartGeometry:
-    """A robot as built: +-0.5 mm on every joint position, +-0.2 mm on the crank lengths,
-    +-0.3 mm on the rod lengths, +-5 mrad of shaft tilt and (``encoders``) of encoder zero."""
-    rng = np.random.default_rng(seed)
-    return NOMINAL.replace(
-        pivot_offsets_m=rng.uniform(-5e-4, 5e-4, (6, 3)),
-        platform_offsets_m=rng.uniform(-5e-4, 5e-4, (6, 3)),
-        crank_lengths_m=NOMINAL.crank_length + rng.uniform(-2e-4, 2e-4, 6),
-        rod_lengths_m=NOMINAL.rod_length + rng.uniform(-3e-4, 3e-4, 6),
-        shaft_tilts_rad=rng.uniform(-5e-3, 5e-3, 6),
-        encoder_offsets_rad=rng.uniform(-5e-3, 5e-3, 6) if encoders else None,
-    )
 
 
 def drawn_values() -> StewartGeometry:
@@ -96,25 +81,6 @@ def test_ik_then_fk_round_trips_and_every_rod_has_its_own_length(poses):
     x, status = fk(ROBOT, theta)
     assert status.converged
     np.testing.assert_allclose(x, poses, rtol=0, atol=1e-12)
-
-
-def test_the_jacobian_and_the_wrench_map_agree_with_finite_differences(poses):
-    h = 1e-6
-    for x in poses[:8]:
-        J = kinematics.jacobian(ROBOT, x)
-        fd = np.column_stack(
-            [
-                (kinematics.ik(ROBOT, x + h * e) - kinematics.ik(ROBOT, x - h * e)) / (2 * h)
-                for e in np.eye(6)
-            ]
-        )
-        np.testing.assert_allclose(J, fd, rtol=0, atol=1e-7 * np.abs(J).max())
-        # tau = blockdiag(E^T, I) W = J^T: the wrench map is the Jacobian's virtual work.
-        E = kinematics.angular_velocity_map(x[:3])
-        W = kinematics.wrench_map(ROBOT, x)
-        np.testing.assert_allclose(
-            np.vstack([E.T @ W[:3], W[3:]]), J.T, rtol=0, atol=1e-12 * np.abs(J).max()
-        )
 
 
 def test_the_compiled_and_single_pose_forms_give_the_numpy_numbers(poses):
@@ -235,17 +201,6 @@ def test_the_sdf_writes_each_legs_lengths():
     a = [2 * coms[f"crank_{i}"][0] for i in range(6)]
     np.testing.assert_allclose(a, ROBOT.crank_lengths, rtol=0, atol=1e-12)
     assert write_sdf(ROBOT) != write_sdf(NOMINAL)
-
-
-def test_the_inverse_dynamics_equal_drakes_tree_on_the_drawn_robot(poses):
-    plant, context, handles, _, _ = make_plant(ROBOT)
-    rng = np.random.default_rng(2)
-    for x in poses[:3]:
-        x_dot = rng.normal(size=6) * [1, 1, 1, 0.2, 0.2, 0.2]
-        x_ddot = rng.normal(size=6) * [10, 10, 10, 1, 1, 1]
-        drake = closed_chain_inverse_dynamics(plant, context, handles, x, x_dot, x_ddot)
-        ours = statics.inverse_dynamics_torques(ROBOT, x, x_dot, x_ddot)
-        np.testing.assert_allclose(ours, drake, atol=1e-6 * np.abs(drake).max())
 
 
 @needs_extra("mujoco")

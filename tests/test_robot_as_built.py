@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import drawn_robot, random_reachable_poses
 from pydrake.geometry import Role
 from pydrake.multibody.plant import DiscreteContactApproximation
 from pydrake.trajectories import PiecewisePolynomial
@@ -200,12 +201,18 @@ def test_rods_as_distance_constraints_move_the_paper_manoeuvre_with_torques_with
     assert 0.001 * peak < np.abs(distance - bodies).max() < 0.01 * peak
 
 
-@pytest.mark.parametrize("reflected", [0.0, 2.5e-4])
-def test_inverse_dynamics_equals_drakes_tree_projected_on_the_loops(random_poses, reflected):
-    g = StewartGeometry(motor_reflected_inertia=reflected)
+@pytest.mark.parametrize(
+    "robot, reflected", [("symmetric", 0.0), ("symmetric", 2.5e-4), ("drawn", 0.0)]
+)
+def test_inverse_dynamics_equals_drakes_tree_projected_on_the_loops(robot, reflected):
+    g = (
+        StewartGeometry(motor_reflected_inertia=reflected)
+        if robot == "symmetric"
+        else drawn_robot()
+    )
     plant, context, handles, _, _ = make_plant(g)
     rng = np.random.default_rng(7)
-    for x in random_poses[:6]:
+    for x in random_reachable_poses(g, 6, seed=3, margin=0.9):
         x_dot = rng.normal(size=6) * [1, 1, 1, 0.2, 0.2, 0.2]
         x_ddot = rng.normal(size=6) * [10, 10, 10, 1, 1, 1]
         drake = closed_chain_inverse_dynamics(plant, context, handles, x, x_dot, x_ddot)
