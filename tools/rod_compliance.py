@@ -1,7 +1,7 @@
 """Whether the rods' axial compliance matters: the pose change it causes along the paper
 manoeuvre, printed as the table in docs/calibration.md ("The rods' axial compliance").
 
-    python tools/rod_compliance.py [--modulus-GPa 70]
+    python tools/rod_compliance.py [--modulus-gpa 70]
 
 Each rod is taken as a solid round bar of the geometry's ``rod_radius`` and ``rod_length``
 (the geometry's ``rod_mass`` gives it a density of 2,520 kg/m^3: aluminium), of Young's modulus
@@ -30,10 +30,10 @@ def rod_lengths(geometry: StewartGeometry, x: np.ndarray, theta: np.ndarray) -> 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--modulus-GPa", type=float, default=70.0, help="the rods' E, GPa")
+    parser.add_argument("--modulus-gpa", type=float, default=70.0, help="the rods' E, GPa")
     args = parser.parse_args()
     g = StewartGeometry()
-    k = args.modulus_GPa * 1e9 * np.pi * g.rod_radius**2 / g.rod_length
+    k = args.modulus_gpa * 1e9 * np.pi * g.rod_radius**2 / g.rod_length
     x, x_dot, x_ddot = paper_manoeuvre().evaluate(np.arange(0.0, 10.0, 0.05))
     torques = statics.inverse_dynamics_torques(g, x, x_dot, x_ddot)
     h, eye = 1e-7, np.eye(6)
@@ -59,7 +59,7 @@ def main() -> None:
     forces, moves = np.array(forces), np.array(moves)
     swing = moves.max(axis=0) - moves.min(axis=0)
     print(
-        f"| rod axial stiffness (E = {args.modulus_GPa:g} GPa, solid, "
+        f"| rod axial stiffness (E = {args.modulus_gpa:g} GPa, solid, "
         f"r = {g.rod_radius * 1e3:g} mm, L = {g.rod_length * 1e3:g} mm) | {k:.3g} N/m |"
     )
     print(
