@@ -6,7 +6,7 @@ table goes into docs/calibration.md, section "What calibration does to the figur
     python tools/calibration_figures.py [--seeds 5] [--docs docs/calibration.md]
 
 For each seed: a robot as built drawn with the default
-:class:`~stewart_drake.calibration.tolerances.Tolerances` (+-0.5 mm joint positions, +-0.2 mm
+:class:`~stewart_drake.robot.tolerances.Tolerances` (+-0.5 mm joint positions, +-0.2 mm
 crank lengths, +-0.3 mm rod lengths, +-5 mrad encoder zeros, +-1 mrad shaft tilts and crank
 azimuths); a calibration of it at 60 chosen poses measured by the emulated tracker (5 um /
 20 urad) and the 17-bit encoders (:func:`~stewart_drake.calibration.tracker.measure`), identified
@@ -28,10 +28,10 @@ import numpy as np
 from stewart_drake.base.fileio import write_between_markers
 from stewart_drake.calibration.identify import identify
 from stewart_drake.calibration.rehearsal import pick, workspace
-from stewart_drake.calibration.tolerances import Tolerances
 from stewart_drake.calibration.tracker import MeasurementNoise, measure
 from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.robot.kinematics import rotation_rpy
+from stewart_drake.robot.tolerances import Tolerances
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import Robot
 from stewart_drake.run.scenario_io import load_scenario

@@ -10,9 +10,8 @@ joints), +-0.2 mm on the crank lengths, +-0.3 mm on the rod lengths, +-5 mrad on
 zeros, and +-1 mrad of shaft tilt and of crank azimuth (a bracket machined to 0.1 mm over
 100 mm).
 
-The tolerances live with the calibration, not in :mod:`stewart_drake.robot`: they draw values of
-the calibration's per-leg model (:mod:`~.legs`), whose ``LegParameters.geometry`` gives the
-robot's geometry (a scenario's ``robot_as_built``).
+They draw values of the per-leg model (:mod:`~.legs`) that the calibration identifies, whose
+``LegParameters.geometry`` gives the robot's geometry (a scenario's ``robot_as_built``).
 """
 
 from __future__ import annotations
@@ -23,7 +22,7 @@ import numpy as np
 
 from ..base.checks import as_number, check_int
 from ..base.errors import InvalidConfigError
-from ..robot.geometry import StewartGeometry
+from .geometry import StewartGeometry
 from .legs import PARAMETER_KINDS, LegParameters, parameter_kinds
 
 #: The distributions a :class:`Tolerance` may name.

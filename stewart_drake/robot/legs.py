@@ -33,8 +33,8 @@ import numpy as np
 
 from ..base.checks import as_array, as_poses
 from ..base.errors import InvalidGeometryError, UnreachablePoseError
-from ..robot.geometry import StewartGeometry
-from ..robot.kinematics import rotation_rpy
+from .geometry import StewartGeometry
+from .kinematics import rotation_rpy
 
 _Z = np.array([0.0, 0.0, 1.0])
 
