@@ -126,6 +126,26 @@ class LegParameters:
             encoder_offsets_rad=np.zeros(6),
         )
 
+    @classmethod
+    def of(cls, geometry: StewartGeometry) -> LegParameters:
+        """The legs of ``geometry`` as it is, its per-leg fields included (null ones as drawn),
+        about its symmetric robot (``geometry`` with every per-leg field null): for a symmetric
+        ``geometry``, :meth:`nominal` exactly."""
+
+        def given(name: str, shape: tuple) -> np.ndarray:
+            value = getattr(geometry, name)
+            return np.zeros(shape) if value is None else np.array(value, dtype=float)
+
+        return cls(
+            pivot_offsets_m=given("pivot_offsets_m", (6, 3)),
+            platform_offsets_m=given("platform_offsets_m", (6, 3)),
+            crank_lengths_m=np.array(geometry.crank_lengths),
+            rod_lengths_m=np.array(geometry.rod_lengths),
+            shaft_tilts_rad=given("shaft_tilts_rad", (6,)),
+            crank_angles_deg=np.array(geometry.crank_angles_deg, dtype=float),
+            encoder_offsets_rad=given("encoder_offsets_rad", (6,)),
+        )
+
     def geometry(self, nominal: StewartGeometry) -> StewartGeometry:
         """``nominal`` with these legs as its per-leg fields (and crank azimuths): the robot
         the rest of the package simulates, whose inverse kinematics plus encoder offsets gives

@@ -68,6 +68,7 @@ from ..references.traces import TraceReference
 from ..references.trajectories import NamedReference, SineReference
 from ..robot.geometry import StewartGeometry
 from ..robot.statics import FEEDFORWARD_MODES
+from ..robot.tolerances import RobotTolerances
 from ..station.bus.servos import DynamixelBusConfig
 from ..station.guard import GuardConfig
 from ..station.hardware import Hardware
@@ -214,6 +215,9 @@ class Scenario:
             when it differs from ``robot``, which the controller, its estimator and the
             feed-forward still believe in: the plant, the encoders' zero errors, the true pose
             and the guard's checks are this one's (docs/calibration.md). Not on the servo bus.
+        robot_tolerances: None, or the robot as built drawn from the tolerances of its parts
+            with a seed (:class:`~stewart_drake.robot.tolerances.RobotTolerances`) about
+            ``robot``: the same as giving that drawn robot as ``robot_as_built`` (not both).
         payload_scale: the simulated platform's mass and inertia are this multiple of the
             robot's; the controller still believes in ``robot`` (an unknown payload).
         torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
@@ -263,6 +267,7 @@ class Scenario:
     state_log_period_s: float = 1e-2
     sensor_noise: SensorNoise | None = None
     robot_as_built: Robot | None = None
+    robot_tolerances: RobotTolerances | None = None
     payload_scale: float = 1.0
     torque_limit_Nm: float | None = None
     guard: GuardConfig = field(default_factory=GuardConfig)
@@ -314,6 +319,16 @@ class Scenario:
                 raise InvalidGeometryError(f"{name}: {err}") from None
             except TypeError as err:
                 raise InvalidConfigError(f"{name}: {err}") from None
+        if self.robot_tolerances is not None:
+            if self.robot_as_built is not None:
+                raise InvalidConfigError(
+                    "robot_as_built and robot_tolerances both give the robot as built: set one "
+                    "of them to null"
+                )
+            try:
+                self.robot_tolerances.as_built(self.robot.build())
+            except InvalidGeometryError as err:
+                raise InvalidGeometryError(f"robot_tolerances: {err}") from None
         self._validate_periods()
         if self.hardware is not None:
             self.hardware.validate(self.control_period_s)
@@ -360,7 +375,7 @@ class Scenario:
             self.learning.validate(self.control_period_s)
         if self.bus is not None:
             self.bus.validate(self.control_period_s, self.hardware)
-            for name in ("disturbance", "contact", "robot_as_built"):
+            for name in ("disturbance", "contact", "robot_as_built", "robot_tolerances"):
                 if getattr(self, name):
                     raise InvalidConfigError(
                         f"{name} is simulated; on the servo bus the real robot meets the real "
@@ -382,6 +397,7 @@ class Scenario:
         "tuner": (type(None),) + _choices(TunerChoice),
         "sensor_noise": (type(None), SensorNoise),
         "robot_as_built": (type(None), Robot),
+        "robot_tolerances": (type(None), RobotTolerances),
         "hardware": (type(None), Hardware),
         "disturbance": (type(None), ToolDisturbance),
         "learning": (type(None),) + _choices(LearningChoice),
