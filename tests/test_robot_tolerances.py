@@ -150,6 +150,9 @@ def test_robot_tolerances_go_through_yaml_and_a_scenario_without_them_writes_non
     spec = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
     assert spec.robot_tolerances.crank_lengths_m == ToleranceSpec(1e-4, "uniform")
     assert spec.robot_tolerances.rod_lengths_m == ToleranceSpec(3e-4, "uniform")
+    text = "robot_tolerances:\n  crank_lengths_m: {distribution: normal}\n"
+    spec = yaml_load_typed(schema=Scenario, data=text, allow_schema_with_no_yaml=True)
+    assert spec.robot_tolerances.crank_lengths_m == ToleranceSpec(2e-4, "normal")  # its default h
 
 
 @pytest.mark.parametrize(
