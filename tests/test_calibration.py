@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 import yaml
 
-from stewart_drake.calibration import files, identify, poses, rehearsal, tolerances
-from stewart_drake.calibration import legs as model
+from stewart_drake.calibration import files, identify, poses, rehearsal
 from stewart_drake.calibration.tracker import MeasurementNoise, measure, quantize
 from stewart_drake.cli import main as cli
-from stewart_drake.robot import kinematics
+from stewart_drake.robot import kinematics, tolerances
+from stewart_drake.robot import legs as model
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.limits import is_reachable
 from stewart_drake.run.scenario import Robot

@@ -267,6 +267,41 @@ def test_a_closed_loop_on_the_drawn_values_is_the_drawings_to_the_bit():
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
 
 
+def _tolerance_run(overrides, as_built=None):
+    from stewart_drake.run.scenario import Robot
+    from stewart_drake.run.scenario_io import load_scenario
+    from stewart_drake.run.simulate import run_experiment
+
+    scenario = load_scenario("paper_hardware", ["duration_s=0.3", *overrides])
+    scenario.robot_as_built = None if as_built is None else Robot.from_value(as_built)
+    return run_experiment(scenario)
+
+
+_RUN_FIELDS = ("t", "x", "x_d", "T", "closure", "status", "integral", "T_ff", "state")
+
+
+def test_a_closed_loop_on_a_robot_drawn_with_zero_tolerances_is_the_drawings_to_the_bit():
+    kinds = ("pivot_offsets_m", "platform_offsets_m", "crank_lengths_m", "rod_lengths_m")
+    kinds += ("shaft_tilts_rad", "crank_azimuths_rad", "encoder_offsets_rad")
+    zero = ", ".join(f"{k}: {{half_width: 0}}" for k in kinds)
+    a, b = _tolerance_run(()), _tolerance_run((f"robot_tolerances={{seed: 5, {zero}}}",))
+    for name in _RUN_FIELDS:
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def test_a_closed_loop_on_drawn_tolerances_is_that_robot_as_built_to_the_bit():
+    """``robot_tolerances`` is the drawn robot given as ``robot_as_built``: the same run."""
+    from stewart_drake.robot.tolerances import Tolerances
+
+    drawn = Tolerances().draw(NOMINAL, 5).geometry(NOMINAL)
+    a = _tolerance_run(("robot_tolerances={seed: 5}",))
+    b = _tolerance_run((), as_built=drawn)
+    for name in _RUN_FIELDS:
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    # ... and not the nominal robot's: the encoders' zeros alone move the pose by millimetres.
+    assert np.abs(a.x[-1, 3:6] - _tolerance_run(()).x[-1, 3:6]).max() > 1e-4
+
+
 def test_the_drawn_robot_tracks_as_well_when_the_controller_knows_it():
     """The plant and the controller share the drawn robot, encoder zeros included: the zeros
     the encoders add, the estimator takes back, and the run tracks as the symmetric one."""

@@ -1,22 +1,28 @@
 """What calibration does to the figures users read: the pose error a tracker would measure on
-robots drawn with issue 49's tolerances, before and after calibration. The controller is on the
+robots drawn with the default tolerances, before and after calibration. The controller is on the
 nominal model (before) or on the model identified from an emulated calibration (after); the
 table goes into docs/calibration.md, section "What calibration does to the figures users read".
 
-    python tools/calibration_figures.py [--seeds 5] [--docs docs/calibration.md]
+    python tools/calibration_figures.py [--seeds 5] [--traces DIR] [--docs docs/calibration.md]
 
 For each seed: a robot as built drawn with the default
-:class:`~stewart_drake.calibration.tolerances.Tolerances` (+-0.5 mm joint positions, +-0.2 mm
+:class:`~stewart_drake.robot.tolerances.Tolerances` (+-0.5 mm joint positions, +-0.2 mm
 crank lengths, +-0.3 mm rod lengths, +-5 mrad encoder zeros, +-1 mrad shaft tilts and crank
-azimuths); a calibration of it at 60 chosen poses measured by the emulated tracker (5 um /
-20 urad) and the 17-bit encoders (:func:`~stewart_drake.calibration.tracker.measure`), identified
-by :func:`~stewart_drake.calibration.identify.identify`; then two motions simulated on the robot
-as built (the scenario's ``robot_as_built``), the controller believing the nominal robot, then
-the identified one: the paper run (``paper_hardware``, 10 s) and breathing (``phantom_hardware``,
-the library's ``breathing``, 24 s: six 4 s cycles). The error is the plant's true platform pose
-against the reference (what a tracker registered to the base would read): RMS and peak over the
-run of the translation's norm (um) and of the rotation's angle (urad). A row "as drawn" runs
-the symmetric robot (no tolerances): the controller's own floor. About 5 minutes on one core.
+azimuths), the scenario's ``robot_tolerances`` with the seed; a calibration of it at 60 chosen
+poses measured by the emulated tracker (5 um / 20 urad) and the 17-bit encoders
+(:func:`~stewart_drake.calibration.tracker.measure`), identified by
+:func:`~stewart_drake.calibration.identify.identify`; then the motions simulated on the robot
+as built, the controller believing the nominal robot (the scenario's ``robot_tolerances``), then
+the identified one (the same drawn robot as ``robot_as_built``): the paper run
+(``paper_hardware``, 10 s), breathing (``phantom_hardware``, the library's ``breathing``, 24 s:
+six 4 s cycles) and, when ``--traces`` names a folder holding IntERAct's traces, a patient's
+(:data:`PATIENT_TRACE`: lung 1, large AP motion, 6-D, its first 60 s, ``phantom_hardware``).
+The error is the plant's true platform pose against the reference (what a tracker registered to
+the base would read): RMS and peak over the run of the translation's norm (um) and of the
+rotation's angle (urad). A row "as drawn" runs the symmetric robot (no tolerances): the
+controller's own floor. Beside them, the figures the motion phantoms built for radiotherapy
+publish for their own tracking (:data:`PUBLISHED`). About 2.5 minutes on one core without the
+patient's trace, 6 minutes with it.
 """
 
 import argparse
@@ -28,10 +34,11 @@ import numpy as np
 from stewart_drake.base.fileio import write_between_markers
 from stewart_drake.calibration.identify import identify
 from stewart_drake.calibration.rehearsal import pick, workspace
-from stewart_drake.calibration.tolerances import Tolerances
 from stewart_drake.calibration.tracker import MeasurementNoise, measure
 from stewart_drake.references.organ.library import OrganMotionReference
+from stewart_drake.references.traces import TraceReference
 from stewart_drake.robot.kinematics import rotation_rpy
+from stewart_drake.robot.tolerances import RobotTolerances, Tolerances
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import Robot
 from stewart_drake.run.scenario_io import load_scenario
@@ -45,6 +52,17 @@ MARKERS = (
 MOTIONS = (
     ("paper run", "paper_hardware", None, 10.0),
     ("breathing", "phantom_hardware", "breathing", 24.0),
+)
+#: The patient's trace (IntERAct's lung 1, "6DoF Motion Traces/Lung", 5 Hz, 1308 s), found by
+#: name under ``--traces``: (label, file name, s run).
+PATIENT_TRACE = ("lung 1, IntERAct (60 s)", "Trace 1-Large AP motion.txt", 60.0)
+#: What the motion phantoms built for radiotherapy publish for their tracking, RMS: (who,
+#: translation in um, rotation in urad), as ranges over their traces (0.06-0.16 deg is
+#: 1050-2790 urad, 0.3-0.85 deg 5240-14840 urad).
+PUBLISHED = (
+    ("Belcher et al. (2014)", "80-220", "1050-2790"),
+    ("Nonomura et al.", "400-550", "5240-14840"),
+    ("IntERAct", "under 2000", "-"),
 )
 POSES = 60
 NOISE = MeasurementNoise(translation_m=5e-6, rotation_rad=20e-6, counts_per_rev=2**17)
@@ -72,27 +90,48 @@ def pose_error(result) -> dict:
     }
 
 
-def run(base: str, motion, duration_s: float, believed, as_built) -> dict:
-    """One run of ``base`` with the controller believing ``believed`` on ``as_built`` (None:
-    the same robot)."""
+def scenario_of(base: str, motion, duration_s: float, believed, as_built, seed=None):
+    """``base`` with ``motion`` (a library motion's name, a trace file's path ending in .txt,
+    or None: its own reference) for ``duration_s``, the controller believing ``believed``; the
+    robot simulated is ``as_built`` (None: ``believed``), or with a ``seed`` the one the
+    default tolerances draw about ``believed`` (``robot_tolerances``)."""
     scenario = load_scenario(base)
-    if motion is not None:
+    if motion is not None and str(motion).endswith(".txt"):
+        scenario.reference = TraceReference(path=str(motion))
+    elif motion is not None:
         scenario.reference = OrganMotionReference(motion=motion)
     scenario.duration_s = duration_s
     scenario.robot = Robot.from_value(believed)
     scenario.robot_as_built = None if as_built is None else Robot.from_value(as_built)
-    return pose_error(run_experiment(scenario.validate()))
+    scenario.robot_tolerances = None if seed is None else RobotTolerances(seed=seed)
+    return scenario.validate()
 
 
-def study(seeds) -> list[dict]:
+def run(*args, **kwargs) -> dict:
+    """The pose error of one run of :func:`scenario_of` (its arguments)."""
+    return pose_error(run_experiment(scenario_of(*args, **kwargs)))
+
+
+def motions(traces) -> tuple:
+    """:data:`MOTIONS`, and the patient's trace when found under the folder ``traces``."""
+    if traces is None:
+        return MOTIONS
+    label, name, duration = PATIENT_TRACE
+    found = sorted(Path(traces).rglob(name))
+    if not found:
+        raise SystemExit(f"no {name!r} under {traces}: name the folder holding IntERAct's traces")
+    return (*MOTIONS, (label, "phantom_hardware", str(found[0]), duration))
+
+
+def study(seeds, traces=None) -> list[dict]:
     """The rows of the table (module docstring), one per motion, robot and model."""
     plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
     nominal = load_scenario("paper_hardware").robot.build()
     tolerances = Tolerances()
     space = workspace(nominal, motor_limits=plan.motor_limits)
     chosen = space.candidates[pick(nominal, space, POSES, "chosen", NOISE, tolerances, 0)]
-    rows = []
-    for label, base, motion, duration in MOTIONS:
+    rows, runs = [], motions(traces)
+    for label, base, motion, duration in runs:
         rows.append(
             {"motion": label, "seed": None, "model": "as drawn"}
             | run(base, motion, duration, nominal, None)
@@ -100,13 +139,16 @@ def study(seeds) -> list[dict]:
     for seed in seeds:
         truth = tolerances.draw(nominal, seed)
         as_built = truth.geometry(nominal)
+        drawn = make_plan(scenario_of("paper_hardware", None, 10.0, nominal, None, seed))
+        assert drawn.plant_geometry.replace(motor_reflected_inertia=0.0) == as_built
         data = measure(nominal, truth, chosen, NOISE, seed)
         identified = identify(nominal, data.poses, data.readings, NOISE, tolerances).identified
-        models = (("before", nominal), ("after", identified.geometry(nominal)))
-        for label, base, motion, duration in MOTIONS:
-            for model, believed in models:
+        calibrated = identified.geometry(nominal)
+        models = (("before", nominal, None, seed), ("after", calibrated, as_built))
+        for label, base, motion, duration in runs:
+            for model, believed, *robot in models:
                 row = {"motion": label, "seed": seed, "model": model}
-                rows.append(row | run(base, motion, duration, believed, as_built))
+                rows.append(row | run(base, motion, duration, believed, *robot))
                 print(
                     row
                     | {k: round(v, 1) for k, v in rows[-1].items() if k.startswith(("t_", "r_"))},
@@ -122,7 +164,7 @@ def table(rows: list[dict]) -> str:
         "rotation RMS, urad: mean (worst) | peak |",
         "|---|---|---|---|---|---|---|",
     ]
-    for label, *_ in MOTIONS:
+    for label in dict.fromkeys(r["motion"] for r in rows):
         for model in ("as drawn", "before", "after"):
             got = [r for r in rows if r["motion"] == label and r["model"] == model]
             if not got:
@@ -141,6 +183,11 @@ def table(rows: list[dict]) -> str:
                 f"| {label} | {name} | {len(got)} | {col('t_rms')} | {col('t_peak')} | "
                 f"{col('r_rms')} | {col('r_peak')} |"
             )
+    for who, translation, rotation in PUBLISHED:
+        lines.append(
+            f"| published: {who} | the phantom's own tracking | - | {translation} | - | "
+            f"{rotation} | - |"
+        )
     return "\n".join(lines)
 
 
@@ -148,9 +195,12 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=5)
     parser.add_argument("--docs", default=None, help="write the table into this Markdown file")
+    parser.add_argument(
+        "--traces", default=None, help="a folder holding IntERAct's traces (the patient's row)"
+    )
     args = parser.parse_args()
     t0 = time.perf_counter()
-    rows = study(range(args.seeds))
+    rows = study(range(args.seeds), args.traces)
     text = table(rows)
     print(text)
     print(f"{time.perf_counter() - t0:.0f} s wall")

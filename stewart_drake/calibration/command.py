@@ -256,9 +256,9 @@ def _plan(args, context) -> int:
 
 def _rehearse(args, context) -> int:
     """``calibrate --rehearse``."""
+    from ..robot.tolerances import Tolerances
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
-    from .tolerances import Tolerances
 
     plan, geometry, noise = context
     tolerances = Tolerances()

@@ -14,7 +14,7 @@ columns (a time, a pose number) are read past and named. The file is read throug
 
 **Robot** (:func:`robot_yaml`): a scenario's ``robot:`` section, every field of
 :class:`~stewart_drake.run.scenario.Robot` with the identified crank azimuths in
-``crank_angles_deg``, and the per-leg fields of :class:`~.legs.LegParameters`.
+``crank_angles_deg``, and the per-leg fields of :class:`~stewart_drake.robot.legs.LegParameters`.
 
 **Poses** (:func:`write_path`): the path through the chosen poses as a reference CSV the robot
 command drives (``t [s],phi [rad],...,Z [m]``), and beside it ``<stem>_windows.csv``, each
@@ -34,8 +34,8 @@ import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..base.fileio import atomic_write, decode_text, read_checked
+from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
-from .legs import PARAMETER_KINDS, LegParameters
 from .poses import PosePath
 
 #: Largest measurements file read, bytes (a million poses).

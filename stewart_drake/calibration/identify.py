@@ -1,17 +1,17 @@
 """Identification of the per-leg parameters from poses measured by a tracker and the encoders'
 readings there, with its identifiability analysis, uncertainties and outliers.
 
-The residual of reading j at pose k is the model's prediction minus the reading, r = theta(x_k;
-p) + o - q (:func:`~.legs.readings`, wrapped to [-pi, pi)), whitened by the noise it carries:
-the tracker's noise mapped through the derivative of the readings with respect to the pose, and
-the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2 I, sigma_pos^2 I) G_k^T +
-(quantum^2 / 12) I (6 x 6 per pose: one pose error moves all six readings), r_w = L_k^-1 r with
-Sigma_k = L_k L_k^T, evaluated once at the nominal robot. ``scipy.optimize.least_squares``
-minimizes sum |r_w|^2 (or a robust loss of it) over the deviation vector of :mod:`~.legs`.
+The residual of reading j at pose k is the model's prediction minus the reading, r = theta(x_k; p) +
+o - q (:func:`~stewart_drake.robot.legs.readings`, wrapped to [-pi, pi)), whitened by the noise it
+carries: the tracker's noise mapped through the derivative of the readings with respect to the pose,
+and the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2 I, sigma_pos^2 I) G_k^T + (quantum^2
+/ 12) I (6 x 6 per pose: one pose error moves all six readings), r_w = L_k^-1 r with Sigma_k = L_k
+L_k^T, evaluated once at the nominal robot. ``scipy.optimize.least_squares`` minimizes sum |r_w|^2
+(or a robust loss of it) over the deviation vector of :mod:`~stewart_drake.robot.legs`.
 
-Identifiability. The deviations are scaled by their tolerances' standard deviations (each
-unit is one standard deviation of the robot as drawn, :class:`~.tolerances.Tolerances`), and
-the whitened Jacobian J_s = L^-1 J diag(std) is decomposed, J_s = U S V^T. A combination v_i
+Identifiability. The deviations are scaled by their tolerances' standard deviations (each unit is
+one standard deviation of the robot as drawn, :class:`~stewart_drake.robot.tolerances.Tolerances`),
+and the whitened Jacobian J_s = L^-1 J diag(std) is decomposed, J_s = U S V^T. A combination v_i
 (a column of V) is determined by the data to 1 / S_i (in the prior's standard deviations); the
 rule: **a combination whose singular value is below ``min_singular`` (default 1: the data tell
 less about it than the tolerance already does) is not identified and stays nominal** (the
@@ -35,7 +35,7 @@ from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import wrap_angle
-from .legs import (
+from ..robot.legs import (
     N_PARAMETERS,
     LegParameters,
     derivatives,
@@ -44,7 +44,7 @@ from .legs import (
     parameter_names,
     readings,
 )
-from .tolerances import Tolerances
+from ..robot.tolerances import Tolerances
 from .tracker import MeasurementNoise
 
 #: Fewest poses an identification takes: each leg's 11 parameters are seen only through its
@@ -98,8 +98,9 @@ class Identification:
     """What :func:`identify` found.
 
     Attributes:
-        nominal, identified: :class:`~.legs.LegParameters` before and after.
-        deviation: (66,) identified minus nominal, units of :mod:`~.legs`'s vector.
+        nominal, identified: :class:`~stewart_drake.robot.legs.LegParameters` before and after.
+        deviation: (66,) identified minus nominal, units of the deviation vector
+            (:mod:`~stewart_drake.robot.legs`).
         std: (66,) each entry's standard deviation from the residuals (0 for a parameter that
             stays nominal by the rule), same units.
         covariance: (66, 66) of the identified deviations, same units.
@@ -242,7 +243,8 @@ def identify(
         q: (N, 6) the encoders' readings there, rad (any whole turn: residuals are wrapped).
         noise: what the measurements carry (:class:`~.tracker.MeasurementNoise`).
         tolerances: the robot's tolerances, the scale of each parameter (default
-            :class:`~.tolerances.Tolerances`); a zero half-width keeps that parameter nominal.
+            :class:`~stewart_drake.robot.tolerances.Tolerances`); a zero half-width keeps that
+            parameter nominal.
         min_singular: the identifiability rule's threshold (module docstring), > 0.
         outlier_threshold: a reading with a larger studentized residual is flagged.
         robust: the soft-L1 loss (scale 3 whitened units) instead of least squares.

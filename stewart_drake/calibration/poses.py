@@ -26,10 +26,10 @@ from ..plant.admissible import classify
 from ..references.smoothstep import smoothstep
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import X_HOME
+from ..robot.legs import N_PARAMETERS, LegParameters, derivatives
 from ..robot.limits import LIMITS, limit_margins_unchecked
+from ..robot.tolerances import Tolerances
 from .identify import whitening
-from .legs import N_PARAMETERS, LegParameters, derivatives
-from .tolerances import Tolerances
 from .tracker import MeasurementNoise
 
 #: Smallest margin a measured pose keeps to each per-leg limit of :data:`LIMITS`: ``closure``

@@ -1,9 +1,9 @@
 """A calibration rehearsed on an emulated robot, and the study of its accuracy that
 docs/calibration.md tabulates.
 
-A rehearsal draws a robot as built (:class:`~.tolerances.Tolerances`, a seed), measures it at
-the poses chosen (:func:`~.poses.choose_poses`) or at random ones from the same candidates with
-the emulated tracker and encoders (:func:`~.tracker.measure`), identifies it
+A rehearsal draws a robot as built (:class:`~stewart_drake.robot.tolerances.Tolerances`, a seed),
+measures it at the poses chosen (:func:`~.poses.choose_poses`) or at random ones from the same
+candidates with the emulated tracker and encoders (:func:`~.tracker.measure`), identifies it
 (:func:`~.identify.identify`) and predicts the readings at held-out poses (other admissible
 poses, drawn with another seed): the RMS of predicted minus read (quantized at the true pose),
 with the nominal robot (before) and the identified one (after), beside the bound the
@@ -21,10 +21,10 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write, write_between_markers
 from ..robot.geometry import StewartGeometry
+from ..robot.legs import LegParameters, readings
+from ..robot.tolerances import Tolerances
 from .identify import Identification, identify, predicted_rms
-from .legs import LegParameters, readings
 from .poses import candidate_poses, choose_poses, information_rows
-from .tolerances import Tolerances
 from .tracker import MeasurementNoise, measure, quantize
 
 #: The ways a rehearsal's poses are picked from the candidates.
@@ -93,7 +93,7 @@ class Rehearsal:
         bound_rad: what the identification's covariance predicts for ``after_rad``.
         fixed: combinations kept nominal.  chi2_reduced: of the fit.
         identification: the :class:`~.identify.Identification`.
-        truth: the robot drawn, :class:`~.legs.LegParameters`.
+        truth: the robot drawn, :class:`~stewart_drake.robot.legs.LegParameters`.
     """
 
     poses: int

@@ -11,9 +11,9 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
+from ..robot.legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
 from .files import MeasurementsFile, write_path, write_robot
 from .identify import Identification
-from .legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
 from .tracker import MeasurementNoise
 
 #: How each kind of parameter is shown: (label, unit, factor from SI) per entry of a leg.
@@ -125,7 +125,7 @@ def rehearsal_text(r, noise: MeasurementNoise) -> str:
     err = ident.deviation - r.truth.deviation(ident.nominal)
     free = ident.std > 0
     z = np.abs(err[free] / ident.std[free])
-    from .legs import parameter_names
+    from ..robot.legs import parameter_names
 
     worst = np.array(parameter_names())[free][int(np.argmax(z))]
     return "\n".join(
@@ -173,10 +173,10 @@ def plan_poses(
     from tqdm import tqdm
 
     from ..references.traces import load_trace
+    from ..robot.legs import derivatives
+    from ..robot.tolerances import Tolerances
     from ..run.plan import check_reference, make_plan
-    from .legs import derivatives
     from .poses import candidate_poses, choose_poses, information_rows, pose_path
-    from .tolerances import Tolerances
 
     geometry, limits = plan.geometry, plan.motor_limits
     tolerances = Tolerances()

@@ -19,8 +19,8 @@ from scipy.spatial.transform import Rotation
 from ..base.checks import as_number, as_poses, check_int
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import rotation_rpy
+from ..robot.legs import LegParameters, readings
 from ..station.hardware import Encoders
-from .legs import LegParameters, readings
 
 #: Counts per revolution of the robot's encoders (the ``hardware.encoders`` default).
 COUNTS_PER_REV = Encoders().counts_per_rev

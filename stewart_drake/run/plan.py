@@ -55,7 +55,8 @@ class RunPlan:
             with the robot built with the bus's servos (:func:`as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
             the motors' reflected inertia (rotor inertia x gear ratio^2).
-        plant_geometry: the robot that is simulated: ``robot_as_built`` (None: ``robot``) with
+        plant_geometry: the robot that is simulated: ``robot_as_built``, or the robot
+            ``robot_tolerances`` draws about ``robot`` (both None: ``robot``), with
             the same reflected inertia as ``geometry`` and ``payload_scale`` on the platform's
             mass and inertia; its ``encoder_offsets`` are the simulated encoders' zero errors,
             which the estimator takes back with ``geometry``'s.
@@ -212,6 +213,10 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     plant_geometry = geometry
     if scenario.robot_as_built is not None:
         plant_geometry = scenario.robot_as_built.build().replace(
+            motor_reflected_inertia=geometry.motor_reflected_inertia
+        )
+    elif scenario.robot_tolerances is not None:
+        plant_geometry = scenario.robot_tolerances.as_built(scenario.robot.build()).replace(
             motor_reflected_inertia=geometry.motor_reflected_inertia
         )
     if scenario.payload_scale != 1.0:

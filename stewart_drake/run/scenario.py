@@ -35,7 +35,6 @@ units and defaults; lists where they have tuples), with ``build()`` to get the v
 """
 
 import dataclasses
-import functools
 import typing
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -69,11 +68,14 @@ from ..references.traces import TraceReference
 from ..references.trajectories import NamedReference, SineReference
 from ..robot.geometry import StewartGeometry
 from ..robot.statics import FEEDFORWARD_MODES
+from ..robot.tolerances import RobotTolerances
 from ..station.bus.servos import DynamixelBusConfig
 from ..station.guard import GuardConfig
 from ..station.hardware import Hardware
 from ..station.lcm_publish import LcmConfig
 from ..station.station import SensorNoise, ToolDisturbance
+from .drake_configs import MIN_REALTIME_RATE as MIN_REALTIME_RATE  # re-exported: live
+from .drake_configs import validate_plant_config, validate_simulator_config
 
 _GEOMETRY = StewartGeometry()
 
@@ -213,6 +215,9 @@ class Scenario:
             when it differs from ``robot``, which the controller, its estimator and the
             feed-forward still believe in: the plant, the encoders' zero errors, the true pose
             and the guard's checks are this one's (docs/calibration.md). Not on the servo bus.
+        robot_tolerances: None, or the robot as built drawn from the tolerances of its parts
+            with a seed (:class:`~stewart_drake.robot.tolerances.RobotTolerances`) about
+            ``robot``: the same as giving that drawn robot as ``robot_as_built`` (not both).
         payload_scale: the simulated platform's mass and inertia are this multiple of the
             robot's; the controller still believes in ``robot`` (an unknown payload).
         torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
@@ -262,6 +267,7 @@ class Scenario:
     state_log_period_s: float = 1e-2
     sensor_noise: SensorNoise | None = None
     robot_as_built: Robot | None = None
+    robot_tolerances: RobotTolerances | None = None
     payload_scale: float = 1.0
     torque_limit_Nm: float | None = None
     guard: GuardConfig = field(default_factory=GuardConfig)
@@ -313,6 +319,16 @@ class Scenario:
                 raise InvalidGeometryError(f"{name}: {err}") from None
             except TypeError as err:
                 raise InvalidConfigError(f"{name}: {err}") from None
+        if self.robot_tolerances is not None:
+            if self.robot_as_built is not None:
+                raise InvalidConfigError(
+                    "robot_as_built and robot_tolerances both give the robot as built: set one "
+                    "of them to null"
+                )
+            try:
+                self.robot_tolerances.as_built(self.robot.build())
+            except InvalidGeometryError as err:
+                raise InvalidGeometryError(f"robot_tolerances: {err}") from None
         self._validate_periods()
         if self.hardware is not None:
             self.hardware.validate(self.control_period_s)
@@ -359,7 +375,7 @@ class Scenario:
             self.learning.validate(self.control_period_s)
         if self.bus is not None:
             self.bus.validate(self.control_period_s, self.hardware)
-            for name in ("disturbance", "contact", "robot_as_built"):
+            for name in ("disturbance", "contact", "robot_as_built", "robot_tolerances"):
                 if getattr(self, name):
                     raise InvalidConfigError(
                         f"{name} is simulated; on the servo bus the real robot meets the real "
@@ -381,6 +397,7 @@ class Scenario:
         "tuner": (type(None),) + _choices(TunerChoice),
         "sensor_noise": (type(None), SensorNoise),
         "robot_as_built": (type(None), Robot),
+        "robot_tolerances": (type(None), RobotTolerances),
         "hardware": (type(None), Hardware),
         "disturbance": (type(None), ToolDisturbance),
         "learning": (type(None),) + _choices(LearningChoice),
@@ -419,8 +436,8 @@ class Scenario:
                 f"{self.plant.discrete_contact_approximation!r} does not enforce the ball "
                 f"constraints that close the loops; use 'sap', 'lagged' or 'similar'"
             )
-        _validate_plant_config(self.plant)
-        _validate_simulator_config(self.simulator)
+        validate_plant_config(self.plant)
+        validate_simulator_config(self.simulator)
         check_multiple("control_period_s", self.control_period_s, "plant.time_step", h)
         check_multiple("log_period_s", self.log_period_s, "plant.time_step", h)
         check_multiple("state_log_period_s", self.state_log_period_s, "plant.time_step", h)
@@ -443,88 +460,6 @@ def use_paper_tuner(scenario: Scenario, tuner: AnnTunerDriver) -> Scenario:
     if isinstance(scenario.controller, LqiDriver):
         scenario.controller = dataclasses.replace(scenario.controller, gain_transfer="none")
     return scenario
-
-
-#: Slowest real-time pacing accepted (besides 0, as fast as possible): the Simulator sleeps
-#: between steps in C++, where no signal is handled, so a plant step must not wait more than a
-#: fraction of a second (1 ms at 0.01: 0.1 s).
-MIN_REALTIME_RATE = 0.01
-
-
-def _validate_plant_config(plant: MultibodyPlantConfig) -> None:
-    """The fields of Drake's ``MultibodyPlantConfig`` besides the step and the approximation:
-    numbers here (Drake aborts the process on some), names by Drake's own parser."""
-    as_number("plant.penetration_allowance", plant.penetration_allowance, 0.0, lo_open=True)
-    as_number("plant.stiction_tolerance", plant.stiction_tolerance, 0.0, lo_open=True)
-    as_number("plant.sap_near_rigid_threshold", plant.sap_near_rigid_threshold, 0.0)
-    for name in ("use_sampled_output_ports", "adjacent_bodies_collision_filters"):
-        if not isinstance(getattr(plant, name, False), bool):
-            raise InvalidConfigError(
-                f"plant.{name} must be true or false, got {getattr(plant, name)!r}"
-            )
-    names = []
-    for name in ("contact_model", "contact_surface_representation"):
-        value = getattr(plant, name)
-        if not isinstance(value, str):
-            raise InvalidConfigError(f"plant.{name} must be a name, got {value!r}")
-        names.append(value)
-    problem = _drake_plant_names_problem(*names)
-    if problem:
-        raise InvalidConfigError(
-            f"plant: {problem} (see Drake's MultibodyPlantConfig for the names)"
-        )
-
-
-@functools.lru_cache(maxsize=32)
-def _drake_plant_names_problem(contact_model: str, contact_surface_representation: str) -> str:
-    """Drake's own refusal of these names ("Unknown contact_model: 'bogus'"), "" if none: the
-    names a Drake version knows are its own to say."""
-    from pydrake.multibody.plant import AddMultibodyPlant
-    from pydrake.systems.framework import DiagramBuilder
-
-    config = MultibodyPlantConfig(
-        time_step=1e-3,
-        discrete_contact_approximation="sap",
-        contact_model=contact_model,
-        contact_surface_representation=contact_surface_representation,
-    )
-    try:
-        AddMultibodyPlant(config, DiagramBuilder())
-    except RuntimeError as err:
-        return " ".join(str(err).split())
-    return ""
-
-
-def _validate_simulator_config(config: SimulatorConfig) -> None:
-    """The fields of Drake's ``SimulatorConfig``: the scheme among Drake's, a start at 0 s, and a
-    real-time rate of 0 or at least :data:`MIN_REALTIME_RATE` (a slower one hangs the run)."""
-    from pydrake.systems.analysis import GetIntegrationSchemes
-
-    schemes = GetIntegrationSchemes()
-    if config.integration_scheme not in schemes:
-        raise InvalidConfigError(
-            f"simulator.integration_scheme must be one of "
-            f"{', '.join(schemes)}, got {config.integration_scheme!r}"
-        )
-    as_number("simulator.max_step_size", config.max_step_size, 0.0, lo_open=True)
-    as_number("simulator.accuracy", config.accuracy, 0.0, 1.0, lo_open=True)
-    if as_number("simulator.start_time", config.start_time) != 0.0:
-        raise InvalidConfigError(
-            f"simulator.start_time must be 0 (the reference and duration_s "
-            f"count from t = 0), got {config.start_time!r}"
-        )
-    rate = as_number("simulator.target_realtime_rate", config.target_realtime_rate, 0.0)
-    if 0.0 < rate < MIN_REALTIME_RATE:
-        raise InvalidConfigError(
-            f"simulator.target_realtime_rate must be 0 (as fast as "
-            f"possible) or at least {MIN_REALTIME_RATE:g} (100 times slower "
-            f"than real time), got {config.target_realtime_rate!r}"
-        )
-    for name in ("use_error_control", "publish_every_time_step"):
-        if not isinstance(getattr(config, name, False), bool):
-            raise InvalidConfigError(
-                f"simulator.{name} must be true or false, got {getattr(config, name)!r}"
-            )
 
 
 def _scenario_from_yaml(text: str) -> Scenario:

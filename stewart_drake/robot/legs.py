@@ -33,8 +33,8 @@ import numpy as np
 
 from ..base.checks import as_array, as_poses
 from ..base.errors import InvalidGeometryError, UnreachablePoseError
-from ..robot.geometry import StewartGeometry
-from ..robot.kinematics import rotation_rpy
+from .geometry import StewartGeometry
+from .kinematics import rotation_rpy
 
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -124,6 +124,26 @@ class LegParameters:
             shaft_tilts_rad=np.zeros(6),
             crank_angles_deg=np.array(geometry.crank_angles_deg, dtype=float),
             encoder_offsets_rad=np.zeros(6),
+        )
+
+    @classmethod
+    def of(cls, geometry: StewartGeometry) -> LegParameters:
+        """The legs of ``geometry`` as it is, its per-leg fields included (null ones as drawn),
+        about its symmetric robot (``geometry`` with every per-leg field null): for a symmetric
+        ``geometry``, :meth:`nominal` exactly."""
+
+        def given(name: str, shape: tuple) -> np.ndarray:
+            value = getattr(geometry, name)
+            return np.zeros(shape) if value is None else np.array(value, dtype=float)
+
+        return cls(
+            pivot_offsets_m=given("pivot_offsets_m", (6, 3)),
+            platform_offsets_m=given("platform_offsets_m", (6, 3)),
+            crank_lengths_m=np.array(geometry.crank_lengths),
+            rod_lengths_m=np.array(geometry.rod_lengths),
+            shaft_tilts_rad=given("shaft_tilts_rad", (6,)),
+            crank_angles_deg=np.array(geometry.crank_angles_deg, dtype=float),
+            encoder_offsets_rad=given("encoder_offsets_rad", (6,)),
         )
 
     def geometry(self, nominal: StewartGeometry) -> StewartGeometry:
