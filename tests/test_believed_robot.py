@@ -1,5 +1,6 @@
 """The controller believes one robot, the plant is another: ``robot`` is what the controller,
-its estimator and the feed-forward use, ``robot_as_built`` what is simulated (issue 49)."""
+its estimator and the feed-forward use, ``robot_as_built`` what is simulated
+(docs/calibration.md)."""
 
 import dataclasses
 
@@ -16,7 +17,8 @@ from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario import Robot, Scenario, _scenario_from_yaml, dump_scenario
 from stewart_drake.run.scenario_io import load_scenario
 
-#: A robot as built: every kind of per-leg deviation, of the order of issue 49's tolerances.
+#: A robot as built: every kind of per-leg deviation, of the order of the default tolerances
+#: (docs/calibration.md).
 _OFFSETS = (0.004, -0.003, 0.002, -0.001, 0.003, -0.004)
 
 
