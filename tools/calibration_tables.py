@@ -5,7 +5,7 @@ into docs/calibration.md, its rows into docs/calibration.json.
     python tools/calibration_tables.py --from-json docs/calibration.json
 
 Rehearsals on the default robot of ``paper_hardware`` (its motors' torque limits bound the
-poses): pose counts 20, 40, 60, 120, trackers of 5 um / 20 urad and 20 um / 50 urad, the poses
+poses): pose counts 20, 40, 60, 80, 120, trackers of 5 um / 20 urad and 20 um / 50 urad, the poses
 chosen (greedy D-optimal) and random, each on robots drawn with seeds 0 .. 9 (about five
 minutes on one core).
 """

@@ -166,7 +166,7 @@ def rehearse(
 
 
 #: The study of docs/calibration.md: pose counts, noise levels (m, rad), seeds.
-STUDY_POSES = (20, 40, 60, 120)
+STUDY_POSES = (20, 40, 60, 80, 120)
 STUDY_NOISE = ((5e-6, 20e-6), (20e-6, 50e-6))
 STUDY_SEEDS = tuple(range(10))
 
