@@ -163,7 +163,7 @@ def _add_robot_command(sub) -> None:
         "--duration",
         type=positive_float,
         default=None,
-        help="s of the reference (default: the scenario's)",
+        help="s of the reference (default: a trace's or CSV's whole length, else the scenario's)",
     )
     rob.add_argument(
         "--loop-timeout",
@@ -234,7 +234,10 @@ def _cmd_robot(args) -> int:
     out = Path(args.out)
     stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
     if not args.dry_run and args.calibrate is None:
+        from ..calibration.join import encoder_log_path
+
         check_replaceable(out / f"{stem}.npz")
+        check_replaceable(encoder_log_path(out / f"{stem}.npz"))
     from ..station.bus.driver import dynamixel_sdk
 
     dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
@@ -266,9 +269,11 @@ def _robot_reference(args, scenario):
     if source in TRAJECTORIES:
         scenario.reference = NamedReference(source)
     elif is_trace_file(source):
-        from ..references.traces import TraceReference
+        from ..references.traces import TraceReference, load_trace
 
         scenario.reference = TraceReference(path=source)
+        if args.duration is None:  # the whole of it (a planned path, a recorded motion)
+            args.duration = float(load_trace(source).end_time)
     else:
         from ..base.errors import InvalidConfigError
 
