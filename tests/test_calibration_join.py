@@ -108,6 +108,10 @@ def test_join_mode_refuses_a_missing_plan_file_or_a_stray_option(tmp_path, capsy
     base = ["calibrate", "--join", "a.csv", "b.csv", "--out", str(tmp_path / "m.csv")]
     assert cli.main(base) == 2
     assert "--join and --plan-file go together" in capsys.readouterr().err
+    assert cli.main(["calibrate", "--plan", "12", "--bus", str(tmp_path), "--out", "p.csv"]) == 2
+    assert "--bus is for --rehearse" in capsys.readouterr().err
+    assert cli.main(["calibrate", "--rehearse", "--bus", str(tmp_path), "--out", "r.yaml"]) == 2
+    assert "leave out --out" in capsys.readouterr().err
 
 
 def test_the_emulated_tracker_samples_the_record_at_its_rate_with_its_noise():

@@ -1,7 +1,8 @@
 """``stewart-drake calibrate``: the robot's per-leg parameters identified from a tracker's
 measurements (``calibrate MEASUREMENTS.csv --out ROBOT.yaml``), the poses to measure chosen
 (``--plan N --out POSES.csv``), a session's encoder log and tracker file joined into
-measurements (``--join``), or the whole rehearsed on an emulated robot (``--rehearse``)."""
+measurements (``--join``), or the whole rehearsed on an emulated robot (``--rehearse``; over
+the bus emulator with ``--bus``)."""
 
 from __future__ import annotations
 
@@ -14,6 +15,8 @@ from ..cli.options import add_scenario_arguments, int_at_least, positive_float
 
 def register(sub) -> None:
     """Add the ``calibrate`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    from ..run.scenario_io import ROBOT_SCENARIO
+
     cal = sub.add_parser(
         "calibrate",
         help="identify the robot's per-leg geometry and encoder zeros from a tracker's "
@@ -57,6 +60,14 @@ def register(sub) -> None:
         default=None,
         metavar="POSES.csv",
         help="with --join: the path --plan wrote (its windows file beside it)",
+    )
+    cal.add_argument(
+        "--bus",
+        default=None,
+        metavar="FOLDER",
+        help="with --rehearse: rehearse over the bus emulator, the robot driving the planned "
+        "path, an emulated tracker following it, every file kept in FOLDER (the scenario's "
+        f"bus; default scenario: {ROBOT_SCENARIO})",
     )
     cal.add_argument(
         "--out",
@@ -134,7 +145,8 @@ def _add_rehearsal_arguments(cal) -> None:
         "--dwell",
         type=positive_float,
         default=3.0,
-        help="with --plan: s the robot rests at each pose (its first second to settle)",
+        help="with --plan and --rehearse --bus: s the robot rests at each pose (its first "
+        "second to settle)",
     )
 
 
@@ -184,6 +196,8 @@ def _cmd_calibrate(args) -> int:
         )
     if (args.plan_file is not None) != (args.join is not None):
         raise InvalidConfigError("--join and --plan-file go together: the logs and their path")
+    if args.bus is not None:
+        _check_bus_rehearsal(args)
     if args.out is None and not args.rehearse:
         what = {
             "--plan": "POSES.csv (the path to drive)",
@@ -206,9 +220,37 @@ def _cmd_calibrate(args) -> int:
     context = _context(args)
     if args.plan is not None:
         return _plan(args, context)
+    if args.rehearse and args.bus is not None:
+        return args.rehearse_on_bus(args, context)
     if args.rehearse:
         return _rehearse(args, context)
     return _identify(args, context)
+
+
+def _check_bus_rehearsal(args) -> None:
+    """``--rehearse --bus FOLDER``'s options, before any work; the default scenario becomes
+    the robot's (:data:`~stewart_drake.run.scenario_io.ROBOT_SCENARIO`, with a bus).
+
+    Raises:
+        InvalidConfigError: --bus without --rehearse, with --out or --save-measurements (its
+            files are in FOLDER), or FOLDER not writable.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..cli.options import check_output, default_scenario
+
+    if not args.rehearse:
+        raise InvalidConfigError("--bus is for --rehearse (the rehearsal over the bus emulator)")
+    if args.out is not None or args.save_measurements is not None:
+        raise InvalidConfigError(
+            f"--rehearse --bus keeps its files in {args.bus} (robot.yaml, measurements.csv): "
+            f"leave out --out and --save-measurements"
+        )
+    for name in ("poses.csv", "robot.npz", "robot_encoders.csv", "tracker.csv"):
+        check_output(Path(args.bus) / name, "--bus", is_file=True)
+    if args.scenario == default_scenario():
+        from ..run.scenario_io import ROBOT_SCENARIO
+
+        args.scenario = ROBOT_SCENARIO
 
 
 def _join(args) -> int:

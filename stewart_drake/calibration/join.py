@@ -36,7 +36,7 @@ from scipy.spatial.transform import Rotation
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..base.fileio import atomic_write, decode_text, read_checked
-from .files import _HEADER_CELL, ANGLE_UNITS, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
+from .files import ANGLE_UNITS, HEADER_CELL, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
 
 #: Largest file the join reads, bytes (a day of a 100 Hz log).
 MAX_LOG_BYTES = 2e9
@@ -92,7 +92,7 @@ def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
         raise CorruptFileError(path, what, f"not CSV ({err})", remedy) from None
     found: dict = {}
     for index, cell in enumerate(rows[0]):
-        m = _HEADER_CELL.fullmatch(cell)
+        m = HEADER_CELL.fullmatch(cell)
         name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
         if name not in columns:
             continue

@@ -418,3 +418,37 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
+
+
+def rehearse_calibration(args, context) -> int:
+    """``calibrate --rehearse --bus FOLDER``: the calibration rehearsed over the bus emulator
+    (:func:`~.calibration_rehearsal.rehearse_on_bus`), its figures printed; ``context`` is the
+    calibrate command's (the scenario's plan, the nominal geometry, the tracker's noise)."""
+    from ..base.errors import InvalidConfigError
+    from .calibration_rehearsal import rehearse_on_bus
+
+    plan, _, noise = context
+    scenario = plan.scenario
+    if scenario.bus is None:
+        raise InvalidConfigError(
+            f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "
+            f"bus section (paper_bus has one)"
+        )
+    from ..station.bus.driver import dynamixel_sdk
+
+    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
+    say_if_compiling("robot")
+    rehearsal = rehearse_on_bus(
+        scenario,
+        args.poses,
+        args.bus,
+        seed=args.seed,
+        noise=noise,
+        dwell_s=args.dwell,
+        n_candidates=args.candidates,
+        progress=not args.no_progress,
+        say=lambda line: print(line, flush=True),
+    )
+    print(rehearsal.text())
+    print(f"wrote in {args.bus}: " + ", ".join(Path(p).name for p in rehearsal.files.values()))
+    return 0
