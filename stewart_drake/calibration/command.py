@@ -53,20 +53,22 @@ def register(sub) -> None:
         metavar=("ENCODERS.csv", "TRACKER.csv"),
         help="join the encoder log `stewart-drake robot POSES.csv` wrote (robot_poses_encoders"
         ".csv) and the tracker's file (time [s] on the robot computer's clock, phi [rad] .. "
-        "Z [m]) over the windows of --plan-file into the measurements file --out",
+        "Z [m]) over the windows of --plan-file into the measurements file --out (default: "
+        "none: identify)",
     )
     cal.add_argument(
         "--plan-file",
         default=None,
         metavar="POSES.csv",
-        help="with --join: the path --plan wrote (its windows file beside it)",
+        help="with --join: the path --plan wrote (its windows file beside it) (default: none)",
     )
     cal.add_argument(
         "--bus",
         default=None,
         metavar="FOLDER",
-        help="with --rehearse: rehearse over the bus emulator, the robot driving the planned "
-        "path, an emulated tracker following it, every file kept in FOLDER (the scenario's "
+        help="with --rehearse: rehearse over the bus emulator, the robot driving the path "
+        "through the chosen poses (as --plan chooses them), an emulated tracker following it, "
+        "every file kept in FOLDER (the scenario's "
         f"bus; default scenario: {ROBOT_SCENARIO})",
     )
     cal.add_argument(
