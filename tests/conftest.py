@@ -124,6 +124,7 @@ LOOP_MODULES = {
 #: Test modules whose every test is a system test: the robot's bus emulator, its plant stepped
 #: at real time in a thread, talked to over a pseudo-terminal.
 SYSTEM_MODULES = {
+    "test_calibration_bus",
     "test_dynamixel_bus",
     "test_hardware_station",
     "test_robot_input",

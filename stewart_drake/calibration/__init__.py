@@ -2,5 +2,6 @@
 tolerances of :mod:`stewart_drake.robot` (`legs`, `tolerances`): the emulated tracker and
 encoders (`tracker`), the identification with its identifiability analysis (`identify`), the
 choice of the poses to measure and the path through them (`poses`), the files it reads and
-writes (`files`), the rehearsal on an emulated robot and its study (`rehearsal`), what the
-command prints (`report`) and the ``calibrate`` command (`command`). docs/calibration.md."""
+writes (`files`), the join of a session's encoder log and tracker file into measurements
+(`join`), the rehearsal on an emulated robot and its study (`rehearsal`), what the command
+prints (`report`) and the ``calibrate`` command (`command`). docs/calibration.md."""

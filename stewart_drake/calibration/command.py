@@ -1,6 +1,8 @@
 """``stewart-drake calibrate``: the robot's per-leg parameters identified from a tracker's
 measurements (``calibrate MEASUREMENTS.csv --out ROBOT.yaml``), the poses to measure chosen
-(``--plan N --out POSES.csv``), or the whole rehearsed on an emulated robot (``--rehearse``)."""
+(``--plan N --out POSES.csv``), a session's encoder log and tracker file joined into
+measurements (``--join``), or the whole rehearsed on an emulated robot (``--rehearse``; over
+the bus emulator with ``--bus``)."""
 
 from __future__ import annotations
 
@@ -13,6 +15,8 @@ from ..cli.options import add_scenario_arguments, int_at_least, positive_float
 
 def register(sub) -> None:
     """Add the ``calibrate`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    from ..run.scenario_io import ROBOT_SCENARIO
+
     cal = sub.add_parser(
         "calibrate",
         help="identify the robot's per-leg geometry and encoder zeros from a tracker's "
@@ -42,11 +46,37 @@ def register(sub) -> None:
         help="draw a robot as built, measure it with an emulated tracker, identify it and "
         "print the readings' prediction before and after on 50 other poses",
     )
+    mode.add_argument(
+        "--join",
+        nargs=2,
+        default=None,
+        metavar=("ENCODERS.csv", "TRACKER.csv"),
+        help="join the encoder log `stewart-drake robot POSES.csv` wrote (robot_poses_encoders"
+        ".csv) and the tracker's file (time [s] on the robot computer's clock, phi [rad] .. "
+        "Z [m]) over the windows of --plan-file into the measurements file --out (default: "
+        "none: identify)",
+    )
+    cal.add_argument(
+        "--plan-file",
+        default=None,
+        metavar="POSES.csv",
+        help="with --join: the path --plan wrote (its windows file beside it) (default: none)",
+    )
+    cal.add_argument(
+        "--bus",
+        default=None,
+        metavar="FOLDER",
+        help="with --rehearse: rehearse over the bus emulator, the robot driving the path "
+        "through the chosen poses (as --plan chooses them), an emulated tracker following it, "
+        "every file kept in FOLDER (the scenario's "
+        f"bus; default scenario: {ROBOT_SCENARIO})",
+    )
     cal.add_argument(
         "--out",
         default=None,
-        help="the robot section to write (ROBOT.yaml), or with --plan the path (POSES.csv) "
-        "(default: none, which only --rehearse accepts)",
+        help="the robot section to write (ROBOT.yaml), with --plan the path (POSES.csv), with "
+        "--join the measurements (MEASUREMENTS.csv) (default: none, which only --rehearse "
+        "accepts)",
     )
     add_scenario_arguments(cal, "the nominal robot and its encoders")
     cal.add_argument(
@@ -117,7 +147,8 @@ def _add_rehearsal_arguments(cal) -> None:
         "--dwell",
         type=positive_float,
         default=3.0,
-        help="with --plan: s the robot rests at each pose (its first second to settle)",
+        help="with --plan and --rehearse --bus: s the robot rests at each pose (its first "
+        "second to settle)",
     )
 
 
@@ -150,21 +181,33 @@ def _cmd_calibrate(args) -> int:
     from ..base.errors import InvalidConfigError
 
     given = args.measurements is not None
-    if args.plan is not None or args.rehearse:
+    other = "--plan" if args.plan is not None else "--rehearse" if args.rehearse else "--join"
+    if args.plan is not None or args.rehearse or args.join is not None:
         if given:
             raise InvalidConfigError(
-                f"{'--plan' if args.plan is not None else '--rehearse'} takes no measurements "
-                f"file (got {args.measurements}): calibrate MEASUREMENTS.csv --out ROBOT.yaml "
-                f"identifies, --plan N --out POSES.csv plans, --rehearse rehearses"
+                f"{other} takes no measurements file (got {args.measurements}): calibrate "
+                f"MEASUREMENTS.csv --out ROBOT.yaml identifies, --plan N --out POSES.csv plans, "
+                f"--join ENCODERS.csv TRACKER.csv --plan-file POSES.csv --out MEASUREMENTS.csv "
+                f"joins, --rehearse rehearses"
             )
     elif not given:
         raise InvalidConfigError(
             "give the measurements file (calibrate MEASUREMENTS.csv --out ROBOT.yaml), or "
-            "--plan N --out POSES.csv, or --rehearse"
+            "--plan N --out POSES.csv, or --join ENCODERS.csv TRACKER.csv --plan-file POSES.csv "
+            "--out MEASUREMENTS.csv, or --rehearse"
         )
+    if (args.plan_file is not None) != (args.join is not None):
+        raise InvalidConfigError("--join and --plan-file go together: the logs and their path")
+    if args.bus is not None:
+        _check_bus_rehearsal(args)
     if args.out is None and not args.rehearse:
-        what = "POSES.csv (the path to drive)" if args.plan is not None else "ROBOT.yaml"
+        what = {
+            "--plan": "POSES.csv (the path to drive)",
+            "--join": "MEASUREMENTS.csv",
+        }.get(other, "ROBOT.yaml")
         raise InvalidConfigError(f"--out is required: the file to write, {what}")
+    if args.join is not None:
+        return _join(args)
     if args.save_measurements is not None:
         if not args.rehearse:
             raise InvalidConfigError("--save-measurements is for --rehearse")
@@ -179,20 +222,67 @@ def _cmd_calibrate(args) -> int:
     context = _context(args)
     if args.plan is not None:
         return _plan(args, context)
+    if args.rehearse and args.bus is not None:
+        return args.rehearse_on_bus(args, context)
     if args.rehearse:
         return _rehearse(args, context)
     return _identify(args, context)
 
 
+def _check_bus_rehearsal(args) -> None:
+    """``--rehearse --bus FOLDER``'s options, before any work; the default scenario becomes
+    the robot's (:data:`~stewart_drake.run.scenario_io.ROBOT_SCENARIO`, with a bus).
+
+    Raises:
+        InvalidConfigError: --bus without --rehearse, with --out or --save-measurements (its
+            files are in FOLDER), or FOLDER not writable.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..cli.options import check_output, default_scenario
+
+    if not args.rehearse:
+        raise InvalidConfigError("--bus is for --rehearse (the rehearsal over the bus emulator)")
+    if args.out is not None or args.save_measurements is not None:
+        raise InvalidConfigError(
+            f"--rehearse --bus keeps its files in {args.bus} (robot.yaml, measurements.csv): "
+            f"leave out --out and --save-measurements"
+        )
+    for name in ("poses.csv", "robot.npz", "robot_encoders.csv", "tracker.csv"):
+        check_output(Path(args.bus) / name, "--bus", is_file=True)
+    if args.scenario == default_scenario():
+        from ..run.scenario_io import ROBOT_SCENARIO
+
+        args.scenario = ROBOT_SCENARIO
+
+
+def _join(args) -> int:
+    """``calibrate --join ENCODERS.csv TRACKER.csv --plan-file POSES.csv --out
+    MEASUREMENTS.csv``: every file read and checked before the one written."""
+    from .files import windows_path, write_measurements
+    from .join import join
+
+    encoders, tracker = args.join
+    joined = join(encoders, tracker, windows_path(args.plan_file))
+    path = write_measurements(args.out, joined.poses, joined.readings)
+    print(
+        f"joined {len(joined.poses)} poses: {int(joined.readings_used.min())} to "
+        f"{int(joined.readings_used.max())} readings and {int(joined.tracker_used.min())} to "
+        f"{int(joined.tracker_used.max())} tracker samples a window; the readings' largest "
+        f"spread in a window {joined.reading_spread.max() * 1e6:.3g} urad"
+    )
+    print(f"wrote {path} (calibrate {path} --out ROBOT.yaml identifies the robot)")
+    return 0
+
+
 def _context(args):
     """(the scenario's plan without a reference, the nominal geometry, the measurement
     noise) of the command's scenario."""
-    from ..run.plan import make_plan
+    from ..run.plan import as_built, make_plan
     from ..run.scenario_io import load_scenario
     from .tracker import COUNTS_PER_REV, MeasurementNoise
 
     plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
-    hardware = plan.scenario.hardware
+    hardware = as_built(plan.scenario).hardware  # on a bus, the robot built with its servos
     counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
     return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
 

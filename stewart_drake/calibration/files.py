@@ -51,7 +51,8 @@ MEASUREMENTS_REMEDY = (
     "write a first line naming every column with its unit, q0 [rad],...,q5 [rad],phi [rad],"
     "theta [rad],psi [rad],X [m],Y [m],Z [m] (docs/calibration.md)"
 )
-_HEADER_CELL = re.compile(r"\s*([^\[\]]+?)\s*\[\s*([^\[\]]*?)\s*\]\s*")
+#: A header cell: a column's name and its unit in brackets, ``X [mm]``.
+HEADER_CELL = re.compile(r"\s*([^\[\]]+?)\s*\[\s*([^\[\]]*?)\s*\]\s*")
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def _header(path, cells: list, counts_per_rev: int) -> tuple[dict, list, list]:
     found, ignored, converted = {}, [], []
     required = READING_COLUMNS + POSE_COLUMNS
     for index, cell in enumerate(cells):
-        m = _HEADER_CELL.fullmatch(cell)
+        m = HEADER_CELL.fullmatch(cell)
         name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
         if name not in required:
             ignored.append(cell.strip())

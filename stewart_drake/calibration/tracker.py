@@ -17,6 +17,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..base.checks import as_number, as_poses, check_int
+from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import rotation_rpy
 from ..robot.legs import LegParameters, readings
@@ -121,3 +122,29 @@ def measure(
     x = as_poses("pose x", x).reshape(-1, 6)
     q = quantize(readings(geometry, legs, x), noise.counts_per_rev)
     return Measurements(poses=noisy_poses(x, noise, rng), readings=q, true_poses=x.copy())
+
+
+#: The emulated tracker's sampling rate, Hz.
+TRACKER_RATE_HZ = 50.0
+
+
+def track(t, x, noise: MeasurementNoise, seed: int, rate_hz: float = TRACKER_RATE_HZ):
+    """Emulate a tracker following the platform: the poses x (n, >= 6) at times t (n,) s
+    (increasing: a plant's record of its true pose), sampled every 1 / ``rate_hz`` s from t[0]
+    (each sample the last pose recorded at or before its time), each with the tracker's noise
+    (:func:`noisy_poses`).
+
+    Returns:
+        (times (m,) s, poses (m, 6) rad and m).
+    Raises:
+        InvalidConfigError: a seed out of range, a rate not > 0, fewer than 2 records.
+    """
+    rng = np.random.default_rng(check_int("seed", seed, 0, 2**32 - 1))
+    rate_hz = as_number("rate_hz", rate_hz, 0.0, lo_open=True)
+    t = np.asarray(t, dtype=float).reshape(-1)
+    x = np.asarray(x, dtype=float).reshape(len(t), -1)[:, :6]
+    if len(t) < 2:
+        raise InvalidConfigError(f"a tracker needs at least 2 records of the pose, got {len(t)}")
+    times = np.arange(t[0], t[-1], 1.0 / rate_hz)
+    index = np.searchsorted(t, times, side="right") - 1
+    return times, noisy_poses(x[index], noise, rng)

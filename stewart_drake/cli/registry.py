@@ -98,4 +98,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for module in COMMANDS:
         module.register(sub)
+    # The calibration rehearsed over the bus emulator belongs to the robot live (a layer above
+    # the calibration's): ``calibrate --rehearse --bus`` finds it here.
+    sub.choices["calibrate"].set_defaults(rehearse_on_bus=live_command.rehearse_calibration)
     return parser

@@ -163,7 +163,7 @@ def _add_robot_command(sub) -> None:
         "--duration",
         type=positive_float,
         default=None,
-        help="s of the reference (default: the scenario's)",
+        help="s of the reference (default: a trace's or CSV's whole length, else the scenario's)",
     )
     rob.add_argument(
         "--loop-timeout",
@@ -234,7 +234,10 @@ def _cmd_robot(args) -> int:
     out = Path(args.out)
     stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
     if not args.dry_run and args.calibrate is None:
+        from ..calibration.join import encoder_log_path
+
         check_replaceable(out / f"{stem}.npz")
+        check_replaceable(encoder_log_path(out / f"{stem}.npz"))
     from ..station.bus.driver import dynamixel_sdk
 
     dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
@@ -266,9 +269,11 @@ def _robot_reference(args, scenario):
     if source in TRAJECTORIES:
         scenario.reference = NamedReference(source)
     elif is_trace_file(source):
-        from ..references.traces import TraceReference
+        from ..references.traces import TraceReference, load_trace
 
         scenario.reference = TraceReference(path=source)
+        if args.duration is None:  # the whole of it (a planned path, a recorded motion)
+            args.duration = float(load_trace(source).end_time)
     else:
         from ..base.errors import InvalidConfigError
 
@@ -413,3 +418,37 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
+
+
+def rehearse_calibration(args, context) -> int:
+    """``calibrate --rehearse --bus FOLDER``: the calibration rehearsed over the bus emulator
+    (:func:`~.calibration_rehearsal.rehearse_on_bus`), its figures printed; ``context`` is the
+    calibrate command's (the scenario's plan, the nominal geometry, the tracker's noise)."""
+    from ..base.errors import InvalidConfigError
+    from .calibration_rehearsal import rehearse_on_bus
+
+    plan, _, noise = context
+    scenario = plan.scenario
+    if scenario.bus is None:
+        raise InvalidConfigError(
+            f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "
+            f"bus section (paper_bus has one)"
+        )
+    from ..station.bus.driver import dynamixel_sdk
+
+    dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
+    say_if_compiling("robot")
+    rehearsal = rehearse_on_bus(
+        scenario,
+        args.poses,
+        args.bus,
+        seed=args.seed,
+        noise=noise,
+        dwell_s=args.dwell,
+        n_candidates=args.candidates,
+        progress=not args.no_progress,
+        say=lambda line: print(line, flush=True),
+    )
+    print(rehearsal.text())
+    print(f"wrote in {args.bus}: " + ", ".join(Path(p).name for p in rehearsal.files.values()))
+    return 0

@@ -4,7 +4,10 @@
 scenario (:func:`~stewart_drake.run.diagram.held_station`: the closed-chain
 MultibodyPlant with the motors' reflected inertia and friction) with the servos' torques
 ``K_t i`` on ``motor_torque``, and reports the crank joints' angles and rates read from the
-plant (not through the station's encoders: the emulator quantizes to the servo's 4096 counts).
+plant (not through the station's encoders: the emulator quantizes to the servo's 4096 counts),
+each angle plus its encoder's zero error: with the scenario's ``robot_as_built``, the plant is
+that robot and the servos read its ``encoder_offsets_rad`` (the plan's ``plant_geometry``), as a
+servo mounted a little off its zero does; the controller, on the bus, believes ``robot``.
 Servo ``k`` of the bus is crank ``k`` (reference_geometry.md leg order), mounted in the crank's
 sense (direction +1).
 
@@ -88,9 +91,11 @@ class StationServos(ServoBackend):
         self.simulator.AdvanceTo(self._root.get_time() + dt_s)
 
     def positions_rad(self):
-        # The servo's encoder is on its output shaft: the crank's angle, after any gear play.
+        # The servo's encoder is on its output shaft: the crank's angle, after any gear play,
+        # plus its zero error (the robot as built's encoder offsets).
         station = self.station
-        return crank_angles(station.plant, self._plant_context, station.handles)
+        theta = crank_angles(station.plant, self._plant_context, station.handles)
+        return theta + station.plan.plant_geometry.encoder_offsets
 
     def velocities_rad_s(self):
         station = self.station

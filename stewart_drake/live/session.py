@@ -115,6 +115,15 @@ class HomingReference:
             tau[falling], d1[falling], d2[falling] = self.t_end - tau_f, d1_f, -d2_f
         return tau, d1, d2
 
+    def reference_time(self, t) -> np.ndarray:
+        """The time on the reference's own clock (tau, a planned path's ``t [s]``) at run
+        times t (s, any shape); NaN during the lead-in."""
+        t = np.asarray(t, dtype=float)
+        tau = np.full(t.shape, np.nan)
+        rest = t >= self.home_s
+        tau[rest] = self._warp(t[rest] - self.home_s)[0]
+        return tau
+
     def evaluate(self, t):
         t = np.asarray(t, dtype=float)
         shape = t.shape
@@ -147,6 +156,8 @@ class RobotRun:
         torque_off_confirmed: every servo confirmed the torque off at the end.
         start: the :class:`MeasuredPose` it started from (None: ended before the measurement).
         logs: the ``.npz`` written (None: none, e.g. the run had not started).
+        encoder_log: the encoders' readings with their times, written beside it
+            (:func:`~stewart_drake.calibration.join.write_encoder_log`), or None.
         timing: the driver's timing summary (period, jitter, round trips, measurement age,
             deadline misses: ``DynamixelDriver.timing_summary``); ``timing_lines`` as text.
         metrics: the run's metrics (:func:`~stewart_drake.run.metrics.compute_metrics`:
@@ -159,6 +170,7 @@ class RobotRun:
     torque_off_confirmed: bool
     start: MeasuredPose | None = None
     logs: Path | None = None
+    encoder_log: Path | None = None
     timing: dict | None = None
     timing_lines: list[str] = dataclasses.field(default_factory=list)
     metrics: dict | None = None
@@ -374,7 +386,7 @@ def _run(
             bus.close()
     if not powered:
         return ended
-    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz")
+    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed)
     return ended
 
 
@@ -427,15 +439,22 @@ def _check_still(sd, bus, start: MeasuredPose) -> None:
         )
 
 
-def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path) -> None:
-    """The run's metrics and its logs saved at ``path`` into ``ended``; a failure to write
-    them is told in ``ended.reason``, never raised."""
+def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -> None:
+    """The run's metrics and its logs saved at ``path`` into ``ended``, and the encoders'
+    readings beside it (their times on the computer's clock, s since the epoch, and on the
+    reference's clock of ``homed``); a failure to write them is told in ``ended.reason``,
+    never raised."""
+    from ..calibration.join import encoder_log_path, write_encoder_log
     from ..run.result import finish_result, read_run, save_result
 
     try:
         result = finish_result(read_run(sd, simulator.get_context()), wall)
         ended.metrics = result.metrics
         ended.logs = save_result(result, path)
+        t, t_read, q = sd.station.driver.readings()
+        epoch = time.time() - time.perf_counter()  # perf_counter is the monotonic clock
+        tau = homed.reference_time(t)
+        ended.encoder_log = write_encoder_log(encoder_log_path(path), t_read + epoch, t, tau, q)
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
 
@@ -561,4 +580,6 @@ def end_line(run: RobotRun) -> str:
         else "torque off NOT confirmed: cut the servos' power"
     )
     logs = f"; logs in {run.logs}" if run.logs is not None else ""
+    if run.encoder_log is not None:
+        logs += f" and {run.encoder_log}"
     return f"{run.reason}; {torque}{logs}"

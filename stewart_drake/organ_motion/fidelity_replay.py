@@ -1,4 +1,5 @@
-"""TODO docstring."""
+"""The 3-D replay of a reproduction (`stewart-drake reproduce --html`): the robot as run, the
+reference as a ghost and the error of each instant against the tolerance, in one HTML file."""
 
 from __future__ import annotations
 

@@ -36,6 +36,7 @@ driver's :meth:`DynamixelDriver.timing_summary` has the per-period figures.
 
 from __future__ import annotations
 
+import array
 import collections
 import sys
 import time
@@ -211,6 +212,8 @@ class DynamixelDriver(LeafSystem):
         #: (and the reference) is that much behind the wall clock.
         self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
+        #: Every period's reading, flat: (Diagram time, read time (perf_counter), q0..q5).
+        self._readings = array.array("d")
 
     def _Update(self, context, discrete_state):
         try:
@@ -240,6 +243,7 @@ class DynamixelDriver(LeafSystem):
         age = 0.5 * (w0 + w1) - self._last_read_t
         held = context.get_discrete_state(self._state).value()
         measured = self._measure(held[_X][:6])
+        self._readings.extend((t, self._last_read_t, *measured[_Q]))
         period = now - self._last_start
         self._last_start = now
         self._records.append((now, period, self._read_s, w1 - w0, age, late))
@@ -269,6 +273,14 @@ class DynamixelDriver(LeafSystem):
                 flush=True,
             )
         self._in_burst = True
+
+    def readings(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every period's reading since the run started (:meth:`reset_timing`): (t (n,) the
+        Diagram's time, s; t_read (n,) when the servos were read, ``time.perf_counter`` s, the
+        midpoint of the sync read; q (n, 6) the crank angles read, rad: each encoder's raw
+        angle, its zero error included)."""
+        r = np.frombuffer(self._readings, dtype=float).reshape(-1, 8).copy()
+        return r[:, 0], r[:, 1], r[:, 2:]
 
     def timing_summary(self) -> dict:
         """The loop's timing over the periods kept, s: {"period", "jitter" (period - nominal),

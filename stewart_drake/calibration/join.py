@@ -1,0 +1,263 @@
+"""The measurements joined from a session on the robot: the robot's encoder log, the tracker's
+file and the planned path's windows, into the measurements file ``calibrate`` reads.
+
+**Encoder log** (:func:`write_encoder_log`, written by ``stewart-drake robot`` beside its
+``.npz`` as ``<stem>_encoders.csv``): one line per control period, ``time [s]`` (when the
+servos were read, s since the Unix epoch on the robot computer's clock), ``t_run [s]`` (the
+run's time, from the start of the homing lead-in), ``t_path [s]`` (the time on the reference's
+own clock: a planned path's ``t [s]``; ``nan`` during the lead-in), ``q0 [rad]`` ..
+``q5 [rad]`` (the encoders' raw readings, zero errors included).
+
+**Tracker file** (:func:`write_tracker_file`): one line per sample, ``time [s]`` on the same
+clock as the encoder log's (a tracker's software on the robot computer, or a clock kept within
+a few ms of it, e.g. by NTP), then the pose of the platform frame E in the base frame B,
+``phi [rad]``, ``theta [rad]``, ``psi [rad]``, ``X [m]``, ``Y [m]``, ``Z [m]`` (other units of
+:data:`~.files.ANGLE_UNITS`, :data:`~.files.LENGTH_UNITS` and ``ms`` for time are converted;
+other columns are read past).
+
+**The join** (:func:`join`): for each pose of the path's windows file (``<stem>_windows.csv``
+of ``calibrate --plan``), the encoder log's lines whose ``t_path`` is in the pose's window give
+the window on the shared clock (their first and last ``time``); the mean of those readings and
+the mean of the tracker's poses in that interval (rotations averaged as rotations) are the
+pose's measurement. Every file is read through :func:`~stewart_drake.base.fileio.read_checked`
+and parsed as numbers only.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
+from ..base.fileio import atomic_write, decode_text, read_checked
+from .files import ANGLE_UNITS, HEADER_CELL, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
+
+#: Largest file the join reads, bytes (a day of a 100 Hz log).
+MAX_LOG_BYTES = 2e9
+#: Units of a time column: factor to s.
+TIME_UNITS = {"s": 1.0, "ms": 1e-3}
+#: The columns of each file, with their kind ("time", "angle", "length").
+ENCODER_LOG_COLUMNS = {"time": "time", "t_run": "time", "t_path": "time"} | {
+    n: "angle" for n in READING_COLUMNS
+}
+POSE_KINDS = {n: ("angle" if k < 3 else "length") for k, n in enumerate(POSE_COLUMNS)}
+TRACKER_COLUMNS = {"time": "time"} | POSE_KINDS
+WINDOW_COLUMNS = {"t_start": "time", "t_end": "time"} | POSE_KINDS
+#: Fewest tracker samples a pose's window must hold.
+MIN_TRACKER_SAMPLES = 3
+#: How far a window's mean tracked pose may be from the planned pose (rad, m): beyond it, the
+#: clocks or the tracker's frames are not the robot's.
+MAX_POSE_GAP = (0.05, 0.01)
+_UNITS = {"time": TIME_UNITS, "angle": ANGLE_UNITS, "length": LENGTH_UNITS}
+_SI = {"time": "s", "angle": "rad", "length": "m"}
+
+
+def _header_text(columns: dict) -> str:
+    return ",".join(f"{n} [{_SI[kind]}]" for n, kind in columns.items())
+
+
+def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
+    """The columns ``columns`` ({name: kind}) of the CSV at ``path``, in SI units: {name: (N,)
+    array, "lines": (N,) the file's line of each row}. The first line names every column with
+    its unit in brackets; lines starting with ``#`` are comments; other columns are read past.
+
+    Raises:
+        MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
+            UTF-8 or not CSV.  InvalidConfigError: a column missing, twice, without a unit or
+            with a unit of another kind; a cell that is not a finite number (``nan`` allowed in
+            the columns ``nan_ok``), its line and column named; no rows.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(f"no {what} at {path}: check the path")
+    raw = read_checked(path, what, MAX_LOG_BYTES, remedy)
+    text = decode_text(raw, path, what, remedy, "utf-8-sig")
+    del raw
+    numbered = [
+        (n, line)
+        for n, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if len(numbered) < 2:
+        raise InvalidConfigError(f"{path}: the {what} has no rows; {remedy}")
+    try:
+        rows = list(csv.reader(io.StringIO("\n".join(line for _, line in numbered))))
+    except csv.Error as err:
+        raise CorruptFileError(path, what, f"not CSV ({err})", remedy) from None
+    found: dict = {}
+    for index, cell in enumerate(rows[0]):
+        m = HEADER_CELL.fullmatch(cell)
+        name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
+        if name not in columns:
+            continue
+        table = _UNITS[columns[name]]
+        if name in found:
+            raise InvalidConfigError(f"{path}: the column {name!r} appears twice in the header")
+        if unit not in table:
+            raise InvalidConfigError(
+                f"{path}: column {name!r} has the unit [{unit}]: write it in one of "
+                f"{', '.join(f'[{u}]' for u in table)}"
+            )
+        found[name] = (index, table[unit])
+    missing = [n for n in columns if n not in found]
+    if missing:
+        raise InvalidConfigError(
+            f"{path}: the header lacks the column{'s' if len(missing) > 1 else ''} "
+            f"{', '.join(missing)}; {remedy}"
+        )
+    width = len(rows[0])
+    out = {name: np.empty(len(rows) - 1) for name in columns}
+    for r, ((line, _), row) in enumerate(zip(numbered[1:], rows[1:])):
+        if len(row) != width:
+            raise InvalidConfigError(
+                f"{path}, line {line}: {len(row)} cells where the header names {width}"
+            )
+        for name, (index, factor) in found.items():
+            try:
+                v = float(row[index])
+            except ValueError:
+                v = math.inf
+            if not (math.isfinite(v) or (math.isnan(v) and name in nan_ok)):
+                raise InvalidConfigError(
+                    f"{path}, line {line}, column {name}: {row[index].strip()[:40]!r} is not a "
+                    f"finite number"
+                )
+            out[name][r] = v * factor
+    out["lines"] = np.array([n for n, _ in numbered[1:]])
+    return out
+
+
+ENCODER_LOG_REMEDY = (
+    "give the <stem>_encoders.csv that `stewart-drake robot` wrote beside its .npz "
+    "(docs/calibration.md)"
+)
+TRACKER_REMEDY = (
+    "write a first line naming every column with its unit, time [s],phi [rad],theta [rad],"
+    "psi [rad],X [m],Y [m],Z [m], time on the robot computer's clock (docs/calibration.md)"
+)
+WINDOWS_REMEDY = "give the POSES.csv that `calibrate --plan` wrote, its _windows.csv beside it"
+
+
+def encoder_log_path(npz) -> Path:
+    """The encoder log beside a robot run's ``.npz``: ``<stem>_encoders.csv``."""
+    npz = Path(npz)
+    return npz.with_name(f"{npz.stem}_encoders.csv")
+
+
+def write_encoder_log(path, time_s, t_run, t_path, q) -> Path:
+    """Write the encoder log (module docstring) at ``path`` atomically: ``time_s``, ``t_run``,
+    ``t_path`` (n,) s, ``q`` (n, 6) rad; returns the path."""
+    values = np.column_stack([time_s, t_run, t_path, np.asarray(q).reshape(-1, 6)])
+    _write_csv(path, _header_text(ENCODER_LOG_COLUMNS), values)
+    return Path(path)
+
+
+def write_tracker_file(path, time_s, poses) -> Path:
+    """Write a tracker file (module docstring) at ``path`` atomically: ``time_s`` (n,) s,
+    ``poses`` (n, 6) rad and m; returns the path."""
+    values = np.column_stack([time_s, np.asarray(poses).reshape(-1, 6)])
+    _write_csv(path, _header_text(TRACKER_COLUMNS), values)
+    return Path(path)
+
+
+def _write_csv(path, header: str, values: np.ndarray) -> None:
+    buffer = io.StringIO()
+    buffer.write(header + "\n")
+    np.savetxt(buffer, values, delimiter=",", fmt="%.17g")
+    text = buffer.getvalue()
+    atomic_write(Path(path), lambda f: f.write(text.encode()))
+
+
+@dataclass(frozen=True)
+class Joined:
+    """The measurements of a session, one row per pose of the path's windows.
+
+    Attributes:
+        poses: (N, 6) the tracker's mean pose in each window, rad and m.
+        readings: (N, 6) the encoders' mean readings there, rad.
+        planned: (N, 6) the poses planned.
+        windows: (N, 2) each window on the shared clock, s.
+        readings_used, tracker_used: (N,) the encoder log's lines and the tracker's samples
+            averaged.
+        reading_spread: (N,) the largest standard deviation of a reading within its window,
+            rad (0 for a platform at rest: quantized readings do not move).
+    """
+
+    poses: np.ndarray
+    readings: np.ndarray
+    planned: np.ndarray
+    windows: np.ndarray
+    readings_used: np.ndarray
+    tracker_used: np.ndarray
+    reading_spread: np.ndarray
+
+
+def mean_pose(poses) -> np.ndarray:
+    """(6,) the mean of poses (N, 6): the rotations' mean as a rotation (roll-pitch-yaw of
+    R_BE = Rz(psi) Ry(theta) Rx(phi)), the positions' mean."""
+    poses = np.asarray(poses, dtype=float).reshape(-1, 6)
+    rpy = Rotation.from_euler("ZYX", poses[:, 2::-1]).mean().as_euler("ZYX")[::-1]
+    return np.concatenate([rpy, poses[:, 3:].mean(axis=0)])
+
+
+def join(encoder_log, tracker_file, windows_file) -> Joined:
+    """Join a session's files (module docstring): each a path, read and checked whole before
+    anything is joined.
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as :func:`read_table`; a window
+            the encoder log does not reach (the run ended early, or drove another path); a
+            window with fewer than :data:`MIN_TRACKER_SAMPLES` tracker samples (the clocks
+            differ, or the tracker lost the target); a mean tracked pose beyond
+            :data:`MAX_POSE_GAP` of the planned pose (the tracker's frames are not B and E).
+    """
+    log = read_table(
+        encoder_log, "encoder log", ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, nan_ok=("t_path",)
+    )
+    tracker = read_table(tracker_file, "tracker file", TRACKER_COLUMNS, TRACKER_REMEDY)
+    plan = read_table(windows_file, "windows file", WINDOW_COLUMNS, WINDOWS_REMEDY)
+    q_log = np.column_stack([log[n] for n in READING_COLUMNS])
+    x_tracker = np.column_stack([tracker[n] for n in POSE_COLUMNS])
+    planned = np.column_stack([plan[n] for n in POSE_COLUMNS])
+    n = len(planned)
+    poses, readings = np.empty((n, 6)), np.empty((n, 6))
+    windows, spread = np.empty((n, 2)), np.empty(n)
+    n_log, n_tracker = np.empty(n, dtype=int), np.empty(n, dtype=int)
+    for k in range(n):
+        a, b = plan["t_start"][k], plan["t_end"][k]
+        rows = (log["t_path"] >= a) & (log["t_path"] <= b)
+        if not np.any(rows):
+            raise InvalidConfigError(
+                f"{encoder_log}: no reading in the window of pose {k} ([{a:g}, {b:g}] s of the "
+                f"path, line {plan['lines'][k]} of {windows_file}): the run ended before it or "
+                f"drove another path; drive the whole path (stewart-drake robot POSES.csv)"
+            )
+        w0, w1 = float(log["time"][rows].min()), float(log["time"][rows].max())
+        samples = (tracker["time"] >= w0) & (tracker["time"] <= w1)
+        if samples.sum() < MIN_TRACKER_SAMPLES:
+            span = f"{tracker['time'].min():.3f} .. {tracker['time'].max():.3f}"
+            raise InvalidConfigError(
+                f"{tracker_file}: {int(samples.sum())} samples in the window of pose {k} "
+                f"({w0:.3f} .. {w1:.3f} s on the robot's clock; the file spans {span} s): its "
+                f"time [s] must be on the robot computer's clock (s since the epoch), at least "
+                f"{MIN_TRACKER_SAMPLES} samples a window"
+            )
+        poses[k] = mean_pose(x_tracker[samples])
+        readings[k] = q_log[rows].mean(axis=0)
+        spread[k] = float(np.max(q_log[rows].std(axis=0)))
+        windows[k], n_log[k], n_tracker[k] = (w0, w1), rows.sum(), samples.sum()
+        gap = np.abs(poses[k] - planned[k])
+        if np.max(gap[:3]) > MAX_POSE_GAP[0] or np.max(gap[3:]) > MAX_POSE_GAP[1]:
+            raise InvalidConfigError(
+                f"{tracker_file}: the mean tracked pose of pose {k} is {np.max(gap[:3]):.3g} rad "
+                f"and {np.max(gap[3:]) * 1e3:.3g} mm from the planned one: the tracker must "
+                f"measure the platform frame E in the base frame B (docs/calibration.md), on "
+                f"the robot's clock"
+            )
+    return Joined(poses, readings, planned, windows, n_log, n_tracker, spread)
