@@ -13,14 +13,14 @@ from conftest import require_extra
 require_extra("robot")
 
 from stewart_drake.calibration import files, join, poses  # noqa: E402
-from stewart_drake.calibration.legs import LegParameters, readings  # noqa: E402
-from stewart_drake.calibration.tolerances import Tolerances  # noqa: E402
 from stewart_drake.calibration.tracker import MeasurementNoise, track  # noqa: E402
 from stewart_drake.live.calibration_rehearsal import REHEARSAL_BUS, emulated_bus  # noqa: E402
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario  # noqa: E402
 from stewart_drake.live.session import end_line, run_on_robot  # noqa: E402
 from stewart_drake.references.traces import TraceReference, load_trace  # noqa: E402
+from stewart_drake.robot.legs import LegParameters, readings  # noqa: E402
+from stewart_drake.robot.tolerances import Tolerances  # noqa: E402
 from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario import Robot  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402

@@ -1,7 +1,7 @@
 """A calibration rehearsed over the bus emulator: the workflow a user follows with the robot and
 a tracker, every file written and read as theirs would be.
 
-1. A robot as built is drawn (:class:`~stewart_drake.calibration.tolerances.Tolerances`, a
+1. A robot as built is drawn (:class:`~stewart_drake.robot.tolerances.Tolerances`, a
    seed): its geometry and its encoders' zero errors. It is the emulator's plant (the
    scenario's ``robot_as_built``; the servos read its encoder offsets,
    :class:`~.plant_backend.StationServos`); the controller believes the nominal robot.
@@ -189,10 +189,10 @@ def rehearse_on_bus(
     from ..calibration.files import read_measurements, write_measurements
     from ..calibration.identify import identify
     from ..calibration.join import join, write_tracker_file
-    from ..calibration.legs import readings
     from ..calibration.report import write_identified
-    from ..calibration.tolerances import Tolerances
     from ..calibration.tracker import COUNTS_PER_REV, track
+    from ..robot.legs import readings
+    from ..robot.tolerances import Tolerances
     from ..run.plan import as_built, make_plan
 
     wall0 = time.perf_counter()
@@ -297,8 +297,8 @@ def _drive(plan, truth, poses_csv, folder, progress, say):
 def _figures(geometry, truth, ident, held_out, noise) -> dict:
     """:class:`BusRehearsal`'s prediction figures at the held-out poses (N, 6)."""
     from ..calibration.identify import predicted_rms
-    from ..calibration.legs import parameter_kinds, readings
     from ..calibration.tracker import quantize
+    from ..robot.legs import parameter_kinds, readings
 
     exact = readings(geometry, truth, held_out)
     read = quantize(exact, noise.counts_per_rev)
