@@ -184,6 +184,28 @@ def drawn_robot(seed: int = 49, encoders: bool = True) -> StewartGeometry:
     )
 
 
+def assert_plant_has_the_legs_of(plant, context, handles, geometry) -> None:
+    """Read back from Drake: each crank's pivot and motor axis in the world where ``geometry``
+    puts them (P_B, u_B), and each rod's ball joint at [a_i, 0, 0] in its crank's frame (to
+    the SDF's 12 significant digits)."""
+    pivots = [plant.EvalBodyPoseInWorld(context, c).translation() for c in handles.cranks]
+    np.testing.assert_allclose(np.array(pivots), geometry.P_B, rtol=0, atol=1e-12)
+    axes = [
+        plant.EvalBodyPoseInWorld(context, c).rotation().multiply(j.revolute_axis())
+        for c, j in zip(handles.cranks, handles.motors)
+    ]
+    np.testing.assert_allclose(np.array(axes), geometry.u_B, rtol=0, atol=1e-11)
+    tips = [
+        plant.EvalBodyPoseInWorld(context, c)
+        .inverse()
+        .multiply(plant.EvalBodyPoseInWorld(context, r).translation())
+        for c, r in zip(handles.cranks, handles.rods)
+    ]
+    np.testing.assert_allclose(
+        np.array(tips), np.column_stack([geometry.crank_lengths, np.zeros((6, 2))]), atol=1e-12
+    )
+
+
 @pytest.fixture(scope="session", params=["symmetric", "drawn"])
 def either_robot(request):
     """The drawing's robot, then a robot as built (:func:`drawn_robot`): for the checks that

@@ -7,7 +7,12 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import drawn_robot, needs_extra, random_reachable_poses
+from conftest import (
+    assert_plant_has_the_legs_of,
+    drawn_robot,
+    needs_extra,
+    random_reachable_poses,
+)
 from pydrake.systems.analysis import Simulator
 from pydrake.systems.framework import DiagramBuilder
 
@@ -128,22 +133,7 @@ def test_the_limits_read_each_tilted_shaft():
 
 def test_the_plant_closes_each_leg_where_the_kinematics_put_it(poses):
     plant, context, handles, diagram, root = make_plant(ROBOT)
-    a = [
-        plant.EvalBodyPoseInWorld(context, crank)
-        .inverse()
-        .multiply(plant.EvalBodyPoseInWorld(context, rod).translation())
-        for crank, rod in zip(handles.cranks, handles.rods)
-    ]
-    # Read back from Drake: the rod's ball joint sits at [a_i, 0, 0] in its crank's frame, and
-    # the motor turns it about u_i (to the SDF's 12 significant digits).
-    np.testing.assert_allclose(
-        np.array(a), np.column_stack([ROBOT.crank_lengths, np.zeros((6, 2))]), atol=1e-12
-    )
-    axes = [
-        plant.EvalBodyPoseInWorld(context, c).rotation().multiply(j.revolute_axis())
-        for c, j in zip(handles.cranks, handles.motors)
-    ]
-    np.testing.assert_allclose(np.array(axes), ROBOT.u_B, atol=1e-11)
+    assert_plant_has_the_legs_of(plant, context, handles, ROBOT)
     for x in poses[:5]:
         assemble(plant, context, handles, x)
         assert loop_closure_errors(plant, context, handles).max() < 1e-12

@@ -54,23 +54,13 @@ def emulated_bus(scenario, robot_as_built=None, x0=X_REST):
     Returns:
         the started :class:`~.emulator.BusEmulator` (close it).
     """
-    import copy
     import time as clock
 
     from .emulator import BusEmulator
-    from .plant_backend import StationServos, dynamixel_scenario
+    from .plant_backend import StationServos, behind_the_bus, dynamixel_scenario
 
     bus = scenario.bus
-    plant = copy.copy(scenario.plant)
-    plant.time_step = 0.002
-    behind = dataclasses.replace(
-        scenario,
-        bus=None,
-        plant=plant,
-        control_period_s=0.002,
-        log_period_s=0.002,
-        robot_as_built=robot_as_built,
-    )
+    behind = behind_the_bus(scenario, robot_as_built=robot_as_built)
 
     class Recorded(StationServos):
         def __init__(self):

@@ -326,21 +326,11 @@ def _start_emulator(scenario, x0):
     the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
     ``scenario.bus`` at its pseudo-terminal; returns the
     :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it)."""
-    import copy
-    import dataclasses
-
     from .emulator_process import EmulatorProcess
+    from .plant_backend import behind_the_bus
 
     bus = scenario.bus
-    plant = copy.copy(scenario.plant)
-    plant.time_step = 0.002
-    robot = dataclasses.replace(
-        scenario,
-        bus=None,
-        plant=plant,
-        control_period_s=0.002,
-        log_period_s=0.002,
-    )
+    robot = behind_the_bus(scenario)
     emulator = EmulatorProcess(
         x0=x0,
         ids=bus.ids,

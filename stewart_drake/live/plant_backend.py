@@ -60,6 +60,19 @@ def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     return dataclasses.replace(base, hardware=hardware)
 
 
+def behind_the_bus(scenario, **changes):
+    """The scenario the bus emulator simulates behind a robot's ``scenario``: no bus, the plant
+    at a 2 ms step (half the CPU of 1 ms), the station's control and logs at the same period,
+    and ``changes`` (fields of the scenario, e.g. ``robot_as_built``)."""
+    import copy
+
+    plant = copy.copy(scenario.plant)
+    plant.time_step = 0.002
+    return dataclasses.replace(
+        scenario, bus=None, plant=plant, control_period_s=0.002, log_period_s=0.002, **changes
+    )
+
+
 class StationServos(ServoBackend):
     """Six servos at the cranks of the station of ``scenario``, assembled at pose ``x0``.
 

@@ -66,8 +66,21 @@ class Tolerance:
         return rng.normal(0.0, self.half_width / 3.0, size)
 
 
-def _tol(h: float):
-    return field(default_factory=lambda: Tolerance(h))
+#: The default half-widths, per field of :class:`Tolerances` (m or rad): a robot built to
+#: workshop tolerances (module docstring). :class:`RobotTolerances` has the same defaults.
+DEFAULT_HALF_WIDTHS = {
+    "pivot_offsets_m": 0.5e-3,
+    "platform_offsets_m": 0.5e-3,
+    "crank_lengths_m": 0.2e-3,
+    "rod_lengths_m": 0.3e-3,
+    "shaft_tilts_rad": 1e-3,
+    "crank_angles_deg": 1e-3,
+    "encoder_offsets_rad": 5e-3,
+}
+
+
+def _tol(name: str):
+    return field(default_factory=lambda: Tolerance(DEFAULT_HALF_WIDTHS[name]))
 
 
 @dataclass(frozen=True)
@@ -82,13 +95,13 @@ class Tolerances:
         encoder_offsets_rad: rad.
     """
 
-    pivot_offsets_m: Tolerance = _tol(0.5e-3)
-    platform_offsets_m: Tolerance = _tol(0.5e-3)
-    crank_lengths_m: Tolerance = _tol(0.2e-3)
-    rod_lengths_m: Tolerance = _tol(0.3e-3)
-    shaft_tilts_rad: Tolerance = _tol(1e-3)
-    crank_angles_deg: Tolerance = _tol(1e-3)
-    encoder_offsets_rad: Tolerance = _tol(5e-3)
+    pivot_offsets_m: Tolerance = _tol("pivot_offsets_m")
+    platform_offsets_m: Tolerance = _tol("platform_offsets_m")
+    crank_lengths_m: Tolerance = _tol("crank_lengths_m")
+    rod_lengths_m: Tolerance = _tol("rod_lengths_m")
+    shaft_tilts_rad: Tolerance = _tol("shaft_tilts_rad")
+    crank_angles_deg: Tolerance = _tol("crank_angles_deg")
+    encoder_offsets_rad: Tolerance = _tol("encoder_offsets_rad")
 
     def scaled(self, factor: float) -> "Tolerances":
         """Every half-width times ``factor`` (>= 0), distributions kept."""
@@ -161,8 +174,13 @@ class ToleranceSpec:
     distribution: str = "uniform"
 
 
-def _spec(h: float):
-    return field(default_factory=lambda: ToleranceSpec(h))
+def _spec(name: str):
+    """The default of :class:`RobotTolerances`' field ``name``: :data:`DEFAULT_HALF_WIDTHS`'."""
+    return field(
+        default_factory=lambda: ToleranceSpec(
+            DEFAULT_HALF_WIDTHS[_TOLERANCES_FIELD.get(name, name)]
+        )
+    )
 
 
 #: Field of :class:`RobotTolerances` -> field of :class:`Tolerances` where they differ: the
@@ -186,13 +204,13 @@ class RobotTolerances:
     """
 
     seed: int = 0
-    pivot_offsets_m: ToleranceSpec = _spec(0.5e-3)
-    platform_offsets_m: ToleranceSpec = _spec(0.5e-3)
-    crank_lengths_m: ToleranceSpec = _spec(0.2e-3)
-    rod_lengths_m: ToleranceSpec = _spec(0.3e-3)
-    shaft_tilts_rad: ToleranceSpec = _spec(1e-3)
-    crank_azimuths_rad: ToleranceSpec = _spec(1e-3)
-    encoder_offsets_rad: ToleranceSpec = _spec(5e-3)
+    pivot_offsets_m: ToleranceSpec = _spec("pivot_offsets_m")
+    platform_offsets_m: ToleranceSpec = _spec("platform_offsets_m")
+    crank_lengths_m: ToleranceSpec = _spec("crank_lengths_m")
+    rod_lengths_m: ToleranceSpec = _spec("rod_lengths_m")
+    shaft_tilts_rad: ToleranceSpec = _spec("shaft_tilts_rad")
+    crank_azimuths_rad: ToleranceSpec = _spec("crank_azimuths_rad")
+    encoder_offsets_rad: ToleranceSpec = _spec("encoder_offsets_rad")
 
     def tolerances(self) -> Tolerances:
         """The :class:`Tolerances` these fields give.
