@@ -14,9 +14,17 @@ require_extra("robot")
 
 from stewart_drake.calibration import files, join, poses  # noqa: E402
 from stewart_drake.calibration.tracker import MeasurementNoise, track  # noqa: E402
-from stewart_drake.live.calibration_rehearsal import REHEARSAL_BUS, emulated_bus  # noqa: E402
+from stewart_drake.live.calibration_rehearsal import (  # noqa: E402
+    LOOP_TIMEOUT_S,
+    REHEARSAL_BUS,
+    emulated_bus,
+)
 from stewart_drake.live.emulator import BusEmulator  # noqa: E402
-from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario  # noqa: E402
+from stewart_drake.live.plant_backend import (  # noqa: E402
+    StationServos,
+    behind_the_bus,
+    dynamixel_scenario,
+)
 from stewart_drake.live.session import end_line, run_on_robot  # noqa: E402
 from stewart_drake.references.traces import TraceReference, load_trace  # noqa: E402
 from stewart_drake.robot.legs import LegParameters, readings  # noqa: E402
@@ -44,13 +52,7 @@ def test_the_servos_read_the_robot_as_built_s_encoder_zeros():
     """Read back over the bus: what each servo reports is the as-built crank angle plus its
     encoder's zero error, to half a count; not the nominal robot's reading."""
     scenario, nominal, truth = _robot()
-    behind = dataclasses.replace(
-        scenario,
-        bus=None,
-        control_period_s=0.002,
-        log_period_s=0.002,
-        robot_as_built=Robot.from_value(truth.geometry(nominal)),
-    )
+    behind = behind_the_bus(scenario, robot_as_built=Robot.from_value(truth.geometry(nominal)))
     backend = StationServos(dynamixel_scenario(scenario=behind), x0=X_REST)
     with BusEmulator([1, 2, 3, 4, 5, 6], backend=backend) as emu:
         with DynamixelBus.from_config(DynamixelBusConfig(port=emu.port)) as bus:
@@ -80,7 +82,12 @@ def test_the_session_logs_readings_that_join_with_a_tracker_at_each_window(tmp_p
     try:
         robot.bus.port = emulator.port
         run = run_on_robot(
-            robot, home_s=1.0, loop_timeout_s=1.0, out=tmp_path, stem="robot", say=lambda s: None
+            robot,
+            home_s=1.0,
+            loop_timeout_s=LOOP_TIMEOUT_S,
+            out=tmp_path,
+            stem="robot",
+            say=lambda s: None,
         )
     finally:
         emulator.close()
