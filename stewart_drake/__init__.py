@@ -33,6 +33,13 @@ def _started_as_the_command() -> bool:
     )
 
 
+# The command starts itself again with glibc's thread cache sized for the plant's step (its
+# CPU, not its results), before anything else: base.allocator imports only the standard library.
+if _started_as_the_command():
+    from .base.allocator import restart_with_tuned_allocator
+
+    restart_with_tuned_allocator()
+
 # Only over Python's own handler: a command started with SIGINT ignored (in a script's
 # background) keeps it ignored. The CLI's main() puts Python's handler back.
 if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:

@@ -29,6 +29,20 @@ def _cache_bytecode_out_of_the_tree() -> None:
 
 _cache_bytecode_out_of_the_tree()
 
+
+def _tuned_allocator_for_the_workers() -> None:
+    """Size glibc's thread cache for the plant's step in the processes the suite starts (the
+    workers of -n 2, the commands, the notebooks' kernels), as the command does for itself
+    (stewart_drake/base/allocator.py): their CPU, not their results."""
+    from stewart_drake.base.allocator import tuned_environment
+
+    env = tuned_environment(os.environ)
+    if env is not None:
+        os.environ["GLIBC_TUNABLES"] = env["GLIBC_TUNABLES"]
+
+
+_tuned_allocator_for_the_workers()
+
 from stewart_drake.robot import kinematics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
