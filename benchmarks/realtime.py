@@ -36,6 +36,10 @@ station with rods as bodies (the default), holding; and ``ratio_ann_<model>_over
 against that station with Drake's default ``use_sampled_output_ports: true`` (the plant's setting
 before the scenarios turned it off; docs/plant_speed.md).
 
+Like the ``stewart-drake`` command, it first starts itself again with glibc's thread cache sized
+for the plant's step (:mod:`stewart_drake.base.allocator`), unless ``GLIBC_TUNABLES`` already sizes
+it, and prints the setting it ran with (``glibc_tunables``).
+
 ``--clock cpu`` times the runs by the thread's CPU time instead of the wall clock: on a machine
 shared with other jobs it leaves out the time the process waited for a core.
 
@@ -57,6 +61,7 @@ import time
 
 import numpy as np
 
+from stewart_drake.base.allocator import restart_with_tuned_allocator
 from stewart_drake.control.features import DensityFeatures
 from stewart_drake.control.lqi.controller import LqiController
 from stewart_drake.control.lqi.gain import (
@@ -309,6 +314,9 @@ def _print_rod_model(w: dict, rod_model: str, steps: float) -> None:
 
 
 def main():
+    # As the command does: what users pay (``GLIBC_TUNABLES=glibc.malloc.tcache_count=7`` to
+    # measure glibc's default; benchmarks/allocator.py compares the two).
+    restart_with_tuned_allocator()
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scenario", default="paper_hardware")
     parser.add_argument("--duration", type=float, default=5.0, help="simulated s per run (5)")
@@ -448,6 +456,7 @@ def main():
     if args.rod_model:
         _print_rod_model(w, args.rod_model, D / fixed.control_period_s)
     print(f"load_average_1min {os.getloadavg()[0]:.1f} at the end")
+    print(f"glibc_tunables {os.environ.get('GLIBC_TUNABLES', '(none)')}")
     if args.breakdown:
         steps = D / fixed.control_period_s
         plant = np.median(w["plant"])
