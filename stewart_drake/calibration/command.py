@@ -63,6 +63,14 @@ def register(sub) -> None:
         help="with --join: the path --plan wrote (its windows file beside it) (default: none)",
     )
     cal.add_argument(
+        "--tracker-clock-offset",
+        default=None,
+        metavar="SECONDS|estimate",
+        help="with --join: s added to the tracker's times to put them on the robot computer's "
+        "clock, or estimate to find them from the motion the robot and the tracker both saw "
+        "(default: 0, the tracker stamps on the robot computer's clock)",
+    )
+    cal.add_argument(
         "--bus",
         default=None,
         metavar="FOLDER",
@@ -198,6 +206,8 @@ def _cmd_calibrate(args) -> int:
         )
     if (args.plan_file is not None) != (args.join is not None):
         raise InvalidConfigError("--join and --plan-file go together: the logs and their path")
+    if args.tracker_clock_offset is not None and args.join is None:
+        raise InvalidConfigError("--tracker-clock-offset is for --join")
     if args.bus is not None:
         _check_bus_rehearsal(args)
     if args.out is None and not args.rehearse:
@@ -262,8 +272,22 @@ def _join(args) -> int:
     from .join import join
 
     encoders, tracker = args.join
-    joined = join(encoders, tracker, windows_path(args.plan_file))
+    joined = join(
+        encoders,
+        tracker,
+        windows_path(args.plan_file),
+        clock_offset=_clock_offset(args.tracker_clock_offset),
+        path_file=args.plan_file,
+    )
     path = write_measurements(args.out, joined.poses, joined.readings)
+    if joined.clock is not None:
+        print(
+            f"the tracker's clock + {joined.clock_offset_s:.4f} s = the robot computer's "
+            f"(estimated from the motion: the tracked poses {joined.clock.residual_m * 1e3:.3g} "
+            f"mm RMS from the path over {joined.clock.samples} samples, rotations at 0.15 m)"
+        )
+    elif joined.clock_offset_s:
+        print(f"the tracker's times + {joined.clock_offset_s:g} s, as given")
     print(
         f"joined {len(joined.poses)} poses: {int(joined.readings_used.min())} to "
         f"{int(joined.readings_used.max())} readings and {int(joined.tracker_used.min())} to "
@@ -272,6 +296,25 @@ def _join(args) -> int:
     )
     print(f"wrote {path} (calibrate {path} --out ROBOT.yaml identifies the robot)")
     return 0
+
+
+def _clock_offset(text):
+    """--tracker-clock-offset: a finite number of seconds, "estimate", or None (0)."""
+    from ..base.errors import InvalidConfigError
+
+    if text is None:
+        return 0.0
+    if text.strip() == "estimate":
+        return "estimate"
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise InvalidConfigError(
+            f"--tracker-clock-offset takes a number of seconds or estimate, got {text!r}"
+        )
+    return value
 
 
 def _context(args):

@@ -10,7 +10,8 @@ own clock: a planned path's ``t [s]``; ``nan`` during the lead-in), ``q0 [rad]``
 
 **Tracker file** (:func:`write_tracker_file`): one line per sample, ``time [s]`` on the same
 clock as the encoder log's (a tracker's software on the robot computer, or a clock kept within
-a few ms of it, e.g. by NTP), then the pose of the platform frame E in the base frame B,
+a few ms of it, e.g. by NTP; or on another clock, its offset given or estimated from the
+motion both saw: :mod:`~.clock`), then the pose of the platform frame E in the base frame B,
 ``phi [rad]``, ``theta [rad]``, ``psi [rad]``, ``X [m]``, ``Y [m]``, ``Z [m]`` (other units of
 :data:`~.files.ANGLE_UNITS`, :data:`~.files.LENGTH_UNITS` and ``ms`` for time are converted;
 other columns are read past).
@@ -36,6 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..base.fileio import atomic_write, decode_text, read_checked
+from .clock import ClockOffset, estimate_clock_offset
 from .files import ANGLE_UNITS, HEADER_CELL, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
 
 #: Largest file the join reads, bytes (a day of a 100 Hz log).
@@ -142,6 +144,8 @@ TRACKER_REMEDY = (
     "psi [rad],X [m],Y [m],Z [m], time on the robot computer's clock (docs/calibration.md)"
 )
 WINDOWS_REMEDY = "give the POSES.csv that `calibrate --plan` wrote, its _windows.csv beside it"
+PATH_COLUMNS = {"t": "time"} | POSE_KINDS
+PATH_REMEDY = "give the POSES.csv that `calibrate --plan` wrote"
 
 
 def encoder_log_path(npz) -> Path:
@@ -187,6 +191,8 @@ class Joined:
             averaged.
         reading_spread: (N,) the largest standard deviation of a reading within its window,
             rad (0 for a platform at rest: quantized readings do not move).
+        clock_offset_s: s added to the tracker's times (0: it stamped on the robot's clock).
+        clock: the estimate of that offset (:class:`~.clock.ClockOffset`), or None when given.
     """
 
     poses: np.ndarray
@@ -196,6 +202,8 @@ class Joined:
     readings_used: np.ndarray
     tracker_used: np.ndarray
     reading_spread: np.ndarray
+    clock_offset_s: float = 0.0
+    clock: ClockOffset | None = None
 
 
 def mean_pose(poses) -> np.ndarray:
@@ -206,17 +214,37 @@ def mean_pose(poses) -> np.ndarray:
     return np.concatenate([rpy, poses[:, 3:].mean(axis=0)])
 
 
-def join(encoder_log, tracker_file, windows_file) -> Joined:
+def join(encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=None) -> Joined:
     """Join a session's files (module docstring): each a path, read and checked whole before
     anything is joined.
 
+    Args:
+        encoder_log, tracker_file, windows_file: the session's files.
+        clock_offset: s added to the tracker's times to put them on the robot computer's clock
+            (0: the tracker stamps on it), or ``"estimate"``: found from the motion both saw
+            (:func:`~.clock.estimate_clock_offset`), which needs ``path_file``.
+        path_file: the path ``calibrate --plan`` wrote (POSES.csv), read with ``"estimate"``.
+    Returns:
+        :class:`Joined`, its ``clock`` the offset applied.
     Raises:
         MissingFileError, CorruptFileError, InvalidConfigError: as :func:`read_table`; a window
             the encoder log does not reach (the run ended early, or drove another path); a
             window with fewer than :data:`MIN_TRACKER_SAMPLES` tracker samples (the clocks
             differ, or the tracker lost the target); a mean tracked pose beyond
-            :data:`MAX_POSE_GAP` of the planned pose (the tracker's frames are not B and E).
+            :data:`MAX_POSE_GAP` of the planned pose (the tracker's frames are not B and E);
+            an offset that is neither a finite number nor ``"estimate"``, ``"estimate"``
+            without ``path_file`` or refused by :func:`~.clock.estimate_clock_offset`.
     """
+    estimate = isinstance(clock_offset, str) and clock_offset == "estimate"
+    if not estimate and not (
+        isinstance(clock_offset, (int, float)) and math.isfinite(clock_offset)
+    ):
+        raise InvalidConfigError(
+            f"the tracker's clock offset must be a number of seconds or 'estimate', got "
+            f"{clock_offset!r}"
+        )
+    if estimate and path_file is None:
+        raise InvalidConfigError("estimating the tracker's clock offset needs the path file")
     log = read_table(
         encoder_log, "encoder log", ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, nan_ok=("t_path",)
     )
@@ -225,6 +253,11 @@ def join(encoder_log, tracker_file, windows_file) -> Joined:
     q_log = np.column_stack([log[n] for n in READING_COLUMNS])
     x_tracker = np.column_stack([tracker[n] for n in POSE_COLUMNS])
     planned = np.column_stack([plan[n] for n in POSE_COLUMNS])
+    clock = None
+    if estimate:
+        clock = _estimated_offset(log, tracker["time"], x_tracker, path_file)
+        clock_offset = clock.offset_s
+    tracker["time"] = tracker["time"] + float(clock_offset)
     n = len(planned)
     poses, readings = np.empty((n, 6)), np.empty((n, 6))
     windows, spread = np.empty((n, 2)), np.empty(n)
@@ -245,8 +278,10 @@ def join(encoder_log, tracker_file, windows_file) -> Joined:
             raise InvalidConfigError(
                 f"{tracker_file}: {int(samples.sum())} samples in the window of pose {k} "
                 f"({w0:.3f} .. {w1:.3f} s on the robot's clock; the file spans {span} s): its "
-                f"time [s] must be on the robot computer's clock (s since the epoch), at least "
-                f"{MIN_TRACKER_SAMPLES} samples a window"
+                f"time [s] must be on the robot computer's clock (s since the epoch) or its "
+                f"offset given (calibrate --join ... --tracker-clock-offset SECONDS, or "
+                f"estimate to find it from the motion), at least {MIN_TRACKER_SAMPLES} "
+                f"samples a window"
             )
         poses[k] = mean_pose(x_tracker[samples])
         readings[k] = q_log[rows].mean(axis=0)
@@ -260,4 +295,22 @@ def join(encoder_log, tracker_file, windows_file) -> Joined:
                 f"measure the platform frame E in the base frame B (docs/calibration.md), on "
                 f"the robot's clock"
             )
-    return Joined(poses, readings, planned, windows, n_log, n_tracker, spread)
+    return Joined(
+        poses, readings, planned, windows, n_log, n_tracker, spread, float(clock_offset), clock
+    )
+
+
+def _estimated_offset(log: dict, tracker_t, x_tracker, path_file) -> ClockOffset:
+    """The tracker's clock offset from the encoder log's lines on the path (their ``t_path``
+    put on the path file's poses) and the tracked poses."""
+    path = read_table(path_file, "path file", PATH_COLUMNS, PATH_REMEDY)
+    on = np.isfinite(log["t_path"])
+    if not np.any(on):
+        raise InvalidConfigError(
+            "the encoder log has no line on the path (t_path is nan throughout): drive the "
+            "path (stewart-drake robot POSES.csv)"
+        )
+    x_path = np.column_stack([path[n] for n in POSE_COLUMNS])
+    t_path = log["t_path"][on]
+    planned = np.column_stack([np.interp(t_path, path["t"], x_path[:, i]) for i in range(6)])
+    return estimate_clock_offset(log["time"][on], planned, tracker_t, x_tracker)
