@@ -143,3 +143,27 @@ def test_the_rehearsal_over_the_bus_identifies_the_robot_as_built(tmp_path):
         "measurements.csv",
         "robot.yaml",
     }
+
+
+def test_the_bus_rehearsal_plans_the_poses_its_selection_picks(tmp_path):
+    """``--rehearse --bus --select random`` drives random poses, chosen ones by default: the
+    path's poses are the picked candidates, in the tour's order."""
+    from stewart_drake.calibration.rehearsal import pick
+    from stewart_drake.live.calibration_rehearsal import _plan_path
+
+    plan = make_plan(load_scenario("paper_bus"), with_reference=False)
+    noise, tolerances = MeasurementNoise(), Tolerances()
+    planned = {}
+    for select in ("random", "chosen"):
+        folder = tmp_path / select
+        folder.mkdir()
+        space, written = _plan_path(plan, 12, noise, tolerances, 4, 2.0, 300, folder, select)
+        picked = space.candidates[pick(plan.geometry, space, 12, select, noise, tolerances, 4)]
+        windows = join.read_table(written["windows"], "windows", join.WINDOW_COLUMNS, "")
+        planned[select] = np.column_stack([windows[n] for n in files.POSE_COLUMNS])
+        np.testing.assert_array_equal(_rows_sorted(planned[select]), _rows_sorted(picked))
+    assert not np.allclose(_rows_sorted(planned["random"]), _rows_sorted(planned["chosen"]))
+
+
+def _rows_sorted(a: np.ndarray) -> np.ndarray:
+    return a[np.lexsort(a.T[::-1])]

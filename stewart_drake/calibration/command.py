@@ -75,7 +75,8 @@ def register(sub) -> None:
         default=None,
         metavar="FOLDER",
         help="with --rehearse: rehearse over the bus emulator, the robot driving the path "
-        "through the chosen poses (as --plan chooses them), an emulated tracker following it, "
+        "through the poses (chosen as --plan chooses them, or as --select says), an emulated "
+        "tracker following it, "
         "every file kept in FOLDER (the scenario's "
         f"bus; default scenario: {ROBOT_SCENARIO})",
     )
@@ -129,8 +130,9 @@ def _add_rehearsal_arguments(cal) -> None:
     cal.add_argument(
         "--select",
         choices=["random", "chosen"],
-        default="random",
-        help="with --rehearse: the poses drawn at random or chosen (greedy D-optimal)",
+        default=None,
+        help="with --rehearse: the poses drawn at random or chosen (greedy D-optimal) "
+        "(default: random; with --bus chosen, as --plan chooses them)",
     )
     cal.add_argument(
         "--seed",
@@ -395,10 +397,11 @@ def _rehearse(args, context) -> int:
 
     plan, geometry, noise = context
     tolerances = Tolerances()
+    select = args.select or "random"
     print(
         f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
         f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
-        f"{args.poses} {args.select} poses, tracker {noise.words()}",
+        f"{args.poses} {select} poses, tracker {noise.words()}",
         flush=True,
     )
     from tqdm import tqdm
@@ -406,9 +409,9 @@ def _rehearse(args, context) -> int:
     with tqdm(total=3, desc="rehearsing", disable=args.no_progress, leave=False) as bar:
         space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
         bar.update(1)
-        idx = pick(geometry, space, args.poses, args.select, noise, tolerances, args.seed)
+        idx = pick(geometry, space, args.poses, select, noise, tolerances, args.seed)
         bar.update(1)
-        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, args.select)
+        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, select)
         bar.update(1)
     print(rehearsal_text(r, noise))
     if args.save_measurements is not None:

@@ -156,6 +156,7 @@ def rehearse_on_bus(
     folder,
     seed: int = 0,
     noise: MeasurementNoise | None = None,
+    select: str = "chosen",
     dwell_s: float = 3.0,
     n_candidates: int = 2000,
     progress: bool = False,
@@ -168,6 +169,7 @@ def rehearse_on_bus(
         scenario: a Scenario with a ``bus`` (its port is the emulator's).
         count: poses to measure (at least 12).  seed: the robot drawn and the noise.
         noise: the tracker's (default 5 um / 20 urad) with the servos' encoders' counts.
+        select: "chosen" (greedy D-optimal, as ``calibrate --plan`` chooses) or "random".
         dwell_s: s at rest at each pose (its first second to settle).
         n_candidates: admissible poses drawn to choose from.
         say: where the steps are told.
@@ -198,8 +200,10 @@ def rehearse_on_bus(
     folder.mkdir(parents=True, exist_ok=True)
     tolerances = Tolerances()
     truth = tolerances.draw(plan.geometry, seed)
-    say(f"drew a robot as built with seed {seed}; choosing {count} poses")
-    space, files = _plan_path(plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder)
+    say(f"drew a robot as built with seed {seed}; {select} poses: {count}")
+    space, files = _plan_path(
+        plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select
+    )
     run, path_s, t_true, x_true = _drive(plan, truth, files["poses"], folder, progress, say)
     files.update(log=run.logs, encoders=run.encoder_log)
     epoch = time.time() - time.perf_counter()  # the session's clock: perf_counter + epoch
@@ -232,16 +236,17 @@ def rehearse_on_bus(
     )
 
 
-def _plan_path(plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder):
+def _plan_path(plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select):
     """(the :class:`~stewart_drake.calibration.rehearsal.Workspace`, {"poses", "windows": the
-    files written}): ``count`` poses chosen among the candidates, the path through them."""
+    files written}): ``count`` poses picked (``select``) among the candidates, the path through
+    them."""
     from ..calibration.files import write_path
     from ..calibration.poses import pose_path
     from ..calibration.rehearsal import pick, workspace
 
     nominal, limits = plan.geometry, plan.motor_limits
     space = workspace(nominal, n_candidates, motor_limits=limits)
-    chosen = pick(nominal, space, count, "chosen", noise, tolerances, seed)
+    chosen = pick(nominal, space, count, select, noise, tolerances, seed)
     path = pose_path(nominal, space.candidates[chosen], dwell_s=dwell_s, motor_limits=limits)
     poses_csv, windows_csv = write_path(folder / "poses.csv", path)
     return space, {"poses": poses_csv, "windows": windows_csv}

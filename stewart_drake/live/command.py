@@ -434,6 +434,7 @@ def rehearse_calibration(args, context) -> int:
         args.bus,
         seed=args.seed,
         noise=noise,
+        select=args.select or "chosen",
         dwell_s=args.dwell,
         n_candidates=args.candidates,
         progress=not args.no_progress,
