@@ -83,10 +83,16 @@ def _checked_span(what: str, t: np.ndarray) -> float:
     return span
 
 
+def poses_at(t, t_known, x_known) -> np.ndarray:
+    """(len(t), 6) the poses x_known (n, 6), known at the increasing times t_known (n,),
+    interpolated linearly at the times t (held at the ends), each coordinate alone."""
+    return np.column_stack([np.interp(t, t_known, x_known[:, i]) for i in range(6)])
+
+
 def _speeds(t: np.ndarray, x: np.ndarray, span: float) -> np.ndarray:
     """The weighted speed (m/s) of poses x (n, 6) at times t, every COARSE_DT_S from t[0]."""
     grid = t[0] + COARSE_DT_S * np.arange(int(span / COARSE_DT_S) + 1)
-    sampled = np.column_stack([np.interp(grid, t, x[:, i]) for i in range(6)])
+    sampled = poses_at(grid, t, x)
     return np.linalg.norm(np.diff(sampled, axis=0) * _WEIGHT, axis=1) / COARSE_DT_S
 
 
@@ -123,8 +129,7 @@ def estimate_clock_offset(robot_t, planned, tracker_t, tracked) -> ClockOffset:
     def mean_square(d: float) -> tuple[float, int]:
         on = (tracker_t + d >= robot_t[0]) & (tracker_t + d <= robot_t[-1])
         at = tracker_t[on] + d
-        plan = np.column_stack([np.interp(at, robot_t, planned[:, i]) for i in range(6)])
-        gap = tracked[on] - plan
+        gap = tracked[on] - poses_at(at, robot_t, planned)
         count = int(on.sum())
         return (float(np.mean(np.sum((gap * _WEIGHT) ** 2, axis=1))) if count else np.inf), count
 

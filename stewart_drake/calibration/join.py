@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..base.fileio import atomic_write, decode_text, read_checked
-from .clock import ClockOffset, estimate_clock_offset
+from .clock import ClockOffset, estimate_clock_offset, poses_at
 from .files import ANGLE_UNITS, HEADER_CELL, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
 
 #: Largest file the join reads, bytes (a day of a 100 Hz log).
@@ -312,5 +312,5 @@ def _estimated_offset(log: dict, tracker_t, x_tracker, path_file) -> ClockOffset
         )
     x_path = np.column_stack([path[n] for n in POSE_COLUMNS])
     t_path = log["t_path"][on]
-    planned = np.column_stack([np.interp(t_path, path["t"], x_path[:, i]) for i in range(6)])
+    planned = poses_at(t_path, path["t"], x_path)
     return estimate_clock_offset(log["time"][on], planned, tracker_t, x_tracker)
