@@ -23,6 +23,7 @@ from stewart_drake.execution.runners import (
     JobFailure,
     ProcessRunner,
     SerialRunner,
+    call_job,
 )
 
 REPO = Path(__file__).resolve().parent.parent
@@ -154,6 +155,29 @@ def _signal_during_map(signum):
     ]
     assert left == []
     assert {s: signal.getsignal(s) for s in handlers} == handlers  # restored
+
+
+def wrapped_interrupt(job):
+    """A job a signal interrupted inside compiled code: numba's dispatcher hands back a
+    SystemError whose cause is the handler's Interrupted."""
+    if job == "compiled":
+        try:
+            raise Interrupted(signal.SIGTERM)
+        except Interrupted as err:
+            raise SystemError("<numba dispatcher> returned a result with an exception set") from err
+    return job
+
+
+def test_an_interrupt_wrapped_by_compiled_code_stops_a_serial_map_not_records_a_failure():
+    got = []
+    with pytest.raises(Interrupted) as info:
+        for job_id, outcome in SerialRunner().map(
+            wrapped_interrupt, {"a": "done", "b": "compiled", "c": "never"}
+        ):
+            got.append((job_id, outcome))
+    assert info.value.signum == signal.SIGTERM and got == [("a", "done")]
+    # Any other error stays the job's record.
+    assert isinstance(call_job(refuse, "b", "bad"), JobFailure)
 
 
 def test_a_signal_ignored_by_the_process_stays_ignored():

@@ -196,10 +196,20 @@ def raise_interrupted(signum, frame):
 
 
 def call_job(fn, job_id: str, job):
-    """Run one job (in the worker): its result, or the :class:`JobFailure` of what it raised."""
+    """Run one job (in the worker): its result, or the :class:`JobFailure` of what it raised.
+
+    Raises:
+        KeyboardInterrupt: Ctrl-C, or :class:`Interrupted`, while the job ran; also when it
+            comes back wrapped in another error (:func:`interrupt_in`: a signal inside compiled
+            code), so that it stops the map as any interrupt does instead of being recorded as
+            the job's failure.
+    """
     try:
         return fn(job)
     except Exception as err:  # noqa: BLE001 - a failure is a record, never a lost grid
+        interrupt = interrupt_in(err)
+        if interrupt is not None:
+            raise interrupt from err
         return JobFailure.from_exception(job_id, err)
 
 
