@@ -559,11 +559,20 @@ def test_cross_references_resolve_as_sphinx_does(target, ok):
 
 def test_ci_runs_the_readme_test_command_at_both_ends():
     """.ci/run runs the test command the README shows, on the oldest and the newest supported
-    Python, and the pins in pyproject.toml are those two ends."""
+    Python and once with README's install command as written (no other extra), and the pins
+    in pyproject.toml are those two ends."""
     ci = (REPO / ".ci" / "run").read_text()
     (command,) = re.findall(r"^TEST_COMMAND='(.+)'$", ci, re.M)
     readme = (REPO / "README.md").read_text()
     assert f"&& {command}\n" in readme, f"README.md does not show CI's test command {command!r}"
     assert "python3.13" in ci and "python3.11" in ci and "torch==2.13.0" in ci
+    # One run installs exactly what README's command installs, nothing before it and no other
+    # extra: a test that needs an extra and does not skip naming it fails there.
+    install = r'pip install -e "\.\[(\w+)\]" && '
+    (extras,) = re.findall(install + re.escape(command) + "$", readme, re.M)
+    runs = re.findall(r'^suite (\w+) "\$\w+" "([\w,]+)"(.*?) \|\|', ci, re.M)
+    assert (extras, "") in [(installed, before.strip()) for _, installed, before in runs], (
+        f"no CI run installs README's [{extras}] alone: {runs}"
+    )
     project = (REPO / "pyproject.toml").read_text()
     assert 'requires-python = ">=3.11,<3.14"' in project and '"drake>=1.51,<1.59"' in project
