@@ -15,14 +15,19 @@ from stewart_drake.run.result import load_result
 
 
 def test_version_names_this_package_drake_and_python(capsys):
+    """The versions as pyproject.toml and the installed Drake give them, not as written here."""
+    import tomllib
     from importlib.metadata import version
+    from pathlib import Path
 
+    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())
     with pytest.raises(SystemExit) as info:
         cli.main(["--version"])
     assert info.value.code == 0
     out = capsys.readouterr().out.strip()
     python = ".".join(map(str, sys.version_info[:3]))
-    assert out == f"stewart-drake 0.1.0 (drake {version('drake')}, Python {python})"
+    ours = project["project"]["version"]
+    assert out == f"stewart-drake {ours} (drake {version('drake')}, Python {python})"
 
 
 def _options():

@@ -13,6 +13,7 @@ from collections import Counter
 
 import numpy as np
 import pytest
+import scipy.linalg
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -313,8 +314,15 @@ def test_error_model_hautus_and_lqi_gain(B_c, h, q, r):
 )
 def test_hautus_and_lqi_gain_on_arbitrary_matrices(A, B, C):
     EXAMPLES["hautus"] += 1
-    _call(hautus_checks, A, B, C)
-    _call(lqi_gain, A, B, C, np.eye(B.shape[-1]) if B.ndim == 2 else B)
+    checks = _call(hautus_checks, A, B, C)
+    if checks is not None:  # the verdicts are the ranks' (eqs. 28-29), the ranks at most n
+        assert checks["stabilizable"] == (checks["rank_AB"] == checks["n"] == A.shape[0])
+        assert checks["detectable"] == (checks["rank_AC"] == checks["n"])
+        assert 0 <= checks["rank_AB"] <= checks["n"] and 0 <= checks["rank_AC"] <= checks["n"]
+    K = _call(lqi_gain, A, B, C, np.eye(B.shape[-1]) if B.ndim == 2 else B)
+    if K is not None:  # a gain returned is (m, n) and stabilizes A - B K (scipy's eigenvalues)
+        assert K.shape == (B.shape[1], A.shape[0])
+        assert np.max(np.abs(scipy.linalg.eigvals(A - B @ K))) < 1.0
 
 
 @_settings(150, reaches=("LqiScales",))

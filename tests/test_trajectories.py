@@ -1,5 +1,6 @@
-"""References from files and user objects: a bad CSV is refused naming the line, an evaluate of
-one time at a time is wrapped."""
+"""References from files and user objects: the paper's manoeuvre is eqs. 37-38 with their
+derivatives, a sine's rate and acceleration are its pose's, a bad CSV is refused naming the line,
+an evaluate of one time at a time is wrapped."""
 
 import numpy as np
 import pytest
@@ -7,6 +8,7 @@ import pytest
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
 from stewart_drake.references.trajectories import (
     ScalarEvaluate,
+    SineTrajectory,
     as_trajectory,
     paper_manoeuvre,
 )
@@ -16,6 +18,46 @@ from stewart_drake.run.scenario import (
 )
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.run.simulate import run_experiment
+
+
+def test_the_paper_manoeuvre_is_eqs_37_38_with_their_derivatives():
+    """phi = (pi/6) sin 2t rad, Z = 0.30 + 0.05 sin 2t m, the other axes at home; the rates and
+    accelerations differentiated by hand."""
+    t = np.linspace(0.0, 10.0, 41)
+    x, v, a = paper_manoeuvre().evaluate(t)
+    zero = np.zeros_like(t)
+    np.testing.assert_allclose(x[:, 0], np.pi / 6 * np.sin(2 * t), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(v[:, 0], np.pi / 3 * np.cos(2 * t), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(a[:, 0], -2 * np.pi / 3 * np.sin(2 * t), rtol=0, atol=1e-14)
+    np.testing.assert_allclose(x[:, 5], 0.30 + 0.05 * np.sin(2 * t), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(v[:, 5], 0.10 * np.cos(2 * t), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(a[:, 5], -0.20 * np.sin(2 * t), rtol=0, atol=1e-15)
+    for k in range(1, 5):
+        for got in (x[:, k], v[:, k], a[:, k]):
+            np.testing.assert_array_equal(got, zero)
+
+
+def test_a_sine_s_rate_and_acceleration_are_the_derivatives_of_its_pose():
+    """Every axis with its own amplitude, frequency, phase and offset: the rate against a central
+    difference of the pose, the acceleration against one of the rate (step 1e-6 s: the
+    differences' error is about 1e-8 of the value)."""
+    sine = SineTrajectory(
+        amplitude=(0.1, -0.05, 0.02, 0.01, 0.004, -0.02),
+        frequency_hz=(0.2, 0.5, 1.1, 0.3, 2.0, 0.25),
+        phase=(0.0, 0.4, -1.0, 2.5, 3.0, -0.3),
+        offset=(0.01, 0.0, -0.02, 0.001, 0.0, 0.3),
+    )
+    t, h = np.linspace(0.05, 6.0, 97), 1e-6
+    x, v, a = sine.evaluate(t)
+    ahead, behind = sine.evaluate(t + h), sine.evaluate(t - h)
+    np.testing.assert_allclose(v, (ahead[0] - behind[0]) / (2 * h), rtol=0, atol=2e-8)
+    np.testing.assert_allclose(a, (ahead[1] - behind[1]) / (2 * h), rtol=0, atol=1e-7)
+    # and the pose itself at t = 0: offset + amplitude sin(phase)
+    np.testing.assert_allclose(
+        sine.evaluate(0.0)[0],
+        np.add(sine.offset, np.multiply(sine.amplitude, np.sin(sine.phase))),
+        atol=1e-15,
+    )
 
 
 def test_bad_csv_files_name_the_line(tmp_path):
