@@ -53,6 +53,29 @@ def test_every_option_shows_its_default_in_help():
     assert "(default: results)" in help_text and "(default: paper_hardware)" in help_text
 
 
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (
+            ["check", "--trajectory-file", "x.csv"],
+            "stewart-drake check: error: unrecognized "
+            "arguments: --trajectory-file (see stewart-drake check --help)",
+        ),
+        (
+            ["run", "extra"],
+            "stewart-drake run: error: unrecognized arguments: extra (see "
+            "stewart-drake run --help)",
+        ),
+    ],
+)
+def test_an_option_a_command_does_not_take_is_refused_by_that_command(argv, expected, capsys):
+    """The refusal names the command and the help that lists its options, not the top one's."""
+    with pytest.raises(SystemExit) as info:
+        cli.main(argv)
+    assert info.value.code == 2
+    assert capsys.readouterr().err.strip() == expected
+
+
 def test_trajectory_lists_its_choices():
     (action,) = [
         a for name, _, a in _options() if name == "run" and "--trajectory" in a.option_strings

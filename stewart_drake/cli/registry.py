@@ -67,6 +67,18 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
+    def parse_args(self, args=None, namespace=None):
+        """argparse's, with an option the command does not take refused by that command's
+        parser ("stewart-drake check: error: unrecognized arguments: --x (see stewart-drake
+        check --help)") instead of the top one's, whose help does not list it."""
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            commands = [a for a in self._actions if isinstance(a, argparse._SubParsersAction)]
+            command = getattr(parsed, "command", None)
+            owner = commands[0].choices.get(command, self) if commands and command else self
+            owner.error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed
+
 
 def version_text() -> str:
     """``stewart-drake --version``: this package's, Drake's and Python's versions."""
