@@ -113,8 +113,8 @@ def test_format_bytes_and_the_memory_check():
         pytest.skip("this machine does not say its memory: the check is skipped")
     with pytest.raises(
         InvalidConfigError,
-        match=r"^a run: about more than any machine has of "
-        r"memory needed, .* available on this machine; "
+        match=r"^a run: more memory needed than any machine has, and than the .* available on "
+        r"this machine; "
         r"shorten --duration$",
     ):
         check_memory("a run", float("inf"), "shorten --duration")

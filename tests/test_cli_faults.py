@@ -101,6 +101,17 @@ def test_unwritable_output_is_refused_before_any_work(capsys, tmp_path, argv):
     assert f"cannot write to {blocker}" in line and "is a file; choose another output" in line
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_an_output_where_no_file_can_be_made_names_the_folder_that_refuses_it(capsys):
+    """/proc exists but takes no new file, whoever asks (root too): the refusal names the
+    folder that refuses, not only the output asked for."""
+    line = _one_line_error(capsys, ["sdf", "--out", "/proc/stewart-drake-x/robot.sdf"])
+    assert line.endswith(
+        "cannot write to /proc/stewart-drake-x: no file can be made in /proc (No such file or "
+        "directory); choose another output with --out"
+    ), line
+
+
 def test_a_diverged_run_gives_one_line_naming_the_saved_file(
     capsys, tmp_path, monkeypatch, feedforward_fault
 ):

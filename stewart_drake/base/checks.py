@@ -198,8 +198,11 @@ def check_memory(what: str, need_bytes: float, change: str) -> None:
     """
     available = available_memory_bytes()
     if available is not None and not need_bytes <= available:
-        need = format_bytes(need_bytes) if np.isfinite(need_bytes) else "more than any machine has"
+        need = (
+            f"about {format_bytes(need_bytes)} of memory needed, more than"
+            if np.isfinite(need_bytes)
+            else "more memory needed than any machine has, and than"
+        )
         raise InvalidConfigError(
-            f"{what}: about {need} of memory needed, more than the "
-            f"{format_bytes(available)} available on this machine; {change}"
+            f"{what}: {need} the {format_bytes(available)} available on this machine; {change}"
         )

@@ -65,6 +65,12 @@ def check_writable(folder: Path, option: str = "--out") -> None:
         with tempfile.TemporaryFile(dir=existing):
             pass
     except OSError as err:
+        if not isinstance(err, NotADirectoryError):  # the folder, or where it would be made
+            where = "there" if existing == folder.absolute() else f"in {existing}"
+            raise InvalidConfigError(
+                f"cannot write to {folder}: no file can be made {where} "
+                f"({err.strerror or err}); choose another output with {option}"
+            ) from None
         raise InvalidConfigError(
             f"cannot write to {folder}: {err.strerror or err}; choose another output with {option}"
         ) from None
