@@ -6,16 +6,50 @@ The LQI's control step (:mod:`stewart_drake.control.lqi`, whose cache
 arithmetic (:mod:`stewart_drake.robot.path_kernels`) are compiled this way. numba keeps one
 index file per compiled function in the first cache folder it can write: ``NUMBA_CACHE_DIR``,
 else ``__pycache__`` beside the source, else the user's cache folder, else (:func:`njit_cached`
-sets it) a folder in the temporary directory. This module imports numba only when a function
-here needs it.
+sets it) a folder in the temporary directory, made private to the user.
+
+numba's index and data files are pickles, and unpickling runs whatever a pickle names: a cache
+folder another user can write in (a folder of the shared temporary directory planted before
+ours, a ``__pycache__`` open to all) would let them run code as this user. So the folder is used
+only when it is this user's own and no one else may write in it (:func:`cache_folder_problem`);
+else the code compiles in every process, and says so once. A damaged entry (a truncated write,
+a full disk) is discarded and compiled again, and said once, instead of failing every later
+run. This module imports numba only when a function here needs
+it.
 """
 
 from __future__ import annotations
 
+import functools
 import os
+import pickle
+import stat
+import sys
 import tempfile
 import types
 from typing import Any
+
+#: What a damaged numba cache file raises when read (pickle's errors, a truncated stream, a
+#: payload naming what no longer exists).
+DAMAGED_CACHE_ERRORS = (
+    pickle.UnpicklingError,
+    EOFError,
+    ValueError,
+    TypeError,
+    AttributeError,
+    ImportError,
+    IndexError,
+    KeyError,
+    MemoryError,
+)
+_SAID: set = set()
+
+
+def _say_once(key, line: str) -> None:
+    """``line`` on stderr, once per process for ``key``."""
+    if key not in _SAID:
+        _SAID.add(key)
+        print(f"stewart-drake: {line}", file=sys.stderr, flush=True)
 
 
 def fallback_cache_dir() -> str:
@@ -24,32 +58,127 @@ def fallback_cache_dir() -> str:
     return os.path.join(tempfile.gettempdir(), f"stewart-drake-numba-cache-{user}")
 
 
+def cache_folder_problem(folder, root=None) -> str | None:
+    """Why numba's cache in ``folder`` could hold another user's pickles, or None when it is
+    safe: ``folder`` and each folder between it and ``root`` (the cache's top, e.g.
+    ``NUMBA_CACHE_DIR``; None: ``folder`` alone) must be a folder (not a symbolic link, but for
+    a ``root`` the user chose, which may be a link; :func:`fallback_cache_dir`, in the shared
+    temporary directory, may not), owned by this user, that no one else may write in. Where
+    the system has no user ids (Windows), only the kind is checked."""
+    folder = os.path.abspath(folder)
+    top = os.path.abspath(root) if root else folder
+    follow = root is not None and top != os.path.abspath(fallback_cache_dir())
+    chain = [folder]
+    while chain[-1] != top and os.path.dirname(chain[-1]) != chain[-1]:
+        if not chain[-1].startswith(top + os.sep):
+            break
+        chain.append(os.path.dirname(chain[-1]))
+    for path in chain:
+        try:
+            st = os.stat(path) if path == top and follow else os.lstat(path)
+        except OSError as err:
+            return f"{path} cannot be examined ({err.strerror or err})"
+        if stat.S_ISLNK(st.st_mode):
+            return f"{path} is a symbolic link"
+        if not stat.S_ISDIR(st.st_mode):
+            return f"{path} is not a folder"
+        if hasattr(os, "getuid") and st.st_uid != os.getuid():
+            return f"{path} belongs to user id {st.st_uid}, not to you ({os.getuid()})"
+        if hasattr(os, "getuid") and st.st_mode & 0o022:
+            return f"others may write in {path} (mode {stat.S_IMODE(st.st_mode):o})"
+    return None
+
+
+def _private_folder(path: str) -> None:
+    """Make ``path`` readable and writable by this user alone, if it does not exist (its
+    parent, the temporary directory, exists); an existing one is judged by
+    :func:`cache_folder_problem`."""
+    try:
+        os.mkdir(path, 0o700)
+    except OSError:
+        pass
+
+
 def njit_cached(function, cache: bool = True, **options):
-    """``numba.njit(cache=True, **options)(function)``, with the cache where numba can write;
-    without the cache when ``cache`` is false (the LQI's kernels ask
-    :func:`~stewart_drake.control.kernel_cache.use_cache` once). ``options``: numba's own
+    """``numba.njit(cache=True, **options)(function)``, with the cache in a folder that is safe
+    to load from (:func:`cache_folder_problem`) and damaged entries compiled again; without the
+    cache when ``cache`` is false (the LQI's kernels ask
+    :func:`~stewart_drake.control.kernel_cache.use_cache` once) or when no safe folder is found
+    (said once on stderr, with what to do). ``options``: numba's own
     (``error_model="numpy"``: a division by zero gives inf or NaN, as numpy's, not an error).
 
     numba refuses to cache (RuntimeError at decoration) when neither ``NUMBA_CACHE_DIR``, the
     source's ``__pycache__`` nor the user's cache folder is writable: the cache then goes to
-    :func:`fallback_cache_dir`, and if even that fails the function compiles in every process.
+    :func:`fallback_cache_dir`, made private to the user, and if even that fails the function
+    compiles in every process.
     """
     import numba
 
     if not cache:
         return numba.njit(**options)(function)
-    try:
-        return numba.njit(cache=True, **options)(function)
-    except RuntimeError:
-        pass
     config: Any = numba.config  # its settings are module attributes numba sets at import
-    if not config.CACHE_DIR:
+    try:
+        dispatcher = numba.njit(cache=True, **options)(function)
+    except RuntimeError:
+        if config.CACHE_DIR:
+            return numba.njit(**options)(function)
         config.CACHE_DIR = fallback_cache_dir()
+        _private_folder(config.CACHE_DIR)
         try:
-            return numba.njit(cache=True, **options)(function)
+            dispatcher = numba.njit(cache=True, **options)(function)
         except RuntimeError:
             config.CACHE_DIR = ""
-    return numba.njit(**options)(function)
+            return numba.njit(**options)(function)
+    folder = getattr(getattr(dispatcher, "_cache", None), "_cache_path", None)
+    if folder is None:  # NUMBA_DISABLE_JIT: the function itself, nothing cached
+        return dispatcher
+    problem = cache_folder_problem(folder, config.CACHE_DIR or None)
+    if problem is not None:
+        _say_once(
+            ("unsafe", folder),
+            f"numba's cache folder {folder} is not safe to load compiled code from: {problem}; "
+            "compiling without a disk cache (every run compiles again): set NUMBA_CACHE_DIR to "
+            "a folder of your own that no one else may write in",
+        )
+        return numba.njit(**options)(function)
+    cache_file = dispatcher._cache._cache_file
+    cache_file.__class__ = _recovering(type(cache_file))  # type: ignore[arg-type]
+    return dispatcher
+
+
+@functools.cache
+def _recovering(base: type) -> type:
+    """numba's cache file class ``base`` (its ``IndexDataCacheFile``), whose reads discard a
+    damaged index or data file and compile again instead of raising."""
+
+    class _RecoveringCacheFile(base):
+        def _discard(self, path: str, err: BaseException) -> None:
+            try:
+                os.remove(path)
+            except OSError:
+                pass
+            _say_once(
+                ("damaged", path),
+                f"numba's cache file {path} was damaged ({type(err).__name__}); it was removed "
+                "and the code compiles again",
+            )
+
+        def _load_index(self):
+            try:
+                return super()._load_index()
+            except DAMAGED_CACHE_ERRORS as err:
+                self._discard(self._index_path, err)
+                return {}
+
+        def _load_data(self, name):
+            try:
+                return super()._load_data(name)
+            except DAMAGED_CACHE_ERRORS as err:
+                self._discard(self._data_path(name), err)
+                return None
+
+    _RecoveringCacheFile.__name__ = _RecoveringCacheFile.__qualname__ = "_RecoveringCacheFile"
+    return _RecoveringCacheFile
 
 
 def interpreted(namespace: dict) -> types.SimpleNamespace:

@@ -24,6 +24,7 @@ from pathlib import Path
 
 # How the kernels are compiled, and their uncompiled form: the package's one convention, in base
 # (the robot's validator compiles its kernels the same way), named here for the LQI's modules.
+from ..base.compiled import cache_folder_problem
 from ..base.compiled import fallback_cache_dir as fallback_cache_dir
 from ..base.compiled import interpreted as interpreted
 from ..base.compiled import njit_cached as njit_cached
@@ -124,7 +125,8 @@ def _valid_index(path: str, stamps: tuple, cpu: tuple[str, str]) -> bool:
 
 def will_compile(source: Path | None = None, entries=None) -> bool:
     """Whether importing the kernels compiles them: the cache is bypassed (:func:`use_cache`),
-    numba has no writable cache folder, or that folder has no valid index
+    numba has no writable cache folder or none safe to load from
+    (:func:`~stewart_drake.base.compiled.cache_folder_problem`), or that folder has no valid index
     (:func:`_valid_index`) for one of the entry points.
 
     Args:
@@ -138,9 +140,13 @@ def will_compile(source: Path | None = None, entries=None) -> bool:
     sources = KERNEL_FILES if source is None else (Path(source),)
     cpu = _host_cpu()
     abi = f"py{sys.version_info[0]}{sys.version_info[1]}{getattr(sys, 'abiflags', '')}"
+    import numba
+
     for path in sources:
         folder = cache_folder(path)
-        if folder is None:
+        # an index is a pickle: read only from a folder that is safe to load from
+        chosen = getattr(numba.config, "CACHE_DIR", "")
+        if folder is None or cache_folder_problem(folder, chosen or None):
             return True
         try:
             st = os.stat(path)
