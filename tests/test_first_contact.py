@@ -344,3 +344,34 @@ def test_workspace_says_what_it_writes_after_the_sweep(tmp_path, capsys):
     assert (tmp_path / "workspace.png").stat().st_size > 10_000
     assert cli.main([*argv, "--no-progress"]) == 0
     assert "writing workspace.npz" not in capsys.readouterr().err
+
+
+def test_design_s_confirmation_runs_leave_their_divergence_logs_under_out(
+    tmp_path, capsys, designed, monkeypatch
+):
+    """A base scenario whose guard.divergence_dir names a folder elsewhere: the confirmation
+    runs' scenarios carry ``--out``'s ``diverged`` instead, as every other command's runs do;
+    the written scenario files keep the base's own setting."""
+    from stewart_drake.design import design_confirm
+
+    requirements, finished = designed
+    out = tmp_path / "out"
+    shutil.copytree(finished, out)
+    outside = tmp_path / "elsewhere"
+    base = tmp_path / "base.yaml"
+    setting = f"guard.divergence_dir={outside}"
+    assert cli.main(["scenario", "paper_hardware", "--set", setting, "--out", str(base)]) == 0
+    seen = []
+
+    def run_motion(job):
+        seen.append(job.scenario.guard.divergence_dir)
+        return design_confirm._failed_row(job, "not run in this test")
+
+    monkeypatch.setattr(design_confirm, "run_motion", run_motion)
+    argv = ["design", str(requirements), "--out", str(out), "--scenario", str(base)]
+    argv += [a for a in DESIGN if a != "--no-confirm"]
+    assert cli.main(argv) == 0, capsys.readouterr().err
+    assert seen and set(seen) == {str(out / "diverged")}, seen
+    assert not outside.exists()
+    written = (out / "design_objective.yaml").read_text()
+    assert f"divergence_dir: {outside}" in written  # the user's scenario, as the user wrote it

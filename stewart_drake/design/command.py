@@ -74,7 +74,7 @@ def _add_design_command(sub) -> None:
     dsg.add_argument("--out", default="results/design", help="output folder")
     add_runner_arguments(dsg)
     dsg.add_argument("--no-progress", action="store_true", help="hide the progress bars")
-    dsg.set_defaults(func=_cmd_design)
+    dsg.set_defaults(func=_cmd_design, out_sub=("search", "diverged"))
 
 
 def _cmd_design(args) -> int:

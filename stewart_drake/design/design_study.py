@@ -12,8 +12,9 @@ report and as the return value's ``binding``.
 
 from __future__ import annotations
 
+
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -75,7 +76,7 @@ def run_design(
     Args:
         requirements_path: a requirements YAML file (``scenarios/design_requirements.yaml``).
         out_dir: the study's folder: ``search/`` (the optimizer's store: a rerun continues),
-            ``design.md``, ``front.png``, ``designs.png``, ``margins.png``, ``designs.json`` and
+            ``diverged/`` (the logs of a confirmation run the guard stopped), ``design.md``, ``front.png``, ``designs.png``, ``margins.png``, ``designs.json`` and
             ``design_<role>.yaml`` per chosen design.
         motor, objective: the main search's (:data:`~.margins.OBJECTIVES`).
         cheapest: also search the catalogue's motors from the cheapest up.
@@ -121,9 +122,13 @@ def run_design(
 
         designs = {role: e.design for role, e in _columns(outcome)}
         designs["reference"] = reference_design()
+        # A confirmation run the guard stops leaves its logs in the study's folder, wherever
+        # the base scenario's guard.divergence_dir points (the scenario files keep the base's).
+        diverged = str(out / "diverged")
+        confirming = replace(base, guard=replace(base.guard, divergence_dir=diverged))
         for role, design in designs.items():
             outcome.confirmation[role] = run_confirm(
-                design, requirements, base=base, runner=runner, progress=progress
+                design, requirements, base=confirming, runner=runner, progress=progress
             )
     outcome.files = _write(out, outcome, requirements, objective, base)
     return outcome
