@@ -12,7 +12,6 @@ report and as the return value's ``binding``.
 
 from __future__ import annotations
 
-
 import json
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -76,7 +75,8 @@ def run_design(
     Args:
         requirements_path: a requirements YAML file (``scenarios/design_requirements.yaml``).
         out_dir: the study's folder: ``search/`` (the optimizer's store: a rerun continues),
-            ``diverged/`` (the logs of a confirmation run the guard stopped), ``design.md``, ``front.png``, ``designs.png``, ``margins.png``, ``designs.json`` and
+            ``diverged/`` (the logs of a confirmation run the guard stopped), ``design.md``,
+            ``front.png``, ``designs.png``, ``margins.png``, ``designs.json`` and
             ``design_<role>.yaml`` per chosen design.
         motor, objective: the main search's (:data:`~.margins.OBJECTIVES`).
         cheapest: also search the catalogue's motors from the cheapest up.
