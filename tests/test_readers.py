@@ -71,6 +71,8 @@ STRING_PARSERS = {"json.loads"}
 ALLOWED = {
     # The machine's memory, from the kernel's own files (/proc/meminfo, the cgroup's limit).
     ("base/checks.py", "available_memory_bytes", "open"),
+    # What this process maps, against its address-space limit (/proc/self/statm).
+    ("base/checks.py", "_address_space_room", "open"),
     # Our own source files, hashed for numba's cache key.
     ("control/kernel_cache.py", "sources_digest", "Path(...).read_bytes"),
     ("control/kernel_cache.py", "will_compile", "Path(...).read_bytes"),
@@ -341,3 +343,66 @@ def test_design_task_samples_are_read_through_the_checked_reader(tmp_path):
     _npz_with_header(tmp_path / "bad.npz", "x", (10**12, 6))
     with pytest.raises(CorruptFileError, match="design task samples"):
         TaskSamples.load(tmp_path / "bad.npz")
+
+
+# -- every reader estimates its parse's memory before it parses ------------------------------------
+
+#: The checked reader's own calls, which are not readers of a kind of file.
+READER_PRIMITIVES = {"read_checked", "read_json", "CheckedNpz"}
+#: Readers whose bytes are not parsed into anything larger, each with why.
+NOT_PARSED = {
+    # The settings file's bytes are hashed, nothing is built from them.
+    ("execution/store.py", "file_digest"),
+}
+
+
+def _calls(node) -> set:
+    names = set()
+    for call in ast.walk(node):
+        if isinstance(call, ast.Call):
+            f = call.func
+            names.add(f.id if isinstance(f, ast.Name) else getattr(f, "attr", ""))
+    return names
+
+
+def readers_and_estimates() -> tuple[list, set]:
+    """([(module, function, calls)] of every package function that calls the checked reader,
+    the names that estimate a parse's memory: ``check_parse_memory``, ``check_memory``, and the
+    readers that call one themselves before they parse (``read_json``; ``CheckedNpz``, whose
+    entries' decompressed sizes are checked); not ``read_checked``, which bounds a file's
+    bytes, not what is built from them)."""
+    functions = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        rel = str(path.relative_to(PACKAGE))
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                functions.append((rel, node.name, _calls(node)))
+    own = {name: calls for rel, name, calls in functions if rel == "base/fileio.py"}
+    estimates = {"check_parse_memory", "check_memory"}
+    assert "check_parse_memory" in own["read_json"]
+    assert "check_memory" in own["_check_entries"] and "_check_entries" in own["__init__"]
+    estimates |= {"read_json", "CheckedNpz", "_check_entries"}
+    readers = [f for f in functions if f[2] & READER_PRIMITIVES and f[1] not in READER_PRIMITIVES]
+    return readers, estimates
+
+
+def test_every_reader_estimates_its_parse_s_memory_before_it_parses():
+    """A file within its byte bound can still cost tens of times its size to parse (a 200 MB
+    CSV took 7.5 GB as lists of strings): each function that reads a file through the checked
+    reader also estimates what its parse needs (base.fileio.check_parse_memory, or check_memory
+    on a size it computed), so a file too large for the machine is one line, not a
+    MemoryError."""
+    readers, estimates = readers_and_estimates()
+    assert len(readers) >= 8, readers  # the scan sees the package's readers
+    names = {(rel, name) for rel, name, _ in readers}
+    assert ("calibration/files.py", "read_csv_columns") in names
+    assert ("references/trace_files.py", "read_trace_table") in names
+    missing = [
+        f"stewart_drake/{rel}: {name}"
+        for rel, name, calls in readers
+        if not calls & estimates and (rel, name) not in NOT_PARSED
+    ]
+    assert not missing, (
+        "these read a file and parse it without estimating the parse's memory first "
+        "(call base.fileio.check_parse_memory with what the parse costs):\n" + "\n".join(missing)
+    )

@@ -142,23 +142,43 @@ def check_multiple(name: str, period_s: float, base_name: str, base_s: float) ->
     return n
 
 
+def _address_space_room() -> float | None:
+    """Bytes this process may still map under its address-space limit (``ulimit -v``,
+    ``RLIMIT_AS``): the limit less what it maps now; None without a limit."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_AS)[0]
+        if soft == resource.RLIM_INFINITY:
+            return None
+        with open("/proc/self/statm") as f:
+            mapped = float(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (ImportError, OSError, ValueError, IndexError, AttributeError):
+        return None
+    return max(float(soft) - mapped, 0.0)
+
+
 def available_memory_bytes() -> float | None:
     """Memory this process may still take, bytes: the kernel's MemAvailable, capped by a cgroup
-    limit (containers, CI); None where neither can be read (the check is then skipped)."""
-    available = None
+    limit (containers, CI) and by the process's address-space limit (``ulimit -v``); None where
+    none can be read (the check is then skipped)."""
+    available = _address_space_room()
+    free = None
     try:
         with open("/proc/meminfo") as f:
             for line in f:
                 if line.startswith("MemAvailable:"):
-                    available = float(line.split()[1]) * 1024
+                    free = float(line.split()[1]) * 1024
                     break
     except (OSError, ValueError, IndexError):
         pass
-    if available is None:
+    if free is None:
         try:
-            available = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+            free = float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
         except (AttributeError, ValueError, OSError):
             pass
+    if free is not None:
+        available = free if available is None else min(available, free)
     for limit_file, used_file in (
         ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory.current"),
         (

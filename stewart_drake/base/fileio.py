@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from numpy.lib import format as npy_format
 
-from .checks import check_memory, format_bytes
+from .checks import available_memory_bytes, check_memory, format_bytes
 from .errors import CorruptFileError, InvalidConfigError
 
 #: The temporaries of :func:`atomic_write`: ``.<name>.<host>-<pid>.<random>.tmp``, hidden, named
@@ -231,6 +231,48 @@ def decode_text(raw: bytes, path, kind: str, remedy: str = "", encoding: str = "
         ) from None
 
 
+#: Memory a YAML document (a scenario, design requirements) takes to compose and load per byte
+#: of its text, bytes: PyYAML's events and nodes, then Drake's typed load (about 40 measured).
+YAML_BYTES_PER_BYTE = 64.0
+#: Memory json.loads takes per byte of a document, beyond the bytes (objects, floats, strings:
+#: 9-12 measured on a run's rows and a design generation).
+JSON_BYTES_PER_BYTE = 16.0
+
+
+def check_parse_memory(
+    path, kind: str, raw: bytes, bytes_per_row: float = 0.0, bytes_per_byte: float = 0.0
+) -> int:
+    """Refuse, before it is parsed, a file whose parse would need more memory than this process
+    has: ``raw`` (its bytes, already read) costs ``bytes_per_row`` per line and
+    ``bytes_per_byte`` per byte beyond itself (each reader states what its parse measured).
+    Every reader of a file the user names calls this between :func:`read_checked` and its
+    parse, so that a long file is refused in one line instead of ending in a MemoryError or
+    swapping for minutes.
+
+    Returns:
+        the file's lines (its newlines, and a last line without one).
+    Raises:
+        InvalidConfigError: one line: the estimate, the memory available
+            (:func:`~.checks.available_memory_bytes`: the machine, a cgroup, ``ulimit -v``) and
+            the size of such a file that would fit.
+    """
+    rows = raw.count(b"\n") + (1 if raw and not raw.endswith(b"\n") else 0)
+    need = rows * bytes_per_row + len(raw) * bytes_per_byte
+    available = available_memory_bytes()
+    if available is not None and need > available:
+        per_byte = need / max(len(raw), 1)
+        fits = f"{format_bytes(available / per_byte)}"
+        if bytes_per_row:
+            fits += f" (about {int(available / (need / rows)):,} lines)"
+        raise InvalidConfigError(
+            f"{path}: reading this {kind} of {format_bytes(len(raw))} ({rows:,} lines) needs "
+            f"about {format_bytes(need)} of memory, more than the {format_bytes(available)} "
+            f"available; one of up to about {fits} fits here: split it into shorter files, "
+            "or free some memory"
+        )
+    return rows
+
+
 def read_json(path, kind: str, remedy: str = "", max_bytes: float = MAX_JSON_BYTES):
     """The JSON document in ``path`` (:func:`read_checked`, at most ``max_bytes``).
 
@@ -240,6 +282,7 @@ def read_json(path, kind: str, remedy: str = "", max_bytes: float = MAX_JSON_BYT
         OSError: the file cannot be read.
     """
     raw = read_checked(path, kind, max_bytes, remedy)
+    check_parse_memory(path, kind, raw, bytes_per_byte=JSON_BYTES_PER_BYTE)
     try:
         return json.loads(raw.decode("utf-8"))
     except (UnicodeDecodeError, ValueError, RecursionError) as err:

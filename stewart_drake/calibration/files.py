@@ -24,7 +24,6 @@ pose with the window of time to measure it in.
 from __future__ import annotations
 
 import csv
-import io
 import math
 import re
 from dataclasses import dataclass, fields
@@ -33,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
-from ..base.fileio import atomic_write, decode_text, read_checked
+from ..base.fileio import atomic_write, check_parse_memory, decode_text, read_checked
 from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
 from .poses import PosePath
@@ -127,8 +126,100 @@ def _header(path, cells: list, counts_per_rev: int) -> tuple[dict, list, list]:
     return found, ignored, converted
 
 
+#: Memory the reading of a calibration CSV takes per line beyond its text, bytes: the SI values
+#: of up to 15 columns and the line's number, 8 bytes each (the text costs one byte a byte).
+CSV_BYTES_PER_LINE = 128.0
+
+
+def _lines(text: str):
+    """(number from 1, line with its newline) of ``text``'s lines that are neither blank nor
+    ``#`` comments, one at a time (the whole list of a long file's lines would cost ~60 bytes a
+    line); lines end at ``\n``, ``\r\n`` or, in a file with no ``\n``, ``\r``."""
+    newline = "\n" if "\n" in text or "\r" not in text else "\r"
+    start, number = 0, 0
+    while start < len(text):
+        end = text.find(newline, start)
+        end = len(text) if end < 0 else end
+        line = text[start:end]
+        start, number = end + 1, number + 1
+        if line.strip() and not line.lstrip().startswith("#"):
+            yield number, line.rstrip("\r") + "\n"
+
+
+def read_csv_columns(
+    path, what: str, max_bytes: float, remedy: str, columns_of, nan_ok=(), bad_cell: str = ""
+) -> tuple[dict, np.ndarray]:
+    """The columns of a calibration CSV (a first line naming the columns with their units,
+    ``#`` comments, blank lines), in SI units, read row by row into arrays allocated once from
+    the file's line count, after its memory is estimated
+    (:func:`~stewart_drake.base.fileio.check_parse_memory`): the peak is about 2.5 times the file.
+
+    Args:
+        path: the CSV.  what: its kind, for messages.  max_bytes: the largest such file.
+        remedy: what a bad file is told to become.
+        columns_of: header cells -> {name: (index, factor to SI)} of the columns to read
+            (raising InvalidConfigError for a bad header).
+        nan_ok: the columns where ``nan`` is a value.  bad_cell: appended to a bad cell's message.
+    Returns:
+        ({name: (N,) values}, (N,) the file's line of each row).
+    Raises:
+        MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
+            UTF-8 or not CSV.  InvalidConfigError: too long for the memory, no header, a header
+            ``columns_of`` refuses, a row of another width or a cell that is not a finite
+            number (its line and column named).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise MissingFileError(f"no {what} at {path}: check the path")
+    raw = read_checked(path, what, max_bytes, remedy)
+    rows_bound = check_parse_memory(path, what, raw, CSV_BYTES_PER_LINE, 1.0)
+    text = decode_text(raw, path, what, remedy, "utf-8-sig")
+    del raw
+    numbered = _lines(text)
+    number = 0
+
+    def cells_of():
+        nonlocal number
+        for k, line in numbered:
+            number = k
+            yield line
+
+    reader = csv.reader(cells_of())
+    try:
+        header = next(reader, None)
+        if header is None:
+            raise InvalidConfigError(f"{path}: the {what} is empty; {remedy}")
+        found = columns_of(header)
+        width = len(header)
+        out = {name: np.empty(rows_bound) for name in found}
+        lines = np.empty(rows_bound, dtype=int)
+        n = 0
+        for row in reader:
+            if len(row) != width:
+                raise InvalidConfigError(
+                    f"{path}, line {number}: {len(row)} cells where the header names {width}"
+                )
+            for name, (index, factor) in found.items():
+                try:
+                    v = float(row[index])
+                except ValueError:
+                    v = math.inf
+                if not (math.isfinite(v) or (math.isnan(v) and name in nan_ok)):
+                    raise InvalidConfigError(
+                        f"{path}, line {number}, column {name}: {row[index].strip()[:40]!r} is "
+                        f"not a finite number{bad_cell}"
+                    )
+                out[name][n] = v * factor
+            lines[n] = number
+            n += 1
+    except csv.Error as err:
+        raise CorruptFileError(path, what, f"not CSV ({err})", remedy) from None
+    return {name: values[:n].copy() for name, values in out.items()}, lines[:n].copy()
+
+
 def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
-    """The measured poses and readings of a measurements file (module docstring).
+    """The measured poses and readings of a measurements file (module docstring), read by
+    :func:`read_csv_columns`.
 
     Args:
         path: the CSV.  counts_per_rev: the encoders' counts per revolution (for readings in
@@ -137,50 +228,27 @@ def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
         :class:`MeasurementsFile`, in SI units.
     Raises:
         MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
-            UTF-8 or not CSV.  InvalidConfigError: a header without a required column, a unit
-            unknown or of the wrong kind, a cell that is not a finite number (its line and column
-            named), fewer than :data:`~.identify.MIN_POSES` poses.
+            UTF-8 or not CSV.  InvalidConfigError: too long for the memory, a header without a
+            required column, a unit unknown or of the wrong kind, a cell that is not a finite
+            number (its line and column named), fewer than :data:`~.identify.MIN_POSES` poses.
     """
-    path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"no measurements file at {path}: check the path")
-    raw = read_checked(path, "measurements file", MAX_MEASUREMENTS_BYTES, MEASUREMENTS_REMEDY)
-    text = decode_text(raw, path, "measurements file", MEASUREMENTS_REMEDY, "utf-8-sig")
-    del raw
-    numbered = [
-        (n, line)
-        for n, line in enumerate(text.splitlines(), start=1)
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    if not numbered:
-        raise InvalidConfigError(f"{path}: the file is empty; {MEASUREMENTS_REMEDY}")
-    try:
-        rows = list(csv.reader(io.StringIO("\n".join(line for _, line in numbered))))
-    except csv.Error as err:
-        raise CorruptFileError(
-            path, "measurements file", f"not CSV ({err})", MEASUREMENTS_REMEDY
-        ) from None
-    columns, ignored, converted = _header(path, rows[0], counts_per_rev)
-    values = np.empty((len(rows) - 1, 12))
-    width = len(rows[0])
-    order = READING_COLUMNS + POSE_COLUMNS
-    for r, ((line, _), row) in enumerate(zip(numbered[1:], rows[1:])):
-        if len(row) != width:
-            raise InvalidConfigError(
-                f"{path}, line {line}: {len(row)} cells where the header names {width}"
-            )
-        for j, name in enumerate(order):
-            index, factor = columns[name]
-            try:
-                v = float(row[index])
-            except ValueError:
-                v = math.nan
-            if not math.isfinite(v):
-                raise InvalidConfigError(
-                    f"{path}, line {line}, column {name}: {row[index].strip()[:40]!r} is not a "
-                    f"finite number; remove the line or measure that pose again"
-                )
-            values[r, j] = v * factor
+    header: dict = {}
+
+    def columns_of(cells):
+        header["found"], header["ignored"], header["converted"] = _header(
+            path, cells, counts_per_rev
+        )
+        return header["found"]
+
+    columns, lines = read_csv_columns(
+        path,
+        "measurements file",
+        MAX_MEASUREMENTS_BYTES,
+        MEASUREMENTS_REMEDY,
+        columns_of,
+        bad_cell="; remove the line or measure that pose again",
+    )
+    values = np.column_stack([columns[name] for name in READING_COLUMNS + POSE_COLUMNS])
     if len(values) < MIN_POSES:
         raise InvalidConfigError(
             f"{path}: {len(values)} measured poses are too few: each leg's 11 parameters need "
@@ -189,9 +257,9 @@ def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
     return MeasurementsFile(
         poses=values[:, 6:],
         readings=values[:, :6],
-        lines=tuple(n for n, _ in numbered[1:]),
-        ignored=tuple(ignored),
-        converted=tuple(converted),
+        lines=tuple(lines.tolist()),
+        ignored=tuple(header["ignored"]),
+        converted=tuple(header["converted"]),
     )
 
 

@@ -107,7 +107,9 @@ def _main(argv: list[str] | None) -> int:
         args = parser.parse_args(argv)
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
-    except ImportError as err:
+    except (ImportError, MemoryError) as err:
+        if _out_of_memory(err):
+            return _no_memory("")
         if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), "", None)
@@ -128,7 +130,9 @@ def _main(argv: list[str] | None) -> int:
         return 1
     except KeyboardInterrupt as err:  # Ctrl-C, SIGTERM, SIGHUP
         return _interrupted(err, args.command, getattr(args, "out", None))
-    except ImportError as err:  # a Ctrl-C while a command's own imports initialize pydrake
+    except (ImportError, MemoryError) as err:  # a Ctrl-C while imports initialize pydrake
+        if _out_of_memory(err):
+            return _no_memory(args.command)
         if not _interrupted_import(err):
             raise
         return _interrupted(KeyboardInterrupt(), args.command, getattr(args, "out", None))
@@ -148,6 +152,37 @@ def _main(argv: list[str] | None) -> int:
         if interrupt is None:
             raise
         return _interrupted(interrupt, args.command, getattr(args, "out", None))
+
+
+def _out_of_memory(err: BaseException) -> bool:
+    """Whether ``err`` is, or was caused by, a MemoryError (an extension module that could not
+    allocate while it initialized reports "initialization failed" around it) or a shared
+    library the loader could not map, searched as :func:`_interrupted_import` searches."""
+    link: BaseException | None = err
+    for _ in range(20):
+        if link is None or isinstance(link, KeyboardInterrupt):
+            return False
+        if isinstance(link, MemoryError) or (
+            isinstance(link, ImportError) and any(m in str(link) for m in _NO_MAP)
+        ):
+            return True
+        link = link.__cause__ or link.__context__
+    return False
+
+
+#: What the dynamic loader says of a library it could not map for want of memory.
+_NO_MAP = ("failed to map segment", "cannot allocate memory", "Cannot allocate memory")
+
+
+def _no_memory(command: str) -> int:
+    """One line for a command that ran out of memory where no estimate refused it first; 1."""
+    name = f"stewart-drake {command}" if command else "stewart-drake"
+    print(
+        f"{name}: out of memory (the machine's, a container's or `ulimit -v`); partial outputs "
+        "were not written: free some memory, raise the limit, or give a smaller input",
+        file=sys.stderr,
+    )
+    return 1
 
 
 def _interrupted_import(err: ImportError) -> bool:

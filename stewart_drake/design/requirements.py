@@ -188,7 +188,7 @@ def load_requirements(path) -> DesignRequirements:
             twice, or YAML that does not fit the schema (the field named).
         InvalidConfigError: a value out of range, named by file and field.
     """
-    from ..base.fileio import decode_text, read_checked
+    from ..base.fileio import YAML_BYTES_PER_BYTE, check_parse_memory, decode_text, read_checked
 
     kind = "design requirements file"
     remedy = "fix it, or start from scenarios/design_requirements.yaml"
@@ -196,6 +196,7 @@ def load_requirements(path) -> DesignRequirements:
         raise MissingFileError(f"no design requirements file {path!r}: check the path")
     path = Path(path)
     raw = read_checked(path, kind, MAX_REQUIREMENTS_BYTES, remedy)
+    check_parse_memory(path, kind, raw, bytes_per_byte=YAML_BYTES_PER_BYTE)
     if not raw.strip():
         raise CorruptFileError(path, kind, "it is empty", remedy)
     text = decode_text(raw, path, kind, remedy)

@@ -91,16 +91,18 @@ CSV_MAX_T_S = 1e7
 
 def _read_csv_bytes(path: Path) -> bytes:
     from ..base.errors import MissingFileError
-    from ..base.fileio import read_checked
+    from ..base.fileio import check_parse_memory, read_checked
 
     if not path.exists():
         raise MissingFileError(f"no reference CSV at {path}: check the path")
-    return read_checked(
+    raw = read_checked(
         path,
         "reference CSV",
         MAX_CSV_BYTES,
         "write it with the header t,phi,theta,psi,X,Y,Z (s, rad, m)",
     )
+    check_parse_memory(path, "reference CSV", raw, CSV_BYTES_PER_ROW)
+    return raw
 
 
 def csv_rows(raw: bytes, path, kind: str, remedy: str) -> list[list[str]]:

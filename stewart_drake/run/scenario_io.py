@@ -62,7 +62,7 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
             out of range (named by file and field path).
     """
-    from ..base.fileio import decode_text, read_checked
+    from ..base.fileio import YAML_BYTES_PER_BYTE, check_parse_memory, decode_text, read_checked
 
     shipped = shipped_scenarios()
     if not isinstance(source, (str, Path)):
@@ -86,6 +86,7 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         MAX_SCENARIO_BYTES,
         remedy + "; long data (a reference) belongs in a CSV file",
     )
+    check_parse_memory(path, "scenario file", raw, bytes_per_byte=YAML_BYTES_PER_BYTE)
     if not raw.strip():
         raise CorruptFileError(path, "scenario file", "it is empty", remedy)
     text = decode_text(raw, path, "scenario file", remedy)
