@@ -151,6 +151,49 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
     assert opened and all(bus._port is None for bus in opened)  # every bus closed
 
 
+def _swallowed(signum):
+    """What numba's compiler did to a Ctrl-C: the handler's raise lands in a callback that
+    prints "Exception ignored" and goes on."""
+    try:
+        os.kill(os.getpid(), signum)
+        time.sleep(0.05)  # the handler runs in this thread at the next bytecode
+    except KeyboardInterrupt:
+        pass
+
+
+@pytest.mark.parametrize("stage", ["compile", "session"])
+def test_a_signal_swallowed_before_the_torque_goes_on_stops_the_command_unpowered(
+    tmp_path, monkeypatch, capsys, ctrl_c, stage
+):
+    """A Ctrl-C raised where code swallowed it (in the command's compile step, or once the
+    session's own handlers are in place): the servos are never powered, the command ends with
+    130 and one line."""
+    from stewart_drake.live import session
+
+    enabled = []
+    monkeypatch.setattr(driver.DynamixelBus, "enable_torque", lambda self: enabled.append(self))
+    if stage == "compile":
+        monkeypatch.setattr(live_command, "say_if_compiling", lambda c: _swallowed(signal.SIGINT))
+    else:
+        build = session.HomingReference
+
+        def homing(*args, **kwargs):  # inside the session, before the torque
+            _swallowed(signal.SIGINT)
+            return build(*args, **kwargs)
+
+        monkeypatch.setattr(session, "HomingReference", homing)
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.3", "--home-s", "0.5", "--no-progress", "--out", str(tmp_path)]
+        code = main(argv)
+        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    out, err = capsys.readouterr()
+    assert code == 130, (out, err)
+    assert not enabled and torque == [0] * 6
+    ends = [line for line in err.splitlines() if line.startswith("stewart-drake robot:")]
+    assert len(ends) == 1 and "SIGINT" in ends[0], err
+
+
 def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
     from stewart_drake.execution.runners import Interrupted
     from stewart_drake.live.session import SessionSignals
@@ -169,6 +212,9 @@ def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
         with pytest.raises(Interrupted):  # never powered with a signal pending
             signals.arm()
         signals.received = None
+        with pytest.raises(Interrupted):  # nor after one raised, even if it was swallowed
+            signals.arm()
+        signals.raised = None
         signals.arm()
         with pytest.raises(Interrupted):  # armed: the torque is on, a signal ends it
             kill(signal.SIGTERM)

@@ -33,17 +33,24 @@ RESUMABLE = {"collect": "", "evaluate": "", "design": "search"}
 
 def _interruptible():
     """Make SIGTERM and SIGHUP raise :class:`~stewart_drake.execution.runners.Interrupted` (a
-    KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs; returns the handlers
-    to restore. A signal the process was started ignoring (``nohup``) stays ignored."""
-    from ..execution.runners import raise_interrupted
+    KeyboardInterrupt, as Ctrl-C) in the main thread while a command runs, and Ctrl-C its
+    KeyboardInterrupt, each noted (:func:`~stewart_drake.execution.runners.interrupt_raised`:
+    one that code swallows still stops the command before a robot is powered); returns the
+    handlers to restore. A signal the process was started ignoring (``nohup``) stays ignored,
+    and a SIGINT handler other than Python's is kept."""
+    from ..execution.runners import forget_interrupts, raise_interrupted, raise_keyboard_interrupt
 
+    forget_interrupts()
     if threading.current_thread() is not threading.main_thread():
         return {}
-    return {
+    handlers = {
         s: signal.signal(s, raise_interrupted)
         for s in (signal.SIGTERM, signal.SIGHUP)
         if signal.getsignal(s) is not signal.SIG_IGN
     }
+    if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        handlers[signal.SIGINT] = signal.signal(signal.SIGINT, raise_keyboard_interrupt)
+    return handlers
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -61,6 +68,9 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for signum, handler in restore.items():
             signal.signal(signum, handler)
+        from ..execution.runners import forget_interrupts
+
+        forget_interrupts()
 
 
 @contextlib.contextmanager

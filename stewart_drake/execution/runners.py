@@ -190,9 +190,35 @@ def interrupt_in(err: BaseException) -> KeyboardInterrupt | None:
     return None
 
 
+#: The signals the command's handlers raised while it runs, first first (the command clears
+#: it as it starts and ends): a raise that code swallowed ("Exception ignored" from a callback
+#: inside numba's compiler) is still known here, so nothing powers a robot after it.
+_RAISED: list[int] = []
+
+
 def raise_interrupted(signum, frame):
-    """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP)."""
+    """A signal handler: raise :class:`Interrupted` for ``signum`` (SIGTERM, SIGHUP), noted in
+    :func:`interrupt_raised`."""
+    _RAISED.append(int(signum))
     raise Interrupted(signum)
+
+
+def raise_keyboard_interrupt(signum, frame):
+    """SIGINT's handler while the command runs: Python's own (a KeyboardInterrupt), noted in
+    :func:`interrupt_raised`."""
+    _RAISED.append(int(signum))
+    raise KeyboardInterrupt
+
+
+def interrupt_raised() -> int | None:
+    """The first signal the command's handlers raised (:func:`raise_interrupted`,
+    :func:`raise_keyboard_interrupt`) since :func:`forget_interrupts`, or None."""
+    return _RAISED[0] if _RAISED else None
+
+
+def forget_interrupts() -> None:
+    """Clear what :func:`interrupt_raised` knows (the command does, as it starts and ends)."""
+    _RAISED.clear()
 
 
 def call_job(fn, job_id: str, job):

@@ -202,12 +202,14 @@ class SessionSignals:
 
     Attributes:
         received: the first signal number recorded while held, or None.
+        raised: the signal raised (the first), or None.
     """
 
     NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
 
     def __init__(self):
         self.received: int | None = None
+        self.raised: int | None = None
         self.holding = False
         self._settled = False
         self._old: dict = {}
@@ -226,17 +228,20 @@ class SessionSignals:
         self._old.clear()
 
     def arm(self) -> None:
-        """Just before the torque goes on: raise a signal recorded so far (one that came after
-        an interrupt something swallowed), and raise the next again: while the torque is on a
-        signal is never held.
+        """Just before the torque goes on: raise a signal received so far that did not stop
+        the session (one raised where code swallowed it, "Exception ignored" in a callback of
+        numba's compiler; one recorded after that; one the command's own handlers raised
+        before the session began, :func:`~stewart_drake.execution.runners.interrupt_raised`),
+        and raise the next again: while the torque is on a signal is never held.
 
         Raises:
-            Interrupted: the recorded signal.
+            Interrupted: the first such signal.
         """
-        from ..execution.runners import Interrupted
+        from ..execution.runners import Interrupted, interrupt_raised
 
-        if self.received is not None:
-            raise Interrupted(self.received)
+        for seen in (self.raised, self.received, interrupt_raised()):
+            if seen is not None:
+                raise Interrupted(seen)
         self.holding = False
 
     def hold(self) -> None:
@@ -251,6 +256,7 @@ class SessionSignals:
                 self.received = int(signum)
             return
         self.holding = True  # the one raised ends the run; the next must not cut its end
+        self.raised = int(signum)  # known to arm() even if the raise is swallowed
         raise Interrupted(signum)
 
     def settle(self, run: RobotRun) -> RobotRun:
