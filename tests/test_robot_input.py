@@ -374,3 +374,65 @@ def test_robot_emulate_dry_run_as_readme_shows_it(capsys):
     out = capsys.readouterr().out
     assert out.splitlines()[-1] == "admissible", out
     assert abs(_z_mm(out) - 280.0) < 0.2, out  # --emulate's default pose
+
+
+# -- the robot command's hostile input: refused before anything is powered ------------------------
+
+
+@pytest.mark.parametrize("timeout", ["1e-9", "0.015", "11"])
+def test_a_loop_timeout_our_watchdog_could_not_keep_is_refused_before_the_bus_opens(
+    tmp_path, capsys, timeout
+):
+    """Below two control periods (10 ms on the shipped bus scenario) our watchdog would remove
+    the torque at the first period; above 10 s it would not guard the loop."""
+    opened = []
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(driver.DynamixelBus, "open", lambda self: opened.append(self))
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", "/dev/null"]
+        code = main([*argv, "--loop-timeout", timeout, "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and not opened, err
+    assert err[0] == (
+        f"stewart-drake robot: --loop-timeout {float(timeout):g} s: our watchdog needs at least "
+        "two control periods (2 x 0.01 s) and at most 10 s; give a value in [0.02, 10] s"
+    )
+
+
+def test_a_trace_of_values_past_any_motion_is_refused_naming_its_line_before_the_bus_opens(
+    tmp_path, capsys
+):
+    trace = tmp_path / "huge.csv"
+    rows = [f"{0.1 * i:.1f},{1e300 if i == 7 else 0.0}" for i in range(40)]
+    trace.write_text("t [s],SI [mm]\n" + "\n".join(rows) + "\n")
+    argv = ["robot", str(trace), "--scenario", str(_bus_yaml(tmp_path)), "--port", "/dev/null"]
+    code = main([*argv, "--out", str(tmp_path)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1, err
+    assert err[0] == (
+        f"stewart-drake robot: {trace}, line 9: SI = 1e+300 mm, beyond the 1000 m any motion "
+        "of a platform reaches; check the value and the column's unit"
+    )
+
+
+def test_a_session_whose_logs_could_not_be_written_does_not_exit_0(tmp_path, monkeypatch, capsys):
+    """The run ends as it should, the torque off, but without its record it is no success: the
+    end line names the log and why, and the exit status is 1."""
+    from stewart_drake.run import result
+
+    def full_disk(res, path):
+        raise OSError(28, "No space left on device", str(path))
+
+    monkeypatch.setattr(result, "save_result", full_disk)
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
+        code = main([*argv, "--no-progress", "--out", str(tmp_path)])
+        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    out, err = capsys.readouterr()
+    ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
+    assert code == 1 and len(ends) == 1, (out, err)
+    assert (
+        "the reference ran to its end; the logs could not be written: [Errno 28] No space"
+        in (ends[0])
+    )
+    assert f"{tmp_path / 'robot_home.npz'}" in ends[0] and torque == [0] * 6

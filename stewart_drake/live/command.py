@@ -213,6 +213,7 @@ def _cmd_robot(args) -> int:
     from ..base.fileio import check_replaceable
     from ..run.scenario_io import load_scenario
     from .session import SessionSignals
+    from .watchdog import check_loop_timeout
 
     if args.teleop and (args.reference is not None or args.dry_run):
         from ..base.errors import InvalidConfigError
@@ -231,6 +232,7 @@ def _cmd_robot(args) -> int:
             scenario.bus.port = args.port
     scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
     scenario.validate()
+    check_loop_timeout(args.loop_timeout, scenario.control_period_s)
     out = Path(args.out)
     stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
     if not args.dry_run and args.calibrate is None:

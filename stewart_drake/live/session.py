@@ -41,7 +41,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError, StartPoseError, StewartError
 from ..references.smoothstep import smooth_ramp
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
-from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, watchdog_monitor
+from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 #: Default duration of the homing lead-in, s.
 HOME_S = 3.0
@@ -323,6 +323,7 @@ def run_on_robot(
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     plan = make_plan(scenario, with_reference=False)
     bus_config(plan.scenario)
+    check_loop_timeout(loop_timeout_s, plan.scenario.control_period_s)
     if not 0 < home_s <= 60 or not 0 <= hold_s <= 3600:
         raise InvalidConfigError(
             f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
@@ -463,6 +464,7 @@ def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -
         ended.encoder_log = write_encoder_log(encoder_log_path(path), t_read + epoch, t, tau, q)
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
+        ended.exit_code = ended.exit_code or 1  # a run without its record is not a success
 
 
 def _drive(
@@ -540,6 +542,7 @@ def teleop_on_robot(
     """
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
     bus_config(scenario)
+    check_loop_timeout(loop_timeout_s, getattr(scenario, "scenario", scenario).control_period_s)
     start = admissible_start(scenario)
     if signals is not None:
         return _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals)

@@ -18,6 +18,30 @@ from ..base.errors import InvalidConfigError, LoopStalledError
 LOOP_TIMEOUT_S = 0.1
 
 
+#: Longest loop timeout, s (the bus rehearsal's, on a loaded machine, is 5 s).
+MAX_LOOP_TIMEOUT_S = 10.0
+
+
+def check_loop_timeout(timeout_s: float, control_period_s: float) -> float:
+    """Refuse, before anything is powered, a loop timeout our watchdog could not keep: shorter
+    than two control periods (the first period a little late would remove the torque; 1e-9 s
+    removed it at once) or longer than :data:`MAX_LOOP_TIMEOUT_S`.
+
+    Returns:
+        ``timeout_s``.
+    Raises:
+        InvalidConfigError: names ``--loop-timeout``, the period and the range that fits.
+    """
+    low = 2.0 * control_period_s
+    if not low <= timeout_s <= MAX_LOOP_TIMEOUT_S:
+        raise InvalidConfigError(
+            f"--loop-timeout {timeout_s:g} s: our watchdog needs at least two control periods "
+            f"(2 x {control_period_s:g} s) and at most {MAX_LOOP_TIMEOUT_S:g} s; give a value in "
+            f"[{low:g}, {MAX_LOOP_TIMEOUT_S:g}] s"
+        )
+    return timeout_s
+
+
 class LoopWatchdog:
     """Our watchdog: removes the servos' torque when the control loop stops completing periods.
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..base.checks import MAX_POSITION_M
 from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
 from ..robot.kinematics import AXIS_NAMES
 from .organ.core import axis_index
@@ -373,7 +374,29 @@ def trace_samples(path: Path, header: list, rows: list, layout: str, axis_map: d
     data, lines = _trace_values(path, rows, len(header), keep)
     data, lines, dropped = _without_end_marker(path, data, lines)
     t = _times(path, data, lines, units[0])
+    _check_magnitudes(path, data, lines, names, units, targets, factors)
     return TraceTable(names, units, targets, factors, t, data, layout, dropped)
+
+
+#: Largest angle a trace's rotation may reach, rad (a motion turns a platform by a fraction of
+#: a turn; a value past this is a wrong unit or a broken export).
+MAX_TRACE_ANGLE_RAD = 100.0
+
+
+def _check_magnitudes(path, data, lines, names, units, targets, factors) -> None:
+    """Refuse, before any arithmetic on them (a spline of 1e300 mm overflows), an axis value
+    beyond :data:`~stewart_drake.base.checks.MAX_POSITION_M` or :data:`MAX_TRACE_ANGLE_RAD`,
+    naming its line, column, value and unit."""
+    for j, (k, factor) in enumerate(zip(targets, factors), start=1):
+        column = np.abs(np.nan_to_num(data[:, j]))
+        bound = MAX_POSITION_M if k >= 3 else MAX_TRACE_ANGLE_RAD
+        if column.size and column.max() * abs(factor) > bound:
+            r = int(np.argmax(column))
+            raise InvalidConfigError(
+                f"{path}, line {lines[r]}: {names[j]} = {data[r, j]:.4g} {units[j]}, beyond the "
+                f"{bound:g} {'m' if k >= 3 else 'rad'} any motion of a platform reaches; check "
+                f"the value and the column's unit"
+            )
 
 
 __all__ = [
