@@ -25,13 +25,21 @@ def _interrupted_while_starting(signum, frame):
 
 
 def _started_as_the_command() -> bool:
-    """Whether this process is the ``stewart-drake`` console script (or the CLI module run with
-    ``python -m``): a library user's handler of SIGINT is never touched."""
-    script = _os.path.basename(_sys.argv[0]) if _sys.argv else ""
-    return script in ("stewart-drake", "stewart-drake.exe") or (
+    """Whether this process is the ``stewart-drake`` console script, called by its name or
+    through a link to it (or the CLI module run with ``python -m``): a library user's handler
+    of SIGINT is never touched."""
+    script = _sys.argv[0] if _sys.argv else ""
+    names = {_os.path.basename(script), _os.path.basename(_os.path.realpath(script))}
+    return bool(names & {"stewart-drake", "stewart-drake.exe"}) or (
         "stewart_drake.cli.main" in getattr(_sys, "orig_argv", ())[:4]
     )
 
+
+# Only over Python's own handler: a command started with SIGINT ignored (in a script's
+# background) keeps it ignored. The CLI's main() puts Python's handler back. Before the restart
+# below, so that a Ctrl-C in its window is one line too.
+if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
+    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 # The command starts itself again with glibc's thread cache sized for the plant's step (its
 # CPU, not its results), before anything else: base.allocator imports only the standard library.
@@ -39,11 +47,6 @@ if _started_as_the_command():
     from .base.allocator import restart_with_tuned_allocator
 
     restart_with_tuned_allocator()
-
-# Only over Python's own handler: a command started with SIGINT ignored (in a script's
-# background) keeps it ignored. The CLI's main() puts Python's handler back.
-if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.default_int_handler:
-    _signal.signal(_signal.SIGINT, _interrupted_while_starting)
 
 # After the handler above: its window is these imports.
 from .base.errors import (  # noqa: E402

@@ -70,3 +70,55 @@ def test_a_library_user_is_never_restarted(tmp_path):
     )
     assert seen == ["None"]
     assert out.splitlines() == ["ran once"]
+
+
+# -- where starting again would not run the same command: it runs as it is, and says so ---------
+
+_SCRIPT = os.path.join(os.path.dirname(sys.executable), "stewart-drake")
+_AS_IS = "stewart-drake: runs with glibc's default memory cache ("
+
+
+def _run_with_probe(argv, tmp_path, **kwargs):
+    """(starts seen, exit code, stdout, stderr) of ``argv`` with the start probe of
+    :func:`_started`, the streams as ``kwargs`` give them."""
+    seen = tmp_path / "seen.txt"
+    (tmp_path / "sitecustomize.py").write_text(
+        f"with open({str(seen)!r}, 'a') as f:\n    f.write('start\\n')\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
+    done = subprocess.run(argv, env=env, capture_output=True, timeout=300, **kwargs)
+    starts = seen.read_text().splitlines() if seen.exists() else []
+    return len(starts), done.returncode, done.stdout.decode(), done.stderr.decode()
+
+
+def test_with_standard_output_closed_the_command_runs_once_as_it_is(tmp_path):
+    """Was: an AttributeError traceback from the restart's flush of a stream Python has not."""
+    argv = [_SCRIPT, "scenario", "nope"]
+    starts, code, _, err = _run_with_probe(
+        ["sh", "-c", 'exec "$0" "$@" >&-', *argv], tmp_path, stdout=None
+    )
+    assert (starts, code) == (1, 2), err
+    assert "Traceback" not in err and "AttributeError" not in err
+    lines = err.strip().splitlines()
+    assert lines[0].startswith(_AS_IS + "its standard output is closed;"), lines
+    assert lines[1].startswith("stewart-drake scenario: no scenario file nope"), lines
+
+
+def test_a_script_read_from_standard_input_is_not_started_again_with_it_consumed(tmp_path):
+    """Was: ``python - < script`` started again with nothing left to read, and exit 0 having
+    done nothing."""
+    script = "import sys\nsys.argv = ['stewart-drake', '--version']\nimport stewart_drake\n"
+    script += "print('the script ran')\n"
+    starts, code, out, err = _run_with_probe([sys.executable, "-"], tmp_path, input=script.encode())
+    assert (starts, code) == (1, 0) and out.strip() == "the script ran", (out, err)
+    assert err.startswith(_AS_IS + "it was not started from its own script file;"), err
+
+
+def test_a_link_to_the_command_is_the_command(tmp_path):
+    """Was: a link of another name was taken for a library user: no restart, and no start-up
+    Ctrl-C handler."""
+    link = tmp_path / "sd"
+    link.symlink_to(_SCRIPT)
+    starts, code, out, _ = _run_with_probe([str(link), "--version"], tmp_path)
+    assert (starts, code) == (2, 0) and out.startswith("stewart-drake ")
