@@ -3,6 +3,8 @@ kinematics and finite differences, the identification of a drawn robot, its pred
 poses, the unidentifiable combinations and the outliers it reports, the measurements file it
 reads and the files the command writes."""
 
+import re
+
 import numpy as np
 import pytest
 import yaml
@@ -343,3 +345,83 @@ def test_the_docs_table_is_the_study_s():
     assert rehearsal.table(rows) in (docs / "calibration.md").read_text()
     # Every study cell: 2 noise levels x the pose counts x 2 selections x 10 seeds.
     assert len(rows) == 2 * len(rehearsal.STUDY_POSES) * 2 * 10
+
+
+# -- hostile input, through the command: one line, the true cause, the bound that fits ------------
+
+
+def _one_error(capsys, argv) -> str:
+    """The one line of a refusal (exit 2), from the command's main or its parser."""
+    try:
+        code = cli.main(argv)
+    except SystemExit as exit_:
+        code = exit_.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "Traceback" not in err[0], (code, err)
+    return err[0]
+
+
+def test_one_pose_measured_sixty_times_is_refused_as_identifying_nothing(
+    tmp_path, measured, capsys
+):
+    """Was: exit 0 and "+- 0.0" on every parameter."""
+    _, data = measured
+    same = files.write_measurements(
+        tmp_path / "same.csv", np.repeat(data.poses[:1], 60, 0), np.repeat(data.readings[:1], 60, 0)
+    )
+    line = _one_error(capsys, ["calibrate", str(same), "--out", str(tmp_path / "r.yaml")])
+    assert "60 measured poses, but only 1 distinct" in line
+    assert f"each leg's 11 parameters need at least {identify.MIN_POSES} distinct poses" in line
+    assert not (tmp_path / "r.yaml").exists()
+
+
+def test_readings_no_robot_near_the_drawing_gives_blame_the_readings_not_a_trajectory(
+    tmp_path, measured, capsys
+):
+    """Readings 2.5 rad off on one encoder (a wrong zero): the fit wandered until a leg could
+    not reach a pose, and the message said to reduce the trajectory's amplitude."""
+    _, data = measured
+    q = data.readings.copy()
+    q[:, 0] += 2.5
+    bad = files.write_measurements(tmp_path / "bad.csv", data.poses, q)
+    line = _one_error(capsys, ["calibrate", str(bad), "--out", str(tmp_path / "r.yaml")])
+    assert "the readings fit no robot near the drawing" in line, line
+    assert re.search(r"up to q0 2\.[45]\d*, q1 0\.0", line), line
+    assert "check the readings' columns, units and encoder zeros" in line
+    assert "trajectory" not in line
+
+
+@pytest.mark.parametrize(
+    "option, expected",
+    [
+        (["--plan", "12", "--dwell", "1e9"], "--dwell: must be in [1.5, 60] s"),
+        (["--plan", "12", "--dwell", "1e5"], "--dwell: must be in [1.5, 60] s"),
+        (["--rehearse", "--noise", "1e200m,20urad"], "at most 1 mm"),
+        (
+            ["--rehearse", "--set", "robot_tolerances={rod_lengths_m: {half_width: 1e308}}"],
+            "robot_tolerances.rod_lengths_m.half_width (m) must be a finite number in [0, 0.01]",
+        ),
+    ],
+)
+def test_options_past_their_bounds_are_one_line_naming_the_bound(
+    tmp_path, capsys, option, expected
+):
+    """Were: tracebacks (a path of days, noise that overflows, a draw of 1e308 m)."""
+    out = ["--out", str(tmp_path / "p.csv")] if "--plan" in option else []
+    line = _one_error(capsys, ["calibrate", *option, *out, "--no-progress"])
+    assert expected in line, line
+
+
+def test_the_bus_rehearsal_refuses_a_scenario_without_a_bus_and_unwritable_files_before_driving(
+    tmp_path, capsys
+):
+    """Was: --scenario paper_hardware (the default's name) silently rehearsed paper_bus; the
+    identified robot's file was checked only after the whole drive."""
+    folder = tmp_path / "bus"
+    argv = ["calibrate", "--rehearse", "--bus", str(folder), "--poses", "12", "--no-progress"]
+    line = _one_error(capsys, [*argv, "--scenario", "paper_hardware"])
+    assert "--scenario paper_hardware has no bus section (paper_bus has one)" in line, line
+    (folder / "robot.yaml").mkdir(parents=True)  # where the identified robot goes
+    line = _one_error(capsys, argv)
+    assert "robot.yaml is a folder: give a file name to write" in line, line
+    assert not (folder / "poses.csv").exists()  # nothing was planned or driven

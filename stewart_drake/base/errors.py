@@ -80,10 +80,12 @@ class UnreachablePoseError(StewartError, ValueError):
             if not math.isnan(self.ratio)
             else "is not a number (M = N = 0: the platform joint is on the motor's axis)"
         )
+        # A reference's pose (a time given) can be brought in by its amplitude; a single pose
+        # (--pose, a measured one) only by itself.
+        amplitude = " or reduce the trajectory's amplitude" if self.t is not None else ""
         super().__init__(
             f"leg {self.leg} cannot reach the pose{where}: |L|/sqrt(M^2+N^2) {value}. Bring "
-            f"the pose closer to home [0, 0, 0, 0, 0, 0.30] or reduce the trajectory's "
-            f"amplitude."
+            f"the pose closer to home [0, 0, 0, 0, 0, 0.30]{amplitude}."
         )
 
     def _init_args(self) -> tuple:

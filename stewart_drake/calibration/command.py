@@ -93,7 +93,8 @@ def register(sub) -> None:
         type=_noise,
         default="5um,20urad",
         metavar="LENGTH,ANGLE",
-        help="the tracker's noise, one standard deviation per axis, with units",
+        help="the tracker's noise, one standard deviation per axis, with units (at most 1 mm "
+        "and 10 mrad)",
     )
     cal.add_argument(
         "--min-singular",
@@ -116,7 +117,8 @@ def register(sub) -> None:
     )
     _add_rehearsal_arguments(cal)
     cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    cal.set_defaults(func=_cmd_calibrate, out_is_file=True)
+    # --scenario given or not: without it, the bus rehearsal takes the robot's bus scenario.
+    cal.set_defaults(func=_cmd_calibrate, out_is_file=True, scenario=None)
 
 
 def _add_rehearsal_arguments(cal) -> None:
@@ -155,11 +157,33 @@ def _add_rehearsal_arguments(cal) -> None:
     )
     cal.add_argument(
         "--dwell",
-        type=positive_float,
+        type=_dwell,
         default=3.0,
-        help="with --plan and --rehearse --bus: s the robot rests at each pose (its first "
-        "second to settle)",
+        help=f"with --plan and --rehearse --bus: s the robot rests at each pose (its first "
+        f"second to settle; {MIN_DWELL_S:g} to {MAX_DWELL_S:g} s)",
     )
+
+
+#: The rest at each planned pose, s: its first second settles, the rest is averaged; past a
+#: minute a pose adds drift (temperature), not accuracy, and 1e5 s made paths of days.
+MIN_DWELL_S, MAX_DWELL_S = 1.5, 60.0
+#: The largest tracker noise, one standard deviation (m, rad): a tracker worse than this
+#: cannot calibrate a robot built to tenths of a millimetre.
+MAX_NOISE = (1e-3, 1e-2)
+
+
+def _dwell(text: str) -> float:
+    """An argparse type: the rest at each pose, s, in [MIN_DWELL_S, MAX_DWELL_S]."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not MIN_DWELL_S <= value <= MAX_DWELL_S:
+        raise argparse.ArgumentTypeError(
+            f"must be in [{MIN_DWELL_S:g}, {MAX_DWELL_S:g}] s (the first second settles), "
+            f"got {text}"
+        )
+    return value
 
 
 def _noise(text: str) -> tuple[float, float]:
@@ -175,13 +199,14 @@ def _noise(text: str) -> tuple[float, float]:
             value = float(number) * table[unit.strip()]
         except (ValueError, KeyError):
             value = math.nan
-        if not (math.isfinite(value) and value >= 0):
+        if not (math.isfinite(value) and 0 <= value <= MAX_NOISE[len(out)]):
             break
         out.append(value)
     if len(parts) != 2 or len(out) != 2:
         raise argparse.ArgumentTypeError(
             f"expected a length and an angle with units, e.g. 5um,20urad (lengths in "
-            f"{', '.join(LENGTH_UNITS)}; angles in {', '.join(ANGLE_UNITS)}), got {text!r}"
+            f"{', '.join(LENGTH_UNITS)}, at most 1 mm; angles in {', '.join(ANGLE_UNITS)}, at "
+            f"most 10 mrad), got {text!r}"
         )
     return out[0], out[1]
 
@@ -212,6 +237,10 @@ def _cmd_calibrate(args) -> int:
         raise InvalidConfigError("--tracker-clock-offset is for --join")
     if args.bus is not None:
         _check_bus_rehearsal(args)
+    if args.scenario is None:
+        from ..cli.options import default_scenario
+
+        args.scenario = default_scenario()
     if args.out is None and not args.rehearse:
         what = {
             "--plan": "POSES.csv (the path to drive)",
@@ -241,6 +270,18 @@ def _cmd_calibrate(args) -> int:
     return _identify(args, context)
 
 
+#: The files ``calibrate --rehearse --bus FOLDER`` writes in FOLDER.
+BUS_REHEARSAL_FILES = (
+    "poses.csv",
+    "poses_windows.csv",
+    "robot.npz",
+    "robot_encoders.csv",
+    "tracker.csv",
+    "measurements.csv",
+    "robot.yaml",
+)
+
+
 def _check_bus_rehearsal(args) -> None:
     """``--rehearse --bus FOLDER``'s options, before any work; the default scenario becomes
     the robot's (:data:`~stewart_drake.run.scenario_io.ROBOT_SCENARIO`, with a bus).
@@ -250,7 +291,7 @@ def _check_bus_rehearsal(args) -> None:
             files are in FOLDER), or FOLDER not writable.
     """
     from ..base.errors import InvalidConfigError
-    from ..cli.options import check_output, default_scenario
+    from ..cli.options import check_output
 
     if not args.rehearse:
         raise InvalidConfigError("--bus is for --rehearse (the rehearsal over the bus emulator)")
@@ -259,9 +300,11 @@ def _check_bus_rehearsal(args) -> None:
             f"--rehearse --bus keeps its files in {args.bus} (robot.yaml, measurements.csv): "
             f"leave out --out and --save-measurements"
         )
-    for name in ("poses.csv", "robot.npz", "robot_encoders.csv", "tracker.csv"):
+    # Every file it writes, checked before the drive (each was checked only when written).
+    for name in BUS_REHEARSAL_FILES:
         check_output(Path(args.bus) / name, "--bus", is_file=True)
-    if args.scenario == default_scenario():
+    check_output(Path(args.bus) / "diverged", "--bus")
+    if args.scenario is None:
         from ..run.scenario_io import ROBOT_SCENARIO
 
         args.scenario = ROBOT_SCENARIO

@@ -217,6 +217,10 @@ def read_csv_columns(
     return {name: values[:n].copy() for name, values in out.items()}, lines[:n].copy()
 
 
+#: Poses closer than this, per coordinate (rad, m), are one pose measured again.
+DISTINCT_POSE = np.array([1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])
+
+
 def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
     """The measured poses and readings of a measurements file (module docstring), read by
     :func:`read_csv_columns`.
@@ -230,7 +234,8 @@ def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
         MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
             UTF-8 or not CSV.  InvalidConfigError: too long for the memory, a header without a
             required column, a unit unknown or of the wrong kind, a cell that is not a finite
-            number (its line and column named), fewer than :data:`~.identify.MIN_POSES` poses.
+            number (its line and column named), fewer than :data:`~.identify.MIN_POSES` poses
+            or distinct poses (:data:`DISTINCT_POSE`).
     """
     header: dict = {}
 
@@ -253,6 +258,14 @@ def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
         raise InvalidConfigError(
             f"{path}: {len(values)} measured poses are too few: each leg's 11 parameters need "
             f"at least {MIN_POSES} (60 or more for a useful accuracy, docs/calibration.md)"
+        )
+    distinct = len(np.unique(np.round(values[:, 6:] / DISTINCT_POSE), axis=0))
+    if distinct < MIN_POSES:
+        raise InvalidConfigError(
+            f"{path}: {len(values)} measured poses, but only {distinct} distinct (poses within "
+            f"0.1 mm and 1 mrad of each other are one): a pose measured again tells nothing of the "
+            f"geometry, and each leg's 11 parameters need at least {MIN_POSES} distinct poses "
+            f"(60 or more, spread over the workspace: calibrate --plan N chooses them)"
         )
     return MeasurementsFile(
         poses=values[:, 6:],

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from ..base.checks import as_array, as_number, as_poses
-from ..base.errors import InvalidConfigError
+from ..base.errors import InvalidConfigError, UnreachablePoseError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import wrap_angle
 from ..robot.legs import (
@@ -316,16 +316,25 @@ def _identify_once(
         if robust
         else dict(method="lm")
     )
-    fit = least_squares(
-        fun,
-        np.zeros(basis.shape[1]),
-        jac=jac,
-        x_scale=1.0,
-        xtol=1e-12,
-        ftol=1e-12,
-        gtol=1e-12,
-        **options,
-    )
+    try:
+        fit = least_squares(
+            fun,
+            np.zeros(basis.shape[1]),
+            jac=jac,
+            x_scale=1.0,
+            xtol=1e-12,
+            ftol=1e-12,
+            gtol=1e-12,
+            **options,
+        )
+    except UnreachablePoseError as err:  # the fit left every robot near the drawing
+        worst = np.abs(_residuals(geometry, nominal, x, y)).max(axis=0)
+        raise InvalidConfigError(
+            f"the readings fit no robot near the drawing: explaining them moved leg {err.leg} "
+            f"so far that it could not reach a measured pose; the nominal robot misses the "
+            f"readings by up to {', '.join(f'q{i} {v:.3g}' for i, v in enumerate(worst))} rad: "
+            f"check the readings' columns, units and encoder zeros (zero_counts)"
+        ) from None
     delta = scale * (basis @ fit.x)
     identified = nominal.shifted(delta)
     # The covariance and the leverages at the solution, in the combinations identified.

@@ -267,10 +267,14 @@ def _drive(plan, truth, poses_csv, folder, progress, say):
 
     path_s = float(load_trace(poses_csv).end_time)
     bus = dataclasses.replace(plan.scenario.bus, **REHEARSAL_BUS)
+    guard = dataclasses.replace(plan.scenario.guard, divergence_dir=str(folder / "diverged"))
     robot = dataclasses.replace(
-        plan.scenario, reference=TraceReference(path=str(poses_csv)), duration_s=path_s, bus=bus
+        plan.scenario,
+        reference=TraceReference(path=str(poses_csv)),
+        duration_s=path_s,
+        bus=bus,
+        guard=guard,
     )
-    robot.guard.divergence_dir = str(folder / "diverged")
     say(f"driving the {path_s:.0f} s path over the bus emulator (the robot as built behind it)")
     emulator = emulated_bus(robot, Robot.from_value(truth.geometry(plan.geometry)))
     try:
@@ -285,6 +289,11 @@ def _drive(plan, truth, poses_csv, folder, progress, say):
         )
     finally:
         emulator.close()
+    if run.exit_code > 128:  # a signal ended it: the command ends as any interrupted one
+        from ..execution.runners import Interrupted
+
+        say(f"the session did not drive the path: {end_line(run)}")
+        raise Interrupted(run.exit_code - 128)
     if not run.ok or run.encoder_log is None:
         raise InvalidConfigError(f"the session did not drive the path: {end_line(run)}")
     record = np.array(emulator.backend.record, dtype=float).reshape(-1, 13)

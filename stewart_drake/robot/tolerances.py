@@ -28,6 +28,9 @@ from .legs import PARAMETER_KINDS, LegParameters, parameter_kinds
 
 #: The distributions a :class:`Tolerance` may name.
 DISTRIBUTIONS = ("uniform", "normal")
+#: Largest half-width of a tolerance, by unit: a robot drawn past it is not the drawing's robot
+#: made with care (a joint 1 cm off, a crank turned 0.2 rad), and 1e308 overflowed the draw.
+MAX_HALF_WIDTH = {"m": 0.01, "rad": 0.2}
 
 
 @dataclass(frozen=True)
@@ -38,15 +41,17 @@ class Tolerance:
         half_width: h >= 0, in the quantity's unit (m or rad; the crank azimuth in rad).
         distribution: "uniform" on [-h, h], or "normal" with standard deviation h / 3.
     Raises:
-        InvalidConfigError: a negative or non-finite half-width, or another distribution.
+        InvalidConfigError: a half-width negative, not finite or over the larger of
+            :data:`MAX_HALF_WIDTH`, or another distribution.
     """
 
     half_width: float
     distribution: str = "uniform"
 
     def __post_init__(self):
+        bound = max(MAX_HALF_WIDTH.values())
         object.__setattr__(
-            self, "half_width", as_number("tolerance half_width", self.half_width, 0.0)
+            self, "half_width", as_number("tolerance half_width", self.half_width, 0.0, bound)
         )
         if self.distribution not in DISTRIBUTIONS:
             raise InvalidConfigError(
@@ -216,8 +221,9 @@ class RobotTolerances:
         """The :class:`Tolerances` these fields give.
 
         Raises:
-            InvalidConfigError: a half-width negative or not a number, or another
-                distribution; names the field (``robot_tolerances.rod_lengths_m.half_width``).
+            InvalidConfigError: a half-width negative, not a number or over
+                :data:`MAX_HALF_WIDTH` (10 mm, 0.2 rad), or another distribution; names the
+                field (``robot_tolerances.rod_lengths_m.half_width``).
         """
         given = {}
         for f in fields(self):
@@ -229,7 +235,10 @@ class RobotTolerances:
                     f"{where} must be a ToleranceSpec (half_width, distribution), got "
                     f"{type(spec).__name__}"
                 )
-            half_width = as_number(f"{where}.half_width", spec.half_width, 0.0)
+            unit = "m" if f.name.endswith("_m") else "rad"
+            half_width = as_number(
+                f"{where}.half_width ({unit})", spec.half_width, 0.0, MAX_HALF_WIDTH[unit]
+            )
             if spec.distribution not in DISTRIBUTIONS:
                 raise InvalidConfigError(
                     f"{where}.distribution must be one of {', '.join(DISTRIBUTIONS)}, got "
