@@ -399,7 +399,7 @@ def test_readings_no_robot_near_the_drawing_gives_blame_the_readings_not_a_traje
         (["--rehearse", "--noise", "1e200m,20urad"], "at most 1 mm"),
         (
             ["--rehearse", "--set", "robot_tolerances={rod_lengths_m: {half_width: 1e308}}"],
-            "robot_tolerances.rod_lengths_m.half_width (m) must be a finite number in [0, 0.01]",
+            "robot_tolerances.rod_lengths_m.half_width must be a finite number in [0, 0.01]",
         ),
     ],
 )

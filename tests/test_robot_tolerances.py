@@ -168,7 +168,7 @@ def test_a_bad_tolerance_is_refused_naming_its_field(override, message):
 
 def test_tolerances_the_robot_cannot_take_are_refused_naming_the_section():
     with pytest.raises(InvalidGeometryError, match=r"robot_tolerances: .*pivot_offsets_m"):
-        load_scenario("paper_hardware", ["robot_tolerances={pivot_offsets_m: {half_width: 0.05}}"])
+        load_scenario("paper_hardware", ["robot_tolerances={pivot_offsets_m: {half_width: 0.01}}"])
     scenario = Scenario()
     scenario.robot_tolerances = {"seed": 1}
     with pytest.raises(InvalidConfigError, match="robot_tolerances must be None or a Robot"):

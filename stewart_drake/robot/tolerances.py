@@ -237,7 +237,7 @@ class RobotTolerances:
                 )
             unit = "m" if f.name.endswith("_m") else "rad"
             half_width = as_number(
-                f"{where}.half_width ({unit})", spec.half_width, 0.0, MAX_HALF_WIDTH[unit]
+                f"{where}.half_width", spec.half_width, 0.0, MAX_HALF_WIDTH[unit]
             )
             if spec.distribution not in DISTRIBUTIONS:
                 raise InvalidConfigError(
