@@ -43,9 +43,11 @@ if _started_as_the_command() and _signal.getsignal(_signal.SIGINT) is _signal.de
 
 # The command starts itself again with glibc's thread cache sized for the plant's step (its
 # CPU, not its results), before anything else: base.allocator imports only the standard library.
+# A Ctrl-C that arrived while the restart held it reaches the handler above here.
 if _started_as_the_command():
-    from .base.allocator import restart_with_tuned_allocator
+    from .base.allocator import release_held_ctrl_c, restart_with_tuned_allocator
 
+    release_held_ctrl_c()
     restart_with_tuned_allocator()
 
 # After the handler above: its window is these imports.

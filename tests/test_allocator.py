@@ -122,3 +122,48 @@ def test_a_link_to_the_command_is_the_command(tmp_path):
     link.symlink_to(_SCRIPT)
     starts, code, out, _ = _run_with_probe([str(link), "--version"], tmp_path)
     assert (starts, code) == (2, 0) and out.startswith("stewart-drake ")
+
+
+def test_a_ctrl_c_in_the_restart_s_window_is_one_line_and_130(tmp_path):
+    """A SIGINT that arrives while the command starts itself again (here, sent by the new
+    interpreter to itself as its site customisation runs, before any of the package has) is
+    held across the restart and answered by the command's start-up handler. Was: Python's
+    KeyboardInterrupt traceback and exit 1."""
+    (tmp_path / "sitecustomize.py").write_text(
+        "import os, signal\n"
+        f"if {TCACHE_TUNABLE!r} in os.environ.get('GLIBC_TUNABLES', ''):\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
+    done = subprocess.run(
+        [_SCRIPT, "--version"], env=env, capture_output=True, text=True, timeout=300
+    )
+    assert "Traceback" not in done.stderr, done.stderr
+    assert done.returncode == 130 and done.stdout == "", (done.returncode, done.stdout)
+    assert done.stderr.strip().splitlines() == [
+        "stewart-drake: interrupted by SIGINT; partial outputs were not written"
+    ]
+
+
+def test_the_command_started_again_does_not_keep_ctrl_c_held(tmp_path):
+    """The restart holds SIGINT only across its own exec: once the package is imported in the
+    new process, SIGINT is unblocked (or every later Ctrl-C, and every process the command
+    starts, would have it held)."""
+    probe = (
+        "import os, signal\n"
+        "import stewart_drake\n"
+        "held = signal.SIGINT in signal.pthread_sigmask(signal.SIG_BLOCK, [])\n"
+        "print(os.environ.get('GLIBC_TUNABLES'), held)\n"
+    )
+    script = tmp_path / "stewart-drake"
+    script.write_text(probe)
+    done = subprocess.run(
+        [sys.executable, str(script)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        env={k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"},
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [f"{OURS} False"], (done.stdout, done.stderr)

@@ -23,6 +23,7 @@ first.
 """
 
 import os
+import signal
 import sys
 from collections.abc import Mapping
 
@@ -108,7 +109,38 @@ def restart_with_tuned_allocator() -> None:
         return
     sys.stdout.flush()
     sys.stderr.flush()
+    held = _hold_ctrl_c()
+    if held:
+        env[_CTRL_C_HELD] = "1"
     try:
         os.execve(sys.executable, argv, env)
     except OSError:
+        if held:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         return  # the command runs as it is, with glibc's default cache
+
+
+#: Set in the environment of the process the restart starts when SIGINT is held across it.
+_CTRL_C_HELD = "_STEWART_DRAKE_SIGINT_HELD"
+
+
+def _hold_ctrl_c() -> bool:
+    """Block SIGINT for the restart's exec, whether it was blocked before: a blocked signal's
+    mask and its pending arrival survive ``execve``, whereas a handler is reset, so a Ctrl-C
+    in the window between the exec and the new process's start-up handler would otherwise be
+    Python's KeyboardInterrupt traceback (or a kill by the default action). Not where SIGINT
+    is ignored, already blocked, or the platform has no signal mask."""
+    if not hasattr(signal, "pthread_sigmask") or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        return False
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    if signal.SIGINT in before:
+        return False
+    return True
+
+
+def release_held_ctrl_c() -> None:
+    """In the process a restart started, unblock the SIGINT it held (:func:`_hold_ctrl_c`):
+    one that arrived meanwhile is delivered now, to the handler installed by then. Does
+    nothing in any other process, whose mask is its parent's choice."""
+    if os.environ.pop(_CTRL_C_HELD, None) is not None and hasattr(signal, "pthread_sigmask"):
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
