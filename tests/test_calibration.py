@@ -8,6 +8,7 @@ import re
 import numpy as np
 import pytest
 import yaml
+from conftest import needs_extra
 
 from stewart_drake.calibration import files, identify, poses, rehearsal
 from stewart_drake.calibration.tracker import MeasurementNoise, measure, quantize
@@ -425,3 +426,52 @@ def test_the_bus_rehearsal_refuses_a_scenario_without_a_bus_and_unwritable_files
     line = _one_error(capsys, argv)
     assert "robot.yaml is a folder: give a file name to write" in line, line
     assert not (folder / "poses.csv").exists()  # nothing was planned or driven
+
+
+@needs_extra("robot")
+def test_ctrl_c_during_a_bus_rehearsal_s_drive_exits_130_in_one_line_writing_no_robot(tmp_path):
+    """Through the command as a user runs it: SIGINT once the torque is on ends the rehearsal
+    as any interrupted command (the session stops the servos; exit 130, one line). Was: exit 2
+    with 'the session did not drive the path'."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import threading
+
+    folder = tmp_path / "bus"
+    argv = [sys.executable, "-m", "stewart_drake.cli.main", "calibrate", "--rehearse"]
+    argv += ["--bus", str(folder), "--no-progress", "--poses", "12"]
+    proc = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    powered = threading.Event()
+    lines = []
+
+    def read():
+        for line in proc.stdout:
+            lines.append(line)
+            if line.startswith("torque on"):
+                powered.set()
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        assert powered.wait(600), "".join(lines) + proc.stderr.read()
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=300)
+    finally:
+        proc.kill()
+    reader.join(timeout=60)
+    err = proc.stderr.read()
+    assert proc.returncode == 130, (proc.returncode, err)
+    assert "Traceback" not in err, err
+    assert err.strip().splitlines()[-1].startswith("stewart-drake calibrate: interrupted by SIGINT")
+    assert not (folder / "robot.yaml").exists()
+    said = "".join(lines)
+    assert "the session did not drive the path: interrupted by SIGINT" in said, said
+    assert "could not be written" not in said, said  # was an IndexError's words, no samples

@@ -455,7 +455,12 @@ def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -
     from ..run.result import finish_result, read_run, save_result
 
     try:
-        result = finish_result(read_run(sd, simulator.get_context()), wall)
+        logs = read_run(sd, simulator.get_context())
+        if len(logs.result.t) == 0:
+            ended.reason += "; it ended before its first logged period: there are no logs to write"
+            ended.exit_code = ended.exit_code or 1
+            return
+        result = finish_result(logs, wall)
         ended.metrics = result.metrics
         ended.logs = save_result(result, path)
         t, t_read, q = sd.station.driver.readings()
