@@ -151,6 +151,38 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
     assert opened and all(bus._port is None for bus in opened)  # every bus closed
 
 
+def test_a_signal_the_moment_the_torque_is_on_ends_the_run_with_its_end_line(
+    tmp_path, monkeypatch, capsys, ctrl_c
+):
+    """A SIGINT delivered as the torque-enable returns (before the announcement): the run ends
+    as any interrupted run, with its end line, the torque off confirmed and exit 130. Was: the
+    KeyboardInterrupt escaped the session between the enable and its ``try`` (no end line, no
+    logs), seen under load in the bus rehearsal."""
+    enable = driver.DynamixelBus.enable_torque
+
+    def enabled_then_signal(self, *args, **kw):
+        done = enable(self, *args, **kw)
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)  # the handler runs in this thread at the next bytecode
+        return done
+
+    monkeypatch.setattr(driver.DynamixelBus, "enable_torque", enabled_then_signal)
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
+        argv += ["--no-progress", "--out", str(tmp_path)]
+        code = main(argv)
+        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    out, err = capsys.readouterr()
+    ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
+    assert code == 130, (out, err)
+    assert len(ends) == 1, (out, err)
+    assert ends[0].startswith("stewart-drake robot: interrupted by SIGINT"), ends[0]
+    assert "torque off (confirmed by every servo)" in ends[0], ends[0]
+    assert "could not be written" not in ends[0], ends[0]
+    assert torque == [0] * 6
+
+
 def _swallowed(signum):
     """What numba's compiler did to a Ctrl-C: the handler's raise lands in a callback that
     prints "Exception ignored" and goes on."""

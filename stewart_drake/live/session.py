@@ -485,11 +485,13 @@ def _drive(
     simulator.set_monitor(watchdog_monitor(watchdog))
     simulator.set_target_realtime_rate(1.0)
     signals.arm()
-    bus.enable_torque()
-    say(announce)
     wall0 = time.perf_counter()
     try:
         try:
+            # Inside the try: a signal the moment the torque is on is this run's end, told in
+            # ``ended`` as any other (it escaped as an exception, without the end line).
+            bus.enable_torque()
+            say(announce)
             with watchdog:
                 body()
         finally:
