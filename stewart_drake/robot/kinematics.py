@@ -207,6 +207,23 @@ def leg_reach_ratio(geometry: RobotGeometry, x) -> np.ndarray:
     return ratio
 
 
+def crank_angles(ratio, M, N) -> np.ndarray:
+    """The closed-form IK's motor angles from each leg's terms, the one numpy form of
+    theta = asin(L / sqrt(M^2 + N^2)) - atan2(N, M) (:func:`ik`; the scalar form, which the
+    controller compiles, is :func:`~.single_pose.ik_scalar`).
+
+    Args:
+        ratio: (..., 6) L / sqrt(M^2 + N^2). M, N: (..., 6) the leg's terms, m^2.
+    Returns:
+        (..., 6) rad; NaN where |ratio| > 1 or is NaN (the leg cannot close).
+    """
+    # No floating-point flag to silence: the clip keeps the arcsine's argument in [-1, 1], a NaN
+    # passes quietly, and atan2 is defined everywhere.
+    return np.where(
+        np.abs(ratio) <= 1.0, np.arcsin(np.clip(ratio, -1.0, 1.0)) - np.arctan2(N, M), np.nan
+    )
+
+
 def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     """Vectorized IK without raising, for workspace sweeps.
 
@@ -217,10 +234,7 @@ def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     L, M, N, _, _ = _lmn(geometry, x)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = L / np.hypot(M, N)
-        theta = np.where(
-            np.abs(ratio) <= 1.0, np.arcsin(np.clip(ratio, -1.0, 1.0)) - np.arctan2(N, M), np.nan
-        )
-    return theta, ratio
+    return crank_angles(ratio, M, N), ratio
 
 
 def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:

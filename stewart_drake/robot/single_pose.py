@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .kinematics import _NEXT, _PREV, RobotGeometry
+from .kinematics import _NEXT, _PREV, RobotGeometry, crank_angles
 
 #: The columns of one leg's row of per-leg constants (:func:`leg_rows`), in order, with their
 #: widths: the platform joint p_i in E, the pivot P_i, the crank direction d_i and the crank
@@ -142,12 +142,9 @@ def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
     L = (l * l).sum(axis=1) - leg_c
     M = 2.0 * a * (l * geometry.w_B).sum(axis=1)
     N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
-    norm = np.hypot(M, N)
-    if (abs(L) < norm).all():  # every leg closes (no NaN, no warning)
-        theta = np.arcsin(L / norm) - np.arctan2(N, M)
-    else:  # NaN for the legs that cannot close
-        with np.errstate(invalid="ignore", divide="ignore"):
-            theta = np.arcsin(L / norm) - np.arctan2(N, M)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = L / np.hypot(M, N)
+    theta = crank_angles(ratio, M, N)
     return theta, (x, R, r_B, l, theta)
 
 

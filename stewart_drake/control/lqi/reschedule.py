@@ -21,6 +21,7 @@ import numpy as np
 
 from ...robot.path_kernels import BODY as PATH_BODY
 from ..kernel_cache import njit_cached, use_cache
+from .step import ik_compiled
 
 _CACHE = use_cache()
 
@@ -119,6 +120,7 @@ def leg_jacobian(legs, body, x):
     E = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
     J = np.empty((6, 6))
     r_B, ell, e_N = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3))
+    thetas = ik_compiled(legs, x)  # the closed-form IK's one scalar form
     for i in range(6):
         for k in range(3):
             r_B[i, k] = R[k, 0] * legs[i, 0] + R[k, 1] * legs[i, 1] + R[k, 2] * legs[i, 2]
@@ -130,9 +132,7 @@ def leg_jacobian(legs, body, x):
         dx, dy, dz = legs[i, 6], legs[i, 7], legs[i, 8]
         wx, wy, wz = legs[i, 9], legs[i, 10], legs[i, 11]
         a = legs[i, 12]
-        L = lx * lx + ly * ly + lz * lz - legs[i, 13]
-        M, N = 2.0 * a * (lx * wx + ly * wy + lz * wz), 2.0 * a * (lx * dx + ly * dy + lz * dz)
-        theta = math.asin(L / math.sqrt(M * M + N * N)) - math.atan2(N, M)
+        theta = thetas[i]
         c, sn = math.cos(theta), math.sin(theta)
         # The tip a (c d + sn w) as a c d + a sn w: untilted (w = z, d_z = 0) each added term
         # is an exact zero and these are the sums of the upright crank, to the bit.
