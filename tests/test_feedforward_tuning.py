@@ -136,7 +136,7 @@ def test_learning_removes_most_of_a_heartbeat_not_locked_to_the_breath():
         eval_cycles=4,
         feedforward=FeedforwardTuning(stretch_s=4.0),
     )
-    assert scenario.duration_s == pytest.approx(21.0)
+    assert rep.plan.scenario.duration_s == pytest.approx(21.0)
     assert rep.learner_names == FF_STATUS_NAMES and rep.learned.shape == (ff.basis_size(), 6)
     stretches = _stretch_errors(rep)
     E0 = stretches[1]  # the first stretch ran uncorrected: measured = estimated

@@ -342,9 +342,17 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
     assert tt.size <= fr.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
     assert fr._thinned(t, y)[0].size <= fr.PLOT_POINTS + 1
 
+    from stewart_drake.run.scenario import dump_scenario
+
     scenario = load_scenario("paper_hardware")
     scenario.reference = OrganMotionReference("breathing", {"period": "1s"})
-    rep = reproduction.reproduce(scenario, eval_cycles=1)
+    given = dump_scenario(scenario)
+    rep = reproduction.reproduce(scenario, learn_cycles=1, eval_cycles=1)
+    # The run's duration and learner are on the plan's copy; the caller's scenario is unchanged
+    # (it was changed in place: its duration_s and learning were the run's).
+    assert dump_scenario(scenario) == given
+    assert rep.plan.scenario.duration_s == pytest.approx(2.0) and rep.learn_cycles == 1
+    assert rep.plan.scenario.learning.learn_cycles == 1 and scenario.learning is None
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
     fr.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))

@@ -4,6 +4,7 @@ robot, checked, run (learning on request) and measured, with a report and a verd
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from ..cli.options import (
@@ -216,10 +217,9 @@ def _cmd_reproduce(args) -> int:
     print(line)
     print(f"wrote {md}, {png} and {js}")
     if args.html:  # the run's plant-state log, replayed with the reference's ghost
-        from ..run.plan import make_plan
         from .fidelity_replay import reproduction_html
 
-        plan = make_plan(scenario, with_reference=False)
+        plan = rep.plan
         html = reproduction_html(rep, plan.plant_geometry, args.html, tolerance, plan=plan)
         print(f"wrote {html} (Meshcat replay with the reference's ghost and the error)")
     return 0 if ok else 2
@@ -250,7 +250,7 @@ def _reproduce_scenario(args):
                 "--param sets a library motion's parameters (of one added with --add on a "
                 f"trace); a trace takes {TRACE_ONLY}"
             )
-        scenario.reference = trace_reference(
+        reference = trace_reference(
             args, source, dict(zip(layers, split_parameters(layers, params)))
         )
         name = "+".join([Path(source).stem, *layers])
@@ -265,13 +265,12 @@ def _reproduce_scenario(args):
                 f"{TRACE_ONLY} are for a trace file; a library motion takes --param"
             )
         shares = split_parameters([source, *layers], params)
-        scenario.reference = OrganMotionReference(
+        reference = OrganMotionReference(
             motion=source, parameters=shares[0], add=dict(zip(layers, shares[1:]))
         )
         name = "+".join([source, *layers])
-    scenario.guard.divergence_dir = str(Path(args.out) / "diverged")
-    scenario.validate()
-    return scenario, name
+    guard = replace(scenario.guard, divergence_dir=str(Path(args.out) / "diverged"))
+    return replace(scenario, reference=reference, guard=guard).validate(), name
 
 
 def _feedforward_choice(args, scenario):

@@ -11,7 +11,7 @@ controller's estimate.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -49,7 +49,9 @@ class Reproduction:
         startup: the run before the measured window, t = 0 to its start: {"window_s": (0,
             start), "rms_translation_m", "rms_rotation_rad", "peak_translation_m",
             "peak_rotation_rad"} from the true platform pose (zeros when the window starts at 0).
-        geometry: the robot the run was made on. encoder_quantum_rad: one count of its
+        geometry: the robot the run was made on. plan: the run's
+            :class:`~stewart_drake.run.plan.RunPlan` (its scenario with the run's duration and
+            learner), or None. encoder_quantum_rad: one count of its
             encoders, rad (0: the angles are read exactly); for :meth:`resolution`.
     """
 
@@ -70,6 +72,7 @@ class Reproduction:
     learned_from: str = ""
     startup: dict = field(default_factory=dict)
     geometry: Any = None
+    plan: Any = None
     encoder_quantum_rad: float = 0.0
 
     def resolution(self) -> tuple[float, float]:
@@ -225,12 +228,12 @@ def _reference_starts(reference: Reference, learn_cycles: int) -> np.ndarray:
     return starts
 
 
-def _set_duration(
+def _duration(
     scenario, reference, starts, learn_cycles: int, eval_cycles: int, duration_s: float | None
-) -> bool:
-    """True when a recorded trace runs whole (without learning); sets the scenario's
-    ``duration_s``, s: the trace's length (at most), :func:`run_cycles` cycles or
-    ``duration_s``."""
+) -> tuple[float, bool]:
+    """(the run's length, s: the trace's length (at most), :func:`run_cycles` cycles or
+    ``duration_s``, else the scenario's; True when a recorded trace runs whole (without
+    learning))."""
     name = getattr(reference, "name", "reference")
     end = getattr(reference, "end_time", None)
     total = run_cycles(reference, learn_cycles, eval_cycles)
@@ -246,33 +249,28 @@ def _set_duration(
             f"{MAX_REPRODUCE_S:g} s, the longest run reproduce makes: ask for fewer cycles"
         )
     if whole and end is not None:
-        scenario.duration_s = float(min(duration_s or end, end))
-    elif starts.size > total:
-        scenario.duration_s = float(starts[total])
-    else:
-        scenario.duration_s = float(duration_s or end or scenario.duration_s)
-        if learn_cycles and starts.size <= learn_cycles + 1:
-            raise InvalidConfigError(
-                f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
-                f"learn from {learn_cycles} and measure one more"
-            )
-    return whole
+        return float(min(duration_s or end, end)), whole
+    if starts.size > total:
+        return float(starts[total]), whole
+    if learn_cycles and starts.size <= learn_cycles + 1:
+        raise InvalidConfigError(
+            f"{name} holds {max(starts.size - 1, 0)} cycles: too few to "
+            f"learn from {learn_cycles} and measure one more"
+        )
+    return float(duration_s or end or scenario.duration_s), whole
 
 
-def _set_learning(scenario, learn_cycles: int, feedforward=None) -> None:
-    """Make the scenario learn with ``feedforward`` when given, else from ``learn_cycles``
-    cycles (its ``learning`` or the default :class:`~stewart_drake.run.scenario.IlcDriver`), or
-    not at all (0)."""
+def _learning(scenario, learn_cycles: int, feedforward=None):
+    """The run's learner: ``feedforward`` when given, else a copy of the scenario's
+    ``learning`` (or the default :class:`~stewart_drake.control.ilc.IlcDriver`) learning from
+    ``learn_cycles`` cycles, or None (0: no learning). The scenario's own is not changed."""
     from ..control.ilc import IlcDriver
 
     if feedforward is not None:
-        scenario.learning = feedforward
-    elif learn_cycles:
-        driver = scenario.learning or IlcDriver()
-        driver.learn_cycles = learn_cycles
-        scenario.learning = driver
-    else:
-        scenario.learning = None
+        return feedforward
+    if learn_cycles:
+        return replace(scenario.learning or IlcDriver(), learn_cycles=learn_cycles)
+    return None
 
 
 def _status_names(learning) -> tuple:
@@ -369,8 +367,8 @@ def reproduce(
     ``eval_cycles`` of them).
 
     Args:
-        scenario: the robot and its controller (changed in place: duration, learning,
-            divergence folder as given).
+        scenario: the robot and its controller (not changed: the run's duration and learner
+            are set on a copy, :attr:`Reproduction.plan`'s scenario).
         reference: the motion (default the scenario's).
         learn_cycles: cycles to learn from (0: none). eval_cycles: cycles measured after.
         scale_to_fit: shrink a refused motion instead of refusing it.
@@ -394,8 +392,10 @@ def reproduce(
     reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles if feedforward is None else 0)
-    whole = _set_duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
-    _set_learning(scenario, learn_cycles, feedforward)
+    duration, whole = _duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
+    scenario = replace(
+        scenario, duration_s=duration, learning=_learning(scenario, learn_cycles, feedforward)
+    )
     check_run_memory(scenario)  # before the reference is checked at every control period
     plan = make_plan(scenario, reference=reference)  # validated once, here
     reference, scale = _fit(plan, reference) if scale_to_fit else (reference, 1.0)
@@ -419,6 +419,7 @@ def reproduce(
         wall_s=wall,
         startup=_startup(result, window),
         geometry=plan.geometry,
+        plan=plan,
         encoder_quantum_rad=0.0
         if scenario.hardware is None
         else scenario.hardware.encoders.quantum_rad,
