@@ -207,7 +207,7 @@ def leg_reach_ratio(geometry: RobotGeometry, x) -> np.ndarray:
     return ratio
 
 
-def crank_angles(ratio, M, N) -> np.ndarray:
+def ik_angles(ratio, M, N) -> np.ndarray:
     """The closed-form IK's motor angles from each leg's terms, the one numpy form of
     theta = asin(L / sqrt(M^2 + N^2)) - atan2(N, M) (:func:`ik`; the scalar form, which the
     controller compiles, is :func:`~.single_pose.ik_scalar`).
@@ -234,7 +234,7 @@ def ik_unchecked(geometry: RobotGeometry, x) -> tuple[np.ndarray, np.ndarray]:
     L, M, N, _, _ = _lmn(geometry, x)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = L / np.hypot(M, N)
-    return crank_angles(ratio, M, N), ratio
+    return ik_angles(ratio, M, N), ratio
 
 
 def ik(geometry: RobotGeometry, x, t=None) -> np.ndarray:

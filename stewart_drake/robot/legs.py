@@ -34,7 +34,7 @@ import numpy as np
 from ..base.checks import as_array, as_poses
 from ..base.errors import InvalidGeometryError, UnreachablePoseError
 from .geometry import StewartGeometry
-from .kinematics import crank_angles, rotation_rpy
+from .kinematics import ik_angles, rotation_rpy
 
 _Z = np.array([0.0, 0.0, 1.0])
 
@@ -243,7 +243,7 @@ def leg_ik_unchecked(frames: LegFrames, x) -> tuple[np.ndarray, np.ndarray]:
     N = 2.0 * a * np.sum(l * frames.d, axis=-1)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = L / np.hypot(M, N)
-    return crank_angles(ratio, M, N), ratio
+    return ik_angles(ratio, M, N), ratio
 
 
 def leg_ik(geometry: StewartGeometry, legs: LegParameters, x) -> np.ndarray:

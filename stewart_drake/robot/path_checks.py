@@ -19,7 +19,7 @@ from ..base.errors import (
     StewartError,
     UnreachablePoseError,
 )
-from .kinematics import LegTerms, crank_angles, finite_or_singular
+from .kinematics import LegTerms, finite_or_singular, ik_angles
 from .trajectory_report import TrajectoryReport
 
 
@@ -90,7 +90,7 @@ class SampleKinematics(NamedTuple):
 def compiled_kinematics(geometry, x, joints) -> SampleKinematics:
     """The :class:`SampleKinematics` of poses x (n, 6) [rad, m] by
     :func:`~.path_kernels.closure` and :func:`~.path_kernels.pose_terms`, the motor angles'
-    arcsines by :func:`~.kinematics.crank_angles`: the numpy form's
+    arcsines by :func:`~.kinematics.ik_angles`: the numpy form's
     numbers to the last bit (a test holds the reports equal).
 
     Args:
@@ -104,7 +104,7 @@ def compiled_kinematics(geometry, x, joints) -> SampleKinematics:
     x = np.ascontiguousarray(x, dtype=float)
     ratio, M, N = np.empty(x.shape), np.empty(x.shape), np.empty(x.shape)
     closure(x, legs, body, ratio, M, N)
-    theta = crank_angles(ratio, M, N)
+    theta = ik_angles(ratio, M, N)
     J, crank, cos_p = np.empty(x.shape + (6,)), np.empty(x.shape), np.empty(x.shape)
     pose_terms(x, theta, legs, body, joints, J, crank, cos_p)
     return SampleKinematics(theta, ratio, J, crank, cos_p, None)

@@ -13,7 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .kinematics import _NEXT, _PREV, RobotGeometry, crank_angles
+from .kinematics import _NEXT, _PREV, RobotGeometry, ik_angles
 
 #: The columns of one leg's row of per-leg constants (:func:`leg_rows`), in order, with their
 #: widths: the platform joint p_i in E, the pivot P_i, the crank direction d_i and the crank
@@ -144,7 +144,7 @@ def ik_single(geometry: RobotGeometry, x) -> tuple[np.ndarray, tuple]:
     N = 2.0 * a * (l * geometry.d_B).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = L / np.hypot(M, N)
-    theta = crank_angles(ratio, M, N)
+    theta = ik_angles(ratio, M, N)
     return theta, (x, R, r_B, l, theta)
 
 
