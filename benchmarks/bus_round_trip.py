@@ -15,7 +15,7 @@ bytes' time.
 
 Each setting twice: the emulator in a thread of the benchmark's process (as in the tests; the
 two threads share the GIL, whose 5 ms switch interval shows in the tails) and in its own process
-(``python -m stewart_drake.live.emulator``), nearer a real bus.
+(``python -m stewart_drake.station.bus.emulator``), nearer a real bus.
 
 ``--plant`` adds the emulator with the robot's Drake plant behind it (``StationServos``)
 holding the platform at home, and prints how much model time the plant slipped behind the wall
@@ -32,8 +32,8 @@ import time
 
 import numpy as np
 
-from stewart_drake.live.emulator import BusEmulator
 from stewart_drake.station.bus.driver import DynamixelBus
+from stewart_drake.station.bus.emulator import BusEmulator
 
 IDS = [1, 2, 3, 4, 5, 6]
 
@@ -45,7 +45,7 @@ def emulated_bus(separate_process: bool):
         with BusEmulator(IDS) as emulator:
             yield emulator.port
         return
-    command = [sys.executable, "-m", "stewart_drake.live.emulator", "--ids"]
+    command = [sys.executable, "-m", "stewart_drake.station.bus.emulator", "--ids"]
     with subprocess.Popen(
         command + [str(i) for i in IDS], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
     ) as child:

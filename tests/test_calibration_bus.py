@@ -20,7 +20,6 @@ from stewart_drake.live.calibration_rehearsal import (  # noqa: E402
     REHEARSAL_BUS,
     emulated_bus,
 )
-from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     behind_the_bus,
@@ -34,6 +33,7 @@ from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario import Robot  # noqa: E402
 from stewart_drake.run.scenario_io import load_scenario  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 QUANTUM = 2 * np.pi / 4096  # the servos' encoders

@@ -21,10 +21,10 @@ from stewart_drake.base.errors import (  # noqa: E402
     MissingServoError,
     ServoConfigMismatchError,
 )
-from stewart_drake.live.emulator import BusEmulator, FirstOrderServos  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 from stewart_drake.station.bus import servos  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator, FirstOrderServos  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 XM430 = servos.SERVO_SPECS["XM430-W350-T"]

@@ -21,7 +21,6 @@ from stewart_drake.base.errors import BusError, InvalidConfigError, MissingExtra
 from stewart_drake.cli.main import main  # noqa: E402
 from stewart_drake.cli.registry import build_parser  # noqa: E402
 from stewart_drake.live import command as live_command  # noqa: E402
-from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.measure import zero_counts_at  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
@@ -34,6 +33,7 @@ from stewart_drake.run.scenario import dump_scenario
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
 from stewart_drake.station.bus import driver  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]

@@ -20,7 +20,6 @@ require_extra("robot")
 
 from stewart_drake.base.errors import StartPoseError  # noqa: E402
 from stewart_drake.control.lqi.driver import LqiDriver  # noqa: E402
-from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.plant_backend import (  # noqa: E402
     StationServos,
     dynamixel_scenario,
@@ -31,6 +30,7 @@ from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.result import load_result  # noqa: E402
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.station.bus import protocol as p  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]

@@ -15,7 +15,6 @@ from conftest import require_extra
 require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError, StartPoseError  # noqa: E402
-from stewart_drake.live.emulator import BusEmulator  # noqa: E402
 from stewart_drake.live.measure import measure_pose, pose_verdict  # noqa: E402
 from stewart_drake.live.session import HomingReference  # noqa: E402
 from stewart_drake.live.watchdog import LoopWatchdog  # noqa: E402
@@ -23,6 +22,7 @@ from stewart_drake.references.trajectories import paper_manoeuvre  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 
@@ -173,8 +173,8 @@ def _angles(geometry, x):
 
 
 def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
-    from stewart_drake.live.emulator import FirstOrderServos
     from stewart_drake.live.measure import zero_counts_at
+    from stewart_drake.station.bus.emulator import FirstOrderServos
 
     q_held = np.radians([-3.8, -3.8, 10.0, -20.0, 0.0, 45.0])  # the jig's angles
     mounted = [2048, 1000, 3000, 2500, 100, 4000]

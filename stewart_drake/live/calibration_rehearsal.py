@@ -17,11 +17,12 @@ a tracker, every file written and read as theirs would be.
    (other admissible poses) with the nominal robot (before) and the identified one (after),
    against the as-built robot's readings there, quantized by the servos' encoders.
 
-The emulator runs in this process on the commanded clock (:class:`~.emulator.BusEmulator`'s
-``command_step_s``: the plant advances one control period per torque command) and the bus's
-and the loop's timing limits are relaxed (:data:`REHEARSAL_BUS`, :data:`LOOP_TIMEOUT_S`): a
-rehearsal of the calibration, whose physics follow the loop's commands however loaded the
-machine, not of the loop's timing (``stewart-drake robot --emulate`` rehearses that).
+The emulator runs in this process on the commanded clock
+(:class:`~stewart_drake.station.bus.emulator.BusEmulator`'s ``command_step_s``: the plant advances
+one control period per torque command) and the bus's and the loop's timing limits are relaxed
+(:data:`REHEARSAL_BUS`, :data:`LOOP_TIMEOUT_S`): a rehearsal of the calibration, whose physics
+follow the loop's commands however loaded the machine, not of the loop's timing (``stewart-drake
+robot --emulate`` rehearses that).
 """
 
 from __future__ import annotations
@@ -54,11 +55,11 @@ def emulated_bus(scenario, robot_as_built=None, x0=X_REST):
     the platform's true pose and rate (12,)) after every command.
 
     Returns:
-        the started :class:`~.emulator.BusEmulator` (close it).
+        the started :class:`~stewart_drake.station.bus.emulator.BusEmulator` (close it).
     """
     import time as clock
 
-    from .emulator import BusEmulator
+    from ..station.bus.emulator import BusEmulator
     from .plant_backend import StationServos, behind_the_bus, dynamixel_scenario
 
     bus = scenario.bus

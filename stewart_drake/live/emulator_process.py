@@ -50,7 +50,7 @@ def _serve(  # pragma: no cover
 def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # pragma: no cover
     """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant."""
     from ..run.scenario import _scenario_from_yaml
-    from .emulator import BusEmulator
+    from ..station.bus.emulator import BusEmulator
     from .plant_backend import StationServos, dynamixel_scenario
 
     scenario = dynamixel_scenario(model, _scenario_from_yaml(scenario_yaml))

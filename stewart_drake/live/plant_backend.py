@@ -1,10 +1,10 @@
 """The robot's Drake plant behind the bus emulator: six servos that move the platform.
 
-:class:`StationServos` is a :class:`~.emulator.ServoBackend` that steps the station of a
-scenario (:func:`~stewart_drake.run.diagram.held_station`: the closed-chain
-MultibodyPlant with the motors' reflected inertia and friction) with the servos' torques
-``K_t i`` on ``motor_torque``, and reports the crank joints' angles and rates read from the
-plant (not through the station's encoders: the emulator quantizes to the servo's 4096 counts),
+:class:`StationServos` is a :class:`~stewart_drake.station.bus.emulator.ServoBackend` that steps the
+station of a scenario (:func:`~stewart_drake.run.diagram.held_station`: the closed-chain
+MultibodyPlant with the motors' reflected inertia and friction) with the servos' torques ``K_t i``
+on ``motor_torque``, and reports the crank joints' angles and rates read from the plant (not through
+the station's encoders: the emulator quantizes to the servo's 4096 counts),
 each angle plus its encoder's zero error: with the scenario's ``robot_as_built``, the plant is
 that robot and the servos read its ``encoder_offsets_rad`` (the plan's ``plant_geometry``), as a
 servo mounted a little off its zero does; the controller, on the bus, believes ``robot``.
@@ -32,8 +32,8 @@ import numpy as np
 from ..plant.backlash import crank_angles, crank_rates
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
+from ..station.bus.emulator import ServoBackend
 from ..station.bus.servos import servo_spec
-from .emulator import ServoBackend
 
 
 def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):

@@ -44,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError
-from ..robot.motor_catalogue import catalogue_motor
-from ..station.bus import protocol as p
-from ..station.bus.servos import ServoSpec, servo_spec
+from ...base.errors import InvalidConfigError
+from ...robot.motor_catalogue import catalogue_motor
+from . import protocol as p
+from .servos import ServoSpec, servo_spec
 
 #: Control table size: addresses 0..146 (Present Temperature is the last one used).
 TABLE_SIZE = 147
@@ -560,7 +560,7 @@ class BusEmulator:
 
 
 def main(argv=None) -> None:
-    """``python -m stewart_drake.live.emulator --ids 1 2 3 4 5 6``: a bus in
+    """``python -m stewart_drake.station.bus.emulator --ids 1 2 3 4 5 6``: a bus in
     its own process (no GIL shared with the driver). Prints the port path on the first line of
     stdout, then serves until its stdin closes (the parent's end of a pipe, or Ctrl-D) or
     SIGTERM/Ctrl-C."""
