@@ -15,8 +15,8 @@ import pytest
 from conftest import install_plugin
 
 from stewart_drake.cli import main as cli
-from stewart_drake.cli import options
 from stewart_drake.control import contract
+from stewart_drake.execution import options
 
 REPO = Path(__file__).resolve().parent.parent
 KERNELS = "stewart_drake.control.lqi.kernels"

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from ..cli.options import (
+from ..execution.options import (
     TRACE_ONLY,
     add_runner_arguments,
     add_scenario_arguments,

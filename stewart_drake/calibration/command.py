@@ -10,7 +10,7 @@ import argparse
 import math
 from pathlib import Path
 
-from ..cli.options import add_scenario_arguments, int_at_least, positive_float
+from ..execution.options import add_scenario_arguments, int_at_least, positive_float
 
 
 def register(sub) -> None:
@@ -238,7 +238,7 @@ def _cmd_calibrate(args) -> int:
     if args.bus is not None:
         _check_bus_rehearsal(args)
     if args.scenario is None:
-        from ..cli.options import default_scenario
+        from ..execution.options import default_scenario
 
         args.scenario = default_scenario()
     if args.out is None and not args.rehearse:
@@ -252,11 +252,11 @@ def _cmd_calibrate(args) -> int:
     if args.save_measurements is not None:
         if not args.rehearse:
             raise InvalidConfigError("--save-measurements is for --rehearse")
-        from ..cli.options import check_output
+        from ..execution.options import check_output
 
         check_output(args.save_measurements, "--save-measurements", is_file=True)
     if args.plan is not None:  # its second file, checked before any work as --out is
-        from ..cli.options import check_output
+        from ..execution.options import check_output
         from .files import windows_path
 
         check_output(windows_path(args.out), "--out's windows file", is_file=True)
@@ -291,7 +291,7 @@ def _check_bus_rehearsal(args) -> None:
             files are in FOLDER), or FOLDER not writable.
     """
     from ..base.errors import InvalidConfigError
-    from ..cli.options import check_output
+    from ..execution.options import check_output
 
     if not args.rehearse:
         raise InvalidConfigError("--bus is for --rehearse (the rehearsal over the bus emulator)")

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .options import add_scenario_arguments, default_scenario
+from ..execution.options import add_scenario_arguments, default_scenario
 
 
 def register(sub) -> None:

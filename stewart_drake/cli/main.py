@@ -3,15 +3,15 @@
 Each subcommand parses its arguments in its feature's command module (``<feature>/command.py``,
 listed by :mod:`~stewart_drake.cli.registry`) and calls the functions of the modules that own the
 idea (imported when the subcommand runs, so `stewart-drake sdf` does not pay for torch or the
-Simulator). Here: :func:`main`, which turns what goes wrong into a one-line message and a
-non-zero exit, no traceback: exit 2 for bad arguments and StewartError (refused input, a
-diverged run, a results folder of other settings or in use by another study, lost jobs), 1 for a
-file that cannot be read or written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the
-signal: every command handles the three alike, within a second or two). Every output (folder,
-file, the sub-folders a command writes into) is checked before any work starts
-(:func:`~stewart_drake.cli.options.check_output`), so a long run never ends in a failed save and
-a device node, FIFO or socket is never replaced; the hidden temporaries a killed write left there
-(the tool's own, whose writer is gone) are removed.
+Simulator). Here: :func:`main`, which turns what goes wrong into a one-line message and a non-zero
+exit, no traceback: exit 2 for bad arguments and StewartError (refused input, a diverged run, a
+results folder of other settings or in use by another study, lost jobs), 1 for a file that cannot be
+read or written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the signal: every command
+handles the three alike, within a second or two). Every output (folder, file, the sub-folders a
+command writes into) is checked before any work starts
+(:func:`~stewart_drake.execution.options.check_output`), so a long run never ends in a failed save
+and a device node, FIFO or socket is never replaced; the hidden temporaries a killed write left
+there (the tool's own, whose writer is gone) are removed.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import threading
 from pathlib import Path
 
 from ..base.errors import StewartError
-from .options import check_output
+from ..execution.options import check_output
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
 #: with the folder under ``--out`` that keeps them.

@@ -5,9 +5,8 @@ Each module's ``register(subparsers)`` adds its commands' parsers, with the func
 each (``set_defaults(func=...)``) and, when the command writes a file or sub-folders, what
 :func:`~stewart_drake.cli.main.main` checks of ``--out`` first (``out_is_file``, ``out_sub``).
 A command module imports what its command needs when the command runs, so building the parser
-(and ``--help``) loads no torch, no Simulator. The registry is its own module, not the package's
-``__init__``: the command modules import :mod:`~stewart_drake.cli.options`, and importing it
-runs the package's ``__init__`` first, which would import them back.
+(and ``--help``) loads no torch, no Simulator. The options they share are
+:mod:`stewart_drake.execution.options`, below the features.
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..cli.options import add_runner_arguments, int_at_least, runner_from_args
+from ..execution.options import add_runner_arguments, int_at_least, runner_from_args
 
 
 def register(sub) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..cli.options import (
+from ..execution.options import (
     add_runner_arguments,
     check_output,
     default_scenario,

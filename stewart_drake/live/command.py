@@ -10,7 +10,7 @@ import signal
 import sys
 from pathlib import Path
 
-from ..cli.options import (
+from ..execution.options import (
     add_scenario_arguments,
     int_at_least,
     is_trace_file,

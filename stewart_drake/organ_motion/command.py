@@ -7,7 +7,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from ..cli.options import (
+from ..execution.options import (
     TRACE_ONLY,
     add_scenario_arguments,
     add_trace_arguments,

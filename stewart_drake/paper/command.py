@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..cli.options import (
+from ..execution.options import (
     add_scenario_arguments,
     check_output,
     default_scenario,

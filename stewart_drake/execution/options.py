@@ -2,10 +2,11 @@
 ``--scenario``/``--set``, runner and trace options with what they build, and the notes a command
 prints on stderr before a silent stage (the compiled LQI step, a stage of some seconds).
 
-Every feature's command module (``<feature>/command.py``) imports it, so it is ranked apart from
-the rest of ``cli``: between execution and the features (``tests/test_layers.py``). It imports
-nothing of the features, and nothing heavy when imported: building the parser reads no Drake
-beyond the names the options list, and a command's own imports run when it runs.
+Every feature's command module (``<feature>/command.py``) imports it, and the command
+(:mod:`stewart_drake.cli`) builds on them: it sits below the features, with the runners its
+options build. It imports nothing of the features, and nothing heavy when imported: building the
+parser reads no Drake beyond the names the options list, and a command's own imports run when it
+runs.
 """
 
 from __future__ import annotations
@@ -211,8 +212,8 @@ def add_scenario_arguments(parser, what: str, default: str | None = None) -> Non
 
 def add_runner_arguments(parser) -> None:
     """The options of a study's runner (:mod:`~stewart_drake.execution.runners`)."""
-    from ..execution.clusters import DEFAULT_CONNECT_TIMEOUT_S
-    from ..execution.runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
+    from .clusters import DEFAULT_CONNECT_TIMEOUT_S
+    from .runners import DEFAULT_RECYCLE, DEFAULT_RETRIES, RUNNERS
 
     parser.add_argument(
         "--runner",
@@ -264,8 +265,8 @@ def add_runner_arguments(parser) -> None:
 def runner_from_args(args):
     """The runner of ``--runner``, ``--jobs``, ``--address``, ``--scheduler``, ``--retries``,
     ``--recycle``."""
-    from ..execution.clusters import make_runner
-    from ..execution.runners import AUTO_RECYCLE
+    from .clusters import make_runner
+    from .runners import AUTO_RECYCLE
 
     return make_runner(
         args.runner,
