@@ -191,7 +191,7 @@ def _noise(text: str) -> tuple[float, float]:
     from .files import ANGLE_UNITS, LENGTH_UNITS
 
     parts = [p.strip() for p in text.split(",")]
-    out = []
+    out: list[float] = []
     for part, table in zip(parts, (LENGTH_UNITS, ANGLE_UNITS)):
         unit = part.lstrip("0123456789.+-eE")
         number = part[: len(part) - len(unit)]

@@ -195,7 +195,7 @@ def _no_memory(command: str) -> int:
     return 1
 
 
-def _interrupted_import(err: ImportError) -> bool:
+def _interrupted_import(err: BaseException) -> bool:
     """Whether ``err`` is a Ctrl-C that landed while an extension module initialized: pydrake's
     and matplotlib's modules turn it into an ImportError ("initialization failed", or "Encountered
     an error while initializing the extension" around it), the KeyboardInterrupt kept as a cause
