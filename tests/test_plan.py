@@ -153,3 +153,27 @@ def test_the_run_starts_where_the_reference_starts():
         sd.station.GetMyContextFromRoot(simulator.get_context())
     )
     np.testing.assert_allclose(state, np.concatenate([x0, x_dot0]), atol=1e-9)
+
+
+def _same_robot(a, b) -> bool:
+    import dataclasses
+
+    return all(
+        np.array_equal(np.asarray(getattr(a, f.name)), np.asarray(getattr(b, f.name)))
+        for f in dataclasses.fields(a)
+    )
+
+
+@pytest.mark.parametrize("name", ["paper_hardware", "paper_bus", "paper_ideal"])
+def test_the_robot_s_geometry_without_a_run_is_the_plan_s(name):
+    """robot_geometry is the plan's believed robot (the bus's servos' reflected inertia on
+    paper_bus), not the plant's (a robot drawn from tolerances is the plan's plant_geometry)."""
+    from stewart_drake.run.plan import robot_geometry
+
+    plan = make_plan(load_scenario(name), with_reference=False)
+    assert _same_robot(robot_geometry(load_scenario(name)), plan.geometry)
+    if name != "paper_bus":  # robot_tolerances is simulated, never on the bus
+        drawn = load_scenario(name, ["robot_tolerances={seed: 3}"])
+        built = make_plan(drawn, with_reference=False)
+        assert _same_robot(robot_geometry(drawn), built.geometry)
+        assert not _same_robot(robot_geometry(drawn), built.plant_geometry)

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..robot import kinematics, statics
 from ..robot.geometry import X_HOME, StewartGeometry
-from ..run.plan import make_plan
+from ..run.plan import robot_geometry
 
 #: Plant steps of the study, s, and the step of each engine's reference solution.
 STEPS_S = (1e-3, 5e-4, 2e-4, 1e-4, 5e-5)
@@ -301,7 +301,7 @@ def paper_run(time_step: float, duration_s: float = 2.0, rod_model: str = "bodie
     for state in states if sd.handles.rod_balls else ():
         sd.plant.SetPositions(context, state[:nq])
         pitch = max(pitch, max(abs(joint.get_angles(context)[1]) for joint in sd.handles.rod_balls))
-    geometry = make_plan(config, with_reference=False).geometry
+    geometry = robot_geometry(config)
     no_spin = np.abs(ball_joints.rod_ball_rpy(geometry, result.x[:, :6])[..., 1]).max()
     return {
         "rms_error": np.asarray(result.metrics["rms_error"]),

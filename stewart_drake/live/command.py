@@ -313,10 +313,10 @@ def _check_emulated_pose(scenario, x0) -> None:
 
     from ..base.errors import InvalidConfigError, StewartError
     from ..robot.kinematics import ik
-    from ..run.plan import make_plan
+    from ..run.plan import robot_geometry
 
     try:
-        ik(make_plan(scenario, with_reference=False).geometry, np.asarray(x0, dtype=float))
+        ik(robot_geometry(scenario), np.asarray(x0, dtype=float))
     except StewartError as err:
         raise InvalidConfigError(
             f"--emulate {','.join(f'{v:g}' for v in x0)}: the robot cannot rest there ({err})"

@@ -226,7 +226,7 @@ def _run(
 ) -> tuple[dict, dict | None, np.ndarray | None, float]:
     """(figures, the learner's last status or None, the learned weights or None, wall s) of one
     run of :data:`DURATION_S` on :data:`~.SCENARIO` with ``overrides``."""
-    from ..run.plan import make_plan
+    from ..run.plan import robot_geometry
     from ..run.scenario_io import load_scenario
     from .reproduction import run
 
@@ -241,7 +241,7 @@ def _run(
         from ..control.feedforward_tuning import FF_STATUS_NAMES
 
         status = {k: float(v) for k, v in zip(FF_STATUS_NAMES, log[-1])}
-    geometry = make_plan(scenario, with_reference=False).geometry
+    geometry = robot_geometry(scenario)
     return _figures(result, quantum, geometry), status, learned, wall
 
 

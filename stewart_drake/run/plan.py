@@ -202,14 +202,33 @@ def as_built(scenario: Scenario) -> Scenario:
     return dataclasses.replace(scenario, hardware=scenario.bus.hardware(scenario.control_period_s))
 
 
-def _robot_plan(scenario: Scenario) -> RunPlan:
-    """The plan of a validated ``scenario`` without its reference object (on the servo bus,
-    of the robot built with its servos: :func:`as_built`)."""
-    scenario = as_built(scenario)
+def robot_geometry(scenario: Scenario):
+    """The robot ``scenario``'s controller believes, as :class:`RunPlan`'s ``geometry``,
+    without deriving a run: its ``robot`` section (on the servo bus, built with its servos:
+    :func:`as_built`) with its motors' reflected inertia.
+
+    Returns:
+        :class:`~stewart_drake.robot.geometry.StewartGeometry`.
+    Raises:
+        as :func:`make_plan` (the scenario is validated here).
+    """
+    return _believed_robot(as_built(scenario.validate()))[0]
+
+
+def _believed_robot(scenario: Scenario) -> tuple:
+    """(geometry, servo or None) of :func:`robot_geometry`, for a scenario already as built."""
     geometry = scenario.robot.build()
     servo = None if scenario.hardware is None else scenario.hardware.motors.build()
     if servo is not None:
         geometry = geometry.replace(motor_reflected_inertia=servo.reflected_inertia)
+    return geometry, servo
+
+
+def _robot_plan(scenario: Scenario) -> RunPlan:
+    """The plan of a validated ``scenario`` without its reference object (on the servo bus,
+    of the robot built with its servos: :func:`as_built`)."""
+    scenario = as_built(scenario)
+    geometry, servo = _believed_robot(scenario)
     plant_geometry = geometry
     if scenario.robot_as_built is not None:
         plant_geometry = scenario.robot_as_built.build().replace(

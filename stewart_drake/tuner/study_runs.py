@@ -20,7 +20,7 @@ from ..control.lqi.driver import LqiDriver
 from ..control.tuner.ratio import ratio_tuner_inputs
 from ..control.tuning import TunerChoice
 from ..run import metrics
-from ..run.plan import make_plan
+from ..run.plan import make_plan, robot_geometry
 from ..run.scenario_io import load_scenario
 from ..run.simulate import run_experiment
 from .tasks import make_task
@@ -171,7 +171,7 @@ def study_job(job: StudyJob) -> dict:
     t0 = time.perf_counter()
     scenario, task = task_scenario(job)
     result = run_experiment(scenario, reference=task.reference)
-    e2, u2 = metrics.sample_costs(result, make_plan(scenario, with_reference=False).geometry)
+    e2, u2 = metrics.sample_costs(result, robot_geometry(scenario))
     t, duration = result.t, job.duration_s
     step = int(round(TUNER_PERIOD_S / scenario.log_period_s))
     seen = result.e_bar if result.e_bar is not None else metrics.tracking_error(result)
