@@ -353,6 +353,10 @@ def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_pea
     assert dump_scenario(scenario) == given
     assert rep.plan.scenario.duration_s == pytest.approx(2.0) and rep.learn_cycles == 1
     assert rep.plan.scenario.learning.learn_cycles == 1 and scenario.learning is None
+    # The run is run_experiment's: its result carries the learner's record, a row per state
+    # sample and the state at the end.
+    assert rep.learner is rep.result.learner_status
+    assert rep.learner.shape[0] == rep.result.t_state.size + 1
     figures = []
     monkeypatch.setattr(plt, "close", figures.append)
     fr.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))

@@ -168,28 +168,14 @@ def run(
     ``state_log_period_s``) and ends with its state at the end of the run (the loggers' last
     sample is one period earlier: the update of a cycle's last sample would otherwise be
     missing)."""
-    from ..run.result import finish_result, release_reference
-    from ..run.simulate import build_simulator, simulate
+    from ..run.simulate import run_experiment
 
     # A reproduction reads the pose, the torques and the status, not the controller's integral
     # or error estimate: a 25-minute trace is 72 MB lighter without them.
-    sd, simulator = build_simulator(
-        scenario, reference=reference, progress=progress, report=report, controller_logs=False
+    result = run_experiment(
+        scenario, progress, reference=reference, report=report, controller_logs=False, desc=desc
     )
-    logs, wall = simulate(sd, simulator, progress, desc)
-    learner = learned = None
-    if sd.learner is not None:
-        context = simulator.get_context()
-        learner_context = sd.learner.GetMyContextFromRoot(context)
-        log = sd.loggers[sd.learner.status_port].FindLog(context).data().T
-        final = sd.learner.GetOutputPort(sd.learner.status_port).Eval(learner_context)
-        learner = np.vstack([log, final])
-        if sd.learner.HasOutputPort("theta"):
-            theta = sd.learner.GetOutputPort("theta").Eval(learner_context)
-            learned = np.asarray(theta).reshape(-1, 6)
-    release_reference(sd)
-    result = finish_result(logs, wall)
-    return result, learner, wall, learned
+    return result, result.learner_status, result.metrics["wall_s"], result.learned
 
 
 def run_cycles(reference: Reference, learn_cycles: int, eval_cycles: int) -> int:

@@ -274,6 +274,10 @@ class RunResult:
         t_state: (M,) s, the times of ``state`` and ``closure`` (None: ``t``, as in a file
             saved before the state had its own period).
         state: (M, nq + nv) the plant's state at ``t_state`` (a replay's frames), or None.
+        learner_status: (M + 1, k) a learner's status at ``t_state`` and at the run's end (the
+            loggers' last sample is one period earlier: a cycle's last update would be
+            missing), or None without a learner. learned: (p, 6) a feed-forward learner's
+            weights at the end, or None. Neither is saved (:func:`save_result`).
     """
 
     t: np.ndarray
@@ -292,6 +296,8 @@ class RunResult:
     config_summary: dict = field(default_factory=dict)
     t_state: np.ndarray | None = None
     state: np.ndarray | None = None
+    learner_status: np.ndarray | None = None
+    learned: np.ndarray | None = None
 
     def __post_init__(self):
         if self.t_state is None:
@@ -375,11 +381,26 @@ def read_run(sd, root_context) -> RunLogs:
         t_state=logs["state"].sample_times(),
         state=state,
     )
+    if getattr(sd, "learner", None) is not None:
+        result.learner_status, result.learned = _learner_record(sd, root_context)
     contact = bool(sd.scenario.contact)
     first = sd.guard.first_contact(root_context) if contact and sd.guard is not None else None
     for logger in sd.loggers.values():  # read: the run's Context is not held for a drain
         logger.log.unbind()
     return RunLogs(result, sd.trajectory, contact, first)
+
+
+def _learner_record(sd, root_context) -> tuple:
+    """(status (M + 1, k), learned (p, 6) or None) of the Diagram's learner
+    (:attr:`RunResult.learner_status`, :attr:`RunResult.learned`)."""
+    learner = sd.learner
+    context = learner.GetMyContextFromRoot(root_context)
+    log = sd.loggers[learner.status_port].FindLog(root_context).data().T
+    final = learner.GetOutputPort(learner.status_port).Eval(context)
+    learned = None
+    if learner.HasOutputPort("theta"):
+        learned = np.asarray(learner.GetOutputPort("theta").Eval(context)).reshape(-1, 6)
+    return np.vstack([log, final]), learned
 
 
 def finish_result(logs: RunLogs, wall_s: float) -> RunResult:

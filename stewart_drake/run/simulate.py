@@ -115,8 +115,12 @@ def run_experiment(
     reference=None,
     controller=None,
     on_checked=None,
+    report=None,
+    controller_logs: bool = True,
+    desc: str = "simulating",
 ) -> RunResult:
-    """Simulate one closed-loop run and collect its logs and metrics.
+    """Simulate one closed-loop run and collect its logs and metrics: every run of the package
+    that simulates (the paper's, a reproduction, a study's job) comes here.
 
     Args:
         scenario: the run, a scenario or a :class:`~stewart_drake.run.plan.RunPlan`
@@ -129,8 +133,12 @@ def run_experiment(
             :mod:`~stewart_drake.control.contract`) overriding ``scenario.controller``.
         on_checked: called (no arguments) once the run's checks pass, before the Diagram is
             built: the command line says there what the next seconds do.
+        report: the reference's check when the caller has made it (not checked again).
+        controller_logs: False to log neither the controller's integral nor its error estimate
+            (a long reproduction is lighter without them).
+        desc: the progress bar's label.
     Returns:
-        :class:`~.result.RunResult`.
+        :class:`~.result.RunResult` (with a learner's record when the scenario learns).
     Raises:
         UnreachablePoseError, JointLimitError, SingularPoseError before simulating (see
         :func:`build_simulator`); SimulationDivergedError when the guard stops the run (the
@@ -142,9 +150,11 @@ def run_experiment(
         reference=reference,
         controller=controller,
         progress=progress,
+        report=report,
+        controller_logs=controller_logs,
         on_checked=on_checked,
     )
-    logs, wall = simulate(sd, simulator, progress)
+    logs, wall = simulate(sd, simulator, progress, desc)
     release_reference(sd)
     return finish_result(logs, wall)
 
