@@ -1,0 +1,31 @@
+"""base.tables: the one writer of the generated documents' Markdown tables."""
+
+import pytest
+
+from stewart_drake.base.tables import markdown_lines, markdown_row, markdown_table
+
+
+def test_the_table_is_written_exactly():
+    text = markdown_table(["motion", "RMS [um]", "n"], [["breathing", f"{1.2345:.2f}", 3]])
+    assert text == "| motion | RMS [um] | n |\n|---|---|---|\n| breathing | 1.23 | 3 |"
+    assert markdown_lines(["a"], []) == ["| a |", "|---|"]
+
+
+def test_blank_empty_and_short_rows_keep_the_documents_forms():
+    # None: a blank cell '| |' (the corner above row labels, the cells after a failure);
+    # '': an empty cell written '|  |' as any other text; a short row stays short.
+    assert markdown_row([None, "reference", "chosen"]) == "| | reference | chosen |"
+    assert markdown_row(["0.5 um", ""]) == "| 0.5 um |  |"
+    lines = markdown_lines(["robot", "RMS", "peak"], [["ideal", "failed: diverged"]])
+    assert lines[2] == "| ideal | failed: diverged |"
+    assert markdown_row(["run", "failed: x", None, None]) == "| run | failed: x | | |"
+
+
+def test_alignment_row_and_its_refusals():
+    assert markdown_lines(["a", "b", "c"], [], align=[None, "right", "center"])[1] == (
+        "|---|---:|:---:|"
+    )
+    with pytest.raises(ValueError, match="2 alignments for 3 columns"):
+        markdown_table(["a", "b", "c"], [], align=["left", "left"])
+    with pytest.raises(ValueError, match="unknown alignment 'middle'"):
+        markdown_table(["a"], [], align=["middle"])
