@@ -1,8 +1,13 @@
 """base.tables: the one writer of the generated documents' Markdown tables."""
 
+import pathlib
+import re
+
 import pytest
 
 from stewart_drake.base.tables import markdown_lines, markdown_row, markdown_table
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
 
 
 def test_the_table_is_written_exactly():
@@ -29,3 +34,18 @@ def test_alignment_row_and_its_refusals():
         markdown_table(["a", "b", "c"], [], align=["left", "left"])
     with pytest.raises(ValueError, match="unknown alignment 'middle'"):
         markdown_table(["a"], [], align=["middle"])
+
+
+def test_no_module_writes_an_alignment_row_by_hand():
+    """Every table of the package, its benchmarks and tools goes through base.tables; the layout
+    table's tool reads the tree without importing the package (so it runs without Drake)."""
+    rule = re.compile(r"""["']\|(?: ?:?-{3,}|["']\s*\+\s*["']-{3,})""")
+    exempt = {"stewart_drake/base/tables.py", "tools/layout_table.py"}
+    found = [
+        str(p.relative_to(REPO))
+        for folder in ("stewart_drake", "benchmarks", "tools")
+        for p in sorted((REPO / folder).rglob("*.py"))
+        if str(p.relative_to(REPO)) not in exempt and rule.search(p.read_text())
+    ]
+    assert found == []
+    assert rule.search((REPO / "tools" / "layout_table.py").read_text())  # the pattern finds one
