@@ -21,6 +21,7 @@ import numpy as np
 
 from stewart_drake.analysis import accuracy as acc
 from stewart_drake.base.fileio import atomic_write
+from stewart_drake.base.tables import markdown_lines
 from stewart_drake.plant import ball_joints
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import limits
@@ -306,6 +307,20 @@ def best_wall(data, engine: str, step_s: float) -> float:
     )
 
 
+#: The columns of the per-engine tables of :func:`render`.
+OPEN_LOOP_COLUMNS = (
+    "scenario",
+    "step [ms]",
+    "position 0.05 s [m]",
+    "position 0.1 s [m]",
+    "rotation 0.05 s [rad]",
+    "rotation 0.1 s [rad]",
+    "energy change",
+    "max closure [m]",
+    "wall per sim s [s]",
+)
+
+
 def _g(v, digits=2) -> str:
     return "—" if v is None or not np.isfinite(v) else f"{v:.{digits}g}"
 
@@ -437,45 +452,25 @@ def render(data) -> str:
             else "."
         ),
         "",
-        "| engine | scenario | position | rotation | energy | closure |",
-        "|---|---|---|---|---|---|",
     ]
-    for key, o in data["orders"].items():
-        engine, scenario = key.split("/")
-        L.append(
-            f"| {engine} | {scenario} | "
-            + " | ".join(_g(o[k], 3) for k in ("position", "rotation", "energy", "closure"))
-            + " |"
-        )
-    L.append("")
+    orders = ("position", "rotation", "energy", "closure")
+    rows = [[*key.split("/"), *(_g(o[k], 3) for k in orders)] for key, o in data["orders"].items()]
+    L += markdown_lines(["engine", "scenario", *orders], rows) + [""]
 
     # Per-engine tables.
     for engine in names:
-        L += [
-            f"### {engine}: errors against itself at {ms(ref)} ms",
-            "",
-            "| scenario | step [ms] | position 0.05 s [m] | position 0.1 s [m] | "
-            "rotation 0.05 s [rad] | rotation 0.1 s [rad] | energy change | max closure [m] | "
-            "wall per sim s [s] |",
-            "|---|---|---|---|---|---|---|---|---|",
-        ]
+        rows = []
         for r in data["open_loop"]:
             if r["engine"] != engine:
                 continue
+            tail = [f"{r['energy_change']:+.2g}", _g(r["max_closure_m"]), _g(r["wall_per_sim_s"])]
             if r.get("reference"):
-                L.append(
-                    f"| {r['scenario']} | {ms(r['step_s'])} (ref) | | | | | "
-                    f"{r['energy_change']:+.2g} | {_g(r['max_closure_m'])} | "
-                    f"{_g(r['wall_per_sim_s'])} |"
-                )
+                rows.append([r["scenario"], f"{ms(r['step_s'])} (ref)", *[None] * 4, *tail])
                 continue
             dp, dR = r["position_error_m"], r["rotation_error_rad"]
-            L.append(
-                f"| {r['scenario']} | {ms(r['step_s'])} | {_g(dp[0])} | {_g(dp[1])} | "
-                f"{_g(dR[0])} | {_g(dR[1])} | {r['energy_change']:+.2g} | "
-                f"{_g(r['max_closure_m'])} | {_g(r['wall_per_sim_s'])} |"
-            )
-        L.append("")
+            rows.append([r["scenario"], ms(r["step_s"]), *map(_g, (*dp[:2], *dR[:2])), *tail])
+        L += [f"### {engine}: errors against itself at {ms(ref)} ms", ""]
+        L += markdown_lines(OPEN_LOOP_COLUMNS, rows) + [""]
 
     # Cost.
     L += [
@@ -486,15 +481,14 @@ def render(data) -> str:
         "manoeuvre's whole Diagram (plant, LQI at 1 kHz re-scheduled every 10 ms, reference "
         "sources, loggers, the DivergenceGuard checking every 10 ms).",
         "",
-        "| step [ms] | " + " | ".join(names) + " | paper run, Drake closed loop |",
-        "|---|" + "---|" * (len(names) + 1),
     ]
+    rows = []
     for h in [*steps, ref]:
         cells = [_g(best_wall(data, engine, h)) for engine in names]
         p = [r for r in paper if r["step_s"] == h]
         cells.append(_g(p[0]["wall_per_sim_s"]) if p else "")
-        L.append(f"| {ms(h)} | " + " | ".join(cells) + " |")
-    L.append("")
+        rows.append([ms(h), *cells])
+    L += markdown_lines(["step [ms]", *names, "paper run, Drake closed loop"], rows) + [""]
 
     # Paper manoeuvre.
     L += [
@@ -504,19 +498,15 @@ def render(data) -> str:
         "loop-closure error, and the largest |pitch| of the rods' `BallRpyJoint`s read from "
         "the logged states. Control period 1 ms at every plant step.",
         "",
-        "| step [ms] | "
-        + " | ".join(f"{a} [{u}]" for a, u in AXES_UNITS)
-        + " | max closure [m] | wall per sim s | rod max pitch [deg] |",
-        "|---|" + "---|" * 9,
     ]
-    for r in paper:
-        L.append(
-            f"| {ms(r['step_s'])} | "
-            + " | ".join(_g(1e3 * v, 4) for v in r["rms_error"])
-            + f" | {_g(r['max_closure_m'])} | {_g(r['wall_per_sim_s'])} | "
-            f"{np.rad2deg(r['max_pitch_rad']):.1f} |"
-        )
-    L.append("")
+    header = ["step [ms]", *(f"{a} [{u}]" for a, u in AXES_UNITS), "max closure [m]"]
+    header += ["wall per sim s", "rod max pitch [deg]"]
+    rows = [
+        [ms(r["step_s"]), *(_g(1e3 * v, 4) for v in r["rms_error"]), _g(r["max_closure_m"])]
+        + [_g(r["wall_per_sim_s"]), f"{np.rad2deg(r['max_pitch_rad']):.1f}"]
+        for r in paper
+    ]
+    L += markdown_lines(header, rows) + [""]
 
     # MuJoCo vs Drake.
     if data["cross_engine"]:
@@ -532,10 +522,8 @@ def render(data) -> str:
             "engines agree to about 1e-8 m and 1e-7 rad (what is left of the second-order "
             "terms): they simulate the same robot.",
             "",
-            "| scenario | equal step [m] | equal step [rad] | Drake extrapolated [m] | "
-            "Drake extrapolated [rad] | references [m] | references [rad] |",
-            "|---|---|---|---|---|---|---|",
         ]
+        rows = []
         for r in data["cross_engine"]:
             cells = []
             for label in ("equal_step", "extrapolated", "references"):
@@ -543,7 +531,10 @@ def render(data) -> str:
                     " / ".join(_g(v) for v in r[label]["position_m"]),
                     " / ".join(_g(v) for v in r[label]["rotation_rad"]),
                 ]
-            L.append(f"| {r['scenario']} | " + " | ".join(cells) + " |")
+            rows.append([r["scenario"], *cells])
+        header = ["scenario", "equal step [m]", "equal step [rad]", "Drake extrapolated [m]"]
+        header += ["Drake extrapolated [rad]", "references [m]", "references [rad]"]
+        L += markdown_lines(header, rows)
         L += [
             "",
             "Holding a pose for 1 s at 1 ms under the virtual-work torques (largest drift "
@@ -552,15 +543,13 @@ def render(data) -> str:
             "drift is each engine's first numerical error grown about 2e4 times; SAP's "
             "numerical damping slows that growth, RK4 follows it.",
             "",
-            "| engine | pose | position drift [m] | rotation drift [rad] | max closure [m] |",
-            "|---|---|---|---|---|",
         ]
-        for r in data["holds"]:
-            L.append(
-                f"| {r['engine']} | {r['pose']} | {_g(r['position_m'])} | "
-                f"{_g(r['rotation_rad'])} | {_g(r['closure_m'])} |"
-            )
-        L.append("")
+        header = ["engine", "pose", "position drift [m]", "rotation drift [rad]"]
+        rows = [
+            [r["engine"], r["pose"], _g(r["position_m"]), _g(r["rotation_rad"]), _g(r["closure_m"])]
+            for r in data["holds"]
+        ]
+        L += markdown_lines(header + ["max closure [m]"], rows) + [""]
 
     # Coordinates.
     c = data["coordinates"]

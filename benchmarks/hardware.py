@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from stewart_drake.base.fileio import atomic_write
+from stewart_drake.base.tables import markdown_lines
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import kinematics, statics
@@ -189,22 +190,21 @@ def render(rows, est, stick, duration_s, wall) -> str:
         "RMS error over the second half of the run (urad, um), nRMS with the LQI's scales "
         "(1 mrad, 1 mm), peak torque (N m), Sum T^2 dt (N^2 m^2 s), saturated control steps.",
         "",
-        "| robot | " + " | ".join(AXIS_NAMES) + " | nRMS | peak T | Sum T^2 dt | saturated |",
-        "|---|" + "---|" * 10,
     ]
-    ideal = None
+    ideal, cells = None, []
     for label, m in rows:
         if "error" in m:
-            L.append(f"| {label} | lost: {m['error'][:100]} |")
+            cells.append([label, f"lost: {m['error'][:100]}"])
             continue
         nrms = _nrms(m["rms_error"])
         ideal = ideal if ideal is not None else nrms
-        L.append(
-            f"| {label} | "
-            + " | ".join(_fmt(v, 1e6) for v in m["rms_error"])
-            + f" | {nrms:.4g} | {max(m['peak_torque']):.3f} | {m['sum_T2_dt']:.4g} | "
-            f"{int(m['status'].get('saturated_steps', 0))} |"
+        cells.append(
+            [label, *(_fmt(v, 1e6) for v in m["rms_error"]), f"{nrms:.4g}"]
+            + [f"{max(m['peak_torque']):.3f}", f"{m['sum_T2_dt']:.4g}"]
+            + [int(m["status"].get("saturated_steps", 0))]
         )
+    header = ["robot", *AXIS_NAMES, "nRMS", "peak T", "Sum T^2 dt", "saturated"]
+    L += markdown_lines(header, cells)
     found = {label.split(" (")[0]: m for label, m in rows if "error" not in m}
     clean, exact = found.get("hardware, sensors only"), found.get("hardware, exact sensing")
     if clean and exact and ideal:
@@ -223,22 +223,21 @@ def render(rows, est, stick, duration_s, wall) -> str:
         "Pose error RMS and max (urad, um) of the chord-step FK estimate; rate error RMS "
         "(urad/s, um/s) of the 100 Hz filtered difference.",
         "",
-        "| rate taken | pose RMS | pose max | rate RMS phi..Z |",
-        "|---|---|---|---|",
+        *markdown_lines(
+            ["rate taken", "pose RMS", "pose max", "rate RMS phi..Z"],
+            [
+                [name, _fmt(r["pose_rms"].max(), 1e6), _fmt(r["pose_max"].max(), 1e6)]
+                + [", ".join(_fmt(v, 1e6) for v in r["rate_rms"])]
+                for name, r in est.items()
+            ],
+        ),
     ]
-    for name, r in est.items():
-        L.append(
-            f"| {name} | {_fmt(r['pose_rms'].max(), 1e6)} | {_fmt(r['pose_max'].max(), 1e6)}"
-            f" | " + ", ".join(_fmt(v, 1e6) for v in r["rate_rms"]) + " |"
-        )
     L += [
         "",
         "## Stiction (home held 1 s, torques 60 % of the Coulomb band off balance)",
         "",
-        "| plant | drift (rad or m) |",
-        "|---|---|",
+        *markdown_lines(["plant", "drift (rad or m)"], [[k, f"{v:.3g}"] for k, v in stick.items()]),
     ]
-    L += [f"| {k} | {v:.3g} |" for k, v in stick.items()]
     return "\n".join(L) + "\n"
 
 

@@ -395,7 +395,7 @@ def test_every_reader_estimates_its_parse_s_memory_before_it_parses():
     readers, estimates = readers_and_estimates()
     assert len(readers) >= 8, readers  # the scan sees the package's readers
     names = {(rel, name) for rel, name, _ in readers}
-    assert ("calibration/files.py", "read_csv_columns") in names
+    assert ("base/columns.py", "read_csv_columns") in names
     assert ("references/trace_files.py", "read_trace_table") in names
     missing = [
         f"stewart_drake/{rel}: {name}"

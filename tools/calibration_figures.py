@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from stewart_drake.base.fileio import write_between_markers
+from stewart_drake.base.tables import markdown_table
 from stewart_drake.calibration.identify import identify
 from stewart_drake.calibration.rehearsal import pick, workspace
 from stewart_drake.calibration.tracker import MeasurementNoise, measure
@@ -159,11 +160,9 @@ def study(seeds, traces=None) -> list[dict]:
 
 def table(rows: list[dict]) -> str:
     """The Markdown table: per motion and model, the mean over the seeds and the worst seed."""
-    lines = [
-        "| motion | controller's model | robots | translation RMS, um: mean (worst) | peak | "
-        "rotation RMS, urad: mean (worst) | peak |",
-        "|---|---|---|---|---|---|---|",
-    ]
+    header = ["motion", "controller's model", "robots", "translation RMS, um: mean (worst)"]
+    header += ["peak", "rotation RMS, urad: mean (worst)", "peak"]
+    cells = []
     for label in dict.fromkeys(r["motion"] for r in rows):
         for model in ("as drawn", "before", "after"):
             got = [r for r in rows if r["motion"] == label and r["model"] == model]
@@ -179,16 +178,15 @@ def table(rows: list[dict]) -> str:
                 "before": "nominal (uncalibrated)",
                 "after": "identified (calibrated)",
             }[model]
-            lines.append(
-                f"| {label} | {name} | {len(got)} | {col('t_rms')} | {col('t_peak')} | "
-                f"{col('r_rms')} | {col('r_peak')} |"
+            cells.append(
+                [label, name, len(got), col("t_rms"), col("t_peak"), col("r_rms"), col("r_peak")]
             )
     for who, translation, rotation in PUBLISHED:
-        lines.append(
-            f"| published: {who} | the phantom's own tracking | - | {translation} | - | "
-            f"{rotation} | - |"
+        cells.append(
+            [f"published: {who}", "the phantom's own tracking", "-", translation, "-", rotation]
+            + ["-"]
         )
-    return "\n".join(lines)
+    return markdown_table(header, cells)
 
 
 def main() -> None:

@@ -17,6 +17,7 @@ import argparse
 
 import numpy as np
 
+from stewart_drake.base.tables import markdown_row
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import kinematics, statics
 from stewart_drake.robot.geometry import StewartGeometry
@@ -58,22 +59,28 @@ def main() -> None:
         moves.append(np.linalg.solve(dl_dx, f / k))
     forces, moves = np.array(forces), np.array(moves)
     swing = moves.max(axis=0) - moves.min(axis=0)
-    print(
-        f"| rod axial stiffness (E = {args.modulus_gpa:g} GPa, solid, "
-        f"r = {g.rod_radius * 1e3:g} mm, L = {g.rod_length * 1e3:g} mm) | {k:.3g} N/m |"
-    )
-    print(
-        f"| rod axial force, peak (mean magnitude) | {np.abs(forces).max():.2f} N "
-        f"({np.abs(forces).mean():.2f} N) |"
-    )
-    print(
-        f"| platform moved by the stretch, peak: translation, rotation | "
-        f"{np.abs(moves[:, 3:]).max() * 1e6:.2f} um, {np.abs(moves[:, :3]).max() * 1e6:.2f} urad |"
-    )
-    print(
-        f"| its change over the manoeuvre, largest axis: translation, rotation | "
-        f"{swing[3:].max() * 1e6:.2f} um, {swing[:3].max() * 1e6:.2f} urad |"
-    )
+    rows = [
+        [
+            f"rod axial stiffness (E = {args.modulus_gpa:g} GPa, solid, "
+            f"r = {g.rod_radius * 1e3:g} mm, L = {g.rod_length * 1e3:g} mm)",
+            f"{k:.3g} N/m",
+        ],
+        [
+            "rod axial force, peak (mean magnitude)",
+            f"{np.abs(forces).max():.2f} N ({np.abs(forces).mean():.2f} N)",
+        ],
+        [
+            "platform moved by the stretch, peak: translation, rotation",
+            f"{np.abs(moves[:, 3:]).max() * 1e6:.2f} um, "
+            f"{np.abs(moves[:, :3]).max() * 1e6:.2f} urad",
+        ],
+        [
+            "its change over the manoeuvre, largest axis: translation, rotation",
+            f"{swing[3:].max() * 1e6:.2f} um, {swing[:3].max() * 1e6:.2f} urad",
+        ],
+    ]
+    for row in rows:
+        print(markdown_row(row))
 
 
 if __name__ == "__main__":

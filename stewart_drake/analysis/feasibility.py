@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write
+from ..base.tables import markdown_lines
 from ..robot.trajectory_report import TrajectoryReport
 from ..run.plan import check_reference, make_plan
 
@@ -221,20 +222,20 @@ def clearance_table(geometry=None, duration_s: float = 10.0, resolution_m: float
     lines = [
         CLEARANCE_TABLE_MARKERS[0],
         "",
-        "| parts | smallest clearance [mm] | at t [s] | closest pair |",
-        "|---|---|---|---|",
     ]
-    for (a, b), (distance, k, c) in sorted(families.items(), key=lambda kv: kv[1][0]):
-        lines.append(
-            f"| {a} / {b} | {1e3 * distance:.1f} | {t[keep][k]:.2f} | {c.part_a} / {c.part_b} |"
-        )
+    rows = [
+        [f"{a} / {b}", f"{1e3 * distance:.1f}", f"{t[keep][k]:.2f}", f"{c.part_a} / {c.part_b}"]
+        for (a, b), (distance, k, c) in sorted(families.items(), key=lambda kv: kv[1][0])
+    ]
     seen = set()
     for c in model.fixed:
         key = tuple(sorted((family(c.part_a), family(c.part_b))))
         if key not in seen:
             seen.add(key)
-            lines.append(
-                f"| {key[0]} / {key[1]} | {1e3 * c.distance:.1f} | every pose (fixed "
-                f"by design) | {c.part_a} / {c.part_b} |"
+            rows.append(
+                [f"{key[0]} / {key[1]}", f"{1e3 * c.distance:.1f}"]
+                + ["every pose (fixed by design)", f"{c.part_a} / {c.part_b}"]
             )
+    header = ["parts", "smallest clearance [mm]", "at t [s]", "closest pair"]
+    lines += markdown_lines(header, rows)
     return "\n".join(lines + ["", CLEARANCE_TABLE_MARKERS[1]])

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.tables import markdown_lines
 from ..control.linear_model import (
     AXES,
     DiscreteModel,
@@ -352,22 +353,20 @@ def figures_table(figures: list[AxisFigures]) -> list[str]:
     def db(v):
         return "inf" if v == np.inf else "-inf" if v == -np.inf else f"{v:.1f}"
 
-    lines = [
-        "| axis | crossover Hz | phase margin deg | delay margin ms | gain margin dB "
-        "(up / down) | Ms (at Hz) | Mt (at Hz) | -3 dB bandwidth Hz | 0.25 Hz: amplitude %, "
-        "lag deg | 1.2 Hz: amplitude %, lag deg |",
-        "|---|---|---|---|---|---|---|---|---|---|",
-    ]
+    header = ["axis", "crossover Hz", "phase margin deg", "delay margin ms"]
+    header += ["gain margin dB (up / down)", "Ms (at Hz)", "Mt (at Hz)", "-3 dB bandwidth Hz"]
+    header += ["0.25 Hz: amplitude %, lag deg", "1.2 Hz: amplitude %, lag deg"]
+    rows = []
     for a in figures:
         tr = [a.tracking[BREATHING_HZ], a.tracking[CARDIAC_HZ]]
-        lines.append(
-            f"| {a.axis} | {a.crossover_hz:.3g} | {a.phase_margin_deg:.1f} | "
-            f"{a.delay_margin_ms:.2f} | {db(a.gain_margin_db)} / {db(a.lower_gain_margin_db)} | "
-            f"{a.Ms:.2f} ({a.Ms_hz:.3g}) | {a.Mt:.2f} ({a.Mt_hz:.3g}) | "
-            f"{a.bandwidth.text()} | {tr[0][0]:+.2g}, {tr[0][1]:+.2g} | "
-            f"{tr[1][0]:+.2g}, {tr[1][1]:+.2g} |"
+        rows.append(
+            [a.axis, f"{a.crossover_hz:.3g}", f"{a.phase_margin_deg:.1f}"]
+            + [f"{a.delay_margin_ms:.2f}"]
+            + [f"{db(a.gain_margin_db)} / {db(a.lower_gain_margin_db)}"]
+            + [f"{a.Ms:.2f} ({a.Ms_hz:.3g})", f"{a.Mt:.2f} ({a.Mt_hz:.3g})", a.bandwidth.text()]
+            + [f"{tr[0][0]:+.2g}, {tr[0][1]:+.2g}", f"{tr[1][0]:+.2g}, {tr[1][1]:+.2g}"]
         )
-    return lines
+    return markdown_lines(header, rows)
 
 
 def plot_loop(models: LoopModels, title: str):

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.signal import correlate, correlation_lags
 
+from ..base.columns import interp_columns
 from ..base.errors import InvalidConfigError
 
 #: The coarse step's sampling period, s: the path's moves last a second or more.
@@ -86,7 +87,7 @@ def _checked_span(what: str, t: np.ndarray) -> float:
 def poses_at(t, t_known, x_known) -> np.ndarray:
     """(len(t), 6) the poses x_known (n, 6), known at the increasing times t_known (n,),
     interpolated linearly at the times t (held at the ends), each coordinate alone."""
-    return np.column_stack([np.interp(t, t_known, x_known[:, i]) for i in range(6)])
+    return interp_columns(t, t_known, x_known)
 
 
 def _speeds(t: np.ndarray, x: np.ndarray, span: float) -> np.ndarray:

@@ -23,16 +23,15 @@ pose with the window of time to measure it in.
 
 from __future__ import annotations
 
-import csv
 import math
-import re
 from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
-from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError
-from ..base.fileio import atomic_write, check_parse_memory, decode_text, read_checked
+from ..base.columns import header_cell, read_csv_columns
+from ..base.errors import InvalidConfigError
+from ..base.fileio import atomic_write
 from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
 from .poses import PosePath
@@ -50,8 +49,6 @@ MEASUREMENTS_REMEDY = (
     "write a first line naming every column with its unit, q0 [rad],...,q5 [rad],phi [rad],"
     "theta [rad],psi [rad],X [m],Y [m],Z [m] (docs/calibration.md)"
 )
-#: A header cell: a column's name and its unit in brackets, ``X [mm]``.
-HEADER_CELL = re.compile(r"\s*([^\[\]]+?)\s*\[\s*([^\[\]]*?)\s*\]\s*")
 
 
 @dataclass(frozen=True)
@@ -101,8 +98,7 @@ def _header(path, cells: list, counts_per_rev: int) -> tuple[dict, list, list]:
     found, ignored, converted = {}, [], []
     required = READING_COLUMNS + POSE_COLUMNS
     for index, cell in enumerate(cells):
-        m = HEADER_CELL.fullmatch(cell)
-        name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
+        name, unit = header_cell(cell)
         if name not in required:
             ignored.append(cell.strip())
             continue
@@ -126,104 +122,13 @@ def _header(path, cells: list, counts_per_rev: int) -> tuple[dict, list, list]:
     return found, ignored, converted
 
 
-#: Memory the reading of a calibration CSV takes per line beyond its text, bytes: the SI values
-#: of up to 15 columns and the line's number, 8 bytes each (the text costs one byte a byte).
-CSV_BYTES_PER_LINE = 128.0
-
-
-def _lines(text: str):
-    """(number from 1, line with its newline) of ``text``'s lines that are neither blank nor
-    ``#`` comments, one at a time (the whole list of a long file's lines would cost ~60 bytes a
-    line); lines end at ``\n``, ``\r\n`` or, in a file with no ``\n``, ``\r``."""
-    newline = "\n" if "\n" in text or "\r" not in text else "\r"
-    start, number = 0, 0
-    while start < len(text):
-        end = text.find(newline, start)
-        end = len(text) if end < 0 else end
-        line = text[start:end]
-        start, number = end + 1, number + 1
-        if line.strip() and not line.lstrip().startswith("#"):
-            yield number, line.rstrip("\r") + "\n"
-
-
-def read_csv_columns(
-    path, what: str, max_bytes: float, remedy: str, columns_of, nan_ok=(), bad_cell: str = ""
-) -> tuple[dict, np.ndarray]:
-    """The columns of a calibration CSV (a first line naming the columns with their units,
-    ``#`` comments, blank lines), in SI units, read row by row into arrays allocated once from
-    the file's line count, after its memory is estimated
-    (:func:`~stewart_drake.base.fileio.check_parse_memory`): the peak is about 2.5 times the file.
-
-    Args:
-        path: the CSV.  what: its kind, for messages.  max_bytes: the largest such file.
-        remedy: what a bad file is told to become.
-        columns_of: header cells -> {name: (index, factor to SI)} of the columns to read
-            (raising InvalidConfigError for a bad header).
-        nan_ok: the columns where ``nan`` is a value.  bad_cell: appended to a bad cell's message.
-    Returns:
-        ({name: (N,) values}, (N,) the file's line of each row).
-    Raises:
-        MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
-            UTF-8 or not CSV.  InvalidConfigError: too long for the memory, no header, a header
-            ``columns_of`` refuses, a row of another width or a cell that is not a finite
-            number (its line and column named).
-    """
-    path = Path(path)
-    if not path.exists():
-        raise MissingFileError(f"no {what} at {path}: check the path")
-    raw = read_checked(path, what, max_bytes, remedy)
-    rows_bound = check_parse_memory(path, what, raw, CSV_BYTES_PER_LINE, 1.0)
-    text = decode_text(raw, path, what, remedy, "utf-8-sig")
-    del raw
-    numbered = _lines(text)
-    number = 0
-
-    def cells_of():
-        nonlocal number
-        for k, line in numbered:
-            number = k
-            yield line
-
-    reader = csv.reader(cells_of())
-    try:
-        header = next(reader, None)
-        if header is None:
-            raise InvalidConfigError(f"{path}: the {what} is empty; {remedy}")
-        found = columns_of(header)
-        width = len(header)
-        out = {name: np.empty(rows_bound) for name in found}
-        lines = np.empty(rows_bound, dtype=int)
-        n = 0
-        for row in reader:
-            if len(row) != width:
-                raise InvalidConfigError(
-                    f"{path}, line {number}: {len(row)} cells where the header names {width}"
-                )
-            for name, (index, factor) in found.items():
-                try:
-                    v = float(row[index])
-                except ValueError:
-                    v = math.inf
-                if not (math.isfinite(v) or (math.isnan(v) and name in nan_ok)):
-                    raise InvalidConfigError(
-                        f"{path}, line {number}, column {name}: {row[index].strip()[:40]!r} is "
-                        f"not a finite number{bad_cell}"
-                    )
-                out[name][n] = v * factor
-            lines[n] = number
-            n += 1
-    except csv.Error as err:
-        raise CorruptFileError(path, what, f"not CSV ({err})", remedy) from None
-    return {name: values[:n].copy() for name, values in out.items()}, lines[:n].copy()
-
-
 #: Poses closer than this, per coordinate (rad, m), are one pose measured again.
 DISTINCT_POSE = np.array([1e-3, 1e-3, 1e-3, 1e-4, 1e-4, 1e-4])
 
 
 def read_measurements(path, counts_per_rev: int = 2**17) -> MeasurementsFile:
     """The measured poses and readings of a measurements file (module docstring), read by
-    :func:`read_csv_columns`.
+    :func:`~stewart_drake.base.columns.read_csv_columns`.
 
     Args:
         path: the CSV.  counts_per_rev: the encoders' counts per revolution (for readings in

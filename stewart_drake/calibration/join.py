@@ -34,17 +34,11 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..base.columns import header_cell, read_csv_columns
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write
 from .clock import ClockOffset, estimate_clock_offset, poses_at
-from .files import (
-    ANGLE_UNITS,
-    HEADER_CELL,
-    LENGTH_UNITS,
-    POSE_COLUMNS,
-    READING_COLUMNS,
-    read_csv_columns,
-)
+from .files import ANGLE_UNITS, LENGTH_UNITS, POSE_COLUMNS, READING_COLUMNS
 
 #: Largest file the join reads, bytes (a day of a 100 Hz log).
 MAX_LOG_BYTES = 2e9
@@ -74,8 +68,8 @@ def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
     """The columns ``columns`` ({name: kind}) of the CSV at ``path``, in SI units: {name: (N,)
     array, "lines": (N,) the file's line of each row}. The first line names every column with
     its unit in brackets; lines starting with ``#`` are comments; other columns are read past.
-    Read row by row (:func:`~.files.read_csv_columns`): a day-long encoder log fits in about
-    2.5 times its size.
+    Read row by row (:func:`~stewart_drake.base.columns.read_csv_columns`): a day-long encoder
+    log fits in about 2.5 times its size.
 
     Raises:
         MissingFileError: no such file.  CorruptFileError: not a regular file, too large, not
@@ -89,8 +83,7 @@ def read_table(path, what: str, columns: dict, remedy: str, nan_ok=()) -> dict:
     def columns_of(cells: list) -> dict:
         found: dict = {}
         for index, cell in enumerate(cells):
-            m = HEADER_CELL.fullmatch(cell)
-            name, unit = (m.group(1), m.group(2)) if m else (cell.strip(), "")
+            name, unit = header_cell(cell)
             if name not in columns:
                 continue
             table = _UNITS[columns[name]]

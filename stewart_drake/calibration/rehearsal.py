@@ -20,6 +20,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write, write_between_markers
+from ..base.tables import markdown_lines
 from ..robot.geometry import StewartGeometry
 from ..robot.legs import LegParameters, readings
 from ..robot.tolerances import Tolerances
@@ -231,10 +232,11 @@ def table(rows: list[dict]) -> str:
     lines = [
         TABLE_MARKERS[0],
         "",
-        "| tracker noise | poses | picked | seeds | after: mean (worst) | seeds over the figure "
-        "| bound | after, from the tracker's poses | before: mean (range) | kept nominal |",
-        "|---|---|---|---|---|---|---|---|---|---|",
     ]
+    header = ["tracker noise", "poses", "picked", "seeds", "after: mean (worst)"]
+    header += ["seeds over the figure", "bound", "after, from the tracker's poses"]
+    header += ["before: mean (range)", "kept nominal"]
+    cells = []
     for key in keys:
         group = [
             r
@@ -245,15 +247,15 @@ def table(rows: list[dict]) -> str:
         before = np.array([r["before_rad"] for r in group]) * 1e3
         figure = ACCEPTANCE_URAD.get((key[0], key[1]))
         over = "" if figure is None else f"{int(np.sum(after > figure))} over {figure:g}"
-        lines.append(
-            f"| {key[0] * 1e6:g} um / {key[1] * 1e6:g} urad | {key[2]} | {key[3]} | {len(group)} "
-            f"| {np.mean(after):.1f} ({np.max(after):.1f}) | {over} "
-            f"| {np.mean([r['bound_rad'] for r in group]) * 1e6:.1f} "
-            f"| {np.mean([r['after_tracked_rad'] for r in group]) * 1e6:.1f} "
-            f"| {np.mean(before):.2f} ({np.min(before):.2f}-{np.max(before):.2f}) "
-            f"| {np.mean([r['fixed'] for r in group]):.1f} |"
+        cells.append(
+            [f"{key[0] * 1e6:g} um / {key[1] * 1e6:g} urad", key[2], key[3], len(group)]
+            + [f"{np.mean(after):.1f} ({np.max(after):.1f})", over]
+            + [f"{np.mean([r['bound_rad'] for r in group]) * 1e6:.1f}"]
+            + [f"{np.mean([r['after_tracked_rad'] for r in group]) * 1e6:.1f}"]
+            + [f"{np.mean(before):.2f} ({np.min(before):.2f}-{np.max(before):.2f})"]
+            + [f"{np.mean([r['fixed'] for r in group]):.1f}"]
         )
-    lines += ["", TABLE_MARKERS[1]]
+    lines += markdown_lines(header, cells) + ["", TABLE_MARKERS[1]]
     return "\n".join(lines)
 
 

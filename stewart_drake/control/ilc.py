@@ -55,6 +55,7 @@ from pydrake.common.containers import namedview
 from pydrake.systems.framework import LeafSystem
 
 from ..base.checks import as_array, as_number, check_int, check_multiple
+from ..base.columns import interp_columns
 from ..base.errors import InvalidConfigError
 from ..robot import forward_kinematics, kinematics
 from .contract import LearnerContext
@@ -152,9 +153,7 @@ def resample_to_phase(
     """(M, c) values at the phases m / M + shift (mod 1), linearly interpolated between the
     samples at ``phase`` (r,) in [0, 1) (treated as periodic)."""
     grid = (np.arange(M) / M + shift) % 1.0
-    return np.stack(
-        [np.interp(grid, phase, values[:, c], period=1.0) for c in range(values.shape[1])], axis=1
-    )
+    return interp_columns(grid, phase, values, period=1.0)
 
 
 def learn(learned: np.ndarray, error_phase: np.ndarray, gain: float, ba) -> np.ndarray:

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..base.checks import as_number
 from ..base.errors import InvalidConfigError, StewartError
+from ..base.tables import markdown_row, markdown_table
 from ..control.lqi.driver import LqiDriver
 from ..robot.kinematics import jacobian
 from ..run.plan import make_plan
@@ -317,32 +318,40 @@ def _figures(job: MotionRun, result) -> dict:
 
 
 #: The columns of :func:`confirmation_table`.
-TABLE_HEADER = (
-    "| motion | s | translation RMS / max, um | rotation RMS / max, urad "
-    "| peak torque, N m (of peak) | RMS torque, N m (of continuous) "
-    "| peak crank speed, rad/s (of no-load) | within margins |"
+TABLE_COLUMNS = (
+    "motion",
+    "s",
+    "translation RMS / max, um",
+    "rotation RMS / max, urad",
+    "peak torque, N m (of peak)",
+    "RMS torque, N m (of continuous)",
+    "peak crank speed, rad/s (of no-load)",
+    "within margins",
 )
+#: The header line of :func:`confirmation_table`.
+TABLE_HEADER = markdown_row(TABLE_COLUMNS)
 
 
 def confirmation_table(rows: list[dict]) -> str:
     """The rows of :func:`confirm` as a Markdown table, one line per motion (a motion not made
     says why instead of its figures, its ``|`` escaped)."""
-    lines = [TABLE_HEADER, "|" + "---|" * TABLE_HEADER.count(" | ") + "---|"]
+    cells = []
     for r in rows:
-        head = f"| {r['label']} | {r['duration_s']:g} |"
+        head = [r["label"], f"{r['duration_s']:g}"]
         if not r["completed"]:
             reason = str(r["reason"]).replace("|", "\\|")  # |phi - phi_d| in a cell
-            lines.append(f"{head} not made: {reason} | | | | | |")
+            cells.append(head + [f"not made: {reason}"] + [None] * 5)
             continue
-        lines.append(
-            f"{head} {r['rms_translation_um']:.1f} / {r['peak_translation_um']:.0f} "
-            f"| {r['rms_rotation_urad']:.1f} / {r['peak_rotation_urad']:.0f} "
-            f"| {r['peak_torque_Nm']:.3g} ({r['peak_torque_fraction']:.0%}) "
-            f"| {r['rms_torque_Nm']:.3g} ({r['rms_torque_fraction']:.0%}) "
-            f"| {r['peak_speed_rad_s']:.3g} ({r['peak_speed_fraction']:.1%}) "
-            f"| {'yes' if r['within_margins'] else 'no'} |"
+        cells.append(
+            head
+            + [f"{r['rms_translation_um']:.1f} / {r['peak_translation_um']:.0f}"]
+            + [f"{r['rms_rotation_urad']:.1f} / {r['peak_rotation_urad']:.0f}"]
+            + [f"{r['peak_torque_Nm']:.3g} ({r['peak_torque_fraction']:.0%})"]
+            + [f"{r['rms_torque_Nm']:.3g} ({r['rms_torque_fraction']:.0%})"]
+            + [f"{r['peak_speed_rad_s']:.3g} ({r['peak_speed_fraction']:.1%})"]
+            + ["yes" if r["within_margins"] else "no"]
         )
-    return "\n".join(lines) + "\n"
+    return markdown_table(TABLE_COLUMNS, cells) + "\n"
 
 
 def _failed_row(job: MotionRun, reason: str | None) -> dict[str, Any]:
@@ -400,6 +409,7 @@ __all__ = [
     "DEFAULT_BASE",
     "MAX_PERIODIC_S",
     "MAX_TRACE_S",
+    "TABLE_COLUMNS",
     "TABLE_HEADER",
     "MotionRun",
     "load_base",

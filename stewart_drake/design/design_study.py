@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write
+from ..base.tables import markdown_lines
 from ..robot.kinematics import X_HOME, ik
 from ..robot.motor_catalogue import REFERENCE_MOTOR
 from .design_search import (
@@ -213,12 +214,11 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
         ]
     columns = _columns(outcome)
     lines += _verdicts(outcome, objective)
-    lines += ["## The designs", "", "| | " + " | ".join(r for r, _ in columns) + " |"]
-    lines.append("|---" * (len(columns) + 1) + "|")
-    for name, (_, _, unit, _) in DESIGN_BOUNDS.items():
-        cells = [_fmt(getattr(e.design, name)) for _, e in columns]
-        lines.append(f"| {name} ({unit}) | " + " | ".join(cells) + " |")
-    lines.append("| motor | " + " | ".join(e.design.motor for _, e in columns) + " |")
+    rows = [
+        [f"{name} ({unit})", *(_fmt(getattr(e.design, name)) for _, e in columns)]
+        for name, (_, _, unit, _) in DESIGN_BOUNDS.items()
+    ]
+    rows.append(["motor", *(e.design.motor for _, e in columns)])
     figures = (
         ("peak_torque_Nm", "peak motor torque (N m)"),
         ("holding_torque_Nm", "peak holding torque, workspace (N m)"),
@@ -232,31 +232,27 @@ def render_markdown(outcome: DesignOutcome, objective: str) -> str:
         ("min_clearance_m", "smallest clearance (m)"),
         ("price_usd", "six motors (USD)"),
     )
-    for key, label in figures:
-        lines.append(
-            f"| {label} | " + " | ".join(_fmt(e.figures.get(key)) for _, e in columns) + " |"
-        )
-    lines += ["", "## Margins (>= 0: met)", "", "| margin | " + " | ".join(r for r, _ in columns)]
-    lines[-1] += " | meaning |"
-    lines.append("|---" * (len(columns) + 2) + "|")
-    for name, meaning in MARGINS.items():
-        cells = [_fmt(e.margins.get(name), 3) for _, e in columns]
-        lines.append(f"| {name} | " + " | ".join(cells) + f" | {meaning} |")
-    lines += ["", "![margins](margins.png)", "", "![designs](designs.png)", ""]
-    lines += [
-        "## Searches",
-        "",
-        "| motor | objective | met | best | binding | evaluations (read back) | evaluating (s) |",
-        "|---|---|---|---|---|---|---|",
+    rows += [[label, *(_fmt(e.figures.get(key)) for _, e in columns)] for key, label in figures]
+    lines += ["## The designs", "", *markdown_lines([None, *(r for r, _ in columns)], rows)]
+    rows = [
+        [name, *(_fmt(e.margins.get(name), 3) for _, e in columns), meaning]
+        for name, meaning in MARGINS.items()
     ]
+    header = ["margin", *(r for r, _ in columns), "meaning"]
+    lines += ["", "## Margins (>= 0: met)", "", *markdown_lines(header, rows)]
+    lines += ["", "![margins](margins.png)", "", "![designs](designs.png)", ""]
+    header = ["motor", "objective", "met", "best", "binding"]
+    header += ["evaluations (read back)", "evaluating (s)"]
+    rows = []
     for s in outcome.searches:
         name, margin = s.best.binding
-        lines.append(
-            f"| {s.motor} | {s.objective} | {'yes' if s.feasible else 'no'} | "
-            f"{_fmt(s.best.objective(s.objective))} | {name} ({margin:+.3g}) | "
-            f"{s.evaluations} ({s.reused}) | "
-            f"{f'{s.compute_s:.0f}' if s.compute_s > 0 else 'not recorded'} |"
+        rows.append(
+            [s.motor, s.objective, "yes" if s.feasible else "no"]
+            + [_fmt(s.best.objective(s.objective)), f"{name} ({margin:+.3g})"]
+            + [f"{s.evaluations} ({s.reused})"]
+            + [f"{s.compute_s:.0f}" if s.compute_s > 0 else "not recorded"]
         )
+    lines += ["## Searches", "", *markdown_lines(header, rows)]
     lines += ["", "![front](front.png)", ""]
     if outcome.confirmation:
         lines += _confirmation_table(outcome.confirmation)

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write
+from ..base.tables import markdown_lines
 from ..references.trajectories import SWEEP_AMPLITUDE, SWEEP_MAX_ACCELERATION
 from ..robot import statics
 from ..robot.kinematics import AXIS_NAMES, X_HOME
@@ -172,19 +173,19 @@ def _heading(rows, info: dict) -> list:
     ]
 
 
-def _failed_line(r) -> str:
-    return f"| {r['case']['controller']} | failed: {r['error'].splitlines()[0][:120]} |"
+def _failed_row(r) -> list:
+    return [r["case"]["controller"], f"failed: {r['error'].splitlines()[0][:120]}"]
 
 
-def _nominal_rows(by: dict, ctrls: list, reference: str, L: list):
+def _nominal_rows(by: dict, ctrls: list, reference: str, rows: list):
     """(controller, row) of the nominal runs of ``reference`` that succeeded; a failed run's
-    line is appended to L on the way."""
+    table row is appended to rows on the way."""
     for c in ctrls:
         r = by.get((c, reference, "nominal"))
         if r is None:
             continue
         if "error" in r:
-            L.append(_failed_line(r))
+            rows.append(_failed_row(r))
             continue
         yield c, r
 
@@ -193,21 +194,19 @@ def _paper_table(by: dict, ctrls: list) -> list:
     L = [
         "## Paper manoeuvre (eqs. 37-38), nominal",
         "",
-        "| controller | phi | theta | psi | X | Y | Z | peak phi | peak Z | nRMS | Sum T^2 dt | "
-        "feedback Sum dT^2 dt | peak T | max closure [m] | RTF |",
-        "|---|" + "---|" * 14,
     ]
-    for c, r in _nominal_rows(by, ctrls, "paper", L):
+    header = ["controller", *AXIS_NAMES, "peak phi", "peak Z", "nRMS", "Sum T^2 dt"]
+    header += ["feedback Sum dT^2 dt", "peak T", "max closure [m]", "RTF"]
+    rows: list = []
+    for c, r in _nominal_rows(by, ctrls, "paper", rows):
         rms, peak = r["rms_error"], r["peak_error"]
-        L.append(
-            f"| {c} | "
-            + " | ".join(_fmt(v, 1e3) for v in rms)
-            + f" | {_fmt(peak[0], 1e3)} | {_fmt(peak[5], 1e3)} | {_fmt(r['normalized_rms'])}"
-            f" | {_fmt(r['sum_T2_dt'])} | {_fmt(r['sum_dT2_dt'])}"
-            f" | {_fmt(max(r['peak_torque']))} | {_fmt(r['max_closure_m'], digits=2)}"
-            f" | {_fmt(r['realtime_factor'], digits=2)} |"
+        rows.append(
+            [c, *(_fmt(v, 1e3) for v in rms), _fmt(peak[0], 1e3), _fmt(peak[5], 1e3)]
+            + [_fmt(r["normalized_rms"]), _fmt(r["sum_T2_dt"]), _fmt(r["sum_dT2_dt"])]
+            + [_fmt(max(r["peak_torque"])), _fmt(r["max_closure_m"], digits=2)]
+            + [_fmt(r["realtime_factor"], digits=2)]
         )
-    return L + [""]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def held_out_answer(tuner: dict | None) -> str:
@@ -288,43 +287,41 @@ def _step_table(by: dict, ctrls: list) -> list:
         f"Settling time to a {100 * SETTLING_BAND:g} % band, s (`-`: not settled in the run), "
         "and Sum T^2 dt of all six step runs.",
         "",
-        "| controller | " + " | ".join(AXIS_NAMES) + " | max overshoot | Sum T^2 dt |",
-        "|---|" + "---|" * 8,
     ]
+    rows = []
     for c in ctrls:
         found = [by.get((c, f"step_{a}", "nominal")) for a in AXIS_NAMES]
         rs = [r for r in found if r is not None]
         if len(rs) < len(found):
             continue
         if any("error" in r for r in rs):
-            L.append(_failed_line(next(r for r in rs if "error" in r)))
+            rows.append(_failed_row(next(r for r in rs if "error" in r)))
             continue
-        L.append(
-            f"| {c} | "
-            + " | ".join(_fmt(r["settling_time_s"]) for r in rs)
-            + f" | {_fmt(100 * max(r['overshoot'] for r in rs))} %"
-            f" | {_fmt(sum(r['sum_T2_dt'] for r in rs))} |"
+        rows.append(
+            [c, *(_fmt(r["settling_time_s"]) for r in rs)]
+            + [f"{_fmt(100 * max(r['overshoot'] for r in rs))} %"]
+            + [_fmt(sum(r["sum_T2_dt"] for r in rs))]
         )
-    return L + [""]
+    header = ["controller", *AXIS_NAMES, "max overshoot", "Sum T^2 dt"]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _helix_table(by: dict, ctrls: list) -> list:
     L = [
         "## Helix (5 mm circle in X-Y at 2 Hz, Z 3 mm at 0.25 Hz, theta 20 mrad at 1 Hz)",
         "",
-        "| controller | theta RMS | X RMS | Y RMS | Z RMS | X peak | Y peak | nRMS | Sum T^2 dt "
-        "| peak T |",
-        "|---|" + "---|" * 9,
     ]
-    for c, r in _nominal_rows(by, ctrls, "helix", L):
+    header = ["controller", "theta RMS", "X RMS", "Y RMS", "Z RMS", "X peak", "Y peak", "nRMS"]
+    header += ["Sum T^2 dt", "peak T"]
+    rows: list = []
+    for c, r in _nominal_rows(by, ctrls, "helix", rows):
         rms, peak = r["rms_error"], r["peak_error"]
-        L.append(
-            f"| {c} | {_fmt(rms[1], 1e3)} | {_fmt(rms[3], 1e3)} | {_fmt(rms[4], 1e3)} | "
-            f"{_fmt(rms[5], 1e3)} | {_fmt(peak[3], 1e3)} | {_fmt(peak[4], 1e3)} | "
-            f"{_fmt(r['normalized_rms'])} | {_fmt(r['sum_T2_dt'])} | "
-            f"{_fmt(max(r['peak_torque']))} |"
+        rows.append(
+            [c, *(_fmt(rms[k], 1e3) for k in (1, 3, 4, 5))]
+            + [_fmt(peak[3], 1e3), _fmt(peak[4], 1e3), _fmt(r["normalized_rms"])]
+            + [_fmt(r["sum_T2_dt"]), _fmt(max(r["peak_torque"]))]
         )
-    return L + [""]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _sweep_bandwidth(r) -> metrics.Bandwidth:
@@ -352,25 +349,25 @@ def _bandwidth_table(by: dict, ctrls: list) -> list:
         "where a sweep falls below its model at these small amplitudes, the motors' dry "
         "friction is why.",
         "",
-        "| controller | Z bandwidth | Z peak gain | phi bandwidth | phi peak gain |",
-        "|---|---|---|---|---|",
     ]
 
     def bw(r):
         return _sweep_bandwidth(r).text()
 
+    rows = []
     for c in ctrls:
         rz, rp = by.get((c, "sweep_Z", "nominal")), by.get((c, "sweep_phi", "nominal"))
         if rz is None or rp is None:
             continue
         if "error" in rz or "error" in rp:
-            L.append(_failed_line(rz if "error" in rz else rp))
+            rows.append(_failed_row(rz if "error" in rz else rp))
             continue
-        L.append(
-            f"| {c} | {bw(rz)} | {_fmt(rz['peak_gain_db'], digits=2)} | {bw(rp)} | "
-            f"{_fmt(rp['peak_gain_db'], digits=2)} |"
+        rows.append(
+            [c, bw(rz), _fmt(rz["peak_gain_db"], digits=2)]
+            + [bw(rp), _fmt(rp["peak_gain_db"], digits=2)]
         )
-    return L + [""]
+    header = ["controller", "Z bandwidth", "Z peak gain", "phi bandwidth", "phi peak gain"]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _robustness_table(by: dict, ctrls: list) -> list:
@@ -388,10 +385,10 @@ def _robustness_table(by: dict, ctrls: list) -> list:
         "most: below that the platform rolls past its reference and falls whatever the "
         "controller, above it the limit never acts.",
         "",
-        "| controller | " + " | ".join(paper_conds) + " | worst phi RMS [mrad] | worst Z RMS "
-        f"[mm] | {sat}: settling [s] | overshoot |",
-        "|---|" + "---|" * (len(paper_conds) + 4),
     ]
+    header = ["controller", *paper_conds, "worst phi RMS [mrad]", "worst Z RMS [mm]"]
+    header += [f"{sat}: settling [s]", "overshoot"]
+    rows = []
     for c in ctrls:
         found = [by.get((c, "paper", k)) for k in paper_conds]
         rs = [r for r in found if r is not None]
@@ -410,11 +407,8 @@ def _robustness_table(by: dict, ctrls: list) -> list:
             if "error" in rsat
             else [_fmt(rsat["settling_time_s"]), f"{_fmt(100 * rsat['overshoot'])} %"]
         )
-        L.append(
-            f"| {c} | " + " | ".join(cells) + f" | {_fmt(worst_phi, 1e3)} | "
-            f"{_fmt(worst_z, 1e3)} | " + " | ".join(sat_cells) + " |"
-        )
-    return L + [""]
+        rows.append([c, *cells, _fmt(worst_phi, 1e3), _fmt(worst_z, 1e3), *sat_cells])
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _encoder_table(by: dict, ctrls: list) -> list:
@@ -428,9 +422,8 @@ def _encoder_table(by: dict, ctrls: list) -> list:
         "torque in N m, for each encoder resolution and the five distinct weight ratios "
         "omega_Q / omega_R (100, 10, 1, 0.1, 0.01).",
         "",
-        "| encoder | controller | phi | theta | psi | X | Y | Z | feedback Sum dT^2 dt | peak T |",
-        "|---|---|" + "---|" * 8,
     ]
+    rows = []
     for bits in ENCODER_BITS:
         condition = encoder_condition(bits)
         for c in RATIO_LQI:
@@ -438,14 +431,14 @@ def _encoder_table(by: dict, ctrls: list) -> list:
             if r is None:
                 continue
             if "error" in r:
-                L.append(f"| {condition} | {c} | failed: {r['error'].splitlines()[0][:90]} |")
+                rows.append([condition, c, f"failed: {r['error'].splitlines()[0][:90]}"])
                 continue
-            L.append(
-                f"| {bits}-bit | {c} | "
-                + " | ".join(_fmt(v, 1e6) for v in r["rms_error"])
-                + f" | {_fmt(r['sum_dT2_dt'])} | {_fmt(max(r['peak_torque']))} |"
+            rows.append(
+                [f"{bits}-bit", c, *(_fmt(v, 1e6) for v in r["rms_error"])]
+                + [_fmt(r["sum_dT2_dt"]), _fmt(max(r["peak_torque"]))]
             )
-    return L + [""]
+    header = ["encoder", "controller", *AXIS_NAMES, "feedback Sum dT^2 dt", "peak T"]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _disturbance_table(by: dict, ctrls: list, base: str) -> list:
@@ -464,11 +457,11 @@ def _disturbance_table(by: dict, ctrls: list, base: str) -> list:
         "",
         _disturbance_statics(base),
         "",
-        "| controller | "
-        + " | ".join(f"{n}: peak angle | peak position | nRMS" for n in DISTURBANCES)
-        + " |",
-        "|---|" + "---|" * (3 * len(DISTURBANCES)),
     ]
+    header = ["controller"]
+    for n in DISTURBANCES:
+        header += [f"{n}: peak angle", "peak position", "nRMS"]
+    rows = []
     for c in ctrls:
         cells = []
         for name in DISTURBANCES:
@@ -484,8 +477,8 @@ def _disturbance_table(by: dict, ctrls: list, base: str) -> list:
                     _fmt(r["normalized_rms"]),
                 ]
             )
-        L.append(f"| {c} | " + " | ".join(cells) + " |")
-    return L + [""]
+        rows.append([c, *cells])
+    return L + markdown_lines(header, rows) + [""]
 
 
 def disturbance_holding_torques(base: str) -> tuple[dict, float | None]:

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write
+from ..base.tables import markdown_lines
 from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
 from .reproduction import Reproduction, learning_words
 
@@ -111,22 +112,19 @@ def _axis_lines(fid: dict) -> list:
     """The report's table of the error per axis and its line on the 3-D error and the lag."""
     lines: list = []
     units = ["urad"] * 3 + ["um"] * 3
-    lines += [
-        "",
-        "| axis | p2p motion | RMS error | peak error | RMS / p2p | lag [ms] |",
-        "|---|---|---|---|---|---|",
-    ]
+    rows = []
     for k, axis in enumerate(AXES):
         scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
         lag = fid["lag_s"].get(axis)
         frac = fid["rms_fraction"][k]
-        lines.append(
-            f"| {axis} | {fid['p2p'][k] * scale:.4g} {unit} | "
-            f"{fid['rms'][k] * 1e6:.3g} {units[k]} | "
-            f"{fid['peak'][k] * 1e6:.3g} {units[k]} | "
-            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.3g} %'} | "
-            f"{'-' if lag is None else f'{1e3 * lag:.3g}'} |"
+        rows.append(
+            [axis, f"{fid['p2p'][k] * scale:.4g} {unit}", f"{fid['rms'][k] * 1e6:.3g} {units[k]}"]
+            + [f"{fid['peak'][k] * 1e6:.3g} {units[k]}"]
+            + ["-" if not np.isfinite(frac) else f"{100 * frac:.3g} %"]
+            + ["-" if lag is None else f"{1e3 * lag:.3g}"]
         )
+    header = ["axis", "p2p motion", "RMS error", "peak error", "RMS / p2p", "lag [ms]"]
+    lines += ["", *markdown_lines(header, rows)]
     lines += [
         "",
         f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
@@ -160,21 +158,18 @@ def _harmonic_lines(fid: dict) -> list:
     """The report's table of the harmonics (none without)."""
     lines: list = []
     if fid["harmonics"]:
-        lines += [
-            "",
-            "| harmonic | f [Hz] | axis | reference amplitude | amplitude error | "
-            "phase error [deg] |",
-            "|---|---|---|---|---|---|",
-        ]
+        rows = []
         for h in fid["harmonics"]:
             k = AXES.index(h["axis"])
             amp = h["reference"] * (1e3 if k >= 3 else 180 / math.pi)
-            lines.append(
-                f"| {h['source']} {h['k']} | {h['f_hz']:.4g} | {h['axis']} | "
-                f"{amp:.4g} {'mm' if k >= 3 else 'deg'} | "
-                f"{100 * h['amplitude_error']:+.3g} % | "
-                f"{math.degrees(h['phase_error_rad']):+.3g} |"
+            rows.append(
+                [f"{h['source']} {h['k']}", f"{h['f_hz']:.4g}", h["axis"]]
+                + [f"{amp:.4g} {'mm' if k >= 3 else 'deg'}"]
+                + [f"{100 * h['amplitude_error']:+.3g} %"]
+                + [f"{math.degrees(h['phase_error_rad']):+.3g}"]
             )
+        header = ["harmonic", "f [Hz]", "axis", "reference amplitude", "amplitude error"]
+        lines += ["", *markdown_lines(header + ["phase error [deg]"], rows)]
     return lines
 
 
@@ -219,18 +214,18 @@ def _anchor_lines(fid: dict) -> list:
         "Phantom anchor (Belcher et al., Med. Phys. 41, 121704, 2014, a built 6-DOF "
         "Stewart motion phantom replaying recorded tumour motion):",
         "",
-        "| axis | phantom RMSE | phantom range | phantom RMSE / range | here RMS / p2p |",
-        "|---|---|---|---|---|",
     ]
+    rows = []
     for axis, rmse, rng in PHANTOM_ANCHOR:
         k = AXES.index(axis)
         unit = "mm" if k >= 3 else "deg"
         frac = fid["rms_fraction"][k]
-        lines.append(
-            f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {100 * rmse / rng:.2g} % | "
-            f"{'-' if not np.isfinite(frac) else f'{100 * frac:.2g} %'} |"
+        rows.append(
+            [axis, f"{rmse:g} {unit}", f"{rng:g} {unit}", f"{100 * rmse / rng:.2g} %"]
+            + ["-" if not np.isfinite(frac) else f"{100 * frac:.2g} %"]
         )
-    return lines
+    header = ["axis", "phantom RMSE", "phantom range", "phantom RMSE / range"]
+    return lines + markdown_lines(header + ["here RMS / p2p"], rows)
 
 
 #: Points a report's curve draws at most: a long run's logs are thinned to this (every n-th

@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from ..base.fileio import atomic_write, write_between_markers
+from ..base.tables import markdown_lines
 from ..run.plan import make_plan
 
 #: Where the tables go in docs/organ_motion.md.
@@ -275,17 +276,15 @@ def _main_table(results: dict) -> list[str]:
         "cycles' errors without learning (the part no learner can remove; - where the "
         "cycles differ in length).",
         "",
-        "| motion | cycle | no learning | after 5 | after 10 | ratio after 10 "
-        "(translation, rotation) | not repeating, no learning | learner |",
-        "|---|---|---|---|---|---|---|---|",
     ]
-    verdicts = []
+    header = ["motion", "cycle", "no learning", "after 5", "after 10"]
+    header += ["ratio after 10 (translation, rotation)", "not repeating, no learning", "learner"]
+    rows, verdicts = [], []
     for label, motion in _MAIN_MOTIONS:
         none, learn = (results.get(f"main/{label}/{k}") for k in ("none", "learn"))
         if not isinstance(none, dict) or not isinstance(learn, dict):
-            lines.append(
-                f"| {label} | | failed: {none if not isinstance(none, dict) else learn} | | | | |"
-            )
+            failed = none if not isinstance(none, dict) else learn
+            rows.append([label, None, f"failed: {failed}", None, None, None, None])
             continue
         bt, br, lo, hi = _baseline(none)
         period = none["cycles"][0]["window_s"][1] - none["cycles"][0]["window_s"][0]
@@ -295,20 +294,22 @@ def _main_table(results: dict) -> list[str]:
         nt, nr = (
             _spread(none, k)[0] for k in ("nonrepeat_translation_m", "nonrepeat_rotation_rad")
         )
-        lines.append(
-            f"| {label} | {period:.3g} s | {bt * 1e6:.2f} ({lo * 1e6:.2f}-"
-            f"{hi * 1e6:.2f}) / {br * 1e6:.1f} | {_cell(f5) if f5 else '-'} | "
-            f"{_cell(f10) if f10 else '-'} | "
-            + (f"{ratio[0]:.2f}x, {ratio[1]:.2f}x" if ratio else "-")
-            + (f" | {nt * 1e6:.2f} / {nr * 1e6:.1f}" if np.isfinite(nt) else " | -")
-            + f" | {int(st.get('rollbacks', 0))} rollbacks"
-            + (", stopped" if st.get("stopped") else "")
-            + " |"
+        rows.append(
+            [label, f"{period:.3g} s"]
+            + [f"{bt * 1e6:.2f} ({lo * 1e6:.2f}-{hi * 1e6:.2f}) / {br * 1e6:.1f}"]
+            + [_cell(f5) if f5 else "-", _cell(f10) if f10 else "-"]
+            + [f"{ratio[0]:.2f}x, {ratio[1]:.2f}x" if ratio else "-"]
+            + [f"{nt * 1e6:.2f} / {nr * 1e6:.1f}" if np.isfinite(nt) else "-"]
+            + [
+                f"{int(st.get('rollbacks', 0))} rollbacks"
+                + (", stopped" if st.get("stopped") else "")
+            ]
         )
         if motion == "breathing_heartbeat" and f10:
             verdicts.append(_goal_verdict(learn, bt, br, nt, nr))
         if motion == "irregular_breathing" and f10:
             verdicts.append(_irregular_verdict(none, learn, bt, br))
+    lines += markdown_lines(header, rows)
     return lines + ["", "Verdicts (computed from the table):", ""] + (verdicts or ["- none"])
 
 
@@ -325,23 +326,19 @@ def _settings_table(results: dict) -> list[str]:
         "4 / (4 + j), Q-filter 25 Hz, lead 8 ms, the pose error of the encoders' forward "
         "kinematics); translation [um] / rotation [urad] RMS of the cycle.",
         "",
-        "| learner | after 1 | after 2 | after 5 | after 10 |",
-        "|---|---|---|---|---|",
     ]
+    rows = []
     if isinstance(fast, dict):
         bt, br, _, _ = _baseline(fast)
-        lines.append(f"| no learning | {bt * 1e6:.2f} / {br * 1e6:.1f} | | | |")
+        rows.append(["no learning", f"{bt * 1e6:.2f} / {br * 1e6:.1f}", None, None, None])
     for c in [c for c in CASES if c.group == "tuning" and c.learning is not None]:
         out = results.get(c.job_id)
         if not isinstance(out, dict):
-            lines.append(f"| {c.label} | failed: {out} | | | |")
+            rows.append([c.label, f"failed: {out}", None, None, None])
             continue
-        lines.append(
-            f"| {c.label} | "
-            + " | ".join(_cell(f) if (f := _at(out, k)) else "-" for k in (1, 2, 5, 10))
-            + " |"
-        )
-    return lines
+        rows.append([c.label, *(_cell(f) if (f := _at(out, k)) else "-" for k in (1, 2, 5, 10))])
+    header = ["learner", "after 1", "after 2", "after 5", "after 10"]
+    return lines + markdown_lines(header, rows)
 
 
 def _robustness_table(results: dict) -> list[str]:
@@ -354,30 +351,29 @@ def _robustness_table(results: dict) -> list[str]:
         "Breathing at 5 s with the 72 bpm heartbeat on a robot that differs from the one "
         "the controller and the learner believe in. Translation [um] / rotation [urad].",
         "",
-        "| robot | no learning | after 5 | after 10 | worst cycle with learning | learner |",
-        "|---|---|---|---|---|---|",
     ]
+    rows = []
     for label in ("payload 1.2", "encoder noise 1 count", "payload 1.2 + noise 1 count"):
         none, learn = (results.get(f"robustness/{label}/{k}") for k in ("none", "learn"))
-        row = f"| {label} | "
-        row += (
+        row = [
+            label,
             f"{_baseline(none)[0] * 1e6:.2f} / {_baseline(none)[1] * 1e6:.1f}"
             if isinstance(none, dict)
-            else "-"
-        )
+            else "-",
+        ]
         if isinstance(learn, dict):
             worst = max(learn["cycles"][1:], key=lambda c: c["rms_translation_m"])
             st = learn["learner"][-1]
-            row += (
-                f" | {_cell(_at(learn, 5))} | {_cell(_at(learn, 10))} | {_cell(worst)} | "
+            row += [_cell(_at(learn, 5)), _cell(_at(learn, 10)), _cell(worst)]
+            row.append(
                 f"{int(st['learned_cycles'])} learned, {int(st['rollbacks'])} rollbacks"
                 + (", stopped" if st["stopped"] else "")
-                + " |"
             )
         else:
-            row += f" | failed: {learn} | | | |"
-        lines.append(row)
-    return lines
+            row += [f"failed: {learn}", None, None, None]
+        rows.append(row)
+    header = ["robot", "no learning", "after 5", "after 10", "worst cycle with learning"]
+    return lines + markdown_lines(header + ["learner"], rows)
 
 
 def _anchor_table(results: dict) -> list[str]:
@@ -397,10 +393,8 @@ def _anchor_table(results: dict) -> list[str]:
         "phantom replaying recorded 6-D tumour motion. Here: breathing plus heartbeat "
         "after 10 learned cycles (15 mm SI, 2 mm LR, no rotation commanded).",
         "",
-        "| axis | phantom RMSE | over | here RMS | over (p2p) | phantom RMSE / range "
-        "| here RMS / p2p |",
-        "|---|---|---|---|---|---|---|",
     ]
+    rows = []
     for axis, rmse, rng in PHANTOM_ANCHOR:
         k = AXES.index(axis)
         rot = k < 3
@@ -408,13 +402,14 @@ def _anchor_table(results: dict) -> list[str]:
         p2p = f10["p2p"][k] * (180 / math.pi if rot else 1e3)
         unit = "deg" if rot else "mm"
         frac = f10["rms_fraction"][k]
-        lines.append(
-            f"| {axis} | {rmse:g} {unit} | {rng:g} {unit} | {here:.2g} {unit} | "
-            f"{p2p:.3g} {unit} | {100 * rmse / rng:.2g} % | "
-            + ("-" if frac is None or not np.isfinite(frac) else f"{100 * frac:.2g} %")
-            + " |"
+        rows.append(
+            [axis, f"{rmse:g} {unit}", f"{rng:g} {unit}", f"{here:.2g} {unit}"]
+            + [f"{p2p:.3g} {unit}", f"{100 * rmse / rng:.2g} %"]
+            + ["-" if frac is None or not np.isfinite(frac) else f"{100 * frac:.2g} %"]
         )
-    return lines
+    header = ["axis", "phantom RMSE", "over", "here RMS", "over (p2p)"]
+    header += ["phantom RMSE / range", "here RMS / p2p"]
+    return lines + markdown_lines(header, rows)
 
 
 def tables(results: dict) -> str:

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..base.fileio import atomic_write, write_between_markers
+from ..base.tables import markdown_lines
 from ..control.feedforward_basis import LIBRARY_MODEL
 from ..control.feedforward_tuning import FeedforwardTuning
 from . import SCENARIO
@@ -393,15 +394,14 @@ def _robots(results: dict) -> dict:
 
 def _table(items: list) -> list[str]:
     """One robot's table: a row per motion."""
-    lines = [
-        "| motion | no learning (two runs) | learned | peak [um], none / learned | "
-        "gamma 5 um/10 ms [%], none / learned | start-up: none / from zero / from the "
-        "library's model | encoders' resolution | learner |",
-        "|---|---|---|---|---|---|---|---|",
-    ]
+    header = ["motion", "no learning (two runs)", "learned", "peak [um], none / learned"]
+    header += ["gamma 5 um/10 ms [%], none / learned"]
+    header += ["start-up: none / from zero / from the library's model"]
+    header += ["encoders' resolution", "learner"]
+    rows = []
     for job, v in items:
         if not isinstance(v, dict):
-            lines.append(f"| {job.rpartition(' | ')[0]} | failed: {v} | | | | | | |")
+            rows.append([job.rpartition(" | ")[0], f"failed: {v}"] + [None] * 6)
             continue
         none, ff, st = v["none"], v["learned"], v["learner"] or {}
         again = v.get("none_again")
@@ -426,16 +426,14 @@ def _table(items: list) -> list[str]:
             if none.get("resolution_m")
             else "-"
         )
-        lines.append(
-            f"| {v['case']} | {_um_urad(none)}"
-            + (f"; {_um_urad(again)}" if again else "")
-            + f" | {_um_urad(ff)}"
-            + (f" (worse: {', '.join(worse)})" if worse else "")
-            + f" | {none['peak_translation_m'] * 1e6:.1f} / {ff['peak_translation_m'] * 1e6:.1f}"
-            f" | {100 * none['gamma'][1]:.1f} / {100 * ff['gamma'][1]:.1f} | {start} | "
-            f"{resolution} | {learner} |"
+        rows.append(
+            [v["case"], _um_urad(none) + (f"; {_um_urad(again)}" if again else "")]
+            + [_um_urad(ff) + (f" (worse: {', '.join(worse)})" if worse else "")]
+            + [f"{none['peak_translation_m'] * 1e6:.1f} / {ff['peak_translation_m'] * 1e6:.1f}"]
+            + [f"{100 * none['gamma'][1]:.1f} / {100 * ff['gamma'][1]:.1f}"]
+            + [start, resolution, learner]
         )
-    return lines
+    return markdown_lines(header, rows)
 
 
 def tables(results: dict) -> str:

@@ -27,6 +27,7 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import Multiplexer, VectorLogSink
 
+from ..base.columns import interp_columns
 from ..base.fileio import CheckedNpz, save_npz
 from ..references.motion import Reference
 from .metrics import compute_metrics
@@ -455,9 +456,7 @@ def feedforward_at(sd, t: np.ndarray) -> np.ndarray:
     t_act = reference.t_eval.values() + sd.plan.delay_periods * sd.plan.control_period_s
     table = reference.T_ff_table
     out = np.empty((len(t), table.shape[1]), dtype=np.float32)
-    for i in range(table.shape[1]):
-        out[:, i] = np.interp(t, t_act, table[:, i])
-    return out
+    return interp_columns(t, t_act, table, out=out)
 
 
 def loop_closures_from_states(sd, states: np.ndarray) -> np.ndarray:

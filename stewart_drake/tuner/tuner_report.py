@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from ..base.tables import markdown_lines
 from .study_runs import GOAL, R_HOLD, R_MOVE, RATIOS, SHIFTS, UNSEEN_FAMILY, StudyArm
 
 
@@ -137,9 +138,8 @@ def _lambda_table(summary: dict, lam: float) -> list:
         + ", ".join(f"{k}: {n}" for k, n in counts.items())
         + ".",
         "",
-        "| controller | all tasks | " + " | ".join(test_families) + " | goal met |",
-        "|---|---|" + "---|" * len(test_families) + "---|",
     ]
+    rows = []
     chosen = summary.get("chosen", {}).get(f"{lam:g}")
     for c in v["controllers"].values():
         arm = StudyArm(**c["arm"])
@@ -156,12 +156,12 @@ def _lambda_table(summary: dict, lam: float) -> list:
             name += f" ({chosen['fixed_ratio']:.3g})"
         elif arm.kind == "ours closed-loop" and chosen:
             name += f" (shift {chosen['shift']:+g})"
-        L.append(
-            f"| {name} | {pct(c['mean'])} +- {100 * c['std']:.0f} % | "
-            + " | ".join(cells)
-            + f" | {'yes' if c['beats'] else 'no'} |"
+        rows.append(
+            [name, f"{pct(c['mean'])} +- {100 * c['std']:.0f} %", *cells]
+            + ["yes" if c["beats"] else "no"]
         )
-    return L + [""]
+    header = ["controller", "all tasks", *test_families, "goal met"]
+    return L + markdown_lines(header, rows) + [""]
 
 
 def _controllers_lines() -> list:
