@@ -488,8 +488,7 @@ def _drive(
     wall0 = time.perf_counter()
     try:
         try:
-            # Inside the try: a signal the moment the torque is on is this run's end, told in
-            # ``ended`` as any other (it escaped as an exception, without the end line).
+            # In the try: a signal the moment the torque is on ends the run as any other.
             bus.enable_torque()
             say(announce)
             with watchdog:
