@@ -31,6 +31,25 @@ def register(sub) -> None:
         help="encoder readings and the tracker's poses, a header naming columns and units: "
         "q0 [rad] .. q5 [rad], phi [rad], theta [rad], psi [rad], X [m], Y [m], Z [m]",
     )
+    _add_mode_arguments(cal, ROBOT_SCENARIO)
+    cal.add_argument(
+        "--out",
+        default=None,
+        help="the robot section to write (ROBOT.yaml), with --plan the path (POSES.csv), with "
+        "--join the measurements (MEASUREMENTS.csv) (default: none, which only --rehearse "
+        "accepts)",
+    )
+    add_scenario_arguments(cal, "the nominal robot and its encoders")
+    _add_identification_arguments(cal)
+    _add_rehearsal_arguments(cal)
+    cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    # --scenario given or not: without it, the bus rehearsal takes the robot's bus scenario.
+    cal.set_defaults(func=_cmd_calibrate, out_is_file=True, scenario=None)
+
+
+def _add_mode_arguments(cal, robot_scenario: str) -> None:
+    """The modes (identify by default; ``--plan``, ``--rehearse``, ``--join``) and the files
+    ``--join`` and ``--rehearse --bus`` take."""
     mode = cal.add_mutually_exclusive_group()
     mode.add_argument(
         "--plan",
@@ -78,16 +97,12 @@ def register(sub) -> None:
         "through the poses (chosen as --plan chooses them, or as --select says), an emulated "
         "tracker following it, "
         "every file kept in FOLDER (the scenario's "
-        f"bus; default scenario: {ROBOT_SCENARIO})",
+        f"bus; default scenario: {robot_scenario})",
     )
-    cal.add_argument(
-        "--out",
-        default=None,
-        help="the robot section to write (ROBOT.yaml), with --plan the path (POSES.csv), with "
-        "--join the measurements (MEASUREMENTS.csv) (default: none, which only --rehearse "
-        "accepts)",
-    )
-    add_scenario_arguments(cal, "the nominal robot and its encoders")
+
+
+def _add_identification_arguments(cal) -> None:
+    """The identification's options: the tracker's noise, what stays nominal, the outliers."""
     cal.add_argument(
         "--noise",
         type=_noise,
@@ -115,10 +130,6 @@ def register(sub) -> None:
         action="store_true",
         help="identify again without the poses that hold a flagged reading",
     )
-    _add_rehearsal_arguments(cal)
-    cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
-    # --scenario given or not: without it, the bus rehearsal takes the robot's bus scenario.
-    cal.set_defaults(func=_cmd_calibrate, out_is_file=True, scenario=None)
 
 
 def _add_rehearsal_arguments(cal) -> None:
