@@ -2,36 +2,29 @@
 
 A :class:`Scenario` is the schema of a run: the robot (:class:`Robot`), Drake's plant, simulator
 and visualization settings, the reference, the controller, the tuner, the periods, the robot as
-built (its geometry when it differs from the one the controller believes in; its hardware),
-the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM.
-A section that configures a thing lives beside it: the robot as built
-(:class:`~stewart_drake.station.hardware.Hardware`) in :mod:`~stewart_drake.station.hardware`,
-the sensor noise and the tool disturbance with the station (:mod:`~stewart_drake.station.station`),
-the servo bus (:class:`~stewart_drake.station.bus.servos.DynamixelBusConfig`) with the bus, the
-guard's and LCM's with theirs. It is read with ``pydrake.common.yaml.yaml_load_typed`` and
-written with ``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's
-``Scenario`` for ``MakeHardwareStation``; files, shipped names and ``--set`` overrides are
-:mod:`~.scenario_io`'s, and the values a run derives from a scenario (its geometry, servo, limits,
-reference object, controller) are computed once, by :func:`~.plan.make_plan`.
+built, the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM. It
+is read with ``pydrake.common.yaml.yaml_load_typed`` and written with ``yaml_dump_typed``
+(:func:`dump_scenario`); files, shipped names and ``--set`` overrides are :mod:`~.scenario_io`'s,
+and the values a run derives from a scenario are computed once, by :func:`~.plan.make_plan`.
 
-Choices are tagged unions: in YAML, ``controller: !PdDriver {bandwidth_hz: 20}`` or
-``reference: !CsvReference {path: run.csv}``. Each choice is one class, beside what it builds,
-that checks its own fields and builds what it stands for: the controllers (``LqiDriver`` in
+Choices are tagged unions (``controller: !PdDriver {bandwidth_hz: 20}``), each choice one class
+beside what it builds, checking its own fields: the controllers (``LqiDriver`` in
 :mod:`~stewart_drake.control.lqi`, ``PdDriver``, ``UserController``), the tuners
-(:mod:`~stewart_drake.control.tuning`), the references (beside the references), the learner
-(``IlcDriver``, :mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``,
-:mod:`~.guard`). A new choice is one such class added to its union (:data:`ControllerChoice`,
-:data:`ReferenceChoice`, :data:`~stewart_drake.control.tuning.TunerChoice`).
+(:mod:`~stewart_drake.control.tuning`), the references, the learner (``IlcDriver``,
+:mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``, :mod:`~.guard`); a new choice
+is one class added to its union (:data:`ControllerChoice`, :data:`ReferenceChoice`,
+:data:`~stewart_drake.control.tuning.TunerChoice`). Sections that configure a thing live beside
+it (:class:`~stewart_drake.station.hardware.Hardware`,
+:class:`~stewart_drake.station.bus.servos.DynamixelBusConfig`,
+:mod:`~stewart_drake.station.station`).
 
-Drake's YAML loader builds each class with its defaults and then sets fields, so the classes are
-plain mutable dataclasses with concrete field types (this module must not use
-``from __future__ import annotations``), and validation is a separate step:
-:meth:`Scenario.validate` names the field to fix. The robot's geometry, the servo and the LQI's
-scales are frozen value types of the lower layers; :class:`Robot`,
-:class:`~stewart_drake.station.hardware.Motors` and
-:class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are their YAML forms (same names,
-units and defaults; lists where they have tuples), with ``build()`` to get the value type back
-(:class:`~stewart_drake.base.mirrors.ValueMirror`).
+The classes are plain mutable dataclasses with concrete field types (this module must not use
+``from __future__ import annotations``: Drake's YAML loader builds each with its defaults, then
+sets fields), so validation is a separate step: :meth:`Scenario.validate` names the field to fix.
+:class:`Robot`, :class:`~stewart_drake.station.hardware.Motors` and
+:class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are the YAML forms of frozen value
+types (same names, units and defaults; lists for tuples), ``build()`` giving the value back
+(:class:`~stewart_drake.base.mirrors.ValueMirror`). Where each part lives: docs/scenarios.md.
 """
 
 import dataclasses
