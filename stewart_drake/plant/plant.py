@@ -145,14 +145,11 @@ def add_stewart_plant(
             second actuator, PD-controlled by SAP towards zero velocity (damping
             ``servo.friction_damping``; why: docs/hardware.md, "Friction"); ``backlash_rad`` > 0
             adds a rotor and a play per motor (:func:`~.backlash.add_gear_play`).
-        contact: register the parts' collision geometry (:mod:`~.parts`), so that SAP turns a
-            collision into contact forces (point contact, :data:`~.sdf.CONTACT_STIFFNESS_N_PER_M`);
-            False leaves it out (an SDF file's collision geometry is then filtered): parts pass
-            through each other unseen, at no cost per step.
-        rod_model: "bodies" or "distance" (:data:`~.sdf.ROD_MODELS`); "distance" adds one
-            ``AddDistanceConstraint`` (rigid, length ``geometry.rod_lengths[i]``) per leg between
-            the crank tip and the platform joint, and then takes no ``sdf_file``. Its rods have
-            no collision geometry: contact between a rod and another part is not simulated.
+        contact: register the parts' collision geometry (:mod:`~.parts`) for SAP point contact
+            (:data:`~.sdf.CONTACT_STIFFNESS_N_PER_M`); False filters it out (parts pass through).
+        rod_model: "bodies" or "distance" (:data:`~.sdf.ROD_MODELS`); "distance" is one rigid
+            ``AddDistanceConstraint`` of ``geometry.rod_lengths[i]`` per leg, crank tip to
+            platform joint, with no ``sdf_file`` and no rod collision geometry.
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
         pose, assembled. With friction, ``handles.actuation_port`` takes 12 values (the six
