@@ -7,66 +7,33 @@ A controller is a Drake system (a ``LeafSystem``, or a ``Diagram`` exporting the
 only ``x_d`` and ``T`` are required, every other port is connected when the controller declares
 it.
 
-Input ports (all vectors; SI units)
+Input ports (vectors, SI units):
+    ``x_d`` (18,): required; reference pose [phi, theta, psi, X, Y, Z] (rad, m), its rate and
+        acceleration, evaluated at the sample time plus half a plant step.
+    ``x`` (12,): pose estimate and rate, the station's ``platform_state`` (plus sensor noise).
+    ``motor_angle`` (6,) rad, ``motor_rate`` (6,) rad/s, ``motor_torque_applied`` (6,) N m:
+        the station's outputs of those names.
+    ``T_ff`` (6,): feed-forward motor torques along the reference, N m
+        (``Scenario.feedforward``).
+    ``omega`` (2,): [omega_Q, omega_R] of paper eq. 27, the scenario's or the tuner's.
+Output ports:
+    ``T`` (6,): required; motor torque command, N m, held between updates.
+    ``status`` (k,): numbers for the metrics, named by the controller's ``status_names`` (a
+        tuple of k str; the LQI's are :data:`LQI_STATUS_NAMES`).
+    ``e_bar`` (6,): the pose error the last update acted on (the tuner's density features).
+    ``integral`` (6,): integral states (the LQI's z, eq. 23), logged.
+    ``feature_window`` (12 w + 2,): with a tuner, the last w samples of [e_bar,
+        motor_torque_applied] as a ring buffer [rows (w x 12, oldest at ``head``), n_valid,
+        head], w = ``context.feature_window``.
 
-========== ====== ===================================================================
-name       size   what the Diagram connects
-========== ====== ===================================================================
-``x_d``    18     required: reference pose [phi, theta, psi, X, Y, Z] (rad, m), its
-                  rate (rad/s, m/s) and acceleration (rad/s^2, m/s^2), evaluated half a
-                  plant step ahead of the sample (see "Sampling")
-``x``      12     the pose estimate and its rate: the station's ``platform_state`` on the
-                  ideal robot (plus sensor noise when the scenario has some)
-``motor_angle`` 6 what the robot measures: the station's ``motor_angle`` output, rad
-``motor_rate``  6 the station's ``motor_rate`` output, rad/s
-``T_ff``   6      feed-forward motor torques along the reference, N m (gravity by virtual
-                  work, or none: ``Scenario.feedforward``)
-``omega``  2      [omega_Q, omega_R] of paper eq. 27: a constant from the scenario, or the
-                  ANN tuner's output when the scenario has a tuner
-``motor_torque_applied`` 6 the station's ``motor_torque_applied`` output, N m (what the
-                  motors apply: a controller that buffers the density features' samples
-                  reads it)
-========== ====== ===================================================================
-
-Output ports
-
-========== ====== ===================================================================
-``T``      6      required: motor torque command, N m, held between updates
-``status`` any    optional: numbers the metrics report at the end of a run, named by the
-                  controller's ``status_names`` attribute (a tuple of str, one per entry);
-                  the LQI's are :data:`LQI_STATUS_NAMES`
-``e_bar``  6      optional: the pose error the last update acted on; the density
-                  features of the ANN tuner read it (a tuner needs it, and ``omega``)
-``integral`` 6    optional: integral states (the LQI's z, eq. 23), logged and plotted
-``feature_window`` 12 w + 2  optional, with a tuner: the last w samples of [e_bar,
-                  motor_torque_applied] taken at the controller's instants, a ring buffer
-                  [rows (w x 12, oldest at ``head``), n_valid, head], w =
-                  ``context.feature_window``; the density features then read it instead of
-                  sampling at every period themselves (one Python callback less per period)
-========== ====== ===================================================================
-
-When the scenario learns from every cycle (``learning``), the ``x_d`` a controller reads is the
-reference plus the correction of the
-:class:`~stewart_drake.control.ilc.IterativeLearningController` (built by the learning
-choice from a :class:`LearnerContext`, wired by :func:`~stewart_drake.run.diagram.build_diagram`);
-nothing else changes for the controller.
-
-Sampling: a controller samples with a periodic discrete update of period
-``context.period_s`` and offset ``context.offset_s`` = half a plant step. A discrete plant updated
-at t_n already holds the state of t_n + h; a controller sampled at the same instants would act on
-a state one step old (one hidden step of delay). Sampled half a step later it reads the state
-the plant just produced, and its torque acts from the next plant step on; the reference it reads
-was evaluated at the sample time plus half a plant step, the time of that state.
-
-The LQI (:class:`~stewart_drake.control.lqi.controller.LqiController`) and the crank PD
-(:class:`~stewart_drake.control.pd.CrankPdController`) follow this contract; a user's controller
-is a factory in Python (``make_stewart_diagram(scenario, controller=factory)``) or a name in a
-scenario's ``UserController``. Loading a scenario never imports or calls anything it names: a
-name resolves only to a factory that Python code the user runs gave to
-:func:`register_controller`, or to an installed entry point of the group
-:data:`ENTRY_POINT_GROUP` that the user opted into by name (:func:`use_entry_point_controllers`,
-``stewart-drake run --plugin NAME``); any other name is refused, listing the registered ones
-(:func:`resolve_controller`).
+Sampling: a periodic discrete update of period ``context.period_s`` and offset
+``context.offset_s`` = half a plant step. With ``learning`` the ``x_d`` a controller reads
+includes the learner's correction (:class:`LearnerContext`,
+:class:`~stewart_drake.control.ilc.IterativeLearningController`). A scenario's
+``UserController`` names a factory given to :func:`register_controller`, or an entry point of
+the group :data:`ENTRY_POINT_GROUP` opted into by name (:func:`use_entry_point_controllers`);
+any other name is refused (:func:`resolve_controller`). Why the offset, what a tuner and a
+learner change, and how names are resolved: docs/station.md, "The controller contract".
 """
 
 from collections.abc import Callable

@@ -144,32 +144,22 @@ class DensityFeatures(LeafSystem):
             instants (contract port ``feature_window``: rows [e_bar, T], n_valid, head).
     Output port:
         ``rho`` (12,) = [rho_e (6,), rho_T (6,)], dimensionless, of the samples taken so far.
-    Discrete state (sampling only; numbers): a ring buffer (window * 12) of [e_bar, T] rows, and
-    [n_valid, head] (2,): the samples taken so far capped at window, and the row the next sample
-    goes to (the oldest).
-
-    Sampling, every period_s (first at ``offset_s``) the inputs are pushed into the ring buffer
-    (cheap, but one Python callback per period). Buffered, the controller has pushed them and
-    this system has no event at all. Either way rho is computed by :func:`density_features` on
-    the last min(k + 1, window) samples only when something reads the output (the tuner, every
-    20 ms), and Drake caches it until the next push. The output depends on the state (or the
-    controller's state) alone, so there is no direct feedthrough (no algebraic loop with the
-    controller that produces T). Eq. 35 divides by a signed window sum that can cross zero; we
-    divide by the window mean of |.| plus ``eps`` instead (docs/paper_notes.md).
+    Discrete state (sampling only): a ring buffer (window x 12) of [e_bar, T] rows and
+    [n_valid, head] (2,). rho is :func:`density_features` of the last min(k + 1, window)
+    samples, computed when read and cached; no direct feedthrough. Eq. 35 divides by a signed
+    window sum that can cross zero; we divide by the window mean of |.| plus ``eps`` instead
+    (docs/paper_notes.md, "Eqs. 35-36", with the two ways of sampling).
 
     Args:
         window: m + 1, samples per window (50).
         period_s: sampling period, s (1 ms, the control period).
         eps: see :func:`density_features`.
-        offset_s: time of the first sample, s, in [0, period_s). The Diagram samples with the
-            controller (half a plant step): the values are those of the instant before (nothing
-            the features read changes in between).
+        offset_s: time of the first sample, s, in [0, period_s) (the Diagram: the controller's).
         buffered: read the controller's ``feature_window`` instead of sampling.
     Raises:
         InvalidConfigError: window < 1, period_s <= 0, eps <= 0 or offset_s outside [0, period_s).
-        SimulationDivergedError: (during simulation, sampling) a non-finite input sample; it is
-            not clamped, because it means the closed loop has already diverged (a buffering
-            controller raises it itself).
+        SimulationDivergedError: (during simulation, sampling) a non-finite input sample, not
+            clamped: the loop has diverged (a buffering controller raises it itself).
     """
 
     def __init__(

@@ -1,72 +1,34 @@
 """Feed-forward tuning with basis functions: a correction learned as a function of the reference.
 
-The per-cycle learner (:mod:`~.ilc`) learns a correction indexed by the phase of a cycle, so it
-needs motion that repeats: what does not repeat per breath (a heartbeat not locked to the
-breath, irregular breaths, a drifting baseline, a real patient's trace) is never learned. The
-error the feedback leaves is, however, mostly a function of the reference itself: the loop's lag
-and its dynamics (the reference's rate, acceleration and jerk) and, at every reversal of a
-motor, the transient while its integrator winds through the Coulomb friction (the sign of each
-motor's rate, before and after the reversal). :class:`FeedforwardTuningLearner` therefore learns
-the correction as a linear combination of such basis functions of the reference (feed-forward
-tuning with basis functions: Bolder and Oomen, "Rational basis functions in iterative learning
-control", IEEE TCST 23(4), 2015; van Zundert and Oomen, "On inversion-based approaches for
-feedforward and ILC", Mechatronics 50, 2018, for varying tasks):
+:class:`FeedforwardTuningLearner` learns a correction of the reference as a linear combination
+of basis functions of the reference, so it needs no motion that repeats (the per-cycle learner,
+:mod:`~.ilc`, does) and a model learned on one trace can start the next
+(:func:`~.feedforward_basis.save_learned`, :func:`~.feedforward_basis.load_learned`). Source:
+feed-forward tuning with basis functions, Bolder and Oomen, "Rational basis functions in
+iterative learning control", IEEE TCST 23(4), 2015; van Zundert and Oomen, "On inversion-based
+approaches for feedforward and ILC", Mechatronics 50, 2018, for varying tasks:
 
     phi(t)   = [1, x_d_dot (6), x_d_ddot (6), x_d_dddot (6),
                 tanh(omega_i(t - l) / omega_0) for the six motors i and lags l in LAGS_S]
                                                   (p = 19 + 6 len(LAGS_S) basis functions)
     c(t)     = -Q[phi](t) theta                   (6 pose axes; Q: the zero-phase Q-filter)
 
-with omega = J(x_d) x_d_dot the motor rates the reference asks for. Because the basis is a
-function of the reference and not of time, what is learned on one stretch of motion applies to
-any other, one the learner has not seen included: a model learned on one trace can start the
-next (:func:`~.feedforward_basis.save_learned`, :func:`~.feedforward_basis.load_learned`).
-
-The run is cut into stretches of ``stretch_s`` (not cycles: nothing needs to repeat). At the end
-of stretch k, with e the error the encoders measured over it (forward kinematics of the recorded
-angles minus the reference, averaged over each record of ``sample_period_s``) and Phi the
-filtered basis averaged over the same records:
+with omega = J(x_d) x_d_dot the motor rates the reference asks for. The run is cut into
+stretches of ``stretch_s``; at the end of stretch k, with e the error the encoders measured over
+it (forward kinematics of the recorded angles minus the reference, averaged over each record of
+``sample_period_s``) and Phi the filtered basis averaged over the same records:
 
     A_k         = beta A_{k-1} + Phi^T Phi          (beta = 1 - 1 / memory_stretches)
     theta_{k+1} = theta_k + gamma (A_k + lambda_k I)^-1 Phi^T e
 
-(a recursive least-squares step on the error: with the closed loop's complementary sensitivity
-about one below its bandwidth, e = d - Phi theta_k, so theta converges to the least-squares fit
-of the error the loop would leave uncorrected, d; the memory averages the noise of the encoders
-out over the stretches; lambda_k = ``ridge`` trace(A_k) / p keeps a basis function the motion
-does not excite at zero). The basis functions are scaled by their RMS over the first stretch, so
-the ridge weighs them alike.
-
-Never worse than no correction, by construction (docs/organ_motion.md, "Never worse"):
-
-- **Kept only while better than none.** The error the stretch would have had without the
-  correction is estimated as d = e + c (c: the correction applied). At a stretch's end, a
-  correction whose measured RMS error (translation or rotation) exceeds ``bound_ratio`` times
-  that estimate is dropped; within it, every ``check_period_s``, one that exceeds
-  ``MID_STRETCH_RATIO`` times it (a gross failure: over half a second the encoders' rounding
-  does not average out, so a slight excess there is noise). The learner falls back to no
-  correction at all (theta, the information and the trusted ranges cleared), not to the best
-  weights so far, which were fitted on motion that has just been shown not to predict this
-  stretch. After ``max_rollbacks`` fallbacks the next one stops learning, without a correction.
-- **Learned only where it generalises.** A step is taken only when, over the stretch just run,
-  it predicts a lower RMS error than the correction in force by more than the noise the
-  encoders leave in a fitted correction (the resolution of the measured pose,
-  :func:`~stewart_drake.robot.forward_kinematics.encoder_pose_noise`, times sqrt(p / N) for N
-  records in memory), a lower one than no correction at all, and when the step fitted on the
-  stretch's first half does better than none on its second half.
-- **Non-stationary moments do not poison the model.** Records the fit leaves unexplained (a
-  residual beyond ``outlier_mad`` robust standard deviations, 1.4826 x the median absolute
-  deviation and at least the encoders' resolution, on any pose axis: a step, an excursion, the
-  end of a breath-hold) are left out, with ``outlier_guard_s`` either side, and the fit is made
-  again.
-- **No extrapolation.** The correction is trusted only where the reference's rate,
-  acceleration and jerk stay within the range the fitted records covered: it is multiplied by
-  w(t) = clip(2 - r(t), 0, 1), with r(t) the largest ratio of a (scaled) basis function to the
-  largest magnitude fitted, and clipped per axis to the largest uncorrected error fitted; a step
-  faster than anything learned from runs uncorrected.
-
-The last stretch's measured and estimated errors and the counts of fallbacks and skipped updates
-are in the ``learning_status`` output.
+with lambda_k = ``ridge`` trace(A_k) / p and the basis functions scaled by their RMS over the
+first stretch. A correction is kept only while it is estimated better than none (``bound_ratio``
+at a stretch's end, :data:`MID_STRETCH_RATIO` every ``check_period_s``, ``max_rollbacks``), a
+step is taken only where it generalises, outliers (``outlier_mad``, ``outlier_guard_s``) are
+left out of the fit and the correction is not extrapolated: docs/organ_motion.md, "Learning
+motion that does not repeat" and "Never worse than no correction". The last stretch's measured
+and estimated errors and the counts of fallbacks and skipped updates are in the
+``learning_status`` output.
 """
 
 import math
@@ -131,38 +93,29 @@ class FeedforwardTuningLearner(LeafSystem):
     Output ports:
         ``x_d_correction`` (18,): the correction of the pose, its rate and acceleration, to add
             to ``x_d``; computed one control period ahead (a state output: no feedthrough).
-        ``learning_status`` (14,): :data:`FF_STATUS_NAMES`: the stretch, updates made, the gain,
-            fallbacks to no correction ("rollbacks"), stopped (0/1), the last stretch's measured
-            RMS errors (m, rad) and the estimate of those without the correction, updates
-            skipped, records left out as outliers, whether the stretch's correction was dropped
-            before its end, record counters.
+        ``learning_status`` (14,): :data:`FF_STATUS_NAMES` (the stretch, updates, gain,
+            fallbacks to no correction, stopped, the last stretch's measured and estimated
+            uncorrected RMS errors in m and rad, skipped updates, outliers, record counters).
         ``theta`` (p x 6,): the learned weights, in SI units of the basis (row-major (p, 6)).
     Discrete state: the correction (18), the status, theta, the information matrix A (p x p,
-    scaled basis), the trusted range of each scaled basis function (p), and the current
-    stretch's records (rows of mean encoder
-    angles and reference poses, 12 each). The basis and the correction over a stretch are a
-    function of the reference, the stretch and theta only; they are computed once per stretch
-    (vectorized) and kept as a cache of that function, not as state.
+    scaled basis), each scaled basis function's trusted range (p) and the stretch's records
+    (mean encoder angles and reference poses, 12 a row); the basis is a per-stretch cache.
 
     Args:
         geometry: the robot the learner believes in.
-        driver: the learner's settings (:class:`FeedforwardTuning`: stretch, gain, memory,
-            ridge, Q-filter, the smooth signs' width, record period, bound, rollbacks, the model
-            to start from, whether to learn), checked here by its own
-            :meth:`FeedforwardTuning.validate` (its messages name each field);
-            ``driver.learn`` False holds the model (the bound is still monitored).
+        driver: the learner's settings (:class:`FeedforwardTuning`), checked here by its own
+            :meth:`FeedforwardTuning.validate`; ``driver.learn`` False holds the model (the
+            bound is still monitored).
         reference: the reference (an object with ``evaluate(t)`` -> pose, rate, acceleration,
             each (n, 6); an ``end_time`` if it has one).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         duration_s: the run's length, s.
         floor: (m, rad) one encoder count at the crank tip as a translation and a rotation
-            (kept for the status; the fallback compares with the estimate itself).
-        theta0: (p, 6) initial weights in SI units (a model learned before); None reads
-            ``driver.learned_from`` (:func:`~.feedforward_basis.load_learned`), or starts from
-            zeros without one.
-            A model given starts trusted over every range of the basis.
+            (kept for the status).
+        theta0: (p, 6) initial weights in SI units, trusted over every range; None reads
+            ``driver.learned_from`` (:func:`~.feedforward_basis.load_learned`), else zeros.
         quantum_rad: one encoder count, rad (0: exact angles): the noise below which an update
-            is skipped (module docstring).
+            is skipped.
     Raises:
         InvalidConfigError: a setting out of range, a stretch shorter than four records.
         CorruptFileError: ``driver.learned_from`` is not a model of this basis.

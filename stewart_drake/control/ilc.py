@@ -1,21 +1,14 @@
 """Iterative learning control: a correction of the reference learned from every cycle's error.
 
-Organ motion repeats. What the feedback leaves of one cycle's error (the lag of the loop, the
-motors' friction at every reversal, an unknown payload) comes back in the next at the same
-phase, so a correction learned from the previous cycles can be added before the error happens.
-:class:`IterativeLearningController` does this in front of any controller of the contract
-(:mod:`~.contract`): it reads the reference ``x_d`` and the encoders ``motor_angle`` and
-outputs a correction of the reference (pose, rate, acceleration), which the Diagram adds to the
-``x_d`` the controller tracks (the reference is the feed-forward path of the loop; the
-controller's own gains then turn the correction into torque). Learning the reference rather than
-the torque uses the closed loop as the learning filter: below the loop's bandwidth its
-complementary sensitivity is about one with a lag, so a gain near one and a phase lead
-(``lead_s``) learn without a model of the plant (Bristow, Tharayil and Alleyne, IEEE Control
-Systems Magazine 26(3), 2006, "series" ILC; Longman, Int. J. Control 73, 2000, for the phase lead
-and the zero-phase Q-filter).
-
-The update at the end of cycle j (the plain-numpy :func:`cycle_error`, :func:`repeatability`
-and :func:`learn`):
+:class:`IterativeLearningController` sits in front of any controller of the contract
+(:mod:`~.contract`): it reads the reference ``x_d`` and the encoders ``motor_angle`` and outputs
+a correction of the reference (pose, rate, acceleration), which the Diagram adds to the ``x_d``
+the controller tracks, so what the feedback leaves of one cycle's error is corrected in the
+next. Source: "series" ILC, the closed loop as the learning filter (Bristow, Tharayil and
+Alleyne, IEEE Control Systems Magazine 26(3), 2006); the phase lead and the zero-phase Q-filter
+(Longman, Int. J. Control 73, 2000); the decaying gain (stochastic ILC, Saab, IEEE TAC 46(6),
+2001). The update at the end of cycle j (the plain-numpy :func:`cycle_error`,
+:func:`repeatability` and :func:`learn`):
 
     e_j(phi)   = Q[the pose error measured over the cycle (from the encoders)], at phase phi in
                  [0, 1) and led by lead / T_j, divided by the cycle's amplitude scale s_j
@@ -24,27 +17,14 @@ and :func:`learn`):
     L_{j+1}    = Q[L_j - gamma_j w_j e_j]                      (Q: zero-phase low-pass)
     c(t)       = s_k L(phi(t)), with its rate and acceleration, during cycle k
 
-Only what repeats can be learned. On the robot as built a third of the error does not: the
-encoders' quantization keeps the feedback hunting by a count (30-100 Hz) and the motors stick at
-slightly different places at each rest, and a plain update adds that noise to the correction
-(its variance grows by gamma / (2 - gamma)). Two things keep it out: the weight w_j, the
-correlation of two successive cycles' errors on each axis (the Wiener weight of the repeating
-part), and a gain that decays with the cycles learned (the correction then averages the cycles'
-noise instead of following it; stochastic ILC, Saab, IEEE TAC 46(6), 2001).
-
-Cycles are aligned by phase (irregular breathing: a cycle of 4.4 s and one of 3.6 s share
-the same phase grid), and the correction follows each cycle's amplitude. The measured error is
-the forward kinematics of the encoder angles minus the reference ("pose"), or the motor-angle
-error filtered per motor and mapped to the pose by J^-1 ("motor_angle"); the true pose is never
-known to the learner.
-
-Monitored bound: the learner never lets the error of a cycle exceed ``bound_ratio`` times the
-error of the cycle its correction was learned from, plus one encoder count at the crank tip
-(``floor_m``, ``floor_rad``): both measured RMS errors (translation and rotation) of every cycle
-run with a learned correction are compared with that bound; a cycle over it rolls the
-correction back to the one of the best cycle so far and halves the learning gain; a cycle over
-it after ``max_rollbacks`` rollbacks stops learning, the best correction held (the count never
-exceeds its limit).
+Cycles are aligned by phase and the correction follows each cycle's amplitude. The measured
+error is the forward kinematics of the encoder angles minus the reference ("pose"), or the
+motor-angle error filtered per motor and mapped to the pose by J^-1 ("motor_angle"). Monitored
+bound: a cycle whose measured RMS error (translation or rotation) exceeds ``bound_ratio`` times
+that of the cycle its correction learned from, plus ``floor_m``, ``floor_rad``, rolls the
+correction back to the best cycle's and halves the gain; after ``max_rollbacks`` learning stops,
+the best correction held. Why the weight and the decaying gain, and what the learner costs:
+docs/organ_motion.md, "Learning from every cycle".
 """
 
 import math
@@ -202,25 +182,20 @@ class IterativeLearningController(LeafSystem):
         ``x_d_correction`` (18,): the correction of the pose, its rate and acceleration, to add
             to ``x_d`` (rad, m, /s, /s^2); computed one control period ahead (a state output:
             no feedthrough).
-        ``ilc_status`` (16,): :data:`ILC_STATUS_NAMES`: the current cycle, cycles learned from,
-            the gain in use, rollbacks, stopped (0/1), the last cycle's measured RMS errors
-            (m, rad), those of the cycle the correction learned from, the best cycle's score
-            and errors, the first cycle's errors, and the record counters.
-    Discrete state: the correction (18), the status (16) and one group holding the records of
-    the current cycle (rows of mean encoder angles and reference poses, 12 each, every
-    ``sample_period_s``), their running sum (12), the learned correction, the best one and the
-    last cycle's filtered error (M x 6 each, over the phase grid). Everything changes in one
-    periodic update at the control period; the learning itself runs once per cycle, at its last
-    sample. Drake copies a system's whole discrete state at each of its updates: with the
-    per-step arithmetic that makes 79 us per control period for a 5 s cycle and 196 us for a
-    20 s one (benchmarks/learning.py; 18 % and 47 % of a run without learning).
+        ``ilc_status`` (16,): :data:`ILC_STATUS_NAMES` (cycle, cycles learned, gain, rollbacks,
+            stopped, the RMS errors in m and rad of the last, the learned-from, the best and
+            the first cycle, the best score, record counters).
+    Discrete state: the correction (18), the status (16), the current cycle's records (mean
+    encoder angles and reference poses, 12 a row, every ``sample_period_s``) and their sum, the
+    learned and the best correction and the last filtered error (M x 6 each, the phase grid);
+    one periodic update at the control period, the learning once per cycle (its cost:
+    docs/organ_motion.md, "Learning from every cycle").
 
     Args:
         geometry: the robot the learner believes in (for the kinematics of the error).
-        driver: the learner's settings (:class:`IlcDriver`: gain, Q-filter, lead, error, record
-            period, bound, rollbacks, learned cycles, gain decay), checked here by its own
-            :meth:`IlcDriver.validate` (its messages name each field); ``driver.period_s`` is
-            the run's business (:func:`~stewart_drake.references.motion.learning_cycles`).
+        driver: the learner's settings (:class:`IlcDriver`), checked here by its own
+            :meth:`IlcDriver.validate`; ``driver.period_s`` is the run's business
+            (:func:`~stewart_drake.references.motion.learning_cycles`).
         period_s: the control period h, s. offset_s: the controller's sample offset, s.
         cycle_starts: (K + 1,) start of each cycle, s, increasing (the last ends the last
             cycle); nothing is recorded or corrected outside them.

@@ -1,35 +1,29 @@
 """Linear models of the robot and of the LQI at a pose, in the controller's discrete time.
 
-Drake's ``Linearize`` cannot take this plant: a discrete SAP plant with ball constraints supports
-only ``double`` (drake#20727) and the station's Python systems do not convert to AutoDiff. The
-models here are built instead from the closed chain's own quantities at a pose x0 at rest: the
-task-space inertia M_x (platform, cranks, rods and the motors' reflected rotors,
-:func:`~stewart_drake.robot.statics.task_inertia`), the Jacobian J = d theta / d x and the gravity
-stiffness H = d T_hold / d x (the holding torques' derivative, by central differences of
+Built from the closed chain's own quantities at a pose x0 at rest (Drake's ``Linearize`` cannot
+take this plant, docs/analysis.md, "The model"): the task-space inertia M_x
+(:func:`~stewart_drake.robot.statics.task_inertia`), the Jacobian J = d theta / d x and the
+gravity stiffness H = d T_hold / d x (central differences of
 :func:`~stewart_drake.robot.statics.holding_torques`). In task coordinates, with T the motor
 torques' deviation from the holding torques of x0 and b the motors' viscous friction,
 
     M_x x_ddot = J^T (T - H x - b J x_dot)
 
-(the holding torques of x0 + x are T_hold(x0) + H x: gravity pushes back with J^T H x). Three
-pieces, each a :class:`DiscreteModel` (numpy A, B, C, D at the period h; ``to_drake()`` gives a
-Drake ``LinearSystem``, ``to_control()`` a python-control ``StateSpace`` when the [analysis] extra
-is installed):
+Three pieces, each a :class:`DiscreteModel` (numpy A, B, C, D at the period h; ``to_drake()``
+gives a Drake ``LinearSystem``, ``to_control()`` a python-control ``StateSpace`` with the
+[analysis] extra):
 
-* :func:`plant_model`: torque command -> pose and rate, with the computation delay (d periods,
-  a shift register) and the drive's current loop (the station's own discretization,
-  :func:`~stewart_drake.station.station.current_loop`'s formulas) in front of the mechanics;
-* :func:`lqi_model`: the LQI's own linear form at that pose (eq. 34 with the gain it solves there,
-  the integral state z, its copy of the pending torques, the gravity feed-forward T_hold(x_d)
-  linearized, H x_d, and on the robot as built the encoders' rate filter);
+* :func:`plant_model`: torque command -> pose and rate, with the computation delay (d periods)
+  and the drive's current loop (:func:`~stewart_drake.station.station.current_loop`'s
+  formulas) in front of the mechanics;
+* :func:`lqi_model`: the LQI's own linear form at that pose (eq. 34 with the gain it solves
+  there, the integral state z, its pending torques, the gravity feed-forward linearized, H x_d,
+  and on the robot as built the encoders' rate filter);
 * :func:`closed_loop`: the two joined, with the reference [x_d, x_d_dot] as input and a
   task-force injection f at the plant input (T_in = T_ctrl + J^-T f) to open the loop there.
 
-What is left out, and why: Coulomb friction (a describing function depends on the amplitude; at
-amplitudes where the friction torque exceeds the feedback torque the cranks stick and the linear
-model does not hold, docs/analysis.md), the encoders' quantization (17 bits: 48 urad at the crank,
-far below the amplitudes analysed; as a describing function a gain of 1), the velocity-product
-(Coriolis) terms (zero at rest), the torque limit (a small-signal model never reaches it).
+Left out (why: docs/analysis.md): Coulomb friction, the encoders' quantization, the
+velocity-product (Coriolis) terms and the torque limit.
 """
 
 from __future__ import annotations

@@ -73,30 +73,15 @@ def design_scenario(
     """The scenario of ``motion`` on ``design`` as built, validated.
 
     Starting from ``base`` (a shipped name or a scenario file, loaded as the CLI loads it, or a
-    :class:`~stewart_drake.run.scenario.Scenario`, copied):
-
-    - the design's robot, motors and encoder resolution (:meth:`Design.apply_to`), so the
-      plant, the servo model, the guard's torque and speed checks and the LQI's torque limit
-      are the design's motor's;
-    - the payload: ``requirements.payload_kg`` added to the platform's mass, a point mass at the
-      platform's centre of mass (the platform frame's origin, where the plant puts its inertia;
-      it adds no rotational inertia there: the requirement gives a mass, not a body). The
-      controller knows it (it is in ``robot``, which the controller and the feed-forward use;
-      ``payload_scale`` stays the base's);
-    - ``motion`` (a copy) as the reference, for ``duration_s``, or by default
-      (:func:`motion_duration_s`): a motion with an end (a trace) its length up to
-      :data:`MAX_TRACE_S`; a motion that repeats one repeat period up to :data:`MAX_PERIODIC_S`
-      (breathing 4 s with a 72 bpm heartbeat: 20 s); any other (the paper manoeuvre) the base's
-      duration (``paper_hardware``: the paper's 10 s);
-    - the LQI's torque scale for the motor (:func:`torque_scale_Nm`); the other scales and
-      omega_Q, omega_R the base's;
-    - the base's tuner only when the design is the base's own robot and motors: the network
-      tuners (ANN, ratio) were trained on closed-loop runs of the base robot, whose error and
-      torque densities they map to weights; on another plant (other inertia, another motor's
-      torque scale) nothing says their weights are good, so the design runs at the base's fixed
-      omega_Q, omega_R, as the base would without a tuner. A tuner without a network
-      (:class:`~stewart_drake.control.tuning.WeightSchedule`: weights given in advance, learned
-      from nothing) is kept.
+    :class:`~stewart_drake.run.scenario.Scenario`, copied): the design's robot, motors and
+    encoder resolution (:meth:`Design.apply_to`); ``requirements.payload_kg`` added to the
+    platform's mass as a point mass at its centre of mass, known to the controller; ``motion``
+    (a copy) as the reference for ``duration_s`` or :func:`motion_duration_s` (at most
+    :data:`MAX_TRACE_S` of a trace, :data:`MAX_PERIODIC_S` of a repeating motion, else the
+    base's duration); the LQI's torque scale for the motor (:func:`torque_scale_Nm`), the other
+    scales and omega_Q, omega_R the base's; the base's tuner only on the base's own robot and
+    motors (a :class:`~stewart_drake.control.tuning.WeightSchedule` is kept). Why each:
+    docs/design.md, "Closed-loop confirmation".
 
     Args:
         design: the design (:class:`~stewart_drake.design.variables.Design`).

@@ -247,11 +247,10 @@ def evaluate(
     """Run the tuner study and the grid, keeping each result on disk as it arrives, then write
     the report, which leads with the tuner study's verdict (:mod:`.tuner_study`).
 
-    Rows go to ``out_dir/rows/<case_id>.json`` the moment a case finishes (a failed case is a
-    row with ``error`` and ``traceback``; a divergence dump goes to ``out_dir/diverged/``), with
-    ``out_dir/manifest.json`` (:mod:`.store`); run again with the same settings, only missing
-    cases run. Once every row of the grid is on disk, ``rows.json`` and the report are built
-    from them (see module docstring), so a report that fails to write loses no row.
+    Rows go to ``out_dir/rows/<case_id>.json`` as cases finish (a failed case is a row with
+    ``error`` and ``traceback``; divergence dumps to ``out_dir/diverged/``), with
+    ``out_dir/manifest.json`` (:mod:`.store`): run again, only missing cases run. ``rows.json``
+    and the report are built from the rows on disk (docs/evaluation.md, "Studies").
 
     Args:
         docs_dir: where results.md and the PNGs go. out_dir: rows, manifest, rows.json.

@@ -2,35 +2,30 @@
 
 The protocol
 ------------
-``runner.map(fn, jobs, progress=None)`` takes a picklable function ``fn`` (a module-level
-function) and a mapping ``{job_id: job}`` (str ids, picklable jobs; the studies build each job's
-config in one function, e.g. ``evaluation.case_config``) and yields ``(job_id, outcome)`` **as
-jobs complete**, not in order, so the caller stores each result the moment it arrives.
-``outcome`` is ``fn(job)``, or a :class:`JobFailure` when the job produced none:
+``runner.map(fn, jobs, progress=None)`` takes a picklable module-level function ``fn`` and a
+mapping ``{job_id: job}`` (str ids, picklable jobs; the studies build each job's config in one
+function, e.g. ``evaluation.case_config``) and yields ``(job_id, outcome)`` **as jobs
+complete**, not in order. ``outcome`` is ``fn(job)``, or a :class:`JobFailure` when the job
+produced none:
 
 - ``kind="error"``: ``fn`` raised. The record carries the exception itself (every
-  :class:`~stewart_drake.base.errors.StewartError` pickles), its type name, message and traceback,
-  and the bytes of the file it names (``err.path``: a divergence dump travels back from any
-  machine; the worker's copy is removed). Not retried: a refusal is deterministic.
-- ``kind="lost"``: the worker died under the job (killed, out of memory, a node gone) on each
-  of ``1 + retries`` attempts. A local process pool loses every job in flight when one of its
-  workers dies, so each of those is charged an attempt and the pool is restarted.
+  :class:`~stewart_drake.base.errors.StewartError` pickles), its type name, message and
+  traceback, and the bytes of the file it names (``err.path``: a divergence dump travels back
+  from any machine). Not retried: a refusal is deterministic.
+- ``kind="lost"``: the worker died under the job on each of ``1 + retries`` attempts (a local
+  pool charges every job in flight when one of its workers dies, and restarts).
 
-A failure never ends the iteration: each job is yielded exactly once. ``progress``, if given, is
-called as ``progress(job_id, outcome)`` before each yield (or wrap the iterator in tqdm).
-
-Cancellation: SIGINT (Ctrl-C), SIGTERM and SIGHUP received while ``map`` runs in the main
-thread stop submitting, cancel what is pending, end the workers, and raise :class:`Interrupted`
-(a KeyboardInterrupt that names the signal); what was yielded before is the caller's to keep. A
-signal the process ignores (``nohup`` ignores SIGHUP) stays ignored.
+Each job is yielded exactly once; ``progress(job_id, outcome)``, if given, is called before each
+yield. SIGINT, SIGTERM and SIGHUP received while ``map`` runs in the main thread stop
+submitting, cancel what is pending, end the workers and raise :class:`Interrupted` (a
+KeyboardInterrupt that names the signal); a signal the process ignores stays ignored.
 
 Backends: :class:`SerialRunner` (this process), :class:`ProcessRunner` (local processes, the
-default: spawned, recycled after ``recycle`` jobs to bound memory where Drake cannot free a
-run's Diagram, ignoring Ctrl-C themselves
-and killed with their parent), and on a cluster :class:`~.clusters.RayRunner` (extra ``[ray]``)
+default, recycled after ``recycle`` jobs), and :class:`~.clusters.RayRunner` (extra ``[ray]``)
 and :class:`~.clusters.DaskRunner` (extra ``[dask]``), which loop over their pools as
-:class:`PoolRunner` does. :func:`~.clusters.make_runner` builds one from the CLI's ``--runner``
-options.
+:class:`PoolRunner` does; :func:`~.clusters.make_runner` builds one from the CLI's ``--runner``
+options. Why each rule, and the workers' lifetime: docs/evaluation.md, "Studies: runners,
+resume, nothing lost".
 """
 
 from __future__ import annotations

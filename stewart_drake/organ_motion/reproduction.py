@@ -336,21 +336,13 @@ def reproduce(
 ) -> Reproduction:
     """Check a motion against the robot, run it, measure it.
 
-    The run lasts :func:`run_cycles` cycles of the reference and is measured over the last
-    ``eval_cycles``; a recorded trace (a reference with an ``end_time``) runs whole (or
-    ``duration_s``) without learning and is measured after its first cycle (its first tenth when
-    it has no cycles). Before anything is simulated the one validator checks reach, joint limits,
-    singularity, clearance and each motor's torque and speed over the whole run
-    (:func:`~stewart_drake.run.plan.check_reference`); a reference it refuses raises
-    that refusal (which names what is over and when), or, with ``scale_to_fit``, is shrunk
-    about its centre until it passes (:func:`scale_to_fit`).
-    With ``learn_cycles`` the scenario learns (its ``learning`` or the default
-    :class:`~stewart_drake.run.scenario.IlcDriver`) from that many cycles, then holds
-    the correction through the evaluated cycles. With ``feedforward`` it learns a correction as
-    a function of the reference over the whole run instead
-    (:class:`~stewart_drake.control.feedforward_tuning.FeedforwardTuning`: any motion, a trace
-    without cycles included; a trace runs whole, a motion with cycles ``learn_cycles`` +
-    ``eval_cycles`` of them).
+    The run lasts :func:`run_cycles` cycles, measured over the last ``eval_cycles``; a trace (a
+    reference with an ``end_time``) runs whole (or ``duration_s``), measured after its first
+    cycle (or first tenth). The one validator checks the whole run first
+    (:func:`~stewart_drake.run.plan.check_reference`); a refused reference raises, or is shrunk
+    by :func:`scale_to_fit`. ``learn_cycles`` learns (the scenario's ``learning`` or
+    :class:`~stewart_drake.run.scenario.IlcDriver`) then holds the correction; ``feedforward``
+    learns over the whole run instead (any motion; docs/organ_motion.md).
 
     Args:
         scenario: the robot and its controller (not changed: the run's duration and learner

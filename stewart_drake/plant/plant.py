@@ -139,25 +139,17 @@ def add_stewart_plant(
         plant_config: Drake's ``MultibodyPlantConfig`` (a scenario's ``plant``); when given, its
             ``time_step`` and ``discrete_contact_approximation`` replace the two arguments above.
         servo: the motors' gearing and friction (:class:`~.servo.ServoModel`), or None for ideal
-            torque sources. The motors' reflected inertia is ``geometry.motor_reflected_inertia``
-            (a JointActuator's rotor inertia x gear ratio^2, which Drake adds to the mass
-            matrix: set on the last actuator of each motor joint, the one Drake reads); the
-            servo's viscous friction is Drake joint damping (implicit in SAP); its
-            Coulomb friction is a second actuator on each motor joint, PD-controlled by SAP with
-            no stiffness, damping ``servo.friction_damping`` towards zero velocity and an effort
-            limit of ``servo.coulomb_friction_Nm``: a dry friction SAP solves implicitly (drake
-            1.51 has no joint dry friction: it loads an SDF joint's ``<dynamics><friction>``
-            without a word, even with strict parsing, and ignores it; a test holds this).
-            Its ``backlash_rad`` > 0 puts a rotor and a play between each motor joint and its
-            crank (:func:`~.backlash.add_gear_play`).
-        contact: register the parts' collision geometry (:mod:`~.parts`), so that SAP turns a
-            collision into contact forces (point contact, :data:`~.sdf.CONTACT_STIFFNESS_N_PER_M`);
-            False leaves it out (an SDF file's collision geometry is then filtered): parts pass
-            through each other unseen, at no cost per step.
-        rod_model: "bodies" or "distance" (:data:`~.sdf.ROD_MODELS`); "distance" adds one
-            ``AddDistanceConstraint`` (rigid, length ``geometry.rod_lengths[i]``) per leg between
-            the crank tip and the platform joint, and then takes no ``sdf_file``. Its rods have
-            no collision geometry: contact between a rod and another part is not simulated.
+            torque sources. The reflected inertia ``geometry.motor_reflected_inertia`` (kg m^2)
+            is set on the last actuator of each motor joint (the one Drake reads); the viscous
+            friction is joint damping; the Coulomb friction ``servo.coulomb_friction_Nm`` a
+            second actuator, PD-controlled by SAP towards zero velocity (damping
+            ``servo.friction_damping``; why: docs/hardware.md, "Friction"); ``backlash_rad`` > 0
+            adds a rotor and a play per motor (:func:`~.backlash.add_gear_play`).
+        contact: register the parts' collision geometry (:mod:`~.parts`) for SAP point contact
+            (:data:`~.sdf.CONTACT_STIFFNESS_N_PER_M`); False filters it out (parts pass through).
+        rod_model: "bodies" or "distance" (:data:`~.sdf.ROD_MODELS`); "distance" is one rigid
+            ``AddDistanceConstraint`` of ``geometry.rod_lengths[i]`` per leg, crank tip to
+            platform joint, with no ``sdf_file`` and no rod collision geometry.
     Returns:
         (plant, scene_graph, handles): plant is finalized; its default positions are the home
         pose, assembled. With friction, ``handles.actuation_port`` takes 12 values (the six

@@ -311,65 +311,43 @@ def load_trace(
 ):
     """A reference from a recorded trace of 1 to 6 axes.
 
-    The file is text, one sample per line, its numbers separated by commas, semicolons, tabs or
-    spaces, with a decimal point or (with any separator but commas) a decimal comma. Its first
-    line names the columns and their units, or ``columns`` does (the same words, comma
-    separated), or it has none and is one of the phantom formats (``format``, by its width when
-    "auto"): the 7-column 6-D format :data:`~.trace_files.PHANTOM_COLUMNS`, or a 2-column
-    external surrogate :data:`~.trace_files.SURROGATE_COLUMNS` (its displacement on SI unless
-    ``axis_map`` says otherwise). The columns are a time column (``t`` or ``time``, in s, ms or
-    min) and 1 to 6 axes (``SI [mm]``, ``pitch (deg)``, ``Z_m``), lengths in m, cm, mm or um,
-    angles in rad, mrad, urad or deg. An axis is a platform axis (X, Y, Z, phi, theta, psi,
-    roll, pitch, yaw) or a patient axis (SI, LR, AP, rot_SI, rot_LR, rot_AP:
-    :data:`~.core.PATIENT_AXES`), or any name given a platform axis by ``axis_map``. Times
-    increase but need not be evenly spaced, at most :data:`~.trace_files.MAX_SAMPLE_STEP_S`
-    apart (median); a last line of zeros after them (an optical tracker's export ends so) is
-    left out and ``info.dropped`` says so; an empty or ``nan`` cell is a missing sample of that
-    axis. A looped recording's seams are blended over ``seam_blend_s``
-    (:func:`~.trace_cleaning.loop_seams`). Each axis is joined by a smoothing spline that drops
-    the recording's measurement noise (:func:`~.trace_cleaning.smoothed_spline`; ``smoothing``
-    "none": a cubic spline through every sample,
-    ``scipy.interpolate.CubicSpline``), sampled at ``resample_hz``, optionally low-passed
-    without phase lag (a 2nd-order Butterworth filter run forwards and backwards,
-    ``scipy.signal.filtfilt``), and the samples are joined by a C2 spline. Axes the trace does
-    not have stay at the centre.
-
-    A file whose header is the project's own ``t,phi,theta,psi,X,Y,Z`` (s, rad, m), or the same
-    with its units written (``t [s],phi [rad],...,Z [m]``), is read by
-    :func:`~.samples.load_csv_trajectory` as always (``centre``, ``axis_map``,
-    ``lowpass_hz`` do not apply to it).
+    Text, one sample per line, a header of columns with units (or ``columns``, or a phantom
+    format: :data:`~.trace_files.PHANTOM_COLUMNS`, :data:`~.trace_files.SURROGATE_COLUMNS`): time
+    and 1 to 6 axes (:data:`~.core.PATIENT_AXES`), samples at most
+    :data:`~.trace_files.MAX_SAMPLE_STEP_S` apart; each axis smoothed
+    (:func:`~.trace_cleaning.smoothed_spline`), seams blended (:func:`~.trace_cleaning.loop_seams`)
+    and joined by a C2 spline. A project CSV goes to :func:`~.samples.load_csv_trajectory`. The
+    formats, units and steps: docs/organ_motion.md, "Recorded traces".
 
     Args:
         path: the text file (UTF-8, at most :data:`~.trace_files.MAX_TRACE_BYTES`).
         axis_map: {column name: platform axis with an optional sign}, e.g. ``{"SI": "-Z"}``;
             it takes precedence over the names' own meaning.
         centre: (6,) the pose the trace is centred on, rad and m; default home.
-        centre_on: which pose of the trace goes to ``centre``: "mean" (its mean), "first" (its
-            first sample) or "none" (the trace's values are displacements from ``centre``).
-        lowpass_hz: corner of the zero-phase low-pass, Hz (None: none); below half
-            ``resample_hz``.
+        centre_on: the trace's pose that goes to ``centre``: "mean", "first", or "none" (the
+            values are displacements from ``centre``).
+        lowpass_hz: corner of the zero-phase low-pass, Hz, below half ``resample_hz``, or None.
         max_gap_s: longest interval an axis may go without data, s (longer: refused).
         resample_hz: rate of the samples joined by the C2 spline, Hz.
-        format: one of :data:`TRACE_FORMATS`.
+        format: one of :data:`TRACE_FORMATS` ("auto": by the file's width).
         columns: the columns' names and units when the file has no header (or to replace
-            its header), e.g. ``"t [s], SI [mm], AP [mm]"``; a column named ``-``
-            (:data:`~.trace_files.SKIP_COLUMN`) is not read (a tracker's frame counter:
-            ``"-, t [ms], X [mm]"``).
-        smoothing: "auto" or "none" (:data:`SMOOTHING_MODES`); ``info.departures`` gives how
-            far the reference departs from the samples.
-        seam_blend_s: the time over which each seam of a looped recording is blended, s (0:
-            left as recorded; at most half the loop); ``info.seam_words()`` says what was done.
+            it), e.g. ``"t [s], SI [mm]"``; a column named ``-``
+            (:data:`~.trace_files.SKIP_COLUMN`) is not read.
+        smoothing: "auto" or "none" (:data:`SMOOTHING_MODES`; "none": a cubic spline through
+            every sample); ``info.departures`` gives how far the reference departs from them.
+        seam_blend_s: time over which each seam of a looped recording is blended, s (0: none;
+            at most half the loop); ``info.seam_words()`` says what was done.
     Returns:
-        :class:`TraceTrajectory` (its ``info`` says what was read and done), or the
+        :class:`TraceTrajectory` (its ``info`` says what was read, dropped and done), or the
         :class:`~.samples.CubicSplineTrajectory` of a project CSV.
     Raises:
         MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
             UTF-8 or not CSV.
-        InvalidConfigError: no time column, a column without a unit or of an unknown one, an
-            axis the platform does not have, two columns on one axis, a length on an angle or
-            the reverse, a row that is not numbers (its line named), times not increasing (the
-            line named) or too far apart for their unit (the likely unit named), a gap
-            longer than ``max_gap_s`` (named with its time), fewer than 4 samples on an axis.
+        InvalidConfigError: no time column, a missing or unknown unit, an unknown axis, two
+            columns on one axis, a length on an angle or the reverse, a row that is not numbers
+            (its line named), times not increasing (the line named) or too far apart for their
+            unit (the likely unit named), a gap longer than ``max_gap_s`` (its time named),
+            fewer than 4 samples on an axis.
     """
     path = Path(path)
     header, rows, layout = read_trace_table(path, format, columns)

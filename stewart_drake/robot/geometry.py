@@ -93,9 +93,8 @@ def _leg_angles(spread_deg: float) -> tuple[float, ...]:
 
 @dataclass(frozen=True)
 class StewartGeometry:
-    """Layout, link lengths and inertias of a 6-RSS rotary Stewart platform; SI units.
-
-    Defaults equal ``reference_geometry.md``. Angles of the layout are in degrees, as there.
+    """Layout, link lengths and inertias of a 6-RSS rotary Stewart platform; SI units, angles
+    of the layout in degrees. Defaults: ``reference_geometry.md`` (limits: "Joint limits").
 
     Attributes:
         base_radius: radius of the circle of crank pivots P_i, m.
@@ -104,52 +103,35 @@ class StewartGeometry:
         platform_radius: radius of the circle of platform joints p_i, m.
         platform_angles_deg: (6,) c_i, azimuth of p_i in E.
         crank_angles_deg: (6,) beta_i, azimuth of the crank direction d_i at theta_i = 0.
-        crank_length: a, pivot to crank-tip joint, m.
-        rod_length: s, joint centre to joint centre, m.
+        crank_length: a, pivot to crank-tip joint, m. rod_length: s, joint centre to joint
+            centre, m.
         *_mass: kg. *_inertia: principal moments about the COM, kg m^2, body axes of
             reference_geometry.md (rod: z along the rod; crank: x along the crank).
         gravity: magnitude of g, m/s^2, acting along -z.
-        motor_angle_min_deg, motor_angle_max_deg: motor travel, degrees, theta_i wrapped to
-            [-180, 180); default +-90 (a 180 deg servo centred on the horizontal crank; the
-            paper manoeuvre uses -75 .. +58).
-        crank_joint_cone_deg: largest misalignment of the rod end at the crank tip, degrees:
-            its bolt is parallel to the motor shaft u_i, so this bounds asin |e_rod . u_i|, the
-            rod's tilt out of the crank's plane of rotation. Default 35 (a high-misalignment rod
-            end; 19.4 at home, 21.1 at most along the paper manoeuvre).
-        platform_joint_cone_deg: cone half-angle of the platform's ball sockets, degrees, each
-            socket's axis along its rod's home direction. Default 40 (0 at home, 32.2 at most
-            along the paper manoeuvre). All limits are checked by ``limits.limit_margins``.
-        base_plate_radius: radius of the base's central plate (the hub), m; arms reach out from
-            it to the motor brackets (:mod:`~.parts`). Not a kinematic parameter: it sets what
-            the rods must clear.
+        motor_angle_min_deg, motor_angle_max_deg: motor travel, deg, theta_i in [-180, 180).
+        crank_joint_cone_deg: largest tilt asin |e_rod . u_i| of the rod out of its crank's
+            plane, deg.
+        platform_joint_cone_deg: cone half-angle of the ball sockets about the rods at home, deg.
+        base_plate_radius: radius of the base's hub, m (:mod:`~.parts`; not kinematic).
         rod_radius: radius of the rods' tubes, m. rod_end_radius: radius of the spheres that
-            stand for the rod ends (ball and housing) at the joint centres, m.
+            stand for the rod ends at the joint centres, m.
         platform_plate_radius: radius of the platform's plate, m (above the joint centres).
-        motor_reflected_inertia: rotor inertia of each motor seen at its crank shaft (rotor
-            inertia x gear ratio^2), kg m^2; 0 for ideal torque sources. A scenario with
-            hardware sets it from its servo (``model.servo.ServoModel.reflected_inertia``), so
-            the controller's task inertia includes the motors the plant carries.
-
-    Per leg (None: every leg as drawn, the symmetric robot; docs/robot.md, "Per-leg geometry"):
-        pivot_offsets_m: (6, 3) added to the drawn crank pivots P_i, base frame B, m;
-            each component at most :data:`MAX_JOINT_OFFSET_M`.
-        platform_offsets_m: (6, 3) added to the drawn platform joint centres p_i, platform
-            frame E, m; each component at most :data:`MAX_JOINT_OFFSET_M`.
-        crank_lengths_m: (6,) each leg's crank length a_i, m, in place of ``crank_length``
-            (then the nominal value) for that leg; the crank's centre of mass is at a_i / 2.
-        rod_lengths_m: (6,) each leg's rod length s_i, m, in place of ``rod_length``; the rod's
-            mass and inertia stay the drawn part's.
-        shaft_tilts_rad: (6,) rotation t_i of leg i's crank plane about its crank direction
-            d_i (right-handed), rad, |t_i| <= :data:`MAX_SHAFT_TILT_RAD`: the plane's second
-            axis w_i = cos t z + sin t (d_i x z), the shaft u_i = d_i x w_i.
-        encoder_offsets_rad: (6,) each encoder's zero error, rad, |value| <=
-            :data:`MAX_ENCODER_OFFSET_RAD`: encoder i reads theta_i + offset_i.
+        motor_reflected_inertia: rotor inertia x gear ratio^2 of each motor at its crank shaft,
+            kg m^2; 0 for ideal torque sources.
+    Per leg (None: every leg as drawn; docs/robot.md, "Per-leg geometry"):
+        pivot_offsets_m: (6, 3) added to the pivots P_i, frame B, m (<= :data:`MAX_JOINT_OFFSET_M`).
+        platform_offsets_m: (6, 3) added to the platform joints p_i, frame E, m (same bound).
+        crank_lengths_m: (6,) each leg's crank length a_i, m (centre of mass at a_i / 2).
+        rod_lengths_m: (6,) each leg's rod length s_i, m (mass and inertia as drawn).
+        shaft_tilts_rad: (6,) rotation t_i of leg i's crank plane about d_i, rad, |t_i| <=
+            :data:`MAX_SHAFT_TILT_RAD`: w_i = cos t z + sin t (d_i x z), shaft u_i = d_i x w_i.
+        encoder_offsets_rad: (6,) encoder i reads theta_i + offset_i, rad, |offset_i| <=
+            :data:`MAX_ENCODER_OFFSET_RAD`.
     Raises:
-        InvalidGeometryError: non-positive or non-finite lengths or masses, wrong counts, an
-            inertia that fails the triangle inequality (use
-            :func:`nearest_valid_principal_moments`), a per-leg value of the wrong shape or
-            beyond its bound, legs that cannot close at the home pose, or a home pose outside a
-            joint limit; each message names the field to change.
+        InvalidGeometryError: naming the field to change: a non-positive or non-finite length
+            or mass, a wrong count, an inertia failing the triangle inequality (use
+            :func:`nearest_valid_principal_moments`), a per-leg value of the wrong shape or past
+            its bound, legs that cannot close at home, or home outside a joint limit.
     """
 
     base_radius: float = 0.20

@@ -294,41 +294,34 @@ def validate_trajectory(
         raise_unreachable: raise on a leg that cannot close (else report it as ``closure``).
         min_sigma_min_inv: 1/sigma_max(J) below this ((rad or m) per rad, >= 0) counts as too
             close to a dead point (see :data:`DEFAULT_MIN_SIGMA_MIN_INV`).
-        raise_refused: raise on the first refused sample (what a run needs) instead of only
-            reporting it.
+        raise_refused: raise on the first refused sample (what a run needs), not only report.
         x_dot, x_ddot: optional (n, 6) rates and accelerations of the path; checked finite.
-        clearance: a :class:`~.clearance.ClearanceModel` of the robot: check that no two parts
-            come closer than ``min_clearance_m`` (m). The clearance is measured wherever a part
-            has moved ``clearance_resolution_m`` (m) since the last measure
-            (:func:`~.clearance.sample_indices`), so between measures it is at least the smaller
-            measured value minus that resolution.
-        motor_limits: check the torque and crank speed the motion needs
-            (:func:`~.statics.motor_effort`, needs x_dot and x_ddot; with the geometry's
-            reflected inertia and the servo's friction) against :class:`MotorLimits`.
+        clearance: a :class:`~.clearance.ClearanceModel`: no two parts closer than
+            ``min_clearance_m``, m, measured wherever a part has moved ``clearance_resolution_m``
+            (m; :func:`~.clearance.sample_indices`), so between measures it is at least the
+            smaller measured value minus that resolution.
+        motor_limits: :class:`MotorLimits` for the torque and crank speed the motion needs
+            (:func:`~.statics.motor_effort`, needs x_dot and x_ddot; inertia and friction too).
         allow_infeasible: with ``raise_refused``, a motor over its limit is reported
             (``first_effort_violation``) but not raised: the run goes on and saturates.
-        compiled: the samples' kinematics and torques by compiled code (False: numpy); the
-            same report to the last bit but the torques', within 5e-10 of their peak
-            (:func:`~.path_checks.compiled_kinematics`, :func:`~.statics.motor_effort_compiled`).
+        compiled: kinematics and torques compiled (:func:`~.path_checks.compiled_kinematics`,
+            :func:`~.statics.motor_effort_compiled`; False: numpy, the same report but for the
+            torques' last digits: docs/performance.md, "The reference check before a run").
     Returns:
         :class:`TrajectoryReport` (``summary()`` prints it).
     Raises:
-        UnreachablePoseError: with ``raise_unreachable``, naming the first time, its worst leg
-            and ratio.
+        UnreachablePoseError: with ``raise_unreachable``: the first time, worst leg and ratio.
         JointLimitError: with ``raise_refused``, the first time a leg leaves a joint limit.
         SingularPoseError: with ``raise_refused``, the first time cond(J) > cond_threshold or
             1/sigma_max(J) < min_sigma_min_inv, naming the measure (whichever comes first).
         InterferenceError: with ``raise_refused`` and ``clearance``, the first time two parts
             come closer than ``min_clearance_m``, naming them.
-        MotorLimitError: with ``raise_refused`` and ``motor_limits`` (unless
-            ``allow_infeasible``), the first time a motor needs more torque or speed than it may
-            use, naming the motor and by how much.
+        MotorLimitError: with ``raise_refused`` and ``motor_limits`` (not ``allow_infeasible``),
+            the first time a motor needs more torque or speed than it may use (motor, excess).
         InvalidConfigError: t and x of mismatched shapes or not finite (the first non-finite
-            pose, rate or acceleration is named with its time), t not increasing, or a
-            threshold out of range.
-    Source: the one validator of a reference:
-        :func:`~stewart_drake.run.plan.validate_reference` samples a trajectory object and
-        calls it; every run does, before anything is simulated.
+            pose, rate or acceleration named with its time), t not increasing, a bad threshold.
+    Source: the one validator of a reference; every run calls it through
+        :func:`~stewart_drake.run.plan.validate_reference` before anything is simulated.
     """
     # Long for its docstring: the one validator of a reference documents every check and error.
     t, x = _checked_samples(t, x, x_dot, x_ddot)

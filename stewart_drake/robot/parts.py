@@ -3,27 +3,12 @@
 One table (:func:`robot_parts`) feeds the SDF's ``<visual>`` and ``<collision>`` elements
 (:func:`~.sdf.write_sdf`) and, through the Drake plant, the MJCF's geoms (:mod:`~.mjcf`), so
 what is seen, what Drake's ``SceneGraph`` measures and what MuJoCo collides are one set of
-shapes.
-
-The kinematic layout (pivots, crank and rod lengths, joint centres) is
-``docs/reference_geometry.md``'s and is not changed here; the parts around it are ours
-(docs/reference_geometry.md, "Parts and clearance", gives the reasons and the measured clearances):
-
-* **base**: a central plate (the hub, radius ``base_plate_radius``, 20 mm thick, top face at z = 0)
-  and, per leg pair, an arm of the same thickness from the hub to the motor brackets. A full disc
-  reaching the pivots (r = 0.20 m) would be crossed by the rods: along the paper manoeuvre their
-  axes cross the plane of its top face between r = 0.148 and 0.231 m. The arms run along the
-  bisector of each pair's pivots, between the two cranks' sweeps.
-* **motor brackets and housings** (on the base): each motor (maxon EC 45 flat, 42.9 mm, with a
-  GP 42 C gearhead: one cylinder of 43 mm diameter, 75 mm long) is flanged on a bracket plate
-  outboard of its crank, its shaft through the bracket, on the side of the crank away from the rod.
-* **crank**: an arm (capsule of radius :data:`CRANK_RADIUS`) from the shaft to the rod end, beside
-  the rod end's ball, between it and the bracket.
-* **rod**: a tube (capsule of radius ``rod_radius``) between its two rod ends, which are spheres of
-  radius ``rod_end_radius`` at the joint centres (the ball and its housing).
-* **platform**: a plate (radius ``platform_plate_radius``, 10 mm) above the joint centres, the
-  sockets hanging from it on studs (drawn, not collision geometry: each touches its rod end by
-  design), and the tool (a 12 mm rod up to the tool tip, 8 cm above E).
+shapes. The kinematic layout is ``docs/reference_geometry.md``'s and is not changed here; the
+parts around it are ours: the base's hub (``base_plate_radius``) and arms, the motor brackets
+and housings, the cranks (capsules of radius :data:`CRANK_RADIUS`), the rods (``rod_radius``)
+between their rod ends (spheres of ``rod_end_radius``), the platform's plate
+(``platform_plate_radius``) and the tool. Their sizes, the reasons and the measured clearances:
+docs/reference_geometry.md, "Parts and clearance".
 
 Frames are the SDF's link frames: base = world (origin at the centre of the hub's top face);
 crank_i at the pivot P_i, x along the crank, y = -u_i; rod_i at the crank tip, z along the rod;

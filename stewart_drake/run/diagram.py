@@ -160,15 +160,11 @@ def make_stewart_diagram(
 ) -> StewartDiagram:
     """Build the closed-loop Diagram of the rotary Stewart platform.
 
-    Wiring: the station (:func:`~make_stewart_station`); the reference and its
-    feed-forward (precomputed ``TrajectorySource``s, :mod:`~.reference`); the controller, whose
-    ports are connected by name as the controller contract says
-    (:mod:`~stewart_drake.control.contract`): ``x_d``, ``T_ff``, ``x`` (the station's
-    ``platform_state`` [+ sensor noise], or the FK estimate on the encoders), ``motor_angle``,
-    ``motor_rate``, ``motor_torque_applied``, ``omega`` (constant weights, or what the scenario's
-    tuner adds); its ``T`` drives the station's ``motor_torque``; ``tool_wrench`` is the
-    disturbance or fixed to zero; a :class:`~.guard.DivergenceGuard` checks the run every
-    ``scenario.guard.check_period_s``.
+    The station (:func:`~make_stewart_station`), the reference and its feed-forward
+    (:mod:`~.reference`), the controller connected by port name
+    (:mod:`~stewart_drake.control.contract`; its ``T`` drives ``motor_torque``), the tuner's
+    ``omega`` or constant weights, the disturbance on ``tool_wrench`` (else zero) and a
+    :class:`~.guard.DivergenceGuard` every ``scenario.guard.check_period_s``.
 
     Args:
         scenario: the run: a :class:`~.plan.RunPlan`, or a scenario planned here
@@ -180,14 +176,11 @@ def make_stewart_diagram(
         controller: optional factory ``f(ControllerContext) -> LeafSystem`` or registered name,
             overriding ``scenario.controller``.
         reference_system: a live reference instead of the precomputed one (e.g.
-            :class:`~.reference.TeleopReference`): a system with output ports ``x_d`` (18) and
-            ``T_ff`` (6) and attributes ``x_initial`` (6,) and ``T_ff_initial`` (6,). Its input
-            ports are exported under their names, and the Diagram exports ``platform_state``
-            (12), ``x_d`` (18) and, if it has one, its ``limited`` port for a display;
-            ``scenario.reference`` and ``duration_s`` are
-            then not used (``trajectory`` is None).
-        controller_logs: log the controller's "integral" and "e_bar" (False: not logged, 48 B
-            a logged sample saved, for a long run whose report does not read them).
+            :class:`~.reference.TeleopReference`): output ports ``x_d`` (18) and ``T_ff`` (6),
+            attributes ``x_initial`` (6,) and ``T_ff_initial`` (6,); its inputs are exported,
+            with ``platform_state`` (12), ``x_d`` (18) and its ``limited`` port if any
+            (``scenario.reference`` and ``duration_s`` unused, ``trajectory`` None).
+        controller_logs: log the controller's "integral" and "e_bar" (False saves 48 B a sample).
     Returns:
         :class:`StewartDiagram`; loggers (each with Drake's ``FindLog(context)``) keyed "x"
         (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller

@@ -71,18 +71,16 @@ class RunPlan:
         plant_time_step_s, control_period_s, log_period_s, duration_s: the run's step, periods
             and length, s.
         sample_offset_s: when the controllers sample within their period, s: half a plant step
-            after each plant update, when the plant already holds the next step's configuration
-            (its reference leads by the same half step; the controller contract, "Sampling").
+            (the controller contract's "Sampling").
         encoder_count_at_tip: (m, rad) one encoder count at the crank tip, as a translation
             and as a rotation of the platform; (1e-6 m, 1e-5 rad) on the ideal robot, which
             reads exact angles (the learner's additive floor).
         reference: the reference object (:class:`~.motion.Reference`: ``evaluate(t)``), or
             None for a plan made without one (a live reference, or only the robot's values).
         controller_factory: ``f(ControllerContext) -> System``, the run's controller.
-        station_factory: ``f(plan, meshcat) -> Diagram``, the robot behind the station's ports:
-            :class:`~stewart_drake.station.station.StewartStation` (simulated), or with the
-            scenario's ``bus`` the :class:`~stewart_drake.station.bus.station.HardwareStation`
-            (its servos): sibling backends of one port contract, chosen once, here.
+        station_factory: ``f(plan, meshcat) -> Diagram``:
+            :class:`~stewart_drake.station.station.StewartStation`, or with ``bus`` the
+            :class:`~stewart_drake.station.bus.station.HardwareStation`, chosen once, here.
         report: the reference check's report when the plan was checked (:func:`checked_plan`;
             :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport`, without its
             series), or None.

@@ -249,11 +249,9 @@ def add_run_logs(builder, station, controller, outputs: set, plan, learner=None)
 class RunResult:
     """Logged arrays of one run (SI units) and its metrics.
 
-    Two time bases: ``t`` (every ``log_period_s``) for the run's signals, ``t_state`` (every
-    ``state_log_period_s``, 10 ms by default) for the plant's state and what is read from it.
-    The signals at ``t`` are float32 (7 significant digits: 30 nm at the platform's 0.3 m, a
-    thousandth of the smallest error a report resolves), so a long run holds about 0.2 kB per
-    logged sample (:data:`~.plan.LOG_BYTES_PER_SAMPLE`); times and the plant state are float64.
+    Two time bases: ``t`` (every ``log_period_s``) for the signals, float32, and ``t_state``
+    (every ``state_log_period_s``) for the plant's state, float64 (why float32, and the bytes per
+    sample, :data:`~.plan.LOG_BYTES_PER_SAMPLE`: docs/performance.md, "Memory per run").
 
     Attributes:
         t: (N,) s.  x: (N, 12) true pose and rate (from the plant state, free of sensor noise).
@@ -268,17 +266,15 @@ class RunResult:
             the hardware, from the encoders), or None.
         T_ff: (N, 6) the feed-forward torques of the reference at each logged time, N m (T -
             T_ff is the feedback's share), or None.
-        metrics: dict of the figures printed by the CLI (see
-            :func:`~.metrics.compute_metrics`).
+        metrics: dict of the figures printed by the CLI (:func:`~.metrics.compute_metrics`).
         config_summary: the run's settings (name, controller, weights, ...) and ``scenario``,
             the whole scenario as YAML.
-        t_state: (M,) s, the times of ``state`` and ``closure`` (None: ``t``, as in a file
-            saved before the state had its own period).
+        t_state: (M,) s, the times of ``state`` and ``closure`` (None: ``t``, an older file).
         state: (M, nq + nv) the plant's state at ``t_state`` (a replay's frames), or None.
-        learner_status: (M + 1, k) a learner's status at ``t_state`` and at the run's end (the
-            loggers' last sample is one period earlier: a cycle's last update would be
-            missing), or None without a learner. learned: (p, 6) a feed-forward learner's
-            weights at the end, or None. Neither is saved (:func:`save_result`).
+        learner_status: (M + 1, k) a learner's status at ``t_state`` and at the run's end
+            (a period after the loggers' last, which misses a cycle's last update), or None.
+            learned: (p, 6) a feed-forward learner's weights at the end, or None. Neither is
+            saved (:func:`save_result`).
     """
 
     t: np.ndarray

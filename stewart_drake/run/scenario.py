@@ -2,36 +2,29 @@
 
 A :class:`Scenario` is the schema of a run: the robot (:class:`Robot`), Drake's plant, simulator
 and visualization settings, the reference, the controller, the tuner, the periods, the robot as
-built (its geometry when it differs from the one the controller believes in; its hardware),
-the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM.
-A section that configures a thing lives beside it: the robot as built
-(:class:`~stewart_drake.station.hardware.Hardware`) in :mod:`~stewart_drake.station.hardware`,
-the sensor noise and the tool disturbance with the station (:mod:`~stewart_drake.station.station`),
-the servo bus (:class:`~stewart_drake.station.bus.servos.DynamixelBusConfig`) with the bus, the
-guard's and LCM's with theirs. It is read with ``pydrake.common.yaml.yaml_load_typed`` and
-written with ``yaml_dump_typed`` (:func:`dump_scenario`), like the manipulation course's
-``Scenario`` for ``MakeHardwareStation``; files, shipped names and ``--set`` overrides are
-:mod:`~.scenario_io`'s, and the values a run derives from a scenario (its geometry, servo, limits,
-reference object, controller) are computed once, by :func:`~.plan.make_plan`.
+built, the sensor noise, the tool disturbance, the guard, the learner, the servo bus and LCM. It
+is read with ``pydrake.common.yaml.yaml_load_typed`` and written with ``yaml_dump_typed``
+(:func:`dump_scenario`); files, shipped names and ``--set`` overrides are :mod:`~.scenario_io`'s,
+and the values a run derives from a scenario are computed once, by :func:`~.plan.make_plan`.
 
-Choices are tagged unions: in YAML, ``controller: !PdDriver {bandwidth_hz: 20}`` or
-``reference: !CsvReference {path: run.csv}``. Each choice is one class, beside what it builds,
-that checks its own fields and builds what it stands for: the controllers (``LqiDriver`` in
+Choices are tagged unions (``controller: !PdDriver {bandwidth_hz: 20}``), each choice one class
+beside what it builds, checking its own fields: the controllers (``LqiDriver`` in
 :mod:`~stewart_drake.control.lqi`, ``PdDriver``, ``UserController``), the tuners
-(:mod:`~stewart_drake.control.tuning`), the references (beside the references), the learner
-(``IlcDriver``, :mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``,
-:mod:`~.guard`). A new choice is one such class added to its union (:data:`ControllerChoice`,
-:data:`ReferenceChoice`, :data:`~stewart_drake.control.tuning.TunerChoice`).
+(:mod:`~stewart_drake.control.tuning`), the references, the learner (``IlcDriver``,
+:mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``, :mod:`~.guard`); a new choice
+is one class added to its union (:data:`ControllerChoice`, :data:`ReferenceChoice`,
+:data:`~stewart_drake.control.tuning.TunerChoice`). Sections that configure a thing live beside
+it (:class:`~stewart_drake.station.hardware.Hardware`,
+:class:`~stewart_drake.station.bus.servos.DynamixelBusConfig`,
+:mod:`~stewart_drake.station.station`).
 
-Drake's YAML loader builds each class with its defaults and then sets fields, so the classes are
-plain mutable dataclasses with concrete field types (this module must not use
-``from __future__ import annotations``), and validation is a separate step:
-:meth:`Scenario.validate` names the field to fix. The robot's geometry, the servo and the LQI's
-scales are frozen value types of the lower layers; :class:`Robot`,
-:class:`~stewart_drake.station.hardware.Motors` and
-:class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are their YAML forms (same names,
-units and defaults; lists where they have tuples), with ``build()`` to get the value type back
-(:class:`~stewart_drake.base.mirrors.ValueMirror`).
+The classes are plain mutable dataclasses with concrete field types (this module must not use
+``from __future__ import annotations``: Drake's YAML loader builds each with its defaults, then
+sets fields), so validation is a separate step: :meth:`Scenario.validate` names the field to fix.
+:class:`Robot`, :class:`~stewart_drake.station.hardware.Motors` and
+:class:`~stewart_drake.control.lqi.driver.LqiScalesConfig` are the YAML forms of frozen value
+types (same names, units and defaults; lists for tuples), ``build()`` giving the value back
+(:class:`~stewart_drake.base.mirrors.ValueMirror`). Where each part lives: docs/scenarios.md.
 """
 
 import dataclasses
@@ -177,80 +170,44 @@ def _default_plant() -> MultibodyPlantConfig:
 @dataclass
 class Scenario:
     """Everything that defines one closed-loop run; SI units. Defaults: the paper's experiment
-    (eqs. 37-38, 10 s) on the ideal robot, LQI with omega_Q = omega_R = 1.
-
-    ``Scenario()`` is the *ideal* robot (the shipped ``paper_ideal``), while the CLI's commands
-    default to the robot as built (``paper_hardware``: encoders, servos, friction, delay). For
-    the CLI's robot in Python: ``load_scenario("paper_hardware")``.
+    (eqs. 37-38, 10 s) on the ideal robot (``paper_ideal``; the CLI's: ``paper_hardware``), LQI
+    with omega_Q = omega_R = 1. Design of each section: docs/scenarios.md, "The sections".
 
     Attributes:
         robot: the geometry and inertias (:class:`Robot`).
         plant: Drake's ``MultibodyPlantConfig``; ``time_step`` > 0 and a SAP approximation
-            ("sap", "lagged", "similar"): ball constraints need a discrete SAP plant. The
-            default has ``use_sampled_output_ports`` false (Drake's default is true): its
-            dynamic outputs (``contact_results``, which the guard reads with ``contact``) are
-            computed from the current state when read, and each step costs less.
-        simulator: Drake's ``SimulatorConfig`` (``target_realtime_rate`` etc.).
-        visualization: Drake's ``VisualizationConfig``, applied when a Meshcat is given.
-        reference: the path x_d(t) (a tagged choice: :class:`NamedReference`,
-            :class:`CsvReference`, :class:`SineReference`, :class:`DataCollectionReference`,
-            :class:`OrganMotionReference`, :class:`TraceReference`).
+            ("sap", "lagged", "similar"); ``use_sampled_output_ports`` false by default.
+        simulator, visualization: Drake's ``SimulatorConfig``, ``VisualizationConfig``.
+        reference: the path x_d(t): :class:`NamedReference`, :class:`CsvReference`,
+            :class:`SineReference`, :class:`DataCollectionReference`,
+            :class:`OrganMotionReference` or :class:`TraceReference`.
         feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
         controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
-        tuner: None (fixed weights), or a tuner choice of :mod:`~stewart_drake.control.tuning`:
-            ``AnnTunerDriver`` (the paper's network), ``RatioTunerDriver`` (ours) or
-            ``WeightSchedule`` (weights known in advance); the tuners need a controller with the
-            ``omega`` input and the ``e_bar`` output (the LQI), a schedule only the ``omega``
-            input.
-        duration_s: simulated time, s.
-        control_period_s: controller period h, s (a whole multiple of the plant step).
-        log_period_s: logging period, s (a whole multiple of the plant step): the pose,
-            torques and the controller's outputs a run's figures are computed from.
-        state_log_period_s: period of the plant's full state log, s (a whole multiple of the
-            plant step): what a 3-D replay (30 frames per s) and the loop-closure error are read
-            from; 10 ms keeps a long run's memory small (0.07 kB per s of the 86 floats,
-            against 0.69 kB at 1 kHz).
+        tuner: None (fixed weights), or a choice of :mod:`~stewart_drake.control.tuning`.
+        duration_s: simulated time, s. control_period_s: controller period h, s (whole steps).
+        log_period_s, state_log_period_s: periods of the signal logs and of the plant's full
+            state log (replays, loop closure), s (whole multiples of the plant step).
         sensor_noise: None, or noise on the measured pose and rate (:class:`SensorNoise`).
-        robot_as_built: None (``robot`` is simulated), or the robot simulated (:class:`Robot`)
-            when it differs from ``robot``, which the controller, its estimator and the
-            feed-forward still believe in: the plant, the encoders' zero errors, the true pose
-            and the guard's checks are this one's (docs/calibration.md). Not on the servo bus.
-        robot_tolerances: None, or the robot as built drawn from the tolerances of its parts
-            with a seed (:class:`~stewart_drake.robot.tolerances.RobotTolerances`) about
-            ``robot``: the same as giving that drawn robot as ``robot_as_built`` (not both).
-        payload_scale: the simulated platform's mass and inertia are this multiple of the
-            robot's; the controller still believes in ``robot`` (an unknown payload).
-        torque_limit_Nm: motor torque saturation, N m, or None (with hardware, the lower of this
-            and the motors' peak torque applies).
+        robot_as_built: None, or the robot simulated (:class:`Robot`) when it differs from
+            ``robot``, which the controller still believes in (docs/calibration.md).
+        robot_tolerances: None, or the robot as built drawn about ``robot``
+            (:class:`~stewart_drake.robot.tolerances.RobotTolerances`; not with robot_as_built).
+        payload_scale: the simulated platform's mass and inertia over the robot's.
+        torque_limit_Nm: torque saturation, N m, or None (with hardware, at most the peak).
         guard: checks before and during the run (:class:`GuardConfig`).
-        hardware: None for the ideal robot (the controller reads the exact pose, ideal torque
-            sources, no friction, no delay), or :class:`Hardware` (encoders, FK estimation,
-            servos with friction, delay).
+        hardware: None for the ideal robot, or :class:`Hardware` (encoders, servos, delay).
         disturbance: None, or a wrench on the tool tip (:class:`ToolDisturbance`).
-        contact: simulate contact between the robot's parts (SAP point contact on their
-            collision geometry, :mod:`~stewart_drake.robot.parts`): a collision becomes contact
-            forces and the guard reports the first one with the parts' names. False (default,
-            cheaper per step): parts would pass through each other, and the guard stops a run
-            the moment two of them overlap.
-        rod_model: how the plant models the rods (:data:`~stewart_drake.plant.sdf.ROD_MODELS`):
-            "bodies" (default: rigid bodies on ball joints, exact) or "distance" (rigid distance
-            constraints with the rods' mass lumped at their ends; fewer degrees of freedom and
-            a faster step; its accuracy and speed are measured in docs/plant_speed.md). With
-            "distance" the rods have no collision geometry, so it takes no ``contact``.
-        learning: None, or a correction of the reference the controller tracks, learned from
-            the encoders: from every cycle (:class:`IlcDriver`, motion that repeats) or as a
-            function of the reference (:class:`FeedforwardTuning`, any motion).
-        bus: None (a simulated robot), or the servos of the real robot on a DYNAMIXEL bus
-            (:class:`DynamixelBusConfig`): the station drives them (``HardwareStation``), and
-            ``hardware`` is the robot built with them (derived when null).
-        lcm: None, or the run's status and torque commands on LCM channels
-            (:class:`LcmConfig`).
+        contact: simulate contact between the robot's parts (:mod:`~stewart_drake.robot.parts`).
+        rod_model: "bodies" or "distance" (:data:`~stewart_drake.plant.sdf.ROD_MODELS`).
+        learning: None, :class:`IlcDriver` or :class:`FeedforwardTuning`.
+        bus: None, or the real robot's servos (:class:`DynamixelBusConfig`).
+        lcm: None, or LCM channels for status and commands (:class:`LcmConfig`).
     Raises:
-        InvalidConfigError: (``validate``, run by every builder and at construction) a field
-            out of range, a period that is not a whole multiple of the one it runs on, a wrong
-            type; the message names the field path (e.g. ``controller.omega_Q``).
-        InvalidGeometryError: the robot cannot be built (names the field).
-        MissingFileError: a tuner weights file or a CSV reference that does not exist.
+        InvalidConfigError: (``validate``, by every builder and at construction) a field out
+            of range, a period not a whole multiple of the one it runs on, a wrong type; named
+            by its path (e.g. ``controller.omega_Q``).
+        InvalidGeometryError: the robot cannot be built (names the field). MissingFileError: a
+            tuner weights file or a CSV reference that does not exist.
     """
 
     robot: Robot = field(default_factory=Robot)

@@ -382,16 +382,13 @@ class StewartStation(Diagram):
     """The robot as built by :func:`~.diagram.make_stewart_station`; a Drake ``Diagram`` named
     "station".
 
-    With the scenario's ``hardware``, the station is the robot as built (docs/hardware.md): the
-    command passes the computation delay (``DiscreteTimeDelay``, whole control periods), the
-    drive's current limit (``Saturation`` at the servo's peak torque) and its current loop
-    (:func:`current_loop`); the plant carries the motors' reflected inertia, viscous and Coulomb
-    friction and the gearheads' play, if any (:func:`~stewart_drake.plant.plant.add_stewart_plant`,
-    :mod:`~stewart_drake.plant.backlash`); ``motor_angle`` is what the absolute encoders on the
-    output shafts read: the crank angles plus each encoder's zero error (the plant geometry's
-    ``encoder_offsets_rad``) plus optional white noise, quantized
-    (:func:`quantizer`). Without it, the ideal robot: torques applied as commanded (up to
-    ``torque_limit_Nm``), exact angles.
+    With the scenario's ``hardware``, the robot as built: the command passes the computation
+    delay, the current limit and the current loop (:func:`current_loop`); the plant carries the
+    motors' inertia, friction and play (:func:`~stewart_drake.plant.plant.add_stewart_plant`,
+    :mod:`~stewart_drake.plant.backlash`); ``motor_angle`` is the encoders' reading, zero errors
+    and noise included, quantized (:func:`quantizer`); docs/station.md, "The robot as built".
+    Without it, the ideal robot: torques applied as commanded (up to ``torque_limit_Nm``),
+    exact angles.
 
     Input ports:
         ``motor_torque`` (6,): motor torque commands, N m (leg order of reference_geometry.md).

@@ -18,13 +18,10 @@ Label modes (:func:`build_dataset`):
 * ``"paper"``: every sample is labelled with its own run's (omega_Q, omega_R), as the paper does.
 * ``"best_cost"``: the runs share the reference trajectory and the time base; the time axis is
   cut into windows of ``window_s``, and in each window *every* run's samples are labelled with
-  the (omega_Q, omega_R) of the run that had the lowest window cost. The runs are compared with
-  one **fixed common weighting** J_W(w_Q, w_R) with (w_Q, w_R) = ``common_weights`` = (1, 1) by
-  default: normalized tracking cost plus normalized torque cost at unit weights. Each run's own
-  weights cannot be used, because J scales with them (the run at (0.1, 0.1) would win every
-  window just for having the smallest weights). The label answers "which weights, used over
-  this window, gave the best tracking-vs-torque trade-off as measured by one yardstick".
-  Ties go to the first run in the list.
+  the (omega_Q, omega_R) of the run with the lowest window cost J_W(w_Q, w_R) at one fixed
+  common weighting, (w_Q, w_R) = ``common_weights`` (default (1, 1)); ties go to the first run
+  in the list. Why a common weighting: docs/paper_notes.md, "Section III.D: the estimator's
+  outputs and labels".
 
 Targets are y = log10 [omega_Q, omega_R]; the network (:mod:`.tuner`) is trained on them by
 back-propagation (mini-batch Adam, MSE), with a seeded 70/30 random split (paper section III.D).

@@ -1,47 +1,37 @@
 """The tuner study: does tuning omega_Q / omega_R online beat the best fixed ratio?
 
-The paper claims that its ANN, fed density features, tracks better at less torque than fixed
-weights. On the ideal robot the test is empty (the stiffest ratio wins everywhere); on the robot
-as built (``paper_hardware``) it is not: a stiff loop amplifies the encoder quantization and
-spends feedback torque, a soft one lags the motion. This module tests the claim with a cost
-declared before any run, on tasks that alternate motion and holding, against the best fixed ratio
-chosen in hindsight for each task, on tasks the tuners never saw.
+It tests the paper's claim (its ANN on density features tracks better at less torque than fixed
+weights) on the robot as built, with a cost declared before any run, against the best fixed
+ratio chosen in hindsight for each task, on tasks the tuners never saw. Why so, the
+negative result and how each choice was made: docs/tuners.md, "The paper's claim, tested".
 
 **The cost** (:func:`~.metrics.sample_costs`), for each lambda of :data:`~.study_runs.LAMBDAS`::
 
     J = mean over the run's samples of  sum_i (e_i / s_e)^2  +  lambda sum_j (u_j / s_T)^2
 
-with e the true pose error (s_e = 1 mrad | 1 mm, the LQI's scales), u the *feedback* torque,
+with e the true pose error (s_e = 1 mrad | 1 mm, the LQI's scales) and u the *feedback* torque,
 the applied torque minus the static holding torque of the reference pose
-(:func:`~.metrics.feedback_torque`: gravity is the same for every controller, counting it would
-drown the differences), s_T = 0.3 N m. lambda prices
-0.3 N m of feedback against 1 mrad (or 1 mm) of error: 0.01 tracking first, 0.1 balanced, 1
-effort first; on a pilot of the paper manoeuvre they select the fixed ratios 1, 0.32 and 0.1,
-i.e. they span the trade-off where the choice of weights matters (docs/results.md).
+(:func:`~.metrics.feedback_torque`), s_T = 0.3 N m.
 
 **Tasks** (:mod:`~stewart_drake.tuner.tasks`): training on seeds
 :data:`~.study_runs.TRAIN_SEEDS` of :data:`~.study_runs.TRAIN_FAMILIES`; tests on seeds
-:data:`~.study_runs.TEST_SEEDS` of the same families, of the ``surgical`` family never seen in
-training, and on the paper manoeuvre.
+:data:`~.study_runs.TEST_SEEDS` of the same families, of the ``surgical`` family, and on the
+paper manoeuvre.
 
-**Controllers**, all the LQI on the hardware: 13 fixed ratios 1e-3 .. 1e3
-(:data:`~.study_runs.RATIOS`; the paper's nine pairs are five of these ratios, only the ratio
-matters); the LQI with the gain of the start pose (no re-scheduling on B(x)) at ratio 1; a
-hand-made schedule on the reference speed (:func:`~.study_runs.speed_schedule`); the paper's
-tuner (12-10-2 on density features, trained on the nine collection runs: ``stewart-drake collect
-&& stewart-drake train``); ours (:class:`~stewart_drake.control.tuner.ratio.RatioTuner`, one per
-lambda, :func:`~.ratio_training.train_ratio_tuner`); and the **headroom**: per 0.2 s window the
-ratio that was best in hindsight over that window (from the 13 fixed runs), run in closed loop
-as a schedule (:func:`~.study_runs.hindsight_schedule`).
+**Controllers**, all the LQI on the hardware: the fixed ratios :data:`~.study_runs.RATIOS`; the
+LQI without re-scheduling on B(x) at ratio 1; a schedule on the reference speed
+(:func:`~.study_runs.speed_schedule`); the paper's tuner; ours
+(:class:`~stewart_drake.control.tuner.ratio.RatioTuner`, one per lambda,
+:func:`~.ratio_training.train_ratio_tuner`); and the hindsight schedule
+(:func:`~.study_runs.hindsight_schedule`).
 
-**Verdict** (:func:`~.study_verdict.verdict`): for each lambda and each test task, the paired
-relative difference (J_controller - J_best fixed) / J_best fixed; mean and standard deviation
-over the seeds of each family; our tuner "beats" the best fixed ratio at a lambda when its mean
-over all test tasks is at least :data:`~.study_runs.GOAL` (15 %) below and the difference
-exceeds the seed-to-seed spread.
+**Verdict** (:func:`~.study_verdict.verdict`): per lambda and test task, the paired relative
+difference (J_controller - J_best fixed) / J_best fixed, its mean and standard deviation over
+the seeds of each family; our tuner "beats" the best fixed ratio at a lambda when its mean over
+all test tasks is at least :data:`~.study_runs.GOAL` below and the difference exceeds the
+seed-to-seed spread.
 
-Every run is a :class:`~.study_runs.StudyJob` (the task, the typed LQI driver and tuner, the
-:class:`~.study_runs.StudyArm` it stands for) of the study runner (:mod:`.runners`), stored as
+Every run is a :class:`~.study_runs.StudyJob` of the study runner (:mod:`.runners`), stored as
 it arrives (:mod:`.store`: an interrupted study resumes); :func:`run_tuner_study` runs the
 study's three stages (:class:`TunerStudy`). The report is made apart (:mod:`.tuner_report`).
 """

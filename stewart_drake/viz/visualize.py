@@ -139,16 +139,11 @@ def record_states(
     where two parts touch and, given ``x_d``, the reference's ghost (and given ``error``, a
     marker above it coloured by the tracking error).
 
-    A fresh plant of ``geometry`` (same joint order as the simulated one) with a
-    ``MeshcatVisualizer`` of role illustration (no proximity or inertia visuals) is set to the
-    state nearest to each frame time and published into the recording, which is then published
-    to ``meshcat``; the camera is aimed at the robot. At every frame the parts closer than
-    ``clearance_m`` (:mod:`~stewart_drake.plant.clearance`) get a marker between their closest
-    points, red where they touch or overlap, orange where they are only close (at most
-    :data:`CONTACT_MARKERS` at a time, the closest pairs). With ``x_d`` the reference's ghost
-    (:func:`add_reference_ghost`) is at ``x_d`` of the same log sample in every frame; with
-    ``error`` too, a sphere :data:`ERROR_MARKER_HEIGHT_M` above the ghost shows that sample's
-    error against the tolerance (:func:`error_colour`).
+    Each frame shows the state nearest its time on a fresh plant of ``geometry`` (role
+    illustration); parts closer than ``clearance_m`` (:mod:`~stewart_drake.plant.clearance`) get
+    a marker, red touching, orange close (at most :data:`CONTACT_MARKERS`); the ghost
+    (:func:`add_reference_ghost`) is at ``x_d``, and a sphere :data:`ERROR_MARKER_HEIGHT_M`
+    above it shows the error (:func:`error_colour`); docs/pictures.md, "Replay in 3-D".
 
     Args:
         meshcat: a pydrake ``Meshcat``.

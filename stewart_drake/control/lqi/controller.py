@@ -48,74 +48,41 @@ class LqiController(LeafSystem):
     system that computes. :class:`LqiDiagram` gives it the controller contract's named ports
     (:mod:`~stewart_drake.control.contract`); the Diagram uses that.
 
-    Input port ``u``: the input vector of :class:`~.layout.LqiLayout` (``layout``),
-    [pose_in, x_d, T_ff, omega, T_applied]:
-        ``x`` (12,): pose estimate and rate [phi, theta, psi, X, Y, Z, their rates], rad, m, /s;
-            with an estimator instead ``motor_angle`` (6,), the encoders, rad.
-        ``x_d`` (18,): reference pose, rate and acceleration (same units, /s^2 for the last 6).
-        ``T_ff`` (6,): feed-forward motor torques, N m (:mod:`~stewart_drake.run.reference`).
-        ``omega`` (2,): [omega_Q, omega_R] > 0 (the ANN tuner drives it; else a constant).
-        ``motor_torque_applied`` (6,): with ``feature_window``, the torques the motors apply, N m.
-    Output port ``state``: the whole state (``layout``), whose first parts :class:`LqiDiagram`
-    exports as:
-        ``T`` (6,): motor torques, N m, sampled at ``offset_s`` after each plant step and held;
-            within +-torque_limit_Nm when the controller knows the motors' limit.
-        ``integral`` (6,): the integral states z of eq. 23 [rad s, m s].
-        ``status`` (7,): [omega_Q, omega_R in use, gain solves, failed solves, |z|, saturated
-            steps, governed steps] (``status_names`` = :data:`~.contract.LQI_STATUS_NAMES`).
-        ``e_bar`` (6,): the pose error x - x_d the last update acted on (for the density features,
-            so they see exactly the controller's error at the controller's instants).
-        ``x_hat`` (12,): with an estimator, its pose and rate estimate.
-        ``feature_window`` (12 w + 2,): with ``feature_window`` = w, the last w samples of
-            [e_bar, motor_torque_applied] for :class:`~.features.DensityFeatures` (ring buffer
-            [rows, n_valid, head]), sampled at the controller's instants: the features then cost
-            no callback of their own per period.
-    Discrete state: one vector, named part by part (:class:`~.layout.LqiLayout`, ``LqiStatus``;
-    no bare indices): the exported parts above, then the steps since the last solve, the gain K
-    and the previous one (6 n each, row-major 6 x n, n = 18 + 6 d; :meth:`gain_in_use`), the d
-    feedback torques commanded but not yet acting (6 d), the governor's last reference within
-    reach (24), the estimator's J^-1 (36).
-
-    Each control period runs one Python callback: it reads ``u`` and the state (one port, one
-    vector) and calls the stages of :mod:`.step` (estimate, re-schedule, govern, feedback,
-    saturate, integrate), compiled (the default) or as the Python they are compiled from
-    (``compiled=False``, :data:`~.step.reference`); only the gain re-solve (every schedule
-    period, itself one compiled call), the governor (out of reach) and a refused chord step run
-    in Python.
+    Input port ``u`` (:class:`~.layout.LqiLayout`, ``layout``): [``x`` (12,) pose and rate
+    [phi, theta, psi, X, Y, Z, rates] in rad, m, /s, or with an estimator ``motor_angle`` (6,)
+    rad; ``x_d`` (18,) reference pose, rate, acceleration; ``T_ff`` (6,) feed-forward torques,
+    N m; ``omega`` (2,) [omega_Q, omega_R] > 0; with ``feature_window``,
+    ``motor_torque_applied`` (6,) N m]. Output port ``state``: the whole state, whose first parts
+    :class:`LqiDiagram` exports as ``T`` (6,) torques, N m, held (within +-torque_limit_Nm when
+    known); ``integral`` (6,) z of eq. 23 [rad s, m s]; ``status`` (7,)
+    :data:`~.contract.LQI_STATUS_NAMES`; ``e_bar`` (6,) the error x - x_d acted on; ``x_hat``
+    (12,) with an estimator; ``feature_window`` (12 w + 2,) for
+    :class:`~.features.DensityFeatures`. The rest (gains: :meth:`gain_in_use`) and the one
+    callback per period that runs :mod:`.step`: docs/performance.md, "The control step".
 
     Args:
         geometry: the robot (for B(x)).
-        driver: the options (:class:`~.driver.LqiDriver`: re-scheduling, Riccati mode,
-            scales, anti-windup, governor, gain transfer; its weights are the Diagram's, on
+        driver: the options (:class:`~.driver.LqiDriver`; its weights are the Diagram's, on
             ``omega``), checked here by the driver's own ``validate``.
-        period_s: control period h, s (paper: 1 ms).
-        offset_s: time of the sample within the period. The Diagram uses half a plant step, so
-            the controller reads the state the plant just produced and its torque acts from the
-            next plant step on: the zero-order-hold model above is then exact, with no extra
-            step of delay (offset 0 would read the state one plant step old).
-        x_initial: pose of the first gain (default home). x_dot_initial: its rate (the
-            estimator's start; default at rest).
+        period_s: control period h, s (paper: 1 ms). offset_s: time of the sample within the
+            period, s (the Diagram: half a plant step, the contract's "Sampling").
+        x_initial, x_dot_initial: pose of the first gain and its rate (default home, at rest).
         torque_limit_Nm: the motors' torque limit, N m, or None: commands are clipped to it (the
             driver's anti-windup and reference governor act only with a limit).
-        delay_periods: control periods between a sample and its torque acting (the computation
-            delay); with ``driver.delay_compensation`` the error model carries the pending
-            torques (:func:`~.gain.error_model`).
-        estimator: None to read the pose and rate on the ``x`` input; or a
-            :class:`~stewart_drake.control.estimator.PoseEstimator`: the controller then reads
-            the encoders on a ``motor_angle`` input (6, rad) and estimates the pose and rate in
-            its own update (one Newton chord step per period with the Jacobian of the last
-            re-schedule, :meth:`~.estimator.PoseEstimator.track`), exported as ``x_hat`` (12).
-        feature_window: None, or the samples w of the density features' window (eqs. 35-36)
-            the controller buffers for them (the Diagram sets it when it has a tuner).
-        compiled: run the compiled stages (:mod:`.kernels`); False runs their uncompiled
-            ``py_func`` (:data:`~.step.reference`), the same code and numbers, many times
-            slower.
+        delay_periods: control periods between a sample and its torque acting; with
+            ``driver.delay_compensation`` the error model carries the pending torques
+            (:func:`~.gain.error_model`).
+        estimator: None to read ``x``; or a
+            :class:`~stewart_drake.control.estimator.PoseEstimator` that tracks the pose from
+            ``motor_angle`` (:meth:`~.estimator.PoseEstimator.track`), exported as ``x_hat``.
+        feature_window: None, or the samples w of the density features' window (eqs. 35-36).
+        compiled: run the compiled stages (:mod:`.kernels`); False runs their ``py_func``
+            (:data:`~.step.reference`), the same numbers, many times slower.
     Raises:
         InvalidConfigError: a bad period, offset, limit, delay or window, or a bad option of the
             driver (named ``driver.<option>``).
-        RiccatiSolveError: no gain at the start pose.
-        NotStabilizableError: the error model fails the Hautus test at the start pose
-            (eqs. 28-29).
+        RiccatiSolveError: no gain at the start pose. NotStabilizableError: the error model
+            fails the Hautus test at the start pose (eqs. 28-29).
     """
 
     def __init__(

@@ -86,49 +86,38 @@ class LqiScalesConfig(ValueMirror):
 @dataclass
 class LqiDriver(ControllerDriver):
     """The LQI of paper section III as a scenario's controller (``controller: !LqiDriver``):
-    its options, checked (:meth:`validate`) and built (:meth:`make`) here, the one place.
+    its options, checked (:meth:`validate`) and built (:meth:`make`) here, the one place. The
+    options marked "ours" are not in the paper; why each, and what it measured:
+    docs/paper_notes.md (re-scheduling, switching gains, torque limit, friction feed-forward).
 
     Attributes:
         omega_Q, omega_R: weights of eq. 27 on normalized errors and torques, in
             [:data:`~.gain.LQI_OMEGA_MIN`, :data:`~.gain.LQI_OMEGA_MAX`] (only their ratio
-            matters): the
-            constant on the controller's ``omega`` input; a tuner replaces them.
+            matters): the constant on the controller's ``omega`` input; a tuner replaces them.
         schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
             whole multiple of the control period; a change of omega re-solves at once). Ours.
-        riccati: how the gain is re-solved: "warm" refines the last gain by Newton's method
-            (:func:`~.gain.lqi_gain_warm`) to convergence, falling back to the cold solve if that
-            fails; "track" takes one Newton step per re-schedule (every iterate stabilizes, the
-            gain converges over successive re-schedules); "cold" calls Drake's DARE each time.
+        riccati: "warm" refines the last gain by Newton's method to convergence
+            (:func:`~.gain.lqi_gain_warm`, the cold solve as fallback); "track" takes one Newton
+            step per re-schedule; "cold" calls Drake's DARE each time.
         scales: normalization of Q and R (Bryson's rule, :class:`LqiScalesConfig`).
         anti_windup: stop integrating z while a command is clipped at the motors' limit
-            (clamping); acts only when the motors have a limit. Ours: the paper has none.
+            (clamping); acts only when the motors have a limit. Ours.
         delay_compensation: augment the error model with the torques still in the pipe when the
             robot has a computation delay (:func:`~.gain.error_model`); false ignores the delay.
-        reference_governor: with a torque limit, do not follow a reference whose own
-            feed-forward exceeds :data:`~.gain.GOVERNOR_MARGIN` of the limit (a pose the motors
-            cannot hold): follow the nearest pose they can hold
-            (:meth:`~.controller.LqiController.govern`) until the reference is back within
-            reach. Anti-windup alone cannot keep such a platform:
-            past that pose gravity wins and it falls (docs/hardware.md). Ours.
+        reference_governor: with a torque limit, follow the nearest pose the motors can hold
+            (:meth:`~.controller.LqiController.govern`) while the reference's own feed-forward
+            exceeds :data:`~.gain.GOVERNOR_MARGIN` of the limit (docs/hardware.md). Ours.
         schedule_pose: re-schedule the input matrix B(x) from the measured pose; false keeps the
             start pose's, as a plain LQI (the gain then changes only with omega). Ours.
-        gain_transfer: what carries over when the gain changes (new weights, a new pose):
-            "integral" keeps the integral torque, K_I,new z_new = K_I,old z_old, so what the
-            integrator learned (friction, model error) stays and only the proportional part
-            follows the new gain; "feedback" keeps the whole feedback, K_I,new z_new = K_old e -
-            K_rest,new e_rest (no torque step); "none" keeps z, a torque step, as the paper
-            does. The three compared: docs/paper_notes.md.
+        gain_transfer: what carries over when the gain changes: "integral" keeps the integral
+            torque, K_I,new z_new = K_I,old z_old; "feedback" keeps the whole feedback,
+            K_I,new z_new = K_old e - K_rest,new e_rest; "none" keeps z, as the paper does.
         friction_compensation_Nm: Coulomb friction the controller believes each motor has, at
-            the crank, N m (0: none, the paper scenarios'): the feed-forward then carries
+            the crank, N m (0: none, the paper scenarios'), fed forward as
             ``friction_compensation_Nm * tanh(theta_dot_d / friction_rate_rad_s)`` per motor,
-            theta_dot_d = J x_dot_d the reference's crank rates
-            (:func:`~.step.friction_feedforward`). Needs the encoders' estimator (the robot
-            as built). On breathing it lowers the translation error (9.2 to 5.3 um at 17-bit
-            encoders) and, with 2^19 counts or more, the rotation (15-17 to 6-8 urad), but not
-            the 17-bit rotation floor, which is the encoders' (docs/organ_motion.md, "The
-            rotation floor"). Ours: the paper's motors have no friction.
-        friction_rate_rad_s: crank rate, rad/s, of the smoothed sign above (> 0); 3e-4 (33 um/s
-            at a crank tip) measured best of 1e-4 to 1e-2 on breathing at 2^17 to 2^23 counts.
+            theta_dot_d = J x_dot_d (:func:`~.step.friction_feedforward`); needs the encoders'
+            estimator. Ours.
+        friction_rate_rad_s: crank rate, rad/s, of the smoothed sign above (> 0).
     """
 
     omega_Q: float = 1.0

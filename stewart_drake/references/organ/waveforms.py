@@ -202,30 +202,23 @@ class Sharkfin(_Waveform):
     """A shark fin: a fast inhale that slows into end-inhale, then a slow exponential exhale,
     its corners rounded (C2).
 
-    The raw cycle is the waveform of a square wave through a first-order lag, the "shark fin"
-    of the phantoms' libraries (CIRS Motion Control for the Dynamic Thorax phantom; the QUASAR
-    respiratory motion phantom's breathing waveforms): the inhale rises as (1 - exp(-t /
+    The "shark fin" of the phantoms' libraries (CIRS Motion Control for the Dynamic Thorax
+    phantom; the QUASAR respiratory motion phantom): the inhale rises as (1 - exp(-t /
     inhale_tau_s)) over ``inhale_fraction`` of the period, the exhale falls as exp(-t /
-    exhale_tau_s) back to end-exhale (each scaled to meet the other at its ends). The fin's
-    tip and its base are corners: over ``rounding_s`` centred on each, the speed passes from one
-    branch's to the other's along a quintic smoothstep (:func:`_round_corner`; ours, the manuals
-    give no formula), which cuts inside the corner: by 0.5 % of the stroke at the tip and 0.24 %
-    at the base with the defaults, the motion never turning back between them; the cycle is
-    then rescaled so that ``amplitude_m`` is the peak to peak.
+    exhale_tau_s) back to end-exhale (each scaled to meet the other at its ends). Over
+    ``rounding_s`` centred on the tip and on the base the speed passes from one branch's to the
+    other's along a quintic smoothstep (:func:`_round_corner`), and the cycle is rescaled so
+    that ``amplitude_m`` is the peak to peak. The branches and the rounding are ours (the
+    manuals give no formula; the defaults' reasons and figures: docs/paper_notes.md, "The
+    motion phantoms' library: rounded corners").
 
     Attributes:
         amplitude_m: peak to peak, m; default 0.015 (as :class:`~.breathing.Breathing`).
         period_s: s; default 4 (as :class:`~.breathing.Breathing`).
-        inhale_fraction: the inhale's share of the period, in [0.05, 0.95]; default 0.3 (ours).
-        inhale_tau_s: time constant of the inhale, s; default 0.3 (ours: 4 time constants in the
-            1.2 s inhale, the fin's steep front).
-        exhale_tau_s: time constant of the exhale, s; default 0.7 (ours: 4 time constants in the
-            2.8 s exhale, a long rest at end-exhale as Lujan et al.'s cos^6).
-        rounding_s: length of each rounded corner, s, in (0, the shorter branch]; default 0.2
-            (ours: peak acceleration 0.42 m/s^2 with the defaults, at the fin's base, where the
-            exhale's slow end meets the inhale's steep start; on ``paper_hardware`` the motors'
-            peak torque is then 0.41 N m of their 0.63 N m limit, 0.49 N m with 0.1 s, and
-            0.65 N m, refused, with 0.05 s).
+        inhale_fraction: the inhale's share of the period, in [0.05, 0.95]; default 0.3.
+        inhale_tau_s: time constant of the inhale, s; default 0.3.
+        exhale_tau_s: time constant of the exhale, s; default 0.7.
+        rounding_s: length of each rounded corner, s, in (0, the shorter branch]; default 0.2.
         direction: unit vector or axis name; default "SI".
         centre: (6,) the pose the motion is centred on (mid-range), rad and m; default home.
     Continuity: C2 (the branches are smooth; the smoothstep's S' and S'' vanish where the

@@ -3,30 +3,17 @@ behind them stepping in real time.
 
 :class:`BusEmulator` opens a pty (``os.openpty``, raw mode), gives its slave path
 (``BusEmulator.port``) to the driver, which opens it through the vendor's ``PortHandler``
-as it would ``/dev/ttyUSB0``, and answers in a thread: PING (one id or broadcast), READ, WRITE,
-SYNC_READ and SYNC_WRITE (the vendor's ``GroupSyncRead.txRxPacket`` sends SYNC_READ, not
-FAST_SYNC_READ; FAST_SYNC_READ, REG_WRITE/ACTION and BULK_* answer an Instruction Error), with
-the status packets, errors and CRC of the protocol (:mod:`.protocol`). Each servo keeps its
-control table as bytes, with the e-Manual's access rules that matter here: EEPROM items
-(addresses < 64) writable only with the torque off (else Access Error), read-only items refused
-(Access Error), a Goal Current beyond the Current Limit refused (Data Limit Error).
-
-The bus watchdog (e-Manual, "Bus Watchdog(98)": "the communication is defined as all the
-Instruction Packet"; monitored while Torque Enable is 1): when no instruction packet reaches a
-servo (its id or broadcast) for Bus Watchdog x 20 ms, the servo stops (here: zero current,
-Torque Enable left as it is, as the e-Manual says no more), Bus Watchdog reads -1 and the Goal
-values turn read-only (a write answers a Data Range Error) until Bus Watchdog is written 0.
+as it would ``/dev/ttyUSB0``, and answers in a thread: PING, READ, WRITE, SYNC_READ and
+SYNC_WRITE (other instructions answer an Instruction Error), with the status packets, errors and
+CRC of the protocol (:mod:`.protocol`). Each servo keeps its control table as bytes, with the
+e-Manual's access rules that matter here and its bus watchdog.
 
 The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
-``tick_s`` (or, with ``command_step_s``, one period per torque command: a clock a loaded
-machine cannot outrun); the bus thread answers meanwhile from the last present values (a tick
-and a step old at most), as a servo answers at once from its control table.
-:class:`FirstOrderServos` is one crank per servo, rigid, ``J dv/dt = K_t i - b v - c sign(v)``
-with the current the servo can drive at that speed (12 V: the stall current falling linearly to
-zero at the no-load speed). Not modelled: the current loop's lag, the temperature (Present
-Temperature reads ``ambient_C``), the input voltage, the encoder's noise, the return delay time
-and the baud rate (a pty moves bytes at memory speed whatever the setting), REBOOT, indirect
-addresses.
+``tick_s`` (or, with ``command_step_s``, one period per torque command); the bus thread answers
+meanwhile from the last present values. :class:`FirstOrderServos` is one crank per servo,
+rigid, ``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
+(12 V: the stall current falling linearly to zero at the no-load speed). What is emulated and
+what is not: docs/hardware_bus.md, "What is emulated".
 """
 
 from __future__ import annotations

@@ -5,33 +5,16 @@ builds for a scenario with ``bus``: a Diagram named "station" whose one system t
 robot is the :class:`DynamixelDriver` (a ``LeafSystem``: one sync read and one sync write of
 the bus each control period, its timing measured). Every controller of the contract, the
 tuners, the learners, the guard, the loggers and the LCM publishers connect to it exactly as to
-:class:`~stewart_drake.station.station.StewartStation` (docs/station.md, docs/hardware_bus.md).
+:class:`~stewart_drake.station.station.StewartStation` (docs/station.md).
 
-Sampling, and why it matches the simulation. The simulated plant updates at k h (offset 0) and
-the controllers sample half a plant step later (``plan.sample_offset_s``), so a controller reads
-the plant's state after its update at k h and its torque acts from the next update on. The
-driver updates at the same instants as the plant, k h: it first writes the torque the
-controllers computed half a step after the previous update, then reads the servos, and holds
-that measurement for the controllers' sample at k h + h_plant / 2. On the robot the torque
-written at (k + 1) h was computed from the servos as read at k h: one control period between a
-measurement and its torque, which is what the scenario says (``hardware.computation_delay_periods
-= 1``, :meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`), so the LQI's
-feed-forward lead and the controllers' models see the delay they get.
-
-Pacing. Drake's ``Simulator`` at ``target_realtime_rate`` 1 sleeps before each step until the
-wall clock reaches the step's time counted from ``Initialize()`` (or ``ResetStatistics()``), and
-never sleeps while it is behind: after a stall it runs the missed periods back to back, and
-started late after a long pause between ``Initialize()`` and ``AdvanceTo()`` it would race
-through the first periods. Periods run back to back are worse than late ones for a discrete
-controller: its model (and the rate it differentiates from the angles) assumes h between two
-readings, and a burst of readings 1 ms apart tells it the robot has stopped. The driver therefore
-keeps its own schedule: period k is due at the wall-clock time of its first period plus k h; it
-sleeps until then if it is early (so a run is paced whatever the simulator's rate), and a
-period that starts more than one period after it is due is a deadline miss, after which the
-schedule moves on (the next period is due one period after this one started: the Diagram's
-clock, and the reference with it, falls behind the wall clock by the time skipped, instead of
-catching up). ``get_actual_realtime_rate()`` of the simulator is the average over the run; the
-driver's :meth:`DynamixelDriver.timing_summary` has the per-period figures.
+The driver updates at the plant's instants k h: it writes the torque the controllers computed
+half a plant step after the previous update, then reads the servos and holds the reading for the
+controllers' sample at k h + h_plant / 2, so a torque acts one control period after its
+measurement, as the scenario says (``hardware.computation_delay_periods = 1``,
+:meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`). It keeps its own
+wall-clock schedule: an early period sleeps until due, a period more than one period late is a
+deadline miss and the schedule moves on (:meth:`DynamixelDriver.timing_summary`). Why it paces
+itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on the bus".
 """
 
 from __future__ import annotations
@@ -79,27 +62,19 @@ def _stats(values) -> dict:
 class DynamixelDriver(LeafSystem):
     """The servos of a :class:`~.driver.DynamixelBus` as a Drake system, one period at a time.
 
-    Every ``period_s`` (offset 0, a periodic discrete update: the instants the simulated plant
-    updates at) the driver waits for the period's wall-clock time (module docstring), writes the
-    ``motor_torque`` input with one GroupSyncWrite, reads the servos with one GroupSyncRead and
-    holds what it read: the crank angles, rates and torques, and the platform pose from them
-    (forward kinematics warm started from the previous pose; rates through the inverse of the
-    IK Jacobian, x_dot = J^-1 theta_dot). The bus must be opened, configured and its torque
-    enabled by the caller; :meth:`seed` holds a first reading before the run.
-
-    A period that starts more than one period after it is due is a deadline miss: counted, one
-    line on ``stream`` at the first miss of a burst (consecutive misses), the schedule moved on
-    to start from it (module docstring), and past ``max_deadline_misses`` the servos' torque is
-    removed and :class:`~stewart_drake.base.errors.DeadlineMissError` raised. Any
-    other error in a period (the bus, non-finite torques, a pose forward kinematics cannot
-    find) also removes the torque before it propagates.
+    Every ``period_s`` (offset 0, the plant's instants) it waits for the period's wall-clock
+    time, writes ``motor_torque`` (one GroupSyncWrite), reads the servos (one GroupSyncRead) and
+    holds what it read and the pose from it; :meth:`seed` holds a first reading. The caller
+    opens, configures and enables the bus. On a deadline miss past ``max_deadline_misses``, or
+    any error in a period, the torque is removed before the error propagates
+    (docs/hardware_bus.md, "The station on the bus").
 
     Input port: ``motor_torque`` (6,): crank torques to apply, N m (clipped by the bus to the
         servos' Current Limit).
     Output ports (the held measurement): ``motor_angle`` (6,) rad; ``motor_rate`` (6,) rad/s
         (the servos' Present Velocity, 0.024 rad/s a unit); ``motor_torque_applied`` (6,) N m
         (Present Current x K_t); ``platform_state`` (12,) [pose rad, m; rates rad/s, m/s] from
-        the angles and rates (no ground truth on a robot); ``loop`` (4,) for the LCM status
+        the angles and rates; ``loop`` (4,) for the LCM status
         (:data:`~stewart_drake.station.lcm_publish.LoopStatus`: mode, deadline misses,
         achieved period us, measurement age us).
 
@@ -111,6 +86,8 @@ class DynamixelDriver(LeafSystem):
         x_initial: (6,) where forward kinematics starts before the first reading.
         stream: where miss lines go (default stderr). timing_window: periods kept for
             :meth:`timing_summary`.
+    Raises:
+        DeadlineMissError: (during simulation) past ``max_deadline_misses``.
     """
 
     def __init__(
