@@ -10,7 +10,8 @@ it.
 Input ports (vectors, SI units):
     ``x_d`` (18,): required; reference pose [phi, theta, psi, X, Y, Z] (rad, m), its rate and
         acceleration, evaluated at the sample time plus half a plant step.
-    ``x`` (12,): pose estimate and rate, the station's ``platform_state`` (plus sensor noise).
+    ``x`` (12,): pose estimate and rate: on the ideal robot the station's ``platform_state``
+        (plus sensor noise).
     ``motor_angle`` (6,) rad, ``motor_rate`` (6,) rad/s, ``motor_torque_applied`` (6,) N m:
         the station's outputs of those names.
     ``T_ff`` (6,): feed-forward motor torques along the reference, N m

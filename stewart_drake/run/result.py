@@ -249,9 +249,9 @@ def add_run_logs(builder, station, controller, outputs: set, plan, learner=None)
 class RunResult:
     """Logged arrays of one run (SI units) and its metrics.
 
-    Two time bases: ``t`` (every ``log_period_s``) for the signals, float32, and ``t_state``
-    (every ``state_log_period_s``) for the plant's state, float64 (why float32, and the bytes per
-    sample, :data:`~.plan.LOG_BYTES_PER_SAMPLE`: docs/performance.md, "Memory per run").
+    Two time bases: ``t`` (every ``log_period_s``) for the signals, float32 (module docstring;
+    about 0.2 kB a logged sample, :data:`~.plan.LOG_BYTES_PER_SAMPLE`), and ``t_state`` (every
+    ``state_log_period_s``) for the plant's state, float64.
 
     Attributes:
         t: (N,) s.  x: (N, 12) true pose and rate (from the plant state, free of sensor noise).

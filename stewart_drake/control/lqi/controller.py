@@ -50,8 +50,8 @@ class LqiController(LeafSystem):
 
     Input port ``u`` (:class:`~.layout.LqiLayout`, ``layout``): [``x`` (12,) pose and rate
     [phi, theta, psi, X, Y, Z, rates] in rad, m, /s, or with an estimator ``motor_angle`` (6,)
-    rad; ``x_d`` (18,) reference pose, rate, acceleration; ``T_ff`` (6,) feed-forward torques,
-    N m; ``omega`` (2,) [omega_Q, omega_R] > 0; with ``feature_window``,
+    rad; ``x_d`` (18,) reference pose, rate, acceleration (/s^2); ``T_ff`` (6,) feed-forward
+    torques, N m; ``omega`` (2,) [omega_Q, omega_R] > 0; with ``feature_window``,
     ``motor_torque_applied`` (6,) N m]. Output port ``state``: the whole state, whose first parts
     :class:`LqiDiagram` exports as ``T`` (6,) torques, N m, held (within +-torque_limit_Nm when
     known); ``integral`` (6,) z of eq. 23 [rad s, m s]; ``status`` (7,)

@@ -9,7 +9,7 @@ CRC of the protocol (:mod:`.protocol`). Each servo keeps its control table as by
 e-Manual's access rules that matter here and its bus watchdog.
 
 The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
-``tick_s`` (or, with ``command_step_s``, one period per torque command); the bus thread answers
+``tick_s`` (or per torque command, ``command_step_s``); the bus thread answers
 meanwhile from the last present values. :class:`FirstOrderServos` is one crank per servo,
 rigid, ``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
 (12 V: the stall current falling linearly to zero at the no-load speed). What is emulated and
