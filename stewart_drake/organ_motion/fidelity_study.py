@@ -279,7 +279,8 @@ def _main_table(results: dict) -> list[str]:
     ]
     header = ["motion", "cycle", "no learning", "after 5", "after 10"]
     header += ["ratio after 10 (translation, rotation)", "not repeating, no learning", "learner"]
-    rows, verdicts = [], []
+    rows: list[list] = []  # cells: str, or None for a blank one
+    verdicts = []
     for label, motion in _MAIN_MOTIONS:
         none, learn = (results.get(f"main/{label}/{k}") for k in ("none", "learn"))
         if not isinstance(none, dict) or not isinstance(learn, dict):
@@ -355,7 +356,7 @@ def _robustness_table(results: dict) -> list[str]:
     rows = []
     for label in ("payload 1.2", "encoder noise 1 count", "payload 1.2 + noise 1 count"):
         none, learn = (results.get(f"robustness/{label}/{k}") for k in ("none", "learn"))
-        row = [
+        row: list = [
             label,
             f"{_baseline(none)[0] * 1e6:.2f} / {_baseline(none)[1] * 1e6:.1f}"
             if isinstance(none, dict)
