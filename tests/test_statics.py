@@ -14,27 +14,30 @@ from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.robot.servo import ServoModel
 
 
+def potential_energy(g, x):
+    """V of platform, cranks and rods at pose x (6,), from the joints alone (COMs at the
+    geometric centres), in J: independent of statics' virtual-work formulas."""
+    th = kinematics.ik(g, x)
+    q_B, _ = kinematics.platform_joints(g, x)
+    tip = g.crank_tips(th)
+    z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
+    return g.gravity * (
+        g.platform_mass * x[5]
+        + g.crank_mass * z_crank.sum()
+        + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
+    )
+
+
 def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
     """Energy balance: T . d theta = dV for a small motion, from an independent potential."""
     rng = np.random.default_rng(2)
     g = geometry
 
-    def potential(x):
-        th = kinematics.ik(g, x)
-        q_B, _ = kinematics.platform_joints(g, x)
-        tip = g.crank_tips(th)
-        z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
-        return g.gravity * (
-            g.platform_mass * x[5]
-            + g.crank_mass * z_crank.sum()
-            + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
-        )
-
     for x in random_poses[:20]:
         T = statics.holding_torques(g, x)
         dx = 1e-6 * rng.normal(size=6)
         d_theta = kinematics.ik(g, x + dx) - kinematics.ik(g, x - dx)
-        dV = potential(x + dx) - potential(x - dx)
+        dV = potential_energy(g, x + dx) - potential_energy(g, x - dx)
         assert abs(T @ d_theta - dV) < 1e-6 * abs(dV) + 1e-12
 
 
@@ -129,15 +132,7 @@ def _energy_along(geometry, path, t):
     h = 1e-5
     x = path(t)
     x_dot = (path(t + h) - path(t - h)) / (2 * h)
-    th = kinematics.ik(geometry, x)
-    q_B, _ = kinematics.platform_joints(geometry, x)
-    tip = geometry.crank_tips(th)
-    z_crank = geometry.pivot_z + 0.5 * geometry.crank_length * np.sin(th)
-    V = geometry.gravity * (
-        geometry.platform_mass * x[5]
-        + geometry.crank_mass * z_crank.sum()
-        + geometry.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
-    )
+    V = potential_energy(geometry, x)
     return 0.5 * x_dot @ statics.task_inertia(geometry, x) @ x_dot + V
 
 
@@ -191,21 +186,13 @@ def test_gravity_gradient_is_the_potential_s_gradient_and_the_holding_wrench(
     J^T T_hold = dV/dx; passing theta and J changes nothing."""
     g = geometry
 
-    def potential(x):
-        th = kinematics.ik(g, x)
-        q_B, _ = kinematics.platform_joints(g, x)
-        tip = g.crank_tips(th)
-        z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
-        return g.gravity * (
-            g.platform_mass * x[5]
-            + g.crank_mass * z_crank.sum()
-            + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
-        )
-
     for x in random_poses[:5]:
         grad = statics.gravity_gradient(g, x)
         h = 1e-6
-        fd = [(potential(x + h * e) - potential(x - h * e)) / (2 * h) for e in np.eye(6)]
+        fd = [
+            (potential_energy(g, x + h * e) - potential_energy(g, x - h * e)) / (2 * h)
+            for e in np.eye(6)
+        ]
         np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-7)
         theta = kinematics.ik(g, x)
         J = kinematics.jacobian(g, x, theta)
