@@ -285,7 +285,57 @@ def _singular_name_changed(old: str, new: str) -> bool:
     )
 
 
+def _reshape_minus_two(old: str, new: str) -> bool:
+    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest)."""
+    return any(
+        old.replace(a, b, 1) == new
+        for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
+        if a in old and "reshape(" in old
+    )
+
+
+def _errstate_changed(old: str, new: str) -> bool:
+    """Which floating-point warnings numpy keeps quiet: never a number."""
+    return old.startswith("with np.errstate(") and new.startswith("with np.errstate(")
+
+
+def _theta_recomputed(old: str, new: str) -> bool:
+    """The motor angles a caller passes dropped, so that the IK computes them again."""
+    return (
+        new in (old.replace(", theta)", ", None)", 1), old.replace(", theta)", ", )", 1))
+        or new == old.replace("(theta is None)", "(theta is None) or True", 1)
+        or new == old.replace("if theta is None", "if (theta is None) or True", 1)
+    ) and new != old
+
+
+def _slice_past_the_pose(old: str, new: str) -> bool:
+    """A slice of a pose's last axis (6 values) made to end past it: x[..., :3] -> :4 where
+    only the first three are read, 3:6 -> 3:7."""
+    return any(old.replace(a, b, 1) == new for a, b in (("3:6]", "3:7]"), ("3:]", "3:7]"))) or (
+        old.replace("[..., :3])", "[..., :4])", 1) == new and "rotation_rpy" in old
+    )
+
+
 RULES = (
+    (
+        _theta_recomputed,
+        "equivalent for every caller: they pass theta = ik(x), and without it the IK gives the "
+        "same angles again",
+    ),
+    (
+        _slice_past_the_pose,
+        "equivalent: the slice ends past the pose's six values, or the function reads only the "
+        "first three of the four (roll, pitch, yaw)",
+    ),
+    (
+        _reshape_minus_two,
+        "equivalent: numpy reads any negative size in reshape as the rest, -2 as -1",
+    ),
+    (
+        _errstate_changed,
+        "equivalent: np.errstate only chooses which floating-point warnings numpy prints; "
+        "the numbers are the same",
+    ),
     (
         _einsum_renamed,
         "equivalent: the einsum subscripts renamed in upper case, the same contraction",
@@ -353,16 +403,15 @@ def report(results: list[ModuleResult], accounts: dict[str, str], before: dict |
             "| module | mutants | killed + timeouts | score before | score after |",
             "| --- | ---: | ---: | ---: | ---: |",
         ]
-        for r in results:
-            b = before.get(r.module)
-            if b is None:
-                continue
+        after = {r.module: r for r in results}
+        for module, b in before.items():
             statuses = list(b["mutants"].values())
             k = sum(s in ("killed", "timeout") for s in statuses)
             n = sum(s != "skipped" for s in statuses)
+            r = after.get(module)
             lines.append(
-                f"| `{r.module}` | {len(statuses)} | {k} | {100 * k / max(n, 1):.1f} % | "
-                f"{100 * r.score:.1f} % |"
+                f"| `{module}` | {len(statuses)} | {k} | {100 * k / max(n, 1):.1f} % | "
+                + (f"{100 * r.score:.1f} % |" if r else "not run again |")
             )
         lines.append("")
     for r in results:
@@ -380,7 +429,8 @@ def report(results: list[ModuleResult], accounts: dict[str, str], before: dict |
             lines += [f"{len(unaccounted)} of {len(survivors)} without an account.", ""]
         for m in survivors:
             account = accounts.get(m.name) or rule_account(m.diff) or "**unaccounted**"
-            lines += [f"- `{m.name}` ({m.status}): {account}", "", "  ```diff"]
+            short = m.name.rsplit(".", 1)[-1]  # the module is the section's
+            lines += [f"- `{short}` ({m.status}): {account}", "", "  ```diff"]
             lines += [f"  {d}" for d in m.diff.splitlines()] + ["  ```", ""]
     return "\n".join(lines).rstrip() + "\n"
 
