@@ -6,7 +6,7 @@ import pytest
 from conftest import random_reachable_poses
 from pydrake.math import RollPitchYaw
 
-from stewart_drake.base.errors import UnreachablePoseError
+from stewart_drake.base.errors import SingularPoseError, UnreachablePoseError
 from stewart_drake.robot import kinematics, single_pose, statics
 from stewart_drake.robot.geometry import X_HOME
 
@@ -126,3 +126,110 @@ def test_per_step_kernels_agree_with_the_batched_functions(geometry, random_pose
     far = X_HOME + np.array([0, 0, 0, 0, 0, 0.5])  # every rod too short
     assert np.isnan(single_pose.ik_single(geometry, far)[0]).all()
     assert np.isnan(single_pose.ik_scalar(constants, far.tolist())).all()
+
+
+def _rod_crank_cosines(geometry, x):
+    """e_l . e_N per leg from the joints alone: the rod's direction, and the crank tip's
+    direction of motion by a central difference of the tips in theta."""
+    theta = kinematics.ik(geometry, x)
+    q_B, _ = kinematics.platform_joints(geometry, x)
+    tip = geometry.crank_tips(theta)
+    e_l = (q_B - tip) / np.linalg.norm(q_B - tip, axis=1, keepdims=True)
+    h = 1e-7
+    e_N = (geometry.crank_tips(theta + h) - geometry.crank_tips(theta - h)) / (2 * h)
+    e_N /= geometry.crank_lengths[:, None]
+    return np.sum(e_l * e_N, axis=1)
+
+
+def test_paper_eq18_as_printed_is_the_wrench_map_times_the_squared_cosine(either_robot):
+    """Column i of the printed map is the statics' column times (e_l . e_N)^2, the cosine found
+    from the joints (not from the map): eq. 15 multiplies by the cosine over a_i where statics
+    divides by it times a_i."""
+    geometry = either_robot
+    for x in random_reachable_poses(geometry, 4, seed=5, margin=0.9):
+        d = _rod_crank_cosines(geometry, x)
+        np.testing.assert_allclose(
+            kinematics.wrench_map_paper_eq18(geometry, x),
+            kinematics.wrench_map(geometry, x) * d**2,
+            rtol=1e-7,
+            atol=1e-9,
+        )
+
+
+def test_a_stack_of_poses_gives_each_pose_s_own_maps(geometry, random_poses):
+    """The batched maps of a (2, n, 6) stack are those of each pose alone: wrench map (both
+    forms), tau, Jacobian, singular values and the singularity measures."""
+    x = random_poses[:3]
+    stacked = np.stack([x, x[::-1]])
+    for f in (
+        kinematics.wrench_map,
+        kinematics.wrench_map_paper_eq18,
+        kinematics.tau,
+        kinematics.jacobian,
+        kinematics.singular_values,
+    ):
+        batch = f(geometry, stacked)
+        for k, p in enumerate(x[::-1]):
+            np.testing.assert_allclose(batch[1, k], f(geometry, p), rtol=1e-12, atol=1e-12)
+    cond, inv = kinematics.singularity_measures(geometry, stacked)
+    for k, p in enumerate(x):
+        sv = np.linalg.svd(kinematics.jacobian(geometry, p), compute_uv=False)
+        assert cond[0, k] == pytest.approx(sv[0] / sv[-1], rel=1e-12)
+        assert inv[0, k] == pytest.approx(1 / sv[0], rel=1e-12)
+
+
+def test_singular_values_mark_unreachable_and_unbounded_rows(geometry):
+    """NaN rows where J has NaN, [inf, NaN...] where J has inf, numpy's SVD elsewhere; the
+    measures give cond inf and sigma_min_inv 0 at an unbounded J, NaN where unreachable."""
+    J = np.stack([kinematics.jacobian(geometry, X_HOME)] * 3)
+    J[1, 2, 3] = np.nan
+    J[2, 4, 0] = np.inf
+    sv = kinematics.singular_values_of(J)
+    np.testing.assert_allclose(sv[0], np.linalg.svd(J[0], compute_uv=False), rtol=1e-14)
+    assert np.all(np.isnan(sv[1]))
+    assert sv[2, 0] == np.inf and np.all(np.isnan(sv[2, 1:]))
+    cond, inv = kinematics.singularity_measures_of(sv)
+    assert cond[0] == pytest.approx(sv[0, 0] / sv[0, 5], rel=1e-14)
+    assert inv[0] == pytest.approx(1 / sv[0, 0], rel=1e-14)
+    assert np.isnan(cond[1]) and np.isnan(inv[1])
+    assert cond[2] == np.inf and inv[2] == 0.0
+    beyond = X_HOME.copy()
+    beyond[5] = 0.5
+    cond, inv = kinematics.singularity_measures_unchecked(geometry, np.stack([X_HOME, beyond]))
+    assert np.isfinite(cond[0]) and np.isnan(cond[1]) and np.isnan(inv[1])
+    theta = kinematics.ik(geometry, X_HOME)
+    np.testing.assert_array_equal(
+        kinematics.singularity_measures(geometry, X_HOME, theta),
+        kinematics.singularity_measures(geometry, X_HOME),
+    )
+
+
+def test_the_first_unreachable_pose_is_named_with_its_time_and_leg(geometry):
+    """In a batch, the error names the first unreachable pose, its time and its first leg out of
+    reach, with that leg's |ratio|."""
+    x = np.stack([X_HOME] * 4)
+    x[2, 5] = 0.5
+    x[3, 5] = 0.6
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    with pytest.raises(UnreachablePoseError) as err:
+        kinematics.ik(geometry, x, t)
+    ratio = kinematics.leg_reach_ratio(geometry, x[2])
+    leg = int(np.argmax(np.abs(ratio) > 1))
+    assert err.value.leg == leg
+    assert err.value.ratio == pytest.approx(abs(ratio[leg]), rel=1e-14)
+    assert err.value.t == pytest.approx(0.2)
+    np.testing.assert_array_equal(err.value.pose, x[2])
+
+
+def test_a_quantity_not_finite_is_named_at_its_first_pose(geometry):
+    """finite_or_singular: the value back when finite; else SingularPoseError with the first
+    pose whose rows are not all finite."""
+    x = np.stack([X_HOME + 0.01 * k for k in range(3)])
+    value = np.ones((3, 6, 6))
+    assert kinematics.finite_or_singular("J", value, x) is value
+    value[1, 4, 2] = np.inf
+    value[2, 0, 0] = np.nan
+    with pytest.raises(SingularPoseError) as err:
+        kinematics.finite_or_singular("J", value, x)
+    np.testing.assert_array_equal(err.value.pose, x[1])
+    assert err.value.measure == "J" and err.value.value == np.inf

@@ -4,8 +4,9 @@ energy, the crank rates of motor_effort, the gravity feed-forward."""
 
 import numpy as np
 import pytest
+from conftest import drawn_robot
 
-from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.base.errors import InvalidConfigError, SingularPoseError
 from stewart_drake.plant.closed_chain import assemble
 from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot import kinematics, statics
@@ -13,27 +14,30 @@ from stewart_drake.robot.geometry import X_HOME
 from stewart_drake.robot.servo import ServoModel
 
 
+def potential_energy(g, x):
+    """V of platform, cranks and rods at pose x (6,), from the joints alone (COMs at the
+    geometric centres), in J: independent of statics' virtual-work formulas."""
+    th = kinematics.ik(g, x)
+    q_B, _ = kinematics.platform_joints(g, x)
+    tip = g.crank_tips(th)
+    z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
+    return g.gravity * (
+        g.platform_mass * x[5]
+        + g.crank_mass * z_crank.sum()
+        + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
+    )
+
+
 def test_holding_torques_do_no_net_virtual_work(geometry, random_poses):
     """Energy balance: T . d theta = dV for a small motion, from an independent potential."""
     rng = np.random.default_rng(2)
     g = geometry
 
-    def potential(x):
-        th = kinematics.ik(g, x)
-        q_B, _ = kinematics.platform_joints(g, x)
-        tip = g.crank_tips(th)
-        z_crank = g.pivot_z + 0.5 * g.crank_length * np.sin(th)
-        return g.gravity * (
-            g.platform_mass * x[5]
-            + g.crank_mass * z_crank.sum()
-            + g.rod_mass * 0.5 * (tip[:, 2] + q_B[:, 2]).sum()
-        )
-
     for x in random_poses[:20]:
         T = statics.holding_torques(g, x)
         dx = 1e-6 * rng.normal(size=6)
         d_theta = kinematics.ik(g, x + dx) - kinematics.ik(g, x - dx)
-        dV = potential(x + dx) - potential(x - dx)
+        dV = potential_energy(g, x + dx) - potential_energy(g, x - dx)
         assert abs(T @ d_theta - dV) < 1e-6 * abs(dV) + 1e-12
 
 
@@ -120,3 +124,218 @@ def test_motor_effort_rates_are_the_ik_s_derivative_and_friction_adds_on_top(
             servo.viscous_damping * theta_dot + servo.coulomb_friction_Nm * np.sign(theta_dot),
             atol=1e-12,
         )
+
+
+def _energy_along(geometry, path, t):
+    """Kinetic + potential energy of the closed chain at time t of ``path`` (t -> x), the rates
+    by central differences: E = 1/2 x_dot^T M_x x_dot + V, V from the poses alone."""
+    h = 1e-5
+    x = path(t)
+    x_dot = (path(t + h) - path(t - h)) / (2 * h)
+    V = potential_energy(geometry, x)
+    return 0.5 * x_dot @ statics.task_inertia(geometry, x) @ x_dot + V
+
+
+def test_inverse_dynamics_torques_deliver_the_power_the_energy_takes(geometry):
+    """Power balance along a smooth motion: T . theta_dot = dE/dt, E the kinetic (task inertia)
+    plus potential energy, dE/dt by a central difference in time: every term of
+    T = J^-T (M_x x_ddot + c + dV/dx) counts, the Coriolis term's 1/2 included."""
+    amplitude = np.array([0.2, -0.15, 0.25, 0.02, -0.015, 0.02])
+    omega = np.array([2.0, 3.0, 1.5, 2.5, 1.0, 3.5])
+
+    def path(t):
+        return X_HOME + amplitude * np.sin(omega * t + 0.3)
+
+    for t in (0.1, 0.7, 1.3):
+        x = path(t)
+        x_dot = amplitude * omega * np.cos(omega * t + 0.3)
+        x_ddot = -amplitude * omega**2 * np.sin(omega * t + 0.3)
+        T = statics.inverse_dynamics_torques(geometry, x, x_dot, x_ddot)
+        theta_dot = kinematics.jacobian(geometry, x) @ x_dot
+        dt = 1e-4
+        dE = (_energy_along(geometry, path, t + dt) - _energy_along(geometry, path, t - dt)) / (
+            2 * dt
+        )
+        assert T @ theta_dot == pytest.approx(dE, rel=2e-5, abs=1e-7)
+
+
+def test_coriolis_forces_are_quadratic_and_do_half_the_inertia_s_rate_of_work(
+    geometry, random_poses
+):
+    """x_dot . c = 1/2 x_dot^T (dM_x/dt) x_dot (the velocity-product forces of a Lagrangian), with
+    dM_x/dt by a central difference along x_dot, and c(x, 2 x_dot) = 4 c(x, x_dot)."""
+    rng = np.random.default_rng(8)
+    for x in random_poses[:6]:
+        x_dot = rng.normal(size=6) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+        c = statics.coriolis_forces(geometry, x, x_dot)
+        h = 1e-6
+        M_dot = (
+            statics.task_inertia(geometry, x + h * x_dot)
+            - statics.task_inertia(geometry, x - h * x_dot)
+        ) / (2 * h)
+        assert x_dot @ c == pytest.approx(0.5 * x_dot @ M_dot @ x_dot, rel=1e-4)
+        np.testing.assert_allclose(
+            statics.coriolis_forces(geometry, x, 2 * x_dot), 4 * c, rtol=1e-9, atol=1e-12
+        )
+
+
+def test_gravity_gradient_is_the_potential_s_gradient_and_the_holding_wrench(
+    geometry, random_poses
+):
+    """dV/dx against central differences of an independent potential, axis by axis, and
+    J^T T_hold = dV/dx; passing theta and J changes nothing."""
+    g = geometry
+
+    for x in random_poses[:5]:
+        grad = statics.gravity_gradient(g, x)
+        h = 1e-6
+        fd = [
+            (potential_energy(g, x + h * e) - potential_energy(g, x - h * e)) / (2 * h)
+            for e in np.eye(6)
+        ]
+        np.testing.assert_allclose(grad, fd, rtol=1e-6, atol=1e-7)
+        theta = kinematics.ik(g, x)
+        J = kinematics.jacobian(g, x, theta)
+        assert np.array_equal(statics.gravity_gradient(g, x, theta, J), grad)
+        np.testing.assert_allclose(J.T @ statics.holding_torques(g, x), grad, atol=1e-10)
+
+
+def test_crank_inertia_gives_the_kinetic_energy_in_crank_rates(geometry, random_poses):
+    """1/2 theta_dot^T M_theta theta_dot = 1/2 x_dot^T M_x x_dot for theta_dot = J x_dot, at home
+    (the default pose) and elsewhere; M_theta symmetric positive definite."""
+    rng = np.random.default_rng(9)
+    for x in (X_HOME, *random_poses[:4]):
+        M_theta = (
+            statics.crank_inertia_matrix(geometry)
+            if x is X_HOME
+            else statics.crank_inertia_matrix(geometry, x)
+        )
+        x_dot = rng.normal(size=6) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+        theta_dot = kinematics.jacobian(geometry, x) @ x_dot
+        M_x = statics.task_inertia(geometry, x)
+        assert theta_dot @ M_theta @ theta_dot == pytest.approx(x_dot @ M_x @ x_dot, rel=1e-10)
+        np.testing.assert_allclose(M_theta, M_theta.T, rtol=1e-10, atol=1e-14)
+        assert np.all(np.linalg.eigvalsh(M_theta) > 0)
+
+
+def test_task_inertia_of_legs_with_their_own_shaft_inertias_adds_each_shaft_s_energy():
+    """On a robot whose shaft inertias differ leg by leg, a rotor inertia dI reflected at every
+    shaft adds exactly dI J^T J to M_x: the per-leg sum J^T diag(I_shaft) J, not another
+    product."""
+    robot = drawn_robot()
+    assert np.ptp(robot.shaft_inertias) > 0
+    x = X_HOME + np.array([0.1, -0.05, 0.08, 0.01, -0.01, 0.005])
+    d_I = 3e-4
+    J = kinematics.jacobian(robot, x)
+    heavier = robot.replace(motor_reflected_inertia=d_I)
+    np.testing.assert_allclose(
+        statics.task_inertia(heavier, x) - statics.task_inertia(robot, x),
+        d_I * J.T @ J,
+        rtol=1e-9,
+        atol=1e-15,
+    )
+
+
+def test_a_batch_of_poses_gives_each_pose_s_own_statics_and_dynamics(geometry, random_poses):
+    """The batched forms, (n, 6) poses and (2, n, 6) stacks, give each pose what the pose alone
+    gives: holding torques, task inertia, the feed-forward of every mode (the unchecked form
+    with the motor angles given too) and the inverse dynamics."""
+    rng = np.random.default_rng(11)
+    x = random_poses[:4]
+    x_dot = rng.normal(size=(4, 6)) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+    x_ddot = rng.normal(size=(4, 6)) * [2.0, 2.0, 2.0, 0.2, 0.2, 0.2]
+    theta = kinematics.ik(geometry, x)
+    stacked = np.stack([x, x[::-1]])
+    np.testing.assert_allclose(
+        statics.holding_torques(geometry, stacked)[1],
+        [statics.holding_torques(geometry, p) for p in x[::-1]],
+        rtol=1e-12,
+    )
+    np.testing.assert_allclose(
+        statics.task_inertia(geometry, stacked)[0],
+        [statics.task_inertia(geometry, p) for p in x],
+        rtol=1e-12,
+        atol=1e-15,
+    )
+    one_by_one = [statics.inverse_dynamics_torques(geometry, *a) for a in zip(x, x_dot, x_ddot)]
+    np.testing.assert_allclose(
+        statics.inverse_dynamics_torques(geometry, x, x_dot, x_ddot), one_by_one, rtol=1e-9
+    )
+    np.testing.assert_allclose(
+        statics.feedforward_torques(geometry, x, x_ddot, "inverse_dynamics", xd_d=x_dot),
+        one_by_one,
+        rtol=1e-9,
+    )
+    without_rates = [
+        statics.inverse_dynamics_torques(geometry, p, np.zeros(6), a) for p, a in zip(x, x_ddot)
+    ]
+    np.testing.assert_allclose(
+        statics.feedforward_unchecked(geometry, x, theta, x_ddot, "inverse_dynamics"),
+        without_rates,
+        rtol=1e-9,
+    )
+    np.testing.assert_allclose(
+        statics.feedforward_unchecked(geometry, x, theta),
+        statics.holding_torques(geometry, x),
+        rtol=1e-12,
+    )
+    assert np.array_equal(statics.feedforward_torques(geometry, x, mode="none"), np.zeros((4, 6)))
+    assert np.array_equal(
+        statics.feedforward_unchecked(geometry, x, theta, mode="none"), np.zeros((4, 6))
+    )
+    with pytest.raises(InvalidConfigError, match="xdd_d"):
+        statics.feedforward_unchecked(geometry, x, theta, None, "inverse_dynamics")
+
+
+def test_the_compiled_effort_is_the_numpy_effort(geometry, random_poses):
+    """motor_effort_compiled (pose by pose, compiled) against motor_effort_of, with and
+    without a servo's friction."""
+    rng = np.random.default_rng(12)
+    x = random_poses[:5]
+    x_dot = rng.normal(size=(5, 6)) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+    x_ddot = rng.normal(size=(5, 6)) * [2.0, 2.0, 2.0, 0.2, 0.2, 0.2]
+    theta = kinematics.ik(geometry, x)
+    J = kinematics.jacobian(geometry, x, theta)
+    terms = kinematics.leg_terms(geometry, x, theta)
+    for servo in (None, ServoModel()):
+        T_c, rate_c = statics.motor_effort_compiled(geometry, x, x_dot, x_ddot, servo, theta, J)
+        T, rate = statics.motor_effort_of(geometry, x, x_dot, x_ddot, servo, terms, J)
+        np.testing.assert_allclose(rate_c, rate, rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(T_c, T, rtol=0, atol=1e-8 * np.abs(T).max())
+
+
+def test_task_inertia_of_one_pose_from_the_single_pose_cache_is_the_batched_one(
+    geometry, random_poses
+):
+    from stewart_drake.robot.single_pose import ik_single, jacobian_single
+
+    for x in random_poses[:3]:
+        _, cache = ik_single(geometry, x)
+        J = jacobian_single(geometry, cache)
+        np.testing.assert_allclose(
+            statics.task_inertia_single(geometry, cache, J),
+            statics.task_inertia(geometry, x),
+            rtol=1e-12,
+            atol=1e-15,
+        )
+
+
+def test_a_pose_whose_jacobian_is_exactly_singular_is_named_when_no_torques_hold_it(
+    geometry, random_poses, monkeypatch
+):
+    """J^T singular at one pose of a batch (one leg's row zeroed, as if the leg gave no
+    motion): SingularPoseError on cond, infinite, at the pose whose J is singular."""
+    x = random_poses[:3]
+    jacobian_of = statics.jacobian_of
+
+    def one_singular(geometry, terms):
+        J = jacobian_of(geometry, terms).copy()
+        J[1, 2, :] = 0.0
+        return J
+
+    monkeypatch.setattr(statics, "jacobian_of", one_singular)
+    with pytest.raises(SingularPoseError) as err:
+        statics.holding_torques(geometry, x)
+    assert err.value.measure == "cond" and err.value.value == np.inf
+    assert err.value.threshold == kinematics.DEFAULT_COND_THRESHOLD
+    np.testing.assert_array_equal(err.value.pose, x[1])

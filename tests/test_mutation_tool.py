@@ -1,0 +1,51 @@
+"""tools/mutation.py's module table: every module and test file it names exists, so the table
+cannot rot when a module or a test file is renamed (the tool itself is not run by CI)."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _tool():
+    spec = importlib.util.spec_from_file_location("mutation_tool", REPO / "tools" / "mutation.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+mutation = _tool()
+
+
+@pytest.mark.parametrize("module", sorted(mutation.MODULES))
+def test_the_table_names_existing_modules_and_test_files(module):
+    assert (REPO / module).is_file(), module
+    tests = mutation.MODULES[module]
+    assert tests, f"{module} has no tests"
+    for test in tests:
+        assert (REPO / test).is_file(), test
+        assert Path(test).name.startswith("test_"), test
+
+
+def test_the_module_names_are_unique_as_the_command_line_gives_them():
+    stems = [Path(m).stem for m in mutation.MODULES]
+    assert len(stems) == len(set(stems))
+
+
+def test_the_accounts_name_modules_of_the_table():
+    modules = {m.removesuffix(".py").replace("/", ".") for m in mutation.MODULES}
+    for name in mutation.load_accounts():
+        assert any(name.startswith(m + ".") for m in modules), name
+
+
+def test_the_mutmut_section_selects_the_module_and_its_tests_only():
+    import tomllib
+
+    section = tomllib.loads(
+        mutation.mutmut_section("stewart_drake/robot/statics.py", ("tests/test_statics.py",))
+    )["tool"]["mutmut"]
+    assert section["only_mutate"] == ["stewart_drake/robot/statics.py"]
+    assert section["pytest_add_cli_args_test_selection"] == ["tests/test_statics.py"]
+    assert section["tests_dir"] == []

@@ -1,0 +1,481 @@
+"""Mutation testing of the core numeric modules: for each module of :data:`MODULES`, mutmut
+changes it one small edit at a time (an operator, a number, an argument) and runs only that
+module's fast unit tests against each change; a mutant no test fails on is a wrong number the
+tests would let through. Writes the score per module and every survivor with its account.
+
+    pip install -e ".[test,mutation]"
+    python tools/mutation.py                          # all modules: docs/mutation.md
+    python tools/mutation.py --module statics         # one module (a key's last part)
+    python tools/mutation.py --out /tmp/mutation.md   # elsewhere
+    python tools/mutation.py --work /tmp/mut          # keep the scratch copies there
+
+Not run by CI (a full run takes minutes per module). Each module is mutated in a scratch copy of
+the working tree (the tracked folders below, with a ``[tool.mutmut]`` section added to its
+pyproject.toml), never in the tree itself, with ``NUMBA_DISABLE_JIT=1``: the compiled kernels run
+as the Python they are written in, so a mutant costs no compilation and the tests see it. mutmut
+does not mutate decorated functions, so in the scratch copy the ``@_njit`` lines of a module are
+removed (with the JIT off, ``_njit`` returns the function itself: the same code runs). mutmut
+forks one process per mutant and runs only the tests that called the mutated function; a mutant
+whose tests take longer than 2 times their clean time plus 3 s counts as a timeout (killed).
+
+The score is (killed + timeouts) / mutants, a mutant no selected test calls ("no tests") counted
+as a survivor. Each survivor is listed with its diff and its account from :data:`ACCOUNTS_FILE`
+(a TOML table, mutant name -> why it survives: equivalent, or not worth a test); a survivor
+without one is listed as unaccounted. tests/test_mutation_tool.py checks that the table names
+existing modules and test files.
+"""
+
+import argparse
+import ast
+import difflib
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tqdm import tqdm
+
+REPO = Path(__file__).resolve().parent.parent
+
+#: Module (from the repository's top) -> the fast unit test files that guard it.
+MODULES = {
+    "stewart_drake/robot/kinematics.py": ("tests/test_kinematics.py",),
+    "stewart_drake/robot/forward_kinematics.py": ("tests/test_fk.py",),
+    "stewart_drake/robot/statics.py": ("tests/test_statics.py",),
+    "stewart_drake/references/trajectories.py": ("tests/test_trajectories.py",),
+    "stewart_drake/control/lqi/gain.py": ("tests/test_lqi.py",),
+    "stewart_drake/control/lqi/step.py": ("tests/test_lqi_step.py",),
+    "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
+}
+#: What the scratch copy holds: the package, the tests and what they read.
+COPIED = ("stewart_drake", "tests", "tools", "sdf", "scenarios", "docs", "README.md")
+#: The survivors' accounts: ``"<mutant name>" = "why it survives"``.
+ACCOUNTS_FILE = REPO / "tools" / "mutation_accounts.toml"
+#: A mutant's tests may take this many times their clean run, plus TIMEOUT_CONSTANT_S.
+TIMEOUT_MULTIPLIER = 2.0
+TIMEOUT_CONSTANT_S = 3.0
+#: The longest a module's run may take, s.
+MODULE_TIMEOUT_S = 1500
+#: A decorator line the scratch copy drops (the house's numba wrapper).
+_NJIT_LINE = re.compile(r"^\s*@_njit\s*$")
+#: mutmut's progress line: "⠋ 838/859  🎉 481 🫥 163  ⏰ 0  🤔 0  🙁 194 ...".
+_PROGRESS = re.compile(r"(\d+)/(\d+)\s")
+
+
+@dataclass
+class Mutant:
+    """One mutant: its mutmut name, status and diff against the original function."""
+
+    name: str
+    status: str
+    diff: str = ""
+
+
+@dataclass
+class ModuleResult:
+    """A module's run: its mutants and how long mutmut took (s)."""
+
+    module: str
+    tests: tuple
+    mutants: list[Mutant] = field(default_factory=list)
+    seconds: float = 0.0
+    error: str = ""
+
+    def count(self, *statuses: str) -> int:
+        return sum(m.status in statuses for m in self.mutants)
+
+    @property
+    def killed(self) -> int:
+        return self.count("killed")
+
+    @property
+    def timeouts(self) -> int:
+        return self.count("timeout")
+
+    @property
+    def survivors(self) -> list[Mutant]:
+        return [m for m in self.mutants if m.status not in ("killed", "timeout", "skipped")]
+
+    @property
+    def score(self) -> float:
+        counted = len(self.mutants) - self.count("skipped")
+        return (self.killed + self.timeouts) / counted if counted else float("nan")
+
+
+def mutmut_section(module: str, tests: tuple) -> str:
+    """The ``[tool.mutmut]`` section that mutates ``module`` only, against ``tests`` only."""
+    return "\n".join(
+        [
+            "",
+            "[tool.mutmut]",
+            'source_paths = ["stewart_drake/"]',
+            f"only_mutate = {json.dumps([module])}",
+            "tests_dir = []",
+            f"pytest_add_cli_args_test_selection = {json.dumps(list(tests))}",
+            # One process, no xdist, no cache folder; the fast tier only.
+            'pytest_add_cli_args = ["-p", "no:cacheprovider", "-p", "no:xdist", "-o", '
+            '"addopts=", "-m", "not slow"]',
+            f"also_copy = {json.dumps([f'{p}/' if (REPO / p).is_dir() else p for p in COPIED])}",
+            "use_git_change_detection = false",
+            f"timeout_multiplier = {TIMEOUT_MULTIPLIER}",
+            f"timeout_constant = {TIMEOUT_CONSTANT_S}",
+            "",
+        ]
+    )
+
+
+def scratch_copy(module: str, tests: tuple, folder: Path) -> None:
+    """Copy the working tree's :data:`COPIED` into ``folder``, with the mutmut section added to
+    pyproject.toml and the ``@_njit`` lines of ``module`` removed."""
+    if folder.exists():
+        shutil.rmtree(folder)
+    folder.mkdir(parents=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", "mutants", ".pytest_cache")
+    for name in COPIED:
+        source = REPO / name
+        if source.is_dir():
+            shutil.copytree(source, folder / name, ignore=ignore)
+        else:
+            shutil.copy2(source, folder / name)
+    pyproject = (REPO / "pyproject.toml").read_text()
+    (folder / "pyproject.toml").write_text(pyproject + mutmut_section(module, tests))
+    target = folder / module
+    lines = target.read_text().splitlines(keepends=True)
+    target.write_text("".join(line for line in lines if not _NJIT_LINE.match(line)))
+
+
+def run_mutmut(folder: Path, label: str) -> tuple[int, str]:
+    """Run ``mutmut run`` in ``folder`` with the JIT off, at low priority, showing its progress
+    as a tqdm bar; returns (exit code, its output)."""
+    env = dict(os.environ, NUMBA_DISABLE_JIT="1")
+    mutmut = [sys.executable, "-m", "mutmut", "run"]
+    process = subprocess.Popen(
+        ["nice", "-n", "10", *mutmut],
+        cwd=folder,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+    )
+    assert process.stdout is not None
+    output = bytearray()
+    bar = tqdm(total=0, desc=label, unit="mutant")
+    start = time.monotonic()
+    while True:
+        chunk = process.stdout.read1(4096)
+        if not chunk:
+            break
+        output += chunk
+        found = _PROGRESS.findall(chunk.decode("utf-8", "replace"))
+        if found:
+            done, total = (int(v) for v in found[-1])
+            bar.total = total
+            bar.n = done
+            bar.refresh()
+        if time.monotonic() - start > MODULE_TIMEOUT_S:
+            process.kill()
+            break
+    bar.close()
+    return process.wait(), output.decode("utf-8", "replace")
+
+
+def _functions(tree: ast.Module) -> dict[str, ast.FunctionDef]:
+    """Every function of a mutated module by name, methods included (mutmut names a method's
+    variants ``xǁClassǁmethod__mutmut_N``, at the class's level)."""
+    out = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef):
+            out[node.name] = node
+    return out
+
+
+def mutant_diff(source: str, functions: dict, name: str) -> str:
+    """The unified diff of mutant ``name`` against its original, from mutmut's mutated file."""
+    short = name.rsplit(".", 1)[-1]
+    base = short.rsplit("__mutmut_", 1)[0]
+    original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
+    if original is None or mutant is None:
+        return ""
+    a = (ast.get_source_segment(source, original) or "").splitlines()[1:]
+    b = (ast.get_source_segment(source, mutant) or "").splitlines()[1:]
+    return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
+
+
+def read_results(module: str, tests: tuple, folder: Path) -> ModuleResult:
+    """The mutants of ``module`` with their status (mutmut's ``.meta`` file) and diffs."""
+    from mutmut.stats import status_by_exit_code
+
+    result = ModuleResult(module, tests)
+    mutated = folder / "mutants" / module
+    meta = json.loads(mutated.with_name(mutated.name + ".meta").read_text())
+    source = mutated.read_text()
+    functions = _functions(ast.parse(source))
+    for name, code in sorted(meta["exit_code_by_key"].items(), key=lambda kv: _natural(kv[0])):
+        status = status_by_exit_code[code] if code is not None else "not checked"
+        diff = mutant_diff(source, functions, name) if status not in ("killed",) else ""
+        result.mutants.append(Mutant(name, status, diff))
+    return result
+
+
+def _natural(name: str) -> tuple:
+    base, _, n = name.rpartition("__mutmut_")
+    return (base, int(n) if n.isdigit() else 0)
+
+
+def run_module(module: str, tests: tuple, work: Path) -> ModuleResult:
+    """Mutate ``module`` against ``tests`` in a scratch copy under ``work``."""
+    folder = work / Path(module).stem
+    scratch_copy(module, tests, folder)
+    start = time.monotonic()
+    code, output = run_mutmut(folder, Path(module).stem)
+    seconds = time.monotonic() - start
+    try:
+        result = read_results(module, tests, folder)
+    except (OSError, ValueError) as err:
+        result = ModuleResult(module, tests, error=f"{err}; mutmut exit {code}: {output[-2000:]}")
+    result.seconds = seconds
+    return result
+
+
+#: Accounts that hold for every mutant of a kind, read from its diff: (what the kind is, a test
+#: of the removed and the added line, the account). Each was read on the survivors it matches.
+_EINSUM = re.compile(r'"[.a-z,]*->[.a-z]*"')
+_STRING = re.compile(r'"[^"]*"')
+
+
+def _einsum_renamed(old: str, new: str) -> bool:
+    return any(old.replace(s, s.upper()) == new for s in _EINSUM.findall(old))
+
+
+def _dtype_float_dropped(old: str, new: str) -> bool:
+    return "dtype=float" in old and new in (
+        old.replace("dtype=float", "dtype=None"),
+        old.replace(", dtype=float", ", "),
+    )
+
+
+def _words_changed(old: str, new: str) -> bool:
+    """A string of words (a message, a label) made XX..XX, upper or lower case, or None."""
+    for s in _STRING.findall(old):
+        words = s[1:-1]
+        if " " not in words.strip() and not words.endswith(("'", ":")):
+            continue
+        variants = (f'"XX{words}XX"', f'"{words.upper()}"', f'"{words.lower()}"', "None")
+        if any(old.replace(s, v, 1) == new for v in variants):
+            return True
+    return False
+
+
+def _singular_name_changed(old: str, new: str) -> bool:
+    """The first argument of finite_or_singular (the quantity a SingularPoseError names)."""
+    if "finite_or_singular(" not in old:
+        return False
+    name = re.search(r'finite_or_singular\(("[^"]*")', old)
+    if not name:
+        return False
+    s = name.group(1)
+    return any(
+        old.replace(s, v, 1) == new for v in (f'"XX{s[1:-1]}XX"', s.upper(), s.lower(), "None")
+    )
+
+
+def _reshape_minus_two(old: str, new: str) -> bool:
+    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest)."""
+    return any(
+        old.replace(a, b, 1) == new
+        for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
+        if a in old and "reshape(" in old
+    )
+
+
+def _errstate_changed(old: str, new: str) -> bool:
+    """Which floating-point warnings numpy keeps quiet: never a number."""
+    return old.startswith("with np.errstate(") and new.startswith("with np.errstate(")
+
+
+def _theta_recomputed(old: str, new: str) -> bool:
+    """The motor angles a caller passes dropped, so that the IK computes them again."""
+    return (
+        new in (old.replace(", theta)", ", None)", 1), old.replace(", theta)", ", )", 1))
+        or new == old.replace("(theta is None)", "(theta is None) or True", 1)
+        or new == old.replace("if theta is None", "if (theta is None) or True", 1)
+    ) and new != old
+
+
+def _slice_past_the_pose(old: str, new: str) -> bool:
+    """A slice of a pose's last axis (6 values) made to end past it: x[..., :3] -> :4 where
+    only the first three are read, 3:6 -> 3:7."""
+    return any(old.replace(a, b, 1) == new for a, b in (("3:6]", "3:7]"), ("3:]", "3:7]"))) or (
+        old.replace("[..., :3])", "[..., :4])", 1) == new and "rotation_rpy" in old
+    )
+
+
+RULES = (
+    (
+        _theta_recomputed,
+        "equivalent for every caller: they pass theta = ik(x), and without it the IK gives the "
+        "same angles again",
+    ),
+    (
+        _slice_past_the_pose,
+        "equivalent: the slice ends past the pose's six values, or the function reads only the "
+        "first three of the four (roll, pitch, yaw)",
+    ),
+    (
+        _reshape_minus_two,
+        "equivalent: numpy reads any negative size in reshape as the rest, -2 as -1",
+    ),
+    (
+        _errstate_changed,
+        "equivalent: np.errstate only chooses which floating-point warnings numpy prints; "
+        "the numbers are the same",
+    ),
+    (
+        _einsum_renamed,
+        "equivalent: the einsum subscripts renamed in upper case, the same contraction",
+    ),
+    (
+        _dtype_float_dropped,
+        "equivalent for the float arrays every caller passes: the dtype only changes integer "
+        "input, which the arithmetic after it makes float anyway",
+    ),
+    (
+        _singular_name_changed,
+        "not worth a test: the name of the quantity a SingularPoseError gives in its message "
+        "(the error itself is raised either way)",
+    ),
+    (
+        _words_changed,
+        "not worth a test: the words of a message or a label, not a number",
+    ),
+)
+
+
+def rule_account(diff: str) -> str | None:
+    """The account of a one-line mutant that one of :data:`RULES` explains, else None."""
+    old = [line[1:].strip() for line in diff.splitlines() if line.startswith("-")]
+    new = [line[1:].strip() for line in diff.splitlines() if line.startswith("+")]
+    if len(old) != 1 or len(new) != 1:
+        return None
+    for test, account in RULES:
+        if test(old[0], new[0]):
+            return account
+    return None
+
+
+def load_accounts(path: Path = ACCOUNTS_FILE) -> dict[str, str]:
+    """The survivors' accounts, mutant name -> account ({} when the file does not exist)."""
+    return tomllib.loads(path.read_text()) if path.exists() else {}
+
+
+def report(results: list[ModuleResult], accounts: dict[str, str], before: dict | None) -> str:
+    """The Markdown report: a table of the scores (and an earlier run's, ``before``: the
+    ``--json`` it wrote, when given), then each module's survivors with diffs and accounts."""
+    lines = [
+        "# Mutation testing of the core numeric modules",
+        "",
+        "Written by `python tools/mutation.py` (mutmut, `NUMBA_DISABLE_JIT=1`; how and why in the "
+        "tool's docstring and docs/development.md). Score = (killed + timeouts) / mutants; a "
+        "mutant no selected test calls counts as a survivor.",
+        "",
+        "| module | tests | mutants | killed | timeouts | survived | no tests | score | run, s |",
+        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in results:
+        tests = ", ".join(Path(t).name for t in r.tests)
+        lines.append(
+            f"| `{r.module}` | {tests} | {len(r.mutants)} | {r.killed} | {r.timeouts} | "
+            f"{r.count('survived')} | {r.count('no tests')} | {100 * r.score:.1f} % | "
+            f"{r.seconds:.0f} |"
+        )
+    total = sum(r.seconds for r in results)
+    lines += ["", f"The whole run took {total / 60:.1f} min on this machine.", ""]
+    if before:
+        lines += [
+            "Before the tests added for the survivors (the same run on the tests as they were):",
+            "",
+            "| module | mutants | killed + timeouts | score before | score after |",
+            "| --- | ---: | ---: | ---: | ---: |",
+        ]
+        after = {r.module: r for r in results}
+        for module, b in before.items():
+            statuses = list(b["mutants"].values())
+            k = sum(s in ("killed", "timeout") for s in statuses)
+            n = sum(s != "skipped" for s in statuses)
+            r = after.get(module)
+            lines.append(
+                f"| `{module}` | {len(statuses)} | {k} | {100 * k / max(n, 1):.1f} % | "
+                + (f"{100 * r.score:.1f} % |" if r else "not run again |")
+            )
+        lines.append("")
+    for r in results:
+        lines += [f"## Survivors in `{r.module}`", ""]
+        if r.error:
+            lines += ["The run failed:", "", "```", r.error, "```", ""]
+            continue
+        survivors = r.survivors
+        if not survivors:
+            lines += ["None.", ""]
+        unaccounted = [
+            m for m in survivors if m.name not in accounts and rule_account(m.diff) is None
+        ]
+        if unaccounted:
+            lines += [f"{len(unaccounted)} of {len(survivors)} without an account.", ""]
+        for m in survivors:
+            account = accounts.get(m.name) or rule_account(m.diff) or "**unaccounted**"
+            short = m.name.rsplit(".", 1)[-1]  # the module is the section's
+            lines += [f"- `{short}` ({m.status}): {account}", "", "  ```diff"]
+            lines += [f"  {d}" for d in m.diff.splitlines()] + ["  ```", ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--module", action="append", help="a module's file stem (repeatable)")
+    parser.add_argument("--out", type=Path, default=REPO / "docs" / "mutation.md")
+    parser.add_argument("--work", type=Path, help="folder for the scratch copies (kept)")
+    parser.add_argument(
+        "--json", type=Path, help="also write the mutants' names and statuses as JSON here"
+    )
+    parser.add_argument(
+        "--before", type=Path, help="an earlier run's --json, whose scores the report gives too"
+    )
+    args = parser.parse_args(argv)
+    chosen = {m: t for m, t in MODULES.items() if not args.module or Path(m).stem in args.module}
+    if not chosen:
+        parser.error(f"no module {args.module}: one of {[Path(m).stem for m in MODULES]}")
+    work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
+    results = [run_module(m, t, work) for m, t in chosen.items()]
+    before = json.loads(args.before.read_text()) if args.before else None
+    args.out.write_text(report(results, load_accounts(), before))
+    if args.json:
+        args.json.write_text(
+            json.dumps(
+                {
+                    r.module: {
+                        "seconds": r.seconds,
+                        "mutants": {m.name: m.status for m in r.mutants},
+                    }
+                    for r in results
+                },
+                indent=1,
+            )
+        )
+    for r in results:
+        print(
+            f"{r.module}: {len(r.mutants)} mutants, {r.killed} killed, {r.timeouts} timeouts, "
+            f"{len(r.survivors)} survivors, score {100 * r.score:.1f} % ({r.seconds:.0f} s)"
+        )
+    if not args.work:
+        shutil.rmtree(work, ignore_errors=True)
+    return 0 if all(not r.error for r in results) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
