@@ -42,6 +42,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from stewart_drake.base.tables import markdown_lines
+
 REPO = Path(__file__).resolve().parent.parent
 
 #: Module (from the repository's top) -> the fast unit test files that guard it.
@@ -384,35 +386,41 @@ def report(results: list[ModuleResult], accounts: dict[str, str], before: dict |
         "tool's docstring and docs/development.md). Score = (killed + timeouts) / mutants; a "
         "mutant no selected test calls counts as a survivor.",
         "",
-        "| module | tests | mutants | killed | timeouts | survived | no tests | score | run, s |",
-        "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    for r in results:
-        tests = ", ".join(Path(t).name for t in r.tests)
-        lines.append(
-            f"| `{r.module}` | {tests} | {len(r.mutants)} | {r.killed} | {r.timeouts} | "
-            f"{r.count('survived')} | {r.count('no tests')} | {100 * r.score:.1f} % | "
-            f"{r.seconds:.0f} |"
-        )
+    header = ["module", "tests", "mutants", "killed", "timeouts", "survived", "no tests"]
+    rows = [
+        [
+            f"`{r.module}`",
+            ", ".join(Path(t).name for t in r.tests),
+            len(r.mutants),
+            r.killed,
+            r.timeouts,
+            r.count("survived"),
+            r.count("no tests"),
+            f"{100 * r.score:.1f} %",
+            f"{r.seconds:.0f}",
+        ]
+        for r in results
+    ]
+    lines += markdown_lines(header + ["score", "run, s"], rows, [None, None] + ["right"] * 7)
     total = sum(r.seconds for r in results)
     lines += ["", f"The whole run took {total / 60:.1f} min on this machine.", ""]
     if before:
         lines += [
             "Before the tests added for the survivors (the same run on the tests as they were):",
             "",
-            "| module | mutants | killed + timeouts | score before | score after |",
-            "| --- | ---: | ---: | ---: | ---: |",
         ]
         after = {r.module: r for r in results}
+        rows = []
         for module, b in before.items():
             statuses = list(b["mutants"].values())
             k = sum(s in ("killed", "timeout") for s in statuses)
             n = sum(s != "skipped" for s in statuses)
             r = after.get(module)
-            lines.append(
-                f"| `{module}` | {len(statuses)} | {k} | {100 * k / max(n, 1):.1f} % | "
-                + (f"{100 * r.score:.1f} % |" if r else "not run again |")
-            )
+            score = f"{100 * r.score:.1f} %" if r else "not run again"
+            rows.append([f"`{module}`", len(statuses), k, f"{100 * k / max(n, 1):.1f} %", score])
+        header = ["module", "mutants", "killed + timeouts", "score before", "score after"]
+        lines += markdown_lines(header, rows, [None] + ["right"] * 4)
         lines.append("")
     for r in results:
         lines += [f"## Survivors in `{r.module}`", ""]
