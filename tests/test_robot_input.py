@@ -70,6 +70,17 @@ def _z_mm(summary: str) -> float:
     return float(re.search(r"Z ([-+\d.]+) mm", summary).group(1))
 
 
+def _home_on_the_emulator(tmp_path) -> tuple[int, list]:
+    """(exit code, each servo's torque enable after) of ``robot home`` for 0.3 s on the
+    emulator in this process."""
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
+        argv += ["--no-progress", "--out", str(tmp_path)]
+        code = main(argv)
+        return code, [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+
+
 def _kill_then(signum, original):
     """``original`` with ``signum`` sent to this process first (the handler runs in it)."""
 
@@ -132,12 +143,7 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
 
     monkeypatch.setattr(driver.DynamixelBus, "open", recorded_open)
     inject(monkeypatch, signum)
-    with _emulator() as emu:
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
-        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
-        argv += ["--no-progress", "--out", str(tmp_path)]
-        code = main(argv)
-        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    code, torque = _home_on_the_emulator(tmp_path)
     out, err = capsys.readouterr()
     name = signal.Signals(signum).name
     ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
@@ -167,12 +173,7 @@ def test_a_signal_the_moment_the_torque_is_on_ends_the_run_with_its_end_line(
         return done
 
     monkeypatch.setattr(driver.DynamixelBus, "enable_torque", enabled_then_signal)
-    with _emulator() as emu:
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
-        argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
-        argv += ["--no-progress", "--out", str(tmp_path)]
-        code = main(argv)
-        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    code, torque = _home_on_the_emulator(tmp_path)
     out, err = capsys.readouterr()
     ends = [line for line in (out + err).splitlines() if line.startswith("stewart-drake robot:")]
     assert code == 130, (out, err)
