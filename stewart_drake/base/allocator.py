@@ -132,10 +132,7 @@ def _hold_ctrl_c() -> bool:
     is ignored, already blocked, or the platform has no signal mask."""
     if not hasattr(signal, "pthread_sigmask") or signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         return False
-    before = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-    if signal.SIGINT in before:
-        return False
-    return True
+    return signal.SIGINT not in signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
 
 
 def release_held_ctrl_c() -> None:
