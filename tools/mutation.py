@@ -42,7 +42,11 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from stewart_drake.base.fileio import read_checked
 from stewart_drake.base.tables import markdown_lines
+
+#: The largest file the tool reads (an earlier run's --json, the accounts), bytes.
+MAX_INPUT_BYTES = 50e6
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -373,7 +377,10 @@ def rule_account(diff: str) -> str | None:
 
 def load_accounts(path: Path = ACCOUNTS_FILE) -> dict[str, str]:
     """The survivors' accounts, mutant name -> account ({} when the file does not exist)."""
-    return tomllib.loads(path.read_text()) if path.exists() else {}
+    if not path.exists():
+        return {}
+    raw = read_checked(path, "mutation accounts file", MAX_INPUT_BYTES, "a TOML table of names")
+    return tomllib.loads(raw.decode("utf-8"))
 
 
 def report(results: list[ModuleResult], accounts: dict[str, str], before: dict | None) -> str:
@@ -458,10 +465,15 @@ def main(argv=None) -> int:
     chosen = {m: t for m, t in MODULES.items() if not args.module or Path(m).stem in args.module}
     if not chosen:
         parser.error(f"no module {args.module}: one of {[Path(m).stem for m in MODULES]}")
+    # The files it reads, read and checked before the runs, which take minutes.
+    before = None
+    if args.before:
+        raw = read_checked(args.before, "--before", MAX_INPUT_BYTES, "give a --json it wrote")
+        before = json.loads(raw.decode("utf-8"))
+    accounts = load_accounts()
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
     results = [run_module(m, t, work) for m, t in chosen.items()]
-    before = json.loads(args.before.read_text()) if args.before else None
-    args.out.write_text(report(results, load_accounts(), before))
+    args.out.write_text(report(results, accounts, before))
     if args.json:
         args.json.write_text(
             json.dumps(
