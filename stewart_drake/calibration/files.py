@@ -251,8 +251,8 @@ def registration_yaml(fiducials: Fiducials) -> str:
 
     lines = [f"point_sigma_m: {_yaml_value(fiducials.point_sigma_m)}", "base_points:"]
     lines += [point("base_m", a, b) for a, b in zip(fiducials.base_B, fiducials.base_T)]
-    if fiducials.platform_P is not None:
-        x = fiducials.marker_TM
+    if fiducials.platform_P is not None and fiducials.platform_T is not None:
+        x = np.asarray(fiducials.marker_TM, dtype=float)
         lines += [
             "platform_points:",
             "  marker_in_tracker:",

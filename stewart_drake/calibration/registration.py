@@ -260,7 +260,7 @@ class Registration:
         R_BP = rotation_rpy(x[:, :3])
         # The marker's rotation error turns P's origin about the marker: p_BP = p_BM + r with
         # r = R_BM p_MP = -R_BP p_PM, so dp_BP = n + delta x r.
-        lever = np.einsum("nij,j->ni", R_BP, -self.X_PM.translation())
+        lever = -np.einsum("nij,j->ni", R_BP, self.X_PM.translation())
         J = np.zeros((len(x), 6, 6))
         J[:, :3, :3] = np.eye(3)
         J[:, 3:, :3] = -_skew(lever)
@@ -475,11 +475,12 @@ class _Nodes:
         import yaml
 
         text = node.value if isinstance(node, yaml.ScalarNode) else None
-        plain = text is not None and node.style is None and node.tag in _NUMBER_TAGS
-        try:
-            value = float(text) if plain else float("nan")
-        except ValueError:
-            value = float("nan")
+        value = float("nan")
+        if text is not None and node.style is None and node.tag in _NUMBER_TAGS:
+            try:
+                value = float(text)
+            except ValueError:
+                pass
         if not (np.isfinite(value) and lo <= value <= hi):
             got = repr(text)[:40] if text is not None else "a list or mapping"
             raise self.refuse(

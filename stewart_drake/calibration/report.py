@@ -126,7 +126,7 @@ def write_identified(out, robot, ident: Identification, source, frames=None) -> 
 
     from .registration import transform_words
 
-    comments = (
+    comments: tuple[str, ...] = (
         f"The robot identified by stewart-drake calibrate from {source}: "
         f"{int(ident.used.sum())} poses,",
         f"readings' residuals {ident.rms_before_rad * 1e3:.3g} mrad RMS with the nominal robot, "
@@ -217,7 +217,8 @@ def frames_text(geometry: StewartGeometry, ident: Identification, registration, 
     from ..robot.legs import derivatives
 
     J = derivatives(geometry, ident.identified, poses).parameters
-    var = np.einsum("nik,kl,nil->ni", J, ident.frames_covariance, J)
+    C = ident.frames_covariance if ident.frames_covariance is not None else np.zeros((66, 66))
+    var = np.einsum("nik,kl,nil->ni", J, C, J)
     return (
         f"registered by {source}: {registration.words()}; the poses converted to the base "
         f"frame; the frames' error, in every pose, carried into the parameters' covariance: "

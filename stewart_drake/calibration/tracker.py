@@ -183,12 +183,18 @@ def emulated_setup(
     angle_deg: float = 30.0,
     marker_offset_m: float = 0.05,
     marker_angle_deg: float = 10.0,
+    fiducials: int = 4,
 ) -> TrackerSetup:
     """A tracker ``distance_m`` from the base's origin, its frame turned ``angle_deg`` about an
     oblique axis; a marker ``marker_offset_m`` from the platform frame's origin, turned
-    ``marker_angle_deg``; four fiducials on the base (outside the pivots, 10 mm below them)
-    and four on the platform plate (at 0.9 of its radius, 10 mm above P).
+    ``marker_angle_deg``; ``fiducials`` fiducials on the base (outside the pivots, 10 mm below
+    them) and as many on the platform plate (at 0.9 of its radius, 10 mm above P), spread
+    around each.
+
+    Raises:
+        InvalidConfigError: fewer than 3 fiducials, or more than 1000.
     """
+    fiducials = check_int("fiducials", fiducials, 3, 1000)
     axis = np.array([1.0, -2.0, 3.0]) / np.sqrt(14.0)
     direction = np.array([2.0, 1.0, 0.5]) / np.sqrt(5.25)
     X_TB = RigidTransform(
@@ -199,12 +205,17 @@ def emulated_setup(
         RotationMatrix(AngleAxis(np.radians(marker_angle_deg), np.array([0.0, 0.6, 0.8]))),
         marker_offset_m * offset,
     )
-    a = np.radians([20.0, 100.0, 200.0, 290.0])
+    # Spread around each body, every other one 15 deg on: a symmetric pattern can be paired
+    # up wrongly by eye, an uneven one cannot.
+    k = np.arange(fiducials)
+    a = np.radians(20.0 + 360.0 * k / fiducials + 15.0 * (k % 2))
     r_b = 1.1 * geometry.base_radius
-    base = np.column_stack([r_b * np.cos(a), r_b * np.sin(a), np.full(4, geometry.pivot_z - 0.01)])
+    base = np.column_stack(
+        [r_b * np.cos(a), r_b * np.sin(a), np.full(fiducials, geometry.pivot_z - 0.01)]
+    )
     r_p = 0.9 * geometry.platform_plate_radius
-    b = np.radians([45.0, 135.0, 225.0, 315.0])
-    platform = np.column_stack([r_p * np.cos(b), r_p * np.sin(b), np.full(4, 0.01)])
+    b = a + np.radians(25.0)
+    platform = np.column_stack([r_p * np.cos(b), r_p * np.sin(b), np.full(fiducials, 0.01)])
     return TrackerSetup(X_TB, X_PM, base, platform)
 
 
