@@ -531,3 +531,15 @@ def test_registered_calibrations_of_ten_robots_meet_the_figure_and_the_bound_pre
         assert np.mean(bound) == pytest.approx(np.mean(after), rel=0.3)
         if selection == "chosen":
             assert np.max(after) <= limit, after
+
+
+def test_the_emulated_tracker_follows_its_marker_in_its_own_frame():
+    t = np.linspace(0.0, 2.0, 201)
+    x = np.tile(POSES_BP[0], (len(t), 1))
+    x[:, 3] += 0.01 * t
+    quiet = tracker.MeasurementNoise(0.0, 0.0)
+    times, seen = tracker.track(t, x, quiet, 0, setup=SETUP)
+    _, plain = tracker.track(t, x, quiet, 0)
+    np.testing.assert_allclose(seen, SETUP.tracker_poses(plain), atol=1e-15)
+    np.testing.assert_allclose(SETUP.registration().base_poses(seen), plain, atol=1e-14)
+    assert len(times) == 100
