@@ -16,6 +16,9 @@ columns (a time, a pose number) are read past and named. The file is read throug
 :class:`~stewart_drake.run.scenario.Robot` with the identified crank azimuths in
 ``crank_angles_deg``, and the per-leg fields of :class:`~stewart_drake.robot.legs.LegParameters`.
 
+**Registration** (:func:`registration_yaml`): the REG.yaml of fiducials
+(:mod:`~.registration`), as an emulated tracker measured them.
+
 **Poses** (:func:`write_path`): the path through the chosen poses as a reference CSV the robot
 command drives (``t [s],phi [rad],...,Z [m]``), and beside it ``<stem>_windows.csv``, each
 pose with the window of time to measure it in.
@@ -35,6 +38,7 @@ from ..base.fileio import atomic_write
 from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
 from .poses import PosePath
+from .registration import Fiducials
 
 #: Largest measurements file read, bytes (a million poses).
 MAX_MEASUREMENTS_BYTES = 200e6
@@ -235,6 +239,45 @@ def robot_yaml(robot, legs: LegParameters, comments: tuple = ()) -> str:
 def write_robot(path, robot, legs: LegParameters, comments: tuple = ()) -> Path:
     """Write :func:`robot_yaml` to ``path`` atomically (a regular file only)."""
     text = robot_yaml(robot, legs, comments)
+    atomic_write(Path(path), lambda f: f.write(text.encode()))
+    return Path(path)
+
+
+def registration_yaml(fiducials: Fiducials) -> str:
+    """The REG.yaml text of ``fiducials`` (every digit a float64 holds)."""
+
+    def point(robot_key, p_R, p_T):
+        return f"  - {{{robot_key}: {_yaml_value(p_R)}, tracker_m: {_yaml_value(p_T)}}}"
+
+    lines = [f"point_sigma_m: {_yaml_value(fiducials.point_sigma_m)}", "base_points:"]
+    lines += [point("base_m", a, b) for a, b in zip(fiducials.base_B, fiducials.base_T)]
+    if fiducials.platform_P is not None and fiducials.platform_T is not None:
+        x = np.asarray(fiducials.marker_TM, dtype=float)
+        lines += [
+            "platform_points:",
+            "  marker_in_tracker:",
+            f"    rpy_rad: {_yaml_value(x[:3])}",
+            f"    xyz_m: {_yaml_value(x[3:])}",
+            f"    rotation_sigma_rad: {_yaml_value(fiducials.marker_sigma[0])}",
+            f"    translation_sigma_m: {_yaml_value(fiducials.marker_sigma[1])}",
+            "  points:",
+        ]
+        lines += [
+            "  " + point("platform_m", a, b)
+            for a, b in zip(fiducials.platform_P, fiducials.platform_T)
+        ]
+    return "\n".join(lines) + "\n"
+
+
+def registration_path(path) -> Path:
+    """The REG.yaml beside an emulated measurements file: ``<stem>_registration.yaml``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_registration.yaml")
+
+
+def write_registration(path, fiducials: Fiducials) -> Path:
+    """Write :func:`registration_yaml` to ``path`` atomically (a regular file only)."""
+    text = registration_yaml(fiducials)
     atomic_write(Path(path), lambda f: f.write(text.encode()))
     return Path(path)
 

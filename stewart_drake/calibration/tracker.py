@@ -3,7 +3,10 @@
 A tracker (a laser tracker with a 6-D probe, an optical tracker with marker frames on the base
 and the platform) measures the pose of the platform frame E in the base frame B with noise: the
 position off by a Gaussian vector of ``translation_m`` per axis, the orientation turned by a
-small rotation exp([delta]x) (delta Gaussian, ``rotation_rad`` per axis, base frame). At each
+small rotation exp([delta]x) (delta Gaussian, ``rotation_rad`` per axis, base frame). Set up
+as a real one stands (:class:`TrackerSetup`), it measures its marker M in its own frame T
+instead (X_TM = X_TB X_BE X_EM, the noise in T), and the fiducials that register T and M to the
+robot (:meth:`TrackerSetup.fiducials`, :mod:`~.registration`). At each
 pose the six encoders read each crank's angle plus its zero offset, quantized to the encoder's
 counts (:class:`~stewart_drake.station.hardware.Encoders`: 2^17 per revolution, a quantum of
 47.9 urad, an RMS error of 13.8 urad).
@@ -14,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
+from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from ..base.checks import as_number, as_poses, check_int
@@ -22,6 +27,7 @@ from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import rotation_rpy
 from ..robot.legs import LegParameters, readings
 from ..station.hardware import Encoders
+from .registration import DEFAULT_POINT_SIGMA_M, Fiducials, Registration
 
 #: Counts per revolution of the robot's encoders (the ``hardware.encoders`` default).
 COUNTS_PER_REV = Encoders().counts_per_rev
@@ -89,6 +95,130 @@ def quantize(angles, counts_per_rev: int) -> np.ndarray:
     return np.round(np.asarray(angles, dtype=float) / quantum) * quantum
 
 
+#: The platform's home pose, where :meth:`TrackerSetup.fiducials` measures the platform's.
+HOME_POSE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.30)
+
+
+#: Samples of the marker's pose averaged when the platform's fiducials are measured (2 s of a
+#: 50 Hz tracker, the platform at rest).
+MARKER_SAMPLES = 100
+#: The noise a REG.yaml states for fiducials emulated without any (it must be > 0), m.
+_LEAST_SIGMA_M = 1e-9
+
+
+@dataclass(frozen=True)
+class TrackerSetup:
+    """Where an emulated tracker stands and what it sees besides the platform.
+
+    Attributes:
+        X_TB: the base frame B in the tracker's frame T.
+        X_PM: the tracker's marker M in the platform frame P (E).
+        base_B: (n, 3) the base's fiducials in B, m (where the drawing puts them).
+        platform_P: (m, 3) the platform's fiducials in P, m, or None (the marker is then
+            registered as P itself: X_PM should be the identity).
+    """
+
+    X_TB: RigidTransform
+    X_PM: RigidTransform
+    base_B: np.ndarray
+    platform_P: np.ndarray | None = None
+
+    def registration(self) -> Registration:
+        """The setup's exact frames, as a :class:`~.registration.Registration` without error."""
+        zero = np.zeros((6, 6))
+        return Registration(self.X_TB, self.X_PM, zero, zero, 0.0, 0.0)
+
+    def tracker_poses(self, x) -> np.ndarray:
+        """(N, 6) the marker's poses in T, exactly, at the platform's poses x (N, 6) in B."""
+        return self.registration().tracker_poses(x)
+
+    def fiducials(
+        self,
+        noise: MeasurementNoise,
+        seed: int,
+        point_sigma_m: float = DEFAULT_POINT_SIGMA_M,
+        pose=HOME_POSE,
+        marker_samples: int = MARKER_SAMPLES,
+    ) -> Fiducials:
+        """The fiducials as the tracker measures them (what REG.yaml holds): each with a
+        Gaussian error of ``point_sigma_m`` per axis; the platform's with the platform at
+        ``pose`` (6,) in B, the marker's pose then the mean of ``marker_samples`` samples with
+        the tracker's ``noise`` (its noise divided by sqrt(marker_samples), as REG.yaml says).
+
+        Raises:
+            InvalidConfigError: a seed out of 0 .. 2^32 - 1, a sigma not finite and >= 0,
+                fewer than 1 sample.
+        """
+        rng = np.random.default_rng(check_int("seed", seed, 0, 2**32 - 1))
+        sigma = as_number("point_sigma_m", point_sigma_m, 0.0)
+        root = np.sqrt(check_int("marker_samples", marker_samples, 1, 10**9))
+        mean_noise = MeasurementNoise(
+            noise.translation_m / root, noise.rotation_rad / root, noise.counts_per_rev
+        )
+
+        def seen(X_TR, points):
+            p = np.asarray(points, dtype=float).reshape(-1, 3)
+            return X_TR.multiply(p.T).T + rng.normal(0.0, sigma, p.shape)
+
+        base_T = seen(self.X_TB, self.base_B)
+        if self.platform_P is None:
+            return Fiducials(self.base_B.copy(), base_T, point_sigma_m=max(sigma, _LEAST_SIGMA_M))
+        x = as_poses("pose", pose).reshape(6)
+        X_TP = self.X_TB @ RigidTransform(RollPitchYaw(x[:3]), x[3:])
+        marker = noisy_poses(self.tracker_poses(x), mean_noise, rng)[0]
+        return Fiducials(
+            self.base_B.copy(),
+            base_T,
+            self.platform_P.copy(),
+            seen(X_TP, self.platform_P),
+            marker,
+            max(sigma, _LEAST_SIGMA_M),
+            (mean_noise.rotation_rad, mean_noise.translation_m),
+        )
+
+
+def emulated_setup(
+    geometry: StewartGeometry,
+    distance_m: float = 1.0,
+    angle_deg: float = 30.0,
+    marker_offset_m: float = 0.05,
+    marker_angle_deg: float = 10.0,
+    fiducials: int = 4,
+) -> TrackerSetup:
+    """A tracker ``distance_m`` from the base's origin, its frame turned ``angle_deg`` about an
+    oblique axis; a marker ``marker_offset_m`` from the platform frame's origin, turned
+    ``marker_angle_deg``; ``fiducials`` fiducials on the base (outside the pivots, 10 mm below
+    them) and as many on the platform plate (at 0.9 of its radius, 10 mm above P), spread
+    around each.
+
+    Raises:
+        InvalidConfigError: fewer than 3 fiducials, or more than 1000.
+    """
+    fiducials = check_int("fiducials", fiducials, 3, 1000)
+    axis = np.array([1.0, -2.0, 3.0]) / np.sqrt(14.0)
+    direction = np.array([2.0, 1.0, 0.5]) / np.sqrt(5.25)
+    X_TB = RigidTransform(
+        RotationMatrix(AngleAxis(np.radians(angle_deg), axis)), distance_m * direction
+    )
+    offset = np.array([1.0, 1.0, 0.5]) / 1.5
+    X_PM = RigidTransform(
+        RotationMatrix(AngleAxis(np.radians(marker_angle_deg), np.array([0.0, 0.6, 0.8]))),
+        marker_offset_m * offset,
+    )
+    # Spread around each body, every other one 15 deg on: a symmetric pattern can be paired
+    # up wrongly by eye, an uneven one cannot.
+    k = np.arange(fiducials)
+    a = np.radians(20.0 + 360.0 * k / fiducials + 15.0 * (k % 2))
+    r_b = 1.1 * geometry.base_radius
+    base = np.column_stack(
+        [r_b * np.cos(a), r_b * np.sin(a), np.full(fiducials, geometry.pivot_z - 0.01)]
+    )
+    r_p = 0.9 * geometry.platform_plate_radius
+    b = a + np.radians(25.0)
+    platform = np.column_stack([r_p * np.cos(b), r_p * np.sin(b), np.full(fiducials, 0.01)])
+    return TrackerSetup(X_TB, X_PM, base, platform)
+
+
 @dataclass(frozen=True)
 class Measurements:
     """Poses measured by a tracker with the encoder readings there.
@@ -110,9 +240,12 @@ def measure(
     x,
     noise: MeasurementNoise,
     seed: int,
+    setup: TrackerSetup | None = None,
 ) -> Measurements:
     """Emulate measuring the robot ``legs`` at poses x (N, 6): the tracker's noisy poses and
-    the quantized readings (offsets included) at the true ones.
+    the quantized readings (offsets included) at the true ones. With a ``setup``, the poses
+    measured are the marker's in the tracker's frame (:meth:`TrackerSetup.tracker_poses`),
+    the noise in that frame; ``true_poses`` stay the platform's in B.
 
     Raises:
         UnreachablePoseError: the robot as built cannot close a leg at a pose.
@@ -121,18 +254,26 @@ def measure(
     rng = np.random.default_rng(check_int("seed", seed, 0, 2**32 - 1))
     x = as_poses("pose x", x).reshape(-1, 6)
     q = quantize(readings(geometry, legs, x), noise.counts_per_rev)
-    return Measurements(poses=noisy_poses(x, noise, rng), readings=q, true_poses=x.copy())
+    seen = x if setup is None else setup.tracker_poses(x)
+    return Measurements(poses=noisy_poses(seen, noise, rng), readings=q, true_poses=x.copy())
 
 
 #: The emulated tracker's sampling rate, Hz.
 TRACKER_RATE_HZ = 50.0
 
 
-def track(t, x, noise: MeasurementNoise, seed: int, rate_hz: float = TRACKER_RATE_HZ):
+def track(
+    t,
+    x,
+    noise: MeasurementNoise,
+    seed: int,
+    rate_hz: float = TRACKER_RATE_HZ,
+    setup: TrackerSetup | None = None,
+):
     """Emulate a tracker following the platform: the poses x (n, >= 6) at times t (n,) s
     (increasing: a plant's record of its true pose), sampled every 1 / ``rate_hz`` s from t[0]
     (each sample the last pose recorded at or before its time), each with the tracker's noise
-    (:func:`noisy_poses`).
+    (:func:`noisy_poses`); with a ``setup``, the marker's poses in the tracker's frame.
 
     Returns:
         (times (m,) s, poses (m, 6) rad and m).
@@ -147,4 +288,5 @@ def track(t, x, noise: MeasurementNoise, seed: int, rate_hz: float = TRACKER_RAT
         raise InvalidConfigError(f"a tracker needs at least 2 records of the pose, got {len(t)}")
     times = np.arange(t[0], t[-1], 1.0 / rate_hz)
     index = np.searchsorted(t, times, side="right") - 1
-    return times, noisy_poses(x[index], noise, rng)
+    seen = x[index] if setup is None else setup.tracker_poses(x[index])
+    return times, noisy_poses(seen, noise, rng)

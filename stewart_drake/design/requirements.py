@@ -19,12 +19,12 @@ import numpy as np
 from pydrake.common.yaml import yaml_load_typed
 
 from ..base.checks import as_number
-from ..base.errors import CorruptFileError, InvalidConfigError, MissingFileError, StewartError
+from ..base.errors import CorruptFileError, InvalidConfigError, StewartError
 from ..references.trajectories import NamedReference
 from ..robot.kinematics import X_HOME
 from ..robot.limits import DEFAULT_EFFORT_MARGIN
 from ..run.scenario import ReferenceChoice
-from ..run.scenario_io import _in_file, _one_line, _refuse_duplicate_keys
+from ..run.scenario_io import _in_file, _one_line, read_yaml_text
 
 #: Largest requirements file read, bytes (a few hundred bytes is typical).
 MAX_REQUIREMENTS_BYTES = 64 * 1024
@@ -188,20 +188,11 @@ def load_requirements(path) -> DesignRequirements:
             twice, or YAML that does not fit the schema (the field named).
         InvalidConfigError: a value out of range, named by file and field.
     """
-    from ..base.fileio import YAML_BYTES_PER_BYTE, check_parse_memory, decode_text, read_checked
-
     kind = "design requirements file"
     remedy = "fix it, or start from scenarios/design_requirements.yaml"
-    if not isinstance(path, (str, Path)) or not Path(path).exists():
-        raise MissingFileError(f"no design requirements file {path!r}: check the path")
+    text = read_yaml_text(path, kind, MAX_REQUIREMENTS_BYTES, remedy)
     path = Path(path)
-    raw = read_checked(path, kind, MAX_REQUIREMENTS_BYTES, remedy)
-    check_parse_memory(path, kind, raw, bytes_per_byte=YAML_BYTES_PER_BYTE)
-    if not raw.strip():
-        raise CorruptFileError(path, kind, "it is empty", remedy)
-    text = decode_text(raw, path, kind, remedy)
     try:
-        _refuse_duplicate_keys(text)
         requirements = yaml_load_typed(
             schema=DesignRequirements, data=text, allow_schema_with_no_yaml=True
         )

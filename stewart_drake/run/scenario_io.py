@@ -117,6 +117,39 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         ) from None
 
 
+def read_yaml_text(path, kind: str, max_bytes: float, remedy: str) -> str:
+    """The text of a YAML file a user names (a design's requirements, a registration), checked
+    as a scenario's is before anything parses it: a regular file of at most ``max_bytes``
+    (:func:`~stewart_drake.base.fileio.read_checked`), memory for its parse, not empty, UTF-8,
+    YAML without a key twice in one mapping or anchors expanding past
+    :data:`MAX_SCENARIO_NODES` (:func:`_refuse_duplicate_keys`).
+
+    Args:
+        path: the file.  kind: what it is, for messages ("registration file").
+        max_bytes: the largest such file, bytes.  remedy: what to do about a bad one.
+    Raises:
+        MissingFileError: no such file.  CorruptFileError: not a regular file, too large,
+            empty, not UTF-8, not YAML.  InvalidConfigError: a key twice, anchors too many,
+            more memory than available; each naming the file.
+    """
+    from ..base.fileio import YAML_BYTES_PER_BYTE, check_parse_memory, decode_text, read_checked
+
+    if not isinstance(path, (str, Path)) or not Path(path).exists():
+        raise MissingFileError(f"no {kind} {path!r}: check the path")
+    raw = read_checked(path, kind, max_bytes, remedy)
+    check_parse_memory(path, kind, raw, bytes_per_byte=YAML_BYTES_PER_BYTE)
+    if not raw.strip():
+        raise CorruptFileError(path, kind, "it is empty", remedy)
+    text = decode_text(raw, path, kind, remedy)
+    try:
+        _refuse_duplicate_keys(text)
+    except StewartError as err:
+        raise _in_file(err, path) from None
+    except Exception as err:  # noqa: BLE001 - PyYAML raises several types
+        raise CorruptFileError(path, kind, _one_line(err), remedy) from None
+    return text
+
+
 #: Largest scenario file read, bytes: a scenario is a few kB; parsing is about 5 s per MB.
 MAX_SCENARIO_BYTES = 256 * 1024
 
