@@ -42,7 +42,7 @@ def add_verify_command(sub) -> None:
         "export read as a trace is (a header naming the time and the marker's X, Y, Z with "
         "units, and its phi, theta, psi or none; semicolons, decimal commas, ms), or a robot "
         f"run's encoder log (a name ending in {ENCODER_LOG_SUFFIX}), turned into poses by "
-        "forward kinematics of --scenario's robot",
+        "forward kinematics of --scenario's robot (required: no default)",
     )
     vp.add_argument(
         "--measured-columns",
