@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.calibration import files, join, poses
-from stewart_drake.calibration.tracker import MeasurementNoise, track
+from stewart_drake.calibration.tracker import MeasurementNoise, emulated_setup, track
 from stewart_drake.cli import main as cli
 from stewart_drake.live.session import HomingReference
 from stewart_drake.robot.geometry import StewartGeometry
@@ -102,6 +102,32 @@ def test_a_bad_session_file_is_refused_in_one_line_before_anything_is_written(
     err = capsys.readouterr().err.strip()
     assert match in err and len(err.splitlines()) == 1, err
     assert not out.exists()
+
+
+def test_a_tracker_in_its_own_frame_is_joined_through_its_registration(session, tmp_path, capsys):
+    # The tracker measured its marker in its own frame, 1 m and 30 deg from the base, on its
+    # own clock (100 s late): the windows' gaps and the clock's estimate compare its poses
+    # with the path in the base frame, and the measurements keep its frame for calibrate.
+    path, poses_csv, _, log, tracker = session
+    setup = emulated_setup(GEOMETRY)
+    a = np.loadtxt(tracker, delimiter=",", skiprows=1)
+    seen = join.write_tracker_file(
+        tmp_path / "t.csv", a[:, 0] - 100.0, setup.tracker_poses(a[:, 1:])
+    )
+    reg = files.write_registration(
+        tmp_path / "reg.yaml", setup.fiducials(MeasurementNoise(1e-7, 1e-6), 0, 1e-7)
+    )
+    out = tmp_path / "m.csv"
+    argv = ["calibrate", "--join", str(log), str(seen), "--plan-file", str(poses_csv)]
+    argv += ["--tracker-clock-offset", "estimate", "--out", str(out)]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err  # the poses are not B and E: said, and nothing written
+    assert "mm RMS from the planned path" in err and "--registration" in err and not out.exists()
+    assert cli.main(argv + ["--registration", str(reg)]) == 0
+    printed = capsys.readouterr().out
+    assert "the tracker's clock + 100.0000 s" in printed and "--registration" in printed
+    values = np.loadtxt(out, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(values[:, 6:], setup.tracker_poses(path.poses), atol=1e-9)
 
 
 def test_join_mode_refuses_a_missing_plan_file_or_a_stray_option(tmp_path, capsys):

@@ -1,7 +1,11 @@
 """The tracker's frames registered to the robot's from fiducials: the weighted rigid fit and its
 covariance (against Monte Carlo), the conversion of marker poses in the tracker's frame to
-platform poses in the base frame (against Drake's RigidTransform), and REG.yaml's reader on good
-and hostile files."""
+platform poses in the base frame (against Drake's RigidTransform), REG.yaml's reader on good
+and hostile files; the identification of registered poses (the frames' error in its
+covariance), ``calibrate --registration`` end to end on emulated measurements, and the warning
+of an identification whose pivots or platform joints moved as one rigid body."""
+
+import re
 
 import numpy as np
 import pytest
@@ -9,8 +13,11 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.calibration import files, tracker
+from stewart_drake.calibration import files, identify, poses, rehearsal, report, tracker
 from stewart_drake.calibration import registration as rg
+from stewart_drake.cli import main as cli
+from stewart_drake.robot import kinematics, tolerances
+from stewart_drake.robot import legs as model
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.kinematics import rotation_rpy
 
@@ -136,7 +143,7 @@ def test_an_emulated_setup_s_fiducials_register_its_frames_within_their_covarian
     # few points seemed noisier than point_sigma_m (it then follows them).
     assert np.all((ratio > 0.8) & (ratio < 1.05)), ratio
     assert reg.base_points == 4 and reg.platform_points == 4
-    assert 0.5e-6 < reg.rms_base_m < 5e-6 and "4 fiducials" in reg.words()
+    assert 0.5e-6 < reg.rms_base_m < 5e-6 and "from 4 fiducials" in reg.words()
 
 
 def test_a_registration_file_reads_back_the_frames_its_fiducials_give(tmp_path):
@@ -272,3 +279,213 @@ def test_a_large_missing_or_unreadable_registration_file_is_refused(tmp_path):
     (tmp_path / "bomb.yaml").write_text(bomb)
     with pytest.raises(InvalidConfigError, match="expand"):
         rg.read_registration(tmp_path / "bomb.yaml")
+
+
+# -- the identification of registered poses, and the command ---------------------------------------
+
+
+@pytest.fixture(scope="module")
+def space():
+    """Admissible candidates and held-out poses, as a rehearsal draws them (fewer)."""
+    return rehearsal.Workspace(
+        poses.candidate_poses(GEOMETRY, 400, 1), poses.candidate_poses(GEOMETRY, 50, 2)
+    )
+
+
+@pytest.fixture(scope="module")
+def session(space, tmp_path_factory):
+    """A robot drawn with seed 3, measured at 60 random candidates by a tracker 1 m and 30 deg
+    from the base, its marker 50 mm off the platform frame; its fiducials at 2 um, the
+    marker's pose then the mean of 100 samples: (folder, truth, measurements, fiducials)."""
+    folder = tmp_path_factory.mktemp("registered")
+    truth = tolerances.Tolerances().draw(GEOMETRY, 3)
+    x = space.candidates[np.random.default_rng(3).choice(len(space.candidates), 60, False)]
+    data = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=SETUP)
+    fiducials = SETUP.fiducials(NOISE, 4)
+    files.write_measurements(folder / "m.csv", data.poses, data.readings)
+    files.write_registration(folder / "reg.yaml", fiducials)
+    return folder, truth, data, fiducials
+
+
+def test_the_frames_error_is_carried_whole_into_the_parameters_covariance(session):
+    # The identified parameters move with the frames' error e by K e (first order): with the
+    # frames off by a known e, the identification moves by d, and the frames' covariance
+    # computed for a "covariance" e e^T is d d^T.
+    _, _, data, fiducials = session
+    reg = rg.register(fiducials)
+    e = np.concatenate(
+        [[3e-5, -2e-5, 1e-5, 2e-6, -1e-6, 3e-6], [-2e-5, 1e-5, 3e-5, 1e-6, 2e-6, -2e-6]]
+    )
+    off = rg.Registration(
+        reg.X_TB @ _exp(e[:6]).inverse(),
+        _exp(e[6:]).inverse() @ reg.X_PM,
+        np.outer(e[:6], e[:6]),
+        np.outer(e[6:], e[6:]),
+        0.0,
+        0.0,
+    )
+    exact, moved = (
+        rg.register_poses(r, data.poses, NOISE.rotation_rad, NOISE.translation_m)
+        for r in (reg, off)
+    )
+    a = identify.identify(
+        GEOMETRY, exact.poses, data.readings, NOISE, pose_covariances=exact.pose_covariances
+    )
+    b = identify.identify(
+        GEOMETRY,
+        moved.poses,
+        data.readings,
+        NOISE,
+        pose_covariances=exact.pose_covariances,
+        frames=(moved.frames[0], np.outer(e, e)),
+    )
+    d = b.deviation - a.deviation
+    assert np.max(np.abs(b.frames_covariance - np.outer(d, d))) < 0.02 * np.max(d**2)
+    # The frames leave the fit as good as it was: the rigid motion is absorbed, not seen.
+    assert b.chi2_reduced == pytest.approx(a.chi2_reduced, rel=1e-3)
+    assert np.max(np.abs(d)) > 5e-6  # and it is not nothing: micrometres of the parameters
+    # Without frames the covariance has no such part.
+    assert not a.frames_covariance.any()
+
+
+def test_calibrate_with_a_registration_predicts_the_held_out_readings_from_base_frame_poses(
+    session, space, tmp_path, capsys
+):
+    folder, truth, data, fiducials = session
+    out = tmp_path / "robot.yaml"
+    argv = ["calibrate", str(folder / "m.csv"), "--registration", str(folder / "reg.yaml")]
+    assert cli.main(argv + ["--out", str(out), "--scenario", "paper_hardware"]) == 0
+    printed = capsys.readouterr()
+    assert "warning" not in printed.err and "registered by" in printed.out
+    assert "carried into the parameters' covariance" in printed.out
+    text = out.read_text()
+    assert "# X_TB rpy_rad [" in text and "# X_PM rpy_rad [" in text  # the frames kept
+    # The section loads as a scenario's robot; its readings at the true base-frame poses of
+    # other poses are the robot's to the accuracy of an ideal tracker's calibration, plus the
+    # registration's (measured: 29 urad here; ideal 60 random poses: 34 urad on average).
+    from stewart_drake.run.plan import make_plan
+    from stewart_drake.run.scenario_io import load_scenario
+
+    calibrated = make_plan(load_scenario(out), with_reference=False).geometry
+    H = space.held_out
+    predicted = kinematics.ik(calibrated, H) + calibrated.encoder_offsets
+    read = tracker.quantize(model.readings(GEOMETRY, truth, H), NOISE.counts_per_rev)
+    rms = np.sqrt(np.mean(kinematics.wrap_angle(predicted - read) ** 2))
+    assert rms < 60e-6, rms
+    # Without the registration the marker's poses in the tracker's frame are refused.
+    code, err = _exit(
+        capsys, ["calibrate", str(folder / "m.csv"), "--out", str(tmp_path / "x.yaml")]
+    )
+    assert code == 2 and "--registration REG.yaml" in err and "cannot reach" in err
+    assert not (tmp_path / "x.yaml").exists()
+
+
+def _exit(capsys, argv) -> tuple[int, str]:
+    """(exit code, stderr's one line) of the command."""
+    try:
+        code = cli.main(argv)
+    except SystemExit as exit_:
+        code = exit_.code
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "Traceback" not in err[0], err
+    return code, err[0]
+
+
+def _turned(angle_deg: float, shift_m: float) -> tracker.TrackerSetup:
+    """A tracker turned ``angle_deg`` about an oblique axis and shifted ``shift_m`` from B."""
+    axis = np.array([0.6, 0.0, 0.8])
+    R = RotationMatrix(Rotation.from_rotvec(np.radians(angle_deg) * axis).as_matrix())
+    return tracker.TrackerSetup(
+        RigidTransform(R, shift_m * np.array([0.6, 0.8, 0.0])), RigidTransform(), np.zeros((3, 3))
+    )
+
+
+def test_a_tracker_off_the_base_frame_without_registration_is_named_and_nothing_refused_written(
+    session, space, tmp_path, capsys
+):
+    _, truth, data, _ = session
+    x = data.true_poses
+    out = tmp_path / "robot.yaml"
+    # 1 deg and 2 mm: the fit looks normal, the pivots moved as one rigid body: a warning
+    # naming the frame; the section (pivots up to 4.8 mm off) loads. With 4 mm a pivot is 6.4
+    # mm off, beyond the loader's 5 mm: the warning, one line more, exit 1 and no file.
+    for shift_m, written in ((2e-3, True), (4e-3, False)):
+        turned = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=_turned(1.0, shift_m))
+        meas = files.write_measurements(tmp_path / "turned.csv", turned.poses, turned.readings)
+        out.unlink(missing_ok=True)
+        try:
+            code = cli.main(["calibrate", str(meas), "--out", str(out)])
+        except SystemExit as exit_:
+            code = exit_.code
+        err = capsys.readouterr().err.strip().splitlines()
+        assert "warning: the identified pivots moved together" in err[0]
+        assert "not in the base frame B" in err[0] and "--registration REG.yaml" in err[0]
+        if written:
+            assert code == 0 and len(err) == 1 and report.loader_refusal(out.read_text()) is None
+        else:
+            assert code == 1 and not out.exists() and len(err) == 2, err
+            assert "the scenario loader would refuse it" in err[1] and "not written" in err[1]
+    # A marker 2 mm off the platform frame: the platform joints named; the section loads.
+    marker = tracker.TrackerSetup(RigidTransform(), RigidTransform([2e-3, 0, 0]), np.zeros((3, 3)))
+    off = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=marker)
+    meas = files.write_measurements(tmp_path / "marker.csv", off.poses, off.readings)
+    assert cli.main(["calibrate", str(meas), "--out", str(out)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "platform joints moved together" in err[0]
+    assert "not in the platform frame P (E)" in err[0] and out.exists()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_robot_within_its_tolerances_measured_in_the_base_frame_is_not_warned_of(space, seed):
+    truth = tolerances.Tolerances().draw(GEOMETRY, seed)
+    x = space.candidates[np.random.default_rng(seed).choice(len(space.candidates), 60, False)]
+    data = tracker.measure(GEOMETRY, truth, x, NOISE, seed)
+    ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
+    motions = identify.rigid_motions(GEOMETRY, ident)
+    assert [m.frame for m in motions] == ["base", "platform"]
+    assert not any(m.beyond for m in motions), motions
+    assert report.frame_warnings(GEOMETRY, ident, False) == []
+
+
+@pytest.mark.parametrize("case", ["two points", "collinear", "NaN", "unknown key"])
+def test_a_hostile_registration_file_is_one_line_exit_2_before_any_work(
+    session, tmp_path, capsys, case
+):
+    folder = session[0]
+    (tmp_path / "reg.yaml").write_text(HOSTILE[case][0])
+    for argv in (
+        ["calibrate", str(folder / "m.csv"), "--out", str(tmp_path / "r.yaml")],
+        ["calibrate", "--rehearse", "--poses", "12", "--candidates", "50"],
+    ):
+        code, err = _exit(capsys, argv + ["--registration", str(tmp_path / "reg.yaml")])
+        assert code == 2 and err.startswith("stewart-drake calibrate: ") and str(tmp_path) in err
+        assert re.search(HOSTILE[case][1], err), err
+    assert not (tmp_path / "r.yaml").exists()
+    code, err = _exit(
+        capsys,
+        [
+            "calibrate",
+            "--plan",
+            "12",
+            "--out",
+            str(tmp_path / "p.csv"),
+            "--registration",
+            str(tmp_path / "reg.yaml"),
+        ],
+    )
+    assert code == 2 and "--registration is for identifying" in err
+
+
+def test_rehearse_with_a_registration_writes_what_calibrate_registers(session, tmp_path, capsys):
+    folder = session[0]
+    saved = tmp_path / "m.csv"
+    argv = ["calibrate", "--rehearse", "--registration", str(folder / "reg.yaml"), "--poses", "40"]
+    argv += ["--candidates", "200", "--save-measurements", str(saved), "--no-progress"]
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "registered by the emulated fiducials: X_TB rpy_rad" in printed
+    reg = tmp_path / "m_registration.yaml"
+    assert reg.exists() and "calibrate m.csv --registration m_registration.yaml" in printed
+    argv = ["calibrate", str(saved), "--registration", str(reg), "--out", str(tmp_path / "r.yaml")]
+    assert cli.main(argv) == 0
+    assert "identified from 40 poses" in capsys.readouterr().out

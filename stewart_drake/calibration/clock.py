@@ -154,6 +154,7 @@ def estimate_clock_offset(robot_t, planned, tracker_t, tracked) -> ClockOffset:
         raise InvalidConfigError(
             f"at the best offset ({d:+.4f} s) the tracked poses are {residual * 1e3:.3g} mm RMS "
             f"from the planned path (at most {MAX_RESIDUAL_M * 1e3:g} mm): the tracker did not "
-            f"see this path, or its frames are not B and E (docs/calibration.md); {_REMEDY}"
+            f"see this path, or its frames are not B and E (give them: --registration REG.yaml, "
+            f"docs/calibration.md); {_REMEDY}"
         )
     return ClockOffset(d, residual, count)

@@ -2,12 +2,15 @@
 measurements (``calibrate MEASUREMENTS.csv --out ROBOT.yaml``), the poses to measure chosen
 (``--plan N --out POSES.csv``), a session's encoder log and tracker file joined into
 measurements (``--join``), or the whole rehearsed on an emulated robot (``--rehearse``; over
-the bus emulator with ``--bus``)."""
+the bus emulator with ``--bus``). With ``--registration REG.yaml`` the tracker's poses are its
+marker's in its own frame, converted to the base frame by the frames REG.yaml's fiducials give
+(:mod:`~.registration`)."""
 
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from ..execution.options import add_scenario_arguments, int_at_least, positive_float
@@ -29,7 +32,21 @@ def register(sub) -> None:
         default=None,
         metavar="MEASUREMENTS.csv",
         help="encoder readings and the tracker's poses, a header naming columns and units: "
-        "q0 [rad] .. q5 [rad], phi [rad], theta [rad], psi [rad], X [m], Y [m], Z [m]",
+        "q0 [rad] .. q5 [rad], phi [rad], theta [rad], psi [rad], X [m], Y [m], Z [m]; the "
+        "platform frame's poses in the base frame, or with --registration the marker's in the "
+        "tracker's frame",
+    )
+    cal.add_argument(
+        "--registration",
+        default=None,
+        metavar="REG.yaml",
+        help="the tracker's frames: fiducials it measured on the base (base_points: >= 3 of "
+        "{base_m: [x, y, z], tracker_m: [x, y, z]}) and, optionally, on the platform with its "
+        "marker (platform_points); the poses measured are then the marker's in the tracker's "
+        "frame, converted to the base frame before the identification, the frames' "
+        "uncertainty carried into the parameters' (docs/calibration.md, Registration). For "
+        "identifying, --join and --rehearse (default: none, the poses are the platform "
+        "frame's in the base frame)",
     )
     _add_mode_arguments(cal, ROBOT_SCENARIO)
     cal.add_argument(
@@ -246,6 +263,12 @@ def _cmd_calibrate(args) -> int:
         raise InvalidConfigError("--join and --plan-file go together: the logs and their path")
     if args.tracker_clock_offset is not None and args.join is None:
         raise InvalidConfigError("--tracker-clock-offset is for --join")
+    if args.registration is not None and (args.plan is not None or args.bus is not None):
+        raise InvalidConfigError(
+            "--registration is for identifying, --join and the numerical --rehearse: --plan "
+            "chooses poses in the base frame, and --rehearse --bus tracks the platform frame "
+            "in it"
+        )
     if args.bus is not None:
         _check_bus_rehearsal(args)
     if args.scenario is None:
@@ -258,14 +281,22 @@ def _cmd_calibrate(args) -> int:
             "--join": "MEASUREMENTS.csv",
         }.get(other, "ROBOT.yaml")
         raise InvalidConfigError(f"--out is required: the file to write, {what}")
+    registration = _registration(args)
     if args.join is not None:
-        return _join(args)
+        return _join(args, registration)
     if args.save_measurements is not None:
         if not args.rehearse:
             raise InvalidConfigError("--save-measurements is for --rehearse")
         from ..execution.options import check_output
+        from .files import registration_path
 
         check_output(args.save_measurements, "--save-measurements", is_file=True)
+        if registration is not None:
+            check_output(
+                registration_path(args.save_measurements),
+                "--save-measurements's registration file",
+                is_file=True,
+            )
     if args.plan is not None:  # its second file, checked before any work as --out is
         from ..execution.options import check_output
         from .files import windows_path
@@ -277,8 +308,19 @@ def _cmd_calibrate(args) -> int:
     if args.rehearse and args.bus is not None:
         return args.rehearse_on_bus(args, context)
     if args.rehearse:
-        return _rehearse(args, context)
-    return _identify(args, context)
+        return _rehearse(args, context, registration)
+    return _identify(args, context, registration)
+
+
+def _registration(args):
+    """(the registration, its fiducials) of ``--registration``, read and checked before any
+    work, or None."""
+    if args.registration is None:
+        return None
+    from .registration import read_fiducials, register
+
+    fiducials = read_fiducials(args.registration)
+    return register(fiducials, args.registration), fiducials
 
 
 #: The files ``calibrate --rehearse --bus FOLDER`` writes in FOLDER.
@@ -321,7 +363,7 @@ def _check_bus_rehearsal(args) -> None:
         args.scenario = ROBOT_SCENARIO
 
 
-def _join(args) -> int:
+def _join(args, registration) -> int:
     """``calibrate --join ENCODERS.csv TRACKER.csv --plan-file POSES.csv --out
     MEASUREMENTS.csv``: every file read and checked before the one written."""
     from .files import windows_path, write_measurements
@@ -334,6 +376,7 @@ def _join(args) -> int:
         windows_path(args.plan_file),
         clock_offset=_clock_offset(args.tracker_clock_offset),
         path_file=args.plan_file,
+        registration=None if registration is None else registration[0],
     )
     path = write_measurements(args.out, joined.poses, joined.readings)
     if joined.clock is not None:
@@ -350,7 +393,14 @@ def _join(args) -> int:
         f"{int(joined.tracker_used.max())} tracker samples a window; the readings' largest "
         f"spread in a window {joined.reading_spread.max() * 1e6:.3g} urad"
     )
-    print(f"wrote {path} (calibrate {path} --out ROBOT.yaml identifies the robot)")
+    if registration is None:
+        print(f"wrote {path} (calibrate {path} --out ROBOT.yaml identifies the robot)")
+    else:
+        print(
+            f"wrote {path}: the marker's poses in the tracker's frame, as the tracker file's "
+            f"(calibrate {path} --registration {args.registration} --out ROBOT.yaml identifies "
+            f"the robot)"
+        )
     return 0
 
 
@@ -386,14 +436,29 @@ def _context(args):
     return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
 
 
-def _identify(args, context) -> int:
-    """``calibrate MEASUREMENTS.csv --out ROBOT.yaml``."""
+def _identify(args, context, registration) -> int:
+    """``calibrate MEASUREMENTS.csv --out ROBOT.yaml [--registration REG.yaml]``."""
+    from dataclasses import replace
+
     from .files import read_measurements
-    from .report import check_reachable, identification_text, write_identified
+    from .registration import register_poses
+    from .report import (
+        check_reachable,
+        frame_warnings,
+        frames_text,
+        identification_text,
+        write_identified,
+    )
 
     plan, geometry, noise = context
     data = read_measurements(args.measurements, noise.counts_per_rev)
-    check_reachable(geometry, data)
+    registered = None
+    if registration is not None:
+        registered = register_poses(
+            registration[0], data.poses, noise.rotation_rad, noise.translation_m
+        )
+        data = replace(data, poses=registered.poses)
+    check_reachable(geometry, data, registered is not None)
     print(
         f"read {len(data.poses)} measured poses from {args.measurements}"
         + (
@@ -403,15 +468,23 @@ def _identify(args, context) -> int:
         )
         + (f"; columns not read: {', '.join(data.ignored)}" if data.ignored else "")
     )
-    ident = _identification(args, geometry, data.poses, data.readings, noise)
+    ident = _identification(args, geometry, data.poses, data.readings, noise, registered)
+    if registration is not None:
+        print(frames_text(geometry, ident, registration[0], data.poses, args.registration))
     print(identification_text(ident, noise, data.lines))
-    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements)
+    for line in frame_warnings(geometry, ident, registered is not None):
+        print(f"stewart-drake calibrate: warning: {line}", file=sys.stderr)
+    frames = None if registration is None else (registration[0], args.registration)
+    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements, frames)
+    if path is None:
+        return 1
     print(f"wrote {path} (a scenario's robot: section)")
     return 0
 
 
-def _identification(args, geometry, poses, q, noise):
-    """:func:`~.identify.identify` with the command's options."""
+def _identification(args, geometry, poses, q, noise, registered=None):
+    """:func:`~.identify.identify` with the command's options (and a registration's
+    :class:`~.registration.RegisteredPoses`' errors)."""
     from .identify import identify
 
     return identify(
@@ -423,6 +496,8 @@ def _identification(args, geometry, poses, q, noise):
         outlier_threshold=args.outlier_threshold,
         robust=args.robust,
         drop_outliers=args.drop_outliers,
+        pose_covariances=None if registered is None else registered.pose_covariances,
+        frames=None if registered is None else registered.frames,
     )
 
 
@@ -443,8 +518,9 @@ def _plan(args, context) -> int:
     )
 
 
-def _rehearse(args, context) -> int:
-    """``calibrate --rehearse``."""
+def _rehearse(args, context, registration) -> int:
+    """``calibrate --rehearse [--registration REG.yaml]``: with a registration, the emulated
+    tracker stands at its frames, its fiducials where REG.yaml's drawing puts them."""
     from ..robot.tolerances import Tolerances
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
@@ -452,10 +528,17 @@ def _rehearse(args, context) -> int:
     plan, geometry, noise = context
     tolerances = Tolerances()
     select = args.select or "random"
+    setup, sigma = _emulated_setup(registration)
     print(
         f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
         f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
-        f"{args.poses} {select} poses, tracker {noise.words()}",
+        f"{args.poses} {select} poses, tracker {noise.words()}"
+        + (
+            ""
+            if setup is None
+            else f"; the tracker and its marker at {args.registration}'s frames, its "
+            f"fiducials measured again at {sigma * 1e6:.3g} um"
+        ),
         flush=True,
     )
     from tqdm import tqdm
@@ -465,17 +548,49 @@ def _rehearse(args, context) -> int:
         bar.update(1)
         idx = pick(geometry, space, args.poses, select, noise, tolerances, args.seed)
         bar.update(1)
-        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, select)
+        r = rehearse(geometry, space, idx, noise, args.seed, tolerances, select, setup, sigma)
         bar.update(1)
     print(rehearsal_text(r, noise))
     if args.save_measurements is not None:
-        from .files import write_measurements
-        from .tracker import measure
-
-        data = measure(geometry, r.truth, space.candidates[idx], noise, args.seed)
-        path = write_measurements(args.save_measurements, data.poses, data.readings)
-        print(f"wrote {path} (the emulated measurements: calibrate reads them)")
+        _save_rehearsal(args, geometry, r, space.candidates[idx], noise, setup, sigma)
     if args.out is not None:
-        path = write_identified(args.out, plan.scenario.robot, r.identification, "a rehearsal")
+        frames = None if r.registration is None else (r.registration, "the emulated fiducials")
+        path = write_identified(
+            args.out, plan.scenario.robot, r.identification, "a rehearsal", frames
+        )
+        if path is None:
+            return 1
         print(f"wrote {Path(path)} (a scenario's robot: section)")
     return 0
+
+
+def _emulated_setup(registration):
+    """(the :class:`~.tracker.TrackerSetup` a registration describes, its fiducials' noise, m),
+    or (None, the default noise)."""
+    from .registration import DEFAULT_POINT_SIGMA_M
+    from .tracker import TrackerSetup
+
+    if registration is None:
+        return None, DEFAULT_POINT_SIGMA_M
+    reg, fiducials = registration
+    setup = TrackerSetup(reg.X_TB, reg.X_PM, fiducials.base_B, fiducials.platform_P)
+    return setup, fiducials.point_sigma_m
+
+
+def _save_rehearsal(args, geometry, r, x, noise, setup, sigma) -> None:
+    """``--save-measurements``: the rehearsal's measurements (the marker's in the tracker's
+    frame with a setup, and the fiducials measured, a REG.yaml beside them)."""
+    from .files import registration_path, write_measurements, write_registration
+    from .tracker import measure
+
+    data = measure(geometry, r.truth, x, noise, args.seed, setup=setup)
+    path = write_measurements(args.save_measurements, data.poses, data.readings)
+    if setup is None:
+        print(f"wrote {path} (the emulated measurements: calibrate reads them)")
+        return
+    fiducials = setup.fiducials(noise, args.seed + 30_000, sigma)
+    reg = write_registration(registration_path(path), fiducials)
+    print(
+        f"wrote {path} (the emulated measurements, the marker's in the tracker's frame) and "
+        f"{reg} (its fiducials: calibrate {path.name} --registration {reg.name} reads them)"
+    )

@@ -269,6 +269,12 @@ def registration_yaml(fiducials: Fiducials) -> str:
     return "\n".join(lines) + "\n"
 
 
+def registration_path(path) -> Path:
+    """The REG.yaml beside an emulated measurements file: ``<stem>_registration.yaml``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}_registration.yaml")
+
+
 def write_registration(path, fiducials: Fiducials) -> Path:
     """Write :func:`registration_yaml` to ``path`` atomically (a regular file only)."""
     text = registration_yaml(fiducials)

@@ -22,6 +22,15 @@ reduced chi-square. Outliers: a reading whose studentized residual r / (s sqrt(S
 (h_jj the variance the fit's parameters explain, J C J^T) exceeds ``outlier_threshold`` is
 flagged; ``drop_outliers`` identifies again without the poses that hold one, ``robust`` uses the
 soft-L1 loss instead of the square.
+
+Registered poses. Poses converted from a tracker's frame (:mod:`~.registration`) carry two more
+errors. Their own noise, turned by the marker's lever arm, is each pose's: ``pose_covariances``
+replaces the isotropic diag(sigma_rot^2 I, sigma_pos^2 I) in Sigma_k. The frames' error is the
+same in every pose, so it does not average out over them and would be wrong as a noise per pose:
+it moves every reading at once (r_k changes by G_k J_k e for a frames' error e of covariance C,
+``frames = (J, C)``), and the per-leg parameters absorb such a rigid motion of the base or of the
+platform whole. It is carried to the parameters instead: their covariance gains K C K^T, K the
+least-squares solution's derivative with respect to e (:attr:`Identification.frames_covariance`).
 """
 
 from __future__ import annotations
@@ -30,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 
 from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError, UnreachablePoseError
@@ -45,6 +55,7 @@ from ..robot.legs import (
     readings,
 )
 from ..robot.tolerances import Tolerances
+from .registration import fit_frame, rigid_fit_rows
 from .tracker import MeasurementNoise
 
 #: Fewest poses an identification takes: each leg's 11 parameters are seen only through its
@@ -117,6 +128,8 @@ class Identification:
             (about 1 when the noise is as stated).
         dof: readings used minus parameters identified.
         nfev: residual evaluations of ``least_squares``.
+        frames_covariance: (66, 66) the part of ``covariance`` that the frames' error of
+            registered poses makes (zeros without one), same units.
     """
 
     nominal: LegParameters
@@ -135,6 +148,7 @@ class Identification:
     chi2_reduced: float
     dof: int
     nfev: int
+    frames_covariance: np.ndarray | None = None
 
     @property
     def identified_mask(self) -> np.ndarray:
@@ -169,19 +183,35 @@ def check_measurements(poses, q) -> tuple[np.ndarray, np.ndarray]:
 
 
 def reading_covariances(
-    geometry: StewartGeometry, legs: LegParameters, poses, noise: MeasurementNoise
+    geometry: StewartGeometry,
+    legs: LegParameters,
+    poses,
+    noise: MeasurementNoise,
+    pose_covariances=None,
 ) -> np.ndarray:
     """(N, 6, 6) Sigma_k, each pose's readings' covariance (module docstring), rad^2, at the
-    robot ``legs``."""
+    robot ``legs``; ``pose_covariances`` (N, 6, 6), [rad, m]^2 of a small rotation in B and a
+    shift, in place of the tracker's isotropic noise (registered poses)."""
     G = derivatives(geometry, legs, poses).pose
-    sig = np.array([noise.rotation_rad] * 3 + [noise.translation_m] * 3) ** 2
-    return np.einsum("nik,k,njk->nij", G, sig, G) + noise.quantization_rms_rad**2 * np.eye(6)
+    if pose_covariances is None:
+        sig = np.array([noise.rotation_rad] * 3 + [noise.translation_m] * 3) ** 2
+        poses_part = np.einsum("nik,k,njk->nij", G, sig, G)
+    else:
+        poses_part = np.einsum("nik,nkl,njl->nij", G, pose_covariances, G)
+    return poses_part + noise.quantization_rms_rad**2 * np.eye(6)
 
 
-def whitening(geometry: StewartGeometry, legs: LegParameters, poses, noise: MeasurementNoise):
+def whitening(
+    geometry: StewartGeometry,
+    legs: LegParameters,
+    poses,
+    noise: MeasurementNoise,
+    pose_covariances=None,
+):
     """(N, 6, 6) L_k^-1 of each pose's readings' covariance Sigma_k = L_k L_k^T
     (:func:`reading_covariances`)."""
-    return np.linalg.inv(np.linalg.cholesky(reading_covariances(geometry, legs, poses, noise)))
+    Sigma = reading_covariances(geometry, legs, poses, noise, pose_covariances)
+    return np.linalg.inv(np.linalg.cholesky(Sigma))
 
 
 def _residuals(geometry, legs, poses, q) -> np.ndarray:
@@ -234,6 +264,8 @@ def identify(
     outlier_threshold: float = OUTLIER_THRESHOLD,
     robust: bool = False,
     drop_outliers: bool = False,
+    pose_covariances=None,
+    frames=None,
 ) -> Identification:
     """Identify the robot's per-leg parameters from measured poses and readings.
 
@@ -249,6 +281,10 @@ def identify(
         outlier_threshold: a reading with a larger studentized residual is flagged.
         robust: the soft-L1 loss (scale 3 whitened units) instead of least squares.
         drop_outliers: identify again without the poses holding a flagged reading.
+        pose_covariances: (N, 6, 6) each pose's noise, [rad, m]^2 (a small rotation in B and a
+            shift), in place of ``noise``'s isotropic one (registered poses: module docstring).
+        frames: (J (N, 6, k), C (k, k)): an error e common to every pose, of covariance C, that
+            moves pose k by J_k e (the registration's frames), carried to the covariance.
     Returns:
         :class:`Identification`.
     Raises:
@@ -260,12 +296,13 @@ def identify(
         (least squares on the inverse kinematics' residuals, an SVD of the scaled Jacobian).
     """
     poses, q = check_measurements(poses, q)
+    extra = _check_registered(len(poses), pose_covariances, frames)
     tolerances = Tolerances() if tolerances is None else tolerances
     min_singular = as_number("min_singular", min_singular, 0.0, lo_open=True)
     outlier_threshold = as_number("outlier_threshold", outlier_threshold, 0.0, lo_open=True)
     used = np.ones(len(poses), dtype=bool)
     result = _identify_once(
-        geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold
+        geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold, extra
     )
     if drop_outliers and result.outliers:
         for o in result.outliers:
@@ -276,18 +313,70 @@ def identify(
                 f"fewer than {MIN_POSES}: measure again, or identify without --drop-outliers"
             )
         result = _identify_once(
-            geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold
+            geometry,
+            poses,
+            q,
+            noise,
+            tolerances,
+            min_singular,
+            robust,
+            used,
+            outlier_threshold,
+            extra,
         )
     return result
 
 
+def _check_registered(n: int, pose_covariances, frames) -> tuple:
+    """(pose_covariances (n, 6, 6) or None, frames (J (n, 6, k), C (k, k)) or None), checked.
+
+    Raises:
+        InvalidConfigError: a shape other than these, not finite, a covariance not symmetric
+            positive semi-definite.
+    """
+    if pose_covariances is not None:
+        pose_covariances = as_array("pose_covariances", pose_covariances, shape=(n, 6, 6))
+        _check_covariance("pose_covariances", pose_covariances)
+    if frames is not None:
+        J = as_array("frames' pose derivatives", frames[0])
+        if J.ndim != 3 or J.shape[:2] != (n, 6):
+            raise InvalidConfigError(f"the frames' pose derivatives must be ({n}, 6, k)")
+        C = as_array("frames' covariance", frames[1], shape=(J.shape[2],) * 2)
+        _check_covariance("the frames' covariance", C[None])
+        frames = (J, C)
+    return pose_covariances, frames
+
+
+def _check_covariance(name: str, C: np.ndarray) -> None:
+    """Raises InvalidConfigError unless each C[k] is symmetric positive semi-definite."""
+    scale = max(float(np.abs(C).max()), 1e-300)
+    if np.abs(C - np.swapaxes(C, 1, 2)).max() > 1e-9 * scale or (
+        np.linalg.eigvalsh(C).min() < -1e-9 * scale
+    ):
+        raise InvalidConfigError(f"{name} must be symmetric positive semi-definite")
+
+
+def _frames_covariance(W, G, frames, used, Jb, N_inv, basis, scale) -> np.ndarray:
+    """(66, 66) K C K^T of the module docstring: K = N^-1 Jb^T (W G J) the identified
+    combinations' derivative with respect to the frames' error, mapped to the parameters."""
+    if frames is None:
+        return np.zeros((len(scale), len(scale)))
+    J, C = frames[0][used], frames[1]
+    D = np.einsum("nij,njk,nkl->nil", W, G, J).reshape(-1, J.shape[2])
+    K = basis @ (N_inv @ (Jb.T @ D))
+    return scale[:, None] * (K @ C @ K.T) * scale[None, :]
+
+
 def _identify_once(
-    geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold
+    geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold, extra
 ) -> Identification:
     """One identification on the poses ``used`` (see :func:`identify`)."""
     nominal = LegParameters.nominal(geometry)
     x, y = poses[used], q[used]
-    Sigma = reading_covariances(geometry, nominal, x, noise)
+    pose_covariances, frames = extra
+    Sigma = reading_covariances(
+        geometry, nominal, x, noise, None if pose_covariances is None else pose_covariances[used]
+    )
     W = np.linalg.inv(np.linalg.cholesky(Sigma))
     scale = tolerances.stds()
     active = scale > 0
@@ -349,8 +438,10 @@ def _identify_once(
     Vt_full = np.zeros((len(S0), N_PARAMETERS))
     Vt_full[:, active] = Vt0
     # Each reading's residual against its own deviation, Sigma_jj less what the fit took of it.
-    Jr = (derivatives(geometry, identified, x).parameters * scale).reshape(-1, N_PARAMETERS)
-    Jr = Jr @ basis
+    at_solution = derivatives(geometry, identified, x)
+    Jr = (at_solution.parameters * scale).reshape(-1, N_PARAMETERS) @ basis
+    frames_part = _frames_covariance(W, at_solution.pose, frames, used, Jb, N_inv, basis, scale)
+    covariance = covariance + frames_part
     var = np.diagonal(Sigma, axis1=1, axis2=2).ravel() - np.einsum("mi,ij,mj->m", Jr, N_inv, Jr)
     raw = _residuals(geometry, identified, x, y)
     studentized = raw.ravel() / np.sqrt(chi2 * np.clip(var, 1e-30, None))
@@ -378,6 +469,7 @@ def _identify_once(
         chi2_reduced=chi2,
         dof=dof,
         nfev=int(fit.nfev),
+        frames_covariance=frames_part,
     )
 
 
@@ -397,3 +489,65 @@ def predicted_rms(
 def kinds_and_legs() -> tuple[tuple[str, ...], np.ndarray]:
     """(the kind of each parameter, the leg of each), for reports."""
     return parameter_kinds(), parameter_legs()
+
+
+#: The chi-square (6 degrees of freedom) beyond which a rigid motion of the pivots or of the
+#: platform joints is refused as a robot's: 0.1 % of robots within their tolerances exceed it
+#: (``scipy.stats.chi2.ppf(0.999, 6)``).
+RIGID_MOTION_CHI2 = 22.458
+#: Where each set of joints is in the deviation vector: (frame, its first entry).
+_JOINT_SETS = (("base", 0), ("platform", 18))
+
+
+@dataclass(frozen=True)
+class RigidMotion:
+    """How far the identified pivots (``frame`` "base", in B) or platform joints ("platform",
+    in E) moved together, as one rigid body, from the drawing.
+
+    Attributes:
+        frame: "base" or "platform".
+        angle_rad: the rigid motion's rotation angle, rad.
+        shift_m: its translation's norm at the joints' centroid, m.
+        chi2: its Mahalanobis distance squared (6 degrees of freedom) against the spread that
+            the tolerances and the identification's uncertainty give such a motion.
+    """
+
+    frame: str
+    angle_rad: float
+    shift_m: float
+    chi2: float
+
+    @property
+    def beyond(self) -> bool:
+        """Whether no robot within its tolerances moves so (:data:`RIGID_MOTION_CHI2`)."""
+        return self.chi2 > RIGID_MOTION_CHI2
+
+
+def rigid_motions(geometry: StewartGeometry, ident: Identification) -> tuple:
+    """The :class:`RigidMotion` of the base's pivots and of the platform's joints that the
+    identification found: the rigid fit of the identified joints to the nominal ones
+    (:func:`~.registration.fit_frame`), and its chi-square against its covariance L (T + C) L^T,
+    T the tolerances' (each coordinate's standard deviation squared), C the identification's,
+    L the fit's derivative with respect to the joints' deviations. Poses measured in another
+    frame than B (a tracker turned or shifted) move every pivot so; a marker off the platform
+    frame moves every platform joint so.
+    """
+    out = []
+    for frame, start in _JOINT_SETS:
+        nominal = geometry.P_B if frame == "base" else geometry.p_E
+        block = slice(start, start + 18)
+        d = ident.deviation[block].reshape(6, 3)
+        X, _, _ = fit_frame(nominal + d, nominal)
+        e = np.concatenate(
+            [Rotation.from_matrix(X.rotation().matrix()).as_rotvec(), X.translation()]
+        )
+        L = rigid_fit_rows(nominal)  # (6, 18): e = L d to first order
+        C = np.diag(ident.scale[block] ** 2) + ident.covariance[block, block]
+        cov = L @ C @ L.T
+        chi2 = float(e @ np.linalg.lstsq(cov, e, rcond=None)[0]) if np.any(cov) else 0.0
+        centroid = nominal.mean(axis=0)
+        shift = X.multiply(centroid) - centroid
+        out.append(
+            RigidMotion(frame, float(np.linalg.norm(e[:3])), float(np.linalg.norm(shift)), chi2)
+        )
+    return tuple(out)

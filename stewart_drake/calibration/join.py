@@ -188,7 +188,9 @@ def mean_pose(poses) -> np.ndarray:
     return np.concatenate([rpy, poses[:, 3:].mean(axis=0)])
 
 
-def join(encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=None) -> Joined:
+def join(
+    encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=None, registration=None
+) -> Joined:
     """Join a session's files (module docstring): each a path, read and checked whole before
     anything is joined.
 
@@ -198,6 +200,11 @@ def join(encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=No
             (0: the tracker stamps on it), or ``"estimate"``: found from the motion both saw
             (:func:`~.clock.estimate_clock_offset`), which needs ``path_file``.
         path_file: the path ``calibrate --plan`` wrote (POSES.csv), read with ``"estimate"``.
+        registration: the tracker's frames (:class:`~.registration.Registration`), when its
+            poses are its marker's in its own frame: they are compared with the path (the
+            clock's estimate, the gap to each planned pose) once converted to the base frame,
+            and the poses joined stay the marker's in the tracker's frame (a measurements file
+            that ``calibrate --registration`` reads).
     Returns:
         :class:`Joined`, its ``clock`` the offset applied.
     Raises:
@@ -226,10 +233,11 @@ def join(encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=No
     plan = read_table(windows_file, "windows file", WINDOW_COLUMNS, WINDOWS_REMEDY)
     q_log = np.column_stack([log[n] for n in READING_COLUMNS])
     x_tracker = np.column_stack([tracker[n] for n in POSE_COLUMNS])
+    x_base = x_tracker if registration is None else registration.base_poses(x_tracker)
     planned = np.column_stack([plan[n] for n in POSE_COLUMNS])
     clock = None
     if estimate:
-        clock = _estimated_offset(log, tracker["time"], x_tracker, path_file)
+        clock = _estimated_offset(log, tracker["time"], x_base, path_file)
         clock_offset = clock.offset_s
     tracker["time"] = tracker["time"] + float(clock_offset)
     n = len(planned)
@@ -261,13 +269,13 @@ def join(encoder_log, tracker_file, windows_file, clock_offset=0.0, path_file=No
         readings[k] = q_log[rows].mean(axis=0)
         spread[k] = float(np.max(q_log[rows].std(axis=0)))
         windows[k], n_log[k], n_tracker[k] = (w0, w1), rows.sum(), samples.sum()
-        gap = np.abs(poses[k] - planned[k])
+        gap = np.abs(mean_pose(x_base[samples]) - planned[k])
         if np.max(gap[:3]) > MAX_POSE_GAP[0] or np.max(gap[3:]) > MAX_POSE_GAP[1]:
             raise InvalidConfigError(
                 f"{tracker_file}: the mean tracked pose of pose {k} is {np.max(gap[:3]):.3g} rad "
                 f"and {np.max(gap[3:]) * 1e3:.3g} mm from the planned one: the tracker must "
-                f"measure the platform frame E in the base frame B (docs/calibration.md), on "
-                f"the robot's clock"
+                f"measure the platform frame E in the base frame B, or its frames be given "
+                f"(--registration REG.yaml, docs/calibration.md), on the robot's clock"
             )
     return Joined(
         poses, readings, planned, windows, n_log, n_tracker, spread, float(clock_offset), clock

@@ -162,6 +162,18 @@ def fit_frame(points_a, points_b, weights=None) -> tuple[RigidTransform, np.ndar
     return RigidTransform(RotationMatrix(R), t), 0.5 * (cov + cov.T), rms
 
 
+def rigid_fit_rows(points_b, weights=None) -> np.ndarray:
+    """(6, 3n) L: the small rigid motion e [rotation vector rad, translation m] that
+    :func:`fit_frame` fits to points displaced by d (n, 3) from ``points_b`` (n, 3), to first
+    order e = L d.ravel() (about X_AB = I; each point weighted as in :func:`fit_frame`)."""
+    b = np.asarray(points_b, dtype=float).reshape(-1, 3)
+    w = np.ones(len(b)) if weights is None else np.asarray(weights, dtype=float)
+    A = np.concatenate([-_skew(b), np.broadcast_to(np.eye(3), (len(b), 3, 3))], axis=2)
+    information = np.einsum("n,nki,nkj->ij", w, A, A)
+    rows = np.einsum("n,nki->ink", w, A).reshape(6, -1)
+    return np.linalg.solve(information, rows)
+
+
 def _pose_vector(X: RigidTransform) -> np.ndarray:
     """(6,) [phi, theta, psi, x, y, z] of X (roll-pitch-yaw as rotation_rpy)."""
     return np.concatenate([RollPitchYaw(X.rotation()).vector(), X.translation()])
@@ -258,27 +270,64 @@ class Registration:
 
     def words(self) -> str:
         """The frames and their standard deviations as one line of text."""
+        marker = (
+            f"X_PM {transform_words(self.X_PM, self.cov_M)} from {self.platform_points} "
+            f"fiducials ({self.rms_platform_m * 1e6:.3g} um RMS)"
+            if self.platform_points
+            else "the marker is the platform frame (no platform_points)"
+        )
         return (
-            f"the base frame in the tracker's {_frame_words(self.X_TB, self.cov_B)} from "
-            f"{self.base_points} fiducials ({self.rms_base_m * 1e6:.3g} um RMS); the marker "
-            + (
-                f"in the platform frame {_frame_words(self.X_PM, self.cov_M)} from "
-                f"{self.platform_points} fiducials ({self.rms_platform_m * 1e6:.3g} um RMS)"
-                if self.platform_points
-                else "is the platform frame (no platform_points)"
-            )
+            f"X_TB {transform_words(self.X_TB, self.cov_B)} from {self.base_points} fiducials "
+            f"({self.rms_base_m * 1e6:.3g} um RMS); {marker}"
         )
 
 
-def _frame_words(X: RigidTransform, cov: np.ndarray) -> str:
-    """e.g. "at [0.1, 0.2, 0.3] m, rpy [0, 0, 0.52] rad (+- 6.1 urad, 1.2 um)"."""
-    angle = np.sqrt(np.trace(cov[:3, :3]))
-    shift = np.sqrt(np.trace(cov[3:, 3:]))
+@dataclass(frozen=True)
+class RegisteredPoses:
+    """Marker poses converted to the base frame, with what an identification needs of their
+    errors (:func:`~.identify.identify`'s ``pose_covariances`` and ``frames``).
+
+    Attributes:
+        poses: (N, 6) the platform's poses in B, [rad, m].
+        pose_covariances: (N, 6, 6) each one's noise (:meth:`Registration.pose_covariances`).
+        frames: (J (N, 6, 12), C (12, 12)): the frames' error common to all of them
+            (:meth:`Registration.pose_jacobians`, :meth:`Registration.frames_covariance`).
+    """
+
+    poses: np.ndarray
+    pose_covariances: np.ndarray
+    frames: tuple
+
+
+def register_poses(
+    registration: Registration, poses_TM, rotation_rad: float, translation_m: float
+) -> RegisteredPoses:
+    """:class:`RegisteredPoses` of the marker poses (N, 6) in T that a tracker measured with
+    ``rotation_rad`` and ``translation_m`` of noise per axis.
+
+    Raises:
+        InvalidConfigError: poses not (N, 6), not finite, beyond 1 km.
+    """
+    x = registration.base_poses(poses_TM)
+    return RegisteredPoses(
+        x,
+        registration.pose_covariances(x, rotation_rad, translation_m),
+        (registration.pose_jacobians(x), registration.frames_covariance()),
+    )
+
+
+def transform_words(X: RigidTransform, cov: np.ndarray, exact: bool = False) -> str:
+    """X and the standard deviation of its error as text, e.g. "rpy_rad [0, 0, 0.52], xyz_m
+    [1, 0.2, 0] (+- 5.9 urad, 1.1 um per axis)"; ``exact``: every digit a float64 holds."""
     x = _pose_vector(X)
+
+    def numbers(v):
+        return ", ".join(repr(float(a)) if exact else f"{a:.6g}" for a in v)
+
+    angle, shift = np.sqrt(np.trace(cov[:3, :3]) / 3), np.sqrt(np.trace(cov[3:, 3:]) / 3)
     return (
-        f"at [{', '.join(f'{v:.6g}' for v in x[3:])}] m, rpy "
-        f"[{', '.join(f'{v:.6g}' for v in x[:3])}] rad (+- {angle * 1e6:.3g} urad, "
-        f"{shift * 1e6:.3g} um)"
+        f"rpy_rad [{numbers(x[:3])}], xyz_m [{numbers(x[3:])}] (+- {angle * 1e6:.3g} urad, "
+        f"{shift * 1e6:.3g} um per axis)"
     )
 
 

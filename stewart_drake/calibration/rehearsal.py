@@ -9,7 +9,11 @@ poses, drawn with another seed): the RMS of predicted minus read (quantized at t
 with the nominal robot (before) and the identified one (after), beside the bound the
 identification's covariance predicts (:func:`~.identify.predicted_rms`), and the same after
 the prediction from the tracker's measurement of the held-out poses (what a user validating
-with the tracker sees: the tracker's own noise included).
+with the tracker sees: the tracker's own noise included). With a tracker set up as a real one
+stands (:class:`~.tracker.TrackerSetup`: its own frame, a marker off the platform frame), the
+tracker measures the marker in its frame and fiducials besides; the frames registered from the
+fiducials (:mod:`~.registration`) convert its poses to the base frame before the identification,
+and the held-out readings are predicted from the true base-frame poses.
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ from ..robot.legs import LegParameters, readings
 from ..robot.tolerances import Tolerances
 from .identify import Identification, identify, predicted_rms
 from .poses import candidate_poses, choose_poses, information_rows
-from .tracker import MeasurementNoise, measure, quantize
+from .registration import DEFAULT_POINT_SIGMA_M, Registration, register, register_poses
+from .tracker import MeasurementNoise, TrackerSetup, measure, quantize
 
 #: The ways a rehearsal's poses are picked from the candidates.
 SELECTIONS = ("chosen", "random")
@@ -95,6 +100,8 @@ class Rehearsal:
         fixed: combinations kept nominal.  chi2_reduced: of the fit.
         identification: the :class:`~.identify.Identification`.
         truth: the robot drawn, :class:`~stewart_drake.robot.legs.LegParameters`.
+        registration: the frames registered from the emulated fiducials, or None (the tracker
+            measured the platform frame in the base frame).
     """
 
     poses: int
@@ -109,6 +116,7 @@ class Rehearsal:
     chi2_reduced: float
     identification: Identification
     truth: LegParameters
+    registration: Registration | None = None
 
     def row(self) -> dict:
         """The figures as a flat dict (JSON)."""
@@ -135,17 +143,37 @@ def rehearse(
     seed: int,
     tolerances: Tolerances | None = None,
     selection: str = "random",
+    setup: TrackerSetup | None = None,
+    point_sigma_m: float = DEFAULT_POINT_SIGMA_M,
 ) -> Rehearsal:
     """Draw a robot with ``seed``, measure it at the candidates ``indices``, identify it and
-    predict its readings at the held-out poses (module docstring)."""
+    predict its readings at the held-out poses (module docstring); with a ``setup``, the
+    tracker measures in its frame, its fiducials with ``point_sigma_m`` of noise, and the
+    frames they register convert its poses."""
     tolerances = Tolerances() if tolerances is None else tolerances
     truth = tolerances.draw(geometry, seed)
     x = space.candidates[np.asarray(indices)]
-    data = measure(geometry, truth, x, noise, seed)
-    ident = identify(geometry, data.poses, data.readings, noise, tolerances)
+    data = measure(geometry, truth, x, noise, seed, setup=setup)
     H = space.held_out
     read = quantize(readings(geometry, truth, H), noise.counts_per_rev)
-    checked = measure(geometry, truth, H, noise, seed + 20_000)  # the tracker on held-out poses
+    checked = measure(geometry, truth, H, noise, seed + 20_000, setup=setup)  # held-out poses
+    reg = None
+    if setup is None:
+        ident = identify(geometry, data.poses, data.readings, noise, tolerances)
+        seen = checked.poses
+    else:
+        reg = register(setup.fiducials(noise, seed + 30_000, point_sigma_m), "the fiducials")
+        moved = register_poses(reg, data.poses, noise.rotation_rad, noise.translation_m)
+        ident = identify(
+            geometry,
+            moved.poses,
+            data.readings,
+            noise,
+            tolerances,
+            pose_covariances=moved.pose_covariances,
+            frames=moved.frames,
+        )
+        seen = reg.base_poses(checked.poses)
 
     def rms(a, b):
         return float(np.sqrt(np.mean((a - b) ** 2)))
@@ -157,12 +185,13 @@ def rehearse(
         seed=seed,
         before_rad=rms(readings(geometry, ident.nominal, H), read),
         after_rad=rms(readings(geometry, ident.identified, H), read),
-        after_tracked_rad=rms(readings(geometry, ident.identified, checked.poses), read),
+        after_tracked_rad=rms(readings(geometry, ident.identified, seen), read),
         bound_rad=predicted_rms(geometry, ident, H, noise),
         fixed=len(ident.fixed),
         chi2_reduced=ident.chi2_reduced,
         identification=ident,
         truth=truth,
+        registration=reg,
     )
 
 

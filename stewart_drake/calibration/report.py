@@ -12,7 +12,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from ..robot.legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
-from .files import MeasurementsFile, write_path, write_robot
+from .files import MeasurementsFile, robot_yaml, write_path, write_robot
 from .identify import Identification
 from .tracker import MeasurementNoise
 
@@ -28,9 +28,11 @@ _SHOWN = {
 }
 
 
-def check_reachable(geometry: StewartGeometry, data: MeasurementsFile) -> None:
+def check_reachable(
+    geometry: StewartGeometry, data: MeasurementsFile, registered: bool = False
+) -> None:
     """Refuse measurements whose poses the nominal robot cannot reach (wrong units or frames),
-    before any work.
+    before any work; ``registered``: the poses were converted by a registration.
 
     Raises:
         InvalidConfigError: names the first such line.
@@ -39,10 +41,17 @@ def check_reachable(geometry: StewartGeometry, data: MeasurementsFile) -> None:
     bad = ~np.all(np.isfinite(theta), axis=1)
     if np.any(bad):
         k = int(np.argmax(bad))
+        check = (
+            "that the file's poses are the marker's in the tracker's frame, as REG.yaml's "
+            "fiducials are, and the columns' units"
+            if registered
+            else "the columns' units and that the pose is the platform frame's in the base frame "
+            "(a tracker's own frame: --registration REG.yaml)"
+        )
+        units = "rad, m, converted to the base frame" if registered else "rad, m"
         raise InvalidConfigError(
             f"line {data.lines[k]}: the nominal robot cannot reach the pose "
-            f"{np.round(data.poses[k], 6).tolist()} (rad, m): check the columns' units and "
-            f"that the pose is the platform frame's in the base frame"
+            f"{np.round(data.poses[k], 6).tolist()} ({units}): check {check}"
         )
 
 
@@ -103,9 +112,20 @@ def identification_text(ident: Identification, noise: MeasurementNoise, lines=No
     return "\n".join(out)
 
 
-def write_identified(out, robot, ident: Identification, source) -> Path:
+def write_identified(out, robot, ident: Identification, source, frames=None) -> Path | None:
     """The identified robot as a scenario's ``robot:`` section at ``out``
-    (:func:`~.files.write_robot`), its comments saying where it came from."""
+    (:func:`~.files.write_robot`), its comments saying where it came from (with ``frames``,
+    (a :class:`~.registration.Registration`, its source), the frames its poses were converted
+    by), once the scenario loader accepts it (:func:`loader_refusal`).
+
+    Returns:
+        the path written, or None when the loader would refuse the section: nothing is then
+        written, and one line on stderr says why.
+    """
+    import sys
+
+    from .registration import transform_words
+
     comments = (
         f"The robot identified by stewart-drake calibrate from {source}: "
         f"{int(ident.used.sum())} poses,",
@@ -115,7 +135,94 @@ def write_identified(out, robot, ident: Identification, source) -> Path:
         "Per-leg fields: docs/calibration.md (encoder_offsets_rad: what each encoder reads at "
         "theta_i = 0).",
     )
+    if frames is not None:
+        registration, where = frames
+        comments += (
+            f"The poses were the tracker's marker M in its frame T, converted to the base frame "
+            f"B by the registration of {where}:",
+            f"X_TB {transform_words(registration.X_TB, registration.cov_B, exact=True)};",
+            f"X_PM {transform_words(registration.X_PM, registration.cov_M, exact=True)}.",
+        )
+    text = robot_yaml(robot, ident.identified, comments)
+    refusal = loader_refusal(text)
+    if refusal is not None:
+        print(
+            f"stewart-drake calibrate: the identified robot was not written to {out}: the "
+            f"scenario loader would refuse it ({refusal}); the poses are probably not the "
+            f"platform frame's in the base frame (register the tracker's frames: "
+            f"--registration REG.yaml, docs/calibration.md), or the readings not this robot's",
+            file=sys.stderr,
+        )
+        return None
     return write_robot(out, robot, ident.identified, comments)
+
+
+def loader_refusal(text: str) -> str | None:
+    """Why the scenario loader would refuse the scenario ``text`` (a robot section), in one
+    line, or None when it loads: the text is loaded as a scenario file is
+    (:func:`~stewart_drake.run.scenario_io.load_scenario`) and planned without a reference."""
+    import tempfile
+
+    from ..base.errors import StewartError
+    from ..run.plan import make_plan
+    from ..run.scenario_io import load_scenario
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "robot.yaml"
+        path.write_bytes(text.encode())
+        try:
+            make_plan(load_scenario(path), with_reference=False)
+        except StewartError as err:
+            return str(err).replace(f"{path}: ", "").splitlines()[0]
+    return None
+
+
+def frame_warnings(geometry: StewartGeometry, ident: Identification, registered: bool) -> list:
+    """One line for each set of joints the identification moved as a rigid whole beyond what
+    the tolerances allow (:func:`~.identify.rigid_motions`): the poses were probably not the
+    platform frame's in the base frame; ``registered``: they were converted by a registration
+    (the line then blames it)."""
+    from .identify import RIGID_MOTION_CHI2, rigid_motions
+
+    lines = []
+    for m in rigid_motions(geometry, ident):
+        if not m.beyond:
+            continue
+        joints, frame = (
+            ("pivots", "the base frame B")
+            if m.frame == "base"
+            else ("platform joints", "the platform frame P (E)")
+        )
+        fix = (
+            f"check REG.yaml's {'base_points' if m.frame == 'base' else 'platform_points'}"
+            if registered
+            else "measure fiducials and give them with --registration REG.yaml "
+            "(docs/calibration.md, Registration)"
+        )
+        lines.append(
+            f"the identified {joints} moved together, as one rigid body, by "
+            f"{m.angle_rad * 1e3:.3g} mrad and {m.shift_m * 1e3:.3g} mm from the drawing (chi2 "
+            f"{m.chi2:.3g} on 6 degrees of freedom, over {RIGID_MOTION_CHI2:g}: under 0.1 % of "
+            f"robots within their tolerances do so): the poses are probably not in {frame}; "
+            f"{fix}"
+        )
+    return lines
+
+
+def frames_text(geometry: StewartGeometry, ident: Identification, registration, poses, source):
+    """The registration as text: its frames (:meth:`~.registration.Registration.words`) and
+    what their error costs the readings predicted at the measured poses ``poses`` (N, 6) in B
+    (the frames' part of the parameters' covariance mapped through the readings' derivatives,
+    RMS)."""
+    from ..robot.legs import derivatives
+
+    J = derivatives(geometry, ident.identified, poses).parameters
+    var = np.einsum("nik,kl,nil->ni", J, ident.frames_covariance, J)
+    return (
+        f"registered by {source}: {registration.words()}; the poses converted to the base "
+        f"frame; the frames' error, in every pose, carried into the parameters' covariance: "
+        f"{np.sqrt(np.mean(var)) * 1e6:.3g} urad RMS on the readings from it alone"
+    )
 
 
 def rehearsal_text(r, noise: MeasurementNoise) -> str:
@@ -128,8 +235,14 @@ def rehearsal_text(r, noise: MeasurementNoise) -> str:
     from ..robot.legs import parameter_names
 
     worst = np.array(parameter_names())[free][int(np.argmax(z))]
+    registered = (
+        []
+        if r.registration is None
+        else [f"registered by the emulated fiducials: {r.registration.words()}"]
+    )
     return "\n".join(
-        [
+        registered
+        + [
             identification_text(ident, noise),
             f"identified minus drawn, in standard deviations: RMS {np.sqrt(np.mean(z**2)):.2f}, "
             f"largest {z.max():.2f} ({worst})",

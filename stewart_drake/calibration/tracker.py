@@ -99,6 +99,9 @@ def quantize(angles, counts_per_rev: int) -> np.ndarray:
 HOME_POSE = (0.0, 0.0, 0.0, 0.0, 0.0, 0.30)
 
 
+#: Samples of the marker's pose averaged when the platform's fiducials are measured (2 s of a
+#: 50 Hz tracker, the platform at rest).
+MARKER_SAMPLES = 100
 #: The noise a REG.yaml states for fiducials emulated without any (it must be > 0), m.
 _LEAST_SIGMA_M = 1e-9
 
@@ -135,16 +138,23 @@ class TrackerSetup:
         seed: int,
         point_sigma_m: float = DEFAULT_POINT_SIGMA_M,
         pose=HOME_POSE,
+        marker_samples: int = MARKER_SAMPLES,
     ) -> Fiducials:
         """The fiducials as the tracker measures them (what REG.yaml holds): each with a
         Gaussian error of ``point_sigma_m`` per axis; the platform's with the platform at
-        ``pose`` (6,) in B, the marker's pose then with the tracker's ``noise``.
+        ``pose`` (6,) in B, the marker's pose then the mean of ``marker_samples`` samples with
+        the tracker's ``noise`` (its noise divided by sqrt(marker_samples), as REG.yaml says).
 
         Raises:
-            InvalidConfigError: a seed out of 0 .. 2^32 - 1, a sigma not finite and >= 0.
+            InvalidConfigError: a seed out of 0 .. 2^32 - 1, a sigma not finite and >= 0,
+                fewer than 1 sample.
         """
         rng = np.random.default_rng(check_int("seed", seed, 0, 2**32 - 1))
         sigma = as_number("point_sigma_m", point_sigma_m, 0.0)
+        root = np.sqrt(check_int("marker_samples", marker_samples, 1, 10**9))
+        mean_noise = MeasurementNoise(
+            noise.translation_m / root, noise.rotation_rad / root, noise.counts_per_rev
+        )
 
         def seen(X_TR, points):
             p = np.asarray(points, dtype=float).reshape(-1, 3)
@@ -155,7 +165,7 @@ class TrackerSetup:
             return Fiducials(self.base_B.copy(), base_T, point_sigma_m=max(sigma, _LEAST_SIGMA_M))
         x = as_poses("pose", pose).reshape(6)
         X_TP = self.X_TB @ RigidTransform(RollPitchYaw(x[:3]), x[3:])
-        marker = noisy_poses(self.tracker_poses(x), noise, rng)[0]
+        marker = noisy_poses(self.tracker_poses(x), mean_noise, rng)[0]
         return Fiducials(
             self.base_B.copy(),
             base_T,
@@ -163,7 +173,7 @@ class TrackerSetup:
             seen(X_TP, self.platform_P),
             marker,
             max(sigma, _LEAST_SIGMA_M),
-            (noise.rotation_rad, noise.translation_m),
+            (mean_noise.rotation_rad, mean_noise.translation_m),
         )
 
 
