@@ -234,6 +234,7 @@ def _write_export(path, seconds=20.0, drop=None, columns=3):
         ("nan", "line 101: Y is missing or NaN"),
         ("columns", "needs the marker's X, Y and Z"),
         ("no overlap", "no overlap"),
+        ("registration", "base_points: 2 points: a frame needs at least 3"),
     ],
 )
 def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, expected):
@@ -247,12 +248,18 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
     elif case == "columns":
         _write_export(path, columns=2)
         columns = "-,t [ms],X [mm],Y [mm]"
-    else:
+    elif case == "no overlap":
         _write_export(path)
         offset = -1e5
-    code, reports = run_verify(
-        tmp_path, "--measured", str(path), "--measured-columns", columns, f"--clock-offset={offset}"
-    )
+    options = ["--measured", str(path), "--measured-columns", columns, f"--clock-offset={offset}"]
+    if case == "registration":  # REG.yaml naming 2 points: refused before any file is read
+        reg = tmp_path / "REG.yaml"
+        reg.write_text(
+            "base_points:\n  - {base_m: [0, 0, 0], tracker_m: [1, 0, 0]}\n"
+            "  - {base_m: [0.1, 0, 0], tracker_m: [1.1, 0, 0]}\n"
+        )
+        options += ["--registration", str(reg)]
+    code, reports = run_verify(tmp_path, *options)
     err = capsys.readouterr().err
     assert code == 2 and not reports
     assert err.count("\n") == 1 and err.startswith("stewart-drake verify: ")

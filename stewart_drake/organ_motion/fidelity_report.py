@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
 from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
 from .reproduction import Reproduction, learning_words
+
+if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
+    from .verification import Verification
 
 
 def _feedforward_line(last: dict) -> str:
@@ -429,7 +433,7 @@ def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float])
 TITLE_POINTS, TITLE_CHARS = 9, 110
 
 
-def report_title(rep: Reproduction, line: str) -> str:
+def report_title(rep: Reproduction | Verification, line: str) -> str:
     """The report figure's title: the motion, the verdict ``line`` and how the run learned
     (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
     import textwrap
@@ -438,7 +442,7 @@ def report_title(rep: Reproduction, line: str) -> str:
     return "\n".join(textwrap.wrap(text, TITLE_CHARS, break_on_hyphens=False))
 
 
-def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
+def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, float]) -> Path:
     """One PNG: reference and achieved pose per moving axis, the translation and rotation errors
     over time, for a run longer than :data:`ZOOM_AFTER_S` a zoom at full rate around its largest
     error, the error per cycle and the harmonic table. Returns the path (written atomically)."""
@@ -480,7 +484,7 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
 
 
 def write_report(
-    rep: Reproduction,
+    rep: Reproduction | Verification,
     out,
     tolerance: tuple[float, float],
     stem: str | None = None,
@@ -500,11 +504,15 @@ def write_report(
     Returns:
         the three paths.
     """
+    if text is None:
+        if not isinstance(rep, Reproduction):
+            raise TypeError("write_report: a measured motion's page is given (text)")
+        text = report_markdown(rep, tolerance)
     out = Path(out)
     stem = stem or f"reproduce_{rep.name}"
     md = out / f"{stem}.md"
     png = plot_report(rep, out / f"{stem}.png", tolerance)
-    page = text or report_markdown(rep, tolerance)
+    page = text
     page += f"\n![reference, achieved, errors]({png.name})\n"
     atomic_write(md, lambda f: f.write(page.encode()))
     figures = {
