@@ -105,7 +105,7 @@ class MeasuredMotion:
         """What was read, in words: the file, its samples, rate and span, its axes."""
         dt = float(np.median(np.diff(self.t)))
         axes = ", ".join(a for a, m in zip(AXES, self.measured) if m)
-        what = "the robot's encoder log (forward kinematics)" if self.kind == "encoders" else ""
+        what = "the robot's encoder log, by forward kinematics" if self.kind == "encoders" else ""
         return (
             f"{Path(self.path).name} ({what or self.layout}): {len(self.t)} samples at "
             f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
