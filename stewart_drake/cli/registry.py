@@ -33,7 +33,7 @@ COMMANDS = (
     tuner_command,  # collect, train
     evaluation_command,  # evaluate
     design_command,  # design
-    live_command,  # teleop, robot
+    live_command,  # teleop, robot, verify
     calibration_command,  # calibrate
     viz_command,  # diagrams
     core,  # scenario, sdf, mjcf

@@ -2,5 +2,6 @@
 (:mod:`.session`, ``stewart-drake robot``; the pose read with the torque off, :mod:`.measure`;
 our watchdog, :mod:`.watchdog`), teleoperation in Meshcat (``teleop``), the robot's plant behind the
 bus emulator of :mod:`stewart_drake.station.bus.emulator`, which rehearses both
-(:mod:`.plant_backend`, in a process of its own :mod:`.emulator_process`), and a calibration
-rehearsed over it (:mod:`.calibration_rehearsal`)."""
+(:mod:`.plant_backend`, in a process of its own :mod:`.emulator_process`), a calibration
+rehearsed over it (:mod:`.calibration_rehearsal`), and a run's measured motion judged against
+its reference (``verify``, :mod:`.verification`)."""

@@ -1,6 +1,7 @@
 """The robot live at the command line: ``stewart-drake teleop`` (the robot as built at real
-time, driven from Meshcat's sliders) and ``robot`` (the controller on the servos, or on the bus
-emulator)."""
+time, driven from Meshcat's sliders), ``robot`` (the controller on the servos, or on the bus
+emulator) and ``verify`` (a motion measured on the phantom judged against its reference:
+:mod:`.verification`)."""
 
 from __future__ import annotations
 
@@ -20,9 +21,13 @@ from ..execution.options import (
 
 
 def register(sub) -> None:
-    """Add the ``teleop`` and ``robot`` commands to ``sub``, the ``stewart-drake`` subparsers."""
+    """Add the ``teleop``, ``robot`` and ``verify`` (:mod:`.verification`) commands to ``sub``,
+    the ``stewart-drake`` subparsers."""
+    from .verification import add_verify_command
+
     _add_teleop_command(sub)
     _add_robot_command(sub)
+    add_verify_command(sub)
 
 
 def _add_teleop_command(sub) -> None:

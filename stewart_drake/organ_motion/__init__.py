@@ -1,7 +1,9 @@
 """Organ motion reproduced: a breathing, heartbeat or recorded trace run on the robot as
 built, with or without learning (:mod:`.reproduction`, ``stewart-drake reproduce``), its fidelity
 (RMS, peak, lag, gamma pass rate, harmonics: :mod:`.fidelity`) with a verdict, and its report
-(:mod:`.fidelity_report`, :mod:`.fidelity_replay`); the library's and the traces' studies."""
+(:mod:`.fidelity_report`, :mod:`.fidelity_replay`); a motion measured on a real phantom judged
+with the same figures (:mod:`.verification`, :mod:`.verification_report`; ``stewart-drake
+verify``); the library's and the traces' studies."""
 
 #: The scenario organ motion is reproduced on unless told (``reproduce``, the trace study): the
 #: robot as built with its LQI set for organ motion, the reference's inverse dynamics and 0.7 x

@@ -36,7 +36,7 @@ def _add_reproduce_command(sub) -> None:
         "recorded trace) on the robot and report its fidelity "
         "(exit 2 if beyond --tolerance)",
     )
-    _add_motion_arguments(rp)
+    add_motion_arguments(rp)
     add_trace_arguments(rp)
     add_scenario_arguments(
         rp,
@@ -57,9 +57,9 @@ def _add_reproduce_command(sub) -> None:
     rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
 
 
-def _add_motion_arguments(rp) -> None:
-    """``reproduce``'s motion: a library motion or a trace file, its parameters, the motions
-    laid on it."""
+def add_motion_arguments(rp) -> None:
+    """The motion of ``reproduce`` (and of ``verify``, which judges a measured one against it):
+    a library motion or a trace file, its parameters, the motions laid on it."""
     rp.add_argument(
         "motion",
         help="breathing, heartbeat, breathing_heartbeat, "
@@ -166,7 +166,7 @@ def _cmd_reproduce(args) -> int:
     from .reproduction import reproduce
 
     tolerance = parse_tolerance(args.tolerance)
-    scenario, name = _reproduce_scenario(args)
+    scenario, name = motion_scenario(args)
     out = Path(args.out)
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
@@ -225,10 +225,10 @@ def _cmd_reproduce(args) -> int:
     return 0 if ok else 2
 
 
-def _reproduce_scenario(args):
-    """``reproduce``'s scenario with its reference (the trace file or the library motion, with
-    the motions ``--add`` lays on it), validated, and the reproduction's name (its files'
-    ``reproduce_<name>``): (Scenario, str).
+def motion_scenario(args):
+    """The scenario of ``reproduce`` (and ``verify``) with its reference (the trace file or the
+    library motion, with the motions ``--add`` lays on it), validated, and the motion's name
+    (the reproduction's files' ``reproduce_<name>``): (Scenario, str).
 
     Raises:
         InvalidConfigError: a motion added twice, or options of a trace for a library motion
@@ -255,7 +255,8 @@ def _reproduce_scenario(args):
         )
         name = "+".join([Path(source).stem, *layers])
         size = Path(source).stat().st_size if Path(source).is_file() else 0
-        if size > 1e6 and not args.no_progress:  # a few seconds to read and resample
+        quiet = getattr(args, "no_progress", False)  # verify has no progress to hide
+        if size > 1e6 and not quiet:  # a few seconds to read and resample
             from ..base.checks import format_bytes
 
             print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)

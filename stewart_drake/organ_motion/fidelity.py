@@ -331,6 +331,23 @@ def fidelity(
     return out
 
 
+def startup_figures(t, x, x_d, end: float) -> dict:
+    """The figures of a motion before ``end`` (s): {"window_s": (t[0], end),
+    "rms_translation_m", "rms_rotation_rad", "peak_translation_m", "peak_rotation_rad"} of
+    the errors x - x_d ((n, 6) poses at the times t (n,)); zeros when no sample is before it,
+    NaN for a rotation not measured."""
+    before = np.asarray(t) < end
+    e = np.asarray(x[before, :6], dtype=float) - x_d[before, :6]
+    rms = rms_translation_rotation(e) if len(e) else (0.0, 0.0)
+    return {
+        "window_s": (float(t[0]) if len(t) else 0.0, float(end)),
+        "rms_translation_m": rms[0],
+        "rms_rotation_rad": rms[1],
+        "peak_translation_m": float(np.max(np.linalg.norm(e[:, 3:], axis=1), initial=0.0)),
+        "peak_rotation_rad": float(np.max(np.linalg.norm(e[:, :3], axis=1), initial=0.0)),
+    }
+
+
 # -- tolerance -----------------------------------------------------------------------------------
 
 
@@ -364,16 +381,25 @@ def parse_tolerance(text: str) -> tuple[float, float]:
 
 def verdict(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
     """(passed, one line): every axis's RMS error over the window within the tolerance
-    (translations in m, rotations in rad), naming the largest of each kind."""
-    rms = np.asarray(fid["rms"])
-    kt, kr = 3 + int(np.argmax(rms[3:])), int(np.argmax(rms[:3]))
-    ok = rms[3:].max() <= tolerance[0] and rms[:3].max() <= tolerance[1]
+    (translations in m, rotations in rad), naming the largest of each kind; rotations that were
+    not measured (NaN: a marker that gives positions only) are not judged, and the line says
+    so."""
+    rms = np.asarray(fid["rms"], dtype=float)
+    kt = 3 + int(np.argmax(rms[3:]))
+    ok = rms[3:].max() <= tolerance[0]
+    rotation = np.isfinite(rms[:3])
+    largest = f"{AXES[kt]} {format_length(rms[kt])}, "
+    if rotation.any():
+        kr = int(np.argmax(np.where(rotation, rms[:3], -np.inf)))
+        ok = ok and rms[kr] <= tolerance[1]
+        largest += f"{AXES[kr]} {format_angle(rms[kr])}"
+    else:
+        largest += "rotation not measured"
     w0, w1 = fid["window_s"]
-    return ok, (
+    return bool(ok), (
         f"{'PASS' if ok else 'FAIL'}: RMS error per axis {'within' if ok else 'beyond'} "
         f"{format_length(tolerance[0])} | {format_angle(tolerance[1])} "
-        f"over t = {w0:.4g}-{w1:.4g} s "
-        f"(largest: {AXES[kt]} {format_length(rms[kt])}, {AXES[kr]} {format_angle(rms[kr])})"
+        f"over t = {w0:.4g}-{w1:.4g} s (largest: {largest})"
     )
 
 
@@ -399,6 +425,7 @@ __all__ = [
     "time_lag",
     "harmonic_phasors",
     "fidelity",
+    "startup_figures",
     "parse_tolerance",
     "verdict",
     "format_length",

@@ -1,6 +1,11 @@
 """The report of a reproduction (``stewart-drake reproduce``): a Markdown page with a verdict
 against a tolerance (:func:`report_markdown`), one PNG of the poses, the errors, the cycles and
 the harmonics (:func:`plot_report`), and the figures as JSON (:func:`write_report`).
+
+A measured motion (``stewart-drake verify``, :class:`~.verification.Verification`) is written
+by the same functions: its page is :mod:`~.verification_report`'s, made of the same figure
+lines (:func:`fidelity_lines`, :func:`startup_lines`, :func:`anchor_lines`); the figure and the
+JSON are these, the axes it did not measure said so.
 """
 
 from __future__ import annotations
@@ -8,6 +13,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -15,6 +21,9 @@ from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
 from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
 from .reproduction import Reproduction, learning_words
+
+if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
+    from .verification import Verification
 
 
 def _feedforward_line(last: dict) -> str:
@@ -42,12 +51,9 @@ def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
     ok, line = verdict(fid, tolerance)
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
     lines += _run_lines(rep, fid)
-    lines += _axis_lines(fid)
-    lines += _gamma_lines(fid)
-    lines += _harmonic_lines(fid)
-    lines += _cycle_lines(fid)
+    lines += fidelity_lines(fid)
     lines += _learner_lines(rep)
-    lines += _anchor_lines(fid)
+    lines += anchor_lines(fid)
     lines += ["", "Feasibility (the reference validator):", "", "```", rep.check, "```", ""]
     return "\n".join(lines)
 
@@ -64,7 +70,7 @@ def _run_lines(rep: Reproduction, fid: dict) -> list:
         f"{fid['window_s'][1]:.4g} s from the true platform pose; wall time "
         f"{rep.wall_s:.0f} s."
     )
-    lines += _startup_lines(rep, fid)
+    lines += startup_lines(rep, fid)
     if getattr(rep, "learned_from", ""):
         lines += ["", f"Feed-forward model: {rep.learned_from}."]
     if rep.scale != 1.0:
@@ -81,19 +87,22 @@ def _run_lines(rep: Reproduction, fid: dict) -> list:
     return lines
 
 
-def _startup_lines(rep: Reproduction, fid: dict) -> list:
+def startup_lines(rep, fid: dict) -> list:
     """The report's lines on what the measured window leaves out (the start-up, its RMS and
-    peak) and on the encoders' resolution in the pose beside the measured figures."""
+    peak; a rotation not measured said so) and on the encoders' resolution in the pose beside
+    the measured figures (none when ``rep.resolution()`` is zero)."""
     lines: list = []
     start = getattr(rep, "startup", None) or {}
-    if start and start["window_s"][1] > 0:
+    if start and start["window_s"][1] > start["window_s"][0]:
+        (a, b), rot = start["window_s"], start["rms_rotation_rad"]
         lines += [
             "",
-            f"Start-up, not in the figures above or below (t = 0-{start['window_s'][1]:.4g} s): "
+            f"Start-up, not in the figures above or below (t = {a:.4g}-{b:.4g} s): "
             f"RMS {start['rms_translation_m'] * 1e6:.3g} um / "
-            f"{start['rms_rotation_rad'] * 1e6:.3g} urad, peak "
-            f"{start['peak_translation_m'] * 1e6:.3g} um / "
-            f"{start['peak_rotation_rad'] * 1e6:.3g} urad.",
+            + ("rotation not measured" if not np.isfinite(rot) else f"{rot * 1e6:.3g} urad")
+            + f", peak {start['peak_translation_m'] * 1e6:.3g} um"
+            + ("" if not np.isfinite(rot) else f" / {start['peak_rotation_rad'] * 1e6:.3g} urad")
+            + ".",
         ]
     resolution = rep.resolution() if hasattr(rep, "resolution") else (0.0, 0.0)
     if resolution[0] > 0 and resolution[1] > 0:
@@ -108,8 +117,24 @@ def _startup_lines(rep: Reproduction, fid: dict) -> list:
     return lines
 
 
+def fidelity_lines(fid: dict) -> list:
+    """The report's lines on the figures of :func:`~.fidelity.fidelity`: the error per axis, the
+    3-D error and the lag, the gamma pass rates, the harmonics, the error per cycle."""
+    return _axis_lines(fid) + _gamma_lines(fid) + _harmonic_lines(fid) + _cycle_lines(fid)
+
+
+#: What the report writes for a figure of an axis the measurement did not see.
+NOT_MEASURED = "not measured"
+
+
+def _figure(value: float, unit: str) -> str:
+    """``12.3 um`` of a value already in ``unit``, or :data:`NOT_MEASURED` for NaN."""
+    return f"{value:.3g} {unit}" if np.isfinite(value) else NOT_MEASURED
+
+
 def _axis_lines(fid: dict) -> list:
-    """The report's table of the error per axis and its line on the 3-D error and the lag."""
+    """The report's table of the error per axis and its line on the 3-D error and the lag (the
+    axes a measurement did not see: :data:`NOT_MEASURED`)."""
     lines: list = []
     units = ["urad"] * 3 + ["um"] * 3
     rows = []
@@ -118,8 +143,8 @@ def _axis_lines(fid: dict) -> list:
         lag = fid["lag_s"].get(axis)
         frac = fid["rms_fraction"][k]
         rows.append(
-            [axis, f"{fid['p2p'][k] * scale:.4g} {unit}", f"{fid['rms'][k] * 1e6:.3g} {units[k]}"]
-            + [f"{fid['peak'][k] * 1e6:.3g} {units[k]}"]
+            [axis, f"{fid['p2p'][k] * scale:.4g} {unit}", _figure(fid["rms"][k] * 1e6, units[k])]
+            + [_figure(fid["peak"][k] * 1e6, units[k])]
             + ["-" if not np.isfinite(frac) else f"{100 * frac:.3g} %"]
             + ["-" if lag is None else f"{1e3 * lag:.3g}"]
         )
@@ -128,9 +153,9 @@ def _axis_lines(fid: dict) -> list:
     lines += [
         "",
         f"3-D RMS error: translation {fid['rms_translation_m'] * 1e6:.3g} um, rotation "
-        f"{fid['rms_rotation_rad'] * 1e6:.3g} urad (peaks "
+        f"{_figure(fid['rms_rotation_rad'] * 1e6, 'urad')} (peaks "
         f"{fid['peak_translation_m'] * 1e6:.3g} um, "
-        f"{fid['peak_rotation_rad'] * 1e6:.3g} urad); lag of the whole motion "
+        f"{_figure(fid['peak_rotation_rad'] * 1e6, 'urad')}); lag of the whole motion "
         f"{1e3 * fid['lag_all_s']:.3g} ms (cross-correlation, > 0: late).",
     ]
     return lines
@@ -182,7 +207,7 @@ def _cycle_lines(fid: dict) -> list:
             "",
             "Error per cycle (RMS, translation um | rotation urad): "
             + ", ".join(
-                f"{j}: {a * 1e6:.3g} | {b * 1e6:.3g}"
+                f"{j}: {a * 1e6:.3g} | {_figure(b * 1e6, '').strip()}"
                 for j, (a, b) in enumerate(zip(cyc["rms_translation_m"], cyc["rms_rotation_rad"]))
             ),
         ]
@@ -206,7 +231,7 @@ def _learner_lines(rep: Reproduction) -> list:
     return lines
 
 
-def _anchor_lines(fid: dict) -> list:
+def anchor_lines(fid: dict) -> list:
     """The report's table of the phantom anchor against this run."""
     lines: list = []
     lines += [
@@ -245,15 +270,19 @@ def _thinned(t: np.ndarray, y: np.ndarray, peaks: bool = False) -> tuple:
     return t[:m:n], y[:m].reshape(-1, n).max(axis=1)
 
 
-def _plot_poses(axes, moving: list, r, window) -> None:
-    """Draw the reference and the achieved pose of each moving axis (mm or deg), one axis per
-    row, the measured window shaded."""
+def _plot_poses(axes, moving: list, r, window, label: str = "achieved") -> None:
+    """Draw the reference and the achieved (or measured: ``label``) pose of each moving axis
+    (mm or deg), one axis per row, the measured window shaded; an axis not measured (NaN)
+    says so."""
     t = r.t
     w0, w1 = window
     for ax, k in zip(axes, moving):
         scale, unit = (1e3, "mm") if k >= 3 else (180 / math.pi, "deg")
         ax.plot(*_thinned(t, r.x_d[:, k] * scale), "k--", lw=1, label="reference")
-        ax.plot(*_thinned(t, r.x[:, k] * scale), "C0", lw=0.9, label="achieved")
+        if np.isfinite(r.x[:, k]).any():
+            ax.plot(*_thinned(t, r.x[:, k] * scale), "C0", lw=0.9, label=label)
+        else:
+            ax.set_title(f"{AXES[k]}: {NOT_MEASURED}", fontsize=8, loc="left")
         ax.set_ylabel(f"{AXES[k]} [{unit}]")
         ax.axvspan(w0, w1, color="0.9", zorder=0)
         ax.legend(loc="upper right", fontsize=7, ncol=2)
@@ -271,6 +300,13 @@ def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
         (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
     ):
         norm = np.linalg.norm(e[:, part], axis=1) * scale
+        if not np.isfinite(norm).any():  # a marker that gives positions only
+            ax.text(0.5, 0.5, f"{what} {NOT_MEASURED}", ha="center", transform=ax.transAxes)
+            ax.set_xlim(axes[0].get_xlim())  # the translation's, drawn first
+            ax.axvspan(w0, w1, color="0.9", zorder=0)
+            ax.set_ylabel(f"{what}\nerror [{unit}]")
+            ax.set_yticks([])
+            continue
         ax.plot(*_thinned(t, norm, peaks=True), color, lw=0.6, label=f"|{what} error|")
         ax.axhline(
             tol * scale,
@@ -294,7 +330,9 @@ def _plot_cycles(ax, cyc: dict, learn_cycles: int) -> None:
     if cyc["starts"]:
         j = np.arange(len(cyc["starts"]))
         ax.plot(j, np.array(cyc["rms_translation_m"]) * 1e6, "o-C3", label="translation [um]")
-        ax.plot(j, np.array(cyc["rms_rotation_rad"]) * 1e6, "s-C2", label="rotation [urad]")
+        rotation = np.array(cyc["rms_rotation_rad"]) * 1e6
+        if np.isfinite(rotation).any():  # else a marker that gives positions only
+            ax.plot(j, rotation, "s-C2", label="rotation [urad]")
         ax.set_ylim(bottom=0)
         if learn_cycles:
             ax.axvline(learn_cycles - 0.5, color="k", ls=":", lw=1)
@@ -395,7 +433,7 @@ def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float])
 TITLE_POINTS, TITLE_CHARS = 9, 110
 
 
-def report_title(rep: Reproduction, line: str) -> str:
+def report_title(rep: Reproduction | Verification, line: str) -> str:
     """The report figure's title: the motion, the verdict ``line`` and how the run learned
     (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
     import textwrap
@@ -404,7 +442,7 @@ def report_title(rep: Reproduction, line: str) -> str:
     return "\n".join(textwrap.wrap(text, TITLE_CHARS, break_on_hyphens=False))
 
 
-def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path:
+def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, float]) -> Path:
     """One PNG: reference and achieved pose per moving axis, the translation and rotation errors
     over time, for a run longer than :data:`ZOOM_AFTER_S` a zoom at full rate around its largest
     error, the error per cycle and the harmonic table. Returns the path (written atomically)."""
@@ -427,7 +465,7 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
     fig, axes = plt.subplots(
         n_rows, 1, figsize=(10, sum(heights) + 1.2), gridspec_kw={"height_ratios": heights}
     )
-    _plot_poses(axes, moving, r, fid["window_s"])
+    _plot_poses(axes, moving, r, fid["window_s"], getattr(rep, "curve_label", "achieved"))
     _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
     if zoom:
         _plot_zoom(axes[len(moving) + 2 : len(moving) + 4], moving, r, fid, tolerance)
@@ -446,19 +484,37 @@ def plot_report(rep: Reproduction, path, tolerance: tuple[float, float]) -> Path
 
 
 def write_report(
-    rep: Reproduction, out, tolerance: tuple[float, float], stem: str | None = None
+    rep: Reproduction | Verification,
+    out,
+    tolerance: tuple[float, float],
+    stem: str | None = None,
+    text: str | None = None,
+    extra: dict | None = None,
 ) -> tuple[Path, Path, Path]:
     """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` (the figures) into ``out``.
 
+    Args:
+        rep: a :class:`~.reproduction.Reproduction`, or a
+            :class:`~.verification.Verification` (a measured motion).
+        out: the folder. tolerance: (m, rad) of the verdict. stem: the files' name (default
+            ``reproduce_<name>``).
+        text: the Markdown page (default :func:`report_markdown`'s); the figure's link is
+            appended.
+        extra: figures added to the JSON after the reproduction's keys.
     Returns:
         the three paths.
     """
+    if text is None:
+        if not isinstance(rep, Reproduction):
+            raise TypeError("write_report: a measured motion's page is given (text)")
+        text = report_markdown(rep, tolerance)
     out = Path(out)
     stem = stem or f"reproduce_{rep.name}"
     md = out / f"{stem}.md"
     png = plot_report(rep, out / f"{stem}.png", tolerance)
-    text = report_markdown(rep, tolerance) + f"\n![reference, achieved, errors]({png.name})\n"
-    atomic_write(md, lambda f: f.write(text.encode()))
+    page = text
+    page += f"\n![reference, achieved, errors]({png.name})\n"
+    atomic_write(md, lambda f: f.write(page.encode()))
     figures = {
         "name": rep.name,
         "scale": rep.scale,
@@ -471,7 +527,7 @@ def write_report(
         "startup": getattr(rep, "startup", {}),
         "encoder_resolution_m_rad": list(rep.resolution()),
         "wall_s": rep.wall_s,
-    }
+    } | (extra or {})
     js = out / f"{stem}.json"
     atomic_write(js, lambda f: f.write(json.dumps(figures, indent=1, default=float).encode()))
     return md, png, js
@@ -479,6 +535,10 @@ def write_report(
 
 __all__ = [
     "report_markdown",
+    "startup_lines",
+    "fidelity_lines",
+    "NOT_MEASURED",
+    "anchor_lines",
     "PLOT_POINTS",
     "ZOOM_AFTER_S",
     "ZOOM_S",

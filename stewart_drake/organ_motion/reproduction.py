@@ -19,7 +19,7 @@ import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..references.motion import Reference
-from .fidelity import fidelity
+from .fidelity import fidelity, startup_figures
 
 if TYPE_CHECKING:  # for the annotation only: the functions import experiments when they run
     from ..run.result import RunResult
@@ -298,19 +298,9 @@ def _measure(result, reference, starts, duration: float, whole: bool, eval_cycle
 
 def _startup(result, window: tuple[float, float]) -> dict:
     """The figures of the run before its measured ``window`` (s): RMS and peak error of the
-    true platform pose over [0, window start) (:attr:`Reproduction.startup`)."""
-    from .fidelity import rms_translation_rotation
-
-    before = result.t < window[0]
-    e = np.asarray(result.x[before, :6], dtype=float) - result.x_d[before, :6]
-    rms = rms_translation_rotation(e) if len(e) else (0.0, 0.0)
-    return {
-        "window_s": (0.0, float(window[0])),
-        "rms_translation_m": rms[0],
-        "rms_rotation_rad": rms[1],
-        "peak_translation_m": float(np.max(np.linalg.norm(e[:, 3:], axis=1), initial=0.0)),
-        "peak_rotation_rad": float(np.max(np.linalg.norm(e[:, :3], axis=1), initial=0.0)),
-    }
+    true platform pose over [0, window start) (:attr:`Reproduction.startup`,
+    :func:`~.fidelity.startup_figures`)."""
+    return startup_figures(result.t, result.x, result.x_d, window[0])
 
 
 def _learning_record(learning, learn_cycles: int) -> dict:
