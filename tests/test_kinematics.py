@@ -1,12 +1,15 @@
 """Kinematics: IK against the loop equation, Jacobian against finite differences, the per-step
 kernels against the batched functions (statics: test_statics.py)."""
 
+import warnings
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from conftest import random_reachable_poses
 from pydrake.math import RollPitchYaw
 
-from stewart_drake.base.errors import SingularPoseError, UnreachablePoseError
+from stewart_drake.base.errors import InvalidConfigError, SingularPoseError, UnreachablePoseError
 from stewart_drake.robot import kinematics, single_pose, statics
 from stewart_drake.robot.geometry import X_HOME
 
@@ -62,6 +65,8 @@ def test_jacobian_agrees_with_finite_differences(either_robot):
             ]
         )
         assert np.abs(J - J_fd).max() / np.abs(J).max() < 1e-6
+        J_ik = kinematics.jacobian_unchecked(geometry, x)  # its own IK when theta is not given
+        assert np.abs(J_ik - J_fd).max() / np.abs(J).max() < 1e-6
 
 
 def test_tau_is_jacobian_transpose_and_corrected_eq18(either_robot):
@@ -219,6 +224,10 @@ def test_the_first_unreachable_pose_is_named_with_its_time_and_leg(geometry):
     assert err.value.ratio == pytest.approx(abs(ratio[leg]), rel=1e-14)
     assert err.value.t == pytest.approx(0.2)
     np.testing.assert_array_equal(err.value.pose, x[2])
+    with pytest.raises(UnreachablePoseError) as err:  # a (2, 2) stack with its (2, 2) times
+        kinematics.ik(geometry, x.reshape(2, 2, 6), t.reshape(2, 2))
+    assert err.value.t == pytest.approx(0.2)
+    np.testing.assert_array_equal(err.value.pose, x[2])
 
 
 def test_a_quantity_not_finite_is_named_at_its_first_pose(geometry):
@@ -233,3 +242,125 @@ def test_a_quantity_not_finite_is_named_at_its_first_pose(geometry):
         kinematics.finite_or_singular("J", value, x)
     np.testing.assert_array_equal(err.value.pose, x[1])
     assert err.value.measure == "J" and err.value.value == np.inf
+
+
+def _stand_in_robot(joints):
+    """A stand-in for the robot with the attributes the closed-form IK reads: six legs with
+    their pivots at the origin, the crank turning in the x-z plane (d = x, w = z), a = 3 and
+    s = 5, and the platform joints at ``joints`` (6, 3), where the zero pose leaves them. Each
+    leg's L = |l|^2 - (s^2 - a^2), M = 2 a l_z and N = 2 a l_x are small integers."""
+    return SimpleNamespace(
+        P_B=np.zeros((6, 3)),
+        p_E=np.asarray(joints, dtype=float),
+        d_B=np.tile([1.0, 0.0, 0.0], (6, 1)),
+        w_B=np.tile([0.0, 0.0, 1.0], (6, 1)),
+        crank_lengths=np.full(6, 3.0),
+        rod_lengths=np.full(6, 5.0),
+    )
+
+
+def test_the_reach_ratio_of_joints_on_the_shaft_axis_and_at_the_dead_points():
+    """L / sqrt(M^2 + N^2) by hand: (3, 0, 4) gives 9 / 30; a joint on its motor's shaft axis
+    (M = N = 0) nearer than the rod's reach gives -inf, farther +inf, at it (L = 0) 0; (0, 5, 3)
+    gives 18 / 18 and (0, 3, 1) -6 / 6, the two dead points. The IK without checks gives NaN
+    for the legs on the shaft axis, without a floating-point warning; the IK names the first
+    leg that cannot close."""
+    robot = _stand_in_robot([[3, 0, 4], [0, 2, 0], [0, 6, 0], [0, 4, 0], [0, 5, 3], [0, 3, 1]])
+    x = np.zeros(6)
+    np.testing.assert_array_equal(
+        kinematics.leg_reach_ratio(robot, x), [0.3, -np.inf, np.inf, 0.0, 1.0, -1.0]
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a sweep of the workspace stays quiet
+        theta, _ = kinematics.ik_unchecked(robot, x)
+    assert np.isnan(theta[1:4]).all() and np.isfinite(theta[[0, 4, 5]]).all()
+    with pytest.raises(UnreachablePoseError) as err:
+        kinematics.ik(robot, x)
+    assert err.value.leg == 1 and err.value.ratio == np.inf and err.value.t is None
+    np.testing.assert_array_equal(err.value.pose, x)
+
+
+def test_a_leg_at_its_dead_point_closes():
+    """|ratio| = 1 exactly (the crank along +-w, the rod orthogonal to it) is reachable: the IK
+    gives angles whose crank tips, P + a (cos theta d + sin theta w), are a rod's length from
+    the joints."""
+    joints = np.array([[0, 5, 3], [0, 3, 1], [0, -5, -3], [0, -3, -1], [3, 0, 4], [4, 0, 0]], float)
+    robot = _stand_in_robot(joints)
+    theta = kinematics.ik(robot, np.zeros(6))
+    tips = 3.0 * np.column_stack([np.cos(theta), np.zeros(6), np.sin(theta)])
+    np.testing.assert_allclose(np.linalg.norm(joints - tips, axis=1), 5.0, rtol=1e-15)
+    np.testing.assert_allclose(np.abs(theta[:4]), np.pi / 2 * np.array([1, 1, 1, 3]), rtol=1e-15)
+
+
+def test_the_maps_name_the_pose_where_a_rod_is_orthogonal_to_its_crank_tip_s_motion(geometry):
+    """Motor angles 0 (the cranks horizontal, their tips moving straight up) and the platform
+    joints at the pivots' height (the rods horizontal): every rod is orthogonal to its tip's
+    motion, J and W are unbounded, and the error names that pose, not the first of the batch."""
+    at_pivots = np.array([0, 0, 0, 0, 0, geometry.P_B[0, 2]])
+    assert np.all(geometry.P_B[:, 2] == at_pivots[5]) and np.all(geometry.p_E[:, 2] == 0)
+    x = np.stack([X_HOME, at_pivots])
+    theta = np.stack([kinematics.ik(geometry, X_HOME), np.zeros(6)])
+    for f, name in ((kinematics.jacobian, "J"), (kinematics.wrench_map, "W")):
+        with pytest.raises(SingularPoseError) as err:
+            f(geometry, x, theta)
+        assert err.value.measure == name
+        np.testing.assert_array_equal(err.value.pose, at_pivots)
+
+
+def test_motor_angles_given_are_used_and_checked(geometry, random_poses):
+    """theta given (the IK's) gives the maps of theta computed; theta of another shape than x,
+    with a last axis not 6 or not finite is refused."""
+    x = random_poses[:3]
+    theta = kinematics.ik(geometry, x)
+    np.testing.assert_array_equal(
+        kinematics.jacobian(geometry, x, theta), kinematics.jacobian(geometry, x)
+    )
+    np.testing.assert_array_equal(
+        kinematics.wrench_map(geometry, x, theta), kinematics.wrench_map(geometry, x)
+    )
+    nan = theta.copy()
+    nan[1, 2] = np.nan
+    for bad in (theta[:2], theta[0], np.zeros((3, 7)), nan):
+        with pytest.raises(InvalidConfigError):
+            kinematics.jacobian(geometry, x, bad)
+    with pytest.raises(InvalidConfigError):
+        kinematics.singularity_measures(geometry, x[0], theta[0, :5])
+    beyond = X_HOME + np.array([0, 0, 0, 0, 0, 0.2])
+    with pytest.raises(UnreachablePoseError):
+        kinematics.singularity_measures(geometry, beyond)
+    with pytest.raises(UnreachablePoseError):
+        kinematics.jacobian_unchecked(geometry, beyond)
+
+
+def test_leg_terms_against_drake_s_rotation_and_finite_differences(geometry, random_poses):
+    """Each term of leg_terms from an independent source: q_i = R p_i + p with Drake's R, the
+    tips a rod's length from them, e_N the tips' derivative in theta over a_i, and Gq = dq_i/dx
+    by central differences of q_i in the pose (rpy and position)."""
+
+    def joints(x):
+        R = RollPitchYaw(x[:3]).ToRotationMatrix().matrix()
+        return geometry.p_E @ R.T + x[3:]
+
+    h = 1e-6
+    for x in random_poses[:3]:
+        theta = kinematics.ik(geometry, x)
+        terms = kinematics.leg_terms(geometry, x, theta)
+        assert terms.theta is theta
+        np.testing.assert_allclose(terms.q_B, joints(x), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(terms.r_B, joints(x) - x[3:], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(np.linalg.norm(terms.q_B - terms.tip, axis=1), 0.404, rtol=1e-13)
+        np.testing.assert_array_equal(terms.ell, terms.q_B - terms.tip)
+        tip_rate = (geometry.crank_tips(theta + h) - geometry.crank_tips(theta - h)) / (2 * h)
+        np.testing.assert_allclose(terms.e_N * 0.11, tip_rate, rtol=0, atol=1e-10)
+        Gq = np.stack(
+            [(joints(x + h * e) - joints(x - h * e)) / (2 * h) for e in np.eye(6)], axis=-1
+        )
+        np.testing.assert_allclose(terms.Gq, Gq, rtol=0, atol=1e-9)
+
+
+def test_wrap_angle_is_the_angle_of_the_unit_phasor():
+    """(a + pi) mod 2 pi - pi against the argument of exp(i a), in [-pi, pi)."""
+    a = np.array([0.5, 3.5, -3.5, 7.0, -7.0, 20.0, -np.pi, 3 * np.pi / 2])
+    wrapped = kinematics.wrap_angle(a)
+    np.testing.assert_allclose(wrapped[:6], np.angle(np.exp(1j * a[:6])), rtol=0, atol=1e-14)
+    assert wrapped[6] == -np.pi and wrapped[7] == pytest.approx(-np.pi / 2, abs=1e-15)

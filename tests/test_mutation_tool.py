@@ -49,3 +49,46 @@ def test_the_mutmut_section_selects_the_module_and_its_tests_only():
     assert section["only_mutate"] == ["stewart_drake/robot/statics.py"]
     assert section["pytest_add_cli_args_test_selection"] == ["tests/test_statics.py"]
     assert section["tests_dir"] == []
+
+
+def _diff(old: str, new: str) -> str:
+    return f"@@ -1 +1 @@\n-    {old}\n+    {new}"
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        # an f-string message made None
+        (
+            'raise InvalidConfigError(f"theta {theta.shape} must match the poses x {x.shape}")',
+            "raise InvalidConfigError(None)",
+        ),
+        # the second of a line's reshapes
+        (
+            "leg, ratio.reshape(-1, 6)[k, leg], t=t_k, pose=x.reshape(-1, 6)[k]",
+            "leg, ratio.reshape(-1, 6)[k, leg], t=t_k, pose=x.reshape(-2, 6)[k]",
+        ),
+        # the rpy of a pose past its third value, for a function that reads three
+        ("E = angular_velocity_map(x[..., :3])", "E = angular_velocity_map(x[..., :4])"),
+        ("r_W = rotation_rpy(x[:3]) @ p", "r_W = rotation_rpy(x[:4]) @ p"),
+        # the name an argument check gives
+        ('q = as_number("quantum_rad", quantum_rad, 0.0)', "q = as_number(None, quantum_rad, 0.0)"),
+        ('x = as_poses("x", x)', 'x = as_poses("X", x)'),
+    ],
+)
+def test_a_rule_accounts_for_each_kind_it_names(old, new):
+    assert mutation.rule_account(_diff(old, new)) is not None
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ('raise InvalidConfigError(f"max_iter {m}")', 'raise InvalidConfigError(f"max_iter {n}")'),
+        ("pose=x.reshape(-1, 6)[k]", "pose=x.reshape(+1, 6)[k]"),
+        ("E = angular_velocity_map(x[..., 1:3])", "E = angular_velocity_map(x[..., 1:4])"),
+        ("p = other(x[:3])", "p = other(x[:4])"),
+        ('q = as_number("q", q, 0.0)', 'q = as_number("q", q, None)'),
+    ],
+)
+def test_a_change_of_a_number_is_left_to_its_tests(old, new):
+    assert mutation.rule_account(_diff(old, new)) is None

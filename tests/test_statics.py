@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from conftest import drawn_robot
 
-from stewart_drake.base.errors import InvalidConfigError, SingularPoseError
+from stewart_drake.base.errors import InvalidConfigError, SingularPoseError, UnreachablePoseError
 from stewart_drake.plant.closed_chain import assemble
 from stewart_drake.plant.plant import make_plant
 from stewart_drake.robot import kinematics, statics
@@ -177,6 +177,16 @@ def test_coriolis_forces_are_quadratic_and_do_half_the_inertia_s_rate_of_work(
         np.testing.assert_allclose(
             statics.coriolis_forces(geometry, x, 2 * x_dot), 4 * c, rtol=1e-9, atol=1e-12
         )
+    # the poses and the rates broadcast: one pose at two rates, two poses at one rate
+    x, x_dot = random_poses[:2], rng.normal(size=(2, 6)) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+    for poses, rates in ((x[0], x_dot), (x, x_dot[0])):
+        pairs = np.broadcast_arrays(poses, rates)
+        np.testing.assert_allclose(
+            statics.coriolis_forces(geometry, poses, rates),
+            [statics.coriolis_forces(geometry, p, r) for p, r in zip(*pairs)],
+            rtol=1e-9,
+            atol=1e-12,
+        )
 
 
 def test_gravity_gradient_is_the_potential_s_gradient_and_the_holding_wrench(
@@ -224,16 +234,17 @@ def test_task_inertia_of_legs_with_their_own_shaft_inertias_adds_each_shaft_s_en
     product."""
     robot = drawn_robot()
     assert np.ptp(robot.shaft_inertias) > 0
-    x = X_HOME + np.array([0.1, -0.05, 0.08, 0.01, -0.01, 0.005])
+    x = X_HOME + np.array([[0.1, -0.05, 0.08, 0.01, -0.01, 0.005], [-0.05, 0.1, 0.0, 0, 0.01, 0]])
     d_I = 3e-4
-    J = kinematics.jacobian(robot, x)
+    J = kinematics.jacobian(robot, x)  # a batch of two poses, and each alone
     heavier = robot.replace(motor_reflected_inertia=d_I)
-    np.testing.assert_allclose(
-        statics.task_inertia(heavier, x) - statics.task_inertia(robot, x),
-        d_I * J.T @ J,
-        rtol=1e-9,
-        atol=1e-15,
-    )
+    for poses, jacobians in ((x, J), (x[0], J[0])):
+        np.testing.assert_allclose(
+            statics.task_inertia(heavier, poses) - statics.task_inertia(robot, poses),
+            d_I * np.swapaxes(jacobians, -1, -2) @ jacobians,
+            rtol=1e-9,
+            atol=1e-15,
+        )
 
 
 def test_a_batch_of_poses_gives_each_pose_s_own_statics_and_dynamics(geometry, random_poses):
@@ -280,6 +291,8 @@ def test_a_batch_of_poses_gives_each_pose_s_own_statics_and_dynamics(geometry, r
         rtol=1e-12,
     )
     assert np.array_equal(statics.feedforward_torques(geometry, x, mode="none"), np.zeros((4, 6)))
+    beyond = X_HOME + np.array([0, 0, 0, 0, 0, 0.2])  # "none" needs no kinematics
+    assert np.array_equal(statics.feedforward_torques(geometry, beyond, mode="none"), np.zeros(6))
     assert np.array_equal(
         statics.feedforward_unchecked(geometry, x, theta, mode="none"), np.zeros((4, 6))
     )
@@ -291,9 +304,9 @@ def test_the_compiled_effort_is_the_numpy_effort(geometry, random_poses):
     """motor_effort_compiled (pose by pose, compiled) against motor_effort_of, with and
     without a servo's friction."""
     rng = np.random.default_rng(12)
-    x = random_poses[:5]
-    x_dot = rng.normal(size=(5, 6)) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
-    x_ddot = rng.normal(size=(5, 6)) * [2.0, 2.0, 2.0, 0.2, 0.2, 0.2]
+    x = random_poses[:7]
+    x_dot = rng.normal(size=(7, 6)) * [0.5, 0.5, 0.5, 0.05, 0.05, 0.05]
+    x_ddot = rng.normal(size=(7, 6)) * [2.0, 2.0, 2.0, 0.2, 0.2, 0.2]
     theta = kinematics.ik(geometry, x)
     J = kinematics.jacobian(geometry, x, theta)
     terms = kinematics.leg_terms(geometry, x, theta)
@@ -339,3 +352,96 @@ def test_a_pose_whose_jacobian_is_exactly_singular_is_named_when_no_torques_hold
     assert err.value.measure == "cond" and err.value.value == np.inf
     assert err.value.threshold == kinematics.DEFAULT_COND_THRESHOLD
     np.testing.assert_array_equal(err.value.pose, x[1])
+
+
+def test_the_pose_whose_jacobian_gives_no_torques_is_named(geometry, random_poses, monkeypatch):
+    """J at the second pose of a batch unbounded (SingularPoseError on J), with one leg's row
+    so small that the torques overflow (on T), or zero, no leg moving (cond(J) is NaN, counted
+    as infinite): the error names that pose, from the holding torques, the inverse dynamics
+    and motor_effort (the zero J: the holding torques)."""
+    x = random_poses[:3]
+    zeros = np.zeros((3, 6))
+    jacobian_of = statics.jacobian_of
+    every = (
+        lambda: statics.holding_torques(geometry, x),
+        lambda: statics.inverse_dynamics_torques(geometry, x, zeros, zeros),
+        lambda: statics.motor_effort(geometry, x, zeros, zeros),
+    )
+    for change, measure, torques in (
+        (lambda J: J.__setitem__((1, 2, 0), np.inf), "J", every),
+        (lambda J: J.__setitem__((1, 2), J[1, 2] * 1e-310), "T", every),
+        (lambda J: J.__setitem__(1, 0.0), "cond", every[:1]),
+    ):
+
+        def changed(geometry, terms, change=change):
+            J = jacobian_of(geometry, terms).copy()
+            change(J)
+            return J
+
+        monkeypatch.setattr(statics, "jacobian_of", changed)
+        for f in torques:
+            with pytest.raises(SingularPoseError) as err:
+                f()
+            assert err.value.measure == measure
+            np.testing.assert_array_equal(err.value.pose, x[1])
+
+
+def test_a_servo_at_rest_adds_no_friction(geometry, random_poses):
+    """At rest (x_dot = 0, so theta_dot = 0 exactly) b theta_dot + F_c sign(theta_dot) is 0: the
+    servo's torques are the ideal motors', in the numpy form and the compiled one."""
+    x = random_poses[:2]
+    rest = np.zeros((2, 6))
+    x_ddot = np.array([[1.0, -1.0, 0.5, 0.1, 0.1, -0.2], [0, 0, 0, 0, 0, 0]])
+    theta = kinematics.ik(geometry, x)
+    J = kinematics.jacobian(geometry, x, theta)
+    terms = kinematics.leg_terms(geometry, x, theta)
+    servo = ServoModel()
+    assert servo.coulomb_friction_Nm > 0
+    T, rate = statics.motor_effort_of(geometry, x, rest, x_ddot, None, terms, J)
+    assert np.array_equal(rate, np.zeros((2, 6)))
+    T_servo, _ = statics.motor_effort_of(geometry, x, rest, x_ddot, servo, terms, J)
+    np.testing.assert_array_equal(T_servo, T)
+    T_c, _ = statics.motor_effort_compiled(geometry, x, rest, x_ddot, None, theta, J)
+    T_c_servo, _ = statics.motor_effort_compiled(geometry, x, rest, x_ddot, servo, theta, J)
+    np.testing.assert_array_equal(T_c_servo, T_c)
+
+
+def test_the_compiled_effort_leaves_a_pose_it_cannot_finish_to_the_numpy_form(geometry):
+    """A pose 50 nm below the top of pure heave (found by bisection on the reach ratio): a
+    forward-difference step up leaves the workspace, so the compiled form hands the batch to
+    the numpy form, which names the error: UnreachablePoseError from both."""
+    lo, hi = X_HOME[5], X_HOME[5] + 0.2
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        top = X_HOME + np.array([0, 0, 0, 0, 0, mid - X_HOME[5]])
+        lo, hi = (
+            (mid, hi) if np.abs(kinematics.leg_reach_ratio(geometry, top)).max() <= 1 else (lo, mid)
+        )
+    x = np.stack([X_HOME, X_HOME + np.array([0, 0, 0, 0, 0, lo - 5e-8 - X_HOME[5]])])
+    x_dot = np.zeros((2, 6))
+    theta = kinematics.ik(geometry, x)
+    J = kinematics.jacobian(geometry, x, theta)
+    with pytest.raises(UnreachablePoseError):
+        statics.motor_effort_compiled(geometry, x, x_dot, x_dot, ServoModel(), theta, J)
+    terms = kinematics.leg_terms(geometry, x, theta)
+    with pytest.raises(UnreachablePoseError):
+        statics.motor_effort_of(geometry, x, x_dot, x_dot, ServoModel(), terms, J)
+
+
+def test_the_statics_name_the_pose_where_a_rod_is_orthogonal_to_its_crank_tip_s_motion(geometry):
+    """Motor angles 0 (the cranks horizontal, their tips moving straight up) with the platform
+    joints at the pivots' height (the rods horizontal): J is unbounded, and the holding torques,
+    the inverse dynamics and the feed-forward name that pose, not the batch's first."""
+    at_pivots = np.array([0, 0, 0, 0, 0, geometry.P_B[0, 2]])
+    x = np.stack([X_HOME, at_pivots])
+    theta = np.stack([kinematics.ik(geometry, X_HOME), np.zeros(6)])
+    zeros = np.zeros((2, 6))
+    for torques in (
+        lambda: statics.holding_torques(geometry, x, theta),
+        lambda: statics.inverse_dynamics_torques(geometry, x, zeros, zeros, theta),
+        lambda: statics.feedforward_unchecked(geometry, x, theta),
+    ):
+        with pytest.raises(SingularPoseError) as err:
+            torques()
+        assert err.value.measure == "J"
+        np.testing.assert_array_equal(err.value.pose, at_pivots)

@@ -267,36 +267,57 @@ def _dtype_float_dropped(old: str, new: str) -> bool:
 
 
 def _words_changed(old: str, new: str) -> bool:
-    """A string of words (a message, a label) made XX..XX, upper or lower case, or None."""
+    """A string of words (a message, a label) made XX..XX, upper or lower case, or None (an
+    f-string too: mutmut makes a whole f-string None)."""
     for s in _STRING.findall(old):
         words = s[1:-1]
         if " " not in words.strip() and not words.endswith(("'", ":")):
             continue
         variants = (f'"XX{words}XX"', f'"{words.upper()}"', f'"{words.lower()}"', "None")
-        if any(old.replace(s, v, 1) == new for v in variants):
+        if any(old.replace(p + s, v, 1) == new for p in ("", "f") for v in variants):
             return True
+    return False
+
+
+def _first_argument_changed(old: str, new: str, functions: tuple) -> bool:
+    """The quoted first argument of a call of one of ``functions`` made XX..XX, upper or lower
+    case, or None."""
+    for function in functions:
+        name = re.search(rf'\b{function}\(("[^"]*")', old)
+        if name:
+            s = name.group(1)
+            variants = (f'"XX{s[1:-1]}XX"', s.upper(), s.lower(), "None")
+            if any(old.replace(s, v, 1) == new for v in variants):
+                return True
     return False
 
 
 def _singular_name_changed(old: str, new: str) -> bool:
     """The first argument of finite_or_singular (the quantity a SingularPoseError names)."""
-    if "finite_or_singular(" not in old:
-        return False
-    name = re.search(r'finite_or_singular\(("[^"]*")', old)
-    if not name:
-        return False
-    s = name.group(1)
-    return any(
-        old.replace(s, v, 1) == new for v in (f'"XX{s[1:-1]}XX"', s.upper(), s.lower(), "None")
-    )
+    return _first_argument_changed(old, new, ("finite_or_singular",))
+
+
+def _checked_name_changed(old: str, new: str) -> bool:
+    """The first argument of an argument check of base.checks (the name its error gives)."""
+    return _first_argument_changed(old, new, ("as_number", "as_array", "as_poses"))
+
+
+def _replaced_at_one(old: str, new: str, a: str, b: str) -> bool:
+    """``new`` is ``old`` with one of its occurrences of ``a`` (any one) made ``b``."""
+    start = old.find(a)
+    while start >= 0:
+        if old[:start] + b + old[start + len(a) :] == new:
+            return True
+        start = old.find(a, start + 1)
+    return False
 
 
 def _reshape_minus_two(old: str, new: str) -> bool:
-    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest)."""
-    return any(
-        old.replace(a, b, 1) == new
+    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest), in
+    any of the line's reshapes."""
+    return "reshape(" in old and any(
+        _replaced_at_one(old, new, a, b)
         for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
-        if a in old and "reshape(" in old
     )
 
 
@@ -314,11 +335,16 @@ def _theta_recomputed(old: str, new: str) -> bool:
     ) and new != old
 
 
+#: The roll, pitch and yaw of a pose passed to a function that reads only those three.
+_RPY_ARGUMENT = re.compile(r"(?:rotation_rpy|angular_velocity_map)\(\w+\[(?:\.\.\., )?:3\]\)")
+
+
 def _slice_past_the_pose(old: str, new: str) -> bool:
     """A slice of a pose's last axis (6 values) made to end past it: x[..., :3] -> :4 where
-    only the first three are read, 3:6 -> 3:7."""
-    return any(old.replace(a, b, 1) == new for a, b in (("3:6]", "3:7]"), ("3:]", "3:7]"))) or (
-        old.replace("[..., :3])", "[..., :4])", 1) == new and "rotation_rpy" in old
+    only the first three are read (rotation_rpy, angular_velocity_map), 3:6 -> 3:7."""
+    return any(old.replace(a, b, 1) == new for a, b in (("3:6]", "3:7]"), ("3:]", "3:7]"))) or any(
+        old[: m.start()] + m.group().replace(":3]", ":4]") + old[m.end() :] == new
+        for m in _RPY_ARGUMENT.finditer(old)
     )
 
 
@@ -355,6 +381,11 @@ RULES = (
         _singular_name_changed,
         "not worth a test: the name of the quantity a SingularPoseError gives in its message "
         "(the error itself is raised either way)",
+    ),
+    (
+        _checked_name_changed,
+        "not worth a test: the name of the argument that a check of base.checks gives in its "
+        "error's message (the error is raised either way)",
     ),
     (
         _words_changed,
