@@ -201,15 +201,25 @@ def _functions(tree: ast.Module) -> dict[str, ast.FunctionDef]:
     return out
 
 
-def mutant_diff(source: str, functions: dict, name: str) -> str:
-    """The unified diff of mutant ``name`` against its original, from mutmut's mutated file."""
+def _lines_after_def(lines: list[str], node: ast.FunctionDef) -> list[str]:
+    """The lines of a function after its ``def`` line, as ``ast.get_source_segment`` gives them
+    (the last one cut at the node's end), from the file's ``lines`` split once: that function
+    splits the whole file on every call, minutes over the hundreds of mutants of a file."""
+    body = lines[node.lineno : node.end_lineno]
+    if body and node.end_col_offset is not None:
+        body[-1] = body[-1].encode()[: node.end_col_offset].decode()
+    return body
+
+
+def mutant_diff(lines: list[str], functions: dict, name: str) -> str:
+    """The unified diff of mutant ``name`` against its original, from the ``lines`` of mutmut's
+    mutated file."""
     short = name.rsplit(".", 1)[-1]
     base = short.rsplit("__mutmut_", 1)[0]
     original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
     if original is None or mutant is None:
         return ""
-    a = (ast.get_source_segment(source, original) or "").splitlines()[1:]
-    b = (ast.get_source_segment(source, mutant) or "").splitlines()[1:]
+    a, b = _lines_after_def(lines, original), _lines_after_def(lines, mutant)
     return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
 
 
@@ -220,11 +230,15 @@ def read_results(module: str, tests: tuple, folder: Path) -> ModuleResult:
     result = ModuleResult(module, tests)
     mutated = folder / "mutants" / module
     meta = json.loads(mutated.with_name(mutated.name + ".meta").read_text())
+    codes = meta["exit_code_by_key"]
+    if codes and all(code is None for code in codes.values()):
+        # mutmut stopped before its first mutant (its stats run of the tests failed).
+        raise ValueError(f"mutmut checked none of the {len(codes)} mutants")
     source = mutated.read_text()
-    functions = _functions(ast.parse(source))
-    for name, code in sorted(meta["exit_code_by_key"].items(), key=lambda kv: _natural(kv[0])):
+    functions, lines = _functions(ast.parse(source)), re.split("\r\n|\r|\n", source)
+    for name, code in sorted(codes.items(), key=lambda kv: _natural(kv[0])):
         status = status_by_exit_code[code] if code is not None else "not checked"
-        diff = mutant_diff(source, functions, name) if status not in ("killed",) else ""
+        diff = mutant_diff(lines, functions, name) if status not in ("killed",) else ""
         result.mutants.append(Mutant(name, status, diff))
     return result
 
