@@ -7,7 +7,13 @@ from scipy.linalg import expm, solve_discrete_are
 from stewart_drake.base.errors import InvalidConfigError, RiccatiSolveError
 from stewart_drake.control.lqi.controller import LqiController, LqiDiagram
 from stewart_drake.control.lqi.driver import LqiDriver, LqiScales, LqiScalesConfig
-from stewart_drake.control.lqi.gain import error_model, hautus_checks, input_matrix, lqi_gain
+from stewart_drake.control.lqi.gain import (
+    error_model,
+    hautus_checks,
+    input_matrix,
+    lqi_gain,
+    project_onto_torque_bound,
+)
 from stewart_drake.robot import statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
 
@@ -171,3 +177,44 @@ def test_a_model_that_fails_the_hautus_test_at_home_is_a_typed_error():
     assert err.detectable is False and err.stabilizable is True and err.rank_AC < err.n == 18
     assert err.pose == pytest.approx(list(X_HOME))
     assert str(pickle.loads(pickle.dumps(err))) == str(err)
+
+
+def test_the_governor_projection_is_the_nearest_point_within_the_bound():
+    """Independent agreement: the active-set projection equals SciPy's SLSQP on the same QP
+    (min |s - d| s.t. |T + G s| <= bound) on random instances, 0 to 3 motors active."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(3)
+    actives = set()
+    for _ in range(40):
+        G = rng.normal(size=(6, 6)) + 3 * np.eye(6)
+        T, d, bound = rng.uniform(0.2, 0.3, 6), rng.normal(scale=0.02, size=6), 0.315
+        s, C = project_onto_torque_bound(d, T, G, bound)
+        # Each lambda is used by this iteration's minimize only: bound the values it reads.
+        below = {
+            "type": "ineq",
+            "fun": lambda v, T=T, G=G, b=bound: b - (T + G @ v),
+            "jac": lambda v, G=G: -G,
+        }
+        above = {
+            "type": "ineq",
+            "fun": lambda v, T=T, G=G, b=bound: b + (T + G @ v),
+            "jac": lambda v, G=G: G,
+        }
+        ref = minimize(
+            lambda v, d=d: 0.5 * np.sum((v - d) ** 2),
+            np.zeros(6),
+            jac=lambda v, d=d: v - d,
+            method="SLSQP",
+            constraints=[below, above],
+            options={"ftol": 1e-14, "maxiter": 200},
+        )
+        assert ref.success
+        np.testing.assert_allclose(s, ref.x, atol=1e-7)
+        assert np.abs(T + G @ s).max() <= bound * (1 + 1e-9)
+        # C: the rows of the motors at the bound, with the side each is on (its null space is
+        # the tangent the governor moves the reference's rate along); none when none is.
+        at = np.abs(np.abs(T + G @ s) - bound) < 1e-9 * bound
+        np.testing.assert_array_equal(C, np.sign(T + G @ s)[at, None] * G[at])
+        actives.add(len(C))
+    assert {0, 1, 2, 3} <= actives  # the bound binds, on several motors, or not at all
