@@ -302,6 +302,31 @@ def _words_changed(old: str, new: str) -> bool:
     return False
 
 
+def _fstring_message_dropped(old: str, new: str) -> bool:
+    """A message written as an f-string (words and the values it names) made None."""
+    return any(" " in s and old.replace(f"f{s}", "None", 1) == new for s in _STRING.findall(old))
+
+
+def _argument_name_changed(old: str, new: str) -> bool:
+    """The first argument of as_array or as_number: the name an InvalidConfigError gives the
+    argument it refuses."""
+    for call in re.finditer(r'\bas_(?:array|number)\(("[^"]*")', old):
+        s, start = call.group(1), call.start(1)
+        head, tail = old[:start], old[start + len(s) :]
+        variants = (f'"XX{s[1:-1]}XX"', s.upper(), s.lower(), "None")
+        if any(head + v + tail == new for v in variants):
+            return True
+    return False
+
+
+def _row_reshape_dropped(old: str, new: str) -> bool:
+    """A 1-D factor of a product with a matrix reshaped (1, -1), made reshape(-1)."""
+    return bool(re.search(r"\* [\w.()]+\.reshape\(1, -1\)", old)) and any(
+        old.replace(m, m.replace("reshape(1, -1)", "reshape(-1)"), 1) == new
+        for m in re.findall(r"[\w.()]+\.reshape\(1, -1\)", old)
+    )
+
+
 def _singular_name_changed(old: str, new: str) -> bool:
     """The first argument of finite_or_singular (the quantity a SingularPoseError names)."""
     if "finite_or_singular(" not in old:
@@ -346,6 +371,11 @@ def _slice_past_the_pose(old: str, new: str) -> bool:
     )
 
 
+_MESSAGE_DROPPED = (
+    "not worth a test: the words of a message (an f-string, or string literals over several "
+    "lines) made None; the error is raised either way"
+)
+
 RULES = (
     (
         _theta_recomputed,
@@ -381,16 +411,38 @@ RULES = (
         "(the error itself is raised either way)",
     ),
     (
+        _row_reshape_dropped,
+        "equivalent: numpy broadcasts a 1-D factor against a matrix as a row, which is what "
+        "reshape(1, -1) makes it",
+    ),
+    (
+        _argument_name_changed,
+        "not worth a test: the name of the argument an InvalidConfigError gives in its message "
+        "(the error itself is raised either way)",
+    ),
+    (
         _words_changed,
         "not worth a test: the words of a message or a label, not a number",
     ),
+    (_fstring_message_dropped, _MESSAGE_DROPPED),
 )
+
+#: A message written over several lines of string literals, which mutmut makes one None.
+_LITERAL_LINE = re.compile(r'^f?"[^"]*",?$')
 
 
 def rule_account(diff: str) -> str | None:
-    """The account of a one-line mutant that one of :data:`RULES` explains, else None."""
+    """The account of a one-line mutant that one of :data:`RULES` explains (or of a message
+    over several lines made None), else None."""
     old = [line[1:].strip() for line in diff.splitlines() if line.startswith("-")]
     new = [line[1:].strip() for line in diff.splitlines() if line.startswith("+")]
+    if (
+        len(old) > 1
+        and new in (["None"], ["None,"])
+        and all(_LITERAL_LINE.match(line) for line in old)
+        and " " in "".join(old)
+    ):
+        return _MESSAGE_DROPPED
     if len(old) != 1 or len(new) != 1:
         return None
     for test, account in RULES:
