@@ -69,7 +69,6 @@ from stewart_drake.control.lqi.gain import (
     error_model,
     input_matrix,
     lqi_gain,
-    lqi_gain_warm,
 )
 from stewart_drake.control.tuner.ann import AnnTuner
 from stewart_drake.control.tuning import AnnTunerDriver
@@ -239,7 +238,7 @@ def riccati_costs(controller, n: int = 100) -> dict:
     from pydrake.math import RealDiscreteLyapunovEquation
 
     from stewart_drake.control.lqi.gain import balance
-    from stewart_drake.control.lqi.reschedule import stein
+    from stewart_drake.control.lqi.reschedule import newton_gain, stein
 
     g, h, d = controller.geometry, controller.h, controller.delay
     Q, R = controller.scales.Q_unit(d), controller.scales.R_unit()
@@ -256,7 +255,7 @@ def riccati_costs(controller, n: int = 100) -> dict:
         P = RealDiscreteLyapunovEquation(Ab - Bb @ Kb, 0.5 * (W + W.T))
         return d_u[:, None] * np.linalg.solve(Rb + Bb.T @ P @ Bb, Bb.T @ P @ Ab) / d_x[None, :]
 
-    lqi_gain_warm(*models[1], Q, R, cold[0], tol=np.inf, max_iter=1)  # loaded before timed
+    newton_gain(*models[1], Q, R, cold[0], np.inf, 1, STEIN_TOL)  # loaded before timed
     steins, times = [], collections.defaultdict(float)
     worst = collections.defaultdict(float)
     for (A, B), K_prev in zip(models[1:], cold[:-1]):
@@ -284,7 +283,7 @@ def riccati_costs(controller, n: int = 100) -> dict:
         K_numpy = numpy_newton_step(A, B, K_prev)
         times["newton_numpy_ms"] += time.perf_counter() - t0
         t0 = time.perf_counter()
-        K_compiled, _ = lqi_gain_warm(A, B, Q, R, K_prev, tol=np.inf, max_iter=1)
+        K_compiled, _ = newton_gain(A, B, Q, R, K_prev, np.inf, 1, STEIN_TOL)
         times["newton_compiled_ms"] += time.perf_counter() - t0
         worst["newton_rel"] = max(
             worst["newton_rel"], np.abs(K_compiled - K_numpy).max() / np.abs(K_numpy).max()

@@ -9,7 +9,6 @@ from pydrake.systems.framework import DiagramBuilder, LeafSystem
 from stewart_drake.base.errors import FeasibilityWarning, SimulationDivergedError
 from stewart_drake.control.estimator import PoseEstimator
 from stewart_drake.control.lqi.controller import LqiController
-from stewart_drake.control.lqi.gain import project_onto_torque_bound
 from stewart_drake.references.trajectories import paper_manoeuvre
 from stewart_drake.robot import kinematics, limits, statics
 from stewart_drake.robot.geometry import X_HOME, StewartGeometry
@@ -193,43 +192,6 @@ def test_current_loop_applies_the_step_average_of_a_first_order_lag():
     # From rest: the torque averaged over the first step of a unit step of the command.
     expected = 1 - tau / h * (1 - np.exp(-h / tau))
     assert system.get_output_port().Eval(context)[0] == pytest.approx(expected, rel=1e-12)
-
-
-def test_the_governor_projection_is_the_nearest_point_within_the_bound():
-    """Independent agreement: the active-set projection equals SciPy's SLSQP on the same QP
-    (min |s - d| s.t. |T + G s| <= bound) on random instances, 0 to 3 motors active."""
-    from scipy.optimize import minimize
-
-    rng = np.random.default_rng(3)
-    actives = set()
-    for _ in range(40):
-        G = rng.normal(size=(6, 6)) + 3 * np.eye(6)
-        T, d, bound = rng.uniform(0.2, 0.3, 6), rng.normal(scale=0.02, size=6), 0.315
-        s, C = project_onto_torque_bound(d, T, G, bound)
-        # Each lambda is used by this iteration's minimize only: bound the values it reads.
-        below = {
-            "type": "ineq",
-            "fun": lambda v, T=T, G=G, b=bound: b - (T + G @ v),
-            "jac": lambda v, G=G: -G,
-        }
-        above = {
-            "type": "ineq",
-            "fun": lambda v, T=T, G=G, b=bound: b + (T + G @ v),
-            "jac": lambda v, G=G: G,
-        }
-        ref = minimize(
-            lambda v, d=d: 0.5 * np.sum((v - d) ** 2),
-            np.zeros(6),
-            jac=lambda v, d=d: v - d,
-            method="SLSQP",
-            constraints=[below, above],
-            options={"ftol": 1e-14, "maxiter": 200},
-        )
-        assert ref.success
-        np.testing.assert_allclose(s, ref.x, atol=1e-7)
-        assert np.abs(T + G @ s).max() <= bound * (1 + 1e-9)
-        actives.add(len(C))
-    assert {1, 2, 3} <= actives  # the bound binds, on several motors
 
 
 def test_the_governed_reference_stays_within_the_margin_and_moves_smoothly(geometry):

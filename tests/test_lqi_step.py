@@ -25,7 +25,6 @@ from stewart_drake.control.lqi.gain import (
     error_model,
     input_matrix,
     lqi_gain,
-    lqi_gain_warm,
 )
 from stewart_drake.control.tuning import AnnTunerDriver
 from stewart_drake.robot import kinematics
@@ -218,15 +217,6 @@ def test_the_compiled_stein_solve_equals_drakes():
     assert 0 < steps < 30
     assert np.abs(P - P_ref).max() / np.abs(P_ref).max() < 1e-10
     assert reschedule.stein(1.01 * np.eye(3), np.eye(3), 1e-16, 64)[1] == -1  # unstable: no
-
-
-def test_lqi_gain_warm_still_refuses_an_unstabilizing_start():
-    from stewart_drake.base.errors import RiccatiSolveError
-
-    c = _controller(False, 0, None, None)
-    A, B = error_model(input_matrix(GEOMETRY, X_HOME), 1e-3)
-    with pytest.raises(RiccatiSolveError, match="does not stabilize"):
-        lqi_gain_warm(A, B, c._Q1, c._R1, np.zeros((6, 18)))
 
 
 def _metrics(scenario, compiled):

@@ -92,3 +92,36 @@ def test_a_rule_accounts_for_each_kind_it_names(old, new):
 )
 def test_a_change_of_a_number_is_left_to_its_tests(old, new):
     assert mutation.rule_account(_diff(old, new)) is None
+
+
+@pytest.mark.parametrize(
+    "old,new,kind",
+    [
+        ('raise E(f"x must be >= 0, got {x!r}")', "raise E(None)", "a message"),
+        ('raise E(f"x={x}")', "raise E(None)", None),  # no words: a value, not a message
+        ('A = as_array("A", A)', "A = as_array(None, A)", "the name of the argument"),
+        ('A = as_array("A", A)', 'A = as_array("XXAXX", A)', "the name of the argument"),
+        (
+            'B, C = as_array("B", B), as_array("C", C)',
+            'B, C = as_array("B", B), as_array("c", C)',
+            "the name of the argument",
+        ),
+        ('h = as_number("h", h, 0.0)', 'h = as_number("h", h, None)', None),
+        (
+            "Q * d.reshape(-1, 1) * d.reshape(1, -1),",
+            "Q * d.reshape(-1, 1) * d.reshape(-1),",
+            "row",
+        ),
+        ("return d.reshape(1, -1)", "return d.reshape(-1)", None),  # not a factor: a shape
+    ],
+)
+def test_the_rules_account_for_their_kind_only(old, new, kind):
+    account = mutation.rule_account(_diff(old, new))
+    assert (account is None) if kind is None else (kind in account), account
+
+
+def test_a_message_over_several_lines_made_none_is_words():
+    diff = '@@ -1,2 +1 @@\n-    f"needs A (n, n); got "\n-    f"{np.shape(A)}"\n+    None'
+    assert "f-string" in mutation.rule_account(diff)
+    diff = "@@ -1,2 +1 @@\n-    a = 1\n-    b = 2\n+    None"
+    assert mutation.rule_account(diff) is None

@@ -18,6 +18,15 @@ removed (with the JIT off, ``_njit`` returns the function itself: the same code 
 forks one process per mutant and runs only the tests that called the mutated function; a mutant
 whose tests take longer than 2 times their clean time plus 3 s counts as a timeout (killed).
 
+The LQI's step (control/lqi/step.py) is guarded by tests/test_lqi_stages.py, which holds each
+stage to numbers computed from the equations, and not by test_lqi_step.py, which holds the
+compiled step equal to its uncompiled reference (numba's ``py_func``): with the JIT off there is
+no compiled function and so no ``py_func``, ``step.reference`` is empty, and the file's first
+test fails, which stops mutmut's first (stats) run of the tests after seconds; and both of its
+sides would run the same mutated code, so it could not kill a mutant anyway (nor its closed-loop
+runs, one with each). A run where mutmut checked no mutant is reported as failed, with mutmut's
+output; before, its hundreds of unchecked mutants were read as survivors, which took minutes.
+
 The score is (killed + timeouts) / mutants, a mutant no selected test calls ("no tests") counted
 as a survivor. Each survivor is listed with its diff and its account from :data:`ACCOUNTS_FILE`
 (a TOML table, mutant name -> why it survives: equivalent, or not worth a test); a survivor
@@ -57,7 +66,8 @@ MODULES = {
     "stewart_drake/robot/statics.py": ("tests/test_statics.py",),
     "stewart_drake/references/trajectories.py": ("tests/test_trajectories.py",),
     "stewart_drake/control/lqi/gain.py": ("tests/test_lqi.py",),
-    "stewart_drake/control/lqi/step.py": ("tests/test_lqi_step.py",),
+    # Not test_lqi_step.py: see the docstring.
+    "stewart_drake/control/lqi/step.py": ("tests/test_lqi_stages.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
 }
 #: What the scratch copy holds: the package, the tests and what they read.
@@ -201,15 +211,25 @@ def _functions(tree: ast.Module) -> dict[str, ast.FunctionDef]:
     return out
 
 
-def mutant_diff(source: str, functions: dict, name: str) -> str:
-    """The unified diff of mutant ``name`` against its original, from mutmut's mutated file."""
+def _lines_after_def(lines: list[str], node: ast.FunctionDef) -> list[str]:
+    """The lines of a function after its ``def`` line, as ``ast.get_source_segment`` gives them
+    (the last one cut at the node's end), from the file's ``lines`` split once: that function
+    splits the whole file on every call, minutes over the hundreds of mutants of a file."""
+    body = lines[node.lineno : node.end_lineno]
+    if body and node.end_col_offset is not None:
+        body[-1] = body[-1].encode()[: node.end_col_offset].decode()
+    return body
+
+
+def mutant_diff(lines: list[str], functions: dict, name: str) -> str:
+    """The unified diff of mutant ``name`` against its original, from the ``lines`` of mutmut's
+    mutated file."""
     short = name.rsplit(".", 1)[-1]
     base = short.rsplit("__mutmut_", 1)[0]
     original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
     if original is None or mutant is None:
         return ""
-    a = (ast.get_source_segment(source, original) or "").splitlines()[1:]
-    b = (ast.get_source_segment(source, mutant) or "").splitlines()[1:]
+    a, b = _lines_after_def(lines, original), _lines_after_def(lines, mutant)
     return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
 
 
@@ -220,11 +240,15 @@ def read_results(module: str, tests: tuple, folder: Path) -> ModuleResult:
     result = ModuleResult(module, tests)
     mutated = folder / "mutants" / module
     meta = json.loads(mutated.with_name(mutated.name + ".meta").read_text())
+    codes = meta["exit_code_by_key"]
+    if codes and all(code is None for code in codes.values()):
+        # mutmut stopped before its first mutant (its stats run of the tests failed).
+        raise ValueError(f"mutmut checked none of the {len(codes)} mutants")
     source = mutated.read_text()
-    functions = _functions(ast.parse(source))
-    for name, code in sorted(meta["exit_code_by_key"].items(), key=lambda kv: _natural(kv[0])):
+    functions, lines = _functions(ast.parse(source)), re.split("\r\n|\r|\n", source)
+    for name, code in sorted(codes.items(), key=lambda kv: _natural(kv[0])):
         status = status_by_exit_code[code] if code is not None else "not checked"
-        diff = mutant_diff(source, functions, name) if status not in ("killed",) else ""
+        diff = mutant_diff(lines, functions, name) if status not in ("killed",) else ""
         result.mutants.append(Mutant(name, status, diff))
     return result
 
@@ -283,13 +307,26 @@ def _first_argument_changed(old: str, new: str, functions: tuple) -> bool:
     """The quoted first argument of a call of one of ``functions`` made XX..XX, upper or lower
     case, or None."""
     for function in functions:
-        name = re.search(rf'\b{function}\(("[^"]*")', old)
-        if name:
-            s = name.group(1)
+        for call in re.finditer(rf'\b{function}\(("[^"]*")', old):
+            s, start = call.group(1), call.start(1)
+            head, tail = old[:start], old[start + len(s) :]
             variants = (f'"XX{s[1:-1]}XX"', s.upper(), s.lower(), "None")
-            if any(old.replace(s, v, 1) == new for v in variants):
+            if any(head + v + tail == new for v in variants):
                 return True
     return False
+
+
+def _fstring_message_dropped(old: str, new: str) -> bool:
+    """A message written as an f-string (words and the values it names) made None."""
+    return any(" " in s and old.replace(f"f{s}", "None", 1) == new for s in _STRING.findall(old))
+
+
+def _row_reshape_dropped(old: str, new: str) -> bool:
+    """A 1-D factor of a product with a matrix reshaped (1, -1), made reshape(-1)."""
+    return bool(re.search(r"\* [\w.()]+\.reshape\(1, -1\)", old)) and any(
+        old.replace(m, m.replace("reshape(1, -1)", "reshape(-1)"), 1) == new
+        for m in re.findall(r"[\w.()]+\.reshape\(1, -1\)", old)
+    )
 
 
 def _singular_name_changed(old: str, new: str) -> bool:
@@ -348,6 +385,11 @@ def _slice_past_the_pose(old: str, new: str) -> bool:
     )
 
 
+_MESSAGE_DROPPED = (
+    "not worth a test: the words of a message (an f-string, or string literals over several "
+    "lines) made None; the error is raised either way"
+)
+
 RULES = (
     (
         _theta_recomputed,
@@ -388,16 +430,33 @@ RULES = (
         "error's message (the error is raised either way)",
     ),
     (
+        _row_reshape_dropped,
+        "equivalent: numpy broadcasts a 1-D factor against a matrix as a row, which is what "
+        "reshape(1, -1) makes it",
+    ),
+    (
         _words_changed,
         "not worth a test: the words of a message or a label, not a number",
     ),
+    (_fstring_message_dropped, _MESSAGE_DROPPED),
 )
+
+#: A message written over several lines of string literals, which mutmut makes one None.
+_LITERAL_LINE = re.compile(r'^f?"[^"]*",?$')
 
 
 def rule_account(diff: str) -> str | None:
-    """The account of a one-line mutant that one of :data:`RULES` explains, else None."""
+    """The account of a one-line mutant that one of :data:`RULES` explains (or of a message
+    over several lines made None), else None."""
     old = [line[1:].strip() for line in diff.splitlines() if line.startswith("-")]
     new = [line[1:].strip() for line in diff.splitlines() if line.startswith("+")]
+    if (
+        len(old) > 1
+        and new in (["None"], ["None,"])
+        and all(_LITERAL_LINE.match(line) for line in old)
+        and " " in "".join(old)
+    ):
+        return _MESSAGE_DROPPED
     if len(old) != 1 or len(new) != 1:
         return None
     for test, account in RULES:

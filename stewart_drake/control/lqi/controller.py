@@ -265,8 +265,8 @@ class LqiController(LeafSystem):
 
         Args:
             K_start: optional (6, 18) nearby stabilizing gain: the gain is then refined from it
-                by :func:`~.gain.lqi_gain_warm` (same K to < 1e-8 relative), with the cold DARE
-                as the fallback.
+                by Newton's method (:func:`~.reschedule.newton_gain`; same K to < 1e-8
+                relative), with the cold DARE as the fallback.
         Raises:
             InvalidConfigError: weights not in [1e-3, 1e3]; RiccatiSolveError: see lqi_gain.
         """
@@ -279,9 +279,9 @@ class LqiController(LeafSystem):
 
         From a start gain, one compiled call (:func:`~.reschedule.warm_gain`: B(x), the error
         model and Newton's method, the same numbers as :func:`~.gain.input_matrix`,
-        :func:`~.gain.error_model` and :func:`~.gain.lqi_gain_warm`), about a fifth of their
-        cost in numpy (benchmarks/realtime.py --riccati); the cold DARE is the fallback, on the
-        same compiled B(x) (:func:`~.reschedule.input_matrix`).
+        :func:`~.gain.error_model` and the Newton iteration on Drake's Stein solver), about a
+        fifth of their cost in numpy (benchmarks/realtime.py --riccati); the cold DARE is the
+        fallback, on the same compiled B(x) (:func:`~.reschedule.input_matrix`).
         """
         omega_Q, omega_R = self._check_weights(omega_Q, omega_R)
         x = np.ascontiguousarray(x, dtype=float)

@@ -97,7 +97,7 @@ class LqiDriver(ControllerDriver):
         schedule_period_s: re-solve the Riccati gain from the measured pose this often, s (a
             whole multiple of the control period; a change of omega re-solves at once). Ours.
         riccati: "warm" refines the last gain by Newton's method to convergence
-            (:func:`~.gain.lqi_gain_warm`, the cold solve as fallback); "track" takes one Newton
+            (:func:`~.reschedule.newton_gain`, the cold solve as fallback); "track" takes one Newton
             step per re-schedule; "cold" calls Drake's DARE each time.
         scales: normalization of Q and R (Bryson's rule, :class:`LqiScalesConfig`).
         anti_windup: stop integrating z while a command is clipped at the motors' limit

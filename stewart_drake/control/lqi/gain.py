@@ -45,7 +45,8 @@ N_E = 18  # error-model states [e_x, e_x_dot, z]
 #: Coulomb friction (0.018 N m on paper_hardware) for the motor to lift its crank back
 #: (docs/hardware.md measures margins from 0.85 to 0.95). Ours: the paper has no torque limit.
 GOVERNOR_MARGIN = 0.9
-#: Relative size of the last term at which the Stein series of :func:`lqi_gain_warm` stops.
+#: Relative size of the last term at which the Stein series of the warm re-solve stops
+#: (:func:`~.reschedule.newton_gain`).
 STEIN_TOL = 1e-16
 #: The weights omega_Q, omega_R the LQI accepts (eq. 27; only their ratio sets the gain).
 LQI_OMEGA_MIN, LQI_OMEGA_MAX = 1e-3, 1e3
@@ -248,59 +249,6 @@ def lqi_gain(A: np.ndarray, B: np.ndarray, Q: np.ndarray, R: np.ndarray) -> np.n
             f"Riccati gain does not stabilize the model (spectral radius {rho:.6g})"
         )
     return K
-
-
-def lqi_gain_warm(
-    A: np.ndarray,
-    B: np.ndarray,
-    Q: np.ndarray,
-    R: np.ndarray,
-    K_start,
-    tol: float = 1e-4,
-    max_iter: int = 8,
-) -> tuple[np.ndarray, int]:
-    """The gain of :func:`lqi_gain` by Newton's method (Hewer's algorithm) from a nearby gain.
-
-    Each iteration solves one Stein equation P = A_c^T P A_c + Q + K^T R K for A_c = A - B K
-    (compiled squared Smith iteration, :func:`~.reschedule.stein`: about 0.05 ms on 24 states,
-    a sixth of Drake's RealDiscreteLyapunovEquation and of scipy's, to 1e-12 of them;
-    benchmarks/realtime.py --riccati) and sets K = (R + B^T P B)^-1 B^T P A. From any
-    stabilizing K_start the iterates stay stabilizing and
-    converge quadratically to the Riccati gain, so a gain from the previous re-schedule (a pose
-    a few ms away) is refined in two iterations, about half the cost of a cold DARE. Newton's
-    quadratic convergence makes the last step size an estimate of the previous iterate's error
-    squared: the loop stops once the relative step is below ``tol`` (1e-4 gives at most 5e-9
-    relative to the cold solve along the paper manoeuvre, in 2.05 iterations on average; tested).
-    It iterates on the diagonally scaled problem (:func:`balance`), without which the Stein
-    solves' rounding (cond(P) ~ 4e9) alone would leave ~5e-8.
-
-    Args:
-        A (n, n), B (n, m), Q (n, n), R (m, m): as :func:`lqi_gain`. K_start: (m, n) stabilizing.
-    Returns:
-        (K (m, n), iterations).
-    Raises:
-        RiccatiSolveError: K_start does not stabilize (A, B), a Stein solution is not positive
-            definite, or no convergence in ``max_iter`` iterations; the caller falls back to the
-            cold :func:`lqi_gain`.
-    Source: G. A. Hewer, IEEE TAC 16(4), 1971; paper eqs. 31-32.
-    """
-    K = np.asarray(K_start, dtype=float)
-    _check_finite(A=A, B=B, Q=Q, R=R, K_start=K)
-    from .reschedule import newton_gain  # compiled on its first call (or loaded from the cache)
-
-    K, iterations = newton_gain(
-        *(np.ascontiguousarray(M, dtype=float) for M in (A, B, Q, R, K)),
-        float(tol),
-        int(max_iter),
-        STEIN_TOL,
-    )
-    if iterations == -1:
-        raise RiccatiSolveError(
-            "warm start does not stabilize the model (the Stein equation's series diverges)"
-        )
-    if iterations < 0:
-        raise RiccatiSolveError(f"Newton iteration did not converge in {max_iter} iterations")
-    return K, iterations
 
 
 def project_onto_torque_bound(d, T, G, bound: float) -> tuple[np.ndarray, np.ndarray]:
