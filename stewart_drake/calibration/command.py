@@ -374,16 +374,17 @@ def _clock_offset(text):
 
 
 def _context(args):
-    """(the scenario's plan without a reference, the nominal geometry, the measurement
-    noise) of the command's scenario."""
-    from ..run.plan import as_built, make_plan
+    """(the command's scenario, its nominal geometry (the robot the controller believes),
+    the measurement noise)."""
+    from ..run.plan import as_built, robot_geometry
     from ..run.scenario_io import load_scenario
     from .tracker import COUNTS_PER_REV, MeasurementNoise
 
-    plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
-    hardware = as_built(plan.scenario).hardware  # on a bus, the robot built with its servos
+    scenario = load_scenario(args.scenario, args.set or ())
+    geometry = robot_geometry(scenario)  # the scenario validated
+    hardware = as_built(scenario).hardware  # on a bus, the robot built with its servos
     counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
-    return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
+    return scenario, geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
 
 
 def _identify(args, context) -> int:
@@ -391,7 +392,7 @@ def _identify(args, context) -> int:
     from .files import read_measurements
     from .report import check_reachable, identification_text, write_identified
 
-    plan, geometry, noise = context
+    scenario, geometry, noise = context
     data = read_measurements(args.measurements, noise.counts_per_rev)
     check_reachable(geometry, data)
     print(
@@ -405,7 +406,7 @@ def _identify(args, context) -> int:
     )
     ident = _identification(args, geometry, data.poses, data.readings, noise)
     print(identification_text(ident, noise, data.lines))
-    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements)
+    path = write_identified(args.out, scenario.robot, ident, args.measurements)
     print(f"wrote {path} (a scenario's robot: section)")
     return 0
 
@@ -430,9 +431,9 @@ def _plan(args, context) -> int:
     """``calibrate --plan N --out POSES.csv``."""
     from .report import plan_poses
 
-    plan, geometry, noise = context
+    scenario, _, noise = context
     return plan_poses(
-        plan,
+        scenario,
         args.plan,
         args.out,
         noise,
@@ -446,10 +447,11 @@ def _plan(args, context) -> int:
 def _rehearse(args, context) -> int:
     """``calibrate --rehearse``."""
     from ..robot.tolerances import Tolerances
+    from ..run.plan import robot_motor_limits
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
 
-    plan, geometry, noise = context
+    scenario, geometry, noise = context
     tolerances = Tolerances()
     select = args.select or "random"
     print(
@@ -461,7 +463,7 @@ def _rehearse(args, context) -> int:
     from tqdm import tqdm
 
     with tqdm(total=3, desc="rehearsing", disable=args.no_progress, leave=False) as bar:
-        space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
+        space = workspace(geometry, args.candidates, motor_limits=robot_motor_limits(scenario))
         bar.update(1)
         idx = pick(geometry, space, args.poses, select, noise, tolerances, args.seed)
         bar.update(1)
@@ -476,6 +478,6 @@ def _rehearse(args, context) -> int:
         path = write_measurements(args.save_measurements, data.poses, data.readings)
         print(f"wrote {path} (the emulated measurements: calibrate reads them)")
     if args.out is not None:
-        path = write_identified(args.out, plan.scenario.robot, r.identification, "a rehearsal")
+        path = write_identified(args.out, scenario.robot, r.identification, "a rehearsal")
         print(f"wrote {Path(path)} (a scenario's robot: section)")
     return 0
