@@ -152,7 +152,9 @@ def test_the_bus_rehearsal_plans_the_poses_its_selection_picks(tmp_path):
     for select in ("random", "chosen"):
         folder = tmp_path / select
         folder.mkdir()
-        space, written = _plan_path(plan, 12, noise, tolerances, 4, 2.0, 300, folder, select)
+        space, written = _plan_path(
+            plan.geometry, plan.motor_limits, 12, noise, tolerances, 4, 2.0, 300, folder, select
+        )
         picked = space.candidates[pick(plan.geometry, space, 12, select, noise, tolerances, 4)]
         windows = join.read_table(written["windows"], "windows", join.WINDOW_COLUMNS, "")
         planned[select] = np.column_stack([windows[n] for n in files.POSE_COLUMNS])

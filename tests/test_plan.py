@@ -177,3 +177,19 @@ def test_the_robot_s_geometry_without_a_run_is_the_plan_s(name):
         built = make_plan(drawn, with_reference=False)
         assert _same_robot(robot_geometry(drawn), built.geometry)
         assert not _same_robot(robot_geometry(drawn), built.plant_geometry)
+
+
+@pytest.mark.parametrize("name", ["paper_hardware", "paper_bus", "paper_ideal"])
+def test_the_robot_s_motor_limits_and_reference_without_a_run_are_the_plan_s(name):
+    """robot_motor_limits is the plan's motor_limits (its peak torque the plan's torque limit:
+    the bus's current limit on paper_bus), run_reference the plan's reference, sample for
+    sample."""
+    from stewart_drake.run.plan import robot_motor_limits, run_reference
+
+    scenario = load_scenario(name, ["torque_limit_Nm=0.5"])
+    plan = make_plan(scenario)
+    assert robot_motor_limits(scenario) == plan.motor_limits
+    assert robot_motor_limits(scenario).peak_torque_Nm == plan.torque_limit_Nm
+    t = np.linspace(0.0, plan.duration_s, 101)
+    for ours, its in zip(run_reference(scenario).evaluate(t), plan.reference.evaluate(t)):
+        np.testing.assert_array_equal(ours, its)

@@ -120,13 +120,12 @@ MIN_REPORTED_RESOLUTION = 21
 
 def _cmd_workspace(args) -> int:
     """``stewart-drake workspace``: sweep the scenario's robot, write PNG, npz and CSV."""
-    from ..run.plan import make_plan
+    from ..run.plan import robot_geometry, robot_motor_limits
     from ..run.scenario_io import load_scenario
     from .workspace import write_workspace
 
     scenario = load_scenario(args.scenario, args.set or ())
-    plan = make_plan(scenario, with_reference=False)
-    geometry = plan.geometry
+    geometry = robot_geometry(scenario)
     if args.resolution < MIN_REPORTED_RESOLUTION:
         print(
             f"stewart-drake workspace: --resolution {args.resolution} is coarse: each extent "
@@ -141,7 +140,7 @@ def _cmd_workspace(args) -> int:
         progress=not args.no_progress,
         geometry=geometry,
         runner=runner_from_args(args),
-        motor_limits=plan.motor_limits,
+        motor_limits=robot_motor_limits(scenario),
         say=None if args.no_progress else say_stage("workspace"),
     )
     for name, value, unit in rows[:11]:

@@ -16,7 +16,7 @@ import numpy as np
 from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
 from ..robot.trajectory_report import TrajectoryReport
-from ..run.plan import check_reference, make_plan
+from ..run.plan import check_reference
 
 #: Peak memory of :func:`check` per control-period sample, bytes: 0.86 kB measured (the peak of
 #: `stewart-drake check paper` over 200 s against 10 s: the report's sample-by-sample series and
@@ -34,17 +34,19 @@ def check(scenario, reference=None) -> TrajectoryReport:
             sampled: :data:`CHECK_BYTES_PER_SAMPLE` per control period).
     """
     from ..base.checks import check_memory
+    from ..references.trajectories import as_trajectory
 
-    plan = make_plan(scenario, with_reference=False)
-    samples = plan.duration_s / plan.control_period_s + 1
-    what = f"checking {plan.duration_s:g} s of the reference every {plan.control_period_s:g} s"
-    on_reference, coarser = plan.scenario.reference.memory_note()
+    scenario = scenario.validate()
+    duration, period = scenario.duration_s, scenario.control_period_s
+    what = f"checking {duration:g} s of the reference every {period:g} s"
+    on_reference, coarser = scenario.reference.memory_note()
     check_memory(
         what + on_reference,
-        samples * CHECK_BYTES_PER_SAMPLE + plan.scenario.reference.memory_bytes(),
+        (duration / period + 1) * CHECK_BYTES_PER_SAMPLE + scenario.reference.memory_bytes(),
         "shorten --duration" + coarser,
     )
-    return check_reference(make_plan(plan, reference=reference), raise_refused=False)
+    trajectory = None if reference is None else as_trajectory(reference)
+    return check_reference(scenario, trajectory, raise_refused=False)
 
 
 def plot_margins(report: TrajectoryReport, path, title: str = "") -> Path:

@@ -424,16 +424,17 @@ def _clock_offset(text):
 
 
 def _context(args):
-    """(the scenario's plan without a reference, the nominal geometry, the measurement
-    noise) of the command's scenario."""
-    from ..run.plan import as_built, make_plan
+    """(the command's scenario, its nominal geometry (the robot the controller believes),
+    the measurement noise)."""
+    from ..run.plan import as_built, robot_geometry
     from ..run.scenario_io import load_scenario
     from .tracker import COUNTS_PER_REV, MeasurementNoise
 
-    plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
-    hardware = as_built(plan.scenario).hardware  # on a bus, the robot built with its servos
+    scenario = load_scenario(args.scenario, args.set or ())
+    geometry = robot_geometry(scenario)  # the scenario validated
+    hardware = as_built(scenario).hardware  # on a bus, the robot built with its servos
     counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
-    return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
+    return scenario, geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
 
 
 def _identify(args, context, registration) -> int:
@@ -450,7 +451,7 @@ def _identify(args, context, registration) -> int:
         write_identified,
     )
 
-    plan, geometry, noise = context
+    scenario, geometry, noise = context
     data = read_measurements(args.measurements, noise.counts_per_rev)
     registered = None
     if registration is not None:
@@ -475,7 +476,7 @@ def _identify(args, context, registration) -> int:
     for line in frame_warnings(geometry, ident, registered is not None):
         print(f"stewart-drake calibrate: warning: {line}", file=sys.stderr)
     frames = None if registration is None else (registration[0], args.registration)
-    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements, frames)
+    path = write_identified(args.out, scenario.robot, ident, args.measurements, frames)
     if path is None:
         return 1
     print(f"wrote {path} (a scenario's robot: section)")
@@ -505,9 +506,9 @@ def _plan(args, context) -> int:
     """``calibrate --plan N --out POSES.csv``."""
     from .report import plan_poses
 
-    plan, geometry, noise = context
+    scenario, _, noise = context
     return plan_poses(
-        plan,
+        scenario,
         args.plan,
         args.out,
         noise,
@@ -522,10 +523,11 @@ def _rehearse(args, context, registration) -> int:
     """``calibrate --rehearse [--registration REG.yaml]``: with a registration, the emulated
     tracker stands at its frames, its fiducials where REG.yaml's drawing puts them."""
     from ..robot.tolerances import Tolerances
+    from ..run.plan import robot_motor_limits
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
 
-    plan, geometry, noise = context
+    scenario, geometry, noise = context
     tolerances = Tolerances()
     select = args.select or "random"
     setup, sigma = _emulated_setup(registration)
@@ -544,7 +546,7 @@ def _rehearse(args, context, registration) -> int:
     from tqdm import tqdm
 
     with tqdm(total=3, desc="rehearsing", disable=args.no_progress, leave=False) as bar:
-        space = workspace(geometry, args.candidates, motor_limits=plan.motor_limits)
+        space = workspace(geometry, args.candidates, motor_limits=robot_motor_limits(scenario))
         bar.update(1)
         idx = pick(geometry, space, args.poses, select, noise, tolerances, args.seed)
         bar.update(1)
@@ -555,9 +557,7 @@ def _rehearse(args, context, registration) -> int:
         _save_rehearsal(args, geometry, r, space.candidates[idx], noise, setup, sigma)
     if args.out is not None:
         frames = None if r.registration is None else (r.registration, "the emulated fiducials")
-        path = write_identified(
-            args.out, plan.scenario.robot, r.identification, "a rehearsal", frames
-        )
+        path = write_identified(args.out, scenario.robot, r.identification, "a rehearsal", frames)
         if path is None:
             return 1
         print(f"wrote {Path(path)} (a scenario's robot: section)")

@@ -4,7 +4,6 @@ robot section; the planned path, checked as the robot command will check it."""
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -267,7 +266,7 @@ def expected_rms(rows: np.ndarray, held_rows: np.ndarray, noise: MeasurementNois
 
 
 def plan_poses(
-    plan,
+    scenario,
     count: int,
     out,
     noise: MeasurementNoise,
@@ -277,7 +276,7 @@ def plan_poses(
     progress: bool = False,
 ) -> int:
     """``calibrate --plan``: choose ``count`` poses among ``n_candidates`` admissible ones of
-    the scenario's robot (``plan``, a :class:`~stewart_drake.run.plan.RunPlan`), write the path
+    the robot of ``scenario`` (a :class:`~stewart_drake.run.scenario.Scenario`), write the path
     through them at ``out`` with its windows, and check the path as the robot command will.
 
     Raises:
@@ -289,10 +288,10 @@ def plan_poses(
     from ..references.traces import load_trace
     from ..robot.legs import derivatives
     from ..robot.tolerances import Tolerances
-    from ..run.plan import check_reference, make_plan
+    from ..run.plan import check_reference, robot_geometry, robot_motor_limits
     from .poses import candidate_poses, choose_poses, information_rows, pose_path
 
-    geometry, limits = plan.geometry, plan.motor_limits
+    geometry, limits = robot_geometry(scenario), robot_motor_limits(scenario)
     tolerances = Tolerances()
     with tqdm(total=count + 2, desc="planning", disable=not progress, leave=False) as bar:
         candidates = candidate_poses(geometry, n_candidates, seed, motor_limits=limits)
@@ -308,8 +307,9 @@ def plan_poses(
     written, windows = write_path(out, path)
     reference = load_trace(written)  # as the robot command reads it
     duration = float(reference.end_time)
-    checked = make_plan(replace(plan.scenario, duration_s=duration), with_reference=False)
-    report = check_reference(checked, reference, raise_refused=True, keep_series=False)
+    report = check_reference(
+        scenario, reference, raise_refused=True, keep_series=False, duration_s=duration
+    )
     print(
         f"chose {count} poses of {len(candidates)} admissible candidates (greedy D-optimal, "
         f"tracker {noise.words()}); expected RMS of the readings' prediction on 50 other "

@@ -94,24 +94,25 @@ def _cmd_mjcf(args) -> int:
     is the ideal robot."""
     from ..base.fileio import atomic_write
     from ..plant.mjcf import DEFAULT_INTEGRATOR, write_mjcf
-    from ..run.plan import make_plan
+    from ..run.plan import robot_geometry, robot_motor_limits
     from ..run.scenario_io import load_scenario
 
-    plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
+    scenario = load_scenario(args.scenario, args.set or ())
+    motors, time_step = robot_motor_limits(scenario), scenario.plant.time_step
     text = write_mjcf(
-        plan.geometry,
-        time_step=plan.plant_time_step_s,
-        servo=plan.servo,
-        torque_limit_Nm=plan.torque_limit_Nm,
+        robot_geometry(scenario),
+        time_step=time_step,
+        servo=motors.servo,
+        torque_limit_Nm=motors.peak_torque_Nm,
     ).encode()
     atomic_write(Path(args.out), lambda f: f.write(text))
     built = (
         "the robot as built: rotor armature, friction, torque limit, encoders"
-        if plan.servo is not None
+        if motors.servo is not None
         else "the ideal robot"
     )
     print(
         f"wrote {args.out} (MuJoCo MJCF of {args.scenario}, {built}; integrator "
-        f"{DEFAULT_INTEGRATOR}, time step {1e3 * plan.plant_time_step_s:g} ms)"
+        f"{DEFAULT_INTEGRATOR}, time step {1e3 * time_step:g} ms)"
     )
     return 0

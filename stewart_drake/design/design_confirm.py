@@ -32,7 +32,7 @@ from ..base.errors import InvalidConfigError, StewartError
 from ..base.tables import markdown_row, markdown_table
 from ..control.lqi.driver import LqiDriver
 from ..robot.kinematics import jacobian
-from ..run.plan import make_plan
+from ..run.plan import robot_geometry, robot_motor_limits, run_reference
 from ..run.scenario import ReferenceChoice, Scenario
 from ..run.scenario_io import load_scenario
 from .requirements import DesignRequirements
@@ -145,7 +145,7 @@ def motion_duration_s(scenario: Scenario, duration_s: float | None = None) -> fl
         InvalidConfigError: ``duration_s`` not a positive number.
     """
     asked = None if duration_s is None else as_number("duration_s", duration_s, 0.0, lo_open=True)
-    reference = make_plan(scenario).reference
+    reference = run_reference(scenario)
     end = getattr(reference, "end_time", None)
     if end is not None:  # as `check` and `reproduce` run a trace: from its first sample
         end = float(end) - float(getattr(reference, "start_time", 0.0))
@@ -274,15 +274,14 @@ def _figures(job: MotionRun, result) -> dict:
     """The tracking and effort figures of a completed run (:func:`run_motion`)."""
     from ..organ_motion.fidelity import fidelity
 
-    plan = make_plan(job.scenario, with_reference=False)
-    servo = plan.servo
+    geometry, servo = robot_geometry(job.scenario), robot_motor_limits(job.scenario).servo
     assert servo is not None  # design_scenario's base has hardware
     f = fidelity(result.t, result.x, result.x_d)
     T = np.asarray(result.T, dtype=float)
     peak_T = float(np.abs(T).max())
     rms_T = float(np.sqrt(np.mean(np.square(T), axis=0)).max())
     x = np.asarray(result.x, dtype=float)
-    theta_dot = np.einsum("nij,nj->ni", jacobian(plan.geometry, x[:, :6]), x[:, 6:12])
+    theta_dot = np.einsum("nij,nj->ni", jacobian(geometry, x[:, :6]), x[:, 6:12])
     peak_speed = float(np.abs(theta_dot).max())
     return {
         "rms_translation_um": 1e6 * f["rms_translation_m"],

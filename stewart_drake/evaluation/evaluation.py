@@ -21,6 +21,7 @@ robot as built.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import time
@@ -36,7 +37,7 @@ from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import ResultStore, file_digest, run_jobs
 from ..references.trajectories import ChirpTrajectory, StepTrajectory
 from ..run import metrics
-from ..run.plan import make_plan
+from ..run.plan import robot_geometry, run_reference
 from ..run.scenario import dump_scenario
 from ..run.scenario_io import load_scenario
 from ..run.simulate import run_experiment
@@ -74,8 +75,10 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
     row: dict[str, Any] = {"case": case.record()}
     config = case_config(case)
     if divergence_dir is not None:
-        config.guard.divergence_dir = str(divergence_dir)
-    result = run_experiment(config)
+        guard = dataclasses.replace(config.guard, divergence_dir=str(divergence_dir))
+        config = dataclasses.replace(config, guard=guard)
+    reference = run_reference(config)  # made once: the run's, and the response's figures'
+    result = run_experiment(config, reference=reference)
     m = result.metrics
     row.update(
         {
@@ -94,12 +97,11 @@ def run_case(case: Case, divergence_dir: str | None = None) -> dict:
         }
     )
     row["normalized_rms"] = metrics.normalized_rms(m["rms_error"], LqiScales().pose)
-    plan = make_plan(config)
-    row["sum_dT2_dt"] = metrics.feedback_effort(result, plan.geometry)
+    row["sum_dT2_dt"] = metrics.feedback_effort(result, robot_geometry(config))
     row["mean_omega"] = (
         None if result.omega is None else [float(v) for v in np.mean(result.omega, axis=0)]
     )
-    row.update(_response_figures(result, plan.reference))
+    row.update(_response_figures(result, reference))
     row["wall_s"] = time.perf_counter() - t0
     return row
 

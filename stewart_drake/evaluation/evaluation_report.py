@@ -20,7 +20,7 @@ from ..robot import statics
 from ..robot.kinematics import AXIS_NAMES, X_HOME
 from ..run import metrics
 from ..run.metrics import SETTLING_BAND
-from ..run.plan import make_plan
+from ..run.plan import robot_geometry, robot_motor_limits
 from ..run.scenario_io import load_scenario
 from .evaluation_grid import (
     CONDITIONS,
@@ -486,8 +486,8 @@ def disturbance_holding_torques(base: str) -> tuple[dict, float | None]:
     tool disturbance's peak wrench needs (:func:`~stewart_drake.robot.statics.tool_load_torques`,
     gravity included), and the motors' torque limit of the base scenario (N m, None: none);
     above the limit no controller can hold the pose."""
-    plan = make_plan(load_scenario(base), with_reference=False)
-    g = plan.geometry
+    scenario = load_scenario(base)
+    g = robot_geometry(scenario)
     needs = {}
     for name, d in DISTURBANCES.items():
         needs[name] = float(
@@ -501,7 +501,7 @@ def disturbance_holding_torques(base: str) -> tuple[dict, float | None]:
                 )
             ).max()
         )
-    return needs, plan.torque_limit_Nm
+    return needs, robot_motor_limits(scenario).peak_torque_Nm
 
 
 def _disturbance_statics(base: str) -> str:

@@ -188,24 +188,28 @@ def rehearse_on_bus(
     from ..calibration.tracker import COUNTS_PER_REV, track
     from ..robot.legs import readings
     from ..robot.tolerances import Tolerances
-    from ..run.plan import as_built, make_plan
+    from ..run.plan import as_built, robot_geometry, robot_motor_limits
 
     wall0 = time.perf_counter()
     if scenario.bus is None:
         raise InvalidConfigError("the rehearsal drives a robot on a bus: give a scenario with bus")
-    plan = make_plan(scenario, with_reference=False)
-    hardware = as_built(plan.scenario).hardware  # the robot built with the bus's servos
+    geometry = robot_geometry(scenario)  # the scenario validated
+    built = as_built(scenario)  # the robot built with the bus's servos
+    hardware = built.hardware
     counts = COUNTS_PER_REV if hardware is None else hardware.encoders.counts_per_rev
     noise = dataclasses.replace(noise or MeasurementNoise(), counts_per_rev=counts)
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     tolerances = Tolerances()
-    truth = tolerances.draw(plan.geometry, seed)
+    truth = tolerances.draw(geometry, seed)
     say(f"drew a robot as built with seed {seed}; {select} poses: {count}")
+    limits = robot_motor_limits(built)
     space, files = _plan_path(
-        plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select
+        geometry, limits, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select
     )
-    run, path_s, t_true, x_true = _drive(plan, truth, files["poses"], folder, progress, say)
+    run, path_s, t_true, x_true = _drive(
+        built, geometry, truth, files["poses"], folder, progress, say
+    )
     files.update(log=run.logs, encoders=run.encoder_log)
     epoch = time.time() - time.perf_counter()  # the session's clock: perf_counter + epoch
     t_tracked, x_tracked = track(t_true + epoch, x_true, noise, seed)
@@ -215,19 +219,19 @@ def rehearse_on_bus(
         folder / "measurements.csv", joined.poses, joined.readings
     )
     data = read_measurements(files["measurements"], counts)
-    ident = identify(plan.geometry, data.poses, data.readings, noise, tolerances)
+    ident = identify(geometry, data.poses, data.readings, noise, tolerances)
     files["robot"] = write_identified(
-        folder / "robot.yaml", plan.scenario.robot, ident, files["measurements"]
+        folder / "robot.yaml", built.robot, ident, files["measurements"]
     )
     # The join's own error: the true pose averaged over each window, the as-built readings there.
     true_mean = np.array([_mean_between(t_true + epoch, x_true, w) for w in joined.windows])
-    figures = _figures(plan.geometry, truth, ident, space.held_out, noise)
+    figures = _figures(geometry, truth, ident, space.held_out, noise)
     return BusRehearsal(
         poses=count,
         seed=seed,
         noise=noise,
         **figures,
-        reading_error_rad=joined.readings - readings(plan.geometry, truth, true_mean),
+        reading_error_rad=joined.readings - readings(geometry, truth, true_mean),
         path_s=path_s,
         wall_s=time.perf_counter() - wall0,
         fixed=len(ident.fixed),
@@ -237,15 +241,16 @@ def rehearse_on_bus(
     )
 
 
-def _plan_path(plan, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select):
+def _plan_path(
+    nominal, limits, count, noise, tolerances, seed, dwell_s, n_candidates, folder, select
+):
     """(the :class:`~stewart_drake.calibration.rehearsal.Workspace`, {"poses", "windows": the
-    files written}): ``count`` poses picked (``select``) among the candidates, the path through
-    them."""
+    files written}): ``count`` poses of the robot ``nominal`` (a geometry, its motors'
+    ``limits``) picked (``select``) among the candidates, the path through them."""
     from ..calibration.files import write_path
     from ..calibration.poses import pose_path
     from ..calibration.rehearsal import pick, workspace
 
-    nominal, limits = plan.geometry, plan.motor_limits
     space = workspace(nominal, n_candidates, motor_limits=limits)
     chosen = pick(nominal, space, count, select, noise, tolerances, seed)
     path = pose_path(nominal, space.candidates[chosen], dwell_s=dwell_s, motor_limits=limits)
@@ -253,10 +258,11 @@ def _plan_path(plan, count, noise, tolerances, seed, dwell_s, n_candidates, fold
     return space, {"poses": poses_csv, "windows": windows_csv}
 
 
-def _drive(plan, truth, poses_csv, folder, progress, say):
+def _drive(scenario, geometry, truth, poses_csv, folder, progress, say):
     """(the :class:`~.session.RobotRun`, the path's length s, the plant's record: times
-    (perf_counter s) and true poses (n, 6)): the robot session driving ``poses_csv`` over the
-    emulated bus, the robot as built ``truth`` behind it.
+    (perf_counter s) and true poses (n, 6)): the robot session of ``scenario`` (as built, its
+    robot ``geometry``) driving ``poses_csv`` over the emulated bus, the robot as built
+    ``truth`` behind it.
 
     Raises:
         InvalidConfigError: the session did not drive the whole path (its end line).
@@ -267,17 +273,17 @@ def _drive(plan, truth, poses_csv, folder, progress, say):
     from .session import end_line, run_on_robot
 
     path_s = float(load_trace(poses_csv).end_time)
-    bus = dataclasses.replace(plan.scenario.bus, **REHEARSAL_BUS)
-    guard = dataclasses.replace(plan.scenario.guard, divergence_dir=str(folder / "diverged"))
+    bus = dataclasses.replace(scenario.bus, **REHEARSAL_BUS)
+    guard = dataclasses.replace(scenario.guard, divergence_dir=str(folder / "diverged"))
     robot = dataclasses.replace(
-        plan.scenario,
+        scenario,
         reference=TraceReference(path=str(poses_csv)),
         duration_s=path_s,
         bus=bus,
         guard=guard,
     )
     say(f"driving the {path_s:.0f} s path over the bus emulator (the robot as built behind it)")
-    emulator = emulated_bus(robot, Robot.from_value(truth.geometry(plan.geometry)))
+    emulator = emulated_bus(robot, Robot.from_value(truth.geometry(geometry)))
     try:
         bus.port = emulator.port
         run = run_on_robot(

@@ -420,12 +420,11 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
 def rehearse_calibration(args, context) -> int:
     """``calibrate --rehearse --bus FOLDER``: the calibration rehearsed over the bus emulator
     (:func:`~.calibration_rehearsal.rehearse_on_bus`), its figures printed; ``context`` is the
-    calibrate command's (the scenario's plan, the nominal geometry, the tracker's noise)."""
+    calibrate command's (the scenario, the nominal geometry, the tracker's noise)."""
     from ..base.errors import InvalidConfigError
     from .calibration_rehearsal import rehearse_on_bus
 
-    plan, _, noise = context
-    scenario = plan.scenario
+    scenario, _, noise = context
     if scenario.bus is None:
         raise InvalidConfigError(
             f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "

@@ -292,7 +292,7 @@ def run_on_robot(
     docstring); never leaves the torque on.
 
     Args:
-        scenario: a Scenario (or RunPlan) with a ``bus``.
+        scenario: a Scenario with a ``bus``.
         reference: overrides the scenario's reference (as ``make_stewart_diagram``'s).
         home_s: duration of the homing lead-in from the measured pose, s.
         hold_s: how long the reference's last pose is held after its end, s (then the torque
@@ -318,22 +318,21 @@ def run_on_robot(
         (Once the torque is on nothing is raised: the end is reported in the RobotRun.)
     """
     from ..references.trajectories import as_trajectory
-    from ..run.plan import make_plan
+    from ..run.plan import run_reference
 
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))
-    plan = make_plan(scenario, with_reference=False)
-    bus_config(plan.scenario)
-    check_loop_timeout(loop_timeout_s, plan.scenario.control_period_s)
+    scenario = scenario.validate()
+    bus_config(scenario)
+    check_loop_timeout(loop_timeout_s, scenario.control_period_s)
     if not 0 < home_s <= 60 or not 0 <= hold_s <= 3600:
         raise InvalidConfigError(
             f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
         )
-    target = as_trajectory(reference) if reference is not None else make_plan(plan).reference
-    duration = plan.duration_s
-    start = admissible_start(plan)  # opens and closes the port; the torque stays off
-    homed = HomingReference(target, start.x, home_s, t_end=duration)
-    run_plan = dataclasses.replace(plan.scenario, duration_s=homed.duration_s + hold_s)
-    session = (run_plan, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
+    target = as_trajectory(reference) if reference is not None else run_reference(scenario)
+    start = admissible_start(scenario)  # opens and closes the port; the torque stays off
+    homed = HomingReference(target, start.x, home_s, t_end=scenario.duration_s)
+    homed_run = dataclasses.replace(scenario, duration_s=homed.duration_s + hold_s)
+    session = (homed_run, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
     if signals is not None:
         return _run(*session, before_torque, signals)
     with SessionSignals() as own:
@@ -407,18 +406,15 @@ def _build(scenario, homed, meshcat, progress):
     """
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-    from ..run.diagram import make_stewart_diagram
-    from ..run.plan import check_reference_shown, check_run_memory, make_plan
+    from ..run.diagram import build_diagram
+    from ..run.plan import checked_plan
     from ..station.bus.station import HardwareStation
 
     # As a simulated run's (run.simulate.build_simulator), but the station is assembled
     # from the servos' reading, once the bus is open. The whole path, from the measured pose,
     # is checked here, before the port is opened again.
-    plan = make_plan(scenario, with_reference=False)
-    check_run_memory(plan.scenario)
-    plan = make_plan(plan, reference=homed)
-    check_reference_shown(plan, progress=progress, keep_series=False)
-    sd = make_stewart_diagram(plan, meshcat=meshcat)
+    plan = checked_plan(scenario, reference=homed, progress=progress)
+    sd = build_diagram(plan, meshcat)
     simulator = Simulator(sd.diagram)
     ApplySimulatorConfig(plan.scenario.simulator, simulator)
     context = simulator.get_mutable_context()

@@ -326,7 +326,7 @@ def build_teleop(
     x0 = np.asarray(x_initial, dtype=float)
     clearance = clearance_model(plan.plant_geometry)
     reference = _teleop_reference(scenario, plan, x0, limits, clearance)
-    loop = make_stewart_diagram(scenario, meshcat, reference_system=reference)
+    loop = make_stewart_diagram(plan, meshcat, reference_system=reference)
     builder = DiagramBuilder()
     builder.AddSystem(loop.diagram)
     lower, upper = slider_limits(reference.admissible, x0)

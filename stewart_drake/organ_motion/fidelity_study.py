@@ -10,7 +10,7 @@ numbers in the tables.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +18,7 @@ import numpy as np
 
 from ..base.fileio import atomic_write, write_between_markers
 from ..base.tables import markdown_lines
-from ..run.plan import make_plan
+from ..run.plan import run_reference
 
 #: Where the tables go in docs/organ_motion.md.
 TABLE_MARKERS = (
@@ -129,13 +129,18 @@ def run_case(case: FidelityCase) -> dict:
     from .fidelity import fidelity, rms_translation_rotation
     from .reproduction import run
 
-    scenario = load_scenario("paper_hardware", case.overrides)
-    scenario.reference = OrganMotionReference(case.motion, dict(case.parameters))
-    reference = make_plan(scenario).reference
+    base = load_scenario("paper_hardware", case.overrides)
+    motion = replace(base, reference=OrganMotionReference(case.motion, dict(case.parameters)))
+    reference = run_reference(motion)
     starts = reference.cycles(1e4)[0][: case.cycles + 1]
-    scenario.duration_s = float(starts[-1])
-    scenario.learning = None if case.learning is None else IlcDriver(**dict(case.learning))
-    scenario.guard.divergence_dir = str(Path("results") / "fidelity_study" / "diverged")
+    scenario = replace(
+        motion,
+        duration_s=float(starts[-1]),
+        learning=None if case.learning is None else IlcDriver(**dict(case.learning)),
+        guard=replace(
+            motion.guard, divergence_dir=str(Path("results") / "fidelity_study" / "diverged")
+        ),
+    )
     result, learner, wall, _ = run(scenario, reference)
     freq = reference.frequencies_hz() if reference.repeat_period_s is not None else {}
     cycles, status = [], []

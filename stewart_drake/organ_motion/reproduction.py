@@ -158,11 +158,16 @@ _fit = scale_to_fit  # reproduce's argument of that name is a flag
 
 
 def run(
-    scenario, reference: Reference, progress: bool = False, desc: str = "simulating", report=None
+    scenario,
+    reference: Reference | None,
+    progress: bool = False,
+    desc: str = "simulating",
+    report=None,
 ):
     """Simulate ``scenario`` on ``reference`` (checked first unless its check's ``report`` is
-    given, guarded): (:class:`~.simulate.RunResult`, the learner's status log (n + 1, k) or
-    None, wall s, the learned weights (p, 6) of a feed-forward learner at the end or None).
+    given, guarded; None: a checked plan's own, not checked again): (:class:`~.simulate.RunResult`,
+    the learner's status log (n + 1, k) or None, wall s, the learned weights (p, 6) of a
+    feed-forward learner at the end or None).
 
     The learner's log has a row at each of the result's ``t_state`` (every
     ``state_log_period_s``) and ends with its state at the end of the run (the loggers' last
@@ -354,10 +359,10 @@ def reproduce(
         SimulationDivergedError: the guard stopped the run.
     """
     from ..references.trajectories import as_trajectory
-    from ..run.plan import check_reference_shown, check_run_memory, make_plan
+    from ..run.plan import check_run_memory, checked_plan, make_plan, run_reference
 
     _check_counts(learn_cycles, eval_cycles)
-    reference = as_trajectory(reference) if reference is not None else make_plan(scenario).reference
+    reference = as_trajectory(reference) if reference is not None else run_reference(scenario)
     name = getattr(reference, "name", "reference")
     starts = _reference_starts(reference, learn_cycles if feedforward is None else 0)
     duration, whole = _duration(scenario, reference, starts, learn_cycles, eval_cycles, duration_s)
@@ -367,10 +372,10 @@ def reproduce(
     check_run_memory(scenario)  # before the reference is checked at every control period
     plan = make_plan(scenario, reference=reference)  # validated once, here
     reference, scale = _fit(plan, reference) if scale_to_fit else (reference, 1.0)
-    report = check_reference_shown(plan, reference, progress, keep_series=False)
+    plan = checked_plan(plan, reference=reference, progress=progress)  # the run's, checked once
     if on_checked is not None:
         on_checked()
-    result, learner, wall, learned = run(plan, reference, progress, f"reproducing {name}", report)
+    result, learner, wall, learned = run(plan, None, progress, f"reproducing {name}")
     starts = starts[starts <= scenario.duration_s + 1e-9]
     window = _measured_window(starts, scenario.duration_s, whole, eval_cycles)
     return Reproduction(
@@ -383,7 +388,7 @@ def reproduce(
         fidelity=_measure(result, reference, starts, scenario.duration_s, whole, eval_cycles),
         learner=learner,
         learned=learned,
-        check=report.summary(),
+        check=plan.report.summary(),
         wall_s=wall,
         startup=_startup(result, window),
         geometry=plan.geometry,

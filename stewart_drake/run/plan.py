@@ -143,9 +143,7 @@ def make_plan(
         changes["reference"] = as_trajectory(reference)
         changes["report"] = None  # the check of another reference
     elif with_reference and plan.reference is None:
-        changes["reference"] = as_trajectory(
-            plan.scenario.reference.make(plan.geometry, plan.duration_s, plan.torque_limit_Nm)
-        )
+        changes["reference"] = _made_reference(plan.scenario, plan.geometry, plan.torque_limit_Nm)
     if controller is not None:
         changes["controller_factory"] = (
             resolve_controller(controller) if isinstance(controller, str) else controller
@@ -200,7 +198,7 @@ def as_built(scenario: Scenario) -> Scenario:
     return dataclasses.replace(scenario, hardware=scenario.bus.hardware(scenario.control_period_s))
 
 
-def robot_geometry(scenario: Scenario):
+def robot_geometry(scenario: Scenario) -> StewartGeometry:
     """The robot ``scenario``'s controller believes, as :class:`RunPlan`'s ``geometry``,
     without deriving a run: its ``robot`` section (on the servo bus, built with its servos:
     :func:`as_built`) with its motors' reflected inertia.
@@ -213,6 +211,45 @@ def robot_geometry(scenario: Scenario):
     return _believed_robot(as_built(scenario.validate()))[0]
 
 
+def robot_motor_limits(scenario: Scenario) -> MotorLimits:
+    """What the motors of ``scenario``'s robot give and a reference may use, as
+    :class:`RunPlan`'s ``motor_limits``, without deriving a run: ``peak_torque_Nm`` is the
+    plan's ``torque_limit_Nm`` (N m, None: unlimited), ``servo`` its servo (None on the ideal
+    robot).
+
+    Returns:
+        :class:`~stewart_drake.robot.limits.MotorLimits`.
+    Raises:
+        as :func:`make_plan` (the scenario is validated here).
+    """
+    built = as_built(scenario.validate())
+    return _motor_limits(built, _believed_robot(built)[1])
+
+
+def run_reference(scenario: Scenario) -> Reference:
+    """The reference object of ``scenario``'s run, as :class:`RunPlan`'s ``reference``
+    (``scenario.reference`` made for the believed robot, the run's length and the motors'
+    torque limit), without deriving the rest of the run.
+
+    Returns:
+        an object with ``evaluate(t)`` -> (pose, rate, acceleration), each (n, 6)
+        (:func:`~stewart_drake.references.trajectories.as_trajectory`).
+    Raises:
+        as :func:`make_plan` (the scenario is validated here).
+    """
+    built = as_built(scenario.validate())
+    geometry, servo = _believed_robot(built)
+    return _made_reference(built, geometry, _motor_limits(built, servo).peak_torque_Nm)
+
+
+def _made_reference(scenario: Scenario, geometry: StewartGeometry, torque_limit_Nm):
+    """``scenario.reference`` made for ``geometry``, the run's length and ``torque_limit_Nm``
+    (:func:`~stewart_drake.references.trajectories.as_trajectory`)."""
+    from ..references.trajectories import as_trajectory
+
+    return as_trajectory(scenario.reference.make(geometry, scenario.duration_s, torque_limit_Nm))
+
+
 def _believed_robot(scenario: Scenario) -> tuple:
     """(geometry, servo or None) of :func:`robot_geometry`, for a scenario already as built."""
     geometry = scenario.robot.build()
@@ -222,26 +259,33 @@ def _believed_robot(scenario: Scenario) -> tuple:
     return geometry, servo
 
 
-def _robot_plan(scenario: Scenario) -> RunPlan:
-    """The plan of a validated ``scenario`` without its reference object (on the servo bus,
-    of the robot built with its servos: :func:`as_built`)."""
-    scenario = as_built(scenario)
-    geometry, servo = _believed_robot(scenario)
-    plant_geometry = geometry
+def _simulated_robot(scenario: Scenario, geometry: StewartGeometry) -> StewartGeometry:
+    """:class:`RunPlan`'s ``plant_geometry`` of a scenario already as built, whose believed
+    robot is ``geometry``: ``robot_as_built``, or the robot ``robot_tolerances`` draws
+    (neither: ``geometry``), with ``geometry``'s reflected inertia and ``payload_scale`` on the
+    platform's mass and inertia."""
+    simulated = geometry
     if scenario.robot_as_built is not None:
-        plant_geometry = scenario.robot_as_built.build().replace(
+        simulated = scenario.robot_as_built.build().replace(
             motor_reflected_inertia=geometry.motor_reflected_inertia
         )
     elif scenario.robot_tolerances is not None:
-        plant_geometry = scenario.robot_tolerances.as_built(scenario.robot.build()).replace(
+        simulated = scenario.robot_tolerances.as_built(scenario.robot.build()).replace(
             motor_reflected_inertia=geometry.motor_reflected_inertia
         )
     if scenario.payload_scale != 1.0:
         k = scenario.payload_scale
-        plant_geometry = plant_geometry.replace(
-            platform_mass=plant_geometry.platform_mass * k,
-            platform_inertia=tuple(k * v for v in plant_geometry.platform_inertia),
+        simulated = simulated.replace(
+            platform_mass=simulated.platform_mass * k,
+            platform_inertia=tuple(k * v for v in simulated.platform_inertia),
         )
+    return simulated
+
+
+def _motor_limits(scenario: Scenario, servo: ServoModel | None) -> MotorLimits:
+    """:func:`robot_motor_limits` of a scenario already as built, whose servo is ``servo``:
+    the saturation is the lowest of ``torque_limit_Nm``, the servo's peak torque and on the
+    servo bus ``K_t`` times its current limit."""
     limits = [
         v
         for v in (
@@ -251,7 +295,20 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
         )
         if v is not None
     ]
-    torque_limit = min(limits) if limits else None
+    return MotorLimits(
+        min(limits) if limits else None,
+        None if servo is None else servo.no_load_speed_rad_s,
+        scenario.guard.effort_margin,
+        servo,
+    )
+
+
+def _robot_plan(scenario: Scenario) -> RunPlan:
+    """The plan of a validated ``scenario`` without its reference object (on the servo bus,
+    of the robot built with its servos: :func:`as_built`)."""
+    scenario = as_built(scenario)
+    geometry, servo = _believed_robot(scenario)
+    limits = _motor_limits(scenario, servo)
     h_plant = scenario.plant.time_step
     crank = float(np.max(geometry.crank_lengths))  # the longest crank
     tip = (
@@ -265,15 +322,10 @@ def _robot_plan(scenario: Scenario) -> RunPlan:
     return RunPlan(
         scenario=scenario,
         geometry=geometry,
-        plant_geometry=plant_geometry,
+        plant_geometry=_simulated_robot(scenario, geometry),
         servo=servo,
-        torque_limit_Nm=torque_limit,
-        motor_limits=MotorLimits(
-            torque_limit,
-            None if servo is None else servo.no_load_speed_rad_s,
-            scenario.guard.effort_margin,
-            servo,
-        ),
+        torque_limit_Nm=limits.peak_torque_Nm,
+        motor_limits=limits,
         delay_periods=0
         if scenario.hardware is None
         else scenario.hardware.computation_delay_periods,
@@ -369,6 +421,7 @@ def check_reference(
     raise_refused: bool = True,
     progress=None,
     keep_series: bool = True,
+    duration_s: float | None = None,
 ) -> TrajectoryReport:
     """Refuse a reference the robot of ``plan`` cannot follow, before anything is simulated.
 
@@ -385,6 +438,8 @@ def check_reference(
             (``stewart-drake check``).
         progress, keep_series: as :func:`validate_reference` (a bar told of the samples
             checked; the report's sample-by-sample series kept or not).
+        duration_s: the length checked, s (default: the plan's): a path that is not the
+            plan's run (the poses ``calibrate --plan`` writes).
     Returns:
         the :class:`~stewart_drake.robot.trajectory_report.TrajectoryReport` (``summary()``
         prints it).
@@ -407,7 +462,7 @@ def check_reference(
     report = validate_reference(
         trajectory,
         geometry,
-        plan.duration_s,
+        plan.duration_s if duration_s is None else duration_s,
         dt=plan.control_period_s,
         cond_threshold=guard.cond_threshold,
         min_sigma_min_inv=guard.min_sigma_min_inv,

@@ -29,7 +29,7 @@ from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..references.data_collection import DataCollectionReference
-from ..run.plan import check_run_memory, make_plan
+from ..run.plan import check_run_memory, run_reference
 from ..run.result import RunResult
 from ..run.scenario import Scenario
 from ..run.simulate import run_experiment
@@ -139,7 +139,7 @@ def collection_jobs(
         for q in PAPER_WEIGHTS
         for r in PAPER_WEIGHTS
     }
-    trajectory = make_plan(next(iter(configs.values()))).reference
+    trajectory = run_reference(next(iter(configs.values())))
     window = AnnTunerDriver().feature_window
     settings = {
         "seed": seed,

@@ -20,7 +20,7 @@ from ..control.lqi.driver import LqiDriver
 from ..control.tuner.ratio import ratio_tuner_inputs
 from ..control.tuning import TunerChoice
 from ..run import metrics
-from ..run.plan import make_plan, robot_geometry
+from ..run.plan import robot_geometry, robot_motor_limits
 from ..run.scenario_io import load_scenario
 from ..run.simulate import run_experiment
 from .tasks import make_task
@@ -148,9 +148,12 @@ def task_scenario(job: StudyJob):
     """(scenario, task) of a study job: the base scenario for the job's duration, with the
     job's controller and tuner and the task's disturbance."""
     base = load_scenario(job.base, [f"duration_s={job.duration_s}"])
-    plan = make_plan(base, with_reference=False)
     task = make_task(
-        job.family, job.seed, job.duration_s, plan.geometry, plan.torque_limit_Nm or np.inf
+        job.family,
+        job.seed,
+        job.duration_s,
+        robot_geometry(base),
+        robot_motor_limits(base).peak_torque_Nm or np.inf,
     )
     base.use_controller(job.controller, job.tuner)
     base.disturbance = task.disturbance
@@ -201,8 +204,8 @@ def study_job(job: StudyJob) -> dict:
 def speed_schedule(family: str, seed: int, duration_s: float, base: str) -> tuple:
     """(t, ratios) of the hand-made schedule (module docstring) every tuner period."""
     scenario = load_scenario(base)
-    plan = make_plan(scenario, with_reference=False)
-    task = make_task(family, seed, duration_s, plan.geometry, plan.torque_limit_Nm or np.inf)
+    limit = robot_motor_limits(scenario).peak_torque_Nm or np.inf
+    task = make_task(family, seed, duration_s, robot_geometry(scenario), limit)
     t = np.arange(0.0, duration_s, TUNER_PERIOD_S)
     _, x_dot, _ = task.reference.evaluate(t)
     speed = np.maximum(
