@@ -163,3 +163,17 @@ def test_an_uncompensated_run_away_from_its_calibration_says_so():
         with_reference=False,
     )
     assert "ideal pose sensor" in temperature_note(ideal)
+
+
+def test_temperature_on_the_command_line_is_an_override_in_order(capsys):
+    from stewart_drake.cli.registry import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(["run", "--set", "duration_s=1", "--temperature", "28.5"])
+    assert args.set == ["duration_s=1", "temperature_c=28.5"]
+    args = parser.parse_args(["calibrate", "--rehearse", "--temperature", "-5"])
+    assert args.set == ["temperature_c=-5.0"]
+    with pytest.raises(SystemExit) as info:
+        parser.parse_args(["reproduce", "breathing", "--temperature", "warm"])
+    assert info.value.code == 2
+    assert "--temperature: expected a finite number, got 'warm'" in capsys.readouterr().err
