@@ -177,3 +177,57 @@ def test_temperature_on_the_command_line_is_an_override_in_order(capsys):
         parser.parse_args(["reproduce", "breathing", "--temperature", "warm"])
     assert info.value.code == 2
     assert "--temperature: expected a finite number, got 'warm'" in capsys.readouterr().err
+
+
+def test_calibrated_at_a_temperature_then_run_at_it_nothing_changes(tmp_path):
+    """calibrate --temperature T writes lengths_at_c: T, its lengths the identified ones; a run
+    at T takes them as written, a run at 20 C scales them back."""
+    from stewart_drake.calibration.files import (
+        nominal_at_temperature,
+        robot_section,
+        write_robot,
+    )
+
+    plan = make_plan(load_scenario("paper_hardware", ["temperature_c=31.5"]), with_reference=False)
+    nominal = nominal_at_temperature(plan)
+    assert nominal.lengths_at_c == 31.5 and nominal is plan.geometry
+    legs = Tolerances().draw(nominal, 2)  # what the identification found, at 31.5 C
+    identified = legs.geometry(nominal)
+    path = write_robot(tmp_path / "robot.yaml", robot_section(plan.scenario.robot, nominal), legs)
+    at_t1 = make_plan(load_scenario(path, ["temperature_c=31.5"]), with_reference=False)
+    assert at_t1.geometry == identified.replace(motor_reflected_inertia=0.0)
+    assert at_t1.plant_geometry is at_t1.geometry
+    at_20 = make_plan(load_scenario(path, ["temperature_c=20"]), with_reference=False)
+    np.testing.assert_allclose(
+        at_20.geometry.rod_lengths, identified.rod_lengths * (1 - ALUMINIUM * 11.5), rtol=1e-15
+    )
+    # Uncompensated at T1 the note stays silent: the robot runs where it was measured.
+    silent = make_plan(
+        load_scenario(path, ["temperature_c=31.5", "compensate_temperature=false"]),
+        with_reference=False,
+    )
+    assert temperature_note(silent) is None
+    # Without a temperature, the robot section calibrate wrote is the scenario's own.
+    plain = make_plan(load_scenario("paper_hardware"), with_reference=False)
+    assert robot_section(plain.scenario.robot, nominal_at_temperature(plain)) is (
+        plain.scenario.robot
+    )
+
+
+def test_calibrate_rehearsed_at_a_temperature_writes_it(tmp_path, capsys):
+    """calibrate --rehearse --temperature 30: the robot drawn and identified at 30 C, the file
+    says lengths_at_c: 30.0 and the scenario loader takes it (at 30 C unchanged)."""
+    from stewart_drake.cli import main as cli
+
+    out = tmp_path / "robot.yaml"
+    argv = ["calibrate", "--rehearse", "--temperature", "30", "--out", str(out)]
+    assert cli.main([*argv, "--poses", "30", "--candidates", "200", "--no-progress"]) == 0
+    said = capsys.readouterr().out
+    assert "at 30 C (the nominal lengths scaled from robot.lengths_at_c = 20 C)" in said
+    assert "its lengths hold at 30 C, the measurements' temperature" in said
+    text = out.read_text()
+    assert "  lengths_at_c: 30.0\n" in text and "  rod_length: 0.40409292" in text
+    written = make_plan(load_scenario(out), with_reference=False).geometry
+    assert make_plan(load_scenario(out, ["temperature_c=30"]), with_reference=False).geometry == (
+        written
+    )

@@ -424,23 +424,26 @@ def _clock_offset(text):
 
 
 def _context(args):
-    """(the scenario's plan without a reference, the nominal geometry, the measurement
-    noise) of the command's scenario."""
+    """(the scenario's plan without a reference, the nominal geometry at the temperature of
+    the measurements (:func:`~.files.nominal_at_temperature`), the measurement noise) of the
+    command's scenario."""
     from ..run.plan import as_built, make_plan
     from ..run.scenario_io import load_scenario
+    from .files import nominal_at_temperature
     from .tracker import COUNTS_PER_REV, MeasurementNoise
 
     plan = make_plan(load_scenario(args.scenario, args.set or ()), with_reference=False)
     hardware = as_built(plan.scenario).hardware  # on a bus, the robot built with its servos
     counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
-    return plan, plan.geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
+    noise = MeasurementNoise(args.noise[0], args.noise[1], counts)
+    return plan, nominal_at_temperature(plan), noise
 
 
 def _identify(args, context, registration) -> int:
     """``calibrate MEASUREMENTS.csv --out ROBOT.yaml [--registration REG.yaml]``."""
     from dataclasses import replace
 
-    from .files import read_measurements
+    from .files import read_measurements, robot_section
     from .registration import register_poses
     from .report import (
         check_reachable,
@@ -475,11 +478,19 @@ def _identify(args, context, registration) -> int:
     for line in frame_warnings(geometry, ident, registered is not None):
         print(f"stewart-drake calibrate: warning: {line}", file=sys.stderr)
     frames = None if registration is None else (registration[0], args.registration)
-    path = write_identified(args.out, plan.scenario.robot, ident, args.measurements, frames)
+    robot = robot_section(plan.scenario.robot, geometry)
+    path = write_identified(args.out, robot, ident, args.measurements, frames)
     if path is None:
         return 1
-    print(f"wrote {path} (a scenario's robot: section)")
+    print(f"wrote {path} (a scenario's robot: section{_held_at(plan, geometry)})")
     return 0
+
+
+def _held_at(plan, geometry) -> str:
+    """Words on the temperature a written robot's lengths hold at, when one was given."""
+    if plan.scenario.temperature_c is None:
+        return ""
+    return f"; its lengths hold at {geometry.lengths_at_c:g} C, the measurements' temperature"
 
 
 def _identification(args, geometry, poses, q, noise, registered=None):
@@ -522,6 +533,7 @@ def _rehearse(args, context, registration) -> int:
     """``calibrate --rehearse [--registration REG.yaml]``: with a registration, the emulated
     tracker stands at its frames, its fiducials where REG.yaml's drawing puts them."""
     from ..robot.tolerances import Tolerances
+    from .files import robot_section
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
 
@@ -533,6 +545,12 @@ def _rehearse(args, context, registration) -> int:
         f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
         f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
         f"{args.poses} {select} poses, tracker {noise.words()}"
+        + (
+            ""
+            if plan.scenario.temperature_c is None
+            else f", at {geometry.lengths_at_c:g} C (the nominal lengths scaled from "
+            f"robot.lengths_at_c = {plan.scenario.robot.lengths_at_c:g} C)"
+        )
         + (
             ""
             if setup is None
@@ -555,12 +573,11 @@ def _rehearse(args, context, registration) -> int:
         _save_rehearsal(args, geometry, r, space.candidates[idx], noise, setup, sigma)
     if args.out is not None:
         frames = None if r.registration is None else (r.registration, "the emulated fiducials")
-        path = write_identified(
-            args.out, plan.scenario.robot, r.identification, "a rehearsal", frames
-        )
+        robot = robot_section(plan.scenario.robot, geometry)
+        path = write_identified(args.out, robot, r.identification, "a rehearsal", frames)
         if path is None:
             return 1
-        print(f"wrote {Path(path)} (a scenario's robot: section)")
+        print(f"wrote {Path(path)} (a scenario's robot: section{_held_at(plan, geometry)})")
     return 0
 
 

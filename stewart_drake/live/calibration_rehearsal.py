@@ -181,7 +181,12 @@ def rehearse_on_bus(
             InvalidConfigError: the session did not drive the whole path (its end line).
     """
     from ..base.errors import InvalidConfigError
-    from ..calibration.files import read_measurements, write_measurements
+    from ..calibration.files import (
+        nominal_at_temperature,
+        read_measurements,
+        robot_section,
+        write_measurements,
+    )
     from ..calibration.identify import identify
     from ..calibration.join import join, write_tracker_file
     from ..calibration.report import write_identified
@@ -194,6 +199,8 @@ def rehearse_on_bus(
     if scenario.bus is None:
         raise InvalidConfigError("the rehearsal drives a robot on a bus: give a scenario with bus")
     plan = make_plan(scenario, with_reference=False)
+    # Identified about the nominal robot at the measurements' temperature (temperature_c).
+    plan = dataclasses.replace(plan, geometry=nominal_at_temperature(plan))
     hardware = as_built(plan.scenario).hardware  # the robot built with the bus's servos
     counts = COUNTS_PER_REV if hardware is None else hardware.encoders.counts_per_rev
     noise = dataclasses.replace(noise or MeasurementNoise(), counts_per_rev=counts)
@@ -217,7 +224,10 @@ def rehearse_on_bus(
     data = read_measurements(files["measurements"], counts)
     ident = identify(plan.geometry, data.poses, data.readings, noise, tolerances)
     files["robot"] = write_identified(
-        folder / "robot.yaml", plan.scenario.robot, ident, files["measurements"]
+        folder / "robot.yaml",
+        robot_section(plan.scenario.robot, plan.geometry),
+        ident,
+        files["measurements"],
     )
     # The join's own error: the true pose averaged over each window, the as-built readings there.
     true_mean = np.array([_mean_between(t_true + epoch, x_true, w) for w in joined.windows])
