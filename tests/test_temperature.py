@@ -231,3 +231,21 @@ def test_calibrate_rehearsed_at_a_temperature_writes_it(tmp_path, capsys):
     assert make_plan(load_scenario(out, ["temperature_c=30"]), with_reference=False).geometry == (
         written
     )
+
+
+def test_the_docs_table_is_what_the_tool_writes():
+    """docs/calibration.md's table of what a kelvin costs: regenerate it with
+    ``python tools/temperature_table.py``."""
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    spec = importlib.util.spec_from_file_location(
+        "temperature_table", root / "tools/temperature_table.py"
+    )
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    text = (root / "docs/calibration.md").read_text(encoding="utf-8")
+    assert tool.block() in text, (
+        "docs/calibration.md is stale: run python tools/temperature_table.py"
+    )

@@ -100,7 +100,5 @@ def temperature_table(
                 f"{np.median(m) * 1e6:.2f} ({m.max() * 1e6:.2f}) um, "
                 f"{np.median(r) * 1e6:.2f} ({r.max() * 1e6:.2f}) urad"
             )
-        lines.append(
-            f"| {len(x)} admissible poses: median (largest) | " + " | ".join(cells) + " |"
-        )
+        lines.append(f"| {len(x)} admissible poses: median (largest) | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
