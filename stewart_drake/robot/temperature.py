@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..base.checks import as_number, as_poses
+from ..base.tables import markdown_table
 from .forward_kinematics import fk
 from .geometry import StewartGeometry
 from .kinematics import ik, rotation_rpy
@@ -83,22 +84,24 @@ def temperature_table(
     )
     x = np.array([pose for _, pose in poses], dtype=float)
     figures = [temperature_error(g, x, 1.0) for g in cases]
-    lines = [
-        f"| pose | rods alone ({a_rod * 1e6:g}e-6/K) | cranks, base and platform alone "
-        f"({a_frame * 1e6:g}e-6/K) | the whole robot |",
-        "|---|---|---|---|",
+    header = (
+        "pose",
+        f"rods alone ({a_rod * 1e6:g}e-6/K)",
+        f"cranks, base and platform alone ({a_frame * 1e6:g}e-6/K)",
+        "the whole robot",
+    )
+    rows = [
+        [name] + [f"{m[k] * 1e6:.2f} um, {r[k] * 1e6:.2f} urad" for m, r in figures]
+        for k, (name, _) in enumerate(poses)
     ]
-    for k, (name, _) in enumerate(poses):
-        cells = [f"{m[k] * 1e6:.2f} um, {r[k] * 1e6:.2f} urad" for m, r in figures]
-        lines.append(f"| {name} | " + " | ".join(cells) + " |")
     if workspace is not None:
         x = as_poses("workspace", workspace).reshape(-1, 6)
-        cells = []
+        row = [f"{len(x)} admissible poses: median (largest)"]
         for g in cases:
             m, r = temperature_error(g, x, 1.0)
-            cells.append(
+            row.append(
                 f"{np.median(m) * 1e6:.2f} ({m.max() * 1e6:.2f}) um, "
                 f"{np.median(r) * 1e6:.2f} ({r.max() * 1e6:.2f}) urad"
             )
-        lines.append(f"| {len(x)} admissible poses: median (largest) | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        rows.append(row)
+    return markdown_table(header, rows) + "\n"
