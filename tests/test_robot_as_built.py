@@ -98,6 +98,27 @@ def test_every_scenario_value_reaches_the_plant(name):
     assert (proximity > 0) == scenario.contact
 
 
+def test_a_warm_robot_is_where_its_forward_kinematics_says_unless_the_controller_is_told():
+    """Held at home on the robot as built, 10 K above its calibration: uncompensated, the
+    platform sits where the warm robot's forward kinematics puts the encoders' home (69 um up,
+    to 1.5 um: the encoders' counts), and the summary says so; compensated, at home."""
+    from stewart_drake.robot.temperature import temperature_error
+    from stewart_drake.run.metrics import format_metrics
+
+    sets = ["duration_s=1", "reference=!NamedReference {name: home}", "temperature_c=30"]
+    expected = temperature_error(StewartGeometry(), X_HOME, 10.0)[0][0]
+    for told in (False, True):
+        scenario = load_scenario("paper_hardware", [*sets, f"compensate_temperature={told}"])
+        result = run_experiment(scenario)
+        late = result.t >= 0.5
+        error = np.mean(result.x[late, :6] - result.x_d[late, :6], axis=0, dtype=float)
+        assert np.abs(error[:5]).max() < 0.5e-6, error
+        assert error[5] == pytest.approx(0.0 if told else expected, abs=1.5e-6), error
+        note = result.metrics.get("temperature_note")
+        assert (note is None) if told else ("10 K warmer" in note)
+        assert told or note in format_metrics(result.metrics).splitlines()
+
+
 def test_contact_registers_the_collision_geometry_of_every_part():
     station = make_stewart_station(load_scenario("paper_hardware", ["contact=true"]))
     plant, handles = station.plant, station.handles

@@ -424,24 +424,25 @@ def _clock_offset(text):
 
 
 def _context(args):
-    """(the command's scenario, its nominal geometry (the robot the controller believes),
-    the measurement noise)."""
-    from ..run.plan import as_built, robot_geometry
+    """(the command's scenario, the nominal geometry at the temperature of the measurements
+    (:func:`~.files.nominal_at_temperature`), the measurement noise)."""
+    from ..run.plan import as_built
     from ..run.scenario_io import load_scenario
+    from .files import nominal_at_temperature
     from .tracker import COUNTS_PER_REV, MeasurementNoise
 
     scenario = load_scenario(args.scenario, args.set or ())
-    geometry = robot_geometry(scenario)  # the scenario validated
     hardware = as_built(scenario).hardware  # on a bus, the robot built with its servos
     counts = hardware.encoders.counts_per_rev if hardware is not None else COUNTS_PER_REV
-    return scenario, geometry, MeasurementNoise(args.noise[0], args.noise[1], counts)
+    noise = MeasurementNoise(args.noise[0], args.noise[1], counts)
+    return scenario, nominal_at_temperature(scenario), noise
 
 
 def _identify(args, context, registration) -> int:
     """``calibrate MEASUREMENTS.csv --out ROBOT.yaml [--registration REG.yaml]``."""
     from dataclasses import replace
 
-    from .files import read_measurements
+    from .files import read_measurements, robot_section
     from .registration import register_poses
     from .report import (
         check_reachable,
@@ -476,11 +477,19 @@ def _identify(args, context, registration) -> int:
     for line in frame_warnings(geometry, ident, registered is not None):
         print(f"stewart-drake calibrate: warning: {line}", file=sys.stderr)
     frames = None if registration is None else (registration[0], args.registration)
-    path = write_identified(args.out, scenario.robot, ident, args.measurements, frames)
+    robot = robot_section(scenario.robot, geometry)
+    path = write_identified(args.out, robot, ident, args.measurements, frames)
     if path is None:
         return 1
-    print(f"wrote {path} (a scenario's robot: section)")
+    print(f"wrote {path} (a scenario's robot: section{_held_at(scenario, geometry)})")
     return 0
+
+
+def _held_at(scenario, geometry) -> str:
+    """Words on the temperature a written robot's lengths hold at, when one was given."""
+    if scenario.temperature_c is None:
+        return ""
+    return f"; its lengths hold at {geometry.lengths_at_c:g} C, the measurements' temperature"
 
 
 def _identification(args, geometry, poses, q, noise, registered=None):
@@ -524,6 +533,7 @@ def _rehearse(args, context, registration) -> int:
     tracker stands at its frames, its fiducials where REG.yaml's drawing puts them."""
     from ..robot.tolerances import Tolerances
     from ..run.plan import robot_motor_limits
+    from .files import robot_section
     from .rehearsal import pick, rehearse, workspace
     from .report import rehearsal_text, write_identified
 
@@ -535,6 +545,12 @@ def _rehearse(args, context, registration) -> int:
         f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
         f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
         f"{args.poses} {select} poses, tracker {noise.words()}"
+        + (
+            ""
+            if scenario.temperature_c is None
+            else f", at {geometry.lengths_at_c:g} C (the nominal lengths scaled from "
+            f"robot.lengths_at_c = {scenario.robot.lengths_at_c:g} C)"
+        )
         + (
             ""
             if setup is None
@@ -557,10 +573,11 @@ def _rehearse(args, context, registration) -> int:
         _save_rehearsal(args, geometry, r, space.candidates[idx], noise, setup, sigma)
     if args.out is not None:
         frames = None if r.registration is None else (r.registration, "the emulated fiducials")
-        path = write_identified(args.out, scenario.robot, r.identification, "a rehearsal", frames)
+        robot = robot_section(scenario.robot, geometry)
+        path = write_identified(args.out, robot, r.identification, "a rehearsal", frames)
         if path is None:
             return 1
-        print(f"wrote {Path(path)} (a scenario's robot: section)")
+        print(f"wrote {Path(path)} (a scenario's robot: section{_held_at(scenario, geometry)})")
     return 0
 
 

@@ -14,7 +14,9 @@ columns (a time, a pose number) are read past and named. The file is read throug
 
 **Robot** (:func:`robot_yaml`): a scenario's ``robot:`` section, every field of
 :class:`~stewart_drake.run.scenario.Robot` with the identified crank azimuths in
-``crank_angles_deg``, and the per-leg fields of :class:`~stewart_drake.robot.legs.LegParameters`.
+``crank_angles_deg``, and the per-leg fields of :class:`~stewart_drake.robot.legs.LegParameters`;
+its lengths hold at the temperature of the measurements (``lengths_at_c``,
+:func:`nominal_at_temperature`, :func:`robot_section`).
 
 **Registration** (:func:`registration_yaml`): the REG.yaml of fiducials
 (:mod:`~.registration`), as an emulated tracker measured them.
@@ -35,6 +37,7 @@ import numpy as np
 from ..base.columns import header_cell, read_csv_columns
 from ..base.errors import InvalidConfigError
 from ..base.fileio import atomic_write
+from ..robot.geometry import StewartGeometry
 from ..robot.legs import PARAMETER_KINDS, LegParameters
 from .identify import MIN_POSES
 from .poses import PosePath
@@ -213,6 +216,38 @@ def _yaml_value(value) -> str:
     mantissa, e, exponent = text.partition("e")
     # YAML 1.1 readers (PyYAML) take 1e-06 for a string: a float's mantissa needs its point.
     return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+
+
+def nominal_at_temperature(scenario) -> StewartGeometry:
+    """The nominal robot a calibration identifies about: the robot ``scenario`` (a
+    :class:`~stewart_drake.run.scenario.Scenario`) believes
+    (:func:`~stewart_drake.run.plan.robot_geometry`), at its ``temperature_c`` when one is
+    given (the temperature during the measurements, ``calibrate --temperature``), whether or
+    not the controller is told it: the identified lengths then hold at that temperature.
+
+    Returns:
+        :class:`~stewart_drake.robot.geometry.StewartGeometry` (the believed robot itself
+        without a temperature, or when it is at that temperature already).
+    Raises:
+        as :func:`~stewart_drake.run.plan.make_plan` (the scenario is validated here).
+    """
+    from ..run.plan import robot_geometry
+
+    geometry = robot_geometry(scenario)
+    t = scenario.temperature_c
+    return geometry if t is None else geometry.at_temperature(t)
+
+
+def robot_section(robot, nominal: StewartGeometry):
+    """The :class:`~stewart_drake.run.scenario.Robot` a calibration about ``nominal`` writes
+    (:func:`robot_yaml`): the scenario's ``robot`` itself when ``nominal`` holds its lengths at
+    the same temperature, else ``nominal``'s fields (its lengths and ``lengths_at_c`` at the
+    temperature of the measurements)."""
+    from ..run.scenario import Robot
+
+    if nominal.lengths_at_c == robot.lengths_at_c:
+        return robot
+    return Robot.from_value(nominal)
 
 
 def robot_yaml(robot, legs: LegParameters, comments: tuple = ()) -> str:

@@ -190,8 +190,9 @@ def default_scenario() -> str:
 
 
 def add_scenario_arguments(parser, what: str, default: str | None = None) -> None:
-    """``--scenario`` (default ``default``, or the commands' default scenario) and ``--set``,
-    the same for every command that starts from a scenario."""
+    """``--scenario`` (default ``default``, or the commands' default scenario), ``--set`` and
+    ``--temperature`` (an override of ``temperature_c`` among the ``--set`` ones, in the order
+    given), the same for every command that starts from a scenario."""
     parser.add_argument(
         "--scenario",
         default=default or default_scenario(),
@@ -208,6 +209,37 @@ def add_scenario_arguments(parser, what: str, default: str | None = None) -> Non
         "--set controller.omega_Q=10 --set 'controller=!PdDriver {}' "
         "(default: none)",
     )
+    parser.add_argument(
+        "--temperature",
+        type=finite_float,
+        action=_SetTemperature,
+        dest="set",
+        metavar="C",
+        help="the robot's temperature, degrees C, during the run (its lengths, measured at "
+        "robot.lengths_at_c, scaled to it; the controller told unless compensate_temperature "
+        "is false) or, for calibrate, during the measurements (the robot written holds its "
+        "lengths at it): --set temperature_c=C (default: none, the lengths as measured; "
+        "docs/robot.md, Temperature)",
+    )
+
+
+def finite_float(text: str) -> float:
+    """An argparse type: a finite number (the unit is the option's)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+class _SetTemperature(argparse.Action):
+    """``--temperature C``: appends ``temperature_c=C`` to the ``--set`` overrides."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        overrides = list(getattr(namespace, self.dest, None) or [])
+        setattr(namespace, self.dest, overrides + [f"temperature_c={values!r}"])
 
 
 def add_runner_arguments(parser) -> None:

@@ -181,19 +181,25 @@ def rehearse_on_bus(
             InvalidConfigError: the session did not drive the whole path (its end line).
     """
     from ..base.errors import InvalidConfigError
-    from ..calibration.files import read_measurements, write_measurements
+    from ..calibration.files import (
+        nominal_at_temperature,
+        read_measurements,
+        robot_section,
+        write_measurements,
+    )
     from ..calibration.identify import identify
     from ..calibration.join import join, write_tracker_file
     from ..calibration.report import write_identified
     from ..calibration.tracker import COUNTS_PER_REV, track
     from ..robot.legs import readings
     from ..robot.tolerances import Tolerances
-    from ..run.plan import as_built, robot_geometry, robot_motor_limits
+    from ..run.plan import as_built, robot_motor_limits
 
     wall0 = time.perf_counter()
     if scenario.bus is None:
         raise InvalidConfigError("the rehearsal drives a robot on a bus: give a scenario with bus")
-    geometry = robot_geometry(scenario)  # the scenario validated
+    # Identified about the nominal robot at the measurements' temperature (temperature_c).
+    geometry = nominal_at_temperature(scenario)  # the scenario validated
     built = as_built(scenario)  # the robot built with the bus's servos
     hardware = built.hardware
     counts = COUNTS_PER_REV if hardware is None else hardware.encoders.counts_per_rev
@@ -221,7 +227,10 @@ def rehearse_on_bus(
     data = read_measurements(files["measurements"], counts)
     ident = identify(geometry, data.poses, data.readings, noise, tolerances)
     files["robot"] = write_identified(
-        folder / "robot.yaml", built.robot, ident, files["measurements"]
+        folder / "robot.yaml",
+        robot_section(built.robot, geometry),
+        ident,
+        files["measurements"],
     )
     # The join's own error: the true pose averaged over each window, the as-built readings there.
     true_mean = np.array([_mean_between(t_true + epoch, x_true, w) for w in joined.windows])

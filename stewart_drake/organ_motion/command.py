@@ -212,6 +212,9 @@ def _cmd_reproduce(args) -> int:
             f"encoders' resolution at these poses: {resolution[0] * 1e6:.3g} um / "
             f"{resolution[1] * 1e6:.3g} urad RMS in the measured pose"
         )
+    note = rep.result.config_summary.get("temperature_note")
+    if note is not None:
+        print(note)
     md, png, js = write_report(rep, out, tolerance)
     ok, line = verdict(fid, tolerance)
     print(line)

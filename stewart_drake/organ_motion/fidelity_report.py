@@ -71,6 +71,9 @@ def _run_lines(rep: Reproduction, fid: dict) -> list:
         f"{rep.wall_s:.0f} s."
     )
     lines += startup_lines(rep, fid)
+    note = rep.result.config_summary.get("temperature_note")
+    if note is not None:
+        lines += ["", f"{note[0].upper()}{note[1:]}."]
     if getattr(rep, "learned_from", ""):
         lines += ["", f"Feed-forward model: {rep.learned_from}."]
     if rep.scale != 1.0:

@@ -11,6 +11,10 @@ zero (the optional per-leg fields, None for the drawing's value; docs/robot.md, 
 geometry"). Every consumer reads the per-leg arrays (:attr:`StewartGeometry.P_B`, ``p_E``,
 ``w_B``, ``u_B``, ``crank_lengths``, ``rod_lengths``, ``encoder_offsets``), which for the
 symmetric robot hold the drawing's values exactly.
+
+Its lengths hold at one temperature, ``lengths_at_c``; :meth:`StewartGeometry.at_temperature`
+gives the robot at another, its rods and the rest of its kinematic loop scaled by their linear
+expansion (docs/robot.md, "Temperature").
 """
 
 from __future__ import annotations
@@ -47,6 +51,18 @@ PER_LEG_FIELDS = {
     "shaft_tilts_rad": ((6,), MAX_SHAFT_TILT_RAD, "a shaft tilted that far is another design"),
     "encoder_offsets_rad": ((6,), MAX_ENCODER_OFFSET_RAD, "zero the encoder again"),
 }
+
+#: The temperature a drawing's lengths hold at unless it says otherwise, degrees C: ISO 1's
+#: reference temperature for geometrical product specifications.
+REFERENCE_TEMPERATURE_C = 20.0
+#: Linear expansion coefficient of aluminium alloys near room temperature, 1/K (6061: 23.6e-6,
+#: 7075: 23.4e-6, 2024: 23.2e-6; the handbooks' round figure).
+ALUMINIUM_EXPANSION_PER_K = 23e-6
+#: The temperatures a robot's lengths may hold at, or a run may take, degrees C.
+TEMPERATURE_RANGE_C = (-50.0, 150.0)
+#: The linear expansion coefficients a part may have, 1/K: from carbon fibre along its fibres
+#: (about -1e-6) past invar (1.2e-6) and the metals to filled plastics (PLA about 7e-5).
+EXPANSION_RANGE_PER_K = (-2e-5, 2e-4)
 
 
 def nearest_valid_principal_moments(moments, margin: float = 1e-9) -> tuple[float, float, float]:
@@ -118,6 +134,15 @@ class StewartGeometry:
         platform_plate_radius: radius of the platform's plate, m (above the joint centres).
         motor_reflected_inertia: rotor inertia x gear ratio^2 of each motor at its crank shaft,
             kg m^2; 0 for ideal torque sources.
+    Temperature (docs/robot.md, "Temperature"; :meth:`at_temperature`):
+        lengths_at_c: the temperature every length of the kinematic loop holds at, degrees C
+            (default :data:`REFERENCE_TEMPERATURE_C`; a calibration writes the temperature of
+            its measurements), in :data:`TEMPERATURE_RANGE_C`.
+        rod_expansion_per_k: linear expansion coefficient of the rods, joint centre to joint
+            centre, 1/K (default :data:`ALUMINIUM_EXPANSION_PER_K`).
+        frame_expansion_per_k: that of the rest of the loop, 1/K: the cranks, the pivots'
+            ring and height (the base and the motors' brackets) and the platform joints' ring
+            (default aluminium too). Both in :data:`EXPANSION_RANGE_PER_K`.
     Per leg (None: every leg as drawn; docs/robot.md, "Per-leg geometry"):
         pivot_offsets_m: (6, 3) added to the pivots P_i, frame B, m (<= :data:`MAX_JOINT_OFFSET_M`).
         platform_offsets_m: (6, 3) added to the platform joints p_i, frame E, m (same bound).
@@ -162,6 +187,9 @@ class StewartGeometry:
     crank_joint_cone_deg: float = 35.0
     platform_joint_cone_deg: float = 40.0
     motor_reflected_inertia: float = 0.0
+    lengths_at_c: float = REFERENCE_TEMPERATURE_C
+    rod_expansion_per_k: float = ALUMINIUM_EXPANSION_PER_K
+    frame_expansion_per_k: float = ALUMINIUM_EXPANSION_PER_K
     pivot_offsets_m: tuple[tuple[float, float, float], ...] | None = None
     platform_offsets_m: tuple[tuple[float, float, float], ...] | None = None
     crank_lengths_m: tuple[float, ...] | None = None
@@ -220,6 +248,14 @@ class StewartGeometry:
         ):
             object.__setattr__(
                 self, name, as_number(name, getattr(self, name), error=InvalidGeometryError)
+            )
+        for name, (lo, hi) in (
+            ("lengths_at_c", TEMPERATURE_RANGE_C),
+            ("rod_expansion_per_k", EXPANSION_RANGE_PER_K),
+            ("frame_expansion_per_k", EXPANSION_RANGE_PER_K),
+        ):
+            object.__setattr__(
+                self, name, as_number(name, getattr(self, name), lo, hi, error=InvalidGeometryError)
             )
         if self.rod_length <= self.crank_length:
             raise InvalidGeometryError(
@@ -309,6 +345,55 @@ class StewartGeometry:
     def replace(self, **changes) -> StewartGeometry:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    def at_temperature(self, temperature_c: float) -> StewartGeometry:
+        """This robot at ``temperature_c``: each rod's length times 1 + ``rod_expansion_per_k``
+        (T - ``lengths_at_c``), and every other length of the loop (the cranks, the pivots'
+        ring, height and offsets, the platform joints' ring and offsets) times 1 +
+        ``frame_expansion_per_k`` (T - ``lengths_at_c``); angles, masses, inertias and the
+        parts' sizes unchanged (an inertia changes by 2 alpha dT, 5e-4 at 10 K on aluminium).
+        Its ``lengths_at_c`` becomes ``temperature_c``.
+
+        With both coefficients equal the robot is scaled about the base frame's origin: the
+        motor angles of a pose are those of the robot at ``lengths_at_c`` with the pose's
+        position scaled alike, and the orientation unchanged. Going from T0 to T1, then to T2,
+        differs from going to T2 at once by alpha^2 (T1 - T0)(T2 - T1), a few 1e-8 of each length.
+
+        Args:
+            temperature_c: degrees C, in :data:`TEMPERATURE_RANGE_C`.
+        Returns:
+            the geometry, validated; this very geometry when ``temperature_c`` is its
+            ``lengths_at_c`` (nothing is recomputed, to the bit).
+        Raises:
+            InvalidGeometryError: a temperature out of range or not a number, or a robot that
+                scaled no longer closes at home (names the field).
+        """
+        t = as_number(
+            "temperature_c", temperature_c, *TEMPERATURE_RANGE_C, error=InvalidGeometryError
+        )
+        if t == self.lengths_at_c:
+            return self
+        rod = 1.0 + self.rod_expansion_per_k * (t - self.lengths_at_c)
+        frame = 1.0 + self.frame_expansion_per_k * (t - self.lengths_at_c)
+
+        def scaled(value, k):
+            if value is None:
+                return None
+            a = np.asarray(value, dtype=float) * k
+            return tuple(map(tuple, a.tolist())) if a.ndim == 2 else tuple(a.tolist())
+
+        return self.replace(
+            lengths_at_c=t,
+            rod_length=self.rod_length * rod,
+            rod_lengths_m=scaled(self.rod_lengths_m, rod),
+            crank_length=self.crank_length * frame,
+            crank_lengths_m=scaled(self.crank_lengths_m, frame),
+            base_radius=self.base_radius * frame,
+            pivot_z=self.pivot_z * frame,
+            pivot_offsets_m=scaled(self.pivot_offsets_m, frame),
+            platform_radius=self.platform_radius * frame,
+            platform_offsets_m=scaled(self.platform_offsets_m, frame),
+        )
 
     @property
     def symmetric(self) -> bool:

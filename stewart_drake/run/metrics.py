@@ -295,4 +295,6 @@ def format_metrics(metrics: dict) -> str:
             f"real-time factor: {metrics['realtime_factor']:.2f} "
             f"({metrics['window_s'][1]:.1f} s sim / {metrics['wall_s']:.2f} s wall)"
         )
+    if "temperature_note" in metrics:  # a run warmer or colder than its robot's calibration
+        lines.append(metrics["temperature_note"])
     return "\n".join(lines)

@@ -28,10 +28,11 @@ from typing import Any
 
 import numpy as np
 
-from ..base.errors import FeasibilityWarning, InvalidConfigError
+from ..base.errors import FeasibilityWarning, InvalidConfigError, StewartError
 from ..control.contract import resolve_controller
 from ..references.motion import Reference
 from ..robot.geometry import StewartGeometry
+from ..robot.kinematics import X_HOME
 from ..robot.limits import (
     DEFAULT_COND_THRESHOLD,
     DEFAULT_MIN_SIGMA_MIN_INV,
@@ -54,12 +55,15 @@ class RunPlan:
             the values below are not recomputed); on the servo bus with ``hardware: null``,
             with the robot built with the bus's servos (:func:`as_built`).
         geometry: the robot the controller believes in: ``robot`` with, on the robot as built,
-            the motors' reflected inertia (rotor inertia x gear ratio^2).
+            the motors' reflected inertia (rotor inertia x gear ratio^2); with
+            ``temperature_c`` and ``compensate_temperature``, at that temperature
+            (:meth:`~stewart_drake.robot.geometry.StewartGeometry.at_temperature`).
         plant_geometry: the robot that is simulated: ``robot_as_built``, or the robot
             ``robot_tolerances`` draws about ``robot`` (both None: ``robot``), with
             the same reflected inertia as ``geometry`` and ``payload_scale`` on the platform's
-            mass and inertia; its ``encoder_offsets`` are the simulated encoders' zero errors,
-            which the estimator takes back with ``geometry``'s.
+            mass and inertia, at ``temperature_c`` (None: at its own ``lengths_at_c``); its
+            ``encoder_offsets`` are the simulated encoders' zero errors, which the estimator
+            takes back with ``geometry``'s.
         servo: the servo of ``hardware.motors`` (None on the ideal robot).
         torque_limit_Nm: the saturation in force, N m: the lowest of ``torque_limit_Nm``, with
             hardware the servo's peak torque, and on the servo bus ``K_t`` times its current
@@ -253,6 +257,8 @@ def _made_reference(scenario: Scenario, geometry: StewartGeometry, torque_limit_
 def _believed_robot(scenario: Scenario) -> tuple:
     """(geometry, servo or None) of :func:`robot_geometry`, for a scenario already as built."""
     geometry = scenario.robot.build()
+    if scenario.temperature_c is not None and scenario.compensate_temperature:
+        geometry = geometry.at_temperature(scenario.temperature_c)
     servo = None if scenario.hardware is None else scenario.hardware.motors.build()
     if servo is not None:
         geometry = geometry.replace(motor_reflected_inertia=servo.reflected_inertia)
@@ -262,17 +268,23 @@ def _believed_robot(scenario: Scenario) -> tuple:
 def _simulated_robot(scenario: Scenario, geometry: StewartGeometry) -> StewartGeometry:
     """:class:`RunPlan`'s ``plant_geometry`` of a scenario already as built, whose believed
     robot is ``geometry``: ``robot_as_built``, or the robot ``robot_tolerances`` draws
-    (neither: ``geometry``), with ``geometry``'s reflected inertia and ``payload_scale`` on the
-    platform's mass and inertia."""
-    simulated = geometry
+    (neither: the ``robot`` section), at the run's ``temperature_c``, with ``geometry``'s
+    reflected inertia and ``payload_scale`` on the platform's mass and inertia; ``geometry``
+    itself when none of these differ from it."""
     if scenario.robot_as_built is not None:
-        simulated = scenario.robot_as_built.build().replace(
-            motor_reflected_inertia=geometry.motor_reflected_inertia
-        )
+        simulated = scenario.robot_as_built.build()
     elif scenario.robot_tolerances is not None:
-        simulated = scenario.robot_tolerances.as_built(scenario.robot.build()).replace(
-            motor_reflected_inertia=geometry.motor_reflected_inertia
-        )
+        simulated = scenario.robot_tolerances.as_built(scenario.robot.build())
+    elif scenario.temperature_c is None or scenario.compensate_temperature:
+        simulated = None  # the believed robot, at the run's temperature already
+    else:
+        simulated = scenario.robot.build()
+    if simulated is None:
+        simulated = geometry
+    else:
+        if scenario.temperature_c is not None:
+            simulated = simulated.at_temperature(scenario.temperature_c)
+        simulated = simulated.replace(motor_reflected_inertia=geometry.motor_reflected_inertia)
     if scenario.payload_scale != 1.0:
         k = scenario.payload_scale
         simulated = simulated.replace(
@@ -301,6 +313,46 @@ def _motor_limits(scenario: Scenario, servo: ServoModel | None) -> MotorLimits:
         scenario.guard.effort_margin,
         servo,
     )
+
+
+#: How far from ``robot.lengths_at_c`` an uncompensated run may be before its summary says so,
+#: K (a kelvin moves the platform about 7-10 um: docs/calibration.md, "Temperature").
+TEMPERATURE_NOTE_K = 1.0
+
+
+def temperature_note(plan: RunPlan) -> str | None:
+    """One line for a run's summary when the robot runs more than :data:`TEMPERATURE_NOTE_K`
+    away from the temperature its lengths were measured at (``robot.lengths_at_c``) and the
+    controller is not told (``compensate_temperature`` false): how far, and the error that
+    makes at home by forward kinematics
+    (:func:`~stewart_drake.robot.temperature.temperature_error`), which the encoders' pose
+    keeps and the ideal pose sensor (no ``hardware``, no ``bus``) does not; None otherwise."""
+    from ..robot.temperature import temperature_error
+
+    scenario = plan.scenario
+    t = scenario.temperature_c
+    if t is None or scenario.compensate_temperature:
+        return None
+    dt = t - plan.geometry.lengths_at_c
+    if abs(dt) <= TEMPERATURE_NOTE_K:
+        return None
+    words = (
+        f"temperature: the robot runs at {t:g} C, {abs(dt):.3g} K "
+        f"{'warmer' if dt > 0 else 'colder'} than its lengths were measured at "
+        f"(robot.lengths_at_c {plan.geometry.lengths_at_c:g} C), uncompensated "
+        f"(compensate_temperature: false)"
+    )
+    try:
+        moved, turned = temperature_error(plan.geometry, X_HOME, dt)
+    except StewartError:  # the scaled robot has no pose near home: the words alone
+        return words
+    cost = f"{moved[0] * 1e6:.3g} um and {turned[0] * 1e6:.2g} urad"
+    if scenario.hardware is None and scenario.bus is None:
+        return (
+            f"{words}: the ideal pose sensor sees the true pose (encoders would leave {cost} "
+            f"at home)"
+        )
+    return f"{words}: the pose the encoders give is about {cost} off at home"
 
 
 def _robot_plan(scenario: Scenario) -> RunPlan:

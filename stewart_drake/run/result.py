@@ -306,7 +306,8 @@ class RunResult:
 
 
 def config_summary(sd) -> dict:
-    """The settings of a run that results and records carry (plain JSON values)."""
+    """The settings of a run that results and records carry (plain JSON values), with
+    ``temperature_note`` when the run has one (:func:`~.plan.temperature_note`)."""
     plan, scenario = sd.plan, sd.scenario
     summary = {
         "trajectory": getattr(sd.trajectory, "name", "custom"),
@@ -324,6 +325,11 @@ def config_summary(sd) -> dict:
         "scenario": sd.scenario_yaml(),
         **scenario.controller.summary(),
     }
+    from .plan import temperature_note
+
+    note = temperature_note(plan)
+    if note is not None:
+        summary["temperature_note"] = note
     return summary
 
 
@@ -402,10 +408,13 @@ def _learner_record(sd, root_context) -> tuple:
 
 def finish_result(logs: RunLogs, wall_s: float) -> RunResult:
     """The :class:`RunResult` of :func:`read_run`'s logs: the reference at the log times
-    (:func:`reference_at`) and the metrics (:func:`~.metrics.compute_metrics`)."""
+    (:func:`reference_at`) and the metrics (:func:`~.metrics.compute_metrics`, with the run's
+    ``temperature_note`` when it has one: :func:`~.plan.temperature_note`)."""
     result = logs.result
     result.x_d = reference_at(logs.trajectory, result.t)
     result.metrics = compute_metrics(result, wall_s)
+    if "temperature_note" in result.config_summary:
+        result.metrics["temperature_note"] = result.config_summary["temperature_note"]
     if logs.contact:
         first = logs.first_contact
         result.metrics["first_contact"] = (

@@ -59,7 +59,7 @@ from ..references.organ.library import OrganMotionReference
 from ..references.samples import CsvReference
 from ..references.traces import TraceReference
 from ..references.trajectories import NamedReference, SineReference
-from ..robot.geometry import StewartGeometry
+from ..robot.geometry import TEMPERATURE_RANGE_C, StewartGeometry
 from ..robot.statics import FEEDFORWARD_MODES
 from ..robot.tolerances import RobotTolerances
 from ..station.bus.servos import DynamixelBusConfig
@@ -80,7 +80,9 @@ class Robot(ValueMirror):
     its tuples, but the motors' reflected inertia, which the scenario's ``hardware.motors`` sets;
     ``build()`` gives the geometry (validated there). The per-leg fields (``pivot_offsets_m``
     ... ``encoder_offsets_rad``, docs/robot.md) are null for the robot as drawn, and a dump
-    leaves a null field out."""
+    leaves a null field out. Its lengths hold at ``lengths_at_c`` (degrees C); a run at another
+    temperature (the scenario's ``temperature_c``) scales them by ``rod_expansion_per_k`` and
+    ``frame_expansion_per_k`` (docs/robot.md, "Temperature")."""
 
     value_class = StewartGeometry
 
@@ -111,6 +113,9 @@ class Robot(ValueMirror):
     motor_angle_max_deg: float = _GEOMETRY.motor_angle_max_deg
     crank_joint_cone_deg: float = _GEOMETRY.crank_joint_cone_deg
     platform_joint_cone_deg: float = _GEOMETRY.platform_joint_cone_deg
+    lengths_at_c: float = _GEOMETRY.lengths_at_c
+    rod_expansion_per_k: float = _GEOMETRY.rod_expansion_per_k
+    frame_expansion_per_k: float = _GEOMETRY.frame_expansion_per_k
     pivot_offsets_m: list[list[float]] | None = None
     platform_offsets_m: list[list[float]] | None = None
     crank_lengths_m: list[float] | None = None
@@ -192,6 +197,13 @@ class Scenario:
             ``robot``, which the controller still believes in (docs/calibration.md).
         robot_tolerances: None, or the robot as built drawn about ``robot``
             (:class:`~stewart_drake.robot.tolerances.RobotTolerances`; not with robot_as_built).
+        temperature_c: None, or the robot's temperature during the run, degrees C: the robot
+            that moves (``robot_as_built``, the drawn one, or ``robot``) holds its lengths at
+            it, each scaled from its own ``lengths_at_c`` (docs/robot.md, "Temperature").
+            None: every robot at its own ``lengths_at_c``, nothing scaled.
+        compensate_temperature: with ``temperature_c``, whether the controller is told it:
+            true, its robot (``robot``) is scaled to ``temperature_c`` too; false, it keeps
+            ``robot``'s lengths as they were measured (what a warm day costs, uncompensated).
         payload_scale: the simulated platform's mass and inertia over the robot's.
         torque_limit_Nm: torque saturation, N m, or None (with hardware, at most the peak).
         guard: checks before and during the run (:class:`GuardConfig`).
@@ -225,6 +237,8 @@ class Scenario:
     sensor_noise: SensorNoise | None = None
     robot_as_built: Robot | None = None
     robot_tolerances: RobotTolerances | None = None
+    temperature_c: float | None = None
+    compensate_temperature: bool = True
     payload_scale: float = 1.0
     torque_limit_Nm: float | None = None
     guard: GuardConfig = field(default_factory=GuardConfig)
@@ -286,6 +300,7 @@ class Scenario:
                 self.robot_tolerances.as_built(self.robot.build())
             except InvalidGeometryError as err:
                 raise InvalidGeometryError(f"robot_tolerances: {err}") from None
+        self._validate_temperature()
         self._validate_periods()
         if self.hardware is not None:
             self.hardware.validate(self.control_period_s)
@@ -381,6 +396,27 @@ class Scenario:
                     else ""
                 )
             )
+
+    def _validate_temperature(self) -> None:
+        """``temperature_c`` None or a number in the geometry's range, every robot closing at
+        home at it; ``compensate_temperature`` a bool."""
+        if not isinstance(self.compensate_temperature, bool):
+            raise InvalidConfigError(
+                f"compensate_temperature must be true or false, got {self.compensate_temperature!r}"
+            )
+        if self.temperature_c is None:
+            return
+        as_number("temperature_c", self.temperature_c, *TEMPERATURE_RANGE_C)
+        for name in ("robot", "robot_as_built"):
+            robot = getattr(self, name)
+            if robot is None:
+                continue
+            try:
+                robot.build().at_temperature(self.temperature_c)
+            except InvalidGeometryError as err:
+                raise InvalidGeometryError(
+                    f"{name} at temperature_c = {self.temperature_c:g} C: {err}"
+                ) from None
 
     def _validate_periods(self) -> None:
         """The run's durations and periods, and Drake's plant and simulator settings."""
