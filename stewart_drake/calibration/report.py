@@ -474,7 +474,13 @@ def plan_poses(
     from ..robot.legs import derivatives
     from ..robot.tolerances import Tolerances
     from ..run.plan import check_reference, robot_geometry, robot_motor_limits
-    from .poses import candidate_poses, choose_poses, information_rows, pose_path
+    from .poses import (
+        PREFIX_BLOCK,
+        candidate_poses,
+        choose_poses,
+        information_rows,
+        pose_path,
+    )
 
     geometry, limits = robot_geometry(scenario), robot_motor_limits(scenario)
     tolerances = Tolerances()
@@ -484,7 +490,9 @@ def plan_poses(
         bar.update(1)
         rows = information_rows(geometry, candidates, noise, tolerances)
         chosen = choose_poses(rows, count, on_step=lambda: bar.update(1))
-        path = pose_path(geometry, candidates[chosen], dwell_s=dwell_s, motor_limits=limits)
+        path = pose_path(
+            geometry, candidates[chosen], dwell_s, motor_limits=limits, block=PREFIX_BLOCK
+        )
         bar.update(1)
     nominal = LegParameters.nominal(geometry)
     held_rows = derivatives(geometry, nominal, held).parameters * tolerances.stds()
@@ -501,9 +509,17 @@ def plan_poses(
         f"poses: {expected_rms(rows[chosen], held_rows, noise) * 1e6:.3g} urad "
         f"(random poses: {expected_rms(rows[random], held_rows, noise) * 1e6:.3g} urad)"
     )
+    visited = information_rows(geometry, path.poses, noise, tolerances)
+    prefixes = sorted({max(count // 4, 12), max(count // 2, 12)})
     print(
-        f"the path: {duration:.0f} s, at rest {dwell_s:g} s at each pose; checked as the robot "
-        f"command checks it: {'passes' if report.ok else 'REFUSED'}"
+        f"the path: {duration:.0f} s, at rest {dwell_s:g} s at each pose, the poses in blocks "
+        f"of {PREFIX_BLOCK} in the order chosen, so that a session cut short has measured a "
+        f"good set (its first "
+        + " and ".join(str(n) for n in prefixes)
+        + " poses promise "
+        + " and ".join(f"{expected_rms(visited[:n], held_rows, noise) * 1e6:.3g}" for n in prefixes)
+        + f" urad); checked as the robot command checks it: "
+        f"{'passes' if report.ok else 'REFUSED'}"
     )
     print(
         f"wrote {written} (drive it: stewart-drake robot {written}) and {windows} (each pose "
