@@ -125,7 +125,7 @@ def test_blunders_are_dropped_round_after_round_and_named_with_their_lines(
     meas = files.write_measurements(tmp_path / "m.csv", bad, data.readings)
     assert cli.main(["calibrate", str(meas), "--out", str(tmp_path / "r.yaml")]) == 0
     printed = capsys.readouterr().out
-    assert "6 poses dropped in" in printed
+    assert "6 poses dropped in 1 round, the identification repeated" in printed
     lines = files.read_measurements(meas).lines
     for row in rows:  # each named with its line, and the round that dropped it
         assert f"  line {lines[row]}: dropped in round " in printed

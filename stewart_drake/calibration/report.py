@@ -124,9 +124,11 @@ def outliers_lines(ident: Identification, lines=None) -> list[str]:
         by_pose.setdefault(o.pose, []).append(o)
     dropped = int((~ident.used).sum())
     kept = [p for p in by_pose if ident.used[p]]
+    rounds = ident.rounds - 1
     head = (
-        f"outliers (a reading's studentized residual beyond the threshold): {dropped} poses "
-        f"dropped in {ident.rounds - 1} rounds, the identification repeated without them"
+        f"outliers (a reading's studentized residual beyond the threshold): {dropped} "
+        f"pose{'s' * (dropped > 1)} dropped in {rounds} round{'s' * (rounds > 1)}, the "
+        f"identification repeated without them"
         if dropped
         else "outliers (a reading's studentized residual beyond the threshold):"
     )
@@ -141,7 +143,7 @@ def outliers_lines(ident: Identification, lines=None) -> list[str]:
         out.append(f"  {where}: {fate}: {what}")
     if kept:
         out.append(
-            f"  {len(kept)} poses still flagged, kept: "
+            f"  {len(kept)} pose{'s' * (len(kept) > 1)} still flagged, kept: "
             + (
                 f"after {ident.rounds} rounds (check the measurements)"
                 if dropped
