@@ -18,6 +18,16 @@ removed (with the JIT off, ``_njit`` returns the function itself: the same code 
 forks one process per mutant and runs only the tests that called the mutated function; a mutant
 whose tests take longer than 2 times their clean time plus 3 s counts as a timeout (killed).
 
+A module's test files in :data:`MODULES` hold its fast unit tests only: no closed loop, no
+pre-run check of a whole path, no command. With the JIT off those run the LQI's step and the
+validator's kernels as Python, 10 to 80 s a test where compiled they take about 1 s, and mutmut
+runs them in its first (stats) pass, again in its clean pass, and again for every mutant of any
+function they call: the trajectories' run stalled on the two checks in stretches of
+tests/test_plan.py (then in test_trajectories.py, 125 s), the fidelity measures' on the ten
+``reproduce`` runs of tests/test_reproduce.py (then in test_fidelity.py, 160 s), for minutes
+before the first mutant and hours after. Such tests live in their feature's suite; the two files
+now run in 3 s with the JIT off.
+
 The score is (killed + timeouts) / mutants, a mutant no selected test calls ("no tests") counted
 as a survivor. Each survivor is listed with its diff and its account from :data:`ACCOUNTS_FILE`
 (a TOML table, mutant name -> why it survives: equivalent, or not worth a test); a survivor
