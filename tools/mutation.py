@@ -38,6 +38,7 @@ existing modules and test files.
 import argparse
 import ast
 import difflib
+import functools
 import json
 import os
 import re
@@ -211,6 +212,28 @@ def _functions(tree: ast.Module) -> dict[str, ast.FunctionDef]:
     return out
 
 
+#: A line and its end, as ast numbers lines: \r\n, \r or \n ends one (not \f, as str.splitlines).
+_LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")
+
+
+@functools.lru_cache(maxsize=2)
+def _lines(source: str) -> tuple[bytes, ...]:
+    """The lines of ``source`` in UTF-8 (ast's column offsets count bytes), split once."""
+    return tuple(line.encode() for line in _LINE.findall(source))
+
+
+def _segment(source: str, node: ast.AST) -> str:
+    """``ast.get_source_segment(source, node)``, from lines split once per source: that splits
+    the whole file at every call, and mutmut's file of a module's mutants is megabytes (the
+    fidelity measures': 1.9 MB, 426 functions read, 170 s)."""
+    lines = _lines(source)
+    first, last = node.lineno - 1, node.end_lineno - 1
+    if first == last:
+        return lines[first][node.col_offset : node.end_col_offset].decode()
+    parts = [lines[first][node.col_offset :], *lines[first + 1 : last]]
+    return b"".join([*parts, lines[last][: node.end_col_offset]]).decode()
+
+
 def mutant_diff(source: str, functions: dict, name: str) -> str:
     """The unified diff of mutant ``name`` against its original, from mutmut's mutated file."""
     short = name.rsplit(".", 1)[-1]
@@ -218,8 +241,8 @@ def mutant_diff(source: str, functions: dict, name: str) -> str:
     original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
     if original is None or mutant is None:
         return ""
-    a = (ast.get_source_segment(source, original) or "").splitlines()[1:]
-    b = (ast.get_source_segment(source, mutant) or "").splitlines()[1:]
+    a = _segment(source, original).splitlines()[1:]
+    b = _segment(source, mutant).splitlines()[1:]
     return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
 
 
