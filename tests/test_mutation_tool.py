@@ -49,3 +49,32 @@ def test_the_mutmut_section_selects_the_module_and_its_tests_only():
     assert section["only_mutate"] == ["stewart_drake/robot/statics.py"]
     assert section["pytest_add_cli_args_test_selection"] == ["tests/test_statics.py"]
     assert section["tests_dir"] == []
+
+
+def test_a_mutant_s_diff_shows_its_line_the_def_line_too():
+    """mutmut's file holds each variant under its own name; the diff names the function as the
+    module does, and a default argument mutated on the def line shows (it was left out)."""
+    import ast
+
+    source = "\n".join(
+        [
+            'def x_sweep__mutmut_orig(axis="Z"):',
+            "    return 1 if axis else 0",
+            'def x_sweep__mutmut_1(axis="XXZXX"):',
+            "    return 1 if axis else 0",
+            'def x_sweep__mutmut_2(axis="Z"):',
+            "    return 2 if axis else 0",
+        ]
+    )
+    functions = mutation._functions(ast.parse(source))
+    name = "stewart_drake.references.trajectories.x_sweep__mutmut_"
+    assert mutation.mutant_diff(source, functions, name + "1").splitlines() == [
+        "@@ -1 +1 @@",
+        '-def sweep(axis="Z"):',
+        '+def sweep(axis="XXZXX"):',
+    ]
+    assert mutation.mutant_diff(source, functions, name + "2").splitlines() == [
+        "@@ -2 +2 @@",
+        "-    return 1 if axis else 0",
+        "+    return 2 if axis else 0",
+    ]

@@ -241,8 +241,13 @@ def mutant_diff(source: str, functions: dict, name: str) -> str:
     original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
     if original is None or mutant is None:
         return ""
-    a = _segment(source, original).splitlines()[1:]
-    b = _segment(source, mutant).splitlines()[1:]
+    # The def line too, under the function's own name on both sides: a default argument on it
+    # is mutated too (sweep(axis="Z") -> "XXZXX"), and its diff was empty without it.
+    plain = base.rsplit("ǁ", 1)[-1] if "ǁ" in base else base.removeprefix("x_")
+    a, b = (
+        _segment(source, node).replace(f"def {node.name}(", f"def {plain}(", 1).splitlines()
+        for node in (original, mutant)
+    )
     return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
 
 
