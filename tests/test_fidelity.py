@@ -141,3 +141,45 @@ def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
     assert fd.gamma_pass_rate(t2, p2, p_d2, 0.1e-3, 0.01) < 0.5
     with pytest.raises(InvalidConfigError, match="gamma criteria must be > 0"):
         fd.gamma_pass_rate(t2, p2, p_d2, 0.0, 0.1)
+
+
+def test_the_gamma_index_of_textbook_cases():
+    """A trace on its reference passes everywhere; a still reference missed by exactly the
+    distance criterion gives gamma = 1, which passes, and by twice it fails; a motion 4 samples
+    early within a 5-sample time criterion (gamma 0.8) passes wherever the reference goes on
+    for 4 samples more; two samples are enough; time_s = 0 and shapes that differ are refused."""
+    t = np.arange(200) * 0.01
+    ramp = np.column_stack([0.1 * t, 0 * t, 0 * t])  # 1 mm per sample
+    assert fd.gamma_pass_rate(t, ramp, ramp, 1e-6, 0.05) == 1.0
+    still = np.zeros((200, 3))
+    off = still.copy()
+    off[:, 2] = 5e-4
+    assert fd.gamma_pass_rate(t, off, still, 5e-4, 0.05) == 1.0
+    assert fd.gamma_pass_rate(t, 2 * off, still, 5e-4, 0.05) == 0.0
+    early = np.column_stack([0.1 * (t + 0.04), 0 * t, 0 * t])
+    assert fd.gamma_pass_rate(t, early, ramp, 1e-6, 0.05) == pytest.approx(196 / 200)
+    # a record shorter than the time criterion: two samples, 10 ms apart, within 50 ms
+    assert fd.gamma_pass_rate(t[:2], ramp[:2], ramp[:2], 1e-6, 0.05) == 1.0
+    assert fd.gamma_pass_rate(t[:2], ramp[1:3], ramp[:2], 1e-6, 0.05) == 0.5  # 1 sample early
+    # so fidelity over 50 ms of 1 kHz logs, shorter than the 100 ms criterion (it raised)
+    fast = np.tile(X_HOME, (50, 1))
+    fast[:, 3] += 1e-3 * np.sin(2 * np.pi * 5 * np.arange(50) * 1e-3)
+    gamma = fd.fidelity(np.arange(50) * 1e-3, fast, fast)["gamma"]
+    assert [g["pass_rate"] for g in gamma] == [1.0, 1.0]
+    for bad in ((1e-3, 0.0), (0.0, 0.1), (-1e-3, 0.1)):
+        with pytest.raises(InvalidConfigError, match=r"^gamma criteria must be > 0"):
+            fd.gamma_pass_rate(t, ramp, ramp, *bad)
+    for args in ((t, ramp, ramp[:, :2]), (t[:-1], ramp, ramp), (t[:1], ramp[:1], ramp[:1])):
+        with pytest.raises(InvalidConfigError, match=r"^t \(\d+,\), p .* must match$"):
+            fd.gamma_pass_rate(*args, 1e-3, 0.1)
+
+
+def test_harmonic_phasors_keep_the_time_of_a_window_that_starts_late():
+    """cos(2 pi f t + phase) sampled from t = 3.7 s is amplitude e^(i phase), as from t = 0: the
+    phase is that of the absolute time. One frequency may be given as a number."""
+    t = 3.7 + np.arange(0.0, 8.0, 1e-3)
+    y = 2.0 * np.cos(2 * np.pi * 0.5 * t + 0.4) + 0.3 * np.cos(2 * np.pi * 1.5 * t - 1.0)
+    p = fd.harmonic_phasors(t, y, [0.5, 1.5])[:, 0]
+    np.testing.assert_allclose(p, [2.0 * np.exp(0.4j), 0.3 * np.exp(-1.0j)], atol=1e-9)
+    one = fd.harmonic_phasors(t, y, 0.5)
+    assert one.shape == (1, 1) and one[0, 0] == pytest.approx(2.0 * np.exp(0.4j), abs=1e-9)
