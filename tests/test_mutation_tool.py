@@ -78,3 +78,26 @@ def test_a_mutant_s_diff_shows_its_line_the_def_line_too():
         "-    return 1 if axis else 0",
         "+    return 2 if axis else 0",
     ]
+
+
+@pytest.mark.parametrize(
+    "old, new, explained",
+    [
+        (
+            "a, r = a.reshape(n, -1), r.reshape(n, -1)",
+            "a, r = a.reshape(n, -1), r.reshape(n, -2)",
+            True,
+        ),
+        (
+            "a, r = a.reshape(n, -1), r.reshape(n, -1)",
+            "a, r = a.reshape(n, -2), r.reshape(n, -1)",
+            True,
+        ),
+        ("a = a.reshape(n, -1) + b", "a = a.reshape(n, -1) + c", False),
+        ("p2p = np.ptp(rw, axis=0).astype(float)", "p2p = np.ptp(rw, axis=0).astype(None)", True),
+        ("p2p = np.ptp(rw, axis=0).astype(float)", "p2p = np.ptp(rw, axis=1).astype(float)", False),
+    ],
+)
+def test_the_rules_read_every_occurrence_of_their_kind(old, new, explained):
+    diff = f"@@ -3 +3 @@\n-    {old}\n+    {new}"
+    assert (mutation.rule_account(diff) is not None) == explained

@@ -329,13 +329,24 @@ def _singular_name_changed(old: str, new: str) -> bool:
     )
 
 
-def _reshape_minus_two(old: str, new: str) -> bool:
-    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest)."""
+def _one_replaced(old: str, new: str, a: str, b: str) -> bool:
+    """``new`` is ``old`` with one of its ``a`` (any one, not only the first) made ``b``."""
     return any(
-        old.replace(a, b, 1) == new
-        for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
-        if a in old and "reshape(" in old
+        old[:i] + b + old[i + len(a) :] == new for i in range(len(old)) if old.startswith(a, i)
     )
+
+
+def _reshape_minus_two(old: str, new: str) -> bool:
+    """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest), in
+    any of a line's reshapes."""
+    return "reshape(" in old and any(
+        _one_replaced(old, new, a, b) for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
+    )
+
+
+def _astype_float_to_none(old: str, new: str) -> bool:
+    """astype(float) made astype(None): numpy's dtype None is float64, as float is."""
+    return _one_replaced(old, new, ".astype(float)", ".astype(None)")
 
 
 def _errstate_changed(old: str, new: str) -> bool:
@@ -374,6 +385,10 @@ RULES = (
     (
         _reshape_minus_two,
         "equivalent: numpy reads any negative size in reshape as the rest, -2 as -1",
+    ),
+    (
+        _astype_float_to_none,
+        "equivalent: astype(None) is astype(float64), numpy's default dtype, as astype(float) is",
     ),
     (
         _errstate_changed,
