@@ -1,6 +1,8 @@
 """Fidelity metrics against signals whose errors are known (a known delay, a known gain, a
-brute-force gamma). `stewart-drake reproduce`, which reports them, is tests/test_reproduce.py's:
-these are the fidelity module's fast unit tests, the ones tools/mutation.py runs."""
+brute-force gamma, an error built sample by sample, gamma's textbook cases, cosines of known
+phase, delays at the edges of the lag's search). `stewart-drake reproduce`, which reports them,
+is tests/test_reproduce.py's: these are the fidelity module's fast unit tests, the ones
+tools/mutation.py runs."""
 
 import json
 import math
@@ -143,6 +145,213 @@ def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
         fd.gamma_pass_rate(t2, p2, p_d2, 0.0, 0.1)
 
 
+# -- every figure of fidelity() and its measures against numbers computed apart from them ------
+
+
+def _known_run():
+    """100 Hz for 10 s: a reference moving phi (20 mrad) and X (4 mm) at 0.5 Hz, Y stepping by
+    exactly MOVING_P2P (10 um: not moving), and a pose whose error is known sample by sample:
+    constants on X, Y, phi, spikes at the window's ends (2 s, 9 s), and beyond it (0 s, 9.5 s,
+    the last sample)."""
+    t = np.arange(1001) * 0.01
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x_d[:, 0] = 0.02 * np.sin(np.pi * t)
+    x_d[:, 3] = 0.004 * np.sin(np.pi * t)
+    x_d[:, 4] = np.where(t > 5.0, 1e-5, 0.0)
+    e = np.zeros_like(x_d)
+    e[:, 3], e[:, 4], e[:, 0] = 2e-6, 3e-6, 1e-5
+    e[200, 1] = 7e-5  # theta at the window's first sample, t = 2 s
+    e[900, 3] += 5e-5  # X and Z at its last, t = 9 s
+    e[900, 5] = -4e-5
+    e[900, 2] = 6e-5  # psi
+    e[950, 3] = 1e-3  # beyond the window (9.5 s), and at the run's two ends
+    e[0, 2] = 3e-4
+    e[-1, 5] = 2e-4
+    return t, x_d + e, x_d, e
+
+
+def test_fidelity_gives_every_figure_of_a_known_error():
+    """Over the window [2, 9] s (samples 200 to 900, both ends in): each axis's RMS and peak,
+    the reference's peak to peak (8 mm and 40 mrad over whole periods, 10 um on Y: not moving),
+    their fractions, the 3-D RMS and peaks, the gamma rows; errors outside the window do not
+    count. Computed here by index, from the error as built."""
+    t, x, x_d, e = _known_run()
+    fid = fd.fidelity(t, x, x_d, (2.0, 9.0))
+    w = e[200:901]
+    assert fid["window_s"] == pytest.approx([2.0, 9.0], abs=1e-12)
+    assert fid["moving"] == ["phi", "X"]
+    np.testing.assert_allclose(fid["rms"], np.sqrt(np.mean(w**2, axis=0)), rtol=1e-3, atol=1e-12)
+    np.testing.assert_allclose(fid["peak"], np.abs(w).max(axis=0), rtol=1e-3)
+    assert fid["peak"][1] == pytest.approx(7e-5, rel=1e-3)  # the window's first sample counts
+    assert fid["peak"][3] == pytest.approx(5.2e-5, rel=1e-3)  # its last; not 9.5 s's 1 mm
+    np.testing.assert_allclose(fid["p2p"], [0.04, 0, 0, 0.008, 1e-5, 0], rtol=1e-9, atol=0)
+    for key, value in (("rms_fraction", fid["rms"]), ("peak_fraction", fid["peak"])):
+        assert fid[key][0] == pytest.approx(value[0] / 0.04, rel=1e-6)
+        assert fid[key][3] == pytest.approx(value[3] / 0.008, rel=1e-6)
+        assert all(math.isnan(fid[key][k]) for k in (1, 2, 4, 5)), key
+    assert fid["rms_translation_m"] == pytest.approx(
+        math.sqrt(np.mean(np.sum(w[:, 3:] ** 2, axis=1))), rel=1e-3
+    )
+    assert fid["rms_rotation_rad"] == pytest.approx(
+        math.sqrt(np.mean(np.sum(w[:, :3] ** 2, axis=1))), rel=1e-3
+    )
+    assert fid["peak_translation_m"] == pytest.approx(math.hypot(5.2e-5, 3e-6, 4e-5), rel=1e-3)
+    assert fid["peak_rotation_rad"] == pytest.approx(math.hypot(1e-5, 7e-5), rel=1e-3)
+    assert set(fid["lag_s"]) == {"phi", "X"} and abs(fid["lag_all_s"]) < 1e-3
+    # gamma: every sample within 0.5 mm; at 5 um / 10 ms all but t = 9 s (65 um off, and a
+    # sample's shift costs the whole 10 ms)
+    assert [(g["distance_m"], g["time_s"]) for g in fid["gamma"]] == list(fd.GAMMA_CRITERIA)
+    assert [g["pass_rate"] for g in fid["gamma"]] == pytest.approx([1.0, 700 / 701])
+    assert fid["harmonics"] == [] and fid["cycles"]["starts"] == []
+    # The whole run by default: its first and last samples count, 9.5 s's millimetre too.
+    whole = fd.fidelity(t, x, x_d)
+    assert whole["window_s"] == pytest.approx([0.0, 10.0], abs=1e-12)
+    np.testing.assert_allclose(whole["peak"], np.abs(e).max(axis=0), rtol=1e-3)
+    assert whole["peak"][2] == pytest.approx(3e-4, rel=1e-3)
+    assert whole["peak"][5] == pytest.approx(2e-4, rel=1e-3)
+
+
+def test_fidelity_reads_the_poses_before_the_rates_and_refuses_what_does_not_match():
+    """Logs that carry rates after the pose (12 columns) give the figures of the pose alone;
+    shapes that differ, a pose of one column, fewer than 10 samples (in all or in the window)
+    are refused in words."""
+    t, x, x_d, _ = _known_run()
+    rates = np.full_like(x, 0.5)
+    wide = fd.fidelity(t, np.hstack([x, rates]), np.hstack([x_d, -rates]), (2.0, 9.0))
+    narrow = fd.fidelity(t, x, x_d, (2.0, 9.0))
+    assert len(wide["rms"]) == 6
+    for key in ("rms", "peak", "p2p", "rms_translation_m", "rms_rotation_rad", "gamma"):
+        assert wide[key] == narrow[key], key
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t, x, x_d[:, 3])
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t, x[:, 3], x_d[:, 3])
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t[:-1], x, x_d)
+    with pytest.raises(
+        InvalidConfigError, match=r"^t \(1001,\), x \(1001, 6\) and x_d \(1001, 5\) must match$"
+    ):
+        fd.fidelity(t, x, x_d[:, :5])
+    ten = fd.fidelity(t[:10], x[:10], x_d[:10])
+    assert ten["window_s"] == pytest.approx([0.0, 0.09])
+    with pytest.raises(
+        InvalidConfigError, match=r"^fewer than 10 samples \(9\): nothing to measure$"
+    ):
+        fd.fidelity(t[:9], x[:9], x_d[:9])
+    # a window shorter than the gamma's 100 ms (10 samples): every shift within it is tried
+    short = fd.fidelity(t, x, x_d, (9.91, 10.0))
+    assert short["window_s"] == pytest.approx([9.91, 10.0])
+    assert [g["pass_rate"] for g in short["gamma"]] == [1.0, 0.9]  # 10.0 s: 200 um off
+    with pytest.raises(
+        InvalidConfigError, match=r"^fewer than 10 samples in the window \[9\.92, 10\] s$"
+    ):
+        fd.fidelity(t, x, x_d, (9.92, 10.0))
+
+
+def test_the_cycles_are_the_samples_from_each_start_up_to_the_next():
+    """A cycle's samples are those from its start up to, not including, the next start; a
+    cycle starting before the data, ending more than two samples after it, or of fewer than ten
+    samples is left out (and the cycles after it still counted). Each sample's error differs,
+    so a sample in the wrong cycle changes its figures."""
+    t = np.arange(351) * 0.01  # 0 to 3.5 s
+    x_d = np.tile(X_HOME, (t.size, 1))
+    e = np.zeros_like(x_d)
+    e[:, 3] = 1e-6 * (1 + np.arange(t.size))  # X: 1, 2, 3, ... um
+    e[:, 4] = 2e-6
+    e[:, 0] = 1e-6 * np.arange(t.size) % 7e-6  # phi
+    starts = [-0.5, 0.5, 1.5, 2.5, 2.6, 3.0, 3.515, 4.0]
+    cycles = fd.fidelity(t, x_d + e, x_d, cycle_starts=starts)["cycles"]
+    # [-0.5, 0.5): before the data; [2.5, 2.6): ten samples, kept; [3.0, 3.515): ends 1.5
+    # samples after the last, kept; [3.515, 4.0): beyond it
+    kept = {0.5: (50, 150), 1.5: (150, 250), 2.5: (250, 260), 2.6: (260, 300), 3.0: (300, 351)}
+    assert cycles["starts"] == list(kept)
+    for n, (i, j) in enumerate(kept.values()):
+        ec = e[i:j]
+        assert cycles["rms_translation_m"][n] == pytest.approx(
+            math.sqrt(np.mean(ec[:, 3] ** 2 + ec[:, 4] ** 2)), rel=1e-6
+        )
+        assert cycles["rms_rotation_rad"][n] == pytest.approx(
+            math.sqrt(np.mean(ec[:, 0] ** 2)), rel=1e-6
+        )
+        assert cycles["peak_translation_m"][n] == pytest.approx(
+            math.hypot(1e-6 * j, 2e-6), rel=1e-6
+        )
+    assert all(type(v) is float for values in cycles.values() for v in values)
+    short = fd.fidelity(t, x_d + e, x_d, cycle_starts=[3.0, 3.525])["cycles"]
+    assert short["starts"] == []  # 2.5 samples after the last
+
+
+def test_the_harmonics_are_those_of_the_reference_up_to_the_fifth_and_a_quarter_of_the_rate():
+    """A reference of 0.25 Hz with its harmonics 1 to 6 (amplitudes 1, 0.5, ... 1/6 mm) about a
+    2 mm centre, sampled at 50 Hz over whole periods, followed exactly: each harmonic 1 to 5
+    reported with its amplitude and no error; not the sixth (harmonics=5 by default), none at
+    0 Hz. Sampled at 3.2 Hz, only those below 0.8 Hz (a quarter of the rate). None without
+    frequencies or when nothing moves."""
+    t = np.arange(1000) * 0.02  # 20 s: 5 periods
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x_d[:, 3] = 2e-3  # a centre off 0: no harmonic at 0 Hz
+    for k in range(1, 7):
+        x_d[:, 3] += 1e-3 / k * np.cos(2 * np.pi * 0.25 * k * t + 0.3 * k)
+    fid = fd.fidelity(t, x_d, x_d, frequencies={"breathing": 0.25})
+    assert [(h["source"], h["k"], h["axis"]) for h in fid["harmonics"]] == [
+        ("breathing", k, "X") for k in range(1, 6)
+    ]
+    for h in fid["harmonics"]:
+        assert h["f_hz"] == pytest.approx(0.25 * h["k"])
+        assert h["reference"] == pytest.approx(1e-3 / h["k"], rel=1e-9)
+        assert h["amplitude_error"] == pytest.approx(0.0, abs=1e-9)
+        assert h["phase_error_rad"] == pytest.approx(0.0, abs=1e-9)
+    slow = np.arange(64) * 0.3125  # 3.2 Hz for 20 s
+    x_slow = np.tile(X_HOME, (slow.size, 1))
+    for k in range(1, 7):
+        x_slow[:, 3] += 1e-3 / k * np.cos(2 * np.pi * 0.25 * k * slow)
+    got = fd.fidelity(slow, x_slow, x_slow, frequencies={"breathing": 0.25}, harmonics=6)
+    assert [h["k"] for h in got["harmonics"]] == [1, 2, 3]  # 0.75 Hz < 0.8 Hz <= 1 Hz
+    assert fd.fidelity(t, x_d, x_d)["harmonics"] == []
+    still = np.tile(X_HOME, (t.size, 1))
+    quiet = fd.fidelity(t, still, still, frequencies={"breathing": 0.25})
+    assert quiet["moving"] == [] and quiet["harmonics"] == [] and math.isnan(quiet["lag_all_s"])
+
+
+def test_the_lag_of_all_axes_weighs_each_by_its_motion():
+    """phi (100 mrad) 2 ms late and X (1 mm) 10 ms late on the same 0.5 Hz sine: weighed by
+    their peak to peak, each counts alike and the lag of both is the mean, 6 ms (two equal
+    cosines' sum peaks halfway); unweighed, phi's 2 ms would win."""
+    t = np.arange(4000) * 1e-3
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x = x_d.copy()
+    for axis, amplitude, delay in ((0, 0.1, 0.002), (3, 1e-3, 0.010)):
+        x_d[:, axis] += amplitude * np.sin(np.pi * t)
+        x[:, axis] += amplitude * np.sin(np.pi * (t - delay))
+    fid = fd.fidelity(t, x, x_d)
+    assert fid["lag_s"]["phi"] == pytest.approx(0.002, abs=2e-5)
+    assert fid["lag_s"]["X"] == pytest.approx(0.010, abs=2e-5)
+    assert fid["lag_all_s"] == pytest.approx(0.006, abs=5e-5)
+    both = fd.time_lag(t, x[:, [0, 3]], x_d[:, [0, 3]], weights=[1 / 0.2, 1 / 2e-3])
+    assert both == pytest.approx(0.006, abs=5e-5)
+    assert fd.time_lag(t, x[:, [0, 3]], x_d[:, [0, 3]]) == pytest.approx(0.002, abs=1e-4)
+
+
+def test_the_lag_at_the_edges_of_its_search():
+    """max_lag_s = 10 ms at 1 kHz: 9.3 ms late or early is found between samples next to the
+    search's ends; a delay beyond them is reported at the end, 10 ms. A window of exactly three
+    times max_lag_s is measured, a shorter one gives NaN."""
+    motion = make_motion("breathing_heartbeat", {"period": "4s"})
+    t = np.arange(0.0, 8.0, 1e-3)
+    ref = motion.evaluate(t)[0][:, 3]
+    for delay, found in ((0.0093, 0.0093), (-0.0093, -0.0093), (0.015, 0.01), (-0.015, -0.01)):
+        late = motion.evaluate(t - delay)[0][:, 3]
+        assert fd.time_lag(t, late, ref, max_lag_s=0.01) == pytest.approx(found, abs=2e-5), delay
+    # a search of one sample: 1.5 ms late is reported at its end, 1 ms
+    late = motion.evaluate(t - 0.0015)[0][:, 3]
+    assert fd.time_lag(t, late, ref, max_lag_s=0.001) == pytest.approx(0.001, abs=1e-12)
+    # 30 samples of a 20 Hz sine 4 ms late
+    ref, late = np.sin(40 * np.pi * t[:30]), np.sin(40 * np.pi * (t[:30] - 0.004))
+    assert fd.time_lag(t[:30], late, ref, max_lag_s=0.01) == pytest.approx(0.004, abs=1e-4)
+    for n in (29, 25, 15):
+        assert math.isnan(fd.time_lag(t[:n], late[:n], ref[:n], max_lag_s=0.01)), n
+
+
 def test_the_gamma_index_of_textbook_cases():
     """A trace on its reference passes everywhere; a still reference missed by exactly the
     distance criterion gives gamma = 1, which passes, and by twice it fails; a motion 4 samples
@@ -183,3 +392,62 @@ def test_harmonic_phasors_keep_the_time_of_a_window_that_starts_late():
     np.testing.assert_allclose(p, [2.0 * np.exp(0.4j), 0.3 * np.exp(-1.0j)], atol=1e-9)
     one = fd.harmonic_phasors(t, y, 0.5)
     assert one.shape == (1, 1) and one[0, 0] == pytest.approx(2.0 * np.exp(0.4j), abs=1e-9)
+
+
+def test_the_rms_of_translation_and_rotation():
+    """3-4-5 in each: 3 and 4 um on X and Z give 5 um at every sample, 3 and 4 urad on theta
+    and psi 5 urad; the RMS of a constant is the constant, however many samples."""
+    e = np.zeros((50, 6))
+    e[:, 3], e[:, 5], e[:, 1], e[:, 2] = 3e-6, 4e-6, 3e-6, 4e-6
+    assert fd.rms_translation_rotation(e) == pytest.approx((5e-6, 5e-6), rel=1e-12)
+    e[::2, [1, 2]] = 0.0  # half the samples without rotation: sqrt(25 / 2)
+    assert fd.rms_translation_rotation(e)[1] == pytest.approx(5e-6 / math.sqrt(2), rel=1e-12)
+
+
+def test_the_tolerance_s_units_and_the_verdict_line():
+    """Units in any case, exponents with E; an unknown unit or an infinite number refused. The
+    verdict compares translations with the length and rotations with the angle, an RMS equal to
+    the tolerance within it, and says so in one line with the largest of each kind."""
+    assert fd.parse_tolerance("0.1MM,1E-3RAD") == pytest.approx((1e-4, 1e-3))
+    assert fd.parse_tolerance(" 2 um , 5e+1 URAD ") == pytest.approx((2e-6, 5e-5))
+    for bad in ("1mm,1furlong", "1e999mm,1deg", "1mm,1deg,1mm"):
+        with pytest.raises(InvalidConfigError, match="one length and one angle"):
+            fd.parse_tolerance(bad)
+    fid = {"rms": [1e-5, 2e-5, 1e-5, 3e-4, 9e-6, 1e-6], "window_s": [5.0, 10.0]}
+    ok, line = fd.verdict(fid, (3e-4, 2e-5))  # X's 0.3 mm and theta's 20 urad exactly
+    assert ok and line == (
+        "PASS: RMS error per axis within 0.3 mm | 20 urad over t = 5-10 s "
+        "(largest: X 0.3 mm, theta 20 urad)"
+    )
+    ok, line = fd.verdict(fid, (2.9e-4, 0.1))  # X beyond
+    assert not ok and line.startswith("FAIL: RMS error per axis beyond 0.29 mm | 5.73 deg over")
+    ok, line = fd.verdict(fid, (1e-3, 1.9e-5))  # theta beyond
+    assert not ok and line.startswith("FAIL: RMS error per axis beyond 1 mm | 19 urad over")
+    fid["rms"][3] = 5e-5  # X below the length, above the angle's number: a length still
+    assert fd.verdict(fid, (1e-4, 3e-5))[0]
+
+
+def test_lengths_and_angles_as_text():
+    assert fd.format_length(1.234e-4) == "0.123 mm"
+    assert fd.format_length(1e-4) == "0.1 mm"
+    assert fd.format_length(9.87e-5) == "98.7 um"
+    assert fd.format_length(9.994999e-5) == "99.9 um"  # 99.994999 um: not yet 100
+    assert fd.format_angle(9.994999e-4) == "999 urad"
+    assert fd.format_length(0.25) == "250 mm"
+    assert fd.format_angle(math.radians(0.1)) == "0.1 deg"
+    assert fd.format_angle(1e-3) == "0.0573 deg"
+    assert fd.format_angle(9.99e-4) == "999 urad"
+    assert fd.format_angle(2e-6) == "2 urad"
+
+
+def test_a_long_float32_log_s_rms_is_summed_in_float64():
+    """Logs are float32 (RunResult): over 100 000 samples of a constant 3 um error the RMS per
+    axis is 3 um to float32's precision; summed in float32 it drifted by 4e-4."""
+    n = 100_000
+    x_d = np.tile(X_HOME.astype(np.float32), (n, 1))
+    x = x_d.copy()
+    x[:, 3] += np.float32(3e-6)
+    error = float(x[0, 3]) - float(x_d[0, 3])  # 3 um as float32 holds it near 0
+    fid = fd.fidelity(np.arange(n) * 0.05, x, x_d)
+    assert fid["rms"][3] == pytest.approx(error, rel=1e-6)
+    assert fid["rms_translation_m"] == pytest.approx(error, rel=1e-6)
