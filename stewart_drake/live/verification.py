@@ -167,11 +167,11 @@ def _registration(path):
 
 
 def _measured(path: str, args, scenario, axis_map: dict):
-    """The :class:`~stewart_drake.organ_motion.verification.MeasuredMotion` of a measured file:
+    """The :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion` of a measured file:
     an encoder log (its name ends in :data:`ENCODER_LOG_SUFFIX`; read by the join's reader and
     turned into poses by forward kinematics of the scenario's robot) or a tracker's file (the
     trace readers, ``--measured-columns``, ``--measured-map``)."""
-    from ..organ_motion.verification import encoder_motion, read_measured
+    from ..organ_motion.measured_motion import encoder_motion, read_measured
 
     if not str(path).endswith(ENCODER_LOG_SUFFIX):
         return read_measured(path, args.measured_columns or "", axis_map)
