@@ -451,3 +451,49 @@ def test_a_long_float32_log_s_rms_is_summed_in_float64():
     fid = fd.fidelity(np.arange(n) * 0.05, x, x_d)
     assert fid["rms"][3] == pytest.approx(error, rel=1e-6)
     assert fid["rms_translation_m"] == pytest.approx(error, rel=1e-6)
+
+
+def test_the_start_up_figures_of_an_error_built_sample_by_sample():
+    """startup_figures over the samples before ``end`` (poses with their rates, (n, 12)): the
+    RMS of translation and rotation are the root mean square of the error vectors' norms, the
+    peaks their largest norms; a sample at ``end`` is not before it; a motion with no sample
+    before ``end`` gives zeros; a rotation not measured (NaN) gives NaN."""
+    t = np.arange(6) * 0.1  # 0.0 ... 0.5 s
+    x_d = np.full((6, 12), 0.25)  # poses and rates; the rates are not read
+    x = x_d.copy()
+    x[:, 6:] = 7.0
+    x[0, 3:6] += [3e-3, 4e-3, 0.0]  # |e| = 5 mm
+    x[1, 3:6] += [0.0, 0.0, 1e-3]  # 1 mm
+    x[2, :3] += [0.0, 2e-3, 0.0]  # 2 mrad
+    x[1, :3] += [1e-3, 0.0, 0.0]  # 1 mrad
+    x[3, 3:6] += 1.0  # at the end: not counted
+    figures = fd.startup_figures(t, x, x_d, end=0.3)  # samples 0, 1, 2
+    assert figures["window_s"] == (0.0, 0.3)
+    assert figures["rms_translation_m"] == pytest.approx(math.sqrt((25e-6 + 1e-6) / 3))
+    assert figures["rms_rotation_rad"] == pytest.approx(math.sqrt((4e-6 + 1e-6) / 3))
+    assert figures["peak_translation_m"] == pytest.approx(5e-3)
+    assert figures["peak_rotation_rad"] == pytest.approx(2e-3)
+    late = fd.startup_figures(t + 1.0, x, x_d, end=0.3)
+    assert late["window_s"] == (1.0, 0.3)
+    assert [late[k] for k in late if k != "window_s"] == [0.0, 0.0, 0.0, 0.0]
+    empty = fd.startup_figures(t[:0], x[:0], x_d[:0], end=0.3)
+    assert empty["window_s"] == (0.0, 0.3) and empty["peak_translation_m"] == 0.0
+    positions_only = x.copy()
+    positions_only[:, :3] = np.nan
+    blind = fd.startup_figures(t, positions_only, x_d, end=0.3)
+    assert math.isnan(blind["rms_rotation_rad"])
+    assert blind["rms_translation_m"] == figures["rms_translation_m"]
+
+
+def test_the_verdict_judges_only_the_rotations_that_were_measured():
+    """A marker that gives positions only (every rotation NaN) is judged on its translations,
+    the line naming the largest and saying the rotation was not measured; one rotation measured
+    among NaNs is judged and named."""
+    fid = {"rms": [math.nan] * 3 + [1e-5, 3e-5, 2e-5], "window_s": (0.0, 10.0)}
+    ok, line = fd.verdict(fid, (1e-4, 1e-3))
+    assert ok and "(largest: Y 30 um, rotation not measured)" in line
+    assert not fd.verdict(fid, (2e-5, 1e-3))[0]
+    fid["rms"] = [math.nan, 5e-4, math.nan, 1e-5, 3e-5, 2e-5]
+    ok, line = fd.verdict(fid, (1e-4, 1e-3))
+    assert ok and "(largest: Y 30 um, theta 500 urad)" in line
+    assert not fd.verdict(fid, (1e-4, 4e-4))[0]
