@@ -328,15 +328,26 @@ def _check_emulated_pose(scenario, x0) -> None:
         ) from None
 
 
+#: The reply timeout of the emulated bus when the scenario leaves the SDK's, s. The SDK's (about
+#: 34 ms) is a USB adapter's latency timer; the emulator's pseudo-terminal passes each packet
+#: through the kernel's tty workers, which a loaded machine delays by up to a second each way
+#: whatever the emulator does (docs/hardware_bus.md, "What is emulated"): with 34 ms a busy
+#: machine's delay reads as a servo that does not answer.
+EMULATED_REPLY_TIMEOUT_S = 2.0
+
+
 def _start_emulator(scenario, x0):
     """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
     the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
-    ``scenario.bus`` at its pseudo-terminal; returns the
+    ``scenario.bus`` at its pseudo-terminal, with a reply timeout of
+    :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
     :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it)."""
     from .emulator_process import EmulatorProcess
     from .plant_backend import behind_the_bus
 
     bus = scenario.bus
+    if bus.reply_timeout_s is None:
+        bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
     robot = behind_the_bus(scenario)
     emulator = EmulatorProcess(
         x0=x0,
