@@ -13,7 +13,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..execution.options import add_scenario_arguments, add_trace_arguments, positive_float
+from ..execution.options import (
+    add_motion_arguments,
+    add_scenario_arguments,
+    add_trace_arguments,
+    positive_float,
+)
 
 #: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): such a
 #: measured file is read as the robot's encoder log.
@@ -23,7 +28,6 @@ ENCODER_LOG_SUFFIX = "_encoders.csv"
 def add_verify_command(sub) -> None:
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers."""
     from ..organ_motion import SCENARIO
-    from ..organ_motion.command import add_motion_arguments
 
     vp = sub.add_parser(
         "verify",
