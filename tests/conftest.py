@@ -113,7 +113,6 @@ LOOP_MODULES = {
     "test_evaluation",
     "test_experiments",
     "test_feedforward_tuning",
-    "test_fidelity",
     "test_fig7",
     "test_guard",
     "test_hardware",
@@ -126,6 +125,7 @@ LOOP_MODULES = {
     "test_pd",
     "test_per_leg_geometry",
     "test_report_labels",
+    "test_reproduce",
     "test_robot_as_built",
     "test_station",
     "test_studies",
@@ -142,6 +142,7 @@ SYSTEM_MODULES = {
     "test_dynamixel_bus",
     "test_hardware_station",
     "test_robot_input",
+    "test_robot_motions",
     "test_robot_safety",
     "test_robot_session",
 }
@@ -339,3 +340,53 @@ def run_within(timeout_s: float, function, *args, what: str | None = None, **kwa
     if "error" in outcome:
         raise outcome["error"]
     return outcome.get("value")
+
+
+# -- the robot's bus emulator in this process ---------------------------------------------------
+
+#: The bus's settings of the robot's tests on the emulator: its pseudo-terminal passes bytes
+#: through the kernel's tty workers, which a loaded machine (a load of 8 on 2 cores) delays by up
+#: to a second each way, whatever the emulator does; the SDK's reply timeout (34 ms, a USB
+#: adapter's latency timer) then reads as a servo that does not answer. What these tests check
+#: is where a run ends and what it tracks, not how fast: a reply may take up to the bus's
+#: largest timeout (5 s; a hang still fails), a command may come up to the servos' largest
+#: watchdog (2.54 s) apart, and late periods are counted, not fatal.
+LOADED_MACHINE_BUS = {"reply_timeout_s": 5.0, "watchdog_s": 2.54, "max_deadline_misses": 1_000_000}
+
+
+def bus_emulator(x0, command_step_s: float, ids=(1, 2, 3, 4, 5, 6)):
+    """The bus emulator (:class:`~stewart_drake.station.bus.emulator.BusEmulator`, not started)
+    in this process: servos ``ids`` with the robot's plant behind them resting at pose ``x0``
+    (rad, m), stepped at 2 ms (half the CPU of 1 ms: the loop and the plant share this
+    process's GIL), on the commanded clock: the plant advances ``command_step_s`` (the loop's
+    control period, s) at each torque command and not otherwise. On a loaded machine the loop
+    runs late, and a plant on the wall clock would move on without it (a guard trip that is
+    the machine's, not the robot's); on the commanded clock it meets the plant where its own
+    clock says it is."""
+    from pydrake.multibody.plant import MultibodyPlantConfig
+
+    from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario
+    from stewart_drake.run.scenario import Scenario
+    from stewart_drake.station.bus.emulator import BusEmulator
+
+    robot = Scenario(
+        plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
+        control_period_s=0.002,
+        log_period_s=0.002,
+    )
+    backend = StationServos(dynamixel_scenario(scenario=robot), x0=x0)
+    return BusEmulator(list(ids), backend=backend, command_step_s=command_step_s)
+
+
+def robot_bus_yaml(tmp_path) -> Path:
+    """The shipped bus scenario (``robot``'s default) with :data:`LOADED_MACHINE_BUS`, written
+    in ``tmp_path``; returns its path."""
+    from stewart_drake.run.scenario import dump_scenario
+    from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
+    from stewart_drake.station.bus.servos import DynamixelBusConfig
+
+    scenario = load_scenario(ROBOT_SCENARIO)
+    scenario.bus = DynamixelBusConfig(**LOADED_MACHINE_BUS)
+    path = tmp_path / "bus.yaml"
+    path.write_text(dump_scenario(scenario))
+    return path

@@ -165,15 +165,14 @@ def test_the_encoder_log_s_path_clock_is_the_homed_reference_s_own():
 
 
 def test_the_robot_command_drives_a_planned_path_whole_unless_told(session):
-    import argparse
-
+    from stewart_drake.cli.registry import build_parser
     from stewart_drake.live.command import _robot_reference
     from stewart_drake.run.scenario import Scenario
 
     path, poses_csv, *_ = session
-    args = argparse.Namespace(reference=str(poses_csv), duration=None)
+    args = build_parser().parse_args(["robot", str(poses_csv)])
     _robot_reference(args, Scenario())
     assert args.duration == pytest.approx(path.t[-1])
-    args = argparse.Namespace(reference=str(poses_csv), duration=5.0)
+    args = build_parser().parse_args(["robot", str(poses_csv), "--duration", "5"])
     _robot_reference(args, Scenario())
     assert args.duration == 5.0

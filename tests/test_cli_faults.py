@@ -344,7 +344,7 @@ def test_a_request_beyond_the_machine_s_memory_is_refused_in_one_line(
 def test_the_memory_estimates_admit_what_runs_and_track_the_machine(monkeypatch):
     from stewart_drake.base import checks
     from stewart_drake.base.errors import InvalidConfigError
-    from stewart_drake.run.plan import check_run_memory, run_memory_bytes
+    from stewart_drake.run.memory import check_run_memory, run_memory_bytes
     from stewart_drake.run.scenario import Scenario
 
     available = checks.available_memory_bytes()

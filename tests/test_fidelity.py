@@ -1,20 +1,18 @@
-"""Fidelity metrics against signals whose errors are known, and `stewart-drake reproduce` as a
-user runs it: a library motion, a recorded trace (30 Hz, mm and deg, a gap), a trace beyond the
-motors, scaling to fit, learning."""
+"""Fidelity metrics against signals whose errors are known (a known delay, a known gain, a
+brute-force gamma, an error built sample by sample, gamma's textbook cases, cosines of known
+phase, delays at the edges of the lag's search). `stewart-drake reproduce`, which reports them,
+is tests/test_reproduce.py's: these are the fidelity module's fast unit tests, the ones
+tools/mutation.py runs."""
 
 import json
 import math
 
 import numpy as np
 import pytest
-from conftest import write_trace
 
 from stewart_drake.base.errors import InvalidConfigError
-from stewart_drake.cli import main as cli
 from stewart_drake.organ_motion import fidelity as fd
-from stewart_drake.organ_motion import fidelity_report as fr
-from stewart_drake.organ_motion import reproduction
-from stewart_drake.references.organ.library import OrganMotionReference, make_motion
+from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.geometry import X_HOME
 
 
@@ -88,159 +86,6 @@ def test_the_tolerance_and_the_verdict():
     assert not ok and line.startswith("FAIL")
 
 
-def _run(capsys, argv, code=0):
-    rc = cli.main(argv + ["--no-progress"])
-    out, err = capsys.readouterr()
-    assert rc == code, (out, err)
-    return out, err
-
-
-def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
-    out, _ = _run(
-        capsys,
-        [
-            "reproduce",
-            "breathing",
-            "--param",
-            "period=1s",
-            "--param",
-            "amplitude=6mm",
-            "--cycles",
-            "1",
-            "--out",
-            str(tmp_path),
-        ],
-    )
-    assert "PASS" in out and "wrote" in out
-    md = (tmp_path / "reproduce_breathing.md").read_text()
-    assert "**PASS: RMS error per axis within 0.1 mm | 0.1 deg" in md
-    assert "Belcher et al." in md and "breathing 1" in md and "reproduce_breathing.png" in md
-    figures = json.loads((tmp_path / "reproduce_breathing.json").read_text())
-    assert figures["fidelity"]["window_s"] == pytest.approx([1.0, 2.0], abs=2e-3)
-    assert 1e-6 < figures["fidelity"]["rms"][3] < 1e-4
-    assert (tmp_path / "reproduce_breathing.png").stat().st_size > 20_000
-    out, _ = _run(
-        capsys,
-        [
-            "reproduce",
-            "breathing",
-            "--param",
-            "period=1s",
-            "--cycles",
-            "1",
-            "--tolerance",
-            "1um,1urad",
-            "--out",
-            str(tmp_path),
-        ],
-        code=2,
-    )
-    assert "FAIL" in out
-
-
-def test_a_recorded_trace_round_trip(tmp_path, capsys):
-    """A trace written in mm and deg at 30 Hz with a gap is imported, reproduced, reported."""
-    t = np.arange(0.0, 3.0, 1 / 30)
-    shape = np.cos(np.pi * t / 1.0) ** 4  # 1 s breaths
-    trace = write_trace(
-        tmp_path / "patient.csv",
-        t,
-        {"SI [mm]": 8 * shape, "AP [mm]": 2 * np.roll(shape, 2), "rot_LR [deg]": 0.3 * shape},
-        gap=(1.3, 1.5),
-    )
-    out, _ = _run(
-        capsys, ["reproduce", str(trace), "--lowpass-hz", "8", "--out", str(tmp_path / "out")]
-    )
-    md = (tmp_path / "out" / "reproduce_patient.md").read_text()
-    figures = json.loads((tmp_path / "out" / "reproduce_patient.json").read_text())
-    fid = figures["fidelity"]
-    assert fid["moving"] == ["theta", "X", "Z"]
-    assert fid["p2p"][3] == pytest.approx(0.008, rel=0.03)  # mm -> m
-    assert fid["p2p"][1] == pytest.approx(math.radians(0.3), rel=0.03)  # deg -> rad
-    assert fid["window_s"][1] == pytest.approx(t[-1], abs=2e-3)
-    assert fid["rms"][3] < 1e-4 and "PASS" in md
-
-
-def test_a_trace_beyond_the_motors_is_refused_naming_the_motor_and_the_time(tmp_path, capsys):
-    t = np.arange(0.0, 2.0, 1 / 30)
-    trace = write_trace(tmp_path / "fast.csv", t, {"Z [mm]": 12 * np.sin(2 * np.pi * 6 * t)})
-    _, err = _run(capsys, ["reproduce", str(trace), "--out", str(tmp_path / "out")], code=2)
-    lines = err.strip().splitlines()
-    assert len(lines) == 1
-    assert "motor" in lines[0] and "would need" in lines[0] and "at t = " in lines[0]
-    assert not (tmp_path / "out" / "reproduce_fast.md").exists()
-
-
-def test_scale_to_fit_says_by_how_much(tmp_path, capsys):
-    t = np.arange(0.0, 1.0, 1 / 100)
-    trace = write_trace(tmp_path / "fast.csv", t, {"Z [mm]": 12 * np.sin(2 * np.pi * 6 * t)})
-    rc = cli.main(
-        [
-            "reproduce",
-            str(trace),
-            "--scale-to-fit",
-            "--tolerance",
-            "1m,1rad",
-            "--out",
-            str(tmp_path / "out"),
-            "--no-progress",
-        ]
-    )
-    out, err = capsys.readouterr()
-    assert rc == 0, err
-    scale = float(out.split("scaled by ")[1].split()[0])
-    assert 0.2 < scale < 1.0
-    figures = json.loads((tmp_path / "out" / "reproduce_fast.json").read_text())
-    assert figures["scale"] == pytest.approx(scale, abs=1e-3)
-    assert figures["fidelity"]["p2p"][5] == pytest.approx(0.024 * scale, rel=0.02)
-
-
-def test_reproduce_learns_on_request(tmp_path, capsys):
-    out, _ = _run(
-        capsys,
-        [
-            "reproduce",
-            "breathing",
-            "--scenario",  # the LQI without feed-forwards, whose cycles learning cuts to 0.3
-            "paper_hardware",
-            "--param",
-            "period=0.6s",
-            "--param",
-            "amplitude=4mm",
-            "--learn-cycles",
-            "3",
-            "--cycles",
-            "1",
-            "--out",
-            str(tmp_path),
-        ],
-    )
-    md = (tmp_path / "reproduce_breathing.md").read_text()
-    assert "Learner: learned from 3 cycles, 0 rollback(s)" in md
-    cycles = json.loads((tmp_path / "reproduce_breathing.json").read_text())["fidelity"]
-    per_cycle = cycles["cycles"]["rms_translation_m"]
-    assert len(per_cycle) == 4 and per_cycle[-1] < 0.3 * per_cycle[0]
-
-
-@pytest.mark.parametrize(
-    "argv, expected",
-    [
-        (["reproduce", "cough"], "unknown motion 'cough'"),
-        (["reproduce", "breathing", "--param", "depth=3mm"], "has no parameter 'depth'"),
-        (["reproduce", "breathing", "--param", "amplitude"], "--param takes KEY=VALUE"),
-        (
-            ["reproduce", "breathing", "--map", "SI=X"],
-            "--centre-on, --max-gap, --smoothing, --seam-blend are for a trace file",
-        ),
-        (["reproduce", "breathing", "--tolerance", "0.1mm"], "one length and one angle"),
-        (["reproduce", "missing.csv"], "no trace at"),
-    ],
-)
-def test_bad_reproduce_arguments_give_one_line(tmp_path, capsys, argv, expected):
-    _, err = _run(capsys, argv + ["--out", str(tmp_path)], code=2)
-    assert len(err.strip().splitlines()) == 1 and expected in err
-
-
 def test_the_tables_of_docs_organ_motion_are_generated_from_its_figures():
     """docs/organ_motion.md's tables are what fidelity_study.tables makes of the figures kept
     beside them (python tools/organ_motion_tables.py writes both; never edit them by hand)."""
@@ -268,34 +113,6 @@ def test_mismatched_or_non_finite_inputs_are_typed_errors():
     with pytest.raises(InvalidConfigError, match="periods must be finite positive numbers"):
         common_period([4.0, math.nan])
     assert common_period([4.0, 60 / 72]) == pytest.approx(20.0)  # 5 breaths, 24 heartbeats
-
-
-def test_reproduce_takes_a_phantom_trace_as_it_comes(tmp_path, capsys):
-    """A 7-column phantom file (.txt, spaces, no header) and a ';'-separated decimal-comma
-    marker file are reproduced with no editing; the report says how each was read."""
-    t = np.arange(0.0, 12.0, 0.2)
-    phantom = tmp_path / "Lung trace.txt"
-    rows = np.column_stack(
-        [t, 0.3 * np.sin(t), 4.0 * np.sin(np.pi * t / 2), np.cos(t), 0.5 * np.sin(t), 0 * t, 0 * t]
-    )
-    phantom.write_text("\n".join(" ".join(f"{v:.5g}" for v in r) for r in rows))
-    marker = tmp_path / "marker.csv"
-    marker.write_text(
-        "t [s];SI [mm]\n" + "".join(f"{a:.2f};{3 * math.sin(a):.4f}\n".replace(".", ",") for a in t)
-    )
-    for path, layout in (
-        (phantom, "phantom format, no header, separated by spaces"),
-        (marker, "header, separated by semicolons, decimal commas"),
-    ):
-        out = tmp_path / path.stem
-        code = cli.main(
-            ["reproduce", str(path), "--duration", "1", "--no-progress", "--out", str(out)]
-        )
-        printed = capsys.readouterr()
-        assert code == 0, printed.err
-        md = (out / f"reproduce_{path.stem}.md").read_text()
-        assert f"Trace: {path.name} ({layout}): " in md, md[:600]
-        assert "**PASS" in md
 
 
 def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
@@ -328,120 +145,355 @@ def test_the_gamma_pass_rate_is_the_distance_to_agreement_of_every_sample():
         fd.gamma_pass_rate(t2, p2, p_d2, 0.0, 0.1)
 
 
-def test_the_report_figure_gives_each_error_its_axis_and_tolerance_and_keeps_peaks(
-    tmp_path, monkeypatch
-):
-    import matplotlib.pyplot as plt
-
-    from stewart_drake.run.scenario_io import load_scenario
-
-    t = np.arange(1_000_003) * 1e-3
-    y = np.zeros_like(t)
-    y[777_777] = 5.0  # one spike in a long run
-    tt, yy = fr._thinned(t, y, peaks=True)
-    assert tt.size <= fr.PLOT_POINTS + 1 and yy.max() == 5.0  # the peak is kept
-    assert fr._thinned(t, y)[0].size <= fr.PLOT_POINTS + 1
-
-    from stewart_drake.run.scenario import dump_scenario
-
-    scenario = load_scenario("paper_hardware")
-    scenario.reference = OrganMotionReference("breathing", {"period": "1s"})
-    given = dump_scenario(scenario)
-    rep = reproduction.reproduce(scenario, learn_cycles=1, eval_cycles=1)
-    # The run's duration and learner are on the plan's copy; the caller's scenario is unchanged
-    # (it was changed in place: its duration_s and learning were the run's).
-    assert dump_scenario(scenario) == given
-    assert rep.plan.scenario.duration_s == pytest.approx(2.0) and rep.learn_cycles == 1
-    assert rep.plan.scenario.learning.learn_cycles == 1 and scenario.learning is None
-    # The run is run_experiment's: its result carries the learner's record, a row per state
-    # sample and the state at the end.
-    assert rep.learner is rep.result.learner_status
-    assert rep.learner.shape[0] == rep.result.t_state.size + 1
-    figures = []
-    monkeypatch.setattr(plt, "close", figures.append)
-    fr.plot_report(rep, tmp_path / "r.png", (0.1e-3, math.radians(0.1)))
-    (fig,) = figures
-    by_label = {ax.get_ylabel(): ax for ax in fig.axes}
-    for label, tolerance in (
-        ("translation\nerror [um]", 100.0),
-        ("rotation\nerror [urad]", 1e6 * math.radians(0.1)),
-    ):
-        lines = by_label[label].get_lines()
-        assert any(np.allclose(ln.get_ydata(), tolerance) for ln in lines), label
+# -- every figure of fidelity() and its measures against numbers computed apart from them ------
 
 
-def test_a_long_run_s_figure_zooms_at_full_rate_on_its_largest_error(tmp_path, monkeypatch):
-    """120 s of logs with one 0.2 mm spike at t = 83.4 s: the figure adds a 10 s zoom centred on
-    it, drawn at full rate (every sample of those 10 s)."""
-    from types import SimpleNamespace
-
-    import matplotlib.pyplot as plt
-
-    t = np.arange(0.0, 120.0, 1e-3)
+def _known_run():
+    """100 Hz for 10 s: a reference moving phi (20 mrad) and X (4 mm) at 0.5 Hz, Y stepping by
+    exactly MOVING_P2P (10 um: not moving), and a pose whose error is known sample by sample:
+    constants on X, Y, phi, spikes at the window's ends (2 s, 9 s), and beyond it (0 s, 9.5 s,
+    the last sample)."""
+    t = np.arange(1001) * 0.01
     x_d = np.tile(X_HOME, (t.size, 1))
-    x_d[:, 3] += 5e-3 * np.sin(2 * np.pi * t / 4)
+    x_d[:, 0] = 0.02 * np.sin(np.pi * t)
+    x_d[:, 3] = 0.004 * np.sin(np.pi * t)
+    x_d[:, 4] = np.where(t > 5.0, 1e-5, 0.0)
+    e = np.zeros_like(x_d)
+    e[:, 3], e[:, 4], e[:, 0] = 2e-6, 3e-6, 1e-5
+    e[200, 1] = 7e-5  # theta at the window's first sample, t = 2 s
+    e[900, 3] += 5e-5  # X and Z at its last, t = 9 s
+    e[900, 5] = -4e-5
+    e[900, 2] = 6e-5  # psi
+    e[950, 3] = 1e-3  # beyond the window (9.5 s), and at the run's two ends
+    e[0, 2] = 3e-4
+    e[-1, 5] = 2e-4
+    return t, x_d + e, x_d, e
+
+
+def test_fidelity_gives_every_figure_of_a_known_error():
+    """Over the window [2, 9] s (samples 200 to 900, both ends in): each axis's RMS and peak,
+    the reference's peak to peak (8 mm and 40 mrad over whole periods, 10 um on Y: not moving),
+    their fractions, the 3-D RMS and peaks, the gamma rows; errors outside the window do not
+    count. Computed here by index, from the error as built."""
+    t, x, x_d, e = _known_run()
+    fid = fd.fidelity(t, x, x_d, (2.0, 9.0))
+    w = e[200:901]
+    assert fid["window_s"] == pytest.approx([2.0, 9.0], abs=1e-12)
+    assert fid["moving"] == ["phi", "X"]
+    np.testing.assert_allclose(fid["rms"], np.sqrt(np.mean(w**2, axis=0)), rtol=1e-3, atol=1e-12)
+    np.testing.assert_allclose(fid["peak"], np.abs(w).max(axis=0), rtol=1e-3)
+    assert fid["peak"][1] == pytest.approx(7e-5, rel=1e-3)  # the window's first sample counts
+    assert fid["peak"][3] == pytest.approx(5.2e-5, rel=1e-3)  # its last; not 9.5 s's 1 mm
+    np.testing.assert_allclose(fid["p2p"], [0.04, 0, 0, 0.008, 1e-5, 0], rtol=1e-9, atol=0)
+    for key, value in (("rms_fraction", fid["rms"]), ("peak_fraction", fid["peak"])):
+        assert fid[key][0] == pytest.approx(value[0] / 0.04, rel=1e-6)
+        assert fid[key][3] == pytest.approx(value[3] / 0.008, rel=1e-6)
+        assert all(math.isnan(fid[key][k]) for k in (1, 2, 4, 5)), key
+    assert fid["rms_translation_m"] == pytest.approx(
+        math.sqrt(np.mean(np.sum(w[:, 3:] ** 2, axis=1))), rel=1e-3
+    )
+    assert fid["rms_rotation_rad"] == pytest.approx(
+        math.sqrt(np.mean(np.sum(w[:, :3] ** 2, axis=1))), rel=1e-3
+    )
+    assert fid["peak_translation_m"] == pytest.approx(math.hypot(5.2e-5, 3e-6, 4e-5), rel=1e-3)
+    assert fid["peak_rotation_rad"] == pytest.approx(math.hypot(1e-5, 7e-5), rel=1e-3)
+    assert set(fid["lag_s"]) == {"phi", "X"} and abs(fid["lag_all_s"]) < 1e-3
+    # gamma: every sample within 0.5 mm; at 5 um / 10 ms all but t = 9 s (65 um off, and a
+    # sample's shift costs the whole 10 ms)
+    assert [(g["distance_m"], g["time_s"]) for g in fid["gamma"]] == list(fd.GAMMA_CRITERIA)
+    assert [g["pass_rate"] for g in fid["gamma"]] == pytest.approx([1.0, 700 / 701])
+    assert fid["harmonics"] == [] and fid["cycles"]["starts"] == []
+    # The whole run by default: its first and last samples count, 9.5 s's millimetre too.
+    whole = fd.fidelity(t, x, x_d)
+    assert whole["window_s"] == pytest.approx([0.0, 10.0], abs=1e-12)
+    np.testing.assert_allclose(whole["peak"], np.abs(e).max(axis=0), rtol=1e-3)
+    assert whole["peak"][2] == pytest.approx(3e-4, rel=1e-3)
+    assert whole["peak"][5] == pytest.approx(2e-4, rel=1e-3)
+
+
+def test_fidelity_reads_the_poses_before_the_rates_and_refuses_what_does_not_match():
+    """Logs that carry rates after the pose (12 columns) give the figures of the pose alone;
+    shapes that differ, a pose of one column, fewer than 10 samples (in all or in the window)
+    are refused in words."""
+    t, x, x_d, _ = _known_run()
+    rates = np.full_like(x, 0.5)
+    wide = fd.fidelity(t, np.hstack([x, rates]), np.hstack([x_d, -rates]), (2.0, 9.0))
+    narrow = fd.fidelity(t, x, x_d, (2.0, 9.0))
+    assert len(wide["rms"]) == 6
+    for key in ("rms", "peak", "p2p", "rms_translation_m", "rms_rotation_rad", "gamma"):
+        assert wide[key] == narrow[key], key
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t, x, x_d[:, 3])
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t, x[:, 3], x_d[:, 3])
+    with pytest.raises(InvalidConfigError, match=r"must match"):
+        fd.fidelity(t[:-1], x, x_d)
+    with pytest.raises(
+        InvalidConfigError, match=r"^t \(1001,\), x \(1001, 6\) and x_d \(1001, 5\) must match$"
+    ):
+        fd.fidelity(t, x, x_d[:, :5])
+    ten = fd.fidelity(t[:10], x[:10], x_d[:10])
+    assert ten["window_s"] == pytest.approx([0.0, 0.09])
+    with pytest.raises(
+        InvalidConfigError, match=r"^fewer than 10 samples \(9\): nothing to measure$"
+    ):
+        fd.fidelity(t[:9], x[:9], x_d[:9])
+    # a window shorter than the gamma's 100 ms (10 samples): every shift within it is tried
+    short = fd.fidelity(t, x, x_d, (9.91, 10.0))
+    assert short["window_s"] == pytest.approx([9.91, 10.0])
+    assert [g["pass_rate"] for g in short["gamma"]] == [1.0, 0.9]  # 10.0 s: 200 um off
+    with pytest.raises(
+        InvalidConfigError, match=r"^fewer than 10 samples in the window \[9\.92, 10\] s$"
+    ):
+        fd.fidelity(t, x, x_d, (9.92, 10.0))
+
+
+def test_the_cycles_are_the_samples_from_each_start_up_to_the_next():
+    """A cycle's samples are those from its start up to, not including, the next start; a
+    cycle starting before the data, ending more than two samples after it, or of fewer than ten
+    samples is left out (and the cycles after it still counted). Each sample's error differs,
+    so a sample in the wrong cycle changes its figures."""
+    t = np.arange(351) * 0.01  # 0 to 3.5 s
+    x_d = np.tile(X_HOME, (t.size, 1))
+    e = np.zeros_like(x_d)
+    e[:, 3] = 1e-6 * (1 + np.arange(t.size))  # X: 1, 2, 3, ... um
+    e[:, 4] = 2e-6
+    e[:, 0] = 1e-6 * np.arange(t.size) % 7e-6  # phi
+    starts = [-0.5, 0.5, 1.5, 2.5, 2.6, 3.0, 3.515, 4.0]
+    cycles = fd.fidelity(t, x_d + e, x_d, cycle_starts=starts)["cycles"]
+    # [-0.5, 0.5): before the data; [2.5, 2.6): ten samples, kept; [3.0, 3.515): ends 1.5
+    # samples after the last, kept; [3.515, 4.0): beyond it
+    kept = {0.5: (50, 150), 1.5: (150, 250), 2.5: (250, 260), 2.6: (260, 300), 3.0: (300, 351)}
+    assert cycles["starts"] == list(kept)
+    for n, (i, j) in enumerate(kept.values()):
+        ec = e[i:j]
+        assert cycles["rms_translation_m"][n] == pytest.approx(
+            math.sqrt(np.mean(ec[:, 3] ** 2 + ec[:, 4] ** 2)), rel=1e-6
+        )
+        assert cycles["rms_rotation_rad"][n] == pytest.approx(
+            math.sqrt(np.mean(ec[:, 0] ** 2)), rel=1e-6
+        )
+        assert cycles["peak_translation_m"][n] == pytest.approx(
+            math.hypot(1e-6 * j, 2e-6), rel=1e-6
+        )
+    assert all(type(v) is float for values in cycles.values() for v in values)
+    short = fd.fidelity(t, x_d + e, x_d, cycle_starts=[3.0, 3.525])["cycles"]
+    assert short["starts"] == []  # 2.5 samples after the last
+
+
+def test_the_harmonics_are_those_of_the_reference_up_to_the_fifth_and_a_quarter_of_the_rate():
+    """A reference of 0.25 Hz with its harmonics 1 to 6 (amplitudes 1, 0.5, ... 1/6 mm) about a
+    2 mm centre, sampled at 50 Hz over whole periods, followed exactly: each harmonic 1 to 5
+    reported with its amplitude and no error; not the sixth (harmonics=5 by default), none at
+    0 Hz. Sampled at 3.2 Hz, only those below 0.8 Hz (a quarter of the rate). None without
+    frequencies or when nothing moves."""
+    t = np.arange(1000) * 0.02  # 20 s: 5 periods
+    x_d = np.tile(X_HOME, (t.size, 1))
+    x_d[:, 3] = 2e-3  # a centre off 0: no harmonic at 0 Hz
+    for k in range(1, 7):
+        x_d[:, 3] += 1e-3 / k * np.cos(2 * np.pi * 0.25 * k * t + 0.3 * k)
+    fid = fd.fidelity(t, x_d, x_d, frequencies={"breathing": 0.25})
+    assert [(h["source"], h["k"], h["axis"]) for h in fid["harmonics"]] == [
+        ("breathing", k, "X") for k in range(1, 6)
+    ]
+    for h in fid["harmonics"]:
+        assert h["f_hz"] == pytest.approx(0.25 * h["k"])
+        assert h["reference"] == pytest.approx(1e-3 / h["k"], rel=1e-9)
+        assert h["amplitude_error"] == pytest.approx(0.0, abs=1e-9)
+        assert h["phase_error_rad"] == pytest.approx(0.0, abs=1e-9)
+    slow = np.arange(64) * 0.3125  # 3.2 Hz for 20 s
+    x_slow = np.tile(X_HOME, (slow.size, 1))
+    for k in range(1, 7):
+        x_slow[:, 3] += 1e-3 / k * np.cos(2 * np.pi * 0.25 * k * slow)
+    got = fd.fidelity(slow, x_slow, x_slow, frequencies={"breathing": 0.25}, harmonics=6)
+    assert [h["k"] for h in got["harmonics"]] == [1, 2, 3]  # 0.75 Hz < 0.8 Hz <= 1 Hz
+    assert fd.fidelity(t, x_d, x_d)["harmonics"] == []
+    still = np.tile(X_HOME, (t.size, 1))
+    quiet = fd.fidelity(t, still, still, frequencies={"breathing": 0.25})
+    assert quiet["moving"] == [] and quiet["harmonics"] == [] and math.isnan(quiet["lag_all_s"])
+
+
+def test_the_lag_of_all_axes_weighs_each_by_its_motion():
+    """phi (100 mrad) 2 ms late and X (1 mm) 10 ms late on the same 0.5 Hz sine: weighed by
+    their peak to peak, each counts alike and the lag of both is the mean, 6 ms (two equal
+    cosines' sum peaks halfway); unweighed, phi's 2 ms would win."""
+    t = np.arange(4000) * 1e-3
+    x_d = np.tile(X_HOME, (t.size, 1))
     x = x_d.copy()
-    x[:, 3] += 2e-6 * np.sin(2 * np.pi * 37 * t)
-    spike = int(round(83.4 / 1e-3))
-    x[spike, 3] += 2e-4
-    fid = fd.fidelity(t, x, x_d, (4.0, 120.0))
-    rep = SimpleNamespace(
-        name="long",
-        fidelity=fid,
-        result=SimpleNamespace(t=t, x=x, x_d=x_d),
-        learn_cycles=0,
+    for axis, amplitude, delay in ((0, 0.1, 0.002), (3, 1e-3, 0.010)):
+        x_d[:, axis] += amplitude * np.sin(np.pi * t)
+        x[:, axis] += amplitude * np.sin(np.pi * (t - delay))
+    fid = fd.fidelity(t, x, x_d)
+    assert fid["lag_s"]["phi"] == pytest.approx(0.002, abs=2e-5)
+    assert fid["lag_s"]["X"] == pytest.approx(0.010, abs=2e-5)
+    assert fid["lag_all_s"] == pytest.approx(0.006, abs=5e-5)
+    both = fd.time_lag(t, x[:, [0, 3]], x_d[:, [0, 3]], weights=[1 / 0.2, 1 / 2e-3])
+    assert both == pytest.approx(0.006, abs=5e-5)
+    assert fd.time_lag(t, x[:, [0, 3]], x_d[:, [0, 3]]) == pytest.approx(0.002, abs=1e-4)
+
+
+def test_the_lag_at_the_edges_of_its_search():
+    """max_lag_s = 10 ms at 1 kHz: 9.3 ms late or early is found between samples next to the
+    search's ends; a delay beyond them is reported at the end, 10 ms. A window of exactly three
+    times max_lag_s is measured, a shorter one gives NaN."""
+    motion = make_motion("breathing_heartbeat", {"period": "4s"})
+    t = np.arange(0.0, 8.0, 1e-3)
+    ref = motion.evaluate(t)[0][:, 3]
+    for delay, found in ((0.0093, 0.0093), (-0.0093, -0.0093), (0.015, 0.01), (-0.015, -0.01)):
+        late = motion.evaluate(t - delay)[0][:, 3]
+        assert fd.time_lag(t, late, ref, max_lag_s=0.01) == pytest.approx(found, abs=2e-5), delay
+    # a search of one sample: 1.5 ms late is reported at its end, 1 ms
+    late = motion.evaluate(t - 0.0015)[0][:, 3]
+    assert fd.time_lag(t, late, ref, max_lag_s=0.001) == pytest.approx(0.001, abs=1e-12)
+    # 30 samples of a 20 Hz sine 4 ms late
+    ref, late = np.sin(40 * np.pi * t[:30]), np.sin(40 * np.pi * (t[:30] - 0.004))
+    assert fd.time_lag(t[:30], late, ref, max_lag_s=0.01) == pytest.approx(0.004, abs=1e-4)
+    for n in (29, 25, 15):
+        assert math.isnan(fd.time_lag(t[:n], late[:n], ref[:n], max_lag_s=0.01)), n
+
+
+def test_the_gamma_index_of_textbook_cases():
+    """A trace on its reference passes everywhere; a still reference missed by exactly the
+    distance criterion gives gamma = 1, which passes, and by twice it fails; a motion 4 samples
+    early within a 5-sample time criterion (gamma 0.8) passes wherever the reference goes on
+    for 4 samples more; two samples are enough; time_s = 0 and shapes that differ are refused."""
+    t = np.arange(200) * 0.01
+    ramp = np.column_stack([0.1 * t, 0 * t, 0 * t])  # 1 mm per sample
+    assert fd.gamma_pass_rate(t, ramp, ramp, 1e-6, 0.05) == 1.0
+    still = np.zeros((200, 3))
+    off = still.copy()
+    off[:, 2] = 5e-4
+    assert fd.gamma_pass_rate(t, off, still, 5e-4, 0.05) == 1.0
+    assert fd.gamma_pass_rate(t, 2 * off, still, 5e-4, 0.05) == 0.0
+    early = np.column_stack([0.1 * (t + 0.04), 0 * t, 0 * t])
+    assert fd.gamma_pass_rate(t, early, ramp, 1e-6, 0.05) == pytest.approx(196 / 200)
+    # a record shorter than the time criterion: two samples, 10 ms apart, within 50 ms
+    assert fd.gamma_pass_rate(t[:2], ramp[:2], ramp[:2], 1e-6, 0.05) == 1.0
+    assert fd.gamma_pass_rate(t[:2], ramp[1:3], ramp[:2], 1e-6, 0.05) == 0.5  # 1 sample early
+    # so fidelity over 50 ms of 1 kHz logs, shorter than the 100 ms criterion (it raised)
+    fast = np.tile(X_HOME, (50, 1))
+    fast[:, 3] += 1e-3 * np.sin(2 * np.pi * 5 * np.arange(50) * 1e-3)
+    gamma = fd.fidelity(np.arange(50) * 1e-3, fast, fast)["gamma"]
+    assert [g["pass_rate"] for g in gamma] == [1.0, 1.0]
+    for bad in ((1e-3, 0.0), (0.0, 0.1), (-1e-3, 0.1)):
+        with pytest.raises(InvalidConfigError, match=r"^gamma criteria must be > 0"):
+            fd.gamma_pass_rate(t, ramp, ramp, *bad)
+    for args in ((t, ramp, ramp[:, :2]), (t[:-1], ramp, ramp), (t[:1], ramp[:1], ramp[:1])):
+        with pytest.raises(InvalidConfigError, match=r"^t \(\d+,\), p .* must match$"):
+            fd.gamma_pass_rate(*args, 1e-3, 0.1)
+
+
+def test_harmonic_phasors_keep_the_time_of_a_window_that_starts_late():
+    """cos(2 pi f t + phase) sampled from t = 3.7 s is amplitude e^(i phase), as from t = 0: the
+    phase is that of the absolute time. One frequency may be given as a number."""
+    t = 3.7 + np.arange(0.0, 8.0, 1e-3)
+    y = 2.0 * np.cos(2 * np.pi * 0.5 * t + 0.4) + 0.3 * np.cos(2 * np.pi * 1.5 * t - 1.0)
+    p = fd.harmonic_phasors(t, y, [0.5, 1.5])[:, 0]
+    np.testing.assert_allclose(p, [2.0 * np.exp(0.4j), 0.3 * np.exp(-1.0j)], atol=1e-9)
+    one = fd.harmonic_phasors(t, y, 0.5)
+    assert one.shape == (1, 1) and one[0, 0] == pytest.approx(2.0 * np.exp(0.4j), abs=1e-9)
+
+
+def test_the_rms_of_translation_and_rotation():
+    """3-4-5 in each: 3 and 4 um on X and Z give 5 um at every sample, 3 and 4 urad on theta
+    and psi 5 urad; the RMS of a constant is the constant, however many samples."""
+    e = np.zeros((50, 6))
+    e[:, 3], e[:, 5], e[:, 1], e[:, 2] = 3e-6, 4e-6, 3e-6, 4e-6
+    assert fd.rms_translation_rotation(e) == pytest.approx((5e-6, 5e-6), rel=1e-12)
+    e[::2, [1, 2]] = 0.0  # half the samples without rotation: sqrt(25 / 2)
+    assert fd.rms_translation_rotation(e)[1] == pytest.approx(5e-6 / math.sqrt(2), rel=1e-12)
+
+
+def test_the_tolerance_s_units_and_the_verdict_line():
+    """Units in any case, exponents with E; an unknown unit or an infinite number refused. The
+    verdict compares translations with the length and rotations with the angle, an RMS equal to
+    the tolerance within it, and says so in one line with the largest of each kind."""
+    assert fd.parse_tolerance("0.1MM,1E-3RAD") == pytest.approx((1e-4, 1e-3))
+    assert fd.parse_tolerance(" 2 um , 5e+1 URAD ") == pytest.approx((2e-6, 5e-5))
+    for bad in ("1mm,1furlong", "1e999mm,1deg", "1mm,1deg,1mm"):
+        with pytest.raises(InvalidConfigError, match="one length and one angle"):
+            fd.parse_tolerance(bad)
+    fid = {"rms": [1e-5, 2e-5, 1e-5, 3e-4, 9e-6, 1e-6], "window_s": [5.0, 10.0]}
+    ok, line = fd.verdict(fid, (3e-4, 2e-5))  # X's 0.3 mm and theta's 20 urad exactly
+    assert ok and line == (
+        "PASS: RMS error per axis within 0.3 mm | 20 urad over t = 5-10 s "
+        "(largest: X 0.3 mm, theta 20 urad)"
     )
-    figures = []
-    monkeypatch.setattr(plt, "close", figures.append)
-    fr.plot_report(rep, tmp_path / "long.png", (0.1e-3, math.radians(0.1)))
-    (fig,) = figures
-    (zoom,) = [ax for ax in fig.axes if ax.get_ylabel() == "zoom: translation\nerror [um]"]
-    (line,) = [ln for ln in zoom.get_lines() if len(ln.get_xdata()) > 2]
-    ts = np.asarray(line.get_xdata())
-    assert ts[0] == pytest.approx(78.4, abs=2e-3) and ts[-1] == pytest.approx(88.4, abs=2e-3)
-    assert ts.size == pytest.approx(10_001, abs=2)  # full rate
-    assert max(line.get_ydata()) == pytest.approx(200.0, rel=0.02)  # the spike, in um
+    ok, line = fd.verdict(fid, (2.9e-4, 0.1))  # X beyond
+    assert not ok and line.startswith("FAIL: RMS error per axis beyond 0.29 mm | 5.73 deg over")
+    ok, line = fd.verdict(fid, (1e-3, 1.9e-5))  # theta beyond
+    assert not ok and line.startswith("FAIL: RMS error per axis beyond 1 mm | 19 urad over")
+    fid["rms"][3] = 5e-5  # X below the length, above the angle's number: a length still
+    assert fd.verdict(fid, (1e-4, 3e-5))[0]
 
 
-def test_reproduce_writes_its_replay_with_the_reference_s_ghost_and_the_error(tmp_path, capsys):
-    """``reproduce --html``: the robot from the run's plant-state log (every 10 ms), the
-    reference's ghost at the trace's pose in every frame, and the error marker coloured against
-    the tolerance."""
-    from meshcat_html import read_meshcat_commands
+def test_lengths_and_angles_as_text():
+    assert fd.format_length(1.234e-4) == "0.123 mm"
+    assert fd.format_length(1e-4) == "0.1 mm"
+    assert fd.format_length(9.87e-5) == "98.7 um"
+    assert fd.format_length(9.994999e-5) == "99.9 um"  # 99.994999 um: not yet 100
+    assert fd.format_angle(9.994999e-4) == "999 urad"
+    assert fd.format_length(0.25) == "250 mm"
+    assert fd.format_angle(math.radians(0.1)) == "0.1 deg"
+    assert fd.format_angle(1e-3) == "0.0573 deg"
+    assert fd.format_angle(9.99e-4) == "999 urad"
+    assert fd.format_angle(2e-6) == "2 urad"
 
-    from stewart_drake.viz import visualize
 
-    t = np.arange(0.0, 4.0, 0.04)
-    trace = tmp_path / "short trace.txt"
-    rows = np.column_stack([t, 0 * t, 3.0 * np.sin(np.pi * t / 2), 0 * t, 0 * t, 0 * t, 0 * t])
-    trace.write_text("\n".join(" ".join(f"{v:.5g}" for v in r) for r in rows))
-    html = tmp_path / "replay.html"
-    out, _ = _run(
-        capsys,
-        ["reproduce", str(trace), "--duration", "2", "--out", str(tmp_path), "--html", str(html)],
-    )
-    assert f"wrote {html}" in out
-    text = html.read_text()
-    assert "blue ghost: the reference" in text and "PASS: RMS error per axis" in text
-    (animation,) = [c for c in read_meshcat_commands(text) if c["type"] == "set_animation"]
-    clips = {a["path"]: a["clip"] for a in animation["animations"]}
-    ghost = {k["name"]: k["keys"] for k in clips[visualize.GHOST_PATH]["tracks"]}
-    n_frames = int(2.0 * visualize.REPLAY_FPS) + 1
-    assert [k["time"] for k in ghost[".position"]] == list(range(n_frames))
-    # The trace's SI (platform X, 3 mm amplitude) moves the ghost: 2 s is half a period.
-    x = np.array([k["value"][0] for k in ghost[".position"]])
-    assert 2e-3 < np.ptp(x) < 7e-3
-    marker = {k["name"]: k["keys"] for k in clips[visualize.ERROR_MARKER_PATH]["tracks"]}
-    np.testing.assert_allclose(
-        [k["value"][2] for k in marker[".position"]],
-        [k["value"][2] + visualize.ERROR_MARKER_HEIGHT_M for k in ghost[".position"]],
-        atol=1e-12,
-    )
-    # Its colour changes with the error (recorded where it changes), one of the three.
-    (track,) = clips[visualize.ERROR_MARKER_PATH + "/<object>"]["tracks"]
-    assert track["name"] == ".color" and track["keys"][0]["time"] == 0
-    for key in track["keys"]:
-        assert any(np.allclose(key["value"], rgba) for rgba in visualize.ERROR_COLOURS)
-    assert visualize.error_colour(40e-6, 1e-4) == visualize.ERROR_COLOURS[0]
-    assert visualize.error_colour(60e-6, 1e-4) == visualize.ERROR_COLOURS[1]
-    assert visualize.error_colour(math.nan, 1e-4) == visualize.ERROR_COLOURS[2]
+def test_a_long_float32_log_s_rms_is_summed_in_float64():
+    """Logs are float32 (RunResult): over 100 000 samples of a constant 3 um error the RMS per
+    axis is 3 um to float32's precision; summed in float32 it drifted by 4e-4."""
+    n = 100_000
+    x_d = np.tile(X_HOME.astype(np.float32), (n, 1))
+    x = x_d.copy()
+    x[:, 3] += np.float32(3e-6)
+    error = float(x[0, 3]) - float(x_d[0, 3])  # 3 um as float32 holds it near 0
+    fid = fd.fidelity(np.arange(n) * 0.05, x, x_d)
+    assert fid["rms"][3] == pytest.approx(error, rel=1e-6)
+    assert fid["rms_translation_m"] == pytest.approx(error, rel=1e-6)
+
+
+def test_the_start_up_figures_of_an_error_built_sample_by_sample():
+    """startup_figures over the samples before ``end`` (poses with their rates, (n, 12)): the
+    RMS of translation and rotation are the root mean square of the error vectors' norms, the
+    peaks their largest norms; a sample at ``end`` is not before it; a motion with no sample
+    before ``end`` gives zeros; a rotation not measured (NaN) gives NaN."""
+    t = np.arange(6) * 0.1  # 0.0 ... 0.5 s
+    x_d = np.full((6, 12), 0.25)  # poses and rates; the rates are not read
+    x = x_d.copy()
+    x[:, 6:] = 7.0
+    x[0, 3:6] += [3e-3, 4e-3, 0.0]  # |e| = 5 mm
+    x[1, 3:6] += [0.0, 0.0, 1e-3]  # 1 mm
+    x[2, :3] += [0.0, 2e-3, 0.0]  # 2 mrad
+    x[1, :3] += [1e-3, 0.0, 0.0]  # 1 mrad
+    x[3, 3:6] += 1.0  # at the end: not counted
+    figures = fd.startup_figures(t, x, x_d, end=0.3)  # samples 0, 1, 2
+    assert figures["window_s"] == (0.0, 0.3)
+    assert figures["rms_translation_m"] == pytest.approx(math.sqrt((25e-6 + 1e-6) / 3))
+    assert figures["rms_rotation_rad"] == pytest.approx(math.sqrt((4e-6 + 1e-6) / 3))
+    assert figures["peak_translation_m"] == pytest.approx(5e-3)
+    assert figures["peak_rotation_rad"] == pytest.approx(2e-3)
+    late = fd.startup_figures(t + 1.0, x, x_d, end=0.3)
+    assert late["window_s"] == (1.0, 0.3)
+    assert [late[k] for k in late if k != "window_s"] == [0.0, 0.0, 0.0, 0.0]
+    empty = fd.startup_figures(t[:0], x[:0], x_d[:0], end=0.3)
+    assert empty["window_s"] == (0.0, 0.3) and empty["peak_translation_m"] == 0.0
+    positions_only = x.copy()
+    positions_only[:, :3] = np.nan
+    blind = fd.startup_figures(t, positions_only, x_d, end=0.3)
+    assert math.isnan(blind["rms_rotation_rad"])
+    assert blind["rms_translation_m"] == figures["rms_translation_m"]
+
+
+def test_the_verdict_judges_only_the_rotations_that_were_measured():
+    """A marker that gives positions only (every rotation NaN) is judged on its translations,
+    the line naming the largest and saying the rotation was not measured; one rotation measured
+    among NaNs is judged and named."""
+    fid = {"rms": [math.nan] * 3 + [1e-5, 3e-5, 2e-5], "window_s": (0.0, 10.0)}
+    ok, line = fd.verdict(fid, (1e-4, 1e-3))
+    assert ok and "(largest: Y 30 um, rotation not measured)" in line
+    assert not fd.verdict(fid, (2e-5, 1e-3))[0]
+    fid["rms"] = [math.nan, 5e-4, math.nan, 1e-5, 3e-5, 2e-5]
+    ok, line = fd.verdict(fid, (1e-4, 1e-3))
+    assert ok and "(largest: Y 30 um, theta 500 urad)" in line
+    assert not fd.verdict(fid, (1e-4, 4e-4))[0]

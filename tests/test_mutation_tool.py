@@ -125,3 +125,55 @@ def test_a_message_over_several_lines_made_none_is_words():
     assert "f-string" in mutation.rule_account(diff)
     diff = "@@ -1,2 +1 @@\n-    a = 1\n-    b = 2\n+    None"
     assert mutation.rule_account(diff) is None
+
+
+def test_a_mutant_s_diff_shows_its_line_the_def_line_too():
+    """mutmut's file holds each variant under its own name; the diff names the function as the
+    module does, and a default argument mutated on the def line shows (it was left out)."""
+    import ast
+
+    source = "\n".join(
+        [
+            'def x_sweep__mutmut_orig(axis="Z"):',
+            "    return 1 if axis else 0",
+            'def x_sweep__mutmut_1(axis="XXZXX"):',
+            "    return 1 if axis else 0",
+            'def x_sweep__mutmut_2(axis="Z"):',
+            "    return 2 if axis else 0",
+        ]
+    )
+    functions = mutation._functions(ast.parse(source))
+    name = "stewart_drake.references.trajectories.x_sweep__mutmut_"
+    assert mutation.mutant_diff(source, functions, name + "1").splitlines() == [
+        "@@ -1 +1 @@",
+        '-def sweep(axis="Z"):',
+        '+def sweep(axis="XXZXX"):',
+    ]
+    assert mutation.mutant_diff(source, functions, name + "2").splitlines() == [
+        "@@ -2 +2 @@",
+        "-    return 1 if axis else 0",
+        "+    return 2 if axis else 0",
+    ]
+
+
+@pytest.mark.parametrize(
+    "old, new, explained",
+    [
+        (
+            "a, r = a.reshape(n, -1), r.reshape(n, -1)",
+            "a, r = a.reshape(n, -1), r.reshape(n, -2)",
+            True,
+        ),
+        (
+            "a, r = a.reshape(n, -1), r.reshape(n, -1)",
+            "a, r = a.reshape(n, -2), r.reshape(n, -1)",
+            True,
+        ),
+        ("a = a.reshape(n, -1) + b", "a = a.reshape(n, -1) + c", False),
+        ("p2p = np.ptp(rw, axis=0).astype(float)", "p2p = np.ptp(rw, axis=0).astype(None)", True),
+        ("p2p = np.ptp(rw, axis=0).astype(float)", "p2p = np.ptp(rw, axis=1).astype(float)", False),
+    ],
+)
+def test_the_rules_read_every_occurrence_of_their_kind(old, new, explained):
+    diff = f"@@ -3 +3 @@\n-    {old}\n+    {new}"
+    assert (mutation.rule_account(diff) is not None) == explained

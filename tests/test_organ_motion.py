@@ -157,6 +157,15 @@ def test_make_motion_takes_units_and_names_what_is_wrong():
         make_motion("breathing", {"shape_n": "1.5"})
 
 
+def test_the_commands_list_every_motion_of_the_library_in_its_order():
+    """The motion arguments' help (reproduce, verify, robot) is written out, not read from the
+    library: building the parser reads no numpy."""
+    from stewart_drake.execution.options import LIBRARY_MOTIONS
+    from stewart_drake.references.organ.library import LIBRARY
+
+    assert LIBRARY_MOTIONS == tuple(LIBRARY)
+
+
 def test_scenario_references_and_learning_round_trip_through_yaml(tmp_path):
     s = Scenario(
         reference=OrganMotionReference(

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from stewart_drake.references.data_collection import data_collection_trajectory
+from stewart_drake.robot import limits
 from stewart_drake.robot.kinematics import X_HOME
 from stewart_drake.run import simulate as experiments
 from stewart_drake.run.diagram import controller_context, held_station
@@ -193,3 +194,71 @@ def test_the_robot_s_motor_limits_and_reference_without_a_run_are_the_plan_s(nam
     t = np.linspace(0.0, plan.duration_s, 101)
     for ours, its in zip(run_reference(scenario).evaluate(t), plan.reference.evaluate(t)):
         np.testing.assert_array_equal(ours, its)
+
+
+def _report_fields(report):
+    from dataclasses import fields
+
+    return {f.name: getattr(report, f.name) for f in fields(report) if f.name != "series"}
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, np.ndarray | float):
+        return np.array_equal(a, b, equal_nan=True)
+    return str(a) == str(b)
+
+
+def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypatch):
+    """The check runs in stretches of VALIDATE_CHUNK_SAMPLES so that its memory does not grow
+    with the run: 997-sample stretches over the paper's first 4 s (five stretches, the last
+    short), with motors too weak for it (every refusal reported), give every figure, time, leg
+    and motor of the check in one go, and the same sample-by-sample series."""
+    from stewart_drake.run import plan as trajectories
+
+    scenario = load_scenario(
+        "paper_hardware", ["hardware.motors.peak_torque_Nm=0.4", "duration_s=4"]
+    )
+    monkeypatch.setattr(trajectories, "VALIDATE_CHUNK_SAMPLES", 10**9)
+    whole = check_reference(scenario, raise_refused=False)
+    assert not whole.ok and whole.first_effort_violation is not None
+    monkeypatch.setattr(trajectories, "VALIDATE_CHUNK_SAMPLES", 997)
+    parts = check_reference(scenario, raise_refused=False)
+    clearance = ("min_clearance", "min_clearance_t", "clearance_t", "clearance")
+    mine, theirs = (
+        {k: v for k, v in _report_fields(r).items() if k not in clearance} for r in (parts, whole)
+    )
+    assert _same(mine, theirs)
+    mine, theirs = (
+        {k: v for k, v in r.series.items() if k not in clearance} for r in (parts, whole)
+    )
+    assert _same(mine, theirs) and parts.series["t"].size == 4_001
+    # The clearance is measured wherever a part has moved its resolution since the last measure,
+    # counted afresh in each stretch: each check is within the resolution of the path's true
+    # smallest clearance, so the two within it of each other.
+    resolution = limits.DEFAULT_CLEARANCE_RESOLUTION_M
+    assert abs(parts.min_clearance - whole.min_clearance) <= resolution
+    lean = check_reference(scenario, raise_refused=False, keep_series=False)
+    assert lean.series == {} and lean.summary() == parts.summary()
+
+
+def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
+    from stewart_drake.base.errors import StewartError
+    from stewart_drake.references.samples import CubicSplineTrajectory
+    from stewart_drake.run import plan as trajectories
+
+    t = np.linspace(0.0, 10.0, 101)
+    poses = np.tile([0.0, 0.0, 0.0, 0.0, 0.0, 0.30], (101, 1))
+    poses[:, 3] = np.where(t > 7.0, 0.1 * (t - 7.0), 0.0)  # a crank joint's cone at 8.958 s
+    reference = CubicSplineTrajectory(t, poses, name="away")
+    scenario = load_scenario("paper_hardware", ["guard.allow_infeasible=true"])
+    messages = []
+    for chunk in (10**9, 997):
+        monkeypatch.setattr(trajectories, "VALIDATE_CHUNK_SAMPLES", chunk)
+        with pytest.raises(StewartError) as info:
+            check_reference(scenario, reference)
+        messages.append(str(info.value))
+    # The earliest refusal, whichever check finds it: a crank joint's cone, before the pose
+    # goes out of reach at 9.056 s.
+    assert messages[0] == messages[1] and "t = 8.958 s" in messages[0], messages

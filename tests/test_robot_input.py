@@ -14,6 +14,7 @@ import types
 
 import numpy as np
 import pytest
+from conftest import LOADED_MACHINE_BUS, bus_emulator, robot_bus_yaml
 
 pytest.importorskip("dynamixel_sdk")
 
@@ -22,47 +23,21 @@ from stewart_drake.cli.main import main  # noqa: E402
 from stewart_drake.cli.registry import build_parser  # noqa: E402
 from stewart_drake.live import command as live_command  # noqa: E402
 from stewart_drake.live.measure import zero_counts_at  # noqa: E402
-from stewart_drake.live.plant_backend import (  # noqa: E402
-    StationServos,
-    dynamixel_scenario,
-)
 from stewart_drake.live.session import RobotRun, _drive, end_line  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.result import load_result  # noqa: E402
-from stewart_drake.run.scenario import dump_scenario
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
 from stewart_drake.station.bus import driver  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
-from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
-from stewart_drake.station.bus.servos import DynamixelBusConfig  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 X_REST = X_HOME + np.array([0.0, 0.0, 0.0, 0.0, 0.0, -0.01])  # 10 mm below home
 
 
 def _emulator(x0=X_REST):
-    """The bus emulator in this process, the robot's plant behind it at a 2 ms step."""
-    from pydrake.multibody.plant import MultibodyPlantConfig
-
-    from stewart_drake.run.scenario import Scenario
-
-    robot = Scenario(
-        plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
-        control_period_s=0.002,
-        log_period_s=0.002,
-    )
-    return BusEmulator(IDS, backend=StationServos(dynamixel_scenario(scenario=robot), x0=x0))
-
-
-def _bus_yaml(tmp_path):
-    """The shipped bus scenario with timeouts generous for a loaded machine."""
-    scenario = load_scenario(ROBOT_SCENARIO)
-    scenario.bus = DynamixelBusConfig(
-        reply_timeout_s=1.0, watchdog_s=1.0, max_deadline_misses=1_000_000
-    )
-    path = tmp_path / "bus.yaml"
-    path.write_text(dump_scenario(scenario))
-    return path
+    """The bus emulator in this process (:func:`conftest.bus_emulator`), one control period of
+    the shipped bus scenario per torque command."""
+    return bus_emulator(x0, load_scenario(ROBOT_SCENARIO).control_period_s)
 
 
 def _z_mm(summary: str) -> float:
@@ -74,7 +49,7 @@ def _home_on_the_emulator(tmp_path) -> tuple[int, list]:
     """(exit code, each servo's torque enable after) of ``robot home`` for 0.3 s on the
     emulator in this process."""
     with _emulator() as emu:
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", emu.port]
         argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
         argv += ["--no-progress", "--out", str(tmp_path)]
         code = main(argv)
@@ -216,7 +191,7 @@ def test_a_signal_swallowed_before_the_torque_goes_on_stops_the_command_unpowere
 
         monkeypatch.setattr(session, "HomingReference", homing)
     with _emulator() as emu:
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", emu.port]
         argv += ["--duration", "0.3", "--home-s", "0.5", "--no-progress", "--out", str(tmp_path)]
         code = main(argv)
         torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
@@ -383,7 +358,10 @@ def test_the_robot_command_takes_the_shipped_bus_scenario_by_default(tmp_path, c
     scenario = load_scenario(ROBOT_SCENARIO)
     assert scenario.bus is not None and scenario.hardware is None
     with _emulator() as emu:
-        assert main(["robot", "--dry-run", "--port", emu.port]) == 0
+        # The scenario's own reply timeout (the SDK's 34 ms) is a USB adapter's, not a
+        # pseudo-terminal's on a loaded machine (conftest.LOADED_MACHINE_BUS).
+        reply = f"bus.reply_timeout_s={LOADED_MACHINE_BUS['reply_timeout_s']}"
+        assert main(["robot", "--dry-run", "--port", emu.port, "--set", reply]) == 0
     out = capsys.readouterr().out
     assert out.splitlines()[-1] == "admissible", out
     assert abs(_z_mm(out) - X_REST[5] * 1e3) < 0.2, out  # the pose the emulator rests at
@@ -421,7 +399,7 @@ def test_a_loop_timeout_our_watchdog_could_not_keep_is_refused_before_the_bus_op
     opened = []
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(driver.DynamixelBus, "open", lambda self: opened.append(self))
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", "/dev/null"]
+        argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", "/dev/null"]
         code = main([*argv, "--loop-timeout", timeout, "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and not opened, err
@@ -437,7 +415,7 @@ def test_a_trace_of_values_past_any_motion_is_refused_naming_its_line_before_the
     trace = tmp_path / "huge.csv"
     rows = [f"{0.1 * i:.1f},{1e300 if i == 7 else 0.0}" for i in range(40)]
     trace.write_text("t [s],SI [mm]\n" + "\n".join(rows) + "\n")
-    argv = ["robot", str(trace), "--scenario", str(_bus_yaml(tmp_path)), "--port", "/dev/null"]
+    argv = ["robot", str(trace), "--scenario", str(robot_bus_yaml(tmp_path)), "--port", "/dev/null"]
     code = main([*argv, "--out", str(tmp_path)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1, err
@@ -457,7 +435,7 @@ def test_a_session_whose_logs_could_not_be_written_does_not_exit_0(tmp_path, mon
 
     monkeypatch.setattr(result, "save_result", full_disk)
     with _emulator() as emu:
-        argv = ["robot", "home", "--scenario", str(_bus_yaml(tmp_path)), "--port", emu.port]
+        argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", emu.port]
         argv += ["--duration", "0.3", "--home-s", "0.5", "--loop-timeout", "5"]
         code = main([*argv, "--no-progress", "--out", str(tmp_path)])
         torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]

@@ -423,7 +423,7 @@ def test_a_reference_csv_too_large_for_the_memory_is_refused_before_it_is_parsed
 ):
     from stewart_drake.base import checks
     from stewart_drake.references import samples
-    from stewart_drake.run.plan import run_memory_bytes
+    from stewart_drake.run.memory import run_memory_bytes
 
     path = tmp_path / "long.csv"
     with open(path, "w") as f:

@@ -14,7 +14,8 @@ import pytest
 from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration.join import write_encoder_log
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.verification import MeasuredMotion, verify
+from stewart_drake.organ_motion.measured_motion import MeasuredMotion
+from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry

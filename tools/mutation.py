@@ -25,7 +25,17 @@ no compiled function and so no ``py_func``, ``step.reference`` is empty, and the
 test fails, which stops mutmut's first (stats) run of the tests after seconds; and both of its
 sides would run the same mutated code, so it could not kill a mutant anyway (nor its closed-loop
 runs, one with each). A run where mutmut checked no mutant is reported as failed, with mutmut's
-output; before, its hundreds of unchecked mutants were read as survivors, which took minutes.
+output.
+
+A module's test files in :data:`MODULES` hold its fast unit tests only: no closed loop, no
+pre-run check of a whole path, no command. With the JIT off those run the LQI's step and the
+validator's kernels as Python, 10 to 80 s a test where compiled they take about 1 s, and mutmut
+runs them in its first (stats) pass, again in its clean pass, and again for every mutant of any
+function they call: the trajectories' run stalled on the two checks in stretches of
+tests/test_plan.py (then in test_trajectories.py, 125 s), the fidelity measures' on the ten
+``reproduce`` runs of tests/test_reproduce.py (then in test_fidelity.py, 160 s), for minutes
+before the first mutant and hours after. Such tests live in their feature's suite; the two files
+now run in 3 s with the JIT off.
 
 The score is (killed + timeouts) / mutants, a mutant no selected test calls ("no tests") counted
 as a survivor. Each survivor is listed with its diff and its account from :data:`ACCOUNTS_FILE`
@@ -37,6 +47,7 @@ existing modules and test files.
 import argparse
 import ast
 import difflib
+import functools
 import json
 import os
 import re
@@ -211,25 +222,42 @@ def _functions(tree: ast.Module) -> dict[str, ast.FunctionDef]:
     return out
 
 
-def _lines_after_def(lines: list[str], node: ast.FunctionDef) -> list[str]:
-    """The lines of a function after its ``def`` line, as ``ast.get_source_segment`` gives them
-    (the last one cut at the node's end), from the file's ``lines`` split once: that function
-    splits the whole file on every call, minutes over the hundreds of mutants of a file."""
-    body = lines[node.lineno : node.end_lineno]
-    if body and node.end_col_offset is not None:
-        body[-1] = body[-1].encode()[: node.end_col_offset].decode()
-    return body
+#: A line and its end, as ast numbers lines: \r\n, \r or \n ends one (not \f, as str.splitlines).
+_LINE = re.compile(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$")
 
 
-def mutant_diff(lines: list[str], functions: dict, name: str) -> str:
-    """The unified diff of mutant ``name`` against its original, from the ``lines`` of mutmut's
-    mutated file."""
+@functools.lru_cache(maxsize=2)
+def _lines(source: str) -> tuple[bytes, ...]:
+    """The lines of ``source`` in UTF-8 (ast's column offsets count bytes), split once."""
+    return tuple(line.encode() for line in _LINE.findall(source))
+
+
+def _segment(source: str, node: ast.AST) -> str:
+    """``ast.get_source_segment(source, node)``, from lines split once per source: that splits
+    the whole file at every call, and mutmut's file of a module's mutants is megabytes (the
+    fidelity measures': 1.9 MB, 426 functions read, 170 s)."""
+    lines = _lines(source)
+    first, last = node.lineno - 1, node.end_lineno - 1
+    if first == last:
+        return lines[first][node.col_offset : node.end_col_offset].decode()
+    parts = [lines[first][node.col_offset :], *lines[first + 1 : last]]
+    return b"".join([*parts, lines[last][: node.end_col_offset]]).decode()
+
+
+def mutant_diff(source: str, functions: dict, name: str) -> str:
+    """The unified diff of mutant ``name`` against its original, from mutmut's mutated file."""
     short = name.rsplit(".", 1)[-1]
     base = short.rsplit("__mutmut_", 1)[0]
     original, mutant = functions.get(f"{base}__mutmut_orig"), functions.get(short)
     if original is None or mutant is None:
         return ""
-    a, b = _lines_after_def(lines, original), _lines_after_def(lines, mutant)
+    # The def line too, under the function's own name on both sides: a default argument on it
+    # is mutated too (sweep(axis="Z") -> "XXZXX"), and its diff was empty without it.
+    plain = base.rsplit("ǁ", 1)[-1] if "ǁ" in base else base.removeprefix("x_")
+    a, b = (
+        _segment(source, node).replace(f"def {node.name}(", f"def {plain}(", 1).splitlines()
+        for node in (original, mutant)
+    )
     return "\n".join(list(difflib.unified_diff(a, b, lineterm="", n=0))[2:])
 
 
@@ -245,10 +273,10 @@ def read_results(module: str, tests: tuple, folder: Path) -> ModuleResult:
         # mutmut stopped before its first mutant (its stats run of the tests failed).
         raise ValueError(f"mutmut checked none of the {len(codes)} mutants")
     source = mutated.read_text()
-    functions, lines = _functions(ast.parse(source)), re.split("\r\n|\r|\n", source)
+    functions = _functions(ast.parse(source))
     for name, code in sorted(codes.items(), key=lambda kv: _natural(kv[0])):
         status = status_by_exit_code[code] if code is not None else "not checked"
-        diff = mutant_diff(lines, functions, name) if status not in ("killed",) else ""
+        diff = mutant_diff(source, functions, name) if status not in ("killed",) else ""
         result.mutants.append(Mutant(name, status, diff))
     return result
 
@@ -339,23 +367,24 @@ def _checked_name_changed(old: str, new: str) -> bool:
     return _first_argument_changed(old, new, ("as_number", "as_array", "as_poses"))
 
 
-def _replaced_at_one(old: str, new: str, a: str, b: str) -> bool:
-    """``new`` is ``old`` with one of its occurrences of ``a`` (any one) made ``b``."""
-    start = old.find(a)
-    while start >= 0:
-        if old[:start] + b + old[start + len(a) :] == new:
-            return True
-        start = old.find(a, start + 1)
-    return False
+def _one_replaced(old: str, new: str, a: str, b: str) -> bool:
+    """``new`` is ``old`` with one of its ``a`` (any one, not only the first) made ``b``."""
+    return any(
+        old[:i] + b + old[i + len(a) :] == new for i in range(len(old)) if old.startswith(a, i)
+    )
 
 
 def _reshape_minus_two(old: str, new: str) -> bool:
     """reshape's "the rest" size -1 made -2 (numpy reads any negative size as the rest), in
-    any of the line's reshapes."""
+    any of a line's reshapes."""
     return "reshape(" in old and any(
-        _replaced_at_one(old, new, a, b)
-        for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
+        _one_replaced(old, new, a, b) for a, b in (("reshape(-1", "reshape(-2"), (", -1)", ", -2)"))
     )
+
+
+def _astype_float_to_none(old: str, new: str) -> bool:
+    """astype(float) made astype(None): numpy's dtype None is float64, as float is."""
+    return _one_replaced(old, new, ".astype(float)", ".astype(None)")
 
 
 def _errstate_changed(old: str, new: str) -> bool:
@@ -404,6 +433,10 @@ RULES = (
     (
         _reshape_minus_two,
         "equivalent: numpy reads any negative size in reshape as the rest, -2 as -1",
+    ),
+    (
+        _astype_float_to_none,
+        "equivalent: astype(None) is astype(float64), numpy's default dtype, as astype(float) is",
     ),
     (
         _errstate_changed,

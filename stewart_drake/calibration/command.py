@@ -546,13 +546,13 @@ def _rehearse(args, context, registration) -> int:
     from ..robot.tolerances import Tolerances
     from ..run.plan import robot_motor_limits
     from .files import robot_section
-    from .rehearsal import pick, rehearse, workspace
+    from .rehearsal import pick, rehearse, setup_of_registration, workspace
     from .report import rehearsal_text, write_identified
 
     scenario, geometry, noise = context
     tolerances = Tolerances()
     select = args.select or "random"
-    setup, sigma = _emulated_setup(registration)
+    setup, sigma = setup_of_registration(registration)
     print(
         f"rehearsal: a robot drawn with seed {args.seed} (+-0.5 mm joints, +-0.2 mm cranks, "
         f"+-0.3 mm rods, +-1 mrad shaft tilts and crank azimuths, +-5 mrad encoder zeros), "
@@ -591,19 +591,6 @@ def _rehearse(args, context, registration) -> int:
             return 1
         print(f"wrote {Path(path)} (a scenario's robot: section{_held_at(scenario, geometry)})")
     return 0
-
-
-def _emulated_setup(registration):
-    """(the :class:`~.tracker.TrackerSetup` a registration describes, its fiducials' noise, m),
-    or (None, the default noise)."""
-    from .registration import DEFAULT_POINT_SIGMA_M
-    from .tracker import TrackerSetup
-
-    if registration is None:
-        return None, DEFAULT_POINT_SIGMA_M
-    reg, fiducials = registration
-    setup = TrackerSetup(reg.X_TB, reg.X_PM, fiducials.base_B, fiducials.platform_P)
-    return setup, fiducials.point_sigma_m
 
 
 def _save_rehearsal(args, geometry, r, x, noise, setup, sigma) -> None:

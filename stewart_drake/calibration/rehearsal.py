@@ -50,6 +50,22 @@ class Workspace:
     held_out: np.ndarray
 
 
+def setup_of_registration(registration) -> tuple:
+    """(the :class:`~.tracker.TrackerSetup` a registration describes: the tracker and its marker
+    at its frames, its fiducials where its drawing puts them; their noise, m), or (None, the
+    default noise) for ``registration`` None.
+
+    Args:
+        registration: (:class:`~.registration.Registration`, its fiducials as read from
+            REG.yaml) or None.
+    """
+    if registration is None:
+        return None, DEFAULT_POINT_SIGMA_M
+    reg, fiducials = registration
+    setup = TrackerSetup(reg.X_TB, reg.X_PM, fiducials.base_B, fiducials.platform_P)
+    return setup, fiducials.point_sigma_m
+
+
 def workspace(
     geometry: StewartGeometry, n_candidates: int = 2000, n_held_out: int = 50, motor_limits=None
 ) -> Workspace:

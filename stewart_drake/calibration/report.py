@@ -346,18 +346,19 @@ def write_identified(out, robot, ident: Identification, source, frames=None) -> 
 def loader_refusal(text: str) -> str | None:
     """Why the scenario loader would refuse the scenario ``text`` (a robot section), in one
     line, or None when it loads: the text is loaded as a scenario file is
-    (:func:`~stewart_drake.run.scenario_io.load_scenario`) and planned without a reference."""
+    (:func:`~stewart_drake.run.scenario_io.load_scenario`) and its robot built
+    (:func:`~stewart_drake.run.plan.robot_geometry`, which validates the scenario)."""
     import tempfile
 
     from ..base.errors import StewartError
-    from ..run.plan import make_plan
+    from ..run.plan import robot_geometry
     from ..run.scenario_io import load_scenario
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "robot.yaml"
         path.write_bytes(text.encode())
         try:
-            make_plan(load_scenario(path), with_reference=False)
+            robot_geometry(load_scenario(path))
         except StewartError as err:
             return str(err).replace(f"{path}: ", "").splitlines()[0]
     return None

@@ -1,6 +1,6 @@
 """What several commands share: argument types, the checks of an output before any work, the
-``--scenario``/``--set``, runner and trace options with what they build, and the notes a command
-prints on stderr before a silent stage (the compiled LQI step, a stage of some seconds).
+``--scenario``/``--set``, runner, motion and trace options with what they build, and the notes a
+command prints on stderr before a silent stage (the compiled LQI step, a stage of some seconds).
 
 Every feature's command module (``<feature>/command.py``) imports it, and the command
 (:mod:`stewart_drake.cli`) builds on them: it sits below the features, with the runners its
@@ -308,6 +308,66 @@ def runner_from_args(args):
         retries=args.retries,
         recycle=AUTO_RECYCLE if args.recycle is None else args.recycle,
         connect_timeout_s=args.connect_timeout,
+    )
+
+
+#: The organ-motion library's motions as the parser's help lists them, written out: building the
+#: parser reads no numpy (tests/test_organ_motion.py holds them equal to the library's).
+LIBRARY_MOTIONS = (
+    "breathing",
+    "heartbeat",
+    "breathing_heartbeat",
+    "irregular_breathing",
+    "hysteresis",
+    "sawtooth",
+    "sharkfin",
+    "baseline_drift",
+    "transient_excursion",
+    "persistent_excursion",
+    "breath_hold",
+)
+
+
+def add_motion_arguments(parser, named: str | None = None) -> None:
+    """The motion a command drives or judges, one definition for ``reproduce``, ``verify`` and
+    ``robot``: the positional ``motion`` (a motion of the organ-motion library or a trace file),
+    ``--param`` (its parameters, with units) and ``--add`` (library motions laid on it);
+    :func:`~stewart_drake.organ_motion.command.motion_reference` turns them into a scenario's
+    reference. With ``named`` (text listing reference names the command also takes, e.g.
+    ``robot``'s trajectories) the motion may also be one of those, and may be left out: the
+    scenario's reference then stands."""
+    motion = (
+        f"{', '.join(LIBRARY_MOTIONS)}, or a trace file: text with a header naming columns and "
+        "units (commas, semicolons, tabs or spaces; decimal points or commas), a motion "
+        "phantom's 7-column (t LR SI AP [mm] rLR rSI rAP [deg]) or 2-column surrogate file, or "
+        "t,phi,theta,psi,X,Y,Z"
+    )
+    if named is None:
+        parser.add_argument("motion", help=motion)
+    else:
+        parser.add_argument(
+            "motion",
+            nargs="?",
+            default=None,
+            help=f"{named}; a library motion: {motion} (default: the scenario's reference)",
+        )
+    parser.add_argument(
+        "--param",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a library motion's parameter with its unit (repeatable): "
+        "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
+        "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
+        "motion's own); a key goes to the motion (or --add layer) that has it, "
+        "or to the one written in front: heartbeat.amplitude=2mm",
+    )
+    parser.add_argument(
+        "--add",
+        action="append",
+        metavar="MOTION",
+        help="lay a library motion on the motion or trace (repeatable): "
+        "baseline_drift, transient_excursion, persistent_excursion, heartbeat...; "
+        "its parameters by --param (drift=3mm) (default: none)",
     )
 
 

@@ -12,11 +12,15 @@ import sys
 from pathlib import Path
 
 from ..execution.options import (
+    TRACE_ONLY,
+    add_motion_arguments,
     add_scenario_arguments,
+    add_trace_arguments,
     int_at_least,
     is_trace_file,
     positive_float,
     say_if_compiling,
+    trace_options_given,
 )
 
 
@@ -126,13 +130,10 @@ def _add_robot_command(sub) -> None:
         "robot",
         help="run the controller on the servos (docs/robot.md): dry run, home, a reference",
     )
-    rob.add_argument(
-        "reference",
-        nargs="?",
-        default=None,
-        help="a reference name (paper, home, helix, step_<axis>, sweep_<axis>), a trace or "
-        "a CSV file (default: the scenario's)",
+    add_motion_arguments(
+        rob, named="a reference name (paper, home, helix, step_<axis>, sweep_<axis>)"
     )
+    add_trace_arguments(rob)
     from ..run.scenario_io import ROBOT_SCENARIO
 
     add_scenario_arguments(rob, "the robot with its bus (a 'bus:' section)", ROBOT_SCENARIO)
@@ -168,7 +169,8 @@ def _add_robot_command(sub) -> None:
         "--duration",
         type=positive_float,
         default=None,
-        help="s of the reference (default: a trace's or CSV's whole length, else the scenario's)",
+        help="s of the reference (default: a trace's or CSV's whole length, else the scenario's "
+        "duration_s)",
     )
     rob.add_argument(
         "--loop-timeout",
@@ -220,7 +222,7 @@ def _cmd_robot(args) -> int:
     from .session import SessionSignals
     from .watchdog import check_loop_timeout
 
-    if args.teleop and (args.reference is not None or args.dry_run):
+    if args.teleop and (args.motion is not None or args.dry_run):
         from ..base.errors import InvalidConfigError
 
         raise InvalidConfigError("--teleop takes no reference (the sliders are one) nor --dry-run")
@@ -239,7 +241,7 @@ def _cmd_robot(args) -> int:
     scenario.validate()
     check_loop_timeout(args.loop_timeout, scenario.control_period_s)
     out = Path(args.out)
-    stem = f"robot_{scenario.reference.label}" if args.reference else "robot"
+    stem = f"robot_{scenario.reference.label}" if args.motion else "robot"
     if not args.dry_run and args.calibrate is None:
         from ..calibration.join import encoder_log_path
 
@@ -264,30 +266,48 @@ def _cmd_robot(args) -> int:
         return _robot_session(args, scenario, out, stem, signals)
 
 
-def _robot_reference(args, scenario):
-    """``robot``'s REFERENCE onto ``scenario``: a name of
-    :data:`~stewart_drake.references.trajectories.TRAJECTORIES` ("home" holds the home pose),
-    a recorded trace or a CSV file; None keeps the scenario's."""
+def _robot_reference(args, scenario) -> None:
+    """``robot``'s MOTION onto ``scenario``: a name of
+    :data:`~stewart_drake.references.trajectories.TRAJECTORIES` ("home" holds the home pose), or
+    what ``reproduce`` takes (a library motion with its ``--param`` and ``--add``, a trace or
+    CSV file with the trace options: :func:`~stewart_drake.organ_motion.command.motion_reference`);
+    None keeps the scenario's. A trace without ``--duration`` runs whole: ``args.duration`` is
+    set to its length, s.
+
+    Raises:
+        InvalidConfigError: a name neither a trajectory nor a library motion, or options its
+            motion does not take (named).
+    """
+    from ..base.errors import InvalidConfigError
+    from ..organ_motion.command import motion_reference
+    from ..references.organ.library import LIBRARY
+    from ..references.traces import TraceReference
     from ..references.trajectories import TRAJECTORIES, NamedReference
 
-    source = args.reference
-    if source is None:
+    source = args.motion
+    if source is None or source in TRAJECTORIES:
+        given = [o for o, v in (("--param", args.param), ("--add", args.add)) if v]
+        if trace_options_given(args):
+            given.append(TRACE_ONLY)
+        if given:
+            what = f"the reference {source}" if source else "the scenario's reference"
+            raise InvalidConfigError(
+                f"{', '.join(given)}: for a library motion or a trace file, not {what}; name "
+                "one (robot breathing --param amplitude=10mm)"
+            )
+        if source is not None:
+            scenario.reference = NamedReference(source)
         return
-    if source in TRAJECTORIES:
-        scenario.reference = NamedReference(source)
-    elif is_trace_file(source):
-        from ..references.traces import TraceReference, load_trace
-
-        scenario.reference = TraceReference(path=source)
-        if args.duration is None:  # the whole of it (a planned path, a recorded motion)
-            args.duration = float(load_trace(source).end_time)
-    else:
-        from ..base.errors import InvalidConfigError
-
+    if not is_trace_file(source) and source not in LIBRARY:
         raise InvalidConfigError(
-            f"robot takes a reference name ({', '.join(TRAJECTORIES)}), a trace or a CSV "
-            f"file, got {source!r}"
+            f"robot takes a reference name ({', '.join(TRAJECTORIES)}), a library motion "
+            f"({', '.join(LIBRARY)}), a trace or a CSV file, got {source!r}"
         )
+    scenario.reference = motion_reference(args)
+    if isinstance(scenario.reference, TraceReference) and args.duration is None:
+        # The whole of it (a planned path, a recorded motion).
+        scenario.reference.validate()  # a missing file named before it is read
+        args.duration = float(scenario.reference.load().end_time)
 
 
 def _check_calibration_angle(scenario, angle_deg: float) -> None:
@@ -328,15 +348,26 @@ def _check_emulated_pose(scenario, x0) -> None:
         ) from None
 
 
+#: The reply timeout of the emulated bus when the scenario leaves the SDK's, s. The SDK's (about
+#: 34 ms) is a USB adapter's latency timer; the emulator's pseudo-terminal passes each packet
+#: through the kernel's tty workers, which a loaded machine delays by up to a second each way
+#: whatever the emulator does (docs/hardware_bus.md, "What is emulated"): with 34 ms a busy
+#: machine's delay reads as a servo that does not answer.
+EMULATED_REPLY_TIMEOUT_S = 2.0
+
+
 def _start_emulator(scenario, x0):
     """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
     the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
-    ``scenario.bus`` at its pseudo-terminal; returns the
+    ``scenario.bus`` at its pseudo-terminal, with a reply timeout of
+    :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
     :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it)."""
     from .emulator_process import EmulatorProcess
     from .plant_backend import behind_the_bus
 
     bus = scenario.bus
+    if bus.reply_timeout_s is None:
+        bus.reply_timeout_s = EMULATED_REPLY_TIMEOUT_S
     robot = behind_the_bus(scenario)
     emulator = EmulatorProcess(
         x0=x0,

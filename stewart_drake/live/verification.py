@@ -13,7 +13,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..execution.options import add_scenario_arguments, add_trace_arguments, positive_float
+from ..execution.options import (
+    add_motion_arguments,
+    add_scenario_arguments,
+    add_trace_arguments,
+    positive_float,
+)
 
 #: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): such a
 #: measured file is read as the robot's encoder log.
@@ -23,7 +28,6 @@ ENCODER_LOG_SUFFIX = "_encoders.csv"
 def add_verify_command(sub) -> None:
     """Add the ``verify`` command to ``sub``, the ``stewart-drake`` subparsers."""
     from ..organ_motion import SCENARIO
-    from ..organ_motion.command import add_motion_arguments
 
     vp = sub.add_parser(
         "verify",
@@ -167,11 +171,11 @@ def _registration(path):
 
 
 def _measured(path: str, args, scenario, axis_map: dict):
-    """The :class:`~stewart_drake.organ_motion.verification.MeasuredMotion` of a measured file:
+    """The :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion` of a measured file:
     an encoder log (its name ends in :data:`ENCODER_LOG_SUFFIX`; read by the join's reader and
     turned into poses by forward kinematics of the scenario's robot) or a tracker's file (the
     trace readers, ``--measured-columns``, ``--measured-map``)."""
-    from ..organ_motion.verification import encoder_motion, read_measured
+    from ..organ_motion.measured_motion import encoder_motion, read_measured
 
     if not str(path).endswith(ENCODER_LOG_SUFFIX):
         return read_measured(path, args.measured_columns or "", axis_map)

@@ -2,7 +2,8 @@
 built, with or without learning (:mod:`.reproduction`, ``stewart-drake reproduce``), its fidelity
 (RMS, peak, lag, gamma pass rate, harmonics: :mod:`.fidelity`) with a verdict, and its report
 (:mod:`.fidelity_report`, :mod:`.fidelity_replay`); a motion measured on a real phantom judged
-with the same figures (:mod:`.verification`, :mod:`.verification_report`; ``stewart-drake
+with the same figures (read: :mod:`.measured_motion`; put on the reference's clock and frame:
+:mod:`.alignment`; judged: :mod:`.verification`, :mod:`.verification_report`; ``stewart-drake
 verify``); the library's and the traces' studies."""
 
 #: The scenario organ motion is reproduced on unless told (``reproduce``, the trace study): the

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from ..execution.options import (
     TRACE_ONLY,
+    add_motion_arguments,
     add_scenario_arguments,
     add_trace_arguments,
     check_output,
@@ -55,39 +56,6 @@ def _add_reproduce_command(sub) -> None:
     )
     rp.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     rp.set_defaults(func=_cmd_reproduce, out_sub=("diverged",))
-
-
-def add_motion_arguments(rp) -> None:
-    """The motion of ``reproduce`` (and of ``verify``, which judges a measured one against it):
-    a library motion or a trace file, its parameters, the motions laid on it."""
-    rp.add_argument(
-        "motion",
-        help="breathing, heartbeat, breathing_heartbeat, "
-        "irregular_breathing, hysteresis, sawtooth, sharkfin, baseline_drift, "
-        "transient_excursion, persistent_excursion, breath_hold, or a trace file: text with "
-        "a header naming columns and units (commas, semicolons, tabs or spaces; decimal "
-        "points or commas), "
-        "a motion phantom's 7-column (t LR SI AP [mm] rLR rSI rAP [deg]) or 2-column "
-        "surrogate file, or t,phi,theta,psi,X,Y,Z",
-    )
-    rp.add_argument(
-        "--param",
-        action="append",
-        metavar="KEY=VALUE",
-        help="a library motion's parameter with its unit (repeatable): "
-        "amplitude=15mm, period=4s, shape=3, direction=SI, tilt=2deg, "
-        "heart_rate=72bpm, heart_amplitude=2mm, seed=1 (default: the "
-        "motion's own); a key goes to the motion (or --add layer) that has it, "
-        "or to the one written in front: heartbeat.amplitude=2mm",
-    )
-    rp.add_argument(
-        "--add",
-        action="append",
-        metavar="MOTION",
-        help="lay a library motion on the motion or trace (repeatable): "
-        "baseline_drift, transient_excursion, persistent_excursion, heartbeat...; "
-        "its parameters by --param (drift=3mm) (default: none)",
-    )
 
 
 def _add_learning_arguments(rp) -> None:
@@ -229,52 +197,65 @@ def _cmd_reproduce(args) -> int:
 
 
 def motion_scenario(args):
-    """The scenario of ``reproduce`` (and ``verify``) with its reference (the trace file or the
-    library motion, with the motions ``--add`` lays on it), validated, and the motion's name
-    (the reproduction's files' ``reproduce_<name>``): (Scenario, str).
+    """The scenario of ``reproduce`` (and ``verify``) with its reference
+    (:func:`motion_reference`), validated, and the motion's name (the reproduction's files'
+    ``reproduce_<name>``): (Scenario, str).
 
     Raises:
-        InvalidConfigError: a motion added twice, or options of a trace for a library motion
-            (and the other way round).
+        InvalidConfigError: as :func:`motion_reference`; the scenario, the motion or its
+            parameters refused by their validation.
     """
-    from ..base.errors import InvalidConfigError
-    from ..references.organ.library import OrganMotionReference, split_parameters
     from ..run.scenario_io import load_scenario
 
     scenario = load_scenario(args.scenario, args.set or ())
+    reference = motion_reference(args)
+    guard = replace(scenario.guard, divergence_dir=str(Path(args.out) / "diverged"))
+    return replace(scenario, reference=reference, guard=guard).validate(), reference.label
+
+
+def motion_reference(args):
+    """The reference a command's motion arguments choose
+    (:func:`~stewart_drake.execution.options.add_motion_arguments` and
+    :func:`~stewart_drake.execution.options.add_trace_arguments`: ``args.motion``, ``param``,
+    ``add`` and the trace options): the trace file's
+    :class:`~stewart_drake.references.traces.TraceReference` or the library motion's
+    :class:`~stewart_drake.references.organ.library.OrganMotionReference`, with the motions
+    ``--add`` lays on it; its ``label`` names the motion. Not validated: the scenario's
+    validation names an unknown motion or parameter. One conversion for ``reproduce``,
+    ``verify`` and ``robot``.
+
+    Raises:
+        InvalidConfigError: a motion added twice, a ``--param`` not KEY=VALUE or given to a
+            trace without ``--add``, or options of a trace for a library motion.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..references.organ.library import OrganMotionReference, split_parameters
+
     source = args.motion
     params = key_values(args.param, "--param")
     layers = list(args.add or ())
     if len(set(layers)) != len(layers):
         raise InvalidConfigError(f"--add takes each motion once, got {', '.join(layers)}")
-    if is_trace_file(source):
-        if params and not layers:
-            raise InvalidConfigError(
-                "--param sets a library motion's parameters (of one added with --add on a "
-                f"trace); a trace takes {TRACE_ONLY}"
-            )
-        reference = trace_reference(
-            args, source, dict(zip(layers, split_parameters(layers, params)))
-        )
-        name = "+".join([Path(source).stem, *layers])
-        size = Path(source).stat().st_size if Path(source).is_file() else 0
-        quiet = getattr(args, "no_progress", False)  # verify has no progress to hide
-        if size > 1e6 and not quiet:  # a few seconds to read and resample
-            from ..base.checks import format_bytes
-
-            print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
-    else:
+    if not is_trace_file(source):
         if trace_options_given(args):
             raise InvalidConfigError(
                 f"{TRACE_ONLY} are for a trace file; a library motion takes --param"
             )
         shares = split_parameters([source, *layers], params)
-        reference = OrganMotionReference(
+        return OrganMotionReference(
             motion=source, parameters=shares[0], add=dict(zip(layers, shares[1:]))
         )
-        name = "+".join([source, *layers])
-    guard = replace(scenario.guard, divergence_dir=str(Path(args.out) / "diverged"))
-    return replace(scenario, reference=reference, guard=guard).validate(), name
+    if params and not layers:
+        raise InvalidConfigError(
+            "--param sets a library motion's parameters (of one added with --add on a "
+            f"trace); a trace takes {TRACE_ONLY}"
+        )
+    size = Path(source).stat().st_size if Path(source).is_file() else 0
+    if size > 1e6 and not getattr(args, "no_progress", False):  # seconds to read and resample
+        from ..base.checks import format_bytes
+
+        print(f"reading {source} ({format_bytes(size)})", file=sys.stderr, flush=True)
+    return trace_reference(args, source, dict(zip(layers, split_parameters(layers, params))))
 
 
 def _feedforward_choice(args, scenario):

@@ -78,7 +78,8 @@ def gamma_pass_rate(t, p, p_d, distance_m: float, time_s: float) -> float:
     if p.shape != p_d.shape or p.shape[0] != t.size or t.size < 2:
         raise InvalidConfigError(f"t {t.shape}, p {p.shape} and p_d {p_d.shape} must match")
     dt = float(np.median(np.diff(t)))
-    reach = int(np.floor(time_s / dt))
+    # A shift of n samples or more leaves no sample to compare (and its slices would wrap).
+    reach = min(int(np.floor(time_s / dt)), t.size - 1)
     best = np.full(t.size, np.inf)  # gamma^2
     for k in range(-reach, reach + 1):  # each time shift of the reference within time_s
         lo, hi = max(0, -k), min(t.size, t.size - k)
@@ -172,7 +173,8 @@ def harmonic_phasors(t: np.ndarray, signals: np.ndarray, frequencies_hz) -> np.n
     coef = np.linalg.lstsq(design, y, rcond=None)[0]
     m = len(f)
     phasor = coef[1 : m + 1] - 1j * coef[m + 1 :]
-    return phasor * np.exp(2j * np.pi * f[:, None] * t[0])
+    # The fit's phases are of t - t[0]: cos(2 pi f (t - t0) + p) = cos(2 pi f t + p - 2 pi f t0).
+    return phasor * np.exp(-2j * np.pi * f[:, None] * t[0])
 
 
 def _harmonics(t, x, x_d, frequencies: dict, moving, p2p, k_max: int):

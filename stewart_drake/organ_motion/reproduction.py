@@ -359,7 +359,8 @@ def reproduce(
         SimulationDivergedError: the guard stopped the run.
     """
     from ..references.trajectories import as_trajectory
-    from ..run.plan import check_run_memory, checked_plan, make_plan, run_reference
+    from ..run.memory import check_run_memory
+    from ..run.plan import checked_plan, make_plan, run_reference
 
     _check_counts(learn_cycles, eval_cycles)
     reference = as_trajectory(reference) if reference is not None else run_reference(scenario)

@@ -52,7 +52,7 @@ def verification_figures(ver: Verification) -> dict:
     """What a measured motion's JSON adds to a reproduction's keys: ``latency_s`` and
     ``clock_offset_s`` (s), ``shift_s`` (measured time + shift = the reference's), ``clock``
     (how the offset was known), ``measured`` (the file, its kind, the axes it measured),
-    ``frame`` (:meth:`~.verification.FrameFit.as_dict`) and ``removed`` (the report's lines)."""
+    ``frame`` (:meth:`~.alignment.FrameFit.as_dict`) and ``removed`` (the report's lines)."""
     m = ver.measured
     return {
         "latency_s": ver.latency_s,

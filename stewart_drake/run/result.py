@@ -250,7 +250,7 @@ class RunResult:
     """Logged arrays of one run (SI units) and its metrics.
 
     Two time bases: ``t`` (every ``log_period_s``) for the signals, float32 (module docstring;
-    about 0.2 kB a logged sample, :data:`~.plan.LOG_BYTES_PER_SAMPLE`), and ``t_state`` (every
+    about 0.2 kB a logged sample, :data:`~.memory.LOG_BYTES_PER_SAMPLE`), and ``t_state`` (every
     ``state_log_period_s``) for the plant's state, float64.
 
     Attributes:

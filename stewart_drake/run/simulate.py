@@ -80,9 +80,9 @@ def build_simulator(
         UnreachablePoseError, JointLimitError, SingularPoseError: the reference leaves the
             workspace, a joint range or nears a singularity (first time, leg or measure),
             checked before anything is simulated. InvalidConfigError: a bad scenario field, or
-            a run that needs more memory than the machine has (:func:`~.plan.check_run_memory`), or
-            an ``lcm.url`` on which nothing published arrives
-            (:func:`~stewart_drake.station.lcm_publish.make_lcm`).
+            a run that needs more memory than the machine has
+            (:func:`~.memory.check_run_memory`), or an ``lcm.url`` on which nothing published
+            arrives (:func:`~stewart_drake.station.lcm_publish.make_lcm`).
     """
     plan = checked_plan(
         scenario, reference=reference, controller=controller, progress=progress, report=report

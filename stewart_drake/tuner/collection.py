@@ -29,7 +29,8 @@ from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..references.data_collection import DataCollectionReference
-from ..run.plan import check_run_memory, run_reference
+from ..run.memory import check_run_memory
+from ..run.plan import run_reference
 from ..run.result import RunResult
 from ..run.scenario import Scenario
 from ..run.simulate import run_experiment

@@ -1,0 +1,157 @@
+"""A motion measured on a real phantom, as read (``stewart-drake verify``'s input): a tracker's
+export or the robot's encoder log turned into poses with their clock (:class:`MeasuredMotion`).
+
+A tracker's file is read by the readers of recorded traces (:func:`read_measured`: a header
+naming columns and units, semicolons or commas, decimal commas, ms, a frame column skipped with
+``-``): the poses of its marker M in the tracker's frame T on the tracker's clock. The robot's
+encoder log is turned into platform poses in the base frame by forward kinematics
+(:func:`encoder_motion`), on the reference's own clock. :mod:`~.alignment` puts either on the
+reference's clock and frame, and :mod:`~.verification` judges it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError
+from .fidelity import AXES
+
+
+@dataclass(frozen=True)
+class MeasuredMotion:
+    """A motion measured on a phantom, as read.
+
+    Attributes:
+        path: the file. kind: "tracker" (a tracker's file) or "encoders" (the robot's encoder
+            log, by forward kinematics).
+        t: (n,) s, increasing: the file's own clock ("tracker"), or the reference's clock
+            ("encoders": the log's ``t_path``).
+        poses: (n, 6) [phi, theta, psi, X, Y, Z] rad and m: the marker M in the tracker's frame
+            T ("tracker"), the platform E in the base frame B ("encoders"); NaN on the axes
+            not measured.
+        measured: (6,) bool, the axes the file measures (the three translations always).
+        layout: how the file was read, in words. dropped: what was left out as an export's
+            artefact, or "".
+    """
+
+    path: str
+    kind: str
+    t: np.ndarray
+    poses: np.ndarray
+    measured: np.ndarray
+    layout: str = ""
+    dropped: str = ""
+
+    @property
+    def rotations_measured(self) -> bool:
+        """Whether the file measures the rotations (a 6-DoF marker, the encoder log)."""
+        return bool(np.all(self.measured[:3]))
+
+    def words(self) -> str:
+        """What was read, in words: the file, its samples, rate and span, its axes."""
+        dt = float(np.median(np.diff(self.t)))
+        axes = ", ".join(a for a, m in zip(AXES, self.measured) if m)
+        what = "the robot's encoder log, by forward kinematics" if self.kind == "encoders" else ""
+        return (
+            f"{Path(self.path).name} ({what or self.layout}): {len(self.t)} samples at "
+            f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
+            + ("" if self.rotations_measured else " (positions only: rotation not measured)")
+            + (f"; left out: {self.dropped}" if self.dropped else "")
+        )
+
+
+MEASURED_REMEDY = (
+    "give a file whose first line names the time and the marker's X, Y, Z (and phi, theta, psi, "
+    "or none) with their units, e.g. t [ms];X [mm];Y [mm];Z [mm], or name its columns with "
+    "--measured-columns ('-,t [ms],X [mm],Y [mm],Z [mm]' skips a frame counter)"
+)
+
+
+def read_measured(path, columns: str = "", axis_map: dict | None = None) -> MeasuredMotion:
+    """A tracker's file as a :class:`MeasuredMotion`: read by the readers of recorded traces
+    (:func:`~stewart_drake.references.trace_files.read_trace_table`, any separator and decimal
+    mark, a header or ``columns``, a column named ``-`` skipped, a closing line of zeros left
+    out), on the file's own clock (its times as written, in s).
+
+    Args:
+        path: the file. columns: its columns' names and units when it has no header (or to
+            replace it). axis_map: {column: axis with an optional sign}.
+    Returns:
+        :class:`MeasuredMotion` of kind "tracker".
+    Raises:
+        MissingFileError, CorruptFileError: no such file, not a regular file, too large, not
+            UTF-8 text.
+        InvalidConfigError: what the trace readers refuse (no time column, a unit missing or of
+            the wrong kind, times not increasing, a row that is not numbers: the line named);
+            not the three translations, or some rotations but not three; a missing or NaN
+            value (its line and column named).
+    """
+    from ..references.trace_files import TIME_UNITS, read_trace_table, trace_samples
+
+    path = Path(path)
+    header, rows, layout = read_trace_table(path, "auto", columns)
+    table = trace_samples(path, header, rows, layout, axis_map)
+    axes = sorted(table.targets)
+    if axes[-3:] != [3, 4, 5] or len(axes) not in (3, 6):
+        found = ", ".join(f"{n} -> {AXES[k]}" for n, k in zip(table.names[1:], table.targets))
+        raise InvalidConfigError(
+            f"{path}: a measured motion needs the marker's X, Y and Z (and its three rotations "
+            f"or none), got {found}; {MEASURED_REMEDY}"
+        )
+    n = len(table.t)
+    values = table.data[:, 1:]
+    bad = np.argwhere(~np.isfinite(values))
+    if bad.size:
+        i, j = (int(v) for v in bad[0])
+        raise InvalidConfigError(
+            f"{path}, line {rows[i][0]}: {table.names[j + 1]} is missing or NaN (the tracker "
+            f"lost the marker?); verify compares measured samples only: cut the file to a stretch "
+            f"without gaps"
+        )
+    poses = np.full((n, 6), np.nan)
+    for j, (k, factor) in enumerate(zip(table.targets, table.factors)):
+        poses[:, k] = values[:, j] * factor
+    start = float(table.data[0, 0]) * TIME_UNITS[table.units[0].lower()]
+    measured = np.zeros(6, dtype=bool)
+    measured[table.targets] = True
+    return MeasuredMotion(
+        str(path), "tracker", table.t + start, poses, measured, table.layout, table.dropped
+    )
+
+
+def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
+    """The robot's encoder log as a :class:`MeasuredMotion`: the platform's poses in the base
+    frame by forward kinematics of ``geometry`` (the encoders' zero errors taken off first), on
+    the reference's clock (the log's ``t_path``; its lines without one, the lead-in, left out).
+
+    Args:
+        path: the log, for messages. t_path: (n,) s, NaN on the lead-in's lines.
+        readings: (n, 6) the encoders' raw readings, rad. geometry: the robot.
+    Raises:
+        InvalidConfigError: no line on the reference's clock, its times not increasing.
+        ForwardKinematicsError: a reading forward kinematics cannot solve (named).
+    """
+    from ..robot.forward_kinematics import fk
+
+    t_path, readings = np.asarray(t_path, float), np.asarray(readings, float).reshape(-1, 6)
+    on = np.isfinite(t_path)
+    if np.count_nonzero(on) < 4 or np.any(np.diff(t_path[on]) <= 0):
+        raise InvalidConfigError(
+            f"{path}: the encoder log needs at least 4 lines on the reference's clock (t_path), "
+            f"increasing; give the <stem>_encoders.csv a robot run wrote"
+        )
+    theta = readings[on] - np.asarray(geometry.encoder_offsets)
+    x = np.empty((len(theta), 6))
+    x0 = None
+    for a in range(0, len(theta), 2000):  # each block from the last pose of the one before
+        x[a : a + 2000], _ = fk(geometry, theta[a : a + 2000], x0=x0)
+        x0 = x[min(a + 1999, len(theta) - 1)]
+    return MeasuredMotion(
+        str(path), "encoders", t_path[on], x, np.ones(6, dtype=bool), "encoder log"
+    )
+
+
+__all__ = ["MeasuredMotion", "MEASURED_REMEDY", "read_measured", "encoder_motion"]
