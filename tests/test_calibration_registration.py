@@ -406,9 +406,11 @@ def test_a_tracker_off_the_base_frame_without_registration_is_named_and_nothing_
     _, truth, data, _ = session
     x = data.true_poses
     out = tmp_path / "robot.yaml"
-    # 1 deg and 2 mm: the fit looks normal, the pivots moved as one rigid body: a warning
-    # naming the frame; the section (pivots up to 4.8 mm off) loads. With 4 mm a pivot is 6.4
-    # mm off, beyond the loader's 5 mm: the warning, one line more, exit 1 and no file.
+    # 1 deg and 2 mm: the pivots moved as one rigid body: a warning naming the frame, then
+    # one line for the parameters beyond their tolerances (the tolerances' prior resists the
+    # rigid motion, so chi2 says the noise is an order of magnitude above the stated); the
+    # section (pivots up to 4.8 mm off) loads. With 4 mm a pivot is 6.4 mm off, beyond the
+    # loader's 5 mm: the warnings, one line more, exit 1 and no file.
     for shift_m, written in ((2e-3, True), (4e-3, False)):
         turned = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=_turned(1.0, shift_m))
         meas = files.write_measurements(tmp_path / "turned.csv", turned.poses, turned.readings)
@@ -420,19 +422,24 @@ def test_a_tracker_off_the_base_frame_without_registration_is_named_and_nothing_
         err = capsys.readouterr().err.strip().splitlines()
         assert "warning: the identified pivots moved together" in err[0]
         assert "not in the base frame B" in err[0] and "--registration REG.yaml" in err[0]
+        beyond = [line for line in err if "parameters identified beyond 3 standard" in line]
+        assert len(beyond) == 1 and "as the rigid motion above makes them" in beyond[0], err
+        assert any("the residuals imply a measurement noise about" in line for line in err)
+        assert all("warning: " in line for line in err[: -1 if not written else None])
         if written:
-            assert code == 0 and len(err) == 1 and report.loader_refusal(out.read_text()) is None
+            assert code == 0 and report.loader_refusal(out.read_text()) is None
         else:
-            assert code == 1 and not out.exists() and len(err) == 2, err
-            assert "the scenario loader would refuse it" in err[1] and "not written" in err[1]
+            assert code == 1 and not out.exists(), err
+            assert "the scenario loader would refuse it" in err[-1] and "not written" in err[-1]
     # A marker 2 mm off the platform frame: the platform joints named; the section loads.
     marker = tracker.TrackerSetup(RigidTransform(), RigidTransform([2e-3, 0, 0]), np.zeros((3, 3)))
     off = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=marker)
     meas = files.write_measurements(tmp_path / "marker.csv", off.poses, off.readings)
     assert cli.main(["calibrate", str(meas), "--out", str(out)]) == 0
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "platform joints moved together" in err[0]
+    assert "platform joints moved together" in err[0] and len(err) <= 2, err
     assert "not in the platform frame P (E)" in err[0] and out.exists()
+    assert all("as the rigid motion above makes them" in line for line in err[1:])
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -496,9 +503,9 @@ def test_registered_calibrations_of_ten_robots_meet_the_figure_and_the_bound_pre
     # The acceptance of docs/calibration.md (Registration): ten robots drawn with the
     # tolerances, a tracker 1 m and 30 deg from the base, its marker 50 mm off the platform
     # frame, four fiducials on each at 2 um, 60 poses at 5 um / 20 urad. Measured: 60 random
-    # poses 43.3 urad on average (worst 66.3), 60 chosen 37.9 (worst 57.2); the covariance's
-    # bound 48.7 and 44.0. Each tracker turned 1 deg and shifted 2 mm, unregistered, is warned
-    # of; none of the robots measured in the base frame is.
+    # poses 42.7 urad on average (worst 66.2), 60 chosen 37.8 (worst 57.2); the covariance's
+    # bound 48.2 and 43.9. Each tracker turned 1 deg and shifted 2 mm, unregistered, is warned
+    # of, the base first; none of the robots measured in the base frame is.
     from stewart_drake.run.plan import make_plan
     from stewart_drake.run.scenario_io import load_scenario
 
@@ -526,7 +533,9 @@ def test_registered_calibrations_of_ten_robots_meet_the_figure_and_the_bound_pre
                 turned = tracker.measure(GEOMETRY, truth, x, NOISE, seed, setup=_turned(1.0, 2e-3))
                 ident = identify.identify(GEOMETRY, turned.poses, turned.readings, NOISE, tol)
                 warned = report.frame_warnings(GEOMETRY, ident, False)
-                assert len(warned) == 1 and "not in the base frame B" in warned[0]
+                # The base first; the tolerances' prior leaves some of the rotation to the
+                # platform's joints, which may be named after it.
+                assert warned and "not in the base frame B" in warned[0], warned
         assert np.mean(after) <= limit, after
         assert np.mean(bound) == pytest.approx(np.mean(after), rel=0.3)
         if selection == "chosen":

@@ -1,7 +1,8 @@
 """Calibration of the robot as built from a tracker's measurements, on the per-leg model and the
 tolerances of :mod:`stewart_drake.robot` (`legs`, `tolerances`): the emulated tracker and
-encoders (`tracker`), the identification with its identifiability analysis (`identify`), the
-choice of the poses to measure and the path through them (`poses`), the files it reads and
-writes (`files`), the join of a session's encoder log and tracker file into measurements
-(`join`), the rehearsal on an emulated robot and its study (`rehearsal`), what the command
-prints (`report`) and the ``calibrate`` command (`command`). docs/calibration.md."""
+encoders (`tracker`), the identification with the tolerances as its prior, its outliers and
+held-out check (`identify`), the choice of the poses to measure and the path through them
+(`poses`), the files it reads and writes (`files`), the join of a session's encoder log and
+tracker file into measurements (`join`), the rehearsal on an emulated robot and its study
+(`rehearsal`), what the command prints (`report`) and the ``calibrate`` command (`command`).
+docs/calibration.md."""

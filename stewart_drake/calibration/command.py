@@ -132,8 +132,9 @@ def _add_identification_arguments(cal) -> None:
         "--min-singular",
         type=positive_float,
         default=1.0,
-        help="a combination of parameters whose scaled singular value is below this stays "
-        "nominal (1: the data know it less well than its tolerance)",
+        help="name the combinations of parameters whose scaled singular value is below this "
+        "as known mostly from the tolerances (1: the data know them less well than the "
+        "drawing; the tolerances' prior holds them near nominal)",
     )
     cal.add_argument(
         "--outlier-threshold",
@@ -141,11 +142,18 @@ def _add_identification_arguments(cal) -> None:
         default=4.0,
         help="flag a reading whose studentized residual is beyond this",
     )
-    cal.add_argument("--robust", action="store_true", help="soft-L1 loss instead of squares")
+    cal.add_argument(
+        "--robust",
+        action="store_true",
+        help="the soft-L1 loss instead of squares (the default drop of outliers is better "
+        "at blunders: docs/calibration.md)",
+    )
     cal.add_argument(
         "--drop-outliers",
-        action="store_true",
-        help="identify again without the poses that hold a flagged reading",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="drop the poses that hold a flagged reading and identify again, until none is "
+        "flagged (at most 10 rounds); --no-drop-outliers keeps them",
     )
 
 
@@ -446,8 +454,8 @@ def _identify(args, context, registration) -> int:
     from .registration import register_poses
     from .report import (
         check_reachable,
-        frame_warnings,
         frames_text,
+        identification_checks,
         identification_text,
         write_identified,
     )
@@ -474,7 +482,11 @@ def _identify(args, context, registration) -> int:
     if registration is not None:
         print(frames_text(geometry, ident, registration[0], data.poses, args.registration))
     print(identification_text(ident, noise, data.lines))
-    for line in frame_warnings(geometry, ident, registered is not None):
+    checked, warnings = identification_checks(
+        scenario, geometry, ident, data.poses, data.readings, noise, registered
+    )
+    print("\n".join(checked))
+    for line in warnings:
         print(f"stewart-drake calibrate: warning: {line}", file=sys.stderr)
     frames = None if registration is None else (registration[0], args.registration)
     robot = robot_section(scenario.robot, geometry)

@@ -1,36 +1,56 @@
 """Identification of the per-leg parameters from poses measured by a tracker and the encoders'
-readings there, with its identifiability analysis, uncertainties and outliers.
+readings there: an estimate with the tolerances as its prior, its uncertainty, the outliers it
+drops and a held-out check.
 
-The residual of reading j at pose k is the model's prediction minus the reading, r = theta(x_k; p) +
-o - q (:func:`~stewart_drake.robot.legs.readings`, wrapped to [-pi, pi)), whitened by the noise it
-carries: the tracker's noise mapped through the derivative of the readings with respect to the pose,
-and the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2 I, sigma_pos^2 I) G_k^T + (quantum^2
-/ 12) I (6 x 6 per pose: one pose error moves all six readings), r_w = L_k^-1 r with Sigma_k = L_k
-L_k^T, evaluated once at the nominal robot. ``scipy.optimize.least_squares`` minimizes sum |r_w|^2
-(or a robust loss of it) over the deviation vector of :mod:`~stewart_drake.robot.legs`.
+Residuals. The residual of reading j at pose k is the model's prediction minus the reading, r =
+theta(x_k; p) + o - q (:func:`~stewart_drake.robot.legs.readings`, wrapped to [-pi, pi)),
+whitened by the noise it carries: the tracker's noise mapped through the derivative of the
+readings with respect to the pose, and the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2
+I, sigma_pos^2 I) G_k^T + (quantum^2 / 12) I (6 x 6 per pose: one pose error moves all six
+readings), r_w = L_k^-1 r with Sigma_k = L_k L_k^T, evaluated once at the nominal robot.
 
-Identifiability. The deviations are scaled by their tolerances' standard deviations (each unit is
-one standard deviation of the robot as drawn, :class:`~stewart_drake.robot.tolerances.Tolerances`),
-and the whitened Jacobian J_s = L^-1 J diag(std) is decomposed, J_s = U S V^T. A combination v_i
-(a column of V) is determined by the data to 1 / S_i (in the prior's standard deviations); the
-rule: **a combination whose singular value is below ``min_singular`` (default 1: the data tell
-less about it than the tolerance already does) is not identified and stays nominal** (the
-least-squares solution of minimum norm in the scaled deviations: the step is confined to the
-other combinations). A parameter of zero tolerance is not identified at all. Each identified
-parameter's covariance is s^2 diag(std) V_k S_k^-2 V_k^T diag(std) with s^2 the residuals'
-reduced chi-square. Outliers: a reading whose studentized residual r / (s sqrt(Sigma_jj - h_jj))
-(h_jj the variance the fit's parameters explain, J C J^T) exceeds ``outlier_threshold`` is
-flagged; ``drop_outliers`` identifies again without the poses that hold one, ``robust`` uses the
-soft-L1 loss instead of the square.
+The estimate (maximum a posteriori). The deviations are scaled by their tolerances' standard
+deviations, z = delta / std (:class:`~stewart_drake.robot.tolerances.Tolerances`: one unit is
+one standard deviation of the robot as drawn), and the tolerances are the prior, z ~ N(0, I) (a
+Gaussian of each tolerance's standard deviation, whatever its distribution).
+``scipy.optimize.least_squares`` minimizes |r_w / s|^2 + |z|^2: the whitened residuals and one
+prior row per parameter (with ``robust``, the soft-L1 loss on the residuals' rows, the prior's
+kept square). A combination the data determine moves as they say; one they hardly see stays
+near nominal, with its tolerance as its uncertainty, where a least-squares fit would either
+chase the noise or have to be told to freeze it. s, the noise scale, is the residuals' own
+level over the stated noise, estimated with the fit: s^2 = |r_w|^2 / (m - p_eff), m the
+readings, p_eff = n - trace(C) the parameters' effective number (a refit while s^2 moves by
+more than 2 %; with ``robust``, 1.4826 times the whitened residuals' median absolute value): a
+tracker noisier than stated weighs its data less against the drawing and widens the +- values.
+A parameter of zero tolerance is not moved.
+
+Uncertainty. C = (J^T J / s^2 + I)^-1 in scaled units, J the whitened scaled Jacobian at the
+estimate (the posterior's Gaussian approximation); each parameter's covariance is diag(std) C
+diag(std). A combination of parameters the data know less well than its tolerance (a singular
+value S of J / s below ``min_singular``, default 1) is named (:attr:`Identification.weak`): it
+holds mostly what the drawing says, and C says so.
+
+Outliers. Each reading's residual studentized by its variance less what the fitted parameters
+explain, u = r / sqrt(Sigma_jj - h_jj / s^2) (h = J_r C J_r^T, J_r the unwhitened scaled rows),
+then divided by a robust scale (1.4826 times the median |u|, which a minority of blunders does
+not move, where the residuals' RMS would grow with them and hide them): a reading beyond
+``outlier_threshold`` is flagged. With ``drop_outliers`` (the default) the poses that hold one
+are dropped (a tracker's glitch spoils the whole pose) and the identification repeated, until
+none is flagged or :data:`MAX_ROUNDS` rounds.
 
 Registered poses. Poses converted from a tracker's frame (:mod:`~.registration`) carry two more
 errors. Their own noise, turned by the marker's lever arm, is each pose's: ``pose_covariances``
 replaces the isotropic diag(sigma_rot^2 I, sigma_pos^2 I) in Sigma_k. The frames' error is the
 same in every pose, so it does not average out over them and would be wrong as a noise per pose:
-it moves every reading at once (r_k changes by G_k J_k e for a frames' error e of covariance C,
-``frames = (J, C)``), and the per-leg parameters absorb such a rigid motion of the base or of the
-platform whole. It is carried to the parameters instead: their covariance gains K C K^T, K the
-least-squares solution's derivative with respect to e (:attr:`Identification.frames_covariance`).
+it moves every reading at once (r_k changes by G_k J_k e for a frames' error e of covariance C_e,
+``frames = (J, C_e)``), and the per-leg parameters absorb such a rigid motion of the base or of
+the platform whole. It is carried to the parameters instead: their covariance gains K C_e K^T, K
+= C J^T D / s^2 the estimate's derivative with respect to e, D = L^-1 G J_e
+(:attr:`Identification.frames_covariance`).
+
+The held-out check (:func:`cross_validate`): the poses used split into k folds, each fold's
+readings predicted by the robot identified from the others, beside what those identifications'
+covariances and the measurements' own noise predict for them.
 """
 
 from __future__ import annotations
@@ -41,7 +61,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from ..base.checks import as_array, as_number, as_poses
+from ..base.checks import as_array, as_number, as_poses, check_int
 from ..base.errors import InvalidConfigError, UnreachablePoseError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import wrap_angle
@@ -63,19 +83,31 @@ from .tracker import MeasurementNoise
 MIN_POSES = 12
 #: Default threshold of a flagged reading's studentized residual.
 OUTLIER_THRESHOLD = 4.0
-#: Default rule of identifiability: a scaled combination with a smaller singular value stays
-#: nominal (the data know it less well than its tolerance).
+#: Default threshold of the singular values (of the whitened, scaled Jacobian over the noise
+#: scale) below which a combination is named as known mostly from its tolerance.
 MIN_SINGULAR = 1.0
+#: Most rounds of dropping the poses that hold an outlier and identifying again.
+MAX_ROUNDS = 10
+#: A parameter identified beyond this many of its tolerance's standard deviations is named:
+#: the drawing is probably wrong there, or the poses are not in the base frame.
+BEYOND_TOLERANCE = 3.0
+#: Folds of the held-out check.
+FOLDS = 5
+#: Most refits of the noise scale, and the relative change of s^2 that asks for one.
+_SCALE_FITS, _SCALE_TOL = 6, 0.02
+#: A Gaussian's standard deviation over its median absolute value.
+_MAD = 1.4826
 
 
 @dataclass(frozen=True)
 class Combination:
-    """A combination of parameters the data do not determine, kept at its nominal value.
+    """A combination of parameters the data know less well than its tolerance: the prior holds
+    it near nominal, and its uncertainty is about its tolerance's.
 
     Attributes:
         direction: (66,) unit vector in the scaled deviations (tolerance units).
-        singular_value: its singular value S_i: the data determine it to 1 / S_i tolerance
-            standard deviations.
+        singular_value: its singular value S_i: the data alone would determine it to 1 / S_i
+            tolerance standard deviations.
         terms: ((name, coefficient), ...) its largest terms, in physical units' names.
     """
 
@@ -95,13 +127,20 @@ class Combination:
 
 @dataclass(frozen=True)
 class Outlier:
-    """A reading flagged as an outlier: pose (row of the measurements), leg, its residual in
-    rad and its studentized residual."""
+    """A reading flagged as an outlier.
+
+    Attributes:
+        pose: its row of the measurements.  leg: its encoder.
+        residual_rad: model minus reading, rad.  studentized: over the robust scale.
+        round: the round of the identification that flagged it (1 the first); its pose was
+            dropped from the later rounds when :attr:`Identification.used` says so.
+    """
 
     pose: int
     leg: int
     residual_rad: float
     studentized: float
+    round: int = 1
 
 
 @dataclass(frozen=True)
@@ -112,24 +151,29 @@ class Identification:
         nominal, identified: :class:`~stewart_drake.robot.legs.LegParameters` before and after.
         deviation: (66,) identified minus nominal, units of the deviation vector
             (:mod:`~stewart_drake.robot.legs`).
-        std: (66,) each entry's standard deviation from the residuals (0 for a parameter that
-            stays nominal by the rule), same units.
-        covariance: (66, 66) of the identified deviations, same units.
-        scale: (66,) the tolerances' standard deviations the analysis scales by.
-        singular_values: of the scaled, whitened Jacobian at the nominal robot (where the rule
-            is applied), descending.
-        fixed: the :class:`Combination` s kept nominal (they span ``fixed_basis``).
-        fixed_basis: (k, 66) orthonormal rows spanning the combinations kept nominal.
-        outliers: the :class:`Outlier` s flagged (on the poses used).
-        used: (N,) bool, the poses the identification used (all unless outliers were dropped).
+        std: (66,) each entry's standard deviation (0 for a parameter of zero tolerance),
+            same units.
+        covariance: (66, 66) of the identified deviations, the tolerances' prior and the
+            frames' error included, same units.
+        scale: (66,) the tolerances' standard deviations (the prior's).
+        singular_values: of the whitened, scaled Jacobian over the noise scale at the estimate,
+            descending: what the data tell of each combination beside the prior's 1.
+        weak: the :class:`Combination` s with a singular value below ``min_singular``.
+        outliers: every :class:`Outlier` flagged, by round.
+        used: (N,) bool, the poses of the last round (all unless outliers were dropped).
+        rounds: how many times the parameters were identified (1 without outliers dropped).
         rms_before_rad, rms_after_rad: RMS of the readings' residuals (model minus read) with
             the nominal and the identified robot, over the poses used, rad.
-        chi2_reduced: sum of the whitened residuals' squares over their degrees of freedom
-            (about 1 when the noise is as stated).
-        dof: readings used minus parameters identified.
-        nfev: residual evaluations of ``least_squares``.
+        chi2_reduced: sum of the whitened residuals' squares over their degrees of freedom,
+            with the noise as stated (about 1 when it is; the noise scale squared).
+        dof: readings used minus the parameters' effective number (p_eff, module docstring).
+        nfev: residual evaluations of ``least_squares``, over every fit.
         frames_covariance: (66, 66) the part of ``covariance`` that the frames' error of
             registered poses makes (zeros without one), same units.
+        information: (66, 66) J^T J of the poses used at the stated noise, in scaled units
+            (zero for a parameter of zero tolerance): what the poses tell, whatever the
+            residuals say of the noise.
+        robust: whether the soft-L1 loss was used.
     """
 
     nominal: LegParameters
@@ -139,27 +183,52 @@ class Identification:
     covariance: np.ndarray
     scale: np.ndarray
     singular_values: np.ndarray
-    fixed: tuple
-    fixed_basis: np.ndarray
+    weak: tuple
     outliers: tuple
     used: np.ndarray
+    rounds: int
     rms_before_rad: float
     rms_after_rad: float
     chi2_reduced: float
-    dof: int
+    dof: float
     nfev: int
-    frames_covariance: np.ndarray | None = None
+    frames_covariance: np.ndarray
+    information: np.ndarray
+    robust: bool = False
 
     @property
     def identified_mask(self) -> np.ndarray:
         """(66,) bool: the parameters with a nonzero tolerance (those the fit may move)."""
         return self.scale > 0
 
-    def prior_covariance(self) -> np.ndarray:
-        """(66, 66) what is left of the tolerances' covariance in the fixed combinations (what
-        keeping them nominal may cost), same units as :attr:`covariance`."""
-        V = self.fixed_basis
-        return (self.scale[:, None] * (V.T @ V)) * self.scale[None, :]
+    @property
+    def noise_scale(self) -> float:
+        """The residuals' noise over the stated noise, sqrt(chi2/dof)."""
+        return float(np.sqrt(self.chi2_reduced))
+
+    def design_covariance(self) -> np.ndarray:
+        """(66, 66) the covariance the poses used give with the noise as stated, the
+        tolerances' prior included (not scaled by the residuals, no frames' error), units of
+        :attr:`covariance`: what the pose set itself identifies."""
+        active = self.scale > 0
+        C = np.zeros((N_PARAMETERS, N_PARAMETERS))
+        A = self.information[np.ix_(active, active)] + np.eye(int(active.sum()))
+        C[np.ix_(active, active)] = np.linalg.inv(A)
+        return self.scale[:, None] * C * self.scale[None, :]
+
+    @property
+    def dropped(self) -> np.ndarray:
+        """(k,) the rows of the poses dropped for their outliers, ascending."""
+        return np.flatnonzero(~self.used)
+
+    def beyond_tolerance(self, factor: float = BEYOND_TOLERANCE) -> tuple:
+        """((index, deviation over its tolerance's standard deviation), ...) of the parameters
+        identified beyond ``factor`` standard deviations of their tolerance, largest first."""
+        ratio = np.divide(
+            self.deviation, self.scale, out=np.zeros_like(self.deviation), where=self.scale > 0
+        )
+        beyond = np.flatnonzero(np.abs(ratio) > factor)
+        return tuple((int(k), float(ratio[k])) for k in beyond[np.argsort(-np.abs(ratio[beyond]))])
 
 
 def check_measurements(poses, q) -> tuple[np.ndarray, np.ndarray]:
@@ -229,20 +298,19 @@ def singular_values(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.sqrt(np.clip(w[order], 0.0, None)), V[:, order].T
 
 
-def _fixed_combinations(Vt, S, min_singular, names) -> tuple:
+def _weak_combinations(Vt, S, min_singular, names) -> tuple:
     """The :class:`Combination` s that span the rows of Vt whose singular values S are below
     ``min_singular``, written so that each reads: reduced row echelon form with column pivoting
-    (each combination leads with a parameter the others do not hold), normalized; the span, and
-    so what is kept nominal, is the same. Each one's singular value is |J_s v| / |v| (from S and
-    Vt)."""
+    (each combination leads with a parameter the others do not hold), normalized; the span is
+    the same. Each one's singular value is |J_s v| / |v| (from S and Vt)."""
     import scipy.linalg
 
-    fixed = Vt[S < min_singular]
-    if not len(fixed):
+    weak = Vt[S < min_singular]
+    if not len(weak):
         return ()
-    _, _, pivots = scipy.linalg.qr(fixed, pivoting=True)
-    lead = np.sort(pivots[: len(fixed)])
-    rows = np.linalg.solve(fixed[:, lead], fixed)  # identity on the leading columns
+    _, _, pivots = scipy.linalg.qr(weak, pivoting=True)
+    lead = np.sort(pivots[: len(weak)])
+    rows = np.linalg.solve(weak[:, lead], weak)  # identity on the leading columns
     out = []
     for v in rows:
         v = v / np.linalg.norm(v)
@@ -254,6 +322,150 @@ def _fixed_combinations(Vt, S, min_singular, names) -> tuple:
     return tuple(sorted(out, key=lambda c: c.singular_value))
 
 
+class _Problem:
+    """The measurements and what every fit of them shares: the nominal robot, each pose's
+    readings' covariance and whitening (at the nominal robot), the prior's scale."""
+
+    def __init__(self, geometry, poses, q, noise, tolerances, pose_covariances, frames):
+        self.geometry, self.poses, self.q, self.frames = geometry, poses, q, frames
+        self.nominal = LegParameters.nominal(geometry)
+        self.Sigma = reading_covariances(geometry, self.nominal, poses, noise, pose_covariances)
+        self.W = np.linalg.inv(np.linalg.cholesky(self.Sigma))
+        self.scale = tolerances.stds()
+        self.active = self.scale > 0
+
+    def delta(self, z) -> np.ndarray:
+        """(66,) the deviations of the scaled ones z (n active,)."""
+        out = np.zeros(N_PARAMETERS)
+        out[self.active] = self.scale[self.active] * z
+        return out
+
+    def legs(self, z) -> LegParameters:
+        return self.nominal.shifted(self.delta(z))
+
+    def rows(self, legs, used) -> np.ndarray:
+        """(6 N_used, n) the whitened, scaled Jacobian of the poses ``used``."""
+        J = derivatives(self.geometry, legs, self.poses[used]).parameters[..., self.active]
+        n = int(self.active.sum())
+        return np.einsum("nij,njk->nik", self.W[used], J).reshape(-1, n) * self.scale[self.active]
+
+    def whitened(self, z, used) -> np.ndarray:
+        """(6 N_used,) the whitened residuals of the robot z at the poses ``used``."""
+        r = _residuals(self.geometry, self.legs(z), self.poses[used], self.q[used])
+        return np.einsum("nij,nj->ni", self.W[used], r).ravel()
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """One fit: z (n,), the noise scale s^2 it weighed with, chi2/dof, the whitened Jacobian
+    J (m, n) and C (n, n) at z, the effective number of parameters, residual evaluations."""
+
+    z: np.ndarray
+    s2: float
+    chi2: float
+    J: np.ndarray
+    C: np.ndarray
+    p_eff: float
+    nfev: int
+
+
+#: The soft-L1 loss's scale, whitened units: a residual of 3 standard deviations is where it
+#: turns from the square to the absolute value.
+_SOFT_L1_SCALE = 3.0
+#: Most reweighting rounds of the robust fit, and the largest change of a weight that ends it.
+_IRLS_ROUNDS, _IRLS_TOL = 100, 1e-6
+
+
+def _solve(problem: _Problem, used, robust: bool, z0, s2: float):
+    """(z, nfev): the estimate (module docstring) on the poses ``used`` with noise scale s2;
+    with ``robust``, the soft-L1 loss's minimum by iteratively reweighted least squares (each
+    residual weighted by 1 / sqrt(1 + (r / 3)^2), its loss's derivative over its own)."""
+    n, s = int(problem.active.sum()), np.sqrt(s2)
+    weight = np.ones(6 * int(used.sum()))
+
+    def fun(z):
+        return np.concatenate([weight * problem.whitened(z, used) / s, z])
+
+    def jac(z):
+        return np.vstack([weight[:, None] * problem.rows(problem.legs(z), used) / s, np.eye(n)])
+
+    z, nfev = z0, 0
+    for _ in range(_IRLS_ROUNDS if robust else 1):
+        z, k = _least_squares(problem, used, fun, jac, z)
+        nfev += k
+        if not robust:
+            break
+        r = problem.whitened(z, used) / s
+        new = (1.0 + (r / _SOFT_L1_SCALE) ** 2) ** -0.25  # the square root of the weight
+        if np.max(np.abs(new**2 - weight**2)) <= _IRLS_TOL:
+            break
+        weight = new
+    return z, nfev
+
+
+def _least_squares(problem: _Problem, used, fun, jac, z0):
+    """(z, nfev) of MINPACK's Levenberg-Marquardt on ``fun`` from z0.
+
+    Raises:
+        InvalidConfigError: the fit left every robot near the drawing (the readings').
+    """
+    try:
+        fit = least_squares(
+            fun, z0, jac=jac, method="lm", x_scale=1.0, xtol=1e-12, ftol=1e-12, gtol=1e-12
+        )
+    except UnreachablePoseError as err:
+        x, y = problem.poses[used], problem.q[used]
+        worst = np.abs(_residuals(problem.geometry, problem.nominal, x, y)).max(axis=0)
+        raise InvalidConfigError(
+            f"the readings fit no robot near the drawing: explaining them moved leg {err.leg} "
+            f"so far that it could not reach a measured pose; the nominal robot misses the "
+            f"readings by up to {', '.join(f'q{i} {v:.3g}' for i, v in enumerate(worst))} rad: "
+            f"check the readings' columns, units and encoder zeros (zero_counts)"
+        ) from None
+    return fit.x, int(fit.nfev)
+
+
+def _fit(problem: _Problem, used, robust: bool, z0) -> _Fit:
+    """The estimate on the poses ``used`` with the noise scale estimated with it (module
+    docstring): refits while s^2 moves by more than :data:`_SCALE_TOL`."""
+    n = int(problem.active.sum())
+    z, s2, nfev = z0, 1.0, 0
+    for _ in range(_SCALE_FITS):
+        z, k = _solve(problem, used, robust, z, s2)
+        nfev += k
+        J = problem.rows(problem.legs(z), used)
+        C = np.linalg.inv(J.T @ J / s2 + np.eye(n))
+        p_eff = n - float(np.trace(C))
+        r_w = problem.whitened(z, used)
+        chi2 = float(r_w @ r_w) / max(r_w.size - p_eff, 1.0)
+        # With the soft-L1 loss, the scale the blunders do not move: the median's.
+        level = (_MAD * float(np.median(np.abs(r_w)))) ** 2 if robust else chi2
+        if abs(level - s2) <= _SCALE_TOL * s2:
+            break
+        s2 = level
+    C = np.linalg.inv(J.T @ J / s2 + np.eye(n))
+    return _Fit(z, s2, chi2, J, C, n - float(np.trace(C)), nfev)
+
+
+def _flag(problem: _Problem, fit: _Fit, used, threshold: float, round_: int) -> tuple:
+    """The :class:`Outlier` s of a fit (module docstring), on the poses ``used``."""
+    legs = problem.legs(fit.z)
+    x, y = problem.poses[used], problem.q[used]
+    J = derivatives(problem.geometry, legs, x).parameters[..., problem.active]
+    Jr = J.reshape(-1, J.shape[-1]) * problem.scale[problem.active]
+    h = np.einsum("mi,ij,mj->m", Jr, fit.C, Jr) / fit.s2
+    sigma = np.diagonal(problem.Sigma[used], axis1=1, axis2=2).ravel()
+    raw = _residuals(problem.geometry, legs, x, y).ravel()
+    u = raw / np.sqrt(np.clip(sigma - h, 1e-3 * sigma, None))
+    spread = max(_MAD * float(np.median(np.abs(u))), 1e-12)
+    t = u / spread
+    rows = np.flatnonzero(used)
+    return tuple(
+        Outlier(int(rows[j // 6]), j % 6, float(raw[j]), float(t[j]), round_)
+        for j in map(int, np.flatnonzero(np.abs(t) > threshold))
+    )
+
+
 def identify(
     geometry: StewartGeometry,
     poses,
@@ -263,24 +475,26 @@ def identify(
     min_singular: float = MIN_SINGULAR,
     outlier_threshold: float = OUTLIER_THRESHOLD,
     robust: bool = False,
-    drop_outliers: bool = False,
+    drop_outliers: bool = True,
     pose_covariances=None,
     frames=None,
 ) -> Identification:
-    """Identify the robot's per-leg parameters from measured poses and readings.
+    """Identify the robot's per-leg parameters from measured poses and readings, with the
+    tolerances as the prior (module docstring).
 
     Args:
         geometry: the nominal robot.
         poses: (N, 6) the platform's poses as the tracker measured them, [rad, m].
         q: (N, 6) the encoders' readings there, rad (any whole turn: residuals are wrapped).
         noise: what the measurements carry (:class:`~.tracker.MeasurementNoise`).
-        tolerances: the robot's tolerances, the scale of each parameter (default
+        tolerances: the robot's tolerances, the prior of each parameter (default
             :class:`~stewart_drake.robot.tolerances.Tolerances`); a zero half-width keeps that
             parameter nominal.
-        min_singular: the identifiability rule's threshold (module docstring), > 0.
-        outlier_threshold: a reading with a larger studentized residual is flagged.
-        robust: the soft-L1 loss (scale 3 whitened units) instead of least squares.
-        drop_outliers: identify again without the poses holding a flagged reading.
+        min_singular: the singular value below which a combination is named weak, > 0.
+        outlier_threshold: a reading with a larger studentized residual is flagged, > 0.
+        robust: the soft-L1 loss (scale 3 whitened units) on the residuals.
+        drop_outliers: drop the poses holding a flagged reading and identify again, until none
+            is flagged (at most :data:`MAX_ROUNDS` rounds).
         pose_covariances: (N, 6, 6) each pose's noise, [rad, m]^2 (a small rotation in B and a
             shift), in place of ``noise``'s isotropic one (registered poses: module docstring).
         frames: (J (N, 6, k), C (k, k)): an error e common to every pose, of covariance C, that
@@ -289,42 +503,80 @@ def identify(
         :class:`Identification`.
     Raises:
         InvalidConfigError: the measurements as :func:`check_measurements` says, a threshold
-            out of range.
+            out of range, dropping the outliers' poses leaves fewer than :data:`MIN_POSES`,
+            readings no robot near the drawing explains.
         UnreachablePoseError: a measured pose the nominal robot cannot reach (not this robot's
             poses, or the wrong units).
-    Source: the textbook identification of a parallel robot from external pose measurements
-        (least squares on the inverse kinematics' residuals, an SVD of the scaled Jacobian).
+    Source: the identification of a parallel robot from external pose measurements (least
+        squares on the inverse kinematics' residuals), regularized by the tolerances as a
+        Gaussian prior (a maximum a posteriori estimate, its Laplace covariance).
     """
     poses, q = check_measurements(poses, q)
-    extra = _check_registered(len(poses), pose_covariances, frames)
+    pose_covariances, frames = _check_registered(len(poses), pose_covariances, frames)
     tolerances = Tolerances() if tolerances is None else tolerances
     min_singular = as_number("min_singular", min_singular, 0.0, lo_open=True)
     outlier_threshold = as_number("outlier_threshold", outlier_threshold, 0.0, lo_open=True)
+    problem = _Problem(geometry, poses, q, noise, tolerances, pose_covariances, frames)
     used = np.ones(len(poses), dtype=bool)
-    result = _identify_once(
-        geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold, extra
-    )
-    if drop_outliers and result.outliers:
-        for o in result.outliers:
-            used[o.pose] = False
+    z = np.zeros(int(problem.active.sum()))
+    outliers: list[Outlier] = []
+    nfev = 0
+    for round_ in range(1, MAX_ROUNDS + 1):
+        fit = _fit(problem, used, robust, z)
+        nfev += fit.nfev
+        found = _flag(problem, fit, used, outlier_threshold, round_)
+        outliers += found
+        if not (drop_outliers and found) or round_ == MAX_ROUNDS:
+            break
+        used[[o.pose for o in found]] = False
         if used.sum() < MIN_POSES:
             raise InvalidConfigError(
-                f"dropping the {int((~used).sum())} poses with outliers leaves {int(used.sum())}, "
-                f"fewer than {MIN_POSES}: measure again, or identify without --drop-outliers"
+                f"dropping the {int((~used).sum())} poses with outliers leaves "
+                f"{int(used.sum())}, fewer than {MIN_POSES}: check the measurements (their "
+                f"units, the frames), or identify with --no-drop-outliers to see them all"
             )
-        result = _identify_once(
-            geometry,
-            poses,
-            q,
-            noise,
-            tolerances,
-            min_singular,
-            robust,
-            used,
-            outlier_threshold,
-            extra,
-        )
-    return result
+        z = fit.z
+    return _identification(problem, fit, used, round_, tuple(outliers), min_singular, nfev, robust)
+
+
+def _identification(problem, fit, used, rounds, outliers, min_singular, nfev, robust):
+    """The :class:`Identification` of the last round's fit."""
+    scale, active = problem.scale, problem.active
+    legs = problem.legs(fit.z)
+    cov = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    cov[np.ix_(active, active)] = fit.C
+    covariance = scale[:, None] * cov * scale[None, :]
+    frames_part = _frames_covariance(problem, fit, legs, used)
+    covariance = covariance + frames_part
+    S, Vt = singular_values(fit.J / np.sqrt(fit.s2))
+    Vt_full = np.zeros((len(S), N_PARAMETERS))
+    Vt_full[:, active] = Vt
+    information = np.zeros((N_PARAMETERS, N_PARAMETERS))
+    information[np.ix_(active, active)] = fit.J.T @ fit.J
+    x, y = problem.poses[used], problem.q[used]
+    before = _residuals(problem.geometry, problem.nominal, x, y)
+    after = _residuals(problem.geometry, legs, x, y)
+    return Identification(
+        nominal=problem.nominal,
+        identified=legs,
+        deviation=problem.delta(fit.z),
+        std=np.sqrt(np.clip(np.diag(covariance), 0.0, None)),
+        covariance=covariance,
+        scale=scale,
+        singular_values=S,
+        weak=_weak_combinations(Vt_full, S, min_singular, parameter_names()),
+        outliers=outliers,
+        used=used.copy(),
+        rounds=rounds,
+        rms_before_rad=float(np.sqrt(np.mean(before**2))),
+        rms_after_rad=float(np.sqrt(np.mean(after**2))),
+        chi2_reduced=fit.chi2,
+        dof=after.size - fit.p_eff,
+        nfev=nfev,
+        frames_covariance=frames_part,
+        information=information,
+        robust=robust,
+    )
 
 
 def _check_registered(n: int, pose_covariances, frames) -> tuple:
@@ -356,134 +608,133 @@ def _check_covariance(name: str, C: np.ndarray) -> None:
         raise InvalidConfigError(f"{name} must be symmetric positive semi-definite")
 
 
-def _frames_covariance(W, G, frames, used, Jb, N_inv, basis, scale) -> np.ndarray:
-    """(66, 66) K C K^T of the module docstring: K = N^-1 Jb^T (W G J) the identified
-    combinations' derivative with respect to the frames' error, mapped to the parameters."""
-    if frames is None:
-        return np.zeros((len(scale), len(scale)))
-    J, C = frames[0][used], frames[1]
-    D = np.einsum("nij,njk,nkl->nil", W, G, J).reshape(-1, J.shape[2])
-    K = basis @ (N_inv @ (Jb.T @ D))
-    return scale[:, None] * (K @ C @ K.T) * scale[None, :]
-
-
-def _identify_once(
-    geometry, poses, q, noise, tolerances, min_singular, robust, used, outlier_threshold, extra
-) -> Identification:
-    """One identification on the poses ``used`` (see :func:`identify`)."""
-    nominal = LegParameters.nominal(geometry)
-    x, y = poses[used], q[used]
-    pose_covariances, frames = extra
-    Sigma = reading_covariances(
-        geometry, nominal, x, noise, None if pose_covariances is None else pose_covariances[used]
-    )
-    W = np.linalg.inv(np.linalg.cholesky(Sigma))
-    scale = tolerances.stds()
-    active = scale > 0
-    names = parameter_names()
-
-    def jac_scaled(legs):
-        J = derivatives(geometry, legs, x).parameters  # (N, 6, 66)
-        return np.einsum("nij,njk->nik", W, J).reshape(-1, N_PARAMETERS) * scale
-
-    S0, Vt0 = singular_values(jac_scaled(nominal)[:, active])
-    basis = np.zeros((N_PARAMETERS, int(np.sum(S0 >= min_singular))))
-    basis[active] = Vt0[S0 >= min_singular].T  # identified combinations, scaled units
-
-    def fun(z):
-        legs = nominal.shifted(scale * (basis @ z))
-        r = _residuals(geometry, legs, x, y)
-        return np.einsum("nij,nj->ni", W, r).ravel()
-
-    def jac(z):
-        return jac_scaled(nominal.shifted(scale * (basis @ z))) @ basis
-
-    # MINPACK's Levenberg-Marquardt for squares; the trust region with LSMR for the robust
-    # loss (its dense solver's SVDs of the tall Jacobian wait on BLAS threads on a busy machine).
-    options = (
-        dict(method="trf", loss="soft_l1", f_scale=3.0, tr_solver="lsmr")
-        if robust
-        else dict(method="lm")
-    )
-    try:
-        fit = least_squares(
-            fun,
-            np.zeros(basis.shape[1]),
-            jac=jac,
-            x_scale=1.0,
-            xtol=1e-12,
-            ftol=1e-12,
-            gtol=1e-12,
-            **options,
-        )
-    except UnreachablePoseError as err:  # the fit left every robot near the drawing
-        worst = np.abs(_residuals(geometry, nominal, x, y)).max(axis=0)
-        raise InvalidConfigError(
-            f"the readings fit no robot near the drawing: explaining them moved leg {err.leg} "
-            f"so far that it could not reach a measured pose; the nominal robot misses the "
-            f"readings by up to {', '.join(f'q{i} {v:.3g}' for i, v in enumerate(worst))} rad: "
-            f"check the readings' columns, units and encoder zeros (zero_counts)"
-        ) from None
-    delta = scale * (basis @ fit.x)
-    identified = nominal.shifted(delta)
-    # The covariance and the leverages at the solution, in the combinations identified.
-    Jb = jac_scaled(identified) @ basis
-    r_w = fun(fit.x)
-    m, k = r_w.size, basis.shape[1]
-    dof = max(m - k, 1)
-    chi2 = float(r_w @ r_w) / dof
-    N_inv = np.linalg.inv(Jb.T @ Jb)  # k x k, well conditioned: only S >= min_singular
-    cov_scaled = chi2 * basis @ N_inv @ basis.T
-    covariance = scale[:, None] * cov_scaled * scale[None, :]
-    Vt_full = np.zeros((len(S0), N_PARAMETERS))
-    Vt_full[:, active] = Vt0
-    # Each reading's residual against its own deviation, Sigma_jj less what the fit took of it.
-    at_solution = derivatives(geometry, identified, x)
-    Jr = (at_solution.parameters * scale).reshape(-1, N_PARAMETERS) @ basis
-    frames_part = _frames_covariance(W, at_solution.pose, frames, used, Jb, N_inv, basis, scale)
-    covariance = covariance + frames_part
-    var = np.diagonal(Sigma, axis1=1, axis2=2).ravel() - np.einsum("mi,ij,mj->m", Jr, N_inv, Jr)
-    raw = _residuals(geometry, identified, x, y)
-    studentized = raw.ravel() / np.sqrt(chi2 * np.clip(var, 1e-30, None))
-    rows = np.flatnonzero(used)
-    flagged = np.flatnonzero(np.abs(studentized) > outlier_threshold)
-    outliers = tuple(
-        Outlier(int(rows[j // 6]), j % 6, float(raw.ravel()[j]), float(studentized[j]))
-        for j in map(int, flagged)
-    )
-    before = _residuals(geometry, nominal, x, y)
-    return Identification(
-        nominal=nominal,
-        identified=identified,
-        deviation=delta,
-        std=np.sqrt(np.clip(np.diag(covariance), 0.0, None)),
-        covariance=covariance,
-        scale=scale,
-        singular_values=S0,
-        fixed=_fixed_combinations(Vt_full, S0, min_singular, names),
-        fixed_basis=Vt_full[S0 < min_singular],
-        outliers=outliers,
-        used=used.copy(),
-        rms_before_rad=float(np.sqrt(np.mean(before**2))),
-        rms_after_rad=float(np.sqrt(np.mean(raw**2))),
-        chi2_reduced=chi2,
-        dof=dof,
-        nfev=int(fit.nfev),
-        frames_covariance=frames_part,
-    )
+def _frames_covariance(problem: _Problem, fit: _Fit, legs, used) -> np.ndarray:
+    """(66, 66) K C_e K^T of the module docstring, K = C J^T D / s^2 mapped to the
+    parameters."""
+    if problem.frames is None:
+        return np.zeros((N_PARAMETERS, N_PARAMETERS))
+    Je, Ce = problem.frames[0][used], problem.frames[1]
+    G = derivatives(problem.geometry, legs, problem.poses[used]).pose
+    D = np.einsum("nij,njk,nkl->nil", problem.W[used], G, Je).reshape(-1, Je.shape[2])
+    K = np.zeros((N_PARAMETERS, Je.shape[2]))
+    K[problem.active] = fit.C @ (fit.J.T @ D) / fit.s2
+    K *= problem.scale[:, None]
+    return K @ Ce @ K.T
 
 
 def predicted_rms(
-    geometry: StewartGeometry, ident: Identification, poses, noise: MeasurementNoise
+    geometry: StewartGeometry,
+    ident: Identification,
+    poses,
+    noise: MeasurementNoise,
+    covariance=None,
 ) -> float:
     """The RMS error of the identified robot's predicted readings at poses (N, 6) that the
-    identification's own covariance predicts, rad: the parameters' covariance (with what the
-    fixed combinations may hold, :meth:`Identification.prior_covariance`) mapped through the
-    readings' derivatives, and the readings' quantization."""
+    identification's own covariance predicts, rad: the parameters' covariance (the tolerances'
+    prior included; or ``covariance`` (66, 66), e.g. :meth:`Identification.design_covariance`)
+    mapped through the readings' derivatives, and the readings' quantization."""
     J = derivatives(geometry, ident.identified, poses).parameters
-    C = ident.covariance + ident.prior_covariance()
+    C = ident.covariance if covariance is None else covariance
     var = np.einsum("nik,kl,nil->ni", J, C, J)
     return float(np.sqrt(np.mean(var) + noise.quantization_rms_rad**2))
+
+
+def nominal_rms(
+    geometry: StewartGeometry, tolerances: Tolerances, poses, noise: MeasurementNoise
+) -> float:
+    """The RMS error of the nominal robot's predicted readings at poses (N, 6) that the
+    tolerances give (their variances mapped through the readings' derivatives, and the
+    quantization), rad: what an identification starts from."""
+    J = derivatives(geometry, LegParameters.nominal(geometry), poses).parameters
+    var = np.einsum("nik,k,nik->ni", J, tolerances.stds() ** 2, J)
+    return float(np.sqrt(np.mean(var) + noise.quantization_rms_rad**2))
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """The held-out check of :func:`cross_validate`; RMS over every held-out reading, rad.
+
+    Attributes:
+        folds: how many.  poses: the poses checked (those the identification used).
+        rms_rad: each fold's readings predicted from the others' identification, against
+            the readings.
+        predicted_rad: what those identifications' covariances and the measurements' own
+            noise (each held-out pose's Sigma_k times the fold's noise scale squared) predict
+            for ``rms_rad``.
+        noise_rad: the measurements' own noise's part of ``predicted_rad``.
+    """
+
+    folds: int
+    poses: int
+    rms_rad: float
+    predicted_rad: float
+    noise_rad: float
+
+
+def cross_validate(
+    geometry: StewartGeometry,
+    poses,
+    q,
+    noise: MeasurementNoise,
+    ident: Identification,
+    folds: int = FOLDS,
+    tolerances: Tolerances | None = None,
+    pose_covariances=None,
+) -> HeldOut | None:
+    """A k-fold check of an identification on its own measurements: the poses it used (in
+    their order, pose j in fold j mod k), each fold's readings predicted by the robot
+    identified (as ``ident`` was: its loss, the tolerances, no further outliers dropped) from
+    the other folds' poses.
+
+    Args:
+        geometry, poses (N, 6), q (N, 6), noise, tolerances, pose_covariances (N, 6, 6): what
+            ``ident`` was identified from (:func:`identify`; the frames' error is left out: it
+            is the same in the held-out poses as in the others, and the parameters absorb it).
+        ident: the identification checked (its ``used`` poses are the ones split).
+        folds: k, 2 .. 20.
+    Returns:
+        :class:`HeldOut`, or None when the poses used are too few for each fold's
+        identification to keep :data:`MIN_POSES`.
+    Raises:
+        InvalidConfigError: folds out of range; as :func:`identify`.
+    """
+    folds = check_int("folds", folds, 2, 20)
+    poses, q = check_measurements(poses, q)
+    rows = np.flatnonzero(ident.used)
+    if len(rows) - -(-len(rows) // folds) < MIN_POSES:
+        return None
+    err2, var, own = [], [], []
+    for f in range(folds):
+        test = rows[f::folds]
+        train = np.setdiff1d(rows, test)
+        covs = None if pose_covariances is None else np.asarray(pose_covariances)
+        part = identify(
+            geometry,
+            poses[train],
+            q[train],
+            noise,
+            tolerances,
+            robust=ident.robust,
+            drop_outliers=False,
+            pose_covariances=None if covs is None else covs[train],
+        )
+        x = poses[test]
+        r = _residuals(geometry, part.identified, x, q[test])
+        J = derivatives(geometry, part.identified, x).parameters
+        Sigma = reading_covariances(
+            geometry, part.nominal, x, noise, None if covs is None else covs[test]
+        )
+        noise_var = part.chi2_reduced * np.diagonal(Sigma, axis1=1, axis2=2)
+        err2.append(r**2)
+        own.append(noise_var)
+        var.append(np.einsum("nik,kl,nil->ni", J, part.covariance, J) + noise_var)
+    return HeldOut(
+        folds=folds,
+        poses=len(rows),
+        rms_rad=float(np.sqrt(np.mean(np.concatenate(err2)))),
+        predicted_rad=float(np.sqrt(np.mean(np.concatenate(var)))),
+        noise_rad=float(np.sqrt(np.mean(np.concatenate(own)))),
+    )
 
 
 def kinds_and_legs() -> tuple[tuple[str, ...], np.ndarray]:

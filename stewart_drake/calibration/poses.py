@@ -199,17 +199,25 @@ def _move(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return t, a + s[:, None] * (b - a)
 
 
-def _order(poses: np.ndarray) -> np.ndarray:
-    """Indices of ``poses`` in a nearest-neighbour tour from home (rotations weighted 0.15 m
-    per rad)."""
+#: Poses a block of a path in chosen order holds (:func:`pose_path`'s ``block``): the fewest an
+#: identification takes, so that any prefix of the path holds the first choices but a block's.
+PREFIX_BLOCK = 12
+
+
+def _order(poses: np.ndarray, block: int | None = None) -> np.ndarray:
+    """Indices of ``poses`` (N, 6) in nearest-neighbour tours (rotations weighted 0.15 m per
+    rad): one from home through all of them (``block`` None), or one through each ``block``
+    poses in turn, in their order (each tour from where the previous ended)."""
     weight = np.array([0.15] * 3 + [1.0] * 3)
-    left = list(range(len(poses)))
+    size = len(poses) if block is None else block
     here, order = X_HOME, []
-    while left:
-        dist = np.linalg.norm((poses[left] - here) * weight, axis=1)
-        k = left.pop(int(np.argmin(dist)))
-        order.append(k)
-        here = poses[k]
+    for start in range(0, len(poses), size):
+        left = list(range(start, min(start + size, len(poses))))
+        while left:
+            dist = np.linalg.norm((poses[left] - here) * weight, axis=1)
+            k = left.pop(int(np.argmin(dist)))
+            order.append(k)
+            here = poses[k]
     return np.array(order)
 
 
@@ -219,8 +227,15 @@ def pose_path(
     dwell_s: float = 3.0,
     settle_s: float = 1.0,
     motor_limits=None,
+    block: int | None = None,
 ) -> PosePath:
     """The path from home through ``poses`` (N, 6) and back, resting ``dwell_s`` at each.
+
+    The poses are visited in the shortest order a nearest-neighbour tour finds, or with
+    ``block`` (>= 1) in blocks of that many in the order given, each block a tour: poses in
+    the order :func:`choose_poses` chose them and a block of :data:`PREFIX_BLOCK` keep each
+    prefix of the path the choice of about as many (a session cut short still measured a good
+    set), for a longer path (120 chosen poses: 903 s against 627 s at 3 s a pose).
 
     Each move is a straight line in pose coordinates along the quintic smoothstep
     (:func:`_move`); where a sample of a straight move is not admissible with margin
@@ -230,9 +245,10 @@ def pose_path(
 
     Raises:
         InvalidConfigError: a pose not admissible with margin, ``settle_s`` not within
-            ``dwell_s``, a non-positive dwell.
+            ``dwell_s``, a non-positive dwell, a block below 1.
     """
     poses = as_poses("poses", poses).reshape(-1, 6)
+    block = None if block is None else check_int("block", block, 1, 10**6)
     dwell_s = as_number("dwell_s", dwell_s, 0.0, lo_open=True)
     settle_s = as_number("settle_s", settle_s, 0.0)
     if settle_s >= dwell_s:
@@ -245,7 +261,7 @@ def pose_path(
             f"pose {int(np.argmax(bad))} ({poses[int(np.argmax(bad))].tolist()}) is not "
             f"admissible with the margins {MIN_MARGINS}: choose poses inside the workspace"
         )
-    order = _order(poses)
+    order = _order(poses, block)
     ts, xs = [np.arange(0, 76) * PATH_DT_S], [np.repeat(X_HOME[None], 76, axis=0)]
     windows = []
     here = X_HOME

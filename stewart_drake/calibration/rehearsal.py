@@ -113,7 +113,7 @@ class Rehearsal:
         after_rad: the identified robot's, from the true poses.
         after_tracked_rad: the identified robot's, from the tracker's measurement of them.
         bound_rad: what the identification's covariance predicts for ``after_rad``.
-        fixed: combinations kept nominal.  chi2_reduced: of the fit.
+        weak: combinations known mostly from the tolerances.  chi2_reduced: of the fit.
         identification: the :class:`~.identify.Identification`.
         truth: the robot drawn, :class:`~stewart_drake.robot.legs.LegParameters`.
         registration: the frames registered from the emulated fiducials, or None (the tracker
@@ -128,7 +128,7 @@ class Rehearsal:
     after_rad: float
     after_tracked_rad: float
     bound_rad: float
-    fixed: int
+    weak: int
     chi2_reduced: float
     identification: Identification
     truth: LegParameters
@@ -146,7 +146,7 @@ class Rehearsal:
             "after_rad": self.after_rad,
             "after_tracked_rad": self.after_tracked_rad,
             "bound_rad": self.bound_rad,
-            "fixed": self.fixed,
+            "weak": self.weak,
             "chi2_reduced": self.chi2_reduced,
         }
 
@@ -203,7 +203,7 @@ def rehearse(
         after_rad=rms(readings(geometry, ident.identified, H), read),
         after_tracked_rad=rms(readings(geometry, ident.identified, seen), read),
         bound_rad=predicted_rms(geometry, ident, H, noise),
-        fixed=len(ident.fixed),
+        weak=len(ident.weak),
         chi2_reduced=ident.chi2_reduced,
         identification=ident,
         truth=truth,
@@ -269,7 +269,7 @@ def table(rows: list[dict]) -> str:
     pose count and selection, the RMS of the held-out readings' prediction in urad (mean and
     worst over the seeds, with how many seeds exceed :data:`ACCEPTANCE_URAD` for the noise level),
     the covariance's bound, the prediction from the tracker's poses, before (mean and range,
-    mrad), and the combinations kept nominal."""
+    mrad), and the combinations known mostly from the tolerances."""
     keys = sorted(
         {(r["translation_m"], r["rotation_rad"], r["poses"], r["selection"]) for r in rows},
         key=lambda k: (k[0], k[1], k[2], SELECTIONS.index(k[3])),
@@ -280,7 +280,7 @@ def table(rows: list[dict]) -> str:
     ]
     header = ["tracker noise", "poses", "picked", "seeds", "after: mean (worst)"]
     header += ["seeds over the figure", "bound", "after, from the tracker's poses"]
-    header += ["before: mean (range)", "kept nominal"]
+    header += ["before: mean (range)", "known from the tolerances"]
     cells = []
     for key in keys:
         group = [
@@ -298,7 +298,7 @@ def table(rows: list[dict]) -> str:
             + [f"{np.mean([r['bound_rad'] for r in group]) * 1e6:.1f}"]
             + [f"{np.mean([r['after_tracked_rad'] for r in group]) * 1e6:.1f}"]
             + [f"{np.mean(before):.2f} ({np.min(before):.2f}-{np.max(before):.2f})"]
-            + [f"{np.mean([r['fixed'] for r in group]):.1f}"]
+            + [f"{np.mean([r['weak'] for r in group]):.1f}"]
         )
     lines += markdown_lines(header, cells) + ["", TABLE_MARKERS[1]]
     return "\n".join(lines)

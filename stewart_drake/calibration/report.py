@@ -1,5 +1,6 @@
 """What ``stewart-drake calibrate`` prints and writes: the identified parameters with their
-uncertainties, the combinations kept nominal, the outliers, the residuals before and after; the
+uncertainties, the combinations known mostly from the tolerances, the outliers dropped, the
+residuals before and after, the accuracy to expect and the held-out check, the warnings; the
 robot section; the planned path, checked as the robot command will check it."""
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from ..base.errors import InvalidConfigError
 from ..robot.geometry import StewartGeometry
 from ..robot.legs import PARAMETER_KINDS, LegParameters, leg_frames, leg_ik_unchecked
 from .files import MeasurementsFile, robot_yaml, write_path, write_robot
-from .identify import Identification
+from .identify import BEYOND_TOLERANCE, Identification
 from .tracker import MeasurementNoise
 
 #: How each kind of parameter is shown: (label, unit, factor from SI) per entry of a leg.
@@ -54,6 +55,18 @@ def check_reachable(
         )
 
 
+def _shown(k: int) -> tuple[str, str, float]:
+    """(label with its leg, unit, factor from SI) of entry k of the deviation vector."""
+    start = 0
+    for kind, width, _ in PARAMETER_KINDS:
+        if k < start + 6 * width:
+            leg, j = divmod(k - start, width)
+            label, unit, factor = _SHOWN[kind][j]
+            return f"leg {leg} {label}", unit, factor
+        start += 6 * width
+    raise IndexError(k)
+
+
 def deviations_table(ident: Identification) -> str:
     """The identified deviations, value +- standard deviation, one row per quantity, one column
     per leg."""
@@ -73,42 +86,216 @@ def deviations_table(ident: Identification) -> str:
 
 
 def identification_text(ident: Identification, noise: MeasurementNoise, lines=None) -> str:
-    """The identification as text: its figures, the deviations, the combinations kept nominal
-    and the outliers (``lines``: the file's line of each pose, to name them)."""
+    """The identification as text: its figures, the deviations, the combinations known mostly
+    from the tolerances and the outliers (``lines``: the file's line of each pose, to name
+    them)."""
     used = int(ident.used.sum())
-    kept = len(ident.fixed)
     out = [
-        f"identified from {used} poses ({noise.words()}): {66 - kept} of 66 parameter "
-        f"combinations, {kept} kept nominal; chi2/dof {ident.chi2_reduced:.3g} (dof "
-        f"{ident.dof}; about 1 when the noise is as stated)",
+        f"identified from {used} poses ({noise.words()}), the tolerances as the prior: chi2/dof "
+        f"{ident.chi2_reduced:.3g} (dof {ident.dof:.0f}; about 1 when the noise is as stated)",
         f"readings' residuals (model - read), RMS: {ident.rms_before_rad * 1e3:.3g} mrad with "
         f"the nominal robot, {ident.rms_after_rad * 1e6:.3g} urad identified",
-        "identified deviations from the nominal robot (value +- standard deviation; crank "
-        "azimuth is crank_angles_deg's, in urad):",
+        "identified deviations from the nominal robot (value +- standard deviation, from the "
+        "data and the tolerances together; crank azimuth is crank_angles_deg's, in urad):",
         deviations_table(ident),
     ]
-    if ident.fixed:
+    if ident.weak:
         out.append(
-            "kept nominal (rule: a combination of the parameters, each in units of its "
-            "tolerance's standard deviation, whose singular value S < --min-singular: the "
-            "data know it to 1/S, less well than its tolerance):"
+            f"known mostly from the tolerances ({len(ident.weak)} combinations of the "
+            f"parameters, each in units of its tolerance's standard deviation, whose singular "
+            f"value S < --min-singular: the data alone know it to 1/S, less well than the "
+            f"drawing; it stays near nominal and its +- is about its tolerance's):"
         )
-        out += [f"  {c.words()}" for c in ident.fixed]
+        out += [f"  {c.words()}" for c in ident.weak]
     else:
-        out.append("kept nominal: none (every combination's singular value >= --min-singular)")
-    if ident.outliers:
-        out.append(f"outliers ({len(ident.outliers)} readings beyond the threshold):")
-        for o in ident.outliers:
-            where = f"line {lines[o.pose]}" if lines is not None else f"pose {o.pose}"
-            out.append(
-                f"  {where}, q{o.leg}: residual {o.residual_rad * 1e6:+.1f} urad, studentized "
-                f"{o.studentized:+.1f}"
+        out.append(
+            "known mostly from the tolerances: none (every singular value >= --min-singular)"
+        )
+    return "\n".join(out + outliers_lines(ident, lines))
+
+
+def outliers_lines(ident: Identification, lines=None) -> list[str]:
+    """The outliers, one line per pose (its line of the file when ``lines`` gives them) with
+    its flagged readings, and whether it was dropped."""
+    if not ident.outliers:
+        return ["outliers: none"]
+    by_pose: dict[int, list] = {}
+    for o in ident.outliers:
+        by_pose.setdefault(o.pose, []).append(o)
+    dropped = int((~ident.used).sum())
+    kept = [p for p in by_pose if ident.used[p]]
+    rounds = ident.rounds - 1
+    head = (
+        f"outliers (a reading's studentized residual beyond the threshold): {dropped} "
+        f"pose{'s' * (dropped > 1)} dropped in {rounds} round{'s' * (rounds > 1)}, the "
+        f"identification repeated without them"
+        if dropped
+        else "outliers (a reading's studentized residual beyond the threshold):"
+    )
+    out = [head]
+    for pose, flagged in by_pose.items():
+        where = f"line {lines[pose]}" if lines is not None else f"pose {pose}"
+        what = "; ".join(
+            f"q{o.leg} {o.residual_rad * 1e6:+.1f} urad (studentized {o.studentized:+.1f})"
+            for o in flagged
+        )
+        fate = f"dropped in round {flagged[0].round}" if not ident.used[pose] else "kept"
+        out.append(f"  {where}: {fate}: {what}")
+    if kept:
+        out.append(
+            f"  {len(kept)} pose{'s' * (len(kept) > 1)} still flagged, kept: "
+            + (
+                f"after {ident.rounds} rounds (check the measurements)"
+                if dropped
+                else "--no-drop-outliers"
             )
-        if not ident.used.all():
-            out.append(f"  identified again without the {int((~ident.used).sum())} poses")
-    else:
-        out.append("outliers: none")
-    return "\n".join(out)
+        )
+    return out
+
+
+#: A pose set identifies too little when, with the noise as stated, it leaves over this
+#: share of the drawing's error on the readings over the workspace (the quantization aside),
+#: or over :data:`SPREAD_RATIO` times what as many poses spread over the workspace leave.
+TOO_LITTLE = 0.05
+SPREAD_RATIO = 3.0
+#: Over this ratio of the held-out readings' RMS to what the covariance predicts, the model
+#: misses something the noise does not explain.
+HELD_OUT_RATIO = 1.5
+
+
+def identification_warnings(
+    ident: Identification, noise: MeasurementNoise, frames_moved: bool = False
+) -> list[str]:
+    """Lines to warn of: each parameter identified beyond
+    :data:`~.identify.BEYOND_TOLERANCE` standard deviations of its tolerance (one line for
+    them all when ``frames_moved``: a rigid motion of a set of joints, :func:`frame_warnings`,
+    explains them), the noise the residuals imply when chi2/dof is far from 1, many poses
+    dropped."""
+    from scipy.stats import chi2
+
+    from ..robot.legs import parameter_names
+
+    out = []
+    names = parameter_names()
+    beyond = ident.beyond_tolerance()
+    for k, ratio in beyond if not frames_moved else ():
+        label, unit, factor = _shown(k)
+        out.append(
+            f"{label} ({names[k]}) identified at {ident.deviation[k] * factor:+.1f} {unit}, "
+            f"{abs(ratio):.1f} times its tolerance's standard deviation "
+            f"({ident.scale[k] * factor:.1f} {unit}): the drawing is probably wrong there, or "
+            f"the poses are not in the base frame (--registration REG.yaml)"
+        )
+    if beyond and frames_moved:
+        k, ratio = beyond[0]
+        out.append(
+            f"{len(beyond)} parameters identified beyond {BEYOND_TOLERANCE:g} standard "
+            f"deviations of their tolerance, as the rigid motion above makes them (the "
+            f"largest: {names[k]}, {abs(ratio):.1f})"
+        )
+    band = chi2.ppf([0.0005, 0.9995], ident.dof) / ident.dof
+    s = ident.noise_scale
+    if not band[0] <= ident.chi2_reduced <= band[1] and abs(np.log(s)) > np.log(1.25):
+        out.append(
+            f"chi2/dof {ident.chi2_reduced:.3g}: the residuals imply a measurement noise about "
+            f"{s:.2g} times the stated ({noise.words()}); check --noise, the encoders' counts "
+            f"per revolution (the scenario's) and the frames of the poses; the +- values are "
+            f"scaled to it"
+        )
+    dropped = int((~ident.used).sum())
+    if dropped > 0.2 * len(ident.used):
+        out.append(
+            f"{dropped} of {len(ident.used)} poses were dropped as outliers: the tracker lost "
+            f"its marker often, or the poses are not this robot's (the frames, the units)"
+        )
+    return out
+
+
+def accuracy_lines(
+    geometry: StewartGeometry,
+    ident: Identification,
+    noise: MeasurementNoise,
+    workspace,
+    held_out,
+    tolerances=None,
+) -> tuple[list[str], list[str]]:
+    """(lines to print, lines to warn of): the accuracy the covariance promises at the
+    workspace's poses ``workspace`` (W, 6), beside the nominal robot's; the held-out check
+    (a :class:`~.identify.HeldOut`, or None when the poses were too few); a warning when the
+    pose set identifies too little (:data:`TOO_LITTLE`, :data:`SPREAD_RATIO`, at the noise as
+    stated: :meth:`~.identify.Identification.design_covariance`) or the held-out readings miss by
+    more than the covariance predicts (:data:`HELD_OUT_RATIO`)."""
+    from ..robot.legs import derivatives
+    from ..robot.tolerances import Tolerances
+    from .identify import nominal_rms, predicted_rms
+    from .poses import information_rows
+
+    tolerances = Tolerances() if tolerances is None else tolerances
+    quantization = noise.quantization_rms_rad
+    after = predicted_rms(geometry, ident, workspace, noise)
+    before = nominal_rms(geometry, tolerances, workspace, noise)
+    # The pose set's own share, at the noise as stated: a misstated noise has its own line.
+    design = predicted_rms(geometry, ident, workspace, noise, ident.design_covariance())
+    share = np.sqrt(max(design**2 - quantization**2, 0.0) / max(before**2 - quantization**2, 1e-30))
+    # As many poses spread over the workspace: its poses' information, scaled to their count.
+    rows = information_rows(geometry, workspace, noise, tolerances)
+    held_rows = derivatives(geometry, ident.nominal, workspace).parameters * tolerances.stds()
+    spread = expected_rms(rows * np.sqrt(ident.used.sum() / len(workspace)), held_rows, noise)
+    text = [
+        f"accuracy to expect (the covariance, at {len(workspace)} admissible poses over the "
+        f"workspace): the readings predicted to {after * 1e6:.3g} urad RMS (the drawing alone "
+        f"{before * 1e3:.3g} mrad; the encoders' quantization {quantization * 1e6:.3g} urad)"
+    ]
+    warn = []
+    if share > TOO_LITTLE or design > SPREAD_RATIO * spread:
+        warn.append(
+            f"this pose set identifies too little: with the noise as stated, the readings over "
+            f"the workspace are predicted to {design * 1e6:.3g} urad RMS ({share:.1%} of the "
+            f"drawing's error), where as many poses spread over the workspace give about "
+            f"{spread * 1e6:.3g}: measure poses spread over the workspace (calibrate --plan N "
+            f"chooses them)"
+        )
+    if held_out is None:
+        text.append("held-out check: too few poses to leave a fold out")
+        return text, warn
+    text.append(
+        f"held-out check ({held_out.folds}-fold on the {held_out.poses} poses used): each "
+        f"fold's readings predicted by the robot identified from the others, "
+        f"{held_out.rms_rad * 1e6:.3g} urad RMS; their covariances predict "
+        f"{held_out.predicted_rad * 1e6:.3g} urad (the measurements' own noise "
+        f"{held_out.noise_rad * 1e6:.3g} urad of it)"
+    )
+    if held_out.rms_rad > HELD_OUT_RATIO * held_out.predicted_rad:
+        warn.append(
+            f"the held-out readings are predicted to {held_out.rms_rad * 1e6:.3g} urad RMS, "
+            f"{held_out.rms_rad / held_out.predicted_rad:.2g} times what the covariance "
+            f"predicts: the model misses something the noise does not explain (the frames, "
+            f"the temperature, a loose joint, the readings' timing)"
+        )
+    return text, warn
+
+
+def identification_checks(
+    scenario, geometry: StewartGeometry, ident: Identification, poses, q, noise, registered=None
+) -> tuple[list[str], list[str]]:
+    """(lines to print, lines to warn of) after an identification from ``poses`` (N, 6) and
+    ``q`` (N, 6) of the robot of ``scenario``: :func:`accuracy_lines` at 50 admissible poses
+    (the rehearsal's held-out ones) with a 5-fold :func:`~.identify.cross_validate`,
+    :func:`frame_warnings` and :func:`identification_warnings` (``registered``: the
+    :class:`~.registration.RegisteredPoses` the poses came from, or None)."""
+    from ..run.plan import robot_motor_limits
+    from .identify import cross_validate
+    from .poses import candidate_poses
+    from .rehearsal import HELD_OUT_SEED
+
+    workspace = candidate_poses(
+        geometry, 50, HELD_OUT_SEED, motor_limits=robot_motor_limits(scenario)
+    )
+    covariances = None if registered is None else registered.pose_covariances
+    held_out = cross_validate(geometry, poses, q, noise, ident, pose_covariances=covariances)
+    text, warn = accuracy_lines(geometry, ident, noise, workspace, held_out)
+    frames = frame_warnings(geometry, ident, registered is not None)
+    return text, frames + identification_warnings(ident, noise, bool(frames)) + warn
 
 
 def write_identified(out, robot, ident: Identification, source, frames=None) -> Path | None:
@@ -129,8 +316,8 @@ def write_identified(out, robot, ident: Identification, source, frames=None) -> 
         f"The robot identified by stewart-drake calibrate from {source}: "
         f"{int(ident.used.sum())} poses,",
         f"readings' residuals {ident.rms_before_rad * 1e3:.3g} mrad RMS with the nominal robot, "
-        f"{ident.rms_after_rad * 1e6:.3g} urad identified; {len(ident.fixed)} combinations kept "
-        f"nominal.",
+        f"{ident.rms_after_rad * 1e6:.3g} urad identified; {len(ident.weak)} combinations known "
+        f"mostly from the tolerances; {int((~ident.used).sum())} poses dropped as outliers.",
         "Per-leg fields: docs/calibration.md (encoder_offsets_rad: what each encoder reads at "
         "theta_i = 0).",
     )
@@ -290,7 +477,13 @@ def plan_poses(
     from ..robot.legs import derivatives
     from ..robot.tolerances import Tolerances
     from ..run.plan import check_reference, robot_geometry, robot_motor_limits
-    from .poses import candidate_poses, choose_poses, information_rows, pose_path
+    from .poses import (
+        PREFIX_BLOCK,
+        candidate_poses,
+        choose_poses,
+        information_rows,
+        pose_path,
+    )
 
     geometry, limits = robot_geometry(scenario), robot_motor_limits(scenario)
     tolerances = Tolerances()
@@ -300,7 +493,9 @@ def plan_poses(
         bar.update(1)
         rows = information_rows(geometry, candidates, noise, tolerances)
         chosen = choose_poses(rows, count, on_step=lambda: bar.update(1))
-        path = pose_path(geometry, candidates[chosen], dwell_s=dwell_s, motor_limits=limits)
+        path = pose_path(
+            geometry, candidates[chosen], dwell_s, motor_limits=limits, block=PREFIX_BLOCK
+        )
         bar.update(1)
     nominal = LegParameters.nominal(geometry)
     held_rows = derivatives(geometry, nominal, held).parameters * tolerances.stds()
@@ -317,9 +512,17 @@ def plan_poses(
         f"poses: {expected_rms(rows[chosen], held_rows, noise) * 1e6:.3g} urad "
         f"(random poses: {expected_rms(rows[random], held_rows, noise) * 1e6:.3g} urad)"
     )
+    visited = information_rows(geometry, path.poses, noise, tolerances)
+    prefixes = sorted({max(count // 4, 12), max(count // 2, 12)})
     print(
-        f"the path: {duration:.0f} s, at rest {dwell_s:g} s at each pose; checked as the robot "
-        f"command checks it: {'passes' if report.ok else 'REFUSED'}"
+        f"the path: {duration:.0f} s, at rest {dwell_s:g} s at each pose, the poses in blocks "
+        f"of {PREFIX_BLOCK} in the order chosen, so that a session cut short has measured a "
+        f"good set (its first "
+        + " and ".join(str(n) for n in prefixes)
+        + " poses promise "
+        + " and ".join(f"{expected_rms(visited[:n], held_rows, noise) * 1e6:.3g}" for n in prefixes)
+        + f" urad); checked as the robot command checks it: "
+        f"{'passes' if report.ok else 'REFUSED'}"
     )
     print(
         f"wrote {written} (drive it: stewart-drake robot {written}) and {windows} (each pose "

@@ -98,13 +98,12 @@ class BusRehearsal:
             exact ones (the model's own error).
         bound_rad: what the identification's covariance predicts for ``after_rad``.
         offsets_error_rad: (6,) identified minus true encoder offsets.
-        offsets_std_rad: (6,) their standard deviations: the identification's, with what
-            keeping the combinations it could not identify nominal may cost (its
-            ``prior_covariance``).
+        offsets_std_rad: (6,) their standard deviations: the identification's (the
+            tolerances' prior included).
         reading_error_rad: (N, 6) the joined readings minus the as-built robot's readings at
             the true mean pose of each window (the join's and the encoders' error).
         path_s: the path's length, s.  wall_s: the rehearsal's wall time, s.
-        fixed: combinations kept nominal.  chi2_reduced: of the fit.
+        weak: combinations known mostly from the tolerances.  chi2_reduced: of the fit.
         files: {name: path} of every file written.
         run: the session's :class:`~.session.RobotRun`.
     """
@@ -121,7 +120,7 @@ class BusRehearsal:
     reading_error_rad: np.ndarray
     path_s: float
     wall_s: float
-    fixed: int
+    weak: int
     chi2_reduced: float
     files: dict
     run: object
@@ -140,7 +139,8 @@ class BusRehearsal:
                 f"against the exact readings {self.model_rad * 1e6:.3g} urad",
                 f"encoder zeros: identified - true {_urad(self.offsets_error_rad)} urad, "
                 f"+- {_urad(self.offsets_std_rad)} urad (at most {ratio.max():.2g} std)",
-                f"{self.fixed} combinations kept nominal; chi2/dof {self.chi2_reduced:.3g}; "
+                f"{self.weak} combinations known mostly from the tolerances; chi2/dof "
+                f"{self.chi2_reduced:.3g}; "
                 f"the joined readings minus the as-built robot's at the tracked poses: "
                 f"{np.sqrt(np.mean(self.reading_error_rad**2)) * 1e6:.3g} urad RMS",
             ]
@@ -243,7 +243,7 @@ def rehearse_on_bus(
         reading_error_rad=joined.readings - readings(geometry, truth, true_mean),
         path_s=path_s,
         wall_s=time.perf_counter() - wall0,
-        fixed=len(ident.fixed),
+        weak=len(ident.weak),
         chi2_reduced=ident.chi2_reduced,
         files=files,
         run=run,
@@ -337,7 +337,7 @@ def _figures(geometry, truth, ident, held_out, noise) -> dict:
         bound_rad=predicted_rms(geometry, ident, held_out, noise),
         offsets_error_rad=np.asarray(ident.identified.encoder_offsets_rad)
         - np.asarray(truth.encoder_offsets_rad),
-        offsets_std_rad=np.sqrt(np.diag(ident.covariance + ident.prior_covariance())[offsets]),
+        offsets_std_rad=np.sqrt(np.diag(ident.covariance)[offsets]),
     )
 
 
