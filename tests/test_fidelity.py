@@ -467,8 +467,9 @@ def test_the_start_up_figures_of_an_error_built_sample_by_sample():
     x[2, :3] += [0.0, 2e-3, 0.0]  # 2 mrad
     x[1, :3] += [1e-3, 0.0, 0.0]  # 1 mrad
     x[3, 3:6] += 1.0  # at the end: not counted
-    figures = fd.startup_figures(t, x, x_d, end=0.3)  # samples 0, 1, 2
-    assert figures["window_s"] == (0.0, 0.3)
+    end = float(t[3])  # the sample at the end is not before it
+    figures = fd.startup_figures(t, x, x_d, end=end)  # samples 0, 1, 2
+    assert figures["window_s"] == (0.0, end)
     assert figures["rms_translation_m"] == pytest.approx(math.sqrt((25e-6 + 1e-6) / 3))
     assert figures["rms_rotation_rad"] == pytest.approx(math.sqrt((4e-6 + 1e-6) / 3))
     assert figures["peak_translation_m"] == pytest.approx(5e-3)
@@ -480,7 +481,7 @@ def test_the_start_up_figures_of_an_error_built_sample_by_sample():
     assert empty["window_s"] == (0.0, 0.3) and empty["peak_translation_m"] == 0.0
     positions_only = x.copy()
     positions_only[:, :3] = np.nan
-    blind = fd.startup_figures(t, positions_only, x_d, end=0.3)
+    blind = fd.startup_figures(t, positions_only, x_d, end=end)
     assert math.isnan(blind["rms_rotation_rad"])
     assert blind["rms_translation_m"] == figures["rms_translation_m"]
 
