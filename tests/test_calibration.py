@@ -251,7 +251,10 @@ def test_calibrate_writes_a_robot_section_from_a_measurements_file(tmp_path, mea
         assert section[name] == pytest.approx(getattr(nominal, name))
     legs = model.LegParameters(**{k: section[k] for k, _, _ in model.PARAMETER_KINDS})
     ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
-    assert np.allclose(legs.deviation(ident.nominal), ident.deviation, rtol=1e-6, atol=1e-12)
+    # The file's parameters are the identification's, to far below their uncertainty: the CLI
+    # reads the measurements back from the CSV, and the solver stops within its tolerance.
+    gap = np.abs(legs.deviation(ident.nominal) - ident.deviation)
+    assert np.all(gap <= 1e-3 * ident.std + 1e-12), (gap / np.maximum(ident.std, 1e-300)).max()
     assert np.array(section["pivot_offsets_m"]).shape == (6, 3)
     # The section is a scenario's robot whose kinematics predicts the identified readings.
     from stewart_drake.run.plan import make_plan

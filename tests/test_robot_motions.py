@@ -20,7 +20,7 @@ from stewart_drake.calibration.join import (  # noqa: E402
     read_table,
 )
 from stewart_drake.cli.main import main  # noqa: E402
-from stewart_drake.organ_motion.verification import encoder_motion  # noqa: E402
+from stewart_drake.organ_motion.measured_motion import encoder_motion  # noqa: E402
 from stewart_drake.references.organ.library import make_motion  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
 from stewart_drake.run.plan import robot_geometry  # noqa: E402

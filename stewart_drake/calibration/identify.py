@@ -797,7 +797,7 @@ def rigid_motions(geometry: StewartGeometry, ident: Identification) -> tuple:
         cov = L @ C @ L.T
         chi2 = float(e @ np.linalg.lstsq(cov, e, rcond=None)[0]) if np.any(cov) else 0.0
         centroid = nominal.mean(axis=0)
-        shift = X.multiply(centroid) - centroid
+        shift = X.rotation().matrix() @ centroid + X.translation() - centroid
         out.append(
             RigidMotion(frame, float(np.linalg.norm(e[:3])), float(np.linalg.norm(shift)), chi2)
         )

@@ -124,6 +124,7 @@ def run_case(case: FidelityCase) -> dict:
         "learner": [the learner's status at each cycle's end] or None, "wall_s", "sim_s"}.
     """
     from ..control.ilc import ILC_STATUS_NAMES, IlcDriver
+    from ..references.organ.core import LibraryMotion
     from ..references.organ.library import OrganMotionReference
     from ..run.scenario_io import load_scenario
     from .fidelity import fidelity, rms_translation_rotation
@@ -132,6 +133,7 @@ def run_case(case: FidelityCase) -> dict:
     base = load_scenario("paper_hardware", case.overrides)
     motion = replace(base, reference=OrganMotionReference(case.motion, dict(case.parameters)))
     reference = run_reference(motion)
+    assert isinstance(reference, LibraryMotion)  # an OrganMotionReference makes one
     starts = reference.cycles(1e4)[0][: case.cycles + 1]
     scenario = replace(
         motion,

@@ -389,7 +389,7 @@ def reproduce(
         fidelity=_measure(result, reference, starts, scenario.duration_s, whole, eval_cycles),
         learner=learner,
         learned=learned,
-        check=plan.report.summary(),
+        check=plan.report.summary() if plan.report is not None else "",
         wall_s=wall,
         startup=_startup(result, window),
         geometry=plan.geometry,

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache, reduce
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -33,6 +33,9 @@ from .kinematics import (
     singularity_measures_of,
     wrap_angle,
 )
+
+if TYPE_CHECKING:
+    from .servo import ServoModel
 from .path_checks import (
     SampleKinematics,
     clearance_fields,
@@ -263,7 +266,7 @@ class MotorLimits:
     peak_torque_Nm: float | None = None
     max_speed_rad_s: float | None = None
     margin: float = DEFAULT_EFFORT_MARGIN
-    servo: object = None
+    servo: ServoModel | None = None
 
 
 def validate_trajectory(

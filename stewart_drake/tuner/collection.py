@@ -29,6 +29,7 @@ from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner
 from ..execution.store import FORMAT, MANIFEST, ResultStore, read_manifest, run_jobs
 from ..references.data_collection import DataCollectionReference
+from ..references.trajectories import SineTrajectory
 from ..run.memory import check_run_memory
 from ..run.plan import run_reference
 from ..run.result import RunResult
@@ -141,6 +142,7 @@ def collection_jobs(
         for r in PAPER_WEIGHTS
     }
     trajectory = run_reference(next(iter(configs.values())))
+    assert isinstance(trajectory, SineTrajectory)  # the collection's reference is a sine
     window = AnnTunerDriver().feature_window
     settings = {
         "seed": seed,
