@@ -124,7 +124,7 @@ def test_a_link_to_the_command_is_the_command(tmp_path):
     assert (starts, code) == (2, 0) and out.startswith("stewart-drake ")
 
 
-def test_a_ctrl_c_in_the_restart_s_window_is_one_line_and_130(tmp_path):
+def test_a_ctrl_c_in_the_restart_s_window_is_one_line_and_130(tmp_path, ctrl_c):
     """A SIGINT that arrives while the command starts itself again (here, sent by the new
     interpreter to itself as its site customisation runs, before any of the package has) is
     held across the restart and answered by the command's start-up handler. Was: Python's

@@ -465,7 +465,9 @@ def test_the_bus_rehearsal_refuses_a_scenario_without_a_bus_and_unwritable_files
 
 
 @needs_extra("robot")
-def test_ctrl_c_during_a_bus_rehearsal_s_drive_exits_130_in_one_line_writing_no_robot(tmp_path):
+def test_ctrl_c_during_a_bus_rehearsal_s_drive_exits_130_in_one_line_writing_no_robot(
+    tmp_path, ctrl_c
+):
     """Through the command as a user runs it: SIGINT once the torque is on ends the rehearsal
     as any interrupted command (the session stops the servos; exit 130, one line). Was: exit 2
     with 'the session did not drive the path'."""
