@@ -10,7 +10,7 @@ import pytest
 import yaml
 from conftest import needs_extra
 
-from stewart_drake.calibration import files, identify, poses, rehearsal
+from stewart_drake.calibration import files, identify, poses, rehearsal, validation
 from stewart_drake.calibration.tracker import MeasurementNoise, measure, quantize
 from stewart_drake.cli import main as cli
 from stewart_drake.robot import kinematics, tolerances
@@ -125,7 +125,7 @@ def test_prediction_on_other_poses_is_within_issue_49_s_figure(space, measured):
 
     assert 4e-3 < rms(ident.nominal) < 7e-3
     assert rms(ident.identified) < 35e-6
-    bound = identify.predicted_rms(GEOMETRY, ident, space.held_out, NOISE)
+    bound = validation.predicted_rms(GEOMETRY, ident, space.held_out, NOISE)
     assert 0.6 < rms(ident.identified) / bound < 1.5
 
 

@@ -5,7 +5,7 @@ dropped and named, a misstated noise, a parameter off its drawing, the held-out 
 import numpy as np
 import pytest
 
-from stewart_drake.calibration import files, identify, poses, report
+from stewart_drake.calibration import files, identify, poses, report, validation
 from stewart_drake.calibration.tracker import MeasurementNoise, measure
 from stewart_drake.cli import main as cli
 from stewart_drake.robot import legs as model
@@ -172,7 +172,7 @@ def test_the_held_out_check_and_the_accuracy_warning(candidates, near_home):
     for x, warned in ((candidates[0][:60], False), (near_home, True)):
         data = measure(GEOMETRY, truth, x, NOISE, 6)
         ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
-        held = identify.cross_validate(GEOMETRY, data.poses, data.readings, NOISE, ident)
+        held = validation.cross_validate(GEOMETRY, data.poses, data.readings, NOISE, ident)
         assert held.folds == 5 and held.poses == 60
         assert 0.8 < held.rms_rad / held.predicted_rad < 1.25
         text, warn = report.accuracy_lines(GEOMETRY, ident, NOISE, workspace, held)
@@ -182,6 +182,6 @@ def test_the_held_out_check_and_the_accuracy_warning(candidates, near_home):
     assert "this pose set identifies too little" in line and "urad RMS" in line
     few = data.poses[:14], data.readings[:14]  # 11 poses a fold identifies from: too few
     assert (
-        identify.cross_validate(GEOMETRY, *few, NOISE, identify.identify(GEOMETRY, *few, NOISE))
+        validation.cross_validate(GEOMETRY, *few, NOISE, identify.identify(GEOMETRY, *few, NOISE))
         is None
     )

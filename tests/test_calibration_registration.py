@@ -13,7 +13,7 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.calibration import files, identify, poses, rehearsal, report, tracker
+from stewart_drake.calibration import files, identify, poses, rehearsal, report, tracker, validation
 from stewart_drake.calibration import registration as rg
 from stewart_drake.cli import main as cli
 from stewart_drake.robot import kinematics, tolerances
@@ -448,7 +448,7 @@ def test_a_robot_within_its_tolerances_measured_in_the_base_frame_is_not_warned_
     x = space.candidates[np.random.default_rng(seed).choice(len(space.candidates), 60, False)]
     data = tracker.measure(GEOMETRY, truth, x, NOISE, seed)
     ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
-    motions = identify.rigid_motions(GEOMETRY, ident)
+    motions = validation.rigid_motions(GEOMETRY, ident)
     assert [m.frame for m in motions] == ["base", "platform"]
     assert not any(m.beyond for m in motions), motions
     assert report.frame_warnings(GEOMETRY, ident, False) == []

@@ -1,57 +1,11 @@
 """Identification of the per-leg parameters from poses measured by a tracker and the encoders'
-readings there: an estimate with the tolerances as its prior, its uncertainty, the outliers it
-drops and a held-out check.
-
-Residuals. The residual of reading j at pose k is the model's prediction minus the reading, r =
-theta(x_k; p) + o - q (:func:`~stewart_drake.robot.legs.readings`, wrapped to [-pi, pi)),
-whitened by the noise it carries: the tracker's noise mapped through the derivative of the
-readings with respect to the pose, and the encoders' quantization, Sigma_k = G_k diag(sigma_rot^2
-I, sigma_pos^2 I) G_k^T + (quantum^2 / 12) I (6 x 6 per pose: one pose error moves all six
-readings), r_w = L_k^-1 r with Sigma_k = L_k L_k^T, evaluated once at the nominal robot.
-
-The estimate (maximum a posteriori). The deviations are scaled by their tolerances' standard
-deviations, z = delta / std (:class:`~stewart_drake.robot.tolerances.Tolerances`: one unit is
-one standard deviation of the robot as drawn), and the tolerances are the prior, z ~ N(0, I) (a
-Gaussian of each tolerance's standard deviation, whatever its distribution).
-``scipy.optimize.least_squares`` minimizes |r_w / s|^2 + |z|^2: the whitened residuals and one
-prior row per parameter (with ``robust``, the soft-L1 loss on the residuals' rows, the prior's
-kept square). A combination the data determine moves as they say; one they hardly see stays
-near nominal, with its tolerance as its uncertainty, where a least-squares fit would either
-chase the noise or have to be told to freeze it. s, the noise scale, is the residuals' own
-level over the stated noise, estimated with the fit: s^2 = |r_w|^2 / (m - p_eff), m the
-readings, p_eff = n - trace(C) the parameters' effective number (a refit while s^2 moves by
-more than 2 %; with ``robust``, 1.4826 times the whitened residuals' median absolute value): a
-tracker noisier than stated weighs its data less against the drawing and widens the +- values.
-A parameter of zero tolerance is not moved.
-
-Uncertainty. C = (J^T J / s^2 + I)^-1 in scaled units, J the whitened scaled Jacobian at the
-estimate (the posterior's Gaussian approximation); each parameter's covariance is diag(std) C
-diag(std). A combination of parameters the data know less well than its tolerance (a singular
-value S of J / s below ``min_singular``, default 1) is named (:attr:`Identification.weak`): it
-holds mostly what the drawing says, and C says so.
-
-Outliers. Each reading's residual studentized by its variance less what the fitted parameters
-explain, u = r / sqrt(Sigma_jj - h_jj / s^2) (h = J_r C J_r^T, J_r the unwhitened scaled rows),
-then divided by a robust scale (1.4826 times the median |u|, which a minority of blunders does
-not move, where the residuals' RMS would grow with them and hide them): a reading beyond
-``outlier_threshold`` is flagged. With ``drop_outliers`` (the default) the poses that hold one
-are dropped (a tracker's glitch spoils the whole pose) and the identification repeated, until
-none is flagged or :data:`MAX_ROUNDS` rounds.
-
-Registered poses. Poses converted from a tracker's frame (:mod:`~.registration`) carry two more
-errors. Their own noise, turned by the marker's lever arm, is each pose's: ``pose_covariances``
-replaces the isotropic diag(sigma_rot^2 I, sigma_pos^2 I) in Sigma_k. The frames' error is the
-same in every pose, so it does not average out over them and would be wrong as a noise per pose:
-it moves every reading at once (r_k changes by G_k J_k e for a frames' error e of covariance C_e,
-``frames = (J, C_e)``), and the per-leg parameters absorb such a rigid motion of the base or of
-the platform whole. It is carried to the parameters instead: their covariance gains K C_e K^T, K
-= C J^T D / s^2 the estimate's derivative with respect to e, D = L^-1 G J_e
-(:attr:`Identification.frames_covariance`).
-
-The held-out check (:func:`cross_validate`): the poses used split into k folds, each fold's
-readings predicted by the robot identified from the others, beside what those identifications'
-covariances and the measurements' own noise predict for them.
-"""
+readings there: a maximum a posteriori estimate with the tolerances as its prior (whitened
+residuals of the readings and one prior row per parameter, ``scipy.optimize.least_squares``),
+its uncertainty (the posterior's Gaussian approximation, with a registration's frames' error
+carried as K C_e K^T), the combinations the data hardly see, and the outliers it drops round
+after round. The method, its equations and why: docs/calibration.md, "How the identification
+works". What the estimate is worth (predicted accuracy, a held-out check, rigid motions):
+:mod:`~.validation`."""
 
 from __future__ import annotations
 
@@ -59,9 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.spatial.transform import Rotation
 
-from ..base.checks import as_array, as_number, as_poses, check_int
+from ..base.checks import as_array, as_number, as_poses
 from ..base.errors import InvalidConfigError, UnreachablePoseError
 from ..robot.geometry import StewartGeometry
 from ..robot.kinematics import wrap_angle
@@ -75,7 +28,6 @@ from ..robot.legs import (
     readings,
 )
 from ..robot.tolerances import Tolerances
-from .registration import fit_frame, rigid_fit_rows
 from .tracker import MeasurementNoise
 
 #: Fewest poses an identification takes: each leg's 11 parameters are seen only through its
@@ -91,8 +43,6 @@ MAX_ROUNDS = 10
 #: A parameter identified beyond this many of its tolerance's standard deviations is named:
 #: the drawing is probably wrong there, or the poses are not in the base frame.
 BEYOND_TOLERANCE = 3.0
-#: Folds of the held-out check.
-FOLDS = 5
 #: Most refits of the noise scale, and the relative change of s^2 that asks for one.
 _SCALE_FITS, _SCALE_TOL = 6, 0.02
 #: A Gaussian's standard deviation over its median absolute value.
@@ -622,183 +572,6 @@ def _frames_covariance(problem: _Problem, fit: _Fit, legs, used) -> np.ndarray:
     return K @ Ce @ K.T
 
 
-def predicted_rms(
-    geometry: StewartGeometry,
-    ident: Identification,
-    poses,
-    noise: MeasurementNoise,
-    covariance=None,
-) -> float:
-    """The RMS error of the identified robot's predicted readings at poses (N, 6) that the
-    identification's own covariance predicts, rad: the parameters' covariance (the tolerances'
-    prior included; or ``covariance`` (66, 66), e.g. :meth:`Identification.design_covariance`)
-    mapped through the readings' derivatives, and the readings' quantization."""
-    J = derivatives(geometry, ident.identified, poses).parameters
-    C = ident.covariance if covariance is None else covariance
-    var = np.einsum("nik,kl,nil->ni", J, C, J)
-    return float(np.sqrt(np.mean(var) + noise.quantization_rms_rad**2))
-
-
-def nominal_rms(
-    geometry: StewartGeometry, tolerances: Tolerances, poses, noise: MeasurementNoise
-) -> float:
-    """The RMS error of the nominal robot's predicted readings at poses (N, 6) that the
-    tolerances give (their variances mapped through the readings' derivatives, and the
-    quantization), rad: what an identification starts from."""
-    J = derivatives(geometry, LegParameters.nominal(geometry), poses).parameters
-    var = np.einsum("nik,k,nik->ni", J, tolerances.stds() ** 2, J)
-    return float(np.sqrt(np.mean(var) + noise.quantization_rms_rad**2))
-
-
-@dataclass(frozen=True)
-class HeldOut:
-    """The held-out check of :func:`cross_validate`; RMS over every held-out reading, rad.
-
-    Attributes:
-        folds: how many.  poses: the poses checked (those the identification used).
-        rms_rad: each fold's readings predicted from the others' identification, against
-            the readings.
-        predicted_rad: what those identifications' covariances and the measurements' own
-            noise (each held-out pose's Sigma_k times the fold's noise scale squared) predict
-            for ``rms_rad``.
-        noise_rad: the measurements' own noise's part of ``predicted_rad``.
-    """
-
-    folds: int
-    poses: int
-    rms_rad: float
-    predicted_rad: float
-    noise_rad: float
-
-
-def cross_validate(
-    geometry: StewartGeometry,
-    poses,
-    q,
-    noise: MeasurementNoise,
-    ident: Identification,
-    folds: int = FOLDS,
-    tolerances: Tolerances | None = None,
-    pose_covariances=None,
-) -> HeldOut | None:
-    """A k-fold check of an identification on its own measurements: the poses it used (in
-    their order, pose j in fold j mod k), each fold's readings predicted by the robot
-    identified (as ``ident`` was: its loss, the tolerances, no further outliers dropped) from
-    the other folds' poses.
-
-    Args:
-        geometry, poses (N, 6), q (N, 6), noise, tolerances, pose_covariances (N, 6, 6): what
-            ``ident`` was identified from (:func:`identify`; the frames' error is left out: it
-            is the same in the held-out poses as in the others, and the parameters absorb it).
-        ident: the identification checked (its ``used`` poses are the ones split).
-        folds: k, 2 .. 20.
-    Returns:
-        :class:`HeldOut`, or None when the poses used are too few for each fold's
-        identification to keep :data:`MIN_POSES`.
-    Raises:
-        InvalidConfigError: folds out of range; as :func:`identify`.
-    """
-    folds = check_int("folds", folds, 2, 20)
-    poses, q = check_measurements(poses, q)
-    rows = np.flatnonzero(ident.used)
-    if len(rows) - -(-len(rows) // folds) < MIN_POSES:
-        return None
-    err2, var, own = [], [], []
-    for f in range(folds):
-        test = rows[f::folds]
-        train = np.setdiff1d(rows, test)
-        covs = None if pose_covariances is None else np.asarray(pose_covariances)
-        part = identify(
-            geometry,
-            poses[train],
-            q[train],
-            noise,
-            tolerances,
-            robust=ident.robust,
-            drop_outliers=False,
-            pose_covariances=None if covs is None else covs[train],
-        )
-        x = poses[test]
-        r = _residuals(geometry, part.identified, x, q[test])
-        J = derivatives(geometry, part.identified, x).parameters
-        Sigma = reading_covariances(
-            geometry, part.nominal, x, noise, None if covs is None else covs[test]
-        )
-        noise_var = part.chi2_reduced * np.diagonal(Sigma, axis1=1, axis2=2)
-        err2.append(r**2)
-        own.append(noise_var)
-        var.append(np.einsum("nik,kl,nil->ni", J, part.covariance, J) + noise_var)
-    return HeldOut(
-        folds=folds,
-        poses=len(rows),
-        rms_rad=float(np.sqrt(np.mean(np.concatenate(err2)))),
-        predicted_rad=float(np.sqrt(np.mean(np.concatenate(var)))),
-        noise_rad=float(np.sqrt(np.mean(np.concatenate(own)))),
-    )
-
-
 def kinds_and_legs() -> tuple[tuple[str, ...], np.ndarray]:
     """(the kind of each parameter, the leg of each), for reports."""
     return parameter_kinds(), parameter_legs()
-
-
-#: The chi-square (6 degrees of freedom) beyond which a rigid motion of the pivots or of the
-#: platform joints is refused as a robot's: 0.1 % of robots within their tolerances exceed it
-#: (``scipy.stats.chi2.ppf(0.999, 6)``).
-RIGID_MOTION_CHI2 = 22.458
-#: Where each set of joints is in the deviation vector: (frame, its first entry).
-_JOINT_SETS = (("base", 0), ("platform", 18))
-
-
-@dataclass(frozen=True)
-class RigidMotion:
-    """How far the identified pivots (``frame`` "base", in B) or platform joints ("platform",
-    in E) moved together, as one rigid body, from the drawing.
-
-    Attributes:
-        frame: "base" or "platform".
-        angle_rad: the rigid motion's rotation angle, rad.
-        shift_m: its translation's norm at the joints' centroid, m.
-        chi2: its Mahalanobis distance squared (6 degrees of freedom) against the spread that
-            the tolerances and the identification's uncertainty give such a motion.
-    """
-
-    frame: str
-    angle_rad: float
-    shift_m: float
-    chi2: float
-
-    @property
-    def beyond(self) -> bool:
-        """Whether no robot within its tolerances moves so (:data:`RIGID_MOTION_CHI2`)."""
-        return self.chi2 > RIGID_MOTION_CHI2
-
-
-def rigid_motions(geometry: StewartGeometry, ident: Identification) -> tuple:
-    """The :class:`RigidMotion` of the base's pivots and of the platform's joints that the
-    identification found: the rigid fit of the identified joints to the nominal ones
-    (:func:`~.registration.fit_frame`), and its chi-square against its covariance L (T + C) L^T,
-    T the tolerances' (each coordinate's standard deviation squared), C the identification's,
-    L the fit's derivative with respect to the joints' deviations. Poses measured in another
-    frame than B (a tracker turned or shifted) move every pivot so; a marker off the platform
-    frame moves every platform joint so.
-    """
-    out = []
-    for frame, start in _JOINT_SETS:
-        nominal = geometry.P_B if frame == "base" else geometry.p_E
-        block = slice(start, start + 18)
-        d = ident.deviation[block].reshape(6, 3)
-        X, _, _ = fit_frame(nominal + d, nominal)
-        e = np.concatenate(
-            [Rotation.from_matrix(X.rotation().matrix()).as_rotvec(), X.translation()]
-        )
-        L = rigid_fit_rows(nominal)  # (6, 18): e = L d to first order
-        C = np.diag(ident.scale[block] ** 2) + ident.covariance[block, block]
-        cov = L @ C @ L.T
-        chi2 = float(e @ np.linalg.lstsq(cov, e, rcond=None)[0]) if np.any(cov) else 0.0
-        centroid = nominal.mean(axis=0)
-        shift = X.rotation().matrix() @ centroid + X.translation() - centroid
-        out.append(
-            RigidMotion(frame, float(np.linalg.norm(e[:3])), float(np.linalg.norm(shift)), chi2)
-        )
-    return tuple(out)

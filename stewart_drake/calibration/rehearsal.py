@@ -7,7 +7,7 @@ candidates with the emulated tracker and encoders (:func:`~.tracker.measure`), i
 (:func:`~.identify.identify`) and predicts the readings at held-out poses (other admissible
 poses, drawn with another seed): the RMS of predicted minus read (quantized at the true pose),
 with the nominal robot (before) and the identified one (after), beside the bound the
-identification's covariance predicts (:func:`~.identify.predicted_rms`), and the same after
+identification's covariance predicts (:func:`~.validation.predicted_rms`), and the same after
 the prediction from the tracker's measurement of the held-out poses (what a user validating
 with the tracker sees: the tracker's own noise included). With a tracker set up as a real one
 stands (:class:`~.tracker.TrackerSetup`: its own frame, a marker off the platform frame), the
@@ -28,10 +28,11 @@ from ..base.tables import markdown_lines
 from ..robot.geometry import StewartGeometry
 from ..robot.legs import LegParameters, readings
 from ..robot.tolerances import Tolerances
-from .identify import Identification, identify, predicted_rms
+from .identify import Identification, identify
 from .poses import candidate_poses, choose_poses, information_rows
 from .registration import DEFAULT_POINT_SIGMA_M, Registration, register, register_poses
 from .tracker import MeasurementNoise, TrackerSetup, measure, quantize
+from .validation import predicted_rms
 
 #: The ways a rehearsal's poses are picked from the candidates.
 SELECTIONS = ("chosen", "random")

@@ -221,14 +221,14 @@ def accuracy_lines(
 ) -> tuple[list[str], list[str]]:
     """(lines to print, lines to warn of): the accuracy the covariance promises at the
     workspace's poses ``workspace`` (W, 6), beside the nominal robot's; the held-out check
-    (a :class:`~.identify.HeldOut`, or None when the poses were too few); a warning when the
+    (a :class:`~.validation.HeldOut`, or None when the poses were too few); a warning when the
     pose set identifies too little (:data:`TOO_LITTLE`, :data:`SPREAD_RATIO`, at the noise as
     stated: :meth:`~.identify.Identification.design_covariance`) or the held-out readings miss by
     more than the covariance predicts (:data:`HELD_OUT_RATIO`)."""
     from ..robot.legs import derivatives
     from ..robot.tolerances import Tolerances
-    from .identify import nominal_rms, predicted_rms
     from .poses import information_rows
+    from .validation import nominal_rms, predicted_rms
 
     tolerances = Tolerances() if tolerances is None else tolerances
     quantization = noise.quantization_rms_rad
@@ -280,13 +280,13 @@ def identification_checks(
 ) -> tuple[list[str], list[str]]:
     """(lines to print, lines to warn of) after an identification from ``poses`` (N, 6) and
     ``q`` (N, 6) of the robot of ``scenario``: :func:`accuracy_lines` at 50 admissible poses
-    (the rehearsal's held-out ones) with a 5-fold :func:`~.identify.cross_validate`,
+    (the rehearsal's held-out ones) with a 5-fold :func:`~.validation.cross_validate`,
     :func:`frame_warnings` and :func:`identification_warnings` (``registered``: the
     :class:`~.registration.RegisteredPoses` the poses came from, or None)."""
     from ..run.plan import robot_motor_limits
-    from .identify import cross_validate
     from .poses import candidate_poses
     from .rehearsal import HELD_OUT_SEED
+    from .validation import cross_validate
 
     workspace = candidate_poses(
         geometry, 50, HELD_OUT_SEED, motor_limits=robot_motor_limits(scenario)
@@ -366,10 +366,10 @@ def loader_refusal(text: str) -> str | None:
 
 def frame_warnings(geometry: StewartGeometry, ident: Identification, registered: bool) -> list:
     """One line for each set of joints the identification moved as a rigid whole beyond what
-    the tolerances allow (:func:`~.identify.rigid_motions`): the poses were probably not the
+    the tolerances allow (:func:`~.validation.rigid_motions`): the poses were probably not the
     platform frame's in the base frame; ``registered``: they were converted by a registration
     (the line then blames it)."""
-    from .identify import RIGID_MOTION_CHI2, rigid_motions
+    from .validation import RIGID_MOTION_CHI2, rigid_motions
 
     lines = []
     for m in rigid_motions(geometry, ident):

@@ -318,8 +318,8 @@ def _drive(scenario, geometry, truth, poses_csv, folder, progress, say):
 
 def _figures(geometry, truth, ident, held_out, noise) -> dict:
     """:class:`BusRehearsal`'s prediction figures at the held-out poses (N, 6)."""
-    from ..calibration.identify import predicted_rms
     from ..calibration.tracker import quantize
+    from ..calibration.validation import predicted_rms
     from ..robot.legs import parameter_kinds, readings
 
     exact = readings(geometry, truth, held_out)
