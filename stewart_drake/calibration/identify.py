@@ -9,7 +9,7 @@ works". What the estimate is worth (predicted accuracy, a held-out check, rigid 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -82,8 +82,8 @@ class Outlier:
     Attributes:
         pose: its row of the measurements.  leg: its encoder.
         residual_rad: model minus reading, rad.  studentized: over the robust scale.
-        round: the round of the identification that flagged it (1 the first); its pose was
-            dropped from the later rounds when :attr:`Identification.used` says so.
+        round: the round after whose fit its pose was dropped (1 the first), when
+            :attr:`Identification.used` says it was; else the last round.
     """
 
     pose: int
@@ -109,7 +109,8 @@ class Identification:
         singular_values: of the whitened, scaled Jacobian over the noise scale at the estimate,
             descending: what the data tell of each combination beside the prior's 1.
         weak: the :class:`Combination` s with a singular value below ``min_singular``.
-        outliers: every :class:`Outlier` flagged, by round.
+        outliers: the :class:`Outlier` s flagged against the last fit, over every pose (a
+            dropped pose's readings judged as predictions).
         used: (N,) bool, the poses of the last round (all unless outliers were dropped).
         rounds: how many times the parameters were identified (1 without outliers dropped).
         rms_before_rad, rms_after_rad: RMS of the readings' residuals (model minus read) with
@@ -398,20 +399,22 @@ def _fit(problem: _Problem, used, robust: bool, z0) -> _Fit:
 
 
 def _flag(problem: _Problem, fit: _Fit, used, threshold: float, round_: int) -> tuple:
-    """The :class:`Outlier` s of a fit (module docstring), on the poses ``used``."""
+    """The :class:`Outlier` s of a fit (module docstring), over every pose: those ``used`` by
+    the fit studentized by their variance less what the fit absorbed, the others (dropped) as
+    predictions, by their variance plus the fit's."""
     legs = problem.legs(fit.z)
-    x, y = problem.poses[used], problem.q[used]
+    x, y = problem.poses, problem.q
     J = derivatives(problem.geometry, legs, x).parameters[..., problem.active]
     Jr = J.reshape(-1, J.shape[-1]) * problem.scale[problem.active]
     h = np.einsum("mi,ij,mj->m", Jr, fit.C, Jr) / fit.s2
-    sigma = np.diagonal(problem.Sigma[used], axis1=1, axis2=2).ravel()
+    sigma = np.diagonal(problem.Sigma, axis1=1, axis2=2).ravel()
     raw = _residuals(problem.geometry, legs, x, y).ravel()
-    u = raw / np.sqrt(np.clip(sigma - h, 1e-3 * sigma, None))
-    spread = max(_MAD * float(np.median(np.abs(u))), 1e-12)
+    fitted = np.repeat(used, 6)
+    u = raw / np.sqrt(np.where(fitted, np.clip(sigma - h, 1e-3 * sigma, None), sigma + h))
+    spread = max(_MAD * float(np.median(np.abs(u[fitted]))), 1e-12)
     t = u / spread
-    rows = np.flatnonzero(used)
     return tuple(
-        Outlier(int(rows[j // 6]), j % 6, float(raw[j]), float(t[j]), round_)
+        Outlier(j // 6, j % 6, float(raw[j]), float(t[j]), round_)
         for j in map(int, np.flatnonzero(np.abs(t) > threshold))
     )
 
@@ -469,16 +472,20 @@ def identify(
     problem = _Problem(geometry, poses, q, noise, tolerances, pose_covariances, frames)
     used = np.ones(len(poses), dtype=bool)
     z = np.zeros(int(problem.active.sum()))
-    outliers: list[Outlier] = []
+    dropped_in = np.zeros(len(poses), dtype=int)  # the round that last dropped each pose
     nfev = 0
     for round_ in range(1, MAX_ROUNDS + 1):
         fit = _fit(problem, used, robust, z)
         nfev += fit.nfev
         found = _flag(problem, fit, used, outlier_threshold, round_)
-        outliers += found
-        if not (drop_outliers and found) or round_ == MAX_ROUNDS:
+        keep = np.ones(len(poses), dtype=bool)
+        keep[[o.pose for o in found]] = False
+        if not drop_outliers or np.array_equal(keep, used) or round_ == MAX_ROUNDS:
             break
-        used[[o.pose for o in found]] = False
+        # A pose flagged against this fit is dropped; one dropped before and not flagged now
+        # is taken back: a blunder's pull on the first fit flags good poses too.
+        dropped_in[used & ~keep] = round_
+        used = keep
         if used.sum() < MIN_POSES:
             raise InvalidConfigError(
                 f"dropping the {int((~used).sum())} poses with outliers leaves "
@@ -486,7 +493,10 @@ def identify(
                 f"units, the frames), or identify with --no-drop-outliers to see them all"
             )
         z = fit.z
-    return _identification(problem, fit, used, round_, tuple(outliers), min_singular, nfev, robust)
+    outliers = tuple(
+        replace(o, round=int(dropped_in[o.pose])) if not used[o.pose] else o for o in found
+    )
+    return _identification(problem, fit, used, round_, outliers, min_singular, nfev, robust)
 
 
 def _identification(problem, fit, used, rounds, outliers, min_singular, nfev, robust):
