@@ -3,6 +3,8 @@ tolerances of :mod:`stewart_drake.robot` (`legs`, `tolerances`): the emulated tr
 encoders (`tracker`), the identification with the tolerances as its prior, its outliers and
 held-out check (`identify`), the choice of the poses to measure and the path through them
 (`poses`), the files it reads and writes (`files`), the join of a session's encoder log and
-tracker file into measurements (`join`), the rehearsal on an emulated robot and its study
-(`rehearsal`), what the command prints (`report`) and the ``calibrate`` command (`command`).
+tracker file into measurements (`join`), the registration of the tracker's frames
+(`registration`), what an estimate is worth (`validation`), the rehearsal on an emulated robot
+and its study (`rehearsal`), the error budget of a real laboratory (`budget`), what the command
+prints (`report`) and the ``calibrate`` command (`command`).
 docs/calibration.md."""
