@@ -377,8 +377,8 @@ def _least_squares(problem: _Problem, used, fun, jac, z0):
 
 
 def _fit(problem: _Problem, used, robust: bool, z0) -> _Fit:
-    """The estimate on the poses ``used`` with the noise scale estimated with it (module
-    docstring): refits while s^2 moves by more than :data:`_SCALE_TOL`."""
+    """The estimate on the poses ``used`` with the noise scale estimated with it, at least 1
+    (module docstring): refits while s^2 moves by more than :data:`_SCALE_TOL`."""
     n = int(problem.active.sum())
     z, s2, nfev = z0, 1.0, 0
     for _ in range(_SCALE_FITS):
@@ -391,6 +391,9 @@ def _fit(problem: _Problem, used, robust: bool, z0) -> _Fit:
         chi2 = float(r_w @ r_w) / max(r_w.size - p_eff, 1.0)
         # With the soft-L1 loss, the scale the blunders do not move: the median's.
         level = (_MAD * float(np.median(np.abs(r_w)))) ** 2 if robust else chi2
+        # Never below the stated noise: residuals quieter than it (readings averaged, a few
+        # poses the parameters can follow) would narrow the +- values below what it promises.
+        level = max(level, 1.0)
         if abs(level - s2) <= _SCALE_TOL * s2:
             break
         s2 = level

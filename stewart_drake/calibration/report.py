@@ -246,6 +246,20 @@ def accuracy_lines(
         f"workspace): the readings predicted to {after * 1e6:.3g} urad RMS (the drawing alone "
         f"{before * 1e3:.3g} mrad; the encoders' quantization {quantization * 1e6:.3g} urad)"
     ]
+    frames = ident.frames_covariance
+    if frames is not None and frames.any():
+        # The registration's part: the same error in every pose, which no pose count averages.
+        part = np.sqrt(
+            max(
+                predicted_rms(geometry, ident, workspace, noise, frames) ** 2 - quantization**2, 0.0
+            )
+        )
+        if part**2 > 0.5 * (after**2 - quantization**2):
+            text.append(
+                f"the registration's error is most of it ({part * 1e6:.3g} urad RMS alone): "
+                f"more fiducials, spread wider and measured more precisely, lower it; more "
+                f'poses do not (docs/calibration.md, "The error budget")'
+            )
     warn = []
     if share > TOO_LITTLE or design > SPREAD_RATIO * spread:
         warn.append(
