@@ -541,7 +541,7 @@ def test_registered_calibrations_of_ten_robots_meet_the_figure_and_the_bound_pre
     # The acceptance of docs/calibration.md (Registration): ten robots drawn with the
     # tolerances, a tracker 1 m and 30 deg from the base, its marker 50 mm off the platform
     # frame, four fiducials on each at 2 um, 60 poses at 5 um / 20 urad. Measured: 60 random
-    # poses 42.7 urad on average (worst 66.2), 60 chosen 37.8 (worst 57.2); the covariance's
+    # poses 42.6 urad on average (worst 66.2), 60 chosen 37.8 (worst 57.2); the covariance's
     # bound 48.2 and 43.9. Each tracker turned 1 deg and shifted 2 mm, unregistered, is warned
     # of, the base first; none of the robots measured in the base frame is.
     from stewart_drake.run.plan import make_plan
