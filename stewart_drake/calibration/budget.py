@@ -223,7 +223,7 @@ def static_error(
         return quantize(q, noise.counts_per_rev)
 
     q = read(x)
-    kwargs = {}
+    pose_covariances = frames = None
     if lab.fiducials:
         setup = emulated_setup(geometry, fiducials=lab.fiducials)
         seen = noisy_poses(setup.tracker_poses(x), noise, rng)
@@ -237,11 +237,12 @@ def static_error(
         seen[hit, 3:] += BLUNDER_M * np.array([_direction(rng) for _ in hit])
     if lab.fiducials:
         moved = register_poses(reg, seen, noise.rotation_rad, noise.translation_m)
-        poses = moved.poses
-        kwargs = {"pose_covariances": moved.pose_covariances, "frames": moved.frames}
+        poses, pose_covariances, frames = moved.poses, moved.pose_covariances, moved.frames
     else:
         poses = seen  # believed to be in the base frame
-    ident = identify(geometry, poses, q, noise, tolerances, **kwargs)
+    ident = identify(
+        geometry, poses, q, noise, tolerances, pose_covariances=pose_covariances, frames=frames
+    )
     H = space.held_out
     target = readings(geometry, ident.identified, H)
     x_run = _settled(geometry, truth, target, H, lab.cyclic_rad, phases, lab.delta_k)
