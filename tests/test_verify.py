@@ -10,11 +10,13 @@ import json
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration.join import write_encoder_log
 from stewart_drake.cli.main import main
-from stewart_drake.organ_motion.measured_motion import MeasuredMotion
+from stewart_drake.organ_motion.measured_motion import MeasuredMotion, read_measured
 from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.kinematics import ik
@@ -265,3 +267,72 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
     assert code == 2 and not reports
     assert err.count("\n") == 1 and err.startswith("stewart-drake verify: ")
     assert expected in err
+
+
+def _write_6dof(path, t_s, poses, quaternion: bool, order="wxyz"):
+    """A 6-DoF marker's export with a header: t [s], X, Y, Z [m], then roll, pitch, yaw [rad]
+    or the unit quaternion's columns in ``order`` (scalar ``w`` first or last), full precision."""
+    xyz = [f"{a} [m]" for a in "XYZ"]
+    if quaternion:
+        q = Rotation.from_euler("ZYX", poses[:, 2::-1]).as_quat()  # x, y, z, w
+        q *= np.where(np.arange(len(q)) % 2 == 0, 1.0, -1.0)[:, None]  # q and -q: one rotation
+        cols = {c: q[:, "xyzw".index(c)] for c in order}
+        header = ["t [s]", *xyz, *(f"q{c}" for c in order)]
+        values = np.column_stack([t_s, poses[:, 3:], *(cols[c] for c in order)])
+    else:
+        header = ["t [s]", *xyz, "phi [rad]", "theta [rad]", "psi [rad]"]
+        values = np.column_stack([t_s, poses[:, 3:], poses[:, :3]])
+    lines = [",".join(header)] + [",".join(repr(float(v)) for v in row) for row in values]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def test_a_quaternion_export_reads_as_the_same_rotations_and_is_judged_alike(tmp_path):
+    # A tracker turned so that the marker's yaw in its frame hovers about pi (psi wraps there
+    # as the platform tilts), exported as roll/pitch/yaw and as quaternions (scalar first, or
+    # last; the sign flipping sample to sample, as some trackers write it): the same poses,
+    # yaw unwrapped, the same verdict.
+    t, x = phantom_run(seconds=12.0, rate_hz=50.0)
+    seen = tracker_view(x, seed=4, rotations=True)
+    turn = Rotation.from_rotvec([0.0, 0.0, np.pi - np.mean(seen[:, 2])])
+    R = turn * Rotation.from_euler("ZYX", seen[:, 2::-1])
+    seen = np.column_stack([np.unwrap(R.as_euler("ZYX")[:, ::-1], axis=0), turn.apply(seen[:, 3:])])
+    rpy = read_measured(_write_6dof(tmp_path / "rpy.csv", t, seen, False))
+    assert np.min(seen[:, 2]) < np.pi < np.max(seen[:, 2])  # the case is the one named
+    for order in ("wxyz", "xyzw"):
+        quat = read_measured(_write_6dof(tmp_path / f"q_{order}.csv", t, seen, True, order))
+        assert quat.rotations_measured and quat.measured.all()
+        # Roll, pitch and yaw as written, yaw unwrapped in time (2 pi off at most as a whole).
+        turns = np.round((quat.poses[0, 2] - seen[0, 2]) / (2 * np.pi))
+        moved = quat.poses - np.array([0, 0, 2 * np.pi * turns, 0, 0, 0])
+        assert np.max(np.abs(moved - rpy.poses)) < 1e-9
+    a = verify(REFERENCE, rpy, clock_offset_s=CLOCK_OFFSET_S)
+    b = verify(REFERENCE, quat, clock_offset_s=CLOCK_OFFSET_S)
+    assert b.latency_s == pytest.approx(a.latency_s, abs=1e-9)
+    for key in ("rms_translation_m", "rms_rotation_rad"):
+        assert b.fidelity[key] == pytest.approx(a.fidelity[key], rel=1e-6)
+    assert a.latency_s == pytest.approx(LATENCY_S, abs=0.005)
+    assert a.fidelity["rms_rotation_rad"] == pytest.approx(50e-6 * np.sqrt(3), rel=0.2)
+
+
+@pytest.mark.parametrize(
+    "header, row, expected",
+    [
+        ("t [s],X [m],Y [m],Z [m],qx,qy,qz", "0.1,0,0,0,0,0,0", "one column each of qw (or q0)"),
+        ("t [s],X [m],Y [m],Z [m],qw,qx,qy,qz", "0.1,0,0,0,0.5,0,0,0", "has norm 0.5"),
+        ("t [s],X [m],Y [m],Z [m],qw,qx,qy,qz", "0.1,0,0,0,,0,0,0", "is missing or not a number"),
+        (
+            "t [s],X [m],Y [m],Z [m],q0,qx,qy,qz,psi [deg]",
+            "0.1,0,0,0,1,0,0,0,0",
+            "both a quaternion and roll, pitch or yaw",
+        ),
+    ],
+)
+def test_a_hostile_quaternion_is_refused_naming_its_line(tmp_path, header, row, expected):
+    good = ",".join(["0"] + row.split(",")[1:4] + ["1", "0", "0", "0"][: len(row.split(",")) - 4])
+    rows = [row.replace("0.1", f"{k / 10:g}", 1) for k in range(1, 6)]
+    rows[0] = good if "norm" in expected or "missing" in expected else rows[0]
+    path = tmp_path / "q.csv"
+    path.write_text("\n".join([header, *rows]) + "\n")
+    with pytest.raises(InvalidConfigError, match=expected.replace("(", r"\(").replace(")", r"\)")):
+        read_measured(path)

@@ -3,7 +3,9 @@ export or the robot's encoder log turned into poses with their clock (:class:`Me
 
 A tracker's file is read by the readers of recorded traces (:func:`read_measured`: a header
 naming columns and units, semicolons or commas, decimal commas, ms, a frame column skipped with
-``-``): the poses of its marker M in the tracker's frame T on the tracker's clock. The robot's
+``-``; the marker's orientation as roll, pitch and yaw or as a unit quaternion ``qw qx qy qz``,
+as most trackers export it): the poses of its marker M in the tracker's frame T on the
+tracker's clock. The robot's
 encoder log is turned into platform poses in the base frame by forward kinematics
 (:func:`encoder_motion`), on the reference's own clock. :mod:`~.alignment` puts either on the
 reference's clock and frame, and :mod:`~.verification` judges it.
@@ -15,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..base.errors import InvalidConfigError
 from .fidelity import AXES
@@ -65,9 +68,63 @@ class MeasuredMotion:
 
 MEASURED_REMEDY = (
     "give a file whose first line names the time and the marker's X, Y, Z (and phi, theta, psi, "
-    "or none) with their units, e.g. t [ms];X [mm];Y [mm];Z [mm], or name its columns with "
-    "--measured-columns ('-,t [ms],X [mm],Y [mm],Z [mm]' skips a frame counter)"
+    "or a quaternion qw, qx, qy, qz, or none) with their units, e.g. t [ms];X [mm];Y [mm];Z "
+    "[mm], or name its columns with --measured-columns ('-,t [ms],X [mm],Y [mm],Z [mm]' skips a "
+    "frame counter)"
 )
+
+#: The names of a quaternion's columns (any case, a unit in brackets ignored): its scalar part
+#: ``qw`` (``q0``, as NDI's trackers write it) and its vector part ``qx qy qz``.
+QUATERNION_COLUMNS = {"qw": 0, "q0": 0, "qx": 1, "qy": 2, "qz": 3}
+#: How far a quaternion's norm may be from 1 before its columns are taken for something else.
+QUATERNION_NORM_TOLERANCE = 0.05
+
+
+def _quaternion_columns(path, header: list) -> list | None:
+    """[j_w, j_x, j_y, j_z] the header's columns of a quaternion, or None without one.
+
+    Raises:
+        InvalidConfigError: some of the four but not all, or one twice.
+    """
+    found: dict[int, list] = {}
+    for j, cell in enumerate(header):
+        name = cell.strip().strip('"').split("[")[0].split("(")[0].strip().lower()
+        if name in QUATERNION_COLUMNS:
+            found.setdefault(QUATERNION_COLUMNS[name], []).append(j)
+    if not found:
+        return None
+    if sorted(found) != [0, 1, 2, 3] or any(len(v) > 1 for v in found.values()):
+        named = ", ".join(header[j].strip() for v in found.values() for j in v)
+        raise InvalidConfigError(
+            f"{path}: a quaternion needs one column each of qw (or q0), qx, qy and qz, got "
+            f"{named}; {MEASURED_REMEDY}"
+        )
+    return [found[k][0] for k in range(4)]
+
+
+def _quaternion_rpy(path, rows: list, columns: list, n: int) -> np.ndarray:
+    """(n, 3) roll, pitch, yaw (rad, unwrapped in time) of the quaternions in ``columns`` of the
+    first ``n`` data rows (each its line number, then its cells).
+
+    Raises:
+        InvalidConfigError: a cell missing or not a number, a norm off 1 by more than
+            :data:`QUATERNION_NORM_TOLERANCE` (its line named).
+    """
+    q = np.empty((n, 4))
+    for i, (line, *cells) in enumerate(rows[:n]):
+        try:
+            q[i] = [float(cells[j]) for j in columns]
+        except ValueError:
+            q[i] = np.nan
+        norm = float(np.linalg.norm(q[i]))
+        if not abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE:
+            what = "is missing or not a number" if not np.isfinite(norm) else f"has norm {norm:.4g}"
+            raise InvalidConfigError(
+                f"{path}, line {line}: the quaternion (qw, qx, qy, qz) {what}, not 1: check the "
+                f"columns' names and order (the tracker lost the marker?)"
+            )
+    rpy = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_euler("ZYX")[:, ::-1]
+    return np.unwrap(rpy, axis=0)
 
 
 def read_measured(path, columns: str = "", axis_map: dict | None = None) -> MeasuredMotion:
@@ -87,13 +144,21 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
         InvalidConfigError: what the trace readers refuse (no time column, a unit missing or of
             the wrong kind, times not increasing, a row that is not numbers: the line named);
             not the three translations, or some rotations but not three; a missing or NaN
-            value (its line and column named).
+            value (its line and column named); a quaternion's columns not all four, beside
+            roll, pitch or yaw, or one of norm off 1 (its line named).
     """
-    from ..references.trace_files import TIME_UNITS, read_trace_table, trace_samples
+    from ..references.trace_files import SKIP_COLUMN, TIME_UNITS, read_trace_table, trace_samples
 
     path = Path(path)
     header, rows, layout = read_trace_table(path, "auto", columns)
+    quaternion = _quaternion_columns(path, header)
+    if quaternion is not None:  # read apart: four columns, three axes
+        header = [SKIP_COLUMN if j in quaternion else h for j, h in enumerate(header)]
     table = trace_samples(path, header, rows, layout, axis_map)
+    if quaternion is not None and any(k < 3 for k in table.targets):
+        raise InvalidConfigError(
+            f"{path}: both a quaternion and roll, pitch or yaw columns: give one of them"
+        )
     axes = sorted(table.targets)
     if axes[-3:] != [3, 4, 5] or len(axes) not in (3, 6):
         found = ", ".join(f"{n} -> {AXES[k]}" for n, k in zip(table.names[1:], table.targets))
@@ -117,6 +182,9 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
     start = float(table.data[0, 0]) * TIME_UNITS[table.units[0].lower()]
     measured = np.zeros(6, dtype=bool)
     measured[table.targets] = True
+    if quaternion is not None:
+        poses[:, :3] = _quaternion_rpy(path, rows, quaternion, n)
+        measured[:3] = True
     return MeasuredMotion(
         str(path), "tracker", table.t + start, poses, measured, table.layout, table.dropped
     )
@@ -154,4 +222,11 @@ def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
     )
 
 
-__all__ = ["MeasuredMotion", "MEASURED_REMEDY", "read_measured", "encoder_motion"]
+__all__ = [
+    "MeasuredMotion",
+    "MEASURED_REMEDY",
+    "QUATERNION_COLUMNS",
+    "QUATERNION_NORM_TOLERANCE",
+    "read_measured",
+    "encoder_motion",
+]
