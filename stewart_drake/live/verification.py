@@ -44,7 +44,8 @@ def add_verify_command(sub) -> None:
         metavar="FILE",
         help="the motion measured (repeatable: one report each, side by side): a tracker's "
         "export read as a trace is (a header naming the time and the marker's X, Y, Z with "
-        "units, and its phi, theta, psi or none; semicolons, decimal commas, ms), or a robot "
+        "units, and its phi, theta, psi, a quaternion qw, qx, qy, qz, or none; semicolons, "
+        "decimal commas, ms), or a robot "
         f"run's encoder log (a name ending in {ENCODER_LOG_SUFFIX}), turned into poses by "
         "forward kinematics of --scenario's robot (required: no default)",
     )
