@@ -447,3 +447,24 @@ def test_a_session_whose_logs_could_not_be_written_does_not_exit_0(tmp_path, mon
         in (ends[0])
     )
     assert f"{tmp_path / 'robot_home.npz'}" in ends[0] and torque == [0] * 6
+
+
+@pytest.mark.parametrize("samples", [0, 1])
+def test_a_run_ended_within_its_first_logged_period_says_so_and_writes_nothing(
+    tmp_path, monkeypatch, samples
+):
+    """Interrupted as the torque came on (Ctrl-C at once, under load): zero or one logged
+    sample has no metrics, so there is nothing to keep, and the end line says so, not that the
+    logs "could not be written" (one sample made the metrics refuse it)."""
+    from stewart_drake.live.session import RobotRun, _keep_logs
+    from stewart_drake.run import result as run_result
+
+    logs = types.SimpleNamespace(result=types.SimpleNamespace(t=np.zeros(samples)))
+    monkeypatch.setattr(run_result, "read_run", lambda sd, context: logs)
+    ended = RobotRun("interrupted by SIGINT", False, True, exit_code=130)
+    simulator = types.SimpleNamespace(get_context=lambda: None)
+    _keep_logs(ended, None, simulator, 0.1, tmp_path / "run.npz", None)
+    assert ended.reason == (
+        "interrupted by SIGINT; it ended within its first logged period: there are no logs to write"
+    )
+    assert ended.exit_code == 130 and ended.logs is None and not list(tmp_path.iterdir())

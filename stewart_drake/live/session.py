@@ -452,8 +452,8 @@ def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -
 
     try:
         logs = read_run(sd, simulator.get_context())
-        if len(logs.result.t) == 0:
-            ended.reason += "; it ended before its first logged period: there are no logs to write"
+        if len(logs.result.t) < 2:  # one sample has no metrics: nothing ran to keep
+            ended.reason += "; it ended within its first logged period: there are no logs to write"
             ended.exit_code = ended.exit_code or 1
             return
         result = finish_result(logs, wall)
