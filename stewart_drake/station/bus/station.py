@@ -19,8 +19,6 @@ itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on 
 
 from __future__ import annotations
 
-import array
-import collections
 import sys
 import time
 
@@ -38,25 +36,12 @@ from ...robot.single_pose import ik_single, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
+from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
 #: numbers (deadline misses, achieved period us, measurement age us).
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
-
-
-def _stats(values) -> dict:
-    """{"n", "median", "p99", "worst"} of ``values`` (s); {"n": 0} when empty. "worst" is the
-    largest magnitude, with its sign."""
-    v = np.asarray(values, dtype=float)
-    if not v.size:
-        return {"n": 0}
-    return {
-        "n": int(v.size),
-        "median": float(np.median(v)),
-        "p99": float(np.percentile(v, 99)),
-        "worst": float(v[np.argmax(np.abs(v))]),
-    }
 
 
 class DynamixelDriver(LeafSystem):
@@ -85,7 +70,12 @@ class DynamixelDriver(LeafSystem):
         period_s: the control period, s. max_deadline_misses: misses allowed.
         x_initial: (6,) where forward kinematics starts before the first reading.
         stream: where miss lines go (default stderr). timing_window: periods kept for
-            :meth:`timing_summary`.
+            :meth:`timing_summary` (its records are allocated once, 9 numbers a period).
+    Attributes:
+        timing: the :class:`~.timing.LoopTiming` records of the run.
+        between_periods: None, or a callable the loop calls when it has time left before a
+            period is due, before it sleeps (a session collects Python's garbage there, so that
+            no collection falls inside a period).
     Raises:
         DeadlineMissError: (during simulation) past ``max_deadline_misses``.
     """
@@ -98,7 +88,7 @@ class DynamixelDriver(LeafSystem):
         max_deadline_misses: int = 10,
         x_initial=X_HOME,
         stream=None,
-        timing_window: int = 1_000_000,
+        timing_window: int = 360_000,
     ):
         super().__init__()
         self.bus, self.geometry = bus, geometry
@@ -131,7 +121,9 @@ class DynamixelDriver(LeafSystem):
             prerequisites_of_calc={self.discrete_state_ticket(self._state)},
         )
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._Update)
-        self.reset_timing(timing_window)
+        self.between_periods = None
+        self.timing = LoopTiming(self.period_s, timing_window)
+        self.reset_timing()
 
     # --- outputs -----------------------------------------------------------------------------
 
@@ -177,11 +169,11 @@ class DynamixelDriver(LeafSystem):
     # --- the period --------------------------------------------------------------------------
 
     def reset_timing(self, timing_window: int | None = None) -> None:
-        """Forget the timing records and the schedule (the next period starts a new one)."""
-        window = timing_window or self._records.maxlen
-        #: Per period: (wall-clock start, achieved period, read s, write s, measurement age,
-        #: lateness), s; the first period's achieved period and age are NaN.
-        self._records: collections.deque = collections.deque(maxlen=window)
+        """Forget the timing records and the schedule (the next period starts a new one);
+        ``timing_window``: keep that many periods from now on."""
+        if timing_window is not None:
+            self.timing = LoopTiming(self.period_s, timing_window)
+        self.timing.reset()
         #: Deadline misses, and bursts of consecutive ones (one stderr line each), so far.
         self.misses, self.bursts, self._in_burst = 0, 0, False
         self._wall0: float | None = None
@@ -189,8 +181,10 @@ class DynamixelDriver(LeafSystem):
         #: (and the reference) is that much behind the wall clock.
         self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
-        #: Every period's reading, flat: (Diagram time, read time (perf_counter), q0..q5).
-        self._readings = array.array("d")
+        #: Every period's reading: (Diagram time, read time (perf_counter), q0..q5) rows, the
+        #: first ``_n_readings`` of them; grown by half when a run outlasts them.
+        self._readings = np.empty((1024, 8))
+        self._n_readings = 0
 
     def _Update(self, context, discrete_state):
         try:
@@ -199,16 +193,26 @@ class DynamixelDriver(LeafSystem):
             self.bus.torque_off()  # never raises; the error says what happened
             raise
 
+    def _wait_until(self, due: float) -> tuple[float, float]:
+        """Sleep until ``due`` (perf_counter s), after :attr:`between_periods` when there is
+        time; (now, the sleep asked for, s)."""
+        now = time.perf_counter()
+        if now < due and self.between_periods is not None:
+            self.between_periods()
+            now = time.perf_counter()
+        if now >= due:
+            return now, 0.0
+        time.sleep(due - now)
+        return time.perf_counter(), due - now
+
     def _period(self, context, discrete_state):
         t = context.get_time()
-        now = time.perf_counter()
         if self._wall0 is None:
-            self._wall0 = now - t
+            self._wall0 = time.perf_counter() - t
         due = self._wall0 + t
-        if now < due:
-            time.sleep(due - now)
-            now = time.perf_counter()
+        now, slept = self._wait_until(due)
         late = now - due
+        cause = self.timing.begin(now, late, slept)
         tau = self._tau.Eval(context)
         if not np.all(np.isfinite(tau)):
             raise SimulationDivergedError(
@@ -220,14 +224,14 @@ class DynamixelDriver(LeafSystem):
         age = 0.5 * (w0 + w1) - self._last_read_t
         held = context.get_discrete_state(self._state).value()
         measured = self._measure(held[_X][:6])
-        self._readings.extend((t, self._last_read_t, *measured[_Q]))
+        self._keep_reading(t, measured[_Q])
         period = now - self._last_start
         self._last_start = now
-        self._records.append((now, period, self._read_s, w1 - w0, age, late))
+        self.timing.end(self._read_s, w1 - w0, age)
         if late > self.period_s:
             self._wall0 += late  # skip: the next period is due one period from now
             self.skipped_s += late
-            self._missed(t, late)
+            self._missed(t, late, cause)
         else:
             self._in_burst = False
         out = discrete_state.get_mutable_vector(self._state).get_mutable_value()
@@ -236,7 +240,18 @@ class DynamixelDriver(LeafSystem):
         # seed has no previous reading): the LCM status's convention.
         out[_LOOP] = [self.misses, 1e6 * np.nan_to_num(period), 1e6 * np.nan_to_num(age)]
 
-    def _missed(self, t: float, late: float) -> None:
+    def _keep_reading(self, t: float, q) -> None:
+        """This period's reading into the preallocated rows (grown by half when full)."""
+        k = self._n_readings
+        if k == len(self._readings):
+            grown = np.empty((len(self._readings) * 3 // 2, 8))
+            grown[:k] = self._readings
+            self._readings = grown
+        row = self._readings[k]
+        row[0], row[1], row[2:] = t, self._last_read_t, q
+        self._n_readings = k + 1
+
+    def _missed(self, t: float, late: float, cause: int) -> None:
         self.misses += 1
         if self.misses > self.max_deadline_misses:
             raise DeadlineMissError(self.misses, self.max_deadline_misses, self.period_s, late, t)
@@ -244,8 +259,8 @@ class DynamixelDriver(LeafSystem):
             self.bursts += 1
             print(
                 f"deadline miss at t = {t:.3f} s: the period started {1e3 * late:.1f} ms late "
-                f"for {1e3 * self.period_s:g} ms ({self.misses} of "
-                f"{self.max_deadline_misses} allowed)",
+                f"for {1e3 * self.period_s:g} ms ({CAUSES[cause] or 'cause unknown'}; "
+                f"{self.misses} of {self.max_deadline_misses} allowed)",
                 file=self.stream or sys.stderr,
                 flush=True,
             )
@@ -256,47 +271,46 @@ class DynamixelDriver(LeafSystem):
         Diagram's time, s; t_read (n,) when the servos were read, ``time.perf_counter`` s, the
         midpoint of the sync read; q (n, 6) the crank angles read, rad: each encoder's raw
         angle, its zero error included)."""
-        r = np.frombuffer(self._readings, dtype=float).reshape(-1, 8).copy()
+        r = self._readings[: self._n_readings].copy()
         return r[:, 0], r[:, 1], r[:, 2:]
 
     def timing_summary(self) -> dict:
-        """The loop's timing over the periods kept, s: {"period", "jitter" (period - nominal),
-        "read", "write" (the bus's round trips), "age" (of the measurement when its torque
-        was written), "late" (start - due): each {"n", "median", "p99", "worst"}; "misses",
-        "bursts", "skipped" (s the schedule moved on by), "periods", "nominal"}."""
-        r = np.array(self._records, dtype=float).reshape(-1, 6)
-        period = r[1:, 1]
-        out: dict = {
-            "period": _stats(period),
-            "jitter": _stats(period - self.period_s),
-            "read": _stats(r[:, 2]),
-            "write": _stats(r[:, 3]),
-            "age": _stats(r[np.isfinite(r[:, 4]), 4]),
-            "late": _stats(r[:, 5]),
-        }
-        out.update(
-            misses=self.misses,
-            bursts=self.bursts,
-            skipped=self.skipped_s,
-            periods=len(r),
-            nominal=self.period_s,
-        )
+        """The loop's timing over the periods kept (:meth:`.timing.LoopTiming.summary`: the
+        achieved period, its jitter, the bus's round trips, the measurement's age, how late each
+        period started, the loop thread's CPU time and run-queue wait a period, the late
+        periods' causes), s; and "misses", "bursts", "skipped" (s the schedule moved on by)."""
+        out = self.timing.summary()
+        out.update(misses=self.misses, bursts=self.bursts, skipped=self.skipped_s)
         return out
 
     def timing_lines(self) -> list[str]:
-        """:meth:`timing_summary` as lines of text, ms."""
+        """:meth:`timing_summary` as lines of text, ms; the last says whether the period
+        held (no deadline miss)."""
         s = self.timing_summary()
         lines = [
             f"{s['periods']} periods of {1e3 * s['nominal']:g} ms, {s['misses']} deadline misses "
             f"in {s['bursts']} bursts, {1e3 * s['skipped']:.1f} ms skipped"
         ]
-        for name in ("period", "jitter", "read", "write", "age", "late"):
+        for name in ("period", "jitter", "cpu", "wait", "read", "write", "age", "late"):
             v = s[name]
             if v["n"]:
                 lines.append(
                     f"{name:>7}: median {1e3 * v['median']:7.3f}  p99 {1e3 * v['p99']:7.3f}  "
                     f"worst {1e3 * v['worst']:7.3f} ms"
                 )
+        causes = ", ".join(f"{what} {n}" for what, n in s["late_causes"].items())
+        late = sum(s["late_causes"].values())
+        if late:
+            lines.append(
+                f"late periods (over {1e3 * LATE_FRACTION * s['nominal']:g} ms): {late}, by cause: "
+                f"{causes}"
+            )
+        if s["misses"]:
+            lines.append(
+                f"the period did not hold: {s['misses']} periods started over a period late"
+            )
+        elif s["periods"]:
+            lines.append("the period held: no period started a period late")
         return lines
 
 
