@@ -113,9 +113,25 @@ def _run(scenario, tmp_path, **kw):
     return run, lines
 
 
+def _compiled_signatures() -> dict:
+    """Every signature compiled so far of the loop's kernels (the bus's, the LQI's step)."""
+    from stewart_drake.control.lqi import kernels as lqi
+    from stewart_drake.station.bus import kernels as bus
+
+    dispatchers = {
+        name: getattr(bus, name)
+        for name in ("measure_pose", "plant_state", "parse_status", "crank_state")
+        + ("torque_command", "fill_sync_write")
+    } | {f"lqi.{name}": getattr(lqi.step, name) for name in ("step", "act", "newton")}
+    return {name: list(f.signatures) for name, f in dispatchers.items()}
+
+
 def test_a_run_homes_from_the_measured_pose_holds_and_ends_with_the_torque_off(tmp_path):
     with _emulator() as emu:
+        compiled = _compiled_signatures()
         run, lines = _run(_scenario(emu, tmp_path), tmp_path)
+        # Nothing compiled during the run: every call had the types compiled before it.
+        assert _compiled_signatures() == compiled
         z_end = emu.with_backend(
             lambda b: b.station.GetOutputPort("platform_state").Eval(
                 b.station.GetMyContextFromRoot(b.simulator.get_context())

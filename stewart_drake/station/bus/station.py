@@ -19,6 +19,7 @@ itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on 
 
 from __future__ import annotations
 
+import math
 import sys
 import time
 
@@ -29,10 +30,11 @@ from pydrake.systems.primitives import PassThrough
 from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
-from ...plant.closed_chain import LoopClosure, assembled_positions
+from ...plant.closed_chain import LoopClosure
+from ...plant.sdf import rod_zero_rotations
 from ...robot.forward_kinematics import fk
-from ...robot.kinematics import X_HOME, angular_velocity_map, jacobian
-from ...robot.single_pose import ik_single, jacobian_single
+from ...robot.kinematics import X_HOME
+from ...robot.single_pose import ik_single, jacobian_single, leg_constants
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
@@ -42,6 +44,14 @@ from .timing import CAUSES, LATE_FRACTION, LoopTiming
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
 #: numbers (deadline misses, achieved period us, measurement age us).
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
+
+
+def _kernels():
+    """:mod:`.kernels`, compiled (or loaded from numba's cache) when a station on the bus is
+    first built, not when this module is imported."""
+    from . import kernels
+
+    return kernels
 
 
 class DynamixelDriver(LeafSystem):
@@ -99,6 +109,9 @@ class DynamixelDriver(LeafSystem):
             geometry, period_s, 2 * np.pi / COUNTS_PER_REV, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
+        self._kernels = _kernels()
+        #: The period's measurement, assembled here before it is copied into the state.
+        self._held, self._x_start = np.zeros(_LOOP.start), np.zeros(6)
         initial = np.zeros(_LOOP.stop)
         initial[_X][:6] = self._x_initial
         self._state = self.DeclareDiscreteState(initial)
@@ -141,18 +154,26 @@ class DynamixelDriver(LeafSystem):
 
     def _measure(self, x_prev) -> np.ndarray:
         """One read of the bus and the pose from it: the state vector (without the loop).
-        The pose: Newton on the IK from the previous pose (the encoders' estimator, within a
-        hundredth of a count), or if that fails the full :func:`~.forward_kinematics.fk`, which
-        raises when the angles are no pose of the robot."""
+        The pose: Newton on the IK from the previous pose (compiled, :func:`.kernels.measure_pose`:
+        within a hundredth of a count), or if that fails the full
+        :func:`~.forward_kinematics.fk`, which raises when the angles are no pose of the robot;
+        the rate x_dot = J^-1 theta_dot."""
         state = self.bus.read_state()
         self._last_read_t, self._read_s = state.t, state.round_trip_s
-        x, _, converged = self._fk.estimate(state.q, x_prev)
-        if not converged:
+        held, start = self._held, self._x_start
+        held[_Q], held[_V], held[_TAU] = state.q, state.v, state.tau
+        start[:] = x_prev
+        fk_ = self._fk
+        pose = held[_X]
+        if not self._kernels.measure_pose(
+            fk_.legs, fk_.mode, fk_.tol, fk_.max_iterations, start, held[_Q], held[_V], pose
+        ):
             theta = state.q - self.geometry.encoder_offsets  # the encoders' zero errors
-            x, _ = fk(self.geometry, theta, x0=x_prev, tol=self._fk.tol)
-        _, cache = ik_single(self.geometry, x)
-        x_dot = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
-        return np.concatenate([state.q, state.v, state.tau, x, x_dot])
+            x, _ = fk(self.geometry, theta, x0=x_prev, tol=fk_.tol)
+            _, cache = ik_single(self.geometry, x)
+            pose[:6] = x
+            pose[6:] = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
+        return held
 
     def seed(self, context) -> np.ndarray:
         """Read the bus once and hold the reading in ``context`` (this system's): what the
@@ -214,7 +235,7 @@ class DynamixelDriver(LeafSystem):
         late = now - due
         cause = self.timing.begin(now, late, slept)
         tau = self._tau.Eval(context)
-        if not np.all(np.isfinite(tau)):
+        if not math.isfinite(tau.sum()):
             raise SimulationDivergedError(
                 f"the controller commanded non-finite torques {tau} N m; torque off", t
             )
@@ -238,7 +259,10 @@ class DynamixelDriver(LeafSystem):
         out[: _LOOP.start] = measured
         # 0 for what was not measured (the first period has no previous one; a run that did not
         # seed has no previous reading): the LCM status's convention.
-        out[_LOOP] = [self.misses, 1e6 * np.nan_to_num(period), 1e6 * np.nan_to_num(age)]
+        loop = out[_LOOP]
+        loop[0] = self.misses
+        loop[1] = 1e6 * period if period == period else 0.0
+        loop[2] = 1e6 * age if age == age else 0.0
 
     def _keep_reading(self, t: float, q) -> None:
         """This period's reading into the preallocated rows (grown by half when full)."""
@@ -330,22 +354,34 @@ class MeasuredPlantState(LeafSystem):
     def __init__(self, plant, handles):
         super().__init__()
         self._plant, self._handles = plant, handles
-        self._nq = plant.num_positions()
-        self._iv = self._nq + handles.platform.floating_velocities_start_in_v()
-        self._iv_motors = [self._nq + j.velocity_start() for j in handles.motors]
+        nq = plant.num_positions()
+        geometry = handles.geometry
+        self._kernels = _kernels()
+        self._legs = np.array(leg_constants(geometry))
+        self._legs.setflags(write=False)  # as the kernels were compiled for
+        self._u_B = np.array(geometry.u_B, dtype=float)  # writable, as compiled
+        self._R0 = np.array(rod_zero_rotations(geometry), dtype=float)
+        rods = handles.rod_balls
+        self._layout = np.array(
+            [j.position_start() for j in handles.motors]
+            + [rods[i].position_start() if rods else -1 for i in range(6)]
+            + [handles.platform.floating_positions_start()]
+            + [nq + handles.platform.floating_velocities_start_in_v()]
+            + [nq + j.velocity_start() for j in handles.motors],
+            dtype=np.int64,
+        )
         self._x = self.DeclareVectorInputPort("platform_state", 12)
+        self._x_in = np.zeros(12)
         self.DeclareVectorOutputPort(
             "plant_state", plant.num_positions() + plant.num_velocities(), self._Calc
         )
 
     def _Calc(self, context, output):
-        x = np.asarray(self._x.Eval(context))
-        state = np.zeros(output.size())
-        state[: self._nq] = assembled_positions(self._plant, self._handles, x[:6])
-        state[self._iv : self._iv + 3] = angular_velocity_map(x[:3]) @ x[6:9]
-        state[self._iv + 3 : self._iv + 6] = x[9:12]
-        state[self._iv_motors] = jacobian(self._handles.geometry, x[:6]) @ x[6:]
-        output.SetFromVector(state)
+        x = self._x_in
+        x[:] = self._x.Eval(context)
+        self._kernels.plant_state(
+            self._legs, self._u_B, self._R0, self._layout, x, output.get_mutable_value()
+        )
 
 
 class _ShowMeasured(LeafSystem):

@@ -38,6 +38,12 @@ COLUMNS = ("start", "period", "read", "write", "age", "late", "cpu", "wait", "ca
 _START, _PERIOD, _READ, _WRITE, _AGE, _LATE, _CPU, _WAIT, _CAUSE = range(len(COLUMNS))
 
 
+def _or_zero(value) -> float:
+    """``value``, 0.0 for NaN (what was not measured)."""
+    value = float(value)
+    return value if value == value else 0.0
+
+
 def stats(values) -> dict:
     """{"n", "median", "p99", "worst"} of ``values`` (s, NaN left out); {"n": 0} when none.
     "worst" is the largest magnitude, with its sign."""
@@ -136,10 +142,9 @@ class LoopTiming:
         """The largest share of the work in ``interval`` (s since the previous period started,
         ``slept`` of it asked for): the loop's CPU, its wait for a core, its wait off the CPU
         for the bus's reply (up to the round trips), or blocked otherwise."""
-        cpu = float(prev[_CPU])
-        wait = float(np.nan_to_num(prev[_WAIT]))
+        cpu, wait = float(prev[_CPU]), _or_zero(prev[_WAIT])
         off = max(0.0, interval - slept - cpu - wait)
-        bus = min(off, float(np.nan_to_num(prev[_READ]) + np.nan_to_num(prev[_WRITE])))
+        bus = min(off, _or_zero(prev[_READ]) + _or_zero(prev[_WRITE]))
         shares = (bus, cpu, wait, off - bus)
         return (BUS, CPU, PREEMPTED, BLOCKED)[shares.index(max(shares))]
 
