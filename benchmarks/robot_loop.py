@@ -19,13 +19,18 @@ Printed per run, one line per figure:
 * ``true_pose`` and ``measured_pose``: RMS tracking error over the second half of the run
   (rotation mrad, translation mm), of the emulator's plant (its true pose at every step, against
   the reference at the Diagram time of its wall-clock time) and of the pose the driver measured;
-* the driver's own timing lines (the realtime grant, the period, jitter, cpu, late causes).
+* the driver's own timing lines (the realtime grant, the period, jitter, cpu, late causes);
+* with ``--breakdown``, the loop thread's CPU time a period inside each Python callback of the
+  Diagram and in the parts they call (the bus's read and write, the guard's SceneGraph query,
+  the LQI's gain re-schedule and Newton solve), ms a period (averaged over the periods) and us
+  a call.
 
 Usage: python benchmarks/robot_loop.py [--duration 20] [--period 0.01 0.005] [--load 0 2]
     [--no-realtime] [--breakdown]
 """
 
 import argparse
+import collections
 import subprocess
 import sys
 import tempfile
@@ -63,6 +68,58 @@ class UpdateClock:
         return 1e3 * np.diff(np.array(self.cpu))
 
 
+#: What ``--breakdown`` times: (module, class, method) of the Diagram's Python callbacks and of
+#: the parts they call.
+TIMED = (
+    ("stewart_drake.station.bus.station", "DynamixelDriver", "_Update"),
+    ("stewart_drake.station.bus.driver", "DynamixelBus", "read_state"),
+    ("stewart_drake.station.bus.driver", "DynamixelBus", "write_torques"),
+    ("stewart_drake.station.bus.station", "MeasuredPlantState", "_Calc"),
+    ("stewart_drake.station.guard", "DivergenceGuard", "_Check"),
+    ("stewart_drake.plant.clearance", "ClearanceModel", "overlaps"),
+    ("stewart_drake.control.lqi.controller", "LqiController", "_Update"),
+    ("stewart_drake.control.lqi.controller", "LqiController", "_reschedule"),
+    ("stewart_drake.control.lqi.controller", "LqiController", "_estimate_by_newton"),
+)
+
+
+class Breakdown:
+    """Thread CPU time inside each method of :data:`TIMED` (their classes patched)."""
+
+    def __init__(self):
+        import importlib
+
+        self.cpu: collections.Counter = collections.Counter()
+        self.calls: collections.Counter = collections.Counter()
+        self._saved = []
+        for module, cls, name in TIMED:
+            owner = getattr(importlib.import_module(module), cls)
+            self._saved.append((owner, name, getattr(owner, name)))
+            setattr(owner, name, self._timed(f"{cls}.{name}", getattr(owner, name)))
+
+    def _timed(self, label, method):
+        def timed(*args, **kwargs):
+            t0 = time.thread_time()
+            try:
+                return method(*args, **kwargs)
+            finally:
+                self.cpu[label] += time.thread_time() - t0
+                self.calls[label] += 1
+
+        return timed
+
+    def restore(self) -> None:
+        for owner, name, method in self._saved:
+            setattr(owner, name, method)
+
+    def lines(self, periods: int) -> list[str]:
+        return [
+            f"{label:40s} {1e3 * cpu / periods:6.3f} ms a period, "
+            f"{1e6 * cpu / self.calls[label]:6.0f} us a call ({self.calls[label]} calls)"
+            for label, cpu in self.cpu.most_common()
+        ]
+
+
 def busy(n: int) -> list:
     """``n`` processes that keep a core busy each."""
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
@@ -73,7 +130,9 @@ def rms(e) -> str:
     return f"{1e3 * np.sqrt((rot**2).mean()):.2f} mrad {1e3 * np.sqrt((pos**2).mean()):.3f} mm RMS"
 
 
-def one_run(period: float, duration: float, load: int, realtime: bool, out: str) -> None:
+def one_run(
+    period: float, duration: float, load: int, realtime: bool, out: str, breakdown: bool
+) -> None:
     scenario = load_scenario(ROBOT_SCENARIO, ())
     scenario.reference = NamedReference("paper")
     scenario.duration_s = duration
@@ -81,6 +140,7 @@ def one_run(period: float, duration: float, load: int, realtime: bool, out: str)
     scenario.guard.divergence_dir = f"{out}/diverged"
     held = {}
     clock = UpdateClock()
+    timed = Breakdown() if breakdown else None
     lines: list[str] = []
     kwargs = {"realtime": True} if realtime else {}
     emulator = _start_emulator(scenario, REST, **kwargs)
@@ -101,6 +161,8 @@ def one_run(period: float, duration: float, load: int, realtime: bool, out: str)
             p.wait()
         emulator.close()
         DynamixelDriver._Update = clock._update
+        if timed is not None:
+            timed.restore()
     sd = held["sd"]
     driver = sd.station.driver
     cpu = clock.per_period_ms()
@@ -133,6 +195,9 @@ def one_run(period: float, duration: float, load: int, realtime: bool, out: str)
     print(f"  true_pose {rms(e[half])}")
     for line in run.timing_lines:
         print(f"    {line}")
+    if timed is not None:
+        for line in timed.lines(cpu.size):
+            print(f"    {line}")
 
 
 def _period_starts(driver) -> np.ndarray:
@@ -149,11 +214,12 @@ def main() -> None:
     parser.add_argument("--period", type=float, nargs="+", default=[0.01, 0.005])
     parser.add_argument("--load", type=int, nargs="+", default=[0, 2], help="busy processes")
     parser.add_argument("--no-realtime", action="store_true", help="the loop as before")
+    parser.add_argument("--breakdown", action="store_true", help="CPU time a callback")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as out:
         for period in args.period:
             for load in args.load:
-                one_run(period, args.duration, load, not args.no_realtime, out)
+                one_run(period, args.duration, load, not args.no_realtime, out, args.breakdown)
 
 
 if __name__ == "__main__":

@@ -236,10 +236,10 @@ class DynamixelBus:
                     f"servo id {i} on {self.port_name} is model number {model}, not "
                     f"{self.spec.name} ({self.spec.model_number}): name the servos' model"
                 )
-        self._period_packets()
+        self._period_packets(port)
         return self
 
-    def _period_packets(self) -> None:
+    def _period_packets(self, port) -> None:
         """The sync read's request and the sync write (its data filled each period), the
         buffers a reply is read and parsed into, and the reply's timeout: the vendor's packet
         timeout for the reply's length (2 x the USB latency timer + 2 ms + the transfer), at
@@ -274,7 +274,7 @@ class DynamixelBus:
         latency_ms = getattr(self._sdk.port_handler, "LATENCY_TIMER", 16)
         sdk_ms = 10_000.0 / self.baud_rate * (11 + size) * n + 2.0 * latency_ms + 2.0
         self._reply_s = max(sdk_ms / 1e3, self.reply_timeout_s or 0.0)
-        self._fd = self._port.ser.fileno()
+        self._fd = port.ser.fileno()
 
     def close(self) -> None:
         """Remove the torque (attempted) and close the port. Idempotent."""
@@ -410,7 +410,7 @@ class DynamixelBus:
                     wait = deadline - time.perf_counter()
                     if wait <= 0 or not select.select([fd], [], [], wait)[0]:
                         break
-                    got = os.readv(fd, [memoryview(rx)[received:]])
+                    got = os.readv(fd, [rx.data[received:]])
                     if got == 0:
                         raise OSError("the port reports data but returns none")
                     received += got
@@ -464,7 +464,7 @@ class DynamixelBus:
         with self.lock:
             t0 = time.perf_counter()
             try:
-                sent = os.write(self._fd, self._sync_write)
+                sent = os.write(self._fd, self._sync_write.data)
             except OSError as err:
                 self._fail(f"sync write: the port failed ({err})")
             t1 = time.perf_counter()
