@@ -96,7 +96,7 @@ def on_the_bus(fields: dict, emulator_step: float):
             except Exception as err:  # a lost loop: report what it did
                 print(f"  the run stopped: {type(err).__name__}: {str(err)[:160]}")
     driver = sd.station.driver
-    walls = np.array(driver._records)[:, 0]
+    walls = driver.timing.rows()[:, 0]
     t_true, x_true = emu.truth()
     inside = (t_true >= walls[0]) & (t_true <= walls[-1])
     t_run = np.interp(t_true[inside], walls, fields["control_period_s"] * np.arange(len(walls)))

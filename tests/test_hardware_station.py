@@ -247,7 +247,7 @@ def test_deadline_misses_are_counted_reported_once_a_burst_and_stop_the_run():
     # No catch-up: every period of the Diagram's clock ran once (a count), and each started at
     # its due time moved on by what was skipped before it, plus its own lateness; an identity of
     # the driver's own records, whatever the machine's load.
-    records = np.array(driver._records)
+    records = driver.timing.rows()
     start, late = records[:, 0], records[:, 5]
     assert len(records) == round(0.5 / h)
     skipped_before_last = summary["skipped"] - (late[-1] if late[-1] > h else 0.0)
@@ -435,7 +435,7 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
             simulator.AdvanceTo(duration)
         assert bus.torque_off_confirmed
     driver = sd.station.driver
-    walls = np.array(driver._records)[:, 0]
+    walls = driver.timing.rows()[:, 0]
     t_true, x_true = emu.truth()
     inside = (t_true >= walls[0]) & (t_true <= walls[-1])
     # Each true pose against the reference at the Diagram time of its wall-clock time.
@@ -451,7 +451,59 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
     # code's: a bound on it fails under load, and the RMS above already shows the loop held).
     summary = driver.timing_summary()
     assert summary["periods"] == round(duration / h) and summary["read"]["n"] == len(walls)
-    records = np.array(driver._records, dtype=float)
+    records = driver.timing.rows()
     ages = records[np.isfinite(records[:, 4]), 4]
     assert summary["read"]["median"] == np.median(records[:, 2]) > 0
     assert summary["age"]["median"] == np.median(ages) > 0
+
+
+def test_a_late_periods_cause_is_the_largest_share_of_the_work_before_it():
+    from stewart_drake.station.bus import timing
+
+    late = np.full(len(timing.COLUMNS), np.nan)
+    # 12 ms since the previous period started, 2 ms of it the sleep asked for: 10 ms of work.
+    for cpu, wait, read, cause in (
+        (0.009, 0.0005, 0.0003, "loop CPU"),  # the loop's own work took the period
+        (0.001, 0.008, 0.0003, "preempted"),  # runnable, not running
+        (0.001, 0.0005, 0.008, "bus reply"),  # off the CPU, waiting for the reply
+        (0.001, 0.0005, 0.0003, "blocked"),  # off the CPU, not for the bus (the GIL, a lock)
+    ):
+        late[[timing._CPU, timing._WAIT, timing._READ, timing._WRITE]] = cpu, wait, read, 0.0
+        code = timing.LoopTiming._cause(late, interval=0.012, slept=0.002)
+        assert timing.CAUSES[code] == cause
+
+
+def test_each_period_records_the_loops_cpu_time_and_a_late_one_its_cause():
+    """A bus whose read stalls 2.5 periods off the CPU (a reply that does not come): the period
+    after it is late, its cause the bus's reply, named on the miss's line; every period has the
+    loop thread's CPU time and its run-queue wait (Linux)."""
+    h = 0.01
+
+    class SlowReply(StallingBus):
+        def read_state(self):
+            t0 = time.perf_counter()
+            state = super().read_state()
+            return BusState(state.q, state.v, state.tau, state.t, time.perf_counter() - t0)
+
+    stream = io.StringIO()
+    bus = SlowReply(X_HOME, stalls={10}, stall_s=2.5 * h)
+    driver, simulator = _held_driver(bus, X_HOME, h, max_deadline_misses=100, stream=stream)
+    simulator.AdvanceTo(0.3)
+    rows = driver.timing.rows()
+    cpu = rows[:-1, 6]
+    assert np.all(cpu > 0) and np.all(cpu < 10 * h)  # each period's own, not the process's
+    summary = driver.timing_summary()
+    assert summary["cpu"]["n"] == len(rows) - 1 and summary["cpu"]["median"] > 0
+    late = rows[:, 5] > 0.2 * h
+    from stewart_drake.station.bus.timing import CAUSES
+
+    # The stalled read (the 11th, seed first) is in period 9; period 10 starts 1.5 periods late
+    # (its read took 25 ms of the 30 ms before it: the reply's, whatever else the machine did).
+    assert late[10] and CAUSES[int(rows[10, 8])] == "bus reply", (rows[9], rows[10])
+    assert rows[9, 2] >= 2.5 * h
+    lines = stream.getvalue().splitlines()
+    assert any(
+        line.startswith("deadline miss at t = 0.100 s") and "(bus reply; " in line for line in lines
+    ), lines
+    assert summary["late_causes"]["bus reply"] >= 1
+    assert sum(summary["late_causes"].values()) == late.sum()

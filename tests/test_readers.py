@@ -76,6 +76,9 @@ ALLOWED = {
     # Our own source files, hashed for numba's cache key.
     ("control/kernel_cache.py", "sources_digest", "Path(...).read_bytes"),
     ("control/kernel_cache.py", "will_compile", "Path(...).read_bytes"),
+    ("station/bus/kernels.py", "path_kernels_digest", "Path(...).read_bytes"),
+    # The kernel's run-queue time of the loop's own thread (/proc/thread-self/schedstat).
+    ("station/bus/timing.py", "_RunQueueClock.__init__", "os.open"),
     # numba's own cache index (in the package's __pycache__ or NUMBA_CACHE_DIR), read as numba
     # reads it when it loads the cache, to say whether a command is about to compile.
     ("control/kernel_cache.py", "_valid_index", "open"),

@@ -113,9 +113,25 @@ def _run(scenario, tmp_path, **kw):
     return run, lines
 
 
+def _compiled_signatures() -> dict:
+    """Every signature compiled so far of the loop's kernels (the bus's, the LQI's step)."""
+    from stewart_drake.control.lqi import kernels as lqi
+    from stewart_drake.station.bus import kernels as bus
+
+    dispatchers = {
+        name: getattr(bus, name)
+        for name in ("measure_pose", "plant_state", "parse_status", "crank_state")
+        + ("torque_command", "fill_sync_write")
+    } | {f"lqi.{name}": getattr(lqi.step, name) for name in ("step", "act", "newton")}
+    return {name: list(f.signatures) for name, f in dispatchers.items()}
+
+
 def test_a_run_homes_from_the_measured_pose_holds_and_ends_with_the_torque_off(tmp_path):
     with _emulator() as emu:
+        compiled = _compiled_signatures()
         run, lines = _run(_scenario(emu, tmp_path), tmp_path)
+        # Nothing compiled during the run: every call had the types compiled before it.
+        assert _compiled_signatures() == compiled
         z_end = emu.with_backend(
             lambda b: b.station.GetOutputPort("platform_state").Eval(
                 b.station.GetMyContextFromRoot(b.simulator.get_context())
@@ -298,3 +314,33 @@ def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(t
     assert "sliders" in lines[0]
     # The sliders start at the measured pose: the robot holds where it rested.
     assert abs(z_end - X_REST[5]) < 2e-3, z_end
+
+
+def test_a_realtime_loop_the_os_refuses_is_one_line_and_the_run_goes_on(tmp_path, monkeypatch):
+    """``--realtime`` where the OS refuses the priority and the memory lock (simulated: the
+    calls fail as they do without the privilege): one line saying what and how to grant it, the
+    run to its end, the summary saying what the loop was given, and the thread as it was."""
+    import gc
+
+    from stewart_drake.live import realtime
+
+    def refused(*args):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(realtime.os, "sched_setscheduler", refused)
+    monkeypatch.setattr(realtime, "_memory_lock_refusal", lambda: "the memory lock limit is 8 kB")
+    cores = os.sched_getaffinity(0)
+    with _emulator() as emu:
+        run, lines = _run(_scenario(emu, tmp_path), tmp_path, realtime=True)
+    assert run.ok and run.exit_code == 0 and run.torque_off_confirmed, end_line(run)
+    said = [line for line in lines if line.startswith("realtime")]
+    assert len(said) == 1 and lines[0] == said[0], lines  # before the torque goes on
+    assert "not granted: SCHED_FIFO priority 50 (Operation not permitted: run as root" in said[0]
+    assert "ulimit -r 50" in said[0] and "ulimit -l unlimited" in said[0]
+    assert run.timing_lines[0] == (
+        f"realtime: the normal policy (SCHED_OTHER), pinned to core {max(cores)}, memory not "
+        "locked, garbage collected between periods"
+    )
+    assert run.timing["cpu"]["n"] == run.timing["periods"] - 1 > 100
+    # Given back: the cores, the collector.
+    assert os.sched_getaffinity(0) == cores and gc.isenabled()

@@ -195,3 +195,37 @@ def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
         finally:
             bus.close()
     assert np.all(np.abs(np.array(found) - mounted) <= 1), (found, mounted)
+
+
+def test_a_granted_realtime_loop_holds_its_core_and_priority_and_gives_them_back():
+    """Where the OS grants it (root, or an rtprio limit): in the thread that entered it,
+    SCHED_FIFO at priority 50 on one core, the collector off; all given back on exit. Run in a
+    thread of its own, which does nothing while it holds the priority."""
+    import gc
+    import os
+
+    from stewart_drake.live.realtime import PRIORITY, RealtimeLoop, loop_core
+
+    seen = {}
+
+    def inside():
+        before = (os.sched_getscheduler(0), os.sched_getaffinity(0))
+        with RealtimeLoop() as loop:
+            seen["inside"] = (
+                os.sched_getscheduler(0),
+                os.sched_getparam(0).sched_priority,
+                os.sched_getaffinity(0),
+                gc.isenabled(),
+                loop.policy,
+                loop.refusals,
+            )
+        seen["after"] = (os.sched_getscheduler(0), os.sched_getaffinity(0)) == before
+
+    thread = threading.Thread(target=inside)
+    thread.start()
+    thread.join(30)
+    policy, priority, cores, collecting, named, refusals = seen["inside"]
+    if named != "SCHED_FIFO":
+        pytest.skip(f"the OS grants no real-time priority here: {refusals}")
+    assert (policy, priority, cores) == (os.SCHED_FIFO, PRIORITY, {loop_core()})
+    assert not collecting and seen["after"] and gc.isenabled()

@@ -135,7 +135,7 @@ def njit_cached(function, cache: bool = True, **options):
     problem = cache_folder_problem(folder, config.CACHE_DIR or None)
     if problem is not None:
         _say_once(
-            ("unsafe", folder),
+            ("unsafe", problem),  # one line for every folder of one unsafe root
             f"numba's cache folder {folder} is not safe to load compiled code from: {problem}; "
             "compiling without a disk cache (every run compiles again): set NUMBA_CACHE_DIR to "
             "a folder of your own that no one else may write in",

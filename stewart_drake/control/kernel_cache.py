@@ -31,27 +31,31 @@ from ..base.compiled import njit_cached as njit_cached
 
 #: The kernels' module files (in :mod:`.lqi`), with the functions :func:`.lqi.kernels.warm_up`
 #: calls in each; the others are compiled into them.
-ENTRY_POINTS = {"step.py": ("step", "act", "filter_rate"), "reschedule.py": ("warm_gain",)}
+ENTRY_POINTS = {
+    "step.py": ("step", "act", "filter_rate", "newton"),
+    "reschedule.py": ("warm_gain",),
+}
 KERNEL_FILES = tuple(Path(__file__).with_name("lqi") / name for name in ENTRY_POINTS)
 
 #: :func:`sources_digest` of the sources the kernels were last compiled against.
-DEPENDENCIES_DIGEST = "2b7f9846e92a8ddb"
+DEPENDENCIES_DIGEST = "6d1c52f1324afe6f"
 
 
 def sources_digest() -> str:
     """SHA-256 (16 hex digits) of what the compiled code takes from other files: the source of
     :func:`~stewart_drake.robot.single_pose.ik_scalar`, all of :mod:`.lqi.layout` (the index
-    constants, which numba freezes into the machine code) and the source of
-    :func:`~stewart_drake.robot.path_kernels.lu_solve6`. numba's cache notices a change of a
+    constants, which numba freezes into the machine code) and all of
+    :mod:`~stewart_drake.robot.path_kernels` (:func:`~stewart_drake.robot.path_kernels.lu_solve6`,
+    :func:`~stewart_drake.robot.path_kernels.fk_newton`). numba's cache notices a change of a
     kernels' file itself (:data:`KERNEL_FILES`) only, so the cache is used only while this digest
     is :data:`DEPENDENCIES_DIGEST` (a test holds them equal: change one, update the other)."""
-    from ..robot.path_kernels import lu_solve6
+    from ..robot import path_kernels
     from ..robot.single_pose import ik_scalar
     from .lqi import layout
 
     digest = hashlib.sha256(inspect.getsource(ik_scalar).encode())
     digest.update(Path(layout.__file__).read_bytes())
-    digest.update(inspect.getsource(getattr(lu_solve6, "py_func", lu_solve6)).encode())
+    digest.update(Path(path_kernels.__file__).read_bytes())
     return digest.hexdigest()[:16]
 
 

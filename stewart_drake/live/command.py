@@ -188,6 +188,14 @@ def _add_robot_command(sub) -> None:
         help="rehearse on the bus emulator (a pseudo-terminal, the robot's Drake plant at real "
         "time behind it) resting at POSE phi,theta,psi,X,Y,Z (default 0,0,0,0,0,0.28)",
     )
+    rob.add_argument(
+        "--realtime",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="run the control loop on SCHED_FIFO priority 50, pinned to a core, its memory "
+        "locked, Python's garbage collected between periods (default; what the OS refuses is "
+        "said in one line and the run goes on; with --emulate the emulator's process too)",
+    )
     rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
     rob.add_argument(
         "--teleop",
@@ -356,12 +364,14 @@ def _check_emulated_pose(scenario, x0) -> None:
 EMULATED_REPLY_TIMEOUT_S = 2.0
 
 
-def _start_emulator(scenario, x0):
+def _start_emulator(scenario, x0, realtime: bool = False):
     """Start the bus emulator with the scenario's robot (its Drake plant at a 2 ms step, half
     the CPU of 1 ms) behind it in a process of its own, resting at pose ``x0``, and point
     ``scenario.bus`` at its pseudo-terminal, with a reply timeout of
     :data:`EMULATED_REPLY_TIMEOUT_S` unless the scenario sets one; returns the
-    :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it)."""
+    :class:`~stewart_drake.live.emulator_process.EmulatorProcess` (close it). With ``realtime``
+    the emulator's threads run on SCHED_FIFO one priority below the loop, off the loop's core:
+    they stand in for servos, which compute on chips of their own."""
     from .emulator_process import EmulatorProcess
     from .plant_backend import behind_the_bus
 
@@ -376,6 +386,7 @@ def _start_emulator(scenario, x0):
         scenario=robot,
         zero_counts=bus.zero_counts,
         start_timeout_s=300.0,
+        realtime=realtime,
     ).start()
     bus.port = emulator.port
     return emulator
@@ -391,7 +402,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
     emulator = None
     try:
         if args.emulate is not None:
-            emulator = _start_emulator(scenario, args.emulate)
+            emulator = _start_emulator(scenario, args.emulate, args.realtime)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
             from ..station.bus.driver import DynamixelBus
@@ -423,6 +434,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
                 duration_s=args.duration,
                 loop_timeout_s=args.loop_timeout,
                 signals=signals,
+                realtime=args.realtime,
             )
         else:
             run = run_on_robot(
@@ -435,6 +447,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
                 meshcat=meshcat,
                 progress=not args.no_progress,
                 signals=signals,
+                realtime=args.realtime,
             )
     finally:
         if emulator is not None:

@@ -28,13 +28,14 @@ from ..robot.kinematics import X_HOME
 
 
 def _serve(  # pragma: no cover
-    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts
+    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, realtime
 ) -> None:
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
     sends ("error", one line) instead of a traceback on the terminal."""
     try:
-        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts).start()
+        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts)
+        _start_threads(emu, realtime)
     except Exception as err:  # noqa: BLE001 - reported to the parent in one line
         conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
         return
@@ -45,6 +46,39 @@ def _serve(  # pragma: no cover
         conn.send((record, emu.slipped_s))
     finally:
         emu.close()
+
+
+def _start_threads(emu, realtime: bool) -> None:  # pragma: no cover
+    """Start the emulator's threads; with ``realtime``, on SCHED_FIFO one priority below the
+    loop's (:data:`~.realtime.PRIORITY`) and on every core but the loop's
+    (:func:`~.realtime.loop_core`), where the OS allows: the threads inherit the policy and
+    the cores of the thread that starts them, which then goes back to the normal policy."""
+    import os
+
+    from .realtime import PRIORITY, loop_core
+
+    if not realtime:
+        emu.start()
+        return
+    old = None
+    try:
+        cores = os.sched_getaffinity(0)
+        others = cores - {loop_core()}
+        old = (os.sched_getscheduler(0), os.sched_getparam(0), cores)
+        if others:
+            os.sched_setaffinity(0, others)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PRIORITY - 1))
+    except (AttributeError, OSError):  # refused: the loop's own line says so
+        pass
+    try:
+        emu.start()
+    finally:
+        if old is not None:
+            try:
+                os.sched_setscheduler(0, old[0], old[1])
+                os.sched_setaffinity(0, old[2])
+            except OSError:
+                pass
 
 
 def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # pragma: no cover
@@ -90,6 +124,9 @@ class EmulatorProcess:
         start_timeout_s: how long to wait for the child's port.
         zero_counts: (n,) the counts each servo reports at its crank's zero angle (default
             2048, the bus's default).
+        realtime: the emulator's threads on SCHED_FIFO one priority below the control loop's,
+            off its core (where the OS allows): the servos it stands in for compute on chips of
+            their own, not on the loop's computer.
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
             :meth:`close`).
@@ -107,6 +144,7 @@ class EmulatorProcess:
         max_step_s: float = 0.02,
         start_timeout_s: float = 120.0,
         zero_counts=None,
+        realtime: bool = False,
     ):
         from ..run.scenario import Scenario, dump_scenario
 
@@ -118,6 +156,7 @@ class EmulatorProcess:
             tick_s,
             max_step_s,
             None if zero_counts is None else [int(c) for c in zero_counts],
+            bool(realtime),
         )
         self.start_timeout_s = start_timeout_s
         self.port: str | None = None

@@ -28,6 +28,7 @@ the pose and its verdict.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import signal
 import sys
@@ -41,6 +42,7 @@ import numpy as np
 from ..base.errors import InvalidConfigError, StartPoseError, StewartError
 from ..references.smoothstep import smooth_ramp
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
+from .realtime import RealtimeLoop
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 #: Default duration of the homing lead-in, s.
@@ -158,8 +160,12 @@ class RobotRun:
         logs: the ``.npz`` written (None: none, e.g. the run had not started).
         encoder_log: the encoders' readings with their times, written beside it
             (:func:`~stewart_drake.calibration.join.write_encoder_log`), or None.
-        timing: the driver's timing summary (period, jitter, round trips, measurement age,
-            deadline misses: ``DynamixelDriver.timing_summary``); ``timing_lines`` as text.
+        timing: the driver's timing summary (period, jitter, the loop's CPU time, round trips,
+            measurement age, deadline misses and the late periods' causes:
+            ``DynamixelDriver.timing_summary``); ``timing_lines`` as text, after what the loop
+            was given (``realtime``).
+        realtime: what the loop was given (:meth:`~.realtime.RealtimeLoop.granted`), or None
+            when it asked for nothing.
         metrics: the run's metrics (:func:`~stewart_drake.run.metrics.compute_metrics`:
             tracking from the measured pose, torques), when its logs were read.
         exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
@@ -173,6 +179,7 @@ class RobotRun:
     encoder_log: Path | None = None
     timing: dict | None = None
     timing_lines: list[str] = dataclasses.field(default_factory=list)
+    realtime: str | None = None
     metrics: dict | None = None
     exit_code: int = 0
 
@@ -287,6 +294,7 @@ def run_on_robot(
     say: Callable[[str], None] | None = None,
     before_torque: Callable | None = None,
     signals: SessionSignals | None = None,
+    realtime: bool = False,
 ) -> RobotRun:
     """Run the scenario's closed loop on the robot (the safety sequence of the module's
     docstring); never leaves the torque on.
@@ -307,6 +315,9 @@ def run_on_robot(
         signals: the entered :class:`SessionSignals` of a caller that says the end line itself
             (it holds signals through it, then calls ``settle``); None: the session's own,
             settled before it returns.
+        realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
+            of its own, memory locked, the garbage collector between periods); what the OS
+            refuses is said in one line (``say``) and the run goes on.
     Returns:
         :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
         came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
@@ -334,9 +345,9 @@ def run_on_robot(
     homed_run = dataclasses.replace(scenario, duration_s=homed.duration_s + hold_s)
     session = (homed_run, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
     if signals is not None:
-        return _run(*session, before_torque, signals)
+        return _run(*session, before_torque, signals, realtime)
     with SessionSignals() as own:
-        return own.settle(_run(*session, before_torque, own))
+        return own.settle(_run(*session, before_torque, own, realtime))
 
 
 def _run(
@@ -351,6 +362,7 @@ def _run(
     say,
     before_torque,
     signals,
+    realtime,
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
     from ..run.simulate import advance
@@ -381,13 +393,15 @@ def _run(
             f"torque on: homing for {homed.home_s:g} s from the measured pose, then "
             f"{getattr(homed.reference, 'name', 'the reference')}"
         )
-        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended, signals)
+        talk = (loop_timeout_s, say, announce)
+        wall = _drive(bus, simulator, *talk, body, ended, signals, realtime, station.driver)
     finally:
         signals.hold()
         try:
             ended.torque_off_confirmed = bus.torque_off()
             ended.timing = station.driver.timing_summary()
-            ended.timing_lines = station.driver.timing_lines()
+            given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
+            ended.timing_lines = given + station.driver.timing_lines()
         finally:
             bus.close()
     if not powered:
@@ -469,12 +483,44 @@ def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -
 
 
 def _drive(
-    bus, simulator, loop_timeout_s, say, announce, body, ended: RobotRun, signals: SessionSignals
+    bus,
+    simulator,
+    loop_timeout_s,
+    say,
+    announce,
+    body,
+    ended: RobotRun,
+    signals: SessionSignals,
+    realtime: bool = False,
+    driver=None,
 ) -> float:
     """Enable the torque, say ``announce``, run ``body()`` (which advances ``simulator``)
     behind our watchdog, and record in ``ended`` how it ended; returns the wall time, s. From
     the end of ``body()`` on, ``signals`` are held. The caller removes the torque (in a
-    ``finally``)."""
+    ``finally``). With ``realtime`` the loop runs as :class:`~.realtime.RealtimeLoop` asks
+    (a refusal said in one line first), our watchdog's thread one priority above it, and
+    ``driver`` (the :class:`~stewart_drake.station.bus.station.DynamixelDriver`) collects the
+    garbage between periods."""
+    with contextlib.ExitStack() as held:
+        if realtime:
+            loop = held.enter_context(RealtimeLoop())
+            ended.realtime = loop.granted()
+            refused = loop.line()
+            if refused is not None:
+                say(refused)
+            if driver is not None:
+                driver.between_periods = loop.collect
+                held.callback(setattr, driver, "between_periods", None)
+        else:
+            loop = None
+        return _drive_held(
+            bus, simulator, loop_timeout_s, say, announce, body, ended, signals, loop
+        )
+
+
+def _drive_held(bus, simulator, loop_timeout_s, say, announce, body, ended, signals, loop) -> float:
+    """:func:`_drive` once the loop has what it asked for (``loop``: the entered
+    :class:`~.realtime.RealtimeLoop`, or None)."""
     from ..execution.runners import interrupt_in
 
     watchdog = LoopWatchdog(bus.torque_off, loop_timeout_s)
@@ -488,6 +534,8 @@ def _drive(
             bus.enable_torque()
             say(announce)
             with watchdog:
+                if loop is not None:
+                    loop.lift(watchdog.native_id)
                 body()
         finally:
             signals.hold()
@@ -525,6 +573,7 @@ def teleop_on_robot(
     loop_timeout_s: float = LOOP_TIMEOUT_S,
     say: Callable[[str], None] | None = None,
     signals: SessionSignals | None = None,
+    realtime: bool = False,
 ) -> RobotRun:
     """``teleop`` on the robot: the live Meshcat (sliders, gauges, the reference's ghost, the
     robot drawn at its measured pose) driving the servos of ``scenario.bus``.
@@ -537,7 +586,7 @@ def teleop_on_robot(
     SIGTERM) with the torque off and one line, as :func:`run_on_robot`; a live session keeps
     no logs (as ``teleop`` in simulation).
 
-    ``signals``: as :func:`run_on_robot`'s.
+    ``signals``, ``realtime``: as :func:`run_on_robot`'s.
 
     Raises:
         as :func:`run_on_robot` before the torque is on.
@@ -546,13 +595,16 @@ def teleop_on_robot(
     bus_config(scenario)
     check_loop_timeout(loop_timeout_s, getattr(scenario, "scenario", scenario).control_period_s)
     start = admissible_start(scenario)
+    session = (scenario, meshcat, duration_s, loop_timeout_s, say, start)
     if signals is not None:
-        return _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals)
+        return _teleop(*session, signals, realtime)
     with SessionSignals() as own:
-        return own.settle(_teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, own))
+        return own.settle(_teleop(*session, own, realtime))
 
 
-def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) -> RobotRun:
+def _teleop(
+    scenario, meshcat, duration_s, loop_timeout_s, say, start, signals, realtime
+) -> RobotRun:
     """The powered part of :func:`teleop_on_robot`."""
     from ..execution.runners import Interrupted
     from ..station.bus.driver import DynamixelBus
@@ -571,7 +623,9 @@ def _teleop(scenario, meshcat, duration_s, loop_timeout_s, say, start, signals) 
                 raise Interrupted(stats["interrupted_by"])
 
         announce = f"torque on: open {meshcat.web_url()} ; the sliders move the robot"
-        _drive(bus, run.simulator, loop_timeout_s, say, announce, body, ended, signals)
+        driver = getattr(run.loop.station, "driver", None)
+        talk = (loop_timeout_s, say, announce)
+        _drive(bus, run.simulator, *talk, body, ended, signals, realtime, driver)
         if ended.ok:
             ended.reason = "the session ran its duration"
     finally:

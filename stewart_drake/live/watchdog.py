@@ -72,6 +72,11 @@ class LoopWatchdog:
     def kick(self) -> None:
         self._last = time.perf_counter()
 
+    @property
+    def native_id(self) -> int | None:
+        """The OS's id of the watchdog's thread (None before it starts)."""
+        return self._thread.native_id
+
     def __enter__(self):
         self.kick()
         self._thread.start()

@@ -1,6 +1,7 @@
 """The reference validator's per-pose arithmetic, compiled with numba: the closed-form IK's
 reach ratios (:func:`closure`), the leg terms, the Jacobian and the ball joints' angles
-(:func:`pose_terms`), and the motor torques a motion needs (:func:`effort`).
+(:func:`pose_terms`), and the motor torques a motion needs (:func:`effort`); and the forward
+kinematics by Newton of a control period (:func:`fk_newton`: the encoders' pose on the robot).
 
 :func:`~.limits.validate_trajectory` checks every sample of a reference (every millisecond of
 a run). Its numpy form runs each formula as a batched operation on (6, 3)-sized blocks, where
@@ -266,20 +267,20 @@ def _inertia(body, legs, R, E, ell, e_N, G, J, M, K, B, P):
 
 
 @_njit
-def lu_solve6(A, x):
-    """Solve A y = x for A (6, 6) and x (6,) in place, by LU with partial pivoting (LAPACK's
-    dgesv): A is overwritten by its factors and x by y. Returns False (x partly overwritten)
-    when a pivot is exactly zero, where dgesv reports a singular matrix. The one 6 x 6 solve
-    of the compiled code (the LQI's step calls it too), written as loops in one order: the
-    compiled and the interpreted form give the same bits."""
+def _lu6(A, x):
+    """LU with partial pivoting of A (6, 6) in place (A overwritten by its factors), the row
+    swaps and the elimination applied to x (6,) as well; returns the sign of the row
+    permutation, or 0.0 where a pivot is exactly zero (x partly overwritten)."""
+    sign = 1.0
     for k in range(6):
         p = k
         for i in range(k + 1, 6):
             if abs(A[i, k]) > abs(A[p, k]):
                 p = i
         if A[p, k] == 0.0:
-            return False
+            return 0.0
         if p != k:
+            sign = -sign
             for j in range(6):
                 A[k, j], A[p, j] = A[p, j], A[k, j]
             x[k], x[p] = x[p], x[k]
@@ -288,6 +289,18 @@ def lu_solve6(A, x):
             for j in range(k + 1, 6):
                 A[i, j] -= f * A[k, j]
             x[i] -= f * x[k]
+    return sign
+
+
+@_njit
+def lu_solve6(A, x):
+    """Solve A y = x for A (6, 6) and x (6,) in place, by LU with partial pivoting (LAPACK's
+    dgesv): A is overwritten by its factors and x by y. Returns False (x partly overwritten)
+    when a pivot is exactly zero, where dgesv reports a singular matrix. The one 6 x 6 solve
+    of the compiled code (the LQI's step calls it too), written as loops in one order: the
+    compiled and the interpreted form give the same bits."""
+    if _lu6(A, x) == 0.0:
+        return False
     for k in range(5, -1, -1):
         acc = x[k]
         for j in range(k + 1, 6):
@@ -393,6 +406,112 @@ def effort(x, x_dot, x_ddot, theta, legs, body, T, status):
         )
         bad += status[n] != OK
     return bad
+
+
+# -- forward kinematics by Newton (one reading of the encoders) ------------------------------------
+
+
+@_njit
+def ik_angles(legs, x, R, E, r, q, theta):
+    """theta (6,) of pose x by the closed-form IK, in place (NaN for a leg that cannot close),
+    with R, E, r, q (the pose's rotation, rate map, lever arms and platform joints) set for
+    :func:`jacobian_at`."""
+    _rotation(x, R, E)
+    _lever_arms(x, legs, R, r, q)
+    for i in range(6):
+        L, M, N = _lmn(legs, q, i)
+        h = math.sqrt(M * M + N * N)
+        theta[i] = math.asin(L / h) - math.atan2(N, M) if abs(L) <= h else math.nan
+
+
+@_njit
+def jacobian_at(legs, theta, E, r, q, J):
+    """J = d theta / d x (6, 6), in place, at the pose :func:`ik_angles` last set E, r, q and
+    theta for."""
+    c, s = np.empty(6), np.empty(6)
+    for i in range(6):
+        c[i], s[i] = math.cos(theta[i]), math.sin(theta[i])
+    ell, e_N, G = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3, 3))
+    _leg_terms(legs, c, s, E, r, q, ell, e_N, G, J)
+
+
+@_njit
+def _det_sign(J):
+    """The sign of det J (6, 6) from its LU factors (0.0 where a pivot is zero)."""
+    A = J.copy()
+    sign = _lu6(A, np.zeros(6))
+    for k in range(6):
+        if A[k, k] < 0.0:
+            sign = -sign
+    return sign
+
+
+@_njit
+def _all_finite(v):
+    """Whether every entry of ``v`` is finite."""
+    for k in range(v.size):
+        if not math.isfinite(v.flat[k]):
+            return False
+    return True
+
+
+@_njit
+def fk_newton(legs, mode, tol, max_iterations, x_start, theta_read, x, J):
+    """The pose whose IK gives the encoders' reading, by Newton from ``x_start``: the algorithm
+    of :meth:`~stewart_drake.control.estimator.PoseEstimator.estimate` (the same steps, its
+    branch guard and step halving), compiled. In place: x (6,) the last iterate, J (6, 6) the
+    Jacobian there when converged.
+
+    Args:
+        legs: (6, LEG_SIZE) :func:`~.single_pose.leg_constants` (the encoders' zero errors in
+            the last column, subtracted from the reading). mode: +1 or -1, sign det J of the
+            assembly mode to stay in. tol: rad, the largest residual of a converged pose.
+            max_iterations: Newton steps at most. x_start: (6,) [rad, m].
+            theta_read: (6,) the encoders' reading, rad.
+    Returns:
+        whether every residual is within ``tol``.
+    Source: FK by Newton on paper eq. 6 (ours; docs/hardware.md).
+    """
+    R, E, r, q = np.empty((3, 3)), np.empty((3, 3)), np.empty((6, 3)), np.empty((6, 3))
+    th, th_c = np.empty(6), np.empty(6)
+    candidate, dx, target = np.empty(6), np.empty(6), np.empty(6)
+    x[:] = x_start
+    for i in range(6):
+        target[i] = theta_read[i] - legs[i, legs.shape[1] - 1]
+    ik_angles(legs, x, R, E, r, q, th)
+    for step in range(max_iterations + 1):
+        worst = 0.0
+        for i in range(6):
+            dx[i] = (th[i] - target[i] + math.pi) % (2 * math.pi) - math.pi
+            worst = max(worst, abs(dx[i])) if math.isfinite(dx[i]) else math.inf
+        jacobian_at(legs, th, E, r, q, J)
+        if worst <= tol:
+            return True
+        if step == max_iterations or not _all_finite(J) or not lu_solve6(J.copy(), dx):
+            return False
+        accepted = False
+        for _ in range(20):  # the branch guard and the workspace: halve the step
+            for i in range(6):
+                candidate[i] = x[i] - dx[i]
+            ik_angles(legs, candidate, R, E, r, q, th_c)
+            if _all_finite(th_c):
+                big = False
+                for i in range(6):
+                    big = big or abs(dx[i]) >= 1e-3
+                if not big:
+                    accepted = True
+                    break
+                jacobian_at(legs, th_c, E, r, q, J)
+                if _det_sign(J) == mode:
+                    accepted = True
+                    break
+            for i in range(6):
+                dx[i] *= 0.5
+        if not accepted:
+            return False
+        x[:] = candidate
+        th[:] = th_c
+    return False
 
 
 #: Every function above as the Python numba compiles (its ``py_func``), calling the others'

@@ -209,6 +209,7 @@ class LqiController(LeafSystem):
             np.zeros((6, LEG_SIZE)) if self.estimator is None else self.estimator.legs.copy()
         )
         self._legs.setflags(write=False)
+        self._newton_x = np.zeros(6)
         self._gain_legs = statics.kernel_constants(self.geometry)[0].copy()
         self._body = body_constants(self.geometry)
         for constant in (self._gain_legs, self._body):
@@ -419,10 +420,14 @@ class LqiController(LeafSystem):
 
     def _estimate_by_newton(self, theta, x_hat) -> None:
         """Estimate: the full Newton solve when the chord step is refused (a jump, a stale
-        Jacobian; :meth:`~.estimator.PoseEstimator.estimate`), then the rate filter."""
+        Jacobian; the compiled stage :func:`~.step.newton`, the estimator's steps), then the
+        rate filter."""
+        estimator, x = self.estimator, self._newton_x
         x0 = x_hat[:6] + self.h * x_hat[6:]
-        x = self.estimator.estimate(np.asarray(theta, dtype=float), x0)[0]
-        self._stages.filter_rate(self.h, self.estimator.alpha, x, x_hat)
+        self._stages.newton(
+            self._legs, estimator.mode, estimator.tol, estimator.max_iterations, x0, theta, x
+        )
+        self._stages.filter_rate(self.h, estimator.alpha, x, x_hat)
 
     def _reschedule(self, context, x, omega, state) -> bool:
         """Re-schedule: re-solve the gain at the estimated pose for the weights on the port

@@ -41,6 +41,7 @@ def warm_up() -> None:
     step.step(c, legs, u, state, bounds)
     step.act(c, u, state, bounds, 0)
     step.filter_rate(1e-3, 0.5, np.zeros(6), np.zeros(12))
+    step.newton(legs, 1.0, 1e-5, 1, np.array([0, 0, 0, 0, 0, 0.3]), np.zeros(6), np.zeros(6))
     body, x, K = (
         _readonly(np.ones(len(reschedule.BODY))),
         np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.3]),

@@ -34,7 +34,7 @@ import math
 
 import numpy as np
 
-from ...robot.path_kernels import lu_solve6
+from ...robot.path_kernels import fk_newton, lu_solve6
 from ...robot.single_pose import ik_scalar
 from ..kernel_cache import interpreted, njit_cached, use_cache
 from .layout import (
@@ -175,6 +175,17 @@ def estimate(legs, h, alpha, fk_jump, theta, x_hat, J_inv):
         x_hat[6 + i] += alpha * ((x - x_hat[i]) / h - x_hat[6 + i])
         x_hat[i] = x
     return True
+
+
+@_njit
+def newton(legs, mode, tol, max_iterations, x0, theta, x):
+    """The full Newton solve of a period whose chord step :func:`estimate` refused: the pose x
+    (6,) whose IK gives the encoders' reading theta, from x0, in place
+    (:func:`~stewart_drake.robot.path_kernels.fk_newton`: the steps of
+    :meth:`~stewart_drake.control.estimator.PoseEstimator.estimate`); then :func:`filter_rate`.
+    Returns whether it converged (x is the last iterate either way, as the estimator's)."""
+    J = np.empty((6, 6))
+    return fk_newton(legs, mode, tol, max_iterations, x0, theta, x, J)
 
 
 @_njit

@@ -2,17 +2,24 @@
 
 :class:`DynamixelBus` opens the port, pings every id, configures the servos with the torque off
 (Current Control Mode, current, temperature and position limits, the bus watchdog), reads the
-configuration back, then each control period reads the state with one GroupSyncRead (Present
-Current, Velocity and Position: addresses 126..135) and writes the torques with one
-GroupSyncWrite of Goal Current. :meth:`DynamixelBus.torque_off` is safe to call at any time and
-is called on close, on ``__exit__`` and before a :class:`~stewart_drake.base.errors.BusError` is
-raised. Addresses, units and conversions: :mod:`.protocol`; the models and the settings'
-check: :mod:`.servos`; docs/hardware_bus.md.
+configuration back, then each control period reads the state with one sync read (Present
+Current, Velocity and Position: addresses 126..135) and writes the torques with one sync write
+of Goal Current. Those two packets are the vendor's GroupSyncRead and GroupSyncWrite byte for
+byte, but built once into preallocated buffers and parsed by compiled code
+(:mod:`.kernels`) on the port's file descriptor: the vendor's Python builds and parses every
+packet a list at a time, a third of a millisecond of the loop's CPU a period.
+:meth:`DynamixelBus.torque_off` is safe to call at any time and is called on close, on
+``__exit__`` and before a :class:`~stewart_drake.base.errors.BusError` is raised. Addresses,
+units and conversions: :mod:`.protocol`; the models and the settings' check: :mod:`.servos`;
+docs/hardware_bus.md.
 """
 
 from __future__ import annotations
 
 import collections
+import os
+import select
+import termios
 import threading
 import time
 from dataclasses import dataclass
@@ -30,8 +37,6 @@ from . import protocol as p
 from .servos import (
     DynamixelBusConfig,
     check_bus_settings,
-    current_units_to_torque,
-    torque_to_current_units,
 )
 
 
@@ -48,6 +53,10 @@ def dynamixel_sdk():
             "the servo driver needs ROBOTIS's dynamixel-sdk: pip install 'stewart-drake[robot]'"
         ) from None
     return sdk
+
+
+#: One encoder count, rad (:func:`~.protocol.counts_to_rad`'s factor).
+_RAD_PER_COUNT = 2 * np.pi / p.COUNTS_PER_REV
 
 
 def _port_handler(sdk, port: str, reply_timeout_s: float | None):
@@ -227,7 +236,45 @@ class DynamixelBus:
                     f"servo id {i} on {self.port_name} is model number {model}, not "
                     f"{self.spec.name} ({self.spec.model_number}): name the servos' model"
                 )
+        self._period_packets(port)
         return self
+
+    def _period_packets(self, port) -> None:
+        """The sync read's request and the sync write (its data filled each period), the
+        buffers a reply is read and parsed into, and the reply's timeout: the vendor's packet
+        timeout for the reply's length (2 x the USB latency timer + 2 ms + the transfer), at
+        least ``reply_timeout_s``."""
+        from . import kernels  # compiled (or loaded) here, for a bus that is opened
+
+        self._kernels = kernels
+        n = len(self.ids)
+        address, size = p.STATE_BLOCK
+        self._request = p.build_packet(
+            p.BROADCAST_ID,
+            p.SYNC_READ,
+            address.to_bytes(2, "little") + size.to_bytes(2, "little") + bytes(self.ids),
+        )
+        goal, goal_size = p.GOAL_CURRENT
+        params = goal.to_bytes(2, "little") + goal_size.to_bytes(2, "little")
+        params += b"".join(bytes([i, 0, 0]) for i in self.ids)
+        self._sync_write = np.frombuffer(
+            p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, params), dtype=np.uint8
+        ).copy()
+        self._crc_table = np.array(p._CRC_TABLE, dtype=np.uint16)
+        self._id_array = np.array(self.ids, dtype=np.int64)
+        for constant in (self._crc_table, self._id_array):
+            constant.setflags(write=False)  # as the kernels were compiled for
+        self._units = np.zeros(n, dtype=np.int64)
+        self._zero_f = np.asarray(self.zero_counts, dtype=float).copy()
+        self._sign_f = np.asarray(self.directions, dtype=float).copy()
+        for constant in (self._zero_f, self._sign_f):
+            constant.setflags(write=False)
+        self._rx = np.zeros(64 * n + 256, dtype=np.uint8)
+        self._found, self._raw = np.zeros(n, dtype=bool), np.zeros((n, 3))
+        latency_ms = getattr(self._sdk.port_handler, "LATENCY_TIMER", 16)
+        sdk_ms = 10_000.0 / self.baud_rate * (11 + size) * n + 2.0 * latency_ms + 2.0
+        self._reply_s = max(sdk_ms / 1e3, self.reply_timeout_s or 0.0)
+        self._fd = port.ser.fileno()
 
     def close(self) -> None:
         """Remove the torque (attempted) and close the port. Idempotent."""
@@ -338,39 +385,61 @@ class DynamixelBus:
     # --- the control period ------------------------------------------------------------------
 
     def read_state(self) -> BusState:
-        """One GroupSyncRead of Present Current, Velocity and Position (126..135).
+        """One sync read of Present Current, Velocity and Position (126..135).
 
         Raises:
-            BusError: a servo does not answer or reports a hardware error (torque off first).
+            BusError: a servo does not answer (no status packet within the reply timeout), a
+                corrupt status packet, or the port fails (torque off first).
         """
-        sdk = self._sdk
-        address, size = p.STATE_BLOCK
-        group = self._group_read
+        self._require_open()
+        fd, rx, found = self._fd, self._rx, self._found
+        found[:] = False
+        received, count = 0, 0
         with self.lock:
             t0 = time.perf_counter()
-            result = group.txRxPacket()
+            try:
+                termios.tcflush(fd, termios.TCIFLUSH)  # a reply a failed read left
+                sent = os.write(fd, self._request)
+                deadline = time.perf_counter() + self._reply_s
+                while sent == len(self._request):
+                    count = self._kernels.parse_status(
+                        self._crc_table, rx, received, self._id_array, found, self._raw
+                    )
+                    if count == len(found) or count < 0 or received == rx.size:
+                        break
+                    wait = deadline - time.perf_counter()
+                    if wait <= 0 or not select.select([fd], [], [], wait)[0]:
+                        break
+                    got = os.readv(fd, [rx.data[received:]])
+                    if got == 0:
+                        raise OSError("the port reports data but returns none")
+                    received += got
+            except OSError as err:
+                self._fail(f"sync read: the port failed ({err})")
             t1 = time.perf_counter()
-        if result != sdk.COMM_SUCCESS:
+        if count != len(found):
+            sdk = self._sdk
+            result = sdk.COMM_RX_TIMEOUT if count >= 0 and not received else sdk.COMM_RX_CORRUPT
+            if sent != len(self._request):
+                result = sdk.COMM_TX_FAIL
             self._fail(f"sync read: {self._packets.getTxRxResult(result)}")
-        n = len(self.ids)
-        cur, vel, pos = np.empty(n), np.empty(n), np.empty(n)
-        for k, i in enumerate(self.ids):
-            if not group.isAvailable(i, address, size):
-                self._fail(f"sync read: no data from servo id {i}")
-            cur[k] = p.to_signed(group.getData(i, p.PRESENT_CURRENT[0], 2), 2)
-            vel[k] = p.to_signed(group.getData(i, p.PRESENT_VELOCITY[0], 4), 4)
-            pos[k] = p.to_signed(group.getData(i, p.PRESENT_POSITION[0], 4), 4)
         self.read_times.append(t1 - t0)
-        return BusState(
-            q=p.counts_to_rad(pos, self.zero_counts, self.directions),
-            v=p.velocity_units_to_rad_s(vel, self.directions),
-            tau=current_units_to_torque(cur, self.spec, self.directions),
-            t=0.5 * (t0 + t1),
-            round_trip_s=t1 - t0,
+        state = np.empty((3, len(found)))
+        spec = self.spec
+        self._kernels.crank_state(
+            self._raw,
+            self._zero_f,
+            self._sign_f,
+            _RAD_PER_COUNT,
+            p.VELOCITY_UNIT_RAD_S,
+            spec.torque_constant_Nm_per_A,
+            spec.amps_per_unit,
+            state,
         )
+        return BusState(state[0], state[1], state[2], 0.5 * (t0 + t1), t1 - t0)
 
     def write_torques(self, tau) -> np.ndarray:
-        """One GroupSyncWrite of Goal Current for crank torques ``tau`` (n,), N m.
+        """One sync write of Goal Current for crank torques ``tau`` (n,), N m.
 
         Returns:
             (n,) the torques sent, N m: clipped to the Current Limit and rounded to its units.
@@ -379,22 +448,30 @@ class DynamixelBus:
             BusError: the port fails (torque off first).
         """
         tau = np.asarray(tau, dtype=float)
-        if tau.shape != (len(self.ids),) or not np.all(np.isfinite(tau)):
+        self._require_open()
+        applied = np.empty(len(self.ids))
+        if tau.shape != applied.shape or not self._kernels.torque_command(
+            np.array(tau),  # writable and contiguous, as compiled
+            self._sign_f,
+            self.spec.torque_constant_Nm_per_A,
+            self.spec.amps_per_unit,
+            self.current_limit_units,
+            self._units,
+            applied,
+        ):
             raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
-        units = torque_to_current_units(tau, self.spec, self.directions)
-        units = np.clip(units, -self.current_limit_units, self.current_limit_units)
-        group = self._group_write
-        group.clearParam()
-        for i, u in zip(self.ids, units):
-            group.addParam(i, list(p.to_unsigned(int(u), 2).to_bytes(2, "little")))
+        self._kernels.fill_sync_write(self._crc_table, self._sync_write, self._units)
         with self.lock:
             t0 = time.perf_counter()
-            result = group.txPacket()
+            try:
+                sent = os.write(self._fd, self._sync_write.data)
+            except OSError as err:
+                self._fail(f"sync write: the port failed ({err})")
             t1 = time.perf_counter()
-        if result != self._sdk.COMM_SUCCESS:
-            self._fail(f"sync write: {self._packets.getTxRxResult(result)}")
+        if sent != self._sync_write.size:
+            self._fail(f"sync write: {self._packets.getTxRxResult(self._sdk.COMM_TX_FAIL)}")
         self.write_times.append(t1 - t0)
-        return current_units_to_torque(units, self.spec, self.directions)
+        return applied
 
     def timing(self) -> dict:
         """Round trips kept so far, s: {"read"|"write": {"n", "median", "p99", "max"}}."""
@@ -414,22 +491,6 @@ class DynamixelBus:
         return out
 
     # --- internals ---------------------------------------------------------------------------
-
-    @property
-    def _group_read(self):
-        if getattr(self, "_gr", None) is None:
-            self._require_open()
-            self._gr = self._sdk.GroupSyncRead(self._port, self._packets, *p.STATE_BLOCK)
-            for i in self.ids:
-                self._gr.addParam(i)
-        return self._gr
-
-    @property
-    def _group_write(self):
-        if getattr(self, "_gw", None) is None:
-            self._require_open()
-            self._gw = self._sdk.GroupSyncWrite(self._port, self._packets, *p.GOAL_CURRENT)
-        return self._gw
 
     def _require_open(self) -> None:
         if self._port is None:

@@ -19,8 +19,7 @@ itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on 
 
 from __future__ import annotations
 
-import array
-import collections
+import math
 import sys
 import time
 
@@ -31,13 +30,15 @@ from pydrake.systems.primitives import PassThrough
 from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
-from ...plant.closed_chain import LoopClosure, assembled_positions
+from ...plant.closed_chain import LoopClosure
+from ...plant.sdf import rod_zero_rotations
 from ...robot.forward_kinematics import fk
-from ...robot.kinematics import X_HOME, angular_velocity_map, jacobian
-from ...robot.single_pose import ik_single, jacobian_single
+from ...robot.kinematics import X_HOME
+from ...robot.single_pose import ik_single, jacobian_single, leg_constants
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
+from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
@@ -45,18 +46,12 @@ from .protocol import COUNTS_PER_REV
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
 
 
-def _stats(values) -> dict:
-    """{"n", "median", "p99", "worst"} of ``values`` (s); {"n": 0} when empty. "worst" is the
-    largest magnitude, with its sign."""
-    v = np.asarray(values, dtype=float)
-    if not v.size:
-        return {"n": 0}
-    return {
-        "n": int(v.size),
-        "median": float(np.median(v)),
-        "p99": float(np.percentile(v, 99)),
-        "worst": float(v[np.argmax(np.abs(v))]),
-    }
+def _kernels():
+    """:mod:`.kernels`, compiled (or loaded from numba's cache) when a station on the bus is
+    first built, not when this module is imported."""
+    from . import kernels
+
+    return kernels
 
 
 class DynamixelDriver(LeafSystem):
@@ -85,7 +80,12 @@ class DynamixelDriver(LeafSystem):
         period_s: the control period, s. max_deadline_misses: misses allowed.
         x_initial: (6,) where forward kinematics starts before the first reading.
         stream: where miss lines go (default stderr). timing_window: periods kept for
-            :meth:`timing_summary`.
+            :meth:`timing_summary` (its records are allocated once, 9 numbers a period).
+    Attributes:
+        timing: the :class:`~.timing.LoopTiming` records of the run.
+        between_periods: None, or a callable the loop calls when it has time left before a
+            period is due, before it sleeps (a session collects Python's garbage there, so that
+            no collection falls inside a period).
     Raises:
         DeadlineMissError: (during simulation) past ``max_deadline_misses``.
     """
@@ -98,7 +98,7 @@ class DynamixelDriver(LeafSystem):
         max_deadline_misses: int = 10,
         x_initial=X_HOME,
         stream=None,
-        timing_window: int = 1_000_000,
+        timing_window: int = 360_000,
     ):
         super().__init__()
         self.bus, self.geometry = bus, geometry
@@ -109,6 +109,9 @@ class DynamixelDriver(LeafSystem):
             geometry, period_s, 2 * np.pi / COUNTS_PER_REV, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
+        self._kernels = _kernels()
+        #: The period's measurement, assembled here before it is copied into the state.
+        self._held, self._x_start = np.zeros(_LOOP.start), np.zeros(6)
         initial = np.zeros(_LOOP.stop)
         initial[_X][:6] = self._x_initial
         self._state = self.DeclareDiscreteState(initial)
@@ -131,7 +134,9 @@ class DynamixelDriver(LeafSystem):
             prerequisites_of_calc={self.discrete_state_ticket(self._state)},
         )
         self.DeclarePeriodicDiscreteUpdateEvent(self.period_s, 0.0, self._Update)
-        self.reset_timing(timing_window)
+        self.between_periods = None
+        self.timing = LoopTiming(self.period_s, timing_window)
+        self.reset_timing()
 
     # --- outputs -----------------------------------------------------------------------------
 
@@ -149,18 +154,26 @@ class DynamixelDriver(LeafSystem):
 
     def _measure(self, x_prev) -> np.ndarray:
         """One read of the bus and the pose from it: the state vector (without the loop).
-        The pose: Newton on the IK from the previous pose (the encoders' estimator, within a
-        hundredth of a count), or if that fails the full :func:`~.forward_kinematics.fk`, which
-        raises when the angles are no pose of the robot."""
+        The pose: Newton on the IK from the previous pose (compiled, :func:`.kernels.measure_pose`:
+        within a hundredth of a count), or if that fails the full
+        :func:`~.forward_kinematics.fk`, which raises when the angles are no pose of the robot;
+        the rate x_dot = J^-1 theta_dot."""
         state = self.bus.read_state()
         self._last_read_t, self._read_s = state.t, state.round_trip_s
-        x, _, converged = self._fk.estimate(state.q, x_prev)
-        if not converged:
+        held, start = self._held, self._x_start
+        held[_Q], held[_V], held[_TAU] = state.q, state.v, state.tau
+        start[:] = x_prev
+        fk_ = self._fk
+        pose = held[_X]
+        if not self._kernels.measure_pose(
+            fk_.legs, fk_.mode, fk_.tol, fk_.max_iterations, start, held[_Q], held[_V], pose
+        ):
             theta = state.q - self.geometry.encoder_offsets  # the encoders' zero errors
-            x, _ = fk(self.geometry, theta, x0=x_prev, tol=self._fk.tol)
-        _, cache = ik_single(self.geometry, x)
-        x_dot = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
-        return np.concatenate([state.q, state.v, state.tau, x, x_dot])
+            x, _ = fk(self.geometry, theta, x0=x_prev, tol=fk_.tol)
+            _, cache = ik_single(self.geometry, x)
+            pose[:6] = x
+            pose[6:] = np.linalg.solve(jacobian_single(self.geometry, cache), state.v)
+        return held
 
     def seed(self, context) -> np.ndarray:
         """Read the bus once and hold the reading in ``context`` (this system's): what the
@@ -177,11 +190,11 @@ class DynamixelDriver(LeafSystem):
     # --- the period --------------------------------------------------------------------------
 
     def reset_timing(self, timing_window: int | None = None) -> None:
-        """Forget the timing records and the schedule (the next period starts a new one)."""
-        window = timing_window or self._records.maxlen
-        #: Per period: (wall-clock start, achieved period, read s, write s, measurement age,
-        #: lateness), s; the first period's achieved period and age are NaN.
-        self._records: collections.deque = collections.deque(maxlen=window)
+        """Forget the timing records and the schedule (the next period starts a new one);
+        ``timing_window``: keep that many periods from now on."""
+        if timing_window is not None:
+            self.timing = LoopTiming(self.period_s, timing_window)
+        self.timing.reset()
         #: Deadline misses, and bursts of consecutive ones (one stderr line each), so far.
         self.misses, self.bursts, self._in_burst = 0, 0, False
         self._wall0: float | None = None
@@ -189,8 +202,10 @@ class DynamixelDriver(LeafSystem):
         #: (and the reference) is that much behind the wall clock.
         self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
-        #: Every period's reading, flat: (Diagram time, read time (perf_counter), q0..q5).
-        self._readings = array.array("d")
+        #: Every period's reading: (Diagram time, read time (perf_counter), q0..q5) rows, the
+        #: first ``_n_readings`` of them; grown by half when a run outlasts them.
+        self._readings = np.empty((1024, 8))
+        self._n_readings = 0
 
     def _Update(self, context, discrete_state):
         try:
@@ -199,18 +214,28 @@ class DynamixelDriver(LeafSystem):
             self.bus.torque_off()  # never raises; the error says what happened
             raise
 
+    def _wait_until(self, due: float) -> tuple[float, float]:
+        """Sleep until ``due`` (perf_counter s), after :attr:`between_periods` when there is
+        time; (now, the sleep asked for, s)."""
+        now = time.perf_counter()
+        if now < due and self.between_periods is not None:
+            self.between_periods()
+            now = time.perf_counter()
+        if now >= due:
+            return now, 0.0
+        time.sleep(due - now)
+        return time.perf_counter(), due - now
+
     def _period(self, context, discrete_state):
         t = context.get_time()
-        now = time.perf_counter()
         if self._wall0 is None:
-            self._wall0 = now - t
+            self._wall0 = time.perf_counter() - t
         due = self._wall0 + t
-        if now < due:
-            time.sleep(due - now)
-            now = time.perf_counter()
+        now, slept = self._wait_until(due)
         late = now - due
+        cause = self.timing.begin(now, late, slept)
         tau = self._tau.Eval(context)
-        if not np.all(np.isfinite(tau)):
+        if not math.isfinite(tau.sum()):
             raise SimulationDivergedError(
                 f"the controller commanded non-finite torques {tau} N m; torque off", t
             )
@@ -220,23 +245,37 @@ class DynamixelDriver(LeafSystem):
         age = 0.5 * (w0 + w1) - self._last_read_t
         held = context.get_discrete_state(self._state).value()
         measured = self._measure(held[_X][:6])
-        self._readings.extend((t, self._last_read_t, *measured[_Q]))
+        self._keep_reading(t, measured[_Q])
         period = now - self._last_start
         self._last_start = now
-        self._records.append((now, period, self._read_s, w1 - w0, age, late))
+        self.timing.end(self._read_s, w1 - w0, age)
         if late > self.period_s:
             self._wall0 += late  # skip: the next period is due one period from now
             self.skipped_s += late
-            self._missed(t, late)
+            self._missed(t, late, cause)
         else:
             self._in_burst = False
         out = discrete_state.get_mutable_vector(self._state).get_mutable_value()
         out[: _LOOP.start] = measured
         # 0 for what was not measured (the first period has no previous one; a run that did not
         # seed has no previous reading): the LCM status's convention.
-        out[_LOOP] = [self.misses, 1e6 * np.nan_to_num(period), 1e6 * np.nan_to_num(age)]
+        loop = out[_LOOP]
+        loop[0] = self.misses
+        loop[1] = 1e6 * period if period == period else 0.0
+        loop[2] = 1e6 * age if age == age else 0.0
 
-    def _missed(self, t: float, late: float) -> None:
+    def _keep_reading(self, t: float, q) -> None:
+        """This period's reading into the preallocated rows (grown by half when full)."""
+        k = self._n_readings
+        if k == len(self._readings):
+            grown = np.empty((len(self._readings) * 3 // 2, 8))
+            grown[:k] = self._readings
+            self._readings = grown
+        row = self._readings[k]
+        row[0], row[1], row[2:] = t, self._last_read_t, q
+        self._n_readings = k + 1
+
+    def _missed(self, t: float, late: float, cause: int) -> None:
         self.misses += 1
         if self.misses > self.max_deadline_misses:
             raise DeadlineMissError(self.misses, self.max_deadline_misses, self.period_s, late, t)
@@ -244,8 +283,8 @@ class DynamixelDriver(LeafSystem):
             self.bursts += 1
             print(
                 f"deadline miss at t = {t:.3f} s: the period started {1e3 * late:.1f} ms late "
-                f"for {1e3 * self.period_s:g} ms ({self.misses} of "
-                f"{self.max_deadline_misses} allowed)",
+                f"for {1e3 * self.period_s:g} ms ({CAUSES[cause] or 'cause unknown'}; "
+                f"{self.misses} of {self.max_deadline_misses} allowed)",
                 file=self.stream or sys.stderr,
                 flush=True,
             )
@@ -256,47 +295,46 @@ class DynamixelDriver(LeafSystem):
         Diagram's time, s; t_read (n,) when the servos were read, ``time.perf_counter`` s, the
         midpoint of the sync read; q (n, 6) the crank angles read, rad: each encoder's raw
         angle, its zero error included)."""
-        r = np.frombuffer(self._readings, dtype=float).reshape(-1, 8).copy()
+        r = self._readings[: self._n_readings].copy()
         return r[:, 0], r[:, 1], r[:, 2:]
 
     def timing_summary(self) -> dict:
-        """The loop's timing over the periods kept, s: {"period", "jitter" (period - nominal),
-        "read", "write" (the bus's round trips), "age" (of the measurement when its torque
-        was written), "late" (start - due): each {"n", "median", "p99", "worst"}; "misses",
-        "bursts", "skipped" (s the schedule moved on by), "periods", "nominal"}."""
-        r = np.array(self._records, dtype=float).reshape(-1, 6)
-        period = r[1:, 1]
-        out: dict = {
-            "period": _stats(period),
-            "jitter": _stats(period - self.period_s),
-            "read": _stats(r[:, 2]),
-            "write": _stats(r[:, 3]),
-            "age": _stats(r[np.isfinite(r[:, 4]), 4]),
-            "late": _stats(r[:, 5]),
-        }
-        out.update(
-            misses=self.misses,
-            bursts=self.bursts,
-            skipped=self.skipped_s,
-            periods=len(r),
-            nominal=self.period_s,
-        )
+        """The loop's timing over the periods kept (:meth:`.timing.LoopTiming.summary`: the
+        achieved period, its jitter, the bus's round trips, the measurement's age, how late each
+        period started, the loop thread's CPU time and run-queue wait a period, the late
+        periods' causes), s; and "misses", "bursts", "skipped" (s the schedule moved on by)."""
+        out = self.timing.summary()
+        out.update(misses=self.misses, bursts=self.bursts, skipped=self.skipped_s)
         return out
 
     def timing_lines(self) -> list[str]:
-        """:meth:`timing_summary` as lines of text, ms."""
+        """:meth:`timing_summary` as lines of text, ms; the last says whether the period
+        held (no deadline miss)."""
         s = self.timing_summary()
         lines = [
             f"{s['periods']} periods of {1e3 * s['nominal']:g} ms, {s['misses']} deadline misses "
             f"in {s['bursts']} bursts, {1e3 * s['skipped']:.1f} ms skipped"
         ]
-        for name in ("period", "jitter", "read", "write", "age", "late"):
+        for name in ("period", "jitter", "cpu", "wait", "read", "write", "age", "late"):
             v = s[name]
             if v["n"]:
                 lines.append(
                     f"{name:>7}: median {1e3 * v['median']:7.3f}  p99 {1e3 * v['p99']:7.3f}  "
                     f"worst {1e3 * v['worst']:7.3f} ms"
                 )
+        causes = ", ".join(f"{what} {n}" for what, n in s["late_causes"].items())
+        late = sum(s["late_causes"].values())
+        if late:
+            lines.append(
+                f"late periods (over {1e3 * LATE_FRACTION * s['nominal']:g} ms): {late}, by cause: "
+                f"{causes}"
+            )
+        if s["misses"]:
+            lines.append(
+                f"the period did not hold: {s['misses']} periods started over a period late"
+            )
+        elif s["periods"]:
+            lines.append("the period held: no period started a period late")
         return lines
 
 
@@ -316,22 +354,34 @@ class MeasuredPlantState(LeafSystem):
     def __init__(self, plant, handles):
         super().__init__()
         self._plant, self._handles = plant, handles
-        self._nq = plant.num_positions()
-        self._iv = self._nq + handles.platform.floating_velocities_start_in_v()
-        self._iv_motors = [self._nq + j.velocity_start() for j in handles.motors]
+        nq = plant.num_positions()
+        geometry = handles.geometry
+        self._kernels = _kernels()
+        self._legs = np.array(leg_constants(geometry))
+        self._legs.setflags(write=False)  # as the kernels were compiled for
+        self._u_B = np.array(geometry.u_B, dtype=float)  # writable, as compiled
+        self._R0 = np.array(rod_zero_rotations(geometry), dtype=float)
+        rods = handles.rod_balls
+        self._layout = np.array(
+            [j.position_start() for j in handles.motors]
+            + [rods[i].position_start() if rods else -1 for i in range(6)]
+            + [handles.platform.floating_positions_start()]
+            + [nq + handles.platform.floating_velocities_start_in_v()]
+            + [nq + j.velocity_start() for j in handles.motors],
+            dtype=np.int64,
+        )
         self._x = self.DeclareVectorInputPort("platform_state", 12)
+        self._x_in = np.zeros(12)
         self.DeclareVectorOutputPort(
             "plant_state", plant.num_positions() + plant.num_velocities(), self._Calc
         )
 
     def _Calc(self, context, output):
-        x = np.asarray(self._x.Eval(context))
-        state = np.zeros(output.size())
-        state[: self._nq] = assembled_positions(self._plant, self._handles, x[:6])
-        state[self._iv : self._iv + 3] = angular_velocity_map(x[:3]) @ x[6:9]
-        state[self._iv + 3 : self._iv + 6] = x[9:12]
-        state[self._iv_motors] = jacobian(self._handles.geometry, x[:6]) @ x[6:]
-        output.SetFromVector(state)
+        x = self._x_in
+        x[:] = self._x.Eval(context)
+        self._kernels.plant_state(
+            self._legs, self._u_B, self._R0, self._layout, x, output.get_mutable_value()
+        )
 
 
 class _ShowMeasured(LeafSystem):
