@@ -250,3 +250,79 @@ def test_unreachable_reference_fails_before_any_simulation(tmp_path):
         )
     assert 0.0 < info.value.t < 0.25
     assert not (tmp_path / "d").exists()
+
+
+# -- the clearance the reference keeps, as the guard reads it ------------------------------------
+
+
+def test_the_reference_s_clearance_profile_bounds_the_clearance_between_its_measures():
+    """The check's clearance profile (kept without the series) promises that between two
+    measured poses the parts are at least the smaller measure less the resolution apart: the
+    clearance measured at every control sample of the paper's manoeuvre (its first 2 s) keeps
+    that promise, and the profile measured far fewer poses than there are samples."""
+    from stewart_drake.plant.clearance import clearance_model
+
+    plan = make_plan(Scenario(duration_s=2.0))
+    report = check_reference(plan, keep_series=False)
+    t_p, c_p, resolution = report.clearance_profile
+    assert not report.series and resolution == limits.DEFAULT_CLEARANCE_RESOLUTION_M
+    assert 2 < len(t_p) < 0.5 * 2.0 / plan.control_period_s
+    assert t_p[0] == 0.0 and t_p[-1] == pytest.approx(2.0)
+    assert np.min(c_p) == pytest.approx(report.min_clearance)
+    t = np.arange(0.0, 2.0 + 1e-9, plan.control_period_s)
+    measured, _ = clearance_model(plan.plant_geometry).sweep(
+        plan.reference.evaluate(t)[0], max_distance=report.clearance_threshold + 0.02
+    )
+    j = np.clip(np.searchsorted(t_p, t), 1, len(t_p) - 1)
+    promised = np.minimum(c_p[j - 1], c_p[j]) - resolution
+    assert np.all(measured >= promised - 1e-9)
+    assert np.min(measured - promised) < 2 * resolution  # a bound, not a gap a mile wide
+
+
+def test_the_guard_lets_a_part_stray_by_half_the_clearance_the_reference_keeps_there(
+    tmp_path, monkeypatch
+):
+    """The guard's allowed stray follows the profile (half the smaller measure about t, less
+    the resolution), never below what guard.min_clearance_m allows, and falls back to that
+    floor outside what was checked, where a measure is NaN, or without a profile; a run through
+    it asks SceneGraph only at every tenth check where the profile leaves room (the paper run
+    strays micrometres), and at every check without one when nothing is left by the floor."""
+    from stewart_drake.plant.clearance import ClearanceModel
+    from stewart_drake.run.plan import checked_plan
+
+    checks, asked = [], []
+    check, overlaps = guard.DivergenceGuard.check, ClearanceModel.overlaps
+
+    def counted_check(self, context):
+        checks.append(round(context.get_time() / self.config.check_period_s))
+        return check(self, context)
+
+    def counted_overlaps(self, q):
+        asked.append(checks[-1])
+        return overlaps(self, q)
+
+    monkeypatch.setattr(guard.DivergenceGuard, "check", counted_check)
+    monkeypatch.setattr(ClearanceModel, "overlaps", counted_overlaps)
+    scenario = _config(tmp_path, duration_s=0.5)
+    plan = checked_plan(scenario)
+    t_p, c_p, resolution = plan.report.clearance_profile
+    floor = 0.5 * (scenario.guard.min_clearance_m - limits.DEFAULT_CLEARANCE_RESOLUTION_M)
+    sd, simulator = build_simulator(plan)
+    g = sd.guard
+    for t in (0.0, 0.123, 0.25, t_p[-1]):
+        j = min(max(int(np.searchsorted(t_p, t)), 1), len(t_p) - 1)
+        c = c_p[0] if t == 0.0 else min(c_p[j - 1], c_p[j])
+        assert g.stray_allowed(t) == pytest.approx(max(0.5 * (c - resolution), floor))
+    assert g.stray_allowed(t_p[-1] + 0.1) == floor and g.stray_allowed(-1.0) == floor
+    assert g.stray_allowed(0.25) > 2 * floor  # the paper's manoeuvre keeps far more than 3 mm
+    g._profile = (t_p, np.full_like(c_p, np.nan), resolution)
+    assert g.stray_allowed(0.25) == floor  # an unmeasured (NaN) clearance: the floor
+    # With no floor at all (as if guard.min_clearance_m left nothing), the profile alone
+    # spares SceneGraph between the tenth checks; without it every check asks.
+    g._profile, g._stray_m = (t_p, c_p, resolution), 0.0
+    simulator.AdvanceTo(0.25)
+    assert len(checks) >= 25
+    assert asked == [k for k in checks if k % guard.INTERFERENCE_EVERY == 0]
+    g._profile, before = None, len(checks)
+    simulator.AdvanceTo(0.5)
+    assert asked[-(len(checks) - before) :] == checks[before:]

@@ -64,6 +64,7 @@ def clearance_fields(
         "first_interference": first,
         "design_clearance": float("nan") if design is None else design.distance,
         "design_clearance_parts": "" if design is None else f"{design.part_a} and {design.part_b}",
+        "clearance_profile": (t[rows].copy(), np.asarray(distance, float), float(resolution_m)),
     }
 
 

@@ -73,6 +73,10 @@ class TrajectoryReport:
             use (``torque_limit`` is that share of the peak; NaN when not checked).
         first_effort_violation: :class:`~.errors.MotorLimitError` of the first time
             a motor is over its limit, or None.
+        clearance_profile: (t (m,) s, clearance (m,) m, resolution m) at the measured poses,
+            kept even without ``series`` (a few bytes a pose): between two of them the parts
+            are at least the smaller value less the resolution apart (the guard reads it,
+            :class:`~stewart_drake.station.guard.DivergenceGuard`); () when not checked.
         series: the checks sample by sample, for plots: ``t`` (n,) s; ``margins`` dict name ->
             (n, 6) as :func:`~.limits.limit_margins`; ``cond``, ``sigma_min_inv`` (n,); with
             clearance, ``clearance_t`` (m,) s and ``clearance`` (m,) m at the measured poses;
@@ -111,6 +115,7 @@ class TrajectoryReport:
     first_effort_violation: MotorLimitError | None = None
     effort_margin: float = float("nan")
     series: dict = field(default_factory=dict, repr=False, compare=False)
+    clearance_profile: tuple = field(default=(), repr=False, compare=False)
 
     @property
     def feasible(self) -> bool:
@@ -269,8 +274,21 @@ def merge_reports(reports) -> TrajectoryReport:
         **extreme("peak_torque", ("peak_torque_motor", "peak_torque_t"), max),
         **extreme("peak_speed", ("peak_speed_motor", "peak_speed_t"), max),
         series=_concatenated([r.series for r in reports]),
+        clearance_profile=_joined_profiles([r.clearance_profile for r in reports]),
     )
     return merged
+
+
+def _joined_profiles(profiles: list) -> tuple:
+    """The clearance profiles of consecutive stretches as one (each stretch's first and last
+    pose are measured, so the bound holds across their joins), or () when one is missing."""
+    if not profiles or any(len(p) != 3 for p in profiles):
+        return ()
+    return (
+        np.concatenate([p[0] for p in profiles]),
+        np.concatenate([p[1] for p in profiles]),
+        max(p[2] for p in profiles),
+    )
 
 
 def _concatenated(parts: list):

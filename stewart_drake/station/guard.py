@@ -41,7 +41,6 @@ from ..robot.limits import (
     DEFAULT_MIN_CLEARANCE_M,
     DEFAULT_MIN_SIGMA_MIN_INV,
 )
-from ..robot.single_pose import ik_scalar
 
 
 # Drake's YAML loader reads GuardConfig's field annotations: this module must not use
@@ -156,8 +155,10 @@ class DivergenceGuard(LeafSystem):
         )
         self._T = self.DeclareVectorInputPort("T", 6)
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
-        # The loop closure from the positions alone (no context of the plant, no kinematics).
-        self._closure = station.loop_closure
+        # The loop closure from the positions alone (no context of the plant, no kinematics);
+        # none to measure where the station assembles its state at a pose (the robot's).
+        closed = getattr(station, "loops_closed_by_construction", False)
+        self._closure = None if closed else station.loop_closure
         self.DeclarePeriodicPublishEvent(
             period_sec=self.config.check_period_s, offset_sec=0.0, publish=self._Check
         )
@@ -188,18 +189,27 @@ class DivergenceGuard(LeafSystem):
             # cannot see through.
             self._part_index = {gid.get_value(): k for k, gid in enumerate(ids)}
         else:
+            from ..control.lqi.step import ik_compiled
             from ..plant.clearance import clearance_model
             from ..robot.single_pose import leg_constants
 
             self._clearance = clearance_model(geometry)
-            self._legs = leg_constants(geometry)
+            self._legs = np.array(leg_constants(geometry))
+            self._legs.setflags(write=False)  # as the LQI's step compiled the IK for
+            self._ik = ik_compiled
+            self._ik(self._legs, np.zeros(6))  # compiled (or loaded) now, not in a check
             self._crank_m = float(np.max(geometry.crank_lengths))  # the longest crank
             # Each crank's angle in q: its motor joint's, plus its gear play's if it has one.
-            self._motor_q = crank_coordinates(station.handles)[0]
+            motor_q = crank_coordinates(station.handles)[0]
+            self._motor_q = np.array([ks[0] for ks in motor_q], dtype=np.int64)
+            self._play_q = np.array([ks[1] for ks in motor_q if len(ks) > 1], dtype=np.int64)
             # The reference keeps guard.min_clearance_m between the parts (the run's check,
             # sampled within DEFAULT_CLEARANCE_RESOLUTION_M); two parts that each stray less
             # than half of what is left from where the reference puts them cannot overlap.
             self._stray_m = 0.5 * (config.min_clearance_m - DEFAULT_CLEARANCE_RESOLUTION_M)
+            # Where the check measured the reference's own clearance, what it keeps there.
+            profile = getattr(plan.report, "clearance_profile", ())
+            self._profile = profile if len(profile) == 3 and len(profile[0]) > 1 else None
 
     def _Check(self, context):
         reason = self.check(context)
@@ -226,7 +236,7 @@ class DivergenceGuard(LeafSystem):
                 f"N m: the controller received or produced NaN"
             )
         cfg, plant = self.config, self._plant
-        if cfg.max_closure_error_m is not None:
+        if cfg.max_closure_error_m is not None and self._closure is not None:
             closure = self._closure(state[: plant.num_positions()])
             leg = int(np.argmax(closure))
             if not closure[leg] <= cfg.max_closure_error_m:
@@ -268,21 +278,40 @@ class DivergenceGuard(LeafSystem):
             )
         return None
 
+    def stray_allowed(self, t: float) -> float:
+        """How far, m, every part may stray from where the reference puts it at time ``t``
+        (s) without two of them overlapping: half the clearance the reference keeps there less
+        the check's resolution. Where the run's check measured the reference's clearance (the
+        plan's report, ``clearance_profile``), the smaller of the two measures about ``t``
+        (between them the parts are at least that less the resolution apart); elsewhere, and
+        never less than, the clearance every reference keeps (``guard.min_clearance_m``)."""
+        if self._profile is None:
+            return self._stray_m
+        t_p, c_p, resolution = self._profile
+        j = int(np.searchsorted(t_p, t, side="left"))
+        if j >= len(t_p) or (j == 0 and t < t_p[0]):
+            return self._stray_m  # outside what was checked
+        c = c_p[j] if t == t_p[j] else min(c_p[j - 1], c_p[j])
+        allowed = 0.5 * (c - resolution)
+        return allowed if allowed > self._stray_m else self._stray_m  # NaN: the floor
+
     def _may_overlap(self, context, state, pose, x_d) -> bool:
         """Whether two parts may overlap, so that the SceneGraph check is worth its cost: at
         every tenth check, and whenever a part may have strayed from where the reference puts it
-        by more than half the clearance the reference keeps. A crank's points stray at most
-        (a + 1 cm) |theta - theta_d| (IK of the reference), the platform's |p - p_d| + 0.2 m x 2
-        |rpy - rpy_d| (its parts lie within 0.15 m of E; |E(rpy)| < 2 in the workspace), a
-        rod's the more of its two ends (it is rigid)."""
+        by more than :meth:`stray_allowed`. A crank's points stray at most (a + 1 cm) |theta -
+        theta_d| (IK of the reference), the platform's |p - p_d| + 0.2 m x 2 |rpy - rpy_d| (its
+        parts lie within 0.15 m of E; |E(rpy)| < 2 in the workspace), a rod's the more of its two
+        ends (it is rigid)."""
         checks = round(context.get_time() / self.config.check_period_s)
         if checks % INTERFERENCE_EVERY == 0:
             return True
-        theta_d = ik_scalar(self._legs, x_d.tolist())
-        crank = max(abs(sum(state[k] for k in ks) - t) for ks, t in zip(self._motor_q, theta_d))
+        theta = state[self._motor_q]
+        if self._play_q.size:
+            theta = theta + state[self._play_q]
+        crank = np.abs(theta - np.asarray(self._ik(self._legs, x_d))).max()
         platform = np.abs(pose[3:] - x_d[3:]).max() + 0.4 * np.abs(pose[:3] - x_d[:3]).max()
         stray = max((self._crank_m + 0.01) * crank, float(platform))
-        return not stray < self._stray_m  # NaN included
+        return not stray < self.stray_allowed(context.get_time())  # NaN included
 
     def _NoteContact(self, context, discrete_state):
         """With contact: keep the first contact between two parts (the strongest one then)."""
