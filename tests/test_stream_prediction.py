@@ -13,7 +13,7 @@ from stewart_drake.references.prediction import (
     PredictorSettings,
     check_predictor,
 )
-from stewart_drake.references.stream import Stream, follow, stream_of
+from stewart_drake.references.stream import PAST_NODES, Stream, follow, stream_of
 
 
 def _rms(e):
@@ -151,7 +151,7 @@ def test_uncertainty_is_the_recent_residual(breathing_stream):
     stream, _ = breathing_stream
     f = follow(stream)
     k = int(round(stream.latency_s / stream.dt))
-    used = f.nodes[:, 2 + k, 3]  # the position used k samples ahead (2 past nodes, newest)
+    used = f.nodes[:, PAST_NODES + k, 3]  # the position k samples ahead
     err = used[:-k] - stream.poses[k:, 3]
     i = stream.t.size - 1 - k
     recent = err[i - 250 : i]

@@ -203,6 +203,12 @@ class OnlinePredictor:
         """Read sample ``y`` (m,) [rad or m]; return (K, m) the positions used 1..K samples
         later: the model's on the axes where its record is better than no prediction's, the
         newest sample held on the others."""
+        predicted = self.raw_update(y)
+        return np.where(self.using[None, :], predicted, np.asarray(y, dtype=float)[None, :])
+
+    def raw_update(self, y) -> np.ndarray:
+        """As :meth:`update`, but (K, m) the model's positions on every axis (clipped to the
+        motion's range so far), whatever the record chose (``using`` says that)."""
         y = np.asarray(y, dtype=float).reshape(self.m)
         self._n += 1
         self._y = np.roll(self._y, -1, axis=0)
@@ -211,7 +217,7 @@ class OnlinePredictor:
         predicted = self._bounded(self.model.update(y), y)
         self._past = np.roll(self._past, -1, axis=0)
         self._past[-1] = predicted
-        return np.where(self.using[None, :], predicted, y[None, :])
+        return predicted
 
     def _bounded(self, predicted: np.ndarray, y: np.ndarray) -> np.ndarray:
         """``predicted`` (K, m) clipped to the range of the samples so far, widened by
