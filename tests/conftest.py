@@ -118,6 +118,7 @@ LOOP_MODULES = {
     "test_hardware",
     "test_hardware_station",
     "test_ilc",
+    "test_stream_reproduce",
     "test_lcm_config",
     "test_learning",
     "test_lqi",
