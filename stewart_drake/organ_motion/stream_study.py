@@ -39,7 +39,7 @@ LIBRARY_S = 120.0
 #: The settings tried when tuning: (history_s, memory_s, ridge).
 TUNING_GRID = {
     "history_s": (0.5, 1.0, 2.0),
-    "memory_s": (20.0, 60.0, 300.0),
+    "memory_s": (60.0,),
     "ridge": (1e-6, 1e-3),
 }
 #: The latencies tuned at, s.
