@@ -108,21 +108,24 @@ def _add_stream_arguments(rp) -> None:
         metavar="LATENCY_S",
         help="run the motion as if it arrived live: each sample reaches the controller "
         "LATENCY_S s after it happened, and the robot follows it with --predictor; the report "
-        "gives the error against the true motion with and without prediction",
+        "gives the error against the true motion with and without prediction (default: none, the "
+        "motion known in advance)",
     )
     rp.add_argument(
         "--predictor",
         default="linear",
         choices=("none", "linear"),
-        help="with --stream: how the latency is predicted away (default linear: adaptive linear "
-        "regression, the best measured; none: the newest sample held)",
+        help="with --stream: how the latency is predicted away: linear, adaptive linear "
+        "regression, "
+        "the best measured; none, the samples followed without prediction (default: linear)",
     )
     rp.add_argument(
         "--stream-rate",
         type=positive_float,
         default=None,
         metavar="HZ",
-        help="with --stream: the samples' rate (default a trace's own, 25 Hz for a library motion)",
+        help="with --stream: the samples' rate (default: a trace's own, 25 Hz for a "
+        "library motion)",
     )
 
 
