@@ -73,6 +73,37 @@ def test_linear_model_is_the_weighted_ridge_fit():
     assert out[i, k_ahead - 1, 0] == pytest.approx(expected, rel=1e-9, abs=1e-15)
 
 
+def test_every_prediction_is_the_weighted_ridge_fit_of_its_step():
+    """At every sample and every step ahead, on two axes: the streamed regression (one matrix
+    factorised per axis and sample, reused by each step ahead k samples later) equals the
+    exponentially weighted ridge fit of the pairs completed so far, written out per step."""
+    rng = np.random.default_rng(2)
+    y = np.cumsum(rng.normal(size=(60, 2)), axis=0) * 1e-3
+    dt, steps = 0.1, 4
+    settings = PredictorSettings(history_s=0.4, memory_s=1.5, ridge=1e-2)
+    model = LinearModel(dt, steps, 2, settings)
+    out = np.array([model.update(v) for v in y])  # (N, K, m)
+    p, lam = model.p, np.exp(-dt / settings.memory_s)
+    padded = np.concatenate([np.repeat(y[:1], p, 0), y])
+    expected = np.empty_like(out)
+    for i in range(len(y)):
+        for a in range(2):
+            x_i = padded[i + p, a] - padded[i + p - np.arange(1, p + 1), a]
+            for k in range(1, steps + 1):
+                js = np.arange(0, i - k + 1)
+                if js.size == 0:
+                    expected[i, k - 1, a] = y[i, a]
+                    continue
+                X = padded[js + p, a, None] - padded[js[:, None] + p - np.arange(1, p + 1), a]
+                w = lam ** (i - k - js)
+                R = (X * w[:, None]).T @ X
+                r = (X * w[:, None]).T @ (y[js + k, a] - y[js, a])
+                delta = settings.ridge * np.trace(R) / p + 1e-30
+                expected[i, k - 1, a] = y[i, a] + x_i @ np.linalg.solve(R + delta * np.eye(p), r)
+    np.testing.assert_allclose(out, expected, rtol=0, atol=1e-14)
+    assert np.max(np.abs(out - y[:, None, :])) > 1e-3  # it predicts displacements
+
+
 def test_linear_predicts_breathing_far_better_than_none(breathing_stream):
     """On the library's breathing 0.2 s late the followed reference is within a fifth of the
     error of following without prediction (after the record's first 10 s)."""

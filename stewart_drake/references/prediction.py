@@ -12,7 +12,8 @@ learned k samples after its input). :data:`PREDICTORS` names them:
   2011 of which this is the plainest): for each axis and each k, the displacement k samples
   ahead as a linear function of the displacements of the newest sample from the ``history_s``
   before it, fitted by exponentially weighted ridge least squares (the normal equations' sums
-  decay with time constant ``memory_s``, solved by ``numpy.linalg.solve`` at each sample).
+  decay with time constant ``memory_s``; every step ahead shares the features, so one matrix
+  per axis is factorised at each sample, :class:`LinearModel`).
 
 :class:`OnlinePredictor` wraps either with the record that decides, per axis, whether its
 predictions are used: the exponentially weighted mean squared error at every k of the model and
@@ -114,6 +115,13 @@ class LinearModel:
     y_j), lambda = exp(-dt / memory_s); weights w_k = (R_k + delta I)^-1 r_k with delta = ridge
     x mean(diag R_k) (plus 1e-30: a motion at rest predicts no displacement).
 
+    Every step ahead reads the same features, so R_k at sample i is the sum S_n = sum_(j <= n)
+    lambda^(n-j) x_j x_j^T of one recursion, k samples old (n = i - k): each sample adds one
+    outer product per axis and factorises one matrix per axis (the inverse of its Cholesky
+    factor: LAPACK's ``dpotrf`` and ``dtrtri``, through scipy), which every step ahead reuses for
+    the K samples after it. A sample costs O(m p^3 / 3) for the factor and O(K m p^2) for
+    the weights, against O(K m p^3) for a solve per axis and step.
+
     Args:
         dt: the sample step, s (> 0). steps: K. axes: m. settings: :class:`PredictorSettings`.
     """
@@ -122,34 +130,58 @@ class LinearModel:
         self.p, self.K, self.m = settings.lags(dt), int(steps), int(axes)
         self.lam = float(np.exp(-dt / settings.memory_s))
         self.ridge = float(settings.ridge)
-        depth = self.p + self.K + 1
-        self._y = np.zeros((depth, self.m))  # the newest samples, newest last
+        self._y = np.zeros((self.p + self.K + 1, self.m))  # the newest samples, newest last
         self._x = np.zeros((self.K + 1, self.m, self.p))  # features of the newest K + 1
-        self._R = np.zeros((self.K, self.m, self.p, self.p))
+        self._S = np.zeros((self.m, self.p, self.p))  # S_n of the newest sample
+        # F_n, (S_n + delta_n I)^-1 = F_n^T F_n (F_n lower triangular) per axis of the newest
+        # K + 1 samples, in a ring: sample n in slot n mod (K + 1); _Ft its transposes (a view).
+        self._F = np.zeros((self.K + 1, self.m, self.p, self.p))
+        self._Ft = np.swapaxes(self._F, -1, -2)
         self._r = np.zeros((self.K, self.m, self.p))
         self._n = 0
+        self._eye = np.eye(self.p)
+        from scipy.linalg import lapack  # here: importing it costs 0.1 ms at every sample
+
+        self._lapack = lapack
 
     def update(self, y: np.ndarray) -> np.ndarray:
         """Read sample ``y`` (m,); return (K, m) its expected values 1..K samples later."""
+        lapack = self._lapack
         y = np.asarray(y, dtype=float)
         if self._n == 0:
             self._y[:] = y  # the first sample repeated before the stream's start
-        self._y = np.roll(self._y, -1, axis=0)
+        self._y[:-1] = self._y[1:]
         self._y[-1] = y
+        i = self._n  # this sample's index
         self._n += 1
         x = (y[None, :] - self._y[-2 : -2 - self.p : -1]).T  # (m, p): y_i - y_{i-l}
-        self._x = np.roll(self._x, -1, axis=0)
+        self._x[:-1] = self._x[1:]
         self._x[-1] = x
         # The pairs that have just completed: input k samples ago, outcome now.
         k = np.arange(1, self.K + 1)
-        ready = (self._n - 1 - k) >= 0
+        ready = (i - k) >= 0
         xk = self._x[-1 - k] * ready[:, None, None]  # (K, m, p)
         target = (y[None, :] - self._y[-1 - k]) * ready[:, None]  # (K, m)
-        self._R = self.lam * self._R + xk[..., :, None] * xk[..., None, :]
         self._r = self.lam * self._r + xk * target[..., None]
-        diag = np.trace(self._R, axis1=2, axis2=3) / self.p
-        reg = (self.ridge * diag + 1e-30)[..., None, None] * np.eye(self.p)
-        w = np.linalg.solve(self._R + reg, self._r[..., None])[..., 0]  # (K, m, p)
+        # S_i, and the inverse Cholesky factor of S_i + delta_i I into the ring.
+        self._S *= self.lam
+        self._S += x[:, :, None] * x[:, None, :]
+        delta = self.ridge * np.trace(self._S, axis1=1, axis2=2) / self.p + 1e-30
+        normal = self._S + delta[:, None, None] * self._eye
+        factor = np.empty_like(normal)
+        for a in range(self.m):
+            c, info = lapack.dpotrf(normal[a], lower=1, clean=1)
+            if info == 0:
+                factor[a], info = lapack.dtrtri(c, lower=1, overwrite_c=1)
+            if info != 0:  # not positive definite to rounding: no prediction on the axis
+                factor[a] = 0.0
+        self._F[i % (self.K + 1)] = factor
+        # w_k = (R_k + delta I)^-1 r_k = F^T F r_k, F from the ring by slot (r_k put in sample
+        # i - k's).
+        order = (i - k) % (self.K + 1)
+        r = np.zeros((self.K + 1, self.m, self.p, 1))
+        r[order, ..., 0] = self._r
+        w = (self._Ft @ (self._F @ r))[order, ..., 0]  # (K, m, p)
         return y[None, :] + np.einsum("kmp,mp->km", w, x)
 
 
@@ -190,6 +222,8 @@ class OnlinePredictor:
         self._se = np.zeros((2, self.K, self.m))  # weighted squared residuals: model, none
         self._w = np.zeros(self.K)  # their weights
         self._count = np.zeros(self.K, dtype=int)
+        self._k = np.arange(1, self.K + 1)
+        self._residual = np.zeros((2, self.K, self.m))
         self._n = 0
         # The record starts when the model's first pairs are complete.
         self._warm = 0 if name == "none" else self.settings.lags(self.dt) + self.K
@@ -211,33 +245,39 @@ class OnlinePredictor:
         motion's range so far), whatever the record chose (``using`` says that)."""
         y = np.asarray(y, dtype=float).reshape(self.m)
         self._n += 1
-        self._y = np.roll(self._y, -1, axis=0)
+        self._y[:-1] = self._y[1:]
         self._y[-1] = y
         self._record(y)
         predicted = self._bounded(self.model.update(y), y)
-        self._past = np.roll(self._past, -1, axis=0)
+        self._past[:-1] = self._past[1:]
         self._past[-1] = predicted
         return predicted
 
     def _bounded(self, predicted: np.ndarray, y: np.ndarray) -> np.ndarray:
         """``predicted`` (K, m) clipped to the range of the samples so far, widened by
         :data:`ENVELOPE_MARGIN` of it; the clipped positions counted."""
-        low = y.copy() if self._low is None else np.minimum(self._low, y)
-        high = y.copy() if self._high is None else np.maximum(self._high, y)
-        self._low, self._high = low, high
-        margin = ENVELOPE_MARGIN * (high - low)
-        bounded = np.clip(predicted, low - margin, high + margin)
+        if self._low is None or self._high is None:
+            self._low, self._high = y.copy(), y.copy()
+        np.minimum(self._low, y, out=self._low)
+        np.maximum(self._high, y, out=self._high)
+        margin = ENVELOPE_MARGIN * (self._high - self._low)
+        bounded = np.clip(predicted, self._low - margin, self._high + margin)
         self.clipped += int(np.count_nonzero(bounded != predicted))
         return bounded
 
     def _record(self, y: np.ndarray) -> None:
         """The residuals of the predictions made k samples ago (k = 1..K) at ``y``, into the
         record; then the choice per axis and the uncertainty."""
-        k = np.arange(1, self.K + 1)
+        k = self._k
         ready = (self._n - 1 - k) >= self._warm
-        model = self._past[-k, k - 1] - y[None, :]  # (K, m): made k samples ago
-        none = self._y[-1 - k] - y[None, :]
-        self._se = self._mu * self._se + ready[None, :, None] * np.stack([model, none]) ** 2
+        residual = self._residual
+        residual[0] = self._past[-k, k - 1]  # (K, m): the model's, made k samples ago
+        residual[1] = self._y[-1 - k]  # the newest sample then, held
+        residual -= y
+        residual *= residual
+        residual *= ready[None, :, None]
+        self._se *= self._mu
+        self._se += residual
         self._w = self._mu * self._w + ready
         self._count += ready
         if self.name == "none" or self._count[-1] < self._min_n:
