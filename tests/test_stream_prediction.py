@@ -210,3 +210,31 @@ def test_online_predictor_refuses_bad_settings():
         PredictorSettings(memory_s=0.0)
     with pytest.raises(InvalidConfigError, match="dt > 0"):
         OnlinePredictor("linear", 0.0, 3, 6)
+
+
+def test_the_two_measures_a_at_the_samples_and_b_end_to_end():
+    """(a) is the prediction the latency (and the loop's lag) after each sample against the
+    newest sample held, written out here; (b) the followed reference, whose no-prediction lags
+    a sample step more, so its error without prediction is the larger. With no predictor (a)
+    is exactly 1."""
+    from stewart_drake.organ_motion.streaming import follow_motion
+    from stewart_drake.references.stream import LOOP_LAG_S
+
+    motion = make_motion("breathing", {})
+    settings = PredictorSettings(min_record_s=2.0)
+    r = follow_motion(motion, 0.2, duration_s=40.0, settings=settings)
+    h, followed = r["horizon"], r["followed"]
+    horizon = 0.2 + LOOP_LAG_S
+    t = followed.stream.t
+    keep = t + horizon <= 40.0
+    truth = motion.evaluate(t[keep] + horizon)[0][:, 3:]
+    held = followed.stream.poses[keep, 3:]
+    assert h["none_translation_m"] == pytest.approx(_rms(held - truth), rel=1e-12)
+    used = np.where(followed.using, followed.at_horizon(horizon), followed.stream.poses)[keep]
+    assert h["rms_translation_m"] == pytest.approx(_rms(used[:, 3:] - truth), rel=1e-12)
+    assert h["samples"] == int(np.count_nonzero(keep))
+    assert h["ratio"] == pytest.approx(h["rms_translation_m"] / h["none_translation_m"])
+    assert h["ratio"] < 0.5 and r["ratio_translation"] < 0.6
+    assert r["without"]["rms_translation_m"] > h["none_translation_m"]  # a step more of lag
+    none = follow_motion(motion, 0.2, "none", duration_s=40.0, settings=settings)["horizon"]
+    assert none["ratio"] == 1.0 and none["nrmse"] == none["nrmse_none"] > 0.3

@@ -38,6 +38,12 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     assert report["robot"]["rms_translation_m"] < 0.6 * without
     assert abs(report["robot"]["rms_translation_m"] - report["with"]["rms_translation_m"]) < 5e-5
     assert report["horizon"]["rms_translation_m"] < report["horizon"]["none_translation_m"]
+    assert (
+        report["horizon"]["ratio"] < 0.6
+        and report["horizon"]["nrmse"] < 0.6 * (report["horizon"]["nrmse_none"])
+    )
+    assert "(a) the prediction 0.2 s ahead, at the samples" in out
+    assert "(b) the followed reference against the true motion" in out
     assert report["latency_s"] == 0.2 and report["predictor"] == "linear"
     assert (tmp_path / "reproduce_breath_stream.png").stat().st_size > 10_000
 

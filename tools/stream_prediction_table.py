@@ -6,10 +6,10 @@ and write the tables into docs/organ_motion.md.
 
 ``--traces`` names a folder holding the 6-D traces of the Image-X Institute's robotic motion
 phantom (github.com/Image-X-Institute/IntERAct, "Documentation/Robotic Motion QA traces" and
-"Traces/LARK & SABR TRACES"); without it only the library's motions are measured. About 4
-minutes of tuning and 5 of measuring on one core. The settings it chooses are the shipped
-defaults of ``PredictorSettings``: when they differ the tool says so (change them there and run
-it again).
+"Traces/LARK & SABR TRACES"); without it only the library's motions are measured. About 7
+minutes of tuning (18 settings) and 2 of measuring on a loaded 2-core machine. The settings it
+chooses are the shipped defaults of ``PredictorSettings``: when they differ the tool says so
+(change them there and run it again).
 """
 
 import argparse

@@ -1,11 +1,13 @@
-"""A motion followed as it arrives, measured against the true motion: the error of the followed
-reference (or of the robot that ran it) with and without prediction, the predictor's own error
-at the horizon, the normalised RMSE of the literature and the share of time within a tolerance.
+"""A motion followed as it arrives, measured against the true motion, two ways: (a) the
+literature's, at the samples: the prediction the horizon ahead against the newest sample held
+(:func:`horizon_error`: the relative RMSE and the nRMSE); (b) end to end: the followed
+reference (or the robot that ran it) with and without prediction at every instant
+(:func:`stream_figures`: RMS, peak, nRMSE, the share of time within a tolerance).
 
 :func:`follow_motion` streams a motion (:func:`~stewart_drake.references.stream.stream_of`),
 follows it with a predictor and with none (:func:`~stewart_drake.references.stream.follow`)
-and measures both against the motion itself (:func:`stream_figures`); ``reproduce --stream``
-runs the followed reference on the robot and measures the robot's pose the same way.
+and measures both ways; ``reproduce --stream`` runs the followed reference on the robot and
+measures the robot's pose as (b).
 """
 
 from __future__ import annotations
@@ -48,25 +50,46 @@ def stream_figures(t, x_true, x, tolerance=(1e-3, 0.01)) -> dict:
 
 
 def horizon_error(followed, truth, horizon_s: float, from_s: float = 0.0) -> dict:
-    """The predictor's own error at ``horizon_s`` (s) after each sample, against the true
-    motion ``truth`` (a Reference), over the samples taken from ``from_s`` s:
-    {"rms_translation_m", "rms_rotation_rad", "none_translation_m" (the newest sample held),
-    "ratio" (the first over the third)}."""
+    """The literature's measure of a predictor, at the sample instants: the prediction of the
+    motion ``horizon_s`` (s) after each sample, made from the samples up to it, against the
+    true motion ``truth`` (a Reference) then, beside no prediction (the newest sample held),
+    over the samples taken from ``from_s`` s whose horizon is within the motion.
+
+    Returns:
+        {"rms_translation_m": the prediction as used (the newest sample on the axes where the
+        record chose no prediction), "rms_rotation_rad" (3-D RMS), "model_translation_m": the
+        model's own on every axis, "none_translation_m": the newest sample held, "ratio": the
+        first over the fourth (the relative RMSE), "nrmse", "nrmse_none": each RMS error over
+        the RMS of the true translation about its mean at those instants, "samples": how many}.
+    """
     t = followed.stream.t
-    keep = (t >= from_s) & (t + horizon_s <= followed.end_time)
-    x_true = np.asarray(truth.evaluate(t[keep] + horizon_s)[0])
-    pred = followed.at_horizon(horizon_s)[keep]
+    keep = (t >= from_s) & (t + horizon_s <= followed.end_time + 1e-9)
+    x_true = np.asarray(truth.evaluate(t[keep] + horizon_s)[0]).reshape(-1, 6)
+    used = followed.at_horizon(horizon_s, used=True)[keep]
+    model = followed.at_horizon(horizon_s)[keep]
     held = followed.stream.poses[keep]
-    rms = [
-        float(np.sqrt(np.mean(np.sum((p - x_true)[:, s] ** 2, axis=1))))
-        for p, s in ((pred, slice(3, 6)), (pred, slice(0, 3)), (held, slice(3, 6)))
-    ]
-    return {
-        "rms_translation_m": rms[0],
-        "rms_rotation_rad": rms[1],
-        "none_translation_m": rms[2],
-        "ratio": rms[0] / rms[2] if rms[2] > 0 else float("nan"),
+
+    def rms(x, axes=slice(3, 6)) -> float:
+        return float(np.sqrt(np.mean(np.sum((x - x_true)[:, axes] ** 2, axis=1))))
+
+    spread = x_true[:, 3:] - np.mean(x_true[:, 3:], axis=0)
+    motion = float(np.sqrt(np.mean(np.sum(spread**2, axis=1))))
+    out = {
+        "rms_translation_m": rms(used),
+        "rms_rotation_rad": rms(used, slice(0, 3)),
+        "model_translation_m": rms(model),
+        "none_translation_m": rms(held),
+        "samples": int(np.count_nonzero(keep)),
     }
+    nan = float("nan")
+    out["ratio"] = (
+        out["rms_translation_m"] / out["none_translation_m"]
+        if out["none_translation_m"] > 0
+        else nan
+    )
+    out["nrmse"] = out["rms_translation_m"] / motion if motion > 0 else nan
+    out["nrmse_none"] = out["none_translation_m"] / motion if motion > 0 else nan
+    return out
 
 
 def follow_motion(
@@ -80,10 +103,11 @@ def follow_motion(
     from_s: float = 0.0,
     loop_lag_s: float = LOOP_LAG_S,
 ) -> dict:
-    """A motion streamed ``latency_s`` late and followed with ``predictor`` and with none, each
-    measured against the motion itself over [``from_s``, end] (:func:`stream_figures`, every
-    :data:`MEASURE_STEP_S`), and the predictor's own error at the horizon (the latency plus
-    the loop's lag, :func:`horizon_error`).
+    """A motion streamed ``latency_s`` late and followed with ``predictor`` and with none: (b)
+    each followed reference measured against the motion itself over [``from_s``, end]
+    (:func:`stream_figures`, every :data:`MEASURE_STEP_S`), and (a) the prediction at the
+    horizon (the latency plus the loop's lag) against the newest sample held, at the samples
+    (:func:`horizon_error`).
 
     Args:
         reference: the true motion (a Reference; a trace's length is its ``end_time``).
@@ -197,15 +221,17 @@ def stream_summary(figures: dict) -> list:
         f"{figures['predictor']} (latency assumed {figures['latency_s']:g} s + the loop's "
         f"{LOOP_LAG_S * 1e3:.2g} ms): prediction used on {figures['used'] * 100:.0f} % of the "
         f"arrivals, {figures['clipped']} predicted positions clipped to the motion's range",
-        f"error against the true motion, translation RMS: without prediction "
+        f"(a) the prediction {figures['latency_s'] + LOOP_LAG_S:.3g} s ahead, at the samples "
+        f"(the literature's measure): {h['rms_translation_m'] * 1e3:.3g} mm RMS against "
+        f"{h['none_translation_m'] * 1e3:.3g} mm with the newest sample held (relative RMSE "
+        f"{h['ratio']:.2f}); nRMSE {h['nrmse_none']:.3f} -> {h['nrmse']:.3f}",
+        f"(b) the followed reference against the true motion, translation RMS: without "
+        f"prediction (the samples joined one sample step behind the newest) "
         f"{n['rms_translation_m'] * 1e3:.3g} mm, with {w['rms_translation_m'] * 1e3:.3g} mm "
         f"(ratio {figures['ratio_translation']:.2f}); peak {n['peak_translation_m'] * 1e3:.3g} "
         f"-> {w['peak_translation_m'] * 1e3:.3g} mm; nRMSE {n['nrmse_translation']:.3f} -> "
         f"{w['nrmse_translation']:.3f}; within tolerance {n['within_tolerance'] * 100:.1f} -> "
         f"{w['within_tolerance'] * 100:.1f} % of the time",
-        f"the predictor's own error at the horizon ({figures['latency_s'] + LOOP_LAG_S:.3g} s): "
-        f"{h['rms_translation_m'] * 1e3:.3g} mm RMS (the newest sample held: "
-        f"{h['none_translation_m'] * 1e3:.3g} mm)",
     ]
     if r is not None:
         tracking = figures["robot_tracking"]

@@ -233,11 +233,14 @@ class FollowedStream:
         x[before], v[before], a[before] = s_.poses[0], 0.0, 0.0
         return tuple(q.reshape(shape + (6,)) for q in (x, v, a))
 
-    def at_horizon(self, horizon_s: float) -> np.ndarray:
+    def at_horizon(self, horizon_s: float, used: bool = False) -> np.ndarray:
         """(N, 6) what each arrival's predicted curve gives ``horizon_s`` after its newest
-        sample: the predictor's own prediction at that horizon (rad and m)."""
+        sample: the predictor's own prediction at that horizon (rad and m); with ``used``, the
+        newest sample itself on the axes where the record did not choose the prediction (what
+        the predictor put forward at that arrival)."""
         i = np.arange(self.stream.t.size)
-        return self.curve(i, np.full(i.size, float(horizon_s)))
+        predicted = self.curve(i, np.full(i.size, float(horizon_s)))
+        return np.where(self.using, predicted, self.stream.poses) if used else predicted
 
 
 def _switches(arrival: np.ndarray, using: np.ndarray, switch_s: float) -> np.ndarray:
