@@ -6,9 +6,11 @@ follower, at each history the stream study tunes over.
 
 ``references.prediction.LinearModel`` alone (the regression), ``OnlinePredictor`` (with its
 record and envelope) and ``references.stream.follow`` (the reference a robot follows, with its
-curves), on the library's breathing streamed ``--rate`` Hz and 0.2 s late. Printed per history:
-the CPU time of the process (``time.process_time``: BLAS's threads included; the best of
-``--repeats``) and per sample, and the wall time of that call.
+curves), on the library's breathing streamed ``--rate`` Hz and 0.2 s late; and the live
+follower (``references.live_stream.LiveFollower``, what ``robot --follow-lcm`` runs): each
+sample received, and the reference evaluated every 10 ms (the robot's control period). Printed
+per history: the CPU time of the process (``time.process_time``: BLAS's threads included; the
+best of ``--repeats``) and per sample, and the wall time of that call.
 """
 
 from __future__ import annotations
@@ -18,8 +20,11 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this checkout
 
+from stewart_drake.references.live_stream import LiveFollower  # noqa: E402
 from stewart_drake.references.organ.library import make_motion  # noqa: E402
 from stewart_drake.references.prediction import (  # noqa: E402
     LinearModel,
@@ -82,6 +87,17 @@ def main() -> None:
                 f"{name} {cpu:.2f} s CPU ({cpu / n * 1e6:.0f} us/sample; {wall:.2f} s wall)"
             )
         print(f"history {history:g} s ({p} lags): " + ", ".join(cells))
+    live = LiveFollower(args.latency, args.rate)
+    c0, evaluations = time.process_time(), 0
+    for i, (t, y) in enumerate(zip(stream.t, stream.poses)):
+        live.receive(stream.arrival[i], i, int(round(t * 1e6)), y)
+        for now in stream.arrival[i] + np.arange(0.0, stream.dt - 1e-9, 0.01):
+            live.evaluate(now)
+            evaluations += 1
+    cpu = time.process_time() - c0
+    print(f"live, the shipped settings: {cpu:.2f} s CPU for {n} samples received and "
+          f"{evaluations} evaluations ({cpu / evaluations * 1e6:.0f} us an evaluation with "
+          "its share of the receiving)")  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -142,6 +142,7 @@ SYSTEM_MODULES = {
     "test_calibration_bus",
     "test_dynamixel_bus",
     "test_hardware_station",
+    "test_robot_follow",
     "test_robot_input",
     "test_robot_motions",
     "test_robot_safety",

@@ -59,17 +59,20 @@ class Stream:
         poses: (N, 6) the samples [phi, theta, psi, X, Y, Z], rad and m.
         latency_s: how long after it was taken a sample arrives, s.
         name: the motion's name.
+        step_s: the sample step, s, when ``t`` does not give it (a live stream's arrivals,
+            spaced as they came: :class:`~.live_stream.LiveFollower`); None: ``t``'s.
     """
 
     t: np.ndarray
     poses: np.ndarray
     latency_s: float
     name: str = "stream"
+    step_s: float | None = None
 
     @property
     def dt(self) -> float:
         """The sample step, s."""
-        return float(self.t[1] - self.t[0])
+        return float(self.step_s) if self.step_s is not None else float(self.t[1] - self.t[0])
 
     @property
     def arrival(self) -> np.ndarray:
@@ -325,6 +328,8 @@ __all__ = [
     "follow",
     "follower_steps",
     "FollowedStream",
+    "PAST_NODES",
+    "SWITCH_S",
     "DEFAULT_STREAM_RATE_HZ",
     "LOOP_LAG_S",
     "BLEND_S",
