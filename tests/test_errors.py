@@ -48,6 +48,7 @@ EXAMPLES = {
     errors.StartPoseError: errors.StartPoseError("the robot rests at a pose outside the set"),
     errors.LoopStalledError: errors.LoopStalledError("no period completed for 312 ms"),
     errors.DeadlineMissError: errors.DeadlineMissError(11, 10, 0.002, 0.0061, 3.214),
+    errors.LiveSourceError: errors.LiveSourceError("BREATH: no sample for 0.5 s after 1203"),
 }
 
 

@@ -12,7 +12,11 @@ import sys
 import pytest
 from pydrake.lcm import DrakeLcm
 
-from stewart_drake.lcmtypes import lcmt_stewart_command, lcmt_stewart_status
+from stewart_drake.lcmtypes import (
+    lcmt_stewart_command,
+    lcmt_stewart_pose_sample,
+    lcmt_stewart_status,
+)
 
 TYPES = pathlib.Path(__file__).resolve().parent.parent / "stewart_drake" / "lcmtypes"
 #: The lcm-gen the committed files come from (the ``test`` extra pins ``lcm`` to it).
@@ -39,7 +43,11 @@ def test_the_committed_types_are_what_lcm_gen_makes_of_the_definitions(tmp_path)
             f"types (pip install lcm=={LCM_GEN_VERSION})"
         )
     definitions = sorted(TYPES.glob("*.lcm"))
-    assert [p.stem for p in definitions] == ["lcmt_stewart_command", "lcmt_stewart_status"]
+    assert [p.stem for p in definitions] == [
+        "lcmt_stewart_command",
+        "lcmt_stewart_pose_sample",
+        "lcmt_stewart_status",
+    ]
     # The command docs/lcm.md gives, run at the repository's top, into a scratch folder.
     subprocess.run(
         [tool, "--python", "--python-no-init", "--ppath", str(tmp_path)]
@@ -135,3 +143,17 @@ def test_status_and_command_round_trip_through_drake_lcm_in_process():
         assert (list(got) if isinstance(sent, list) else got) == sent, name
     back_command = lcmt_stewart_command.decode(received["STEWART_COMMAND"][0])
     assert (back_command.utime, list(back_command.tau)) == (42, command.tau)
+
+
+def test_a_pose_sample_is_laid_out_on_the_wire_and_refused_as_another_type():
+    sample = lcmt_stewart_pose_sample()
+    sample.utime, sample.seq = -5_000_000, 2**40 + 3
+    sample.pose = [0.01, -0.02, 0.03, 0.004, -0.005, 0.30]
+    data = sample.encode()
+    assert len(data) == 8 + 8 + 8 + 6 * 8
+    assert data[:8] == struct.pack(">Q", sample.get_hash())
+    assert struct.unpack_from(">qq6d", data, 8) == (sample.utime, sample.seq, *sample.pose)
+    back = lcmt_stewart_pose_sample.decode(data)
+    assert (back.utime, back.seq, list(back.pose)) == (sample.utime, sample.seq, sample.pose)
+    with pytest.raises(ValueError, match="Decode error"):
+        lcmt_stewart_status.decode(data)

@@ -96,6 +96,7 @@ ALLOWED = {
     # The servo bus (a serial port), not a file: DynamixelBus.open.
     ("live/session.py", "_run", "bus.open"),
     ("live/session.py", "_teleop", "DynamixelBus.from_config(...).open"),
+    ("live/follow.py", "_follow", "DynamixelBus.from_config(...).open"),
     ("station/bus/driver.py", "DynamixelBus.__enter__", "self.open"),
 }
 

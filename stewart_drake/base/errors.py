@@ -431,6 +431,13 @@ class ServoConfigMismatchError(BusError):
         return self.servo_id, self.item, self.wrote, self.read
 
 
+class LiveSourceError(StewartError, RuntimeError):
+    """A live source of poses the robot follows that failed: no sample within its timeout, a
+    sample out of order, repeated or not six finite numbers, samples spaced otherwise than the
+    stream's rate, or too many missing at once. The message names the channel and the sample;
+    the session that follows the source removes the torque."""
+
+
 class DeadlineMissError(BusError):
     """A control loop on the servo bus that started too many periods late: more than its
     scenario's ``bus.max_deadline_misses`` periods began over one period after their scheduled

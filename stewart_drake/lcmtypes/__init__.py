@@ -1,4 +1,5 @@
-"""LCM message types of the robot: its status and its motor commands (docs/lcm.md).
+"""LCM message types of the robot: its status, its motor commands and the poses it follows live
+(docs/lcm.md).
 
 The ``.lcm`` files beside this one are the definitions; ``lcmt_*.py`` are generated from them by
 ``lcm-gen --python --python-no-init --ppath . stewart_drake/lcmtypes/*.lcm`` run at the
@@ -8,6 +9,7 @@ the standard library, so reading or writing a message needs neither Drake nor th
 """
 
 from .lcmt_stewart_command import lcmt_stewart_command
+from .lcmt_stewart_pose_sample import lcmt_stewart_pose_sample
 from .lcmt_stewart_status import lcmt_stewart_status
 
-__all__ = ["lcmt_stewart_command", "lcmt_stewart_status"]
+__all__ = ["lcmt_stewart_command", "lcmt_stewart_pose_sample", "lcmt_stewart_status"]

@@ -203,6 +203,9 @@ def _add_robot_command(sub) -> None:
         help="drive the robot from Meshcat's sliders, from where it rests (until Ctrl-C, or "
         "--duration s)",
     )
+    from .follow_command import add_follow_arguments
+
+    add_follow_arguments(rob)
     rob.add_argument("--no-progress", action="store_true", help="no progress bar")
     rob.add_argument("--out", default="results", help="folder of the logs")
     rob.set_defaults(func=_cmd_robot, out_sub=("diverged",))
@@ -234,6 +237,9 @@ def _cmd_robot(args) -> int:
         from ..base.errors import InvalidConfigError
 
         raise InvalidConfigError("--teleop takes no reference (the sliders are one) nor --dry-run")
+    from .follow_command import check_follow_arguments
+
+    args.follow = check_follow_arguments(args)  # None without --follow-lcm
     scenario = load_scenario(args.scenario, args.set or ())
     _robot_reference(args, scenario)
     if args.duration is not None:
@@ -250,6 +256,8 @@ def _cmd_robot(args) -> int:
     check_loop_timeout(args.loop_timeout, scenario.control_period_s)
     out = Path(args.out)
     stem = f"robot_{scenario.reference.label}" if args.motion else "robot"
+    if args.follow is not None:
+        stem = "robot_follow"
     if not args.dry_run and args.calibrate is None:
         from ..calibration.join import encoder_log_path
 
@@ -425,7 +433,11 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
 
             meshcat = Meshcat()
             print(f"open {meshcat.web_url()} to watch the robot at its measured pose")
-        if args.teleop:
+        if args.follow is not None:
+            from .follow_command import follow_from_arguments
+
+            run = follow_from_arguments(args.follow, args, scenario, out, stem, signals)
+        elif args.teleop:
             from .session import teleop_on_robot
 
             run = teleop_on_robot(

@@ -363,24 +363,14 @@ def _teleop_reference(scenario, plan, x0, limits, clearance) -> TeleopReference:
     boundary of the admissible poses as the scenario's guard judges them (its thresholds, the
     motors' peak torque and ``clearance``, a
     :class:`~stewart_drake.plant.clearance.ClearanceModel`)."""
-    from ..run.reference import TeleopReference, admissible_poses
+    from ..run.reference import TeleopReference, guarded_admissible
 
-    geometry, peak = plan.geometry, plan.torque_limit_Nm
-    guard = scenario.guard
     return TeleopReference(
-        geometry,
+        plan.geometry,
         x0,
         scenario.control_period_s,
         limits,
-        admissible=lambda x: admissible_poses(
-            geometry,
-            x,
-            guard.cond_threshold,
-            guard.min_sigma_min_inv,
-            peak,
-            clearance=clearance,
-            min_clearance_m=guard.min_clearance_m,
-        ),
+        admissible=guarded_admissible(plan, clearance),
     )
 
 

@@ -46,6 +46,7 @@ def _add_reproduce_command(sub) -> None:
     )
     _add_learning_arguments(rp)
     _add_measurement_arguments(rp)
+    _add_stream_arguments(rp)
     rp.add_argument("--out", default="results/reproduce", help="report folder")
     rp.add_argument(
         "--html",
@@ -96,6 +97,38 @@ def _add_learning_arguments(rp) -> None:
     )
 
 
+def _add_stream_arguments(rp) -> None:
+    """``reproduce --stream``: the motion as if it arrived live, late, followed with a
+    predictor (:mod:`~stewart_drake.organ_motion.streaming`)."""
+    # Written out, not imported from references.prediction: building the parser reads no numpy
+    # (tests/test_stream_reproduce.py holds them equal to PREDICTORS and DEFAULT_PREDICTOR).
+    rp.add_argument(
+        "--stream",
+        default=None,
+        metavar="LATENCY_S",
+        help="run the motion as if it arrived live: each sample reaches the controller "
+        "LATENCY_S s after it happened, and the robot follows it with --predictor; the report "
+        "gives the error against the true motion with and without prediction (default: none, the "
+        "motion known in advance)",
+    )
+    rp.add_argument(
+        "--predictor",
+        default="linear",
+        choices=("none", "linear"),
+        help="with --stream: how the latency is predicted away: linear, adaptive linear "
+        "regression, "
+        "the best measured; none, the samples followed without prediction (default: linear)",
+    )
+    rp.add_argument(
+        "--stream-rate",
+        type=positive_float,
+        default=None,
+        metavar="HZ",
+        help="with --stream: the samples' rate (default: a trace's own, 25 Hz for a "
+        "library motion)",
+    )
+
+
 def _add_measurement_arguments(rp) -> None:
     """What ``reproduce`` measures and allows: the cycles, the tolerance, the scaling of a
     motion too large, a trace's length."""
@@ -136,6 +169,8 @@ def _cmd_reproduce(args) -> int:
     tolerance = parse_tolerance(args.tolerance)
     scenario, name = motion_scenario(args)
     out = Path(args.out)
+    if args.stream is not None or args.stream_rate is not None:
+        return _cmd_stream(args, scenario, name, out, tolerance)
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
     feedforward = _feedforward_choice(args, scenario)
@@ -194,6 +229,50 @@ def _cmd_reproduce(args) -> int:
         html = reproduction_html(rep, plan.plant_geometry, args.html, tolerance, plan=plan)
         print(f"wrote {html} (Meshcat replay with the reference's ghost and the error)")
     return 0 if ok else 2
+
+
+def _cmd_stream(args, scenario, name, out, tolerance) -> int:
+    """``reproduce --stream LATENCY_S``: refused before any work when the latency, the
+    predictor or the stream is bad or learning is asked for; otherwise the run, its lines and
+    its report (:func:`~.streaming.write_stream_report`); exit 0."""
+    from ..base.errors import InvalidConfigError
+    from ..base.fileio import check_replaceable
+    from ..references.stream import check_latency
+    from .streaming import reproduce_stream, stream_summary, write_stream_report
+
+    if args.stream is None:
+        raise InvalidConfigError("--stream-rate is for --stream LATENCY_S: give the latency")
+    latency = check_latency(args.stream)
+    if args.learn_cycles or args.feedforward or args.learned or args.html:
+        raise InvalidConfigError(
+            "--stream follows a motion as it arrives: it takes no learning (--learn-cycles, "
+            "--feedforward, --learned) and no --html"
+        )
+    for suffix in (".md", ".png", ".json"):
+        check_replaceable(out / f"reproduce_{name}_stream{suffix}")
+        check_replaceable(out / f"reproduce_{name}{suffix}")
+    figures = reproduce_stream(
+        scenario,
+        latency,
+        args.predictor,
+        args.stream_rate,
+        args.duration,
+        tolerance=(tolerance[0] * 3**0.5, tolerance[1] * 3**0.5),
+        scale_to_fit=args.scale_to_fit,
+        progress=not args.no_progress,
+        on_checked=lambda: say_if_compiling("reproduce"),
+    )
+    rep = figures["reproduction"]
+    if rep.scale != 1.0:
+        print(f"the followed reference did not fit the robot: scaled by {rep.scale:.3f}")
+    for line in stream_summary(figures):
+        print(line)
+    md, png, js = write_stream_report(figures, out, name)
+    from .fidelity_report import write_report
+
+    write_report(rep, out, tolerance)
+    print(f"wrote {md}, {png} and {js} (and the robot's own fidelity, reproduce_{name}.md)")
+    return 0
 
 
 def motion_scenario(args):

@@ -517,6 +517,27 @@ class TeleopReference(LeafSystem):
         state[self.X] = x + h * v_next
 
 
+def guarded_admissible(plan, clearance):
+    """``admissible(x (N, 6)) -> (N,) bool``, :func:`admissible_poses` as the run of ``plan``
+    (a :class:`~.plan.RunPlan`) judges a live reference's poses: its scenario's guard thresholds,
+    its motors' peak torque, and ``clearance`` (a
+    :class:`~stewart_drake.plant.clearance.ClearanceModel`) with the guard's least clearance."""
+    geometry, peak, guard = plan.geometry, plan.torque_limit_Nm, plan.scenario.guard
+
+    def admissible(x) -> np.ndarray:
+        return admissible_poses(
+            geometry,
+            x,
+            guard.cond_threshold,
+            guard.min_sigma_min_inv,
+            peak,
+            clearance=clearance,
+            min_clearance_m=guard.min_clearance_m,
+        )
+
+    return admissible
+
+
 def admissible_poses(
     geometry: StewartGeometry,
     x,

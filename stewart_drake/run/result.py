@@ -390,7 +390,9 @@ def read_run(sd, root_context) -> RunLogs:
     first = sd.guard.first_contact(root_context) if contact and sd.guard is not None else None
     for logger in sd.loggers.values():  # read: the run's Context is not held for a drain
         logger.log.unbind()
-    return RunLogs(result, sd.trajectory, contact, first)
+    # A live reference that kept its record (``evaluate``, ``feedforward_at``) is its own.
+    trajectory = sd.trajectory if sd.trajectory is not None else sd.reference
+    return RunLogs(result, trajectory, contact, first)
 
 
 def _learner_record(sd, root_context) -> tuple:
@@ -454,10 +456,12 @@ def reference_at(trajectory: Reference, t: np.ndarray) -> np.ndarray:
 def feedforward_at(sd, t: np.ndarray) -> np.ndarray:
     """(N, 6) float32 the feed-forward torques the reference asks for at times t (s), N m: the
     Diagram's feed-forward table, each row placed at the time it is meant to act (the sample's
-    reference time plus the computation delay), linearly interpolated."""
+    reference time plus the computation delay), linearly interpolated; of a live reference,
+    its own record (``feedforward_at(t)``: :class:`~stewart_drake.live.follow.FollowReference`;
+    one without, teleop's, keeps no logs)."""
     reference = sd.reference
-    # A run's reference is precomputed (ReferenceSources); a live one has no table.
-    assert isinstance(reference, ReferenceSources)
+    if not isinstance(reference, ReferenceSources):  # live: what it recorded, if it did
+        return np.asarray(reference.feedforward_at(t), dtype=np.float32)
     t_act = reference.t_eval.values() + sd.plan.delay_periods * sd.plan.control_period_s
     table = reference.T_ff_table
     out = np.empty((len(t), table.shape[1]), dtype=np.float32)

@@ -1,0 +1,335 @@
+"""A motion followed as it arrives, measured against the true motion, two ways: (a) the
+literature's, at the samples: the prediction the horizon ahead against the newest sample held
+(:func:`horizon_error`: the relative RMSE and the nRMSE); (b) end to end: the followed
+reference (or the robot that ran it) with and without prediction at every instant
+(:func:`stream_figures`: RMS, peak, nRMSE, the share of time within a tolerance).
+
+:func:`follow_motion` streams a motion (:func:`~stewart_drake.references.stream.stream_of`),
+follows it with a predictor and with none (:func:`~stewart_drake.references.stream.follow`)
+and measures both ways; ``reproduce --stream`` runs the followed reference on the robot and
+measures the robot's pose as (b).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..references.prediction import PredictorSettings
+from ..references.stream import DEFAULT_STREAM_RATE_HZ, LOOP_LAG_S, follow, stream_of
+
+#: The step of the grid the errors are measured on, s.
+MEASURE_STEP_S = 0.01
+
+
+def stream_figures(t, x_true, x, tolerance=(1e-3, 0.01)) -> dict:
+    """Errors of poses ``x`` against the true motion ``x_true`` at times ``t``.
+
+    Args:
+        t: (n,) s. x_true, x: (n, 6) [phi, theta, psi, X, Y, Z], rad and m.
+        tolerance: (m, rad): the error allowed in translation (3-D) and rotation (3-D).
+    Returns:
+        {"rms_translation_m", "rms_rotation_rad" (3-D RMS), "peak_translation_m",
+        "nrmse_translation" (RMS error over the RMS of the true translation about its mean),
+        "within_tolerance" (share of the samples within both tolerances, 0-1)}.
+    """
+    e = np.asarray(x, dtype=float) - np.asarray(x_true, dtype=float)
+    et = np.linalg.norm(e[:, 3:], axis=1)
+    er = np.linalg.norm(e[:, :3], axis=1)
+    spread = np.asarray(x_true)[:, 3:] - np.mean(x_true, axis=0)[3:]
+    motion = float(np.sqrt(np.mean(np.sum(spread**2, axis=1))))
+    rms_t = float(np.sqrt(np.mean(et**2)))
+    return {
+        "rms_translation_m": rms_t,
+        "rms_rotation_rad": float(np.sqrt(np.mean(er**2))),
+        "peak_translation_m": float(np.max(et, initial=0.0)),
+        "nrmse_translation": rms_t / motion if motion > 0 else float("nan"),
+        "within_tolerance": float(np.mean((et <= tolerance[0]) & (er <= tolerance[1]))),
+    }
+
+
+def horizon_error(followed, truth, horizon_s: float, from_s: float = 0.0) -> dict:
+    """The literature's measure of a predictor, at the sample instants: the prediction of the
+    motion ``horizon_s`` (s) after each sample, made from the samples up to it, against the
+    true motion ``truth`` (a Reference) then, beside no prediction (the newest sample held),
+    over the samples taken from ``from_s`` s whose horizon is within the motion.
+
+    Returns:
+        {"rms_translation_m": the prediction as used (the newest sample on the axes where the
+        record chose no prediction), "rms_rotation_rad" (3-D RMS), "model_translation_m": the
+        model's own on every axis, "none_translation_m": the newest sample held, "ratio": the
+        first over the fourth (the relative RMSE), "nrmse", "nrmse_none": each RMS error over
+        the RMS of the true translation about its mean at those instants, "samples": how many}.
+    """
+    t = followed.stream.t
+    keep = (t >= from_s) & (t + horizon_s <= followed.end_time + 1e-9)
+    x_true = np.asarray(truth.evaluate(t[keep] + horizon_s)[0]).reshape(-1, 6)
+    used = followed.at_horizon(horizon_s, used=True)[keep]
+    model = followed.at_horizon(horizon_s)[keep]
+    held = followed.stream.poses[keep]
+
+    def rms(x, axes=slice(3, 6)) -> float:
+        return float(np.sqrt(np.mean(np.sum((x - x_true)[:, axes] ** 2, axis=1))))
+
+    spread = x_true[:, 3:] - np.mean(x_true[:, 3:], axis=0)
+    motion = float(np.sqrt(np.mean(np.sum(spread**2, axis=1))))
+    out = {
+        "rms_translation_m": rms(used),
+        "rms_rotation_rad": rms(used, slice(0, 3)),
+        "model_translation_m": rms(model),
+        "none_translation_m": rms(held),
+        "samples": int(np.count_nonzero(keep)),
+    }
+    nan = float("nan")
+    out["ratio"] = (
+        out["rms_translation_m"] / out["none_translation_m"]
+        if out["none_translation_m"] > 0
+        else nan
+    )
+    out["nrmse"] = out["rms_translation_m"] / motion if motion > 0 else nan
+    out["nrmse_none"] = out["none_translation_m"] / motion if motion > 0 else nan
+    return out
+
+
+def follow_motion(
+    reference,
+    latency_s: float,
+    predictor: str = "linear",
+    rate_hz: float | None = None,
+    duration_s: float | None = None,
+    settings: PredictorSettings | None = None,
+    tolerance=(1e-3, 0.01),
+    from_s: float = 0.0,
+    loop_lag_s: float = LOOP_LAG_S,
+) -> dict:
+    """A motion streamed ``latency_s`` late and followed with ``predictor`` and with none: (b)
+    each followed reference measured against the motion itself over [``from_s``, end]
+    (:func:`stream_figures`, every :data:`MEASURE_STEP_S`), and (a) the prediction at the
+    horizon (the latency plus the loop's lag) against the newest sample held, at the samples
+    (:func:`horizon_error`).
+
+    Args:
+        reference: the true motion (a Reference; a trace's length is its ``end_time``).
+        rate_hz: the stream's rate (default a trace's own, else
+            :data:`~stewart_drake.references.stream.DEFAULT_STREAM_RATE_HZ`).
+        duration_s: how long (default the reference's ``end_time``; required without one).
+    Returns:
+        {"with": figures, "without": figures, "ratio_translation", "ratio_rotation",
+        "horizon": :func:`horizon_error`, "latency_s", "rate_hz", "predictor", "used" (share
+        of the arrivals whose prediction was used, over the moving axes), "clipped",
+        "followed": the :class:`~stewart_drake.references.stream.FollowedStream`}.
+    Raises:
+        InvalidConfigError: as :func:`~stewart_drake.references.stream.follow`.
+    """
+    rate = rate_hz or trace_rate(reference) or DEFAULT_STREAM_RATE_HZ
+    end = duration_s if duration_s is not None else float(reference.end_time)
+    stream = stream_of(reference, latency_s, rate, end)
+    followed = {name: follow(stream, name, settings, loop_lag_s) for name in ("none", predictor)}
+    t = np.arange(from_s, end, MEASURE_STEP_S)
+    x_true = np.asarray(reference.evaluate(t)[0])
+    figures = {
+        name: stream_figures(t, x_true, f.evaluate(t)[0], tolerance) for name, f in followed.items()
+    }
+    chosen = followed[predictor]
+    moving = np.ptp(stream.poses, axis=0) > 0
+    ratio = [
+        figures[predictor][k] / figures["none"][k] if figures["none"][k] > 0 else float("nan")
+        for k in ("rms_translation_m", "rms_rotation_rad")
+    ]
+    return {
+        "with": figures[predictor],
+        "without": figures["none"],
+        "ratio_translation": ratio[0],
+        "ratio_rotation": ratio[1],
+        "horizon": horizon_error(chosen, reference, latency_s + loop_lag_s, from_s),
+        "latency_s": float(latency_s),
+        "rate_hz": float(rate),
+        "predictor": predictor,
+        "used": float(chosen.using[:, moving].mean()) if moving.any() else 0.0,
+        "clipped": chosen.clipped,
+        "followed": chosen,
+    }
+
+
+def trace_rate(reference) -> float | None:
+    """A recorded trace's own sample rate, Hz (its import record's median), or None."""
+    info = getattr(reference, "info", None)
+    rate = getattr(info, "sample_rate_hz", None)
+    return float(rate) if rate else None
+
+
+#: A library motion's run when streamed without ``--duration``, s.
+STREAM_DEFAULT_S = 60.0
+
+
+def reproduce_stream(
+    scenario,
+    latency_s: float,
+    predictor: str = "linear",
+    rate_hz: float | None = None,
+    duration_s: float | None = None,
+    tolerance=(1e-3, 0.01),
+    scale_to_fit: bool = False,
+    progress: bool = False,
+    on_checked=None,
+) -> dict:
+    """``reproduce --stream``: the scenario's motion streamed ``latency_s`` late, followed with
+    ``predictor``, the followed reference checked as any reference is (reach, joint limits,
+    singularity, clearance, the motors' torque and speed: refused, or shrunk with
+    ``scale_to_fit``) and run on the robot; the robot's true pose measured against the true
+    motion, beside the reference without prediction's.
+
+    Returns:
+        :func:`follow_motion`'s dict (the followed reference against the true motion, with and
+        without prediction) with "robot": :func:`stream_figures` of the robot's true pose,
+        "reproduction": the :class:`~.reproduction.Reproduction` of the followed reference,
+        "robot_tracking": its own fidelity (the robot against what it was commanded).
+    Raises:
+        InvalidConfigError: a bad latency, an unknown predictor, a stream too short; and as
+            :func:`~.reproduction.reproduce`.
+    """
+    from ..run.plan import run_reference
+    from .reproduction import reproduce
+
+    truth = run_reference(scenario)
+    end = getattr(truth, "end_time", None)
+    duration = float(min(duration_s or end or STREAM_DEFAULT_S, end or np.inf))
+    figures = follow_motion(truth, latency_s, predictor, rate_hz, duration, tolerance=tolerance)
+    rep = reproduce(
+        scenario,
+        reference=figures["followed"],
+        duration_s=duration,
+        scale_to_fit=scale_to_fit,
+        progress=progress,
+        on_checked=on_checked,
+    )
+    t = np.asarray(rep.result.t, dtype=float)
+    x = np.asarray(rep.result.x[:, :6], dtype=float)
+    figures["robot"] = stream_figures(t, np.asarray(truth.evaluate(t)[0]), x, tolerance)
+    figures["reproduction"] = rep
+    figures["robot_tracking"] = rep.fidelity
+    figures["truth"] = truth
+    return figures
+
+
+def stream_summary(figures: dict) -> list:
+    """The lines ``reproduce --stream`` prints and its report leads with."""
+    w, n, r, h = figures["with"], figures["without"], figures.get("robot"), figures["horizon"]
+    lines = [
+        f"streamed {figures['latency_s']:g} s late at {figures['rate_hz']:.3g} Hz, predictor "
+        f"{figures['predictor']} (latency assumed {figures['latency_s']:g} s + the loop's "
+        f"{LOOP_LAG_S * 1e3:.2g} ms): prediction used on {figures['used'] * 100:.0f} % of the "
+        f"arrivals, {figures['clipped']} predicted positions clipped to the motion's range",
+        f"(a) the prediction {figures['latency_s'] + LOOP_LAG_S:.3g} s ahead, at the samples "
+        f"(the literature's measure): {h['rms_translation_m'] * 1e3:.3g} mm RMS against "
+        f"{h['none_translation_m'] * 1e3:.3g} mm with the newest sample held (relative RMSE "
+        f"{h['ratio']:.2f}); nRMSE {h['nrmse_none']:.3f} -> {h['nrmse']:.3f}",
+        f"(b) the followed reference against the true motion, translation RMS: without "
+        f"prediction (the samples joined one sample step behind the newest) "
+        f"{n['rms_translation_m'] * 1e3:.3g} mm, with {w['rms_translation_m'] * 1e3:.3g} mm "
+        f"(ratio {figures['ratio_translation']:.2f}); peak {n['peak_translation_m'] * 1e3:.3g} "
+        f"-> {w['peak_translation_m'] * 1e3:.3g} mm; nRMSE {n['nrmse_translation']:.3f} -> "
+        f"{w['nrmse_translation']:.3f}; within tolerance {n['within_tolerance'] * 100:.1f} -> "
+        f"{w['within_tolerance'] * 100:.1f} % of the time",
+    ]
+    if r is not None:
+        tracking = figures["robot_tracking"]
+        lines.append(
+            f"the robot, as built, against the true motion: {r['rms_translation_m'] * 1e3:.3g} mm "
+            f"RMS, peak {r['peak_translation_m'] * 1e3:.3g} mm, within tolerance "
+            f"{r['within_tolerance'] * 100:.1f} % (its own tracking of the followed reference: "
+            f"{tracking['rms_translation_m'] * 1e6:.3g} um)"
+        )
+    return lines
+
+
+def write_stream_report(figures: dict, out, name: str) -> tuple:
+    """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the summary, the
+    figures, and the true motion, the followed reference with and without prediction and the
+    robot on the axis that moves most, with the errors over time and the predictor's
+    uncertainty (2 sigma of its recent residuals at the latency)."""
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..base.fileio import atomic_write
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    stem = out / f"reproduce_{name}_stream"
+    followed, truth = figures["followed"], figures["truth"]
+    rep = figures.get("reproduction")
+    end = followed.end_time
+    t = np.arange(0.0, end, MEASURE_STEP_S)
+    x_true = np.asarray(truth.evaluate(t)[0])
+    axis = int(np.argmax(np.ptp(x_true, axis=0) * np.array([0.1, 0.1, 0.1, 1, 1, 1])))
+    scale, unit = (1e3, "mm") if axis >= 3 else (np.degrees(1.0), "deg")
+    from ..references.stream import follow
+
+    none = follow(followed.stream, "none", followed.settings, followed.loop_lag_s)
+    x_with, x_none = followed.evaluate(t)[0], none.evaluate(t)[0]
+    fig, (a0, a1) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
+    zoom = t >= max(0.0, end - 20.0)
+    a0.plot(t[zoom], x_true[zoom, axis] * scale, "k", lw=2, label="true motion")
+    a0.plot(t[zoom], x_none[zoom, axis] * scale, color="tab:red", label="followed, no prediction")
+    a0.plot(t[zoom], x_with[zoom, axis] * scale, color="tab:blue", label="followed, predicted")
+    if rep is not None:
+        rt = np.asarray(rep.result.t)
+        rz = rt >= t[zoom][0]
+        a0.plot(rt[rz], rep.result.x[rz, axis] * scale, ":", color="tab:green", label="robot")
+    names = ("phi", "theta", "psi", "X", "Y", "Z")
+    a0.set_ylabel(f"{names[axis]} [{unit}]")
+    a0.set_title(
+        f"{name} streamed {figures['latency_s']:g} s late ({figures['rate_hz']:.3g} Hz): "
+        f"the last {min(20.0, end):.0f} s"
+    )
+    a0.legend(loc="upper right", fontsize=8)
+    e_none = np.linalg.norm(x_none[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
+    e_with = np.linalg.norm(x_with[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
+    a1.plot(t[zoom], e_none, color="tab:red", label="no prediction")
+    a1.plot(t[zoom], e_with, color="tab:blue", label="predicted")
+    k = max(1, int(round(figures["latency_s"] / followed.stream.dt)))
+    sigma = np.linalg.norm(followed.sigma[:, min(k, followed.sigma.shape[1]) - 1, 3:], axis=1)
+    arrive = followed.stream.arrival
+    sel = arrive >= t[zoom][0]
+    a1.step(arrive[sel], 2e3 * sigma[sel], where="post", color="tab:gray", lw=1,
+            label="2 sigma of the recent residuals")  # fmt: skip
+    a1.set_ylabel("translation error [mm]")
+    a1.set_xlabel("t [s]")
+    a1.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    png = stem.with_suffix(".png")
+    fig.savefig(png, dpi=110)
+    plt.close(fig)
+    lines = stream_summary(figures)
+    md_text = "\n".join(
+        [f"# {name} followed as it arrives", "", *[f"- {line}" for line in lines], "",
+         f"![the true motion and the followed reference]({png.name})", ""]
+    )  # fmt: skip
+    keep = {k: v for k, v in figures.items() if k in ("with", "without", "robot", "horizon")}
+    keep.update(
+        {k: figures[k] for k in ("latency_s", "rate_hz", "predictor", "used", "clipped")},
+        ratio_translation=figures["ratio_translation"],
+        ratio_rotation=figures["ratio_rotation"],
+        loop_lag_s=LOOP_LAG_S,
+    )
+    md, js = stem.with_suffix(".md"), stem.with_suffix(".json")
+    atomic_write(md, lambda f: f.write(md_text.encode()))
+    atomic_write(js, lambda f: f.write(json.dumps(keep, indent=1, default=float).encode()))
+    return md, png, js
+
+
+__all__ = [
+    "stream_figures",
+    "horizon_error",
+    "follow_motion",
+    "trace_rate",
+    "reproduce_stream",
+    "stream_summary",
+    "write_stream_report",
+    "MEASURE_STEP_S",
+]

@@ -1,0 +1,304 @@
+"""Predictors of a motion known only as it arrives: each axis's position a few samples ahead of
+the newest, adapted online, with its uncertainty from its recent residuals and a fallback to no
+prediction whenever it is doing worse.
+
+A predictor reads one sample at a time (:meth:`OnlinePredictor.update`) and returns the
+positions it expects 1..K samples later; it never sees a sample before it has arrived, and the
+pairs it learns from are only those whose outcome has arrived (a pair for k samples ahead is
+learned k samples after its input). :data:`PREDICTORS` names them:
+
+- ``none``: the newest sample, held (no prediction).
+- ``linear``: adaptive linear regression (the predictors of Ernst et al. 2013 and Krauss et al.
+  2011 of which this is the plainest): for each axis and each k, the displacement k samples
+  ahead as a linear function of the displacements of the newest sample from the ``history_s``
+  before it, fitted by exponentially weighted ridge least squares (the normal equations' sums
+  decay with time constant ``memory_s``; every step ahead shares the features, so one matrix
+  per axis is factorised at each sample, :class:`LinearModel`).
+
+:class:`OnlinePredictor` wraps either with the record that decides, per axis, whether its
+predictions are used: the exponentially weighted mean squared error at every k of the model and
+of no prediction over the last ``record_s``; the model is used on an axis only while its record
+there is lower than no prediction's (and has ``min_record_s`` of residuals), else the newest
+sample is held. The same record gives the uncertainty: the RMS residual of what is used.
+Every prediction is first clipped to the motion's range so far, widened by
+:data:`ENVELOPE_MARGIN` of it (a prediction never asks for more than the motion has done), and
+the record starts once the model has completed its first pairs (a regression fitted on a few
+samples predicts wildly, and would weigh on the record long after).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..base.errors import InvalidConfigError
+
+#: The predictors by name; the first is no prediction.
+PREDICTORS = ("none", "linear")
+#: The predictor ``reproduce --stream`` uses unless told (the best measured, docs/organ_motion.md,
+#: "Following a motion live").
+DEFAULT_PREDICTOR = "linear"
+#: The widening of the motion's range so far that a prediction may reach, a fraction of it.
+ENVELOPE_MARGIN = 0.1
+
+
+@dataclass(frozen=True)
+class PredictorSettings:
+    """The settings of a predictor, in seconds so that they mean the same at any sample rate.
+
+    Attributes:
+        history_s: the past the regression reads, s (``round(history_s / dt)`` displacements,
+            at least 2).
+        memory_s: time constant of the forgetting of the regression's sums, s.
+        ridge: the ridge, relative to the mean of the diagonal of the regression's sums.
+        record_s: time constant of the residuals' record (the fallback and the uncertainty), s.
+        min_record_s: residuals needed before the model may be used, s.
+    Raises:
+        InvalidConfigError: a value not finite and > 0 (``ridge`` >= 0).
+    """
+
+    # The defaults are the stream study's choice, tuned on the library's motions only
+    # (docs/organ_motion.md, "Following a motion live": memory 30, 60 or 120 s and history 0.5,
+    # 1 or 2 s differ by less than 0.005 in the mean ratio; a ridge of 1e-6 beats 1e-3 by 0.05).
+    history_s: float = 0.5
+    memory_s: float = 30.0
+    ridge: float = 1e-6
+    record_s: float = 10.0
+    min_record_s: float = 5.0
+
+    def __post_init__(self):
+        for name in ("history_s", "memory_s", "record_s", "min_record_s", "ridge"):
+            v = getattr(self, name)
+            low_ok = v >= 0 if name == "ridge" else v > 0
+            if not (isinstance(v, (int, float)) and np.isfinite(v) and low_ok):
+                raise InvalidConfigError(
+                    f"predictor setting {name} must be a finite number "
+                    f"{'>= 0' if name == 'ridge' else '> 0'}, got {v!r}"
+                )
+
+    def lags(self, dt: float) -> int:
+        """Displacements the regression reads at a sample step ``dt`` (s): at least 2."""
+        return max(2, int(round(self.history_s / dt)))
+
+    def samples_needed(self, dt: float, steps: int) -> int:
+        """Samples a stream needs before the model can be used at all: its history, the
+        steps ahead it predicts and ``min_record_s`` of residuals."""
+        return self.lags(dt) + steps + max(1, int(round(self.min_record_s / dt)))
+
+
+def check_predictor(name: str) -> str:
+    """``name`` when it is one of :data:`PREDICTORS`.
+
+    Raises:
+        InvalidConfigError: an unknown predictor, naming the known ones.
+    """
+    if name not in PREDICTORS:
+        raise InvalidConfigError(
+            f"unknown predictor {name!r}: choose one of {', '.join(PREDICTORS)}"
+        )
+    return name
+
+
+class HoldModel:
+    """No prediction: the newest sample at every step ahead."""
+
+    def __init__(self, steps: int, axes: int):
+        self.steps, self.axes = int(steps), int(axes)
+
+    def update(self, y: np.ndarray) -> np.ndarray:
+        """(K, m) the newest sample ``y`` (m,) repeated."""
+        return np.repeat(np.asarray(y, dtype=float)[None, :], self.steps, axis=0)
+
+
+class LinearModel:
+    """Adaptive linear regression of each axis k = 1..K samples ahead (module docstring).
+
+    Features of sample i: x_i = [y_i - y_{i-1}, ..., y_i - y_{i-p}] per axis (the first sample
+    repeated before the stream's start); target of the pair for k: y_{j+k} - y_j, learned at
+    sample j + k. Sums R_k = sum lambda^(i-j) x_j x_j^T and r_k = sum lambda^(i-j) x_j (y_{j+k} -
+    y_j), lambda = exp(-dt / memory_s); weights w_k = (R_k + delta I)^-1 r_k with delta = ridge
+    x mean(diag R_k) (plus 1e-30: a motion at rest predicts no displacement).
+
+    Every step ahead reads the same features, so R_k at sample i is the sum S_n = sum_(j <= n)
+    lambda^(n-j) x_j x_j^T of one recursion, k samples old (n = i - k): each sample adds one
+    outer product per axis and factorises one matrix per axis (the inverse of its Cholesky
+    factor: LAPACK's ``dpotrf`` and ``dtrtri``, through scipy), which every step ahead reuses for
+    the K samples after it. A sample costs O(m p^3 / 3) for the factor and O(K m p^2) for
+    the weights, against O(K m p^3) for a solve per axis and step.
+
+    Args:
+        dt: the sample step, s (> 0). steps: K. axes: m. settings: :class:`PredictorSettings`.
+    """
+
+    def __init__(self, dt: float, steps: int, axes: int, settings: PredictorSettings):
+        self.p, self.K, self.m = settings.lags(dt), int(steps), int(axes)
+        self.lam = float(np.exp(-dt / settings.memory_s))
+        self.ridge = float(settings.ridge)
+        self._y = np.zeros((self.p + self.K + 1, self.m))  # the newest samples, newest last
+        self._x = np.zeros((self.K + 1, self.m, self.p))  # features of the newest K + 1
+        self._S = np.zeros((self.m, self.p, self.p))  # S_n of the newest sample
+        # F_n, (S_n + delta_n I)^-1 = F_n^T F_n (F_n lower triangular) per axis of the newest
+        # K + 1 samples, in a ring: sample n in slot n mod (K + 1); _Ft its transposes (a view).
+        self._F = np.zeros((self.K + 1, self.m, self.p, self.p))
+        self._Ft = np.swapaxes(self._F, -1, -2)
+        self._r = np.zeros((self.K, self.m, self.p))
+        self._n = 0
+        self._eye = np.eye(self.p)
+        from scipy.linalg import lapack  # here: importing it costs 0.1 ms at every sample
+
+        self._lapack = lapack
+
+    def update(self, y: np.ndarray) -> np.ndarray:
+        """Read sample ``y`` (m,); return (K, m) its expected values 1..K samples later."""
+        lapack = self._lapack
+        y = np.asarray(y, dtype=float)
+        if self._n == 0:
+            self._y[:] = y  # the first sample repeated before the stream's start
+        self._y[:-1] = self._y[1:]
+        self._y[-1] = y
+        i = self._n  # this sample's index
+        self._n += 1
+        x = (y[None, :] - self._y[-2 : -2 - self.p : -1]).T  # (m, p): y_i - y_{i-l}
+        self._x[:-1] = self._x[1:]
+        self._x[-1] = x
+        # The pairs that have just completed: input k samples ago, outcome now.
+        k = np.arange(1, self.K + 1)
+        ready = (i - k) >= 0
+        xk = self._x[-1 - k] * ready[:, None, None]  # (K, m, p)
+        target = (y[None, :] - self._y[-1 - k]) * ready[:, None]  # (K, m)
+        self._r = self.lam * self._r + xk * target[..., None]
+        # S_i, and the inverse Cholesky factor of S_i + delta_i I into the ring.
+        self._S *= self.lam
+        self._S += x[:, :, None] * x[:, None, :]
+        delta = self.ridge * np.trace(self._S, axis1=1, axis2=2) / self.p + 1e-30
+        normal = self._S + delta[:, None, None] * self._eye
+        factor = np.empty_like(normal)
+        for a in range(self.m):
+            c, info = lapack.dpotrf(normal[a], lower=1, clean=1)
+            if info == 0:
+                factor[a], info = lapack.dtrtri(c, lower=1, overwrite_c=1)
+            if info != 0:  # not positive definite to rounding: no prediction on the axis
+                factor[a] = 0.0
+        self._F[i % (self.K + 1)] = factor
+        # w_k = (R_k + delta I)^-1 r_k = F^T F r_k, F from the ring by slot (r_k put in sample
+        # i - k's).
+        order = (i - k) % (self.K + 1)
+        r = np.zeros((self.K + 1, self.m, self.p, 1))
+        r[order, ..., 0] = self._r
+        w = (self._Ft @ (self._F @ r))[order, ..., 0]  # (K, m, p)
+        return y[None, :] + np.einsum("kmp,mp->km", w, x)
+
+
+class OnlinePredictor:
+    """A predictor (:data:`PREDICTORS`) with its record of residuals: the fallback to no
+    prediction and the uncertainty (module docstring).
+
+    Args:
+        name: one of :data:`PREDICTORS`. dt: the sample step, s. steps: K, the samples ahead
+            predicted. axes: m. settings: :class:`PredictorSettings` (default the shipped).
+    Attributes:
+        using: (m,) bool, whether the model's predictions are used on each axis now.
+        sigma: (K, m) RMS residual of what is used, per step ahead (rad or m; NaN before any).
+        clipped: predicted positions clipped to the motion's range so far (count).
+    Raises:
+        InvalidConfigError: an unknown predictor; dt or steps not > 0.
+    """
+
+    def __init__(
+        self, name: str, dt: float, steps: int, axes: int, settings: PredictorSettings | None = None
+    ):
+        check_predictor(name)
+        if not (np.isfinite(dt) and dt > 0 and steps >= 1):
+            raise InvalidConfigError(
+                f"a predictor needs dt > 0 s and steps >= 1, got {dt}, {steps}"
+            )
+        self.name, self.dt, self.K, self.m = name, float(dt), int(steps), int(axes)
+        self.settings = settings or PredictorSettings()
+        self.model: HoldModel | LinearModel = (
+            HoldModel(self.K, self.m)
+            if name == "none"
+            else LinearModel(self.dt, self.K, self.m, self.settings)
+        )
+        self._mu = float(np.exp(-self.dt / self.settings.record_s))
+        self._min_n = max(1, int(round(self.settings.min_record_s / self.dt)))
+        self._past = np.zeros((self.K + 1, self.K, self.m))  # the newest K + 1 predictions
+        self._y = np.zeros((self.K + 1, self.m))  # the newest K + 1 samples
+        self._se = np.zeros((2, self.K, self.m))  # weighted squared residuals: model, none
+        self._w = np.zeros(self.K)  # their weights
+        self._count = np.zeros(self.K, dtype=int)
+        self._k = np.arange(1, self.K + 1)
+        self._residual = np.zeros((2, self.K, self.m))
+        self._n = 0
+        # The record starts when the model's first pairs are complete.
+        self._warm = 0 if name == "none" else self.settings.lags(self.dt) + self.K
+        self._low: np.ndarray | None = None
+        self._high: np.ndarray | None = None
+        self.clipped = 0
+        self.using = np.zeros(self.m, dtype=bool)
+        self.sigma = np.full((self.K, self.m), np.nan)
+
+    def update(self, y) -> np.ndarray:
+        """Read sample ``y`` (m,) [rad or m]; return (K, m) the positions used 1..K samples
+        later: the model's on the axes where its record is better than no prediction's, the
+        newest sample held on the others."""
+        predicted = self.raw_update(y)
+        return np.where(self.using[None, :], predicted, np.asarray(y, dtype=float)[None, :])
+
+    def raw_update(self, y) -> np.ndarray:
+        """As :meth:`update`, but (K, m) the model's positions on every axis (clipped to the
+        motion's range so far), whatever the record chose (``using`` says that)."""
+        y = np.asarray(y, dtype=float).reshape(self.m)
+        self._n += 1
+        self._y[:-1] = self._y[1:]
+        self._y[-1] = y
+        self._record(y)
+        predicted = self._bounded(self.model.update(y), y)
+        self._past[:-1] = self._past[1:]
+        self._past[-1] = predicted
+        return predicted
+
+    def _bounded(self, predicted: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """``predicted`` (K, m) clipped to the range of the samples so far, widened by
+        :data:`ENVELOPE_MARGIN` of it; the clipped positions counted."""
+        if self._low is None or self._high is None:
+            self._low, self._high = y.copy(), y.copy()
+        np.minimum(self._low, y, out=self._low)
+        np.maximum(self._high, y, out=self._high)
+        margin = ENVELOPE_MARGIN * (self._high - self._low)
+        bounded = np.clip(predicted, self._low - margin, self._high + margin)
+        self.clipped += int(np.count_nonzero(bounded != predicted))
+        return bounded
+
+    def _record(self, y: np.ndarray) -> None:
+        """The residuals of the predictions made k samples ago (k = 1..K) at ``y``, into the
+        record; then the choice per axis and the uncertainty."""
+        k = self._k
+        ready = (self._n - 1 - k) >= self._warm
+        residual = self._residual
+        residual[0] = self._past[-k, k - 1]  # (K, m): the model's, made k samples ago
+        residual[1] = self._y[-1 - k]  # the newest sample then, held
+        residual -= y
+        residual *= residual
+        residual *= ready[None, :, None]
+        self._se *= self._mu
+        self._se += residual
+        self._w = self._mu * self._w + ready
+        self._count += ready
+        if self.name == "none" or self._count[-1] < self._min_n:
+            self.using[:] = False
+        else:
+            self.using = self._se[0].sum(axis=0) < self._se[1].sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mse = self._se / self._w[None, :, None]
+        self.sigma = np.sqrt(np.where(self.using[None, :], mse[0], mse[1]))
+
+
+__all__ = [
+    "PREDICTORS",
+    "DEFAULT_PREDICTOR",
+    "ENVELOPE_MARGIN",
+    "PredictorSettings",
+    "check_predictor",
+    "HoldModel",
+    "LinearModel",
+    "OnlinePredictor",
+]
