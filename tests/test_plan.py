@@ -227,7 +227,8 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
     parts = check_reference(scenario, raise_refused=False)
     clearance = ("min_clearance", "min_clearance_t", "clearance_t", "clearance")
     mine, theirs = (
-        {k: v for k, v in _report_fields(r).items() if k not in clearance} for r in (parts, whole)
+        {k: v for k, v in _report_fields(r).items() if k not in clearance + ("clearance_profile",)}
+        for r in (parts, whole)
     )
     assert _same(mine, theirs)
     mine, theirs = (
@@ -239,8 +240,16 @@ def test_a_reference_checked_in_stretches_gives_the_report_of_one_check(monkeypa
     # smallest clearance, so the two within it of each other.
     resolution = limits.DEFAULT_CLEARANCE_RESOLUTION_M
     assert abs(parts.min_clearance - whole.min_clearance) <= resolution
+    # The stretches' clearance profiles joined: one profile from the first sample to the last,
+    # its measures the series' (each stretch's first and last pose among them).
+    t_p, c_p, res = parts.clearance_profile
+    assert res == resolution and t_p[0] == 0.0 and t_p[-1] == pytest.approx(4.0)
+    assert np.all(np.diff(t_p) > 0) and t_p.size > whole.clearance_profile[0].size
+    np.testing.assert_array_equal(t_p, parts.series["clearance_t"])
+    np.testing.assert_array_equal(c_p, parts.series["clearance"])
     lean = check_reference(scenario, raise_refused=False, keep_series=False)
     assert lean.series == {} and lean.summary() == parts.summary()
+    np.testing.assert_array_equal(lean.clearance_profile[1], c_p)  # kept without the series
 
 
 def test_a_refusal_in_a_later_stretch_names_the_same_time(monkeypatch):
