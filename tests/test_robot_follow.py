@@ -197,6 +197,27 @@ def test_a_source_that_fails_ends_the_run_with_the_torque_off_in_one_line(tmp_pa
     assert "\n" not in run.reason and run.logs is not None
 
 
+def test_following_asks_for_a_realtime_loop_as_a_session_does(tmp_path, monkeypatch):
+    """``realtime=True`` (the command's default): the loop asks what ``run_on_robot``'s does;
+    where the OS refuses (simulated, as without the privilege), one line before the torque
+    comes on, the run goes on, and the timing says what the loop was given."""
+    from stewart_drake.live import realtime
+
+    def refused(*args):
+        raise PermissionError(1, "Operation not permitted")
+
+    monkeypatch.setattr(realtime.os, "sched_setscheduler", refused)
+    monkeypatch.setattr(realtime, "_memory_lock_refusal", lambda: "the memory lock limit is 8 kB")
+    lcm = DrakeLcm("memq://")
+    with bus_emulator(X_REST, 0.01) as emu, Source(lcm):
+        run, lines, _ = _follow(emu, tmp_path, lcm, duration_s=1.0, realtime=True)
+    assert run.ok and run.exit_code == 0 and run.torque_off_confirmed, run.reason
+    said = [k for k, line in enumerate(lines) if line.startswith("realtime")]
+    on = next(k for k, line in enumerate(lines) if line.startswith("torque on"))
+    assert len(said) == 1 and said[0] < on and "not granted: SCHED_FIFO" in lines[said[0]]
+    assert run.timing_lines[0].startswith("realtime: the normal policy (SCHED_OTHER), pinned")
+
+
 def test_a_source_that_never_sends_powers_nothing(tmp_path):
     with bus_emulator(X_REST, 0.01) as emu:
         run, lines, reference = _follow(emu, tmp_path, DrakeLcm("memq://"), first_sample_s=0.3)

@@ -340,6 +340,7 @@ def follow_on_robot(
     say: Callable[[str], None] | None = None,
     signals=None,
     before_torque: Callable | None = None,
+    realtime: bool = False,
 ):
     """Follow the poses published on ``channel`` with the robot of ``scenario.bus`` (module
     docstring); never leaves the torque on.
@@ -360,6 +361,8 @@ def follow_on_robot(
         signals: as :func:`~.session.run_on_robot`'s. before_torque: a test hook
             ``f(sd, simulator, reference)`` called once a first sample is in, just before the
             torque is enabled (``reference``: the :class:`FollowReference`).
+        realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks, as
+            :func:`~.session.run_on_robot` does (a refusal said in one line; the run goes on).
     Returns:
         :class:`~.session.RobotRun`: ok and exit code 0 when ``duration_s`` was followed to its
         end; a source that failed (or never sent) ends it with ``LiveSourceError: ...``, 1.
@@ -387,7 +390,7 @@ def follow_on_robot(
     source = LcmPoseSource(lcm, channel)
     start = admissible_start(scenario)  # opens and closes the port; the torque stays off
     session = (scenario, start, source, follower, duration_s, first_sample_s, timeout)
-    rest = (loop_timeout_s, limits, Path(out), stem, say, before_torque)
+    rest = (loop_timeout_s, limits, Path(out), stem, say, before_torque, realtime)
     if signals is not None:
         return _follow(*session, *rest, signals)
     with SessionSignals() as own:
@@ -396,7 +399,7 @@ def follow_on_robot(
 
 def _follow(
     scenario, start, source, follower, duration_s, first_sample_s, timeout, loop_timeout_s,
-    limits, out, stem, say, before_torque, signals,
+    limits, out, stem, say, before_torque, realtime, signals,
 ):  # fmt: skip
     """The powered part of :func:`follow_on_robot`."""
     from ..station.bus.driver import DynamixelBus
@@ -436,7 +439,9 @@ def _follow(
             f"torque on: following {source.channel} ({follower.latency_s:g} s late, predictor "
             f"{follower.predictor}) from the measured pose"
         )
-        wall = _drive(bus, simulator, loop_timeout_s, say, announce, body, ended, signals)
+        driver = sd.station.driver
+        talk = (loop_timeout_s, say, announce, body, ended, signals, realtime, driver)
+        wall = _drive(bus, simulator, *talk)
         if ended.ok and duration_s is not None:
             ended.reason = f"followed {source.channel} for {duration_s:g} s"
     finally:
@@ -445,7 +450,8 @@ def _follow(
             ended.torque_off_confirmed = bus.torque_off()
             if sd is not None:
                 ended.timing = sd.station.driver.timing_summary()
-                ended.timing_lines = sd.station.driver.timing_lines()
+                given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
+                ended.timing_lines = given + sd.station.driver.timing_lines()
         finally:
             bus.close()
     if powered:

@@ -150,6 +150,7 @@ def follow_from_arguments(options: FollowOptions, args, scenario, out, stem, sig
         out=out,
         stem=stem,
         signals=signals,
+        realtime=args.realtime,
     )
 
 
