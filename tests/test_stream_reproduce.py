@@ -46,6 +46,10 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     assert "(b) the followed reference against the true motion" in out
     assert report["latency_s"] == 0.2 and report["predictor"] == "linear"
     assert (tmp_path / "reproduce_breath_stream.png").stat().st_size > 10_000
+    # The robot's own fidelity beside it, named after the stream (no space in any name).
+    own = tmp_path / "reproduce_breath_stream_robot.md"
+    assert own.exists() and f"the robot's own fidelity, {own.name})" in out
+    assert not [f.name for f in tmp_path.iterdir() if " " in f.name]
 
 
 @pytest.mark.parametrize(

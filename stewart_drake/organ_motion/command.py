@@ -270,8 +270,8 @@ def _cmd_stream(args, scenario, name, out, tolerance) -> int:
     md, png, js = write_stream_report(figures, out, name)
     from .fidelity_report import write_report
 
-    write_report(rep, out, tolerance)
-    print(f"wrote {md}, {png} and {js} (and the robot's own fidelity, reproduce_{name}.md)")
+    own, _, _ = write_report(rep, out, tolerance, stem=f"reproduce_{name}_stream_robot")
+    print(f"wrote {md}, {png} and {js} (and the robot's own fidelity, {own.name})")
     return 0
 
 
