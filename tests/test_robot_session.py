@@ -16,7 +16,7 @@ require_extra("robot")
 
 from stewart_drake.base.errors import InvalidConfigError, StartPoseError  # noqa: E402
 from stewart_drake.live.measure import measure_pose, pose_verdict  # noqa: E402
-from stewart_drake.live.session import HomingReference  # noqa: E402
+from stewart_drake.live.homing import HomingReference  # noqa: E402
 from stewart_drake.live.watchdog import LoopWatchdog  # noqa: E402
 from stewart_drake.references.trajectories import paper_manoeuvre  # noqa: E402
 from stewart_drake.robot.kinematics import X_HOME  # noqa: E402
