@@ -405,7 +405,7 @@ def _follow(
     from ..station.bus.driver import DynamixelBus
     from ..station.guard import advance as guarded
     from .measure import bus_config
-    from .session import RobotRun, _drive, _keep_logs
+    from .session import RobotRun, _drive, _keep_logs, _stop
 
     bus = DynamixelBus.from_config(bus_config(scenario)).open()
     ended = RobotRun("", False, True, start=start)
@@ -446,14 +446,7 @@ def _follow(
             ended.reason = f"followed {source.channel} for {duration_s:g} s"
     finally:
         signals.hold()
-        try:
-            ended.torque_off_confirmed = bus.torque_off()
-            if sd is not None:
-                ended.timing = sd.station.driver.timing_summary()
-                given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
-                ended.timing_lines = given + sd.station.driver.timing_lines()
-        finally:
-            bus.close()
+        _stop(bus, None if sd is None else sd.station.driver, ended)
     if powered:
         say(reference.summary())
         _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", _NoReferenceClock())

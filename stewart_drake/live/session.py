@@ -8,8 +8,8 @@ out of it removes the torque:
 2. the servos are configured with the torque off and their settings read back
    (:meth:`~stewart_drake.station.bus.driver.DynamixelBus.configure`);
 3. the pose is measured (encoders -> forward kinematics) and the run's reference gets a homing
-   lead-in from that pose to the reference's start (:class:`~.homing.HomingReference`); that whole path,
-   the measured pose first, passes every check of the admissible set
+   lead-in from that pose to the reference's start (:class:`~.homing.HomingReference`); that
+   whole path, the measured pose first, passes every check of the admissible set
    (:func:`~stewart_drake.run.plan.check_reference`: reach, joint ranges,
    singularities, clearance, the motors' torque and speed) or nothing is powered;
 4. only then the torque is enabled, and the Diagram runs at real time behind our watchdog
@@ -294,17 +294,25 @@ def _run(
         wall = _drive(bus, simulator, *talk, body, ended, signals, realtime, station.driver)
     finally:
         signals.hold()
-        try:
-            ended.torque_off_confirmed = bus.torque_off()
-            ended.timing = station.driver.timing_summary()
-            given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
-            ended.timing_lines = given + station.driver.timing_lines()
-        finally:
-            bus.close()
+        _stop(bus, station.driver, ended)
     if not powered:
         return ended
     _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed)
     return ended
+
+
+def _stop(bus, driver, ended: RobotRun) -> None:
+    """Every session's end, whatever ended it: the torque removed (``ended`` says whether every
+    servo confirmed it), the loop's timing read from ``driver`` with what the loop was given
+    (None: no timing to read), and the port closed, whatever the first two do."""
+    try:
+        ended.torque_off_confirmed = bus.torque_off()
+        if driver is not None:
+            ended.timing = driver.timing_summary()
+            given = [] if ended.realtime is None else [f"realtime: {ended.realtime}"]
+            ended.timing_lines = given + driver.timing_lines()
+    finally:
+        bus.close()
 
 
 def _build(scenario, homed, meshcat, progress):
@@ -527,10 +535,7 @@ def _teleop(
             ended.reason = "the session ran its duration"
     finally:
         signals.hold()
-        try:
-            ended.torque_off_confirmed = bus.torque_off()
-        finally:
-            bus.close()
+        _stop(bus, None, ended)
     return ended
 
 
