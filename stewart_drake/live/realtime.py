@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import functools
 import gc
 import os
 import resource
@@ -60,7 +61,10 @@ def loop_core() -> int | None:
         return None
 
 
+@functools.cache
 def _libc():
+    """The C library (for ``mlockall``), found once a process: ``find_library`` runs
+    ``ldconfig``, milliseconds that the locking and the unlocking after a run need not pay twice."""
     name = ctypes.util.find_library("c")
     return ctypes.CDLL(name, use_errno=True) if name else None
 
