@@ -1,12 +1,15 @@
-"""``stewart-drake verify``: a motion measured on a phantom judged against its reference. The
-issue's case measured through the command: a marker export (semicolons, decimal commas, ms, a
-frame column, a closing line of zeros) 60 ms late with 0.12 mm RMS of its own error, on the
-tracker's clock and in its frame (1 m and 30 deg from the base, the marker 50 mm off the
-platform), by a stated best fit and by a registration; a 6-DoF marker; the robot's encoder log
-beside the tracker's view; the clocks' relation not known; and the hostile files, each one line,
-exit 2."""
+"""``stewart-drake verify``: a motion measured on a phantom judged against its reference, the
+frames never fitted to the motion judged. A marker export (semicolons, decimal commas, ms, a frame
+column, a closing line of zeros) 60 ms late with 0.12 mm RMS of its own error, on the tracker's
+clock: in the base frame's axes (its offsets removed and said), in a tracker's frame 1 m and
+30 deg from the base with the marker 50 mm off the platform (refused as turned without a
+registration; judged through fiducials or through a registration motion measured once); a 6-DoF
+marker; the robot's encoder log beside the tracker's view; the clocks' relation not known; and
+the hostile files, each one line, exit 2. The battery of wrong motions is
+tests/test_verify_discrimination.py."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -46,11 +49,21 @@ def phantom_run(seconds=40.0, rate_hz=100.0, seed=0):
     return t, REFERENCE.evaluate(t + CLOCK_OFFSET_S - LATENCY_S)[0]
 
 
-def tracker_view(x_BP, seed=0, rotations=False):
+#: Where a tracker whose axes are the base frame's has its origin, in the base frame, m.
+ALIGNED_ORIGIN_M = np.array([0.4, -1.2, 0.9])
+
+
+def tracker_view(x_BP, seed=0, rotations=False, aligned=False):
     """(n, 6) the marker's poses in the tracker's frame T with NOISE_RMS_M of 3-D error (NaN
-    rotations unless ``rotations``, then 50 urad per axis)."""
+    rotations unless ``rotations``, then 50 urad per axis): SETUP's tracker, or with
+    ``aligned`` one whose axes are the base frame's, its origin at -ALIGNED_ORIGIN_M, the marker
+    at the platform's origin."""
     rng = np.random.default_rng(seed)
-    x = SETUP.tracker_poses(x_BP)
+    if aligned:
+        x = np.array(x_BP, dtype=float)
+        x[:, 3:] += ALIGNED_ORIGIN_M
+    else:
+        x = SETUP.tracker_poses(x_BP)
     x[:, 3:] += rng.normal(0.0, NOISE_RMS_M / np.sqrt(3.0), x[:, 3:].shape)
     if rotations:
         x[:, :3] += rng.normal(0.0, 50e-6, x[:, :3].shape)
@@ -87,8 +100,8 @@ def run_verify(tmp_path, *options):
 
 
 def export_options(export) -> list:
-    """The options of the issue's export: the file, its columns, the clocks' relation, a
-    tolerance of 0.2 mm."""
+    """The options of an export: the file, its columns, the clocks' relation, a tolerance of
+    0.2 mm."""
     return [
         "--measured",
         str(export),
@@ -102,10 +115,29 @@ def export_options(export) -> list:
 
 @pytest.fixture(scope="module")
 def export(tmp_path_factory):
-    """The issue's marker export: 40 s at 100 Hz, positions only."""
+    """The marker export in SETUP's tracker frame: 40 s at 100 Hz, positions only."""
     t, x = phantom_run()
     return write_marker_export(
         tmp_path_factory.mktemp("verify") / "markers.csv", t, tracker_view(x)[:, 3:]
+    )
+
+
+@pytest.fixture(scope="module")
+def aligned_export(tmp_path_factory):
+    """The same motion seen by a tracker whose axes are the base's, its marker at the
+    platform's origin."""
+    t, x = phantom_run()
+    return write_marker_export(
+        tmp_path_factory.mktemp("verify") / "aligned.csv", t, tracker_view(x, aligned=True)[:, 3:]
+    )
+
+
+@pytest.fixture(scope="module")
+def fiducials_reg(tmp_path_factory):
+    """SETUP's tracker registered from fiducials measured at 2 um (REG.yaml)."""
+    return files.write_registration(
+        tmp_path_factory.mktemp("reg") / "REG.yaml",
+        SETUP.fiducials(tracker.MeasurementNoise(5e-6, 20e-6), seed=1),
     )
 
 
@@ -115,50 +147,143 @@ def _check_acceptance(figures):
     assert figures["clock_offset_s"] == pytest.approx(CLOCK_OFFSET_S)
 
 
-def test_a_late_noisy_marker_export_by_a_stated_best_fit(tmp_path, export, capsys):
-    code, (figures,) = run_verify(tmp_path, *export_options(export))
-    printed = capsys.readouterr().out
-    assert code == 0, printed
+def test_an_export_on_the_base_axes_passes_its_offsets_removed_and_said(
+    tmp_path, aligned_export, capsys
+):
+    code, (figures,) = run_verify(tmp_path, *export_options(aligned_export))
+    out, err = capsys.readouterr()
+    assert code == 0, out
     _check_acceptance(figures)
-    # The figures are reproduce's, the rotations named as not measured.
-    for key in ("name", "passed", "fidelity", "startup", "tolerance", "encoder_resolution_m_rad"):
-        assert key in figures
+    # The verdict names what it compared; the JSON's passed is it.
+    assert figures["passed"] is True and figures["verdict"]["passed"] is True
+    line = figures["verdict"]["line"]
+    assert line.startswith("PASS: aligned.csv (X, Y, Z; each axis's offset removed) against")
+    latency_ms = float(re.search(r"; latency ([\d.]+) ms within 500 ms$", line).group(1))
+    assert latency_ms == pytest.approx(LATENCY_S * 1e3, abs=10.0)
+    assert out.splitlines()[0] == line
+    # The offsets removed are the tracker's origin, to the noise's mean over ~3600 samples.
+    removed = np.array(figures["offsets_removed"][3:])
+    assert np.max(np.abs(removed - ALIGNED_ORIGIN_M)) < 10e-6
+    assert figures["offsets_removed"][:3] == [0.0, 0.0, 0.0]
+    assert figures["frame"]["how"] == "axes" and figures["frame"]["removes_offsets"]
+    removed_words = " ".join(figures["removed"])
+    assert "X +400 mm, Y -1200 mm, Z +900 mm" in removed_words
+    assert "a constant offset of the whole phantom is not judged" in removed_words
+    assert figures["measured"]["not_measured"] == ["phi", "theta", "psi"]
     fid = figures["fidelity"]
     assert fid["measured"] == ["X", "Y", "Z"] and np.isnan(fid["rms_rotation_rad"])
     assert fid["gamma"][0]["pass_rate"] == 1.0 and len(fid["cycles"]["starts"]) >= 8
     assert figures["startup"]["window_s"][1] == pytest.approx(4.0)  # the first breath
-    # What was removed is said: the clock, the best fit and its warning, the zero line.
-    assert figures["frame"]["how"] == "fit"
-    removed = " ".join(figures["removed"])
-    assert "A best fit also removes any true constant error" in removed
-    assert "given (--clock-offset)" in removed
-    md = (tmp_path / "out" / "verify_breathing_markers.md").read_text()
+    md = (tmp_path / "out" / "verify_breathing_aligned.md").read_text()
     assert "rotation not measured" in md and "all zeros after the last sample" in md
     assert "| theta | 2 deg | not measured |" in md
-    assert "latency 60" in printed and "rotation not measured" in printed
+    assert "Not measured, so not judged: phi, theta, psi." in md
+    assert "What this check can see" in md and "this check fails a scale" in md
+    # Progress on stderr before the work: each file read, then judged.
+    assert "verify: reading" in err and "verify: aligning and judging aligned.csv" in err
 
 
-def test_the_same_export_through_the_registration_keeps_the_frames(tmp_path, export):
-    reg = files.write_registration(
-        tmp_path / "REG.yaml", SETUP.fiducials(tracker.MeasurementNoise(5e-6, 20e-6), seed=1)
+def test_a_tracker_turned_from_the_base_fails_without_a_registration_naming_the_turn(
+    tmp_path, export, capsys
+):
+    code, (figures,) = run_verify(tmp_path, *export_options(export))
+    out = capsys.readouterr().out
+    assert code == 2 and figures["passed"] is False
+    (cause,) = figures["verdict"]["causes"]
+    assert "the measured axes are turned" in cause and "--registration" in cause
+    # The turn named is the tracker's 30 deg less what a motion along one line cannot show.
+    turned = float(cause.split("turned ")[1].split(" deg")[0])
+    assert 20.0 < turned < 31.0
+    assert out.startswith("FAIL: markers.csv (X, Y, Z; each axis's offset removed)")
+
+
+def test_the_turned_tracker_registered_by_fiducials_passes_nothing_fitted(
+    tmp_path, export, fiducials_reg
+):
+    code, (figures,) = run_verify(
+        tmp_path, *export_options(export), "--registration", str(fiducials_reg)
     )
-    code, (figures,) = run_verify(tmp_path, *export_options(export), "--registration", str(reg))
-    assert code == 0
+    assert code == 0, figures["verdict"]["line"]
     _check_acceptance(figures)
     assert figures["frame"]["how"] == "registration"
-    assert "nothing fitted" in " ".join(figures["removed"])
+    assert figures["offsets_removed"] == [0.0] * 6
+    assert "nothing fitted and no offset removed" in " ".join(figures["removed"])
+    assert "registered to the base frame" in figures["verdict"]["compared"]
+
+
+def registration_run(seconds=40.0, rate_hz=100.0, seed=7, noise_m=50e-6):
+    """(t, (n, 3) positions): the library's registration motion as SETUP's tracker saw it,
+    0.5 s of the motion's clock after the tracker's 500 s, 60 ms late."""
+    t = 500.0 + np.arange(int(seconds * rate_hz)) / rate_hz
+    x = make_motion("registration").evaluate(t - 500.0 + 0.5 - LATENCY_S)[0]
+    seen = SETUP.tracker_poses(x)[:, 3:]
+    return t, seen + np.random.default_rng(seed).normal(0.0, noise_m / np.sqrt(3), seen.shape)
+
+
+def test_a_registration_motion_registers_the_tracker_once_and_later_runs_are_judged_in_it(
+    tmp_path, export, capsys
+):
+    from pydrake.math import RollPitchYaw
+
+    from stewart_drake.calibration.registration import read_fiducials, read_registration
+
+    t, seen = registration_run()
+    reg_csv = write_marker_export(tmp_path / "reg.csv", t, seen)
+    reg = tmp_path / "REG.yaml"
+    code = main(
+        ["verify", "registration", "--measured", str(reg_csv), "--measured-columns"]
+        + [MARKER_COLUMNS, "--save-registration", str(reg), "--out", str(tmp_path / "r")]
+    )
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "This run is not judged" in out and "PASS" not in out and "FAIL" not in out
+    assert not list((tmp_path / "r").glob("*")) if (tmp_path / "r").exists() else True
+    # The frames written are the tracker's, to what 40 s of 50 um noise give.
+    got = read_registration(reg)
+    dR = (got.X_TB.rotation().inverse() @ SETUP.X_TB.rotation()).ToAngleAxis().angle()
+    assert dR < 1e-3
+    assert np.linalg.norm(got.X_TB.translation() - SETUP.X_TB.translation()) < 1e-3
+    assert np.linalg.norm(got.X_PM.translation() - SETUP.X_PM.translation()) < 0.3e-3
+    assert np.linalg.norm(SETUP.X_PM.translation()) == pytest.approx(0.05)
+    assert "fitted to a registration motion" in got.words()
+    assert np.allclose(RollPitchYaw(got.X_PM.rotation()).vector(), 0.0)  # no rotations seen
+    # Later runs are judged in it: the turned tracker's export passes, nothing fitted.
+    code, (figures,) = run_verify(tmp_path, *export_options(export), "--registration", str(reg))
+    assert code == 0, figures["verdict"]["line"]
+    _check_acceptance(figures)
+    # calibrate identifies the kinematics a motion registration takes as true: it refuses it.
+    with pytest.raises(InvalidConfigError, match="motion_frames: frames fitted to a registr"):
+        read_fiducials(reg)
+
+
+def test_a_motion_that_cannot_register_the_tracker_is_refused_and_writes_nothing(
+    tmp_path, export, capsys
+):
+    # The breathing moves along one line and turns about one axis: the frames' turn about that
+    # line is undetermined.
+    reg = tmp_path / "REG.yaml"
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(export), "--measured-columns"]
+        + [MARKER_COLUMNS, "--save-registration", str(reg)]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and not reg.exists()
+    assert "undetermined" in err.splitlines()[-1] and "motion registration" in err
 
 
 def test_a_6dof_marker_is_measured_in_rotation_too_and_a_constant_error_stays_with_base():
     t, x = phantom_run(seconds=20.0, rate_hz=120.0)
     seen = tracker_view(x, seed=2, rotations=True)
     measured = MeasuredMotion("m.csv", "tracker", t, seen, np.ones(6, bool), "test")
-    ver = verify(REFERENCE, measured, clock_offset_s=CLOCK_OFFSET_S)
+    ver = verify(
+        REFERENCE, measured, clock_offset_s=CLOCK_OFFSET_S, registration=SETUP.registration()
+    )
     assert ver.latency_s == pytest.approx(LATENCY_S, abs=0.005)
     assert ver.fidelity["rms_translation_m"] == pytest.approx(NOISE_RMS_M, rel=0.15)
     assert ver.fidelity["rms_rotation_rad"] == pytest.approx(50e-6 * np.sqrt(3), rel=0.15)
+    assert ver.judgement.passed
     # Poses already in the base frame, with a true constant error of 0.3 mm on Y: "base" keeps
-    # it in the figures, a best fit removes it (and says so).
+    # it in the figures and fails naming it; "axes" removes it (and says how much).
     in_base = x.copy()
     in_base[:, 4] += 0.3e-3
     kept = verify(
@@ -167,19 +292,25 @@ def test_a_6dof_marker_is_measured_in_rotation_too_and_a_constant_error_stays_wi
         clock_offset_s=CLOCK_OFFSET_S,
         frame="base",
     )
-    fitted = verify(
+    removed = verify(
         REFERENCE,
         MeasuredMotion("b.csv", "tracker", t, in_base, np.ones(6, bool)),
         clock_offset_s=CLOCK_OFFSET_S,
     )
     assert kept.fidelity["rms"][4] == pytest.approx(0.3e-3, rel=0.01)
-    assert fitted.fidelity["rms"][4] < 1e-6
+    assert not kept.judgement.passed
+    assert kept.judgement.causes == [
+        "a constant offset of Y +0.3 mm (the phantom set down off its place or tilted, or a "
+        "registration out of date)"
+    ]
+    assert removed.fidelity["rms"][4] < 1e-6 and removed.judgement.passed
+    assert removed.offsets[4] == pytest.approx(0.3e-3, rel=1e-6)
     assert kept.latency_s == pytest.approx(LATENCY_S, abs=1e-4)
 
 
-def test_without_the_clocks_relation_the_whole_shift_is_the_latency_and_said():
+def test_without_the_clocks_relation_the_whole_shift_is_the_latency_not_judged():
     t, x = phantom_run(seconds=20.0)
-    seen = tracker_view(x, seed=3)
+    seen = tracker_view(x, seed=3, aligned=True)
     ver = verify(REFERENCE, MeasuredMotion("m.csv", "tracker", t, seen, SEEN_XYZ))
     # The shift is found wherever the tracker's clock starts (here 123 s before the motion's
     # clock), modulo the 4 s period of a motion that repeats; it all goes to the latency.
@@ -187,9 +318,12 @@ def test_without_the_clocks_relation_the_whole_shift_is_the_latency_and_said():
     assert (ver.latency_s - (LATENCY_S - CLOCK_OFFSET_S)) % 4.0 == pytest.approx(0.0, abs=0.005)
     assert "The clocks' relation was not given" in ver.removed[0]
     assert ver.fidelity["rms_translation_m"] == pytest.approx(NOISE_RMS_M, rel=0.15)
+    # A latency of 121 s passes: without the clocks' relation it is not judged, and said.
+    assert ver.judgement.passed and not ver.judgement.latency_judged
+    assert "latency not judged (the clocks' relation not given)" in ver.judgement.line
 
 
-def test_the_encoder_log_and_the_tracker_side_by_side(tmp_path, export, capsys):
+def test_the_encoder_log_and_the_tracker_side_by_side(tmp_path, export, fiducials_reg, capsys):
     """A robot run's encoder log (lead-in without t_path, readings with the encoders' zero
     errors, 17-bit counts) of a platform 15 ms late, beside the tracker's export."""
     scenario = load_scenario("phantom_hardware")
@@ -205,7 +339,14 @@ def test_the_encoder_log_and_the_tracker_side_by_side(tmp_path, export, capsys):
         np.concatenate([lead, t_path]),
         np.vstack([np.repeat(q[:1], 50, axis=0), q]),
     )
-    code, reports = run_verify(tmp_path, "--measured", str(log), *export_options(export))
+    code, reports = run_verify(
+        tmp_path,
+        "--measured",
+        str(log),
+        *export_options(export),
+        "--registration",
+        str(fiducials_reg),
+    )
     printed = capsys.readouterr().out
     assert code == 0, printed
     markers, encoders = reports  # sorted by name: verify_breathing_markers, _run_encoders
@@ -213,9 +354,9 @@ def test_the_encoder_log_and_the_tracker_side_by_side(tmp_path, export, capsys):
     assert encoders["latency_s"] == pytest.approx(0.015, abs=0.002)
     assert encoders["fidelity"]["rms_translation_m"] < 10e-6
     assert encoders["fidelity"]["measured"] == ["phi", "theta", "psi", "X", "Y", "Z"]
-    assert encoders["frame"]["how"] == "base"
+    assert encoders["frame"]["how"] == "encoders"
     _check_acceptance(markers)
-    assert "side by side:" in printed and "| run_encoders.csv | encoders |" in printed
+    assert "side by side:" in printed and "| run_encoders.csv | encoders | PASS |" in printed
 
 
 def _write_export(path, seconds=20.0, drop=None, columns=3):
@@ -235,7 +376,9 @@ def _write_export(path, seconds=20.0, drop=None, columns=3):
     [
         ("short", "lasts 2.99 s, shorter than one cycle of breathing (4 s)"),
         ("nan", "line 101: Y is missing or NaN"),
-        ("columns", "needs the marker's X, Y and Z"),
+        ("columns", "a trace has a time column and 1 to 6 axes, got 0 axes"),
+        ("fit", "--frame fit is gone: a frame fitted to the motion judged absorbs"),
+        ("one axis registered", "this file measures X, Y: judge it without --registration"),
         ("no overlap", "no overlap"),
         ("registration", "base_points: 2 points: a frame needs at least 3"),
     ],
@@ -250,6 +393,9 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
         _write_export(path, drop=99)
     elif case == "columns":
         _write_export(path, columns=2)
+        columns = "-,t [ms],-,-"
+    elif case in ("fit", "one axis registered"):
+        _write_export(path, columns=2)
         columns = "-,t [ms],X [mm],Y [mm]"
     elif case == "no overlap":
         _write_export(path)
@@ -262,11 +408,25 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
             "  - {base_m: [0.1, 0, 0], tracker_m: [1.1, 0, 0]}\n"
         )
         options += ["--registration", str(reg)]
+    if case == "fit":
+        options += ["--frame", "fit"]
+    if case == "one axis registered":
+        options += [
+            "--registration",
+            str(
+                files.write_registration(
+                    tmp_path / "REG.yaml",
+                    SETUP.fiducials(tracker.MeasurementNoise(5e-6, 20e-6), seed=1),
+                )
+            ),
+        ]
     code, reports = run_verify(tmp_path, *options)
     err = capsys.readouterr().err
     assert code == 2 and not reports
-    assert err.count("\n") == 1 and err.startswith("stewart-drake verify: ")
-    assert expected in err
+    # One line of refusal, last; before it only the progress lines of the work begun.
+    *progress, refusal = err.strip("\n").split("\n")
+    assert refusal.startswith("stewart-drake verify: ") and expected in refusal
+    assert all(line.startswith("verify: ") for line in progress)
 
 
 def _write_6dof(path, t_s, poses, quaternion: bool, order="wxyz"):
@@ -306,8 +466,14 @@ def test_a_quaternion_export_reads_as_the_same_rotations_and_is_judged_alike(tmp
         turns = np.round((quat.poses[0, 2] - seen[0, 2]) / (2 * np.pi))
         moved = quat.poses - np.array([0, 0, 2 * np.pi * turns, 0, 0, 0])
         assert np.max(np.abs(moved - rpy.poses)) < 1e-9
-    a = verify(REFERENCE, rpy, clock_offset_s=CLOCK_OFFSET_S)
-    b = verify(REFERENCE, quat, clock_offset_s=CLOCK_OFFSET_S)
+    # The tracker's true frame: SETUP's, turned by ``turn`` after it.
+    from pydrake.math import RigidTransform, RotationMatrix
+
+    frame = SETUP.registration()
+    turned = RigidTransform(RotationMatrix(turn.as_matrix()), np.zeros(3)) @ frame.X_TB
+    reg = type(frame)(turned, frame.X_PM, frame.cov_B, frame.cov_M, 0.0, 0.0)
+    a = verify(REFERENCE, rpy, clock_offset_s=CLOCK_OFFSET_S, registration=reg)
+    b = verify(REFERENCE, quat, clock_offset_s=CLOCK_OFFSET_S, registration=reg)
     assert b.latency_s == pytest.approx(a.latency_s, abs=1e-9)
     for key in ("rms_translation_m", "rms_rotation_rad"):
         assert b.fidelity[key] == pytest.approx(a.fidelity[key], rel=1e-6)

@@ -34,6 +34,19 @@ averages over poses: an identification carries it to its parameters' covariance 
       points:               # >= 3, not on one line
         - {platform_m: [x, y, z], tracker_m: [x, y, z]}
 
+A REG.yaml may instead hold the frames fitted once to a registration motion (``stewart-drake
+verify --save-registration``, :mod:`~stewart_drake.organ_motion.registration_motion`), which
+:func:`motion_frames_yaml` writes and :func:`read_registration` reads::
+
+    motion_frames:
+      tracker_base: {rpy_rad: [...], xyz_m: [...], rotation_sigma_rad: s, translation_sigma_m: s}
+      platform_marker: {rpy_rad: [...], xyz_m: [...], rotation_sigma_rad: s, ...}
+      rms_m: 5.0e-05          # the marker's distance from the motion once fitted
+      source: "registration measured in reg.csv, ..."
+
+Such a registration takes the robot's kinematics as true (the motion it was fitted to is the
+nominal robot's), so ``calibrate``, which identifies them, refuses it (:func:`read_fiducials`).
+
 ``marker_in_tracker`` takes ``rotation_sigma_rad`` and ``translation_sigma_m`` too (its
 measurement's noise, one standard deviation per axis; default 20 urad and 5 um, one sample of
 the tracker of docs/calibration.md's figures: the mean of many samples is better, say so). The
@@ -199,6 +212,8 @@ class Registration:
             units, in P (zeros when X_PM is the identity by definition).
         rms_base_m, rms_platform_m: the fits' residuals, RMS, m (0 without platform points).
         base_points, platform_points: how many fiducials each fit used (0: none).
+        source: for frames fitted to a registration motion, that fit in words ("" for
+            fiducials).
     """
 
     X_TB: RigidTransform
@@ -209,6 +224,7 @@ class Registration:
     rms_platform_m: float
     base_points: int = 0
     platform_points: int = 0
+    source: str = ""
 
     def base_poses(self, poses_TM) -> np.ndarray:
         """The platform's poses in the base frame from the marker's in the tracker's frame:
@@ -270,6 +286,11 @@ class Registration:
 
     def words(self) -> str:
         """The frames and their standard deviations as one line of text."""
+        if self.source:
+            return (
+                f"X_TB {transform_words(self.X_TB, self.cov_B)}, X_PM "
+                f"{transform_words(self.X_PM, self.cov_M)}, {self.source}"
+            )
         marker = (
             f"X_PM {transform_words(self.X_PM, self.cov_M)} from {self.platform_points} "
             f"fiducials ({self.rms_platform_m * 1e6:.3g} um RMS)"
@@ -488,6 +509,14 @@ class _Nodes:
             )
         return value
 
+    def text(self, node, field: str) -> str:
+        """A plain scalar's text, at most :data:`MAX_SOURCE_CHARS` characters."""
+        import yaml
+
+        if not isinstance(node, yaml.ScalarNode) or len(node.value) > MAX_SOURCE_CHARS:
+            raise self.refuse(field, f"expected a text of at most {MAX_SOURCE_CHARS} characters")
+        return str(node.value)
+
     def vector(self, node, field: str, bound: float, unit: str) -> np.ndarray:
         """Three numbers, each within +-``bound``."""
         items = self.sequence(node, field)
@@ -519,6 +548,32 @@ class _Nodes:
         return np.array(robot), np.array(tracker)
 
 
+#: The section of a REG.yaml that holds frames fitted to a registration motion.
+MOTION_FRAMES = "motion_frames"
+#: The longest ``source`` text of :data:`MOTION_FRAMES`, characters.
+MAX_SOURCE_CHARS = 1000
+
+
+def _composed(path) -> tuple[_Nodes, object]:
+    """(the typed reader, the root node) of a REG.yaml, composed as YAML nodes only."""
+    import yaml
+
+    from ..run.scenario_io import read_yaml_text
+
+    text = read_yaml_text(path, "registration file", MAX_REGISTRATION_BYTES, REGISTRATION_REMEDY)
+    # Composed, not constructed: nodes and their text only, whatever tags they carry.
+    return _Nodes(path), yaml.compose(text, Loader=yaml.SafeLoader)
+
+
+def _has_key(node, key: str) -> bool:
+    """Whether a composed node is a mapping with ``key``."""
+    import yaml
+
+    return isinstance(node, yaml.MappingNode) and any(
+        isinstance(k, yaml.ScalarNode) and k.value == key for k, _ in node.value
+    )
+
+
 def read_fiducials(path) -> Fiducials:
     """The :class:`Fiducials` of a REG.yaml (module docstring), every value checked.
 
@@ -527,16 +582,22 @@ def read_fiducials(path) -> Fiducials:
             :data:`MAX_REGISTRATION_BYTES`, empty, not UTF-8, not YAML, a key twice, anchors
             expanding past the scenario's bound.  InvalidConfigError: one line naming the
             field: an unknown or missing key, not 3 numbers, a number not finite or out of its
-            range, fewer than :data:`MIN_POINTS` points.
+            range, fewer than :data:`MIN_POINTS` points; frames fitted to a motion
+            (:data:`MOTION_FRAMES`), which take the kinematics a calibration identifies as true.
     """
-    import yaml
+    nodes, root = _composed(path)
+    if _has_key(root, MOTION_FRAMES):
+        raise nodes.refuse(
+            MOTION_FRAMES,
+            "frames fitted to a registration motion take the robot's kinematics as true, which "
+            "a calibration identifies: register the tracker with fiducials (base_points) for "
+            "calibrate",
+        )
+    return _fiducials(nodes, root)
 
-    from ..run.scenario_io import read_yaml_text
 
-    text = read_yaml_text(path, "registration file", MAX_REGISTRATION_BYTES, REGISTRATION_REMEDY)
-    # Composed, not constructed: nodes and their text only, whatever tags they carry.
-    root = yaml.compose(text, Loader=yaml.SafeLoader)
-    nodes = _Nodes(path)
+def _fiducials(nodes: _Nodes, root) -> Fiducials:
+    """:func:`read_fiducials` of a composed REG.yaml."""
     top = nodes.mapping(root, "the file", ("base_points",), ("platform_points", "point_sigma_m"))
     sigma = DEFAULT_POINT_SIGMA_M
     if "point_sigma_m" in top:
@@ -579,12 +640,89 @@ def read_fiducials(path) -> Fiducials:
 
 
 def read_registration(path) -> Registration:
-    """The :class:`Registration` a REG.yaml gives (module docstring): :func:`read_fiducials`,
-    then :func:`register`.
+    """The :class:`Registration` a REG.yaml gives (module docstring): its fiducials'
+    (:func:`read_fiducials`, then :func:`register`), or the frames fitted to a registration
+    motion (:data:`MOTION_FRAMES`).
 
     Raises:
         MissingFileError, CorruptFileError, InvalidConfigError: as :func:`read_fiducials` and
             :func:`register` (points on one line, points that fit no rigid motion), each one
             line naming the file, the field and what to fix.
     """
-    return register(read_fiducials(path), str(path))
+    nodes, root = _composed(path)
+    if not _has_key(root, MOTION_FRAMES):
+        return register(_fiducials(nodes, root), str(path))
+    top = nodes.mapping(root, "the file", (MOTION_FRAMES,))
+    section = nodes.mapping(
+        top[MOTION_FRAMES],
+        MOTION_FRAMES,
+        ("tracker_base", "platform_marker", "rms_m"),
+        ("source",),
+    )
+    frames, covariances = [], []
+    for key in ("tracker_base", "platform_marker"):
+        where = f"{MOTION_FRAMES}.{key}"
+        entry = nodes.mapping(
+            section[key],
+            where,
+            ("rpy_rad", "xyz_m"),
+            ("rotation_sigma_rad", "translation_sigma_m"),
+        )
+        rpy = nodes.vector(entry["rpy_rad"], f"{where}.rpy_rad", MAX_ANGLE_RAD, "rad")
+        xyz = nodes.vector(entry["xyz_m"], f"{where}.xyz_m", MAX_COORDINATE_M, "m")
+        sig = [
+            nodes.number(entry[name], f"{where}.{name}", 0.0, bound, name.rsplit("_")[-1])
+            if name in entry
+            else 0.0
+            for name, bound in zip(("rotation_sigma_rad", "translation_sigma_m"), MAX_MARKER_SIGMA)
+        ]
+        frames.append(_transform(np.concatenate([rpy, xyz])))
+        covariances.append(np.diag([sig[0] ** 2] * 3 + [sig[1] ** 2] * 3))
+    rms = nodes.number(section["rms_m"], f"{MOTION_FRAMES}.rms_m", 0.0, MAX_FIT_RMS_M, "m")
+    source = nodes.text(section["source"], f"{MOTION_FRAMES}.source") if "source" in section else ""
+    return Registration(
+        frames[0],
+        frames[1],
+        covariances[0],
+        covariances[1],
+        rms,
+        0.0,
+        source=f"fitted to a registration motion ({source or 'no source given'})",
+    )
+
+
+def motion_frames_yaml(X_TB, X_PM, sigma_B, sigma_M, rms_m: float, source: str) -> str:
+    """The REG.yaml of frames fitted to a registration motion (:data:`MOTION_FRAMES`), which
+    :func:`read_registration` reads back.
+
+    Args:
+        X_TB, X_PM: RigidTransform: the base in the tracker's frame, the marker in the
+            platform's. sigma_B, sigma_M: (rad, m) one standard deviation per axis of each.
+        rms_m: the fit's residual, m. source: what it was fitted to, in words.
+    """
+    import yaml
+
+    def frame(X, sigma) -> dict:
+        x = _pose_vector(X)
+        return {
+            "rpy_rad": [float(v) for v in x[:3]],
+            "xyz_m": [float(v) for v in x[3:]],
+            "rotation_sigma_rad": float(sigma[0]),
+            "translation_sigma_m": float(sigma[1]),
+        }
+
+    body = {
+        MOTION_FRAMES: {
+            "tracker_base": frame(X_TB, sigma_B),
+            "platform_marker": frame(X_PM, sigma_M),
+            "rms_m": float(rms_m),
+            "source": str(source)[:MAX_SOURCE_CHARS],
+        }
+    }
+    head = (
+        "# The tracker's frames fitted to a registration motion (stewart-drake verify "
+        "--save-registration):\n# X_TB the base in the tracker's frame, X_PM the marker on "
+        "the platform. Give this file to\n# verify --registration; calibrate needs fiducials "
+        "instead.\n"
+    )
+    return head + yaml.safe_dump(body, sort_keys=False, default_flow_style=None, width=100)

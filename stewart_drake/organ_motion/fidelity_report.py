@@ -302,8 +302,9 @@ def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
         (axes[0], slice(3, 6), tolerance[0], "C3", "translation", "um", 1e6),
         (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
     ):
-        norm = np.linalg.norm(e[:, part], axis=1) * scale
-        if not np.isfinite(norm).any():  # a marker that gives positions only
+        seen = np.isfinite(e[:, part]).any(axis=0)  # the axes measured (all, in a simulation)
+        norm = np.linalg.norm(e[:, part][:, seen], axis=1) * scale if seen.any() else None
+        if norm is None or not np.isfinite(norm).any():  # a marker that gives positions only
             ax.text(0.5, 0.5, f"{what} {NOT_MEASURED}", ha="center", transform=ax.transAxes)
             ax.set_xlim(axes[0].get_xlim())  # the translation's, drawn first
             ax.axvspan(w0, w1, color="0.9", zorder=0)
@@ -436,6 +437,15 @@ def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float])
 TITLE_POINTS, TITLE_CHARS = 9, 110
 
 
+def _verdict(rep: Reproduction | Verification, tolerance: tuple[float, float]) -> tuple:
+    """(passed, line): a measured motion's own judgement (``rep.judgement``: it names what it
+    compares, judges the latency and says why it fails), else :func:`~.fidelity.verdict`."""
+    judgement = getattr(rep, "judgement", None)
+    if judgement is not None:
+        return judgement.passed, judgement.line
+    return verdict(rep.fidelity, tolerance)
+
+
 def report_title(rep: Reproduction | Verification, line: str) -> str:
     """The report figure's title: the motion, the verdict ``line`` and how the run learned
     (the model file named), wrapped at :data:`TITLE_CHARS` characters a line."""
@@ -475,7 +485,7 @@ def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, 
     _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
-    ok, line = verdict(fid, tolerance)
+    ok, line = _verdict(rep, tolerance)
     title = report_title(rep, line)
     fig.suptitle(title, fontsize=TITLE_POINTS, color="k" if ok else "tab:red")
     top_in = 0.1 + 0.18 * (title.count("\n") + 1)  # each line of the title, in
@@ -525,7 +535,7 @@ def write_report(
         "learning": _learning(rep),
         "learned_from": getattr(rep, "learned_from", ""),
         "tolerance": list(tolerance),
-        "passed": verdict(rep.fidelity, tolerance)[0],
+        "passed": _verdict(rep, tolerance)[0],
         "fidelity": rep.fidelity,
         "startup": getattr(rep, "startup", {}),
         "encoder_resolution_m_rad": list(rep.resolution()),

@@ -35,7 +35,8 @@ class MeasuredMotion:
         poses: (n, 6) [phi, theta, psi, X, Y, Z] rad and m: the marker M in the tracker's frame
             T ("tracker"), the platform E in the base frame B ("encoders"); NaN on the axes
             not measured.
-        measured: (6,) bool, the axes the file measures (the three translations always).
+        measured: (6,) bool, the axes the file measures: any of them (a single-axis sensor
+            measures one).
         layout: how the file was read, in words. dropped: what was left out as an export's
             artefact, or "".
     """
@@ -61,16 +62,17 @@ class MeasuredMotion:
         return (
             f"{Path(self.path).name} ({what or self.layout}): {len(self.t)} samples at "
             f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
-            + ("" if self.rotations_measured else " (positions only: rotation not measured)")
+            + ("" if self.rotations_measured else " (rotation not measured)")
             + (f"; left out: {self.dropped}" if self.dropped else "")
         )
 
 
 MEASURED_REMEDY = (
-    "give a file whose first line names the time and the marker's X, Y, Z (and phi, theta, psi, "
-    "or a quaternion qw, qx, qy, qz, or none) with their units, e.g. t [ms];X [mm];Y [mm];Z "
-    "[mm], or name its columns with --measured-columns ('-,t [ms],X [mm],Y [mm],Z [mm]' skips a "
-    "frame counter)"
+    "give a file whose first line names the time and the axes measured with their units: the "
+    "marker's X, Y, Z (and phi, theta, psi, or a quaternion qw, qx, qy, qz, or none), e.g. t "
+    "[ms];X [mm];Y [mm];Z [mm], or one or two axes of a single-axis sensor, e.g. t [s],Z [mm]; "
+    "or name its columns with --measured-columns ('-,t [ms],X [mm],Y [mm],Z [mm]' skips a frame "
+    "counter)"
 )
 
 #: The names of a quaternion's columns (any case, a unit in brackets ignored): its scalar part
@@ -143,7 +145,7 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
             UTF-8 text.
         InvalidConfigError: what the trace readers refuse (no time column, a unit missing or of
             the wrong kind, times not increasing, a row that is not numbers: the line named);
-            not the three translations, or some rotations but not three; a missing or NaN
+            no axis, or some rotations but not three; a missing or NaN
             value (its line and column named); a quaternion's columns not all four, beside
             roll, pitch or yaw, or one of norm off 1 (its line named).
     """
@@ -159,12 +161,9 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
         raise InvalidConfigError(
             f"{path}: both a quaternion and roll, pitch or yaw columns: give one of them"
         )
-    axes = sorted(table.targets)
-    if axes[-3:] != [3, 4, 5] or len(axes) not in (3, 6):
-        found = ", ".join(f"{n} -> {AXES[k]}" for n, k in zip(table.names[1:], table.targets))
+    if not table.targets and quaternion is None:
         raise InvalidConfigError(
-            f"{path}: a measured motion needs the marker's X, Y and Z (and its three rotations "
-            f"or none), got {found}; {MEASURED_REMEDY}"
+            f"{path}: a measured motion needs at least one axis besides the time; {MEASURED_REMEDY}"
         )
     n = len(table.t)
     values = table.data[:, 1:]

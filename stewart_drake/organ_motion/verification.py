@@ -1,36 +1,42 @@
 """A motion measured on a real phantom judged against the reference it was asked to follow
 (``stewart-drake verify``): the same figures as a reproduction's (:func:`~.fidelity.fidelity`,
-the report of :mod:`~.fidelity_report`) from a tracker's export or the robot's encoder log.
+the report of :mod:`~.fidelity_report`) from a tracker's export, a single-axis sensor's file or
+the robot's encoder log, and a verdict that names what it compares and why it fails
+(:mod:`~.measured_verdict`).
 
-What is measured (:class:`~.measured_motion.MeasuredMotion`) is a tracker's file read by the
-readers of recorded traces (:func:`~.measured_motion.read_measured`: a header naming columns and
-units, semicolons or commas, decimal commas, ms, a frame column skipped with ``-``), the poses of
-its marker M in the tracker's frame T on the tracker's clock, or the robot's encoder log turned
-into platform poses by forward kinematics (:func:`~.measured_motion.encoder_motion`), on the
-reference's own clock. :func:`verify` then, with the clock and the frames of :mod:`~.alignment`,
+What is measured (:class:`~.measured_motion.MeasuredMotion`) is a file read by the readers of
+recorded traces (:func:`~.measured_motion.read_measured`: a header naming columns and units,
+semicolons or commas, decimal commas, ms, a frame column skipped with ``-``): a marker's poses in
+a tracker's frame T on the tracker's clock, any of its axes (a laser displacement sensor or a
+depth camera gives one); or the robot's encoder log turned into platform poses by forward
+kinematics (:func:`~.measured_motion.encoder_motion`), on the reference's own clock.
+:func:`verify` then, with the clock and the frames of :mod:`~.alignment`,
 
-1. **aligns the clocks**: the shift d (measured time + d = the reference's time whose pose it
-   shows) is found coarsely by cross-correlation over every shift allowed, the measured positions
-   against the reference's with the best rigid frame at each shift (the sum of the singular
-   values of their cross-covariance, all shifts at once by FFT), then finely with the frames
-   (step 2) by least squares, to a fraction of a sample;
-2. **puts the frames together**: the poses are already the platform's in the base frame (the
-   encoder log; ``frame="base"``; or mapped by a registration, ``base_poses``), or a rigid
-   transform of the tracker's frame and the marker's offset on the platform are fitted
-   (``frame="fit"``): the fit also removes any true constant error of the phantom (an offset or a
-   tilt of its whole motion), and the report says so with what it removed;
+1. **takes the frames from outside the motion judged**: the encoder log's base frame, a
+   registration (``registration``: fiducials, or a registration motion measured once,
+   :mod:`~.registration_motion`), the base frame as the file says (``frame="base"``), or each
+   measured axis as the base frame's axis its column names with a constant offset of its own
+   (``frame="axes"``, the default: what phantom QA protocols remove). Nothing is fitted to the
+   motion judged but the clock and, with ``"axes"``, one constant per measured axis: no
+   rotation, scale or marker lever arm, which would absorb the very errors to be found;
+2. **aligns the clocks**: the shift d (measured time + d = the reference's time whose pose it
+   shows) that brings the measured axes nearest the reference's (each less its mean difference
+   with ``"axes"``), coarsely over every shift allowed by FFT, then to a fraction of a sample;
 3. **separates the latency from the clock offset**: only their difference is in the data
    (d = clock offset - latency). With the clocks' relation known (``clock_offset_s``: measured
    time + offset = the reference's time; the encoder log's ``t_path`` is the reference's clock
-   itself) the latency is the offset less the shift; without it the whole shift is reported as
-   the latency, ``clock_offset_s`` 0, and the report says that the two were not separated;
+   itself) the latency is the offset less the shift, and it is judged against
+   ``max_latency_s``; without it the whole shift is reported as the latency, ``clock_offset_s``
+   0, not judged, and the report says that the two were not separated;
 4. **measures** the aligned motion over the reference's whole cycles inside the recording
    (after the motion's first cycle when the recording holds its start: the start-up, reported
-   apart) with :func:`~.fidelity.fidelity`: RMS, peak, gamma, harmonics, the error per cycle.
-   The figures are those of the motion with its latency removed; the latency is given on its own.
-
-A marker that gives positions only (a reflector, a 3-DoF target) is measured in translation; the
-rotation figures are then NaN and named as not measured.
+   apart) with :func:`~.fidelity.fidelity`: RMS, peak, gamma, harmonics, the error per cycle, on
+   the axes measured (the others NaN and named as not measured);
+5. **judges** (:func:`~.measured_verdict.judge`): every measured axis's RMS error within the
+   tolerance and, with the clocks known, the latency within its bound; a failure names its
+   causes (the phantom at rest, a wrong amplitude, sign, axis or period, another motion, a
+   constant offset, the latency), and the report gives the smallest amplitude and tilt error
+   the check can see (:func:`~.measured_verdict.sensitivity`).
 """
 
 from __future__ import annotations
@@ -38,27 +44,33 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..base.errors import InvalidConfigError
 from ..references.motion import Reference
 from .alignment import (
-    FrameFit,
-    _fine_fit,
-    _first_fit,
-    _in_base,
-    _registered,
+    Frames,
+    axis_weights,
     coarse_shift,
+    platform_poses,
     reference_poses,
+    reference_seen,
+    refine_shift,
+    registered_frames,
 )
 from .fidelity import AXES, fidelity, startup_figures, time_lag
 from .measured_motion import MeasuredMotion
+from .measured_verdict import judge, seconds
 
-#: Largest latency searched when the clocks' relation is known, s (at most 0.45 of a periodic
-#: reference's period, so that a cycle earlier or later is never taken).
+#: The largest latency that passes when the clocks' relation is known, s, unless given.
 MAX_LATENCY_S = 0.5
+#: With the clocks' relation known, latencies up to this many times the largest that passes
+#: are searched (at most 0.45 of a periodic reference's period, so that a cycle earlier or
+#: later is never taken): a latency beyond the bound is found, and fails, rather than hidden at
+#: the edge of the search.
+SEARCH_FACTOR = 3.0
 #: Longest stretch of a reference without cycles the shift is searched over when the clocks'
 #: relation is not known, s (an hour: the longest run reproduce makes).
 MAX_SEARCH_S = 3600.0
@@ -69,6 +81,8 @@ COARSE_STEP_S = 0.02
 #: Jitter of a file's time steps beyond which its samples are resampled to an even grid (as a
 #: share of the median step).
 MAX_JITTER = 0.01
+#: The RMS error per axis that passes unless given, (m, rad): verify's ``--tolerance`` default.
+DEFAULT_TOLERANCE = (1e-4, math.radians(0.1))
 
 
 # -- the verification ------------------------------------------------------------------------------
@@ -106,9 +120,13 @@ class Verification:
             time), s: given, the encoder log's (0), or 0 when not known.
         clock: how the offset was known, in words. latency_s: the phantom's lag behind the
             reference, s (> 0: late): offset - shift.
-        frame: the frames (:class:`~.alignment.FrameFit`).
+        frame: the frames (:class:`~.alignment.Frames`).
+        offsets: (6,) the constant offset removed from each measured axis (the ``"axes"``
+            frames; zeros otherwise), rad and m: measured less reference, over the window.
         removed: what was removed before the figures, in words (the clock, the frames, any
             resampling, what the recording holds outside the reference).
+        searched_s: (lo, hi) the shifts searched, s. max_latency_s: the latency's bound, s.
+        judgement: the verdict (:class:`~.measured_verdict.Judgement`), set by :func:`verify`.
     """
 
     name: str
@@ -122,8 +140,12 @@ class Verification:
     clock_offset_s: float
     clock: str
     latency_s: float
-    frame: FrameFit
+    frame: Frames
+    offsets: np.ndarray
     removed: list
+    searched_s: tuple = (0.0, 0.0)
+    max_latency_s: float = MAX_LATENCY_S
+    judgement: Any = None
     learn_cycles: int = 0
     scale: float = 1.0
     learned_from: str = ""
@@ -163,12 +185,14 @@ def _even(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
 
 def _search(reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: float):
     """(lo, hi) s: the shifts searched. Known clocks: the offset less the latencies up to
-    ``max_latency_s`` (at most 0.45 of a periodic reference's period); unknown: every shift that
-    puts the recording's start from half its length before the motion's start to the end of the
-    reference (one period of a periodic one, :data:`MAX_SEARCH_S` of one without an end)."""
+    :data:`SEARCH_FACTOR` times ``max_latency_s`` either way (at most 0.45 of a periodic
+    reference's period); unknown: every shift that puts the recording's start from half its
+    length before the motion's start to the end of the reference (one period of a periodic one,
+    :data:`MAX_SEARCH_S` of one without an end)."""
     period = getattr(reference, "repeat_period_s", None)
     if clock_offset_s is not None:
-        lat = max_latency_s if not period else min(max_latency_s, 0.45 * period)
+        lat = SEARCH_FACTOR * max_latency_s
+        lat = lat if not period else min(lat, 0.45 * period)
         return clock_offset_s - lat, clock_offset_s + lat
     span = float(t[-1] - t[0])
     end = getattr(reference, "end_time", None)
@@ -211,20 +235,26 @@ def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray
 
 def _not_measured(fid: dict, measured: np.ndarray, t, x, x_d) -> dict:
     """``fid`` with the figures of the axes not measured NaN (their harmonics and lags left out;
-    the lag of the whole motion from the measured axes), and ``measured`` naming the others."""
+    the lag of the whole motion from the measured axes; the 3-D figures of rotation or
+    translation NaN when none of its axes is measured, else over the axes measured), and
+    ``measured`` naming the others."""
     off = [k for k in range(6) if not measured[k]]
     if not off:
         return {**fid, "measured": list(AXES)}
     fid = dict(fid)
     for key in ("rms", "peak", "rms_fraction", "peak_fraction"):
         fid[key] = [math.nan if k in off else v for k, v in enumerate(fid[key])]
-    fid["rms_rotation_rad"] = fid["peak_rotation_rad"] = math.nan
+    cycles = dict(fid["cycles"])
+    if not np.any(measured[:3]):
+        fid["rms_rotation_rad"] = fid["peak_rotation_rad"] = math.nan
+        cycles["rms_rotation_rad"] = [math.nan] * len(cycles["rms_rotation_rad"])
+    if not np.any(measured[3:]):
+        fid["rms_translation_m"] = fid["peak_translation_m"] = math.nan
+        for key in ("rms_translation_m", "peak_translation_m"):
+            cycles[key] = [math.nan] * len(cycles[key])
+    fid["cycles"] = cycles
     fid["lag_s"] = {a: v for a, v in fid["lag_s"].items() if measured[AXES.index(a)]}
     fid["harmonics"] = [h for h in fid["harmonics"] if measured[AXES.index(h["axis"])]]
-    fid["cycles"] = {
-        **fid["cycles"],
-        "rms_rotation_rad": [math.nan] * len(fid["cycles"]["rms_rotation_rad"]),
-    }
     moving = [AXES.index(a) for a in fid["moving"] if measured[AXES.index(a)]]
     if moving:
         w0, w1 = fid["window_s"]
@@ -239,9 +269,10 @@ def verify(
     reference: Reference,
     measured: MeasuredMotion,
     clock_offset_s: float | None = None,
-    frame: str = "fit",
+    frame: str = "axes",
     registration=None,
     max_latency_s: float = MAX_LATENCY_S,
+    tolerance: tuple[float, float] = DEFAULT_TOLERANCE,
 ) -> Verification:
     """Judge a measured motion against the reference it was asked to follow (module docstring).
 
@@ -251,67 +282,115 @@ def verify(
             :func:`~.measured_motion.encoder_motion`).
         clock_offset_s: s, the measured time + this is the reference's (None: not known; the
             encoder log is on the reference's clock, 0).
-        frame: "fit" (fit the tracker's frame and the marker's offset) or "base" (the poses are
-            the platform's in the base frame already); ignored for the encoder log.
-        registration: the tracker's frames registered from fiducials
+        frame: "axes" (each measured axis is the base frame's axis its column names, with its
+            constant offset removed) or "base" (the poses are the platform's in the base frame
+            already; nothing removed); ignored for the encoder log.
+        registration: the tracker's frames registered to the robot
             (:class:`~stewart_drake.calibration.registration.Registration`: ``X_TB``,
-            ``X_PM``, ``base_poses``, ``words``), or None; replaces ``frame``.
-        max_latency_s: the largest latency searched when the clocks' relation is known, s.
+            ``X_PM``, ``base_poses``, ``words``), or None; replaces ``frame``. It needs the
+            marker's X, Y and Z, and its three rotations or none.
+        max_latency_s: the largest latency that passes when the clocks' relation is known, s;
+            latencies up to :data:`SEARCH_FACTOR` times it (at most 0.45 of a periodic
+            reference's period) are searched, so that one beyond it is found and fails.
+        tolerance: (m, rad) the RMS error per axis that passes (the judgement's).
     Returns:
-        :class:`Verification`.
+        :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
-        InvalidConfigError: a frame that is neither "fit" nor "base"; a recording not one whole
-            cycle of the reference long (or a breath, without cycles), before or after the
-            alignment; no overlap with the reference once aligned; a non-finite offset.
+        InvalidConfigError: a frame that is neither "axes" nor "base"; a registration for a
+            file without the marker's X, Y and Z; a recording not one whole cycle of the
+            reference long (or a breath, without cycles), before or after the alignment; no
+            overlap with the reference once aligned; a non-finite offset.
     """
-    if frame not in ("fit", "base"):
-        raise InvalidConfigError(f"frame must be 'fit' or 'base', got {frame!r}")
+    if frame not in ("axes", "base"):
+        raise InvalidConfigError(f"frame must be 'axes' or 'base', got {frame!r}")
     if clock_offset_s is not None and not math.isfinite(clock_offset_s):
         raise InvalidConfigError(f"the clock offset must be a finite number, got {clock_offset_s}")
-    t, y = measured.t, measured.poses
+    t, y = measured.t, np.array(measured.poses, dtype=float)
+    seen = measured.measured.copy()
     if measured.kind == "encoders":
         clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
-        fit = FrameFit("base")
+        frames = Frames("encoders")
     else:
         clock = "given (--clock-offset)" if clock_offset_s is not None else "not known"
-        fit = FrameFit(frame) if registration is None else _registered(registration, measured)
-    if fit.how == "registration" and measured.rotations_measured:
-        y = np.asarray(registration.base_poses(y), dtype=float)
+        frames = Frames(frame) if registration is None else _registered(registration, measured)
+    if frames.how == "registration":
+        if measured.rotations_measured:
+            y = np.asarray(registration.base_poses(y), dtype=float)
+        else:
+            y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
     t, y, resampled = _even(t, y)
     _check_length(reference, t)
-    fitting = fit.how == "fit"
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
     lo, hi = _search(reference, t, clock_offset_s, max_latency_s)
-    y_coarse = y[:, 3:] @ fit.R_BT.T + fit.p_BT
-    d0, R0 = coarse_shift(t, y_coarse, reference, (lo, hi), step, fitting)
-    if fitting:
-        fit = _first_fit(reference, t + d0, y, R0)
+    weights = axis_weights(seen)
+
+    def shown(times):
+        return reference_seen(frames, reference, times)
+
+    offsets = frames.removes_offsets
+    d0 = coarse_shift(t, y, weights, shown, (lo, hi), step, offsets)
     use = _overlap(reference, t + d0, step)
-    d, fit = _fine_fit(t[use], y[use], measured, reference, d0, fit, fitting)
+    d = refine_shift(t[use], y[use], weights, shown, d0, step, offsets)
     keep = _overlap(reference, t + d, 0.0)
     t_ref = t[keep] + d
     x_d = reference_poses(reference, t_ref)
-    x = _in_base(fit, y[keep], x_d)
+    x = platform_poses(frames, y[keep], x_d)
     (w0, w1), starts, holds_start = _window(reference, float(t_ref[0]), float(t_ref[-1]))
+    removed = np.zeros(6)
+    if offsets:
+        inside = (t_ref >= w0 - 1e-9) & (t_ref <= w1 + 1e-9)
+        removed[seen] = np.mean(x[inside][:, seen] - x_d[inside][:, seen], axis=0)
+        x = x - removed
     x_fid = np.where(np.isfinite(x), x, x_d)  # the axes not measured compare to themselves
     fid = fidelity(t_ref, x_fid, x_d, (w0, w1), _frequencies(reference), starts)
+    x_start = np.where(np.isfinite(x), x, x_d)
+    if not measured.rotations_measured:
+        x_start[:, :3] = np.nan
     offset = 0.0 if clock_offset_s is None else float(clock_offset_s)
-    return Verification(
+    ver = Verification(
         name=getattr(reference, "name", "reference"),
         reference=reference,
         measured=measured,
         result=MeasuredRun(t_ref, x, x_d),
         cycle_starts=starts,
-        fidelity=_not_measured(fid, measured.measured, t_ref, x_fid, x_d),
-        startup=startup_figures(t_ref, x, x_d, w0 if holds_start else float(t_ref[0])),
+        fidelity=_not_measured(fid, seen, t_ref, x_fid, x_d),
+        startup=startup_figures(t_ref, x_start, x_d, w0 if holds_start else float(t_ref[0])),
         shift_s=d,
         clock_offset_s=offset,
         clock=clock,
         latency_s=offset - d,
-        frame=fit,
-        removed=_removed_words(d, offset, offset - d, clock, fit, resampled)
+        frame=frames,
+        offsets=removed,
+        removed=_removed_words(d, offset, offset - d, clock, frames, removed, seen, resampled)
         + _outside_words(t + d, t_ref, (w0, w1), holds_start),
+        searched_s=(lo, hi),
+        max_latency_s=max_latency_s,
     )
+    ver.judgement = judge(ver, tolerance)
+    return ver
+
+
+def _registered(registration, measured: MeasuredMotion) -> Frames:
+    """The :class:`~.alignment.Frames` of a registration for ``measured``: its marker's X, Y
+    and Z needed (and its three rotations or none); a 6-DoF marker's poses are mapped whole
+    (the frames' own fields stay the identity).
+
+    Raises:
+        InvalidConfigError: a file without the marker's X, Y and Z, or with some rotations but
+            not three.
+    """
+    if not np.all(measured.measured[3:]) or (
+        np.any(measured.measured[:3]) and not measured.rotations_measured
+    ):
+        axes = ", ".join(a for a, m in zip(AXES, measured.measured) if m)
+        raise InvalidConfigError(
+            f"{measured.path}: a registration maps a tracker's marker (its X, Y and Z, and its "
+            f"three rotations or none) to the platform; this file measures {axes}: judge it "
+            "without --registration, each axis as the base frame's (--frame axes)"
+        )
+    if measured.rotations_measured:
+        return Frames("registration", note=registration.words())
+    return registered_frames(registration)
 
 
 def _check_length(reference: Reference, t: np.ndarray) -> None:
@@ -362,29 +441,26 @@ def _frequencies(reference: Reference) -> dict:
     return frequencies() if repeats and callable(frequencies) else {}
 
 
-def seconds(value: float) -> str:
-    """A time in s as text: ``60.1 ms`` below a second, else ``1232 s`` (4 digits)."""
-    return f"{value * 1e3:.4g} ms" if abs(value) < 1.0 else f"{value:.4g} s"
-
-
-def _removed_words(d, offset, latency, clock, fit: FrameFit, resampled) -> list:
-    """The report's lines on what the alignment removed: the clock, the frames, any
-    resampling."""
+def _removed_words(d, offset, latency, clock, frames: Frames, removed, seen, resampled) -> list:
+    """The report's lines on what the alignment removed: the clock, the frames (and the
+    offsets ``removed`` (6,) of the ``seen`` (6,) axes), any resampling."""
     if clock == "not known":
         clock_line = (
             f"the clock: the measured motion shifted by {d:+.6g} s onto the reference's clock "
-            f"(cross-correlation, then least squares). The clocks' relation was not given, so the "
-            f"whole shift is reported as the latency ({seconds(latency)}) with clock offset "
-            f"0: it holds any offset of the tracker's clock; give --clock-offset S (the measured "
-            f"time + S = the reference's) to separate the phantom's own lag"
+            f"(the shift of least distance, by FFT, then to a fraction of a sample). The clocks' "
+            f"relation was not given, so the whole shift is reported as the latency "
+            f"({seconds(latency)}) with clock offset 0 and is not judged: it holds any offset "
+            f"of the tracker's clock; give --clock-offset S (the measured time + S = the "
+            f"reference's) to separate the phantom's own lag and judge it"
         )
     else:
         clock_line = (
             f"the clock: the measured motion shifted by {d:+.6g} s onto the reference's clock "
-            f"(cross-correlation, then least squares): the clock offset {offset:+.6g} s ({clock}) "
-            f"less the latency, {seconds(latency)} (> 0: the phantom late)"
+            f"(the shift of least distance, by FFT, then to a fraction of a sample): the clock "
+            f"offset {offset:+.6g} s ({clock}) less the latency, {seconds(latency)} (> 0: the "
+            f"phantom late)"
         )
-    lines = [clock_line, f"the frames: {fit.words()}"]
+    lines = [clock_line, f"the frames: {frames.words(removed, seen)}"]
     if resampled:
         lines.append(resampled)
     return lines
@@ -413,6 +489,8 @@ def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
 
 __all__ = [
     "MAX_LATENCY_S",
+    "SEARCH_FACTOR",
+    "DEFAULT_TOLERANCE",
     "MAX_SEARCH_S",
     "MIN_SPAN_S",
     "COARSE_STEP_S",

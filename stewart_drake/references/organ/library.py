@@ -19,6 +19,7 @@ from .breathing import BreathHold, Breathing, HysteresisBreathing, IrregularBrea
 from .combinators import MotionSum, layered, scaled
 from .excursions import BaselineDrift, PersistentExcursion, TransientExcursion
 from .heartbeat import Heartbeat
+from .registration import RegistrationMotion
 from .waveforms import Sawtooth, Sharkfin
 
 
@@ -44,6 +45,7 @@ LIBRARY = {
     "transient_excursion": (TransientExcursion, TransientExcursion),
     "persistent_excursion": (PersistentExcursion, PersistentExcursion),
     "breath_hold": (BreathHold, BreathHold),
+    "registration": (RegistrationMotion, RegistrationMotion),
 }
 
 #: Units a parameter value may carry, by the suffix of the field it sets: factor to SI.
@@ -117,7 +119,8 @@ def make_motion(motion: str, parameters: dict | None = None):
     Args:
         motion: one of :data:`LIBRARY` (breathing, heartbeat, breathing_heartbeat,
             irregular_breathing, hysteresis, sawtooth, sharkfin, baseline_drift,
-            transient_excursion, persistent_excursion, breath_hold).
+            transient_excursion, persistent_excursion, breath_hold; and registration, the
+            known motion a tracker is registered with).
         parameters: {name: value}: a field of the motion's class (``amplitude_m``: a number in
             its SI unit) or the field without its unit suffix with a value carrying a unit
             (``amplitude``: "15mm"; ``rate``: "72bpm"; ``tilt``: "2deg"); directions as axis

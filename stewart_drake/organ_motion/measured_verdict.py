@@ -1,0 +1,517 @@
+"""The verdict on a measured motion (``stewart-drake verify``): what it compares, whether it
+passes, and, when it fails, why (:func:`judge`); and what the check can see at all
+(:func:`sensitivity`).
+
+A verdict compares the motion measured on the axes it measures, put on the reference's clock and
+in the frames of :mod:`~.alignment` (nothing fitted to it but the clock and, with the ``"axes"``
+frames, one constant per axis), against the reference: PASS when every measured axis's RMS error
+over the window is within the tolerance and, with the clocks' relation known, the latency
+within its bound. A FAIL names its causes, found from the aligned motion over the window, per
+measured axis k with the reference's motion r_k and the measured q_k, each less its mean:
+
+- the phantom at rest: every measured axis along which the reference moves moved less than
+  :data:`AT_REST_SHARE` of it (RMS);
+- a sign: q_k runs against r_k (correlation below -:data:`FOLLOWS_CORRELATION`);
+- another motion, another period, or noise: q_k hardly follows r_k (correlation within
+  +-:data:`FOLLOWS_CORRELATION`), its dominant period told apart from the reference's by more
+  than :data:`PERIOD_SHARE` when it has one;
+- a scale: q_k follows r_k with a gain g (least squares of q_k on r_k) whose error
+  |g - 1| RMS(r_k) alone takes more than half the tolerance;
+- an axis swapped or mislabelled: q_k moves more than the tolerance where the reference holds
+  still, and says which of the reference's axes it follows;
+- a constant offset (frames that remove none): the mean error of an axis over half the
+  tolerance (the phantom set down off its place or tilted, or a registration out of date);
+- the latency beyond its bound;
+- and, when none of these, the motion's shape.
+
+:func:`sensitivity` computes, from the reference alone, the smallest error of the whole motion's
+amplitude and the smallest tilt of the whole phantom (about an axis through the base frame's
+origin) that fail at the tolerance on the axes measured: a check that cannot see a 3 % scale
+error says so before anyone relies on it.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .fidelity import AXES, MOVING_P2P, format_angle, format_length
+
+#: A measured axis moved less than this share of the reference's motion (RMS) is at rest.
+AT_REST_SHARE = 0.1
+#: A measured axis follows the reference's when their correlation exceeds this (runs against it
+#: below its negative).
+FOLLOWS_CORRELATION = 0.5
+#: Two dominant periods differing by more than this share are told apart.
+PERIOD_SHARE = 0.05
+#: A dominant period is one whose spectral peak holds at least this share of the motion's power.
+PERIOD_POWER_SHARE = 0.3
+#: A latency found within this many seconds of the edge of the shifts searched is "at least".
+EDGE_S = 0.05
+
+#: The largest turn of the measured axes from the base frame's that is named as such, rad:
+#: beyond it a turn looks like an axis swapped or reversed, which is named so.
+MAX_TURN_RAD = math.radians(60.0)
+
+#: The base axes a tilt of the whole phantom is tried about, for :func:`sensitivity`.
+_TILT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
+
+
+@dataclass
+class Judgement:
+    """A measured motion's verdict (module docstring).
+
+    Attributes:
+        passed: the verdict. line: it in one line: PASS or FAIL, what was compared, the
+            tolerance, the window, the largest errors, the latency, and the causes of a FAIL.
+        compared: what was compared, in words (the file, its axes, the frames, the reference).
+        causes: why it fails, one phrase each (empty when it passes).
+        axes: {axis: {"rms", "motion_rms", "reference_rms", "gain", "correlation",
+            "mean_error", "period_s", "reference_period_s"}} per measured axis over the window
+            (m or rad; NaN where undefined).
+        latency_judged: whether the latency was judged (the clocks' relation known).
+        sensitivity: :func:`sensitivity`.
+    """
+
+    passed: bool
+    line: str
+    compared: str
+    causes: list = field(default_factory=list)
+    axes: dict = field(default_factory=dict)
+    latency_judged: bool = False
+    sensitivity: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """The judgement as JSON values."""
+        return {
+            "passed": self.passed,
+            "line": self.line,
+            "compared": self.compared,
+            "causes": list(self.causes),
+            "axes": self.axes,
+            "latency_judged": self.latency_judged,
+            "sensitivity": self.sensitivity,
+        }
+
+
+def _tolerances(tolerance) -> np.ndarray:
+    """(6,) the tolerance of each axis: the angle for the rotations, the length for the rest."""
+    return np.array([tolerance[1]] * 3 + [tolerance[0]] * 3, dtype=float)
+
+
+def _amount(k: int, v: float) -> str:
+    """An axis's amount as text: a length for a translation, an angle for a rotation."""
+    return format_length(abs(v)) if k >= 3 else format_angle(abs(v))
+
+
+def _signed(k: int, v: float) -> str:
+    """An axis's signed amount as text (mm or deg)."""
+    return f"{v * 1e3:+.3g} mm" if k >= 3 else f"{math.degrees(v):+.3g} deg"
+
+
+def dominant_period(t, v) -> tuple[float, float]:
+    """(period s, share): the period of the strongest spectral peak of v (n,) at the even times
+    t (n,) (its mean removed; the spectrum zero-padded 8 times and the peak refined by a
+    parabola through its bins) and the share of the motion's power within two bins of it (NaN,
+    0 for fewer than 8 samples or no motion)."""
+    v = np.asarray(v, float) - np.mean(v)
+    n = len(v)
+    if n < 8 or not np.any(v):
+        return math.nan, 0.0
+    dt = float(np.median(np.diff(t)))
+    pad = 8 * n
+    power = np.abs(np.fft.rfft(v * np.hanning(n), pad)) ** 2
+    power[0] = 0.0
+    k = int(np.argmax(power))
+    if k == 0:
+        return math.nan, 0.0
+    share = float(np.sum(power[max(k - 16, 1) : k + 17]) / np.sum(power))
+    if 0 < k < len(power) - 1:
+        a, b, c = np.log(power[k - 1 : k + 2] + 1e-300)
+        k = k + 0.5 * (a - c) / (a - 2 * b + c) if a - 2 * b + c < 0 else k
+    return float(pad * dt / k), share
+
+
+def axis_figures(t, x, x_d, measured) -> dict:
+    """{axis: figures} of each measured axis over the samples given (module docstring; keys as
+    :class:`Judgement`'s ``axes``): t (n,) s; x (n, 6) the aligned measured poses; x_d (n, 6)
+    the reference's; measured (6,) bool."""
+    out = {}
+    for k in np.flatnonzero(measured):
+        q, r = x[:, k] - np.mean(x[:, k]), x_d[:, k] - np.mean(x_d[:, k])
+        var_q, var_r, cov = float(np.mean(q * q)), float(np.mean(r * r)), float(np.mean(q * r))
+        both = var_q > 0 and var_r > 0
+        period, share = dominant_period(t, x[:, k])
+        ref_period, ref_share = dominant_period(t, x_d[:, k])
+        out[AXES[k]] = {
+            "rms": float(np.sqrt(np.mean((x[:, k] - x_d[:, k]) ** 2))),
+            "motion_rms": math.sqrt(var_q),
+            "reference_rms": math.sqrt(var_r),
+            "gain": cov / var_r if var_r > 0 else math.nan,
+            "correlation": cov / math.sqrt(var_q * var_r) if both else math.nan,
+            "mean_error": float(np.mean(x[:, k] - x_d[:, k])),
+            "period_s": period if share >= PERIOD_POWER_SHARE else math.nan,
+            "reference_period_s": ref_period if ref_share >= PERIOD_POWER_SHARE else math.nan,
+        }
+    return out
+
+
+def _correlation(a, b) -> float:
+    """The correlation of a (n,) and b (n,) (0 when either does not vary)."""
+    a, b = a - np.mean(a), b - np.mean(b)
+    den = math.sqrt(float(np.mean(a * a) * np.mean(b * b)))
+    return float(np.mean(a * b)) / den if den > 0 else 0.0
+
+
+def _turned_axes(x, x_d, measured) -> str | None:
+    """The cause when the measured translations (n, 6) are the reference's x_d (n, 6) turned
+    (a tracker whose axes are not the base frame's): the turn between their motions (Kabsch on
+    the centred positions of the two or three measured translations), when it is between 1 deg
+    and :data:`MAX_TURN_RAD` and the measured motion turned back comes within a quarter of its
+    distance from the reference's; else None. Words only: the verdict is not changed."""
+    from scipy.spatial.transform import Rotation
+
+    seen = [k for k in (3, 4, 5) if measured[k]]
+    if len(seen) < 2:
+        return None
+    q = np.zeros((len(x), 3))
+    r = x_d[:, 3:] - np.mean(x_d[:, 3:], axis=0)
+    for k in seen:
+        q[:, k - 3] = x[:, k] - np.mean(x[:, k])
+    r_seen = np.zeros_like(r)
+    r_seen[:, [k - 3 for k in seen]] = r[:, [k - 3 for k in seen]]
+    with warnings.catch_warnings():  # a motion along one line leaves a turn about it free
+        warnings.simplefilter("ignore", UserWarning)
+        turn, _ = Rotation.align_vectors(r_seen, q)
+    angle = float(turn.magnitude())
+    before = float(np.sqrt(np.mean(np.sum((q - r_seen) ** 2, axis=1))))
+    after = float(np.sqrt(np.mean(np.sum((turn.apply(q) - r_seen) ** 2, axis=1))))
+    if not (math.radians(1.0) < angle <= MAX_TURN_RAD and after < 0.25 * before):
+        return None
+    return (
+        f"the measured axes are turned {math.degrees(angle):.3g} deg from the base frame's "
+        f"(turned back, the motion comes within {format_length(after)} RMS of the reference's, "
+        f"against {format_length(before)}): the tracker's frame is not the base's; register it "
+        "(--registration REG.yaml, from fiducials or --save-registration)"
+    )
+
+
+def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float]:
+    """(ratio, delta s): how much nearer the reference's axis k the measured axis v (n,) at the
+    times t (n,) (the reference's clock) comes with its sign reversed than as it is, each at its
+    best further shift within +-``span_s`` (each less its mean): the ratio of the two least mean
+    squared distances, reversed over as is (below 1: reversed is nearer), and the shift at which
+    reversed is nearest (:func:`~.alignment.shift_scores` on that axis alone)."""
+    from .alignment import reference_poses, shift_scores
+
+    y = np.zeros((len(t), 6))
+    weights = np.zeros(6)
+    weights[k] = 1.0
+    step = max(0.02, float(np.median(np.diff(t))))
+
+    def seen(times):
+        return reference_poses(reference, times)
+
+    best = []
+    for sign in (1.0, -1.0):
+        y[:, k] = sign * v
+        d, score = shift_scores(t, y, weights, seen, (-span_s, span_s), step, True)
+        best.append((float(np.min(score)), float(d[int(np.argmin(score))])))
+    (as_is, _), (flipped, delta) = best
+    return (flipped / as_is if as_is > 0 else math.inf), delta
+
+
+def causes_of(
+    t, x, x_d, measured, moving, tolerance, removes_offsets: bool, reference=None, latency_s=0.0
+) -> tuple[list, bool]:
+    """(causes, follows): the causes of the errors over the samples given (module docstring),
+    one phrase each, and whether the measured motion follows the reference at all (no axis at
+    rest, reversed, of another period or not following: else its latency means nothing).
+
+    Args:
+        t: (n,) s. x, x_d: (n, 6) the aligned measured poses and the reference's. measured,
+            moving: (6,) bool, the axes measured and those along which the reference moves.
+        tolerance: (m, rad). removes_offsets: the frames removed each axis's offset.
+        reference: when given, a sign is found even where the clock's shift hid it (the axis
+            reversed matches the reference much better at another shift).
+        latency_s: the latency found, s, for the words of a reversed axis.
+    """
+    tol = _tolerances(tolerance)
+    figures = axis_figures(t, x, x_d, measured)
+    seen = [k for k in np.flatnonzero(measured)]
+    moving_seen = [k for k in seen if moving[k]]
+    f = {k: figures[AXES[k]] for k in seen}
+    still = all(
+        f[k]["motion_rms"] < max(AT_REST_SHARE * f[k]["reference_rms"], tol[k]) for k in seen
+    )
+    if moving_seen and still:
+        moved = ", ".join(
+            f"{AXES[k]} {_amount(k, f[k]['motion_rms'])} RMS against the reference's "
+            f"{_amount(k, f[k]['reference_rms'])}"
+            for k in moving_seen
+        )
+        return [f"the phantom did not move ({moved})"], False
+    turned = _turned_axes(x, x_d, measured) if removes_offsets else None
+    if turned is not None:
+        return [turned], True
+    causes = []
+    follows = True
+    period = getattr(reference, "repeat_period_s", None) or 4.0
+    for k in moving_seen:
+        a, fk = AXES[k], f[k]
+        rho, gain = fk["correlation"], fk["gain"]
+        own, ref_period = fk["period_s"], fk["reference_period_s"]
+        other_period = (
+            math.isfinite(own)
+            and math.isfinite(ref_period)
+            and abs(own / ref_period - 1.0) > PERIOD_SHARE
+        )
+        if fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]:
+            causes.append(
+                f"{a} did not move ({_amount(k, fk['motion_rms'])} RMS where the reference "
+                f"moves {_amount(k, fk['reference_rms'])})"
+            )
+            follows = False
+            continue
+        if reference is not None and not rho < -FOLLOWS_CORRELATION:
+            ratio, delta = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
+            if ratio < 0.25:
+                causes.append(
+                    f"{a} runs the wrong way (reversed, it matches the reference "
+                    f"{1 / ratio:.0f} times better, at a latency of {seconds(latency_s - delta)})"
+                    ": a sign flipped or the axis reversed"
+                )
+                follows = False
+                continue
+        follows = follows and rho > FOLLOWS_CORRELATION and not other_period
+        if rho < -FOLLOWS_CORRELATION:
+            causes.append(
+                f"{a} runs the wrong way (correlation {rho:+.2f} with the reference, gain "
+                f"{gain:+.2f}): a sign flipped or the axis reversed"
+            )
+        elif other_period:
+            causes.append(
+                f"{a} repeats every {own:.3g} s where the reference does every "
+                f"{ref_period:.3g} s: another period"
+            )
+        elif not rho > FOLLOWS_CORRELATION:
+            causes.append(
+                f"{a} does not follow the reference (correlation {rho:+.2f}): another motion, "
+                "or noise"
+            )
+        elif abs(gain - 1.0) * fk["reference_rms"] > 0.5 * tol[k]:
+            causes.append(f"{a} moves {gain:.3g}x the reference's amplitude")
+    for k in seen:
+        if moving[k] or f[k]["motion_rms"] <= tol[k]:
+            continue
+        likeness = [
+            (abs(_correlation(x[:, k], x_d[:, j])), j) for j in np.flatnonzero(moving) if j != k
+        ]
+        best = max(likeness, default=(0.0, -1))
+        text = (
+            f"{AXES[k]} moves {_amount(k, f[k]['motion_rms'])} RMS where the reference holds still"
+        )
+        if best[0] > 0.8:
+            text += (
+                f" (it follows the reference's {AXES[best[1]]}: axes swapped or mislabelled, or "
+                "the tracker's frame turned from the base's?)"
+            )
+        causes.append(text)
+    if not removes_offsets:
+        off = [k for k in seen if abs(f[k]["mean_error"]) > 0.5 * tol[k]]
+        if off:
+            causes.append(
+                "a constant offset of "
+                + ", ".join(f"{AXES[k]} {_signed(k, f[k]['mean_error'])}" for k in off)
+                + " (the phantom set down off its place or tilted, or a registration out of "
+                "date)"
+            )
+    return causes, follows
+
+
+def sensitivity(t, x_d, measured, tolerance, removes_offsets: bool) -> dict:
+    """What the check can see (module docstring), from the reference x_d (n, 6) over the window
+    alone, on the ``measured`` (6,) bool axes at ``tolerance`` (m, rad).
+
+    Returns:
+        {"amplitude_fraction": the smallest error of the whole motion's scale (a fraction) that
+        takes one measured axis's RMS error beyond its tolerance, "amplitude_axis": that axis
+        (NaN, "" when the reference moves along no measured axis); "tilt_rad": the smallest
+        turn of the whole phantom about an axis through the base frame's origin that does,
+        "tilt_about": that base axis, "tilt_axis": the measured axis that shows it}. A scale
+        error e makes an axis's error e (r_k - its mean) (a scale about the motion's centre);
+        a tilt a about u moves the platform by a u x p and turns it by a u, the offsets of
+        ``removes_offsets`` frames taking the constant parts away.
+    """
+    tol = _tolerances(tolerance)
+    seen = np.flatnonzero(measured)
+    out: dict = {"amplitude_fraction": math.nan, "amplitude_axis": ""}
+    best = math.inf
+    for k in seen:
+        rms = float(np.std(x_d[:, k]))
+        if rms > 0 and tol[k] / rms < best and np.ptp(x_d[:, k]) > MOVING_P2P[k]:
+            best, out["amplitude_fraction"], out["amplitude_axis"] = (
+                tol[k] / rms,
+                tol[k] / rms,
+                AXES[k],
+            )
+    tilt, about, shown = math.inf, "", ""
+    p = x_d[:, 3:]
+    for name, u in _TILT_AXES.items():
+        moved = np.cross(np.asarray(u), p)  # (n, 3): a unit tilt's displacement
+        for k in seen:
+            if k >= 3:
+                v = moved[:, k - 3]
+                rms = float(np.std(v)) if removes_offsets else float(np.sqrt(np.mean(v * v)))
+            else:
+                rms = 0.0 if removes_offsets else abs(u[k])
+            if rms > 0 and tol[k] / rms < tilt:
+                tilt, about, shown = tol[k] / rms, name, AXES[k]
+    out.update(
+        {
+            "tilt_rad": tilt if math.isfinite(tilt) else math.nan,
+            "tilt_about": about,
+            "tilt_axis": shown,
+        }
+    )
+    return out
+
+
+def sensitivity_words(s: dict) -> str:
+    """:func:`sensitivity` in words."""
+    parts = []
+    if math.isfinite(s["amplitude_fraction"]):
+        parts.append(
+            f"a scale of the whole motion off by {100 * s['amplitude_fraction']:.3g} % or more "
+            f"(on {s['amplitude_axis']})"
+        )
+    if math.isfinite(s.get("tilt_rad", math.nan)):
+        parts.append(
+            f"a tilt of the whole phantom of {math.degrees(s['tilt_rad']):.3g} deg or more about "
+            f"the base's {s['tilt_about']} (on {s['tilt_axis']})"
+        )
+    if not parts:
+        return "this check sees no scale or tilt error: the reference moves along no axis measured"
+    return "this check fails " + " and ".join(parts) + "; smaller ones pass"
+
+
+def compared_words(ver) -> str:
+    """What a verification compares, in words: the file, its axes, the frames, the reference."""
+    m = ver.measured
+    axes = ", ".join(a for a, s in zip(AXES, m.measured) if s)
+    how = {
+        "axes": "each axis's offset removed",
+        "base": "in the base frame as given",
+        "registration": "registered to the base frame",
+        "encoders": "the encoders' pose",
+    }[ver.frame.how]
+    return f"{Path(m.path).name} ({axes}; {how}) against {ver.name}"
+
+
+def judge(ver, tolerance: tuple[float, float]) -> Judgement:
+    """The verdict on a :class:`~.verification.Verification` at ``tolerance`` (m, rad):
+    PASS when every measured axis's RMS error over the window is within it and, with the clocks'
+    relation known, |latency| within ``ver.max_latency_s``; a FAIL's causes (module
+    docstring)."""
+    fid = ver.fidelity
+    measured = np.asarray(ver.measured.measured, dtype=bool)
+    tol = _tolerances(tolerance)
+    rms = np.asarray(fid["rms"], dtype=float)
+    w0, w1 = fid["window_s"]
+    t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
+    m = (t >= w0 - 1e-9) & (t <= w1 + 1e-9)
+    x_w = np.where(np.isfinite(x[m]), x[m], x_d[m])
+    ok = bool(np.all(rms[measured] <= tol[measured]))
+    latency_judged = ver.clock != "not known"
+    latency_ok = not latency_judged or abs(ver.latency_s) <= ver.max_latency_s
+    passed = ok and latency_ok
+    moving = np.array([a in fid["moving"] for a in AXES])
+    causes, follows = [], True
+    if not ok:
+        causes, follows = causes_of(
+            t[m],
+            x_w,
+            x_d[m],
+            measured,
+            moving,
+            tolerance,
+            ver.frame.removes_offsets,
+            ver.reference,
+            ver.latency_s,
+        )
+    if not latency_ok:
+        lo, hi = ver.searched_s
+        edge = min(abs(ver.shift_s - lo), abs(ver.shift_s - hi)) < EDGE_S
+        text = (
+            f"latency {'at least ' if edge else ''}{seconds(ver.latency_s)} beyond "
+            f"--max-latency {seconds(ver.max_latency_s)}"
+            + (" (at the edge of the shifts searched)" if edge else "")
+        )
+        causes.append(text if follows else f"{text}, of no meaning while the above holds")
+    if not ok and len(causes) == (0 if latency_ok else 1):
+        causes.insert(
+            0,
+            "no offset, scale, sign, axis, period or latency explains it: the motion departs "
+            "from the reference in its shape",
+        )
+    largest = []
+    for kind, axes in (("translation", range(3, 6)), ("rotation", range(3))):
+        ks = [k for k in axes if measured[k]]
+        if ks:
+            k = max(ks, key=lambda j: rms[j])
+            largest.append(f"{AXES[k]} {_amount(k, rms[k])}")
+        else:
+            largest.append(f"{kind} not measured")
+    if not follows:
+        lat = f"latency {seconds(ver.latency_s)} of no meaning (the motion does not follow)"
+    elif latency_judged:
+        lat = (
+            f"latency {seconds(ver.latency_s)} {'within' if latency_ok else 'beyond'} "
+            f"{seconds(ver.max_latency_s)}"
+        )
+    else:
+        lat = "latency not judged (the clocks' relation not given)"
+    compared = compared_words(ver)
+    line = (
+        f"{'PASS' if passed else 'FAIL'}: {compared}: RMS error per axis "
+        f"{'within' if ok else 'beyond'} {format_length(tolerance[0])} | "
+        f"{format_angle(tolerance[1])} over t = {w0:.4g}-{w1:.4g} s (largest: "
+        f"{', '.join(largest)}); {lat}" + (f"; cause: {'; '.join(causes)}" if causes else "")
+    )
+    return Judgement(
+        passed,
+        line,
+        compared,
+        causes,
+        axis_figures(t[m], x_w, x_d[m], measured),
+        latency_judged,
+        sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
+    )
+
+
+def seconds(value: float) -> str:
+    """A time in s as text: ``60.1 ms`` below a second, else ``1232 s`` (4 digits)."""
+    return f"{value * 1e3:.4g} ms" if abs(value) < 1.0 else f"{value:.4g} s"
+
+
+__all__ = [
+    "AT_REST_SHARE",
+    "FOLLOWS_CORRELATION",
+    "PERIOD_SHARE",
+    "PERIOD_POWER_SHARE",
+    "EDGE_S",
+    "MAX_TURN_RAD",
+    "Judgement",
+    "dominant_period",
+    "axis_figures",
+    "causes_of",
+    "sensitivity",
+    "sensitivity_words",
+    "compared_words",
+    "judge",
+    "seconds",
+]

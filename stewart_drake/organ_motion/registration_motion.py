@@ -1,0 +1,325 @@
+"""A tracker registered by a known motion (``stewart-drake verify --save-registration``): the
+tracker's frame T in the base frame B and its marker M on the platform P fitted, once, to a
+motion the phantom was asked to make and the tracker measured (:func:`fit_registration`), then
+kept as a REG.yaml that every later verification takes (``--registration``) and none fits
+again.
+
+This is the one place where frames are fitted to a motion, and that motion is not judged: a fit
+absorbs any error the phantom made during it (an offset, a tilt, a wrong scale of its whole
+motion shows as a frame), which is why the registration motion is a short, known one (the
+library's ``registration``: every axis moves and turns at its own period, so that the motion
+determines every parameter of the frames) and why the fit refuses to write a frame the motion
+leaves undetermined or that the measurement does not follow.
+
+The fit: the clock shift d coarsely by cross-correlation with the best rotation at each shift
+(Kabsch on the cross-covariances of every shift at once, by FFT), then the shift, the
+tracker's frame (turned about the measured positions' centroid, so that a tracker a metre away
+does not tie its rotation to its translation), the marker's offset on the platform and, for a
+6-DoF marker, its axes, together by least squares (scipy); a direction of them the data do not
+determine is refused (:func:`fit_registration`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..base.errors import InvalidConfigError
+from ..references.motion import Reference
+from ..robot.kinematics import rotation_rpy
+from .alignment import ROTATION_WEIGHT_M, reference_poses
+from .measured_motion import MeasuredMotion
+
+#: Most samples the fit uses (evenly picked): its 13 parameters need far fewer.
+FIT_SAMPLES = 3000
+#: The largest RMS distance between the measured marker and the reference's once fitted, m: more
+#: is not this motion, a marker that slipped, or a tracker that lost it.
+MAX_REGISTRATION_RMS_M = 1e-3
+#: A direction of the frames' parameters known worse than this, one standard deviation (rotations
+#: counted as the displacement of a point :data:`~.alignment.ROTATION_WEIGHT_M` from the axis),
+#: is not determined by the motion, m.
+MAX_FRAME_SIGMA_M = 1e-3
+#: The least noise the determination assumes, m (a fit to noise-free samples has none).
+MIN_NOISE_M = 10e-6
+#: Shortest registration motion fitted, s.
+MIN_REGISTRATION_S = 10.0
+
+_W_ROT = np.array([ROTATION_WEIGHT_M] * 3)
+
+
+@dataclass(frozen=True)
+class MotionRegistration:
+    """The tracker's frames fitted to a registration motion (module docstring).
+
+    Attributes:
+        R_BT, p_BT: (3, 3), (3,) m: the tracker's frame T in the base frame B.
+        R_PM, p_PM: (3, 3), (3,) m: the marker's frame M in the platform frame P (R_PM the
+            identity for a marker of positions only, whose axes are not measured).
+        sigma_B, sigma_M: (rad, m): one standard deviation per axis of each frame's rotation
+            and translation, from the fit's covariance (the residuals' variance times the
+            inverse of the normal matrix), the larger of the three axes.
+        rms_m: the RMS distance between the measured marker and the reference's once fitted, m;
+            rms_rad: the same of a 6-DoF marker's rotation (NaN without), rad.
+        shift_s: d, measured time + d = the reference's, s. samples: the samples fitted.
+        motion: the reference's name. measured: the measured file's name.
+    """
+
+    R_BT: np.ndarray
+    p_BT: np.ndarray
+    R_PM: np.ndarray
+    p_PM: np.ndarray
+    sigma_B: tuple
+    sigma_M: tuple
+    rms_m: float
+    rms_rad: float
+    shift_s: float
+    samples: int
+    motion: str
+    measured: str
+
+    def words(self) -> str:
+        """The fit in one line: its source and its residual."""
+        rot = "" if math.isnan(self.rms_rad) else f", {self.rms_rad * 1e6:.3g} urad"
+        return (
+            f"fitted to {self.motion} measured in {self.measured} ({self.samples} samples, "
+            f"{self.rms_m * 1e6:.3g} um RMS{rot} off the motion once fitted)"
+        )
+
+
+def _rotations(poses) -> Rotation:
+    """The rotations R = Rz(psi) Ry(theta) Rx(phi) of poses (n, 6)."""
+    return Rotation.from_euler("ZYX", np.asarray(poses)[:, 2::-1])
+
+
+def _rotation_error(R_ref, R) -> np.ndarray:
+    """(n, 3) the rotation from R_ref (n, 3, 3) to R (n, 3, 3), in its own axes: the vector of
+    the skew part of R_ref^T R (sin of the angle times the axis; the angle for small ones)."""
+    E = np.swapaxes(R_ref, 1, 2) @ R
+    return 0.5 * np.stack(
+        [E[:, 2, 1] - E[:, 1, 2], E[:, 0, 2] - E[:, 2, 0], E[:, 1, 0] - E[:, 0, 1]], axis=1
+    )
+
+
+def _kabsch(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R (..., 3, 3), score (...,)): the rotations maximising tr(R^T H) of cross-covariances H
+    (..., 3, 3) (a sum of r y^T: R maps y onto r) and that maximum (Kabsch)."""
+    U, S, Vt = np.linalg.svd(H)
+    sign = np.sign(np.linalg.det(U @ Vt))
+    sign = np.where(sign == 0, 1.0, sign)
+    D = np.ones(S.shape)
+    D[..., 2] = sign
+    return (U * D[..., None, :]) @ Vt, np.sum(S * D, axis=-1)
+
+
+def rigid_shift(
+    t, y, reference: Reference, shifts: tuple[float, float], step_s: float
+) -> tuple[float, np.ndarray]:
+    """(d s, R_BT (3, 3)): the shift in [shifts] (to ``step_s``) at which the measured
+    positions y (n, 3), turned by the best rotation at each shift and put on the reference's
+    centroid, come nearest the reference's; the rotation at that shift (Kabsch, every shift at
+    once by FFT)."""
+    from scipy.signal import correlate
+
+    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
+    ym = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(3)])
+    m = len(grid)
+    count = int(np.floor((shifts[1] - shifts[0]) / step_s)) + 1
+    r = reference_poses(reference, grid[0] + shifts[0] + step_s * np.arange(m + count - 1))[:, 3:]
+    r = r - r.mean(axis=0)
+    ones = np.ones(m)
+    S_r = np.column_stack([correlate(r[:, b], ones, "valid") for b in range(3)])  # (K, 3)
+    S_rr = correlate(np.sum(r * r, axis=1), ones, "valid")
+    C = np.empty((count, 3, 3))  # C[k, b, a] = sum_i r[i + k, b] y[i, a]
+    for b in range(3):
+        for a in range(3):
+            C[:, b, a] = correlate(r[:, b], ym[:, a], "valid")
+    y0 = ym - ym.mean(axis=0)
+    R, score = _kabsch(C - S_r[:, :, None] * ym.mean(axis=0)[None, None, :])
+    ms = (np.sum(y0 * y0) + S_rr - np.sum(S_r * S_r, axis=1) / m - 2 * score) / m
+    k = int(np.argmin(ms))
+    return float(shifts[0] + k * step_s), np.array(R[k])
+
+
+def fit_registration(
+    reference: Reference,
+    measured: MeasuredMotion,
+    clock_offset_s: float | None = None,
+    max_latency_s: float = 0.5,
+) -> MotionRegistration:
+    """The tracker's frames fitted to a registration motion (module docstring).
+
+    Args:
+        reference: the motion asked for (the library's ``registration``, or any motion that
+            determines the frames). measured: the tracker's view of it: the marker's X, Y, Z
+            (and its three rotations, or none), on the tracker's clock, in its frame.
+        clock_offset_s: measured time + this = the reference's, s (None: searched).
+        max_latency_s: with ``clock_offset_s``, the largest latency searched, s.
+    Returns:
+        :class:`MotionRegistration`.
+    Raises:
+        InvalidConfigError: not a tracker's X, Y and Z (an encoder log; a single-axis sensor;
+            some rotations but not three); shorter than :data:`MIN_REGISTRATION_S`; a motion
+            that leaves a parameter of the frames undetermined (a turn about the one line it
+            runs along); the measured marker farther than :data:`MAX_REGISTRATION_RMS_M` RMS
+            from the reference once fitted.
+    """
+    from .verification import _even, _overlap, _search, seconds
+
+    name = getattr(reference, "name", "the reference")
+    if measured.kind != "tracker" or not np.all(measured.measured[3:]):
+        raise InvalidConfigError(
+            f"{measured.path}: a registration needs a tracker's X, Y and Z of the marker (a "
+            "3-D tracker's export), not an encoder log or a single-axis sensor"
+        )
+    if np.any(measured.measured[:3]) and not measured.rotations_measured:
+        raise InvalidConfigError(
+            f"{measured.path}: a registration takes the marker's three rotations or none"
+        )
+    t, y, _ = _even(measured.t, measured.poses)
+    if t[-1] - t[0] < MIN_REGISTRATION_S:
+        raise InvalidConfigError(
+            f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "
+            f"than {MIN_REGISTRATION_S:g} s: record at least 30 s of {name}"
+        )
+    step = max(0.02, float(np.median(np.diff(t))))
+    d0, R0 = rigid_shift(
+        t, y[:, 3:], reference, _search(reference, t, clock_offset_s, max_latency_s), step
+    )
+    use = _overlap(reference, t + d0, step)
+    t, y = t[use], y[use]
+    pick = slice(None, None, max(1, len(t) // FIT_SAMPLES))
+    t, y = t[pick], y[pick]
+    rot = measured.rotations_measured
+    x_d0 = reference_poses(reference, t + d0)
+    p0_BT = x_d0[:, 3:].mean(axis=0) - y[:, 3:].mean(axis=0) @ R0.T
+    R0_ME = np.eye(3)
+    if rot:
+        R0_ME = ((Rotation.from_matrix(R0) * _rotations(y)).inv() * _rotations(x_d0)).mean()
+        R0_ME = R0_ME.as_matrix()
+    R_TM = rotation_rpy(y[:, :3]) if rot else None
+    n = len(t)
+    c_T = y[:, 3:].mean(axis=0)
+    c_B0 = c_T @ R0.T + p0_BT
+
+    def unpack(p):
+        R_BT = Rotation.from_rotvec(p[1:4]).as_matrix() @ R0
+        R_ME = Rotation.from_rotvec(p[7:10]).as_matrix() @ R0_ME if rot else R0_ME
+        return R_BT, c_B0 + p[4:7] - R_BT @ c_T, R_ME, p[-3:]
+
+    def residuals(p) -> np.ndarray:
+        R_BT, p_BT, R_ME, p_EM = unpack(p)
+        x_d = reference_poses(reference, t + d0 + p[0])
+        R_ref = rotation_rpy(x_d[:, :3])
+        p_BM = y[:, 3:] @ R_BT.T + p_BT
+        R_BE = None if R_TM is None else R_BT @ R_TM @ R_ME
+        e = [(p_BM - (R_ref if R_BE is None else R_BE) @ p_EM - x_d[:, 3:]).ravel()]
+        if R_BE is not None:
+            e.append((_rotation_error(R_ref, R_BE) * _W_ROT).ravel())
+        return np.concatenate(e)
+
+    from scipy.optimize import least_squares
+
+    p_start = np.zeros(13 if rot else 10)
+    sol = least_squares(residuals, p_start, method="trf", x_scale="jac")
+    J = np.asarray(sol.jac)
+    e = residuals(sol.x)
+    free = _undetermined(J[:, 1:], e, rot)
+    if free:
+        raise InvalidConfigError(
+            f"{name} leaves {free} of the frames' {len(p_start) - 1} parameters undetermined "
+            "(a turn about a line the motion runs along, or a marker offset its turns do not "
+            "show): register with the library's motion registration, which moves along and "
+            "turns about every axis"
+        )
+    pos = e[: 3 * n].reshape(n, 3)
+    rms_m = float(np.sqrt(np.mean(np.sum(pos**2, axis=1))))
+    rms_rad = (
+        float(np.sqrt(np.mean(np.sum((e[3 * n :].reshape(n, 3) / _W_ROT) ** 2, axis=1))))
+        if rot
+        else math.nan
+    )
+    if rms_m > MAX_REGISTRATION_RMS_M:
+        raise InvalidConfigError(
+            f"{measured.path}: the marker stays {rms_m * 1e3:.3g} mm RMS from {name} once the "
+            f"frames are fitted (at most {MAX_REGISTRATION_RMS_M * 1e3:g} mm): not this motion, "
+            "a marker that slipped, or a tracker that lost it; measure the registration again"
+        )
+    R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
+    sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
+    return MotionRegistration(
+        R_BT,
+        p_BT,
+        R_ME.T,
+        p_EM,
+        sigma_B,
+        sigma_M,
+        rms_m,
+        rms_rad,
+        d0 + float(sol.x[0]),
+        n,
+        name,
+        str(measured.path),
+    )
+
+
+def _undetermined(J, e, rot: bool) -> int:
+    """How many directions of the frames' parameters the data leave undetermined: those of
+    the residuals' Jacobian J (m, k) (the frames' k parameters, without the shift; rotations
+    scaled to m at :data:`~.alignment.ROTATION_WEIGHT_M`) known to worse than
+    :data:`MAX_FRAME_SIGMA_M`, with the residuals' e (m,) noise (at least :data:`MIN_NOISE_M`
+    per coordinate)."""
+    scale = np.array(
+        [ROTATION_WEIGHT_M] * 3 + [1.0] * 3 + [ROTATION_WEIGHT_M] * (3 * rot) + [1.0] * 3
+    )
+    Js = J / scale
+    noise = max(float(np.sqrt(np.mean(e**2))), MIN_NOISE_M)
+    lam = np.linalg.eigvalsh(Js.T @ Js)
+    return int(np.count_nonzero(noise**2 > MAX_FRAME_SIGMA_M**2 * np.clip(lam, 0.0, None)))
+
+
+def _frame_sigmas(J, e, p, unpack, rot: bool) -> tuple[tuple, tuple]:
+    """((rad, m) of X_TB, (rad, m) of X_PM): the largest standard deviation per axis of each
+    frame's rotation and translation, from the fit's covariance s^2 (J^T J)^-1 (J (m, k) the
+    residuals' Jacobian, e (m,) the residuals) carried to the frames by finite
+    differences of ``unpack``."""
+    dof = max(len(e) - J.shape[1], 1)
+    cov = float(np.sum(e**2)) / dof * np.linalg.pinv(J.T @ J)
+
+    def frames(q) -> np.ndarray:
+        R_BT, p_BT, R_ME, p_EM = unpack(q)
+        R_TB = R_BT.T
+        return np.concatenate(
+            [
+                Rotation.from_matrix(R_TB).as_rotvec(),
+                -R_TB @ p_BT,
+                Rotation.from_matrix(R_ME.T).as_rotvec(),
+                p_EM,
+            ]
+        )
+
+    base = frames(p)
+    D = np.empty((12, len(p)))
+    for j in range(len(p)):
+        h = 1e-7 * max(1.0, abs(p[j]))
+        q = p.copy()
+        q[j] += h
+        D[:, j] = (frames(q) - base) / h
+    C = D @ cov @ D.T
+    sd = np.sqrt(np.clip(np.diag(C), 0.0, None))
+    marker_rot = float(sd[6:9].max()) if rot else 0.0
+    return (float(sd[:3].max()), float(sd[3:6].max())), (marker_rot, float(sd[9:].max()))
+
+
+__all__ = [
+    "FIT_SAMPLES",
+    "MAX_REGISTRATION_RMS_M",
+    "MAX_FRAME_SIGMA_M",
+    "MIN_NOISE_M",
+    "MIN_REGISTRATION_S",
+    "MotionRegistration",
+    "rigid_shift",
+    "fit_registration",
+]
