@@ -190,7 +190,7 @@ def test_a_tracker_turned_from_the_base_fails_without_a_registration_naming_the_
     out = capsys.readouterr().out
     assert code == 2 and figures["passed"] is False
     (cause,) = figures["verdict"]["causes"]
-    assert "the measured axes are turned" in cause and "--registration" in cause
+    assert "the measured motion is turned" in cause and "--registration" in cause
     # The turn named is the tracker's 30 deg less what a motion along one line cannot show.
     turned = float(cause.split("turned ")[1].split(" deg")[0])
     assert 20.0 < turned < 31.0

@@ -17,6 +17,8 @@ measured axis k with the reference's motion r_k and the measured q_k, each less 
   than :data:`PERIOD_SHARE` when it has one;
 - a scale: q_k follows r_k with a gain g (least squares of q_k on r_k) whose error
   |g - 1| RMS(r_k) alone takes more than half the tolerance;
+- another shape: the part of q_k that no scale of r_k explains, RMS(q_k) sqrt(1 - rho^2),
+  exceeds the tolerance;
 - an axis swapped or mislabelled: q_k moves more than the tolerance where the reference holds
   still, and says which of the reference's axes it follows;
 - a constant offset (frames that remove none): the mean error of an axis over half the
@@ -167,36 +169,43 @@ def _correlation(a, b) -> float:
     return float(np.mean(a * b)) / den if den > 0 else 0.0
 
 
-def _turned_axes(x, x_d, measured) -> str | None:
+def _turned_axes(x, x_d, measured, tolerance) -> str | None:
     """The cause when the measured translations (n, 6) are the reference's x_d (n, 6) turned
-    (a tracker whose axes are not the base frame's): the turn between their motions (Kabsch on
-    the centred positions of the two or three measured translations), when it is between 1 deg
-    and :data:`MAX_TURN_RAD` and the measured motion turned back comes within a quarter of its
-    distance from the reference's; else None. Words only: the verdict is not changed."""
+    (a tracker whose axes are not the base frame's, or a whole phantom set down tilted): the
+    least turn between their motions (Kabsch on the centred positions of the two or three
+    measured translations), when it is between 1 deg and :data:`MAX_TURN_RAD` and the measured motion
+    turned back either comes within a quarter of its distance from the reference's or within the
+    ``tolerance`` (m, rad) on every measured translation; else None. Words only: the verdict is
+    not changed."""
     from scipy.spatial.transform import Rotation
 
-    seen = [k for k in (3, 4, 5) if measured[k]]
+    seen = [k - 3 for k in (3, 4, 5) if measured[k]]
     if len(seen) < 2:
         return None
     q = np.zeros((len(x), 3))
-    r = x_d[:, 3:] - np.mean(x_d[:, 3:], axis=0)
-    for k in seen:
-        q[:, k - 3] = x[:, k] - np.mean(x[:, k])
-    r_seen = np.zeros_like(r)
-    r_seen[:, [k - 3 for k in seen]] = r[:, [k - 3 for k in seen]]
-    with warnings.catch_warnings():  # a motion along one line leaves a turn about it free
+    r = np.zeros((len(x), 3))
+    q[:, seen] = x[:, 3:][:, seen] - np.mean(x[:, 3:][:, seen], axis=0)
+    r[:, seen] = x_d[:, 3:][:, seen] - np.mean(x_d[:, 3:][:, seen], axis=0)
+    # A motion along one line leaves a turn about it free: three unit pairs of a thousandth of
+    # the motion's weight take the least turn among those that fit alike.
+    eye = np.eye(3)
+    weights = np.concatenate([np.ones(len(q)), np.full(3, 1e-3 * float(np.sum(r * r)))])
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)
-        turn, _ = Rotation.align_vectors(r_seen, q)
+        turn, _ = Rotation.align_vectors(np.vstack([r, eye]), np.vstack([q, eye]), weights)
     angle = float(turn.magnitude())
-    before = float(np.sqrt(np.mean(np.sum((q - r_seen) ** 2, axis=1))))
-    after = float(np.sqrt(np.mean(np.sum((turn.apply(q) - r_seen) ** 2, axis=1))))
-    if not (math.radians(1.0) < angle <= MAX_TURN_RAD and after < 0.25 * before):
+    back = turn.apply(q) - r
+    before = float(np.sqrt(np.mean(np.sum((q - r) ** 2, axis=1))))
+    after = float(np.sqrt(np.mean(np.sum(back**2, axis=1))))
+    within = bool(np.all(np.sqrt(np.mean(back[:, seen] ** 2, axis=0)) <= tolerance[0]))
+    if not (math.radians(1.0) < angle <= MAX_TURN_RAD and (after < 0.25 * before or within)):
         return None
     return (
-        f"the measured axes are turned {math.degrees(angle):.3g} deg from the base frame's "
-        f"(turned back, the motion comes within {format_length(after)} RMS of the reference's, "
-        f"against {format_length(before)}): the tracker's frame is not the base's; register it "
-        "(--registration REG.yaml, from fiducials or --save-registration)"
+        f"the measured motion is turned {math.degrees(angle):.3g} deg from the reference's "
+        f"(turned back, it comes within {format_length(after)} RMS of it, against "
+        f"{format_length(before)}): the tracker's axes are not the base frame's, or the whole "
+        "phantom is set down tilted; register the tracker (--registration REG.yaml, from "
+        "fiducials or --save-registration) to tell them apart"
     )
 
 
@@ -255,7 +264,7 @@ def causes_of(
             for k in moving_seen
         )
         return [f"the phantom did not move ({moved})"], False
-    turned = _turned_axes(x, x_d, measured) if removes_offsets else None
+    turned = _turned_axes(x, x_d, measured, tolerance) if removes_offsets else None
     if turned is not None:
         return [turned], True
     causes = []
@@ -303,13 +312,24 @@ def causes_of(
                 f"{a} does not follow the reference (correlation {rho:+.2f}): another motion, "
                 "or noise"
             )
-        elif abs(gain - 1.0) * fk["reference_rms"] > 0.5 * tol[k]:
-            causes.append(f"{a} moves {gain:.3g}x the reference's amplitude")
+        else:
+            if abs(gain - 1.0) * fk["reference_rms"] > 0.5 * tol[k]:
+                causes.append(f"{a} moves {gain:.3g}x the reference's amplitude")
+            shape = fk["motion_rms"] * math.sqrt(max(1.0 - rho * rho, 0.0))
+            if shape > tol[k]:
+                causes.append(
+                    f"{a} departs from the reference's shape ({_amount(k, shape)} RMS of it "
+                    f"that no scale of the reference explains; correlation {rho:.3f}): another "
+                    "motion, or the motion distorted"
+                )
+                follows = False
     for k in seen:
         if moving[k] or f[k]["motion_rms"] <= tol[k]:
             continue
-        likeness = [
-            (abs(_correlation(x[:, k], x_d[:, j])), j) for j in np.flatnonzero(moving) if j != k
+        likeness = [  # the reference's axes of the same kind (a translation's translations)
+            (abs(_correlation(x[:, k], x_d[:, j])), j)
+            for j in np.flatnonzero(moving)
+            if j != k and (j >= 3) == (k >= 3)
         ]
         best = max(likeness, default=(0.0, -1))
         text = (

@@ -297,7 +297,8 @@ def verify(
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
         InvalidConfigError: a frame that is neither "axes" nor "base"; a registration for a
-            file without the marker's X, Y and Z; a recording not one whole cycle of the
+            file without the marker's X, Y and Z; a file none of whose axes the reference moves
+            along; a recording not one whole cycle of the
             reference long (or a breath, without cycles), before or after the alignment; no
             overlap with the reference once aligned; a non-finite offset.
     """
@@ -343,6 +344,7 @@ def verify(
         x = x - removed
     x_fid = np.where(np.isfinite(x), x, x_d)  # the axes not measured compare to themselves
     fid = fidelity(t_ref, x_fid, x_d, (w0, w1), _frequencies(reference), starts)
+    _check_judgeable(reference, fid, seen, measured)
     x_start = np.where(np.isfinite(x), x, x_d)
     if not measured.rotations_measured:
         x_start[:, :3] = np.nan
@@ -368,6 +370,23 @@ def verify(
     )
     ver.judgement = judge(ver, tolerance)
     return ver
+
+
+def _check_judgeable(reference: Reference, fid: dict, seen, measured: MeasuredMotion) -> None:
+    """Refuse a file none of whose axes the reference moves along: at rest or moving, the
+    phantom would pass alike.
+
+    Raises:
+        InvalidConfigError: no measured axis among those the reference moves along.
+    """
+    if not any(seen[AXES.index(a)] for a in fid["moving"]):
+        axes = ", ".join(a for a, m in zip(AXES, seen) if m)
+        raise InvalidConfigError(
+            f"{measured.path} measures {axes}, along which "
+            f"{getattr(reference, 'name', 'the reference')} does not move (it moves "
+            f"{', '.join(fid['moving']) or 'along no axis'}): nothing of the motion can be "
+            "judged; measure along an axis it moves"
+        )
 
 
 def _registered(registration, measured: MeasuredMotion) -> Frames:
