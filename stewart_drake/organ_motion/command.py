@@ -219,7 +219,7 @@ def _cmd_reproduce(args) -> int:
     if note is not None:
         print(note)
     md, png, js = write_report(rep, out, tolerance)
-    ok, line = verdict(fid, tolerance)
+    ok, line = verdict(fid, tolerance, rep.comparison())
     print(line)
     print(f"wrote {md}, {png} and {js}")
     if args.html:  # the run's plant-state log, replayed with the reference's ghost

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
-from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
+from .fidelity import AXES, COMPARED, PHANTOM_ANCHOR, format_angle, format_length, verdict
 from .reproduction import Reproduction, learning_words
 
 if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
@@ -44,11 +44,19 @@ def _learning(rep) -> str:
     return getattr(rep, "learning", "") or learning_words(None, rep.learn_cycles)
 
 
+def compared(rep: Reproduction | Verification) -> str | None:
+    """What ``rep``'s fidelity compares, in words, for :func:`~.fidelity.verdict`: a
+    reproduction's :meth:`~.reproduction.Reproduction.comparison`; None (the verdict's default)
+    for a record that does not say."""
+    comparison = getattr(rep, "comparison", None)
+    return comparison() if callable(comparison) else None
+
+
 def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
-    """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
-    the learner, the phantom anchor."""
+    """The Markdown report of a reproduction: verdict (naming what it compares, :func:`compared`),
+    per-axis table, lag, harmonics, cycles, the learner, the phantom anchor."""
     fid = rep.fidelity
-    ok, line = verdict(fid, tolerance)
+    ok, line = verdict(fid, tolerance, compared(rep))
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
     lines += _run_lines(rep, fid)
     lines += fidelity_lines(fid)
@@ -475,7 +483,7 @@ def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, 
     _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])
-    ok, line = verdict(fid, tolerance)
+    ok, line = verdict(fid, tolerance, compared(rep))
     title = report_title(rep, line)
     fig.suptitle(title, fontsize=TITLE_POINTS, color="k" if ok else "tab:red")
     top_in = 0.1 + 0.18 * (title.count("\n") + 1)  # each line of the title, in
@@ -526,6 +534,7 @@ def write_report(
         "learned_from": getattr(rep, "learned_from", ""),
         "tolerance": list(tolerance),
         "passed": verdict(rep.fidelity, tolerance)[0],
+        "compared": compared(rep) or COMPARED,
         "fidelity": rep.fidelity,
         "startup": getattr(rep, "startup", {}),
         "encoder_resolution_m_rad": list(rep.resolution()),
@@ -537,6 +546,7 @@ def write_report(
 
 
 __all__ = [
+    "compared",
     "report_markdown",
     "startup_lines",
     "fidelity_lines",

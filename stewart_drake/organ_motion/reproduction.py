@@ -53,6 +53,8 @@ class Reproduction:
             :class:`~stewart_drake.run.plan.RunPlan` (its scenario with the run's duration and
             learner), or None. encoder_quantum_rad: one count of its
             encoders, rad (0: the angles are read exactly); for :meth:`resolution`.
+        compared: what :attr:`fidelity` compares, in words, for the verdict's line ("": the
+            robot's true pose against the reference it ran, :meth:`comparison`).
     """
 
     name: str
@@ -74,6 +76,13 @@ class Reproduction:
     geometry: Any = None
     plan: Any = None
     encoder_quantum_rad: float = 0.0
+    compared: str = ""
+
+    def comparison(self) -> str:
+        """What :attr:`fidelity` compares, in words, as a verdict names it
+        (:func:`~.fidelity.verdict`): :attr:`compared`, else "the robot's true pose against the
+        reference (<name>)"."""
+        return self.compared or f"the robot's true pose against the reference ({self.name})"
 
     def resolution(self) -> tuple[float, float]:
         """(m, rad) the RMS error the encoders' rounding puts in the measured pose at the
