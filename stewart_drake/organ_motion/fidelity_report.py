@@ -52,12 +52,16 @@ def compared(rep: Reproduction | Verification) -> str | None:
     return comparison() if callable(comparison) else None
 
 
-def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
+def report_markdown(rep: Reproduction, tolerance: tuple[float, float], context=()) -> str:
     """The Markdown report of a reproduction: verdict (naming what it compares, :func:`compared`),
-    per-axis table, lag, harmonics, cycles, the learner, the phantom anchor."""
+    the ``context`` paragraphs (str: what else the verdict's reader must know, e.g. a figure
+    beside it that is not the verdict), per-axis table, lag, harmonics, cycles, the learner, the
+    phantom anchor."""
     fid = rep.fidelity
     ok, line = verdict(fid, tolerance, compared(rep))
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
+    for paragraph in context:
+        lines += [paragraph, ""]
     lines += _run_lines(rep, fid)
     lines += fidelity_lines(fid)
     lines += _learner_lines(rep)
