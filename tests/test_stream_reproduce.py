@@ -50,6 +50,13 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     assert (tmp_path / "reproduce_breath_stream.png").stat().st_size > 10_000
     assert "FAIL: the robot's true pose against the true motion (breath), RMS error" in out
     assert report["passed"] is False
+    # The predictor's warm-up is inside the window, said so, with the figures after it beside.
+    assert "is inside the window: its error counts in the figures" in out
+    later = report["after_warm_up"]
+    assert later["window_s"][0] > report["against_true_motion"]["window_s"][0]
+    assert later["window_s"][0] > report["prediction_from_s"] > 0.2
+    assert max(later["rms"][3:]) < max(report["against_true_motion"]["rms"][3:])
+    assert "after the warm-up, not the verdict: the robot's true pose against the true" in out
     # The robot's fidelity against the true motion beside it, named after the stream (no space
     # in any name), with the same verdict.
     own = tmp_path / "reproduce_breath_stream_robot.md"

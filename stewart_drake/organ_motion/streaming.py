@@ -220,7 +220,28 @@ def reproduce_stream(
     compared = f"the robot's true pose against the true motion ({name})"
     figures["judged"] = measured_against(rep, truth, compared)
     figures["prediction_from_s"] = prediction_start(figures["followed"])
+    figures["after_warm_up"] = after_warm_up(figures["judged"], figures["prediction_from_s"])
     return figures
+
+
+def after_warm_up(judged, prediction_from_s: float | None) -> dict | None:
+    """The figures of ``judged`` (a :class:`~.reproduction.Reproduction` measured against the
+    true motion) once the prediction is followed: {"window_s": [a, b], "rms": (6,) per axis,
+    rad and m} from ``prediction_from_s`` + :data:`~stewart_drake.references.stream.SWITCH_S`
+    (:func:`prediction_start`) to the end of its window; None when that is not inside the window
+    (no warm-up in it) or holds fewer than 10 samples. Reported beside the verdict, never as it:
+    the warm-up is part of the run."""
+    if prediction_from_s is None:
+        return None
+    w0, w1 = judged.fidelity["window_s"]
+    r = judged.result
+    t = np.asarray(r.t, dtype=float)
+    inside = (t >= prediction_from_s + SWITCH_S - 1e-9) & (t <= w1 + 1e-9)
+    if prediction_from_s + SWITCH_S <= w0 or np.count_nonzero(inside) < 10:
+        return None
+    e = np.subtract(r.x[inside, :6], r.x_d[inside, :6], dtype=float)
+    window = [float(t[inside][0]), float(t[inside][-1])]
+    return {"window_s": window, "rms": np.sqrt(np.mean(e**2, axis=0)).tolist()}
 
 
 def prediction_start(followed) -> float | None:
@@ -245,7 +266,8 @@ def stream_verdict(figures: dict, tolerance: tuple[float, float]) -> tuple[bool,
         (passed, lines): the verdict's line (:func:`~.fidelity.verdict`, naming the true
         motion); the robot against the reference it was given, over the same window, labelled
         as not the verdict; what the window leaves out (the start-up) and where the predictor's
-        warm-up lies.
+        warm-up lies; when the warm-up is inside the window, the figures after it
+        (:func:`after_warm_up`), labelled as not the verdict.
     """
     judged, rep = figures["judged"], figures["reproduction"]
     ok, line = verdict(judged.fidelity, tolerance, judged.comparison())
@@ -265,6 +287,12 @@ def stream_verdict(figures: dict, tolerance: tuple[float, float]) -> tuple[bool,
         f"motion RMS {format_length(start['rms_translation_m'])}, peak "
         f"{format_length(start['peak_translation_m'])}; " + _warm_up_words(figures, w0),
     ]
+    later = figures.get("after_warm_up")
+    if later is not None:
+        lines.append(
+            "after the warm-up, not the verdict: the robot's true pose against the true motion, "
+            + tolerance_line(later, tolerance)[1]
+        )
     if rep.scale != 1.0:
         lines.append(
             f"the followed reference was scaled by {rep.scale:.3f} to fit the robot: the "
@@ -337,7 +365,8 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
 
     The JSON's ``passed`` is that verdict; ``against_true_motion`` its figures (``rms`` per axis,
     rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
-    against the reference it ran, over the same window, which is not the verdict.
+    against the reference it ran, over the same window, and ``after_warm_up``
+    (:func:`after_warm_up`, or null), which are not the verdict.
 
     Returns:
         the three paths (.md, .png, .json), each written atomically.
@@ -418,6 +447,7 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
         against_true_motion=_judged_figures(judged),
         against_given_reference=_judged_figures(rep) | {"not_the_verdict": True},
         prediction_from_s=figures["prediction_from_s"],
+        after_warm_up=figures.get("after_warm_up"),
     )
     keep.update(
         {k: figures[k] for k in ("latency_s", "rate_hz", "predictor", "used", "clipped")},
@@ -447,6 +477,7 @@ __all__ = [
     "trace_rate",
     "reproduce_stream",
     "prediction_start",
+    "after_warm_up",
     "stream_verdict",
     "stream_summary",
     "write_stream_report",
