@@ -416,13 +416,18 @@ def test_the_tolerance_s_units_and_the_verdict_line():
     fid = {"rms": [1e-5, 2e-5, 1e-5, 3e-4, 9e-6, 1e-6], "window_s": [5.0, 10.0]}
     ok, line = fd.verdict(fid, (3e-4, 2e-5))  # X's 0.3 mm and theta's 20 urad exactly
     assert ok and line == (
-        "PASS: RMS error per axis within 0.3 mm | 20 urad over t = 5-10 s "
-        "(largest: X 0.3 mm, theta 20 urad)"
+        "PASS: the pose against its reference, RMS error per axis within 0.3 mm | 20 urad over "
+        "t = 5-10 s (largest: X 0.3 mm, theta 20 urad)"
     )
-    ok, line = fd.verdict(fid, (2.9e-4, 0.1))  # X beyond
-    assert not ok and line.startswith("FAIL: RMS error per axis beyond 0.29 mm | 5.73 deg over")
+    ok, line = fd.verdict(fid, (2.9e-4, 0.1), compared="the robot's true pose against A")
+    assert not ok and line.startswith(
+        "FAIL: the robot's true pose against A, RMS error per axis beyond 0.29 mm | 5.73 deg over"
+    )
     ok, line = fd.verdict(fid, (1e-3, 1.9e-5))  # theta beyond
-    assert not ok and line.startswith("FAIL: RMS error per axis beyond 1 mm | 19 urad over")
+    assert not ok and "RMS error per axis beyond 1 mm | 19 urad over" in line
+    # The text alone, for a figure beside a verdict: the same judgement, no PASS or FAIL.
+    within, text = fd.tolerance_line(fid, (1e-3, 1.9e-5))
+    assert not within and line.endswith(text) and "PASS" not in text and "FAIL" not in text
     fid["rms"][3] = 5e-5  # X below the length, above the angle's number: a length still
     assert fd.verdict(fid, (1e-4, 3e-5))[0]
 

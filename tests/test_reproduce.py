@@ -40,9 +40,11 @@ def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
             str(tmp_path),
         ],
     )
-    assert "PASS" in out and "wrote" in out
+    # The verdict names what it compares: the robot's true pose against the motion asked for.
+    judged = "the robot's true pose against the reference (breathing)"
+    assert f"PASS: {judged}, RMS error per axis" in out and "wrote" in out
     md = (tmp_path / "reproduce_breathing.md").read_text()
-    assert "**PASS: RMS error per axis within 0.1 mm | 0.1 deg" in md
+    assert f"**PASS: {judged}, RMS error per axis within 0.1 mm | 0.1 deg" in md
     assert "Belcher et al." in md and "breathing 1" in md and "reproduce_breathing.png" in md
     figures = json.loads((tmp_path / "reproduce_breathing.json").read_text())
     assert figures["fidelity"]["window_s"] == pytest.approx([1.0, 2.0], abs=2e-3)
@@ -64,7 +66,7 @@ def test_reproduce_a_library_motion_writes_its_report(tmp_path, capsys):
         ],
         code=2,
     )
-    assert "FAIL" in out
+    assert f"FAIL: {judged}, RMS error per axis beyond" in out
 
 
 def test_a_recorded_trace_round_trip(tmp_path, capsys):
@@ -292,7 +294,8 @@ def test_reproduce_writes_its_replay_with_the_reference_s_ghost_and_the_error(tm
     )
     assert f"wrote {html}" in out
     text = html.read_text()
-    assert "blue ghost: the reference" in text and "PASS: RMS error per axis" in text
+    assert "blue ghost: the reference" in text
+    assert "PASS: the robot&#x27;s true pose against the reference (short trace), RMS" in text
     (animation,) = [c for c in read_meshcat_commands(text) if c["type"] == "set_animation"]
     clips = {a["path"]: a["clip"] for a in animation["animations"]}
     ghost = {k["name"]: k["keys"] for k in clips[visualize.GHOST_PATH]["tracks"]}

@@ -238,3 +238,46 @@ def test_the_two_measures_a_at_the_samples_and_b_end_to_end():
     assert r["without"]["rms_translation_m"] > h["none_translation_m"]  # a step more of lag
     none = follow_motion(motion, 0.2, "none", duration_s=40.0, settings=settings)["horizon"]
     assert none["ratio"] == 1.0 and none["nrmse"] == none["nrmse_none"] > 0.3
+
+
+def test_the_warm_up_ends_where_the_prediction_is_first_followed(breathing_stream):
+    """prediction_start is the warm-up's end: before it the linear follower is the follower
+    without prediction, and a switch later it is no longer; none and a motion at rest have
+    none."""
+    from stewart_drake.organ_motion.streaming import prediction_start
+    from stewart_drake.references.stream import SWITCH_S
+
+    stream, _ = breathing_stream
+    linear, none = follow(stream, "linear"), follow(stream, "none")
+    first = prediction_start(linear)
+    assert first is not None and 5.0 < first < 10.0  # at least min_record_s of residuals
+    t = np.arange(0.0, 30.0, 0.001)
+    gap = np.abs(linear.evaluate(t)[0][:, 3] - none.evaluate(t)[0][:, 3])
+    assert gap[t < first].max() < 1e-12 and gap[t > first + SWITCH_S].max() > 1e-4
+    assert prediction_start(none) is None
+    still = Stream(stream.t, np.zeros_like(stream.poses), 0.2, "still")
+    assert prediction_start(follow(still, "linear")) is None
+
+
+def test_the_figures_after_the_warm_up_are_those_of_the_samples_after_it():
+    """after_warm_up: the RMS per axis of the logged pose against the true motion from the
+    warm-up's end (+ SWITCH_S) to the window's end; None when the warm-up ends before the
+    window, or no prediction was followed."""
+    from types import SimpleNamespace
+
+    from stewart_drake.organ_motion.streaming import after_warm_up
+    from stewart_drake.references.stream import SWITCH_S
+
+    t = np.arange(0.0, 20.0, 0.001)
+    x_d = np.zeros((t.size, 18), np.float32)
+    x = np.zeros((t.size, 12), np.float32)
+    x[:, 3] = np.where(t < 6.0, 2e-3, 1e-5)  # 2 mm before the prediction, 10 um after
+    x[:, 1] = 3e-5
+    judged = SimpleNamespace(
+        fidelity={"window_s": [4.0, 19.999]}, result=SimpleNamespace(t=t, x=x, x_d=x_d)
+    )
+    later = after_warm_up(judged, 6.0 - SWITCH_S)
+    assert later["window_s"] == pytest.approx([6.0, 19.999], abs=1e-9)
+    assert later["rms"] == pytest.approx([0, 3e-5, 0, 1e-5, 0, 0], rel=1e-6, abs=1e-12)
+    assert after_warm_up(judged, 3.0 - SWITCH_S) is None  # before the window
+    assert after_warm_up(judged, None) is None

@@ -8,6 +8,7 @@ import pytest
 from conftest import write_trace
 
 from stewart_drake.cli import main as cli
+from stewart_drake.references.organ.library import make_motion
 from stewart_drake.references.prediction import DEFAULT_PREDICTOR, PREDICTORS
 
 
@@ -28,9 +29,10 @@ def _breathing_trace(path):
 def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, capsys):
     """0.2 s late: the robot, against the true motion, is within 0.6 of the error of the reference
     followed without prediction, and within 50 um of the followed reference itself; the report
-    says the latency assumed."""
+    says the latency assumed. Still millimetres from the motion: FAIL at the default 0.1 mm."""
     trace = _breathing_trace(tmp_path / "breath.csv")
-    out, _ = _run(capsys, ["reproduce", str(trace), "--stream", "0.2", "--out", str(tmp_path)])
+    argv = ["reproduce", str(trace), "--stream", "0.2", "--out", str(tmp_path)]
+    out, _ = _run(capsys, argv, code=2)
     assert "streamed 0.2 s late at 10 Hz, predictor linear" in out
     report = json.loads((tmp_path / "reproduce_breath_stream.json").read_text())
     without = report["without"]["rms_translation_m"]
@@ -46,10 +48,115 @@ def test_a_trace_streamed_late_is_followed_better_with_prediction(tmp_path, caps
     assert "(b) the followed reference against the true motion" in out
     assert report["latency_s"] == 0.2 and report["predictor"] == "linear"
     assert (tmp_path / "reproduce_breath_stream.png").stat().st_size > 10_000
-    # The robot's own fidelity beside it, named after the stream (no space in any name).
+    assert "FAIL: the robot's true pose against the true motion (breath), RMS error" in out
+    assert report["passed"] is False
+    # The predictor's warm-up is inside the window, said so, with the figures after it beside.
+    assert "is inside the window: its error counts in the figures" in out
+    later = report["after_warm_up"]
+    assert later["window_s"][0] > report["against_true_motion"]["window_s"][0]
+    assert later["window_s"][0] > report["prediction_from_s"] > 0.2
+    assert max(later["rms"][3:]) < max(report["against_true_motion"]["rms"][3:])
+    assert "after the warm-up, not the verdict: the robot's true pose against the true" in out
+    # The robot's fidelity against the true motion beside it, named after the stream (no space
+    # in any name), with the same verdict.
     own = tmp_path / "reproduce_breath_stream_robot.md"
-    assert own.exists() and f"the robot's own fidelity, {own.name})" in out
+    assert own.exists() and f"the robot's fidelity against the true motion, {own.name})" in out
+    assert "**FAIL: the robot's true pose against the true motion (breath)" in own.read_text()
     assert not [f.name for f in tmp_path.iterdir() if " " in f.name]
+
+
+def _keep_figures(monkeypatch) -> dict:
+    """What ``reproduce --stream`` simulated (:func:`~.streaming.reproduce_stream`'s figures),
+    kept for the test to measure the robot's logged pose itself."""
+    from stewart_drake.organ_motion import streaming
+
+    kept: dict = {}
+    real = streaming.reproduce_stream
+
+    def keep(*args, **kwargs):
+        kept.update(real(*args, **kwargs))
+        return kept
+
+    monkeypatch.setattr(streaming, "reproduce_stream", keep)
+    return kept
+
+
+def _rms_per_axis(t, x, x_ref, window) -> np.ndarray:
+    """(6,) RMS of x - x_ref per axis over the window (s), rad and m: written out here."""
+    inside = (t >= window[0] - 1e-9) & (t <= window[1] + 1e-9)
+    return np.sqrt(np.mean((np.asarray(x[inside, :6], float) - x_ref[inside, :6]) ** 2, axis=0))
+
+
+def _verdict_line(out: str) -> str:
+    (line,) = [x for x in out.splitlines() if x.startswith(("PASS", "FAIL"))]
+    return line
+
+
+@pytest.mark.parametrize(
+    "tolerance, code, judged",
+    [("0.1mm,0.1deg", 2, "FAIL"), ("3mm,1deg", 0, "PASS")],
+)
+def test_the_stream_verdict_is_the_robot_against_the_true_motion(
+    tmp_path, capsys, monkeypatch, tolerance, code, judged
+):
+    """Breathing 0.2 s late, the predictor still warming up (6.5 s): the robot 1-4 mm RMS from
+    the true motion, measured here from its logged pose and the library's breathing, while
+    within 20 um of the reference it was given. At 0.1 mm the verdict FAILs (exit 2), at 3 mm
+    it PASSes (exit 0); the one PASS|FAIL line names the true motion, is the verdict of those
+    figures at that tolerance, and both JSONs' ``passed`` say the same."""
+    kept = _keep_figures(monkeypatch)
+    argv = ["reproduce", "breathing", "--stream", "0.2", "--duration", "6.5"]
+    out, _ = _run(capsys, argv + ["--tolerance", tolerance, "--out", str(tmp_path)], code)
+    report = json.loads((tmp_path / "reproduce_breathing_stream.json").read_text())
+    robot = json.loads((tmp_path / "reproduce_breathing_stream_robot.json").read_text())
+    window = report["against_true_motion"]["window_s"]
+    assert 0.2 < window[0] < 1.0 and window[1] == pytest.approx(6.5, abs=0.04)  # a sample
+    r = kept["reproduction"].result
+    t = np.asarray(r.t, dtype=float)
+    truth = np.asarray(make_motion("breathing", {}).evaluate(t)[0])
+    to_truth = _rms_per_axis(t, r.x, truth, window)
+    to_given = _rms_per_axis(t, r.x, r.x_d, window)
+    assert 1e-3 < to_truth[3] < 4e-3 and to_given[3:].max() < 2e-5
+    assert report["against_true_motion"]["rms"] == pytest.approx(to_truth, rel=1e-3, abs=1e-8)
+    assert report["against_given_reference"]["rms"] == pytest.approx(to_given, rel=1e-2, abs=1e-8)
+    tol = (1e-4, np.radians(0.1)) if code == 2 else (3e-3, np.radians(1.0))
+    within = to_truth[3:].max() <= tol[0] and to_truth[:3].max() <= tol[1]
+    assert within == (code == 0) == report["passed"] == robot["passed"]
+    line = _verdict_line(out)
+    assert line.startswith(
+        f"{judged}: the robot's true pose against the true motion (breathing), RMS error per "
+        f"axis {'within' if code == 0 else 'beyond'} "
+    )
+    page = (tmp_path / "reproduce_breathing_stream_robot.md").read_text()
+    assert report["verdict"] == line and f"**{line}**" in page
+    assert "not the verdict: the robot's true pose against the reference it was given" in out
+    assert "is inside the window: its error counts in the figures" in out
+
+
+def test_a_robot_true_to_a_reference_far_from_the_motion_fails(tmp_path, capsys, monkeypatch):
+    """Half a second late without prediction: the robot follows the reference it was given to
+    microns, 100 times within 3 mm, but that reference is the motion 0.5 s ago,
+    beyond 3 mm RMS from it: FAIL, exit 2, on the figures of the true motion, which match the
+    RMS of the robot's logged pose against the library's breathing computed here."""
+    kept = _keep_figures(monkeypatch)
+    argv = ["reproduce", "breathing", "--stream", "0.5", "--predictor", "none"]
+    argv += ["--duration", "3", "--tolerance", "3mm,1deg", "--out", str(tmp_path)]
+    out, _ = _run(capsys, argv, code=2)
+    report = json.loads((tmp_path / "reproduce_breathing_stream.json").read_text())
+    window = report["against_true_motion"]["window_s"]
+    r = kept["reproduction"].result
+    t = np.asarray(r.t, dtype=float)
+    truth = np.asarray(make_motion("breathing", {}).evaluate(t)[0])
+    to_truth = _rms_per_axis(t, r.x, truth, window)
+    to_given = _rms_per_axis(t, r.x, r.x_d, window)
+    assert to_given[3:].max() < 3e-5 and 3e-3 < to_truth[3] < 9e-3
+    assert report["against_true_motion"]["rms"] == pytest.approx(to_truth, rel=1e-3, abs=1e-8)
+    assert report["passed"] is False
+    assert _verdict_line(out).startswith(
+        "FAIL: the robot's true pose against the true motion (breathing), RMS error per axis "
+        "beyond 3 mm | 1 deg"
+    )
+    assert "no predictor: the samples are followed without prediction throughout" in out
 
 
 @pytest.mark.parametrize(

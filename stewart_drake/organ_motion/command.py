@@ -107,9 +107,11 @@ def _add_stream_arguments(rp) -> None:
         default=None,
         metavar="LATENCY_S",
         help="run the motion as if it arrived live: each sample reaches the controller "
-        "LATENCY_S s after it happened, and the robot follows it with --predictor; the report "
-        "gives the error against the true motion with and without prediction (default: none, the "
-        "motion known in advance)",
+        "LATENCY_S s after it happened, and the robot follows it with --predictor; the verdict "
+        "(PASS/FAIL, exit 2 beyond --tolerance) is the robot's true pose against the true "
+        "motion, not against the predicted reference it was given (reported beside it); the "
+        "report gives the error against the true motion with and without prediction (default: "
+        "none, the motion known in advance)",
     )
     rp.add_argument(
         "--predictor",
@@ -142,7 +144,8 @@ def _add_measurement_arguments(rp) -> None:
     rp.add_argument(
         "--tolerance",
         default="0.1mm,0.1deg",
-        help="RMS error allowed per axis, a length and an angle",
+        help="RMS error allowed per axis, a length and an angle: of the robot's true pose "
+        "against the motion (with --stream, the true motion)",
     )
     rp.add_argument(
         "--scale-to-fit",
@@ -219,7 +222,7 @@ def _cmd_reproduce(args) -> int:
     if note is not None:
         print(note)
     md, png, js = write_report(rep, out, tolerance)
-    ok, line = verdict(fid, tolerance)
+    ok, line = verdict(fid, tolerance, rep.comparison())
     print(line)
     print(f"wrote {md}, {png} and {js}")
     if args.html:  # the run's plant-state log, replayed with the reference's ghost
@@ -233,12 +236,16 @@ def _cmd_reproduce(args) -> int:
 
 def _cmd_stream(args, scenario, name, out, tolerance) -> int:
     """``reproduce --stream LATENCY_S``: refused before any work when the latency, the
-    predictor or the stream is bad or learning is asked for; otherwise the run, its lines and
-    its report (:func:`~.streaming.write_stream_report`); exit 0."""
+    predictor or the stream is bad or learning is asked for; otherwise the run, its lines, its
+    verdict (:func:`~.streaming.stream_verdict`: the robot's true pose against the true motion,
+    with the robot against the reference it was given beside it) and its reports
+    (:func:`~.streaming.write_stream_report`, and the robot's fidelity against the true motion,
+    ``reproduce_<name>_stream_robot``); exit 0 within ``tolerance``, 2 beyond it."""
     from ..base.errors import InvalidConfigError
     from ..base.fileio import check_replaceable
     from ..references.stream import check_latency
-    from .streaming import reproduce_stream, stream_summary, write_stream_report
+    from .fidelity_report import report_markdown, write_report
+    from .streaming import reproduce_stream, stream_summary, stream_verdict, write_stream_report
 
     if args.stream is None:
         raise InvalidConfigError("--stream-rate is for --stream LATENCY_S: give the latency")
@@ -250,7 +257,7 @@ def _cmd_stream(args, scenario, name, out, tolerance) -> int:
         )
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}_stream{suffix}")
-        check_replaceable(out / f"reproduce_{name}{suffix}")
+        check_replaceable(out / f"reproduce_{name}_stream_robot{suffix}")
     figures = reproduce_stream(
         scenario,
         latency,
@@ -267,12 +274,22 @@ def _cmd_stream(args, scenario, name, out, tolerance) -> int:
         print(f"the followed reference did not fit the robot: scaled by {rep.scale:.3f}")
     for line in stream_summary(figures):
         print(line)
-    md, png, js = write_stream_report(figures, out, name)
-    from .fidelity_report import write_report
-
-    own, _, _ = write_report(rep, out, tolerance, stem=f"reproduce_{name}_stream_robot")
-    print(f"wrote {md}, {png} and {js} (and the robot's own fidelity, {own.name})")
-    return 0
+    ok, lines = stream_verdict(figures, tolerance)
+    md, png, js = write_stream_report(figures, out, name, tolerance)
+    judged = figures["judged"]
+    page = report_markdown(
+        judged, tolerance, context=[f"{x[0].upper()}{x[1:]}." for x in lines[1:]]
+    )
+    own, _, _ = write_report(
+        judged, out, tolerance, stem=f"reproduce_{name}_stream_robot", text=page
+    )
+    for line in lines[1:]:
+        print(line)
+    print(lines[0], flush=True)
+    print(
+        f"wrote {md}, {png} and {js} (and the robot's fidelity against the true motion, {own.name})"
+    )
+    return 0 if ok else 2
 
 
 def motion_scenario(args):

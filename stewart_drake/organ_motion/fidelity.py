@@ -381,11 +381,17 @@ def parse_tolerance(text: str) -> tuple[float, float]:
     return found["m"], found["rad"]
 
 
-def verdict(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
-    """(passed, one line): every axis's RMS error over the window within the tolerance
-    (translations in m, rotations in rad), naming the largest of each kind; rotations that were
-    not measured (NaN: a marker that gives positions only) are not judged, and the line says
-    so."""
+#: What a verdict compares when its caller does not say: a pose against its reference.
+COMPARED = "the pose against its reference"
+
+
+def tolerance_line(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
+    """(within, text): every axis's RMS error of ``fid`` (:func:`fidelity`) over its window
+    within ``tolerance`` (translations in m, rotations in rad), and the text "RMS error per axis
+    within|beyond <m> | <rad> over t = a-b s (largest: ...)" naming the largest of each kind;
+    rotations that were not measured (NaN: a marker that gives positions only) are not judged,
+    and the text says so. :func:`verdict` makes a verdict of it; a figure reported beside a
+    verdict, which must not read as one, uses the text alone."""
     rms = np.asarray(fid["rms"], dtype=float)
     kt = 3 + int(np.argmax(rms[3:]))
     ok = rms[3:].max() <= tolerance[0]
@@ -399,10 +405,27 @@ def verdict(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str]:
         largest += "rotation not measured"
     w0, w1 = fid["window_s"]
     return bool(ok), (
-        f"{'PASS' if ok else 'FAIL'}: RMS error per axis {'within' if ok else 'beyond'} "
+        f"RMS error per axis {'within' if ok else 'beyond'} "
         f"{format_length(tolerance[0])} | {format_angle(tolerance[1])} "
         f"over t = {w0:.4g}-{w1:.4g} s (largest: {largest})"
     )
+
+
+def verdict(
+    fid: dict, tolerance: tuple[float, float], compared: str | None = None
+) -> tuple[bool, str]:
+    """(passed, one line): "PASS|FAIL: <compared>, " then :func:`tolerance_line`'s text.
+
+    Args:
+        fid: :func:`fidelity`'s figures (``rms`` (6,) rad and m, ``window_s``).
+        tolerance: (m, rad), the RMS error allowed per axis.
+        compared: what ``fid`` compares, in words, e.g. "the robot's true pose against the true
+            motion (breathing)": a verdict names what it judged, so that a PASS is never read
+            as one on something else (default :data:`COMPARED`).
+    Returns:
+        (passed, line): passed from the figures of ``fid`` only."""
+    ok, text = tolerance_line(fid, tolerance)
+    return ok, f"{'PASS' if ok else 'FAIL'}: {compared or COMPARED}, {text}"
 
 
 def format_length(v: float) -> str:
@@ -429,6 +452,8 @@ __all__ = [
     "fidelity",
     "startup_figures",
     "parse_tolerance",
+    "COMPARED",
+    "tolerance_line",
     "verdict",
     "format_length",
     "format_angle",

@@ -64,7 +64,7 @@ def reproduction_html(
     record_states(meshcat, geometry, r.t_state, states, fps, x_d=x_d, error=(e, tolerance[0]))
     tol_um = tolerance[0] * 1e6
     caption = (
-        f"{rep.name}: {verdict(rep.fidelity, tolerance)[1]}\n"
+        f"{rep.name}: {verdict(rep.fidelity, tolerance, rep.comparison())[1]}\n"
         f"blue ghost: the reference; the sphere above it: the translation error at that "
         f"instant, green <= {0.5 * tol_um:.3g} um, amber <= {tol_um:.3g} um, red beyond"
     )

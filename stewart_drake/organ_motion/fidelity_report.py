@@ -19,7 +19,7 @@ import numpy as np
 
 from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
-from .fidelity import AXES, PHANTOM_ANCHOR, format_angle, format_length, verdict
+from .fidelity import AXES, COMPARED, PHANTOM_ANCHOR, format_angle, format_length, verdict
 from .reproduction import Reproduction, learning_words
 
 if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
@@ -44,12 +44,24 @@ def _learning(rep) -> str:
     return getattr(rep, "learning", "") or learning_words(None, rep.learn_cycles)
 
 
-def report_markdown(rep: Reproduction, tolerance: tuple[float, float]) -> str:
-    """The Markdown report of a reproduction: verdict, per-axis table, lag, harmonics, cycles,
-    the learner, the phantom anchor."""
+def compared(rep: Reproduction | Verification) -> str | None:
+    """What ``rep``'s fidelity compares, in words, for :func:`~.fidelity.verdict`: a
+    reproduction's :meth:`~.reproduction.Reproduction.comparison`; None (the verdict's default)
+    for a record that does not say."""
+    comparison = getattr(rep, "comparison", None)
+    return comparison() if callable(comparison) else None
+
+
+def report_markdown(rep: Reproduction, tolerance: tuple[float, float], context=()) -> str:
+    """The Markdown report of a reproduction: verdict (naming what it compares, :func:`compared`),
+    the ``context`` paragraphs (str: what else the verdict's reader must know, e.g. a figure
+    beside it that is not the verdict), per-axis table, lag, harmonics, cycles, the learner, the
+    phantom anchor."""
     fid = rep.fidelity
-    ok, line = verdict(fid, tolerance)
+    ok, line = verdict(fid, tolerance, compared(rep))
     lines = [f"# Fidelity of {rep.name}", "", f"**{line}**", ""]
+    for paragraph in context:
+        lines += [paragraph, ""]
     lines += _run_lines(rep, fid)
     lines += fidelity_lines(fid)
     lines += _learner_lines(rep)
@@ -443,7 +455,16 @@ def _verdict(rep: Reproduction | Verification, tolerance: tuple[float, float]) -
     judgement = getattr(rep, "judgement", None)
     if judgement is not None:
         return judgement.passed, judgement.line
-    return verdict(rep.fidelity, tolerance)
+    return verdict(rep.fidelity, tolerance, compared(rep))
+
+
+def _compared_words(rep: Reproduction | Verification) -> str:
+    """What ``rep``'s verdict compares, in words: a measured motion's judgement's, else
+    :func:`compared` (or the verdict's default)."""
+    judgement = getattr(rep, "judgement", None)
+    if judgement is not None:
+        return judgement.compared
+    return compared(rep) or COMPARED
 
 
 def report_title(rep: Reproduction | Verification, line: str) -> str:
@@ -536,6 +557,7 @@ def write_report(
         "learned_from": getattr(rep, "learned_from", ""),
         "tolerance": list(tolerance),
         "passed": _verdict(rep, tolerance)[0],
+        "compared": _compared_words(rep),
         "fidelity": rep.fidelity,
         "startup": getattr(rep, "startup", {}),
         "encoder_resolution_m_rad": list(rep.resolution()),
@@ -547,6 +569,7 @@ def write_report(
 
 
 __all__ = [
+    "compared",
     "report_markdown",
     "startup_lines",
     "fidelity_lines",

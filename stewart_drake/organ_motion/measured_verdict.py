@@ -173,10 +173,10 @@ def _turned_axes(x, x_d, measured, tolerance) -> str | None:
     """The cause when the measured translations (n, 6) are the reference's x_d (n, 6) turned
     (a tracker whose axes are not the base frame's, or a whole phantom set down tilted): the
     least turn between their motions (Kabsch on the centred positions of the two or three
-    measured translations), when it is between 1 deg and :data:`MAX_TURN_RAD` and the measured motion
-    turned back either comes within a quarter of its distance from the reference's or within the
-    ``tolerance`` (m, rad) on every measured translation; else None. Words only: the verdict is
-    not changed."""
+    measured translations), when it is between 1 deg and :data:`MAX_TURN_RAD` and the measured
+    motion turned back either comes within a quarter of its distance from the reference's or
+    within the ``tolerance`` (m, rad) on every measured translation; else None. Words only: the
+    verdict is not changed."""
     from scipy.spatial.transform import Rotation
 
     seen = [k - 3 for k in (3, 4, 5) if measured[k]]

@@ -53,6 +53,8 @@ class Reproduction:
             :class:`~stewart_drake.run.plan.RunPlan` (its scenario with the run's duration and
             learner), or None. encoder_quantum_rad: one count of its
             encoders, rad (0: the angles are read exactly); for :meth:`resolution`.
+        compared: what :attr:`fidelity` compares, in words, for the verdict's line ("": the
+            robot's true pose against the reference it ran, :meth:`comparison`).
     """
 
     name: str
@@ -74,6 +76,13 @@ class Reproduction:
     geometry: Any = None
     plan: Any = None
     encoder_quantum_rad: float = 0.0
+    compared: str = ""
+
+    def comparison(self) -> str:
+        """What :attr:`fidelity` compares, in words, as a verdict names it
+        (:func:`~.fidelity.verdict`): :attr:`compared`, else "the robot's true pose against the
+        reference (<name>)"."""
+        return self.compared or f"the robot's true pose against the reference ({self.name})"
 
     def resolution(self) -> tuple[float, float]:
         """(m, rad) the RMS error the encoders' rounding puts in the measured pose at the
@@ -401,6 +410,47 @@ def reproduce(
     )
 
 
+def measured_against(rep: Reproduction, reference: Reference, compared: str) -> Reproduction:
+    """``rep``'s run measured against another ``reference``, over the same window: the robot's
+    true pose (the plant's) against, e.g., the true motion that the reference it ran was
+    predicting (``reproduce --stream``), where ``rep``'s own figures are against what the robot
+    was given. A verdict on ``rep`` judges the controller; on this, the motion reproduced.
+
+    Args:
+        rep: a :class:`Reproduction`. reference: a :class:`~.motion.Reference` defined over
+            the run (``evaluate(t)`` -> pose, rate, acceleration, each (n, 6) rad and m).
+        compared: what the figures compare, in words, for the verdict's line
+            (:attr:`Reproduction.compared`).
+    Returns:
+        a copy of ``rep`` whose ``name``, ``reference``, ``result.x_d`` ((N, 18) ``reference``'s
+        pose, rate and acceleration at ``result.t``, in the log's dtype), ``cycle_starts``
+        (``reference``'s cycles within the run), ``fidelity`` (:func:`~.fidelity.fidelity` over
+        ``rep``'s window, with ``reference``'s harmonics), ``startup`` (before that window) and
+        ``compared`` are ``reference``'s; the run, its learner, its check and its scale are
+        ``rep``'s.
+    Raises:
+        InvalidConfigError: as :func:`~.fidelity.fidelity`.
+    """
+    r = rep.result
+    t = np.asarray(r.t, dtype=float)
+    x_d = np.concatenate([np.reshape(a, (t.size, 6)) for a in reference.evaluate(t)], axis=1)
+    result = replace(r, x_d=x_d.astype(np.asarray(r.x_d).dtype))
+    starts = _reference_starts(reference, 0)
+    starts = starts[starts <= t[-1] + 1e-9]
+    window = (float(rep.fidelity["window_s"][0]), float(rep.fidelity["window_s"][1]))
+    freq = _harmonic_frequencies(reference)
+    return replace(
+        rep,
+        name=getattr(reference, "name", rep.name),
+        reference=reference,
+        result=result,
+        cycle_starts=starts,
+        fidelity=fidelity(t, result.x, result.x_d, window, freq, starts),
+        startup=_startup(result, window),
+        compared=compared,
+    )
+
+
 __all__ = [
     "Reproduction",
     "learning_words",
@@ -409,4 +459,5 @@ __all__ = [
     "run_cycles",
     "MAX_REPRODUCE_S",
     "reproduce",
+    "measured_against",
 ]

@@ -7,7 +7,8 @@ reference (or the robot that ran it) with and without prediction at every instan
 :func:`follow_motion` streams a motion (:func:`~stewart_drake.references.stream.stream_of`),
 follows it with a predictor and with none (:func:`~stewart_drake.references.stream.follow`)
 and measures both ways; ``reproduce --stream`` runs the followed reference on the robot and
-measures the robot's pose as (b).
+measures the robot's pose as (b), and judges it (:func:`stream_verdict`): the robot's true pose
+against the true motion, never against the reference it was given, which is a prediction.
 """
 
 from __future__ import annotations
@@ -17,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from ..references.prediction import PredictorSettings
-from ..references.stream import DEFAULT_STREAM_RATE_HZ, LOOP_LAG_S, follow, stream_of
+from ..references.stream import DEFAULT_STREAM_RATE_HZ, LOOP_LAG_S, SWITCH_S, follow, stream_of
+from .fidelity import format_length, tolerance_line, verdict
 
 #: The step of the grid the errors are measured on, s.
 MEASURE_STEP_S = 0.01
@@ -182,15 +184,19 @@ def reproduce_stream(
 
     Returns:
         :func:`follow_motion`'s dict (the followed reference against the true motion, with and
-        without prediction) with "robot": :func:`stream_figures` of the robot's true pose,
-        "reproduction": the :class:`~.reproduction.Reproduction` of the followed reference,
-        "robot_tracking": its own fidelity (the robot against what it was commanded).
+        without prediction, over the whole run) with "robot": :func:`stream_figures` of the
+        robot's true pose against the true motion over the whole run, "reproduction": the
+        :class:`~.reproduction.Reproduction` of the followed reference, "robot_tracking": its
+        own fidelity (the robot against what it was given), "judged": the same run measured
+        against the true motion over the same window
+        (:func:`~.reproduction.measured_against`: what :func:`stream_verdict` judges), "truth":
+        the true motion, "prediction_from_s": :func:`prediction_start`.
     Raises:
         InvalidConfigError: a bad latency, an unknown predictor, a stream too short; and as
             :func:`~.reproduction.reproduce`.
     """
     from ..run.plan import run_reference
-    from .reproduction import reproduce
+    from .reproduction import measured_against, reproduce
 
     truth = run_reference(scenario)
     end = getattr(truth, "end_time", None)
@@ -210,7 +216,110 @@ def reproduce_stream(
     figures["reproduction"] = rep
     figures["robot_tracking"] = rep.fidelity
     figures["truth"] = truth
+    name = getattr(truth, "name", "the motion")
+    compared = f"the robot's true pose against the true motion ({name})"
+    figures["judged"] = measured_against(rep, truth, compared)
+    figures["prediction_from_s"] = prediction_start(figures["followed"])
+    figures["after_warm_up"] = after_warm_up(figures["judged"], figures["prediction_from_s"])
     return figures
+
+
+def after_warm_up(judged, prediction_from_s: float | None) -> dict | None:
+    """The figures of ``judged`` (a :class:`~.reproduction.Reproduction` measured against the
+    true motion) once the prediction is followed: {"window_s": [a, b], "rms": (6,) per axis,
+    rad and m} from ``prediction_from_s`` + :data:`~stewart_drake.references.stream.SWITCH_S`
+    (:func:`prediction_start`) to the end of its window; None when that is not inside the window
+    (no warm-up in it) or holds fewer than 10 samples. Reported beside the verdict, never as it:
+    the warm-up is part of the run."""
+    if prediction_from_s is None:
+        return None
+    w0, w1 = judged.fidelity["window_s"]
+    r = judged.result
+    t = np.asarray(r.t, dtype=float)
+    inside = (t >= prediction_from_s + SWITCH_S - 1e-9) & (t <= w1 + 1e-9)
+    if prediction_from_s + SWITCH_S <= w0 or np.count_nonzero(inside) < 10:
+        return None
+    e = np.subtract(r.x[inside, :6], r.x_d[inside, :6], dtype=float)
+    window = [float(t[inside][0]), float(t[inside][-1])]
+    return {"window_s": window, "rms": np.sqrt(np.mean(e**2, axis=0)).tolist()}
+
+
+def prediction_start(followed) -> float | None:
+    """When the prediction was first chosen, s: the arrival at which the predictor's record
+    first chose its positions on an axis that moves (the reference then moves onto them over
+    :data:`~stewart_drake.references.stream.SWITCH_S`); None when it never was (``none``, a
+    motion at rest, a record that never found the model better). Before it, the samples are
+    followed without prediction: the predictor's warm-up."""
+    moving = np.ptp(followed.stream.poses, axis=0) > 0
+    used = np.asarray(followed.using)[:, moving].any(axis=1)
+    if not used.any():  # also no axis that moves
+        return None
+    return float(followed.stream.arrival[int(np.argmax(used))])
+
+
+def stream_verdict(figures: dict, tolerance: tuple[float, float]) -> tuple[bool, list]:
+    """The verdict of ``reproduce --stream``: the robot's true pose against the true motion
+    (``figures["judged"]``, :func:`reproduce_stream`), every axis's RMS error within
+    ``tolerance`` (m, rad) over the reproduction's measured window.
+
+    Returns:
+        (passed, lines): the verdict's line (:func:`~.fidelity.verdict`, naming the true
+        motion); the robot against the reference it was given, over the same window, labelled
+        as not the verdict; what the window leaves out (the start-up) and where the predictor's
+        warm-up lies; when the warm-up is inside the window, the figures after it
+        (:func:`after_warm_up`), labelled as not the verdict.
+    """
+    judged, rep = figures["judged"], figures["reproduction"]
+    ok, line = verdict(judged.fidelity, tolerance, judged.comparison())
+    _, given = tolerance_line(rep.fidelity, tolerance)
+    (w0, w1), start = judged.fidelity["window_s"], judged.startup
+    given_is = (
+        "the late samples joined"
+        if figures["predictor"] == "none"
+        else "the motion as predicted from its late samples"
+    )
+    lines = [
+        line,
+        f"beside it, not the verdict: the robot's true pose against the reference it was "
+        f"given ({rep.name}: {given_is}, not the motion), {given}",
+        f"the figures are over t = {w0:.4g}-{w1:.4g} s; the start-up before it (the first "
+        f"sample arrives at t = {figures['latency_s']:g} s) is left out: against the true "
+        f"motion RMS {format_length(start['rms_translation_m'])}, peak "
+        f"{format_length(start['peak_translation_m'])}; " + _warm_up_words(figures, w0),
+    ]
+    later = figures.get("after_warm_up")
+    if later is not None:
+        lines.append(
+            "after the warm-up, not the verdict: the robot's true pose against the true motion, "
+            + tolerance_line(later, tolerance)[1]
+        )
+    if rep.scale != 1.0:
+        lines.append(
+            f"the followed reference was scaled by {rep.scale:.3f} to fit the robot: the "
+            f"verdict counts the shrink as error (the true motion is as it happened)"
+        )
+    return ok, lines
+
+
+def _warm_up_words(figures: dict, window_start_s: float) -> str:
+    """Where the predictor's warm-up lies against the measured window, in words."""
+    first = figures["prediction_from_s"]
+    if figures["predictor"] == "none":
+        return "no predictor: the samples are followed without prediction throughout"
+    if first is None:
+        return (
+            "the prediction was never chosen: the samples were followed without prediction "
+            "throughout, and the figures are theirs"
+        )
+    where = (
+        "inside the window: its error counts in the figures"
+        if first + SWITCH_S > window_start_s
+        else "before the window"
+    )
+    return (
+        f"the predictor's warm-up, the samples followed without prediction until it was first "
+        f"chosen at t = {first:.3g} s (and moved onto over {SWITCH_S:g} s), is {where}"
+    )
 
 
 def stream_summary(figures: dict) -> list:
@@ -225,7 +334,8 @@ def stream_summary(figures: dict) -> list:
         f"(the literature's measure): {h['rms_translation_m'] * 1e3:.3g} mm RMS against "
         f"{h['none_translation_m'] * 1e3:.3g} mm with the newest sample held (relative RMSE "
         f"{h['ratio']:.2f}); nRMSE {h['nrmse_none']:.3f} -> {h['nrmse']:.3f}",
-        f"(b) the followed reference against the true motion, translation RMS: without "
+        f"(b) the followed reference against the true motion over the whole run, t = 0-"
+        f"{figures['followed'].end_time:.4g} s (the warm-up included), translation RMS: without "
         f"prediction (the samples joined one sample step behind the newest) "
         f"{n['rms_translation_m'] * 1e3:.3g} mm, with {w['rms_translation_m'] * 1e3:.3g} mm "
         f"(ratio {figures['ratio_translation']:.2f}); peak {n['peak_translation_m'] * 1e3:.3g} "
@@ -236,7 +346,8 @@ def stream_summary(figures: dict) -> list:
     if r is not None:
         tracking = figures["robot_tracking"]
         lines.append(
-            f"the robot, as built, against the true motion: {r['rms_translation_m'] * 1e3:.3g} mm "
+            f"the robot, as built, against the true motion over the whole run: "
+            f"{r['rms_translation_m'] * 1e3:.3g} mm "
             f"RMS, peak {r['peak_translation_m'] * 1e3:.3g} mm, within tolerance "
             f"{r['within_tolerance'] * 100:.1f} % (its own tracking of the followed reference: "
             f"{tracking['rms_translation_m'] * 1e6:.3g} um)"
@@ -244,12 +355,24 @@ def stream_summary(figures: dict) -> list:
     return lines
 
 
-def write_stream_report(figures: dict, out, name: str) -> tuple:
-    """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the summary, the
-    figures, and the true motion, the followed reference with and without prediction and the
-    robot on the axis that moves most, with the errors over time and the predictor's
-    uncertainty (2 sigma of its recent residuals at the latency)."""
+def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, float]) -> tuple:
+    """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the verdict of
+    :func:`stream_verdict` at ``tolerance`` (m, rad; the robot's true pose against the true
+    motion) with what is beside it, the summary, the figures, and the true motion, the followed
+    reference with and without prediction and the robot on the axis that moves most, with the
+    errors over time and the predictor's uncertainty (2 sigma of its recent residuals at the
+    latency).
+
+    The JSON's ``passed`` is that verdict; ``against_true_motion`` its figures (``rms`` per axis,
+    rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
+    against the reference it ran, over the same window, and ``after_warm_up``
+    (:func:`after_warm_up`, or null), which are not the verdict.
+
+    Returns:
+        the three paths (.md, .png, .json), each written atomically.
+    """
     import json
+    import textwrap
 
     import matplotlib
 
@@ -287,6 +410,10 @@ def write_stream_report(figures: dict, out, name: str) -> tuple:
         f"{name} streamed {figures['latency_s']:g} s late ({figures['rate_hz']:.3g} Hz): "
         f"the last {min(20.0, end):.0f} s"
     )
+    ok, lines = stream_verdict(figures, tolerance)
+    fig.suptitle(
+        "\n".join(textwrap.wrap(lines[0], 130)), fontsize=9, color="k" if ok else "tab:red"
+    )
     a0.legend(loc="upper right", fontsize=8)
     e_none = np.linalg.norm(x_none[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
     e_with = np.linalg.norm(x_with[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
@@ -301,16 +428,27 @@ def write_stream_report(figures: dict, out, name: str) -> tuple:
     a1.set_ylabel("translation error [mm]")
     a1.set_xlabel("t [s]")
     a1.legend(loc="upper right", fontsize=8)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
     png = stem.with_suffix(".png")
     fig.savefig(png, dpi=110)
     plt.close(fig)
-    lines = stream_summary(figures)
     md_text = "\n".join(
-        [f"# {name} followed as it arrives", "", *[f"- {line}" for line in lines], "",
+        [f"# {name} followed as it arrives", "", f"**{lines[0]}**", "",
+         *[f"{line[0].upper()}{line[1:]}.\n" for line in lines[1:]],
+         *[f"- {line}" for line in stream_summary(figures)], "",
          f"![the true motion and the followed reference]({png.name})", ""]
     )  # fmt: skip
+    judged, rep = figures["judged"], figures["reproduction"]
     keep = {k: v for k, v in figures.items() if k in ("with", "without", "robot", "horizon")}
+    keep.update(
+        passed=ok,
+        verdict=lines[0],
+        tolerance=list(tolerance),
+        against_true_motion=_judged_figures(judged),
+        against_given_reference=_judged_figures(rep) | {"not_the_verdict": True},
+        prediction_from_s=figures["prediction_from_s"],
+        after_warm_up=figures.get("after_warm_up"),
+    )
     keep.update(
         {k: figures[k] for k in ("latency_s", "rate_hz", "predictor", "used", "clipped")},
         ratio_translation=figures["ratio_translation"],
@@ -323,12 +461,24 @@ def write_stream_report(figures: dict, out, name: str) -> tuple:
     return md, png, js
 
 
+def _judged_figures(rep) -> dict:
+    """What the stream's JSON keeps of a reproduction's measure: what it compares, its window,
+    its RMS per axis (rad and m), its 3-D RMS and peak translation, and the start-up before the
+    window."""
+    fid = rep.fidelity
+    keys = ("window_s", "rms", "rms_translation_m", "rms_rotation_rad", "peak_translation_m")
+    return {"compared": rep.comparison()} | {k: fid[k] for k in keys} | {"startup": rep.startup}
+
+
 __all__ = [
     "stream_figures",
     "horizon_error",
     "follow_motion",
     "trace_rate",
     "reproduce_stream",
+    "prediction_start",
+    "after_warm_up",
+    "stream_verdict",
     "stream_summary",
     "write_stream_report",
     "MEASURE_STEP_S",
