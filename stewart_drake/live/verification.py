@@ -81,6 +81,15 @@ def add_verify_command(sub) -> None:
         "times it are searched, so that one beyond it is found and fails)",
     )
     vp.add_argument(
+        "--measured-max-gap",
+        type=positive_float,
+        default=0.5,
+        metavar="S",
+        help="the longest step between two measured samples judged across, s: the samples are "
+        "judged at their own times, nothing interpolated; a longer gap (the tracker lost the "
+        "marker) is refused where it is",
+    )
+    vp.add_argument(
         "--registration",
         default=None,
         metavar="REG.yaml",
@@ -200,6 +209,7 @@ def cmd_verify(args) -> int:
             registration=registration,
             max_latency_s=args.max_latency,
             tolerance=tolerance,
+            max_gap_s=args.measured_max_gap,
         )
         passed = passed and ver.judgement.passed
         md, png, js = write_verification(ver, out, tolerance, stem)
@@ -232,7 +242,9 @@ def _save_registration(reference, measured, args) -> int:
     from ..organ_motion.registration_motion import fit_registration
 
     print("verify: fitting the tracker's frames to the registration motion", file=sys.stderr)
-    fit = fit_registration(reference, measured, args.clock_offset, args.max_latency)
+    fit = fit_registration(
+        reference, measured, args.clock_offset, args.max_latency, args.measured_max_gap
+    )
     for what, sigma in (("the tracker's frame", fit.sigma_B), ("the marker's", fit.sigma_M)):
         if sigma[0] > MAX_MARKER_SIGMA[0] or sigma[1] > MAX_MARKER_SIGMA[1]:
             raise InvalidConfigError(

@@ -304,6 +304,15 @@ def _plot_poses(axes, moving: list, r, window, label: str = "achieved") -> None:
         ax.grid(alpha=0.3)
 
 
+def _error_norm(e: np.ndarray) -> np.ndarray:
+    """(n,) the norm of the errors e (n, 3) over the axes measured (all, in a simulation; the
+    columns not all NaN), NaN when none is."""
+    seen = np.isfinite(e).any(axis=0)
+    if not seen.any():
+        return np.full(len(e), np.nan)
+    return np.linalg.norm(e[:, seen], axis=1)
+
+
 def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
     """Draw the norm of the translation error (um) and of the rotation error (urad) over time,
     each on its own axis against its own tolerance, the measured window shaded."""
@@ -314,9 +323,8 @@ def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
         (axes[0], slice(3, 6), tolerance[0], "C3", "translation", "um", 1e6),
         (axes[1], slice(0, 3), tolerance[1], "C2", "rotation", "urad", 1e6),
     ):
-        seen = np.isfinite(e[:, part]).any(axis=0)  # the axes measured (all, in a simulation)
-        norm = np.linalg.norm(e[:, part][:, seen], axis=1) * scale if seen.any() else None
-        if norm is None or not np.isfinite(norm).any():  # a marker that gives positions only
+        norm = _error_norm(e[:, part]) * scale
+        if not np.isfinite(norm).any():  # a marker that gives positions only
             ax.text(0.5, 0.5, f"{what} {NOT_MEASURED}", ha="center", transform=ax.transAxes)
             ax.set_xlim(axes[0].get_xlim())  # the translation's, drawn first
             ax.axvspan(w0, w1, color="0.9", zorder=0)
@@ -413,21 +421,24 @@ def _plot_harmonics(ax, harmonics: list) -> None:
 ZOOM_AFTER_S, ZOOM_S = 60.0, 10.0
 
 
-def _plot_zoom(axes, moving: list, r, fid: dict, tolerance: tuple[float, float]) -> None:
+def _plot_zoom(
+    axes, moving: list, r, fid: dict, tolerance: tuple[float, float], label: str = "achieved"
+) -> None:
     """Draw :data:`ZOOM_S` at full rate around the largest translation error of the measured
-    window: the axis that moves most there (reference and achieved), and the translation error
-    against its tolerance."""
+    window: the axis that moves most there (reference and achieved, or measured: ``label``),
+    and the translation error against its tolerance."""
     t = r.t
-    e = np.linalg.norm(r.x[:, 3:6] - r.x_d[:, 3:6], axis=1)
+    e = _error_norm(r.x[:, 3:6] - r.x_d[:, 3:6])
     w0, w1 = fid["window_s"]
     inside = np.flatnonzero((t >= w0) & (t <= w1))
     k = int(inside[np.argmax(e[inside])]) if inside.size else int(np.argmax(e))
     a = float(np.clip(t[k] - ZOOM_S / 2, t[0], max(t[0], t[-1] - ZOOM_S)))
     m = (t >= a) & (t <= a + ZOOM_S)
-    axis = max(moving, key=lambda j: float(np.ptp(r.x_d[m, j])) / (1e-3 if j >= 3 else 1e-2))
+    shown = [j for j in moving if np.isfinite(r.x[m, j]).any()] or moving  # measured ones
+    axis = max(shown, key=lambda j: float(np.ptp(r.x_d[m, j])) / (1e-3 if j >= 3 else 1e-2))
     scale, unit = (1e3, "mm") if axis >= 3 else (180 / math.pi, "deg")
     axes[0].plot(t[m], r.x_d[m, axis] * scale, "k--", lw=1, label="reference")
-    axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label="achieved")
+    axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label=label)
     axes[0].set_ylabel(f"zoom: {AXES[axis]}\n[{unit}]")
     axes[0].set_title(
         f"zoom, t = {a:.4g}-{a + ZOOM_S:.4g} s: around the largest translation error of the "
@@ -502,7 +513,14 @@ def plot_report(rep: Reproduction | Verification, path, tolerance: tuple[float, 
     _plot_poses(axes, moving, r, fid["window_s"], getattr(rep, "curve_label", "achieved"))
     _plot_error(axes[len(moving) : len(moving) + 2], r, fid["window_s"], tolerance)
     if zoom:
-        _plot_zoom(axes[len(moving) + 2 : len(moving) + 4], moving, r, fid, tolerance)
+        _plot_zoom(
+            axes[len(moving) + 2 : len(moving) + 4],
+            moving,
+            r,
+            fid,
+            tolerance,
+            getattr(rep, "curve_label", "achieved"),
+        )
     _plot_cycles(axes[len(moving) + 2 + 2 * zoom], fid["cycles"], rep.learn_cycles)
     if fid["harmonics"]:
         _plot_harmonics(axes[-1], fid["harmonics"])

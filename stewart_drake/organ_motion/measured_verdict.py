@@ -59,6 +59,10 @@ EDGE_S = 0.05
 #: beyond it a turn looks like an axis swapped or reversed, which is named so.
 MAX_TURN_RAD = math.radians(60.0)
 
+#: The least effect of a unit tilt on an axis that :func:`sensitivity` counts, (rad, m) per rad:
+#: below it the axis does not see the tilt (round-off of a motion that does not move it).
+MIN_TILT_EFFECT = (1e-9, 1e-6)
+
 #: The base axes a tilt of the whole phantom is tried about, for :func:`sensitivity`.
 _TILT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
@@ -235,7 +239,16 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
 
 
 def causes_of(
-    t, x, x_d, measured, moving, tolerance, removes_offsets: bool, reference=None, latency_s=0.0
+    t,
+    x,
+    x_d,
+    measured,
+    moving,
+    tolerance,
+    removes_offsets: bool,
+    reference=None,
+    latency_s=0.0,
+    lever_m=0.0,
 ) -> tuple[list, bool]:
     """(causes, follows): the causes of the errors over the samples given (module docstring),
     one phrase each, and whether the measured motion follows the reference at all (no axis at
@@ -248,6 +261,9 @@ def causes_of(
         reference: when given, a sign is found even where the clock's shift hid it (the axis
             reversed matches the reference much better at another shift).
         latency_s: the latency found, s, for the words of a reversed axis.
+        lever_m: the distance of a registered marker of positions only from the platform's
+            origin, m (0 otherwise): taken off along the reference's rotation, it shows as
+            motion where the platform does not turn as asked, which the words say.
     """
     tol = _tolerances(tolerance)
     figures = axis_figures(t, x, x_d, measured)
@@ -335,10 +351,18 @@ def causes_of(
         text = (
             f"{AXES[k]} moves {_amount(k, f[k]['motion_rms'])} RMS where the reference holds still"
         )
-        if best[0] > 0.8:
+        swapped = best[0] > 0.8 and f[k]["motion_rms"] > 0.5 * float(np.std(x_d[:, best[1]]))
+        if swapped:
             text += (
-                f" (it follows the reference's {AXES[best[1]]}: axes swapped or mislabelled, or "
-                "the tracker's frame turned from the base's?)"
+                f" (it follows the reference's {AXES[best[1]]}: axes swapped or mislabelled"
+                + (", or the tracker's frame turned from the base's" if removes_offsets else "")
+                + "?)"
+            )
+        elif lever_m > 0 and bool(np.any(moving[:3])):
+            text += (
+                f" (the marker, {lever_m * 1e3:.3g} mm from the platform's origin, is taken off "
+                "along the reference's rotation: a platform that does not turn as asked shows "
+                "that lever arm as motion)"
             )
         causes.append(text)
     if not removes_offsets:
@@ -361,7 +385,8 @@ def sensitivity(t, x_d, measured, tolerance, removes_offsets: bool) -> dict:
         {"amplitude_fraction": the smallest error of the whole motion's scale (a fraction) that
         takes one measured axis's RMS error beyond its tolerance, "amplitude_axis": that axis
         (NaN, "" when the reference moves along no measured axis); "tilt_rad": the smallest
-        turn of the whole phantom about an axis through the base frame's origin that does,
+        turn of the whole phantom about an axis through the base frame's origin that does (NaN
+        when none up to :data:`MAX_TURN_RAD` does),
         "tilt_about": that base axis, "tilt_axis": the measured axis that shows it}. A scale
         error e makes an axis's error e (r_k - its mean) (a scale about the motion's centre);
         a tilt a about u moves the platform by a u x p and turns it by a u, the offsets of
@@ -389,11 +414,11 @@ def sensitivity(t, x_d, measured, tolerance, removes_offsets: bool) -> dict:
                 rms = float(np.std(v)) if removes_offsets else float(np.sqrt(np.mean(v * v)))
             else:
                 rms = 0.0 if removes_offsets else abs(u[k])
-            if rms > 0 and tol[k] / rms < tilt:
+            if rms > MIN_TILT_EFFECT[int(k >= 3)] and tol[k] / rms < tilt:
                 tilt, about, shown = tol[k] / rms, name, AXES[k]
     out.update(
         {
-            "tilt_rad": tilt if math.isfinite(tilt) else math.nan,
+            "tilt_rad": tilt if tilt <= MAX_TURN_RAD else math.nan,
             "tilt_about": about,
             "tilt_axis": shown,
         }
@@ -462,6 +487,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
             ver.frame.removes_offsets,
             ver.reference,
             ver.latency_s,
+            float(np.linalg.norm(ver.frame.p_EM)),
         )
     if not latency_ok:
         lo, hi = ver.searched_s

@@ -148,6 +148,7 @@ def fit_registration(
     measured: MeasuredMotion,
     clock_offset_s: float | None = None,
     max_latency_s: float = 0.5,
+    max_gap_s: float = 0.5,
 ) -> MotionRegistration:
     """The tracker's frames fitted to a registration motion (module docstring).
 
@@ -157,6 +158,7 @@ def fit_registration(
             (and its three rotations, or none), on the tracker's clock, in its frame.
         clock_offset_s: measured time + this = the reference's, s (None: searched).
         max_latency_s: with ``clock_offset_s``, the largest latency searched, s.
+        max_gap_s: the longest step between two samples fitted across, s.
     Returns:
         :class:`MotionRegistration`.
     Raises:
@@ -164,9 +166,9 @@ def fit_registration(
             some rotations but not three); shorter than :data:`MIN_REGISTRATION_S`; a motion
             that leaves a parameter of the frames undetermined (a turn about the one line it
             runs along); the measured marker farther than :data:`MAX_REGISTRATION_RMS_M` RMS
-            from the reference once fitted.
+            from the reference once fitted; a step between samples longer than ``max_gap_s``.
     """
-    from .verification import _even, _overlap, _search, seconds
+    from .verification import _overlap, _samples, _search, seconds
 
     name = getattr(reference, "name", "the reference")
     if measured.kind != "tracker" or not np.all(measured.measured[3:]):
@@ -178,7 +180,8 @@ def fit_registration(
         raise InvalidConfigError(
             f"{measured.path}: a registration takes the marker's three rotations or none"
         )
-    t, y, _ = _even(measured.t, measured.poses)
+    t, y = measured.t, measured.poses
+    _samples(t, max_gap_s)
     if t[-1] - t[0] < MIN_REGISTRATION_S:
         raise InvalidConfigError(
             f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "

@@ -78,9 +78,11 @@ MAX_SEARCH_S = 3600.0
 MIN_SPAN_S = 4.0
 #: Step of the coarse clock search, s (finer when the measured samples are).
 COARSE_STEP_S = 0.02
-#: Jitter of a file's time steps beyond which its samples are resampled to an even grid (as a
-#: share of the median step).
+#: Jitter of a file's time steps beyond which the report says how uneven they are (as a share
+#: of the median step); they are judged at their own times either way.
 MAX_JITTER = 0.01
+#: The longest step between two measured samples judged across unless given, s.
+MAX_GAP_S = 0.5
 #: The RMS error per axis that passes unless given, (m, rad): verify's ``--tolerance`` default.
 DEFAULT_TOLERANCE = (1e-4, math.radians(0.1))
 
@@ -167,20 +169,32 @@ class Verification:
         return (0.0, 0.0)
 
 
-def _even(t: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, str]:
-    """(t, y, what was done in words or ""): the samples as they are when their steps are even
-    to :data:`MAX_JITTER`, else resampled linearly to an even grid at their median step."""
+def _samples(t: np.ndarray, max_gap_s: float) -> str:
+    """The words on the samples' steps ("" when even to :data:`MAX_JITTER`): they are judged
+    at their own times, never resampled (an interpolation between two noisy samples halves
+    their noise and flatters the figures).
+
+    Raises:
+        InvalidConfigError: a step longer than ``max_gap_s`` (the tracker lost the marker),
+            where it is named.
+    """
     steps = np.diff(t)
+    k = int(np.argmax(steps))
+    if steps[k] > max_gap_s:
+        raise InvalidConfigError(
+            f"the measured samples stop for {seconds(float(steps[k]))} after t = "
+            f"{t[k]:.6g} s of the file (the tracker lost the marker?), longer than "
+            f"--measured-max-gap {seconds(max_gap_s)}: verify compares measured samples only; "
+            "cut the file to a stretch without it, or give a larger --measured-max-gap to judge "
+            "the samples either side"
+        )
     dt = float(np.median(steps))
     if np.max(np.abs(steps - dt)) <= MAX_JITTER * dt:
-        return t, y, ""
-    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 1)
-    out = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(y.shape[1])])
-    words = (
-        f"resampling: {len(t)} samples whose steps range {steps.min() * 1e3:.4g}-"
-        f"{steps.max() * 1e3:.4g} ms resampled linearly to {len(grid)} at {dt * 1e3:.4g} ms"
+        return ""
+    return (
+        f"the samples' steps range {steps.min() * 1e3:.4g}-{steps.max() * 1e3:.4g} ms "
+        f"(median {dt * 1e3:.4g} ms): each is judged at its own time, nothing resampled"
     )
-    return grid, out, words
 
 
 def _search(reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: float):
@@ -273,6 +287,7 @@ def verify(
     registration=None,
     max_latency_s: float = MAX_LATENCY_S,
     tolerance: tuple[float, float] = DEFAULT_TOLERANCE,
+    max_gap_s: float = MAX_GAP_S,
 ) -> Verification:
     """Judge a measured motion against the reference it was asked to follow (module docstring).
 
@@ -293,14 +308,16 @@ def verify(
             latencies up to :data:`SEARCH_FACTOR` times it (at most 0.45 of a periodic
             reference's period) are searched, so that one beyond it is found and fails.
         tolerance: (m, rad) the RMS error per axis that passes (the judgement's).
+        max_gap_s: the longest step between two measured samples judged across, s: the
+            samples are judged at their own times, nothing interpolated between them.
     Returns:
         :class:`Verification`, its ``judgement`` the verdict with its causes.
     Raises:
         InvalidConfigError: a frame that is neither "axes" nor "base"; a registration for a
             file without the marker's X, Y and Z; a file none of whose axes the reference moves
-            along; a recording not one whole cycle of the
-            reference long (or a breath, without cycles), before or after the alignment; no
-            overlap with the reference once aligned; a non-finite offset.
+            along; a step between samples longer than ``max_gap_s``; a recording not one whole
+            cycle of the reference long (or a breath, without cycles), before or after the
+            alignment; no overlap with the reference once aligned; a non-finite offset.
     """
     if frame not in ("axes", "base"):
         raise InvalidConfigError(f"frame must be 'axes' or 'base', got {frame!r}")
@@ -319,7 +336,7 @@ def verify(
             y = np.asarray(registration.base_poses(y), dtype=float)
         else:
             y[:, 3:] = y[:, 3:] @ frames.R_BT.T + frames.p_BT
-    t, y, resampled = _even(t, y)
+    resampled = _samples(t, max_gap_s)
     _check_length(reference, t)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
     lo, hi = _search(reference, t, clock_offset_s, max_latency_s)
@@ -514,6 +531,7 @@ __all__ = [
     "MIN_SPAN_S",
     "COARSE_STEP_S",
     "MAX_JITTER",
+    "MAX_GAP_S",
     "MeasuredRun",
     "Verification",
     "seconds",
