@@ -325,6 +325,7 @@ LIBRARY_MOTIONS = (
     "transient_excursion",
     "persistent_excursion",
     "breath_hold",
+    "registration",
 )
 
 

@@ -111,7 +111,7 @@ def add_verify_command(sub) -> None:
         metavar="REG.yaml",
         help="register the tracker instead of judging: fit its frame and the marker's offset to "
         "this measured run of a known motion (the library's registration), write them as "
-        "REG.yaml for later runs' --registration, and give no verdict",
+        "REG.yaml for later runs' --registration, and give no verdict (default: judge)",
     )
     vp.add_argument(
         "--tolerance",
