@@ -381,6 +381,7 @@ def _write_export(path, seconds=20.0, drop=None, columns=3):
         ("one axis registered", "this file measures X, Y: judge it without --registration"),
         ("no overlap", "no overlap"),
         ("registration", "base_points: 2 points: a frame needs at least 3"),
+        ("clock", "the clock offset must be a number within +-1e+10 s"),
     ],
 )
 def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, expected):
@@ -400,6 +401,9 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
     elif case == "no overlap":
         _write_export(path)
         offset = -1e5
+    elif case == "clock":
+        _write_export(path)
+        offset = 1e300
     options = ["--measured", str(path), "--measured-columns", columns, f"--clock-offset={offset}"]
     if case == "registration":  # REG.yaml naming 2 points: refused before any file is read
         reg = tmp_path / "REG.yaml"

@@ -71,6 +71,9 @@ MAX_LATENCY_S = 0.5
 #: later is never taken): a latency beyond the bound is found, and fails, rather than hidden at
 #: the edge of the search.
 SEARCH_FACTOR = 3.0
+#: The largest clock offset taken, s (about 317 years: a clock counting from 1970 fits, with
+#: float64's steps there under a microsecond).
+MAX_CLOCK_OFFSET_S = 1e10
 #: Longest stretch of a reference without cycles the shift is searched over when the clocks'
 #: relation is not known, s (an hour: the longest run reproduce makes).
 MAX_SEARCH_S = 3600.0
@@ -317,12 +320,16 @@ def verify(
             file without the marker's X, Y and Z; a file none of whose axes the reference moves
             along; a step between samples longer than ``max_gap_s``; a recording not one whole
             cycle of the reference long (or a breath, without cycles), before or after the
-            alignment; no overlap with the reference once aligned; a non-finite offset.
+            alignment; no overlap with the reference once aligned; a clock offset not within
+            +-:data:`MAX_CLOCK_OFFSET_S`.
     """
     if frame not in ("axes", "base"):
         raise InvalidConfigError(f"frame must be 'axes' or 'base', got {frame!r}")
-    if clock_offset_s is not None and not math.isfinite(clock_offset_s):
-        raise InvalidConfigError(f"the clock offset must be a finite number, got {clock_offset_s}")
+    if clock_offset_s is not None and not abs(clock_offset_s) <= MAX_CLOCK_OFFSET_S:
+        raise InvalidConfigError(
+            f"the clock offset must be a number within +-{MAX_CLOCK_OFFSET_S:g} s (a tracker "
+            f"counting seconds since 1970 is 1.7e9 s off), got {clock_offset_s}"
+        )
     t, y = measured.t, np.array(measured.poses, dtype=float)
     seen = measured.measured.copy()
     if measured.kind == "encoders":
@@ -532,6 +539,7 @@ __all__ = [
     "COARSE_STEP_S",
     "MAX_JITTER",
     "MAX_GAP_S",
+    "MAX_CLOCK_OFFSET_S",
     "MeasuredRun",
     "Verification",
     "seconds",
