@@ -506,3 +506,19 @@ def test_a_hostile_quaternion_is_refused_naming_its_line(tmp_path, header, row, 
     path.write_text("\n".join([header, *rows]) + "\n")
     with pytest.raises(InvalidConfigError, match=expected.replace("(", r"\(").replace(")", r"\)")):
         read_measured(path)
+
+
+def test_a_run_logged_a_period_short_of_two_breaths_is_judged_over_its_second():
+    # robot breathing --duration 8 logs until 7.975 s: its second breath counts, cut to the log
+    # (a cycle missed by up to 2 % of it at either end); one missed by more is refused.
+    t = np.arange(0.0, 7.975, 0.005)
+    x = REFERENCE.evaluate(t - 0.010)[0]
+    ver = verify(REFERENCE, MeasuredMotion("r_encoders.csv", "encoders", t, x, np.ones(6, bool)))
+    assert ver.fidelity["window_s"] == pytest.approx((4.0, 7.96), abs=1e-6)  # 10 ms late
+    assert ver.judgement.passed and ver.latency_s == pytest.approx(0.010, abs=1e-4)
+    short = t < 7.8
+    with pytest.raises(InvalidConfigError, match="not one whole cycle"):
+        verify(
+            REFERENCE,
+            MeasuredMotion("r_encoders.csv", "encoders", t[short], x[short], np.ones(6, bool)),
+        )

@@ -77,6 +77,9 @@ MAX_CLOCK_OFFSET_S = 1e10
 #: Longest stretch of a reference without cycles the shift is searched over when the clocks'
 #: relation is not known, s (an hour: the longest run reproduce makes).
 MAX_SEARCH_S = 3600.0
+#: The share of a cycle a recording may miss at either end of the window and the cycle still
+#: count as whole (cut to the recording).
+CYCLE_SLACK = 0.02
 #: Shortest measured motion without cycles that is judged, s (a breath).
 MIN_SPAN_S = 4.0
 #: Step of the coarse clock search, s (finer when the measured samples are).
@@ -220,7 +223,9 @@ def _search(reference: Reference, t: np.ndarray, clock_offset_s, max_latency_s: 
 def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray, bool]:
     """((w0, w1) the window measured, (K + 1,) the cycle starts in [a, b], whether the recording
     [a, b] (reference time, s) holds the motion's first cycle): the whole cycles after the first
-    one of the motion; all of [a, b] for a reference without cycles.
+    one of the motion (a cycle that the recording misses by at most :data:`CYCLE_SLACK` of a
+    cycle at either end counts, cut to the recording: a run logged until its end stops a
+    period or two short of it); all of [a, b] for a reference without cycles.
 
     Raises:
         InvalidConfigError: not one whole cycle (or :data:`MIN_SPAN_S` without cycles).
@@ -240,7 +245,9 @@ def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray
             )
         return (a, b), np.zeros(0), False
     holds_start = a < starts[1]
-    inside = starts[(starts >= max(a, starts[1]) - 1e-9) & (starts <= b + 1e-9)]
+    slack = CYCLE_SLACK * float(np.median(np.diff(starts)))
+    inside = starts[(starts >= max(a, starts[1]) - slack) & (starts <= b + slack)]
+    inside = np.clip(inside, max(a, starts[1]), b)  # a recording a few samples short of a cycle
     if inside.size < 2:
         cycle = float(np.median(np.diff(starts)))
         raise InvalidConfigError(
@@ -536,6 +543,7 @@ __all__ = [
     "DEFAULT_TOLERANCE",
     "MAX_SEARCH_S",
     "MIN_SPAN_S",
+    "CYCLE_SLACK",
     "COARSE_STEP_S",
     "MAX_JITTER",
     "MAX_GAP_S",
