@@ -72,7 +72,8 @@ class Source:
                 message = self.spoil(j, message)
                 if message is None:
                     return
-            self.lcm.Publish(CHANNEL, message.encode())
+            data = message if isinstance(message, bytes) else message.encode()
+            self.lcm.Publish(CHANNEL, data)
             j += 1
 
 
@@ -171,6 +172,11 @@ def _silent(j, message):
     return message if j < 30 else None
 
 
+def _cut(j, message):
+    """Sample 30 cut to 40 bytes, its fingerprint intact."""
+    return message.encode()[:40] if j == 30 else message
+
+
 @pytest.mark.parametrize(
     "spoil, said",
     [
@@ -180,8 +186,9 @@ def _silent(j, message):
             r"BREATH: sample 27 \(utime 1200000\) after sample 29 .*: out of order or repeated",
         ),
         (_nan, r"BREATH: sample 30 is not 6 finite numbers: \[0, 0, 0, nan, 0, 0\.3\]"),
+        (_cut, r"BREATH: a message that is not an lcmt_stewart_pose_sample \(40 bytes\)"),
     ],
-    ids=["silent", "out-of-order", "nan"],
+    ids=["silent", "out-of-order", "nan", "cut"],
 )
 def test_a_source_that_fails_ends_the_run_with_the_torque_off_in_one_line(tmp_path, spoil, said):
     import re

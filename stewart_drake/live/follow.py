@@ -30,6 +30,7 @@ from __future__ import annotations
 import collections
 import functools
 import math
+import struct
 import sys
 import time
 from collections.abc import Callable
@@ -120,7 +121,7 @@ class LcmPoseSource:
             data = self._queue.popleft()
             try:
                 sample = lcmt_stewart_pose_sample.decode(data)
-            except ValueError:
+            except (ValueError, struct.error):  # a wrong fingerprint; a message cut short
                 raise LiveSourceError(
                     f"{self.channel}: a message that is not an lcmt_stewart_pose_sample "
                     f"({len(data)} bytes)"
