@@ -213,7 +213,35 @@ HOSTILE = {
     "no base points": ("point_sigma_m: 2.0e-6\n", "missing base_points"),
     "a list": ("- 1\n- 2\n", "the file: expected a mapping"),
     "a mapping of points": ("base_points: {a: 1}\n", "base_points: expected a list"),
-    "sigma zero": (_GOOD_BASE + "point_sigma_m: 0\n", "point_sigma_m: must be > 0"),
+    "sigma zero": (_GOOD_BASE + "point_sigma_m: 0\n", "point_sigma_m: must be at least 1e-09 m"),
+    "sigma tiny": (
+        _GOOD_BASE + "point_sigma_m: 1.0e-300\n",
+        "point_sigma_m: must be at least 1e-09 m .*, got 1e-300",
+    ),
+    "points a micrometre apart": (
+        "base_points:\n"
+        "  - {base_m: [0, 0, 0], tracker_m: [1, 0, 0]}\n"
+        "  - {base_m: [1.0e-6, 0, 0], tracker_m: [1.000001, 0, 0]}\n"
+        "  - {base_m: [0, 1.0e-6, 0], tracker_m: [1, 1.0e-6, 0]}\n",
+        r"base_points: the fiducials are 0.000\d+ mm RMS from their centre, too close to fix a "
+        r"frame: its rotation is known to \+- [\d.e+]+ mrad only",
+    ),
+    "motion frames unknown key": (
+        "motion_frames:\n  tracker_base: {rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0]}\n"
+        "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 1.0e-5\n"
+        "  colour: red\n",
+        "motion_frames: unknown key 'colour'",
+    ),
+    "motion frames rms": (
+        "motion_frames:\n  tracker_base: {rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0]}\n"
+        "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 0.5\n",
+        r"motion_frames.rms_m: expected a finite number in \[0, 0.005\] m",
+    ),
+    "motion frames beside points": (
+        _GOOD_BASE + "motion_frames:\n  tracker_base: {rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0]}\n"
+        "  platform_marker: {rpy_rad: [0, 0, 0], xyz_m: [0, 0, 0]}\n  rms_m: 1.0e-5\n",
+        "the file: unknown key 'base_points'",
+    ),
     "sigma huge": (
         _GOOD_BASE + "point_sigma_m: 0.5\n",
         r"point_sigma_m: expected a finite number in \[0, 0.001\]",

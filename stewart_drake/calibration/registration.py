@@ -74,6 +74,12 @@ DEFAULT_POINT_SIGMA_M = 2e-6
 #: The largest ``point_sigma_m``, m: fiducials measured worse cannot register a robot built to
 #: tenths of a millimetre.
 MAX_POINT_SIGMA_M = 1e-3
+#: The smallest ``point_sigma_m``, m: no tracker measures a point to better than a nanometre (and
+#: the fit's weights, sigma^-2, must stay finite).
+MIN_POINT_SIGMA_M = 1e-9
+#: A frame whose rotation the fiducials give to worse than this, one standard deviation, rad, is
+#: not determined by them (points a few micrometres apart): refused.
+MAX_ROTATION_SIGMA_RAD = 1e-2
 #: The noise of ``marker_in_tracker``, (rad, m) per axis, unless REG.yaml says: one sample of
 #: the tracker of docs/calibration.md's figures.
 DEFAULT_MARKER_SIGMA = (20e-6, 5e-6)
@@ -403,7 +409,8 @@ def _fit(points_T, points_R, sigma, what: str):
     reduced chi-square when they show more noise than ``sigma`` says.
 
     Raises:
-        InvalidConfigError: as :func:`fit_frame`, or residuals over :data:`MAX_FIT_RMS_M`.
+        InvalidConfigError: as :func:`fit_frame`, residuals over :data:`MAX_FIT_RMS_M`, or a
+            rotation known to worse than :data:`MAX_ROTATION_SIGMA_RAD` (points too close).
     """
     try:
         X, cov, rms = fit_frame(points_T, points_R, np.full(len(points_R), sigma**-2.0))
@@ -416,7 +423,16 @@ def _fit(points_T, points_R, sigma, what: str):
             f"drawing's, in the same order, both in m"
         )
     chi2 = len(points_R) * rms**2 / (sigma**2 * max(3 * len(points_R) - 6, 1))
-    return X, cov * max(1.0, chi2), rms
+    cov = cov * max(1.0, chi2)
+    turn = float(np.sqrt(np.max(np.linalg.eigvalsh(cov[:3, :3]))))
+    if turn > MAX_ROTATION_SIGMA_RAD:
+        extent = float(np.sqrt(np.mean(np.sum((points_R - points_R.mean(axis=0)) ** 2, axis=1))))
+        raise InvalidConfigError(
+            f"{what}: the fiducials are {extent * 1e3:.3g} mm RMS from their centre, too close to "
+            f"fix a frame: its rotation is known to +- {turn * 1e3:.3g} mrad only (at most "
+            f"{MAX_ROTATION_SIGMA_RAD * 1e3:g}); use fiducials spread over the body"
+        )
+    return X, cov, rms
 
 
 def register(fiducials: Fiducials, where: str = "REG.yaml") -> Registration:
@@ -602,8 +618,12 @@ def _fiducials(nodes: _Nodes, root) -> Fiducials:
     sigma = DEFAULT_POINT_SIGMA_M
     if "point_sigma_m" in top:
         sigma = nodes.number(top["point_sigma_m"], "point_sigma_m", 0.0, MAX_POINT_SIGMA_M, "m")
-        if sigma <= 0:
-            raise nodes.refuse("point_sigma_m", "must be > 0 m (a fiducial's noise per axis)")
+        if sigma < MIN_POINT_SIGMA_M:
+            raise nodes.refuse(
+                "point_sigma_m",
+                f"must be at least {MIN_POINT_SIGMA_M:g} m (a fiducial's noise per axis), got "
+                f"{sigma:g}",
+            )
     base_B, base_T = nodes.points(top["base_points"], "base_points", "base_m")
     if "platform_points" not in top:
         return Fiducials(base_B, base_T, point_sigma_m=sigma)
