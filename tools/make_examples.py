@@ -201,11 +201,12 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   121.456 s before the motion's (`--clock-offset=-121.456`), a closing line of zeros. The aligned
   tracker's origin is (-0.4, 1.2, -0.9) m in the base frame; the turned tracker is
   `stewart_drake.calibration.tracker.emulated_setup` of the `phantom_hardware` robot, and
-  `REG.yaml` its fiducials measured with 2 um of noise (`SETUP.fiducials(MeasurementNoise(5e-6,
-  20e-6), seed=1)`). With them `verify` PASSes `markers.csv` (a latency of 59.98 ms, the noise
-  as the error), FAILs `markers_turned.csv` without a registration ("the measured motion is
-  turned 26.9 deg from the reference's") and PASSes it through `REG.yaml` or through the
-  registration that `verify registration --measured reg_markers.csv --save-registration` fits.
+  `REG.yaml` its fiducials measured with 2 um of noise, the marker's pose the mean of 100 samples
+  of 5 um and 20 urad (`fiducials(MeasurementNoise(5e-6, 20e-6), seed=1)`). With them `verify`
+  PASSes `markers.csv` (a latency of 59.98 ms, the noise as the error), FAILs
+  `markers_turned.csv` without a registration ("the measured motion is turned 26.9 deg from the
+  reference's") and PASSes it through `REG.yaml` or through the registration that `verify
+  registration --measured reg_markers.csv --save-registration` fits.
 - **The encoder log** (`run_encoders.csv`): 12 s of the breathing 15 ms late after 0.5 s of
   lead-in, the readings the inverse kinematics of `phantom_hardware`'s robot plus its encoders'
   zero errors, quantized to 2^17 counts a turn.
@@ -218,7 +219,7 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   0.6 mm of noise (a RealSense's, as in IntERAct's laboratory runs): `verify trace.txt --measured
   depth.csv --measured-map depth=AP --tolerance 1mm,1deg` PASSes it; the default 0.1 mm is below
   the camera's own noise.
-- **patient.csv**: cosines of 4 s, SI 15 mm and AP 3.6 mm peak to peak, rot_LR 1 deg, 30 Hz.
+- **patient.csv**: cosines of 4 s, SI 15 mm, AP 3.6 mm and rot_LR 1 deg peak to peak, 30 Hz.
 - **ref.csv**: the library's breathing with a 2 deg tilt, 8 s (two breaths) at 50 Hz.
 """
 
