@@ -357,6 +357,10 @@ READER_PRIMITIVES = {"read_checked", "read_json", "CheckedNpz"}
 NOT_PARSED = {
     # The settings file's bytes are hashed, nothing is built from them.
     ("execution/store.py", "file_digest"),
+    # An example's bytes, and those of a file of its name where it is copied to, are hashed and
+    # copied as they are, nothing built from them.
+    ("organ_motion/examples.py", "_theirs"),
+    ("organ_motion/examples.py", "copy_examples"),
 }
 
 

@@ -8,8 +8,10 @@ marker; the robot's encoder log beside the tracker's view; the clocks' relation 
 the hostile files, each one line, exit 2. The battery of wrong motions is
 tests/test_verify_discrimination.py."""
 
+import importlib.util
 import json
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -25,6 +27,11 @@ from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
+
+_TOOL = Path(__file__).resolve().parent.parent / "tools" / "make_examples.py"
+_SPEC = importlib.util.spec_from_file_location("make_examples", _TOOL)
+make_examples = importlib.util.module_from_spec(_SPEC)
+_SPEC.loader.exec_module(make_examples)
 
 #: The phantom's motion: the library's breathing with a 2 deg tilt, so that the marker's
 #: offset from the platform's origin moves it (50 mm x 2 deg = 1.7 mm).
@@ -72,22 +79,10 @@ def tracker_view(x_BP, seed=0, rotations=False, aligned=False):
     return x
 
 
-def write_marker_export(path, t_s, xyz_m):
-    """A tracker's marker export: a quoted header ``"Frame";"Timestamp";"x";"y";"z"``,
-    ``;``-separated, decimal commas, CRLF, time in ms on its own clock, mm to the micron, and a
-    closing line of zeros."""
-
-    def comma(v):
-        return f"{v:.3f}".replace(".", ",")
-
-    lines = ['"Frame";"Timestamp";"x";"y";"z"']
-    lines += [
-        ";".join([str(k + 1), comma(t * 1e3)] + [comma(v * 1e3) for v in p])
-        for k, (t, p) in enumerate(zip(t_s, xyz_m))
-    ]
-    lines.append("0;0;0;0;0")
-    path.write_bytes(("\r\n".join(lines) + "\r\n").encode())
-    return path
+#: A tracker's marker export written as tools/make_examples.py writes the shipped examples of
+#: this case (a quoted header without units, semicolons, decimal commas, CRLF, ms, a closing
+#: line of zeros): ``write_marker_export(path, t_s, xyz_m)`` -> path.
+write_marker_export = make_examples.write_marker_export
 
 
 def run_verify(tmp_path, *options):

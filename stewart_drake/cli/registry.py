@@ -29,7 +29,7 @@ from . import core
 COMMANDS = (
     paper_command,  # run
     analysis_command,  # check, workspace, analyze
-    organ_motion_command,  # reproduce
+    organ_motion_command,  # reproduce, examples
     tuner_command,  # collect, train
     evaluation_command,  # evaluate
     design_command,  # design

@@ -1,5 +1,6 @@
 """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on the
-robot, checked, run (learning on request) and measured, with a report and a verdict."""
+robot, checked, run (learning on request) and measured, with a report and a verdict; and
+``stewart-drake examples``, the example inputs to try it and ``verify`` on (:mod:`.examples`)."""
 
 from __future__ import annotations
 
@@ -25,8 +26,12 @@ from . import SCENARIO
 
 
 def register(sub) -> None:
-    """Add the ``reproduce`` command to ``sub``, the ``stewart-drake`` subparsers."""
+    """Add the ``reproduce`` and ``examples`` (:mod:`.examples`) commands to ``sub``, the
+    ``stewart-drake`` subparsers."""
+    from .examples import add_examples_command
+
     _add_reproduce_command(sub)
+    add_examples_command(sub)
 
 
 def _add_reproduce_command(sub) -> None:
