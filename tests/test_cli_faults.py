@@ -665,6 +665,171 @@ def test_the_user_s_hidden_tmp_files_survive_a_command(home):
     assert (home / ".notes.tmp").read_text() == "my notes"  # _user_runs checked it is unchanged
 
 
+# case 2b: no output is one of the command's own inputs ------------------------------------------
+
+
+def _own_inputs(home: Path) -> None:
+    """The files the cases below read: a trace, a session's logs and path, measurements, a
+    REG.yaml, a learned model, a scenario, design requirements, a collection; and the links
+    the cases write through."""
+    t = np.arange(0.0, 20.0, 0.05)
+    rows = "".join(f"{tk:.2f},{5 * np.sin(2 * np.pi * tk / 4):.4f}\n" for tk in t)
+    (home / "trace.csv").write_text("t [s],SI [mm]\n" + rows)
+    for name in ("enc.csv", "trk.csv", "poses.csv", "poses_windows.csv", "meas.csv"):
+        (home / name).write_text(f"{name}: the user's data\n")
+    (home / "reg.yaml").write_text("base_points: []\n")
+    shutil.copy(REPO / "stewart_drake" / "data" / "feedforward_library.npz", home / "model.npz")
+    (home / "mine.yaml").write_text("duration_s: 1.0\n")
+    (home / "req.yaml").write_text((REPO / "scenarios" / "design_requirements.yaml").read_text())
+    (home / "study").mkdir()
+    (home / "study" / "design_objective.yaml").write_text("duration_s: 2.0\n")
+    (home / "collected").mkdir()
+    (home / "collected" / "manifest.json").write_text("{}\n")
+    os.link(home / "meas.csv", home / "meas_hard.csv")
+    (home / "meas_link.csv").symlink_to("meas.csv")
+    (home / "here").symlink_to(".")  # a folder that is the user's own, through a link
+    (home / "logs").mkdir()
+    (home / "logs" / "robot_trace_encoders.csv").symlink_to("../trace.csv")
+    (home / "npz").mkdir()
+    os.link(home / "trace.csv", home / "npz" / "robot_trace.npz")
+
+
+@pytest.mark.parametrize(
+    "argv, output, source",
+    [
+        (
+            ["calibrate", "--join", "enc.csv", "trk.csv", "--plan-file", "poses.csv"]
+            + ["--out", "enc.csv"],
+            "--out enc.csv",
+            "--join enc.csv",
+        ),
+        (
+            ["calibrate", "--join", "enc.csv", "trk.csv", "--plan-file", "poses.csv"]
+            + ["--out", "poses_windows.csv"],
+            "--out poses_windows.csv",
+            "--plan-file poses.csv's windows file",
+        ),
+        (["calibrate", "meas.csv", "--out", "meas.csv"], "--out meas.csv", "the measurements"),
+        (["calibrate", "meas.csv", "--out", "meas_hard.csv"], "--out meas_hard", "the measur"),
+        (["calibrate", "meas.csv", "--out", "meas_link.csv"], "--out meas_link", "the measur"),
+        (["calibrate", "meas.csv", "--out", "here/meas.csv"], "--out here/meas", "the measur"),
+        (
+            ["calibrate", "meas.csv", "--registration", "reg.yaml", "--out", "reg.yaml"],
+            "--out reg.yaml",
+            "--registration reg.yaml",
+        ),
+        (
+            ["reproduce", "trace.csv", "--feedforward", "--save-learned", "trace.csv"],
+            "--save-learned trace.csv",
+            "the motion trace.csv",
+        ),
+        (
+            ["reproduce", "breathing", "--learned", "model.npz", "--save-learned", "model.npz"],
+            "--save-learned model.npz",
+            "--learned model.npz",
+        ),
+        (
+            ["verify", "breathing", "--measured", "meas.csv", "--save-registration", "meas.csv"],
+            "--save-registration meas.csv",
+            "--measured meas.csv",
+        ),
+        (
+            ["verify", "breathing", "--measured", "meas.csv", "--registration", "reg.yaml"]
+            + ["--save-registration", "reg.yaml"],
+            "--save-registration reg.yaml",
+            "--registration reg.yaml",
+        ),
+        (
+            ["robot", "trace.csv", "--out", "logs"],
+            "logs/robot_trace_encoders.csv",
+            "the motion trace.csv",
+        ),
+        (["robot", "trace.csv", "--out", "npz"], "npz/robot_trace.npz", "the motion trace.csv"),
+        (
+            ["design", "req.yaml", "--scenario", "study/design_objective.yaml", "--out", "study"],
+            "study/design_objective.yaml",
+            "--scenario study/design_objective.yaml",
+        ),
+        (["design", "req.yaml", "--out", "req.yaml"], "", ""),  # a folder where a file stands
+        (
+            ["train", "--data", "collected", "--out", "collected/manifest.json"],
+            "--out collected/manifest.json",
+            "--data collected",
+        ),
+        (["scenario", "mine.yaml", "--out", "mine.yaml"], "--out mine.yaml", "the scenario"),
+        (["mjcf", "--scenario", "mine.yaml", "--out", "mine.yaml"], "--out mine", "--scenario"),
+        (
+            ["run", "--trajectory-file", "trace.csv", "--html", "trace.csv"],
+            "--html trace.csv",
+            "--trajectory-file trace.csv",
+        ),
+    ],
+    ids=[
+        "join-log",
+        "join-windows",
+        "measurements",
+        "hard-link",
+        "symbolic-link",
+        "linked-folder",
+        "registration",
+        "learned-onto-trace",
+        "learned-onto-learned",
+        "registration-onto-measured",
+        "registration-onto-registration",
+        "robot-log-link",
+        "robot-npz-hard-link",
+        "design-scenario",
+        "design-out-a-file",
+        "train-data",
+        "scenario",
+        "mjcf",
+        "run-html",
+    ],
+)
+def test_an_output_that_is_one_of_the_command_s_inputs_is_refused(home, argv, output, source):
+    """The same path, a link to it, a hard link, a path through a linked folder, a file found
+    beside an input, a file a command writes in its folder: refused in one line naming both,
+    before any work; the input unchanged byte for byte (and every other file of the user's)."""
+    _own_inputs(home)
+    before = {p: p.read_bytes() for p in home.rglob("*") if p.is_file() and not p.is_symlink()}
+    expected = (
+        rf"{re.escape(output)}.* is (the same file as|a file of) {re.escape(source)}.*, which "
+        r"this command reads: stewart-drake never writes over its own input; choose another "
+        r"output"
+        if output
+        else r"cannot write to req.yaml: .*req.yaml is a file; choose another output"
+    )
+    _refused(home, argv, expected, out="nothing-is-written-here")
+    assert {p: p.read_bytes() for p in before} == before
+
+
+#: Options whose help speaks of files without naming one, and the folders commands write.
+_NOT_FILES = {"duration", "columns", "measured_columns", "clock_offset"}
+_FOLDERS_WRITTEN = {"out", "docs", "bus"}
+
+
+def test_every_option_naming_a_file_is_an_input_or_an_output():
+    """A new option that names a file (its metavar or help says FILE, a file, a folder, .csv,
+    .yaml ...) must be classed, so that outputs are kept from it: an input
+    (:data:`INPUT_OPTIONS`) or an output (:data:`OUTPUT_FILE_OPTIONS`, or a folder written)."""
+    import argparse
+
+    from stewart_drake.cli.registry import build_parser
+    from stewart_drake.execution.options import INPUT_OPTIONS, OUTPUT_FILE_OPTIONS
+
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    classed = set(INPUT_OPTIONS) | set(OUTPUT_FILE_OPTIONS) | _FOLDERS_WRITTEN | _NOT_FILES
+    unclassed = []
+    for name, parser in commands.choices.items():
+        for action in parser._actions:
+            metavar = action.metavar if isinstance(action.metavar, tuple) else (action.metavar,)
+            text = " ".join(str(m or "") for m in metavar) + " " + (action.help or "")
+            names_a_file = re.search(r"\b(file|folder)\b|\.(csv|yaml|npz|html)\b|FILE", text)
+            if names_a_file and action.dest not in classed:
+                unclassed.append(f"{name} {action.dest}")
+    assert not unclassed, unclassed
+
+
 # case 3: every wait is bounded, every signal honoured ------------------------------------------
 
 
