@@ -5,6 +5,8 @@ compiled again; both said in one line, the command's results unchanged. Through 
 
 import os
 import pickle
+import random
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -89,6 +91,22 @@ def test_a_damaged_cache_is_discarded_and_compiled_again(warm, tmp_path):
     again = _check(cache, tmp_path / "again")  # the entries written anew load cleanly
     assert again.returncode == 0 and "damaged" not in again.stderr, again.stderr
     assert _figures(again) == _figures(first)
+
+
+def test_random_bytes_in_every_cache_file_are_discarded(warm, tmp_path):
+    """Random bytes in each index and data file, for several seeds (numba's reader raised
+    OverflowError on one, as a traceback): discarded, said, the same figures."""
+    first = warm[1]
+    for seed in (5, 15, 20):
+        cache = tmp_path / str(seed) / "cache"
+        shutil.copytree(warm[0], cache)
+        draw = random.Random(seed)
+        for entry in sorted(cache.rglob("*.nb[ic]")):
+            entry.write_bytes(draw.randbytes(entry.stat().st_size))
+        run = _check(cache, tmp_path / str(seed) / "out")
+        assert run.returncode == 0 and "Traceback" not in run.stderr, (seed, run.stderr)
+        assert "was damaged" in run.stderr, (seed, run.stderr)
+        assert _figures(run) == _figures(first)
 
 
 def test_the_fallback_folder_is_made_private_and_refused_when_another_made_it(

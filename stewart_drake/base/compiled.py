@@ -22,26 +22,18 @@ from __future__ import annotations
 
 import functools
 import os
-import pickle
 import stat
 import sys
 import tempfile
 import types
 from typing import Any
 
-#: What a damaged numba cache file raises when read (pickle's errors, a truncated stream, a
-#: payload naming what no longer exists).
-DAMAGED_CACHE_ERRORS = (
-    pickle.UnpicklingError,
-    EOFError,
-    ValueError,
-    TypeError,
-    AttributeError,
-    ImportError,
-    IndexError,
-    KeyError,
-    MemoryError,
-)
+#: What reading a damaged cache file may raise: any exception. Unpickling runs the opcodes it
+#: finds, so damaged bytes raise nearly anything (pickle's errors, EOFError, OverflowError,
+#: RecursionError, struct.error, UnicodeDecodeError, a missing module or attribute, MemoryError
+#: ...); a list of them misses some. KeyboardInterrupt and SystemExit are not Exceptions and
+#: pass.
+DAMAGED_CACHE_ERRORS: tuple[type[BaseException], ...] = (Exception,)
 _SAID: set = set()
 
 
