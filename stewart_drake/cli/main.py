@@ -57,10 +57,11 @@ def _interruptible():
 def main(argv: list[str] | None = None) -> int:
     from .. import _interrupted_while_starting
 
-    # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    starting = signal.getsignal(signal.SIGINT) is _interrupted_while_starting
     try:
+        # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
+        if starting:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         restore = _interruptible()
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
@@ -69,6 +70,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for signum, handler in restore.items():
             signal.signal(signum, handler)
+        if starting:  # the console script's last lines and the interpreter's exit: one line too
+            signal.signal(signal.SIGINT, _interrupted_while_starting)
         from ..execution.runners import forget_interrupts
 
         forget_interrupts()
