@@ -2,6 +2,7 @@ import importlib.metadata
 import importlib.util
 import os
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -304,6 +305,22 @@ def write_trace(path, t, columns: dict, gap=None, time_header: str = "t [s]"):
     ]
     path.write_text("\n".join(lines) + "\n")
     return path
+
+
+def start_as_a_user(argv, cwd, **env) -> subprocess.Popen:
+    """Start ``argv`` in ``cwd`` as a user's shell starts a command, the environment's variables
+    and ``env`` set, streams piped as text: with SIGINT at its default, since a suite started
+    in the background of a script inherits SIGINT ignored, and so would the command, which
+    then never sees the Ctrl-C."""
+    return subprocess.Popen(
+        argv,
+        cwd=cwd,
+        env=dict(os.environ, **env),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
 
 
 def wait_for(condition, timeout_s: float, what: str, poll_s: float = 0.05):

@@ -50,8 +50,9 @@ def _started(argv, tmp_path, tunables=None):
     return seen.read_text().splitlines(), done.stdout
 
 
-def test_the_command_starts_itself_again_once_with_the_cache_sized(tmp_path):
-    seen, out = _started([sys.executable, "-m", "stewart_drake.cli.main", "--help"], tmp_path)
+@pytest.mark.parametrize("module", ["stewart_drake.cli.main", "stewart_drake"])
+def test_the_command_starts_itself_again_once_with_the_cache_sized(tmp_path, module):
+    seen, out = _started([sys.executable, "-m", module, "--help"], tmp_path)
     assert seen == ["None", repr(OURS)]
     assert "usage: stewart-drake" in out
 

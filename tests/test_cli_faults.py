@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import install_plugin, wait_for
+from conftest import install_plugin, start_as_a_user, wait_for
 
 from stewart_drake.base.fileio import atomic_write, save_npz
 from stewart_drake.cli import core
@@ -665,6 +665,171 @@ def test_the_user_s_hidden_tmp_files_survive_a_command(home):
     assert (home / ".notes.tmp").read_text() == "my notes"  # _user_runs checked it is unchanged
 
 
+# case 2b: no output is one of the command's own inputs ------------------------------------------
+
+
+def _own_inputs(home: Path) -> None:
+    """The files the cases below read: a trace, a session's logs and path, measurements, a
+    REG.yaml, a learned model, a scenario, design requirements, a collection; and the links
+    the cases write through."""
+    t = np.arange(0.0, 20.0, 0.05)
+    rows = "".join(f"{tk:.2f},{5 * np.sin(2 * np.pi * tk / 4):.4f}\n" for tk in t)
+    (home / "trace.csv").write_text("t [s],SI [mm]\n" + rows)
+    for name in ("enc.csv", "trk.csv", "poses.csv", "poses_windows.csv", "meas.csv"):
+        (home / name).write_text(f"{name}: the user's data\n")
+    (home / "reg.yaml").write_text("base_points: []\n")
+    shutil.copy(REPO / "stewart_drake" / "data" / "feedforward_library.npz", home / "model.npz")
+    (home / "mine.yaml").write_text("duration_s: 1.0\n")
+    (home / "req.yaml").write_text((REPO / "scenarios" / "design_requirements.yaml").read_text())
+    (home / "study").mkdir()
+    (home / "study" / "design_objective.yaml").write_text("duration_s: 2.0\n")
+    (home / "collected").mkdir()
+    (home / "collected" / "manifest.json").write_text("{}\n")
+    os.link(home / "meas.csv", home / "meas_hard.csv")
+    (home / "meas_link.csv").symlink_to("meas.csv")
+    (home / "here").symlink_to(".")  # a folder that is the user's own, through a link
+    (home / "logs").mkdir()
+    (home / "logs" / "robot_trace_encoders.csv").symlink_to("../trace.csv")
+    (home / "npz").mkdir()
+    os.link(home / "trace.csv", home / "npz" / "robot_trace.npz")
+
+
+@pytest.mark.parametrize(
+    "argv, output, source",
+    [
+        (
+            ["calibrate", "--join", "enc.csv", "trk.csv", "--plan-file", "poses.csv"]
+            + ["--out", "enc.csv"],
+            "--out enc.csv",
+            "--join enc.csv",
+        ),
+        (
+            ["calibrate", "--join", "enc.csv", "trk.csv", "--plan-file", "poses.csv"]
+            + ["--out", "poses_windows.csv"],
+            "--out poses_windows.csv",
+            "--plan-file poses.csv's windows file",
+        ),
+        (["calibrate", "meas.csv", "--out", "meas.csv"], "--out meas.csv", "the measurements"),
+        (["calibrate", "meas.csv", "--out", "meas_hard.csv"], "--out meas_hard", "the measur"),
+        (["calibrate", "meas.csv", "--out", "meas_link.csv"], "--out meas_link", "the measur"),
+        (["calibrate", "meas.csv", "--out", "here/meas.csv"], "--out here/meas", "the measur"),
+        (
+            ["calibrate", "meas.csv", "--registration", "reg.yaml", "--out", "reg.yaml"],
+            "--out reg.yaml",
+            "--registration reg.yaml",
+        ),
+        (
+            ["reproduce", "trace.csv", "--feedforward", "--save-learned", "trace.csv"],
+            "--save-learned trace.csv",
+            "the motion trace.csv",
+        ),
+        (
+            ["reproduce", "breathing", "--learned", "model.npz", "--save-learned", "model.npz"],
+            "--save-learned model.npz",
+            "--learned model.npz",
+        ),
+        (
+            ["verify", "breathing", "--measured", "meas.csv", "--save-registration", "meas.csv"],
+            "--save-registration meas.csv",
+            "--measured meas.csv",
+        ),
+        (
+            ["verify", "breathing", "--measured", "meas.csv", "--registration", "reg.yaml"]
+            + ["--save-registration", "reg.yaml"],
+            "--save-registration reg.yaml",
+            "--registration reg.yaml",
+        ),
+        (
+            ["robot", "trace.csv", "--out", "logs"],
+            "logs/robot_trace_encoders.csv",
+            "the motion trace.csv",
+        ),
+        (["robot", "trace.csv", "--out", "npz"], "npz/robot_trace.npz", "the motion trace.csv"),
+        (
+            ["design", "req.yaml", "--scenario", "study/design_objective.yaml", "--out", "study"],
+            "study/design_objective.yaml",
+            "--scenario study/design_objective.yaml",
+        ),
+        (["design", "req.yaml", "--out", "req.yaml"], "", ""),  # a folder where a file stands
+        (
+            ["train", "--data", "collected", "--out", "collected/manifest.json"],
+            "--out collected/manifest.json",
+            "--data collected",
+        ),
+        (["scenario", "mine.yaml", "--out", "mine.yaml"], "--out mine.yaml", "the scenario"),
+        (["mjcf", "--scenario", "mine.yaml", "--out", "mine.yaml"], "--out mine", "--scenario"),
+        (
+            ["run", "--trajectory-file", "trace.csv", "--html", "trace.csv"],
+            "--html trace.csv",
+            "--trajectory-file trace.csv",
+        ),
+    ],
+    ids=[
+        "join-log",
+        "join-windows",
+        "measurements",
+        "hard-link",
+        "symbolic-link",
+        "linked-folder",
+        "registration",
+        "learned-onto-trace",
+        "learned-onto-learned",
+        "registration-onto-measured",
+        "registration-onto-registration",
+        "robot-log-link",
+        "robot-npz-hard-link",
+        "design-scenario",
+        "design-out-a-file",
+        "train-data",
+        "scenario",
+        "mjcf",
+        "run-html",
+    ],
+)
+def test_an_output_that_is_one_of_the_command_s_inputs_is_refused(home, argv, output, source):
+    """The same path, a link to it, a hard link, a path through a linked folder, a file found
+    beside an input, a file a command writes in its folder: refused in one line naming both,
+    before any work; the input unchanged byte for byte (and every other file of the user's)."""
+    _own_inputs(home)
+    before = {p: p.read_bytes() for p in home.rglob("*") if p.is_file() and not p.is_symlink()}
+    expected = (
+        rf"{re.escape(output)}.* is (the same file as|a file of) {re.escape(source)}.*, which "
+        r"this command reads: stewart-drake never writes over its own input; choose another "
+        r"output"
+        if output
+        else r"cannot write to req.yaml: .*req.yaml is a file; choose another output"
+    )
+    _refused(home, argv, expected, out="nothing-is-written-here")
+    assert {p: p.read_bytes() for p in before} == before
+
+
+#: Options whose help speaks of files without naming one, and the folders commands write.
+_NOT_FILES = {"duration", "columns", "measured_columns", "clock_offset"}
+_FOLDERS_WRITTEN = {"out", "docs", "bus", "folder"}  # folder: where `examples` copies them
+
+
+def test_every_option_naming_a_file_is_an_input_or_an_output():
+    """A new option that names a file (its metavar or help says FILE, a file, a folder, .csv,
+    .yaml ...) must be classed, so that outputs are kept from it: an input
+    (:data:`INPUT_OPTIONS`) or an output (:data:`OUTPUT_FILE_OPTIONS`, or a folder written)."""
+    import argparse
+
+    from stewart_drake.cli.registry import build_parser
+    from stewart_drake.execution.options import INPUT_OPTIONS, OUTPUT_FILE_OPTIONS
+
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    classed = set(INPUT_OPTIONS) | set(OUTPUT_FILE_OPTIONS) | _FOLDERS_WRITTEN | _NOT_FILES
+    unclassed = []
+    for name, parser in commands.choices.items():
+        for action in parser._actions:
+            metavar = action.metavar if isinstance(action.metavar, tuple) else (action.metavar,)
+            text = " ".join(str(m or "") for m in metavar) + " " + (action.help or "")
+            names_a_file = re.search(r"\b(file|folder)\b|\.(csv|yaml|npz|html)\b|FILE", text)
+            if names_a_file and action.dest not in classed:
+                unclassed.append(f"{name} {action.dest}")
+    assert not unclassed, unclassed
+
+
 # case 3: every wait is bounded, every signal honoured ------------------------------------------
 
 
@@ -1150,21 +1315,115 @@ def test_ctrl_c_while_drake_imports_gives_one_line(tmp_path, imported):
     turn it into an ImportError): one line and 130, never a traceback. Sent once the command
     has imported ``imported`` (Python's -X importtime lines on stderr say when), not after a
     fixed delay: on a loaded machine 0.8 s landed before the command's own import ended."""
-    proc = subprocess.Popen(
+    proc = start_as_a_user(
         COMMAND + ["run", "--duration", "0.2", "--out", str(tmp_path), "--no-progress"],
-        cwd=tmp_path,
-        env=dict(os.environ, PYTHONPATH=str(REPO), PYTHONPROFILEIMPORTTIME="1"),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        # As a user's shell starts it: a suite started in the background of a script inherits
-        # SIGINT ignored, and so would the command, which then never sees the Ctrl-C.
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        tmp_path,
+        PYTHONPATH=str(REPO),
+        PYTHONPROFILEIMPORTTIME="1",
     )
     code, text, lines = _signal_once_shown(proc, f" {imported}\n", signal.SIGINT)
     lines = [ln for ln in lines if not ln.startswith("import time:")]
     assert code == 130, text[-3000:]
     assert "Traceback" not in text and "interrupted by SIGINT" in lines[-1], lines[-5:]
+
+
+#: When a Ctrl-C lands after the command starts, s: from the interpreter's own start-up (its
+#: site and .pth files, the console script's first imports) to the package's first statements
+#: and on into the command's.
+CTRL_C_DELAYS_S = (0.01, 0.03, 0.06, 0.1, 0.15, 0.2, 0.3, 0.5)
+
+
+def _python_s_own(code: int, text: str) -> bool:
+    """Whether a process ended as Python itself ends on SIGINT before any of the package's code
+    ran: killed before the interpreter set its handler (-2, nothing said), or a
+    KeyboardInterrupt whose traceback has no frame in the package (the interpreter's start-up,
+    site's .pth files, the console script's first lines, the import machinery finding the
+    package)."""
+    package = str(Path(cli.__file__).resolve().parents[1]) + os.sep
+    frames = re.findall(r'File "([^"]+)", line', text)
+    if code == -signal.SIGINT and not text.strip():
+        return True
+    return (
+        "KeyboardInterrupt" in text
+        and "stewart-drake: interrupted" not in text
+        and not any(str(Path(f).resolve()).startswith(package) for f in frames)
+    )
+
+
+@pytest.mark.system
+@pytest.mark.parametrize("how", ["script", "symlink", "relative-symlink", "python-m"])
+def test_a_ctrl_c_from_the_package_s_first_line_on_is_one_line(tmp_path, how):
+    """Ctrl-C at each of :data:`CTRL_C_DELAYS_S` after the command starts, as a user starts it
+    (its console script, a link to it by an absolute or a relative path, ``python -m``): our
+    one line and 130 once the package's first statement has run; before it only Python's own
+    ending (:func:`_python_s_own`: no frame of the package's), which no program can change
+    (docs/faults.md). No bound on the time but against a hang."""
+    script = Path(COMMAND[0])
+    if how in ("symlink", "relative-symlink"):
+        if not script.is_file():
+            pytest.skip("the console script is not installed")
+        (tmp_path / "sd").symlink_to(script)
+        command = [str(tmp_path / "sd") if how == "symlink" else "./sd"]
+    elif how == "python-m":
+        command = [sys.executable, "-m", "stewart_drake"]
+    else:
+        command = COMMAND
+    argv = command + ["check", "paper", "--out", str(tmp_path / "out")]
+    for delay_s in CTRL_C_DELAYS_S:
+        proc = start_as_a_user(argv, tmp_path, PYTHONPATH=str(REPO))
+        time.sleep(delay_s)  # when the signal lands, not a bound on anything
+        proc.send_signal(signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=120)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.communicate()
+        ours = proc.returncode == 130 and err.strip().splitlines()[-1:] == [
+            "stewart-drake: interrupted by SIGINT; partial outputs were not written"
+        ]
+        assert "Traceback" not in err or not ours, err
+        assert ours or _python_s_own(proc.returncode, err), (delay_s, proc.returncode, err)
+    # And once the package has run its first lines (Python's -X importtime lines say when), by
+    # event, not by time: ours, whatever the machine's load.
+    proc = start_as_a_user(argv, tmp_path, PYTHONPATH=str(REPO), PYTHONPROFILEIMPORTTIME="1")
+    code, text, lines = _signal_once_shown(proc, " stewart_drake.base.errors\n", signal.SIGINT)
+    lines = [line for line in lines if not line.startswith("import time:")]
+    assert code == 130 and "Traceback" not in text, text[-3000:]
+    assert lines[-1] == "stewart-drake: interrupted by SIGINT; partial outputs were not written"
+
+
+def test_the_command_is_recognised_however_it_is_started(tmp_path, monkeypatch):
+    """The console script by name, by a relative path, through a link (absolute or relative),
+    ``python -m stewart_drake`` with interpreter options before it; not a program that imports
+    the package (pytest, a notebook, ``python -c``, a script of another name)."""
+    import stewart_drake
+
+    script = tmp_path / "bin" / "stewart-drake"
+    script.parent.mkdir()
+    script.write_text("#!/usr/bin/env python\n")
+    (tmp_path / "sd").symlink_to(script)
+    monkeypatch.chdir(tmp_path)
+    python = sys.executable
+    cases = {
+        (str(script),): True,
+        ("bin/stewart-drake",): True,
+        (str(tmp_path / "sd"),): True,
+        ("./sd",): True,
+        ("-m", "stewart_drake"): True,
+        ("-X", "importtime", "-m", "stewart_drake.cli.main"): True,
+        ("-mstewart_drake",): True,
+        ("-m", "pytest"): False,
+        ("-c",): False,
+        (str(tmp_path / "analysis.py"),): False,
+        ("-W", "error", str(tmp_path / "stewart_drake_tools.py")): False,
+    }
+    for args, expected in cases.items():
+        program = [a for a in args if not a.startswith("-") and a not in ("importtime", "error")]
+        argv0 = "-m" if "-m" in "".join(args) else "-c" if "-c" in args else program[-1]
+        monkeypatch.setattr(sys, "orig_argv", [python, *args, "check"])
+        monkeypatch.setattr(sys, "argv", [argv0, "check"])
+        assert stewart_drake._started_as_the_command() is expected, args
 
 
 def test_a_ctrl_c_inside_an_extension_s_initialization_is_found_down_the_chain():

@@ -48,7 +48,18 @@ REPO = Path(__file__).resolve().parent.parent
 #: The repository's folders a command may name a file under (run from the repository's root).
 REPOSITORY_FOLDERS = ("scenarios", "stewart_drake")
 #: The options whose value a command writes, not reads (their ``dest``).
-OUTPUTS = {"out", "save_registration", "save_learned", "html", "docs", "bus", "save_measurements"}
+#: The destinations that name what a command writes (``out_files``: the files it writes under
+#: ``--out``, which a command declares before its work).
+OUTPUTS = {
+    "out",
+    "out_files",
+    "save_registration",
+    "save_learned",
+    "html",
+    "docs",
+    "bus",
+    "save_measurements",
+}
 _FILE = re.compile(r"\.(csv|txt|yaml|yml|npz|json|lcm|html)$")
 _SEPARATORS = {"&&", "||", ";", "|", "&"}
 

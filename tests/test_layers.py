@@ -37,9 +37,10 @@ LAYERS = {
     "live": 10,
     "cli": 11,
 }
-#: Modules ranked apart from their package (a key of LAYERS): none; a module imported from below
-#: its package's rank moves down to a package of that rank.
-MODULE_LAYERS: dict[str, str] = {}
+#: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the
+#: command, beside cli; a module imported from below its package's rank moves down to a package
+#: of that rank.
+MODULE_LAYERS: dict[str, str] = {"stewart_drake.__main__": "cli"}
 
 
 def _module_name(path: pathlib.Path) -> str:

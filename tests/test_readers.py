@@ -79,11 +79,17 @@ ALLOWED = {
     ("station/bus/kernels.py", "path_kernels_digest", "Path(...).read_bytes"),
     # The kernel's run-queue time of the loop's own thread (/proc/thread-self/schedstat).
     ("station/bus/timing.py", "_RunQueueClock.__init__", "os.open"),
-    # numba's own cache index (in the package's __pycache__ or NUMBA_CACHE_DIR), read as numba
-    # reads it when it loads the cache, to say whether a command is about to compile.
-    ("control/kernel_cache.py", "_valid_index", "open"),
-    ("control/kernel_cache.py", "_valid_index", "pickle.load"),
-    ("control/kernel_cache.py", "_valid_index", "pickle.loads"),
+    # numba's own cache files (in the package's __pycache__ or NUMBA_CACHE_DIR), unpickled only
+    # once their signature by this user's key holds: as numba loads the cache, and to say
+    # whether a command is about to compile. The key: a file of this user's, mode 0600.
+    ("base/compiled.py", "_read_key", "os.open"),
+    ("base/compiled.py", "load_signed_index", "open"),
+    ("base/compiled.py", "load_signed_index", "pickle.load"),
+    ("base/compiled.py", "load_signed_index", "pickle.loads"),
+    ("base/compiled.py", "_recovering._RecoveringCacheFile._payload", "open"),
+    ("base/compiled.py", "_recovering._RecoveringCacheFile._load_index", "pickle.load"),
+    ("base/compiled.py", "_recovering._RecoveringCacheFile._load_index", "pickle.loads"),
+    ("base/compiled.py", "_recovering._RecoveringCacheFile._load_data", "pickle.loads"),
     # The folder lock: a file this tool creates in its output folder (check_replaceable first),
     # of which it reads the holder's 300 characters.
     ("execution/store.py", "lock_folder", "open"),

@@ -28,6 +28,7 @@ from stewart_drake.base.errors import CorruptFileError, FolderInUseError, Invali
 from stewart_drake.base.fileio import (
     atomic_write,
     check_replaceable,
+    inputs_kept,
     read_checked,
     remove_stale_temporaries,
 )
@@ -154,6 +155,32 @@ def test_atomic_write_refuses_every_output_that_is_not_a_regular_file(specials, 
     atomic_write(tmp_path / "fine.txt", lambda f: f.write(b"ok"))  # a regular file: replaced
     atomic_write(tmp_path / "fine.txt", lambda f: f.write(b"ok2"))
     assert (tmp_path / "fine.txt").read_bytes() == b"ok2"
+
+
+def test_no_write_replaces_a_file_the_command_reads(tmp_path):
+    """Inside :func:`inputs_kept` every write through the checked writer refuses the inputs it
+    keeps, by any name (a link, a hard link, a path through a linked folder), and the files a
+    scenario it loads names; outside one (a library user) nothing is kept."""
+    source = tmp_path / "trace.csv"
+    source.write_text("t [s],SI [mm]\n")
+    (tmp_path / "link.csv").symlink_to(source)
+    os.link(source, tmp_path / "hard.csv")
+    (tmp_path / "folder").symlink_to(tmp_path)
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_text("reference: !CsvReference {path: %s}\n" % (tmp_path / "ref.csv"))
+    (tmp_path / "ref.csv").write_text(HEADER + "0,0,0,0,0,0,0.3\n1,0,0,0,0,0,0.3\n")
+    with inputs_kept([("the motion trace.csv", source), ("--nothing", None)]):
+        for name in ("trace.csv", "link.csv", "hard.csv", "folder/trace.csv"):
+            with pytest.raises(InvalidConfigError, match=r"the same file as the motion trace.csv"):
+                atomic_write(tmp_path / name, lambda f: f.write(b"lost"))
+        load_scenario(scenario)
+        with pytest.raises(InvalidConfigError, match=r"the scenario's reference.path .*ref.csv"):
+            atomic_write(tmp_path / "ref.csv", lambda f: f.write(b"lost"))
+        atomic_write(tmp_path / "other.csv", lambda f: f.write(b"written"))
+    assert source.read_text() == "t [s],SI [mm]\n" and (tmp_path / "other.csv").exists()
+    load_scenario(scenario)  # outside: nothing is kept, nothing refused
+    atomic_write(tmp_path / "hard.csv", lambda f: f.write(b"replaced"))
+    assert source.read_text() == "t [s],SI [mm]\n"  # the hard link's name replaced, not the file
 
 
 def test_the_cleanup_removes_only_the_tool_s_temporaries_whose_writer_is_gone(tmp_path):

@@ -78,7 +78,8 @@ def _unsafe_to_restart(argv) -> str | None:
         if stream is None:
             return f"its standard {('input', 'output', 'error')[number]} is closed"
     if "-m" in argv:
-        return None if argv[argv.index("-m") + 1 :][:1] == ["stewart_drake.cli.main"] else "-m"
+        module = argv[argv.index("-m") + 1 :][:1]
+        return None if module in (["stewart_drake"], ["stewart_drake.cli.main"]) else "-m"
     script = sys.argv[0] if sys.argv else ""
     if script in ("", "-", "-c") or not os.path.isfile(script) or script not in argv:
         return "it was not started from its own script file"

@@ -8,40 +8,56 @@ index file per compiled function in the first cache folder it can write: ``NUMBA
 else ``__pycache__`` beside the source, else the user's cache folder, else (:func:`njit_cached`
 sets it) a folder in the temporary directory, made private to the user.
 
-numba's index and data files are pickles, and unpickling runs whatever a pickle names: a cache
-folder another user can write in (a folder of the shared temporary directory planted before
-ours, a ``__pycache__`` open to all) would let them run code as this user. So the folder is used
-only when it is this user's own and no one else may write in it (:func:`cache_folder_problem`);
-else the code compiles in every process, and says so once. A damaged entry (a truncated write,
-a full disk) is discarded and compiled again, and said once, instead of failing every later
-run. This module imports numba only when a function here needs
-it.
+numba's index and data files are pickles, and unpickling runs whatever a pickle names. Two
+defences keep the cache from running what this tool did not write:
+
+- A cache folder another user can write in (a folder of the shared temporary directory planted
+  before ours, a ``__pycache__`` open to all) is never used (:func:`cache_folder_problem`): the
+  code compiles in every process, said once.
+- Every index and data file is signed as it is written: an HMAC-SHA256 of its bytes and its
+  name, keyed by a secret of this user's (:func:`cache_key`: 32 random bytes in a file of mode
+  0600 in the user's configuration folder, outside every cache, made on first use), appended
+  to the file. A file is unpickled only once its signature is checked; one without a valid
+  signature (a ``__pycache__`` that came inside a downloaded archive or repository, a file
+  copied in from another machine or account, one numba wrote without this module, one cut
+  short or of random bytes) is removed unread and the code compiles again, said once. numba
+  itself still reads a signed file (pickle ignores the bytes after its end).
+
+What this does not defend: the same user. Whoever runs code as this user can read the key and
+sign a pickle of their own (they could as well edit this package or ``~/.bashrc``), so the key
+is no boundary between two programs of one account; it marks the files this user's
+stewart-drake wrote, and keeps out files from elsewhere. A damaged entry (a truncated write, a
+full disk, random bytes) fails its signature, or, if signed, whatever unpickling it raises is
+caught: either way it is discarded and compiled again instead of failing every later run. This
+module imports numba only when a function here needs it.
 """
 
 from __future__ import annotations
 
 import functools
+import hashlib
+import hmac
+import io
 import os
 import pickle
+import secrets
 import stat
 import sys
 import tempfile
 import types
 from typing import Any
 
-#: What a damaged numba cache file raises when read (pickle's errors, a truncated stream, a
-#: payload naming what no longer exists).
-DAMAGED_CACHE_ERRORS = (
-    pickle.UnpicklingError,
-    EOFError,
-    ValueError,
-    TypeError,
-    AttributeError,
-    ImportError,
-    IndexError,
-    KeyError,
-    MemoryError,
-)
+#: What reading a damaged cache file may raise: any exception. Unpickling runs the opcodes it
+#: finds, so damaged bytes raise nearly anything (pickle's errors, EOFError, OverflowError,
+#: RecursionError, struct.error, UnicodeDecodeError, a missing module or attribute, MemoryError
+#: ...); a list of them misses some. KeyboardInterrupt and SystemExit are not Exceptions and
+#: pass.
+DAMAGED_CACHE_ERRORS: tuple[type[BaseException], ...] = (Exception,)
+#: What ends a signed cache file: this marker, then the 32 bytes of its HMAC-SHA256.
+SIGNATURE_MARKER = b"stewart-drake-mac1"
+_TAG_BYTES = 32
+#: Bytes of the key that signs the cache's files.
+KEY_BYTES = 32
 _SAID: set = set()
 
 
@@ -99,6 +115,131 @@ def _private_folder(path: str) -> None:
         pass
 
 
+def key_folders() -> list[str]:
+    """Where the key that signs numba's cache is kept, in order of choice: the user's
+    configuration folder (``XDG_CONFIG_HOME``, else ``~/.config``), their cache folder
+    (``XDG_CACHE_HOME``, else ``~/.cache``), each under ``stewart-drake``, else a folder of the
+    temporary directory made private to the user (as :func:`fallback_cache_dir`)."""
+    home = os.path.expanduser("~")
+    folders = []
+    for variable, default in (("XDG_CONFIG_HOME", ".config"), ("XDG_CACHE_HOME", ".cache")):
+        base = os.environ.get(variable) or (os.path.join(home, default) if home != "~" else "")
+        if base and os.path.isabs(base):
+            folders.append(os.path.join(base, "stewart-drake"))
+    return folders + [fallback_cache_dir() + "-key"]
+
+
+def _read_key(path: str) -> bytes:
+    """The key in ``path``: a regular file (not a link) of :data:`KEY_BYTES` bytes, this user's,
+    that no one else may read or write.
+
+    Raises:
+        OSError: missing or unreadable.  ValueError: not such a file (says why).
+    """
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+    with os.fdopen(fd, "rb") as f:
+        info = os.fstat(f.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise ValueError(f"{path} is not a regular file")
+        if hasattr(os, "getuid") and info.st_uid != os.getuid():
+            raise ValueError(f"{path} belongs to user id {info.st_uid}, not to you")
+        if hasattr(os, "getuid") and info.st_mode & 0o077:
+            raise ValueError(
+                f"others may read or write {path} (mode {stat.S_IMODE(info.st_mode):o}): remove "
+                "it, a new one is made"
+            )
+        key = f.read(KEY_BYTES + 1)
+    if len(key) != KEY_BYTES:
+        raise ValueError(f"{path} does not hold a key of {KEY_BYTES} bytes: remove it")
+    return key
+
+
+def _make_key(folder: str) -> bytes:
+    """The key in ``folder``/numba-cache.key, made there (mode 0600, whole or not at all: two
+    processes making it at once keep one) if it is not; ``folder`` is made private to the user
+    and must be safe (:func:`cache_folder_problem`).
+
+    Raises:
+        OSError, ValueError: no key can be kept there (says why).
+    """
+    os.makedirs(folder, mode=0o700, exist_ok=True)
+    problem = cache_folder_problem(folder)
+    if problem is not None:
+        raise ValueError(problem)
+    path = os.path.join(folder, "numba-cache.key")
+    try:
+        return _read_key(path)
+    except FileNotFoundError:
+        pass
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".numba-cache.key.")  # mode 0600
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(secrets.token_bytes(KEY_BYTES))
+        try:
+            os.link(tmp, path)  # never replaces a key another process made meanwhile
+        except FileExistsError:
+            pass
+    finally:
+        os.remove(tmp)
+    return _read_key(path)
+
+
+@functools.cache
+def cache_key() -> tuple[bytes | None, str]:
+    """(the key that signs numba's cache files, "") or (None, why no key can be kept), once per
+    process: the first of :func:`key_folders` where a key is, or can be made."""
+    problems = []
+    for folder in key_folders():
+        try:
+            return _make_key(folder), ""
+        except (OSError, ValueError) as err:
+            problems.append(f"{folder}: {getattr(err, 'strerror', None) or err}")
+    return None, "; ".join(problems)
+
+
+def _tag(key: bytes, path: str, payload: bytes) -> bytes:
+    """HMAC-SHA256 of a cache file's ``payload`` and its name (not its folder: a cache copied
+    or moved by its user stays valid)."""
+    name = os.path.basename(path).encode("utf-8", "surrogateescape")
+    message = b"stewart-drake numba cache\0" + name + b"\0" + payload
+    return hmac.new(key, message, hashlib.sha256).digest()
+
+
+def signed(key: bytes, path: str, payload: bytes) -> bytes:
+    """``payload`` (the bytes numba writes at ``path``) with its signature appended."""
+    return payload + SIGNATURE_MARKER + _tag(key, path, payload)
+
+
+def verified(key: bytes, path: str, raw: bytes) -> bytes | None:
+    """The payload of ``raw``, the bytes read at ``path``, when its signature is valid, else
+    None (none, another key's, or bytes changed since)."""
+    end = len(SIGNATURE_MARKER) + _TAG_BYTES
+    if len(raw) < end or raw[-end:-_TAG_BYTES] != SIGNATURE_MARKER:
+        return None
+    payload = raw[:-end]
+    return payload if hmac.compare_digest(raw[-_TAG_BYTES:], _tag(key, path, payload)) else None
+
+
+def load_signed_index(path) -> tuple | None:
+    """(numba's version, the source's stamp, the overloads) of numba's index file ``path``,
+    or None when it is missing, unsigned (:func:`verified`) or damaged; nothing is unpickled
+    before its signature is checked."""
+    key, _ = cache_key()
+    if key is None:
+        return None
+    try:
+        with open(path, "rb") as f:
+            payload = verified(key, str(path), f.read())
+        if payload is None:
+            return None
+        stream = io.BytesIO(payload)
+        version = pickle.load(stream)
+        stamp, overloads = pickle.loads(stream.read())
+        return version, stamp, overloads
+    except DAMAGED_CACHE_ERRORS:
+        return None
+
+
 def njit_cached(function, cache: bool = True, **options):
     """``numba.njit(cache=True, **options)(function)``, with the cache in a folder that is safe
     to load from (:func:`cache_folder_problem`) and damaged entries compiled again; without the
@@ -141,6 +282,14 @@ def njit_cached(function, cache: bool = True, **options):
             "a folder of your own that no one else may write in",
         )
         return numba.njit(**options)(function)
+    key, why = cache_key()
+    if key is None:
+        _say_once(
+            ("no key",),
+            f"no key to sign numba's cache can be kept ({why}); compiling without a disk cache "
+            "(every run compiles again): set XDG_CONFIG_HOME to a folder of your own",
+        )
+        return numba.njit(**options)(function)
     cache_file = dispatcher._cache._cache_file
     cache_file.__class__ = _recovering(type(cache_file))  # type: ignore[arg-type]
     return dispatcher
@@ -148,34 +297,80 @@ def njit_cached(function, cache: bool = True, **options):
 
 @functools.cache
 def _recovering(base: type) -> type:
-    """numba's cache file class ``base`` (its ``IndexDataCacheFile``), whose reads discard a
-    damaged index or data file and compile again instead of raising."""
+    """numba's cache file class ``base`` (its ``IndexDataCacheFile``), whose files are signed as
+    they are written (:func:`signed`) and read only when their signature holds
+    (:func:`verified`): a file that is unsigned, of another key or damaged is removed unread and
+    the code compiles again, and whatever unpickling a signed file raises does the same."""
 
     class _RecoveringCacheFile(base):
-        def _discard(self, path: str, err: BaseException) -> None:
+        def _discard(self, path: str, why: str) -> None:
             try:
                 os.remove(path)
             except OSError:
                 pass
             _say_once(
-                ("damaged", path),
-                f"numba's cache file {path} was damaged ({type(err).__name__}); it was removed "
-                "and the code compiles again",
+                ("discarded",),  # one line, whichever files follow
+                f"numba's cache file {path} was damaged or not written by stewart-drake for "
+                f"you ({why}): it was removed and the code compiles again (so is any other "
+                "such file, unread)",
             )
+
+        def _payload(self, path: str) -> bytes | None:
+            """The verified payload of ``path``, or None (the file discarded).
+
+            Raises:
+                OSError: the file cannot be read (missing: numba's own handling follows).
+            """
+            with open(path, "rb") as f:
+                raw = f.read()
+            payload = verified(cache_key()[0] or b"", path, raw)
+            if payload is None:
+                self._discard(path, "no valid signature")
+            return payload
 
         def _load_index(self):
             try:
-                return super()._load_index()
-            except DAMAGED_CACHE_ERRORS as err:
-                self._discard(self._index_path, err)
+                payload = self._payload(self._index_path)
+            except FileNotFoundError:
                 return {}
+            except OSError as err:
+                self._discard(self._index_path, type(err).__name__)
+                return {}
+            if payload is None:
+                return {}
+            try:
+                stream = io.BytesIO(payload)
+                if pickle.load(stream) != self._version:  # another numba's: it is rewritten
+                    return {}
+                stamp, overloads = pickle.loads(stream.read())
+            except DAMAGED_CACHE_ERRORS as err:
+                self._discard(self._index_path, type(err).__name__)
+                return {}
+            return overloads if stamp == self._source_stamp else {}
 
         def _load_data(self, name):
-            try:
-                return super()._load_data(name)
-            except DAMAGED_CACHE_ERRORS as err:
-                self._discard(self._data_path(name), err)
+            path = self._data_path(name)
+            payload = self._payload(path)  # an OSError: numba's load() returns None
+            if payload is None:
                 return None
+            try:
+                return pickle.loads(payload)
+            except DAMAGED_CACHE_ERRORS as err:
+                self._discard(path, type(err).__name__)
+                return None
+
+        def _save_index(self, overloads):
+            payload = pickle.dumps(self._version, protocol=-1)
+            self._write_signed(
+                self._index_path, payload + self._dump((self._source_stamp, overloads))
+            )
+
+        def _save_data(self, name, data):
+            self._write_signed(self._data_path(name), self._dump(data))
+
+        def _write_signed(self, path: str, payload: bytes) -> None:
+            with self._open_for_write(path) as f:
+                f.write(signed(cache_key()[0] or b"", path, payload))
 
     _RecoveringCacheFile.__name__ = _RecoveringCacheFile.__qualname__ = "_RecoveringCacheFile"
     return _RecoveringCacheFile

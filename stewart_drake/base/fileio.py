@@ -2,7 +2,8 @@
 
 Writing: a reader never sees a half-written file, even after Ctrl-C (:func:`atomic_write`), and
 only regular files are ever replaced: a device node, a FIFO or a socket where an output is due
-is refused by name (:func:`check_replaceable`), never renamed over.
+is refused by name (:func:`check_replaceable`), never renamed over; nor is a file the running
+command reads (:func:`inputs_kept`: the same path, a link to it, a hard link).
 Reading: every file the tool reads goes through :func:`read_checked` (a regular file, its size
 bounded before a byte is read: a FIFO cannot block the reader, a sparse 100 GB file cannot
 exhaust the memory). :class:`CheckedNpz` and :func:`read_json` then turn whatever a damaged file
@@ -16,6 +17,7 @@ vanished file), never a symptom of the content.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -61,24 +63,119 @@ def describe_mode(mode: int) -> str:
 
 
 def check_replaceable(path, what: str | None = None) -> None:
-    """Refuse to write over ``path`` unless it is absent or a regular file (symlinks followed).
+    """Refuse to write over ``path`` unless it is absent or a regular file (symlinks followed)
+    that is none of the running command's inputs (:func:`inputs_kept`).
 
     Args:
         path: the output.  what: how the message names it (default the path), e.g.
             "--out /tmp/x".
     Raises:
         InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder; the tool
-            replaces only regular files, so the message says to choose another output.
+            replaces only regular files, so the message says to choose another output. Or
+            ``path`` is the same file as an input of the command (:func:`check_not_an_input`).
     """
     try:
         mode = os.stat(path).st_mode
     except (FileNotFoundError, NotADirectoryError):
-        return
-    if not stat.S_ISREG(mode):
+        mode = None
+    if mode is not None and not stat.S_ISREG(mode):
         raise InvalidConfigError(
             f"{what or path} is {describe_mode(mode)}, not a regular file: "
             f"stewart-drake replaces only regular files; choose another "
             f"output"
+        )
+    check_not_an_input(path, what)
+
+
+#: The inputs of the command running, (how a message names it, path, whether it is a folder
+#: whose every file is read), while :func:`inputs_kept` holds them; empty otherwise.
+_INPUTS: list[tuple[str, str, bool]] = []
+#: How many :func:`inputs_kept` blocks are open: :func:`note_input` adds only inside one.
+_KEEPING: list[int] = [0]
+
+
+@contextlib.contextmanager
+def inputs_kept(named=()):
+    """While the block runs, refuse every output that is the same file as one of the command's
+    inputs: ``named``, (how a message names it, path) pairs (a folder stands for every file
+    under it), and those :func:`note_input` adds meanwhile. Every output goes through
+    :func:`check_replaceable` (:func:`atomic_write` calls it), so a command never writes over
+    what it reads: ``calibrate --join A B --out A`` is refused. The command line
+    (:func:`stewart_drake.cli.main.main`) holds one around each command.
+
+    Args:
+        named: iterable of (str, path-like); a path of None is skipped.
+    """
+    before = list(_INPUTS)
+    _KEEPING[0] += 1
+    try:
+        for what, path in named:
+            note_input(what, path)
+        yield
+    finally:
+        _KEEPING[0] -= 1
+        _INPUTS[:] = before
+
+
+def note_input(what: str, path) -> None:
+    """Add ``path`` (named ``what`` in messages, e.g. "--scenario my.yaml") to the inputs an
+    open :func:`inputs_kept` block keeps; outside one, do nothing."""
+    if path is None or not str(path) or not _KEEPING[0]:
+        return
+    _INPUTS.append((what, str(path), os.path.isdir(path)))
+
+
+def same_file(a, b) -> bool:
+    """Whether paths ``a`` and ``b`` name one file: the same inode (a link, a hard link, a
+    path through a linked folder) when both exist, else the same path once links and ``..``
+    are resolved."""
+    try:
+        sa, sb = os.stat(a), os.stat(b)
+    except (OSError, ValueError):
+        return os.path.realpath(a) == os.path.realpath(b)
+    return (sa.st_dev, sa.st_ino) == (sb.st_dev, sb.st_ino)
+
+
+def _in_folder(path, folder) -> bool:
+    """Whether the existing file ``path`` is under ``folder``, by its resolved path or, for a
+    file of several hard links, by its inode."""
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return False
+    real, top = os.path.realpath(path), os.path.realpath(folder)
+    if real.startswith(top.rstrip(os.sep) + os.sep):
+        return True
+    if info.st_nlink < 2:
+        return False
+    for root, _, files in os.walk(top):
+        for name in files:
+            try:
+                other = os.stat(os.path.join(root, name))
+            except OSError:
+                continue
+            if (other.st_dev, other.st_ino) == (info.st_dev, info.st_ino):
+                return True
+    return False
+
+
+def check_not_an_input(path, what: str | None = None) -> None:
+    """Refuse ``path`` as an output when it is the same file (:func:`same_file`) as an input
+    the open :func:`inputs_kept` block keeps, or an existing file in an input folder.
+
+    Raises:
+        InvalidConfigError: names the output (``what``, default the path) and the input.
+    """
+    for name, source, folder in _INPUTS:
+        if folder and not _in_folder(path, source):
+            continue
+        if not folder and not same_file(path, source):
+            continue
+        how = "a file of" if folder else "the same file as"
+        shown = name if str(source) in name else f"{name} ({source})"
+        raise InvalidConfigError(
+            f"{what or path} is {how} {shown}, which this command reads: stewart-drake never "
+            f"writes over its own input; choose another output"
         )
 
 

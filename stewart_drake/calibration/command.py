@@ -65,7 +65,19 @@ def register(sub) -> None:
     add_rehearsal_arguments(cal)
     cal.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     # --scenario given or not: without it, the bus rehearsal takes the robot's bus scenario.
-    cal.set_defaults(func=_cmd_calibrate, out_is_file=True, scenario=None)
+    cal.set_defaults(
+        func=_cmd_calibrate, out_is_file=True, scenario=None, derived_inputs=_derived_inputs
+    )
+
+
+def _derived_inputs(args) -> list:
+    """The file ``calibrate`` reads beside one its options name: ``--plan-file``'s windows
+    file (with ``--join``)."""
+    if args.plan_file is None:
+        return []
+    from .files import windows_path
+
+    return [(f"--plan-file {args.plan_file}'s windows file", windows_path(args.plan_file))]
 
 
 def _cmd_calibrate(args) -> int:

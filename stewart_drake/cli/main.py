@@ -9,8 +9,9 @@ results folder of other settings or in use by another study, lost jobs), 1 for a
 read or written, 130 for Ctrl-C, 143 for SIGTERM and 129 for SIGHUP (128 + the signal: every command
 handles the three alike, within a second or two). Every output (folder, file, the sub-folders a
 command writes into) is checked before any work starts
-(:func:`~stewart_drake.execution.options.check_output`), so a long run never ends in a failed save
-and a device node, FIFO or socket is never replaced; the hidden temporaries a killed write left
+(:func:`~stewart_drake.execution.options.check_outputs`), so a long run never ends in a failed save,
+a device node, FIFO or socket is never replaced, and no output is one of the command's own inputs
+(:func:`~stewart_drake.base.fileio.inputs_kept`); the hidden temporaries a killed write left
 there (the tool's own, whose writer is gone) are removed.
 """
 
@@ -24,7 +25,7 @@ import threading
 from pathlib import Path
 
 from ..base.errors import StewartError
-from ..execution.options import check_output
+from ..execution.options import check_outputs, command_inputs
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
 #: with the folder under ``--out`` that keeps them.
@@ -56,10 +57,11 @@ def _interruptible():
 def main(argv: list[str] | None = None) -> int:
     from .. import _interrupted_while_starting
 
-    # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
-    if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+    starting = signal.getsignal(signal.SIGINT) is _interrupted_while_starting
     try:
+        # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
+        if starting:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
         restore = _interruptible()
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
@@ -68,6 +70,8 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         for signum, handler in restore.items():
             signal.signal(signum, handler)
+        if starting:  # the console script's last lines and the interpreter's exit: one line too
+            signal.signal(signal.SIGINT, _interrupted_while_starting)
         from ..execution.runners import forget_interrupts
 
         forget_interrupts()
@@ -124,11 +128,12 @@ def _main(argv: list[str] | None) -> int:
             raise
         return _interrupted(KeyboardInterrupt(), "", None)
     try:
-        if getattr(args, "out", None) is not None:
-            check_output(
-                args.out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ())
-            )
-        return int(args.func(args) or 0)
+        from ..base.fileio import inputs_kept
+
+        # What the command reads is kept from what it writes, from its first check to its end.
+        with inputs_kept(command_inputs(args)):
+            check_outputs(args)
+            return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 2

@@ -6,10 +6,11 @@ decided from the cache without importing it (importing it is what compiles).
 numba keeps one index file per compiled function, ``<module>.<function>-<line>.py<XY>.nbi``, in
 the first cache folder it can write: ``NUMBA_CACHE_DIR`` (a sub-folder per source folder), else
 ``__pycache__`` beside the source, else the user's cache folder, else (:func:`njit_cached` sets
-it) a folder in the temporary directory. An index is valid when numba's version wrote it, its
-stamp is the digest of the source file as it is now, and it holds an entry compiled for this
-machine's CPU. The same cache is bypassed when the sources the kernels freeze in have changed
-(:func:`sources_digest`). This module imports numba only when a function here needs it.
+it) a folder in the temporary directory. An index is valid when this user's stewart-drake signed
+it (:mod:`stewart_drake.base.compiled`), numba's version wrote it, its stamp is the digest of the
+source file as it is now, and it holds an entry compiled for this machine's CPU. The same cache
+is bypassed when the sources the kernels freeze in have changed (:func:`sources_digest`). This
+module imports numba only when a function here needs it.
 """
 
 from __future__ import annotations
@@ -18,13 +19,12 @@ import glob
 import hashlib
 import inspect
 import os
-import pickle
 import sys
 from pathlib import Path
 
 # How the kernels are compiled, and their uncompiled form: the package's one convention, in base
 # (the robot's validator compiles its kernels the same way), named here for the LQI's modules.
-from ..base.compiled import cache_folder_problem
+from ..base.compiled import cache_folder_problem, load_signed_index
 from ..base.compiled import fallback_cache_dir as fallback_cache_dir
 from ..base.compiled import interpreted as interpreted
 from ..base.compiled import njit_cached as njit_cached
@@ -111,18 +111,17 @@ def _host_cpu() -> tuple[str, str]:
 
 
 def _valid_index(path: str, stamps: tuple, cpu: tuple[str, str]) -> bool:
-    """Whether numba's index file ``path`` is this source's (its stamp one of ``stamps``), of
-    this numba, and holds an entry compiled for ``cpu``."""
+    """Whether numba's index file ``path`` is one this user's stewart-drake signed
+    (:func:`~stewart_drake.base.compiled.load_signed_index`: nothing is unpickled before), of
+    this numba, this source's (its stamp one of ``stamps``), and holds an entry compiled for
+    ``cpu``."""
     import numba
 
-    try:
-        with open(path, "rb") as f:
-            if pickle.load(f) != numba.__version__:
-                return False
-            saved, overloads = pickle.loads(f.read())
-    except (OSError, EOFError, ValueError, TypeError, pickle.UnpicklingError, AttributeError):
-        return False  # a damaged or foreign index: numba compiles again too
-    if saved not in stamps:
+    index = load_signed_index(path)
+    if index is None:
+        return False  # missing, unsigned or damaged: numba compiles again too
+    version, saved, overloads = index
+    if version != numba.__version__ or saved not in stamps:
         return False
     return any(tuple(key[1][1:]) == cpu for key in overloads)
 

@@ -74,7 +74,19 @@ def _add_design_command(sub) -> None:
     dsg.add_argument("--out", default="results/design", help="output folder")
     add_runner_arguments(dsg)
     dsg.add_argument("--no-progress", action="store_true", help="hide the progress bars")
-    dsg.set_defaults(func=_cmd_design, out_sub=("search", "diverged"))
+    dsg.set_defaults(func=_cmd_design, out_sub=("search", "diverged"), out_files=DESIGN_FILES)
+
+
+#: The files ``design`` writes in its ``--out`` folder (checked before the search).
+DESIGN_FILES = (
+    "design_objective.yaml",
+    "design_cheapest.yaml",
+    "designs.json",
+    "design.md",
+    "front.png",
+    "designs.png",
+    "margins.png",
+)
 
 
 def _cmd_design(args) -> int:

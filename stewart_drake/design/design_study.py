@@ -199,6 +199,12 @@ def _write_scenario(path: Path, design: Design, requirements, base) -> None:
     atomic_write(path, lambda f: f.write(text))
 
 
+def _save_png(fig, path: Path) -> None:
+    """``fig`` as a PNG at ``path``, written atomically (a link there is replaced, never
+    written through)."""
+    atomic_write(path, lambda f: fig.savefig(f, format="png", dpi=120))
+
+
 def _fmt(value, digits: int = 4) -> str:
     return "-" if value is None else f"{value:.{digits}g}"
 
@@ -354,7 +360,7 @@ def _plot_margins(out: Path, columns: list, colours: dict) -> Path:
     ax.set_ylabel("margin (>= 0: met; clipped to [-1, 3])")
     ax.set_title("What each design keeps in reserve")
     ax.legend(fontsize=8)
-    fig.savefig(out / "margins.png", dpi=120)
+    _save_png(fig, out / "margins.png")
     plt.close(fig)
     return out / "margins.png"
 
@@ -391,7 +397,7 @@ def _plot_designs(out: Path, columns: list, colours: dict) -> Path:
     )
     side.set(title="side view at home", xlabel="X (m)", ylabel="Z (m)", aspect="equal")
     top.legend(fontsize=8, loc="upper right")
-    fig.savefig(out / "designs.png", dpi=120)
+    _save_png(fig, out / "designs.png")
     plt.close(fig)
     return out / "designs.png"
 
@@ -404,7 +410,7 @@ def _plot_front(out: Path, outcome: DesignOutcome) -> Path:
     fig, (conv, ax) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     _plot_convergence(conv, outcome.searches[0])
     _plot_cost_against_torque(ax, outcome)
-    fig.savefig(out / "front.png", dpi=120)
+    _save_png(fig, out / "front.png")
     plt.close(fig)
     return out / "front.png"
 

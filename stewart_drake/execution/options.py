@@ -106,6 +106,95 @@ def check_output(path, option: str = "--out", is_file: bool = False, sub=()) -> 
     return path
 
 
+#: The options of the commands (argparse destinations) that name a file the command reads, or a
+#: folder whose files it reads (``train --data``), with how a message names each: nothing a
+#: command writes may be one of them (:func:`command_inputs`, :func:`check_outputs`).
+INPUT_OPTIONS = {
+    "scenario": "--scenario",
+    "source": "the scenario",
+    "trajectory_file": "--trajectory-file",
+    "tuner_weights": "--tuner-weights",
+    "reference": "the reference",
+    "motion": "the motion",
+    "learned": "--learned",
+    "data": "--data",
+    "requirements": "the requirements",
+    "measured": "--measured",
+    "registration": "--registration",
+    "measurements": "the measurements",
+    "join": "--join",
+    "plan_file": "--plan-file",
+}
+#: The options that name a file a command writes, beside ``--out`` (each command checks them
+#: as it checks its other outputs; :func:`check_outputs` holds them apart from the inputs first).
+OUTPUT_FILE_OPTIONS = {
+    "html": "--html",
+    "save_learned": "--save-learned",
+    "save_registration": "--save-registration",
+    "save_measurements": "--save-measurements",
+}
+
+
+def _input_path(dest: str, value) -> Path | None:
+    """The file an input option's ``value`` names, or None when it names none: a shipped
+    scenario's name is its file, ``--learned library`` the shipped model, and a motion or a
+    reference that is a name of the library (no suffix, no folder) no file."""
+    if value is None or not str(value).strip():
+        return None
+    path = Path(str(value))
+    if dest in ("scenario", "source") and not path.exists():
+        from ..run.scenario_io import shipped_scenarios
+
+        return shipped_scenarios().get(str(value))
+    if dest in ("motion", "reference") and not is_trace_file(str(value)):
+        return None
+    if dest == "learned" and str(value) == "library":
+        from ..control.feedforward_basis import LIBRARY_MODEL
+
+        return LIBRARY_MODEL
+    return path
+
+
+def command_inputs(args) -> list[tuple[str, Path]]:
+    """(how a message names it, path) of every file or folder the command of ``args`` reads by
+    its options (:data:`INPUT_OPTIONS`), and those its ``derived_inputs(args)`` adds (a file
+    found beside one, e.g. ``--plan-file``'s windows file)."""
+    found = []
+    for dest, option in INPUT_OPTIONS.items():
+        values = getattr(args, dest, None)
+        for value in values if isinstance(values, (list, tuple)) else [values]:
+            path = _input_path(dest, value)
+            if path is not None:
+                found.append((f"{option} {value}", path))
+    derived = getattr(args, "derived_inputs", None)
+    return found + (list(derived(args)) if derived is not None else [])
+
+
+def check_outputs(args) -> None:
+    """Every output the command of ``args`` names, checked before any work: ``--out``
+    (:func:`check_output`, a file or a folder with its ``out_sub`` folders and the files
+    ``out_files`` it writes there), and the other files it writes (:data:`OUTPUT_FILE_OPTIONS`)
+    apart from its inputs. Call inside
+    :func:`~stewart_drake.base.fileio.inputs_kept` (:func:`command_inputs`): an output that is
+    one of the inputs (the same path, a link to it, a hard link) is refused naming both.
+
+    Raises:
+        InvalidConfigError: names the option, the output and what to change.
+    """
+    from ..base.fileio import check_not_an_input, check_replaceable
+
+    for dest, option in OUTPUT_FILE_OPTIONS.items():
+        value = getattr(args, dest, None)
+        if value is not None and str(value).strip():
+            check_not_an_input(value, f"{option} {value}")
+    out = getattr(args, "out", None)
+    if out is None:
+        return
+    check_output(out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ()))
+    for name in getattr(args, "out_files", ()):
+        check_replaceable(Path(out) / name)
+
+
 #: Folders of the operating system a report is never written into (nor anywhere below them),
 #: even by a user allowed to: a report there is a mistake, and it would mix with system files.
 SYSTEM_FOLDERS = (

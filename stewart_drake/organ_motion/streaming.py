@@ -430,7 +430,7 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
     a1.legend(loc="upper right", fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
     png = stem.with_suffix(".png")
-    fig.savefig(png, dpi=110)
+    atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
     md_text = "\n".join(
         [f"# {name} followed as it arrives", "", f"**{lines[0]}**", "",

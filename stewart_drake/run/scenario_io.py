@@ -62,7 +62,13 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
         InvalidConfigError, InvalidGeometryError, MissingFileError: a bad override, or a value
             out of range (named by file and field path).
     """
-    from ..base.fileio import YAML_BYTES_PER_BYTE, check_parse_memory, decode_text, read_checked
+    from ..base.fileio import (
+        YAML_BYTES_PER_BYTE,
+        check_parse_memory,
+        decode_text,
+        note_input,
+        read_checked,
+    )
 
     shipped = shipped_scenarios()
     if not isinstance(source, (str, Path)):
@@ -110,11 +116,38 @@ def load_scenario(source="paper_ideal", overrides: typing.Sequence[str] = ()) ->
     for override in overrides:
         apply_override(scenario, override)
     try:
-        return scenario.validate()
+        scenario = scenario.validate()
     except StewartError as err:
         raise _in_file(
             err, f"{path} with --set {', '.join(overrides)}" if overrides else path
         ) from None
+    for field, named in scenario_files(scenario):  # a command never writes over them
+        note_input(f"the scenario's {field} {named}", named)
+    return scenario
+
+
+#: The fields of a scenario's sections that name a file it reads: a reference's CSV or trace,
+#: a tuner's weights, a learned feed-forward model.
+FILE_FIELDS = ("path", "weights", "learned_from")
+
+
+def scenario_files(scenario) -> list[tuple[str, str]]:
+    """(field path, file) of every file ``scenario`` names (:data:`FILE_FIELDS` of any of its
+    sections, e.g. ``("reference.path", "trace.csv")``), empty names left out."""
+    found: list[tuple[str, str]] = []
+
+    def walk(value, prefix: str) -> None:
+        if not dataclasses.is_dataclass(value) or isinstance(value, type):
+            return
+        for field in dataclasses.fields(value):
+            item = getattr(value, field.name, None)
+            if field.name in FILE_FIELDS and isinstance(item, str) and item:
+                found.append((prefix + field.name, item))
+            else:
+                walk(item, f"{prefix}{field.name}.")
+
+    walk(scenario, "")
+    return found
 
 
 def read_yaml_text(path, kind: str, max_bytes: float, remedy: str) -> str:
