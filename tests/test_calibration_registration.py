@@ -1,11 +1,10 @@
 """The tracker's frames registered to the robot's from fiducials: the weighted rigid fit and its
 covariance (against Monte Carlo), the conversion of marker poses in the tracker's frame to
 platform poses in the base frame (against Drake's RigidTransform), REG.yaml's reader on good
-and hostile files; the identification of registered poses (the frames' error in its
-covariance), ``calibrate --registration`` end to end on emulated measurements, and the warning
-of an identification whose pivots or platform joints moved as one rigid body."""
+and hostile files. Fast unit tests only (tools/mutation.py runs them against every mutant of
+calibration/registration.py); the identification of registered poses and the command are
+tests/test_calibration_registered.py's."""
 
-import dataclasses
 import re
 
 import numpy as np
@@ -14,11 +13,8 @@ from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 from scipy.spatial.transform import Rotation
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
-from stewart_drake.calibration import files, identify, poses, rehearsal, report, tracker, validation
+from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration import registration as rg
-from stewart_drake.cli import main as cli
-from stewart_drake.robot import kinematics, tolerances
-from stewart_drake.robot import legs as model
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.kinematics import rotation_rpy
 
@@ -45,6 +41,47 @@ def _log(X: RigidTransform) -> np.ndarray:
     )
 
 
+def _kabsch(a, b, w):
+    """(R, t) of the weighted rigid fit a ~ R b + t, written out (the SVD of the weighted
+    cross-covariance, its reflection removed)."""
+    ca, cb = w @ a / w.sum(), w @ b / w.sum()
+    U, _, Vt = np.linalg.svd(((b - cb) * w[:, None]).T @ (a - ca))
+    R = Vt.T @ np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))]) @ U.T
+    return R, ca - R @ cb
+
+
+def _central(f, n: int, h: float) -> np.ndarray:
+    """(m, n) the Jacobian of f (n,) -> (m,) at 0 by central differences of step h."""
+    return np.column_stack([(f(h * u) - f(-h * u)) / (2 * h) for u in np.eye(n)])
+
+
+def _fit_normal_matrix(X, p_A, p_B, w):
+    """(6, 6) J^T W J of the residuals p_A - X Exp(e) p_B (w per point, on each axis), J by
+    central differences in e, the error of X in B."""
+
+    def residuals(e):
+        return (p_A - (X @ _exp(e)).multiply(p_B.T).T).ravel()
+
+    J = _central(residuals, 6, 1e-6)
+    return J.T @ (np.repeat(w, 3)[:, None] * J)
+
+
+def _assert_covariance(stated, expected, tol):
+    """Each entry of a covariance within ``tol`` of the other, in units of the product of the
+    two standard deviations (a correlation's units: the rotation's, the translation's and the
+    cross block each in its own), and each standard deviation within ``tol``, relative."""
+    s = np.sqrt(np.diag(expected))
+    np.testing.assert_allclose(np.sqrt(np.diag(stated)), s, rtol=tol, atol=0)
+    np.testing.assert_allclose(stated / np.outer(s, s), expected / np.outer(s, s), atol=tol)
+
+
+def _whitened_moment(errors, cov):
+    """(6, 6) the second moment about 0 of errors (K, 6) whitened by ``cov``: the identity when
+    ``cov`` is their covariance and they have no bias, block by block, without units."""
+    z = np.linalg.solve(np.linalg.cholesky(cov), errors.T).T
+    return z.T @ z / len(z)
+
+
 def test_the_weighted_fit_recovers_a_known_frame_with_the_covariance_it_states():
     X_AB = RigidTransform(RollPitchYaw(0.1, -0.2, 0.52), [1.0, 0.2, 0.1])
     p_B = np.array(
@@ -60,13 +97,92 @@ def test_the_weighted_fit_recovers_a_known_frame_with_the_covariance_it_states()
         errors.append(e)
         d2.append(e @ np.linalg.solve(cov, e))
     errors = np.array(errors)
-    # The stated covariance is the scatter's, entry by entry, to Monte Carlo's precision.
+    # The stated covariance is the scatter's, entry by entry, to Monte Carlo's precision: the
+    # errors whitened by it have the identity for second moment (the cross block too, in
+    # consistent units; sampling error about 0.03).
     scatter = np.cov(errors.T)
     np.testing.assert_allclose(np.sqrt(np.diag(scatter)), np.sqrt(np.diag(cov)), rtol=0.06)
-    assert np.max(np.abs(scatter - cov)) < 0.1 * np.max(np.abs(cov))
+    np.testing.assert_allclose(_whitened_moment(errors, cov), np.eye(6), atol=0.1)
+    assert np.abs(cov[:3, 3:]).max() > 0.3 * np.sqrt(cov[0, 0] * cov[3, 3])  # a cross block
     assert np.mean(d2) == pytest.approx(6.0, rel=0.1)  # chi-square of 6 degrees of freedom
     assert np.max(np.abs(errors.mean(axis=0)) / np.sqrt(np.diag(cov))) < 0.1  # unbiased
     assert 1e-6 < rms < 1e-5 and np.sqrt(cov[0, 0]) < 2e-5
+
+
+def test_the_fit_is_the_weighted_kabsch_fit_with_its_normal_matrix_s_inverse_for_covariance():
+    """The frame fitted is the weighted Kabsch fit written out; the covariance stated is
+    (J^T W J)^-1, J the residuals' Jacobian in the error e (true X_AB = X_AB Exp(e), e in B) by
+    central differences, each block in its own units. Without weights, the same J^T J's inverse
+    times the residuals' sum of squares over their 3 n - 6 degrees of freedom; rms their RMS."""
+    X_AB = RigidTransform(RollPitchYaw(0.1, -0.2, 0.52), [1.0, 0.2, 0.1])
+    p_B = np.array(
+        [[0.22, 0, -0.08], [0, 0.22, -0.08], [-0.22, 0, -0.06], [0, -0.2, -0.08], [0.1, 0.1, 0.0]]
+    )
+    sigma = np.array([2e-6, 2e-6, 4e-6, 2e-6, 8e-6])
+    p_A = X_AB.multiply(p_B.T).T + np.random.default_rng(7).normal(0.0, 1.0, p_B.shape) * 3e-6
+    for w in (sigma**-2.0, None):
+        X, cov, rms = rg.fit_frame(p_A, p_B, w)
+        weights = np.ones(5) if w is None else w
+        R, t = _kabsch(p_A, p_B, weights)
+        np.testing.assert_allclose(X.rotation().matrix(), R, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(X.translation(), t, rtol=0, atol=1e-12)
+        residual = p_A - X.multiply(p_B.T).T
+        assert rms == pytest.approx(np.sqrt(np.mean(np.sum(residual**2, axis=1))), rel=1e-12)
+        expected = np.linalg.inv(_fit_normal_matrix(X, p_A, p_B, weights))
+        if w is None:
+            expected *= np.sum(residual**2) / (3 * 5 - 6)
+        _assert_covariance(cov, expected, 1e-6)
+
+
+def test_the_fit_refuses_what_fixes_no_frame():
+    """Points not (n, 3) (each named), weights not one per point or not > 0; and points that
+    lie on one line once weighted (the fourth point off the line weighs 1e-8 of the others)."""
+    rng = np.random.default_rng(8)
+    b = rng.uniform(-0.2, 0.2, (4, 3))
+    with pytest.raises(InvalidConfigError, match="points_a"):
+        rg.fit_frame(rng.random((3, 4)), rng.random((3, 4)))
+    with pytest.raises(InvalidConfigError, match="points_b"):
+        rg.fit_frame(rng.random((4, 3)), rng.random((3, 4)))
+    with pytest.raises(InvalidConfigError, match="weights"):
+        rg.fit_frame(b, b, np.ones(5))
+    with pytest.raises(InvalidConfigError, match="weight must be > 0"):
+        rg.fit_frame(b, b, [1.0, 1.0, 0.0, 1.0])
+    line = np.array([[-0.1, 0, 0], [0, 0, 0], [0.1, 0, 0], [0, 0.1, 0]])
+    assert rg.fit_frame(line, line)[2] == 0.0
+    with pytest.raises(InvalidConfigError, match="lie on one line"):
+        rg.fit_frame(line, line, [1.0, 1.0, 1.0, 1e-8])
+
+
+def test_the_spread_off_a_line_is_the_ratio_of_the_weighted_cloud_s_axes():
+    """line_spread: sqrt of the weighted covariance's second eigenvalue over its first, written
+    out for clouds whose covariance is diagonal: a 2 x 1 rectangle (0.5) anywhere in space; three
+    points on a line and one off it, plainly (sqrt(0.375)) and with the fourth weighing eps;
+    points on a line, one point, one point twice: 0."""
+    rectangle = np.array([[2.0, 1, 0], [-2, 1, 0], [2, -1, 0], [-2, -1, 0]]) + [5.0, -3.0, 7.0]
+    assert rg.line_spread(rectangle) == pytest.approx(0.5, rel=1e-12)
+    cloud = np.array([[-1.0, 0, 0], [0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    assert rg.line_spread(cloud) == pytest.approx(np.sqrt(0.375), rel=1e-12)
+    eps = 3e-4
+    m = eps / (3 + eps)  # the weighted mean's y
+    yy, xx = (3 * m**2 + eps * (1 - m) ** 2) / (3 + eps), 2 / (3 + eps)
+    spread = rg.line_spread(cloud, [1.0, 1.0, 1.0, eps])
+    assert spread == pytest.approx(np.sqrt(yy / xx), rel=1e-9)
+    assert rg.line_spread(cloud[:3]) == 0.0 and rg.line_spread(cloud[:1]) == 0.0
+    assert rg.line_spread(np.array([[1.0, 2, 3], [1, 2, 3]])) == 0.0
+
+
+def test_the_rows_of_the_rigid_fit_are_its_derivative():
+    """rigid_fit_rows: the small rigid motion the fit gives to points displaced by d, e = L d,
+    against fit_frame's by central differences (weighted and not)."""
+    b = SETUP.base_B
+    for w in (np.array([1.0, 2.0, 0.5, 4.0]) * 1e10, None):
+        L = rg.rigid_fit_rows(b, w)
+
+        def motion(d, w=w):
+            return _log(rg.fit_frame(b + d.reshape(-1, 3), b, w)[0])
+
+        np.testing.assert_allclose(L, _central(motion, b.size, 1e-7), rtol=0, atol=1e-6)
+        assert L.shape == (6, 12) and np.abs(L).max() > 1.0
 
 
 def test_the_unweighted_fit_takes_the_noise_from_its_residuals():
@@ -114,6 +230,9 @@ def test_the_pose_jacobians_are_how_the_frames_errors_move_the_converted_poses()
 
 
 def test_the_pose_covariances_are_the_marker_noise_moved_to_the_platform_frame():
+    """Against Monte Carlo of the tracker's noise (the converted poses' errors whitened by the
+    stated covariance: the identity, every block in consistent units) and exactly against the
+    conversion's Jacobian by central differences (a small rotation of the marker in T, a shift)."""
     reg = SETUP.registration()
     x_TM = SETUP.tracker_poses(POSES_BP)
     rng = np.random.default_rng(4)
@@ -122,10 +241,25 @@ def test_the_pose_covariances_are_the_marker_noise_moved_to_the_platform_frame()
     for k, x in enumerate(POSES_BP):
         xc = reg.base_poses(noisy[:, k])
         turn = Rotation.from_matrix(rotation_rpy(xc[:, :3]) @ rotation_rpy(x[:3]).T).as_rotvec()
-        scatter = np.cov(np.column_stack([turn, xc[:, 3:] - x[3:]]).T)
-        assert np.max(np.abs(scatter - predicted[k])) < 0.08 * np.max(np.abs(predicted[k]))
+        errors = np.column_stack([turn, xc[:, 3:] - x[3:]])
+        np.testing.assert_allclose(_whitened_moment(errors, predicted[k]), np.eye(6), atol=0.1)
     # The lever arm: the 50 mm marker adds its rotation noise to the positions' 5 um.
     assert np.sqrt(predicted[0, 3, 3]) > NOISE.translation_m * 1.0001
+    rotation, shift = 3e-5, 7e-6
+    predicted = reg.pose_covariances(POSES_BP, rotation, shift)
+    for k, x in enumerate(x_TM):
+        X_TM = RigidTransform(RollPitchYaw(x[:3]), x[3:])
+
+        def moved(d, X_TM=X_TM, k=k):
+            R = RotationMatrix(Rotation.from_rotvec(d[:3]).as_matrix()) @ X_TM.rotation()
+            seen = np.concatenate([RollPitchYaw(R).vector(), X_TM.translation() + d[3:]])
+            xc = reg.base_poses(seen)[0]
+            R_turn = rotation_rpy(xc[:3]) @ rotation_rpy(POSES_BP[k, :3]).T
+            return np.concatenate([Rotation.from_matrix(R_turn).as_rotvec(), xc[3:]])
+
+        J = _central(moved, 6, 1e-6)
+        expected = J @ np.diag([rotation**2] * 3 + [shift**2] * 3) @ J.T
+        _assert_covariance(predicted[k], expected, 1e-6)
 
 
 def test_an_emulated_setup_s_fiducials_register_its_frames_within_their_covariance():
@@ -143,8 +277,143 @@ def test_an_emulated_setup_s_fiducials_register_its_frames_within_their_covarian
     # The covariance stated is the scatter's, or up to a fifth larger where the residuals of a
     # few points seemed noisier than point_sigma_m (it then follows them).
     assert np.all((ratio > 0.8) & (ratio < 1.05)), ratio
+    # No bias: the mean error is within 4 standard errors of 0 on every axis (a frame turned or
+    # moved wrongly is off by many); the two blocks' correlations are the stated ones.
+    assert np.all(np.abs(errors.mean(axis=0)) < 4 * np.sqrt(np.diag(mean_cov) / len(errors)))
+    for block in (slice(0, 6), slice(6, 12)):
+        z = _whitened_moment(errors[:, block], mean_cov[block, block])
+        np.testing.assert_allclose(z, np.diag(np.diag(z)), atol=0.2)
     assert reg.base_points == 4 and reg.platform_points == 4
     assert 0.5e-6 < reg.rms_base_m < 5e-6 and "from 4 fiducials" in reg.words()
+
+
+@pytest.mark.parametrize("noise_m", [0.0, 1e-5])
+def test_register_states_each_frame_s_covariance_from_its_fiducials_and_the_marker(noise_m):
+    """Fiducials read exactly (noise 0) or five times noisier than point_sigma_m says (2 um):
+    each frame is the Kabsch fit of its fiducials (X_PM = X_TP^-1 X_TM, the marker turned);
+    cov_B the fit's (J^T W J)^-1, scaled by the residuals' reduced chi-square when above 1
+    (sum r^2 / (sigma^2 (3 n - 6))); cov_M the platform fit's the same way plus the marker's
+    measurement noise (3e-5 rad, 7e-6 m per axis) carried by central differences of X_PM."""
+    base = SETUP.X_TB.multiply(SETUP.base_B.T).T
+    X_TM = SETUP.X_TB @ RigidTransform(RollPitchYaw(POSES_BP[0, :3]), POSES_BP[0, 3:])
+    X_TP, X_TM = X_TM, X_TM @ SETUP.X_PM
+    platform = X_TP.multiply(SETUP.platform_P.T).T
+    rng = np.random.default_rng(9)
+    marker = np.concatenate([RollPitchYaw(X_TM.rotation()).vector(), X_TM.translation()])
+    fiducials = rg.Fiducials(
+        SETUP.base_B,
+        base + rng.normal(0.0, noise_m, base.shape),
+        SETUP.platform_P,
+        platform + rng.normal(0.0, noise_m, platform.shape),
+        marker,
+        2e-6,
+        (3e-5, 7e-6),
+    )
+    reg = rg.register(fiducials)
+    sigma, n = 2e-6, len(SETUP.base_B)
+    covs, residuals = [], []
+    for seen, known, X in (
+        (fiducials.base_T, SETUP.base_B, reg.X_TB),
+        (fiducials.platform_T, SETUP.platform_P, RigidTransform(X_TM) @ reg.X_PM.inverse()),
+    ):
+        R, t = _kabsch(seen, known, np.ones(n))
+        np.testing.assert_allclose(X.GetAsMatrix4()[:3], np.column_stack([R, t]), atol=1e-12)
+        residual = seen - X.multiply(known.T).T
+        residuals.append(residual)
+        chi2 = np.sum(residual**2) / (sigma**2 * (3 * n - 6))
+        covs.append(
+            np.linalg.inv(_fit_normal_matrix(X, seen, known, np.full(n, sigma**-2)))
+            * max(1.0, chi2)
+        )
+        assert (chi2 > 5) == (noise_m > 0)
+    X_TP_fit = RigidTransform(X_TM) @ reg.X_PM.inverse()
+
+    def marker_moved(d):
+        X = RigidTransform(
+            RotationMatrix(Rotation.from_rotvec(d[:3]).as_matrix()) @ X_TM.rotation(),
+            X_TM.translation() + d[3:],
+        )
+        return _log(X_TP_fit.inverse() @ X @ reg.X_PM.inverse())  # e_M: Exp(e_M) X_PM
+
+    J = _central(marker_moved, 6, 1e-6)
+    marker_cov = J @ np.diag([3e-5**2] * 3 + [7e-6**2] * 3) @ J.T
+    _assert_covariance(reg.cov_B, covs[0], 1e-6)
+    _assert_covariance(reg.cov_M, covs[1] + marker_cov, 1e-6)
+    np.testing.assert_allclose(reg.X_PM.GetAsMatrix4(), SETUP.X_PM.GetAsMatrix4(), atol=1e-4)
+    assert (reg.base_points, reg.platform_points) == (n, n)
+    for rms, residual in zip((reg.rms_base_m, reg.rms_platform_m), residuals):
+        assert rms == pytest.approx(np.sqrt(np.mean(np.sum(residual**2, axis=1))), rel=1e-9)
+
+
+def test_a_registration_without_platform_points_has_the_marker_for_platform_frame():
+    """Base fiducials only: X_PM is the identity with a zero (6, 6) covariance and no platform
+    residual; the base's frame, covariance and residual are its fit's. A fit refused names the
+    source, REG.yaml unless told."""
+    fiducials = rg.Fiducials(SETUP.base_B, SETUP.fiducials(NOISE, 1).base_T, point_sigma_m=1e-5)
+    reg = rg.register(fiducials)
+    X, cov, rms = rg.fit_frame(fiducials.base_T, SETUP.base_B, np.full(4, 1e10))
+    assert reg.X_PM.IsExactlyIdentity() and reg.cov_M.shape == (6, 6) and not reg.cov_M.any()
+    np.testing.assert_allclose(reg.X_TB.GetAsMatrix4(), X.GetAsMatrix4(), rtol=0, atol=1e-15)
+    assert reg.rms_base_m == pytest.approx(rms, rel=1e-12) and reg.rms_platform_m == 0.0
+    _assert_covariance(reg.cov_B, cov, 1e-9)  # the noise below the 10 um stated: unscaled
+    assert (reg.base_points, reg.platform_points) == (4, 0)
+    assert reg.frames_covariance()[6:].sum() == 0 and reg.frames_covariance().shape == (12, 12)
+    line = rg.Fiducials(np.outer([0.0, 0.1, 0.2], [1.0, 1.0, 1.0]), np.zeros((3, 3)))
+    with pytest.raises(InvalidConfigError, match="^REG.yaml: base_points: the 3 points lie"):
+        rg.register(line)
+    R, t = _kabsch(np.eye(3), SETUP.base_B[:3], np.ones(3))  # points that are not the drawing's
+    far = np.sqrt(np.mean(np.sum((np.eye(3) - SETUP.base_B[:3] @ R.T - t) ** 2, axis=1)))
+    said = rf"^x.yaml: base_points: the fiducials fit no rigid motion \({far * 1e3:.3g} mm RMS"
+    with pytest.raises(InvalidConfigError, match=said + r" off it, over 5 mm\)"):
+        rg.register(rg.Fiducials(SETUP.base_B[:3], np.eye(3)), "x.yaml")
+
+
+def test_the_registration_s_words_give_its_frames_and_their_standard_deviations():
+    """The printed line: each frame's roll, pitch, yaw (rad) and position (m) to 6 digits, and
+    its standard deviation per axis, the root of the mean of its covariance's rotation and
+    translation diagonals, in urad and um (3 digits); the fits' RMS residuals in um; every
+    digit a float holds with ``exact``."""
+    reg = rg.register(SETUP.fiducials(NOISE, 2))
+    number = r"(-?[\d.e+-]+)"
+    frame = (
+        rf"rpy_rad \[{number}, {number}, {number}\], xyz_m \[{number}, {number}, {number}\] "
+        rf"\(\+- {number} urad, {number} um per axis\)"
+    )
+    said = re.fullmatch(
+        rf"X_TB {frame} from 4 fiducials \({number} um RMS\); "
+        rf"X_PM {frame} from 4 fiducials \({number} um RMS\)",
+        reg.words(),
+    )
+    assert said, reg.words()
+    values = [float(v) for v in said.groups()]
+    assert said.group(1) == f"{RollPitchYaw(reg.X_TB.rotation()).vector()[0]:.6g}"  # 6 digits
+    for X, cov, rms, part in (
+        (reg.X_TB, reg.cov_B, reg.rms_base_m, values[:9]),
+        (reg.X_PM, reg.cov_M, reg.rms_platform_m, values[9:]),
+    ):
+        pose = np.concatenate([RollPitchYaw(X.rotation()).vector(), X.translation()])
+        np.testing.assert_allclose(part[:6], pose, rtol=1e-5, atol=1e-9)
+        sd = np.sqrt([np.mean(np.diag(cov)[:3]), np.mean(np.diag(cov)[3:])]) * 1e6
+        np.testing.assert_allclose(part[6:8], sd, rtol=5e-3)
+        assert part[8] == pytest.approx(rms * 1e6, rel=5e-3)
+    assert 1.0 < values[6] < 100.0 and 0.1 < values[7] < 10.0  # urad and um, not rad or m
+    exact = rg.transform_words(reg.X_TB, reg.cov_B, exact=True)
+    rpy = [float(v) for v in re.search(r"rpy_rad \[(.*?)\]", exact).group(1).split(", ")]
+    assert rpy == RollPitchYaw(reg.X_TB.rotation()).vector().tolist()
+    only = rg.Registration(reg.X_TB, RigidTransform(), reg.cov_B, np.zeros((6, 6)), 1e-6, 0.0, 4)
+    assert only.words().endswith(
+        "(1 um RMS); the marker is the platform frame (no platform_points)"
+    )
+
+
+def test_registered_poses_are_converted_with_their_noise_and_the_frames_error():
+    reg = SETUP.registration()
+    x_TM = SETUP.tracker_poses(POSES_BP)
+    got = rg.register_poses(reg, x_TM, 3e-5, 7e-6)
+    np.testing.assert_allclose(got.poses, POSES_BP, atol=1e-14)
+    np.testing.assert_array_equal(got.pose_covariances, reg.pose_covariances(got.poses, 3e-5, 7e-6))
+    np.testing.assert_array_equal(got.frames[0], reg.pose_jacobians(got.poses))
+    np.testing.assert_array_equal(got.frames[1], reg.frames_covariance())
 
 
 def test_a_registration_file_reads_back_the_frames_its_fiducials_give(tmp_path):
@@ -207,11 +476,67 @@ HOSTILE = {
     ),
     "unknown key": (
         _GOOD_BASE.replace("tracker_m: [1.2", "trackr_m: [1.2"),
-        "unknown key 'trackr_m'",
+        r"base_points\[0\]: unknown key 'trackr_m' \(known: base_m, tracker_m\)",
     ),
     "unknown top key": (_GOOD_BASE + "units: mm\n", "the file: unknown key 'units'"),
-    "no base points": ("point_sigma_m: 2.0e-6\n", "missing base_points"),
-    "a list": ("- 1\n- 2\n", "the file: expected a mapping"),
+    "a key not text": (_GOOD_BASE + "? [1, 2]\n: 3\n", "the file: unknown key a key that is not"),
+    "a long key": (_GOOD_BASE + "x" * 60 + ": 1\n", r"the file: unknown key 'x{39} \(known"),
+    "no base points": (
+        "point_sigma_m: 2.0e-6\n",
+        "the file: missing base_points; write base_points: ",
+    ),
+    "a list": (
+        "- 1\n- 2\n",
+        "the file: expected a mapping of base_points, platform_points, point_sigma_m$",
+    ),
+    "one point": (
+        "\n".join(_GOOD_BASE.splitlines()[:2]) + "\n",
+        "base_points: 1 point: a frame needs at least 3",
+    ),
+    "base_m two numbers": (
+        _GOOD_BASE.replace("[0.2, 0, 0]", "[0.2, 0]"),
+        r"base_points\[0\].base_m: expected 3 numbers \[x, y, z\] in m, got 2",
+    ),
+    "base_m far": (
+        _GOOD_BASE.replace("[0.2, 0, 0]", "[1000, 0, 0]"),
+        r"base_points\[0\].base_m\[0\]: expected a finite number in \[-100, 100\] m, got '1000'",
+    ),
+    "base_m not a list": (
+        _GOOD_BASE.replace("[0.2, 0, 0]", "0.2"),
+        r"base_points\[0\].base_m: expected a list",
+    ),
+    "sigma a list": (
+        _GOOD_BASE + "point_sigma_m: [1]\n",
+        r"point_sigma_m: expected a finite number in \[0, 0.001\] m, got a list or mapping",
+    ),
+    "sigma long text": (_GOOD_BASE + "point_sigma_m: " + "x" * 60 + "\n", r"got 'x{39}$"),
+    "marker far": (
+        _GOOD_BASE + _PLATFORM.replace("xyz_m: [1, 0, 0.3]", "xyz_m: [1000, 0, 0.3]"),
+        r"platform_points.marker_in_tracker.xyz_m\[0\]: expected a finite number in "
+        r"\[-100, 100\] m, got '1000'",
+    ),
+    "marker rotation noise": (
+        _GOOD_BASE + _PLATFORM.replace("0.3]}", "0.3], rotation_sigma_rad: 0.5}", 1),
+        r"platform_points.marker_in_tracker.rotation_sigma_rad: expected a finite number in "
+        r"\[0, 0.01\] rad, got '0.5'",
+    ),
+    "marker translation noise": (
+        _GOOD_BASE + _PLATFORM.replace("0.3]}", "0.3], translation_sigma_m: 0.5}", 1),
+        r"platform_points.marker_in_tracker.translation_sigma_m: expected a finite number in "
+        r"\[0, 0.001\] m, got '0.5'",
+    ),
+    "marker unknown key": (
+        _GOOD_BASE + _PLATFORM.replace("rpy_rad:", "rpy:"),
+        "platform_points.marker_in_tracker: unknown key 'rpy'",
+    ),
+    "marker without its pose": (
+        _GOOD_BASE + _PLATFORM.replace("{rpy_rad: [0, 0, 0], xyz_m: [1, 0, 0.3]}", "{}"),
+        "platform_points.marker_in_tracker: missing rpy_rad, xyz_m; write base_points:",
+    ),
+    "platform two points": (
+        _GOOD_BASE + "\n".join(_PLATFORM.splitlines()[:5]) + "\n",
+        "platform_points.points: 2 points: a frame needs at least 3",
+    ),
     "a mapping of points": ("base_points: {a: 1}\n", "base_points: expected a list"),
     "sigma zero": (_GOOD_BASE + "point_sigma_m: 0\n", "point_sigma_m: must be at least 1e-09 m"),
     "sigma tiny": (
@@ -244,12 +569,12 @@ HOSTILE = {
     ),
     "sigma huge": (
         _GOOD_BASE + "point_sigma_m: 0.5\n",
-        r"point_sigma_m: expected a finite number in \[0, 0.001\]",
+        r"point_sigma_m: expected a finite number in \[0, 0.001\] m, got '0.5'",
     ),
     "mismatched": (_GOOD_BASE.replace("[0.8, 0, 0]", "[0.9, 0, 0]"), "fit no rigid motion"),
     "twice": (_GOOD_BASE + "base_points: []\n", "appears twice"),
     "not yaml": ("base_points: [\n", "not YAML"),
-    "empty": ("  \n", "it is empty"),
+    "empty": ("  \n", "it is empty.* write base_points: "),
     "python tag": (
         _GOOD_BASE.replace("[1.2, 0, 0]", "[!!python/object:os.system 1, 0, 0]"),
         "got '1'",
@@ -287,6 +612,14 @@ def test_the_good_files_of_the_hostile_cases_are_read(tmp_path):
     reg = rg.read_registration(tmp_path / "reg.yaml")
     np.testing.assert_allclose(reg.X_TB.translation(), [1, 0, 0], atol=1e-12)
     np.testing.assert_allclose(reg.X_PM.GetAsMatrix4(), np.eye(4), atol=1e-12)
+    # The noises a file gives are those read: the fiducials' (at its bound), the marker's.
+    noise = "0.3], rotation_sigma_rad: 3.0e-5, translation_sigma_m: 7.0e-6}"
+    text = _PLATFORM.replace("0.3]}", noise, 1)
+    (tmp_path / "noise.yaml").write_text(_GOOD_BASE + "point_sigma_m: 0.001\n" + text)
+    fiducials = rg.read_fiducials(tmp_path / "noise.yaml")
+    assert fiducials.point_sigma_m == 0.001 and fiducials.marker_sigma == (3e-5, 7e-6)
+    (tmp_path / "base.yaml").write_text(_GOOD_BASE + "point_sigma_m: 1.0e-5\n")
+    assert rg.read_fiducials(tmp_path / "base.yaml").point_sigma_m == 1e-5
 
 
 def test_a_large_missing_or_unreadable_registration_file_is_refused(tmp_path):
@@ -308,304 +641,6 @@ def test_a_large_missing_or_unreadable_registration_file_is_refused(tmp_path):
     (tmp_path / "bomb.yaml").write_text(bomb)
     with pytest.raises(InvalidConfigError, match="expand"):
         rg.read_registration(tmp_path / "bomb.yaml")
-
-
-# -- the identification of registered poses, and the command ---------------------------------------
-
-
-@pytest.fixture(scope="module")
-def space():
-    """Admissible candidates and held-out poses, as a rehearsal draws them (fewer)."""
-    return rehearsal.Workspace(
-        poses.candidate_poses(GEOMETRY, 400, 1), poses.candidate_poses(GEOMETRY, 50, 2)
-    )
-
-
-@pytest.fixture(scope="module")
-def session(space, tmp_path_factory):
-    """A robot drawn with seed 3, measured at 60 random candidates by a tracker 1 m and 30 deg
-    from the base, its marker 50 mm off the platform frame; its fiducials at 2 um, the
-    marker's pose then the mean of 100 samples: (folder, truth, measurements, fiducials)."""
-    folder = tmp_path_factory.mktemp("registered")
-    truth = tolerances.Tolerances().draw(GEOMETRY, 3)
-    x = space.candidates[np.random.default_rng(3).choice(len(space.candidates), 60, False)]
-    data = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=SETUP)
-    fiducials = SETUP.fiducials(NOISE, 4)
-    files.write_measurements(folder / "m.csv", data.poses, data.readings)
-    files.write_registration(folder / "reg.yaml", fiducials)
-    return folder, truth, data, fiducials
-
-
-def test_the_frames_error_is_carried_whole_into_the_parameters_covariance(session):
-    # The identified parameters move with the frames' error e by K e (first order): with the
-    # frames off by a known e, the identification moves by d, and the frames' covariance
-    # computed for a "covariance" e e^T is d d^T.
-    _, _, data, fiducials = session
-    reg = rg.register(fiducials)
-    e = np.concatenate(
-        [[3e-5, -2e-5, 1e-5, 2e-6, -1e-6, 3e-6], [-2e-5, 1e-5, 3e-5, 1e-6, 2e-6, -2e-6]]
-    )
-    off = rg.Registration(
-        reg.X_TB @ _exp(e[:6]).inverse(),
-        _exp(e[6:]).inverse() @ reg.X_PM,
-        np.outer(e[:6], e[:6]),
-        np.outer(e[6:], e[6:]),
-        0.0,
-        0.0,
-    )
-    exact, moved = (
-        rg.register_poses(r, data.poses, NOISE.rotation_rad, NOISE.translation_m)
-        for r in (reg, off)
-    )
-    a = identify.identify(
-        GEOMETRY, exact.poses, data.readings, NOISE, pose_covariances=exact.pose_covariances
-    )
-    b = identify.identify(
-        GEOMETRY,
-        moved.poses,
-        data.readings,
-        NOISE,
-        pose_covariances=exact.pose_covariances,
-        frames=(moved.frames[0], np.outer(e, e)),
-    )
-    d = b.deviation - a.deviation
-    assert np.max(np.abs(b.frames_covariance - np.outer(d, d))) < 0.02 * np.max(d**2)
-    # The frames leave the fit as good as it was: the rigid motion is absorbed, not seen.
-    assert b.chi2_reduced == pytest.approx(a.chi2_reduced, rel=1e-3)
-    assert np.max(np.abs(d)) > 5e-6  # and it is not nothing: micrometres of the parameters
-    # Without frames the covariance has no such part.
-    assert not a.frames_covariance.any()
-
-
-def test_the_accuracy_names_the_registration_when_its_error_is_most_of_it(session, space):
-    # Four fiducials a body at 2 um: the frames' error is most of the readings' predicted error
-    # (measured: 30.8 of 41.8 urad on this seed, 40.7 of 52 on seed 8), and the line names what
-    # lowers it. The same identification with the frames' covariance a hundredth of it (ten
-    # times more precise fiducials) has no such line, and without frames there is none.
-    _, _, data, fiducials = session
-    moved = rg.register_poses(
-        rg.register(fiducials), data.poses, NOISE.rotation_rad, NOISE.translation_m
-    )
-    ident = identify.identify(
-        GEOMETRY,
-        moved.poses,
-        data.readings,
-        NOISE,
-        pose_covariances=moved.pose_covariances,
-        frames=moved.frames,
-    )
-
-    def lines(i):
-        return "\n".join(report.accuracy_lines(GEOMETRY, i, NOISE, space.held_out, None)[0])
-
-    said = re.search(
-        r"the registration's error is most of it \(([\d.]+) urad RMS alone\)", lines(ident)
-    )
-    assert said, lines(ident)
-    total = validation.predicted_rms(GEOMETRY, ident, space.held_out, NOISE)
-    assert 0.7 * total < float(said.group(1)) * 1e-6 < total
-    precise = dataclasses.replace(
-        ident,
-        frames_covariance=ident.frames_covariance * 1e-2,
-        covariance=ident.covariance - 0.99 * ident.frames_covariance,
-    )
-    assert "registration" not in lines(precise)
-    plain = identify.identify(GEOMETRY, moved.poses, data.readings, NOISE)
-    assert "registration" not in lines(plain)
-
-
-def test_calibrate_with_a_registration_predicts_the_held_out_readings_from_base_frame_poses(
-    session, space, tmp_path, capsys
-):
-    folder, truth, data, fiducials = session
-    out = tmp_path / "robot.yaml"
-    argv = ["calibrate", str(folder / "m.csv"), "--registration", str(folder / "reg.yaml")]
-    assert cli.main(argv + ["--out", str(out), "--scenario", "paper_hardware"]) == 0
-    printed = capsys.readouterr()
-    assert "warning" not in printed.err and "registered by" in printed.out
-    assert "carried into the parameters' covariance" in printed.out
-    text = out.read_text()
-    assert "# X_TB rpy_rad [" in text and "# X_PM rpy_rad [" in text  # the frames kept
-    # The section loads as a scenario's robot; its readings at the true base-frame poses of
-    # other poses are the robot's to the accuracy of an ideal tracker's calibration, plus the
-    # registration's (measured: 43 urad here; 60 random poses of an ideal tracker: 34 on average).
-    from stewart_drake.run.plan import make_plan
-    from stewart_drake.run.scenario_io import load_scenario
-
-    calibrated = make_plan(load_scenario(out), with_reference=False).geometry
-    H = space.held_out
-    predicted = kinematics.ik(calibrated, H) + calibrated.encoder_offsets
-    read = tracker.quantize(model.readings(GEOMETRY, truth, H), NOISE.counts_per_rev)
-    rms = np.sqrt(np.mean(kinematics.wrap_angle(predicted - read) ** 2))
-    assert rms < 60e-6, rms
-    # Without the registration the marker's poses in the tracker's frame are refused.
-    code, err = _exit(
-        capsys, ["calibrate", str(folder / "m.csv"), "--out", str(tmp_path / "x.yaml")]
-    )
-    assert code == 2 and "--registration REG.yaml" in err and "cannot reach" in err
-    assert not (tmp_path / "x.yaml").exists()
-
-
-def _exit(capsys, argv) -> tuple[int, str]:
-    """(exit code, stderr's one line) of the command."""
-    try:
-        code = cli.main(argv)
-    except SystemExit as exit_:
-        code = exit_.code
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "Traceback" not in err[0], err
-    return code, err[0]
-
-
-def _turned(angle_deg: float, shift_m: float) -> tracker.TrackerSetup:
-    """A tracker turned ``angle_deg`` about an oblique axis and shifted ``shift_m`` from B."""
-    axis = np.array([0.6, 0.0, 0.8])
-    R = RotationMatrix(Rotation.from_rotvec(np.radians(angle_deg) * axis).as_matrix())
-    return tracker.TrackerSetup(
-        RigidTransform(R, shift_m * np.array([0.6, 0.8, 0.0])), RigidTransform(), np.zeros((3, 3))
-    )
-
-
-def test_a_tracker_off_the_base_frame_without_registration_is_named_and_nothing_refused_written(
-    session, space, tmp_path, capsys
-):
-    _, truth, data, _ = session
-    x = data.true_poses
-    out = tmp_path / "robot.yaml"
-    # 1 deg and 2 mm: the pivots moved as one rigid body: a warning naming the frame, then
-    # one line for the parameters beyond their tolerances (the tolerances' prior resists the
-    # rigid motion, so chi2 says the noise is an order of magnitude above the stated); the
-    # section (pivots up to 4.8 mm off) loads. With 4 mm a pivot is 6.4 mm off, beyond the
-    # loader's 5 mm: the warnings, one line more, exit 1 and no file.
-    for shift_m, written in ((2e-3, True), (4e-3, False)):
-        turned = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=_turned(1.0, shift_m))
-        meas = files.write_measurements(tmp_path / "turned.csv", turned.poses, turned.readings)
-        out.unlink(missing_ok=True)
-        try:
-            code = cli.main(["calibrate", str(meas), "--out", str(out)])
-        except SystemExit as exit_:
-            code = exit_.code
-        err = capsys.readouterr().err.strip().splitlines()
-        assert "warning: the identified pivots moved together" in err[0]
-        assert "not in the base frame B" in err[0] and "--registration REG.yaml" in err[0]
-        beyond = [line for line in err if "parameters identified beyond 3 standard" in line]
-        assert len(beyond) == 1 and "as the rigid motion above makes them" in beyond[0], err
-        assert any("the residuals imply a measurement noise about" in line for line in err)
-        assert all("warning: " in line for line in err[: -1 if not written else None])
-        if written:
-            assert code == 0 and report.loader_refusal(out.read_text()) is None
-        else:
-            assert code == 1 and not out.exists(), err
-            assert "the scenario loader would refuse it" in err[-1] and "not written" in err[-1]
-    # A marker 2 mm off the platform frame: the platform joints named; the section loads.
-    marker = tracker.TrackerSetup(RigidTransform(), RigidTransform([2e-3, 0, 0]), np.zeros((3, 3)))
-    off = tracker.measure(GEOMETRY, truth, x, NOISE, 3, setup=marker)
-    meas = files.write_measurements(tmp_path / "marker.csv", off.poses, off.readings)
-    assert cli.main(["calibrate", str(meas), "--out", str(out)]) == 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert "platform joints moved together" in err[0] and len(err) <= 2, err
-    assert "not in the platform frame P (E)" in err[0] and out.exists()
-    assert all("as the rigid motion above makes them" in line for line in err[1:])
-
-
-@pytest.mark.parametrize("seed", range(4))
-def test_a_robot_within_its_tolerances_measured_in_the_base_frame_is_not_warned_of(space, seed):
-    truth = tolerances.Tolerances().draw(GEOMETRY, seed)
-    x = space.candidates[np.random.default_rng(seed).choice(len(space.candidates), 60, False)]
-    data = tracker.measure(GEOMETRY, truth, x, NOISE, seed)
-    ident = identify.identify(GEOMETRY, data.poses, data.readings, NOISE)
-    motions = validation.rigid_motions(GEOMETRY, ident)
-    assert [m.frame for m in motions] == ["base", "platform"]
-    assert not any(m.beyond for m in motions), motions
-    assert report.frame_warnings(GEOMETRY, ident, False) == []
-
-
-@pytest.mark.parametrize("case", ["two points", "collinear", "NaN", "unknown key"])
-def test_a_hostile_registration_file_is_one_line_exit_2_before_any_work(
-    session, tmp_path, capsys, case
-):
-    folder = session[0]
-    (tmp_path / "reg.yaml").write_text(HOSTILE[case][0])
-    for argv in (
-        ["calibrate", str(folder / "m.csv"), "--out", str(tmp_path / "r.yaml")],
-        ["calibrate", "--rehearse", "--poses", "12", "--candidates", "50"],
-    ):
-        code, err = _exit(capsys, argv + ["--registration", str(tmp_path / "reg.yaml")])
-        assert code == 2 and err.startswith("stewart-drake calibrate: ") and str(tmp_path) in err
-        assert re.search(HOSTILE[case][1], err), err
-    assert not (tmp_path / "r.yaml").exists()
-    code, err = _exit(
-        capsys,
-        [
-            "calibrate",
-            "--plan",
-            "12",
-            "--out",
-            str(tmp_path / "p.csv"),
-            "--registration",
-            str(tmp_path / "reg.yaml"),
-        ],
-    )
-    assert code == 2 and "--registration is for identifying" in err
-
-
-def test_rehearse_with_a_registration_writes_what_calibrate_registers(session, tmp_path, capsys):
-    folder = session[0]
-    saved = tmp_path / "m.csv"
-    argv = ["calibrate", "--rehearse", "--registration", str(folder / "reg.yaml"), "--poses", "40"]
-    argv += ["--candidates", "200", "--save-measurements", str(saved), "--no-progress"]
-    assert cli.main(argv) == 0
-    printed = capsys.readouterr().out
-    assert "registered by the emulated fiducials: X_TB rpy_rad" in printed
-    reg = tmp_path / "m_registration.yaml"
-    assert reg.exists() and "calibrate m.csv --registration m_registration.yaml" in printed
-    argv = ["calibrate", str(saved), "--registration", str(reg), "--out", str(tmp_path / "r.yaml")]
-    assert cli.main(argv) == 0
-    assert "identified from 40 poses" in capsys.readouterr().out
-
-
-@pytest.mark.slow
-def test_registered_calibrations_of_ten_robots_meet_the_figure_and_the_bound_predicts_them():
-    # The acceptance of docs/calibration.md (Registration): ten robots drawn with the
-    # tolerances, a tracker 1 m and 30 deg from the base, its marker 50 mm off the platform
-    # frame, four fiducials on each at 2 um, 60 poses at 5 um / 20 urad. Measured: 60 random
-    # poses 42.6 urad on average (worst 66.2), 60 chosen 37.8 (worst 57.2); the covariance's
-    # bound 48.2 and 43.9. Each tracker turned 1 deg and shifted 2 mm, unregistered, is warned
-    # of, the base first; none of the robots measured in the base frame is.
-    from stewart_drake.run.plan import make_plan
-    from stewart_drake.run.scenario_io import load_scenario
-
-    plan = make_plan(load_scenario("paper_hardware"), with_reference=False)
-    space = rehearsal.workspace(GEOMETRY, 2000, motor_limits=plan.motor_limits)
-    tol = tolerances.Tolerances()
-    chosen = rehearsal.pick(GEOMETRY, space, 60, "chosen", NOISE, tol, 0)
-    for selection, limit in (("random", 60e-6), ("chosen", 60e-6)):
-        after, bound = [], []
-        for seed in range(10):
-            idx = (
-                chosen
-                if selection == "chosen"
-                else rehearsal.pick(GEOMETRY, space, 60, "random", NOISE, tol, seed)
-            )
-            r = rehearsal.rehearse(GEOMETRY, space, idx, NOISE, seed, tol, selection, SETUP)
-            after.append(r.after_rad)
-            bound.append(r.bound_rad)
-            assert not report.frame_warnings(GEOMETRY, r.identification, True)
-            if selection == "random":
-                truth, x = r.truth, space.candidates[idx]
-                ideal = tracker.measure(GEOMETRY, truth, x, NOISE, seed)
-                ident = identify.identify(GEOMETRY, ideal.poses, ideal.readings, NOISE, tol)
-                assert not report.frame_warnings(GEOMETRY, ident, False)
-                turned = tracker.measure(GEOMETRY, truth, x, NOISE, seed, setup=_turned(1.0, 2e-3))
-                ident = identify.identify(GEOMETRY, turned.poses, turned.readings, NOISE, tol)
-                warned = report.frame_warnings(GEOMETRY, ident, False)
-                # The base first; the tolerances' prior leaves some of the rotation to the
-                # platform's joints, which may be named after it.
-                assert warned and "not in the base frame B" in warned[0], warned
-        assert np.mean(after) <= limit, after
-        assert np.mean(bound) == pytest.approx(np.mean(after), rel=0.3)
-        if selection == "chosen":
-            assert np.max(after) <= limit, after
 
 
 def test_the_emulated_tracker_follows_its_marker_in_its_own_frame():

@@ -73,24 +73,118 @@ def test_lost_samples_are_filled_on_the_line_between_the_two_known():
         ([(0, 0, None), (1, 0, None)], "sample 1 .*: out of order or repeated"),
         ([(0, 0, None), (1, 100_000, None)], "sample 1: the samples are 100 ms apart, not the 40"),
         ([(0, 0, None), (30, 1_200_000, None)], r"sample 30: samples 1..29 are missing \(1.16 s"),
+        (
+            [(0, 0, list(range(10)))],
+            r"sample 0 is not 6 finite numbers: \[0, 1, 2, 3, 4, 5, 6, 7\]$",
+        ),
+        ([(0, 0, "x" * 100)], r"sample 0 is not 6 finite numbers: \['x{79}\]$"),
+        (
+            [(0, 0, None), (1, 100_000, None)],
+            r"sample 1: the samples are 100 ms apart, not the 40 ms of the stream's rate "
+            r"\(25 Hz\)$",
+        ),
+        ([(0, 0, None), (1, 40_000, None)], "sample 1 arrived at 0.1 s, before the previous one$"),
     ],
-    ids=["nan", "five", "text", "repeated", "out-of-order", "same-utime", "spacing", "gap"],
+    ids=(
+        "nan five text repeated out-of-order same-utime spacing gap ten long-text spacing-in-words "
+        "arrived-earlier"
+    ).split(),
 )
 def test_what_a_stream_cannot_be_is_refused_naming_the_sample(samples, message):
     live = LiveFollower(0.2, 25.0, name="BREATH")
     with pytest.raises(LiveSourceError, match=f"^BREATH: {message}"):
         for k, (seq, utime, pose) in enumerate(samples):
-            live.receive(0.1 * k, seq, utime, np.zeros(6) if pose is None else pose)
+            now = 0.1 * k if "arrived" not in message else 0.2 - 0.1 * k
+            live.receive(now, seq, utime, np.zeros(6) if pose is None else pose)
     assert MAX_GAP_S < 1.16
+
+
+def test_the_limits_of_a_stream_are_its_own():
+    """At 16 Hz (62.5 ms) two samples 93.75 ms or 31.25 ms apart are exactly SPACING_TOLERANCE
+    (a half) off the rate: taken; 93.751 ms is refused. At 20 Hz 10 missing samples are 0.5 s,
+    MAX_GAP_S: filled; 11 are refused. Two samples may arrive at the same instant, and a pose
+    may come as a (1, 6) array."""
+    live = LiveFollower(0.2, 16.0, "none")
+    for seq, utime in ((0, 0), (1, 93_750), (2, 125_000)):
+        live.receive(0.2, seq, utime, np.zeros((1, 6)))
+    assert live.received == 3 and live.last_arrival == 0.2
+    with pytest.raises(LiveSourceError, match="93.75 ms apart"):
+        live.receive(0.3, 3, 218_751, np.zeros(6))
+    live = LiveFollower(0.2, 20.0, "none")
+    live.receive(0.0, 0, 0, np.zeros(6))
+    live.receive(1.0, 11, 550_000, np.zeros(6))
+    assert live.filled == 10 and live.last_arrival == 1.0
+    with pytest.raises(LiveSourceError, match=r"samples 12..22 are missing \(0.55 s"):
+        live.receive(2.0, 23, 1_150_000, np.zeros(6))
+
+
+def test_the_reference_goes_on_from_what_it_followed_when_lost_samples_are_filled():
+    """When a sample arrives after lost ones, the reference at that instant is still the one it
+    was following (the filled-in samples arrive with it: the blend starts from the curve
+    followed before, not from theirs), so it has no step there."""
+    stream = stream_of(make_motion("breathing", {}), 0.2, 25.0, 12.0)
+    live = LiveFollower(0.2, 25.0, "none")
+    for i in (*range(200), 203):
+        now = stream.arrival[i]
+        before = live.evaluate(now)
+        live.receive(now, i, _utime(stream.t[i]), stream.poses[i])
+        if i > 0:
+            np.testing.assert_allclose(live.evaluate(now)[0], before[0], rtol=0, atol=1e-12)
+    assert live.filled == 3
+
+
+class _Scripted:
+    """An OnlinePredictor whose record's choice on each axis is given, sample by sample."""
+
+    def __init__(self, using):
+        self.rows, self.i, self.clipped = using, 0, 0
+
+    def raw_update(self, y):
+        self.using, self.sigma = self.rows[self.i], np.zeros((1, 6))
+        self.i += 1
+        return np.repeat(np.asarray(y)[None, :], 1, axis=0)
+
+
+def test_the_weights_move_as_the_record_chooses_once_a_move_has_ended():
+    """Samples every 0.5 s whose record switches each axis as written: u moves at the arrival
+    where the choice differs from where u is heading, once the 1 s move before has ended; the
+    moves in force at a time are those under way, after those that ended folded into one per
+    axis (their sum)."""
+    using = np.zeros((8, 6), dtype=bool)
+    using[1:, 0] = True  # on at 0.5 s
+    using[[1, 4, 5], 1] = True  # on at 0.5; off at 1.5 (the end of the move); on 2.5; off 3.5
+    using[2, 2] = True  # on at 1.0; off at 2.0
+    live = LiveFollower(0.2, 2.0, "none")
+    live._model = _Scripted(using)
+    for i in range(8):
+        live.receive(0.5 * i, i, 500_000 * i, np.zeros(6))
+    long_ago = -1e9
+    assert live.switches(3.5).tolist() == [
+        [long_ago, 0, 1.0], [long_ago, 1, 1.0], [3.5, 1, -1.0]
+    ]  # the move from 2.5 ended at 3.5 exactly  # fmt: skip
+    assert live.switches(4.6).tolist() == [[long_ago, 0, 1.0]]
+    assert live.using.tolist() == [True, False, False, False, False, False]
+
+
+def test_before_any_sample_nothing_is_used():
+    live = LiveFollower(0.2, 25.0, "linear")
+    assert live.predictor == "linear" and live.last_arrival is None
+    assert live.using.dtype == bool and live.using.shape == (6,) and not live.using.any()
+    assert live.sigma.shape == (live.steps, 6) and np.isnan(live.sigma).all()
 
 
 def test_bad_settings_are_refused():
     for latency in (0.0, float("nan"), -1.0):
         with pytest.raises(InvalidConfigError, match="latency"):
             LiveFollower(latency, 25.0)
-    for rate in (0.0, float("inf"), 2000.0):
+    for rate in (0.0, float("inf"), 2000.0, 1000.5, "25"):
         with pytest.raises(InvalidConfigError, match="rate"):
             LiveFollower(0.2, rate)
+    assert LiveFollower(0.2, 0.5).dt == 2.0 and LiveFollower(0.2, 1000).dt == 1e-3
+    for lag, blend in ((-0.1, 0.1), (1.0, 0.1), (1.5, 0.1), (float("nan"), 0.1), (0.0, 0.0)):
+        with pytest.raises(InvalidConfigError, match=r"loop_lag_s must be in \[0, 1\) s and"):
+            LiveFollower(0.2, 25.0, loop_lag_s=lag, blend_s=blend)
+    assert LiveFollower(0.2, 25.0, loop_lag_s=0.0).loop_lag_s == 0.0
     with pytest.raises(InvalidConfigError, match="unknown predictor"):
         LiveFollower(0.2, 25.0, "lstm")
     assert LiveFollower(0.2, 25.0).evaluate(1.0) is None  # nothing arrived

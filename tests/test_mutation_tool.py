@@ -71,9 +71,14 @@ def _diff(old: str, new: str) -> str:
         # the rpy of a pose past its third value, for a function that reads three
         ("E = angular_velocity_map(x[..., :3])", "E = angular_velocity_map(x[..., :4])"),
         ("r_W = rotation_rpy(x[:3]) @ p", "r_W = rotation_rpy(x[:4]) @ p"),
+        ("R, p = rotation_rpy(x[:, :3]), x[:, 3:]", "R, p = rotation_rpy(x[:, :4]), x[:, 3:]"),
         # the name an argument check gives
         ('q = as_number("quantum_rad", quantum_rad, 0.0)', "q = as_number(None, quantum_rad, 0.0)"),
         ('x = as_poses("x", x)', 'x = as_poses("X", x)'),
+        (
+            'seed = check_int("seed", seed, 0, 2**32 - 1)',
+            "seed = check_int(None, seed, 0, 2**32 - 1)",
+        ),
     ],
 )
 def test_a_rule_accounts_for_each_kind_it_names(old, new):
@@ -87,7 +92,10 @@ def test_a_rule_accounts_for_each_kind_it_names(old, new):
         ("pose=x.reshape(-1, 6)[k]", "pose=x.reshape(+1, 6)[k]"),
         ("E = angular_velocity_map(x[..., 1:3])", "E = angular_velocity_map(x[..., 1:4])"),
         ("p = other(x[:3])", "p = other(x[:4])"),
+        ("p = other(x[:, :3])", "p = other(x[:, :4])"),
+        ("R = rotation_rpy(x[:, 1:3])", "R = rotation_rpy(x[:, 1:4])"),
         ('q = as_number("q", q, 0.0)', 'q = as_number("q", q, None)'),
+        ('s = check_int("seed", s, 0, 2**32 - 1)', 's = check_int("seed", s, 0, 2**32 + 1)'),
     ],
 )
 def test_a_change_of_a_number_is_left_to_its_tests(old, new):
