@@ -79,6 +79,12 @@ MODULES = {
     "stewart_drake/control/lqi/gain.py": ("tests/test_lqi.py",),
     # Not test_lqi_step.py: see the docstring.
     "stewart_drake/control/lqi/step.py": ("tests/test_lqi_stages.py",),
+    # verify's modules against their unit tests, not tests/test_verify*.py, which run the
+    # command and write its reports in process: 35 s with the JIT off, for every mutant of verify.
+    "stewart_drake/organ_motion/alignment.py": ("tests/test_alignment.py",),
+    "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
+    "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
+    "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),
     "stewart_drake/references/prediction.py": ("tests/test_stream_prediction.py",),
     # Not test_live_follow.py: it holds the live follower to this module's curves, which both

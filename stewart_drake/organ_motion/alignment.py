@@ -185,7 +185,8 @@ def shift_scores(
 
     grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
     m = len(grid)
-    count = int(np.floor((shifts[1] - shifts[0]) / step_s)) + 1
+    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
+    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
     d = shifts[0] + step_s * np.arange(count)
     r_all = seen(grid[0] + shifts[0] + step_s * np.arange(m + count - 1))
     ones = np.ones(m)
@@ -231,7 +232,8 @@ def refine_shift(t, y, weights, seen, d0: float, step_s: float, offsets: bool) -
     s."""
     from scipy.optimize import minimize_scalar
 
-    pick = slice(None, None, max(1, len(t) // REFINE_SAMPLES))
+    # As many as allowed, spread evenly from the first sample to the last.
+    pick = np.round(np.linspace(0, len(t) - 1, min(len(t), REFINE_SAMPLES))).astype(int)
     t, y = t[pick], y[pick]
     sol = minimize_scalar(
         lambda d: shift_score(t, y, weights, seen, d, offsets),

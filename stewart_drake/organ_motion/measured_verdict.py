@@ -119,14 +119,25 @@ def _signed(k: int, v: float) -> str:
     return f"{v * 1e3:+.3g} mm" if k >= 3 else f"{math.degrees(v):+.3g} deg"
 
 
+def _centred(v) -> np.ndarray:
+    """v (n,) less its mean, exactly zero where v does not vary: its first value is taken away
+    first, because the mean of n equal floats is not always equal to them, and the rounding left
+    gave an axis the reference holds still a gain, a correlation and a period."""
+    v = np.asarray(v, dtype=float)
+    v = v - v[0]
+    return v - np.mean(v)
+
+
 def dominant_period(t, v) -> tuple[float, float]:
     """(period s, share): the period of the strongest spectral peak of v (n,) at the even times
     t (n,) (its mean removed; the spectrum zero-padded 8 times and the peak refined by a
     parabola through its bins) and the share of the motion's power within two bins of it (NaN,
     0 for fewer than 8 samples or no motion)."""
-    v = np.asarray(v, float) - np.mean(v)
     n = len(v)
-    if n < 8 or not np.any(v):
+    if n < 8:
+        return math.nan, 0.0
+    v = _centred(v)
+    if not np.any(v):
         return math.nan, 0.0
     dt = float(np.median(np.diff(t)))
     pad = 8 * n
@@ -148,7 +159,7 @@ def axis_figures(t, x, x_d, measured) -> dict:
     the reference's; measured (6,) bool."""
     out = {}
     for k in np.flatnonzero(measured):
-        q, r = x[:, k] - np.mean(x[:, k]), x_d[:, k] - np.mean(x_d[:, k])
+        q, r = _centred(x[:, k]), _centred(x_d[:, k])
         var_q, var_r, cov = float(np.mean(q * q)), float(np.mean(r * r)), float(np.mean(q * r))
         both = var_q > 0 and var_r > 0
         period, share = dominant_period(t, x[:, k])
@@ -168,7 +179,7 @@ def axis_figures(t, x, x_d, measured) -> dict:
 
 def _correlation(a, b) -> float:
     """The correlation of a (n,) and b (n,) (0 when either does not vary)."""
-    a, b = a - np.mean(a), b - np.mean(b)
+    a, b = _centred(a), _centred(b)
     den = math.sqrt(float(np.mean(a * a) * np.mean(b * b)))
     return float(np.mean(a * b)) / den if den > 0 else 0.0
 
@@ -217,7 +228,8 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
     """(ratio, delta s): how much nearer the reference's axis k the measured axis v (n,) at the
     times t (n,) (the reference's clock) comes with its sign reversed than as it is, each at its
     best further shift within +-``span_s`` (each less its mean): the ratio of the two least mean
-    squared distances, reversed over as is (below 1: reversed is nearer), and the shift at which
+    squared distances, reversed over as is (below 1: reversed is nearer; 0: reversed, it matches
+    exactly), and the shift at which
     reversed is nearest (:func:`~.alignment.shift_scores` on that axis alone)."""
     from .alignment import reference_poses, shift_scores
 
@@ -233,7 +245,8 @@ def reversed_match(t, v, k: int, reference, span_s: float) -> tuple[float, float
     for sign in (1.0, -1.0):
         y[:, k] = sign * v
         d, score = shift_scores(t, y, weights, seen, (-span_s, span_s), step, True)
-        best.append((float(np.min(score)), float(d[int(np.argmin(score))])))
+        # A mean square, though the FFT's rounding leaves an exact match a little below zero.
+        best.append((max(float(np.min(score)), 0.0), float(d[int(np.argmin(score))])))
     (as_is, _), (flipped, delta) = best
     return (flipped / as_is if as_is > 0 else math.inf), delta
 
@@ -305,10 +318,10 @@ def causes_of(
         if reference is not None and not rho < -FOLLOWS_CORRELATION:
             ratio, delta = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
             if ratio < 0.25:
+                better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
                 causes.append(
-                    f"{a} runs the wrong way (reversed, it matches the reference "
-                    f"{1 / ratio:.0f} times better, at a latency of {seconds(latency_s - delta)})"
-                    ": a sign flipped or the axis reversed"
+                    f"{a} runs the wrong way (reversed, it matches the reference {better}, at a "
+                    f"latency of {seconds(latency_s - delta)}): a sign flipped or the axis reversed"
                 )
                 follows = False
                 continue

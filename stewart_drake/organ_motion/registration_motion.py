@@ -126,7 +126,8 @@ def rigid_shift(
     grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
     ym = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(3)])
     m = len(grid)
-    count = int(np.floor((shifts[1] - shifts[0]) / step_s)) + 1
+    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
+    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
     r = reference_poses(reference, grid[0] + shifts[0] + step_s * np.arange(m + count - 1))[:, 3:]
     r = r - r.mean(axis=0)
     ones = np.ones(m)
@@ -193,7 +194,8 @@ def fit_registration(
     )
     use = _overlap(reference, t + d0, step)
     t, y = t[use], y[use]
-    pick = slice(None, None, max(1, len(t) // FIT_SAMPLES))
+    # As many as allowed, spread evenly from the first sample to the last.
+    pick = np.round(np.linspace(0, len(t) - 1, min(len(t), FIT_SAMPLES))).astype(int)
     t, y = t[pick], y[pick]
     rot = measured.rotations_measured
     x_d0 = reference_poses(reference, t + d0)
@@ -229,14 +231,9 @@ def fit_registration(
     sol = least_squares(residuals, p_start, method="trf", x_scale="jac")
     J = np.asarray(sol.jac)
     e = residuals(sol.x)
-    free = _undetermined(J[:, 1:], e, rot)
-    if free:
-        raise InvalidConfigError(
-            f"{name} leaves {free} of the frames' {len(p_start) - 1} parameters undetermined "
-            "(a turn about a line the motion runs along, or a marker offset its turns do not "
-            "show): register with the library's motion registration, which moves along and "
-            "turns about every axis"
-        )
+    # The residual first: a marker that did not follow the motion leaves residuals so large
+    # that every direction of the frames looks undetermined too, and that refusal would send
+    # the user to the registration motion they have just measured.
     pos = e[: 3 * n].reshape(n, 3)
     rms_m = float(np.sqrt(np.mean(np.sum(pos**2, axis=1))))
     rms_rad = (
@@ -249,6 +246,14 @@ def fit_registration(
             f"{measured.path}: the marker stays {rms_m * 1e3:.3g} mm RMS from {name} once the "
             f"frames are fitted (at most {MAX_REGISTRATION_RMS_M * 1e3:g} mm): not this motion, "
             "a marker that slipped, or a tracker that lost it; measure the registration again"
+        )
+    free = _undetermined(J[:, 1:], e, rot)
+    if free:
+        raise InvalidConfigError(
+            f"{name} leaves {free} of the frames' {len(p_start) - 1} parameters undetermined "
+            "(a turn about a line the motion runs along, or a marker offset its turns do not "
+            "show): register with the library's motion registration, which moves along and "
+            "turns about every axis"
         )
     R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
     sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)

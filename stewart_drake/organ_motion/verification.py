@@ -476,10 +476,11 @@ def _overlap(reference: Reference, t_ref: np.ndarray, margin: float) -> np.ndarr
     top = math.inf if end is None else float(end) - margin
     on = (t_ref >= margin) & (t_ref <= top)
     if np.count_nonzero(on) < 10:
+        runs = "from 0 s on" if end is None else f"over 0-{end:.4g} s"
         raise InvalidConfigError(
             f"once aligned, the measured motion spans t = {t_ref[0]:.4g}-{t_ref[-1]:.4g} s of "
-            f"the reference's clock, which runs over 0-{'' if end is None else f'{end:.4g}'} s: "
-            f"no overlap; check --clock-offset and that the file recorded this motion"
+            f"the reference's clock, which runs {runs}: no overlap; check --clock-offset and "
+            "that the file recorded this motion"
         )
     return on
 

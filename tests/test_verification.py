@@ -1,0 +1,639 @@
+"""``verify`` itself (:mod:`~stewart_drake.organ_motion.verification`) on synthetic motions of
+known clock, delay, offsets and frames, 20 s at 50 Hz: the latency, the shift, the offsets
+removed and the window against the values the motion was made with, the registered frames
+against the emulated tracker's truth; and each step's rules (the shifts searched, the window of
+whole cycles, the samples' gaps, the axes not measured, the words of what was removed) against
+numbers written out here. Unit tests of a fraction of a second each: tools/mutation.py runs them
+to mutate the module."""
+
+import math
+
+import numpy as np
+import pytest
+from harmonic_motion import Harmonics, along
+
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.calibration.tracker import emulated_setup
+from stewart_drake.organ_motion import verification as vn
+from stewart_drake.organ_motion.alignment import Frames
+from stewart_drake.organ_motion.fidelity import AXES, time_lag
+from stewart_drake.organ_motion.measured_motion import MeasuredMotion
+from stewart_drake.organ_motion.verification import verify
+from stewart_drake.robot.geometry import StewartGeometry
+
+#: A breath along X with a tilt about Y, every 4 s, about a pose 0.3 m up.
+MOTION = Harmonics(
+    np.array(along("X", 5e-3, 1.5e-3)) + along("theta", 0.02, -0.005),
+    phase=(0.0, 0.8),
+    centre=(0.0, 0.0, 0.0, 0.01, -0.02, 0.3),
+)
+#: The tracker's clock at its first sample, s, and where the motion was then on its own.
+CLOCK_START_S, REFERENCE_START_S = 100.0, 2.0
+CLOCK_OFFSET_S = REFERENCE_START_S - CLOCK_START_S
+LATENCY_S = 0.06
+TOLERANCE = (1e-4, math.radians(0.1))
+XYZ = np.array([False] * 3 + [True] * 3)
+SETUP = emulated_setup(StewartGeometry())
+
+
+def run(seconds=20.0, rate_hz=50.0, latency_s=LATENCY_S, reference=MOTION):
+    """(t (n,) s on the tracker's clock, (n, 6) the platform's poses in B): the phantom following
+    the reference ``latency_s`` late."""
+    t = CLOCK_START_S + np.arange(int(round(seconds * rate_hz))) / rate_hz
+    return t, reference.evaluate(t + CLOCK_OFFSET_S - latency_s)[0]
+
+
+def positions(x, offsets=(0.4, -1.2, 0.9)):
+    """A marker of positions only at the platform's origin, seen by a tracker whose axes are
+    the base's (its origin at -offsets)."""
+    y = np.array(x, dtype=float)
+    y[:, 3:] += offsets
+    y[:, :3] = np.nan
+    return y
+
+
+# -- verify ----------------------------------------------------------------------------------------
+
+
+def test_the_base_axes_with_the_clocks_known():
+    t, x = run()
+    ver = verify(
+        MOTION,
+        MeasuredMotion("/d/m.csv", "tracker", t, positions(x), XYZ),
+        clock_offset_s=CLOCK_OFFSET_S,
+        tolerance=TOLERANCE,
+    )
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    assert ver.shift_s == pytest.approx(CLOCK_OFFSET_S - LATENCY_S, abs=1e-5)
+    assert ver.clock_offset_s == CLOCK_OFFSET_S and ver.clock == "given (--clock-offset)"
+    assert ver.searched_s == pytest.approx((CLOCK_OFFSET_S - 1.5, CLOCK_OFFSET_S + 1.5))
+    assert ver.max_latency_s == 0.5 and ver.name == "harmonics" and ver.reference is MOTION
+    assert ver.frame.how == "axes"
+    np.testing.assert_allclose(ver.offsets, [0, 0, 0, 0.4, -1.2, 0.9], atol=1e-9)
+    assert list(ver.offsets[:3]) == [0.0, 0.0, 0.0]
+    # On the reference's clock: the motion's time 1.94 s at the first sample.
+    r = ver.result
+    np.testing.assert_allclose(r.t, t + CLOCK_OFFSET_S - LATENCY_S, atol=1e-5)
+    np.testing.assert_allclose(r.x[:, 3:], x[:, 3:], atol=1e-8)
+    assert np.all(np.isnan(r.x[:, :3]))
+    np.testing.assert_allclose(r.x_d, MOTION.evaluate(r.t)[0], atol=0)
+    # The window: the whole cycles after the motion's first, which the recording holds.
+    np.testing.assert_allclose(ver.cycle_starts, [4.0, 8.0, 12.0, 16.0, 20.0])
+    assert ver.fidelity["window_s"] == pytest.approx((4.0, 20.0))
+    assert ver.startup["window_s"] == pytest.approx((r.t[0], 4.0))
+    assert math.isnan(ver.startup["rms_rotation_rad"])
+    assert ver.startup["rms_translation_m"] < 1e-8
+    fid = ver.fidelity
+    assert fid["measured"] == ["X", "Y", "Z"] and math.isnan(fid["rms_rotation_rad"])
+    assert fid["rms_translation_m"] < 1e-8
+    # The figures know the motion's cycles and its fundamental: X's harmonics are its sines.
+    np.testing.assert_allclose(fid["cycles"]["starts"], [4.0, 8.0, 12.0, 16.0])  # each cycle's
+    harmonics = {(h["axis"], h["k"]): h["reference"] for h in fid["harmonics"]}
+    assert harmonics[("X", 1)] == pytest.approx(5e-3, rel=1e-3)
+    assert harmonics[("X", 2)] == pytest.approx(1.5e-3, rel=1e-3)
+    assert ("theta", 1) not in harmonics  # not measured
+    assert ver.judgement.passed, ver.judgement.line
+    assert ver.learning == "measured by the tracker, m.csv" and ver.resolution() == (0.0, 0.0)
+    clock, frames, outside = ver.removed
+    assert clock.startswith("the clock: the measured motion shifted by -98.06 s onto")
+    assert "the clock offset -98 s (given (--clock-offset)) less the latency, 60 ms" in clock
+    assert frames.startswith("the frames: each measured axis") and "X +400 mm, Y -1200 mm" in frames
+    assert outside == (
+        "what the figures leave out: the figures are over whole cycles, t = 4-20 s: 2.06 s "
+        "before (the motion's first cycle, the start-up) and 1.92 s after are outside them"
+    )
+
+
+def test_the_offsets_removed_are_the_means_over_the_window_and_the_start_up_its_own():
+    # The tracker's X drifts 2 um/s and the phantom ran 0.5 mm off during its first breath:
+    # the offset removed is the mean over the whole cycles, the start-up's error its own.
+    t, x = run()
+    y = positions(x)
+    drift = 2e-6 * (t - t[0])
+    y[:, 3] += drift
+    first = t + CLOCK_OFFSET_S - LATENCY_S < 4.0
+    y[first, 4] += 5e-4
+    ver = verify(
+        MOTION, MeasuredMotion("m.csv", "tracker", t, y, XYZ), clock_offset_s=CLOCK_OFFSET_S
+    )
+    w0, w1 = ver.fidelity["window_s"]
+    inside = (ver.result.t >= w0 - 1e-9) & (ver.result.t <= w1 + 1e-9)
+    assert ver.offsets[3] == pytest.approx(0.4 + np.mean(drift[inside]), abs=1e-9)
+    assert ver.offsets[4] == pytest.approx(-1.2, abs=1e-9)
+    assert ver.startup["rms_translation_m"] == pytest.approx(
+        np.sqrt(np.mean((drift[first] - np.mean(drift[inside])) ** 2 + 5e-4**2)), rel=1e-3
+    )
+
+
+def test_a_recording_that_starts_after_the_first_breath_has_no_start_up():
+    # The tracker started 5 s later in the motion: at its 7 s.
+    t = CLOCK_START_S + np.arange(1000) / 50.0
+    x = MOTION.evaluate(t + CLOCK_OFFSET_S + 5.0 - LATENCY_S)[0]
+    measured = MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ)
+    ver = verify(MOTION, measured, CLOCK_OFFSET_S + 5.0)
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    assert ver.fidelity["window_s"] == pytest.approx((8.0, 24.0))
+    assert ver.startup["window_s"] == pytest.approx((6.94, 6.94), abs=1e-5)
+    assert ver.startup["rms_translation_m"] == 0.0
+    assert "part of a cycle" in ver.removed[-1]
+
+
+def test_a_single_axis_sensor_keeps_its_translation_figures():
+    t, x = run()
+    y = np.full_like(x, np.nan)
+    y[:, 3] = x[:, 3] + 0.02
+    only_x = np.array([False] * 3 + [True, False, False])
+    ver = verify(MOTION, MeasuredMotion("d.csv", "tracker", t, y, only_x), CLOCK_OFFSET_S)
+    assert ver.fidelity["measured"] == ["X"]
+    assert ver.fidelity["rms_translation_m"] < 1e-8 and ver.offsets[3] == pytest.approx(0.02)
+    assert math.isnan(ver.fidelity["rms"][4]) and math.isnan(ver.fidelity["rms_rotation_rad"])
+    assert ver.startup["rms_translation_m"] < 1e-8  # over X, the start-up
+
+
+def test_without_the_clocks_the_whole_shift_is_the_latency_not_judged():
+    t, x = run(latency_s=0.9)
+    ver = verify(MOTION, MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ))
+    assert ver.clock == "not known" and ver.clock_offset_s == 0.0
+    assert ver.latency_s == pytest.approx(-ver.shift_s)
+    # Found modulo the 4 s period, anywhere in the shifts searched.
+    assert (ver.shift_s - (CLOCK_OFFSET_S - 0.9)) % 4.0 == pytest.approx(0.0, abs=1e-5)
+    assert ver.searched_s == pytest.approx((-CLOCK_START_S - 9.99, -CLOCK_START_S + 4.0))
+    assert ver.judgement.passed and not ver.judgement.latency_judged
+    assert "The clocks' relation was not given" in ver.removed[0]
+
+
+def test_a_latency_beyond_the_bound_is_found_and_fails():
+    t, x = run(latency_s=0.9)
+    ver = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ),
+        clock_offset_s=CLOCK_OFFSET_S,
+        max_latency_s=0.5,
+    )
+    assert ver.latency_s == pytest.approx(0.9, abs=1e-5)
+    assert not ver.judgement.passed
+    assert ver.judgement.causes == ["latency 900 ms beyond --max-latency 500 ms"]
+    # A smaller bound searches less, 0.3 s either way of the offset: the latency is found at
+    # its edge (to a step of the search), and said to be at least that.
+    ver = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ),
+        clock_offset_s=CLOCK_OFFSET_S,
+        max_latency_s=0.1,
+    )
+    assert ver.searched_s == pytest.approx((CLOCK_OFFSET_S - 0.3, CLOCK_OFFSET_S + 0.3))
+    assert ver.max_latency_s == 0.1 and 0.3 <= ver.latency_s <= 0.32
+    assert ver.judgement.causes[-1].startswith("latency at least 3")
+    assert "(at the edge of the shifts searched)" in ver.judgement.causes[-1]
+
+
+def test_the_base_frame_keeps_a_constant_error_and_judges_it():
+    t, x = run()
+    y = x.copy()
+    y[:, 4] += 3e-4
+    ver = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, y, np.ones(6, bool)),
+        clock_offset_s=CLOCK_OFFSET_S,
+        frame="base",
+        tolerance=TOLERANCE,
+    )
+    assert ver.frame.how == "base" and list(ver.offsets) == [0.0] * 6
+    assert ver.fidelity["rms"][4] == pytest.approx(3e-4, rel=1e-5)
+    assert ver.fidelity["rms_rotation_rad"] < 1e-9
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    assert not ver.judgement.passed
+    assert ver.judgement.causes[0].startswith("a constant offset of Y +0.3 mm")
+    assert "the frames: none: the file gives the platform's poses" in ver.removed[1]
+
+
+def test_a_registered_tracker_of_positions_only_is_judged_in_the_base_frame():
+    t, x = run()
+    y = SETUP.tracker_poses(x)  # the marker 50 mm off the platform, in a tracker 1 m away
+    y[:, :3] = np.nan
+    ver = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, y, XYZ),
+        clock_offset_s=CLOCK_OFFSET_S,
+        registration=SETUP.registration(),
+        tolerance=TOLERANCE,
+    )
+    assert ver.frame.how == "registration" and not ver.frame.removes_offsets
+    np.testing.assert_allclose(ver.frame.p_EM, SETUP.X_PM.translation(), atol=1e-15)
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    np.testing.assert_allclose(ver.result.x[:, 3:], x[:, 3:], atol=1e-9)
+    assert list(ver.offsets) == [0.0] * 6
+    assert ver.judgement.passed, ver.judgement.line
+    assert "registered to the base frame" in ver.judgement.compared
+
+
+def test_a_registered_6dof_marker_is_mapped_whole():
+    t, x = run()
+    y = SETUP.tracker_poses(x)
+    ver = verify(
+        MOTION,
+        MeasuredMotion("m.csv", "tracker", t, y, np.ones(6, bool)),
+        clock_offset_s=CLOCK_OFFSET_S,
+        registration=SETUP.registration(),
+        tolerance=TOLERANCE,
+    )
+    assert ver.frame.how == "registration" and not np.any(ver.frame.p_EM)
+    np.testing.assert_allclose(ver.result.x, x, atol=1e-9)
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    assert ver.fidelity["rms_rotation_rad"] < 1e-9 and ver.judgement.passed
+    assert ver.startup["rms_rotation_rad"] < 1e-9
+
+
+def test_the_encoder_log_is_on_the_references_clock():
+    t = np.arange(0.0, 14.0, 0.02)
+    x = MOTION.evaluate(t - 0.015)[0]
+    ver = verify(MOTION, MeasuredMotion("/d/run_encoders.csv", "encoders", t, x, np.ones(6, bool)))
+    assert ver.clock_offset_s == 0.0 and ver.frame.how == "encoders"
+    assert ver.clock == "the encoder log's t_path is the reference's own clock"
+    assert ver.latency_s == pytest.approx(0.015, abs=1e-5)
+    assert ver.learning == "measured by the encoders, run_encoders.csv"
+    assert ver.fidelity["measured"] == list(AXES)
+    # It started with the motion: the start-up is the first cycle, the recording before 0 none.
+    assert ver.fidelity["window_s"] == pytest.approx((4.0, 12.0), abs=0.02)  # to a sample
+    assert ver.result.t[0] == pytest.approx(0.02 - 0.015, abs=1e-5)  # from the reference's 0
+
+
+def test_a_motion_without_cycles_is_judged_over_the_whole_overlap():
+    ended = Harmonics(
+        MOTION.amplitude, phase=MOTION.phase, centre=MOTION.centre, periodic=False, end_time=15.0
+    )
+    t, x = run(reference=ended)
+    ver = verify(ended, MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ), CLOCK_OFFSET_S)
+    assert ver.cycle_starts.size == 0
+    w0, w1 = ver.fidelity["window_s"]
+    assert w0 == pytest.approx(REFERENCE_START_S - LATENCY_S, abs=1e-5)
+    assert w1 == pytest.approx(15.0, abs=0.02)  # its end, to a sample
+    assert ver.result.t[-1] <= 15.0
+    assert ver.startup["window_s"][1] == pytest.approx(w0)  # no start-up apart
+    assert ver.judgement.passed
+
+
+def test_uneven_samples_are_judged_at_their_own_times_and_said():
+    t, x = run()
+    t = t + np.random.default_rng(0).uniform(-0.002, 0.002, len(t))
+    x = MOTION.evaluate(t + CLOCK_OFFSET_S - LATENCY_S)[0]
+    ver = verify(MOTION, MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ), CLOCK_OFFSET_S)
+    assert ver.latency_s == pytest.approx(LATENCY_S, abs=1e-5)
+    np.testing.assert_allclose(ver.result.x[:, 3:], x[:, 3:], atol=1e-8)
+    assert ver.removed[2].startswith("the samples' steps range ")
+    assert ver.removed[2].endswith("each is judged at its own time, nothing resampled")
+
+
+def test_what_verify_refuses():
+    t, x = run()
+    measured = MeasuredMotion("m.csv", "tracker", t, positions(x), XYZ)
+    with pytest.raises(InvalidConfigError, match="frame must be 'axes' or 'base', got 'fit'"):
+        verify(MOTION, measured, frame="fit")
+    for bad in (math.nan, math.inf, -math.inf, 1.0000001e10, 1e300):
+        with pytest.raises(
+            InvalidConfigError, match=r"clock offset must be a number within \+-1e\+10 s"
+        ):
+            verify(MOTION, measured, clock_offset_s=bad)
+    assert verify(MOTION, measured, clock_offset_s=-1e5 + 1e5).clock_offset_s == 0.0
+    with pytest.raises(InvalidConfigError, match="no overlap"):
+        verify(MOTION, measured, clock_offset_s=-1e5)
+    only_z = np.array([False] * 5 + [True])
+    with pytest.raises(InvalidConfigError, match="measures Z, along which harmonics does not"):
+        verify(MOTION, MeasuredMotion("m.csv", "tracker", t, x * [0, 0, 0, 0, 0, 1], only_z))
+    with pytest.raises(InvalidConfigError, match="lasts 2.98 s, shorter than one cycle"):
+        verify(MOTION, MeasuredMotion("m.csv", "tracker", t[:150], x[:150], XYZ))
+    gap = np.concatenate([t[:500], t[500:] + 0.6])
+    with pytest.raises(InvalidConfigError, match="stop for 620 ms after t = 109.98 s"):
+        verify(MOTION, MeasuredMotion("m.csv", "tracker", gap, positions(x), XYZ))
+    verify(MOTION, MeasuredMotion("m.csv", "tracker", gap, positions(x), XYZ), max_gap_s=0.7)
+
+
+# -- the steps -------------------------------------------------------------------------------------
+
+
+def test_the_words_on_the_samples_steps():
+    t = 0.02 * np.arange(100)
+    assert vn._samples(t, 0.5) == ""
+    t[50:] += 0.0001  # one step 0.5 % long: even
+    assert vn._samples(t, 0.5) == ""
+    t[60:] += 0.0003  # one 1.5 % long
+    assert vn._samples(t, 0.5) == (
+        "the samples' steps range 20-20.3 ms (median 20 ms): each is judged at its own time, "
+        "nothing resampled"
+    )
+    t[70:] += 0.47
+    assert vn._samples(t, 0.5).startswith("the samples' steps range 20-490 ms")
+    t[70:] += 0.011
+    with pytest.raises(InvalidConfigError) as err:
+        vn._samples(t, 0.5)
+    assert str(err.value).startswith(
+        "the measured samples stop for 501 ms after t = 1.3804 s of the file (the tracker lost "
+        "the marker?), longer than --measured-max-gap 500 ms: verify compares"
+    )
+    # A step of the largest gap exactly is judged across.
+    t = 0.25 * np.arange(40)
+    t[20:] += 0.25
+    assert vn._samples(t, 0.5).startswith("the samples' steps range 250-500 ms")
+
+
+def test_the_shifts_searched():
+    t = np.linspace(100.0, 120.0, 11)
+    periodic = MOTION
+    ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=60.0)
+    endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False)
+    # Known clocks: the latencies up to 3 times the bound, at most 0.45 of a period.
+    assert vn._search(ended, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
+    assert vn._search(periodic, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
+    assert vn._search(periodic, t, -98.0, 1.0) == pytest.approx((-99.8, -96.2))
+    # Unknown: the recording's start from half its length before the motion's to its end.
+    assert vn._search(ended, t, None, 0.5) == pytest.approx((-110.0, -50.0))
+    assert vn._search(periodic, t, None, 0.5) == pytest.approx((-110.0, -96.0))
+    assert vn._search(endless, t, None, 0.5) == pytest.approx((-110.0, -100.0 + 3600.0))
+    short = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, end_time=5.0)
+    assert vn._search(short, t, None, 0.5) == pytest.approx((-110.0, -100.0))
+
+
+def test_the_window_is_the_whole_cycles_after_the_first():
+    window, starts, holds = vn._window(MOTION, 1.0, 30.0)
+    assert window == (4.0, 28.0) and holds
+    np.testing.assert_array_equal(starts, [4, 8, 12, 16, 20, 24, 28])
+    window, starts, holds = vn._window(MOTION, 8.0, 16.0)  # the edges are in
+    assert window == (8.0, 16.0) and not holds and list(starts) == [8, 12, 16]
+    window, starts, holds = vn._window(MOTION, 4.0, 12.0)  # from the first cycle's end
+    assert window == (4.0, 12.0) and not holds
+    with pytest.raises(InvalidConfigError, match="not one whole cycle"):
+        vn._window(MOTION, 0.5, 4.0)  # the first cycle alone
+    window, starts, holds = vn._window(MOTION, 5.0, 15.9)
+    assert window == (8.0, 12.0) and not holds
+    with pytest.raises(InvalidConfigError) as err:
+        vn._window(MOTION, 5.0, 11.0)
+    assert str(err.value) == (
+        "the measured motion covers t = 5-11 s of harmonics once aligned: not one whole cycle "
+        "(4 s) after the motion's first; record at least two cycles"
+    )
+    endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, name="trace")
+    window, starts, holds = vn._window(endless, 1.5, 5.5)
+    assert window == (1.5, 5.5) and starts.size == 0 and not holds
+    with pytest.raises(InvalidConfigError, match="covers 3.99 s of trace once aligned, shorter"):
+        vn._window(endless, 1.5, 5.49)
+
+
+def test_the_length_of_a_recording_is_one_cycle_at_least():
+    vn._check_length(MOTION, np.array([0.0, 4.0]))
+    with pytest.raises(InvalidConfigError) as err:
+        vn._check_length(MOTION, np.array([0.0, 3.99]))
+    assert str(err.value) == (
+        "the measured motion lasts 3.99 s, shorter than one cycle of harmonics (4 s): record at "
+        "least two cycles"
+    )
+    # A reference without repeat_period_s: its cycles found from its motion (here 5 s), or a
+    # breath without any.
+    cycling = Harmonics(MOTION.amplitude, phase=MOTION.phase, period_s=5.0, name="c")
+    unsaid = type(
+        "Unsaid", (), {"name": "u", "evaluate": cycling.evaluate, "cycles": cycling.cycles}
+    )()
+    vn._check_length(unsaid, np.array([0.0, 5.0]))
+    with pytest.raises(InvalidConfigError, match="shorter than one cycle of u \\(5 s\\)"):
+        vn._check_length(unsaid, np.array([0.0, 4.9]))
+    endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False, name="e")
+    vn._check_length(endless, np.array([0.0, 4.0]))
+    with pytest.raises(InvalidConfigError, match="shorter than one cycle of e \\(4 s\\)"):
+        vn._check_length(endless, np.array([0.0, 3.9]))
+
+
+class Lengthening:
+    """A trace whose breaths lengthen, 3 s, 3.2 s, 3.4 s...: no repeat_period_s, 20 s long."""
+
+    name = "slowing"
+    end_time = 20.0
+
+    def evaluate(self, t):
+        return MOTION.evaluate(t)
+
+    def cycles(self, t_end):
+        starts = np.cumsum([0.0] + [3.0 + 0.2 * k for k in range(40)])
+        k = int(np.searchsorted(starts, t_end - 1e-9))
+        return starts[: k + 1], np.ones(k)
+
+
+def test_a_trace_with_an_end_is_cut_into_its_own_cycles():
+    # Its cycles up to its end (3 to 4 s, median 3.5 s), not those past it.
+    vn._check_length(Lengthening(), np.array([0.0, 3.5]))
+    with pytest.raises(InvalidConfigError, match="shorter than one cycle of slowing \\(3.5 s\\)"):
+        vn._check_length(Lengthening(), np.array([0.0, 3.45]))
+
+
+def test_the_overlap_with_the_reference():
+    ended = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=10.0)
+    t = np.arange(-2.0, 13.0, 0.5)
+    on = vn._overlap(ended, t, 0.0)
+    np.testing.assert_array_equal(t[on], np.arange(0.0, 10.5, 0.5))
+    on = vn._overlap(ended, t, 1.0)
+    np.testing.assert_array_equal(t[on], np.arange(1.0, 9.5, 0.5))
+    np.testing.assert_array_equal(t[vn._overlap(MOTION, t, 0.0)], np.arange(0.0, 13.0, 0.5))
+    with pytest.raises(InvalidConfigError) as err:
+        vn._overlap(ended, t, 3.6)  # 3.6 to 6.4: 6 samples
+    assert str(err.value) == (
+        "once aligned, the measured motion spans t = -2-12.5 s of the reference's clock, which "
+        "runs over 0-10 s: no overlap; check --clock-offset and that the file recorded this motion"
+    )
+    short = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=9.5)
+    assert np.count_nonzero(vn._overlap(short, t, 2.5)) == 10  # 2.5 to 7: ten samples do
+    with pytest.raises(InvalidConfigError) as err:
+        vn._overlap(MOTION, t - 20.0, 0.0)
+    assert "of the reference's clock, which runs from 0 s on: no overlap" in str(err.value)
+
+
+def test_a_reference_that_says_nothing_of_itself():
+    # Only what the Reference protocol requires: a name and evaluate.
+    bare = type("Bare", (), {"name": "bare", "evaluate": staticmethod(MOTION.evaluate)})()
+    assert vn._frequencies(bare) == {}
+    t = np.linspace(100.0, 120.0, 11)
+    assert vn._search(bare, t, None, 0.5) == pytest.approx((-110.0, -100.0 + 3600.0))
+    assert vn._search(bare, t, -98.0, 0.5) == pytest.approx((-99.5, -96.5))
+    np.testing.assert_array_equal(vn._overlap(bare, np.arange(-2.0, 13.0), 0.0)[:3], [0, 0, 1])
+
+
+def test_the_fundamentals_of_a_motion_that_repeats_only():
+    assert vn._frequencies(MOTION) == {"breathing": 0.25}
+    endless = Harmonics(MOTION.amplitude, phase=MOTION.phase, periodic=False)
+    assert vn._frequencies(endless) == {}
+    silent = type("Silent", (), {"repeat_period_s": 4.0, "frequencies_hz": None})()
+    assert vn._frequencies(silent) == {}
+
+
+def fidelity_of_six():
+    return {
+        "rms": [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+        "peak": [1.5] * 6,
+        "rms_fraction": [0.1] * 6,
+        "peak_fraction": [0.2] * 6,
+        "p2p": [0.0, 0.04, 0.0, 0.01, 0.0, 0.0],
+        "cycles": {
+            "starts": [4.0, 8.0],
+            "rms_rotation_rad": [0.1],
+            "rms_translation_m": [0.2],
+            "peak_translation_m": [0.3],
+        },
+        "rms_rotation_rad": 0.1,
+        "peak_rotation_rad": 0.2,
+        "rms_translation_m": 0.3,
+        "peak_translation_m": 0.4,
+        "lag_s": {"theta": 0.01, "X": 0.02},
+        "lag_all_s": 99.0,
+        "harmonics": [{"axis": "theta", "k": 1}, {"axis": "X", "k": 1}],
+        "moving": ["theta", "X"],
+        "window_s": (4.0, 16.0),
+    }
+
+
+def test_the_axes_not_measured_are_nan_and_named():
+    fid = fidelity_of_six()
+    t = np.arange(2.0, 18.0, 0.02)
+    x_d = MOTION.evaluate(t)[0]
+    x = MOTION.evaluate(t - 0.05)[0]  # 50 ms late
+    out = vn._not_measured(fid, XYZ, t, x, x_d)
+    assert fid == fidelity_of_six()  # not changed
+    nan3 = [math.nan] * 3
+    for key, values in (("rms", [4.0, 5.0, 6.0]), ("peak", [1.5] * 3), ("rms_fraction", [0.1] * 3)):
+        np.testing.assert_array_equal(out[key], nan3 + values)
+    np.testing.assert_array_equal(out["peak_fraction"], nan3 + [0.2] * 3)
+    assert math.isnan(out["rms_rotation_rad"]) and math.isnan(out["peak_rotation_rad"])
+    assert out["rms_translation_m"] == 0.3 and out["peak_translation_m"] == 0.4
+    assert np.isnan(out["cycles"]["rms_rotation_rad"]).all()
+    assert out["cycles"]["rms_translation_m"] == [0.2]
+    assert out["lag_s"] == {"X": 0.02}
+    assert out["harmonics"] == [{"axis": "X", "k": 1}]
+    assert out["measured"] == ["X", "Y", "Z"]
+    assert out["lag_all_s"] == pytest.approx(0.05, abs=1e-3)  # from X alone
+    # Rotations only: the translations' figures NaN.
+    out = vn._not_measured(fid, ~XYZ, t, x, x_d)
+    assert math.isnan(out["rms_translation_m"]) and math.isnan(out["peak_translation_m"])
+    assert np.isnan(out["cycles"]["rms_translation_m"]).all()
+    assert np.isnan(out["cycles"]["peak_translation_m"]).all()
+    assert out["rms_rotation_rad"] == 0.1 and out["cycles"]["rms_rotation_rad"] == [0.1]
+    assert out["lag_s"] == {"theta": 0.01} and out["measured"] == ["phi", "theta", "psi"]
+    assert out["lag_all_s"] == pytest.approx(0.05, abs=1e-3)
+    # X alone (a single-axis sensor): the translations' 3-D figures are over it.
+    out = vn._not_measured(fid, np.array([0, 0, 0, 1, 0, 0], bool), t, x, x_d)
+    assert out["rms_translation_m"] == 0.3 and out["cycles"]["peak_translation_m"] == [0.3]
+    # Only axes the reference does not move along: the lag of the whole motion is left.
+    out = vn._not_measured(fid, np.array([1, 0, 0, 0, 1, 1], bool), t, x, x_d)
+    assert out["lag_all_s"] == 99.0
+    # Every axis: nothing NaN.
+    out = vn._not_measured(fid, np.ones(6, bool), t, x, x_d)
+    assert out == {**fidelity_of_six(), "measured": list(AXES)}
+
+
+def test_the_lag_of_the_measured_axes_is_over_the_window():
+    # 50 ms late inside the window [4, 16] s, on time outside it.
+    fid = fidelity_of_six()
+    t = np.arange(2.0, 18.0, 0.02)
+    x_d = MOTION.evaluate(t)[0]
+    inside = (t >= 4.0 - 1e-9) & (t <= 16.0 + 1e-9)
+    x = np.where(inside[:, None], MOTION.evaluate(t - 0.05)[0], x_d)
+    out = vn._not_measured(fid, XYZ, t, x, x_d)
+    expected = time_lag(t[inside], x[inside][:, [3]], x_d[inside][:, [3]], weights=[100.0])
+    assert out["lag_all_s"] == pytest.approx(expected, rel=1e-12)
+    assert expected == pytest.approx(0.05, abs=1e-3)
+
+
+def test_the_lag_of_the_measured_axes_weighs_each_by_its_motion():
+    # theta 60 ms late, X on time: weighted by 1 / peak to peak, each counts alike.
+    fid = fidelity_of_six()
+    t = np.arange(2.0, 18.0, 0.02)
+    x_d = MOTION.evaluate(t)[0]
+    x = x_d.copy()
+    x[:, 1] = MOTION.evaluate(t - 0.06)[0][:, 1]
+    seen = np.array([0, 1, 0, 1, 0, 0], bool)
+    out = vn._not_measured(fid, seen, t, x, x_d)
+    assert 0.02 < out["lag_all_s"] < 0.04
+
+
+def test_a_file_none_of_whose_axes_move_is_refused():
+    fid = {"moving": ["theta", "X"]}
+    measured = MeasuredMotion("/d/z.csv", "tracker", np.zeros(2), np.zeros((2, 6)), np.zeros(6))
+    vn._check_judgeable(MOTION, fid, np.array([0, 1, 0, 0, 0, 0], bool), measured)
+    with pytest.raises(InvalidConfigError) as err:
+        vn._check_judgeable(MOTION, fid, np.array([0, 0, 0, 0, 1, 1], bool), measured)
+    assert str(err.value) == (
+        "/d/z.csv measures Y, Z, along which harmonics does not move (it moves theta, X): "
+        "nothing of the motion can be judged; measure along an axis it moves"
+    )
+    with pytest.raises(InvalidConfigError, match=r"\(it moves along no axis\)"):
+        vn._check_judgeable(MOTION, {"moving": []}, np.ones(6, bool), measured)
+
+
+def test_a_registration_needs_the_markers_positions_and_three_rotations_or_none():
+    reg = SETUP.registration()
+
+    def measured(mask):
+        return MeasuredMotion("/d/m.csv", "tracker", np.zeros(2), np.zeros((2, 6)), np.array(mask))
+
+    frames = vn._registered(reg, measured([True] * 6))
+    assert frames.how == "registration" and frames.note == reg.words()
+    np.testing.assert_array_equal(frames.p_EM, np.zeros(3))
+    np.testing.assert_array_equal(frames.R_BT, np.eye(3))
+    frames = vn._registered(reg, measured([False] * 3 + [True] * 3))
+    np.testing.assert_allclose(frames.p_EM, SETUP.X_PM.translation(), atol=1e-15)
+    for mask in ([False] * 4 + [True] * 2, [True, False, False, True, True, True]):
+        with pytest.raises(InvalidConfigError) as err:
+            vn._registered(reg, measured(mask))
+        assert str(err.value).startswith(
+            "/d/m.csv: a registration maps a tracker's marker (its X, Y and Z, and its three "
+            "rotations or none) to the platform; this file measures "
+        )
+    assert "this file measures phi, X, Y, Z: judge it without --registration" in str(err.value)
+
+
+def test_the_words_on_the_clock_and_the_frames():
+    frames = Frames("base")
+    known = vn._removed_words(-0.06, 0.0, 0.06, "given (--clock-offset)", frames, None, None, "")
+    assert known == [
+        "the clock: the measured motion shifted by -0.06 s onto the reference's clock (the shift "
+        "of least distance, by FFT, then to a fraction of a sample): the clock offset +0 s "
+        "(given (--clock-offset)) less the latency, 60 ms (> 0: the phantom late)",
+        "the frames: none: the file gives the platform's poses in the base frame; nothing removed",
+    ]
+    unknown = vn._removed_words(-121.5, 0.0, 121.5, "not known", frames, None, None, "uneven")
+    assert unknown[0] == (
+        "the clock: the measured motion shifted by -121.5 s onto the reference's clock (the "
+        "shift of least distance, by FFT, then to a fraction of a sample). The clocks' relation "
+        "was not given, so the whole shift is reported as the latency (121.5 s) with clock "
+        "offset 0 and is not judged: it holds any offset of the tracker's clock; give "
+        "--clock-offset S (the measured time + S = the reference's) to separate the phantom's "
+        "own lag and judge it"
+    )
+    assert unknown[2] == "uneven" and len(unknown) == 3
+
+
+def test_the_words_on_what_the_figures_leave_out():
+    t_all = np.arange(-1.0, 25.0, 0.5)
+    t_ref = t_all[(t_all >= 0.0) & (t_all <= 22.0)]
+    assert vn._outside_words(t_all, t_ref, (4.0, 20.0), True) == [
+        "what the figures leave out: 1 s of the recording before the reference's start and 2.5 s "
+        "after its end are not compared; the figures are over whole cycles, t = 4-20 s: 4 s "
+        "before (the motion's first cycle, the start-up) and 2 s after are outside them"
+    ]
+    assert vn._outside_words(t_ref, t_ref, (4.0, 20.0), False) == [
+        "what the figures leave out: the figures are over whole cycles, t = 4-20 s: 4 s before "
+        "(part of a cycle) and 2 s after are outside them"
+    ]
+    assert vn._outside_words(t_all, t_ref, (0.0, 22.0), False) == [
+        "what the figures leave out: 1 s of the recording before the reference's start and 2.5 s "
+        "after its end are not compared"
+    ]
+    assert vn._outside_words(t_ref, t_ref, (0.0, 22.0), False) == []
+    assert vn._outside_words(t_ref, t_ref, (0.5, 22.0), False) == [
+        "what the figures leave out: the figures are over whole cycles, t = 0.5-22 s: 0.5 s "
+        "before (part of a cycle) and 0 s after are outside them"
+    ]
+    assert vn._outside_words(t_ref, t_ref, (0.0, 21.5), False)[0].endswith(
+        "0 s before (part of a cycle) and 0.5 s after are outside them"
+    )
+    # Only after, or only before.
+    assert "0 s of the recording before" in vn._outside_words(t_ref, t_ref[:-1], (0, 21.5), 0)[0]
+    assert (
+        "1 s of the recording before the reference's start and 0 s after its end"
+        in (vn._outside_words(t_all[:-5], t_ref, (0, 22.0), 0)[0])
+    )
