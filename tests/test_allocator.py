@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.base.allocator import (
     TCACHE_COUNT,
@@ -45,7 +46,7 @@ def _started(argv, tmp_path, tunables=None):
     if tunables is not None:
         env["GLIBC_TUNABLES"] = tunables
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
-    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=HANG_S)
     assert done.returncode == 0, done.stderr
     return seen.read_text().splitlines(), done.stdout
 
@@ -87,7 +88,7 @@ def _run_with_probe(argv, tmp_path, **kwargs):
     )
     env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
-    done = subprocess.run(argv, env=env, capture_output=True, timeout=300, **kwargs)
+    done = subprocess.run(argv, env=env, capture_output=True, timeout=HANG_S, **kwargs)
     starts = seen.read_text().splitlines() if seen.exists() else []
     return len(starts), done.returncode, done.stdout.decode(), done.stderr.decode()
 
@@ -137,7 +138,7 @@ def test_a_ctrl_c_in_the_restart_s_window_is_one_line_and_130(tmp_path, ctrl_c):
     env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
     done = subprocess.run(
-        [_SCRIPT, "--version"], env=env, capture_output=True, text=True, timeout=300
+        [_SCRIPT, "--version"], env=env, capture_output=True, text=True, timeout=HANG_S
     )
     assert "Traceback" not in done.stderr, done.stderr
     assert done.returncode == 130 and done.stdout == "", (done.returncode, done.stdout)
@@ -162,7 +163,7 @@ def test_the_command_started_again_does_not_keep_ctrl_c_held(tmp_path):
         [sys.executable, str(script)],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         env={k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"},
     )
     assert done.returncode == 0, done.stderr

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.design.design_search import (
     SEARCH_VARIABLES,
@@ -210,7 +211,7 @@ def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task,
     )
     proc = subprocess.Popen([sys.executable, "-c", code], cwd=ROOT)
     manifest = folder / "manifest.json"
-    deadline = time.monotonic() + 300
+    deadline = time.monotonic() + HANG_S
     try:
         while time.monotonic() < deadline and proc.poll() is None:
             try:
@@ -223,7 +224,7 @@ def test_a_search_killed_and_run_again_continues_and_finds_the_same_design(task,
         os.kill(proc.pid, signal.SIGKILL)
     finally:
         proc.kill()
-        proc.wait(timeout=60)
+        proc.wait(timeout=HANG_S)
     resumed = search(
         task, REFERENCE_MOTOR, "peak_torque", folder, seed=0, popsize=2, maxiter=6, progress=False
     )

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import install_plugin
+from conftest import HANG_S, install_plugin
 
 from stewart_drake.cli import main as cli
 from stewart_drake.control import contract
@@ -271,12 +271,12 @@ def test_ctrl_c_while_the_command_imports_is_one_line(tmp_path, delay_s):
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    deadline = time.monotonic() + 60.0  # a guard against a hang, not a measure
+    deadline = time.monotonic() + HANG_S  # a guard against a hang, not a measure
     while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.002)
     time.sleep(delay_s)
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=HANG_S)
     lines = err.strip().splitlines()
     if proc.returncode == 2:  # the command ended (refusing the typo) before the signal came
         assert lines == [lines[0]] and "duration_s" in lines[0], err
