@@ -13,6 +13,7 @@ from stewart_drake.base.allocator import (
     is_glibc,
     tuned_environment,
 )
+from stewart_drake.execution.options import STARTING
 
 pytestmark = pytest.mark.skipif(not is_glibc(), reason="glibc's tunables only")
 
@@ -103,7 +104,8 @@ def test_with_standard_output_closed_the_command_runs_once_as_it_is(tmp_path):
     assert "Traceback" not in err and "AttributeError" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith(_AS_IS + "its standard output is closed;"), lines
-    assert lines[1].startswith("stewart-drake scenario: no scenario file nope"), lines
+    assert lines[1] == f"stewart-drake scenario: {STARTING}", lines
+    assert lines[2].startswith("stewart-drake scenario: no scenario file nope"), lines
 
 
 def test_a_script_read_from_standard_input_is_not_started_again_with_it_consumed(tmp_path):

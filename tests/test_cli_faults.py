@@ -24,6 +24,7 @@ from conftest import HANG_S, install_plugin, wait_for
 from stewart_drake.base.fileio import atomic_write, save_npz
 from stewart_drake.cli import core
 from stewart_drake.cli import main as cli
+from stewart_drake.execution.options import STARTING
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -140,8 +141,9 @@ def test_no_traceback_from_the_installed_command_line(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
+        f"stewart-drake run: {STARTING}",  # the command's first line, before Drake loads
         "stewart-drake run: error: argument --duration: must be > 0, got -3 "
-        "(see stewart-drake run --help)"
+        "(see stewart-drake run --help)",
     ]
 
 

@@ -15,7 +15,7 @@ import types
 
 import numpy as np
 import pytest
-from conftest import LOADED_MACHINE_BUS, bus_emulator, robot_bus_yaml
+from conftest import HANG_S, LOADED_MACHINE_BUS, bus_emulator, robot_bus_yaml
 
 pytest.importorskip("dynamixel_sdk")
 
@@ -342,12 +342,30 @@ def test_an_emulated_pose_is_checked_before_a_process_is_spawned(capsys, monkeyp
     monkeypatch.setattr(emulator_process.EmulatorProcess, "start", spawn)
 
 
+def test_the_emulator_s_start_is_said_before_it_starts(capsys, monkeypatch):
+    """``--emulate`` starts a process that loads Drake and builds the robot's plant (seconds,
+    and on a loaded machine a minute that showed nothing): said first, in one line."""
+    from stewart_drake.live import emulator_process
+
+    def start(self):
+        started.append(capsys.readouterr().err)
+        raise BusError("the bus emulator did not start: (a test)")
+
+    started = []
+    monkeypatch.setattr(emulator_process.EmulatorProcess, "start", start)
+    assert main(["robot", "--emulate", "0,0,0,0,0,0.28", "--dry-run"]) == 2
+    assert started and started[0].startswith("stewart-drake robot: starting the bus emulator")
+    assert capsys.readouterr().err.strip() == (
+        "stewart-drake robot: the bus emulator did not start: (a test)"
+    )
+
+
 def test_the_emulator_process_reports_its_failure_in_one_line(capfd):
     from stewart_drake.live.emulator_process import EmulatorProcess
 
     far = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5])  # out of the rods' reach
     with pytest.raises(BusError, match=r"did not start: UnreachablePoseError: leg") as caught:
-        EmulatorProcess(x0=far, start_timeout_s=300.0).start()
+        EmulatorProcess(x0=far, start_timeout_s=HANG_S).start()
     assert "__main__" not in str(caught.value) and "\n" not in str(caught.value)
     assert "Traceback" not in capfd.readouterr().err
 
@@ -408,10 +426,17 @@ def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypat
 
 
 def test_robot_emulate_dry_run_as_readme_shows_it(capsys):
+    """The pose read and judged, each silent stage said before it (the emulator's start, the
+    reading: together a minute and more on a first use on a loaded machine)."""
     assert main(["robot", "--emulate", "--dry-run"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert out.splitlines()[-1] == "admissible", out
     assert abs(_z_mm(out) - 280.0) < 0.2, out  # --emulate's default pose
+    said = [line.split(": ", 1)[1] for line in err.splitlines()]
+    assert [s.split(",")[0] for s in said] == [
+        "starting the bus emulator",
+        "reading the servos' angles",
+    ], err
 
 
 # -- the robot command's hostile input: refused before anything is powered ------------------------

@@ -24,7 +24,7 @@ import threading
 from pathlib import Path
 
 from ..base.errors import StewartError
-from ..execution.options import check_output
+from ..execution.options import check_output, compile_note, say_starting
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
 #: with the folder under ``--out`` that keeps them.
@@ -53,9 +53,21 @@ def _interruptible():
     return handlers
 
 
-def main(argv: list[str] | None = None) -> int:
-    from .. import _interrupted_while_starting
+def _command_named(argv: list[str] | None) -> str | None:
+    """The subcommand ``argv`` names (its first word that is not an option), before it is
+    parsed; None when there is none."""
+    words = sys.argv[1:] if argv is None else argv
+    return next((w for w in words if not w.startswith("-")), None)
 
+
+def main(argv: list[str] | None = None) -> int:
+    from .. import _interrupted_while_starting, _started_as_the_command
+
+    # The process of the command (the console script, `python -m`), not a library's call: its
+    # first line says what it does first, before the seconds of Drake's imports.
+    own = _started_as_the_command()
+    if own:
+        say_starting(_command_named(argv))
     # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
     if signal.getsignal(signal.SIGINT) is _interrupted_while_starting:
         signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -64,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
     try:
-        return _main(argv)
+        return _main(argv, own)
     finally:
         for signum, handler in restore.items():
             signal.signal(signum, handler)
@@ -111,7 +123,10 @@ def _build_parser():
         return build_parser()
 
 
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, own: bool = False) -> int:
+    """Parse ``argv`` and run its command (:func:`main`); ``own``: in the command's process,
+    whose compilations are said as they start
+    (:func:`~stewart_drake.base.compiled.announce_compiles`)."""
     try:
         parser = _build_parser()
         args = parser.parse_args(argv)
@@ -128,7 +143,12 @@ def _main(argv: list[str] | None) -> int:
             check_output(
                 args.out, "--out", getattr(args, "out_is_file", False), getattr(args, "out_sub", ())
             )
-        return int(args.func(args) or 0)
+        if not own:
+            return int(args.func(args) or 0)
+        from ..base.compiled import announce_compiles
+
+        with announce_compiles(compile_note(args.command)):
+            return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 2
