@@ -5,6 +5,7 @@ period and timing, Meshcat and LCM in hardware mode, and the closed loop through
 import io
 import math
 import pickle
+import re
 import time
 
 import numpy as np
@@ -202,7 +203,9 @@ def test_the_driver_writes_then_reads_once_a_period_and_holds_the_pose_of_the_an
     np.testing.assert_allclose(x[:6], x0, atol=1e-4)
     summary = driver.timing_summary()
     assert summary["periods"] == periods and summary["period"]["n"] == periods - 1
-    assert summary["nominal"] == H and summary["age"]["n"] == periods
+    # The first period's measurement is the seed's, apart (read before the loop started).
+    assert summary["nominal"] == H and summary["age"]["n"] == periods - 1
+    assert summary["first_age"] == driver.timing.rows()[0, 4] > 0
     loop = driver.GetOutputPort("loop").Eval(context)
     assert loop[0] == lcmt_stewart_status.MODE_RUNNING and loop[1] == summary["misses"]
 
@@ -290,6 +293,27 @@ def test_a_flood_of_misses_is_said_in_a_few_summary_lines():
     ), lines[-1]
     assert driver.miss_line().startswith("deadline misses: 1541 so far")
     assert "bus reply 514, preempted 514, blocked 513" in driver.miss_line()
+
+
+def test_a_first_measurement_read_long_before_the_loop_is_said_apart_not_as_a_late_period():
+    """A session that waited after its seed (``robot --follow-lcm``'s wait for a first sample:
+    4.8 s once, said as "worst age 4819 ms" with no deadline missed): the first period's
+    measurement age is said on its own line, as what it is, and the ages are the later
+    periods'."""
+    bus = StallingBus(X_HOME, stalls=(), stall_s=0.0)
+    driver, simulator = _held_driver(bus, X_HOME, H, max_deadline_misses=10**6)
+    time.sleep(0.3)  # the wait after the seed: the first period's measurement is older still
+    simulator.AdvanceTo(5 * H)
+    summary = driver.timing_summary()
+    assert summary["first_age"] >= 0.3 and summary["age"]["n"] == summary["periods"] - 1
+    said = [line for line in driver.timing_lines() if line.startswith("the first period's")]
+    assert len(said) == 1 and re.fullmatch(
+        r"the first period's measurement was \d+ ms old: read before the loop started \(the "
+        r"session's wait for a first sample, its checks\), not a late period; the ages above "
+        r"are the later periods'",
+        said[0],
+    ), said
+    assert int(said[0].split()[5]) == round(1e3 * summary["first_age"])
 
 
 def test_a_period_without_a_previous_reading_reports_nothing_measured():
@@ -481,7 +505,7 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
     summary = driver.timing_summary()
     assert summary["periods"] == round(duration / h) and summary["read"]["n"] == len(walls)
     records = driver.timing.rows()
-    ages = records[np.isfinite(records[:, 4]), 4]
+    ages = records[1:, 4][np.isfinite(records[1:, 4])]  # the first period's is apart
     assert summary["read"]["median"] == np.median(records[:, 2]) > 0
     assert summary["age"]["median"] == np.median(ages) > 0
 

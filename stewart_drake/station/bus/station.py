@@ -346,6 +346,12 @@ class DynamixelDriver(LeafSystem):
                     f"{name:>7}: median {1e3 * v['median']:7.3f}  p99 {1e3 * v['p99']:7.3f}  "
                     f"worst {1e3 * v['worst']:7.3f} ms"
                 )
+        if s["first_age"] > self.period_s:
+            lines.append(
+                f"the first period's measurement was {1e3 * s['first_age']:.0f} ms old: read "
+                "before the loop started (the session's wait for a first sample, its checks), "
+                "not a late period; the ages above are the later periods'"
+            )
         causes = ", ".join(f"{what} {n}" for what, n in s["late_causes"].items())
         late = sum(s["late_causes"].values())
         if late:
