@@ -382,10 +382,14 @@ def _write_export(path, seconds=20.0, drop=None, columns=3):
         ("no overlap", "no overlap"),
         ("registration", "base_points: 2 points: a frame needs at least 3"),
         ("clock", "the clock offset must be a number within +-1e+10 s"),
+        ("long name", "bytes long; the file system takes names of at most 255 bytes"),
     ],
 )
 def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, expected):
     path = tmp_path / "m.csv"
+    if case == "long name":  # a 240-character name: its report's name is longer than 255
+        path = tmp_path / ("m" * 236 + ".csv")
+        _write_export(path)
     columns = MARKER_COLUMNS
     offset = CLOCK_OFFSET_S
     if case == "short":
@@ -431,6 +435,8 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
     *progress, refusal = err.strip("\n").split("\n")
     assert refusal.startswith("stewart-drake verify: ") and expected in refusal
     assert all(line.startswith("verify: ") for line in progress)
+    if case == "long name":  # refused before the file is read, not after the judgement
+        assert progress == [], progress
 
 
 def _write_6dof(path, t_s, poses, quaternion: bool, order="wxyz"):
