@@ -183,6 +183,25 @@ def test_an_export_on_the_base_axes_passes_its_offsets_removed_and_said(
     assert "verify: reading" in err and "verify: aligning and judging aligned.csv" in err
 
 
+def test_a_window_far_from_zero_is_printed_with_every_digit(tmp_path, aligned_export, capsys):
+    """Judged three days into the reference's clock (a tracker's clock since it booted, the
+    clocks' relation given): the windows of the verdict and of the figures show every digit
+    before the point ("t = 259204-259240 s"), where 4 significant digits once printed both
+    ends alike, "t = 2.592e+05-2.592e+05 s"."""
+    options = export_options(aligned_export)
+    options[options.index(f"--clock-offset={CLOCK_OFFSET_S!r}")] = (
+        f"--clock-offset={CLOCK_OFFSET_S + 259_200!r}"
+    )
+    code, (figures,) = run_verify(tmp_path, *options)
+    out = capsys.readouterr().out
+    windows = re.findall(r"over t = (\d+(?:\.\d+)?)-(\d+(?:\.\d+)?) s", out)
+    assert code == 0 and len(windows) == 2 and "e+05" not in out, out
+    w0, w1 = figures["fidelity"]["window_s"]
+    assert all(float(a) == pytest.approx(w0, abs=0.01) for a, _ in windows)
+    assert all(float(b) == pytest.approx(w1, abs=0.01) for _, b in windows)
+    assert 259_200 < w0 < w1 - 10
+
+
 def test_a_tracker_turned_from_the_base_fails_without_a_registration_naming_the_turn(
     tmp_path, export, capsys
 ):
