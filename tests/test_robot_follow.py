@@ -4,15 +4,15 @@ no network), followed by the robot on the bus emulator in this process, on the c
 (:func:`conftest.bus_emulator`); and a source that falls silent, sends a sample out of order or
 a NaN, or never sends, each ending the run with the torque off and one line.
 
-Where the test judges how well the robot follows, the motion runs on the loop's clock, as the
-emulator's plant does (:class:`LoopClockSource`): on a loaded machine the loop runs late and
-moves its schedule on after a missed deadline, and a motion on the wall clock would run ahead of
-the loop's (at a load of 7, 6.5 s of 9 skipped: the breath played 1.6 times as fast, in the
-loop's time, as the one the robot was following), a change of the motion that is the machine's,
-not the follower's. The source of the other tests publishes from a thread on the wall clock
-(:class:`Source`). The truth's clock is mapped onto the loop's by the arrivals the follower
-stamped (their ``utime`` plus the latency against when each was read): the median of those
-offsets.
+Where a test judges how well the robot follows, or which sample a failure names, the motion runs
+on the loop's clock, as the emulator's plant does (:class:`LoopClockSource`): on a loaded machine
+the loop runs late and moves its schedule on after a missed deadline, and a motion on the wall
+clock would run ahead of the loop's (at a load of 7, 6.5 s of 9 skipped: the breath played 1.6
+times as fast, in the loop's time, as the one the robot was following), a change of the motion
+that is the machine's, not the follower's. A live source's thread on the wall clock
+(:class:`Source`) feeds the tests of the session itself (its real-time loop, its first sample).
+The truth's clock is mapped onto the loop's by the arrivals the follower stamped (their
+``utime`` plus the latency against when each was read): the median of those offsets.
 """
 
 import threading
@@ -47,10 +47,25 @@ MOTION = make_motion("breathing", {})
 SETTINGS = PredictorSettings(min_record_s=2.0)
 
 
+def _sample(j: int, spoil=None) -> bytes | None:
+    """MOTION's sample j, taken at j / RATE_HZ s, as the source sends it; ``spoil(j, message)``
+    may change the message (or return bytes, or None: nothing more is sent)."""
+    t = j / RATE_HZ
+    message = lcmt_stewart_pose_sample()
+    message.utime, message.seq = int(round(t * 1e6)), j
+    message.pose = [float(v) for v in np.asarray(MOTION.evaluate(t)[0]).reshape(6)]
+    if spoil is not None:
+        message = spoil(j, message)
+        if message is None:
+            return None
+    return message if isinstance(message, bytes) else message.encode()
+
+
 class Source:
-    """Publishes MOTION's samples on ``lcm`` from a thread: sample j (taken at j / RATE_HZ s
-    after the start) LATENCY_S after it was taken; ``spoil(j, message)`` may change a message
-    or return None to stop there."""
+    """Publishes MOTION's samples on ``lcm`` from a thread, on the wall clock: sample j (taken
+    at j / RATE_HZ s after the start) LATENCY_S after it was taken (``spoil``: as
+    :func:`_sample`'s). A live source's thread; :class:`LoopClockSource` where a test's figures
+    or messages must not depend on the machine's load."""
 
     def __init__(self, lcm, spoil=None):
         self.lcm, self.spoil = lcm, spoil
@@ -69,27 +84,12 @@ class Source:
         start = time.perf_counter()
         j = 0
         while not self.stop.is_set():
-            t = j / RATE_HZ
-            self.stop.wait(max(0.0, start + t + LATENCY_S - time.perf_counter()))
-            message = lcmt_stewart_pose_sample()
-            message.utime, message.seq = int(round(t * 1e6)), j
-            message.pose = [float(v) for v in np.asarray(MOTION.evaluate(t)[0]).reshape(6)]
-            if self.spoil is not None:
-                message = self.spoil(j, message)
-                if message is None:
-                    return
-            data = message if isinstance(message, bytes) else message.encode()
+            self.stop.wait(max(0.0, start + j / RATE_HZ + LATENCY_S - time.perf_counter()))
+            data = _sample(j, self.spoil)
+            if data is None:
+                return
             self.lcm.Publish(CHANNEL, data)
             j += 1
-
-
-def _sample(j: int) -> bytes:
-    """MOTION's sample j, taken at j / RATE_HZ s, as the source sends it."""
-    t = j / RATE_HZ
-    message = lcmt_stewart_pose_sample()
-    message.utime, message.seq = int(round(t * 1e6)), j
-    message.pose = [float(v) for v in np.asarray(MOTION.evaluate(t)[0]).reshape(6)]
-    return message.encode()
 
 
 class LoopClockSource:
@@ -98,10 +98,11 @@ class LoopClockSource:
     the bus (:meth:`install`, a ``before_torque`` hook); sample 0 as the session starts to wait
     for one (``monkeypatch``: LCM delivers to the subscriptions made before a message only). In
     the loop's time each arrives LATENCY_S after it happened (the truth at the loop's time t is
-    the motion at t + LATENCY_S), however late the loop runs on the wall clock."""
+    the motion at t + LATENCY_S), however late the loop runs on the wall clock. ``spoil``: as
+    :func:`_sample`'s."""
 
-    def __init__(self, lcm, monkeypatch):
-        self.lcm, self.sent = lcm, 0
+    def __init__(self, lcm, monkeypatch, spoil=None):
+        self.lcm, self.spoil, self.sent, self.stopped = lcm, spoil, 0, False
         wait = follow.LcmPoseSource.wait
 
         def first_then_wait(source, timeout_s):
@@ -111,8 +112,12 @@ class LoopClockSource:
         monkeypatch.setattr(follow.LcmPoseSource, "wait", first_then_wait)
 
     def _publish_until(self, t: float) -> None:
-        while self.sent / RATE_HZ <= t + 1e-9:
-            self.lcm.Publish(CHANNEL, _sample(self.sent))
+        while not self.stopped and self.sent / RATE_HZ <= t + 1e-9:
+            data = _sample(self.sent, self.spoil)
+            if data is None:  # the source falls silent
+                self.stopped = True
+                return
+            self.lcm.Publish(CHANNEL, data)
             self.sent += 1
 
     def install(self, sd, simulator) -> None:
@@ -246,12 +251,18 @@ def _cut(j, message):
     ],
     ids=["silent", "out-of-order", "nan", "cut"],
 )
-def test_a_source_that_fails_ends_the_run_with_the_torque_off_in_one_line(tmp_path, spoil, said):
+def test_a_source_that_fails_ends_the_run_with_the_torque_off_in_one_line(
+    tmp_path, monkeypatch, spoil, said
+):
+    """Each failure at sample 30, on the loop's clock (:class:`LoopClockSource`): on the wall
+    clock, a thread a loaded machine starved for half a second was a silence of its own, at
+    another sample than the one under test."""
     import re
 
     lcm = DrakeLcm("memq://")
-    with bus_emulator(X_REST, 0.01) as emu, Source(lcm, spoil):
-        run, lines, _ = _follow(emu, tmp_path, lcm, duration_s=30.0)
+    with bus_emulator(X_REST, 0.01) as emu:
+        source = LoopClockSource(lcm, monkeypatch, spoil)
+        run, lines, _ = _follow(emu, tmp_path, lcm, source, duration_s=30.0)
         torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
         enabled = _torque_enables(emu)
     assert not run.ok and run.exit_code == 1 and run.torque_off_confirmed
