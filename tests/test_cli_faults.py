@@ -27,6 +27,9 @@ from stewart_drake.cli import main as cli
 from stewart_drake.execution.options import STARTING
 
 REPO = Path(__file__).resolve().parent.parent
+#: A hostile input is refused before it is computed with: numpy's warnings of an overflow, an
+#: invalid value or a division by zero on the way to a correct refusal fail these tests.
+pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
 
 
 def _one_line_error(capsys, argv, code=2):
