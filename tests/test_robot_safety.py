@@ -289,8 +289,10 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
         process.kill()
     err = "".join(seen)
     assert process.returncode == 128 + signal.SIGTERM, (out, err)
-    last = [line for line in err.splitlines() if line.startswith("stewart-drake robot")]
-    assert len(last) == 1, err
+    said = [line for line in err.splitlines() if line.startswith("stewart-drake robot: ")]
+    # What it does first (loading, the emulator's start), then one end line, last.
+    last = [line for line in said if "torque off" in line]
+    assert len(last) == 1 and said[-1] == last[0] and len(said) == 3, err
     assert "interrupted by SIGTERM; torque off (confirmed by every servo); logs in" in last[0]
     assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5
 
