@@ -307,6 +307,13 @@ def write_trace(path, t, columns: dict, gap=None, time_header: str = "t [s]"):
     return path
 
 
+#: The bound of every wait that guards against a hang, s: far beyond what anything a test waits
+#: for takes on a machine loaded many times over (at a load of 20 on 2 cores a command's
+#: start took minutes), so that only a hang reaches it. A wait bound below 1000 s in a test
+#: is refused by tests/test_suite_rules.py unless its line says why it is kept.
+HANG_S = 1800.0
+
+
 def start_as_a_user(argv, cwd, **env) -> subprocess.Popen:
     """Start ``argv`` in ``cwd`` as a user's shell starts a command, the environment's variables
     and ``env`` set, streams piped as text: with SIGINT at its default, since a suite started
@@ -325,8 +332,8 @@ def start_as_a_user(argv, cwd, **env) -> subprocess.Popen:
 
 def wait_for(condition, timeout_s: float, what: str, poll_s: float = 0.05):
     """Wait until ``condition()`` is true, polling every ``poll_s``; fail the test, naming
-    ``what`` did not happen, after ``timeout_s``: a guard against a hang, generous, never a
-    measure of speed. Returns the condition's last value."""
+    ``what`` did not happen, after ``timeout_s``: a guard against a hang (:data:`HANG_S`),
+    never a measure of speed. Returns the condition's last value."""
     deadline = time.monotonic() + timeout_s
     while True:
         value = condition()
@@ -340,7 +347,7 @@ def wait_for(condition, timeout_s: float, what: str, poll_s: float = 0.05):
 def run_within(timeout_s: float, function, *args, what: str | None = None, **kwargs):
     """``function(*args, **kwargs)`` in a thread: its value, or the exception it raised; the
     test fails, saying what hung, if it has not ended after ``timeout_s`` (a guard against a
-    hang, generous, never a measure of speed; the thread is left behind, a daemon)."""
+    hang, :data:`HANG_S`, never a measure of speed; the thread is left behind, a daemon)."""
     import threading
 
     outcome = {}

@@ -10,6 +10,8 @@ import socket
 import time
 from urllib.parse import urlparse
 
+from conftest import HANG_S
+
 
 def _str(text: str) -> bytes:
     data = text.encode()
@@ -17,9 +19,15 @@ def _str(text: str) -> bytes:
     return (bytes([0xA0 | len(data)]) if len(data) < 32 else bytes([0xD9, len(data)])) + data
 
 
-def send_click(ws_url: str, name: str, timeout_s: float = 10.0) -> None:
+def send_click(ws_url: str, name: str, timeout_s: float = HANG_S, until=None) -> None:
     """Send one click of button ``name`` to the Meshcat server at ``ws_url`` (any thread:
-    no Meshcat call, which Drake allows only from the thread that made the Meshcat)."""
+    no Meshcat call, which Drake allows only from the thread that made the Meshcat), and keep
+    the connection open until ``until()`` is true (the click seen; None: 0.2 s, for the server
+    to read the frame before the socket closes). ``timeout_s`` guards against a hang.
+
+    Raises:
+        TimeoutError: ``until()`` still false after ``timeout_s``.
+    """
     url = urlparse(ws_url)
     message = b"\x82" + _str("type") + _str("button") + _str("name") + _str(name)
     with socket.create_connection((url.hostname, url.port), timeout=timeout_s) as sock:
@@ -40,21 +48,24 @@ def send_click(ws_url: str, name: str, timeout_s: float = 10.0) -> None:
         frame = bytes([0x82, 0x80 | len(message)]) + mask
         frame += bytes(b ^ mask[i % 4] for i, b in enumerate(message))
         sock.sendall(frame)
-        time.sleep(0.2)  # let the server read the frame before the socket closes
+        if until is None:
+            time.sleep(0.2)  # let the server read the frame before the socket closes
+            return
+        deadline = time.monotonic() + timeout_s
+        while not until():
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"the click of {name!r} was not seen")
+            time.sleep(0.01)
 
 
-def click(meshcat, name: str, timeout_s: float = 10.0) -> int:
+def click(meshcat, name: str, timeout_s: float = HANG_S) -> int:
     """Click button ``name`` of ``meshcat`` once (:func:`send_click`); returns its click count
-    once Meshcat has it.
+    once Meshcat has it (the connection kept open until then, however slow the server).
 
     Raises:
-        TimeoutError: Meshcat did not count the click within ``timeout_s``.
+        TimeoutError: Meshcat did not count the click within ``timeout_s`` (a hang).
     """
     before = meshcat.GetButtonClicks(name)
-    send_click(meshcat.ws_url(), name, timeout_s)
-    deadline = time.monotonic() + timeout_s
-    while meshcat.GetButtonClicks(name) == before:
-        if time.monotonic() > deadline:
-            raise TimeoutError(f"Meshcat did not count the click of {name!r}")
-        time.sleep(0.01)
+    counted = lambda: meshcat.GetButtonClicks(name) != before  # noqa: E731
+    send_click(meshcat.ws_url(), name, timeout_s, until=counted)
     return meshcat.GetButtonClicks(name)

@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.base.allocator import (
     TCACHE_COUNT,
@@ -12,6 +13,7 @@ from stewart_drake.base.allocator import (
     is_glibc,
     tuned_environment,
 )
+from stewart_drake.execution.options import STARTING
 
 pytestmark = pytest.mark.skipif(not is_glibc(), reason="glibc's tunables only")
 
@@ -45,7 +47,7 @@ def _started(argv, tmp_path, tunables=None):
     if tunables is not None:
         env["GLIBC_TUNABLES"] = tunables
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
-    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=300)
+    done = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=HANG_S)
     assert done.returncode == 0, done.stderr
     return seen.read_text().splitlines(), done.stdout
 
@@ -88,7 +90,7 @@ def _run_with_probe(argv, tmp_path, **kwargs):
     )
     env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
-    done = subprocess.run(argv, env=env, capture_output=True, timeout=300, **kwargs)
+    done = subprocess.run(argv, env=env, capture_output=True, timeout=HANG_S, **kwargs)
     starts = seen.read_text().splitlines() if seen.exists() else []
     return len(starts), done.returncode, done.stdout.decode(), done.stderr.decode()
 
@@ -103,7 +105,8 @@ def test_with_standard_output_closed_the_command_runs_once_as_it_is(tmp_path):
     assert "Traceback" not in err and "AttributeError" not in err
     lines = err.strip().splitlines()
     assert lines[0].startswith(_AS_IS + "its standard output is closed;"), lines
-    assert lines[1].startswith("stewart-drake scenario: no scenario file nope"), lines
+    assert lines[1] == f"stewart-drake scenario: {STARTING}", lines
+    assert lines[2].startswith("stewart-drake scenario: no scenario file nope"), lines
 
 
 def test_a_script_read_from_standard_input_is_not_started_again_with_it_consumed(tmp_path):
@@ -138,7 +141,7 @@ def test_a_ctrl_c_in_the_restart_s_window_is_one_line_and_130(tmp_path, ctrl_c):
     env = {k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"}
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(tmp_path), env.get("PYTHONPATH")]))
     done = subprocess.run(
-        [_SCRIPT, "--version"], env=env, capture_output=True, text=True, timeout=300
+        [_SCRIPT, "--version"], env=env, capture_output=True, text=True, timeout=HANG_S
     )
     assert "Traceback" not in done.stderr, done.stderr
     assert done.returncode == 130 and done.stdout == "", (done.returncode, done.stdout)
@@ -163,7 +166,7 @@ def test_the_command_started_again_does_not_keep_ctrl_c_held(tmp_path):
         [sys.executable, str(script)],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
         env={k: v for k, v in os.environ.items() if k != "GLIBC_TUNABLES"},
     )
     assert done.returncode == 0, done.stderr

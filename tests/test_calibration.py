@@ -8,7 +8,7 @@ import re
 import numpy as np
 import pytest
 import yaml
-from conftest import needs_extra
+from conftest import HANG_S, needs_extra
 
 from stewart_drake.calibration import files, identify, poses, rehearsal, validation
 from stewart_drake.calibration.tracker import MeasurementNoise, measure, quantize
@@ -499,12 +499,12 @@ def test_ctrl_c_during_a_bus_rehearsal_s_drive_exits_130_in_one_line_writing_no_
     reader = threading.Thread(target=read, daemon=True)
     reader.start()
     try:
-        assert powered.wait(600), "".join(lines) + proc.stderr.read()
+        assert powered.wait(HANG_S), "".join(lines) + proc.stderr.read()
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=300)
+        proc.wait(timeout=HANG_S)
     finally:
         proc.kill()
-    reader.join(timeout=60)
+    reader.join(timeout=HANG_S)
     err = proc.stderr.read()
     assert proc.returncode == 130, (proc.returncode, err)
     assert "Traceback" not in err, err

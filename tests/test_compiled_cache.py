@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numba
 import pytest
+from conftest import HANG_S
 
 pytestmark = pytest.mark.system
 
@@ -31,7 +32,7 @@ def _check(cache: Path, out: Path, config: Path) -> subprocess.CompletedProcess:
         env=env,
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=HANG_S,
     )
 
 

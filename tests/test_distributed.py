@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import needs_extra, run_within
+from conftest import HANG_S, needs_extra, run_within
 
 from stewart_drake.evaluation.evaluation import evaluate
 from stewart_drake.execution.clusters import DaskRunner, RayRunner
@@ -146,8 +146,8 @@ def test_a_scheduler_that_accepts_and_never_answers_is_given_up_on(tmp_path):
     try:
         runner = make_runner("dask", scheduler=f"tcp://127.0.0.1:{port}", connect_timeout_s=1.0)
         with pytest.raises(InvalidConfigError, match="it accepts a connection, but no Dask"):
-            # Given up after about 3 s; a hang fails the test after 60 s.
-            run_within(60, lambda: list(runner.map(str, {"a": 1})))
+            # Given up after about 3 s; a hang fails the test.
+            run_within(HANG_S, lambda: list(runner.map(str, {"a": 1})))
     finally:
         stop.set()
         for conn in held:

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import require_extra, wait_for
+from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra, wait_for
 
 require_extra("robot")
 import dynamixel_sdk as sdk  # noqa: E402
@@ -151,13 +151,17 @@ def emulator():
 
 def _bus(emu, **kw):
     # A generous reply timeout: the emulator's thread may wait long for a core on a loaded
-    # machine (the SDK's own ~34 ms is what a robot runs with; benchmarks/bus_round_trip.py
-    # measures the round trips).
+    # machine, and its pseudo-terminal delays a reply by up to a second (the SDK's own ~34 ms
+    # is what a robot runs with; benchmarks/bus_round_trip.py measures the round trips).
     kw = (
         dict(
             zero_counts=[2048, 1000, 3000, 2048, 2048, 2048],
             current_limit_A=1.5,
-            reply_timeout_s=1.0,
+            reply_timeout_s=LOADED_MACHINE_BUS["reply_timeout_s"],
+            # The servos' watchdog at its longest (2.54 s), where the test does not time it:
+            # a loaded machine may pause the test's thread past a shorter one between two
+            # instructions, and the current it checks would already be off.
+            watchdog_s=LOADED_MACHINE_BUS["watchdog_s"],
         )
         | kw
     )
@@ -176,7 +180,7 @@ def test_configure_writes_the_limits_and_reads_them_back(emulator):
             assert emulator.read_item(i, p.TEMPERATURE_LIMIT) == 65
             assert emulator.read_item(i, p.MIN_POSITION_LIMIT) == 500
             assert emulator.read_item(i, p.MAX_POSITION_LIMIT) == 3500
-            assert emulator.read_item(i, p.BUS_WATCHDOG) == 5  # 0.1 s in 20 ms units
+            assert emulator.read_item(i, p.BUS_WATCHDOG) == 127  # 2.54 s in 20 ms units
             assert emulator.read_item(i, p.TORQUE_ENABLE) == 0
             assert emulator.read_item(i, p.GOAL_CURRENT) == 0
         state = bus.read_state()
@@ -213,21 +217,23 @@ def test_the_servo_refuses_eeprom_writes_with_torque_on_and_goals_over_the_limit
 
 
 def test_a_constant_current_accelerates_the_horn_at_kt_i_over_j():
-    J, i_goal = 0.0125, 0.2  # kg m^2; A: a = K_t i / J = 28.5 rad/s^2
+    """75 commands of 2 ms each on the model's own clock (the emulator's commanded clock: the
+    horns move 2 ms per command, so a loaded machine cannot stretch or drop the model's time
+    between two reads), each read after its step."""
+    J, i_goal, dt = 0.0125, 0.2, 0.002  # kg m^2; A: a = K_t i / J = 28.5 rad/s^2; s
     backend = FirstOrderServos(J, XM430.torque_constant_Nm_per_A, q0=np.zeros(6))
-    with BusEmulator(IDS, backend=backend) as emu, _bus(emu, zero_counts=None) as bus:
+    emu = BusEmulator(IDS, backend=backend, command_step_s=dt)
+    with emu, _bus(emu, zero_counts=None) as bus:
         bus.configure()
         bus.enable_torque()
         tau = XM430.torque_constant_Nm_per_A * i_goal
-        t, v = [], []
-        t_end = time.perf_counter() + 0.15
-        while time.perf_counter() < t_end:
+        v = []
+        for _ in range(75):  # 0.15 s of the model's time
             bus.write_torques(np.array([tau, -tau, tau, -tau, tau, tau]))
             s = bus.read_state()
-            t.append(s.t)
             v.append(s.v)
         bus.torque_off()
-    t, v = np.array(t), np.array(v)
+    t, v = dt * np.arange(1, len(v) + 1), np.array(v)
     expected = XM430.torque_constant_Nm_per_A * (round(i_goal / 2.69e-3) * 2.69e-3) / J
     moving = v[:, 0] > 0.2  # the first write starts the motion; fit past it
     slope = np.polyfit(t[moving], v[moving], 1)[0]
@@ -246,7 +252,8 @@ def test_a_commanded_clock_moves_the_model_one_period_per_torque_command_whateve
     signs = np.array([1, -1, 1, -1, 1, 1])
     tau = XM430.torque_constant_Nm_per_A * 0.2 * signs
     emu = BusEmulator(IDS, backend=backend, command_step_s=dt)
-    with emu, _bus(emu, zero_counts=None, watchdog_s=0.1) as bus:
+    # The watchdog at 1 s: longer than the test's pauses (0.05 s) however loaded the machine.
+    with emu, _bus(emu, zero_counts=None, watchdog_s=1.0) as bus:
         bus.configure()
         bus.enable_torque()
         for k in range(8):
@@ -263,7 +270,7 @@ def test_a_commanded_clock_moves_the_model_one_period_per_torque_command_whateve
         np.testing.assert_array_equal(emu.state()[1], by_hand.velocities_rad_s())
         assert np.all(np.sign(state.v) == signs) and np.all(state.v != 0)
         # Watched without bus traffic: every instruction packet restarts a servo's watchdog.
-        wait_for(lambda: np.all(emu.applied_current_A() == 0), 30, "the bus watchdog's trip")
+        wait_for(lambda: np.all(emu.applied_current_A() == 0), HANG_S, "the bus watchdog's trip")
         assert bus.watchdog_tripped() == IDS
     with pytest.raises(InvalidConfigError, match="command_step_s"):
         BusEmulator(IDS, command_step_s=0.0)
@@ -287,15 +294,14 @@ def test_the_bus_watchdog_removes_torque_when_commands_stop(emulator):
         bus.configure()
         bus.enable_torque()
         bus.write_torques(np.full(6, 0.5))
-        bus.read_state()
+        # Read until the servos report the current (the model's next step): each read is an
+        # instruction that restarts the watchdog, so none trips while the test waits.
+        wait_for(lambda: np.all(bus.read_state().tau > 0), HANG_S, "the current driven")
         t_last = time.perf_counter()
-        assert np.all(emulator.applied_current_A() > 0)
-        deadline = t_last + 0.1 + 1.0
-        while np.any(emulator.applied_current_A() != 0) and time.perf_counter() < deadline:
-            time.sleep(0.005)
+        off = lambda: np.all(emulator.applied_current_A() == 0)  # noqa: E731
+        wait_for(off, HANG_S, "the bus watchdog's trip", poll_s=0.005)
         elapsed = time.perf_counter() - t_last
         print(f"watchdog 0.1 s: current off {elapsed * 1e3:.0f} ms after the last command")
-        assert np.all(emulator.applied_current_A() == 0)
         assert bus.watchdog_tripped() == IDS
         # Goal Current is read-only until the trip is cleared; configure clears it.
         _, error = bus._packets.write2ByteTxRx(bus._port, 1, p.GOAL_CURRENT[0], 10)
@@ -383,7 +389,7 @@ def test_the_robots_drake_plant_behind_the_bus_holds_lifts_and_lowers_the_platfo
             # damper stops the previous phase's motion quickly (a lift that ran on would carry
             # into the push down); it does not change a phase's direction.
             q0, t0 = bus.read_state().q, plant_time()
-            wall_end = time.perf_counter() + 30
+            wall_end = time.perf_counter() + HANG_S
             while plant_time() < t0 + 0.2 and time.perf_counter() < wall_end:
                 bus.write_torques(scale * T_hold - 0.2 * bus.read_state().v)
             moves.append(bus.read_state().q - q0)
@@ -399,7 +405,7 @@ def test_the_emulator_never_blocks_on_a_port_nobody_reads_and_stops_on_close():
     fd = os.open(emu.port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
     try:
         ping = p.build_packet(1, p.PING)
-        deadline = time.perf_counter() + 10
+        deadline = time.perf_counter() + HANG_S
         while emu.dropped_bytes == 0 and time.perf_counter() < deadline:
             try:
                 os.write(fd, ping * 50)  # ~700 bytes of replies each; never read

@@ -9,6 +9,31 @@ from stewart_drake.cli.main import main
 from stewart_drake.run.result import load_result, result_columns
 
 
+@pytest.mark.filterwarnings("error::tqdm.TqdmWarning")
+@pytest.mark.parametrize("t_end", [0.30000049, 37.4567891, 10.0])
+def test_the_progress_bar_ends_at_the_run_s_end_without_a_warning(t_end, capsys):
+    """The bar's total is the run's end itself and its count the simulator's time: a total
+    rounded below the end (0.30000049 s shown as 0.3) or chunks summed past it once made tqdm
+    warn that it clamps ("clamping frac to range [0, 1]", seen on a bus rehearsal)."""
+    import types
+
+    from stewart_drake.run.simulate import advance
+
+    class Simulator:  # what advance uses of Drake's
+        t = 0.0
+
+        def get_context(self):
+            return types.SimpleNamespace(get_time=lambda: self.t)
+
+        def AdvanceTo(self, t):
+            self.t = t
+
+    simulator = Simulator()
+    advance(simulator, t_end, progress=True)
+    assert simulator.t == pytest.approx(t_end, abs=1e-12)
+    assert f"{t_end:.2f}/{t_end:.2f} sim s" in capsys.readouterr().err
+
+
 def test_run_writes_its_logs_as_a_named_table_equal_to_the_arrays(tmp_path, capsys):
     assert main(["run", "--duration", "0.3", "--out", str(tmp_path), "--no-progress"]) == 0
     assert "the logs as a table:" in capsys.readouterr().out

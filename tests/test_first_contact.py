@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import install_plugin
+from conftest import HANG_S, install_plugin
 
 from stewart_drake.cli import main as cli
 from stewart_drake.control import contract
@@ -271,13 +271,15 @@ def test_ctrl_c_while_the_command_imports_is_one_line(tmp_path, delay_s):
         text=True,
         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
-    deadline = time.monotonic() + 60.0  # a guard against a hang, not a measure
+    deadline = time.monotonic() + HANG_S  # a guard against a hang, not a measure
     while not _numpy_loaded(proc.pid) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.002)
     time.sleep(delay_s)
     proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
+    _, err = proc.communicate(timeout=HANG_S)
     lines = err.strip().splitlines()
+    if lines and lines[0] == f"stewart-drake run: {options.STARTING}":  # said before the signal
+        lines = lines[1:]
     if proc.returncode == 2:  # the command ended (refusing the typo) before the signal came
         assert lines == [lines[0]] and "duration_s" in lines[0], err
         return
@@ -323,6 +325,79 @@ def test_system_exit_anywhere_in_a_command_is_one_line_and_exit_2(tmp_path, monk
 
 
 # Silent stages say what they do --------------------------------------------------------------
+
+
+@pytest.mark.system
+def test_the_command_s_first_line_says_what_it_does_before_drake_loads(tmp_path):
+    """The installed command's first line on stderr names its first step, before Python imports
+    pydrake (its -X importtime lines say when), once (the command starts itself again with its
+    allocator's settings first); the rest of its output follows. Awaited as an event: a hang
+    fails the test, a busy machine does not."""
+    command = (
+        [str(_SCRIPT)] if _SCRIPT.exists() else [sys.executable, "-m", "stewart_drake.cli.main"]
+    )
+    done = subprocess.run(
+        [*command, "scenario", "--list"],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(REPO), PYTHONPROFILEIMPORTTIME="1"),
+        capture_output=True,
+        text=True,
+        timeout=HANG_S,
+    )
+    lines = done.stderr.splitlines()
+    said = [k for k, line in enumerate(lines) if not line.startswith("import time:")]
+    drake = next(k for k, line in enumerate(lines) if line.endswith(" pydrake"))
+    assert done.returncode == 0 and "paper_hardware" in done.stdout, done.stderr[-2000:]
+    assert [lines[k] for k in said] == [f"stewart-drake scenario: {options.STARTING}"]
+    assert said[0] < drake, lines[said[0] - 2 : said[0] + 3]
+
+
+def test_a_command_says_which_kernels_it_compiles_as_they_start_once_each(monkeypatch, capsys):
+    """In the command's process, numba's first compilation of a module's kernels is said in
+    one line just before it (numba's compile event: a kernel loaded from the cache says
+    nothing), naming what they are; a second kernel of the module says nothing more, and a
+    library's call of the command (not its process) says neither line."""
+    import stewart_drake
+    from stewart_drake.base import compiled
+    from stewart_drake.run import scenario_io
+
+    def kernel(x):
+        return x + 1
+
+    def other(x):
+        return 2 * x
+
+    for f in (kernel, other):  # as if written in the servo bus's kernels
+        f.__module__ = "stewart_drake.station.bus.kernels"
+    order = []
+
+    def listing():  # scenario --list's first step, here compiling
+        for f in (kernel, other):
+            order.append(("compiled", compiled.njit_cached(f, cache=False)(1)))
+        order.append(("said before", capsys.readouterr().err))
+        return {}
+
+    monkeypatch.setattr(scenario_io, "shipped_scenarios", listing)
+    # The inputs' check before the work asks for the shipped scenarios too: not this test's.
+    monkeypatch.setattr(cli, "command_inputs", lambda args: [])
+    monkeypatch.setattr(compiled, "_announced", set())
+    monkeypatch.setattr(stewart_drake, "_started_as_the_command", lambda: True)
+    assert cli.main(["scenario", "--list"]) == 0
+    err = order[-1][1].splitlines()
+    assert err == [
+        f"stewart-drake scenario: {options.STARTING}",
+        "stewart-drake scenario: compiling the servo bus's per-period arithmetic (about 10 s) "
+        "for this machine and Python (once: later runs load it from numba's disk cache)",
+    ]
+    assert order[:2] == [("compiled", 2), ("compiled", 2)]
+    monkeypatch.setattr(compiled, "_announced", set())
+    monkeypatch.setattr(stewart_drake, "_started_as_the_command", lambda: False)
+    assert cli.main(["scenario", "--list"]) == 0
+    assert order[-1][1] == ""
+    import importlib.util
+
+    # Every module the notes name exists (a renamed one would be said by its bare name).
+    assert all(importlib.util.find_spec(m) for m in options.COMPILED_KERNELS)
 
 
 def test_analyze_says_what_it_computes_and_draws(tmp_path, capsys):

@@ -5,6 +5,7 @@ period and timing, Meshcat and LCM in hardware mode, and the closed loop through
 import io
 import math
 import pickle
+import re
 import time
 
 import numpy as np
@@ -202,7 +203,9 @@ def test_the_driver_writes_then_reads_once_a_period_and_holds_the_pose_of_the_an
     np.testing.assert_allclose(x[:6], x0, atol=1e-4)
     summary = driver.timing_summary()
     assert summary["periods"] == periods and summary["period"]["n"] == periods - 1
-    assert summary["nominal"] == H and summary["age"]["n"] == periods
+    # The first period's measurement is the seed's, apart (read before the loop started).
+    assert summary["nominal"] == H and summary["age"]["n"] == periods - 1
+    assert summary["first_age"] == driver.timing.rows()[0, 4] > 0
     loop = driver.GetOutputPort("loop").Eval(context)
     assert loop[0] == lcmt_stewart_status.MODE_RUNNING and loop[1] == summary["misses"]
 
@@ -230,17 +233,20 @@ class StallingBus:
         return True
 
 
-def test_deadline_misses_are_counted_reported_once_a_burst_and_stop_the_run():
+def test_deadline_misses_are_counted_summarised_and_stop_the_run():
     h = 0.01
-    # Three consecutive stalls of 2.5 periods, and one more far later: two bursts of misses, one
-    # line each; after each miss the schedule moves on instead of catching up.
+    # Three consecutive stalls of 2.5 periods, and one more far later: two bursts of misses (or
+    # more, on a loaded machine), said in a line when their count reaches a power of two; after
+    # each miss the schedule moves on instead of catching up.
     stream = io.StringIO()
     bus = StallingBus(X_HOME, stalls={5, 6, 7, 30}, stall_s=2.5 * h)
     driver, simulator = _held_driver(bus, X_HOME, h, max_deadline_misses=100, stream=stream)
     simulator.AdvanceTo(0.5)
     lines = stream.getvalue().splitlines()
-    assert all(line.startswith("deadline miss at t = ") for line in lines)
-    assert len(lines) == driver.bursts >= 2 and driver.misses >= 4 > driver.bursts
+    assert all(line.startswith("deadline misses: ") for line in lines)
+    assert driver.bursts >= 2 and driver.misses >= 4 > driver.bursts
+    assert len(lines) == int(np.log2(driver.misses)) + 1  # at 1, 2, 4, ...
+    assert lines[0].startswith("deadline misses: 1 so far in 1 bursts, of 100 allowed")
     summary = driver.timing_summary()
     assert (summary["misses"], summary["bursts"]) == (driver.misses, driver.bursts)
     assert summary["late"]["worst"] > 1.5 * h and summary["skipped"] > 4 * 1.5 * h
@@ -261,6 +267,53 @@ def test_deadline_misses_are_counted_reported_once_a_burst_and_stop_the_run():
     assert bus.torque_offs == 1 and err.value.misses == 2
     back = pickle.loads(pickle.dumps(err.value))
     assert (back.misses, back.limit, back.period_s) == (2, 1, h)
+
+
+def test_a_flood_of_misses_is_said_in_a_few_summary_lines():
+    """A bus rehearsal on a machine too busy for its period: 1,541 deadline misses (a synthetic
+    run: every period of a 15.41 s session late by 12-31 ms, from three causes, the worst at
+    t = 7.71 s) said in 11 lines (at 1, 2, 4, ..., 1024 misses), each with the count, the worst
+    and the causes (most first; a tie in the causes' order), not a line a miss."""
+    from stewart_drake.station.bus.timing import BLOCKED, BUS, PREEMPTED
+
+    stream = io.StringIO()
+    driver = DynamixelDriver(
+        StallingBus(X_HOME, (), 0.0), StewartGeometry(), 0.01, 10**6, stream=stream
+    )
+    causes = (PREEMPTED, BUS, BLOCKED)
+    for k in range(1541):
+        late = 0.031 if k == 771 else 0.012 + 0.001 * (k % 7)
+        driver._missed(0.01 * k, late, causes[k % 3])
+    lines = stream.getvalue().splitlines()
+    assert len(lines) == 11 and [int(ln.split()[2]) for ln in lines] == [2**k for k in range(11)]
+    assert lines[-1].startswith(
+        "deadline misses: 1024 so far in 1 bursts, of 1000000 allowed (periods of 10 ms "
+        "started over a period late); the worst 31.0 ms late at t = 7.710 s; by cause: "
+        "preempted 342, bus reply 341, blocked 341"
+    ), lines[-1]
+    assert driver.miss_line().startswith("deadline misses: 1541 so far")
+    assert "bus reply 514, preempted 514, blocked 513" in driver.miss_line()
+
+
+def test_a_first_measurement_read_long_before_the_loop_is_said_apart_not_as_a_late_period():
+    """A session that waited after its seed (``robot --follow-lcm``'s wait for a first sample:
+    4.8 s once, said as "worst age 4819 ms" with no deadline missed): the first period's
+    measurement age is said on its own line, as what it is, and the ages are the later
+    periods'."""
+    bus = StallingBus(X_HOME, stalls=(), stall_s=0.0)
+    driver, simulator = _held_driver(bus, X_HOME, H, max_deadline_misses=10**6)
+    time.sleep(0.3)  # the wait after the seed: the first period's measurement is older still
+    simulator.AdvanceTo(5 * H)
+    summary = driver.timing_summary()
+    assert summary["first_age"] >= 0.3 and summary["age"]["n"] == summary["periods"] - 1
+    said = [line for line in driver.timing_lines() if line.startswith("the first period's")]
+    assert len(said) == 1 and re.fullmatch(
+        r"the first period's measurement was \d+ ms old: read before the loop started \(the "
+        r"session's wait for a first sample, its checks\), not a late period; the ages above "
+        r"are the later periods'",
+        said[0],
+    ), said
+    assert int(said[0].split()[5]) == round(1e3 * summary["first_age"])
 
 
 def test_a_period_without_a_previous_reading_reports_nothing_measured():
@@ -452,7 +505,7 @@ def test_breathing_through_the_driver_on_the_bus_emulator_at_real_time():
     summary = driver.timing_summary()
     assert summary["periods"] == round(duration / h) and summary["read"]["n"] == len(walls)
     records = driver.timing.rows()
-    ages = records[np.isfinite(records[:, 4]), 4]
+    ages = records[1:, 4][np.isfinite(records[1:, 4])]  # the first period's is apart
     assert summary["read"]["median"] == np.median(records[:, 2]) > 0
     assert summary["age"]["median"] == np.median(ages) > 0
 
@@ -502,8 +555,7 @@ def test_each_period_records_the_loops_cpu_time_and_a_late_one_its_cause():
     assert late[10] and CAUSES[int(rows[10, 8])] == "bus reply", (rows[9], rows[10])
     assert rows[9, 2] >= 2.5 * h
     lines = stream.getvalue().splitlines()
-    assert any(
-        line.startswith("deadline miss at t = 0.100 s") and "(bus reply; " in line for line in lines
-    ), lines
+    assert lines and lines[0].startswith("deadline misses: 1 so far"), lines
+    assert "by cause: " in driver.miss_line() and "bus reply" in driver.miss_line()
     assert summary["late_causes"]["bus reply"] >= 1
     assert sum(summary["late_causes"].values()) == late.sum()

@@ -72,6 +72,13 @@ def test_lost_samples_are_filled_on_the_line_between_the_two_known():
         ([(0, 0, None), (2, 80_000, None), (1, 40_000, None)], "sample 1 .*: out of order"),
         ([(0, 0, None), (1, 0, None)], "sample 1 .*: out of order or repeated"),
         ([(0, 0, None), (1, 100_000, None)], "sample 1: the samples are 100 ms apart, not the 40"),
+        ([(0, 0, None), (1, 2_500_000, None)], "sample 1: the samples are 2.5 s apart, not the 40"),
+        (
+            [(0, 0, None), (101, 40_000, None)],
+            r"sample 101 \(utime 40000\) is 40 ms after sample 0 \(utime 0\) on the source's "
+            r"clock, but 101 samples after it: 4.04 s at the stream's rate \(25 Hz\); the "
+            r"source's numbering or its clock jumped",
+        ),
         ([(0, 0, None), (30, 1_200_000, None)], r"sample 30: samples 1..29 are missing \(1.16 s"),
         (
             [(0, 0, list(range(10)))],
@@ -86,8 +93,8 @@ def test_lost_samples_are_filled_on_the_line_between_the_two_known():
         ([(0, 0, None), (1, 40_000, None)], "sample 1 arrived at 0.1 s, before the previous one$"),
     ],
     ids=(
-        "nan five text repeated out-of-order same-utime spacing gap ten long-text spacing-in-words "
-        "arrived-earlier"
+        "nan five text repeated out-of-order same-utime spacing spacing-long numbering-jump gap "
+        "ten long-text spacing-in-words arrived-earlier"
     ).split(),
 )
 def test_what_a_stream_cannot_be_is_refused_naming_the_sample(samples, message):

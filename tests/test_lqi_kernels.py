@@ -5,6 +5,7 @@ the gain pipeline and the cache: test_lqi_step.py.)"""
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.control.lqi import reschedule, step
 from stewart_drake.control.lqi.step import reference
@@ -93,6 +94,6 @@ def test_the_warm_up_reads_no_array_past_its_end():
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HANG_S,
     )
     assert done.returncode == 0, done.stderr[-2000:]

@@ -13,6 +13,7 @@ import textwrap
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.control import kernel_cache
 from stewart_drake.control.estimator import PoseEstimator
@@ -275,7 +276,7 @@ def test_the_cache_falls_back_to_a_writable_folder(tmp_path):
     )
     (tmp_path / "tmp").mkdir()
     out = subprocess.run(
-        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=300
+        [sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=HANG_S
     )
     assert out.returncode == 0, out.stderr[-2000:]
     cache = out.stdout.strip().splitlines()[-1]

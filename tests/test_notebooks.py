@@ -7,7 +7,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-from conftest import HAS_TORCH
+from conftest import HANG_S, HAS_TORCH
 
 REPO = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((REPO / "notebooks").glob("*.ipynb"))
@@ -87,7 +87,7 @@ def test_notebook_runs_and_shows_plots(path, monkeypatch):
     # Each cell within 300 s (2-17 s a notebook on a quiet machine with STEWART_DRAKE_QUICK=1;
     # unshortened, notebook 03 alone collects for two minutes): a hang fails by timing out.
     NotebookClient(
-        nb, timeout=300, kernel_name="python3", resources={"metadata": {"path": str(REPO)}}
+        nb, timeout=HANG_S, kernel_name="python3", resources={"metadata": {"path": str(REPO)}}
     ).execute()
     outputs = [o for cell in nb.cells if cell.cell_type == "code" for o in cell.outputs]
     images = [o for o in outputs if "image/png" in o.get("data", {})]

@@ -10,6 +10,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 
 from stewart_drake.calibration.files import POSE_COLUMNS, READING_COLUMNS
 from stewart_drake.calibration.join import ENCODER_LOG_COLUMNS
@@ -44,7 +45,7 @@ def _capped(margin_bytes: float, argv: list, cwd) -> tuple[int, list]:
         cwd=cwd,
         capture_output=True,
         text=True,
-        timeout=600,
+        timeout=HANG_S,
     )
     return done.returncode, done.stderr.strip().splitlines()
 

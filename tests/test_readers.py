@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 
 import stewart_drake
 from stewart_drake.base.errors import CorruptFileError
@@ -319,7 +320,7 @@ def test_a_fifo_as_learned_returns_at_once_with_one_line(tmp_path, capsys):
         daemon=True,
     )
     worker.start()
-    worker.join(timeout=120)  # a hang guarded, not a speed asserted
+    worker.join(timeout=HANG_S)  # a hang guarded, not a speed asserted
     if worker.is_alive():  # unblock the reader so that the test process can end
         with open(fifo, "wb"):
             pass

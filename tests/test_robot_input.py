@@ -6,6 +6,7 @@ Sessions run in this process against the bus emulator on a pseudo-terminal (``--
 command called through ``main``; only the emulator's own process test spawns one.
 """
 
+import math
 import os
 import re
 import signal
@@ -14,7 +15,7 @@ import types
 
 import numpy as np
 import pytest
-from conftest import LOADED_MACHINE_BUS, bus_emulator, robot_bus_yaml
+from conftest import HANG_S, LOADED_MACHINE_BUS, bus_emulator, robot_bus_yaml
 
 pytest.importorskip("dynamixel_sdk")
 
@@ -130,6 +131,32 @@ def test_a_signal_after_the_torque_off_keeps_the_logs_and_the_end_line(
     assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5  # the lead-in and the hold
     assert torque == [0] * 6
     assert opened and all(bus._port is None for bus in opened)  # every bus closed
+
+
+@pytest.mark.filterwarnings("error::tqdm.TqdmWarning")
+def test_a_loop_that_misses_every_deadline_says_so_in_a_few_lines(tmp_path, monkeypatch, capsys):
+    """A machine too busy for the period, as a bus rehearsal under load met it (1,541 misses,
+    a line each, and a TqdmWarning): every period of ``robot home`` starts 1.5 periods late
+    (the driver's wait for its period says so), with the progress bar shown, for a duration the
+    bar's total once rounded below (0.80000049 s, 0.8 s shown). The misses are said in a line
+    when their count reaches a power of two, each with the count, the worst and the causes;
+    tqdm does not warn; the run ends as any, the timing counting every miss."""
+    from stewart_drake.station.bus.station import DynamixelDriver
+
+    monkeypatch.setattr(DynamixelDriver, "_wait_until", lambda self, due: (due + 0.015, 0.0))
+    with _emulator() as emu:
+        argv = ["robot", "home", "--scenario", str(robot_bus_yaml(tmp_path)), "--port", emu.port]
+        argv += ["--duration", "0.30000049", "--home-s", "0.5", "--loop-timeout", "5"]
+        code = main([*argv, "--out", str(tmp_path)])
+        torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
+    out, err = capsys.readouterr()
+    assert code == 0 and torque == [0] * 6, (out, err)
+    misses = int(re.search(r"(\d+) periods of 10 ms, (\d+) deadline misses", out).group(2))
+    said = [line for line in re.split(r"[\r\n]", err) if line.startswith("deadline misses: ")]
+    assert misses >= 80 and len(said) == int(math.log2(misses)) + 1, (misses, said)
+    assert [int(line.split()[2]) for line in said] == [2**k for k in range(len(said))]
+    assert "the worst 15.0 ms late at t = " in said[0] and "by cause: " in said[-1]
+    assert "the period did not hold" in out
 
 
 def test_a_signal_the_moment_the_torque_is_on_ends_the_run_with_its_end_line(
@@ -315,12 +342,30 @@ def test_an_emulated_pose_is_checked_before_a_process_is_spawned(capsys, monkeyp
     monkeypatch.setattr(emulator_process.EmulatorProcess, "start", spawn)
 
 
+def test_the_emulator_s_start_is_said_before_it_starts(capsys, monkeypatch):
+    """``--emulate`` starts a process that loads Drake and builds the robot's plant (seconds,
+    and on a loaded machine a minute that showed nothing): said first, in one line."""
+    from stewart_drake.live import emulator_process
+
+    def start(self):
+        started.append(capsys.readouterr().err)
+        raise BusError("the bus emulator did not start: (a test)")
+
+    started = []
+    monkeypatch.setattr(emulator_process.EmulatorProcess, "start", start)
+    assert main(["robot", "--emulate", "0,0,0,0,0,0.28", "--dry-run"]) == 2
+    assert started and started[0].startswith("stewart-drake robot: starting the bus emulator")
+    assert capsys.readouterr().err.strip() == (
+        "stewart-drake robot: the bus emulator did not start: (a test)"
+    )
+
+
 def test_the_emulator_process_reports_its_failure_in_one_line(capfd):
     from stewart_drake.live.emulator_process import EmulatorProcess
 
     far = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.5])  # out of the rods' reach
     with pytest.raises(BusError, match=r"did not start: UnreachablePoseError: leg") as caught:
-        EmulatorProcess(x0=far, start_timeout_s=300.0).start()
+        EmulatorProcess(x0=far, start_timeout_s=HANG_S).start()
     assert "__main__" not in str(caught.value) and "\n" not in str(caught.value)
     assert "Traceback" not in capfd.readouterr().err
 
@@ -381,10 +426,17 @@ def test_the_robot_extra_is_checked_before_the_emulator_starts(capsys, monkeypat
 
 
 def test_robot_emulate_dry_run_as_readme_shows_it(capsys):
+    """The pose read and judged, each silent stage said before it (the emulator's start, the
+    reading: together a minute and more on a first use on a loaded machine)."""
     assert main(["robot", "--emulate", "--dry-run"]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert out.splitlines()[-1] == "admissible", out
     assert abs(_z_mm(out) - 280.0) < 0.2, out  # --emulate's default pose
+    said = [line.split(": ", 1)[1] for line in err.splitlines()]
+    assert [s.split(",")[0] for s in said] == [
+        "starting the bus emulator",
+        "reading the servos' angles",
+    ], err
 
 
 # -- the robot command's hostile input: refused before anything is powered ------------------------

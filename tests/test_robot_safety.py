@@ -2,8 +2,10 @@
 logs: runs of :func:`~stewart_drake.live.session.run_on_robot` against the bus emulator
 (a pseudo-terminal, the robot's Drake plant behind it at real time), each ended by one cause.
 
-The loop runs at 5 ms with generous timeouts: the emulator and the loop share this process and
-the machine may be loaded, and what is tested is where each path ends, not how fast.
+The loop runs at 10 ms with the bus's and our watchdog's longest waits (conftest's
+LOADED_MACHINE_BUS, a 5 s loop timeout): the emulator and the loop share this process and the
+machine may be loaded (a load of 20 on 2 cores stalls a thread for a second), and what is tested
+is where each path ends, not how fast. A test that needs a short wait sets it, and says why.
 """
 
 import os
@@ -14,7 +16,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import require_extra, wait_for
+from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra, wait_for
 
 require_extra("robot")
 
@@ -66,8 +68,7 @@ def _scenario(emu, tmp_path, **bus):
     scenario.log_period_s = CONTROL_PERIOD_S
     scenario.duration_s = 1.0
     scenario.guard.divergence_dir = str(tmp_path / "diverged")
-    settings = {"reply_timeout_s": 1.0, "watchdog_s": 1.0, "max_deadline_misses": 1_000_000}
-    scenario.bus = DynamixelBusConfig(port=emu.port, **(settings | bus))
+    scenario.bus = DynamixelBusConfig(port=emu.port, **(LOADED_MACHINE_BUS | bus))
     return scenario
 
 
@@ -108,7 +109,7 @@ def _torque_off_times(emu, since):
 
 def _run(scenario, tmp_path, **kw):
     lines = []
-    kw = {"home_s": 1.0, "loop_timeout_s": 1.0, "out": tmp_path, "say": lines.append} | kw
+    kw = {"home_s": 1.0, "loop_timeout_s": 5.0, "out": tmp_path, "say": lines.append} | kw
     run = run_on_robot(scenario, **kw)
     return run, lines
 
@@ -164,19 +165,21 @@ def test_ctrl_c_ends_the_run_with_the_torque_off_and_the_logs_kept(tmp_path, ctr
 
 
 def test_our_watchdog_removes_the_torque_when_the_loop_stalls(tmp_path):
-    """The loop stalls until our watchdog's torque off reaches the bus (30 s at most, then the
-    test fails): the torque goes off while the loop is stalled. That it never goes before the
-    limit is tested on the watchdog's own clock (tests/test_robot_session.py)."""
+    """The loop stalls until our watchdog's torque off reaches the bus (a hang fails the test):
+    the torque goes off while the loop is stalled. Our watchdog's limit is 2 s, under the
+    servos' own (2.54 s), so that ours acts first, and long enough that a loaded machine does
+    not trip it before the stall. That it never goes before the limit is tested on the
+    watchdog's own clock (tests/test_robot_session.py)."""
     stalled = []
 
     def stall():
         stalled.append(time.perf_counter())
-        wait_for(lambda: _torque_off_times(emu, stalled[0]), 30, "our watchdog's torque off")
+        wait_for(lambda: _torque_off_times(emu, stalled[0]), HANG_S, "our watchdog's torque off")
 
     with _emulator() as emu:
         scenario = _scenario(emu, tmp_path)
         scenario.duration_s = 30.0
-        run, _ = _run(scenario, tmp_path, loop_timeout_s=0.3, before_torque=_on_call(50, stall))
+        run, _ = _run(scenario, tmp_path, loop_timeout_s=2.0, before_torque=_on_call(50, stall))
         offs = _torque_off_times(emu, stalled[0])
     assert run.reason.startswith("LoopStalledError") and run.exit_code == 1, run.reason
     assert "no period completed" in run.reason
@@ -190,9 +193,10 @@ def test_a_bus_that_stops_answering_mid_run_ends_it_with_the_torque_off(tmp_path
         threading.Timer(0.3, emu.mute, args=(False,)).start()
 
     with _emulator() as emu:
-        scenario = _scenario(emu, tmp_path)
+        # A reply timeout of 1 s, under our watchdog's 5 s: the bus error first (a reply that a
+        # loaded machine delays past it is a bus error too, the path under test).
+        scenario = _scenario(emu, tmp_path, reply_timeout_s=1.0)
         scenario.duration_s = 30.0
-        # Our watchdog waits longer than the read's reply timeout (1 s): the bus error first.
         run, _ = _run(
             scenario, tmp_path, loop_timeout_s=5.0, before_torque=_on_call(50, cut_for_a_moment)
         )
@@ -252,14 +256,12 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
     scenario = Scenario(controller=LqiDriver(omega_Q=0.01), control_period_s=0.01)
     scenario.log_period_s = 0.01
     scenario.hardware = None
-    scenario.bus = DynamixelBusConfig(
-        reply_timeout_s=1.0, watchdog_s=1.0, max_deadline_misses=1_000_000
-    )
+    scenario.bus = DynamixelBusConfig(**LOADED_MACHINE_BUS)
     (tmp_path / "bus.yaml").write_text(dump_scenario(scenario))
     command = [
         sys.executable, "-m", "stewart_drake.cli.main", "robot", "home",
         "--scenario", str(tmp_path / "bus.yaml"), "--emulate", "0,0,0,0,0,0.3",
-        "--home-s", "0.5", "--hold", "120", "--loop-timeout", "2", "--out", str(tmp_path),
+        "--home-s", "0.5", "--hold", "120", "--loop-timeout", "5", "--out", str(tmp_path),
     ]  # fmt: skip
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     # stderr read in a thread: the one-line messages, and the progress bar's "n.nn/total sim s"
@@ -277,18 +279,20 @@ def test_sigterm_to_the_robot_command_ends_with_the_torque_off_one_line_and_the_
 
     try:
         # Signalled once the run is 0.6 s in by its own clock, however loaded the machine.
-        wait_for(lambda: simulated_s() >= 0.6 or process.poll() is not None, 300, "0.6 s on")
+        wait_for(lambda: simulated_s() >= 0.6 or process.poll() is not None, HANG_S, "0.6 s on")
         assert process.poll() is None, "".join(seen)
         process.send_signal(signal.SIGTERM)
-        process.wait(timeout=120)
-        reader.join(timeout=60)
+        process.wait(timeout=HANG_S)
+        reader.join(timeout=HANG_S)
         out = process.stdout.read()
     finally:
         process.kill()
     err = "".join(seen)
     assert process.returncode == 128 + signal.SIGTERM, (out, err)
-    last = [line for line in err.splitlines() if line.startswith("stewart-drake robot")]
-    assert len(last) == 1, err
+    said = [line for line in err.splitlines() if line.startswith("stewart-drake robot: ")]
+    # What it does first (loading, the emulator's start), then one end line, last.
+    last = [line for line in said if "torque off" in line]
+    assert len(last) == 1 and said[-1] == last[0] and len(said) == 3, err
     assert "interrupted by SIGTERM; torque off (confirmed by every servo); logs in" in last[0]
     assert load_result(tmp_path / "robot_home.npz").t[-1] > 0.5
 
@@ -302,7 +306,7 @@ def test_teleop_on_the_robot_holds_where_it_rests_and_ends_with_the_torque_off(t
         scenario = _scenario(emu, tmp_path)
         lines = []
         run = teleop_on_robot(
-            scenario, Meshcat(), duration_s=1.0, loop_timeout_s=2.0, say=lines.append
+            scenario, Meshcat(), duration_s=1.0, loop_timeout_s=5.0, say=lines.append
         )
         z_end = emu.with_backend(
             lambda b: b.station.GetOutputPort("platform_state").Eval(

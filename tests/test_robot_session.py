@@ -10,7 +10,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import require_extra
+from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra
 
 require_extra("robot")
 
@@ -25,6 +25,8 @@ from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
 from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
+#: The bus's wait for a reply: a loaded machine's pseudo-terminal delays one by up to a second.
+REPLY_S = LOADED_MACHINE_BUS["reply_timeout_s"]
 
 
 def test_the_homing_lead_in_and_the_warped_reference_start_and_end_at_rest_on_its_path():
@@ -81,7 +83,7 @@ def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_rai
         time.sleep(0.3)  # six of its checks (every 0.05 s) at 0.19 s without a period
         assert calls == [] and watchdog.tripped is None  # never before the limit
         now[0] = 100.21
-        wait_for(lambda: watchdog.tripped, 30, "the watchdog tripping")
+        wait_for(lambda: watchdog.tripped, HANG_S, "the watchdog tripping")
     assert calls == [100.21]  # once
     assert "no period completed for 210 ms" in watchdog.tripped
     assert "(confirmed)" in watchdog.tripped
@@ -89,14 +91,23 @@ def test_our_watchdog_removes_the_torque_when_periods_stop_and_the_next_step_rai
         monitor(None)  # the loop's next step ends the run
 
 
-def test_our_watchdog_stays_quiet_while_periods_complete():
+def test_our_watchdog_stays_quiet_while_periods_complete(monkeypatch):
+    """A period completed every 10 ms of the watchdog's own clock (set by the test: a loaded
+    machine cannot stretch a period here) for 2 s of it, over a score of its checks: it never
+    trips."""
+    import types
+
+    from stewart_drake.live import watchdog as robot
+
+    now = [100.0]
+    monkeypatch.setattr(robot, "time", types.SimpleNamespace(perf_counter=lambda: now[0]))
     calls = []
-    watchdog = LoopWatchdog(lambda: calls.append(1) or True, timeout_s=2.0)
+    watchdog = LoopWatchdog(lambda: calls.append(1) or True, timeout_s=0.2)
     with watchdog:
-        t_end = time.perf_counter() + 0.5
-        while time.perf_counter() < t_end:
+        for _ in range(200):
+            now[0] += 0.01
             watchdog.kick()
-            time.sleep(0.01)
+            time.sleep(0.005)  # its checks come every 0.05 s: a score of them
     assert calls == [] and watchdog.tripped is None
     with pytest.raises(InvalidConfigError, match="loop timeout"):
         LoopWatchdog(lambda: True, timeout_s=0.0)
@@ -104,7 +115,7 @@ def test_our_watchdog_stays_quiet_while_periods_complete():
 
 def test_the_bus_lock_makes_a_watchdogs_torque_off_wait_for_the_transfer_in_progress():
     with BusEmulator(IDS) as emu:
-        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=1.0).open()
+        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=REPLY_S).open()
         try:
             bus.configure()
             done = []
@@ -113,7 +124,7 @@ def test_the_bus_lock_makes_a_watchdogs_torque_off_wait_for_the_transfer_in_prog
                 other.start()
                 time.sleep(0.05)
                 assert done == []  # waits
-            other.join(10)
+            other.join(HANG_S)
             assert done == [True]
         finally:
             bus.close()
@@ -132,7 +143,7 @@ def test_the_measured_pose_is_the_plants_within_the_encoders_resolution(dynamixe
     x0 = X_HOME + np.array([0.03, -0.02, 0.01, 0.004, -0.003, 0.01])
     backend = StationServos(dynamixel_plan.scenario, x0=x0)
     with BusEmulator(IDS, backend=backend) as emu:
-        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=1.0).open()
+        bus = DynamixelBus(emu.port, 1_000_000, IDS, reply_timeout_s=REPLY_S).open()
         try:
             measured = measure_pose(dynamixel_plan, bus=bus)
         finally:
@@ -188,7 +199,7 @@ def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
             IDS,
             zero_counts=[2048] * 6,
             directions=directions,
-            reply_timeout_s=1.0,
+            reply_timeout_s=REPLY_S,
         ).open()
         try:
             found = [zero_counts_at(bus, a)[k] for k, a in enumerate(q_held)]
@@ -223,7 +234,7 @@ def test_a_granted_realtime_loop_holds_its_core_and_priority_and_gives_them_back
 
     thread = threading.Thread(target=inside)
     thread.start()
-    thread.join(30)
+    thread.join(HANG_S)
     policy, priority, cores, collecting, named, refusals = seen["inside"]
     if named != "SCHED_FIFO":
         pytest.skip(f"the OS grants no real-time priority here: {refusals}")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import psutil
 import pytest
-from conftest import wait_for
+from conftest import HANG_S, wait_for
 
 from stewart_drake.base.errors import JointLimitError, SimulationDivergedError
 from stewart_drake.execution.clusters import make_runner
@@ -208,7 +208,7 @@ def test_workers_die_with_their_parent(tmp_path):
         sys.path.insert(0, {str(Path(__file__).parent)!r})
         from test_runners import pid_after
         from stewart_drake.execution.runners import ProcessRunner
-        for _ in ProcessRunner(2).map(pid_after, {{"a": 60, "b": 60}}):
+        for _ in ProcessRunner(2).map(pid_after, {{"a": {2 * HANG_S}, "b": {2 * HANG_S}}}):
             pass
     """)
     parent = subprocess.Popen([sys.executable, "-c", script], cwd=REPO)
@@ -222,11 +222,12 @@ def test_workers_die_with_their_parent(tmp_path):
         ]
 
     try:
-        wait_for(lambda: len(started()) >= 2, 60, "two workers starting", poll_s=0.2)
+        wait_for(lambda: len(started()) >= 2, HANG_S, "two workers starting", poll_s=0.2)
         workers = started()
         parent.kill()
         parent.wait()
-        gone, alive = psutil.wait_procs(workers, timeout=30)  # at once on a quiet machine
+        # At once on a quiet machine; an orphan would live on (its job outlasts the guard).
+        gone, alive = psutil.wait_procs(workers, timeout=HANG_S)
         assert alive == []
     finally:
         parent.kill()

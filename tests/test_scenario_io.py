@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 from pydrake.common.yaml import yaml_dump_typed, yaml_load_typed
 
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
@@ -138,12 +139,12 @@ def test_a_merge_key_bomb_is_refused_before_it_expands(tmp_path):
     path.write_text(_merge_bomb())
     assert path.stat().st_size < 1000
     # Counted on the composed graph, once per node: far below a second, where expanding never
-    # would end; a guard of 60 s fails the test if it hangs.
+    # would end; the guard against a hang fails the test if it does.
     with pytest.raises(InvalidConfigError, match=r"bomb.yaml: its anchors and merge keys expand"):
-        run_within(60, load_scenario, path)
+        run_within(HANG_S, load_scenario, path)
     with pytest.raises(InvalidConfigError, match=r"--set controller: its anchors and merge keys"):
         run_within(
-            60,
+            HANG_S,
             load_scenario,
             "paper_ideal",
             ["controller=" + "{" + _merge_bomb().replace("\n", ", ") + "}"],

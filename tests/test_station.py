@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import HANG_S
 from pydrake.systems.framework import LeafSystem
 from pydrake.trajectories import PiecewisePolynomial
 
@@ -316,7 +317,8 @@ def test_run_with_the_tuner_needs_no_torch(tmp_path):
         "stewart_drake.tuner.collection.load_records = lambda path: [{}, {}]\n"
         f"sys.exit(main(['train', '--data', {str(tmp_path)!r}]))\n"
     )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    argv = [sys.executable, "-c", code]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=HANG_S)
     assert proc.returncode == 2, proc.stderr
     # `run` says it is compiling when numba's cache holds no compiled step (a fresh clone)
     lines = [x for x in proc.stderr.strip().splitlines() if "compiling the LQI's" not in x]

@@ -1,12 +1,13 @@
 """The suite's own rules, read from the tests' source: no test asserts a speed (a wait that
 guards a hang fails by timing out, conftest.wait_for and conftest.run_within; speed belongs to
-benchmarks/), and a test that needs an extra skips naming the command that installs it."""
+benchmarks/), no wait is bounded by a literal time a busy machine can exceed (a hang's guard is
+conftest.HANG_S), and a test that needs an extra skips naming the command that installs it."""
 
 import ast
 from pathlib import Path
 
 import pytest
-from conftest import EXTRAS, extra_missing, needs_extra
+from conftest import EXTRAS, HANG_S, extra_missing, needs_extra
 
 TESTS = Path(__file__).resolve().parent
 
@@ -125,6 +126,148 @@ def test_no_test_asserts_on_wall_time():
 )
 def test_the_rule_finds_a_wall_time_assertion_and_nothing_else(source, caught):
     assert len(wall_time_assertions(source)) == caught
+
+
+#: The shortest literal bound a test may give a wait, s. A wait that guards a hang waits
+#: conftest.HANG_S; a shorter literal bound fails on a machine busy enough (at a load of 20 on
+#: 2 cores, "did not happen within 120 s" of a command that was only slow), unless it bounds
+#: something that must NOT happen within it, and its line says so: ``# wait-kept: why``.
+LITERAL_WAIT_LIMIT_S = 1000.0
+KEPT = "# wait-kept:"
+
+#: Calls whose positional argument at this index, or keyword ``timeout_s``, is a wait's bound,
+#: s (by the called name: conftest's ``wait_for`` and ``run_within``, a browser's
+#: ``wait_for``, ``Event.wait``, ``Popen.wait``, ``Thread.join``, the Meshcat clicks).
+BOUND_ARGUMENT = {
+    "wait_for": 1,
+    "run_within": 0,
+    "wait": 0,
+    "join": 0,
+    "click": 2,
+    "send_click": 2,
+}
+#: The keyword that bounds a wait, s, in any call (``subprocess.run``, ``communicate``,
+#: ``psutil.wait_procs``, ``Thread.join``, nbclient); a setting of the code under test
+#: (``reply_timeout_s``, a watchdog's ``timeout_s``) is not a wait of the test's.
+BOUND_KEYWORD = "timeout"
+
+
+def _literal_s(node: ast.AST) -> float | None:
+    """The number ``node`` writes out (a constant, or arithmetic on constants), else None."""
+    if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+        return float(node.value)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+        value = _literal_s(node.operand)
+        return None if value is None else -value
+    if isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add | ast.Sub | ast.Mult):
+        left, right = _literal_s(node.left), _literal_s(node.right)
+        if left is None or right is None:
+            return None
+        ops = {ast.Add: left + right, ast.Sub: left - right, ast.Mult: left * right}
+        return ops[type(node.op)]
+    return None
+
+
+def _short(node: ast.AST | None) -> bool:
+    value = None if node is None else _literal_s(node)
+    return value is not None and value < LITERAL_WAIT_LIMIT_S
+
+
+def _called_name(call: ast.Call) -> str | None:
+    func = call.func
+    return func.attr if isinstance(func, ast.Attribute) else getattr(func, "id", None)
+
+
+def _short_bounds(scope: ast.AST, names: set) -> list[ast.AST]:
+    """The nodes in ``scope`` that bound a wait by a short literal: a bound argument of the
+    calls of :data:`BOUND_ARGUMENT`, the keyword :data:`BOUND_KEYWORD`, a default of a
+    parameter named for a timeout, a deadline ``clock + literal`` or a time left
+    ``literal - clock`` (``names``: the names holding a clock reading)."""
+    found: list[ast.AST] = []
+    for node in ast.walk(scope):
+        if isinstance(node, ast.Call):
+            index = BOUND_ARGUMENT.get(_called_name(node) or "")
+            keywords = {BOUND_KEYWORD} | ({"timeout_s"} if index is not None else set())
+            if index is not None and len(node.args) > index and _short(node.args[index]):
+                found.append(node)
+            if any(k.arg in keywords and _short(k.value) for k in node.keywords):
+                found.append(node)
+        elif isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            params = node.args.posonlyargs + node.args.args
+            pairs = list(zip(params[len(params) - len(node.args.defaults) :], node.args.defaults))
+            pairs += [(a, d) for a, d in zip(node.args.kwonlyargs, node.args.kw_defaults) if d]
+            found += [d for a, d in pairs if "timeout" in a.arg and _short(d)]
+        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Add):
+            sides = (node.left, node.right)
+            if any(_clocked(a, names) for a in sides) and any(_short(b) for b in sides):
+                found.append(node)
+        elif isinstance(node, ast.BinOp) and isinstance(node.op, ast.Sub):
+            if _short(node.left) and _clocked(node.right, names):
+                found.append(node)
+    return found
+
+
+def short_wait_bounds(source: str) -> list[tuple[int, str]]:
+    """(line, text) of every wait in ``source`` bounded by a literal under
+    :data:`LITERAL_WAIT_LIMIT_S` whose lines do not say, with :data:`KEPT` and a reason, why
+    it is kept."""
+    tree = ast.parse(source)
+    lines = source.splitlines()
+    out = set()
+    scopes = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)]
+    for scope in [tree, *scopes]:
+        names = _clock_names(scope) if scope is not tree else set()
+        for node in _short_bounds(scope, names):
+            first, last = node.lineno, node.end_lineno or node.lineno
+            said = [ln.split(KEPT, 1)[1].strip() for ln in lines[first - 1 : last] if KEPT in ln]
+            if not any(said):
+                out.add((first, lines[first - 1].strip()))
+    return sorted(out)
+
+
+def test_every_wait_with_a_short_literal_bound_says_why_it_is_kept():
+    found = [
+        f"{path.name}:{line}: {text}"
+        for path in sorted(TESTS.glob("*.py"))
+        for line, text in short_wait_bounds(path.read_text())
+    ]
+    assert not found, (
+        f"waits bounded by a literal under {LITERAL_WAIT_LIMIT_S:g} s: a guard against a hang "
+        f"waits conftest.HANG_S ({HANG_S:g} s); a bound on something that must not happen "
+        f"within it says why on its line ({KEPT} ...):\n" + "\n".join(found)
+    )
+
+
+@pytest.mark.parametrize(
+    "source, caught",
+    [
+        ("def t():\n    wait_for(done, 120, 'the manifest')\n", 1),
+        ("def t():\n    assert shown.wait(60)\n", 1),
+        ("def t():\n    proc.communicate(timeout=30)\n", 1),
+        ("def t():\n    run_within(2 * 60, f)\n", 1),
+        ("def t():\n    worker.join(timeout=120)\n", 1),
+        ("def t():\n    reader.join(5)\n", 1),
+        ("def t():\n    psutil.wait_procs(p, timeout=max(0.0, 30 - (time.monotonic() - t0)))\n", 1),
+        ("def t():\n    deadline = time.monotonic() + 60.0\n", 1),
+        ("def t():\n    t0 = time.perf_counter()\n    end = t0 + 0.1 + 1.0\n", 1),
+        ("def run(argv, timeout_s=300.0):\n    pass\n", 1),
+        ("def t():\n    wait_for(done, HANG_S, 'the manifest')\n", 0),
+        ("def t():\n    proc.wait(timeout=HANG_S)\n", 0),
+        ("def t():\n    wait_for(done, 1800, 'x')\n", 0),
+        ("def t():\n    ', '.join(names)\n", 0),
+        ("def t():\n    bus = Bus(port, reply_timeout_s=1.0)\n", 0),  # a setting, not a wait
+        ("def t():\n    dog = LoopWatchdog(off, timeout_s=0.2)\n", 0),  # the code's limit
+        ("def t():\n    wait_for(done, timeout_s=60, what='x')\n", 1),
+        ("def t():\n    x = time.time() - 3 * 3600\n", 0),
+        (
+            "def t():\n    assert not fired.wait(0.5)  # wait-kept: not before its time\n",
+            0,
+        ),
+        ("def t():\n    assert not fired.wait(0.5)  # wait-kept:\n", 1),  # no reason given
+    ],
+)
+def test_the_rule_finds_a_short_wait_bound_and_nothing_else(source, caught):
+    assert len(short_wait_bounds(source)) == caught
 
 
 def test_a_missing_extra_is_named_with_its_install_command(monkeypatch):

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import wait_for
+from conftest import HANG_S
 from meshcat_click import click, send_click
 from meshcat_html import read_meshcat_commands
 from pydrake.geometry import Meshcat
@@ -137,7 +137,9 @@ def test_a_slider_moved_in_the_browser_moves_the_platform_in_real_time(tmp_path)
     run = build_teleop(load_scenario("paper_hardware"), meshcat, realtime_rate=1.0)
     run_teleop(run, 0.5, report=None)
     with chromium_cdp.HeadlessChromium(meshcat.web_url()) as browser:
-        browser.wait_for("typeof viewer !== 'undefined' && 'z [m]' in viewer.gui_controllers", 60)
+        browser.wait_for(
+            "typeof viewer !== 'undefined' && 'z [m]' in viewer.gui_controllers", HANG_S
+        )
         assert browser.evaluate(
             "viewer.gui_controllers['z [m]'].setValue(0.315); "
             "viewer.gui_controllers['z [m]'].getValue()"
@@ -254,14 +256,9 @@ def test_the_pause_button_stops_the_simulated_time_and_resume_goes_on():
     def resume_later():  # what a user does half a second later, from another browser
         time.sleep(0.5)
         seen.append(run.simulator.get_context().get_time())
-        try:
-            send_click(ws_url, PAUSE_BUTTON)
-            wait_for(
-                lambda: run.simulator.get_context().get_time() != t_paused,
-                30,
-                "the resume click resuming the run",
-                poll_s=0.01,
-            )
+        resumed = lambda: run.simulator.get_context().get_time() != t_paused  # noqa: E731
+        try:  # the connection open until the run resumes (a hang fails the test)
+            send_click(ws_url, PAUSE_BUTTON, until=resumed)
         except BaseException:  # never leave the run paused: Ctrl-C ends it, the test fails
             _thread.interrupt_main()
             raise
@@ -269,7 +266,7 @@ def test_the_pause_button_stops_the_simulated_time_and_resume_goes_on():
     clicker = threading.Thread(target=resume_later, daemon=True)
     clicker.start()
     stats = run_teleop(run, 0.2, chunk_s=0.05, report=None)  # as fast as it goes, once resumed
-    clicker.join(30)
+    clicker.join(HANG_S)
     assert "interrupted_by" not in stats and seen == [
         t_paused
     ]  # the simulated time stood still while paused

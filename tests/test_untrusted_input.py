@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import install_plugin, run_within
+from conftest import HANG_S, install_plugin, run_within
 
 from stewart_drake.base.errors import CorruptFileError, FolderInUseError, InvalidConfigError
 from stewart_drake.base.fileio import (
@@ -42,6 +42,9 @@ from stewart_drake.run.scenario import Scenario, UserController
 from stewart_drake.run.scenario_io import MAX_SCENARIO_BYTES, apply_override, load_scenario
 
 REPO = Path(__file__).resolve().parent.parent
+#: A hostile input is refused before it is computed with: numpy's warnings of an overflow, an
+#: invalid value or a division by zero on the way to a correct refusal fail these tests.
+pytestmark = pytest.mark.filterwarnings("error::RuntimeWarning")
 HEADER = "t,phi,theta,psi,X,Y,Z\n"
 
 
@@ -270,8 +273,8 @@ def test_a_cluster_address_where_nothing_listens_is_refused_within_the_timeout()
             match=rf"--{option} 127.0.0.1:1: nothing accepts "
             rf"a connection there within 0.5 s",
         ):
-            # The wait is bounded by the timeout, not by the peer: a hang fails after 60 s.
-            run_within(60, make_runner, kind, **{option: "127.0.0.1:1"}, connect_timeout_s=0.5)
+            # The wait is bounded by the timeout, not by the peer: a hang fails the test.
+            run_within(HANG_S, make_runner, kind, **{option: "127.0.0.1:1"}, connect_timeout_s=0.5)
 
 
 def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
@@ -286,7 +289,7 @@ def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
 
     class HangingRay:
         def init(self, **kwargs):
-            release.wait(60)
+            release.wait()  # as Ray's handshake: until given up on (released at the end)
 
     monkeypatch.setattr(clusters, "RAY_JOIN_TIMEOUT_S", 1.0)
     runner = clusters.RayRunner(address=f"127.0.0.1:{server.getsockname()[1]}")
@@ -296,15 +299,15 @@ def test_a_ray_join_that_hangs_is_bounded_and_interruptible(monkeypatch):
             match=r"it answers, but no Ray cluster joined "
             r"within 1 s",
         ):
-            # 1.0 s on a quiet machine; the hang is 60 s, and 30 s fails the test first
-            run_within(30, runner._join, HangingRay())
+            # 1.0 s on a quiet machine; the hang is forever, and HANG_S fails the test
+            run_within(HANG_S, runner._join, HangingRay())
     finally:
         release.set()
         server.close()
 
 
 def _sleep(job):
-    time.sleep(30)
+    time.sleep(2 * HANG_S)  # outlasts the guard: only the pool's own end may stop it
 
 
 def test_workers_ended_mid_result_leave_no_thread_that_holds_the_exit():
@@ -323,7 +326,7 @@ def test_workers_ended_mid_result_leave_no_thread_that_holds_the_exit():
     time.sleep(0.5)
     assert manager.is_alive()  # reading the rest
     pool.close([future])
-    manager.join(30)  # at once on a quiet machine; the hang it proves gone is forever
+    manager.join(HANG_S)  # at once on a quiet machine; the hang it proves gone is forever
     assert not manager.is_alive()
 
 
@@ -429,9 +432,9 @@ def test_a_utf8_byte_order_mark_before_the_header_is_read_as_text(tmp_path):
 def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
     os.mkfifo(tmp_path / "ref.csv")
     # Refused from what it is and from its size, never read: opening the FIFO would block for
-    # ever, reading the giant for minutes; a guard of 60 s fails the test first.
+    # ever, reading the giant for minutes (the guard against a hang fails the test then).
     with pytest.raises(CorruptFileError, match=r"it is a FIFO \(named pipe\), not a regular file"):
-        run_within(60, load_csv_trajectory, tmp_path / "ref.csv")
+        run_within(HANG_S, load_csv_trajectory, tmp_path / "ref.csv")
     with open(tmp_path / "big.npz", "wb") as f:
         f.truncate(100 * 10**9)
     with pytest.raises(
@@ -439,7 +442,7 @@ def test_a_fifo_or_a_sparse_giant_is_never_read(tmp_path):
         match=r"ANN tuner weights file: it holds 100 GB, over "
         r"the bound of 16 MB for this kind of file",
     ):
-        run_within(60, load_tuner, TunerModel, tmp_path / "big.npz")
+        run_within(HANG_S, load_tuner, TunerModel, tmp_path / "big.npz")
 
 
 # -- case 5: the reference is in the memory estimate ---------------------------------------------
@@ -685,7 +688,7 @@ def test_a_study_folder_is_locked_against_a_second_writer(tmp_path):
             "-c",
             "import sys, time\nfrom stewart_drake.execution.store import "
             f"lock_folder\nlock_folder({str(folder)!r}, 'collect')\nprint('locked', flush=True)\n"
-            "time.sleep(60)",
+            f"time.sleep({HANG_S})",
         ],
         stdout=subprocess.PIPE,
         text=True,
@@ -776,7 +779,7 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
         ("run result file", load_result),
     ]
     # Refused from what they are, never opened for reading (a FIFO would block for ever):
-    # milliseconds when quiet; a guard of 60 s fails the test on a hang.
+    # milliseconds when quiet; the guard against a hang fails the test on one.
     for kind, path in specials.items():
         if kind == "folder":
             continue
@@ -786,10 +789,10 @@ def test_every_loader_refuses_what_is_not_a_regular_file_without_blocking(specia
                 match=rf"{path} is not a valid {what}: it is a "
                 rf"{kind}",
             ):
-                run_within(60, load, path)
+                run_within(HANG_S, load, path)
     os.mkfifo(specials["folder"] / "manifest.json")
     with pytest.raises(CorruptFileError, match=r"it is a FIFO"):
-        run_within(60, read_manifest, specials["folder"])
+        run_within(HANG_S, read_manifest, specials["folder"])
 
 
 # -- the low cases ---------------------------------------------------------------------------------

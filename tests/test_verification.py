@@ -434,7 +434,7 @@ def test_the_overlap_with_the_reference():
     with pytest.raises(InvalidConfigError) as err:
         vn._overlap(ended, t, 3.6)  # 3.6 to 6.4: 6 samples
     assert str(err.value) == (
-        "once aligned, the measured motion spans t = -2-12.5 s of the reference's clock, which "
+        "once aligned, the measured motion spans t = -2 to 12.5 s of the reference's clock, which "
         "runs over 0-10 s: no overlap; check --clock-offset and that the file recorded this motion"
     )
     short = Harmonics(MOTION.amplitude, phase=MOTION.phase, end_time=9.5)

@@ -178,6 +178,25 @@ def test_an_export_on_the_base_axes_passes_its_offsets_removed_and_said(
     assert "verify: reading" in err and "verify: aligning and judging aligned.csv" in err
 
 
+def test_a_window_far_from_zero_is_printed_with_every_digit(tmp_path, aligned_export, capsys):
+    """Judged three days into the reference's clock (a tracker's clock since it booted, the
+    clocks' relation given): the windows of the verdict and of the figures show every digit
+    before the point ("t = 259204-259240 s"), where 4 significant digits once printed both
+    ends alike, "t = 2.592e+05-2.592e+05 s"."""
+    options = export_options(aligned_export)
+    options[options.index(f"--clock-offset={CLOCK_OFFSET_S!r}")] = (
+        f"--clock-offset={CLOCK_OFFSET_S + 259_200!r}"
+    )
+    code, (figures,) = run_verify(tmp_path, *options)
+    out = capsys.readouterr().out
+    windows = re.findall(r"over t = (\d+(?:\.\d+)?)-(\d+(?:\.\d+)?) s", out)
+    assert code == 0 and len(windows) == 2 and "e+05" not in out, out
+    w0, w1 = figures["fidelity"]["window_s"]
+    assert all(float(a) == pytest.approx(w0, abs=0.01) for a, _ in windows)
+    assert all(float(b) == pytest.approx(w1, abs=0.01) for _, b in windows)
+    assert 259_200 < w0 < w1 - 10
+
+
 def test_a_tracker_turned_from_the_base_fails_without_a_registration_naming_the_turn(
     tmp_path, export, capsys
 ):
@@ -377,10 +396,14 @@ def _write_export(path, seconds=20.0, drop=None, columns=3):
         ("no overlap", "no overlap"),
         ("registration", "base_points: 2 points: a frame needs at least 3"),
         ("clock", "the clock offset must be a number within +-1e+10 s"),
+        ("long name", "bytes long; the file system takes names of at most 255 bytes"),
     ],
 )
 def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, expected):
     path = tmp_path / "m.csv"
+    if case == "long name":  # a 240-character name: its report's name is longer than 255
+        path = tmp_path / ("m" * 236 + ".csv")
+        _write_export(path)
     columns = MARKER_COLUMNS
     offset = CLOCK_OFFSET_S
     if case == "short":
@@ -426,6 +449,8 @@ def test_a_hostile_measured_file_is_one_line_and_exit_2(tmp_path, capsys, case, 
     *progress, refusal = err.strip("\n").split("\n")
     assert refusal.startswith("stewart-drake verify: ") and expected in refusal
     assert all(line.startswith("verify: ") for line in progress)
+    if case == "long name":  # refused before the file is read, not after the judgement
+        assert progress == [], progress
 
 
 def _write_6dof(path, t_s, poses, quaternion: bool, order="wxyz"):

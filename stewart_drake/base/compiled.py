@@ -30,10 +30,16 @@ stewart-drake wrote, and keeps out files from elsewhere. A damaged entry (a trun
 full disk, random bytes) fails its signature, or, if signed, whatever unpickling it raises is
 caught: either way it is discarded and compiled again instead of failing every later run. This
 module imports numba only when a function here needs it.
+
+A compilation is seconds to a minute that shows nothing else: while a command runs
+(:func:`announce_compiles`), the first compilation of each module's kernels is said in one line
+before it starts (the LQI's step says so itself before its import,
+:func:`~stewart_drake.execution.options.say_if_compiling`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
 import hmac
@@ -45,6 +51,7 @@ import stat
 import sys
 import tempfile
 import types
+from collections.abc import Callable, Iterator
 from typing import Any
 
 #: What reading a damaged cache file may raise: any exception. Unpickling runs the opcodes it
@@ -66,6 +73,73 @@ def _say_once(key, line: str) -> None:
     if key not in _SAID:
         _SAID.add(key)
         print(f"stewart-drake: {line}", file=sys.stderr, flush=True)
+
+
+#: Who is told the module whose kernels numba starts compiling, while a command runs; None: no
+#: one.
+_announce: Callable[[str], None] | None = None
+#: The modules (or packages: a prefix) whose compilation was said, in this process.
+_announced: set = set()
+_listening = False
+
+
+@contextlib.contextmanager
+def announce_compiles(say: Callable[[str], None]) -> Iterator[None]:
+    """While the block runs, call ``say(module)`` just before numba starts compiling the first
+    kernel of ``module`` (its ``__name__``; once a module, a process): a command says so in
+    one line (:func:`~stewart_drake.execution.options.compile_note`). A kernel loaded from the
+    cache says nothing. Numba is not imported here: the one listener is registered when a
+    kernel is first decorated (:func:`njit_cached`)."""
+    global _announce
+    previous, _announce = _announce, say
+    try:
+        yield
+    finally:
+        _announce = previous
+
+
+def announced(module: str) -> None:
+    """Mark ``module`` (a module or a package: its modules too) as said: its compilation is
+    announced elsewhere (:func:`~stewart_drake.execution.options.say_if_compiling`)."""
+    _announced.add(module)
+
+
+#: The package whose kernels are said: numba's own helpers compile inside them, unsaid.
+_PACKAGE = __name__.split(".")[0]
+
+
+def _on_compile(module: str) -> None:
+    """numba starts compiling a kernel of ``module``: say so, the first time for it (a module
+    of this package; numba's own helpers compile as parts of its kernels)."""
+    say = _announce
+    if say is None or not module.startswith(_PACKAGE + "."):
+        return
+    if any(module == m or module.startswith(m + ".") for m in _announced):
+        return
+    _announced.add(module)
+    say(module)
+
+
+def _listen() -> None:
+    """Register, once, numba's listener of its "numba:compile" events (sent only when a kernel
+    is compiled, not when it is loaded from the cache), calling :func:`_on_compile`."""
+    global _listening
+    if _listening:
+        return
+    from numba.core import event
+
+    class _Compiling(event.Listener):
+        def on_start(self, event):
+            dispatcher = event.data.get("dispatcher") if isinstance(event.data, dict) else None
+            module = getattr(getattr(dispatcher, "py_func", None), "__module__", None)
+            if module:
+                _on_compile(module)
+
+        def on_end(self, event):
+            pass
+
+    event.register("numba:compile", _Compiling())
+    _listening = True
 
 
 def fallback_cache_dir() -> str:
@@ -255,6 +329,7 @@ def njit_cached(function, cache: bool = True, **options):
     """
     import numba
 
+    _listen()
     if not cache:
         return numba.njit(**options)(function)
     config: Any = numba.config  # its settings are module attributes numba sets at import

@@ -62,9 +62,55 @@ def describe_mode(mode: int) -> str:
     return "not a regular file"
 
 
+def _name_limits(folder: Path) -> tuple[int, int]:
+    """(the longest name, the longest path) in bytes the file system of ``folder`` (or of the
+    nearest folder above it that exists) takes; POSIX's 255 and 4096 where it does not say."""
+    folder = Path(os.path.abspath(folder))
+    while not folder.exists() and folder.parent != folder:
+        folder = folder.parent
+    limits = []
+    for name, default in (("PC_NAME_MAX", 255), ("PC_PATH_MAX", 4096)):
+        try:
+            limits.append(int(os.pathconf(folder, name)))
+        except (OSError, ValueError, AttributeError):  # not POSIX, or no limit said
+            limits.append(default)
+    return limits[0], limits[1]
+
+
+def check_name(path, what: str | None = None) -> None:
+    """Refuse an output whose name (or whole path) is longer than its file system takes, counted
+    with the temporary it is written through (:func:`atomic_write`: ``.<name>.<host>-<pid>.
+    <8 characters>.tmp``, 15 bytes and the writer's name longer): said before any work, not
+    after it as an ``OSError`` of the write.
+
+    Raises:
+        InvalidConfigError: the name's length in bytes, the longest this output may have, and
+            what to change.
+    """
+    path = Path(path)
+    name_max, path_max = _name_limits(path.parent)
+    extra = len(os.fsencode(f"..{_writer()}.")) + 8 + len(".tmp")
+    name = len(os.fsencode(path.name))
+    whole = len(os.fsencode(os.path.abspath(path)))
+    if name + extra > name_max:
+        raise InvalidConfigError(
+            f"{what or path}: its name is {name} bytes long; the file system takes names of "
+            f"at most {name_max} bytes, and the temporary it is written through adds {extra}: "
+            f"give a name of at most {name_max - extra} bytes (of a report named after an "
+            "input file, a shorter name of that file)"
+        )
+    if whole + extra > path_max:
+        raise InvalidConfigError(
+            f"{what or path}: its path is {whole} bytes long, with the temporary it is written "
+            f"through {whole + extra}, over the {path_max} the system takes: choose a shorter "
+            "--out"
+        )
+
+
 def check_replaceable(path, what: str | None = None) -> None:
     """Refuse to write over ``path`` unless it is absent or a regular file (symlinks followed)
-    that is none of the running command's inputs (:func:`inputs_kept`).
+    that is none of the running command's inputs (:func:`inputs_kept`), and a name its file
+    system cannot hold (:func:`check_name`).
 
     Args:
         path: the output.  what: how the message names it (default the path), e.g.
@@ -73,7 +119,9 @@ def check_replaceable(path, what: str | None = None) -> None:
         InvalidConfigError: ``path`` is a device node, a FIFO, a socket or a folder; the tool
             replaces only regular files, so the message says to choose another output. Or
             ``path`` is the same file as an input of the command (:func:`check_not_an_input`).
+            Or its name, or its path, is too long (:func:`check_name`).
     """
+    check_name(path, what)
     try:
         mode = os.stat(path).st_mode
     except (FileNotFoundError, NotADirectoryError):

@@ -25,7 +25,7 @@ import threading
 from pathlib import Path
 
 from ..base.errors import StewartError
-from ..execution.options import check_outputs, command_inputs
+from ..execution.options import check_outputs, command_inputs, compile_note, say_starting
 
 #: Subcommands whose finished jobs are on disk as they arrive (run again: only the rest runs),
 #: with the folder under ``--out`` that keeps them.
@@ -54,11 +54,23 @@ def _interruptible():
     return handlers
 
 
+def _command_named(argv: list[str] | None) -> str | None:
+    """The subcommand ``argv`` names (its first word that is not an option), before it is
+    parsed; None when there is none."""
+    words = sys.argv[1:] if argv is None else argv
+    return next((w for w in words if not w.startswith("-")), None)
+
+
 def main(argv: list[str] | None = None) -> int:
-    from .. import _interrupted_while_starting
+    from .. import _interrupted_while_starting, _started_as_the_command
 
     starting = signal.getsignal(signal.SIGINT) is _interrupted_while_starting
+    # The process of the command (the console script, `python -m`), not a library's call: its
+    # first line says what it does first, before the seconds of Drake's imports.
+    own = _started_as_the_command()
     try:
+        if own:
+            say_starting(_command_named(argv))
         # From here a Ctrl-C is a KeyboardInterrupt that each stage below turns into one line.
         if starting:
             signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -66,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt as err:
         return _interrupted(err, "", None)
     try:
-        return _main(argv)
+        return _main(argv, own)
     finally:
         for signum, handler in restore.items():
             signal.signal(signum, handler)
@@ -115,7 +127,10 @@ def _build_parser():
         return build_parser()
 
 
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, own: bool = False) -> int:
+    """Parse ``argv`` and run its command (:func:`main`); ``own``: in the command's process,
+    whose compilations are said as they start
+    (:func:`~stewart_drake.base.compiled.announce_compiles`)."""
     try:
         parser = _build_parser()
         args = parser.parse_args(argv)
@@ -133,7 +148,12 @@ def _main(argv: list[str] | None) -> int:
         # What the command reads is kept from what it writes, from its first check to its end.
         with inputs_kept(command_inputs(args)):
             check_outputs(args)
-            return int(args.func(args) or 0)
+            if not own:
+                return int(args.func(args) or 0)
+            from ..base.compiled import announce_compiles
+
+            with announce_compiles(compile_note(args.command)):
+                return int(args.func(args) or 0)
     except StewartError as err:
         print(f"stewart-drake {args.command}: {err}", file=sys.stderr)
         return 2

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import sys
 
-from ..execution.options import add_runner_arguments, int_at_least, runner_from_args
+from ..execution.options import add_runner_arguments, int_at_least, runner_from_args, say_stage
 
 
 def register(sub) -> None:
@@ -107,6 +107,7 @@ def _cmd_design(args) -> int:
         maxiter=args.generations,
         base_scenario=args.scenario,
         progress=not args.no_progress,
+        say=None if args.no_progress else say_stage("design"),
     )
     for search in outcome.searches:
         name, margin = search.best.binding

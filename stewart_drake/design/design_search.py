@@ -243,6 +243,7 @@ def search(
     popsize: int = DEFAULT_POPSIZE,
     maxiter: int = DEFAULT_MAXITER,
     progress: bool = True,
+    say=None,
 ) -> SearchResult:
     """Minimize ``objective`` over the design's numbers with ``motor`` at every crank, subject to
     every margin of :data:`~.margins.MARGINS` (module docstring: the optimizer, the constraints,
@@ -259,6 +260,8 @@ def search(
         runner: any runner of :mod:`~stewart_drake.execution.runners` (default: this process).
         popsize, maxiter: scipy's; evaluations <= popsize x 8 x (maxiter + 1).
         progress: a bar over the generations.
+        say: None, or ``say(line)`` told before the work after the bar (the best design's
+            every margin, when none meets the task).
     Raises:
         InvalidConfigError: an unknown motor or objective, popsize < 2 or maxiter < 1.
         ResultsMismatchError, FolderInUseError: see :class:`~stewart_drake.execution.store.
@@ -298,6 +301,8 @@ def search(
     best = generations.best
     assert best is not None
     if not best.feasible:  # every margin of the best miss, for the report (one evaluation)
+        if say is not None:
+            say(f"{motor}: evaluating every margin of the best design, which misses the task")
         best = evaluate(best.design, task, lazy=False)
     return SearchResult(
         motor,
@@ -395,9 +400,11 @@ def cheapest_motor(
     popsize: int = DEFAULT_POPSIZE,
     maxiter: int = DEFAULT_MAXITER,
     progress: bool = True,
+    say=None,
 ) -> list[SearchResult]:
     """Search the catalogue's motors from the cheapest up for a design that meets the task with
-    the most reserve (objective ``torque_share``); stops at the first motor that meets it.
+    the most reserve (objective ``torque_share``); stops at the first motor that meets it
+    (``say``: as :func:`search`'s).
 
     Returns:
         the searches run, cheapest motor first; the last is feasible unless no motor is (then
@@ -408,7 +415,7 @@ def cheapest_motor(
     results = []
     for motor in sorted(MOTOR_CATALOGUE, key=lambda m: MOTOR_CATALOGUE[m].price_usd):
         result = search(
-            task, motor, "torque_share", out_dir, seed, runner, popsize, maxiter, progress
+            task, motor, "torque_share", out_dir, seed, runner, popsize, maxiter, progress, say
         )
         results.append(result)
         if result.feasible:

@@ -70,6 +70,7 @@ def run_design(
     maxiter: int = DEFAULT_MAXITER,
     base_scenario: str = "paper_hardware",
     progress: bool = True,
+    say=None,
 ) -> DesignOutcome:
     """Design the robot for the requirements in ``requirements_path`` (module docstring).
 
@@ -85,6 +86,8 @@ def run_design(
         seed, runner, popsize, maxiter: the optimizer's (:func:`~.design_search.search`).
         base_scenario: the scenario the designs' scenario files start from.
         progress: progress bars.
+        say: None, or ``say(line)`` told of each stage that shows no bar (the best design's
+            every margin, the report and its plots), before it starts.
     Raises:
         MissingFileError, CorruptFileError, InvalidConfigError: the requirements file (one
             line naming the field), the base scenario (one without hardware or an LQI) or an
@@ -93,6 +96,7 @@ def run_design(
     """
     from .design_confirm import check_base, load_base
 
+    say = say or (lambda line: None)
     requirements = load_requirements(requirements_path)
     task = task_samples(requirements)
     # The base scenario is read and checked now, not after the search that it does not affect.
@@ -100,12 +104,14 @@ def run_design(
     check_base(base)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    say("evaluating the reference robot on the task")
     reference = evaluate(reference_design(), task, lazy=False)
+    folder = out / "search"
     searches: list[SearchResult] = [
-        search(task, motor, objective, out / "search", seed, runner, popsize, maxiter, progress)
+        search(task, motor, objective, folder, seed, runner, popsize, maxiter, progress, say)
     ]
     if cheapest:
-        searches += cheapest_motor(task, out / "search", seed, runner, popsize, maxiter, progress)
+        searches += cheapest_motor(task, folder, seed, runner, popsize, maxiter, progress, say)
     chosen = {}
     if searches[0].feasible:
         chosen["objective"] = searches[0].best
@@ -128,9 +134,11 @@ def run_design(
         diverged = str(out / "diverged")
         confirming = replace(base, guard=replace(base.guard, divergence_dir=diverged))
         for role, design in designs.items():
+            say(f"confirming the {role} design in closed loop")
             outcome.confirmation[role] = run_confirm(
                 design, requirements, base=confirming, runner=runner, progress=progress
             )
+    say(f"writing the report, its plots and the designs' scenarios in {out}")
     outcome.files = _write(out, outcome, requirements, objective, base)
     return outcome
 

@@ -241,6 +241,8 @@ def say_if_compiling(command: str, module: str = "stewart_drake.control.lqi.kern
     Called by a command once its arguments are checked, just before it needs the step."""
     import importlib
 
+    from ..base.compiled import announced
+
     if module in sys.modules:
         return
     if _will_compile():
@@ -250,6 +252,7 @@ def say_if_compiling(command: str, module: str = "stewart_drake.control.lqi.kern
             file=sys.stderr,
             flush=True,
         )
+        announced("stewart_drake.control.lqi")  # said: not again as its modules compile
     importlib.import_module(module)
 
 
@@ -258,6 +261,48 @@ def _will_compile() -> bool:
     from ..control.kernel_cache import will_compile
 
     return will_compile()
+
+
+#: What compiling each module (or package) of the package's kernels is, for the line a command
+#: says before it (:func:`compile_note`); the LQI's step says so itself (:func:`say_if_compiling`).
+COMPILED_KERNELS = {
+    "stewart_drake.station.bus.kernels": "the servo bus's per-period arithmetic (about 10 s)",
+    "stewart_drake.robot.path_kernels": "the reference validator's per-pose arithmetic (about 7 s)",
+    "stewart_drake.control.lqi": "the LQI's control step (about 40 s)",
+}
+
+
+def compile_note(command: str):
+    """A function ``note(module)`` that says on stderr, in one line, that ``command`` compiles
+    the kernels of ``module`` (a module's ``__name__``) for this machine and Python, what they
+    are (:data:`COMPILED_KERNELS`) and that it is once: for
+    :func:`~stewart_drake.base.compiled.announce_compiles`."""
+
+    def note(module: str) -> None:
+        what = next(
+            (w for m, w in COMPILED_KERNELS.items() if module == m or module.startswith(m + ".")),
+            f"the compiled code of {module}",
+        )
+        print(
+            f"stewart-drake {command}: compiling {what} for this machine and Python (once: "
+            "later runs load it from numba's disk cache)",
+            file=sys.stderr,
+            flush=True,
+        )
+
+    return note
+
+
+#: What a command's process does first, said in its first line (:func:`say_starting`).
+STARTING = "loading Drake and the command (seconds; longer on a busy machine)"
+
+
+def say_starting(command: str | None) -> None:
+    """The first line of a command's process, on stderr, before it loads Drake and its own
+    modules (about 2 s of CPU, and on a loaded machine tens of seconds that showed nothing):
+    what it does first (:data:`STARTING`). ``command``: the subcommand's name (None: none)."""
+    name = f"stewart-drake {command}" if command else "stewart-drake"
+    print(f"{name}: {STARTING}", file=sys.stderr, flush=True)
 
 
 def say_stage(command: str):

@@ -410,6 +410,12 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
     emulator = None
     try:
         if args.emulate is not None:
+            print(
+                "stewart-drake robot: starting the bus emulator, the robot's Drake plant in a "
+                "process of its own (seconds; longer on a busy machine)",
+                file=sys.stderr,
+                flush=True,
+            )
             emulator = _start_emulator(scenario, args.emulate, args.realtime)
             print(f"bus emulator on {scenario.bus.port} (the robot's Drake plant at real time)")
         if args.calibrate is not None:
@@ -424,6 +430,12 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
             )
             return 0
         if args.dry_run:
+            print(
+                "stewart-drake robot: reading the servos' angles, the torque off, and judging "
+                "the pose they give",
+                file=sys.stderr,
+                flush=True,
+            )
             measured = measure_pose(scenario)
             print(measured.summary())
             return 0 if measured.problem is None else 1

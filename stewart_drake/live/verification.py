@@ -303,6 +303,7 @@ def _measured(path: str, args, scenario, axis_map: dict):
 
 def _summary(ver) -> str:
     """The printed line of a verification's figures: latency, RMS, peak, gamma."""
+    from ..organ_motion.fidelity import format_window
     from ..organ_motion.verification import seconds
 
     fid = ver.fidelity
@@ -311,7 +312,7 @@ def _summary(ver) -> str:
     return (
         f"{Path(ver.measured.path).name}: latency {seconds(ver.latency_s)} (clock offset "
         f"{ver.clock_offset_s:+.6g} s, {ver.clock}); RMS error over t = "
-        f"{fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
+        f"{format_window(*fid['window_s'])} s: translation "
         + ("not measured" if math.isnan(tr) else f"{tr * 1e6:.3g} um")
         + ", rotation "
         + ("not measured" if math.isnan(rot) else f"{rot * 1e6:.3g} urad")

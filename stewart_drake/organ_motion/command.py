@@ -170,7 +170,7 @@ def _cmd_reproduce(args) -> int:
     """``stewart-drake reproduce``: a motion of the organ-motion library or a recorded trace on
     the robot, checked, run (learning on request) and measured: a report with a verdict."""
     from ..base.fileio import check_replaceable
-    from .fidelity import parse_tolerance, verdict
+    from .fidelity import format_window, parse_tolerance, verdict
     from .fidelity_report import write_report
     from .reproduction import reproduce
 
@@ -205,7 +205,7 @@ def _cmd_reproduce(args) -> int:
         )
     fid = rep.fidelity
     print(
-        f"RMS error over t = {fid['window_s'][0]:.4g}-{fid['window_s'][1]:.4g} s: translation "
+        f"RMS error over t = {format_window(*fid['window_s'])} s: translation "
         f"{fid['rms_translation_m'] * 1e6:.3g} um, rotation {fid['rms_rotation_rad'] * 1e6:.3g} "
         f"urad; lag {fid['lag_all_s'] * 1e3:.3g} ms",
         flush=True,

@@ -407,7 +407,7 @@ def tolerance_line(fid: dict, tolerance: tuple[float, float]) -> tuple[bool, str
     return bool(ok), (
         f"RMS error per axis {'within' if ok else 'beyond'} "
         f"{format_length(tolerance[0])} | {format_angle(tolerance[1])} "
-        f"over t = {w0:.4g}-{w1:.4g} s (largest: {largest})"
+        f"over t = {format_window(w0, w1)} s (largest: {largest})"
     )
 
 
@@ -436,6 +436,25 @@ def format_length(v: float) -> str:
 def format_angle(v: float) -> str:
     """An angle in rad as text: "0.123 deg" from 1 mrad up, else "123 urad" (3 digits)."""
     return f"{math.degrees(v):.3g} deg" if v >= 1e-3 else f"{v * 1e6:.3g} urad"
+
+
+def format_window(t0: float, t1: float) -> str:
+    """A window of time as text, "t0-t1" (s; the unit is the caller's to write; "t0 to t1"
+    when an end is negative): each end with the decimals that show the window's length to 4
+    significant digits, trailing zeros left out ("4-19.98"); for times far from zero (a
+    tracker's clock since it booted) every digit before the point too ("259200-259230.5"), not
+    "2.592e+05-2.592e+05"."""
+    span = abs(t1 - t0)
+    decimals = max(0, 3 - math.floor(math.log10(span))) if span > 0 else 3
+
+    def end(t: float) -> str:
+        text = f"{t:.{decimals}f}"
+        if "." in text:
+            text = text.rstrip("0").rstrip(".")
+        return "0" if text == "-0" else text
+
+    a, b = end(t0), end(t1)
+    return f"{a} to {b}" if a.startswith("-") or b.startswith("-") else f"{a}-{b}"
 
 
 __all__ = [

@@ -19,7 +19,15 @@ import numpy as np
 
 from ..base.fileio import atomic_write
 from ..base.tables import markdown_lines
-from .fidelity import AXES, COMPARED, PHANTOM_ANCHOR, format_angle, format_length, verdict
+from .fidelity import (
+    AXES,
+    COMPARED,
+    PHANTOM_ANCHOR,
+    format_angle,
+    format_length,
+    format_window,
+    verdict,
+)
 from .reproduction import Reproduction, learning_words
 
 if TYPE_CHECKING:  # for the annotations only: verification imports this module's neighbours
@@ -112,7 +120,7 @@ def startup_lines(rep, fid: dict) -> list:
         (a, b), rot = start["window_s"], start["rms_rotation_rad"]
         lines += [
             "",
-            f"Start-up, not in the figures above or below (t = {a:.4g}-{b:.4g} s): "
+            f"Start-up, not in the figures above or below (t = {format_window(a, b)} s): "
             f"RMS {start['rms_translation_m'] * 1e6:.3g} um / "
             + ("rotation not measured" if not np.isfinite(rot) else f"{rot * 1e6:.3g} urad")
             + f", peak {start['peak_translation_m'] * 1e6:.3g} um"
@@ -441,7 +449,7 @@ def _plot_zoom(
     axes[0].plot(t[m], r.x[m, axis] * scale, "C0", lw=0.9, label=label)
     axes[0].set_ylabel(f"zoom: {AXES[axis]}\n[{unit}]")
     axes[0].set_title(
-        f"zoom, t = {a:.4g}-{a + ZOOM_S:.4g} s: around the largest translation error of the "
+        f"zoom, t = {format_window(a, a + ZOOM_S)} s: around the largest translation error of the "
         f"measured window ({e[k] * 1e6:.3g} um at t = {t[k]:.4g} s)",
         fontsize=8,
     )

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fidelity import AXES, MOVING_P2P, format_angle, format_length
+from .fidelity import AXES, MOVING_P2P, format_angle, format_length, format_window
 
 #: A measured axis moved less than this share of the reference's motion (RMS) is at rest.
 AT_REST_SHARE = 0.1
@@ -538,7 +538,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     line = (
         f"{'PASS' if passed else 'FAIL'}: {compared}: RMS error per axis "
         f"{'within' if ok else 'beyond'} {format_length(tolerance[0])} | "
-        f"{format_angle(tolerance[1])} over t = {w0:.4g}-{w1:.4g} s (largest: "
+        f"{format_angle(tolerance[1])} over t = {format_window(w0, w1)} s (largest: "
         f"{', '.join(largest)}); {lat}" + (f"; cause: {'; '.join(causes)}" if causes else "")
     )
     return Judgement(

@@ -19,7 +19,7 @@ import numpy as np
 
 from ..references.prediction import PredictorSettings
 from ..references.stream import DEFAULT_STREAM_RATE_HZ, LOOP_LAG_S, SWITCH_S, follow, stream_of
-from .fidelity import format_length, tolerance_line, verdict
+from .fidelity import format_length, format_window, tolerance_line, verdict
 
 #: The step of the grid the errors are measured on, s.
 MEASURE_STEP_S = 0.01
@@ -282,7 +282,7 @@ def stream_verdict(figures: dict, tolerance: tuple[float, float]) -> tuple[bool,
         line,
         f"beside it, not the verdict: the robot's true pose against the reference it was "
         f"given ({rep.name}: {given_is}, not the motion), {given}",
-        f"the figures are over t = {w0:.4g}-{w1:.4g} s; the start-up before it (the first "
+        f"the figures are over t = {format_window(w0, w1)} s; the start-up before it (the first "
         f"sample arrives at t = {figures['latency_s']:g} s) is left out: against the true "
         f"motion RMS {format_length(start['rms_translation_m'])}, peak "
         f"{format_length(start['peak_translation_m'])}; " + _warm_up_words(figures, w0),

@@ -60,7 +60,7 @@ from .alignment import (
     refine_shift,
     registered_frames,
 )
-from .fidelity import AXES, fidelity, startup_figures, time_lag
+from .fidelity import AXES, fidelity, format_window, startup_figures, time_lag
 from .measured_motion import MeasuredMotion
 from .measured_verdict import judge, seconds
 
@@ -251,8 +251,9 @@ def _window(reference: Reference, a: float, b: float) -> tuple[tuple, np.ndarray
     if inside.size < 2:
         cycle = float(np.median(np.diff(starts)))
         raise InvalidConfigError(
-            f"the measured motion covers t = {a:.4g}-{b:.4g} s of {name} once aligned: not one "
-            f"whole cycle ({cycle:.3g} s) after the motion's first; record at least two cycles"
+            f"the measured motion covers t = {format_window(a, b)} s of {name} once aligned: "
+            f"not one whole cycle ({cycle:.3g} s) after the motion's first; record at least two "
+            "cycles"
         )
     return (float(inside[0]), float(inside[-1])), inside, holds_start
 
@@ -478,9 +479,9 @@ def _overlap(reference: Reference, t_ref: np.ndarray, margin: float) -> np.ndarr
     if np.count_nonzero(on) < 10:
         runs = "from 0 s on" if end is None else f"over 0-{end:.4g} s"
         raise InvalidConfigError(
-            f"once aligned, the measured motion spans t = {t_ref[0]:.4g}-{t_ref[-1]:.4g} s of "
-            f"the reference's clock, which runs {runs}: no overlap; check --clock-offset and "
-            "that the file recorded this motion"
+            f"once aligned, the measured motion spans t = {format_window(t_ref[0], t_ref[-1])} "
+            f"s of the reference's clock, which runs {runs}: no overlap; check --clock-offset "
+            "and that the file recorded this motion"
         )
     return on
 
@@ -532,7 +533,7 @@ def _outside_words(t_all, t_ref, window, holds_start: bool) -> list:
     if head > 0 or tail > 0:
         what = "the motion's first cycle, the start-up" if holds_start else "part of a cycle"
         parts.append(
-            f"the figures are over whole cycles, t = {window[0]:.4g}-{window[1]:.4g} s: "
+            f"the figures are over whole cycles, t = {format_window(*window)} s: "
             f"{head:.3g} s before ({what}) and {tail:.3g} s after are outside them"
         )
     return ["what the figures leave out: " + "; ".join(parts)] if parts else []

@@ -43,6 +43,13 @@ SPACING_TOLERANCE = 0.5
 _LONG_AGO = -1e9
 
 
+def _seconds(duration_s: float) -> str:
+    """A duration for a message: in ms below 1 s, else in s (4 significant digits)."""
+    if abs(duration_s) < 1.0:
+        return f"{duration_s * 1e3:.4g} ms"
+    return f"{duration_s:.4g} s"
+
+
 class LiveFollower:
     """The reference that follows a stream whose samples arrive one at a time (module
     docstring).
@@ -135,11 +142,19 @@ class LiveFollower:
                     "order or repeated"
                 )
             gap = seq - seq0
-            spacing = (utime_us - utime0) * 1e-6 / gap
-            if abs(spacing / self.dt - 1.0) > SPACING_TOLERANCE:
+            elapsed = (utime_us - utime0) * 1e-6
+            if abs(elapsed / gap / self.dt - 1.0) > SPACING_TOLERANCE:
+                rate = f"the stream's rate ({1 / self.dt:.4g} Hz)"
+                if gap == 1:
+                    raise LiveSourceError(
+                        f"{where}: the samples are {_seconds(elapsed)} apart, not the "
+                        f"{_seconds(self.dt)} of {rate}"
+                    )
                 raise LiveSourceError(
-                    f"{where}: the samples are {spacing * 1e3:.4g} ms apart, not the "
-                    f"{self.dt * 1e3:.4g} ms of the stream's rate ({1 / self.dt:.4g} Hz)"
+                    f"{where} (utime {utime_us}) is {_seconds(elapsed)} after sample {seq0} "
+                    f"(utime {utime0}) on the source's clock, but {gap} samples after it: "
+                    f"{_seconds(gap * self.dt)} at {rate}; the source's numbering or its clock "
+                    "jumped"
                 )
             if (gap - 1) * self.dt > MAX_GAP_S:
                 raise LiveSourceError(

@@ -28,24 +28,28 @@ DEFAULT_TUNER_OUT = Path("results") / "tuner" / "ann_tuner.npz"
 
 
 def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "simulating"):
-    """``simulator.AdvanceTo(t_end)``, in 200 chunks behind a tqdm bar when ``progress``."""
+    """``simulator.AdvanceTo(t_end)`` (s), in 200 chunks behind a tqdm bar when ``progress``:
+    the bar shows the simulator's time against ``t_end``, never beyond it (a total rounded
+    below ``t_end``, or chunks summed past it by a rounding, made tqdm warn that it clamps)."""
     if not progress:
         simulator.AdvanceTo(t_end)
         return
     from tqdm import tqdm
 
     chunk = max(t_end / 200, 1e-3)
+    t = simulator.get_context().get_time()
     with tqdm(
-        total=round(t_end, 6),
+        total=t_end,
+        initial=min(t, t_end),
         desc=desc,
         unit="sim s",
         bar_format=("{l_bar}{bar}| {n:.2f}/{total:.2f} sim s [{elapsed}<{remaining}]"),
     ) as bar:
-        t = simulator.get_context().get_time()
         while t < t_end - 1e-12:
             t_next = min(t + chunk, t_end)
             simulator.AdvanceTo(t_next)
-            bar.update(t_next - t)
+            bar.n = t_next  # the simulator's time itself: no sum of chunks to round past t_end
+            bar.update(0)
             t = t_next
 
 

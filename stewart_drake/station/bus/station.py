@@ -13,8 +13,10 @@ controllers' sample at k h + h_plant / 2, so a torque acts one control period af
 measurement, as the scenario says (``hardware.computation_delay_periods = 1``,
 :meth:`~stewart_drake.station.bus.servos.DynamixelBusConfig.hardware`). It keeps its own
 wall-clock schedule: an early period sleeps until due, a period more than one period late is a
-deadline miss and the schedule moves on (:meth:`DynamixelDriver.timing_summary`). Why it paces
-itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on the bus".
+deadline miss and the schedule moves on (:meth:`DynamixelDriver.timing_summary`). Misses are
+said as a running summary (their count, the worst, their causes) when their count reaches a
+power of two, so a machine too busy for the period shows a few lines, not one per miss. Why it
+paces itself rather than Drake's ``Simulator``: docs/hardware_bus.md, "The station on the bus".
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import time
 import numpy as np
 from pydrake.systems.framework import Diagram, DiagramBuilder, LeafSystem
 from pydrake.systems.primitives import PassThrough
+from tqdm import tqdm
 
 from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
@@ -79,7 +82,8 @@ class DynamixelDriver(LeafSystem):
             forward kinematics.
         period_s: the control period, s. max_deadline_misses: misses allowed.
         x_initial: (6,) where forward kinematics starts before the first reading.
-        stream: where miss lines go (default stderr). timing_window: periods kept for
+        stream: where the misses' summary lines go (:meth:`miss_line`, one when their count
+            reaches a power of two; default stderr). timing_window: periods kept for
             :meth:`timing_summary` (its records are allocated once, 9 numbers a period).
     Attributes:
         timing: the :class:`~.timing.LoopTiming` records of the run.
@@ -195,8 +199,11 @@ class DynamixelDriver(LeafSystem):
         if timing_window is not None:
             self.timing = LoopTiming(self.period_s, timing_window)
         self.timing.reset()
-        #: Deadline misses, and bursts of consecutive ones (one stderr line each), so far.
+        #: Deadline misses, and bursts of consecutive ones, so far.
         self.misses, self.bursts, self._in_burst = 0, 0, False
+        #: The latest start of a missed period, s late, and its Diagram time; misses by cause.
+        self.worst_miss_s, self.worst_miss_t = 0.0, math.nan
+        self.miss_causes = [0] * len(CAUSES)
         self._wall0: float | None = None
         #: Wall-clock time the schedule was moved on by after misses, s: the Diagram's clock
         #: (and the reference) is that much behind the wall clock.
@@ -281,14 +288,31 @@ class DynamixelDriver(LeafSystem):
             raise DeadlineMissError(self.misses, self.max_deadline_misses, self.period_s, late, t)
         if not self._in_burst:
             self.bursts += 1
-            print(
-                f"deadline miss at t = {t:.3f} s: the period started {1e3 * late:.1f} ms late "
-                f"for {1e3 * self.period_s:g} ms ({CAUSES[cause] or 'cause unknown'}; "
-                f"{self.misses} of {self.max_deadline_misses} allowed)",
-                file=self.stream or sys.stderr,
-                flush=True,
-            )
         self._in_burst = True
+        if late > self.worst_miss_s:
+            self.worst_miss_s, self.worst_miss_t = late, t
+        self.miss_causes[cause] += 1
+        if self.misses & (self.misses - 1) == 0:  # 1, 2, 4, 8, ...: a line each
+            # Above a progress bar on the same stream, which tqdm then draws again below it.
+            stream = self.stream or sys.stderr
+            tqdm.write(self.miss_line(), file=stream)
+            stream.flush()
+
+    def miss_line(self) -> str:
+        """The deadline misses so far in one line: their count (in how many bursts), the worst
+        (how late it started, when) and their causes (:data:`~.timing.CAUSES`, most first)."""
+        by_cause = sorted(
+            ((n, CAUSES[c] or "cause unknown") for c, n in enumerate(self.miss_causes) if n),
+            key=lambda pair: -pair[0],
+        )
+        causes = ", ".join(f"{what} {n}" for n, what in by_cause)
+        return (
+            f"deadline misses: {self.misses} so far in {self.bursts} bursts, of "
+            f"{self.max_deadline_misses} allowed (periods of {1e3 * self.period_s:g} ms started "
+            f"over a period late); the worst {1e3 * self.worst_miss_s:.1f} ms late at t = "
+            f"{self.worst_miss_t:.3f} s; by cause: {causes}; next line at "
+            f"{2 * self.misses} misses"
+        )
 
     def readings(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Every period's reading since the run started (:meth:`reset_timing`): (t (n,) the
@@ -322,6 +346,12 @@ class DynamixelDriver(LeafSystem):
                     f"{name:>7}: median {1e3 * v['median']:7.3f}  p99 {1e3 * v['p99']:7.3f}  "
                     f"worst {1e3 * v['worst']:7.3f} ms"
                 )
+        if s["first_age"] > self.period_s:
+            lines.append(
+                f"the first period's measurement was {1e3 * s['first_age']:.0f} ms old: read "
+                "before the loop started (the session's wait for a first sample, its checks), "
+                "not a late period; the ages above are the later periods'"
+            )
         causes = ", ".join(f"{what} {n}" for what, n in s["late_causes"].items())
         late = sum(s["late_causes"].values())
         if late:

@@ -160,19 +160,24 @@ class LoopTiming:
 
     def summary(self) -> dict:
         """{"period", "jitter" (period - nominal), "read", "write" (the bus's round trips),
-        "age" (of the measurement when its torque was written), "late" (start - due), "cpu"
-        (the loop thread's CPU time a period), "wait" (its time runnable but not running a
-        period): each :func:`stats`, s; "late_causes" {cause: periods} of the late periods
-        (:data:`LATE_FRACTION`); "periods", "nominal"}."""
+        "age" (of the measurement when its torque was written, from the second period on),
+        "late" (start - due), "cpu" (the loop thread's CPU time a period), "wait" (its time
+        runnable but not running a period): each :func:`stats`, s; "first_age": the first
+        period's measurement's age, s (NaN when not kept): a reading taken before the loop
+        started (a session's seed, then its checks, a wait for a first sample), not a late
+        period's; "late_causes" {cause: periods} of the late periods (:data:`LATE_FRACTION`);
+        "periods", "nominal"}."""
         r = self.rows()
         period = r[1:, _PERIOD]
         causes = r[:, _CAUSE][np.isfinite(r[:, _CAUSE])].astype(int)
+        first = self.count <= len(self._rows)  # the ring still holds the first period
         return {
             "period": stats(period),
             "jitter": stats(period - self.period_s),
             "read": stats(r[:, _READ]),
             "write": stats(r[:, _WRITE]),
-            "age": stats(r[:, _AGE]),
+            "age": stats(r[1:, _AGE] if first else r[:, _AGE]),
+            "first_age": float(r[0, _AGE]) if first and len(r) else math.nan,
             "late": stats(r[:, _LATE]),
             "cpu": stats(r[:, _CPU]),
             "wait": stats(r[:, _WAIT]),
