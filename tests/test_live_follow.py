@@ -195,3 +195,33 @@ def test_bad_settings_are_refused():
     with pytest.raises(InvalidConfigError, match="unknown predictor"):
         LiveFollower(0.2, 25.0, "lstm")
     assert LiveFollower(0.2, 25.0).evaluate(1.0) is None  # nothing arrived
+
+
+def test_a_source_that_stalls_leaves_the_reference_where_two_steps_took_it():
+    """Breathing sampled with 10 um of noise, then silence: until the sample timeout ends the
+    run, the reference holds where the held curve stood two sample steps past the newest
+    sample (never the cubic's extrapolation: 22 mm after 0.5 s), at rest; before the silence,
+    as on time."""
+    from stewart_drake.references.stream import HELD_STEPS
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 6.0, 0.04)
+    poses = make_motion("breathing").evaluate(t)[0]
+    poses[:, 3:] += rng.normal(0.0, 10e-6, (t.size, 3))
+    live = LiveFollower(0.2, 25.0, "none")
+    for i, ti in enumerate(t):
+        live.receive(ti + 0.2, i, _utime(ti), poses[i])
+    last = t[-1] + 0.2
+    # Where the held curve reads HELD_STEPS steps past the newest sample, from its own cubic
+    # through the last four samples (not-a-knot, as the follower joins them): written out here.
+    from scipy.interpolate import CubicSpline
+
+    tau = (np.arange(4) - 3) * 0.04
+    held_at = CubicSpline(tau, poses[-4:], axis=0)(HELD_STEPS * 0.04)
+    for wait in (0.2, 0.35, 0.5):  # the follower's sample timeout is 0.5 s
+        x, v, a = live.evaluate(last + wait)
+        np.testing.assert_allclose(x, held_at, rtol=0, atol=1e-12)
+        assert not np.any(v) and not np.any(a)
+    # The reference there is within a few tenths of a millimetre of the newest sample, as the
+    # breathing moved over two steps and a half (its speed at most 25 mm/s), not 22 mm off.
+    assert 0.0 < np.max(np.abs(held_at - poses[-1])[3:]) < 2.5 * 0.04 * 0.025

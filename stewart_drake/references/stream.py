@@ -26,6 +26,11 @@ PAST_NODES = 3
 SWITCH_S = 1.0
 #: The blend from one arrival's curve to the next's, s (at most a sample step).
 BLEND_S = 0.1
+#: The held curve is read at most this many sample steps past its newest sample, then held: on
+#: time, the next sample takes over one step and a blend after it; a stream that stalls (a live
+#: source gone silent until its timeout) would otherwise ask for the cubic's extrapolation,
+#: 22 mm after 0.5 s on breathing with 10 um of sample noise.
+HELD_STEPS = 2.0
 #: The rate a motion without samples of its own (a library motion) is streamed at, Hz: an
 #: optical tracker's (25-30 Hz).
 DEFAULT_STREAM_RATE_HZ = 25.0
@@ -118,7 +123,8 @@ class FollowedStream:
     - the held curve, through those samples only, read one sample step and the latency behind
       (tau - latency - dt): without prediction the samples are joined smoothly, the newest
       reached one step after it arrived (a smooth curve cannot pass the newest sample before
-      the next is known; holding it instead would ask the robot for a step at every sample).
+      the next is known; holding it instead would ask the robot for a step at every sample),
+      held :data:`HELD_STEPS` steps past the newest sample when the next does not come.
 
     Each is blended from arrival i - 1's to arrival i's over ``blend_s`` by the quintic
     smoothstep, and each axis weighs the two by u in [0, 1], which moves between them along the
@@ -182,13 +188,15 @@ class FollowedStream:
         s_ = self.stream
         prev = np.clip(i - 1, 0, None)
         ahead = flat + self.loop_lag_s - shift
-        top = tau[-1] if c is self._c else np.inf
+        # Held beyond the predicted curve's last node, and the held curve beyond HELD_STEPS
+        # sample steps past its newest sample (where a stream that stalls leaves it): no rate
+        # beyond either, never the cubic's extrapolation.
+        top = tau[-1] if c is self._c else HELD_STEPS * s_.dt
         new = [self._curve(c, tau, i, np.minimum(ahead - s_.t[i], top), k) for k in range(3)]
         old = [self._curve(c, tau, prev, np.minimum(ahead - s_.t[prev], top), k) for k in range(3)]
-        if c is self._c:  # held at the last node: no rate beyond it
-            for k in (1, 2):
-                new[k][ahead - s_.t[i] > top] = 0.0
-                old[k][ahead - s_.t[prev] > top] = 0.0
+        for k in (1, 2):
+            new[k][ahead - s_.t[i] > top] = 0.0
+            old[k][ahead - s_.t[prev] > top] = 0.0
         blend = min(self.blend_s, s_.dt)
         w, dw, ddw = smoothstep((flat - s_.arrival[i]) / blend)
         w = np.where(i == 0, 1.0, w)[:, None]
@@ -333,4 +341,5 @@ __all__ = [
     "DEFAULT_STREAM_RATE_HZ",
     "LOOP_LAG_S",
     "BLEND_S",
+    "HELD_STEPS",
 ]
