@@ -348,7 +348,7 @@ def _plot_error(axes, r, window, tolerance: tuple[float, float]) -> None:
             label=f"tolerance {format_length(tol) if unit == 'um' else format_angle(tol)}",
         )
         ax.set_yscale("log")
-        ax.set_ylim(0.1, 3 * max(tol * scale, float(norm.max())))
+        ax.set_ylim(0.1, 3 * max(tol * scale, float(np.max(norm))))
         ax.axvspan(w0, w1, color="0.9", zorder=0)
         ax.set_ylabel(f"{what}\nerror [{unit}]")
         ax.legend(loc="upper right", fontsize=7, ncol=2)

@@ -280,7 +280,7 @@ def causes_of(
     """
     tol = _tolerances(tolerance)
     figures = axis_figures(t, x, x_d, measured)
-    seen = [k for k in np.flatnonzero(measured)]
+    seen = [int(k) for k in np.flatnonzero(measured)]
     moving_seen = [k for k in seen if moving[k]]
     f = {k: figures[AXES[k]] for k in seen}
     still = all(
@@ -406,7 +406,7 @@ def sensitivity(t, x_d, measured, tolerance, removes_offsets: bool) -> dict:
         ``removes_offsets`` frames taking the constant parts away.
     """
     tol = _tolerances(tolerance)
-    seen = np.flatnonzero(measured)
+    seen = [int(k) for k in np.flatnonzero(measured)]
     out: dict = {"amplitude_fraction": math.nan, "amplitude_axis": ""}
     best = math.inf
     for k in seen:
@@ -488,7 +488,8 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     latency_ok = not latency_judged or abs(ver.latency_s) <= ver.max_latency_s
     passed = ok and latency_ok
     moving = np.array([a in fid["moving"] for a in AXES])
-    causes, follows = [], True
+    causes: list[str] = []
+    follows = True
     if not ok:
         causes, follows = causes_of(
             t[m],
