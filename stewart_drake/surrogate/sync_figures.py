@@ -108,36 +108,41 @@ def relative_latency(
 
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:
-    """The external's lead on the internal, s, by cross-correlation: the shift tau in
-    [-max_s, max_s] that maximises sum internal(t + tau) external(t) of the mean-removed
-    signals (over their overlap, normalised by its length), refined by a parabola.
+    """The external's lead on the internal, s, by normalised cross-correlation: the shift tau in
+    [-max_s, max_s] that maximises Pearson's correlation of external(t) with internal(t + tau)
+    over a window fixed for every tau (the record less max_s at each end; the internal linearly
+    interpolated), on the samples' step, refined by a parabola.
 
     Args:
         t: (n,) uniform s. internal, external: (n,) m.
+    Raises:
+        InvalidConfigError: too few samples, not uniform, or a record shorter than 2 max_s.
     """
     t = np.asarray(t, float)
     h = _uniform(t)
-    i = np.asarray(internal, float) - np.mean(internal)
-    e = np.asarray(external, float) - np.mean(external)
+    i = np.asarray(internal, float)
+    e = np.asarray(external, float)
     k = max(int(np.ceil(max_s / h)), 1)
-    if len(t) < 2 * k + 8:
+    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
+    if inner.sum() < 8:
         raise InvalidConfigError(f"a lead of up to {max_s:g} s needs a longer record")
-    lags = np.arange(-k, k + 1)
-    r = np.array(
-        [
-            np.dot(i[j:], e[: len(e) - j]) / (len(e) - j)
-            if j >= 0
-            else np.dot(i[: len(i) + j], e[-j:]) / (len(e) + j)
-            for j in lags
-        ]
-    )
-    n = int(np.argmax(r))
-    if 0 < n < len(r) - 1:
-        a, b, c = r[n - 1], r[n], r[n + 1]
+    lags = np.arange(-k, k + 1) * h
+    ei = e[inner] - e[inner].mean()
+    ei /= np.linalg.norm(ei) or 1.0
+
+    def r(tau: float) -> float:
+        x = np.interp(t[inner] + tau, t, i)
+        x -= x.mean()
+        return float(np.dot(ei, x) / (np.linalg.norm(x) or 1.0))
+
+    rs = np.array([r(tau) for tau in lags])
+    n = int(np.argmax(rs))
+    if 0 < n < len(rs) - 1:
+        a, b, c = rs[n - 1], rs[n], rs[n + 1]
         den = a - 2 * b + c
         if den < 0:
-            return float((lags[n] + 0.5 * (a - c) / den) * h)
-    return float(lags[n] * h)
+            return float(lags[n] + 0.5 * h * (a - c) / den)
+    return float(lags[n])
 
 
 def hysteresis_area(internal, external) -> float:
@@ -194,12 +199,17 @@ def pair_figures(t, internal, external, split_s: float | None = None, max_lead_s
             :func:`principal_displacement`).
         split_s: where the relationship changes, s: the lead and correlation are also given
             before and after it ("lead_before_s", "lead_after_s", ...), or None.
+        max_lead_s: the largest lead searched, s (at most a quarter of the record's length).
     Returns:
         {"lead_s", "hysteresis_area_m2", "correlation", "amplitude_ratio",
         "drift_m_per_s"} (and the halves' with ``split_s``).
     """
     t = np.asarray(t, float)
-    lead = lead_s(t, internal, external, max_lead_s)
+
+    def longest(part: np.ndarray) -> float:  # a quarter of the record at most
+        return min(max_lead_s, 0.25 * float(part[-1] - part[0]))
+
+    lead = lead_s(t, internal, external, longest(t))
     out = {
         "lead_s": lead,
         "hysteresis_area_m2": hysteresis_area(internal, external),
@@ -209,6 +219,7 @@ def pair_figures(t, internal, external, split_s: float | None = None, max_lead_s
     }
     if split_s is not None:
         for name, part in (("before", t < split_s), ("after", t >= split_s)):
-            out[f"lead_{name}_s"] = lead_s(t[part], internal[part], external[part], max_lead_s)
+            tp = t[part]
+            out[f"lead_{name}_s"] = lead_s(tp, internal[part], external[part], longest(tp))
             out[f"correlation_{name}"] = correlation(internal[part], external[part])
     return out
