@@ -27,6 +27,8 @@ def _sines(lead=0.3, a_i=5e-3, a_e=8e-3):
 def test_lead_is_the_shift_of_a_sine_pair(lead):
     i, e = _sines(lead)
     assert sf.lead_s(T, i, e, 1.0) == pytest.approx(lead, abs=2e-4)
+    # axes pointing opposite ways: the same lead, not half a breath off
+    assert sf.lead_s(T, i, -e, 1.95) == pytest.approx(lead, abs=2e-4)
 
 
 @pytest.mark.parametrize("lead", [0.1, 0.4, -0.3])

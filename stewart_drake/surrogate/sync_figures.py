@@ -109,9 +109,12 @@ def relative_latency(
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:
     """The external's lead on the internal, s, by normalised cross-correlation: the shift tau in
-    [-max_s, max_s] that maximises Pearson's correlation of external(t) with internal(t + tau)
-    over a window fixed for every tau (the record less max_s at each end; the internal linearly
-    interpolated), on the samples' step, refined by a parabola.
+    [-max_s, max_s] at which Pearson's correlation of external(t) with internal(t + tau) is
+    greatest in either sense, the smaller in magnitude of its greatest and its least (so that a
+    pair whose axes point opposite ways, a tumour moving inferior as the chest rises, is not read
+    half a breath off); the correlation over a window fixed for every tau (the record less max_s
+    at each end; the internal linearly interpolated), on the samples' step, each extreme refined
+    by a parabola.
 
     Args:
         t: (n,) uniform s. internal, external: (n,) m.
@@ -136,6 +139,11 @@ def lead_s(t, internal, external, max_s: float = 2.0) -> float:
         return float(np.dot(ei, x) / (np.linalg.norm(x) or 1.0))
 
     rs = np.array([r(tau) for tau in lags])
+    return min((_peak(lags, rs, h), _peak(lags, -rs, h)), key=abs)
+
+
+def _peak(lags: np.ndarray, rs: np.ndarray, h: float) -> float:
+    """The lag of the largest of ``rs``, refined by a parabola through it and its neighbours."""
     n = int(np.argmax(rs))
     if 0 < n < len(rs) - 1:
         a, b, c = rs[n - 1], rs[n], rs[n + 1]
