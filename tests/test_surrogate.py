@@ -161,3 +161,23 @@ def test_command_refuses_a_bad_surrogate_before_the_run(tmp_path, capsys):
         ["reproduce", "breathing", "--surrogate", str(tmp_path / "none.txt"), *out],
         "no file",
     )
+
+
+def test_one_file_holding_both_is_read_twice_by_the_one_reader(tmp_path):
+    from stewart_drake.references.traces import load_trace
+    from stewart_drake.surrogate.pairs import load_external
+
+    t = np.arange(0.0, 20.0, 0.1)
+    si, chest = 5.0 * np.sin(W * t), 8.0 * np.sin(W * (t + 0.3))
+    path = tmp_path / "pair.csv"
+    rows = "\n".join(f"{a:.3f},{b:.6f},{c:.6f}" for a, b, c in zip(t, si, chest))
+    path.write_text("t [s],SI [mm],chest [mm]\n" + rows + "\n")
+    # the external's column named by the axis it moves (a header's names are the platform's)
+    external = load_external(path, columns="t [s], -, SI [mm]")
+    q = np.arange(2.0, 18.0, 0.01)
+    assert external(q) == pytest.approx(8e-3 * np.sin(W * (q + 0.3)), abs=5e-5)
+    internal = load_trace(path, columns="t [s], SI [mm], -")
+    moving = np.ptp(internal.evaluate(q)[0], axis=0) > 0
+    assert moving.tolist() == [False, False, False, True, False, False]  # SI is the platform's X
+    with pytest.raises(InvalidConfigError, match="moves one translation"):
+        load_external(path, columns="t [s], LR [mm], SI [mm]")

@@ -162,8 +162,9 @@ def _add_surrogate_arguments(rp) -> None:
         "--surrogate-columns",
         default="",
         metavar="COLUMNS",
-        help="the recorded file's columns when it has no header or holds the internal too, "
-        "the others named '-', e.g. '-, -, -, -, t [s], surrogate [mm]' (default: its own)",
+        help="the recorded file's columns when it has no header or holds the internal too: "
+        "the others named '-', the external's by the axis it moves, e.g. 't [s], -, SI [mm]' "
+        "(default: its own)",
     )
     rp.add_argument(
         "--surrogate-latency",

@@ -328,4 +328,5 @@ class SurrogateBox(LeafSystem):
         self._meshcat.SetTransform(path, RigidTransform(self._origin + [0.0, 0.0, z]))
 
     def _Draw(self, context) -> None:
-        self._SetAt("surrogate/box", float(self.get_input_port().Eval(context)[0]))
+        state = np.asarray(self.get_input_port().Eval(context))
+        self._SetAt("surrogate/box", float(state[0]))
