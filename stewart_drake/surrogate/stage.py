@@ -19,6 +19,7 @@ before the run instead, :meth:`SurrogateStage.check_signal`); docs/surrogate.md 
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from pydrake.geometry import Box, Rgba
@@ -227,9 +228,9 @@ class SurrogatePorts:
         x0: (2,) where the carriage starts, [m, m/s] (:meth:`initialize`).
     """
 
-    state: object
-    goal: object
-    carriage: object
+    state: Any  # OutputPort
+    goal: Any  # OutputPort
+    carriage: Any  # LinearSystem
     x0: np.ndarray
 
     def initialize(self, root_context) -> None:
