@@ -181,3 +181,23 @@ def test_one_file_holding_both_is_read_twice_by_the_one_reader(tmp_path):
     assert moving.tolist() == [False, False, False, True, False, False]  # SI is the platform's X
     with pytest.raises(InvalidConfigError, match="moves one translation"):
         load_external(path, columns="t [s], LR [mm], SI [mm]")
+
+
+def test_scenario_section_round_trips_through_yaml(tmp_path):
+    from dataclasses import replace
+
+    from stewart_drake.run.scenario import dump_scenario
+    from stewart_drake.run.scenario_io import load_scenario
+    from stewart_drake.surrogate.axis import SurrogateAxis
+
+    axis = SurrogateAxis(
+        stage=SurrogateStage(travel_m=0.05, bandwidth_hz=5.0),
+        correlation=CorrelationModel(lead_s=0.3, change_at_s=10.0, lead_after_s=-0.1),
+    )
+    scenario = replace(load_scenario("phantom_hardware"), surrogate=axis).validate()
+    path = tmp_path / "s.yaml"
+    dump_scenario(scenario, path)
+    back = load_scenario(str(path)).surrogate
+    assert back == axis
+    with pytest.raises(InvalidConfigError, match="surrogate.stage.travel_m"):
+        load_scenario(str(path), ["surrogate.stage.travel_m=-1"])
