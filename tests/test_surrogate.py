@@ -201,3 +201,12 @@ def test_scenario_section_round_trips_through_yaml(tmp_path):
     assert back == axis
     with pytest.raises(InvalidConfigError, match="surrogate.stage.travel_m"):
         load_scenario(str(path), ["surrogate.stage.travel_m=-1"])
+
+
+def test_hysteresis_of_a_single_cycle_and_of_a_pair_at_rest():
+    one = (T >= 2.0) & (T < 6.0)  # exactly one 4 s breath
+    i, e = _sines(0.4)
+    expected = math.pi * 5e-3 * 8e-3 * math.sin(W * 0.4)
+    assert sf.hysteresis_area(i[one], e[one]) == pytest.approx(expected, rel=5e-3)
+    with pytest.raises(InvalidConfigError, match="crosses its mean"):
+        sf.hysteresis_area(np.ones_like(T), e)

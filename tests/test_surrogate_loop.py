@@ -135,3 +135,16 @@ def test_the_surrogate_is_drawn_in_meshcat():
     meshcat = Meshcat()
     _run(CorrelationModel(), 0.2, meshcat)
     assert meshcat.HasPath("surrogate/box") and meshcat.HasPath("surrogate/rail")
+
+
+def test_the_command_fails_a_surrogate_beyond_its_latency(tmp_path, capsys):
+    from stewart_drake.cli import main as cli
+
+    argv = ["reproduce", "breathing", "--param", "period=2s", "--cycles", "1"]
+    argv += ["--surrogate", "model", "--surrogate-param", "lead=0.2s", "--out", str(tmp_path)]
+    # the stage's half control period (0.5 ms) is beyond a 0.1 ms allowance: FAIL, exit 2
+    rc = cli.main(argv + ["--surrogate-latency", "0.0001", "--no-progress"])
+    out, err = capsys.readouterr()
+    assert rc == 2, (out, err)
+    assert "surrogate FAIL: the stage's carriage against its signal" in out
+    assert (tmp_path / "reproduce_breathing_surrogate.json").is_file()

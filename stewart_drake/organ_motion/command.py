@@ -236,7 +236,8 @@ def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
     text = json.dumps(fig, indent=1).encode()
     atomic_write(path, lambda f: f.write(text))
     print(
-        f"surrogate {'PASS' if ok else 'FAIL'}: RMS {fig['external_rms_m'] * 1e6:.3g} um "
+        f"surrogate {'PASS' if ok else 'FAIL'}: the stage's carriage against its signal, RMS "
+        f"{fig['external_rms_m'] * 1e6:.3g} um "
         f"(tolerance {tolerance[0] * 1e6:.3g} um), relative latency {latency * 1e3:+.3g} ms "
         f"(tolerance {args.surrogate_latency * 1e3:.3g} ms); wrote {path}"
     )

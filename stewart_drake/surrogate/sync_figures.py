@@ -156,22 +156,24 @@ def _peak(lags: np.ndarray, rs: np.ndarray, h: float) -> float:
 def hysteresis_area(internal, external) -> float:
     """The area the pair's loop encloses per cycle, m^2, signed (module docstring): the
     shoelace sum over the whole cycles between the internal's first and last upward crossing
-    of its mean, divided by their number.
+    of its mean, divided by their number; with one crossing or none, the whole record closed on
+    itself as one cycle (a window of one whole cycle, as ``reproduce --cycles 1`` measures).
 
     Args:
         internal, external: (n,) m, sampled together.
     Raises:
-        InvalidConfigError: fewer than one whole cycle.
+        InvalidConfigError: the internal never crosses its mean (at rest).
     """
     i = np.asarray(internal, float) - np.mean(internal)
     e = np.asarray(external, float) - np.mean(external)
     up = np.flatnonzero((i[:-1] < 0) & (i[1:] >= 0))
-    if len(up) < 2:
-        raise InvalidConfigError("the hysteresis loop needs at least one whole cycle")
-    a, b = up[0], up[-1] + 1
+    down = np.flatnonzero((i[:-1] >= 0) & (i[1:] < 0))
+    if len(up) + len(down) == 0:
+        raise InvalidConfigError("the hysteresis loop needs a motion that crosses its mean")
+    a, b, cycles = (up[0], up[-1] + 1, len(up) - 1) if len(up) >= 2 else (0, len(i) - 1, 1)
     x, y = i[a : b + 1], e[a : b + 1]
     shoelace = 0.5 * float(np.sum(x[:-1] * y[1:] - x[1:] * y[:-1]) + x[-1] * y[0] - x[0] * y[-1])
-    return -shoelace / (len(up) - 1)
+    return -shoelace / cycles
 
 
 def correlation(internal, external) -> float:
