@@ -24,7 +24,6 @@ LAYERS = {
     "control": 3,
     "references": 4,
     "station": 5,
-    "surrogate": 5,
     "run": 6,
     "execution": 7,
     "viz": 8,

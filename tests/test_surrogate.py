@@ -9,10 +9,10 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.cli import main as cli
-from stewart_drake.surrogate import sync_figures as sf
-from stewart_drake.surrogate.correlation import CorrelationModel
-from stewart_drake.surrogate.report import correlation_model, pair_report
-from stewart_drake.surrogate.stage import SurrogateStage
+from stewart_drake.station.surrogate import sync_figures as sf
+from stewart_drake.station.surrogate.correlation import CorrelationModel
+from stewart_drake.station.surrogate.report import correlation_model, pair_report
+from stewart_drake.station.surrogate.stage import SurrogateStage
 
 H = 1e-3
 T = np.arange(0.0, 16.0, H)
@@ -59,11 +59,11 @@ def test_delay_is_the_shift_of_the_measured_signal(d):
     assert sf.delay_s(T, commanded, measured, 0.1) == pytest.approx(d, abs=1e-4)
 
 
-def test_relative_latency_is_external_delay_less_internal_delay():
+def test_relative_latency_is_internal_delay_less_external_delay():
     c = 5e-3 * np.sin(W * T)
     late = np.interp(T - 0.02, T, c)
     rl = sf.relative_latency(T, c, np.interp(T - 0.005, T, c), 0.8 * c, 0.8 * late)
-    assert rl["relative_latency_s"] == pytest.approx(0.015, abs=2e-4)
+    assert rl["relative_latency_s"] == pytest.approx(-0.015, abs=2e-4)  # the surrogate late
 
 
 def _pair(external_measured=None, lead=0.4):
@@ -165,7 +165,7 @@ def test_command_refuses_a_bad_surrogate_before_the_run(tmp_path, capsys):
 
 def test_one_file_holding_both_is_read_twice_by_the_one_reader(tmp_path):
     from stewart_drake.references.traces import load_trace
-    from stewart_drake.surrogate.pairs import load_external
+    from stewart_drake.station.surrogate.pairs import load_external
 
     t = np.arange(0.0, 20.0, 0.1)
     si, chest = 5.0 * np.sin(W * t), 8.0 * np.sin(W * (t + 0.3))
@@ -188,7 +188,7 @@ def test_scenario_section_round_trips_through_yaml(tmp_path):
 
     from stewart_drake.run.scenario import dump_scenario
     from stewart_drake.run.scenario_io import load_scenario
-    from stewart_drake.surrogate.axis import SurrogateAxis
+    from stewart_drake.station.surrogate.axis import SurrogateAxis
 
     axis = SurrogateAxis(
         stage=SurrogateStage(travel_m=0.05, bandwidth_hz=5.0),

@@ -182,12 +182,12 @@ def with_surrogate(args, scenario):
 
     Raises:
         InvalidConfigError: --surrogate-param without ``--surrogate model`` or a bad model
-            (:func:`~stewart_drake.surrogate.report.correlation_model`); MissingFileError: no
-            such file.
+            (:func:`~stewart_drake.station.surrogate.report.correlation_model`);
+            MissingFileError: no such file.
     """
     from ..base.errors import InvalidConfigError
-    from ..surrogate.axis import SurrogateAxis
-    from ..surrogate.report import correlation_model
+    from ..station.surrogate.axis import SurrogateAxis
+    from ..station.surrogate.report import correlation_model
 
     if args.surrogate is None:
         if args.surrogate_param or args.surrogate_columns:
@@ -209,14 +209,15 @@ def with_surrogate(args, scenario):
 
 def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
     """Print and write (``reproduce_<name>_surrogate.json``) the pair's figures
-    (:func:`~stewart_drake.surrogate.report.pair_report`); True when the surrogate is within the
-    length tolerance of its signal and the relative latency within ``--surrogate-latency``."""
+    (:func:`~stewart_drake.station.surrogate.report.pair_report`); True when the surrogate is
+    within the length tolerance of its signal and the relative latency within
+    ``--surrogate-latency``."""
     import json
 
     import numpy as np
 
     from ..base.fileio import atomic_write
-    from ..surrogate.report import pair_report, report_lines
+    from ..station.surrogate.report import pair_report, report_lines
 
     result, axis = rep.result, rep.plan.scenario.surrogate
     t = np.asarray(result.t, float)

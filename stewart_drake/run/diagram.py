@@ -39,8 +39,8 @@ from ..station.station import (
     add_tool_disturbance,
     add_white_noise,
 )
-from ..surrogate.axis import ExternalSignal
-from ..surrogate.stage import SurrogatePorts, add_surrogate_stage
+from ..station.surrogate.axis import ExternalSignal
+from ..station.surrogate.stage import SurrogatePorts, add_surrogate_stage
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
 from .result import SignalLog, add_run_logs
@@ -73,9 +73,10 @@ class StewartDiagram:
             ``lcm``; subscribe to it to receive them in process), or None.
         x_initial, x_dot_initial: (6,) where the run starts, the reference's pose and rate at
             t = 0 [rad, m; rad/s, m/s] (a live reference's start pose, at rest).
-        surrogate: the surrogate's stage (:class:`~stewart_drake.surrogate.stage.SurrogatePorts`)
-            with the scenario's ``surrogate``, or None; surrogate_signal: the
-            :class:`~stewart_drake.surrogate.axis.ExternalSignal` it follows, or None.
+        surrogate: the surrogate's stage
+            (:class:`~stewart_drake.station.surrogate.stage.SurrogatePorts`) with the
+            scenario's ``surrogate``, or None; surrogate_signal: the
+            :class:`~stewart_drake.station.surrogate.axis.ExternalSignal` it follows, or None.
     """
 
     diagram: Diagram
@@ -298,13 +299,13 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict):
     """With the scenario's ``surrogate``, its stage beside the platform on the same clock: the
     external signal made once from the run's reference (recorded, or through the correlation
     model), sampled at the controller's instants (the platform's period and offset), the stage
-    added (:func:`~stewart_drake.surrogate.stage.add_surrogate_stage`) and logged as
+    added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`) and logged as
     "surrogate" (5: [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], float64, every log period).
     Returns (the stage's ports or None, the signal or None).
 
     Raises:
         InvalidConfigError: a live reference (no motion known in advance to correlate with), a
-            signal the stage cannot follow (:meth:`~stewart_drake.surrogate.stage.
+            signal the stage cannot follow (:meth:`~stewart_drake.station.surrogate.stage.
             SurrogateStage.check_signal`).
     """
     axis = plan.scenario.surrogate

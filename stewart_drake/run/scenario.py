@@ -67,7 +67,7 @@ from ..station.guard import GuardConfig
 from ..station.hardware import Hardware
 from ..station.lcm_publish import LcmConfig
 from ..station.station import SensorNoise, ToolDisturbance
-from ..surrogate.axis import SurrogateAxis
+from ..station.surrogate.axis import SurrogateAxis
 from .drake_configs import MIN_REALTIME_RATE as MIN_REALTIME_RATE  # re-exported: live
 from .drake_configs import validate_plant_config, validate_simulator_config
 
@@ -216,7 +216,8 @@ class Scenario:
         bus: None, or the real robot's servos (:class:`DynamixelBusConfig`).
         lcm: None, or LCM channels for status and commands (:class:`LcmConfig`).
         surrogate: None, or the external surrogate's stage beside the platform and the signal
-            it follows (:class:`~stewart_drake.surrogate.axis.SurrogateAxis`, docs/surrogate.md).
+            it follows (:class:`~stewart_drake.station.surrogate.axis.SurrogateAxis`,
+            docs/surrogate.md).
     Raises:
         InvalidConfigError: (``validate``, by every builder and at construction) a field out
             of range, a period not a whole multiple of the one it runs on, a wrong type; named

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ..base.errors import InvalidConfigError, MissingFileError
-from ..references.trace_files import TRACE_FORMATS
+from ...base.errors import InvalidConfigError, MissingFileError
+from ...references.trace_files import TRACE_FORMATS
 from .correlation import CorrelationModel
 from .stage import SurrogateStage
 from .sync_figures import principal_displacement

@@ -35,9 +35,9 @@ from pydrake.systems.primitives import (
 )
 from pydrake.trajectories import PiecewisePolynomial
 
-from ..base.checks import as_number
-from ..base.errors import InvalidConfigError
-from ..robot.motor_catalogue import catalogue_motor
+from ...base.checks import as_number
+from ...base.errors import InvalidConfigError
+from ...robot.motor_catalogue import catalogue_motor
 
 #: The servo of the default stage (docs/motor_catalogue.md gives its datasheet's figures).
 DEFAULT_MOTOR = "XM430-W350-T"

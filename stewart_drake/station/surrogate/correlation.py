@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..base.checks import as_number
-from ..base.errors import InvalidConfigError
-from ..references.smoothstep import smoothstep
+from ...base.checks import as_number
+from ...base.errors import InvalidConfigError
+from ...references.smoothstep import smoothstep
 
 
 @dataclass

@@ -6,9 +6,11 @@ Sign conventions (docs/surrogate.md, "Reading the relative latency"):
 
 - a **delay** d > 0: the measured signal comes d after the commanded one (measured(t) ~
   commanded(t - d)).
-- the **relative latency** = d_external - d_internal: > 0, the surrogate arrives late against the
-  target, so the pair's reproduced lead of the external is the asked lead less the relative
-  latency.
+- the **relative latency** = d_internal - d_external: > 0, the internal target arrives late
+  against the surrogate (the surrogate early), so the pair's reproduced lead of the external is
+  the asked lead plus the relative latency. The sign is IntERAct's (``RMSEAlignMethod.m``:
+  ``latency = shift6D - shift1D``) and ``verify --surrogate``'s
+  (:mod:`stewart_drake.surrogate.relative_latency`).
 - a **lead** > 0: the external reaches each phase of the breath before the internal does
   (external(t) ~ k internal(t + lead)).
 - the **hysteresis area** > 0: the loop in the (internal, external) plane runs clockwise, as it
@@ -20,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError
+from ...base.errors import InvalidConfigError
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -99,12 +101,12 @@ def relative_latency(
         external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
         max_s: the largest delay searched, s.
     Returns:
-        {"delay_internal_s", "delay_external_s", "relative_latency_s"} = d_i, d_e, d_e - d_i
-        (:func:`delay_s` each).
+        {"delay_internal_s", "delay_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
+        (:func:`delay_s` each; > 0: the internal late).
     """
     d_i = delay_s(t, internal, internal_measured, max_s)
     d_e = delay_s(t, external, external_measured, max_s)
-    return {"delay_internal_s": d_i, "delay_external_s": d_e, "relative_latency_s": d_e - d_i}
+    return {"delay_internal_s": d_i, "delay_external_s": d_e, "relative_latency_s": d_i - d_e}
 
 
 def lead_s(t, internal, external, max_s: float = 2.0) -> float:

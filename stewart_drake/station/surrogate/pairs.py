@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..references.traces import load_trace
+from ...references.traces import load_trace
 
 
 def load_external(path, format: str = "auto", columns: str = "") -> Callable:
@@ -31,7 +31,7 @@ def load_external(path, format: str = "auto", columns: str = "") -> Callable:
         MissingFileError, CorruptFileError, InvalidConfigError: as ``load_trace``; a file that
             moves more than one axis or none.
     """
-    from ..base.errors import InvalidConfigError
+    from ...base.errors import InvalidConfigError
 
     trace = load_trace(path, format=format, columns=columns, centre_on="mean")
     t = np.arange(trace.start_time, trace.end_time, 1e-2)

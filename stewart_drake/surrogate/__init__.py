@@ -1,4 +1,0 @@
-"""The external surrogate beside the platform: a 1-DoF linear stage in the same Diagram and on the
-same clock (`stage`), the external signal it follows, from a recorded pair (`pairs`) or from a
-library motion through a correlation model (`correlation`), and the figures that judge the pair
-(`sync_figures`: relative latency, lead, hysteresis, correlation, drift)."""
