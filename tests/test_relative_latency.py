@@ -180,7 +180,7 @@ def test_swapped_files_fail_as_swapped(tmp_path):
     internal, surrogate = pair_files(tmp_path)
     pair = judge(surrogate, internal)
     assert not pair.judgement.passed
-    assert causes(pair).startswith("the two measurements swapped: depth_surrogate.csv matches")
+    assert causes(pair).startswith("the two measurements swapped: depth_surrogate.csv comes")
     # The right files are not taken for swapped.
     assert judge(internal, surrogate).judgement.causes == []
 

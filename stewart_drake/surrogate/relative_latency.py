@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -411,10 +412,10 @@ def swapped_words(
         return None
     a, b = (Path(m.path).name for m in pair_measured)
     return (
-        f"the two measurements swapped: {a} matches the surrogate's reference {ratios[0]:.3g} "
-        f"times as well as the internal's, and {b} the internal's {ratios[1]:.3g} times as well "
-        f"as the surrogate's; exchanged, their relative latency is {seconds(exchanged)}: give "
-        "each file to its option"
+        f"the two measurements swapped: {a} comes {ratios[0]:.3g} times nearer the surrogate's "
+        f"reference than the internal's, and {b} {ratios[1]:.3g} times nearer the internal's "
+        f"than the surrogate's (mean squared distances); exchanged, their relative latency is "
+        f"{seconds(exchanged)}: give each file to its option"
     )
 
 
@@ -448,7 +449,9 @@ def judge_relative(
     at_edge = abs(abs(relative_latency_s) - half_width_s) < EDGE_S
     within = abs(relative_latency_s) <= max_relative_latency_s and not at_edge
     value = f"{'at least ' if at_edge else ''}{seconds(relative_latency_s)}"
-    if relative_latency_s > 0:
+    if at_edge:  # past half a breath, a breath earlier or later may match better than the true
+        late = "which one is late is not known beyond the relative latencies searched"
+    elif relative_latency_s > 0:
         late = "the internal target late against the surrogate"
     else:
         late = "the surrogate late against the internal target"
@@ -465,7 +468,7 @@ def judge_relative(
             f"{'within' if within else 'beyond'} +-{seconds(max_relative_latency_s)}"
         )
     else:
-        figure = f"relative latency {value} of no meaning (a motion does not follow its reference)"
+        figure = f"relative latency {value} of no meaning while the cause holds"
     line = (
         f"{'PASS' if passed else 'FAIL'}: {names[0]} (internal) against {names[1]} (surrogate) on "
         f"one clock: {figure}" + (f"; cause: {'; '.join(causes)}" if causes else "")
@@ -539,22 +542,21 @@ def verify_pair(
             f"{max_relative_latency_s}"
         )
     check_one_clock(internal_measured, surrogate_measured)
-    options = {
-        "clock_offset_s": clock_offset_s,
-        "max_latency_s": verification.MAX_LATENCY_S if max_latency_s is None else max_latency_s,
-        "tolerance": verification.DEFAULT_TOLERANCE if tolerance is None else tolerance,
-        "max_gap_s": verification.MAX_GAP_S if max_gap_s is None else max_gap_s,
-    }
-    internal = verification.verify(
-        internal_reference, internal_measured, frame=frame, registration=registration, **options
+    tol = verification.DEFAULT_TOLERANCE if tolerance is None else tolerance
+    alone = partial(
+        verification.verify,
+        clock_offset_s=clock_offset_s,
+        max_latency_s=verification.MAX_LATENCY_S if max_latency_s is None else max_latency_s,
+        tolerance=tol,
+        max_gap_s=verification.MAX_GAP_S if max_gap_s is None else max_gap_s,
     )
-    surrogate = verification.verify(surrogate_reference, surrogate_measured, **options)
+    internal = alone(internal_reference, internal_measured, frame=frame, registration=registration)
+    surrogate = alone(surrogate_reference, surrogate_measured)
     d_i = internal.shift_s
     half = search_half_width(surrogate_reference, max_relative_latency_s)
     d_s = relative_shift(surrogate_reference, surrogate_measured, d_i, half)
     tau = d_s - d_i
     t, x, x_d = _window(internal)
-    tol = options["tolerance"]
     why_internal = why_not_following(internal_reference, t, x, x_d, internal_measured.measured, tol)
     t, x, x_d = _at_shift(surrogate_reference, surrogate_measured, d_s)
     why_surrogate = why_not_following(
@@ -600,8 +602,6 @@ def add_pair_arguments(vp) -> None:
     surrogate (``--surrogate``, ``--measured-surrogate``, their columns and maps,
     ``--max-relative-latency``); ``verify`` runs :func:`cmd_verify_pair` when they are given, and
     as before otherwise."""
-    from functools import partial
-
     from ..execution.options import positive_float
 
     vp.add_argument(
