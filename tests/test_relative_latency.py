@@ -126,6 +126,17 @@ def test_a_surrogate_at_rest_fails(tmp_path):
     assert not pair.surrogate.judgement.passed and not pair.passed
 
 
+def test_an_internal_platform_at_rest_fails_naming_it_alone(tmp_path):
+    t = camera_clock()
+    still = OFFSETS_MM[0] + np.random.default_rng(4).normal(0.0, NOISE_MM, len(t))
+    pair = judge(*pair_files(tmp_path, internal=still))
+    assert not pair.judgement.passed and not pair.judgement.meaningful
+    # The surrogate, judged on its own clock since the internal's means nothing, follows.
+    assert causes(pair).startswith("the internal target did not move"), causes(pair)
+    assert "the surrogate" not in causes(pair)
+    assert pair.surrogate.judgement.passed and not pair.internal.judgement.passed
+
+
 def test_a_reversed_surrogate_fails(tmp_path):
     t = camera_clock()
     flipped = seen(1, SURROGATE, t, DELAY_S, sign=-1.0, offset_mm=OFFSETS_MM[1], seed=2)

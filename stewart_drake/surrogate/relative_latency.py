@@ -558,7 +558,11 @@ def verify_pair(
     tau = d_s - d_i
     t, x, x_d = _window(internal)
     why_internal = why_not_following(internal_reference, t, x, x_d, internal_measured.measured, tol)
-    t, x, x_d = _at_shift(surrogate_reference, surrogate_measured, d_s)
+    # On the internal's clock, unless the internal's shift means nothing: then on its own.
+    if why_internal:
+        t, x, x_d = _window(surrogate)
+    else:
+        t, x, x_d = _at_shift(surrogate_reference, surrogate_measured, d_s)
     why_surrogate = why_not_following(
         surrogate_reference, t, x, x_d, surrogate_measured.measured, tol
     )
