@@ -120,6 +120,8 @@ INPUT_OPTIONS = {
     "data": "--data",
     "requirements": "the requirements",
     "measured": "--measured",
+    "surrogate": "--surrogate",
+    "measured_surrogate": "--measured-surrogate",
     "registration": "--registration",
     "measurements": "the measurements",
     "join": "--join",
