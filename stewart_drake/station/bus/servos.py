@@ -26,6 +26,7 @@ from ...base.errors import InvalidConfigError, StewartError
 from ...robot.motor_catalogue import catalogue_motor
 from ..hardware import Encoders, Estimator, Hardware, Motors
 from . import protocol as p
+from .surrogate_servo import SurrogateServoConfig
 
 
 @dataclass(frozen=True)
@@ -249,6 +250,9 @@ class DynamixelBusConfig:
         reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
         max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
             period missed beyond this many (0: at the first miss).
+        surrogate: the external surrogate's stage as a seventh servo on this bus
+            (:class:`~.surrogate_servo.SurrogateServoConfig`: its id, model, screw and travel);
+            None (default): no surrogate, six servos.
 
     The robot as built is then the one with these servos: ``hardware: null`` is derived from
     the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
@@ -268,6 +272,7 @@ class DynamixelBusConfig:
     watchdog_s: float = 0.1
     reply_timeout_s: float | None = None
     max_deadline_misses: int = 10
+    surrogate: SurrogateServoConfig | None = None
 
     def _settings(self):
         return check_bus_settings(
@@ -307,6 +312,13 @@ class DynamixelBusConfig:
                 f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
                 f"{lo:g} to {hi:g} s"
             )
+        if self.surrogate is not None:
+            if not isinstance(self.surrogate, SurrogateServoConfig):
+                raise InvalidConfigError(
+                    "bus.surrogate must be None or a SurrogateServoConfig, got "
+                    f"{type(self.surrogate).__name__}"
+                )
+            self.surrogate.validate(self.ids, control_period_s)
         expected = self.hardware(control_period_s)
         if hardware is None:
             return

@@ -1,0 +1,244 @@
+"""The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning a
+lead screw whose carriage carries the chest marker, driven in the cranks' period.
+
+:class:`SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is and the
+screw it turns; :class:`SurrogateDrive` is its controller on the loop's computer, as the
+cranks' controllers are: each period it turns the carriage's commanded position, rate and
+acceleration (the session gives them on the run's clock) and the last reading of the servo's
+encoder into a torque at the horn, which the driver sends as the seventh row of the period's one
+sync write of Goal Current (:meth:`~.driver.DynamixelBus.write_torques`); the servo's encoder
+comes back as the seventh status of the period's one sync read. Like the cranks it is in Current
+Control Mode (a sync write writes one address for all its servos: the cranks' Goal Current).
+
+The carriage's position ``s`` (m, 0 at mid-travel) from the servo's Present Position:
+``s = (counts - zero_counts) * lead_m_per_rev / 4096 * direction``.
+
+The controller (:meth:`SurrogateDrive.torque`), in the screw's angle theta = 2 pi s / lead at
+the horn: tau = J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c -
+v_m), where J is the rotor's reflected inertia plus the carriage's mass through the screw
+(m (lead / 2 pi)^2), b and c the servo's viscous and dry friction (the motor catalogue's
+figures), theta_p the reading predicted one period on (theta_m + h v_m: the torque acts a period
+after the reading it came from, as the cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi
+``bandwidth_hz`` (a critically damped double integrator), v_eps one encoder count a period. The
+torque is in the carriage's sense (positive drives ``s`` up). The weight of a vertical carriage
+(m g lead / 2 pi: 39 mN m for 0.5 kg on a 50 mm lead, 1 % of the servo's stall torque) is left
+to the position loop.
+
+Defaults and their source: the servo is the catalogue's XM430-W350-T (docs/motor_catalogue.md),
+the fastest X servo of the catalogue with Current Control Mode (46 rpm at 12 V). The screw's
+lead, the travel and the carriage's mass are **estimates**, not a cited part: a lead of 50 mm a
+turn (a high-helix lead screw) gives 38 mm/s at the servo's no-load speed, above the peak speed
+of the respiratory traces of IntERAct's LARK and LIGHT SABR sets but two (66 and 39 mm/s, which
+:func:`check_surrogate_path` refuses), 12 um a count, and 515 N at the servo's stall torque;
+100 mm of travel holds every one of those traces (56 mm peak to peak at most); a 0.5 kg
+carriage with its marker block. docs/robot.md, "The surrogate on the bus".
+
+Drake's YAML loader reads :class:`SurrogateServoConfig`'s field annotations: this module must not
+use ``from __future__ import annotations``.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...base.checks import as_number, check_int
+from ...base.errors import InvalidConfigError, StewartError
+from ...robot.motor_catalogue import catalogue_motor
+from . import protocol as p
+
+#: The share of the servo's no-load speed a surrogate's command may ask for: above it the
+#: drive's voltage leaves too little current to follow (the catalogue's linear speed-torque line).
+SPEED_MARGIN = 0.8
+
+
+@dataclass
+class SurrogateServoConfig:
+    """The surrogate's servo on the robot's bus (a scenario's ``bus.surrogate``; None: no
+    surrogate, the bus as before). Defaults and their sources: module docstring.
+
+    Attributes:
+        id: the servo's id, distinct from the cranks' (0..252).
+        model: its model, a bus model with Current Control Mode that the motor catalogue has
+            (``XM430-W350-T``, ``XM540-W270-T``).
+        lead_m_per_rev: the carriage's travel per turn of the horn, m (the screw's lead).
+        travel_m: the carriage's travel, m, centred on its zero (``s`` in +-travel / 2).
+        zero_counts: the servo's Present Position with the carriage at mid-travel, counts
+            (multi-turn, a signed 32-bit count).
+        direction: +1, or -1 when the counts grow as the carriage goes down ``s``.
+        carriage_mass_kg: the carriage and its marker, kg.
+        current_limit_A: its Current Limit, A (None: the model's maximum).
+        bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
+    """
+
+    id: int = 7
+    model: str = "XM430-W350-T"
+    lead_m_per_rev: float = 0.05
+    travel_m: float = 0.1
+    zero_counts: int = 2048
+    direction: int = 1
+    carriage_mass_kg: float = 0.5
+    current_limit_A: float | None = None
+    bandwidth_hz: float = 5.0
+
+    def validate(
+        self, crank_ids, control_period_s: float | None, prefix: str = "bus.surrogate."
+    ) -> None:
+        """Check every field (named ``prefix + name``) against the cranks' ids and the control
+        period, s (None: the bandwidth only > 0).
+
+        Raises:
+            InvalidConfigError: the first field out of range, named.
+        """
+        from .servos import servo_spec
+
+        servo_id = check_int(f"{prefix}id", self.id, 0, p.MAX_ID)
+        if servo_id in [int(i) for i in crank_ids]:
+            raise InvalidConfigError(
+                f"{prefix}id {servo_id} is a crank's ({list(crank_ids)}): give the surrogate's "
+                "servo an id of its own"
+            )
+        try:
+            spec = servo_spec(self.model)
+            catalogue_motor(self.model)
+        except StewartError as err:
+            raise InvalidConfigError(f"{prefix}model: {err}") from None
+        as_number(f"{prefix}lead_m_per_rev", self.lead_m_per_rev, 0.0, 0.2, lo_open=True)
+        as_number(f"{prefix}travel_m", self.travel_m, 0.0, 1.0, lo_open=True)
+        check_int(f"{prefix}zero_counts", self.zero_counts, -(2**31), 2**31 - 1)
+        if self.direction not in (1, -1) or isinstance(self.direction, bool):
+            raise InvalidConfigError(f"{prefix}direction must be +1 or -1, got {self.direction!r}")
+        as_number(f"{prefix}carriage_mass_kg", self.carriage_mass_kg, 0.0, 50.0)
+        if self.current_limit_A is not None:
+            top = spec.current_limit_max * spec.amps_per_unit
+            as_number(f"{prefix}current_limit_A", self.current_limit_A, 0.0, top, lo_open=True)
+        top_hz = None if control_period_s is None else 0.1 / control_period_s
+        as_number(f"{prefix}bandwidth_hz", self.bandwidth_hz, 0.0, top_hz, lo_open=True)
+
+    # --- derived figures -------------------------------------------------------------------
+
+    @property
+    def metres_per_count(self) -> float:
+        """One encoder count of the servo as carriage travel, m."""
+        return self.lead_m_per_rev / p.COUNTS_PER_REV
+
+    @property
+    def metres_per_rad(self) -> float:
+        """Carriage travel per radian of the horn, m/rad (lead / 2 pi)."""
+        return self.lead_m_per_rev / (2 * math.pi)
+
+    def max_speed_m_s(self) -> float:
+        """The fastest a command may move the carriage, m/s: :data:`SPEED_MARGIN` of the
+        servo's no-load speed through the screw."""
+        return (
+            SPEED_MARGIN
+            * catalogue_motor(self.model).servo.no_load_speed_rad_s
+            * (self.metres_per_rad)
+        )
+
+    def inertia_kg_m2(self) -> float:
+        """J at the horn: the rotor's reflected inertia plus the carriage through the screw."""
+        servo = catalogue_motor(self.model).servo
+        return servo.rotor_inertia * servo.gear_ratio**2 + self.carriage_mass_kg * (
+            self.metres_per_rad**2
+        )
+
+    def counts_to_m(self, counts):
+        """Carriage position, m, for Present Position ``counts``."""
+        return (np.asarray(counts, dtype=float) - self.zero_counts) * (
+            self.metres_per_count * self.direction
+        )
+
+    def m_to_counts(self, s_m):
+        """Present Position (counts, rounded) with the carriage at ``s_m``; inverse of
+        :meth:`counts_to_m`."""
+        return np.rint(
+            np.asarray(s_m, dtype=float) * self.direction / self.metres_per_count + self.zero_counts
+        ).astype(np.int64)
+
+
+def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the surrogate") -> None:
+    """Refuse a carriage command outside the stage's travel or faster than it can follow,
+    before anything is powered.
+
+    Args:
+        config: the stage. s, v: (n,) commanded positions, m, and rates, m/s, at sampled times.
+        what: how the messages name the command.
+    Raises:
+        InvalidConfigError: not finite, out of the travel or over the speed (each named with
+            its figure and the limit).
+    """
+    s, v = np.asarray(s, dtype=float), np.asarray(v, dtype=float)
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v))):
+        raise InvalidConfigError(f"{what}: the commanded carriage position is not finite")
+    half = 0.5 * config.travel_m
+    if s.size and np.max(np.abs(s)) > half:
+        raise InvalidConfigError(
+            f"{what} asks the carriage for {1e3 * s[np.argmax(np.abs(s))]:+.1f} mm, outside the "
+            f"stage's travel of +-{1e3 * half:g} mm (bus.surrogate.travel_m)"
+        )
+    top = config.max_speed_m_s()
+    if v.size and np.max(np.abs(v)) > top:
+        raise InvalidConfigError(
+            f"{what} asks the carriage for {1e3 * np.max(np.abs(v)):.1f} mm/s, over the "
+            f"{1e3 * top:.1f} mm/s the {config.model} turns a {1e3 * config.lead_m_per_rev:g} mm "
+            f"lead at ({100 * SPEED_MARGIN:g} % of its no-load speed): a longer "
+            "bus.surrogate.lead_m_per_rev, or a slower trace"
+        )
+
+
+class SurrogateDrive:
+    """The surrogate's position loop on the loop's computer (module docstring), for
+    :class:`~.station.DynamixelDriver`.
+
+    Args:
+        config: the stage. period_s: the control period, s.
+    Attributes:
+        command: ``command(t) -> (s, v, a)`` the carriage's position m, rate m/s and
+            acceleration m/s^2 at the run's time t (floats); None: hold where it was first read.
+        held: (s m, v m/s) of the last reading.
+    """
+
+    def __init__(self, config: SurrogateServoConfig, period_s: float):
+        self.config, self.period_s = config, float(period_s)
+        servo = catalogue_motor(config.model).servo
+        self.J = config.inertia_kg_m2()
+        self.viscous, self.coulomb = servo.viscous_damping, servo.coulomb_friction_Nm
+        w = 2 * math.pi * config.bandwidth_hz
+        self.kp, self.kd = self.J * w * w, 2.0 * self.J * w
+        #: Rate below which the dry friction's feed-forward fades (one count a period), rad/s.
+        self.v_eps = 2 * math.pi / p.COUNTS_PER_REV / self.period_s
+        self.command = None
+        self.held = (math.nan, math.nan)
+        self._hold = math.nan
+
+    def reading(self, s_m: float, v_m_s: float) -> None:
+        """Hold a reading of the carriage (the first one is where a missing command holds)."""
+        self.held = (float(s_m), float(v_m_s))
+        if self._hold != self._hold:
+            self._hold = float(s_m)
+
+    def commanded(self, t: float) -> tuple[float, float, float]:
+        """(s m, v m/s, a m/s^2) commanded at run time ``t``."""
+        if self.command is None:
+            return self._hold, 0.0, 0.0
+        s, v, a = self.command(t)
+        return float(s), float(v), float(a)
+
+    def torque(self, t: float) -> tuple[float, float]:
+        """(the horn's torque for the period starting at ``t``, N m; the position commanded,
+        m) from the held reading (one period old). NaN when nothing was read yet."""
+        s_m, v_m = self.held
+        s_c, v_c, a_c = self.commanded(t)
+        r = self.config.metres_per_rad
+        theta_m, w_m = s_m / r, v_m / r
+        theta_c, w_c, alpha_c = s_c / r, v_c / r, a_c / r
+        theta_p = theta_m + self.period_s * w_m
+        tau = (
+            self.J * alpha_c
+            + self.viscous * w_c
+            + self.coulomb * math.tanh(w_c / self.v_eps)
+            + self.kp * (theta_c - theta_p)
+            + self.kd * (w_c - w_m)
+        )
+        return tau, s_c
