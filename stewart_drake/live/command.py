@@ -284,7 +284,7 @@ def _cmd_robot(args) -> int:
 
             scenario.bus = DynamixelBusConfig()
         if surrogate is not None and scenario.bus.surrogate is None:
-            from ..station.bus.surrogate_servo import SurrogateServoConfig
+            from ..station.bus.servos import SurrogateServoConfig
 
             scenario.bus.surrogate = SurrogateServoConfig()
         _check_emulated_pose(scenario, args.emulate)

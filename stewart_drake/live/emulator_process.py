@@ -87,7 +87,7 @@ def _start(  # pragma: no cover
     ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate=None
 ):
     """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant, and
-    with ``surrogate`` (a :class:`~stewart_drake.station.bus.surrogate_servo.SurrogateServoConfig`)
+    with ``surrogate`` (a :class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`)
     its stage as the last servo, the carriage at mid-travel."""
     from ..run.scenario import _scenario_from_yaml
     from ..station.bus.emulator import BusEmulator, FirstOrderServos, StackedServos
@@ -144,7 +144,7 @@ class EmulatorProcess:
             off its core (where the OS allows): the servos it stands in for compute on chips of
             their own, not on the loop's computer.
         surrogate: None, or the bus's surrogate servo
-            (:class:`~stewart_drake.station.bus.surrogate_servo.SurrogateServoConfig`): its
+            (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its
             lead-screw stage
             (:meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.lead_screw`) answers
             as one more servo, its carriage at mid-travel, on the plant's clock.

@@ -36,6 +36,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,9 @@ from .homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
 from .realtime import RealtimeLoop
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
+
+if TYPE_CHECKING:
+    from .encoder_relative_latency import RelativeLatency
 
 
 @dataclasses.dataclass
@@ -84,7 +88,7 @@ class RobotRun:
     realtime: str | None = None
     metrics: dict | None = None
     exit_code: int = 0
-    relative_latency: object = None
+    relative_latency: RelativeLatency | None = None
     relative_latency_line: str | None = None
 
 

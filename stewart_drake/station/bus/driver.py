@@ -37,10 +37,10 @@ from ...base.errors import (
 from . import protocol as p
 from .servos import (
     DynamixelBusConfig,
+    SurrogateServoConfig,
     check_bus_settings,
     servo_spec,
 )
-from .surrogate_servo import SurrogateServoConfig
 
 
 def dynamixel_sdk():
@@ -96,7 +96,7 @@ class BusState:
         v: crank rates, rad/s.  tau: the torques the servos drive (Present Current x K_t), N m.
         t: perf_counter time, s, halfway through the read.  round_trip_s: the read's duration.
         s, s_dot, s_tau: the surrogate's carriage (a bus with one,
-            :class:`~.surrogate_servo.SurrogateServoConfig`): its position m, rate m/s and the
+            :class:`~.servos.SurrogateServoConfig`): its position m, rate m/s and the
             torque its servo drives, N m in the carriage's sense; NaN without a surrogate.
     """
 
@@ -130,7 +130,7 @@ class DynamixelBus:
         reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
             for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
         timing_window: how many round trips :meth:`timing` keeps.
-        surrogate: the external surrogate's servo (:class:`~.surrogate_servo.SurrogateServoConfig`,
+        surrogate: the external surrogate's servo (:class:`~.servos.SurrogateServoConfig`,
             checked), a seventh row of every sync read and sync write, configured, powered and
             unpowered with the cranks; None: the cranks alone.
 

@@ -1,8 +1,8 @@
 """The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning a
 lead screw whose carriage carries the chest marker, driven in the cranks' period.
 
-:class:`SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is and the
-screw it turns; :class:`SurrogateDrive` is its controller on the loop's computer, as the
+:class:`~.servos.SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is
+and the screw it turns; :class:`SurrogateDrive` is its controller on the loop's computer, as the
 cranks' controllers are: each period it turns the carriage's commanded position, rate and
 acceleration (the session gives them on the run's clock) and the last reading of the servo's
 encoder into a torque at the horn, which the driver sends as the seventh row of the period's one
@@ -27,134 +27,25 @@ to the position loop.
 Defaults and their source: the servo is the catalogue's XM430-W350-T (docs/motor_catalogue.md),
 the fastest X servo of the catalogue with Current Control Mode (46 rpm at 12 V). The screw's
 lead, the travel and the carriage's mass are **estimates**, not a cited part: a lead of 50 mm a
-turn (a high-helix lead screw) gives 38 mm/s at the servo's no-load speed, above the peak speed
-of the respiratory traces of IntERAct's LARK and LIGHT SABR sets but two (66 and 39 mm/s, which
+turn (a high-helix lead screw) gives 38 mm/s at the servo's no-load speed and 30.7 mm/s at the
+:data:`SPEED_MARGIN` a command may ask for, above the peak speed of every respiratory trace of
+IntERAct's LARK and LIGHT SABR sets but two (66 and 39 mm/s, which
 :func:`check_surrogate_path` refuses), 12 um a count, and 515 N at the servo's stall torque;
 100 mm of travel holds every one of those traces (56 mm peak to peak at most); a 0.5 kg
 carriage with its marker block. docs/robot.md, "The surrogate on the bus".
 
-Drake's YAML loader reads :class:`SurrogateServoConfig`'s field annotations: this module must not
-use ``from __future__ import annotations``.
+The stage's settings, :class:`~.servos.SurrogateServoConfig`, are with the bus's in
+:mod:`.servos` (Drake's YAML loader reads them there).
 """
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
-from ...base.checks import as_number, check_int
-from ...base.errors import InvalidConfigError, StewartError
+from ...base.errors import InvalidConfigError
 from ...robot.motor_catalogue import catalogue_motor
 from . import protocol as p
-
-#: The share of the servo's no-load speed a surrogate's command may ask for: above it the
-#: drive's voltage leaves too little current to follow (the catalogue's linear speed-torque line).
-SPEED_MARGIN = 0.8
-
-
-@dataclass
-class SurrogateServoConfig:
-    """The surrogate's servo on the robot's bus (a scenario's ``bus.surrogate``; None: no
-    surrogate, the bus as before). Defaults and their sources: module docstring.
-
-    Attributes:
-        id: the servo's id, distinct from the cranks' (0..252).
-        model: its model, a bus model with Current Control Mode that the motor catalogue has
-            (``XM430-W350-T``, ``XM540-W270-T``).
-        lead_m_per_rev: the carriage's travel per turn of the horn, m (the screw's lead).
-        travel_m: the carriage's travel, m, centred on its zero (``s`` in +-travel / 2).
-        zero_counts: the servo's Present Position with the carriage at mid-travel, counts
-            (multi-turn, a signed 32-bit count).
-        direction: +1, or -1 when the counts grow as the carriage goes down ``s``.
-        carriage_mass_kg: the carriage and its marker, kg.
-        current_limit_A: its Current Limit, A (None: the model's maximum).
-        bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
-    """
-
-    id: int = 7
-    model: str = "XM430-W350-T"
-    lead_m_per_rev: float = 0.05
-    travel_m: float = 0.1
-    zero_counts: int = 2048
-    direction: int = 1
-    carriage_mass_kg: float = 0.5
-    current_limit_A: float | None = None
-    bandwidth_hz: float = 5.0
-
-    def validate(
-        self, crank_ids, control_period_s: float | None, prefix: str = "bus.surrogate."
-    ) -> None:
-        """Check every field (named ``prefix + name``) against the cranks' ids and the control
-        period, s (None: the bandwidth only > 0).
-
-        Raises:
-            InvalidConfigError: the first field out of range, named.
-        """
-        from .servos import servo_spec
-
-        servo_id = check_int(f"{prefix}id", self.id, 0, p.MAX_ID)
-        if servo_id in [int(i) for i in crank_ids]:
-            raise InvalidConfigError(
-                f"{prefix}id {servo_id} is a crank's ({list(crank_ids)}): give the surrogate's "
-                "servo an id of its own"
-            )
-        try:
-            spec = servo_spec(self.model)
-            catalogue_motor(self.model)
-        except StewartError as err:
-            raise InvalidConfigError(f"{prefix}model: {err}") from None
-        as_number(f"{prefix}lead_m_per_rev", self.lead_m_per_rev, 0.0, 0.2, lo_open=True)
-        as_number(f"{prefix}travel_m", self.travel_m, 0.0, 1.0, lo_open=True)
-        check_int(f"{prefix}zero_counts", self.zero_counts, -(2**31), 2**31 - 1)
-        if self.direction not in (1, -1) or isinstance(self.direction, bool):
-            raise InvalidConfigError(f"{prefix}direction must be +1 or -1, got {self.direction!r}")
-        as_number(f"{prefix}carriage_mass_kg", self.carriage_mass_kg, 0.0, 50.0)
-        if self.current_limit_A is not None:
-            top = spec.current_limit_max * spec.amps_per_unit
-            as_number(f"{prefix}current_limit_A", self.current_limit_A, 0.0, top, lo_open=True)
-        top_hz = None if control_period_s is None else 0.1 / control_period_s
-        as_number(f"{prefix}bandwidth_hz", self.bandwidth_hz, 0.0, top_hz, lo_open=True)
-
-    # --- derived figures -------------------------------------------------------------------
-
-    @property
-    def metres_per_count(self) -> float:
-        """One encoder count of the servo as carriage travel, m."""
-        return self.lead_m_per_rev / p.COUNTS_PER_REV
-
-    @property
-    def metres_per_rad(self) -> float:
-        """Carriage travel per radian of the horn, m/rad (lead / 2 pi)."""
-        return self.lead_m_per_rev / (2 * math.pi)
-
-    def max_speed_m_s(self) -> float:
-        """The fastest a command may move the carriage, m/s: :data:`SPEED_MARGIN` of the
-        servo's no-load speed through the screw."""
-        return (
-            SPEED_MARGIN
-            * catalogue_motor(self.model).servo.no_load_speed_rad_s
-            * (self.metres_per_rad)
-        )
-
-    def inertia_kg_m2(self) -> float:
-        """J at the horn: the rotor's reflected inertia plus the carriage through the screw."""
-        servo = catalogue_motor(self.model).servo
-        return servo.rotor_inertia * servo.gear_ratio**2 + self.carriage_mass_kg * (
-            self.metres_per_rad**2
-        )
-
-    def counts_to_m(self, counts):
-        """Carriage position, m, for Present Position ``counts``."""
-        return (np.asarray(counts, dtype=float) - self.zero_counts) * (
-            self.metres_per_count * self.direction
-        )
-
-    def m_to_counts(self, s_m):
-        """Present Position (counts, rounded) with the carriage at ``s_m``; inverse of
-        :meth:`counts_to_m`."""
-        return np.rint(
-            np.asarray(s_m, dtype=float) * self.direction / self.metres_per_count + self.zero_counts
-        ).astype(np.int64)
+from .servos import SPEED_MARGIN, SurrogateServoConfig
 
 
 def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the surrogate") -> None:
