@@ -134,6 +134,7 @@ def test_the_position_loop_follows_a_breath_on_a_stage_of_its_own():
         drive.reading(counts * config.metres_per_count, stage.velocities_rad_s()[0] * r)
         return counts * config.metres_per_count
 
+    assert drive.torque(0.0)[0] == 0.0  # nothing read yet: no torque
     read_stage()  # the session's first reading, before the loop
     for k in range(1200):
         t = k * PERIOD_S

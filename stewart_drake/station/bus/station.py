@@ -494,7 +494,9 @@ class HardwareStation(Diagram):
             :class:`~stewart_drake.plant.closed_chain.LoopClosure` the guard and the run's
             result read, as the simulated station's.
     Args:
-        plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``.
+        plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``; a
+            ``bus.surrogate`` gives the driver its :class:`~.surrogate_servo.SurrogateDrive`
+            (the surrogate's stage driven in the same packets, its command the session's).
         meshcat: optional pydrake Meshcat: the robot drawn at its measured pose every
             ``scenario.visualization.publish_period``.
     Raises:

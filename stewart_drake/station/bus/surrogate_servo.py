@@ -118,8 +118,10 @@ class SurrogateDrive:
 
     def torque(self, t: float) -> tuple[float, float]:
         """(the horn's torque for the period starting at ``t``, N m; the position commanded,
-        m) from the held reading (one period old). NaN when nothing was read yet."""
+        m) from the held reading (one period old); (0, NaN) while nothing was read."""
         s_m, v_m = self.held
+        if s_m != s_m:
+            return 0.0, math.nan
         s_c, v_c, a_c = self.commanded(t)
         r = self.config.metres_per_rad
         theta_m, w_m = s_m / r, v_m / r
