@@ -13,6 +13,7 @@ import os
 import re
 import signal
 import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -250,6 +251,43 @@ def test_a_signal_ends_the_run_with_the_surrogates_torque_off_too(tmp_path, sign
     # Ended within its homing lead-in: no window to judge, said in its own line.
     assert run.relative_latency is None
     assert run.relative_latency_line.startswith("relative latency not measured: 0 samples")
+
+
+def test_our_watchdog_removes_the_surrogates_torque_too_when_the_loop_stalls(tmp_path):
+    """The loop stalls until our watchdog's torque off has reached the surrogate's servo (a
+    hang fails the test): the watchdog's one torque-off covers the seventh servo, while the
+    loop is stalled."""
+    stalled = []
+
+    def offs(servo_id):
+        return [
+            t
+            for t, packet in emu.received
+            if t > stalled[0]
+            and packet.instruction == p.WRITE
+            and packet.servo_id == servo_id
+            and packet.params[:1] == bytes([p.TORQUE_ENABLE[0]])
+            and packet.params[2:3] == b"\x00"
+        ]
+
+    def stall():
+        stalled.append(time.perf_counter())
+        wait_for(lambda: offs(STAGE.id), HANG_S, "our watchdog's torque off of the surrogate")
+
+    surrogate = load_surrogate(_breath_file(tmp_path / "resp.txt"))
+    with _emulator() as emu:
+        scenario = _scenario(emu, tmp_path)
+        scenario.duration_s = 30.0
+        run, _ = _run(
+            scenario,
+            tmp_path,
+            surrogate=surrogate,
+            loop_timeout_s=2.0,
+            before_torque=on_bus_read(50, stall),
+        )
+        assert _torque(emu) == [0] * 7
+    assert run.reason.startswith("LoopStalledError") and run.exit_code == 1, run.reason
+    assert run.torque_off_confirmed
 
 
 def test_a_bus_fault_ends_the_run_with_every_torque_off(tmp_path):

@@ -321,7 +321,7 @@ def _run(
         station.assemble(context, start.x)  # the driver holds its first reading
         _check_still(sd, bus, start)
         if surrogate is not None:
-            _command_surrogate(station.driver, surrogate, homed, scenario.control_period_s)
+            _command_surrogate(station.driver, surrogate, homed, scenario)
         if before_torque is not None:
             before_torque(sd, simulator)
         powered = True
@@ -349,10 +349,11 @@ def _run(
     return ended
 
 
-def _command_surrogate(driver, surrogate, homed, period_s: float) -> None:
+def _command_surrogate(driver, surrogate, homed, scenario) -> None:
     """Give the driver's surrogate its command on the run's clock from where its carriage was
-    read (:class:`~.surrogate_axis.SurrogateCommand`), the whole path, lead-in included,
-    checked against the stage first.
+    read (:class:`~.surrogate_axis.SurrogateCommand`, sampled on the control period's grid
+    over the run's ``duration_s``), the whole path, lead-in included, checked against the
+    stage first.
 
     Raises:
         InvalidConfigError: the carriage rests outside the travel, or the lead-in is too fast.
@@ -360,11 +361,11 @@ def _command_surrogate(driver, surrogate, homed, period_s: float) -> None:
     from ..station.bus.surrogate_servo import check_surrogate_path
     from .surrogate_axis import SurrogateCommand
 
-    drive = driver.surrogate
+    drive, period_s = driver.surrogate, scenario.control_period_s
     command = SurrogateCommand(surrogate, homed, drive.held[0])
     s, v, _ = command.evaluate(np.arange(0.0, homed.duration_s, 0.5 * period_s))
     check_surrogate_path(drive.config, s, v, "the surrogate's lead-in and trace")
-    drive.command = command
+    drive.command = command.sampled(period_s, scenario.duration_s)
 
 
 def _stop(bus, driver, ended: RobotRun) -> None:
