@@ -144,7 +144,8 @@ class RelativeLatency:
             ]
             return f"{what}: not measured, {' and '.join(still)} did not move; FAIL: {bound}"
         verdict = "PASS" if self.passed else "FAIL"
-        return f"{what}: {1e3 * self.relative_s:+.1f} ms ({lags}); {verdict}: {bound}"
+        # Two decimals: a figure at the bound reads on its side of it (-10.04 ms, not -10.0).
+        return f"{what}: {1e3 * self.relative_s:+.2f} ms ({lags}); {verdict}: {bound}"
 
 
 def relative_latency(
