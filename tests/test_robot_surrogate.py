@@ -206,7 +206,7 @@ def test_a_run_drives_the_carriage_along_its_trace_on_the_platforms_clock(tmp_pa
     assert np.max(np.abs(s[moving] - s_c[moving])) < 2e-4
     assert abs(truth - s[-1]) < 1e-4 + STAGE.metres_per_count
     judged = run.relative_latency
-    assert judged is not None and "relative latency, surrogate after platform" in judged.line()
+    assert judged is not None and "relative latency, platform after surrogate" in judged.line()
     # The platform holds home: its lag is not measured, and the verdict says so, failing.
     assert math.isnan(judged.relative_s) and "the platform did not move; FAIL" in judged.line()
 
@@ -463,7 +463,7 @@ def test_interact_pairs_emulated_the_surrogate_adds_no_latency_of_its_own(tmp_pa
     """The internal trace on the platform and the respiratory trace on the surrogate's stage,
     emulated on the loop's clock, each measured from its encoders against its own command:
     the surrogate follows within a tenth of a period of lag and 0.1 mm RMS, so the relative
-    latency is the platform's own lag, negated, to a tenth of a period. Whether that is within
+    latency is the platform's own lag, to a tenth of a period. Whether that is within
     one control period (the acceptance) is the platform's controller's: printed, and measured
     in docs/robot.md, "The surrogate on the bus". The controller is the shipped robot's
     (paper_bus) told the servos' friction the catalogue gives (Coulomb 0.205 N m at the crank,

@@ -179,21 +179,22 @@ def test_the_relative_latency_is_the_surrogates_lag_less_the_platforms():
     assert judged.platform_axis == "Z"
     assert abs(judged.platform_lag_s - 0.004) < 2e-4
     assert abs(judged.surrogate_lag_s - 0.011) < 2e-4
-    assert abs(judged.relative_s - 0.007) < 3e-4
+    assert abs(judged.relative_s + 0.007) < 3e-4  # the platform 4 ms, the surrogate 11 ms
     assert judged.passed and "PASS" in judged.line()
     said = re.search(r"reference's\): ([-+]\d+\.\d\d) ms \(surrogate", judged.line())
-    assert said and abs(float(said.group(1)) - 7.0) < 0.3, judged.line()
+    assert said and abs(float(said.group(1)) + 7.0) < 0.3, judged.line()
     assert "the carriage's s against s_cmd, the platform's Z" in judged.line()
-    # The surrogate 15 ms behind the platform: over one period.
+    # The surrogate 15 ms behind the platform (-15 ms: the platform's lag less the surrogate's):
+    # over one period.
     late = relative_latency(
         t, x_m, x_c, _breath(t + 0.4 - 0.019), s_c, tolerance_s=PERIOD_S, t_from=2.0
     )
-    assert abs(late.relative_s - 0.015) < 3e-4 and not late.passed and "FAIL" in late.line()
-    # The surrogate ahead of the platform: negative, and judged on its magnitude.
+    assert abs(late.relative_s + 0.015) < 3e-4 and not late.passed and "FAIL" in late.line()
+    # The surrogate ahead of its command, the platform behind: positive, judged on its magnitude.
     ahead = relative_latency(
         t, x_m, x_c, _breath(t + 0.4 + 0.008), s_c, tolerance_s=PERIOD_S, t_from=2.0
     )
-    assert abs(ahead.relative_s + 0.012) < 3e-4 and not ahead.passed
+    assert abs(ahead.relative_s - 0.012) < 3e-4 and not ahead.passed
 
 
 def test_a_still_axis_has_no_latency_and_fails_saying_so():

@@ -13,9 +13,10 @@ each control period, logged with the period's reading):
   reference's pose, along the **translation of the reference that moves most** (peak to peak
   over the judged window), m; the surrogate's: the carriage's position from its servo's
   encoder (``s``) and the position commanded (``s_cmd``), m.
-- the **relative latency** is L_surrogate - L_platform, s: **positive when the surrogate
-  follows its command later than the platform follows its own** (the surrogate lags the
-  platform); its verdict holds it to ``tolerance_s`` (one control period by default: the
+- the **relative latency** is L_platform - L_surrogate, s: **positive when the platform (the
+  internal target) follows its command later than the surrogate follows its own**, the sign
+  ``verify --surrogate`` and IntERAct's analysis use (``shift6D - shift1D``,
+  RMSEAlignMethod.m); its verdict holds it to ``tolerance_s`` (one control period by default: the
   acceptance of the emulated pair).
 
 The window judged: the periods from the end of the homing lead-in on (``t >= t_from``), less
@@ -98,7 +99,7 @@ class RelativeLatency:
     """The platform's and the surrogate's lags and their difference (module docstring).
 
     Attributes:
-        relative_s: L_surrogate - L_platform, s (> 0: the surrogate lags); NaN when an axis
+        relative_s: L_platform - L_surrogate, s (> 0: the platform lags); NaN when an axis
             is still.
         surrogate_lag_s, platform_lag_s: each axis's lag against its own command, s.
         platform_axis: the platform's coordinate judged ("X", "Y" or "Z").
@@ -123,7 +124,7 @@ class RelativeLatency:
     def line(self) -> str:
         """The verdict in one line, naming what it compares."""
         what = (
-            "relative latency, surrogate after platform (each axis's lag behind its own command "
+            "relative latency, platform after surrogate (each axis's lag behind its own command "
             "on the run's clock, from its encoders: the carriage's s against s_cmd, the "
             f"platform's {self.platform_axis} against the reference's)"
         )
@@ -196,7 +197,7 @@ def relative_latency(
     lag_s, rms_s = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=20 * s_count_m)
     inner = np.count_nonzero((t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s))
     return RelativeLatency(
-        relative_s=lag_s - lag_p,
+        relative_s=lag_p - lag_s,
         surrogate_lag_s=lag_s,
         platform_lag_s=lag_p,
         platform_axis=AXIS_NAMES[k],
