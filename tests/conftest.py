@@ -149,6 +149,7 @@ SYSTEM_MODULES = {
     "test_robot_motions",
     "test_robot_safety",
     "test_robot_session",
+    "test_robot_surrogate",
 }
 
 
@@ -381,7 +382,9 @@ def run_within(timeout_s: float, function, *args, what: str | None = None, **kwa
 LOADED_MACHINE_BUS = {"reply_timeout_s": 5.0, "watchdog_s": 2.54, "max_deadline_misses": 1_000_000}
 
 
-def bus_emulator(x0, command_step_s: float, ids=(1, 2, 3, 4, 5, 6)):
+def bus_emulator(
+    x0, command_step_s: float, ids=(1, 2, 3, 4, 5, 6), surrogate=None, s0_m=0.0, models=None
+):
     """The bus emulator (:class:`~stewart_drake.station.bus.emulator.BusEmulator`, not started)
     in this process: servos ``ids`` with the robot's plant behind them resting at pose ``x0``
     (rad, m), stepped at 2 ms (half the CPU of 1 ms: the loop and the plant share this
@@ -389,12 +392,14 @@ def bus_emulator(x0, command_step_s: float, ids=(1, 2, 3, 4, 5, 6)):
     control period, s) at each torque command and not otherwise. On a loaded machine the loop
     runs late, and a plant on the wall clock would move on without it (a guard trip that is
     the machine's, not the robot's); on the commanded clock it meets the plant where its own
-    clock says it is."""
+    clock says it is. With ``surrogate`` (a ``SurrogateServoConfig``) its lead-screw stage
+    answers as one more servo, its carriage at ``s0_m`` (m), on the same clock; ``models``:
+    the emulator's {id: model}."""
     from pydrake.multibody.plant import MultibodyPlantConfig
 
     from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario
     from stewart_drake.run.scenario import Scenario
-    from stewart_drake.station.bus.emulator import BusEmulator
+    from stewart_drake.station.bus.emulator import BusEmulator, FirstOrderServos, StackedServos
 
     robot = Scenario(
         plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),
@@ -402,7 +407,43 @@ def bus_emulator(x0, command_step_s: float, ids=(1, 2, 3, 4, 5, 6)):
         log_period_s=0.002,
     )
     backend = StationServos(dynamixel_scenario(scenario=robot), x0=x0)
-    return BusEmulator(list(ids), backend=backend, command_step_s=command_step_s)
+    ids, zero_counts = list(ids), None
+    if surrogate is not None:
+        stage = FirstOrderServos.lead_screw(
+            surrogate.model,
+            surrogate.lead_m_per_rev,
+            surrogate.carriage_mass_kg,
+            surrogate.direction * s0_m,
+        )
+        backend = StackedServos(backend, stage)
+        zero_counts = [2048] * len(ids) + [surrogate.zero_counts]
+        ids.append(surrogate.id)
+    return BusEmulator(
+        ids,
+        backend=backend,
+        command_step_s=command_step_s,
+        zero_counts=zero_counts,
+        models=models,
+    )
+
+
+def on_bus_read(n, action):
+    """A session's ``before_torque`` hook: ``action()`` at the n-th bus read of the run."""
+
+    def hook(sd, simulator):
+        bus = sd.station.bus
+        read = bus.read_state
+        calls = [0]
+
+        def counted():
+            calls[0] += 1
+            if calls[0] == n:
+                action()
+            return read()
+
+        bus.read_state = counted
+
+    return hook
 
 
 def robot_bus_yaml(tmp_path) -> Path:

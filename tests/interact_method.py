@@ -10,6 +10,12 @@ such s, every amplitude shift a in ``min(d):0.01:max(d)`` mm of the differences 
 the RMSE of d - a kept at its least; the s of least RMSE is the delay, and that RMSE the error.
 Here the amplitude grid is searched in closed form: the RMSE^2 is var(d) + (mean(d) - a)^2, least
 at the grid point nearest mean(d), which is what their loop finds.
+
+The relative latency of their 6-DoF and 1-DoF platforms, as their ``RMSEAlignMethod.m`` gives it:
+``latency = shift6D - shift1D``, each shift ``findOptimalShift`` of the camera's depth of one
+platform against its commanded trace (the 6-D trace's ``SI_index`` column, the respiratory
+trace's second column less its least value, ``read1Dfile``), on the camera's one clock
+(:func:`relative_latency`; tests/test_verify_interact.py, tools/interact_relative_latency_table.py).
 """
 
 import numpy as np
@@ -64,3 +70,38 @@ def laboratory_runs(root):
 #: compares with the camera's depth (MATLAB's 1-based column 4: the third axis, which the phantom
 #: format names AP, our Z).
 TRACE_COLUMN = 3
+
+
+def laboratory_pairs(root):
+    """[(label, the commanded 6-D trace, the commanded respiratory trace, the camera's time file,
+    its 6-D depth file, its 1-D depth file)] of the 21 laboratory runs under ``root``
+    (:func:`laboratory_runs`), each with the 2-column respiratory trace of its motion's folder
+    and the camera's depth of the 1-DoF platform of its test."""
+    from pathlib import Path
+
+    pairs = []
+    for label, trace, time_file, depth_6d in laboratory_runs(root):
+        (resp,) = [p for p in Path(trace).parent.glob("*.txt") if "resp" in p.name]
+        (depth_1d,) = sorted(Path(time_file).parent.glob("dist_array1D*.txt"))
+        pairs.append((label, trace, resp, time_file, depth_6d, depth_1d))
+    return pairs
+
+
+def relative_latency(trace, resp, time_file, depth_6d, depth_1d, step=0.05):
+    """(latency, shift6D, shift1D) s: ``RMSEAlignMethod.m``'s relative latency of the 6-DoF
+    platform against the 1-DoF one (module docstring), each shift searched over 0-40 s by
+    ``step`` (``IntERAct_data_analysis.m``'s 0.05 s; ``RMSEAlignMethod.m`` steps 0.01 s)."""
+    data, r = np.loadtxt(trace), np.loadtxt(resp)
+    t = np.loadtxt(time_file)
+    s6, _, _ = optimal_shift(data[:, 0], data[:, TRACE_COLUMN], t, np.loadtxt(depth_6d), step=step)
+    s1, _, _ = optimal_shift(r[:, 0], r[:, 1] - r[:, 1].min(), t, np.loadtxt(depth_1d), step=step)
+    return s6 - s1, s6, s1
+
+
+def camera_file(path, time_file, depth_file):
+    """``path``: the camera's time file and one depth file joined into ``t [s],depth [mm]``, as
+    ``stewart-drake verify`` reads a single-axis sensor's file."""
+    t, depth = np.loadtxt(time_file), np.loadtxt(depth_file)
+    rows = ["t [s],depth [mm]"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(t, depth)]
+    path.write_text("\n".join(rows) + "\n")
+    return path

@@ -35,6 +35,7 @@ LAYERS = {
     "evaluation": 10,
     "design": 10,
     "live": 10,
+    "surrogate": 10,
     "cli": 11,
 }
 #: Modules ranked apart from their package (a key of LAYERS): ``python -m stewart_drake`` is the

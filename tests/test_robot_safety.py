@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 import pytest
-from conftest import HANG_S, LOADED_MACHINE_BUS, require_extra, wait_for
+from conftest import HANG_S, LOADED_MACHINE_BUS, on_bus_read, require_extra, wait_for
 
 require_extra("robot")
 
@@ -72,23 +72,8 @@ def _scenario(emu, tmp_path, **bus):
     return scenario
 
 
-def _on_call(n, action):
-    """A ``before_torque`` hook: ``action(emu)`` at the n-th bus read of the run."""
-
-    def hook(sd, simulator):
-        bus = sd.station.bus
-        read = bus.read_state
-        calls = [0]
-
-        def counted():
-            calls[0] += 1
-            if calls[0] == n:
-                action()
-            return read()
-
-        bus.read_state = counted
-
-    return hook
+#: A ``before_torque`` hook: ``action()`` at the n-th bus read of the run.
+_on_call = on_bus_read
 
 
 def _torque_enabled(emu):

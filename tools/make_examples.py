@@ -42,6 +42,8 @@ LATENCY_S, NOISE_RMS_M = 0.060, 0.12e-3
 ALIGNED_ORIGIN_M = np.array([0.4, -1.2, 0.9])
 #: The depth camera's setting (tests/test_verify_interact.py's, without its gap).
 DEPTH_DELAY_S, DEPTH_OFFSET_MM, DEPTH_NOISE_MM = 5.45, 412.3, 0.6
+#: The camera's distance to the surrogate platform, mm.
+SURROGATE_OFFSET_MM = 388.7
 
 
 def setup():
@@ -155,6 +157,14 @@ def write_traces(folder, seconds=120.0):
     depth = DEPTH_OFFSET_MM + seen + rng.normal(0.0, DEPTH_NOISE_MM, len(t_cam))
     lines = ["t [s],depth [mm]"] + [f"{a:.4f},{b:.2f}" for a, b in zip(t_cam, depth)]
     (folder / "depth.csv").write_text("\n".join(lines) + "\n")
+    # The same camera on the surrogate platform, which followed surrogate.txt (as written) in
+    # sync with the phantom: the pair's relative latency is 0.
+    chest_seen = CubicSpline(t, np.round(chest, 2))(np.clip(t_cam - DEPTH_DELAY_S, 0.0, seconds))
+    noise = np.random.default_rng(6).normal(0.0, DEPTH_NOISE_MM, len(t_cam))
+    lines = ["t [s],depth [mm]"] + [
+        f"{a:.4f},{b:.2f}" for a, b in zip(t_cam, SURROGATE_OFFSET_MM + chest_seen + noise)
+    ]
+    (folder / "depth_surrogate.csv").write_text("\n".join(lines) + "\n")
 
 
 def write_patient(path, seconds=20.0):
@@ -218,7 +228,10 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   camera's clock 5.45 s after it started, steps of 26.5-36.5 ms, an offset of 412.3 mm and
   0.6 mm of noise (a RealSense's, as in IntERAct's laboratory runs): `verify trace.txt --measured
   depth.csv --measured-map depth=AP --tolerance 1mm,1deg` PASSes it; the default 0.1 mm is below
-  the camera's own noise.
+  the camera's own noise. `depth_surrogate.csv`: the same camera's times and noise (seed 6) on
+  the surrogate platform, which followed surrogate.txt (a cubic spline through it as written) in
+  sync with the phantom, 388.7 mm away: `verify trace.txt --surrogate surrogate.txt` with both
+  files PASSes the pair, their relative latency within a few ms of 0.
 - **patient.csv**: cosines of 4 s, SI 15 mm, AP 3.6 mm and rot_LR 1 deg peak to peak, 30 Hz.
 - **ref.csv**: the library's breathing with a 2 deg tilt, 8 s (two breaths) at 50 Hz.
 """

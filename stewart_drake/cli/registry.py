@@ -21,6 +21,7 @@ from ..evaluation import command as evaluation_command
 from ..live import command as live_command
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
+from ..surrogate import relative_latency as surrogate_pair
 from ..tuner import command as tuner_command
 from ..viz import command as viz_command
 from . import core
@@ -112,4 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
     # The calibration rehearsed over the bus emulator belongs to the robot live (a layer above
     # the calibration's): ``calibrate --rehearse --bus`` finds it here.
     sub.choices["calibrate"].set_defaults(rehearse_on_bus=live_command.rehearse_calibration)
+    # An internal motion judged with its external surrogate on one clock belongs to the
+    # surrogate's package (a rank above the robot live's): ``verify --surrogate`` finds it here.
+    surrogate_pair.add_pair_arguments(sub.choices["verify"])
     return parser

@@ -120,11 +120,12 @@ INPUT_OPTIONS = {
     "data": "--data",
     "requirements": "the requirements",
     "measured": "--measured",
+    "surrogate": "--surrogate",
+    "measured_surrogate": "--measured-surrogate",
     "registration": "--registration",
     "measurements": "the measurements",
     "join": "--join",
     "plan_file": "--plan-file",
-    "surrogate": "--surrogate",
 }
 #: The options that name a file a command writes, beside ``--out`` (each command checks them
 #: as it checks its other outputs; :func:`check_outputs` holds them apart from the inputs first).

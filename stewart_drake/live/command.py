@@ -196,6 +196,15 @@ def _add_robot_command(sub) -> None:
         "locked, Python's garbage collected between periods (default; what the OS refuses is "
         "said in one line and the run goes on; with --emulate the emulator's process too)",
     )
+    rob.add_argument(
+        "--surrogate",
+        default=None,
+        metavar="EXTERNAL",
+        help="drive the external surrogate's stage (the bus's seventh servo, bus.surrogate; "
+        "with --emulate the default stage if the scenario names none) along this trace on the "
+        "platform's clock: a 2-column file (time, displacement in mm: IntERAct's Resp/ files) "
+        "or a headed file of one axis; the run's relative latency is measured from the encoders",
+    )
     rob.add_argument("--meshcat", action="store_true", help="show the measured robot in Meshcat")
     rob.add_argument(
         "--teleop",
@@ -240,6 +249,7 @@ def _cmd_robot(args) -> int:
     from .follow_command import check_follow_arguments
 
     args.follow = check_follow_arguments(args)  # None without --follow-lcm
+    surrogate = _robot_surrogate(args)
     scenario = load_scenario(args.scenario, args.set or ())
     _robot_reference(args, scenario)
     if args.duration is not None:
@@ -273,13 +283,53 @@ def _cmd_robot(args) -> int:
             from ..station.bus.servos import DynamixelBusConfig
 
             scenario.bus = DynamixelBusConfig()
+        if surrogate is not None and scenario.bus.surrogate is None:
+            from ..station.bus.servos import SurrogateServoConfig
+
+            scenario.bus.surrogate = SurrogateServoConfig()
         _check_emulated_pose(scenario, args.emulate)
+    if surrogate is not None:
+        scenario.validate()
+        from .session import _check_surrogate_trace
+
+        _check_surrogate_trace(scenario, surrogate)
     if not args.dry_run and args.calibrate is None:
         # Loaded (or compiled) before anything is powered: a first load inside the first
         # control period would trip our watchdog.
         say_if_compiling("robot")
     with SessionSignals() as signals:  # held from the torque-off through the end line
-        return _robot_session(args, scenario, out, stem, signals)
+        return _robot_session(args, scenario, out, stem, signals, surrogate)
+
+
+def _robot_surrogate(args):
+    """``robot --surrogate EXTERNAL``: the surrogate's trace read and checked
+    (:func:`~.surrogate_axis.load_surrogate`), or None without the option.
+
+    Raises:
+        InvalidConfigError: with --teleop, --follow-lcm, --dry-run or --calibrate (a surrogate
+            follows a reference run); the file's refusals.
+    """
+    if args.surrogate is None:
+        return None
+    from ..base.errors import InvalidConfigError
+
+    given = [
+        name
+        for name, on in (
+            ("--teleop", args.teleop),
+            ("--follow-lcm", args.follow is not None),
+            ("--dry-run", args.dry_run),
+            ("--calibrate", args.calibrate is not None),
+        )
+        if on
+    ]
+    if given:
+        raise InvalidConfigError(
+            f"--surrogate drives the surrogate beside a reference run, not with {given[0]}"
+        )
+    from .surrogate_axis import load_surrogate
+
+    return load_surrogate(args.surrogate)
 
 
 def _robot_reference(args, scenario) -> None:
@@ -395,12 +445,13 @@ def _start_emulator(scenario, x0, realtime: bool = False):
         zero_counts=bus.zero_counts,
         start_timeout_s=300.0,
         realtime=realtime,
+        surrogate=bus.surrogate,
     ).start()
     bus.port = emulator.port
     return emulator
 
 
-def _robot_session(args, scenario, out, stem, signals) -> int:
+def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     """``robot``'s work once the scenario is checked: start the emulator (``--emulate``),
     calibrate, dry run, or a session, ending in the end line; closes the emulator."""
     from ..run.metrics import format_metrics
@@ -472,6 +523,7 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
                 progress=not args.no_progress,
                 signals=signals,
                 realtime=args.realtime,
+                surrogate=surrogate,
             )
     finally:
         if emulator is not None:
@@ -480,6 +532,8 @@ def _robot_session(args, scenario, out, stem, signals) -> int:
         print(format_metrics(run.metrics))
     if run.timing_lines:
         print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
+    if run.relative_latency_line is not None:
+        print(run.relative_latency_line)
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code

@@ -28,13 +28,13 @@ from ..robot.kinematics import X_HOME
 
 
 def _serve(  # pragma: no cover
-    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, realtime
+    conn, ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, realtime, surrogate
 ) -> None:
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
     sends ("error", one line) instead of a traceback on the terminal."""
     try:
-        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts)
+        emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate)
         _start_threads(emu, realtime)
     except Exception as err:  # noqa: BLE001 - reported to the parent in one line
         conn.send(("error", f"{type(err).__name__}: {err}".splitlines()[0]))
@@ -42,7 +42,9 @@ def _serve(  # pragma: no cover
     try:
         conn.send(("port", emu.port))
         conn.recv()  # stop
-        record = emu.with_backend(lambda b: np.array(b.record, dtype=float).reshape(-1, 13))
+        record = emu.with_backend(
+            lambda b: np.array(getattr(b, "parts", [b])[0].record, dtype=float).reshape(-1, 13)
+        )
         conn.send((record, emu.slipped_s))
     finally:
         emu.close()
@@ -81,10 +83,14 @@ def _start_threads(emu, realtime: bool) -> None:  # pragma: no cover
                 pass
 
 
-def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # pragma: no cover
-    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant."""
+def _start(  # pragma: no cover
+    ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate=None
+):
+    """The child's :class:`~.emulator.BusEmulator` (not started) on the recording plant, and
+    with ``surrogate`` (a :class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`)
+    its stage as the last servo, the carriage at mid-travel."""
     from ..run.scenario import _scenario_from_yaml
-    from ..station.bus.emulator import BusEmulator
+    from ..station.bus.emulator import BusEmulator, FirstOrderServos, StackedServos
     from .plant_backend import StationServos, dynamixel_scenario
 
     scenario = dynamixel_scenario(model, _scenario_from_yaml(scenario_yaml))
@@ -101,13 +107,23 @@ def _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts):  # p
             super().advance(dt_s, current_A)
             self.record.append((time.perf_counter(), *self._port.Eval(self._context)))
 
+    backend, models = Recorded(), None
+    if surrogate is not None:
+        stage = FirstOrderServos.lead_screw(
+            surrogate.model, surrogate.lead_m_per_rev, surrogate.carriage_mass_kg
+        )
+        backend = StackedServos(backend, stage)
+        ids = [*ids, surrogate.id]
+        zero_counts = [*(zero_counts or [2048] * (len(ids) - 1)), surrogate.zero_counts]
+        models = {surrogate.id: surrogate.model}
     return BusEmulator(
         ids,
         model,
-        backend=Recorded(),
+        backend=backend,
         zero_counts=zero_counts,
         tick_s=tick_s,
         max_step_s=max_step_s,
+        models=models,
     )
 
 
@@ -127,6 +143,11 @@ class EmulatorProcess:
         realtime: the emulator's threads on SCHED_FIFO one priority below the control loop's,
             off its core (where the OS allows): the servos it stands in for compute on chips of
             their own, not on the loop's computer.
+        surrogate: None, or the bus's surrogate servo
+            (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its
+            lead-screw stage
+            (:meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.lead_screw`) answers
+            as one more servo, its carriage at mid-travel, on the plant's clock.
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after
             :meth:`close`).
@@ -145,6 +166,7 @@ class EmulatorProcess:
         start_timeout_s: float = 120.0,
         zero_counts=None,
         realtime: bool = False,
+        surrogate=None,
     ):
         from ..run.scenario import Scenario, dump_scenario
 
@@ -157,6 +179,7 @@ class EmulatorProcess:
             max_step_s,
             None if zero_counts is None else [int(c) for c in zero_counts],
             bool(realtime),
+            surrogate,
         )
         self.start_timeout_s = start_timeout_s
         self.port: str | None = None

@@ -36,6 +36,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -44,6 +45,9 @@ from .homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
 from .realtime import RealtimeLoop
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
+
+if TYPE_CHECKING:
+    from .encoder_relative_latency import RelativeLatency
 
 
 @dataclasses.dataclass
@@ -66,6 +70,11 @@ class RobotRun:
         metrics: the run's metrics (:func:`~stewart_drake.run.metrics.compute_metrics`:
             tracking from the measured pose, torques), when its logs were read.
         exit_code: 0 at the end of the reference, 1 a refusal or failure, 128 + n a signal n.
+        relative_latency: with a surrogate's trace, the
+            :class:`~.encoder_relative_latency.RelativeLatency` measured from the encoders
+            (None: no surrogate, or no logs); its ``line()`` is the verdict.
+        relative_latency_line: the verdict's line, or why it was not measured (None: no
+            surrogate's trace).
     """
 
     reason: str
@@ -79,6 +88,8 @@ class RobotRun:
     realtime: str | None = None
     metrics: dict | None = None
     exit_code: int = 0
+    relative_latency: RelativeLatency | None = None
+    relative_latency_line: str | None = None
 
 
 def _signal_name(err: BaseException) -> tuple[str, int]:
@@ -192,6 +203,7 @@ def run_on_robot(
     before_torque: Callable | None = None,
     signals: SessionSignals | None = None,
     realtime: bool = False,
+    surrogate=None,
 ) -> RobotRun:
     """Run the scenario's closed loop on the robot (the safety sequence of the module's
     docstring); never leaves the torque on.
@@ -215,6 +227,12 @@ def run_on_robot(
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
             of its own, memory locked, the garbage collector between periods); what the OS
             refuses is said in one line (``say``) and the run goes on.
+        surrogate: the external surrogate's trace (:class:`~.surrogate_axis.SurrogateTrace`,
+            :func:`~.surrogate_axis.load_surrogate`), driven on the servo of ``bus.surrogate``
+            on the platform's clock (:class:`~.surrogate_axis.SurrogateCommand`), its whole
+            path checked against the stage's travel and speed before the torque goes on; the
+            encoder log gains its columns and the run its relative latency. None: a surrogate's
+            servo on the bus holds where it was read.
     Returns:
         :class:`RobotRun` (exit_code 0 only when the reference ran to its end and no signal
         came; a signal after the torque-off is named in ``reason`` and makes it 128 + n).
@@ -237,14 +255,41 @@ def run_on_robot(
             f"home_s must be in (0, 60] s and hold_s in [0, 3600] s, got {home_s}, {hold_s}"
         )
     target = as_trajectory(reference) if reference is not None else run_reference(scenario)
+    if surrogate is not None:
+        _check_surrogate_trace(scenario, surrogate)
     start = admissible_start(scenario)  # opens and closes the port; the torque stays off
     homed = HomingReference(target, start.x, home_s, t_end=scenario.duration_s)
     homed_run = dataclasses.replace(scenario, duration_s=homed.duration_s + hold_s)
     session = (homed_run, homed, start, loop_timeout_s, Path(out), stem, meshcat, progress, say)
     if signals is not None:
-        return _run(*session, before_torque, signals, realtime)
+        return _run(*session, before_torque, signals, realtime, surrogate)
     with SessionSignals() as own:
-        return own.settle(_run(*session, before_torque, own, realtime))
+        return own.settle(_run(*session, before_torque, own, realtime, surrogate))
+
+
+def _check_surrogate_trace(scenario, surrogate) -> None:
+    """Refuse, before the port is opened, a surrogate's trace without a surrogate's servo on
+    the bus, shorter than the run, or outside the stage's travel or speed.
+
+    Raises:
+        InvalidConfigError: names what and by how much.
+    """
+    from ..station.bus.surrogate_servo import check_surrogate_path
+
+    config = scenario.bus.surrogate
+    if config is None:
+        raise InvalidConfigError(
+            "--surrogate drives the surrogate's servo on the bus: the scenario's bus has no "
+            "surrogate section (bus.surrogate: its id, model, lead and travel; docs/robot.md)"
+        )
+    if surrogate.duration_s < scenario.duration_s - 1e-9:
+        raise InvalidConfigError(
+            f"--surrogate {surrogate.path} lasts {surrogate.duration_s:g} s, the run "
+            f"{scenario.duration_s:g} s: give --duration {surrogate.duration_s:g} or less"
+        )
+    t = np.arange(0.0, scenario.duration_s, 0.5 * scenario.control_period_s)
+    s, v, _ = surrogate.evaluate(t)
+    check_surrogate_path(config, s, v, f"--surrogate {surrogate.path}")
 
 
 def _run(
@@ -260,6 +305,7 @@ def _run(
     before_torque,
     signals,
     realtime,
+    surrogate=None,
 ) -> RobotRun:
     """Build, check, power and run (see :func:`run_on_robot`)."""
     from ..run.simulate import advance
@@ -274,6 +320,8 @@ def _run(
         bus.configure()
         station.assemble(context, start.x)  # the driver holds its first reading
         _check_still(sd, bus, start)
+        if surrogate is not None:
+            _command_surrogate(station.driver, surrogate, homed, scenario)
         if before_torque is not None:
             before_torque(sd, simulator)
         powered = True
@@ -297,8 +345,27 @@ def _run(
         _stop(bus, station.driver, ended)
     if not powered:
         return ended
-    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed)
+    _keep_logs(ended, sd, simulator, wall, out / f"{stem}.npz", homed, surrogate is not None)
     return ended
+
+
+def _command_surrogate(driver, surrogate, homed, scenario) -> None:
+    """Give the driver's surrogate its command on the run's clock from where its carriage was
+    read (:class:`~.surrogate_axis.SurrogateCommand`, sampled on the control period's grid
+    over the run's ``duration_s``), the whole path, lead-in included, checked against the
+    stage first.
+
+    Raises:
+        InvalidConfigError: the carriage rests outside the travel, or the lead-in is too fast.
+    """
+    from ..station.bus.surrogate_servo import check_surrogate_path
+    from .surrogate_axis import SurrogateCommand
+
+    drive, period_s = driver.surrogate, scenario.control_period_s
+    command = SurrogateCommand(surrogate, homed, drive.held[0])
+    s, v, _ = command.evaluate(np.arange(0.0, homed.duration_s, 0.5 * period_s))
+    check_surrogate_path(drive.config, s, v, "the surrogate's lead-in and trace")
+    drive.command = command.sampled(period_s, scenario.duration_s)
 
 
 def _stop(bus, driver, ended: RobotRun) -> None:
@@ -361,11 +428,15 @@ def _check_still(sd, bus, start: MeasuredPose) -> None:
         )
 
 
-def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -> None:
+def _keep_logs(
+    ended: RobotRun, sd, simulator, wall: float, path: Path, homed, judge: bool = False
+) -> None:
     """The run's metrics and its logs saved at ``path`` into ``ended``, and the encoders'
     readings beside it (their times on the computer's clock, s since the epoch, and on the
-    reference's clock of ``homed``); a failure to write them is told in ``ended.reason``,
-    never raised."""
+    reference's clock of ``homed``; with a surrogate on the bus, its carriage's position read
+    and commanded); with ``judge`` the relative latency of the platform and the surrogate
+    (:func:`~.encoder_relative_latency.relative_latency`). A failure to write them is told in
+    ``ended.reason``, never raised."""
     from ..calibration.join import encoder_log_path, write_encoder_log
     from ..run.result import finish_result, read_run, save_result
 
@@ -378,13 +449,44 @@ def _keep_logs(ended: RobotRun, sd, simulator, wall: float, path: Path, homed) -
         result = finish_result(logs, wall)
         ended.metrics = result.metrics
         ended.logs = save_result(result, path)
-        t, t_read, q = sd.station.driver.readings()
+        driver = sd.station.driver
+        t, t_read, q = driver.readings()
         epoch = time.time() - time.perf_counter()  # perf_counter is the monotonic clock
         tau = homed.reference_time(t)
-        ended.encoder_log = write_encoder_log(encoder_log_path(path), t_read + epoch, t, tau, q)
+        carriage = driver.surrogate_readings() if driver.surrogate is not None else None
+        ended.encoder_log = write_encoder_log(
+            encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage
+        )
+        if judge and carriage is not None:
+            try:
+                ended.relative_latency = _judge(driver, homed, t, carriage)
+                ended.relative_latency_line = ended.relative_latency.line()
+            except InvalidConfigError as err:  # too short a run to measure it
+                ended.relative_latency_line = f"relative latency not measured: {err}"
     except Exception as err:  # noqa: BLE001 - the end must be reported whatever the logs do
         ended.reason += f"; the logs could not be written: {err}"
         ended.exit_code = ended.exit_code or 1  # a run without its record is not a success
+
+
+def _judge(driver, homed, t, carriage):
+    """The relative latency of the run's periods after the homing lead-in, from the
+    encoders, held to one control period."""
+    from ..station.bus.protocol import COUNTS_PER_REV
+    from .encoder_relative_latency import relative_latency
+
+    x_c = homed.evaluate(t)[0]
+    return relative_latency(
+        t,
+        driver.pose_readings(),
+        x_c,
+        carriage[0],
+        carriage[1],
+        tolerance_s=driver.period_s,
+        t_from=homed.home_s,
+        s_count_m=driver.surrogate.config.metres_per_count,
+        # A crank's count moves the platform by about its crank's length times the count.
+        x_count_m=0.01 * 2 * np.pi / COUNTS_PER_REV,
+    )
 
 
 def _drive(

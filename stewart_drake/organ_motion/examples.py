@@ -44,6 +44,9 @@ EXAMPLES = {
     "displacement in mm, 5 Hz): the pair of an internal and an external motion",
     "depth.csv": "a depth camera's single axis (t [s],depth [mm]) of the phantom following "
     "trace.txt, on the camera's own clock, 5.45 s late, 0.6 mm of noise: verify judges it on AP",
+    "depth_surrogate.csv": "the same camera's depth of the surrogate platform following "
+    "surrogate.txt, on the same clock and in sync: verify trace.txt --surrogate surrogate.txt "
+    "judges the pair and their relative latency",
     "patient.csv": "a recorded trace with a header naming each column and its unit "
     "(time [s],SI [mm],AP [mm],rot_LR [deg]), 20 s at 30 Hz: reproduce patient.csv",
     "ref.csv": "a reference of the project's own CSV (t,phi,theta,psi,X,Y,Z in s, rad, m), "

@@ -17,6 +17,7 @@ docs/hardware_bus.md.
 from __future__ import annotations
 
 import collections
+import math
 import os
 import select
 import termios
@@ -36,7 +37,9 @@ from ...base.errors import (
 from . import protocol as p
 from .servos import (
     DynamixelBusConfig,
+    SurrogateServoConfig,
     check_bus_settings,
+    servo_spec,
 )
 
 
@@ -92,6 +95,9 @@ class BusState:
         q: crank angles, rad (zero offsets and directions applied).
         v: crank rates, rad/s.  tau: the torques the servos drive (Present Current x K_t), N m.
         t: perf_counter time, s, halfway through the read.  round_trip_s: the read's duration.
+        s, s_dot, s_tau: the surrogate's carriage (a bus with one,
+            :class:`~.servos.SurrogateServoConfig`): its position m, rate m/s and the
+            torque its servo drives, N m in the carriage's sense; NaN without a surrogate.
     """
 
     q: np.ndarray
@@ -99,6 +105,9 @@ class BusState:
     tau: np.ndarray
     t: float
     round_trip_s: float
+    s: float = float("nan")
+    s_dot: float = float("nan")
+    s_tau: float = float("nan")
 
 
 class DynamixelBus:
@@ -121,6 +130,9 @@ class DynamixelBus:
         reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
             for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
         timing_window: how many round trips :meth:`timing` keeps.
+        surrogate: the external surrogate's servo (:class:`~.servos.SurrogateServoConfig`,
+            checked), a seventh row of every sync read and sync write, configured, powered and
+            unpowered with the cranks; None: the cranks alone.
 
     Raises:
         InvalidConfigError: any argument out of range, before the port is opened.
@@ -141,6 +153,7 @@ class DynamixelBus:
         watchdog_s: float = 0.1,
         reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
+        surrogate: SurrogateServoConfig | None = None,
     ):
         settings = check_bus_settings(
             baud_rate,
@@ -170,6 +183,28 @@ class DynamixelBus:
             "Max Position Limit": (p.MAX_POSITION_LIMIT, hi),
             "Bus Watchdog": (p.BUS_WATCHDOG, watchdog_units),
         }
+        #: The surrogate's servo (None: none), its model and its settings: the cranks', with
+        #: its own Current Limit.
+        self.surrogate = surrogate
+        #: Every servo on the bus: the cranks' ids, then the surrogate's.
+        self.all_ids = list(ids)
+        self._specs = {i: self.spec for i in ids}
+        self._settings_of = {i: self.settings for i in ids}
+        if surrogate is not None:
+            surrogate.validate(ids, None, prefix="surrogate.")
+            s_spec = servo_spec(surrogate.model)
+            s_units = s_spec.current_limit_max
+            if surrogate.current_limit_A is not None:
+                s_units = min(s_units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
+            self.surrogate_spec, self.surrogate_limit_units = s_spec, int(s_units)
+            self.all_ids.append(int(surrogate.id))
+            self._specs[int(surrogate.id)] = s_spec
+            self._settings_of[int(surrogate.id)] = self.settings | {
+                "Current Limit": (p.CURRENT_LIMIT, self.surrogate_limit_units),
+                # Multi-turn in Current Control Mode: the limits do not apply; the factory's.
+                "Min Position Limit": (p.MIN_POSITION_LIMIT, 0),
+                "Max Position Limit": (p.MAX_POSITION_LIMIT, 4095),
+            }
         self.read_times: collections.deque = collections.deque(maxlen=timing_window)
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
         #: Whether the last :meth:`torque_off` was confirmed by every servo.
@@ -206,6 +241,7 @@ class DynamixelBus:
             ),
             watchdog_s=config.watchdog_s,
             reply_timeout_s=config.reply_timeout_s,
+            surrogate=config.surrogate,
         )
 
     # --- lifetime ----------------------------------------------------------------------------
@@ -225,16 +261,17 @@ class DynamixelBus:
         if not opened:
             raise BusError(f"cannot open {self.port_name} at {self.baud_rate} bps")
         self._port = port
-        for i in self.ids:
+        for i in self.all_ids:
             model, result, error = self._packets.ping(port, i)
             if result != self._sdk.COMM_SUCCESS:
                 self.close()
                 raise MissingServoError(i, self.port_name)
-            if model != self.spec.model_number:
+            spec = self._specs[i]
+            if model != spec.model_number:
                 self.close()
                 raise BusError(
                     f"servo id {i} on {self.port_name} is model number {model}, not "
-                    f"{self.spec.name} ({self.spec.model_number}): name the servos' model"
+                    f"{spec.name} ({spec.model_number}): name the servos' model"
                 )
         self._period_packets(port)
         return self
@@ -247,24 +284,25 @@ class DynamixelBus:
         from . import kernels  # compiled (or loaded) here, for a bus that is opened
 
         self._kernels = kernels
-        n = len(self.ids)
+        n = len(self.all_ids)  # the cranks, then the surrogate's servo
         address, size = p.STATE_BLOCK
         self._request = p.build_packet(
             p.BROADCAST_ID,
             p.SYNC_READ,
-            address.to_bytes(2, "little") + size.to_bytes(2, "little") + bytes(self.ids),
+            address.to_bytes(2, "little") + size.to_bytes(2, "little") + bytes(self.all_ids),
         )
         goal, goal_size = p.GOAL_CURRENT
         params = goal.to_bytes(2, "little") + goal_size.to_bytes(2, "little")
-        params += b"".join(bytes([i, 0, 0]) for i in self.ids)
+        params += b"".join(bytes([i, 0, 0]) for i in self.all_ids)
         self._sync_write = np.frombuffer(
             p.build_packet(p.BROADCAST_ID, p.SYNC_WRITE, params), dtype=np.uint8
         ).copy()
         self._crc_table = np.array(p._CRC_TABLE, dtype=np.uint16)
-        self._id_array = np.array(self.ids, dtype=np.int64)
+        self._id_array = np.array(self.all_ids, dtype=np.int64)
         for constant in (self._crc_table, self._id_array):
             constant.setflags(write=False)  # as the kernels were compiled for
         self._units = np.zeros(n, dtype=np.int64)
+        self._crank_units = self._units[: len(self.ids)]  # a view: the kernels fill it
         self._zero_f = np.asarray(self.zero_counts, dtype=float).copy()
         self._sign_f = np.asarray(self.directions, dtype=float).copy()
         for constant in (self._zero_f, self._sign_f):
@@ -302,10 +340,10 @@ class DynamixelBus:
         self.torque_off()
         if not self.torque_off_confirmed:
             self._fail("torque off before configuring")
-        for i in self.ids:
+        for i in self.all_ids:
             if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED:
                 self._write(i, p.BUS_WATCHDOG, 0)  # clears a trip left by a previous run
-            for item, value in self.settings.values():
+            for item, value in self._settings_of[i].values():
                 self._write(i, item, value)
             # A Goal Current left by an earlier run would drive the servo at Torque Enable.
             self._write(i, p.GOAL_CURRENT, 0)
@@ -313,8 +351,8 @@ class DynamixelBus:
 
     def verify_configuration(self) -> None:
         """Read every setting back. Raises ServoConfigMismatchError (after a torque off)."""
-        for i in self.ids:
-            for name, (item, value) in self.settings.items():
+        for i in self.all_ids:
+            for name, (item, value) in self._settings_of[i].items():
                 read = self._read(i, item)
                 if read != value:
                     self.torque_off()
@@ -326,7 +364,7 @@ class DynamixelBus:
         Raises:
             BusError: a servo refuses (after a torque off).
         """
-        for i in self.ids:
+        for i in self.all_ids:
             self._write(i, p.TORQUE_ENABLE, 1)
             if self._read(i, p.TORQUE_ENABLE) != 1:
                 self._fail(f"servo id {i} did not enable its torque")
@@ -351,7 +389,7 @@ class DynamixelBus:
         self._port.is_using = False  # a failed transfer may leave the SDK's flag set
         try:
             self._packets.write1ByteTxOnly(self._port, p.BROADCAST_ID, p.TORQUE_ENABLE[0], 0)
-            for i in self.ids:
+            for i in self.all_ids:
                 result, error = self._packets.write1ByteTxRx(self._port, i, p.TORQUE_ENABLE[0], 0)
                 ok &= result == sdk.COMM_SUCCESS and not error & 0x7F
         except Exception:  # the port itself failed: nothing more can be sent
@@ -369,7 +407,7 @@ class DynamixelBus:
         Raises:
             BusError: a servo does not answer (torque off first).
         """
-        status = {i: self._read(i, p.HARDWARE_ERROR_STATUS) for i in self.ids}
+        status = {i: self._read(i, p.HARDWARE_ERROR_STATUS) for i in self.all_ids}
         return {i: bits for i, bits in status.items() if bits}
 
     def watchdog_tripped(self) -> list[int]:
@@ -380,7 +418,7 @@ class DynamixelBus:
         Raises:
             BusError: a servo does not answer (torque off first).
         """
-        return [i for i in self.ids if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED]
+        return [i for i in self.all_ids if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED]
 
     # --- the control period ------------------------------------------------------------------
 
@@ -424,10 +462,11 @@ class DynamixelBus:
                 result = sdk.COMM_TX_FAIL
             self._fail(f"sync read: {self._packets.getTxRxResult(result)}")
         self.read_times.append(t1 - t0)
-        state = np.empty((3, len(found)))
+        n = len(self.ids)
+        state = np.empty((3, n))
         spec = self.spec
         self._kernels.crank_state(
-            self._raw,
+            self._raw[:n],
             self._zero_f,
             self._sign_f,
             _RAD_PER_COUNT,
@@ -436,15 +475,33 @@ class DynamixelBus:
             spec.amps_per_unit,
             state,
         )
-        return BusState(state[0], state[1], state[2], 0.5 * (t0 + t1), t1 - t0)
+        t_mid = 0.5 * (t0 + t1)
+        if self.surrogate is None:
+            return BusState(state[0], state[1], state[2], t_mid, t1 - t0)
+        config, s_spec = self.surrogate, self.surrogate_spec
+        current, velocity, counts = self._raw[n]
+        sign = config.direction
+        return BusState(
+            state[0],
+            state[1],
+            state[2],
+            t_mid,
+            t1 - t0,
+            s=float(config.counts_to_m(counts)),
+            s_dot=float(velocity * p.VELOCITY_UNIT_RAD_S * config.metres_per_rad * sign),
+            s_tau=float(current * s_spec.amps_per_unit * s_spec.torque_constant_Nm_per_A * sign),
+        )
 
-    def write_torques(self, tau) -> np.ndarray:
-        """One sync write of Goal Current for crank torques ``tau`` (n,), N m.
+    def write_torques(self, tau, surrogate_tau: float = 0.0) -> np.ndarray:
+        """One sync write of Goal Current for crank torques ``tau`` (n,), N m, and, on a bus
+        with a surrogate, its servo's torque ``surrogate_tau`` (N m at the horn in the
+        carriage's sense; clipped to its Current Limit) in the same packet.
 
         Returns:
-            (n,) the torques sent, N m: clipped to the Current Limit and rounded to its units.
+            (n,) the cranks' torques sent, N m: clipped to the Current Limit and rounded to its
+            units.
         Raises:
-            InvalidConfigError: ``tau`` of another shape or not finite (nothing sent).
+            InvalidConfigError: ``tau`` of another shape, or a torque not finite (nothing sent).
             BusError: the port fails (torque off first).
         """
         tau = np.asarray(tau, dtype=float)
@@ -456,10 +513,23 @@ class DynamixelBus:
             self.spec.torque_constant_Nm_per_A,
             self.spec.amps_per_unit,
             self.current_limit_units,
-            self._units,
+            self._crank_units,
             applied,
         ):
             raise InvalidConfigError(f"tau must be {len(self.ids)} finite torques, got {tau}")
+        if self.surrogate is not None:
+            if not math.isfinite(surrogate_tau):
+                raise InvalidConfigError(
+                    f"the surrogate's torque must be finite, got {surrogate_tau}"
+                )
+            s_spec, limit = self.surrogate_spec, self.surrogate_limit_units
+            units = round(
+                surrogate_tau
+                * self.surrogate.direction
+                / s_spec.torque_constant_Nm_per_A
+                / s_spec.amps_per_unit
+            )
+            self._units[-1] = min(max(units, -limit), limit)
         self._kernels.fill_sync_write(self._crc_table, self._sync_write, self._units)
         with self.lock:
             t0 = time.perf_counter()

@@ -105,6 +105,15 @@ class FirstOrderServos(ServoBackend):
         kw.update(overrides)
         return cls(**kw)
 
+    @classmethod
+    def lead_screw(cls, name: str, lead_m_per_rev: float, carriage_mass_kg: float, s0_m=0.0):
+        """A surrogate's stage: catalogue servo ``name`` turning a lead screw of
+        ``lead_m_per_rev`` (m a turn) that moves a carriage of ``carriage_mass_kg`` (its mass
+        reflected to the horn, m (lead / 2 pi)^2; the screw's own inertia and friction are not
+        modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
+        r = lead_m_per_rev / (2 * math.pi)
+        return cls.from_catalogue(name, [s0_m / r], load_inertia=carriage_mass_kg * r * r)
+
     def advance(self, dt_s, current_A):
         # Plain floats: numpy's per-call overhead on 6 numbers (np.clip alone ~40 us) would
         # make the model slower than real time on a loaded machine.
@@ -142,6 +151,29 @@ class FirstOrderServos(ServoBackend):
 
     def velocities_rad_s(self):
         return self._v.copy()
+
+
+class StackedServos(ServoBackend):
+    """Several backends behind one bus, their servos in order: the robot's six cranks, then a
+    surrogate's stage (:meth:`FirstOrderServos.lead_screw`), say. Each part is advanced with
+    its own servos' currents, the same ``dt_s``: one clock for all."""
+
+    def __init__(self, *parts: ServoBackend):
+        self.parts = parts
+        self._sizes = [len(part.positions_rad()) for part in parts]
+
+    def advance(self, dt_s, current_A):
+        current_A = np.asarray(current_A, dtype=float)
+        start = 0
+        for part, n in zip(self.parts, self._sizes):
+            part.advance(dt_s, current_A[start : start + n])
+            start += n
+
+    def positions_rad(self):
+        return np.concatenate([part.positions_rad() for part in self.parts])
+
+    def velocities_rad_s(self):
+        return np.concatenate([part.velocities_rad_s() for part in self.parts])
 
 
 class _Servo:
@@ -225,6 +257,8 @@ class BusEmulator:
         max_step_s: the longest step of the model in one advance, s: a model (or a starved
             thread) slower than real time drops the rest (``slipped_s``) instead of
             answering later and later.
+        models: {id: model} of the servos of another model than ``model`` (a surrogate's
+            stage beside the cranks, say); None: every servo is ``model``.
         command_step_s: None (default): the model follows the wall clock. A period, s: the
             model advances exactly this much at each SYNC_WRITE of Goal Current (the driver's
             torque command) and not otherwise, so its physics follow the commands, not the
@@ -247,6 +281,7 @@ class BusEmulator:
         ambient_C: float = 30.0,
         max_step_s: float = 0.02,
         command_step_s: float | None = None,
+        models: dict | None = None,
     ):
         ids = [int(i) for i in ids]
         if command_step_s is not None and not (0 < command_step_s < math.inf):
@@ -265,7 +300,8 @@ class BusEmulator:
         self.zero_counts = (
             np.full(len(ids), 2048) if zero_counts is None else np.asarray(zero_counts)
         )
-        self.servos = {i: _Servo(i, spec, ambient_C) for i in ids}
+        specs = {int(i): servo_spec(m, torque_control=False) for i, m in (models or {}).items()}
+        self.servos = {i: _Servo(i, specs.get(i, spec), ambient_C) for i in ids}
         self.tick_s = float(tick_s)
         self.max_step_s = float(max_step_s)
         self.command_step_s = None if command_step_s is None else float(command_step_s)
@@ -275,6 +311,8 @@ class BusEmulator:
         #: Every instruction packet received, (perf_counter time, Packet), newest last (bounded).
         self.received: list[tuple[float, p.Packet]] = []
         self.muted = False
+        #: Ids that neither answer nor execute (:meth:`disconnect`).
+        self.disconnected: set[int] = set()
         self._lock = threading.Lock()  # the control tables
         self._model_lock = threading.Lock()  # the backend
         self._stop = threading.Event()
@@ -342,6 +380,14 @@ class BusEmulator:
         """Stop (or resume) answering and executing: a cut cable. Packets are still logged in
         ``received``."""
         self.muted = bool(muted)
+
+    def disconnect(self, servo_id: int, cut: bool = True) -> None:
+        """Cut (or restore) one servo's cable: it neither answers nor executes; its control
+        table keeps what it had (its torque stays as it was, until its bus watchdog trips)."""
+        if cut:
+            self.disconnected.add(int(servo_id))
+        else:
+            self.disconnected.discard(int(servo_id))
 
     def read_item(self, servo_id: int, item) -> int:
         """A servo's control-table value (unsigned), as the bus would read it."""
@@ -483,7 +529,7 @@ class BusEmulator:
         """The status packets (concatenated) that ``packet`` calls for."""
         now = time.perf_counter()
         targets = list(self.servos) if packet.servo_id == p.BROADCAST_ID else [packet.servo_id]
-        targets = [i for i in targets if i in self.servos]
+        targets = [i for i in targets if i in self.servos and i not in self.disconnected]
         for i in targets:
             self.servos[i].last_instruction = now
         if not targets:
@@ -525,7 +571,7 @@ class BusEmulator:
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
             rows = par[4:]
             for k in range(0, len(rows) - size, size + 1):
-                if rows[k] in self.servos:
+                if rows[k] in targets:
                     self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
             if self.command_step_s is not None and address == p.GOAL_CURRENT[0]:
                 self._step_commanded()
@@ -534,7 +580,7 @@ class BusEmulator:
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:4], "little")
             out = b""
             for i in par[4:]:
-                if i in self.servos:
+                if i in targets:
                     s = self.servos[i]
                     if address + size > TABLE_SIZE:
                         out += self._status(s, p.ERR_DATA_RANGE)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...base.checks import check_int
+from ...base.checks import as_number, check_int
 from ...base.errors import InvalidConfigError, StewartError
 from ...robot.motor_catalogue import catalogue_motor
 from ..hardware import Encoders, Estimator, Hardware, Motors
@@ -227,6 +227,114 @@ def _finite(value) -> bool:
 BUS_CONTROL_PERIODS_S = (1e-3, 1e-2)
 
 
+#: The share of the servo's no-load speed a surrogate's command may ask for: above it the
+#: drive's voltage leaves too little current to follow (the catalogue's linear speed-torque line).
+SPEED_MARGIN = 0.8
+
+
+@dataclass
+class SurrogateServoConfig:
+    """The surrogate's servo on the robot's bus (a scenario's ``bus.surrogate``; None: no
+    surrogate, the bus as before). Defaults and their sources: module docstring.
+
+    Attributes:
+        id: the servo's id, distinct from the cranks' (0..252).
+        model: its model, a bus model with Current Control Mode that the motor catalogue has
+            (``XM430-W350-T``, ``XM540-W270-T``).
+        lead_m_per_rev: the carriage's travel per turn of the horn, m (the screw's lead).
+        travel_m: the carriage's travel, m, centred on its zero (``s`` in +-travel / 2).
+        zero_counts: the servo's Present Position with the carriage at mid-travel, counts
+            (multi-turn, a signed 32-bit count).
+        direction: +1, or -1 when the counts grow as the carriage goes down ``s``.
+        carriage_mass_kg: the carriage and its marker, kg.
+        current_limit_A: its Current Limit, A (None: the model's maximum).
+        bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
+    """
+
+    id: int = 7
+    model: str = "XM430-W350-T"
+    lead_m_per_rev: float = 0.05
+    travel_m: float = 0.1
+    zero_counts: int = 2048
+    direction: int = 1
+    carriage_mass_kg: float = 0.5
+    current_limit_A: float | None = None
+    bandwidth_hz: float = 5.0
+
+    def validate(
+        self, crank_ids, control_period_s: float | None, prefix: str = "bus.surrogate."
+    ) -> None:
+        """Check every field (named ``prefix + name``) against the cranks' ids and the control
+        period, s (None: the bandwidth only > 0).
+
+        Raises:
+            InvalidConfigError: the first field out of range, named.
+        """
+        servo_id = check_int(f"{prefix}id", self.id, 0, p.MAX_ID)
+        if servo_id in [int(i) for i in crank_ids]:
+            raise InvalidConfigError(
+                f"{prefix}id {servo_id} is a crank's ({list(crank_ids)}): give the surrogate's "
+                "servo an id of its own"
+            )
+        try:
+            spec = servo_spec(self.model)
+            catalogue_motor(self.model)
+        except StewartError as err:
+            raise InvalidConfigError(f"{prefix}model: {err}") from None
+        as_number(f"{prefix}lead_m_per_rev", self.lead_m_per_rev, 0.0, 0.2, lo_open=True)
+        as_number(f"{prefix}travel_m", self.travel_m, 0.0, 1.0, lo_open=True)
+        check_int(f"{prefix}zero_counts", self.zero_counts, -(2**31), 2**31 - 1)
+        if self.direction not in (1, -1) or isinstance(self.direction, bool):
+            raise InvalidConfigError(f"{prefix}direction must be +1 or -1, got {self.direction!r}")
+        as_number(f"{prefix}carriage_mass_kg", self.carriage_mass_kg, 0.0, 50.0)
+        if self.current_limit_A is not None:
+            top = spec.current_limit_max * spec.amps_per_unit
+            as_number(f"{prefix}current_limit_A", self.current_limit_A, 0.0, top, lo_open=True)
+        top_hz = None if control_period_s is None else 0.1 / control_period_s
+        as_number(f"{prefix}bandwidth_hz", self.bandwidth_hz, 0.0, top_hz, lo_open=True)
+
+    # --- derived figures -------------------------------------------------------------------
+
+    @property
+    def metres_per_count(self) -> float:
+        """One encoder count of the servo as carriage travel, m."""
+        return self.lead_m_per_rev / p.COUNTS_PER_REV
+
+    @property
+    def metres_per_rad(self) -> float:
+        """Carriage travel per radian of the horn, m/rad (lead / 2 pi)."""
+        return self.lead_m_per_rev / (2 * math.pi)
+
+    def max_speed_m_s(self) -> float:
+        """The fastest a command may move the carriage, m/s: :data:`SPEED_MARGIN` of the
+        servo's no-load speed through the screw."""
+        return (
+            SPEED_MARGIN
+            * catalogue_motor(self.model).servo.no_load_speed_rad_s
+            * (self.metres_per_rad)
+        )
+
+    def inertia_kg_m2(self) -> float:
+        """J at the horn: the rotor's reflected inertia plus the carriage through the screw."""
+        servo = catalogue_motor(self.model).servo
+        return servo.rotor_inertia * servo.gear_ratio**2 + self.carriage_mass_kg * (
+            self.metres_per_rad**2
+        )
+
+    def counts_to_m(self, counts):
+        """Carriage position, m, for Present Position ``counts``."""
+        return (np.asarray(counts, dtype=float) - self.zero_counts) * (
+            self.metres_per_count * self.direction
+        )
+
+    def m_to_counts(self, s_m):
+        """Present Position (counts, rounded) with the carriage at ``s_m``; inverse of
+        :meth:`counts_to_m`."""
+        return np.rint(
+            np.asarray(s_m, dtype=float) * self.direction / self.metres_per_count + self.zero_counts
+        ).astype(np.int64)
+
+
 @dataclass
 class DynamixelBusConfig:
     """The robot's servos on a DYNAMIXEL bus: the station drives them instead of a simulated
@@ -249,6 +357,9 @@ class DynamixelBusConfig:
         reply_timeout_s: the least wait for a status packet, s (None: the SDK's, about 34 ms).
         max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
             period missed beyond this many (0: at the first miss).
+        surrogate: the external surrogate's stage as a seventh servo on this bus
+            (:class:`SurrogateServoConfig`: its id, model, screw and travel);
+            None (default): no surrogate, six servos.
 
     The robot as built is then the one with these servos: ``hardware: null`` is derived from
     the bus (:meth:`hardware`); a ``hardware`` given must agree with it (its motors named after
@@ -268,6 +379,7 @@ class DynamixelBusConfig:
     watchdog_s: float = 0.1
     reply_timeout_s: float | None = None
     max_deadline_misses: int = 10
+    surrogate: SurrogateServoConfig | None = None
 
     def _settings(self):
         return check_bus_settings(
@@ -307,6 +419,13 @@ class DynamixelBusConfig:
                 f"control_period_s {control_period_s:g} s: a loop on the servo bus runs at "
                 f"{lo:g} to {hi:g} s"
             )
+        if self.surrogate is not None:
+            if not isinstance(self.surrogate, SurrogateServoConfig):
+                raise InvalidConfigError(
+                    "bus.surrogate must be None or a SurrogateServoConfig, got "
+                    f"{type(self.surrogate).__name__}"
+                )
+            self.surrogate.validate(self.ids, control_period_s)
         expected = self.hardware(control_period_s)
         if hardware is None:
             return

@@ -41,12 +41,15 @@ from ...robot.single_pose import ik_single, jacobian_single, leg_constants
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
 from .protocol import COUNTS_PER_REV
+from .surrogate_servo import SurrogateDrive
 from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
 #: The driver's held measurement, in its discrete state: crank angles (6) rad, rates (6) rad/s,
 #: torques the servos drive (6) N m, the platform pose (6) and rate (6) from them, then the loop's
 #: numbers (deadline misses, achieved period us, measurement age us).
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
+#: Numbers a period's reading keeps (:meth:`DynamixelDriver.readings`).
+_ROW = 16
 
 
 def _kernels():
@@ -85,6 +88,9 @@ class DynamixelDriver(LeafSystem):
         stream: where the misses' summary lines go (:meth:`miss_line`, one when their count
             reaches a power of two; default stderr). timing_window: periods kept for
             :meth:`timing_summary` (its records are allocated once, 9 numbers a period).
+        surrogate: None, or the :class:`~.surrogate_servo.SurrogateDrive` of a bus with a
+            surrogate's servo: each period its torque goes in the same sync write as the
+            cranks', from the reading of the same sync read.
     Attributes:
         timing: the :class:`~.timing.LoopTiming` records of the run.
         between_periods: None, or a callable the loop calls when it has time left before a
@@ -103,9 +109,11 @@ class DynamixelDriver(LeafSystem):
         x_initial=X_HOME,
         stream=None,
         timing_window: int = 360_000,
+        surrogate: SurrogateDrive | None = None,
     ):
         super().__init__()
         self.bus, self.geometry = bus, geometry
+        self.surrogate = surrogate
         self.period_s, self.max_deadline_misses = float(period_s), int(max_deadline_misses)
         self.stream = stream
         self._x_initial = np.asarray(x_initial, dtype=float)
@@ -164,6 +172,8 @@ class DynamixelDriver(LeafSystem):
         the rate x_dot = J^-1 theta_dot."""
         state = self.bus.read_state()
         self._last_read_t, self._read_s = state.t, state.round_trip_s
+        if self.surrogate is not None:
+            self.surrogate.reading(state.s, state.s_dot)
         held, start = self._held, self._x_start
         held[_Q], held[_V], held[_TAU] = state.q, state.v, state.tau
         start[:] = x_prev
@@ -209,9 +219,10 @@ class DynamixelDriver(LeafSystem):
         #: (and the reference) is that much behind the wall clock.
         self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
-        #: Every period's reading: (Diagram time, read time (perf_counter), q0..q5) rows, the
-        #: first ``_n_readings`` of them; grown by half when a run outlasts them.
-        self._readings = np.empty((1024, 8))
+        #: Every period's reading: (Diagram time, read time (perf_counter), q0..q5, the pose
+        #: x (6) from them, the surrogate's position read and commanded, m) rows, the first
+        #: ``_n_readings`` of them; grown by half when a run outlasts them.
+        self._readings = np.empty((1024, _ROW))
         self._n_readings = 0
 
     def _Update(self, context, discrete_state):
@@ -247,12 +258,17 @@ class DynamixelDriver(LeafSystem):
                 f"the controller commanded non-finite torques {tau} N m; torque off", t
             )
         w0 = time.perf_counter()
-        self.bus.write_torques(tau)
+        if self.surrogate is None:
+            self.bus.write_torques(tau)
+            s_commanded = math.nan
+        else:  # the seventh row of the same sync write, from the same (last) reading
+            tau_s, s_commanded = self.surrogate.torque(t)
+            self.bus.write_torques(tau, tau_s)
         w1 = time.perf_counter()
         age = 0.5 * (w0 + w1) - self._last_read_t
         held = context.get_discrete_state(self._state).value()
         measured = self._measure(held[_X][:6])
-        self._keep_reading(t, measured[_Q])
+        self._keep_reading(t, measured, s_commanded)
         period = now - self._last_start
         self._last_start = now
         self.timing.end(self._read_s, w1 - w0, age)
@@ -271,15 +287,18 @@ class DynamixelDriver(LeafSystem):
         loop[1] = 1e6 * period if period == period else 0.0
         loop[2] = 1e6 * age if age == age else 0.0
 
-    def _keep_reading(self, t: float, q) -> None:
-        """This period's reading into the preallocated rows (grown by half when full)."""
+    def _keep_reading(self, t: float, measured, s_commanded: float) -> None:
+        """This period's reading (``measured``: the held state vector) and the surrogate's
+        position commanded (NaN: none) into the preallocated rows (grown by half when full)."""
         k = self._n_readings
         if k == len(self._readings):
-            grown = np.empty((len(self._readings) * 3 // 2, 8))
+            grown = np.empty((len(self._readings) * 3 // 2, _ROW))
             grown[:k] = self._readings
             self._readings = grown
         row = self._readings[k]
-        row[0], row[1], row[2:] = t, self._last_read_t, q
+        row[0], row[1], row[2:8], row[8:14] = t, self._last_read_t, measured[_Q], measured[_X][:6]
+        row[14] = self.surrogate.held[0] if self.surrogate is not None else math.nan
+        row[15] = s_commanded
         self._n_readings = k + 1
 
     def _missed(self, t: float, late: float, cause: int) -> None:
@@ -319,8 +338,20 @@ class DynamixelDriver(LeafSystem):
         Diagram's time, s; t_read (n,) when the servos were read, ``time.perf_counter`` s, the
         midpoint of the sync read; q (n, 6) the crank angles read, rad: each encoder's raw
         angle, its zero error included)."""
-        r = self._readings[: self._n_readings].copy()
-        return r[:, 0], r[:, 1], r[:, 2:]
+        r = self._readings[: self._n_readings]
+        return r[:, 0].copy(), r[:, 1].copy(), r[:, 2:8].copy()
+
+    def pose_readings(self) -> np.ndarray:
+        """(n, 6) the platform's pose measured each period of :meth:`readings` (the forward
+        kinematics of its crank angles), rad and m."""
+        return self._readings[: self._n_readings, 8:14].copy()
+
+    def surrogate_readings(self) -> tuple[np.ndarray, np.ndarray]:
+        """The surrogate's carriage each period of :meth:`readings`: (s (n,) read, m; s_c (n,)
+        commanded for that period, m); NaN without a surrogate (and s_c NaN in the first
+        period's row when it was read before the loop started)."""
+        r = self._readings[: self._n_readings]
+        return r[:, 14].copy(), r[:, 15].copy()
 
     def timing_summary(self) -> dict:
         """The loop's timing over the periods kept (:meth:`.timing.LoopTiming.summary`: the
@@ -463,7 +494,9 @@ class HardwareStation(Diagram):
             :class:`~stewart_drake.plant.closed_chain.LoopClosure` the guard and the run's
             result read, as the simulated station's.
     Args:
-        plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``.
+        plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``; a
+            ``bus.surrogate`` gives the driver its :class:`~.surrogate_servo.SurrogateDrive`
+            (the surrogate's stage driven in the same packets, its command the session's).
         meshcat: optional pydrake Meshcat: the robot drawn at its measured pose every
             ``scenario.visualization.publish_period``.
     Raises:
@@ -488,10 +521,17 @@ class HardwareStation(Diagram):
         self.sensor = PlatformPoseSensor(plant, handles)
         self.bus = DynamixelBus.from_config(scenario.bus)
         builder = DiagramBuilder()
+        surrogate = scenario.bus.surrogate
         self.driver = builder.AddNamedSystem(
             "driver",
             DynamixelDriver(
-                self.bus, plan.geometry, plan.control_period_s, scenario.bus.max_deadline_misses
+                self.bus,
+                plan.geometry,
+                plan.control_period_s,
+                scenario.bus.max_deadline_misses,
+                surrogate=(
+                    None if surrogate is None else SurrogateDrive(surrogate, plan.control_period_s)
+                ),
             ),
         )
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))

@@ -1,0 +1,208 @@
+"""The relative latency between the platform and the surrogate on the robot, from the encoders.
+
+Each axis is judged against its own command on the run's one clock (the Diagram's time t of
+each control period, logged with the period's reading):
+
+- the **lag** L of an axis is the shift delta that minimises the RMS difference between what
+  its encoders measured, y(t_k), and its command shifted later by delta, c(t_k - delta)
+  (the command linearly interpolated between its logged samples; delta searched in
+  [-``max_lag_s``, +``max_lag_s``], on a grid of a quarter period, then refined by a bounded
+  scalar minimisation to 1 us; IntERAct's RMSE alignment, Kaczynska et al. 2026, in
+  continuous shifts). L > 0: the axis moves after its command.
+- the platform's y and c: its pose from the crank encoders (forward kinematics) and the
+  reference's pose, along the **translation of the reference that moves most** (peak to peak
+  over the judged window), m; the surrogate's: the carriage's position from its servo's
+  encoder (``s``) and the position commanded (``s_cmd``), m.
+- the **relative latency** is L_platform - L_surrogate, s: **positive when the platform (the
+  internal target) follows its command later than the surrogate follows its own**, the sign
+  ``verify --surrogate`` and IntERAct's analysis use (``shift6D - shift1D``,
+  RMSEAlignMethod.m); its verdict holds it to ``tolerance_s`` (one control period by default: the
+  acceptance of the emulated pair).
+
+The window judged: the periods from the end of the homing lead-in on (``t >= t_from``), less
+``max_lag_s`` at each end so that every shift compares the same samples. An axis whose command
+moves less than 20 encoder counts' worth over the window has no lag to measure (NaN, said).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from ..base.errors import InvalidConfigError
+from ..robot.kinematics import AXIS_NAMES
+
+#: The longest lag searched, s.
+MAX_LAG_S = 0.5
+#: Fewest samples a window must hold.
+MIN_SAMPLES = 20
+
+
+def axis_lag(t, measured, commanded, max_lag_s: float = MAX_LAG_S, still_below: float = 0.0):
+    """The lag of one axis (module docstring), s: the shift delta minimising
+    RMS(measured(t_k) - commanded(t_k - delta)) over the inner samples.
+
+    Args:
+        t: (n,) sample times, s, increasing. measured, commanded: (n,) the axis measured and
+            commanded at them (same unit).
+        max_lag_s: the search's half-width, s.
+        still_below: a command whose peak to peak is at most this has no lag (NaN).
+    Returns:
+        (lag s, NaN for a still command; the RMS residual at it, the axis's unit).
+    Raises:
+        InvalidConfigError: shapes that differ, times not increasing, a value not finite, fewer
+            than :data:`MIN_SAMPLES` samples inside the search's margins.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(measured, dtype=float)
+    c = np.asarray(commanded, dtype=float)
+    if t.ndim != 1 or y.shape != t.shape or c.shape != t.shape:
+        raise InvalidConfigError(
+            f"the times, measured and commanded samples must be (n,) alike, got {t.shape}, "
+            f"{y.shape}, {c.shape}"
+        )
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y)) and np.all(np.isfinite(c))):
+        raise InvalidConfigError("a time, measured or commanded sample is not finite")
+    if not 0 < max_lag_s < math.inf:
+        raise InvalidConfigError(f"max_lag_s must be > 0 s, got {max_lag_s}")
+    if np.any(np.diff(t) <= 0):
+        raise InvalidConfigError("the sample times must increase")
+    first, last = (t[0], t[-1]) if t.size else (0.0, 0.0)
+    inner = (t >= first + max_lag_s) & (t <= last - max_lag_s)
+    if np.count_nonzero(inner) < MIN_SAMPLES:
+        raise InvalidConfigError(
+            f"{np.count_nonzero(inner)} samples lie inside the search's margins of "
+            f"{max_lag_s:g} s: the window is too short to measure a lag (at least {MIN_SAMPLES})"
+        )
+    if np.ptp(c[inner]) <= still_below:
+        return math.nan, math.nan
+    t_in, y_in = t[inner], y[inner]
+
+    def rms(delta):
+        return float(np.sqrt(np.mean((y_in - np.interp(t_in - delta, t, c)) ** 2)))
+
+    step = 0.25 * float(np.median(np.diff(t)))
+    grid = np.arange(-max_lag_s, max_lag_s + 0.5 * step, step)
+    cost = np.array([rms(d) for d in grid])
+    k = int(np.argmin(cost))
+    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
+    best = minimize_scalar(rms, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    delta = float(best.x) if best.fun <= cost[k] else float(grid[k])
+    return delta, rms(delta)
+
+
+@dataclass(frozen=True)
+class RelativeLatency:
+    """The platform's and the surrogate's lags and their difference (module docstring).
+
+    Attributes:
+        relative_s: L_platform - L_surrogate, s (> 0: the platform lags); NaN when an axis
+            is still.
+        surrogate_lag_s, platform_lag_s: each axis's lag against its own command, s.
+        platform_axis: the platform's coordinate judged ("X", "Y" or "Z").
+        surrogate_rms_m, platform_rms_m: the RMS residual at each lag, m.
+        tolerance_s: the verdict's bound on |relative_s|, s. samples: samples judged.
+    """
+
+    relative_s: float
+    surrogate_lag_s: float
+    platform_lag_s: float
+    platform_axis: str
+    surrogate_rms_m: float
+    platform_rms_m: float
+    tolerance_s: float
+    samples: int
+
+    @property
+    def passed(self) -> bool:
+        """|relative_s| <= tolerance_s (False when it is NaN)."""
+        return bool(abs(self.relative_s) <= self.tolerance_s)
+
+    def line(self) -> str:
+        """The verdict in one line, naming what it compares."""
+        what = (
+            "relative latency, platform after surrogate (each axis's lag behind its own command "
+            "on the run's clock, from its encoders: the carriage's s against s_cmd, the "
+            f"platform's {self.platform_axis} against the reference's)"
+        )
+        lags = (
+            f"surrogate {1e3 * self.surrogate_lag_s:+.1f} ms (RMS {1e6 * self.surrogate_rms_m:.0f}"
+            f" um), platform {1e3 * self.platform_lag_s:+.1f} ms (RMS "
+            f"{1e6 * self.platform_rms_m:.0f} um) over {self.samples} periods"
+        )
+        bound = f"|relative| <= {1e3 * self.tolerance_s:g} ms (one control period)"
+        if self.relative_s != self.relative_s:
+            still = [
+                n
+                for n, lag in (
+                    ("the surrogate", self.surrogate_lag_s),
+                    ("the platform", self.platform_lag_s),
+                )
+                if lag != lag
+            ]
+            return f"{what}: not measured, {' and '.join(still)} did not move; FAIL: {bound}"
+        verdict = "PASS" if self.passed else "FAIL"
+        # Two decimals: a figure at the bound reads on its side of it (-10.04 ms, not -10.0).
+        return f"{what}: {1e3 * self.relative_s:+.2f} ms ({lags}); {verdict}: {bound}"
+
+
+def relative_latency(
+    t,
+    x_measured,
+    x_commanded,
+    s_measured,
+    s_commanded,
+    tolerance_s: float,
+    t_from: float = -math.inf,
+    max_lag_s: float = MAX_LAG_S,
+    s_count_m: float = 0.0,
+    x_count_m: float = 0.0,
+) -> RelativeLatency:
+    """The relative latency of a run (module docstring).
+
+    Args:
+        t: (n,) the periods' run times, s. x_measured, x_commanded: (n, 6) the platform's
+            pose from its encoders and the reference's, rad and m. s_measured, s_commanded:
+            (n,) the carriage's position read and commanded, m.
+        tolerance_s: the verdict's bound, s (one control period). t_from: the window's start
+            (the end of the homing lead-in), s.
+        s_count_m, x_count_m: one encoder count of each axis, m: a command moving less than
+            20 of them is still (no lag).
+    Raises:
+        InvalidConfigError: as :func:`axis_lag`'s; shapes that differ; tolerance not > 0.
+    """
+    t = np.asarray(t, dtype=float)
+    x_m, x_c = np.asarray(x_measured, dtype=float), np.asarray(x_commanded, dtype=float)
+    if x_m.shape != (t.size, 6) or x_c.shape != (t.size, 6):
+        raise InvalidConfigError(
+            f"the poses must be ({t.size}, 6), got {x_m.shape} and {x_c.shape}"
+        )
+    if not 0 < tolerance_s < math.inf:
+        raise InvalidConfigError(f"tolerance_s must be > 0 s, got {tolerance_s}")
+    window = t >= t_from
+    t_w = t[window]
+    translations = x_c[window][:, 3:]
+    k = 3 + int(np.argmax(np.ptp(translations, axis=0))) if len(t_w) else 5
+    lag_p, rms_p = axis_lag(
+        t_w, x_m[window, k], x_c[window, k], max_lag_s, still_below=20 * x_count_m
+    )
+    s_m, s_c = np.asarray(s_measured, dtype=float), np.asarray(s_commanded, dtype=float)
+    if s_m.shape != t.shape or s_c.shape != t.shape:
+        raise InvalidConfigError(
+            f"the surrogate's samples must be ({t.size},), got {s_m.shape} and {s_c.shape}"
+        )
+    lag_s, rms_s = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=20 * s_count_m)
+    inner = np.count_nonzero((t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s))
+    return RelativeLatency(
+        relative_s=lag_p - lag_s,
+        surrogate_lag_s=lag_s,
+        platform_lag_s=lag_p,
+        platform_axis=AXIS_NAMES[k],
+        surrogate_rms_m=rms_s,
+        platform_rms_m=rms_p,
+        tolerance_s=float(tolerance_s),
+        samples=int(inner),
+    )

@@ -1,0 +1,137 @@
+"""The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning a
+lead screw whose carriage carries the chest marker, driven in the cranks' period.
+
+:class:`~.servos.SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is
+and the screw it turns; :class:`SurrogateDrive` is its controller on the loop's computer, as the
+cranks' controllers are: each period it turns the carriage's commanded position, rate and
+acceleration (the session gives them on the run's clock) and the last reading of the servo's
+encoder into a torque at the horn, which the driver sends as the seventh row of the period's one
+sync write of Goal Current (:meth:`~.driver.DynamixelBus.write_torques`); the servo's encoder
+comes back as the seventh status of the period's one sync read. Like the cranks it is in Current
+Control Mode (a sync write writes one address for all its servos: the cranks' Goal Current).
+
+The carriage's position ``s`` (m, 0 at mid-travel) from the servo's Present Position:
+``s = (counts - zero_counts) * lead_m_per_rev / 4096 * direction``.
+
+The controller (:meth:`SurrogateDrive.torque`), in the screw's angle theta = 2 pi s / lead at
+the horn: tau = J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c -
+v_m), where J is the rotor's reflected inertia plus the carriage's mass through the screw
+(m (lead / 2 pi)^2), b and c the servo's viscous and dry friction (the motor catalogue's
+figures), theta_p the reading predicted one period on (theta_m + h v_m: the torque acts a period
+after the reading it came from, as the cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi
+``bandwidth_hz`` (a critically damped double integrator), v_eps one encoder count a period. The
+torque is in the carriage's sense (positive drives ``s`` up). The weight of a vertical carriage
+(m g lead / 2 pi: 39 mN m for 0.5 kg on a 50 mm lead, 1 % of the servo's stall torque) is left
+to the position loop.
+
+Defaults and their source: the servo is the catalogue's XM430-W350-T (docs/motor_catalogue.md),
+the fastest X servo of the catalogue with Current Control Mode (46 rpm at 12 V). The screw's
+lead, the travel and the carriage's mass are **estimates**, not a cited part: a lead of 50 mm a
+turn (a high-helix lead screw) gives 38 mm/s at the servo's no-load speed and 30.7 mm/s at the
+:data:`SPEED_MARGIN` a command may ask for, above the peak speed of every respiratory trace of
+IntERAct's LARK and LIGHT SABR sets but two (66 and 39 mm/s, which
+:func:`check_surrogate_path` refuses), 12 um a count, and 515 N at the servo's stall torque;
+100 mm of travel holds every one of those traces (56 mm peak to peak at most); a 0.5 kg
+carriage with its marker block. docs/robot.md, "The surrogate on the bus".
+
+The stage's settings, :class:`~.servos.SurrogateServoConfig`, are with the bus's in
+:mod:`.servos` (Drake's YAML loader reads them there).
+"""
+
+import math
+
+import numpy as np
+
+from ...base.errors import InvalidConfigError
+from ...robot.motor_catalogue import catalogue_motor
+from . import protocol as p
+from .servos import SPEED_MARGIN, SurrogateServoConfig
+
+
+def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the surrogate") -> None:
+    """Refuse a carriage command outside the stage's travel or faster than it can follow,
+    before anything is powered.
+
+    Args:
+        config: the stage. s, v: (n,) commanded positions, m, and rates, m/s, at sampled times.
+        what: how the messages name the command.
+    Raises:
+        InvalidConfigError: not finite, out of the travel or over the speed (each named with
+            its figure and the limit).
+    """
+    s, v = np.asarray(s, dtype=float), np.asarray(v, dtype=float)
+    if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v))):
+        raise InvalidConfigError(f"{what}: the commanded carriage position is not finite")
+    half = 0.5 * config.travel_m
+    if s.size and np.max(np.abs(s)) > half:
+        raise InvalidConfigError(
+            f"{what} asks the carriage for {1e3 * s[np.argmax(np.abs(s))]:+.1f} mm, outside the "
+            f"stage's travel of +-{1e3 * half:g} mm (bus.surrogate.travel_m)"
+        )
+    top = config.max_speed_m_s()
+    if v.size and np.max(np.abs(v)) > top:
+        raise InvalidConfigError(
+            f"{what} asks the carriage for {1e3 * np.max(np.abs(v)):.1f} mm/s, over the "
+            f"{1e3 * top:.1f} mm/s the {config.model} turns a {1e3 * config.lead_m_per_rev:g} mm "
+            f"lead at ({100 * SPEED_MARGIN:g} % of its no-load speed): a longer "
+            "bus.surrogate.lead_m_per_rev, or a slower trace"
+        )
+
+
+class SurrogateDrive:
+    """The surrogate's position loop on the loop's computer (module docstring), for
+    :class:`~.station.DynamixelDriver`.
+
+    Args:
+        config: the stage. period_s: the control period, s.
+    Attributes:
+        command: ``command(t) -> (s, v, a)`` the carriage's position m, rate m/s and
+            acceleration m/s^2 at the run's time t (floats); None: hold where it was first read.
+        held: (s m, v m/s) of the last reading.
+    """
+
+    def __init__(self, config: SurrogateServoConfig, period_s: float):
+        self.config, self.period_s = config, float(period_s)
+        servo = catalogue_motor(config.model).servo
+        self.J = config.inertia_kg_m2()
+        self.viscous, self.coulomb = servo.viscous_damping, servo.coulomb_friction_Nm
+        w = 2 * math.pi * config.bandwidth_hz
+        self.kp, self.kd = self.J * w * w, 2.0 * self.J * w
+        #: Rate below which the dry friction's feed-forward fades (one count a period), rad/s.
+        self.v_eps = 2 * math.pi / p.COUNTS_PER_REV / self.period_s
+        self.command = None
+        self.held = (math.nan, math.nan)
+        self._hold = math.nan
+
+    def reading(self, s_m: float, v_m_s: float) -> None:
+        """Hold a reading of the carriage (the first one is where a missing command holds)."""
+        self.held = (float(s_m), float(v_m_s))
+        if self._hold != self._hold:
+            self._hold = float(s_m)
+
+    def commanded(self, t: float) -> tuple[float, float, float]:
+        """(s m, v m/s, a m/s^2) commanded at run time ``t``."""
+        if self.command is None:
+            return self._hold, 0.0, 0.0
+        s, v, a = self.command(t)
+        return float(s), float(v), float(a)
+
+    def torque(self, t: float) -> tuple[float, float]:
+        """(the horn's torque for the period starting at ``t``, N m; the position commanded,
+        m) from the held reading (one period old); (0, NaN) while nothing was read."""
+        s_m, v_m = self.held
+        if s_m != s_m:
+            return 0.0, math.nan
+        s_c, v_c, a_c = self.commanded(t)
+        r = self.config.metres_per_rad
+        theta_m, w_m = s_m / r, v_m / r
+        theta_c, w_c, alpha_c = s_c / r, v_c / r, a_c / r
+        theta_p = theta_m + self.period_s * w_m
+        tau = (
+            self.J * alpha_c
+            + self.viscous * w_c
+            + self.coulomb * math.tanh(w_c / self.v_eps)
+            + self.kp * (theta_c - theta_p)
+            + self.kd * (w_c - w_m)
+        )
+        return tau, s_c

@@ -1,0 +1,282 @@
+"""An internal motion and its external surrogate measured on one clock, judged together
+(``stewart-drake verify INTERNAL --surrogate EXTERNAL --measured ... --measured-surrogate ...``):
+the shipped example pair (trace.txt's AP, surrogate.txt on SI: breaths of 3.6-4.4 s, the chest
+0.2 s ahead) seen by one depth camera (its own clock, 26.5-36.5 ms steps, 0.2 mm of noise, an
+offset of its own per platform), both platforms 5.45 s after the camera started. The relative
+latency is held to the delays the files were made with; the battery of wrong inputs (the
+surrogate at rest, reversed, 0.3 s late; the internal 0.3 s late; the files swapped; another
+motion) FAILs each naming its cause, and the right pair PASSes."""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.interpolate import CubicSpline
+
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.cli.main import main
+from stewart_drake.organ_motion.examples import FOLDER
+from stewart_drake.organ_motion.measured_motion import read_measured
+from stewart_drake.references.traces import load_trace
+from stewart_drake.surrogate.relative_latency import (
+    MAX_RELATIVE_LATENCY_S,
+    RELATIVE_SEARCH_S,
+    verify_pair,
+)
+
+TRACE, SURROGATE = FOLDER / "trace.txt", FOLDER / "surrogate.txt"
+#: When both platforms started on the camera's clock, s; the camera's offsets and noise, mm.
+DELAY_S, OFFSETS_MM, NOISE_MM = 5.45, (412.3, 388.7), 0.2
+TOLERANCE = (1e-3, np.radians(1.0))
+
+
+def camera_clock(seed=0, seconds=125.0):
+    """(n,) s: a depth camera's times from 0, steps of 26.5-36.5 ms."""
+    steps = np.random.default_rng(seed).uniform(0.0265, 0.0365, int(seconds / 0.0315))
+    t = np.concatenate([[0.0], np.cumsum(steps)])
+    return t[t < seconds]
+
+
+def seen(column_of, path, t_cam, delay_s, sign=1.0, offset_mm=0.0, seed=1):
+    """(n,) mm: the camera's depth of a platform that followed ``path``'s column (a cubic
+    spline through its samples, held before and after) ``delay_s`` late, with its noise."""
+    data = np.loadtxt(path)
+    spline = CubicSpline(data[:, 0], data[:, column_of])
+    u = np.clip(t_cam - delay_s, data[0, 0], data[-1, 0])
+    noise = np.random.default_rng(seed).normal(0.0, NOISE_MM, len(t_cam))
+    return offset_mm + sign * spline(u) + noise
+
+
+def write_depth(path, t, depth):
+    """A camera's file, ``t [s],depth [mm]``."""
+    rows = ["t [s],depth [mm]"] + [f"{a:.5f},{b:.4f}" for a, b in zip(t, depth)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def pair_files(tmp_path, internal=None, surrogate=None):
+    """(internal's file, surrogate's file): the camera's two depths, each the right one unless
+    given (n,) mm."""
+    t = camera_clock()
+    if internal is None:
+        internal = seen(3, TRACE, t, DELAY_S, offset_mm=OFFSETS_MM[0], seed=1)
+    if surrogate is None:
+        surrogate = seen(1, SURROGATE, t, DELAY_S, offset_mm=OFFSETS_MM[1], seed=2)
+    return (
+        write_depth(tmp_path / "depth_internal.csv", t, internal),
+        write_depth(tmp_path / "depth_surrogate.csv", t, surrogate),
+    )
+
+
+def judge(internal_file, surrogate_file, **options):
+    """verify_pair of the example pair on the two files (the internal's depth on AP, the
+    surrogate's on SI)."""
+    return verify_pair(
+        load_trace(TRACE),
+        load_trace(SURROGATE),
+        read_measured(internal_file, axis_map={"depth": "AP"}),
+        read_measured(surrogate_file, axis_map={"depth": "SI"}),
+        tolerance=TOLERANCE,
+        **options,
+    )
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 0.06, -0.08])
+def test_the_relative_latency_is_the_delay_between_the_two_platforms(tmp_path, lag_s):
+    t = camera_clock()
+    internal = seen(3, TRACE, t, DELAY_S + lag_s, offset_mm=OFFSETS_MM[0], seed=1)
+    pair = judge(*pair_files(tmp_path, internal=internal))
+    # Made with the internal lag_s later than the surrogate: tau_rel = lag_s.
+    assert pair.relative_latency_s == pytest.approx(lag_s, abs=0.005)
+    assert -pair.internal_shift_s == pytest.approx(DELAY_S + lag_s, abs=0.005)
+    assert -pair.surrogate_shift_s == pytest.approx(DELAY_S, abs=0.005)
+    assert pair.judgement.passed and pair.passed, pair.judgement.line
+    assert pair.judgement.line.startswith("PASS: depth_internal.csv (internal) against")
+    # Each fidelity is the camera's noise, as verify alone gives it.
+    for ver in (pair.internal, pair.surrogate):
+        rms = np.nanmax(ver.fidelity["rms"])
+        assert 0.8 * NOISE_MM < rms * 1e3 < 1.2 * NOISE_MM
+    assert pair.internal.fidelity["measured"] == ["Z"]
+    assert pair.surrogate.fidelity["measured"] == ["X"]
+
+
+def test_the_clock_offset_cancels(tmp_path):
+    """Given or not, the clocks' offset leaves the relative latency alone; given, each motion's
+    own latency is judged as verify judges it."""
+    files = pair_files(tmp_path)
+    unknown = judge(*files)
+    known = judge(*files, clock_offset_s=-DELAY_S)
+    assert known.relative_latency_s == pytest.approx(unknown.relative_latency_s, abs=1e-3)
+    assert known.internal.latency_s == pytest.approx(0.0, abs=0.005)
+    assert known.surrogate.latency_s == pytest.approx(0.0, abs=0.005)
+    assert known.internal.judgement.latency_judged and known.passed
+
+
+def causes(pair) -> str:
+    return "; ".join(pair.judgement.causes)
+
+
+def test_a_surrogate_at_rest_fails(tmp_path):
+    t = camera_clock()
+    still = OFFSETS_MM[1] + np.random.default_rng(4).normal(0.0, NOISE_MM, len(t))
+    pair = judge(*pair_files(tmp_path, surrogate=still))
+    assert not pair.judgement.passed and not pair.judgement.meaningful
+    assert "the surrogate did not move" in causes(pair)
+    assert "of no meaning" in pair.judgement.line
+    assert not pair.surrogate.judgement.passed and not pair.passed
+
+
+def test_an_internal_platform_at_rest_fails_naming_it_alone(tmp_path):
+    t = camera_clock()
+    still = OFFSETS_MM[0] + np.random.default_rng(4).normal(0.0, NOISE_MM, len(t))
+    pair = judge(*pair_files(tmp_path, internal=still))
+    assert not pair.judgement.passed and not pair.judgement.meaningful
+    # The surrogate, judged on its own clock since the internal's means nothing, follows.
+    assert causes(pair).startswith("the internal target did not move"), causes(pair)
+    assert "the surrogate" not in causes(pair)
+    assert pair.surrogate.judgement.passed and not pair.internal.judgement.passed
+
+
+def test_a_reversed_surrogate_fails(tmp_path):
+    t = camera_clock()
+    flipped = seen(1, SURROGATE, t, DELAY_S, sign=-1.0, offset_mm=OFFSETS_MM[1], seed=2)
+    pair = judge(*pair_files(tmp_path, surrogate=flipped))
+    assert not pair.judgement.passed
+    assert "the surrogate runs the wrong way on X" in causes(pair)
+
+
+@pytest.mark.parametrize(
+    "late, expected, words",
+    [
+        ("surrogate", -0.3, "the surrogate late against the internal target"),
+        ("internal", +0.3, "the internal target late against the surrogate"),
+    ],
+)
+def test_a_platform_late_by_0_3_s_fails_naming_which(tmp_path, late, expected, words):
+    t = camera_clock()
+    if late == "surrogate":
+        files = pair_files(
+            tmp_path, surrogate=seen(1, SURROGATE, t, DELAY_S + 0.3, offset_mm=OFFSETS_MM[1])
+        )
+    else:
+        files = pair_files(
+            tmp_path, internal=seen(3, TRACE, t, DELAY_S + 0.3, offset_mm=OFFSETS_MM[0])
+        )
+    pair = judge(*files)
+    assert pair.relative_latency_s == pytest.approx(expected, abs=0.005)
+    assert not pair.judgement.passed and pair.judgement.meaningful
+    assert f"beyond --max-relative-latency 100 ms: {words}" in causes(pair)
+    # Each motion alone follows its reference: verify alone, clocks unknown, passes both.
+    assert pair.internal.judgement.passed and pair.surrogate.judgement.passed
+    # Within a wider bound it passes.
+    assert judge(*files, max_relative_latency_s=0.35).judgement.passed
+
+
+def test_a_relative_latency_beyond_the_search_is_at_least_its_edge(tmp_path):
+    t = camera_clock()
+    late = seen(1, SURROGATE, t, DELAY_S + 2.5, offset_mm=OFFSETS_MM[1])
+    pair = judge(*pair_files(tmp_path, surrogate=late))
+    # 2.5 s is more than half a breath: only "at least" the edge is known, and a breath earlier
+    # may be nearer than the true one (the edge's sign is not asserted).
+    assert not pair.judgement.passed and pair.judgement.at_edge
+    assert RELATIVE_SEARCH_S - 0.05 <= abs(pair.relative_latency_s) <= RELATIVE_SEARCH_S
+    assert "relative latency at least" in causes(pair)
+    assert "(at the edge of the relative latencies searched)" in causes(pair)
+    # On its own the surrogate finds its own clock, 2.5 s later than the internal's.
+    assert -pair.surrogate.shift_s == pytest.approx(DELAY_S + 2.5, abs=0.005)
+    assert "matches its reference best" in pair.notes[0]
+
+
+def test_swapped_files_fail_as_swapped(tmp_path):
+    internal, surrogate = pair_files(tmp_path)
+    pair = judge(surrogate, internal)
+    assert not pair.judgement.passed
+    assert causes(pair).startswith("the two measurements swapped: depth_surrogate.csv comes")
+    # The right files are not taken for swapped.
+    assert judge(internal, surrogate).judgement.causes == []
+
+
+def test_another_motion_on_the_surrogate_fails(tmp_path):
+    t = camera_clock()
+    other = (
+        OFFSETS_MM[1]
+        + 2.0 * np.sin(2 * np.pi * t / 5.3)
+        + np.random.default_rng(6).normal(0.0, NOISE_MM, len(t))
+    )
+    pair = judge(*pair_files(tmp_path, surrogate=other))
+    assert not pair.judgement.passed and not pair.judgement.meaningful
+    text = causes(pair)
+    assert "the surrogate does not follow its reference on X" in text or (
+        "the surrogate repeats every" in text
+    ), text
+
+
+def test_two_measurements_that_do_not_overlap_are_refused(tmp_path):
+    internal, _ = pair_files(tmp_path)
+    t = camera_clock() + 1000.0
+    later = write_depth(tmp_path / "later.csv", t, seen(1, SURROGATE, t - 1000.0, DELAY_S))
+    with pytest.raises(InvalidConfigError, match="they do not overlap, so they are not on one"):
+        judge(internal, later)
+    with pytest.raises(InvalidConfigError, match="must be a positive number"):
+        judge(*pair_files(tmp_path), max_relative_latency_s=0.0)
+
+
+def run(tmp_path, internal, surrogate, *options):
+    """``verify trace.txt --surrogate surrogate.txt`` in process: (exit code, the pair's JSON)."""
+    out = tmp_path / "out"
+    argv = ["verify", str(TRACE), "--surrogate", str(SURROGATE), "--measured", str(internal)]
+    argv += ["--measured-map", "depth=AP", "--measured-surrogate", str(surrogate)]
+    argv += ["--measured-surrogate-map", "depth=SI", "--tolerance", "1mm,1deg"]
+    code = main(argv + ["--out", str(out), *options])
+    found = sorted(out.glob("verify_*_pair.json"))
+    return code, (json.loads(found[0].read_text()) if found else None)
+
+
+def test_the_command_reports_both_fidelities_and_the_relative_latency(tmp_path, capsys):
+    t = camera_clock()
+    internal, surrogate = pair_files(
+        tmp_path, internal=seen(3, TRACE, t, DELAY_S + 0.05, offset_mm=OFFSETS_MM[0], seed=1)
+    )
+    code, figures = run(tmp_path, internal, surrogate)
+    out = capsys.readouterr().out.splitlines()
+    assert code == 0, out
+    assert out[0].startswith("PASS: depth_internal.csv (Z; each axis's offset removed) against")
+    assert out[1].startswith("PASS: depth_surrogate.csv (X; each axis's offset removed) against")
+    assert out[2].startswith("PASS: depth_internal.csv (internal) against depth_surrogate.csv")
+    assert figures["relative_latency_s"] == pytest.approx(0.05, abs=0.005)
+    assert figures["relative"]["max_relative_latency_s"] == MAX_RELATIVE_LATENCY_S
+    assert figures["definition"].startswith("relative latency = the internal target's latency")
+    assert {p.name for p in (tmp_path / "out").iterdir()} == {
+        f"verify_{stem}.{suffix}"
+        for stem in ("trace_depth_internal", "surrogate_depth_surrogate")
+        for suffix in ("md", "png", "json")
+    } | {"verify_trace_pair.md", "verify_trace_pair.json"}
+
+
+def test_the_command_fails_a_relative_latency_beyond_its_bound(tmp_path):
+    """A 50 ms lag fails a bound of 30 ms: exit 2, the cause in the line."""
+    t = camera_clock()
+    internal, surrogate = pair_files(
+        tmp_path, internal=seen(3, TRACE, t, DELAY_S + 0.05, offset_mm=OFFSETS_MM[0], seed=1)
+    )
+    code, figures = run(tmp_path, internal, surrogate, "--max-relative-latency", "0.03")
+    assert code == 2 and figures["relative"]["passed"] is False
+    assert "beyond --max-relative-latency 30 ms" in figures["relative"]["line"]
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (["--measured-surrogate", "X.csv"], "--measured-surrogate judges the motion with its "),
+        (["--surrogate", "S.txt"], "--surrogate judges the motion with its surrogate: give"),
+        (["--max-relative-latency", "0"], "argument --max-relative-latency: must be > 0, got 0"),
+    ],
+)
+def test_options_refused_in_one_line(tmp_path, capsys, options, words):
+    internal, _ = pair_files(tmp_path)
+    try:
+        code = main(["verify", str(TRACE), "--measured", str(internal), *options])
+    except SystemExit as stop:  # argparse's own refusal of a value
+        code = stop.code
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and words in err, err
