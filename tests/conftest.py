@@ -108,6 +108,7 @@ needs_torch = needs_extra("train")
 #: study): the `loop` tier. Every other test not marked `system` or `slow` is a `unit` test.
 LOOP_MODULES = {
     "test_accuracy",
+    "test_surrogate_loop",
     "test_closed_loop",
     "test_design_confirm",
     "test_distributed",

@@ -809,7 +809,15 @@ def test_an_output_that_is_one_of_the_command_s_inputs_is_refused(home, argv, ou
 
 
 #: Options whose help speaks of files without naming one, and the folders commands write.
-_NOT_FILES = {"duration", "columns", "measured_columns", "clock_offset"}
+_NOT_FILES = {
+    "duration",
+    "columns",
+    "measured_columns",
+    "clock_offset",
+    "surrogate_columns",
+    "surrogate_map",
+    "measured_surrogate_columns",
+}
 _FOLDERS_WRITTEN = {"out", "docs", "bus", "folder"}  # folder: where `examples` copies them
 
 

@@ -140,7 +140,8 @@ OUTPUT_FILE_OPTIONS = {
 def _input_path(dest: str, value) -> Path | None:
     """The file an input option's ``value`` names, or None when it names none: a shipped
     scenario's name is its file, ``--learned library`` the shipped model, and a motion or a
-    reference that is a name of the library (no suffix, no folder) no file."""
+    reference that is a name of the library (no suffix, no folder) no file, nor ``--surrogate
+    model``."""
     if value is None or not str(value).strip():
         return None
     path = Path(str(value))
@@ -149,6 +150,8 @@ def _input_path(dest: str, value) -> Path | None:
 
         return shipped_scenarios().get(str(value))
     if dest in ("motion", "reference") and not is_trace_file(str(value)):
+        return None
+    if dest == "surrogate" and str(value) == "model":  # a correlation model, no file
         return None
     if dest == "learned" and str(value) == "library":
         from ..control.feedforward_basis import LIBRARY_MODEL

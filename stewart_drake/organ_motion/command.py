@@ -52,6 +52,7 @@ def _add_reproduce_command(sub) -> None:
     _add_learning_arguments(rp)
     _add_measurement_arguments(rp)
     _add_stream_arguments(rp)
+    _add_surrogate_arguments(rp)
     rp.add_argument("--out", default="results/reproduce", help="report folder")
     rp.add_argument(
         "--html",
@@ -136,6 +137,114 @@ def _add_stream_arguments(rp) -> None:
     )
 
 
+def _add_surrogate_arguments(rp) -> None:
+    """``reproduce --surrogate``: an external surrogate's stage beside the platform, following a
+    recorded signal or one made from the motion by a correlation model (docs/surrogate.md)."""
+    rp.add_argument(
+        "--surrogate",
+        default=None,
+        metavar="EXTERNAL",
+        help="also move an external surrogate beside the platform, on the same clock: a "
+        "recorded file (IntERAct's 2-column Resp/ format, or a header naming its column), or "
+        "'model' for the motion through a correlation model (--surrogate-param); the report "
+        "adds the surrogate's fidelity, the pair's relative latency and its lead, hysteresis "
+        "and correlation as reproduced against as asked (default: none)",
+    )
+    rp.add_argument(
+        "--surrogate-param",
+        nargs="*",
+        default=None,
+        metavar="KEY=VALUE",
+        help="with --surrogate model: ratio=0.8 lead=0.3s drift=2mm/min change_at=20s "
+        "lead_after=-0.2s ratio_after=1.2 blend=1s",
+    )
+    rp.add_argument(
+        "--surrogate-columns",
+        default="",
+        metavar="COLUMNS",
+        help="the recorded file's columns when it has no header or holds the internal too: "
+        "the others named '-', the external's by the axis it moves, e.g. 't [s], -, SI [mm]' "
+        "(default: its own)",
+    )
+    rp.add_argument(
+        "--surrogate-latency",
+        type=positive_float,
+        default=0.01,
+        metavar="S",
+        help="largest relative latency allowed between platform and surrogate, s "
+        "(default: 0.01, one period of the servo bus)",
+    )
+
+
+def with_surrogate(args, scenario):
+    """``scenario`` with the surrogate ``--surrogate`` asks for (unchanged without it),
+    validated before any run.
+
+    Raises:
+        InvalidConfigError: --surrogate-param without ``--surrogate model`` or a bad model
+            (:func:`~stewart_drake.station.surrogate.report.correlation_model`);
+            MissingFileError: no such file.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..station.surrogate.axis import SurrogateAxis
+    from ..station.surrogate.report import correlation_model
+
+    if args.surrogate is None:
+        if args.surrogate_param or args.surrogate_columns:
+            raise InvalidConfigError("--surrogate-param and --surrogate-columns need --surrogate")
+        return scenario
+    if args.surrogate == "model":
+        axis = SurrogateAxis(correlation=correlation_model(args.surrogate_param))
+    else:
+        if args.surrogate_param:
+            raise InvalidConfigError(
+                "--surrogate-param sets a correlation model: give --surrogate model"
+            )
+        axis = SurrogateAxis(trace=args.surrogate, columns=args.surrogate_columns)
+    base = scenario.surrogate
+    if base is not None:  # the scenario's own stage, with this signal
+        axis.stage = base.stage
+    return replace(scenario, surrogate=axis).validate()
+
+
+def _surrogate_verdict(args, rep, name: str, out: Path, tolerance) -> bool:
+    """Print and write (``reproduce_<name>_surrogate.json``) the pair's figures
+    (:func:`~stewart_drake.station.surrogate.report.pair_report`); True when the surrogate is
+    within the length tolerance of its signal and the relative latency within
+    ``--surrogate-latency``."""
+    import json
+
+    import numpy as np
+
+    from ..base.fileio import atomic_write
+    from ..station.surrogate.report import pair_report, report_lines
+
+    result, axis = rep.result, rep.plan.scenario.surrogate
+    t = np.asarray(result.t, float)
+    signal = axis.signal(rep.reference, rep.plan.duration_s)
+    s = result.surrogate
+    split = axis.correlation.change_at_s if not axis.trace else None
+    fig = pair_report(
+        t, result.x, result.x_d, s[:, 0], signal.evaluate(t)[0], rep.fidelity["window_s"], split
+    )
+    for line in report_lines(fig):
+        print(line)
+    latency = fig["latency"]["relative_latency_s"]
+    ok = fig["external_rms_m"] <= tolerance[0] and abs(latency) <= args.surrogate_latency
+    fig["passed"] = bool(ok)
+    fig["tolerance_m"], fig["latency_tolerance_s"] = tolerance[0], args.surrogate_latency
+    path = out / f"reproduce_{name}_surrogate.json"
+    text = json.dumps(fig, indent=1).encode()
+    atomic_write(path, lambda f: f.write(text))
+    print(
+        f"surrogate {'PASS' if ok else 'FAIL'}: the stage's carriage against its signal, RMS "
+        f"{fig['external_rms_m'] * 1e6:.3g} um "
+        f"(tolerance {tolerance[0] * 1e6:.3g} um), relative latency {latency * 1e3:+.3g} ms "
+        f"(tolerance {args.surrogate_latency * 1e3:.3g} ms); wrote {path}"
+    )
+    return ok
+
+
 def _add_measurement_arguments(rp) -> None:
     """What ``reproduce`` measures and allows: the cycles, the tolerance, the scaling of a
     motion too large, a trace's length."""
@@ -176,8 +285,13 @@ def _cmd_reproduce(args) -> int:
 
     tolerance = parse_tolerance(args.tolerance)
     scenario, name = motion_scenario(args)
+    scenario = with_surrogate(args, scenario)
     out = Path(args.out)
     if args.stream is not None or args.stream_rate is not None:
+        if args.surrogate is not None:
+            from ..base.errors import InvalidConfigError
+
+            raise InvalidConfigError("--stream and --surrogate: one at a time")
         return _cmd_stream(args, scenario, name, out, tolerance)
     for suffix in (".md", ".png", ".json"):
         check_replaceable(out / f"reproduce_{name}{suffix}")
@@ -229,6 +343,8 @@ def _cmd_reproduce(args) -> int:
     md, png, js = write_report(rep, out, tolerance)
     ok, line = verdict(fid, tolerance, rep.comparison())
     print(line)
+    if args.surrogate is not None:
+        ok = _surrogate_verdict(args, rep, name, out, tolerance) and ok
     print(f"wrote {md}, {png} and {js}")
     if args.html:  # the run's plant-state log, replayed with the reference's ghost
         from .fidelity_replay import reproduction_html

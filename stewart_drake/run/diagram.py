@@ -39,6 +39,8 @@ from ..station.station import (
     add_tool_disturbance,
     add_white_noise,
 )
+from ..station.surrogate.axis import ExternalSignal
+from ..station.surrogate.stage import SurrogatePorts, add_surrogate_stage
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
 from .result import SignalLog, add_run_logs
@@ -71,6 +73,10 @@ class StewartDiagram:
             ``lcm``; subscribe to it to receive them in process), or None.
         x_initial, x_dot_initial: (6,) where the run starts, the reference's pose and rate at
             t = 0 [rad, m; rad/s, m/s] (a live reference's start pose, at rest).
+        surrogate: the surrogate's stage
+            (:class:`~stewart_drake.station.surrogate.stage.SurrogatePorts`) with the
+            scenario's ``surrogate``, or None; surrogate_signal: the
+            :class:`~stewart_drake.station.surrogate.axis.ExternalSignal` it follows, or None.
     """
 
     diagram: Diagram
@@ -90,6 +96,8 @@ class StewartDiagram:
     lcm: Any = None  # the DrakeLcm of the scenario's ``lcm``, or None
     x_initial: np.ndarray | None = None
     x_dot_initial: np.ndarray | None = None
+    surrogate: SurrogatePorts | None = None
+    surrogate_signal: ExternalSignal | None = None
 
     @property
     def scenario(self) -> Scenario:
@@ -131,6 +139,8 @@ class StewartDiagram:
             )
         for logger in self.loggers.values():  # the logs drain from this run's Context
             logger.log.bind(root_context)
+        if self.surrogate is not None:
+            self.surrogate.initialize(root_context)
         hw = self.scenario.hardware
         self.station.initialize(
             root_context, self.T_ff_initial, seed=hw.encoders.seed if hw is not None else 0
@@ -253,6 +263,7 @@ def build_diagram(
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
+    surrogate, signal = _add_surrogate(builder, plan, trajectory, meshcat, loggers)
     guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
     if scenario.lcm is not None:
         from ..station.lcm_publish import add_run_publishers
@@ -279,7 +290,57 @@ def build_diagram(
         lcm=lcm,
         x_initial=ref.x0,
         x_dot_initial=ref.x_dot0,
+        surrogate=surrogate,
+        surrogate_signal=signal,
     )
+
+
+def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict):
+    """With the scenario's ``surrogate``, its stage beside the platform on the same clock: the
+    external signal made once from the run's reference (recorded, or through the correlation
+    model), sampled at the controller's instants (the platform's period and offset), the stage
+    added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`) and logged as
+    "surrogate" (5: [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], float64, every log period).
+    Returns (the stage's ports or None, the signal or None).
+
+    Raises:
+        InvalidConfigError: a live reference (no motion known in advance to correlate with), a
+            signal the stage cannot follow (:meth:`~stewart_drake.station.surrogate.stage.
+            SurrogateStage.check_signal`).
+    """
+    axis = plan.scenario.surrogate
+    if axis is None:
+        return None, None
+    if trajectory is None:
+        raise InvalidConfigError(
+            "the surrogate follows a signal known in advance; a live reference has none: set "
+            "surrogate: null"
+        )
+    h, offset, duration = plan.control_period_s, plan.sample_offset_s, plan.duration_s
+    signal = axis.signal(trajectory, duration)
+    samples = axis.samples(signal, duration, h, offset)
+    ports = add_surrogate_stage(
+        builder, axis.stage, samples, h, offset, plan.plant_time_step_s, meshcat
+    )
+    log = SignalLog.add(
+        builder,
+        "log_surrogate",
+        {"surrogate": (_concatenated(builder, ports), np.float64)},
+        plan.log_period_s,
+        duration,
+    )
+    loggers["surrogate"] = log.logger("surrogate")
+    return ports, signal
+
+
+def _concatenated(builder, ports: SurrogatePorts) -> OutputPort:
+    """[state (2,), goal (3,)] of the stage as one port."""
+    from pydrake.systems.primitives import Multiplexer
+
+    mux = builder.AddNamedSystem("surrogate_log_mux", Multiplexer([2, 3]))
+    builder.Connect(ports.state, mux.get_input_port(0))
+    builder.Connect(ports.goal, mux.get_input_port(1))
+    return mux.get_output_port()
 
 
 def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:

@@ -275,6 +275,9 @@ class RunResult:
             (a period after the loggers' last, which misses a cycle's last update), or None.
             learned: (p, 6) a feed-forward learner's weights at the end, or None. Neither is
             saved (:func:`save_result`).
+        surrogate: (N, 5) the surrogate's stage at ``t`` with the scenario's ``surrogate``:
+            [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], the carriage and the goal it was given
+            (docs/surrogate.md), or None. Not saved.
     """
 
     t: np.ndarray
@@ -295,6 +298,7 @@ class RunResult:
     state: np.ndarray | None = None
     learner_status: np.ndarray | None = None
     learned: np.ndarray | None = None
+    surrogate: np.ndarray | None = None
 
     def __post_init__(self):
         if self.t_state is None:
@@ -383,6 +387,7 @@ def read_run(sd, root_context) -> RunLogs:
         config_summary=config_summary(sd),
         t_state=logs["state"].sample_times(),
         state=state,
+        surrogate=logs["surrogate"].data().T if "surrogate" in logs else None,
     )
     if getattr(sd, "learner", None) is not None:
         result.learner_status, result.learned = _learner_record(sd, root_context)

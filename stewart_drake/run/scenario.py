@@ -67,6 +67,7 @@ from ..station.guard import GuardConfig
 from ..station.hardware import Hardware
 from ..station.lcm_publish import LcmConfig
 from ..station.station import SensorNoise, ToolDisturbance
+from ..station.surrogate.axis import SurrogateAxis
 from .drake_configs import MIN_REALTIME_RATE as MIN_REALTIME_RATE  # re-exported: live
 from .drake_configs import validate_plant_config, validate_simulator_config
 
@@ -214,6 +215,9 @@ class Scenario:
         learning: None, :class:`IlcDriver` or :class:`FeedforwardTuning`.
         bus: None, or the real robot's servos (:class:`DynamixelBusConfig`).
         lcm: None, or LCM channels for status and commands (:class:`LcmConfig`).
+        surrogate: None, or the external surrogate's stage beside the platform and the signal
+            it follows (:class:`~stewart_drake.station.surrogate.axis.SurrogateAxis`,
+            docs/surrogate.md).
     Raises:
         InvalidConfigError: (``validate``, by every builder and at construction) a field out
             of range, a period not a whole multiple of the one it runs on, a wrong type; named
@@ -249,6 +253,7 @@ class Scenario:
     learning: LearningChoice | None = None
     bus: DynamixelBusConfig | None = None
     lcm: LcmConfig | None = None
+    surrogate: SurrogateAxis | None = None
 
     def __post_init__(self):
         self.validate()
@@ -315,6 +320,8 @@ class Scenario:
             0 if self.hardware is None else self.hardware.computation_delay_periods,
         )
         self.reference.validate()
+        if self.surrogate is not None:
+            self.surrogate.validate(self.control_period_s)
         if self.feedforward not in FEEDFORWARD_MODES:
             raise InvalidConfigError(
                 f"feedforward must be one of {FEEDFORWARD_MODES}, got {self.feedforward!r}"
@@ -375,6 +382,7 @@ class Scenario:
         "learning": (type(None),) + _choices(LearningChoice),
         "bus": (type(None), DynamixelBusConfig),
         "lcm": (type(None), LcmConfig),
+        "surrogate": (type(None), SurrogateAxis),
     }
 
     def _validate_types(self) -> None:

@@ -1,0 +1,333 @@
+"""The external surrogate's stage: a 1-DoF linear axis (a servo driving a toothed belt) with its own
+controller, as Drake systems in the platform's Diagram and on its clock.
+
+:class:`SurrogateStage` is the scenario's section: travel, speed, force and resolution, with
+defaults from a catalogue part (:data:`DEFAULT_MOTOR`, a ROBOTIS Dynamixel XM430-W350-T from
+:mod:`~stewart_drake.robot.motor_catalogue`, on a GT2 belt over a 40-tooth pulley: 80 mm of
+travel per turn of the horn). :func:`add_surrogate_stage` adds the axis to a ``DiagramBuilder``
+from Drake's own systems only (no Python on the per-step path):
+
+    goal table (TrajectorySource, zero-order hold of the goals, each rounded to the resolution)
+      -> PD + feed-forward (MatrixGain on [p_d, v_d, a_d, p, v]) -> Saturation (+-force_N)
+      -> ZeroOrderHold (the control period, at the platform controller's sample offset)
+      -> carriage (discrete LinearSystem at the plant's time step: moving mass and viscous
+         friction, exact zero-order-hold discretisation)
+
+Not modelled: the servo's Coulomb friction and its torque-speed line (the speed is checked
+before the run instead, :meth:`SurrogateStage.check_signal`); docs/surrogate.md says why.
+"""
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from pydrake.geometry import Box, Rgba
+from pydrake.math import RigidTransform
+from pydrake.systems.framework import LeafSystem
+from pydrake.systems.primitives import (
+    LinearSystem,
+    MatrixGain,
+    Multiplexer,
+    Saturation,
+    TrajectorySource,
+    ZeroOrderHold,
+)
+from pydrake.trajectories import PiecewisePolynomial
+
+from ...base.checks import as_number
+from ...base.errors import InvalidConfigError
+from ...robot.motor_catalogue import catalogue_motor
+
+#: The servo of the default stage (docs/motor_catalogue.md gives its datasheet's figures).
+DEFAULT_MOTOR = "XM430-W350-T"
+#: GT2 timing belt's tooth pitch, m (Gates' 2 mm GT profile).
+GT2_PITCH_M = 2e-3
+#: Teeth of the default pulley: 40 x 2 mm = 80 mm of belt per turn, so that the XM430-W350's
+#: 46 rpm give 61 mm/s, above the fastest of IntERAct's respiratory traces (57 mm/s, LIGHT SABR
+#: "1.Mean_Motion_resp").
+PULLEY_TEETH = 40
+#: Belt drive's efficiency: not published for this part; toothed belts are quoted at 0.9-0.98,
+#: the low end taken (estimate).
+BELT_EFFICIENCY = 0.9
+#: Travel of the default stage, m: IntERAct's respiratory traces span at most 55 mm.
+DEFAULT_TRAVEL_M = 0.1
+#: The carriage and the surrogate block on it, kg (estimate: a 3D-printed block on a carriage).
+DEFAULT_CARRIAGE_KG = 0.3
+
+
+def _lead_m(teeth: int = PULLEY_TEETH) -> float:
+    return teeth * GT2_PITCH_M
+
+
+def default_speed_m_s(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
+    """The motor's no-load speed at the belt, m/s."""
+    return catalogue_motor(motor).servo.no_load_speed_rad_s * lead_m / (2 * math.pi)
+
+
+def default_force_N(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
+    """The motor's continuous torque at the belt through :data:`BELT_EFFICIENCY`, N."""
+    m = catalogue_motor(motor)
+    return m.continuous_torque_Nm * 2 * math.pi / lead_m * BELT_EFFICIENCY
+
+
+def default_resolution_m(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
+    """One count of the servo's encoder at the belt, m."""
+    return lead_m / catalogue_motor(motor).encoder_counts_per_rev
+
+
+@dataclass
+class SurrogateStage:
+    """The surrogate's linear stage, a scenario section (``surrogate.stage``); SI units.
+
+    Defaults: a Dynamixel XM430-W350-T (:data:`DEFAULT_MOTOR`) on a GT2 belt over a 40-tooth
+    pulley (``lead_m`` = 0.08 m of travel per turn): 61 mm/s, 116 N continuous, 19.5 um a count.
+
+    Attributes:
+        motor: the servo, a key of :data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`
+            (its reflected rotor inertia and viscous friction make the moving mass and damping).
+        lead_m: travel per turn of the servo's horn, m.
+        travel_m: the stage's whole stroke, m; the signal must stay within +-travel_m / 2 of
+            the stroke's middle.
+        speed_m_s: the fastest the carriage may be asked to move, m/s.
+        force_N: the force the controller may command, N (saturated there).
+        resolution_m: the goal positions' step, m (the servo's goal is a whole count).
+        carriage_mass_kg: the carriage and the surrogate block, kg.
+        bandwidth_hz: the position loop's natural frequency, Hz.
+        damping_ratio: the position loop's damping ratio.
+    """
+
+    motor: str = DEFAULT_MOTOR
+    lead_m: float = _lead_m()
+    travel_m: float = DEFAULT_TRAVEL_M
+    speed_m_s: float = default_speed_m_s()
+    force_N: float = default_force_N()
+    resolution_m: float = default_resolution_m()
+    carriage_mass_kg: float = DEFAULT_CARRIAGE_KG
+    bandwidth_hz: float = 8.0
+    damping_ratio: float = 1.0
+
+    def validate(self, control_period_s: float | None = None) -> "SurrogateStage":
+        """Check every field; with ``control_period_s`` (s), that the sampled loop is stable.
+
+        Raises:
+            InvalidConfigError: a field out of range (named ``surrogate.stage.<field>``), an
+                unknown motor, or a loop that the control period makes unstable (its spectral
+                radius named, with the bandwidth to lower).
+        """
+        catalogue_motor(self.motor)
+        p = "surrogate.stage."
+        as_number(p + "lead_m", self.lead_m, 1e-4, 1.0, lo_open=True)
+        as_number(p + "travel_m", self.travel_m, 0.0, 2.0, lo_open=True)
+        as_number(p + "speed_m_s", self.speed_m_s, 0.0, 10.0, lo_open=True)
+        as_number(p + "force_N", self.force_N, 0.0, 1e5, lo_open=True)
+        as_number(p + "resolution_m", self.resolution_m, 0.0, 1e-2)
+        as_number(p + "carriage_mass_kg", self.carriage_mass_kg, 0.0, 100.0)
+        as_number(p + "bandwidth_hz", self.bandwidth_hz, 0.0, 200.0, lo_open=True)
+        as_number(p + "damping_ratio", self.damping_ratio, 0.1, 5.0)
+        if control_period_s is not None:
+            rho = self.spectral_radius(control_period_s)
+            if rho >= 0.999:
+                raise InvalidConfigError(
+                    f"surrogate.stage.bandwidth_hz: {self.bandwidth_hz:g} Hz sampled every "
+                    f"{control_period_s * 1e3:g} ms gives a loop of spectral radius {rho:.3f} "
+                    "(unstable): lower the bandwidth"
+                )
+        return self
+
+    # -- the axis's physics --------------------------------------------------------------------
+    def moving_mass_kg(self) -> float:
+        """The carriage plus the servo's rotor inertia reflected through its gearhead and the
+        belt, kg: m = m_c + J_rotor N^2 (2 pi / lead)^2."""
+        servo = catalogue_motor(self.motor).servo
+        return self.carriage_mass_kg + servo.rotor_inertia * servo.gear_ratio**2 * self._k2()
+
+    def viscous_N_s_per_m(self) -> float:
+        """The servo's viscous friction at the belt, N s/m: b = b_out (2 pi / lead)^2."""
+        return catalogue_motor(self.motor).servo.viscous_damping * self._k2()
+
+    def _k2(self) -> float:
+        return (2 * math.pi / self.lead_m) ** 2
+
+    def gains(self) -> tuple[float, float]:
+        """(K_p N/m, K_d N s/m) of the PD: m w^2 and 2 zeta m w less the viscous friction
+        (never below 0), w = 2 pi bandwidth_hz."""
+        m, w = self.moving_mass_kg(), 2 * math.pi * self.bandwidth_hz
+        return m * w * w, max(2 * self.damping_ratio * m * w - self.viscous_N_s_per_m(), 0.0)
+
+    def carriage_matrices(self, time_step_s: float) -> tuple[np.ndarray, np.ndarray]:
+        """(A (2, 2), B (2, 1)): the carriage's state [p m, v m/s] one ``time_step_s`` on under a
+        force held constant (N), exact: the matrix exponential of the mass-damper."""
+        from scipy.linalg import expm
+
+        m, b = self.moving_mass_kg(), self.viscous_N_s_per_m()
+        M = np.zeros((3, 3))
+        M[0, 1] = 1.0
+        M[1, 1] = -b / m
+        M[1, 2] = 1.0 / m
+        E = expm(M * time_step_s)
+        return E[:2, :2], E[:2, 2:]
+
+    def feedback_gain(self) -> np.ndarray:
+        """(1, 5) the force's row on [p_d, v_d, a_d, p, v]: feed-forward m a_d + b v_d and the
+        PD K_p (p_d - p) + K_d (v_d - v), N."""
+        kp, kd = self.gains()
+        m, b = self.moving_mass_kg(), self.viscous_N_s_per_m()
+        return np.array([[kp, kd + b, m, -kp, -kd]])
+
+    def spectral_radius(self, control_period_s: float) -> float:
+        """Largest |eigenvalue| of the sampled loop (the PD held for ``control_period_s``, no
+        saturation): below 1 is stable."""
+        A, B = self.carriage_matrices(control_period_s)
+        K = self.feedback_gain()[:, 3:]
+        return float(max(abs(np.linalg.eigvals(A + B @ K))))
+
+    def check_signal(self, t: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray) -> None:
+        """Refuse a signal the stage cannot follow, before any run.
+
+        Args:
+            t: (n,) s. p, v, a: (n,) the surrogate's position about the stroke's middle [m],
+                velocity [m/s] and acceleration [m/s^2].
+        Raises:
+            InvalidConfigError: beyond the travel, the speed, or the force the motion needs
+                (m a + b v) beyond ``force_N``: the first time and the value named.
+        """
+        limits = (
+            ("travel", np.abs(p), self.travel_m / 2, "m", "surrogate.stage.travel_m / 2"),
+            ("speed", np.abs(v), self.speed_m_s, "m/s", "surrogate.stage.speed_m_s"),
+            (
+                "force",
+                np.abs(self.moving_mass_kg() * a + self.viscous_N_s_per_m() * v),
+                self.force_N,
+                "N",
+                "surrogate.stage.force_N",
+            ),
+        )
+        for what, value, limit, unit, field in limits:
+            over = np.flatnonzero(value > limit * (1 + 1e-9))
+            if over.size:
+                k = over[0]
+                raise InvalidConfigError(
+                    f"the surrogate's signal needs a {what} of {value[k]:.4g} {unit} at t = "
+                    f"{t[k]:.3f} s, beyond the stage's {limit:.4g} {unit} ({field}): a larger "
+                    "stage, or scale the signal"
+                )
+
+
+# -- the stage in a Diagram --------------------------------------------------------------------
+
+
+@dataclass
+class SurrogatePorts:
+    """The stage's systems in a Diagram (:func:`add_surrogate_stage`).
+
+    Attributes:
+        state: output port (2,) [p m, v m/s], the carriage about the stroke's middle.
+        goal: output port (3,) [p_d m, v_d m/s, a_d m/s^2], the goal the controller holds.
+        carriage: the carriage's ``LinearSystem`` (its discrete state is [p, v]).
+        x0: (2,) where the carriage starts, [m, m/s] (:meth:`initialize`).
+    """
+
+    state: Any  # OutputPort
+    goal: Any  # OutputPort
+    carriage: Any  # LinearSystem
+    x0: np.ndarray
+
+    def initialize(self, root_context) -> None:
+        """Start the carriage at its first goal, moving with it."""
+        ctx = self.carriage.GetMyMutableContextFromRoot(root_context)
+        ctx.SetDiscreteState(self.x0)
+
+
+def goal_table(
+    stage: SurrogateStage, t: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray
+) -> np.ndarray:
+    """(3, n) the goals [p_d rounded to ``resolution_m``, v_d, a_d] at the sample times ``t``."""
+    q = stage.resolution_m
+    p_q = np.round(p / q) * q if q > 0 else np.asarray(p, float)
+    return np.vstack([p_q, v, a])
+
+
+def add_surrogate_stage(
+    builder,
+    stage: SurrogateStage,
+    samples: tuple,
+    period_s: float,
+    offset_s: float,
+    time_step_s: float,
+    meshcat=None,
+) -> SurrogatePorts:
+    """Add the stage and its controller to ``builder`` (module docstring: Drake's systems only).
+
+    Args:
+        builder: the ``DiagramBuilder`` of the run.
+        stage: the validated :class:`SurrogateStage`.
+        samples: (t (n,), p (n,), v (n,), a (n,)) the signal at the controller's sample instants
+            [s, m, m/s, m/s^2], checked (:meth:`SurrogateStage.check_signal`).
+        period_s: the control period, s (the platform's). offset_s: its sample offset, s.
+        time_step_s: the plant's time step, s (the carriage's discrete step).
+        meshcat: optional Meshcat: a box drawn at the carriage (:class:`SurrogateBox`).
+    Returns:
+        :class:`SurrogatePorts`.
+    """
+    t, p, v, a = (np.asarray(s, float) for s in samples)
+    goals = goal_table(stage, t, p, v, a)
+    breaks = t.copy()
+    breaks[0] = min(breaks[0], 0.0)  # the table holds its first goal from t = 0
+    table = PiecewisePolynomial.ZeroOrderHold(breaks, goals)
+    goal = builder.AddNamedSystem("surrogate_goal", TrajectorySource(table))
+    A, B = stage.carriage_matrices(time_step_s)
+    carriage = builder.AddNamedSystem(
+        "surrogate_carriage", LinearSystem(A, B, np.eye(2), np.zeros((2, 1)), time_step_s)
+    )
+    mux = builder.AddNamedSystem("surrogate_mux", Multiplexer([3, 2]))
+    law = builder.AddNamedSystem("surrogate_pd", MatrixGain(stage.feedback_gain()))
+    force = np.array([stage.force_N])
+    sat = builder.AddNamedSystem("surrogate_force_limit", Saturation(-force, force))
+    hold = builder.AddNamedSystem("surrogate_hold", ZeroOrderHold(period_s, 1, offset_s))
+    builder.Connect(goal.get_output_port(), mux.get_input_port(0))
+    builder.Connect(carriage.get_output_port(), mux.get_input_port(1))
+    builder.Connect(mux.get_output_port(), law.get_input_port())
+    builder.Connect(law.get_output_port(), sat.get_input_port())
+    builder.Connect(sat.get_output_port(), hold.get_input_port())
+    builder.Connect(hold.get_output_port(), carriage.get_input_port())
+    if meshcat is not None:
+        box = builder.AddNamedSystem("surrogate_box", SurrogateBox(meshcat, stage))
+        builder.Connect(carriage.get_output_port(), box.get_input_port())
+    return SurrogatePorts(
+        state=carriage.get_output_port(),
+        goal=goal.get_output_port(),
+        carriage=carriage,
+        x0=np.array([goals[0, 0], v[0]]),
+    )
+
+
+#: Where the stroke's middle is drawn, m in the world: beside the platform, at its height.
+BOX_ORIGIN_M = (0.0, 0.3, 0.15)
+
+
+class SurrogateBox(LeafSystem):
+    """The surrogate in Meshcat: a box at the carriage, moving along the world's z (the chest's
+    rise) about :data:`BOX_ORIGIN_M`, its stroke drawn as a thin rail; 30 frames a second.
+
+    Input port: ``state`` (2,) [p m, v m/s].
+    """
+
+    def __init__(self, meshcat, stage: SurrogateStage, period_s: float = 1 / 30):
+        super().__init__()
+        self._meshcat = meshcat
+        self.DeclareVectorInputPort("state", 2)
+        meshcat.SetObject("surrogate/box", Box(0.06, 0.06, 0.03), Rgba(0.9, 0.5, 0.1, 1))
+        meshcat.SetObject(
+            "surrogate/rail", Box(0.01, 0.01, stage.travel_m), Rgba(0.5, 0.5, 0.5, 0.6)
+        )
+        self._origin = np.array(BOX_ORIGIN_M)
+        self._SetAt("surrogate/rail", 0.0)
+        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._Draw)
+
+    def _SetAt(self, path: str, z: float) -> None:
+        self._meshcat.SetTransform(path, RigidTransform(self._origin + [0.0, 0.0, z]))
+
+    def _Draw(self, context) -> None:
+        state = np.asarray(self.get_input_port().Eval(context))
+        self._SetAt("surrogate/box", float(state[0]))

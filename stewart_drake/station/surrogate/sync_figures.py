@@ -1,0 +1,237 @@
+"""The figures of an internal-external pair, defined once: each signal's delay behind what it was
+asked, their relative latency, and the pair's relationship (lead, hysteresis loop, correlation,
+amplitude ratio, baseline drift).
+
+Sign conventions (docs/surrogate.md, "Reading the relative latency"):
+
+- a **delay** d > 0: the measured signal comes d after the commanded one (measured(t) ~
+  commanded(t - d)).
+- the **relative latency** = d_internal - d_external: > 0, the internal target arrives late
+  against the surrogate (the surrogate early), so the pair's reproduced lead of the external is
+  the asked lead plus the relative latency. The sign is IntERAct's (``RMSEAlignMethod.m``:
+  ``latency = shift6D - shift1D``) and ``verify --surrogate``'s
+  (:mod:`stewart_drake.surrogate.relative_latency`).
+- a **lead** > 0: the external reaches each phase of the breath before the internal does
+  (external(t) ~ k internal(t + lead)).
+- the **hysteresis area** > 0: the loop in the (internal, external) plane runs clockwise, as it
+  does when the external leads; per cycle, m^2 (a sine pair of amplitudes A_i, A_e and phase
+  lead phi encloses pi A_i A_e sin phi).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...base.errors import InvalidConfigError
+
+
+def _uniform(t: np.ndarray) -> float:
+    dt = np.diff(t)
+    if t.ndim != 1 or len(t) < 8 or np.any(dt <= 0):
+        raise InvalidConfigError("a pair's figures need at least 8 samples at increasing times")
+    h = float(np.median(dt))
+    if np.max(np.abs(dt - h)) > 1e-6 * max(h, 1e-9) + 1e-9:
+        raise InvalidConfigError("a pair's figures need samples at a uniform step")
+    return h
+
+
+def principal_displacement(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The internal motion along its main direction.
+
+    Args:
+        x: (n, 6) poses [phi, theta, psi rad, X, Y, Z m] or (n, 3) translations, m.
+    Returns:
+        (s (n,) m about its mean, u (3,) the unit direction: the translations' first principal
+        axis, signed so that its largest component is positive).
+    """
+    p = np.asarray(x, float)
+    p = p[:, 3:6] if p.shape[1] == 6 else p
+    c = p - p.mean(axis=0)
+    u = np.linalg.svd(c, full_matrices=False)[2][0]
+    u = u if u[np.argmax(np.abs(u))] > 0 else -u
+    return c @ u, u
+
+
+def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
+    """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
+    makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
+    offset) is removed; ``commanded`` linearly interpolated; searched on the samples' step and
+    refined by a parabola through the least and its neighbours.
+
+    Args:
+        t: (n,) uniform s. commanded, measured: (n,) or (n, k) on ``t``.
+    Raises:
+        InvalidConfigError: too few samples, or not uniform.
+    """
+    t = np.asarray(t, float)
+    h = _uniform(t)
+    c = np.asarray(commanded, float).reshape(len(t), -1)
+    m = np.asarray(measured, float).reshape(len(t), -1)
+    k = max(int(np.ceil(max_s / h)), 1)
+    shifts = np.arange(-k, k + 1) * h
+    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
+    if inner.sum() < 8:
+        raise InvalidConfigError(f"a delay of up to {max_s:g} s needs a longer record")
+
+    def cost(d: float) -> float:
+        shifted = np.column_stack([np.interp(t[inner] - d, t, c[:, j]) for j in range(c.shape[1])])
+        e = m[inner] - shifted
+        e -= e.mean(axis=0)
+        return float(np.mean(e * e))
+
+    costs = np.array([cost(d) for d in shifts])
+    i = int(np.argmin(costs))
+    if 0 < i < len(shifts) - 1:
+        a, b, cc = costs[i - 1], costs[i], costs[i + 1]
+        den = a - 2 * b + cc
+        if den > 0:
+            return float(shifts[i] + 0.5 * h * (a - cc) / den)
+    return float(shifts[i])
+
+
+def relative_latency(
+    t, internal, internal_measured, external, external_measured, max_s: float = 0.5
+) -> dict:
+    """The relative latency of a reproduced pair, the one definition (module docstring).
+
+    Args:
+        t: (n,) uniform s, the one clock of both.
+        internal, internal_measured: (n,) or (n, k) the internal target as commanded and as
+            reproduced (e.g. (n, 3) translations, m).
+        external, external_measured: (n,) the surrogate as commanded and as reproduced, m.
+        max_s: the largest delay searched, s.
+    Returns:
+        {"delay_internal_s", "delay_external_s", "relative_latency_s"} = d_i, d_e, d_i - d_e
+        (:func:`delay_s` each; > 0: the internal late).
+    """
+    d_i = delay_s(t, internal, internal_measured, max_s)
+    d_e = delay_s(t, external, external_measured, max_s)
+    return {"delay_internal_s": d_i, "delay_external_s": d_e, "relative_latency_s": d_i - d_e}
+
+
+def lead_s(t, internal, external, max_s: float = 2.0) -> float:
+    """The external's lead on the internal, s, by normalised cross-correlation: the shift tau in
+    [-max_s, max_s] at which Pearson's correlation of external(t) with internal(t + tau) is
+    greatest in either sense, the smaller in magnitude of its greatest and its least (so that a
+    pair whose axes point opposite ways, a tumour moving inferior as the chest rises, is not read
+    half a breath off); the correlation over a window fixed for every tau (the record less max_s
+    at each end; the internal linearly interpolated), on the samples' step, each extreme refined
+    by a parabola.
+
+    Args:
+        t: (n,) uniform s. internal, external: (n,) m.
+    Raises:
+        InvalidConfigError: too few samples, not uniform, or a record shorter than 2 max_s.
+    """
+    t = np.asarray(t, float)
+    h = _uniform(t)
+    i = np.asarray(internal, float)
+    e = np.asarray(external, float)
+    k = max(int(np.ceil(max_s / h)), 1)
+    inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
+    if inner.sum() < 8:
+        raise InvalidConfigError(f"a lead of up to {max_s:g} s needs a longer record")
+    lags = np.arange(-k, k + 1) * h
+    ei = e[inner] - e[inner].mean()
+    ei /= np.linalg.norm(ei) or 1.0
+
+    def r(tau: float) -> float:
+        x = np.interp(t[inner] + tau, t, i)
+        x -= x.mean()
+        return float(np.dot(ei, x) / (np.linalg.norm(x) or 1.0))
+
+    rs = np.array([r(tau) for tau in lags])
+    return min((_peak(lags, rs, h), _peak(lags, -rs, h)), key=abs)
+
+
+def _peak(lags: np.ndarray, rs: np.ndarray, h: float) -> float:
+    """The lag of the largest of ``rs``, refined by a parabola through it and its neighbours."""
+    n = int(np.argmax(rs))
+    if 0 < n < len(rs) - 1:
+        a, b, c = rs[n - 1], rs[n], rs[n + 1]
+        den = a - 2 * b + c
+        if den < 0:
+            return float(lags[n] + 0.5 * h * (a - c) / den)
+    return float(lags[n])
+
+
+def hysteresis_area(internal, external) -> float:
+    """The area the pair's loop encloses per cycle, m^2, signed (module docstring): the
+    shoelace sum over the whole cycles between the internal's first and last upward crossing
+    of its mean, divided by their number; with one crossing or none, the whole record closed on
+    itself as one cycle (a window of one whole cycle, as ``reproduce --cycles 1`` measures).
+
+    Args:
+        internal, external: (n,) m, sampled together.
+    Raises:
+        InvalidConfigError: the internal never crosses its mean (at rest).
+    """
+    i = np.asarray(internal, float) - np.mean(internal)
+    e = np.asarray(external, float) - np.mean(external)
+    up = np.flatnonzero((i[:-1] < 0) & (i[1:] >= 0))
+    down = np.flatnonzero((i[:-1] >= 0) & (i[1:] < 0))
+    if len(up) + len(down) == 0:
+        raise InvalidConfigError("the hysteresis loop needs a motion that crosses its mean")
+    a, b, cycles = (up[0], up[-1] + 1, len(up) - 1) if len(up) >= 2 else (0, len(i) - 1, 1)
+    x, y = i[a : b + 1], e[a : b + 1]
+    shoelace = 0.5 * float(np.sum(x[:-1] * y[1:] - x[1:] * y[:-1]) + x[-1] * y[0] - x[0] * y[-1])
+    return -shoelace / cycles
+
+
+def correlation(internal, external) -> float:
+    """Pearson's correlation coefficient of the pair at no shift."""
+    return float(np.corrcoef(np.asarray(internal, float), np.asarray(external, float))[0, 1])
+
+
+def amplitude_ratio(internal, external) -> float:
+    """The external's standard deviation over the internal's."""
+    return float(np.std(external) / np.std(internal))
+
+
+def baseline_drift(t, internal, external, lead: float = 0.0) -> float:
+    """The external's drift against the internal, m/s: the coefficient of t in the least-squares
+    fit external(t) = c + k internal(t + lead) + drift t.
+
+    Args:
+        t: (n,) s. internal, external: (n,) m. lead: the external's lead, s (:func:`lead_s`).
+    """
+    t = np.asarray(t, float)
+    shifted = np.interp(t + lead, t, np.asarray(internal, float))
+    keep = (t + lead >= t[0]) & (t + lead <= t[-1])
+    A = np.column_stack([np.ones(keep.sum()), shifted[keep], t[keep] - t[keep].mean()])
+    coef = np.linalg.lstsq(A, np.asarray(external, float)[keep], rcond=None)[0]
+    return float(coef[2])
+
+
+def pair_figures(t, internal, external, split_s: float | None = None, max_lead_s: float = 2.0):
+    """Every relationship figure of a pair, as asked or as reproduced.
+
+    Args:
+        t: (n,) uniform s. internal, external: (n,) m (the internal along its main direction,
+            :func:`principal_displacement`).
+        split_s: where the relationship changes, s: the lead and correlation are also given
+            before and after it ("lead_before_s", "lead_after_s", ...), or None.
+        max_lead_s: the largest lead searched, s (at most a quarter of the record's length).
+    Returns:
+        {"lead_s", "hysteresis_area_m2", "correlation", "amplitude_ratio",
+        "drift_m_per_s"} (and the halves' with ``split_s``).
+    """
+    t = np.asarray(t, float)
+
+    def longest(part: np.ndarray) -> float:  # a quarter of the record at most
+        return min(max_lead_s, 0.25 * float(part[-1] - part[0]))
+
+    lead = lead_s(t, internal, external, longest(t))
+    out = {
+        "lead_s": lead,
+        "hysteresis_area_m2": hysteresis_area(internal, external),
+        "correlation": correlation(internal, external),
+        "amplitude_ratio": amplitude_ratio(internal, external),
+        "drift_m_per_s": baseline_drift(t, internal, external, lead),
+    }
+    if split_s is not None:
+        for name, part in (("before", t < split_s), ("after", t >= split_s)):
+            tp = t[part]
+            out[f"lead_{name}_s"] = lead_s(tp, internal[part], external[part], longest(tp))
+            out[f"correlation_{name}"] = correlation(internal[part], external[part])
+    return out
