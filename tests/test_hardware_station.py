@@ -244,7 +244,8 @@ def test_deadline_misses_are_counted_summarised_and_stop_the_run():
     simulator.AdvanceTo(0.5)
     lines = stream.getvalue().splitlines()
     assert all(line.startswith("deadline misses: ") for line in lines)
-    assert driver.bursts >= 2 and driver.misses >= 4 > driver.bursts
+    # At least the two bursts the stalls make (a loaded machine adds its own, each a burst).
+    assert driver.bursts >= 2 and driver.misses >= 4 and driver.misses >= driver.bursts
     assert len(lines) == int(np.log2(driver.misses)) + 1  # at 1, 2, 4, ...
     assert lines[0].startswith("deadline misses: 1 so far in 1 bursts, of 100 allowed")
     summary = driver.timing_summary()
