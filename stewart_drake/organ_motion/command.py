@@ -121,10 +121,12 @@ def _add_stream_arguments(rp) -> None:
     rp.add_argument(
         "--predictor",
         default="linear",
-        choices=("none", "linear"),
+        choices=("none", "linear", "wlms", "mulin", "kalman"),
         help="with --stream: how the latency is predicted away: linear, adaptive linear "
-        "regression, "
-        "the best measured; none, the samples followed without prediction (default: linear)",
+        "regression, the best measured; wlms, wavelet-based multiscale regression; mulin, "
+        "multi-step linear extrapolation; kalman, a Kalman filter on a breathing model; none, "
+        "the samples followed without prediction (docs/organ_motion.md, \"Following a motion "
+        "live\") (default: linear)",
     )
     rp.add_argument(
         "--stream-rate",
