@@ -99,9 +99,7 @@ def test_wlms_with_a_full_step_is_the_least_squares_fit_of_its_window(window_s, 
     features)."""
     y = _ar2(300)
     dt = 0.04
-    settings = PredictorSettings(
-        wlms_scales=3, wlms_depth=2, wlms_window_s=window_s, wlms_mu=1.0
-    )
+    settings = PredictorSettings(wlms_scales=3, wlms_depth=2, wlms_window_s=window_s, wlms_mu=1.0)
     model = WaveletLMSModel(dt, steps, 2, settings)
     out = np.array([model.update(v) for v in y])
     X = _wlms_features(y, 3, 2)
@@ -459,8 +457,10 @@ def test_uoro_estimates_the_networks_jacobian_without_bias():
     settings = PredictorSettings(rnn_units=3, rnn_history_s=0.2)
     model = RecurrentModel(0.1, 1, 1, settings)
     rng = np.random.default_rng(11)
-    model.Wa, model.Wb, model.b = rng.normal(size=(3, 3)), rng.normal(size=(3, 2)), rng.normal(
-        size=3
+    model.Wa, model.Wb, model.b = (
+        rng.normal(size=(3, 3)),
+        rng.normal(size=(3, 2)),
+        rng.normal(size=3),
     )
     model.rate = 0.0  # no learning: the parameters stay where the Jacobian is taken
     inputs = rng.normal(size=(4, 2))

@@ -59,8 +59,8 @@ from .predictors import HarmonicKalmanModel, MulinModel, RecurrentModel, Wavelet
 
 #: The predictors by name; the first is no prediction.
 PREDICTORS = ("none", "linear", "wlms", "mulin", "kalman", "rnn")
-#: The predictor ``reproduce --stream`` uses unless told (the best measured, docs/organ_motion.md,
-#: "Following a motion live").
+#: The predictor ``reproduce --stream`` uses unless told: the selection study's choice on the
+#: library's motions and IntERAct's traces (docs/organ_motion.md, "Choosing the predictor").
 DEFAULT_PREDICTOR = "linear"
 #: The widening of the motion's range so far that a prediction may reach, a fraction of it.
 ENVELOPE_MARGIN = 0.1
@@ -346,8 +346,8 @@ class OnlinePredictor:
         self._lam_g = float(np.exp(-self.dt / self.settings.gain_s))
         self._sxx = np.zeros((self.K, self.m))
         self._sxy = np.zeros((self.K, self.m))
-        self.gain = np.ones((self.K, self.m)) if not self.settings.shrink else np.zeros(
-            (self.K, self.m)
+        self.gain = (
+            np.ones((self.K, self.m)) if not self.settings.shrink else np.zeros((self.K, self.m))
         )
 
     def update(self, y) -> np.ndarray:

@@ -215,8 +215,8 @@ class HarmonicKalmanModel:
     and phase; the sample y = c + sum_h p_h + noise. The prediction k samples ahead is
     c + sum_h (p_h cos(h omega k dt) - q_h sin(h omega k dt)). A Kalman filter of respiratory
     motion: Sharp et al., Phys. Med. Biol. 49, 425 (2004); its baseline, frequency and pattern
-    followed in real time: Ruan et al., Phys. Med. Biol. 54, 4777 (2009). The filter is the textbook one (Joseph form of the
-    covariance update).
+    followed in real time: Ruan et al., Phys. Med. Biol. 54, 4777 (2009). The filter is the
+    textbook one (Joseph form of the covariance update).
 
     Ours: omega is not in the filter's state but measured, every second, as the period of the
     newest ``kalman_window_s`` of the axis (:func:`dominant_period`), first once half the window
@@ -341,9 +341,8 @@ class HarmonicKalmanModel:
         """(K, m) the filters' positions 1..K samples ahead (the newest sample ``y`` (m,) on
         the axes not yet started)."""
         omega = np.where(np.isfinite(self.omega), self.omega, 0.0)
-        angle = (
-            self._k[:, None, None] * self._harmonic[None, None, :] * (omega * self.dt)[None, :, None]
-        )  # (K, m, H)
+        step = (omega * self.dt)[None, :, None]
+        angle = self._k[:, None, None] * self._harmonic[None, None, :] * step  # (K, m, H)
         p, q = self.x[:, 1::2], self.x[:, 2::2]  # (m, H)
         ahead = self.x[None, :, 0] + np.sum(p * np.cos(angle) - q * np.sin(angle), axis=-1)
         return np.where(self.started[None, :], ahead, y[None, :])
