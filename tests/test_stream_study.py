@@ -102,3 +102,30 @@ def test_the_verdict_lines_say_each_set_and_what_it_missed(monkeypatch):
     assert "not all met" in lines[0]
     assert lines[1].startswith("the library's motions (3)")
     assert "MISSED" not in lines[1] and "all met" in lines[1]
+
+
+def _full(b, peak_with):
+    side = {"rms_translation_m": 1e-3, "nrmse_translation": 0.1, "within_tolerance": 0.5}
+    f = _figures(b, peak_with)
+    f["with"].update(side)
+    f["without"].update(side)
+    f["horizon"].update(
+        none_translation_m=1e-3, rms_translation_m=5e-4, model_translation_m=5e-4,
+        nrmse_none=0.2, nrmse=0.1,
+    )  # fmt: skip
+    f.update(rate_hz=5.0, ratio_rotation=0.5)
+    return f
+
+
+def test_the_tables_give_each_motions_three_ratios_and_the_tuning_only_when_run(monkeypatch):
+    from stewart_drake.references.prediction import PredictorSettings
+
+    monkeypatch.setattr(stream_study, "LATENCIES", (0.2, 0.5))
+    rows = [(StreamCase("trace 0", path="x.txt"), {0.2: _full(0.4, 1.2e-3), 0.5: _full(0.6, 1e-3)})]
+    lines = stream_study.tables(rows, PredictorSettings(), [])
+    # (a) 0.3, (b) 0.4, peak 1.2e-3 / 1e-3
+    assert "| trace 0 | no | 5 | 0.30 / 0.40 / 1.20 | 0.30 / 0.60 / 1.00 |" in lines
+    assert not any("The tuning" in line for line in lines)
+    lines = stream_study.tables(rows, PredictorSettings(), [(PredictorSettings(), 0.25, 0.35)])
+    assert any("The tuning" in line for line in lines)
+    assert "| 0.5 | 30 | 1e-06 | 0.250 | 0.350 |" in lines

@@ -231,7 +231,8 @@ def verdicts(rows) -> list:
 
 
 def tables(rows, settings: PredictorSettings, scores) -> list:
-    """The Markdown of the study (lines)."""
+    """The Markdown of the study (lines); the tuning's table when ``scores`` (:func:`tune`)
+    holds any."""
     summary = []
     for tuned, what in ((False, "IntERAct"), (True, "library, regression tuned on")):
         sets = [f for f in (_set_figures(rows, tuned, lat) for lat in LATENCIES) if f is not None]
@@ -326,14 +327,19 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
         "with prediction.",
         "",
         *markdown_lines(detail_header, detail),
-        "",
-        f"#### The tuning (library motions only, mean ratios at {tuned_at} s; chosen by (a))",
-        "",
-        *markdown_lines(
-            ["history [s]", "memory [s]", "ridge", "mean ratio (a)", "mean ratio (b)"],
-            tuning_rows,
-        ),
-    ]
+    ] + (
+        [
+            "",
+            f"#### The tuning (library motions only, mean ratios at {tuned_at} s; chosen by (a))",
+            "",
+            *markdown_lines(
+                ["history [s]", "memory [s]", "ridge", "mean ratio (a)", "mean ratio (b)"],
+                tuning_rows,
+            ),
+        ]
+        if scores
+        else []
+    )
 
 
 def write_tables(path, rows, settings, scores) -> Path:
