@@ -46,8 +46,8 @@ applied in this order to the positions it predicts:
    few samples predicts wildly, and would weigh on the record long after).
 
 The bound and the shrinkage are ours; the literature's predictors are usually run on the
-samples as they come, and the study that chose them is in docs/organ_motion.md ("Following a
-motion live").
+samples as they come, and the study that chose them is in docs/organ_motion.md ("Choosing the
+predictor").
 """
 
 from dataclasses import dataclass
@@ -108,6 +108,8 @@ class PredictorSettings:
     # The defaults are the stream study's choice, tuned on the library's motions only
     # (docs/organ_motion.md, "Following a motion live": memory 30, 60 or 120 s and history 0.5,
     # 1 or 2 s differ by less than 0.005 in the mean ratio; a ridge of 1e-6 beats 1e-3 by 0.05).
+    # The bound and the shrinkage: the selection study's ("Choosing the predictor"); the other
+    # models' settings were not tuned (one setting each, from their papers or ours).
     history_s: float = 0.5
     memory_s: float = 30.0
     ridge: float = 1e-6
