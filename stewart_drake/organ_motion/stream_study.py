@@ -316,7 +316,7 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
         "",
         "#### Per motion, ratio (a) / ratio (b) RMS / ratio (b) peak",
         "",
-        *markdown_lines(["motion", "tuned on", "rate [Hz]"] + lat_cols, per_case),
+        *markdown_lines(["motion", "regression tuned on", "rate [Hz]"] + lat_cols, per_case),
         "",
         f"#### At {GOAL_LATENCY_S:g} s, in detail",
         "",
