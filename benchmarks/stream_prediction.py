@@ -1,5 +1,6 @@
-"""CPU time of following a streamed motion: the linear predictor's update per sample and a whole
-follower, at each history the stream study tunes over.
+"""CPU time of following a streamed motion: every predictor's update per sample (its mean and its
+slowest), the linear predictor and a whole follower at each history the stream study tunes over,
+and the live follower.
 
     python benchmarks/stream_prediction.py                # breathing, 120 s at 25 Hz, 0.2 s late
     python benchmarks/stream_prediction.py --seconds 60 --rate 5 --repeats 3
@@ -10,7 +11,10 @@ curves), on the library's breathing streamed ``--rate`` Hz and 0.2 s late; and t
 follower (``references.live_stream.LiveFollower``, what ``robot --follow-lcm`` runs): each
 sample received, and the reference evaluated every 10 ms (the robot's control period). Printed
 per history: the CPU time of the process (``time.process_time``: BLAS's threads included; the
-best of ``--repeats``) and per sample, and the wall time of that call.
+best of ``--repeats``) and per sample, and the wall time of that call. Per predictor
+(``references.prediction.PREDICTORS``, the shipped settings, the record, bound and shrinkage
+included): the CPU per sample and the slowest single sample's wall time, against the robot's
+10 ms control period (a live sample is read between two periods).
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # measure this 
 from stewart_drake.references.live_stream import LiveFollower  # noqa: E402
 from stewart_drake.references.organ.library import make_motion  # noqa: E402
 from stewart_drake.references.prediction import (  # noqa: E402
+    PREDICTORS,
     LinearModel,
     OnlinePredictor,
     PredictorSettings,
@@ -62,6 +67,19 @@ def main() -> None:
     steps = follower_steps(args.latency, dt, LOOP_LAG_S, min(BLEND_S, dt))
     print(f"breathing, {args.seconds:g} s at {args.rate:g} Hz ({n} samples), {args.latency:g} s "
           f"late: {steps} steps ahead")  # fmt: skip
+    for name in PREDICTORS:
+        slowest, cpu = [], []
+        for _ in range(args.repeats):
+            m = OnlinePredictor(name, dt, steps, 6)
+            c0, worst = time.process_time(), 0.0
+            for y in stream.poses:
+                w0 = time.perf_counter()
+                m.raw_update(y)
+                worst = max(worst, time.perf_counter() - w0)
+            cpu.append(time.process_time() - c0)
+            slowest.append(worst)
+        print(f"predictor {name}: {min(cpu) / n * 1e6:.0f} us CPU a sample, the slowest "
+              f"sample {min(slowest) * 1e3:.2f} ms wall (control period 10 ms)")  # fmt: skip
     for history in (0.5, 1.0, 2.0):
         settings = PredictorSettings(history_s=history)
         p = settings.lags(dt)

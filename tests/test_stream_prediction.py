@@ -277,9 +277,12 @@ def test_the_record_chooses_and_measures_as_its_weighted_sums_say(K, min_record_
     than holding the newest sample, one worse by a bias, one at rest (equal records: the sample
     held), one whose predictions overshoot and are clipped. The record starts once the model's
     first pairs are complete (history 2 samples + K), and the model is chosen only after
-    min_record_s of residuals K ahead (1, 10 or 5 samples). K = 1 is the fewest steps ahead."""
+    min_record_s of residuals K ahead (1, 10 or 5 samples). K = 1 is the fewest steps ahead.
+    Without the bound and the shrinkage (tests/test_predictors.py writes them out)."""
     dt = 0.1
-    settings = PredictorSettings(history_s=0.2, record_s=2.0, min_record_s=min_record_s)
+    settings = PredictorSettings(
+        history_s=0.2, record_s=2.0, min_record_s=min_record_s, shrink=False, bound_s=None
+    )
     t = np.arange(80) * dt
     y = np.column_stack([0.01 * np.sin(t), 0.01 * np.cos(t), np.zeros_like(t), 0.01 * np.sin(t)])
     k = np.arange(1, K + 1)[None, :, None]

@@ -16,7 +16,7 @@ from ..base.errors import InvalidConfigError
 DEFAULT_RATE_HZ = 25.0
 #: The predictors (``references.prediction.PREDICTORS``, written out for the same reason) and
 #: the default.
-PREDICTORS, DEFAULT_PREDICTOR = ("none", "linear"), "linear"
+PREDICTORS, DEFAULT_PREDICTOR = ("none", "linear", "wlms", "mulin", "kalman", "rnn"), "linear"
 
 
 def add_follow_arguments(parser) -> None:

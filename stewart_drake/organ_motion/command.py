@@ -122,10 +122,12 @@ def _add_stream_arguments(rp) -> None:
     rp.add_argument(
         "--predictor",
         default="linear",
-        choices=("none", "linear"),
+        choices=("none", "linear", "wlms", "mulin", "kalman", "rnn"),
         help="with --stream: how the latency is predicted away: linear, adaptive linear "
-        "regression, "
-        "the best measured; none, the samples followed without prediction (default: linear)",
+        "regression, the best measured; wlms, wavelet-based multiscale regression; mulin, "
+        "multi-step linear extrapolation; kalman, a Kalman filter on a breathing model; rnn, a "
+        "small recurrent network trained online (UORO); none, the samples followed without "
+        'prediction (docs/organ_motion.md, "Choosing the predictor") (default: linear)',
     )
     rp.add_argument(
         "--stream-rate",

@@ -14,16 +14,40 @@ learned k samples after its input). :data:`PREDICTORS` names them:
   before it, fitted by exponentially weighted ridge least squares (the normal equations' sums
   decay with time constant ``memory_s``; every step ahead shares the features, so one matrix
   per axis is factorised at each sample, :class:`LinearModel`).
+- ``wlms``: the wavelet-based multiscale regression of Ernst et al. 2007
+  (:class:`~.predictors.WaveletLMSModel`).
+- ``mulin``: the multi-step linear extrapolation of the error of no prediction of Ernst &
+  Schweikard 2008 (:class:`~.predictors.MulinModel`).
+- ``kalman``: a Kalman filter on a breathing model, a baseline and the harmonics of the period
+  the motion shows (:class:`~.predictors.HarmonicKalmanModel`).
+- ``rnn``: a small recurrent network trained online by UORO, after Pohl et al. 2021
+  (:class:`~.predictors.RecurrentModel`).
 
-:class:`OnlinePredictor` wraps either with the record that decides, per axis, whether its
-predictions are used: the exponentially weighted mean squared error at every k of the model and
-of no prediction over the last ``record_s``; the model is used on an axis only while its record
-there is lower than no prediction's (and has ``min_record_s`` of residuals), else the newest
-sample is held. The same record gives the uncertainty: the RMS residual of what is used.
-Every prediction is first clipped to the motion's range so far, widened by
-:data:`ENVELOPE_MARGIN` of it (a prediction never asks for more than the motion has done), and
-the record starts once the model has completed its first pairs (a regression fitted on a few
-samples predicts wildly, and would weigh on the record long after).
+:class:`OnlinePredictor` wraps each model with what keeps its predictions from doing harm,
+applied in this order to the positions it predicts:
+
+1. the **envelope**: every prediction is clipped to the motion's range so far, widened by
+   :data:`ENVELOPE_MARGIN` of it (a prediction never asks for more than the motion has done);
+2. the **bound** on the displacement (``bound_s``): the displacement predicted k samples ahead
+   is at most, widened by the same margin, the largest displacement over k samples the motion
+   itself has made lately (a peak hold forgotten with time constant ``bound_s``), so a noisy
+   sample or a step in the samples is not extrapolated beyond what the motion does;
+3. the **shrinkage** (``shrink``): per axis and k, the displacement is multiplied by the gain
+   g in [0, 1] that would have served best over the completed pairs of the last ``gain_s``
+   (least squares of the outcome's displacement on the predicted one, exponentially weighted),
+   so a model whose predicted displacements are partly noise is followed only that part of
+   the way;
+4. the **record** that decides, per axis, whether its predictions are used: the exponentially
+   weighted mean squared error at every k of what is put forward and of no prediction over the
+   last ``record_s``; the model is used on an axis only while its record there is lower than
+   no prediction's (and has ``min_record_s`` of residuals), else the newest sample is held.
+   The same record gives the uncertainty: the RMS residual of what is used. The record starts
+   once the model's first predictions mean something (its ``warm``: a regression fitted on a
+   few samples predicts wildly, and would weigh on the record long after).
+
+The bound and the shrinkage are ours; the literature's predictors are usually run on the
+samples as they come, and the study that chose them is in docs/organ_motion.md ("Choosing the
+predictor").
 """
 
 from dataclasses import dataclass
@@ -31,11 +55,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from .predictors import HarmonicKalmanModel, MulinModel, RecurrentModel, WaveletLMSModel
 
 #: The predictors by name; the first is no prediction.
-PREDICTORS = ("none", "linear")
-#: The predictor ``reproduce --stream`` uses unless told (the best measured, docs/organ_motion.md,
-#: "Following a motion live").
+PREDICTORS = ("none", "linear", "wlms", "mulin", "kalman", "rnn")
+#: The predictor ``reproduce --stream`` uses unless told: the selection study's choice on the
+#: library's motions and IntERAct's traces (docs/organ_motion.md, "Choosing the predictor").
 DEFAULT_PREDICTOR = "linear"
 #: The widening of the motion's range so far that a prediction may reach, a fraction of it.
 ENVELOPE_MARGIN = 0.1
@@ -43,37 +68,105 @@ ENVELOPE_MARGIN = 0.1
 
 @dataclass(frozen=True)
 class PredictorSettings:
-    """The settings of a predictor, in seconds so that they mean the same at any sample rate.
+    """The settings of the predictors, in seconds so that they mean the same at any sample rate
+    (each predictor reads its own; the record, the bound and the shrinkage serve them all).
 
     Attributes:
-        history_s: the past the regression reads, s (``round(history_s / dt)`` displacements,
-            at least 2).
+        history_s: the past the linear regression reads, s (``round(history_s / dt)``
+            displacements, at least 2).
         memory_s: time constant of the forgetting of the regression's sums, s.
         ridge: the ridge, relative to the mean of the diagonal of the regression's sums.
         record_s: time constant of the residuals' record (the fallback and the uncertainty), s.
         min_record_s: residuals needed before the model may be used, s.
+        gain_s: time constant of the sums the shrinkage's gain is fitted on, s.
+        bound_s: time constant of the forgetting of the largest recent displacement that bounds
+            the predicted one, s; None: no bound.
+        shrink: whether the predicted displacement is shrunk by its fitted gain.
+        wlms_scales: wLMS's detail scales J (the coarsest reads 2^J samples).
+        wlms_depth: wLMS's values read per scale, a.
+        wlms_window_s: wLMS's least squares window, s (``round(wlms_window_s / dt)`` pairs).
+        wlms_mu: wLMS's step towards each window's solution, in (0, 1].
+        mulin_order: MULIN's order r (0: a line, r: a polynomial of degree r + 1).
+        mulin_smoothing_s: time constant of MULIN's smoothing of its extrapolated error, s.
+        kalman_harmonics: the harmonics of the period the Kalman filter's model holds, H.
+        kalman_q: process noise of each harmonic's amplitude, per square root of a second,
+            relative to the axis's standard deviation.
+        kalman_q_level: the same of the baseline.
+        kalman_r_floor: least sample noise the filter assumes, relative to the axis's standard
+            deviation.
+        kalman_window_s: the newest samples the period and the noise are measured on, s.
+        rnn_units: the recurrent network's units, q.
+        rnn_history_s: the past its input reads, s (``round(rnn_history_s / dt)``
+            displacements, at least 1).
+        rnn_rate: its learning rate (a step of stochastic gradient descent per sample).
+        rnn_clip: the largest norm of its gradient step.
     Raises:
-        InvalidConfigError: a value not finite and > 0 (``ridge`` >= 0).
+        InvalidConfigError: a value not finite and > 0 (``ridge`` >= 0; ``wlms_mu`` in (0, 1];
+            the counts integers >= 1, ``mulin_order`` >= 0; ``bound_s`` None or > 0).
     """
 
     # The defaults are the stream study's choice, tuned on the library's motions only
     # (docs/organ_motion.md, "Following a motion live": memory 30, 60 or 120 s and history 0.5,
     # 1 or 2 s differ by less than 0.005 in the mean ratio; a ridge of 1e-6 beats 1e-3 by 0.05).
+    # The bound and the shrinkage: the selection study's ("Choosing the predictor"); the other
+    # models' settings were not tuned (one setting each, from their papers or ours).
     history_s: float = 0.5
     memory_s: float = 30.0
     ridge: float = 1e-6
     record_s: float = 10.0
     min_record_s: float = 5.0
+    gain_s: float = 30.0
+    bound_s: float | None = 20.0
+    shrink: bool = True
+    wlms_scales: int = 3
+    wlms_depth: int = 2
+    wlms_window_s: float = 0.5
+    wlms_mu: float = 0.3
+    mulin_order: int = 1
+    mulin_smoothing_s: float = 0.1
+    kalman_harmonics: int = 3
+    kalman_q: float = 0.3
+    kalman_q_level: float = 0.1
+    kalman_r_floor: float = 1e-3
+    kalman_window_s: float = 20.0
+    rnn_units: int = 16
+    rnn_history_s: float = 1.0
+    rnn_rate: float = 0.02
+    rnn_clip: float = 2.0
 
     def __post_init__(self):
-        for name in ("history_s", "memory_s", "record_s", "min_record_s", "ridge"):
+        positive = (
+            "history_s", "memory_s", "record_s", "min_record_s", "gain_s", "wlms_window_s",
+            "mulin_smoothing_s", "kalman_q", "kalman_q_level", "kalman_r_floor",
+            "kalman_window_s", "rnn_history_s", "rnn_rate", "rnn_clip",
+        )  # fmt: skip
+        for name in positive + ("ridge", "wlms_mu", "bound_s"):
             v = getattr(self, name)
-            low_ok = v >= 0 if name == "ridge" else v > 0
-            if not (isinstance(v, (int, float)) and np.isfinite(v) and low_ok):
+            if name == "bound_s" and v is None:
+                continue
+            ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+            if name == "ridge":
+                ok, words = ok and v >= 0, ">= 0"
+            elif name == "wlms_mu":
+                ok, words = ok and 0 < v <= 1, "in (0, 1]"
+            else:
+                ok, words = ok and v > 0, "> 0"
+            if not ok:
                 raise InvalidConfigError(
-                    f"predictor setting {name} must be a finite number "
-                    f"{'>= 0' if name == 'ridge' else '> 0'}, got {v!r}"
+                    f"predictor setting {name} must be a finite number {words}, got {v!r}"
                 )
+        for name, low in (
+            ("wlms_scales", 1), ("wlms_depth", 1), ("mulin_order", 0), ("kalman_harmonics", 1),
+            ("rnn_units", 1),
+        ):  # fmt: skip
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= low):
+                raise InvalidConfigError(
+                    f"predictor setting {name} must be an integer >= {low}, got {v!r}"
+                )
+        if not isinstance(self.shrink, bool):
+            raise InvalidConfigError(f"predictor setting shrink must be True or False, got "
+                                     f"{self.shrink!r}")  # fmt: skip
 
     def lags(self, dt: float) -> int:
         """Displacements the regression reads at a sample step ``dt`` (s): at least 2."""
@@ -100,6 +193,8 @@ def check_predictor(name: str) -> str:
 
 class HoldModel:
     """No prediction: the newest sample at every step ahead."""
+
+    warm = 0
 
     def __init__(self, steps: int, axes: int):
         self.steps, self.axes = int(steps), int(axes)
@@ -131,6 +226,7 @@ class LinearModel:
 
     def __init__(self, dt: float, steps: int, axes: int, settings: PredictorSettings):
         self.p, self.K, self.m = settings.lags(dt), int(steps), int(axes)
+        self.warm = self.p + self.K  # its first pairs complete
         self.lam = float(np.exp(-dt / settings.memory_s))
         self.ridge = float(settings.ridge)
         self._y = np.zeros((self.p + self.K + 1, self.m))  # the newest samples, newest last
@@ -188,9 +284,20 @@ class LinearModel:
         return y[None, :] + np.einsum("kmp,mp->km", w, x)
 
 
+#: The models by name (:data:`PREDICTORS`), each built as ``model(dt, steps, axes, settings)``.
+MODELS = {
+    "none": lambda dt, steps, axes, settings: HoldModel(steps, axes),
+    "linear": LinearModel,
+    "wlms": WaveletLMSModel,
+    "mulin": MulinModel,
+    "kalman": HarmonicKalmanModel,
+    "rnn": RecurrentModel,
+}
+
+
 class OnlinePredictor:
-    """A predictor (:data:`PREDICTORS`) with its record of residuals: the fallback to no
-    prediction and the uncertainty (module docstring).
+    """A predictor (:data:`PREDICTORS`) with its envelope, its bound, its shrinkage and its
+    record of residuals: the fallback to no prediction and the uncertainty (module docstring).
 
     Args:
         name: one of :data:`PREDICTORS`. dt: the sample step, s. steps: K, the samples ahead
@@ -198,7 +305,8 @@ class OnlinePredictor:
     Attributes:
         using: (m,) bool, whether the model's predictions are used on each axis now.
         sigma: (K, m) RMS residual of what is used, per step ahead (rad or m; NaN before any).
-        clipped: predicted positions clipped to the motion's range so far (count).
+        gain: (K, m) the shrinkage's gain now, in [0, 1] (1 without shrinkage).
+        clipped: predicted positions moved by the envelope or the bound (count).
     Raises:
         InvalidConfigError: an unknown predictor; dt or steps not > 0.
     """
@@ -213,14 +321,11 @@ class OnlinePredictor:
             )
         self.name, self.dt, self.K, self.m = name, float(dt), int(steps), int(axes)
         self.settings = settings or PredictorSettings()
-        self.model: HoldModel | LinearModel = (
-            HoldModel(self.K, self.m)
-            if name == "none"
-            else LinearModel(self.dt, self.K, self.m, self.settings)
-        )
+        self.model = MODELS[name](self.dt, self.K, self.m, self.settings)
         self._mu = float(np.exp(-self.dt / self.settings.record_s))
         self._min_n = max(1, int(round(self.settings.min_record_s / self.dt)))
-        self._past = np.zeros((self.K + 1, self.K, self.m))  # the newest K + 1 predictions
+        self._past = np.zeros((self.K + 1, self.K, self.m))  # the newest K + 1 put forward
+        self._past_d = np.zeros((self.K + 1, self.K, self.m))  # their bounded displacements
         self._y = np.zeros((self.K + 1, self.m))  # the newest K + 1 samples
         self._se = np.zeros((2, self.K, self.m))  # weighted squared residuals: model, none
         self._w = np.zeros(self.K)  # their weights
@@ -228,13 +333,24 @@ class OnlinePredictor:
         self._k = np.arange(1, self.K + 1)
         self._residual = np.zeros((2, self.K, self.m))
         self._n = 0
-        # The record starts when the model's first pairs are complete.
-        self._warm = 0 if name == "none" else self.settings.lags(self.dt) + self.K
+        # The record starts when the model's predictions mean something.
+        self._warm = int(self.model.warm)
         self._low: np.ndarray | None = None
         self._high: np.ndarray | None = None
         self.clipped = 0
         self.using = np.zeros(self.m, dtype=bool)
         self.sigma = np.full((self.K, self.m), np.nan)
+        # The bound: the largest displacement over k samples, held and forgotten.
+        bound_s = self.settings.bound_s
+        self._hold = None if bound_s is None else float(np.exp(-self.dt / bound_s))
+        self._largest = np.zeros((self.K, self.m))
+        # The shrinkage: sums of d^2 and d (outcome's displacement), weighted.
+        self._lam_g = float(np.exp(-self.dt / self.settings.gain_s))
+        self._sxx = np.zeros((self.K, self.m))
+        self._sxy = np.zeros((self.K, self.m))
+        self.gain = (
+            np.ones((self.K, self.m)) if not self.settings.shrink else np.zeros((self.K, self.m))
+        )
 
     def update(self, y) -> np.ndarray:
         """Read sample ``y`` (m,) [rad or m]; return (K, m) the positions used 1..K samples
@@ -244,29 +360,58 @@ class OnlinePredictor:
         return np.where(self.using[None, :], predicted, np.asarray(y, dtype=float)[None, :])
 
     def raw_update(self, y) -> np.ndarray:
-        """As :meth:`update`, but (K, m) the model's positions on every axis (clipped to the
-        motion's range so far), whatever the record chose (``using`` says that)."""
+        """As :meth:`update`, but (K, m) the model's positions on every axis (within the
+        envelope and the bound, shrunk), whatever the record chose (``using`` says that)."""
         y = np.asarray(y, dtype=float).reshape(self.m)
         self._n += 1
         self._y[:-1] = self._y[1:]
         self._y[-1] = y
         self._record(y)
-        predicted = self._bounded(self.model.update(y), y)
+        self._learn_gain(y)
+        raw = self.model.update(y)
+        bounded = self._bounded(raw, y)
+        displacement = bounded - y[None, :]
+        self.clipped += int(np.count_nonzero(bounded != raw))
+        predicted = y[None, :] + self.gain * displacement if self.settings.shrink else bounded
+        self._past_d[:-1] = self._past_d[1:]
+        self._past_d[-1] = displacement
         self._past[:-1] = self._past[1:]
         self._past[-1] = predicted
         return predicted
 
     def _bounded(self, predicted: np.ndarray, y: np.ndarray) -> np.ndarray:
         """``predicted`` (K, m) clipped to the range of the samples so far, widened by
-        :data:`ENVELOPE_MARGIN` of it; the clipped positions counted."""
+        :data:`ENVELOPE_MARGIN` of it, and its displacement from ``y`` to the largest recent
+        displacement over as many samples, widened alike."""
         if self._low is None or self._high is None:
             self._low, self._high = y.copy(), y.copy()
         np.minimum(self._low, y, out=self._low)
         np.maximum(self._high, y, out=self._high)
         margin = ENVELOPE_MARGIN * (self._high - self._low)
         bounded = np.clip(predicted, self._low - margin, self._high + margin)
-        self.clipped += int(np.count_nonzero(bounded != predicted))
+        if self._hold is not None:
+            k = self._k
+            ready = (self._n - 1 - k) >= 0
+            moved = np.abs(y[None, :] - self._y[-1 - k]) * ready[:, None]  # (K, m)
+            self._largest = np.maximum(self._hold * self._largest, moved)
+            reach = (1.0 + ENVELOPE_MARGIN) * self._largest
+            bounded = y[None, :] + np.clip(bounded - y[None, :], -reach, reach)
         return bounded
+
+    def _learn_gain(self, y: np.ndarray) -> None:
+        """The pairs completed at ``y``: the bounded displacement predicted k samples ago
+        against the displacement that came, into the shrinkage's sums; then its gain."""
+        if not self.settings.shrink:
+            return
+        k = self._k
+        ready = ((self._n - 1 - k) >= self._warm)[:, None]
+        d = self._past_d[-k, k - 1]  # (K, m)
+        outcome = y[None, :] - self._y[-1 - k]
+        self._sxx = self._lam_g * self._sxx + ready * d * d
+        self._sxy = self._lam_g * self._sxy + ready * d * outcome
+        with np.errstate(invalid="ignore", divide="ignore"):
+            g = np.where(self._sxx > 0, self._sxy / self._sxx, 0.0)
+        self.gain = np.clip(g, 0.0, 1.0)
 
     def _record(self, y: np.ndarray) -> None:
         """The residuals of the predictions made k samples ago (k = 1..K) at ``y``, into the
@@ -300,5 +445,6 @@ __all__ = [
     "check_predictor",
     "HoldModel",
     "LinearModel",
+    "MODELS",
     "OnlinePredictor",
 ]
