@@ -253,3 +253,23 @@ def test_the_limits_are_the_validators(plan):
     for bad in (0.0, -1e-3, float("nan")):
         with pytest.raises(InvalidConfigError, match="control period"):
             ShapingLimits(limits.geometry, limits.motors, limits.admissible, period_s=bad)
+        with pytest.raises(InvalidConfigError, match="following bandwidth"):
+            replace(limits, follow_bandwidth_hz=bad)
+
+
+def test_the_following_filter_is_10_hz_and_stays_stable_at_a_long_period(plan):
+    """Back onto the followed reference at 10 Hz (2 pi 10 rad/s) at 1 ms; at a 20 ms period,
+    at most 0.5 / h = 25 rad/s (4 Hz). Either way the filter stepped at constant acceleration
+    (the step's matrix on the error and its rate, written out) has both poles inside the unit
+    circle; 10 Hz at 20 ms would not (a pole at 1.72)."""
+    limits = shaping_limits(plan)
+
+    def radius(w, h):
+        step = np.array([[1 - (w * h) ** 2 / 2, h - w * h * h], [-h * w * w, 1 - 2 * w * h]])
+        return np.max(np.abs(np.linalg.eigvals(step)))
+
+    for h, want in ((1e-3, 2 * np.pi * 10.0), (0.02, 25.0)):
+        w = replace(limits, period_s=h).follow_omega()
+        assert w == pytest.approx(want, rel=1e-12)
+        assert radius(w, h) < 0.96
+    assert radius(2 * np.pi * 10.0, 0.02) > 1.5

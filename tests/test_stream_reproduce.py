@@ -204,10 +204,10 @@ def test_a_prediction_the_motors_cannot_follow_is_shaped_not_refused(tmp_path, c
 
 
 def _fast(path):
-    """10 s of 40 mm at 3 Hz on SI, at 25 Hz: the motion itself needs a motor's 0.64 N m, 1 %
-    over what a reference may use."""
+    """10 s of 5 mm at 3 Hz on SI, at 25 Hz: the motion itself needs a motor's 0.66 N m, 5 %
+    over the 0.632 N m a reference may use (4 mm would need 0.59 N m)."""
     t = np.arange(0.0, 10.0 + 1e-9, 0.04)
-    return write_trace(path, t, {"SI [mm]": 40.0 * np.sin(2 * np.pi * 3.0 * t)})
+    return write_trace(path, t, {"SI [mm]": 5.0 * np.sin(2 * np.pi * 3.0 * t)})
 
 
 def test_a_true_motion_beyond_the_motors_is_refused_before_it_is_followed(tmp_path, capsys):
@@ -235,7 +235,7 @@ def test_a_true_motion_beyond_the_motors_is_scaled_to_fit_and_said(tmp_path, cap
 
     trace = _fast(tmp_path / "fast.csv")
     kept = _keep_figures(monkeypatch)
-    argv = ["reproduce", str(trace), "--stream", "0.2", "--duration", "7", "--scale-to-fit"]
+    argv = ["reproduce", str(trace), "--stream", "0.2", "--duration", "6", "--scale-to-fit"]
     out, _ = _run(capsys, argv + ["--tolerance", "50mm,5deg", "--out", str(tmp_path)], 0)
     report = json.loads((tmp_path / "reproduce_fast_stream.json").read_text())
     scale = report["scale"]

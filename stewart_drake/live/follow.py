@@ -13,14 +13,13 @@ S``; docs/organ_motion.md, "Following a motion live", and docs/lcm.md).
   reference the robot can follow with the :class:`~stewart_drake.run.shaping.Shaper` that
   ``reproduce --stream`` shapes with (the same reference for the same arrivals): the followed
   reference itself while every motor's torque and crank speed are within the share of the
-  motors' a reference may use (the validator's numbers), its rate and acceleration within
-  ``limits`` (teleop's) and, every ``limits.target_period_s``, its pose admissible (reach,
-  joint ranges, singularities, clearance, holding torques:
+  motors' a reference may use (the validator's numbers) and, every ``limits.target_period_s``,
+  its pose admissible (reach, joint ranges, singularities, clearance, holding torques:
   :func:`~stewart_drake.run.reference.guarded_admissible`); else a critically damped filter
-  (``limits.bandwidth_hz``) towards it, fed forward with its rate and acceleration, within all
-  of them, stopped at the farthest admissible pose towards a pose that is not. It starts where
-  the robot rests and joins the followed reference through the same filter. What was shaped,
-  and by how much, is said at the end.
+  towards it, fed forward with its rate and acceleration, within all of them, stopped at the
+  farthest admissible pose towards a pose that is not. It starts where the robot rests and
+  joins the followed reference through teleop's filter (``limits.bandwidth_hz``, and box).
+  What was shaped, and by how much, is said at the end.
 - :func:`follow_on_robot` is the session: the measured start pose (admissible, or nothing is
   powered), the servos configured, a first sample awaited with the torque off, then the run
   behind the session's safety paths (:mod:`~.session`). A source that fails (no sample within

@@ -16,8 +16,10 @@ is given:
   :class:`~stewart_drake.robot.limits.MotorLimits`) at every period, and its pose admissible
   (:func:`~.reference.guarded_admissible`: reach, joint ranges, singularities, clearance,
   holding torques) at every ``target_period_s``;
-- else a critically damped second-order filter at ``bandwidth_hz`` towards it, fed forward with
-  its rate and acceleration (teleop's, :class:`~.reference.TeleopReference`), integrated at
+- else a critically damped second-order filter towards it at :data:`FOLLOW_BANDWIDTH_HZ`, fed
+  forward with its rate and acceleration (teleop's form, :class:`~.reference.TeleopReference`,
+  faster than teleop's 2 Hz: the sooner it is back on the followed reference, the less it lags
+  it), integrated at
   constant acceleration over the period, its acceleration scaled towards zero until every
   motor's torque and next crank speed are within: at a given pose and rate the torque is affine
   in the acceleration (tau = M(q) q'' + h(q, q')), the property on which the dynamic scaling of
@@ -27,15 +29,18 @@ is given:
   admissible is not followed: the filter goes to the farthest admissible pose towards it and
   stops there (``limited``). Where the reference does not go towards the followed one (its
   approach from where it started, live from where the robot rests; coming to rest when nothing
-  is followed; stopping short), the acceleration and the next rate are also clipped to the box
-  of :class:`~.reference.ReferenceFilterLimits` (teleop's), as teleop's reference is;
+  is followed; stopping short), the filter is teleop's own (``bandwidth_hz``, 2 Hz) and the
+  acceleration and the next rate are also clipped to the box of
+  :class:`~.reference.ReferenceFilterLimits`, as teleop's reference is;
 - back on the followed reference once within :data:`REJOIN_POSE` and :data:`REJOIN_RATE` of
   it, where it is within the limits again (the reference steps by at most those).
 
 The choices are ours: the filter is the live path's (teleop's); while it follows, the limits
 are the validator's alone, not teleop's box (the library's breathing sampled at 5 Hz with 0.1
 mm of noise, 0.2 s late: the box moved the reference up to 2.4 mm from the followed one, the
-motors' torque alone 0.12 mm);
+motors' torque alone 0.12 mm), and its bandwidth is 10 Hz, not 2 (the library's sharkfin 0.2 s
+late, the first 60 s: translation RMS against the true motion 2.16 mm at 2 Hz, 1.70 at 5, 1.60
+at 10, 1.70 at 20, where the followed reference is at 1.46 and none at 2.52);
 the rejoining tolerances are ours; and the torque is bounded :data:`EFFORT_SAFETY` inside the
 validator's limit, for the rounding between the affine step and the validator's own
 evaluation. Only what
@@ -60,6 +65,12 @@ from ..robot.geometry import StewartGeometry
 from ..robot.limits import MotorLimits, sample_effort
 from .reference import ReferenceFilterLimits
 
+#: The natural frequency of the filter that brings the shaped reference back onto the followed
+#: one once it has joined it, Hz (module docstring) ...
+FOLLOW_BANDWIDTH_HZ = 10.0
+#: ... at most this over the control period (omega h; the filter integrated at constant
+#: acceleration over a period is stable below 1).
+FOLLOW_OMEGA_H = 0.5
 #: The shaped reference rejoins the followed one when every axis's pose is within this of it
 #: (m or rad) ...
 REJOIN_POSE = 1e-6
@@ -90,8 +101,11 @@ class ShapingLimits:
             often the pose is checked (s), and the rate and acceleration box [rad/s, m/s;
             rad/s^2, m/s^2] of the approach, of coming to rest and of stopping short.
         period_s: the control period, s.
+        follow_bandwidth_hz: the natural frequency of the filter back onto the followed
+            reference once joined, Hz (at most :data:`FOLLOW_OMEGA_H` / (2 pi ``period_s``)
+            is used).
     Raises:
-        InvalidConfigError: a period not finite and > 0.
+        InvalidConfigError: a period or a bandwidth not finite and > 0.
     """
 
     geometry: StewartGeometry
@@ -99,12 +113,22 @@ class ShapingLimits:
     admissible: Callable
     filter: ReferenceFilterLimits = field(default_factory=ReferenceFilterLimits)
     period_s: float = 1e-3
+    follow_bandwidth_hz: float = FOLLOW_BANDWIDTH_HZ
 
     def __post_init__(self):
-        if not (isinstance(self.period_s, (int, float)) and math.isfinite(self.period_s)):
-            raise InvalidConfigError(f"the control period must be a number, got {self.period_s!r}")
-        if not self.period_s > 0:
-            raise InvalidConfigError(f"the control period must be > 0 s, got {self.period_s!r}")
+        for what, value in (
+            ("the control period", self.period_s),
+            ("the following bandwidth", self.follow_bandwidth_hz),
+        ):
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise InvalidConfigError(f"{what} must be a number, got {value!r}")
+            if not value > 0:
+                raise InvalidConfigError(f"{what} must be > 0, got {value!r}")
+
+    def follow_omega(self) -> float:
+        """The natural frequency of the filter back onto the followed reference, rad/s:
+        ``follow_bandwidth_hz``, at most :data:`FOLLOW_OMEGA_H` / ``period_s``."""
+        return min(2 * math.pi * self.follow_bandwidth_hz, FOLLOW_OMEGA_H / self.period_s)
 
     def effort_limits(self) -> tuple[float, float]:
         """(torque N m, crank speed rad/s) each motor is kept within: the validator's limits
@@ -284,7 +308,8 @@ class Shaper:
         self.steps_per_check = max(1, int(round(limits.filter.target_period_s / self.h)))
         self._rate = np.asarray(limits.filter.rate, dtype=float)
         self._acc = np.asarray(limits.filter.acceleration, dtype=float)
-        self._omega = 2 * np.pi * limits.filter.bandwidth_hz
+        self._omega = 2 * np.pi * limits.filter.bandwidth_hz  # the approach's, teleop's
+        self._omega_follow = limits.follow_omega()
         self._torque, self._speed = limits.effort_limits()
         self.record = ShapingRecord(self.h)
 
@@ -399,9 +424,9 @@ class Shaper:
     def _acceleration(self, x, v, target, boxed: bool) -> tuple:
         """(a (6,), flags): the filter's acceleration towards ``target`` from pose ``x`` and
         rate ``v``, within every motor's torque and next crank speed and, when ``boxed``, the
-        limits' box and the next rate's."""
+        limits' box and the next rate's (at teleop's bandwidth; else at the following one)."""
         x_t, v_t, a_t = target
-        w, h = self._omega, self.h
+        w, h = (self._omega if boxed else self._omega_follow), self.h
         wanted = a_t + w * w * (x_t - x) + 2 * w * (v_t - v)
         a = wanted
         if boxed:
@@ -555,5 +580,7 @@ __all__ = [
     "REJOIN_POSE",
     "REJOIN_RATE",
     "EFFORT_SAFETY",
+    "FOLLOW_BANDWIDTH_HZ",
+    "FOLLOW_OMEGA_H",
     "SHAPE_CHUNK",
 ]
