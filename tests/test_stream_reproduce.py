@@ -175,15 +175,18 @@ def test_a_prediction_the_motors_cannot_follow_is_shaped_not_refused(tmp_path, c
     robot was given (checked here again, on the run's plan); the lines and the JSON count the
     periods shaped, those scaled for a motor's torque, and say by how much (under 0.5 mm); the
     reference given is within 10 % of the followed one's error against the true motion. The
-    robot ran the reference given."""
+    robot ran the reference given. The reports keep the trace's name whole, its dot too (they
+    were written as reproduce_noisy.json, .png and .md)."""
     from stewart_drake.base.errors import MotorLimitError
     from stewart_drake.run.plan import check_reference
 
-    trace = _noisy_breath(tmp_path / "noisy.csv")
+    trace = _noisy_breath(tmp_path / "noisy.1.csv")  # a name with a dot, kept whole
     kept = _keep_figures(monkeypatch)
     argv = ["reproduce", str(trace), "--stream", "0.2", "--smoothing", "none"]
     out, _ = _run(capsys, argv + ["--tolerance", "10mm,5deg", "--out", str(tmp_path)], 0)
-    report = json.loads((tmp_path / "reproduce_noisy_stream.json").read_text())
+    report = json.loads((tmp_path / "reproduce_noisy.1_stream.json").read_text())
+    assert (tmp_path / "reproduce_noisy.1_stream.png").is_file()
+    assert not list(tmp_path.glob("reproduce_noisy.json"))
     shaping = report["shaping"]
     assert shaping["scaled"] >= 1 and shaping["shaped"] >= shaping["scaled"]
     assert shaping["over"] == 0 and 1e-6 < shaping["departure_m"] < 0.5e-3

@@ -592,7 +592,7 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
     a1.set_xlabel("t [s]")
     a1.legend(loc="upper right", fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
-    png = stem.with_suffix(".png")
+    png = stem.parent / f"{stem.name}.png"  # a name may hold a dot: not with_suffix
     atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
     md_text = "\n".join(
@@ -623,7 +623,7 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
         ratio_rotation=figures["ratio_rotation"],
         loop_lag_s=LOOP_LAG_S,
     )
-    md, js = stem.with_suffix(".md"), stem.with_suffix(".json")
+    md, js = (stem.parent / f"{stem.name}{suffix}" for suffix in (".md", ".json"))
     atomic_write(md, lambda f: f.write(md_text.encode()))
     atomic_write(js, lambda f: f.write(json.dumps(keep, indent=1, default=float).encode()))
     return md, png, js
