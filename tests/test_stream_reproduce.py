@@ -2,6 +2,7 @@
 robot as built, measured against the true motion; and its refusals, before any work."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -157,6 +158,97 @@ def test_a_robot_true_to_a_reference_far_from_the_motion_fails(tmp_path, capsys,
         "beyond 3 mm | 1 deg"
     )
     assert "no predictor: the samples are followed without prediction throughout" in out
+
+
+def _noisy_breath(path):
+    """12 s of a 15 mm, 4 s breath on SI at 5 Hz with 0.2 mm of noise (seeded): followed 0.2 s
+    late, through every sample (--smoothing none), its prediction asks a motor for about
+    0.69 N m where the motion needs 0.35 N m and a reference may use 0.632 N m."""
+    t = np.arange(0.0, 12.0 + 1e-9, 0.2)
+    si = 7.5 * np.cos(2 * np.pi * t / 4.0) + np.random.default_rng(1).normal(0.0, 0.2, t.size)
+    return write_trace(path, t, {"SI [mm]": si})
+
+
+def test_a_prediction_the_motors_cannot_follow_is_shaped_not_refused(tmp_path, capsys, monkeypatch):
+    """The noisy breath streamed 0.2 s late runs: the validator refuses the followed reference
+    (a motor over its torque, checked here on what the run kept) and passes the reference the
+    robot was given (checked here again, on the run's plan); the lines and the JSON count the
+    periods shaped, those scaled for a motor's torque, and say by how much (under 0.5 mm); the
+    reference given is within 10 % of the followed one's error against the true motion. The
+    robot ran the reference given. The reports keep the trace's name whole, its dot too (they
+    were written as reproduce_noisy.json, .png and .md)."""
+    from stewart_drake.base.errors import MotorLimitError
+    from stewart_drake.run.plan import check_reference
+
+    trace = _noisy_breath(tmp_path / "noisy.1.csv")  # a name with a dot, kept whole
+    kept = _keep_figures(monkeypatch)
+    argv = ["reproduce", str(trace), "--stream", "0.2", "--smoothing", "none"]
+    out, _ = _run(capsys, argv + ["--tolerance", "10mm,5deg", "--out", str(tmp_path)], 0)
+    report = json.loads((tmp_path / "reproduce_noisy.1_stream.json").read_text())
+    assert (tmp_path / "reproduce_noisy.1_stream.png").is_file()
+    assert not list(tmp_path.glob("reproduce_noisy.json"))
+    shaping = report["shaping"]
+    assert shaping["scaled"] >= 1 and shaping["shaped"] >= shaping["scaled"]
+    assert shaping["over"] == 0 and 1e-6 < shaping["departure_m"] < 0.5e-3
+    assert (
+        f"the reference given to the robot: shaped to the robot's limits in {shaping['shaped']} "
+        f"of {shaping['periods']} periods" in out
+    )
+    assert f"the acceleration scaled for a motor's torque or speed in {shaping['scaled']}" in out
+    plan = kept["reproduction"].plan
+    with pytest.raises(MotorLimitError, match="torque"):
+        check_reference(plan, kept["followed"], keep_series=False)
+    assert check_reference(plan, kept["given"], raise_refused=False, keep_series=False).ok
+    assert kept["reproduction"].reference is kept["given"]
+    shaped, followed = report["shaped"], report["with"]
+    ratio = shaped["rms_translation_m"] / followed["rms_translation_m"]
+    assert 0.9 < ratio < 1.1
+    assert report["scale"] == 1.0 and report["band"]["quantile"] == 0.95
+
+
+def _fast(path):
+    """10 s of 5 mm at 3 Hz on SI, at 25 Hz: the motion itself needs a motor's 0.66 N m, 5 %
+    over the 0.632 N m a reference may use (4 mm would need 0.59 N m)."""
+    t = np.arange(0.0, 10.0 + 1e-9, 0.04)
+    return write_trace(path, t, {"SI [mm]": 5.0 * np.sin(2 * np.pi * 3.0 * t)})
+
+
+def test_a_true_motion_beyond_the_motors_is_refused_before_it_is_followed(tmp_path, capsys):
+    """The fast motion streamed: refused in one line naming the true motion and its motor, exit
+    2, before any run (nothing written): only the follower's own excess is shaped away."""
+    trace = _fast(tmp_path / "fast.csv")
+    argv = ["reproduce", str(trace), "--stream", "0.2", "--out", str(tmp_path / "o")]
+    _, err = _run(capsys, argv, 2)
+    assert len(err.strip().splitlines()) == 1
+    assert re.search(
+        r"the true motion \(fast\), before it is followed: motor \d would need 0\.6\d* N m of "
+        r"torque at t = [\d.]+ s",
+        err,
+    ), err
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_true_motion_beyond_the_motors_is_scaled_to_fit_and_said(tmp_path, capsys, monkeypatch):
+    """With --scale-to-fit the fast motion is shrunk about its centre until it fits (the
+    validator, run here on the true motion the run kept, passes it at that scale and refuses it
+    2 % larger), then streamed, and said."""
+    from stewart_drake.base.errors import MotorLimitError
+    from stewart_drake.references.organ.combinators import ScaledReference
+    from stewart_drake.run.plan import check_reference
+
+    trace = _fast(tmp_path / "fast.csv")
+    kept = _keep_figures(monkeypatch)
+    argv = ["reproduce", str(trace), "--stream", "0.2", "--duration", "6", "--scale-to-fit"]
+    out, _ = _run(capsys, argv + ["--tolerance", "50mm,5deg", "--out", str(tmp_path)], 0)
+    report = json.loads((tmp_path / "reproduce_fast_stream.json").read_text())
+    scale = report["scale"]
+    assert 0.5 < scale < 1.0
+    assert f"the true motion did not fit the robot: scaled by {scale:.3f} about its centre" in out
+    assert f"the true motion was scaled by {scale:.3f} about its centre to fit the robot" in out
+    plan, truth = kept["reproduction"].plan, kept["truth"]
+    assert check_reference(plan, ScaledReference(truth, scale), keep_series=False).ok
+    with pytest.raises(MotorLimitError):
+        check_reference(plan, ScaledReference(truth, min(1.0, scale * 1.02)), keep_series=False)
 
 
 @pytest.mark.parametrize(

@@ -9,14 +9,17 @@ S``; docs/organ_motion.md, "Following a motion live", and docs/lcm.md).
   LiveFollower` (the predictor and the curves of ``reproduce --stream``, fed causally).
 - :class:`FollowReference` is the closed loop's live reference (as teleop's
   :class:`~stewart_drake.run.reference.TeleopReference`): every control period it reads what
-  has arrived, takes the follower's pose, rate and acceleration, and passes them through the
-  checks a live reference can make online: every ``limits.target_period_s`` the pose must be
-  admissible (reach, joint ranges, singularities, clearance, the holding torques within 90 % of
-  the motors' peak: :func:`~stewart_drake.run.reference.admissible_poses` with the scenario's
-  guard), else the reference stops at the farthest admissible pose towards it; the rate and
-  acceleration are clipped to ``limits``. What was clipped is counted and said at the end.
-  It starts where the robot rests and approaches the followed pose as a critically damped
-  filter (``limits.bandwidth_hz``) fed forward with the follower's rate and acceleration.
+  has arrived, takes the follower's pose, rate and acceleration, and shapes them into a
+  reference the robot can follow with the :class:`~stewart_drake.run.shaping.Shaper` that
+  ``reproduce --stream`` shapes with (the same reference for the same arrivals): the followed
+  reference itself while every motor's torque and crank speed are within the share of the
+  motors' a reference may use (the validator's numbers) and, every ``limits.target_period_s``,
+  its pose admissible (reach, joint ranges, singularities, clearance, holding torques:
+  :func:`~stewart_drake.run.reference.guarded_admissible`); else a critically damped filter
+  towards it, fed forward with its rate and acceleration, within all of them, stopped at the
+  farthest admissible pose towards a pose that is not. It starts where the robot rests and
+  joins the followed reference through teleop's filter (``limits.bandwidth_hz``, and box).
+  What was shaped, and by how much, is said at the end.
 - :func:`follow_on_robot` is the session: the measured start pose (admissible, or nothing is
   powered), the servos configured, a first sample awaited with the torque off, then the run
   behind the session's safety paths (:mod:`~.session`). A source that fails (no sample within
@@ -45,6 +48,7 @@ from ..references.live_stream import LiveFollower
 from ..references.prediction import DEFAULT_PREDICTOR
 from ..references.stream import DEFAULT_STREAM_RATE_HZ
 from ..robot.statics import holding_torques
+from ..run.shaping import Shaper, ShapingLimits, shaping_limits
 from .watchdog import LOOP_TIMEOUT_S
 
 #: How long a session waits for the first sample, the torque off, s.
@@ -55,8 +59,6 @@ SAMPLE_TIMEOUT_S = 0.5
 CHUNK_S = 0.05
 #: Samples received and not yet read that end a run (the loop cannot keep up with the source).
 MAX_QUEUED = 10_000
-#: Poses tried on the segment towards an inadmissible pose (the farthest admissible kept).
-SEGMENT_POINTS = 17
 
 
 def sample_timeout(rate_hz: float, timeout_s: float | None = None) -> float:
@@ -138,67 +140,62 @@ class FollowReference(LeafSystem):
 
     Output ports (state, held between updates): ``x_d`` (18,) [pose, rate, acceleration]
     (rad, m, /s, /s^2), ``T_ff`` (6,) the holding torques of the pose, N m, ``limited`` (1,)
-    1 while the pose is stopped short of the followed one. Discrete state: x, v, a, the last
-    admissible goal, T_ff (6 each), the periods so far and ``limited``. The source and the
-    follower are Python objects outside the Context (a live source is not replayed).
+    1 while the pose is stopped short of the followed one. Discrete state: ``x_d``, ``T_ff``
+    and the :class:`~stewart_drake.run.shaping.Shaper`'s state. The source and the follower
+    are Python objects outside the Context (a live source is not replayed).
+
+    Every control period it reads what has arrived and gives the follower's pose, rate and
+    acceleration shaped by the :class:`~stewart_drake.run.shaping.Shaper` of ``shaping``
+    (the one ``reproduce --stream`` shapes with): the followed reference itself while it is
+    within the robot's limits, else a critically damped filter towards it within them; from
+    where the robot rests until it first joins the followed reference.
 
     Args:
-        geometry: the robot the controller believes in. x_initial: (6,) where it rests.
-        period_s: control period, s. source: :class:`LcmPoseSource`. follower: its
+        geometry: the robot the controller believes in (the holding torques fed forward).
+        x_initial: (6,) where it rests. source: :class:`LcmPoseSource`. follower: its
             :class:`~stewart_drake.references.live_stream.LiveFollower`.
-        admissible: ``admissible(x (N, 6)) -> (N,) bool``. limits:
-            :class:`~stewart_drake.run.reference.ReferenceFilterLimits`.
+        shaping: :class:`~stewart_drake.run.shaping.ShapingLimits` (its ``period_s`` is the
+            control period).
         sample_timeout_s: the time without a sample that ends the run, s.
     Attributes:
         failure: why the source failed (one line), or None; from then on the reference comes
             to rest where it is.
-        limited_periods, first_limited_s: periods stopped short of the followed pose, and the
-            first time it was (None: never). clipped_periods: periods whose rate or
-            acceleration was clipped.
+        shaper: the :class:`~stewart_drake.run.shaping.Shaper`; its ``record`` says what was
+            shaped.
     """
 
-    X, V, A, GOAL, T_FF = (slice(6 * i, 6 * i + 6) for i in range(5))
-    COUNTER, LIMITED = slice(30, 31), slice(31, 32)
+    X_D, T_FF = slice(0, 18), slice(18, 24)
+    SHAPER = slice(24, 24 + Shaper.SIZE)
+    LIMITED = slice(24 + Shaper.LIMITED.start, 24 + Shaper.LIMITED.stop)
 
     def __init__(
         self,
         geometry,
         x_initial,
-        period_s: float,
         source: LcmPoseSource,
         follower: LiveFollower,
-        admissible,
-        limits=None,
+        shaping: ShapingLimits,
         sample_timeout_s: float = SAMPLE_TIMEOUT_S,
     ):
-        from ..run.reference import ReferenceFilterLimits
-
         super().__init__()
-        if not (math.isfinite(period_s) and period_s > 0):
-            raise InvalidConfigError(f"period_s must be > 0 s, got {period_s}")
-        self.geometry, self.h = geometry, float(period_s)
-        self.source, self.follower, self.admissible = source, follower, admissible
-        self.limits = limits or ReferenceFilterLimits()
+        self.geometry, self.h = geometry, float(shaping.period_s)
+        self.source, self.follower = source, follower
+        self.shaper = Shaper(shaping)
         self.sample_timeout_s = float(sample_timeout_s)
-        self.steps_per_check = max(1, int(round(self.limits.target_period_s / self.h)))
-        self._rate = np.asarray(self.limits.rate, dtype=float)
-        self._acc = np.asarray(self.limits.acceleration, dtype=float)
-        self._omega = 2 * np.pi * self.limits.bandwidth_hz
         self.x_initial = np.asarray(x_initial, dtype=float).reshape(6).copy()
         self.T_ff_initial = holding_torques(geometry, self.x_initial)
         self.failure: str | None = None
         self._t = np.zeros(0)  # the record: times, s, and [x_d (18), T_ff (6)] (float32)
         self._values = np.zeros((0, 24), dtype=np.float32)
         self._n = 0
-        self.limited_periods, self.clipped_periods = 0, 0
-        self.first_limited_s: float | None = None
         # Any: Drake 1.51's stubs type a state as ndarray[float64, ...], which no array matches.
-        state: Any = np.zeros(32)
-        state[self.X], state[self.GOAL] = self.x_initial, self.x_initial
+        state: Any = np.zeros(self.SHAPER.stop)
+        state[self.X_D][:6] = self.x_initial
         state[self.T_FF] = self.T_ff_initial
+        state[self.SHAPER] = self.shaper.initial_state(self.x_initial)
         self._state = self.DeclareDiscreteState(state)
         ticket = {self.xd_ticket()}
-        for name, part in (("x_d", slice(0, 18)), ("T_ff", self.T_FF), ("limited", self.LIMITED)):
+        for name, part in (("x_d", self.X_D), ("T_ff", self.T_FF), ("limited", self.LIMITED)):
             size = part.stop - part.start
             self.DeclareVectorOutputPort(
                 name, size, self._output(part), prerequisites_of_calc=ticket
@@ -211,14 +208,6 @@ class FollowReference(LeafSystem):
             output.SetFromVector(value[part])
 
         return calc
-
-    def goal_toward(self, goal, target) -> np.ndarray:
-        """The farthest admissible pose on the segment from the (admissible) ``goal`` to
-        ``target``, to 1/(:data:`SEGMENT_POINTS` - 1) of it: (6,)."""
-        s = np.linspace(0.0, 1.0, SEGMENT_POINTS)[1:, None]
-        ok = np.asarray(self.admissible(goal + s * (target - goal)), dtype=bool)
-        good = int(np.argmin(ok)) if not ok.all() else ok.size
-        return goal + (s[good - 1, 0] if good > 0 else 0.0) * (target - goal)
 
     def _listen(self, now: float) -> None:
         """Read what has arrived; record the source's failure."""
@@ -241,37 +230,14 @@ class FollowReference(LeafSystem):
         state = discrete_state.get_mutable_value(self._state)
         now = context.get_time()
         self._listen(now)
-        x, v = state[self.X].copy(), state[self.V].copy()
         followed = self.follower.evaluate(now) if self.failure is None else None
-        if followed is None:  # nothing yet, or the source failed: come to rest here
-            x_f, v_f, a_f = x, np.zeros(6), np.zeros(6)
-        else:
-            x_f, v_f, a_f = (np.asarray(q, dtype=float) for q in followed)
-        steps = int(state[self.COUNTER][0])
-        if steps % self.steps_per_check == 0:
-            if followed is not None:
-                ok = bool(np.asarray(self.admissible(x_f[None, :]), dtype=bool)[0])
-                goal = x_f if ok else self.goal_toward(state[self.GOAL], x_f)
-                state[self.GOAL], state[self.LIMITED] = goal, 0.0 if ok else 1.0
-            state[self.T_FF] = holding_torques(self.geometry, x)
-        state[self.COUNTER] = steps + 1
-        if followed is not None and state[self.LIMITED][0] > 0:
-            x_f, v_f, a_f = state[self.GOAL], np.zeros(6), np.zeros(6)
-            self.limited_periods += 1
-            if self.first_limited_s is None:
-                self.first_limited_s = now
-        elif followed is None:
-            state[self.LIMITED] = 0.0
-        h, w = self.h, self._omega
-        wanted = a_f + w * w * (x_f - x) + 2 * w * (v_f - v)
-        a = np.clip(wanted, -self._acc, self._acc)
-        v_next = np.clip(v + h * a, -self._rate, self._rate)
-        if np.any(a != wanted) or np.any(v_next != v + h * a):
-            self.clipped_periods += 1
-        state[self.A] = (v_next - v) / h
-        state[self.V] = v_next
-        state[self.X] = x + h * v_next
-        self._keep(now, np.concatenate([state[:18], state[self.T_FF]]))
+        shaper_state = state[self.SHAPER]  # a view: the shaper moves it to the next period's
+        checks = int(shaper_state[Shaper.COUNTER][0]) % self.shaper.steps_per_check == 0
+        x_d, _ = self.shaper.step(shaper_state, now, followed)
+        state[self.X_D] = x_d
+        if checks:
+            state[self.T_FF] = holding_torques(self.geometry, x_d[:6])
+        self._keep(now, np.concatenate([state[self.X_D], state[self.T_FF]]))
 
     def _keep(self, now: float, values: np.ndarray) -> None:
         """Add what the outputs hold from ``now`` on to the record (grown by doubling)."""
@@ -304,21 +270,14 @@ class FollowReference(LeafSystem):
         return self._held(t, slice(18, 24))
 
     def summary(self) -> str:
-        """One line: what was received, predicted and clipped."""
+        """One line: what was received, predicted and shaped."""
         f = self.follower
         used = f.used_samples / f.received * 100 if f.received else 0.0
-        limited = (
-            f"stopped short of it (not admissible) for {self.limited_periods * self.h:.3g} s "
-            f"from t = {self.first_limited_s:.3f} s"
-            if self.first_limited_s is not None
-            else "admissible throughout"
-        )
         return (
             f"followed {self.source.channel}: {f.received} samples ({f.filled} missing ones "
             f"filled in), {f.latency_s:g} s late at {1 / f.dt:.4g} Hz, predictor "
             f"{f.predictor} used on {used:.0f} % of them ({f.clipped} predicted positions "
-            f"clipped to the motion's range); the pose {limited}; rate or acceleration clipped "
-            f"in {self.clipped_periods} periods"
+            f"clipped to the motion's range); the reference {self.shaper.record.words()}"
         )
 
 
@@ -468,21 +427,12 @@ def _build(scenario, x0, source, follower, limits, timeout):
     live reference, initialized, its station not yet assembled."""
     from pydrake.systems.analysis import ApplySimulatorConfig, Simulator
 
-    from ..plant.clearance import clearance_model
     from ..run.diagram import make_stewart_diagram
     from ..run.plan import make_plan
-    from ..run.reference import guarded_admissible
 
     plan = make_plan(scenario, with_reference=False)
     reference = FollowReference(
-        plan.geometry,
-        x0,
-        scenario.control_period_s,
-        source,
-        follower,
-        admissible=guarded_admissible(plan, clearance_model(plan.plant_geometry)),
-        limits=limits,
-        sample_timeout_s=timeout,
+        plan.geometry, x0, source, follower, shaping_limits(plan, limits), sample_timeout_s=timeout
     )
     sd = make_stewart_diagram(plan, None, reference_system=reference)
     simulator = Simulator(sd.diagram)

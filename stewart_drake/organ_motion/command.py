@@ -392,9 +392,11 @@ def _cmd_stream(args, scenario, name, out, tolerance) -> int:
         progress=not args.no_progress,
         on_checked=lambda: say_if_compiling("reproduce"),
     )
-    rep = figures["reproduction"]
-    if rep.scale != 1.0:
-        print(f"the followed reference did not fit the robot: scaled by {rep.scale:.3f}")
+    if figures["scale"] != 1.0:
+        print(
+            f"the true motion did not fit the robot: scaled by {figures['scale']:.3f} about its "
+            "centre, then streamed"
+        )
     for line in stream_summary(figures):
         print(line)
     ok, lines = stream_verdict(figures, tolerance)

@@ -8,7 +8,11 @@ reference (or the robot that ran it) with and without prediction at every instan
 follows it with a predictor and with none (:func:`~stewart_drake.references.stream.follow`)
 and measures both ways; ``reproduce --stream`` runs the followed reference on the robot and
 measures the robot's pose as (b), and judges it (:func:`stream_verdict`): the robot's true pose
-against the true motion, never against the reference it was given, which is a prediction.
+against the true motion, never against the reference it was given, which is a prediction. The
+true motion is checked first, as any reference is (refused, or scaled with ``--scale-to-fit``);
+what the follower adds beyond the robot's limits is shaped away, period by period
+(:mod:`~stewart_drake.run.shaping`, as ``robot --follow-lcm`` shapes it), and said. The figure's
+band is what the realised errors say (:func:`error_band`), not the predictor's own record.
 """
 
 from __future__ import annotations
@@ -23,6 +27,13 @@ from .fidelity import format_length, format_window, tolerance_line, verdict
 
 #: The step of the grid the errors are measured on, s.
 MEASURE_STEP_S = 0.01
+#: The share of the realised errors the figure's band holds (:func:`error_band`) ...
+BAND_QUANTILE = 0.95
+#: ... among those of the samples of this last stretch, s (the predictor's record's time
+#: constant, ``PredictorSettings.record_s``) ...
+BAND_WINDOW_S = 10.0
+#: ... once this many are known.
+BAND_MIN_SAMPLES = 20
 
 
 def stream_figures(t, x_true, x, tolerance=(1e-3, 0.01)) -> dict:
@@ -177,36 +188,64 @@ def reproduce_stream(
     on_checked=None,
 ) -> dict:
     """``reproduce --stream``: the scenario's motion streamed ``latency_s`` late, followed with
-    ``predictor``, the followed reference checked as any reference is (reach, joint limits,
-    singularity, clearance, the motors' torque and speed: refused, or shrunk with
-    ``scale_to_fit``) and run on the robot; the robot's true pose measured against the true
-    motion, beside the reference without prediction's.
+    ``predictor``, shaped to the robot's limits and run on the robot; the robot's true pose
+    measured against the true motion, beside the reference without prediction's.
+
+    The true motion is checked first as any reference is (reach, joint limits, singularity,
+    clearance, the motors' torque and speed): refused, or shrunk about its centre with
+    ``scale_to_fit`` (:func:`~.reproduction.scale_to_fit`) and that motion streamed. What the
+    follower adds (a prediction's revisions ask for accelerations the motion never has) is
+    then shaped away period by period (:func:`~stewart_drake.run.shaping.shape_followed`, the
+    validator's limits), so the reference the robot is given passes the validator, which checks
+    it again before the run.
 
     Returns:
-        :func:`follow_motion`'s dict (the followed reference against the true motion, with and
-        without prediction, over the whole run) with "robot": :func:`stream_figures` of the
-        robot's true pose against the true motion over the whole run, "reproduction": the
-        :class:`~.reproduction.Reproduction` of the followed reference, "robot_tracking": its
+        :func:`follow_motion`'s dict (the followed reference against the motion streamed, with
+        and without prediction, over the whole run) with "given": the shaped reference the
+        robot ran (:class:`~stewart_drake.run.shaping.ShapedReference`), "shaped":
+        :func:`stream_figures` of it against the motion streamed, "shaping": its record
+        (:meth:`~stewart_drake.run.shaping.ShapingRecord.as_dict`), "band": :func:`band_figures`
+        of it, "scale": the true motion's scale (1.0: as it is), "robot": :func:`stream_figures`
+        of the robot's true pose against the true motion over the whole run, "reproduction":
+        the :class:`~.reproduction.Reproduction` of the shaped reference, "robot_tracking": its
         own fidelity (the robot against what it was given), "judged": the same run measured
-        against the true motion over the same window
-        (:func:`~.reproduction.measured_against`: what :func:`stream_verdict` judges), "truth":
-        the true motion, "prediction_from_s": :func:`prediction_start`.
+        against the true motion over the same window (:func:`~.reproduction.measured_against`:
+        what :func:`stream_verdict` judges), "truth": the true motion, "prediction_from_s":
+        :func:`prediction_start`.
     Raises:
         InvalidConfigError: a bad latency, an unknown predictor, a stream too short; and as
             :func:`~.reproduction.reproduce`.
+        UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError: the true motion refused (without ``scale_to_fit``), its message
+            led by "the true motion".
     """
-    from ..run.plan import run_reference
+    from dataclasses import replace
+
+    from ..run.plan import make_plan, run_reference
+    from ..run.shaping import shape_followed, shaping_limits
     from .reproduction import measured_against, reproduce
 
     truth = run_reference(scenario)
     end = getattr(truth, "end_time", None)
     duration = float(min(duration_s or end or STREAM_DEFAULT_S, end or np.inf))
     figures = follow_motion(truth, latency_s, predictor, rate_hz, duration, tolerance=tolerance)
+    plan = make_plan(replace(scenario, duration_s=duration), with_reference=False)
+    streamed, scale = fitted_motion(plan, truth, scale_to_fit)
+    if scale != 1.0:  # the motion that fits, at the true motion's rate
+        rate = figures["rate_hz"]
+        figures = follow_motion(streamed, latency_s, predictor, rate, duration, tolerance=tolerance)
+    given = shape_followed(figures["followed"], shaping_limits(plan), duration)
+    t = np.arange(0.0, duration, MEASURE_STEP_S)
+    x_streamed = np.asarray(streamed.evaluate(t)[0])
+    figures["given"] = given
+    figures["shaped"] = stream_figures(t, x_streamed, given.evaluate(t)[0], tolerance)
+    figures["shaping"] = given.record.as_dict()
+    figures["band"] = band_figures(given, streamed, figures["followed"].stream)
+    figures["scale"] = scale
     rep = reproduce(
         scenario,
-        reference=figures["followed"],
+        reference=given,
         duration_s=duration,
-        scale_to_fit=scale_to_fit,
         progress=progress,
         on_checked=on_checked,
     )
@@ -222,6 +261,91 @@ def reproduce_stream(
     figures["prediction_from_s"] = prediction_start(figures["followed"])
     figures["after_warm_up"] = after_warm_up(figures["judged"], figures["prediction_from_s"])
     return figures
+
+
+def fitted_motion(plan, truth, scale_to_fit: bool = False) -> tuple:
+    """(the motion to stream, its scale): ``truth`` as it is (1.0) when every check of
+    :func:`~stewart_drake.run.plan.check_reference` passes on the robot of ``plan`` over its
+    duration; else, with ``scale_to_fit``, shrunk about its centre until they do
+    (:func:`~.reproduction.scale_to_fit`).
+
+    Raises:
+        UnreachablePoseError, JointLimitError, SingularPoseError, InterferenceError,
+            MotorLimitError: without ``scale_to_fit``, the validator's refusal of the true
+            motion, its message led by "the true motion (<name>), before it is followed: ".
+        InvalidConfigError: as :func:`~.reproduction.scale_to_fit`.
+    """
+    from ..base.errors import StewartError
+    from ..run.plan import check_reference
+    from .reproduction import scale_to_fit as fit
+
+    if scale_to_fit:
+        return fit(plan.scenario, truth)
+    try:
+        check_reference(plan, truth, keep_series=False)
+    except StewartError as err:
+        name = getattr(truth, "name", "")
+        # The validator's own error, its type kept, said of the true motion: not the
+        # follower's, which is shaped away instead.
+        err.args = (f"the true motion ({name}), before it is followed: {err}", *err.args[1:])
+        raise
+    return truth, 1.0
+
+
+def error_band(
+    reference, stream, quantile: float = BAND_QUANTILE, window_s: float = BAND_WINDOW_S
+) -> np.ndarray:
+    """The band the realised errors give, causally: at each arrival of ``stream``, the
+    ``quantile`` of the translation errors (3-D) of ``reference`` (what the robot is given) at
+    the samples of the last ``window_s`` s up to the newest, |reference(t_j) - y_j|, each known
+    once sample j has arrived (the reference at t_j was made before it).
+
+    Args:
+        reference: the reference (``evaluate``). stream: the
+            :class:`~stewart_drake.references.stream.Stream` it follows. quantile: in (0, 1).
+        window_s: the past read, s (at least :data:`BAND_MIN_SAMPLES` samples).
+    Returns:
+        (N,) m at each arrival; NaN before :data:`BAND_MIN_SAMPLES` errors are known.
+    Source: an empirical quantile of past residuals (the split-conformal idea, Vovk, Gammerman
+        and Shafer, Algorithmic Learning in a Random World, 2005, ch. 2) read over a sliding
+        window: the window and the quantile are our choice.
+    """
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    e = np.linalg.norm(
+        np.asarray(reference.evaluate(stream.t)[0])[:, 3:] - stream.poses[:, 3:], axis=1
+    )
+    m = max(BAND_MIN_SAMPLES, int(round(window_s / stream.dt)))
+    windows = sliding_window_view(np.concatenate([np.full(m - 1, np.nan), e]), m)
+    band = np.full(e.size, np.nan)
+    known = np.arange(e.size) >= BAND_MIN_SAMPLES - 1
+    if np.any(known):
+        band[known] = np.nanquantile(windows[known], quantile, axis=1)
+    return band
+
+
+def band_figures(reference, motion, stream) -> dict:
+    """How well :func:`error_band` of ``reference`` (following ``stream`` of ``motion``) holds
+    its errors: {"quantile", "window_s", "coverage": the share of the instants (every
+    :data:`MEASURE_STEP_S` from the first band) whose translation error against ``motion`` is
+    within the band of the newest arrival, "median_m": the band's median, m, "band": (N,) the
+    band at each arrival, m}."""
+    band = error_band(reference, stream)
+    arrival = stream.arrival
+    first = np.flatnonzero(np.isfinite(band))
+    out = {"quantile": BAND_QUANTILE, "window_s": BAND_WINDOW_S, "band": band}
+    if first.size == 0:
+        return out | {"coverage": float("nan"), "median_m": float("nan")}
+    t = np.arange(arrival[first[0]], float(stream.t[-1]), MEASURE_STEP_S)
+    e = np.linalg.norm(
+        np.asarray(reference.evaluate(t)[0])[:, 3:] - np.asarray(motion.evaluate(t)[0])[:, 3:],
+        axis=1,
+    )
+    b = band[np.searchsorted(arrival, t, side="right") - 1]
+    return out | {
+        "coverage": float(np.mean(e <= b)) if t.size else float("nan"),
+        "median_m": float(np.nanmedian(b)) if t.size else float("nan"),
+    }
 
 
 def after_warm_up(judged, prediction_from_s: float | None) -> dict | None:
@@ -293,10 +417,11 @@ def stream_verdict(figures: dict, tolerance: tuple[float, float]) -> tuple[bool,
             "after the warm-up, not the verdict: the robot's true pose against the true motion, "
             + tolerance_line(later, tolerance)[1]
         )
-    if rep.scale != 1.0:
+    scale = figures.get("scale", 1.0)
+    if scale != 1.0:
         lines.append(
-            f"the followed reference was scaled by {rep.scale:.3f} to fit the robot: the "
-            f"verdict counts the shrink as error (the true motion is as it happened)"
+            f"the true motion was scaled by {scale:.3f} about its centre to fit the robot, then "
+            f"streamed: the verdict counts the shrink as error (the true motion is as it happened)"
         )
     return ok, lines
 
@@ -343,6 +468,22 @@ def stream_summary(figures: dict) -> list:
         f"{w['nrmse_translation']:.3f}; within tolerance {n['within_tolerance'] * 100:.1f} -> "
         f"{w['within_tolerance'] * 100:.1f} % of the time",
     ]
+    shaping = figures.get("shaping")
+    if shaping is not None:
+        shaped, band = figures["shaped"], figures["band"]
+        lines.append(
+            f"the reference given to the robot: {_shaping_words(shaping)}; against the "
+            f"{_streamed(figures)} over the whole run, translation RMS "
+            f"{shaped['rms_translation_m'] * 1e3:.3g} mm shaped, "
+            f"{w['rms_translation_m'] * 1e3:.3g} mm as followed; peak "
+            f"{shaped['peak_translation_m'] * 1e3:.3g} mm, {w['peak_translation_m'] * 1e3:.3g} mm"
+        )
+        lines.append(
+            f"the figure's band, {band['quantile'] * 100:.0f} % of the realised errors at the "
+            f"samples of the last {band['window_s']:g} s (causal; median "
+            f"{band['median_m'] * 1e3:.3g} mm), held {band['coverage'] * 100:.1f} % of the errors "
+            f"of the reference given, every {MEASURE_STEP_S * 1e3:g} ms"
+        )
     if r is not None:
         tracking = figures["robot_tracking"]
         lines.append(
@@ -355,18 +496,34 @@ def stream_summary(figures: dict) -> list:
     return lines
 
 
+def _shaping_words(record: dict) -> str:
+    """:meth:`~stewart_drake.run.shaping.ShapingRecord.words` of a record's plain numbers."""
+    from ..run.shaping import ShapingRecord
+
+    return ShapingRecord(**record).words()
+
+
+def _streamed(figures: dict) -> str:
+    """The motion streamed, in words: the true motion, or the true motion scaled to fit."""
+    scale = figures.get("scale", 1.0)
+    return "true motion" if scale == 1.0 else f"true motion scaled by {scale:.3f}"
+
+
 def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, float]) -> tuple:
     """``reproduce_<name>_stream.md``, ``.png`` and ``.json`` in ``out``: the verdict of
     :func:`stream_verdict` at ``tolerance`` (m, rad; the robot's true pose against the true
     motion) with what is beside it, the summary, the figures, and the true motion, the followed
-    reference with and without prediction and the robot on the axis that moves most, with the
-    errors over time and the predictor's uncertainty (2 sigma of its recent residuals at the
-    latency).
+    reference with and without prediction, the reference given (shaped) and the robot on the
+    axis that moves most, with the errors over time and the band of the realised errors
+    (:func:`error_band`: :data:`BAND_QUANTILE` of those of the last :data:`BAND_WINDOW_S` s).
 
     The JSON's ``passed`` is that verdict; ``against_true_motion`` its figures (``rms`` per axis,
     rad and m, the 3-D RMS, ``window_s``, ``startup``); ``against_given_reference`` the robot
     against the reference it ran, over the same window, and ``after_warm_up``
-    (:func:`after_warm_up`, or null), which are not the verdict.
+    (:func:`after_warm_up`, or null), which are not the verdict; ``shaping`` what was shaped
+    (:meth:`~stewart_drake.run.shaping.ShapingRecord.as_dict`), ``shaped`` the reference given
+    against the motion streamed (:func:`stream_figures`), ``band`` the band's coverage
+    (:func:`band_figures`) and ``scale`` the true motion's.
 
     Returns:
         the three paths (.md, .png, .json), each written atomically.
@@ -395,11 +552,15 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
 
     none = follow(followed.stream, "none", followed.settings, followed.loop_lag_s)
     x_with, x_none = followed.evaluate(t)[0], none.evaluate(t)[0]
+    given = figures.get("given", followed)
+    x_given = given.evaluate(t)[0]
     fig, (a0, a1) = plt.subplots(2, 1, figsize=(11, 7), sharex=True)
     zoom = t >= max(0.0, end - 20.0)
     a0.plot(t[zoom], x_true[zoom, axis] * scale, "k", lw=2, label="true motion")
     a0.plot(t[zoom], x_none[zoom, axis] * scale, color="tab:red", label="followed, no prediction")
     a0.plot(t[zoom], x_with[zoom, axis] * scale, color="tab:blue", label="followed, predicted")
+    a0.plot(t[zoom], x_given[zoom, axis] * scale, "--", color="tab:purple",
+            label="given to the robot (shaped)")  # fmt: skip
     if rep is not None:
         rt = np.asarray(rep.result.t)
         rz = rt >= t[zoom][0]
@@ -417,19 +578,21 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
     a0.legend(loc="upper right", fontsize=8)
     e_none = np.linalg.norm(x_none[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
     e_with = np.linalg.norm(x_with[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
+    e_given = np.linalg.norm(x_given[zoom, 3:] - x_true[zoom, 3:], axis=1) * 1e3
     a1.plot(t[zoom], e_none, color="tab:red", label="no prediction")
     a1.plot(t[zoom], e_with, color="tab:blue", label="predicted")
-    k = max(1, int(round(figures["latency_s"] / followed.stream.dt)))
-    sigma = np.linalg.norm(followed.sigma[:, min(k, followed.sigma.shape[1]) - 1, 3:], axis=1)
+    a1.plot(t[zoom], e_given, "--", color="tab:purple", label="given to the robot (shaped)")
+    band = figures.get("band") or band_figures(given, truth, followed.stream)
     arrive = followed.stream.arrival
     sel = arrive >= t[zoom][0]
-    a1.step(arrive[sel], 2e3 * sigma[sel], where="post", color="tab:gray", lw=1,
-            label="2 sigma of the recent residuals")  # fmt: skip
+    a1.step(arrive[sel], 1e3 * band["band"][sel], where="post", color="tab:gray", lw=1,
+            label=f"{band['quantile'] * 100:.0f} % of the realised errors of the last "
+            f"{band['window_s']:g} s (held {band['coverage'] * 100:.0f} %)")  # fmt: skip
     a1.set_ylabel("translation error [mm]")
     a1.set_xlabel("t [s]")
     a1.legend(loc="upper right", fontsize=8)
     fig.tight_layout(rect=(0, 0, 1, 0.94))  # below the verdict's title
-    png = stem.with_suffix(".png")
+    png = stem.parent / f"{stem.name}.png"  # a name may hold a dot: not with_suffix
     atomic_write(png, lambda f: fig.savefig(f, format="png", dpi=110))
     plt.close(fig)
     md_text = "\n".join(
@@ -449,13 +612,18 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
         prediction_from_s=figures["prediction_from_s"],
         after_warm_up=figures.get("after_warm_up"),
     )
+    if "shaping" in figures:
+        band = {k: v for k, v in figures["band"].items() if k != "band"}
+        keep.update(
+            shaped=figures["shaped"], shaping=figures["shaping"], band=band, scale=figures["scale"]
+        )
     keep.update(
         {k: figures[k] for k in ("latency_s", "rate_hz", "predictor", "used", "clipped")},
         ratio_translation=figures["ratio_translation"],
         ratio_rotation=figures["ratio_rotation"],
         loop_lag_s=LOOP_LAG_S,
     )
-    md, js = stem.with_suffix(".md"), stem.with_suffix(".json")
+    md, js = (stem.parent / f"{stem.name}{suffix}" for suffix in (".md", ".json"))
     atomic_write(md, lambda f: f.write(md_text.encode()))
     atomic_write(js, lambda f: f.write(json.dumps(keep, indent=1, default=float).encode()))
     return md, png, js
@@ -481,5 +649,11 @@ __all__ = [
     "stream_verdict",
     "stream_summary",
     "write_stream_report",
+    "fitted_motion",
+    "error_band",
+    "band_figures",
     "MEASURE_STEP_S",
+    "BAND_QUANTILE",
+    "BAND_WINDOW_S",
+    "BAND_MIN_SAMPLES",
 ]

@@ -410,6 +410,38 @@ def _validated(geometry, t, x, x_dot, x_ddot, checks: _PathChecks) -> Trajectory
     return report
 
 
+def sample_effort(geometry: RobotGeometry, x, x_dot, x_ddot, servo=None) -> tuple:
+    """The torque and crank speed each motor needs at each sample, as the validator's motor
+    check computes them (:func:`validate_trajectory` with ``motor_limits``: the compiled
+    kinematics and effort, pose by pose, so a sample's numbers do not depend on the samples
+    beside it), for a caller that bounds them sample by sample
+    (:mod:`stewart_drake.run.shaping`).
+
+    Args:
+        x, x_dot, x_ddot: (n, 6) poses [rad, m], their rates and accelerations (SI).
+        servo: a :class:`~.servo.ServoModel` whose friction the motors also overcome, or None.
+    Returns:
+        (T, theta_dot): (n, 6) torques in N m and crank rates in rad/s; inf at a sample whose
+        legs do not all close or whose Jacobian is not finite (the validator refuses it).
+    Source: :func:`~.statics.motor_effort_compiled` (inverse dynamics plus the servo's
+        friction), the validator's own.
+    """
+    from .statics import motor_effort_compiled
+
+    x = np.ascontiguousarray(x, dtype=float).reshape(-1, 6)
+    x_dot = np.asarray(x_dot, dtype=float).reshape(-1, 6)
+    x_ddot = np.asarray(x_ddot, dtype=float).reshape(-1, 6)
+    kin = _sample_kinematics(geometry, x, True)
+    ok = np.all(np.abs(kin.ratio) <= 1.0, axis=1) & np.all(np.isfinite(kin.J), axis=(1, 2))
+    T, speed = np.full(x.shape, np.inf), np.full(x.shape, np.inf)
+    rows = np.flatnonzero(ok)
+    if rows.size:
+        T[rows], speed[rows] = motor_effort_compiled(
+            geometry, x[rows], x_dot[rows], x_ddot[rows], servo, kin.theta[rows], kin.J[rows]
+        )
+    return T, speed
+
+
 def _sample_kinematics(geometry, x, compiled: bool) -> SampleKinematics:
     """The kinematics of the samples x (n, 6) that the checks read: compiled
     (:func:`~.path_checks.compiled_kinematics`) or numpy (:func:`~.kinematics.ik_unchecked`,

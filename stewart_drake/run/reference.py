@@ -517,12 +517,14 @@ class TeleopReference(LeafSystem):
         state[self.X] = x + h * v_next
 
 
-def guarded_admissible(plan, clearance):
+def guarded_admissible(plan, clearance, geometry: StewartGeometry | None = None):
     """``admissible(x (N, 6)) -> (N,) bool``, :func:`admissible_poses` as the run of ``plan``
     (a :class:`~.plan.RunPlan`) judges a live reference's poses: its scenario's guard thresholds,
     its motors' peak torque, and ``clearance`` (a
-    :class:`~stewart_drake.plant.clearance.ClearanceModel`) with the guard's least clearance."""
-    geometry, peak, guard = plan.geometry, plan.torque_limit_Nm, plan.scenario.guard
+    :class:`~stewart_drake.plant.clearance.ClearanceModel`) with the guard's least clearance;
+    of ``geometry`` (default the robot the controller believes in, ``plan.geometry``)."""
+    peak, guard = plan.torque_limit_Nm, plan.scenario.guard
+    geometry = plan.geometry if geometry is None else geometry
 
     def admissible(x) -> np.ndarray:
         return admissible_poses(

@@ -1,0 +1,275 @@
+"""The shaping of a followed reference (run/shaping.py): a prediction that asks the motors for
+more torque than a reference may use is shaped, period by period, into a reference the
+validator itself passes, the shaping counted and said; within the limits the followed
+reference is given as it is; the shaped reference depends on nothing that arrives later, steps
+by no more than its rejoining tolerance, and scales an acceleration by the largest factor the
+motors allow.
+
+The stream: the library's breathing (15 mm on X, 4 s) sampled at 5 Hz with 0.1 mm of noise,
+0.2 s late: the prediction's revisions ask motor torques of up to 0.69 N m where the motion
+itself needs 0.35 N m and a reference may use 0.632 N m (90 % of the motors' 0.702 N m).
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from stewart_drake.references.organ.library import make_motion
+from stewart_drake.references.prediction import PredictorSettings
+from stewart_drake.references.stream import Stream, follow
+from stewart_drake.robot.kinematics import X_HOME
+from stewart_drake.robot.statics import motor_effort
+from stewart_drake.run.plan import check_reference, make_plan
+from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.run.shaping import (
+    REJOIN_POSE,
+    REJOIN_RATE,
+    Shaper,
+    ShapingLimits,
+    shape_followed,
+    shaping_limits,
+)
+
+D = 16.0
+LATENCY_S = 0.2
+MOTION = make_motion("breathing", {})
+#: The predictor may be used after 2 s of record (5 s shipped): a short stream reaches it.
+SETTINGS = PredictorSettings(min_record_s=2.0)
+
+
+def noisy_stream(noise_m=100e-6, seed=1, duration_s=D, change_after_s=None) -> Stream:
+    """MOTION at 5 Hz with ``noise_m`` of Gaussian noise on X, Y, Z, ``LATENCY_S`` late; with
+    ``change_after_s``, every sample after it moved by 2 mm on X (another future)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration_s + 1e-9, 0.2)
+    poses = np.asarray(MOTION.evaluate(t)[0]).copy()
+    poses[:, 3:] += rng.normal(0.0, noise_m, (t.size, 3))
+    if change_after_s is not None:
+        poses[t > change_after_s, 3] += 2e-3
+    return Stream(t, poses, LATENCY_S, "noisy breathing")
+
+
+@pytest.fixture(scope="module")
+def plan():
+    return make_plan(replace(load_scenario("phantom_hardware"), duration_s=D), with_reference=False)
+
+
+@pytest.fixture(scope="module")
+def followed():
+    return follow(noisy_stream(), "linear", SETTINGS)
+
+
+@pytest.fixture(scope="module")
+def shaped(plan, followed):
+    return shape_followed(followed, shaping_limits(plan), D)
+
+
+def _rms_to_truth(reference) -> float:
+    t = np.arange(0.0, D, 0.01)
+    e = np.asarray(reference.evaluate(t)[0])[:, 3:] - np.asarray(MOTION.evaluate(t)[0])[:, 3:]
+    return float(np.sqrt(np.mean(np.sum(e**2, axis=1))))
+
+
+def test_a_prediction_over_the_torque_limit_is_shaped_into_one_the_validator_passes(
+    plan, followed, shaped
+):
+    """The validator refuses the followed reference (a motor over its torque) and not the true
+    motion; it passes the shaped reference, whose largest torque is within the limit and within
+    3 % of it (the acceleration scaled no more than the motors need). The shaping is counted:
+    periods scaled for the torque, shaped, and at most 0.5 mm from the followed reference,
+    which costs the end-to-end error against the true motion less than 10 %."""
+    truth = check_reference(plan, MOTION, raise_refused=False, keep_series=False, duration_s=D)
+    before = check_reference(plan, followed, raise_refused=False, keep_series=False, duration_s=D)
+    after = check_reference(plan, shaped, raise_refused=False, keep_series=False, duration_s=D)
+    limit = plan.motor_limits.margin * plan.motor_limits.peak_torque_Nm
+    assert truth.ok and truth.peak_torque < 0.7 * limit
+    assert not before.ok and before.first_effort_violation.quantity == "torque"
+    assert after.ok, after.summary()
+    assert 0.97 * limit < after.peak_torque <= limit
+    record = shaped.record
+    assert record.scaled >= 1 and record.shaped >= record.scaled and record.over == 0
+    assert record.limited == 0 and record.joined_s == 0.0 and record.approach == 0
+    assert 1e-6 < record.departure_m < 0.5e-3
+    assert record.periods == int(np.ceil(D / plan.control_period_s)) + 3
+    with_, without = _rms_to_truth(shaped), _rms_to_truth(followed)
+    assert 0.9 * without < with_ < 1.1 * without
+    words = record.words()
+    assert f"shaped to the robot's limits in {record.shaped} of {record.periods} periods" in words
+    assert f"scaled for a motor's torque or speed in {record.scaled}" in words
+
+
+def test_the_approach_to_the_followed_reference_keeps_teleops_box(plan, followed):
+    """Started at rest 10 mm below the followed reference's start (as the robot rests, live):
+    the reference approaches it within teleop's box (0.05 m/s, 0.5 m/s^2 on X, Y, Z), joins it
+    within 2 s, and is then shaped as from the start (the approach not counted as shaped)."""
+    shaper = Shaper(shaping_limits(plan))
+    h = plan.control_period_s
+    x0 = np.asarray(followed.evaluate(0.0)[0]) - np.array([0, 0, 0, 0, 0, 0.01])
+    state = shaper.initial_state(x0)
+    t = np.arange(0.0, 4.0, h)
+    x, v, a = (np.asarray(q) for q in followed.evaluate(t))
+    out = np.array([shaper.step(state, t[k], (x[k], v[k], a[k]))[0] for k in range(t.size)])
+    record = shaper.record
+    assert record.joined_s is not None and 0.3 < record.joined_s < 2.0
+    before = t < record.joined_s
+    assert record.approach == np.count_nonzero(before)
+    assert np.max(np.abs(out[before, 15:18])) <= 0.5 and np.max(np.abs(out[before, 9:12])) <= 0.05
+    np.testing.assert_array_equal(out[~before, :6][:50], x[~before][:50])  # on it once joined
+
+
+def test_within_the_limits_the_followed_reference_is_given_as_it_is(plan):
+    """The noiseless breathing, its torque within the motors: the shaped reference is the
+    followed one, to the bit, and nothing is counted shaped."""
+    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "linear", SETTINGS)
+    shaped = shape_followed(followed, shaping_limits(plan), 12.0)
+    t = np.sort(np.random.default_rng(0).uniform(0.0, 12.0, 5000))
+    for mine, theirs in zip(shaped.evaluate(t), followed.evaluate(t)):
+        np.testing.assert_array_equal(mine, theirs)
+    assert shaped.record.shaped == 0 and shaped.shaped_periods.size == 0
+    assert "within the robot's limits throughout" in shaped.record.words()
+
+
+def test_the_shaped_reference_depends_on_nothing_that_arrives_later(plan, shaped):
+    """Every sample after 10 s moved by 2 mm: the shaped reference before 10 s + the latency
+    is the same to the bit, and after it is not."""
+    other = shape_followed(
+        follow(noisy_stream(change_after_s=10.0), "linear", SETTINGS), shaping_limits(plan), D
+    )
+    t = np.arange(0.0, D, plan.control_period_s)
+    early = t < 10.0 + LATENCY_S
+    for mine, theirs in zip(shaped.evaluate(t), other.evaluate(t)):
+        np.testing.assert_array_equal(mine[early], theirs[early])
+    assert np.max(np.abs(shaped.evaluate(t)[0][~early] - other.evaluate(t)[0][~early])) > 1e-4
+
+
+def test_the_shaped_reference_steps_by_no_more_than_its_rejoining_tolerance(plan, followed, shaped):
+    """At every period the pose is where the period before took it at its constant
+    acceleration (x + v h + a h^2 / 2), and the rate (v + a h), as closely as the followed
+    curve's own are (its third- and second-order terms), or within the rejoining tolerances
+    (where it goes back onto the followed reference)."""
+    h = plan.control_period_s
+    t = np.arange(0.0, D, h)
+
+    def steps(reference):
+        x, v, a = reference.evaluate(t)
+        carried = x[:-1] + v[:-1] * h + 0.5 * a[:-1] * h**2
+        return np.max(np.abs(x[1:] - carried)), np.max(np.abs(v[1:] - v[:-1] - a[:-1] * h))
+
+    (pose, rate), (own_pose, own_rate) = steps(shaped), steps(followed)
+    assert pose <= max(own_pose, REJOIN_POSE) + 1e-15, (pose, own_pose)
+    assert rate <= max(own_rate, REJOIN_RATE) + 1e-15, (rate, own_rate)
+    assert own_pose < REJOIN_POSE  # the followed curve's own third-order term is below it
+
+
+def _effort_limits(plan):
+    motors = plan.motor_limits
+    return motors.margin * motors.peak_torque_Nm, motors.servo
+
+
+def test_an_acceleration_the_motors_cannot_give_is_scaled_by_the_largest_factor_they_allow(
+    plan,
+):
+    """At home, moving 10 mm/s on Z, a followed acceleration of 14 m/s^2 on Z: the motors'
+    torque there (numpy's inverse dynamics, not the compiled form the shaper
+    reads) is over the limit. The shaped acceleration is that one scaled: within the limit, and
+    1 % more of it would be over."""
+    shaper = Shaper(shaping_limits(plan))
+    limit, servo = _effort_limits(plan)
+    geometry = plan.plant_geometry
+    x, v, a = X_HOME.copy(), np.zeros(6), np.zeros(6)
+    v[5], a[5] = 0.01, 14.0
+    assert np.max(np.abs(motor_effort(geometry, x, v, a, servo)[0])) > limit  # the premise
+    state = shaper.initial_state(x)
+    state[Shaper.V] = v
+    state[Shaper.ON_PATH] = state[Shaper.JOINED] = 1.0  # following it
+    out, what = shaper.step(state, 0.0, (x, v, a), admissible=True)
+    assert what & Shaper.SCALED_FLAG and not what & Shaper.CLIPPED_FLAG
+    np.testing.assert_array_equal(out[:12], np.concatenate([x, v]))
+    s = out[17] / a[5]
+    assert 0.0 < s < 1.0 and np.allclose(out[12:17], 0.0, atol=0.0)
+    torque = np.max(np.abs(motor_effort(geometry, x, v, out[12:], servo)[0]))
+    more = np.max(np.abs(motor_effort(geometry, x, v, min(1.0, 1.01 * s) * a, servo)[0]))
+    assert 0.999 * limit < torque <= limit and more > limit
+    np.testing.assert_allclose(state[Shaper.X], x + 1e-3 * v + 0.5e-6 * out[12:], atol=1e-15)
+
+
+def test_stopping_short_keeps_the_acceleration_and_the_next_rate_in_the_box(plan):
+    """Stopped short (its goal 0.2 mm ahead of a pose that moves at 0.0499 m/s on Z towards
+    it): the acceleration is within teleop's 0.5 m/s^2 and the next rate within 0.05 m/s; the
+    flags say clipped and limited."""
+    shaper = Shaper(shaping_limits(plan))
+    x, v = X_HOME.copy(), np.zeros(6)
+    v[5] = 0.0499
+    state = shaper.initial_state(x)
+    state[Shaper.V], state[Shaper.JOINED] = v, 1.0
+    state[Shaper.GOAL][5] += 2e-4
+    state[Shaper.COUNTER] = 1  # not a period that checks the pose: the goal stands
+    state[Shaper.LIMITED] = 1.0
+    out, what = shaper.step(state, 0.0, (x + 0.01, v, np.zeros(6)))
+    assert what & Shaper.CLIPPED_FLAG and what & Shaper.LIMITED_FLAG
+    assert np.all(np.abs(out[12:]) <= 0.5 + 1e-12) and out[17] == pytest.approx(-0.5)
+    assert np.all(np.abs(state[Shaper.V]) <= 0.05 + 1e-12)
+
+
+def test_a_pose_that_is_not_admissible_is_not_followed(plan):
+    """An admissible set that ends 2.5 mm below the centre on X (a stand-in for a joint limit):
+    the breathing (+-7.5 mm) is stopped short of it, said as limited, and follows it again
+    above it. Not by construction: the pose is checked every 20 ms and the filter then stops at
+    the box's deceleration, so the reference passes the boundary by what its rate carries
+    (2.2 mm at the 32 mm/s the prediction reaches there); under 3 mm here."""
+    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "linear", SETTINGS)
+    bound = -2.5e-3
+
+    def admissible(x):
+        return np.asarray(x)[:, 3] >= bound
+
+    limits = replace(shaping_limits(plan), admissible=admissible)
+    shaped = shape_followed(followed, limits, 12.0)
+    t = np.arange(0.0, 12.0, 0.01)
+    x_f, x_s = followed.evaluate(t)[0][:, 3], shaped.evaluate(t)[0][:, 3]
+    assert np.min(x_f) < bound - 4e-3  # the premise
+    assert np.min(x_s) > bound - 3e-3
+    record = shaped.record
+    assert record.limited > 0 and record.first_limited_s is not None
+    assert "stopped short of a pose not admissible" in record.words()
+    above = x_f > bound + 3e-3
+    assert np.median(np.abs(x_s - x_f)[above]) < 1e-6
+
+
+def test_the_limits_are_the_validators(plan):
+    """The shaping limits of a run: the robot its validator checks, the motors' limits and
+    share, the control period; a bad period refused."""
+    limits = shaping_limits(plan)
+    assert limits.geometry is plan.plant_geometry and limits.motors == plan.motor_limits
+    assert limits.period_s == plan.control_period_s
+    torque, speed = limits.effort_limits()
+    motors = plan.motor_limits
+    assert torque == pytest.approx(motors.margin * motors.peak_torque_Nm, rel=2e-6)
+    assert torque < motors.margin * motors.peak_torque_Nm
+    assert speed == pytest.approx(motors.margin * motors.max_speed_rad_s, rel=2e-6)
+    from stewart_drake.base.errors import InvalidConfigError
+
+    for bad in (0.0, -1e-3, float("nan")):
+        with pytest.raises(InvalidConfigError, match="control period"):
+            ShapingLimits(limits.geometry, limits.motors, limits.admissible, period_s=bad)
+        with pytest.raises(InvalidConfigError, match="following bandwidth"):
+            replace(limits, follow_bandwidth_hz=bad)
+
+
+def test_the_following_filter_is_10_hz_and_stays_stable_at_a_long_period(plan):
+    """Back onto the followed reference at 10 Hz (2 pi 10 rad/s) at 1 ms; at a 20 ms period,
+    at most 0.5 / h = 25 rad/s (4 Hz). Either way the filter stepped at constant acceleration
+    (the step's matrix on the error and its rate, written out) has both poles inside the unit
+    circle; 10 Hz at 20 ms would not (a pole at 1.72)."""
+    limits = shaping_limits(plan)
+
+    def radius(w, h):
+        step = np.array([[1 - (w * h) ** 2 / 2, h - w * h * h], [-h * w * w, 1 - 2 * w * h]])
+        return np.max(np.abs(np.linalg.eigvals(step)))
+
+    for h, want in ((1e-3, 2 * np.pi * 10.0), (0.02, 25.0)):
+        w = replace(limits, period_s=h).follow_omega()
+        assert w == pytest.approx(want, rel=1e-12)
+        assert radius(w, h) < 0.96
+    assert radius(2 * np.pi * 10.0, 0.02) > 1.5
