@@ -25,6 +25,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -121,7 +122,8 @@ def tune(cases, latencies=TUNING_LATENCIES, progress=None) -> tuple:
     references = [(_reference(c), None if c.path else LIBRARY_S) for c in cases]
     scores = []
     for values in itertools.product(*TUNING_GRID.values()):
-        settings = replace(PredictorSettings(), **dict(zip(TUNING_GRID, values)))
+        grid: dict[str, Any] = dict(zip(TUNING_GRID, values))
+        settings = replace(PredictorSettings(), **grid)
         pairs = [
             ratios(follow_motion(ref, lat, "linear", None, dur, settings))
             for ref, dur in references
@@ -205,8 +207,8 @@ def verdicts(rows) -> list:
     traces, the library's motions): ratio (b) judged; (a) and the predictor's use reported."""
     lines = []
     for tuned, what in ((False, "IntERAct's traces"), (True, "the library's motions")):
-        sets = {lat: _set_figures(rows, tuned, lat) for lat in LATENCIES}
-        sets = {lat: f for lat, f in sets.items() if f is not None}
+        found = {lat: _set_figures(rows, tuned, lat) for lat in LATENCIES}
+        sets = {lat: f for lat, f in found.items() if f is not None}
         if not sets:
             continue
         checks = judge(

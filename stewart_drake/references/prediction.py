@@ -51,6 +51,7 @@ predictor").
 """
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -285,7 +286,8 @@ class LinearModel:
 
 
 #: The models by name (:data:`PREDICTORS`), each built as ``model(dt, steps, axes, settings)``.
-MODELS = {
+#: The models by name, each built (dt, steps, axes, settings) with ``warm`` and ``update(y)``.
+MODELS: dict[str, Any] = {
     "none": lambda dt, steps, axes, settings: HoldModel(steps, axes),
     "linear": LinearModel,
     "wlms": WaveletLMSModel,

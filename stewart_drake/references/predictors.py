@@ -138,7 +138,9 @@ class MulinModel:
         self.alpha = float(1.0 - np.exp(-dt / settings.mulin_smoothing_s))
         self.warm = (self.r + 1) * self.K
         i = np.arange(self.r + 2)
-        self.coef = np.array([(-1) ** j * math.comb(self.r + 2, j + 1) for j in i], dtype=float)
+        self.coef = np.array(
+            [(-1) ** j * math.comb(self.r + 2, j + 1) for j in range(self.r + 2)], dtype=np.float64
+        )
         self._lags = np.arange(1, self.K + 1)[:, None] * i[None, :]  # (K, r + 2): i k
         self._y = np.zeros(((self.r + 1) * self.K + 1, self.m))
         self._e = np.zeros((self.K, self.m))

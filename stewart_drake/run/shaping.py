@@ -228,8 +228,10 @@ class ShapingRecord:
 
     def as_dict(self) -> dict:
         """The record as plain numbers (the JSON's ``shaping``)."""
-        keys = ("period_s", "periods", "approach", "shaped", "limited", "clipped", "scaled")
-        keys += ("over", "joined_s")
+        keys: tuple[str, ...] = (
+            "period_s", "periods", "approach", "shaped", "limited", "clipped", "scaled", "over",
+            "joined_s",
+        )  # fmt: skip
         out: dict = {k: getattr(self, k) for k in keys}
         out |= {
             "departure_m": self.departure_m,

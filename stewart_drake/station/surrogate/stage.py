@@ -274,7 +274,7 @@ def add_surrogate_stage(
     goals = goal_table(stage, t, p, v, a)
     breaks = t.copy()
     breaks[0] = min(breaks[0], 0.0)  # the table holds its first goal from t = 0
-    table = PiecewisePolynomial.ZeroOrderHold(breaks, goals)
+    table = PiecewisePolynomial.ZeroOrderHold(breaks, goals)  # type: ignore[call-overload]  # stub shapes
     goal = builder.AddNamedSystem("surrogate_goal", TrajectorySource(table))
     A, B = stage.carriage_matrices(time_step_s)
     carriage = builder.AddNamedSystem(
