@@ -119,9 +119,15 @@ def test_the_approach_to_the_followed_reference_keeps_teleops_box(plan, followed
 
 
 def test_within_the_limits_the_followed_reference_is_given_as_it_is(plan):
-    """The noiseless breathing, its torque within the motors: the shaped reference is the
-    followed one, to the bit, and nothing is counted shaped."""
-    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "linear", SETTINGS)
+    """The noiseless breathing held (no prediction), its torque within the motors (checked
+    first, by the validator): the shaped reference is the followed one, to the bit, and nothing
+    is counted shaped. (The regression's path between 5 Hz samples may ask more of the motors:
+    on this breathing it peaks at 0.73 N m against 0.63, and is shaped.)"""
+    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "none", SETTINGS)
+    premise = check_reference(
+        plan, followed, raise_refused=False, keep_series=False, duration_s=12.0
+    )
+    assert premise.ok, premise
     shaped = shape_followed(followed, shaping_limits(plan), 12.0)
     t = np.sort(np.random.default_rng(0).uniform(0.0, 12.0, 5000))
     for mine, theirs in zip(shaped.evaluate(t), followed.evaluate(t)):
@@ -217,8 +223,8 @@ def test_a_pose_that_is_not_admissible_is_not_followed(plan):
     the breathing (+-7.5 mm) is stopped short of it, said as limited, and follows it again
     above it. Not by construction: the pose is checked every 20 ms and the filter then stops at
     the box's deceleration, so the reference passes the boundary by what its rate carries
-    (2.2 mm at the 32 mm/s the prediction reaches there); under 3 mm here."""
-    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "linear", SETTINGS)
+    (0.54 mm at the 18 mm/s the held breathing reaches there; 2.2 mm at 32 mm/s); under 3 mm."""
+    followed = follow(noisy_stream(noise_m=0.0, duration_s=12.0), "none", SETTINGS)
     bound = -2.5e-3
 
     def admissible(x):

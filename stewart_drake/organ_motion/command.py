@@ -158,7 +158,8 @@ def _add_surrogate_arguments(rp) -> None:
         default=None,
         metavar="KEY=VALUE",
         help="with --surrogate model: ratio=0.8 lead=0.3s drift=2mm/min change_at=20s "
-        "lead_after=-0.2s ratio_after=1.2 blend=1s",
+        "lead_after=-0.2s ratio_after=1.2 blend=1s (default: none, the motion itself: ratio 1, "
+        "no lead, no drift, no change)",
     )
     rp.add_argument(
         "--surrogate-columns",

@@ -49,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from ..base.errors import InvalidConfigError
+from ..base.tables import markdown_lines
 from ..organ_motion.fidelity import AXES, MOVING_P2P
 from ..organ_motion.measured_verdict import (
     AT_REST_SHARE,
@@ -785,9 +786,15 @@ def pair_markdown(pair: PairVerification) -> str:
     for what, ver in (("internal", pair.internal), ("surrogate", pair.surrogate)):
         rms = [v for v in ver.fidelity["rms"] if not math.isnan(v)]
         rows.append(
-            f"| {what} | {ver.name} | {Path(ver.measured.path).name} | "
-            f"{', '.join(ver.fidelity['measured'])} | {-ver.shift_s:+.4f} | "
-            f"{max(rms) * 1e3:.3g} | {'PASS' if ver.judgement.passed else 'FAIL'} |"
+            [
+                what,
+                ver.name,
+                Path(ver.measured.path).name,
+                ", ".join(ver.fidelity["measured"]),
+                f"{-ver.shift_s:+.4f}",
+                f"{max(rms) * 1e3:.3g}",
+                "PASS" if ver.judgement.passed else "FAIL",
+            ]
         )
     lines = [
         f"# {pair.internal.name} with its surrogate {pair.surrogate.name}, measured on one clock",
@@ -802,10 +809,19 @@ def pair_markdown(pair: PairVerification) -> str:
         f"within {seconds(pair.searched_s[0])} to {seconds(pair.searched_s[1])}; the bound "
         f"+-{seconds(pair.judgement.max_relative_latency_s)}.",
         "",
-        "| motion | reference | measured | axes | delay behind its reference [s] | "
-        "largest RMS error [mm or rad x 1e3] | verdict |",
-        "|---|---|---|---|---:|---:|---|",
-        *rows,
+        *markdown_lines(
+            [
+                "motion",
+                "reference",
+                "measured",
+                "axes",
+                "delay behind its reference [s]",
+                "largest RMS error [mm or rad x 1e3]",
+                "verdict",
+            ],
+            rows,
+            [None, None, None, None, "right", "right", None],
+        ),
         "",
         "Each delay is -d, on the measured clock: it holds the clocks' offset unless "
         "--clock-offset was given; their difference, the relative latency, does not.",
