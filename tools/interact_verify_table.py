@@ -24,7 +24,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from interact_method import TRACE_COLUMN, laboratory_runs, optimal_shift  # noqa: E402
+from interact_method import (  # noqa: E402
+    TRACE_COLUMN,
+    camera_file,
+    laboratory_runs,
+    optimal_shift,
+)
 
 from stewart_drake.base.fileio import write_between_markers  # noqa: E402
 from stewart_drake.base.tables import markdown_lines  # noqa: E402
@@ -41,10 +46,7 @@ MAX_GAP_S = 1.5
 
 def judge(trace: Path, time_file: Path, depth_file: Path, folder: Path) -> dict:
     """verify's JSON of one run (module docstring)."""
-    t, depth = np.loadtxt(time_file), np.loadtxt(depth_file)
-    camera = folder / "camera.csv"
-    rows = ["t [s],depth [mm]"] + [f"{float(a)!r},{float(b)!r}" for a, b in zip(t, depth)]
-    camera.write_text("\n".join(rows) + "\n")
+    camera = camera_file(folder / "camera.csv", time_file, depth_file)
     out = folder / "out"
     argv = ["verify", str(trace), "--measured", str(camera), "--measured-map", "depth=AP"]
     argv += ["--measured-max-gap", str(MAX_GAP_S), "--tolerance", "1mm,1deg", "--out", str(out)]
