@@ -229,7 +229,8 @@ def test_a_run_without_a_surrogate_keeps_todays_log_and_a_held_carriage_stays(tm
         assert _torque(emu) == [0] * 7
     assert run.ok and run.relative_latency is None, end_line(run)
     assert abs(carriage - 0.003) < 3 * STAGE.metres_per_count  # held within counts
-    assert run.encoder_log.read_text().splitlines()[0].endswith(",s [m],s_cmd [m],s_ref [m],s_delay [s]")
+    header = run.encoder_log.read_text().splitlines()[0]
+    assert header.endswith(",s [m],s_cmd [m],s_ref [m],s_delay [s]")
     (tmp_path / "plain").mkdir()
     from stewart_drake.calibration.join import ENCODER_LOG_COLUMNS
 
@@ -505,9 +506,10 @@ def test_interact_pairs_emulated_move_within_one_period_of_each_other(tmp_path, 
     assert judged.platform_axis in ("X", "Z")  # SI or AP: where the internal trace moves most
     assert abs(judged.relative_s) <= PERIOD_S and judged.passed
     assert abs(judged.servo_lag_s) < 0.1 * PERIOD_S and judged.surrogate_rms_m < 1e-4
-    # The carriage's lag is the delay it was given (and its servo's), not a figure of its own.
+    # The carriage's lag is the delay it was given (and its servo's), not a figure of its own:
+    # to within what the delay varies by over the run (its mean taken here).
     late = judged.matching_delay_s + judged.servo_lag_s
-    assert abs(judged.surrogate_lag_s - late) < 0.1 * PERIOD_S
+    assert abs(judged.surrogate_lag_s - late) < 0.2 * PERIOD_S
     # The periods after the lead-in (the trace, its 1 s ramp at the end), less 0.5 s each end.
     assert abs(judged.samples - (INTERACT_SECONDS + 1.0 - 2 * 0.5) / PERIOD_S) <= 2
 

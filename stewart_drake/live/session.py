@@ -505,7 +505,7 @@ def _judge(driver, homed, t, carriage):
         carriage[0],
         carriage[1],
         s_reference=carriage[2],
-        delays_s=carriage[3],
+        delays_s=carriage[3] if driver.surrogate.lag_match is not None else None,
         tolerance_s=driver.period_s,
         t_from=homed.home_s,
         s_count_m=driver.surrogate.config.metres_per_count,
