@@ -7,7 +7,9 @@ servos were read, s since the Unix epoch on the robot computer's clock), ``t_run
 run's time, from the start of the homing lead-in), ``t_path [s]`` (the time on the reference's
 own clock: a planned path's ``t [s]``; ``nan`` during the lead-in), ``q0 [rad]`` ..
 ``q5 [rad]`` (the encoders' raw readings, zero errors included); a run with a surrogate's servo
-on the bus adds ``s [m]`` and ``s_cmd [m]`` (its carriage's position read and commanded).
+on the bus adds ``s [m]``, ``s_cmd [m]``, ``s_ref [m]`` and ``s_delay [s]`` (its carriage's
+position read, commanded, its reference on the run's clock, and the delay the command was taken
+with: lag matching, :mod:`~stewart_drake.station.bus.lag_matching`).
 
 **Tracker file** (:func:`write_tracker_file`): one line per sample, ``time [s]`` on the same
 clock as the encoder log's (a tracker's software on the robot computer, or a clock kept within
@@ -50,8 +52,9 @@ ENCODER_LOG_COLUMNS = {"time": "time", "t_run": "time", "t_path": "time"} | {
     n: "angle" for n in READING_COLUMNS
 }
 #: The encoder log's columns of a run with a surrogate on the bus: its carriage's position
-#: read (``s``) and commanded (``s_cmd``).
-SURROGATE_LOG_COLUMNS = {"s": "length", "s_cmd": "length"}
+#: read (``s``), commanded (``s_cmd``: its reference at the run's time less ``s_delay``) and
+#: its reference on the run's clock (``s_ref``), and the lag matching's delay (``s_delay``).
+SURROGATE_LOG_COLUMNS = {"s": "length", "s_cmd": "length", "s_ref": "length", "s_delay": "time"}
 POSE_KINDS = {n: ("angle" if k < 3 else "length") for k, n in enumerate(POSE_COLUMNS)}
 TRACKER_COLUMNS = {"time": "time"} | POSE_KINDS
 WINDOW_COLUMNS = {"t_start": "time", "t_end": "time"} | POSE_KINDS
@@ -134,13 +137,16 @@ def encoder_log_path(npz) -> Path:
 
 def write_encoder_log(path, time_s, t_run, t_path, q, surrogate=None) -> Path:
     """Write the encoder log (module docstring) at ``path`` atomically: ``time_s``, ``t_run``,
-    ``t_path`` (n,) s, ``q`` (n, 6) rad; with ``surrogate`` = (s, s_cmd), (n,) each, m, two
-    more columns (:data:`SURROGATE_LOG_COLUMNS`: the surrogate's carriage read by its servo's
-    encoder and commanded in that period); returns the path."""
+    ``t_path`` (n,) s, ``q`` (n, 6) rad; with ``surrogate`` = (s, s_cmd, s_ref, s_delay),
+    (n,) each, m, m, m and s, four more columns (:data:`SURROGATE_LOG_COLUMNS`: the
+    surrogate's carriage read by its servo's encoder, commanded in that period, its reference
+    on the run's clock, the delay its command was taken with); returns the path."""
     columns = [time_s, t_run, t_path, np.asarray(q).reshape(-1, 6)]
     header = ENCODER_LOG_COLUMNS
     if surrogate is not None:
-        columns += [np.asarray(surrogate[0]), np.asarray(surrogate[1])]
+        if len(surrogate) != len(SURROGATE_LOG_COLUMNS):
+            raise ValueError(f"surrogate: (s, s_cmd, s_ref, s_delay), got {len(surrogate)}")
+        columns += [np.asarray(c, dtype=float) for c in surrogate]
         header = header | SURROGATE_LOG_COLUMNS
     _write_csv(path, _header_text(header), np.column_stack(columns))
     return Path(path)

@@ -12,7 +12,12 @@ each control period, logged with the period's reading):
 - the platform's y and c: its pose from the crank encoders (forward kinematics) and the
   reference's pose, along the **translation of the reference that moves most** (peak to peak
   over the judged window), m; the surrogate's: the carriage's position from its servo's
-  encoder (``s``) and the position commanded (``s_cmd``), m.
+  encoder (``s``) and its reference on the run's clock (``s_ref``: its trace where the
+  platform's reference is, before any delay lag matching gave its command), m. So a delay given
+  to the carriage's command to match the platform's lag
+  (:mod:`~stewart_drake.station.bus.lag_matching`) is part of the surrogate's lag, and judged,
+  not assumed; the servo's own lag behind the command it was given (``s_cmd``) is reported
+  beside it.
 - the **relative latency** is L_platform - L_surrogate, s: **positive when the platform (the
   internal target) follows its command later than the surrogate follows its own**, the sign
   ``verify --surrogate`` and IntERAct's analysis use (``shift6D - shift1D``,
@@ -105,6 +110,10 @@ class RelativeLatency:
         platform_axis: the platform's coordinate judged ("X", "Y" or "Z").
         surrogate_rms_m, platform_rms_m: the RMS residual at each lag, m.
         tolerance_s: the verdict's bound on |relative_s|, s. samples: samples judged.
+        servo_lag_s: the carriage's lag behind the command it was given (``s_cmd``), s;
+            NaN when judged against that command itself.
+        matching_delay_s: the mean delay lag matching gave the carriage's command over the
+            window, s (NaN: none was given).
     """
 
     relative_s: float
@@ -115,6 +124,8 @@ class RelativeLatency:
     platform_rms_m: float
     tolerance_s: float
     samples: int
+    servo_lag_s: float = math.nan
+    matching_delay_s: float = math.nan
 
     @property
     def passed(self) -> bool:
@@ -123,14 +134,21 @@ class RelativeLatency:
 
     def line(self) -> str:
         """The verdict in one line, naming what it compares."""
+        against = "s_ref, its trace" if self.servo_lag_s == self.servo_lag_s else "s_cmd"
         what = (
-            "relative latency, platform after surrogate (each axis's lag behind its own command "
-            "on the run's clock, from its encoders: the carriage's s against s_cmd, the "
-            f"platform's {self.platform_axis} against the reference's)"
+            "relative latency, platform after surrogate (each axis's lag behind its own "
+            f"reference on the run's clock, from its encoders: the carriage's s against {against}"
+            f", the platform's {self.platform_axis} against the reference's)"
         )
+        matched = ""
+        if self.matching_delay_s == self.matching_delay_s:
+            matched = (
+                f"; its command delayed {1e3 * self.matching_delay_s:+.1f} ms on average by lag "
+                f"matching, its servo {1e3 * self.servo_lag_s:+.1f} ms behind that command"
+            )
         lags = (
             f"surrogate {1e3 * self.surrogate_lag_s:+.1f} ms (RMS {1e6 * self.surrogate_rms_m:.0f}"
-            f" um), platform {1e3 * self.platform_lag_s:+.1f} ms (RMS "
+            f" um{matched}), platform {1e3 * self.platform_lag_s:+.1f} ms (RMS "
             f"{1e6 * self.platform_rms_m:.0f} um) over {self.samples} periods"
         )
         bound = f"|relative| <= {1e3 * self.tolerance_s:g} ms (one control period)"
@@ -160,6 +178,8 @@ def relative_latency(
     max_lag_s: float = MAX_LAG_S,
     s_count_m: float = 0.0,
     x_count_m: float = 0.0,
+    s_reference=None,
+    delays_s=None,
 ) -> RelativeLatency:
     """The relative latency of a run (module docstring).
 
@@ -167,6 +187,11 @@ def relative_latency(
         t: (n,) the periods' run times, s. x_measured, x_commanded: (n, 6) the platform's
             pose from its encoders and the reference's, rad and m. s_measured, s_commanded:
             (n,) the carriage's position read and commanded, m.
+        s_reference: (n,) the carriage's reference on the run's clock (before lag matching's
+            delay), m: the surrogate's lag is judged against it, and its servo's lag behind
+            ``s_commanded`` reported beside; None: judged against ``s_commanded``.
+        delays_s: (n,) the delay lag matching gave the carriage's command each period, s
+            (its mean over the window is reported); None: none.
         tolerance_s: the verdict's bound, s (one control period). t_from: the window's start
             (the end of the homing lead-in), s.
         s_count_m, x_count_m: one encoder count of each axis, m: a command moving less than
@@ -194,8 +219,26 @@ def relative_latency(
         raise InvalidConfigError(
             f"the surrogate's samples must be ({t.size},), got {s_m.shape} and {s_c.shape}"
         )
-    lag_s, rms_s = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=20 * s_count_m)
-    inner = np.count_nonzero((t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s))
+    still = 20 * s_count_m
+    servo_lag = math.nan
+    if s_reference is not None:
+        s_r = np.asarray(s_reference, dtype=float)
+        if s_r.shape != t.shape:
+            raise InvalidConfigError(
+                f"the surrogate's reference must be ({t.size},), got {s_r.shape}"
+            )
+        servo_lag, _ = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
+        lag_s, rms_s = axis_lag(t_w, s_m[window], s_r[window], max_lag_s, still_below=still)
+    else:
+        lag_s, rms_s = axis_lag(t_w, s_m[window], s_c[window], max_lag_s, still_below=still)
+    inner = (t_w >= t_w[0] + max_lag_s) & (t_w <= t_w[-1] - max_lag_s)
+    delay = math.nan
+    if delays_s is not None:
+        d = np.asarray(delays_s, dtype=float)
+        if d.shape != t.shape:
+            raise InvalidConfigError(f"the delays must be ({t.size},), got {d.shape}")
+        if np.any(np.isfinite(d[window][inner])):
+            delay = float(np.nanmean(d[window][inner]))
     return RelativeLatency(
         relative_s=lag_p - lag_s,
         surrogate_lag_s=lag_s,
@@ -204,5 +247,7 @@ def relative_latency(
         surrogate_rms_m=rms_s,
         platform_rms_m=rms_p,
         tolerance_s=float(tolerance_s),
-        samples=int(inner),
+        samples=int(np.count_nonzero(inner)),
+        servo_lag_s=float(servo_lag),
+        matching_delay_s=delay,
     )

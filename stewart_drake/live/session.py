@@ -366,6 +366,24 @@ def _command_surrogate(driver, surrogate, homed, scenario) -> None:
     s, v, _ = command.evaluate(np.arange(0.0, homed.duration_s, 0.5 * period_s))
     check_surrogate_path(drive.config, s, v, "the surrogate's lead-in and trace")
     drive.command = command.sampled(period_s, scenario.duration_s)
+    #: The carriage's reference on the run's clock, before any lag matching's delay: what
+    #: the run's relative latency judges the carriage against.
+    drive.reference = command
+    if drive.config.match_platform_lag:
+        drive.lag_match = _lag_match(homed, period_s, scenario.duration_s)
+
+
+def _lag_match(homed, period_s: float, t_end: float):
+    """The platform's lag estimator (:class:`~..station.bus.lag_matching.PlatformLagMatch`)
+    on its reference sampled every period to ``t_end``, along the translation it moves most
+    after the lead-in (the axis the run's relative latency judges)."""
+    from ..station.bus.lag_matching import PlatformLagMatch, principal_translation
+
+    t = np.arange(int(np.ceil(t_end / period_s)) + 1) * period_s
+    x, v, _ = homed.evaluate(t)
+    after = t >= homed.home_s
+    k = principal_translation(x[after] if np.count_nonzero(after) > 1 else x)
+    return PlatformLagMatch(period_s, x[:, k], v[:, k], k)
 
 
 def _stop(bus, driver, ended: RobotRun) -> None:
@@ -453,7 +471,12 @@ def _keep_logs(
         t, t_read, q = driver.readings()
         epoch = time.time() - time.perf_counter()  # perf_counter is the monotonic clock
         tau = homed.reference_time(t)
-        carriage = driver.surrogate_readings() if driver.surrogate is not None else None
+        carriage = None
+        if driver.surrogate is not None:
+            s, s_cmd = driver.surrogate_readings()
+            reference = driver.surrogate.reference
+            s_ref = reference.evaluate(t)[0] if reference is not None else s_cmd
+            carriage = (s, s_cmd, s_ref, driver.surrogate_delays())
         ended.encoder_log = write_encoder_log(
             encoder_log_path(path), t_read + epoch, t, tau, q, surrogate=carriage
         )
@@ -481,6 +504,8 @@ def _judge(driver, homed, t, carriage):
         x_c,
         carriage[0],
         carriage[1],
+        s_reference=carriage[2],
+        delays_s=carriage[3] if driver.surrogate.lag_match is not None else None,
         tolerance_s=driver.period_s,
         t_from=homed.home_s,
         s_count_m=driver.surrogate.config.metres_per_count,

@@ -249,6 +249,10 @@ class SurrogateServoConfig:
         carriage_mass_kg: the carriage and its marker, kg.
         current_limit_A: its Current Limit, A (None: the model's maximum).
         bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
+        match_platform_lag: delay the carriage's command by the platform's lag behind its own
+            reference, estimated each period from the crank encoders
+            (:mod:`~.lag_matching`), so that the two motions keep their recorded timing;
+            False: the carriage follows its trace on the run's clock as is.
     """
 
     id: int = 7
@@ -260,6 +264,7 @@ class SurrogateServoConfig:
     carriage_mass_kg: float = 0.5
     current_limit_A: float | None = None
     bandwidth_hz: float = 5.0
+    match_platform_lag: bool = True
 
     def validate(
         self, crank_ids, control_period_s: float | None, prefix: str = "bus.surrogate."
@@ -292,6 +297,10 @@ class SurrogateServoConfig:
             as_number(f"{prefix}current_limit_A", self.current_limit_A, 0.0, top, lo_open=True)
         top_hz = None if control_period_s is None else 0.1 / control_period_s
         as_number(f"{prefix}bandwidth_hz", self.bandwidth_hz, 0.0, top_hz, lo_open=True)
+        if not isinstance(self.match_platform_lag, bool):
+            raise InvalidConfigError(
+                f"{prefix}match_platform_lag must be true or false, got {self.match_platform_lag!r}"
+            )
 
     # --- derived figures -------------------------------------------------------------------
 

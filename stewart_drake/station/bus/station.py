@@ -49,7 +49,7 @@ from .timing import CAUSES, LATE_FRACTION, LoopTiming
 #: numbers (deadline misses, achieved period us, measurement age us).
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
 #: Numbers a period's reading keeps (:meth:`DynamixelDriver.readings`).
-_ROW = 16
+_ROW = 17
 
 
 def _kernels():
@@ -220,7 +220,8 @@ class DynamixelDriver(LeafSystem):
         self.skipped_s = 0.0
         self._last_start = self._last_read_t = float("nan")
         #: Every period's reading: (Diagram time, read time (perf_counter), q0..q5, the pose
-        #: x (6) from them, the surrogate's position read and commanded, m) rows, the first
+        #: x (6) from them, the surrogate's position read and commanded, m, and the lag
+        #: matching's delay of its command after this period, s) rows, the first
         #: ``_n_readings`` of them; grown by half when a run outlasts them.
         self._readings = np.empty((1024, _ROW))
         self._n_readings = 0
@@ -268,6 +269,8 @@ class DynamixelDriver(LeafSystem):
         age = 0.5 * (w0 + w1) - self._last_read_t
         held = context.get_discrete_state(self._state).value()
         measured = self._measure(held[_X][:6])
+        if self.surrogate is not None:  # lag matching learns the platform's lag from its pose
+            self.surrogate.platform_reading(t, measured[_X][:6])
         self._keep_reading(t, measured, s_commanded)
         period = now - self._last_start
         self._last_start = now
@@ -299,6 +302,7 @@ class DynamixelDriver(LeafSystem):
         row[0], row[1], row[2:8], row[8:14] = t, self._last_read_t, measured[_Q], measured[_X][:6]
         row[14] = self.surrogate.held[0] if self.surrogate is not None else math.nan
         row[15] = s_commanded
+        row[16] = self.surrogate.delay_s if self.surrogate is not None else math.nan
         self._n_readings = k + 1
 
     def _missed(self, t: float, late: float, cause: int) -> None:
@@ -352,6 +356,11 @@ class DynamixelDriver(LeafSystem):
         period's row when it was read before the loop started)."""
         r = self._readings[: self._n_readings]
         return r[:, 14].copy(), r[:, 15].copy()
+
+    def surrogate_delays(self) -> np.ndarray:
+        """(n,) the delay the surrogate's command was taken with after each period of
+        :meth:`readings` (lag matching; 0 without it, NaN without a surrogate), s."""
+        return self._readings[: self._n_readings, 16].copy()
 
     def timing_summary(self) -> dict:
         """The loop's timing over the periods kept (:meth:`.timing.LoopTiming.summary`: the

@@ -87,6 +87,10 @@ class SurrogateDrive:
     Attributes:
         command: ``command(t) -> (s, v, a)`` the carriage's position m, rate m/s and
             acceleration m/s^2 at the run's time t (floats); None: hold where it was first read.
+        lag_match: None, or a :class:`~.lag_matching.PlatformLagMatch`: the command is then
+            taken at ``t - lag_match.delay_s``, the platform's lag estimated from its
+            encoders (:meth:`platform_reading`), so that the carriage is as late on its trace
+            as the platform is on its own.
         held: (s m, v m/s) of the last reading.
     """
 
@@ -100,6 +104,10 @@ class SurrogateDrive:
         #: Rate below which the dry friction's feed-forward fades (one count a period), rad/s.
         self.v_eps = 2 * math.pi / p.COUNTS_PER_REV / self.period_s
         self.command = None
+        #: The carriage's reference on the run's clock before any delay (an object with
+        #: ``evaluate(t) -> (s, v, a)``; the session sets it with ``command``), or None.
+        self.reference = None
+        self.lag_match = None
         self.held = (math.nan, math.nan)
         self._hold = math.nan
 
@@ -109,11 +117,23 @@ class SurrogateDrive:
         if self._hold != self._hold:
             self._hold = float(s_m)
 
+    def platform_reading(self, t: float, pose) -> None:
+        """The platform's pose measured for run time ``t`` (s; (6,) rad and m), for lag
+        matching (nothing without it)."""
+        if self.lag_match is not None:
+            self.lag_match.update(t, pose)
+
+    @property
+    def delay_s(self) -> float:
+        """The delay the command is taken with, s (0 without lag matching)."""
+        return self.lag_match.delay_s if self.lag_match is not None else 0.0
+
     def commanded(self, t: float) -> tuple[float, float, float]:
-        """(s m, v m/s, a m/s^2) commanded at run time ``t``."""
+        """(s m, v m/s, a m/s^2) commanded at run time ``t``: the command at ``t`` less the
+        lag matching's delay."""
         if self.command is None:
             return self._hold, 0.0, 0.0
-        s, v, a = self.command(t)
+        s, v, a = self.command(t - self.delay_s)
         return float(s), float(v), float(a)
 
     def torque(self, t: float) -> tuple[float, float]:

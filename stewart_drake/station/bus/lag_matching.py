@@ -1,0 +1,145 @@
+"""Lag matching: the surrogate's command delayed by the platform's own lag behind its reference,
+estimated each control period from the crank encoders, so that the internal target and the
+external surrogate move on one clock.
+
+Why. On the servo bus (a 10 ms period) the platform follows its reference some milliseconds
+late, by an amount its controller, its friction and the motion decide (+26, +12 and -2 ms on
+three of IntERAct's LIGHT SABR traces with the shipped controller; docs/robot.md), while the
+surrogate's stage, a light carriage on one servo, follows its own within 0.2 ms. What a motion
+management system sees is the two motions' **relative** timing: a phantom whose internal target
+is 26 ms late on its external surrogate presents a 26 ms phase error the patient never had.
+Delaying the carriage's command by the platform's lag makes the pair move as recorded, whatever
+the platform's controller. (IntERAct synchronises its two robots by their start only.)
+
+The estimate. Let y(t) be the platform's coordinate measured along its reference's principal
+translation (the one that moves most) and c(t) the reference's, so that y(t) ~ c(t - L) + b
+(a lag L and an offset b). Linearised about the estimate L_k in use at period k,
+
+    r_k = y_k - c(t_k - L_k) ~ -(L - L_k) g_k + b,   g_k = c'(t_k - L_k),
+
+so u_k = r_k - L_k g_k ~ -L g_k + b: a straight line in g whose slope is -L whatever L_k was.
+The slope is the exponentially weighted least-squares fit over the last ``memory_s`` (a time
+constant longer than a breathing cycle; the offset is the line's intercept); it is what the
+RMSE alignment of the verdict (:mod:`stewart_drake.live.encoder_relative_latency`) minimises,
+to first order in L - L_k. The delay in use moves towards it by at most ``max_rate`` s per s
+(0.5 %: the carriage's speed changes by at most that), stays within +-``max_delay_s``, and holds
+until the fit has seen a reference moving at ``min_speed_m_s`` RMS.
+
+Nothing here is fitted to the verdict: the delay acts on the carriage's command as the run goes,
+from the encoders' past readings; the relative latency judged at the end compares each motion
+with its own reference on the run's clock (the carriage's before any delay), so a matching that
+did not match is seen there.
+"""
+
+import math
+
+import numpy as np
+
+from ...base.errors import InvalidConfigError
+
+#: The fit's time constant, s (longer than a breathing cycle).
+MEMORY_S = 6.0
+#: The fastest the delay in use changes, s per s (the carriage's speed changes by at most this).
+MAX_RATE = 0.005
+#: The largest delay applied either way, s (IntERAct's claimed synchronisation is 0.1 s).
+MAX_DELAY_S = 0.2
+#: The reference's RMS speed along its axis below which the fit holds the delay, m/s.
+MIN_SPEED_M_S = 2e-4
+
+
+class PlatformLagMatch:
+    """The platform's lag behind its reference, estimated each period (module docstring), as the
+    delay to give the surrogate's command.
+
+    Args:
+        period_s: the control period, s (the reference's samples' step).
+        reference: (n,) the platform's reference along ``axis`` at 0, h, 2h, ... s, m.
+        reference_rate: (n,) its rate there, m/s.
+        axis: the pose coordinate (3, 4 or 5: X, Y, Z) the reference moves most along.
+        memory_s, max_rate, max_delay_s, min_speed_m_s: the module's constants by default.
+    Attributes:
+        delay_s: the delay in use, s (> 0: the platform is late, the carriage is delayed).
+        estimate_s: the fit's lag, s (NaN until the reference has moved enough).
+    Raises:
+        InvalidConfigError: tables not (n,) alike or not finite, an axis not a translation,
+            a setting out of range.
+    """
+
+    def __init__(
+        self,
+        period_s: float,
+        reference,
+        reference_rate,
+        axis: int,
+        memory_s: float = MEMORY_S,
+        max_rate: float = MAX_RATE,
+        max_delay_s: float = MAX_DELAY_S,
+        min_speed_m_s: float = MIN_SPEED_M_S,
+    ):
+        c, g = np.asarray(reference, dtype=float), np.asarray(reference_rate, dtype=float)
+        if c.ndim != 1 or c.shape != g.shape or c.size < 2:
+            raise InvalidConfigError(
+                f"the reference and its rate must be (n,) alike with n >= 2, got {c.shape} "
+                f"and {g.shape}"
+            )
+        if not (np.all(np.isfinite(c)) and np.all(np.isfinite(g))):
+            raise InvalidConfigError("the platform's reference for lag matching is not finite")
+        if axis not in (3, 4, 5):
+            raise InvalidConfigError(f"the matched axis must be a translation (3..5), got {axis}")
+        for name, value in (("period_s", period_s), ("memory_s", memory_s)):
+            if not 0 < value < math.inf:
+                raise InvalidConfigError(f"{name} must be > 0 s, got {value}")
+        if not (0 <= max_rate < 1 and 0 <= max_delay_s < math.inf and min_speed_m_s > 0):
+            raise InvalidConfigError(
+                f"lag matching's limits out of range: max_rate {max_rate} (0..1), max_delay_s "
+                f"{max_delay_s} (>= 0), min_speed_m_s {min_speed_m_s} (> 0)"
+            )
+        self.period_s, self.axis = float(period_s), int(axis)
+        self._c, self._g, self._last = c, g, c.size - 1
+        self._forget = math.exp(-self.period_s / memory_s)
+        self._step = max_rate * self.period_s
+        self.max_delay_s, self._min_var = float(max_delay_s), float(min_speed_m_s) ** 2
+        self.delay_s, self.estimate_s = 0.0, math.nan
+        # The weighted sums of the fit: weight, g, u, g^2, g u.
+        self._s = [0.0, 0.0, 0.0, 0.0, 0.0]
+
+    def _at(self, t: float) -> tuple[float, float]:
+        """(c, c') at run time ``t`` (linear between samples; the ends held)."""
+        x = t / self.period_s
+        k = min(max(int(math.floor(x)), 0), self._last)
+        w = min(max(x - k, 0.0), 1.0) if k < self._last else 0.0
+        c, g = self._c, self._g
+        k1 = min(k + 1, self._last)
+        return c[k] + w * (c[k1] - c[k]), g[k] + w * (g[k1] - g[k])
+
+    def update(self, t: float, pose) -> float:
+        """Take the platform's pose measured for run time ``t`` (s; (6,) rad and m) and return
+        the delay to use from now on, s."""
+        y = float(pose[self.axis])
+        if y != y:  # a reading with no pose: nothing learnt
+            return self.delay_s
+        d = self.delay_s
+        c, g = self._at(t - d)
+        u = (y - c) - d * g
+        s, lam = self._s, self._forget
+        s[0] = lam * s[0] + 1.0
+        s[1] = lam * s[1] + g
+        s[2] = lam * s[2] + u
+        s[3] = lam * s[3] + g * g
+        s[4] = lam * s[4] + g * u
+        mean_g = s[1] / s[0]
+        var_g = s[3] / s[0] - mean_g * mean_g
+        if var_g < self._min_var:
+            return d
+        cov = s[4] / s[0] - mean_g * s[2] / s[0]
+        self.estimate_s = -cov / var_g
+        target = min(max(self.estimate_s, -self.max_delay_s), self.max_delay_s)
+        self.delay_s = d + min(max(target - d, -self._step), self._step)
+        return self.delay_s
+
+
+def principal_translation(reference) -> int:
+    """The pose coordinate (3, 4 or 5) along which (n, 6) ``reference`` poses move most
+    (peak to peak), the axis the lag is measured on."""
+    x = np.asarray(reference, dtype=float)
+    return 3 + int(np.argmax(np.ptp(x[:, 3:], axis=0)))
