@@ -82,6 +82,8 @@ MODULES = {
     # verify's modules against their unit tests, not tests/test_verify*.py, which run the
     # command and write its reports in process: 35 s with the JIT off, for every mutant of verify.
     "stewart_drake/organ_motion/alignment.py": ("tests/test_alignment.py",),
+    # The one lag search: its own tests and verify's clock's, which drive its score and search.
+    "stewart_drake/base/lag.py": ("tests/test_lag.py", "tests/test_alignment.py"),
     "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
     "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
     "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),

@@ -1,14 +1,15 @@
 """The relative latency between the platform and the surrogate on the robot, from the encoders.
 
-Each axis is judged against its own command on the run's one clock (the Diagram's time t of
+Each axis is judged against its own reference on the run's one clock (the Diagram's time t of
 each control period, logged with the period's reading):
 
 - the **lag** L of an axis is the shift delta that minimises the RMS difference between what
-  its encoders measured, y(t_k), and its command shifted later by delta, c(t_k - delta)
-  (the command linearly interpolated between its logged samples; delta searched in
-  [-``max_lag_s``, +``max_lag_s``], on a grid of a quarter period, then refined by a bounded
-  scalar minimisation to 1 us; IntERAct's RMSE alignment, Kaczynska et al. 2026, in
-  continuous shifts). L > 0: the axis moves after its command.
+  its encoders measured, y(t_k), and its reference shifted later by delta, c(t_k - delta)
+  (linearly interpolated between its logged samples; delta searched in [-``max_lag_s``,
+  +``max_lag_s``], every shift on the samples' step at once by FFT, then refined by a bounded
+  scalar minimisation to 1 us: :func:`stewart_drake.base.lag.signal_lag`, IntERAct's RMSE
+  alignment, Kaczynska et al. 2026, in continuous shifts). L > 0: the axis moves after its
+  reference.
 - the platform's y and c: its pose from the crank encoders (forward kinematics) and the
   reference's pose, along the **translation of the reference that moves most** (peak to peak
   over the judged window), m; the surrogate's: the carriage's position from its servo's
@@ -35,9 +36,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from ..base.errors import InvalidConfigError
+from ..base.lag import signal_lag
 from ..robot.kinematics import AXIS_NAMES
 
 #: The longest lag searched, s.
@@ -61,42 +62,14 @@ def axis_lag(t, measured, commanded, max_lag_s: float = MAX_LAG_S, still_below: 
         InvalidConfigError: shapes that differ, times not increasing, a value not finite, fewer
             than :data:`MIN_SAMPLES` samples inside the search's margins.
     """
-    t = np.asarray(t, dtype=float)
-    y = np.asarray(measured, dtype=float)
-    c = np.asarray(commanded, dtype=float)
+    t, y, c = (np.asarray(v, dtype=float) for v in (t, measured, commanded))
     if t.ndim != 1 or y.shape != t.shape or c.shape != t.shape:
         raise InvalidConfigError(
             f"the times, measured and commanded samples must be (n,) alike, got {t.shape}, "
             f"{y.shape}, {c.shape}"
         )
-    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y)) and np.all(np.isfinite(c))):
-        raise InvalidConfigError("a time, measured or commanded sample is not finite")
-    if not 0 < max_lag_s < math.inf:
-        raise InvalidConfigError(f"max_lag_s must be > 0 s, got {max_lag_s}")
-    if np.any(np.diff(t) <= 0):
-        raise InvalidConfigError("the sample times must increase")
-    first, last = (t[0], t[-1]) if t.size else (0.0, 0.0)
-    inner = (t >= first + max_lag_s) & (t <= last - max_lag_s)
-    if np.count_nonzero(inner) < MIN_SAMPLES:
-        raise InvalidConfigError(
-            f"{np.count_nonzero(inner)} samples lie inside the search's margins of "
-            f"{max_lag_s:g} s: the window is too short to measure a lag (at least {MIN_SAMPLES})"
-        )
-    if np.ptp(c[inner]) <= still_below:
-        return math.nan, math.nan
-    t_in, y_in = t[inner], y[inner]
-
-    def rms(delta):
-        return float(np.sqrt(np.mean((y_in - np.interp(t_in - delta, t, c)) ** 2)))
-
-    step = 0.25 * float(np.median(np.diff(t)))
-    grid = np.arange(-max_lag_s, max_lag_s + 0.5 * step, step)
-    cost = np.array([rms(d) for d in grid])
-    k = int(np.argmin(cost))
-    lo, hi = grid[max(k - 1, 0)], grid[min(k + 1, len(grid) - 1)]
-    best = minimize_scalar(rms, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
-    delta = float(best.x) if best.fun <= cost[k] else float(grid[k])
-    return delta, rms(delta)
+    # The package's one lag search: every shift by FFT on the samples' step, then to 1 us.
+    return signal_lag(t, y, c, max_lag_s, still_below=still_below, min_samples=MIN_SAMPLES)
 
 
 @dataclass(frozen=True)

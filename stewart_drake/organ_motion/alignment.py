@@ -20,7 +20,8 @@ minimises the weighted mean squared distance between the measured axes and the r
 (:func:`shift_scores`: translations in m, rotations weighted by :data:`ROTATION_WEIGHT_M`; each
 axis less its mean difference where the frames remove offsets). It is found coarsely over every
 shift allowed, every shift at once by FFT (:func:`coarse_shift`), then to a fraction of a sample
-by a bounded scalar minimisation of the same score (:func:`refine_shift`). The distance is
+by a bounded scalar minimisation of the same score (:func:`refine_shift`): the package's one lag
+search, :mod:`stewart_drake.base.lag` (its functions named here too). The distance is
 measured between what the tracker sees and what the reference makes it see: with a registered
 marker of positions only, the reference's marker point p + R p_EM, not the platform's origin
 (:func:`reference_seen`), so that a marker far from the origin does not pull the clock.
@@ -35,6 +36,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..base.lag import (
+    REFINE_SAMPLES,
+    best_shift,
+    coarse_shift,
+    refine_shift,
+    shift_score,
+    shift_scores,
+)
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
 from .fidelity import AXES
@@ -42,9 +51,6 @@ from .fidelity import AXES
 #: A rotation's weight against a translation in the clock's score, m per rad (a point 0.15 m
 #: from the axis).
 ROTATION_WEIGHT_M = 0.15
-#: Most samples the fine clock search evaluates the reference at (evenly picked): the score's
-#: minimum is found to a fraction of a sample with far fewer.
-REFINE_SAMPLES = 20000
 #: The frames that a verification may take, and the words for each.
 FRAME_KINDS = ("axes", "base", "registration", "encoders")
 
@@ -165,85 +171,6 @@ def axis_weights(measured) -> np.ndarray:
     return np.where(np.asarray(measured, dtype=bool), w, 0.0)
 
 
-# -- the clock -------------------------------------------------------------------------------------
-
-
-def shift_scores(
-    t, y, weights, seen, shifts: tuple[float, float], step_s: float, offsets: bool
-) -> tuple[np.ndarray, np.ndarray]:
-    """(d (K,) s, score (K,) m^2): every shift d in [shifts] on a grid of ``step_s`` and the
-    weighted mean squared distance between the measured y and the reference's at t + d, each
-    axis less its mean difference when ``offsets``, every shift at once by FFT.
-
-    Args:
-        t: (n,) s, increasing. y: (n, 6) the measured axes as compared (NaN where not
-            measured). weights: (6,) (:func:`axis_weights`; 0 skips an axis).
-        seen: t (m,) -> (m, 6) the reference as the file shows it (:func:`reference_seen`).
-        shifts: (lo, hi) s. step_s: s. offsets: remove each axis's mean difference.
-    """
-    from scipy.signal import correlate
-
-    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
-    m = len(grid)
-    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
-    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
-    d = shifts[0] + step_s * np.arange(count)
-    r_all = seen(grid[0] + shifts[0] + step_s * np.arange(m + count - 1))
-    ones = np.ones(m)
-    score = np.zeros(count)
-    for k in np.flatnonzero(weights):
-        ym = np.interp(grid, t, y[:, k])
-        r = r_all[:, k]
-        centre = float(np.mean(r))  # both less one constant: the differences keep their digits
-        ym, r = ym - centre, r - centre
-        s_r = correlate(r, ones, "valid")
-        part = np.sum(ym * ym) + correlate(r * r, ones, "valid") - 2 * correlate(r, ym, "valid")
-        if offsets:
-            part -= (np.sum(ym) - s_r) ** 2 / m
-        score += weights[k] ** 2 * part / m
-    return d, score
-
-
-def coarse_shift(
-    t, y, weights, seen, shifts: tuple[float, float], step_s: float, offsets: bool
-) -> float:
-    """The shift d in [shifts] (measured time + d = the reference's time) of least
-    :func:`shift_scores`, to ``step_s``, s."""
-    d, score = shift_scores(t, y, weights, seen, shifts, step_s, offsets)
-    return float(d[int(np.argmin(score))])
-
-
-def shift_score(t, y, weights, seen, d: float, offsets: bool) -> float:
-    """The weighted mean squared distance of :func:`shift_scores` at one shift d, from the
-    reference evaluated at t + d (no grid), m^2."""
-    r = seen(t + d)
-    score = 0.0
-    for k in np.flatnonzero(weights):
-        e = y[:, k] - r[:, k]
-        if offsets:
-            e = e - np.mean(e)
-        score += weights[k] ** 2 * float(np.mean(e * e))
-    return score
-
-
-def refine_shift(t, y, weights, seen, d0: float, step_s: float, offsets: bool) -> float:
-    """The shift of least :func:`shift_score` within ``step_s`` of the coarse d0 (scipy's
-    bounded scalar minimisation, to a microsecond), on at most :data:`REFINE_SAMPLES` samples,
-    s."""
-    from scipy.optimize import minimize_scalar
-
-    # As many as allowed, spread evenly from the first sample to the last.
-    pick = np.round(np.linspace(0, len(t) - 1, min(len(t), REFINE_SAMPLES))).astype(int)
-    t, y = t[pick], y[pick]
-    sol = minimize_scalar(
-        lambda d: shift_score(t, y, weights, seen, d, offsets),
-        bounds=(d0 - step_s, d0 + step_s),
-        method="bounded",
-        options={"xatol": 1e-6},
-    )
-    return float(sol.x)
-
-
 __all__ = [
     "ROTATION_WEIGHT_M",
     "REFINE_SAMPLES",
@@ -258,4 +185,5 @@ __all__ = [
     "coarse_shift",
     "shift_score",
     "refine_shift",
+    "best_shift",
 ]

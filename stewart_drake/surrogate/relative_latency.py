@@ -209,42 +209,35 @@ def search_half_width(reference, max_relative_latency_s: float) -> float:
 def relative_shift(reference, measured, around_s: float, half_width_s: float) -> float:
     """The shift d (s; the measured time + d = the reference's time) of least distance between
     the measured axes and the reference's, each less its mean difference (``verify``'s frames
-    "axes"), within ``around_s`` +- ``half_width_s``: coarsely over every shift by FFT
-    (:func:`~stewart_drake.organ_motion.alignment.coarse_shift`), then to a fraction of a sample
-    (:func:`~stewart_drake.organ_motion.alignment.refine_shift`) on the samples inside the
-    reference's span.
+    "axes"), within ``around_s`` +- ``half_width_s``: the package's one lag search
+    (:func:`~stewart_drake.base.lag.best_shift`, as ``verify``'s clock): coarsely over every
+    shift by FFT, then to a fraction of a sample on the samples inside the reference's span.
 
     Args:
         reference: the surrogate's reference. measured: its
             :class:`~stewart_drake.organ_motion.measured_motion.MeasuredMotion`.
         around_s, half_width_s: s.
     """
-    from ..organ_motion.alignment import (
-        Frames,
-        axis_weights,
-        coarse_shift,
-        reference_seen,
-        refine_shift,
-    )
+    from ..base.lag import best_shift
+    from ..organ_motion.alignment import Frames, axis_weights, reference_seen
     from ..organ_motion.verification import COARSE_STEP_S
 
     t, y = measured.t, np.asarray(measured.poses, dtype=float)
     frames = Frames("axes")
     weights = axis_weights(measured.measured)
     step = max(COARSE_STEP_S, float(np.median(np.diff(t))))
+    end = getattr(reference, "end_time", None)
 
     def seen(times):
         return reference_seen(frames, reference, times)
 
+    def inside(d0: float) -> np.ndarray:
+        t_ref = t + d0
+        use = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
+        return use if np.count_nonzero(use) >= 10 else np.ones(len(t), dtype=bool)
+
     bounds = (around_s - half_width_s, around_s + half_width_s)
-    d0 = coarse_shift(t, y, weights, seen, bounds, step, True)
-    end = getattr(reference, "end_time", None)
-    t_ref = t + d0
-    use = (t_ref >= 0.0) & (t_ref <= (math.inf if end is None else float(end)))
-    if np.count_nonzero(use) < 10:
-        use = np.ones(len(t), dtype=bool)
-    d = refine_shift(t[use], y[use], weights, seen, d0, step, True)
-    return float(min(max(d, bounds[0]), bounds[1]))
+    return best_shift(t, y, weights, seen, bounds, step, True, inside)
 
 
 # -- whether a motion follows its reference --------------------------------------------------------

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...base.errors import InvalidConfigError
+from ...base.lag import signal_lag
 
 
 def _uniform(t: np.ndarray) -> float:
@@ -55,8 +56,9 @@ def principal_displacement(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
     """How late ``measured`` is behind ``commanded``, s: the shift d in [-max_s, max_s] that
     makes measured(t) - commanded(t - d) least in RMS once their mean difference (a constant
-    offset) is removed; ``commanded`` linearly interpolated; searched on the samples' step and
-    refined by a parabola through the least and its neighbours.
+    offset) is removed; ``commanded`` linearly interpolated; the package's one lag search
+    (:func:`~stewart_drake.base.lag.signal_lag`: every shift by FFT, then to a microsecond) over
+    the samples more than ``max_s`` from either end; NaN for a command that does not move.
 
     Args:
         t: (n,) uniform s. commanded, measured: (n,) or (n, k) on ``t``.
@@ -65,28 +67,13 @@ def delay_s(t, commanded, measured, max_s: float = 0.5) -> float:
     """
     t = np.asarray(t, float)
     h = _uniform(t)
-    c = np.asarray(commanded, float).reshape(len(t), -1)
-    m = np.asarray(measured, float).reshape(len(t), -1)
     k = max(int(np.ceil(max_s / h)), 1)
-    shifts = np.arange(-k, k + 1) * h
     inner = (t >= t[0] + k * h) & (t <= t[-1] - k * h)
     if inner.sum() < 8:
         raise InvalidConfigError(f"a delay of up to {max_s:g} s needs a longer record")
-
-    def cost(d: float) -> float:
-        shifted = np.column_stack([np.interp(t[inner] - d, t, c[:, j]) for j in range(c.shape[1])])
-        e = m[inner] - shifted
-        e -= e.mean(axis=0)
-        return float(np.mean(e * e))
-
-    costs = np.array([cost(d) for d in shifts])
-    i = int(np.argmin(costs))
-    if 0 < i < len(shifts) - 1:
-        a, b, cc = costs[i - 1], costs[i], costs[i + 1]
-        den = a - 2 * b + cc
-        if den > 0:
-            return float(shifts[i] + 0.5 * h * (a - cc) / den)
-    return float(shifts[i])
+    c = np.asarray(commanded, float).reshape(len(t), -1)
+    m = np.asarray(measured, float).reshape(len(t), -1)
+    return signal_lag(t, m, c, max_s, offsets=True, min_samples=8)[0]
 
 
 def relative_latency(
