@@ -597,8 +597,9 @@ def verify_pair(
 
 # -- the command -----------------------------------------------------------------------------------
 
-#: The end of an encoder log's name, which ``verify`` alone reads by forward kinematics; the pair
-#: takes a tracker's or a camera's files (the robot's own log of the surrogate is another's).
+#: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): given to
+#: ``--measured`` it is read as ``verify`` alone reads it (the platform by forward kinematics),
+#: given to ``--measured-surrogate`` for its surrogate's carriage ``s``; both on ``t_path``.
 ENCODER_LOG_SUFFIX = "_encoders.csv"
 
 
@@ -630,7 +631,9 @@ def add_pair_arguments(vp) -> None:
         default=None,
         metavar="FILE",
         help="the surrogate's motion measured on the same clock as --measured (one camera seeing "
-        "both platforms): a file read as --measured is, e.g. t [s],depth [mm] (default: none)",
+        "both platforms): a file read as --measured is, e.g. t [s],depth [mm]; or the robot "
+        f"run's encoder log (a name ending in {ENCODER_LOG_SUFFIX}, the one given to --measured): "
+        "its carriage's s [m] as the surrogate servo's encoder read it (default: none)",
     )
     vp.add_argument(
         "--measured-surrogate-columns",
@@ -658,6 +661,59 @@ def add_pair_arguments(vp) -> None:
     vp.set_defaults(func=partial(_verify_or_pair, vp.get_default("func")))
 
 
+def is_encoder_log(path) -> bool:
+    """Whether ``path`` names a robot run's encoder log (:data:`ENCODER_LOG_SUFFIX`)."""
+    return str(path).endswith(ENCODER_LOG_SUFFIX)
+
+
+def carriage_axis(reference) -> tuple[int, float]:
+    """(axis 3..5, sign +-1) along which the surrogate's ``reference`` moves: the one
+    translation of a trace (its import record's ``info.axes``, e.g. "+X", "-Z"; the carriage's
+    ``s`` is the trace's own displacement, the map's sign undone, as the robot drives it), or
+    a reference's own ``carriage_axis``.
+
+    Raises:
+        InvalidConfigError: a reference of more than one axis, or of a rotation.
+    """
+    own = getattr(reference, "carriage_axis", None)
+    if own is not None:
+        return own
+    axes = tuple(getattr(getattr(reference, "info", None), "axes", ()))
+    if len(axes) != 1 or axes[0][1:] not in AXES[3:]:
+        raise InvalidConfigError(
+            f"the surrogate's carriage moves along one line, its reference along "
+            f"{', '.join(axes) or 'no axis named'}: give --surrogate one displacement (a "
+            "2-column file, or one column mapped with --surrogate-map)"
+        )
+    return AXES.index(axes[0][1:]), (-1.0 if axes[0][0] == "-" else 1.0)
+
+
+def read_encoder_pair(path, surrogate_path, geometry, surrogate_reference) -> tuple:
+    """(the platform's, the carriage's) :class:`~stewart_drake.organ_motion.measured_motion.
+    MeasuredMotion` from robot runs' encoder logs (one log may be given for both): the platform
+    by forward kinematics of ``geometry``, the carriage's ``s`` (as its servo's encoder read
+    it, never its command ``s_cmd``) on the axis of ``surrogate_reference``
+    (:func:`carriage_axis`), each on its log's ``t_path``, the lead-in left out. Each log is
+    read by the one checked reader of encoder logs
+    (:func:`~stewart_drake.calibration.join.read_encoder_log`), its columns by name.
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as that reader's (a log without
+            the ``s`` column named with its file); as :func:`carriage_axis`.
+        ForwardKinematicsError: a reading forward kinematics cannot solve.
+    """
+    from ..calibration.join import read_encoder_log
+    from ..organ_motion.measured_motion import carriage_motion, encoder_motion
+
+    axis, sign = carriage_axis(surrogate_reference)
+    same = Path(path).resolve() == Path(surrogate_path).resolve()
+    log = read_encoder_log(surrogate_path, carriage=True)
+    carriage = carriage_motion(surrogate_path, log["t_path"], log["s"], axis, sign)
+    if not same:
+        log = read_encoder_log(path)
+    return encoder_motion(path, log["t_path"], log["q"], geometry), carriage
+
+
 def _verify_or_pair(alone, args) -> int:
     """``verify``: the pair (:func:`cmd_verify_pair`) when a surrogate or its measurement is
     given, else ``alone``, verify's own command."""
@@ -671,7 +727,9 @@ def _check_pair_options(args) -> None:
 
     Raises:
         InvalidConfigError: a surrogate without its measurement or the reverse, several
-            --measured, --save-registration, an encoder log, --frame other than axes or base.
+            --measured, --save-registration, an encoder log beside a tracker's file (not one
+            clock) or with --measured-surrogate-columns or -map (its columns are its own),
+            --frame other than axes or base.
     """
     if args.surrogate is None or args.measured_surrogate is None:
         given, missing = (
@@ -689,12 +747,23 @@ def _check_pair_options(args) -> None:
         )
     if args.save_registration:
         raise InvalidConfigError("--save-registration registers a tracker: leave --surrogate out")
-    for path in (args.measured[0], args.measured_surrogate):
-        if str(path).endswith(ENCODER_LOG_SUFFIX):
-            raise InvalidConfigError(
-                f"{path}: with --surrogate both measurements are a tracker's or a camera's files "
-                "on one clock; judge an encoder log with verify alone"
-            )
+    logs = [is_encoder_log(p) for p in (args.measured[0], args.measured_surrogate)]
+    if logs[0] != logs[1]:
+        log, other = (
+            (args.measured[0], args.measured_surrogate)
+            if logs[0]
+            else (args.measured_surrogate, args.measured[0])
+        )
+        raise InvalidConfigError(
+            f"{log} is an encoder log, on the reference's clock (t_path), and {other} a "
+            "tracker's or a camera's file, on its own: they are not on one clock; give the "
+            "encoder log to both --measured and --measured-surrogate, or two files of one camera"
+        )
+    if logs[1] and (args.measured_surrogate_columns or args.measured_surrogate_map):
+        raise InvalidConfigError(
+            f"{args.measured_surrogate}: an encoder log's columns are its own (the carriage's "
+            "s [m]): leave --measured-surrogate-columns and --measured-surrogate-map out"
+        )
     if args.frame not in ("axes", "base"):
         raise InvalidConfigError(f"--frame is axes or base, got {args.frame!r}")
     if args.registration and args.frame != "axes":
@@ -746,15 +815,20 @@ def cmd_verify_pair(args) -> int:
     print(f"verify: reading {args.surrogate}", file=sys.stderr, flush=True)
     surrogate = load_trace(args.surrogate, key_values(args.surrogate_map, "--surrogate-map"))
     print(f"verify: reading {paths[0]}", file=sys.stderr, flush=True)
-    internal_measured = read_measured(
-        paths[0], args.measured_columns or "", key_values(args.measured_map, "--measured-map")
-    )
-    print(f"verify: reading {paths[1]}", file=sys.stderr, flush=True)
-    surrogate_measured = read_measured(
-        paths[1],
-        args.measured_surrogate_columns or "",
-        key_values(args.measured_surrogate_map, "--measured-surrogate-map"),
-    )
+    if is_encoder_log(paths[0]):
+        internal_measured, surrogate_measured = read_encoder_pair(
+            paths[0], paths[1], robot_geometry(scenario), surrogate
+        )
+    else:
+        internal_measured = read_measured(
+            paths[0], args.measured_columns or "", key_values(args.measured_map, "--measured-map")
+        )
+        print(f"verify: reading {paths[1]}", file=sys.stderr, flush=True)
+        surrogate_measured = read_measured(
+            paths[1],
+            args.measured_surrogate_columns or "",
+            key_values(args.measured_surrogate_map, "--measured-surrogate-map"),
+        )
     print("verify: aligning and judging the motion and its surrogate", file=sys.stderr, flush=True)
     pair = verify_pair(
         reference,
@@ -870,6 +944,10 @@ __all__ = [
     "judge_relative",
     "check_one_clock",
     "verify_pair",
+    "ENCODER_LOG_SUFFIX",
+    "is_encoder_log",
+    "carriage_axis",
+    "read_encoder_pair",
     "add_pair_arguments",
     "cmd_verify_pair",
     "pair_markdown",
