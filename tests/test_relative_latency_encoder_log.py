@@ -27,6 +27,7 @@ from stewart_drake.references.traces import load_trace
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.surrogate.external_reference import model_reference
 from stewart_drake.surrogate.relative_latency import read_encoder_pair, verify_pair
 
 GEOMETRY = robot_geometry(load_scenario("phantom_hardware"))
@@ -268,3 +269,71 @@ def test_options_refused_in_one_line(tmp_path, cranks, resp, capsys, which, opti
     code, _ = run(tmp_path, log, other, resp, *options)
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert code == 2 and words in err, err
+
+
+# -- a library motion's external signal made by a correlation model ---------------------------
+
+
+def breath_x(t):
+    """The breathing's X (SI, its only axis), m."""
+    return INTERNAL.evaluate(np.asarray(t, float))[0][:, 3]
+
+
+@pytest.mark.parametrize("drift", [None, "drift=0.06mm/s"])
+def test_the_models_reference_is_the_breath_through_the_model(drift):
+    """e(t) = k s(t + tau) + drift t, s the breath along its only axis (X), about its mean;
+    repeating with the breath without a drift, made over the breath's two periods."""
+    params = ["ratio=0.5", "lead=0.4s"] + ([drift] if drift else [])
+    ref = model_reference(INTERNAL, params, 30.0)
+    t = np.arange(0.0, 29.0, 0.01)
+    e = ref.evaluate(t)[0]
+    expected = 0.5 * breath_x(t + 0.4) + (0.06e-3 * t if drift else 0.0)
+    np.testing.assert_allclose(e[:, 3] - e[:, 3].mean(), expected - expected.mean(), atol=1e-7)
+    assert not np.any(np.delete(e, 3, axis=1))
+    assert ref.carriage_axis == (3, 1.0)
+    assert (ref.repeat_period_s, ref.end_time) == ((None, 30.0) if drift else (4.0, None))
+
+
+@pytest.mark.parametrize(
+    "lead, lag_s, expected",
+    [("0.4s", LAG_S, LAG_I - LAG_S), ("0.4s", 0.3, LAG_I - 0.3), ("0s", LAG_S, 0.4)],
+)
+def test_the_command_judges_a_carriage_against_the_model(
+    tmp_path, cranks, capsys, lead, lag_s, expected
+):
+    """The carriage made as the model asks (0.5 of the breath, 0.4 s ahead) LAG_S late PASSes;
+    0.3 s late it FAILs, the surrogate late; judged against a model without the lead, it is
+    0.4 s early: the internal target late against it."""
+    log = write_log(
+        tmp_path / "run_encoders.csv", cranks, s=lambda t: 0.5 * breath_x(t + 0.4 - lag_s)
+    )
+    out = tmp_path / "out"
+    code = main(
+        ["verify", "breathing", "--surrogate", "model", "--surrogate-param", "ratio=0.5"]
+        + [f"lead={lead}", "--measured", str(log), "--measured-surrogate", str(log)]
+        + ["--out", str(out)]
+    )
+    figures = json.loads((out / "verify_breathing_pair.json").read_text())
+    assert figures["relative_latency_s"] == pytest.approx(expected, abs=2e-3)
+    assert figures["surrogate"]["reference"] == "model"
+    passed = abs(expected) <= 0.1
+    assert code == (0 if passed else 2) and figures["relative"]["passed"] is passed
+    assert figures["surrogate"]["passed"], figures["surrogate"]["line"]
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (["--surrogate", "S.txt", "--surrogate-param", "ratio=2"], "give --surrogate model"),
+        (["--surrogate", "model", "--surrogate-param", "gain=2"], "the keys are ratio, lead"),
+        (["--surrogate", "model", "--surrogate-map", "x=SI"], "leave --surrogate-map out"),
+    ],
+)
+def test_model_options_refused_in_one_line(tmp_path, cranks, capsys, options, words):
+    log = write_log(tmp_path / "run_encoders.csv", cranks)
+    argv = ["verify", "breathing", "--measured", str(log), "--measured-surrogate", str(log)]
+    code = main(argv + options + ["--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert code == 2 and words in err, err
+    assert not (tmp_path / "out").exists()

@@ -31,6 +31,13 @@ later is never taken) of d_internal, by the same search (FFT over every shift on
 fraction of a sample: :func:`relative_shift`). The surrogate's own fidelity is verify's on its
 own (its offset removed on the one axis it moves, ``frame="axes"``).
 
+**What is read** (:func:`cmd_verify_pair`): two files of one camera or tracker on its own clock,
+each read as ``verify`` reads a tracker's file; or the robot's encoder log for both
+(:func:`read_encoder_pair`: the platform by forward kinematics, the surrogate's carriage ``s``
+as its servo's encoder read it, both on the log's ``t_path``). The surrogate's reference is its
+recorded trace, or a library motion's external signal made by a correlation model as
+``reproduce --surrogate model`` makes it (:func:`~.external_reference.model_reference`).
+
 **The verdict** (:func:`judge_relative`) PASSes when |tau_rel| is within
 ``max_relative_latency_s`` (:data:`MAX_RELATIVE_LATENCY_S`) and both motions follow their
 references (else the latency means nothing); a FAIL names its cause: a motion at rest, reversed,
@@ -601,6 +608,9 @@ def verify_pair(
 #: ``--measured`` it is read as ``verify`` alone reads it (the platform by forward kinematics),
 #: given to ``--measured-surrogate`` for its surrogate's carriage ``s``; both on ``t_path``.
 ENCODER_LOG_SUFFIX = "_encoders.csv"
+#: ``--surrogate``'s word for the motion's external signal made by a correlation model
+#: (:func:`~.external_reference.model_reference`) instead of a recorded file.
+MODEL = "model"
 
 
 def add_pair_arguments(vp) -> None:
@@ -616,8 +626,19 @@ def add_pair_arguments(vp) -> None:
         metavar="EXTERNAL",
         help="judge the motion with its external surrogate on one clock: the surrogate's "
         "recorded trace (a 2-column file, time and displacement, on SI; or a header naming its "
-        "column and unit), on the motion's clock; with --measured-surrogate; reports both "
-        "fidelities and their relative latency (default: none, the motion alone)",
+        "column and unit), on the motion's clock, or 'model' for the motion through a "
+        "correlation model (--surrogate-param), as reproduce --surrogate model makes it, on SI; "
+        "with --measured-surrogate; reports both fidelities and their relative latency "
+        "(default: none, the motion alone)",
+    )
+    vp.add_argument(
+        "--surrogate-param",
+        nargs="*",
+        default=None,
+        metavar="KEY=VALUE",
+        help="with --surrogate model: ratio=0.8 lead=0.3s drift=2mm/min change_at=20s "
+        "lead_after=-0.2s ratio_after=1.2 blend=1s, as reproduce takes them (default: none, "
+        "the motion itself: ratio 1, no lead, no drift, no change)",
     )
     vp.add_argument(
         "--surrogate-map",
@@ -717,7 +738,7 @@ def read_encoder_pair(path, surrogate_path, geometry, surrogate_reference) -> tu
 def _verify_or_pair(alone, args) -> int:
     """``verify``: the pair (:func:`cmd_verify_pair`) when a surrogate or its measurement is
     given, else ``alone``, verify's own command."""
-    if args.surrogate is None and args.measured_surrogate is None:
+    if args.surrogate is None and args.measured_surrogate is None and not args.surrogate_param:
         return alone(args)
     return cmd_verify_pair(args)
 
@@ -726,11 +747,26 @@ def _check_pair_options(args) -> None:
     """Refuse, before any work, what the pair does not take (one line each).
 
     Raises:
-        InvalidConfigError: a surrogate without its measurement or the reverse, several
+        InvalidConfigError: --surrogate-param without ``--surrogate model``, or a model refused
+            (:func:`~stewart_drake.station.surrogate.report.correlation_model`); --surrogate-map
+            with a model; a surrogate without its measurement or the reverse, several
             --measured, --save-registration, an encoder log beside a tracker's file (not one
             clock) or with --measured-surrogate-columns or -map (its columns are its own),
             --frame other than axes or base.
     """
+    if args.surrogate == MODEL:
+        from ..station.surrogate.report import correlation_model
+
+        correlation_model(args.surrogate_param)  # refused before any work
+        if args.surrogate_map:
+            raise InvalidConfigError(
+                "--surrogate model is put on SI: leave --surrogate-map out (map the measured "
+                "surrogate's column with --measured-surrogate-map instead)"
+            )
+    elif args.surrogate_param:
+        raise InvalidConfigError(
+            "--surrogate-param sets a correlation model: give --surrogate model"
+        )
     if args.surrogate is None or args.measured_surrogate is None:
         given, missing = (
             ("--surrogate", "--measured-surrogate")
@@ -791,6 +827,7 @@ def cmd_verify_pair(args) -> int:
     from ..organ_motion.measured_motion import read_measured
     from ..references.traces import load_trace
     from ..run.plan import robot_geometry
+    from .external_reference import model_reference
 
     _check_pair_options(args)
     tolerance = parse_tolerance(args.tolerance)
@@ -812,8 +849,11 @@ def cmd_verify_pair(args) -> int:
         for suffix in (".md", ".png", ".json") if stem != stems[2] else (".md", ".json"):
             check_replaceable(out / f"{stem}{suffix}")
     reference = scenario.reference.make(robot_geometry(scenario), scenario.duration_s, None)
-    print(f"verify: reading {args.surrogate}", file=sys.stderr, flush=True)
-    surrogate = load_trace(args.surrogate, key_values(args.surrogate_map, "--surrogate-map"))
+    if args.surrogate == MODEL:
+        surrogate = model_reference(reference, args.surrogate_param, scenario.duration_s)
+    else:
+        print(f"verify: reading {args.surrogate}", file=sys.stderr, flush=True)
+        surrogate = load_trace(args.surrogate, key_values(args.surrogate_map, "--surrogate-map"))
     print(f"verify: reading {paths[0]}", file=sys.stderr, flush=True)
     if is_encoder_log(paths[0]):
         internal_measured, surrogate_measured = read_encoder_pair(
@@ -945,6 +985,7 @@ __all__ = [
     "check_one_clock",
     "verify_pair",
     "ENCODER_LOG_SUFFIX",
+    "MODEL",
     "is_encoder_log",
     "carriage_axis",
     "read_encoder_pair",
