@@ -32,6 +32,7 @@ from stewart_drake.references.organ.library import make_motion
 from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
+from stewart_drake.station.bus.servos import SurrogateServoConfig
 
 #: The phantom's motion and the marker exports' setting (tests/test_verify.py's).
 REFERENCE = make_motion("breathing", {"tilt": "2deg"})
@@ -44,6 +45,9 @@ ALIGNED_ORIGIN_M = np.array([0.4, -1.2, 0.9])
 DEPTH_DELAY_S, DEPTH_OFFSET_MM, DEPTH_NOISE_MM = 5.45, 412.3, 0.6
 #: The camera's distance to the surrogate platform, mm.
 SURROGATE_OFFSET_MM = 388.7
+#: The encoder log's surrogate carriage: the breathing through a correlation model of this
+#: amplitude ratio and lead, s.
+CARRIAGE_RATIO, CARRIAGE_LEAD_S = 0.5, 0.4
 
 
 def setup():
@@ -98,18 +102,32 @@ def registration_run(seconds=40.0, rate_hz=100.0, seed=7, noise_m=50e-6):
 
 def write_encoders(path, seconds=12.0):
     """The robot's encoder log: 0.5 s of lead-in (no t_path), then ``seconds`` of the breathing
-    15 ms late, 17-bit readings with the encoders' zero errors, on the robot computer's clock."""
+    15 ms late, 17-bit readings with the encoders' zero errors, on the robot computer's clock;
+    with a surrogate's servo on the bus, its carriage (``s``, read, and ``s_cmd``, commanded)
+    following the breathing through the correlation model ratio 0.5 and lead 0.4 s
+    (``--surrogate model --surrogate-param ratio=0.5 lead=0.4s``: half the breath's X, the only
+    axis it moves along, 0.4 s ahead), 15 ms late too, read in the servo's counts."""
     geometry = robot_geometry(load_scenario("phantom_hardware"))
     t_path = np.arange(0.0, seconds, 0.01)
     x = REFERENCE.evaluate(t_path - 0.015)[0]
     q = tracker.quantize(ik(geometry, x) + geometry.encoder_offsets, 2**17)
+    count = SurrogateServoConfig().metres_per_count
+    s_cmd = CARRIAGE_RATIO * REFERENCE.evaluate(t_path + CARRIAGE_LEAD_S)[0][:, 3]
+    s_cmd -= 0.5 * (s_cmd.max() + s_cmd.min())  # about the stage's mid-travel
+    s = CARRIAGE_RATIO * REFERENCE.evaluate(t_path + CARRIAGE_LEAD_S - 0.015)[0][:, 3]
+    s = np.round((s - 0.5 * (s.max() + s.min())) / count) * count
     n, lead = len(t_path), 50
+
+    def held(v):
+        return np.concatenate([np.repeat(v[:1], lead, axis=0), v])
+
     write_encoder_log(
         path,
         1.7e9 + np.arange(n + lead) * 0.01,
         np.arange(n + lead) * 0.01,
         np.concatenate([np.full(lead, np.nan), t_path]),
-        np.vstack([np.repeat(q[:1], lead, axis=0), q]),
+        held(q),
+        surrogate=(held(s), held(s_cmd)),
     )
 
 
@@ -219,7 +237,11 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   registration --measured reg_markers.csv --save-registration` fits.
 - **The encoder log** (`run_encoders.csv`): 12 s of the breathing 15 ms late after 0.5 s of
   lead-in, the readings the inverse kinematics of `phantom_hardware`'s robot plus its encoders'
-  zero errors, quantized to 2^17 counts a turn.
+  zero errors, quantized to 2^17 counts a turn; a surrogate's servo on the bus, its carriage
+  commanded (`s_cmd`) half the breath's X 0.4 s ahead (the correlation model `ratio=0.5
+  lead=0.4s`) and read (`s`) 15 ms late in the servo's counts of 12.2 um: `verify breathing
+  --param tilt=2deg --surrogate model --surrogate-param ratio=0.5 lead=0.4s` with the log for
+  both measurements PASSes the pair, their relative latency within a ms of 0.
 - **The traces** (`trace.txt`, `surrogate.txt`): breaths of 3.6-4.4 s and 8-12 mm on SI drawn
   per breath (seed 3), growing over the first 10 s, AP 0.4 of it and 0.25 s behind, LR 0.15 of
   it, rot_LR 0.02 deg a mm; the surrogate 0.45 of the breath 0.2 s ahead, with 50 um of noise.

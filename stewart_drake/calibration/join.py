@@ -129,6 +129,34 @@ PATH_COLUMNS = {"t": "time"} | POSE_KINDS
 PATH_REMEDY = "give the POSES.csv that `calibrate --plan` wrote"
 
 
+#: What an encoder log without its surrogate's column is told.
+CARRIAGE_REMEDY = (
+    "give the <stem>_encoders.csv of a run with the surrogate's servo on the bus "
+    "(`stewart-drake robot INTERNAL --surrogate EXTERNAL`), whose s [m] is the carriage read by "
+    "its servo's encoder"
+)
+
+
+def read_encoder_log(path, carriage: bool = False) -> dict:
+    """The encoder log at ``path`` (module docstring), read and checked whole by
+    :func:`read_table`: {"t_path": (n,) s, NaN on the lead-in's lines; "q": (n, 6) the
+    encoders' raw readings, rad; "time", "t_run": (n,) s; "lines": (n,) each row's line in the
+    file}, and with ``carriage`` "s": (n,) m, the surrogate's carriage as its servo's encoder
+    read it (never ``s_cmd``, its command). Columns are taken by name; any others (``s_cmd``,
+    a later column) are read past.
+
+    Raises:
+        MissingFileError, CorruptFileError, InvalidConfigError: as :func:`read_table`; with
+            ``carriage``, a log without the ``s`` column (a run without the surrogate's servo),
+            the column and the file named in one line.
+    """
+    columns = ENCODER_LOG_COLUMNS | ({"s": "length"} if carriage else {})
+    remedy = CARRIAGE_REMEDY if carriage else ENCODER_LOG_REMEDY
+    log = read_table(path, "encoder log", columns, remedy, nan_ok=("t_path",))
+    q = np.column_stack([log.pop(n) for n in READING_COLUMNS])
+    return log | {"q": q}
+
+
 def encoder_log_path(npz) -> Path:
     """The encoder log beside a robot run's ``.npz``: ``<stem>_encoders.csv``."""
     npz = Path(npz)
@@ -242,12 +270,10 @@ def join(
         )
     if estimate and path_file is None:
         raise InvalidConfigError("estimating the tracker's clock offset needs the path file")
-    log = read_table(
-        encoder_log, "encoder log", ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, nan_ok=("t_path",)
-    )
+    log = read_encoder_log(encoder_log)
     tracker = read_table(tracker_file, "tracker file", TRACKER_COLUMNS, TRACKER_REMEDY)
     plan = read_table(windows_file, "windows file", WINDOW_COLUMNS, WINDOWS_REMEDY)
-    q_log = np.column_stack([log[n] for n in READING_COLUMNS])
+    q_log = log["q"]
     x_tracker = np.column_stack([tracker[n] for n in POSE_COLUMNS])
     x_base = x_tracker if registration is None else registration.base_poses(x_tracker)
     planned = np.column_stack([plan[n] for n in POSE_COLUMNS])

@@ -288,17 +288,11 @@ def _measured(path: str, args, scenario, axis_map: dict):
 
     if not str(path).endswith(ENCODER_LOG_SUFFIX):
         return read_measured(path, args.measured_columns or "", axis_map)
-    import numpy as np
-
-    from ..calibration.files import READING_COLUMNS
-    from ..calibration.join import ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, read_table
+    from ..calibration.join import read_encoder_log
     from ..run.plan import robot_geometry
 
-    log = read_table(
-        path, "encoder log", ENCODER_LOG_COLUMNS, ENCODER_LOG_REMEDY, nan_ok=("t_path",)
-    )
-    readings = np.column_stack([log[n] for n in READING_COLUMNS])
-    return encoder_motion(path, log["t_path"], readings, robot_geometry(scenario))
+    log = read_encoder_log(path)
+    return encoder_motion(path, log["t_path"], log["q"], robot_geometry(scenario))
 
 
 def _summary(ver) -> str:

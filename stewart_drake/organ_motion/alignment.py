@@ -76,7 +76,8 @@ class Frames:
             marker of positions only (its positions are mapped so before the clock is sought);
             identity and zero otherwise.
         p_EM: (3,) m: that marker's origin on the platform, platform frame (zero otherwise).
-        note: the registration's words ("" otherwise).
+        note: the registration's words, or with "axes" what the one measured axis is (the
+            surrogate's carriage); "" otherwise.
     """
 
     how: str
@@ -109,6 +110,8 @@ class Frames:
                 if measured[k]
             ]
             removed = f" ({', '.join(parts)})"
+        if self.note:  # a measurement of its own axis (the surrogate's carriage)
+            return f"{self.note}, its constant offset removed{removed}, nothing else"
         return (
             "each measured axis taken as the base frame's axis its column names, its constant "
             f"offset removed{removed}, nothing else: a rotation of the tracker, a scale or a "

@@ -36,7 +36,9 @@ EXAMPLES = {
     "reg_markers.csv": "the library's registration motion seen by that tracker, 40 s at "
     "100 Hz: verify registration --save-registration registers it from the motion",
     "run_encoders.csv": "the robot's encoder log of the same breathing, 15 ms late, 17-bit "
-    "encoders, as stewart-drake robot writes it: verify judges it beside the tracker's export",
+    "encoders, as stewart-drake robot writes it, with a surrogate's carriage (s, s_cmd) "
+    "following it through a correlation model: verify judges it beside the tracker's export, "
+    "and with --surrogate model the pair",
     "trace.txt": "a recorded 6-D trace in the motion phantom's 7-column format (t LR SI AP "
     "rLR rSI rAP; s, mm, deg), 120 s of irregular breathing at 5 Hz: reproduce, check, "
     "--stream, --feedforward",

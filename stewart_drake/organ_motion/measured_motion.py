@@ -7,7 +7,8 @@ naming columns and units, semicolons or commas, decimal commas, ms, a frame colu
 as most trackers export it): the poses of its marker M in the tracker's frame T on the
 tracker's clock. The robot's
 encoder log is turned into platform poses in the base frame by forward kinematics
-(:func:`encoder_motion`), on the reference's own clock. :mod:`~.alignment` puts either on the
+(:func:`encoder_motion`), and its surrogate's carriage into a motion of one axis
+(:func:`carriage_motion`), both on the reference's own clock. :mod:`~.alignment` puts either on the
 reference's clock and frame, and :mod:`~.verification` judges it.
 """
 
@@ -28,13 +29,13 @@ class MeasuredMotion:
     """A motion measured on a phantom, as read.
 
     Attributes:
-        path: the file. kind: "tracker" (a tracker's file) or "encoders" (the robot's encoder
-            log, by forward kinematics).
+        path: the file. kind: "tracker" (a tracker's file), "encoders" (the robot's encoder
+            log, by forward kinematics) or "carriage" (the surrogate's carriage in that log).
         t: (n,) s, increasing: the file's own clock ("tracker"), or the reference's clock
-            ("encoders": the log's ``t_path``).
+            ("encoders", "carriage": the log's ``t_path``).
         poses: (n, 6) [phi, theta, psi, X, Y, Z] rad and m: the marker M in the tracker's frame
-            T ("tracker"), the platform E in the base frame B ("encoders"); NaN on the axes
-            not measured.
+            T ("tracker"), the platform E in the base frame B ("encoders"), the carriage's
+            position on its reference's axis ("carriage"); NaN on the axes not measured.
         measured: (6,) bool, the axes the file measures: any of them (a single-axis sensor
             measures one).
         layout: how the file was read, in words. dropped: what was left out as an export's
@@ -58,7 +59,10 @@ class MeasuredMotion:
         """What was read, in words: the file, its samples, rate and span, its axes."""
         dt = float(np.median(np.diff(self.t)))
         axes = ", ".join(a for a, m in zip(AXES, self.measured) if m)
-        what = "the robot's encoder log, by forward kinematics" if self.kind == "encoders" else ""
+        what = {
+            "encoders": "the robot's encoder log, by forward kinematics",
+            "carriage": "the robot's encoder log, the surrogate's carriage s",
+        }.get(self.kind, "")
         return (
             f"{Path(self.path).name} ({what or self.layout}): {len(self.t)} samples at "
             f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
@@ -189,6 +193,21 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
     )
 
 
+def _on_reference_clock(path, t_path: np.ndarray) -> np.ndarray:
+    """(n,) bool: the encoder log's lines on the reference's clock (``t_path`` not NaN).
+
+    Raises:
+        InvalidConfigError: fewer than 4 such lines, or their times not increasing.
+    """
+    on = np.isfinite(t_path)
+    if np.count_nonzero(on) < 4 or np.any(np.diff(t_path[on]) <= 0):
+        raise InvalidConfigError(
+            f"{path}: the encoder log needs at least 4 lines on the reference's clock (t_path), "
+            f"increasing; give the <stem>_encoders.csv a robot run wrote"
+        )
+    return on
+
+
 def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
     """The robot's encoder log as a :class:`MeasuredMotion`: the platform's poses in the base
     frame by forward kinematics of ``geometry`` (the encoders' zero errors taken off first), on
@@ -204,12 +223,7 @@ def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
     from ..robot.forward_kinematics import fk
 
     t_path, readings = np.asarray(t_path, float), np.asarray(readings, float).reshape(-1, 6)
-    on = np.isfinite(t_path)
-    if np.count_nonzero(on) < 4 or np.any(np.diff(t_path[on]) <= 0):
-        raise InvalidConfigError(
-            f"{path}: the encoder log needs at least 4 lines on the reference's clock (t_path), "
-            f"increasing; give the <stem>_encoders.csv a robot run wrote"
-        )
+    on = _on_reference_clock(path, t_path)
     theta = readings[on] - np.asarray(geometry.encoder_offsets)
     x = np.empty((len(theta), 6))
     x0 = None
@@ -221,6 +235,32 @@ def encoder_motion(path, t_path, readings, geometry) -> MeasuredMotion:
     )
 
 
+def carriage_motion(path, t_path, s, axis: int, sign: float = 1.0) -> MeasuredMotion:
+    """The surrogate's carriage in the robot's encoder log as a :class:`MeasuredMotion` of one
+    axis: its position ``s`` as its servo's encoder read it, on the reference's clock (the log's
+    ``t_path``, as the platform's from the same log: :func:`encoder_motion`; the lead-in's
+    lines left out), on the surrogate reference's ``axis`` with its ``sign`` (``s`` is the
+    trace's own displacement, the axis map's sign undone), about the stage's mid-travel.
+
+    Args:
+        path: the log, for messages. t_path: (n,) s, NaN on the lead-in's lines. s: (n,) m.
+        axis: 3, 4 or 5 (X, Y or Z). sign: +1 or -1.
+    Returns:
+        :class:`MeasuredMotion` of kind "carriage", NaN on the other five axes.
+    Raises:
+        InvalidConfigError: no line on the reference's clock, its times not increasing.
+    """
+    t_path, s = np.asarray(t_path, float), np.asarray(s, float)
+    on = _on_reference_clock(path, t_path)
+    poses = np.full((int(np.count_nonzero(on)), 6), np.nan)
+    poses[:, axis] = sign * s[on]
+    measured = np.zeros(6, dtype=bool)
+    measured[axis] = True
+    return MeasuredMotion(
+        str(path), "carriage", t_path[on], poses, measured, "encoder log, the surrogate's s"
+    )
+
+
 __all__ = [
     "MeasuredMotion",
     "MEASURED_REMEDY",
@@ -228,4 +268,5 @@ __all__ = [
     "QUATERNION_NORM_TOLERANCE",
     "read_measured",
     "encoder_motion",
+    "carriage_motion",
 ]

@@ -9,8 +9,9 @@ recorded traces (:func:`~.measured_motion.read_measured`: a header naming column
 semicolons or commas, decimal commas, ms, a frame column skipped with ``-``): a marker's poses in
 a tracker's frame T on the tracker's clock, any of its axes (a laser displacement sensor or a
 depth camera gives one); or the robot's encoder log turned into platform poses by forward
-kinematics (:func:`~.measured_motion.encoder_motion`), on the reference's own clock.
-:func:`verify` then, with the clock and the frames of :mod:`~.alignment`,
+kinematics (:func:`~.measured_motion.encoder_motion`), or the surrogate's carriage in that log
+(:func:`~.measured_motion.carriage_motion`: its offset removed, as ``"axes"`` removes one), on
+the reference's own clock. :func:`verify` then, with the clock and the frames of :mod:`~.alignment`,
 
 1. **takes the frames from outside the motion judged**: the encoder log's base frame, a
    registration (``registration``: fiducials, or a registration motion measured once,
@@ -91,6 +92,9 @@ MAX_JITTER = 0.01
 MAX_GAP_S = 0.5
 #: The RMS error per axis that passes unless given, (m, rad): verify's ``--tolerance`` default.
 DEFAULT_TOLERANCE = (1e-4, math.radians(0.1))
+#: The frames' words for the surrogate's carriage in the encoder log (a measurement of kind
+#: "carriage": :func:`~.measured_motion.carriage_motion`).
+CARRIAGE = "the surrogate's carriage s of the encoder log, put on its reference's one axis"
 
 
 # -- the verification ------------------------------------------------------------------------------
@@ -164,11 +168,9 @@ class Verification:
     @property
     def learning(self) -> str:
         """The report title's words on the run: what measured it."""
-        return (
-            f"measured by the encoders, {Path(self.measured.path).name}"
-            if self.measured.kind == "encoders"
-            else f"measured by the tracker, {Path(self.measured.path).name}"
-        )
+        by = {"encoders": "the encoders", "carriage": "the surrogate servo's encoder"}
+        name = Path(self.measured.path).name
+        return f"measured by {by.get(self.measured.kind, 'the tracker')}, {name}"
 
     def resolution(self) -> tuple[float, float]:
         """(0, 0): the measured pose's resolution is the instrument's, not known here."""
@@ -340,9 +342,11 @@ def verify(
         )
     t, y = measured.t, np.array(measured.poses, dtype=float)
     seen = measured.measured.copy()
-    if measured.kind == "encoders":
+    if measured.kind in ("encoders", "carriage"):
         clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
-        frames = Frames("encoders")
+        # The carriage's s is about the stage's mid-travel: its offset removed, as a camera's.
+        encoders = measured.kind == "encoders"
+        frames = Frames("encoders") if encoders else Frames("axes", note=CARRIAGE)
     else:
         clock = "given (--clock-offset)" if clock_offset_s is not None else "not known"
         frames = Frames(frame) if registration is None else _registered(registration, measured)
