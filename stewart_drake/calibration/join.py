@@ -168,14 +168,17 @@ def write_encoder_log(path, time_s, t_run, t_path, q, surrogate=None) -> Path:
     ``t_path`` (n,) s, ``q`` (n, 6) rad; with ``surrogate`` = (s, s_cmd, s_ref, s_delay),
     (n,) each, m, m, m and s, four more columns (:data:`SURROGATE_LOG_COLUMNS`: the
     surrogate's carriage read by its servo's encoder, commanded in that period, its reference
-    on the run's clock, the delay its command was taken with); returns the path."""
+    on the run's clock, the delay its command was taken with), or (s, s_cmd) alone, two (a
+    carriage commanded along its reference itself, without lag matching); returns the path."""
     columns = [time_s, t_run, t_path, np.asarray(q).reshape(-1, 6)]
     header = ENCODER_LOG_COLUMNS
     if surrogate is not None:
-        if len(surrogate) != len(SURROGATE_LOG_COLUMNS):
-            raise ValueError(f"surrogate: (s, s_cmd, s_ref, s_delay), got {len(surrogate)}")
+        if len(surrogate) not in (2, len(SURROGATE_LOG_COLUMNS)):
+            raise ValueError(
+                f"surrogate: (s, s_cmd, s_ref, s_delay) or (s, s_cmd), got {len(surrogate)}"
+            )
         columns += [np.asarray(c, dtype=float) for c in surrogate]
-        header = header | SURROGATE_LOG_COLUMNS
+        header = header | dict(list(SURROGATE_LOG_COLUMNS.items())[: len(surrogate)])
     _write_csv(path, _header_text(header), np.column_stack(columns))
     return Path(path)
 
