@@ -12,6 +12,7 @@ are made apart, from a result (:mod:`~stewart_drake.paper.run_report`: ``plot_fi
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from pathlib import Path
 
@@ -53,6 +54,28 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
             t = t_next
 
 
+def simulated_robot(scenario):
+    """``scenario`` as a simulation runs it: a scenario that drives the servo bus (its ``bus``
+    section, e.g. ``paper_bus``) gives the robot the bus drives, simulated with the bus's servos
+    and encoders (:func:`~.plan.as_built`), its bus left closed: ``stewart-drake robot`` drives
+    the bus. Any other scenario, a plan or None: itself.
+
+    Raises:
+        InvalidConfigError: a plan already built for the bus (a simulation cannot open it).
+    """
+    from ..base.errors import InvalidConfigError
+    from .plan import as_built
+
+    if isinstance(scenario, Scenario) and scenario.bus is not None:
+        return dataclasses.replace(as_built(scenario), bus=None)
+    if isinstance(scenario, RunPlan) and scenario.scenario.bus is not None:
+        raise InvalidConfigError(
+            "this plan drives the servo bus (its scenario's bus section): a simulation does "
+            "not open it; plan the scenario without its bus, or drive it with stewart-drake robot"
+        )
+    return scenario
+
+
 def build_simulator(
     scenario: Scenario | RunPlan | None = None,
     meshcat=None,
@@ -89,7 +112,11 @@ def build_simulator(
             arrives (:func:`~stewart_drake.station.lcm_publish.make_lcm`).
     """
     plan = checked_plan(
-        scenario, reference=reference, controller=controller, progress=progress, report=report
+        simulated_robot(scenario),
+        reference=reference,
+        controller=controller,
+        progress=progress,
+        report=report,
     )
     lcm = None
     if plan.scenario.lcm is not None:  # a dead URL is a refusal: before the Diagram is built
