@@ -5,7 +5,6 @@ left closed (it used to fail with "the bus on /dev/ttyUSB0 is not open: call ope
 import numpy as np
 import pytest
 
-from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.robot.motor_catalogue import catalogue_motor
 from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario
@@ -27,10 +26,16 @@ def test_the_bus_scenario_is_simulated_with_its_servos_and_its_bus_closed():
     assert make_plan(simulated).station_factory is StewartStation
 
 
-def test_a_plan_built_for_the_bus_is_refused_by_a_simulation():
-    plan = make_plan(load_scenario(ROBOT_SCENARIO))
-    with pytest.raises(InvalidConfigError, match="drives the servo bus"):
-        simulated_robot(plan)
+def test_a_plan_built_for_the_bus_is_simulated_on_the_simulated_station():
+    on_bus = make_plan(load_scenario(ROBOT_SCENARIO))
+    assert on_bus.station_factory is not StewartStation
+    plan = simulated_robot(on_bus)
+    assert plan.station_factory is StewartStation and plan.scenario.bus is None
+    # The robot's values were the bus's servos' already: the same plan otherwise.
+    assert plan.scenario.hardware == on_bus.scenario.hardware is not None
+    assert plan.torque_limit_Nm == on_bus.torque_limit_Nm
+    assert plan.delay_periods == on_bus.delay_periods == 1
+    assert plan.reference is on_bus.reference
 
 
 def test_a_bus_scenario_runs_as_a_simulation():

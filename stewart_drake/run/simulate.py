@@ -55,23 +55,21 @@ def advance(simulator: Simulator, t_end: float, progress: bool, desc: str = "sim
 
 
 def simulated_robot(scenario):
-    """``scenario`` as a simulation runs it: a scenario that drives the servo bus (its ``bus``
-    section, e.g. ``paper_bus``) gives the robot the bus drives, simulated with the bus's servos
-    and encoders (:func:`~.plan.as_built`), its bus left closed: ``stewart-drake robot`` drives
-    the bus. Any other scenario, a plan or None: itself.
-
-    Raises:
-        InvalidConfigError: a plan already built for the bus (a simulation cannot open it).
-    """
-    from ..base.errors import InvalidConfigError
+    """``scenario`` as a simulation runs it: a scenario or plan that drives the servo bus (its
+    ``bus`` section, e.g. ``paper_bus``) gives the robot the bus drives, simulated with the
+    bus's servos and encoders (:func:`~.plan.as_built`: what a plan on the bus already holds),
+    on the simulated station, its bus left closed: ``stewart-drake robot`` drives the bus. Any
+    other scenario, plan, or None: itself."""
+    from ..station.station import StewartStation
     from .plan import as_built
 
     if isinstance(scenario, Scenario) and scenario.bus is not None:
         return dataclasses.replace(as_built(scenario), bus=None)
     if isinstance(scenario, RunPlan) and scenario.scenario.bus is not None:
-        raise InvalidConfigError(
-            "this plan drives the servo bus (its scenario's bus section): a simulation does "
-            "not open it; plan the scenario without its bus, or drive it with stewart-drake robot"
+        return dataclasses.replace(
+            scenario,
+            scenario=dataclasses.replace(as_built(scenario.scenario), bus=None),
+            station_factory=StewartStation,
         )
     return scenario
 
