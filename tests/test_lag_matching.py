@@ -13,14 +13,14 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.live.encoder_relative_latency import relative_latency
-from stewart_drake.station.bus.lag_matching import (
+from stewart_drake.station.bus.servos import SurrogateServoConfig
+from stewart_drake.station.bus.surrogate_servo import SurrogateDrive
+from stewart_drake.station.surrogate.lag_matching import (
     MAX_DELAY_S,
     MAX_RATE,
     PlatformLagMatch,
     principal_translation,
 )
-from stewart_drake.station.bus.servos import SurrogateServoConfig
-from stewart_drake.station.bus.surrogate_servo import SurrogateDrive
 
 H = 0.01
 Z = 5

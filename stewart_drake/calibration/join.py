@@ -9,7 +9,7 @@ own clock: a planned path's ``t [s]``; ``nan`` during the lead-in), ``q0 [rad]``
 ``q5 [rad]`` (the encoders' raw readings, zero errors included); a run with a surrogate's servo
 on the bus adds ``s [m]``, ``s_cmd [m]``, ``s_ref [m]`` and ``s_delay [s]`` (its carriage's
 position read, commanded, its reference on the run's clock, and the delay the command was taken
-with: lag matching, :mod:`~stewart_drake.station.bus.lag_matching`).
+with: lag matching, :mod:`~stewart_drake.station.surrogate.lag_matching`).
 
 **Tracker file** (:func:`write_tracker_file`): one line per sample, ``time [s]`` on the same
 clock as the encoder log's (a tracker's software on the robot computer, or a clock kept within

@@ -16,7 +16,7 @@ each control period, logged with the period's reading):
   encoder (``s``) and its reference on the run's clock (``s_ref``: its trace where the
   platform's reference is, before any delay lag matching gave its command), m. So a delay given
   to the carriage's command to match the platform's lag
-  (:mod:`~stewart_drake.station.bus.lag_matching`) is part of the surrogate's lag, and judged,
+  (:mod:`~stewart_drake.station.surrogate.lag_matching`) is part of the surrogate's lag, and judged,
   not assumed; the servo's own lag behind the command it was given (``s_cmd``) is reported
   beside it.
 - the **relative latency** is L_platform - L_surrogate, s: **positive when the platform (the

@@ -374,10 +374,10 @@ def _command_surrogate(driver, surrogate, homed, scenario) -> None:
 
 
 def _lag_match(homed, period_s: float, t_end: float):
-    """The platform's lag estimator (:class:`~..station.bus.lag_matching.PlatformLagMatch`)
+    """The platform's lag estimator (:class:`~..station.surrogate.lag_matching.PlatformLagMatch`)
     on its reference sampled every period to ``t_end``, along the translation it moves most
     after the lead-in (the axis the run's relative latency judges)."""
-    from ..station.bus.lag_matching import PlatformLagMatch, principal_translation
+    from ..station.surrogate.lag_matching import PlatformLagMatch, principal_translation
 
     t = np.arange(int(np.ceil(t_end / period_s)) + 1) * period_s
     x, v, _ = homed.evaluate(t)

@@ -205,8 +205,8 @@ def with_surrogate(args, scenario):
             )
         axis = SurrogateAxis(trace=args.surrogate, columns=args.surrogate_columns)
     base = scenario.surrogate
-    if base is not None:  # the scenario's own stage, with this signal
-        axis.stage = base.stage
+    if base is not None:  # the scenario's own stage and lag matching, with this signal
+        axis.stage, axis.match_platform_lag = base.stage, base.match_platform_lag
     return replace(scenario, surrogate=axis).validate()
 
 

@@ -263,7 +263,7 @@ def build_diagram(
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    surrogate, signal = _add_surrogate(builder, plan, trajectory, meshcat, loggers)
+    surrogate, signal = _add_surrogate(builder, plan, trajectory, meshcat, loggers, measured)
     guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
     if scenario.lcm is not None:
         from ..station.lcm_publish import add_run_publishers
@@ -295,12 +295,14 @@ def build_diagram(
     )
 
 
-def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict):
+def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, measured=None):
     """With the scenario's ``surrogate``, its stage beside the platform on the same clock: the
     external signal made once from the run's reference (recorded, or through the correlation
     model), sampled at the controller's instants (the platform's period and offset), the stage
-    added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`) and logged as
-    "surrogate" (5: [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], float64, every log period).
+    added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`; with
+    ``match_platform_lag`` its goal as late as the platform is on its reference, measured from
+    ``measured``, the pose the controller reads) and logged as "surrogate" (5: [p m, v m/s,
+    p_d m, v_d m/s, a_d m/s^2], float64, every log period).
     Returns (the stage's ports or None, the signal or None).
 
     Raises:
@@ -319,8 +321,23 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict):
     h, offset, duration = plan.control_period_s, plan.sample_offset_s, plan.duration_s
     signal = axis.signal(trajectory, duration)
     samples = axis.samples(signal, duration, h, offset)
+    match = None
+    if axis.match_platform_lag and measured is not None:
+        from ..station.surrogate.lag_matching import PlatformLagMatch, principal_translation
+
+        x, v, _ = trajectory.evaluate(samples[0])
+        k = principal_translation(x)
+        match = PlatformLagMatch(h, x[:, k], v[:, k], k, t0=float(samples[0][0]))
     ports = add_surrogate_stage(
-        builder, axis.stage, samples, h, offset, plan.plant_time_step_s, meshcat
+        builder,
+        axis.stage,
+        samples,
+        h,
+        offset,
+        plan.plant_time_step_s,
+        meshcat,
+        lag_match=match,
+        platform_state=measured,
     )
     log = SignalLog.add(
         builder,

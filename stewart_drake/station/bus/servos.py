@@ -251,8 +251,9 @@ class SurrogateServoConfig:
         bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
         match_platform_lag: delay the carriage's command by the platform's lag behind its own
             reference, estimated each period from the crank encoders
-            (:mod:`~.lag_matching`), so that the two motions keep their recorded timing;
-            False: the carriage follows its trace on the run's clock as is.
+            (:mod:`~stewart_drake.station.surrogate.lag_matching`), so that the two motions
+            keep their recorded timing; False: the carriage follows its trace on the run's
+            clock as is.
     """
 
     id: int = 7

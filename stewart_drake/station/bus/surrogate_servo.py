@@ -87,10 +87,11 @@ class SurrogateDrive:
     Attributes:
         command: ``command(t) -> (s, v, a)`` the carriage's position m, rate m/s and
             acceleration m/s^2 at the run's time t (floats); None: hold where it was first read.
-        lag_match: None, or a :class:`~.lag_matching.PlatformLagMatch`: the command is then
-            taken at ``t - lag_match.delay_s``, the platform's lag estimated from its
-            encoders (:meth:`platform_reading`), so that the carriage is as late on its trace
-            as the platform is on its own.
+        lag_match: None, or a
+            :class:`~stewart_drake.station.surrogate.lag_matching.PlatformLagMatch`: the
+            command is then taken at ``t - lag_match.delay_s``, the platform's lag estimated
+            from its encoders (:meth:`platform_reading`), so that the carriage is as late on
+            its trace as the platform is on its own.
         held: (s m, v m/s) of the last reading.
     """
 

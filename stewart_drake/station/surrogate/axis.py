@@ -56,6 +56,10 @@ class SurrogateAxis:
         format, columns: as the trace reader's (:func:`~stewart_drake.references.traces.
             load_trace`): to read one column of a file that holds both, name the others ``-``.
         correlation: the :class:`~.correlation.CorrelationModel` (without ``trace``).
+        match_platform_lag: take the signal as late as the platform is measured to be on its
+            own reference (:mod:`~.lag_matching`, as the robot's session does on the bus), so
+            that the pair keeps its recorded timing whatever the platform's controller; False:
+            the signal on the run's clock as is.
     """
 
     stage: SurrogateStage = field(default_factory=SurrogateStage)
@@ -63,6 +67,7 @@ class SurrogateAxis:
     format: str = "auto"
     columns: str = ""
     correlation: CorrelationModel = field(default_factory=CorrelationModel)
+    match_platform_lag: bool = True
 
     def validate(self, control_period_s: float | None = None) -> "SurrogateAxis":
         """Check the section. Raises: InvalidConfigError (the field named), MissingFileError
@@ -75,6 +80,11 @@ class SurrogateAxis:
             )
         if self.trace and not Path(self.trace).is_file():
             raise MissingFileError(f"no file at {self.trace!r} (surrogate.trace): check the path")
+        if not isinstance(self.match_platform_lag, bool):
+            raise InvalidConfigError(
+                "surrogate.match_platform_lag must be true or false, got "
+                f"{self.match_platform_lag!r}"
+            )
         return self
 
     def signal(self, reference, duration_s: float) -> ExternalSignal:

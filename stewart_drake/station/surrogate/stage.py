@@ -226,12 +226,15 @@ class SurrogatePorts:
         goal: output port (3,) [p_d m, v_d m/s, a_d m/s^2], the goal the controller holds.
         carriage: the carriage's ``LinearSystem`` (its discrete state is [p, v]).
         x0: (2,) where the carriage starts, [m, m/s] (:meth:`initialize`).
+        goal_system: the system giving ``goal`` (a ``TrajectorySource``, or with lag
+            matching the :class:`~.lag_matched_goal.LagMatchedGoal`).
     """
 
     state: Any  # OutputPort
     goal: Any  # OutputPort
     carriage: Any  # LinearSystem
     x0: np.ndarray
+    goal_system: Any = None
 
     def initialize(self, root_context) -> None:
         """Start the carriage at its first goal, moving with it."""
@@ -256,8 +259,11 @@ def add_surrogate_stage(
     offset_s: float,
     time_step_s: float,
     meshcat=None,
+    lag_match=None,
+    platform_state=None,
 ) -> SurrogatePorts:
-    """Add the stage and its controller to ``builder`` (module docstring: Drake's systems only).
+    """Add the stage and its controller to ``builder`` (module docstring: Drake's systems only;
+    with lag matching, the goal from one Python system a period instead of the table).
 
     Args:
         builder: the ``DiagramBuilder`` of the run.
@@ -267,15 +273,26 @@ def add_surrogate_stage(
         period_s: the control period, s (the platform's). offset_s: its sample offset, s.
         time_step_s: the plant's time step, s (the carriage's discrete step).
         meshcat: optional Meshcat: a box drawn at the carriage (:class:`SurrogateBox`).
+        lag_match: optional :class:`~.lag_matching.PlatformLagMatch` (its reference sampled at
+            ``samples``' times): the goal is then the signal as late as the platform is
+            measured to be (:class:`~.lag_matched_goal.LagMatchedGoal`), read from
+            ``platform_state`` (an output port (12,): the pose the controller measures).
     Returns:
         :class:`SurrogatePorts`.
     """
     t, p, v, a = (np.asarray(s, float) for s in samples)
     goals = goal_table(stage, t, p, v, a)
-    breaks = t.copy()
-    breaks[0] = min(breaks[0], 0.0)  # the table holds its first goal from t = 0
-    table = PiecewisePolynomial.ZeroOrderHold(breaks, goals)  # type: ignore[call-overload]  # stub shapes
-    goal = builder.AddNamedSystem("surrogate_goal", TrajectorySource(table))
+    if lag_match is not None:
+        from .lag_matched_goal import LagMatchedGoal
+
+        matched = LagMatchedGoal(lag_match, (t, p, v, a), period_s, offset_s, stage.resolution_m)
+        goal = builder.AddNamedSystem("surrogate_goal", matched)
+        builder.Connect(platform_state, goal.get_input_port())
+    else:
+        breaks = t.copy()
+        breaks[0] = min(breaks[0], 0.0)  # the table holds its first goal from t = 0
+        table = PiecewisePolynomial.ZeroOrderHold(breaks, goals)  # type: ignore[call-overload]  # stub shapes
+        goal = builder.AddNamedSystem("surrogate_goal", TrajectorySource(table))
     A, B = stage.carriage_matrices(time_step_s)
     carriage = builder.AddNamedSystem(
         "surrogate_carriage", LinearSystem(A, B, np.eye(2), np.zeros((2, 1)), time_step_s)
@@ -299,6 +316,7 @@ def add_surrogate_stage(
         goal=goal.get_output_port(),
         carriage=carriage,
         x0=np.array([goals[0, 0], v[0]]),
+        goal_system=goal,
     )
 
 

@@ -51,15 +51,21 @@ class PlatformLagMatch:
     """The platform's lag behind its reference, estimated each period (module docstring), as the
     delay to give the surrogate's command.
 
+    Its whole state is one (6,) vector (the fit's five weighted sums and the delay in use),
+    :attr:`state`, advanced by :meth:`step`: a Drake system holds it in its context
+    (:class:`~stewart_drake.station.surrogate.lag_matched_goal.LagMatchedGoal`).
+
     Args:
         period_s: the control period, s (the reference's samples' step).
-        reference: (n,) the platform's reference along ``axis`` at 0, h, 2h, ... s, m.
+        reference: (n,) the platform's reference along ``axis`` at t0, t0 + h, t0 + 2h, ... s, m.
         reference_rate: (n,) its rate there, m/s.
         axis: the pose coordinate (3, 4 or 5: X, Y, Z) the reference moves most along.
         memory_s, max_rate, max_delay_s, min_speed_m_s: the module's constants by default.
+        t0: the time of the reference's first sample, s.
     Attributes:
-        delay_s: the delay in use, s (> 0: the platform is late, the carriage is delayed).
-        estimate_s: the fit's lag, s (NaN until the reference has moved enough).
+        state: (6,) [weight, sum g, sum u, sum g^2, sum g u, the delay in use s].
+        estimate_s: the fit's lag at the last :meth:`update`, s (NaN until the reference has
+            moved enough).
     Raises:
         InvalidConfigError: tables not (n,) alike or not finite, an axis not a translation,
             a setting out of range.
@@ -75,6 +81,7 @@ class PlatformLagMatch:
         max_rate: float = MAX_RATE,
         max_delay_s: float = MAX_DELAY_S,
         min_speed_m_s: float = MIN_SPEED_M_S,
+        t0: float = 0.0,
     ):
         c, g = np.asarray(reference, dtype=float), np.asarray(reference_rate, dtype=float)
         if c.ndim != 1 or c.shape != g.shape or c.size < 2:
@@ -94,18 +101,24 @@ class PlatformLagMatch:
                 f"lag matching's limits out of range: max_rate {max_rate} (0..1), max_delay_s "
                 f"{max_delay_s} (>= 0), min_speed_m_s {min_speed_m_s} (> 0)"
             )
-        self.period_s, self.axis = float(period_s), int(axis)
+        if not math.isfinite(t0):
+            raise InvalidConfigError(f"t0 must be finite, got {t0}")
+        self.period_s, self.axis, self.t0 = float(period_s), int(axis), float(t0)
         self._c, self._g, self._last = c, g, c.size - 1
         self._forget = math.exp(-self.period_s / memory_s)
         self._step = max_rate * self.period_s
         self.max_delay_s, self._min_var = float(max_delay_s), float(min_speed_m_s) ** 2
-        self.delay_s, self.estimate_s = 0.0, math.nan
-        # The weighted sums of the fit: weight, g, u, g^2, g u.
-        self._s = [0.0, 0.0, 0.0, 0.0, 0.0]
+        self.estimate_s = math.nan
+        self.state = np.zeros(6)
+
+    @property
+    def delay_s(self) -> float:
+        """The delay in use, s (> 0: the platform is late, the carriage's command delayed)."""
+        return float(self.state[5])
 
     def _at(self, t: float) -> tuple[float, float]:
         """(c, c') at run time ``t`` (linear between samples; the ends held)."""
-        x = t / self.period_s
+        x = (t - self.t0) / self.period_s
         k = min(max(int(math.floor(x)), 0), self._last)
         w = min(max(x - k, 0.0), 1.0) if k < self._last else 0.0
         c, g = self._c, self._g
@@ -113,29 +126,34 @@ class PlatformLagMatch:
         return c[k] + w * (c[k1] - c[k]), g[k] + w * (g[k1] - g[k])
 
     def update(self, t: float, pose) -> float:
-        """Take the platform's pose measured for run time ``t`` (s; (6,) rad and m) and return
-        the delay to use from now on, s."""
-        y = float(pose[self.axis])
+        """Take the platform's pose measured for run time ``t`` (s; (6,) rad and m) into
+        :attr:`state` and return the delay to use from now on, s."""
+        self.estimate_s = self.step(self.state, t, float(pose[self.axis]))
+        return self.delay_s
+
+    def step(self, state: np.ndarray, t: float, y: float) -> float:
+        """Advance ``state`` ((6,), as :attr:`state`; in place) by the platform's coordinate
+        ``y`` (m) measured for run time ``t`` (s). Returns the fit's lag, s (NaN: the
+        reference has not moved enough yet, or ``y`` is NaN: nothing learnt)."""
         if y != y:  # a reading with no pose: nothing learnt
-            return self.delay_s
-        d = self.delay_s
+            return math.nan
+        d = float(state[5])
         c, g = self._at(t - d)
         u = (y - c) - d * g
-        s, lam = self._s, self._forget
-        s[0] = lam * s[0] + 1.0
-        s[1] = lam * s[1] + g
-        s[2] = lam * s[2] + u
-        s[3] = lam * s[3] + g * g
-        s[4] = lam * s[4] + g * u
-        mean_g = s[1] / s[0]
-        var_g = s[3] / s[0] - mean_g * mean_g
+        lam = self._forget
+        state[0] = lam * state[0] + 1.0
+        state[1] = lam * state[1] + g
+        state[2] = lam * state[2] + u
+        state[3] = lam * state[3] + g * g
+        state[4] = lam * state[4] + g * u
+        mean_g = state[1] / state[0]
+        var_g = state[3] / state[0] - mean_g * mean_g
         if var_g < self._min_var:
-            return d
-        cov = s[4] / s[0] - mean_g * s[2] / s[0]
-        self.estimate_s = -cov / var_g
-        target = min(max(self.estimate_s, -self.max_delay_s), self.max_delay_s)
-        self.delay_s = d + min(max(target - d, -self._step), self._step)
-        return self.delay_s
+            return math.nan
+        estimate = -(state[4] / state[0] - mean_g * state[2] / state[0]) / var_g
+        target = min(max(estimate, -self.max_delay_s), self.max_delay_s)
+        state[5] = d + min(max(target - d, -self._step), self._step)
+        return float(estimate)
 
 
 def principal_translation(reference) -> int:
