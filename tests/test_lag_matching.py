@@ -66,6 +66,9 @@ def test_the_delay_converges_on_the_lag_the_platform_was_given(lag_s):
     t, match = _match()
     # 4 um of noise (a crank count's worth at the platform) and a 0.3 mm sag.
     delays = _feed(match, t, lag_s, offset_m=-3e-4, noise_m=4e-6)
+    # A second of readings before the delay moves (a line through less cannot tell a lag
+    # from an offset).
+    assert np.all(delays[t < 0.985] == 0.0) and delays[t > 1.5][0] != 0.0
     settled = t > 25.0
     assert np.max(np.abs(delays[settled] - lag_s)) < 1e-4, delays[settled][[0, -1]]
     assert abs(match.estimate_s - lag_s) < 1e-4
@@ -192,3 +195,44 @@ def test_a_matching_that_does_not_match_fails(platform_lag, carriage_delay, rela
     judged = _run_pair(platform_lag, carriage_delay)
     assert judged.relative_s == pytest.approx(relative, abs=3e-4)
     assert not judged.passed and "FAIL" in judged.line()
+
+
+def _goal_diagram(lag_s, seconds=30.0, offset=0.0005):
+    """A LagMatchedGoal fed a platform ``lag_s`` late on its reference (a TrajectorySource of
+    its state), in a Diagram: (simulator, the goal system, the signal's samples)."""
+    from pydrake.systems.analysis import Simulator
+    from pydrake.systems.framework import DiagramBuilder
+    from pydrake.systems.primitives import TrajectorySource
+    from pydrake.trajectories import PiecewisePolynomial
+
+    from stewart_drake.station.surrogate.lag_matched_goal import LagMatchedGoal
+
+    t = offset + np.arange(int(seconds / H) + 1) * H
+    match = PlatformLagMatch(H, 0.3 + _breath(t), _breath_rate(t), Z, t0=t[0])
+    signal = (t, 0.5 * _breath(t + 0.4), 0.5 * _breath_rate(t + 0.4), np.zeros(t.size))
+    fine = np.arange(0.0, seconds + H, 0.001)
+    state = np.zeros((12, fine.size))
+    state[Z] = 0.3 + _breath(fine - lag_s)
+    builder = DiagramBuilder()
+    platform = builder.AddSystem(TrajectorySource(PiecewisePolynomial.FirstOrderHold(fine, state)))
+    goal = builder.AddSystem(LagMatchedGoal(match, signal, H, offset))
+    builder.Connect(platform.get_output_port(), goal.get_input_port())
+    return Simulator(builder.Build()), goal, signal
+
+
+def test_the_goal_system_takes_the_signal_as_late_as_the_platform_is():
+    simulator, goal, (t, p, v, _) = _goal_diagram(0.026)
+    context = goal.GetMyContextFromRoot(simulator.get_context())
+    # At the start, no delay: the signal's samples exactly, at the controller's instants.
+    for k in (0, 1, 7):
+        simulator.AdvanceTo(t[k])
+        np.testing.assert_allclose(goal.get_output_port().Eval(context)[:2], [p[k], v[k]])
+    simulator.AdvanceTo(29.0)
+    assert goal.delay_s(context) == pytest.approx(0.026, abs=2e-4)
+    now = simulator.get_context().get_time()
+    late = now - goal.delay_s(context)
+    np.testing.assert_allclose(
+        goal.get_output_port().Eval(context)[:2],
+        [0.5 * _breath(late + 0.4), 0.5 * _breath_rate(late + 0.4)],
+        atol=3e-6,  # linear between the 10 ms samples
+    )

@@ -23,7 +23,8 @@ constant longer than a breathing cycle; the offset is the line's intercept); it 
 RMSE alignment of the verdict (:mod:`stewart_drake.live.encoder_relative_latency`) minimises,
 to first order in L - L_k. The delay in use moves towards it by at most ``max_rate`` s per s
 (0.5 %: the carriage's speed changes by at most that), stays within +-``max_delay_s``, and holds
-until the fit has seen a reference moving at ``min_speed_m_s`` RMS.
+until the fit has seen :data:`MIN_HISTORY_S` of readings and a reference moving at
+``min_speed_m_s`` RMS.
 
 Nothing here is fitted to the verdict: the delay acts on the carriage's command as the run goes,
 from the encoders' past readings; the relative latency judged at the end compares each motion
@@ -45,6 +46,9 @@ MAX_RATE = 0.005
 MAX_DELAY_S = 0.2
 #: The reference's RMS speed along its axis below which the fit holds the delay, m/s.
 MIN_SPEED_M_S = 2e-4
+#: The fewest seconds of readings the fit holds before it moves the delay (a quarter of a
+#: breath: a line fitted to less cannot tell a lag from an offset).
+MIN_HISTORY_S = 1.0
 
 
 class PlatformLagMatch:
@@ -106,6 +110,9 @@ class PlatformLagMatch:
         self.period_s, self.axis, self.t0 = float(period_s), int(axis), float(t0)
         self._c, self._g, self._last = c, g, c.size - 1
         self._forget = math.exp(-self.period_s / memory_s)
+        n = max(1, round(MIN_HISTORY_S / self.period_s))
+        #: The fit's weight after MIN_HISTORY_S of readings (its weights' sum).
+        self._min_weight = (1 - self._forget**n) / (1 - self._forget) - 1e-9
         self._step = max_rate * self.period_s
         self.max_delay_s, self._min_var = float(max_delay_s), float(min_speed_m_s) ** 2
         self.estimate_s = math.nan
@@ -146,6 +153,8 @@ class PlatformLagMatch:
         state[2] = lam * state[2] + u
         state[3] = lam * state[3] + g * g
         state[4] = lam * state[4] + g * u
+        if state[0] < self._min_weight:
+            return math.nan
         mean_g = state[1] / state[0]
         var_g = state[3] / state[0] - mean_g * mean_g
         if var_g < self._min_var:
