@@ -263,7 +263,9 @@ def build_diagram(
     loggers.update(add_run_logs(builder, station, system, logged, plan, learner))
     for name, logger in loggers.items():
         logger.set_name(f"log_{name}")
-    surrogate, signal = _add_surrogate(builder, plan, trajectory, meshcat, loggers, measured)
+    surrogate, signal = _add_surrogate(
+        builder, plan, trajectory, meshcat, loggers, station.GetOutputPort("platform_state")
+    )
     guard = add_divergence_guard(builder, station, system.GetOutputPort("T"), ref.x_d, plan)
     if scenario.lcm is not None:
         from ..station.lcm_publish import add_run_publishers
@@ -295,14 +297,16 @@ def build_diagram(
     )
 
 
-def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, measured=None):
+def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, platform=None):
     """With the scenario's ``surrogate``, its stage beside the platform on the same clock: the
     external signal made once from the run's reference (recorded, or through the correlation
     model), sampled at the controller's instants (the platform's period and offset), the stage
     added (:func:`~stewart_drake.station.surrogate.stage.add_surrogate_stage`; with
     ``match_platform_lag`` its goal as late as the platform is on its reference, measured from
-    ``measured``, the pose the controller reads) and logged as "surrogate" (5: [p m, v m/s,
-    p_d m, v_d m/s, a_d m/s^2], float64, every log period).
+    ``platform``, the station's pose of the platform: the plant's, read as it is at the
+    sample, where the robot reads its encoders; not the controller's estimate, which is held
+    from the previous period and would read as one period more late) and logged as
+    "surrogate" (5: [p m, v m/s, p_d m, v_d m/s, a_d m/s^2], float64, every log period).
     Returns (the stage's ports or None, the signal or None).
 
     Raises:
@@ -322,7 +326,7 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, m
     signal = axis.signal(trajectory, duration)
     samples = axis.samples(signal, duration, h, offset)
     match = None
-    if axis.match_platform_lag and measured is not None:
+    if axis.match_platform_lag and platform is not None:
         from ..station.surrogate.lag_matching import PlatformLagMatch, principal_translation
 
         x, v, _ = trajectory.evaluate(samples[0])
@@ -337,7 +341,7 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, m
         plan.plant_time_step_s,
         meshcat,
         lag_match=match,
-        platform_state=measured,
+        platform_state=platform,
     )
     log = SignalLog.add(
         builder,
