@@ -241,8 +241,11 @@ def test_one_file_holding_both_is_read_twice_by_the_one_reader(tmp_path):
     internal = load_trace(path, columns="t [s], SI [mm], -")
     moving = np.ptp(internal.evaluate(q)[0], axis=0) > 0
     assert moving.tolist() == [False, False, False, True, False, False]  # SI is the platform's X
-    with pytest.raises(InvalidConfigError, match="moves one translation"):
-        load_external(path, columns="t [s], LR [mm], SI [mm]")
+    for columns in ("t [s], LR [mm], SI [mm]", "t [s], rot_SI [deg], -"):
+        with pytest.raises(InvalidConfigError, match="along one line") as refused:
+            load_external(path, columns=columns)
+        assert f"--surrogate {path}" in str(refused.value)
+        assert "name the other columns '-' (--surrogate-columns)" in str(refused.value)
 
 
 def test_scenario_section_round_trips_through_yaml(tmp_path):
