@@ -143,12 +143,15 @@ def test_a_path_out_of_the_travel_or_too_fast_is_refused_with_its_figure():
     t = np.linspace(0, 8, 801)
     s = 0.032 * np.sin(2 * np.pi * t / 4)  # 32 mm, 50.3 mm/s peak: over 49.1 mm/s
     v = 0.032 * 2 * np.pi / 4 * np.cos(2 * np.pi * t / 4)
-    with pytest.raises(InvalidConfigError, match=r"50\.3 mm/s, over the 49\.1 mm/s"):
+    with pytest.raises(InvalidConfigError, match=r"50\.3 mm/s, over the 49\.1 mm/s") as fast:
         check_surrogate_path(config, s, v)
+    assert "bus.surrogate.stage.lead_m_per_rev" in str(fast.value)
     check_surrogate_path(config, 0.97 * s, 0.97 * v)  # 48.8 mm/s: within
     check_surrogate_path(config, 0.5 * s, 0.5 * v)  # half as fast: within
     with pytest.raises(InvalidConfigError, match=r"\+60\.0 mm, outside the stage's travel"):
         check_surrogate_path(config, np.array([0.0, 0.06]), np.zeros(2))
+    with pytest.raises(InvalidConfigError, match=r"bus\.surrogate\.stage\.travel_m"):
+        check_surrogate_path(config, np.array([0.0, -0.0501]), np.zeros(2))
     with pytest.raises(InvalidConfigError, match="not finite"):
         check_surrogate_path(config, np.array([0.0, np.nan]), np.zeros(2))
 

@@ -70,9 +70,9 @@ def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the su
     if v.size and np.max(np.abs(v)) > top:
         raise InvalidConfigError(
             f"{what} asks the carriage for {1e3 * np.max(np.abs(v)):.1f} mm/s, over the "
-            f"{1e3 * top:.1f} mm/s the {stage.motor} turns {1e3 * stage.lead_m_per_rev:g} mm "
-            f"a turn at ({100 * SPEED_MARGIN:g} % of its no-load speed): a longer "
-            "bus.surrogate.stage.lead_m_per_rev, or a slower trace"
+            f"{1e3 * top:.1f} mm/s the stage allows ({100 * SPEED_MARGIN:g} % of the "
+            f"{stage.motor}'s no-load speed at {1e3 * stage.lead_m_per_rev:g} mm a turn): a "
+            "longer bus.surrogate.stage.lead_m_per_rev, or a slower trace"
         )
 
 
