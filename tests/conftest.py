@@ -392,7 +392,7 @@ def bus_emulator(
     control period, s) at each torque command and not otherwise. On a loaded machine the loop
     runs late, and a plant on the wall clock would move on without it (a guard trip that is
     the machine's, not the robot's); on the commanded clock it meets the plant where its own
-    clock says it is. With ``surrogate`` (a ``SurrogateServoConfig``) its lead-screw stage
+    clock says it is. With ``surrogate`` (a ``SurrogateServoConfig``) its stage
     answers as one more servo, its carriage at ``s0_m`` (m), on the same clock; ``models``:
     the emulator's {id: model}."""
     from pydrake.multibody.plant import MultibodyPlantConfig
@@ -409,12 +409,7 @@ def bus_emulator(
     backend = StationServos(dynamixel_scenario(scenario=robot), x0=x0)
     ids, zero_counts = list(ids), None
     if surrogate is not None:
-        stage = FirstOrderServos.lead_screw(
-            surrogate.model,
-            surrogate.lead_m_per_rev,
-            surrogate.carriage_mass_kg,
-            surrogate.direction * s0_m,
-        )
+        stage = FirstOrderServos.linear_stage(surrogate.stage, surrogate.direction * s0_m)
         backend = StackedServos(backend, stage)
         zero_counts = [2048] * len(ids) + [surrogate.zero_counts]
         ids.append(surrogate.id)

@@ -107,19 +107,81 @@ def test_carriage_step_agrees_with_a_fine_euler_integration():
 def test_default_stage_is_the_catalogue_servo_on_its_belt():
     stage = SurrogateStage()
     # XM430-W350-T: 46 rpm, 4.1 N m stall (0.82 continuous), 4096 counts; 80 mm a turn
-    assert stage.speed_m_s == pytest.approx(46 / 60 * 0.08)
-    assert stage.resolution_m == pytest.approx(0.08 / 4096)
-    assert stage.force_N == pytest.approx(0.82 * 2 * math.pi / 0.08 * 0.9)
+    assert stage.no_load_speed_m_s == pytest.approx(46 / 60 * 0.08)
+    assert stage.metres_per_count == pytest.approx(0.08 / 4096)
+    assert stage.continuous_force_N == pytest.approx(0.82 * 2 * math.pi / 0.08 * 0.9)
+    # the figures the docs give: 61.3 mm/s, 58 N, 19.5 um
+    assert 61.3e-3 < stage.no_load_speed_m_s < 61.4e-3
+    assert 57.9 < stage.continuous_force_N < 58.0
+    assert 19.5e-6 < stage.metres_per_count < 19.6e-6
     # reflected rotor: 1 g cm^2 x 353.5^2 x (2 pi / 0.08)^2, plus the carriage
     assert stage.moving_mass_kg() == pytest.approx(
         1e-7 * 353.5**2 * (2 * math.pi / 0.08) ** 2 + 0.3
     )
 
 
+def test_what_drake_builds_is_the_catalogue_part_on_its_belt():
+    """The Drake systems of the default stage, read back from the built Diagram, against the
+    catalogue's figures by hand (XM430-W350-T: 4.1 N m stall, 0.82 N m continuous, 46 rpm,
+    1 g cm^2 rotor, 353.5 : 1, 4096 counts; dry friction 5 % of stall and as much again viscous
+    at no load; the belt 80 mm a turn at 0.9; 0.3 kg): the force limit, the carriage's exact
+    discrete step (closed form of the mass-damper), the control law's row and the goals'
+    step."""
+    from pydrake.systems.framework import DiagramBuilder
+
+    from stewart_drake.station.surrogate.stage import add_surrogate_stage
+
+    k = 2 * math.pi / 0.08  # rad a metre of belt
+    m = 1e-7 * 353.5**2 * k * k + 0.3  # 77.4 kg
+    b = 0.05 * 4.1 / (46 * 2 * math.pi / 60) * k * k  # N s/m
+    force = 0.82 * 0.9 * k  # 58.0 N
+    count = 0.08 / 4096
+    h, period = 1e-3, 0.01
+    t = np.arange(0.0, 1.0, period)
+    p = 0.0123 + 0.004 * np.sin(t)
+    builder = DiagramBuilder()
+    add_surrogate_stage(
+        builder, SurrogateStage(), (t, p, 0.004 * np.cos(t), -0.004 * np.sin(t)), period, 0, h
+    )
+    diagram = builder.Build()
+    sat = diagram.GetSubsystemByName("surrogate_force_limit")
+    context = sat.CreateDefaultContext()
+    for asked, given in ((1e9, force), (-1e9, -force), (10.0, 10.0)):
+        sat.get_input_port().FixValue(context, [asked])
+        assert sat.get_output_port().Eval(context)[0] == pytest.approx(given, rel=1e-9)
+    assert 57.9 < force < 58.0
+    carriage = diagram.GetSubsystemByName("surrogate_carriage")
+    e = math.exp(-b / m * h)
+    assert carriage.A() == pytest.approx(np.array([[1, (1 - e) * m / b], [0, e]]), rel=1e-9)
+    step = np.array([[(h - (1 - e) * m / b) / b], [(1 - e) / b]])
+    assert carriage.B() == pytest.approx(step, rel=1e-6)
+    law = diagram.GetSubsystemByName("surrogate_pd").D()
+    w = 2 * math.pi * 8.0  # critically damped at 8 Hz
+    kp, kd = m * w * w, 2 * m * w - b
+    assert law == pytest.approx(np.array([[kp, kd + b, m, -kp, -kd]]), rel=1e-9)
+    goal = diagram.GetSubsystemByName("surrogate_goal")
+    gctx = goal.CreateDefaultContext()
+    for q in (0.0, 0.33, 0.71):
+        gctx.SetTime(q)
+        got = goal.get_output_port().Eval(gctx)[0]
+        assert got / count == pytest.approx(round(got / count), abs=1e-6)  # whole counts
+        assert abs(got - np.interp(q, t, p, left=p[0])) <= 0.5 * count + 0.004 * period
+
+
 def test_stage_refuses_what_it_cannot_do():
     stage = SurrogateStage()
     with pytest.raises(InvalidConfigError, match="unstable"):
         SurrogateStage(bandwidth_hz=60.0).validate(0.01)
+    for wrong, field in (
+        (dict(motor="XM999"), "surrogate.stage.motor"),
+        (dict(lead_m_per_rev=0.0), "surrogate.stage.lead_m_per_rev"),
+        (dict(travel_m=-0.1), "surrogate.stage.travel_m"),
+        (dict(carriage_mass_kg=float("nan")), "surrogate.stage.carriage_mass_kg"),
+        (dict(efficiency=1.5), "surrogate.stage.efficiency"),
+        (dict(damping_ratio=0.0), "surrogate.stage.damping_ratio"),
+    ):
+        with pytest.raises(InvalidConfigError, match=field):
+            SurrogateStage(**wrong).validate()
     t = np.linspace(0, 1, 11)
     for p, v, a, what in (
         (np.full(11, 0.06), np.zeros(11), np.zeros(11), "travel"),
@@ -179,8 +241,11 @@ def test_one_file_holding_both_is_read_twice_by_the_one_reader(tmp_path):
     internal = load_trace(path, columns="t [s], SI [mm], -")
     moving = np.ptp(internal.evaluate(q)[0], axis=0) > 0
     assert moving.tolist() == [False, False, False, True, False, False]  # SI is the platform's X
-    with pytest.raises(InvalidConfigError, match="moves one translation"):
-        load_external(path, columns="t [s], LR [mm], SI [mm]")
+    for columns in ("t [s], LR [mm], SI [mm]", "t [s], rot_SI [deg], -"):
+        with pytest.raises(InvalidConfigError, match="along one line") as refused:
+            load_external(path, columns=columns)
+        assert f"--surrogate {path}" in str(refused.value)
+        assert "name the other columns '-' (--surrogate-columns)" in str(refused.value)
 
 
 def test_scenario_section_round_trips_through_yaml(tmp_path):
@@ -191,7 +256,7 @@ def test_scenario_section_round_trips_through_yaml(tmp_path):
     from stewart_drake.station.surrogate.axis import SurrogateAxis
 
     axis = SurrogateAxis(
-        stage=SurrogateStage(travel_m=0.05, bandwidth_hz=5.0),
+        stage=SurrogateStage(travel_m=0.05, lead_m_per_rev=0.06, bandwidth_hz=5.0),
         correlation=CorrelationModel(lead_s=0.3, change_at_s=10.0, lead_after_s=-0.1),
     )
     scenario = replace(load_scenario("phantom_hardware"), surrogate=axis).validate()
@@ -199,6 +264,8 @@ def test_scenario_section_round_trips_through_yaml(tmp_path):
     dump_scenario(scenario, path)
     back = load_scenario(str(path)).surrogate
     assert back == axis
+    assert "lead_m_per_rev: 0.06" in path.read_text()  # the part's field, as the bus's
+    assert back.stage.no_load_speed_m_s == pytest.approx(46 / 60 * 0.06)  # derived again
     with pytest.raises(InvalidConfigError, match="surrogate.stage.travel_m"):
         load_scenario(str(path), ["surrogate.stage.travel_m=-1"])
 

@@ -81,7 +81,7 @@ def test_what_drake_built_is_the_stage_of_the_scenario(lead_run):
     context = sat.CreateDefaultContext()
     assert sat.get_input_port().size() == 1
     sat.get_input_port().FixValue(context, [1e9])
-    assert sat.get_output_port().Eval(context)[0] == pytest.approx(stage.force_N)
+    assert sat.get_output_port().Eval(context)[0] == pytest.approx(stage.continuous_force_N)
     carriage = diagram.GetSubsystemByName("surrogate_carriage")
     assert carriage.time_period() == pytest.approx(sd.plan.plant_time_step_s)
     m, b, h = stage.moving_mass_kg(), stage.viscous_N_s_per_m(), sd.plan.plant_time_step_s

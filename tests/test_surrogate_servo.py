@@ -11,6 +11,7 @@ import pytest
 
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.live.encoder_relative_latency import axis_lag, relative_latency
+from stewart_drake.robot.linear_stage import LinearStage
 from stewart_drake.station.bus.emulator import FirstOrderServos
 from stewart_drake.station.bus.servos import DynamixelBusConfig, SurrogateServoConfig
 from stewart_drake.station.bus.surrogate_servo import SurrogateDrive, check_surrogate_path
@@ -18,22 +19,52 @@ from stewart_drake.station.bus.surrogate_servo import SurrogateDrive, check_surr
 PERIOD_S = 0.01
 
 
-def test_the_default_stage_is_valid_and_its_units_follow_the_screw():
+def test_the_default_stage_is_valid_and_its_units_follow_the_belt():
     config = SurrogateServoConfig()
     config.validate([1, 2, 3, 4, 5, 6], PERIOD_S)
-    # 50 mm a turn of 4096 counts: 12.2 um a count, by hand.
-    assert config.metres_per_count == pytest.approx(0.05 / 4096, rel=1e-12)
-    assert float(config.counts_to_m(2048 + 4096)) == pytest.approx(0.05, rel=1e-12)
-    assert float(config.counts_to_m(2048 - 1024)) == pytest.approx(-0.0125, rel=1e-12)
+    # The cited part: 40 teeth of a 2 mm GT2 belt = 80 mm a turn of 4096 counts, 19.5 um a count.
+    lead = 40 * 2e-3
+    assert config.metres_per_count == pytest.approx(lead / 4096, rel=1e-12)
+    assert 19.5e-6 < config.metres_per_count < 19.6e-6
+    assert float(config.counts_to_m(2048 + 4096)) == pytest.approx(lead, rel=1e-12)
+    assert float(config.counts_to_m(2048 - 1024)) == pytest.approx(-lead / 4, rel=1e-12)
     flipped = SurrogateServoConfig(direction=-1, zero_counts=-500)
-    assert float(flipped.counts_to_m(-500 + 4096)) == pytest.approx(-0.05, rel=1e-12)
+    assert float(flipped.counts_to_m(-500 + 4096)) == pytest.approx(-lead, rel=1e-12)
     for s in (-0.04, 0.0, 0.0123):
-        assert abs(float(flipped.counts_to_m(flipped.m_to_counts(s))) - s) <= 0.5 * 0.05 / 4096
-    # XM430-W350-T: 46 rpm at no load, 80 % of it through 50 mm a turn = 30.7 mm/s.
-    assert config.max_speed_m_s() == pytest.approx(0.8 * 46 / 60 * 0.05, rel=1e-9)
-    # J: the rotor's 1 g cm^2 through 353.5 : 1, and 0.5 kg through 50 mm / 2 pi.
-    j = 1e-7 * 353.5**2 + 0.5 * (0.05 / (2 * math.pi)) ** 2
-    assert config.inertia_kg_m2() == pytest.approx(j, rel=1e-9)
+        assert abs(float(flipped.counts_to_m(flipped.m_to_counts(s))) - s) <= 0.5 * lead / 4096
+    # XM430-W350-T: 46 rpm at no load, 80 % of it through 80 mm a turn = 49.1 mm/s.
+    assert config.max_speed_m_s() == pytest.approx(0.8 * 46 / 60 * lead, rel=1e-9)
+    assert 0.0490 < config.max_speed_m_s() < 0.0491
+    # J: the rotor's 1 g cm^2 through 353.5 : 1, and 0.3 kg through 80 mm / 2 pi.
+    j = 1e-7 * 353.5**2 + 0.3 * (lead / (2 * math.pi)) ** 2
+    assert config.stage.inertia_at_horn_kg_m2() == pytest.approx(j, rel=1e-9)
+
+
+def test_the_drive_is_built_from_the_part_the_diagram_uses():
+    """What the bus's drive holds, read back from it, against the catalogue's figures by hand:
+    J, the friction, the gains, the metres a count and a radian, the speed limit; and the
+    Diagram's stage is the same part (one definition: same fields, same figures)."""
+    from stewart_drake.station.surrogate.stage import SurrogateStage
+
+    drive = SurrogateDrive(SurrogateServoConfig(), PERIOD_S)
+    lead, r = 0.08, 0.08 / (2 * math.pi)
+    rotor = 1e-7 * 353.5**2  # 1 g cm^2 through 353.5 : 1, kg m^2
+    assert drive.J == pytest.approx(rotor + 0.3 * r * r, rel=1e-9)
+    stall, no_load = 4.1, 46 * 2 * math.pi / 60  # N m, rad/s
+    assert drive.coulomb == pytest.approx(0.05 * stall, rel=1e-9)  # catalogue: 5 % of stall
+    assert drive.viscous == pytest.approx(0.05 * stall / no_load, rel=1e-9)
+    w = 2 * math.pi * 5.0
+    assert drive.kp == pytest.approx(drive.J * w * w, rel=1e-12)
+    assert drive.kd == pytest.approx(2 * drive.J * w, rel=1e-12)
+    assert drive.config.metres_per_count == pytest.approx(lead / 4096, rel=1e-12)
+    assert drive.config.metres_per_rad == pytest.approx(r, rel=1e-12)
+    assert drive.config.max_speed_m_s() * 1e3 == pytest.approx(49.07, abs=0.01)
+    diagram = SurrogateStage()
+    bus = drive.config.stage
+    for name in ("motor", "lead_m_per_rev", "travel_m", "carriage_mass_kg", "efficiency"):
+        assert getattr(diagram, name) == getattr(bus, name), name
+    assert diagram.moving_mass_kg() * r * r == pytest.approx(drive.J, rel=1e-9)
+    assert diagram.no_load_speed_m_s * 0.8 == pytest.approx(drive.config.max_speed_m_s())
 
 
 @pytest.mark.parametrize(
@@ -42,18 +73,21 @@ def test_the_default_stage_is_valid_and_its_units_follow_the_screw():
         ({"id": 3}, "is a crank's"),
         ({"id": 253}, "bus.surrogate.id"),
         ({"id": 7.0}, "bus.surrogate.id"),
-        ({"model": "XL430-W250-T"}, "no Current Control Mode"),
-        ({"model": "XH430-W350-T"}, "bus.surrogate.model"),
-        ({"model": "maxon-EC45flat-50W-GP42C-4.3"}, "bus.surrogate.model"),
-        ({"lead_m_per_rev": 0.0}, "lead_m_per_rev"),
-        ({"lead_m_per_rev": -0.01}, "lead_m_per_rev"),
-        ({"lead_m_per_rev": float("nan")}, "lead_m_per_rev"),
-        ({"travel_m": 0.0}, "travel_m"),
-        ({"travel_m": float("inf")}, "travel_m"),
+        ({"motor": "XL430-W250-T"}, "no Current Control Mode"),
+        ({"motor": "XH430-W350-T"}, "bus.surrogate.stage.motor"),
+        ({"motor": "maxon-EC45flat-50W-GP42C-4.3"}, "bus.surrogate.stage.motor"),
+        ({"lead_m_per_rev": 0.0}, "bus.surrogate.stage.lead_m_per_rev"),
+        ({"lead_m_per_rev": -0.01}, "bus.surrogate.stage.lead_m_per_rev"),
+        ({"lead_m_per_rev": float("nan")}, "bus.surrogate.stage.lead_m_per_rev"),
+        ({"lead_m_per_rev": 0.6}, "bus.surrogate.stage.lead_m_per_rev"),
+        ({"travel_m": 0.0}, "bus.surrogate.stage.travel_m"),
+        ({"travel_m": float("inf")}, "bus.surrogate.stage.travel_m"),
+        ({"carriage_mass_kg": -1.0}, "bus.surrogate.stage.carriage_mass_kg"),
+        ({"efficiency": 0.0}, "bus.surrogate.stage.efficiency"),
+        ({"efficiency": 1.2}, "bus.surrogate.stage.efficiency"),
         ({"zero_counts": 2**31}, "zero_counts"),
         ({"direction": 0}, "direction"),
         ({"direction": True}, "direction"),
-        ({"carriage_mass_kg": -1.0}, "carriage_mass_kg"),
         ({"current_limit_A": 0.0}, "current_limit_A"),
         ({"current_limit_A": 10.0}, "current_limit_A"),
         ({"bandwidth_hz": 0.0}, "bandwidth_hz"),
@@ -61,7 +95,8 @@ def test_the_default_stage_is_valid_and_its_units_follow_the_screw():
     ],
 )
 def test_a_wrong_stage_is_refused_naming_its_field(change, words):
-    config = SurrogateServoConfig(**change)
+    part = {k: change.pop(k) for k in list(change) if k in LinearStage.__dataclass_fields__}
+    config = SurrogateServoConfig(stage=LinearStage(**part), **change)
     with pytest.raises(InvalidConfigError, match=words):
         config.validate([1, 2, 3, 4, 5, 6], PERIOD_S)
     bus = DynamixelBusConfig(surrogate=config)
@@ -74,6 +109,8 @@ def test_a_bus_without_a_surrogate_is_as_before_and_a_dict_is_refused():
     DynamixelBusConfig().validate(PERIOD_S, None)
     with pytest.raises(InvalidConfigError, match="SurrogateServoConfig"):
         DynamixelBusConfig(surrogate={"id": 7}).validate(PERIOD_S, None)
+    with pytest.raises(InvalidConfigError, match="bus.surrogate.stage must be a LinearStage"):
+        SurrogateServoConfig(stage={"travel_m": 0.1}).validate([1], PERIOD_S)
 
 
 def test_the_scenario_file_carries_the_surrogate_section_both_ways(tmp_path):
@@ -82,13 +119,18 @@ def test_the_scenario_file_carries_the_surrogate_section_both_ways(tmp_path):
 
     scenario = Scenario(control_period_s=PERIOD_S, log_period_s=PERIOD_S)
     scenario.hardware = None
-    scenario.bus = DynamixelBusConfig(surrogate=SurrogateServoConfig(id=9, lead_m_per_rev=0.04))
+    stage = LinearStage(lead_m_per_rev=0.04, travel_m=0.12)
+    scenario.bus = DynamixelBusConfig(surrogate=SurrogateServoConfig(id=9, stage=stage))
     text = dump_scenario(scenario)
     assert "surrogate:" in text and "lead_m_per_rev: 0.04" in text
     path = tmp_path / "s.yaml"
     path.write_text(text)
     again = load_scenario(str(path))
     assert again.bus.surrogate == scenario.bus.surrogate
+    assert again.bus.surrogate.stage.travel_m == 0.12
+    # The stage's fields are the Diagram's (one part): a wrong one is named where it is.
+    with pytest.raises(InvalidConfigError, match="bus.surrogate.stage.travel_m"):
+        load_scenario(str(path), ["bus.surrogate.stage.travel_m=-1"])
     # Without one, the file is as before: no word of it.
     no_surrogate = Scenario(control_period_s=PERIOD_S, log_period_s=PERIOD_S)
     no_surrogate.hardware = None
@@ -99,13 +141,17 @@ def test_the_scenario_file_carries_the_surrogate_section_both_ways(tmp_path):
 def test_a_path_out_of_the_travel_or_too_fast_is_refused_with_its_figure():
     config = SurrogateServoConfig()
     t = np.linspace(0, 8, 801)
-    s = 0.02 * np.sin(2 * np.pi * t / 4)  # 20 mm, 31 mm/s peak: over 30.7 mm/s
-    v = 0.02 * 2 * np.pi / 4 * np.cos(2 * np.pi * t / 4)
-    with pytest.raises(InvalidConfigError, match=r"31\.4 mm/s, over the 30\.7 mm/s"):
+    s = 0.032 * np.sin(2 * np.pi * t / 4)  # 32 mm, 50.3 mm/s peak: over 49.1 mm/s
+    v = 0.032 * 2 * np.pi / 4 * np.cos(2 * np.pi * t / 4)
+    with pytest.raises(InvalidConfigError, match=r"50\.3 mm/s, over the 49\.1 mm/s") as fast:
         check_surrogate_path(config, s, v)
+    assert "bus.surrogate.stage.lead_m_per_rev" in str(fast.value)
+    check_surrogate_path(config, 0.97 * s, 0.97 * v)  # 48.8 mm/s: within
     check_surrogate_path(config, 0.5 * s, 0.5 * v)  # half as fast: within
     with pytest.raises(InvalidConfigError, match=r"\+60\.0 mm, outside the stage's travel"):
         check_surrogate_path(config, np.array([0.0, 0.06]), np.zeros(2))
+    with pytest.raises(InvalidConfigError, match=r"bus\.surrogate\.stage\.travel_m"):
+        check_surrogate_path(config, np.array([0.0, -0.0501]), np.zeros(2))
     with pytest.raises(InvalidConfigError, match="not finite"):
         check_surrogate_path(config, np.array([0.0, np.nan]), np.zeros(2))
 
@@ -123,7 +169,7 @@ def test_the_position_loop_follows_a_breath_on_a_stage_of_its_own():
         return 0.01 * math.sin(w * t), 0.01 * w * math.cos(w * t), -0.01 * w * w * math.sin(w * t)
 
     drive.command = command
-    stage = FirstOrderServos.lead_screw(config.model, config.lead_m_per_rev, 0.5)
+    stage = FirstOrderServos.linear_stage(config.stage)
     from stewart_drake.station.bus.servos import servo_spec
 
     kt = servo_spec(config.model).torque_constant_Nm_per_A

@@ -109,9 +109,7 @@ def _start(  # pragma: no cover
 
     backend, models = Recorded(), None
     if surrogate is not None:
-        stage = FirstOrderServos.lead_screw(
-            surrogate.model, surrogate.lead_m_per_rev, surrogate.carriage_mass_kg
-        )
+        stage = FirstOrderServos.linear_stage(surrogate.stage)
         backend = StackedServos(backend, stage)
         ids = [*ids, surrogate.id]
         zero_counts = [*(zero_counts or [2048] * (len(ids) - 1)), surrogate.zero_counts]
@@ -144,9 +142,8 @@ class EmulatorProcess:
             off its core (where the OS allows): the servos it stands in for compute on chips of
             their own, not on the loop's computer.
         surrogate: None, or the bus's surrogate servo
-            (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its
-            lead-screw stage
-            (:meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.lead_screw`) answers
+            (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its stage
+            (:meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.linear_stage`) answers
             as one more servo, its carriage at mid-travel, on the plant's clock.
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after

@@ -2,11 +2,13 @@
 run's clock beside the platform's reference (``stewart-drake robot INTERNAL --surrogate
 EXTERNAL``).
 
-:func:`load_surrogate` reads the external file through the one checked reader of traces
-(:func:`~stewart_drake.references.traces.load_trace`; IntERAct's ``Resp/`` 2-column files are
-its "surrogate" format, the displacement in mm on SI) and keeps its one displaced axis: the
-carriage's position ``s`` (m) is that displacement, centred on its mean (the stage's
-mid-travel). :class:`SurrogateCommand` puts it on the run's clock exactly as
+:func:`load_surrogate` reads the external file through the one reader of it, the Diagram's
+too (:func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace`, on the checked
+reader of traces; IntERAct's ``Resp/`` 2-column files are its "surrogate" format, the
+displacement in mm on SI) and keeps its one displaced axis
+(:class:`~stewart_drake.references.surrogate_trace.SurrogateTrace`): the carriage's position
+``s`` (m) is that displacement, centred on its mean (the stage's mid-travel).
+:class:`SurrogateCommand` puts it on the run's clock exactly as
 :class:`~.homing.HomingReference` puts the platform's: the same lead-in (a quintic from where
 the carriage was read to the trace's start, in the same ``home_s``), then the trace on the same
 warped clock tau(t), ended at rest at the same time; so the two references are one clock's, and
@@ -18,60 +20,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..base.errors import InvalidConfigError
-from ..robot.kinematics import AXIS_NAMES
+from ..references.surrogate_trace import SurrogateTrace, load_surrogate_trace
 from .homing import HomingReference
 
 
-class SurrogateTrace:
-    """One displaced axis of a loaded trace as the carriage's position.
-
-    Attributes:
-        trace: the loaded reference (``evaluate(t)`` -> 6-D poses, rates, accelerations).
-        axis: the index (0..5) of its displaced platform axis; sign: +1 or -1, the map's sign
-            undone (``s`` is the file's own displacement).
-        centre: the trace's value of that axis at zero displacement.
-        path: the file's path.  duration_s: its length, s.
-    """
-
-    def __init__(self, trace, axis: int, sign: float, centre: float, path: str):
-        self.trace, self.axis, self.sign, self.centre = trace, int(axis), float(sign), centre
-        self.path = path
-        self.duration_s = float(getattr(trace, "end_time", np.inf))
-
-    def evaluate(self, t):
-        """(s, v, a) at trace times t (s), m, m/s, m/s^2, arrays of t's shape."""
-        x, v, a = self.trace.evaluate(np.asarray(t, dtype=float))
-        k, sign = self.axis, self.sign
-        return (
-            sign * (np.asarray(x)[..., k] - self.centre),
-            sign * np.asarray(v)[..., k],
-            sign * np.asarray(a)[..., k],
-        )
-
-
 def load_surrogate(path) -> SurrogateTrace:
-    """The external surrogate's trace at ``path`` (a 2-column file: time, displacement in mm;
-    or a headed file with one axis), read by
-    :func:`~stewart_drake.references.traces.load_trace`, centred on its mean.
+    """The external surrogate's trace at ``path`` for ``robot --surrogate`` (a 2-column file:
+    time, displacement in mm; or a headed file with one axis), read by the one reader of the
+    external's file (:func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace`),
+    centred on its mean.
 
     Raises:
         MissingFileError, CorruptFileError, InvalidConfigError: as ``load_trace``'s; a trace of
-            more than one axis (the surrogate moves along one), or a rotation.
+            more than one axis (the surrogate moves along one), or a rotation (named
+            ``--surrogate PATH``).
     """
-    from ..references.traces import load_trace
-
-    trace = load_trace(path)
-    info = getattr(trace, "info", None)
-    axes = tuple(getattr(info, "axes", ()))
-    if len(axes) != 1 or axes[0][1:] not in AXIS_NAMES[3:]:
-        raise InvalidConfigError(
-            f"--surrogate {path}: the surrogate moves along one line; this file gives "
-            f"{', '.join(axes) or 'no axis'}: give a 2-column file (time, displacement in mm)"
-        )
-    axis = AXIS_NAMES.index(axes[0][1:])
-    sign = -1.0 if axes[0][0] == "-" else 1.0
-    return SurrogateTrace(trace, axis, sign, float(trace.centre[axis]), str(path))
+    return load_surrogate_trace(path, option="--surrogate")
 
 
 class SurrogateCommand:

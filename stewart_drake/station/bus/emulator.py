@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from ...base.errors import InvalidConfigError
+from ...robot.linear_stage import LinearStage
 from ...robot.motor_catalogue import catalogue_motor
 from . import protocol as p
 from .servos import ServoSpec, servo_spec
@@ -106,13 +107,14 @@ class FirstOrderServos(ServoBackend):
         return cls(**kw)
 
     @classmethod
-    def lead_screw(cls, name: str, lead_m_per_rev: float, carriage_mass_kg: float, s0_m=0.0):
-        """A surrogate's stage: catalogue servo ``name`` turning a lead screw of
-        ``lead_m_per_rev`` (m a turn) that moves a carriage of ``carriage_mass_kg`` (its mass
-        reflected to the horn, m (lead / 2 pi)^2; the screw's own inertia and friction are not
-        modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
-        r = lead_m_per_rev / (2 * math.pi)
-        return cls.from_catalogue(name, [s0_m / r], load_inertia=carriage_mass_kg * r * r)
+    def linear_stage(cls, stage: LinearStage, s0_m=0.0):
+        """A surrogate's stage: its catalogue servo turning its transmission
+        (:class:`~stewart_drake.robot.linear_stage.LinearStage`), with the stage's inertia at the
+        horn (the rotor's and the carriage's; the belt's or screw's own inertia and friction are
+        not modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
+        return cls.from_catalogue(
+            stage.motor, [s0_m / stage.metres_per_rad], inertia=stage.inertia_at_horn_kg_m2()
+        )
 
     def advance(self, dt_s, current_A):
         # Plain floats: numpy's per-call overhead on 6 numbers (np.clip alone ~40 us) would
@@ -155,7 +157,7 @@ class FirstOrderServos(ServoBackend):
 
 class StackedServos(ServoBackend):
     """Several backends behind one bus, their servos in order: the robot's six cranks, then a
-    surrogate's stage (:meth:`FirstOrderServos.lead_screw`), say. Each part is advanced with
+    surrogate's stage (:meth:`FirstOrderServos.linear_stage`), say. Each part is advanced with
     its own servos' currents, the same ``dt_s``: one clock for all."""
 
     def __init__(self, *parts: ServoBackend):

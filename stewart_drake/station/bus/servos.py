@@ -23,6 +23,7 @@ import numpy as np
 
 from ...base.checks import as_number, check_int
 from ...base.errors import InvalidConfigError, StewartError
+from ...robot.linear_stage import LinearStage
 from ...robot.motor_catalogue import catalogue_motor
 from ..hardware import Encoders, Estimator, Hardware, Motors
 from . import protocol as p
@@ -235,18 +236,20 @@ SPEED_MARGIN = 0.8
 @dataclass
 class SurrogateServoConfig:
     """The surrogate's servo on the robot's bus (a scenario's ``bus.surrogate``; None: no
-    surrogate, the bus as before). Defaults and their sources: module docstring.
+    surrogate, the bus as before): what is the bus's (the servo's id, its zero and sense, its
+    Current Limit, its position loop) and the stage it turns, the part the Diagram's
+    ``surrogate.stage`` is too (:class:`~stewart_drake.robot.linear_stage.LinearStage`: by
+    default the catalogue's XM430-W350-T on a GT2 belt, 80 mm a turn; its figures and sources
+    there).
 
     Attributes:
         id: the servo's id, distinct from the cranks' (0..252).
-        model: its model, a bus model with Current Control Mode that the motor catalogue has
-            (``XM430-W350-T``, ``XM540-W270-T``).
-        lead_m_per_rev: the carriage's travel per turn of the horn, m (the screw's lead).
-        travel_m: the carriage's travel, m, centred on its zero (``s`` in +-travel / 2).
+        stage: the part: its servo (a bus model with Current Control Mode that the motor
+            catalogue has: ``XM430-W350-T``, ``XM540-W270-T``), travel per turn, stroke and
+            carriage mass.
         zero_counts: the servo's Present Position with the carriage at mid-travel, counts
             (multi-turn, a signed 32-bit count).
         direction: +1, or -1 when the counts grow as the carriage goes down ``s``.
-        carriage_mass_kg: the carriage and its marker, kg.
         current_limit_A: its Current Limit, A (None: the model's maximum).
         bandwidth_hz: the position loop's bandwidth, Hz (below a tenth of the control rate).
         match_platform_lag: delay the carriage's command by the platform's lag behind its own
@@ -257,12 +260,9 @@ class SurrogateServoConfig:
     """
 
     id: int = 7
-    model: str = "XM430-W350-T"
-    lead_m_per_rev: float = 0.05
-    travel_m: float = 0.1
+    stage: LinearStage = field(default_factory=LinearStage)
     zero_counts: int = 2048
     direction: int = 1
-    carriage_mass_kg: float = 0.5
     current_limit_A: float | None = None
     bandwidth_hz: float = 5.0
     match_platform_lag: bool = True
@@ -270,8 +270,9 @@ class SurrogateServoConfig:
     def validate(
         self, crank_ids, control_period_s: float | None, prefix: str = "bus.surrogate."
     ) -> None:
-        """Check every field (named ``prefix + name``) against the cranks' ids and the control
-        period, s (None: the bandwidth only > 0).
+        """Check every field (named ``prefix + name``; the stage's ``prefix + "stage." +
+        name``) against the cranks' ids and the control period, s (None: the bandwidth only
+        > 0).
 
         Raises:
             InvalidConfigError: the first field out of range, named.
@@ -282,17 +283,18 @@ class SurrogateServoConfig:
                 f"{prefix}id {servo_id} is a crank's ({list(crank_ids)}): give the surrogate's "
                 "servo an id of its own"
             )
+        if not isinstance(self.stage, LinearStage):
+            raise InvalidConfigError(
+                f"{prefix}stage must be a LinearStage, got {type(self.stage).__name__}"
+            )
         try:
-            spec = servo_spec(self.model)
-            catalogue_motor(self.model)
+            spec = servo_spec(self.stage.motor)
         except StewartError as err:
-            raise InvalidConfigError(f"{prefix}model: {err}") from None
-        as_number(f"{prefix}lead_m_per_rev", self.lead_m_per_rev, 0.0, 0.2, lo_open=True)
-        as_number(f"{prefix}travel_m", self.travel_m, 0.0, 1.0, lo_open=True)
+            raise InvalidConfigError(f"{prefix}stage.motor: {err}") from None
+        self.stage.check(f"{prefix}stage.")
         check_int(f"{prefix}zero_counts", self.zero_counts, -(2**31), 2**31 - 1)
         if self.direction not in (1, -1) or isinstance(self.direction, bool):
             raise InvalidConfigError(f"{prefix}direction must be +1 or -1, got {self.direction!r}")
-        as_number(f"{prefix}carriage_mass_kg", self.carriage_mass_kg, 0.0, 50.0)
         if self.current_limit_A is not None:
             top = spec.current_limit_max * spec.amps_per_unit
             as_number(f"{prefix}current_limit_A", self.current_limit_A, 0.0, top, lo_open=True)
@@ -303,33 +305,27 @@ class SurrogateServoConfig:
                 f"{prefix}match_platform_lag must be true or false, got {self.match_platform_lag!r}"
             )
 
-    # --- derived figures -------------------------------------------------------------------
+    # --- the stage's figures as the bus uses them --------------------------------------------
+
+    @property
+    def model(self) -> str:
+        """The servo's model on the bus: the stage's motor."""
+        return self.stage.motor
 
     @property
     def metres_per_count(self) -> float:
-        """One encoder count of the servo as carriage travel, m."""
-        return self.lead_m_per_rev / p.COUNTS_PER_REV
+        """One encoder count of the servo as carriage travel, m (the stage's)."""
+        return self.stage.metres_per_count
 
     @property
     def metres_per_rad(self) -> float:
-        """Carriage travel per radian of the horn, m/rad (lead / 2 pi)."""
-        return self.lead_m_per_rev / (2 * math.pi)
+        """Carriage travel per radian of the horn, m/rad (the stage's lead / 2 pi)."""
+        return self.stage.metres_per_rad
 
     def max_speed_m_s(self) -> float:
         """The fastest a command may move the carriage, m/s: :data:`SPEED_MARGIN` of the
-        servo's no-load speed through the screw."""
-        return (
-            SPEED_MARGIN
-            * catalogue_motor(self.model).servo.no_load_speed_rad_s
-            * (self.metres_per_rad)
-        )
-
-    def inertia_kg_m2(self) -> float:
-        """J at the horn: the rotor's reflected inertia plus the carriage through the screw."""
-        servo = catalogue_motor(self.model).servo
-        return servo.rotor_inertia * servo.gear_ratio**2 + self.carriage_mass_kg * (
-            self.metres_per_rad**2
-        )
+        stage's no-load speed (49.1 mm/s for the default belt)."""
+        return SPEED_MARGIN * self.stage.no_load_speed_m_s
 
     def counts_to_m(self, counts):
         """Carriage position, m, for Present Position ``counts``."""
@@ -368,7 +364,7 @@ class DynamixelBusConfig:
         max_deadline_misses: the run stops (``DeadlineMissError``, torque off) at the first
             period missed beyond this many (0: at the first miss).
         surrogate: the external surrogate's stage as a seventh servo on this bus
-            (:class:`SurrogateServoConfig`: its id, model, screw and travel);
+            (:class:`SurrogateServoConfig`: its id and the stage it turns);
             None (default): no surrogate, six servos.
 
     The robot as built is then the one with these servos: ``hardware: null`` is derived from

@@ -1,8 +1,9 @@
-"""The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning a
-lead screw whose carriage carries the chest marker, driven in the cranks' period.
+"""The external surrogate's stage as a seventh servo on the robot's bus: a DYNAMIXEL turning the
+stage whose carriage carries the chest marker, driven in the cranks' period.
 
 :class:`~.servos.SurrogateServoConfig` (a scenario's ``bus.surrogate``) says which servo it is
-and the screw it turns; :class:`SurrogateDrive` is its controller on the loop's computer, as the
+and the stage it turns (:class:`~stewart_drake.robot.linear_stage.LinearStage`, the part the
+Diagram's stage is too); :class:`SurrogateDrive` is its controller on the loop's computer, as the
 cranks' controllers are: each period it turns the carriage's commanded position, rate and
 acceleration (the session gives them on the run's clock) and the last reading of the servo's
 encoder into a torque at the horn, which the driver sends as the seventh row of the period's one
@@ -13,26 +14,23 @@ Control Mode (a sync write writes one address for all its servos: the cranks' Go
 The carriage's position ``s`` (m, 0 at mid-travel) from the servo's Present Position:
 ``s = (counts - zero_counts) * lead_m_per_rev / 4096 * direction``.
 
-The controller (:meth:`SurrogateDrive.torque`), in the screw's angle theta = 2 pi s / lead at
-the horn: tau = J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c -
-v_m), where J is the rotor's reflected inertia plus the carriage's mass through the screw
-(m (lead / 2 pi)^2), b and c the servo's viscous and dry friction (the motor catalogue's
-figures), theta_p the reading predicted one period on (theta_m + h v_m: the torque acts a period
-after the reading it came from, as the cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi
-``bandwidth_hz`` (a critically damped double integrator), v_eps one encoder count a period. The
-torque is in the carriage's sense (positive drives ``s`` up). The weight of a vertical carriage
-(m g lead / 2 pi: 39 mN m for 0.5 kg on a 50 mm lead, 1 % of the servo's stall torque) is left
-to the position loop.
+The controller (:meth:`SurrogateDrive.torque`), in the horn's angle theta = 2 pi s / lead: tau =
+J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c - v_m), where J is the
+rotor's reflected inertia plus the carriage's mass through the transmission (m (lead / 2 pi)^2:
+:meth:`~stewart_drake.robot.linear_stage.LinearStage.inertia_at_horn_kg_m2`), b and c the
+servo's viscous and dry friction (the motor catalogue's figures), theta_p the reading predicted
+one period on (theta_m + h v_m: the torque acts a period after the reading it came from, as the
+cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi ``bandwidth_hz`` (a critically damped
+double integrator), v_eps one encoder count a period. The torque is in the carriage's sense
+(positive drives ``s`` up). The weight of a vertical carriage (m g lead / 2 pi: 37 mN m for
+0.3 kg on the default belt's 80 mm a turn, 0.9 % of the servo's stall torque) is left to the
+position loop.
 
-Defaults and their source: the servo is the catalogue's XM430-W350-T (docs/motor_catalogue.md),
-the fastest X servo of the catalogue with Current Control Mode (46 rpm at 12 V). The screw's
-lead, the travel and the carriage's mass are **estimates**, not a cited part: a lead of 50 mm a
-turn (a high-helix lead screw) gives 38 mm/s at the servo's no-load speed and 30.7 mm/s at the
-:data:`SPEED_MARGIN` a command may ask for, above the peak speed of every respiratory trace of
-IntERAct's LARK and LIGHT SABR sets but two (66 and 39 mm/s, which
-:func:`check_surrogate_path` refuses), 12 um a count, and 515 N at the servo's stall torque;
-100 mm of travel holds every one of those traces (56 mm peak to peak at most); a 0.5 kg
-carriage with its marker block. docs/robot.md, "The surrogate on the bus".
+The stage is the cited part by default (the catalogue's XM430-W350-T on a GT2 belt over a
+40-tooth pulley: 80 mm a turn, 61.3 mm/s at no load). A command may ask for
+:data:`~.servos.SPEED_MARGIN` (80 %) of the no-load speed, 49.1 mm/s, which
+:func:`check_surrogate_path` holds a path to before anything is powered, with the travel
+(100 mm). docs/robot.md, "The surrogate on the bus".
 
 The stage's settings, :class:`~.servos.SurrogateServoConfig`, are with the bus's in
 :mod:`.servos` (Drake's YAML loader reads them there).
@@ -43,7 +41,6 @@ import math
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from ...robot.motor_catalogue import catalogue_motor
 from . import protocol as p
 from .servos import SPEED_MARGIN, SurrogateServoConfig
 
@@ -62,19 +59,20 @@ def check_surrogate_path(config: SurrogateServoConfig, s, v, what: str = "the su
     s, v = np.asarray(s, dtype=float), np.asarray(v, dtype=float)
     if not (np.all(np.isfinite(s)) and np.all(np.isfinite(v))):
         raise InvalidConfigError(f"{what}: the commanded carriage position is not finite")
-    half = 0.5 * config.travel_m
+    stage = config.stage
+    half = 0.5 * stage.travel_m
     if s.size and np.max(np.abs(s)) > half:
         raise InvalidConfigError(
             f"{what} asks the carriage for {1e3 * s[np.argmax(np.abs(s))]:+.1f} mm, outside the "
-            f"stage's travel of +-{1e3 * half:g} mm (bus.surrogate.travel_m)"
+            f"stage's travel of +-{1e3 * half:g} mm (bus.surrogate.stage.travel_m)"
         )
     top = config.max_speed_m_s()
     if v.size and np.max(np.abs(v)) > top:
         raise InvalidConfigError(
             f"{what} asks the carriage for {1e3 * np.max(np.abs(v)):.1f} mm/s, over the "
-            f"{1e3 * top:.1f} mm/s the {config.model} turns a {1e3 * config.lead_m_per_rev:g} mm "
-            f"lead at ({100 * SPEED_MARGIN:g} % of its no-load speed): a longer "
-            "bus.surrogate.lead_m_per_rev, or a slower trace"
+            f"{1e3 * top:.1f} mm/s the stage allows ({100 * SPEED_MARGIN:g} % of the "
+            f"{stage.motor}'s no-load speed at {1e3 * stage.lead_m_per_rev:g} mm a turn): a "
+            "longer bus.surrogate.stage.lead_m_per_rev, or a slower trace"
         )
 
 
@@ -97,8 +95,8 @@ class SurrogateDrive:
 
     def __init__(self, config: SurrogateServoConfig, period_s: float):
         self.config, self.period_s = config, float(period_s)
-        servo = catalogue_motor(config.model).servo
-        self.J = config.inertia_kg_m2()
+        servo = config.stage.catalogue.servo
+        self.J = config.stage.inertia_at_horn_kg_m2()
         self.viscous, self.coulomb = servo.viscous_damping, servo.coulomb_friction_Nm
         w = 2 * math.pi * config.bandwidth_hz
         self.kp, self.kd = self.J * w * w, 2.0 * self.J * w

@@ -31,7 +31,7 @@ class LagMatchedGoal(LeafSystem):
         samples: (t (n,), p (n,), v (n,), a (n,)) the signal at the controller's instants
             [s, m, m/s, m/s^2], t uniformly spaced by ``period_s``.
         period_s: the control period, s. offset_s: the controller's sample offset, s.
-        resolution_m: the stage's position resolution, m (0: none).
+        resolution_m: the stage's position resolution (one count of its servo), m (0: none).
     """
 
     def __init__(

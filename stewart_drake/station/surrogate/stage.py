@@ -1,14 +1,16 @@
 """The external surrogate's stage: a 1-DoF linear axis (a servo driving a toothed belt) with its own
 controller, as Drake systems in the platform's Diagram and on its clock.
 
-:class:`SurrogateStage` is the scenario's section: travel, speed, force and resolution, with
-defaults from a catalogue part (:data:`DEFAULT_MOTOR`, a ROBOTIS Dynamixel XM430-W350-T from
-:mod:`~stewart_drake.robot.motor_catalogue`, on a GT2 belt over a 40-tooth pulley: 80 mm of
-travel per turn of the horn). :func:`add_surrogate_stage` adds the axis to a ``DiagramBuilder``
-from Drake's own systems only (no Python on the per-step path):
+:class:`SurrogateStage` is the scenario's section: the part, one definition with the servo
+bus's (:class:`~stewart_drake.robot.linear_stage.LinearStage`: by default a ROBOTIS Dynamixel
+XM430-W350-T on a GT2 belt over a 40-tooth pulley, 80 mm of travel a turn of the horn, its
+speed, force and resolution derived from the motor catalogue), and its position loop.
+:func:`add_surrogate_stage` adds the axis to a ``DiagramBuilder`` from Drake's own systems only
+(no Python on the per-step path):
 
-    goal table (TrajectorySource, zero-order hold of the goals, each rounded to the resolution)
-      -> PD + feed-forward (MatrixGain on [p_d, v_d, a_d, p, v]) -> Saturation (+-force_N)
+    goal table (TrajectorySource, zero-order hold of the goals, each rounded to one count)
+      -> PD + feed-forward (MatrixGain on [p_d, v_d, a_d, p, v])
+      -> Saturation (+- the part's continuous force)
       -> ZeroOrderHold (the control period, at the platform controller's sample offset)
       -> carriage (discrete LinearSystem at the plant's time step: moving mass and viscous
          friction, exact zero-order-hold discretisation)
@@ -37,73 +39,25 @@ from pydrake.trajectories import PiecewisePolynomial
 
 from ...base.checks import as_number
 from ...base.errors import InvalidConfigError
-from ...robot.motor_catalogue import catalogue_motor
-
-#: The servo of the default stage (docs/motor_catalogue.md gives its datasheet's figures).
-DEFAULT_MOTOR = "XM430-W350-T"
-#: GT2 timing belt's tooth pitch, m (Gates' 2 mm GT profile).
-GT2_PITCH_M = 2e-3
-#: Teeth of the default pulley: 40 x 2 mm = 80 mm of belt per turn, so that the XM430-W350's
-#: 46 rpm give 61 mm/s, above the fastest of IntERAct's respiratory traces (57 mm/s, LIGHT SABR
-#: "1.Mean_Motion_resp").
-PULLEY_TEETH = 40
-#: Belt drive's efficiency: not published for this part; toothed belts are quoted at 0.9-0.98,
-#: the low end taken (estimate).
-BELT_EFFICIENCY = 0.9
-#: Travel of the default stage, m: IntERAct's respiratory traces span at most 55 mm.
-DEFAULT_TRAVEL_M = 0.1
-#: The carriage and the surrogate block on it, kg (estimate: a 3D-printed block on a carriage).
-DEFAULT_CARRIAGE_KG = 0.3
-
-
-def _lead_m(teeth: int = PULLEY_TEETH) -> float:
-    return teeth * GT2_PITCH_M
-
-
-def default_speed_m_s(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
-    """The motor's no-load speed at the belt, m/s."""
-    return catalogue_motor(motor).servo.no_load_speed_rad_s * lead_m / (2 * math.pi)
-
-
-def default_force_N(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
-    """The motor's continuous torque at the belt through :data:`BELT_EFFICIENCY`, N."""
-    m = catalogue_motor(motor)
-    return m.continuous_torque_Nm * 2 * math.pi / lead_m * BELT_EFFICIENCY
-
-
-def default_resolution_m(motor: str = DEFAULT_MOTOR, lead_m: float = _lead_m()) -> float:
-    """One count of the servo's encoder at the belt, m."""
-    return lead_m / catalogue_motor(motor).encoder_counts_per_rev
+from ...robot.linear_stage import LinearStage
 
 
 @dataclass
-class SurrogateStage:
-    """The surrogate's linear stage, a scenario section (``surrogate.stage``); SI units.
+class SurrogateStage(LinearStage):
+    """The surrogate's linear stage in the Diagram, a scenario section (``surrogate.stage``):
+    the part (:class:`~stewart_drake.robot.linear_stage.LinearStage`, the same as the servo
+    bus's ``bus.surrogate.stage``: its fields, defaults and sources) and its position loop; SI
+    units.
 
-    Defaults: a Dynamixel XM430-W350-T (:data:`DEFAULT_MOTOR`) on a GT2 belt over a 40-tooth
-    pulley (``lead_m`` = 0.08 m of travel per turn): 61 mm/s, 116 N continuous, 19.5 um a count.
+    From the part: the speed the carriage may be asked for is the servo's no-load speed at the
+    carriage (61.3 mm/s for the default belt), the force the controller may command its
+    continuous force (58 N, saturated there), the goals' step one encoder count (19.5 um).
 
     Attributes:
-        motor: the servo, a key of :data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`
-            (its reflected rotor inertia and viscous friction make the moving mass and damping).
-        lead_m: travel per turn of the servo's horn, m.
-        travel_m: the stage's whole stroke, m; the signal must stay within +-travel_m / 2 of
-            the stroke's middle.
-        speed_m_s: the fastest the carriage may be asked to move, m/s.
-        force_N: the force the controller may command, N (saturated there).
-        resolution_m: the goal positions' step, m (the servo's goal is a whole count).
-        carriage_mass_kg: the carriage and the surrogate block, kg.
         bandwidth_hz: the position loop's natural frequency, Hz.
         damping_ratio: the position loop's damping ratio.
     """
 
-    motor: str = DEFAULT_MOTOR
-    lead_m: float = _lead_m()
-    travel_m: float = DEFAULT_TRAVEL_M
-    speed_m_s: float = default_speed_m_s()
-    force_N: float = default_force_N()
-    resolution_m: float = default_resolution_m()
-    carriage_mass_kg: float = DEFAULT_CARRIAGE_KG
     bandwidth_hz: float = 8.0
     damping_ratio: float = 1.0
 
@@ -115,14 +69,8 @@ class SurrogateStage:
                 unknown motor, or a loop that the control period makes unstable (its spectral
                 radius named, with the bandwidth to lower).
         """
-        catalogue_motor(self.motor)
         p = "surrogate.stage."
-        as_number(p + "lead_m", self.lead_m, 1e-4, 1.0, lo_open=True)
-        as_number(p + "travel_m", self.travel_m, 0.0, 2.0, lo_open=True)
-        as_number(p + "speed_m_s", self.speed_m_s, 0.0, 10.0, lo_open=True)
-        as_number(p + "force_N", self.force_N, 0.0, 1e5, lo_open=True)
-        as_number(p + "resolution_m", self.resolution_m, 0.0, 1e-2)
-        as_number(p + "carriage_mass_kg", self.carriage_mass_kg, 0.0, 100.0)
+        self.check(p)
         as_number(p + "bandwidth_hz", self.bandwidth_hz, 0.0, 200.0, lo_open=True)
         as_number(p + "damping_ratio", self.damping_ratio, 0.1, 5.0)
         if control_period_s is not None:
@@ -135,20 +83,7 @@ class SurrogateStage:
                 )
         return self
 
-    # -- the axis's physics --------------------------------------------------------------------
-    def moving_mass_kg(self) -> float:
-        """The carriage plus the servo's rotor inertia reflected through its gearhead and the
-        belt, kg: m = m_c + J_rotor N^2 (2 pi / lead)^2."""
-        servo = catalogue_motor(self.motor).servo
-        return self.carriage_mass_kg + servo.rotor_inertia * servo.gear_ratio**2 * self._k2()
-
-    def viscous_N_s_per_m(self) -> float:
-        """The servo's viscous friction at the belt, N s/m: b = b_out (2 pi / lead)^2."""
-        return catalogue_motor(self.motor).servo.viscous_damping * self._k2()
-
-    def _k2(self) -> float:
-        return (2 * math.pi / self.lead_m) ** 2
-
+    # -- the loop --------------------------------------------------------------------------
     def gains(self) -> tuple[float, float]:
         """(K_p N/m, K_d N s/m) of the PD: m w^2 and 2 zeta m w less the viscous friction
         (never below 0), w = 2 pi bandwidth_hz."""
@@ -189,18 +124,20 @@ class SurrogateStage:
             t: (n,) s. p, v, a: (n,) the surrogate's position about the stroke's middle [m],
                 velocity [m/s] and acceleration [m/s^2].
         Raises:
-            InvalidConfigError: beyond the travel, the speed, or the force the motion needs
-                (m a + b v) beyond ``force_N``: the first time and the value named.
+            InvalidConfigError: beyond the travel, the no-load speed, or the force the motion
+                needs (m a + b v) beyond the continuous force: the first time, the value and
+                the limit named, with the fields it comes from.
         """
+        part = "surrogate.stage.motor and lead_m_per_rev"
         limits = (
             ("travel", np.abs(p), self.travel_m / 2, "m", "surrogate.stage.travel_m / 2"),
-            ("speed", np.abs(v), self.speed_m_s, "m/s", "surrogate.stage.speed_m_s"),
+            ("speed", np.abs(v), self.no_load_speed_m_s, "m/s", "no-load speed: " + part),
             (
                 "force",
                 np.abs(self.moving_mass_kg() * a + self.viscous_N_s_per_m() * v),
-                self.force_N,
+                self.continuous_force_N,
                 "N",
-                "surrogate.stage.force_N",
+                "continuous force: " + part,
             ),
         )
         for what, value, limit, unit, field in limits:
@@ -245,8 +182,9 @@ class SurrogatePorts:
 def goal_table(
     stage: SurrogateStage, t: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray
 ) -> np.ndarray:
-    """(3, n) the goals [p_d rounded to ``resolution_m``, v_d, a_d] at the sample times ``t``."""
-    q = stage.resolution_m
+    """(3, n) the goals [p_d rounded to one count of the servo (``metres_per_count``), v_d,
+    a_d] at the sample times ``t``."""
+    q = stage.metres_per_count
     p_q = np.round(p / q) * q if q > 0 else np.asarray(p, float)
     return np.vstack([p_q, v, a])
 
@@ -285,7 +223,8 @@ def add_surrogate_stage(
     if lag_match is not None:
         from .lag_matched_goal import LagMatchedGoal
 
-        matched = LagMatchedGoal(lag_match, (t, p, v, a), period_s, offset_s, stage.resolution_m)
+        count = stage.metres_per_count
+        matched = LagMatchedGoal(lag_match, (t, p, v, a), period_s, offset_s, count)
         goal = builder.AddNamedSystem("surrogate_goal", matched)
         builder.Connect(platform_state, goal.get_input_port())
     else:
@@ -299,7 +238,7 @@ def add_surrogate_stage(
     )
     mux = builder.AddNamedSystem("surrogate_mux", Multiplexer([3, 2]))
     law = builder.AddNamedSystem("surrogate_pd", MatrixGain(stage.feedback_gain()))
-    force = np.array([stage.force_N])
+    force = np.array([stage.continuous_force_N])
     sat = builder.AddNamedSystem("surrogate_force_limit", Saturation(-force, force))
     hold = builder.AddNamedSystem("surrogate_hold", ZeroOrderHold(period_s, 1, offset_s))
     builder.Connect(goal.get_output_port(), mux.get_input_port(0))
