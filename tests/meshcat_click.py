@@ -19,11 +19,11 @@ def _str(text: str) -> bytes:
     return (bytes([0xA0 | len(data)]) if len(data) < 32 else bytes([0xD9, len(data)])) + data
 
 
-def send_click(ws_url: str, name: str, timeout_s: float = HANG_S, until=None) -> None:
+def send_click(ws_url: str, name: str, until, timeout_s: float = HANG_S) -> None:
     """Send one click of button ``name`` to the Meshcat server at ``ws_url`` (any thread:
     no Meshcat call, which Drake allows only from the thread that made the Meshcat), and keep
-    the connection open until ``until()`` is true (the click seen; None: 0.2 s, for the server
-    to read the frame before the socket closes). ``timeout_s`` guards against a hang.
+    the connection open until ``until()`` is true (the click seen: the server has read the
+    frame, however slow; no fixed wait). ``timeout_s`` guards against a hang.
 
     Raises:
         TimeoutError: ``until()`` still false after ``timeout_s``.
@@ -48,9 +48,6 @@ def send_click(ws_url: str, name: str, timeout_s: float = HANG_S, until=None) ->
         frame = bytes([0x82, 0x80 | len(message)]) + mask
         frame += bytes(b ^ mask[i % 4] for i, b in enumerate(message))
         sock.sendall(frame)
-        if until is None:
-            time.sleep(0.2)  # let the server read the frame before the socket closes
-            return
         deadline = time.monotonic() + timeout_s
         while not until():
             if time.monotonic() > deadline:
@@ -67,5 +64,5 @@ def click(meshcat, name: str, timeout_s: float = HANG_S) -> int:
     """
     before = meshcat.GetButtonClicks(name)
     counted = lambda: meshcat.GetButtonClicks(name) != before  # noqa: E731
-    send_click(meshcat.ws_url(), name, timeout_s, until=counted)
+    send_click(meshcat.ws_url(), name, counted, timeout_s)
     return meshcat.GetButtonClicks(name)

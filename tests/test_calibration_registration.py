@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 from stewart_drake.base.errors import InvalidConfigError, MissingFileError
 from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration import registration as rg
+from stewart_drake.calibration import registration_file as rf
 from stewart_drake.robot.geometry import StewartGeometry
 from stewart_drake.robot.kinematics import rotation_rpy
 
@@ -419,7 +420,7 @@ def test_registered_poses_are_converted_with_their_noise_and_the_frames_error():
 def test_a_registration_file_reads_back_the_frames_its_fiducials_give(tmp_path):
     fiducials = SETUP.fiducials(NOISE, 0)
     path = files.write_registration(tmp_path / "reg.yaml", fiducials)
-    reg, direct = rg.read_registration(path), rg.register(fiducials)
+    reg, direct = rf.read_registration(path), rg.register(fiducials)
     assert np.abs(reg.X_TB.GetAsMatrix4() - direct.X_TB.GetAsMatrix4()).max() == 0
     assert np.abs(reg.X_PM.GetAsMatrix4() - direct.X_PM.GetAsMatrix4()).max() == 0
     np.testing.assert_array_equal(reg.cov_M, direct.cov_M)
@@ -429,7 +430,7 @@ def test_a_registration_file_reads_back_the_frames_its_fiducials_give(tmp_path):
         for b, t in zip(fiducials.base_B, fiducials.base_T)
     )
     (tmp_path / "base.yaml").write_text(text)
-    only = rg.read_registration(tmp_path / "base.yaml")
+    only = rf.read_registration(tmp_path / "base.yaml")
     assert only.X_PM.IsExactlyIdentity() and not only.cov_M.any() and only.platform_points == 0
     assert np.abs(only.X_TB.GetAsMatrix4() - direct.X_TB.GetAsMatrix4()).max() == 0
 
@@ -603,44 +604,44 @@ def test_a_hostile_registration_file_is_refused_in_one_line_naming_the_field(tmp
     path = tmp_path / "reg.yaml"
     path.write_text(text)
     with pytest.raises(InvalidConfigError, match=message) as err:
-        rg.read_registration(path)
+        rf.read_registration(path)
     assert "\n" not in str(err.value) and str(path) in str(err.value)
 
 
 def test_the_good_files_of_the_hostile_cases_are_read(tmp_path):
     (tmp_path / "reg.yaml").write_text(_GOOD_BASE + _PLATFORM)
-    reg = rg.read_registration(tmp_path / "reg.yaml")
+    reg = rf.read_registration(tmp_path / "reg.yaml")
     np.testing.assert_allclose(reg.X_TB.translation(), [1, 0, 0], atol=1e-12)
     np.testing.assert_allclose(reg.X_PM.GetAsMatrix4(), np.eye(4), atol=1e-12)
     # The noises a file gives are those read: the fiducials' (at its bound), the marker's.
     noise = "0.3], rotation_sigma_rad: 3.0e-5, translation_sigma_m: 7.0e-6}"
     text = _PLATFORM.replace("0.3]}", noise, 1)
     (tmp_path / "noise.yaml").write_text(_GOOD_BASE + "point_sigma_m: 0.001\n" + text)
-    fiducials = rg.read_fiducials(tmp_path / "noise.yaml")
+    fiducials = rf.read_fiducials(tmp_path / "noise.yaml")
     assert fiducials.point_sigma_m == 0.001 and fiducials.marker_sigma == (3e-5, 7e-6)
     (tmp_path / "base.yaml").write_text(_GOOD_BASE + "point_sigma_m: 1.0e-5\n")
-    assert rg.read_fiducials(tmp_path / "base.yaml").point_sigma_m == 1e-5
+    assert rf.read_fiducials(tmp_path / "base.yaml").point_sigma_m == 1e-5
 
 
 def test_a_large_missing_or_unreadable_registration_file_is_refused(tmp_path):
     big = tmp_path / "big.yaml"
-    big.write_text(_GOOD_BASE + "#" * int(rg.MAX_REGISTRATION_BYTES) + "\n")
+    big.write_text(_GOOD_BASE + "#" * int(rf.MAX_REGISTRATION_BYTES) + "\n")
     with pytest.raises(InvalidConfigError, match="over the bound"):
-        rg.read_registration(big)
+        rf.read_registration(big)
     with pytest.raises(MissingFileError, match="no registration file"):
-        rg.read_registration(tmp_path / "none.yaml")
+        rf.read_registration(tmp_path / "none.yaml")
     with pytest.raises(InvalidConfigError, match="a folder"):
-        rg.read_registration(tmp_path)
+        rf.read_registration(tmp_path)
     (tmp_path / "bin.yaml").write_bytes(b"base_points: \xff\xfe\n")
     with pytest.raises(InvalidConfigError, match="not UTF-8"):
-        rg.read_registration(tmp_path / "bin.yaml")
+        rf.read_registration(tmp_path / "bin.yaml")
     # Anchors that would expand to billions of nodes are refused before they expand.
     bomb = "a: &a [1, 1, 1, 1, 1, 1, 1, 1, 1]\n" + "".join(
         f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n" for p, c in zip("abcdefgh", "bcdefghi")
     )
     (tmp_path / "bomb.yaml").write_text(bomb)
     with pytest.raises(InvalidConfigError, match="expand"):
-        rg.read_registration(tmp_path / "bomb.yaml")
+        rf.read_registration(tmp_path / "bomb.yaml")
 
 
 def test_the_emulated_tracker_follows_its_marker_in_its_own_frame():

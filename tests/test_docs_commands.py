@@ -373,7 +373,7 @@ def test_every_file_a_documented_command_names_exists():
 def test_every_registration_shown_is_one_the_reader_takes(tmp_path):
     """A REG.yaml shown in a block (one naming ``base_points:``) is whole: the reader that
     ``calibrate --registration`` and ``verify --registration`` use takes it as written."""
-    from stewart_drake.calibration.registration import read_fiducials
+    from stewart_drake.calibration.registration_file import read_fiducials
 
     samples = [
         (f"{path.relative_to(REPO)}:{start}", "\n".join(text for _, text in lines) + "\n")

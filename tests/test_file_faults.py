@@ -28,7 +28,7 @@ from stewart_drake.base.errors import (
     ResultsMismatchError,
     StewartError,
 )
-from stewart_drake.base.fileio import CheckedNpz
+from stewart_drake.base.npz import CheckedNpz
 from stewart_drake.control.tuner.ann import DEFAULT_TUNER_PATH, TunerModel
 from stewart_drake.control.tuner.network import load_tuner, save_tuner
 from stewart_drake.control.tuner.ratio import RatioTunerModel

@@ -10,13 +10,13 @@ import pytest
 
 from stewart_drake.base.errors import CorruptFileError
 from stewart_drake.base.fileio import (
-    CheckedNpz,
     _writer,
     atomic_write,
     read_json,
     remove_stale_temporaries,
     save_npz,
 )
+from stewart_drake.base.npz import CheckedNpz
 
 
 def test_a_writer_that_raises_leaves_the_old_file_and_no_temporary(tmp_path):

@@ -1,7 +1,9 @@
-"""Every file a user names is read through base/fileio.py, and what that reader refuses.
+"""Every file a user names is read through base/fileio.py (an .npz archive through base/npz.py,
+on fileio's read_checked), and what that reader refuses.
 
 The scan below lists every call in the package that opens or loads a file and fails on one
-outside fileio.py that is not in :data:`ALLOWED`, so the next loader cannot go around the
+outside the checked reader (:data:`CHECKED_READER`) that is not in :data:`ALLOWED`, so the next
+loader cannot go around the
 checked reader (a FIFO that blocks it, a small archive that asks for terabytes, a pickle).
 """
 
@@ -18,7 +20,7 @@ from conftest import HANG_S
 
 import stewart_drake
 from stewart_drake.base.errors import CorruptFileError
-from stewart_drake.base.fileio import CheckedNpz
+from stewart_drake.base.npz import CheckedNpz
 from stewart_drake.control.feedforward_basis import (
     LAGS_S,
     LEARNED_FORMAT,
@@ -150,13 +152,18 @@ class _Finder(ast.NodeVisitor):
         self.generic_visit(node)
 
 
+#: The checked reader, the only modules that open and load the files a user names: fileio
+#: (read_checked, read_json) and npz (CheckedNpz, an archive's bytes through read_checked).
+CHECKED_READER = {"base/fileio.py", "base/npz.py"}
+
+
 def file_reads() -> list[tuple[str, str, str, int]]:
     """(path under the package, enclosing function, called name, line) of every call that
-    opens or loads a file, outside fileio.py."""
+    opens or loads a file, outside the checked reader (:data:`CHECKED_READER`)."""
     found = []
     for path in sorted(PACKAGE.rglob("*.py")):
         rel = path.relative_to(PACKAGE).as_posix()
-        if rel == "base/fileio.py":
+        if rel in CHECKED_READER:
             continue
         finder = _Finder()
         finder.visit(ast.parse(path.read_text(encoding="utf-8"), filename=str(path)))
@@ -202,7 +209,8 @@ def test_every_file_the_package_reads_goes_through_fileio():
         if not _allowed(rel, scope, name)
     ]
     assert not outside, (
-        "read these through stewart_drake.base.fileio (read_checked, read_json, CheckedNpz), or "
+        "read these through stewart_drake.base.fileio (read_checked, read_json) or base.npz "
+        "(CheckedNpz), or "
         "add them to ALLOWED saying why they do not read a file a user names:\n"
         + "\n".join(outside)
     )
@@ -392,7 +400,7 @@ def readers_and_estimates() -> tuple[list, set]:
         for node in ast.walk(ast.parse(path.read_text())):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 functions.append((rel, node.name, _calls(node)))
-    own = {name: calls for rel, name, calls in functions if rel == "base/fileio.py"}
+    own = {name: calls for rel, name, calls in functions if rel in CHECKED_READER}
     estimates = {"check_parse_memory", "check_memory"}
     assert "check_parse_memory" in own["read_json"]
     assert "check_memory" in own["_check_entries"] and "_check_entries" in own["__init__"]

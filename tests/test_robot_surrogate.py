@@ -243,19 +243,24 @@ def test_a_run_without_a_surrogate_keeps_todays_log_and_a_held_carriage_stays(tm
     assert [h.split(" ")[0] for h in header] == list(ENCODER_LOG_COLUMNS)
 
 
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_a_signal_ends_the_run_with_the_surrogates_torque_off_too(tmp_path, signum, ctrl_c):
+def _breath_run_ended_by(tmp_path, action, ids=ALL, bus=None, **run):
+    """A 30 s run driving the surrogate along a breath (:func:`_breath_file`) that
+    ``action(emu)`` ends at the run's 50th bus read, after homing; ``bus``: the bus's settings
+    changed, ``run``: :func:`run_on_robot`'s. Returns the run and the Torque Enable of ``ids``
+    read from the emulator once the session has ended, before it closes."""
     surrogate = load_surrogate(_breath_file(tmp_path / "resp.txt"))
     with _emulator() as emu:
-        scenario = _scenario(emu, tmp_path)
+        scenario = _scenario(emu, tmp_path, **(bus or {}))
         scenario.duration_s = 30.0
-        run, _ = _run(
-            scenario,
-            tmp_path,
-            surrogate=surrogate,
-            before_torque=on_bus_read(50, lambda: os.kill(os.getpid(), signum)),
-        )
-        assert _torque(emu) == [0] * 7
+        hook = on_bus_read(50, lambda: action(emu))
+        ended, _ = _run(scenario, tmp_path, surrogate=surrogate, before_torque=hook, **run)
+        return ended, _torque(emu, ids)
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_ends_the_run_with_the_surrogates_torque_off_too(tmp_path, signum, ctrl_c):
+    run, torque = _breath_run_ended_by(tmp_path, lambda emu: os.kill(os.getpid(), signum))
+    assert torque == [0] * 7
     assert run.exit_code == 128 + signum and run.torque_off_confirmed, end_line(run)
     assert run.reason == f"interrupted by {signal.Signals(signum).name}"
     assert run.logs is not None and run.encoder_log is not None
@@ -268,52 +273,36 @@ def test_our_watchdog_removes_the_surrogates_torque_too_when_the_loop_stalls(tmp
     """The loop stalls until our watchdog's torque off has reached the surrogate's servo (a
     hang fails the test): the watchdog's one torque-off covers the seventh servo, while the
     loop is stalled."""
-    stalled = []
 
-    def offs(servo_id):
-        return [
-            t
-            for t, packet in emu.received
-            if t > stalled[0]
-            and packet.instruction == p.WRITE
-            and packet.servo_id == servo_id
-            and packet.params[:1] == bytes([p.TORQUE_ENABLE[0]])
-            and packet.params[2:3] == b"\x00"
-        ]
+    def stall(emu):
+        stalled = time.perf_counter()
 
-    def stall():
-        stalled.append(time.perf_counter())
-        wait_for(lambda: offs(STAGE.id), HANG_S, "our watchdog's torque off of the surrogate")
+        def offs():
+            return [
+                t
+                for t, packet in emu.received
+                if t > stalled
+                and packet.instruction == p.WRITE
+                and packet.servo_id == STAGE.id
+                and packet.params[:1] == bytes([p.TORQUE_ENABLE[0]])
+                and packet.params[2:3] == b"\x00"
+            ]
 
-    surrogate = load_surrogate(_breath_file(tmp_path / "resp.txt"))
-    with _emulator() as emu:
-        scenario = _scenario(emu, tmp_path)
-        scenario.duration_s = 30.0
-        run, _ = _run(
-            scenario,
-            tmp_path,
-            surrogate=surrogate,
-            loop_timeout_s=2.0,
-            before_torque=on_bus_read(50, stall),
-        )
-        assert _torque(emu) == [0] * 7
+        wait_for(offs, HANG_S, "our watchdog's torque off of the surrogate")
+
+    run, torque = _breath_run_ended_by(tmp_path, stall, loop_timeout_s=2.0)
+    assert torque == [0] * 7
     assert run.reason.startswith("LoopStalledError") and run.exit_code == 1, run.reason
     assert run.torque_off_confirmed
 
 
 def test_a_bus_fault_ends_the_run_with_every_torque_off(tmp_path):
-    def cut_for_a_moment():
+    def cut_for_a_moment(emu):
         emu.mute()
         threading.Timer(0.3, emu.mute, args=(False,)).start()
 
-    surrogate = load_surrogate(_breath_file(tmp_path / "resp.txt"))
-    with _emulator() as emu:
-        scenario = _scenario(emu, tmp_path, reply_timeout_s=1.0)
-        scenario.duration_s = 30.0
-        run, _ = _run(
-            scenario, tmp_path, surrogate=surrogate, before_torque=on_bus_read(50, cut_for_a_moment)
-        )
-        assert _torque(emu) == [0] * 7
+    run, torque = _breath_run_ended_by(tmp_path, cut_for_a_moment, bus={"reply_timeout_s": 1.0})
+    assert torque == [0] * 7
     assert run.reason.startswith("BusError") and run.exit_code == 1, run.reason
     assert run.torque_off_confirmed
 
@@ -324,17 +313,9 @@ def test_a_surrogate_servo_that_leaves_the_bus_ends_the_run_and_says_its_torque_
     """The seventh servo stops answering (its cable pulled): the sync read misses its status,
     the run ends with the cranks' torque off, and the end line says the torque off was not
     confirmed by every servo (the surrogate's cannot be)."""
-    surrogate = load_surrogate(_breath_file(tmp_path / "resp.txt"))
-    with _emulator() as emu:
-        scenario = _scenario(emu, tmp_path, reply_timeout_s=1.0)
-        scenario.duration_s = 30.0
-        run, _ = _run(
-            scenario,
-            tmp_path,
-            surrogate=surrogate,
-            before_torque=on_bus_read(50, lambda: emu.disconnect(STAGE.id)),
-        )
-        assert _torque(emu, CRANKS) == [0] * 6
+    gone = lambda emu: emu.disconnect(STAGE.id)  # noqa: E731
+    run, torque = _breath_run_ended_by(tmp_path, gone, ids=CRANKS, bus={"reply_timeout_s": 1.0})
+    assert torque == [0] * 6
     assert run.reason.startswith("BusError") and "sync read" in run.reason, run.reason
     assert not run.torque_off_confirmed
     assert "torque off NOT confirmed: cut the servos' power" in end_line(run)

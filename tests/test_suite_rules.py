@@ -1,9 +1,11 @@
 """The suite's own rules, read from the tests' source: no test asserts a speed (a wait that
 guards a hang fails by timing out, conftest.wait_for and conftest.run_within; speed belongs to
 benchmarks/), no wait is bounded by a literal time a busy machine can exceed (a hang's guard is
-conftest.HANG_S), and a test that needs an extra skips naming the command that installs it."""
+conftest.HANG_S), both also read as text in every file under tests/, and a test that needs an
+extra skips naming the command that installs it."""
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -82,9 +84,43 @@ def _clock_names(function: ast.AST) -> set:
         names = found
 
 
+#: A duration the test did not read from a clock itself but is named for one: the wall time or
+#: the elapsed time that the code under test measured (``run.elapsed_s``, ``wall_time``,
+#: ``row["wall_s"]``). Ordering it (``<``, ``>=``) asserts a speed; ``==`` with the record it
+#: came from does not.
+DURATION_NAME = re.compile(r"(wall|elapsed)", re.IGNORECASE)
+ORDERING = (ast.Lt, ast.LtE, ast.Gt, ast.GtE)
+
+
+def _named_duration(node: ast.AST) -> bool:
+    """Whether ``node`` is a name, attribute or string-keyed item named as a duration
+    (:data:`DURATION_NAME` at its start), or arithmetic on one."""
+    if isinstance(node, ast.Name | ast.Attribute):
+        return bool(DURATION_NAME.match(node.id if isinstance(node, ast.Name) else node.attr))
+    if isinstance(node, ast.Subscript):
+        key = node.slice
+        named = isinstance(key, ast.Constant) and isinstance(key.value, str)
+        return (named and bool(DURATION_NAME.match(key.value))) or _named_duration(node.value)
+    if isinstance(node, ast.BinOp):
+        return _named_duration(node.left) or _named_duration(node.right)
+    if isinstance(node, ast.UnaryOp):
+        return _named_duration(node.operand)
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
+        return node.func.id in PASS_THROUGH and any(_named_duration(a) for a in node.args)
+    return False
+
+
+def _orders_a_duration(compare: ast.Compare) -> bool:
+    operands = [compare.left, *compare.comparators]
+    return any(
+        isinstance(op, ORDERING) and (_named_duration(a) or _named_duration(b))
+        for op, a, b in zip(compare.ops, operands, operands[1:])
+    )
+
+
 def wall_time_assertions(source: str) -> list[tuple[int, str]]:
     """(line, text) of every ``assert`` in ``source`` whose comparison reads a clock or a name
-    computed from one."""
+    computed from one, or orders a duration named as one (:data:`DURATION_NAME`)."""
     tree = ast.parse(source)
     out = []
     scopes = [n for n in ast.walk(tree) if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)]
@@ -94,7 +130,9 @@ def wall_time_assertions(source: str) -> list[tuple[int, str]]:
             if not isinstance(node, ast.Assert):
                 continue
             compares = [n for n in ast.walk(node.test) if isinstance(n, ast.Compare)]
-            if any(_clocked(x, names) for c in compares for x in [c.left, *c.comparators]):
+            if any(_clocked(x, names) for c in compares for x in [c.left, *c.comparators]) or any(
+                _orders_a_duration(c) for c in compares
+            ):
                 out.append((node.lineno, ast.get_source_segment(source, node) or ""))
     return sorted(set(out))
 
@@ -114,7 +152,14 @@ def test_no_test_asserts_on_wall_time():
 @pytest.mark.parametrize(
     "source, caught",
     [
-        ("def t():\n    t0 = time.monotonic()\n    f()\n    assert time.monotonic() - t0 < 9\n", 1),
+        # Joined from two strings where a line of this file would read as what the text rule
+        # (below) finds: the string is the offender, this line is not.
+        (
+            "def t():\n    t0 = time.monotonic()\n    f()\n    assert time.monotonic() - t0 "
+            + "< 9\n",
+            1,
+        ),
+        ("def t():\n    t0 = time.monotonic()\n    f()\n    assert 9 > time.monotonic() - t0\n", 1),
         ("def t():\n    w = time.perf_counter() - a\n    b = w * 2\n    assert b < 9\n", 1),
         ("def t():\n    s = []\n    s.append(time.time())\n    assert s[1] - s[0] < 1\n", 1),
         ("def t():\n    assert perf_counter() >= 0.2\n", 1),
@@ -122,6 +167,13 @@ def test_no_test_asserts_on_wall_time():
         ("def t():\n    t0 = time.monotonic()\n    assert f(t0)\n", 0),  # no comparison
         ("def t():\n    x = 3.0\n    assert x < 9\n", 0),
         ("def t():\n    s = []\n    s.append(time.time())\n    assert len(s) == 1\n", 0),
+        # Durations the code under test measured, named as such.
+        ("def t():\n    run = f()\n    assert 10 > run.elapsed_s\n", 1),
+        ("def t():\n    assert row['wall_s'] <= 0.5 * budget\n", 1),
+        ("def t():\n    assert 2 * wall_time >= 1\n", 1),
+        ("def t():\n    assert summary['elapsed']['median'] > 0\n", 1),
+        ("def t():\n    assert row['wall_s'] == records[0]\n", 0),  # the record, no speed
+        ("def t():\n    assert len(walls) > 100\n", 0),  # a count of readings
     ],
 )
 def test_the_rule_finds_a_wall_time_assertion_and_nothing_else(source, caught):
@@ -144,7 +196,7 @@ BOUND_ARGUMENT = {
     "wait": 0,
     "join": 0,
     "click": 2,
-    "send_click": 2,
+    "send_click": 3,
 }
 #: The keyword that bounds a wait, s, in any call (``subprocess.run``, ``communicate``,
 #: ``psutil.wait_procs``, ``Thread.join``, nbclient); a setting of the code under test
@@ -242,7 +294,7 @@ def test_every_wait_with_a_short_literal_bound_says_why_it_is_kept():
     "source, caught",
     [
         ("def t():\n    wait_for(done, 120, 'the manifest')\n", 1),
-        ("def t():\n    assert shown.wait(60)\n", 1),
+        ("def t():\n    assert shown.wait(" + "60)\n", 1),  # two strings: see above
         ("def t():\n    proc.communicate(timeout=30)\n", 1),
         ("def t():\n    run_within(2 * 60, f)\n", 1),
         ("def t():\n    worker.join(timeout=120)\n", 1),
@@ -260,14 +312,76 @@ def test_every_wait_with_a_short_literal_bound_says_why_it_is_kept():
         ("def t():\n    wait_for(done, timeout_s=60, what='x')\n", 1),
         ("def t():\n    x = time.time() - 3 * 3600\n", 0),
         (
-            "def t():\n    assert not fired.wait(0.5)  # wait-kept: not before its time\n",
+            "def t():\n    assert not fired.wait(" + "0.5)  # wait-kept: not before its time\n",
             0,
         ),
-        ("def t():\n    assert not fired.wait(0.5)  # wait-kept:\n", 1),  # no reason given
+        ("def t():\n    assert not fired.wait(" + "0.5)  # wait-kept:\n", 1),  # no reason given
     ],
 )
 def test_the_rule_finds_a_short_wait_bound_and_nothing_else(source, caught):
     assert len(short_wait_bounds(source)) == caught
+
+
+#: The two rules above read as text, line by line, in every file under tests/: what a reader
+#: searching the tests finds, and what the rules above cannot parse (a script a test writes out
+#: and runs is a string to them). An ``assert`` that orders a wall or elapsed time, or a clock
+#: reading less another, against a bound; a ``.wait`` bounded by a literal of at most three
+#: digits (under 1000 s). A wait kept short (:data:`KEPT`) names its bound here: a constant
+#: whose comment says what must not happen within it.
+TIMED_LINES = {
+    "an assertion on wall time": re.compile(
+        r"assert[^#]*(\b(wall|elapsed)[a-z_]*\s*<|(monotonic|perf_counter|time)\(\)\s*-\s*"
+        r"[a-z_0-9]+\s*<)"
+    ),
+    "a fixed wait under 1000 s": re.compile(
+        r"\.wait\(\s*(timeout\s*=\s*)?[0-9]{1,3}(\.[0-9]+)?\s*\)"
+    ),
+}
+
+
+def timed_lines(text: str) -> list[tuple[int, str, str]]:
+    """(line number, what, line) of every line of ``text`` that :data:`TIMED_LINES` finds."""
+    return [
+        (k, what, line.strip())
+        for k, line in enumerate(text.splitlines(), 1)
+        for what, pattern in TIMED_LINES.items()
+        if pattern.search(line)
+    ]
+
+
+def test_no_line_of_the_tests_reads_as_a_timed_assertion_or_a_fixed_wait():
+    files = [p for p in sorted(TESTS.rglob("*")) if p.is_file() and "__pycache__" not in p.parts]
+    found = [
+        f"{path.relative_to(TESTS)}:{k}: {what}: {line}"
+        for path in files
+        for k, what, line in timed_lines(path.read_text(errors="replace"))
+    ]
+    assert not found, (
+        "lines that read as a speed asserted or a fixed wait (measure speed in benchmarks/; "
+        f"guard a hang with conftest.HANG_S, {HANG_S:g} s):\n" + "\n".join(found)
+    )
+
+
+@pytest.mark.parametrize(
+    "line, caught",
+    [
+        # Two strings each, so that this file's lines are not the lines the rule finds.
+        ("    assert elapsed " + "< 5.0", 1),
+        ("    assert wall_time_s " + "<= 0.5 * budget", 1),
+        ("    assert time.monotonic() - t0 " + "< 9, 'too slow'", 1),
+        ("    assert perf_counter() - start " + "< 1", 1),
+        ("    assert done.wait(" + "60)", 1),
+        ("    proc.wait(timeout=" + "30)", 1),
+        ("    assert not fired.wait(" + "0.5)  # wait-kept: not before its time", 1),
+        ("    proc.wait(timeout=HANG_S)", 0),
+        ("    assert shown.wait(1800.0)", 0),  # four digits: a hang's bound
+        ("    assert elapsed > 0  # measured at all", 0),
+        ("    assert n_wall < 3", 0),  # not a name that starts as a duration's
+        ("    print(f'{elapsed:.0f} s')  # said, not asserted", 0),
+    ],
+)
+def test_the_text_rule_finds_a_timed_line_and_nothing_else(line, caught):
+    assert len(timed_lines(line)) == caught
 
 
 def test_a_missing_extra_is_named_with_its_install_command(monkeypatch):

@@ -239,7 +239,7 @@ def test_a_registration_motion_registers_the_tracker_once_and_later_runs_are_jud
 ):
     from pydrake.math import RollPitchYaw
 
-    from stewart_drake.calibration.registration import read_fiducials, read_registration
+    from stewart_drake.calibration.registration_file import read_fiducials, read_registration
 
     t, seen = registration_run()
     reg_csv = write_marker_export(tmp_path / "reg.csv", t, seen)

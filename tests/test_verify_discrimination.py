@@ -27,7 +27,7 @@ from test_verify import (
 )
 
 from stewart_drake.calibration import files, tracker
-from stewart_drake.calibration.registration import read_registration
+from stewart_drake.calibration.registration_file import read_registration
 from stewart_drake.cli.main import main
 from stewart_drake.organ_motion.measured_motion import MeasuredMotion
 from stewart_drake.organ_motion.measured_verdict import sensitivity

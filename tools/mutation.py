@@ -96,6 +96,7 @@ MODULES = {
     "stewart_drake/references/live_stream.py": ("tests/test_live_follow.py",),
     # Not test_calibration_registered.py (the identification and the command): see the docstring.
     "stewart_drake/calibration/registration.py": ("tests/test_calibration_registration.py",),
+    "stewart_drake/calibration/registration_file.py": ("tests/test_calibration_registration.py",),
     "stewart_drake/calibration/budget.py": ("tests/test_calibration_budget.py",),
 }
 #: What the scratch copy holds: the package, the tests and what they read.

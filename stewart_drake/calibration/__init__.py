@@ -4,7 +4,8 @@ encoders (`tracker`), the identification with the tolerances as its prior, its o
 held-out check (`identify`), the choice of the poses to measure and the path through them
 (`poses`), the files it reads and writes (`files`), the join of a session's encoder log and
 tracker file into measurements (`join`), the registration of the tracker's frames
-(`registration`), what an estimate is worth (`validation`), the rehearsal on an emulated robot
-and its study (`rehearsal`), the error budget of a real laboratory (`budget`), what the command
-prints (`report`) and the ``calibrate`` command (`command`).
+(`registration`) and its file, REG.yaml (`registration_file`), what an estimate is worth
+(`validation`), the rehearsal on an emulated robot and its study (`rehearsal`), the error budget
+of a real laboratory (`budget`), what the command prints (`report`) and the ``calibrate``
+command (`command`).
 docs/calibration.md."""

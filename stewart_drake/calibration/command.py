@@ -158,7 +158,8 @@ def _registration(args):
     work, or None."""
     if args.registration is None:
         return None
-    from .registration import read_fiducials, register
+    from .registration import register
+    from .registration_file import read_fiducials
 
     fiducials = read_fiducials(args.registration)
     return register(fiducials, args.registration), fiducials

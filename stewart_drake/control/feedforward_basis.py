@@ -91,7 +91,7 @@ def save_learned(path, theta, geometry_name: str = "") -> Path:
 
 def load_learned(path) -> np.ndarray:
     """The (p, 6) weights of a file :func:`save_learned` wrote, read through
-    :class:`~stewart_drake.base.fileio.CheckedNpz` (a regular file of at most
+    :class:`~stewart_drake.base.npz.CheckedNpz` (a regular file of at most
     :data:`MAX_LEARNED_BYTES`, each entry's header checked before it is loaded, no pickles).
 
     Returns:
@@ -103,7 +103,7 @@ def load_learned(path) -> np.ndarray:
             weights not all finite.
         OSError: the file cannot be read (missing, permissions).
     """
-    from ..base.fileio import CheckedNpz
+    from ..base.npz import CheckedNpz
 
     path = Path(path)
     data = CheckedNpz(path, _KIND, "write it with --save-learned", MAX_LEARNED_BYTES)

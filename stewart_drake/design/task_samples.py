@@ -102,14 +102,14 @@ class TaskSamples:
 
     @classmethod
     def load(cls, path) -> TaskSamples:
-        """Read what :meth:`save` wrote, through :class:`~stewart_drake.base.fileio.CheckedNpz`
+        """Read what :meth:`save` wrote, through :class:`~stewart_drake.base.npz.CheckedNpz`
         (numbers and text only, each entry's header checked before it is loaded).
 
         Raises:
             CorruptFileError: not such a file (names it and the entry at fault).
             OSError: the file cannot be read.
         """
-        from ..base.fileio import CheckedNpz
+        from ..base.npz import CheckedNpz
 
         f = CheckedNpz(path, "design task samples (.npz)", "run the design search again")
         scalars, resolution = f.array("scalars"), f.array("resolution")

@@ -225,8 +225,8 @@ def cmd_verify(args) -> int:
 def _save_registration(reference, measured, args) -> int:
     """Fit the tracker's frames to ``measured``, a run of the known ``reference``
     (:func:`~stewart_drake.organ_motion.registration_motion.fit_registration`), and write them
-    to ``--save-registration`` (:func:`~stewart_drake.calibration.registration.motion_frames_yaml`);
-    0.
+    to ``--save-registration``
+    (:func:`~stewart_drake.calibration.registration_file.motion_frames_yaml`); 0.
 
     Raises:
         InvalidConfigError: what the fit refuses; frames too uncertain to be written.
@@ -238,7 +238,7 @@ def _save_registration(reference, measured, args) -> int:
 
     from ..base.errors import InvalidConfigError
     from ..base.fileio import atomic_write
-    from ..calibration.registration import MAX_MARKER_SIGMA, motion_frames_yaml
+    from ..calibration.registration_file import MAX_MARKER_SIGMA, motion_frames_yaml
     from ..organ_motion.registration_motion import fit_registration
 
     print("verify: fitting the tracker's frames to the registration motion", file=sys.stderr)
@@ -271,10 +271,10 @@ def _save_registration(reference, measured, args) -> int:
 
 def _registration(path):
     """The registration REG.yaml gives
-    (:func:`~stewart_drake.calibration.registration.read_registration`), or None."""
+    (:func:`~stewart_drake.calibration.registration_file.read_registration`), or None."""
     if not path:
         return None
-    from ..calibration.registration import read_registration
+    from ..calibration.registration_file import read_registration
 
     return read_registration(path)
 

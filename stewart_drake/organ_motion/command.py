@@ -361,15 +361,16 @@ def _cmd_reproduce(args) -> int:
 def _cmd_stream(args, scenario, name, out, tolerance) -> int:
     """``reproduce --stream LATENCY_S``: refused before any work when the latency, the
     predictor or the stream is bad or learning is asked for; otherwise the run, its lines, its
-    verdict (:func:`~.streaming.stream_verdict`: the robot's true pose against the true motion,
+    verdict (:func:`~.stream_report.stream_verdict`: the robot's true pose against the true motion,
     with the robot against the reference it was given beside it) and its reports
-    (:func:`~.streaming.write_stream_report`, and the robot's fidelity against the true motion,
+    (:func:`~.stream_report.write_stream_report`, and the robot's fidelity against the true motion,
     ``reproduce_<name>_stream_robot``); exit 0 within ``tolerance``, 2 beyond it."""
     from ..base.errors import InvalidConfigError
     from ..base.fileio import check_replaceable
     from ..references.stream import check_latency
     from .fidelity_report import report_markdown, write_report
-    from .streaming import reproduce_stream, stream_summary, stream_verdict, write_stream_report
+    from .stream_report import stream_summary, stream_verdict, write_stream_report
+    from .streaming import reproduce_stream
 
     if args.stream is None:
         raise InvalidConfigError("--stream-rate is for --stream LATENCY_S: give the latency")

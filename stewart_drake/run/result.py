@@ -28,7 +28,8 @@ from pydrake.systems.framework import LeafSystem
 from pydrake.systems.primitives import Multiplexer, VectorLogSink
 
 from ..base.columns import interp_columns
-from ..base.fileio import CheckedNpz, save_npz
+from ..base.fileio import save_npz
+from ..base.npz import CheckedNpz
 from ..references.motion import Reference
 from .metrics import compute_metrics
 from .reference import ReferenceSources

@@ -813,7 +813,7 @@ def cmd_verify_pair(args) -> int:
     import sys
 
     from ..base.fileio import check_replaceable
-    from ..calibration.registration import read_registration
+    from ..calibration.registration_file import read_registration
     from ..execution.options import key_values
     from ..organ_motion.command import motion_scenario
     from ..organ_motion.fidelity import parse_tolerance

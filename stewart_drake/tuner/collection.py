@@ -23,7 +23,7 @@ from ..base.errors import (
     InvalidConfigError,
     ResultsMismatchError,
 )
-from ..base.fileio import CheckedNpz
+from ..base.npz import CheckedNpz
 from ..control.features import density_features_series
 from ..control.tuning import AnnTunerDriver
 from ..execution.runners import JobFailure, ProcessRunner

@@ -131,7 +131,8 @@ def load_run(path: Path, job_id: str) -> dict:
             type, or the run of another job (names the file; delete it and run again).
     """
     from ..base.errors import CorruptFileError
-    from ..base.fileio import CheckedNpz, read_json
+    from ..base.fileio import read_json
+    from ..base.npz import CheckedNpz
 
     remedy = "delete it and run the same command again to redo that run"
     if path.suffix == ".json":

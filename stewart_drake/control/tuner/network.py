@@ -32,7 +32,8 @@ from typing import Any, ClassVar, TypeVar
 import numpy as np
 
 from ...base.errors import InvalidConfigError, MissingFileError
-from ...base.fileio import CheckedNpz, atomic_write
+from ...base.fileio import atomic_write
+from ...base.npz import CheckedNpz
 
 FORMAT_VERSION = 1
 #: |normalized input| cap, in training standard deviations.
