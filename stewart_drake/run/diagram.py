@@ -327,11 +327,15 @@ def _add_surrogate(builder, plan: RunPlan, trajectory, meshcat, loggers: dict, p
     samples = axis.samples(signal, duration, h, offset)
     match = None
     if axis.match_platform_lag and platform is not None:
-        from ..station.surrogate.lag_matching import PlatformLagMatch, principal_translation
+        from ..station.surrogate.lag_matching import PlatformLagMatch
 
+        # Along the internal motion's principal direction, as the pair's report measures
+        # the target's delay (sync_figures.relative_latency).
         x, v, _ = trajectory.evaluate(samples[0])
-        k = principal_translation(x)
-        match = PlatformLagMatch(h, x[:, k], v[:, k], k, t0=float(samples[0][0]))
+        u = signal.direction
+        if u is None:  # not known: the translation that moves most
+            u = np.eye(3)[int(np.argmax(np.ptp(x[:, 3:6], axis=0)))]
+        match = PlatformLagMatch(h, x[:, 3:6] @ u, v[:, 3:6] @ u, u, t0=float(samples[0][0]))
     ports = add_surrogate_stage(
         builder,
         axis.stage,

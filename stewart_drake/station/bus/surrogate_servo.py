@@ -21,10 +21,16 @@ rotor's reflected inertia plus the carriage's mass through the transmission (m (
 servo's viscous and dry friction (the motor catalogue's figures), theta_p the reading predicted
 one period on (theta_m + h v_m: the torque acts a period after the reading it came from, as the
 cranks' do), K_p = J w^2 and K_d = 2 J w with w = 2 pi ``bandwidth_hz`` (a critically damped
-double integrator), v_eps one encoder count a period. The torque is in the carriage's sense
-(positive drives ``s`` up). The weight of a vertical carriage (m g lead / 2 pi: 37 mN m for
-0.3 kg on the default belt's 80 mm a turn, 0.9 % of the servo's stall torque) is left to the
-position loop.
+double integrator). The dry friction's feed-forward fades through a commanded reversal over
+v_eps = max(|alpha_c| h, v_min): the rate the command itself changes by in one period (the
+commanded rate is exact, not measured, so the fade need only keep the torque from stepping
+inside the period of the reversal), v_min a tenth of an encoder count a period. A fade of one
+count a period (0.15 rad/s) left the friction under-compensated over a breath's slow turns on a
+belt, where the horn turns slower for the same carriage speed: the carriage lagged its command
+by 1.3-1.7 ms on IntERAct's pairs (0.1-0.2 ms on a 50 mm lead). The torque is in the
+carriage's sense (positive drives ``s`` up). The weight of a vertical carriage (m g lead / 2
+pi: 37 mN m for 0.3 kg on the default belt's 80 mm a turn, 0.9 % of the servo's stall torque)
+is left to the position loop.
 
 The stage is the cited part by default (the catalogue's XM430-W350-T on a GT2 belt over a
 40-tooth pulley: 80 mm a turn, 61.3 mm/s at no load). A command may ask for
@@ -100,8 +106,9 @@ class SurrogateDrive:
         self.viscous, self.coulomb = servo.viscous_damping, servo.coulomb_friction_Nm
         w = 2 * math.pi * config.bandwidth_hz
         self.kp, self.kd = self.J * w * w, 2.0 * self.J * w
-        #: Rate below which the dry friction's feed-forward fades (one count a period), rad/s.
-        self.v_eps = 2 * math.pi / p.COUNTS_PER_REV / self.period_s
+        #: The least rate over which the dry friction's feed-forward fades (a tenth of a count a
+        #: period), rad/s.
+        self.v_eps = 0.1 * 2 * math.pi / p.COUNTS_PER_REV / self.period_s
         self.command = None
         #: The carriage's reference on the run's clock before any delay (an object with
         #: ``evaluate(t) -> (s, v, a)``; the session sets it with ``command``), or None.
@@ -149,7 +156,7 @@ class SurrogateDrive:
         tau = (
             self.J * alpha_c
             + self.viscous * w_c
-            + self.coulomb * math.tanh(w_c / self.v_eps)
+            + self.coulomb * math.tanh(w_c / max(abs(alpha_c) * self.period_s, self.v_eps))
             + self.kp * (theta_c - theta_p)
             + self.kd * (w_c - w_m)
         )

@@ -21,7 +21,7 @@ class LagMatchedGoal(LeafSystem):
     """The stage's goal, the platform's lag matched (module docstring).
 
     Input port ``platform_state`` (12,): the platform's pose and rate as the controller
-    measures them, rad and m (only the matched axis is read).
+    measures them, rad and m (only the translation along the match's direction is read).
     Output port ``goal`` (3,): [p_d m, v_d m/s, a_d m/s^2].
     Discrete state (6,): :attr:`PlatformLagMatch.state` (the fit's sums, the delay in use).
 
@@ -55,7 +55,7 @@ class LagMatchedGoal(LeafSystem):
 
     def _Update(self, context, discrete_state):
         state = context.get_discrete_state(self._state).CopyToVector()
-        y = float(self._input.Eval(context)[self.match.axis])
+        y = self.match.coordinate(self._input.Eval(context))
         self.match.step(state, context.get_time(), y)
         discrete_state.get_mutable_vector(self._state).SetFromVector(state)
 

@@ -63,7 +63,9 @@ class PlatformLagMatch:
         period_s: the control period, s (the reference's samples' step).
         reference: (n,) the platform's reference along ``axis`` at t0, t0 + h, t0 + 2h, ... s, m.
         reference_rate: (n,) its rate there, m/s.
-        axis: the pose coordinate (3, 4 or 5: X, Y, Z) the reference moves most along.
+        axis: the pose coordinate (3, 4 or 5: X, Y, Z) the reference moves most along, or a
+            (3,) unit direction of the translation (the principal direction of its motion):
+            the platform's coordinate is its translation along it.
         memory_s, max_rate, max_delay_s, min_speed_m_s: the module's constants by default.
         t0: the time of the reference's first sample, s.
     Attributes:
@@ -71,7 +73,8 @@ class PlatformLagMatch:
         estimate_s: the fit's lag at the last :meth:`update`, s (NaN until the reference has
             moved enough).
     Raises:
-        InvalidConfigError: tables not (n,) alike or not finite, an axis not a translation,
+        InvalidConfigError: tables not (n,) alike or not finite, an axis not a translation
+            nor a unit direction,
             a setting out of range.
     """
 
@@ -80,7 +83,7 @@ class PlatformLagMatch:
         period_s: float,
         reference,
         reference_rate,
-        axis: int,
+        axis,
         memory_s: float = MEMORY_S,
         max_rate: float = MAX_RATE,
         max_delay_s: float = MAX_DELAY_S,
@@ -95,8 +98,7 @@ class PlatformLagMatch:
             )
         if not (np.all(np.isfinite(c)) and np.all(np.isfinite(g))):
             raise InvalidConfigError("the platform's reference for lag matching is not finite")
-        if axis not in (3, 4, 5):
-            raise InvalidConfigError(f"the matched axis must be a translation (3..5), got {axis}")
+        direction = _direction(axis)
         for name, value in (("period_s", period_s), ("memory_s", memory_s)):
             if not 0 < value < math.inf:
                 raise InvalidConfigError(f"{name} must be > 0 s, got {value}")
@@ -107,7 +109,7 @@ class PlatformLagMatch:
             )
         if not math.isfinite(t0):
             raise InvalidConfigError(f"t0 must be finite, got {t0}")
-        self.period_s, self.axis, self.t0 = float(period_s), int(axis), float(t0)
+        self.period_s, self.direction, self.t0 = float(period_s), direction, float(t0)
         self._c, self._g, self._last = c, g, c.size - 1
         self._forget = math.exp(-self.period_s / memory_s)
         n = max(1, round(MIN_HISTORY_S / self.period_s))
@@ -135,8 +137,14 @@ class PlatformLagMatch:
     def update(self, t: float, pose) -> float:
         """Take the platform's pose measured for run time ``t`` (s; (6,) rad and m) into
         :attr:`state` and return the delay to use from now on, s."""
-        self.estimate_s = self.step(self.state, t, float(pose[self.axis]))
+        self.estimate_s = self.step(self.state, t, self.coordinate(pose))
         return self.delay_s
+
+    def coordinate(self, pose) -> float:
+        """The platform's coordinate the lag is measured on, m, from a pose ((6,) or more:
+        rad and m, the translation in 3..5)."""
+        p = np.asarray(pose, dtype=float)[3:6]
+        return float(p @ self.direction)
 
     def step(self, state: np.ndarray, t: float, y: float) -> float:
         """Advance ``state`` ((6,), as :attr:`state`; in place) by the platform's coordinate
@@ -170,3 +178,21 @@ def principal_translation(reference) -> int:
     (peak to peak), the axis the lag is measured on."""
     x = np.asarray(reference, dtype=float)
     return 3 + int(np.argmax(np.ptp(x[:, 3:], axis=0)))
+
+
+def _direction(axis) -> np.ndarray:
+    """(3,) the unit direction of ``axis``: a pose coordinate 3..5, or a (3,) unit vector.
+
+    Raises:
+        InvalidConfigError: neither.
+    """
+    if isinstance(axis, (int, np.integer)) and not isinstance(axis, bool):
+        if axis not in (3, 4, 5):
+            raise InvalidConfigError(f"the matched axis must be a translation (3..5), got {axis}")
+        return np.eye(3)[int(axis) - 3]
+    u = np.asarray(axis, dtype=float)
+    if u.shape != (3,) or not np.all(np.isfinite(u)) or abs(np.linalg.norm(u) - 1) > 1e-6:
+        raise InvalidConfigError(
+            f"the matched axis must be a translation (3..5) or a (3,) unit direction, got {axis}"
+        )
+    return u
