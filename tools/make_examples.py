@@ -239,7 +239,7 @@ How they were made (tools/make_examples.py, the case of tests/test_verify.py):
   lead-in, the readings the inverse kinematics of `phantom_hardware`'s robot plus its encoders'
   zero errors, quantized to 2^17 counts a turn; a surrogate's servo on the bus, its carriage
   commanded (`s_cmd`) half the breath's X 0.4 s ahead (the correlation model `ratio=0.5
-  lead=0.4s`) and read (`s`) 15 ms late in the servo's counts of 12.2 um: `verify breathing
+  lead=0.4s`) and read (`s`) 15 ms late in the servo's counts of 19.5 um: `verify breathing
   --param tilt=2deg --surrogate model --surrogate-param ratio=0.5 lead=0.4s` with the log for
   both measurements PASSes the pair, their relative latency within a ms of 0.
 - **The traces** (`trace.txt`, `surrogate.txt`): breaths of 3.6-4.4 s and 8-12 mm on SI drawn
