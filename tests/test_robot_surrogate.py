@@ -314,11 +314,12 @@ def test_a_surrogate_servo_that_leaves_the_bus_ends_the_run_and_says_its_torque_
     the run ends with the cranks' torque off, and the end line says the torque off was not
     confirmed by every servo (the surrogate's cannot be)."""
     gone = lambda emu: emu.disconnect(STAGE.id)  # noqa: E731
-    # The lost status is waited for 2 s: past what a busy machine delays a reply by (0.36 s
-    # seen; at 1 s a late reply before the cable was pulled ended the run with every torque
-    # off confirmed), short of the loop's 5 s stall limit (whose watchdog would end it first).
+    # A status is waited for 2 s: past what a busy machine delays a reply by (0.36 s seen; at
+    # 1 s a late reply before the cable was pulled ended the run with every torque off
+    # confirmed); the loop's stall limit past the lost status's waits (a sync read missing one
+    # servo waited 5.8 s in all), so that our watchdog does not end the run first.
     bus = {"reply_timeout_s": 2.0}
-    run, torque = _breath_run_ended_by(tmp_path, gone, ids=CRANKS, bus=bus)
+    run, torque = _breath_run_ended_by(tmp_path, gone, ids=CRANKS, bus=bus, loop_timeout_s=10.0)
     assert torque == [0] * 6
     assert run.reason.startswith("BusError") and "sync read" in run.reason, run.reason
     assert not run.torque_off_confirmed
