@@ -23,8 +23,8 @@ class LagMatchedGoal(LeafSystem):
     Input port ``platform_state`` (12,): the platform's pose and rate as the controller
     measures them, rad and m (only the translation along the match's direction is read).
     Output port ``goal`` (3,): [p_d m, v_d m/s, a_d m/s^2].
-    Discrete state (6,): :attr:`.lag_matching.PlatformLagMatch.state` (the fit's sums, the
-    delay in use).
+    Discrete state (6,): the estimator's ``state`` (:class:`~.lag_matching.PlatformLagMatch`:
+    the fit's sums, the delay in use).
 
     Args:
         match: the :class:`~.lag_matching.PlatformLagMatch` (its reference sampled at the
