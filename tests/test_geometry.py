@@ -67,3 +67,22 @@ def test_the_geometry_has_every_attribute_the_model_functions_read():
             assert (typing.get_origin(fields[name]) or fields[name]) is kind, name
         else:
             assert isinstance(getattr(StewartGeometry, name), functools.cached_property), name
+
+
+@pytest.mark.parametrize(
+    "field, value, words",
+    [
+        ("platform_mass", 1e308, r"platform_mass must be a finite number in \(0, 100000\]"),
+        ("rod_mass", 2e5, r"rod_mass must be a finite number in \(0, 100000\]"),
+        ("rod_length", 1e3, r"rod_length must be a finite number in \(0, 100\]"),
+        ("base_radius", float("inf"), "base_radius must be a finite number"),
+    ],
+)
+def test_a_length_or_mass_beyond_any_robot_is_refused_naming_it(field, value, words):
+    with pytest.raises(InvalidGeometryError, match=words):
+        StewartGeometry(**{field: value})
+
+
+def test_the_largest_mass_and_length_allowed_are_taken():
+    robot = StewartGeometry(platform_mass=1e5, base_mass=1e5)
+    assert robot.platform_mass == 1e5 and robot.base_mass == 1e5

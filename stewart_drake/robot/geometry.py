@@ -107,6 +107,11 @@ def _leg_angles(spread_deg: float) -> tuple[float, ...]:
     return tuple(120.0 * k + spread_deg * s for k in range(3) for s in (-1, 1))
 
 
+#: The largest length (m) and mass (kg) a robot's field may take.
+MAX_LENGTH_M = 100.0
+MAX_MASS_KG = 1e5
+
+
 @dataclass(frozen=True)
 class StewartGeometry:
     """Layout, link lengths and inertias of a 6-RSS rotary Stewart platform; SI units, angles
@@ -217,24 +222,35 @@ class StewartGeometry:
                 error=InvalidGeometryError,
             ),
         )
-        for name in (
-            "base_radius",
-            "platform_radius",
-            "crank_length",
-            "rod_length",
-            "rod_mass",
-            "crank_mass",
-            "platform_mass",
-            "base_mass",
-            "base_plate_radius",
-            "rod_radius",
-            "rod_end_radius",
-            "platform_plate_radius",
+        # Beyond any Stewart platform built (a motion simulator's is some 10 m and 10 t), and
+        # far inside what Drake's dynamics can hold without overflow (a mass of 1e308 kg
+        # crashed it).
+        largest = {"m": MAX_LENGTH_M, "kg": MAX_MASS_KG}
+        for name, unit in (
+            ("base_radius", "m"),
+            ("platform_radius", "m"),
+            ("crank_length", "m"),
+            ("rod_length", "m"),
+            ("rod_mass", "kg"),
+            ("crank_mass", "kg"),
+            ("platform_mass", "kg"),
+            ("base_mass", "kg"),
+            ("base_plate_radius", "m"),
+            ("rod_radius", "m"),
+            ("rod_end_radius", "m"),
+            ("platform_plate_radius", "m"),
         ):
             object.__setattr__(
                 self,
                 name,
-                as_number(name, getattr(self, name), 0.0, lo_open=True, error=InvalidGeometryError),
+                as_number(
+                    name,
+                    getattr(self, name),
+                    0.0,
+                    largest[unit],
+                    lo_open=True,
+                    error=InvalidGeometryError,
+                ),
             )
         for name, lo in (("gravity", 0.0), ("pivot_z", None)):
             object.__setattr__(
