@@ -1125,7 +1125,7 @@ def _bomb(home):
         (
             None,
             ["run", "--scenario", "paper_ideal", "--set", "robot.platform_mass=1e9"],
-            r"the LQI's error model fails the Hautus test .*robot.platform_mass",
+            r"robot: platform_mass must be a finite number in \(0, 100000\], got 1000000000.0",
         ),
         (None, ["workspace", "--resolution", "2"], r"--resolution: must be >= 3, got 2"),
     ],
