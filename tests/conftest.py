@@ -108,6 +108,7 @@ needs_torch = needs_extra("train")
 #: study): the `loop` tier. Every other test not marked `system` or `slow` is a `unit` test.
 LOOP_MODULES = {
     "test_accuracy",
+    "test_crank_servo_loop",
     "test_surrogate_loop",
     "test_closed_loop",
     "test_design_confirm",
@@ -169,8 +170,9 @@ def pytest_collection_modifyitems(config, items):
 
 
 def pytest_configure(config):
-    """Compile the LQI's step once, in the controlling process, before any worker starts
-    (``-n 2``): two workers compiling at once each pay the minute, and every command a test
+    """Compile the LQI's step and the crank servo's once, in the controlling process, before
+    any worker starts (``-n 2``): two workers compiling at once each pay the minute, and every
+    command a test
     starts would say on stderr that it is compiling. A worker (``workerinput``) finds the cache
     warm."""
     if hasattr(config, "workerinput") or config.option.help or config.option.collectonly:
@@ -179,6 +181,7 @@ def pytest_configure(config):
         return
     t0 = time.monotonic()
     import stewart_drake.control.lqi.kernels  # noqa: F401  (compiles, or loads the cache)
+    import stewart_drake.control.servo.kernels  # noqa: F401  (the bus's controller, likewise)
 
     if time.monotonic() - t0 > 5.0:
         print(f"compiled the LQI's step into numba's cache in {time.monotonic() - t0:.0f} s")

@@ -201,6 +201,6 @@ def test_the_path_kernels_digest_is_the_one_the_cache_was_built_against():
     from stewart_drake.robot import path_kernels
 
     digest = hashlib.sha256(open(path_kernels.__file__, "rb").read()).hexdigest()[:16]
-    assert digest == kernels.path_kernels_digest() == kernels.PATH_KERNELS_DIGEST, (
+    assert digest == path_kernels.source_digest() == kernels.PATH_KERNELS_DIGEST, (
         f"set PATH_KERNELS_DIGEST = {digest!r} in stewart_drake/station/bus/kernels.py"
     )

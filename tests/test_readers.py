@@ -79,7 +79,7 @@ ALLOWED = {
     # Our own source files, hashed for numba's cache key.
     ("control/kernel_cache.py", "sources_digest", "Path(...).read_bytes"),
     ("control/kernel_cache.py", "will_compile", "Path(...).read_bytes"),
-    ("station/bus/kernels.py", "path_kernels_digest", "Path(...).read_bytes"),
+    ("robot/path_kernels.py", "source_digest", "Path(...).read_bytes"),
     # The kernel's run-queue time of the loop's own thread (/proc/thread-self/schedstat).
     ("station/bus/timing.py", "_RunQueueClock.__init__", "os.open"),
     # numba's own cache files (in the package's __pycache__ or NUMBA_CACHE_DIR), unpickled only

@@ -209,7 +209,11 @@ NAN = float("nan")
         ),
         ("sensor_noise", SensorNoise(std=[0.1] * 7), r"sensor_noise.std needs 12 finite values"),
         ("payload_scale", 0.0, r"payload_scale must be a finite number in \[0.1, 10\]"),
-        ("controller", "lqi", r"controller must be an LqiDriver, PdDriver or UserController"),
+        (
+            "controller",
+            "lqi",
+            r"controller must be an LqiDriver, CrankServoDriver, PdDriver or UserController",
+        ),
         ("rod_model", "springs", r"rod_model must be one of \('bodies', 'distance'\)"),
     ],
 )

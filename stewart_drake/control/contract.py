@@ -97,6 +97,9 @@ class ControllerContext:
             ideal robot.
         feature_window: with a tuner, the samples w of the density features' window (a
             controller may buffer them on a ``feature_window`` output); None without one.
+        servo: on the robot as built, the motors' :class:`~stewart_drake.robot.servo.ServoModel`
+            (their friction, inertia and peak torque, for a controller that compensates them);
+            None on the ideal robot.
     """
 
     geometry: StewartGeometry
@@ -110,6 +113,8 @@ class ControllerContext:
     # A PoseEstimator or None; Any, as estimator.py imports this module (through the LQI).
     pose_estimator: Any = None
     feature_window: int | None = None
+    # A ServoModel or None; Any, as robot.servo is a lower layer but kept out of the signature.
+    servo: Any = None
 
 
 @dataclass(frozen=True)

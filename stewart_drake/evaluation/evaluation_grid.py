@@ -27,8 +27,12 @@ FIXED_LQI = tuple(FIXED_WEIGHTS)
 #: The ANN-tuned LQIs of the grid by name: the file of the tuner's weights, in
 #: ``stewart_drake/data/`` (best-cost labels, the paper's labels).
 ANN_WEIGHTS = {"ann_best_cost": "ann_tuner.npz", "ann_paper": "ann_tuner_paper.npz"}
-#: The controller choices run with their defaults (the PD), by their short names.
-DEFAULT_DRIVERS = {name: kind for name, kind in named_controllers().items() if name != "lqi"}
+#: The controller choices run with their defaults (the PD), by their short names: not the LQI
+#: (the grid's fixed and tuned weights are its), nor the crank servo (the bus's controller:
+#: the grid asks the paper's question, of the LQI's weights on the robot at 1 ms).
+DEFAULT_DRIVERS = {
+    name: kind for name, kind in named_controllers().items() if name not in ("lqi", "servo")
+}
 CONTROLLERS = FIXED_LQI + tuple(DEFAULT_DRIVERS) + tuple(ANN_WEIGHTS)
 #: The controllers of ``evaluate --quick``: one of each kind, enough to draw every table and plot.
 QUICK_CONTROLLERS = ("lqi_1_1", "pd", "ann_best_cost")

@@ -274,6 +274,7 @@ COMPILED_KERNELS = {
     "stewart_drake.station.bus.kernels": "the servo bus's per-period arithmetic (about 10 s)",
     "stewart_drake.robot.path_kernels": "the reference validator's per-pose arithmetic (about 7 s)",
     "stewart_drake.control.lqi": "the LQI's control step (about 40 s)",
+    "stewart_drake.control.servo": "the crank servo's control step (about 5 s)",
 }
 
 

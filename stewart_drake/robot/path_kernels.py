@@ -31,11 +31,40 @@ gives inf or NaN, as numpy's. :data:`reference` holds the same functions uncompi
 
 from __future__ import annotations
 
+import hashlib
 import math
+from pathlib import Path
 
 import numpy as np
 
 from ..base.compiled import interpreted, njit_cached
+
+
+def source_digest() -> str:
+    """SHA-256 (16 hex digits) of this module's source: the kernels that compile these
+    functions in (the servo bus's, the crank servo's) hold it against the digest their numba
+    cache was written with, as numba's cache notices a change of their own file only.
+
+    Raises:
+        OSError: the source is not shipped (then they compile every time).
+    """
+    return hashlib.sha256(Path(__file__).read_bytes()).hexdigest()[:16]
+
+
+def compiled_against(digest: str):
+    """The decorator of a module whose kernels compile these in: numba with numpy's error
+    model (a leg that cannot close gives NaN, not an error), its disk cache used while this
+    module's :func:`source_digest` is ``digest`` (the module's own constant, which a test of it
+    holds equal) and compiled afresh in every process otherwise."""
+    try:
+        cache = source_digest() == digest
+    except OSError:  # sources not shipped: compile every time
+        cache = False
+
+    def njit(function):
+        return njit_cached(function, cache, error_model="numpy")
+
+    return njit
 
 
 def _njit(function):

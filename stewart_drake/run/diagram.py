@@ -398,6 +398,7 @@ def controller_context(plan: RunPlan, x0, x_dot0) -> ControllerContext:
         delay_periods=plan.delay_periods,
         pose_estimator=pose_estimator,
         feature_window=None if tuner is None else tuner.density_window(),
+        servo=plan.servo,
     )
 
 

@@ -9,7 +9,8 @@ and the values a run derives from a scenario are computed once, by :func:`~.plan
 
 Choices are tagged unions (``controller: !PdDriver {bandwidth_hz: 20}``), each choice one class
 beside what it builds, checking its own fields: the controllers (``LqiDriver`` in
-:mod:`~stewart_drake.control.lqi`, ``PdDriver``, ``UserController``), the tuners
+:mod:`~stewart_drake.control.lqi`, ``CrankServoDriver`` in :mod:`~stewart_drake.control.servo`,
+``PdDriver``, ``UserController``), the tuners
 (:mod:`~stewart_drake.control.tuning`), the references, the learner (``IlcDriver``,
 :mod:`~stewart_drake.control.ilc`) and the guard (``GuardConfig``, :mod:`~.guard`); a new choice
 is one class added to its union (:data:`ControllerChoice`, :data:`ReferenceChoice`,
@@ -51,6 +52,7 @@ from ..control.lqi.driver import (
     LqiScalesConfig as LqiScalesConfig,  # re-exported: controller.scales
 )
 from ..control.pd import PdDriver
+from ..control.servo.driver import CrankServoDriver
 from ..control.tuning import AnnTunerDriver, TunerChoice
 from ..plant.sdf import check_rod_model
 from ..references.data_collection import DataCollectionReference
@@ -135,7 +137,7 @@ ReferenceChoice = (
     | OrganMotionReference
     | TraceReference
 )
-ControllerChoice = LqiDriver | PdDriver | UserController
+ControllerChoice = LqiDriver | CrankServoDriver | PdDriver | UserController
 #: The learners a scenario may choose: from every cycle, or as a function of the reference.
 LearningChoice = IlcDriver | FeedforwardTuning
 
@@ -188,7 +190,8 @@ class Scenario:
             :class:`SineReference`, :class:`DataCollectionReference`,
             :class:`OrganMotionReference` or :class:`TraceReference`.
         feedforward: "gravity" (virtual work), "inverse_dynamics" or "none".
-        controller: :class:`LqiDriver`, :class:`PdDriver` or :class:`UserController`.
+        controller: :class:`LqiDriver`, :class:`CrankServoDriver`, :class:`PdDriver` or
+            :class:`UserController`.
         tuner: None (fixed weights), or a choice of :mod:`~stewart_drake.control.tuning`.
         duration_s: simulated time, s. control_period_s: controller period h, s (whole steps).
         log_period_s, state_log_period_s: periods of the signal logs and of the plant's full

@@ -23,43 +23,21 @@ control period compiles. :data:`reference` holds the same functions uncompiled (
 
 from __future__ import annotations
 
-import hashlib
 import math
-from pathlib import Path
 
 import numpy as np
 
-from ...base.compiled import interpreted, njit_cached
+from ...base.compiled import interpreted
 from ...robot import path_kernels
 from ...robot.path_kernels import fk_newton, ik_angles, jacobian_at, lu_solve6
 from ...robot.single_pose import LEG_SIZE
 
-#: SHA-256 (16 hex digits) of ``robot/path_kernels.py``, whose functions these kernels compile
-#: in. numba's disk cache notices a change of this file only, so the cache is used while
-#: :func:`path_kernels_digest` is this (a test holds them equal: change that file, update this
+#: :func:`~stewart_drake.robot.path_kernels.source_digest` of the source these kernels compile
+#: in, as their numba cache was written (a test holds it current: change that file, update this
 #: constant, which changes this file and so numba's stamp of it).
-PATH_KERNELS_DIGEST = "c6de6476af43922a"
-
-
-def path_kernels_digest() -> str:
-    """SHA-256 (16 hex digits) of the source of :mod:`~stewart_drake.robot.path_kernels`."""
-    return hashlib.sha256(Path(path_kernels.__file__).read_bytes()).hexdigest()[:16]
-
-
-def _use_cache() -> bool:
-    try:
-        return path_kernels_digest() == PATH_KERNELS_DIGEST
-    except OSError:  # sources not shipped: compile every time
-        return False
-
-
-_CACHE = _use_cache()
-
-
-def _njit(function):
-    """:func:`~stewart_drake.base.compiled.njit_cached` with numpy's error model (a leg that
-    cannot close gives NaN, not an error), cached while :data:`PATH_KERNELS_DIGEST` holds."""
-    return njit_cached(function, _CACHE, error_model="numpy")
+PATH_KERNELS_DIGEST = "8f5e4095bbae1786"
+#: numba, numpy's error model, cached while :data:`PATH_KERNELS_DIGEST` holds.
+_njit = path_kernels.compiled_against(PATH_KERNELS_DIGEST)
 
 
 #: Entries of the ``layout`` array of :func:`plant_state`, in order: where the plant's state

@@ -1,0 +1,399 @@
+"""control/servo: the crank servo's design (the DARE's gain against scipy's own Riccati solver,
+the estimator's poles where the design puts them, the loop with its estimator stable by
+separation), its compiled step against its Python form and against the law written out here
+with the package's batched kinematics, its refusals, and the driver as a scenario's choice."""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy.linalg import solve_discrete_are
+
+from stewart_drake.base.errors import InvalidConfigError, RiccatiSolveError
+from stewart_drake.control.contract import ControllerContext
+from stewart_drake.control.servo import design
+from stewart_drake.control.servo.controller import SERVO_STATUS_NAMES, CrankServoController
+from stewart_drake.control.servo.driver import CrankServoDriver
+from stewart_drake.robot import kinematics, statics
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.robot.motor_catalogue import catalogue_motor
+
+# -- the design --------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "h, d, f_c, ratio", [(0.01, 1, 3.0, 10.0), (0.005, 0, 8.0, 3.0), (0.002, 2, 20.0, 5.0)]
+)
+def test_the_feedback_gain_is_the_lqr_of_the_written_out_model(h, d, f_c, ratio):
+    """The gain against scipy's Riccati solver on the model and weights written out here: the
+    double integrator's zero-order hold, the integral by the rectangle rule, the pending
+    commands shifting in."""
+    w = 2 * math.pi * f_c
+    n = 3 + d
+    A = np.zeros((n, n))
+    A[0, :2] = [1.0, h]
+    A[1, 1:3] = [1.0, h]
+    A[2, 2] = 1.0
+    B = np.zeros((n, 1))
+    if d == 0:
+        B[1:3, 0] = [h * h / 2, h]
+    else:
+        A[1:3, 3] = [h * h / 2, h]
+        for j in range(d - 1):
+            A[3 + j, 4 + j] = 1.0
+        B[-1, 0] = 1.0
+    Q = np.diag([(w / ratio) ** 2, 1.0, 1 / w**2] + [1e-9] * d)
+    R = np.array([[1 / w**4]])
+    P = solve_discrete_are(A, B, Q, R)
+    K = np.linalg.solve(R + B.T @ P @ B, B.T @ P @ A)[0]
+    np.testing.assert_allclose(design.feedback_gain(h, d, f_c, ratio), K, rtol=1e-7)
+    # and the regulator it gives is stable, its slowest pole near the integral's corner
+    poles = np.linalg.eigvals(A - B @ K[None, :])
+    assert np.max(np.abs(poles)) < 1.0
+
+
+def test_the_estimator_poles_are_the_butterworth_pattern_mapped_by_the_period():
+    h, f_o = 0.01, 12.0
+    L = design.estimator_gain(h, f_o)
+    Phi, _ = design.crank_model(h)
+    C = np.array([[1.0, 0.0, 0.0]])
+    got = np.sort_complex(np.linalg.eigvals(Phi @ (np.eye(3) - np.outer(L, C))))
+    w = 2 * math.pi * f_o
+    s = w * np.exp(1j * np.pi * np.array([1.0, 2 / 3, 4 / 3]))  # -1, -1/2 +- j sqrt(3)/2
+    want = np.sort_complex(np.exp(s * h))
+    np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+def test_ackermanns_gain_is_scipys_pole_placement():
+    from scipy.signal import place_poles
+
+    h = 0.005
+    Phi, _ = design.crank_model(h)
+    poles = np.exp(h * 2 * math.pi * 20.0 * np.array([-1.0, -0.5 + 0.866j, -0.5 - 0.866j]))
+    G = design.ackermann_observer(Phi, np.array([1.0, 0.0, 0.0]), poles)
+    want = place_poles(Phi.T, np.array([[1.0], [0.0], [0.0]]), poles).gain_matrix[0]
+    np.testing.assert_allclose(G, want, rtol=1e-8)
+
+
+def test_an_unobservable_model_is_refused():
+    with pytest.raises(InvalidConfigError, match="does not observe"):
+        design.ackermann_observer(np.eye(3), np.array([1.0, 0.0, 0.0]), [0.1, 0.2, 0.3])
+
+
+def test_the_crank_model_is_the_double_integrators_hold_over_a_period():
+    """Phi and Gamma against the matrix exponential of the continuous model."""
+    from scipy.linalg import expm
+
+    h = 0.007
+    A = np.array([[0, 1, 0], [0, 0, 1], [0, 0, 0]], dtype=float)  # delta as an acceleration
+    Bc = np.array([[0.0], [1.0], [0.0]])
+    M = np.zeros((4, 4))
+    M[:3, :3], M[:3, 3:] = A, Bc
+    E = expm(M * h)
+    Phi, Gamma = design.crank_model(h)
+    np.testing.assert_allclose(Phi, E[:3, :3], atol=1e-15)
+    np.testing.assert_allclose(Gamma, E[:3, 3], atol=1e-15)
+
+
+@pytest.mark.parametrize("d", [0, 1, 3])
+def test_the_loop_with_its_estimator_has_the_regulators_and_the_estimators_poles(d):
+    """Separation: the closed loop (plant, integral, pending commands, estimator) has the
+    eigenvalues of A - B K and of Phi (I - L C), and no others: the closed-loop matrix is
+    assembled right."""
+    loop = design.design_loop(0.01, d, 3.0, 15.0, 10.0)
+    A, B = design.error_model(0.01, d)
+    regulator = np.linalg.eigvals(A - B @ loop.K[None, :])
+    C = np.array([[1.0, 0.0, 0.0]])
+    estimator = np.linalg.eigvals(loop.Phi @ (np.eye(3) - np.outer(loop.L, C)))
+    got = np.sort_complex(design.closed_loop_poles(loop))
+    want = np.sort_complex(np.concatenate([regulator, estimator]))
+    # 2e-5: with d = 3 the pending commands are a triple pole near 0, which rounding splits by
+    # about the cube root of the machine epsilon (6e-6)
+    np.testing.assert_allclose(got, want, atol=2e-5)
+    assert np.max(np.abs(got)) < 1.0
+
+
+@pytest.mark.parametrize(
+    "call, named",
+    [
+        (lambda: design.feedback_gain(0.01, 1, 20.0, 10.0), "bandwidth_hz"),
+        (lambda: design.estimator_gain(0.01, 16.0), "observer_bandwidth_hz"),
+        (lambda: design.feedback_gain(0.01, 1, 3.0, 0.0), "integral_ratio"),
+        (lambda: design.error_model(0.01, 21), "delay_periods"),
+        (lambda: design.feedback_gain(0.01, 1, float("nan"), 10.0), "bandwidth_hz"),
+    ],
+)
+def test_a_design_the_sampling_cannot_carry_is_refused_naming_the_setting(call, named):
+    with pytest.raises(InvalidConfigError, match=named):
+        call()
+
+
+def test_a_failed_riccati_solve_is_a_riccati_error(monkeypatch):
+    def fail(*args):
+        raise RuntimeError("no stabilizing solution")
+
+    monkeypatch.setattr(design, "DiscreteAlgebraicRiccatiEquation", fail)
+    with pytest.raises(RiccatiSolveError, match="crank servo"):
+        design.feedback_gain(0.01, 1, 3.0, 10.0)
+
+
+# -- the step ----------------------------------------------------------------------------------
+
+
+def _controller(geometry, d=1, compiled=True, **kw):
+    loop = design.design_loop(0.01, d, 3.0, 15.0, 10.0)
+    args = dict(
+        offset_s=0.0005,
+        lead_s=0.014,
+        torque_limit_Nm=3.0,
+        friction_Nm=np.full(6, 0.2),
+        viscous=0.04,
+        friction_max_Nm=1.0,
+    )
+    args.update(kw)
+    return CrankServoController(geometry, loop, compiled=compiled, **args)
+
+
+def _inputs(geometry, rng):
+    x = X_HOME + rng.uniform(-1, 1, 6) * [0.05, 0.05, 0.05, 0.01, 0.01, 0.01]
+    x_d = np.concatenate([x, rng.normal(size=6) * 0.02, rng.normal(size=6) * 0.1])
+    theta = kinematics.ik(geometry, x) + rng.normal(size=6) * 2e-3
+    T_ff = statics.holding_torques(geometry, x)
+    return x_d, theta, T_ff
+
+
+def _update(controller, context, x_d, theta, T_ff):
+    controller.GetInputPort("x_d").FixValue(context, x_d)
+    controller.GetInputPort("motor_angle").FixValue(context, theta)
+    controller.GetInputPort("T_ff").FixValue(context, T_ff)
+    update = controller.EvalUniquePeriodicDiscreteUpdate(context)
+    context.SetDiscreteState(update)
+    return context
+
+
+@pytest.mark.parametrize("d", [0, 1, 2])
+def test_the_compiled_step_is_its_python_form(geometry, d):
+    rng = np.random.default_rng(d)
+    pair = [_controller(geometry, d, compiled=c) for c in (True, False)]
+    contexts = [c.CreateDefaultContext() for c in pair]
+    for _ in range(25):
+        inputs = _inputs(geometry, rng)
+        for c, ctx in zip(pair, contexts):
+            _update(c, ctx, *inputs)
+    a, b = (ctx.get_discrete_state(0).get_value() for ctx in contexts)
+    np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-14)
+
+
+def test_one_update_applies_the_law_written_out_with_the_batched_kinematics(geometry):
+    """The torque of a first update from the state at t = 0, computed here with the batched
+    IK and Jacobian (not the compiled kernels), the estimator's correction, the gain and the
+    friction's smoothed sign."""
+    rng = np.random.default_rng(7)
+    ctrl = _controller(geometry, d=1, torque_limit_Nm=None)
+    context = ctrl.CreateDefaultContext()
+    x_d, theta_read, T_ff = _inputs(geometry, rng)
+    x0 = X_HOME
+    loop = ctrl.loop
+    # the state at t = 0: the estimator at home, at rest
+    theta0 = kinematics.ik(geometry, x0)
+    x_bar = np.column_stack([theta0, np.zeros(6), np.zeros(6)])
+    x_hat = x_bar + np.outer(theta_read - theta0, loop.L)
+    th_d = kinematics.ik(geometry, x_d[:6])
+    w_d = kinematics.jacobian(geometry, x_d[:6], th_d) @ x_d[6:12]
+    lead = 0.014
+    x_l = x_d[:6] + x_d[6:12] * lead + 0.5 * x_d[12:] * lead**2
+    v_l = x_d[6:12] + x_d[12:] * lead
+    w_l = kinematics.jacobian(geometry, x_l) @ v_l
+    e_th, e_w = x_hat[:, 0] - th_d, x_hat[:, 1] - w_d
+    a = -(loop.K[1] * e_th + loop.K[2] * e_w)  # z = 0 and nothing pending at t = 0
+    J = kinematics.jacobian(geometry, X_HOME)
+    J_inv = np.linalg.inv(J)
+    M = J_inv.T @ statics.task_inertia(geometry, X_HOME) @ J_inv
+    k_c = 2 * math.pi * 3.0
+    v = w_l - k_c * e_th
+    want = T_ff + 0.2 * np.tanh(v / 2e-3) + 0.04 * w_l + M @ a
+    _update(ctrl, context, x_d, theta_read, T_ff)
+    T = ctrl.GetOutputPort("T").Eval(context)
+    np.testing.assert_allclose(T, want, rtol=1e-9, atol=1e-10)
+    # the integral took the rectangle rule's step of the estimated angle error
+    np.testing.assert_allclose(ctrl.GetOutputPort("integral").Eval(context), 0.01 * e_th, rtol=1e-9)
+    # the pose error is J^-1 of the read error, at the start's inertia schedule
+    np.testing.assert_allclose(
+        ctrl.GetOutputPort("e_bar").Eval(context), J_inv @ (theta_read - th_d), rtol=1e-9
+    )
+
+
+def test_a_clipped_torque_is_the_limit_and_its_crank_stops_integrating(geometry):
+    ctrl = _controller(geometry, d=1, torque_limit_Nm=0.3)
+    context = ctrl.CreateDefaultContext()
+    x_d = np.concatenate([X_HOME, np.zeros(12)])
+    theta = kinematics.ik(geometry, X_HOME)
+    theta[0] -= 0.05  # crank 0 far below: its feedback asks for much more than 0.3 N m
+    T_ff = statics.holding_torques(geometry, X_HOME)
+    _update(ctrl, context, x_d, theta, T_ff)
+    T = ctrl.GetOutputPort("T").Eval(context)
+    assert T[0] == pytest.approx(0.3, abs=0.0)
+    z = ctrl.GetOutputPort("integral").Eval(context)
+    assert z[0] == 0.0
+    status = dict(zip(SERVO_STATUS_NAMES, ctrl.GetOutputPort("status").Eval(context)))
+    assert status["saturated_steps"] == 1
+
+
+def test_the_friction_believed_moves_with_the_feedback_along_the_motion_and_stays_bounded(
+    geometry,
+):
+    """Along a moving reference each moving crank's friction believed moves by h / tau_F times
+    the feedback's torque at that crank in the sense of its motion (the feedback's torque read
+    back from the command: T - T_ff - the friction and viscous terms); a crank below the rate
+    keeps it; a crank left behind raises it; it never leaves [0, friction_max_Nm]."""
+    ctrl = _controller(geometry, d=0, friction_adaptation_s=0.5, friction_max_Nm=0.25, lead_s=0.0)
+    context = ctrl.CreateDefaultContext()
+    # X at 4 mm/s: cranks 0, 1, 3, 4 turn at 11 to 13 mrad/s, 2 and 5 at 1.9 (below the rate
+    # the estimate adapts above, twice the smoothed sign's 2 mrad/s)
+    v = np.array([0.0, 0.0, 0.0, 0.004, 0.0, 0.0])
+    x_d = np.concatenate([X_HOME, v, np.zeros(6)])
+    w = kinematics.jacobian(geometry, X_HOME) @ v
+    theta = kinematics.ik(geometry, X_HOME)
+    theta[0] -= 1e-3 * np.sign(w[0])  # crank 0 behind its reference
+    T_ff = statics.holding_torques(geometry, X_HOME)
+    F0 = ctrl.friction_estimate(context)
+    _update(ctrl, context, x_d, theta, T_ff)
+    F1 = ctrl.friction_estimate(context)
+    moving = np.abs(w) > 4e-3
+    np.testing.assert_array_equal(moving, [True, True, False, True, True, False])
+    T = ctrl.GetOutputPort("T").Eval(context)
+    loop = ctrl.loop
+    th_d = kinematics.ik(geometry, X_HOME)
+    e_th = (theta - th_d) * loop.L[0]  # the estimate's angle error (the estimate started exact)
+    k_c = 2 * math.pi * 3.0
+    tau_fb = T - T_ff - F0 * np.tanh((w - k_c * e_th) / 2e-3) - 0.04 * w
+    np.testing.assert_allclose(
+        F1[moving] - F0[moving], 0.01 / 0.5 * np.sign(w[moving]) * tau_fb[moving], rtol=1e-9
+    )
+    np.testing.assert_array_equal(F1[~moving], F0[~moving])
+    assert F1[0] > F0[0]  # behind: its feedback pushes along its motion
+    for _ in range(400):
+        _update(ctrl, context, x_d, theta, T_ff)
+    F = ctrl.friction_estimate(context)
+    assert np.all((F >= 0.0) & (F <= 0.25))
+    assert F[0] == 0.25
+
+
+def test_an_unreachable_reference_keeps_the_torque_and_counts_the_failure(geometry):
+    ctrl = _controller(geometry, d=1)
+    context = ctrl.CreateDefaultContext()
+    T0 = ctrl.GetOutputPort("T").Eval(context).copy()
+    x_d = np.concatenate([X_HOME + [0, 0, 0, 0, 0, 0.5], np.zeros(12)])
+    _update(ctrl, context, x_d, kinematics.ik(geometry, X_HOME), np.zeros(6))
+    np.testing.assert_array_equal(ctrl.GetOutputPort("T").Eval(context), T0)
+    status = dict(zip(SERVO_STATUS_NAMES, ctrl.GetOutputPort("status").Eval(context)))
+    assert status["reference_failures"] == 1
+
+
+def test_the_start_holds_the_start_pose(geometry):
+    x0 = X_HOME + np.array([0.02, 0.0, -0.01, 0.003, 0.0, -0.01])
+    ctrl = _controller(geometry, x_initial=x0)
+    context = ctrl.CreateDefaultContext()
+    np.testing.assert_allclose(
+        ctrl.GetOutputPort("T").Eval(context), statics.holding_torques(geometry, x0), rtol=1e-12
+    )
+
+
+@pytest.mark.parametrize(
+    "kw, named",
+    [
+        (dict(offset_s=0.01), "offset_s"),
+        (dict(friction_Nm=np.full(6, 2.0)), "friction_Nm"),
+        (dict(friction_rate_rad_s=0.0), "friction_rate_rad_s"),
+        (dict(torque_limit_Nm=-1.0), "torque_limit_Nm"),
+        (dict(disturbance_feedback=2.0), "disturbance_feedback"),
+    ],
+)
+def test_a_bad_setting_of_the_controller_is_refused_naming_it(geometry, kw, named):
+    with pytest.raises(InvalidConfigError, match=named):
+        _controller(geometry, **kw)
+
+
+def test_the_kernels_cache_digest_is_path_kernels_current_source():
+    from stewart_drake.control.servo import kernels
+    from stewart_drake.robot import path_kernels
+
+    assert path_kernels.source_digest() == kernels.PATH_KERNELS_DIGEST
+
+
+def test_the_state_layout_holds_every_part_once():
+    from stewart_drake.control.servo import kernels
+
+    for d in (0, 1, 4):
+        parts = kernels.layout(d)
+        sizes = {k: v.stop - v.start for k, v in parts.items() if k != "size"}
+        assert sum(sizes.values()) == parts["size"].stop == 18 + 6 + 6 * d + 18 + 3
+        assert sizes["pending"] == 6 * d
+
+
+# -- the driver --------------------------------------------------------------------------------
+
+
+def _context(geometry, servo=None, d=1, limit=None):
+    return ControllerContext(
+        geometry=geometry,
+        period_s=0.01,
+        offset_s=0.0005,
+        plant_time_step_s=0.001,
+        x_initial=X_HOME,
+        torque_limit_Nm=limit,
+        delay_periods=d,
+        servo=servo,
+    )
+
+
+def test_the_driver_believes_the_servos_catalogue_friction_at_its_scale(geometry):
+    servo = catalogue_motor("XM430-W350-T").servo
+    ctrl = CrankServoDriver(friction_scale=0.5).make(_context(geometry, servo, limit=3.2))
+    np.testing.assert_allclose(
+        ctrl.friction_estimate(ctrl.CreateDefaultContext()), 0.5 * servo.coulomb_friction_Nm
+    )
+    # the torque acts over the period after next's start: its middle, 1.5 periods less half a
+    # plant step after the sample, less the half step the reference is led by
+    from stewart_drake.control.servo import kernels
+
+    assert ctrl._c[kernels.LEAD] == pytest.approx(1.5 * 0.01 - 0.001)
+    assert ctrl._c[kernels.VISCOUS] == servo.viscous_damping
+    assert ctrl._c[kernels.LIMIT] == 3.2
+
+
+def test_on_the_ideal_robot_the_driver_believes_no_friction(geometry):
+    ctrl = CrankServoDriver().make(_context(geometry, None, d=0))
+    np.testing.assert_array_equal(ctrl.friction_estimate(ctrl.CreateDefaultContext()), 0.0)
+
+
+@pytest.mark.parametrize(
+    "changes, named",
+    [
+        (dict(bandwidth_hz=30.0), "controller.bandwidth_hz"),
+        (dict(observer_bandwidth_hz=0.0), "controller.observer_bandwidth_hz"),
+        (dict(friction_scale=6.0), "controller.friction_scale"),
+        (dict(friction_adaptation_s=-1.0), "controller.friction_adaptation_s"),
+        (dict(schedule_period_s=0.015), "controller.schedule_period_s"),
+        (dict(integral_ratio=float("inf")), "controller.integral_ratio"),
+    ],
+)
+def test_a_bad_option_of_the_driver_is_refused_naming_it(changes, named):
+    driver = dataclasses.replace(CrankServoDriver(), **changes)
+    with pytest.raises(InvalidConfigError, match=named.replace(".", r"\.")):
+        driver.validate(0.01, 1)
+
+
+def test_the_scenario_reads_the_driver_by_its_tag(tmp_path):
+    from stewart_drake.run.scenario import dump_scenario
+    from stewart_drake.run.scenario_io import load_scenario
+
+    scenario = load_scenario("paper_bus", [])
+    assert isinstance(scenario.controller, CrankServoDriver)
+    assert scenario.feedforward == "inverse_dynamics"
+    path = tmp_path / "again.yaml"
+    dump_scenario(scenario, path)
+    assert "!CrankServoDriver" in path.read_text()
+    again = load_scenario(str(path), ["controller.bandwidth_hz=2.5"])
+    assert again.controller == dataclasses.replace(scenario.controller, bandwidth_hz=2.5)
