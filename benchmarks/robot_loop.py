@@ -80,6 +80,8 @@ TIMED = (
     ("stewart_drake.control.lqi.controller", "LqiController", "_Update"),
     ("stewart_drake.control.lqi.controller", "LqiController", "_reschedule"),
     ("stewart_drake.control.lqi.controller", "LqiController", "_estimate_by_newton"),
+    ("stewart_drake.control.servo.controller", "CrankServoController", "_Update"),
+    ("stewart_drake.control.servo.controller", "CrankServoController", "_inertia"),
 )
 
 

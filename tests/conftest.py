@@ -109,6 +109,7 @@ needs_torch = needs_extra("train")
 LOOP_MODULES = {
     "test_accuracy",
     "test_crank_servo_loop",
+    "test_error_budget",
     "test_surrogate_loop",
     "test_closed_loop",
     "test_design_confirm",

@@ -13,7 +13,8 @@ from stewart_drake.control.lqi.driver import LqiDriver
 from stewart_drake.organ_motion.reproduction import reproduce
 from stewart_drake.references.organ.breathing import Breathing
 from stewart_drake.robot import kinematics
-from stewart_drake.robot.geometry import X_HOME, StewartGeometry
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.run.simulate import run_experiment
 
@@ -105,7 +106,9 @@ def test_a_payload_the_controller_does_not_know_is_held_by_the_integral():
 
     scenario = _bus(duration_s=4.0, payload_scale=1.5, reference=NamedReference(name="home"))
     result = run_experiment(scenario)
-    count = _floor_from_the_jacobian(StewartGeometry()) * np.sqrt(12)  # one count, per axis
+    count = _floor_from_the_jacobian(make_plan(_bus(), with_reference=False).geometry) * np.sqrt(
+        12
+    )  # one count, per axis
     early = result.x[result.t < 0.5, 5] - result.x_d[result.t < 0.5, 5]
     assert np.abs(early).max() > 3 * count[5]  # the payload did sag it
     e = result.x[result.t >= 3.0, :6] - result.x_d[result.t >= 3.0, :6]

@@ -182,6 +182,25 @@ def _add_analyze_command(sub) -> None:
         action="store_true",
         help="also the margins for omega_Q / omega_R = 0.01, 0.1, 1, 10, 100 at the pose",
     )
+    an.add_argument(
+        "--budget",
+        nargs="?",
+        const="breathing",
+        default=None,
+        metavar="MOTION",
+        help="also the error budget of a library motion centred at the pose on the robot as "
+        "built (the encoders' floor, then the motion simulated at the scenario's period with "
+        "and without each source: encoders, period and delay, current loop, friction, "
+        "backlash, model; about 6 simulations; default breathing; the only figures of a "
+        "controller other than the LQI)",
+    )
+    an.add_argument(
+        "--param",
+        action="append",
+        metavar="KEY=VALUE",
+        help="a parameter of the budget's motion with its unit (repeatable), as reproduce "
+        "takes them (default: the motion's own)",
+    )
     an.add_argument("--out", default="results/analyze", help="output folder")
     an.set_defaults(func=_cmd_analyze)
 
@@ -194,6 +213,7 @@ def _cmd_analyze(args) -> int:
     import json
 
     from ..base.fileio import atomic_write
+    from ..control.lqi.driver import LqiDriver
     from ..run.scenario_io import load_scenario
     from .loop_analysis import axis_figures, figures_table, loop_models, plot_loop
 
@@ -201,10 +221,17 @@ def _cmd_analyze(args) -> int:
     x0 = _pose_option(args.pose)
     out = check_output(args.out)
     say = say_stage("analyze")
+    name = Path(str(args.scenario)).stem
+    if not isinstance(scenario.controller, LqiDriver):
+        print(
+            f"{name}: the loop's margins are the LQI's linear model "
+            f"(controller: !LqiDriver); this scenario's controller is a "
+            f"{type(scenario.controller).__name__}: its error budget instead"
+        )
+        return _budget(args, scenario, x0, name, out, say, {"scenario": name})
     say("linearizing the loop and computing the margins of the 6 axes ...")
     models = loop_models(scenario, x0, integrator=args.integrator)
     figures = axis_figures(models)
-    name = Path(str(args.scenario)).stem
     pose = ", ".join(f"{v:.4g}" for v in models.x0)
     table = figures_table(figures)
     rho = models.spectral_radius
@@ -237,6 +264,45 @@ def _cmd_analyze(args) -> int:
     data = json.dumps(record, indent=1, default=float).encode()
     atomic_write(paths[3], lambda fh: fh.write(data))
     print("wrote " + ", ".join(str(p) for p in paths))
+    if args.budget is not None:
+        return _budget(args, scenario, x0, name, out, say, {"scenario": name})
+    return 0
+
+
+def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:
+    """``analyze --budget``: the error budget of the motion centred at the pose
+    (:func:`~.error_budget.error_budget`), printed as a table and written as budget.md and
+    budget.json in ``out``."""
+    import json
+
+    from ..base.fileio import atomic_write
+    from ..execution.options import key_values
+    from ..references.organ.library import OrganMotionReference, split_parameters
+    from ..robot.kinematics import X_HOME
+    from .error_budget import error_budget
+
+    motion = args.budget or "breathing"
+    params = key_values(args.param, "--param")
+    centre = X_HOME if x0 is None else x0
+    params.setdefault("centre", ",".join(f"{v:.17g}" for v in centre))
+    shares = split_parameters([motion], params)
+    reference = OrganMotionReference(motion=motion, parameters=shares[0])
+    reference.validate()
+    say(f"the error budget of {motion}: one simulation, then one without each source ...")
+    budget = error_budget(scenario, reference.make(None, 0.0, None), say=say)
+    where = ", ".join(f"{v:.4g}" for v in centre)
+    title = (
+        f"{name}: error budget of {motion} at [{where}] (rad, m), RMS over t = "
+        f"{budget.window_s[0]:g}-{budget.window_s[1]:g} s, per axis"
+    )
+    lines = [title, "", *budget.lines()]
+    print("\n".join(lines))
+    out.mkdir(parents=True, exist_ok=True)
+    text = "\n".join(["# " + title, "", *budget.lines(), ""]).encode()
+    atomic_write(out / "budget.md", lambda fh: fh.write(text))
+    data = json.dumps({**record, "motion": motion, **budget.record()}, indent=1).encode()
+    atomic_write(out / "budget.json", lambda fh: fh.write(data))
+    print(f"wrote {out / 'budget.md'} and {out / 'budget.json'}")
     return 0
 
 

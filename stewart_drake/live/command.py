@@ -458,7 +458,7 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     from .measure import measure_pose
     from .session import end_line, run_on_robot
 
-    emulator = None
+    emulator, held = None, {}
     try:
         if args.emulate is not None:
             print(
@@ -524,12 +524,15 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
                 signals=signals,
                 realtime=args.realtime,
                 surrogate=surrogate,
+                before_torque=lambda sd, simulator: held.update(sd=sd),
             )
     finally:
         if emulator is not None:
             emulator.close()
     if run.metrics is not None:
         print(format_metrics(run.metrics))
+        if emulator is not None and "sd" in held:
+            print("\n".join(_truth_lines(scenario, held["sd"], emulator, run.metrics)))
     if run.timing_lines:
         print("control loop timing:\n  " + "\n  ".join(run.timing_lines))
     if run.relative_latency_line is not None:
@@ -537,6 +540,21 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     signals.settle(run)
     print(f"stewart-drake robot: {end_line(run)}", file=sys.stderr if not run.ok else sys.stdout)
     return run.exit_code
+
+
+def _truth_lines(scenario, sd, emulator, metrics) -> list[str]:
+    """A rehearsal's true pose (the emulator's plant) against what the encoders read, over the
+    metrics' window (:func:`~.emulated_truth.truth_lines`), with the encoders' floor at the
+    reference's mean pose there."""
+    import numpy as np
+
+    from ..analysis.error_budget import quantization_floor
+    from .emulated_truth import truth_lines
+
+    window = metrics["window_s"]
+    t = np.linspace(window[0], window[1], 50)
+    centre = sd.trajectory.evaluate(t)[0].mean(axis=0)
+    return truth_lines(sd, emulator.truth(), window, quantization_floor(scenario, centre))
 
 
 def rehearse_calibration(args, context) -> int:

@@ -347,13 +347,16 @@ def collect_result(sd, root_context, wall_s: float) -> RunResult:
 @dataclass
 class RunLogs:
     """What :func:`read_run` takes from a simulated Diagram: the :class:`RunResult` without its
-    reference and metrics, the reference object, and the first contact (None without contact
-    or with none seen). The reference's tables can go after it (:func:`release_reference`)."""
+    reference and metrics, the reference object, the first contact (None without contact or
+    with none seen), and how long before its log time each logged pose was measured, s (the
+    station's ``logged_pose_lag_s``: 0 for the simulated plant, one control period on the servo
+    bus). The reference's tables can go after it (:func:`release_reference`)."""
 
     result: RunResult
     trajectory: Reference
     contact: bool
     first_contact: tuple | None
+    pose_lag_s: float = 0.0
 
 
 def read_run(sd, root_context) -> RunLogs:
@@ -398,7 +401,8 @@ def read_run(sd, root_context) -> RunLogs:
         logger.log.unbind()
     # A live reference that kept its record (``evaluate``, ``feedforward_at``) is its own.
     trajectory = sd.trajectory if sd.trajectory is not None else sd.reference
-    return RunLogs(result, trajectory, contact, first)
+    lag = float(getattr(sd.station, "logged_pose_lag_s", 0.0))
+    return RunLogs(result, trajectory, contact, first, lag)
 
 
 def _learner_record(sd, root_context) -> tuple:
@@ -415,11 +419,13 @@ def _learner_record(sd, root_context) -> tuple:
 
 
 def finish_result(logs: RunLogs, wall_s: float) -> RunResult:
-    """The :class:`RunResult` of :func:`read_run`'s logs: the reference at the log times
-    (:func:`reference_at`) and the metrics (:func:`~.metrics.compute_metrics`, with the run's
+    """The :class:`RunResult` of :func:`read_run`'s logs: the reference at the times the logged
+    poses were measured (:func:`reference_at`: the log times, less the station's
+    ``pose_lag_s``) and the metrics (:func:`~.metrics.compute_metrics`, with the run's
     ``temperature_note`` when it has one: :func:`~.plan.temperature_note`)."""
     result = logs.result
-    result.x_d = reference_at(logs.trajectory, result.t)
+    t = result.t if logs.pose_lag_s == 0.0 else np.maximum(result.t - logs.pose_lag_s, 0.0)
+    result.x_d = reference_at(logs.trajectory, t)
     result.metrics = compute_metrics(result, wall_s)
     if "temperature_note" in result.config_summary:
         result.metrics["temperature_note"] = result.config_summary["temperature_note"]

@@ -502,6 +502,10 @@ class HardwareStation(Diagram):
             the guard's geometry; ``sensor`` the pose from a plant state. loop_closure: the
             :class:`~stewart_drake.plant.closed_chain.LoopClosure` the guard and the run's
             result read, as the simulated station's.
+        logged_pose_lag_s: how long before its log time a logged ``platform_state`` was read,
+            s: one control period (Drake publishes a log at t before the driver's update at t,
+            so the log at t holds the reading of t - h); the run's result compares it with the
+            reference at the time it was read (:func:`~stewart_drake.run.result.finish_result`).
     Args:
         plan: the :class:`~stewart_drake.run.plan.RunPlan` of a scenario with ``bus``; a
             ``bus.surrogate`` gives the driver its :class:`~.surrogate_servo.SurrogateDrive`
@@ -527,6 +531,7 @@ class HardwareStation(Diagram):
         #: The plant state is assembled at the measured pose (:class:`MeasuredPlantState`):
         #: its loops close by construction, and the guard does not measure them each period.
         self.loops_closed_by_construction = True
+        self.logged_pose_lag_s = plan.control_period_s
         self.sensor = PlatformPoseSensor(plant, handles)
         self.bus = DynamixelBus.from_config(scenario.bus)
         builder = DiagramBuilder()

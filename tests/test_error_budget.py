@@ -1,0 +1,110 @@
+"""analysis/error_budget: the encoders' floor against a Monte Carlo of the encoders themselves
+(counts drawn on each crank, the pose found by forward kinematics), the budget's shares against
+the runs they come from, a source the scenario lacks left at zero, and ``analyze --budget`` at
+the command line."""
+
+import numpy as np
+import pytest
+
+from stewart_drake.analysis.error_budget import SOURCES, error_budget, quantization_floor
+from stewart_drake.base.errors import InvalidConfigError
+from stewart_drake.references.organ.breathing import Breathing
+from stewart_drake.robot import kinematics
+from stewart_drake.robot.forward_kinematics import fk
+from stewart_drake.robot.geometry import X_HOME
+from stewart_drake.run.plan import make_plan
+from stewart_drake.run.scenario_io import load_scenario
+
+
+@pytest.mark.parametrize("pose", [X_HOME, X_HOME + [0.1, -0.05, 0.2, 0.02, -0.01, -0.02]])
+def test_the_floor_is_what_uniform_counts_give_through_forward_kinematics(pose):
+    """Each crank off its true angle by a uniform fraction of a count in [-1/2, 1/2], 4000
+    draws, the pose by forward kinematics: its standard deviation per axis is the floor to 5 %
+    (the Monte Carlo's own spread is 2 %)."""
+    scenario = load_scenario("paper_bus", [])
+    floor = quantization_floor(scenario, pose)
+    geometry = make_plan(scenario, with_reference=False).geometry
+    q = 2 * np.pi / 4096
+    theta = kinematics.ik(geometry, pose)
+    rng = np.random.default_rng(11)
+    poses = np.array(
+        [fk(geometry, theta + rng.uniform(-0.5, 0.5, 6) * q, x0=pose)[0] for _ in range(4000)]
+    )
+    np.testing.assert_allclose(poses.std(axis=0), floor, rtol=0.05)
+
+
+def test_the_ideal_robot_has_no_floor_to_budget():
+    with pytest.raises(InvalidConfigError, match="ideal robot"):
+        quantization_floor(load_scenario("paper_ideal", []))
+    with pytest.raises(InvalidConfigError, match="ideal robot"):
+        error_budget(load_scenario("paper_ideal", []), "breathing")
+
+
+@pytest.fixture(scope="module")
+def short_budget():
+    """A 2 s breath, 3 of them, the first not measured, on paper_bus with a payload it does not
+    know (the model's row runs)."""
+    scenario = load_scenario("paper_bus", ["payload_scale=1.2"])
+    lines = []
+    budget = error_budget(scenario, Breathing(period_s=2.0), say=lines.append)
+    return budget, lines
+
+
+def test_each_share_is_what_taking_the_source_away_removed(short_budget):
+    budget, lines = short_budget
+    assert budget.window_s == (2.0, 10.0)
+    # every source the scenario has was run once, backlash (none on the XM430) was not
+    ran = [line for line in lines if "without its" in line]
+    assert [line.split("without its ")[1].split(" ...")[0] for line in ran] == [
+        "encoders",
+        "period and delay",
+        "current loop",
+        "friction",
+        "model",
+    ]
+    np.testing.assert_array_equal(budget.rows["backlash"], 0.0)
+    assert "backlash" not in budget.without
+    for name, without in budget.without.items():
+        want = np.sqrt(np.maximum(budget.total**2 - without**2, 0.0))
+        np.testing.assert_allclose(budget.rows[name], want, rtol=1e-12)
+    assert list(budget.rows) == list(SOURCES)
+
+
+def test_the_encoder_pose_carries_the_floor(short_budget):
+    budget, _ = short_budget
+    # what the robot reads is at least the floor, and about the true error and the floor as
+    # independent parts (within a third)
+    assert np.all(budget.encoder_pose > 0.8 * budget.floor)
+    np.testing.assert_allclose(
+        budget.encoder_pose[3:], np.hypot(budget.total, budget.floor)[3:], rtol=0.35
+    )
+
+
+def test_a_payload_the_controller_does_not_know_has_a_share(short_budget):
+    budget, _ = short_budget
+    assert np.max(budget.rows["model"]) > 0.0
+
+
+def test_a_window_outside_the_span_is_refused():
+    with pytest.raises(InvalidConfigError, match="skip_s"):
+        error_budget(load_scenario("paper_bus", []), "breathing", duration_s=4.0, skip_s=5.0)
+
+
+def test_analyze_gives_the_servos_budget_at_the_command_line(tmp_path, capsys):
+    """A controller other than the LQI: analyze says the margins are the LQI's and gives the
+    budget, as a table and as files."""
+    import json
+
+    from stewart_drake.cli import main as cli
+
+    out = tmp_path / "an"
+    code = cli.main(
+        ["analyze", "--scenario", "paper_bus", "--param", "period=2s", "--out", str(out)]
+    )
+    printed = capsys.readouterr().out
+    assert code == 0
+    assert "the loop's margins are the LQI's" in printed
+    assert "error budget of breathing at [0, 0, 0, 0, 0, 0.3]" in printed
+    assert "| **encoder pose** (what the robot reads) |" in printed
+    record = json.loads((out / "budget.json").read_text())
+    assert record["motion"] == "breathing" and len(record["total"]) == 6
