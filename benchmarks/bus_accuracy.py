@@ -67,7 +67,6 @@ def emulated(scenario, args, period: float, load: int, out: str):
     """One session on the emulator: (true errors (n, 6), encoder errors (m, 6), cpu ms (k,),
     misses, periods, breakdown lines)."""
     scenario.control_period_s = scenario.log_period_s = period
-    scenario.state_log_period_s = period
     held = {}
     clock = UpdateClock()
     timed = Breakdown() if args.breakdown else None

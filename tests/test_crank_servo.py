@@ -240,44 +240,69 @@ def test_a_clipped_torque_is_the_limit_and_its_crank_stops_integrating(geometry)
     assert status["saturated_steps"] == 1
 
 
-def test_the_friction_believed_moves_with_the_feedback_along_the_motion_and_stays_bounded(
-    geometry,
-):
+def test_the_friction_error_is_the_weighted_least_squares_fit_of_sign_and_offset():
+    """The running fit tau = dF sign(omega) + b, each sample weighted by memory^age, against
+    numpy's least squares on the same samples; a steady torque with one sense only is no
+    friction (0); a steady torque with both senses is the offset, not dF."""
+    from stewart_drake.control.servo.kernels import reference
+
+    rng = np.random.default_rng(5)
+    memory, n = 0.99, 300
+    omega = np.where(np.sin(np.arange(n) / 30.0) > 0, 0.05, -0.05)
+    tau = 0.03 * np.sign(omega) + 0.11 + rng.normal(size=n) * 0.01
+    sums = np.zeros(4)
+    for w, t in zip(omega, tau):
+        got = reference.friction_error(sums, 0, memory, t, w)
+    weights = np.sqrt(memory ** np.arange(n)[::-1])
+    A = np.column_stack([np.sign(omega), np.ones(n)]) * weights[:, None]
+    want = np.linalg.lstsq(A, tau * weights, rcond=None)[0][0]
+    assert got == pytest.approx(want, rel=1e-9)
+    assert got == pytest.approx(0.03, abs=0.005)
+    one_sense = np.zeros(4)
+    for _ in range(50):
+        assert reference.friction_error(one_sense, 0, memory, 0.2, 0.05) == 0.0
+
+
+def test_the_friction_believed_moves_by_its_fit_and_stays_bounded(geometry):
     """Along a moving reference each moving crank's friction believed moves by h / tau_F times
-    the feedback's torque at that crank in the sense of its motion (the feedback's torque read
-    back from the command: T - T_ff - the friction and viscous terms); a crank below the rate
-    keeps it; a crank left behind raises it; it never leaves [0, friction_max_Nm]."""
+    the fitted friction error of its feedback torque (read back from the command: T - T_ff -
+    the friction and viscous terms); a crank below the rate keeps it; it never leaves [0,
+    friction_max_Nm]."""
+    from stewart_drake.control.servo.kernels import MEMORY, reference
+
     ctrl = _controller(geometry, d=0, friction_adaptation_s=0.5, friction_max_Nm=0.25, lead_s=0.0)
     context = ctrl.CreateDefaultContext()
     # X at 4 mm/s: cranks 0, 1, 3, 4 turn at 11 to 13 mrad/s, 2 and 5 at 1.9 (below the rate
     # the estimate adapts above, twice the smoothed sign's 2 mrad/s)
     v = np.array([0.0, 0.0, 0.0, 0.004, 0.0, 0.0])
-    x_d = np.concatenate([X_HOME, v, np.zeros(6)])
     w = kinematics.jacobian(geometry, X_HOME) @ v
-    theta = kinematics.ik(geometry, X_HOME)
-    theta[0] -= 1e-3 * np.sign(w[0])  # crank 0 behind its reference
-    T_ff = statics.holding_torques(geometry, X_HOME)
-    F0 = ctrl.friction_estimate(context)
-    _update(ctrl, context, x_d, theta, T_ff)
-    F1 = ctrl.friction_estimate(context)
     moving = np.abs(w) > 4e-3
     np.testing.assert_array_equal(moving, [True, True, False, True, True, False])
-    T = ctrl.GetOutputPort("T").Eval(context)
-    loop = ctrl.loop
+    T_ff = statics.holding_torques(geometry, X_HOME)
     th_d = kinematics.ik(geometry, X_HOME)
-    e_th = (theta - th_d) * loop.L[0]  # the estimate's angle error (the estimate started exact)
+    loop = ctrl.loop
     k_c = 2 * math.pi * 3.0
-    tau_fb = T - T_ff - F0 * np.tanh((w - k_c * e_th) / 2e-3) - 0.04 * w
-    np.testing.assert_allclose(
-        F1[moving] - F0[moving], 0.01 / 0.5 * np.sign(w[moving]) * tau_fb[moving], rtol=1e-9
-    )
-    np.testing.assert_array_equal(F1[~moving], F0[~moving])
-    assert F1[0] > F0[0]  # behind: its feedback pushes along its motion
-    for _ in range(400):
+    sums = np.zeros((6, 4))
+    for sense in [1.0] * 5 + [-1.0] * 5:  # both senses: the fit separates sign and offset
+        F0 = ctrl.friction_estimate(context)
+        x_d = np.concatenate([X_HOME, sense * v, np.zeros(6)])
+        state = context.get_discrete_state(0).get_value()
+        theta = th_d.copy()
+        theta[0] -= 1e-3 * sense * np.sign(w[0])  # crank 0 behind its reference
+        x_bar = state[:18].reshape(6, 3).copy()
         _update(ctrl, context, x_d, theta, T_ff)
+        F1 = ctrl.friction_estimate(context)
+        T = ctrl.GetOutputPort("T").Eval(context)
+        e_th = x_bar[:, 0] + loop.L[0] * (theta - x_bar[:, 0]) - th_d
+        tau_fb = T - T_ff - F0 * np.tanh((sense * w - k_c * e_th) / 2e-3) - 0.04 * sense * w
+        for i in np.flatnonzero(moving):
+            dF = reference.friction_error(sums[i], 0, ctrl._c[MEMORY], tau_fb[i], sense * w[i])
+            assert F1[i] - F0[i] == pytest.approx(0.01 / 0.5 * dF, rel=1e-6, abs=1e-15)
+        np.testing.assert_array_equal(F1[~moving], F0[~moving])
+    for _ in range(400):
+        _update(ctrl, context, np.concatenate([X_HOME, v, np.zeros(6)]), theta, T_ff)
     F = ctrl.friction_estimate(context)
     assert np.all((F >= 0.0) & (F <= 0.25))
-    assert F[0] == 0.25
 
 
 def test_an_unreachable_reference_keeps_the_torque_and_counts_the_failure(geometry):
@@ -328,8 +353,8 @@ def test_the_state_layout_holds_every_part_once():
     for d in (0, 1, 4):
         parts = kernels.layout(d)
         sizes = {k: v.stop - v.start for k, v in parts.items() if k != "size"}
-        assert sum(sizes.values()) == parts["size"].stop == 18 + 6 + 6 * d + 18 + 3
-        assert sizes["pending"] == 6 * d
+        assert sum(sizes.values()) == parts["size"].stop == 18 + 6 + 6 * d + 6 + 24 + 12 + 3
+        assert sizes["pending"] == 6 * d and sizes["friction_sums"] == 24
 
 
 # -- the driver --------------------------------------------------------------------------------

@@ -38,7 +38,7 @@ ENTRY_POINTS = {
 KERNEL_FILES = tuple(Path(__file__).with_name("lqi") / name for name in ENTRY_POINTS)
 
 #: :func:`sources_digest` of the sources the kernels were last compiled against.
-DEPENDENCIES_DIGEST = "c299fe04140b8e4a"
+DEPENDENCIES_DIGEST = "62c1a9208b30027f"
 
 
 def sources_digest() -> str:

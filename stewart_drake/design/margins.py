@@ -52,10 +52,12 @@ MARGINS = {
     "continuous_torque": "each motion's RMS torque within the motor's continuous torque",
     "resolution": "the pose error of half an encoder count at every crank within the "
     "requirement (relative; inf: not asked)",
+    "accuracy": "the encoders' floor (RMS per axis) within its share of the accuracy asked "
+    "(relative; inf: not asked)",
 }
 #: Version of :func:`evaluate`'s rules, part of a search's settings: a store written under other
 #: rules is refused rather than replayed.
-EVALUATION_VERSION = 2
+EVALUATION_VERSION = 3
 #: Penalty added to the objective of a design that misses a margin (Deb's rule,
 #: :meth:`Evaluation.penalized`): larger than any objective a feasible design reaches.
 INFEASIBLE = 1e6
@@ -182,6 +184,10 @@ def evaluate(design: Design, task: TaskSamples, lazy: bool = True) -> Evaluation
             1.0 - fig["resolution_m"] / task.resolution[0],
             1.0 - fig["resolution_rad"] / task.resolution[1],
         )
+    )
+    fig["floor_m"], fig["floor_rad"] = encoder_floor(geometry, x_all, motor.encoder_counts_per_rev)
+    out.margins["accuracy"] = float(
+        min(1.0 - fig["floor_m"] / task.floor[0], 1.0 - fig["floor_rad"] / task.floor[1])
     )
     if lazy and min(out.margins.values()) < 0:  # the motors' effort is the costly part next
         return out
@@ -326,6 +332,25 @@ def encoder_resolution(geometry: StewartGeometry, x, counts_per_rev: int) -> tup
         float(np.linalg.norm(dx[..., 3:], axis=-1).max()),
         float(np.linalg.norm(dx[..., :3], axis=-1).max()),
     )
+
+
+def encoder_floor(geometry: StewartGeometry, x, counts_per_rev: int) -> tuple:
+    """The encoders' floor over poses x (n, 6): every crank within half a count, uniform and
+    independent, the pose's RMS error per axis through J^-1 (first order; the quantity of
+    :func:`~stewart_drake.analysis.error_budget.quantization_floor`).
+
+    Returns:
+        (translation m, rotation rad): the largest RMS of a position axis and of an
+        orientation axis over the poses.
+    Raises:
+        SingularPoseError: J is singular at a pose.
+    """
+    from ..robot.kinematics import jacobian
+
+    J_inv = np.linalg.inv(jacobian(geometry, np.asarray(x, dtype=float)))
+    q = 2 * np.pi / counts_per_rev
+    rms = np.sqrt(np.sum(J_inv**2, axis=-1) * q * q / 12.0)
+    return float(rms[:, 3:].max()), float(rms[:, :3].max())
 
 
 def _limit_margin(geometry: StewartGeometry, m: dict) -> float:

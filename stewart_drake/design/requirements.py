@@ -109,6 +109,34 @@ class Resolution:
 
 
 @dataclass
+class Accuracy:
+    """How accurately the robot must make its motions on its servo bus: the RMS error per axis a
+    phantom must hold. A design meets it when the encoders' floor (every crank within half a
+    count, uniform, through J^-1: RMS per axis, the largest over the task's poses) is at most
+    :data:`ACCURACY_FLOOR_SHARE` of it: the crank servo on the bus leaves its robot's true
+    error near its floor and the pose its encoders read about 1.4 times it (docs/robot.md,
+    "The error budget"), and the rest of the accuracy is for what the floor does not hold
+    (friction, the period, the model).
+
+    Attributes:
+        translation_m: RMS position error per axis, m, in (0, 0.01].
+        rotation_rad: RMS orientation error per axis, rad, in (0, 0.1].
+    """
+
+    translation_m: float = 1.0e-4
+    rotation_rad: float = 5.0e-4
+
+    def validate(self) -> None:
+        """Raises InvalidConfigError naming the field (``accuracy.<name>``)."""
+        as_number("accuracy.translation_m", self.translation_m, 0.0, 0.01, lo_open=True)
+        as_number("accuracy.rotation_rad", self.rotation_rad, 0.0, 0.1, lo_open=True)
+
+
+#: The share of the required accuracy the encoders' floor may take (:class:`Accuracy`).
+ACCURACY_FLOOR_SHARE = 0.5
+
+
+@dataclass
 class DesignRequirements:
     """A design task.
 
@@ -120,6 +148,8 @@ class DesignRequirements:
         margins: what the motions leave to the feedback (:class:`Margins`).
         resolution: how finely the encoders must resolve the platform's pose
             (:class:`Resolution`), or None (not judged).
+        accuracy: the RMS error per axis the robot must hold on its bus (:class:`Accuracy`),
+            or None (not judged).
     """
 
     motions: list[ReferenceChoice] = field(default_factory=lambda: [NamedReference()])
@@ -127,6 +157,7 @@ class DesignRequirements:
     payload_kg: float = 0.0
     margins: Margins = field(default_factory=Margins)
     resolution: Resolution | None = None
+    accuracy: Accuracy | None = None
 
     def validate(self) -> "DesignRequirements":
         """Check every field; returns self.
@@ -150,6 +181,8 @@ class DesignRequirements:
         self.margins.validate()
         if self.resolution is not None:
             self.resolution.validate()
+        if self.accuracy is not None:
+            self.accuracy.validate()
         return self
 
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .requirements import DesignRequirements
+from .requirements import ACCURACY_FLOOR_SHARE, DesignRequirements
 from .variables import reference_design
 
 #: Sample rate of the motions, Hz: 100 samples a second resolve the torque peaks of the library's
@@ -49,6 +49,9 @@ class TaskSamples:
             no-load speed (1 - the requirements' margins).
         resolution: (2,) the largest pose error the encoders may leave, [m, rad]
             (:class:`~stewart_drake.design.requirements.Resolution`); inf: not judged.
+        floor: (2,) the largest the encoders' floor may be, RMS per axis [m, rad]: the
+            required accuracy times its share
+            (:class:`~stewart_drake.design.requirements.Accuracy`); inf: not judged.
     """
 
     labels: tuple
@@ -61,6 +64,7 @@ class TaskSamples:
     torque_share: float
     speed_share: float
     resolution: tuple = (float("inf"), float("inf"))
+    floor: tuple = (float("inf"), float("inf"))
 
     @property
     def clearance_x(self) -> np.ndarray:
@@ -76,6 +80,7 @@ class TaskSamples:
             json.dumps(
                 [self.labels, self.payload_kg, self.torque_share, self.speed_share]
                 + [str(v) for v in self.resolution]
+                + [str(v) for v in self.floor]
             ).encode()
         )
         return h.hexdigest()[:16]
@@ -97,6 +102,7 @@ class TaskSamples:
                 "workspace_x": self.workspace_x,
                 "scalars": np.array([self.payload_kg, self.torque_share, self.speed_share]),
                 "resolution": np.array(self.resolution, dtype=float),
+                "floor": np.array(self.floor, dtype=float),
             },
         )
 
@@ -112,7 +118,7 @@ class TaskSamples:
         from ..base.npz import CheckedNpz
 
         f = CheckedNpz(path, "design task samples (.npz)", "run the design search again")
-        scalars, resolution = f.array("scalars"), f.array("resolution")
+        scalars, resolution, floor = f.array("scalars"), f.array("resolution"), f.array("floor")
         if scalars.shape != (3,):
             raise f.corrupt(f"the entry 'scalars' must hold 3 numbers, has {scalars.shape}")
         payload, torque_share, speed_share = (float(v) for v in scalars)
@@ -127,6 +133,7 @@ class TaskSamples:
             torque_share,
             speed_share,
             tuple(float(v) for v in resolution.ravel()),
+            tuple(float(v) for v in floor.ravel()),
         )
 
 
@@ -195,6 +202,12 @@ def task_samples(requirements: DesignRequirements) -> TaskSamples:
         (float("inf"), float("inf"))
         if requirements.resolution is None
         else (requirements.resolution.translation_m, requirements.resolution.rotation_rad),
+        (float("inf"), float("inf"))
+        if requirements.accuracy is None
+        else (
+            ACCURACY_FLOOR_SHARE * requirements.accuracy.translation_m,
+            ACCURACY_FLOOR_SHARE * requirements.accuracy.rotation_rad,
+        ),
     )
 
 

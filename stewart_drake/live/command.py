@@ -286,7 +286,7 @@ def _cmd_robot(args) -> int:
         if surrogate is not None and scenario.bus.surrogate is None:
             from ..station.bus.servos import SurrogateServoConfig
 
-            scenario.bus.surrogate = SurrogateServoConfig()
+            scenario.bus.surrogate = SurrogateServoConfig.beside(scenario.bus.model)
         _check_emulated_pose(scenario, args.emulate)
     if surrogate is not None:
         scenario.validate()

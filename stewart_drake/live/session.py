@@ -494,7 +494,6 @@ def _keep_logs(
 def _judge(driver, homed, t, carriage):
     """The relative latency of the run's periods after the homing lead-in, from the
     encoders, held to one control period."""
-    from ..station.bus.protocol import COUNTS_PER_REV
     from .encoder_relative_latency import relative_latency
 
     x_c = homed.evaluate(t)[0]
@@ -510,7 +509,7 @@ def _judge(driver, homed, t, carriage):
         t_from=homed.home_s,
         s_count_m=driver.surrogate.config.metres_per_count,
         # A crank's count moves the platform by about its crank's length times the count.
-        x_count_m=0.01 * 2 * np.pi / COUNTS_PER_REV,
+        x_count_m=0.01 * driver.quantum_rad,
     )
 
 

@@ -14,6 +14,14 @@ rotor inertia is that of a coreless motor of the size the case holds (maxon's ca
 dry friction 5 % of the stall torque and the viscous friction as much again at the no-load speed,
 the current loop 1 ms (the firmware's control cycle is not published; docs/motor_catalogue.md).
 
+DYNAMIXEL-P servos (ROBOTIS e-Manual, at 24 V): continuous torque and current, no-load speed,
+gear ratio and resolution as the specification table gives them; the encoder counts its
+motor's turns (2048 or 2000 a motor turn times the gear ratio: 526,374 to 1,003,846 counts an
+output turn), so the gear's play (< 0.1 deg, the table) is on the crank's side of it. Not
+published: the stall torque (the performance graph's largest, estimated here as twice the
+continuous torque), the rotor's inertia (the case's coreless or BLDC maxon motor) and the
+friction (5 % of the peak, as the X series'); docs/motor_catalogue.md.
+
 The maxon entry is the reference robot's servo, :class:`~.servo.ServoModel`'s defaults exactly.
 """
 
@@ -33,6 +41,8 @@ DYNAMIXEL_CURRENT_TIME_CONSTANT_S = 1e-3
 DYNAMIXEL_CONTINUOUS_FRACTION = 0.2
 #: One g cm^2 in kg m^2.
 G_CM2 = 1e-7
+#: DYNAMIXEL-P's peak torque as a multiple of its continuous torque: not published (estimate).
+DYNAMIXEL_P_PEAK_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
@@ -57,35 +67,61 @@ class CatalogueMotor:
     price_usd: float
 
 
-def _dynamixel(
+def _robotis(
+    label: str,
     name: str,
-    stall_torque_Nm: float,
+    peak_torque_Nm: float,
+    continuous_torque_Nm: float,
     no_load_rpm: float,
     gear_ratio: float,
+    counts_per_rev: int,
     rotor_inertia_g_cm2: float,
     mass_g: float,
     price_usd: float,
 ) -> CatalogueMotor:
-    """A Dynamixel X servo from its datasheet figures at 12 V (derivations: module docstring)."""
+    """A ROBOTIS servo (``label``: its family and voltage) from its figures: the dry friction
+    :data:`DYNAMIXEL_COULOMB_FRACTION` of the peak torque and the viscous as much again at the
+    no-load speed, the current loop :data:`DYNAMIXEL_CURRENT_TIME_CONSTANT_S` (estimates: the
+    module docstring)."""
     no_load = no_load_rpm * 2 * math.pi / 60
-    coulomb = DYNAMIXEL_COULOMB_FRACTION * stall_torque_Nm
+    coulomb = DYNAMIXEL_COULOMB_FRACTION * peak_torque_Nm
     return CatalogueMotor(
         name=name,
         servo=ServoModel(
-            name=f"ROBOTIS Dynamixel {name} (12 V)",
+            name=f"ROBOTIS {label}",
             gear_ratio=gear_ratio,
             rotor_inertia=rotor_inertia_g_cm2 * G_CM2,
-            peak_torque_Nm=stall_torque_Nm,
+            peak_torque_Nm=peak_torque_Nm,
             current_time_constant_s=DYNAMIXEL_CURRENT_TIME_CONSTANT_S,
             viscous_damping=coulomb / no_load,
             coulomb_friction_Nm=coulomb,
             no_load_speed_rad_s=no_load,
         ),
-        continuous_torque_Nm=DYNAMIXEL_CONTINUOUS_FRACTION * stall_torque_Nm,
-        encoder_counts_per_rev=4096,
+        continuous_torque_Nm=continuous_torque_Nm,
+        encoder_counts_per_rev=counts_per_rev,
         mass_kg=mass_g * 1e-3,
         price_usd=price_usd,
     )
+
+
+def _dynamixel(name, stall_torque_Nm, no_load_rpm, gear_ratio, rotor_g_cm2, mass_g, price_usd):
+    """A Dynamixel X servo from its datasheet figures at 12 V: its stall torque the peak, a
+    fifth of it continuous, 4096 counts a turn (derivations: module docstring)."""
+    continuous = DYNAMIXEL_CONTINUOUS_FRACTION * stall_torque_Nm
+    return _robotis(
+        f"Dynamixel {name} (12 V)", name, stall_torque_Nm, continuous, no_load_rpm, gear_ratio,
+        4096, rotor_g_cm2, mass_g, price_usd,
+    )  # fmt: skip
+
+
+def _dynamixel_p(name, continuous_Nm, no_load_rpm, gear_ratio, counts, rotor_g_cm2, mass_g, usd):
+    """A DYNAMIXEL-P servo from its datasheet figures at 24 V: its peak torque
+    :data:`DYNAMIXEL_P_PEAK_FACTOR` times the continuous (module docstring)."""
+    peak = DYNAMIXEL_P_PEAK_FACTOR * continuous_Nm
+    return _robotis(
+        f"DYNAMIXEL-P {name} (24 V)", name, peak, continuous_Nm, no_load_rpm, gear_ratio,
+        counts, rotor_g_cm2, mass_g, usd,
+    )  # fmt: skip
 
 
 _EC45 = EC45_FLAT_50W_24V
@@ -111,6 +147,9 @@ MOTOR_CATALOGUE: dict[str, CatalogueMotor] = {
             mass_kg=0.110 + 0.260,
             price_usd=600.0,
         ),
+        _dynamixel_p("PM42-010-S260-R", 1.7, 28.0, 257.019, 526_374, 2.0, 270.0, 1400.0),
+        _dynamixel_p("PH42-020-S300-R", 5.1, 32.7, 303.75, 607_500, 3.0, 340.0, 1900.0),
+        _dynamixel_p("PH54-100-S500-R", 25.3, 33.3, 501.923, 1_003_846, 24.0, 740.0, 2900.0),
     )
 }
 

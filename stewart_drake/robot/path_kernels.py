@@ -437,6 +437,46 @@ def effort(x, x_dot, x_ddot, theta, legs, body, T, status):
     return bad
 
 
+@_njit
+def joint_inertia(legs, body, x, M_theta, J_inv):
+    """The chain's joint-space inertia M_theta = J^-T M_x J^-1 (6, 6) kg m^2 at pose x (6,) and
+    J^-1 (6, 6), in place (:func:`~.statics.crank_inertia_matrix`'s quantity, the task inertia
+    of :func:`_inertia`): for a controller that re-schedules its gains every few periods.
+    Returns False where a leg cannot close or J is singular (the outputs then undefined)."""
+    R, E = np.empty((3, 3)), np.empty((3, 3))
+    r, q = np.empty((6, 3)), np.empty((6, 3))
+    theta, c, s = np.empty(6), np.empty(6), np.empty(6)
+    ik_angles(legs, x, R, E, r, q, theta)
+    for i in range(6):
+        if not math.isfinite(theta[i]):
+            return False
+        c[i], s[i] = math.cos(theta[i]), math.sin(theta[i])
+    ell, e_N, G, J = np.empty((6, 3)), np.empty((6, 3)), np.empty((6, 3, 3)), np.empty((6, 6))
+    _leg_terms(legs, c, s, E, r, q, ell, e_N, G, J)
+    Mx, K, B, P = np.empty((6, 6)), np.empty((3, 3)), np.empty((6, 6)), np.empty((6, 6))
+    _inertia(body, legs, R, E, ell, e_N, G, J, Mx, K, B, P)
+    A, col = np.empty((6, 6)), np.empty(6)
+    for k in range(6):  # J^-1 column by column
+        for i in range(6):
+            col[i] = 1.0 if i == k else 0.0
+            for j in range(6):
+                A[i, j] = J[i, j]
+        if not lu_solve6(A, col):
+            return False
+        for i in range(6):
+            J_inv[i, k] = col[i]
+    for i in range(6):  # M_theta = J_inv^T Mx J_inv
+        for k in range(6):
+            acc = 0.0
+            for a in range(6):
+                row = 0.0
+                for b in range(6):
+                    row += Mx[a, b] * J_inv[b, k]
+                acc += J_inv[a, i] * row
+            M_theta[i, k] = acc
+    return True
+
+
 # -- forward kinematics by Newton (one reading of the encoders) ------------------------------------
 
 

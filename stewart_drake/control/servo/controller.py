@@ -11,12 +11,14 @@ import numpy as np
 from pydrake.systems.framework import LeafSystem
 
 from ...base.checks import as_number
-from ...base.errors import InvalidConfigError, UnreachablePoseError
-from ...robot import kinematics, statics
+from ...base.errors import InvalidConfigError
+from ...robot import kinematics, path_kernels, statics
 from ...robot.geometry import X_HOME, StewartGeometry
 from ...robot.single_pose import leg_constants
 from .design import CrankLoop, design_loop
 
+#: The friction fit's memory, s: longer than a breath's half (a fit needs both senses of motion).
+FRICTION_MEMORY_S = 4.0
 #: What the ``status`` output holds, in order.
 SERVO_STATUS_NAMES = (
     "saturated_steps",
@@ -86,7 +88,7 @@ class CrankServoController(LeafSystem):
         friction_Nm=None,
         viscous: float = 0.0,
         friction_rate_rad_s: float = 2e-3,
-        friction_adaptation_s: float = 0.5,
+        friction_adaptation_s: float = 2.0,
         friction_max_Nm: float = 1.0,
         friction_direction_hz: float | None = None,
         disturbance_feedback: float = 0.0,
@@ -128,11 +130,15 @@ class CrankServoController(LeafSystem):
             else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True)
         )
         c[k.DELAY] = d
+        c[k.MEMORY] = math.exp(-h / max(FRICTION_MEMORY_S, h))
         c[k.DOB] = as_number("disturbance_feedback", disturbance_feedback, 0.0, 1.0)
         c.setflags(write=False)
         self._c = c
         self._legs = np.array(leg_constants(geometry))
         self._legs.setflags(write=False)
+        #: The robot's constants as :func:`~stewart_drake.robot.path_kernels.joint_inertia`
+        #: reads them (the inertia's re-schedule, compiled).
+        self._inertia_constants = statics.kernel_constants(geometry)
         self._gains = tuple(np.ascontiguousarray(a) for a in (loop.K, loop.L, loop.Phi, loop.Gamma))
         self.steps_per_schedule = max(
             1, int(round(as_number("schedule_period_s", schedule_period_s, 0.0, lo_open=True) / h))
@@ -214,11 +220,12 @@ class CrankServoController(LeafSystem):
         inertia[:] = context.get_discrete_state(self._inertia_state).value()
         steps = int(state[self._parts["status"]][0])
         if steps % self.steps_per_schedule == 0 and steps > 0:
-            try:
-                inertia[:72] = self._inertia(x_d[:6])
+            M, J_inv = np.empty((6, 6)), np.empty((6, 6))
+            legs, body = self._inertia_constants
+            if path_kernels.joint_inertia(legs, body, x_d[:6], M, J_inv):
+                inertia[:36], inertia[36:72] = M.ravel(), J_inv.ravel()
                 inertia[72] += 1.0
-            except UnreachablePoseError:  # keep the last; the step counts the failure
-                pass
+            # else: the last kept; the step counts the reference's failure
         K, L, Phi, Gam = self._gains
         self._step(
             self._c,

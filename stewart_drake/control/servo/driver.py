@@ -53,7 +53,7 @@ class CrankServoDriver(ControllerDriver):
     integral_ratio: float = 3.0
     friction_scale: float = 1.0
     friction_rate_rad_s: float = 2e-3
-    friction_adaptation_s: float = 0.5
+    friction_adaptation_s: float = 2.0
     disturbance_feedback: float = 0.0
     schedule_period_s: float = 0.1
     friction_direction_hz: float = 3.0

@@ -17,10 +17,11 @@ What one period does (the design: :mod:`.design`; the controller: :mod:`.control
    (the reference's rate, or near rest the way the crank must go), + the viscous friction + the
    feedback's torque; clipped to the motors' limit;
 5. integral (stopped while a crank's torque is clipped: anti-windup), the friction estimate's
-   adaptation (while the reference moves the crank, F_i moves by h / tau_F times the feedback
-   torque in the sense of motion: feedback that keeps pushing along the motion means too little
-   friction believed), the estimator's prediction with the command that acts over the next
-   period, and the pending commands shifted.
+   adaptation (while the reference moves the crank, F_i moves by h / tau_F times the friction
+   the feed-forward misses, :func:`friction_error`: the part of the feedback torque that flips
+   with the motion's sense, fitted apart from a steady one, which a payload's weight is), the
+   estimator's prediction with the command that acts over the next period, and the pending
+   commands shifted.
 
 Loops over the (6,)-sized arrays, where a numpy call would cost more than its arithmetic.
 Compiled on first import (or loaded from numba's disk cache), so that no control period pays
@@ -53,6 +54,7 @@ CONSTANTS = (
     "limit",  # the motors' torque limit, N m (inf: none)
     "delay",  # d, pending commands
     "dob",  # weight of the estimated disturbance in the command (0: integral action only)
+    "memory",  # the friction regression's forgetting factor a period, exp(-h / tau_m)
 )
 (
     H,
@@ -67,6 +69,7 @@ CONSTANTS = (
     LIMIT,
     DELAY,
     DOB,
+    MEMORY,
 ) = range(len(CONSTANTS))
 
 #: The state vector's parts, (start, size) for a delay d (:func:`layout`): the predicted
@@ -83,6 +86,7 @@ def layout(d: int) -> dict:
         ("z", 6),
         ("pending", 6 * d),
         ("friction", 6),
+        ("friction_sums", 24),
         ("T", 6),
         ("e_bar", 6),
         ("status", len(STATUS)),
@@ -97,7 +101,7 @@ def layout(d: int) -> dict:
 
 #: :func:`~stewart_drake.robot.path_kernels.source_digest` of the source these kernels compile
 #: in, as their numba cache was written (a test holds it current).
-PATH_KERNELS_DIGEST = "8f5e4095bbae1786"
+PATH_KERNELS_DIGEST = "3d946829dba818d4"
 #: numba, numpy's error model, cached while :data:`PATH_KERNELS_DIGEST` holds.
 _njit = path_kernels.compiled_against(PATH_KERNELS_DIGEST)
 
@@ -130,6 +134,26 @@ def crank_reference(legs, x_d, ahead, theta, omega):
 
 
 @_njit
+def friction_error(state, k, memory, tau_fb, omega):
+    """The friction the feed-forward misses at one crank, N m: the least-squares fit
+    tau_fb = dF sign(omega) + b over the moving periods, exponentially forgotten (``memory`` a
+    period), so that a steady torque b (a payload the feed-forward misses, which the integral
+    carries) is not taken for friction; the four running sums in ``state[k : k + 4]`` (n, sum
+    of signs, sum of torques, sum of torque x sign), updated here. Returns dF (0 until both
+    senses of motion are in the fit)."""
+    s = 1.0 if omega > 0.0 else -1.0
+    state[k] = memory * state[k] + 1.0
+    state[k + 1] = memory * state[k + 1] + s
+    state[k + 2] = memory * state[k + 2] + tau_fb
+    state[k + 3] = memory * state[k + 3] + tau_fb * s
+    n, ss = state[k], state[k + 1]
+    det = n * n - ss * ss
+    if det <= 0.01 * n * n:  # (nearly) one sense only: the sign and the offset not apart
+        return 0.0
+    return (n * state[k + 3] - ss * state[k + 2]) / det
+
+
+@_njit
 def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
     """One control period (module docstring) over the controller's ``state`` (its layout:
     :func:`layout`), in place: the torque command is ``state``'s "T" part.
@@ -148,7 +172,8 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
     h = c[H]
     i_z, i_p = 18, 24
     i_f = i_p + 6 * d
-    i_t = i_f + 6
+    i_r = i_f + 6
+    i_t = i_r + 24
     i_e = i_t + 6
     i_s = i_e + 6
     th0, w0 = np.empty(6), np.empty(6)
@@ -194,7 +219,7 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
         if not clipped:
             state[i_z + i] += h * e_th
         if c[ADAPT] > 0.0 and abs(wl[i]) > c[ADAPT_MIN_RATE]:
-            F += c[ADAPT] * h * tau_fb * (1.0 if wl[i] > 0.0 else -1.0)
+            F += c[ADAPT] * h * friction_error(state, i_r + 4 * i, c[MEMORY], tau_fb, wl[i])
             state[i_f + i] = min(max(F, c[FRICTION_MIN]), c[FRICTION_MAX])
         # the estimator's prediction with the command that acts over the next period
         act = acc[i] if d == 0 else state[i_p + d * i]

@@ -58,10 +58,6 @@ def dynamixel_sdk():
     return sdk
 
 
-#: One encoder count, rad (:func:`~.protocol.counts_to_rad`'s factor).
-_RAD_PER_COUNT = 2 * np.pi / p.COUNTS_PER_REV
-
-
 def _port_handler(sdk, port: str, reply_timeout_s: float | None):
     """The SDK's PortHandler on ``port``, with two changes.
 
@@ -125,7 +121,8 @@ class DynamixelBus:
         temperature_limit_C: the servos' Temperature Limit, deg C (<= 80, the e-Manual's
             operating maximum).
         position_limits_counts: (min, max) counts written to Min/Max Position Limit (the
-            servo applies them in Position Control Mode only; docs/hardware_bus.md).
+            servo applies them in Position Control Mode only; docs/hardware_bus.md); default
+            the model's whole range.
         watchdog_s: the servos' bus watchdog, s: a multiple of 20 ms in 0.02..2.54.
         reply_timeout_s: the least wait for a status packet, s; None: the SDK's (about 34 ms,
             for a USB adapter's 16 ms latency timer). A missed reply is a BusError.
@@ -149,7 +146,7 @@ class DynamixelBus:
         directions=None,
         current_limit_A: float | None = None,
         temperature_limit_C: int = 70,
-        position_limits_counts: tuple[int, int] = (0, 4095),
+        position_limits_counts: tuple[int, int] | None = None,
         watchdog_s: float = 0.1,
         reply_timeout_s: float | None = None,
         timing_window: int = 100_000,
@@ -168,6 +165,8 @@ class DynamixelBus:
             reply_timeout_s,
         )
         self.spec = settings.spec
+        #: The cranks' control table (the surrogate's servo must keep its items there too).
+        self.table = table = self.spec.table
         ids, zero, sign = settings.ids, settings.zero_counts, settings.directions
         limit_units, watchdog_units = settings.current_limit_units, settings.watchdog_units
         lo, hi = settings.position_limits_counts
@@ -176,12 +175,12 @@ class DynamixelBus:
         self.zero_counts, self.directions = zero, sign
         self.current_limit_units = int(limit_units)
         self.settings = {  # written in this order with the torque off, then read back
-            "Operating Mode": (p.OPERATING_MODE, p.CURRENT_CONTROL_MODE),
-            "Current Limit": (p.CURRENT_LIMIT, self.current_limit_units),
-            "Temperature Limit": (p.TEMPERATURE_LIMIT, int(temperature_limit_C)),
-            "Min Position Limit": (p.MIN_POSITION_LIMIT, lo),
-            "Max Position Limit": (p.MAX_POSITION_LIMIT, hi),
-            "Bus Watchdog": (p.BUS_WATCHDOG, watchdog_units),
+            "Operating Mode": (table.operating_mode, p.CURRENT_CONTROL_MODE),
+            "Current Limit": (table.current_limit, self.current_limit_units),
+            "Temperature Limit": (table.temperature_limit, int(temperature_limit_C)),
+            "Min Position Limit": (table.min_position_limit, lo),
+            "Max Position Limit": (table.max_position_limit, hi),
+            "Bus Watchdog": (table.bus_watchdog, watchdog_units),
         }
         #: The surrogate's servo (None: none), its model and its settings: the cranks', with
         #: its own Current Limit.
@@ -193,6 +192,12 @@ class DynamixelBus:
         if surrogate is not None:
             surrogate.validate(ids, None, prefix="surrogate.")
             s_spec = servo_spec(surrogate.model)
+            if s_spec.table != table:
+                raise InvalidConfigError(
+                    f"surrogate.stage.motor {s_spec.name} keeps its items at other addresses "
+                    f"than the cranks' {self.spec.name}: one sync read and write serve every "
+                    f"servo of the bus; give the stage a servo of the {table.family} series"
+                )
             s_units = s_spec.current_limit_max
             if surrogate.current_limit_A is not None:
                 s_units = min(s_units, int(surrogate.current_limit_A / s_spec.amps_per_unit))
@@ -200,10 +205,10 @@ class DynamixelBus:
             self.all_ids.append(int(surrogate.id))
             self._specs[int(surrogate.id)] = s_spec
             self._settings_of[int(surrogate.id)] = self.settings | {
-                "Current Limit": (p.CURRENT_LIMIT, self.surrogate_limit_units),
+                "Current Limit": (table.current_limit, self.surrogate_limit_units),
                 # Multi-turn in Current Control Mode: the limits do not apply; the factory's.
-                "Min Position Limit": (p.MIN_POSITION_LIMIT, 0),
-                "Max Position Limit": (p.MAX_POSITION_LIMIT, 4095),
+                "Min Position Limit": (table.min_position_limit, s_spec.position_range[0]),
+                "Max Position Limit": (table.max_position_limit, s_spec.position_range[1]),
             }
         self.read_times: collections.deque = collections.deque(maxlen=timing_window)
         self.write_times: collections.deque = collections.deque(maxlen=timing_window)
@@ -285,13 +290,13 @@ class DynamixelBus:
 
         self._kernels = kernels
         n = len(self.all_ids)  # the cranks, then the surrogate's servo
-        address, size = p.STATE_BLOCK
+        address, size = self.table.state_block
         self._request = p.build_packet(
             p.BROADCAST_ID,
             p.SYNC_READ,
             address.to_bytes(2, "little") + size.to_bytes(2, "little") + bytes(self.all_ids),
         )
-        goal, goal_size = p.GOAL_CURRENT
+        goal, goal_size = self.table.goal_current
         params = goal.to_bytes(2, "little") + goal_size.to_bytes(2, "little")
         params += b"".join(bytes([i, 0, 0]) for i in self.all_ids)
         self._sync_write = np.frombuffer(
@@ -341,12 +346,13 @@ class DynamixelBus:
         if not self.torque_off_confirmed:
             self._fail("torque off before configuring")
         for i in self.all_ids:
-            if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED:
-                self._write(i, p.BUS_WATCHDOG, 0)  # clears a trip left by a previous run
+            table = self.table
+            if self._read(i, table.bus_watchdog) == p.WATCHDOG_TRIPPED:
+                self._write(i, table.bus_watchdog, 0)  # clears a trip left by a previous run
             for item, value in self._settings_of[i].values():
                 self._write(i, item, value)
             # A Goal Current left by an earlier run would drive the servo at Torque Enable.
-            self._write(i, p.GOAL_CURRENT, 0)
+            self._write(i, table.goal_current, 0)
         self.verify_configuration()
 
     def verify_configuration(self) -> None:
@@ -354,6 +360,8 @@ class DynamixelBus:
         for i in self.all_ids:
             for name, (item, value) in self._settings_of[i].items():
                 read = self._read(i, item)
+                if item[1] == 4:  # the Position Limits are signed (the P series' about 0)
+                    read = p.to_signed(read, 4)
                 if read != value:
                     self.torque_off()
                     raise ServoConfigMismatchError(i, name, value, read)
@@ -365,8 +373,8 @@ class DynamixelBus:
             BusError: a servo refuses (after a torque off).
         """
         for i in self.all_ids:
-            self._write(i, p.TORQUE_ENABLE, 1)
-            if self._read(i, p.TORQUE_ENABLE) != 1:
+            self._write(i, self.table.torque_enable, 1)
+            if self._read(i, self.table.torque_enable) != 1:
                 self._fail(f"servo id {i} did not enable its torque")
 
     def torque_off(self) -> bool:
@@ -388,9 +396,10 @@ class DynamixelBus:
         sdk, ok = self._sdk, True
         self._port.is_using = False  # a failed transfer may leave the SDK's flag set
         try:
-            self._packets.write1ByteTxOnly(self._port, p.BROADCAST_ID, p.TORQUE_ENABLE[0], 0)
+            enable = self.table.torque_enable[0]
+            self._packets.write1ByteTxOnly(self._port, p.BROADCAST_ID, enable, 0)
             for i in self.all_ids:
-                result, error = self._packets.write1ByteTxRx(self._port, i, p.TORQUE_ENABLE[0], 0)
+                result, error = self._packets.write1ByteTxRx(self._port, i, enable, 0)
                 ok &= result == sdk.COMM_SUCCESS and not error & 0x7F
         except Exception:  # the port itself failed: nothing more can be sent
             ok = False
@@ -407,7 +416,7 @@ class DynamixelBus:
         Raises:
             BusError: a servo does not answer (torque off first).
         """
-        status = {i: self._read(i, p.HARDWARE_ERROR_STATUS) for i in self.all_ids}
+        status = {i: self._read(i, self.table.hardware_error_status) for i in self.all_ids}
         return {i: bits for i, bits in status.items() if bits}
 
     def watchdog_tripped(self) -> list[int]:
@@ -418,12 +427,14 @@ class DynamixelBus:
         Raises:
             BusError: a servo does not answer (torque off first).
         """
-        return [i for i in self.all_ids if self._read(i, p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED]
+        watchdog = self.table.bus_watchdog
+        return [i for i in self.all_ids if self._read(i, watchdog) == p.WATCHDOG_TRIPPED]
 
     # --- the control period ------------------------------------------------------------------
 
     def read_state(self) -> BusState:
-        """One sync read of Present Current, Velocity and Position (126..135).
+        """One sync read of Present Current, Velocity and Position (126..135 on the X series,
+        574..583 on the P series).
 
         Raises:
             BusError: a servo does not answer (no status packet within the reply timeout), a
@@ -469,8 +480,8 @@ class DynamixelBus:
             self._raw[:n],
             self._zero_f,
             self._sign_f,
-            _RAD_PER_COUNT,
-            p.VELOCITY_UNIT_RAD_S,
+            spec.rad_per_count,
+            spec.velocity_unit_rad_s,
             spec.torque_constant_Nm_per_A,
             spec.amps_per_unit,
             state,
@@ -488,7 +499,7 @@ class DynamixelBus:
             t_mid,
             t1 - t0,
             s=float(config.counts_to_m(counts)),
-            s_dot=float(velocity * p.VELOCITY_UNIT_RAD_S * config.metres_per_rad * sign),
+            s_dot=float(velocity * s_spec.velocity_unit_rad_s * config.metres_per_rad * sign),
             s_tau=float(current * s_spec.amps_per_unit * s_spec.torque_constant_Nm_per_A * sign),
         )
 

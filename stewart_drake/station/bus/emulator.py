@@ -37,10 +37,8 @@ from ...robot.motor_catalogue import catalogue_motor
 from . import protocol as p
 from .servos import ServoSpec, servo_spec
 
-#: Control table size: addresses 0..146 (Present Temperature is the last one used).
-TABLE_SIZE = 147
-_READ_ONLY = {range(0, 7), range(70, 71), range(120, TABLE_SIZE)}
-_GOALS = (100, 120)  # Goal PWM .. Goal Position: read-only after a watchdog trip
+#: The X series' control table size: addresses 0..146 (Present Temperature is the last used).
+TABLE_SIZE = p.X_SERIES.size
 
 
 class ServoBackend(abc.ABC):
@@ -183,15 +181,18 @@ class _Servo:
 
     def __init__(self, servo_id: int, spec: ServoSpec, ambient_C: float):
         self.id, self.spec = servo_id, spec
-        self.table = bytearray(TABLE_SIZE)
+        #: The family's addresses (:class:`~.protocol.ControlTable`).
+        self.items = t = spec.table
+        self.table = bytearray(t.size)
         self.put(p.MODEL_NUMBER, spec.model_number)
         self.put(p.FIRMWARE_VERSION, 48)
         self.put(p.ID, servo_id)
-        self.put(p.OPERATING_MODE, 3)  # factory: Position Control Mode
-        self.put(p.TEMPERATURE_LIMIT, 80)
-        self.put(p.CURRENT_LIMIT, spec.current_limit_max)
-        self.put(p.MAX_POSITION_LIMIT, 4095)
-        self.put(p.PRESENT_TEMPERATURE, int(ambient_C))
+        self.put(t.operating_mode, 3)  # factory: Position Control Mode
+        self.put(t.temperature_limit, 80)
+        self.put(t.current_limit, spec.current_limit_max)
+        self.put(t.min_position_limit, spec.position_range[0])
+        self.put(t.max_position_limit, spec.position_range[1])
+        self.put(t.present_temperature, int(ambient_C))
         self.last_instruction = time.perf_counter()
 
     def get(self, item) -> int:
@@ -204,40 +205,46 @@ class _Servo:
 
     @property
     def watchdog_tripped(self) -> bool:
-        return self.get(p.BUS_WATCHDOG) == p.WATCHDOG_TRIPPED
+        return self.get(self.items.bus_watchdog) == p.WATCHDOG_TRIPPED
 
     def current_A(self) -> float:
         """What the servo drives: the Goal Current in Current Control Mode with the torque on,
         no watchdog trip and no hardware error; zero otherwise."""
+        t = self.items
         if (
-            self.get(p.TORQUE_ENABLE) != 1
+            self.get(t.torque_enable) != 1
             or self.watchdog_tripped
-            or self.get(p.HARDWARE_ERROR_STATUS)
-            or self.get(p.OPERATING_MODE) != p.CURRENT_CONTROL_MODE
+            or self.get(t.hardware_error_status)
+            or self.get(t.operating_mode) != p.CURRENT_CONTROL_MODE
             or self.spec.current_unit_A is None
         ):
             return 0.0
-        return p.to_signed(self.get(p.GOAL_CURRENT), 2) * self.spec.current_unit_A
+        return p.to_signed(self.get(t.goal_current), 2) * self.spec.current_unit_A
 
     def write(self, address: int, data: bytes) -> int:
         """Write ``data`` at ``address``: the status error (0 if written)."""
+        t = self.items
         end = address + len(data)
-        if end > TABLE_SIZE or not data:
+        if end > t.size or not data:
             return p.ERR_DATA_RANGE
-        if any(address < r.stop and end > r.start for r in _READ_ONLY):
+        if any(address < stop and end > start for start, stop in t.read_only):
             return p.ERR_ACCESS
-        if address < p.EEPROM_END and self.get(p.TORQUE_ENABLE):
+        if address < t.eeprom_end and self.get(t.torque_enable):
             return p.ERR_ACCESS
-        if self.watchdog_tripped and address < _GOALS[1] and end > _GOALS[0]:
+        if self.watchdog_tripped and address < t.goals[1] and end > t.goals[0]:
             return p.ERR_DATA_RANGE
         staged = bytearray(self.table)
         staged[address:end] = data
-        if address <= p.GOAL_CURRENT[0] < end:
-            goal = p.to_signed(int.from_bytes(staged[102:104], "little"), 2)
-            if abs(goal) > self.get(p.CURRENT_LIMIT):
+        goal_at, limit_at = t.goal_current[0], t.current_limit[0]
+        if address <= goal_at < end:
+            goal = p.to_signed(int.from_bytes(staged[goal_at : goal_at + 2], "little"), 2)
+            if abs(goal) > self.get(t.current_limit):
                 return p.ERR_DATA_LIMIT
-        if address <= p.CURRENT_LIMIT[0] < end:
-            if int.from_bytes(staged[38:40], "little") > self.spec.current_limit_max:
+        if address <= limit_at < end:
+            if (
+                int.from_bytes(staged[limit_at : limit_at + 2], "little")
+                > self.spec.current_limit_max
+            ):
                 return p.ERR_DATA_LIMIT
         self.table[:] = staged
         return 0
@@ -248,13 +255,15 @@ class BusEmulator:
 
     Use as a context manager, or :meth:`start` and :meth:`close`. ``port`` is the path the
     driver opens. The backend's servo ``k`` is ``ids[k]``; positions are reported as
-    ``zero_counts[k] + q_k * 4096 / 2 pi`` (the horn's count at angle 0).
+    ``zero_counts[k] + q_k * counts_per_rev / 2 pi`` (the horn's count at angle 0; the model's
+    counts a turn, 4096 on the X series).
 
     Args:
         ids: servo ids (distinct, 0..252).  model: a
             :data:`~stewart_drake.station.bus.servos.SERVO_SPECS` key.
         backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
-        zero_counts: (n,) counts at the backend's angle 0; default 2048 (mid-turn).
+        zero_counts: (n,) counts at the backend's angle 0; default the model's mid-range (2048
+            on the X series, 0 on the P series).
         tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
         max_step_s: the longest step of the model in one advance, s: a model (or a starved
             thread) slower than real time drops the rest (``slipped_s``) instead of
@@ -300,7 +309,7 @@ class BusEmulator:
                 f"the backend moves {len(self.backend.positions_rad())} servos, not {len(ids)}"
             )
         self.zero_counts = (
-            np.full(len(ids), 2048) if zero_counts is None else np.asarray(zero_counts)
+            np.full(len(ids), spec.zero_count) if zero_counts is None else np.asarray(zero_counts)
         )
         specs = {int(i): servo_spec(m, torque_control=False) for i, m in (models or {}).items()}
         self.servos = {i: _Servo(i, specs.get(i, spec), ambient_C) for i in ids}
@@ -375,8 +384,9 @@ class BusEmulator:
         clears it (not emulated: make a new emulator)."""
         with self._lock:
             servo = self.servos[servo_id]
-            servo.put(p.HARDWARE_ERROR_STATUS, servo.get(p.HARDWARE_ERROR_STATUS) | int(bits))
-            servo.put(p.TORQUE_ENABLE, 0)
+            t = servo.items
+            servo.put(t.hardware_error_status, servo.get(t.hardware_error_status) | int(bits))
+            servo.put(t.torque_enable, 0)
 
     def mute(self, muted: bool = True) -> None:
         """Stop (or resume) answering and executing: a cut cable. Packets are still logged in
@@ -474,7 +484,7 @@ class BusEmulator:
                 self._t = t_next
                 for t, servo in self._armed():  # re-read: an instruction may have come
                     if t <= t_next:
-                        servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
+                        servo.put(servo.items.bus_watchdog, p.WATCHDOG_TRIPPED)
                 self._update_present()
         if t_next < now:
             return 0.0
@@ -488,7 +498,7 @@ class BusEmulator:
             armed = self._armed()
             for t, servo in armed:
                 if t <= now:
-                    servo.put(p.BUS_WATCHDOG, p.WATCHDOG_TRIPPED)
+                    servo.put(servo.items.bus_watchdog, p.WATCHDOG_TRIPPED)
             t_trip = min((t for t, _ in armed if t > now), default=math.inf)
         return min(self.tick_s, max(0.0, t_trip - now))
 
@@ -507,24 +517,24 @@ class BusEmulator:
         return [
             (s.last_instruction + limit * p.WATCHDOG_UNIT_S, s)
             for s in self.servos.values()
-            if s.get(p.TORQUE_ENABLE) and 0 < (limit := s.get(p.BUS_WATCHDOG)) <= 127
+            if s.get(s.items.torque_enable) and 0 < (limit := s.get(s.items.bus_watchdog)) <= 127
         ]
 
     def _update_present(self) -> None:
         q, v = self.backend.positions_rad(), self.backend.velocities_rad_s()
-        counts = p.rad_to_counts(q, self.zero_counts)
-        vel = np.rint(v / p.VELOCITY_UNIT_RAD_S).astype(np.int64)
         for k, i in enumerate(self.ids):
             s = self.servos[i]
-            s.put(p.PRESENT_POSITION, int(counts[k]))
-            s.put(p.PRESENT_VELOCITY, int(vel[k]))
-            unit = s.spec.current_unit_A
-            s.put(p.PRESENT_CURRENT, round(s.current_A() / unit) if unit else 0)
+            spec, t = s.spec, s.items
+            counts = round(float(q[k]) / spec.rad_per_count + float(self.zero_counts[k]))
+            s.put(t.present_position, int(counts))
+            s.put(t.present_velocity, round(float(v[k]) / spec.velocity_unit_rad_s))
+            unit = spec.current_unit_A
+            s.put(t.present_current, round(s.current_A() / unit) if unit else 0)
 
     # --- the protocol ------------------------------------------------------------------------
 
     def _status(self, s: _Servo, error: int, params: bytes = b"") -> bytes:
-        alert = p.ALERT if s.get(p.HARDWARE_ERROR_STATUS) else 0
+        alert = p.ALERT if s.get(s.items.hardware_error_status) else 0
         return p.build_status(s.id, error | alert, params)
 
     def _answer(self, packet: p.Packet, crc_ok: bool) -> bytes:
@@ -561,7 +571,7 @@ class BusEmulator:
             if len(par) != 4:
                 return self._status(s, p.ERR_DATA_LENGTH)
             address, size = int.from_bytes(par[:2], "little"), int.from_bytes(par[2:], "little")
-            if address + size > TABLE_SIZE:
+            if address + size > s.items.size:
                 return self._status(s, p.ERR_DATA_RANGE)
             return self._status(s, 0, bytes(s.table[address : address + size]))
         if ins == p.WRITE:
@@ -575,7 +585,8 @@ class BusEmulator:
             for k in range(0, len(rows) - size, size + 1):
                 if rows[k] in targets:
                     self.servos[rows[k]].write(address, rows[k + 1 : k + 1 + size])
-            if self.command_step_s is not None and address == p.GOAL_CURRENT[0]:
+            goals = {s.items.goal_current[0] for s in self.servos.values()}
+            if self.command_step_s is not None and address in goals:
                 self._step_commanded()
             return b""
         if ins == p.SYNC_READ:
@@ -584,7 +595,7 @@ class BusEmulator:
             for i in par[4:]:
                 if i in targets:
                     s = self.servos[i]
-                    if address + size > TABLE_SIZE:
+                    if address + size > s.items.size:
                         out += self._status(s, p.ERR_DATA_RANGE)
                     else:
                         out += self._status(s, 0, bytes(s.table[address : address + size]))

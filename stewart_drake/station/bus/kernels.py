@@ -35,7 +35,7 @@ from ...robot.single_pose import LEG_SIZE
 #: :func:`~stewart_drake.robot.path_kernels.source_digest` of the source these kernels compile
 #: in, as their numba cache was written (a test holds it current: change that file, update this
 #: constant, which changes this file and so numba's stamp of it).
-PATH_KERNELS_DIGEST = "8f5e4095bbae1786"
+PATH_KERNELS_DIGEST = "3d946829dba818d4"
 #: numba, numpy's error model, cached while :data:`PATH_KERNELS_DIGEST` holds.
 _njit = path_kernels.compiled_against(PATH_KERNELS_DIGEST)
 

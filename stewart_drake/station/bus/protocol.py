@@ -20,6 +20,14 @@ position is multi-turn (a signed 32-bit count) and the Min/Max Position Limits a
 by the servo (they apply in Position Control Mode only): a crank's range is for our guard to
 keep; the limits are still written, so that a mode change cannot leave them at the factory's.
 
+The DYNAMIXEL-P series (PM42-010-S260-R, PH42-020-S300-R; e-Manual,
+<https://emanual.robotis.com/docs/en/dxl/p/pm42-010-s260-r/>, "Control Table") speaks the same
+protocol with another table (:data:`P_SERIES`): its EEPROM ends at 512, Torque Enable is at 512,
+Goal Current at 550 (1 mA), Present Current, Velocity and Position at 574, 576 and 580 (contiguous
+again, 10 bytes: 1 mA, 0.01 rpm and the encoder's pulses, hundreds of thousands a turn, signed about
+0), its Operating Mode 0 Current (Torque) Control Mode. A model's table, counts and units are its
+:class:`~.servos.ServoSpec`'s; the constants below are the X series' (:data:`X_SERIES`).
+
 The models' specs and torque <-> current (the servo's torque constant at the horn):
 :mod:`.servos`.
 """
@@ -92,27 +100,110 @@ HW_INPUT_VOLTAGE, HW_OVERHEATING, HW_ENCODER, HW_ELECTRICAL_SHOCK, HW_OVERLOAD =
 )
 
 
+@dataclass(frozen=True)
+class ControlTable:
+    """Where a family of servos keeps the items the bus uses: (address, size in bytes) each.
+
+    Attributes:
+        family: "X" or "P". eeprom_end: the first RAM address (EEPROM below it is writable
+            only with the torque off). goals: [start, end) of the Goal items, read-only after a
+            bus watchdog trip. read_only: [start, end) ranges no WRITE may touch. size: the
+            table's length the emulator keeps, bytes.
+    """
+
+    family: str
+    operating_mode: tuple[int, int]
+    temperature_limit: tuple[int, int]
+    current_limit: tuple[int, int]
+    max_position_limit: tuple[int, int]
+    min_position_limit: tuple[int, int]
+    torque_enable: tuple[int, int]
+    hardware_error_status: tuple[int, int]
+    bus_watchdog: tuple[int, int]
+    goal_current: tuple[int, int]
+    present_current: tuple[int, int]
+    present_velocity: tuple[int, int]
+    present_position: tuple[int, int]
+    present_temperature: tuple[int, int]
+    eeprom_end: int
+    goals: tuple[int, int]
+    read_only: tuple[tuple[int, int], ...]
+    size: int
+
+    @property
+    def state_block(self) -> tuple[int, int]:
+        """(address, 10): Present Current (2), Velocity (4) and Position (4), contiguous in
+        both families: one sync read a period."""
+        return (self.present_current[0], 10)
+
+
+#: The X series' table (the module constants above).
+X_SERIES = ControlTable(
+    family="X",
+    operating_mode=OPERATING_MODE,
+    temperature_limit=TEMPERATURE_LIMIT,
+    current_limit=CURRENT_LIMIT,
+    max_position_limit=MAX_POSITION_LIMIT,
+    min_position_limit=MIN_POSITION_LIMIT,
+    torque_enable=TORQUE_ENABLE,
+    hardware_error_status=HARDWARE_ERROR_STATUS,
+    bus_watchdog=BUS_WATCHDOG,
+    goal_current=GOAL_CURRENT,
+    present_current=PRESENT_CURRENT,
+    present_velocity=PRESENT_VELOCITY,
+    present_position=PRESENT_POSITION,
+    present_temperature=PRESENT_TEMPERATURE,
+    eeprom_end=EEPROM_END,
+    goals=(100, 120),  # Goal PWM .. Goal Position
+    read_only=((0, 7), (70, 71), (120, 147)),
+    size=147,
+)
+#: The DYNAMIXEL-P series' table (e-Manual, PM42-010-S260-R / PH42-020-S300-R "Control Table").
+P_SERIES = ControlTable(
+    family="P",
+    operating_mode=(11, 1),
+    temperature_limit=(31, 1),
+    current_limit=(38, 2),  # 1 mA
+    max_position_limit=(48, 4),  # pulses, signed
+    min_position_limit=(52, 4),
+    torque_enable=(512, 1),
+    hardware_error_status=(518, 1),
+    bus_watchdog=(546, 1),  # 20 ms units, as the X series'
+    goal_current=(550, 2),  # signed, 1 mA
+    present_current=(574, 2),  # signed, 1 mA
+    present_velocity=(576, 4),  # signed, 0.01 rpm
+    present_position=(580, 4),  # signed, pulses
+    present_temperature=(594, 1),
+    eeprom_end=512,
+    goals=(548, 568),  # Goal PWM .. Goal Position
+    read_only=((0, 7), (517, 519), (568, 600)),
+    size=608,
+)
+
+
 # --- conversions (one servo or arrays alike; ``direction`` is +1 or -1) ----------------------
 
 
-def counts_to_rad(counts, zero_counts=0, direction=1):
-    """Crank angle, rad, for a Present Position (counts) and the count at the crank's zero."""
+def counts_to_rad(counts, zero_counts=0, direction=1, counts_per_rev: int = COUNTS_PER_REV):
+    """Crank angle, rad, for a Present Position (counts) and the count at the crank's zero;
+    ``counts_per_rev`` the model's (default the X series')."""
     return (
-        (np.asarray(counts) - np.asarray(zero_counts)) * (2 * math.pi / COUNTS_PER_REV) * direction
+        (np.asarray(counts) - np.asarray(zero_counts)) * (2 * math.pi / counts_per_rev) * direction
     )
 
 
-def rad_to_counts(q_rad, zero_counts=0, direction=1):
+def rad_to_counts(q_rad, zero_counts=0, direction=1, counts_per_rev: int = COUNTS_PER_REV):
     """The Present Position (counts, rounded) at crank angle ``q_rad``; inverse of
     :func:`counts_to_rad`."""
     return np.rint(
-        np.asarray(q_rad) * direction * COUNTS_PER_REV / (2 * math.pi) + np.asarray(zero_counts)
+        np.asarray(q_rad) * direction * counts_per_rev / (2 * math.pi) + np.asarray(zero_counts)
     ).astype(np.int64)
 
 
-def velocity_units_to_rad_s(units, direction=1):
-    """Crank rate, rad/s, for a Present Velocity in 0.229 rpm units."""
-    return np.asarray(units) * VELOCITY_UNIT_RAD_S * direction
+def velocity_units_to_rad_s(units, direction=1, unit_rad_s: float = VELOCITY_UNIT_RAD_S):
+    """Crank rate, rad/s, for a Present Velocity in units of ``unit_rad_s`` (the X series'
+    0.229 rpm by default)."""
+    return np.asarray(units) * unit_rad_s * direction
 
 
 # --- packets ---------------------------------------------------------------------------------

@@ -31,15 +31,23 @@ from . import protocol as p
 
 @dataclass(frozen=True)
 class ServoSpec:
-    """One X-series model as the bus sees it.
+    """One model as the bus sees it.
 
     Attributes:
         name: the catalogue key (:data:`~stewart_drake.robot.motor_catalogue.MOTOR_CATALOGUE`).
         model_number: what PING returns (Model Number, address 0).
         current_unit_A: one unit of Goal/Present Current, A; None: no Current Control Mode.
         current_limit_max: the Current Limit's largest value (its factory default), units.
-        stall_current_A: the e-Manual's stall current at 12 V, A.
+        stall_current_A: the current at the catalogue's peak torque, A: the e-Manual's stall
+            current at 12 V (X series); twice the continuous current at 24 V (DYNAMIXEL-P, whose
+            peak the catalogue estimates as twice the continuous torque).
         source: the e-Manual page.
+        table: the family's :class:`~.protocol.ControlTable`.
+        counts_per_rev: Present Position counts a turn of the horn.
+        velocity_unit_rad_s: one unit of Present Velocity, rad/s.
+        position_range: (min, max) counts the Position Limits may take.
+        zero_count: the count a crank at its zero reads by default (mid-range).
+        baud_rates: the rates the family takes, bps.
     """
 
     name: str
@@ -48,6 +56,17 @@ class ServoSpec:
     current_limit_max: int
     stall_current_A: float
     source: str
+    table: p.ControlTable = p.X_SERIES
+    counts_per_rev: int = p.COUNTS_PER_REV
+    velocity_unit_rad_s: float = p.VELOCITY_UNIT_RAD_S
+    position_range: tuple[int, int] = (0, 4095)
+    zero_count: int = 2048
+    baud_rates: tuple = ()
+
+    @property
+    def rad_per_count(self) -> float:
+        """One encoder count, rad."""
+        return 2 * math.pi / self.counts_per_rev
 
     @property
     def amps_per_unit(self) -> float:
@@ -72,15 +91,59 @@ class ServoSpec:
 
 
 _EMANUAL = "https://emanual.robotis.com/docs/en/dxl/x/"
+_EMANUAL_P = "https://emanual.robotis.com/docs/en/dxl/p/"
+#: Baud rates the X series takes (e-Manual, "Baud Rate(8)"), bps.
+BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
+#: And the DYNAMIXEL-P series (e-Manual, P series "Baud Rate(8)": up to 10.5 Mbps).
+P_BAUD_RATES = BAUD_RATES + (6_000_000, 10_500_000)
 
 
-#: The models the bus knows; stall figures at 12 V (e-Manual "Specifications").
+def _p_spec(name: str, model_number: int, limit_mA: int, continuous_A: float, counts: int):
+    """A DYNAMIXEL-P model: its table, 1 mA current units, 0.01 rpm velocity units, its
+    encoder's counts a turn, Position Limits within a turn either side of 0 (zero at 0)."""
+    half = counts // 2
+    return ServoSpec(
+        name,
+        model_number,
+        1e-3,
+        limit_mA,
+        2.0 * continuous_A,
+        _EMANUAL_P + name.lower() + "/",
+        table=p.P_SERIES,
+        counts_per_rev=counts,
+        velocity_unit_rad_s=0.01 * 2 * math.pi / 60,
+        position_range=(-half, half),
+        zero_count=0,
+        baud_rates=P_BAUD_RATES,
+    )
+
+
+#: The models the bus knows; stall figures at 12 V (e-Manual "Specifications"); the
+#: DYNAMIXEL-P's continuous figures at 24 V (:func:`_p_spec`).
 SERVO_SPECS: dict[str, ServoSpec] = {
     s.name: s
     for s in (
-        ServoSpec("XM430-W350-T", 1020, 2.69e-3, 1193, 2.3, _EMANUAL + "xm430-w350/"),
-        ServoSpec("XM540-W270-T", 1120, 2.69e-3, 2047, 4.4, _EMANUAL + "xm540-w270/"),
+        ServoSpec(
+            "XM430-W350-T",
+            1020,
+            2.69e-3,
+            1193,
+            2.3,
+            _EMANUAL + "xm430-w350/",
+            baud_rates=BAUD_RATES,
+        ),
+        ServoSpec(
+            "XM540-W270-T",
+            1120,
+            2.69e-3,
+            2047,
+            4.4,
+            _EMANUAL + "xm540-w270/",
+            baud_rates=BAUD_RATES,
+        ),
         ServoSpec("XL430-W250-T", 1060, None, 0, 1.4, _EMANUAL + "xl430-w250/"),
+        _p_spec("PM42-010-S260-R", 2100, 1461, 0.6, 526_374),
+        _p_spec("PH42-020-S300-R", 2000, 4500, 1.5, 607_500),
     )
 }
 
@@ -101,8 +164,8 @@ def servo_spec(name: str, *, torque_control: bool = True) -> ServoSpec:
     if torque_control and spec.current_unit_A is None:
         raise InvalidConfigError(
             f"{name} has no Current Control Mode (no current sensing: {spec.source}), so the "
-            f"controllers' motor torques cannot be sent to it; use an XM430-W350-T or "
-            f"XM540-W270-T"
+            f"controllers' motor torques cannot be sent to it; use one of "
+            + ", ".join(n for n, m in SERVO_SPECS.items() if m.current_unit_A is not None)
         )
     return spec
 
@@ -120,10 +183,6 @@ def current_units_to_torque(units, spec: ServoSpec, direction=1):
     """Output torque, N m in the crank's sense, for a (Goal or Present) Current in units."""
     unit = spec.amps_per_unit
     return np.asarray(units) * unit * spec.torque_constant_Nm_per_A * direction
-
-
-#: Baud rates the X series takes (e-Manual, "Baud Rate(8)"), bps.
-BAUD_RATES = (9600, 57600, 115200, 1_000_000, 2_000_000, 3_000_000, 4_000_000, 4_500_000)
 
 
 @dataclass(frozen=True)
@@ -150,7 +209,7 @@ def check_bus_settings(
     directions=None,
     current_limit_A: float | None = None,
     temperature_limit_C: int = 70,
-    position_limits_counts=(0, 4095),
+    position_limits_counts=None,
     watchdog_s: float = 0.1,
     reply_timeout_s: float | None = None,
     prefix: str = "",
@@ -173,11 +232,12 @@ def check_bus_settings(
     if not ids or len(set(ids)) != len(ids) or not all(0 <= i <= p.MAX_ID for i in ids):
         raise InvalidConfigError(f"{prefix}ids {ids} must be distinct integers in 0..{p.MAX_ID}")
     n = len(ids)
-    if baud_rate not in BAUD_RATES:
+    if baud_rate not in spec.baud_rates:
         raise InvalidConfigError(
-            f"{prefix}baud_rate {baud_rate} is not an X-series rate; choose one of {BAUD_RATES}"
+            f"{prefix}baud_rate {baud_rate} is not a rate {model} takes; choose one of "
+            f"{spec.baud_rates}"
         )
-    zero = np.full(n, 2048) if zero_counts is None else np.asarray(zero_counts)
+    zero = np.full(n, spec.zero_count) if zero_counts is None else np.asarray(zero_counts)
     sign = np.ones(n) if directions is None else np.asarray(directions, dtype=float)
     if zero.shape != (n,) or sign.shape != (n,) or not np.all(np.abs(sign) == 1):
         raise InvalidConfigError(
@@ -200,11 +260,14 @@ def check_bus_settings(
         raise InvalidConfigError(
             f"{prefix}temperature_limit_C {temperature_limit_C} must be in (0, 80] deg C"
         )
+    if position_limits_counts is None:
+        position_limits_counts = spec.position_range
     lo, hi = (int(c) for c in position_limits_counts)
-    if not 0 <= lo < hi <= 4095:
+    bottom, top = spec.position_range
+    if not bottom <= lo < hi <= top:
         raise InvalidConfigError(
             f"{prefix}position_limits_counts {position_limits_counts} must be "
-            f"0 <= min < max <= 4095"
+            f"{bottom} <= min < max <= {top} for {model}"
         )
     watchdog_units = round(watchdog_s / p.WATCHDOG_UNIT_S) if _finite(watchdog_s) else 0
     if not (1 <= watchdog_units <= 127 and math.isclose(watchdog_units * 0.02, watchdog_s)):
@@ -304,6 +367,18 @@ class SurrogateServoConfig:
             raise InvalidConfigError(
                 f"{prefix}match_platform_lag must be true or false, got {self.match_platform_lag!r}"
             )
+
+    @classmethod
+    def beside(cls, model: str) -> "SurrogateServoConfig":
+        """The default surrogate for a bus of cranks of ``model``: the default stage (the X
+        series' XM430-W350-T on an 80 mm belt) beside X-series cranks; beside DYNAMIXEL-P
+        cranks, whose packets address other items, a PM42-010-S260-R on a 120 mm belt (a
+        40-tooth GT2 pulley of 3 mm pitch: its 28 rpm at 80 % is 44.8 mm/s), counting about
+        zero. What ``robot --emulate`` emulates when the scenario's bus has no surrogate."""
+        if servo_spec(model, torque_control=False).table.family == "X":
+            return cls()
+        stage = LinearStage(motor="PM42-010-S260-R", lead_m_per_rev=0.12)
+        return cls(stage=stage, zero_counts=0)
 
     # --- the stage's figures as the bus uses them --------------------------------------------
 
@@ -432,6 +507,14 @@ class DynamixelBusConfig:
                     f"{type(self.surrogate).__name__}"
                 )
             self.surrogate.validate(self.ids, control_period_s)
+            cranks = servo_spec(self.model, torque_control=False).table
+            if servo_spec(self.surrogate.model, torque_control=False).table != cranks:
+                raise InvalidConfigError(
+                    f"bus.surrogate.stage.motor {self.surrogate.model} keeps its items at "
+                    f"other addresses than the cranks' {self.model} (one sync read and write "
+                    f"serve every servo of the bus): give the stage a servo of the "
+                    f"{cranks.family} series"
+                )
         expected = self.hardware(control_period_s)
         if hardware is None:
             return
@@ -456,12 +539,13 @@ class DynamixelBusConfig:
 
     def hardware(self, control_period_s: float = 1e-3) -> "Hardware":
         """The robot as built with these servos: their catalogue model (friction, gear,
-        reflected inertia, peak torque; docs/motor_catalogue.md), their 4096-count encoders
-        without added noise, one control period of delay between a measurement and its
-        torque (the driver writes the torque computed from a period's reading at the start of
-        the next period, :class:`~.bus.station.DynamixelDriver`), and the encoders' rate
-        filter at its default corner or, for a long ``control_period_s``, at the Nyquist
-        frequency 0.5 / control_period_s.
+        reflected inertia, peak torque; docs/motor_catalogue.md), their encoders (4096 counts a
+        turn on the X series, 526,374 on the PM42-010) without added noise, one control period
+        of delay between a measurement and its torque (the driver writes the torque computed
+        from a period's reading at the start of the next period,
+        :class:`~.bus.station.DynamixelDriver`), and the encoders' rate filter at its default
+        corner or, for a long ``control_period_s``, at the Nyquist frequency
+        0.5 / control_period_s.
 
         Raises:
             InvalidConfigError: a model the motor catalogue does not have.
@@ -471,7 +555,9 @@ class DynamixelBusConfig:
         except (StewartError, KeyError) as err:
             raise InvalidConfigError(f"bus.model: {err}") from None
         return Hardware(
-            encoders=Encoders(counts_per_rev=p.COUNTS_PER_REV),
+            encoders=Encoders(
+                counts_per_rev=servo_spec(self.model, torque_control=False).counts_per_rev
+            ),
             motors=Motors.from_value(servo),
             estimator=Estimator(
                 rate_cutoff_hz=min(Estimator().rate_cutoff_hz, 0.5 / control_period_s)

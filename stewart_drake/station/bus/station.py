@@ -40,7 +40,6 @@ from ...robot.kinematics import X_HOME
 from ...robot.single_pose import ik_single, jacobian_single, leg_constants
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
-from .protocol import COUNTS_PER_REV
 from .surrogate_servo import SurrogateDrive
 from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
@@ -91,6 +90,8 @@ class DynamixelDriver(LeafSystem):
         surrogate: None, or the :class:`~.surrogate_servo.SurrogateDrive` of a bus with a
             surrogate's servo: each period its torque goes in the same sync write as the
             cranks', from the reading of the same sync read.
+        quantum_rad: one count of the servos' encoders, rad (default the X series' 4096 a
+            turn; the station gives its model's), where the forward kinematics stops.
     Attributes:
         timing: the :class:`~.timing.LoopTiming` records of the run.
         between_periods: None, or a callable the loop calls when it has time left before a
@@ -110,15 +111,18 @@ class DynamixelDriver(LeafSystem):
         stream=None,
         timing_window: int = 360_000,
         surrogate: SurrogateDrive | None = None,
+        quantum_rad: float = 2 * np.pi / 4096,
     ):
         super().__init__()
         self.bus, self.geometry = bus, geometry
         self.surrogate = surrogate
         self.period_s, self.max_deadline_misses = float(period_s), int(max_deadline_misses)
+        #: One count of the servos' encoders, rad.
+        self.quantum_rad = float(quantum_rad)
         self.stream = stream
         self._x_initial = np.asarray(x_initial, dtype=float)
         self._fk = PoseEstimator(
-            geometry, period_s, 2 * np.pi / COUNTS_PER_REV, self._x_initial, max_iterations=20
+            geometry, period_s, quantum_rad, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
         self._kernels = _kernels()
@@ -546,6 +550,7 @@ class HardwareStation(Diagram):
                 surrogate=(
                     None if surrogate is None else SurrogateDrive(surrogate, plan.control_period_s)
                 ),
+                quantum_rad=self.bus.spec.rad_per_count,
             ),
         )
         command = builder.AddNamedSystem("motor_torque", PassThrough(6))

@@ -12,7 +12,8 @@ comes back as the seventh status of the period's one sync read. Like the cranks 
 Control Mode (a sync write writes one address for all its servos: the cranks' Goal Current).
 
 The carriage's position ``s`` (m, 0 at mid-travel) from the servo's Present Position:
-``s = (counts - zero_counts) * lead_m_per_rev / 4096 * direction``.
+``s = (counts - zero_counts) * lead_m_per_rev / counts_per_rev * direction`` (4096 a turn on
+the X series).
 
 The controller (:meth:`SurrogateDrive.torque`), in the horn's angle theta = 2 pi s / lead: tau =
 J a_c + b v_c + c tanh(v_c / v_eps) + K_p (theta_c - theta_p) + K_d (v_c - v_m), where J is the
@@ -47,7 +48,6 @@ import math
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from . import protocol as p
 from .servos import SPEED_MARGIN, SurrogateServoConfig
 
 
@@ -108,7 +108,8 @@ class SurrogateDrive:
         self.kp, self.kd = self.J * w * w, 2.0 * self.J * w
         #: The least rate over which the dry friction's feed-forward fades (a tenth of a count a
         #: period), rad/s.
-        self.v_eps = 0.1 * 2 * math.pi / p.COUNTS_PER_REV / self.period_s
+        counts = config.stage.catalogue.encoder_counts_per_rev
+        self.v_eps = 0.1 * 2 * math.pi / counts / self.period_s
         self.command = None
         #: The carriage's reference on the run's clock before any delay (an object with
         #: ``evaluate(t) -> (s, v, a)``; the session sets it with ``command``), or None.
