@@ -40,16 +40,19 @@ def dynamixel_scenario(model: str = "XM430-W350-T", scenario=None):
     """``scenario`` (default the paper's, :class:`~..scenario.Scenario`) built with six
     catalogue Dynamixels ``model`` and no computation delay, current-loop lag or encoder noise
     in the station (the bus and the servos bring their own); the gears' play is
-    ``scenario``'s (``hardware.motors.backlash_rad``, 0 by default)."""
+    ``scenario``'s (``hardware.motors.backlash_rad``, 0 by default), and so is the servo itself
+    when the scenario's ``hardware.motors`` is that model (its friction, say: a robot whose
+    servos differ from the catalogue's estimates)."""
     from ..run.scenario import Scenario
     from ..station.hardware import Hardware, Motors
 
     base = scenario if scenario is not None else Scenario()
     hardware = base.hardware if base.hardware is not None else Hardware()
+    servo = catalogue_motor(model).servo
+    if base.hardware is not None and base.hardware.motors.name == servo.name:
+        servo = base.hardware.motors.build()
     servo = dataclasses.replace(
-        catalogue_motor(model).servo,
-        current_time_constant_s=0.0,
-        backlash_rad=hardware.motors.backlash_rad,
+        servo, current_time_constant_s=0.0, backlash_rad=hardware.motors.backlash_rad
     )
     hardware = dataclasses.replace(
         hardware,

@@ -6,7 +6,7 @@ third of the wall time of a run (IK, Jacobian and gravity gradient per step), so
 :func:`add_reference_sources` evaluates them vectorized, and puts them in the Diagram as Drake
 ``TrajectorySource``s of zero-order holds, read in C++ with no Python call per step. The
 feed-forward (IK, dynamics) is computed once for the whole run and kept as a numpy table (48 B a
-step); the reference itself, cheap to evaluate, a stretch of :data:`SAMPLE_CHUNK` rows at a time.
+step); the reference itself, cheap to evaluate, a stretch of :data:`FEED_ROWS` rows at a time.
 A source holds only the stretch in force (:class:`StretchFeeder` swaps it every stretch): a
 ``BsplineTrajectory`` of order 1 keeps about 0.5 kB a step for the two, so a whole 25-minute
 trace in one would hold 0.75 GB (a ``PiecewisePolynomial.ZeroOrderHold``, 3.3 kB a step).
@@ -63,7 +63,7 @@ class ReferenceSources:
 
     Attributes:
         x_d: a ``TrajectorySource``, output (18,) [pose, rate, acceleration] of the reference,
-            its rows evaluated a stretch at a time (:data:`SAMPLE_CHUNK`).
+            its rows evaluated a stretch at a time (:data:`FEED_ROWS`).
         T_ff: a ``TrajectorySource``, output (6,) feed-forward motor torques, N m.
         feeder: the :class:`StretchFeeder` giving both their stretches.
         t_sample: (N,) controller sample instants, s.  t_eval: (N,) the times the reference was
@@ -142,8 +142,8 @@ def sample_reference(
 
 def reference_rows(trajectory: Reference, t_eval):
     """rows(a, b) -> (b - a, 18) [pose, rate, acceleration] of ``trajectory`` at t_eval[a:b]:
-    the rows of :func:`sample_reference`'s table, the same numbers (each stretch of
-    :data:`SAMPLE_CHUNK` evaluated by the same call)."""
+    the rows of :func:`sample_reference`'s table, made again when a stretch is fed (the
+    reference's own ``evaluate``, row by row the same arithmetic)."""
 
     def rows(a: int, b: int) -> np.ndarray:
         return np.concatenate(trajectory.evaluate(t_eval[a:b]), axis=1)
@@ -168,6 +168,11 @@ def zero_order_hold(breaks, table) -> BsplineTrajectory:
     return BsplineTrajectory(BsplineBasis(1, breaks), points)
 
 
+#: Rows a stretch of the run's reference holds (:func:`add_reference_sources`): 5 s at a bus's
+#: 10 ms. A stretch is made inside one period of the loop, where its cost adds to the period's
+#: (5,000 rows of an IntERAct trace took 13 to 19 ms, a 10 ms period missed every 50 s);
+#: 500 take about a tenth.
+FEED_ROWS = 500
 #: Rows each stretch of :class:`StretchFeeder` holds beyond its own on either side, so that a
 #: read just before or after the stretch changes (the event's time rounded) finds its row.
 STRETCH_PAD = 8
@@ -288,7 +293,7 @@ def add_reference_sources(
     feeder = StretchFeeder(
         breaks,
         {"x_d": reference_rows(trajectory, t_eval), "T_ff": lambda a, b: T_ff[a:b]},
-        stretch=SAMPLE_CHUNK,
+        stretch=FEED_ROWS,
     )
     builder.AddNamedSystem("reference_feeder", feeder)
     ref = builder.AddNamedSystem("reference", feeder.sources["x_d"])

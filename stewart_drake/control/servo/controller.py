@@ -19,6 +19,13 @@ from .design import CrankLoop, design_loop
 
 #: The friction fit's memory, s: longer than a breath's half (a fit needs both senses of motion).
 FRICTION_MEMORY_S = 4.0
+#: The crank rate above which the friction is learned, as a multiple of the smoothed sign's
+#: rate: a crank that turns slower (a crank the motion hardly turns) keeps what it believes, its
+#: fit of the sign too poor (on the emulator such cranks learned friction up to the bound and
+#: dithered the platform's roll and yaw by 1 mrad).
+ADAPT_RATE_SHARE = 10.0
+#: The friction learned stays within these factors of the friction believed at the start.
+FRICTION_RANGE = (0.5, 2.0)
 #: What the ``status`` output holds, in order.
 SERVO_STATUS_NAMES = (
     "saturated_steps",
@@ -64,9 +71,11 @@ class CrankServoController(LeafSystem):
         friction_Nm: (6,) the Coulomb friction believed at the start, N m. viscous: N m s/rad.
         friction_rate_rad_s: the smoothed sign's crank rate, rad/s.
         friction_adaptation_s: tau_F, s (0: the friction held).
-        friction_max_Nm: the estimate's upper bound, N m.
-        friction_direction_hz: f, Hz: the friction's direction is that of omega_d(t + lead) -
-            2 pi f e_theta (default the loop's bandwidth; 0: the reference's rate alone).
+        friction_max_Nm: the estimate's upper bound, N m (and within :data:`FRICTION_RANGE` of
+            ``friction_Nm`` when it is given).
+        friction_direction_hz: f, Hz: ``friction_direction_share`` of the friction is fed in
+            the sense of omega_d(t + lead) - 2 pi f e_theta (default f the loop's bandwidth), the
+            rest in the reference's (:mod:`.kernels`, stage 4).
         disturbance_feedback: share of the estimated disturbance taken off the command (0: the
             integral alone removes it).
         schedule_period_s: how often M_theta is re-computed at the reference, s.
@@ -91,6 +100,7 @@ class CrankServoController(LeafSystem):
         friction_adaptation_s: float = 2.0,
         friction_max_Nm: float = 1.0,
         friction_direction_hz: float | None = None,
+        friction_direction_share: float = 1.0,
         disturbance_feedback: float = 0.0,
         schedule_period_s: float = 0.1,
         compiled: bool = True,
@@ -120,7 +130,7 @@ class CrankServoController(LeafSystem):
         )
         tau_F = as_number("friction_adaptation_s", friction_adaptation_s, 0.0)
         c[k.ADAPT] = 0.0 if tau_F == 0.0 else 1.0 / tau_F
-        c[k.ADAPT_MIN_RATE] = 2.0 * c[k.FRICTION_RATE]
+        c[k.ADAPT_MIN_RATE] = ADAPT_RATE_SHARE * c[k.FRICTION_RATE]
         c[k.FRICTION_MIN] = 0.0
         c[k.FRICTION_MAX] = as_number("friction_max_Nm", friction_max_Nm, 0.0)
         c[k.VISCOUS] = as_number("viscous", viscous, 0.0)
@@ -130,10 +140,9 @@ class CrankServoController(LeafSystem):
             else as_number("torque_limit_Nm", torque_limit_Nm, 0.0, lo_open=True)
         )
         c[k.DELAY] = d
+        c[k.SHARE] = as_number("friction_direction_share", friction_direction_share, 0.0, 1.0)
         c[k.MEMORY] = math.exp(-h / max(FRICTION_MEMORY_S, h))
         c[k.DOB] = as_number("disturbance_feedback", disturbance_feedback, 0.0, 1.0)
-        c.setflags(write=False)
-        self._c = c
         self._legs = np.array(leg_constants(geometry))
         self._legs.setflags(write=False)
         #: The robot's constants as :func:`~stewart_drake.robot.path_kernels.joint_inertia`
@@ -151,6 +160,11 @@ class CrankServoController(LeafSystem):
                 f"friction_Nm must be 6 values in [0, friction_max_Nm = {c[k.FRICTION_MAX]:g}] "
                 f"N m, got {friction}"
             )
+        if np.any(friction > 0.0):  # the estimate stays within a factor of 2 of the start's
+            c[k.FRICTION_MIN] = FRICTION_RANGE[0] * float(friction.min())
+            c[k.FRICTION_MAX] = min(c[k.FRICTION_MAX], FRICTION_RANGE[1] * float(friction.max()))
+        c.setflags(write=False)
+        self._c = c
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
         self._theta = self.DeclareVectorInputPort("motor_angle", 6)
         self._T_ff = self.DeclareVectorInputPort("T_ff", 6)

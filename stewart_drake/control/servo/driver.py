@@ -37,9 +37,14 @@ class CrankServoDriver(ControllerDriver):
             (the motor catalogue's, docs/motor_catalogue.md; 0: none believed), in [0, 5].
         friction_rate_rad_s: the crank rate over which the friction's sign is smoothed, rad/s
             (tanh(v / rate)).
-        friction_direction_hz: near rest, the friction is fed forward the way the crank must go
-            to close its angle error: v = omega_d - 2 pi f e_theta, Hz (0: the reference's rate
-            alone; a crank that stops short then stays until the integral frees it).
+        friction_direction_hz: near rest, a share of the friction is fed forward the way the
+            crank must go to close its angle error: v = omega_d - 2 pi f e_theta, Hz (0: the
+            reference's rate alone; a crank that stops short then stays until the integral frees
+            it).
+        friction_direction_share: that share, in [0, 1]; the rest follows the reference's rate.
+            Below 1 a crank at rest is pushed with less than the friction it has even when the
+            friction believed is too large (by up to 1 / share), which would otherwise start a
+            relay's oscillation.
         friction_adaptation_s: tau_F, s: how fast the friction believed follows the feedback's
             torque along the motion (0: held at the start's).
         disturbance_feedback: share of the estimated disturbance taken off the command at once,
@@ -57,6 +62,7 @@ class CrankServoDriver(ControllerDriver):
     disturbance_feedback: float = 0.0
     schedule_period_s: float = 0.1
     friction_direction_hz: float = 3.0
+    friction_direction_share: float = 1.0
 
     #: No weights omega: no input for a tuner.
     takes_omega: ClassVar[bool] = False
@@ -77,6 +83,7 @@ class CrankServoDriver(ControllerDriver):
         as_number(f"{prefix}friction_scale", self.friction_scale, 0.0, 5.0)
         as_number(f"{prefix}friction_rate_rad_s", self.friction_rate_rad_s, 0.0, 10.0, lo_open=True)
         as_number(f"{prefix}friction_direction_hz", self.friction_direction_hz, 0.0, 1e3)
+        as_number(f"{prefix}friction_direction_share", self.friction_direction_share, 0.0, 1.0)
         as_number(f"{prefix}friction_adaptation_s", self.friction_adaptation_s, 0.0, 1e4)
         as_number(f"{prefix}disturbance_feedback", self.disturbance_feedback, 0.0, 1.0)
         as_number(f"{prefix}schedule_period_s", self.schedule_period_s, 0.0, lo_open=True)
@@ -139,6 +146,7 @@ class CrankServoDriver(ControllerDriver):
             friction_max_Nm=friction_max,
             disturbance_feedback=self.disturbance_feedback,
             friction_direction_hz=self.friction_direction_hz,
+            friction_direction_share=self.friction_direction_share,
             schedule_period_s=self.schedule_period_s,
         )
 

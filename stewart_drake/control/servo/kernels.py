@@ -13,9 +13,12 @@ What one period does (the design: :mod:`.design`; the controller: :mod:`.control
    estimated disturbance, and its torque M a (M the chain's joint-space inertia at the
    reference, re-scheduled by the controller);
 4. the torque: the reference's feed-forward + the Coulomb friction the controller believes,
-   F_i tanh(v_i / friction_rate), in the direction v_i = omega_d,i(t + lead) - k_c e_theta,i
-   (the reference's rate, or near rest the way the crank must go), + the viscous friction + the
-   feedback's torque; clipped to the motors' limit;
+   F_i [(1 - s) tanh(omega_d,i / r) + s tanh(v_i / r)] (r the friction rate), a share s in the
+   direction v_i = omega_d,i(t + lead) - k_c e_theta,i the crank must go to close its error,
+   the rest in the reference's sense, both where the torque will act (a crank at rest is pushed
+   with s F_i at most: less than the friction it has if it has more than s of what is believed,
+   so the push cannot start a relay's oscillation), + the viscous friction + the feedback's
+   torque; clipped to the motors' limit;
 5. integral (stopped while a crank's torque is clipped: anti-windup), the friction estimate's
    adaptation (while the reference moves the crank, F_i moves by h / tau_F times the friction
    the feed-forward misses, :func:`friction_error`: the part of the feedback torque that flips
@@ -55,6 +58,7 @@ CONSTANTS = (
     "delay",  # d, pending commands
     "dob",  # weight of the estimated disturbance in the command (0: integral action only)
     "memory",  # the friction regression's forgetting factor a period, exp(-h / tau_m)
+    "share",  # the share of the friction fed in the sense that closes the angle error
 )
 (
     H,
@@ -70,6 +74,7 @@ CONSTANTS = (
     DELAY,
     DOB,
     MEMORY,
+    SHARE,
 ) = range(len(CONSTANTS))
 
 #: The state vector's parts, (start, size) for a delay d (:func:`layout`): the predicted
@@ -208,7 +213,9 @@ def step(c, K, L, Phi, Gam, legs, M, J_inv, x_d, theta_read, T_ff, state):
         e_th = x_hat[i, 0] - th0[i]
         v = wl[i] - c[K_C] * e_th
         F = state[i_f + i]
-        T = T_ff[i] + F * math.tanh(v / c[FRICTION_RATE]) + c[VISCOUS] * wl[i] + tau_fb
+        sense = (1.0 - c[SHARE]) * math.tanh(wl[i] / c[FRICTION_RATE])
+        sense += c[SHARE] * math.tanh(v / c[FRICTION_RATE])
+        T = T_ff[i] + F * sense + c[VISCOUS] * wl[i] + tau_fb
         clipped = False
         if T > limit:
             T, clipped = limit, True
