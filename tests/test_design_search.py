@@ -383,3 +383,43 @@ def test_rod_ends_that_the_design_puts_too_close_fail_clearance_as_check_refuses
     )
     assert report.first_interference is not None
     assert report.first_interference[3] == pytest.approx(gap, abs=1e-6)
+
+
+def test_the_accuracy_asked_refuses_the_xm430s_floor_and_takes_the_pm42s():
+    """scenarios/phantom_requirements.yaml asks 0.1 mm and 0.5 mrad RMS per axis: the encoders'
+    floor may take half. The reference geometry's floor over the task, against one computed here
+    with the Jacobian by central differences of the inverse kinematics: the XM430's 4096 counts
+    a turn miss it (about 0.13 mm of X at home), the PM42-010's 526,374 meet it."""
+    from stewart_drake.robot.kinematics import ik
+
+    requirements = load_requirements(ROOT / "scenarios" / "phantom_requirements.yaml")
+    task = task_samples(requirements)
+    assert task.floor == pytest.approx((0.5e-4, 2.5e-4), rel=1e-12)
+    geometry = design_geometry(reference_design(), task.payload_kg)
+    x = np.concatenate([task.x, task.workspace_x])
+
+    def floor_here(counts: int) -> tuple:
+        h = 1e-7
+        J = np.empty((len(x), 6, 6))
+        for k in range(6):
+            dx = np.zeros(6)
+            dx[k] = h
+            J[:, :, k] = (ik(geometry, x + dx) - ik(geometry, x - dx)) / (2 * h)
+        q = 2 * np.pi / counts
+        rms = np.sqrt(np.sum(np.linalg.inv(J) ** 2, axis=-1) * q * q / 12)
+        return rms[:, 3:].max(), rms[:, :3].max()
+
+    results = {}
+    for motor in ("XM430-W350-T", "PM42-010-S260-R"):
+        e = evaluate(dataclasses.replace(reference_design(), motor=motor), task, lazy=False)
+        counts = catalogue_motor(motor).encoder_counts_per_rev
+        m, rad = floor_here(counts)
+        assert e.figures["floor_m"] == pytest.approx(m, rel=1e-5)
+        assert e.figures["floor_rad"] == pytest.approx(rad, rel=1e-5)
+        margin = min(1 - m / task.floor[0], 1 - rad / task.floor[1])
+        assert e.margins["accuracy"] == pytest.approx(margin, rel=1e-4, abs=1e-6)
+        results[motor] = e
+    xm, pm = results["XM430-W350-T"], results["PM42-010-S260-R"]
+    assert 1.3e-4 < xm.figures["floor_m"] < 2.0e-4  # 0.13 mm at home, more at the box's edge
+    assert xm.margins["accuracy"] < -1.5 and not xm.feasible
+    assert 0.5e-6 < pm.figures["floor_m"] < 2.0e-6 and pm.margins["accuracy"] > 0.95

@@ -335,9 +335,9 @@ def encoder_resolution(geometry: StewartGeometry, x, counts_per_rev: int) -> tup
 
 
 def encoder_floor(geometry: StewartGeometry, x, counts_per_rev: int) -> tuple:
-    """The encoders' floor over poses x (n, 6): every crank within half a count, uniform and
-    independent, the pose's RMS error per axis through J^-1 (first order; the quantity of
-    :func:`~stewart_drake.analysis.error_budget.quantization_floor`).
+    """The encoders' floor over poses x (n, 6), the largest over the poses of each kind of axis
+    (:func:`~stewart_drake.robot.forward_kinematics.encoder_floor`: every crank within half a
+    count, uniform and independent, RMS per axis through J^-1, first order).
 
     Returns:
         (translation m, rotation rad): the largest RMS of a position axis and of an
@@ -345,11 +345,9 @@ def encoder_floor(geometry: StewartGeometry, x, counts_per_rev: int) -> tuple:
     Raises:
         SingularPoseError: J is singular at a pose.
     """
-    from ..robot.kinematics import jacobian
+    from ..robot.forward_kinematics import encoder_floor as floor_per_axis
 
-    J_inv = np.linalg.inv(jacobian(geometry, np.asarray(x, dtype=float)))
-    q = 2 * np.pi / counts_per_rev
-    rms = np.sqrt(np.sum(J_inv**2, axis=-1) * q * q / 12.0)
+    rms = floor_per_axis(geometry, np.atleast_2d(x), 2 * np.pi / counts_per_rev)
     return float(rms[:, 3:].max()), float(rms[:, :3].max())
 
 

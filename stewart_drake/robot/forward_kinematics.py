@@ -206,6 +206,29 @@ def fk(
     return x, status
 
 
+def encoder_floor(geometry: RobotGeometry, x, quantum_rad: float) -> np.ndarray:
+    """The encoders' floor per axis: the RMS error of each pose coordinate when every motor
+    angle is rounded to whole encoder counts (uniform over one count q, variance q^2 / 12,
+    independent between motors), to first order through J^-1 (J: the inverse kinematics'
+    Jacobian, theta_dot = J x_dot): sqrt(diag((q^2 / 12) J^-1 J^-T)).
+
+    Args:
+        geometry: the robot. x: (6,) or (n, 6) poses [phi, theta, psi, X, Y, Z] (rad, m).
+        quantum_rad: one encoder count, rad (2 pi / counts per revolution).
+    Returns:
+        (6,) or (n, 6), as x: RMS per axis [rad, rad, rad, m, m, m].
+    Raises:
+        InvalidConfigError: ``quantum_rad`` not > 0, poses not finite (6,) rows.
+        SingularPoseError, UnreachablePoseError: a pose where J is not invertible.
+    """
+    from .kinematics import jacobian
+
+    q = as_number("quantum_rad", quantum_rad, 0.0, lo_open=True)
+    x = as_poses("x", x)
+    J_inv = np.linalg.inv(jacobian(geometry, x))  # x_dot = J^-1 theta_dot
+    return np.sqrt((q * q / 12.0) * np.sum(J_inv**2, axis=-1))
+
+
 def encoder_pose_noise(
     geometry: RobotGeometry, x, quantum_rad: float, max_poses: int | None = None
 ) -> tuple[float, float]:
@@ -229,14 +252,10 @@ def encoder_pose_noise(
         InvalidConfigError: ``quantum_rad`` not > 0, poses not finite (6,) rows.
         SingularPoseError, UnreachablePoseError: a pose where J is not invertible.
     """
-    from .kinematics import jacobian
-
-    q = as_number("quantum_rad", quantum_rad, 0.0, lo_open=True)
     x = np.atleast_2d(as_poses("x", x))
     if max_poses is not None:
         x = x[:: max(1, len(x) // max(1, int(max_poses)))]
-    J_inv = np.linalg.inv(jacobian(geometry, x))  # (n, 6, 6): x_dot = J^-1 theta_dot
-    cov_diag = (q * q / 12.0) * np.sum(J_inv**2, axis=-1)  # (n, 6): diag of J^-1 J^-T
+    cov_diag = encoder_floor(geometry, x, quantum_rad) ** 2  # (n, 6): diag of J^-1 J^-T q^2/12
     rotation = float(np.sqrt(np.mean(np.sum(cov_diag[:, :3], axis=1))))
     translation = float(np.sqrt(np.mean(np.sum(cov_diag[:, 3:], axis=1))))
     return translation, rotation
