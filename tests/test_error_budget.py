@@ -72,9 +72,14 @@ def test_each_share_is_what_taking_the_source_away_removed(short_budget):
 
 def test_the_encoder_pose_carries_the_floor(short_budget):
     budget, _ = short_budget
-    # what the robot reads is at least the floor, and about the true error and the floor as
-    # independent parts (within a third)
-    assert np.all(budget.encoder_pose > 0.8 * budget.floor)
+    # what the robot reads carries the counts the true pose does not, and is of the floor's size:
+    # not at least the floor on every axis, because the loop closes on those same counts (an
+    # axis that hardly moves in 8 s, Y here, samples few of a count's phases); and about the
+    # true error and the floor as independent parts (within a third)
+    assert np.all(budget.encoder_pose > budget.total)
+    assert np.all(
+        (budget.encoder_pose > 0.5 * budget.floor) & (budget.encoder_pose < 3 * budget.floor)
+    )
     np.testing.assert_allclose(
         budget.encoder_pose[3:], np.hypot(budget.total, budget.floor)[3:], rtol=0.35
     )

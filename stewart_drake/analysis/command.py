@@ -289,7 +289,7 @@ def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:
     reference = OrganMotionReference(motion=motion, parameters=shares[0])
     reference.validate()
     say(f"the error budget of {motion}: one simulation, then one without each source ...")
-    budget = error_budget(scenario, reference.make(None, 0.0, None), say=say)
+    budget = error_budget(scenario, reference, say=say)
     where = ", ".join(f"{v:.4g}" for v in centre)
     title = (
         f"{name}: error budget of {motion} at [{where}] (rad, m), RMS over t = "

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..base.errors import InvalidConfigError
-from ..robot import kinematics
+from ..base.tables import markdown_lines
+from ..robot import forward_kinematics, kinematics
 from ..robot.geometry import X_HOME
 
 AXES = ("phi", "theta", "psi", "X", "Y", "Z")
@@ -72,9 +73,7 @@ def quantization_floor(scenario, x=None) -> np.ndarray:
             "with hardware, or one on the servo bus)"
         )
     x = X_HOME if x is None else np.asarray(x, dtype=float)
-    J_inv = np.linalg.inv(kinematics.jacobian(plan.geometry, x))
-    q = hw.encoders.quantum_rad
-    return np.sqrt(np.sum(J_inv**2, axis=1) * q * q / 12.0)
+    return forward_kinematics.encoder_floor(plan.geometry, x, hw.encoders.quantum_rad)
 
 
 @dataclass
@@ -109,17 +108,16 @@ class ErrorBudget:
 
     def lines(self) -> list[str]:
         """The budget as a Markdown table, um and urad, with what dominates and lowers it."""
-        head = "| | " + " | ".join(f"{a} [{'urad' if k < 3 else 'um'}]" for k, a in enumerate(AXES))
-        out = [head + " | what lowers it |", "|---" * 8 + "|"]
+        header = [None, *(f"{a} [{'urad' if k < 3 else 'um'}]" for k, a in enumerate(AXES))]
 
         def row(name, v, lower=""):
-            return f"| {name} | " + " | ".join(f"{1e6 * c:.3g}" for c in v) + f" | {lower} |"
+            return [name, *(f"{1e6 * c:.3g}" for c in v), lower]
 
-        out.append(row("**true pose**, every source (simulated)", self.total))
-        for name, v in self.rows.items():
-            out.append(row(f"share of {name}", v, SOURCES[name]))
-        out.append(row("encoders' floor (what they can know)", self.floor))
-        out.append(row("**encoder pose** (what the robot reads)", self.encoder_pose))
+        rows = [row("**true pose**, every source (simulated)", self.total)]
+        rows += [row(f"share of {name}", v, SOURCES[name]) for name, v in self.rows.items()]
+        rows.append(row("encoders' floor (what they can know)", self.floor))
+        rows.append(row("**encoder pose** (what the robot reads)", self.encoder_pose))
+        out = markdown_lines([*header, "what lowers it"], rows)
         tr, rot = self.dominant()
         out.append("")
         out.append(f"Dominant: {tr} in translation, {rot} in rotation.")
@@ -150,7 +148,8 @@ def error_budget(
 
     Args:
         scenario: a Scenario or plan of the robot as built (``hardware``, or a bus).
-        reference: an object with ``evaluate(t)`` (the motion), or a library motion's name.
+        reference: an object with ``evaluate(t)`` (the motion), a reference's configuration
+            (made on the scenario's geometry), or a library motion's name.
         duration_s: the simulated span, s (default five of the motion's periods, or 20 s).
         skip_s: the start not measured, s (default the first period, or 4 s).
         say: called with a line before each simulation (progress), or None.
@@ -163,22 +162,25 @@ def error_budget(
 
     plan = make_plan(scenario, with_reference=False)
     base = plan.scenario
-    if base.hardware is None:
+    hw = base.hardware
+    if hw is None:
         raise InvalidConfigError(
             "the ideal robot reads its cranks exactly and has no servos: no error budget (give "
             "a scenario with hardware, or one on the servo bus, e.g. paper_bus)"
         )
-    if isinstance(reference, str):
-        from ..references.organ.library import OrganMotionReference
+    from ..references.motion import ReferenceConfig
+    from ..references.organ.library import OrganMotionReference
 
-        reference = OrganMotionReference(motion=reference).make(plan.geometry, 0.0, None)
+    if isinstance(reference, str):
+        reference = OrganMotionReference(motion=reference)
+    if isinstance(reference, ReferenceConfig):
+        reference = reference.make(plan.geometry, 0.0, None)
     period = float(getattr(reference, "period_s", 0.0) or 0.0)
     span = duration_s or (5 * period if period > 0 else 20.0)
     skip = skip_s if skip_s is not None else (period if period > 0 else 4.0)
     if not 0 <= skip < span:
         raise InvalidConfigError(f"skip_s ({skip:g} s) must lie within the span ({span:g} s)")
     base = dataclasses.replace(base, bus=None, duration_s=span, learning=None)
-    hw = base.hardware
     motors = hw.motors
 
     def with_motors(**changes):

@@ -10,6 +10,7 @@ import math
 import signal
 import sys
 from pathlib import Path
+from typing import Any
 
 from ..execution.options import (
     TRACE_ONLY,
@@ -458,7 +459,8 @@ def _robot_session(args, scenario, out, stem, signals, surrogate=None) -> int:
     from .measure import measure_pose
     from .session import end_line, run_on_robot
 
-    emulator, held = None, {}
+    emulator = None
+    held: dict[str, Any] = {}  # the session's station diagram, kept just before the torque goes on
     try:
         if args.emulate is not None:
             print(

@@ -95,7 +95,8 @@ class RecordRows:
     BLOCK_ROWS = 16_384
 
     def __init__(self, width: int):
-        self.width, self._blocks, self._n = int(width), [], 0
+        self._blocks: list[np.ndarray] = []
+        self.width, self._n = int(width), 0
 
     def add(self, t: float, values) -> None:
         k = self._n % self.BLOCK_ROWS

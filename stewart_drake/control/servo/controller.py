@@ -161,8 +161,8 @@ class CrankServoController(LeafSystem):
                 f"N m, got {friction}"
             )
         if np.any(friction > 0.0):  # the estimate stays within a factor of 2 of the start's
-            c[k.FRICTION_MIN] = FRICTION_RANGE[0] * float(friction.min())
-            c[k.FRICTION_MAX] = min(c[k.FRICTION_MAX], FRICTION_RANGE[1] * float(friction.max()))
+            c[k.FRICTION_MIN] = FRICTION_RANGE[0] * float(np.min(friction))
+            c[k.FRICTION_MAX] = min(c[k.FRICTION_MAX], FRICTION_RANGE[1] * float(np.max(friction)))
         c.setflags(write=False)
         self._c = c
         self._x_d = self.DeclareVectorInputPort("x_d", 18)
