@@ -168,17 +168,31 @@ def scenario_of(args, period: float):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--scenario", default="paper_bus")
-    parser.add_argument("--motion", default="breathing")
-    parser.add_argument("--param", action="append", default=[])
-    parser.add_argument("--set", action="append", default=[])
+    parser = argparse.ArgumentParser(
+        description="How accurately the robot on its servo bus makes a motion, against the bus "
+        "emulator at wall-clock time: the true pose and the encoders' against the reference, "
+        "the same simulated, the encoders' floor, the loop's CPU (see the module's docstring)."
+    )
+    parser.add_argument("--scenario", default="paper_bus", help="a bus scenario (its name or file)")
+    parser.add_argument(
+        "--motion", default="breathing", help="a library motion or a trace file (as robot's)"
+    )
+    parser.add_argument(
+        "--param", action="append", default=[], help="KEY=VALUE: a parameter of the motion"
+    )
+    parser.add_argument(
+        "--set", action="append", default=[], help="KEY=VALUE: a scenario field (as run's --set)"
+    )
     parser.add_argument("--duration", type=float, default=30.0, help="s of the motion")
     parser.add_argument("--skip", type=float, default=8.0, help="s of the motion not measured")
-    parser.add_argument("--period", type=float, nargs="+", default=[0.01])
-    parser.add_argument("--load", type=int, nargs="+", default=[0])
-    parser.add_argument("--no-sim", action="store_true")
-    parser.add_argument("--breakdown", action="store_true")
+    parser.add_argument(
+        "--period", type=float, nargs="+", default=[0.01], help="control periods, s (one run each)"
+    )
+    parser.add_argument(
+        "--load", type=int, nargs="+", default=[0], help="busy processes beside each run"
+    )
+    parser.add_argument("--no-sim", action="store_true", help="no simulated prediction")
+    parser.add_argument("--breakdown", action="store_true", help="where the loop's CPU goes")
     parser.add_argument(
         "--plant-friction", type=float, default=1.0, help="the emulated servos' friction, x"
     )
