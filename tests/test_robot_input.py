@@ -520,3 +520,26 @@ def test_a_run_ended_within_its_first_logged_period_says_so_and_writes_nothing(
         "interrupted by SIGINT; it ended within its first logged period: there are no logs to write"
     )
     assert ended.exit_code == 130 and ended.logs is None and not list(tmp_path.iterdir())
+
+
+def test_the_emulator_outlives_a_signal_to_the_process_group():
+    """A Ctrl-C or SIGTERM to the job's process group reaches the emulator's process too: it
+    ignores them (the session turns the torque off through it and must find it answering),
+    answers the bus after them, and ends when its parent stops it."""
+    from stewart_drake.live.emulator_process import EmulatorProcess
+
+    with EmulatorProcess(x0=X_HOME, start_timeout_s=HANG_S) as emu:
+        child = emu._process
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            os.kill(child.pid, signum)
+        child.join(1.0)  # wait-kept: a signal not ignored ends it well within a second
+        assert child.is_alive()
+        bus = driver.DynamixelBus.from_config(
+            driver.DynamixelBusConfig(port=emu.port, reply_timeout_s=1.0)
+        )
+        with bus:  # opened: every servo pinged and answering, then the torque off, confirmed
+            assert bus.read_state() is not None
+        assert bus.torque_off_confirmed
+    assert not child.is_alive()
+    t, x = emu.truth()
+    assert len(t) > 0 and x.shape[1] == 12

@@ -33,7 +33,17 @@ def _serve(  # pragma: no cover
 ) -> None:
     """The child: a :class:`~.emulator.BusEmulator` on a plant that records its pose; sends
     ("port", the port), serves until told to stop, then sends the record. If it cannot start it
-    sends ("error", one line) instead of a traceback on the terminal."""
+    sends ("error", one line) instead of a traceback on the terminal.
+
+    It ignores SIGINT, SIGTERM and SIGHUP: an operator's Ctrl-C (or a signal to the job's
+    process group) is for the robot's session, which then turns the torque off through this
+    emulator and must find it still answering, as servos keep answering a stopped program. It
+    ends when the parent says stop or its end of the pipe closes (the parent gone)."""
+    import signal
+
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):  # the session's (SessionSignals)
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
     try:
         emu = _start(ids, model, x0, scenario_yaml, tick_s, max_step_s, zero_counts, surrogate)
         # What start-up made (Drake, the plant, the modules) is never scanned again: a full
@@ -46,7 +56,10 @@ def _serve(  # pragma: no cover
         return
     try:
         conn.send(("port", emu.port))
-        conn.recv()  # stop
+        try:
+            conn.recv()  # stop
+        except EOFError:  # the parent is gone: nobody to answer
+            return
         record = emu.with_backend(lambda b: getattr(b, "parts", [b])[0].record.rows())
         conn.send((record, emu.slipped_s))
     finally:
@@ -256,8 +269,8 @@ class EmulatorProcess:
         except (BrokenPipeError, EOFError, OSError):
             pass
         self._process.join(timeout_s)
-        if self._process.is_alive():
-            self._process.terminate()
+        if self._process.is_alive():  # SIGKILL: the child ignores SIGTERM (:func:`_serve`)
+            self._process.kill()
             self._process.join(timeout_s)
         self._process = None
 
