@@ -113,6 +113,7 @@ def follow_motion(
     tolerance=(1e-3, 0.01),
     from_s: float = 0.0,
     loop_lag_s: float = LOOP_LAG_S,
+    say=None,
 ) -> dict:
     """A motion streamed ``latency_s`` late and followed with ``predictor`` and with none: (b)
     each followed reference measured against the motion itself over [``from_s``, end]
@@ -125,6 +126,7 @@ def follow_motion(
         rate_hz: the stream's rate (default a trace's own, else
             :data:`~stewart_drake.references.stream.DEFAULT_STREAM_RATE_HZ`).
         duration_s: how long (default the reference's ``end_time``; required without one).
+        say: called with a line of progress every few seconds of a long follow, or None.
     Returns:
         {"with": figures, "without": figures, "ratio_translation", "ratio_rotation",
         "horizon": :func:`horizon_error`, "latency_s", "rate_hz", "predictor", "used" (share
@@ -136,7 +138,19 @@ def follow_motion(
     rate = rate_hz or trace_rate(reference) or DEFAULT_STREAM_RATE_HZ
     end = duration_s if duration_s is not None else float(reference.end_time)
     stream = stream_of(reference, latency_s, rate, end)
-    followed = {name: follow(stream, name, settings, loop_lag_s) for name in ("none", predictor)}
+
+    def progress(name):
+        if say is None:
+            return None
+        return lambda i, n: say(
+            f"following the stream of {n} samples at {rate:g} Hz with {name}: {i} done "
+            f"({100 * i / n:.0f} %)"
+        )
+
+    followed = {
+        name: follow(stream, name, settings, loop_lag_s, progress=progress(name))
+        for name in ("none", predictor)
+    }
     t = np.arange(from_s, end, MEASURE_STEP_S)
     x_true = np.asarray(reference.evaluate(t)[0])
     figures = {
@@ -161,6 +175,13 @@ def follow_motion(
         "clipped": chosen.clipped,
         "followed": chosen,
     }
+
+
+def _stderr_line(text: str) -> None:
+    """A line of progress on stderr, at once."""
+    import sys
+
+    print(text, file=sys.stderr, flush=True)
 
 
 def trace_rate(reference) -> float | None:
@@ -226,12 +247,21 @@ def reproduce_stream(
     truth = run_reference(scenario)
     end = getattr(truth, "end_time", None)
     duration = float(min(duration_s or end or STREAM_DEFAULT_S, end or np.inf))
-    figures = follow_motion(truth, latency_s, predictor, rate_hz, duration, tolerance=tolerance)
+    say = _stderr_line if progress else None
+    if say is not None:
+        say(f"reproduce: following the motion streamed {latency_s * 1e3:g} ms late ...")
+    figures = follow_motion(
+        truth, latency_s, predictor, rate_hz, duration, tolerance=tolerance, say=say
+    )
     plan = make_plan(replace(scenario, duration_s=duration), with_reference=False)
     streamed, scale = fitted_motion(plan, truth, scale_to_fit)
     if scale != 1.0:  # the motion that fits, at the true motion's rate
         rate = figures["rate_hz"]
-        figures = follow_motion(streamed, latency_s, predictor, rate, duration, tolerance=tolerance)
+        figures = follow_motion(
+            streamed, latency_s, predictor, rate, duration, tolerance=tolerance, say=say
+        )
+    if say is not None:
+        say("reproduce: shaping the followed reference to the robot's limits ...")
     given = shape_followed(figures["followed"], shaping_limits(plan), duration)
     t = np.arange(0.0, duration, MEASURE_STEP_S)
     x_streamed = np.asarray(streamed.evaluate(t)[0])

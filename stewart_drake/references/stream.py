@@ -275,6 +275,7 @@ def follow(
     settings: PredictorSettings | None = None,
     loop_lag_s: float = LOOP_LAG_S,
     blend_s: float = BLEND_S,
+    progress=None,
 ) -> FollowedStream:
     """The reference that follows ``stream`` with ``predictor`` (module docstring).
 
@@ -283,6 +284,8 @@ def follow(
             :data:`~.prediction.PREDICTORS`. settings: its settings (default the shipped).
         loop_lag_s: how far the robot lags its reference, s (added to the horizon).
         blend_s: the blend between arrivals' curves, s (at most the sample step is used).
+        progress: called with (arrivals followed, arrivals) at most every
+            :data:`PROGRESS_S` of wall-clock time, or None.
     Returns:
         :class:`FollowedStream`.
     Raises:
@@ -306,16 +309,19 @@ def follow(
             f"({stream.t[-1]:.3g} s): the {predictor} predictor needs {needed} "
             f"({(needed - 1) * dt:.3g} s at {1 / dt:.3g} Hz) before it can predict"
         )
-    nodes, using, sigma, clipped = _arrivals(stream, predictor, settings, steps)
+    nodes, using, sigma, clipped = _arrivals(stream, predictor, settings, steps, progress)
     return FollowedStream(
         stream, predictor, settings, loop_lag_s, blend_s, nodes, using, sigma, clipped
     )
 
 
-def _arrivals(stream: Stream, predictor: str, settings, steps: int):
+def _arrivals(stream: Stream, predictor: str, settings, steps: int, progress=None):
     """The follower's record of every arrival, in order: (nodes (N, n, 6), using (N, 6),
-    sigma (N, K, 6), clipped count)."""
+    sigma (N, K, 6), clipped count); ``progress(i, N)`` every :data:`PROGRESS_S` at most."""
+    import time
+
     N = stream.t.size
+    said = time.monotonic()
     model = OnlinePredictor(predictor, stream.dt, steps, 6, settings)
     n = PAST_NODES + 1 + steps
     nodes, using = np.empty((N, n, 6)), np.zeros((N, 6), dtype=bool)
@@ -326,7 +332,14 @@ def _arrivals(stream: Stream, predictor: str, settings, steps: int):
         nodes[i] = np.concatenate([past, y[None, :], ahead])
         using[i], sigma[i] = model.using, model.sigma
         past = np.concatenate([past[1:], y[None, :]])
+        if progress is not None and i % 256 == 0 and time.monotonic() - said >= PROGRESS_S:
+            said = time.monotonic()
+            progress(i, N)
     return nodes, using, sigma, model.clipped
+
+
+#: The longest the follower runs without telling its ``progress``, s of wall-clock time.
+PROGRESS_S = 2.0
 
 
 __all__ = [
@@ -342,4 +355,5 @@ __all__ = [
     "LOOP_LAG_S",
     "BLEND_S",
     "HELD_STEPS",
+    "PROGRESS_S",
 ]
