@@ -154,7 +154,43 @@ def read_encoder_log(path, carriage: bool = False) -> dict:
     remedy = CARRIAGE_REMEDY if carriage else ENCODER_LOG_REMEDY
     log = read_table(path, "encoder log", columns, remedy, nan_ok=("t_path",))
     q = np.column_stack([log.pop(n) for n in READING_COLUMNS])
+    _check_log_magnitudes(path, log, q)
     return log | {"q": q}
+
+
+#: The largest encoder reading an encoder log may hold, rad (a multi-turn count of 2^31 on a
+#: 4096-count encoder is 3.3e6 rad): beyond it the value is a broken file, not a crank.
+MAX_READING_RAD = 1e7
+#: The largest time an encoder log may hold, s (a run's clock, or seconds since 1970).
+MAX_LOG_TIME_S = 1e10
+
+
+def _check_log_magnitudes(path, log: dict, q: np.ndarray) -> None:
+    """Refuse, before any arithmetic on them, readings, times or a carriage's ``s`` beyond any a
+    run makes (a 1e308 overflows every sum), naming the line, the column and the value.
+
+    Raises:
+        InvalidConfigError: one line.
+    """
+    from ..base.checks import MAX_POSITION_M
+
+    checks = [(name, q[:, j], MAX_READING_RAD, "rad") for j, name in enumerate(READING_COLUMNS)]
+    checks += [
+        (name, log[name], MAX_LOG_TIME_S, "s")
+        for name in ("time", "t_run", "t_path")
+        if name in log
+    ]
+    if "s" in log:
+        checks.append(("s", log["s"], MAX_POSITION_M, "m"))
+    for name, values, bound, unit in checks:
+        size = np.abs(np.nan_to_num(np.asarray(values, dtype=float), nan=0.0))
+        if size.size and size.max() > bound:
+            r = int(np.argmax(size))
+            raise InvalidConfigError(
+                f"{path}, line {int(log['lines'][r])}: {name} = {float(values[r]):.4g} {unit}, "
+                f"beyond the {bound:g} {unit} any run's log holds: the file is damaged or not "
+                "an encoder log"
+            )
 
 
 def encoder_log_path(npz) -> Path:
