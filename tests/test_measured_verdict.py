@@ -88,6 +88,8 @@ def test_seconds_in_words(value, text):
 def test_the_judgement_as_json_values():
     j = Judgement(False, "FAIL: ...", "m.csv", ["a"], {"X": {"rms": 1.0}}, True, {"s": 1})
     assert j.as_dict() == {
+        "verdict": "FAIL",
+        "cannot_judge": "",
         "passed": False,
         "line": "FAIL: ...",
         "compared": "m.csv",
@@ -556,29 +558,35 @@ def test_a_turned_motion_is_named_with_its_turn():
     assert not any("turned" in c for c in found)
 
 
-@pytest.mark.parametrize("angle, named", [(0.8, False), (1.5, True), (55.0, True), (65.0, False)])
-def test_a_turn_is_named_from_1_deg_to_60(angle, named):
+@pytest.mark.parametrize(
+    "angle, named", [(0.8, False), (1.5, True), (55.0, True), (65.0, True), (90.0, True)]
+)
+def test_a_turn_is_named_from_1_deg_at_any_angle(angle, named):
     x = turned(X_D, angle, (0.0, 0.0, 1.0))
-    found = mv._turned_axes(x, X_D, XYZ, (1e-6, 1.0))
+    # Beyond 60 deg a turn is named only when, turned back, the motion is within the tolerance
+    # (here 20 um, a least-squares turn's own error on a motion along one line is a few um).
+    found, _ = mv._turned_axes(x, X_D, XYZ, (2e-5, 1.0))
     assert (found is not None) == named
     if named:
         assert float(found.split("turned ")[1].split(" deg")[0]) == pytest.approx(angle, rel=2e-3)
+        # Beyond 60 deg a quarter or half turn is also an axis swapped or reversed: said so.
+        assert ("a quarter or half turn" in found) == (angle > 60.0)
 
 
 def test_a_turn_is_named_only_when_turning_back_explains_the_motion():
     # Turned 5 deg and noisy: turned back, the motion is not within a quarter of its distance,
     # but it is within the tolerance of each axis, or not.
     x = noisy(turned(X_D, 5.0, (0.0, 0.0, 1.0)), 2e-4, seed=2)
-    assert mv._turned_axes(x, X_D, XYZ, (3e-4, 1.0)) is not None
-    assert mv._turned_axes(x, X_D, XYZ, (1.5e-4, 1.0)) is None
-    assert mv._turned_axes(x, X_D, ALONG_X, (3e-4, 1.0)) is None  # one translation measured
+    assert mv._turned_axes(x, X_D, XYZ, (3e-4, 1.0))[0] is not None
+    assert mv._turned_axes(x, X_D, XYZ, (1.5e-4, 1.0))[0] is None
+    assert mv._turned_axes(x, X_D, ALONG_X, (3e-4, 1.0))[0] is None  # one translation measured
     # Within the tolerance on every axis, not on their mean: X beyond it, Y and Z well within.
     x = turned(X_D, 5.0, (0.0, 0.0, 1.0))
     x[:, 3] = noisy(x[:, 3], 3e-4, seed=5)
-    assert mv._turned_axes(x, X_D, XYZ, (2.5e-4, 1.0)) is None
-    assert mv._turned_axes(x, X_D, XYZ, (3.5e-4, 1.0)) is not None
+    assert mv._turned_axes(x, X_D, XYZ, (2.5e-4, 1.0))[0] is None
+    assert mv._turned_axes(x, X_D, XYZ, (3.5e-4, 1.0))[0] is not None
     two = np.array([False] * 3 + [True, True, False])
-    assert mv._turned_axes(x, X_D, two, (3e-4, 1.0)) is not None
+    assert mv._turned_axes(x, X_D, two, (3e-4, 1.0))[0] is not None
 
 
 # -- the sensitivity -------------------------------------------------------------------------------

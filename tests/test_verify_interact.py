@@ -116,7 +116,10 @@ def test_a_depth_camera_on_a_phantom_at_rest_fails(tmp_path):
     camera.write_text("\n".join(lines) + "\n")
     code, figures = verify_depth(tmp_path, trace, camera)
     assert code == 2 and figures["passed"] is False
-    assert any("did not move" in c for c in figures["verdict"]["causes"])
+    # "Did not move" is judged against the reference's motion, not the tolerance: the camera's
+    # noise is more than a tenth of it, and is named as such.
+    causes = figures["verdict"]["causes"]
+    assert any("did not move" in c or "or noise" in c for c in causes), causes
 
 
 INTERACT = os.environ.get("STEWART_DRAKE_INTERACT", "")

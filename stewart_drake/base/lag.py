@@ -115,13 +115,16 @@ def refine_shift(t, y, weights, seen, d0: float, step_s: float, offsets: bool) -
     # As many as allowed, spread evenly from the first sample to the last.
     pick = np.round(np.linspace(0, len(t) - 1, min(len(t), REFINE_SAMPLES))).astype(int)
     t, y = t[pick], y[pick]
+    # Minimised over the shift's departure from d0: the method's tolerance is relative to its
+    # variable as well as absolute, and a shift of 1.7e9 s (a clock counting from 1970) would
+    # leave it 25 s, more than the step, where the departure keeps its microsecond.
     sol = minimize_scalar(
-        lambda d: shift_score(t, y, weights, seen, d, offsets),
-        bounds=(d0 - step_s, d0 + step_s),
+        lambda u: shift_score(t, y, weights, seen, d0 + u, offsets),
+        bounds=(-step_s, step_s),
         method="bounded",
         options={"xatol": 1e-6},
     )
-    return float(sol.x)
+    return float(d0 + sol.x)
 
 
 def best_shift(

@@ -50,6 +50,8 @@ class SurrogateCommand:
     """
 
     def __init__(self, surrogate: SurrogateTrace, homed: HomingReference, s_start: float):
+        # On the platform's motion's clock: the two files' times as written relate them.
+        surrogate = surrogate.on_clock_of(homed.reference)
         self.surrogate = surrogate
         self.homed = HomingReference(
             _Line(surrogate), _line_pose(s_start), homed.home_s, homed.t_end, homed.ramp_s

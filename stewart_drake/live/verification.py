@@ -33,7 +33,8 @@ def add_verify_command(sub) -> None:
         "verify",
         help="judge a motion measured on a real phantom (a tracker's export, or the robot's "
         "encoder log) against the reference it was asked to follow: reproduce's report, with "
-        "the latency (exit 2 if beyond --tolerance)",
+        "the latency (exit 2 if beyond --tolerance, 3 if the motion is too small to tell "
+        "from none at it)",
     )
     add_motion_arguments(vp)
     add_trace_arguments(vp)
@@ -118,6 +119,25 @@ def add_verify_command(sub) -> None:
         default="0.1mm,0.1deg",
         help="RMS error allowed per measured axis, a length and an angle",
     )
+    vp.add_argument(
+        "--record",
+        action="store_true",
+        help="also write a QA record a physicist signs and files, never over an earlier one: "
+        "OUT/records/<report>_<time>.pdf (the verdict, the tolerance and action level, the "
+        "plots, the assumptions, the inputs' SHA-256, the phantom, the software, lines to "
+        "sign) and .json (the same as named values for a QATrack+ upload test); needs the qa "
+        "extra (reportlab)",
+    )
+    vp.add_argument(
+        "--action-level",
+        default=None,
+        metavar="LENGTH,ANGLE",
+        help="with --record: RMS errors per axis beyond which a result within --tolerance is "
+        "ACTION (TG-142's action level), e.g. 0.07mm,0.07deg (default: none)",
+    )
+    vp.add_argument("--operator", default="", help="with --record: who ran the QA")
+    vp.add_argument("--phantom-serial", default="", help="with --record: the phantom's serial")
+    vp.add_argument("--notes", default="", help="with --record: notes for the record")
     add_scenario_arguments(
         vp, "the robot whose encoder log is read (forward kinematics)", default=SCENARIO
     )
@@ -146,7 +166,8 @@ def _check_frame(text: str) -> None:
 def cmd_verify(args) -> int:
     """``stewart-drake verify``: read the reference and each measured file, judge each, write
     its report and print its verdict and figures (a table side by side for several); 0 when
-    every verdict passes, 2 otherwise. With ``--save-registration``: fit the tracker's frames to
+    every verdict passes, 2 when any FAILs, else 3 when any cannot judge (:func:`exit_status`).
+    With ``--save-registration``: fit the tracker's frames to
     the one measured run of a known motion and write them, 0, no verdict.
 
     Raises:
@@ -165,6 +186,7 @@ def cmd_verify(args) -> int:
     from ..run.plan import robot_geometry
 
     tolerance = parse_tolerance(args.tolerance)
+    context = _record_context(args, tolerance)
     _check_frame(args.frame)
     if args.registration and args.frame != "axes":
         raise InvalidConfigError("--registration gives the frames: leave --frame out")
@@ -180,7 +202,15 @@ def cmd_verify(args) -> int:
     axis_map = key_values(args.measured_map, "--measured-map")
     out = Path(args.out)
     if args.save_registration:
-        check_replaceable(Path(args.save_registration))
+        check_replaceable(
+            Path(args.save_registration), f"--save-registration {args.save_registration}"
+        )
+        if Path(args.save_registration).exists():
+            raise InvalidConfigError(
+                f"--save-registration {args.save_registration} exists: a registration is never "
+                "replaced (the runs judged with it name it); give a new name, or move the old "
+                "one away first"
+            )
         path = args.measured[0]
         print(f"verify: reading {path}", file=sys.stderr, flush=True)
         return _save_registration(reference, _measured(path, args, scenario, axis_map), args)
@@ -194,7 +224,7 @@ def cmd_verify(args) -> int:
     for path in args.measured:
         print(f"verify: reading {path}", file=sys.stderr, flush=True)
         measured.append(_measured(path, args, scenario, axis_map))
-    results, passed = [], True
+    results = []
     for m, stem in zip(measured, stems):
         print(
             f"verify: aligning and judging {Path(m.path).name} ({len(m.t)} samples)",
@@ -211,15 +241,101 @@ def cmd_verify(args) -> int:
             tolerance=tolerance,
             max_gap_s=args.measured_max_gap,
         )
-        passed = passed and ver.judgement.passed
+        replaced = _earlier_verdict(out / f"{stem}.json")
         md, png, js = write_verification(ver, out, tolerance, stem)
         print(ver.judgement.line)
         print(_summary(ver))
-        print(f"wrote {md}, {png} and {js}")
+        print(f"wrote {md}, {png} and {js}" + (f" (replacing {replaced})" if replaced else ""))
+        if context is not None:
+            from dataclasses import replace
+
+            from ..execution.options import is_trace_file
+            from ..organ_motion.qa_record import write_record
+
+            trace = [args.motion] if is_trace_file(args.motion) else []
+            inputs = [m.path, *trace, *([args.registration] if args.registration else [])]
+            pdf, record = write_record(
+                ver, out, tolerance, replace(context, inputs=tuple(inputs)), png, stem
+            )
+            print(f"wrote the QA record {pdf} and {record}")
         results.append(ver)
     if len(results) > 1:
         print("\n".join(_side_by_side(results)))
-    return 0 if passed else 2
+    return exit_status([ver.judgement.verdict for ver in results])
+
+
+#: ``verify``'s exit status of each verdict; of several, the worst (FAIL before CANNOT JUDGE).
+EXIT_STATUS = {"PASS": 0, "FAIL": 2, "CANNOT JUDGE": 3}
+
+
+def exit_status(verdicts) -> int:
+    """The exit status of ``verify``'s verdicts (:data:`EXIT_STATUS`): 2 when any FAILs,
+    else 3 when any cannot judge, else 0."""
+    verdicts = list(verdicts)
+    for worst in ("FAIL", "CANNOT JUDGE"):
+        if worst in verdicts:
+            return EXIT_STATUS[worst]
+    return 0
+
+
+def _record_context(args, tolerance):
+    """The :class:`~stewart_drake.organ_motion.qa_record.RecordContext` of ``--record`` and its
+    options, checked before any work (reportlab importable), or None without ``--record``.
+
+    Raises:
+        InvalidConfigError: a record's option without ``--record``; a bad ``--action-level``
+            or text (:meth:`~stewart_drake.organ_motion.qa_record.RecordContext.check`).
+        MissingExtraError: reportlab is not installed.
+    """
+    from ..base.errors import InvalidConfigError
+    from ..organ_motion.fidelity import parse_tolerance
+    from ..organ_motion.qa_record import RecordContext, _reportlab
+
+    given = [
+        option
+        for option, value in (
+            ("--action-level", args.action_level),
+            ("--operator", args.operator),
+            ("--phantom-serial", args.phantom_serial),
+            ("--notes", args.notes),
+        )
+        if value
+    ]
+    if not args.record:
+        if given:
+            raise InvalidConfigError(f"{given[0]} is for the QA record: add --record")
+        return None
+    if args.save_registration:
+        raise InvalidConfigError(
+            "--save-registration gives no verdict to record: leave --record out"
+        )
+    action = None if args.action_level is None else parse_tolerance(args.action_level)
+    context = RecordContext(
+        operator=args.operator,
+        phantom_serial=args.phantom_serial,
+        notes=args.notes,
+        scenario=str(args.scenario or ""),
+        action_level=action,
+    )
+    context.check(tolerance)
+    _reportlab()
+    return context
+
+
+def _earlier_verdict(path) -> str:
+    """The words of an earlier report this run's replaces (its name and verdict), or ""."""
+    from ..base.fileio import read_json
+
+    try:
+        data = read_json(path, "verify report")
+        verdict = data["verdict"].get("verdict") or (
+            "PASS" if data["verdict"]["passed"] else "FAIL"
+        )
+    except FileNotFoundError:
+        return ""
+    except Exception:  # a report of another version, or damaged: replaced all the same
+        return f"the earlier report {Path(path).name}"
+    return f"an earlier report of this name, its verdict {verdict}"
 
 
 def _save_registration(reference, measured, args) -> int:
@@ -296,26 +412,35 @@ def _measured(path: str, args, scenario, axis_map: dict):
 
 
 def _summary(ver) -> str:
-    """The printed line of a verification's figures: latency, RMS, peak, gamma."""
-    from ..organ_motion.fidelity import format_window
+    """The printed line of a verification's figures: latency, then per measured axis the RMS
+    and peak error (each beside the per-axis tolerance it is judged against), and gamma; in
+    um below 0.1 mm, mm above (urad and deg for the rotations)."""
+    import numpy as np
+
+    from ..organ_motion.fidelity import AXES, format_angle, format_length, format_window
     from ..organ_motion.verification import seconds
 
     fid = ver.fidelity
-    rot, tr = fid["rms_rotation_rad"], fid["rms_translation_m"]
+    measured = np.asarray(ver.measured.measured, dtype=bool)
+    rms, peak = fid["rms"], fid["peak"]
+
+    def amount(k: int, v: float) -> str:
+        return format_length(abs(v)) if k >= 3 else format_angle(abs(v))
+
+    axes = ", ".join(
+        f"{AXES[k]} {amount(k, rms[k])} (peak {amount(k, peak[k])})"
+        for k in np.flatnonzero(measured)
+    )
     gamma = fid["gamma"][0]
     return (
         f"{Path(ver.measured.path).name}: latency {seconds(ver.latency_s)} (clock offset "
-        f"{ver.clock_offset_s:+.6g} s, {ver.clock}); RMS error over t = "
-        f"{format_window(*fid['window_s'])} s: translation "
-        + ("not measured" if math.isnan(tr) else f"{tr * 1e6:.3g} um")
-        + ", rotation "
-        + ("not measured" if math.isnan(rot) else f"{rot * 1e6:.3g} urad")
+        f"{ver.clock_offset_s:+.6g} s, {ver.clock}); RMS error per axis over t = "
+        f"{format_window(*fid['window_s'])} s: {axes}"
         + (
             ""
-            if math.isnan(tr)
-            else f"; peak {fid['peak_translation_m'] * 1e6:.3g} um; gamma "
-            f"{100 * gamma['pass_rate']:.4g} % at {gamma['distance_m'] * 1e3:g} mm / "
-            f"{gamma['time_s'] * 1e3:g} ms"
+            if math.isnan(fid["rms_translation_m"])
+            else f"; gamma {100 * gamma['pass_rate']:.4g} % at {gamma['distance_m'] * 1e3:g} mm "
+            f"/ {gamma['time_s'] * 1e3:g} ms"
         )
     )
 
@@ -336,7 +461,7 @@ def _side_by_side(results: list) -> list:
             [
                 Path(ver.measured.path).name,
                 ver.measured.kind,
-                "PASS" if ver.judgement.passed else "FAIL",
+                ver.judgement.verdict,
                 seconds(ver.latency_s),
                 number(fid["rms_translation_m"], 1e6, "um"),
                 number(fid["rms_rotation_rad"], 1e6, "urad"),

@@ -174,11 +174,53 @@ def axis_weights(measured) -> np.ndarray:
     return np.where(np.asarray(measured, dtype=bool), w, 0.0)
 
 
+def _kabsch(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(R (..., 3, 3), score (...,)): the rotations maximising tr(R^T H) of cross-covariances H
+    (..., 3, 3) (a sum of r y^T: R maps y onto r) and that maximum (Kabsch)."""
+    U, S, Vt = np.linalg.svd(H)
+    sign = np.sign(np.linalg.det(U @ Vt))
+    sign = np.where(sign == 0, 1.0, sign)
+    D = np.ones(S.shape)
+    D[..., 2] = sign
+    return (U * D[..., None, :]) @ Vt, np.sum(S * D, axis=-1)
+
+
+def rigid_shift(
+    t, y, reference: Reference, shifts: tuple[float, float], step_s: float
+) -> tuple[float, np.ndarray]:
+    """(d s, R_BT (3, 3)): the shift in [shifts] (to ``step_s``) at which the measured
+    positions y (n, 3), turned by the best rotation at each shift and put on the reference's
+    centroid, come nearest the reference's; the rotation at that shift (Kabsch, every shift at
+    once by FFT)."""
+    from scipy.signal import correlate
+
+    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
+    ym = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(3)])
+    m = len(grid)
+    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
+    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
+    r = reference_poses(reference, grid[0] + shifts[0] + step_s * np.arange(m + count - 1))[:, 3:]
+    r = r - r.mean(axis=0)
+    ones = np.ones(m)
+    S_r = np.column_stack([correlate(r[:, b], ones, "valid") for b in range(3)])  # (K, 3)
+    S_rr = correlate(np.sum(r * r, axis=1), ones, "valid")
+    C = np.empty((count, 3, 3))  # C[k, b, a] = sum_i r[i + k, b] y[i, a]
+    for b in range(3):
+        for a in range(3):
+            C[:, b, a] = correlate(r[:, b], ym[:, a], "valid")
+    y0 = ym - ym.mean(axis=0)
+    R, score = _kabsch(C - S_r[:, :, None] * ym.mean(axis=0)[None, None, :])
+    ms = (np.sum(y0 * y0) + S_rr - np.sum(S_r * S_r, axis=1) / m - 2 * score) / m
+    k = int(np.argmin(ms))
+    return float(shifts[0] + k * step_s), np.array(R[k])
+
+
 __all__ = [
     "ROTATION_WEIGHT_M",
     "REFINE_SAMPLES",
     "FRAME_KINDS",
     "reference_poses",
+    "rigid_shift",
     "Frames",
     "registered_frames",
     "reference_seen",

@@ -133,7 +133,12 @@ def _quaternion_rpy(path, rows: list, columns: list, n: int) -> np.ndarray:
     return np.unwrap(rpy, axis=0)
 
 
-def read_measured(path, columns: str = "", axis_map: dict | None = None) -> MeasuredMotion:
+def read_measured(
+    path,
+    columns: str = "",
+    axis_map: dict | None = None,
+    columns_option: str = "--measured-columns",
+) -> MeasuredMotion:
     """A tracker's file as a :class:`MeasuredMotion`: read by the readers of recorded traces
     (:func:`~stewart_drake.references.trace_files.read_trace_table`, any separator and decimal
     mark, a header or ``columns``, a column named ``-`` skipped, a closing line of zeros left
@@ -141,7 +146,8 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
 
     Args:
         path: the file. columns: its columns' names and units when it has no header (or to
-            replace it). axis_map: {column: axis with an optional sign}.
+            replace it). axis_map: {column: axis with an optional sign}. columns_option: the
+            command's option that gives ``columns``, which the refusals name.
     Returns:
         :class:`MeasuredMotion` of kind "tracker".
     Raises:
@@ -156,11 +162,11 @@ def read_measured(path, columns: str = "", axis_map: dict | None = None) -> Meas
     from ..references.trace_files import SKIP_COLUMN, TIME_UNITS, read_trace_table, trace_samples
 
     path = Path(path)
-    header, rows, layout = read_trace_table(path, "auto", columns)
+    header, rows, layout = read_trace_table(path, "auto", columns, columns_option)
     quaternion = _quaternion_columns(path, header)
     if quaternion is not None:  # read apart: four columns, three axes
         header = [SKIP_COLUMN if j in quaternion else h for j, h in enumerate(header)]
-    table = trace_samples(path, header, rows, layout, axis_map)
+    table = trace_samples(path, header, rows, layout, axis_map, columns_option)
     if quaternion is not None and any(k < 3 for k in table.targets):
         raise InvalidConfigError(
             f"{path}: both a quaternion and roll, pitch or yaw columns: give one of them"

@@ -26,6 +26,12 @@ measured axis k with the reference's motion r_k and the measured q_k, each less 
 - the latency beyond its bound;
 - and, when none of these, the motion's shape.
 
+A verdict that would PASS is CANNOT JUDGE instead when the phantom at rest would pass too: when
+on every measured axis the reference's own motion over the window (its RMS about its mean, the
+error of a platform resting at the reference's mean pose) is within the tolerance. Such a check
+cannot tell the motion from none, and says how small a tolerance, or how large a motion, it
+needs. A FAIL stays a FAIL: an error beyond the tolerance is seen whatever the motion.
+
 :func:`sensitivity` computes, from the reference alone, the smallest error of the whole motion's
 amplitude and the smallest tilt of the whole phantom (about an axis through the base frame's
 origin) that fail at the tolerance on the axes measured: a check that cannot see a 3 % scale
@@ -55,9 +61,13 @@ PERIOD_POWER_SHARE = 0.3
 #: A latency found within this many seconds of the edge of the shifts searched is "at least".
 EDGE_S = 0.05
 
-#: The largest turn of the measured axes from the base frame's that is named as such, rad:
-#: beyond it a turn looks like an axis swapped or reversed, which is named so.
+#: The largest turn of the measured axes from the base frame's that is named alone, rad: beyond
+#: it a turn is named beside each axis's causes (a quarter turn is also an axis swapped or
+#: reversed, which those name); and the largest tilt :func:`sensitivity` reports.
 MAX_TURN_RAD = math.radians(60.0)
+
+#: The largest further shift searched with a turn of the measured axes, s (half a breath).
+TURN_SEARCH_S = 2.5
 
 #: The least effect of a unit tilt on an axis that :func:`sensitivity` counts, (rad, m) per rad:
 #: below it the axis does not see the tilt (round-off of a motion that does not move it).
@@ -72,8 +82,9 @@ class Judgement:
     """A measured motion's verdict (module docstring).
 
     Attributes:
-        passed: the verdict. line: it in one line: PASS or FAIL, what was compared, the
-            tolerance, the window, the largest errors, the latency, and the causes of a FAIL.
+        passed: whether the verdict is PASS. line: it in one line: PASS, FAIL or CANNOT JUDGE,
+            what was compared, the tolerance, the window, the largest errors, the latency, and
+            the causes of a FAIL (or why it cannot judge).
         compared: what was compared, in words (the file, its axes, the frames, the reference).
         causes: why it fails, one phrase each (empty when it passes).
         axes: {axis: {"rms", "motion_rms", "reference_rms", "gain", "correlation",
@@ -81,6 +92,8 @@ class Judgement:
             (m or rad; NaN where undefined).
         latency_judged: whether the latency was judged (the clocks' relation known).
         sensitivity: :func:`sensitivity`.
+        cannot_judge: why the check cannot tell the motion from none at the tolerance (module
+            docstring), or "" when it can.
     """
 
     passed: bool
@@ -90,11 +103,19 @@ class Judgement:
     axes: dict = field(default_factory=dict)
     latency_judged: bool = False
     sensitivity: dict = field(default_factory=dict)
+    cannot_judge: str = ""
+
+    @property
+    def verdict(self) -> str:
+        """``"PASS"``, ``"FAIL"`` or ``"CANNOT JUDGE"``."""
+        return "PASS" if self.passed else "CANNOT JUDGE" if self.cannot_judge else "FAIL"
 
     def as_dict(self) -> dict:
         """The judgement as JSON values."""
         return {
+            "verdict": self.verdict,
             "passed": self.passed,
+            "cannot_judge": self.cannot_judge,
             "line": self.line,
             "compared": self.compared,
             "causes": list(self.causes),
@@ -184,22 +205,38 @@ def _correlation(a, b) -> float:
     return float(np.mean(a * b)) / den if den > 0 else 0.0
 
 
-def _turned_axes(x, x_d, measured, tolerance) -> str | None:
-    """The cause when the measured translations (n, 6) are the reference's x_d (n, 6) turned
-    (a tracker whose axes are not the base frame's, or a whole phantom set down tilted): the
-    least turn between their motions (Kabsch on the centred positions of the two or three
-    measured translations), when it is between 1 deg and :data:`MAX_TURN_RAD` and the measured
-    motion turned back either comes within a quarter of its distance from the reference's or
-    within the ``tolerance`` (m, rad) on every measured translation; else None. Words only: the
-    verdict is not changed."""
+def _turned_axes(x, x_d, measured, tolerance, t=None, reference=None) -> tuple[str | None, float]:
+    """(the cause, the turn, rad) when the measured translations (n, 6) are the reference's
+    x_d (n, 6) turned (a tracker whose axes are not the base frame's, or a whole phantom set
+    down tilted): the least turn between their motions (Kabsch on the centred positions of the
+    two or three measured translations), at any angle over 1 deg, when the measured motion
+    turned back either comes within a quarter of its distance from the reference's or within
+    the ``tolerance`` (m, rad) on every measured translation; else (None, the turn). Beyond
+    :data:`MAX_TURN_RAD` only the latter names it, and the words add that a quarter or half
+    turn is also an axis swapped or reversed. With the times t (n,) on the reference's clock
+    and the reference, the turn and a further shift (within half the reference's period, or
+    :data:`TURN_SEARCH_S`) are found
+    together (:func:`~.alignment.rigid_shift`: the best rotation at every shift): a
+    turn that moves the motion off the axes it was asked along (a quarter turn) leaves the
+    clock's own search with nothing to match. Words only: the verdict is not changed."""
     from scipy.spatial.transform import Rotation
 
     seen = [k - 3 for k in (3, 4, 5) if measured[k]]
     if len(seen) < 2:
-        return None
+        return None, 0.0
     q = np.zeros((len(x), 3))
     r = np.zeros((len(x), 3))
     q[:, seen] = x[:, 3:][:, seen] - np.mean(x[:, 3:][:, seen], axis=0)
+    if t is not None and reference is not None and len(t) > 10:
+        from .alignment import reference_poses, rigid_shift
+
+        period = getattr(reference, "repeat_period_s", None) or 2 * TURN_SEARCH_S
+        half = min(0.5 * float(period), TURN_SEARCH_S)
+        step = max(0.02, float(np.median(np.diff(t))))
+        y = np.zeros((len(t), 3))
+        y[:, seen] = x[:, 3:][:, seen]
+        d, _ = rigid_shift(np.asarray(t, dtype=float), y, reference, (-half, half), step)
+        x_d = reference_poses(reference, np.asarray(t, dtype=float) + d)
     r[:, seen] = x_d[:, 3:][:, seen] - np.mean(x_d[:, 3:][:, seen], axis=0)
     # A motion along one line leaves a turn about it free: three unit pairs of a thousandth of
     # the motion's weight take the least turn among those that fit alike.
@@ -213,14 +250,19 @@ def _turned_axes(x, x_d, measured, tolerance) -> str | None:
     before = float(np.sqrt(np.mean(np.sum((q - r) ** 2, axis=1))))
     after = float(np.sqrt(np.mean(np.sum(back**2, axis=1))))
     within = bool(np.all(np.sqrt(np.mean(back[:, seen] ** 2, axis=0)) <= tolerance[0]))
-    if not (math.radians(1.0) < angle <= MAX_TURN_RAD and (after < 0.25 * before or within)):
-        return None
+    large = angle > MAX_TURN_RAD
+    # A large turn must explain the motion to the tolerance: it competes with an axis's own
+    # causes (a reversed axis and a scaled one fit a half turn to a quarter of their distance).
+    if not (math.radians(1.0) < angle and (within if large else after < 0.25 * before or within)):
+        return None, angle
     return (
         f"the measured motion is turned {math.degrees(angle):.3g} deg from the reference's "
         f"(turned back, it comes within {format_length(after)} RMS of it, against "
-        f"{format_length(before)}): the tracker's axes are not the base frame's, or the whole "
-        "phantom is set down tilted; register the tracker (--registration REG.yaml, from "
-        "fiducials or --save-registration) to tell them apart"
+        f"{format_length(before)}): the tracker's axes are not the base frame's"
+        + (" (a quarter or half turn is also an axis swapped or reversed)" if large else "")
+        + ", or the whole phantom is set down tilted; register the tracker (--registration "
+        "REG.yaml, from fiducials or --save-registration) to tell them apart",
+        angle,
     )
 
 
@@ -283,8 +325,14 @@ def causes_of(
     seen = [int(k) for k in np.flatnonzero(measured)]
     moving_seen = [k for k in seen if moving[k]]
     f = {k: figures[AXES[k]] for k in seen}
+    # At rest: along the reference's motion, less than a share of it (never the tolerance: a
+    # motion smaller than the tolerance moved all the same); where it holds still, within the
+    # tolerance.
     still = all(
-        f[k]["motion_rms"] < max(AT_REST_SHARE * f[k]["reference_rms"], tol[k]) for k in seen
+        f[k]["motion_rms"] < AT_REST_SHARE * f[k]["reference_rms"]
+        if moving[k]
+        else f[k]["motion_rms"] <= tol[k]
+        for k in seen
     )
     if moving_seen and still:
         moved = ", ".join(
@@ -293,8 +341,10 @@ def causes_of(
             for k in moving_seen
         )
         return [f"the phantom did not move ({moved})"], False
-    turned = _turned_axes(x, x_d, measured, tolerance) if removes_offsets else None
-    if turned is not None:
+    turned, angle = (
+        _turned_axes(x, x_d, measured, tolerance, t, reference) if removes_offsets else (None, 0.0)
+    )
+    if turned is not None and angle <= MAX_TURN_RAD:
         return [turned], True
     causes = []
     follows = True
@@ -387,6 +437,13 @@ def causes_of(
                 + " (the phantom set down off its place or tilted, or a registration out of "
                 "date)"
             )
+    # A turn beyond MAX_TURN_RAD, named after each axis's words unless they say it already:
+    # every moving axis reversed (a half turn of a motion along one line) or an axis swapped.
+    said = any("axes swapped" in c for c in causes) or all(
+        any(c.startswith(f"{AXES[k]} runs the wrong way") for c in causes) for k in moving_seen
+    )
+    if turned is not None and not said:
+        causes.append(turned)
     return causes, follows
 
 
@@ -486,7 +543,8 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     ok = bool(np.all(rms[measured] <= tol[measured]))
     latency_judged = ver.clock != "not known"
     latency_ok = not latency_judged or abs(ver.latency_s) <= ver.max_latency_s
-    passed = ok and latency_ok
+    unseen = "" if not (ok and latency_ok) else motion_unseen(x_d[m], measured, tolerance)
+    passed = ok and latency_ok and not unseen
     moving = np.array([a in fid["moving"] for a in AXES])
     causes: list[str] = []
     follows = True
@@ -536,11 +594,14 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     else:
         lat = "latency not judged (the clocks' relation not given)"
     compared = compared_words(ver)
+    word = "PASS" if passed else "CANNOT JUDGE" if unseen else "FAIL"
     line = (
-        f"{'PASS' if passed else 'FAIL'}: {compared}: RMS error per axis "
+        f"{word}: {compared}: RMS error per axis "
         f"{'within' if ok else 'beyond'} {format_length(tolerance[0])} | "
         f"{format_angle(tolerance[1])} over t = {format_window(w0, w1)} s (largest: "
-        f"{', '.join(largest)}); {lat}" + (f"; cause: {'; '.join(causes)}" if causes else "")
+        f"{', '.join(largest)}); {lat}"
+        + (f"; cause: {'; '.join(causes)}" if causes else "")
+        + (f"; {unseen}" if unseen else "")
     )
     return Judgement(
         passed,
@@ -550,6 +611,28 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         axis_figures(t[m], x_w, x_d[m], measured),
         latency_judged,
         sensitivity(t[m], x_d[m], measured, tolerance, ver.frame.removes_offsets),
+        unseen,
+    )
+
+
+def motion_unseen(x_d, measured, tolerance) -> str:
+    """Why a check at ``tolerance`` (m, rad) cannot tell the reference's motion x_d (n, 6)
+    over the window from none on the ``measured`` (6,) bool axes, or "" when it can (module
+    docstring): the phantom at rest at the reference's mean pose errs by the reference's RMS
+    about its mean on each axis, and would pass when every measured axis's is within the
+    tolerance."""
+    measured = np.asarray(measured, dtype=bool)
+    tol = _tolerances(tolerance)
+    rest = np.std(np.asarray(x_d, dtype=float), axis=0)
+    seen = [int(k) for k in np.flatnonzero(measured)]
+    if not seen or any(rest[k] > tol[k] for k in seen):
+        return ""
+    k = max(seen, key=lambda j: rest[j] / tol[j])
+    return (
+        "cannot judge: the phantom at rest would pass too (the reference moves "
+        + ", ".join(f"{AXES[j]} {_amount(j, rest[j])}" for j in seen)
+        + " RMS on the axes measured, each within the tolerance): judge at a tolerance below "
+        f"{AXES[k]}'s {_amount(k, rest[k])}, or on a larger motion"
     )
 
 
@@ -573,5 +656,6 @@ __all__ = [
     "sensitivity_words",
     "compared_words",
     "judge",
+    "motion_unseen",
     "seconds",
 ]

@@ -9,7 +9,10 @@ absorbs any error the phantom made during it (an offset, a tilt, a wrong scale o
 motion shows as a frame), which is why the registration motion is a short, known one (the
 library's ``registration``: every axis moves and turns at its own period, so that the motion
 determines every parameter of the frames) and why the fit refuses to write a frame the motion
-leaves undetermined or that the measurement does not follow.
+leaves undetermined or that the measurement does not follow, and a file that a mirrored
+frame or rotations turning the other way explain better than it does as written (a proper
+rotation fits a mirrored motion only so well, and a marker's lever arm absorbs reversed
+rotations: neither leaves a residual large enough to be refused by it alone).
 
 The fit: the clock shift d coarsely by cross-correlation with the best rotation at each shift
 (Kabsch on the cross-covariances of every shift at once, by FFT), then the shift, the
@@ -22,7 +25,9 @@ determine is refused (:func:`fit_registration`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -30,7 +35,7 @@ from scipy.spatial.transform import Rotation
 from ..base.errors import InvalidConfigError
 from ..references.motion import Reference
 from ..robot.kinematics import rotation_rpy
-from .alignment import ROTATION_WEIGHT_M, reference_poses
+from .alignment import ROTATION_WEIGHT_M, reference_poses, rigid_shift
 from .measured_motion import MeasuredMotion
 
 #: Most samples the fit uses (evenly picked): its 13 parameters need far fewer.
@@ -38,6 +43,13 @@ FIT_SAMPLES = 3000
 #: The largest RMS distance between the measured marker and the reference's once fitted, m: more
 #: is not this motion, a marker that slipped, or a tracker that lost it.
 MAX_REGISTRATION_RMS_M = 1e-3
+#: The largest RMS angle between a 6-DoF marker's rotation and the reference's once fitted,
+#: rad: more is a marker whose rotations are not this motion's (turning the other way, another
+#: convention of angles).
+MAX_REGISTRATION_RMS_RAD = math.radians(0.5)
+#: Another reading of the file (a mirrored frame, reversed rotations) whose residual is under
+#: this share of the file's as written explains the motion better: the file is refused.
+BETTER_SHARE = 0.5
 #: A direction of the frames' parameters known worse than this, one standard deviation (rotations
 #: counted as the displacement of a point :data:`~.alignment.ROTATION_WEIGHT_M` from the axis),
 #: is not determined by the motion, m.
@@ -103,47 +115,6 @@ def _rotation_error(R_ref, R) -> np.ndarray:
     )
 
 
-def _kabsch(H: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(R (..., 3, 3), score (...,)): the rotations maximising tr(R^T H) of cross-covariances H
-    (..., 3, 3) (a sum of r y^T: R maps y onto r) and that maximum (Kabsch)."""
-    U, S, Vt = np.linalg.svd(H)
-    sign = np.sign(np.linalg.det(U @ Vt))
-    sign = np.where(sign == 0, 1.0, sign)
-    D = np.ones(S.shape)
-    D[..., 2] = sign
-    return (U * D[..., None, :]) @ Vt, np.sum(S * D, axis=-1)
-
-
-def rigid_shift(
-    t, y, reference: Reference, shifts: tuple[float, float], step_s: float
-) -> tuple[float, np.ndarray]:
-    """(d s, R_BT (3, 3)): the shift in [shifts] (to ``step_s``) at which the measured
-    positions y (n, 3), turned by the best rotation at each shift and put on the reference's
-    centroid, come nearest the reference's; the rotation at that shift (Kabsch, every shift at
-    once by FFT)."""
-    from scipy.signal import correlate
-
-    grid = t[0] + step_s * np.arange(int((t[-1] - t[0]) / step_s) + 1)
-    ym = np.column_stack([np.interp(grid, t, y[:, c]) for c in range(3)])
-    m = len(grid)
-    # The last shift too where rounding leaves (hi - lo) / step a hair under a whole number.
-    count = int(np.floor((shifts[1] - shifts[0]) / step_s + 1e-9)) + 1
-    r = reference_poses(reference, grid[0] + shifts[0] + step_s * np.arange(m + count - 1))[:, 3:]
-    r = r - r.mean(axis=0)
-    ones = np.ones(m)
-    S_r = np.column_stack([correlate(r[:, b], ones, "valid") for b in range(3)])  # (K, 3)
-    S_rr = correlate(np.sum(r * r, axis=1), ones, "valid")
-    C = np.empty((count, 3, 3))  # C[k, b, a] = sum_i r[i + k, b] y[i, a]
-    for b in range(3):
-        for a in range(3):
-            C[:, b, a] = correlate(r[:, b], ym[:, a], "valid")
-    y0 = ym - ym.mean(axis=0)
-    R, score = _kabsch(C - S_r[:, :, None] * ym.mean(axis=0)[None, None, :])
-    ms = (np.sum(y0 * y0) + S_rr - np.sum(S_r * S_r, axis=1) / m - 2 * score) / m
-    k = int(np.argmin(ms))
-    return float(shifts[0] + k * step_s), np.array(R[k])
-
-
 def fit_registration(
     reference: Reference,
     measured: MeasuredMotion,
@@ -166,10 +137,13 @@ def fit_registration(
         InvalidConfigError: not a tracker's X, Y and Z (an encoder log; a single-axis sensor;
             some rotations but not three); shorter than :data:`MIN_REGISTRATION_S`; a motion
             that leaves a parameter of the frames undetermined (a turn about the one line it
-            runs along); the measured marker farther than :data:`MAX_REGISTRATION_RMS_M` RMS
-            from the reference once fitted; a step between samples longer than ``max_gap_s``.
+            runs along); the measured marker farther than :data:`MAX_REGISTRATION_RMS_M` (or
+            a 6-DoF marker turned more than :data:`MAX_REGISTRATION_RMS_RAD`) RMS from the
+            reference once fitted; the file read as a mirrored frame, or with its rotations
+            reversed, fitting clearly better (:data:`BETTER_SHARE`): a frame fitted to it as
+            written would be wrong; a step between samples longer than ``max_gap_s``.
     """
-    from .verification import _overlap, _samples, _search, seconds
+    from .verification import _samples, _search, seconds
 
     name = getattr(reference, "name", "the reference")
     if measured.kind != "tracker" or not np.all(measured.measured[3:]):
@@ -188,16 +162,91 @@ def fit_registration(
             f"{measured.path}: the registration motion lasts {seconds(t[-1] - t[0])}, shorter "
             f"than {MIN_REGISTRATION_S:g} s: record at least 30 s of {name}"
         )
-    step = max(0.02, float(np.median(np.diff(t))))
-    d0, R0 = rigid_shift(
-        t, y[:, 3:], reference, _search(reference, t, clock_offset_s, max_latency_s), step
+    rot = measured.rotations_measured
+    search = _search(reference, t, clock_offset_s, max_latency_s)
+    fit = _fit(reference, t, y, rot, search)
+    sol, J, e, unpack, rms_m, rms_rad = fit.sol, fit.J, fit.e, fit.unpack, fit.rms_m, fit.rms_rad
+    # The residual first: a marker that did not follow the motion leaves residuals so large
+    # that every direction of the frames looks undetermined too, and that refusal would send
+    # the user to the registration motion they have just measured.
+    if rms_m > MAX_REGISTRATION_RMS_M or (rot and rms_rad > MAX_REGISTRATION_RMS_RAD):
+        raise InvalidConfigError(
+            f"{measured.path}: the marker stays {rms_m * 1e3:.3g} mm"
+            + (f", {math.degrees(rms_rad):.3g} deg" if rot else "")
+            + f" RMS from {name} once the frames are fitted (at most "
+            f"{MAX_REGISTRATION_RMS_M * 1e3:g} mm"
+            + (f", {math.degrees(MAX_REGISTRATION_RMS_RAD):g} deg" if rot else "")
+            + "): not this motion, a marker that slipped, or a tracker that lost it; measure "
+            "the registration again"
+        )
+    for what, y_other in _other_frames(y, rot):
+        other = _fit(reference, t, y_other, rot, search)
+        if _explains_better(other, fit, rot):
+            raise InvalidConfigError(
+                f"{measured.path}: {what} explains the registration motion better than the "
+                f"file as written ({other.rms_m * 1e6:.3g} um RMS against {rms_m * 1e6:.3g} um"
+                + (
+                    f"; {other.rms_rad * 1e6:.3g} urad against {rms_rad * 1e6:.3g} urad"
+                    if rot
+                    else ""
+                )
+                + "): a frame fitted to it would be wrong; correct the export (its axes' "
+                "signs, its rotations' sense) and measure again"
+            )
+    free = _undetermined(J[:, 1:], e, rot)
+    if free:
+        raise InvalidConfigError(
+            f"{name} leaves {free} of the frames' {len(sol.x) - 1} parameters undetermined "
+            "(a turn about a line the motion runs along, or a marker offset its turns do not "
+            "show): register with the library's motion registration, which moves along and "
+            "turns about every axis"
+        )
+    R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
+    sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
+    return MotionRegistration(
+        R_BT,
+        p_BT,
+        R_ME.T,
+        p_EM,
+        sigma_B,
+        sigma_M,
+        rms_m,
+        rms_rad,
+        fit.shift_s,
+        fit.samples,
+        name,
+        str(measured.path),
     )
+
+
+class _Fit(NamedTuple):
+    """A least-squares fit of the frames (:func:`_fit`): scipy's solution, its Jacobian and
+    residuals, the parameters' unpacking into (R_BT, p_BT, R_ME, p_EM), the residuals' RMS (m,
+    and rad of a 6-DoF marker, else NaN), the shift d (s) and the samples fitted."""
+
+    sol: Any
+    J: np.ndarray
+    e: np.ndarray
+    unpack: Callable
+    rms_m: float
+    rms_rad: float
+    shift_s: float
+    samples: int
+
+
+def _fit(reference: Reference, t, y, rot: bool, search: tuple) -> _Fit:
+    """The frames fitted to the measured marker y (n, 6) at the times t (module docstring):
+    the shift coarsely with the best rotation at each (:func:`rigid_shift`, within
+    ``search``), then every parameter by least squares."""
+    from .verification import _overlap
+
+    step = max(0.02, float(np.median(np.diff(t))))
+    d0, R0 = rigid_shift(t, y[:, 3:], reference, search, step)
     use = _overlap(reference, t + d0, step)
     t, y = t[use], y[use]
     # As many as allowed, spread evenly from the first sample to the last.
     pick = np.round(np.linspace(0, len(t) - 1, min(len(t), FIT_SAMPLES))).astype(int)
     t, y = t[pick], y[pick]
-    rot = measured.rotations_measured
     x_d0 = reference_poses(reference, t + d0)
     p0_BT = x_d0[:, 3:].mean(axis=0) - y[:, 3:].mean(axis=0) @ R0.T
     R0_ME = np.eye(3)
@@ -231,9 +280,6 @@ def fit_registration(
     sol = least_squares(residuals, p_start, method="trf", x_scale="jac")
     J = np.asarray(sol.jac)
     e = residuals(sol.x)
-    # The residual first: a marker that did not follow the motion leaves residuals so large
-    # that every direction of the frames looks undetermined too, and that refusal would send
-    # the user to the registration motion they have just measured.
     pos = e[: 3 * n].reshape(n, 3)
     rms_m = float(np.sqrt(np.mean(np.sum(pos**2, axis=1))))
     rms_rad = (
@@ -241,36 +287,33 @@ def fit_registration(
         if rot
         else math.nan
     )
-    if rms_m > MAX_REGISTRATION_RMS_M:
-        raise InvalidConfigError(
-            f"{measured.path}: the marker stays {rms_m * 1e3:.3g} mm RMS from {name} once the "
-            f"frames are fitted (at most {MAX_REGISTRATION_RMS_M * 1e3:g} mm): not this motion, "
-            "a marker that slipped, or a tracker that lost it; measure the registration again"
-        )
-    free = _undetermined(J[:, 1:], e, rot)
-    if free:
-        raise InvalidConfigError(
-            f"{name} leaves {free} of the frames' {len(p_start) - 1} parameters undetermined "
-            "(a turn about a line the motion runs along, or a marker offset its turns do not "
-            "show): register with the library's motion registration, which moves along and "
-            "turns about every axis"
-        )
-    R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
-    sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
-    return MotionRegistration(
-        R_BT,
-        p_BT,
-        R_ME.T,
-        p_EM,
-        sigma_B,
-        sigma_M,
-        rms_m,
-        rms_rad,
-        d0 + float(sol.x[0]),
-        n,
-        name,
-        str(measured.path),
-    )
+    return _Fit(sol, J, e, unpack, rms_m, rms_rad, d0 + float(sol.x[0]), n)
+
+
+def _other_frames(y, rot: bool) -> list:
+    """[(what, y')]: the measured marker y (n, 6) as a mirrored frame or reversed rotations
+    would have it written: X's sign flipped (a left-handed export; the rotations about Y and Z
+    reflected with it), and with a 6-DoF marker the three rotations negated (turning the other
+    way)."""
+    mirrored = np.array(y, dtype=float)
+    mirrored[:, 3] = -mirrored[:, 3]
+    if rot:
+        mirrored[:, 1:3] = -mirrored[:, 1:3]
+    out = [("a mirrored tracker's frame (one axis's sign flipped)", mirrored)]
+    if rot:
+        reversed_ = np.array(y, dtype=float)
+        reversed_[:, :3] = -reversed_[:, :3]
+        out.append(("the marker's rotations run the other way", reversed_))
+    return out
+
+
+def _explains_better(other: _Fit, fit: _Fit, rot: bool) -> bool:
+    """Whether the fit ``other`` (:func:`_fit`) explains the motion clearly better than ``fit``:
+    its positions' residual under :data:`BETTER_SHARE` of the other's, or, with rotations, its
+    rotations' residual so, the positions' no worse."""
+    if other.rms_m < BETTER_SHARE * fit.rms_m:
+        return True
+    return bool(rot and other.rms_rad < BETTER_SHARE * fit.rms_rad and other.rms_m <= fit.rms_m)
 
 
 def _undetermined(J, e, rot: bool) -> int:

@@ -21,8 +21,11 @@ the reference's own clock. :func:`verify` then, with the clock and the frames of
    motion judged but the clock and, with ``"axes"``, one constant per measured axis: no
    rotation, scale or marker lever arm, which would absorb the very errors to be found;
 2. **aligns the clocks**: the shift d (measured time + d = the reference's time whose pose it
-   shows) that brings the measured axes nearest the reference's (each less its mean difference
-   with ``"axes"``), coarsely over every shift allowed by FFT, then to a fraction of a sample;
+   shows) that brings the measured axes nearest the reference's, each less its mean difference
+   whatever the frames (a constant offset is judged on its own, and would pull the clock
+   towards where the reference's mean over the window comes nearest it), coarsely over every
+   shift allowed by FFT, then to a fraction of a sample, on the file's times less its first
+   (a clock counting from 1970 keeps its digits);
 3. **separates the latency from the clock offset**: only their difference is in the data
    (d = clock offset - latency). With the clocks' relation known (``clock_offset_s``: measured
    time + offset = the reference's time; the encoder log's ``t_path`` is the reference's clock
@@ -81,6 +84,9 @@ MAX_SEARCH_S = 3600.0
 #: The share of a cycle a recording may miss at either end of the window and the cycle still
 #: count as whole (cut to the recording).
 CYCLE_SLACK = 0.02
+#: The latest time of the reference's clock a measured motion may lie at, s (11.6 days: a
+#: tracker's clock since it booted): a motion's cycles up to there are held in memory.
+MAX_REFERENCE_TIME_S = 1e6
 #: Shortest measured motion without cycles that is judged, s (a breath).
 MIN_SPAN_S = 4.0
 #: Step of the coarse clock search, s (finer when the measured samples are).
@@ -331,7 +337,8 @@ def verify(
             along; a step between samples longer than ``max_gap_s``; a recording not one whole
             cycle of the reference long (or a breath, without cycles), before or after the
             alignment; no overlap with the reference once aligned; a clock offset not within
-            +-:data:`MAX_CLOCK_OFFSET_S`.
+            +-:data:`MAX_CLOCK_OFFSET_S`; the measured motion beyond
+            :data:`MAX_REFERENCE_TIME_S` on the reference's clock.
     """
     if frame not in ("axes", "base"):
         raise InvalidConfigError(f"frame must be 'axes' or 'base', got {frame!r}")
@@ -341,6 +348,8 @@ def verify(
             f"counting seconds since 1970 is 1.7e9 s off), got {clock_offset_s}"
         )
     t, y = measured.t, np.array(measured.poses, dtype=float)
+    if clock_offset_s is not None:
+        _check_reference_time(float(t[0] + clock_offset_s), float(t[-1] + clock_offset_s))
     seen = measured.measured.copy()
     if measured.kind in ("encoders", "carriage"):
         clock_offset_s, clock = 0.0, "the encoder log's t_path is the reference's own clock"
@@ -364,12 +373,22 @@ def verify(
     def shown(times):
         return reference_seen(frames, reference, times)
 
+    # The search runs on the file's times less its first, so that a clock counting from 1970
+    # (1.7e9 s) keeps its digits: D, the reference's time at the file's first sample, is the
+    # shift d plus that first time.
+    t_first = float(t[0])
+    t_rel = t - t_first
+    # The clock is searched with each axis's constant offset removed, whatever the frames: an
+    # offset (a phantom set down off its place) would otherwise pull the shift towards where
+    # the reference's mean over the window comes nearest it. The offset is judged on its own.
+    D0 = coarse_shift(t_rel, y, weights, shown, (lo + t_first, hi + t_first), step, True)
+    use = _overlap(reference, t_rel + D0, step)
+    D = refine_shift(t_rel[use], y[use], weights, shown, D0, step, True)
     offsets = frames.removes_offsets
-    d0 = coarse_shift(t, y, weights, shown, (lo, hi), step, offsets)
-    use = _overlap(reference, t + d0, step)
-    d = refine_shift(t[use], y[use], weights, shown, d0, step, offsets)
-    keep = _overlap(reference, t + d, 0.0)
-    t_ref = t[keep] + d
+    d = D - t_first
+    keep = _overlap(reference, t_rel + D, 0.0)
+    t_ref = t_rel[keep] + D
+    _check_reference_time(float(t_ref[0]), float(t_ref[-1]))
     x_d = reference_poses(reference, t_ref)
     x = platform_poses(frames, y[keep], x_d)
     (w0, w1), starts, holds_start = _window(reference, float(t_ref[0]), float(t_ref[-1]))
@@ -385,6 +404,7 @@ def verify(
     if not measured.rotations_measured:
         x_start[:, :3] = np.nan
     offset = 0.0 if clock_offset_s is None else float(clock_offset_s)
+    latency = (offset + t_first) - D  # offset - d, without d's large digits
     ver = Verification(
         name=getattr(reference, "name", "reference"),
         reference=reference,
@@ -396,16 +416,33 @@ def verify(
         shift_s=d,
         clock_offset_s=offset,
         clock=clock,
-        latency_s=offset - d,
+        latency_s=latency,
         frame=frames,
         offsets=removed,
-        removed=_removed_words(d, offset, offset - d, clock, frames, removed, seen, resampled)
-        + _outside_words(t + d, t_ref, (w0, w1), holds_start),
+        removed=_removed_words(d, offset, latency, clock, frames, removed, seen, resampled)
+        + _outside_words(t_rel + D, t_ref, (w0, w1), holds_start),
         searched_s=(lo, hi),
         max_latency_s=max_latency_s,
     )
     ver.judgement = judge(ver, tolerance)
     return ver
+
+
+def _check_reference_time(a: float, b: float) -> None:
+    """Refuse a measured motion that, on the reference's clock, lies in [a, b] s beyond
+    :data:`MAX_REFERENCE_TIME_S` either way: no run of a phantom is that long, and the cycles
+    of a motion up to there would take memory in proportion (a clock offset of 1e10 s, or one
+    of the wrong sign or unit).
+
+    Raises:
+        InvalidConfigError: naming the times and what to check.
+    """
+    if max(abs(a), abs(b)) > MAX_REFERENCE_TIME_S:
+        raise InvalidConfigError(
+            f"the measured motion lies at t = {a:.6g} to {b:.6g} s of the reference's clock, "
+            f"beyond the {MAX_REFERENCE_TIME_S:g} s a phantom's run can last: measured time + "
+            "--clock-offset = the reference's time; check the offset's sign and unit"
+        )
 
 
 def _check_judgeable(reference: Reference, fid: dict, seen, measured: MeasuredMotion) -> None:
@@ -554,6 +591,7 @@ __all__ = [
     "MAX_JITTER",
     "MAX_GAP_S",
     "MAX_CLOCK_OFFSET_S",
+    "MAX_REFERENCE_TIME_S",
     "MeasuredRun",
     "Verification",
     "seconds",

@@ -31,6 +31,16 @@ class SurrogateTrace:
         self.path = path
         self.duration_s = float(getattr(trace, "end_time", np.inf))
 
+    def on_clock_of(self, internal) -> "SurrogateTrace":
+        """This trace on the clock of ``internal``, the motion it was recorded with
+        (:func:`~.traces.on_clock_of`: a file that starts later is played later by as much)."""
+        from .traces import on_clock_of
+
+        shifted = on_clock_of(self.trace, internal)
+        if shifted is self.trace:
+            return self
+        return SurrogateTrace(shifted, self.axis, self.sign, self.centre, self.path)
+
     def evaluate(self, t):
         """(s, v, a) at trace times t (s), m, m/s, m/s^2, arrays of t's shape; held at the
         recording's ends."""

@@ -67,12 +67,20 @@ def _parse_header_cell(cell: str) -> tuple[str, str]:
     return text, ""
 
 
-#: How to write a trace file: the remedy of the messages about one that cannot be read.
-_TRACE_REMEDY = (
-    "write a first line naming each column and its unit, e.g. t [s],SI [mm],AP [mm], or give "
-    "them with --columns (a scenario's reference.columns), or --format phantom for the "
-    "7-column phantom format"
-)
+def _trace_remedy(option: str = "--columns") -> str:
+    """How to write a trace file: the remedy of the messages about one that cannot be read,
+    naming the command's ``option`` that gives the columns (a reference's ``--columns`` also
+    has ``--format``; a measured file's option has not)."""
+    if option != "--columns":
+        return (
+            "write a first line naming each column and its unit, e.g. t [s],X [mm],Y [mm], or "
+            f"give them with {option}"
+        )
+    return (
+        "write a first line naming each column and its unit, e.g. t [s],SI [mm],AP [mm], or "
+        "give them with --columns (a scenario's reference.columns), or --format phantom for "
+        "the 7-column phantom format"
+    )
 
 
 def _number(cell: str) -> bool:
@@ -107,7 +115,7 @@ def _separator(lines: list) -> tuple[str | None, bool]:
 _SPACED_CELL = re.compile(r"[^\s\[(]+(?:\s*[\[(][^\])]*[\])])?|[\[(][^\])]*[\])]")
 
 
-def _split_lines(path: Path, text: str) -> tuple[list, str]:
+def _split_lines(path: Path, text: str, option: str = "--columns") -> tuple[list, str]:
     """(rows of cell strings, one per non-blank line with its line number first; the layout
     in words) of a trace's text, whatever its separator and decimal mark."""
     lines = text.splitlines()
@@ -121,7 +129,7 @@ def _split_lines(path: Path, text: str) -> tuple[list, str]:
                     rows.append([number] + cells)
         except csv.Error as err:
             raise CorruptFileError(
-                path, "trace file", f"not delimited text ({err})", _TRACE_REMEDY
+                path, "trace file", f"not delimited text ({err})", _trace_remedy(option)
             ) from None
     else:
         for number, line in enumerate(lines, start=1):
@@ -135,9 +143,12 @@ def _split_lines(path: Path, text: str) -> tuple[list, str]:
     return rows, f"separated by {named}" + (", decimal commas" if decimal_comma else "")
 
 
-def read_trace_table(path: Path, format: str, columns: str) -> tuple[list, list, str]:
+def read_trace_table(
+    path: Path, format: str, columns: str, columns_option: str = "--columns"
+) -> tuple[list, list, str]:
     """(header cells, data rows (each its line number then its cells), layout in words) of a
-    trace file in any of :data:`TRACE_FORMATS`, or given its columns.
+    trace file in any of :data:`TRACE_FORMATS`, or given its columns (by the command's
+    ``columns_option``, which the refusals name).
 
     Raises:
         MissingFileError, CorruptFileError: no such file, too large, not UTF-8 text.
@@ -146,20 +157,22 @@ def read_trace_table(path: Path, format: str, columns: str) -> tuple[list, list,
     """
     from ..base.fileio import check_parse_memory, decode_text, read_checked
 
+    remedy = _trace_remedy(columns_option)
+
     if format not in TRACE_FORMATS:
         raise InvalidConfigError(f"trace format {format!r}: use one of {', '.join(TRACE_FORMATS)}")
     if not path.exists():
         raise MissingFileError(f"no trace at {path}: check the path")
-    raw = read_checked(path, "trace file", MAX_TRACE_BYTES, _TRACE_REMEDY)
+    raw = read_checked(path, "trace file", MAX_TRACE_BYTES, remedy)
     check_parse_memory(path, "trace file", raw, TRACE_BYTES_PER_LINE)
-    text = decode_text(raw, path, "trace file", _TRACE_REMEDY, encoding="utf-8-sig")
+    text = decode_text(raw, path, "trace file", remedy, encoding="utf-8-sig")
     del raw
     if "\0" in text:
-        raise CorruptFileError(path, "trace file", "not text (a NUL byte)", _TRACE_REMEDY)
-    rows, layout = _split_lines(path, text)
+        raise CorruptFileError(path, "trace file", "not text (a NUL byte)", remedy)
+    rows, layout = _split_lines(path, text, columns_option)
     del text
     if not rows:
-        raise InvalidConfigError(f"{path}: empty; {_TRACE_REMEDY}")
+        raise InvalidConfigError(f"{path}: empty; {remedy}")
     headed = not all(_number(c) for c in rows[0][1:])
     if format in ("phantom", "surrogate") and headed:
         raise InvalidConfigError(
@@ -167,7 +180,7 @@ def read_trace_table(path: Path, format: str, columns: str) -> tuple[list, list,
             f"all numbers; leave --format out to read the header"
         )
     if format == "csv" and not headed and not columns:
-        raise InvalidConfigError(f"{path}: no header line naming the columns; {_TRACE_REMEDY}")
+        raise InvalidConfigError(f"{path}: no header line naming the columns; {remedy}")
     data = rows[1:] if headed else rows
     if columns:
         header, how = [c.strip() for c in str(columns).split(",")], "columns given"
@@ -179,7 +192,7 @@ def read_trace_table(path: Path, format: str, columns: str) -> tuple[list, list,
         if kind is None:
             raise InvalidConfigError(
                 f"{path}: no header line and {width} columns, neither the phantom format (7: "
-                f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {_TRACE_REMEDY}"
+                f"{PHANTOM_COLUMNS}) nor a surrogate (2: time, displacement); {remedy}"
             )
         header = [
             c.strip()
@@ -211,7 +224,7 @@ def _column_axis(path: Path, name: str, unit: str, axis_map: dict) -> tuple[int,
     return k, sign * table[unit.lower()]
 
 
-def _trace_header(path: Path, cells: list, axis_map: dict | None):
+def _trace_header(path: Path, cells: list, axis_map: dict | None, option: str = "--columns"):
     """(names, units, targets, factors) of a trace's header row: the column names and units
     (time first), and for each axis column its platform axis 0..5 and its factor to rad or m
     (signed)."""
@@ -220,8 +233,8 @@ def _trace_header(path: Path, cells: list, axis_map: dict | None):
     if names[0].lower() not in ("t", "time"):  # unquoted: a file named by mistake may be private
         raise InvalidConfigError(
             f"{path}: the first column must be the time (t [s]), and the first line does not "
-            f"name one; {_TRACE_REMEDY} (a column before the time is skipped by naming it "
-            f"{SKIP_COLUMN}: --columns '{SKIP_COLUMN},t [ms],X [mm],...')"
+            f"name one; {_trace_remedy(option)} (a column before the time is skipped by naming "
+            f"it {SKIP_COLUMN}: {option} '{SKIP_COLUMN},t [ms],X [mm],...')"
         )
     if not 2 <= len(header) <= 7:
         raise InvalidConfigError(
@@ -288,7 +301,9 @@ def _without_end_marker(path: Path, data: np.ndarray, lines: np.ndarray) -> tupl
     return data, lines, ""
 
 
-def _times(path: Path, data: np.ndarray, lines: np.ndarray, unit: str) -> np.ndarray:
+def _times(
+    path: Path, data: np.ndarray, lines: np.ndarray, unit: str, option: str = "--columns"
+) -> np.ndarray:
     """(n,) a trace's times from 0, s, checked: increasing, over at least 4 rows, at a step a
     breath can be sampled at.
 
@@ -322,7 +337,7 @@ def _times(path: Path, data: np.ndarray, lines: np.ndarray, unit: str) -> np.nda
             f"{path}: the times are {guess}; declared in {unit} they would be "
             f"{step_raw * factor:.4g} s apart ({1 / (step_raw * factor):.3g} Hz) over "
             f"{span_raw * factor:.4g} s, too slow to sample a breath (write the time's unit in "
-            f"the header or --columns)"
+            f"the header or {option})"
         )
     return (raw - raw[0]) * factor
 
@@ -340,6 +355,8 @@ class TraceTable:
         data: (n, len(names)) the numbers in the file's units, NaN where a cell was empty.
         layout: how the file was read, in words (its format, separator and decimal mark).
         dropped: what was left out as an export's artefact (a last line of zeros), or "".
+        start_s: the first time as written, s: ``t`` + start_s is the file's own clock, on
+            which two files recorded together (a motion and its surrogate) are related.
     """
 
     names: list
@@ -350,14 +367,23 @@ class TraceTable:
     data: np.ndarray
     layout: str
     dropped: str
+    start_s: float = 0.0
 
 
-def trace_samples(path: Path, header: list, rows: list, layout: str, axis_map: dict | None):
+def trace_samples(
+    path: Path,
+    header: list,
+    rows: list,
+    layout: str,
+    axis_map: dict | None,
+    columns_option: str = "--columns",
+):
     """The :class:`TraceTable` of a trace's header cells and data rows (as
     :func:`read_trace_table` gives them): the columns named ``-`` (:data:`SKIP_COLUMN`) left
     out, each axis column mapped to the platform (``axis_map`` first; a surrogate's column to
     SI by default, :data:`SURROGATE_AXIS`), the numbers read, a last line of zeros left out,
-    the times checked and made s from 0.
+    the times checked and made s from 0; the refusals name ``columns_option``, the command's
+    option that gives the columns.
 
     Raises:
         InvalidConfigError: every column skipped, no time column, a column without a unit or of
@@ -370,12 +396,14 @@ def trace_samples(path: Path, header: list, rows: list, layout: str, axis_map: d
     keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN]
     if not keep:
         raise InvalidConfigError(f"{path}: every column is skipped ({SKIP_COLUMN!r})")
-    names, units, targets, factors = _trace_header(path, [header[j] for j in keep], axis_map)
+    cells = [header[j] for j in keep]
+    names, units, targets, factors = _trace_header(path, cells, axis_map, columns_option)
     data, lines = _trace_values(path, rows, len(header), keep)
     data, lines, dropped = _without_end_marker(path, data, lines)
-    t = _times(path, data, lines, units[0])
+    t = _times(path, data, lines, units[0], columns_option)
     _check_magnitudes(path, data, lines, names, units, targets, factors)
-    return TraceTable(names, units, targets, factors, t, data, layout, dropped)
+    start = float(data[0, 0]) * TIME_UNITS[units[0].lower()]
+    return TraceTable(names, units, targets, factors, t, data, layout, dropped, start)
 
 
 #: Largest angle a trace's rotation may reach, rad (a motion turns a platform by a fraction of

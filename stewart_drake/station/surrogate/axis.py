@@ -102,7 +102,7 @@ class SurrogateAxis:
         if self.trace:
             from .pairs import load_external
 
-            p = load_external(self.trace, self.format, self.columns)(t)
+            p = load_external(self.trace, self.format, self.columns, internal=reference)(t)
             source = f"recorded: {self.trace}"
         else:
             pad = self.correlation.max_lead_s() + SIGNAL_STEP_S

@@ -15,8 +15,11 @@ from collections.abc import Callable
 from ...references.surrogate_trace import load_surrogate_trace
 
 
-def load_external(path, format: str = "auto", columns: str = "") -> Callable:
-    """The external signal of a recorded file, m about its mean, as a function of t (s).
+def load_external(path, format: str = "auto", columns: str = "", internal=None) -> Callable:
+    """The external signal of a recorded file, m about its mean, as a function of t (s) on the
+    clock of ``internal`` (the motion it was recorded with: their files' times as written
+    relate them, :meth:`~stewart_drake.references.surrogate_trace.SurrogateTrace.on_clock_of`;
+    None: the file's own, from its first time).
 
     The file is read whole by
     :func:`~stewart_drake.references.surrogate_trace.load_surrogate_trace` (the checks,
@@ -24,7 +27,8 @@ def load_external(path, format: str = "auto", columns: str = "") -> Callable:
     one-axis trace expected: the displacement is the file's own, about its mean.
 
     Args:
-        path: the file. format, columns: as ``load_trace``'s.
+        path: the file. format, columns: as ``load_trace``'s. internal: the internal motion
+            (a reference), or None.
     Returns:
         f(t (n,) s) -> (n,) m, held at the recording's ends.
     Raises:
@@ -35,6 +39,8 @@ def load_external(path, format: str = "auto", columns: str = "") -> Callable:
     trace = load_surrogate_trace(
         path, format, columns, option="--surrogate", columns_option="--surrogate-columns"
     )
+    if internal is not None:
+        trace = trace.on_clock_of(internal)
 
     def external(q):
         return trace.evaluate(q)[0]

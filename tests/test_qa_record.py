@@ -1,0 +1,157 @@
+"""``verify --record``: the QA record a physicist signs and files, for a PASS, an ACTION and a
+FAIL, its PDF's pages opened and its text read back, its JSON read by the QATrack+ upload
+test's calculation procedure shown in docs/organ_motion.md (executed as QATrack+ executes it:
+``FILE`` an open file, the macro name set), the inputs' SHA-256 computed independently, and no
+record ever written over another."""
+
+import hashlib
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from test_verify import MARKER_COLUMNS, PARAMS, phantom_run, tracker_view, write_marker_export
+
+from stewart_drake.cli.main import main
+
+reportlab = pytest.importorskip("reportlab", reason='needs the qa extra: pip install -e ".[qa]"')
+
+DOCS = Path(__file__).resolve().parent.parent / "docs" / "organ_motion.md"
+
+
+def upload_procedure() -> str:
+    """The QATrack+ upload test's calculation procedure, as docs/organ_motion.md shows it."""
+    text = DOCS.read_text()
+    m = re.search(r"<!-- qatrack-upload -->\n```python\n(.*?)```", text, re.S)
+    assert m, "docs/organ_motion.md shows the upload procedure after <!-- qatrack-upload -->"
+    return m.group(1)
+
+
+@pytest.fixture(scope="module")
+def exports(tmp_path_factory):
+    """(right, wrong) marker exports seen by a tracker aligned with the base: the phantom as
+    asked, and one moving 1.5x as far."""
+    folder = tmp_path_factory.mktemp("record")
+    t, x = phantom_run(seconds=30.0)
+    wrong = x.copy()
+    centre = wrong[:, 3:].mean(axis=0)
+    wrong[:, 3:] = centre + 1.5 * (wrong[:, 3:] - centre)
+    return (
+        write_marker_export(folder / "right.csv", t, tracker_view(x, aligned=True)[:, 3:]),
+        write_marker_export(folder / "wrong.csv", t, tracker_view(wrong, aligned=True)[:, 3:]),
+    )
+
+
+def record(tmp_path, export, *options):
+    """Run ``verify --record`` on ``export``: (exit code, the PDF, the JSON)."""
+    out = tmp_path / "out"
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(export), "--measured-columns"]
+        + [MARKER_COLUMNS, "--tolerance", "0.2mm,0.1deg", "--out", str(out), "--record"]
+        + ["--operator", "A. Physicist", "--phantom-serial", "SD-0042", *options]
+    )
+    pdfs = sorted((out / "records").glob("*.pdf"))
+    jsons = sorted((out / "records").glob("*.json"))
+    return code, pdfs, jsons
+
+
+def page_texts(pdf: Path) -> list[str]:
+    """Each page's text, read back from the PDF by a reader of its own (pypdfium2 when
+    installed, else the raw content streams' text operators)."""
+    try:
+        import pypdfium2 as pdfium
+    except ImportError:
+        pdfium = None
+    if pdfium is not None:
+        doc = pdfium.PdfDocument(str(pdf))
+        return [doc[i].get_textpage().get_text_range() for i in range(len(doc))]
+    import zlib
+
+    raw = pdf.read_bytes()
+    texts = []
+    for m in re.finditer(rb"stream\r?\n(.*?)\r?\nendstream", raw, re.S):
+        try:
+            texts.append(zlib.decompress(m.group(1)).decode("latin-1"))
+        except zlib.error:
+            continue
+    return ["\n".join(texts)]
+
+
+def test_a_pass_is_recorded_with_everything_a_physicist_signs(tmp_path, exports):
+    code, pdfs, jsons = record(tmp_path, exports[0], "--notes", "monthly QA")
+    assert code == 0
+    assert len(pdfs) == 1 and len(jsons) == 1
+    assert pdfs[0].read_bytes()[:5] == b"%PDF-"
+    data = json.loads(jsons[0].read_text())
+    assert data["verdict"] == "PASS" and data["passed"] is True
+    assert data["operator"] == "A. Physicist" and data["phantom_serial"] == "SD-0042"
+    assert data["notes"] == "monthly QA"
+    # The inputs' identity, computed here independently.
+    (measured,) = data["inputs"]
+    body = exports[0].read_bytes()
+    assert measured["sha256"] == hashlib.sha256(body).hexdigest()
+    assert measured["bytes"] == len(body)
+    # Per-axis figures beside the per-axis tolerance, read from the report verify wrote.
+    report = json.loads(next((tmp_path / "out").glob("verify_*.json")).read_text())
+    assert data["rms_x_mm"] == pytest.approx(report["fidelity"]["rms"][3] * 1e3, rel=1e-12)
+    assert data["peak_x_mm"] == pytest.approx(report["fidelity"]["peak"][3] * 1e3, rel=1e-12)
+    assert data["tolerance_mm"] == pytest.approx(0.2)
+    assert data["rms_phi_deg"] is None and data["level_phi"] is None  # not measured
+    texts = page_texts(pdfs[0])
+    whole = "\n".join(texts)
+    for words in ("Motion phantom QA record", "PASS", "SD-0042", "A. Physicist", "Signature"):
+        assert words in whole, words
+    assert measured["sha256"][:16] in whole.replace("\n", "").replace(" ", "")
+    if len(texts) > 1:
+        assert "The verification's plots" in texts[1]
+
+
+def test_an_action_level_and_a_fail_are_recorded_as_such(tmp_path, exports):
+    code, _, jsons = record(tmp_path, exports[0], "--action-level", "0.05mm,0.05deg")
+    data = json.loads(jsons[0].read_text())
+    # The tracker's noise, 69 um per axis, is within 0.2 mm but beyond 0.05 mm: ACTION, exit 0.
+    assert code == 0 and data["verdict"] == "ACTION"
+    assert data["level_x"] == "ACTION" and data["action_mm"] == pytest.approx(0.05)
+    code, _, jsons = record(tmp_path / "f", exports[1])
+    data = json.loads(jsons[0].read_text())
+    assert code == 2 and data["verdict"] == "FAIL" and data["causes"]
+    assert data["level_x"] == "FAIL"
+
+
+def test_records_are_never_overwritten(tmp_path, exports):
+    for _ in range(3):
+        code, pdfs, jsons = record(tmp_path, exports[0])
+        assert code == 0
+    assert len(pdfs) == 3 and len(jsons) == 3
+    assert len({p.read_bytes() for p in jsons}) == 3 or len({p.name for p in jsons}) == 3
+
+
+def test_the_qatrack_upload_procedure_reads_the_record(tmp_path, exports):
+    _, _, jsons = record(tmp_path, exports[1])
+    data = json.loads(jsons[0].read_text())
+    with open(jsons[0], "rb") as FILE:  # QATrack+ hands the procedure an open file
+        namespace = {"FILE": FILE}
+        exec(upload_procedure(), namespace)
+    values = namespace["motion_qa"]
+    assert values["verdict"] == "FAIL"
+    for key in ("rms_x_mm", "rms_y_mm", "rms_z_mm", "peak_x_mm", "latency_ms"):
+        assert values[key] == pytest.approx(data[key])
+    assert np.isfinite(values["gamma_pass_rate_pct"])
+
+
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        (["--operator", "X"], "--operator is for the QA record: add --record"),
+        (["--record", "--action-level", "0.3mm,0.1deg"], "--action-level: its length"),
+    ],
+)
+def test_record_options_are_checked_before_any_work(tmp_path, exports, capsys, options, words):
+    code = main(
+        ["verify", "breathing", *PARAMS, "--measured", str(exports[0]), "--measured-columns"]
+        + [MARKER_COLUMNS, "--tolerance", "0.2mm,0.1deg", "--out", str(tmp_path / "o"), *options]
+    )
+    assert code == 2
+    assert words in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
