@@ -429,7 +429,7 @@ def _summary(ver) -> str:
 
     axes = ", ".join(
         f"{AXES[k]} {amount(k, rms[k])} (peak {amount(k, peak[k])})"
-        for k in np.flatnonzero(measured)
+        for k in map(int, np.flatnonzero(measured))
     )
     gamma = fid["gamma"][0]
     return (
