@@ -224,6 +224,13 @@ def cmd_verify(args) -> int:
     for path in args.measured:
         print(f"verify: reading {path}", file=sys.stderr, flush=True)
         measured.append(_measured(path, args, scenario, axis_map))
+        if measured[-1].repaired:
+            print(
+                f"verify: {path}: {len(measured[-1].repaired)} times repaired from its frame "
+                f"counter (each listed in the report), the first: {measured[-1].repaired[0]}",
+                file=sys.stderr,
+                flush=True,
+            )
     results = []
     for m, stem in zip(measured, stems):
         print(

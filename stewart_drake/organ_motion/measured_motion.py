@@ -39,7 +39,8 @@ class MeasuredMotion:
         measured: (6,) bool, the axes the file measures: any of them (a single-axis sensor
             measures one).
         layout: how the file was read, in words. dropped: what was left out as an export's
-            artefact, or "".
+            artefact, or "". repaired: a line per time repaired from the file's frame counter
+            (:func:`~stewart_drake.references.trace_files.repaired_times`), or ().
     """
 
     path: str
@@ -49,6 +50,7 @@ class MeasuredMotion:
     measured: np.ndarray
     layout: str = ""
     dropped: str = ""
+    repaired: tuple = ()
 
     @property
     def rotations_measured(self) -> bool:
@@ -68,6 +70,12 @@ class MeasuredMotion:
             f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
             + ("" if self.rotations_measured else " (rotation not measured)")
             + (f"; left out: {self.dropped}" if self.dropped else "")
+            + (
+                f"; {len(self.repaired)} times repaired from the frame counter: "
+                + "; ".join(self.repaired)
+                if self.repaired
+                else ""
+            )
         )
 
 
@@ -195,7 +203,14 @@ def read_measured(
         poses[:, :3] = _quaternion_rpy(path, rows, quaternion, n)
         measured[:3] = True
     return MeasuredMotion(
-        str(path), "tracker", table.t + start, poses, measured, table.layout, table.dropped
+        str(path),
+        "tracker",
+        table.t + start,
+        poses,
+        measured,
+        table.layout,
+        table.dropped,
+        tuple(table.repaired),
     )
 
 

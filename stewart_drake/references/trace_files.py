@@ -357,6 +357,8 @@ class TraceTable:
         dropped: what was left out as an export's artefact (a last line of zeros), or "".
         start_s: the first time as written, s: ``t`` + start_s is the file's own clock, on
             which two files recorded together (a motion and its surrogate) are related.
+        repaired: a line per time repaired from the frame counter (:func:`repaired_times`),
+            in words, or ().
     """
 
     names: list
@@ -368,6 +370,7 @@ class TraceTable:
     layout: str
     dropped: str
     start_s: float = 0.0
+    repaired: tuple = ()
 
 
 def trace_samples(
@@ -393,17 +396,111 @@ def trace_samples(
     """
     if "surrogate" in layout:
         axis_map = {**SURROGATE_AXIS, **(axis_map or {})}
-    keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN]
+    frame = _frame_column(path, header)
+    keep = [j for j, h in enumerate(header) if h.strip() != SKIP_COLUMN and j != frame[0]]
     if not keep:
         raise InvalidConfigError(f"{path}: every column is skipped ({SKIP_COLUMN!r})")
     cells = [header[j] for j in keep]
     names, units, targets, factors = _trace_header(path, cells, axis_map, columns_option)
     data, lines = _trace_values(path, rows, len(header), keep)
+    counter = None if frame[0] is None else _trace_values(path, rows, len(header), [frame[0]])[0]
     data, lines, dropped = _without_end_marker(path, data, lines)
+    repaired: tuple = ()
+    if counter is not None:
+        factor = TIME_UNITS[units[0].lower()]
+        data[:, 0], repaired = repaired_times(
+            path, data[:, 0], counter[: len(data), 0], lines, factor, units[0], frame[1]
+        )
     t = _times(path, data, lines, units[0], columns_option)
     _check_magnitudes(path, data, lines, names, units, targets, factors)
     start = float(data[0, 0]) * TIME_UNITS[units[0].lower()]
-    return TraceTable(names, units, targets, factors, t, data, layout, dropped, start)
+    return TraceTable(names, units, targets, factors, t, data, layout, dropped, start, repaired)
+
+
+#: The name of a frame counter's column (any case): read beside the time, never an axis; a
+#: time column that jumps back or changes unit while it climbs is repaired from it. Its unit,
+#: when given, is its rate (``frame [30 Hz]``); without one the rate comes from the good lines.
+FRAME_COLUMN = "frame"
+#: A time further than this share of a frame's step from the counter's line is repaired.
+FRAME_SLACK = 0.5
+#: At most this share of the lines may be repaired: beyond it the counter, not the time, is
+#: in doubt.
+MAX_REPAIRED_SHARE = 0.5
+
+
+def _frame_column(path: Path, header: list) -> tuple:
+    """(the index of the frame counter's column or None, its rate in Hz or None)."""
+    found = [j for j, h in enumerate(header) if _parse_header_cell(h)[0].lower() == FRAME_COLUMN]
+    if not found:
+        return None, None
+    if len(found) > 1:
+        raise InvalidConfigError(f"{path}: {len(found)} frame counters: name one 'frame'")
+    unit = _parse_header_cell(header[found[0]])[1].replace(" ", "").lower()
+    if not unit:
+        return found[0], None
+    if not unit.endswith("hz"):
+        raise InvalidConfigError(
+            f"{path}: the frame counter's unit is its rate ('frame [30 Hz]'), got {unit!r}"
+        )
+    try:
+        rate = float(unit[:-2])
+    except ValueError:
+        rate = math.nan
+    if not (math.isfinite(rate) and 0 < rate <= 1e5):
+        raise InvalidConfigError(f"{path}: the frame counter's rate must be in (0, 1e5] Hz")
+    return found[0], rate
+
+
+def repaired_times(path, raw, frames, lines, factor: float, unit: str, rate_hz=None) -> tuple:
+    """(times (n,) in the file's unit, the repairs in words) of a time column beside a frame
+    counter: the counter must climb; the times then lie on a line of it, t = a + b (frame),
+    b a frame's step (1 / ``rate_hz``, or the median step of consecutive lines) and a their
+    median offset from it; a time further than :data:`FRAME_SLACK` of a step from that line
+    (a glitch of the export: another unit for a run of lines, a jump back) is replaced by the
+    line's, and said, line by line. Nothing is repaired when every time is on the line.
+
+    Raises:
+        InvalidConfigError: a counter that does not climb (its line named), or more than
+            :data:`MAX_REPAIRED_SHARE` of the times off the line (the counter is in doubt).
+    """
+    raw = np.asarray(raw, dtype=float)
+    frames = np.asarray(frames, dtype=float)
+    if not np.all(np.isfinite(frames)):
+        i = int(np.flatnonzero(~np.isfinite(frames))[0])
+        raise InvalidConfigError(f"{path}, line {lines[i]}: the frame counter is missing")
+    steps = np.diff(frames)
+    if np.any(steps <= 0):
+        i = int(np.flatnonzero(steps <= 0)[0]) + 1
+        raise InvalidConfigError(
+            f"{path}, line {lines[i]}: the frame counter {frames[i]:.10g} is not after the line "
+            f"before's ({frames[i - 1]:.10g}): a counter climbs; remove or correct that line"
+        )
+    if rate_hz is not None:
+        b = 1.0 / (rate_hz * factor)
+    else:  # the median slope over pairs half the file apart: the rounding of each time is lost
+        half = len(raw) // 2
+        later, earlier = slice(half, None), slice(0, len(raw) - half)
+        b = float(np.median((raw[later] - raw[earlier]) / (frames[later] - frames[earlier])))
+    if not (np.isfinite(b) and b > 0):
+        raise InvalidConfigError(f"{path}: the times do not climb with the frame counter")
+    a = float(np.median(raw - b * frames))
+    line = a + b * frames
+    bad = np.abs(raw - line) > FRAME_SLACK * b
+    if not bad.any():
+        return raw, ()
+    if bad.mean() > MAX_REPAIRED_SHARE:
+        raise InvalidConfigError(
+            f"{path}: {int(bad.sum())} of {len(raw)} times lie off the frame counter's line "
+            f"({1 / (b * factor):.4g} Hz): the counter, not the times, is in doubt; correct the "
+            "file"
+        )
+    out = np.where(bad, line, raw)
+    said = tuple(
+        f"line {lines[i]}: the time {raw[i]:.10g} {unit} repaired to {out[i]:.10g} {unit} from "
+        f"frame {frames[i]:.10g} ({1 / (b * factor):.4g} frames a second)"
+        for i in np.flatnonzero(bad)
+    )
+    return out, said
 
 
 #: Largest angle a trace's rotation may reach, rad (a motion turns a platform by a fraction of
@@ -437,6 +534,8 @@ __all__ = [
     "SKIP_COLUMN",
     "MAX_SAMPLE_STEP_S",
     "read_trace_table",
+    "repaired_times",
+    "FRAME_COLUMN",
     "TraceTable",
     "trace_samples",
 ]

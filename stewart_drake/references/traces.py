@@ -73,6 +73,8 @@ class TraceInfo:
         start_s: the file's first time as written, s: the reference plays from its first
             sample at t = 0, and t + start_s is the file's own clock (two files recorded on one
             clock keep their relation through it: :func:`on_clock_of`).
+        repaired: a line per time repaired from the file's frame counter
+            (:func:`~.trace_files.repaired_times`), or ().
     """
 
     path: str
@@ -95,6 +97,7 @@ class TraceInfo:
     seam_blend_s: float = 0.0
     seam_jumps: tuple = ()
     start_s: float = 0.0
+    repaired: tuple = ()
 
     def centring(self) -> str:
         """What centring took off the trace, in words: ``its mean removed (Z -490.1 mm)``."""
@@ -115,7 +118,14 @@ class TraceInfo:
             f"over {self.duration_s:.4g} s; {mapping}; gaps bridged: {gaps}; "
             f"low-pass: {'none' if self.lowpass_hz is None else f'{self.lowpass_hz:g} Hz'}; "
             f"{self.smoothing_words()}; {self.seam_words()}; "
-            f"centred: {self.centring()}" + (f"; left out: {self.dropped}" if self.dropped else "")
+            f"centred: {self.centring()}"
+            + (f"; left out: {self.dropped}" if self.dropped else "")
+            + (
+                f"; {len(self.repaired)} times repaired from the frame counter: "
+                + "; ".join(self.repaired)
+                if self.repaired
+                else ""
+            )
         )
 
     def smoothing_words(self) -> str:
@@ -427,6 +437,7 @@ def _trace_trajectory(
         seam_blend_s=seam_blend_s if seams else 0.0,
         seam_jumps=jumps,
         start_s=float(table.start_s),
+        repaired=tuple(table.repaired),
     )
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
