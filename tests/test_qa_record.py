@@ -66,15 +66,22 @@ def page_texts(pdf: Path) -> list[str]:
     if pdfium is not None:
         doc = pdfium.PdfDocument(str(pdf))
         return [doc[i].get_textpage().get_text_range() for i in range(len(doc))]
+    import base64
     import zlib
 
     raw = pdf.read_bytes()
     texts = []
-    for m in re.finditer(rb"stream\r?\n(.*?)\r?\nendstream", raw, re.S):
+    # reportlab writes each stream ASCII85 then Flate encoded; a text operator's string is in
+    # parentheses before Tj.
+    for m in re.finditer(rb"stream\r?\n(.*?)endstream", raw, re.S):
+        body = m.group(1).strip()
         try:
-            texts.append(zlib.decompress(m.group(1)).decode("latin-1"))
-        except zlib.error:
+            if body.endswith(b"~>"):
+                body = base64.a85decode(body.removeprefix(b"<~").removesuffix(b"~>"))
+            text = zlib.decompress(body).decode("latin-1")
+        except (ValueError, zlib.error):
             continue
+        texts.append(" ".join(re.findall(r"\((.*?)\) Tj", text)))
     return ["\n".join(texts)]
 
 
