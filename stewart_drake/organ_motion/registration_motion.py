@@ -179,6 +179,14 @@ def fit_registration(
             + "): not this motion, a marker that slipped, or a tracker that lost it; measure "
             "the registration again"
         )
+    free = _undetermined(J[:, 1:], e, rot)
+    if free:
+        raise InvalidConfigError(
+            f"{name} leaves {free} of the frames' {len(sol.x) - 1} parameters undetermined "
+            "(a turn about a line the motion runs along, or a marker offset its turns do not "
+            "show): register with the library's motion registration, which moves along and "
+            "turns about every axis"
+        )
     for what, y_other in _other_frames(y, rot):
         other = _fit(reference, t, y_other, rot, search)
         if _explains_better(other, fit, rot):
@@ -193,14 +201,6 @@ def fit_registration(
                 + "): a frame fitted to it would be wrong; correct the export (its axes' "
                 "signs, its rotations' sense) and measure again"
             )
-    free = _undetermined(J[:, 1:], e, rot)
-    if free:
-        raise InvalidConfigError(
-            f"{name} leaves {free} of the frames' {len(sol.x) - 1} parameters undetermined "
-            "(a turn about a line the motion runs along, or a marker offset its turns do not "
-            "show): register with the library's motion registration, which moves along and "
-            "turns about every axis"
-        )
     R_BT, p_BT, R_ME, p_EM = unpack(sol.x)
     sigma_B, sigma_M = _frame_sigmas(J, e, sol.x, unpack, rot)
     return MotionRegistration(
