@@ -59,6 +59,8 @@ class MeasuredMotion:
 
     def words(self) -> str:
         """What was read, in words: the file, its samples, rate and span, its axes."""
+        from ..references.trace_files import repaired_words
+
         dt = float(np.median(np.diff(self.t)))
         axes = ", ".join(a for a, m in zip(AXES, self.measured) if m)
         what = {
@@ -70,12 +72,7 @@ class MeasuredMotion:
             f"{1 / dt:.4g} Hz over {self.t[-1] - self.t[0]:.4g} s; measured {axes}"
             + ("" if self.rotations_measured else " (rotation not measured)")
             + (f"; left out: {self.dropped}" if self.dropped else "")
-            + (
-                f"; {len(self.repaired)} times repaired from the frame counter: "
-                + "; ".join(self.repaired)
-                if self.repaired
-                else ""
-            )
+            + repaired_words(self.repaired)
         )
 
 

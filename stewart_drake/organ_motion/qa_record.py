@@ -268,7 +268,8 @@ def write_record(ver, out, tolerance, context: RecordContext, figure: Path, stem
 
 
 def _reportlab():
-    """reportlab, or the error that names the extra."""
+    """reportlab, or the error that names the extra: asked before any file is written, so a
+    missing extra leaves nothing behind (:func:`record_pdf` imports what it draws with)."""
     try:
         import reportlab
     except ImportError:
@@ -280,12 +281,7 @@ def _reportlab():
 
 
 #: The colour of each verdict on the record's first page.
-_VERDICT_COLOURS = {
-    "PASS": "#1a7f37",
-    "ACTION": "#b35900",
-    "CANNOT JUDGE": "#5a5a5a",
-    "FAIL": "#c62828",
-}
+_VERDICT_COLOURS = dict(zip(LEVELS, ("#1a7f37", "#b35900", "#5a5a5a", "#c62828")))
 
 
 def record_pdf(path: Path, data: dict, figure: Path) -> None:

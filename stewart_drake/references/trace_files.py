@@ -451,6 +451,14 @@ def _frame_column(path: Path, header: list) -> tuple:
     return found[0], rate
 
 
+def repaired_words(repaired) -> str:
+    """The import record's words for the times repaired from the frame counter
+    (:func:`repaired_times`' lines): "; N times repaired from the frame counter: ...", or ""."""
+    if not repaired:
+        return ""
+    return f"; {len(repaired)} times repaired from the frame counter: " + "; ".join(repaired)
+
+
 def repaired_times(path, raw, frames, lines, factor: float, unit: str, rate_hz=None) -> tuple:
     """(times (n,) in the file's unit, the repairs in words) of a time column beside a frame
     counter: the counter must climb; the times then lie on a line of it, t = a + b (frame),
@@ -535,6 +543,7 @@ __all__ = [
     "MAX_SAMPLE_STEP_S",
     "read_trace_table",
     "repaired_times",
+    "repaired_words",
     "FRAME_COLUMN",
     "TraceTable",
     "trace_samples",

@@ -37,7 +37,13 @@ from .samples import (
     load_csv_trajectory,
 )
 from .trace_cleaning import MIN_LOOP_S, SEAM_BLEND_S, blend_seams, loop_seams, smoothed_spline
-from .trace_files import TRACE_FORMATS, TraceTable, read_trace_table, trace_samples
+from .trace_files import (
+    TRACE_FORMATS,
+    TraceTable,
+    read_trace_table,
+    repaired_words,
+    trace_samples,
+)
 
 #: How a trace's samples are joined (``smoothing`` of :func:`load_trace`): a smoothing spline
 #: that drops their measurement noise, or a cubic spline through every sample.
@@ -120,12 +126,7 @@ class TraceInfo:
             f"{self.smoothing_words()}; {self.seam_words()}; "
             f"centred: {self.centring()}"
             + (f"; left out: {self.dropped}" if self.dropped else "")
-            + (
-                f"; {len(self.repaired)} times repaired from the frame counter: "
-                + "; ".join(self.repaired)
-                if self.repaired
-                else ""
-            )
+            + repaired_words(self.repaired)
         )
 
     def smoothing_words(self) -> str:
