@@ -33,8 +33,8 @@ class SurrogateTrace:
 
     def on_clock_of(self, internal) -> "SurrogateTrace":
         """This trace on the clock of ``internal``, the motion it was recorded with
-        (:func:`~.traces.on_clock_of`: a file that starts later is played later by as much)."""
-        from .traces import on_clock_of
+        (:func:`~.clock.on_clock_of`: a file that starts later is played later by as much)."""
+        from .clock import on_clock_of
 
         shifted = on_clock_of(self.trace, internal)
         if shifted is self.trace:

@@ -78,7 +78,7 @@ class TraceInfo:
         seam_jumps: ((axis, largest jump taken out, rad or m), ...).
         start_s: the file's first time as written, s: the reference plays from its first
             sample at t = 0, and t + start_s is the file's own clock (two files recorded on one
-            clock keep their relation through it: :func:`on_clock_of`).
+            clock keep their relation through it: :func:`~.clock.on_clock_of`).
         repaired: a line per time repaired from the file's frame counter
             (:func:`~.trace_files.repaired_times`), or ().
     """
@@ -443,62 +443,6 @@ def _trace_trajectory(
     return TraceTrajectory(grid, poses, info, centre, name=path.stem)
 
 
-def clock_start_s(reference) -> float | None:
-    """The first time as written of the trace a reference plays (``info.start_s``, through the
-    wrappers that keep the reference they wrap as ``reference``: a scale, layers, the homing),
-    s; None for a reference of no file (a motion of the library has no recorded clock)."""
-    for _ in range(16):  # wrappers do not nest deeper
-        info = getattr(reference, "info", None)
-        if info is not None and hasattr(info, "start_s"):
-            return float(info.start_s)
-        reference = getattr(reference, "reference", None)
-        if reference is None:
-            break
-    return None
-
-
-class OnClockOf:
-    """A reference on another's clock: ``reference`` recorded on one clock with ``internal``,
-    its file starting ``lag_s`` = its first time less the internal's later, is evaluated at the
-    internal's times less ``lag_s`` (held before its start and after its end, as a trace is).
-    What the reference says of itself (name, centre, info, cycles found where it peaks) stays;
-    its start and end move by the lag.
-
-    Args:
-        reference: a :class:`~.motion.Reference` (a trace). lag_s: s.
-    """
-
-    def __init__(self, reference, lag_s: float):
-        self.reference, self.lag_s = reference, float(lag_s)
-        self.name = getattr(reference, "name", "reference")
-        self.info = getattr(reference, "info", None)
-        self.centre = getattr(reference, "centre", None)
-        end = getattr(reference, "end_time", None)
-        self.end_time = None if end is None else float(end) + self.lag_s
-        self.start_time = float(getattr(reference, "start_time", 0.0) or 0.0) + self.lag_s
-
-    def evaluate(self, t):
-        """Pose, rate, acceleration at the internal's times t (s), as ``reference`` gives them
-        at t - lag_s."""
-        return self.reference.evaluate(np.asarray(t, dtype=float) - self.lag_s)
-
-    def frequencies_hz(self) -> dict:
-        f = getattr(self.reference, "frequencies_hz", None)
-        return f() if callable(f) else {}
-
-
-def on_clock_of(reference, internal):
-    """``reference`` (a surrogate's trace) on the clock of ``internal`` (the motion it was
-    recorded with): the two files' times as written relate them (:func:`clock_start_s`); a file
-    that starts later than the other is played later by as much, never re-zeroed onto it.
-    Returns ``reference`` itself when both start together, or when either has no file's clock
-    (a motion of the library: each then starts at 0)."""
-    mine, theirs = clock_start_s(reference), clock_start_s(internal)
-    if mine is None or theirs is None or mine == theirs:
-        return reference
-    return OnClockOf(reference, mine - theirs)
-
-
 def _without_seams(table: TraceTable, rate: float, blend_s: float):
     """(the table's data with a loop's seams blended, the loop in s (0: not a loop or shorter
     than :data:`~.trace_cleaning.MIN_LOOP_S`), its seams, ((axis, largest jump taken out, rad
@@ -615,9 +559,6 @@ class TraceReference(ReferenceConfig):
 
 __all__ = [
     "load_trace",
-    "clock_start_s",
-    "on_clock_of",
-    "OnClockOf",
     "TraceTrajectory",
     "TraceInfo",
     "CENTRE_MODES",

@@ -887,11 +887,11 @@ def cmd_verify_pair(args) -> int:
 
 def _on_the_motions_clock(surrogate, reference, path):
     """The surrogate's trace on the motion's clock, their files' times taken as written
-    (:func:`~stewart_drake.references.traces.on_clock_of`), said on stderr when they do not
+    (:func:`~stewart_drake.references.clock.on_clock_of`), said on stderr when they do not
     start together."""
     import sys
 
-    from ..references.traces import OnClockOf, on_clock_of
+    from ..references.clock import OnClockOf, on_clock_of
 
     shifted = on_clock_of(surrogate, reference)
     if isinstance(shifted, OnClockOf):
