@@ -27,6 +27,10 @@ from stewart_drake.organ_motion.measured_verdict import (
     judge,
     reversed_match,
     seconds,
+)
+from stewart_drake.organ_motion.verdict_sensitivity import (
+    axis_amount,
+    axis_tolerances,
     sensitivity,
     sensitivity_words,
 )
@@ -63,9 +67,9 @@ def causes(x, moving=ALONG_X, removes_offsets=True, reference=MOTION, measured=X
 
 
 def test_the_tolerance_of_each_axis_and_amounts_in_words():
-    np.testing.assert_array_equal(mv._tolerances((1e-4, 2e-3)), [2e-3] * 3 + [1e-4] * 3)
-    assert mv._amount(3, -0.0012) == "1.2 mm" and mv._amount(5, 3e-5) == "30 um"
-    assert mv._amount(0, -math.radians(0.5)) == "0.5 deg" and mv._amount(2, 2e-4) == "200 urad"
+    np.testing.assert_array_equal(axis_tolerances((1e-4, 2e-3)), [2e-3] * 3 + [1e-4] * 3)
+    assert axis_amount(3, -0.0012) == "1.2 mm" and axis_amount(5, 3e-5) == "30 um"
+    assert axis_amount(0, -math.radians(0.5)) == "0.5 deg" and axis_amount(2, 2e-4) == "200 urad"
     assert mv._signed(4, 3e-4) == "+0.3 mm" and mv._signed(3, -1.25e-3) == "-1.25 mm"
     assert mv._signed(1, -math.radians(0.2)) == "-0.2 deg"
 

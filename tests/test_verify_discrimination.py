@@ -30,7 +30,7 @@ from stewart_drake.calibration import files, tracker
 from stewart_drake.calibration.registration_file import read_registration
 from stewart_drake.cli.main import main
 from stewart_drake.organ_motion.measured_motion import MeasuredMotion
-from stewart_drake.organ_motion.measured_verdict import sensitivity
+from stewart_drake.organ_motion.verdict_sensitivity import sensitivity
 from stewart_drake.organ_motion.verification import verify
 from stewart_drake.references.organ.library import make_motion
 

@@ -85,6 +85,10 @@ MODULES = {
     # The one lag search: its own tests and verify's clock's, which drive its score and search.
     "stewart_drake/base/lag.py": ("tests/test_lag.py", "tests/test_alignment.py"),
     "stewart_drake/organ_motion/measured_verdict.py": ("tests/test_measured_verdict.py",),
+    "stewart_drake/organ_motion/verdict_sensitivity.py": (
+        "tests/test_measured_verdict.py",
+        "tests/test_verify_discrimination.py",
+    ),
     "stewart_drake/organ_motion/verification.py": ("tests/test_verification.py",),
     "stewart_drake/organ_motion/registration_motion.py": ("tests/test_registration_motion.py",),
     "stewart_drake/organ_motion/fidelity.py": ("tests/test_fidelity.py",),

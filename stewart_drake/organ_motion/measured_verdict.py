@@ -1,6 +1,6 @@
 """The verdict on a measured motion (``stewart-drake verify``): what it compares, whether it
 passes, and, when it fails, why (:func:`judge`); and what the check can see at all
-(:func:`sensitivity`).
+(:func:`~.verdict_sensitivity.sensitivity`).
 
 A verdict compares the motion measured on the axes it measures, put on the reference's clock and
 in the frames of :mod:`~.alignment` (nothing fitted to it but the clock and, with the ``"axes"``
@@ -32,10 +32,10 @@ error of a platform resting at the reference's mean pose) is within the toleranc
 cannot tell the motion from none, and says how small a tolerance, or how large a motion, it
 needs. A FAIL stays a FAIL: an error beyond the tolerance is seen whatever the motion.
 
-:func:`sensitivity` computes, from the reference alone, the smallest error of the whole motion's
-amplitude and the smallest tilt of the whole phantom (about an axis through the base frame's
-origin) that fail at the tolerance on the axes measured: a check that cannot see a 3 % scale
-error says so before anyone relies on it.
+:func:`~.verdict_sensitivity.sensitivity` computes, from the reference alone, the smallest
+error of the whole motion's amplitude and the smallest tilt of the whole phantom (about an
+axis through the base frame's origin) that fail at the tolerance on the axes measured: a check
+that cannot see a 3 % scale error says so before anyone relies on it.
 """
 
 from __future__ import annotations
@@ -47,7 +47,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .fidelity import AXES, MOVING_P2P, format_angle, format_length, format_window
+from .fidelity import AXES, format_angle, format_length, format_window
+from .verdict_sensitivity import (
+    MAX_TURN_RAD,
+    axis_amount,
+    axis_tolerances,
+    motion_unseen,
+    sensitivity,
+)
 
 #: A measured axis moved less than this share of the reference's motion (RMS) is at rest.
 AT_REST_SHARE = 0.1
@@ -61,20 +68,8 @@ PERIOD_POWER_SHARE = 0.3
 #: A latency found within this many seconds of the edge of the shifts searched is "at least".
 EDGE_S = 0.05
 
-#: The largest turn of the measured axes from the base frame's that is named alone, rad: beyond
-#: it a turn is named beside each axis's causes (a quarter turn is also an axis swapped or
-#: reversed, which those name); and the largest tilt :func:`sensitivity` reports.
-MAX_TURN_RAD = math.radians(60.0)
-
 #: The largest further shift searched with a turn of the measured axes, s (half a breath).
 TURN_SEARCH_S = 2.5
-
-#: The least effect of a unit tilt on an axis that :func:`sensitivity` counts, (rad, m) per rad:
-#: below it the axis does not see the tilt (round-off of a motion that does not move it).
-MIN_TILT_EFFECT = (1e-9, 1e-6)
-
-#: The base axes a tilt of the whole phantom is tried about, for :func:`sensitivity`.
-_TILT_AXES = {"X": (1.0, 0.0, 0.0), "Y": (0.0, 1.0, 0.0), "Z": (0.0, 0.0, 1.0)}
 
 
 @dataclass
@@ -123,16 +118,6 @@ class Judgement:
             "latency_judged": self.latency_judged,
             "sensitivity": self.sensitivity,
         }
-
-
-def _tolerances(tolerance) -> np.ndarray:
-    """(6,) the tolerance of each axis: the angle for the rotations, the length for the rest."""
-    return np.array([tolerance[1]] * 3 + [tolerance[0]] * 3, dtype=float)
-
-
-def _amount(k: int, v: float) -> str:
-    """An axis's amount as text: a length for a translation, an angle for a rotation."""
-    return format_length(abs(v)) if k >= 3 else format_angle(abs(v))
 
 
 def _signed(k: int, v: float) -> str:
@@ -320,7 +305,7 @@ def causes_of(
             origin, m (0 otherwise): taken off along the reference's rotation, it shows as
             motion where the platform does not turn as asked, which the words say.
     """
-    tol = _tolerances(tolerance)
+    tol = axis_tolerances(tolerance)
     figures = axis_figures(t, x, x_d, measured)
     seen = [int(k) for k in np.flatnonzero(measured)]
     moving_seen = [k for k in seen if moving[k]]
@@ -336,8 +321,8 @@ def causes_of(
     )
     if moving_seen and still:
         moved = ", ".join(
-            f"{AXES[k]} {_amount(k, f[k]['motion_rms'])} RMS against the reference's "
-            f"{_amount(k, f[k]['reference_rms'])}"
+            f"{AXES[k]} {axis_amount(k, f[k]['motion_rms'])} RMS against the reference's "
+            f"{axis_amount(k, f[k]['reference_rms'])}"
             for k in moving_seen
         )
         return [f"the phantom did not move ({moved})"], False
@@ -360,8 +345,8 @@ def causes_of(
         )
         if fk["motion_rms"] < AT_REST_SHARE * fk["reference_rms"]:
             causes.append(
-                f"{a} did not move ({_amount(k, fk['motion_rms'])} RMS where the reference "
-                f"moves {_amount(k, fk['reference_rms'])})"
+                f"{a} did not move ({axis_amount(k, fk['motion_rms'])} RMS where the reference "
+                f"moves {axis_amount(k, fk['reference_rms'])})"
             )
             follows = False
             continue
@@ -397,7 +382,7 @@ def causes_of(
             shape = fk["motion_rms"] * math.sqrt(max(1.0 - rho * rho, 0.0))
             if shape > tol[k]:
                 causes.append(
-                    f"{a} departs from the reference's shape ({_amount(k, shape)} RMS of it "
+                    f"{a} departs from the reference's shape ({axis_amount(k, shape)} RMS of it "
                     f"that no scale of the reference explains; correlation {rho:.3f}): another "
                     "motion, or the motion distorted"
                 )
@@ -411,9 +396,8 @@ def causes_of(
             if j != k and (j >= 3) == (k >= 3)
         ]
         best = max(likeness, default=(0.0, -1))
-        text = (
-            f"{AXES[k]} moves {_amount(k, f[k]['motion_rms'])} RMS where the reference holds still"
-        )
+        moves = axis_amount(k, f[k]["motion_rms"])
+        text = f"{AXES[k]} moves {moves} RMS where the reference holds still"
         swapped = best[0] > 0.8 and f[k]["motion_rms"] > 0.5 * float(np.std(x_d[:, best[1]]))
         if swapped:
             text += (
@@ -447,73 +431,6 @@ def causes_of(
     return causes, follows
 
 
-def sensitivity(t, x_d, measured, tolerance, removes_offsets: bool) -> dict:
-    """What the check can see (module docstring), from the reference x_d (n, 6) over the window
-    alone, on the ``measured`` (6,) bool axes at ``tolerance`` (m, rad).
-
-    Returns:
-        {"amplitude_fraction": the smallest error of the whole motion's scale (a fraction) that
-        takes one measured axis's RMS error beyond its tolerance, "amplitude_axis": that axis
-        (NaN, "" when the reference moves along no measured axis); "tilt_rad": the smallest
-        turn of the whole phantom about an axis through the base frame's origin that does (NaN
-        when none up to :data:`MAX_TURN_RAD` does),
-        "tilt_about": that base axis, "tilt_axis": the measured axis that shows it}. A scale
-        error e makes an axis's error e (r_k - its mean) (a scale about the motion's centre);
-        a tilt a about u moves the platform by a u x p and turns it by a u, the offsets of
-        ``removes_offsets`` frames taking the constant parts away.
-    """
-    tol = _tolerances(tolerance)
-    seen = [int(k) for k in np.flatnonzero(measured)]
-    out: dict = {"amplitude_fraction": math.nan, "amplitude_axis": ""}
-    best = math.inf
-    for k in seen:
-        rms = float(np.std(x_d[:, k]))
-        if rms > 0 and tol[k] / rms < best and np.ptp(x_d[:, k]) > MOVING_P2P[k]:
-            best, out["amplitude_fraction"], out["amplitude_axis"] = (
-                tol[k] / rms,
-                tol[k] / rms,
-                AXES[k],
-            )
-    tilt, about, shown = math.inf, "", ""
-    p = x_d[:, 3:]
-    for name, u in _TILT_AXES.items():
-        moved = np.cross(np.asarray(u), p)  # (n, 3): a unit tilt's displacement
-        for k in seen:
-            if k >= 3:
-                v = moved[:, k - 3]
-                rms = float(np.std(v)) if removes_offsets else float(np.sqrt(np.mean(v * v)))
-            else:
-                rms = 0.0 if removes_offsets else abs(u[k])
-            if rms > MIN_TILT_EFFECT[int(k >= 3)] and tol[k] / rms < tilt:
-                tilt, about, shown = tol[k] / rms, name, AXES[k]
-    out.update(
-        {
-            "tilt_rad": tilt if tilt <= MAX_TURN_RAD else math.nan,
-            "tilt_about": about,
-            "tilt_axis": shown,
-        }
-    )
-    return out
-
-
-def sensitivity_words(s: dict) -> str:
-    """:func:`sensitivity` in words."""
-    parts = []
-    if math.isfinite(s["amplitude_fraction"]):
-        parts.append(
-            f"a scale of the whole motion off by {100 * s['amplitude_fraction']:.3g} % or more "
-            f"(on {s['amplitude_axis']})"
-        )
-    if math.isfinite(s.get("tilt_rad", math.nan)):
-        parts.append(
-            f"a tilt of the whole phantom of {math.degrees(s['tilt_rad']):.3g} deg or more about "
-            f"the base's {s['tilt_about']} (on {s['tilt_axis']})"
-        )
-    if not parts:
-        return "this check sees no scale or tilt error: the reference moves along no axis measured"
-    return "this check fails " + " and ".join(parts) + "; smaller ones pass"
-
-
 def compared_words(ver) -> str:
     """What a verification compares, in words: the file, its axes, the frames, the reference."""
     m = ver.measured
@@ -534,7 +451,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     docstring)."""
     fid = ver.fidelity
     measured = np.asarray(ver.measured.measured, dtype=bool)
-    tol = _tolerances(tolerance)
+    tol = axis_tolerances(tolerance)
     rms = np.asarray(fid["rms"], dtype=float)
     w0, w1 = fid["window_s"]
     t, x, x_d = ver.result.t, ver.result.x, ver.result.x_d
@@ -581,7 +498,7 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
         ks = [k for k in axes if measured[k]]
         if ks:
             k = max(ks, key=lambda j: rms[j])
-            largest.append(f"{AXES[k]} {_amount(k, rms[k])}")
+            largest.append(f"{AXES[k]} {axis_amount(k, rms[k])}")
         else:
             largest.append(f"{kind} not measured")
     if not follows:
@@ -615,27 +532,6 @@ def judge(ver, tolerance: tuple[float, float]) -> Judgement:
     )
 
 
-def motion_unseen(x_d, measured, tolerance) -> str:
-    """Why a check at ``tolerance`` (m, rad) cannot tell the reference's motion x_d (n, 6)
-    over the window from none on the ``measured`` (6,) bool axes, or "" when it can (module
-    docstring): the phantom at rest at the reference's mean pose errs by the reference's RMS
-    about its mean on each axis, and would pass when every measured axis's is within the
-    tolerance."""
-    measured = np.asarray(measured, dtype=bool)
-    tol = _tolerances(tolerance)
-    rest = np.std(np.asarray(x_d, dtype=float), axis=0)
-    seen = [int(k) for k in np.flatnonzero(measured)]
-    if not seen or any(rest[k] > tol[k] for k in seen):
-        return ""
-    k = max(seen, key=lambda j: rest[j] / tol[j])
-    return (
-        "cannot judge: the phantom at rest would pass too (the reference moves "
-        + ", ".join(f"{AXES[j]} {_amount(j, rest[j])}" for j in seen)
-        + " RMS on the axes measured, each within the tolerance): judge at a tolerance below "
-        f"{AXES[k]}'s {_amount(k, rest[k])}, or on a larger motion"
-    )
-
-
 def seconds(value: float) -> str:
     """A time in s as text: ``60.1 ms`` below a second, else ``1232 s`` (4 digits)."""
     return f"{value * 1e3:.4g} ms" if abs(value) < 1.0 else f"{value:.4g} s"
@@ -647,15 +543,11 @@ __all__ = [
     "PERIOD_SHARE",
     "PERIOD_POWER_SHARE",
     "EDGE_S",
-    "MAX_TURN_RAD",
     "Judgement",
     "dominant_period",
     "axis_figures",
     "causes_of",
-    "sensitivity",
-    "sensitivity_words",
     "compared_words",
     "judge",
-    "motion_unseen",
     "seconds",
 ]

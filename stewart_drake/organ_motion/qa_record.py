@@ -15,7 +15,7 @@ The levels, per axis: an RMS error beyond the tolerance FAILs (the verdict of
 :func:`~.measured_verdict.judge`, unchanged); one within it but beyond the action level is
 ACTION (within tolerance, to be looked at before it fails: TG-142's action level, pylinac's
 ``action_tolerance``); the verdict is the worst of the axes, and CANNOT JUDGE when the judgement
-cannot (:func:`~.measured_verdict.motion_unseen`).
+cannot (:func:`~.verdict_sensitivity.motion_unseen`).
 
 Records are never overwritten: each is named by its verdict's time, and a name already taken
 gets ``-2``, ``-3``... (the file is created exclusively).

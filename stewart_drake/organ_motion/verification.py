@@ -40,7 +40,7 @@ the reference's own clock. :func:`verify` then, with the clock and the frames of
    tolerance and, with the clocks known, the latency within its bound; a failure names its
    causes (the phantom at rest, a wrong amplitude, sign, axis or period, another motion, a
    constant offset, the latency), and the report gives the smallest amplitude and tilt error
-   the check can see (:func:`~.measured_verdict.sensitivity`).
+   the check can see (:func:`~.verdict_sensitivity.sensitivity`).
 """
 
 from __future__ import annotations

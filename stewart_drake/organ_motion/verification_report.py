@@ -11,7 +11,7 @@ from pathlib import Path
 
 from .fidelity import AXES, format_angle, format_length
 from .fidelity_report import anchor_lines, fidelity_lines, startup_lines, write_report
-from .measured_verdict import sensitivity_words
+from .verdict_sensitivity import sensitivity_words
 from .verification import Verification, seconds
 
 
