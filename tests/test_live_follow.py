@@ -148,6 +148,7 @@ class _Scripted:
 
     def raw_update(self, y):
         self.using, self.sigma = self.rows[self.i], np.zeros((1, 6))
+        self.sample = np.asarray(y, dtype=float)
         self.i += 1
         return np.repeat(np.asarray(y)[None, :], 1, axis=0)
 

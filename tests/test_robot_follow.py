@@ -168,8 +168,9 @@ def _torque_enables(emu):
 def test_the_robot_follows_breathing_published_live_with_the_latency_predicted_away(
     tmp_path, monkeypatch
 ):
-    """9 s of the library's breathing (15 mm, 4 s) arriving 0.2 s late at 25 Hz, on the loop's
-    clock (:class:`LoopClockSource`). From 5 s on (the predictor chosen from about 2.5 s), the
+    """12 s of the library's breathing (15 mm, 4 s) arriving 0.2 s late at 25 Hz, on the loop's
+    clock (:class:`LoopClockSource`). From 9 s on (the predictor may be chosen once it has 2 s
+    of history and 5 s of record, about 7.4 s, and is moved onto over 1 s), the
     reference the robot was given is within 0.3 mm RMS of the true motion and the robot's
     measured pose within 1.5 mm (the shipped bus scenario's LQI at 10 ms tracks its reference
     to about 0.6-0.9 mm), under 0.6 of what following the newest sample exactly would be off
@@ -179,10 +180,10 @@ def test_the_robot_follows_breathing_published_live_with_the_latency_predicted_a
     lcm = DrakeLcm("memq://")
     with bus_emulator(X_REST, 0.01) as emu:
         source = LoopClockSource(lcm, monkeypatch)
-        run, lines, reference = _follow(emu, tmp_path, lcm, source, duration_s=9.0)
+        run, lines, reference = _follow(emu, tmp_path, lcm, source, duration_s=12.0)
         torque = [emu.read_item(i, p.TORQUE_ENABLE) for i in IDS]
     assert run.ok and run.exit_code == 0 and run.torque_off_confirmed, run.reason
-    assert torque == [0] * 6 and run.reason == "followed BREATH for 9 s"
+    assert torque == [0] * 6 and run.reason == "followed BREATH for 12 s"
     assert run.encoder_log == tmp_path / "robot_follow_encoders.csv" and run.timing_lines
     assert lines[0].startswith("torque on: following BREATH (0.2 s late, predictor linear)")
     assert lines[-1].startswith("followed BREATH: ") and "admissible throughout" in lines[-1]
@@ -191,7 +192,7 @@ def test_the_robot_follows_breathing_published_live_with_the_latency_predicted_a
     read = log[:, 0] > 0.5  # not the samples queued before the start, read at t = 0
     result = load_result(run.logs)
     t = np.asarray(result.t, dtype=float)
-    on = t > 5.0
+    on = t > 9.0
     t = t[on]
     truth = np.asarray(MOTION.evaluate(t - _offsets(log[read], t))[0])[:, 3:]
     newest = np.searchsorted(log[:, 0], t, side="right") - 1  # the newest sample read by t
@@ -203,7 +204,7 @@ def test_the_robot_follows_breathing_published_live_with_the_latency_predicted_a
     robot = rms(np.asarray(result.x[on, 3:6], dtype=float))
     given = rms(np.asarray(result.x_d[on, 3:6], dtype=float))
     loop = run.timing_lines[0]  # the loop's periods and misses: not the figures' cause here
-    assert t[-1] > 8.9 and rms(truth.mean(axis=0)) > 4e-3  # it breathes
+    assert t[-1] > 11.9 and rms(truth.mean(axis=0)) > 4e-3  # it breathes
     assert given < 0.3e-3, f"its reference {given * 1e3:.3f} mm RMS from the true motion; {loop}"
     assert robot < 1.5e-3, f"the robot {robot * 1e3:.3f} mm RMS from the true motion; {loop}"
     assert robot < 0.6 * rms(held), (robot, rms(held), loop)

@@ -5,6 +5,8 @@ read against the true motion delayed, the follower's smoothness and the refusals
 tests only (tools/mutation.py runs them against every mutant of references/prediction.py and
 references/stream.py)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -18,18 +20,24 @@ from stewart_drake.references.prediction import (
 )
 from stewart_drake.references.stream import PAST_NODES, Stream, follow, stream_of
 
+#: The settings these tests' figures are written for: 0.5 s of history (12 samples at 25 Hz),
+#: no hysteresis, the whole run's envelope (the shipped ones are the selection's choice: the
+#: mechanics tested here are the same under them).
+PLAIN = PredictorSettings(history_s=0.5, record_margin=0.0, envelope_s=None)
+
 
 def _rms(e):
     return float(np.sqrt(np.mean(np.sum(np.asarray(e) ** 2, axis=-1))))
 
 
-def _record_written_out(predicted, y, warm, min_n, mu):
+def _record_written_out(predicted, y, warm, min_n, mu, margin=0.0):
     """The predictor's record written out as weighted sums (not its recursion): the predictions
     ``predicted`` (N, K, m) made at each sample of ``y`` (N, m); the residual of the prediction
     k ahead made at sample j - k counts at sample j when j - k >= ``warm``, weighted mu^(i - j)
     at sample i. Returns (using (N, m), sigma (N, K, m)): the model chosen where it has
     ``min_n`` residuals k = K ahead and its summed weighted squares are below the held
-    sample's; sigma the weighted RMS residual of what is chosen (NaN before any)."""
+    sample's, times 1 - ``margin`` where it was not chosen at the sample before (the
+    hysteresis); sigma the weighted RMS residual of what is chosen (NaN before any)."""
     N, K, m = predicted.shape
     r2 = np.zeros((2, N, K, m))
     ready = np.zeros((N, K))
@@ -43,16 +51,27 @@ def _record_written_out(predicted, y, warm, min_n, mu):
     se = np.einsum("ij,sjkm->sikm", W, r2)
     w = W @ ready  # (N, K)
     count = np.cumsum(ready[:, -1])
-    using = (count[:, None] >= min_n) & (se[0].sum(axis=1) < se[1].sum(axis=1))
+    model, none = se[0].sum(axis=1), se[1].sum(axis=1)  # (N, m)
+    using = np.zeros(model.shape, dtype=bool)
+    for j in range(N):
+        before = using[j - 1] if j else np.zeros(model.shape[1], dtype=bool)
+        using[j] = (count[j] >= min_n) & (model[j] < np.where(before, 1.0, 1.0 - margin) * none[j])
     with np.errstate(invalid="ignore"):
         mse = se / w[None, :, :, None]
     return using, np.sqrt(np.where(using[:, None, :], mse[0], mse[1]))
 
 
-def _clipped_written_out(predicted, y):
+def _clipped_written_out(predicted, y, block=None, blocks=None):
     """``predicted`` (N, K, m) clipped to the range of ``y`` (N, m) up to each sample, widened
-    by a tenth of it; and how many positions that moved."""
-    low, high = np.minimum.accumulate(y), np.maximum.accumulate(y)
+    by a tenth of it; and how many positions that moved. With ``blocks``: the range of the
+    samples from the start of the ``blocks``-th block of ``block`` samples before the one
+    sample i is in."""
+    if blocks is None:
+        low, high = np.minimum.accumulate(y), np.maximum.accumulate(y)
+    else:
+        first = [max(0, (i // block - blocks) * block) for i in range(len(y))]
+        low = np.array([y[f : i + 1].min(axis=0) for i, f in enumerate(first)])
+        high = np.array([y[f : i + 1].max(axis=0) for i, f in enumerate(first)])
     margin = 0.1 * (high - low)
     out = np.clip(predicted, (low - margin)[:, None, :], (high + margin)[:, None, :])
     return out, int(np.count_nonzero(out != predicted))
@@ -268,8 +287,14 @@ def test_falls_back_to_none_when_the_model_does_worse():
     )
 
 
-@pytest.mark.parametrize("K, min_record_s", [(3, 0.1), (3, 1.0), (1, 0.5)])
-def test_the_record_chooses_and_measures_as_its_weighted_sums_say(K, min_record_s):
+@pytest.mark.parametrize(
+    "K, min_record_s, margin, envelope_s",
+    [(3, 0.1, 0.0, None), (3, 1.0, 0.0, None), (1, 0.5, 0.0, None), (3, 0.1, 0.6, 2.0),
+     (2, 0.5, 0.3, 0.7)],
+)  # fmt: skip
+def test_the_record_chooses_and_measures_as_its_weighted_sums_say(
+    K, min_record_s, margin, envelope_s
+):
     """Given a model's predictions, at every sample: the positions returned (the model's clipped
     to the range so far plus a tenth, on the axes where its record is better; the newest sample
     on the others), which axes use it, and sigma, the weighted RMS residual of what is used,
@@ -278,10 +303,19 @@ def test_the_record_chooses_and_measures_as_its_weighted_sums_say(K, min_record_
     held), one whose predictions overshoot and are clipped. The record starts once the model's
     first pairs are complete (history 2 samples + K), and the model is chosen only after
     min_record_s of residuals K ahead (1, 10 or 5 samples). K = 1 is the fewest steps ahead.
+    With a hysteresis (``record_margin``) the model is taken up only once its record beats the
+    held sample's by that share, and dropped (a fallback, counted) as soon as it does not beat
+    it; with ``envelope_s`` the range is that of the blocks of a second (10 samples) kept.
     Without the bound and the shrinkage (tests/test_predictors.py writes them out)."""
     dt = 0.1
     settings = PredictorSettings(
-        history_s=0.2, record_s=2.0, min_record_s=min_record_s, shrink=False, bound_s=None
+        history_s=0.2,
+        record_s=2.0,
+        min_record_s=min_record_s,
+        shrink=False,
+        bound_s=None,
+        record_margin=margin,
+        envelope_s=envelope_s,
     )
     t = np.arange(80) * dt
     y = np.column_stack([0.01 * np.sin(t), 0.01 * np.cos(t), np.zeros_like(t), 0.01 * np.sin(t)])
@@ -295,17 +329,21 @@ def test_the_record_chooses_and_measures_as_its_weighted_sums_say(K, min_record_
     assert predictor.sigma.shape == (K, 4) and np.all(np.isnan(predictor.sigma))
     assert predictor.using.dtype == bool and not predictor.using.any()  # before any sample
     predictor.model = _Scripted(rows)
-    clipped, moved = _clipped_written_out(rows, y)
+    blocks = None if envelope_s is None else int(np.ceil(envelope_s / 1.0))
+    clipped, moved = _clipped_written_out(rows, y, 10, blocks)
     min_n = max(1, round(min_record_s / dt))
-    using, sigma = _record_written_out(clipped, y, 2 + K, min_n, np.exp(-dt / 2.0))
+    using, sigma = _record_written_out(clipped, y, 2 + K, min_n, np.exp(-dt / 2.0), margin)
     for i, v in enumerate(y):
         out = predictor.update(v)
         np.testing.assert_array_equal(predictor.using, using[i], err_msg=f"sample {i}")
         np.testing.assert_allclose(predictor.sigma, sigma[i], rtol=1e-12, atol=0, equal_nan=True)
         np.testing.assert_array_equal(out, np.where(using[i], clipped[i], v))
     assert predictor.clipped == moved > 0
+    assert predictor.fallbacks == int(np.count_nonzero(using[:-1] & ~using[1:]))
     first = int(np.argmax(using[:, 0]))  # when the better model is first chosen
-    assert first == 2 + 2 * K - 1 + min_n and using[-1].tolist() == [True, False, False, False]
+    assert using[-1].tolist() == [True, False, False, False]
+    if margin == 0.0:
+        assert first == 2 + 2 * K - 1 + min_n
     assert np.isnan(sigma[2 + K]).all() and np.isfinite(sigma[2 + K + 1, 0]).all()
 
 
@@ -348,11 +386,13 @@ def test_an_axis_whose_sums_do_not_factorise_is_not_predicted():
 def test_the_settings_in_samples():
     """History, records and the samples a stream needs, in samples at a step, as the settings'
     docstring defines them."""
-    s = PredictorSettings()
+    s = PredictorSettings(history_s=0.5)
     assert s.lags(0.01) == 50 and s.lags(0.04) == 12 and s.lags(1.0) == 2  # at least 2
     assert PredictorSettings(history_s=0.1).lags(0.04) == 2  # round(2.5) = 2
+    assert PredictorSettings(history_s=2.0).lags(1 / 30) == 60
+    assert PredictorSettings(history_s=2.0).lags(0.01) == 64  # at most MAX_LAGS, not 200
     assert s.samples_needed(0.04, 8) == 12 + 8 + 125
-    assert PredictorSettings(min_record_s=0.01).samples_needed(0.04, 8) == 12 + 8 + 1
+    assert replace(PLAIN, min_record_s=0.01).samples_needed(0.04, 8) == 12 + 8 + 1
     assert PredictorSettings(ridge=0.0).ridge == 0.0  # no ridge is allowed
     with pytest.raises(InvalidConfigError, match=r"ridge must be a finite number >= 0, got -1e-09"):
         PredictorSettings(ridge=-1e-9)
@@ -430,7 +470,7 @@ def test_follower_is_c2(breathing_stream, monkeypatch, switch_s):
 
     monkeypatch.setattr(stream_module, "SWITCH_S", switch_s)
     stream, _ = breathing_stream
-    f = follow(stream)
+    f = follow(stream, "linear", PLAIN)
     assert f.switches.tolist() == [[6.36, 3.0, 1.0]]
     h = 1e-5
     for t in (np.linspace(20.0, 22.0, 997), np.linspace(6.2, 7.6, 997), np.linspace(0.2, 0.6, 97)):
@@ -455,7 +495,7 @@ def test_uncertainty_is_the_weighted_rms_of_the_residuals_used(breathing_stream)
     is used, from the end of the regression's first pairs (12 samples of history + K) and once
     5 s (125 samples) of residuals K ahead are in. Only X moves; it is predicted at the end."""
     stream, _ = breathing_stream
-    f = follow(stream)
+    f = follow(stream, "linear", PLAIN)
     K = f.sigma.shape[1]
     ahead = f.nodes[:, PAST_NODES + 1 :]
     using, sigma = _record_written_out(ahead, stream.poses, 12 + K, 125, np.exp(-0.04 / 10.0))
@@ -478,11 +518,14 @@ def test_unknown_predictor_and_short_stream_refused(breathing_stream):
     stream, _ = breathing_stream
     with pytest.raises(InvalidConfigError, match="unknown predictor 'lstm'.*none, linear"):
         check_predictor("lstm")
-    assert follow(Stream(stream.t[:146], stream.poses[:146], 0.2, "b")).sigma.shape[1] == 9
+    assert (
+        follow(Stream(stream.t[:146], stream.poses[:146], 0.2, "b"), "linear", PLAIN).sigma.shape[1]
+        == 9
+    )
     short = Stream(stream.t[:145], stream.poses[:145], 0.2, "short")
     message = r"^the stream of short has 145 samples \(5.76 s\): the linear predictor needs 146 "
     with pytest.raises(InvalidConfigError, match=message + r"\(5.8 s at 25 Hz\) before it can"):
-        follow(short, "linear")
+        follow(short, "linear", PLAIN)
     assert follow(short, "none").end_time == pytest.approx(stream.t[144])
     assert follow(Stream(stream.t[:3], stream.poses[:3], 0.2, "three"), "none").end_time == 0.08
     with pytest.raises(InvalidConfigError, match="has 2 samples .* needs 3"):
@@ -594,7 +637,7 @@ def test_the_two_measures_a_at_the_samples_and_b_end_to_end():
     from stewart_drake.references.stream import LOOP_LAG_S
 
     motion = make_motion("breathing", {})
-    settings = PredictorSettings(min_record_s=2.0)
+    settings = replace(PLAIN, min_record_s=2.0)
     r = follow_motion(motion, 0.2, duration_s=40.0, settings=settings)
     h, followed = r["horizon"], r["followed"]
     horizon, dt = 0.2 + LOOP_LAG_S, 0.04

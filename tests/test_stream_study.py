@@ -117,15 +117,13 @@ def _full(b, peak_with):
     return f
 
 
-def test_the_tables_give_each_motions_three_ratios_and_the_tuning_only_when_run(monkeypatch):
+def test_the_tables_give_each_motions_source_and_three_ratios(monkeypatch):
     from stewart_drake.references.prediction import PredictorSettings
 
     monkeypatch.setattr(stream_study, "LATENCIES", (0.2, 0.5))
     rows = [(StreamCase("trace 0", path="x.txt"), {0.2: _full(0.4, 1.2e-3), 0.5: _full(0.6, 1e-3)})]
-    lines = stream_study.tables(rows, PredictorSettings(), [])
+    lines = stream_study.tables(rows, PredictorSettings(history_s=2.0))
     # (a) 0.3, (b) 0.4, peak 1.2e-3 / 1e-3
-    assert "| trace 0 | no | 5 | 0.30 / 0.40 / 1.20 | 0.30 / 0.60 / 1.00 |" in lines
-    assert not any("The tuning" in line for line in lines)
-    lines = stream_study.tables(rows, PredictorSettings(), [(PredictorSettings(), 0.25, 0.35)])
-    assert any("The tuning" in line for line in lines)
-    assert "| 0.5 | 30 | 1e-06 | 0.250 | 0.350 |" in lines
+    assert "| trace 0 | IntERAct | 5 | 0.30 / 0.40 / 1.20 | 0.30 / 0.60 / 1.00 |" in lines
+    assert any("history 2 s, memory 30 s" in line for line in lines)
+    assert not any("tuning" in line.lower() for line in lines)

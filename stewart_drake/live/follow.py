@@ -276,8 +276,11 @@ class FollowReference(LeafSystem):
         return (
             f"followed {self.source.channel}: {f.received} samples ({f.filled} missing ones "
             f"filled in), {f.latency_s:g} s late at {1 / f.dt:.4g} Hz, predictor "
-            f"{f.predictor} used on {used:.0f} % of them ({f.clipped} predicted positions "
-            f"clipped to the motion's range); the reference {self.shaper.record.words()}"
+            f"{f.predictor} used on {used:.0f} % of them, {f.fallbacks} fallback"
+            f"{'' if f.fallbacks == 1 else 's'} to no prediction where it stopped paying "
+            f"({f.rejected} sample axes taken as outliers, {f.clipped} predicted positions "
+            "clipped to the motion's recent range); the "
+            f"reference {self.shaper.record.words()}"
         )
 
 

@@ -90,7 +90,10 @@ def stream_summary(figures: dict) -> list:
         f"streamed {figures['latency_s']:g} s late at {figures['rate_hz']:.3g} Hz, predictor "
         f"{figures['predictor']} (latency assumed {figures['latency_s']:g} s + the loop's "
         f"{LOOP_LAG_S * 1e3:.2g} ms): prediction used on {figures['used'] * 100:.0f} % of the "
-        f"arrivals, {figures['clipped']} predicted positions clipped to the motion's range",
+        f"arrivals, {figures['fallbacks']} fallback{'' if figures['fallbacks'] == 1 else 's'} "
+        f"to no prediction where it stopped paying, {figures['rejected']} sample axes taken as "
+        f"outliers, {figures['clipped']} predicted positions clipped to the motion's recent "
+        "range",
         f"(a) the prediction {figures['latency_s'] + LOOP_LAG_S:.3g} s ahead, at the samples "
         f"(the literature's measure): {h['rms_translation_m'] * 1e3:.3g} mm RMS against "
         f"{h['none_translation_m'] * 1e3:.3g} mm with the newest sample held (relative RMSE "
@@ -255,7 +258,18 @@ def write_stream_report(figures: dict, out, name: str, tolerance: tuple[float, f
             shaped=figures["shaped"], shaping=figures["shaping"], band=band, scale=figures["scale"]
         )
     keep.update(
-        {k: figures[k] for k in ("latency_s", "rate_hz", "predictor", "used", "clipped")},
+        {
+            k: figures[k]
+            for k in (
+                "latency_s",
+                "rate_hz",
+                "predictor",
+                "used",
+                "clipped",
+                "fallbacks",
+                "rejected",
+            )
+        },
         ratio_translation=figures["ratio_translation"],
         ratio_rotation=figures["ratio_rotation"],
         loop_lag_s=LOOP_LAG_S,

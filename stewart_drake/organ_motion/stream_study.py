@@ -1,13 +1,13 @@
 """The stream study: every motion of the library and IntERAct's patients' traces streamed 0.1,
-0.2, 0.3 and 0.5 s late and followed with and without prediction. Both sets are the study's
-selection data: the linear regression's settings were tuned on the library's motions and the
-predictor (``references.prediction.DEFAULT_PREDICTOR``) chosen on both (docs/organ_motion.md,
-"Choosing the predictor"); traces held out from the developers are measured elsewhere.
+0.2, 0.3 and 0.5 s late and followed with and without the shipped predictor
+(``references.prediction.DEFAULT_PREDICTOR`` with ``PredictorSettings``' defaults: the choice of
+the selection across sources, :mod:`~.stream_selection`, of which both sets are part; traces held
+out from the developers are measured elsewhere).
 
-``python tools/stream_prediction_table.py --traces DIR`` runs :func:`tune` and :func:`study`
-and writes the tables between :data:`TABLE_MARKERS` of docs/organ_motion.md
-(:func:`write_tables`); the verdicts are computed here from the numbers in the tables. Two
-measures, each a ratio of translation errors, with prediction over without:
+``python tools/stream_prediction_table.py --traces DIR`` runs :func:`study` and writes the
+tables between :data:`TABLE_MARKERS` of docs/organ_motion.md (:func:`write_tables`); the
+verdicts are computed here from the numbers in the tables. Two measures, each a ratio of
+translation errors, with prediction over without:
 
 - (a) the literature's, at the sample instants: the prediction of the motion the latency (plus
   the loop's lag) after each sample, made from the samples up to it, against the newest sample
@@ -22,8 +22,7 @@ measures, each a ratio of translation errors, with prediction over without:
 
 from __future__ import annotations
 
-import itertools
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -56,48 +55,51 @@ NEVER_WORSE = 1.0
 USED_SHARE = 0.5
 #: Length of a library motion's run, s (a trace runs whole).
 LIBRARY_S = 120.0
-#: The settings tried when tuning: (history_s, memory_s, ridge).
-TUNING_GRID = {
-    "history_s": (0.5, 1.0, 2.0),
-    "memory_s": (30.0, 60.0, 120.0),
-    "ridge": (1e-6, 1e-3),
-}
-#: The latencies tuned at, s.
-TUNING_LATENCIES = (0.2, 0.5)
 
 
 @dataclass(frozen=True)
 class StreamCase:
-    """One motion of the study: a library motion (``motion``, ``parameters``) or a trace
-    file (``path``), and whether the predictor's settings were tuned on it."""
+    """One motion of the study: a library motion (``motion``, ``parameters``; ``tuned_on``:
+    one of the library's set), a trace file (``path``), or one ``made_by`` a function of no
+    arguments (a motion of the code's own, :func:`~.stream_sources.random_walk`)."""
 
     label: str
     motion: str = ""
     parameters: tuple = ()
     path: str = ""
     tuned_on: bool = False
+    made_by: Any = None
 
 
 def stream_cases(folder=None) -> list:
-    """The library's motions (the regression's tuning set) and the patients' traces found
-    under ``folder`` (:data:`~.trace_study.PATIENT_TRACES`); both are the predictor's selection
-    data."""
+    """The library's motions and the patients' traces found under ``folder``
+    (:data:`~.trace_study.PATIENT_TRACES`); both are sources of the predictor's selection."""
     cases = [StreamCase(c.label, c.motion, c.parameters, tuned_on=True) for c in LIBRARY_CASES]
     found = find_traces(folder)
     cases += [StreamCase(label, path=found[n]) for label, n in PATIENT_TRACES if n in found]
     return cases
 
 
-def _reference(case: StreamCase):
-    from ..references.organ.library import make_motion
+def case_reference(case: StreamCase):
+    """The true motion of ``case``: its trace, or its library motion (motions joined by "+"
+    laid on the first, the parameters shared out as ``reproduce --add`` shares them)."""
+    from ..references.organ.combinators import layered
+    from ..references.organ.library import make_motion, split_parameters
     from ..references.traces import load_trace
 
-    return load_trace(case.path) if case.path else make_motion(case.motion, dict(case.parameters))
+    if case.made_by is not None:
+        return case.made_by()
+    if case.path:
+        return load_trace(case.path)
+    names = case.motion.split("+")
+    parts = split_parameters(names, dict(case.parameters))
+    first = make_motion(names[0], parts[0])
+    return layered(first, [make_motion(n, p) for n, p in zip(names[1:], parts[1:])])
 
 
 def run_case(case: StreamCase, settings: PredictorSettings, latencies=LATENCIES) -> dict:
     """{latency: :func:`~.streaming.follow_motion`'s plain figures} of one case."""
-    reference = _reference(case)
+    reference = case_reference(case)
     duration = None if case.path else LIBRARY_S
     out = {}
     for latency in latencies:
@@ -112,28 +114,6 @@ def ratios(figures: dict) -> tuple:
     prediction at the horizon over the newest sample held, and the followed reference over the
     reference followed without prediction (translation RMS)."""
     return figures["horizon"]["ratio"], figures["ratio_translation"]
-
-
-def tune(cases, latencies=TUNING_LATENCIES, progress=None) -> tuple:
-    """The linear regression's settings: (the best, [(settings, mean ratio (a), mean ratio
-    (b)), ...] for every setting of :data:`TUNING_GRID`, over ``cases`` and ``latencies``): the
-    best is the least mean ratio (a), the measure a predictor's own settings are compared by
-    (the acceptance, on (b), judges the predictor chosen: :func:`verdicts`)."""
-    references = [(_reference(c), None if c.path else LIBRARY_S) for c in cases]
-    scores = []
-    for values in itertools.product(*TUNING_GRID.values()):
-        grid: dict[str, Any] = dict(zip(TUNING_GRID, values))
-        settings = replace(PredictorSettings(), **grid)
-        pairs = [
-            ratios(follow_motion(ref, lat, "linear", None, dur, settings))
-            for ref, dur in references
-            for lat in latencies
-        ]
-        a, b = np.nanmean(np.array(pairs, dtype=float), axis=0)
-        scores.append((settings, float(a), float(b)))
-        if progress is not None:
-            progress()
-    return min(scores, key=lambda s: s[1])[0], scores
 
 
 def study(cases, settings: PredictorSettings, progress=None) -> list:
@@ -232,11 +212,10 @@ def verdicts(rows) -> list:
     return lines
 
 
-def tables(rows, settings: PredictorSettings, scores) -> list:
-    """The Markdown of the study (lines); the tuning's table when ``scores`` (:func:`tune`)
-    holds any."""
+def tables(rows, settings: PredictorSettings) -> list:
+    """The Markdown of the study (lines)."""
     summary = []
-    for tuned, what in ((False, "IntERAct"), (True, "library, regression tuned on")):
+    for tuned, what in ((False, "IntERAct"), (True, "library")):
         sets = [f for f in (_set_figures(rows, tuned, lat) for lat in LATENCIES) if f is not None]
         if len(sets) < len(LATENCIES):
             continue
@@ -249,7 +228,7 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
             + [f"{f['used']} / {f['n'] - f['used']}" for f in sets],
         ]
     per_case = [
-        [c.label, "yes" if c.tuned_on else "no", f"{f[LATENCIES[0]]['rate_hz']:.3g}"]
+        [c.label, "library" if c.tuned_on else "IntERAct", f"{f[LATENCIES[0]]['rate_hz']:.3g}"]
         + [
             "{:.2f} / {:.2f} / {:.2f}".format(*ratios(f[lat]), peak_ratio(f[lat]))
             for lat in LATENCIES
@@ -284,20 +263,15 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
             f"{r['ratio_rotation']:.2f}",
             f"{r['used'] * 100:.0f}",
         ])  # fmt: skip
-    tuned_at = ", ".join(f"{v:g}" for v in TUNING_LATENCIES)
-    tuning_rows = [
-        [f"{s.history_s:g}", f"{s.memory_s:g}", f"{s.ridge:g}", f"{a:.3f}", f"{b:.3f}"]
-        for s, a, b in sorted(scores, key=lambda s: s[1])
-    ]
     lat_cols = [f"{lat:g} s" for lat in LATENCIES]
     return [
         "### Following a motion streamed late: error with prediction over error without",
         "",
         "Each motion streamed at its own rate (IntERAct's traces 5 Hz, the library's motions "
         "25 Hz for 120 s), each sample arriving the latency after it happened, followed by "
-        f"the `{DEFAULT_PREDICTOR}` predictor (the selection study's choice on these motions, "
-        f'"Choosing the predictor"; the regression\'s history {settings.history_s:g} s, memory '
-        f"{settings.memory_s:g} s, ridge {settings.ridge:g}, tuned on the library's motions) "
+        f"the shipped `{DEFAULT_PREDICTOR}` predictor (chosen across sources, these two among "
+        f'them: "Chosen across sources" above; history {settings.history_s:g} s, memory '
+        f"{settings.memory_s:g} s, ridge {settings.ridge:g}) "
         "and without prediction; the whole run from t = 0, the predictor's first seconds "
         "without it included. Ratios of translation errors, with prediction over without: "
         "**(a)** the literature's, at the sample instants: the prediction of the motion the "
@@ -318,7 +292,7 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
         "",
         "#### Per motion, ratio (a) / ratio (b) RMS / ratio (b) peak",
         "",
-        *markdown_lines(["motion", "regression tuned on", "rate [Hz]"] + lat_cols, per_case),
+        *markdown_lines(["motion", "source", "rate [Hz]"] + lat_cols, per_case),
         "",
         f"#### At {GOAL_LATENCY_S:g} s, in detail",
         "",
@@ -329,24 +303,12 @@ def tables(rows, settings: PredictorSettings, scores) -> list:
         "with prediction.",
         "",
         *markdown_lines(detail_header, detail),
-    ] + (
-        [
-            "",
-            f"#### The tuning (library motions only, mean ratios at {tuned_at} s; chosen by (a))",
-            "",
-            *markdown_lines(
-                ["history [s]", "memory [s]", "ridge", "mean ratio (a)", "mean ratio (b)"],
-                tuning_rows,
-            ),
-        ]
-        if scores
-        else []
-    )
+    ]
 
 
-def write_tables(path, rows, settings, scores) -> Path:
+def write_tables(path, rows, settings) -> Path:
     """Write :func:`tables` between :data:`TABLE_MARKERS` of ``path`` (docs/organ_motion.md)."""
-    block = "\n".join([TABLE_MARKERS[0], "", *tables(rows, settings, scores), "", TABLE_MARKERS[1]])
+    block = "\n".join([TABLE_MARKERS[0], "", *tables(rows, settings), "", TABLE_MARKERS[1]])
     return write_between_markers(Path(path), TABLE_MARKERS, block)
 
 
@@ -358,11 +320,11 @@ __all__ = [
     "NEVER_WORSE",
     "StreamCase",
     "stream_cases",
+    "case_reference",
     "run_case",
     "ratios",
     "peak_ratio",
     "judge",
-    "tune",
     "study",
     "verdicts",
     "tables",

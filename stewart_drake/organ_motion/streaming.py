@@ -114,6 +114,7 @@ def follow_motion(
     from_s: float = 0.0,
     loop_lag_s: float = LOOP_LAG_S,
     say=None,
+    form=None,
 ) -> dict:
     """A motion streamed ``latency_s`` late and followed with ``predictor`` and with none: (b)
     each followed reference measured against the motion itself over [``from_s``, end]
@@ -127,17 +128,25 @@ def follow_motion(
             :data:`~stewart_drake.references.stream.DEFAULT_STREAM_RATE_HZ`).
         duration_s: how long (default the reference's ``end_time``; required without one).
         say: called with a line of progress every few seconds of a long follow, or None.
+        form: what happens to the samples on their way, or None (exact): a
+            :class:`~.stream_sources.StreamForm` (its rate, when it has one, is the stream's);
+            the followed references are judged against the true motion all the same.
     Returns:
         {"with": figures, "without": figures, "ratio_translation", "ratio_rotation",
         "horizon": :func:`horizon_error`, "latency_s", "rate_hz", "predictor", "used" (share
         of the arrivals whose prediction was used, over the moving axes), "clipped",
+        "fallbacks" (the times an axis went back to no prediction), "rejected" (samples' axes
+        taken as outliers),
         "followed": the :class:`~stewart_drake.references.stream.FollowedStream`}.
     Raises:
         InvalidConfigError: as :func:`~stewart_drake.references.stream.follow`.
     """
-    rate = rate_hz or trace_rate(reference) or DEFAULT_STREAM_RATE_HZ
+    rate = rate_hz or getattr(form, "rate_hz", None) or trace_rate(reference)
+    rate = rate or DEFAULT_STREAM_RATE_HZ
     end = duration_s if duration_s is not None else float(reference.end_time)
     stream = stream_of(reference, latency_s, rate, end)
+    if form is not None:
+        stream = form.apply(stream)
 
     def progress(name):
         if say is None:
@@ -173,6 +182,8 @@ def follow_motion(
         "predictor": predictor,
         "used": float(chosen.using[:, moving].mean()) if moving.any() else 0.0,
         "clipped": chosen.clipped,
+        "fallbacks": chosen.fallbacks,
+        "rejected": chosen.rejected,
         "followed": chosen,
     }
 

@@ -111,8 +111,19 @@ class LiveFollower:
 
     @property
     def clipped(self) -> int:
-        """Predicted positions clipped to the motion's range so far (count)."""
+        """Predicted positions clipped to the motion's recent range (count)."""
         return self._model.clipped
+
+    @property
+    def rejected(self) -> int:
+        """Samples' axes taken as outliers (count, :class:`~.prediction.OnlinePredictor`)."""
+        return self._model.rejected
+
+    @property
+    def fallbacks(self) -> int:
+        """The times an axis went back to no prediction, its record no longer better (count,
+        :class:`~.prediction.OnlinePredictor`)."""
+        return self._model.fallbacks
 
     def receive(self, now: float, seq: int, utime_us: int, pose) -> None:
         """Take sample ``seq`` (taken at ``utime_us`` on the source's clock, us), which arrived
@@ -174,6 +185,7 @@ class LiveFollower:
         if self._past is None:
             self._past = np.repeat(y[None, :], PAST_NODES, axis=0)
         ahead = self._model.raw_update(y)
+        y = self._model.sample  # the outliers' axes replaced
         nodes = np.concatenate([self._past, y[None, :], ahead])
         self.using, self.sigma = self._model.using.copy(), self._model.sigma.copy()
         self._past = np.concatenate([self._past[1:], y[None, :]])

@@ -24,23 +24,37 @@ learned k samples after its input). :data:`PREDICTORS` names them:
   (:class:`~.predictors.RecurrentModel`).
 
 :class:`OnlinePredictor` wraps each model with what keeps its predictions from doing harm,
-applied in this order to the positions it predicts:
+applied in this order:
 
-1. the **envelope**: every prediction is clipped to the motion's range so far, widened by
-   :data:`ENVELOPE_MARGIN` of it (a prediction never asks for more than the motion has done);
-2. the **bound** on the displacement (``bound_s``): the displacement predicted k samples ahead
+1. the **outliers** (``outlier_k``; off unless set), to the sample as it arrives: a sample
+   further from the position put forward for it one sample earlier than ``outlier_k`` times
+   the mean such distance lately (per axis, each distance counted at most that far) and than
+   :data:`OUTLIER_STEPS` times the largest step between samples the motion has lately made (the
+   bound's) is taken as a glitch of the tracker (a reflection, a marker swap): the position put
+   forward stands in for it on that axis, for the model and for the curve the follower draws
+   through its samples (``OnlinePredictor.sample``), at most :data:`MAX_REJECTED_RUN`
+   samples in a row (a step the motion truly makes is taken after them); counted;
+2. the **envelope**, to the positions predicted: every prediction is clipped to the motion's
+   recent range (its samples of the last ``envelope_s``, or all so far), widened by
+   :data:`ENVELOPE_MARGIN` of it (a prediction never asks for more than the motion has lately
+   done: a peak is not made larger than the motion makes it);
+3. the **bound** on the displacement (``bound_s``): the displacement predicted k samples ahead
    is at most, widened by the same margin, the largest displacement over k samples the motion
    itself has made lately (a peak hold forgotten with time constant ``bound_s``), so a noisy
    sample or a step in the samples is not extrapolated beyond what the motion does;
-3. the **shrinkage** (``shrink``): per axis and k, the displacement is multiplied by the gain
+4. the **shrinkage** (``shrink``): per axis and k, the displacement is multiplied by the gain
    g in [0, 1] that would have served best over the completed pairs of the last ``gain_s``
    (least squares of the outcome's displacement on the predicted one, exponentially weighted),
    so a model whose predicted displacements are partly noise is followed only that part of
    the way;
-4. the **record** that decides, per axis, whether its predictions are used: the exponentially
+5. the **record** that decides, per axis, whether its predictions are used: the exponentially
    weighted mean squared error at every k of what is put forward and of no prediction over the
-   last ``record_s``; the model is used on an axis only while its record there is lower than
-   no prediction's (and has ``min_record_s`` of residuals), else the newest sample is held.
+   last ``record_s``; the model is taken up on an axis once its record there is below
+   (1 - ``record_margin``) times no prediction's (and has ``min_record_s`` of residuals), and
+   dropped (a fallback, counted) as soon as it is no longer below no prediction's: the
+   hysteresis keeps a model that merely ties with no prediction from switching at every
+   sample, and a model that stops paying is dropped at once. Where it is not used the newest
+   sample is held.
    The same record gives the uncertainty: the RMS residual of what is used. The record starts
    once the model's first predictions mean something (its ``warm``: a regression fitted on a
    few samples predicts wildly, and would weigh on the record long after).
@@ -63,8 +77,19 @@ PREDICTORS = ("none", "linear", "wlms", "mulin", "kalman", "rnn")
 #: The predictor ``reproduce --stream`` uses unless told: the selection study's choice on the
 #: library's motions and IntERAct's traces (docs/organ_motion.md, "Choosing the predictor").
 DEFAULT_PREDICTOR = "linear"
-#: The widening of the motion's range so far that a prediction may reach, a fraction of it.
+#: The widening of the motion's recent range that a prediction may reach, a fraction of it.
 ENVELOPE_MARGIN = 0.1
+#: The most displacements the regression reads, whatever the stream's rate: it factorises a
+#: matrix of this size per axis at every sample (64: 2 s at 30 Hz; 0.64 s at 100 Hz).
+MAX_LAGS = 64
+#: The most samples in a row an axis may have taken as outliers; the next is taken as it is.
+MAX_REJECTED_RUN = 2
+#: A sample is an outlier only beyond this many times the largest step between samples the
+#: motion has lately made.
+OUTLIER_STEPS = 1.1
+#: The least distance from the position put forward that may make a sample an outlier, in the
+#: axis's unit (m or rad): 10 um or 10 urad, below any tracker's glitch.
+OUTLIER_FLOOR = 1e-5
 
 
 @dataclass(frozen=True)
@@ -74,7 +99,7 @@ class PredictorSettings:
 
     Attributes:
         history_s: the past the linear regression reads, s (``round(history_s / dt)``
-            displacements, at least 2).
+            displacements, at least 2 and at most :data:`MAX_LAGS`).
         memory_s: time constant of the forgetting of the regression's sums, s.
         ridge: the ridge, relative to the mean of the diagonal of the regression's sums.
         record_s: time constant of the residuals' record (the fallback and the uncertainty), s.
@@ -82,6 +107,12 @@ class PredictorSettings:
         gain_s: time constant of the sums the shrinkage's gain is fitted on, s.
         bound_s: time constant of the forgetting of the largest recent displacement that bounds
             the predicted one, s; None: no bound.
+        envelope_s: the past whose range (widened) holds every prediction, s; None: the whole
+            run so far.
+        record_margin: the hysteresis of the record, in [0, 1): the share by which the model's
+            record must beat no prediction's before it is taken up.
+        outlier_k: how many times its recent mean distance a sample must be from the position
+            put forward for it to be taken as an outlier; None: none is.
         shrink: whether the predicted displacement is shrunk by its fitted gain.
         wlms_scales: wLMS's detail scales J (the coarsest reads 2^J samples).
         wlms_depth: wLMS's values read per scale, a.
@@ -106,18 +137,22 @@ class PredictorSettings:
             the counts integers >= 1, ``mulin_order`` >= 0; ``bound_s`` None or > 0).
     """
 
-    # The defaults are the stream study's choice, tuned on the library's motions only
-    # (docs/organ_motion.md, "Following a motion live": memory 30, 60 or 120 s and history 0.5,
-    # 1 or 2 s differ by less than 0.005 in the mean ratio; a ridge of 1e-6 beats 1e-3 by 0.05).
-    # The bound and the shrinkage: the selection study's ("Choosing the predictor"); the other
-    # models' settings were not tuned (one setting each, from their papers or ours).
-    history_s: float = 0.5
+    # The defaults: history, the hysteresis, the envelope's window and the outliers (off) are
+    # the choice across sources, each left out in turn (docs/organ_motion.md, "Chosen across
+    # sources", organ_motion/stream_selection.py); memory and ridge the earlier tuning on the
+    # library's motions (memory 30-120 s within 0.005 of the mean ratio; a ridge of 1e-6 beat
+    # 1e-3 by 0.05); the bound and the shrinkage "Choosing the predictor"'s. The other models'
+    # settings were not tuned (one setting each, from their papers or ours).
+    history_s: float = 2.0
     memory_s: float = 30.0
     ridge: float = 1e-6
     record_s: float = 10.0
     min_record_s: float = 5.0
     gain_s: float = 30.0
     bound_s: float | None = 20.0
+    envelope_s: float | None = 120.0
+    record_margin: float = 0.1
+    outlier_k: float | None = None
     shrink: bool = True
     wlms_scales: int = 3
     wlms_depth: int = 2
@@ -141,15 +176,18 @@ class PredictorSettings:
             "mulin_smoothing_s", "kalman_q", "kalman_q_level", "kalman_r_floor",
             "kalman_window_s", "rnn_history_s", "rnn_rate", "rnn_clip",
         )  # fmt: skip
-        for name in positive + ("ridge", "wlms_mu", "bound_s"):
+        optional = ("bound_s", "envelope_s", "outlier_k")
+        for name in positive + ("ridge", "wlms_mu", "record_margin") + optional:
             v = getattr(self, name)
-            if name == "bound_s" and v is None:
+            if name in optional and v is None:
                 continue
             ok = isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
             if name == "ridge":
                 ok, words = ok and v >= 0, ">= 0"
             elif name == "wlms_mu":
                 ok, words = ok and 0 < v <= 1, "in (0, 1]"
+            elif name == "record_margin":
+                ok, words = ok and 0 <= v < 1, "in [0, 1)"
             else:
                 ok, words = ok and v > 0, "> 0"
             if not ok:
@@ -166,12 +204,14 @@ class PredictorSettings:
                     f"predictor setting {name} must be an integer >= {low}, got {v!r}"
                 )
         if not isinstance(self.shrink, bool):
-            raise InvalidConfigError(f"predictor setting shrink must be True or False, got "
-                                     f"{self.shrink!r}")  # fmt: skip
+            raise InvalidConfigError(
+                f"predictor setting shrink must be True or False, got {self.shrink!r}"
+            )
 
     def lags(self, dt: float) -> int:
-        """Displacements the regression reads at a sample step ``dt`` (s): at least 2."""
-        return max(2, int(round(self.history_s / dt)))
+        """Displacements the regression reads at a sample step ``dt`` (s): at least 2, at most
+        :data:`MAX_LAGS` (a faster stream reads a shorter history)."""
+        return min(MAX_LAGS, max(2, int(round(self.history_s / dt))))
 
     def samples_needed(self, dt: float, steps: int) -> int:
         """Samples a stream needs before the model can be used at all: its history, the
@@ -309,6 +349,9 @@ class OnlinePredictor:
         sigma: (K, m) RMS residual of what is used, per step ahead (rad or m; NaN before any).
         gain: (K, m) the shrinkage's gain now, in [0, 1] (1 without shrinkage).
         clipped: predicted positions moved by the envelope or the bound (count).
+        fallbacks: the times an axis's model was dropped for no prediction (count).
+        rejected: samples' axes taken as outliers (count).
+        sample: (m,) the newest sample as followed: the outliers' axes replaced.
     Raises:
         InvalidConfigError: an unknown predictor; dt or steps not > 0.
     """
@@ -340,7 +383,22 @@ class OnlinePredictor:
         self._low: np.ndarray | None = None
         self._high: np.ndarray | None = None
         self.clipped = 0
+        self.fallbacks = 0
+        self.rejected = 0
+        self.sample = np.zeros(self.m)
+        self._distance = np.zeros(self.m)  # weighted sum of the distances from what was put forward
+        self._distance_w = 0.0
+        self._run = np.zeros(self.m, dtype=int)
         self.using = np.zeros(self.m, dtype=bool)
+        # The recent envelope: the range of each block of about a second, the newest blocks kept.
+        envelope_s = self.settings.envelope_s
+        self._block = max(1, int(round(1.0 / self.dt)))
+        blocks = (
+            0 if envelope_s is None else max(1, int(np.ceil(envelope_s / (self._block * self.dt))))
+        )
+        self._blocks_low = np.full((blocks, self.m), np.inf)
+        self._blocks_high = np.full((blocks, self.m), -np.inf)
+        self._in_block = 0
         self.sigma = np.full((self.K, self.m), np.nan)
         # The bound: the largest displacement over k samples, held and forgotten.
         bound_s = self.settings.bound_s
@@ -364,7 +422,8 @@ class OnlinePredictor:
     def raw_update(self, y) -> np.ndarray:
         """As :meth:`update`, but (K, m) the model's positions on every axis (within the
         envelope and the bound, shrunk), whatever the record chose (``using`` says that)."""
-        y = np.asarray(y, dtype=float).reshape(self.m)
+        y = self._cleaned(np.asarray(y, dtype=float).reshape(self.m))
+        self.sample = y
         self._n += 1
         self._y[:-1] = self._y[1:]
         self._y[-1] = y
@@ -382,15 +441,26 @@ class OnlinePredictor:
         return predicted
 
     def _bounded(self, predicted: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """``predicted`` (K, m) clipped to the range of the samples so far, widened by
+        """``predicted`` (K, m) clipped to the recent range of the samples, widened by
         :data:`ENVELOPE_MARGIN` of it, and its displacement from ``y`` to the largest recent
         displacement over as many samples, widened alike."""
+        kept = self._blocks_low.size > 0
         if self._low is None or self._high is None:
+            self._low, self._high = y.copy(), y.copy()
+        elif kept and self._in_block == 0:  # a block starts: the one finished joins the kept
+            self._blocks_low = np.roll(self._blocks_low, -1, axis=0)
+            self._blocks_high = np.roll(self._blocks_high, -1, axis=0)
+            self._blocks_low[-1], self._blocks_high[-1] = self._low, self._high
             self._low, self._high = y.copy(), y.copy()
         np.minimum(self._low, y, out=self._low)
         np.maximum(self._high, y, out=self._high)
-        margin = ENVELOPE_MARGIN * (self._high - self._low)
-        bounded = np.clip(predicted, self._low - margin, self._high + margin)
+        low, high = self._low, self._high
+        if kept:
+            self._in_block = (self._in_block + 1) % self._block
+            low = np.minimum(low, self._blocks_low.min(axis=0))
+            high = np.maximum(high, self._blocks_high.max(axis=0))
+        margin = ENVELOPE_MARGIN * (high - low)
+        bounded = np.clip(predicted, low - margin, high + margin)
         if self._hold is not None:
             k = self._k
             ready = (self._n - 1 - k) >= 0
@@ -399,6 +469,26 @@ class OnlinePredictor:
             reach = (1.0 + ENVELOPE_MARGIN) * self._largest
             bounded = y[None, :] + np.clip(bounded - y[None, :], -reach, reach)
         return bounded
+
+    def _cleaned(self, y: np.ndarray) -> np.ndarray:
+        """``y`` with the axes it is an outlier on (module docstring, 1) replaced by the
+        position put forward for it a sample ago."""
+        k = self.settings.outlier_k
+        if k is None or self.name == "none" or self._count[0] < self._min_n:
+            return y
+        expected = self._past[-1, 0]
+        distance = np.abs(y - expected)
+        scale = np.maximum(self._distance / max(self._distance_w, 1e-300), OUTLIER_FLOOR)
+        # Beyond the largest step between samples the motion has lately made, too: a surprise
+        # within a step (a breath unlike the last) is the motion's own.
+        reach = OUTLIER_STEPS * self._largest[0]
+        far = (distance > k * scale) & (distance > reach)
+        out = far & (self._run < MAX_REJECTED_RUN) & (self._distance_w > 0)
+        self._distance = self._mu * self._distance + np.minimum(distance, k * scale)
+        self._distance_w = self._mu * self._distance_w + 1.0
+        self._run = np.where(out, self._run + 1, 0)
+        self.rejected += int(np.count_nonzero(out))
+        return np.where(out, expected, y)
 
     def _learn_gain(self, y: np.ndarray) -> None:
         """The pairs completed at ``y``: the bounded displacement predicted k samples ago
@@ -433,7 +523,11 @@ class OnlinePredictor:
         if self.name == "none" or self._count[-1] < self._min_n:
             self.using[:] = False
         else:
-            self.using = self._se[0].sum(axis=0) < self._se[1].sum(axis=0)
+            model, none = self._se[0].sum(axis=0), self._se[1].sum(axis=0)
+            margin = np.where(self.using, 1.0, 1.0 - self.settings.record_margin)
+            using = model < margin * none
+            self.fallbacks += int(np.count_nonzero(self.using & ~using))
+            self.using = using
         with np.errstate(invalid="ignore", divide="ignore"):
             mse = self._se / self._w[None, :, None]
         self.sigma = np.sqrt(np.where(self.using[None, :], mse[0], mse[1]))
@@ -443,6 +537,9 @@ __all__ = [
     "PREDICTORS",
     "DEFAULT_PREDICTOR",
     "ENVELOPE_MARGIN",
+    "MAX_LAGS",
+    "MAX_REJECTED_RUN",
+    "OUTLIER_FLOOR",
     "PredictorSettings",
     "check_predictor",
     "HoldModel",

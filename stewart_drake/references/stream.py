@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..base.checks import check_memory
 from ..base.errors import InvalidConfigError
 from .prediction import OnlinePredictor, PredictorSettings, check_predictor
 
@@ -140,8 +141,12 @@ class FollowedStream:
         using: (N, 6) bool, whether the predictor's record chose its positions on each axis.
         sigma: (N, K, 6) its uncertainty at each arrival: the RMS residual of what was used,
             per step ahead (NaN before any).
-        clipped: predicted positions clipped to the motion's range so far (count,
+        clipped: predicted positions clipped to the motion's recent range (count,
             :class:`~.prediction.OnlinePredictor`).
+        rejected: samples' axes taken as outliers, the prediction for them followed instead
+            (count, :class:`~.prediction.OnlinePredictor`).
+        fallbacks: the times the record dropped the prediction on an axis for no prediction
+            (count, :class:`~.prediction.OnlinePredictor`).
         switches: (S, 3) the moves of u: (start time s, axis, direction +1 / -1).
     """
 
@@ -154,6 +159,8 @@ class FollowedStream:
         self.name = f"{stream.name} followed"
         self.end_time = float(stream.t[-1])
         self.nodes, self.using, self.sigma, self.clipped = nodes, using, sigma, int(clipped)
+        self.fallbacks = int(np.count_nonzero(using[:-1] & ~using[1:])) if len(using) else 0
+        self.rejected = 0
         n, dt = nodes.shape[1], stream.dt
         self.tau = (np.arange(n) - PAST_NODES) * dt
         self._c = CubicSpline(self.tau, np.moveaxis(nodes, 1, 0), axis=0).c  # (4, n - 1, N, 6)
@@ -309,15 +316,34 @@ def follow(
             f"({stream.t[-1]:.3g} s): the {predictor} predictor needs {needed} "
             f"({(needed - 1) * dt:.3g} s at {1 / dt:.3g} Hz) before it can predict"
         )
-    nodes, using, sigma, clipped = _arrivals(stream, predictor, settings, steps, progress)
-    return FollowedStream(
+    check_memory(
+        f"following {stream.name}'s {stream.t.size} samples at {1 / dt:.4g} Hz, {steps} steps "
+        "ahead",
+        follow_memory_bytes(stream.t.size, steps),
+        "lower the stream's rate (--stream-rate) or shorten the run (--duration)",
+    )
+    nodes, using, sigma, clipped, rejected = _arrivals(stream, predictor, settings, steps, progress)
+    followed = FollowedStream(
         stream, predictor, settings, loop_lag_s, blend_s, nodes, using, sigma, clipped
     )
+    followed.rejected = rejected
+    return followed
+
+
+def follow_memory_bytes(samples: int, steps: int) -> float:
+    """Estimated peak memory of :func:`follow` on ``samples`` arrivals predicting ``steps``
+    ahead, bytes: each arrival's nodes, uncertainty and choice (float64, 6 axes), and the two
+    cubic splines' coefficients (4 per piece) with the solver's temporaries (taken as twice
+    the coefficients: an upper bound with slack)."""
+    n = PAST_NODES + 1 + steps
+    per_arrival = 6 * 8 * (n + steps + 1 + 3 * 4 * (n - 1 + PAST_NODES))
+    return float(samples) * per_arrival
 
 
 def _arrivals(stream: Stream, predictor: str, settings, steps: int, progress=None):
     """The follower's record of every arrival, in order: (nodes (N, n, 6), using (N, 6),
-    sigma (N, K, 6), clipped count); ``progress(i, N)`` every :data:`PROGRESS_S` at most."""
+    sigma (N, K, 6), clipped count, rejected count); ``progress(i, N)`` every
+    :data:`PROGRESS_S` at most."""
     import time
 
     N = stream.t.size
@@ -327,15 +353,16 @@ def _arrivals(stream: Stream, predictor: str, settings, steps: int, progress=Non
     nodes, using = np.empty((N, n, 6)), np.zeros((N, 6), dtype=bool)
     sigma = np.empty((N, steps, 6))
     past = np.repeat(stream.poses[:1], PAST_NODES, axis=0)
-    for i, y in enumerate(stream.poses):
-        ahead = model.raw_update(y)
+    for i, raw in enumerate(stream.poses):
+        ahead = model.raw_update(raw)
+        y = model.sample  # the outliers' axes replaced
         nodes[i] = np.concatenate([past, y[None, :], ahead])
         using[i], sigma[i] = model.using, model.sigma
         past = np.concatenate([past[1:], y[None, :]])
         if progress is not None and i % 256 == 0 and time.monotonic() - said >= PROGRESS_S:
             said = time.monotonic()
             progress(i, N)
-    return nodes, using, sigma, model.clipped
+    return nodes, using, sigma, model.clipped, model.rejected
 
 
 #: The longest the follower runs without telling its ``progress``, s of wall-clock time.
@@ -348,6 +375,7 @@ __all__ = [
     "check_latency",
     "follow",
     "follower_steps",
+    "follow_memory_bytes",
     "FollowedStream",
     "PAST_NODES",
     "SWITCH_S",
