@@ -24,6 +24,7 @@ import numpy as np
 from ..base.fileio import write_between_markers
 from ..base.tables import markdown_lines
 from ..references.prediction import PredictorSettings
+from .stream_study import mean_range
 
 #: Where the tables go in docs/organ_motion.md.
 TABLE_MARKERS = (
@@ -104,10 +105,10 @@ def measure(sources, candidates=CANDIDATES, latencies=LATENCIES, progress=None) 
                 stream = source.form.apply(stream_of(reference, latency, rate, end))
                 judged = moves_after_warm_up(x_true, t, stream)
                 none = stream_figures(t, x_true, follow(stream, "none").evaluate(t)[0])
+                moving = np.ptp(stream.poses, axis=0) > 0
                 for c in candidates:
                     followed = follow(stream, c.predictor, c.settings)
                     f = stream_figures(t, x_true, followed.evaluate(t)[0])
-                    moving = np.ptp(stream.poses, axis=0) > 0
                     rows.append({
                         "source": source.name,
                         "case": case.label,
@@ -270,14 +271,6 @@ def verdicts(rows, fallback=()) -> list:
     return lines
 
 
-def _mean_range(x) -> str:
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    if not x.size:
-        return "-"
-    return f"{np.mean(x):.2f} ({np.min(x):.2f}-{np.max(x):.2f})"
-
-
 def tables(rows, sources, fallback=(), hurting=()) -> list:
     """The Markdown of the selection (lines): the sources left out, every candidate on every
     source, the motions not judged, and the fallback where prediction cannot pay."""
@@ -291,9 +284,9 @@ def tables(rows, sources, fallback=(), hurting=()) -> list:
             source,
             f"{forms[source][1]}, {forms[source][0]}",
             chosen,
-            _mean_range(a["rms"]),
-            _mean_range(a["peak"]),
-            _mean_range(b["rms"]),
+            mean_range(a["rms"]),
+            mean_range(a["peak"]),
+            mean_range(b["rms"]),
             f"{int(a['fallbacks'].sum())}",
             "met" if all(c[3] for c in checks) else "MISSED: " + "; ".join(
                 f"{w} {x:.2f} > {g:g}" for w, x, g, met in checks if not met

@@ -147,7 +147,8 @@ def _set_figures(rows, tuned: bool, latency: float) -> dict | None:
     return {"n": len(sel), "a": pairs[:, 0], "b": pairs[:, 1], "peak": peak, "used": used}
 
 
-def _mean_range(x) -> str:
+def mean_range(x) -> str:
+    """The finite values of ``x`` as "mean (least-largest)", 2 decimals; "-" when none is."""
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
     if not x.size:
@@ -221,9 +222,9 @@ def tables(rows, settings: PredictorSettings) -> list:
             continue
         label = f"{what} ({sets[0]['n']})"
         summary += [
-            [label, "(a) prediction at the samples"] + [_mean_range(f["a"]) for f in sets],
-            ["", "(b) followed reference, RMS"] + [_mean_range(f["b"]) for f in sets],
-            ["", "(b) followed reference, peak"] + [_mean_range(f["peak"]) for f in sets],
+            [label, "(a) prediction at the samples"] + [mean_range(f["a"]) for f in sets],
+            ["", "(b) followed reference, RMS"] + [mean_range(f["b"]) for f in sets],
+            ["", "(b) followed reference, peak"] + [mean_range(f["peak"]) for f in sets],
             ["", "predictor used / fell back"]
             + [f"{f['used']} / {f['n'] - f['used']}" for f in sets],
         ]
@@ -323,6 +324,7 @@ __all__ = [
     "case_reference",
     "run_case",
     "ratios",
+    "mean_range",
     "peak_ratio",
     "judge",
     "study",
