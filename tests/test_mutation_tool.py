@@ -185,3 +185,28 @@ def test_a_mutant_s_diff_shows_its_line_the_def_line_too():
 def test_the_rules_read_every_occurrence_of_their_kind(old, new, explained):
     diff = f"@@ -3 +3 @@\n-    {old}\n+    {new}"
     assert (mutation.rule_account(diff) is not None) == explained
+
+
+def test_the_scores_go_to_the_docs_and_the_survivors_beside_the_tool():
+    """The summary holds each module's counts and score (3 of 4 killed: 75.0 %) and points to
+    the survivors' report; the survivors' report, not the summary, holds each survivor's diff
+    and its account (an unaccounted one said so)."""
+    result = mutation.ModuleResult(
+        "stewart_drake/robot/statics.py",
+        ("tests/test_statics.py",),
+        [
+            mutation.Mutant("stewart_drake.robot.statics.x_f__mutmut_1", "killed"),
+            mutation.Mutant("stewart_drake.robot.statics.x_f__mutmut_2", "killed"),
+            mutation.Mutant("stewart_drake.robot.statics.x_f__mutmut_3", "timeout"),
+            mutation.Mutant("stewart_drake.robot.statics.x_f__mutmut_4", "survived", "-a\n+b"),
+        ],
+        seconds=90.0,
+    )
+    summary, survivors = mutation.report([result], {}, None)
+    row = "| `stewart_drake/robot/statics.py` | test_statics.py | 4 | 2 | 1 | 1 | 0 | 75.0 % | 90 |"
+    assert row in summary.splitlines()
+    assert "1.5 min" in summary and "tools/mutation_survivors.md" in summary
+    assert "x_f__mutmut_4" not in summary and "+b" not in summary
+    assert "## Survivors in `stewart_drake/robot/statics.py`" in survivors
+    assert "- `x_f__mutmut_4` (survived): **unaccounted**" in survivors
+    assert "  +b" in survivors.splitlines() and "1 of 1 without an account." in survivors

@@ -4,9 +4,10 @@ module's fast unit tests against each change; a mutant no test fails on is a wro
 tests would let through. Writes the score per module and every survivor with its account.
 
     pip install -e ".[test,mutation]"
-    python tools/mutation.py                          # all modules: docs/mutation.md
+    python tools/mutation.py                          # all modules: docs/mutation.md and
+                                                      # tools/mutation_survivors.md
     python tools/mutation.py --module statics         # one module (a key's last part)
-    python tools/mutation.py --out /tmp/mutation.md   # elsewhere
+    python tools/mutation.py --out /tmp/mutation.md --survivors /tmp/survivors.md  # elsewhere
     python tools/mutation.py --work /tmp/mut          # keep the scratch copies there
 
 Not run by CI (a full run takes minutes per module). Each module is mutated in a scratch copy of
@@ -535,9 +536,22 @@ def load_accounts(path: Path = ACCOUNTS_FILE) -> dict[str, str]:
     return tomllib.loads(raw.decode("utf-8"))
 
 
-def report(results: list[ModuleResult], accounts: dict[str, str], before: dict | None) -> str:
-    """The Markdown report: a table of the scores (and an earlier run's, ``before``: the
-    ``--json`` it wrote, when given), then each module's survivors with diffs and accounts."""
+#: Where the survivors' report goes unless told: beside the tool, not in docs/ (it lists every
+#: surviving mutant's diff, thousands of lines a reader of the docs does not need).
+SURVIVORS_FILE = REPO / "tools" / "mutation_survivors.md"
+
+
+def report(
+    results: list[ModuleResult], accounts: dict[str, str], before: dict | None
+) -> tuple[str, str]:
+    """The two Markdown reports: (the scores, a table per module for docs/mutation.md; the
+    survivors: an earlier run's scores, ``before``, the ``--json`` it wrote, when given, then
+    each module's survivors with diffs and accounts)."""
+    return summary_report(results), survivor_report(results, accounts, before)
+
+
+def summary_report(results: list[ModuleResult]) -> str:
+    """The scores: a row per module, and where the survivors are listed."""
     lines = [
         "# Mutation testing of the core numeric modules",
         "",
@@ -563,7 +577,29 @@ def report(results: list[ModuleResult], accounts: dict[str, str], before: dict |
     ]
     lines += markdown_lines(header + ["score", "run, s"], rows, [None, None] + ["right"] * 7)
     total = sum(r.seconds for r in results)
-    lines += ["", f"The whole run took {total / 60:.1f} min on this machine.", ""]
+    lines += [
+        "",
+        f"The whole run took {total / 60:.1f} min on this machine.",
+        "",
+        "Every survivor, with its diff and its account from `tools/mutation_accounts.toml` "
+        "(equivalent, or not worth a test, and why): the report written beside the tool, "
+        "[tools/mutation_survivors.md](../tools/mutation_survivors.md).",
+    ]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def survivor_report(
+    results: list[ModuleResult], accounts: dict[str, str], before: dict | None
+) -> str:
+    """Every survivor with its diff and account, per module; first the scores before the tests
+    written for them (``before``: an earlier run's ``--json``) when given."""
+    lines = [
+        "# Surviving mutants of the core numeric modules",
+        "",
+        "Written by `python tools/mutation.py` with docs/mutation.md, which gives the scores. "
+        "Each survivor with its diff and its account from `tools/mutation_accounts.toml`.",
+        "",
+    ]
     if before:
         lines += [
             "Before the tests added for the survivors (the same run on the tests as they were):",
@@ -606,6 +642,7 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--module", action="append", help="a module's file stem (repeatable)")
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "mutation.md")
+    parser.add_argument("--survivors", type=Path, default=SURVIVORS_FILE)
     parser.add_argument("--work", type=Path, help="folder for the scratch copies (kept)")
     parser.add_argument(
         "--json", type=Path, help="also write the mutants' names and statuses as JSON here"
@@ -625,7 +662,9 @@ def main(argv=None) -> int:
     accounts = load_accounts()
     work = args.work or Path(tempfile.mkdtemp(prefix="stewart-mutation-"))
     results = [run_module(m, t, work) for m, t in chosen.items()]
-    args.out.write_text(report(results, accounts, before))
+    summary, survivors = report(results, accounts, before)
+    args.out.write_text(summary)
+    args.survivors.write_text(survivors)
     if args.json:
         args.json.write_text(
             json.dumps(
