@@ -18,7 +18,7 @@ from stewart_drake.cli.main import main
 from stewart_drake.organ_motion.examples import FOLDER
 from stewart_drake.organ_motion.measured_motion import read_measured
 from stewart_drake.references.traces import load_trace
-from stewart_drake.surrogate.relative_latency import (
+from stewart_drake.surrogate.pair_judgement import (
     MAX_RELATIVE_LATENCY_S,
     RELATIVE_SEARCH_S,
     verify_pair,

@@ -28,7 +28,8 @@ from stewart_drake.robot.kinematics import ik
 from stewart_drake.run.plan import robot_geometry
 from stewart_drake.run.scenario_io import load_scenario
 from stewart_drake.surrogate.external_reference import model_reference
-from stewart_drake.surrogate.relative_latency import read_encoder_pair, verify_pair
+from stewart_drake.surrogate.pair_command import read_encoder_pair
+from stewart_drake.surrogate.pair_judgement import verify_pair
 
 GEOMETRY = robot_geometry(load_scenario("phantom_hardware"))
 INTERNAL = make_motion("breathing", {})

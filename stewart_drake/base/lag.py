@@ -3,7 +3,7 @@ search for every lag the package measures.
 
 Its callers: ``verify``'s clock (:mod:`stewart_drake.organ_motion.alignment`), the pair's
 relative latency on measurements (``verify --surrogate``,
-:mod:`stewart_drake.surrogate.relative_latency`), a reproduced pair's delays
+:mod:`stewart_drake.surrogate.pair_judgement`), a reproduced pair's delays
 (:mod:`stewart_drake.station.surrogate.sync_figures`) and the robot's lags from its encoders
 (:mod:`stewart_drake.live.encoder_relative_latency`). The method is IntERAct's
 (``RMSEAlignMethod.m``, ``findOptimalShift``; Kaczynska et al. 2026): the shift of least RMS

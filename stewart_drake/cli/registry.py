@@ -21,7 +21,7 @@ from ..evaluation import command as evaluation_command
 from ..live import command as live_command
 from ..organ_motion import command as organ_motion_command
 from ..paper import command as paper_command
-from ..surrogate import relative_latency as surrogate_pair
+from ..surrogate import pair_command as surrogate_pair
 from ..tuner import command as tuner_command
 from ..viz import command as viz_command
 from . import core

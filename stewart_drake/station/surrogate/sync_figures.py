@@ -10,7 +10,7 @@ Sign conventions (docs/surrogate.md, "Reading the relative latency"):
   against the surrogate (the surrogate early), so the pair's reproduced lead of the external is
   the asked lead plus the relative latency. The sign is IntERAct's (``RMSEAlignMethod.m``:
   ``latency = shift6D - shift1D``) and ``verify --surrogate``'s
-  (:mod:`stewart_drake.surrogate.relative_latency`).
+  (:mod:`stewart_drake.surrogate.pair_judgement`).
 - a **lead** > 0: the external reaches each phase of the breath before the internal does
   (external(t) ~ k internal(t + lead)).
 - the **hysteresis area** > 0: the loop in the (internal, external) plane runs clockwise, as it

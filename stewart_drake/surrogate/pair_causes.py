@@ -1,0 +1,183 @@
+"""What a FAIL of an internal motion judged with its surrogate names (:mod:`.pair_judgement`):
+a motion that does not follow its reference (at rest, reversed, of another period, another
+motion) and two measurements swapped."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..organ_motion.fidelity import AXES, MOVING_P2P
+from ..organ_motion.measured_verdict import (
+    AT_REST_SHARE,
+    FOLLOWS_CORRELATION,
+    PERIOD_SHARE,
+    axis_figures,
+    reversed_match,
+    seconds,
+)
+
+#: A measured axis whose sign reversed matches its reference this many times better (least mean
+#: squared distance, at its best shift) runs the wrong way (as
+#: :func:`~stewart_drake.organ_motion.measured_verdict.causes_of` says it).
+REVERSED_RATIO = 0.25
+#: Two measurements are swapped when each matches the other's reference this many times better
+#: (least mean squared distance, each less its mean) than its own.
+SWAPPED_RATIO = 0.25
+#: Shifts searched around the internal's for the swap's test, s either way.
+SWAP_SEARCH_S = 5.0
+
+
+def why_not_following(reference, t, x, x_d, measured) -> str | None:
+    """None when the measured motion follows its reference (so that its clock means something),
+    else why not, in words: at rest (every measured axis along which the reference moves moved
+    less than :data:`~stewart_drake.organ_motion.measured_verdict.AT_REST_SHARE` of it, RMS, as
+    ``verify``'s verdict says it: against the reference's own motion, not the tolerance),
+    reversed
+    (an axis's correlation below -:data:`~stewart_drake.organ_motion.measured_verdict.
+    FOLLOWS_CORRELATION`, or its sign reversed matching :data:`REVERSED_RATIO` times better at
+    another shift), another period, or not following (correlation within
+    +-:data:`~stewart_drake.organ_motion.measured_verdict.FOLLOWS_CORRELATION`). A scale or a
+    shape error does not stop the clock meaning something: the fidelity's verdict judges those.
+
+    Args:
+        reference: the reference. t: (n,) s, the reference's clock. x, x_d: (n, 6) the aligned
+            measured poses and the reference's. measured: (6,) bool.
+    """
+    measured = np.asarray(measured, dtype=bool)
+    moving = np.ptp(x_d, axis=0) > np.asarray(MOVING_P2P)
+    axes = [int(k) for k in np.flatnonzero(measured & moving)]
+    if not axes:
+        return "moves along no axis measured"
+    f = axis_figures(t, x, x_d, measured)
+    if all(f[AXES[k]]["motion_rms"] < AT_REST_SHARE * f[AXES[k]]["reference_rms"] for k in axes):
+        moved = ", ".join(
+            f"{AXES[k]} {f[AXES[k]]['motion_rms'] * 1e3:.3g} mm RMS against its reference's "
+            f"{f[AXES[k]]['reference_rms'] * 1e3:.3g} mm"
+            if k >= 3
+            else f"{AXES[k]} {math.degrees(f[AXES[k]]['motion_rms']):.3g} deg RMS"
+            for k in axes
+        )
+        return f"did not move ({moved})"
+    period = getattr(reference, "repeat_period_s", None) or 4.0
+    for k in axes:
+        fk = f[AXES[k]]
+        rho = fk["correlation"]
+        if rho < -FOLLOWS_CORRELATION:
+            return f"runs the wrong way on {AXES[k]} (correlation {rho:+.2f} with its reference)"
+        ratio, _ = reversed_match(t, x[:, k], k, reference, min(0.5 * period, 2.0))
+        if ratio < REVERSED_RATIO:
+            better = f"{1 / ratio:.0f} times better" if ratio > 0 else "exactly"
+            return (
+                f"runs the wrong way on {AXES[k]} (reversed, it matches its reference {better}): "
+                "a sign flipped or the axis reversed"
+            )
+        own, ref = fk["period_s"], fk["reference_period_s"]
+        if math.isfinite(own) and math.isfinite(ref) and abs(own / ref - 1.0) > PERIOD_SHARE:
+            return (
+                f"repeats every {own:.3g} s on {AXES[k]} where its reference does every {ref:.3g} s"
+            )
+        if not rho > FOLLOWS_CORRELATION:
+            return (
+                f"does not follow its reference on {AXES[k]} (correlation {rho:+.2f}): another "
+                "motion, or noise"
+            )
+    return None
+
+
+# -- swapped files ---------------------------------------------------------------------------------
+
+
+def _principal_axis(measured, reference, t_ref) -> int | None:
+    """The measured axis along which the reference moves most (by its RMS, a rotation
+    weighted as verify's clock weighs it), or None."""
+    from ..organ_motion.alignment import axis_weights, reference_poses
+
+    x_d = reference_poses(reference, t_ref)
+    spread = np.std(x_d, axis=0) * axis_weights(measured)
+    spread[np.ptp(x_d, axis=0) <= np.asarray(MOVING_P2P)] = 0.0
+    return int(np.argmax(spread)) if np.any(spread > 0) else None
+
+
+def _best_match(t, v, reference, j: int, shifts: tuple, step: float) -> tuple[float, float]:
+    """(the least mean squared distance, each less its mean, between v (n,) at the times t (n,)
+    and the reference's axis j over the ``shifts`` (lo, hi) s, in v's units squared; the shift
+    where it is, s) (:func:`~stewart_drake.organ_motion.alignment.shift_scores`)."""
+    from ..organ_motion.alignment import reference_poses, shift_scores
+
+    y = np.zeros((len(t), 6))
+    y[:, 0] = v
+    weights = np.zeros(6)
+    weights[0] = 1.0
+
+    def seen(times):
+        r = np.zeros((len(times), 6))
+        r[:, 0] = reference_poses(reference, times)[:, j]
+        return r
+
+    d, score = shift_scores(t, y, weights, seen, shifts, step, True)
+    k = int(np.argmin(score))
+    return max(float(score[k]), 0.0), float(d[k])
+
+
+def swapped_words(
+    pair_refs, pair_measured, around_s: float, relative_latency_s: float
+) -> str | None:
+    """The cause when the two measurements are swapped, else None. Each measurement is matched
+    (its axis along which its reference moves most, at its best shift within
+    :data:`SWAP_SEARCH_S` of ``around_s``, each less its mean) to its own reference and to the
+    other's; swapped when each matches the other's reference :data:`SWAPPED_RATIO` times better,
+    or when each matches the other's at least as well and, exchanged, the pair's relative
+    latency is smaller than as given. Looked for on every pair, a PASS included: a bound on the
+    relative latency wide enough to hold a swapped pair's would pass it otherwise.
+
+    Args:
+        pair_refs: (internal reference, surrogate reference). pair_measured: (internal
+            measured, surrogate measured) (:class:`~stewart_drake.organ_motion.measured_motion.
+            MeasuredMotion`). around_s: the internal's shift, s. relative_latency_s: as given,
+            s.
+    """
+    from ..organ_motion.verification import COARSE_STEP_S
+
+    axes = []
+    for ref, m in zip(pair_refs, pair_measured):
+        k = _principal_axis(m.measured, ref, m.t + around_s)
+        if k is None:
+            return None
+        axes.append(k)
+    ratios, crossed = [], []
+    for own in (0, 1):
+        m = pair_measured[own]
+        step = max(COARSE_STEP_S, float(np.median(np.diff(m.t))))
+        shifts = (around_s - SWAP_SEARCH_S, around_s + SWAP_SEARCH_S)
+        v = np.asarray(m.poses[:, axes[own]], dtype=float)
+        mine, _ = _best_match(m.t, v, pair_refs[own], axes[own], shifts, step)
+        theirs, d = _best_match(m.t, v, pair_refs[1 - own], axes[1 - own], shifts, step)
+        ratios.append(math.inf if theirs <= 0 else mine / theirs)
+        crossed.append(d)
+    exchanged = crossed[0] - crossed[1]  # the surrogate's reference's shift less the internal's
+    strong = all(r > 1.0 / SWAPPED_RATIO for r in ratios)
+    in_sync = all(r >= 1.0 for r in ratios) and abs(exchanged) < abs(relative_latency_s)
+    if not (strong or in_sync):
+        return None
+    a, b = (Path(m.path).name for m in pair_measured)
+    return (
+        f"the two measurements swapped: {a} comes {ratios[0]:.3g} times nearer the surrogate's "
+        f"reference than the internal's, and {b} {ratios[1]:.3g} times nearer the internal's "
+        f"than the surrogate's (mean squared distances); exchanged, their relative latency is "
+        f"{seconds(exchanged)}: give each file to its option"
+    )
+
+
+# -- the verdict -----------------------------------------------------------------------------------
+
+
+__all__ = [
+    "REVERSED_RATIO",
+    "SWAPPED_RATIO",
+    "SWAP_SEARCH_S",
+    "why_not_following",
+    "swapped_words",
+]
