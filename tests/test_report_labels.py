@@ -17,12 +17,8 @@ from stewart_drake.control import feedforward_basis as ff
 from stewart_drake.control.feedforward_tuning import FeedforwardTuning
 from stewart_drake.organ_motion.command import _feedforward_choice
 from stewart_drake.organ_motion.fidelity import fidelity
-from stewart_drake.organ_motion.fidelity_report import (
-    TITLE_POINTS,
-    report_markdown,
-    report_title,
-    write_report,
-)
+from stewart_drake.organ_motion.fidelity_figure import TITLE_POINTS, report_title
+from stewart_drake.organ_motion.fidelity_report import report_markdown, write_report
 from stewart_drake.organ_motion.reproduction import Reproduction, learning_words
 from stewart_drake.run.scenario_io import load_scenario
 

@@ -11,7 +11,7 @@ from conftest import write_trace
 
 from stewart_drake.cli import main as cli
 from stewart_drake.organ_motion import fidelity as fd
-from stewart_drake.organ_motion import fidelity_report as fr
+from stewart_drake.organ_motion import fidelity_figure as fr
 from stewart_drake.organ_motion import reproduction
 from stewart_drake.references.organ.library import OrganMotionReference
 from stewart_drake.robot.geometry import X_HOME

@@ -101,7 +101,7 @@ def write_verification(
 ) -> tuple[Path, Path, Path]:
     """Write ``<stem>.md``, ``<stem>.png`` and ``<stem>.json`` into ``out``: the page of
     :func:`verification_markdown`, the reproduction's figure
-    (:func:`~.fidelity_report.plot_report`) and its JSON with :func:`verification_figures`
+    (:func:`~.fidelity_figure.plot_report`) and its JSON with :func:`verification_figures`
     added (:func:`~.fidelity_report.write_report`).
 
     Returns:
