@@ -9,7 +9,8 @@ import pytest
 from stewart_drake.run import simulate as experiments
 from stewart_drake.run.memory import run_memory_bytes
 from stewart_drake.run.reference import StepTimes, StretchFeeder, zero_order_hold
-from stewart_drake.run.result import SignalLog, finish_result, release_reference
+from stewart_drake.run.result import finish_result, release_reference
+from stewart_drake.run.run_logs import SignalLog
 from stewart_drake.run.scenario import Scenario
 from stewart_drake.run.simulate import build_simulator
 

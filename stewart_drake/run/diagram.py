@@ -4,7 +4,7 @@
 the station, the reference and its feed-forward (:func:`~.reference.add_run_reference`), the
 controller (built by its scenario choice), the measurement it reads, the learner, the tool
 disturbance (:func:`~stewart_drake.station.station.add_tool_disturbance`), what drives the
-controller's weights (a tuner choice, or a constant), the logs (:func:`~.result.add_run_logs`),
+controller's weights (a tuner choice, or a constant), the logs (:func:`~.run_logs.add_run_logs`),
 the guard (:func:`~stewart_drake.station.guard.add_divergence_guard`) and LCM. Every derived
 value is read from the plan; each scenario choice builds itself (the controller's ``make``, the
 tuner's ``add_to``, the reference's ``make``, beside what they build); a stage that adds a
@@ -43,7 +43,7 @@ from ..station.surrogate.axis import ExternalSignal
 from ..station.surrogate.stage import SurrogatePorts, add_surrogate_stage
 from .plan import RunPlan, make_plan
 from .reference import ReferenceSources, add_run_reference
-from .result import SignalLog, add_run_logs
+from .run_logs import SignalLog, add_run_logs
 from .scenario import Scenario, dump_scenario
 
 #: What the Diagram's station is: the simulated robot, or the real one on its servo bus.
@@ -59,7 +59,7 @@ class StewartDiagram:
             the scenario's ``bus`` the :class:`~.bus.station.HardwareStation`.
         controller: the controller system. reference: its :class:`~.reference.ReferenceSources`
             (or the live reference system). trajectory: the reference object (``evaluate(t)``;
-            None with a live reference). loggers: name -> :class:`~.result.SignalLogger`
+            None with a live reference). loggers: name -> :class:`~.run_logs.SignalLogger`
             (``FindLog(root_context)``).
         plan: the :class:`~.plan.RunPlan` built (``scenario`` is its scenario). features,
             tuner: the tuner's systems, or None.
@@ -196,7 +196,7 @@ def make_stewart_diagram(
         (the true platform pose and rate, 12), "T" (applied torques, 6), and when the controller
         has them "status", "integral", "e_bar" (the error the controller acted on: its
         estimate, on the hardware), every ``log_period_s`` in float32
-        (:class:`~.result.SignalLog`); "state" (the plant state, float64) every
+        (:class:`~.run_logs.SignalLog`); "state" (the plant state, float64) every
         ``state_log_period_s``, with a learner's status under its ``status_port`` name; with
         the tuner "rho" (12, every tuner period).
     Raises:

@@ -516,7 +516,7 @@ class StewartStation(Diagram):
     def logged_pose(self):
         """What a run logs to give the true platform pose and rate: (``plant_state`` port,
         ``sensor.poses_from_states``), the plant's state converted a drained second at a time
-        (:class:`~stewart_drake.run.result.SignalLog`), so no Python runs per logged sample."""
+        (:class:`~stewart_drake.run.run_logs.SignalLog`), so no Python runs per logged sample."""
         return self.GetOutputPort("plant_state"), self.sensor.poses_from_states
 
     def initialize(self, root_context, T0, seed: int = 0) -> None:
