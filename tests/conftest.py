@@ -403,7 +403,8 @@ def bus_emulator(
 
     from stewart_drake.live.plant_backend import StationServos, dynamixel_scenario
     from stewart_drake.run.scenario import Scenario
-    from stewart_drake.station.bus.emulator import BusEmulator, FirstOrderServos, StackedServos
+    from stewart_drake.station.bus.emulator import BusEmulator
+    from stewart_drake.station.bus.servo_models import FirstOrderServos, StackedServos
 
     robot = Scenario(
         plant=MultibodyPlantConfig(time_step=0.002, discrete_contact_approximation="sap"),

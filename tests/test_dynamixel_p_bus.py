@@ -16,7 +16,8 @@ from stewart_drake.base.errors import InvalidConfigError  # noqa: E402
 from stewart_drake.robot.linear_stage import LinearStage  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
-from stewart_drake.station.bus.emulator import BusEmulator, FirstOrderServos  # noqa: E402
+from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
+from stewart_drake.station.bus.servo_models import FirstOrderServos  # noqa: E402
 from stewart_drake.station.bus.servos import (  # noqa: E402
     SurrogateServoConfig,
     check_bus_settings,

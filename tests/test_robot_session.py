@@ -185,7 +185,7 @@ def _angles(geometry, x):
 
 def test_calibration_finds_the_zero_counts_the_servos_were_mounted_with():
     from stewart_drake.live.measure import zero_counts_at
-    from stewart_drake.station.bus.emulator import FirstOrderServos
+    from stewart_drake.station.bus.servo_models import FirstOrderServos
 
     q_held = np.radians([-3.8, -3.8, 10.0, -20.0, 0.0, 45.0])  # the jig's angles
     mounted = [2048, 1000, 3000, 2500, 100, 4000]

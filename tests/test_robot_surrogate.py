@@ -3,7 +3,7 @@ period for the seven, every way a session ends removing its torque too, its colu
 encoder log, its relative latency measured from the encoders; and without it, the bus as before.
 
 Runs against the bus emulator in this process with a seventh servo (the catalogue servo turning
-the default stage, :meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.linear_stage`)
+the default stage, :meth:`~stewart_drake.station.bus.servo_models.FirstOrderServos.linear_stage`)
 beside the robot's plant, on the commanded clock (tests/test_robot_safety.py says why), with the
 bus's longest waits (conftest's LOADED_MACHINE_BUS).
 """

@@ -12,7 +12,7 @@ import pytest
 from stewart_drake.base.errors import InvalidConfigError
 from stewart_drake.live.encoder_relative_latency import axis_lag, relative_latency
 from stewart_drake.robot.linear_stage import LinearStage
-from stewart_drake.station.bus.emulator import FirstOrderServos
+from stewart_drake.station.bus.servo_models import FirstOrderServos
 from stewart_drake.station.bus.servos import DynamixelBusConfig, SurrogateServoConfig
 from stewart_drake.station.bus.surrogate_servo import SurrogateDrive, check_surrogate_path
 

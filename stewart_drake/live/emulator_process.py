@@ -134,7 +134,8 @@ def _start(  # pragma: no cover
     with ``surrogate`` (a :class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`)
     its stage as the last servo, the carriage at mid-travel."""
     from ..run.scenario import _scenario_from_yaml
-    from ..station.bus.emulator import BusEmulator, FirstOrderServos, StackedServos
+    from ..station.bus.emulator import BusEmulator
+    from ..station.bus.servo_models import FirstOrderServos, StackedServos
     from .plant_backend import StationServos, dynamixel_scenario
 
     scenario = dynamixel_scenario(model, _scenario_from_yaml(scenario_yaml))
@@ -192,7 +193,7 @@ class EmulatorProcess:
             their own, not on the loop's computer.
         surrogate: None, or the bus's surrogate servo
             (:class:`~stewart_drake.station.bus.servos.SurrogateServoConfig`): its stage
-            (:meth:`~stewart_drake.station.bus.emulator.FirstOrderServos.linear_stage`) answers
+            (:meth:`~stewart_drake.station.bus.servo_models.FirstOrderServos.linear_stage`) answers
             as one more servo, its carriage at mid-travel, on the plant's clock.
     Attributes:
         port: the pty's path (after :meth:`start`). slipped_s: the plant's slip, s (after

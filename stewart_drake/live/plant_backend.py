@@ -1,7 +1,7 @@
 """The robot's Drake plant behind the bus emulator: six servos that move the platform.
 
-:class:`StationServos` is a :class:`~stewart_drake.station.bus.emulator.ServoBackend` that steps the
-station of a scenario (:func:`~stewart_drake.run.diagram.held_station`: the closed-chain
+:class:`StationServos` is a :class:`~stewart_drake.station.bus.servo_models.ServoBackend` that
+steps the station of a scenario (:func:`~stewart_drake.run.diagram.held_station`: the closed-chain
 MultibodyPlant with the motors' reflected inertia and friction) with the servos' torques ``K_t i``
 on ``motor_torque``, and reports the crank joints' angles and rates read from the plant (not through
 the station's encoders: the emulator quantizes to the servo's 4096 counts),
@@ -32,7 +32,7 @@ import numpy as np
 from ..plant.backlash import crank_angles, crank_rates
 from ..robot.kinematics import X_HOME
 from ..robot.motor_catalogue import catalogue_motor
-from ..station.bus.emulator import ServoBackend
+from ..station.bus.servo_models import ServoBackend
 from ..station.bus.servos import servo_spec
 
 

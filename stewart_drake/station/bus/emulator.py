@@ -8,17 +8,14 @@ SYNC_WRITE (other instructions answer an Instruction Error), with the status pac
 CRC of the protocol (:mod:`.protocol`). Each servo keeps its control table as bytes, with the
 e-Manual's access rules that matter here and its bus watchdog.
 
-The motion: a :class:`ServoBackend` stepped towards the wall clock in a thread of its own every
-``tick_s`` (or per torque command, ``command_step_s``); the bus thread answers
-meanwhile from the last present values. :class:`FirstOrderServos` is one crank per servo,
-rigid, ``J dv/dt = K_t i - b v - c sign(v)`` with the current the servo can drive at that speed
-(12 V: the stall current falling linearly to zero at the no-load speed). What is emulated and
-what is not: docs/hardware_bus.md, "What is emulated".
+The motion: a :class:`~.servo_models.ServoBackend` (:mod:`.servo_models`) stepped towards the
+wall clock in a thread of its own every ``tick_s`` (or per torque command, ``command_step_s``);
+the bus thread answers meanwhile from the last present values. What is emulated and what is not:
+docs/hardware_bus.md, "What is emulated".
 """
 
 from __future__ import annotations
 
-import abc
 import math
 import os
 import select
@@ -26,154 +23,16 @@ import termios
 import threading
 import time
 import tty
-from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
 from ...base.errors import InvalidConfigError
-from ...robot.linear_stage import LinearStage
-from ...robot.motor_catalogue import catalogue_motor
 from . import protocol as p
+from .servo_models import FirstOrderServos, ServoBackend
 from .servos import ServoSpec, servo_spec
 
 #: The X series' control table size: addresses 0..146 (Present Temperature is the last used).
 TABLE_SIZE = p.X_SERIES.size
-
-
-class ServoBackend(abc.ABC):
-    """The motion behind a bus: ``n`` servos, state at their horns in the servos' own sense
-    (positive = counts increasing)."""
-
-    @abc.abstractmethod
-    def advance(self, dt_s: float, current_A: np.ndarray) -> None:
-        """Move the model ``dt_s`` seconds (>= 0) with currents ``current_A`` (n,), A (what
-        the servos drive: zero for a servo whose torque is off)."""
-
-    @abc.abstractmethod
-    def positions_rad(self) -> np.ndarray:
-        """(n,) horn angles, rad."""
-
-    @abc.abstractmethod
-    def velocities_rad_s(self) -> np.ndarray:
-        """(n,) horn rates, rad/s."""
-
-
-@dataclass
-class FirstOrderServos(ServoBackend):
-    """``n`` independent horns: ``J dv/dt = K_t i - b v - c sign(v)``, the current bounded by
-    what 12 V drives at speed v: ``|i| <= i_stall (1 - |v| / w_0)`` in the sense of motion.
-
-    Attributes:
-        inertia: J, kg m^2 at the horn (the rotor's reflected inertia plus a crank's).
-        torque_constant: K_t, N m/A at the horn.  viscous: b, N m s/rad.  coulomb: c, N m.
-        stall_current_A: i_stall; inf: no voltage limit.  no_load_speed: w_0, rad/s.
-        q0: (n,) initial horn angles, rad.  substep_s: the integrator's largest step, s.
-    """
-
-    inertia: float
-    torque_constant: float
-    viscous: float = 0.0
-    coulomb: float = 0.0
-    stall_current_A: float = math.inf
-    no_load_speed: float = math.inf
-    q0: np.ndarray = field(default_factory=lambda: np.zeros(1))
-    substep_s: float = 1e-3
-
-    def __post_init__(self):
-        if not (self.inertia > 0 and self.torque_constant > 0):
-            raise InvalidConfigError("inertia and torque_constant must be > 0")
-        self._q = np.array(self.q0, dtype=float)
-        self._v = np.zeros_like(self._q)
-
-    @classmethod
-    def from_catalogue(cls, name: str, q0, load_inertia: float = 0.0, **overrides):
-        """The catalogue motor ``name``'s reflected rotor inertia (plus ``load_inertia``,
-        kg m^2), friction and no-load speed, and the bus's K_t and stall current."""
-        servo = catalogue_motor(name).servo
-        spec = servo_spec(name, torque_control=False)
-        kw: dict[str, Any] = dict(
-            inertia=servo.rotor_inertia * servo.gear_ratio**2 + load_inertia,
-            torque_constant=spec.torque_constant_Nm_per_A,
-            viscous=servo.viscous_damping,
-            coulomb=servo.coulomb_friction_Nm,
-            stall_current_A=spec.stall_current_A,
-            no_load_speed=servo.no_load_speed_rad_s,
-            q0=np.asarray(q0, dtype=float),
-        )
-        kw.update(overrides)
-        return cls(**kw)
-
-    @classmethod
-    def linear_stage(cls, stage: LinearStage, s0_m=0.0):
-        """A surrogate's stage: its catalogue servo turning its transmission
-        (:class:`~stewart_drake.robot.linear_stage.LinearStage`), with the stage's inertia at the
-        horn (the rotor's and the carriage's; the belt's or screw's own inertia and friction are
-        not modelled), the carriage at ``s0_m`` (m from the horn's angle 0)."""
-        return cls.from_catalogue(
-            stage.motor, [s0_m / stage.metres_per_rad], inertia=stage.inertia_at_horn_kg_m2()
-        )
-
-    def advance(self, dt_s, current_A):
-        # Plain floats: numpy's per-call overhead on 6 numbers (np.clip alone ~40 us) would
-        # make the model slower than real time on a loaded machine.
-        n = max(1, math.ceil(dt_s / self.substep_s))
-        h = dt_s / n
-        K, J, b, c = self.torque_constant, self.inertia, self.viscous, self.coulomb
-        i_stall, w0 = self.stall_current_A, self.no_load_speed
-        q, v = self._q.tolist(), self._v.tolist()
-        for k, i in enumerate(np.asarray(current_A, dtype=float).tolist()):
-            qk, vk = q[k], v[k]
-            for _ in range(n):
-                # The drive's voltage limit: no current beyond i_stall (1 - |v|/w_0) pushing on.
-                if i * vk > 0:
-                    headroom = i_stall * min(max(1 - abs(vk) / w0, 0.0), 1.0)
-                    i_eff = max(-headroom, min(headroom, i))
-                else:
-                    i_eff = i
-                tau = K * i_eff - b * vk
-                if vk != 0.0:
-                    tau -= math.copysign(c, vk)
-                else:  # dry friction holds a horn at rest unless the drive exceeds it
-                    tau = math.copysign(max(abs(tau) - c, 0.0), tau)
-                v_new = vk + h * tau / J
-                # A horn that crosses zero speed within a step stops there; from rest, the
-                # dry friction's rule above decides whether it starts again.
-                if vk * v_new < 0:
-                    v_new = 0.0
-                qk += h * 0.5 * (vk + v_new)
-                vk = v_new
-            q[k], v[k] = qk, vk
-        self._q, self._v = np.array(q), np.array(v)
-
-    def positions_rad(self):
-        return self._q.copy()
-
-    def velocities_rad_s(self):
-        return self._v.copy()
-
-
-class StackedServos(ServoBackend):
-    """Several backends behind one bus, their servos in order: the robot's six cranks, then a
-    surrogate's stage (:meth:`FirstOrderServos.linear_stage`), say. Each part is advanced with
-    its own servos' currents, the same ``dt_s``: one clock for all."""
-
-    def __init__(self, *parts: ServoBackend):
-        self.parts = parts
-        self._sizes = [len(part.positions_rad()) for part in parts]
-
-    def advance(self, dt_s, current_A):
-        current_A = np.asarray(current_A, dtype=float)
-        start = 0
-        for part, n in zip(self.parts, self._sizes):
-            part.advance(dt_s, current_A[start : start + n])
-            start += n
-
-    def positions_rad(self):
-        return np.concatenate([part.positions_rad() for part in self.parts])
-
-    def velocities_rad_s(self):
-        return np.concatenate([part.velocities_rad_s() for part in self.parts])
 
 
 class _Servo:
@@ -261,7 +120,8 @@ class BusEmulator:
     Args:
         ids: servo ids (distinct, 0..252).  model: a
             :data:`~stewart_drake.station.bus.servos.SERVO_SPECS` key.
-        backend: the motion; default :meth:`FirstOrderServos.from_catalogue` at rest at 0.
+        backend: the motion; default
+            :meth:`~.servo_models.FirstOrderServos.from_catalogue` at rest at 0.
         zero_counts: (n,) counts at the backend's angle 0; default the model's mid-range (2048
             on the X series, 0 on the P series).
         tick_s: the model is stepped at least this often, s.  ambient_C: Present Temperature.
