@@ -50,7 +50,8 @@ AXES = ("phi", "theta", "psi", "X", "Y", "Z")
 def reference_of(motion: str, params: list[str]):
     """The scenario reference a motion names (a library motion and its parameters, or a trace
     file), as ``robot`` makes it."""
-    from stewart_drake.execution.options import add_motion_arguments, add_trace_arguments
+    from stewart_drake.execution.options import add_motion_arguments
+    from stewart_drake.execution.trace_options import add_trace_arguments
     from stewart_drake.organ_motion.command import motion_reference
 
     parser = argparse.ArgumentParser()

@@ -8,16 +8,18 @@ import sys
 from pathlib import Path
 
 from ..execution.options import (
-    TRACE_ONLY,
     add_runner_arguments,
     add_scenario_arguments,
-    add_trace_arguments,
     check_output,
     int_at_least,
     is_trace_file,
     positive_float,
     runner_from_args,
     say_stage,
+)
+from ..execution.trace_options import (
+    TRACE_ONLY,
+    add_trace_arguments,
     trace_options_given,
     trace_reference,
 )
@@ -276,7 +278,7 @@ def _budget(args, scenario, x0, name: str, out: Path, say, record: dict) -> int:
     import json
 
     from ..base.fileio import atomic_write
-    from ..execution.options import key_values
+    from ..execution.trace_options import key_values
     from ..references.organ.library import OrganMotionReference, split_parameters
     from ..robot.kinematics import X_HOME
     from .error_budget import error_budget

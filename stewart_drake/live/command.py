@@ -13,16 +13,14 @@ from pathlib import Path
 from typing import Any
 
 from ..execution.options import (
-    TRACE_ONLY,
     add_motion_arguments,
     add_scenario_arguments,
-    add_trace_arguments,
     int_at_least,
     is_trace_file,
     positive_float,
     say_if_compiling,
-    trace_options_given,
 )
+from ..execution.trace_options import TRACE_ONLY, add_trace_arguments, trace_options_given
 
 
 def register(sub) -> None:

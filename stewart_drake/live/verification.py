@@ -13,12 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from ..execution.options import (
-    add_motion_arguments,
-    add_scenario_arguments,
-    add_trace_arguments,
-    positive_float,
-)
+from ..execution.options import add_motion_arguments, add_scenario_arguments, positive_float
+from ..execution.trace_options import add_trace_arguments
 
 #: The end of an encoder log's name (``<stem>_encoders.csv``, as ``robot`` writes it): such a
 #: measured file is read as the robot's encoder log.
@@ -178,7 +174,7 @@ def cmd_verify(args) -> int:
 
     from ..base.errors import InvalidConfigError
     from ..base.fileio import check_replaceable
-    from ..execution.options import key_values
+    from ..execution.trace_options import key_values
     from ..organ_motion.command import motion_scenario
     from ..organ_motion.fidelity import parse_tolerance
     from ..organ_motion.verification import verify

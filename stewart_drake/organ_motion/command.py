@@ -9,16 +9,18 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..execution.options import (
-    TRACE_ONLY,
     add_motion_arguments,
     add_scenario_arguments,
-    add_trace_arguments,
     check_output,
     int_at_least,
     is_trace_file,
-    key_values,
     positive_float,
     say_if_compiling,
+)
+from ..execution.trace_options import (
+    TRACE_ONLY,
+    add_trace_arguments,
+    key_values,
     trace_options_given,
     trace_reference,
 )
@@ -439,7 +441,7 @@ def motion_scenario(args):
 def motion_reference(args):
     """The reference a command's motion arguments choose
     (:func:`~stewart_drake.execution.options.add_motion_arguments` and
-    :func:`~stewart_drake.execution.options.add_trace_arguments`: ``args.motion``, ``param``,
+    :func:`~stewart_drake.execution.trace_options.add_trace_arguments`: ``args.motion``, ``param``,
     ``add`` and the trace options): the trace file's
     :class:`~stewart_drake.references.traces.TraceReference` or the library motion's
     :class:`~stewart_drake.references.organ.library.OrganMotionReference`, with the motions

@@ -232,7 +232,7 @@ def cmd_verify_pair(args) -> int:
 
     from ..base.fileio import check_replaceable
     from ..calibration.registration_file import read_registration
-    from ..execution.options import key_values
+    from ..execution.trace_options import key_values
     from ..organ_motion.command import motion_scenario
     from ..organ_motion.fidelity import parse_tolerance
     from ..organ_motion.measured_motion import read_measured
