@@ -231,7 +231,7 @@ def test_a_signal_swallowed_before_the_torque_goes_on_stops_the_command_unpowere
 
 def test_session_signals_raise_while_the_torque_may_be_on_and_are_held_after():
     from stewart_drake.execution.runners import Interrupted
-    from stewart_drake.live.session import SessionSignals
+    from stewart_drake.live.session_signals import SessionSignals
 
     def kill(signum):
         os.kill(os.getpid(), signum)
@@ -293,7 +293,7 @@ def test_the_end_line_gives_one_verdict_on_the_torque_off_after_a_bus_error():
     )
     bus = types.SimpleNamespace(torque_off=lambda: True, enable_torque=lambda: None)
     ended = RobotRun("", False, True)
-    from stewart_drake.live.session import SessionSignals
+    from stewart_drake.live.session_signals import SessionSignals
 
     _drive(bus, simulator, 1.0, lambda line: None, "on", body, ended, SessionSignals())
     line = end_line(ended)

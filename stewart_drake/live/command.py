@@ -238,7 +238,7 @@ def _cmd_robot(args) -> int:
     off and one line at every end."""
     from ..base.fileio import check_replaceable
     from ..run.scenario_io import load_scenario
-    from .session import SessionSignals
+    from .session_signals import SessionSignals
     from .watchdog import check_loop_timeout
 
     if args.teleop and (args.motion is not None or args.dry_run):

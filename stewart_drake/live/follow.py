@@ -334,7 +334,7 @@ def follow_on_robot(
             :func:`~.session.run_on_robot` before the torque is on.
     """
     from .measure import admissible_start, bus_config
-    from .session import SessionSignals
+    from .session_signals import SessionSignals
     from .watchdog import check_loop_timeout
 
     say = say or (lambda line: print(line, file=sys.stderr, flush=True))

@@ -30,9 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -44,6 +42,7 @@ from ..base.errors import InvalidConfigError, StartPoseError, StewartError
 from .homing import HOME_S, HomingReference
 from .measure import MeasuredPose, admissible_start, bus_config, pose_verdict
 from .realtime import RealtimeLoop
+from .session_signals import SessionSignals, signal_name
 from .watchdog import LOOP_TIMEOUT_S, LoopWatchdog, check_loop_timeout, watchdog_monitor
 
 if TYPE_CHECKING:
@@ -92,102 +91,6 @@ class RobotRun:
     relative_latency_line: str | None = None
 
 
-def _signal_name(err: BaseException) -> tuple[str, int]:
-    signum = getattr(err, "signum", signal.SIGINT)
-    return signal.Signals(signum).name, 128 + int(signum)
-
-
-class SessionSignals:
-    """SIGINT, SIGTERM and SIGHUP around a session on the robot (main thread only; a signal
-    the process was started ignoring stays ignored).
-
-    Until :meth:`hold` (the torque-off) the first of them raises
-    :class:`~stewart_drake.execution.runners.Interrupted` (a KeyboardInterrupt naming it, as
-    the CLI's handlers do): it ends the run. From then on, and after that first one, a signal is
-    recorded in ``received`` instead of raised, so that nothing cuts short the torque-off's
-    confirmation, closing the bus, the logs or the end line (an operator's Ctrl-C as the
-    platform settles would otherwise lose all of them); :meth:`settle` then names it in the
-    session's reason and exit status.
-
-        with SessionSignals() as signals:
-            run = run_on_robot(scenario, signals=signals)
-            signals.settle(run)
-            print(end_line(run))
-        sys.exit(run.exit_code)
-
-    Attributes:
-        received: the first signal number recorded while held, or None.
-        raised: the signal raised (the first), or None.
-    """
-
-    NAMES = ("SIGINT", "SIGTERM", "SIGHUP")
-
-    def __init__(self):
-        self.received: int | None = None
-        self.raised: int | None = None
-        self.holding = False
-        self._settled = False
-        self._old: dict = {}
-
-    def __enter__(self) -> SessionSignals:
-        if threading.current_thread() is threading.main_thread():
-            for name in self.NAMES:
-                signum = getattr(signal, name, None)
-                if signum is not None and signal.getsignal(signum) is not signal.SIG_IGN:
-                    self._old[signum] = signal.signal(signum, self._handle)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        for signum, handler in self._old.items():
-            signal.signal(signum, handler)
-        self._old.clear()
-
-    def arm(self) -> None:
-        """Just before the torque goes on: raise a signal received so far that did not stop
-        the session (one raised where code swallowed it, "Exception ignored" in a callback of
-        numba's compiler; one recorded after that; one the command's own handlers raised
-        before the session began, :func:`~stewart_drake.execution.runners.interrupt_raised`),
-        and raise the next again: while the torque is on a signal is never held.
-
-        Raises:
-            Interrupted: the first such signal.
-        """
-        from ..execution.runners import Interrupted, interrupt_raised
-
-        for seen in (self.raised, self.received, interrupt_raised()):
-            if seen is not None:
-                raise Interrupted(seen)
-        self.holding = False
-
-    def hold(self) -> None:
-        """From now on, record signals instead of raising them."""
-        self.holding = True
-
-    def _handle(self, signum, frame) -> None:
-        from ..execution.runners import Interrupted
-
-        if self.holding:
-            if self.received is None:
-                self.received = int(signum)
-            return
-        self.holding = True  # the one raised ends the run; the next must not cut its end
-        self.raised = int(signum)  # known to arm() even if the raise is swallowed
-        raise Interrupted(signum)
-
-    def settle(self, run: RobotRun) -> RobotRun:
-        """Name a recorded signal in ``run.reason`` (once) and make the exit status 128 + its
-        number where the session had otherwise succeeded; returns ``run``."""
-        if self.received is None or self._settled:
-            return run
-        self._settled = True
-        name = signal.Signals(self.received).name
-        kept = "held until the logs were saved" if run.logs is not None else "held to the end"
-        run.reason += f"; {name} received after the torque went off: {kept}"
-        if run.exit_code == 0:
-            run.exit_code = 128 + self.received
-        return run
-
-
 def run_on_robot(
     scenario,
     *,
@@ -221,9 +124,9 @@ def run_on_robot(
         progress: a progress bar.  say: where the one-line messages go (default stderr).
         before_torque: a test hook ``f(sd, simulator)`` called after every check, just before
             the torque is enabled.
-        signals: the entered :class:`SessionSignals` of a caller that says the end line itself
-            (it holds signals through it, then calls ``settle``); None: the session's own,
-            settled before it returns.
+        signals: the entered :class:`~.session_signals.SessionSignals` of a caller that says
+            the end line itself (it holds signals through it, then calls ``settle``); None: the
+            session's own, settled before it returns.
         realtime: run the loop as :class:`~.realtime.RealtimeLoop` asks (SCHED_FIFO, a core
             of its own, memory locked, the garbage collector between periods); what the OS
             refuses is said in one line (``say``) and the run goes on.
@@ -572,7 +475,7 @@ def _drive_held(bus, simulator, loop_timeout_s, say, announce, body, ended, sign
             signals.hold()
         ended.reason, ended.ok = "the reference ran to its end", True
     except KeyboardInterrupt as err:
-        name, ended.exit_code = _signal_name(err)
+        name, ended.exit_code = signal_name(err)
         ended.reason = f"interrupted by {name}"
         if watchdog.tripped:  # it came while the loop was stalled
             ended.reason += f" after {watchdog.tripped}"
@@ -584,7 +487,7 @@ def _drive_held(bus, simulator, loop_timeout_s, say, announce, body, ended, sign
     except (RuntimeError, SystemError) as err:  # inside Drake (the guard saved the logs)
         interrupt = interrupt_in(err)  # a signal inside compiled code comes back wrapped
         if interrupt is not None:
-            name, ended.exit_code = _signal_name(interrupt)
+            name, ended.exit_code = signal_name(interrupt)
             ended.reason = f"interrupted by {name}"
         else:
             ended.reason, ended.exit_code = f"{type(err).__name__}: {err}", 1
