@@ -22,7 +22,8 @@ from stewart_drake.run.plan import make_plan  # noqa: E402
 from stewart_drake.run.scenario_io import ROBOT_SCENARIO, load_scenario  # noqa: E402
 from stewart_drake.station.bus import kernels, servos  # noqa: E402
 from stewart_drake.station.bus import protocol as p  # noqa: E402
-from stewart_drake.station.bus.station import HardwareStation, MeasuredPlantState  # noqa: E402
+from stewart_drake.station.bus.measured_state import MeasuredPlantState  # noqa: E402
+from stewart_drake.station.bus.station import HardwareStation  # noqa: E402
 
 TABLE = np.array(p._CRC_TABLE, dtype=np.uint16)
 IDS = np.array([1, 2, 3, 4, 5, 6], dtype=np.int64)

@@ -12,8 +12,8 @@ each. The formulas are those of :class:`~stewart_drake.control.estimator.PoseEst
 (:func:`~stewart_drake.robot.path_kernels.fk_newton`: Newton on the closed-form IK, the branch
 guard on sign det J), :func:`~stewart_drake.robot.single_pose.jacobian_single` and
 :func:`~stewart_drake.plant.closed_chain.assembled_positions` with the rates of
-:class:`~.station.MeasuredPlantState`, to which tests hold them (1e-12); the sums of the IK and
-the Jacobian are :mod:`~stewart_drake.robot.path_kernels`' (numpy's orders).
+:class:`~.measured_state.MeasuredPlantState`, to which tests hold them (1e-12); the sums of the
+IK and the Jacobian are :mod:`~stewart_drake.robot.path_kernels`' (numpy's orders).
 
 Compiled on first import (about 10 s, once per machine) or loaded from numba's disk cache
 (:func:`~stewart_drake.base.compiled.njit_cached`); importing this module does it, so that no
@@ -99,7 +99,7 @@ def plant_state(legs, u_B, R0, layout, x, out):
     ``out`` (nq + nv,): the cranks at the IK's angles, each rod aimed from its crank tip at its
     platform joint (ball joint rpy; no spin), the platform's quaternion [w, x, y, z] and
     position; velocities: the platform's w_WP = E(rpy) rpy_dot and p_dot, the cranks' J x_dot,
-    the rest zero (:class:`~.station.MeasuredPlantState`).
+    the rest zero (:class:`~.measured_state.MeasuredPlantState`).
 
     Args:
         legs: (6, LEG_SIZE) leg constants. u_B: (6, 3) motor shafts. R0: (6, 3, 3) each rod

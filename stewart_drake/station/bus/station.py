@@ -34,12 +34,12 @@ from ...base.errors import DeadlineMissError, SimulationDivergedError
 from ...control.estimator import PoseEstimator
 from ...lcmtypes import lcmt_stewart_status
 from ...plant.closed_chain import LoopClosure
-from ...plant.sdf import rod_zero_rotations
 from ...robot.forward_kinematics import fk
 from ...robot.kinematics import X_HOME
-from ...robot.single_pose import ik_single, jacobian_single, leg_constants
+from ...robot.single_pose import ik_single, jacobian_single
 from ..station import PlatformPoseSensor, add_station_plant
 from .driver import DynamixelBus
+from .measured_state import MeasuredPlantState, ShowMeasured, bus_kernels
 from .surrogate_servo import SurrogateDrive
 from .timing import CAUSES, LATE_FRACTION, LoopTiming
 
@@ -49,14 +49,6 @@ from .timing import CAUSES, LATE_FRACTION, LoopTiming
 _Q, _V, _TAU, _X, _LOOP = slice(0, 6), slice(6, 12), slice(12, 18), slice(18, 30), slice(30, 33)
 #: Numbers a period's reading keeps (:meth:`DynamixelDriver.readings`).
 _ROW = 17
-
-
-def _kernels():
-    """:mod:`.kernels`, compiled (or loaded from numba's cache) when a station on the bus is
-    first built, not when this module is imported."""
-    from . import kernels
-
-    return kernels
 
 
 class DynamixelDriver(LeafSystem):
@@ -125,7 +117,7 @@ class DynamixelDriver(LeafSystem):
             geometry, period_s, quantum_rad, self._x_initial, max_iterations=20
         )
         self._tau = self.DeclareVectorInputPort("motor_torque", 6)
-        self._kernels = _kernels()
+        self._kernels = bus_kernels()
         #: The period's measurement, assembled here before it is copied into the state.
         self._held, self._x_start = np.zeros(_LOOP.start), np.zeros(6)
         initial = np.zeros(_LOOP.stop)
@@ -412,73 +404,6 @@ class DynamixelDriver(LeafSystem):
         return lines
 
 
-class MeasuredPlantState(LeafSystem):
-    """A plant state for the measured pose, for the loggers, replays and the guard, which read
-    ``plant_state``: the positions of the robot assembled at the pose of ``platform_state``
-    (:func:`~stewart_drake.plant.closed_chain.assembled_positions`: cranks from the IK, rods aimed,
-    platform at the pose; its loop closure is exact, so the guard's closure check passes and
-    its tracking and clearance checks read the measured pose), the platform's velocity from the
-    measured rates (w_WP = E(rpy) rpy_dot, v_WP = p_dot) and the cranks' from the IK Jacobian;
-    the rods' spin and swing rates are left at zero (nothing measures them; nothing downstream
-    reads them).
-
-    Input port: ``platform_state`` (12,). Output port: ``plant_state`` (nq + nv,).
-    """
-
-    def __init__(self, plant, handles):
-        super().__init__()
-        self._plant, self._handles = plant, handles
-        nq = plant.num_positions()
-        geometry = handles.geometry
-        self._kernels = _kernels()
-        self._legs = np.array(leg_constants(geometry))
-        self._legs.setflags(write=False)  # as the kernels were compiled for
-        self._u_B = np.array(geometry.u_B, dtype=float)  # writable, as compiled
-        self._R0 = np.array(rod_zero_rotations(geometry), dtype=float)
-        rods = handles.rod_balls
-        self._layout = np.array(
-            [j.position_start() for j in handles.motors]
-            + [rods[i].position_start() if rods else -1 for i in range(6)]
-            + [handles.platform.floating_positions_start()]
-            + [nq + handles.platform.floating_velocities_start_in_v()]
-            + [nq + j.velocity_start() for j in handles.motors],
-            dtype=np.int64,
-        )
-        self._x = self.DeclareVectorInputPort("platform_state", 12)
-        self._x_in = np.zeros(12)
-        self.DeclareVectorOutputPort(
-            "plant_state", plant.num_positions() + plant.num_velocities(), self._Calc
-        )
-
-    def _Calc(self, context, output):
-        x = self._x_in
-        x[:] = self._x.Eval(context)
-        self._kernels.plant_state(
-            self._legs, self._u_B, self._R0, self._layout, x, output.get_mutable_value()
-        )
-
-
-class _ShowMeasured(LeafSystem):
-    """Draws the robot at the measured plant state in a Diagram of its own (the model's plant,
-    SceneGraph and Drake's Meshcat visualizer, never simulated): every ``period_s`` a publish
-    event sets the model plant's positions and force-publishes the visualizer."""
-
-    def __init__(self, model, plant, period_s: float):
-        super().__init__()
-        self._model, self._plant = model, plant
-        self._model_context = model.CreateDefaultContext()
-        self._plant_context = plant.GetMyMutableContextFromRoot(self._model_context)
-        n = plant.num_positions() + plant.num_velocities()
-        self._state = self.DeclareVectorInputPort("plant_state", n)
-        self.DeclarePeriodicPublishEvent(period_s, 0.0, self._Show)
-        self.DeclareForcedPublishEvent(self._Show)
-
-    def _Show(self, context):
-        self._model_context.SetTime(context.get_time())
-        self._plant.SetPositionsAndVelocities(self._plant_context, self._state.Eval(context))
-        self._model.ForcedPublish(self._model_context)
-
-
 class HardwareStation(Diagram):
     """The robot on its servo bus, with the ports of
     :class:`~stewart_drake.station.station.StewartStation`; a Diagram named "station".
@@ -495,7 +420,7 @@ class HardwareStation(Diagram):
             measured crank angles, and rates x_dot = J^-1 theta_dot from the measured crank
             rates; what the "x" log and the guard's tracking check then read.
         ``plant_state`` (nq + nv,): the MultibodyPlant assembled at that pose and rate
-            (:class:`MeasuredPlantState`), for the loggers, replays and the guard.
+            (:class:`~.measured_state.MeasuredPlantState`), for the loggers, replays and the guard.
         ``loop`` (4,): the driver's loop status for the LCM status (mode, deadline misses,
             period us, measurement age us).
     Attributes:
@@ -532,8 +457,9 @@ class HardwareStation(Diagram):
         self.model = model_builder.Build()
         self.plant, self.scene_graph, self.handles, self.plan = plant, scene_graph, handles, plan
         self.loop_closure = LoopClosure(handles)
-        #: The plant state is assembled at the measured pose (:class:`MeasuredPlantState`):
-        #: its loops close by construction, and the guard does not measure them each period.
+        #: The plant state is assembled at the measured pose
+        #: (:class:`~.measured_state.MeasuredPlantState`): its loops close by construction, and
+        #: the guard does not measure them each period.
         self.loops_closed_by_construction = True
         self.logged_pose_lag_s = plan.control_period_s
         self.sensor = PlatformPoseSensor(plant, handles)
@@ -567,7 +493,7 @@ class HardwareStation(Diagram):
         if meshcat is not None:
             self.show = builder.AddNamedSystem(
                 "show_measured",
-                _ShowMeasured(self.model, plant, scenario.visualization.publish_period),
+                ShowMeasured(self.model, plant, scenario.visualization.publish_period),
             )
             builder.Connect(state.get_output_port(), self.show.get_input_port())
         builder.BuildInto(self)
