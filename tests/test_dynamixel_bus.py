@@ -23,9 +23,10 @@ from stewart_drake.base.errors import (  # noqa: E402
 )
 from stewart_drake.station.bus import protocol as p  # noqa: E402
 from stewart_drake.station.bus import servos  # noqa: E402
-from stewart_drake.station.bus.driver import DynamixelBus, dynamixel_sdk  # noqa: E402
+from stewart_drake.station.bus.driver import DynamixelBus  # noqa: E402
 from stewart_drake.station.bus.emulator import BusEmulator  # noqa: E402
 from stewart_drake.station.bus.servo_models import FirstOrderServos  # noqa: E402
+from stewart_drake.station.bus.vendor_port import dynamixel_sdk  # noqa: E402
 
 IDS = [1, 2, 3, 4, 5, 6]
 XM430 = servos.SERVO_SPECS["XM430-W350-T"]

@@ -272,7 +272,7 @@ def _cmd_robot(args) -> int:
 
         check_replaceable(out / f"{stem}.npz")
         check_replaceable(encoder_log_path(out / f"{stem}.npz"))
-    from ..station.bus.driver import dynamixel_sdk
+    from ..station.bus.vendor_port import dynamixel_sdk
 
     dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
     if args.calibrate is not None:
@@ -570,7 +570,7 @@ def rehearse_calibration(args, context) -> int:
             f"--rehearse --bus drives the robot on its bus: --scenario {args.scenario} has no "
             f"bus section (paper_bus has one)"
         )
-    from ..station.bus.driver import dynamixel_sdk
+    from ..station.bus.vendor_port import dynamixel_sdk
 
     dynamixel_sdk()  # the extra, before anything starts: MissingExtraError names it
     say_if_compiling("robot")

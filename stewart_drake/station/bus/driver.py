@@ -10,7 +10,8 @@ byte, but built once into preallocated buffers and parsed by compiled code
 packet a list at a time, a third of a millisecond of the loop's CPU a period.
 :meth:`DynamixelBus.torque_off` is safe to call at any time and is called on close, on
 ``__exit__`` and before a :class:`~stewart_drake.base.errors.BusError` is raised. Addresses,
-units and conversions: :mod:`.protocol`; the models and the settings' check: :mod:`.servos`;
+units and conversions: :mod:`.protocol`; the models and the settings' check: :mod:`.servos`; the
+vendor's module and its port: :mod:`.vendor_port`;
 docs/hardware_bus.md.
 """
 
@@ -30,7 +31,6 @@ import numpy as np
 from ...base.errors import (
     BusError,
     InvalidConfigError,
-    MissingExtraError,
     MissingServoError,
     ServoConfigMismatchError,
 )
@@ -41,46 +41,7 @@ from .servos import (
     check_bus_settings,
     servo_spec,
 )
-
-
-def dynamixel_sdk():
-    """The vendor's module, imported on first use.
-
-    Raises:
-        MissingExtraError: not installed (says which extra to install).
-    """
-    try:
-        import dynamixel_sdk as sdk
-    except ImportError:
-        raise MissingExtraError(
-            "the servo driver needs ROBOTIS's dynamixel-sdk: pip install 'stewart-drake[robot]'"
-        ) from None
-    return sdk
-
-
-def _port_handler(sdk, port: str, reply_timeout_s: float | None):
-    """The SDK's PortHandler on ``port``, with two changes.
-
-    Its receive loop polls the port without waiting (``timeout=0``): one core at 100 % while a
-    reply is awaited, and in one process with the emulator's thread, a GIL held most of the
-    time. Here a read of an empty port first waits up to 0.5 ms for a byte (``select``), so
-    the loop sleeps instead. And ``reply_timeout_s`` (None: the SDK's own, 2 x 16 ms of USB
-    latency timer + 2 ms + the transfer) is the least time to wait for a status packet.
-    """
-    import select
-
-    class PortHandler(sdk.PortHandler):
-        def readPort(self, length):
-            if self.ser.in_waiting == 0:
-                select.select([self.ser.fileno()], [], [], 5e-4)
-            return super().readPort(length)
-
-        def setPacketTimeout(self, packet_length):
-            super().setPacketTimeout(packet_length)
-            if reply_timeout_s is not None:
-                self.packet_timeout = max(self.packet_timeout, 1e3 * reply_timeout_s)
-
-    return PortHandler(port)
+from .vendor_port import dynamixel_sdk, port_handler
 
 
 @dataclass(frozen=True)
@@ -258,7 +219,7 @@ class DynamixelBus:
             BusError: the port does not open; a servo of another model.
             MissingServoError: an id that does not answer.
         """
-        port = _port_handler(self._sdk, self.port_name, self.reply_timeout_s)
+        port = port_handler(self._sdk, self.port_name, self.reply_timeout_s)
         try:
             opened = port.openPort() and port.setBaudRate(self.baud_rate)
         except Exception as e:  # pyserial's SerialException, OSError, ...
